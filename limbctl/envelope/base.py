@@ -1,0 +1,184 @@
+"""The Envelope interface: every constraint model (RigidMap, SOM, Cone) speaks it.
+
+An envelope is a region of valid orientations (unit quaternions, w >= 0). It is learned from
+valid samples (``fit``), answers as the papers' network does (``respond``), and serves the gate
+(``contains`` and ``correct``). Models are saved to one ``.npz`` file holding a JSON header (kind,
+format version, parameters, a SHA-256 over the header and arrays) and the model's arrays.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import zipfile
+from abc import ABC, abstractmethod
+from pathlib import Path
+from typing import Any, ClassVar
+
+import numpy as np
+
+from limbctl.errors import FileFormatError
+from limbctl.quat import as_quaternions
+
+#: Bumped whenever the saved layout changes; older files are refused with a clear message.
+FORMAT_VERSION = 1
+_MAGIC = "limbctl-envelope"
+
+
+class Envelope(ABC):
+    """A region of valid orientations on S^3 behind one interface.
+
+    Subclasses set ``kind`` (the name written to files) and implement ``fit``, ``respond``,
+    ``contains``, ``correct``, ``_params`` / ``_arrays`` (what to save) and ``_restore`` (how to
+    rebuild from them). Every method accepts one quaternion (4,) or a batch (N, 4) and returns
+    the same leading shape.
+    """
+
+    kind: ClassVar[str] = ""
+    _registry: ClassVar[dict[str, type[Envelope]]] = {}
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        if cls.kind:
+            Envelope._registry[cls.kind] = cls
+
+    # ---- learning and answering ------------------------------------------------------------
+    @abstractmethod
+    def fit(self, q_train: np.ndarray) -> Envelope:
+        """Learn the region from valid orientations ``q_train`` (N, 4). Returns self."""
+
+    @abstractmethod
+    def respond(self, q: np.ndarray, interpolation: str = "none", k: int = 8) -> np.ndarray:
+        """The network's answer as in the papers, shape like ``q``."""
+
+    @abstractmethod
+    def contains(self, q: np.ndarray) -> np.ndarray | bool:
+        """Whether each orientation is inside the learned region: (N,) bool, or bool for (4,)."""
+
+    @abstractmethod
+    def correct(self, q: np.ndarray) -> np.ndarray:
+        """``q`` itself inside the region, the nearest boundary orientation outside."""
+
+    @property
+    @abstractmethod
+    def weights(self) -> np.ndarray:
+        """Trained node weights (nodes, 4); empty (0, 4) for analytic models."""
+
+    # ---- persistence -----------------------------------------------------------------------
+    @abstractmethod
+    def _params(self) -> dict[str, Any]:
+        """JSON-serialisable constructor parameters and scalar state."""
+
+    @abstractmethod
+    def _arrays(self) -> dict[str, np.ndarray]:
+        """Named arrays that, with ``_params``, rebuild the trained model."""
+
+    @classmethod
+    @abstractmethod
+    def _restore(cls, params: dict[str, Any], arrays: dict[str, np.ndarray]) -> Envelope:
+        """Rebuild a trained model from what ``_params`` and ``_arrays`` returned."""
+
+    def save(self, path: str | Path, metadata: dict[str, Any] | None = None) -> Path:
+        """Write the model to ``path`` (one .npz file) atomically; returns the path.
+
+        ``metadata`` (JSON-serialisable, e.g. the rig name a model was trained for) is stored
+        in the header and read back by :func:`load_header`.
+        """
+        path = Path(path)
+        arrays = {name: np.ascontiguousarray(a) for name, a in self._arrays().items()}
+        header = {
+            "magic": _MAGIC,
+            "format_version": FORMAT_VERSION,
+            "kind": self.kind,
+            "params": self._params(),
+            "metadata": metadata or {},
+        }
+        header["sha256"] = _digest(header, arrays)
+        tmp = path.with_name(path.name + ".tmp")
+        with open(tmp, "wb") as fh:
+            np.savez(
+                fh, __header__=np.frombuffer(json.dumps(header).encode(), dtype=np.uint8), **arrays
+            )
+        tmp.replace(path)
+        return path
+
+    @classmethod
+    def load(cls, path: str | Path) -> Envelope:
+        """Read a model saved by :meth:`save`, checking magic, version, kind and checksum.
+
+        Raises
+        ------
+        FileFormatError
+            Naming the file and the problem (missing, truncated, corrupt, wrong version, or a
+            model of another kind than the class it is loaded through).
+        """
+        header, arrays = _read(Path(path))
+        kind = header.get("kind")
+        target = Envelope._registry.get(kind)
+        if target is None:
+            raise FileFormatError(path, f"unknown model kind {kind!r}")
+        if cls is not Envelope and not issubclass(target, cls):
+            raise FileFormatError(path, f"holds a {kind} model, not a {cls.kind or cls.__name__}")
+        try:
+            return target._restore(header["params"], arrays)
+        except (KeyError, ValueError, TypeError) as exc:
+            raise FileFormatError(path, f"model parameters do not fit a {kind}: {exc}") from exc
+
+    # ---- shared helpers --------------------------------------------------------------------
+    @staticmethod
+    def _input(q: object) -> tuple[np.ndarray, bool]:
+        """Validate input quaternions: (N, 4) canonical float64 and whether a single (4,) came in."""
+        return as_quaternions(q)
+
+
+def load_model(path: str | Path) -> Envelope:
+    """Load any envelope model file, whatever its kind."""
+    return Envelope.load(path)
+
+
+def load_header(path: str | Path) -> dict[str, Any]:
+    """Read and verify a model file, returning its header (kind, params, metadata)."""
+    header, _ = _read(Path(path))
+    return header
+
+
+def _digest(header: dict[str, Any], arrays: dict[str, np.ndarray]) -> str:
+    """SHA-256 over the header (without its checksum) and every array's name, dtype, shape, bytes."""
+    h = hashlib.sha256()
+    body = {k: v for k, v in header.items() if k != "sha256"}
+    h.update(json.dumps(body, sort_keys=True).encode())
+    for name in sorted(arrays):
+        a = np.ascontiguousarray(arrays[name])
+        h.update(f"{name}|{a.dtype.str}|{a.shape}".encode())
+        h.update(a.tobytes())
+    return h.hexdigest()
+
+
+def _read(path: Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+    if not path.exists():
+        raise FileFormatError(path, "no such model file (train one with `limbctl train`)")
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            raw = {name: data[name] for name in data.files}
+    except (OSError, ValueError, zipfile.BadZipFile, EOFError, KeyError) as exc:
+        raise FileFormatError(
+            path, f"not a readable model file (truncated or corrupt): {exc}"
+        ) from exc
+    if "__header__" not in raw:
+        raise FileFormatError(path, "not a limbctl model file (no header)")
+    try:
+        header = json.loads(raw.pop("__header__").tobytes().decode())
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise FileFormatError(path, f"model header is corrupt: {exc}") from exc
+    if not isinstance(header, dict) or header.get("magic") != _MAGIC:
+        raise FileFormatError(path, "not a limbctl model file (bad magic)")
+    version = header.get("format_version")
+    if version != FORMAT_VERSION:
+        raise FileFormatError(
+            path,
+            f"model format version {version} is not supported (this limbctl reads "
+            f"{FORMAT_VERSION}); retrain with `limbctl train`",
+        )
+    if header.get("sha256") != _digest(header, raw):
+        raise FileFormatError(path, "checksum mismatch: the file was modified or corrupted")
+    return header, raw
