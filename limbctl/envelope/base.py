@@ -127,7 +127,7 @@ class Envelope(ABC):
     # ---- shared helpers --------------------------------------------------------------------
     @staticmethod
     def _input(q: object) -> tuple[np.ndarray, bool]:
-        """Validate input quaternions: (N, 4) canonical float64 and whether a single (4,) came in."""
+        """Validate input: (N, 4) canonical float64, and whether a single (4,) came in."""
         return as_quaternions(q)
 
 
@@ -143,7 +143,7 @@ def load_header(path: str | Path) -> dict[str, Any]:
 
 
 def _digest(header: dict[str, Any], arrays: dict[str, np.ndarray]) -> str:
-    """SHA-256 over the header (without its checksum) and every array's name, dtype, shape, bytes."""
+    """SHA-256 over the header (less its checksum) and each array's name, dtype, shape, bytes."""
     h = hashlib.sha256()
     body = {k: v for k, v in header.items() if k != "sha256"}
     h.update(json.dumps(body, sort_keys=True).encode())
