@@ -1,0 +1,141 @@
+import numpy as np
+import pytest
+
+from limbctl.envelope import layouts
+from limbctl.envelope.layouts import covering_angle, make_layout, nearest_neighbour_angles
+from limbctl.errors import ConfigError
+
+# (name, full-sphere count, nearest-neighbour angle between unit 4-vectors in degrees;
+#  the rotation angle between neighbours is twice this)
+POLYTOPES = [
+    ("24-cell", 24, 60.0),
+    ("600-cell", 120, 36.0),
+    # 120-cell edge over circumradius = 1 / (phi^2 sqrt 2); angle = 2 asin(edge / 2)
+    ("120-cell", 600, np.degrees(2 * np.arcsin(1 / (2 * layouts.PHI**2 * np.sqrt(2))))),
+]
+
+
+@pytest.mark.parametrize("name,count,nn_deg", POLYTOPES)
+def test_polytope_counts_unit_length_and_edge_angle(name, count, nn_deg):
+    full = make_layout(name, hemisphere=False)
+    assert full.shape == (count, 4)
+    np.testing.assert_allclose(np.linalg.norm(full, axis=1), 1.0, atol=1e-14)
+    nn = np.degrees(nearest_neighbour_angles(full))
+    np.testing.assert_allclose(nn, nn_deg, atol=1e-9)
+    # centrally symmetric: the antipode of every vertex is a vertex
+    assert np.allclose(np.max(full @ (-full).T, axis=1), 1.0)
+
+
+def test_120_cell_edge_angle_is_about_15_5_degrees():
+    assert POLYTOPES[2][2] == pytest.approx(15.52, abs=0.01)
+
+
+@pytest.mark.parametrize("name,count,nn_deg", POLYTOPES)
+def test_hemisphere_fold_keeps_one_of_each_antipodal_pair(name, count, nn_deg):
+    full = make_layout(name, hemisphere=False)
+    half = make_layout(name)
+    assert half.shape == (count // 2, 4)
+    assert (half[:, 0] >= 0).all()
+    # every full-sphere vertex is a folded node or the antipode of one, and nothing is repeated
+    best = np.max(np.abs(full @ half.T), axis=1)
+    np.testing.assert_allclose(best, 1.0, atol=1e-12)
+    assert np.max(np.abs(half @ half.T) - np.eye(len(half))) < 1 - 1e-9
+    np.testing.assert_allclose(np.degrees(nearest_neighbour_angles(half)).min(), nn_deg, atol=1e-9)
+
+
+def test_union_720_counts_and_alignment():
+    for name in ("polytope-720", "polytope-720-even"):
+        assert make_layout(name, hemisphere=False).shape == (720, 4)
+        assert make_layout(name).shape == (360, 4)
+    # dual alignment: every 600-cell vertex sits at a 120-cell cell centre, far from its vertices
+    c120 = layouts.cell_120()
+    gap_odd = np.degrees(np.arccos(np.max(layouts.cell_600("odd") @ c120.T, axis=1)))
+    gap_even = np.degrees(np.arccos(np.max(layouts.cell_600("even") @ c120.T, axis=1)))
+    assert gap_odd.min() > 20.0
+    assert gap_even.min() < 10.0
+
+
+def test_dual_aligned_union_covers_better():
+    probes = make_layout("uniform", n=60000, seed=11, hemisphere=False)
+    dual = np.degrees(covering_angle(make_layout("polytope-720", hemisphere=False), probes))
+    even = np.degrees(covering_angle(make_layout("polytope-720-even", hemisphere=False), probes))
+    alone = np.degrees(covering_angle(make_layout("120-cell", hemisphere=False), probes))
+    assert dual < even - 3.0
+    assert dual < alone - 5.0
+    # the sampled covering radius never exceeds the true one of the 120-cell alone (~22.2 deg
+    # at its cell centres), so the estimate is sane
+    assert alone < 22.3
+
+
+def test_folded_union_covers_the_hemisphere_like_the_full_union():
+    probes = make_layout("uniform", n=30000, seed=12)
+    full = covering_angle(make_layout("polytope-720", hemisphere=False), probes)
+    half = covering_angle(make_layout("polytope-720"), probes, sign_aware=True)
+    assert half == pytest.approx(full, abs=1e-12)
+
+
+def test_uniform_is_seeded_unit_and_on_the_hemisphere():
+    a = make_layout("uniform", n=2000, seed=3)
+    b = make_layout("uniform", n=2000, seed=np.random.default_rng(3))
+    c = make_layout("uniform", n=2000, seed=4)
+    np.testing.assert_array_equal(a, b)
+    assert not np.array_equal(a, c)
+    assert a.shape == (2000, 4)
+    np.testing.assert_allclose(np.linalg.norm(a, axis=1), 1.0, atol=1e-14)
+    assert (a[:, 0] >= 0).all()
+    full = make_layout("uniform", n=20000, seed=3, hemisphere=False)
+    # uniform on S^3: each coordinate has mean 0 and variance 1/4
+    np.testing.assert_allclose(full.mean(axis=0), 0.0, atol=0.02)
+    np.testing.assert_allclose(full.var(axis=0), 0.25, atol=0.01)
+
+
+@pytest.mark.parametrize("hemisphere", [True, False])
+def test_super_fibonacci_is_near_uniform(hemisphere):
+    n = 2000
+    sf = make_layout("super-fibonacci", n=n, hemisphere=hemisphere)
+    rnd = make_layout("uniform", n=n, seed=0, hemisphere=hemisphere)
+    assert sf.shape == (n, 4)
+    np.testing.assert_allclose(np.linalg.norm(sf, axis=1), 1.0, atol=1e-14)
+    if hemisphere:
+        assert (sf[:, 0] >= 0).all()
+    nn_sf = nearest_neighbour_angles(sf)
+    nn_rnd = nearest_neighbour_angles(rnd)
+    # spirals keep points apart: the closest pair is several times wider than random's
+    assert nn_sf.min() > 3.0 * nn_rnd.min()
+    probes = make_layout("uniform", n=40000, seed=21, hemisphere=hemisphere)
+    assert covering_angle(sf, probes) < covering_angle(rnd, probes)
+    # deterministic
+    np.testing.assert_array_equal(sf, make_layout("super-fibonacci", n=n, hemisphere=hemisphere))
+
+
+def test_super_fibonacci_first_point_matches_the_formula():
+    n = 10
+    s = 0.5
+    t = s / n
+    alpha = 2 * np.pi * s / np.sqrt(2)
+    beta = 2 * np.pi * s / layouts.PSI
+    expected = [
+        np.sqrt(t) * np.sin(alpha),
+        np.sqrt(t) * np.cos(alpha),
+        np.sqrt(1 - t) * np.sin(beta),
+        np.sqrt(1 - t) * np.cos(beta),
+    ]
+    np.testing.assert_allclose(
+        make_layout("super-fibonacci", n=n, hemisphere=False)[0], expected, atol=1e-15
+    )
+    assert layouts.PSI**4 == pytest.approx(layouts.PSI + 4, abs=1e-12)
+
+
+def test_unknown_name_lists_choices():
+    with pytest.raises(ConfigError, match="unknown layout 'cube'.*600-cell.*super-fibonacci"):
+        make_layout("cube")
+
+
+def test_bad_node_counts_are_refused():
+    with pytest.raises(ConfigError, match="needs a node count"):
+        make_layout("uniform")
+    with pytest.raises(ConfigError, match="needs a node count"):
+        make_layout("super-fibonacci", n=0)
+    with pytest.raises(ConfigError, match="has 60 nodes"):
+        make_layout("600-cell", n=100)
+    assert make_layout("600-cell", n=60).shape == (60, 4)
