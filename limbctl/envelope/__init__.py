@@ -1,5 +1,8 @@
 """Constraint models of the valid-orientation region, behind one interface (see base.py)."""
 
 from limbctl.envelope.base import Envelope, load_header, load_model
+from limbctl.envelope.cone import Cone
+from limbctl.envelope.layouts import LAYOUTS, make_layout
 
 __all__ = ["Envelope", "load_header", "load_model"]
+__all__ += ["Cone", "LAYOUTS", "make_layout"]

@@ -1,0 +1,197 @@
+"""Lee's analytic swing cone: the ground truth of the papers' experiments and a hand-written limit.
+
+The limb rests along +x. Lee splits q = swing * twist with the twist about +x; the swing angle
+(angle between the limb and +x) is ``theta = 2 acos(sqrt(w^2 + x^2))``. A cone of half-angle R
+allows any twist and every swing up to R:
+
+    valid  <=>  theta <= R  <=>  w^2 + x^2 >= cos^2(R / 2)
+
+The ideal correction (the papers' 'ideal' answers) keeps the twist and the swing axis and sets
+the swing angle to R. With n = sqrt(w^2 + x^2) and m = sqrt(y^2 + z^2) it has the closed form
+
+    correct(q) = (c w / n, c x / n, s y / m, s z / m),   c = cos(R / 2), s = sin(R / 2),
+
+(the swing (n, 0, (wy - xz)/n, (xy + wz)/n) rescaled to angle R, times the twist (w, x, 0, 0)/n),
+which is also the nearest point of the boundary in R^4. When n = 0 (the limb points along -x,
+twist undefined) the twist is taken as the identity: (c, 0, s y / m, s z / m).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from limbctl.envelope.base import Envelope
+from limbctl.errors import ConfigError
+from limbctl.quat import swing_angle
+
+#: ``contains`` accepts w^2 + x^2 >= cos^2(R/2) - CONTAINS_TOLERANCE, so that ``correct``'s
+#: boundary points (exact up to rounding, a few 1e-16) count as inside. In angle this is
+#: 2e-12 / sin(R) rad at most: far below any servo resolution.
+CONTAINS_TOLERANCE = 1e-12
+
+_INTERPOLATIONS = ("none", "idw", "geometric", "topological")
+
+
+class Cone(Envelope):
+    """Swing cone of half-angle R about +x, any twist (Lee). Exact and analytic.
+
+    Parameters
+    ----------
+    half_angle : float, optional
+        R in radians, 0 <= R <= pi.
+    half_angle_deg : float, optional
+        R in degrees (keyword only; give this or ``half_angle``, not both).
+
+    With neither given, :meth:`fit` learns R as the largest swing angle in the training data.
+    """
+
+    kind = "cone"
+
+    def __init__(
+        self, half_angle: float | None = None, *, half_angle_deg: float | None = None
+    ) -> None:
+        if half_angle is not None and half_angle_deg is not None:
+            raise ConfigError("Cone: give half_angle (rad) or half_angle_deg, not both")
+        if half_angle_deg is not None:
+            half_angle = np.radians(_check_number(half_angle_deg, "half_angle_deg"))
+        self._half_angle = None if half_angle is None else _check_half_angle(half_angle)
+
+    @property
+    def half_angle(self) -> float:
+        """R in radians."""
+        if self._half_angle is None:
+            raise ConfigError("Cone has no half angle yet: give half_angle= or call fit(q_train)")
+        return self._half_angle
+
+    @property
+    def half_angle_deg(self) -> float:
+        """R in degrees."""
+        return float(np.degrees(self.half_angle))
+
+    # ---- learning and answering ------------------------------------------------------------
+    def fit(self, q_train: np.ndarray) -> Cone:
+        """Check the training data; learn R = max swing angle if no half angle was given.
+
+        Parameters
+        ----------
+        q_train : array_like, shape (N, 4)
+            Valid orientations (unit quaternions); N >= 1.
+
+        Returns
+        -------
+        Cone
+            self. With a fixed half angle there is nothing to learn.
+        """
+        q, _ = self._input(q_train)
+        if len(q) == 0:
+            raise ConfigError("Cone.fit: q_train is empty; give at least one orientation")
+        if self._half_angle is None:
+            self._half_angle = _check_half_angle(float(np.max(swing_angle(q))))
+        return self
+
+    def respond(self, q: np.ndarray, interpolation: str = "none", k: int = 8) -> np.ndarray:
+        """Lee's ideal answer, identical to :meth:`correct`.
+
+        An analytic model has no nodes to interpolate between: ``interpolation`` and ``k`` are
+        checked (same choices as the networks) and otherwise ignored.
+        """
+        if interpolation not in _INTERPOLATIONS:
+            raise ConfigError(
+                f"unknown interpolation {interpolation!r}; choose one of: "
+                f"{', '.join(_INTERPOLATIONS)}"
+            )
+        if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1:
+            raise ConfigError(f"k must be an integer >= 1, got {k!r}")
+        return self.correct(q)
+
+    def contains(self, q: np.ndarray) -> np.ndarray | bool:
+        """Inside the cone: w^2 + x^2 >= cos^2(R/2) - CONTAINS_TOLERANCE. (N,) bool or bool."""
+        arr, single = self._input(q)
+        inside = self._inside(arr)
+        return bool(inside[0]) if single else inside
+
+    def correct(self, q: np.ndarray) -> np.ndarray:
+        """q (canonical, bit-for-bit) inside; Lee's correction to swing angle R outside.
+
+        Parameters
+        ----------
+        q : array_like, shape (4,) or (N, 4)
+
+        Returns
+        -------
+        ndarray, shape like ``q``
+            Unit quaternions, w >= 0.
+        """
+        arr, single = self._input(q)
+        out = arr.copy()
+        outside = ~self._inside(arr)
+        if outside.any():
+            out[outside] = self._to_boundary(arr[outside])
+        return out[0] if single else out
+
+    @property
+    def weights(self) -> np.ndarray:
+        """No nodes: an empty (0, 4) array."""
+        return np.empty((0, 4), dtype=np.float64)
+
+    # ---- internals -------------------------------------------------------------------------
+    def _inside(self, q: np.ndarray) -> np.ndarray:
+        limit = np.cos(0.5 * self.half_angle) ** 2
+        # valid iff w^2 + x^2 >= cos^2(R/2)   (tolerance: see CONTAINS_TOLERANCE)
+        return q[:, 0] ** 2 + q[:, 1] ** 2 >= limit - CONTAINS_TOLERANCE
+
+    def _to_boundary(self, q: np.ndarray) -> np.ndarray:
+        c = np.cos(0.5 * self.half_angle)
+        s = np.sin(0.5 * self.half_angle)
+        n = np.hypot(q[:, 0], q[:, 1])
+        m = np.hypot(q[:, 2], q[:, 3])
+        out = np.empty_like(q)
+        no_twist = n == 0.0
+        n_safe = np.where(no_twist, 1.0, n)
+        # (w, x) -> c (w, x) / n : keep the twist; n = 0 -> twist taken as the identity
+        out[:, 0] = np.where(no_twist, c, c * q[:, 0] / n_safe)
+        out[:, 1] = np.where(no_twist, 0.0, c * q[:, 1] / n_safe)
+        # (y, z) -> s (y, z) / m : keep the swing axis (m > 0 outside the cone)
+        out[:, 2] = s * q[:, 2] / m
+        out[:, 3] = s * q[:, 3] / m
+        return out
+
+    # ---- persistence -----------------------------------------------------------------------
+    def _params(self) -> dict[str, Any]:
+        return {"half_angle": self._half_angle}
+
+    def _arrays(self) -> dict[str, np.ndarray]:
+        return {}
+
+    @classmethod
+    def _restore(cls, params: dict[str, Any], arrays: dict[str, np.ndarray]) -> Cone:
+        return cls(params["half_angle"])
+
+    def __repr__(self) -> str:
+        if self._half_angle is None:
+            return "Cone(half_angle=None)"
+        return f"Cone(half_angle_deg={self.half_angle_deg:.6g})"
+
+
+def _check_number(value: object, name: str) -> float:
+    if isinstance(value, bool):
+        raise ConfigError(f"Cone: {name} must be a number, got {value!r}")
+    try:
+        number = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        raise ConfigError(f"Cone: {name} must be a number, got {value!r}") from None
+    if not np.isfinite(number):
+        raise ConfigError(f"Cone: {name} must be finite, got {value!r}")
+    return number
+
+
+def _check_half_angle(value: object) -> float:
+    r = _check_number(value, "half_angle")
+    if not 0.0 <= r <= np.pi:
+        raise ConfigError(
+            f"Cone: half_angle must lie in [0, pi] rad (0..180 deg), got {r!r} rad; "
+            f"use half_angle_deg= for degrees"
+        )
+    return r
