@@ -1,0 +1,243 @@
+"""The one place every commanded pose passes before it may become a goal position.
+
+Per command (see DESIGN.md, "Safety model"):
+
+1. ``correct``: the envelope returns the target itself inside the taught region, else the
+   nearest orientation on its boundary;
+2. slew limit: the limb direction moves at most ``max_step`` (rad) per cycle from the last safe
+   pose along the great circle toward the corrected target; the intermediate pose is corrected
+   again, so a non-convex region is followed along its edge, never cut across;
+3. inverse kinematics to (pan, tilt), keeping the current pan at the singularity;
+4. hard joint limits clamp (pan, tilt); a joint step larger than ``max_joint_step`` is refused;
+5. final check: the pose that would be written is inside the region (``contains``) and inside
+   the hard limits; if not, the last safe pose is held.
+
+The outcome of a cycle is a value (:class:`Outcome`), not an exception (after ruckig).
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+from limbctl.errors import ConfigError
+from limbctl.gimbal import direction_to_pan_tilt, pan_tilt_to_direction
+from limbctl.quat import limb_direction, swing_from_direction
+
+
+class RegionModel(Protocol):
+    """What the gate needs of an envelope (any :class:`limbctl.envelope.Envelope`)."""
+
+    def contains(self, q: np.ndarray) -> bool | np.ndarray: ...
+
+    def correct(self, q: np.ndarray) -> np.ndarray: ...
+
+
+class Outcome(enum.Enum):
+    """What the gate did with one command."""
+
+    PASSED = "passed"  # inside the region, within one step: written as commanded
+    CORRECTED = "corrected"  # moved onto the region's boundary
+    CLAMPED = "clamped"  # a hard joint limit trimmed it
+    SLEWED = "slewed"  # on its way: the step limit shortened it
+    HELD = "held"  # nothing safe to do with it: the last safe pose is kept
+
+
+@dataclass(frozen=True)
+class GateLimits:
+    """Hard limits and rates the gate enforces; angles in radians.
+
+    Attributes
+    ----------
+    pan_min, pan_max, tilt_min, tilt_max : float
+        Hard joint limits (rad) from the rig profile.
+    max_step : float
+        Largest change of limb direction per cycle (rad).
+    max_joint_step : float
+        Largest change of either joint per cycle (rad); guards the singularity where a small
+        direction change asks for a large pan swing.
+    region_tolerance : float
+        How far (rad, limb direction) outside the learned region a written pose may be: the
+        round trip through joint angles moves a boundary point by ~1e-12 rad, never more.
+    """
+
+    pan_min: float
+    pan_max: float
+    tilt_min: float
+    tilt_max: float
+    max_step: float
+    max_joint_step: float
+    region_tolerance: float = math.radians(0.01)
+
+    def __post_init__(self) -> None:
+        values = [getattr(self, f) for f in self.__dataclass_fields__]
+        if not all(math.isfinite(v) for v in values):
+            raise ConfigError(f"gate limits must be finite: {self}")
+        if not (self.pan_min < self.pan_max and self.tilt_min < self.tilt_max):
+            raise ConfigError(f"gate limits: each min must be below its max: {self}")
+        if not (self.max_step > 0 and self.max_joint_step > 0 and self.region_tolerance >= 0):
+            raise ConfigError(
+                "gate limits: max_step and max_joint_step must be positive, "
+                "region_tolerance non-negative"
+            )
+
+
+@dataclass(frozen=True)
+class GateResult:
+    """One cycle's answer.
+
+    Attributes
+    ----------
+    pan, tilt : float
+        The pose to write (rad); the last safe pose when ``outcome`` is HELD.
+    outcome : Outcome
+        The strongest thing that happened (HELD > CLAMPED > CORRECTED > SLEWED > PASSED).
+    corrected, clamped, slewed : bool
+        Each stage that changed the command.
+    reason : str
+        Why the command was held, empty otherwise.
+    """
+
+    pan: float
+    tilt: float
+    outcome: Outcome
+    corrected: bool = False
+    clamped: bool = False
+    slewed: bool = False
+    reason: str = ""
+
+
+def _angle(a: np.ndarray, b: np.ndarray) -> float:
+    # atan2(|a x b|, a . b): accurate for tiny angles
+    return math.atan2(float(np.linalg.norm(np.cross(a, b))), float(a @ b))
+
+
+def _toward(a: np.ndarray, b: np.ndarray, step: float) -> np.ndarray:
+    """Unit direction ``step`` rad from ``a`` along the great circle toward ``b``."""
+    # d = cos(step) a + sin(step) u, with u the unit tangent at a toward b
+    tangent = b - (a @ b) * a
+    norm = float(np.linalg.norm(tangent))
+    if norm < 1e-12:
+        return a.copy()
+    return math.cos(step) * a + math.sin(step) * (tangent / norm)
+
+
+class Gate:
+    """Turns commanded orientations into safe joint goals, one cycle at a time.
+
+    Parameters
+    ----------
+    envelope : RegionModel
+        The trained region (``contains``/``correct`` on single quaternions).
+    limits : GateLimits
+        Hard limits and per-cycle step limits.
+    """
+
+    def __init__(self, envelope: RegionModel, limits: GateLimits) -> None:
+        self.envelope = envelope
+        self.limits = limits
+        self._pan: float | None = None
+        self._tilt: float | None = None
+        self._direction: np.ndarray | None = None
+
+    @property
+    def safe_pose(self) -> tuple[float, float] | None:
+        """The last pose the gate let through (rad), or None before :meth:`start`."""
+        if self._pan is None or self._tilt is None:
+            return None
+        return self._pan, self._tilt
+
+    def is_safe(self, pan: float, tilt: float) -> bool:
+        """True when the pose is finite, inside the hard limits and inside the region."""
+        lim = self.limits
+        if not (lim.pan_min <= pan <= lim.pan_max and lim.tilt_min <= tilt <= lim.tilt_max):
+            return False  # NaN fails every comparison above and lands here
+        direction = pan_tilt_to_direction(pan, tilt)
+        q = swing_from_direction(direction)
+        if bool(self.envelope.contains(q)):
+            return True
+        # inside up to the stated tolerance: the nearest region point is within region_tolerance
+        nearest = limb_direction(self.envelope.correct(q))
+        return _angle(direction, nearest) <= lim.region_tolerance
+
+    def start(self, current_pan: float, current_tilt: float) -> None:
+        """Begin from the limb's present pose, which must already be safe.
+
+        Raises
+        ------
+        SafetyError
+            When the present pose is outside the region or the hard limits: the gate will not
+            drive the limb from there (move it inside by hand with torque off, then start again).
+        """
+        from limbctl.errors import SafetyError
+
+        if not self.is_safe(current_pan, current_tilt):
+            raise SafetyError(
+                f"the limb is at pan {math.degrees(current_pan):.1f} deg, tilt "
+                f"{math.degrees(current_tilt):.1f} deg, outside the taught region or the rig's "
+                "hard limits; move it inside by hand (torque off) before starting"
+            )
+        self._pan, self._tilt = float(current_pan), float(current_tilt)
+        self._direction = pan_tilt_to_direction(self._pan, self._tilt)
+
+    def hold(self, reason: str) -> GateResult:
+        """Keep the last safe pose."""
+        if self._pan is None or self._tilt is None:
+            raise RuntimeError("Gate.start() must be called before the first cycle")
+        return GateResult(self._pan, self._tilt, Outcome.HELD, reason=reason)
+
+    def step(self, target_q: np.ndarray) -> GateResult:
+        """Gate one commanded orientation (4,) and return the pose to write this cycle."""
+        if self._direction is None or self._pan is None or self._tilt is None:
+            raise RuntimeError("Gate.start() must be called before the first cycle")
+        target_q = np.asarray(target_q, dtype=np.float64)
+        if target_q.shape != (4,) or not np.isfinite(target_q).all():
+            return self.hold("non-finite or malformed target")
+        if not abs(float(np.linalg.norm(target_q)) - 1.0) <= 1e-6:
+            return self.hold("target is not a unit quaternion")
+        lim = self.limits
+
+        corrected_q = self.envelope.correct(target_q)
+        target_dir = limb_direction(corrected_q)
+        corrected = not np.array_equal(corrected_q, target_q)
+
+        # slew: at most max_step along the great circle from the last safe direction
+        slewed = False
+        if _angle(self._direction, target_dir) > lim.max_step:
+            slewed = True
+            step_dir = _toward(self._direction, target_dir, lim.max_step)
+            target_dir = limb_direction(self.envelope.correct(swing_from_direction(step_dir)))
+
+        pan, tilt = direction_to_pan_tilt(target_dir, current_pan=self._pan)
+        pan, tilt = float(pan), float(tilt)
+        clamped_pan = min(max(pan, lim.pan_min), lim.pan_max)
+        clamped_tilt = min(max(tilt, lim.tilt_min), lim.tilt_max)
+        clamped = clamped_pan != pan or clamped_tilt != tilt
+        pan, tilt = clamped_pan, clamped_tilt
+
+        # near the singularity a short direction step can ask for a long pan swing: shorten it
+        # in joint space, pan' = pan0 + f (pan - pan0) with f = max_joint_step / largest step
+        largest = max(abs(pan - self._pan), abs(tilt - self._tilt))
+        if largest > lim.max_joint_step:
+            f = lim.max_joint_step / largest
+            pan = self._pan + f * (pan - self._pan)
+            tilt = self._tilt + f * (tilt - self._tilt)
+            slewed = True
+        if not self.is_safe(pan, tilt):
+            return self.hold("corrected pose failed the final region/limit check")
+
+        self._pan, self._tilt = pan, tilt
+        self._direction = pan_tilt_to_direction(pan, tilt)
+        if clamped:
+            outcome = Outcome.CLAMPED
+        elif corrected:
+            outcome = Outcome.CORRECTED
+        elif slewed:
+            outcome = Outcome.SLEWED
+        else:
+            outcome = Outcome.PASSED
+        return GateResult(pan, tilt, outcome, corrected=corrected, clamped=clamped, slewed=slewed)
