@@ -1,0 +1,21 @@
+"""Rig profiles: the data both the controller and its tools read (see calib.profile)."""
+
+from calib.profile import (
+    SIM_PORT,
+    JointProfile,
+    RigProfile,
+    default_sim_profile,
+    load_profile,
+    profile_from_dict,
+    save_profile,
+)
+
+__all__ = [
+    "SIM_PORT",
+    "JointProfile",
+    "RigProfile",
+    "default_sim_profile",
+    "load_profile",
+    "profile_from_dict",
+    "save_profile",
+]

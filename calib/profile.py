@@ -1,0 +1,304 @@
+"""The rig profile: which port and servos a gimbal uses and how its joints are calibrated.
+
+A profile is a small YAML file (see ``calib/rigs/sim.yaml``)::
+
+    name: sim
+    port: sim              # "sim" = the embedded simulator, else a device such as /dev/ttyUSB0
+    baud: 57600
+    model: xl430-w250      # or xm430-w350
+    protocol: 2.0
+    pan:  {id: 1, zero_tick: 2185, direction: 1,  min_deg: -115.0, max_deg: 115.0}
+    tilt: {id: 2, zero_tick: 1890, direction: -1, min_deg: -55.0,  max_deg: 70.0}
+    rest_direction: [1.0, 0.0, 0.0]
+
+It is validated on load; every error names the file and the field, e.g.
+``calib/rigs/x.yaml: pan.direction must be +1 or -1, got 2``. The result is an immutable
+:class:`RigProfile`. :func:`save_profile` writes atomically (``limbctl calibrate`` uses it).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from limbctl.control_table import BAUD_RATE_VALUES, MAX_TICK, MODEL_BY_NAME
+from limbctl.errors import ConfigError, FileFormatError
+from limbctl.ticks import tick_limits
+
+#: The port name that stands for the embedded simulator.
+SIM_PORT = "sim"
+#: Protocol versions limbctl speaks.
+PROTOCOLS = (2.0,)
+#: Largest id a servo can have (253 and up are reserved / broadcast).
+MAX_SERVO_ID = 252
+_JOINT_KEYS = ("id", "zero_tick", "direction", "min_deg", "max_deg")
+_TOP_KEYS = ("name", "port", "baud", "model", "protocol", "pan", "tilt", "rest_direction")
+
+
+@dataclass(frozen=True)
+class JointProfile:
+    """One calibrated joint.
+
+    Attributes
+    ----------
+    id : int
+        Servo id on the bus (0..252).
+    zero_tick : int
+        Encoder tick (0..4095) at which the joint angle is 0.
+    direction : int
+        +1 if ticks grow with the joint angle, -1 if they shrink.
+    min_deg, max_deg : float
+        Hard joint limits in degrees, ``min_deg < max_deg``.
+    """
+
+    id: int
+    zero_tick: int
+    direction: int
+    min_deg: float
+    max_deg: float
+
+    @property
+    def min_rad(self) -> float:
+        """Lower hard limit in radians."""
+        return math.radians(self.min_deg)
+
+    @property
+    def max_rad(self) -> float:
+        """Upper hard limit in radians."""
+        return math.radians(self.max_deg)
+
+    @property
+    def tick_limits(self) -> tuple[int, int]:
+        """Integer tick range ``(lo, hi)`` strictly inside the hard limits."""
+        return tick_limits(self.min_deg, self.max_deg, self.zero_tick, self.direction)
+
+
+@dataclass(frozen=True)
+class RigProfile:
+    """A whole rig: bus settings and the pan and tilt joints.
+
+    ``source`` is the file the profile was loaded from (None if built in code); it is not
+    compared and not saved.
+    """
+
+    name: str
+    port: str
+    baud: int
+    model: str
+    protocol: float
+    pan: JointProfile
+    tilt: JointProfile
+    rest_direction: tuple[float, float, float] = (1.0, 0.0, 0.0)
+    source: str | None = field(default=None, compare=False)
+
+    @property
+    def is_sim(self) -> bool:
+        """True when the profile asks for the embedded simulator."""
+        return self.port == SIM_PORT
+
+    @property
+    def ids(self) -> tuple[int, int]:
+        """Servo ids ``(pan, tilt)``."""
+        return (self.pan.id, self.tilt.id)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain-data form, the same shape as the YAML file."""
+        return {
+            "name": self.name,
+            "port": self.port,
+            "baud": self.baud,
+            "model": self.model,
+            "protocol": self.protocol,
+            "pan": _joint_dict(self.pan),
+            "tilt": _joint_dict(self.tilt),
+            "rest_direction": [float(v) for v in self.rest_direction],
+        }
+
+
+def _joint_dict(joint: JointProfile) -> dict[str, Any]:
+    return {key: getattr(joint, key) for key in _JOINT_KEYS}
+
+
+# ---- validation --------------------------------------------------------------------------------
+class _Checker:
+    """Collects the file name so every error names file and field."""
+
+    def __init__(self, source: str) -> None:
+        self.source = source
+
+    def fail(self, field: str, problem: str) -> ConfigError:
+        return ConfigError(f"{self.source}: {field} {problem}")
+
+    def mapping(self, value: Any, field: str, keys: tuple[str, ...]) -> dict[str, Any]:
+        if not isinstance(value, dict):
+            raise self.fail(field, f"must be a mapping with keys {', '.join(keys)}, got {value!r}")
+        missing = [k for k in keys if k not in value]
+        if missing:
+            raise self.fail(field, f"is missing {', '.join(missing)} (expected {', '.join(keys)})")
+        unknown = sorted(str(k) for k in value if k not in keys)
+        if unknown:
+            raise self.fail(
+                field,
+                f"has unknown keys {', '.join(unknown)} (allowed: "
+                f"{', '.join(keys)}); check the spelling",
+            )
+        return value
+
+    def integer(self, value: Any, field: str, lo: int, hi: int) -> int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise self.fail(field, f"must be an integer in {lo}..{hi}, got {value!r}")
+        if not lo <= value <= hi:
+            raise self.fail(field, f"must be in {lo}..{hi}, got {value}")
+        return value
+
+    def number(self, value: Any, field: str) -> float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise self.fail(field, f"must be a number, got {value!r}")
+        if not math.isfinite(value):
+            raise self.fail(field, f"must be finite, got {value!r}")
+        return float(value)
+
+    def text(self, value: Any, field: str) -> str:
+        if not isinstance(value, str) or not value.strip():
+            raise self.fail(field, f"must be a non-empty string, got {value!r}")
+        return value
+
+    def joint(self, value: Any, field: str) -> JointProfile:
+        raw = self.mapping(value, field, _JOINT_KEYS)
+        servo_id = self.integer(raw["id"], f"{field}.id", 0, MAX_SERVO_ID)
+        zero_tick = self.integer(raw["zero_tick"], f"{field}.zero_tick", 0, MAX_TICK)
+        direction = raw["direction"]
+        if isinstance(direction, bool) or direction not in (1, -1):
+            raise self.fail(f"{field}.direction", f"must be +1 or -1, got {direction!r}")
+        min_deg = self.number(raw["min_deg"], f"{field}.min_deg")
+        max_deg = self.number(raw["max_deg"], f"{field}.max_deg")
+        if not -180.0 < min_deg < max_deg < 180.0:
+            raise self.fail(
+                f"{field}.min_deg/max_deg",
+                f"must satisfy -180 < min_deg < max_deg < 180, got {min_deg} and {max_deg}",
+            )
+        joint = JointProfile(servo_id, zero_tick, int(direction), min_deg, max_deg)
+        lo, hi = joint.tick_limits
+        if lo < 0 or hi > MAX_TICK:
+            raise self.fail(
+                f"{field}.min_deg/max_deg",
+                f"reach ticks {lo}..{hi} from zero_tick {zero_tick}, outside one servo turn "
+                f"0..{MAX_TICK}; narrow the limits or re-mount the horn and recalibrate",
+            )
+        return joint
+
+    def direction3(self, value: Any, field: str) -> tuple[float, float, float]:
+        if not isinstance(value, (list, tuple)) or len(value) != 3:
+            raise self.fail(field, f"must be a list of 3 numbers [x, y, z], got {value!r}")
+        xyz = [self.number(v, f"{field}[{i}]") for i, v in enumerate(value)]
+        norm = math.sqrt(sum(v * v for v in xyz))
+        if norm == 0.0:
+            raise self.fail(field, "must not be the zero vector")
+        return (xyz[0] / norm, xyz[1] / norm, xyz[2] / norm)
+
+
+def profile_from_dict(data: Any, source: str = "<profile>") -> RigProfile:
+    """Validate plain data (as parsed from YAML) into a :class:`RigProfile`.
+
+    Raises
+    ------
+    ConfigError
+        Naming ``source`` and the offending field.
+    """
+    check = _Checker(source)
+    required = tuple(k for k in _TOP_KEYS if k != "rest_direction")
+    if not isinstance(data, dict):
+        raise check.fail("top level", f"must be a mapping with keys {', '.join(required)}")
+    raw = dict(data)
+    raw.setdefault("rest_direction", [1.0, 0.0, 0.0])
+    check.mapping(raw, "profile", _TOP_KEYS)
+    name = check.text(raw["name"], "name")
+    port = check.text(raw["port"], "port")
+    baud = raw["baud"]
+    if isinstance(baud, bool) or baud not in BAUD_RATE_VALUES:
+        choices = ", ".join(str(b) for b in BAUD_RATE_VALUES)
+        raise check.fail("baud", f"must be one of {choices}, got {baud!r}")
+    model = raw["model"]
+    if model not in MODEL_BY_NAME:
+        raise check.fail("model", f"must be one of {', '.join(MODEL_BY_NAME)}, got {model!r}")
+    protocol = raw["protocol"]
+    if isinstance(protocol, bool) or protocol not in PROTOCOLS:
+        raise check.fail("protocol", f"must be 2.0 (X series, Protocol 2.0), got {protocol!r}")
+    pan = check.joint(raw["pan"], "pan")
+    tilt = check.joint(raw["tilt"], "tilt")
+    if pan.id == tilt.id:
+        raise check.fail("tilt.id", f"must differ from pan.id, both are {pan.id}")
+    rest = check.direction3(raw["rest_direction"], "rest_direction")
+    return RigProfile(name, port, int(baud), model, float(protocol), pan, tilt, rest, source)
+
+
+# ---- files -------------------------------------------------------------------------------------
+def load_profile(path: str | os.PathLike[str]) -> RigProfile:
+    """Read and validate the rig profile at ``path``.
+
+    Raises
+    ------
+    ConfigError
+        If the file is missing or a field is invalid (the message names file and field).
+    FileFormatError
+        If the file is not readable YAML.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ConfigError(
+            f"{path}: no such rig profile; give the right path or create one with "
+            f"`limbctl calibrate`"
+        ) from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise FileFormatError(path, f"cannot read the rig profile ({exc})") from exc
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise FileFormatError(path, f"not valid YAML ({exc})") from exc
+    return profile_from_dict(data, str(path))
+
+
+def save_profile(profile: RigProfile, path: str | os.PathLike[str]) -> Path:
+    """Write ``profile`` to ``path`` atomically (temp file, fsync, rename); returns the path.
+
+    A reader sees either the old file or the complete new one, never a torn write. The
+    profile is re-validated first so an invalid profile is never written.
+    """
+    path = Path(path)
+    profile_from_dict(profile.to_dict(), str(path))
+    text = "# limbctl rig profile\n" + yaml.safe_dump(
+        profile.to_dict(), sort_keys=False, default_flow_style=None
+    )
+    directory = path.parent if str(path.parent) else Path(".")
+    fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as handle:
+            handle.write(text)
+            handle.flush()
+            os.fsync(handle.fileno())
+        os.replace(tmp_name, path)
+    except BaseException:
+        Path(tmp_name).unlink(missing_ok=True)
+        raise
+    dir_fd = os.open(directory, os.O_RDONLY)
+    try:
+        os.fsync(dir_fd)
+    finally:
+        os.close(dir_fd)
+    return path
+
+
+def default_sim_profile() -> RigProfile:
+    """The packaged profile of the simulated rig (``calib/rigs/sim.yaml``)."""
+    resource = resources.files("calib").joinpath("rigs").joinpath("sim.yaml")
+    with resources.as_file(resource) as path:
+        return load_profile(path)
