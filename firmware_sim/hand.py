@@ -1,0 +1,303 @@
+"""Scripted hands that backdrive the simulated limb while its torque is off.
+
+A :class:`Hand` answers one question, ``pose_deg(t)``: the (pan_deg, tilt_deg) it holds the limb
+at ``t`` seconds after it took hold. Two kinds, both read from a REGION.yaml::
+
+    region: {polygon: [[pan_deg, tilt_deg], ...]}    # or {cone: {half_angle_deg: A}}
+    speed_deg_s: 40        # optional: mean speed of a move through the middle
+    tremor_deg: 0.2        # optional: peak tremor amplitude, 0 switches it off
+
+    script: [[t_s, pan_deg, tilt_deg], ...]          # instead of region: follow waypoints
+
+A *region* hand wanders the way a person teaching limits does: minimum-jerk moves between
+waypoints drawn with a density that falls toward the edge, slower near the edge, short pauses,
+and excursions that trace a stretch of the boundary just inside it (their starting points go
+round the perimeter in golden-ratio steps, so a minute of wandering covers the whole edge). Every
+move is checked to stay inside the region (the tremor alone may cross the edge by a fraction of
+a degree). A *script* hand moves linearly in time between the waypoints and holds the last.
+The path is generated lazily, in a fixed order from ``seed``: the same seed gives the same path
+whatever times it is asked at.
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from firmware_sim.regions import Region, region_from_mapping
+
+DEFAULT_SPEED_DEG_S = 40.0
+DEFAULT_TREMOR_DEG = 0.2
+#: Physiological tremor band (Hz) the two tremor components per axis are drawn from.
+TREMOR_BAND_HZ = (7.0, 12.0)
+#: How far inside the edge (deg) boundary tracing runs, and the least depth any move may reach.
+EDGE_INSET_DEG = 1.0
+MIN_PATH_DEPTH_DEG = 0.5
+#: Within this depth (deg) of the edge the hand slows down, to EDGE_SPEED_FRACTION at the edge.
+SLOW_BAND_DEG = 15.0
+EDGE_SPEED_FRACTION = 0.35
+#: Edge visits work round the perimeter in laps, one visit per EDGE_SPACING_DEG of perimeter
+#: (jittered by up to a third of a spacing), with 1 or 2 moves through the middle in between.
+EDGE_SPACING_DEG = 25.0
+MIDDLE_MOVES_BETWEEN_EDGE_VISITS = (1, 2)
+#: Length (deg) of the stretch of edge traced at each visit.
+EDGE_TRACE_DEG = (4.0, 10.0)
+#: Shortest move (s): a person does not flick the limb.
+MIN_MOVE_S = 0.3
+#: Probability of a pause after a move, and its duration range (s).
+PAUSE_PROBABILITY = 0.2
+PAUSE_S = (0.2, 0.6)
+#: Candidate waypoints tried before backing up along the path already walked.
+WAYPOINT_TRIES = 40
+#: Spacing (deg) of checks along a move and of points along a traced edge.
+PATH_CHECK_STEP_DEG = 0.5
+TRACE_STEP_DEG = 1.0
+
+_TOP_LEVEL_KEYS = {"region", "script", "speed_deg_s", "tremor_deg"}
+
+
+def _positive(data: dict, key: str, default: float, source: str, allow_zero: bool) -> float:
+    value = data.get(key, default)
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise ValueError(f"{source}: {key} must be a finite number, got {value!r}")
+    if value < 0 or (value == 0 and not allow_zero):
+        raise ValueError(f"{source}: {key} must be {'>= 0' if allow_zero else '> 0'}, got {value}")
+    return float(value)
+
+
+def _parse_script(script: object, source: str) -> list[tuple[float, float, float]]:
+    if not isinstance(script, (list, tuple)) or len(script) == 0:
+        raise ValueError(f"{source}: script must be a non-empty list of [t_s, pan_deg, tilt_deg]")
+    waypoints = []
+    for k, row in enumerate(script):
+        if not isinstance(row, (list, tuple)) or len(row) != 3:
+            raise ValueError(f"{source}: script[{k}] must be [t_s, pan_deg, tilt_deg], got {row!r}")
+        values = []
+        for v in row:
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise ValueError(f"{source}: script[{k}] holds a non-finite or non-number {v!r}")
+            values.append(float(v))
+        if values[0] < 0 or (waypoints and values[0] <= waypoints[-1][0]):
+            raise ValueError(
+                f"{source}: script[{k}] time {values[0]} s must be >= 0 and later than the one "
+                "before it"
+            )
+        waypoints.append((values[0], values[1], values[2]))
+    return waypoints
+
+
+class Hand:
+    """A scripted hand; build it with :meth:`from_yaml` or :meth:`from_mapping`.
+
+    Attributes
+    ----------
+    region : PolygonRegion | ConeRegion | None
+        The region a wandering hand stays in (``contains(pan_deg, tilt_deg) -> bool``); ``None``
+        for a script hand.
+    script : list of (t_s, pan_deg, tilt_deg) or None
+    """
+
+    def __init__(
+        self,
+        region: Region | None = None,
+        script: list[tuple[float, float, float]] | None = None,
+        speed_deg_s: float = DEFAULT_SPEED_DEG_S,
+        tremor_deg: float = DEFAULT_TREMOR_DEG,
+        seed: int = 0,
+    ) -> None:
+        if (region is None) == (script is None):
+            raise ValueError("a Hand needs exactly one of region or script")
+        self.region = region
+        self.script = script
+        self.speed_deg_s = float(speed_deg_s)
+        self.tremor_deg = float(tremor_deg)
+        self._rng = np.random.default_rng(seed)
+        # tremor: per axis, two sines with frequencies in the tremor band; peak sum = tremor_deg
+        freqs = self._rng.uniform(*TREMOR_BAND_HZ, size=4)
+        phases = self._rng.uniform(0.0, 2.0 * math.pi, size=4)
+        amps = self.tremor_deg * np.array([0.6, 0.4, 0.6, 0.4])
+        self._tremor = [
+            (float(a), 2.0 * math.pi * float(f), float(p))
+            for a, f, p in zip(amps, freqs, phases, strict=True)
+        ]
+        # the path: segment k runs from _t0[k] to _t1[k], from (p0, q0) to (p1, q1)
+        self._t0: list[float] = []
+        self._t1: list[float] = []
+        self._segments: list[tuple[float, float, float, float, float, float, bool]] = []
+        self._current = 0
+        if script is not None:
+            # hold the first waypoint from before it (a one-second constant segment)
+            first = script[0]
+            self._add(first[0] - 1.0, first[0], first[1], first[2], first[1], first[2], False)
+            for (ta, pa, qa), (tb, pb, qb) in zip(script, script[1:], strict=False):
+                self._add(ta, tb, pa, qa, pb, qb, False)
+        else:
+            self._edge_u = float(self._rng.uniform())
+            self._edge_step = 1.0 / max(math.ceil(region.perimeter_deg / EDGE_SPACING_DEG), 3)
+            self._middle_moves_left = 0
+            self._trail: list[tuple[float, float]] = []  # poses walked since the last centre visit
+            pan, tilt = region.center_deg
+            self._add(0.0, 0.5, pan, tilt, pan, tilt, False)
+
+    @classmethod
+    def from_mapping(cls, data: object, seed: int = 0, source: str = "<mapping>") -> Hand:
+        """A hand from a parsed REGION.yaml mapping; ValueError names ``source`` and the problem."""
+        if not isinstance(data, dict):
+            raise ValueError(
+                f"{source}: expected a mapping with 'region' or 'script', got {data!r}"
+            )
+        unknown = sorted(set(data) - _TOP_LEVEL_KEYS, key=str)
+        if unknown:
+            raise ValueError(
+                f"{source}: unknown key(s) {unknown}; allowed: {sorted(_TOP_LEVEL_KEYS)}"
+            )
+        if ("region" in data) == ("script" in data):
+            raise ValueError(f"{source}: give exactly one of 'region' or 'script'")
+        speed = _positive(data, "speed_deg_s", DEFAULT_SPEED_DEG_S, source, allow_zero=False)
+        tremor = _positive(data, "tremor_deg", DEFAULT_TREMOR_DEG, source, allow_zero=True)
+        if "script" in data:
+            script = _parse_script(data["script"], source)
+            return cls(script=script, speed_deg_s=speed, tremor_deg=tremor, seed=seed)
+        region = region_from_mapping(data["region"], source)
+        return cls(region=region, speed_deg_s=speed, tremor_deg=tremor, seed=seed)
+
+    @classmethod
+    def from_yaml(cls, path: str | Path, seed: int = 0) -> Hand:
+        """A hand from a REGION.yaml file; ValueError names the file and the problem."""
+        path = Path(path)
+        try:
+            data = yaml.safe_load(path.read_text())
+        except OSError as exc:
+            raise ValueError(f"{path}: cannot read the region file ({exc.strerror})") from exc
+        except yaml.YAMLError as exc:
+            raise ValueError(f"{path}: not valid YAML ({exc})") from exc
+        return cls.from_mapping(data, seed=seed, source=str(path))
+
+    def pose_deg(self, t: float) -> tuple[float, float]:
+        """(pan_deg, tilt_deg) the hand holds the limb at, ``t`` >= 0 s after it took hold."""
+        if self.script is None:
+            while self._t1[-1] <= t:
+                self._plan_next()
+        k = self._current
+        if not self._t0[k] <= t < self._t1[k]:
+            k = max(bisect.bisect_right(self._t0, t) - 1, 0)
+            self._current = k
+        t0, t1, p0, q0, p1, q1, minimum_jerk = self._segments[k]
+        s = min(max((t - t0) / (t1 - t0), 0.0), 1.0)
+        if minimum_jerk:
+            # minimum-jerk profile: s' = 10 s^3 - 15 s^4 + 6 s^5
+            s = s * s * s * (10.0 + s * (-15.0 + 6.0 * s))
+        pan = p0 + s * (p1 - p0)
+        tilt = q0 + s * (q1 - q0)
+        (a0, w0, f0), (a1, w1, f1), (a2, w2, f2), (a3, w3, f3) = self._tremor
+        pan += a0 * math.sin(w0 * t + f0) + a1 * math.sin(w1 * t + f1)
+        tilt += a2 * math.sin(w2 * t + f2) + a3 * math.sin(w3 * t + f3)
+        return pan, tilt
+
+    # -- path planning (region hands) ------------------------------------------------------
+
+    def _add(self, t0, t1, p0, q0, p1, q1, minimum_jerk) -> None:
+        self._t0.append(t0)
+        self._t1.append(t1)
+        self._segments.append((t0, t1, p0, q0, p1, q1, minimum_jerk))
+
+    def _end(self) -> tuple[float, float, float]:
+        t0, t1, p0, q0, p1, q1, _ = self._segments[-1]
+        return t1, p1, q1
+
+    def _path_ok(self, a: tuple[float, float], b: tuple[float, float]) -> bool:
+        """True when the straight move a -> b keeps at least MIN_PATH_DEPTH_DEG inside."""
+        n = int(math.hypot(b[0] - a[0], b[1] - a[1]) / PATH_CHECK_STEP_DEG) + 2
+        s = np.linspace(0.0, 1.0, n)
+        depth = self.region.edge_distance_deg(a[0] + s * (b[0] - a[0]), a[1] + s * (b[1] - a[1]))
+        return bool(np.all(depth >= MIN_PATH_DEPTH_DEG))
+
+    def _speed_at(self, depth_deg: float) -> float:
+        """Mean move speed (deg/s) at a depth: full in the middle, slower toward the edge."""
+        closeness = min(max(depth_deg, 0.0) / SLOW_BAND_DEG, 1.0)
+        return self.speed_deg_s * (EDGE_SPEED_FRACTION + (1.0 - EDGE_SPEED_FRACTION) * closeness)
+
+    def _move(self, target: tuple[float, float]) -> None:
+        """A minimum-jerk move to ``target``, slower when either end is near the edge."""
+        t, pan, tilt = self._end()
+        depth = self.region.edge_distance_deg([pan, target[0]], [tilt, target[1]])
+        speed = 0.5 * (self._speed_at(float(depth[0])) + self._speed_at(float(depth[1])))
+        distance = math.hypot(target[0] - pan, target[1] - tilt)
+        duration = max(distance / speed, MIN_MOVE_S)
+        self._add(t, t + duration, pan, tilt, target[0], target[1], True)
+        self._trail.append((pan, tilt))
+        if (target[0], target[1]) == self.region.center_deg:
+            self._trail.clear()
+
+    def _pause(self) -> None:
+        t, pan, tilt = self._end()
+        self._add(t, t + float(self._rng.uniform(*PAUSE_S)), pan, tilt, pan, tilt, False)
+
+    def _draw_waypoint(self) -> tuple[float, float]:
+        """A pose inside, drawn with density proportional to its depth (dense in the middle)."""
+        pan_lo, pan_hi, tilt_lo, tilt_hi = self.region.bbox_deg
+        while True:
+            pan = float(self._rng.uniform(pan_lo, pan_hi))
+            tilt = float(self._rng.uniform(tilt_lo, tilt_hi))
+            depth = float(self.region.edge_distance_deg(pan, tilt))
+            if depth >= EDGE_INSET_DEG and self._rng.uniform() * self.region.depth_max_deg < depth:
+                return pan, tilt
+
+    def _reach(self, target: tuple[float, float]) -> bool:
+        """Move to ``target`` directly or via the centre when the path stays inside."""
+        _, pan, tilt = self._end()
+        if self._path_ok((pan, tilt), target):
+            self._move(target)
+            return True
+        center = self.region.center_deg
+        if self._path_ok((pan, tilt), center) and self._path_ok(center, target):
+            self._move(center)
+            self._move(target)
+            return True
+        return False
+
+    def _plan_next(self) -> None:
+        """Append the next stretch of wandering: a move through the middle or an edge visit."""
+        if self._middle_moves_left <= 0:
+            lo, hi = MIDDLE_MOVES_BETWEEN_EDGE_VISITS
+            self._middle_moves_left = int(self._rng.integers(lo, hi + 1))
+            # next visit: one spacing further round, jittered by up to a third of a spacing
+            self._edge_u = (self._edge_u + self._edge_step) % 1.0
+            jitter = float(self._rng.uniform(-1.0, 1.0)) * self._edge_step / 3.0
+            if self._visit_edge(self._edge_u + jitter):
+                return
+        self._middle_moves_left -= 1
+        for _ in range(WAYPOINT_TRIES):
+            if self._reach(self._draw_waypoint()):
+                break
+        else:
+            # boxed in (a very irregular polygon): retrace the path walked since the centre
+            self._move(self._trail.pop() if self._trail else self.region.center_deg)
+        if self._rng.uniform() < PAUSE_PROBABILITY:
+            self._pause()
+
+    def _visit_edge(self, u_start: float) -> bool:
+        """Go to the edge at perimeter fraction ``u_start`` and trace a short stretch slowly."""
+        region = self.region
+        length = float(self._rng.uniform(*EDGE_TRACE_DEG))
+        sense = 1.0 if self._rng.uniform() < 0.5 else -1.0
+        n = max(int(length / TRACE_STEP_DEG), 1) + 1
+        u = u_start + sense * (length / region.perimeter_deg) * np.linspace(0.0, 1.0, n)
+        points = [region.boundary_point(float(v), EDGE_INSET_DEG) for v in u]
+        depth = region.edge_distance_deg([p[0] for p in points], [p[1] for p in points])
+        points = [p for p, d in zip(points, depth, strict=True) if d >= MIN_PATH_DEPTH_DEG]
+        if len(points) < 2 or not self._reach(points[0]):
+            return False
+        edge_speed = self.speed_deg_s * EDGE_SPEED_FRACTION
+        for a, b in zip(points, points[1:], strict=False):
+            t, _, _ = self._end()
+            duration = math.hypot(b[0] - a[0], b[1] - a[1]) / edge_speed
+            if duration <= 0.0 or not self._path_ok(a, b):
+                continue
+            self._add(t, t + duration, a[0], a[1], b[0], b[1], False)
+            self._trail.append(a)
+        return True
