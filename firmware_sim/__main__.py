@@ -1,0 +1,153 @@
+"""``firmware-sim`` / ``python -m firmware_sim``: serve simulated Dynamixel servos on a pty."""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+from collections.abc import Sequence
+
+from firmware_sim.bus import PtyEndpoint, build_simulator, serve
+from firmware_sim.control_table import MODELS
+from firmware_sim.simulator import parse_ids
+
+DESCRIPTION = """\
+Simulated Dynamixel X-series servos (Protocol 2.0) on a pseudo-terminal, byte for byte like real
+servos behind a U2D2 adapter. Open PATH with the dynamixel-sdk (any baud rate, protocol 2.0).
+Servo 1 is the pan joint and servo 2 the tilt joint of a simulated gimbal (true geometry in
+calib/rigs/sim.yaml); other IDs drive free shafts. Runs until SIGINT or SIGTERM, then removes
+PATH."""
+
+EPILOG = """\
+REGION.yaml (--hand), degrees:
+  region: {polygon: [[pan, tilt], ...]}     or   region: {cone: {half_angle_deg: A}}
+  speed_deg_s: 40                                (optional)
+  script: [[t_s, pan, tilt], ...]                (instead of region: waypoints to follow)
+While a servo's torque is off, the hand moves the limb through the region.
+
+--goal-log FILE.jsonl gets one line per Goal Position write that reaches a servo:
+  {"t": s, "id": n, "goal": ticks, "limb_dir": [x, y, z]}
+limb_dir is where the limb points once every servo reaches its current goal (true geometry).
+
+Faults are drawn from --seed: --drop P loses a reply, --corrupt P flips one byte of a reply,
+--latency-ms X delays a reply by X ms (with probability --latency-p, default 1).
+
+Example:
+  firmware-sim --ids 1,2 --link /tmp/ttyDXL &
+  python -c "from dynamixel_sdk import *; p = PortHandler('/tmp/ttyDXL'); p.openPort();
+             print(PacketHandler(2.0).ping(p, 1))"
+"""
+
+
+def _probability(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected a probability like 0.05, got {text!r}"
+        ) from None
+    if not 0.0 <= value <= 1.0:
+        raise argparse.ArgumentTypeError(f"a probability must be within 0..1, got {value}")
+    return value
+
+
+def _milliseconds(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected milliseconds like 20, got {text!r}") from None
+    if not value >= 0.0:
+        raise argparse.ArgumentTypeError(f"milliseconds must be >= 0, got {value}")
+    return value
+
+
+def _ids(text: str) -> tuple[int, ...]:
+    try:
+        return parse_ids(text)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="firmware-sim",
+        description=DESCRIPTION,
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument("--ids", type=_ids, default=(1, 2), help="servo IDs, e.g. 1,2 (default)")
+    parser.add_argument(
+        "--link", metavar="PATH", required=True, help="symlink to create to the pty device"
+    )
+    parser.add_argument(
+        "--model",
+        choices=sorted(MODELS),
+        default="xl430-w250",
+        type=str.lower,
+        help="servo model (default xl430-w250)",
+    )
+    parser.add_argument("--hand", metavar="REGION.yaml", help="scripted hand (see below)")
+    parser.add_argument("--goal-log", metavar="FILE.jsonl", help="log every goal position write")
+    parser.add_argument("--seed", type=int, default=0, help="seed of world and faults (0)")
+    parser.add_argument(
+        "--drop", type=_probability, default=0.0, metavar="P", help="reply loss probability"
+    )
+    parser.add_argument(
+        "--corrupt", type=_probability, default=0.0, metavar="P", help="reply corruption prob."
+    )
+    parser.add_argument(
+        "--latency-ms", type=_milliseconds, default=0.0, metavar="X", help="latency spike (ms)"
+    )
+    parser.add_argument(
+        "--latency-p",
+        type=_probability,
+        default=1.0,
+        metavar="P",
+        help="probability that a reply gets the latency spike (default 1)",
+    )
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of ``firmware-sim``; returns the exit status."""
+    args = build_parser().parse_args(argv)
+    config = {
+        "ids": args.ids,
+        "model": args.model,
+        "hand": args.hand,
+        "goal_log": args.goal_log,
+        "seed": args.seed,
+        "drop": args.drop,
+        "corrupt": args.corrupt,
+        "latency_ms": args.latency_ms,
+        "latency_p": args.latency_p,
+    }
+    stop = {"requested": False}
+
+    def request_stop(signum, frame) -> None:
+        stop["requested"] = True
+
+    try:
+        sim = build_simulator(config)
+        endpoint = PtyEndpoint(args.link)
+    except (ValueError, OSError) as error:
+        print(f"firmware-sim: error: {error}", file=sys.stderr)
+        return 2
+    signal.signal(signal.SIGINT, request_stop)
+    signal.signal(signal.SIGTERM, request_stop)
+    try:
+        ids = ",".join(str(i) for i in sim.ids)
+        print(
+            f"firmware-sim ready: {sim.model.title} IDs {ids} on {endpoint.device} "
+            f"linked at {endpoint.port}",
+            flush=True,
+        )
+        serve(sim, endpoint, lambda: stop["requested"])
+    finally:
+        endpoint.close()
+        sim.close()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,16 @@
+"""Entry point of the process :class:`firmware_sim.SimulatedBus` starts (not for direct use).
+
+``python -m firmware_sim._child FD CONFIG_JSON``: FD is the control socket inherited from the
+parent, CONFIG_JSON the simulator options.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from multiprocessing.connection import Connection
+
+from firmware_sim.bus import child_main
+
+if __name__ == "__main__":
+    child_main(Connection(int(sys.argv[1])), json.loads(sys.argv[2]))

@@ -1,0 +1,422 @@
+"""The simulator on a pseudo-terminal, and :class:`SimulatedBus` to run it from Python.
+
+:class:`PtyEndpoint` opens a pty, keeps its slave side open in raw mode (so the controller may
+open and close it freely) and optionally points a symlink at it. :func:`serve` is the firmware's
+main loop: wait for bytes (or a control command, or the physics tick), hand them to the
+:class:`~firmware_sim.simulator.Simulator`, write the answers after each servo's Return Delay
+Time. :class:`SimulatedBus` runs that loop in a separate process (so a controller's busy polling
+in the test process cannot starve it) and talks to it over a pipe::
+
+    with SimulatedBus(ids=(1, 2)) as sim:
+        port = PortHandler(sim.port)        # the real dynamixel-sdk, on the pty
+        sim.push(1, 150.0)                  # push the pan joint with 150 % of stall torque
+        sim.truth()["joints_deg"]           # where the limb really is
+"""
+
+from __future__ import annotations
+
+import errno
+import json
+import os
+import select
+import signal
+import socket
+import subprocess
+import sys
+import time
+import tty
+from collections.abc import Callable, Mapping
+from multiprocessing.connection import Connection
+from pathlib import Path
+from typing import Any
+
+from firmware_sim.faults import FaultPlan
+from firmware_sim.hand import Hand
+from firmware_sim.simulator import Simulator
+
+# The physics keeps moving (hand, profiles) at least this often without traffic.
+TICK_S = 0.005
+READ_CHUNK = 4096
+# Waits shorter than this are spun rather than slept (sleep overshoots by ~0.1 ms).
+SPIN_BELOW_S = 0.0003
+
+
+class PtyEndpoint:
+    """A pty whose slave side a controller opens like a U2D2's serial device.
+
+    Parameters
+    ----------
+    link : path or None
+        Symlink to create to the slave device; an existing symlink there is replaced, any
+        other existing file is an error.
+    """
+
+    def __init__(self, link: str | os.PathLike | None = None) -> None:
+        self.master, self._slave = os.openpty()
+        tty.setraw(self._slave)
+        os.set_blocking(self.master, False)
+        self.device = os.ttyname(self._slave)
+        self.link = None if link is None else Path(link)
+        if self.link is not None:
+            if self.link.is_symlink():
+                self.link.unlink()
+            elif self.link.exists():
+                self.close()
+                raise FileExistsError(
+                    f"{self.link} exists and is not a symlink; choose another --link path"
+                )
+            self.link.symlink_to(self.device)
+
+    @property
+    def port(self) -> str:
+        """What a controller opens: the link if there is one, else the device."""
+        return str(self.link) if self.link is not None else self.device
+
+    def write_all(self, data: bytes) -> None:
+        """Write every byte of ``data`` to the controller (waits while the pty is full)."""
+        view = memoryview(data)
+        while view:
+            try:
+                written = os.write(self.master, view)
+            except BlockingIOError:
+                select.select([], [self.master], [], 0.1)
+                continue
+            view = view[written:]
+
+    def read_available(self) -> bytes:
+        """Whatever the controller has sent (b"" if nothing)."""
+        try:
+            return os.read(self.master, READ_CHUNK)
+        except BlockingIOError:
+            return b""
+        except OSError as error:
+            if error.errno == errno.EIO:  # no reader/writer at the moment
+                return b""
+            raise
+
+    def close(self) -> None:
+        """Remove the link (if still ours) and close the pty; safe to call twice."""
+        if self.link is not None and self.link.is_symlink():
+            if os.readlink(self.link) == self.device:
+                self.link.unlink()
+        for fd in (self.master, self._slave):
+            if fd >= 0:
+                os.close(fd)
+        self.master = self._slave = -1
+
+    def __enter__(self) -> PtyEndpoint:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def _wait_until(deadline: float) -> None:
+    remaining = deadline - time.monotonic()
+    if remaining > SPIN_BELOW_S:
+        time.sleep(remaining - SPIN_BELOW_S)
+    while time.monotonic() < deadline:
+        pass
+
+
+def serve(
+    sim: Simulator,
+    endpoint: PtyEndpoint,
+    should_stop: Callable[[], bool],
+    control: Any | None = None,
+    on_control: Callable[[Any], bool] | None = None,
+) -> None:
+    """Run the firmware until ``should_stop()`` (or ``on_control`` returns False).
+
+    ``control`` is a readable object with ``fileno()`` (a pipe end) whose readiness makes the
+    loop call ``on_control(control)``.
+    """
+    sources = [endpoint.master] + ([control] if control is not None else [])
+    while not should_stop():
+        ready, _, _ = select.select(sources, [], [], TICK_S)
+        if endpoint.master in ready:
+            data = endpoint.read_available()
+            if data:
+                arrived = time.monotonic()
+                replies = sim.receive(data, sim.now())
+                for packet, delay in replies:
+                    # each servo waits its Return Delay Time after the bus goes quiet
+                    _wait_until(arrived + delay)
+                    endpoint.write_all(packet)
+                    arrived = time.monotonic()
+        if control is not None and control in ready and on_control is not None:
+            if not on_control(control):
+                return
+        sim.advance()
+
+
+# ---------------------------------------------------------------------- child process side
+def build_simulator(config: Mapping[str, Any]) -> Simulator:
+    """A :class:`Simulator` from plain options (the CLI's and :class:`SimulatedBus`'s)."""
+    seed = int(config.get("seed", 0))
+    hand = _make_hand(config.get("hand"), seed)
+    plan = FaultPlan(
+        drop=config.get("drop", 0.0),
+        corrupt=config.get("corrupt", 0.0),
+        latency_ms=config.get("latency_ms", 0.0),
+        latency_p=config.get("latency_p", 1.0),
+        seed=seed,
+    )
+    return Simulator(
+        ids=config.get("ids", (1, 2)),
+        model=config.get("model", "xl430-w250"),
+        hand=hand,
+        goal_log=config.get("goal_log"),
+        seed=seed,
+        faults=plan,
+    )
+
+
+def _make_hand(spec: Any, seed: int) -> Hand | None:
+    if spec is None:
+        return None
+    if isinstance(spec, Mapping):
+        return Hand.from_mapping(dict(spec), seed=seed)
+    return Hand.from_yaml(spec, seed=seed)
+
+
+class _ControlServer:
+    """Executes :class:`SimulatedBus` requests inside the simulator process."""
+
+    def __init__(self, sim: Simulator) -> None:
+        self.sim = sim
+
+    def __call__(self, conn: Any) -> bool:
+        try:
+            request = conn.recv()
+        except (EOFError, OSError):
+            return False  # the parent went away: stop serving
+        name, args = request
+        if name == "stop":
+            return False
+        try:
+            result = getattr(self, f"do_{name}")(*args)
+        except Exception as error:  # reported to the caller, who re-raises it
+            conn.send(("error", type(error).__name__, str(error)))
+        else:
+            conn.send(("ok", result))
+        return True
+
+    def do_truth(self) -> dict:
+        return self.sim.truth()
+
+    def do_set_hand(self, spec: Any) -> None:
+        self.sim.set_hand(_make_hand(spec, self.sim.seed))
+
+    def do_push(self, servo_id: int, torque_percent: float) -> None:
+        self.sim.push(servo_id, torque_percent)
+
+    def do_vanish(self, servo_id: int, duration_s: float) -> None:
+        self.sim.vanish(servo_id, duration_s)
+
+    def do_set_environment(self, servo_id: int, voltage: float | None, temperature: float | None):
+        self.sim.set_environment(servo_id, voltage, temperature)
+
+    def do_set_faults(self, options: dict) -> None:
+        self.sim.faults.replan(FaultPlan(**options))
+
+
+def child_main(conn: Any, config: dict) -> None:
+    """Body of the simulator process started by :class:`SimulatedBus`."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent decides when we stop
+    try:
+        sim = build_simulator(config)
+        endpoint = PtyEndpoint(config.get("link"))
+    except Exception as error:
+        conn.send(("error", type(error).__name__, str(error)))
+        conn.close()
+        return
+    try:
+        conn.send(("ready", endpoint.device, endpoint.port))
+        serve(sim, endpoint, lambda: False, control=conn, on_control=_ControlServer(sim))
+    finally:
+        endpoint.close()
+        sim.close()
+        try:
+            conn.send(("stopped",))
+        except (BrokenPipeError, OSError):
+            pass
+        conn.close()
+
+
+# ---------------------------------------------------------------------- parent side
+def _hand_spec(hand: Mapping | str | os.PathLike | None) -> dict | str | None:
+    """A hand option as plain data for the simulator process."""
+    if hand is None:
+        return None
+    return dict(hand) if isinstance(hand, Mapping) else os.fspath(hand)
+
+
+_ERRORS = {"ValueError": ValueError, "FileExistsError": FileExistsError, "KeyError": KeyError}
+
+
+class SimulatedBus:
+    """Servos on a pty, served by a separate process; a context manager.
+
+    Parameters
+    ----------
+    ids : sequence of int
+        Servo IDs (1 = pan, 2 = tilt of the simulated gimbal; others are free shafts).
+    model : str
+        ``"xl430-w250"`` (default) or ``"xm430-w350"``.
+    hand : mapping, path or None
+        REGION.yaml content or path (see DESIGN.md); the hand moves the limb while torque is off.
+    goal_log : path or None
+        JSON-lines goal log.
+    seed : int
+        Seeds the world and the faults.
+    drop, corrupt, latency_ms, latency_p : float
+        Fault options (:class:`firmware_sim.faults.FaultPlan`).
+    link : path or None
+        Also make this path a symlink to the pty.
+    start_timeout_s : float
+        How long to wait for the process to come up.
+    """
+
+    def __init__(
+        self,
+        ids=(1, 2),
+        model: str = "xl430-w250",
+        hand: Mapping | str | os.PathLike | None = None,
+        goal_log: str | os.PathLike | None = None,
+        seed: int = 0,
+        drop: float = 0.0,
+        corrupt: float = 0.0,
+        latency_ms: float = 0.0,
+        latency_p: float = 1.0,
+        link: str | os.PathLike | None = None,
+        start_timeout_s: float = 60.0,
+    ) -> None:
+        FaultPlan(drop=drop, corrupt=corrupt, latency_ms=latency_ms, latency_p=latency_p)
+        self.config = {
+            "ids": tuple(ids),
+            "model": model,
+            "hand": dict(hand)
+            if isinstance(hand, Mapping)
+            else (None if hand is None else str(hand)),
+            "goal_log": None if goal_log is None else str(goal_log),
+            "seed": int(seed),
+            "drop": drop,
+            "corrupt": corrupt,
+            "latency_ms": latency_ms,
+            "latency_p": latency_p,
+            "link": None if link is None else str(link),
+        }
+        self._start_timeout_s = start_timeout_s
+        self._process: subprocess.Popen | None = None
+        self._conn: Connection | None = None
+        self.exitcode: int | None = None
+        self.device: str | None = None
+        self.port: str | None = None
+
+    # -- lifecycle
+    def start(self) -> SimulatedBus:
+        """Start the simulator process and wait until its pty is ready."""
+        parent, child = socket.socketpair()
+        command = [sys.executable, "-m", "firmware_sim._child", str(child.fileno())]
+        command.append(json.dumps(self.config))
+        self._process = subprocess.Popen(command, pass_fds=(child.fileno(),))
+        child.close()
+        self._conn = Connection(parent.detach())
+        if not self._conn.poll(self._start_timeout_s):
+            self.close()
+            raise TimeoutError(f"the simulator did not start within {self._start_timeout_s} s")
+        try:
+            message = self._conn.recv()
+        except EOFError:
+            self.close()
+            raise RuntimeError(
+                f"the simulator process died on start (exit {self.exitcode})"
+            ) from None
+        if message[0] == "error":
+            self.close()
+            raise _ERRORS.get(message[1], RuntimeError)(message[2])
+        _, self.device, self.port = message
+        return self
+
+    def close(self, timeout_s: float = 10.0) -> None:
+        """Stop the process, remove the link, close the pipe; safe to call twice."""
+        if self._conn is not None:
+            try:
+                self._conn.send(("stop", ()))
+                if self._conn.poll(timeout_s):
+                    self._conn.recv()
+            except (BrokenPipeError, EOFError, OSError):
+                pass
+            self._conn.close()
+            self._conn = None
+        if self._process is not None:
+            try:
+                self._process.wait(timeout_s)
+            except subprocess.TimeoutExpired:
+                self._process.terminate()
+                self._process.wait(timeout_s)
+            self.exitcode = self._process.returncode
+            self._process = None
+
+    def __enter__(self) -> SimulatedBus:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    @property
+    def running(self) -> bool:
+        return self._process is not None and self._process.poll() is None
+
+    # -- handles
+    def _call(self, name: str, *args: Any, timeout_s: float = 10.0) -> Any:
+        if self._conn is None:
+            raise RuntimeError("the simulator is not running: use `with SimulatedBus(...)`")
+        self._conn.send((name, args))
+        if not self._conn.poll(timeout_s):
+            raise TimeoutError(f"the simulator did not answer {name!r} within {timeout_s} s")
+        reply = self._conn.recv()
+        if reply[0] == "error":
+            raise _ERRORS.get(reply[1], RuntimeError)(reply[2])
+        return reply[1]
+
+    def truth(self) -> dict[str, Any]:
+        """Ground truth: ``joints_deg``, ``servos[id]`` (raw_tick, setpoint, load_percent,
+        torque_on, goal_position, hardware_error_status, present), fault counters."""
+        return self._call("truth")
+
+    def set_hand(self, hand: Mapping | str | os.PathLike | None) -> None:
+        """Give the limb to a hand (REGION mapping or YAML path), or take it away (None)."""
+        self._call("set_hand", _hand_spec(hand))
+
+    def push(self, servo_id: int, torque_percent: float) -> None:
+        """Push a joint with a steady torque (% of stall, shaft frame); 0 clears it."""
+        self._call("push", servo_id, float(torque_percent))
+
+    def vanish(self, servo_id: int, duration_s: float) -> None:
+        """Make a servo unreachable for ``duration_s`` seconds (it keeps its state)."""
+        self._call("vanish", servo_id, float(duration_s))
+
+    def set_voltage(self, servo_id: int, volts: float) -> None:
+        """Supply voltage the servo measures (V)."""
+        self._call("set_environment", servo_id, float(volts), None)
+
+    def set_temperature(self, servo_id: int, celsius: float) -> None:
+        """Motor temperature the servo measures (deg C)."""
+        self._call("set_environment", servo_id, None, float(celsius))
+
+    def set_faults(
+        self,
+        drop: float = 0.0,
+        corrupt: float = 0.0,
+        latency_ms: float = 0.0,
+        latency_p: float = 1.0,
+        seed: int = 0,
+    ) -> None:
+        """Replace the fault options while running."""
+        options = dict(
+            drop=drop, corrupt=corrupt, latency_ms=latency_ms, latency_p=latency_p, seed=seed
+        )
+        FaultPlan(**options)
+        self._call("set_faults", options)

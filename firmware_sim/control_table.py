@@ -1,0 +1,364 @@
+"""X-series control tables (XL430-W250, XM430-W350) as typed data, from the e-Manual.
+
+Each :class:`Item` says where a register lives, how wide it is, who may write it, its
+factory default and the range a write must respect. Two kinds of bounds are kept apart because
+the firmware reports them with different error numbers:
+
+- ``minimum``/``maximum``: the item's own range (violations answer Data Range Error, 4);
+- ``bound``: a limit set by *other* items (e.g. Goal Position within Min/Max Position Limit,
+  Goal Velocity within +-Velocity Limit); violations answer Data Limit Error, 6.
+
+Addresses 168-223/224-251 and 578-633/634-661 are the indirect address/data blocks.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import Enum, auto
+
+
+class Register(Enum):
+    """Typed names of every control-table item of the supported models."""
+
+    MODEL_NUMBER = auto()
+    MODEL_INFORMATION = auto()
+    FIRMWARE_VERSION = auto()
+    ID = auto()
+    BAUD_RATE = auto()
+    RETURN_DELAY_TIME = auto()
+    DRIVE_MODE = auto()
+    OPERATING_MODE = auto()
+    SECONDARY_ID = auto()
+    PROTOCOL_TYPE = auto()
+    HOMING_OFFSET = auto()
+    MOVING_THRESHOLD = auto()
+    TEMPERATURE_LIMIT = auto()
+    MAX_VOLTAGE_LIMIT = auto()
+    MIN_VOLTAGE_LIMIT = auto()
+    PWM_LIMIT = auto()
+    CURRENT_LIMIT = auto()
+    VELOCITY_LIMIT = auto()
+    MAX_POSITION_LIMIT = auto()
+    MIN_POSITION_LIMIT = auto()
+    EXTERNAL_PORT_MODE_1 = auto()
+    EXTERNAL_PORT_MODE_2 = auto()
+    EXTERNAL_PORT_MODE_3 = auto()
+    SHUTDOWN = auto()
+    TORQUE_ENABLE = auto()
+    LED = auto()
+    STATUS_RETURN_LEVEL = auto()
+    REGISTERED_INSTRUCTION = auto()
+    HARDWARE_ERROR_STATUS = auto()
+    VELOCITY_I_GAIN = auto()
+    VELOCITY_P_GAIN = auto()
+    POSITION_D_GAIN = auto()
+    POSITION_I_GAIN = auto()
+    POSITION_P_GAIN = auto()
+    FEEDFORWARD_2ND_GAIN = auto()
+    FEEDFORWARD_1ST_GAIN = auto()
+    BUS_WATCHDOG = auto()
+    GOAL_PWM = auto()
+    GOAL_CURRENT = auto()
+    GOAL_VELOCITY = auto()
+    PROFILE_ACCELERATION = auto()
+    PROFILE_VELOCITY = auto()
+    GOAL_POSITION = auto()
+    REALTIME_TICK = auto()
+    MOVING = auto()
+    MOVING_STATUS = auto()
+    PRESENT_PWM = auto()
+    PRESENT_LOAD = auto()
+    PRESENT_CURRENT = auto()
+    PRESENT_VELOCITY = auto()
+    PRESENT_POSITION = auto()
+    VELOCITY_TRAJECTORY = auto()
+    POSITION_TRAJECTORY = auto()
+    PRESENT_INPUT_VOLTAGE = auto()
+    PRESENT_TEMPERATURE = auto()
+
+
+class Access(Enum):
+    """Who may touch an item."""
+
+    R = "R"
+    RW = "RW"
+
+
+class OperatingMode(int, Enum):
+    """Values of Operating Mode (11)."""
+
+    CURRENT = 0
+    VELOCITY = 1
+    POSITION = 3
+    EXTENDED_POSITION = 4
+    CURRENT_BASED_POSITION = 5
+    PWM = 16
+
+
+# Drive Mode (10) bits
+DRIVE_MODE_REVERSE = 0x01
+DRIVE_MODE_TIME_BASED = 0x04
+# Hardware Error Status (70) bits, also the bits of Shutdown (63)
+HW_INPUT_VOLTAGE = 0x01
+HW_OVERHEATING = 0x04
+HW_MOTOR_ENCODER = 0x08
+HW_ELECTRICAL_SHOCK = 0x10
+HW_OVERLOAD = 0x20
+
+EEPROM_END = 64  # addresses below this are EEPROM: locked while Torque Enable is 1
+INDIRECT_BLOCKS = ((168, 224, 28), (578, 634, 28))  # (first address item, first data item, count)
+MEMORY_SIZE = 662
+INDIRECT_ADDRESS_RANGE = (64, 661)
+
+
+@dataclass(frozen=True)
+class Item:
+    """One control-table item.
+
+    Attributes
+    ----------
+    register : Register | None
+        Typed name (None for indirect address/data entries).
+    address, size : int
+        First byte and width in bytes (1, 2 or 4), little-endian.
+    access : Access
+    default : int
+        Factory value.
+    minimum, maximum : int
+        The item's own range (Data Range Error outside).
+    signed : bool
+        Two's-complement value.
+    bound : tuple[Register | None, Register | None]
+        Items whose values bound this one (Data Limit Error outside); ``(None, R)`` means
+        ``-R .. R``.
+    name : str
+        The e-Manual's name, for messages.
+    """
+
+    register: Register | None
+    address: int
+    size: int
+    access: Access
+    default: int
+    minimum: int
+    maximum: int
+    signed: bool = False
+    bound: tuple[Register | None, Register | None] | None = None
+    name: str = ""
+
+    @property
+    def eeprom(self) -> bool:
+        return self.address < EEPROM_END
+
+
+@dataclass(frozen=True)
+class Model:
+    """A servo model: number, firmware version, supported modes and its items."""
+
+    key: str
+    title: str
+    model_number: int
+    firmware_version: int
+    operating_modes: frozenset[int]
+    items: tuple[Item, ...]
+
+    def __post_init__(self) -> None:
+        lookup = {item.register: item for item in self.items if item.register is not None}
+        object.__setattr__(self, "_lookup", lookup)
+
+    def item(self, register: Register) -> Item:
+        """The item named ``register``; KeyError naming the model if it has none."""
+        try:
+            return self._lookup[register]
+        except KeyError:
+            raise KeyError(f"{self.title} has no control-table item {register.name}") from None
+
+    def has(self, register: Register) -> bool:
+        return register in self._lookup
+
+
+R, RW = Access.R, Access.RW
+I32_MIN, I32_MAX = -(2**31), 2**31 - 1
+
+
+def _item(register, address, size, access, default, minimum, maximum, **kw) -> Item:
+    name = kw.pop("name", register.name.replace("_", " ").title())
+    return Item(register, address, size, access, default, minimum, maximum, name=name, **kw)
+
+
+def _common_items(temperature_limit, voltage, velocity_limit, gains) -> list[Item]:
+    """Items shared by the XL430-W250 and XM430-W350 (defaults that differ are arguments)."""
+    (v_min, v_max, v_default_max, v_default_min) = voltage
+    (vel_i, vel_p, pos_d, pos_i, pos_p) = gains
+    reg = Register
+    return [
+        _item(reg.ID, 7, 1, RW, 1, 0, 252),
+        _item(reg.BAUD_RATE, 8, 1, RW, 1, 0, 7),
+        _item(reg.RETURN_DELAY_TIME, 9, 1, RW, 250, 0, 254),
+        _item(reg.DRIVE_MODE, 10, 1, RW, 0, 0, 5),
+        _item(reg.OPERATING_MODE, 11, 1, RW, 3, 0, 16),
+        _item(reg.SECONDARY_ID, 12, 1, RW, 255, 0, 255),
+        _item(reg.PROTOCOL_TYPE, 13, 1, RW, 2, 1, 2),
+        _item(reg.HOMING_OFFSET, 20, 4, RW, 0, -1_044_479, 1_044_479, signed=True),
+        _item(reg.MOVING_THRESHOLD, 24, 4, RW, 10, 0, 1023),
+        _item(reg.TEMPERATURE_LIMIT, 31, 1, RW, temperature_limit, 0, 100),
+        _item(reg.MAX_VOLTAGE_LIMIT, 32, 2, RW, v_default_max, v_min, v_max),
+        _item(reg.MIN_VOLTAGE_LIMIT, 34, 2, RW, v_default_min, v_min, v_max),
+        _item(reg.PWM_LIMIT, 36, 2, RW, 885, 0, 885),
+        _item(reg.VELOCITY_LIMIT, 44, 4, RW, velocity_limit, 0, 1023),
+        _item(reg.MAX_POSITION_LIMIT, 48, 4, RW, 4095, 0, 4095),
+        _item(reg.MIN_POSITION_LIMIT, 52, 4, RW, 0, 0, 4095),
+        _item(reg.SHUTDOWN, 63, 1, RW, 52, 0, 255),
+        _item(reg.TORQUE_ENABLE, 64, 1, RW, 0, 0, 1),
+        _item(reg.LED, 65, 1, RW, 0, 0, 1),
+        _item(reg.STATUS_RETURN_LEVEL, 68, 1, RW, 2, 0, 2),
+        _item(reg.REGISTERED_INSTRUCTION, 69, 1, R, 0, 0, 1),
+        _item(reg.HARDWARE_ERROR_STATUS, 70, 1, R, 0, 0, 255),
+        _item(reg.VELOCITY_I_GAIN, 76, 2, RW, vel_i, 0, 16383),
+        _item(reg.VELOCITY_P_GAIN, 78, 2, RW, vel_p, 0, 16383),
+        _item(reg.POSITION_D_GAIN, 80, 2, RW, pos_d, 0, 16383),
+        _item(reg.POSITION_I_GAIN, 82, 2, RW, pos_i, 0, 16383),
+        _item(reg.POSITION_P_GAIN, 84, 2, RW, pos_p, 0, 16383),
+        _item(reg.FEEDFORWARD_2ND_GAIN, 88, 2, RW, 0, 0, 16383),
+        _item(reg.FEEDFORWARD_1ST_GAIN, 90, 2, RW, 0, 0, 16383),
+        # -1 is written by the firmware itself when the watchdog trips (see servo.py)
+        _item(reg.BUS_WATCHDOG, 98, 1, RW, 0, 0, 127),
+        _item(reg.GOAL_PWM, 100, 2, RW, 0, -885, 885, signed=True, bound=(None, reg.PWM_LIMIT)),
+        _item(
+            reg.GOAL_VELOCITY,
+            104,
+            4,
+            RW,
+            0,
+            -1023,
+            1023,
+            signed=True,
+            bound=(None, reg.VELOCITY_LIMIT),
+        ),
+        _item(reg.PROFILE_ACCELERATION, 108, 4, RW, 0, 0, 32767),
+        _item(reg.PROFILE_VELOCITY, 112, 4, RW, 0, 0, 32767),
+        _item(
+            reg.GOAL_POSITION,
+            116,
+            4,
+            RW,
+            0,
+            -1_048_575,
+            1_048_575,
+            signed=True,
+            bound=(reg.MIN_POSITION_LIMIT, reg.MAX_POSITION_LIMIT),
+        ),
+        _item(reg.REALTIME_TICK, 120, 2, R, 0, 0, 32767),
+        _item(reg.MOVING, 122, 1, R, 0, 0, 1),
+        _item(reg.MOVING_STATUS, 123, 1, R, 0, 0, 255),
+        _item(reg.PRESENT_PWM, 124, 2, R, 0, -885, 885, signed=True),
+        _item(reg.PRESENT_VELOCITY, 128, 4, R, 0, I32_MIN, I32_MAX, signed=True),
+        _item(reg.PRESENT_POSITION, 132, 4, R, 0, I32_MIN, I32_MAX, signed=True),
+        _item(reg.VELOCITY_TRAJECTORY, 136, 4, R, 0, I32_MIN, I32_MAX, signed=True),
+        _item(reg.POSITION_TRAJECTORY, 140, 4, R, 0, I32_MIN, I32_MAX, signed=True),
+        _item(reg.PRESENT_INPUT_VOLTAGE, 144, 2, R, 0, 0, 65535),
+        _item(reg.PRESENT_TEMPERATURE, 146, 1, R, 0, 0, 255),
+    ]
+
+
+def _header_items(model_number: int, firmware_version: int) -> list[Item]:
+    reg = Register
+    return [
+        _item(reg.MODEL_NUMBER, 0, 2, R, model_number, 0, 65535),
+        _item(reg.MODEL_INFORMATION, 2, 4, R, 0, 0, 2**32 - 1),
+        _item(reg.FIRMWARE_VERSION, 6, 1, R, firmware_version, 0, 255),
+    ]
+
+
+def _indirect_items() -> list[Item]:
+    """Indirect Address n (2 bytes, default = address of Indirect Data n) and Indirect Data n."""
+    items = []
+    for first_address, first_data, count in INDIRECT_BLOCKS:
+        base = 1 if first_address == INDIRECT_BLOCKS[0][0] else 1 + INDIRECT_BLOCKS[0][2]
+        for k in range(count):
+            items.append(
+                Item(
+                    None,
+                    first_address + 2 * k,
+                    2,
+                    RW,
+                    first_data + k,
+                    *INDIRECT_ADDRESS_RANGE,
+                    name=f"Indirect Address {base + k}",
+                )
+            )
+            items.append(
+                Item(None, first_data + k, 1, RW, 0, 0, 255, name=f"Indirect Data {base + k}")
+            )
+    return items
+
+
+def _xl430_w250() -> Model:
+    items = _header_items(1060, 46)
+    items += _common_items(
+        temperature_limit=72,
+        voltage=(60, 140, 140, 60),
+        velocity_limit=265,
+        gains=(1000, 100, 4000, 0, 640),
+    )
+    items.append(_item(Register.PRESENT_LOAD, 126, 2, R, 0, -1000, 1000, signed=True))
+    items += _indirect_items()
+    return Model(
+        "xl430-w250",
+        "XL430-W250",
+        1060,
+        46,
+        frozenset({1, 3, 4, 16}),
+        tuple(sorted(items, key=lambda i: i.address)),
+    )
+
+
+def _xm430_w350() -> Model:
+    reg = Register
+    items = _header_items(1020, 46)
+    items += _common_items(
+        temperature_limit=80,
+        voltage=(95, 160, 160, 95),
+        velocity_limit=200,
+        gains=(1920, 100, 0, 0, 800),
+    )
+    items += [
+        _item(reg.CURRENT_LIMIT, 38, 2, RW, 1193, 0, 1193),
+        _item(reg.EXTERNAL_PORT_MODE_1, 56, 1, RW, 3, 0, 3),
+        _item(reg.EXTERNAL_PORT_MODE_2, 57, 1, RW, 3, 0, 3),
+        _item(reg.EXTERNAL_PORT_MODE_3, 58, 1, RW, 3, 0, 3),
+        _item(
+            reg.GOAL_CURRENT,
+            102,
+            2,
+            RW,
+            0,
+            -1193,
+            1193,
+            signed=True,
+            bound=(None, reg.CURRENT_LIMIT),
+        ),
+        _item(reg.PRESENT_CURRENT, 126, 2, R, 0, -32768, 32767, signed=True),
+    ]
+    items += _indirect_items()
+    return Model(
+        "xm430-w350",
+        "XM430-W350",
+        1020,
+        46,
+        frozenset({0, 1, 3, 4, 5, 16}),
+        tuple(sorted(items, key=lambda i: i.address)),
+    )
+
+
+MODELS: dict[str, Model] = {m.key: m for m in (_xl430_w250(), _xm430_w350())}
+
+
+def get_model(key: str) -> Model:
+    """The model called ``key`` (case-insensitive); ValueError listing the choices otherwise."""
+    try:
+        return MODELS[key.lower()]
+    except KeyError:
+        raise ValueError(
+            f"unknown servo model {key!r}; choose one of: {', '.join(sorted(MODELS))}"
+        ) from None

@@ -1,0 +1,242 @@
+"""The simulated bus without its transport: servos + world + faults + goal log on one clock.
+
+:class:`Simulator` is fed raw bytes with the time they arrived and returns the bytes to send
+back (with delays). Physics is stepped lazily on the wall clock: every time bytes arrive, and
+from a periodic tick of the serving loop, the world is advanced to "now" in substeps of at most
+1 ms, each servo's profile advancing with it.
+
+Servos with IDs 1 and 2 drive the gimbal of :mod:`firmware_sim.world` (pan, tilt); a servo with
+any other ID drives a free, unloaded shaft that follows its setpoint exactly.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import IO, Any
+
+from firmware_sim.control_table import Register, get_model
+from firmware_sim.dispatch import dispatch
+from firmware_sim.faults import FaultInjector, FaultPlan
+from firmware_sim.hand import Hand
+from firmware_sim.protocol import MAX_SERVO_ID, PacketParser
+from firmware_sim.servo import Environment, Servo
+from firmware_sim.world import World
+
+MAX_SUBSTEP_S = 0.001
+# A free shaft (no joint in the world) starts at the middle of the turn.
+FREE_SHAFT_START_TICK = 2048.0
+
+
+def parse_ids(ids: Sequence[int] | str) -> tuple[int, ...]:
+    """Servo IDs from a sequence or a ``"1,2"`` string; ValueError naming the bad one."""
+    if isinstance(ids, str):
+        try:
+            values = [int(part) for part in ids.split(",") if part.strip()]
+        except ValueError:
+            raise ValueError(
+                f"--ids must look like 1,2 (comma-separated integers), got {ids!r}"
+            ) from None
+    else:
+        values = [int(v) for v in ids]
+    if not values:
+        raise ValueError("at least one servo ID is needed, e.g. --ids 1,2")
+    for value in values:
+        if not 0 <= value <= MAX_SERVO_ID:
+            raise ValueError(f"servo ID {value} is outside 0..{MAX_SERVO_ID}")
+    if len(set(values)) != len(values):
+        raise ValueError(f"servo IDs must be distinct, got {values}")
+    return tuple(values)
+
+
+class Simulator:
+    """Servos on one bus with their world (see module docstring).
+
+    Parameters
+    ----------
+    ids : sequence of int
+        Servo IDs.
+    model : str
+        ``"xl430-w250"`` or ``"xm430-w350"``.
+    hand : Hand or None
+        Scripted hand moving the limb while torque is off.
+    goal_log : path or None
+        JSON-lines file receiving one line per Goal Position write.
+    seed : int
+        Seeds the world's rest pose and the fault injector.
+    faults : FaultPlan or None
+    clock : callable
+        Monotonic seconds.
+    """
+
+    def __init__(
+        self,
+        ids: Sequence[int] = (1, 2),
+        model: str = "xl430-w250",
+        hand: Hand | None = None,
+        goal_log: str | Path | None = None,
+        seed: int = 0,
+        faults: FaultPlan | None = None,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
+        self.model = get_model(model)
+        self.ids = parse_ids(ids)
+        self.seed = seed
+        self.world = World(hand=hand, seed=seed)
+        self._joint_ids = {joint.servo_id for joint in self.world.joints}
+        self._clock = clock
+        self._start = clock()
+        self.time_s = 0.0
+        self._free_shafts: dict[int, list[float]] = {}
+        self.servos: list[Servo] = []
+        for servo_id in self.ids:
+            if servo_id in self._joint_ids:
+                start = self.world.raw_tick(servo_id)
+            else:
+                start = FREE_SHAFT_START_TICK
+                self._free_shafts[servo_id] = [start, 0.0]
+            self.servos.append(Servo(servo_id, self.model, start, on_goal=self._log_goal))
+        self._home_ids = {id(servo): sid for servo, sid in zip(self.servos, self.ids, strict=True)}
+        self.faults = FaultInjector(faults or FaultPlan(seed=seed))
+        self.parser = PacketParser()
+        self._goal_log: IO[str] | None = None
+        if goal_log is not None:
+            self._goal_log = open(goal_log, "a", encoding="utf-8", buffering=1)  # noqa: SIM115
+        self.packets = 0
+
+    # ------------------------------------------------------------------ time
+    def now(self) -> float:
+        """Seconds since the simulator started."""
+        return self._clock() - self._start
+
+    def advance(self, until_s: float | None = None) -> None:
+        """Step servos and world up to ``until_s`` (default: now) in <= 1 ms substeps."""
+        target = self.now() if until_s is None else until_s
+        span = target - self.time_s
+        if span <= 0.0:
+            return
+        count = math.ceil(span / MAX_SUBSTEP_S - 1e-9)
+        dt = span / count
+        for _ in range(count):
+            self._substep(dt)
+        self.time_s = target
+
+    def _substep(self, dt: float) -> None:
+        drive: dict[int, float | None] = {}
+        for servo in self.servos:
+            drive[self._home_ids[id(servo)]] = servo.drive_setpoint(dt)
+        self.world.step(dt, {k: v for k, v in drive.items() if k in self._joint_ids})
+        for servo in self.servos:
+            home = self._home_ids[id(servo)]
+            if home in self._joint_ids:
+                raw = self.world.raw_tick(home)
+                velocity = self.world.velocity(home)
+                load = self.world.load_percent(home)
+            else:
+                shaft = self._free_shafts[home]
+                setpoint = drive[home]
+                new = shaft[0] if setpoint is None else setpoint
+                raw, velocity, load = new, (new - shaft[0]) / dt, 0.0
+                shaft[0], shaft[1] = new, velocity
+            servo.observe(raw, velocity, load, dt)
+
+    # ------------------------------------------------------------------ traffic
+    def receive(self, data: bytes, arrived_s: float | None = None) -> list[tuple[bytes, float]]:
+        """Process bytes from the controller; ``(packet, delay_s)`` to send, in order.
+
+        ``arrived_s`` is the simulator time the bytes arrived (default: now).
+        """
+        now = self.now() if arrived_s is None else arrived_s
+        self.advance(now)
+        out: list[tuple[bytes, float]] = []
+        for packet in self.parser.feed(data, now):
+            self.packets += 1
+            present = [s for s in self.servos if self.faults.present(self._home_ids[id(s)], now)]
+            for servo in present:
+                servo.refresh(now)
+            for reply in dispatch(packet, present):
+                sent, extra = self.faults.outgoing(reply.packet)
+                if sent is not None:
+                    out.append((sent, reply.delay_s + extra))
+        return out
+
+    def _log_goal(self, servo: Servo, goal: int) -> None:
+        if self._goal_log is None:
+            return
+        gimbal = {
+            self._home_ids[id(s)]: s.goal_raw_tick()
+            for s in self.servos
+            if self._home_ids[id(s)] in self._joint_ids
+        }
+        direction = self.world.direction_for_ticks(gimbal) if gimbal else None
+        line = {
+            "t": round(self.time_s, 6),
+            "id": servo.servo_id,
+            "goal": goal,
+            "limb_dir": None if direction is None else [float(v) for v in direction],
+        }
+        self._goal_log.write(json.dumps(line) + "\n")
+
+    def close(self) -> None:
+        """Flush and close the goal log (safe to call twice)."""
+        if self._goal_log is not None:
+            self._goal_log.close()
+            self._goal_log = None
+
+    # ------------------------------------------------------------------ test handles
+    def servo(self, servo_id: int) -> Servo:
+        """The servo started with ``servo_id``; ValueError listing the IDs otherwise."""
+        for servo in self.servos:
+            if self._home_ids[id(servo)] == servo_id:
+                return servo
+        raise ValueError(f"no servo {servo_id} on this bus; it has {list(self.ids)}")
+
+    def set_hand(self, hand: Hand | None) -> None:
+        self.world.set_hand(hand)
+
+    def push(self, servo_id: int, torque_percent: float) -> None:
+        self.servo(servo_id)
+        self.world.push(servo_id, torque_percent)
+
+    def vanish(self, servo_id: int, duration_s: float) -> None:
+        self.servo(servo_id)
+        self.faults.vanish(servo_id, self.now(), duration_s)
+
+    def set_environment(
+        self, servo_id: int, voltage: float | None = None, temperature: float | None = None
+    ) -> None:
+        servo = self.servo(servo_id)
+        old = servo.environment
+        servo.environment = Environment(
+            voltage=old.voltage if voltage is None else float(voltage),
+            temperature=old.temperature if temperature is None else float(temperature),
+        )
+
+    def truth(self) -> dict[str, Any]:
+        """Ground truth for tests: joint angles, and per servo shaft, setpoint, registers."""
+        self.advance()
+        servos = {}
+        for servo in self.servos:
+            home = self._home_ids[id(servo)]
+            servos[home] = {
+                "id": servo.servo_id,
+                "raw_tick": servo.raw_tick,
+                "velocity": servo.raw_velocity,
+                "load_percent": servo.load_percent,
+                "setpoint": servo.trajectory.position,
+                "torque_on": servo.torque_on,
+                "goal_position": servo.value(Register.GOAL_POSITION),
+                "hardware_error_status": servo.value(Register.HARDWARE_ERROR_STATUS),
+                "present": self.faults.present(home, self.time_s),
+            }
+        return {
+            "time_s": self.time_s,
+            "joints_deg": self.world.joint_angles_deg(),
+            "servos": servos,
+            "faults": self.faults.counters(),
+            "packets": self.packets,
+            "junk_bytes": self.parser.junk_bytes,
+        }
