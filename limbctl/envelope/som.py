@@ -1,0 +1,353 @@
+"""The self-organising map of Jenkins & Dacey (UKSim 2011): the project's baseline envelope.
+
+Network: 4 input nodes (w, x, y, z), ``rows x cols`` output nodes on a grid (default 30 x 30 =
+900, the paper's largest), each with a weight vector in R^4.
+
+Training (the paper, after Mehrotra, Mohan & Ranka; kernel in :mod:`som_kernels`):
+
+- weights start as small random numbers: uniform in [-init_scale, init_scale] (0.1), seeded.
+  With Table I's lr(0) = 1 each presentation copies the pattern onto the winner's neighbourhood,
+  so once the first time step has reached every node the initial weights no longer matter: the
+  seed then changes nothing, and runs differ only through their training data;
+- one **time step** is one presentation of the whole training set, pattern by pattern in the
+  given order (the paper: "for each time step the input set ... is presented"; it also calls
+  time steps epochs). The cap is 10,000 time steps;
+- each pattern's winner minimises the squared Euclidean distance D; the winner and the nodes
+  within grid distance ``radius(t)`` of it move ``w += lr(t) (x - w)``;
+- Table I's stepwise schedule (:func:`table_i_schedule`): the learning rate starts at 1.0 and
+  the neighbourhood radius at 4.0 (grid units, Euclidean on the grid); after every period of
+  10 time steps both are multiplied by 0.5, floored at their minimums (0.02 and 0.0), through
+  the table's five periods [0, 10), [10, 20), [20, 30), [30, 40), [40, ...): the last period's
+  values (lr 0.0625, radius 0.25, i.e. the winner alone) hold until training ends;
+- training stops when no pattern's winner changes during a time step (the paper's convergence)
+  or at the cap. Only valid orientations are given (no invalid examples).
+
+Answering: ``respond(q, "none")`` is the paper's answer, the winning node's weight (winner by D
+on the raw weights), normalised to unit length and canonical (w >= 0). The interpolated
+variants (``idw``, ``geometric``, ``geometric-winner``, ``topological``) reuse the Rigid Map
+paper's definitions (:mod:`limbctl.envelope.interpolation`); topological interpolation takes
+the winner's ``k`` nearest grid neighbours.
+
+Gate (an honest, simple rule; the accurate gate is the Rigid Map's): the paper's discussion
+suggests a threshold on the largest distance between the training patterns and the network's
+output. ``contains(q)`` is true when q's Euclidean distance to the nearest normalised node is at
+most ``threshold``, the largest such distance over the training set. ``correct(q)`` returns q
+inside and the paper's answer (``respond(q, "none")``, itself a node, hence inside) outside: it
+is not the nearest boundary point.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from limbctl.envelope import interpolation as ip
+from limbctl.envelope.base import Envelope
+from limbctl.envelope.som_kernels import train_som
+from limbctl.errors import ConfigError
+from limbctl.quat import canonical
+
+
+def table_i_schedule(
+    max_steps: int = 10_000,
+    lr0: float = 1.0,
+    lr_min: float = 0.02,
+    lr_factor: float = 0.5,
+    radius0: float = 4.0,
+    radius_min: float = 0.0,
+    radius_factor: float = 0.5,
+    period: int = 10,
+    periods: int = 5,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The SOM paper's stepwise learning-rate and neighbourhood schedule (Table I).
+
+    Parameters
+    ----------
+    max_steps : int
+        Time steps (the training cap); the arrays have this length.
+    lr0, lr_min, lr_factor : float
+        Initial learning rate, its floor, and the factor applied at each new period.
+    radius0, radius_min, radius_factor : float
+        The same for the neighbourhood radius (grid units).
+    period : int
+        Time steps per period.
+    periods : int
+        Number of periods in the table; the last one lasts until the end.
+
+    Returns
+    -------
+    learning_rates, radii : ndarray, shape (max_steps,)
+        ``lr(t) = max(lr0 lr_factor^p, lr_min)`` and ``radius(t) = max(radius0
+        radius_factor^p, radius_min)`` with period index ``p = min(t // period, periods - 1)``.
+    """
+    t = np.arange(max_steps)
+    p = np.minimum(t // period, periods - 1)
+    # lr(t) = max(lr0 * factor^p, lr_min)
+    learning_rates = np.maximum(lr0 * lr_factor**p, lr_min)
+    # radius(t) = max(radius0 * factor^p, radius_min)
+    radii = np.maximum(radius0 * radius_factor**p, radius_min)
+    return learning_rates.astype(np.float64), radii.astype(np.float64)
+
+
+class SOM(Envelope):
+    """Kohonen SOM over unit quaternions, trained on valid orientations (Jenkins & Dacey).
+
+    Parameters
+    ----------
+    rows, cols : int
+        Output grid size (nodes = rows * cols).
+    seed : int or numpy.random.Generator
+        Randomness of the initial weights (each ``fit`` with an int seed starts afresh).
+    max_steps : int
+        Cap on time steps (full passes over the training set); Table I: 10,000.
+    lr0, lr_min, lr_factor, radius0, radius_min, radius_factor, period, periods
+        Table I's schedule (see :func:`table_i_schedule`).
+    init_scale : float
+        Initial weights are uniform in [-init_scale, init_scale].
+    """
+
+    kind = "som"
+
+    def __init__(
+        self,
+        rows: int = 30,
+        cols: int = 30,
+        seed: int | np.random.Generator = 0,
+        *,
+        max_steps: int = 10_000,
+        lr0: float = 1.0,
+        lr_min: float = 0.02,
+        lr_factor: float = 0.5,
+        radius0: float = 4.0,
+        radius_min: float = 0.0,
+        radius_factor: float = 0.5,
+        period: int = 10,
+        periods: int = 5,
+        init_scale: float = 0.1,
+    ) -> None:
+        self.rows = _positive_int(rows, "rows")
+        self.cols = _positive_int(cols, "cols")
+        if not isinstance(seed, np.random.Generator):
+            seed = _non_negative_int(seed, "seed")
+        self.seed = seed
+        self.max_steps = _positive_int(max_steps, "max_steps")
+        self.period = _positive_int(period, "period")
+        self.periods = _positive_int(periods, "periods")
+        self.lr0 = _positive(lr0, "lr0")
+        self.lr_min = _positive(lr_min, "lr_min")
+        self.lr_factor = _positive(lr_factor, "lr_factor")
+        self.radius0 = _non_negative(radius0, "radius0")
+        self.radius_min = _non_negative(radius_min, "radius_min")
+        self.radius_factor = _positive(radius_factor, "radius_factor")
+        self.init_scale = _positive(init_scale, "init_scale")
+        if self.lr0 > 1.0 or self.lr_min > 1.0:
+            raise ConfigError("SOM: learning rates above 1 overshoot the pattern; use <= 1")
+        self._weights: np.ndarray | None = None
+        self.threshold: float | None = None
+        self.steps: int = 0
+        self.converged: bool = False
+        self._topology: dict[int, np.ndarray] = {}
+
+    @property
+    def nodes(self) -> int:
+        """Number of output nodes, rows * cols."""
+        return self.rows * self.cols
+
+    def grid(self) -> np.ndarray:
+        """Grid coordinates (row, col) of node i = row * cols + col: (nodes, 2) float64."""
+        r, c = np.divmod(np.arange(self.nodes), self.cols)
+        return np.stack([r, c], axis=1).astype(np.float64)
+
+    def grid_distance(self) -> np.ndarray:
+        """Euclidean distance between nodes on the grid: (nodes, nodes) float64."""
+        g = self.grid()
+        # g_ij = sqrt((r_i - r_j)^2 + (c_i - c_j)^2)
+        return np.sqrt(np.sum((g[:, None, :] - g[None, :, :]) ** 2, axis=2))
+
+    def schedule(self) -> tuple[np.ndarray, np.ndarray]:
+        """This SOM's (learning_rates, radii) per time step, (max_steps,) each."""
+        return table_i_schedule(
+            self.max_steps,
+            self.lr0,
+            self.lr_min,
+            self.lr_factor,
+            self.radius0,
+            self.radius_min,
+            self.radius_factor,
+            self.period,
+            self.periods,
+        )
+
+    def initial_weights(self) -> np.ndarray:
+        """Small random initial weights, uniform in [-init_scale, init_scale]: (nodes, 4)."""
+        rng = (
+            self.seed
+            if isinstance(self.seed, np.random.Generator)
+            else np.random.default_rng(self.seed)
+        )
+        return rng.uniform(-self.init_scale, self.init_scale, size=(self.nodes, 4))
+
+    # ---- learning and answering ------------------------------------------------------------
+    def fit(self, q_train: np.ndarray) -> SOM:
+        """Train on valid orientations ``q_train`` (N, 4), N >= 1. Returns self.
+
+        Sets ``weights``, ``steps`` (time steps run), ``converged`` and ``threshold``.
+        """
+        patterns, _ = self._input(q_train)
+        if len(patterns) == 0:
+            raise ConfigError("SOM.fit: q_train is empty; record some valid orientations first")
+        weights = self.initial_weights()
+        learning_rates, radii = self.schedule()
+        winners = np.full(len(patterns), -1, dtype=np.int64)
+        steps, converged = train_som(
+            weights, patterns, self.grid_distance(), learning_rates, radii, winners
+        )
+        self._weights = weights
+        self.steps = int(steps)
+        self.converged = bool(converged)
+        self.threshold = float(np.max(ip.nearest_distance(self._answer_nodes(), patterns)))
+        return self
+
+    def respond(self, q: np.ndarray, interpolation: str = "none", k: int = 8) -> np.ndarray:
+        """The SOM's answer: the winner's weight (normalised, w >= 0), optionally interpolated.
+
+        Parameters
+        ----------
+        q : array_like, shape (4,) or (N, 4)
+        interpolation : str
+            ``none`` (the paper), ``idw``, ``geometric``, ``geometric-winner``, ``topological``.
+        k : int
+            Runner-ups combined with the winner (nearest by weight, or grid neighbours for
+            ``topological``).
+
+        Returns
+        -------
+        ndarray, shape like ``q``
+        """
+        mode = ip.interpolation_code(interpolation)
+        k = ip.check_k(k)
+        arr, single = self._input(q)
+        weights = self.weights
+        topology = self._grid_topology(k) if mode == ip.TOPOLOGICAL else _NO_TOPOLOGY
+        out = ip.respond_batch(weights, arr, k, ip.EUCLIDEAN, mode, topology)
+        return out[0] if single else out
+
+    def contains(self, q: np.ndarray) -> np.ndarray | bool:
+        """Distance to the nearest normalised node <= ``threshold``: (N,) bool or bool."""
+        arr, single = self._input(q)
+        inside = self._inside(arr)
+        return bool(inside[0]) if single else inside
+
+    def correct(self, q: np.ndarray) -> np.ndarray:
+        """q itself (canonical) inside; the paper's answer ``respond(q, "none")`` outside."""
+        arr, single = self._input(q)
+        out = arr.copy()
+        outside = ~self._inside(arr)
+        if outside.any():
+            out[outside] = ip.respond_batch(
+                self.weights, arr[outside], 1, ip.EUCLIDEAN, ip.NONE, _NO_TOPOLOGY
+            )
+        return out[0] if single else out
+
+    @property
+    def weights(self) -> np.ndarray:
+        """Trained weights (nodes, 4), node i at grid (i // cols, i % cols)."""
+        if self._weights is None:
+            raise ConfigError("SOM is not trained yet: call fit(q_train) or SOM.load(path)")
+        return self._weights
+
+    # ---- internals -------------------------------------------------------------------------
+    def _answer_nodes(self) -> np.ndarray:
+        """The answers the nodes give: normalised, canonical weights (nodes, 4)."""
+        w = self.weights
+        return np.ascontiguousarray(canonical(w / np.linalg.norm(w, axis=1, keepdims=True)))
+
+    def _inside(self, q: np.ndarray) -> np.ndarray:
+        if self.threshold is None:
+            raise ConfigError("SOM is not trained yet: call fit(q_train) or SOM.load(path)")
+        distance = ip.nearest_distance(self._answer_nodes(), q)
+        # NaN-safe: a NaN distance is never inside
+        return distance <= self.threshold
+
+    def _grid_topology(self, k: int) -> np.ndarray:
+        if k not in self._topology:
+            self._topology[k] = ip.neighbours_by_position(self.grid(), k)
+        return self._topology[k]
+
+    # ---- persistence -----------------------------------------------------------------------
+    def _params(self) -> dict[str, Any]:
+        self.weights  # noqa: B018 -- refuse to save an untrained SOM
+        return {
+            "rows": self.rows,
+            "cols": self.cols,
+            "seed": None if isinstance(self.seed, np.random.Generator) else self.seed,
+            "max_steps": self.max_steps,
+            "lr0": self.lr0,
+            "lr_min": self.lr_min,
+            "lr_factor": self.lr_factor,
+            "radius0": self.radius0,
+            "radius_min": self.radius_min,
+            "radius_factor": self.radius_factor,
+            "period": self.period,
+            "periods": self.periods,
+            "init_scale": self.init_scale,
+            "threshold": self.threshold,
+            "steps": self.steps,
+            "converged": self.converged,
+        }
+
+    def _arrays(self) -> dict[str, np.ndarray]:
+        return {"weights": self.weights}
+
+    @classmethod
+    def _restore(cls, params: dict[str, Any], arrays: dict[str, np.ndarray]) -> SOM:
+        p = dict(params)
+        seed = p.pop("seed")
+        threshold = float(p.pop("threshold"))
+        steps = int(p.pop("steps"))
+        converged = bool(p.pop("converged"))
+        # a Generator seed is saved as None; the reloaded SOM refits from seed 0
+        som = cls(seed=0 if seed is None else seed, **p)
+        weights = np.asarray(arrays["weights"], dtype=np.float64)
+        if weights.shape != (som.nodes, 4) or not np.isfinite(weights).all():
+            raise ValueError(f"weights must be finite, shape ({som.nodes}, 4); got {weights.shape}")
+        som._weights = weights
+        som.threshold = threshold
+        som.steps = steps
+        som.converged = converged
+        return som
+
+    def __repr__(self) -> str:
+        state = f"trained, {self.steps} steps" if self._weights is not None else "untrained"
+        return f"SOM(rows={self.rows}, cols={self.cols}, seed={self.seed!r}; {state})"
+
+
+_NO_TOPOLOGY = np.empty((0, 0), dtype=np.int64)
+
+
+def _positive_int(value: object, name: str) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+        raise ConfigError(f"SOM: {name} must be an integer >= 1, got {value!r}")
+    return int(value)
+
+
+def _non_negative_int(value: object, name: str) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
+        raise ConfigError(f"SOM: {name} must be an integer >= 0 or a Generator, got {value!r}")
+    return int(value)
+
+
+def _non_negative(value: object, name: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise ConfigError(f"SOM: {name} must be a number, got {value!r}")
+    if not (np.isfinite(value) and value >= 0):
+        raise ConfigError(f"SOM: {name} must be finite and >= 0, got {value!r}")
+    return float(value)
+
+
+def _positive(value: object, name: str) -> float:
+    number = _non_negative(value, name)
+    if number == 0.0:
+        raise ConfigError(f"SOM: {name} must be > 0, got {value!r}")
+    return number
