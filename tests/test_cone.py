@@ -127,7 +127,7 @@ def test_respond_equals_correct_and_checks_its_options():
     np.testing.assert_array_equal(cone.respond(q, interpolation="geometric", k=3), cone.correct(q))
     with pytest.raises(ConfigError, match="unknown interpolation 'cubic'.*none, idw"):
         cone.respond(q, interpolation="cubic")
-    with pytest.raises(ConfigError, match="k must be"):
+    with pytest.raises(ConfigError, match="integer >= 1"):
         cone.respond(q, k=0)
 
 

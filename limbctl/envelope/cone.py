@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from limbctl.envelope import interpolation as ip
 from limbctl.envelope.base import Envelope
 from limbctl.errors import ConfigError
 from limbctl.quat import swing_angle
@@ -30,8 +31,6 @@ from limbctl.quat import swing_angle
 #: boundary points (exact up to rounding, a few 1e-16) count as inside. In angle this is
 #: 2e-12 / sin(R) rad at most: far below any servo resolution.
 CONTAINS_TOLERANCE = 1e-12
-
-_INTERPOLATIONS = ("none", "idw", "geometric", "topological")
 
 
 class Cone(Envelope):
@@ -97,13 +96,8 @@ class Cone(Envelope):
         An analytic model has no nodes to interpolate between: ``interpolation`` and ``k`` are
         checked (same choices as the networks) and otherwise ignored.
         """
-        if interpolation not in _INTERPOLATIONS:
-            raise ConfigError(
-                f"unknown interpolation {interpolation!r}; choose one of: "
-                f"{', '.join(_INTERPOLATIONS)}"
-            )
-        if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1:
-            raise ConfigError(f"k must be an integer >= 1, got {k!r}")
+        ip.interpolation_code(interpolation)
+        ip.check_k(k)
         return self.correct(q)
 
     def contains(self, q: np.ndarray) -> np.ndarray | bool:
