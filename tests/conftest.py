@@ -1,0 +1,32 @@
+"""Shared fixtures. Keep this file small and generic; module-specific helpers live in tests."""
+
+from __future__ import annotations
+
+import os
+from types import SimpleNamespace
+
+import pytest
+from dynamixel_sdk import PacketHandler, PortHandler
+
+from firmware_sim import SimulatedBus
+
+
+@pytest.fixture
+def sim(tmp_path):
+    """A :class:`SimulatedBus` with servos 1 (pan) and 2 (tilt); checks it shuts down cleanly."""
+    link = tmp_path / "ttyDXL"
+    with SimulatedBus(ids=(1, 2), link=link) as bus:
+        yield bus
+    assert not bus.running, "the simulator process is still running"
+    assert bus.exitcode == 0, f"the simulator process exited with {bus.exitcode}"
+    assert not os.path.lexists(link), f"{link} was left behind"
+
+
+@pytest.fixture
+def sdk(sim):
+    """The real dynamixel-sdk opened on ``sim``: ``.port`` (PortHandler), ``.packet`` (2.0)."""
+    port = PortHandler(sim.port)
+    assert port.openPort(), f"cannot open {sim.port}"
+    yield SimpleNamespace(port=port, packet=PacketHandler(2.0))
+    port.closePort()
+    assert not port.is_open
