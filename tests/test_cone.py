@@ -1,6 +1,6 @@
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from limbctl import quat
@@ -78,6 +78,8 @@ def test_twist_free_input_goes_to_the_nearest_direction_on_the_circle():
     ),
     r_deg=st.floats(1.0, 179.0),
 )
+@example(q=[2.2250738585e-313, 2.2250738585e-313, 0.0, 1.0], r_deg=1.0)  # subnormal twist
+@example(q=[0.0, 5e-324, 0.0, 1.0], r_deg=1.0)
 def test_correct_lands_on_boundary_and_is_idempotent(q, r_deg):
     q = quat.canonical(quat.normalize(np.array(q)))
     cone = Cone(half_angle_deg=r_deg)

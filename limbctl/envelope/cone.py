@@ -139,17 +139,15 @@ class Cone(Envelope):
     def _to_boundary(self, q: np.ndarray) -> np.ndarray:
         c = np.cos(0.5 * self.half_angle)
         s = np.sin(0.5 * self.half_angle)
-        n = np.hypot(q[:, 0], q[:, 1])
-        m = np.hypot(q[:, 2], q[:, 3])
         out = np.empty_like(q)
-        no_twist = n == 0.0
-        n_safe = np.where(no_twist, 1.0, n)
         # (w, x) -> c (w, x) / n : keep the twist; n = 0 -> twist taken as the identity
-        out[:, 0] = np.where(no_twist, c, c * q[:, 0] / n_safe)
-        out[:, 1] = np.where(no_twist, 0.0, c * q[:, 1] / n_safe)
+        tw, tx, no_twist = _unit_pair(q[:, 0], q[:, 1])
+        out[:, 0] = np.where(no_twist, c, c * tw)
+        out[:, 1] = np.where(no_twist, 0.0, c * tx)
         # (y, z) -> s (y, z) / m : keep the swing axis (m > 0 outside the cone)
-        out[:, 2] = s * q[:, 2] / m
-        out[:, 3] = s * q[:, 3] / m
+        sy, sz, _ = _unit_pair(q[:, 2], q[:, 3])
+        out[:, 2] = s * sy
+        out[:, 3] = s * sz
         return out
 
     # ---- persistence -----------------------------------------------------------------------
@@ -167,6 +165,21 @@ class Cone(Envelope):
         if self._half_angle is None:
             return "Cone(half_angle=None)"
         return f"Cone(half_angle_deg={self.half_angle_deg:.6g})"
+
+
+def _unit_pair(u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(u, v) / hypot(u, v), accurate for subnormal pairs; also where both are zero.
+
+    Scales by max(|u|, |v|) first so the ratio keeps full precision. Returns the two unit
+    components (0 where both are zero) and the (N,) mask of zero pairs.
+    """
+    big = np.maximum(np.abs(u), np.abs(v))
+    zero = big == 0.0
+    big = np.where(zero, 1.0, big)
+    u, v = u / big, v / big
+    norm = np.hypot(u, v)
+    norm = np.where(zero, 1.0, norm)
+    return u / norm, v / norm, zero
 
 
 def _check_number(value: object, name: str) -> float:
