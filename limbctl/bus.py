@@ -1,0 +1,579 @@
+"""The servo bus: the real dynamixel-sdk (Protocol 2.0) with retries, typed errors and alarms.
+
+:class:`ServoBus` opens a serial port (a U2D2's device, or the simulator's pty), pings every
+servo and checks its model, and then offers exactly what the controller needs: configure for
+position control, torque on/off, both present positions in ONE sync read (Fast Sync Read where
+the firmware has it), both goals in ONE sync write, hardware-error status, reboot. Registers
+are named only through :class:`limbctl.control_table.Register`.
+
+Every transaction is retried a bounded number of times within a time budget; what still fails
+raises one of (see :mod:`limbctl.errors`)::
+
+    BusError               a servo refused an instruction (status error 1-7), port busy
+    ├── PortError          the port cannot be opened or failed while in use
+    ├── BusTimeout         a servo did not answer (names the id, says what to check)
+    ├── CorruptReply       replies kept failing CRC / framing
+    └── ServoAlarm         a status packet had the alert bit and Hardware Error Status is set
+
+A status packet with the alert bit set does not stop the transaction that carried it (its data
+are valid); when the transaction is complete the bus reads Hardware Error Status of the servos
+that raised the alert and raises :class:`ServoAlarm` with the decoded bits. ``reboot(id)`` is
+the way out (X-series shutdowns keep torque off until a reboot).
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+import time
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import serial
+from dynamixel_sdk import (
+    BROADCAST_ID,
+    COMM_NOT_AVAILABLE,
+    COMM_PORT_BUSY,
+    COMM_RX_CORRUPT,
+    COMM_RX_TIMEOUT,
+    COMM_SUCCESS,
+    COMM_TX_FAIL,
+    GroupSyncWrite,
+    PacketHandler,
+    PortHandler,
+)
+
+from limbctl.control_table import (
+    ALERT_BIT,
+    FAST_SYNC_READ_MIN_FIRMWARE,
+    HARDWARE_ERROR_ADVICE,
+    MAX_TICK,
+    MODEL_BY_NAME,
+    DriveModeBit,
+    HardwareError,
+    ModelNumber,
+    OperatingMode,
+    Register,
+    StatusError,
+    decode_hardware_error,
+    describe_status_error,
+    model_name,
+)
+from limbctl.errors import (
+    BusError,
+    BusTimeout,
+    ConfigError,
+    CorruptReply,
+    InvalidInputError,
+    PortError,
+    ServoAlarm,
+)
+
+#: Protocol 2.0 status packet: header(4) id(1) length(2) instruction(1), then parameters.
+_PKT_ID, _PKT_LENGTH_L, _PKT_LENGTH_H, _PKT_PARAMETER0 = 4, 5, 6, 8
+#: Status Return Level at which every instruction is answered.
+STATUS_RETURN_ALL = 2
+
+
+@dataclass
+class BusStats:
+    """Counters for telemetry: transactions attempted and how they went."""
+
+    transactions: int = 0
+    retries: int = 0
+    timeouts: int = 0
+    corrupt: int = 0
+    alarms: int = 0
+
+
+@dataclass
+class _Attempt:
+    """One try of a transaction: its value, SDK result, per-servo error bytes, who failed."""
+
+    value: Any
+    result: int
+    errors: dict[int, int]
+    culprit: int | None = None
+
+
+class ServoBus:
+    """Servos on one serial port; a context manager (``close()`` is safe to call twice).
+
+    Parameters
+    ----------
+    port : str
+        Serial device path, e.g. ``/dev/ttyUSB0`` or the simulator's pty link.
+    baud : int
+        Bit rate the servos are set to (the rig profile's ``baud``).
+    ids : sequence of int
+        Servo ids, e.g. ``(1, 2)`` for (pan, tilt).
+    model : str or None
+        Expected model name (``"xl430-w250"`` / ``"xm430-w350"``); None accepts either.
+    retry_budget_s : float
+        Time within which a failing transaction is retried.
+    max_attempts : int
+        Most tries per transaction (at least 1).
+    fast_sync_read : bool or None
+        Force Fast Sync Read on/off; None decides from firmware version and a probe.
+    """
+
+    def __init__(
+        self,
+        port: str,
+        baud: int,
+        ids: Sequence[int],
+        model: str | None = None,
+        retry_budget_s: float = 0.25,
+        max_attempts: int = 3,
+        fast_sync_read: bool | None = None,
+    ) -> None:
+        if not ids or len(set(ids)) != len(ids):
+            raise ConfigError(f"ids must be distinct servo ids, got {list(ids)}")
+        if model is not None and model not in MODEL_BY_NAME:
+            raise ConfigError(f"model must be one of {', '.join(MODEL_BY_NAME)}, got {model!r}")
+        self.port_name = str(port)
+        self.baud = int(baud)
+        self.ids = tuple(int(i) for i in ids)
+        self.expected_model = MODEL_BY_NAME[model] if model else None
+        self.retry_budget_s = float(retry_budget_s)
+        self.max_attempts = max(1, int(max_attempts))
+        self.fast_sync_read = fast_sync_read
+        self.models: dict[int, ModelNumber] = {}
+        self.firmware: dict[int, int] = {}
+        self.stats = BusStats()
+        self._port: PortHandler | None = None
+        self._packets = PacketHandler(2.0)
+        self._lock = threading.RLock()
+        self._alerted: set[int] = set()
+
+    @classmethod
+    def from_profile(cls, profile: Any, port: str | None = None, **options: Any) -> ServoBus:
+        """A bus for a :class:`calib.profile.RigProfile` (``port`` overrides the profile's)."""
+        return cls(port or profile.port, profile.baud, profile.ids, profile.model, **options)
+
+    # ---- lifecycle ----
+    def open(self) -> ServoBus:
+        """Open the port, ping every servo, check models, pick the sync-read flavour."""
+        with self._lock:
+            if self._port is not None:
+                return self
+            self._port = self._open_port()
+            try:
+                for servo_id in self.ids:
+                    self._identify(servo_id)
+                if self.fast_sync_read is None:
+                    self.fast_sync_read = self._probe_fast_sync_read()
+            except BaseException:
+                self.close()
+                raise
+            return self
+
+    def close(self) -> None:
+        """Close the port (torque is left as it is). Safe to call twice."""
+        with self._lock:
+            port, self._port = self._port, None
+            if port is not None and port.is_open:
+                port.closePort()
+
+    def __enter__(self) -> ServoBus:
+        return self.open()
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    @property
+    def is_open(self) -> bool:
+        """True between :meth:`open` and :meth:`close`."""
+        return self._port is not None
+
+    def _open_port(self) -> PortHandler:
+        hint = "check the cable / permissions (dialout group) / --port"
+        if not os.path.exists(self.port_name):
+            raise PortError(f"serial port {self.port_name} does not exist: {hint}")
+        port = PortHandler(self.port_name)
+        try:
+            opened = port.setBaudRate(self.baud)
+        except (serial.SerialException, OSError) as exc:
+            raise PortError(f"cannot open serial port {self.port_name} ({exc}): {hint}") from exc
+        if not opened:
+            raise ConfigError(f"baud {self.baud} is not supported by the serial port driver")
+        return port
+
+    def _identify(self, servo_id: int) -> None:
+        def ping() -> _Attempt:
+            number, result, error = self._packets.ping(self._port, servo_id)
+            return _Attempt(number, result, {servo_id: error}, servo_id)
+
+        number = self._transact(f"ping servo {servo_id}", ping, check_alert=False)
+        try:
+            model = ModelNumber(number)
+        except ValueError:
+            raise ConfigError(
+                f"servo {servo_id} is {model_name(number)}, which limbctl does not support "
+                f"(supported: {', '.join(MODEL_BY_NAME)})"
+            ) from None
+        if self.expected_model is not None and model != self.expected_model:
+            raise ConfigError(
+                f"servo {servo_id} is {model_name(model)} but the rig profile says "
+                f"{model_name(self.expected_model)}: fix `model:` in the profile or connect the "
+                f"right servo"
+            )
+        self.models[servo_id] = model
+        self.firmware[servo_id] = self.read(Register.FIRMWARE_VERSION, servo_id, check_alert=False)
+
+    def _probe_fast_sync_read(self) -> bool:
+        if min(self.firmware.values()) < FAST_SYNC_READ_MIN_FIRMWARE:
+            return False
+        outcome = self._attempt_fast_read(Register.PRESENT_POSITION, self.ids)
+        return outcome.result == COMM_SUCCESS
+
+    # ---- the retry engine ----
+    def _require_port(self) -> PortHandler:
+        if self._port is None:
+            raise PortError(f"the bus on {self.port_name} is not open; use it as a context manager")
+        return self._port
+
+    def _transact(
+        self, what: str, attempt: Callable[[], _Attempt], check_alert: bool = True
+    ) -> Any:
+        """Run ``attempt`` until it succeeds, the attempts or the time budget run out."""
+        with self._lock:
+            port = self._require_port()
+            self.stats.transactions += 1
+            deadline = time.monotonic() + self.retry_budget_s
+            outcome: _Attempt | None = None
+            for number in range(self.max_attempts):
+                if number:
+                    self.stats.retries += 1
+                    port.clearPort()
+                try:
+                    outcome = attempt()
+                except (serial.SerialException, OSError) as exc:
+                    raise PortError(
+                        f"{what}: serial port {self.port_name} failed ({exc}); was the adapter "
+                        f"unplugged? check the cable and reconnect",
+                    ) from exc
+                if outcome.result == COMM_SUCCESS:
+                    refused = {
+                        i: e & ~ALERT_BIT for i, e in outcome.errors.items() if e & ~ALERT_BIT
+                    }
+                    if not refused:
+                        break
+                    servo_id, code = next(iter(refused.items()))
+                    if code != StatusError.CRC:
+                        raise BusError(
+                            f"{what}: servo {servo_id} refused it ({describe_status_error(code)})",
+                            servo_id,
+                        )
+                    outcome.result = COMM_RX_CORRUPT  # our packet was garbled: retry
+                    outcome.culprit = servo_id
+                if time.monotonic() >= deadline:
+                    break
+            assert outcome is not None
+            if outcome.result != COMM_SUCCESS:
+                raise self._failure(what, outcome, number + 1)
+            alerted = {i for i, e in outcome.errors.items() if e & ALERT_BIT}
+            self._alerted |= alerted
+            if check_alert and self._alerted:
+                self._raise_alarms()
+            return outcome.value
+
+    def _failure(self, what: str, outcome: _Attempt, attempts: int) -> BusError:
+        servo = f"servo {outcome.culprit}" if outcome.culprit is not None else "the bus"
+        tried = f"after {attempts} attempt{'s' if attempts > 1 else ''}"
+        if outcome.result == COMM_RX_TIMEOUT:
+            self.stats.timeouts += 1
+            return BusTimeout(
+                f"{what}: {servo} did not answer {tried}: check its power supply and cable, and "
+                f"that its id and baud ({self.baud}) match the rig profile (scan with Dynamixel "
+                f"Wizard)",
+                outcome.culprit,
+            )
+        if outcome.result == COMM_RX_CORRUPT:
+            self.stats.corrupt += 1
+            return CorruptReply(
+                f"{what}: replies from {servo} kept failing CRC/framing {tried}: check the cable "
+                f"and connectors, keep the bus away from motor power leads, try a lower baud",
+                outcome.culprit,
+            )
+        if outcome.result == COMM_TX_FAIL:
+            return PortError(
+                f"{what}: could not send on {self.port_name}: check the adapter and --port",
+                outcome.culprit,
+            )
+        if outcome.result == COMM_PORT_BUSY:
+            return BusError(f"{what}: the port is busy (used from another thread?)")
+        if outcome.result == COMM_NOT_AVAILABLE:
+            return BusError(f"{what}: not available with Protocol 2.0 / this id")
+        return BusError(f"{what}: failed with SDK result {outcome.result}", outcome.culprit)
+
+    # ---- alarms ----
+    def _raise_alarms(self) -> None:
+        alerted = sorted(self._alerted)
+        errors = self._hardware_errors(alerted)
+        # the reads above carry the alert bit again: they answered it, so forget them
+        self._alerted.difference_update(alerted)
+        found = {i: bits for i, bits in errors.items() if bits}
+        if not found:
+            return
+        self.stats.alarms += 1
+        servo_id, bits = next(iter(found.items()))
+        detail = "; ".join(f"servo {i}: {', '.join(b)}" for i, b in found.items())
+        advice = "; ".join(
+            HARDWARE_ERROR_ADVICE[flag]
+            for flag in HardwareError
+            if flag.name.lower().replace("_", " ") in bits
+        )
+        raise ServoAlarm(
+            f"hardware error reported ({detail}). {advice}. The servo keeps torque off until it "
+            f"is rebooted: fix the cause, then reboot it (ServoBus.reboot({servo_id}))",
+            servo_id,
+            bits,
+        )
+
+    def _hardware_errors(self, ids: Iterable[int]) -> dict[int, tuple[str, ...]]:
+        return {
+            i: decode_hardware_error(self.read(Register.HARDWARE_ERROR_STATUS, i, False))
+            for i in ids
+        }
+
+    def read_hardware_errors(self) -> dict[int, tuple[str, ...]]:
+        """Decoded Hardware Error Status of every servo (empty tuple = healthy)."""
+        with self._lock:
+            return self._hardware_errors(self.ids)
+
+    def check_alarms(self) -> None:
+        """Raise :class:`ServoAlarm` if any servo has a hardware error set."""
+        with self._lock:
+            self._alerted |= set(self.ids)
+            self._raise_alarms()
+
+    # ---- single registers ----
+    def read(self, register: Register, servo_id: int, check_alert: bool = True) -> int:
+        """Value of ``register`` on one servo."""
+
+        def attempt() -> _Attempt:
+            data, result, error = self._packets.readTxRx(
+                self._port, servo_id, register.address, register.size
+            )
+            if result == COMM_SUCCESS and not error & ~ALERT_BIT and len(data) != register.size:
+                result = COMM_RX_CORRUPT
+            value = register.decode(data) if len(data) == register.size else None
+            return _Attempt(value, result, {servo_id: error}, servo_id)
+
+        return self._transact(f"read {register.name} of servo {servo_id}", attempt, check_alert)
+
+    def write(self, register: Register, servo_id: int, value: int) -> None:
+        """Write ``value`` to ``register`` of one servo and wait for its status.
+
+        EEPROM registers (``register.is_eeprom``) need torque off; the servo refuses otherwise.
+        """
+        data = register.encode(value)
+
+        def attempt() -> _Attempt:
+            result, error = self._packets.writeTxRx(
+                self._port, servo_id, register.address, register.size, data
+            )
+            return _Attempt(None, result, {servo_id: error}, servo_id)
+
+        self._transact(f"write {register.name}={value} to servo {servo_id}", attempt)
+
+    # ---- group transfers ----
+    def sync_read(
+        self, register: Register, ids: Sequence[int] | None = None, check_alert: bool = True
+    ) -> dict[int, int]:
+        """``register`` of every servo in ``ids`` (default all) in ONE sync read.
+
+        With ``check_alert=False`` a servo's alert bit does not raise :class:`ServoAlarm`
+        (to inspect a servo that is in alarm).
+        """
+        ids = self._known(ids)
+        flavour = "fast sync read" if self.fast_sync_read else "sync read"
+        read = self._attempt_fast_read if self.fast_sync_read else self._attempt_plain_read
+        return self._transact(
+            f"{flavour} {register.name}", lambda: read(register, ids), check_alert
+        )
+
+    def _attempt_plain_read(self, register: Register, ids: Sequence[int]) -> _Attempt:
+        result = self._packets.syncReadTx(
+            self._port, register.address, register.size, list(ids), len(ids), False
+        )
+        if result != COMM_SUCCESS:
+            return _Attempt(None, result, {})
+        values: dict[int, int] = {}
+        errors: dict[int, int] = {}
+        for servo_id in ids:
+            data, result, error = self._packets.readRx(self._port, servo_id, register.size)
+            if result == COMM_SUCCESS and len(data) != register.size and not error & ~ALERT_BIT:
+                result = COMM_RX_CORRUPT
+            if result != COMM_SUCCESS:
+                return _Attempt(None, result, errors, servo_id)
+            errors[servo_id] = error
+            if len(data) == register.size:
+                values[servo_id] = register.decode(data)
+        return _Attempt(values, COMM_SUCCESS, errors)
+
+    def _attempt_fast_read(self, register: Register, ids: Sequence[int]) -> _Attempt:
+        port = self._port
+        result = self._packets.syncReadTx(
+            port, register.address, register.size, list(ids), len(ids), True
+        )
+        if result != COMM_SUCCESS:
+            return _Attempt(None, result, {})
+        packet, result = self._packets.rxPacket(port, True)
+        if result != COMM_SUCCESS:
+            # a silent first servo sends nothing; a silent later one cuts the packet short
+            culprit = ids[0] if result == COMM_RX_TIMEOUT else None
+            return _Attempt(None, result, {}, culprit)
+        # LEN = instruction + per servo (error + id + data + crc)
+        expected = 1 + len(ids) * (register.size + 4)
+        length = packet[_PKT_LENGTH_L] | packet[_PKT_LENGTH_H] << 8
+        if packet[_PKT_ID] != BROADCAST_ID or length != expected:
+            return _Attempt(None, COMM_RX_CORRUPT, {})
+        values: dict[int, int] = {}
+        errors: dict[int, int] = {}
+        offset = _PKT_PARAMETER0
+        for servo_id in ids:
+            error, answered_id = packet[offset], packet[offset + 1]
+            if answered_id != servo_id:
+                return _Attempt(None, COMM_RX_CORRUPT, errors, servo_id)
+            errors[servo_id] = error
+            values[servo_id] = register.decode(packet[offset + 2 : offset + 2 + register.size])
+            offset += register.size + 4
+        return _Attempt(values, COMM_SUCCESS, errors)
+
+    def sync_write(self, register: Register, values: Mapping[int, int]) -> None:
+        """Write one value per servo to ``register`` in ONE sync write (no reply)."""
+        self._known(values)
+        params = {servo_id: register.encode(value) for servo_id, value in values.items()}
+
+        def attempt() -> _Attempt:
+            group = GroupSyncWrite(self._port, self._packets, register.address, register.size)
+            for servo_id, data in params.items():
+                group.addParam(servo_id, data)
+            return _Attempt(None, group.txPacket(), {})
+
+        self._transact(f"sync write {register.name}", attempt)
+
+    def _known(self, ids: Iterable[int] | None) -> tuple[int, ...]:
+        if ids is None:
+            return self.ids
+        ids = tuple(ids)
+        unknown = [i for i in ids if i not in self.ids]
+        if unknown or not ids:
+            raise ConfigError(f"servo ids {unknown or '[]'} are not on this bus {list(self.ids)}")
+        return ids
+
+    # ---- what the controller uses ----
+    def read_positions(self) -> dict[int, int]:
+        """Present Position (ticks) of every servo, read in one sync read."""
+        return self.sync_read(Register.PRESENT_POSITION)
+
+    def write_goals(self, goals: Mapping[int, int]) -> None:
+        """Goal Position (ticks, 0..4095) for each servo in ``goals``, in one sync write."""
+        for servo_id, tick in goals.items():
+            if isinstance(tick, bool) or int(tick) != tick or not 0 <= tick <= MAX_TICK:
+                raise InvalidInputError(
+                    f"goal for servo {servo_id} must be an integer tick in 0..{MAX_TICK}, "
+                    f"got {tick!r}"
+                )
+        self.sync_write(Register.GOAL_POSITION, {i: int(t) for i, t in goals.items()})
+
+    def set_torque(self, enabled: bool, ids: Sequence[int] | None = None) -> None:
+        """Torque on or off, servo by servo, each write confirmed by its status packet."""
+        for servo_id in self._known(ids):
+            self.write(Register.TORQUE_ENABLE, servo_id, int(bool(enabled)))
+
+    def torque_enabled(self) -> dict[int, bool]:
+        """Torque Enable of every servo."""
+        return {i: bool(v) for i, v in self.sync_read(Register.TORQUE_ENABLE).items()}
+
+    def configure(
+        self,
+        position_limits: Mapping[int, tuple[int, int]],
+        profile_velocity: int = 200,
+        profile_acceleration: int = 50,
+    ) -> None:
+        """Prepare every servo for position control. Turns torque OFF (EEPROM needs it).
+
+        Parameters
+        ----------
+        position_limits : mapping id -> (min_tick, max_tick)
+            Written to Min/Max Position Limit (EEPROM), so the servo itself refuses goals
+            beyond the rig's hard limits: the last line of defence.
+        profile_velocity : int
+            Profile Velocity in units of 0.229 rev/min (0 = no limit).
+        profile_acceleration : int
+            Profile Acceleration in units of 214.577 rev/min^2 (0 = no limit).
+        """
+        if set(position_limits) != set(self.ids):
+            raise ConfigError(
+                f"position_limits must cover exactly the servos {list(self.ids)}, "
+                f"got {sorted(position_limits)}"
+            )
+        for servo_id, (lo, hi) in position_limits.items():
+            if not 0 <= lo <= hi <= MAX_TICK:
+                raise ConfigError(
+                    f"position limits of servo {servo_id} must satisfy 0 <= min <= max <= "
+                    f"{MAX_TICK}, got ({lo}, {hi})"
+                )
+        with self._lock:
+            self.set_torque(False)
+            for servo_id in self.ids:
+                level = self.read(Register.STATUS_RETURN_LEVEL, servo_id)
+                if level != STATUS_RETURN_ALL:
+                    raise ConfigError(
+                        f"servo {servo_id} has Status Return Level {level}; limbctl needs "
+                        f"{STATUS_RETURN_ALL} (answer every instruction): set it with Dynamixel "
+                        f"Wizard"
+                    )
+                lo, hi = position_limits[servo_id]
+                drive = self.read(Register.DRIVE_MODE, servo_id)
+                eeprom = {
+                    Register.OPERATING_MODE: int(OperatingMode.POSITION),
+                    Register.DRIVE_MODE: drive & ~int(DriveModeBit.TIME_BASED_PROFILE),
+                    Register.RETURN_DELAY_TIME: 0,
+                    Register.MIN_POSITION_LIMIT: lo,
+                    Register.MAX_POSITION_LIMIT: hi,
+                }
+                for register, value in eeprom.items():
+                    # EEPROM wears: write only what differs, then read it back
+                    if self.read(register, servo_id) != value:
+                        self.write(register, servo_id, value)
+                        got = self.read(register, servo_id)
+                        if got != value:
+                            raise BusError(
+                                f"servo {servo_id} kept {register.name}={got} after writing "
+                                f"{value}",
+                                servo_id,
+                            )
+                self.write(Register.PROFILE_ACCELERATION, servo_id, profile_acceleration)
+                self.write(Register.PROFILE_VELOCITY, servo_id, profile_velocity)
+
+    def reboot(self, servo_id: int, timeout_s: float = 3.0) -> None:
+        """Reboot one servo (clears a hardware-error shutdown) and wait until it answers again.
+
+        Torque is off after a reboot; RAM settings (profile velocity, ...) are back to defaults.
+        """
+        self._known([servo_id])
+
+        def attempt() -> _Attempt:
+            result, error = self._packets.reboot(self._port, servo_id)
+            return _Attempt(None, result, {servo_id: error}, servo_id)
+
+        with self._lock:
+            self._transact(f"reboot servo {servo_id}", attempt, check_alert=False)
+            self._alerted.discard(servo_id)
+            deadline = time.monotonic() + timeout_s
+            while True:
+                # each ping blocks until its own reply timeout: this waits on the servo
+                _, result, _ = self._packets.ping(self._port, servo_id)
+                if result == COMM_SUCCESS:
+                    return
+                if time.monotonic() >= deadline:
+                    raise BusTimeout(
+                        f"servo {servo_id} did not come back within {timeout_s} s of a reboot: "
+                        f"power-cycle it",
+                        servo_id,
+                    )
