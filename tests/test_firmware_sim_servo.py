@@ -1,0 +1,158 @@
+"""Servo motion and protection of firmware_sim, driven through the real SDK over the pty."""
+
+from __future__ import annotations
+
+import math
+import time
+
+from dynamixel_sdk import COMM_SUCCESS
+
+from firmware_sim.motion import (
+    VELOCITY_UNIT_TICKS_S,
+    Trajectory,
+    time_based_limits,
+    velocity_based_limits,
+)
+
+DRIVE_MODE, HOMING_OFFSET, TORQUE_ENABLE, HARDWARE_ERROR = 10, 20, 64, 70
+PROFILE_ACCELERATION, PROFILE_VELOCITY, GOAL_POSITION = 108, 112, 116
+MOVING, PRESENT_LOAD, PRESENT_POSITION, VELOCITY_TRAJECTORY = 122, 126, 132, 136
+OVERLOAD_BIT, ALERT = 0x20, 0x80
+
+
+def signed32(value: int) -> int:
+    return value - (1 << 32) if value & 0x80000000 else value
+
+
+def signed16(value: int) -> int:
+    return value - (1 << 16) if value & 0x8000 else value
+
+
+def wait_for(condition, timeout_s: float, what: str):
+    """Poll ``condition`` until it returns a truthy value; fail naming ``what`` on timeout."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        value = condition()
+        if value:
+            return value
+        assert time.monotonic() < deadline, f"timed out waiting for {what}"
+
+
+def write(sdk, servo_id, address, size, value):
+    writer = {1: sdk.packet.write1ByteTxRx, 2: sdk.packet.write2ByteTxRx}.get(
+        size, sdk.packet.write4ByteTxRx
+    )
+    comm, error = writer(sdk.port, servo_id, address, value & ((1 << (8 * size)) - 1))
+    assert (comm, error) == (COMM_SUCCESS, 0), f"write {address}={value}: {comm}, {error}"
+
+
+def read(sdk, servo_id, address, size, signed=True):
+    reader = {1: sdk.packet.read1ByteTxRx, 2: sdk.packet.read2ByteTxRx}.get(
+        size, sdk.packet.read4ByteTxRx
+    )
+    value, comm, error = reader(sdk.port, servo_id, address)
+    assert comm == COMM_SUCCESS
+    if signed and size == 4:
+        return signed32(value)
+    return signed16(value) if signed and size == 2 else value
+
+
+def test_trajectory_respects_velocity_and_acceleration_caps():
+    limits = velocity_based_limits(50, 10, 265)
+    trajectory = Trajectory(0.0)
+    trajectory.move_to(2000.0, limits)
+    dt, previous_velocity, peak = 0.001, 0.0, 0.0
+    for _ in range(20000):
+        trajectory.step(dt)
+        if not trajectory.active:
+            break  # the last step lands on the target and stops
+        assert abs(trajectory.velocity) <= limits.max_velocity + 1e-9
+        assert abs(trajectory.velocity - previous_velocity) <= limits.max_acceleration * dt + 1e-6
+        previous_velocity = trajectory.velocity
+        peak = max(peak, trajectory.velocity)
+    assert trajectory.position == 2000.0 and not trajectory.active
+    assert math.isclose(peak, 50 * VELOCITY_UNIT_TICKS_S, rel_tol=1e-6)
+
+
+def test_time_based_profile_finishes_in_the_given_time():
+    limits = time_based_limits(1000.0, 800, 200, 265)
+    trajectory = Trajectory(0.0)
+    trajectory.move_to(1000.0, limits)
+    steps = 0
+    while trajectory.active:
+        trajectory.step(0.001)
+        steps += 1
+    assert abs(steps - 800) <= 20  # 0.8 s (the profile's own duration) within 2.5 %
+
+
+def test_position_control_follows_profile_to_goal(sdk, sim):
+    write(sdk, 1, PROFILE_VELOCITY, 4, 60)
+    write(sdk, 1, PROFILE_ACCELERATION, 4, 20)
+    write(sdk, 1, TORQUE_ENABLE, 1, 1)
+    start = read(sdk, 1, PRESENT_POSITION, 4)
+    goal = start + 600
+    write(sdk, 1, GOAL_POSITION, 4, goal)
+    peak = 0
+    deadline = time.monotonic() + 10.0
+    while (
+        read(sdk, 1, MOVING, 1, signed=False) or abs(read(sdk, 1, PRESENT_POSITION, 4) - goal) > 3
+    ):
+        peak = max(peak, read(sdk, 1, VELOCITY_TRAJECTORY, 4))
+        assert time.monotonic() < deadline, "the move never finished"
+    assert 0 < peak <= 60  # the profile velocity caps the trajectory
+    assert abs(sim.truth()["servos"][1]["raw_tick"] - goal) <= 3
+
+
+def test_homing_offset_and_reverse_mode_map_present_position(sdk, sim):
+    raw = sim.truth()["servos"][2]["raw_tick"]
+    assert read(sdk, 2, PRESENT_POSITION, 4) == round(raw)
+    write(sdk, 2, HOMING_OFFSET, 4, 1000)
+    assert read(sdk, 2, PRESENT_POSITION, 4) == round(raw + 1000)
+    write(sdk, 2, DRIVE_MODE, 1, 1)  # reverse
+    assert read(sdk, 2, PRESENT_POSITION, 4) == round(4096 - raw + 1000)
+
+
+def test_torque_off_backdrive_and_torque_on_hold(sdk, sim):
+    before = read(sdk, 1, PRESENT_POSITION, 4)
+    # a hand that carries the pan joint to 30 deg within 0.3 s and holds it there
+    sim.set_hand({"script": [[0.0, 0.0, 0.0], [0.3, 30.0, 0.0]]})
+    wait_for(
+        lambda: abs(sim.truth()["joints_deg"]["pan"] - 30.0) < 0.2, 5.0, "the hand to move pan"
+    )
+    assert read(sdk, 1, PRESENT_POSITION, 4) - before > 300  # 30 deg = 341 ticks
+    write(sdk, 1, TORQUE_ENABLE, 1, 1)
+    held = read(sdk, 1, PRESENT_POSITION, 4)
+    sim.set_hand({"script": [[0.0, 30.0, 0.0], [0.3, -30.0, 0.0]]})
+    for _ in range(200):
+        assert abs(read(sdk, 1, PRESENT_POSITION, 4) - held) <= 5  # the hand cannot move it
+    assert abs(sim.truth()["joints_deg"]["pan"] - 30.0) < 1.0
+
+
+def test_overload_trips_torque_and_alert_until_reboot(sdk, sim):
+    write(sdk, 1, TORQUE_ENABLE, 1, 1)
+    sim.push(1, 150.0)
+    load = wait_for(
+        lambda: abs(read(sdk, 1, PRESENT_LOAD, 2)) > 1000 * 0.99 or None, 5.0, "load to build"
+    )
+    assert load
+    status = wait_for(
+        lambda: read(sdk, 1, HARDWARE_ERROR, 1, signed=False), 5.0, "overload to trip"
+    )
+    assert status == OVERLOAD_BIT
+    value, comm, error = sdk.packet.read1ByteTxRx(sdk.port, 1, TORQUE_ENABLE)
+    assert (value, comm, error) == (0, COMM_SUCCESS, ALERT)  # torque off, alert on every reply
+    assert sdk.packet.ping(sdk.port, 1)[2] == ALERT
+    sim.push(1, 0.0)
+    comm, error = sdk.packet.reboot(sdk.port, 1)
+    assert comm == COMM_SUCCESS
+    assert sdk.packet.read1ByteTxRx(sdk.port, 1, HARDWARE_ERROR) == (0, COMM_SUCCESS, 0)
+    write(sdk, 1, TORQUE_ENABLE, 1, 1)
+
+
+def test_blocked_goal_beyond_end_stop_overloads(sdk, sim):
+    write(sdk, 1, TORQUE_ENABLE, 1, 1)
+    # pan's end stop is at +120 deg = 2185 + 1365 ticks; command far beyond it (within limits)
+    write(sdk, 1, GOAL_POSITION, 4, 4000)
+    wait_for(lambda: read(sdk, 1, HARDWARE_ERROR, 1, signed=False), 10.0, "the stall to trip")
+    assert sim.truth()["servos"][1]["torque_on"] is False
+    assert sim.truth()["joints_deg"]["pan"] <= 120.0 + 1e-6
