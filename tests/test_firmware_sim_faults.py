@@ -1,0 +1,84 @@
+"""Seeded faults of firmware_sim, observed through the real SDK."""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+from dynamixel_sdk import COMM_RX_CORRUPT, COMM_RX_TIMEOUT, COMM_SUCCESS
+
+from firmware_sim.faults import FaultInjector, FaultPlan
+
+PRESENT_POSITION, HARDWARE_ERROR, TORQUE_ENABLE, SHUTDOWN = 132, 70, 64, 63
+VOLTAGE_BIT, OVERHEATING_BIT, ALERT = 0x01, 0x04, 0x80
+
+
+def outcomes(sdk, count=40):
+    return [sdk.packet.read4ByteTxRx(sdk.port, 1, PRESENT_POSITION)[1] for _ in range(count)]
+
+
+def test_fault_plan_rejects_bad_options():
+    with pytest.raises(ValueError, match="drop"):
+        FaultPlan(drop=1.5)
+    with pytest.raises(ValueError, match="latency_ms"):
+        FaultPlan(latency_ms=-1)
+
+
+def test_same_seed_same_faults():
+    def pattern(seed):
+        injector = FaultInjector(FaultPlan(drop=0.3, corrupt=0.3, seed=seed))
+        return [injector.outgoing(bytes(range(12))) for _ in range(50)]
+
+    assert pattern(4) == pattern(4)
+    assert pattern(4) != pattern(5)
+
+
+def test_drop_loses_replies_seeded(sdk, sim):
+    sim.set_faults(drop=1.0)
+    assert set(outcomes(sdk, 3)) == {COMM_RX_TIMEOUT}
+    sim.set_faults(drop=0.5, seed=3)
+    first = outcomes(sdk)
+    sim.set_faults(drop=0.5, seed=3)
+    assert outcomes(sdk) == first  # same seed, same losses
+    assert set(first) == {COMM_SUCCESS, COMM_RX_TIMEOUT}
+    assert sim.truth()["faults"]["dropped"] >= first.count(COMM_RX_TIMEOUT)
+
+
+def test_corrupt_flips_reply_bytes(sdk, sim):
+    sim.set_faults(corrupt=1.0, seed=1)
+    results = outcomes(sdk, 20)
+    assert COMM_SUCCESS not in results
+    assert COMM_RX_CORRUPT in results
+    sim.set_faults()
+    assert outcomes(sdk, 3) == [COMM_SUCCESS] * 3
+
+
+def test_latency_spike_delays_replies(sdk, sim):
+    sim.set_faults(latency_ms=20.0)
+    start = time.perf_counter()
+    assert sdk.packet.read4ByteTxRx(sdk.port, 1, PRESENT_POSITION)[1] == COMM_SUCCESS
+    assert time.perf_counter() - start >= 0.020
+
+
+def test_servo_disappears_and_comes_back(sdk, sim):
+    sim.vanish(2, 0.3)
+    assert sdk.packet.ping(sdk.port, 2)[1] == COMM_RX_TIMEOUT
+    assert sdk.packet.ping(sdk.port, 1)[1] == COMM_SUCCESS
+    deadline = time.monotonic() + 5.0
+    while sdk.packet.ping(sdk.port, 2)[1] != COMM_SUCCESS:
+        assert time.monotonic() < deadline, "servo 2 never came back"
+
+
+def test_voltage_error_alerts_and_temperature_error_shuts_down(sdk, sim):
+    p, port = sdk.packet, sdk.port
+    assert p.write1ByteTxRx(port, 1, TORQUE_ENABLE, 1) == (COMM_SUCCESS, 0)
+    sim.set_voltage(1, 5.0)
+    deadline = time.monotonic() + 5.0
+    while p.read1ByteTxRx(port, 1, HARDWARE_ERROR)[0] != VOLTAGE_BIT:
+        assert time.monotonic() < deadline, "no input voltage error"
+    # voltage is not in the default Shutdown mask (52): alert, but torque stays on
+    assert p.read1ByteTxRx(port, 1, TORQUE_ENABLE) == (1, COMM_SUCCESS, ALERT)
+    sim.set_temperature(2, 95.0)
+    while not p.read1ByteTxRx(port, 2, HARDWARE_ERROR)[0] & OVERHEATING_BIT:
+        assert time.monotonic() < deadline, "no overheating error"
+    assert p.read1ByteTxRx(port, 2, TORQUE_ENABLE) == (0, COMM_SUCCESS, ALERT)
