@@ -37,22 +37,28 @@ TREMOR_BAND_HZ = (7.0, 12.0)
 #: How far inside the edge (deg) boundary tracing runs, and the least depth any move may reach.
 EDGE_INSET_DEG = 1.0
 MIN_PATH_DEPTH_DEG = 0.5
-#: Within this depth (deg) of the edge the hand slows down, to EDGE_SPEED_FRACTION at the edge.
+#: Within SLOW_BAND_DEG of the edge the hand eases in and out of a move more carefully: a move
+#: ending (or starting) at the edge takes up to EDGE_EASE_S longer; traces run at
+#: EDGE_SPEED_FRACTION of the speed.
 SLOW_BAND_DEG = 15.0
-EDGE_SPEED_FRACTION = 0.35
-#: Edge visits work round the perimeter in laps, one visit per EDGE_SPACING_DEG of perimeter
-#: (jittered by up to a third of a spacing), with 1 or 2 moves through the middle in between.
-EDGE_SPACING_DEG = 25.0
-MIDDLE_MOVES_BETWEEN_EDGE_VISITS = (1, 2)
+EDGE_EASE_S = 0.5
+EDGE_SPEED_FRACTION = 0.5
+#: Middle waypoints are drawn with density proportional to depth ** WAYPOINT_DEPTH_POWER.
+WAYPOINT_DEPTH_POWER = 1.5
+#: Edge visits work round the perimeter in laps of EDGE_VISITS_PER_LAP evenly spaced visits
+#: (jittered by up to a sixth of a spacing), with one move through the middle in between.
+EDGE_VISITS_PER_LAP = 12
 #: Length (deg) of the stretch of edge traced at each visit.
-EDGE_TRACE_DEG = (4.0, 10.0)
+EDGE_TRACE_DEG = (4.0, 8.0)
 #: Shortest move (s): a person does not flick the limb.
 MIN_MOVE_S = 0.3
 #: Probability of a pause after a move, and its duration range (s).
-PAUSE_PROBABILITY = 0.2
+PAUSE_PROBABILITY = 0.1
 PAUSE_S = (0.2, 0.6)
 #: Candidate waypoints tried before backing up along the path already walked.
 WAYPOINT_TRIES = 40
+#: Moves bow sideways by a normal fraction of their length with this standard deviation.
+ARC_BOW_FRACTION = 0.2
 #: Spacing (deg) of checks along a move and of points along a traced edge.
 PATH_CHECK_STEP_DEG = 0.5
 TRACE_STEP_DEG = 1.0
@@ -127,7 +133,7 @@ class Hand:
         # the path: segment k runs from _t0[k] to _t1[k], from (p0, q0) to (p1, q1)
         self._t0: list[float] = []
         self._t1: list[float] = []
-        self._segments: list[tuple[float, float, float, float, float, float, bool]] = []
+        self._segments: list[tuple] = []
         self._current = 0
         if script is not None:
             # hold the first waypoint from before it (a one-second constant segment)
@@ -137,8 +143,8 @@ class Hand:
                 self._add(ta, tb, pa, qa, pb, qb, False)
         else:
             self._edge_u = float(self._rng.uniform())
-            self._edge_step = 1.0 / max(math.ceil(region.perimeter_deg / EDGE_SPACING_DEG), 3)
-            self._middle_moves_left = 0
+            self._edge_step = 1.0 / EDGE_VISITS_PER_LAP
+            self._edge_due = True
             self._trail: list[tuple[float, float]] = []  # poses walked since the last centre visit
             pan, tilt = region.center_deg
             self._add(0.0, 0.5, pan, tilt, pan, tilt, False)
@@ -186,13 +192,15 @@ class Hand:
         if not self._t0[k] <= t < self._t1[k]:
             k = max(bisect.bisect_right(self._t0, t) - 1, 0)
             self._current = k
-        t0, t1, p0, q0, p1, q1, minimum_jerk = self._segments[k]
+        t0, t1, p0, q0, p1, q1, minimum_jerk, bulge_pan, bulge_tilt = self._segments[k]
         s = min(max((t - t0) / (t1 - t0), 0.0), 1.0)
         if minimum_jerk:
             # minimum-jerk profile: s' = 10 s^3 - 15 s^4 + 6 s^5
             s = s * s * s * (10.0 + s * (-15.0 + 6.0 * s))
-        pan = p0 + s * (p1 - p0)
-        tilt = q0 + s * (q1 - q0)
+        # pose = start + s (end - start) + 4 s (1 - s) bulge  (a parabolic arc, not a ruler line)
+        arc = 4.0 * s * (1.0 - s)
+        pan = p0 + s * (p1 - p0) + arc * bulge_pan
+        tilt = q0 + s * (q1 - q0) + arc * bulge_tilt
         (a0, w0, f0), (a1, w1, f1), (a2, w2, f2), (a3, w3, f3) = self._tremor
         pan += a0 * math.sin(w0 * t + f0) + a1 * math.sin(w1 * t + f1)
         tilt += a2 * math.sin(w2 * t + f2) + a3 * math.sin(w3 * t + f3)
@@ -200,35 +208,44 @@ class Hand:
 
     # -- path planning (region hands) ------------------------------------------------------
 
-    def _add(self, t0, t1, p0, q0, p1, q1, minimum_jerk) -> None:
+    def _add(self, t0, t1, p0, q0, p1, q1, minimum_jerk, bulge=(0.0, 0.0)) -> None:
         self._t0.append(t0)
         self._t1.append(t1)
-        self._segments.append((t0, t1, p0, q0, p1, q1, minimum_jerk))
+        self._segments.append((t0, t1, p0, q0, p1, q1, minimum_jerk, bulge[0], bulge[1]))
 
     def _end(self) -> tuple[float, float, float]:
-        t0, t1, p0, q0, p1, q1, _ = self._segments[-1]
-        return t1, p1, q1
+        segment = self._segments[-1]
+        return segment[1], segment[4], segment[5]
 
-    def _path_ok(self, a: tuple[float, float], b: tuple[float, float]) -> bool:
-        """True when the straight move a -> b keeps at least MIN_PATH_DEPTH_DEG inside."""
-        n = int(math.hypot(b[0] - a[0], b[1] - a[1]) / PATH_CHECK_STEP_DEG) + 2
+    def _path_ok(self, a, b, bulge=(0.0, 0.0)) -> bool:
+        """True when the move a -> b, bowed by ``bulge`` at its middle, keeps at least
+        MIN_PATH_DEPTH_DEG inside."""
+        n = (
+            int(
+                (math.hypot(b[0] - a[0], b[1] - a[1]) + 2.0 * math.hypot(*bulge))
+                / PATH_CHECK_STEP_DEG
+            )
+            + 2
+        )
         s = np.linspace(0.0, 1.0, n)
-        depth = self.region.edge_distance_deg(a[0] + s * (b[0] - a[0]), a[1] + s * (b[1] - a[1]))
-        return bool(np.all(depth >= MIN_PATH_DEPTH_DEG))
+        arc = 4.0 * s * (1.0 - s)
+        pan = a[0] + s * (b[0] - a[0]) + arc * bulge[0]
+        tilt = a[1] + s * (b[1] - a[1]) + arc * bulge[1]
+        return bool(np.all(self.region.edge_distance_deg(pan, tilt) >= MIN_PATH_DEPTH_DEG))
 
-    def _speed_at(self, depth_deg: float) -> float:
-        """Mean move speed (deg/s) at a depth: full in the middle, slower toward the edge."""
-        closeness = min(max(depth_deg, 0.0) / SLOW_BAND_DEG, 1.0)
-        return self.speed_deg_s * (EDGE_SPEED_FRACTION + (1.0 - EDGE_SPEED_FRACTION) * closeness)
+    def _ease_s(self, depth_deg: float) -> float:
+        """Extra time (s) to ease into or out of a pose at a depth: EDGE_EASE_S at the edge."""
+        return EDGE_EASE_S * (1.0 - min(max(depth_deg, 0.0) / SLOW_BAND_DEG, 1.0))
 
-    def _move(self, target: tuple[float, float]) -> None:
-        """A minimum-jerk move to ``target``, slower when either end is near the edge."""
+    def _move(self, target: tuple[float, float], bulge=(0.0, 0.0)) -> None:
+        """A minimum-jerk move to ``target``, eased when either end is near the edge."""
         t, pan, tilt = self._end()
         depth = self.region.edge_distance_deg([pan, target[0]], [tilt, target[1]])
-        speed = 0.5 * (self._speed_at(float(depth[0])) + self._speed_at(float(depth[1])))
         distance = math.hypot(target[0] - pan, target[1] - tilt)
-        duration = max(distance / speed, MIN_MOVE_S)
-        self._add(t, t + duration, pan, tilt, target[0], target[1], True)
+        # duration = distance / speed + ease at either end near the edge
+        duration = distance / self.speed_deg_s + self._ease_s(depth[0]) + self._ease_s(depth[1])
+        duration = max(duration, MIN_MOVE_S)
+        self._add(t, t + duration, pan, tilt, target[0], target[1], True, bulge)
         self._trail.append((pan, tilt))
         if (target[0], target[1]) == self.region.center_deg:
             self._trail.clear()
@@ -238,21 +255,28 @@ class Hand:
         self._add(t, t + float(self._rng.uniform(*PAUSE_S)), pan, tilt, pan, tilt, False)
 
     def _draw_waypoint(self) -> tuple[float, float]:
-        """A pose inside, drawn with density proportional to its depth (dense in the middle)."""
+        """A pose inside, drawn with a density that grows with its depth (dense in the middle)."""
         pan_lo, pan_hi, tilt_lo, tilt_hi = self.region.bbox_deg
         while True:
             pan = float(self._rng.uniform(pan_lo, pan_hi))
             tilt = float(self._rng.uniform(tilt_lo, tilt_hi))
             depth = float(self.region.edge_distance_deg(pan, tilt))
-            if depth >= EDGE_INSET_DEG and self._rng.uniform() * self.region.depth_max_deg < depth:
+            # accept with probability (depth / depth_max) ** WAYPOINT_DEPTH_POWER
+            accept = (max(depth, 0.0) / self.region.depth_max_deg) ** WAYPOINT_DEPTH_POWER
+            if depth >= EDGE_INSET_DEG and self._rng.uniform() < accept:
                 return pan, tilt
 
     def _reach(self, target: tuple[float, float]) -> bool:
-        """Move to ``target`` directly or via the centre when the path stays inside."""
+        """Move to ``target`` on a gently bowed arc, else straight, else via the centre; only
+        along a path that stays inside. False when none does."""
         _, pan, tilt = self._end()
-        if self._path_ok((pan, tilt), target):
-            self._move(target)
-            return True
+        # bulge: perpendicular to the move, N(0, ARC_BOW_FRACTION) of its length
+        bow = float(self._rng.normal(0.0, ARC_BOW_FRACTION))
+        bulge = (-(target[1] - tilt) * bow, (target[0] - pan) * bow)
+        for candidate in (bulge, (0.0, 0.0)):
+            if self._path_ok((pan, tilt), target, candidate):
+                self._move(target, candidate)
+                return True
         center = self.region.center_deg
         if self._path_ok((pan, tilt), center) and self._path_ok(center, target):
             self._move(center)
@@ -262,15 +286,14 @@ class Hand:
 
     def _plan_next(self) -> None:
         """Append the next stretch of wandering: a move through the middle or an edge visit."""
-        if self._middle_moves_left <= 0:
-            lo, hi = MIDDLE_MOVES_BETWEEN_EDGE_VISITS
-            self._middle_moves_left = int(self._rng.integers(lo, hi + 1))
-            # next visit: one spacing further round, jittered by up to a third of a spacing
+        if self._edge_due:
+            self._edge_due = False
+            # next visit: one spacing further round, jittered by up to a sixth of a spacing
             self._edge_u = (self._edge_u + self._edge_step) % 1.0
-            jitter = float(self._rng.uniform(-1.0, 1.0)) * self._edge_step / 3.0
+            jitter = float(self._rng.uniform(-1.0, 1.0)) * self._edge_step / 6.0
             if self._visit_edge(self._edge_u + jitter):
                 return
-        self._middle_moves_left -= 1
+        self._edge_due = True
         for _ in range(WAYPOINT_TRIES):
             if self._reach(self._draw_waypoint()):
                 break
