@@ -1,0 +1,317 @@
+"""The experiment grids of `limbctl eval`: which data sets, models and answers each point runs.
+
+Three scales share one shape (every experiment, every model family):
+
+``full``
+    The papers' grids with 10 seeds per point (docs/results.md).
+``quick``
+    Fewer points, 2 seeds: the same figures in under two minutes on two cores.
+``smoke``
+    Two points per experiment, 1 seed, small data and models: an end-to-end test of the code.
+
+Models per experiment (labels are what tables and plots show):
+
+- SOM paper: ``SOM RxC`` answers with ``respond none`` (the paper) and ``correct`` (the SOM's
+  threshold gate); ``gate`` is a Rigid Map trained on the same data answering with ``correct``;
+- Rigid Map paper: ``RigidMap polytope-720`` and ``RigidMap uniform-2000`` (the papers'
+  layouts; full S^3, as the papers place them) with every interpolation and ``correct``;
+  ``RigidMap super-fibonacci-2000`` and ``RigidMap data-<n>`` (nodes placed on training
+  samples) as alternatives.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from typing import Any
+
+from limbctl.errors import ConfigError
+
+#: Interpolations of the Rigid Map paper (``none`` is the discrete answer).
+INTERPOLATIONS = ("idw", "geometric", "geometric-winner", "topological")
+
+SCALES = ("full", "quick", "smoke")
+
+
+# ---- definitions -------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class DataSpec:
+    """How one data set is drawn (twist-free orientations of a limb resting along +x).
+
+    Attributes
+    ----------
+    range_deg : float
+        Half-angle R of the true swing cone (the papers' "range").
+    patterns : int
+        Training patterns, all valid.
+    test_patterns : int
+        Test patterns, valid and invalid.
+    test_spread : str
+        ``"sphere"``: test directions uniform over the whole sphere; ``"around"``: uniform
+        within ``R + min(R, 45 deg)`` of +x (:meth:`ConeRegion.test_directions`).
+    boundary_ratio : float
+        Density of training patterns in the boundary band (swing in (R/2, R]) relative to the
+        central cap (swing <= R/2); 1 is uniform over the cap.
+    """
+
+    range_deg: float
+    patterns: int
+    test_patterns: int
+    test_spread: str = "around"
+    boundary_ratio: float = 1.0
+
+
+@dataclass(frozen=True)
+class Answer:
+    """One way of answering: the network's ``respond`` (with an interpolation) or ``correct``."""
+
+    how: str
+    interpolation: str = "none"
+    k: int = 0
+
+    @property
+    def label(self) -> str:
+        if self.how == "correct":
+            return "correct (gate)"
+        return f"respond {self.interpolation}"
+
+
+@dataclass(frozen=True)
+class ModelSpec:
+    """A model to train on each task's data and the answers to score.
+
+    ``kind`` is ``som``, ``rigidmap`` or ``cone``; ``options`` are constructor keywords (a
+    ``seed`` option is added per task); ``label`` names the model in tables and plots.
+    """
+
+    label: str
+    kind: str
+    options: tuple[tuple[str, Any], ...]
+    answers: tuple[Answer, ...]
+
+
+@dataclass(frozen=True)
+class Task:
+    """One data set and the models trained on it.
+
+    When ``x_from_k`` is set, each row's x is its answer's ``k`` (0 for a discrete answer).
+    """
+
+    grid: str
+    experiment: str
+    x_name: str
+    x: float
+    seed: int
+    data: DataSpec
+    models: tuple[ModelSpec, ...]
+    x_from_k: bool = False
+
+    @property
+    def key(self) -> str:
+        """A short hash of the whole definition: resuming never mixes changed tasks."""
+        return hashlib.sha1(repr(self).encode()).hexdigest()[:16]
+
+
+def respond_all(methods: Iterable[str], k: int) -> tuple[Answer, ...]:
+    """The discrete answer plus each interpolation in ``methods`` with ``k`` runner-ups."""
+    return (Answer("respond"),) + tuple(Answer("respond", m, k) for m in methods)
+
+
+# ---- scales ------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Scale:
+    """Sizes of one grid scale (see the module docstring)."""
+
+    seeds: int
+    test_patterns: int
+    som_ranges: tuple[float, ...]
+    som_range_sides: tuple[int, ...]
+    som_patterns: tuple[int, ...]
+    som_pattern_sides: tuple[int, ...]
+    som_sides: tuple[int, ...]
+    som_ratios: tuple[float, ...]
+    som_default_patterns: int
+    rm_ranges: tuple[float, ...]
+    rm_ks: tuple[int, ...]
+    rm_patterns: int
+    uniform_nodes: int
+    k_polytope: int
+    k_uniform: int
+    data_nodes: int
+    extra: dict[str, Any] = field(default_factory=dict)
+
+
+SCALE_SIZES = {
+    "full": Scale(
+        seeds=10,
+        test_patterns=1000,
+        som_ranges=(30.0, 45.0, 60.0, 90.0, 120.0, 150.0),
+        som_range_sides=(10, 20, 30),
+        som_patterns=(500, 1000, 2000, 3000, 4000, 5000),
+        som_pattern_sides=(10, 30),
+        som_sides=(10, 15, 20, 25, 30),
+        som_ratios=(0.25, 0.5, 1.0, 2.0, 4.0, 8.0),
+        som_default_patterns=500,
+        rm_ranges=(10.0, 20.0, 30.0, 45.0, 60.0, 90.0),
+        rm_ks=(1, 2, 3, 4, 6, 8, 12, 16),
+        rm_patterns=1000,
+        uniform_nodes=2000,
+        k_polytope=2,
+        k_uniform=8,
+        data_nodes=500,
+    ),
+    "quick": Scale(
+        seeds=2,
+        test_patterns=1000,
+        som_ranges=(45.0, 90.0, 150.0),
+        som_range_sides=(10, 30),
+        som_patterns=(500, 2000, 5000),
+        som_pattern_sides=(10, 30),
+        som_sides=(10, 20, 30),
+        som_ratios=(0.5, 1.0, 4.0),
+        som_default_patterns=500,
+        rm_ranges=(10.0, 20.0, 45.0, 90.0),
+        rm_ks=(1, 2, 4, 8, 16),
+        rm_patterns=1000,
+        uniform_nodes=2000,
+        k_polytope=2,
+        k_uniform=8,
+        data_nodes=500,
+    ),
+    "smoke": Scale(
+        seeds=1,
+        test_patterns=200,
+        som_ranges=(45.0, 90.0),
+        som_range_sides=(5,),
+        som_patterns=(200, 400),
+        som_pattern_sides=(5,),
+        som_sides=(4, 6),
+        som_ratios=(1.0, 4.0),
+        som_default_patterns=200,
+        rm_ranges=(20.0, 45.0),
+        rm_ks=(1, 4),
+        rm_patterns=300,
+        uniform_nodes=300,
+        k_polytope=2,
+        k_uniform=4,
+        data_nodes=100,
+    ),
+}
+
+
+# ---- models ------------------------------------------------------------------------------------
+def som_spec(side: int) -> ModelSpec:
+    """The SOM paper's network, ``side x side`` nodes: its answer and its threshold gate."""
+    return ModelSpec(
+        f"SOM {side}x{side}",
+        "som",
+        (("rows", side), ("cols", side)),
+        (Answer("respond"), Answer("correct")),
+    )
+
+
+def gate_spec(nodes: int, label: str = "gate") -> ModelSpec:
+    """The gate: a Rigid Map on the project's layout answering with ``correct``."""
+    return ModelSpec(
+        label,
+        "rigidmap",
+        (("nodes", nodes), ("layout", "super-fibonacci")),
+        (Answer("correct"),),
+    )
+
+
+def paper_rigid_maps(scale: Scale, answers_720, answers_uniform) -> tuple[ModelSpec, ...]:
+    """The Rigid Map paper's two layouts (full S^3) plus the alternative layouts' gates."""
+    n = scale.uniform_nodes
+    return (
+        ModelSpec(
+            "RigidMap polytope-720",
+            "rigidmap",
+            (("layout", "polytope-720"), ("hemisphere", False)),
+            answers_720,
+        ),
+        ModelSpec(
+            f"RigidMap uniform-{n}",
+            "rigidmap",
+            (("nodes", n), ("layout", "uniform"), ("hemisphere", False)),
+            answers_uniform,
+        ),
+        ModelSpec(
+            f"RigidMap super-fibonacci-{n}",
+            "rigidmap",
+            (("nodes", n), ("layout", "super-fibonacci")),
+            (Answer("respond", "geometric", scale.k_uniform), Answer("correct")),
+        ),
+        ModelSpec(
+            f"RigidMap data-{scale.data_nodes}",
+            "rigidmap",
+            (("nodes", scale.data_nodes), ("layout", "data")),
+            (Answer("respond", "geometric", scale.k_uniform), Answer("correct")),
+        ),
+    )
+
+
+# ---- grids -------------------------------------------------------------------------------------
+def build_tasks(scale_name: str) -> list[Task]:
+    """Every task of one scale (``full``, ``quick`` or ``smoke``), SOM paper first."""
+    if scale_name not in SCALE_SIZES:
+        raise ConfigError(f"unknown eval scale {scale_name!r}; choose one of: {', '.join(SCALES)}")
+    s = SCALE_SIZES[scale_name]
+    tasks: list[Task] = []
+
+    def add(experiment, x_name, x, data, models, x_from_k=False):
+        for seed in range(s.seeds):
+            tasks.append(
+                Task(scale_name, experiment, x_name, x, seed, data, tuple(models), x_from_k)
+            )
+
+    som_data = DataSpec(90.0, s.som_default_patterns, s.test_patterns, "sphere")
+    gate_nodes = s.uniform_nodes
+    for r in s.som_ranges:
+        data = DataSpec(r, s.som_default_patterns, s.test_patterns, "sphere")
+        add(
+            "som-range",
+            "range_deg",
+            r,
+            data,
+            [*map(som_spec, s.som_range_sides), gate_spec(gate_nodes)],
+        )
+    for p in s.som_patterns:
+        data = DataSpec(90.0, p, s.test_patterns, "sphere")
+        add(
+            "som-patterns",
+            "patterns",
+            p,
+            data,
+            [*map(som_spec, s.som_pattern_sides), gate_spec(gate_nodes)],
+        )
+    for side in s.som_sides:
+        add(
+            "som-nodes",
+            "nodes",
+            side * side,
+            som_data,
+            [som_spec(side), gate_spec(side * side, "gate (same node count)")],
+        )
+    for ratio in s.som_ratios:
+        data = DataSpec(90.0, s.som_default_patterns, s.test_patterns, "sphere", ratio)
+        add(
+            "som-ratio",
+            "boundary_ratio",
+            ratio,
+            data,
+            [som_spec(s.som_range_sides[0]), gate_spec(gate_nodes)],
+        )
+
+    answers_720 = (*respond_all(INTERPOLATIONS, s.k_polytope), Answer("correct"))
+    answers_uniform = (*respond_all(INTERPOLATIONS, s.k_uniform), Answer("correct"))
+    for r in s.rm_ranges:
+        data = DataSpec(r, s.rm_patterns, s.test_patterns, "around")
+        add("rm-range", "range_deg", r, data, paper_rigid_maps(s, answers_720, answers_uniform))
+    by_k = (Answer("respond"), Answer("correct")) + tuple(
+        Answer("respond", m, k) for k in s.rm_ks for m in INTERPOLATIONS
+    )
+    data = DataSpec(20.0, s.rm_patterns, s.test_patterns, "around")
+    add("rm-k", "k", 20.0, data, paper_rigid_maps(s, by_k, by_k)[:2], x_from_k=True)
+    return tasks
