@@ -31,19 +31,9 @@ from dataclasses import dataclass
 from typing import Any
 
 import serial
-from dynamixel_sdk import (
-    BROADCAST_ID,
-    COMM_NOT_AVAILABLE,
-    COMM_PORT_BUSY,
-    COMM_RX_CORRUPT,
-    COMM_RX_TIMEOUT,
-    COMM_SUCCESS,
-    COMM_TX_FAIL,
-    GroupSyncWrite,
-    PacketHandler,
-    PortHandler,
-)
+from dynamixel_sdk import COMM_RX_CORRUPT, COMM_RX_TIMEOUT, COMM_SUCCESS, PacketHandler, PortHandler
 
+from limbctl import transfers
 from limbctl.control_table import (
     ALERT_BIT,
     FAST_SYNC_READ_MIN_FIRMWARE,
@@ -64,14 +54,19 @@ from limbctl.errors import (
     BusError,
     BusTimeout,
     ConfigError,
-    CorruptReply,
     InvalidInputError,
     PortError,
     ServoAlarm,
 )
+from limbctl.transfers import Attempt
 
-#: Protocol 2.0 status packet: header(4) id(1) length(2) instruction(1), then parameters.
-_PKT_ID, _PKT_LENGTH_L, _PKT_LENGTH_H, _PKT_PARAMETER0 = 4, 5, 6, 8
+try:  # POSIX serial ports report a vanished device through termios as well
+    from termios import error as _TermiosError
+except ImportError:  # pragma: no cover - not POSIX
+    _TermiosError = OSError
+
+#: What the serial layer raises when the port fails or disappears.
+_PORT_FAILURES = (serial.SerialException, OSError, _TermiosError)
 #: Status Return Level at which every instruction is answered.
 STATUS_RETURN_ALL = 2
 
@@ -85,16 +80,6 @@ class BusStats:
     timeouts: int = 0
     corrupt: int = 0
     alarms: int = 0
-
-
-@dataclass
-class _Attempt:
-    """One try of a transaction: its value, SDK result, per-servo error bytes, who failed."""
-
-    value: Any
-    result: int
-    errors: dict[int, int]
-    culprit: int | None = None
 
 
 class ServoBus:
@@ -194,18 +179,18 @@ class ServoBus:
         port = PortHandler(self.port_name)
         try:
             opened = port.setBaudRate(self.baud)
-        except (serial.SerialException, OSError) as exc:
+        except _PORT_FAILURES as exc:
             raise PortError(f"cannot open serial port {self.port_name} ({exc}): {hint}") from exc
         if not opened:
             raise ConfigError(f"baud {self.baud} is not supported by the serial port driver")
         return port
 
     def _identify(self, servo_id: int) -> None:
-        def ping() -> _Attempt:
-            number, result, error = self._packets.ping(self._port, servo_id)
-            return _Attempt(number, result, {servo_id: error}, servo_id)
-
-        number = self._transact(f"ping servo {servo_id}", ping, check_alert=False)
+        number = self._transact(
+            f"ping servo {servo_id}",
+            lambda: transfers.ping(self._packets, self._port, servo_id),
+            check_alert=False,
+        )
         try:
             model = ModelNumber(number)
         except ValueError:
@@ -225,7 +210,11 @@ class ServoBus:
     def _probe_fast_sync_read(self) -> bool:
         if min(self.firmware.values()) < FAST_SYNC_READ_MIN_FIRMWARE:
             return False
-        outcome = self._attempt_fast_read(Register.PRESENT_POSITION, self.ids)
+        with self._lock:
+            port = self._require_port()
+            outcome = transfers.fast_sync_read(
+                self._packets, port, Register.PRESENT_POSITION, self.ids
+            )
         return outcome.result == COMM_SUCCESS
 
     # ---- the retry engine ----
@@ -234,22 +223,20 @@ class ServoBus:
             raise PortError(f"the bus on {self.port_name} is not open; use it as a context manager")
         return self._port
 
-    def _transact(
-        self, what: str, attempt: Callable[[], _Attempt], check_alert: bool = True
-    ) -> Any:
+    def _transact(self, what: str, attempt: Callable[[], Attempt], check_alert: bool = True) -> Any:
         """Run ``attempt`` until it succeeds, the attempts or the time budget run out."""
         with self._lock:
             port = self._require_port()
             self.stats.transactions += 1
             deadline = time.monotonic() + self.retry_budget_s
-            outcome: _Attempt | None = None
+            outcome: Attempt | None = None
             for number in range(self.max_attempts):
-                if number:
-                    self.stats.retries += 1
-                    port.clearPort()
                 try:
+                    if number:
+                        self.stats.retries += 1
+                        port.clearPort()
                     outcome = attempt()
-                except (serial.SerialException, OSError) as exc:
+                except _PORT_FAILURES as exc:
                     raise PortError(
                         f"{what}: serial port {self.port_name} failed ({exc}); was the adapter "
                         f"unplugged? check the cable and reconnect",
@@ -272,41 +259,14 @@ class ServoBus:
                     break
             assert outcome is not None
             if outcome.result != COMM_SUCCESS:
-                raise self._failure(what, outcome, number + 1)
+                self.stats.timeouts += outcome.result == COMM_RX_TIMEOUT
+                self.stats.corrupt += outcome.result == COMM_RX_CORRUPT
+                raise transfers.failure(what, outcome, number + 1, self.baud, self.port_name)
             alerted = {i for i, e in outcome.errors.items() if e & ALERT_BIT}
             self._alerted |= alerted
             if check_alert and self._alerted:
                 self._raise_alarms()
             return outcome.value
-
-    def _failure(self, what: str, outcome: _Attempt, attempts: int) -> BusError:
-        servo = f"servo {outcome.culprit}" if outcome.culprit is not None else "the bus"
-        tried = f"after {attempts} attempt{'s' if attempts > 1 else ''}"
-        if outcome.result == COMM_RX_TIMEOUT:
-            self.stats.timeouts += 1
-            return BusTimeout(
-                f"{what}: {servo} did not answer {tried}: check its power supply and cable, and "
-                f"that its id and baud ({self.baud}) match the rig profile (scan with Dynamixel "
-                f"Wizard)",
-                outcome.culprit,
-            )
-        if outcome.result == COMM_RX_CORRUPT:
-            self.stats.corrupt += 1
-            return CorruptReply(
-                f"{what}: replies from {servo} kept failing CRC/framing {tried}: check the cable "
-                f"and connectors, keep the bus away from motor power leads, try a lower baud",
-                outcome.culprit,
-            )
-        if outcome.result == COMM_TX_FAIL:
-            return PortError(
-                f"{what}: could not send on {self.port_name}: check the adapter and --port",
-                outcome.culprit,
-            )
-        if outcome.result == COMM_PORT_BUSY:
-            return BusError(f"{what}: the port is busy (used from another thread?)")
-        if outcome.result == COMM_NOT_AVAILABLE:
-            return BusError(f"{what}: not available with Protocol 2.0 / this id")
-        return BusError(f"{what}: failed with SDK result {outcome.result}", outcome.culprit)
 
     # ---- alarms ----
     def _raise_alarms(self) -> None:
@@ -353,16 +313,11 @@ class ServoBus:
     def read(self, register: Register, servo_id: int, check_alert: bool = True) -> int:
         """Value of ``register`` on one servo."""
 
-        def attempt() -> _Attempt:
-            data, result, error = self._packets.readTxRx(
-                self._port, servo_id, register.address, register.size
-            )
-            if result == COMM_SUCCESS and not error & ~ALERT_BIT and len(data) != register.size:
-                result = COMM_RX_CORRUPT
-            value = register.decode(data) if len(data) == register.size else None
-            return _Attempt(value, result, {servo_id: error}, servo_id)
-
-        return self._transact(f"read {register.name} of servo {servo_id}", attempt, check_alert)
+        return self._transact(
+            f"read {register.name} of servo {servo_id}",
+            lambda: transfers.read(self._packets, self._port, register, servo_id),
+            check_alert,
+        )
 
     def write(self, register: Register, servo_id: int, value: int) -> None:
         """Write ``value`` to ``register`` of one servo and wait for its status.
@@ -371,13 +326,10 @@ class ServoBus:
         """
         data = register.encode(value)
 
-        def attempt() -> _Attempt:
-            result, error = self._packets.writeTxRx(
-                self._port, servo_id, register.address, register.size, data
-            )
-            return _Attempt(None, result, {servo_id: error}, servo_id)
-
-        self._transact(f"write {register.name}={value} to servo {servo_id}", attempt)
+        self._transact(
+            f"write {register.name}={value} to servo {servo_id}",
+            lambda: transfers.write(self._packets, self._port, register, servo_id, data),
+        )
 
     # ---- group transfers ----
     def sync_read(
@@ -390,71 +342,22 @@ class ServoBus:
         """
         ids = self._known(ids)
         flavour = "fast sync read" if self.fast_sync_read else "sync read"
-        read = self._attempt_fast_read if self.fast_sync_read else self._attempt_plain_read
+        read = transfers.fast_sync_read if self.fast_sync_read else transfers.sync_read
         return self._transact(
-            f"{flavour} {register.name}", lambda: read(register, ids), check_alert
+            f"{flavour} {register.name}",
+            lambda: read(self._packets, self._port, register, ids),
+            check_alert,
         )
-
-    def _attempt_plain_read(self, register: Register, ids: Sequence[int]) -> _Attempt:
-        result = self._packets.syncReadTx(
-            self._port, register.address, register.size, list(ids), len(ids), False
-        )
-        if result != COMM_SUCCESS:
-            return _Attempt(None, result, {})
-        values: dict[int, int] = {}
-        errors: dict[int, int] = {}
-        for servo_id in ids:
-            data, result, error = self._packets.readRx(self._port, servo_id, register.size)
-            if result == COMM_SUCCESS and len(data) != register.size and not error & ~ALERT_BIT:
-                result = COMM_RX_CORRUPT
-            if result != COMM_SUCCESS:
-                return _Attempt(None, result, errors, servo_id)
-            errors[servo_id] = error
-            if len(data) == register.size:
-                values[servo_id] = register.decode(data)
-        return _Attempt(values, COMM_SUCCESS, errors)
-
-    def _attempt_fast_read(self, register: Register, ids: Sequence[int]) -> _Attempt:
-        port = self._port
-        result = self._packets.syncReadTx(
-            port, register.address, register.size, list(ids), len(ids), True
-        )
-        if result != COMM_SUCCESS:
-            return _Attempt(None, result, {})
-        packet, result = self._packets.rxPacket(port, True)
-        if result != COMM_SUCCESS:
-            # a silent first servo sends nothing; a silent later one cuts the packet short
-            culprit = ids[0] if result == COMM_RX_TIMEOUT else None
-            return _Attempt(None, result, {}, culprit)
-        # LEN = instruction + per servo (error + id + data + crc)
-        expected = 1 + len(ids) * (register.size + 4)
-        length = packet[_PKT_LENGTH_L] | packet[_PKT_LENGTH_H] << 8
-        if packet[_PKT_ID] != BROADCAST_ID or length != expected:
-            return _Attempt(None, COMM_RX_CORRUPT, {})
-        values: dict[int, int] = {}
-        errors: dict[int, int] = {}
-        offset = _PKT_PARAMETER0
-        for servo_id in ids:
-            error, answered_id = packet[offset], packet[offset + 1]
-            if answered_id != servo_id:
-                return _Attempt(None, COMM_RX_CORRUPT, errors, servo_id)
-            errors[servo_id] = error
-            values[servo_id] = register.decode(packet[offset + 2 : offset + 2 + register.size])
-            offset += register.size + 4
-        return _Attempt(values, COMM_SUCCESS, errors)
 
     def sync_write(self, register: Register, values: Mapping[int, int]) -> None:
         """Write one value per servo to ``register`` in ONE sync write (no reply)."""
         self._known(values)
         params = {servo_id: register.encode(value) for servo_id, value in values.items()}
 
-        def attempt() -> _Attempt:
-            group = GroupSyncWrite(self._port, self._packets, register.address, register.size)
-            for servo_id, data in params.items():
-                group.addParam(servo_id, data)
-            return _Attempt(None, group.txPacket(), {})
-
-        self._transact(f"sync write {register.name}", attempt)
+        self._transact(
+            f"sync write {register.name}",
+            lambda: transfers.sync_write(self._packets, self._port, register, params),
+        )
 
     def _known(self, ids: Iterable[int] | None) -> tuple[int, ...]:
         if ids is None:
@@ -558,12 +461,12 @@ class ServoBus:
         """
         self._known([servo_id])
 
-        def attempt() -> _Attempt:
-            result, error = self._packets.reboot(self._port, servo_id)
-            return _Attempt(None, result, {servo_id: error}, servo_id)
-
         with self._lock:
-            self._transact(f"reboot servo {servo_id}", attempt, check_alert=False)
+            self._transact(
+                f"reboot servo {servo_id}",
+                lambda: transfers.reboot(self._packets, self._port, servo_id),
+                check_alert=False,
+            )
             self._alerted.discard(servo_id)
             deadline = time.monotonic() + timeout_s
             while True:

@@ -5,6 +5,7 @@ import time
 import pytest
 
 from calib import default_sim_profile
+from firmware_sim import SimulatedBus
 from limbctl.bus import ServoBus
 from limbctl.control_table import ModelNumber, OperatingMode, Register
 from limbctl.errors import (
@@ -214,3 +215,29 @@ def _answers(bus, servo_id):
     except BusTimeout:
         return False
     return True
+
+
+def test_port_that_vanishes_mid_run_raises_port_error():
+    sim = SimulatedBus(ids=(1, 2)).start()
+    try:
+        with ServoBus(sim.port, PROFILE.baud, PROFILE.ids) as bus:
+            assert set(bus.read_positions()) == {1, 2}
+            sim.close()  # the adapter is unplugged: the pty goes away
+            with pytest.raises(PortError, match="was the adapter unplugged"):
+                bus.read_positions()
+    finally:
+        sim.close()
+    assert sim.exitcode == 0
+
+
+@pytest.mark.parametrize("fast", [True, False], ids=["fast-sync-read", "sync-read"])
+def test_one_instruction_packet_per_pose_read_and_per_goal_write(sim, fast):
+    with open_bus(sim, fast_sync_read=fast) as bus:
+        bus.configure(LIMITS)
+        bus.set_torque(True)
+        before = sim.truth()["packets"]
+        bus.read_positions()
+        after_read = sim.truth()["packets"]
+        bus.write_goals({1: PROFILE.pan.zero_tick, 2: PROFILE.tilt.zero_tick})
+        after_write = sim.truth()["packets"]
+        assert (after_read - before, after_write - after_read) == (1, 1)
