@@ -175,5 +175,5 @@ def failure(what: str, outcome: Attempt, attempts: int, baud: int, port_name: st
     if outcome.result == COMM_PORT_BUSY:
         return BusError(f"{what}: the port is busy (used from another thread?)")
     if outcome.result == COMM_NOT_AVAILABLE:
-        return BusError(f"{what}: not available with Protocol 2.0 / this id")
+        return BusError(f"{what}: not available with Protocol 2.0 / this id", outcome.culprit)
     return BusError(f"{what}: failed with SDK result {outcome.result}", outcome.culprit)
