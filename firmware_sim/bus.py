@@ -37,8 +37,8 @@ from firmware_sim.simulator import Simulator
 # The physics keeps moving (hand, profiles) at least this often without traffic.
 TICK_S = 0.005
 READ_CHUNK = 4096
-# Waits shorter than this are spun rather than slept (sleep overshoots by ~0.1 ms).
-SPIN_BELOW_S = 0.0003
+# Waits shorter than this are spun rather than slept (a sleep can overshoot by ~1 ms).
+SPIN_BELOW_S = 0.0015
 
 
 class PtyEndpoint:
