@@ -8,3 +8,6 @@ from limbctl.envelope.som import SOM
 __all__ = ["Envelope", "load_header", "load_model"]
 __all__ += ["Cone", "LAYOUTS", "make_layout"]
 __all__ += ["SOM"]
+from limbctl.envelope.rigidmap import RigidMap  # noqa: E402
+
+__all__ += ["RigidMap"]

@@ -1,0 +1,224 @@
+"""A region of limb directions on S^2 as a spherical mesh: build it, test it, project onto it.
+
+The region is an alpha shape of vertex directions (for the Rigid Map: the limb directions of its
+trained weights): the spherical Delaunay triangles whose circumradius is at most ``alpha``, then
+widened by a ``margin`` (rad): a direction is inside when it lies in a kept triangle or within
+``margin`` of the mesh boundary. The boundary is a set of great-circle arcs (edges used by one
+kept triangle), so the nearest boundary direction is exact and moves continuously.
+
+:class:`DirectionMesh` holds the arrays; the queries run in the numba kernels of
+:mod:`limbctl.envelope.boundary_kernels` over a grid of cells about the region's axis, each
+knowing whether it lies deep inside and which edges can be nearest to a point in it. Plain
+numpy references (``*_reference`` here) answer the same questions by brute force.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import ConvexHull, QhullError
+
+from limbctl.envelope import boundary_kernels as bk
+from limbctl.errors import InvalidInputError
+
+#: contains() accepts directions up to this far (rad) beyond ``margin``; correct() lands inside it.
+CONTAIN_TOLERANCE = 1e-9
+
+
+@dataclass
+class DirectionMesh:
+    """The learned region in direction space (all angles in radians).
+
+    Attributes
+    ----------
+    vertices : (V, 3) unit directions.
+    triangles : (T, 3) int64, counter-clockwise seen from outside the sphere.
+    edges : (E, 2) int64 boundary edges, the region on the left of a -> b.
+    margin : float, the widening beyond the mesh boundary (rad).
+    axis : (3,) unit axis of the lookup grid; grid_* : the lookup grid (see boundary_kernels).
+    """
+
+    vertices: np.ndarray
+    triangles: np.ndarray
+    edges: np.ndarray
+    margin: float
+    axis: np.ndarray
+    grid_shape: np.ndarray
+    cell_inside: np.ndarray
+    cell_deep: np.ndarray
+    cell_start: np.ndarray
+    cell_edges: np.ndarray
+
+    @classmethod
+    def build(
+        cls, directions: np.ndarray, alpha: float, margin: float, cells_per_radian: float = 40.0
+    ) -> DirectionMesh:
+        """Alpha shape of ``directions`` (V, 3) with circumradius bound ``alpha``, widened by
+        ``margin``; the lookup grid has ``cells_per_radian`` cells per radian of polar angle."""
+        d = np.asarray(directions, dtype=np.float64)
+        d = d / np.linalg.norm(d, axis=1, keepdims=True)
+        triangles = alpha_triangles(d, alpha)
+        if triangles.shape[0] == 0:
+            raise InvalidInputError(
+                "the taught directions do not span an area (need at least 3 distinct, "
+                "not all on one great circle, within alpha of each other); teach more poses"
+            )
+        edges = boundary_edges(triangles)
+        axis = d[np.unique(triangles)].mean(axis=0)
+        axis /= np.linalg.norm(axis)
+        n_theta = max(8, int(np.ceil(np.pi * cells_per_radian)))
+        grid_shape = np.array([n_theta, 2 * n_theta], dtype=np.int64)
+        inside, deep, start, cell_edges = bk.build_grid(
+            d, triangles, edges, axis, grid_shape, float(margin)
+        )
+        return cls(
+            d, triangles, edges, float(margin), axis, grid_shape, inside, deep, start, cell_edges
+        )
+
+    def contains(self, d: np.ndarray) -> np.ndarray:
+        """(N,) bool for directions ``d`` (N, 3)."""
+        return bk.contains_batch(*self._kernel_args(), np.ascontiguousarray(d, dtype=np.float64))
+
+    def project(self, d: np.ndarray) -> np.ndarray:
+        """Each direction itself if inside, else the nearest direction of the widened region."""
+        return bk.project_batch(*self._kernel_args(), np.ascontiguousarray(d, dtype=np.float64))
+
+    def _kernel_args(self) -> tuple:
+        return (
+            self.vertices,
+            self.edges,
+            self.margin,
+            self.axis,
+            self.grid_shape,
+            self.cell_inside,
+            self.cell_deep,
+            self.cell_start,
+            self.cell_edges,
+        )
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """Everything needed to rebuild the mesh without recomputation (for saving)."""
+        return {
+            "mesh_vertices": self.vertices,
+            "mesh_triangles": self.triangles,
+            "mesh_edges": self.edges,
+            "mesh_axis": self.axis,
+            "mesh_grid_shape": self.grid_shape,
+            "mesh_cell_inside": self.cell_inside,
+            "mesh_cell_deep": self.cell_deep,
+            "mesh_cell_start": self.cell_start,
+            "mesh_cell_edges": self.cell_edges,
+        }
+
+    @classmethod
+    def from_arrays(cls, arrays: dict[str, np.ndarray], margin: float) -> DirectionMesh:
+        """Inverse of :meth:`arrays`."""
+        return cls(
+            np.ascontiguousarray(arrays["mesh_vertices"], dtype=np.float64),
+            np.ascontiguousarray(arrays["mesh_triangles"], dtype=np.int64),
+            np.ascontiguousarray(arrays["mesh_edges"], dtype=np.int64),
+            float(margin),
+            np.ascontiguousarray(arrays["mesh_axis"], dtype=np.float64),
+            np.ascontiguousarray(arrays["mesh_grid_shape"], dtype=np.int64),
+            np.ascontiguousarray(arrays["mesh_cell_inside"], dtype=np.bool_),
+            np.ascontiguousarray(arrays["mesh_cell_deep"], dtype=np.bool_),
+            np.ascontiguousarray(arrays["mesh_cell_start"], dtype=np.int64),
+            np.ascontiguousarray(arrays["mesh_cell_edges"], dtype=np.int64),
+        )
+
+
+def spherical_delaunay(d: np.ndarray) -> np.ndarray:
+    """Delaunay triangles (T, 3) of unit directions ``d`` (V, 3), counter-clockwise from outside.
+
+    The convex hull of points on the sphere is their spherical Delaunay triangulation; the
+    antipode of their mean is added so that points inside one hemisphere still close a hull,
+    and every face touching it is dropped.
+    """
+    mean = d.mean(axis=0)
+    pole = -mean / np.linalg.norm(mean) if np.linalg.norm(mean) > 1e-9 else -d[0]
+    pts = np.vstack([d, pole])
+    try:
+        hull = ConvexHull(pts)
+    except QhullError as exc:
+        raise InvalidInputError(f"taught directions are degenerate: {exc}") from None
+    tri = hull.simplices[(hull.simplices < d.shape[0]).all(axis=1)]
+    a, b, c = pts[tri[:, 0]], pts[tri[:, 1]], pts[tri[:, 2]]
+    # counter-clockwise from outside: det(a, b, c) = a . (b x c) > 0
+    flip = np.einsum("ij,ij->i", a, np.cross(b, c)) < 0
+    tri[flip] = tri[flip][:, [0, 2, 1]]
+    return np.ascontiguousarray(tri, dtype=np.int64)
+
+
+def circumradius(d: np.ndarray, tri: np.ndarray) -> np.ndarray:
+    """Angular circumradius (rad) of spherical triangles ``tri`` (T, 3) over vertices ``d``."""
+    a, b, c = d[tri[:, 0]], d[tri[:, 1]], d[tri[:, 2]]
+    # the circumcentre is the unit normal of the plane through a, b, c: (b - a) x (c - a)
+    n = np.cross(b - a, c - a)
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    return np.arccos(np.clip(np.abs(np.einsum("ij,ij->i", n, a)), -1.0, 1.0))
+
+
+def alpha_triangles(d: np.ndarray, alpha: float) -> np.ndarray:
+    """The Delaunay triangles of ``d`` whose circumradius is at most ``alpha`` (rad)."""
+    tri = spherical_delaunay(d)
+    return tri[circumradius(d, tri) <= alpha]
+
+
+def boundary_edges(tri: np.ndarray) -> np.ndarray:
+    """Directed edges (E, 2) used by exactly one triangle, the triangle on their left."""
+    directed = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
+    key = np.sort(directed, axis=1)
+    _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    return np.ascontiguousarray(directed[counts[inverse.ravel()] == 1], dtype=np.int64)
+
+
+# ---- brute-force references --------------------------------------------------------------------
+def in_triangles_reference(d: np.ndarray, vertices: np.ndarray, tri: np.ndarray) -> np.ndarray:
+    """(N,) bool: each direction in at least one spherical triangle (edges included)."""
+    a, b, c = vertices[tri[:, 0]], vertices[tri[:, 1]], vertices[tri[:, 2]]
+    # inside iff on the left of (or on) all three edge planes: det(a, b, p) >= 0, ...
+    s1 = d @ np.cross(a, b).T >= 0
+    s2 = d @ np.cross(b, c).T >= 0
+    s3 = d @ np.cross(c, a).T >= 0
+    front = d @ (a + b + c).T > 0
+    return (s1 & s2 & s3 & front).any(axis=1)
+
+
+def nearest_on_edges_reference(
+    d: np.ndarray, vertices: np.ndarray, edges: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Nearest point (N, 3) on any boundary arc and its angle (N,) rad, by brute force."""
+    best = np.empty_like(d)
+    best_angle = np.full(d.shape[0], np.inf)
+    for e0, e1 in edges:
+        a, b = vertices[e0], vertices[e1]
+        n = np.cross(a, b)
+        n /= np.linalg.norm(n)
+        foot = d - np.outer(d @ n, n)
+        foot /= np.linalg.norm(foot, axis=1, keepdims=True)
+        within = (foot @ np.cross(n, a) >= 0) & (foot @ np.cross(b, n) >= 0)
+        pa = np.arccos(np.clip(d @ a, -1, 1))
+        pb = np.arccos(np.clip(d @ b, -1, 1))
+        end = np.where((pa <= pb)[:, None], a, b)
+        point = np.where(within[:, None], foot, end)
+        ang = np.arctan2(np.linalg.norm(np.cross(d, point), axis=1), np.sum(d * point, axis=1))
+        better = ang < best_angle
+        best[better] = point[better]
+        best_angle[better] = ang[better]
+    return best, best_angle
+
+
+def project_reference(mesh: DirectionMesh, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Brute-force ``(contains, project)`` for directions ``d`` (N, 3)."""
+    inside_mesh = in_triangles_reference(d, mesh.vertices, mesh.triangles)
+    point, angle = nearest_on_edges_reference(d, mesh.vertices, mesh.edges)
+    inside = inside_mesh | (angle <= mesh.margin + CONTAIN_TOLERANCE)
+    # outside: from the nearest boundary point, go margin along the arc toward d
+    out = np.empty_like(d)
+    for i in range(d.shape[0]):
+        if inside[i]:
+            out[i] = d[i]
+        else:
+            out[i] = bk.slerp_dir(point[i], d[i], angle[i], mesh.margin)
+    return inside, out

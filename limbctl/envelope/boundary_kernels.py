@@ -1,0 +1,302 @@
+"""Numba kernels of the direction-space region: lookup grid, containment and nearest projection.
+
+The grid divides the sphere into ``n_theta x n_phi`` cells in polar coordinates about ``axis``
+(``theta = angle to axis``, ``phi = atan2(p.v, p.u)``). For each cell, built once:
+
+- ``cell_inside``: whether its centre lies in a kept triangle;
+- ``cell_deep``: every point of the cell is inside the widened region (centre inside the mesh
+  and at least the cell radius ``r`` from the boundary, or within ``margin - r`` of it);
+- candidate boundary edges (CSR ``cell_start``/``cell_edges``): every edge whose distance from
+  the centre is at most ``dist(centre, boundary) + 2 r``; the nearest edge of any point of the
+  cell is among them, and so is every edge that crosses the arc from the centre to the point.
+
+A query finds its cell; if deep it is inside; otherwise it takes the nearest point over the
+candidates, and whether it lies in the mesh from the centre's status and the parity of boundary
+crossings on the arc centre -> point. No fastmath: every comparison sees NaN as failing.
+The numpy references live in :mod:`limbctl.envelope.boundary`.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+
+#: Must equal boundary.CONTAIN_TOLERANCE (rad).
+CONTAIN_TOLERANCE = 1e-9
+
+
+@nb.njit(cache=True)
+def _dot(a, b) -> float:
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+@nb.njit(cache=True)
+def _det(a, b, c) -> float:
+    # det(a, b, c) = a . (b x c)
+    return (
+        a[0] * (b[1] * c[2] - b[2] * c[1])
+        + a[1] * (b[2] * c[0] - b[0] * c[2])
+        + a[2] * (b[0] * c[1] - b[1] * c[0])
+    )
+
+
+@nb.njit(cache=True)
+def _angle(a, b) -> float:
+    # atan2(|a x b|, a . b): accurate near 0 and pi
+    cx = a[1] * b[2] - a[2] * b[1]
+    cy = a[2] * b[0] - a[0] * b[2]
+    cz = a[0] * b[1] - a[1] * b[0]
+    return math.atan2(math.sqrt(cx * cx + cy * cy + cz * cz), _dot(a, b))
+
+
+@nb.njit(cache=True)
+def nearest_on_arc(p, a, b, out) -> float:
+    """Nearest point ``out`` (3,) on the short great-circle arc a-b to ``p``; returns its angle."""
+    nx = a[1] * b[2] - a[2] * b[1]
+    ny = a[2] * b[0] - a[0] * b[2]
+    nz = a[0] * b[1] - a[1] * b[0]
+    nn = math.sqrt(nx * nx + ny * ny + nz * nz)
+    if nn > 0.0:
+        nx /= nn
+        ny /= nn
+        nz /= nn
+        # foot of p on the arc's great circle: p - (p.n) n, normalised
+        pn = p[0] * nx + p[1] * ny + p[2] * nz
+        fx = p[0] - pn * nx
+        fy = p[1] - pn * ny
+        fz = p[2] - pn * nz
+        fn = math.sqrt(fx * fx + fy * fy + fz * fz)
+        if fn > 0.0:
+            fx /= fn
+            fy /= fn
+            fz /= fn
+            # within the arc: (n x a) . f >= 0 and (b x n) . f >= 0
+            s1 = (
+                (ny * a[2] - nz * a[1]) * fx
+                + (nz * a[0] - nx * a[2]) * fy
+                + (nx * a[1] - ny * a[0]) * fz
+            )
+            s2 = (
+                (b[1] * nz - b[2] * ny) * fx
+                + (b[2] * nx - b[0] * nz) * fy
+                + (b[0] * ny - b[1] * nx) * fz
+            )
+            if s1 >= 0.0 and s2 >= 0.0:
+                out[0] = fx
+                out[1] = fy
+                out[2] = fz
+                return _angle(p, out)
+    da = _angle(p, a)
+    db = _angle(p, b)
+    end = a if da <= db else b
+    out[0] = end[0]
+    out[1] = end[1]
+    out[2] = end[2]
+    return da if da <= db else db
+
+
+@nb.njit(cache=True)
+def slerp_dir(p, d, angle, margin) -> np.ndarray:
+    """The direction ``margin`` (rad) from ``p`` along the great circle toward ``d``.
+
+    ``cos(m) p + sin(m) u`` with ``u = (d - (d.p) p) / |d - (d.p) p|``; ``angle`` is the angle
+    between ``p`` and ``d``; ``p`` itself when ``margin`` or ``angle`` is zero.
+    """
+    out = np.empty(3)
+    c = _dot(d, p)
+    ux = d[0] - c * p[0]
+    uy = d[1] - c * p[1]
+    uz = d[2] - c * p[2]
+    un = math.sqrt(ux * ux + uy * uy + uz * uz)
+    if not (margin > 0.0 and angle > 0.0 and un > 0.0):
+        out[0] = p[0]
+        out[1] = p[1]
+        out[2] = p[2]
+        return out
+    cm = math.cos(margin)
+    sm = math.sin(margin)
+    out[0] = cm * p[0] + sm * ux / un
+    out[1] = cm * p[1] + sm * uy / un
+    out[2] = cm * p[2] + sm * uz / un
+    n = math.sqrt(_dot(out, out))
+    out /= n
+    return out
+
+
+@nb.njit(cache=True)
+def _frame(axis):
+    """Unit u, v completing ``axis`` to a right-handed frame (same rule as synthetic)."""
+    if abs(axis[2]) < 0.9:
+        h = np.array([0.0, 0.0, 1.0])
+    else:
+        h = np.array([0.0, 1.0, 0.0])
+    u = np.cross(h, axis)
+    u /= math.sqrt(_dot(u, u))
+    v = np.cross(axis, u)
+    return u, v
+
+
+@nb.njit(cache=True)
+def _cell_of(p, axis, u, v, n_theta, n_phi) -> int:
+    theta = _angle(p, axis)
+    phi = math.atan2(_dot(p, v), _dot(p, u))
+    i = int(theta / math.pi * n_theta)
+    j = int((phi + math.pi) / (2.0 * math.pi) * n_phi)
+    # NaN never reaches here (inputs are checked); clamp rounding at the ends
+    i = min(max(i, 0), n_theta - 1)
+    j = min(max(j, 0), n_phi - 1)
+    return i * n_phi + j
+
+
+@nb.njit(cache=True)
+def _polar_point(theta, phi, axis, u, v):
+    st = math.sin(theta)
+    return math.cos(theta) * axis + st * (math.cos(phi) * u + math.sin(phi) * v)
+
+
+@nb.njit(cache=True)
+def _in_triangles(p, vertices, triangles) -> bool:
+    for t in range(triangles.shape[0]):
+        a = vertices[triangles[t, 0]]
+        b = vertices[triangles[t, 1]]
+        c = vertices[triangles[t, 2]]
+        if _dot(p, a) + _dot(p, b) + _dot(p, c) <= 0.0:
+            continue
+        if _det(a, b, p) >= 0.0 and _det(b, c, p) >= 0.0 and _det(c, a, p) >= 0.0:
+            return True
+    return False
+
+
+@nb.njit(cache=True, parallel=True)
+def build_grid(vertices, triangles, edges, axis, grid_shape, margin):
+    """Cell status and candidate edges (see the module docstring) -> inside, deep, start, list."""
+    n_theta = grid_shape[0]
+    n_phi = grid_shape[1]
+    n_cells = n_theta * n_phi
+    u, v = _frame(axis)
+    n_edges = edges.shape[0]
+    inside = np.zeros(n_cells, dtype=np.bool_)
+    deep = np.zeros(n_cells, dtype=np.bool_)
+    counts = np.zeros(n_cells, dtype=np.int64)
+    bound = np.empty(n_cells)
+    centres = np.empty((n_cells, 3))
+    for cell in nb.prange(n_cells):
+        i = cell // n_phi
+        j = cell % n_phi
+        t0 = i * math.pi / n_theta
+        p0 = -math.pi + j * 2.0 * math.pi / n_phi
+        dt = math.pi / n_theta
+        dp = 2.0 * math.pi / n_phi
+        centre = _polar_point(t0 + 0.5 * dt, p0 + 0.5 * dp, axis, u, v)
+        r = 0.0
+        for a in range(2):
+            for b in range(2):
+                corner = _polar_point(t0 + a * dt, p0 + b * dp, axis, u, v)
+                r = max(r, _angle(centre, corner))
+        r = r * 1.01 + 1e-12
+        centres[cell] = centre
+        tmp = np.empty(3)
+        best = np.inf
+        for e in range(n_edges):
+            dist = nearest_on_arc(centre, vertices[edges[e, 0]], vertices[edges[e, 1]], tmp)
+            best = min(best, dist)
+        inside[cell] = _in_triangles(centre, vertices, triangles)
+        deep[cell] = (inside[cell] and best >= r) or (best + r <= margin)
+        bound[cell] = best + 2.0 * r
+        if not deep[cell]:
+            c = 0
+            for e in range(n_edges):
+                dist = nearest_on_arc(centre, vertices[edges[e, 0]], vertices[edges[e, 1]], tmp)
+                if dist <= bound[cell]:
+                    c += 1
+            counts[cell] = c
+    start = np.zeros(n_cells + 1, dtype=np.int64)
+    for cell in range(n_cells):
+        start[cell + 1] = start[cell] + counts[cell]
+    cell_edges = np.empty(start[n_cells], dtype=np.int64)
+    for cell in nb.prange(n_cells):
+        if deep[cell]:
+            continue
+        k = start[cell]
+        tmp = np.empty(3)
+        for e in range(n_edges):
+            dist = nearest_on_arc(centres[cell], vertices[edges[e, 0]], vertices[edges[e, 1]], tmp)
+            if dist <= bound[cell]:
+                cell_edges[k] = e
+                k += 1
+    return inside, deep, start, cell_edges
+
+
+@nb.njit(cache=True)
+def query(p, vertices, edges, margin, axis, grid_shape, inside, deep, start, cell_edges, out):
+    """Whether direction ``p`` is in the region; ``out`` gets its projection (p itself inside)."""
+    n_theta = grid_shape[0]
+    n_phi = grid_shape[1]
+    u, v = _frame(axis)
+    cell = _cell_of(p, axis, u, v, n_theta, n_phi)
+    out[0] = p[0]
+    out[1] = p[1]
+    out[2] = p[2]
+    if deep[cell]:
+        return True
+    i = cell // n_phi
+    j = cell % n_phi
+    centre = _polar_point(
+        (i + 0.5) * math.pi / n_theta, -math.pi + (j + 0.5) * 2.0 * math.pi / n_phi, axis, u, v
+    )
+    crossings = 0
+    best = np.inf
+    best_point = np.empty(3)
+    tmp = np.empty(3)
+    for k in range(start[cell], start[cell + 1]):
+        e = cell_edges[k]
+        a = vertices[edges[e, 0]]
+        b = vertices[edges[e, 1]]
+        dist = nearest_on_arc(p, a, b, tmp)
+        if dist < best:
+            best = dist
+            best_point[:] = tmp
+        # does arc centre -> p cross arc a -> b? (half-open sign rule; same hemisphere)
+        sa = _det(centre, p, a) > 0.0
+        sb = _det(centre, p, b) > 0.0
+        sc = _det(a, b, centre) > 0.0
+        sp = _det(a, b, p) > 0.0
+        if (
+            sa != sb
+            and sc != sp
+            and _dot(a, centre) + _dot(b, centre) + _dot(a, p) + _dot(b, p) > 0.0
+        ):
+            crossings += 1
+    in_mesh = inside[cell] != (crossings % 2 == 1)
+    if in_mesh or best <= margin + CONTAIN_TOLERANCE:
+        return True
+    q = slerp_dir(best_point, p, best, margin)
+    out[:] = q
+    return False
+
+
+@nb.njit(cache=True, parallel=True)
+def contains_batch(vertices, edges, margin, axis, grid_shape, inside, deep, start, cell_edges, d):
+    """(N,) bool for directions ``d`` (N, 3)."""
+    n = d.shape[0]
+    res = np.empty(n, dtype=np.bool_)
+    for j in nb.prange(n):
+        out = np.empty(3)
+        res[j] = query(
+            d[j], vertices, edges, margin, axis, grid_shape, inside, deep, start, cell_edges, out
+        )
+    return res
+
+
+@nb.njit(cache=True, parallel=True)
+def project_batch(vertices, edges, margin, axis, grid_shape, inside, deep, start, cell_edges, d):
+    """Projection (N, 3) of directions ``d`` (N, 3): themselves inside, nearest region point out."""
+    n = d.shape[0]
+    res = np.empty((n, 3))
+    for j in nb.prange(n):
+        query(
+            d[j], vertices, edges, margin, axis, grid_shape, inside, deep, start, cell_edges, res[j]
+        )
+    return res

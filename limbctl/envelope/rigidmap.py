@@ -1,0 +1,281 @@
+"""The interpolated Rigid Map (Jenkins & Angel), and the exact gate built on it.
+
+``respond`` is the papers' network, faithfully: node positions fixed on S^3 by a layout, weights
+trained from valid orientations only (winner by position while training, Table I's exponential
+schedules, see :mod:`limbctl.envelope.rigidmap_kernels`), winner by weight when answering,
+optionally interpolated with the runner-ups.
+
+``contains``/``correct`` make that system exact, on top of the trained map:
+
+1. *Support refinement*: a second layer of nodes is placed where the data lies (positions at the
+   training orientations, at most ``support_nodes`` of them), initialised with the trained map's
+   geometric-interpolated answer there, and trained by the same rule and schedule.
+2. *Region mesh*: the limb directions of those trained weights are triangulated (spherical
+   Delaunay) and the triangles with circumradius at most ``alpha`` (``alpha_factor`` times the
+   90th percentile of the nearest-weight spacing) are the region: an alpha shape, non-convex
+   where the data is.
+3. *Learned threshold*: the region is widened by ``margin = margin_factor`` times the median
+   boundary edge, the typical gap between the outermost data and the true edge.
+
+``contains(q)`` asks whether the limb direction lies in the widened mesh; ``correct(q)`` returns
+``q`` itself then, otherwise the orientation whose limb direction is the nearest direction of
+the widened region (exact: great-circle boundary arcs), keeping the twist about the limb. Both
+answer from one precomputed grid over directions in O(1) per command.
+"""
+
+from __future__ import annotations
+
+from typing import Any, ClassVar
+
+import numpy as np
+
+from limbctl.envelope import rigidmap_kernels as rk
+from limbctl.envelope.base import Envelope
+from limbctl.envelope.boundary import DirectionMesh
+from limbctl.envelope.layouts import make_layout
+from limbctl.errors import ConfigError, InvalidInputError
+from limbctl.quat import as_quaternions, limb_direction
+
+
+class RigidMap(Envelope):
+    """Interpolated Rigid Map over S^3 with an exact gate (see the module docstring).
+
+    Parameters
+    ----------
+    nodes : int
+        Output nodes of the papers' map (for polytope layouts: their count or None).
+    layout : str
+        Node layout name (see :func:`limbctl.envelope.layouts.make_layout`).
+    seed : int
+        Seeds the layout (``uniform``) and the order patterns are presented in.
+    learning_rate, learning_rate_decay : float
+        ``lr(t) = learning_rate exp(-learning_rate_decay t)`` (Table I: 1.0, 0.15).
+    radius, radius_decay : float
+        ``sigma(t) = radius exp(-radius_decay t)`` in radians (Table I: 2 pi, 1.0).
+    neighbourhood : float
+        Nodes with ``exp(-theta^2 / (2 sigma^2)) >= neighbourhood`` update (Table I: 0.04).
+    max_epochs : int
+        Table I: 1000. Training stops earlier once no weight moves more than ``tol``.
+    metric : {"euclidean", "cosine"}
+        Distance used to pick winners (Table I).
+    support_nodes : int
+        Largest number of refinement nodes placed on the data for the gate.
+    alpha_factor, margin_factor : float
+        Gate shape parameters (module docstring).
+    """
+
+    kind: ClassVar[str] = "rigidmap"
+
+    def __init__(
+        self,
+        nodes: int | None = 2000,
+        layout: str = "uniform",
+        seed: int = 0,
+        learning_rate: float = 1.0,
+        learning_rate_decay: float = 0.15,
+        radius: float = 2.0 * np.pi,
+        radius_decay: float = 1.0,
+        neighbourhood: float = 0.04,
+        max_epochs: int = 1000,
+        tol: float = 1e-9,
+        metric: str = "euclidean",
+        support_nodes: int = 3000,
+        alpha_factor: float = 4.0,
+        margin_factor: float = 0.25,
+    ) -> None:
+        if metric not in rk.METRICS:
+            raise ConfigError(f"unknown metric {metric!r}; choose one of: {', '.join(rk.METRICS)}")
+        if not 0.0 < neighbourhood <= 1.0:
+            raise ConfigError(f"neighbourhood must be in (0, 1], got {neighbourhood}")
+        if int(max_epochs) < 1 or int(support_nodes) < 3:
+            raise ConfigError("max_epochs must be >= 1 and support_nodes >= 3")
+        self.nodes = nodes
+        self.layout = layout
+        self.seed = int(seed)
+        self.learning_rate = float(learning_rate)
+        self.learning_rate_decay = float(learning_rate_decay)
+        self.radius = float(radius)
+        self.radius_decay = float(radius_decay)
+        self.neighbourhood = float(neighbourhood)
+        self.max_epochs = int(max_epochs)
+        self.tol = float(tol)
+        self.metric = metric
+        self.support_nodes = int(support_nodes)
+        self.alpha_factor = float(alpha_factor)
+        self.margin_factor = float(margin_factor)
+        self.positions = make_layout(layout, nodes, seed=seed)
+        self._weights: np.ndarray | None = None
+        self.support_positions: np.ndarray | None = None
+        self.support_weights: np.ndarray | None = None
+        self.mesh: DirectionMesh | None = None
+        self.epochs = 0
+        self._topology = rk.position_topology(self.positions, 16)
+
+    # ---- learning ----------------------------------------------------------------------------
+    def _train(self, positions: np.ndarray, weights: np.ndarray, patterns: np.ndarray) -> int:
+        return rk.train_rigid_map(
+            positions,
+            weights,
+            patterns,
+            self.learning_rate,
+            self.learning_rate_decay,
+            self.radius,
+            self.radius_decay,
+            self.neighbourhood,
+            self.max_epochs,
+            self.tol,
+        )
+
+    def fit(self, q_train: np.ndarray) -> RigidMap:
+        """Train the map, then its support refinement and the gate, from valid ``q_train``."""
+        q, _ = as_quaternions(q_train, name="q_train")
+        if q.shape[0] < 3:
+            raise InvalidInputError(f"q_train: need at least 3 orientations, got {q.shape[0]}")
+        rng = np.random.default_rng(self.seed)
+        patterns = np.ascontiguousarray(q[rng.permutation(q.shape[0])])
+        weights = self.positions.copy()
+        self.epochs = self._train(self.positions, weights, patterns)
+        self._weights = weights
+        # refinement: nodes where the data lies, starting from the map's answer there
+        count = min(self.support_nodes, q.shape[0])
+        support = np.ascontiguousarray(patterns[:count])
+        self.support_positions = support
+        support_weights = self.respond(support, interpolation="geometric", k=8)
+        self._train(support, support_weights, patterns)
+        self.support_weights = support_weights
+        self.mesh = self._build_mesh(support_weights)
+        return self
+
+    def _build_mesh(self, support_weights: np.ndarray) -> DirectionMesh:
+        d = limb_direction(support_weights / np.linalg.norm(support_weights, axis=1)[:, None])
+        dots = d @ d.T
+        np.fill_diagonal(dots, -1.0)
+        spacing = np.arccos(np.clip(dots.max(axis=1), -1.0, 1.0))
+        alpha = self.alpha_factor * float(np.quantile(spacing, 0.9))
+        bare = DirectionMesh.build(d, alpha, 0.0, cells_per_radian=4.0)
+        edge_len = np.arccos(
+            np.clip(np.sum(d[bare.edges[:, 0]] * d[bare.edges[:, 1]], axis=1), -1.0, 1.0)
+        )
+        margin = self.margin_factor * float(np.median(edge_len))
+        return DirectionMesh.build(d, alpha, margin)
+
+    # ---- answering ---------------------------------------------------------------------------
+    def _trained(self) -> None:
+        if self._weights is None or self.mesh is None:
+            raise ConfigError("this RigidMap is not trained: call fit(q_train) or load a model")
+
+    def respond(self, q: np.ndarray, interpolation: str = "none", k: int = 8) -> np.ndarray:
+        """The papers' answer: winner by weight, interpolated with ``k`` runner-ups.
+
+        ``interpolation``: ``none``, ``idw``, ``geometric`` (d = w_k - y),
+        ``geometric-winner`` (d = w_k - w_c) or ``topological`` (runner-ups are the winner's
+        nearest nodes by position). Returns unit quaternions shaped like ``q``.
+        """
+        if self._weights is None:
+            raise ConfigError("this RigidMap is not trained: call fit(q_train) or load a model")
+        if interpolation not in rk.INTERPOLATIONS:
+            raise ConfigError(
+                f"unknown interpolation {interpolation!r}; choose one of: "
+                f"{', '.join(rk.INTERPOLATIONS)}"
+            )
+        top = self._topology.shape[1] if interpolation == "topological" else self._weights.shape[0]
+        if not 0 <= int(k) <= top:
+            raise ConfigError(f"k must be in 0..{top} for {interpolation} interpolation")
+        arr, single = self._input(q)
+        out = rk.respond_batch(
+            self._weights,
+            arr,
+            int(k),
+            rk.METRICS[self.metric],
+            rk.INTERPOLATIONS[interpolation],
+            self._topology,
+        )
+        return out[0] if single else out
+
+    def _mesh_args(self) -> tuple:
+        m = self.mesh
+        return (
+            m.vertices,
+            m.edges,
+            m.margin,
+            m.axis,
+            m.grid_shape,
+            m.cell_inside,
+            m.cell_deep,
+            m.cell_start,
+            m.cell_edges,
+        )
+
+    def contains(self, q: np.ndarray) -> np.ndarray | bool:
+        """Whether each limb direction lies in the learned region: (N,) bool or bool."""
+        self._trained()
+        arr, single = self._input(q)
+        _, status = rk.correct_batch(arr, *self._mesh_args())
+        inside = status == 1
+        return bool(inside[0]) if single else inside
+
+    def correct(self, q: np.ndarray) -> np.ndarray:
+        """``q`` itself inside the region; outside, the nearest region orientation (twist kept)."""
+        self._trained()
+        arr = np.asarray(q, dtype=np.float64) if isinstance(q, np.ndarray) else None
+        if arr is not None and arr.shape == (4,):
+            # fast path for one command: the kernel checks finiteness and norm itself
+            out, status = rk.correct_single(arr, *self._mesh_args())
+            if status < 0:
+                as_quaternions(q)
+            return out
+        arr, single = self._input(q)
+        out, _ = rk.correct_batch(arr, *self._mesh_args())
+        return out[0] if single else out
+
+    @property
+    def weights(self) -> np.ndarray:
+        """Trained weights of the papers' map (nodes, 4)."""
+        self._trained()
+        return self._weights
+
+    # ---- persistence -------------------------------------------------------------------------
+    def _params(self) -> dict[str, Any]:
+        return {
+            "nodes": self.nodes,
+            "layout": self.layout,
+            "seed": self.seed,
+            "learning_rate": self.learning_rate,
+            "learning_rate_decay": self.learning_rate_decay,
+            "radius": self.radius,
+            "radius_decay": self.radius_decay,
+            "neighbourhood": self.neighbourhood,
+            "max_epochs": self.max_epochs,
+            "tol": self.tol,
+            "metric": self.metric,
+            "support_nodes": self.support_nodes,
+            "alpha_factor": self.alpha_factor,
+            "margin_factor": self.margin_factor,
+            "epochs": self.epochs,
+            "margin": self.mesh.margin if self.mesh is not None else 0.0,
+        }
+
+    def _arrays(self) -> dict[str, np.ndarray]:
+        self._trained()
+        return {
+            "positions": self.positions,
+            "weights": self._weights,
+            "support_positions": self.support_positions,
+            "support_weights": self.support_weights,
+            **self.mesh.arrays(),
+        }
+
+    @classmethod
+    def _restore(cls, params: dict[str, Any], arrays: dict[str, np.ndarray]) -> RigidMap:
+        params = dict(params)
+        epochs = int(params.pop("epochs"))
+        margin = float(params.pop("margin"))
+        model = cls(**params)
+        model.positions = np.ascontiguousarray(arrays["positions"], dtype=np.float64)
+        model._topology = rk.position_topology(model.positions, 16)
+        model._weights = np.ascontiguousarray(arrays["weights"], dtype=np.float64)
+        model.support_positions = np.ascontiguousarray(arrays["support_positions"])
+        model.support_weights = np.ascontiguousarray(arrays["support_weights"])
+        model.mesh = DirectionMesh.from_arrays(arrays, margin)
+        model.epochs = epochs
+        return model

@@ -1,0 +1,443 @@
+"""Numba kernels of the Rigid Map: training, winner search and answering.
+
+Each kernel is a small free function with explicit loops; each has a plain numpy reference
+(``*_reference``) that the tests compare it with. No ``fastmath`` anywhere: NaN must never pass
+a comparison. Kernels are compiled once and cached on disk (``cache=True``).
+
+The training rule (Jenkins & Angel, Table I), for epoch ``t = 0, 1, ...``:
+
+- learning rate ``lr(t) = lr0 exp(-k_lr t)``, neighbourhood radius
+  ``sigma(t) = sigma0 exp(-k_sigma t)`` (radians);
+- for each pattern ``x`` (in the order given): the winner ``c`` is the node whose *position*
+  ``p_c`` is nearest to ``x`` (Euclidean ``|x - p|^2`` and direction-cosine ``acos(x.p)^2``
+  choose the same node on unit positions);
+- every node ``i`` whose neighbourhood value ``h = exp(-theta_ci^2 / (2 sigma^2))`` (``theta_ci``
+  the angle between positions ``p_c`` and ``p_i``) is at least ``phi`` moves toward the pattern:
+  ``w_i += lr h (x - w_i)``;
+- training stops after ``max_epochs`` or once no weight component moved more than ``tol`` in
+  an epoch.
+
+Answering picks winners by *weight* (metric ``EUCLIDEAN``: ``|x - w|^2``; ``COSINE``:
+``acos(x.w/|w|)^2``) and interpolates between the winner and ``k`` runner-ups.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+
+from limbctl.envelope import boundary_kernels as bk
+
+#: Metric codes (the kernels take ints).
+EUCLIDEAN = 0
+COSINE = 1
+METRICS = {"euclidean": EUCLIDEAN, "cosine": COSINE}
+
+#: Interpolation codes.
+NONE = 0
+IDW = 1
+GEOMETRIC = 2
+GEOMETRIC_WINNER = 3
+TOPOLOGICAL = 4
+INTERPOLATIONS = {
+    "none": NONE,
+    "idw": IDW,
+    "geometric": GEOMETRIC,
+    "geometric-winner": GEOMETRIC_WINNER,
+    "topological": TOPOLOGICAL,
+}
+
+
+# ---- training ----------------------------------------------------------------------------------
+@nb.njit(cache=True)
+def position_winners(positions: np.ndarray, patterns: np.ndarray) -> np.ndarray:
+    """Index of the node position nearest each pattern: ``argmax_i <x, p_i>`` (first on ties).
+
+    On unit positions this is the argmin of both ``|x - p|^2 = 2 - 2 x.p`` and ``acos(x.p)^2``.
+    ``positions`` (M, 4), ``patterns`` (N, 4) -> (N,) int64.
+    """
+    n = patterns.shape[0]
+    m = positions.shape[0]
+    out = np.empty(n, dtype=np.int64)
+    for j in range(n):
+        best = -np.inf
+        arg = 0
+        for i in range(m):
+            dot = 0.0
+            for c in range(4):
+                dot += patterns[j, c] * positions[i, c]
+            if dot > best:
+                best = dot
+                arg = i
+        out[j] = arg
+    return out
+
+
+@nb.njit(cache=True)
+def _min_neighbour_angle(positions: np.ndarray) -> float:
+    """Smallest angle (rad) between two distinct node positions."""
+    m = positions.shape[0]
+    best = -1.0
+    for i in range(m):
+        for j in range(i + 1, m):
+            dot = 0.0
+            for c in range(4):
+                dot += positions[i, c] * positions[j, c]
+            if dot > best:
+                best = dot
+    return math.acos(min(1.0, max(-1.0, best)))
+
+
+@nb.njit(cache=True)
+def train_rigid_map(
+    positions: np.ndarray,
+    weights: np.ndarray,
+    patterns: np.ndarray,
+    lr0: float,
+    lr_decay: float,
+    sigma0: float,
+    sigma_decay: float,
+    phi: float,
+    max_epochs: int,
+    tol: float,
+) -> int:
+    """Train ``weights`` (M, 4) in place by the Rigid Map rule (module docstring).
+
+    Winners by position never change between epochs, so they are found once. An epoch whose
+    neighbourhood radius ``sigma sqrt(2 ln(1/phi))`` is below the closest node spacing updates
+    the winner only. Returns the number of epochs run.
+    """
+    n = patterns.shape[0]
+    m = positions.shape[0]
+    winners = position_winners(positions, patterns)
+    min_angle = _min_neighbour_angle(positions) if m > 1 else np.pi
+    epochs = 0
+    for t in range(max_epochs):
+        epochs = t + 1
+        # lr(t) = lr0 exp(-k_lr t);  sigma(t) = sigma0 exp(-k_sigma t)
+        lr = lr0 * math.exp(-lr_decay * t)
+        sigma = sigma0 * math.exp(-sigma_decay * t)
+        # h >= phi  <=>  theta <= sigma sqrt(2 ln(1/phi))
+        reach = sigma * math.sqrt(2.0 * math.log(1.0 / phi)) if phi < 1.0 else 0.0
+        winner_only = reach < min_angle
+        cos_reach = math.cos(reach) - 1e-12 if reach < np.pi else -2.0
+        moved = 0.0
+        for j in range(n):
+            c = winners[j]
+            if winner_only:
+                for k in range(4):
+                    step = lr * (patterns[j, k] - weights[c, k])
+                    weights[c, k] += step
+                    moved = max(moved, abs(step))
+                continue
+            for i in range(m):
+                dot = 0.0
+                for k in range(4):
+                    dot += positions[c, k] * positions[i, k]
+                if dot < cos_reach:
+                    continue
+                # theta_cc = 0 exactly (acos of a rounded self-dot is not)
+                theta = 0.0 if i == c else math.acos(min(1.0, max(-1.0, dot)))
+                # h = exp(-theta^2 / (2 sigma^2))
+                h = math.exp(-(theta * theta) / (2.0 * sigma * sigma))
+                if not h >= phi:
+                    continue
+                a = lr * h
+                for k in range(4):
+                    step = a * (patterns[j, k] - weights[i, k])
+                    weights[i, k] += step
+                    moved = max(moved, abs(step))
+        if moved < tol:
+            break
+    return epochs
+
+
+def train_rigid_map_reference(
+    positions: np.ndarray,
+    weights: np.ndarray,
+    patterns: np.ndarray,
+    lr0: float,
+    lr_decay: float,
+    sigma0: float,
+    sigma_decay: float,
+    phi: float,
+    max_epochs: int,
+    tol: float,
+    metric: int = EUCLIDEAN,
+) -> int:
+    """Straightforward numpy version of :func:`train_rigid_map` (same rule, same result).
+
+    Finds the winner for every pattern presentation with the named metric and updates the
+    neighbourhood with whole-array operations. Trains ``weights`` in place; returns epochs run.
+    """
+    epochs = 0
+    for t in range(max_epochs):
+        epochs = t + 1
+        lr = lr0 * np.exp(-lr_decay * t)
+        sigma = sigma0 * np.exp(-sigma_decay * t)
+        moved = 0.0
+        for x in patterns:
+            if metric == EUCLIDEAN:
+                # E = |x - p|^2
+                dist = np.sum((x - positions) ** 2, axis=1)
+            else:
+                # D = acos(x . p)^2
+                dist = np.arccos(np.clip(positions @ x, -1.0, 1.0)) ** 2
+            c = int(np.argmin(dist))
+            theta = np.arccos(np.clip(positions @ positions[c], -1.0, 1.0))
+            theta[c] = 0.0
+            h = np.exp(-(theta * theta) / (2.0 * sigma * sigma))
+            near = h >= phi
+            step = (lr * h[near])[:, None] * (x - weights[near])
+            weights[near] += step
+            if step.size:
+                moved = max(moved, float(np.max(np.abs(step))))
+        if moved < tol:
+            break
+    return epochs
+
+
+# ---- answering ---------------------------------------------------------------------------------
+@nb.njit(cache=True)
+def _weight_distance(x: np.ndarray, w: np.ndarray, metric: int) -> float:
+    """``|x - w|^2`` (EUCLIDEAN) or ``acos(x . w / |w|)^2`` (COSINE)."""
+    if metric == EUCLIDEAN:
+        s = 0.0
+        for c in range(4):
+            d = x[c] - w[c]
+            s += d * d
+        return s
+    dot = 0.0
+    nn = 0.0
+    for c in range(4):
+        dot += x[c] * w[c]
+        nn += w[c] * w[c]
+    cosv = dot / math.sqrt(nn) if nn > 0.0 else -1.0
+    a = math.acos(min(1.0, max(-1.0, cosv)))
+    return a * a
+
+
+@nb.njit(cache=True)
+def _nearest_k(weights: np.ndarray, x: np.ndarray, count: int, metric: int, idx, dist) -> None:
+    """Fill ``idx``/``dist`` (count,) with the ``count`` weights nearest ``x``, nearest first."""
+    for r in range(count):
+        idx[r] = -1
+        dist[r] = np.inf
+    for i in range(weights.shape[0]):
+        d = _weight_distance(x, weights[i], metric)
+        if not d < dist[count - 1]:
+            continue
+        r = count - 1
+        while r > 0 and d < dist[r - 1]:
+            dist[r] = dist[r - 1]
+            idx[r] = idx[r - 1]
+            r -= 1
+        dist[r] = d
+        idx[r] = i
+
+
+@nb.njit(cache=True)
+def _combine(weights, x, idx, dist, count, mode, out) -> None:
+    """Interpolate between ``weights[idx[0]]`` (winner) and ``idx[1:count]``; unit result."""
+    y = np.empty(4)
+    c0 = idx[0]
+    for c in range(4):
+        y[c] = weights[c0, c]
+    if mode == IDW and count > 1:
+        # y = sum_i w_i / d_i / sum_i 1 / d_i  (an exact hit returns that weight)
+        if dist[0] > 0.0:
+            total = 0.0
+            for c in range(4):
+                y[c] = 0.0
+            for r in range(count):
+                inv = 1.0 / math.sqrt(dist[r])
+                total += inv
+                for c in range(4):
+                    y[c] += inv * weights[idx[r], c]
+            for c in range(4):
+                y[c] /= total
+    elif (mode == GEOMETRIC or mode == GEOMETRIC_WINNER or mode == TOPOLOGICAL) and count > 1:
+        # residual r = x - w_c; per runner-up: d = w_k - y (or w_k - w_c),
+        # a = clip(<r, d> / |d|^2, 0, 1); y += a d; r -= a d
+        res = np.empty(4)
+        dv = np.empty(4)
+        for c in range(4):
+            res[c] = x[c] - y[c]
+        for r in range(1, count):
+            k = idx[r]
+            dd = 0.0
+            rd = 0.0
+            for c in range(4):
+                base = weights[c0, c] if mode == GEOMETRIC_WINNER else y[c]
+                dv[c] = weights[k, c] - base
+                dd += dv[c] * dv[c]
+                rd += res[c] * dv[c]
+            if not dd > 0.0:
+                continue
+            a = min(1.0, max(0.0, rd / dd))
+            for c in range(4):
+                y[c] += a * dv[c]
+                res[c] -= a * dv[c]
+    norm = 0.0
+    for c in range(4):
+        norm += y[c] * y[c]
+    norm = math.sqrt(norm)
+    sign = -1.0 if y[0] < 0.0 else 1.0
+    for c in range(4):
+        out[c] = sign * y[c] / norm
+
+
+@nb.njit(cache=True, parallel=True)
+def respond_batch(
+    weights: np.ndarray, q: np.ndarray, k: int, metric: int, mode: int, topology: np.ndarray
+) -> np.ndarray:
+    """The Rigid Map's answer for each row of ``q`` (N, 4) -> (N, 4) unit, w >= 0.
+
+    Winner by weight with ``metric``; ``mode`` one of the interpolation codes. ``GEOMETRIC``,
+    ``GEOMETRIC_WINNER`` and ``IDW`` combine the winner with its ``k`` nearest runner-ups by
+    weight; ``TOPOLOGICAL`` combines it (geometric rule) with ``topology[c, :k]``, the winner's
+    ``k`` nearest nodes by *position*.
+    """
+    n = q.shape[0]
+    out = np.empty((n, 4))
+    count = 1 if mode == NONE else min(k + 1, weights.shape[0])
+    for j in nb.prange(n):
+        idx = np.empty(count, dtype=np.int64)
+        dist = np.empty(count)
+        if mode == TOPOLOGICAL:
+            _nearest_k(weights, q[j], 1, metric, idx, dist)
+            used = min(count, topology.shape[1] + 1)
+            for r in range(1, used):
+                idx[r] = topology[idx[0], r - 1]
+            _combine(weights, q[j], idx, dist, used, mode, out[j])
+        else:
+            _nearest_k(weights, q[j], count, metric, idx, dist)
+            _combine(weights, q[j], idx, dist, count, mode, out[j])
+    return out
+
+
+def respond_reference(
+    weights: np.ndarray, q: np.ndarray, k: int, metric: int, mode: int, topology: np.ndarray
+) -> np.ndarray:
+    """Plain numpy version of :func:`respond_batch` (same arguments, same answer)."""
+    out = np.empty((q.shape[0], 4))
+    norms = np.linalg.norm(weights, axis=1)
+    count = 1 if mode == NONE else min(k + 1, weights.shape[0])
+    for j, x in enumerate(q):
+        if metric == EUCLIDEAN:
+            dist = np.sum((x - weights) ** 2, axis=1)
+        else:
+            dist = np.arccos(np.clip((weights @ x) / norms, -1.0, 1.0)) ** 2
+        order = np.argsort(dist, kind="stable")
+        if mode == TOPOLOGICAL:
+            idx = np.concatenate([order[:1], topology[order[0], : count - 1]])
+        else:
+            idx = order[:count]
+        y = weights[idx[0]].copy()
+        if mode == IDW and len(idx) > 1 and dist[idx[0]] > 0.0:
+            inv = 1.0 / np.sqrt(dist[idx])
+            y = inv @ weights[idx] / inv.sum()
+        elif mode in (GEOMETRIC, GEOMETRIC_WINNER, TOPOLOGICAL):
+            res = x - y
+            for kk in idx[1:]:
+                base = weights[idx[0]] if mode == GEOMETRIC_WINNER else y
+                d = weights[kk] - base
+                dd = d @ d
+                if dd > 0.0:
+                    a = np.clip((res @ d) / dd, 0.0, 1.0)
+                    y = y + a * d
+                    res = res - a * d
+        y = y / np.linalg.norm(y)
+        out[j] = -y if y[0] < 0 else y
+    return out
+
+
+def position_topology(positions: np.ndarray, k: int) -> np.ndarray:
+    """For each node, its ``k`` nearest other nodes by position (M, k) int64, nearest first."""
+    dots = positions @ positions.T
+    np.fill_diagonal(dots, -np.inf)
+    k = min(k, positions.shape[0] - 1)
+    return np.ascontiguousarray(np.argsort(-dots, axis=1, kind="stable")[:, :k], dtype=np.int64)
+
+
+# ---- correcting --------------------------------------------------------------------------------
+@nb.njit(cache=True)
+def _correct_one(
+    q, vertices, edges, margin, axis, grid_shape, inside, deep, start, cell_edges, out
+) -> int:
+    """Correct one quaternion into ``out``; returns 1 inside, 0 corrected, -1 bad input.
+
+    Inside (limb direction in the region): ``out = q`` (canonical). Outside: the limb direction
+    moves to the nearest region direction and the twist about the limb is kept:
+    ``out = swing(d') * twist(q)`` with ``twist = normalise(w, x, 0, 0)``.
+    """
+    norm2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]
+    # NaN fails every comparison, so it is refused here
+    if not abs(math.sqrt(norm2) - 1.0) <= 1e-6:
+        return -1
+    sign = -1.0 if q[0] < 0.0 else 1.0
+    w = sign * q[0]
+    x = sign * q[1]
+    y = sign * q[2]
+    z = sign * q[3]
+    # limb direction: (w^2 + x^2 - y^2 - z^2, 2(xy + wz), 2(xz - wy)), normalised
+    d = np.empty(3)
+    d[0] = w * w + x * x - y * y - z * z
+    d[1] = 2.0 * (x * y + w * z)
+    d[2] = 2.0 * (x * z - w * y)
+    d /= math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+    p = np.empty(3)
+    if bk.query(d, vertices, edges, margin, axis, grid_shape, inside, deep, start, cell_edges, p):
+        out[0] = w
+        out[1] = x
+        out[2] = y
+        out[3] = z
+        return 1
+    # swing from +x to p: normalise(1 + p_x, 0, -p_z, p_y)
+    sw = 1.0 + p[0]
+    sy = -p[2]
+    sz = p[1]
+    sn = math.sqrt(sw * sw + sy * sy + sz * sz)
+    if sn < 1e-12:
+        sw, sy, sz, sn = 0.0, 0.0, 1.0, 1.0
+    sw /= sn
+    sy /= sn
+    sz /= sn
+    tn = math.sqrt(w * w + x * x)
+    tw, tx = (w / tn, x / tn) if tn > 1e-12 else (1.0, 0.0)
+    # (sw, 0, sy, sz) * (tw, tx, 0, 0)
+    rw = sw * tw
+    rx = sw * tx
+    ry = sy * tw + sz * tx
+    rz = sz * tw - sy * tx
+    s2 = -1.0 if rw < 0.0 else 1.0
+    out[0] = s2 * rw
+    out[1] = s2 * rx
+    out[2] = s2 * ry
+    out[3] = s2 * rz
+    return 0
+
+
+@nb.njit(cache=True, parallel=True)
+def correct_batch(q, vertices, edges, margin, axis, grid_shape, inside, deep, start, cell_edges):
+    """Correct each row of ``q`` (N, 4) -> (out (N, 4), status (N,) int8: 1 in, 0 fixed, -1 bad)."""
+    n = q.shape[0]
+    out = np.empty((n, 4))
+    status = np.empty(n, dtype=np.int8)
+    for j in nb.prange(n):
+        status[j] = _correct_one(
+            q[j], vertices, edges, margin, axis, grid_shape, inside, deep, start, cell_edges, out[j]
+        )
+    return out, status
+
+
+@nb.njit(cache=True)
+def correct_single(q, vertices, edges, margin, axis, grid_shape, inside, deep, start, cell_edges):
+    """:func:`correct_batch` for one (4,) quaternion, without the thread pool: (out, status)."""
+    out = np.empty(4)
+    status = _correct_one(
+        q, vertices, edges, margin, axis, grid_shape, inside, deep, start, cell_edges, out
+    )
+    return out, status

@@ -1,0 +1,240 @@
+"""Synthetic regions of limb directions with exact ideal corrections, for tests and benchmarks.
+
+Two kinds of region, one small API (:class:`Region`):
+
+- :class:`ConeRegion`: Lee's swing cone of half-angle ``R`` about the rest direction +x. Samples
+  are uniform over the cap; the ideal correction of an outside direction turns it toward the
+  axis until its angle is ``R`` (keeping the swing axis).
+- :class:`PolygonRegion`: a polygon in (pan, tilt) degrees, the shape a person teaches by hand
+  (e.g. :data:`BEAN`). Samples are dense in the middle and sparse near the edge; the ideal
+  correction is the geodesically nearest direction on the boundary, found by dense boundary
+  sampling (spacing ``boundary_step_deg``) and refined on the nearest boundary segment.
+
+Every region gives ``sample(n, rng)`` (teaching data, (n, 3) directions), ``contains(d)``,
+``ideal(d)`` (the nearest valid direction; ``d`` itself inside), ``depth(d)`` (signed angle to
+the boundary, rad, positive inside) and ``test_directions(n, rng)`` (uniform over the directions
+within ``R + min(R, 45 deg)`` of the region's axis, ``R`` its largest angle from the axis).
+:func:`to_quaternions` turns directions into the twist-free quaternions a 2-DOF gimbal produces.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+
+import numpy as np
+
+from limbctl.gimbal import direction_to_pan_tilt, pan_tilt_to_direction
+from limbctl.quat import direction_angle, swing_from_direction
+
+#: A kidney-shaped region in (pan, tilt) degrees, concave on top: the shape of a hand-taught limit.
+BEAN = np.array(
+    [
+        [-55.0, -10.0],
+        [-50.0, -28.0],
+        [-30.0, -38.0],
+        [0.0, -40.0],
+        [30.0, -36.0],
+        [50.0, -25.0],
+        [58.0, -5.0],
+        [52.0, 15.0],
+        [38.0, 28.0],
+        [20.0, 25.0],
+        [5.0, 14.0],
+        [-10.0, 14.0],
+        [-25.0, 25.0],
+        [-42.0, 24.0],
+        [-53.0, 10.0],
+    ]
+)
+
+
+def to_quaternions(d: np.ndarray) -> np.ndarray:
+    """Twist-free quaternions (..., 4), w >= 0, that point the limb along directions ``d``."""
+    return swing_from_direction(d)
+
+
+def _cap_directions(n: int, axis: np.ndarray, radius: float, rng: np.random.Generator):
+    """``n`` directions uniform over the cap of angular ``radius`` (rad) about unit ``axis``."""
+    # uniform on a cap: cos(theta) uniform in [cos(radius), 1]
+    cos_t = rng.uniform(np.cos(radius), 1.0, n)
+    sin_t = np.sqrt(np.clip(1.0 - cos_t**2, 0.0, 1.0))
+    phi = rng.uniform(-np.pi, np.pi, n)
+    u, v = _tangent_frame(axis)
+    return cos_t[:, None] * axis + sin_t[:, None] * (
+        np.cos(phi)[:, None] * u + np.sin(phi)[:, None] * v
+    )
+
+
+def _tangent_frame(axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit vectors completing ``axis`` to a right-handed orthonormal frame."""
+    helper = np.array([0.0, 0.0, 1.0]) if abs(axis[2]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    u = np.cross(helper, axis)
+    u /= np.linalg.norm(u)
+    return u, np.cross(axis, u)
+
+
+class Region(ABC):
+    """A region of valid limb directions with its exact nearest-valid-direction."""
+
+    #: Unit axis (3,) the test commands are spread around; ``radius`` its largest angle (rad).
+    axis: np.ndarray
+    radius: float
+
+    @abstractmethod
+    def sample(self, n: int, rng: np.random.Generator) -> np.ndarray:
+        """``n`` teaching directions (n, 3) inside the region."""
+
+    @abstractmethod
+    def depth(self, d: np.ndarray) -> np.ndarray:
+        """Signed angle (rad) from each direction (N, 3) to the boundary, positive inside."""
+
+    @abstractmethod
+    def ideal(self, d: np.ndarray) -> np.ndarray:
+        """The nearest valid direction (N, 3) to each of ``d`` (N, 3); ``d`` itself inside."""
+
+    def contains(self, d: np.ndarray) -> np.ndarray:
+        """(N,) bool: each direction inside the region (boundary included)."""
+        return self.depth(d) >= 0.0
+
+    def test_directions(self, n: int, rng: np.random.Generator) -> np.ndarray:
+        """``n`` directions uniform within ``R + min(R, 45 deg)`` of the axis (n, 3)."""
+        spread = self.radius + min(self.radius, np.radians(45.0))
+        return _cap_directions(n, self.axis, min(spread, np.pi), rng)
+
+
+class ConeRegion(Region):
+    """Lee's swing cone: directions within ``half_angle`` (rad) of +x."""
+
+    def __init__(self, half_angle: float) -> None:
+        if not 0.0 < half_angle < np.pi:
+            raise ValueError(f"half_angle must be in (0, pi) rad, got {half_angle}")
+        self.axis = np.array([1.0, 0.0, 0.0])
+        self.radius = float(half_angle)
+
+    def sample(self, n: int, rng: np.random.Generator) -> np.ndarray:
+        return _cap_directions(n, self.axis, self.radius, rng)
+
+    def depth(self, d: np.ndarray) -> np.ndarray:
+        return self.radius - direction_angle(d, self.axis)
+
+    def ideal(self, d: np.ndarray) -> np.ndarray:
+        d = np.asarray(d, dtype=np.float64)
+        out = d.copy()
+        outside = ~self.contains(d)
+        # keep the swing axis, set the swing angle to R: cos(R) x + sin(R) (d - d_x x)/|d - d_x x|
+        side = d[outside] - d[outside, :1] * self.axis
+        norm = np.linalg.norm(side, axis=1, keepdims=True)
+        side = np.where(norm > 1e-15, side / np.where(norm > 0, norm, 1.0), [0.0, 1.0, 0.0])
+        out[outside] = np.cos(self.radius) * self.axis + np.sin(self.radius) * side
+        return out
+
+
+class PolygonRegion(Region):
+    """A polygon in (pan, tilt) degrees: straight edges in joint space, taught densely inside.
+
+    Parameters
+    ----------
+    polygon_deg : array_like, shape (V, 2)
+        Vertices (pan, tilt) in degrees, either winding, not self-intersecting.
+    edge_density : float
+        Sample density at the edge relative to the deep middle (0 < edge_density <= 1).
+    ramp_deg : float
+        Depth over which the density rises from ``edge_density`` to 1.
+    boundary_step_deg : float
+        Spacing of the dense boundary sampling used for depth and the ideal correction.
+    """
+
+    def __init__(
+        self,
+        polygon_deg: np.ndarray = BEAN,
+        edge_density: float = 0.3,
+        ramp_deg: float = 10.0,
+        boundary_step_deg: float = 0.05,
+    ) -> None:
+        self.polygon = np.radians(np.asarray(polygon_deg, dtype=np.float64))
+        self.edge_density = float(edge_density)
+        self.ramp = np.radians(ramp_deg)
+        closed = np.vstack([self.polygon, self.polygon[:1]])
+        pts = []
+        for a, b in zip(closed[:-1], closed[1:], strict=True):
+            steps = max(2, int(np.ceil(np.degrees(np.linalg.norm(b - a)) / boundary_step_deg)))
+            s = np.linspace(0.0, 1.0, steps, endpoint=False)[:, None]
+            pts.append(a + s * (b - a))
+        pan_tilt = np.vstack(pts)
+        self.boundary = pan_tilt_to_direction(pan_tilt[:, 0], pan_tilt[:, 1])
+        centre = self.boundary.mean(axis=0)
+        self.axis = centre / np.linalg.norm(centre)
+        self.radius = float(np.max(direction_angle(self.boundary, self.axis)))
+
+    def _inside_joint_space(self, d: np.ndarray) -> np.ndarray:
+        pan, tilt = direction_to_pan_tilt(d)
+        poly = self.polygon
+        inside = np.zeros(pan.shape, dtype=bool)
+        # even-odd ray casting along +pan in (pan, tilt)
+        for (x0, y0), (x1, y1) in zip(poly, np.roll(poly, -1, axis=0), strict=True):
+            crosses = (y0 > tilt) != (y1 > tilt)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                x_at = x0 + (tilt - y0) * (x1 - x0) / (y1 - y0)
+            inside ^= crosses & (pan < x_at)
+        # the polygon lives in pan in (-pi, pi): directions behind the limb are outside
+        return inside & (d[..., 0] > -1.0 + 1e-12)
+
+    def _nearest_boundary(self, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Nearest boundary direction (N, 3) and its angle (N,) for each of ``d`` (N, 3)."""
+        nearest = np.empty_like(d)
+        angle = np.empty(d.shape[0])
+        b = self.boundary
+        nb_ = b.shape[0]
+        for start in range(0, d.shape[0], 2048):
+            chunk = d[start : start + 2048]
+            i = np.argmax(chunk @ b.T, axis=1)
+            # refine on the two boundary chords next to the nearest sample (great-circle arcs)
+            best = b[i]
+            best_angle = direction_angle(chunk, best)
+            for j in ((i - 1) % nb_, (i + 1) % nb_):
+                p, a = _nearest_on_arc(chunk, b[i], b[j])
+                better = a < best_angle
+                best[better] = p[better]
+                best_angle[better] = a[better]
+            nearest[start : start + 2048] = best
+            angle[start : start + 2048] = best_angle
+        return nearest, angle
+
+    def sample(self, n: int, rng: np.random.Generator) -> np.ndarray:
+        out = np.empty((0, 3))
+        while out.shape[0] < n:
+            cand = _cap_directions(4 * n, self.axis, self.radius, rng)
+            depth = self.depth(cand)
+            # density = edge + (1 - edge) * smoothstep(depth / ramp) inside, 0 outside
+            s = np.clip(depth / self.ramp, 0.0, 1.0)
+            density = np.where(depth >= 0, self.edge_density + (1 - self.edge_density) * s, 0.0)
+            keep = rng.uniform(0.0, 1.0, cand.shape[0]) < density
+            out = np.vstack([out, cand[keep]])
+        return out[:n]
+
+    def depth(self, d: np.ndarray) -> np.ndarray:
+        d = np.atleast_2d(np.asarray(d, dtype=np.float64))
+        _, angle = self._nearest_boundary(d)
+        return np.where(self._inside_joint_space(d), angle, -angle)
+
+    def ideal(self, d: np.ndarray) -> np.ndarray:
+        d = np.atleast_2d(np.asarray(d, dtype=np.float64))
+        nearest, _ = self._nearest_boundary(d)
+        return np.where(self._inside_joint_space(d)[:, None], d, nearest)
+
+
+def _nearest_on_arc(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Nearest point on the short great-circle arcs a-b (rows) to directions p, and its angle."""
+    n = np.cross(a, b)
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    # project onto the arc's plane: p' = p - (p.n) n
+    foot = p - np.sum(p * n, axis=-1, keepdims=True) * n
+    foot /= np.linalg.norm(foot, axis=-1, keepdims=True)
+    within = (np.sum(np.cross(a, foot) * n, axis=-1) >= 0) & (
+        np.sum(np.cross(foot, b) * n, axis=-1) >= 0
+    )
+    da = direction_angle(p, a)
+    db = direction_angle(p, b)
+    end = np.where((da <= db)[:, None], a, b)
+    point = np.where(within[:, None], foot, end)
+    return point, direction_angle(p, point)

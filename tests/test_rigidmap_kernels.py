@@ -1,0 +1,76 @@
+import numpy as np
+import pytest
+
+from limbctl.envelope import rigidmap_kernels as rk
+from limbctl.envelope.synthetic import ConeRegion, to_quaternions
+
+
+def _gaussian_layout(n, seed):
+    p = np.random.default_rng(seed).normal(size=(n, 4))
+    p /= np.linalg.norm(p, axis=1, keepdims=True)
+    return p * np.where(p[:, :1] < 0, -1.0, 1.0)
+
+
+def _patterns(n, seed, half_angle_deg=30.0):
+    rng = np.random.default_rng(seed)
+    return np.ascontiguousarray(
+        to_quaternions(ConeRegion(np.radians(half_angle_deg)).sample(n, rng))
+    )
+
+
+@pytest.mark.parametrize("metric", [rk.EUCLIDEAN, rk.COSINE])
+def test_training_kernel_matches_numpy_reference(metric):
+    positions = _gaussian_layout(150, 1)
+    patterns = _patterns(60, 2)
+    w_kernel = positions.copy()
+    w_ref = positions.copy()
+    args = (1.0, 0.15, 2 * np.pi, 1.0, 0.04, 1000, 1e-9)
+    e_kernel = rk.train_rigid_map(positions, w_kernel, patterns, *args)
+    e_ref = rk.train_rigid_map_reference(positions, w_ref, patterns, *args, metric=metric)
+    assert e_kernel == e_ref < 1000
+    np.testing.assert_allclose(w_kernel, w_ref, atol=1e-12)
+    # training moved the weights onto the data: every winner's weight is near its patterns
+    assert not np.allclose(w_kernel, positions)
+
+
+def test_position_winners_is_nearest_position():
+    positions = _gaussian_layout(200, 3)
+    patterns = _patterns(50, 4)
+    got = rk.position_winners(positions, patterns)
+    want = np.argmin(((patterns[:, None, :] - positions[None]) ** 2).sum(-1), axis=1)
+    np.testing.assert_array_equal(got, want)
+
+
+@pytest.mark.parametrize("mode", sorted(rk.INTERPOLATIONS.values()))
+@pytest.mark.parametrize("metric", [rk.EUCLIDEAN, rk.COSINE])
+def test_respond_kernel_matches_reference(mode, metric):
+    positions = _gaussian_layout(300, 5)
+    weights = positions.copy()
+    rk.train_rigid_map(
+        positions, weights, _patterns(100, 6), 1.0, 0.15, 2 * np.pi, 1.0, 0.04, 1000, 1e-9
+    )
+    topology = rk.position_topology(positions, 8)
+    q = np.vstack([_patterns(40, 7, 60.0), _gaussian_layout(20, 8)])
+    got = rk.respond_batch(weights, q, 6, metric, mode, topology)
+    want = rk.respond_reference(weights, q, 6, metric, mode, topology)
+    np.testing.assert_allclose(got, want, atol=1e-12)
+    np.testing.assert_allclose(np.linalg.norm(got, axis=1), 1.0, atol=1e-12)
+    assert (got[:, 0] >= 0).all()
+
+
+def test_respond_none_returns_nearest_weight_normalised():
+    weights = _gaussian_layout(50, 9) * 0.9
+    q = _gaussian_layout(10, 10)
+    got = rk.respond_batch(weights, q, 0, rk.EUCLIDEAN, rk.NONE, rk.position_topology(weights, 4))
+    idx = np.argmin(((q[:, None] - weights[None]) ** 2).sum(-1), axis=1)
+    np.testing.assert_allclose(got, weights[idx] / 0.9, atol=1e-12)
+
+
+def test_position_topology_lists_nearest_other_nodes():
+    p = _gaussian_layout(40, 11)
+    topo = rk.position_topology(p, 3)
+    for i in range(40):
+        assert i not in topo[i]
+        dots = p @ p[i]
+        dots[i] = -np.inf
+        np.testing.assert_array_equal(np.sort(topo[i]), np.sort(np.argsort(-dots)[:3]))
