@@ -42,7 +42,7 @@ MIN_PATH_DEPTH_DEG = 0.5
 #: EDGE_SPEED_FRACTION of the speed.
 SLOW_BAND_DEG = 15.0
 EDGE_EASE_S = 0.5
-EDGE_SPEED_FRACTION = 0.5
+EDGE_SPEED_FRACTION = 0.4
 #: Middle waypoints are drawn with density proportional to depth ** WAYPOINT_DEPTH_POWER.
 WAYPOINT_DEPTH_POWER = 1.5
 #: Edge visits work round the perimeter in laps of EDGE_VISITS_PER_LAP evenly spaced visits
@@ -55,6 +55,8 @@ MIN_MOVE_S = 0.3
 #: Probability of a pause after a move, and its duration range (s).
 PAUSE_PROBABILITY = 0.1
 PAUSE_S = (0.2, 0.6)
+#: Waypoints drawn for each move through the middle; the nearest is taken.
+WAYPOINT_CHOICES = 2
 #: Candidate waypoints tried before backing up along the path already walked.
 WAYPOINT_TRIES = 40
 #: Moves bow sideways by a normal fraction of their length with this standard deviation.
@@ -121,10 +123,11 @@ class Hand:
         self.script = script
         self.speed_deg_s = float(speed_deg_s)
         self.tremor_deg = float(tremor_deg)
-        self._rng = np.random.default_rng(seed)
+        self._seed = seed
         # tremor: per axis, two sines with frequencies in the tremor band; peak sum = tremor_deg
-        freqs = self._rng.uniform(*TREMOR_BAND_HZ, size=4)
-        phases = self._rng.uniform(0.0, 2.0 * math.pi, size=4)
+        tremor_rng = np.random.default_rng([seed, 0])
+        freqs = tremor_rng.uniform(*TREMOR_BAND_HZ, size=4)
+        phases = tremor_rng.uniform(0.0, 2.0 * math.pi, size=4)
         amps = self.tremor_deg * np.array([0.6, 0.4, 0.6, 0.4])
         self._tremor = [
             (float(a), 2.0 * math.pi * float(f), float(p))
@@ -142,12 +145,27 @@ class Hand:
             for (ta, pa, qa), (tb, pb, qb) in zip(script, script[1:], strict=False):
                 self._add(ta, tb, pa, qa, pb, qb, False)
         else:
-            self._edge_u = float(self._rng.uniform())
-            self._edge_step = 1.0 / EDGE_VISITS_PER_LAP
-            self._edge_due = True
-            self._trail: list[tuple[float, float]] = []  # poses walked since the last centre visit
-            pan, tilt = region.center_deg
-            self._add(0.0, 0.5, pan, tilt, pan, tilt, False)
+            self.start_from(*region.center_deg)
+
+    def start_from(self, pan_deg: float, tilt_deg: float) -> None:
+        """Take hold of the limb at (pan_deg, tilt_deg): a region hand (re)starts its wander there
+        (t = 0), first bringing the limb to the middle of the region; the path stays a function of
+        the seed and this pose. A script hand ignores this: its script says where the limb is."""
+        if self.script is not None:
+            return
+        self._rng = np.random.default_rng([self._seed, 1])
+        self._t0.clear()
+        self._t1.clear()
+        self._segments.clear()
+        self._current = 0
+        self._edge_u = float(self._rng.uniform())
+        self._edge_step = 1.0 / EDGE_VISITS_PER_LAP
+        self._edge_due = True
+        self._trail: list[tuple[float, float]] = []  # poses walked since the last centre visit
+        pan, tilt = float(pan_deg), float(tilt_deg)
+        self._add(0.0, PAUSE_S[0], pan, tilt, pan, tilt, False)
+        if (pan, tilt) != self.region.center_deg:
+            self._move(self.region.center_deg)
 
     @classmethod
     def from_mapping(cls, data: object, seed: int = 0, source: str = "<mapping>") -> Hand:
@@ -294,8 +312,12 @@ class Hand:
             if self._visit_edge(self._edge_u + jitter):
                 return
         self._edge_due = True
+        _, pan, tilt = self._end()
         for _ in range(WAYPOINT_TRIES):
-            if self._reach(self._draw_waypoint()):
+            # of WAYPOINT_CHOICES drawn waypoints a person picks the nearest: no pointless tours
+            options = [self._draw_waypoint() for _ in range(WAYPOINT_CHOICES)]
+            nearest = min(options, key=lambda w: math.hypot(w[0] - pan, w[1] - tilt))
+            if self._reach(nearest):
                 break
         else:
             # boxed in (a very irregular polygon): retrace the path walked since the centre

@@ -140,10 +140,8 @@ class World:
         self._load = [0.0, 0.0]  # joint frame, % of stall
         self._push = [0.0, 0.0]  # joint frame, % of stall
         self._torque_on = [False, False]
-        self._hand = hand
         self.time_s = 0.0
-        #: Seconds the hand has held the limb (runs only while some joint's torque is off).
-        self.hand_time_s = 0.0
+        self.set_hand(hand)
 
     # -- stepping ---------------------------------------------------------------------------
 
@@ -255,9 +253,14 @@ class World:
         self._push[i] = self.joints[i].direction * float(torque_percent)
 
     def set_hand(self, hand: Hand | None) -> None:
-        """Give the limb to ``hand`` (its clock restarts) or take it away (``None``)."""
+        """Give the limb to ``hand``, which takes hold where the limb is and whose clock restarts
+        (``hand_time_s`` runs only while some joint's torque is off), or take it away (``None``)."""
         self._hand = hand
+        #: Seconds the hand has held the limb.
         self.hand_time_s = 0.0
+        if hand is not None:
+            angles = self.joint_angles_deg()
+            hand.start_from(angles["pan"], angles["tilt"])
 
     @property
     def hand(self) -> Hand | None:

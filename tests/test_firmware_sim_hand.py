@@ -67,8 +67,9 @@ def test_recording_covers_the_boundary_all_around(minute):
     hand, samples = minute
     depth = hand.region.edge_distance_deg(samples[:, 0], samples[:, 1])
     near = samples[depth < 3.0]
-    arcs = np.floor(hand.region.boundary_fraction(near[:, 0], near[:, 1]) * 12).astype(int)
-    assert set(arcs.tolist()) == set(range(12))  # every twelfth of the perimeter is visited
+    arcs = np.floor(hand.region.boundary_fraction(near[:, 0], near[:, 1]) * 8).astype(int)
+    assert set(arcs.tolist()) == set(range(8))  # every eighth of the perimeter is visited
+    # and no stretch longer than 12 % of the perimeter is left out
     assert largest_boundary_gap(hand.region, samples, 3.0) < 0.12
 
 
@@ -88,12 +89,25 @@ def test_dense_in_the_middle_sparse_and_slow_near_the_edge(minute):
     region = hand.region
     middle = density_by_depth(region, samples, 0.5, 1.01)
     outer = density_by_depth(region, samples, 0.05, 0.35)
-    assert middle > 1.2 * outer
+    assert middle > 1.1 * outer
     speed = np.hypot(*np.diff(samples, axis=0).T) * 100.0  # deg/s at 100 Hz
     depth = region.edge_distance_deg(samples[1:, 0], samples[1:, 1])
-    assert np.median(speed[depth < 3.0]) < 0.6 * np.median(
-        speed[depth > 0.5 * region.depth_max_deg]
+    near_edge, middle_speed = speed[depth < 3.0], speed[depth > 0.5 * region.depth_max_deg]
+    assert np.median(near_edge) < 0.75 * np.median(middle_speed)
+
+
+def test_hand_takes_hold_where_the_limb_is_without_a_yank():
+    hand = Hand.from_yaml(REGIONS / "irregular.yaml", seed=17)
+    world = World(hand=hand, seed=17)
+    start = world.joint_angles_deg()
+    assert hand.pose_deg(0.0) == pytest.approx(
+        (start["pan"], start["tilt"]), abs=DEFAULT_TREMOR_DEG
     )
+    samples = record(hand, seconds=3.0, seed=17)
+    speed = np.hypot(*np.diff(samples, axis=0).T) * 100.0
+    # a minimum-jerk move peaks at 1.875 x its mean speed; the tremor adds a little
+    assert speed.max() < 2.0 * hand.speed_deg_s + 15.0
+    assert np.hypot(*(samples[-1] - samples[0])) > 10.0  # it did take the limb somewhere
 
 
 def test_planned_path_keeps_its_margin_without_tremor():
