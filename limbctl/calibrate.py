@@ -1,0 +1,141 @@
+"""Guided, hand-held calibration: find each joint's zero tick and direction, write a profile.
+
+With torque off a person (or the simulator's scripted hand) does three things, holding still
+for a moment after each:
+
+1. rest: the limb straight ahead along +x, level -> the zero tick of both joints;
+2. pan: turn the limb to the left (toward +y) by 30-60 deg, keep it level -> the pan direction
+   (+1 if its ticks grew);
+3. tilt: back to straight ahead, then raise the limb by 20-45 deg -> the tilt direction.
+
+"Still" means every joint stayed within ``STILL_TICKS`` for ``STILL_S`` seconds.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import threading
+import time
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Protocol
+
+from calib.profile import JointProfile, RigProfile
+from limbctl.errors import ConfigError, SafetyError
+
+#: A joint moving less than this (ticks, about 0.35 deg) counts as still.
+STILL_TICKS = 4
+#: How long the limb must be still to take a reading (s).
+STILL_S = 0.75
+#: A deliberate move is at least this many ticks (about 13 deg).
+MOVE_TICKS = 150
+#: Sampling period while waiting (s).
+PERIOD_S = 0.01
+
+
+class TickReader(Protocol):
+    def read_ticks(self) -> tuple[int, int]: ...
+
+    def set_torque(self, enabled: bool) -> None: ...
+
+
+@dataclass(frozen=True)
+class CalibrationResult:
+    """Zero ticks and directions found, with the readings they came from."""
+
+    pan_zero: int
+    tilt_zero: int
+    pan_direction: int
+    tilt_direction: int
+    pan_move_ticks: int
+    tilt_move_ticks: int
+
+
+def wait_still(
+    reader: TickReader,
+    accept: Callable[[tuple[int, int]], bool],
+    timeout_s: float,
+    stop: threading.Event,
+) -> tuple[int, int]:
+    """Read until the limb is still for ``STILL_S`` at a pose ``accept`` likes; return it."""
+    window: deque[tuple[float, tuple[int, int]]] = deque()
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline and not stop.is_set():
+        now = time.monotonic()
+        ticks = reader.read_ticks()
+        window.append((now, ticks))
+        while window and now - window[0][0] > STILL_S:
+            window.popleft()
+        span_ok = now - window[0][0] >= STILL_S * 0.95
+        if span_ok and accept(ticks):
+            pans = [t[1][0] for t in window]
+            tilts = [t[1][1] for t in window]
+            if max(pans) - min(pans) <= STILL_TICKS and max(tilts) - min(tilts) <= STILL_TICKS:
+                return round(sum(pans) / len(pans)), round(sum(tilts) / len(tilts))
+        stop.wait(PERIOD_S)
+    if stop.is_set():
+        raise ConfigError("calibration interrupted; nothing was written")
+    raise ConfigError(
+        f"the limb was not held still at the asked pose within {timeout_s:.0f} s; "
+        "run `limbctl calibrate` again and hold each pose for a second"
+    )
+
+
+def find_zero_and_directions(
+    reader: TickReader,
+    say: Callable[[str], None] = print,
+    timeout_s: float = 60.0,
+    stop: threading.Event | None = None,
+) -> CalibrationResult:
+    """Run the three guided steps (torque off) and return what they found."""
+    stop = stop or threading.Event()
+    reader.set_torque(False)
+    say("Torque is off. 1/3: hold the limb straight ahead (along +x), level, and keep still.")
+    rest = wait_still(reader, lambda t: True, timeout_s, stop)
+    say(f"   rest ticks: pan {rest[0]}, tilt {rest[1]}")
+    say("2/3: turn the limb to the LEFT by 30-60 deg, keep it level, and hold still.")
+    turned = wait_still(reader, lambda t: abs(t[0] - rest[0]) >= MOVE_TICKS, timeout_s, stop)
+    if abs(turned[1] - rest[1]) > abs(turned[0] - rest[0]) / 3:
+        raise ConfigError(
+            "the tilt joint moved a lot while turning left; keep the limb level and run "
+            "`limbctl calibrate` again"
+        )
+    say(f"   turned: pan {turned[0]} ticks")
+    say("3/3: bring it back straight ahead, then RAISE it by 20-45 deg and hold still.")
+    raised = wait_still(
+        reader,
+        lambda t: abs(t[1] - rest[1]) >= MOVE_TICKS and abs(t[0] - rest[0]) <= MOVE_TICKS // 3,
+        timeout_s,
+        stop,
+    )
+    say(f"   raised: tilt {raised[1]} ticks")
+    return CalibrationResult(
+        pan_zero=rest[0],
+        tilt_zero=rest[1],
+        pan_direction=1 if turned[0] > rest[0] else -1,
+        tilt_direction=1 if raised[1] > rest[1] else -1,
+        pan_move_ticks=turned[0] - rest[0],
+        tilt_move_ticks=raised[1] - rest[1],
+    )
+
+
+def profile_from_calibration(
+    base: RigProfile,
+    result: CalibrationResult,
+    name: str,
+    port: str,
+    pan_limits_deg: tuple[float, float],
+    tilt_limits_deg: tuple[float, float],
+) -> RigProfile:
+    """A new rig profile: ``base``'s bus settings with the calibrated joints and limits."""
+    for label, (lo, hi) in (("pan", pan_limits_deg), ("tilt", tilt_limits_deg)):
+        if not lo < 0.0 < hi:
+            raise SafetyError(f"{label} limits must contain the rest pose 0: got {lo}..{hi}")
+    pan = JointProfile(
+        base.pan.id, result.pan_zero, result.pan_direction, *map(float, pan_limits_deg)
+    )
+    tilt = JointProfile(
+        base.tilt.id, result.tilt_zero, result.tilt_direction, *map(float, tilt_limits_deg)
+    )
+    return dataclasses.replace(base, name=name, port=port, pan=pan, tilt=tilt, source=None)

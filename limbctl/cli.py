@@ -1,0 +1,188 @@
+"""The ``limbctl`` command line: one subcommand per job, options parsed in one place.
+
+Every job that touches servos runs on the embedded simulator when no ``--port`` is given, and
+on real servos with ``--port /dev/ttyUSB0``. Errors print one clear message (what went wrong and
+what to do) and exit with status 2; a fault during teleop exits with 3.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from pathlib import Path
+
+from limbctl.errors import LimbctlError
+
+EPILOG_HARDWARE = (
+    "On real hardware: give --port (e.g. /dev/ttyUSB0 for a U2D2) and --rig (a profile written "
+    "by `limbctl calibrate`). Without --port the embedded simulator is started."
+)
+
+
+def _positive(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
+    return value
+
+
+def _add_connection(p: argparse.ArgumentParser, hand: bool = False) -> None:
+    g = p.add_argument_group("connection")
+    g.add_argument(
+        "--port",
+        help="serial device of the servo bus, e.g. /dev/ttyUSB0 (default: start the embedded "
+        "simulator)",
+    )
+    g.add_argument(
+        "--rig",
+        type=Path,
+        help="rig profile YAML (default: the simulated rig, calib/rigs/sim.yaml)",
+    )
+    g.add_argument("--baud", type=int, help="baud rate (default: the rig profile's)")
+    if hand:
+        g.add_argument(
+            "--hand",
+            type=Path,
+            help="simulator only: REGION.yaml the scripted hand moves the limb through "
+            "(default: the packaged irregular region)",
+        )
+    g.add_argument("--seed", type=int, default=0, help="simulator seed (default: 0)")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="limbctl",
+        description="Teach a two-servo Dynamixel gimbal its allowed orientations by hand, learn "
+        "them as an interpolated Rigid Map, and gate every command through that model.",
+        epilog=EPILOG_HARDWARE,
+    )
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub.required = True
+
+    p = sub.add_parser(
+        "demo",
+        help="the whole flow on the simulator: teach, train, teleop, plot",
+        description="Run teach-by-hand, training, a teleop session that tries to leave the "
+        "region, and plots, all on the embedded simulator, writing everything to --out.",
+    )
+    p.add_argument("--out", type=Path, default=Path("limbctl-demo"), help="output folder")
+    p.add_argument("--duration", type=_positive, default=30.0, help="seconds of teaching")
+    p.add_argument("--seed", type=int, default=0, help="simulator and model seed")
+
+    p = sub.add_parser(
+        "calibrate",
+        help="find each joint's zero and direction by hand and write a rig profile",
+        description="Guided, hand-held: with torque off, hold the limb at rest along +x, then "
+        "turn the pan joint toward +y (left), then raise the limb (tilt up), following the "
+        "prompts. Writes a rig profile YAML.",
+        epilog=EPILOG_HARDWARE,
+    )
+    _add_connection(p)
+    p.add_argument("--out", type=Path, required=True, help="rig profile YAML to write")
+    p.add_argument("--name", default="my-rig", help="name stored in the profile")
+    p.add_argument(
+        "--ids", default="1,2", help="pan and tilt servo ids, comma separated (default: 1,2)"
+    )
+
+    p = sub.add_parser(
+        "record",
+        help="teach by hand: torque off, sample the limb and write a dataset",
+        description="Torque off; move the limb by hand through every pose it may take. "
+        "Samples both joints at --rate Hz and appends to the dataset as it goes. Stops on "
+        "Enter, Ctrl-C or after --duration; nothing recorded is lost.",
+        epilog=EPILOG_HARDWARE,
+    )
+    _add_connection(p, hand=True)
+    p.add_argument("--out", type=Path, required=True, help="dataset file to write")
+    p.add_argument("--duration", type=_positive, help="stop after this many seconds")
+    p.add_argument(
+        "--rate", type=_positive, default=125.0, help="samples per second (>= 100; default 125)"
+    )
+
+    p = sub.add_parser(
+        "train",
+        help="learn the valid region from a dataset and write a model file",
+        description="Fit an envelope model (default: the interpolated Rigid Map) to a dataset.",
+    )
+    p.add_argument("data", type=Path, help="dataset written by `limbctl record`")
+    p.add_argument("--out", type=Path, required=True, help="model file to write (.npz)")
+    p.add_argument(
+        "--kind", default="rigidmap", choices=("rigidmap", "som", "cone"), help="model type"
+    )
+    p.add_argument("--nodes", type=int, help="number of nodes (Rigid Map)")
+    p.add_argument("--layout", help="node layout (Rigid Map), e.g. uniform, 720, super-fibonacci")
+    p.add_argument("--seed", type=int, default=0, help="random seed")
+    p.add_argument("--plot", type=Path, help="also draw the model and data to this PNG")
+
+    p = sub.add_parser(
+        "teleop",
+        help="drive the limb from a command source, every command through the gate",
+        description="Read commands from --source at --rate Hz; each is corrected by the model, "
+        "converted to joint angles, clamped to the rig's hard limits, slew-limited, and only "
+        "then written. A silent source holds the last safe pose; end of input exits with 0.",
+        epilog="Sources: stdin (JSON lines {'pan': deg, 'tilt': deg}, {'dir': [x, y, z]} or "
+        "{'q': [w, x, y, z]}), udp://127.0.0.1:PORT (the same lines), keyboard (arrows), "
+        "leader:ID,ID (a second gimbal on the same bus, torque off), replay:FILE. "
+        + EPILOG_HARDWARE,
+    )
+    _add_connection(p)
+    p.add_argument("--model", type=Path, required=True, help="model file from `limbctl train`")
+    p.add_argument("--source", default="stdin", help="command source (default: stdin)")
+    p.add_argument("--rate", type=_positive, default=200.0, help="loop rate in Hz")
+    p.add_argument(
+        "--max-speed", type=_positive, default=120.0, help="slew limit of the limb, deg/s"
+    )
+    p.add_argument(
+        "--on-fault",
+        choices=("hold", "torque-off"),
+        default="hold",
+        help="safe state after a bus fault or servo alarm (default: hold)",
+    )
+    p.add_argument("--duration", type=_positive, help="stop after this many seconds")
+    p.add_argument("--telemetry", type=Path, help="JSON-lines log of every cycle")
+    p.add_argument("--goal-log", type=Path, help="simulator only: the simulator's goal log")
+    p.add_argument("--quiet", action="store_true", help="no status line")
+
+    p = sub.add_parser(
+        "plot",
+        help="draw a model or a dataset (region, samples, node weights) to a PNG",
+    )
+    p.add_argument("inputs", type=Path, nargs="+", help="a model file and/or a dataset")
+    p.add_argument("--out", type=Path, required=True, help="PNG file to write")
+
+    p = sub.add_parser(
+        "eval",
+        help="reproduce the papers' experiments beside the gate; tables and plots",
+    )
+    p.add_argument("--quick", action="store_true", help="a reduced grid (under two minutes)")
+    p.add_argument("--out", type=Path, default=Path("eval-results"), help="output folder")
+    p.add_argument("--jobs", type=int, default=0, help="worker processes (0: all cores)")
+
+    p = sub.add_parser("info", help="what is on the bus, or what a model/dataset file holds")
+    _add_connection(p)
+    p.add_argument("file", type=Path, nargs="?", help="a model or dataset file to describe")
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``limbctl`` console script; returns the exit status."""
+    args = build_parser().parse_args(argv)
+    from limbctl import jobs
+
+    handler = getattr(jobs, f"cmd_{args.command}")
+    try:
+        return int(handler(args) or 0)
+    except LimbctlError as exc:
+        print(f"limbctl {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"limbctl {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

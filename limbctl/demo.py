@@ -1,0 +1,155 @@
+"""The whole flow on the embedded simulator, for a newcomer: teach, train, teleop, look.
+
+1. teach: a scripted hand moves the simulated limb (torque off) through an irregular region
+   while ``record`` samples it;
+2. train: an interpolated Rigid Map learns the region from those samples alone;
+3. teleop: a command stream that sweeps far outside the region (with a few NaN and malformed
+   lines mixed in) is replayed through the gate at 200 Hz;
+4. check: the simulator's own goal log (what reached the servos) is compared with the model's
+   region, and pictures are drawn.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from argparse import Namespace
+from pathlib import Path
+
+import numpy as np
+
+from limbctl.errors import ConfigError
+
+
+def _say(text: str) -> None:
+    print(text, file=sys.stderr, flush=True)
+
+
+def write_command_stream(path: Path, seconds: float = 12.0, rate_hz: float = 50.0) -> int:
+    """A replay file: a wide Lissajous sweep (pan +-110, tilt -55..75 deg) with bad lines mixed in.
+
+    Returns the number of valid command lines written.
+    """
+    n = int(seconds * rate_hz)
+    t = np.arange(n) / rate_hz
+    # a Lissajous figure that crosses the taught region and leaves it on every side
+    pan = 110.0 * np.sin(2 * math.pi * t / seconds)
+    tilt = 10.0 + 65.0 * np.sin(4 * math.pi * t / seconds + 0.6)
+    bad = ['{"pan": NaN, "tilt": 0}', '{"pan": 10, "tilt": "up"}', "not json at all", "{}"]
+    with open(path, "w", encoding="utf-8") as fh:
+        for i in range(n):
+            fh.write(json.dumps({"t": round(float(t[i]), 4), "pan": pan[i], "tilt": tilt[i]}))
+            fh.write("\n")
+            if i % (n // len(bad)) == n // (2 * len(bad)):
+                fh.write(bad[(i * len(bad)) // n] + "\n")
+    return n
+
+
+def goal_log_excursions(goal_log: Path, model: object) -> np.ndarray:
+    """Angle (deg) by which each logged goal's limb direction lies outside the model's region.
+
+    0 for goals inside. Uses the simulator's ``limb_dir`` (its true geometry), not the
+    controller's own idea of where it sent the limb. A sync write carries both goals in one
+    packet; the simulator logs one line per servo with the same ``t``, so the pose a packet
+    commands is the last line of each ``t`` (earlier lines mix the new goal of one servo with
+    the old goal of the other, a state that lasts no longer than the packet).
+    """
+    from limbctl.quat import direction_angle, limb_direction, swing_from_direction
+
+    by_time: dict[float, list[float]] = {}
+    with open(goal_log, encoding="utf-8") as fh:
+        for line in fh:
+            if line.strip():
+                row = json.loads(line)
+                by_time[row["t"]] = row["limb_dir"]
+    if not by_time:
+        return np.zeros(0)
+    d = np.asarray(list(by_time.values()), dtype=np.float64)
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    q = swing_from_direction(d)
+    nearest = limb_direction(model.correct(q))
+    outside = ~np.asarray(model.contains(q), dtype=bool)
+    return np.where(outside, np.degrees(direction_angle(d, nearest)), 0.0)
+
+
+def run_demo(out: Path, teach_seconds: float = 45.0, seed: int = 0) -> int:
+    """Run the whole flow into folder ``out``; returns the exit status."""
+    from limbctl import jobs
+    from limbctl.envelope import load_model
+    from limbctl.session import demo_region_path
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    data, model_path = out / "teach.limb", out / "model.npz"
+    commands, goals, telemetry = (
+        out / "commands.jsonl",
+        out / "goals.jsonl",
+        out / "telemetry.jsonl",
+    )
+    for stale in (data, goals):
+        if stale.exists():
+            raise ConfigError(f"{stale} exists from an earlier run; use another --out or remove it")
+
+    _say(f"== 1/4 teach: the simulator's hand moves the limb for {teach_seconds:.0f} s")
+    common = {"port": None, "rig": None, "baud": None, "seed": seed}
+    jobs.cmd_record(
+        Namespace(**common, hand=demo_region_path(), out=data, duration=teach_seconds, rate=125.0)
+    )
+
+    _say("== 2/4 train: an interpolated Rigid Map learns the region from the samples alone")
+    jobs.cmd_train(
+        Namespace(
+            data=data, out=model_path, kind="rigidmap", nodes=None, layout=None, seed=seed,
+            plot=out / "model.png",
+        )
+    )  # fmt: skip
+
+    _say("== 3/4 teleop: a sweep far outside the region, replayed through the gate at 200 Hz")
+    valid = write_command_stream(commands)
+    _say(f"   {valid} commands (+ a few NaN/malformed lines) in {commands}")
+    status = jobs.cmd_teleop(
+        Namespace(
+            **common, model=model_path, source=f"replay:{commands}", rate=200.0, max_speed=120.0,
+            on_fault="hold", duration=None, telemetry=telemetry, goal_log=goals, quiet=True,
+        )
+    )  # fmt: skip
+
+    _say("== 4/4 check: every goal the simulator received, against the model's region")
+    model = load_model(model_path)
+    excursion = goal_log_excursions(goals, model)
+    worst = float(excursion.max()) if len(excursion) else 0.0
+    _say(f"   goals received by the servos: {len(excursion)}")
+    _say(f"   outside the learned region: {int((excursion > 0.05).sum())} (by more than 0.05 deg)")
+    _say(f"   largest excursion: {worst:.3f} deg (a tick is 0.088 deg)")
+    _plot_teleop(out / "teleop.png", model, data, telemetry)
+    _say(f"   pictures: {out / 'model.png'}, {out / 'teleop.png'}")
+    _say(f"done: everything is in {out}/")
+    return status
+
+
+def _plot_teleop(path: Path, model: object, data: Path, telemetry: Path) -> None:
+    from limbctl.dataset import load_dataset
+    from limbctl.gimbal import pan_tilt_to_direction
+    from limbctl.plot import plot
+
+    commanded, written = [], []
+    with open(telemetry, encoding="utf-8") as fh:
+        for line in fh:
+            row = json.loads(line)
+            if row["cmd"] is not None:
+                commanded.append(row["cmd"])
+            if row["written"]:
+                written.append(row["out"])
+
+    def directions(rows: list) -> np.ndarray:
+        a = np.radians(np.asarray(rows, dtype=np.float64).reshape(-1, 2))
+        return pan_tilt_to_direction(a[:, 0], a[:, 1])
+
+    plot(
+        path,
+        samples=load_dataset(data).quaternions,
+        model=model,
+        title="teleop: commanded sweep vs. what the gate wrote",
+        extra={"commanded": directions(commanded), "written (gated)": directions(written)},
+    )

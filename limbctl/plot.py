@@ -1,0 +1,124 @@
+"""Pictures of a dataset or a model: samples, node weights and the learned region.
+
+Two panels: the pan/tilt plane (degrees), where the region is shaded by what the model's
+``contains`` says on a grid, and the unit sphere of limb directions seen from the front.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from limbctl.gimbal import direction_to_pan_tilt, pan_tilt_to_direction
+from limbctl.quat import limb_direction, swing_from_direction
+
+
+def _pan_tilt_deg(directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    pan, tilt = direction_to_pan_tilt(directions)
+    return np.degrees(pan), np.degrees(tilt)
+
+
+def region_grid(
+    model: Any, pan_deg: tuple[float, float], tilt_deg: tuple[float, float], n: int = 200
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Evaluate ``model.contains`` on an n x n pan/tilt grid (degrees) -> (P, T, inside)."""
+    pans = np.linspace(*pan_deg, n)
+    tilts = np.linspace(*tilt_deg, n)
+    grid_pan, grid_tilt = np.meshgrid(pans, tilts)
+    directions = pan_tilt_to_direction(np.radians(grid_pan), np.radians(grid_tilt)).reshape(-1, 3)
+    inside = np.asarray(model.contains(swing_from_direction(directions)), dtype=bool)
+    return grid_pan, grid_tilt, inside.reshape(grid_pan.shape)
+
+
+def plot(
+    out: str | Path,
+    samples: np.ndarray | None = None,
+    model: Any = None,
+    title: str = "",
+    extra: dict[str, np.ndarray] | None = None,
+) -> Path:
+    """Draw samples (N, 4) and/or a model to a PNG file and return its path.
+
+    Parameters
+    ----------
+    out : path
+        PNG file to write.
+    samples : ndarray, shape (N, 4), optional
+        Recorded orientations.
+    model : Envelope, optional
+        A fitted model; its region is shaded and its node weights near the data drawn.
+    title : str
+        Figure title.
+    extra : dict of name -> (M, 3) directions, optional
+        More point sets to draw (e.g. commanded and corrected poses).
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig = plt.figure(figsize=(12, 5.5))
+    ax_plane = fig.add_subplot(1, 2, 1)
+    ax_sphere = fig.add_subplot(1, 2, 2, projection="3d")
+
+    pan_lim, tilt_lim = (-180.0, 180.0), (-90.0, 90.0)
+    if samples is not None and len(samples):
+        sp, st = _pan_tilt_deg(limb_direction(samples))
+        margin = 25.0
+        pan_lim = (max(-180.0, sp.min() - margin), min(180.0, sp.max() + margin))
+        tilt_lim = (max(-90.0, st.min() - margin), min(90.0, st.max() + margin))
+
+    if model is not None:
+        grid_pan, grid_tilt, inside = region_grid(model, pan_lim, tilt_lim)
+        ax_plane.contourf(
+            grid_pan, grid_tilt, inside.astype(float), levels=[0.5, 1.5], colors=["#cfe8cf"]
+        )
+        ax_plane.contour(grid_pan, grid_tilt, inside.astype(float), levels=[0.5], colors="green")
+        weights = np.asarray(model.weights)
+        if len(weights):
+            wd = limb_direction(weights)
+            wp, wt = _pan_tilt_deg(wd)
+            near = (
+                (wp >= pan_lim[0]) & (wp <= pan_lim[1]) & (wt >= tilt_lim[0]) & (wt <= tilt_lim[1])
+            )
+            ax_plane.scatter(wp[near], wt[near], s=6, c="tab:orange", label="node weights")
+            ax_sphere.scatter(*wd[near].T, s=4, c="tab:orange")
+    if samples is not None and len(samples):
+        sd = limb_direction(samples)
+        sp, st = _pan_tilt_deg(sd)
+        ax_plane.scatter(sp, st, s=2, c="tab:blue", alpha=0.5, label=f"samples ({len(sp)})")
+        ax_sphere.scatter(*sd.T, s=1, c="tab:blue", alpha=0.4)
+    for name, directions in (extra or {}).items():
+        ep, et = _pan_tilt_deg(np.asarray(directions))
+        ax_plane.scatter(ep, et, s=8, label=name)
+        ax_sphere.scatter(*np.asarray(directions).T, s=6)
+
+    ax_plane.set_xlim(*pan_lim)
+    ax_plane.set_ylim(*tilt_lim)
+    ax_plane.set_xlabel("pan (deg)")
+    ax_plane.set_ylabel("tilt (deg)")
+    ax_plane.set_aspect("equal")
+    ax_plane.grid(alpha=0.3)
+    ax_plane.legend(loc="upper right", fontsize=8, markerscale=3)
+    ax_plane.set_title("pan/tilt plane (shaded: learned region)")
+
+    # wireframe unit sphere for orientation
+    u, v = np.meshgrid(np.linspace(0, 2 * math.pi, 25), np.linspace(0, math.pi, 13))
+    ax_sphere.plot_wireframe(
+        np.cos(u) * np.sin(v), np.sin(u) * np.sin(v), np.cos(v), color="0.85", lw=0.4
+    )
+    ax_sphere.quiver(0, 0, 0, 1.2, 0, 0, color="k", lw=1)
+    ax_sphere.text(1.25, 0, 0, "rest (+x)")
+    ax_sphere.set_box_aspect((1, 1, 1))
+    ax_sphere.view_init(elev=20, azim=-30)
+    ax_sphere.set_title("limb directions on the unit sphere")
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout()
+    out = Path(out)
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+    return out

@@ -1,0 +1,117 @@
+"""Open a rig for a job: the embedded simulator when no port is given, else real servos.
+
+``open_rig`` is the one place that decides where the servos are:
+
+- ``--port PATH`` given: that serial device (a U2D2, or a ``firmware-sim --link`` path);
+- no ``--port`` and a rig profile whose ``port`` is a device: that device;
+- otherwise (the default, ``port: sim``): start :class:`firmware_sim.SimulatedBus` in its own
+  process and connect to its pty through the real dynamixel-sdk.
+"""
+
+from __future__ import annotations
+
+import signal
+import threading
+from collections.abc import Iterator, Mapping
+from contextlib import ExitStack, contextmanager
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from calib.profile import RigProfile, default_sim_profile, load_profile
+from limbctl.bus import ServoBus
+from limbctl.rig import Rig
+
+
+@dataclass
+class Session:
+    """An open rig and, when simulated, the simulator behind it."""
+
+    rig: Rig
+    profile: RigProfile
+    simulator: Any | None  # firmware_sim.SimulatedBus when simulated
+
+    @property
+    def simulated(self) -> bool:
+        return self.simulator is not None
+
+
+def demo_region_path() -> Path:
+    """The packaged REGION.yaml the demo's scripted hand teaches."""
+    return Path(str(resources.files("limbctl").joinpath("data", "demo_region.yaml")))
+
+
+def load_rig_profile(path: Path | None) -> RigProfile:
+    """The rig profile at ``path``, or the packaged simulated rig."""
+    return load_profile(path) if path is not None else default_sim_profile()
+
+
+@contextmanager
+def open_rig(
+    port: str | None = None,
+    rig_path: Path | None = None,
+    baud: int | None = None,
+    hand: Path | Mapping | None = None,
+    goal_log: Path | None = None,
+    seed: int = 0,
+    sim_options: Mapping[str, Any] | None = None,
+    extra_ids: tuple[int, ...] = (),
+) -> Iterator[Session]:
+    """Connect to the rig's servos (starting the simulator if needed); close on exit.
+
+    Parameters
+    ----------
+    port : str, optional
+        Serial device; overrides the profile's.
+    rig_path : path, optional
+        Rig profile YAML (default: the packaged simulated rig).
+    baud : int, optional
+        Overrides the profile's baud rate.
+    hand, goal_log, seed, sim_options
+        Passed to the simulator when one is started (ignored on real hardware).
+    extra_ids : tuple of int
+        More servos on the same bus (e.g. a leader gimbal).
+    """
+    profile = load_rig_profile(rig_path)
+    device = port if port is not None else (None if profile.is_sim else profile.port)
+    with ExitStack() as stack:
+        simulator = None
+        if device is None:
+            from firmware_sim import SimulatedBus
+
+            simulator = stack.enter_context(
+                SimulatedBus(
+                    ids=profile.ids + tuple(extra_ids),
+                    model=profile.model,
+                    hand=hand,
+                    goal_log=goal_log,
+                    seed=seed,
+                    **dict(sim_options or {}),
+                )
+            )
+            device = simulator.port
+        bus = ServoBus(
+            device,
+            baud or profile.baud,
+            profile.ids + tuple(extra_ids),
+            profile.model,
+        )
+        stack.enter_context(bus)
+        yield Session(rig=Rig(profile, bus), profile=profile, simulator=simulator)
+
+
+@contextmanager
+def stop_on_signals() -> Iterator[threading.Event]:
+    """An event set by SIGINT or SIGTERM while the block runs (handlers restored after)."""
+    stop = threading.Event()
+
+    def handler(signum: int, frame: object) -> None:
+        stop.set()
+
+    previous = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield stop
+    finally:
+        for s, h in previous.items():
+            signal.signal(s, h)

@@ -1,0 +1,164 @@
+"""Dataset -> model file: fit an envelope to recorded valid orientations and summarise it."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from limbctl.errors import ConfigError
+from limbctl.gimbal import direction_to_pan_tilt
+from limbctl.quat import direction_angle, limb_direction
+
+
+@dataclass(frozen=True)
+class TrainSummary:
+    """What a training run produced, in the units a person reads (degrees).
+
+    Attributes
+    ----------
+    samples : int
+        Orientations the model was fitted to.
+    pan_range_deg, tilt_range_deg : tuple of float
+        Extent of the samples' joint angles.
+    spread_deg : float
+        Largest angle between a sample's limb direction and the samples' mean direction.
+    boundary_pan_range_deg, boundary_tilt_range_deg : tuple of float
+        Extent of the learned region's boundary (from the model's own boundary points, where it
+        exposes them; otherwise of the samples the model contains).
+    contained_fraction : float
+        Share of the training samples the trained model says are inside (should be ~1).
+    nodes : int
+        Number of node weights in the model.
+    """
+
+    samples: int
+    pan_range_deg: tuple[float, float]
+    tilt_range_deg: tuple[float, float]
+    spread_deg: float
+    boundary_pan_range_deg: tuple[float, float]
+    boundary_tilt_range_deg: tuple[float, float]
+    contained_fraction: float
+    nodes: int
+
+    def lines(self) -> list[str]:
+        """Human-readable summary lines."""
+        return [
+            f"samples            {self.samples}",
+            f"pan range          {self.pan_range_deg[0]:+.1f} .. {self.pan_range_deg[1]:+.1f} deg",
+            f"tilt range         {self.tilt_range_deg[0]:+.1f} .. "
+            f"{self.tilt_range_deg[1]:+.1f} deg",
+            f"angular spread     {self.spread_deg:.1f} deg from the mean direction",
+            f"learned boundary   pan {self.boundary_pan_range_deg[0]:+.1f} .. "
+            f"{self.boundary_pan_range_deg[1]:+.1f} deg, tilt "
+            f"{self.boundary_tilt_range_deg[0]:+.1f} .. {self.boundary_tilt_range_deg[1]:+.1f} deg",
+            f"samples inside     {100 * self.contained_fraction:.2f} %",
+            f"nodes              {self.nodes}",
+        ]
+
+
+def _range_deg(values: np.ndarray) -> tuple[float, float]:
+    return (math.degrees(float(values.min())), math.degrees(float(values.max())))
+
+
+def summarize(model: Any, q: np.ndarray) -> TrainSummary:
+    """Describe a trained model and the samples it learned from.
+
+    Parameters
+    ----------
+    model : Envelope
+        A fitted model.
+    q : ndarray, shape (N, 4)
+        The training orientations.
+    """
+    directions = limb_direction(q)
+    pan, tilt = direction_to_pan_tilt(directions)
+    mean = directions.mean(axis=0)
+    mean /= np.linalg.norm(mean)
+    spread = math.degrees(float(direction_angle(directions, mean).max()))
+    inside = np.asarray(model.contains(q), dtype=bool)
+    boundary = getattr(model, "boundary_directions", None)
+    if callable(boundary):
+        boundary = boundary()
+    if boundary is not None and len(boundary):
+        b_pan, b_tilt = direction_to_pan_tilt(np.asarray(boundary))
+    else:
+        b_pan, b_tilt = pan[inside], tilt[inside]
+    return TrainSummary(
+        samples=len(q),
+        pan_range_deg=_range_deg(pan),
+        tilt_range_deg=_range_deg(tilt),
+        spread_deg=spread,
+        boundary_pan_range_deg=_range_deg(b_pan),
+        boundary_tilt_range_deg=_range_deg(b_tilt),
+        contained_fraction=float(inside.mean()),
+        nodes=len(model.weights),
+    )
+
+
+MODEL_KINDS = ("rigidmap", "som", "cone")
+
+
+def build_model(kind: str, **options: Any) -> Any:
+    """Construct an unfitted envelope by name.
+
+    Raises
+    ------
+    ConfigError
+        For an unknown kind, listing the choices.
+    """
+    from limbctl import envelope
+
+    constructors = {
+        "rigidmap": lambda: envelope.RigidMap(**options),
+        "som": lambda: envelope.SOM(**options),
+        "cone": lambda: envelope.Cone(**options),
+    }
+    if kind not in constructors:
+        raise ConfigError(f"unknown model kind {kind!r}; choose one of {', '.join(MODEL_KINDS)}")
+    try:
+        return constructors[kind]()
+    except TypeError as exc:
+        raise ConfigError(f"bad options for {kind}: {exc}") from exc
+
+
+def train(
+    data_path: str | Path,
+    out_path: str | Path,
+    kind: str = "rigidmap",
+    options: dict[str, Any] | None = None,
+) -> TrainSummary:
+    """Fit a model to a recorded dataset and save it next to nothing else (one file).
+
+    Parameters
+    ----------
+    data_path : path
+        A dataset written by ``limbctl record``.
+    out_path : path
+        The model file to write (replaced atomically).
+    kind : str
+        One of :data:`MODEL_KINDS`.
+    options : dict
+        Keyword options of the model's constructor (nodes, layout, seed, ...).
+
+    Returns
+    -------
+    TrainSummary
+    """
+    from limbctl.dataset import load_dataset
+
+    data = load_dataset(data_path)
+    q = data.quaternions
+    if len(q) < 10:
+        raise ConfigError(
+            f"{data_path}: only {len(q)} samples; record longer (at least a few seconds "
+            "of moving the limb through its whole range)"
+        )
+    model = build_model(kind, **(options or {}))
+    model.fit(q)
+    metadata = {"rig": data.header.rig, "dataset": str(data_path), "samples": len(q)}
+    model.save(out_path, metadata=metadata)
+    return summarize(model, q)
