@@ -15,7 +15,8 @@ optionally interpolated with the runner-ups.
    90th percentile of the nearest-weight spacing) are the region: an alpha shape, non-convex
    where the data is.
 3. *Learned threshold*: the region is widened by ``margin = margin_factor`` times the median
-   boundary edge, the typical gap between the outermost data and the true edge.
+   boundary edge (the typical gap between the outermost data and the true edge), at most
+   ``max_margin_deg``.
 
 ``contains(q)`` asks whether the limb direction lies in the widened mesh; ``correct(q)`` returns
 ``q`` itself then, otherwise the orientation whose limb direction is the nearest direction of
@@ -62,6 +63,8 @@ class RigidMap(Envelope):
         Largest number of refinement nodes placed on the data for the gate.
     alpha_factor, margin_factor : float
         Gate shape parameters (module docstring).
+    max_margin_deg : float
+        Upper bound of the learned margin (degrees): outputs stay this close to the data.
     """
 
     kind: ClassVar[str] = "rigidmap"
@@ -82,6 +85,7 @@ class RigidMap(Envelope):
         support_nodes: int = 3000,
         alpha_factor: float = 4.0,
         margin_factor: float = 0.25,
+        max_margin_deg: float = 0.75,
     ) -> None:
         if metric not in rk.METRICS:
             raise ConfigError(f"unknown metric {metric!r}; choose one of: {', '.join(rk.METRICS)}")
@@ -103,6 +107,7 @@ class RigidMap(Envelope):
         self.support_nodes = int(support_nodes)
         self.alpha_factor = float(alpha_factor)
         self.margin_factor = float(margin_factor)
+        self.max_margin_deg = float(max_margin_deg)
         self.positions = make_layout(layout, nodes, seed=seed)
         self._weights: np.ndarray | None = None
         self.support_positions: np.ndarray | None = None
@@ -156,7 +161,10 @@ class RigidMap(Envelope):
         edge_len = np.arccos(
             np.clip(np.sum(d[bare.edges[:, 0]] * d[bare.edges[:, 1]], axis=1), -1.0, 1.0)
         )
-        margin = self.margin_factor * float(np.median(edge_len))
+        # margin = min(margin_factor median(edge), max_margin): never far beyond the data
+        margin = min(
+            self.margin_factor * float(np.median(edge_len)), np.radians(self.max_margin_deg)
+        )
         return DirectionMesh.build(d, alpha, margin)
 
     # ---- answering ---------------------------------------------------------------------------
@@ -251,6 +259,7 @@ class RigidMap(Envelope):
             "support_nodes": self.support_nodes,
             "alpha_factor": self.alpha_factor,
             "margin_factor": self.margin_factor,
+            "max_margin_deg": self.max_margin_deg,
             "epochs": self.epochs,
             "margin": self.mesh.margin if self.mesh is not None else 0.0,
         }
