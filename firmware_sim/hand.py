@@ -9,12 +9,13 @@ at ``t`` seconds after it took hold. Two kinds, both read from a REGION.yaml::
 
     script: [[t_s, pan_deg, tilt_deg], ...]          # instead of region: follow waypoints
 
-A *region* hand wanders the way a person teaching limits does: minimum-jerk moves between
-waypoints drawn with a density that falls toward the edge, slower near the edge, short pauses,
-and excursions that trace a stretch of the boundary just inside it (their starting points go
-round the perimeter in golden-ratio steps, so a minute of wandering covers the whole edge). Every
-move is checked to stay inside the region (the tremor alone may cross the edge by a fraction of
-a degree). A *script* hand moves linearly in time between the waypoints and holds the last.
+A *region* hand wanders the way a person teaching limits does: gently curved minimum-jerk moves
+between waypoints drawn with a density that falls toward the edge, easing in and out near the
+edge, short pauses, and, every other move, a visit to the edge that traces a few degrees of it
+just inside (the visits work round the perimeter in laps of EDGE_VISITS_PER_LAP, so a minute of
+wandering touches the whole edge). Every move is checked to stay MIN_PATH_DEPTH_DEG inside the
+region (the tremor alone may cross the edge by a fraction of a degree). A *script* hand moves
+linearly in time between the waypoints and holds the last.
 The path is generated lazily, in a fixed order from ``seed``: the same seed gives the same path
 whatever times it is asked at.
 """
@@ -37,6 +38,8 @@ TREMOR_BAND_HZ = (7.0, 12.0)
 #: How far inside the edge (deg) boundary tracing runs, and the least depth any move may reach.
 EDGE_INSET_DEG = 1.0
 MIN_PATH_DEPTH_DEG = 0.5
+#: A region must reach at least this deep (deg) for the hand to have room to move.
+MIN_REGION_DEPTH_DEG = 2.0 * EDGE_INSET_DEG
 #: Within SLOW_BAND_DEG of the edge the hand eases in and out of a move more carefully: a move
 #: ending (or starting) at the edge takes up to EDGE_EASE_S longer; traces run at
 #: EDGE_SPEED_FRACTION of the speed.
@@ -57,6 +60,8 @@ PAUSE_PROBABILITY = 0.1
 PAUSE_S = (0.2, 0.6)
 #: Waypoints drawn for each move through the middle; the nearest is taken.
 WAYPOINT_CHOICES = 2
+#: Intermediate poses tried (after the centre) to get round a corner of the region.
+VIA_TRIES = 8
 #: Candidate waypoints tried before backing up along the path already walked.
 WAYPOINT_TRIES = 40
 #: Moves bow sideways by a normal fraction of their length with this standard deviation.
@@ -116,9 +121,16 @@ class Hand:
         speed_deg_s: float = DEFAULT_SPEED_DEG_S,
         tremor_deg: float = DEFAULT_TREMOR_DEG,
         seed: int = 0,
+        source: str = "<hand>",
     ) -> None:
         if (region is None) == (script is None):
-            raise ValueError("a Hand needs exactly one of region or script")
+            raise ValueError(f"{source}: a Hand needs exactly one of region or script")
+        if region is not None and region.depth_max_deg < MIN_REGION_DEPTH_DEG:
+            raise ValueError(
+                f"{source}: the region is too small for a hand to move in: its deepest point is "
+                f"{region.depth_max_deg:.2f} deg inside; make it at least {MIN_REGION_DEPTH_DEG:g} "
+                "deg deep"
+            )
         self.region = region
         self.script = script
         self.speed_deg_s = float(speed_deg_s)
@@ -161,7 +173,8 @@ class Hand:
         self._edge_u = float(self._rng.uniform())
         self._edge_step = 1.0 / EDGE_VISITS_PER_LAP
         self._edge_due = True
-        self._trail: list[tuple[float, float]] = []  # poses walked since the last centre visit
+        # (pan, tilt, bulge) of each move since the last centre visit, to retrace if boxed in
+        self._trail: list[tuple[float, float, tuple[float, float]]] = []
         pan, tilt = float(pan_deg), float(tilt_deg)
         self._add(0.0, PAUSE_S[0], pan, tilt, pan, tilt, False)
         if (pan, tilt) != self.region.center_deg:
@@ -185,9 +198,11 @@ class Hand:
         tremor = _positive(data, "tremor_deg", DEFAULT_TREMOR_DEG, source, allow_zero=True)
         if "script" in data:
             script = _parse_script(data["script"], source)
-            return cls(script=script, speed_deg_s=speed, tremor_deg=tremor, seed=seed)
+            return cls(
+                script=script, speed_deg_s=speed, tremor_deg=tremor, seed=seed, source=source
+            )
         region = region_from_mapping(data["region"], source)
-        return cls(region=region, speed_deg_s=speed, tremor_deg=tremor, seed=seed)
+        return cls(region=region, speed_deg_s=speed, tremor_deg=tremor, seed=seed, source=source)
 
     @classmethod
     def from_yaml(cls, path: str | Path, seed: int = 0) -> Hand:
@@ -203,6 +218,8 @@ class Hand:
 
     def pose_deg(self, t: float) -> tuple[float, float]:
         """(pan_deg, tilt_deg) the hand holds the limb at, ``t`` >= 0 s after it took hold."""
+        if not math.isfinite(t):
+            raise ValueError(f"Hand.pose_deg: t must be a finite time in s, got {t!r}")
         if self.script is None:
             while self._t1[-1] <= t:
                 self._plan_next()
@@ -238,13 +255,8 @@ class Hand:
     def _path_ok(self, a, b, bulge=(0.0, 0.0)) -> bool:
         """True when the move a -> b, bowed by ``bulge`` at its middle, keeps at least
         MIN_PATH_DEPTH_DEG inside."""
-        n = (
-            int(
-                (math.hypot(b[0] - a[0], b[1] - a[1]) + 2.0 * math.hypot(*bulge))
-                / PATH_CHECK_STEP_DEG
-            )
-            + 2
-        )
+        length = math.hypot(b[0] - a[0], b[1] - a[1]) + 2.0 * math.hypot(*bulge)
+        n = int(length / PATH_CHECK_STEP_DEG) + 2
         s = np.linspace(0.0, 1.0, n)
         arc = 4.0 * s * (1.0 - s)
         pan = a[0] + s * (b[0] - a[0]) + arc * bulge[0]
@@ -255,7 +267,7 @@ class Hand:
         """Extra time (s) to ease into or out of a pose at a depth: EDGE_EASE_S at the edge."""
         return EDGE_EASE_S * (1.0 - min(max(depth_deg, 0.0) / SLOW_BAND_DEG, 1.0))
 
-    def _move(self, target: tuple[float, float], bulge=(0.0, 0.0)) -> None:
+    def _move(self, target: tuple[float, float], bulge=(0.0, 0.0), retrace=False) -> None:
         """A minimum-jerk move to ``target``, eased when either end is near the edge."""
         t, pan, tilt = self._end()
         depth = self.region.edge_distance_deg([pan, target[0]], [tilt, target[1]])
@@ -264,7 +276,8 @@ class Hand:
         duration = distance / self.speed_deg_s + self._ease_s(depth[0]) + self._ease_s(depth[1])
         duration = max(duration, MIN_MOVE_S)
         self._add(t, t + duration, pan, tilt, target[0], target[1], True, bulge)
-        self._trail.append((pan, tilt))
+        if not retrace:
+            self._trail.append((pan, tilt, bulge))
         if (target[0], target[1]) == self.region.center_deg:
             self._trail.clear()
 
@@ -285,8 +298,8 @@ class Hand:
                 return pan, tilt
 
     def _reach(self, target: tuple[float, float]) -> bool:
-        """Move to ``target`` on a gently bowed arc, else straight, else via the centre; only
-        along a path that stays inside. False when none does."""
+        """Move to ``target`` on a gently bowed arc, else straight, else via one intermediate
+        pose; only along a path that stays inside. False when none does."""
         _, pan, tilt = self._end()
         # bulge: perpendicular to the move, N(0, ARC_BOW_FRACTION) of its length
         bow = float(self._rng.normal(0.0, ARC_BOW_FRACTION))
@@ -295,11 +308,12 @@ class Hand:
             if self._path_ok((pan, tilt), target, candidate):
                 self._move(target, candidate)
                 return True
-        center = self.region.center_deg
-        if self._path_ok((pan, tilt), center) and self._path_ok(center, target):
-            self._move(center)
-            self._move(target)
-            return True
+        # around a corner: via the centre, else via a drawn waypoint both ends can see
+        for via in [self.region.center_deg] + [self._draw_waypoint() for _ in range(VIA_TRIES)]:
+            if self._path_ok((pan, tilt), via) and self._path_ok(via, target):
+                self._move(via)
+                self._move(target)
+                return True
         return False
 
     def _plan_next(self) -> None:
@@ -320,8 +334,13 @@ class Hand:
             if self._reach(nearest):
                 break
         else:
-            # boxed in (a very irregular polygon): retrace the path walked since the centre
-            self._move(self._trail.pop() if self._trail else self.region.center_deg)
+            # boxed in (a very irregular polygon): retrace the path walked since the centre; the
+            # arc a -> b bowed by B, walked backwards, is b -> a bowed by the same B
+            if self._trail:
+                pan, tilt, bulge = self._trail.pop()
+                self._move((pan, tilt), bulge, retrace=True)
+            else:
+                self._move(self.region.center_deg)
         if self._rng.uniform() < PAUSE_PROBABILITY:
             self._pause()
 
@@ -338,11 +357,11 @@ class Hand:
         if len(points) < 2 or not self._reach(points[0]):
             return False
         edge_speed = self.speed_deg_s * EDGE_SPEED_FRACTION
-        for a, b in zip(points, points[1:], strict=False):
-            t, _, _ = self._end()
-            duration = math.hypot(b[0] - a[0], b[1] - a[1]) / edge_speed
-            if duration <= 0.0 or not self._path_ok(a, b):
-                continue
-            self._add(t, t + duration, a[0], a[1], b[0], b[1], False)
-            self._trail.append(a)
+        for b in points[1:]:
+            t, pan, tilt = self._end()
+            duration = math.hypot(b[0] - pan, b[1] - tilt) / edge_speed
+            if duration <= 0.0 or not self._path_ok((pan, tilt), b):
+                continue  # skip a point the edge cannot be followed to; try the next
+            self._add(t, t + duration, pan, tilt, b[0], b[1], False)
+            self._trail.append((pan, tilt, (0.0, 0.0)))
         return True

@@ -125,6 +125,33 @@ def test_planned_path_keeps_its_margin_without_tremor():
     assert np.mean(depth < EDGE_INSET_DEG + 0.5) > 0.01  # it does go to the edge
 
 
+U_SHAPE = [[-60, -30], [60, -30], [60, 40], [40, 40], [40, -10], [-40, -10], [-40, 40], [-60, 40]]
+
+
+def test_non_convex_region_is_walked_round_its_corners_continuously():
+    hand = Hand.from_mapping({"region": {"polygon": U_SHAPE}, "tremor_deg": 0}, seed=18)
+    poses = np.array([hand.pose_deg(float(t)) for t in np.arange(0.0, 120.0, 0.001)])
+    depth = hand.region.edge_distance_deg(poses[:, 0], poses[:, 1])
+    assert depth.min() >= MIN_PATH_DEPTH_DEG - 1e-9  # never across the gap between the arms
+    # continuous: a minimum-jerk move peaks at 1.875 x its mean speed
+    assert np.hypot(*np.diff(poses, axis=0).T).max() / 0.001 < 2.0 * hand.speed_deg_s
+    for arm in (poses[:, 0] < -40.0, poses[:, 0] > 40.0):
+        assert np.any(arm & (poses[:, 1] > 30.0))  # both arms' tips are reached
+
+
+def test_a_boxed_in_hand_retraces_its_steps():
+    hand = Hand.from_mapping({"region": {"polygon": U_SHAPE}, "tremor_deg": 0}, seed=19)
+    hand.pose_deg(20.0)
+    *_, last_move = (s for s in hand._segments if s[2:4] != s[4:6])  # moves, not pauses
+    before = len(hand._segments)
+    hand._reach = lambda target: False  # nothing reachable from here: boxed in
+    hand._plan_next()
+    (retrace,) = (s for s in hand._segments[before:] if s[6])
+    # back along the last move: its end to its start, bowed the same way
+    assert retrace[2:6] == (*last_move[4:6], *last_move[2:4])
+    assert retrace[7:9] == last_move[7:9]
+
+
 def test_tremor_is_a_few_tenths_of_a_degree():
     still = {"script": [[0.0, 10.0, 5.0]]}
     hand = Hand.from_mapping(still, seed=13)
@@ -183,6 +210,8 @@ BAD_FILES = {
     "speed": ("region: {cone: {half_angle_deg: 20}}\nspeed_deg_s: -1\n", "speed_deg_s"),
     "script-order": ("script: [[0, 0, 0], [2, 1, 1], [1, 2, 2]]\n", "later than"),
     "script-row": ("script: [[0, 0]]\n", r"script\[0\]"),
+    "too-thin": ("region: {polygon: [[0, 0], [40, 0], [40, 1]]}\n", "too small"),
+    "tiny-cone": ("region: {cone: {half_angle_deg: 1.5}}\n", "too small"),
     "not-yaml": ("region: [unclosed\n", "not valid YAML"),
     "not-mapping": ("- 1\n- 2\n", "expected a mapping"),
 }
