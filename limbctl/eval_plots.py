@@ -33,6 +33,7 @@ TABLE_COLUMNS = (
     ("angle_p95_deg", "p95 angle (deg)", "{:.2f}"),
     ("unchanged_share", "unchanged", "{:.3f}"),
     ("inside_share", "inside true region", "{:.3f}"),
+    ("outside_p95_deg", "p95 outside (deg)", "{:.2f}"),
 )
 
 
@@ -197,11 +198,13 @@ def draw_gate_figure(points: list[Point], path: Path) -> Path:
 
     panels = (
         ("all", "angle_p95_deg", "p95 angle error, all inputs (deg)"),
+        ("valid", "angle_mean_deg", "mean angle error, valid inputs (deg)"),
+        ("invalid", "angle_mean_deg", "mean angle error, invalid inputs (deg)"),
         ("valid", "unchanged_share", "valid commands left unchanged (share)"),
         ("invalid", "inside_share", "answers to invalid commands inside the true region"),
-        ("invalid", "angle_mean_deg", "mean angle error, invalid inputs (deg)"),
+        ("invalid", "outside_p95_deg", "p95 of how far answers lie outside (deg)"),
     )
-    fig, axes = plt.subplots(2, 2, figsize=(13, 9))
+    fig, axes = plt.subplots(2, 3, figsize=(19, 9))
     for ax, (subset, metric, label) in zip(axes.flat, panels):
         pts = [
             p
@@ -209,7 +212,7 @@ def draw_gate_figure(points: list[Point], path: Path) -> Path:
             if p.answer in ("respond none", "respond geometric", "correct (gate)")
         ]
         _panel(ax, pts, metric, label, "range R (deg)", label)
-        if metric.endswith("share"):
+        if metric.endswith("share") or metric.startswith("outside"):
             ax.set_yscale("linear")
             ax.set_ylim(-0.02, 1.02)
     fig.suptitle("Rigid Map experiments: paper answers (solid) vs the gate (dashed)", fontsize=10)
@@ -251,14 +254,27 @@ def _cell(value: tuple[float, float], fmt: str) -> str:
     return f"{fmt.format(mean)} ± {fmt.format(sd)}"
 
 
-def table(points: list[Point], experiment: str, x: float) -> list[str]:
-    """A markdown table of every model/answer at one x, rows split by subset."""
+def table(
+    points: list[Point],
+    experiment: str,
+    x: float,
+    subsets: tuple[str, ...] = ("all",),
+    answers: tuple[str, ...] | None = None,
+) -> list[str]:
+    """A markdown table of the models' answers at one x (optionally only ``answers``)."""
     lines = [
         "| model | answer | inputs | n | " + " | ".join(h for _, h, _ in TABLE_COLUMNS) + " |",
         "|---|---|---|---|" + "---|" * len(TABLE_COLUMNS),
     ]
     order = {"all": 0, "valid": 1, "invalid": 2}
-    chosen = [p for p in points if p.experiment == experiment and p.x == x]
+    chosen = [
+        p
+        for p in points
+        if p.experiment == experiment
+        and p.x == x
+        and p.subset in subsets
+        and (answers is None or p.answer in answers)
+    ]
     chosen.sort(key=lambda p: (p.model, p.answer, order[p.subset]))
     for p in chosen:
         cells = [_cell(p.values[m], f) for m, _, f in TABLE_COLUMNS]
@@ -347,10 +363,13 @@ def summary_markdown(points: list[Point], scale: str) -> Summary:
         ),
         ("rm-range", 20.0, "Rigid Map paper defaults (1000 patterns, R = 20 deg)"),
     )
+    key_answers = ("respond none", "respond geometric", "data nodes geometric", "correct (gate)")
     for experiment, x, title in sections:
         rows = table(points, experiment, x)
         if len(rows) > 2:
-            text += [f"## {title}", "", *rows, ""]
+            split = table(points, experiment, x, ("valid", "invalid"), key_answers)
+            text += [f"## {title}", "", "All test inputs:", "", *rows, ""]
+            text += ["Valid and invalid inputs apart (key answers):", "", *split, ""]
     checks = rigidmap_checks(points)
     if checks:
         text += ["## Rigid Map paper: qualitative claims", "", *checks, ""]

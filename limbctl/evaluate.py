@@ -33,10 +33,12 @@ from typing import Any
 import numpy as np
 
 from limbctl.envelope import Cone
+from limbctl.envelope import interpolation as ip
 from limbctl.envelope.synthetic import ConeRegion, to_quaternions
 from limbctl.errors import ConfigError
 from limbctl.eval_grids import DataSpec, ModelSpec, Task, build_tasks
 from limbctl.metrics import METRIC_NAMES, score
+from limbctl.quat import swing_angle
 
 #: Columns of runs.csv, in order.
 CSV_FIELDS = (
@@ -53,6 +55,9 @@ CSV_FIELDS = (
     *METRIC_NAMES,
     "fit_seconds",
 )
+
+
+_NO_TOPOLOGY = np.empty((0, 0), dtype=np.int64)
 
 
 # ---- data --------------------------------------------------------------------------------------
@@ -111,6 +116,25 @@ def build_model(spec: ModelSpec, seed: int, range_deg: float) -> Any:
     raise ConfigError(f"unknown model kind {spec.kind!r}; choose som, rigidmap or cone")
 
 
+def respond_on_data_nodes(model: Any, q: np.ndarray, interpolation: str, k: int) -> np.ndarray:
+    """The papers' answering rule over a fitted Rigid Map's support layer (nodes on the data).
+
+    Parameters
+    ----------
+    model : RigidMap
+        Fitted; its ``support_weights`` (S, 4) are the trained weights of the nodes it placed
+        on the training orientations.
+    q : ndarray, shape (N, 4)
+    interpolation : str
+        ``none`` or an interpolation by weight (``idw``, ``geometric``, ``geometric-winner``).
+    k : int
+        Runner-ups.
+    """
+    weights = np.ascontiguousarray(model.support_weights, dtype=np.float64)
+    mode = ip.interpolation_code(interpolation)
+    return ip.respond_batch(weights, q, max(k, 1), ip.EUCLIDEAN, mode, _NO_TOPOLOGY)
+
+
 def run_task(task: Task) -> list[dict[str, Any]]:
     """Draw the task's data, train each model, score each answer; one row per subset."""
     rng = np.random.default_rng(task.seed)
@@ -127,9 +151,13 @@ def run_task(task: Task) -> list[dict[str, Any]]:
         for answer in spec.answers:
             if answer.how == "correct":
                 out = model.correct(test)
+            elif answer.how == "data-nodes":
+                out = respond_on_data_nodes(model, test, answer.interpolation, answer.k)
             else:
                 out = model.respond(test, interpolation=answer.interpolation, k=max(answer.k, 1))
-            scores = score(test, out, ideal, valid, truth.contains(out))
+            # how far outside the cone an answer lies: max(swing angle - R, 0)
+            outside = np.degrees(np.maximum(swing_angle(out) - truth.half_angle, 0.0))
+            scores = score(test, out, ideal, valid, truth.contains(out), outside)
             x = answer.k if task.x_from_k else task.x
             for subset, values in scores.items():
                 rows.append(

@@ -17,6 +17,8 @@ Our additions
     ``unchanged_share``: share of inputs the model returns unchanged (rotation angle between
     input and answer at most :data:`UNCHANGED_TOLERANCE`); on valid inputs this should be 1.
     ``inside_share``: share of answers inside the true region (``truth.contains``).
+    ``outside_p95_deg``: 95th percentile of how far (degrees) answers lie outside the true
+    region (0 for an answer inside): how much an answer outside actually matters.
 """
 
 from __future__ import annotations
@@ -42,6 +44,7 @@ METRIC_NAMES = (
     "angle_p95_deg",
     "unchanged_share",
     "inside_share",
+    "outside_p95_deg",
 )
 
 #: The input subsets :func:`score` reports.
@@ -100,6 +103,7 @@ def score(
     ideal: np.ndarray,
     valid: np.ndarray,
     inside: np.ndarray,
+    outside_deg: np.ndarray | None = None,
 ) -> dict[str, dict[str, float]]:
     """All metrics on all inputs, on the valid ones and on the invalid ones.
 
@@ -115,6 +119,8 @@ def score(
         Whether each input lies in the true region.
     inside : ndarray, shape (N,) bool
         Whether each answer lies in the true region.
+    outside_deg : ndarray, shape (N,), optional
+        How far each answer lies outside the true region (degrees, 0 inside); NaN if omitted.
 
     Returns
     -------
@@ -128,10 +134,13 @@ def score(
     same = unchanged(answer, q)
     valid = np.asarray(valid, dtype=bool)
     inside = np.asarray(inside, dtype=bool)
-    if valid.shape != sq.shape or inside.shape != sq.shape:
+    if outside_deg is None:
+        outside_deg = np.full(sq.shape, math.nan)
+    outside_deg = np.asarray(outside_deg, dtype=np.float64)
+    if valid.shape != sq.shape or inside.shape != sq.shape or outside_deg.shape != sq.shape:
         raise ConfigError(
-            f"valid {valid.shape} and inside {inside.shape} must have one entry per row "
-            f"({sq.shape[0]})"
+            f"valid {valid.shape}, inside {inside.shape} and outside_deg {outside_deg.shape} "
+            f"must have one entry per row ({sq.shape[0]})"
         )
     masks = {"all": np.ones_like(valid), "valid": valid, "invalid": ~valid}
     out: dict[str, dict[str, float]] = {}
@@ -150,6 +159,7 @@ def score(
             "angle_p95_deg": float(np.percentile(angle[mask], 95.0)),
             "unchanged_share": float(same[mask].mean()),
             "inside_share": float(inside[mask].mean()),
+            "outside_p95_deg": float(np.percentile(outside_deg[mask], 95.0)),
         }
     return out
 

@@ -9,7 +9,7 @@ import pytest
 
 from limbctl.errors import ConfigError
 from limbctl.eval_grids import SCALES, Answer, DataSpec, ModelSpec, Task, build_tasks, som_spec
-from limbctl.evaluate import draw_test, draw_training, read_rows, run_task, run_tasks
+from limbctl.evaluate import draw_test, draw_training, read_rows, run_eval, run_task, run_tasks
 from limbctl.quat import limb_direction, swing_angle
 
 CONE_SPEC = ModelSpec("cone", "cone", (), (Answer("respond"), Answer("correct")))
@@ -104,3 +104,29 @@ def test_grids_cover_every_experiment_at_every_scale():
     assert {(t.data.patterns, t.data.test_patterns) for t in rm} == {(1000, 1000)}
     with pytest.raises(ConfigError, match="choose one of"):
         build_tasks("huge")
+
+
+def test_run_eval_smoke_grid_end_to_end(tmp_path, capsys):
+    out = tmp_path / "eval"
+    assert run_eval(out, jobs=2, progress=False, smoke=True) == 0
+    for name in ("runs.csv", "summary.md", "som_figure2.png", "rigidmap_figure2.png"):
+        assert (out / name).stat().st_size > 0
+    assert (out / "gate_metrics.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    rows = read_rows(out / "runs.csv")
+    assert {r["experiment"] for r in rows} == {
+        "som-range",
+        "som-patterns",
+        "som-nodes",
+        "som-ratio",
+        "rm-range",
+        "rm-k",
+    }
+    assert all(np.isfinite(r["mse"]) for r in rows if r["subset"] == "all")
+    gates = [r for r in rows if r["answer"] == "correct (gate)" and r["subset"] == "valid"]
+    assert min(r["unchanged_share"] for r in gates if r["model"].startswith("RigidMap")) > 0.9
+    summary = (out / "summary.md").read_text()
+    assert "Rigid Map paper defaults" in summary and "| SOM 5x5 |" in summary
+    assert "limbctl eval (smoke)" in capsys.readouterr().out
+    size = (out / "runs.csv").stat().st_size
+    assert run_eval(out, jobs=1, progress=False, smoke=True) == 0  # resumed: nothing reruns
+    assert (out / "runs.csv").stat().st_size == size

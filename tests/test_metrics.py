@@ -53,7 +53,8 @@ def test_score_splits_valid_and_invalid_by_hand():
     answer = np.array([IDENTITY, IDENTITY, QUARTER_Z, QUARTER_Z])
     valid = np.array([True, True, False, False])
     inside = np.array([True, True, False, True])
-    s = score(q, answer, ideal, valid, inside)
+    outside = np.array([0.0, 0.0, 2.0, 0.0])
+    s = score(q, answer, ideal, valid, inside, outside)
     quarter_sq = 2.0 - math.sqrt(2.0)  # |identity - quarter|^2 = 2 - 2 cos(45 deg)
     assert s["all"]["n"] == 4
     assert s["all"]["mse"] == pytest.approx(quarter_sq / 4)
@@ -63,6 +64,7 @@ def test_score_splits_valid_and_invalid_by_hand():
     assert s["all"]["angle_p95_deg"] == pytest.approx(76.5)
     assert s["all"]["unchanged_share"] == pytest.approx(0.75)
     assert s["all"]["inside_share"] == pytest.approx(0.75)
+    assert s["all"]["outside_p95_deg"] == pytest.approx(0.85 * 2.0)
     assert s["valid"] == {
         "n": 2.0,
         "mse": 0.0,
@@ -71,11 +73,13 @@ def test_score_splits_valid_and_invalid_by_hand():
         "angle_p95_deg": 0.0,
         "unchanged_share": 1.0,
         "inside_share": 1.0,
+        "outside_p95_deg": 0.0,
     }
     assert s["invalid"]["mse"] == pytest.approx(quarter_sq / 2)
     assert s["invalid"]["angle_p95_deg"] == pytest.approx(85.5)
     assert s["invalid"]["unchanged_share"] == pytest.approx(0.5)
     assert s["invalid"]["inside_share"] == pytest.approx(0.5)
+    assert s["invalid"]["outside_p95_deg"] == pytest.approx(0.95 * 2.0)
 
 
 def test_score_reports_an_empty_subset_as_nan():
@@ -91,6 +95,8 @@ def test_shape_mismatch_is_refused_with_the_shapes():
     q = np.array([IDENTITY])
     with pytest.raises(ConfigError, match="one entry per row"):
         score(q, q, q, np.array([True, False]), np.array([True]))
+    with pytest.raises(ConfigError, match="outside_deg"):
+        score(q, q, q, np.array([True]), np.array([True]), np.zeros(3))
 
 
 def test_mean_and_spread():
