@@ -319,16 +319,20 @@ class ServoBus:
             check_alert,
         )
 
-    def write(self, register: Register, servo_id: int, value: int) -> None:
+    def write(
+        self, register: Register, servo_id: int, value: int, check_alert: bool = True
+    ) -> None:
         """Write ``value`` to ``register`` of one servo and wait for its status.
 
         EEPROM registers (``register.is_eeprom``) need torque off; the servo refuses otherwise.
+        With ``check_alert=False`` a servo in alarm does not raise :class:`ServoAlarm`.
         """
         data = register.encode(value)
 
         self._transact(
             f"write {register.name}={value} to servo {servo_id}",
             lambda: transfers.write(self._packets, self._port, register, servo_id, data),
+            check_alert,
         )
 
     # ---- group transfers ----
@@ -384,9 +388,23 @@ class ServoBus:
         self.sync_write(Register.GOAL_POSITION, {i: int(t) for i, t in goals.items()})
 
     def set_torque(self, enabled: bool, ids: Sequence[int] | None = None) -> None:
-        """Torque on or off, servo by servo, each write confirmed by its status packet."""
+        """Torque on or off, servo by servo, each write confirmed by its status packet.
+
+        Switching torque off is the safe state: it ignores alarms and tries every servo even
+        when one fails, then raises the first failure.
+        """
+        if enabled:
+            for servo_id in self._known(ids):
+                self.write(Register.TORQUE_ENABLE, servo_id, 1)
+            return
+        failures: list[BusError] = []
         for servo_id in self._known(ids):
-            self.write(Register.TORQUE_ENABLE, servo_id, int(bool(enabled)))
+            try:
+                self.write(Register.TORQUE_ENABLE, servo_id, 0, check_alert=False)
+            except BusError as exc:
+                failures.append(exc)
+        if failures:
+            raise failures[0]
 
     def torque_enabled(self) -> dict[int, bool]:
         """Torque Enable of every servo."""

@@ -70,7 +70,9 @@ def build_parser() -> argparse.ArgumentParser:
         "region, and plots, all on the embedded simulator, writing everything to --out.",
     )
     p.add_argument("--out", type=Path, default=Path("limbctl-demo"), help="output folder")
-    p.add_argument("--duration", type=_positive, default=30.0, help="seconds of teaching")
+    p.add_argument(
+        "--duration", type=_positive, default=60.0, help="seconds of teaching (default: 60)"
+    )
     p.add_argument("--seed", type=int, default=0, help="simulator and model seed")
 
     p = sub.add_parser(
@@ -86,6 +88,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--name", default="my-rig", help="name stored in the profile")
     p.add_argument(
         "--ids", default="1,2", help="pan and tilt servo ids, comma separated (default: 1,2)"
+    )
+    p.add_argument(
+        "--pan-limits",
+        help="hard pan limits MIN,MAX in degrees (default: the base rig profile's)",
+    )
+    p.add_argument(
+        "--tilt-limits",
+        help="hard tilt limits MIN,MAX in degrees (default: the base rig profile's)",
     )
 
     p = sub.add_parser(

@@ -241,14 +241,9 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         with stop_on_signals() as stop:
             result = find_zero_and_directions(session.rig, say=_say, stop=stop)
         port = "sim" if session.simulated else session.rig.bus.port_name
-    profile = profile_from_calibration(
-        base,
-        result,
-        args.name,
-        port,
-        (base.pan.min_deg, base.pan.max_deg),
-        (base.tilt.min_deg, base.tilt.max_deg),
-    )
+    pan_limits = _limits(args.pan_limits, "--pan-limits", (base.pan.min_deg, base.pan.max_deg))
+    tilt_limits = _limits(args.tilt_limits, "--tilt-limits", (base.tilt.min_deg, base.tilt.max_deg))
+    profile = profile_from_calibration(base, result, args.name, port, pan_limits, tilt_limits)
     save_profile(profile, args.out)
     _say(
         f"pan: zero tick {result.pan_zero}, direction {result.pan_direction:+d}; "
@@ -256,6 +251,20 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     )
     _say(f"wrote {args.out} (check the hard limits in it before teleoperating)")
     return 0
+
+
+def _limits(text: str | None, option: str, default: tuple[float, float]) -> tuple[float, float]:
+    if text is None:
+        return default
+    try:
+        lo, hi = (float(v) for v in text.split(","))
+    except ValueError:
+        raise ConfigError(
+            f"{option} expects MIN,MAX in degrees like -90,90; got {text!r}"
+        ) from None
+    if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+        raise ConfigError(f"{option}: need finite MIN < MAX, got {text!r}")
+    return lo, hi
 
 
 def _pair(text: str, option: str) -> tuple[int, int]:

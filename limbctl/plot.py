@@ -76,7 +76,9 @@ def plot(
         ax_plane.contourf(
             grid_pan, grid_tilt, inside.astype(float), levels=[0.5, 1.5], colors=["#cfe8cf"]
         )
-        ax_plane.contour(grid_pan, grid_tilt, inside.astype(float), levels=[0.5], colors="green")
+        ax_plane.contour(
+            grid_pan, grid_tilt, inside.astype(float), levels=[0.5], colors="green", linewidths=1
+        )
         weights = np.asarray(model.weights)
         if len(weights):
             wd = limb_direction(weights)
@@ -84,17 +86,18 @@ def plot(
             near = (
                 (wp >= pan_lim[0]) & (wp <= pan_lim[1]) & (wt >= tilt_lim[0]) & (wt <= tilt_lim[1])
             )
-            ax_plane.scatter(wp[near], wt[near], s=6, c="tab:orange", label="node weights")
-            ax_sphere.scatter(*wd[near].T, s=4, c="tab:orange")
+            ax_plane.scatter(wp[near], wt[near], s=3, c="0.45", label="node weights")
+            ax_sphere.scatter(*wd[near].T, s=2, c="0.45")
     if samples is not None and len(samples):
         sd = limb_direction(samples)
         sp, st = _pan_tilt_deg(sd)
-        ax_plane.scatter(sp, st, s=2, c="tab:blue", alpha=0.5, label=f"samples ({len(sp)})")
-        ax_sphere.scatter(*sd.T, s=1, c="tab:blue", alpha=0.4)
-    for name, directions in (extra or {}).items():
+        ax_plane.scatter(sp, st, s=1, c="tab:blue", alpha=0.3, label=f"samples ({len(sp)})")
+        ax_sphere.scatter(*sd.T, s=1, c="tab:blue", alpha=0.3)
+    styles = [("tab:red", "x", 10), ("k", ".", 4), ("tab:purple", "+", 10)]
+    for (name, directions), (color, marker, size) in zip((extra or {}).items(), styles):
         ep, et = _pan_tilt_deg(np.asarray(directions))
-        ax_plane.scatter(ep, et, s=8, label=name)
-        ax_sphere.scatter(*np.asarray(directions).T, s=6)
+        ax_plane.scatter(ep, et, s=size, c=color, marker=marker, linewidths=0.6, label=name)
+        ax_sphere.scatter(*np.asarray(directions).T, s=size / 2, c=color, marker=marker)
 
     ax_plane.set_xlim(*pan_lim)
     ax_plane.set_ylim(*tilt_lim)

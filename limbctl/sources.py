@@ -49,9 +49,15 @@ class SourceStats:
 
 
 class CommandSource:
-    """Base: a queue filled by a reader thread; ``poll`` drains it without blocking."""
+    """Base: a queue filled by a reader thread; ``poll`` drains it without blocking.
+
+    ``latest_only`` tells the control loop how to use what arrives: a realtime source (UDP,
+    keyboard, leader) is followed by its newest command only; a scripted stream (stdin,
+    replay) is gated command by command.
+    """
 
     name = "source"
+    latest_only = False
 
     def __init__(self) -> None:
         self.stats = SourceStats()
@@ -182,6 +188,7 @@ class UdpSource(CommandSource):
     """
 
     name = "udp"
+    latest_only = True
 
     def __init__(self, host: str = "127.0.0.1", port: int = 0) -> None:
         super().__init__()
@@ -218,22 +225,28 @@ class UdpSource(CommandSource):
 
 
 class ReplaySource(CommandSource):
-    """JSON lines from a file; lines with ``"t"`` are released at that time after the start."""
+    """JSON lines from a file, paced: a line with ``"t"`` (s) is released at that time after the
+    first stamped line; lines without it follow the previous one after ``1 / rate_hz``.
+    """
 
     name = "replay"
 
-    def __init__(self, path: str | Path, speed: float = 1.0) -> None:
+    def __init__(self, path: str | Path, speed: float = 1.0, rate_hz: float = 100.0) -> None:
         super().__init__()
         self.path = Path(path)
         if not self.path.is_file():
             raise ConfigError(f"replay file {self.path} does not exist")
         if not (math.isfinite(speed) and speed > 0):
             raise ConfigError(f"replay speed must be positive, got {speed}")
+        if not (math.isfinite(rate_hz) and rate_hz > 0):
+            raise ConfigError(f"replay rate must be positive, got {rate_hz}")
         self.speed = speed
+        self.rate_hz = rate_hz
 
     def _run(self) -> None:
         start = time.monotonic()
         t0: float | None = None
+        due = start
         with open(self.path, "rb") as fh:
             for raw in fh:
                 if self._stop.is_set():
@@ -242,8 +255,10 @@ class ReplaySource(CommandSource):
                 if stamp is not None:
                     t0 = stamp if t0 is None else t0
                     due = start + (stamp - t0) / self.speed
-                    # wait for the line's time, waking at once if the source is closed
-                    self._stop.wait(max(0.0, due - time.monotonic()))
+                else:
+                    due += 1.0 / (self.rate_hz * self.speed)
+                # wait for the line's time, waking at once if the source is closed
+                self._stop.wait(max(0.0, due - time.monotonic()))
                 self.feed(raw)
 
 
@@ -258,6 +273,7 @@ class KeyboardSource(CommandSource):
     """Arrow keys in the terminal nudge pan/tilt by ``step_deg``; ``q`` ends the session."""
 
     name = "keyboard"
+    latest_only = True
     _KEYS = {b"\x1b[A": (0, 1), b"\x1b[B": (0, -1), b"\x1b[C": (-1, 0), b"\x1b[D": (1, 0)}
 
     def __init__(self, step_deg: float = 2.0, start_deg: tuple[float, float] = (0.0, 0.0)) -> None:

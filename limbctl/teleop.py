@@ -21,7 +21,7 @@ import json
 import math
 import threading
 import time
-from collections import Counter
+from collections import Counter, deque
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Protocol
@@ -67,6 +67,8 @@ class LoopConfig:
         Where a fault leaves the rig.
     duration_s : float or None
         Stop after this long (None: until the source ends or Ctrl-C).
+    max_backlog : int
+        Most commands of a scripted stream waiting to be gated; older ones are skipped.
     """
 
     rate_hz: float = 200.0
@@ -74,6 +76,7 @@ class LoopConfig:
     max_failed_cycles: int = 20
     safe_state: SafeState = SafeState.HOLD
     duration_s: float | None = None
+    max_backlog: int = 20
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.rate_hz) and 1.0 <= self.rate_hz <= 2000.0):
@@ -90,6 +93,7 @@ class TeleopSummary:
     goals_written: int = 0
     outcomes: Counter = field(default_factory=Counter)
     commands: int = 0
+    skipped: int = 0
     rejected: int = 0
     bus_errors: int = 0
     failed_cycles: int = 0
@@ -118,7 +122,8 @@ class TeleopSummary:
             f"p99 {self.percentile_ms(99):.2f} ms, overruns {self.overruns}",
             f"gate time          p50 {self.percentile_ms(50, True):.3f} ms, "
             f"p99 {self.percentile_ms(99, True):.3f} ms",
-            f"commands           {self.commands} accepted, {self.rejected} refused",
+            f"commands           {self.commands} accepted ({self.skipped} skipped as stale), "
+            f"{self.rejected} refused",
             f"gate outcomes      {outcome or 'none'}",
             f"goals written      {self.goals_written}",
             f"bus errors         {self.bus_errors} ({self.failed_cycles} cycles lost)",
@@ -208,6 +213,7 @@ def run(
     status_every = 0.5 if status is not None and status.isatty() else 5.0
     failed_in_a_row = 0
     target_q: np.ndarray | None = None
+    pending: deque = deque()
     target_deg: tuple[float, float] | None = None
 
     while True:
@@ -230,11 +236,19 @@ def run(
         except BusError:
             summary.bus_errors += 1
 
-        # 2. newest valid command
+        # 2. next valid command: realtime sources (UDP, keyboard, leader) keep only the newest;
+        # scripted streams (stdin, replay) are gated in order, one per cycle, with a bounded
+        # backlog so a fast producer cannot build up latency
         commands = source.poll()
         if commands:
             summary.commands += len(commands)
-            target_q = commands[-1].q
+            pending.extend(commands)
+            keep = 1 if source.latest_only else config.max_backlog
+            while len(pending) > keep:
+                pending.popleft()
+                summary.skipped += 1
+        if pending:
+            target_q = pending.popleft().q
             target_deg = _command_deg(target_q)
             last_command_at = cycle_start
         summary.rejected = source.stats.rejected
@@ -286,7 +300,7 @@ def run(
             last_status = cycle_start
             _print_status(status, summary, elapsed)
 
-        if source.finished and not result.slewed:
+        if source.finished and not pending and not result.slewed:
             # end of input: every command was gated and the last one reached (or held)
             summary.ended_by = "end of input"
             break
