@@ -60,7 +60,10 @@ def _finite_number(value: object, name: str) -> float:
     # bool is an int subclass in Python; `true` is not a number here
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise InvalidInputError(f"{name} must be a number, got {type(value).__name__}")
-    x = float(value)
+    try:
+        x = float(value)
+    except OverflowError:  # a JSON integer too large for a float
+        raise InvalidInputError(f"{name} is out of range: {value!r:.40}") from None
     if not math.isfinite(x):
         raise InvalidInputError(f"{name} must be finite, got {value!r}")
     if abs(x) > MAX_COMPONENT:

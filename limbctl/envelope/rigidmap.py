@@ -217,6 +217,13 @@ class RigidMap(Envelope):
     def contains(self, q: np.ndarray) -> np.ndarray | bool:
         """Whether each limb direction lies in the learned region: (N,) bool or bool."""
         self._trained()
+        arr = np.asarray(q, dtype=np.float64) if isinstance(q, np.ndarray) else None
+        if arr is not None and arr.shape == (4,):
+            # fast path for one command (the gate's final check, every cycle): no thread pool
+            _, one = rk.correct_single(arr, *self._mesh_args())
+            if one < 0:
+                as_quaternions(q)
+            return bool(one == 1)
         arr, single = self._input(q)
         _, status = rk.correct_batch(arr, *self._mesh_args())
         inside = status == 1
