@@ -182,12 +182,15 @@ def cmd_teleop(args: argparse.Namespace) -> int:
     with open_rig(
         args.port, args.rig, args.baud, goal_log=args.goal_log, seed=args.seed, extra_ids=leader_ids
     ) as session:
-        session.rig.configure()
         if leader_ids:
             from limbctl.leader import LeaderSource
 
+            limits = session.rig.tick_limits()
+            limits.update({servo_id: (0, 4095) for servo_id in leader_ids})
+            session.rig.bus.configure(limits)
             source = LeaderSource(session.rig, leader_ids)
         else:
+            session.rig.configure()
             source = open_source(args.source)
         telemetry_file = open_telemetry(args.telemetry)
         try:

@@ -1,0 +1,62 @@
+"""The command line: complete --help, clear errors, exit codes."""
+
+import subprocess
+import sys
+
+import pytest
+
+from limbctl.cli import build_parser, main
+
+COMMANDS = ["demo", "calibrate", "record", "train", "teleop", "plot", "eval", "info"]
+
+
+def test_top_level_help_lists_every_command(capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main(["--help"])
+    assert exit_info.value.code == 0
+    out = capsys.readouterr().out
+    for command in COMMANDS:
+        assert command in out
+
+
+@pytest.mark.parametrize("command", COMMANDS)
+def test_every_command_has_help_with_its_options(command, capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main([command, "--help"])
+    assert exit_info.value.code == 0
+    out = capsys.readouterr().out
+    parser = build_parser()
+    sub = next(a for a in parser._actions if a.dest == "command").choices[command]
+    for action in sub._actions:
+        for flag in action.option_strings:
+            assert flag in out
+
+
+def test_console_script_runs():
+    result = subprocess.run(
+        [sys.executable, "-m", "limbctl.cli", "teleop", "--help"], capture_output=True, text=True
+    )
+    assert result.returncode == 0
+    assert "--source" in result.stdout and "leader:ID,ID" in result.stdout
+
+
+def test_errors_are_one_clear_line_and_exit_2(tmp_path, capsys):
+    missing = tmp_path / "nope.npz"
+    assert main(["info", str(missing)]) == 2
+    err = capsys.readouterr().err
+    assert "limbctl info: error:" in err and "no such model file" in err
+
+    assert main(["train", str(tmp_path / "none.limb"), "--out", str(tmp_path / "m.npz")]) == 2
+    assert "limbctl train: error:" in capsys.readouterr().err
+
+    (tmp_path / "bad.yaml").write_text("name: x\nport: sim\n")
+    code = main(["teleop", "--rig", str(tmp_path / "bad.yaml"), "--model", str(missing)])
+    assert code == 2
+    assert "bad.yaml" in capsys.readouterr().err
+
+
+def test_bad_numbers_are_refused_by_the_parser(capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main(["record", "--out", "x.limb", "--rate", "nan"])
+    assert exit_info.value.code == 2
+    assert "positive number" in capsys.readouterr().err
