@@ -54,6 +54,7 @@ from limbctl.errors import (
     BusError,
     BusTimeout,
     ConfigError,
+    CorruptReply,
     InvalidInputError,
     PortError,
     ServoAlarm,
@@ -82,6 +83,30 @@ class BusStats:
     alarms: int = 0
 
 
+#: The SDK's assumption for the USB adapter's latency timer (ms): an FTDI chip's default.
+SDK_LATENCY_TIMER_MS = 16.0
+
+
+class _TunedPortHandler(PortHandler):
+    """The SDK's PortHandler with the reply timeout computed for the adapter's real latency.
+
+    The SDK waits ``bytes * byte time + 2 * 16 ms + 2 ms`` for a reply, assuming an FTDI latency
+    timer of 16 ms; with the timer lowered to 1 ms (README) or on the simulator's pty, a dropped
+    reply then costs one control cycle instead of seven.
+    """
+
+    def __init__(self, port_name: str, latency_timer_ms: float) -> None:
+        super().__init__(port_name)
+        self.latency_timer_ms = float(latency_timer_ms)
+
+    def setPacketTimeout(self, packet_length: int) -> None:  # noqa: N802 (SDK's name)
+        self.packet_start_time = self.getCurrentTime()
+        # timeout = bytes * byte time + 2 * latency timer + 2 ms (the SDK's rule)
+        self.packet_timeout = (
+            self.tx_time_per_byte * packet_length + 2.0 * self.latency_timer_ms + 2.0
+        )
+
+
 class ServoBus:
     """Servos on one serial port; a context manager (``close()`` is safe to call twice).
 
@@ -101,6 +126,9 @@ class ServoBus:
         Most tries per transaction (at least 1).
     fast_sync_read : bool or None
         Force Fast Sync Read on/off; None decides from firmware version and a probe.
+    latency_timer_ms : float
+        The USB adapter's latency timer (ms); sets how long a reply is waited for. 16 is the
+        FTDI default; use 1 after lowering it (README), or for the simulator's pty.
     """
 
     def __init__(
@@ -112,6 +140,7 @@ class ServoBus:
         retry_budget_s: float = 0.25,
         max_attempts: int = 3,
         fast_sync_read: bool | None = None,
+        latency_timer_ms: float = SDK_LATENCY_TIMER_MS,
     ) -> None:
         if not ids or len(set(ids)) != len(ids):
             raise ConfigError(f"ids must be distinct servo ids, got {list(ids)}")
@@ -124,6 +153,9 @@ class ServoBus:
         self.retry_budget_s = float(retry_budget_s)
         self.max_attempts = max(1, int(max_attempts))
         self.fast_sync_read = fast_sync_read
+        if not 0.0 <= latency_timer_ms <= 255.0:
+            raise ConfigError(f"latency_timer_ms must be 0..255, got {latency_timer_ms}")
+        self.latency_timer_ms = float(latency_timer_ms)
         self.models: dict[int, ModelNumber] = {}
         self.firmware: dict[int, int] = {}
         self.stats = BusStats()
@@ -176,7 +208,7 @@ class ServoBus:
         hint = "check the cable / permissions (dialout group) / --port"
         if not os.path.exists(self.port_name):
             raise PortError(f"serial port {self.port_name} does not exist: {hint}")
-        port = PortHandler(self.port_name)
+        port = _TunedPortHandler(self.port_name, self.latency_timer_ms)
         try:
             opened = port.setBaudRate(self.baud)
         except _PORT_FAILURES as exc:
@@ -347,11 +379,34 @@ class ServoBus:
         ids = self._known(ids)
         flavour = "fast sync read" if self.fast_sync_read else "sync read"
         read = transfers.fast_sync_read if self.fast_sync_read else transfers.sync_read
-        return self._transact(
-            f"{flavour} {register.name}",
-            lambda: read(self._packets, self._port, register, ids),
-            check_alert,
-        )
+        with self._lock:
+            try:
+                return self._transact(
+                    f"{flavour} {register.name}",
+                    lambda: read(self._packets, self._port, register, ids),
+                    check_alert,
+                )
+            except (BusTimeout, CorruptReply) as exc:
+                # one silent servo cuts a combined reply short, which looks like corruption:
+                # ask each servo once so the message names the one that is gone
+                silent = [i for i in ids if self._silent(i)]
+                if not silent or len(silent) == len(ids):
+                    raise
+                names = ", ".join(str(i) for i in silent)
+                raise BusTimeout(
+                    f"{flavour} {register.name}: servo {names} did not answer (not even a "
+                    f"ping): check its power supply and cable; the others answer",
+                    silent[0],
+                ) from exc
+
+    def _silent(self, servo_id: int) -> bool:
+        """True if ``servo_id`` does not answer one ping (a diagnostic; no retries)."""
+        port = self._require_port()
+        try:
+            outcome = transfers.ping(self._packets, port, servo_id)
+        except _PORT_FAILURES:
+            return False  # the port itself failed: that is not this servo's fault
+        return outcome.result == COMM_RX_TIMEOUT
 
     def sync_write(self, register: Register, values: Mapping[int, int]) -> None:
         """Write one value per servo to ``register`` in ONE sync write (no reply)."""

@@ -16,6 +16,7 @@ import numpy as np
 
 from calib.profile import JointProfile, RigProfile
 from limbctl.bus import ServoBus
+from limbctl.control_table import Register
 from limbctl.errors import InvalidInputError, SafetyError
 from limbctl.gimbal import pan_tilt_to_direction, pan_tilt_to_quat
 from limbctl.ticks import angle_to_ticks, ticks_to_angle
@@ -172,3 +173,8 @@ class Rig:
     def set_torque(self, enabled: bool) -> None:
         """Torque on or off on both servos."""
         self._bus().set_torque(enabled, self.profile.ids)
+
+    def torque_enabled(self) -> tuple[bool, bool]:
+        """Torque Enable of (pan, tilt), in one sync read; a servo in alarm does not raise."""
+        state = self._bus().sync_read(Register.TORQUE_ENABLE, self.profile.ids, check_alert=False)
+        return bool(state[self.profile.pan.id]), bool(state[self.profile.tilt.id])

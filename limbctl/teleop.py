@@ -8,7 +8,9 @@ Each cycle (default 200 Hz):
 4. write both goals (one sync write) — only ever a pose the gate returned;
 5. log telemetry and pace to the next period.
 
-A silent source holds the last safe pose. Bus failures are retried; after
+A silent source holds the last safe pose. A cycle whose read fails writes nothing (a servo
+that is not answering would miss the sync write and leave a pose the gate never produced).
+Bus failures are retried; after
 ``max_failed_cycles`` consecutive failed cycles, or on a servo alarm, the loop ends in the
 configured safe state (hold: torque stays on at the last goal; torque-off) with a message naming
 the servo and the cause. The loop's outcome is a value (:class:`TeleopSummary`), after ruckig.
@@ -48,6 +50,8 @@ class Limb(Protocol):
     def write_pose(self, pan: float, tilt: float) -> object: ...
 
     def set_torque(self, enabled: bool) -> None: ...
+
+    def torque_enabled(self) -> tuple[bool, bool]: ...
 
 
 @dataclass(frozen=True)
@@ -203,7 +207,23 @@ def run(
     period = 1.0 / config.rate_hz
     stop = stop or threading.Event()
 
-    present = limb.read_pose()
+    # the start pose, read with the same patience as a running loop (a dropped reply is normal)
+    present: tuple[float, float] | None = None
+    last_error: BusError | None = None
+    for _ in range(config.max_failed_cycles):
+        try:
+            present = limb.read_pose()
+            break
+        except ServoAlarm as exc:
+            _enter_safe_state(limb, config, summary, exc)
+            return summary
+        except BusError as exc:
+            summary.bus_errors += 1
+            last_error = exc
+    if present is None:
+        cause = f"could not read the start pose {config.max_failed_cycles} times: {last_error}"
+        _enter_safe_state(limb, config, summary, BusError(cause, last_error.servo_id))
+        return summary
     gate.start(*present)
 
     start = time.perf_counter()
@@ -226,15 +246,17 @@ def run(
             summary.ended_by = "duration"
             break
 
-        # 1. present pose (a failed read does not stop the write of a held/gated pose)
+        # 1. present pose; a failed read means a servo may not be listening: this cycle holds
+        # (a sync write that one servo misses would leave a pose the gate never produced)
         present_now: tuple[float, float] | None = None
         try:
             present_now = limb.read_pose()
         except ServoAlarm as exc:
             _enter_safe_state(limb, config, summary, exc)
             break
-        except BusError:
+        except BusError as exc:
             summary.bus_errors += 1
+            last_error = exc
 
         # 2. next valid command: realtime sources (UDP, keyboard, leader) keep only the newest;
         # scripted streams (stdin, replay) are gated in order, one per cycle, with a bounded
@@ -257,6 +279,8 @@ def run(
         gate_start = time.perf_counter()
         if target_q is None:
             result = gate.hold("no command yet")
+        elif present_now is None:
+            result = gate.hold("the bus failed this cycle")
         else:
             result = gate.step(target_q)
         summary.gate_times_s.append(time.perf_counter() - gate_start)
@@ -274,8 +298,9 @@ def run(
             except ServoAlarm as exc:
                 _enter_safe_state(limb, config, summary, exc)
                 break
-            except BusError:
+            except BusError as exc:
                 summary.bus_errors += 1
+                last_error = exc
                 present_now = None
         if present_now is None:
             failed_in_a_row += 1
@@ -285,7 +310,11 @@ def run(
                     limb,
                     config,
                     summary,
-                    BusError(f"the bus failed {failed_in_a_row} cycles in a row"),
+                    BusError(
+                        f"the bus failed {failed_in_a_row} cycles in a row; last error: "
+                        f"{last_error}",
+                        getattr(last_error, "servo_id", None),
+                    ),
                 )
                 break
         else:
@@ -336,7 +365,28 @@ def _enter_safe_state(
         except BusError as exc:
             summary.fault += f" — could not switch torque off ({exc}); cut the servo power"
     else:
-        summary.fault += " — holding the last safe pose (torque on)"
+        summary.fault += " — " + _hold_state(limb)
+
+
+def _hold_state(limb: Limb) -> str:
+    """What HOLD really left: torque as the servos report it (an alarm may have cut it)."""
+    try:
+        torque = limb.torque_enabled()
+    except BusError as exc:
+        return (
+            f"torque state unknown (cannot read it: {exc}); each servo keeps the last goal the "
+            "gate gave it unless its firmware shut it down; cut the servo power if the limb "
+            "must not move"
+        )
+    if all(torque):
+        return "holding the last safe pose (torque on)"
+    off = [name for name, on in zip(("pan", "tilt"), torque, strict=True) if not on]
+    on = [name for name, on in zip(("pan", "tilt"), torque, strict=True) if on]
+    held = f"; {' and '.join(on)} holding the last safe pose (torque on)" if on else ""
+    return (
+        f"{' and '.join(off)} torque off (shut down by the servo's firmware: reboot it once the "
+        f"cause is fixed){held}"
+    )
 
 
 def _print_status(stream: IO[str], summary: TeleopSummary, elapsed: float) -> None:
