@@ -175,12 +175,16 @@ class ServoBus:
         with self._lock:
             if self._port is not None:
                 return self
-            self._port = self._open_port()
+            self._port = port = self._open_port()
             try:
+                # identification is not time-critical: wait as long as the SDK would (16 ms
+                # latency timer) so a busy machine or a slow adapter is not taken for silence
+                port.latency_timer_ms = max(self.latency_timer_ms, SDK_LATENCY_TIMER_MS)
                 for servo_id in self.ids:
                     self._identify(servo_id)
                 if self.fast_sync_read is None:
                     self.fast_sync_read = self._probe_fast_sync_read()
+                port.latency_timer_ms = self.latency_timer_ms
             except BaseException:
                 self.close()
                 raise

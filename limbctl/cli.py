@@ -43,6 +43,13 @@ def _add_connection(p: argparse.ArgumentParser, hand: bool = False) -> None:
         help="rig profile YAML (default: the simulated rig, calib/rigs/sim.yaml)",
     )
     g.add_argument("--baud", type=int, help="baud rate (default: the rig profile's)")
+    g.add_argument(
+        "--latency-timer",
+        type=float,
+        metavar="MS",
+        help="the USB adapter's latency timer in ms, which sets how long a reply is waited for "
+        "(default: 16, the FTDI default; 1 after lowering it as the README shows)",
+    )
     if hand:
         g.add_argument(
             "--hand",

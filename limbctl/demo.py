@@ -92,7 +92,7 @@ def run_demo(out: Path, teach_seconds: float = 45.0, seed: int = 0) -> int:
             raise ConfigError(f"{stale} exists from an earlier run; use another --out or remove it")
 
     _say(f"== 1/4 teach: the simulator's hand moves the limb for {teach_seconds:.0f} s")
-    common = {"port": None, "rig": None, "baud": None, "seed": seed}
+    common = {"port": None, "rig": None, "baud": None, "seed": seed, "latency_timer": None}
     jobs.cmd_record(
         Namespace(**common, hand=demo_region_path(), out=data, duration=teach_seconds, rate=125.0)
     )

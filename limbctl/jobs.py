@@ -26,7 +26,14 @@ def cmd_record(args: argparse.Namespace) -> int:
     meta = {"rate_hz": args.rate, "simulated": args.port is None and profile.is_sim}
     # the writer checks the path and free space before any servo is touched
     with DatasetWriter(args.out, rig=profile.name, meta=meta) as writer:
-        with open_rig(args.port, args.rig, args.baud, hand=hand, seed=args.seed) as session:
+        with open_rig(
+            args.port,
+            args.rig,
+            args.baud,
+            hand=hand,
+            seed=args.seed,
+            latency_timer_ms=args.latency_timer,
+        ) as session:
             with stop_on_signals() as stop:
                 if session.simulated:
                     _say(f"simulator: a scripted hand teaches the region in {hand}")
@@ -104,7 +111,9 @@ def cmd_info(args: argparse.Namespace) -> int:
         return _info_file(args.file)
     from limbctl.control_table import Register, model_name
 
-    with open_rig(args.port, args.rig, args.baud, seed=args.seed) as session:
+    with open_rig(
+        args.port, args.rig, args.baud, seed=args.seed, latency_timer_ms=args.latency_timer
+    ) as session:
         bus = session.rig.bus
         where = "embedded simulator" if session.simulated else bus.port_name
         print(f"bus: {where} at {bus.baud} bps, fast sync read: {bus.fast_sync_read}")
@@ -180,7 +189,13 @@ def cmd_teleop(args: argparse.Namespace) -> int:
     )
     leader_ids = _leader_ids(args.source)
     with open_rig(
-        args.port, args.rig, args.baud, goal_log=args.goal_log, seed=args.seed, extra_ids=leader_ids
+        args.port,
+        args.rig,
+        args.baud,
+        goal_log=args.goal_log,
+        seed=args.seed,
+        extra_ids=leader_ids,
+        latency_timer_ms=args.latency_timer,
     ) as session:
         if leader_ids:
             from limbctl.leader import LeaderSource
@@ -238,7 +253,14 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     pan_id, tilt_id = _pair(args.ids, "--ids")
     base = replace(base, pan=replace(base.pan, id=pan_id), tilt=replace(base.tilt, id=tilt_id))
     script = Path(str(resources.files("limbctl").joinpath("data", "calibration_hand.yaml")))
-    with open_rig(args.port, args.rig, args.baud, hand=script, seed=args.seed) as session:
+    with open_rig(
+        args.port,
+        args.rig,
+        args.baud,
+        hand=script,
+        seed=args.seed,
+        latency_timer_ms=args.latency_timer,
+    ) as session:
         if session.simulated:
             _say("simulator: a scripted hand follows the prompts below")
         with stop_on_signals() as stop:

@@ -135,11 +135,13 @@ def record(
         if progress is not None and now - last_draw >= redraw_every:
             last_draw = now
             drawn_lines = _draw(progress, coverage, summary, elapsed, duration_s, drawn_lines)
+        # pace: a late sample is followed at once by the next, so the average rate holds;
+        # only after a long stall (a second behind) does the schedule restart from now
         next_tick += period
         delay = next_tick - time.perf_counter()
         if delay > 0:
             stop.wait(delay)
-        elif delay < -period:
+        elif delay < -1.0:
             next_tick = time.perf_counter()
 
     summary.elapsed_s = time.perf_counter() - start

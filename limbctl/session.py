@@ -57,6 +57,7 @@ def open_rig(
     seed: int = 0,
     sim_options: Mapping[str, Any] | None = None,
     extra_ids: tuple[int, ...] = (),
+    latency_timer_ms: float | None = None,
 ) -> Iterator[Session]:
     """Connect to the rig's servos (starting the simulator if needed); close on exit.
 
@@ -72,6 +73,9 @@ def open_rig(
         Passed to the simulator when one is started (ignored on real hardware).
     extra_ids : tuple of int
         More servos on the same bus (e.g. a leader gimbal).
+    latency_timer_ms : float, optional
+        The USB adapter's latency timer; default 16 ms on a real port (the FTDI default), 2 ms
+        on the simulator's pty (a reply is then awaited ~6 ms).
     """
     profile = load_rig_profile(rig_path)
     device = port if port is not None else (None if profile.is_sim else profile.port)
@@ -91,11 +95,14 @@ def open_rig(
                 )
             )
             device = simulator.port
+        if latency_timer_ms is None:
+            latency_timer_ms = 2.0 if simulator is not None else 16.0
         bus = ServoBus(
             device,
             baud or profile.baud,
             profile.ids + tuple(extra_ids),
             profile.model,
+            latency_timer_ms=latency_timer_ms,
         )
         stack.enter_context(bus)
         yield Session(rig=Rig(profile, bus), profile=profile, simulator=simulator)

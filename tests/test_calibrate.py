@@ -1,21 +1,20 @@
 """Guided calibration on the simulator finds the world's true zero ticks and directions."""
 
-import argparse
-
 import pytest
 
 from calib.profile import default_sim_profile, load_profile
 from limbctl.calibrate import CalibrationResult, profile_from_calibration
+from limbctl.cli import build_parser
 from limbctl.errors import SafetyError
 from limbctl.jobs import cmd_calibrate
 
 
 def test_calibration_on_the_simulator_finds_the_truth(tmp_path):
     out = tmp_path / "rig.yaml"
-    args = argparse.Namespace(
-        port=None, rig=None, baud=None, seed=0, out=out, name="bench", ids="1,2",
-        pan_limits="-100,100", tilt_limits="-40,60",
-    )  # fmt: skip
+    args = build_parser().parse_args(
+        ["calibrate", "--out", str(out), "--name", "bench"]
+        + ["--pan-limits=-100,100", "--tilt-limits=-40,60"]
+    )
     assert cmd_calibrate(args) == 0
     found = load_profile(out)
     truth = default_sim_profile()  # the simulated world's true geometry

@@ -1,12 +1,12 @@
 """Teach by hand on the simulator: the recorder samples the scripted hand at >= 100 Hz."""
 
-import argparse
 import threading
 
 import numpy as np
 import pytest
 
 from firmware_sim.hand import Hand
+from limbctl.cli import build_parser
 from limbctl.dataset import DatasetWriter, load_dataset
 from limbctl.errors import ConfigError
 from limbctl.jobs import cmd_record
@@ -16,8 +16,8 @@ from limbctl.session import demo_region_path, open_rig
 
 def test_record_job_writes_every_sample_inside_the_taught_region(tmp_path):
     out = tmp_path / "teach.limb"
-    args = argparse.Namespace(
-        port=None, rig=None, baud=None, seed=1, hand=None, out=out, duration=4.0, rate=125.0
+    args = build_parser().parse_args(
+        ["record", "--out", str(out), "--duration", "4", "--seed", "1"]
     )
     assert cmd_record(args) == 0
     data = load_dataset(out)
