@@ -107,8 +107,9 @@ REPLY_FAULTS = {
 def test_reply_faults_are_ridden_through(tmp_path, faults):
     log = tmp_path / "goals.jsonl"
     lines = sweep_lines(300)
-    with live_rig(goal_log=log, seed=7, **faults) as (sim, rig):
+    with live_rig(goal_log=log) as (sim, rig):
         gate = RecordingGate(bean_model(), LIMITS)
+        sim.set_faults(seed=7, **faults)  # after set-up: the loop is what is under test
         config = LoopConfig(rate_hz=RATE, duration_s=60.0)
         summary = run(rig, gate, PacedSource(lines), config)
         rig.read_pose()  # a round trip: every goal is logged before the answer
