@@ -27,7 +27,7 @@ SOM_PANELS = (
 
 #: Columns of the markdown tables: (metric, header, format).
 TABLE_COLUMNS = (
-    ("mse", "quat MSE", "{:.4f}"),
+    ("mse", "quat MSE", "{:.3g}"),
     ("err3d_rms", "3D err (RMS)", "{:.4f}"),
     ("angle_mean_deg", "mean angle (deg)", "{:.2f}"),
     ("angle_p95_deg", "p95 angle (deg)", "{:.2f}"),
