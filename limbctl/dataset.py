@@ -249,7 +249,7 @@ class DatasetWriter:
         if self._fd is None:
             raise RuntimeError("DatasetWriter is not open; use it as a context manager")
         if self._sync_error is not None:
-            raise self._sync_error
+            raise self._write_failed(self._sync_error) from self._sync_error
         values = [float(t_s), math.degrees(float(pan)), math.degrees(float(tilt))]
         if not all(math.isfinite(v) for v in values):
             raise InvalidInputError(f"sample {self.count}: non-finite t/pan/tilt {values}")
@@ -258,9 +258,19 @@ class DatasetWriter:
         payload = ",".join(repr(v) for v in values + [float(c) for c in quat[0]])
         with self._lock:
             line, self._crc = _seal(payload, self._crc)
-            self._write(line)
+            try:
+                self._write(line)
+            except OSError as exc:  # disk full, file too large, device gone
+                raise self._write_failed(exc) from exc
             self._dirty = True
             self.count += 1
+
+    def _write_failed(self, exc: OSError) -> FileFormatError:
+        return FileFormatError(
+            self.path,
+            f"cannot write sample {self.count} ({exc.strerror or exc}); the disk may be full. "
+            f"The {self.count} samples before it are kept and load as they are",
+        )
 
     def _write(self, data: bytes) -> None:
         view = memoryview(data)
