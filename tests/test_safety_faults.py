@@ -16,9 +16,7 @@ import threading
 
 import numpy as np
 import pytest
-
-from limbctl.teleop import LoopConfig, SafeState, Telemetry, run
-from tests.safety_support import (
+from safety_support import (
     PacedSource,
     RecordingGate,
     assert_goals_safe,
@@ -28,6 +26,8 @@ from tests.safety_support import (
     live_rig,
     wait_for,
 )
+
+from limbctl.teleop import LoopConfig, SafeState, Telemetry, run
 
 RATE = 200.0
 LIMITS = gate_limits(RATE, 120.0)
@@ -45,7 +45,7 @@ class LoopThread:
     """The real loop in a thread, so a test can inject faults while it runs."""
 
     def __init__(self, rig, config: LoopConfig, lines: list[str]) -> None:
-        from tests.safety_support import CycleCounter
+        from safety_support import CycleCounter
 
         self.gate = RecordingGate(bean_model(), LIMITS)
         self.cycles = CycleCounter()

@@ -20,6 +20,7 @@ import pytest
 import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from safety_support import PROFILE, bean_model
 
 from calib.profile import RigProfile, load_profile
 from limbctl.dataset import DatasetWriter, load_dataset
@@ -27,7 +28,6 @@ from limbctl.envelope import Cone, load_model
 from limbctl.envelope.base import _digest
 from limbctl.errors import ConfigError, FileFormatError
 from limbctl.jobs import gate_for
-from tests.safety_support import PROFILE, bean_model
 
 PROBES = np.array(
     [[1.0, 0.0, 0.0, 0.0], [0.9, 0.1, 0.3, -0.3], [0.5, 0.0, 0.7, 0.5], [0.2, 0.0, 0.0, 0.98]]

@@ -17,15 +17,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-
-from limbctl.commands import parse_command
-from limbctl.envelope import Cone
-from limbctl.errors import InvalidInputError
-from limbctl.gate import Outcome
-from limbctl.gimbal import pan_tilt_to_direction
-from limbctl.rig import Rig
-from limbctl.teleop import LoopConfig, SafeState, run
-from tests.safety_support import (
+from safety_support import (
     PROFILE,
     PacedSource,
     RecordingGate,
@@ -38,6 +30,14 @@ from tests.safety_support import (
     settle_at,
     written_tolerance_deg,
 )
+
+from limbctl.commands import parse_command
+from limbctl.envelope import Cone
+from limbctl.errors import InvalidInputError
+from limbctl.gate import Outcome
+from limbctl.gimbal import pan_tilt_to_direction
+from limbctl.rig import Rig
+from limbctl.teleop import LoopConfig, SafeState, run
 
 # ---- command streams ---------------------------------------------------------------------------
 ODD_NUMBERS = [

@@ -21,10 +21,10 @@ import sys
 
 import numpy as np
 import pytest
+from safety_support import wait_for
 
 from limbctl.dataset import load_dataset
 from limbctl.errors import FileFormatError
-from tests.safety_support import wait_for
 
 RECORD_TIMEOUT_S = 120.0
 

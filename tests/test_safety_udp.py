@@ -10,12 +10,7 @@ import threading
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from limbctl.commands import MAX_LINE_BYTES, parse_command
-from limbctl.errors import ConfigError, InvalidInputError
-from limbctl.sources import UdpSource, open_source
-from limbctl.teleop import LoopConfig, Telemetry, run
-from tests.safety_support import (
+from safety_support import (
     CycleCounter,
     RecordingGate,
     assert_goals_safe,
@@ -25,6 +20,11 @@ from tests.safety_support import (
     live_rig,
     wait_for,
 )
+
+from limbctl.commands import MAX_LINE_BYTES, parse_command
+from limbctl.errors import ConfigError, InvalidInputError
+from limbctl.sources import UdpSource, open_source
+from limbctl.teleop import LoopConfig, Telemetry, run
 
 
 def processed(source: UdpSource) -> int:
