@@ -6,7 +6,9 @@ from limbctl.envelope.boundary import (
     DirectionMesh,
     alpha_triangles,
     boundary_edges,
+    cell_centres_inside,
     in_triangles_reference,
+    inside_reference,
     project_reference,
 )
 from limbctl.envelope.synthetic import ConeRegion, PolygonRegion
@@ -19,7 +21,7 @@ def mesh_and_region(request):
     rng = np.random.default_rng(0)
     region = ConeRegion(np.radians(35.0)) if request.param == "cone" else PolygonRegion()
     d = region.sample(500, rng)
-    return DirectionMesh.build(d, np.radians(12.0), np.radians(0.3)), region
+    return DirectionMesh.alpha_shape(d, np.radians(12.0), np.radians(0.3)), region
 
 
 def test_grid_kernels_match_brute_force_reference(mesh_and_region):
@@ -66,7 +68,7 @@ def test_degenerate_directions_are_refused():
     line = np.array([[1.0, 0, 0], [0.99, 0.141, 0], [0.98, 0.199, 0]])
     line /= np.linalg.norm(line, axis=1, keepdims=True)
     with pytest.raises(InvalidInputError):
-        DirectionMesh.build(line, 0.1, 0.0)
+        DirectionMesh.alpha_shape(line, 0.1, 0.0)
 
 
 def test_slerp_dir_moves_margin_toward_target():
@@ -75,3 +77,36 @@ def test_slerp_dir_moves_margin_toward_target():
     out = bk.slerp_dir(p, d, np.pi / 2, 0.1)
     assert direction_angle(out, p) == pytest.approx(0.1, abs=1e-12)
     np.testing.assert_array_equal(bk.slerp_dir(p, d, np.pi / 2, 0.0), p)
+
+
+def test_cell_centres_inside_matches_fan_area_reference(mesh_and_region):
+    mesh, _ = mesh_and_region
+    n_theta, n_phi = mesh.grid_shape
+    u, v = bk._frame(mesh.axis)
+    i, j = np.divmod(np.arange(n_theta * n_phi), n_phi)
+    theta = (i + 0.5) * np.pi / n_theta
+    phi = -np.pi + (j + 0.5) * 2.0 * np.pi / n_phi
+    centres = np.cos(theta)[:, None] * mesh.axis + np.sin(theta)[:, None] * (
+        np.cos(phi)[:, None] * u + np.sin(phi)[:, None] * v
+    )
+    ref = inside_reference(centres, mesh.vertices, mesh.edges)
+    got = cell_centres_inside(mesh.vertices, mesh.edges, mesh.axis, mesh.grid_shape)
+    np.testing.assert_array_equal(got, ref)
+    assert 0 < got.sum() < got.size
+
+
+def test_inside_reference_beyond_a_hemisphere():
+    # a cap of 100 deg: points and their antipodes can both be inside
+    t = np.linspace(-np.pi, np.pi, 400, endpoint=False)
+    r = np.radians(100.0)
+    loop = np.column_stack(
+        [np.full(t.size, np.cos(r)), np.sin(r) * np.cos(t), np.sin(r) * np.sin(t)]
+    )
+    mesh = DirectionMesh.from_loops([loop], 0.0)
+    test = ConeRegion(np.radians(150.0)).test_directions(4000, np.random.default_rng(5))
+    truth = direction_angle(test, np.array([1.0, 0, 0])) < r
+    far = np.abs(direction_angle(test, np.array([1.0, 0, 0])) - r) > 1e-3
+    np.testing.assert_array_equal(mesh.contains(test)[far], truth[far])
+    np.testing.assert_array_equal(
+        inside_reference(test, mesh.vertices, mesh.edges)[far], truth[far]
+    )

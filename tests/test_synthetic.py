@@ -38,3 +38,18 @@ def test_polygon_ideal_is_nearest_boundary_point():
 def test_to_quaternions_points_the_limb():
     d = ConeRegion(1.0).sample(10, np.random.default_rng(2))
     np.testing.assert_allclose(limb_direction(to_quaternions(d)), d, atol=1e-12)
+
+
+def test_trajectory_samples_are_continuous_strokes_inside():
+    from limbctl.envelope.synthetic import trajectory_samples
+
+    rng = np.random.default_rng(3)
+    bean = PolygonRegion()
+    d = trajectory_samples(bean, 3000, rng)
+    assert d.shape == (3000, 3)
+    assert bean.contains(d).all()
+    steps = np.degrees(direction_angle(d[1:], d[:-1]))
+    # consecutive samples are close (a 100 Hz recording), except where a stroke ends
+    assert np.quantile(steps, 0.98) <= 0.31
+    # some strokes creep along the edge
+    assert (bean.depth(d) < np.radians(1.0)).mean() > 0.05

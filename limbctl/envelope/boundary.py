@@ -32,15 +32,14 @@ class DirectionMesh:
 
     Attributes
     ----------
-    vertices : (V, 3) unit directions.
-    triangles : (T, 3) int64, counter-clockwise seen from outside the sphere.
-    edges : (E, 2) int64 boundary edges, the region on the left of a -> b.
-    margin : float, the widening beyond the mesh boundary (rad).
+    vertices : (V, 3) unit directions of the boundary loops.
+    edges : (E, 2) int64 boundary arcs (short great-circle arcs), the region on the left of
+        a -> b seen from outside the sphere; they form closed loops.
+    margin : float, the widening beyond the boundary (rad).
     axis : (3,) unit axis of the lookup grid; grid_* : the lookup grid (see boundary_kernels).
     """
 
     vertices: np.ndarray
-    triangles: np.ndarray
     edges: np.ndarray
     margin: float
     axis: np.ndarray
@@ -51,30 +50,59 @@ class DirectionMesh:
     cell_edges: np.ndarray
 
     @classmethod
-    def build(
-        cls, directions: np.ndarray, alpha: float, margin: float, cells_per_radian: float = 40.0
+    def from_loops(
+        cls, loops: list[np.ndarray], margin: float, cells_per_radian: float = 40.0
     ) -> DirectionMesh:
-        """Alpha shape of ``directions`` (V, 3) with circumradius bound ``alpha``, widened by
-        ``margin``; the lookup grid has ``cells_per_radian`` cells per radian of polar angle."""
-        d = np.asarray(directions, dtype=np.float64)
-        d = d / np.linalg.norm(d, axis=1, keepdims=True)
-        triangles = alpha_triangles(d, alpha)
-        if triangles.shape[0] == 0:
+        """Region bounded by closed ``loops`` (each (M, 3) directions, region on the left),
+        widened by ``margin``; the lookup grid has ``cells_per_radian`` cells per radian of
+        polar angle."""
+        loops = [np.asarray(lp, dtype=np.float64) for lp in loops if len(lp) >= 3]
+        if not loops:
             raise InvalidInputError(
                 "the taught directions do not span an area (need at least 3 distinct, "
-                "not all on one great circle, within alpha of each other); teach more poses"
+                "not all on one great circle, near each other); teach more poses"
             )
-        edges = boundary_edges(triangles)
-        axis = d[np.unique(triangles)].mean(axis=0)
+        d = np.vstack(loops)
+        d = np.ascontiguousarray(d / np.linalg.norm(d, axis=1, keepdims=True))
+        edges = []
+        start = 0
+        for lp in loops:
+            idx = np.arange(start, start + lp.shape[0])
+            edges.append(np.column_stack([idx, np.roll(idx, -1)]))
+            start += lp.shape[0]
+        edges = np.ascontiguousarray(np.vstack(edges), dtype=np.int64)
+        axis = d.mean(axis=0)
         axis /= np.linalg.norm(axis)
         n_theta = max(8, int(np.ceil(np.pi * cells_per_radian)))
         grid_shape = np.array([n_theta, 2 * n_theta], dtype=np.int64)
-        inside, deep, start, cell_edges = bk.build_grid(
-            d, triangles, edges, axis, grid_shape, float(margin)
-        )
-        return cls(
-            d, triangles, edges, float(margin), axis, grid_shape, inside, deep, start, cell_edges
-        )
+        inside = cell_centres_inside(d, edges, axis, grid_shape)
+        deep, start_, cell_edges = bk.build_grid(d, edges, axis, grid_shape, inside, float(margin))
+        return cls(d, edges, float(margin), axis, grid_shape, inside, deep, start_, cell_edges)
+
+    @classmethod
+    def alpha_shape(cls, directions: np.ndarray, alpha: float, margin: float) -> DirectionMesh:
+        """The plain alpha shape of ``directions`` (V, 3) (circumradius <= ``alpha``)."""
+        d = np.asarray(directions, dtype=np.float64)
+        d = d / np.linalg.norm(d, axis=1, keepdims=True)
+        tri = alpha_triangles(d, alpha)
+        edges = boundary_edges(tri) if tri.shape[0] else np.empty((0, 2), dtype=np.int64)
+        return cls.from_edges(d, edges, margin)
+
+    @classmethod
+    def from_edges(cls, d: np.ndarray, edges: np.ndarray, margin: float) -> DirectionMesh:
+        """Region bounded by directed ``edges`` (E, 2) over directions ``d`` (closed loops)."""
+        nxt = {int(a): int(b) for a, b in edges}
+        loops, seen = [], set()
+        for a in nxt:
+            if a in seen:
+                continue
+            loop = []
+            while a not in seen:
+                seen.add(a)
+                loop.append(a)
+                a = nxt[a]
+            loops.append(d[loop])
+        return cls.from_loops(loops, margin)
 
     def contains(self, d: np.ndarray) -> np.ndarray:
         """(N,) bool for directions ``d`` (N, 3)."""
@@ -101,7 +129,6 @@ class DirectionMesh:
         """Everything needed to rebuild the mesh without recomputation (for saving)."""
         return {
             "mesh_vertices": self.vertices,
-            "mesh_triangles": self.triangles,
             "mesh_edges": self.edges,
             "mesh_axis": self.axis,
             "mesh_grid_shape": self.grid_shape,
@@ -116,7 +143,6 @@ class DirectionMesh:
         """Inverse of :meth:`arrays`."""
         return cls(
             np.ascontiguousarray(arrays["mesh_vertices"], dtype=np.float64),
-            np.ascontiguousarray(arrays["mesh_triangles"], dtype=np.int64),
             np.ascontiguousarray(arrays["mesh_edges"], dtype=np.int64),
             float(margin),
             np.ascontiguousarray(arrays["mesh_axis"], dtype=np.float64),
@@ -126,6 +152,67 @@ class DirectionMesh:
             np.ascontiguousarray(arrays["mesh_cell_start"], dtype=np.int64),
             np.ascontiguousarray(arrays["mesh_cell_edges"], dtype=np.int64),
         )
+
+
+def cell_centres_inside(
+    vertices: np.ndarray, edges: np.ndarray, axis: np.ndarray, grid_shape: np.ndarray
+) -> np.ndarray:
+    """Whether each grid cell's centre lies inside the loops (n_theta * n_phi,) bool.
+
+    All cells of one column share the half-meridian from the axis through their centres to
+    ``-axis``; the crossings of the boundary arcs with it are found once per column, and a
+    centre is inside when ``-axis`` is and the number of crossings beyond it is even, or when
+    ``-axis`` is outside and that number is odd.
+    """
+    n_theta, n_phi = int(grid_shape[0]), int(grid_shape[1])
+    u, v = bk._frame(axis)
+    a = vertices[edges[:, 0]]
+    b = vertices[edges[:, 1]]
+    theta_c = (np.arange(n_theta) + 0.5) * np.pi / n_theta
+    far_inside = bool(inside_reference(-axis[None, :], vertices, edges)[0])
+    out = np.empty((n_theta, n_phi), dtype=bool)
+    for j in range(n_phi):
+        phi = -np.pi + (j + 0.5) * 2.0 * np.pi / n_phi
+        e = np.cos(phi) * u + np.sin(phi) * v
+        n = -np.sin(phi) * u + np.cos(phi) * v
+        an = a @ n
+        bn = b @ n
+        cross = (an > 0.0) != (bn > 0.0)
+        # the arc meets the meridian plane at x = (1 - t) a + t b, t = a.n / (a.n - b.n)
+        t = an[cross] / (an[cross] - bn[cross])
+        x = (1.0 - t)[:, None] * a[cross] + t[:, None] * b[cross]
+        xe = x @ e
+        theta_x = np.sort(np.arctan2(xe, x @ axis)[xe > 0.0])
+        beyond = theta_x.size - np.searchsorted(theta_x, theta_c, side="right")
+        out[:, j] = far_inside != (beyond % 2 == 1)
+    return out.ravel()
+
+
+def fan_area(p: np.ndarray, vertices: np.ndarray, edges: np.ndarray) -> np.ndarray:
+    """Sum (N,) over boundary arcs a -> b of the signed area of the spherical triangle (p, a, b).
+
+    ``2 atan2(det(p, a, b), 1 + p.a + a.b + b.p)`` per arc. For a region R of area A bounded
+    by the arcs (R on their left) it equals ``A`` when ``-p`` is outside R and ``A - 4 pi``
+    when ``-p`` is inside: its sign says where the antipode of p lies.
+    """
+    a = vertices[edges[:, 0]]
+    b = vertices[edges[:, 1]]
+    cross = np.cross(a, b)
+    ab = np.sum(a * b, axis=1)
+    total = np.zeros(p.shape[0])
+    for start in range(0, p.shape[0], 2048):
+        q = p[start : start + 2048]
+        ang = 2.0 * np.arctan2(q @ cross.T, 1.0 + q @ a.T + ab[None, :] + q @ b.T)
+        total[start : start + 2048] = ang.sum(axis=1)
+    return total
+
+
+def inside_reference(p: np.ndarray, vertices: np.ndarray, edges: np.ndarray) -> np.ndarray:
+    """(N,) bool: directions ``p`` (N, 3) inside the region bounded by ``edges``.
+
+    By :func:`fan_area`: p is inside exactly when the fan area from ``-p`` is negative.
+    """
+    return fan_area(-p, vertices, edges) < 0.0
 
 
 def spherical_delaunay(d: np.ndarray) -> np.ndarray:
@@ -211,7 +298,7 @@ def nearest_on_edges_reference(
 
 def project_reference(mesh: DirectionMesh, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Brute-force ``(contains, project)`` for directions ``d`` (N, 3)."""
-    inside_mesh = in_triangles_reference(d, mesh.vertices, mesh.triangles)
+    inside_mesh = inside_reference(d, mesh.vertices, mesh.edges)
     point, angle = nearest_on_edges_reference(d, mesh.vertices, mesh.edges)
     inside = inside_mesh | (angle <= mesh.margin + CONTAIN_TOLERANCE)
     # outside: from the nearest boundary point, go margin along the arc toward d

@@ -3,7 +3,8 @@
 The grid divides the sphere into ``n_theta x n_phi`` cells in polar coordinates about ``axis``
 (``theta = angle to axis``, ``phi = atan2(p.v, p.u)``). For each cell, built once:
 
-- ``cell_inside``: whether its centre lies in a kept triangle;
+- ``cell_inside``: whether its centre lies in the region (computed in numpy, see
+  :func:`limbctl.envelope.boundary.cell_centres_inside`);
 - ``cell_deep``: every point of the cell is inside the widened region (centre inside the mesh
   and at least the cell radius ``r`` from the boundary, or within ``margin - r`` of it);
 - candidate boundary edges (CSR ``cell_start``/``cell_edges``): every edge whose distance from
@@ -157,27 +158,52 @@ def _polar_point(theta, phi, axis, u, v):
 
 
 @nb.njit(cache=True)
-def _in_triangles(p, vertices, triangles) -> bool:
-    for t in range(triangles.shape[0]):
-        a = vertices[triangles[t, 0]]
-        b = vertices[triangles[t, 1]]
-        c = vertices[triangles[t, 2]]
-        if _dot(p, a) + _dot(p, b) + _dot(p, c) <= 0.0:
-            continue
-        if _det(a, b, p) >= 0.0 and _det(b, c, p) >= 0.0 and _det(c, a, p) >= 0.0:
-            return True
-    return False
+def _edge_bounds(vertices, edges):
+    """Unit midpoint (E, 3) and half length (E,) rad of each boundary arc."""
+    n_edges = edges.shape[0]
+    mids = np.empty((n_edges, 3))
+    half = np.empty(n_edges)
+    for e in range(n_edges):
+        a = vertices[edges[e, 0]]
+        b = vertices[edges[e, 1]]
+        m = a + b
+        m /= math.sqrt(_dot(m, m))
+        mids[e] = m
+        half[e] = 0.5 * _angle(a, b)
+    return mids, half
+
+
+@nb.njit(cache=True)
+def _near_edges(centre, mids, reach) -> np.ndarray:
+    """Indices of arcs whose midpoint is within ``reach`` (rad) of ``centre`` (any if >= pi)."""
+    n_edges = mids.shape[0]
+    out = np.empty(n_edges, dtype=np.int64)
+    k = 0
+    limit = math.cos(reach) if reach < math.pi else -2.0
+    for e in range(n_edges):
+        if _dot(centre, mids[e]) >= limit:
+            out[k] = e
+            k += 1
+    return out[:k]
 
 
 @nb.njit(cache=True, parallel=True)
-def build_grid(vertices, triangles, edges, axis, grid_shape, margin):
-    """Cell status and candidate edges (see the module docstring) -> inside, deep, start, list."""
+def build_grid(vertices, edges, axis, grid_shape, inside, margin):
+    """Cell depth status and candidate edges (module docstring) -> deep, start, edge list.
+
+    ``inside`` (cells,) says whether each cell's centre lies in the region.
+    """
     n_theta = grid_shape[0]
     n_phi = grid_shape[1]
     n_cells = n_theta * n_phi
     u, v = _frame(axis)
     n_edges = edges.shape[0]
-    inside = np.zeros(n_cells, dtype=np.bool_)
+    mids, half = _edge_bounds(vertices, edges)
+    # every point of an arc lies within its half length of the midpoint, so an arc can only be
+    # within ``b`` of the centre if its midpoint is within ``b + max_half`` (a prefilter by dots)
+    max_half = 0.0
+    for e in range(n_edges):
+        max_half = max(max_half, half[e])
     deep = np.zeros(n_cells, dtype=np.bool_)
     counts = np.zeros(n_cells, dtype=np.int64)
     bound = np.empty(n_cells)
@@ -198,16 +224,20 @@ def build_grid(vertices, triangles, edges, axis, grid_shape, margin):
         r = r * 1.01 + 1e-12
         centres[cell] = centre
         tmp = np.empty(3)
-        best = np.inf
+        # an upper bound of the distance to the boundary: nearest midpoint + its half length
+        top = -2.0
         for e in range(n_edges):
+            top = max(top, _dot(centre, mids[e]))
+        upper = math.acos(min(1.0, max(-1.0, top))) + max_half
+        best = np.inf
+        for e in _near_edges(centre, mids, upper + max_half + 1e-9):
             dist = nearest_on_arc(centre, vertices[edges[e, 0]], vertices[edges[e, 1]], tmp)
             best = min(best, dist)
-        inside[cell] = _in_triangles(centre, vertices, triangles)
         deep[cell] = (inside[cell] and best >= r) or (best + r <= margin)
         bound[cell] = best + 2.0 * r
         if not deep[cell]:
             c = 0
-            for e in range(n_edges):
+            for e in _near_edges(centre, mids, bound[cell] + max_half + 1e-9):
                 dist = nearest_on_arc(centre, vertices[edges[e, 0]], vertices[edges[e, 1]], tmp)
                 if dist <= bound[cell]:
                     c += 1
@@ -221,12 +251,12 @@ def build_grid(vertices, triangles, edges, axis, grid_shape, margin):
             continue
         k = start[cell]
         tmp = np.empty(3)
-        for e in range(n_edges):
+        for e in _near_edges(centres[cell], mids, bound[cell] + max_half + 1e-9):
             dist = nearest_on_arc(centres[cell], vertices[edges[e, 0]], vertices[edges[e, 1]], tmp)
             if dist <= bound[cell]:
                 cell_edges[k] = e
                 k += 1
-    return inside, deep, start, cell_edges
+    return deep, start, cell_edges
 
 
 @nb.njit(cache=True)

@@ -5,23 +5,30 @@ trained from valid orientations only (winner by position while training, Table I
 schedules, see :mod:`limbctl.envelope.rigidmap_kernels`), winner by weight when answering,
 optionally interpolated with the runner-ups.
 
-``contains``/``correct`` make that system exact, on top of the trained map:
+``contains``/``correct`` make that system exact, on top of the trained map
+(:mod:`limbctl.envelope.region_shape` holds the geometry):
 
-1. *Support refinement*: a second layer of nodes is placed where the data lies (positions at the
-   training orientations, at most ``support_nodes`` of them), initialised with the trained map's
-   geometric-interpolated answer there, and trained by the same rule and schedule.
-2. *Region mesh*: the limb directions of those trained weights are triangulated (spherical
-   Delaunay) and the triangles with circumradius at most ``alpha`` (``alpha_factor`` times the
-   90th percentile of the nearest-weight spacing) are the region: an alpha shape, non-convex
-   where the data is.
-3. *Learned threshold*: the region is widened by ``margin = margin_factor`` times the median
-   boundary edge (the typical gap between the outermost data and the true edge), at most
-   ``max_margin_deg``.
+1. *Support refinement*: a second layer of nodes is placed where the data lies: positions at
+   training orientations thinned to at least ``thin_deg`` apart (outermost kept; at most
+   ``support_nodes``, the spacing grows until they fit), weights initialised with the trained
+   map's geometric-interpolated answer there and trained by the same rule and schedule on all
+   the data.
+2. *Region shape*: the limb directions of those trained weights are triangulated (spherical
+   Delaunay); triangles with circumradius at most ``alpha`` are kept, where ``alpha`` is learned
+   from the data's scale (``alpha_factor`` times the 90th percentile of the empty-circle radii
+   of the gaps the weights enclose), and holes smaller than ``hole_fraction`` of the region are
+   filled: an alpha shape that closes the gaps between a hand's strokes and keeps concavities
+   larger than them.
+3. *Smooth boundary*: its boundary loops are resampled every ``BOUNDARY_STEP_DEG`` and smoothed
+   along the loop (Gaussian, ``smooth_factor`` times the median boundary edge).
+4. *Learned edge*: each part of the loop moves out to where the data say the true edge lies
+   (the outermost samples' depths and the spacing of their order statistics, at most
+   ``max_margin_deg`` beyond the outermost sample), and never inside any taught sample.
 
-``contains(q)`` asks whether the limb direction lies in the widened mesh; ``correct(q)`` returns
+``contains(q)`` asks whether the limb direction lies in that region; ``correct(q)`` returns
 ``q`` itself then, otherwise the orientation whose limb direction is the nearest direction of
-the widened region (exact: great-circle boundary arcs), keeping the twist about the limb. Both
-answer from one precomputed grid over directions in O(1) per command.
+the region (exact: great-circle boundary arcs), keeping the twist about the limb. Both answer
+from one precomputed grid over directions in O(1) per command.
 """
 
 from __future__ import annotations
@@ -30,12 +37,22 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from limbctl.envelope import region_shape as rs
 from limbctl.envelope import rigidmap_kernels as rk
 from limbctl.envelope.base import Envelope
 from limbctl.envelope.boundary import DirectionMesh
 from limbctl.envelope.layouts import make_layout
 from limbctl.errors import ConfigError, InvalidInputError
 from limbctl.quat import as_quaternions, limb_direction
+
+#: Spacing (degrees) of the gate's boundary vertices after smoothing.
+BOUNDARY_STEP_DEG = 0.4
+#: Outermost samples per boundary window used to estimate the gap to the true edge.
+EDGE_ORDER_STATISTICS = 12
+#: Half width of the boundary windows, in units of the smoothing width.
+EDGE_WINDOW = 2.0
+#: Version of the gate's saved arrays; models of older versions must be retrained.
+GATE_VERSION = 2
 
 
 class RigidMap(Envelope):
@@ -61,10 +78,12 @@ class RigidMap(Envelope):
         Distance used to pick winners (Table I).
     support_nodes : int
         Largest number of refinement nodes placed on the data for the gate.
-    alpha_factor, margin_factor : float
+    thin_deg : float
+        Smallest spacing (degrees) of the refinement nodes' positions.
+    alpha_factor, hole_fraction, smooth_factor : float
         Gate shape parameters (module docstring).
     max_margin_deg : float
-        Upper bound of the learned margin (degrees): outputs stay this close to the data.
+        How far (degrees) the learned edge may lie beyond the outermost taught sample.
     """
 
     kind: ClassVar[str] = "rigidmap"
@@ -83,8 +102,10 @@ class RigidMap(Envelope):
         tol: float = 1e-9,
         metric: str = "euclidean",
         support_nodes: int = 3000,
-        alpha_factor: float = 4.0,
-        margin_factor: float = 0.25,
+        thin_deg: float = 1.0,
+        alpha_factor: float = 2.0,
+        hole_fraction: float = 0.2,
+        smooth_factor: float = 3.0,
         max_margin_deg: float = 0.75,
     ) -> None:
         if metric not in rk.METRICS:
@@ -93,6 +114,15 @@ class RigidMap(Envelope):
             raise ConfigError(f"neighbourhood must be in (0, 1], got {neighbourhood}")
         if int(max_epochs) < 1 or int(support_nodes) < 3:
             raise ConfigError("max_epochs must be >= 1 and support_nodes >= 3")
+        for name, value in (
+            ("thin_deg", thin_deg),
+            ("alpha_factor", alpha_factor),
+            ("smooth_factor", smooth_factor),
+        ):
+            if not value > 0.0:
+                raise ConfigError(f"{name} must be > 0, got {value}")
+        if not (hole_fraction >= 0.0 and max_margin_deg >= 0.0):
+            raise ConfigError("hole_fraction and max_margin_deg must be >= 0")
         self.nodes = nodes
         self.layout = layout
         self.seed = int(seed)
@@ -105,8 +135,10 @@ class RigidMap(Envelope):
         self.tol = float(tol)
         self.metric = metric
         self.support_nodes = int(support_nodes)
+        self.thin_deg = float(thin_deg)
         self.alpha_factor = float(alpha_factor)
-        self.margin_factor = float(margin_factor)
+        self.hole_fraction = float(hole_fraction)
+        self.smooth_factor = float(smooth_factor)
         self.max_margin_deg = float(max_margin_deg)
         self.positions = make_layout(layout, nodes, seed=seed)
         self._weights: np.ndarray | None = None
@@ -142,30 +174,52 @@ class RigidMap(Envelope):
         self.epochs = self._train(self.positions, weights, patterns)
         self._weights = weights
         # refinement: nodes where the data lies, starting from the map's answer there
-        count = min(self.support_nodes, q.shape[0])
-        support = np.ascontiguousarray(patterns[:count])
+        d_train = limb_direction(q)
+        support = np.ascontiguousarray(q[self._support_indices(d_train)])
         self.support_positions = support
         support_weights = self.respond(support, interpolation="geometric", k=8)
         self._train(support, support_weights, patterns)
         self.support_weights = support_weights
-        self.mesh = self._build_mesh(support_weights)
+        self.mesh = self._build_mesh(support_weights, d_train)
         return self
 
-    def _build_mesh(self, support_weights: np.ndarray) -> DirectionMesh:
+    def _support_indices(self, d: np.ndarray) -> np.ndarray:
+        """Training rows for the refinement nodes: thinned, at most ``support_nodes``."""
+        spacing = np.radians(self.thin_deg)
+        while True:
+            keep = rs.thin(d, spacing)
+            if keep.size <= self.support_nodes:
+                return keep
+            # area per node ~ spacing^2: grow the spacing to fit the cap
+            spacing *= max(1.05, np.sqrt(keep.size / self.support_nodes))
+
+    def _build_mesh(self, support_weights: np.ndarray, d_train: np.ndarray) -> DirectionMesh:
         d = limb_direction(support_weights / np.linalg.norm(support_weights, axis=1)[:, None])
-        dots = d @ d.T
-        np.fill_diagonal(dots, -1.0)
-        spacing = np.arccos(np.clip(dots.max(axis=1), -1.0, 1.0))
-        alpha = self.alpha_factor * float(np.quantile(spacing, 0.9))
-        bare = DirectionMesh.build(d, alpha, 0.0, cells_per_radian=4.0)
-        edge_len = np.arccos(
-            np.clip(np.sum(d[bare.edges[:, 0]] * d[bare.edges[:, 1]], axis=1), -1.0, 1.0)
+        alpha = rs.learn_alpha(d, self.alpha_factor)
+        tri, _, inside = rs.alpha_complex(d, alpha, max_hole=0.0)
+        area = float(rs.triangle_area(d, tri[inside]).sum())
+        loops = rs.alpha_loops(d, alpha, max_hole=self.hole_fraction * area)
+        if not loops:
+            return DirectionMesh.from_loops(loops, 0.0)
+        edge = np.concatenate(
+            [
+                np.arccos(np.clip(np.sum(lp * np.roll(lp, -1, axis=0), axis=1), -1, 1))
+                for lp in loops
+            ]
         )
-        # margin = min(margin_factor median(edge), max_margin): never far beyond the data
-        margin = min(
-            self.margin_factor * float(np.median(edge_len)), np.radians(self.max_margin_deg)
+        sigma = self.smooth_factor * float(np.median(edge))
+        step = np.radians(BOUNDARY_STEP_DEG)
+        smooth = [rs.smooth_loop(lp, step, sigma) for lp in loops]
+        offsets = rs.edge_offsets(
+            smooth,
+            d_train,
+            EDGE_WINDOW * sigma,
+            EDGE_ORDER_STATISTICS,
+            np.radians(self.max_margin_deg),
+            step,
         )
-        return DirectionMesh.build(d, alpha, margin)
+        final = [rs.offset_loop(lp, o) for lp, o in zip(smooth, offsets, strict=True)]
+        return DirectionMesh.from_loops(final, 0.0)
 
     # ---- answering ---------------------------------------------------------------------------
     def _trained(self) -> None:
@@ -264,9 +318,12 @@ class RigidMap(Envelope):
             "tol": self.tol,
             "metric": self.metric,
             "support_nodes": self.support_nodes,
+            "thin_deg": self.thin_deg,
             "alpha_factor": self.alpha_factor,
-            "margin_factor": self.margin_factor,
+            "hole_fraction": self.hole_fraction,
+            "smooth_factor": self.smooth_factor,
             "max_margin_deg": self.max_margin_deg,
+            "gate_version": GATE_VERSION,
             "epochs": self.epochs,
             "margin": self.mesh.margin if self.mesh is not None else 0.0,
         }
@@ -284,6 +341,8 @@ class RigidMap(Envelope):
     @classmethod
     def _restore(cls, params: dict[str, Any], arrays: dict[str, np.ndarray]) -> RigidMap:
         params = dict(params)
+        if params.pop("gate_version", 1) != GATE_VERSION:
+            raise ValueError("saved by an older limbctl gate; retrain with `limbctl train`")
         epochs = int(params.pop("epochs"))
         margin = float(params.pop("margin"))
         model = cls(**params)

@@ -223,6 +223,80 @@ class PolygonRegion(Region):
         return np.where(self._inside_joint_space(d)[:, None], d, nearest)
 
 
+def trajectory_samples(
+    region: Region,
+    n: int,
+    rng: np.random.Generator,
+    step_deg: float = 0.3,
+    edge_share: float = 0.3,
+    edge_inset_deg: float = 0.5,
+) -> np.ndarray:
+    """``n`` directions (n, 3) recorded the way a hand teaches: continuous strokes, in order.
+
+    Strokes run along great circles between waypoints drawn with the region's own (middle
+    heavy) density, ``step_deg`` apart (a 100 Hz recording at ~30 deg/s), only where the whole
+    stroke stays inside; with probability ``edge_share`` the next stroke instead creeps along
+    the boundary, ``edge_inset_deg`` inside it, at a third of the step (slow edge strokes over
+    10 to 40 deg). Consecutive samples are close and strokes leave gaps between them.
+    """
+    step = np.radians(step_deg)
+    edge = _edge_track(region, np.radians(edge_inset_deg))
+    out = [region.sample(1, rng)[0]]
+    total = 1
+    while total < n:
+        here = out[-1]
+        if rng.uniform() < edge_share:
+            # creep along the inset boundary from its point nearest the hand
+            start = int(np.argmax(edge @ here))
+            length = rng.uniform(np.radians(10.0), np.radians(40.0))
+            count = max(2, int(length / (step / 3.0)))
+            # samples step / 3 apart along a track of len(edge) points over its length
+            advance = (step / 3.0) * len(edge) / _track_length(edge)
+            way = 1.0 if rng.uniform() < 0.5 else -1.0
+            idx = np.round(start + way * advance * np.arange(count)).astype(int)
+            stroke = edge[idx % len(edge)]
+        else:
+            target = region.sample(1, rng)[0]
+            angle = float(direction_angle(here, target))
+            count = max(2, int(np.ceil(angle / step)))
+            t = np.linspace(0.0, 1.0, count)[:, None]
+            # slerp between here and target: sin((1-t)a)/sin(a) here + sin(ta)/sin(a) target
+            stroke = (np.sin((1.0 - t) * angle) * here + np.sin(t * angle) * target) / np.sin(
+                max(angle, 1e-12)
+            )
+            if not region.contains(stroke).all():
+                continue
+        out.extend(stroke)
+        total += len(stroke)
+    return np.asarray(out[:n])
+
+
+def _edge_track(region: Region, inset: float) -> np.ndarray:
+    """Dense directions (K, 3) ``inset`` (rad) inside the region's boundary, in loop order."""
+    if isinstance(region, ConeRegion):
+        t = np.linspace(-np.pi, np.pi, 3600, endpoint=False)
+        u, v = _tangent_frame(region.axis)
+        r = region.radius - inset
+        return np.cos(r) * region.axis + np.sin(r) * (
+            np.cos(t)[:, None] * u + np.sin(t)[:, None] * v
+        )
+    b = region.boundary
+    # move each boundary point toward the axis until it is ``inset`` deep (a few steps)
+    track = b.copy()
+    for _ in range(3):
+        deficit = inset - region.depth(track)
+        toward = region.axis - (track @ region.axis)[:, None] * track
+        toward /= np.linalg.norm(toward, axis=1, keepdims=True)
+        track = track + deficit[:, None] * toward
+        track /= np.linalg.norm(track, axis=1, keepdims=True)
+    return track[region.contains(track)]
+
+
+def _track_length(track: np.ndarray) -> float:
+    """Length (rad) of a closed track of directions (K, 3)."""
+    return float(np.sum(direction_angle(track, np.roll(track, -1, axis=0))))
+
+
 def _nearest_on_arc(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Nearest point on the short great-circle arcs a-b (rows) to directions p, and its angle."""
     n = np.cross(a, b)
