@@ -16,6 +16,7 @@ weights (one command from Python, and 200,000 in a batch); cold and warm import-
 from __future__ import annotations
 
 import argparse
+import os
 import subprocess
 import sys
 import tempfile
@@ -27,23 +28,46 @@ from scipy.spatial import cKDTree
 
 from limbctl.envelope import RigidMap
 from limbctl.envelope import rigidmap_kernels as rk
-from limbctl.envelope.synthetic import ConeRegion, PolygonRegion, to_quaternions
+from limbctl.envelope.synthetic import (
+    ConeRegion,
+    PolygonRegion,
+    to_quaternions,
+    trajectory_samples,
+)
 from limbctl.quat import direction_angle, euclidean_distance, limb_direction
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def accuracy_rows(n_train: int, n_test: int, seed: int) -> list[list[str]]:
+#: The simulator's irregular hand region (examples/regions/irregular.yaml), pan/tilt degrees.
+IRREGULAR = np.array(
+    [[-70, 5], [-66, -18], [-52, -31], [-30, -35], [-5, -32], [22, -34], [48, -30], [68, -18],
+     [80, 2], [77, 26], [64, 46], [44, 58], [24, 57], [10, 44], [-4, 36], [-18, 41],
+     [-36, 52], [-55, 46], [-67, 28]], dtype=float
+)  # fmt: skip
+
+
+def accuracy_rows(n_train: int, n_test: int, n_strokes: int, seed: int) -> list[list[str]]:
     rows = []
     regions = [
-        ("cone 20", ConeRegion(np.radians(20.0))),
-        ("cone 90", ConeRegion(np.radians(90.0))),
-        ("bean", PolygonRegion()),
+        ("cone 20", ConeRegion(np.radians(20.0)), "iid"),
+        ("cone 90", ConeRegion(np.radians(90.0)), "iid"),
+        ("bean", PolygonRegion(), "iid"),
+        ("strokes: irregular", PolygonRegion(IRREGULAR), "strokes"),
+        ("strokes: cone 30", ConeRegion(np.radians(30.0)), "strokes"),
     ]
-    for name, region in regions:
+    for name, region, kind in regions:
         rng = np.random.default_rng(seed)
         model = RigidMap(nodes=2000, layout="uniform", seed=seed)
-        model.fit(to_quaternions(region.sample(n_train, rng)))
+        if kind == "iid":
+            train = region.sample(n_train, rng)
+        else:
+            train = trajectory_samples(region, n_strokes, rng)
+        q_train = to_quaternions(train)
+        t_fit = time.perf_counter()
+        model.fit(q_train)
+        t_fit = time.perf_counter() - t_fit
+        contained = model.contains(q_train).mean()
         test = region.test_directions(n_test, rng)
         ideal = region.ideal(test)
         depth = region.depth(test)
@@ -71,6 +95,8 @@ def accuracy_rows(n_train: int, n_test: int, seed: int) -> list[list[str]]:
                     f"{100 * near:.2f}",
                     f"{mse:.3e}",
                     f"{err3d:.3e}",
+                    f"{100 * contained:.2f}" if label == "correct" else "",
+                    f"{t_fit:.1f}" if label == "correct" else "",
                 ]
             )
     return rows
@@ -177,6 +203,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--train", type=int, default=1000)
     parser.add_argument("--test", type=int, default=20000)
+    parser.add_argument("--strokes", type=int, default=7500, help="samples of hand strokes")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", type=Path, default=ROOT / "docs" / "bench_envelope.md")
     args = parser.parse_args()
@@ -189,15 +216,21 @@ def main() -> None:
             "inside or within 1 deg (%)",
             "quaternion MSE",
             "3D error (RMS, unit limb)",
+            "training samples contained (%)",
+            "fit (s)",
         ],
-        accuracy_rows(args.train, args.test, args.seed),
+        accuracy_rows(args.train, args.test, args.strokes, args.seed),
     )
     speed = table(["what", "time", "ratio"], speed_rows(args.seed))
     start = table(["import to first correct()", "time"], startup_rows(args.seed))
     command = "`.venv/bin/python benchmarks/bench_envelope.py " + " ".join(sys.argv[1:]) + "`"
     text = (
         "# Rigid Map: accuracy and speed\n\n"
-        f"Produced by {command} (2 shared CPU cores).\n\n"
+        f"Produced by {command} (2 CPU cores shared with other work; load average "
+        f"{os.getloadavg()[0]:.1f} at the end of the run).\n\n"
+        "i.i.d. rows: teaching samples from the region's density; stroke rows: "
+        f"{args.strokes} samples of synthetic hand strokes (`trajectory_samples`: continuous "
+        "strokes 0.3 deg apart, slow edge strokes, gaps between strokes).\n\n"
         "Targets for `correct`: mean angle <= 0.5 deg; >= 99% valid unchanged; "
         ">= 99.5% inside or within 1 deg.\n\n"
         f"## Accuracy\n\n{acc}\n\n## Speed\n\n{speed}\n\n## Start-up\n\n{start}\n"
