@@ -209,6 +209,8 @@ class LiveResult:
     seconds: float = 0.0
     goals_logged: int = 0
     worst_excursion_deg: float = 0.0
+    missed_writes: int = 0
+    worst_mixed_excursion_deg: float = 0.0
     limit_violations: int = 0
     bus_errors: int = 0
     cycles_lost: int = 0
@@ -217,6 +219,7 @@ class LiveResult:
     ended_by: str = ""
     held_error_ticks: int = 0
     rss_growth_mb: float = 0.0
+    mixed_bound_deg: float = 0.0
 
 
 def live_soak(seconds: float, seed: int = 0, model=None, rate_hz: float = 500.0) -> LiveResult:
@@ -294,10 +297,14 @@ def live_soak(seconds: float, seed: int = 0, model=None, rate_hz: float = 500.0)
             summary.failed_cycles,
             summary.ended_by,
         )
+        # a packet logs one line per servo that got it; a servo that vanished in that instant
+        # misses it and the pose mixes two consecutive gated poses (docs/safety.md, promise 1)
         by_time: dict[float, dict] = {}
+        heard: dict[float, set] = {}
         for raw in log.read_text().splitlines():
             row = json.loads(raw)
             by_time[row["t"]] = row
+            heard.setdefault(row["t"], set()).add(row["id"])
         lo_pan, hi_pan = PROFILE.pan.tick_limits
         lo_tilt, hi_tilt = PROFILE.tilt.tick_limits
         goals_now: dict[int, int] = {}
@@ -308,10 +315,15 @@ def live_soak(seconds: float, seed: int = 0, model=None, rate_hz: float = 500.0)
             if g1 is not None and g2 is not None:
                 out.limit_violations += not (lo_pan <= g1 <= hi_pan and lo_tilt <= g2 <= hi_tilt)
         out.goals_logged = len(by_time)
-        for row in by_time.values():
+        for t, row in by_time.items():
             d = np.asarray(row["limb_dir"], dtype=np.float64)
-            d /= np.linalg.norm(d)
-            out.worst_excursion_deg = max(out.worst_excursion_deg, excursion_deg(model, d))
+            worst = excursion_deg(model, d / np.linalg.norm(d))
+            if heard[t] == set(PROFILE.ids):
+                out.worst_excursion_deg = max(out.worst_excursion_deg, worst)
+            else:
+                out.missed_writes += 1
+                out.worst_mixed_excursion_deg = max(out.worst_mixed_excursion_deg, worst)
+        out.mixed_bound_deg = math.degrees(limits.region_tolerance + limits.max_joint_step)
     return out
 
 
@@ -363,6 +375,7 @@ def main() -> int:
     ok &= compressed.held_drift_ticks == 0
     if live is not None:
         ok &= live.limit_violations == 0 and live.worst_excursion_deg <= compressed.tolerance_deg
+        ok &= live.worst_mixed_excursion_deg <= live.mixed_bound_deg + ROUNDING_DEG
     return 0 if ok else 1
 
 

@@ -34,6 +34,9 @@ from limbctl.errors import BusError, ConfigError, ServoAlarm
 from limbctl.gate import Gate, GateResult, Outcome
 from limbctl.sources import CommandSource
 
+#: Cycle and gate times kept for the summary's percentiles (the most recent ones).
+TIMING_WINDOW = 100_000
+
 
 class SafeState(enum.Enum):
     """What the loop leaves the rig in after a fault."""
@@ -102,8 +105,9 @@ class TeleopSummary:
     bus_errors: int = 0
     failed_cycles: int = 0
     overruns: int = 0
-    cycle_times_s: list[float] = field(default_factory=list)
-    gate_times_s: list[float] = field(default_factory=list)
+    # the latest TIMING_WINDOW cycles only: a session of hours must not grow without bound
+    cycle_times_s: deque = field(default_factory=lambda: deque(maxlen=TIMING_WINDOW))
+    gate_times_s: deque = field(default_factory=lambda: deque(maxlen=TIMING_WINDOW))
     ended_by: str = ""
     fault: str = ""
     exit_code: int = 0
