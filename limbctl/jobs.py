@@ -51,7 +51,7 @@ def cmd_record(args: argparse.Namespace) -> int:
 def cmd_train(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
-    from limbctl.train import train
+    from limbctl.train import STAGES, train
 
     options: dict[str, object] = {}
     if args.kind == "rigidmap":
@@ -64,9 +64,16 @@ def cmd_train(args: argparse.Namespace) -> int:
         options["seed"] = args.seed
     elif args.nodes is not None or args.layout is not None:
         raise ConfigError("--nodes and --layout apply to --kind rigidmap only")
-    with tqdm(total=1, desc=f"training {args.kind}", unit="model", file=sys.stderr) as bar:
-        summary = train(args.data, args.out, args.kind, options)
-        bar.update(1)
+    with tqdm(
+        total=len(STAGES), desc=f"training {args.kind}", unit="stage", file=sys.stderr
+    ) as bar:
+
+        def advance(finished: str) -> None:
+            following = STAGES.index(finished) + 1
+            bar.set_postfix_str(STAGES[following] if following < len(STAGES) else "done")
+            bar.update(1)
+
+        summary = train(args.data, args.out, args.kind, options, progress=advance)
     for line in summary.lines():
         _say(line)
     _say(f"wrote {args.out}")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -80,13 +81,7 @@ def summarize(model: Any, q: np.ndarray) -> TrainSummary:
     mean /= np.linalg.norm(mean)
     spread = math.degrees(float(direction_angle(directions, mean).max()))
     inside = np.asarray(model.contains(q), dtype=bool)
-    boundary = getattr(model, "boundary_directions", None)
-    if callable(boundary):
-        boundary = boundary()
-    if boundary is not None and len(boundary):
-        b_pan, b_tilt = direction_to_pan_tilt(np.asarray(boundary))
-    else:
-        b_pan, b_tilt = pan[inside], tilt[inside]
+    b_pan, b_tilt = _region_extent(model, pan, tilt)
     return TrainSummary(
         samples=len(q),
         pan_range_deg=_range_deg(pan),
@@ -97,6 +92,25 @@ def summarize(model: Any, q: np.ndarray) -> TrainSummary:
         contained_fraction=float(inside.mean()),
         nodes=len(model.weights),
     )
+
+
+def _region_extent(
+    model: Any, pan: np.ndarray, tilt: np.ndarray, margin_deg: float = 20.0, step_deg: float = 0.5
+) -> tuple[np.ndarray, np.ndarray]:
+    """Joint angles (rad) of the grid points the model contains, on a ``step_deg`` pan/tilt grid
+    spanning the samples' extent plus ``margin_deg`` (what the learned region really covers)."""
+    from limbctl.gimbal import pan_tilt_to_quat
+
+    margin, step = math.radians(margin_deg), math.radians(step_deg)
+    pans = np.arange(max(pan.min() - margin, -math.pi), min(pan.max() + margin, math.pi), step)
+    tilts = np.arange(
+        max(tilt.min() - margin, -math.pi / 2), min(tilt.max() + margin, math.pi / 2), step
+    )
+    grid_pan, grid_tilt = (a.ravel() for a in np.meshgrid(pans, tilts))
+    inside = np.asarray(model.contains(pan_tilt_to_quat(grid_pan, grid_tilt)), dtype=bool)
+    if not inside.any():
+        return pan, tilt
+    return grid_pan[inside], grid_tilt[inside]
 
 
 MODEL_KINDS = ("rigidmap", "som", "cone")
@@ -125,11 +139,16 @@ def build_model(kind: str, **options: Any) -> Any:
         raise ConfigError(f"bad options for {kind}: {exc}") from exc
 
 
+#: The stages :func:`train` reports to its ``progress`` callback, in order.
+STAGES = ("load dataset", "fit model", "save model", "summarise")
+
+
 def train(
     data_path: str | Path,
     out_path: str | Path,
     kind: str = "rigidmap",
     options: dict[str, Any] | None = None,
+    progress: Callable[[str], None] | None = None,
 ) -> TrainSummary:
     """Fit a model to a recorded dataset and save it next to nothing else (one file).
 
@@ -143,6 +162,8 @@ def train(
         One of :data:`MODEL_KINDS`.
     options : dict
         Keyword options of the model's constructor (nodes, layout, seed, ...).
+    progress : callable, optional
+        Called with the name of each stage of :data:`STAGES` as it finishes.
 
     Returns
     -------
@@ -150,8 +171,10 @@ def train(
     """
     from limbctl.dataset import load_dataset
 
+    done = progress or (lambda stage: None)
     data = load_dataset(data_path)
     q = data.quaternions
+    done(STAGES[0])
     if len(q) < 10:
         raise ConfigError(
             f"{data_path}: only {len(q)} samples; record longer (at least a few seconds "
@@ -159,6 +182,10 @@ def train(
         )
     model = build_model(kind, **(options or {}))
     model.fit(q)
+    done(STAGES[1])
     metadata = {"rig": data.header.rig, "dataset": str(data_path), "samples": len(q)}
     model.save(out_path, metadata=metadata)
-    return summarize(model, q)
+    done(STAGES[2])
+    summary = summarize(model, q)
+    done(STAGES[3])
+    return summary
