@@ -40,10 +40,8 @@ from limbctl.control_table import (
     HARDWARE_ERROR_ADVICE,
     MAX_TICK,
     MODEL_BY_NAME,
-    DriveModeBit,
     HardwareError,
     ModelNumber,
-    OperatingMode,
     Register,
     StatusError,
     decode_hardware_error,
@@ -59,7 +57,7 @@ from limbctl.errors import (
     PortError,
     ServoAlarm,
 )
-from limbctl.transfers import Attempt
+from limbctl.transfers import SDK_LATENCY_TIMER_MS, Attempt, TunedPortHandler
 
 try:  # POSIX serial ports report a vanished device through termios as well
     from termios import error as _TermiosError
@@ -68,8 +66,6 @@ except ImportError:  # pragma: no cover - not POSIX
 
 #: What the serial layer raises when the port fails or disappears.
 _PORT_FAILURES = (serial.SerialException, OSError, _TermiosError)
-#: Status Return Level at which every instruction is answered.
-STATUS_RETURN_ALL = 2
 
 
 @dataclass
@@ -81,30 +77,6 @@ class BusStats:
     timeouts: int = 0
     corrupt: int = 0
     alarms: int = 0
-
-
-#: The SDK's assumption for the USB adapter's latency timer (ms): an FTDI chip's default.
-SDK_LATENCY_TIMER_MS = 16.0
-
-
-class _TunedPortHandler(PortHandler):
-    """The SDK's PortHandler with the reply timeout computed for the adapter's real latency.
-
-    The SDK waits ``bytes * byte time + 2 * 16 ms + 2 ms`` for a reply, assuming an FTDI latency
-    timer of 16 ms; with the timer lowered to 1 ms (README) or on the simulator's pty, a dropped
-    reply then costs one control cycle instead of seven.
-    """
-
-    def __init__(self, port_name: str, latency_timer_ms: float) -> None:
-        super().__init__(port_name)
-        self.latency_timer_ms = float(latency_timer_ms)
-
-    def setPacketTimeout(self, packet_length: int) -> None:  # noqa: N802 (SDK's name)
-        self.packet_start_time = self.getCurrentTime()
-        # timeout = bytes * byte time + 2 * latency timer + 2 ms (the SDK's rule)
-        self.packet_timeout = (
-            self.tx_time_per_byte * packet_length + 2.0 * self.latency_timer_ms + 2.0
-        )
 
 
 class ServoBus:
@@ -212,7 +184,7 @@ class ServoBus:
         hint = "check the cable / permissions (dialout group) / --port"
         if not os.path.exists(self.port_name):
             raise PortError(f"serial port {self.port_name} does not exist: {hint}")
-        port = _TunedPortHandler(self.port_name, self.latency_timer_ms)
+        port = TunedPortHandler(self.port_name, self.latency_timer_ms)
         try:
             opened = port.setBaudRate(self.baud)
         except _PORT_FAILURES as exc:
@@ -475,61 +447,11 @@ class ServoBus:
         profile_velocity: int = 200,
         profile_acceleration: int = 50,
     ) -> None:
-        """Prepare every servo for position control. Turns torque OFF (EEPROM needs it).
+        """Prepare every servo for position control; turns torque OFF (see
+        :func:`limbctl.servo_setup.configure_servos`)."""
+        from limbctl.servo_setup import configure_servos
 
-        Parameters
-        ----------
-        position_limits : mapping id -> (min_tick, max_tick)
-            Written to Min/Max Position Limit (EEPROM), so the servo itself refuses goals
-            beyond the rig's hard limits: the last line of defence.
-        profile_velocity : int
-            Profile Velocity in units of 0.229 rev/min (0 = no limit).
-        profile_acceleration : int
-            Profile Acceleration in units of 214.577 rev/min^2 (0 = no limit).
-        """
-        if set(position_limits) != set(self.ids):
-            raise ConfigError(
-                f"position_limits must cover exactly the servos {list(self.ids)}, "
-                f"got {sorted(position_limits)}"
-            )
-        for servo_id, (lo, hi) in position_limits.items():
-            if not 0 <= lo <= hi <= MAX_TICK:
-                raise ConfigError(
-                    f"position limits of servo {servo_id} must satisfy 0 <= min <= max <= "
-                    f"{MAX_TICK}, got ({lo}, {hi})"
-                )
-        with self._lock:
-            self.set_torque(False)
-            for servo_id in self.ids:
-                level = self.read(Register.STATUS_RETURN_LEVEL, servo_id)
-                if level != STATUS_RETURN_ALL:
-                    raise ConfigError(
-                        f"servo {servo_id} has Status Return Level {level}; limbctl needs "
-                        f"{STATUS_RETURN_ALL} (answer every instruction): set it with Dynamixel "
-                        f"Wizard"
-                    )
-                lo, hi = position_limits[servo_id]
-                drive = self.read(Register.DRIVE_MODE, servo_id)
-                eeprom = {
-                    Register.OPERATING_MODE: int(OperatingMode.POSITION),
-                    Register.DRIVE_MODE: drive & ~int(DriveModeBit.TIME_BASED_PROFILE),
-                    Register.RETURN_DELAY_TIME: 0,
-                    Register.MIN_POSITION_LIMIT: lo,
-                    Register.MAX_POSITION_LIMIT: hi,
-                }
-                for register, value in eeprom.items():
-                    # EEPROM wears: write only what differs, then read it back
-                    if self.read(register, servo_id) != value:
-                        self.write(register, servo_id, value)
-                        got = self.read(register, servo_id)
-                        if got != value:
-                            raise BusError(
-                                f"servo {servo_id} kept {register.name}={got} after writing "
-                                f"{value}",
-                                servo_id,
-                            )
-                self.write(Register.PROFILE_ACCELERATION, servo_id, profile_acceleration)
-                self.write(Register.PROFILE_VELOCITY, servo_id, profile_velocity)
+        configure_servos(self, position_limits, profile_velocity, profile_acceleration)
 
     def reboot(self, servo_id: int, timeout_s: float = 3.0) -> None:
         """Reboot one servo (clears a hardware-error shutdown) and wait until it answers again.

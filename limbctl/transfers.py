@@ -34,6 +34,30 @@ from limbctl.errors import BusError, BusTimeout, CorruptReply, PortError
 _PKT_ID, _PKT_LENGTH_L, _PKT_LENGTH_H, _PKT_PARAMETER0 = 4, 5, 6, 8
 
 
+#: The SDK's assumption for the USB adapter's latency timer (ms): an FTDI chip's default.
+SDK_LATENCY_TIMER_MS = 16.0
+
+
+class TunedPortHandler(PortHandler):
+    """The SDK's PortHandler with the reply timeout computed for the adapter's real latency.
+
+    The SDK waits ``bytes * byte time + 2 * 16 ms + 2 ms`` for a reply, assuming an FTDI latency
+    timer of 16 ms; with the timer lowered to 1 ms (README) or on the simulator's pty, a dropped
+    reply then costs one control cycle instead of seven.
+    """
+
+    def __init__(self, port_name: str, latency_timer_ms: float) -> None:
+        super().__init__(port_name)
+        self.latency_timer_ms = float(latency_timer_ms)
+
+    def setPacketTimeout(self, packet_length: int) -> None:  # noqa: N802 (SDK's name)
+        self.packet_start_time = self.getCurrentTime()
+        # timeout = bytes * byte time + 2 * latency timer + 2 ms (the SDK's rule)
+        self.packet_timeout = (
+            self.tx_time_per_byte * packet_length + 2.0 * self.latency_timer_ms + 2.0
+        )
+
+
 @dataclass
 class Attempt:
     """One try of a transaction.
