@@ -9,6 +9,7 @@ from limbctl.envelope.boundary import (
     cell_centres_inside,
     in_triangles_reference,
     inside_reference,
+    nearest_on_edges_reference,
     project_reference,
 )
 from limbctl.envelope.synthetic import ConeRegion, PolygonRegion
@@ -110,3 +111,45 @@ def test_inside_reference_beyond_a_hemisphere():
     np.testing.assert_array_equal(
         inside_reference(test, mesh.vertices, mesh.edges)[far], truth[far]
     )
+
+
+def test_per_arc_margins_match_reference_and_bound_the_region():
+    rng = np.random.default_rng(7)
+    region = PolygonRegion()
+    d = region.sample(600, rng)
+    base = DirectionMesh.alpha_shape(d, np.radians(10.0), 0.0)
+    margins = rng.uniform(0.0, np.radians(1.5), base.edges.shape[0])
+    # rebuild through the public constructor: one loop per closed chain of arcs
+    nxt = {int(a): (int(b), k) for k, (a, b) in enumerate(base.edges)}
+    loops, widen, seen = [], [], set()
+    for a in nxt:
+        if a in seen:
+            continue
+        idx, wid = [], []
+        while a not in seen:
+            seen.add(a)
+            idx.append(a)
+            wid.append(margins[nxt[a][1]])
+            a = nxt[a][0]
+        loops.append(base.vertices[idx])
+        widen.append(np.array(wid))
+    mesh = DirectionMesh.from_loops(loops, widen)
+    test = region.test_directions(3000, np.random.default_rng(8))
+    inside_ref, out_ref = project_reference(mesh, test)
+    np.testing.assert_array_equal(mesh.contains(test), inside_ref)
+    np.testing.assert_allclose(mesh.project(test), out_ref, atol=1e-12)
+    out = mesh.project(test)
+    assert mesh.contains(out).all()
+    # the region reaches no farther than the largest margin beyond the loops
+    plain = DirectionMesh.from_loops(loops, 0.0)
+    _, _, gap = nearest_on_edges_reference(out, plain.vertices, plain.edges)
+    assert (gap[~plain.contains(out)] <= mesh.max_margin + 1e-9).all()
+
+
+def test_bad_margins_are_refused():
+    loop = np.array([[1.0, 0, 0], [0.9, 0.3, 0], [0.9, 0, 0.3]])
+    loop /= np.linalg.norm(loop, axis=1, keepdims=True)
+    with pytest.raises(InvalidInputError, match="margins"):
+        DirectionMesh.from_loops([loop], [np.array([0.1, -0.1, 0.0])])
+    with pytest.raises(InvalidInputError, match="margins"):
+        DirectionMesh.from_loops([loop], [np.array([0.1, 0.1])])

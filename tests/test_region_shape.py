@@ -1,6 +1,7 @@
 import numpy as np
 
 from limbctl.envelope import region_shape as rs
+from limbctl.envelope.boundary import DirectionMesh, boundary_edges
 from limbctl.envelope.synthetic import ConeRegion, PolygonRegion, trajectory_samples
 from limbctl.quat import direction_angle
 
@@ -46,22 +47,56 @@ def test_learned_alpha_follows_the_data_scale():
     assert rs.learn_alpha(thin, 2.0) > np.radians(3.0)
 
 
-def test_smoothing_keeps_a_circle_and_offsets_find_its_edge():
+def test_edge_margins_reach_the_circle_and_cover_every_sample():
     rng = np.random.default_rng(3)
     cone = ConeRegion(np.radians(25.0))
     data = cone.sample(4000, rng)
     loops = rs.alpha_loops(data, np.radians(4.0), max_hole=0.1)
     assert len(loops) == 1
-    step = np.radians(0.4)
-    smooth = rs.smooth_loop(loops[0], step, np.radians(3.0))
-    radius = direction_angle(smooth, cone.axis)
-    assert np.abs(radius - np.radians(25.0)).max() < np.radians(1.5)
-    offsets = rs.edge_offsets([smooth], data, np.radians(6.0), 12, np.radians(2.0), step)[0]
-    final = rs.offset_loop(smooth, offsets)
-    err = np.degrees(direction_angle(final, cone.axis)) - 25.0
-    assert np.abs(err).mean() < 0.5
-    # every sample inside the moved loop
-    assert rs.enclosed(data, [final]).mean() >= 0.999
+    cap = np.radians(0.75)
+    margins = rs.edge_margins(loops, data, np.radians(6.0), 12, cap)[0]
+    assert margins.shape == (loops[0].shape[0],)
+    assert (margins >= 0.0).all() and (margins <= cap).all()
+    mesh = DirectionMesh.from_loops(loops, [margins])
+    # every taught sample inside; the widened edge sits at the circle (within the cap)
+    assert mesh.contains(data).all()
+    probe = cone.test_directions(20000, rng)
+    inside = mesh.contains(probe)
+    depth = np.degrees(cone.depth(probe))
+    assert inside[depth > 1.0].mean() > 0.99
+    assert not inside[depth < -0.76].any()
+
+
+def test_peel_takes_back_a_bridged_concavity_and_keeps_every_vertex():
+    # samples of a "C": a bay (the notch at +y) that a large alpha bridges
+    rng = np.random.default_rng(5)
+    d = ConeRegion(np.radians(25.0)).sample(3000, rng)
+    bay = (d[:, 1] > 0.0) & (np.abs(d[:, 2]) < np.sin(np.radians(6.0)))
+    d = d[~bay]
+    tri, _, inside = rs.alpha_complex(d, np.radians(20.0), max_hole=0.0)
+    probe = np.array([[np.cos(np.radians(15.0)), np.sin(np.radians(15.0)), 0.0]])
+    bridged = [d[i] for i in rs.trace_loops(d, boundary_edges(tri[inside]))]
+    assert rs.enclosed(probe, bridged)[0]
+    protected = rs.surrounded(rs.tri_centroids(d, tri), d, np.radians(4.0), np.radians(150.0))
+    kept = rs.peel(d, tri, inside, np.radians(4.0), protected)
+    peeled = [d[i] for i in rs.trace_loops(d, boundary_edges(tri[kept]))]
+    assert not rs.enclosed(probe, peeled)[0]
+    # no vertex of the shape is dropped; the middle of the disc stays
+    assert np.isin(np.unique(tri[inside]), np.unique(tri[kept])).all()
+    below = np.array([[np.cos(np.radians(12.0)), 0.0, -np.sin(np.radians(12.0))]])
+    assert rs.enclosed(below, peeled)[0]
+
+
+def test_surrounded_tells_middle_from_edge():
+    d = ConeRegion(np.radians(20.0)).sample(3000, np.random.default_rng(6))
+    middle = np.array([[1.0, 0.0, 0.0]])
+    near_edge = np.array([[np.cos(np.radians(18.0)), np.sin(np.radians(18.0)), 0.0]])
+    # just beyond the data's edge: all samples on one side
+    beyond = np.array([[np.cos(np.radians(20.5)), np.sin(np.radians(20.5)), 0.0]])
+    out = np.array([[np.cos(np.radians(30.0)), np.sin(np.radians(30.0)), 0.0]])
+    probe = np.vstack([middle, near_edge, beyond, out])
+    got = rs.surrounded(probe, d, np.radians(4.0), np.radians(150.0))
+    np.testing.assert_array_equal(got, [True, True, False, False])
 
 
 def test_loop_area_and_gap_estimate():

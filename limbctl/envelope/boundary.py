@@ -1,14 +1,15 @@
 """A region of limb directions on S^2 as a spherical mesh: build it, test it, project onto it.
 
-The region is an alpha shape of vertex directions (for the Rigid Map: the limb directions of its
-trained weights): the spherical Delaunay triangles whose circumradius is at most ``alpha``, then
-widened by a ``margin`` (rad): a direction is inside when it lies in a kept triangle or within
-``margin`` of the mesh boundary. The boundary is a set of great-circle arcs (edges used by one
-kept triangle), so the nearest boundary direction is exact and moves continuously.
+The region is bounded by closed loops of great-circle arcs (for the Rigid Map: the chi-peeled
+alpha shape of its support, see :mod:`limbctl.envelope.region_shape`), each arc ``e`` widened by
+its own ``margin_e`` (rad): a direction is inside when it lies inside the loops or within
+``margin_e`` of some arc ``e``. The nearest region direction of a point outside is exact (the
+arc minimising ``angle(p, e) - margin_e``, then ``margin_e`` back toward p) and moves
+continuously; the region never reaches farther than ``max(margin)`` beyond the loops.
 
 :class:`DirectionMesh` holds the arrays; the queries run in the numba kernels of
 :mod:`limbctl.envelope.boundary_kernels` over a grid of cells about the region's axis, each
-knowing whether it lies deep inside and which edges can be nearest to a point in it. Plain
+knowing whether it lies deep inside and which arcs can be nearest to a point in it. Plain
 numpy references (``*_reference`` here) answer the same questions by brute force.
 """
 
@@ -22,7 +23,7 @@ from scipy.spatial import ConvexHull, QhullError
 from limbctl.envelope import boundary_kernels as bk
 from limbctl.errors import InvalidInputError
 
-#: contains() accepts directions up to this far (rad) beyond ``margin``; correct() lands inside it.
+#: contains() accepts directions up to this far (rad) beyond the region; correct() lands inside it.
 CONTAIN_TOLERANCE = 1e-9
 
 
@@ -35,33 +36,48 @@ class DirectionMesh:
     vertices : (V, 3) unit directions of the boundary loops.
     edges : (E, 2) int64 boundary arcs (short great-circle arcs), the region on the left of
         a -> b seen from outside the sphere; they form closed loops.
-    margin : float, the widening beyond the boundary (rad).
-    axis : (3,) unit axis of the lookup grid; grid_* : the lookup grid (see boundary_kernels).
+    margins : (E,) float64, each arc's widening (rad), >= 0.
+    axis : (3,) unit axis of the lookup grid; grid_* / cell_* : the lookup grid (see
+        boundary_kernels).
     """
 
     vertices: np.ndarray
     edges: np.ndarray
-    margin: float
+    margins: np.ndarray
     axis: np.ndarray
     grid_shape: np.ndarray
     cell_inside: np.ndarray
     cell_deep: np.ndarray
     cell_start: np.ndarray
     cell_edges: np.ndarray
+    cell_keys: np.ndarray
 
     @classmethod
     def from_loops(
-        cls, loops: list[np.ndarray], margin: float, cells_per_radian: float = 40.0
+        cls,
+        loops: list[np.ndarray],
+        margins: float | list[np.ndarray],
+        cells_per_radian: float = 40.0,
     ) -> DirectionMesh:
-        """Region bounded by closed ``loops`` (each (M, 3) directions, region on the left),
-        widened by ``margin``; the lookup grid has ``cells_per_radian`` cells per radian of
-        polar angle."""
-        loops = [np.asarray(lp, dtype=np.float64) for lp in loops if len(lp) >= 3]
-        if not loops:
+        """Region bounded by closed ``loops`` (each (M, 3) directions, region on the left).
+
+        ``margins``: one widening (rad) for every arc, or per loop an (M,) array whose entry
+        ``i`` widens the arc from point ``i`` to point ``i + 1``. The lookup grid has
+        ``cells_per_radian`` cells per radian of polar angle.
+        """
+        keep = [i for i, lp in enumerate(loops) if len(lp) >= 3]
+        if not keep:
             raise InvalidInputError(
                 "the taught directions do not span an area (need at least 3 distinct, "
                 "not all on one great circle, near each other); teach more poses"
             )
+        loops = [np.asarray(loops[i], dtype=np.float64) for i in keep]
+        if isinstance(margins, (int, float, np.floating)):
+            widen = np.full(sum(lp.shape[0] for lp in loops), float(margins))
+        else:
+            widen = np.concatenate([np.asarray(margins[i], dtype=np.float64) for i in keep])
+        if widen.shape[0] != sum(lp.shape[0] for lp in loops) or not np.all(widen >= 0.0):
+            raise InvalidInputError("margins: need one finite value >= 0 per boundary arc")
         d = np.vstack(loops)
         d = np.ascontiguousarray(d / np.linalg.norm(d, axis=1, keepdims=True))
         edges = []
@@ -71,13 +87,16 @@ class DirectionMesh:
             edges.append(np.column_stack([idx, np.roll(idx, -1)]))
             start += lp.shape[0]
         edges = np.ascontiguousarray(np.vstack(edges), dtype=np.int64)
+        widen = np.ascontiguousarray(widen)
         axis = d.mean(axis=0)
         axis /= np.linalg.norm(axis)
         n_theta = max(8, int(np.ceil(np.pi * cells_per_radian)))
         grid_shape = np.array([n_theta, 2 * n_theta], dtype=np.int64)
         inside = cell_centres_inside(d, edges, axis, grid_shape)
-        deep, start_, cell_edges = bk.build_grid(d, edges, axis, grid_shape, inside, float(margin))
-        return cls(d, edges, float(margin), axis, grid_shape, inside, deep, start_, cell_edges)
+        deep, start_, cell_edges, cell_keys = bk.build_grid(
+            d, edges, widen, axis, grid_shape, inside
+        )
+        return cls(d, edges, widen, axis, grid_shape, inside, deep, start_, cell_edges, cell_keys)
 
     @classmethod
     def alpha_shape(cls, directions: np.ndarray, alpha: float, margin: float) -> DirectionMesh:
@@ -104,25 +123,32 @@ class DirectionMesh:
             loops.append(d[loop])
         return cls.from_loops(loops, margin)
 
+    @property
+    def max_margin(self) -> float:
+        """The largest widening (rad): how far beyond its loops the region can reach."""
+        return float(self.margins.max()) if self.margins.size else 0.0
+
     def contains(self, d: np.ndarray) -> np.ndarray:
         """(N,) bool for directions ``d`` (N, 3)."""
-        return bk.contains_batch(*self._kernel_args(), np.ascontiguousarray(d, dtype=np.float64))
+        return bk.contains_batch(*self.kernel_args(), np.ascontiguousarray(d, dtype=np.float64))
 
     def project(self, d: np.ndarray) -> np.ndarray:
         """Each direction itself if inside, else the nearest direction of the widened region."""
-        return bk.project_batch(*self._kernel_args(), np.ascontiguousarray(d, dtype=np.float64))
+        return bk.project_batch(*self.kernel_args(), np.ascontiguousarray(d, dtype=np.float64))
 
-    def _kernel_args(self) -> tuple:
+    def kernel_args(self) -> tuple:
+        """The arrays the query kernels take, in their order."""
         return (
             self.vertices,
             self.edges,
-            self.margin,
+            self.margins,
             self.axis,
             self.grid_shape,
             self.cell_inside,
             self.cell_deep,
             self.cell_start,
             self.cell_edges,
+            self.cell_keys,
         )
 
     def arrays(self) -> dict[str, np.ndarray]:
@@ -130,27 +156,30 @@ class DirectionMesh:
         return {
             "mesh_vertices": self.vertices,
             "mesh_edges": self.edges,
+            "mesh_margins": self.margins,
             "mesh_axis": self.axis,
             "mesh_grid_shape": self.grid_shape,
             "mesh_cell_inside": self.cell_inside,
             "mesh_cell_deep": self.cell_deep,
             "mesh_cell_start": self.cell_start,
             "mesh_cell_edges": self.cell_edges,
+            "mesh_cell_keys": self.cell_keys,
         }
 
     @classmethod
-    def from_arrays(cls, arrays: dict[str, np.ndarray], margin: float) -> DirectionMesh:
+    def from_arrays(cls, arrays: dict[str, np.ndarray]) -> DirectionMesh:
         """Inverse of :meth:`arrays`."""
         return cls(
             np.ascontiguousarray(arrays["mesh_vertices"], dtype=np.float64),
             np.ascontiguousarray(arrays["mesh_edges"], dtype=np.int64),
-            float(margin),
+            np.ascontiguousarray(arrays["mesh_margins"], dtype=np.float64),
             np.ascontiguousarray(arrays["mesh_axis"], dtype=np.float64),
             np.ascontiguousarray(arrays["mesh_grid_shape"], dtype=np.int64),
             np.ascontiguousarray(arrays["mesh_cell_inside"], dtype=np.bool_),
             np.ascontiguousarray(arrays["mesh_cell_deep"], dtype=np.bool_),
             np.ascontiguousarray(arrays["mesh_cell_start"], dtype=np.int64),
             np.ascontiguousarray(arrays["mesh_cell_edges"], dtype=np.int64),
+            np.ascontiguousarray(arrays["mesh_cell_keys"], dtype=np.float64),
         )
 
 
@@ -273,12 +302,16 @@ def in_triangles_reference(d: np.ndarray, vertices: np.ndarray, tri: np.ndarray)
 
 
 def nearest_on_edges_reference(
-    d: np.ndarray, vertices: np.ndarray, edges: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """Nearest point (N, 3) on any boundary arc and its angle (N,) rad, by brute force."""
+    d: np.ndarray, vertices: np.ndarray, edges: np.ndarray, margins: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """By brute force, for directions ``d`` (N, 3): the arc minimising ``angle - margin`` (N,)
+    int, the nearest point on it (N, 3) and its angle (N,) rad (``margins`` default zero)."""
+    margins = np.zeros(edges.shape[0]) if margins is None else margins
     best = np.empty_like(d)
     best_angle = np.full(d.shape[0], np.inf)
-    for e0, e1 in edges:
+    best_key = np.full(d.shape[0], np.inf)
+    best_edge = np.full(d.shape[0], -1, dtype=np.int64)
+    for k, (e0, e1) in enumerate(edges):
         a, b = vertices[e0], vertices[e1]
         n = np.cross(a, b)
         n /= np.linalg.norm(n)
@@ -290,22 +323,25 @@ def nearest_on_edges_reference(
         end = np.where((pa <= pb)[:, None], a, b)
         point = np.where(within[:, None], foot, end)
         ang = np.arctan2(np.linalg.norm(np.cross(d, point), axis=1), np.sum(d * point, axis=1))
-        better = ang < best_angle
+        better = ang - margins[k] < best_key
         best[better] = point[better]
         best_angle[better] = ang[better]
-    return best, best_angle
+        best_key[better] = ang[better] - margins[k]
+        best_edge[better] = k
+    return best_edge, best, best_angle
 
 
 def project_reference(mesh: DirectionMesh, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Brute-force ``(contains, project)`` for directions ``d`` (N, 3)."""
     inside_mesh = inside_reference(d, mesh.vertices, mesh.edges)
-    point, angle = nearest_on_edges_reference(d, mesh.vertices, mesh.edges)
-    inside = inside_mesh | (angle <= mesh.margin + CONTAIN_TOLERANCE)
-    # outside: from the nearest boundary point, go margin along the arc toward d
+    edge, point, angle = nearest_on_edges_reference(d, mesh.vertices, mesh.edges, mesh.margins)
+    margin = mesh.margins[edge]
+    inside = inside_mesh | (angle - margin <= CONTAIN_TOLERANCE)
+    # outside: from the nearest boundary point, go that arc's margin along the path toward d
     out = np.empty_like(d)
     for i in range(d.shape[0]):
         if inside[i]:
             out[i] = d[i]
         else:
-            out[i] = bk.slerp_dir(point[i], d[i], angle[i], mesh.margin)
+            out[i] = bk.slerp_dir(point[i], d[i], angle[i], margin[i])
     return inside, out

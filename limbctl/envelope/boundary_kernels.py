@@ -5,16 +5,23 @@ The grid divides the sphere into ``n_theta x n_phi`` cells in polar coordinates 
 
 - ``cell_inside``: whether its centre lies in the region (computed in numpy, see
   :func:`limbctl.envelope.boundary.cell_centres_inside`);
-- ``cell_deep``: every point of the cell is inside the widened region (centre inside the mesh
-  and at least the cell radius ``r`` from the boundary, or within ``margin - r`` of it);
-- candidate boundary edges (CSR ``cell_start``/``cell_edges``): every edge whose distance from
-  the centre is at most ``dist(centre, boundary) + 2 r``; the nearest edge of any point of the
-  cell is among them, and so is every edge that crosses the arc from the centre to the point.
+- ``cell_deep``: every point of the cell is inside the region (centre inside the mesh and at
+  least the cell radius ``r`` from the boundary, or all of it within one arc's widening);
+- candidate boundary arcs (CSR ``cell_start``/``cell_edges``, sorted by ``cell_keys``): the arcs
+  whose widened distance from the centre, ``key = angle(centre, arc) - margin_arc``, is at most
+  ``min key + 2 r`` (any other arc is farther from every point of the cell than the best one),
+  and every arc within ``r`` of the centre (those can cross the path from the centre to a point).
 
-A query finds its cell; if deep it is inside; otherwise it takes the nearest point over the
-candidates, and whether it lies in the mesh from the centre's status and the parity of boundary
-crossings on the arc centre -> point. No fastmath: every comparison sees NaN as failing.
-The numpy references live in :mod:`limbctl.envelope.boundary`.
+Each boundary arc ``e`` has its own widening ``margin_e`` (rad): the region is the mesh united
+with every direction within ``margin_e`` of some arc ``e``, so its distance from a point outside
+is ``min_e (angle(p, e) - margin_e)``, exact, and the widening never reaches farther out than the
+largest margin.
+
+A query finds its cell; if deep it is inside; otherwise it takes the nearest widened arc over
+the candidates (stopping once the sorted keys bound the rest away), and whether it lies in the
+mesh from the centre's status and the parity of boundary crossings on the arc centre -> point.
+No fastmath: every comparison sees NaN as failing. The numpy references live in
+:mod:`limbctl.envelope.boundary`.
 """
 
 from __future__ import annotations
@@ -174,24 +181,56 @@ def _edge_bounds(vertices, edges):
 
 
 @nb.njit(cache=True)
-def _near_edges(centre, mids, reach) -> np.ndarray:
-    """Indices of arcs whose midpoint is within ``reach`` (rad) of ``centre`` (any if >= pi)."""
-    n_edges = mids.shape[0]
-    out = np.empty(n_edges, dtype=np.int64)
-    k = 0
-    limit = math.cos(reach) if reach < math.pi else -2.0
+def _min_key(centre, vertices, edges, margins, mids, half, max_half, max_margin, tmp):
+    """``min_e (angle(centre, arc e) - margin_e)`` and the plain ``min_e angle(centre, arc e)``."""
+    n_edges = edges.shape[0]
+    # an upper bound first: every point of an arc lies within its half length of the midpoint
+    top = np.inf
     for e in range(n_edges):
-        if _dot(centre, mids[e]) >= limit:
-            out[k] = e
-            k += 1
-    return out[:k]
+        top = min(top, _angle(centre, mids[e]) + half[e] - margins[e])
+    # only arcs whose midpoint is within top + max_half + max_margin can reach below it
+    limit = math.cos(min(top + max_half + max_margin + 1e-9, math.pi))
+    best_key = np.inf
+    best_plain = np.inf
+    for e in range(n_edges):
+        if _dot(centre, mids[e]) < limit:
+            continue
+        dist = nearest_on_arc(centre, vertices[edges[e, 0]], vertices[edges[e, 1]], tmp)
+        best_key = min(best_key, dist - margins[e])
+        best_plain = min(best_plain, dist)
+    return best_key, best_plain
+
+
+@nb.njit(cache=True)
+def _cell_geometry(cell, n_theta, n_phi, axis, u, v):
+    """Centre (3,) of a grid cell and a radius (rad) that every point of the cell lies within."""
+    i = cell // n_phi
+    j = cell % n_phi
+    t0 = i * math.pi / n_theta
+    p0 = -math.pi + j * 2.0 * math.pi / n_phi
+    dt = math.pi / n_theta
+    dp = 2.0 * math.pi / n_phi
+    centre = _polar_point(t0 + 0.5 * dt, p0 + 0.5 * dp, axis, u, v)
+    r = 0.0
+    for a in range(2):
+        for b in range(2):
+            corner = _polar_point(t0 + a * dt, p0 + b * dp, axis, u, v)
+            r = max(r, _angle(centre, corner))
+    # the widest point of a cell edge lies on its middle; 1 % covers it (cells are < 3 deg)
+    return centre, r * 1.01 + 1e-12
 
 
 @nb.njit(cache=True, parallel=True)
-def build_grid(vertices, edges, axis, grid_shape, inside, margin):
-    """Cell depth status and candidate edges (module docstring) -> deep, start, edge list.
+def build_grid(vertices, edges, margins, axis, grid_shape, inside):
+    """Cell depth status and sorted candidate arcs (module docstring) -> deep, start, arcs, keys.
 
-    ``inside`` (cells,) says whether each cell's centre lies in the region.
+    ``inside`` (cells,) says whether each cell's centre lies in the mesh; ``margins`` (E,) is
+    each arc's widening (rad). A cell is deep when all of it lies in the mesh (centre inside,
+    the boundary at least the cell radius ``r`` away) or in one arc's widening
+    (``min_e (angle(centre, e) - m_e) <= -r``). Otherwise its candidates are the arcs with
+    ``key_e = angle(centre, e) - m_e <= min_key + 2 r`` (the nearest widened arc of any point
+    of the cell is among them: pruned by the smallest upper bound ``min_key + r``) and the arcs
+    within ``r`` of the centre (every arc crossing the path centre -> point), sorted by key.
     """
     n_theta = grid_shape[0]
     n_phi = grid_shape[1]
@@ -199,69 +238,74 @@ def build_grid(vertices, edges, axis, grid_shape, inside, margin):
     u, v = _frame(axis)
     n_edges = edges.shape[0]
     mids, half = _edge_bounds(vertices, edges)
-    # every point of an arc lies within its half length of the midpoint, so an arc can only be
-    # within ``b`` of the centre if its midpoint is within ``b + max_half`` (a prefilter by dots)
     max_half = 0.0
+    max_margin = 0.0
     for e in range(n_edges):
         max_half = max(max_half, half[e])
+        max_margin = max(max_margin, margins[e])
     deep = np.zeros(n_cells, dtype=np.bool_)
     counts = np.zeros(n_cells, dtype=np.int64)
     bound = np.empty(n_cells)
+    radius = np.empty(n_cells)
     centres = np.empty((n_cells, 3))
     for cell in nb.prange(n_cells):
-        i = cell // n_phi
-        j = cell % n_phi
-        t0 = i * math.pi / n_theta
-        p0 = -math.pi + j * 2.0 * math.pi / n_phi
-        dt = math.pi / n_theta
-        dp = 2.0 * math.pi / n_phi
-        centre = _polar_point(t0 + 0.5 * dt, p0 + 0.5 * dp, axis, u, v)
-        r = 0.0
-        for a in range(2):
-            for b in range(2):
-                corner = _polar_point(t0 + a * dt, p0 + b * dp, axis, u, v)
-                r = max(r, _angle(centre, corner))
-        r = r * 1.01 + 1e-12
+        centre, r = _cell_geometry(cell, n_theta, n_phi, axis, u, v)
         centres[cell] = centre
+        radius[cell] = r
         tmp = np.empty(3)
-        # an upper bound of the distance to the boundary: nearest midpoint + its half length
-        top = -2.0
-        for e in range(n_edges):
-            top = max(top, _dot(centre, mids[e]))
-        upper = math.acos(min(1.0, max(-1.0, top))) + max_half
-        best = np.inf
-        for e in _near_edges(centre, mids, upper + max_half + 1e-9):
-            dist = nearest_on_arc(centre, vertices[edges[e, 0]], vertices[edges[e, 1]], tmp)
-            best = min(best, dist)
-        deep[cell] = (inside[cell] and best >= r) or (best + r <= margin)
-        bound[cell] = best + 2.0 * r
+        best_key, best_plain = _min_key(
+            centre, vertices, edges, margins, mids, half, max_half, max_margin, tmp
+        )
+        deep[cell] = (inside[cell] and best_plain >= r) or (best_key + r <= 0.0)
+        bound[cell] = best_key + 2.0 * r
         if not deep[cell]:
             c = 0
-            for e in _near_edges(centre, mids, bound[cell] + max_half + 1e-9):
+            limit = math.cos(min(max(bound[cell], r) + max_margin + max_half + 1e-9, math.pi))
+            for e in range(n_edges):
+                if _dot(centre, mids[e]) < limit:
+                    continue
                 dist = nearest_on_arc(centre, vertices[edges[e, 0]], vertices[edges[e, 1]], tmp)
-                if dist <= bound[cell]:
+                if dist - margins[e] <= bound[cell] or dist <= r:
                     c += 1
             counts[cell] = c
     start = np.zeros(n_cells + 1, dtype=np.int64)
     for cell in range(n_cells):
         start[cell + 1] = start[cell] + counts[cell]
     cell_edges = np.empty(start[n_cells], dtype=np.int64)
+    cell_keys = np.empty(start[n_cells])
     for cell in nb.prange(n_cells):
         if deep[cell]:
             continue
-        k = start[cell]
+        k0 = start[cell]
+        k = k0
         tmp = np.empty(3)
-        for e in _near_edges(centres[cell], mids, bound[cell] + max_half + 1e-9):
-            dist = nearest_on_arc(centres[cell], vertices[edges[e, 0]], vertices[edges[e, 1]], tmp)
-            if dist <= bound[cell]:
+        centre = centres[cell]
+        r = radius[cell]
+        limit = math.cos(min(max(bound[cell], r) + max_margin + max_half + 1e-9, math.pi))
+        for e in range(n_edges):
+            if _dot(centre, mids[e]) < limit:
+                continue
+            dist = nearest_on_arc(centre, vertices[edges[e, 0]], vertices[edges[e, 1]], tmp)
+            if dist - margins[e] <= bound[cell] or dist <= r:
                 cell_edges[k] = e
+                cell_keys[k] = dist - margins[e]
                 k += 1
-    return deep, start, cell_edges
+        order = np.argsort(cell_keys[k0:k], kind="mergesort")
+        cell_edges[k0:k] = cell_edges[k0:k][order]
+        cell_keys[k0:k] = cell_keys[k0:k][order]
+    return deep, start, cell_edges, cell_keys
 
 
 @nb.njit(cache=True)
-def query(p, vertices, edges, margin, axis, grid_shape, inside, deep, start, cell_edges, out):
-    """Whether direction ``p`` is in the region; ``out`` gets its projection (p itself inside)."""
+def query(
+    p, vertices, edges, margins, axis, grid_shape, inside, deep, start, cell_edges, keys, out
+):
+    """Whether direction ``p`` is in the region; ``out`` gets its projection (p itself inside).
+
+    The candidates are visited by increasing key; once ``key - angle(centre, p)`` exceeds the
+    best widened distance found (a lower bound of every later arc's) and ``key`` exceeds
+    ``angle(centre, p)`` (no later arc can cross the path centre -> p), the rest are skipped.
+    """
     n_theta = grid_shape[0]
     n_phi = grid_shape[1]
     u, v = _frame(axis)
@@ -276,17 +320,24 @@ def query(p, vertices, edges, margin, axis, grid_shape, inside, deep, start, cel
     centre = _polar_point(
         (i + 0.5) * math.pi / n_theta, -math.pi + (j + 0.5) * 2.0 * math.pi / n_phi, axis, u, v
     )
+    travel = _angle(centre, p)
     crossings = 0
     best = np.inf
+    best_dist = np.inf
+    best_margin = 0.0
     best_point = np.empty(3)
     tmp = np.empty(3)
     for k in range(start[cell], start[cell + 1]):
+        if keys[k] > travel and keys[k] - travel > best:
+            break
         e = cell_edges[k]
         a = vertices[edges[e, 0]]
         b = vertices[edges[e, 1]]
         dist = nearest_on_arc(p, a, b, tmp)
-        if dist < best:
-            best = dist
+        if dist - margins[e] < best:
+            best = dist - margins[e]
+            best_dist = dist
+            best_margin = margins[e]
             best_point[:] = tmp
         # does arc centre -> p cross arc a -> b? (half-open sign rule; same hemisphere)
         sa = _det(centre, p, a) > 0.0
@@ -300,33 +351,44 @@ def query(p, vertices, edges, margin, axis, grid_shape, inside, deep, start, cel
         ):
             crossings += 1
     in_mesh = inside[cell] != (crossings % 2 == 1)
-    if in_mesh or best <= margin + CONTAIN_TOLERANCE:
+    if in_mesh or best <= CONTAIN_TOLERANCE:
         return True
-    q = slerp_dir(best_point, p, best, margin)
+    q = slerp_dir(best_point, p, best_dist, best_margin)
     out[:] = q
     return False
 
 
 @nb.njit(cache=True, parallel=True)
-def contains_batch(vertices, edges, margin, axis, grid_shape, inside, deep, start, cell_edges, d):
+def contains_batch(vertices, edges, margins, axis, grid_shape, inside, deep, start, arcs, keys, d):
     """(N,) bool for directions ``d`` (N, 3)."""
     n = d.shape[0]
     res = np.empty(n, dtype=np.bool_)
     for j in nb.prange(n):
         out = np.empty(3)
         res[j] = query(
-            d[j], vertices, edges, margin, axis, grid_shape, inside, deep, start, cell_edges, out
+            d[j], vertices, edges, margins, axis, grid_shape, inside, deep, start, arcs, keys, out
         )
     return res
 
 
 @nb.njit(cache=True, parallel=True)
-def project_batch(vertices, edges, margin, axis, grid_shape, inside, deep, start, cell_edges, d):
+def project_batch(vertices, edges, margins, axis, grid_shape, inside, deep, start, arcs, keys, d):
     """Projection (N, 3) of directions ``d`` (N, 3): themselves inside, nearest region point out."""
     n = d.shape[0]
     res = np.empty((n, 3))
     for j in nb.prange(n):
         query(
-            d[j], vertices, edges, margin, axis, grid_shape, inside, deep, start, cell_edges, res[j]
+            d[j],
+            vertices,
+            edges,
+            margins,
+            axis,
+            grid_shape,
+            inside,
+            deep,
+            start,
+            arcs,
+            keys,
+            res[j],
         )
     return res

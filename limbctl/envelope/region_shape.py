@@ -1,22 +1,28 @@
-"""From scattered limb directions to smooth closed boundary loops of the region they fill.
+"""From scattered limb directions to the closed boundary loops of the region they fill.
 
-The steps the Rigid Map's gate runs on top of its trained support weights (all angles radians):
+The steps the Rigid Map's gate runs on its support (all angles radians):
 
 1. :func:`thin` keeps a subset of directions at least ``spacing`` apart (greedy Poisson-disk,
    outermost first), so that a 100 Hz hand recording and i.i.d. samples look alike.
 2. :func:`learn_alpha` picks the alpha-shape radius from the data's own scale: the gaps the
    points leave inside the region they enclose (strokes of a hand recording cross and enclose
    the empty space between them; that space's empty-circle radii set the scale).
-3. :func:`alpha_loops` triangulates, keeps triangles with circumradius <= alpha, fills holes
-   smaller than ``max_hole`` and returns the boundary as closed loops, region on the left.
-4. :func:`smooth_loop` resamples a loop at even arc length and smooths it with a Gaussian along
-   the loop (the vertices of an alpha shape are the outermost points: a jagged polygon).
-5. :func:`edge_offsets` learns how far beyond each part of a loop the true edge lies from the
-   data near it (an endpoint estimate on the outermost samples' depths) and
-   :func:`offset_loop` moves the loop out by that much.
+3. :func:`alpha_complex` triangulates, keeps triangles with circumradius <= alpha and fills
+   holes smaller than ``max_hole``: the gaps between strokes close.
+4. :func:`peel` (a chi-shape) then removes, longest first, the outside triangles whose exposed
+   edge is longer than ``max_length`` and whose middle the data do not surround
+   (:func:`surrounded`): a large alpha may bridge a concavity or a bay of the taught region,
+   the peel takes the bridge away again, down to where the data are; the boundary loops
+   (:func:`trace_loops`) run through taught directions.
+5. :func:`edge_margins` widens each boundary arc by how far beyond it the data say the true edge
+   lies (an endpoint estimate on the outermost samples' depths), at least as far as the samples
+   that lie beyond it, and never more than a cap: the region never reaches more than the cap
+   beyond the data-supported shape, and concavities are not smoothed away.
 """
 
 from __future__ import annotations
+
+import heapq
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -25,6 +31,7 @@ from limbctl.envelope.boundary import (
     boundary_edges,
     circumradius,
     inside_reference,
+    nearest_on_edges_reference,
     spherical_delaunay,
 )
 
@@ -260,96 +267,148 @@ def alpha_loops(d: np.ndarray, alpha: float, max_hole: float) -> list[np.ndarray
     return [d[idx] for idx in trace_loops(d, boundary_edges(tri[inside]))]
 
 
-def resample(loop: np.ndarray, step: float) -> np.ndarray:
-    """Points (K, 3) evenly ``~step`` (rad) apart along a closed loop (M, 3)."""
-    closed = np.vstack([loop, loop[:1]])
-    seg = np.arccos(np.clip(np.sum(closed[1:] * closed[:-1], axis=1), -1.0, 1.0))
-    s = np.concatenate([[0.0], np.cumsum(seg)])
-    count = max(8, int(np.ceil(s[-1] / step)))
-    t = np.linspace(0.0, s[-1], count, endpoint=False)
-    out = np.column_stack([np.interp(t, s, closed[:, k]) for k in range(3)])
-    return out / np.linalg.norm(out, axis=1, keepdims=True)
+def edge_lengths(d: np.ndarray, pairs: np.ndarray) -> np.ndarray:
+    """Angle (rad) between the directions of each index pair (K, 2) over ``d`` (V, 3)."""
+    a, b = d[pairs[:, 0]], d[pairs[:, 1]]
+    # atan2(|a x b|, a . b)
+    return np.arctan2(np.linalg.norm(np.cross(a, b), axis=1), np.sum(a * b, axis=1))
 
 
-def smooth_loop(loop: np.ndarray, step: float, sigma: float) -> np.ndarray:
-    """Resample a loop at ``step`` and smooth it with a Gaussian of ``sigma`` (rad) along it.
+def surrounded(p: np.ndarray, data: np.ndarray, radius: float, max_gap: float) -> np.ndarray:
+    """(N,) bool: whether the ``data`` (K, 3) within ``radius`` of each ``p`` (N, 3) surround it.
 
-    ``p_i <- normalise(sum_j g(j) p_{i+j})`` with ``g(j) ~ exp(-(j step)^2 / (2 sigma^2))``,
-    circularly; the width is limited to a sixth of the loop so small loops keep their shape.
+    Surrounded: at least three data lie within ``radius`` (rad) and, seen from ``p``, their
+    bearings leave no empty sector wider than ``max_gap`` (rad). A point among crossing strokes
+    is surrounded; a point beyond the data's edge (all data on one side) is not.
     """
-    pts = resample(loop, step)
-    k = pts.shape[0]
-    s = min(sigma / step, k / 6.0)
-    if s < 0.5:
-        return pts
-    half = min(int(np.ceil(3.0 * s)), (k - 1) // 2)
-    j = np.arange(-half, half + 1)
-    g = np.exp(-(j * j) / (2.0 * s * s))
-    g /= g.sum()
-    out = np.zeros_like(pts)
-    for w, shift in zip(g, j, strict=True):
-        out += w * np.roll(pts, -shift, axis=0)
-    return out / np.linalg.norm(out, axis=1, keepdims=True)
+    tree = cKDTree(data)
+    out = np.zeros(p.shape[0], dtype=bool)
+    for i, near in enumerate(tree.query_ball_point(p, chord(radius))):
+        if len(near) < 3:
+            continue
+        x = p[i]
+        helper = np.array([0.0, 0.0, 1.0]) if abs(x[2]) < 0.9 else np.array([0.0, 1.0, 0.0])
+        u = np.cross(helper, x)
+        u /= np.linalg.norm(u)
+        v = np.cross(x, u)
+        s = data[near]
+        # bearing of each datum about p: atan2(s.v, s.u)
+        bearing = np.sort(np.arctan2(s @ v, s @ u))
+        gaps = np.diff(np.concatenate([bearing, bearing[:1] + 2.0 * np.pi]))
+        out[i] = gaps.max() < max_gap
+    return out
 
 
-def outward_normals(loop: np.ndarray) -> np.ndarray:
-    """Unit outward normals (M, 3) of a loop (region on the left): ``t x p`` normalised."""
-    t = np.roll(loop, -1, axis=0) - np.roll(loop, 1, axis=0)
-    n = np.cross(t, loop)
-    return n / np.linalg.norm(n, axis=1, keepdims=True)
+def peel(
+    d: np.ndarray,
+    tri: np.ndarray,
+    kept: np.ndarray,
+    max_length: float,
+    protected: np.ndarray,
+) -> np.ndarray:
+    """Chi-shape peel: which of the triangles ``tri`` (T, 3) stay after peeling ``kept`` (T,).
+
+    Repeatedly, longest first, a kept triangle with an exposed edge (its neighbour across it
+    not kept) longer than ``max_length`` (rad) is removed, unless it is ``protected`` (T,) or
+    its third vertex already lies on the boundary (removing it would pinch the shape or drop a
+    vertex: every vertex of the shape stays in it). Returns the new kept mask.
+    """
+    kept = kept.copy()
+    key = np.sort(np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]), axis=1)
+    owners: dict[tuple[int, int], list[int]] = {}
+    for (a, b), t in zip(key.tolist(), np.tile(np.arange(tri.shape[0]), 3).tolist(), strict=True):
+        owners.setdefault((a, b), []).append(t)
+
+    def exposed(a: int, b: int) -> bool:
+        return sum(bool(kept[t]) for t in owners[(min(a, b), max(a, b))]) == 1
+
+    def length(a: int, b: int) -> float:
+        return float(edge_lengths(d, np.array([[a, b]]))[0])
+
+    on_boundary = np.zeros(d.shape[0], dtype=np.int64)
+    heap: list[tuple[float, int, int, int]] = []
+    for t in np.flatnonzero(kept):
+        a, b, c = (int(x) for x in tri[t])
+        for x, y in ((a, b), (b, c), (c, a)):
+            if exposed(x, y):
+                on_boundary[x] += 1
+                on_boundary[y] += 1
+                if length(x, y) > max_length:
+                    heapq.heappush(heap, (-length(x, y), x, y, int(t)))
+    while heap:
+        _, a, b, t = heapq.heappop(heap)
+        if not kept[t] or not exposed(a, b) or protected[t]:
+            continue
+        c = next(int(x) for x in tri[t] if x != a and x != b)
+        if on_boundary[c] > 0:
+            continue
+        kept[t] = False
+        # (a, b) leaves the boundary, (a, c) and (c, b) join it: only c gains boundary edges
+        on_boundary[c] += 2
+        for x, y in ((a, c), (c, b)):
+            if length(x, y) > max_length:
+                inner = next(s for s in owners[(min(x, y), max(x, y))] if kept[s])
+                heapq.heappush(heap, (-length(x, y), x, y, inner))
+    return kept
 
 
-def edge_offsets(
+def edge_margins(
     loops: list[np.ndarray],
     data: np.ndarray,
     window: float,
     top: int,
-    max_extension: float,
-    step: float,
+    max_margin: float | list[np.ndarray],
+    max_bridge: float = np.inf,
 ) -> list[np.ndarray]:
-    """How far (rad) to move each loop point outward so the loop sits at the true edge.
+    """How far (rad) to widen each arc of the loops so the region reaches the true edge.
 
-    Each data direction (N, 3) is assigned to its nearest loop point and measured along that
-    point's outward normal, ``o = asin(d . n)``. Over a window of +- ``window`` (rad) along the
-    loop, the outermost depths ``o_(1) >= ... >= o_(top)`` give the endpoint estimate
-    ``o_(1) + min(gap, max_extension)`` (see :func:`_gap_beyond`). The estimates are Gaussian
-    smoothed along the loop, and never below the depth of any sample assigned to the point.
+    Each data direction (N, 3) is assigned to its nearest arc. For an arc ``a -> b`` with
+    outward pole ``n = -(a x b) / |a x b|``, the data assigned to arcs within +- ``window``
+    (rad, along the loop) are measured beyond its great circle, ``o = asin(x . n)``; their
+    outermost ``o_(1) >= ... >= o_(top)`` give the endpoint estimate ``o_(1) + gap`` (see
+    :func:`_gap_beyond`): a notch between outer samples fills up to them, a straight or convex
+    stretch reaches one sample spacing beyond its outermost samples. The margin is that
+    estimate, at least the distance of every sample outside the loops assigned to the arc,
+    and at most ``max_margin`` (one value, or per loop an (M,) array of caps per arc). An arc
+    longer than ``max_bridge`` (rad) bridges a gap without samples along it: the data say
+    nothing of an edge beyond it, so it widens only to cover the samples beyond it. Returns
+    one (M,) array per loop, entry ``i`` for the arc from point ``i`` to ``i + 1``.
     """
-    flat = np.vstack(loops)
-    owner = np.concatenate([np.full(lp.shape[0], i) for i, lp in enumerate(loops)])
-    normals = np.vstack([outward_normals(lp) for lp in loops])
-    _, nearest = cKDTree(flat).query(data)
-    depth = np.arcsin(np.clip(np.sum(data * normals[nearest], axis=1), -1.0, 1.0))
+    vertices, edges = loops_to_edges(loops)
+    nearest, _, angle = nearest_on_edges_reference(data, vertices, edges)
+    outside = ~inside_reference(data, vertices, edges)
+    need = np.zeros(edges.shape[0])
+    np.maximum.at(need, nearest[outside], angle[outside])
     out = []
     start = 0
-    for i, lp in enumerate(loops):
+    for number, lp in enumerate(loops):
         m = lp.shape[0]
-        mine = owner[nearest] == i
+        cap = max_margin if np.isscalar(max_margin) else max_margin[number]
+        nxt = np.roll(lp, -1, axis=0)
+        pole = -np.cross(lp, nxt)
+        pole /= np.linalg.norm(pole, axis=1, keepdims=True)
+        seg = edge_lengths(lp, np.column_stack([np.arange(m), (np.arange(m) + 1) % m]))
+        # arc-length position of each arc's middle along the loop
+        middle = np.cumsum(seg) - 0.5 * seg
+        total = float(seg.sum())
+        mine = np.flatnonzero((nearest >= start) & (nearest < start + m))
         local = nearest[mine] - start
-        o = depth[mine]
-        need = np.full(m, -np.inf)
-        np.maximum.at(need, local, o)
-        half = min(int(np.ceil(window / step)), (m - 1) // 2)
         order = np.argsort(local, kind="stable")
-        local, o = local[order], o[order]
+        local, mine = local[order], mine[order]
         bounds = np.searchsorted(local, np.arange(m + 1))
-        est = np.full(m, np.nan)
-        for v in range(m):
-            idx = [(v + j) % m for j in range(-half, half + 1)]
-            vals = np.concatenate([o[bounds[k] : bounds[k + 1]] for k in idx])
-            if vals.size == 0:
+        est = np.zeros(m)
+        for e in np.flatnonzero(seg <= max_bridge):
+            # circular distance along the loop between arc middles
+            apart = np.abs(middle - middle[e])
+            near = np.flatnonzero(np.minimum(apart, total - apart) <= window)
+            rows = np.concatenate([mine[bounds[k] : bounds[k + 1]] for k in near])
+            if rows.size == 0:
                 continue
+            # o = asin(x . n): signed angle beyond the arc's great circle
+            vals = np.arcsin(np.clip(data[rows] @ pole[e], -1.0, 1.0))
             vals = -np.sort(-vals)[:top]
-            est[v] = vals[0] + min(_gap_beyond(vals), max_extension)
-        if np.isnan(est).all():
-            est[:] = 0.0
-        else:
-            # windows without data take the nearest estimate along the loop
-            known = np.flatnonzero(~np.isnan(est))
-            pos = np.arange(m)
-            est = np.interp(pos, known, est[known], period=m)
-        sm = _smooth_values(est, window / step)
-        out.append(np.maximum(sm, need))
+            est[e] = vals[0] + _gap_beyond(vals)
+        out.append(np.clip(np.maximum(est, need[start : start + m]), 0.0, cap))
         start += m
     return out
 
@@ -369,27 +428,3 @@ def _gap_beyond(vals: np.ndarray) -> float:
     slope = np.sum((i - i.mean()) * (vals - vals.mean())) / np.sum((i - i.mean()) ** 2)
     intercept = vals.mean() - slope * i.mean()
     return max(float(intercept - vals[0]), 0.0)
-
-
-def _smooth_values(values: np.ndarray, s: float) -> np.ndarray:
-    """Circular Gaussian smoothing of ``values`` (M,) with width ``s`` samples."""
-    m = values.shape[0]
-    s = min(s, m / 6.0)
-    if s < 0.5:
-        return values.copy()
-    half = min(int(np.ceil(3.0 * s)), (m - 1) // 2)
-    j = np.arange(-half, half + 1)
-    g = np.exp(-(j * j) / (2.0 * s * s))
-    g /= g.sum()
-    out = np.zeros(m)
-    for w, shift in zip(g, j, strict=True):
-        out += w * np.roll(values, -shift)
-    return out
-
-
-def offset_loop(loop: np.ndarray, offsets: np.ndarray) -> np.ndarray:
-    """Move each loop point (M, 3) by ``offsets`` (M,) rad along its outward normal."""
-    n = outward_normals(loop)
-    # p' = cos(o) p + sin(o) n
-    out = np.cos(offsets)[:, None] * loop + np.sin(offsets)[:, None] * n
-    return out / np.linalg.norm(out, axis=1, keepdims=True)

@@ -13,17 +13,23 @@ optionally interpolated with the runner-ups.
    ``support_nodes``, the spacing grows until they fit), weights initialised with the trained
    map's geometric-interpolated answer there and trained by the same rule and schedule on all
    the data.
-2. *Region shape*: the limb directions of those trained weights are triangulated (spherical
-   Delaunay); triangles with circumradius at most ``alpha`` are kept, where ``alpha`` is learned
-   from the data's scale (``alpha_factor`` times the 90th percentile of the empty-circle radii
-   of the gaps the weights enclose), and holes smaller than ``hole_fraction`` of the region are
-   filled: an alpha shape that closes the gaps between a hand's strokes and keeps concavities
-   larger than them.
-3. *Smooth boundary*: its boundary loops are resampled every ``BOUNDARY_STEP_DEG`` and smoothed
-   along the loop (Gaussian, ``smooth_factor`` times the median boundary edge).
-4. *Learned edge*: each part of the loop moves out to where the data say the true edge lies
-   (the outermost samples' depths and the spacing of their order statistics, at most
-   ``max_margin_deg`` beyond the outermost sample), and never inside any taught sample.
+2. *Region shape*: the taught directions at those nodes' positions (real samples, the
+   outermost kept) are triangulated (spherical Delaunay); triangles with circumradius at most
+   ``alpha`` are kept, where ``alpha`` is learned from the data's scale (``alpha_factor`` times
+   the 90th percentile of the empty-circle radii of the gaps the samples enclose), and holes
+   smaller than ``hole_fraction`` of the region are filled: the gaps between a hand's strokes
+   close.
+3. *Peel*: a large alpha also bridges concavities and bays open to the outside. Outside
+   triangles whose exposed edge is longer than ``peel_factor`` times the support's median
+   nearest-neighbour spacing (at least ``min_peel_deg``) and whose middle the samples do not
+   surround (samples within ``surround_deg`` leave an empty sector wider than
+   ``SURROUND_GAP_DEG``) are peeled away, longest first (a chi-shape): the boundary runs
+   through taught samples, corners and concavities stay as taught, nothing is smoothed.
+4. *Learned edge*: each boundary arc is widened by where the data say the true edge lies (the
+   outermost samples' depths and the spacing of their order statistics), at least to every
+   sample beyond it, at most ``max_margin_deg``: the region never reaches more than that
+   beyond the data-supported shape. Arcs longer than ``BRIDGE_FRACTION`` of the peel length
+   (bridges across gaps with no sample along them) widen only to cover samples beyond them.
 
 ``contains(q)`` asks whether the limb direction lies in that region; ``correct(q)`` returns
 ``q`` itself then, otherwise the orientation whose limb direction is the nearest direction of
@@ -36,23 +42,26 @@ from __future__ import annotations
 from typing import Any, ClassVar
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from limbctl.envelope import region_shape as rs
 from limbctl.envelope import rigidmap_kernels as rk
 from limbctl.envelope.base import Envelope
-from limbctl.envelope.boundary import DirectionMesh
+from limbctl.envelope.boundary import DirectionMesh, boundary_edges
 from limbctl.envelope.layouts import make_layout
 from limbctl.errors import ConfigError, InvalidInputError
 from limbctl.quat import as_quaternions, limb_direction
 
-#: Spacing (degrees) of the gate's boundary vertices after smoothing.
-BOUNDARY_STEP_DEG = 0.4
 #: Outermost samples per boundary window used to estimate the gap to the true edge.
 EDGE_ORDER_STATISTICS = 12
-#: Half width of the boundary windows, in units of the smoothing width.
-EDGE_WINDOW = 2.0
+#: Half width of the boundary windows (along the loop), in units of the peel length.
+EDGE_WINDOW = 1.5
+#: A point is surrounded by samples when no empty sector about it is wider than this (deg).
+SURROUND_GAP_DEG = 150.0
+#: Arcs longer than this fraction of the peel length count as bridges (no learned widening).
+BRIDGE_FRACTION = 0.75
 #: Version of the gate's saved arrays; models of older versions must be retrained.
-GATE_VERSION = 2
+GATE_VERSION = 3
 
 
 class RigidMap(Envelope):
@@ -80,10 +89,13 @@ class RigidMap(Envelope):
         Largest number of refinement nodes placed on the data for the gate.
     thin_deg : float
         Smallest spacing (degrees) of the refinement nodes' positions.
-    alpha_factor, hole_fraction, smooth_factor : float
+    alpha_factor, hole_fraction, peel_factor : float
         Gate shape parameters (module docstring).
+    min_peel_deg, surround_deg : float
+        Shortest exposed edge (degrees) the peel removes; radius (degrees) of the
+        neighbourhood whose samples must surround a triangle for it to stay.
     max_margin_deg : float
-        How far (degrees) the learned edge may lie beyond the outermost taught sample.
+        How far (degrees) the learned edge may lie beyond the data-supported shape.
     """
 
     kind: ClassVar[str] = "rigidmap"
@@ -105,7 +117,9 @@ class RigidMap(Envelope):
         thin_deg: float = 1.0,
         alpha_factor: float = 2.0,
         hole_fraction: float = 0.2,
-        smooth_factor: float = 3.0,
+        peel_factor: float = 8.0,
+        min_peel_deg: float = 4.0,
+        surround_deg: float = 6.0,
         max_margin_deg: float = 0.75,
     ) -> None:
         if metric not in rk.METRICS:
@@ -117,7 +131,9 @@ class RigidMap(Envelope):
         for name, value in (
             ("thin_deg", thin_deg),
             ("alpha_factor", alpha_factor),
-            ("smooth_factor", smooth_factor),
+            ("peel_factor", peel_factor),
+            ("min_peel_deg", min_peel_deg),
+            ("surround_deg", surround_deg),
         ):
             if not value > 0.0:
                 raise ConfigError(f"{name} must be > 0, got {value}")
@@ -138,7 +154,9 @@ class RigidMap(Envelope):
         self.thin_deg = float(thin_deg)
         self.alpha_factor = float(alpha_factor)
         self.hole_fraction = float(hole_fraction)
-        self.smooth_factor = float(smooth_factor)
+        self.peel_factor = float(peel_factor)
+        self.min_peel_deg = float(min_peel_deg)
+        self.surround_deg = float(surround_deg)
         self.max_margin_deg = float(max_margin_deg)
         self.positions = make_layout(layout, nodes, seed=seed)
         self._weights: np.ndarray | None = None
@@ -180,7 +198,7 @@ class RigidMap(Envelope):
         support_weights = self.respond(support, interpolation="geometric", k=8)
         self._train(support, support_weights, patterns)
         self.support_weights = support_weights
-        self.mesh = self._build_mesh(support_weights, d_train)
+        self.mesh = self._build_mesh(support, d_train)
         return self
 
     def _support_indices(self, d: np.ndarray) -> np.ndarray:
@@ -193,33 +211,39 @@ class RigidMap(Envelope):
             # area per node ~ spacing^2: grow the spacing to fit the cap
             spacing *= max(1.05, np.sqrt(keep.size / self.support_nodes))
 
-    def _build_mesh(self, support_weights: np.ndarray, d_train: np.ndarray) -> DirectionMesh:
-        d = limb_direction(support_weights / np.linalg.norm(support_weights, axis=1)[:, None])
+    def _build_mesh(self, support: np.ndarray, d_train: np.ndarray) -> DirectionMesh:
+        """The gate's region from the support orientations (K, 4) and all taught directions."""
+        d = limb_direction(support)
         alpha = rs.learn_alpha(d, self.alpha_factor)
         tri, _, inside = rs.alpha_complex(d, alpha, max_hole=0.0)
         area = float(rs.triangle_area(d, tri[inside]).sum())
-        loops = rs.alpha_loops(d, alpha, max_hole=self.hole_fraction * area)
-        if not loops:
-            return DirectionMesh.from_loops(loops, 0.0)
-        edge = np.concatenate(
-            [
-                np.arccos(np.clip(np.sum(lp * np.roll(lp, -1, axis=0), axis=1), -1, 1))
-                for lp in loops
-            ]
+        tri, _, inside = rs.alpha_complex(d, alpha, max_hole=self.hole_fraction * area)
+        if not inside.any():
+            return DirectionMesh.from_loops([], 0.0)
+        # peel length: peel_factor x the median spacing of the support (nearest neighbour),
+        # at least min_peel_deg: an exposed edge longer than that bridges a gap in the data
+        spacing, _ = cKDTree(d).query(d, k=2)
+        length = max(
+            np.radians(self.min_peel_deg),
+            self.peel_factor * 2.0 * np.arcsin(0.5 * float(np.median(spacing[:, 1]))),
         )
-        sigma = self.smooth_factor * float(np.median(edge))
-        step = np.radians(BOUNDARY_STEP_DEG)
-        smooth = [rs.smooth_loop(lp, step, sigma) for lp in loops]
-        offsets = rs.edge_offsets(
-            smooth,
+        protected = rs.surrounded(
+            rs.tri_centroids(d, tri),
+            d,
+            np.radians(self.surround_deg),
+            np.radians(SURROUND_GAP_DEG),
+        )
+        kept = rs.peel(d, tri, inside, length, protected)
+        loops = [d[idx] for idx in rs.trace_loops(d, boundary_edges(tri[kept]))]
+        margins = rs.edge_margins(
+            loops,
             d_train,
-            EDGE_WINDOW * sigma,
+            EDGE_WINDOW * length,
             EDGE_ORDER_STATISTICS,
             np.radians(self.max_margin_deg),
-            step,
+            max_bridge=BRIDGE_FRACTION * length,
         )
-        final = [rs.offset_loop(lp, o) for lp, o in zip(smooth, offsets, strict=True)]
-        return DirectionMesh.from_loops(final, 0.0)
+        return DirectionMesh.from_loops(loops, margins)
 
     # ---- answering ---------------------------------------------------------------------------
     def _trained(self) -> None:
@@ -255,18 +279,7 @@ class RigidMap(Envelope):
         return out[0] if single else out
 
     def _mesh_args(self) -> tuple:
-        m = self.mesh
-        return (
-            m.vertices,
-            m.edges,
-            m.margin,
-            m.axis,
-            m.grid_shape,
-            m.cell_inside,
-            m.cell_deep,
-            m.cell_start,
-            m.cell_edges,
-        )
+        return self.mesh.kernel_args()
 
     def contains(self, q: np.ndarray) -> np.ndarray | bool:
         """Whether each limb direction lies in the learned region: (N,) bool or bool."""
@@ -321,11 +334,12 @@ class RigidMap(Envelope):
             "thin_deg": self.thin_deg,
             "alpha_factor": self.alpha_factor,
             "hole_fraction": self.hole_fraction,
-            "smooth_factor": self.smooth_factor,
+            "peel_factor": self.peel_factor,
+            "min_peel_deg": self.min_peel_deg,
+            "surround_deg": self.surround_deg,
             "max_margin_deg": self.max_margin_deg,
             "gate_version": GATE_VERSION,
             "epochs": self.epochs,
-            "margin": self.mesh.margin if self.mesh is not None else 0.0,
         }
 
     def _arrays(self) -> dict[str, np.ndarray]:
@@ -344,13 +358,12 @@ class RigidMap(Envelope):
         if params.pop("gate_version", 1) != GATE_VERSION:
             raise ValueError("saved by an older limbctl gate; retrain with `limbctl train`")
         epochs = int(params.pop("epochs"))
-        margin = float(params.pop("margin"))
         model = cls(**params)
         model.positions = np.ascontiguousarray(arrays["positions"], dtype=np.float64)
         model._topology = rk.position_topology(model.positions, 16)
         model._weights = np.ascontiguousarray(arrays["weights"], dtype=np.float64)
         model.support_positions = np.ascontiguousarray(arrays["support_positions"])
         model.support_weights = np.ascontiguousarray(arrays["support_weights"])
-        model.mesh = DirectionMesh.from_arrays(arrays, margin)
+        model.mesh = DirectionMesh.from_arrays(arrays)
         model.epochs = epochs
         return model

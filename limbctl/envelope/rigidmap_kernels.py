@@ -365,7 +365,7 @@ def position_topology(positions: np.ndarray, k: int) -> np.ndarray:
 # ---- correcting --------------------------------------------------------------------------------
 @nb.njit(cache=True)
 def _correct_one(
-    q, vertices, edges, margin, axis, grid_shape, inside, deep, start, cell_edges, out
+    q, vertices, edges, margins, axis, grid_shape, inside, deep, start, cell_edges, keys, out
 ) -> int:
     """Correct one quaternion into ``out``; returns 1 inside, 0 corrected, -1 bad input.
 
@@ -389,7 +389,9 @@ def _correct_one(
     d[2] = 2.0 * (x * z - w * y)
     d /= math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
     p = np.empty(3)
-    if bk.query(d, vertices, edges, margin, axis, grid_shape, inside, deep, start, cell_edges, p):
+    if bk.query(
+        d, vertices, edges, margins, axis, grid_shape, inside, deep, start, cell_edges, keys, p
+    ):
         out[0] = w
         out[1] = x
         out[2] = y
@@ -421,23 +423,38 @@ def _correct_one(
 
 
 @nb.njit(cache=True, parallel=True)
-def correct_batch(q, vertices, edges, margin, axis, grid_shape, inside, deep, start, cell_edges):
+def correct_batch(
+    q, vertices, edges, margins, axis, grid_shape, inside, deep, start, cell_edges, keys
+):
     """Correct each row of ``q`` (N, 4) -> (out (N, 4), status (N,) int8: 1 in, 0 fixed, -1 bad)."""
     n = q.shape[0]
     out = np.empty((n, 4))
     status = np.empty(n, dtype=np.int8)
     for j in nb.prange(n):
         status[j] = _correct_one(
-            q[j], vertices, edges, margin, axis, grid_shape, inside, deep, start, cell_edges, out[j]
+            q[j],
+            vertices,
+            edges,
+            margins,
+            axis,
+            grid_shape,
+            inside,
+            deep,
+            start,
+            cell_edges,
+            keys,
+            out[j],
         )
     return out, status
 
 
 @nb.njit(cache=True)
-def correct_single(q, vertices, edges, margin, axis, grid_shape, inside, deep, start, cell_edges):
+def correct_single(
+    q, vertices, edges, margins, axis, grid_shape, inside, deep, start, cell_edges, keys
+):
     """:func:`correct_batch` for one (4,) quaternion, without the thread pool: (out, status)."""
     out = np.empty(4)
     status = _correct_one(
-        q, vertices, edges, margin, axis, grid_shape, inside, deep, start, cell_edges, out
+        q, vertices, edges, margins, axis, grid_shape, inside, deep, start, cell_edges, keys, out
     )
     return out, status

@@ -271,6 +271,26 @@ def trajectory_samples(
     return np.asarray(out[:n])
 
 
+def covered(
+    d: np.ndarray, samples: np.ndarray, radius_deg: float = 6.0, max_gap_deg: float = 150.0
+) -> np.ndarray:
+    """(N,) bool: directions ``d`` (N, 3) the taught ``samples`` (K, 3) cover.
+
+    Covered: the samples within ``radius_deg`` surround the direction, leaving no empty sector
+    wider than ``max_gap_deg`` (among crossing strokes, or a sample spacing inside the data's
+    edge); a direction beyond the data's edge, or in a wide bay the hand never entered, is not.
+    The benchmarks count valid commands "where the recording covered it" with this.
+    """
+    from limbctl.envelope.region_shape import surrounded
+
+    return surrounded(
+        np.asarray(d, dtype=np.float64),
+        np.asarray(samples, dtype=np.float64),
+        np.radians(radius_deg),
+        np.radians(max_gap_deg),
+    )
+
+
 def _edge_track(region: Region, inset: float) -> np.ndarray:
     """Dense directions (K, 3) ``inset`` (rad) inside the region's boundary, in loop order."""
     if isinstance(region, ConeRegion):
