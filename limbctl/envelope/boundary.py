@@ -57,7 +57,7 @@ class DirectionMesh:
         cls,
         loops: list[np.ndarray],
         margins: float | list[np.ndarray],
-        cells_per_radian: float = 40.0,
+        cells_per_radian: float = 60.0,
     ) -> DirectionMesh:
         """Region bounded by closed ``loops`` (each (M, 3) directions, region on the left).
 

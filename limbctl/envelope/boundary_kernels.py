@@ -106,13 +106,12 @@ def nearest_on_arc(p, a, b, out) -> float:
 
 
 @nb.njit(cache=True)
-def slerp_dir(p, d, angle, margin) -> np.ndarray:
-    """The direction ``margin`` (rad) from ``p`` along the great circle toward ``d``.
+def slerp_into(p, d, angle, margin, out) -> None:
+    """Write into ``out`` (3,) the direction ``margin`` (rad) from ``p`` toward ``d``.
 
     ``cos(m) p + sin(m) u`` with ``u = (d - (d.p) p) / |d - (d.p) p|``; ``angle`` is the angle
     between ``p`` and ``d``; ``p`` itself when ``margin`` or ``angle`` is zero.
     """
-    out = np.empty(3)
     c = _dot(d, p)
     ux = d[0] - c * p[0]
     uy = d[1] - c * p[1]
@@ -122,15 +121,32 @@ def slerp_dir(p, d, angle, margin) -> np.ndarray:
         out[0] = p[0]
         out[1] = p[1]
         out[2] = p[2]
-        return out
+        return
     cm = math.cos(margin)
     sm = math.sin(margin)
-    out[0] = cm * p[0] + sm * ux / un
-    out[1] = cm * p[1] + sm * uy / un
-    out[2] = cm * p[2] + sm * uz / un
-    n = math.sqrt(_dot(out, out))
-    out /= n
+    x = cm * p[0] + sm * ux / un
+    y = cm * p[1] + sm * uy / un
+    z = cm * p[2] + sm * uz / un
+    n = math.sqrt(x * x + y * y + z * z)
+    out[0] = x / n
+    out[1] = y / n
+    out[2] = z / n
+
+
+@nb.njit(cache=True)
+def slerp_dir(p, d, angle, margin) -> np.ndarray:
+    """:func:`slerp_into` returning a new (3,) array."""
+    out = np.empty(3)
+    slerp_into(p, d, angle, margin, out)
     return out
+
+
+@nb.njit(cache=True)
+def frame_into(axis, work) -> None:
+    """Write the grid frame's u, v (see :func:`_frame`) into rows 0 and 1 of ``work``."""
+    u, v = _frame(axis)
+    work[0, :] = u
+    work[1, :] = v
 
 
 @nb.njit(cache=True)
@@ -296,19 +312,27 @@ def build_grid(vertices, edges, margins, axis, grid_shape, inside):
     return deep, start, cell_edges, cell_keys
 
 
+#: Rows of the scratch array the query kernels take: u, v of the frame, the cell centre, a
+#: temporary point and the best point (callers may use rows beyond these).
+WORK_ROWS = 5
+
+
 @nb.njit(cache=True)
 def query(
-    p, vertices, edges, margins, axis, grid_shape, inside, deep, start, cell_edges, keys, out
+    p, vertices, edges, margins, axis, grid_shape, inside, deep, start, cell_edges, keys, out, work
 ):
     """Whether direction ``p`` is in the region; ``out`` gets its projection (p itself inside).
 
-    The candidates are visited by increasing key; once ``key - angle(centre, p)`` exceeds the
-    best widened distance found (a lower bound of every later arc's) and ``key`` exceeds
-    ``angle(centre, p)`` (no later arc can cross the path centre -> p), the rest are skipped.
+    ``work`` (>= WORK_ROWS, 3) is scratch whose rows 0, 1 hold the frame (:func:`frame_into`):
+    nothing is allocated per query. The candidates are visited by increasing key; once
+    ``key - angle(centre, p)`` exceeds the best widened distance found (a lower bound of every
+    later arc's) and ``key`` exceeds ``angle(centre, p)`` (no later arc can cross the path
+    centre -> p), the rest are skipped.
     """
     n_theta = grid_shape[0]
     n_phi = grid_shape[1]
-    u, v = _frame(axis)
+    u = work[0]
+    v = work[1]
     cell = _cell_of(p, axis, u, v, n_theta, n_phi)
     out[0] = p[0]
     out[1] = p[1]
@@ -317,16 +341,21 @@ def query(
         return True
     i = cell // n_phi
     j = cell % n_phi
-    centre = _polar_point(
-        (i + 0.5) * math.pi / n_theta, -math.pi + (j + 0.5) * 2.0 * math.pi / n_phi, axis, u, v
-    )
+    theta = (i + 0.5) * math.pi / n_theta
+    phi = -math.pi + (j + 0.5) * 2.0 * math.pi / n_phi
+    st = math.sin(theta)
+    cp = math.cos(phi)
+    sp = math.sin(phi)
+    centre = work[2]
+    tmp = work[3]
+    best_point = work[4]
+    for c in range(3):
+        centre[c] = math.cos(theta) * axis[c] + st * (cp * u[c] + sp * v[c])
     travel = _angle(centre, p)
     crossings = 0
     best = np.inf
     best_dist = np.inf
     best_margin = 0.0
-    best_point = np.empty(3)
-    tmp = np.empty(3)
     for k in range(start[cell], start[cell + 1]):
         if keys[k] > travel and keys[k] - travel > best:
             break
@@ -338,24 +367,29 @@ def query(
             best = dist - margins[e]
             best_dist = dist
             best_margin = margins[e]
-            best_point[:] = tmp
+            best_point[0] = tmp[0]
+            best_point[1] = tmp[1]
+            best_point[2] = tmp[2]
         # does arc centre -> p cross arc a -> b? (half-open sign rule; same hemisphere)
         sa = _det(centre, p, a) > 0.0
         sb = _det(centre, p, b) > 0.0
         sc = _det(a, b, centre) > 0.0
-        sp = _det(a, b, p) > 0.0
+        sq = _det(a, b, p) > 0.0
         if (
             sa != sb
-            and sc != sp
+            and sc != sq
             and _dot(a, centre) + _dot(b, centre) + _dot(a, p) + _dot(b, p) > 0.0
         ):
             crossings += 1
     in_mesh = inside[cell] != (crossings % 2 == 1)
     if in_mesh or best <= CONTAIN_TOLERANCE:
         return True
-    q = slerp_dir(best_point, p, best_dist, best_margin)
-    out[:] = q
+    slerp_into(best_point, p, best_dist, best_margin, out)
     return False
+
+
+#: Rows per chunk of a batch: scratch is allocated once per chunk, not per row.
+CHUNK = 512
 
 
 @nb.njit(cache=True, parallel=True)
@@ -363,11 +397,13 @@ def contains_batch(vertices, edges, margins, axis, grid_shape, inside, deep, sta
     """(N,) bool for directions ``d`` (N, 3)."""
     n = d.shape[0]
     res = np.empty(n, dtype=np.bool_)
-    for j in nb.prange(n):
+    for chunk in nb.prange((n + CHUNK - 1) // CHUNK):
+        work = np.empty((WORK_ROWS, 3))
+        frame_into(axis, work)
         out = np.empty(3)
-        res[j] = query(
-            d[j], vertices, edges, margins, axis, grid_shape, inside, deep, start, arcs, keys, out
-        )
+        for j in range(chunk * CHUNK, min(n, (chunk + 1) * CHUNK)):
+            args = (vertices, edges, margins, axis, grid_shape, inside, deep, start, arcs, keys)
+            res[j] = query(d[j], *args, out, work)
     return res
 
 
@@ -376,19 +412,10 @@ def project_batch(vertices, edges, margins, axis, grid_shape, inside, deep, star
     """Projection (N, 3) of directions ``d`` (N, 3): themselves inside, nearest region point out."""
     n = d.shape[0]
     res = np.empty((n, 3))
-    for j in nb.prange(n):
-        query(
-            d[j],
-            vertices,
-            edges,
-            margins,
-            axis,
-            grid_shape,
-            inside,
-            deep,
-            start,
-            arcs,
-            keys,
-            res[j],
-        )
+    for chunk in nb.prange((n + CHUNK - 1) // CHUNK):
+        work = np.empty((WORK_ROWS, 3))
+        frame_into(axis, work)
+        for j in range(chunk * CHUNK, min(n, (chunk + 1) * CHUNK)):
+            args = (vertices, edges, margins, axis, grid_shape, inside, deep, start, arcs, keys)
+            query(d[j], *args, res[j], work)
     return res

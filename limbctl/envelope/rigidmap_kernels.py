@@ -365,13 +365,14 @@ def position_topology(positions: np.ndarray, k: int) -> np.ndarray:
 # ---- correcting --------------------------------------------------------------------------------
 @nb.njit(cache=True)
 def _correct_one(
-    q, vertices, edges, margins, axis, grid_shape, inside, deep, start, cell_edges, keys, out
+    q, vertices, edges, margins, axis, grid_shape, inside, deep, start, cell_edges, keys, out, work
 ) -> int:
     """Correct one quaternion into ``out``; returns 1 inside, 0 corrected, -1 bad input.
 
     Inside (limb direction in the region): ``out = q`` (canonical). Outside: the limb direction
     moves to the nearest region direction and the twist about the limb is kept:
-    ``out = swing(d') * twist(q)`` with ``twist = normalise(w, x, 0, 0)``.
+    ``out = swing(d') * twist(q)`` with ``twist = normalise(w, x, 0, 0)``. ``work``
+    (WORK_ROWS + 2, 3) is scratch with the grid frame in rows 0, 1 (``bk.frame_into``).
     """
     norm2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]
     # NaN fails every comparison, so it is refused here
@@ -383,15 +384,17 @@ def _correct_one(
     y = sign * q[2]
     z = sign * q[3]
     # limb direction: (w^2 + x^2 - y^2 - z^2, 2(xy + wz), 2(xz - wy)), normalised
-    d = np.empty(3)
+    d = work[bk.WORK_ROWS]
     d[0] = w * w + x * x - y * y - z * z
     d[1] = 2.0 * (x * y + w * z)
     d[2] = 2.0 * (x * z - w * y)
-    d /= math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
-    p = np.empty(3)
-    if bk.query(
-        d, vertices, edges, margins, axis, grid_shape, inside, deep, start, cell_edges, keys, p
-    ):
+    dn = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+    d[0] /= dn
+    d[1] /= dn
+    d[2] /= dn
+    p = work[bk.WORK_ROWS + 1]
+    args = (vertices, edges, margins, axis, grid_shape, inside, deep, start, cell_edges, keys)
+    if bk.query(d, *args, p, work):
         out[0] = w
         out[1] = x
         out[2] = y
@@ -430,21 +433,12 @@ def correct_batch(
     n = q.shape[0]
     out = np.empty((n, 4))
     status = np.empty(n, dtype=np.int8)
-    for j in nb.prange(n):
-        status[j] = _correct_one(
-            q[j],
-            vertices,
-            edges,
-            margins,
-            axis,
-            grid_shape,
-            inside,
-            deep,
-            start,
-            cell_edges,
-            keys,
-            out[j],
-        )
+    for chunk in nb.prange((n + bk.CHUNK - 1) // bk.CHUNK):
+        work = np.empty((bk.WORK_ROWS + 2, 3))
+        bk.frame_into(axis, work)
+        args = (vertices, edges, margins, axis, grid_shape, inside, deep, start, cell_edges, keys)
+        for j in range(chunk * bk.CHUNK, min(n, (chunk + 1) * bk.CHUNK)):
+            status[j] = _correct_one(q[j], *args, out[j], work)
     return out, status
 
 
@@ -454,7 +448,8 @@ def correct_single(
 ):
     """:func:`correct_batch` for one (4,) quaternion, without the thread pool: (out, status)."""
     out = np.empty(4)
-    status = _correct_one(
-        q, vertices, edges, margins, axis, grid_shape, inside, deep, start, cell_edges, keys, out
-    )
+    work = np.empty((bk.WORK_ROWS + 2, 3))
+    bk.frame_into(axis, work)
+    args = (vertices, edges, margins, axis, grid_shape, inside, deep, start, cell_edges, keys)
+    status = _correct_one(q, *args, out, work)
     return out, status
