@@ -176,3 +176,71 @@ def test_old_gate_files_are_refused(cone_model, tmp_path):
     with pytest.raises(ValueError, match="retrain"):
         RigidMap._restore(params, m._arrays())
     assert isinstance(Envelope.load(m.save(tmp_path / "ok.npz")), RigidMap)
+
+
+def test_a_real_hand_recording_is_learned_safely_and_faithfully():
+    """A 20 s recording of the simulator's scripted hand (``limbctl record --duration 20
+    --seed 0``) over examples/regions/irregular.yaml."""
+    from pathlib import Path
+
+    import yaml
+
+    from limbctl.dataset import load_dataset
+    from limbctl.envelope.synthetic import covered
+
+    root = Path(__file__).resolve().parents[1]
+    polygon = yaml.safe_load((root / "examples" / "regions" / "irregular.yaml").read_text())
+    region = PolygonRegion(np.array(polygon["region"]["polygon"], dtype=float))
+    q = load_dataset(root / "tests" / "data" / "hand_irregular_seed0_20s.limb").quaternions
+    d = limb_direction(q)
+    m = RigidMap(nodes=500, seed=0).fit(q)
+    # taught poses are allowed (target 99.5%)
+    assert m.contains(q).mean() >= 0.995
+    test = region.test_directions(20000, np.random.default_rng(0))
+    qt = to_quaternions(test)
+    out = m.correct(qt)
+    # valid commands among the strokes pass unchanged (target 99%)
+    valid = (region.depth(test) >= np.radians(2.0)) & covered(test, d)
+    assert valid.sum() > 300
+    assert np.all(out[valid] == qt[valid], axis=1).mean() >= 0.99
+    # no output outside the taught polygon by more than 2 deg; 99.5% within 1 deg
+    depth_out = region.depth(limb_direction(out))
+    assert depth_out.min() > -np.radians(2.0)
+    assert (depth_out >= -np.radians(1.0)).mean() >= 0.995
+
+
+@pytest.fixture(scope="module")
+def hand_model():
+    from pathlib import Path
+
+    from limbctl.dataset import load_dataset
+
+    path = Path(__file__).resolve().parent / "data" / "hand_irregular_seed0_20s.limb"
+    return RigidMap(nodes=300, seed=0).fit(load_dataset(path).quaternions)
+
+
+@settings(max_examples=300, deadline=None)
+@given(pan=st.floats(-120.0, 120.0), tilt=st.floats(-80.0, 80.0), twist=st.floats(-3.1, 3.1))
+def test_hand_taught_gate_promises(hand_model, pan, tilt, twist):
+    # a concave, hand-taught region with holes between strokes: the same promises hold
+    from limbctl.gimbal import pan_tilt_to_direction
+
+    d = pan_tilt_to_direction(np.radians(pan), np.radians(tilt))
+    s = to_quaternions(d)
+    tw = np.array([np.cos(twist / 2), np.sin(twist / 2), 0.0, 0.0])
+    q = np.array(
+        [
+            s[0] * tw[0] - s[1] * tw[1],
+            s[0] * tw[1] + s[1] * tw[0],
+            s[2] * tw[0] + s[3] * tw[1],
+            s[3] * tw[0] - s[2] * tw[1],
+        ]
+    )
+    q = q * (1 if q[0] >= 0 else -1)
+    out = hand_model.correct(q)
+    if hand_model.contains(q):
+        np.testing.assert_array_equal(out, q)
+    else:
+        assert hand_model.contains(out)
+        np.testing.assert_array_equal(hand_model.correct(out), out)
+        assert geodesic_distance(swing_twist(out)[1], swing_twist(q)[1]) < 1e-6

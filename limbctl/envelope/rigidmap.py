@@ -12,13 +12,16 @@ optionally interpolated with the runner-ups.
    training orientations thinned to at least ``thin_deg`` apart (outermost kept; at most
    ``support_nodes``, the spacing grows until they fit), weights initialised with the trained
    map's geometric-interpolated answer there and trained by the same rule and schedule on all
-   the data.
-2. *Region shape*: the taught directions at those nodes' positions (real samples, the
-   outermost kept) are triangulated (spherical Delaunay); triangles with circumradius at most
-   ``alpha`` are kept, where ``alpha`` is learned from the data's scale (``alpha_factor`` times
-   the 90th percentile of the empty-circle radii of the gaps the samples enclose), and holes
-   smaller than ``hole_fraction`` of the region are filled: the gaps between a hand's strokes
-   close.
+   the data (``support_weights``: the papers' answering rule on nodes where the data lie, which
+   `limbctl eval` scores).
+2. *Region shape*: the gate's shape is built on those nodes' *positions* (real taught
+   samples, the outermost kept), not on their weights: a trained weight is the mean of the
+   samples it wins, so the outermost weights sit inside the outermost samples and a shape on
+   them refuses taught poses. The positions' limb directions are triangulated (spherical
+   Delaunay); triangles with circumradius at most ``alpha`` are kept, where ``alpha`` is
+   learned from the data's scale (``alpha_factor`` times the 90th percentile of the
+   empty-circle radii of the gaps the samples enclose), and holes smaller than
+   ``hole_fraction`` of the region are filled: the gaps between a hand's strokes close.
 3. *Peel*: a large alpha also bridges concavities and bays open to the outside. Outside
    triangles whose exposed edge is longer than ``peel_factor`` times the support's median
    nearest-neighbour spacing (at least ``min_peel_deg``) and whose middle the samples do not
