@@ -60,7 +60,7 @@ EDGE_ORDER_STATISTICS = 12
 #: Half width of the boundary windows (along the loop), in units of the peel length.
 EDGE_WINDOW = 1.5
 #: A point is surrounded by samples when no empty sector about it is wider than this (deg).
-SURROUND_GAP_DEG = 150.0
+SURROUND_GAP_DEG = 165.0
 #: Arcs longer than this fraction of the peel length count as bridges (no learned widening).
 BRIDGE_FRACTION = 0.75
 #: Version of the gate's saved arrays; models of older versions must be retrained.
