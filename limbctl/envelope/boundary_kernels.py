@@ -317,7 +317,7 @@ def build_grid(vertices, edges, margins, axis, grid_shape, inside):
 WORK_ROWS = 5
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def query(
     p, vertices, edges, margins, axis, grid_shape, inside, deep, start, cell_edges, keys, out, work
 ):
@@ -402,8 +402,21 @@ def contains_batch(vertices, edges, margins, axis, grid_shape, inside, deep, sta
         frame_into(axis, work)
         out = np.empty(3)
         for j in range(chunk * CHUNK, min(n, (chunk + 1) * CHUNK)):
-            args = (vertices, edges, margins, axis, grid_shape, inside, deep, start, arcs, keys)
-            res[j] = query(d[j], *args, out, work)
+            res[j] = query(
+                d[j],
+                vertices,
+                edges,
+                margins,
+                axis,
+                grid_shape,
+                inside,
+                deep,
+                start,
+                arcs,
+                keys,
+                out,
+                work,
+            )
     return res
 
 
@@ -416,6 +429,19 @@ def project_batch(vertices, edges, margins, axis, grid_shape, inside, deep, star
         work = np.empty((WORK_ROWS, 3))
         frame_into(axis, work)
         for j in range(chunk * CHUNK, min(n, (chunk + 1) * CHUNK)):
-            args = (vertices, edges, margins, axis, grid_shape, inside, deep, start, arcs, keys)
-            query(d[j], *args, res[j], work)
+            query(
+                d[j],
+                vertices,
+                edges,
+                margins,
+                axis,
+                grid_shape,
+                inside,
+                deep,
+                start,
+                arcs,
+                keys,
+                res[j],
+                work,
+            )
     return res

@@ -363,7 +363,7 @@ def position_topology(positions: np.ndarray, k: int) -> np.ndarray:
 
 
 # ---- correcting --------------------------------------------------------------------------------
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def _correct_one(
     q, vertices, edges, margins, axis, grid_shape, inside, deep, start, cell_edges, keys, out, work
 ) -> int:
@@ -393,8 +393,21 @@ def _correct_one(
     d[1] /= dn
     d[2] /= dn
     p = work[bk.WORK_ROWS + 1]
-    args = (vertices, edges, margins, axis, grid_shape, inside, deep, start, cell_edges, keys)
-    if bk.query(d, *args, p, work):
+    if bk.query(
+        d,
+        vertices,
+        edges,
+        margins,
+        axis,
+        grid_shape,
+        inside,
+        deep,
+        start,
+        cell_edges,
+        keys,
+        p,
+        work,
+    ):
         out[0] = w
         out[1] = x
         out[2] = y
@@ -436,9 +449,22 @@ def correct_batch(
     for chunk in nb.prange((n + bk.CHUNK - 1) // bk.CHUNK):
         work = np.empty((bk.WORK_ROWS + 2, 3))
         bk.frame_into(axis, work)
-        args = (vertices, edges, margins, axis, grid_shape, inside, deep, start, cell_edges, keys)
         for j in range(chunk * bk.CHUNK, min(n, (chunk + 1) * bk.CHUNK)):
-            status[j] = _correct_one(q[j], *args, out[j], work)
+            status[j] = _correct_one(
+                q[j],
+                vertices,
+                edges,
+                margins,
+                axis,
+                grid_shape,
+                inside,
+                deep,
+                start,
+                cell_edges,
+                keys,
+                out[j],
+                work,
+            )
     return out, status
 
 
@@ -450,6 +476,19 @@ def correct_single(
     out = np.empty(4)
     work = np.empty((bk.WORK_ROWS + 2, 3))
     bk.frame_into(axis, work)
-    args = (vertices, edges, margins, axis, grid_shape, inside, deep, start, cell_edges, keys)
-    status = _correct_one(q, *args, out, work)
+    status = _correct_one(
+        q,
+        vertices,
+        edges,
+        margins,
+        axis,
+        grid_shape,
+        inside,
+        deep,
+        start,
+        cell_edges,
+        keys,
+        out,
+        work,
+    )
     return out, status
