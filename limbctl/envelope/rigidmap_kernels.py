@@ -30,24 +30,21 @@ import numpy as np
 
 from limbctl.envelope import boundary_kernels as bk
 
-#: Metric codes (the kernels take ints).
-EUCLIDEAN = 0
-COSINE = 1
-METRICS = {"euclidean": EUCLIDEAN, "cosine": COSINE}
-
-#: Interpolation codes.
-NONE = 0
-IDW = 1
-GEOMETRIC = 2
-GEOMETRIC_WINNER = 3
-TOPOLOGICAL = 4
-INTERPOLATIONS = {
-    "none": NONE,
-    "idw": IDW,
-    "geometric": GEOMETRIC,
-    "geometric-winner": GEOMETRIC_WINNER,
-    "topological": TOPOLOGICAL,
-}
+# The answering kernels (winner by weight, interpolation) are the ones the SOM uses too; they are
+# re-exported here so the Rigid Map's code and tests name them in one place.
+from limbctl.envelope.interpolation import (  # noqa: F401
+    COSINE,
+    EUCLIDEAN,
+    GEOMETRIC,
+    GEOMETRIC_WINNER,
+    IDW,
+    INTERPOLATIONS,
+    METRICS,
+    NONE,
+    TOPOLOGICAL,
+    respond_batch,
+    respond_reference,
+)
 
 
 # ---- training ----------------------------------------------------------------------------------
@@ -199,161 +196,7 @@ def train_rigid_map_reference(
     return epochs
 
 
-# ---- answering ---------------------------------------------------------------------------------
-@nb.njit(cache=True)
-def _weight_distance(x: np.ndarray, w: np.ndarray, metric: int) -> float:
-    """``|x - w|^2`` (EUCLIDEAN) or ``acos(x . w / |w|)^2`` (COSINE)."""
-    if metric == EUCLIDEAN:
-        s = 0.0
-        for c in range(4):
-            d = x[c] - w[c]
-            s += d * d
-        return s
-    dot = 0.0
-    nn = 0.0
-    for c in range(4):
-        dot += x[c] * w[c]
-        nn += w[c] * w[c]
-    cosv = dot / math.sqrt(nn) if nn > 0.0 else -1.0
-    a = math.acos(min(1.0, max(-1.0, cosv)))
-    return a * a
-
-
-@nb.njit(cache=True)
-def _nearest_k(weights: np.ndarray, x: np.ndarray, count: int, metric: int, idx, dist) -> None:
-    """Fill ``idx``/``dist`` (count,) with the ``count`` weights nearest ``x``, nearest first."""
-    for r in range(count):
-        idx[r] = -1
-        dist[r] = np.inf
-    for i in range(weights.shape[0]):
-        d = _weight_distance(x, weights[i], metric)
-        if not d < dist[count - 1]:
-            continue
-        r = count - 1
-        while r > 0 and d < dist[r - 1]:
-            dist[r] = dist[r - 1]
-            idx[r] = idx[r - 1]
-            r -= 1
-        dist[r] = d
-        idx[r] = i
-
-
-@nb.njit(cache=True)
-def _combine(weights, x, idx, dist, count, mode, out) -> None:
-    """Interpolate between ``weights[idx[0]]`` (winner) and ``idx[1:count]``; unit result."""
-    y = np.empty(4)
-    c0 = idx[0]
-    for c in range(4):
-        y[c] = weights[c0, c]
-    if mode == IDW and count > 1:
-        # y = sum_i w_i / d_i / sum_i 1 / d_i  (an exact hit returns that weight)
-        if dist[0] > 0.0:
-            total = 0.0
-            for c in range(4):
-                y[c] = 0.0
-            for r in range(count):
-                inv = 1.0 / math.sqrt(dist[r])
-                total += inv
-                for c in range(4):
-                    y[c] += inv * weights[idx[r], c]
-            for c in range(4):
-                y[c] /= total
-    elif (mode == GEOMETRIC or mode == GEOMETRIC_WINNER or mode == TOPOLOGICAL) and count > 1:
-        # residual r = x - w_c; per runner-up: d = w_k - y (or w_k - w_c),
-        # a = clip(<r, d> / |d|^2, 0, 1); y += a d; r -= a d
-        res = np.empty(4)
-        dv = np.empty(4)
-        for c in range(4):
-            res[c] = x[c] - y[c]
-        for r in range(1, count):
-            k = idx[r]
-            dd = 0.0
-            rd = 0.0
-            for c in range(4):
-                base = weights[c0, c] if mode == GEOMETRIC_WINNER else y[c]
-                dv[c] = weights[k, c] - base
-                dd += dv[c] * dv[c]
-                rd += res[c] * dv[c]
-            if not dd > 0.0:
-                continue
-            a = min(1.0, max(0.0, rd / dd))
-            for c in range(4):
-                y[c] += a * dv[c]
-                res[c] -= a * dv[c]
-    norm = 0.0
-    for c in range(4):
-        norm += y[c] * y[c]
-    norm = math.sqrt(norm)
-    sign = -1.0 if y[0] < 0.0 else 1.0
-    for c in range(4):
-        out[c] = sign * y[c] / norm
-
-
-@nb.njit(cache=True, parallel=True)
-def respond_batch(
-    weights: np.ndarray, q: np.ndarray, k: int, metric: int, mode: int, topology: np.ndarray
-) -> np.ndarray:
-    """The Rigid Map's answer for each row of ``q`` (N, 4) -> (N, 4) unit, w >= 0.
-
-    Winner by weight with ``metric``; ``mode`` one of the interpolation codes. ``GEOMETRIC``,
-    ``GEOMETRIC_WINNER`` and ``IDW`` combine the winner with its ``k`` nearest runner-ups by
-    weight; ``TOPOLOGICAL`` combines it (geometric rule) with ``topology[c, :k]``, the winner's
-    ``k`` nearest nodes by *position*.
-    """
-    n = q.shape[0]
-    out = np.empty((n, 4))
-    count = 1 if mode == NONE else min(k + 1, weights.shape[0])
-    for j in nb.prange(n):
-        idx = np.empty(count, dtype=np.int64)
-        dist = np.empty(count)
-        if mode == TOPOLOGICAL:
-            _nearest_k(weights, q[j], 1, metric, idx, dist)
-            used = min(count, topology.shape[1] + 1)
-            for r in range(1, used):
-                idx[r] = topology[idx[0], r - 1]
-            _combine(weights, q[j], idx, dist, used, mode, out[j])
-        else:
-            _nearest_k(weights, q[j], count, metric, idx, dist)
-            _combine(weights, q[j], idx, dist, count, mode, out[j])
-    return out
-
-
-def respond_reference(
-    weights: np.ndarray, q: np.ndarray, k: int, metric: int, mode: int, topology: np.ndarray
-) -> np.ndarray:
-    """Plain numpy version of :func:`respond_batch` (same arguments, same answer)."""
-    out = np.empty((q.shape[0], 4))
-    norms = np.linalg.norm(weights, axis=1)
-    count = 1 if mode == NONE else min(k + 1, weights.shape[0])
-    for j, x in enumerate(q):
-        if metric == EUCLIDEAN:
-            dist = np.sum((x - weights) ** 2, axis=1)
-        else:
-            dist = np.arccos(np.clip((weights @ x) / norms, -1.0, 1.0)) ** 2
-        order = np.argsort(dist, kind="stable")
-        if mode == TOPOLOGICAL:
-            idx = np.concatenate([order[:1], topology[order[0], : count - 1]])
-        else:
-            idx = order[:count]
-        y = weights[idx[0]].copy()
-        if mode == IDW and len(idx) > 1 and dist[idx[0]] > 0.0:
-            inv = 1.0 / np.sqrt(dist[idx])
-            y = inv @ weights[idx] / inv.sum()
-        elif mode in (GEOMETRIC, GEOMETRIC_WINNER, TOPOLOGICAL):
-            res = x - y
-            for kk in idx[1:]:
-                base = weights[idx[0]] if mode == GEOMETRIC_WINNER else y
-                d = weights[kk] - base
-                dd = d @ d
-                if dd > 0.0:
-                    a = np.clip((res @ d) / dd, 0.0, 1.0)
-                    y = y + a * d
-                    res = res - a * d
-        y = y / np.linalg.norm(y)
-        out[j] = -y if y[0] < 0 else y
-    return out
-
-
+# ---- answering: shared with the SOM (limbctl.envelope.interpolation) ----------------------
 def position_topology(positions: np.ndarray, k: int) -> np.ndarray:
     """For each node, its ``k`` nearest other nodes by position (M, k) int64, nearest first."""
     dots = positions @ positions.T
