@@ -270,44 +270,68 @@ def _peek_time(raw: bytes) -> float | None:
 
 
 class KeyboardSource(CommandSource):
-    """Arrow keys in the terminal nudge pan/tilt by ``step_deg``; ``q`` ends the session."""
+    """Arrow keys in the terminal nudge pan/tilt by ``step_deg``; ``q`` ends the session.
+
+    Up/down raise/lower the limb (tilt), left/right turn it (pan; left is +pan, toward +y).
+    ``tty_path`` is the terminal to read (the controlling terminal by default).
+    """
 
     name = "keyboard"
     latest_only = True
     _KEYS = {b"\x1b[A": (0, 1), b"\x1b[B": (0, -1), b"\x1b[C": (-1, 0), b"\x1b[D": (1, 0)}
 
-    def __init__(self, step_deg: float = 2.0, start_deg: tuple[float, float] = (0.0, 0.0)) -> None:
+    def __init__(
+        self,
+        step_deg: float = 2.0,
+        start_deg: tuple[float, float] = (0.0, 0.0),
+        tty_path: str = "/dev/tty",
+    ) -> None:
         super().__init__()
         try:
-            self._fd = os.open("/dev/tty", os.O_RDONLY)
+            self._fd = os.open(tty_path, os.O_RDONLY | os.O_NOCTTY)
         except OSError as exc:
             raise ConfigError("keyboard source needs a terminal; use --source stdin") from exc
         self.step_deg = step_deg
         self.pan_deg, self.tilt_deg = start_deg
+
+    def close(self) -> None:
+        """Stop the reader and release the terminal; safe to call twice."""
+        super().close()
+        if self._thread is None and self._fd >= 0:  # never started: nothing restores the tty
+            os.close(self._fd)
+            self._fd = -1
 
     def _run(self) -> None:
         import termios
         import tty
 
         saved = termios.tcgetattr(self._fd)
+        pending = b""
         try:
             tty.setcbreak(self._fd)
             while not self._stop.is_set():
                 ready, _, _ = select.select([self._fd], [], [], 0.1)
                 if not ready:
                     continue
-                key = os.read(self._fd, 8)
-                if key in (b"q", b"\x04"):
-                    break
-                move = self._KEYS.get(key)
-                if move is None:
-                    continue
-                self.pan_deg = min(max(self.pan_deg + move[0] * self.step_deg, -180.0), 180.0)
-                self.tilt_deg = min(max(self.tilt_deg + move[1] * self.step_deg, -90.0), 90.0)
-                self.feed(f'{{"pan": {self.pan_deg}, "tilt": {self.tilt_deg}}}')
+                pending += os.read(self._fd, 64)
+                # split the bytes into keys: an escape sequence is three bytes, others one
+                while pending:
+                    size = 3 if pending[:1] == b"\x1b" else 1
+                    if len(pending) < size:
+                        break
+                    key, pending = pending[:size], pending[size:]
+                    if key in (b"q", b"\x04"):
+                        return
+                    move = self._KEYS.get(key)
+                    if move is None:
+                        continue
+                    self.pan_deg = min(max(self.pan_deg + move[0] * self.step_deg, -180.0), 180.0)
+                    self.tilt_deg = min(max(self.tilt_deg + move[1] * self.step_deg, -90.0), 90.0)
+                    self.feed(f'{{"pan": {self.pan_deg}, "tilt": {self.tilt_deg}}}')
         finally:
             termios.tcsetattr(self._fd, termios.TCSADRAIN, saved)
             os.close(self._fd)
+            self._fd = -1
 
 
 SOURCE_FORMS = ("stdin", "udp://HOST:PORT", "replay:FILE", "keyboard", "leader:ID,ID")

@@ -65,3 +65,34 @@ def test_open_source_rejects_unknown_names():
         open_source("udp://nohostport")
     with pytest.raises(ConfigError, match="does not exist"):
         open_source("replay:/nonexistent/file.jsonl")
+
+
+def test_keyboard_source_on_a_pseudo_terminal():
+    import pty
+
+    from limbctl.sources import KeyboardSource
+
+    master, slave = pty.openpty()
+    try:
+        with KeyboardSource(step_deg=5.0, tty_path=os.ttyname(slave)) as src:
+            # two ups and a left in one burst, a stray key, then another left
+            os.write(master, b"\x1b[A\x1b[A\x1b[Dx\x1b[D")
+            got = []
+            while len(got) < 4:
+                batch = src.poll(timeout=5.0)
+                assert batch, "no key arrived"
+                got += batch
+            os.write(master, b"q")
+            assert src.wait_finished(5.0)
+        assert src.stats.accepted == 4
+        assert (src.pan_deg, src.tilt_deg) == (10.0, 10.0)
+    finally:
+        os.close(master)
+        os.close(slave)
+
+
+def test_keyboard_source_needs_a_terminal(tmp_path):
+    from limbctl.sources import KeyboardSource
+
+    with pytest.raises(ConfigError, match="needs a terminal"):
+        KeyboardSource(tty_path=str(tmp_path / "no-such-tty"))
