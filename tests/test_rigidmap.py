@@ -77,22 +77,20 @@ def _direction(theta_deg, phi_deg):
 
 
 @settings(max_examples=200, deadline=None)
+def _with_twist(d, twist):
+    """swing(d) * (rotation by ``twist`` about +x), canonical w >= 0."""
+    from limbctl.quat import canonical, multiply
+
+    tw = np.array([np.cos(twist / 2), np.sin(twist / 2), 0.0, 0.0])
+    return canonical(multiply(to_quaternions(d), tw))
+
+
 @given(theta=st.floats(0.0, 179.0), phi=st.floats(-180.0, 180.0), twist=st.floats(-3.1, 3.1))
 def test_correct_promises(cone_model, theta, phi, twist):
     region, m = cone_model
     d = _direction(theta, phi)
     # a command with twist about the limb: swing(d) * twist
-    tw = np.array([np.cos(twist / 2), np.sin(twist / 2), 0.0, 0.0])
-    s = to_quaternions(d)
-    q = np.array(
-        [
-            s[0] * tw[0] - s[1] * tw[1],
-            s[0] * tw[1] + s[1] * tw[0],
-            s[2] * tw[0] + s[3] * tw[1],
-            s[3] * tw[0] - s[2] * tw[1],
-        ]
-    )
-    q = q * (1 if q[0] >= 0 else -1)
+    q = _with_twist(d, twist)
     out = m.correct(q)
     if m.contains(q):
         # inside: unchanged, exactly
@@ -226,17 +224,7 @@ def test_hand_taught_gate_promises(hand_model, pan, tilt, twist):
     from limbctl.gimbal import pan_tilt_to_direction
 
     d = pan_tilt_to_direction(np.radians(pan), np.radians(tilt))
-    s = to_quaternions(d)
-    tw = np.array([np.cos(twist / 2), np.sin(twist / 2), 0.0, 0.0])
-    q = np.array(
-        [
-            s[0] * tw[0] - s[1] * tw[1],
-            s[0] * tw[1] + s[1] * tw[0],
-            s[2] * tw[0] + s[3] * tw[1],
-            s[3] * tw[0] - s[2] * tw[1],
-        ]
-    )
-    q = q * (1 if q[0] >= 0 else -1)
+    q = _with_twist(d, twist)
     out = hand_model.correct(q)
     if hand_model.contains(q):
         np.testing.assert_array_equal(out, q)
