@@ -98,11 +98,13 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--pan-limits",
-        help="hard pan limits MIN,MAX in degrees (default: the base rig profile's)",
+        help="hard pan limits MIN,MAX in degrees, e.g. --pan-limits=-90,90 (default: the base "
+        "rig profile's)",
     )
     p.add_argument(
         "--tilt-limits",
-        help="hard tilt limits MIN,MAX in degrees (default: the base rig profile's)",
+        help="hard tilt limits MIN,MAX in degrees, e.g. --tilt-limits=-40,60 (default: the base "
+        "rig profile's)",
     )
 
     p = sub.add_parser(
