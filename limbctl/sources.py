@@ -287,28 +287,43 @@ class KeyboardSource(CommandSource):
         tty_path: str = "/dev/tty",
     ) -> None:
         super().__init__()
+        import termios
+        import tty
+
+        self._fd = -1
         try:
-            self._fd = os.open(tty_path, os.O_RDONLY | os.O_NOCTTY)
+            fd = os.open(tty_path, os.O_RDONLY | os.O_NOCTTY)
         except OSError as exc:
             raise ConfigError("keyboard source needs a terminal; use --source stdin") from exc
+        try:
+            # key by key from now on (no line buffering): keys pressed before the reader thread
+            # runs are kept, not held back in a half-typed line
+            self._saved = termios.tcgetattr(fd)
+            tty.setcbreak(fd)
+        except termios.error as exc:
+            os.close(fd)
+            raise ConfigError(f"{tty_path} is not a terminal; use --source stdin") from exc
+        self._fd = fd
         self.step_deg = step_deg
         self.pan_deg, self.tilt_deg = start_deg
 
     def close(self) -> None:
-        """Stop the reader and release the terminal; safe to call twice."""
+        """Stop the reader and give the terminal back as it was; safe to call twice."""
         super().close()
-        if self._thread is None and self._fd >= 0:  # never started: nothing restores the tty
+        if self._thread is None:  # never started: the reader's own clean-up did not run
+            self._release()
+
+    def _release(self) -> None:
+        import termios
+
+        if self._fd >= 0:
+            termios.tcsetattr(self._fd, termios.TCSADRAIN, self._saved)
             os.close(self._fd)
             self._fd = -1
 
     def _run(self) -> None:
-        import termios
-        import tty
-
-        saved = termios.tcgetattr(self._fd)
         pending = b""
         try:
-            tty.setcbreak(self._fd)
             while not self._stop.is_set():
                 ready, _, _ = select.select([self._fd], [], [], 0.1)
                 if not ready:
@@ -329,9 +344,7 @@ class KeyboardSource(CommandSource):
                     self.tilt_deg = min(max(self.tilt_deg + move[1] * self.step_deg, -90.0), 90.0)
                     self.feed(f'{{"pan": {self.pan_deg}, "tilt": {self.tilt_deg}}}')
         finally:
-            termios.tcsetattr(self._fd, termios.TCSADRAIN, saved)
-            os.close(self._fd)
-            self._fd = -1
+            self._release()
 
 
 SOURCE_FORMS = ("stdin", "udp://HOST:PORT", "replay:FILE", "keyboard", "leader:ID,ID")

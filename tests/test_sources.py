@@ -96,3 +96,7 @@ def test_keyboard_source_needs_a_terminal(tmp_path):
 
     with pytest.raises(ConfigError, match="needs a terminal"):
         KeyboardSource(tty_path=str(tmp_path / "no-such-tty"))
+    plain = tmp_path / "plain-file"
+    plain.write_text("")
+    with pytest.raises(ConfigError, match="not a terminal"):
+        KeyboardSource(tty_path=str(plain))
