@@ -33,6 +33,12 @@ optionally interpolated with the runner-ups.
    sample beyond it, at most ``max_margin_deg``: the region never reaches more than that
    beyond the data-supported shape. Arcs longer than ``BRIDGE_FRACTION`` of the peel length
    (bridges across gaps with no sample along them) widen only to cover samples beyond them.
+5. *Smooth edge* (``smooth_edge``, :mod:`limbctl.envelope.edge_fit`): each loop is replaced by
+   a smooth curve, local small circles fitted to the loop over a window the data choose, moved
+   out to where the outermost samples' depths put the edge (at most ``max_offset_deg``). The
+   smooth edge is kept only when the data agree with it (simple, every taught sample still
+   inside, nothing beyond ``max_offset_deg`` of the supported region); otherwise the gate
+   keeps the supported loops of step 4. ``edge`` says which one a trained model uses.
 
 ``contains(q)`` asks whether the limb direction lies in that region; ``correct(q)`` returns
 ``q`` itself then, otherwise the orientation whose limb direction is the nearest direction of
@@ -51,6 +57,7 @@ from limbctl.envelope import region_shape as rs
 from limbctl.envelope import rigidmap_kernels as rk
 from limbctl.envelope.base import Envelope
 from limbctl.envelope.boundary import DirectionMesh, boundary_edges
+from limbctl.envelope.edge_fit import learned_edge
 from limbctl.envelope.layouts import make_layout
 from limbctl.errors import ConfigError, InvalidInputError
 from limbctl.quat import as_quaternions, limb_direction
@@ -64,7 +71,7 @@ SURROUND_GAP_DEG = 165.0
 #: Arcs longer than this fraction of the peel length count as bridges (no learned widening).
 BRIDGE_FRACTION = 0.75
 #: Version of the gate's saved arrays; models of older versions must be retrained.
-GATE_VERSION = 3
+GATE_VERSION = 4
 
 
 class RigidMap(Envelope):
@@ -99,6 +106,10 @@ class RigidMap(Envelope):
         neighbourhood whose samples must surround a triangle for it to stay.
     max_margin_deg : float
         How far (degrees) the learned edge may lie beyond the data-supported shape.
+    smooth_edge : bool
+        Try the smooth edge of step 5 (kept only when the data agree with it).
+    max_offset_deg : float
+        How far (degrees) the smooth edge may lie beyond the data-supported region.
     """
 
     kind: ClassVar[str] = "rigidmap"
@@ -124,6 +135,8 @@ class RigidMap(Envelope):
         min_peel_deg: float = 4.0,
         surround_deg: float = 6.0,
         max_margin_deg: float = 0.75,
+        smooth_edge: bool = True,
+        max_offset_deg: float = 3.0,
     ) -> None:
         if metric not in rk.METRICS:
             raise ConfigError(f"unknown metric {metric!r}; choose one of: {', '.join(rk.METRICS)}")
@@ -140,8 +153,8 @@ class RigidMap(Envelope):
         ):
             if not value > 0.0:
                 raise ConfigError(f"{name} must be > 0, got {value}")
-        if not (hole_fraction >= 0.0 and max_margin_deg >= 0.0):
-            raise ConfigError("hole_fraction and max_margin_deg must be >= 0")
+        if not (hole_fraction >= 0.0 and max_margin_deg >= 0.0 and max_offset_deg >= 0.0):
+            raise ConfigError("hole_fraction, max_margin_deg and max_offset_deg must be >= 0")
         self.nodes = nodes
         self.layout = layout
         self.seed = int(seed)
@@ -161,6 +174,10 @@ class RigidMap(Envelope):
         self.min_peel_deg = float(min_peel_deg)
         self.surround_deg = float(surround_deg)
         self.max_margin_deg = float(max_margin_deg)
+        self.smooth_edge = bool(smooth_edge)
+        self.max_offset_deg = float(max_offset_deg)
+        #: Which edge the gate uses: "smooth" (fitted, step 5) or "supported" (steps 2-4).
+        self.edge = "supported"
         self.positions = make_layout(layout, nodes, seed=seed)
         self._weights: np.ndarray | None = None
         self.support_positions: np.ndarray | None = None
@@ -246,7 +263,15 @@ class RigidMap(Envelope):
             np.radians(self.max_margin_deg),
             max_bridge=BRIDGE_FRACTION * length,
         )
-        return DirectionMesh.from_loops(loops, margins)
+        supported = DirectionMesh.from_loops(loops, margins)
+        self.edge = "supported"
+        if not self.smooth_edge:
+            return supported
+        smooth = learned_edge(loops, d_train, supported, np.radians(self.max_offset_deg))
+        if smooth is None:
+            return supported
+        self.edge = "smooth"
+        return DirectionMesh.from_loops(smooth, 0.0)
 
     # ---- answering ---------------------------------------------------------------------------
     def _trained(self) -> None:
@@ -341,6 +366,9 @@ class RigidMap(Envelope):
             "min_peel_deg": self.min_peel_deg,
             "surround_deg": self.surround_deg,
             "max_margin_deg": self.max_margin_deg,
+            "smooth_edge": self.smooth_edge,
+            "max_offset_deg": self.max_offset_deg,
+            "edge": self.edge,
             "gate_version": GATE_VERSION,
             "epochs": self.epochs,
         }
@@ -361,7 +389,9 @@ class RigidMap(Envelope):
         if params.pop("gate_version", 1) != GATE_VERSION:
             raise ValueError("saved by an older limbctl gate; retrain with `limbctl train`")
         epochs = int(params.pop("epochs"))
+        edge = str(params.pop("edge"))
         model = cls(**params)
+        model.edge = edge
         model.positions = np.ascontiguousarray(arrays["positions"], dtype=np.float64)
         model._topology = rk.position_topology(model.positions, 16)
         model._weights = np.ascontiguousarray(arrays["weights"], dtype=np.float64)

@@ -1,0 +1,299 @@
+"""The learned edge: a smooth boundary fitted to the data-supported loops and the outermost data.
+
+The loops the region shape traces (:mod:`limbctl.envelope.region_shape`) run through taught
+samples, so their corners are wherever a sample happened to lie: a command far outside snaps to
+one of them, and sparse edges leave the loop inside the true edge. This module replaces each
+loop by a smooth curve sampled every ``STEP_DEG`` (all angles below in radians):
+
+1. *Local small circles*. At each station ``k`` of the loop (arc-length position ``s_k``), a
+   small circle ``{x : angle(x, n_k) = rho_k}`` is fitted to the loop's vertices ``x_i`` with
+   Gaussian weights ``w_ki = exp(-(s_i - s_k)^2 / (2 W^2))``: ``n_k`` is the normal of the
+   weighted least-squares plane (the smallest eigenvector of the weighted covariance) on the
+   region's side, ``rho_k`` the weighted mean of ``angle(x_i, n_k)``. A boundary that is a
+   circle (a cone's) is fitted by one circle whatever ``W``; straight edges by great circles.
+2. *Window*. The weighted residual ``r(W)`` of those fits, averaged over the loop, grows with
+   ``W`` while the windows still resolve the sampling noise, levels off once they average it,
+   and grows again when they span real shape (a corner, a bay). ``W`` is the largest window of
+   the ladder ``WINDOWS_DEG`` (from ``START_WINDOW_DEG`` up) before a step grows the residual
+   by more than ``GROWTH``.
+3. *Edge offset*. Measured along each station's circle, the depth of the taught directions
+   nearest to the stations within ``W`` of it, ``o = angle(d, n_k) - rho_k``; the outermost
+   ``o_(1) >= ... >= o_(K)`` give the endpoint estimate ``o_(1) + gap``
+   (:func:`limbctl.envelope.region_shape._gap_beyond`): where the edge lies, not where the
+   outermost sample happened to fall. Offsets are smoothed along the loop with the same ``W``
+   and capped at ``max_offset``.
+4. *Acceptance* (:func:`learned_edge`). The smooth edges replace the data-supported loops only
+   when the data agree with them: no two arcs cross, every taught direction the supported
+   region holds stays inside (up to ``MISS_FRACTION``), and nothing reaches more than
+   ``max_offset`` beyond the supported region (the loops widened by their learned margins).
+   A smooth curve that cuts a taught corner or bridges a bay fails one of these, and the gate
+   keeps the supported loops, corners and bays as taught.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from limbctl.envelope.boundary import DirectionMesh
+from limbctl.envelope.region_shape import _gap_beyond
+
+#: Spacing (deg) of the stations of the fitted edge.
+STEP_DEG = 0.5
+#: Window ladder (deg, Gaussian sigma along the loop) the fit chooses its window from.
+WINDOWS_DEG = (4.5, 6.5, 9.0, 13.0, 19.0, 27.0, 40.0, 60.0)
+#: The smallest window the choice starts from (deg).
+START_WINDOW_DEG = 13.0
+#: A ladder step may grow the mean fit residual by at most this factor.
+GROWTH = 1.2
+#: Fitted circles are at least this large (deg of angular radius), either side.
+MIN_RADIUS_DEG = 5.0
+#: Outermost samples per window used for the edge offset.
+ORDER_STATISTICS = 12
+#: The smooth edge may leave out at most this fraction of the taught directions.
+MISS_FRACTION = 0.001
+#: A stretch added beyond the supported region may be worth at most this many samples.
+GAP_EXPECTED = 10.0
+#: Radius (deg) of the neighbourhood the local sample density is counted in.
+DENSITY_RADIUS_DEG = 6.0
+
+
+def resample_loop(loop: np.ndarray, step: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Stations every ~``step`` (rad) along a closed loop (M, 3).
+
+    Returns the stations (K, 3), their arc-length positions (K,) and the positions of the
+    loop's own vertices (M,), both measured from vertex 0 (the loop's length is the last
+    vertex position plus its closing arc: :func:`loop_length`).
+    """
+    nxt = np.roll(loop, -1, axis=0)
+    seg = np.arccos(np.clip(np.einsum("ij,ij->i", loop, nxt), -1.0, 1.0))
+    at_vertex = np.concatenate([[0.0], np.cumsum(seg)[:-1]])
+    total = float(seg.sum())
+    k = max(8, int(np.ceil(total / step)))
+    s = np.arange(k) * total / k
+    e = np.clip(np.searchsorted(at_vertex, s, side="right") - 1, 0, loop.shape[0] - 1)
+    t = (s - at_vertex[e]) / np.maximum(seg[e], 1e-15)
+    # slerp along arc e: (sin((1 - t) om) a + sin(t om) b) / sin(om)
+    om = seg[e]
+    so = np.where(np.sin(om) < 1e-12, 1.0, np.sin(om))
+    x = (np.sin((1.0 - t) * om) / so)[:, None] * loop[e] + (np.sin(t * om) / so)[:, None] * nxt[e]
+    small = np.sin(om) < 1e-12
+    x[small] = loop[e[small]]
+    return x / np.linalg.norm(x, axis=1, keepdims=True), s, at_vertex
+
+
+def loop_length(loop: np.ndarray) -> float:
+    """Length (rad) of a closed loop (M, 3)."""
+    nxt = np.roll(loop, -1, axis=0)
+    return float(np.arccos(np.clip(np.einsum("ij,ij->i", loop, nxt), -1.0, 1.0)).sum())
+
+
+def outward_at_stations(loop: np.ndarray, s: np.ndarray, at_vertex: np.ndarray) -> np.ndarray:
+    """Outward pole (K, 3) of the loop arc each station lies on: ``-(a x b) / |a x b|``."""
+    nxt = np.roll(loop, -1, axis=0)
+    pole = -np.cross(loop, nxt)
+    pole /= np.maximum(np.linalg.norm(pole, axis=1, keepdims=True), 1e-15)
+    e = np.clip(np.searchsorted(at_vertex, s, side="right") - 1, 0, loop.shape[0] - 1)
+    return pole[e]
+
+
+def circle_fits(
+    loop: np.ndarray,
+    at_vertex: np.ndarray,
+    s: np.ndarray,
+    total: float,
+    outward: np.ndarray,
+    window: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Weighted small-circle fit at every station: poles (K, 3), radii (K,), residuals (K,).
+
+    Weights ``w_ki = exp(-(s_i - s_k)^2 / (2 window^2))`` over the loop's vertices (circular
+    distance along the loop); the pole is taken on the region's side (``n . outward <= 0``)
+    and the radius kept within ``[MIN_RADIUS_DEG, 180 - MIN_RADIUS_DEG]``.
+    """
+    gap = np.abs(s[:, None] - at_vertex[None, :])
+    gap = np.minimum(gap, total - gap)
+    w = np.exp(-0.5 * (gap / window) ** 2)
+    # the four nearest vertices always count: a fit needs three points off one great circle
+    nearest = np.argsort(gap, axis=1)[:, :4]
+    np.put_along_axis(w, nearest, np.maximum(np.take_along_axis(w, nearest, axis=1), 1e-3), 1)
+    w /= w.sum(axis=1, keepdims=True)
+    mean = w @ loop
+    # weighted covariance sum_i w_ki x_i x_i^T - mean mean^T, per station
+    cov = np.einsum("ki,ia,ib->kab", w, loop, loop) - np.einsum("ka,kb->kab", mean, mean)
+    _, vecs = np.linalg.eigh(cov)
+    pole = vecs[:, :, 0]
+    pole *= np.where(np.einsum("ij,ij->i", pole, outward) > 0.0, -1.0, 1.0)[:, None]
+    ang = np.arccos(np.clip(pole @ loop.T, -1.0, 1.0))
+    rho = np.sum(w * ang, axis=1)
+    resid = np.sqrt(np.sum(w * (ang - rho[:, None]) ** 2, axis=1))
+    lo = np.radians(MIN_RADIUS_DEG)
+    return pole, np.clip(rho, lo, np.pi - lo), resid
+
+
+def on_circle(x: np.ndarray, pole: np.ndarray, rho: np.ndarray) -> np.ndarray:
+    """The point (K, 3) at angle ``rho`` from ``pole`` on the great circle through ``x``."""
+    u = x - np.einsum("ij,ij->i", x, pole)[:, None] * pole
+    u /= np.maximum(np.linalg.norm(u, axis=1, keepdims=True), 1e-15)
+    return np.cos(rho)[:, None] * pole + np.sin(rho)[:, None] * u
+
+
+def choose_window(
+    loop: np.ndarray, at_vertex: np.ndarray, s: np.ndarray, total: float, outward: np.ndarray
+) -> float:
+    """The window (rad) by the residual-growth rule of the module docstring."""
+    ladder = [np.radians(w) for w in WINDOWS_DEG if w >= START_WINDOW_DEG]
+    best = ladder[0]
+    last = float(np.mean(circle_fits(loop, at_vertex, s, total, outward, best)[2]))
+    for window in ladder[1:]:
+        r = float(np.mean(circle_fits(loop, at_vertex, s, total, outward, window)[2]))
+        if r > GROWTH * max(last, 1e-12):
+            break
+        best, last = window, r
+    return best
+
+
+def smooth_along(values: np.ndarray, s: np.ndarray, total: float, width: float) -> np.ndarray:
+    """Gaussian smoothing (width ``width`` rad) of per-station ``values`` (K,) along the loop."""
+    gap = np.abs(s[:, None] - s[None, :])
+    gap = np.minimum(gap, total - gap)
+    g = np.exp(-0.5 * (gap / width) ** 2)
+    return (g @ values) / g.sum(axis=1)
+
+
+def edge_offsets(
+    stations: np.ndarray,
+    pole: np.ndarray,
+    rho: np.ndarray,
+    s: np.ndarray,
+    total: float,
+    data: np.ndarray,
+    window: float,
+) -> np.ndarray:
+    """Endpoint estimate (K,) rad of the edge beyond each station's circle (step 3)."""
+    k = stations.shape[0]
+    # each datum belongs to its nearest station; a station reads those within +- window
+    owner = np.argmax(data @ stations.T, axis=1)
+    order = np.argsort(owner, kind="stable")
+    bounds = np.searchsorted(owner[order], np.arange(k + 1))
+    reach = max(1, int(round(window / (total / k))))
+    out = np.zeros(k)
+    for i in range(k):
+        idx = np.arange(i - reach, i + reach + 1) % k
+        rows = np.concatenate([order[bounds[j] : bounds[j + 1]] for j in idx])
+        if rows.size == 0:
+            continue
+        # o = angle(d, n) - rho: signed depth beyond the station's circle
+        o = np.arccos(np.clip(data[rows] @ pole[i], -1.0, 1.0)) - rho[i]
+        o = -np.sort(-o)[:ORDER_STATISTICS]
+        out[i] = o[0] + _gap_beyond(o)
+    return out
+
+
+def arcs_cross(loops: list[np.ndarray]) -> bool:
+    """Whether any two non-adjacent arcs of the closed ``loops`` (each (M, 3)) cross.
+
+    Arcs ``i`` and ``j`` cross when the ends of each lie on both sides of the other's great
+    circle (``sign(a_j . p_i) != sign(b_j . p_i)``, ``p_i = a_i x b_i``, and the converse) and
+    their midpoints face the same way.
+    """
+    a = np.vstack(loops)
+    b = np.vstack([np.roll(lp, -1, axis=0) for lp in loops])
+    owner = np.concatenate([np.full(lp.shape[0], i) for i, lp in enumerate(loops)])
+    index = np.concatenate([np.arange(lp.shape[0]) for lp in loops])
+    size = np.array([lp.shape[0] for lp in loops])[owner]
+    pole = np.cross(a, b)
+    mid = a + b
+    for start in range(0, a.shape[0], 256):
+        sl = slice(start, start + 256)
+        # (J, I): arc j's ends on both sides of arc i's great circle, and the converse
+        j_split = np.sign(a @ pole[sl].T) * np.sign(b @ pole[sl].T) < 0
+        i_split = (np.sign(a[sl] @ pole.T) * np.sign(b[sl] @ pole.T)).T < 0
+        hit = j_split & i_split & (mid @ mid[sl].T > 0.0)
+        rows = np.arange(a.shape[0])[:, None]
+        cols = np.arange(a.shape[0])[sl][None, :]
+        apart = np.abs(index[rows] - index[cols])
+        adjacent = (owner[rows] == owner[cols]) & ((apart <= 1) | (apart == size[rows] - 1))
+        if np.any(hit & ~adjacent):
+            return True
+    return False
+
+
+def fit_edge(loop: np.ndarray, data: np.ndarray, max_offset: float) -> np.ndarray:
+    """The smooth edge (K, 3) of one data-supported ``loop`` (M, 3), steps 1-3.
+
+    ``data`` (N, 3) are the taught directions; ``max_offset`` (rad) caps the edge offset.
+    """
+    stations, s, at_vertex = resample_loop(loop, np.radians(STEP_DEG))
+    total = loop_length(loop)
+    outward = outward_at_stations(loop, s, at_vertex)
+    window = choose_window(loop, at_vertex, s, total, outward)
+    pole, rho, _ = circle_fits(loop, at_vertex, s, total, outward, window)
+    base = on_circle(stations, pole, rho)
+    offset = edge_offsets(base, pole, rho, s, total, data, window)
+    offset = np.minimum(smooth_along(offset, s, total, window), max_offset)
+    return on_circle(base, pole, rho + offset)
+
+
+def unexplained_gap(edge: np.ndarray, data: np.ndarray, supported: DirectionMesh) -> float:
+    """The most samples (expected) any stretch the ``edge`` (K, 3) adds would hold.
+
+    Each station lies ``b_k`` (rad) beyond the supported region (0 inside). Over a run of
+    consecutive stations with ``b_k > 0`` the added area is ``A = sum_k b_k ds`` (``ds`` the
+    station spacing), and a teacher sampling at the local density ``rho`` (taught directions
+    within ``DENSITY_RADIUS_DEG`` of the run's stations, per area of half that cap: the
+    stations sit on the edge) would have put ``rho A`` samples there; the chance of finding
+    none is ``exp(-rho A)``. Sparse i.i.d. teaching leaves gaps worth a few samples; a bay the
+    hand went around is worth tens to hundreds.
+    """
+    foot = supported.project(edge)
+    beyond = np.arccos(np.clip(np.einsum("ij,ij->i", foot, edge), -1.0, 1.0))
+    beyond[supported.contains(edge)] = 0.0
+    if not np.any(beyond > 0.0):
+        return 0.0
+    ds = loop_length(edge) / edge.shape[0]
+    radius = np.radians(DENSITY_RADIUS_DEG)
+    counts = np.sum(edge @ data.T >= np.cos(radius), axis=1)
+    # half a cap of angular radius r has area pi (1 - cos r)
+    rho = counts / (np.pi * (1.0 - np.cos(radius)))
+    worst = 0.0
+    out = beyond > 0.0
+    # runs of stations beyond the supported region, the loop read circularly
+    first = int(np.argmin(out)) if not out.all() else 0
+    expected = 0.0
+    for i in np.roll(np.arange(edge.shape[0]), -first):
+        if out[i]:
+            expected += rho[i] * beyond[i] * ds
+            worst = max(worst, expected)
+        else:
+            expected = 0.0
+    return worst
+
+
+def learned_edge(
+    loops: list[np.ndarray],
+    data: np.ndarray,
+    supported: DirectionMesh,
+    max_offset: float,
+) -> list[np.ndarray] | None:
+    """Smooth edges for all ``loops``, or None when the data refuse them (step 4).
+
+    ``supported`` is the data-supported region (a
+    :class:`limbctl.envelope.boundary.DirectionMesh` over the same loops with their learned
+    margins). The smooth edges are kept only when, together, they are simple (no two arcs
+    cross), contain every taught direction the supported region contains (up to
+    ``MISS_FRACTION`` of them) and reach no farther than ``max_offset`` beyond the supported
+    region: a smooth curve that cuts a taught corner or bridges a bay fails one of these, and
+    the gate then keeps the supported loops, corners and bays as taught.
+    """
+    edges = [fit_edge(lp, data, max_offset) for lp in loops]
+    if arcs_cross(edges):
+        return None
+    for edge in edges:
+        if unexplained_gap(edge, data, supported) > GAP_EXPECTED:
+            return None
+    smooth = DirectionMesh.from_loops(edges, 0.0)
+    before = supported.contains(data)
+    missed = before & ~smooth.contains(data)
+    if missed.sum() > MISS_FRACTION * max(1, before.sum()):
+        return None
+    return edges
