@@ -24,8 +24,9 @@ loop by a smooth curve sampled every ``STEP_DEG`` (all angles below in radians):
    and capped at ``max_offset``.
 4. *Acceptance* (:func:`learned_edge`). The smooth edges replace the data-supported loops only
    when the data agree with them: no two arcs cross, every taught direction the supported
-   region holds stays inside (up to ``MISS_FRACTION``), and nothing reaches more than
-   ``max_offset`` beyond the supported region (the loops widened by their learned margins).
+   region holds stays inside (up to ``MISS_FRACTION`` more than ``MISS_TOLERANCE_DEG``
+   out), and every stretch added beyond the supported region (the loops widened by their
+   learned margins) is one the local sampling density could leave empty by chance.
    A smooth curve that cuts a taught corner or bridges a bay fails one of these, and the gate
    keeps the supported loops, corners and bays as taught.
 """
@@ -36,6 +37,7 @@ import numpy as np
 
 from limbctl.envelope.boundary import DirectionMesh
 from limbctl.envelope.region_shape import _gap_beyond
+from limbctl.quat import direction_angle
 
 #: Spacing (deg) of the stations of the fitted edge.
 STEP_DEG = 0.5
@@ -51,6 +53,8 @@ MIN_RADIUS_DEG = 5.0
 ORDER_STATISTICS = 12
 #: The smooth edge may leave out at most this fraction of the taught directions.
 MISS_FRACTION = 0.001
+#: A taught direction at most this far (deg) outside the smooth edge does not count as left out.
+MISS_TOLERANCE_DEG = 0.1
 #: A stretch added beyond the supported region may be worth at most this many samples.
 GAP_EXPECTED = 10.0
 #: Radius (deg) of the neighbourhood the local sample density is counted in.
@@ -294,6 +298,11 @@ def learned_edge(
     smooth = DirectionMesh.from_loops(edges, 0.0)
     before = supported.contains(data)
     missed = before & ~smooth.contains(data)
+    # a sample a hair outside (the edge estimate's own noise) is not a cut corner
+    far = direction_angle(smooth.project(data[missed]), data[missed]) > np.radians(
+        MISS_TOLERANCE_DEG
+    )
+    missed[np.flatnonzero(missed)[~far]] = False
     if missed.sum() > MISS_FRACTION * max(1, before.sum()):
         return None
     return edges

@@ -1,0 +1,121 @@
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from limbctl.dataset import load_dataset
+from limbctl.envelope import RigidMap
+from limbctl.envelope import edge_fit as ef
+from limbctl.envelope.boundary import DirectionMesh
+from limbctl.envelope.synthetic import ConeRegion, to_quaternions
+from limbctl.gimbal import pan_tilt_to_direction
+from limbctl.quat import direction_angle, limb_direction
+
+X = np.array([1.0, 0.0, 0.0])
+
+
+def circle(radius_deg: float, n: int, wobble_deg: float = 0.0, seed: int = 0) -> np.ndarray:
+    """A counter-clockwise loop (n, 3) at ``radius_deg`` (+- wobble) about +x."""
+    rng = np.random.default_rng(seed)
+    phi = np.linspace(-np.pi, np.pi, n, endpoint=False)
+    r = np.radians(radius_deg + wobble_deg * rng.uniform(-1.0, 1.0, n))
+    # region on the left seen from outside: counter-clockwise about +x
+    return np.column_stack([np.cos(r), np.sin(r) * np.cos(phi), np.sin(r) * np.sin(phi)])
+
+
+def test_resample_puts_stations_evenly_on_the_loop():
+    loop = circle(20.0, 17)
+    stations, s, at_vertex = ef.resample_loop(loop, np.radians(0.5))
+    total = ef.loop_length(loop)
+    assert at_vertex[0] == 0.0 and np.all(np.diff(at_vertex) > 0)
+    np.testing.assert_allclose(np.diff(s), total / s.size, rtol=1e-12)
+    assert total / s.size <= np.radians(0.5)
+    np.testing.assert_allclose(np.linalg.norm(stations, axis=1), 1.0, atol=1e-12)
+    # every station lies on an arc of the loop: within the arc's great circle
+    mesh = DirectionMesh.from_loops([loop], 0.0)
+    foot = mesh.project(stations)
+    assert np.all(mesh.contains(stations) | (direction_angle(foot, stations) < 1e-9))
+
+
+@pytest.mark.parametrize("window_deg", [4.5, 13.0, 60.0])
+def test_circle_fits_recover_an_exact_small_circle(window_deg):
+    loop = circle(35.0, 40)
+    stations, s, at_vertex = ef.resample_loop(loop, np.radians(0.5))
+    outward = ef.outward_at_stations(loop, s, at_vertex)
+    pole, rho, resid = ef.circle_fits(
+        loop, at_vertex, s, ef.loop_length(loop), outward, np.radians(window_deg)
+    )
+    # the pole is on the region's side (+x), the radius is the circle's
+    np.testing.assert_allclose(pole, np.tile(X, (s.size, 1)), atol=1e-9)
+    np.testing.assert_allclose(np.degrees(rho), 35.0, atol=1e-7)
+    assert np.all(np.degrees(resid) < 1e-6)
+
+
+def test_window_grows_on_a_noisy_circle():
+    # noise only: the residual levels off, the window goes to the top of the ladder
+    loop = circle(25.0, 60, wobble_deg=1.0)
+    stations, s, at_vertex = ef.resample_loop(loop, np.radians(0.5))
+    outward = ef.outward_at_stations(loop, s, at_vertex)
+    w = ef.choose_window(loop, at_vertex, s, ef.loop_length(loop), outward)
+    assert np.degrees(w) == pytest.approx(max(ef.WINDOWS_DEG))
+
+
+def test_crossing_arcs_are_found():
+    assert not ef.arcs_cross([circle(20.0, 30)])
+    # two vertices swapped: the loop crosses itself
+    bad = circle(20.0, 30)
+    bad[[3, 4]] = bad[[4, 3]]
+    assert ef.arcs_cross([bad])
+    # two loops that overlap: the same circle turned 0.3 rad away about z
+    turn = np.array([[np.cos(0.3), -np.sin(0.3), 0], [np.sin(0.3), np.cos(0.3), 0], [0, 0, 1]])
+    near = circle(20.0, 30) @ turn
+    assert ef.arcs_cross([circle(20.0, 30), near])
+
+
+def test_gap_worth_is_zero_inside_and_large_over_a_dense_bay():
+    supported = DirectionMesh.from_loops([circle(20.0, 60)], 0.0)
+    data = ConeRegion(np.radians(20.0)).sample(3000, np.random.default_rng(1))
+    assert ef.unexplained_gap(circle(19.0, 200), data, supported) == 0.0
+    # an edge 3 deg beyond all around, over dense data: hundreds of samples' worth
+    assert ef.unexplained_gap(circle(23.0, 200), data, supported) > 100.0
+
+
+@pytest.mark.parametrize("half_angle", [20.0, 90.0])
+def test_a_cone_gets_a_smooth_edge_on_its_true_circle(half_angle):
+    rng = np.random.default_rng(0)
+    region = ConeRegion(np.radians(half_angle))
+    train = region.sample(1000, rng)
+    m = RigidMap(nodes=1000, seed=0).fit(to_quaternions(train))
+    assert m.edge == "smooth"
+    radius = np.degrees(direction_angle(m.mesh.vertices, X))
+    # the supported loops lie 0.5-4 deg inside; the smooth edge on the circle
+    assert np.abs(radius - half_angle).mean() < 0.5
+    # far commands land next to Lee's correction, not on a corner
+    test = region.test_directions(5000, rng)
+    out = limb_direction(m.correct(to_quaternions(test)))
+    err = np.degrees(direction_angle(out, region.ideal(test)))
+    assert err.mean() < 0.5
+    assert m.contains(to_quaternions(train)).mean() == 1.0
+
+
+def test_a_hand_taught_bay_keeps_the_supported_edge():
+    root = Path(__file__).resolve().parents[1]
+    q = load_dataset(root / "tests" / "data" / "hand_irregular_seed0_20s.limb").quaternions
+    m = RigidMap(nodes=300, seed=0).fit(q)
+    # a smooth curve over examples/regions/irregular.yaml would bridge its top notch
+    assert m.edge == "supported"
+    notch = pan_tilt_to_direction(np.radians(-4.0), np.radians(41.0))
+    assert not m.contains(to_quaternions(notch[None, :]))[0]
+
+
+def test_smooth_edge_can_be_switched_off_and_is_saved(tmp_path):
+    rng = np.random.default_rng(3)
+    q = to_quaternions(ConeRegion(np.radians(30.0)).sample(600, rng))
+    off = RigidMap(nodes=300, seed=0, smooth_edge=False).fit(q)
+    assert off.edge == "supported"
+    on = RigidMap(nodes=300, seed=0).fit(q)
+    assert on.edge == "smooth"
+    back = RigidMap.load(on.save(tmp_path / "m.npz"))
+    assert back.edge == "smooth" and back.max_offset_deg == on.max_offset_deg
+    test = to_quaternions(ConeRegion(np.radians(30.0)).test_directions(500, rng))
+    np.testing.assert_array_equal(back.correct(test), on.correct(test))
