@@ -34,6 +34,9 @@ class TrainSummary:
         Share of the training samples the trained model says are inside (should be ~1).
     nodes : int
         Number of node weights in the model.
+    edge : str
+        Which edge a Rigid Map gate uses: ``smooth`` (fitted, the data agreed with it) or
+        ``supported`` (through the taught samples); empty for other models.
     """
 
     samples: int
@@ -44,6 +47,7 @@ class TrainSummary:
     boundary_tilt_range_deg: tuple[float, float]
     contained_fraction: float
     nodes: int
+    edge: str = ""
 
     def lines(self) -> list[str]:
         """Human-readable summary lines."""
@@ -58,7 +62,18 @@ class TrainSummary:
             f"{self.boundary_tilt_range_deg[0]:+.1f} .. {self.boundary_tilt_range_deg[1]:+.1f} deg",
             f"samples inside     {100 * self.contained_fraction:.2f} %",
             f"nodes              {self.nodes}",
-        ]
+        ] + (
+            [f"edge               {self.edge} ({EDGE_MEANING[self.edge]})"]
+            if self.edge in EDGE_MEANING
+            else []
+        )
+
+
+#: What each Rigid Map edge means, for the summary.
+EDGE_MEANING = {
+    "smooth": "fitted to where the samples end; the data agreed with it",
+    "supported": "through the outermost taught samples; corners and bays kept as taught",
+}
 
 
 def _range_deg(values: np.ndarray) -> tuple[float, float]:
@@ -91,6 +106,7 @@ def summarize(model: Any, q: np.ndarray) -> TrainSummary:
         boundary_tilt_range_deg=_range_deg(b_tilt),
         contained_fraction=float(inside.mean()),
         nodes=len(model.weights),
+        edge=str(getattr(model, "edge", "")),
     )
 
 

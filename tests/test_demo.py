@@ -39,10 +39,12 @@ def test_teach_train_teleop_keeps_every_goal_in_the_taught_region(tmp_path):
     depth_deg = np.degrees(truth.depth(d))
     # every goal the servos received lies in the taught region, or within 2 degrees of it
     assert depth_deg.min() >= -2.0, f"a goal {-depth_deg.min():.2f} deg outside the region"
-    # the sweep leaves the region, so the gate had to work: most goals sit near the edge
-    assert np.mean(depth_deg < 5.0) > 0.3
+    # the sweep leaves the region, so the gate had to work: it corrected most cycles and many
+    # goals sit at the edge (the share near the edge varies with the taught shape: 0.26-0.4)
+    assert np.sum(depth_deg < 5.0) >= 100
 
     rows = [json.loads(x) for x in (out / "telemetry.jsonl").read_text().splitlines()]
+    assert np.mean([r["outcome"] == "corrected" for r in rows]) > 0.5
     commanded = np.radians([r["cmd"] for r in rows if r["cmd"] is not None])
     assert np.degrees(np.abs(commanded[:, 0])).max() > 100  # the commands did leave the region
 

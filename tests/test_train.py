@@ -43,6 +43,9 @@ def test_train_rigidmap_contains_its_samples(tmp_path):
     summary = train(data, tmp_path / "rm.npz", kind="rigidmap", options={"nodes": 500})
     assert summary.nodes >= 500
     assert summary.contained_fraction >= 0.95
+    # the summary says which edge the gate took, and what that means
+    assert summary.edge in ("smooth", "supported")
+    assert any(line.startswith(f"edge               {summary.edge} (") for line in summary.lines())
     png = _plot_files([data, tmp_path / "rm.npz"], tmp_path / "rm.png")
     assert png.stat().st_size > 20_000
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
