@@ -20,27 +20,38 @@ loop by a smooth curve sampled every ``STEP_DEG`` (all angles below in radians):
    nearest to the stations within ``W`` of it, ``o = angle(d, n_k) - rho_k``; the outermost
    ``o_(1) >= ... >= o_(K)`` give the endpoint estimate ``o_(1) + gap``
    (:func:`limbctl.envelope.region_shape._gap_beyond`): where the edge lies, not where the
-   outermost sample happened to fall. Offsets are smoothed along the loop with the same ``W``
-   and capped at ``max_offset``.
+   outermost sample happened to fall. Offsets are smoothed along the loop with the same ``W``,
+   raised by smooth bumps (:func:`lift`) wherever a station would leave a taught direction
+   next to it outside, and capped at ``max_offset``.
 4. *Acceptance* (:func:`learned_edge`). The smooth edges replace the data-supported loops only
-   when the data agree with them: no two arcs cross, every taught direction the supported
-   region holds stays inside (up to ``MISS_FRACTION`` more than ``MISS_TOLERANCE_DEG``
-   out), and every stretch added beyond the supported region (the loops widened by their
-   learned margins) is one the local sampling density could leave empty by chance.
-   A smooth curve that cuts a taught corner or bridges a bay fails one of these, and the gate
-   keeps the supported loops, corners and bays as taught.
+   when the data agree with them: the data hold no bay (:func:`pockets`: no hole, no pocket
+   between a loop and its convex hull worth more than ``POCKET_SAMPLES`` samples at the
+   data's density), no two arcs cross, every taught direction the supported region holds
+   stays inside (up to ``MISS_FRACTION`` more than ``MISS_TOLERANCE_DEG`` out), and every
+   stretch added beyond the supported region (the loops widened by their learned margins) is
+   one the local sampling density could leave empty by chance. A smooth curve that cuts a
+   taught corner or bridges a bay fails one of these, and the gate keeps the supported loops,
+   corners and bays as taught. In practice: a round, convex taught region (a cone) gets the
+   smooth edge; a polygon with corners, a kidney with a dent, a hand-taught region keep the
+   supported loops (docs/bench_envelope.md lists which edge every benchmark row took).
+
+Splicing the supported loop into the smooth edge over the bays only (smooth elsewhere) was
+tried and dropped: on the BEAN polygon it put 10-20 % of corrected outputs more than 1 deg
+outside the true region (worst 3.1 deg), where the fitted circles bulge past straight edges
+next to corners.
 """
 
 from __future__ import annotations
 
 import numpy as np
+from scipy.spatial import ConvexHull, QhullError
 
 from limbctl.envelope.boundary import DirectionMesh
-from limbctl.envelope.region_shape import _gap_beyond
+from limbctl.envelope.region_shape import _gap_beyond, loop_area
 from limbctl.quat import direction_angle
 
 #: Spacing (deg) of the stations of the fitted edge.
-STEP_DEG = 0.5
+STEP_DEG = 2.0
 #: Window ladder (deg, Gaussian sigma along the loop) the fit chooses its window from.
 WINDOWS_DEG = (4.5, 6.5, 9.0, 13.0, 19.0, 27.0, 40.0, 60.0)
 #: The smallest window the choice starts from (deg).
@@ -56,7 +67,11 @@ MISS_FRACTION = 0.001
 #: A taught direction at most this far (deg) outside the smooth edge does not count as left out.
 MISS_TOLERANCE_DEG = 0.1
 #: A stretch added beyond the supported region may be worth at most this many samples.
-GAP_EXPECTED = 10.0
+GAP_EXPECTED = 40.0
+#: A pocket between a loop and its convex hull worth more samples than this is a taught bay.
+POCKET_SAMPLES = 40.0
+#: Loop vertices farther (deg) than this from the data's mean are clipped for the hull.
+HULL_REACH_DEG = 89.0
 #: Radius (deg) of the neighbourhood the local sample density is counted in.
 DENSITY_RADIUS_DEG = 6.0
 
@@ -233,9 +248,39 @@ def fit_edge(loop: np.ndarray, data: np.ndarray, max_offset: float) -> np.ndarra
     window = choose_window(loop, at_vertex, s, total, outward)
     pole, rho, _ = circle_fits(loop, at_vertex, s, total, outward, window)
     base = on_circle(stations, pole, rho)
-    offset = edge_offsets(base, pole, rho, s, total, data, window)
-    offset = np.minimum(smooth_along(offset, s, total, window), max_offset)
-    return on_circle(base, pole, rho + offset)
+    offset = smooth_along(edge_offsets(base, pole, rho, s, total, data, window), s, total, window)
+    offset += lift(sample_need(base, pole, rho, data) - offset, s, total, 0.5 * window)
+    return on_circle(base, pole, rho + np.minimum(offset, max_offset))
+
+
+def sample_need(base: np.ndarray, pole: np.ndarray, rho: np.ndarray, data: np.ndarray):
+    """Offset (K,) rad each station needs to hold the taught directions around it.
+
+    The largest depth ``angle(d, n_k) - rho_k`` of the data nearest to station ``k`` or to
+    its two neighbours (-inf where there are none).
+    """
+    k = base.shape[0]
+    owner = np.argmax(data @ base.T, axis=1)
+    need = np.full(k, -np.inf)
+    for shift in (-1, 0, 1):
+        station = (owner + shift) % k
+        depth = np.arccos(np.clip(np.einsum("ij,ij->i", data, pole[station]), -1.0, 1.0))
+        np.maximum.at(need, station, depth - rho[station])
+    return need
+
+
+def lift(deficit: np.ndarray, s: np.ndarray, total: float, width: float) -> np.ndarray:
+    """Smooth bumps (K,) that make up every positive ``deficit`` (K,) at its station.
+
+    ``max_j deficit_j exp(-(s_k - s_j)^2 / (2 width^2))`` over stations with a deficit: each
+    bump is exactly as high as its station needs and fades along the loop.
+    """
+    short = np.flatnonzero(deficit > 0.0)
+    if short.size == 0:
+        return np.zeros(s.shape[0])
+    gap = np.abs(s[:, None] - s[None, short])
+    gap = np.minimum(gap, total - gap)
+    return np.max(deficit[short][None, :] * np.exp(-0.5 * (gap / width) ** 2), axis=1)
 
 
 def unexplained_gap(edge: np.ndarray, data: np.ndarray, supported: DirectionMesh) -> float:
@@ -244,10 +289,10 @@ def unexplained_gap(edge: np.ndarray, data: np.ndarray, supported: DirectionMesh
     Each station lies ``b_k`` (rad) beyond the supported region (0 inside). Over a run of
     consecutive stations with ``b_k > 0`` the added area is ``A = sum_k b_k ds`` (``ds`` the
     station spacing), and a teacher sampling at the local density ``rho`` (taught directions
-    within ``DENSITY_RADIUS_DEG`` of the run's stations, per area of half that cap: the
-    stations sit on the edge) would have put ``rho A`` samples there; the chance of finding
-    none is ``exp(-rho A)``. Sparse i.i.d. teaching leaves gaps worth a few samples; a bay the
-    hand went around is worth tens to hundreds.
+    within ``DENSITY_RADIUS_DEG`` of the stations' nearest supported points, per area of half
+    that cap: those points sit on the supported edge) would have put ``rho A`` samples
+    there; the chance of finding none is ``exp(-rho A)``. Sparse i.i.d. teaching leaves
+    gaps worth a few samples; a bay the hand went around is worth tens to hundreds.
     """
     foot = supported.project(edge)
     beyond = np.arccos(np.clip(np.einsum("ij,ij->i", foot, edge), -1.0, 1.0))
@@ -256,7 +301,7 @@ def unexplained_gap(edge: np.ndarray, data: np.ndarray, supported: DirectionMesh
         return 0.0
     ds = loop_length(edge) / edge.shape[0]
     radius = np.radians(DENSITY_RADIUS_DEG)
-    counts = np.sum(edge @ data.T >= np.cos(radius), axis=1)
+    counts = np.sum(foot @ data.T >= np.cos(radius), axis=1)
     # half a cap of angular radius r has area pi (1 - cos r)
     rho = counts / (np.pi * (1.0 - np.cos(radius)))
     worst = 0.0
@@ -273,6 +318,56 @@ def unexplained_gap(edge: np.ndarray, data: np.ndarray, supported: DirectionMesh
     return worst
 
 
+def pockets(loop: np.ndarray, data: np.ndarray) -> list[tuple[int, int, float]]:
+    """The bays of a loop (M, 3): stretches between consecutive vertices of its convex hull.
+
+    Returns ``(a, b, worth)`` per hull edge whose stretch ``a -> b`` of the loop leaves a
+    pocket, ``worth = rho * area`` the samples a teacher at the data's mean density ``rho``
+    (``N / area of the loop``) would have put into it. The hull is taken in the gnomonic
+    projection about the data's mean direction (great circles map to lines), vertices
+    farther than ``HULL_REACH_DEG`` from it clipped to that angle.
+    """
+    centre = data.mean(axis=0)
+    centre /= np.linalg.norm(centre)
+    helper = np.array([0.0, 0.0, 1.0]) if abs(centre[2]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    u = np.cross(helper, centre)
+    u /= np.linalg.norm(u)
+    v = np.cross(centre, u)
+    z = np.maximum(loop @ centre, np.cos(np.radians(HULL_REACH_DEG)))
+    try:
+        hull = sorted(ConvexHull(np.column_stack([loop @ u / z, loop @ v / z])).vertices.tolist())
+    except QhullError:
+        return [(0, loop.shape[0] - 1, np.inf)]
+    rho = data.shape[0] / max(abs(loop_area(loop)), 1e-12)
+    m = loop.shape[0]
+    out = []
+    for i, a in enumerate(hull):
+        b = hull[(i + 1) % len(hull)]
+        stretch = [(a + k) % m for k in range(((b - a) % m) + 1)]
+        if len(stretch) >= 3:
+            out.append((a, b, rho * abs(loop_area(loop[stretch]))))
+    return out
+
+
+def protected(
+    loop: np.ndarray, data: np.ndarray, s: np.ndarray, at_vertex: np.ndarray
+) -> np.ndarray:
+    """(K,) bool: stations on a bay the data hold (a pocket worth > ``POCKET_SAMPLES``).
+
+    A hole (a loop running clockwise) is protected whole: its edge is concave throughout.
+    """
+    if loop_area(loop) < 0.0:
+        return np.ones(s.shape[0], dtype=bool)
+    total = loop_length(loop)
+    mask = np.zeros(s.shape[0], dtype=bool)
+    for a, b, worth in pockets(loop, data):
+        if worth <= POCKET_SAMPLES:
+            continue
+        start, length = at_vertex[a], (at_vertex[b] - at_vertex[a]) % total
+        mask |= (s - start) % total <= length
+    return mask
+
+
 def learned_edge(
     loops: list[np.ndarray],
     data: np.ndarray,
@@ -283,13 +378,20 @@ def learned_edge(
 
     ``supported`` is the data-supported region (a
     :class:`limbctl.envelope.boundary.DirectionMesh` over the same loops with their learned
-    margins). The smooth edges are kept only when, together, they are simple (no two arcs
-    cross), contain every taught direction the supported region contains (up to
-    ``MISS_FRACTION`` of them) and reach no farther than ``max_offset`` beyond the supported
-    region: a smooth curve that cuts a taught corner or bridges a bay fails one of these, and
-    the gate then keeps the supported loops, corners and bays as taught.
+    margins). The smooth edges are tried only when the data hold no bay (:func:`protected`:
+    a hole, or a pocket between a loop and its convex hull worth more than
+    ``POCKET_SAMPLES``), and kept only when, together, they are simple (no two arcs cross),
+    contain every taught direction the supported region contains (up to ``MISS_FRACTION``
+    of them lying more than ``MISS_TOLERANCE_DEG`` outside), and
+    every stretch they add beyond the supported region is one the local sampling density
+    could leave empty by chance (:func:`unexplained_gap` at most ``GAP_EXPECTED``).
     """
-    edges = [fit_edge(lp, data, max_offset) for lp in loops]
+    edges = []
+    for loop in loops:
+        _, s, at_vertex = resample_loop(loop, np.radians(STEP_DEG))
+        if protected(loop, data, s, at_vertex).any():
+            return None
+        edges.append(fit_edge(loop, data, max_offset))
     if arcs_cross(edges):
         return None
     for edge in edges:
