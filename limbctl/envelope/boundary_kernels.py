@@ -371,6 +371,10 @@ def query(
             best_point[1] = tmp[1]
             best_point[2] = tmp[2]
         # does arc centre -> p cross arc a -> b? (half-open sign rule; same hemisphere)
+        # Not when the arc lies farther than `travel` from the centre: every point of the
+        # path centre -> p is within `travel` of it.
+        if keys[k] + margins[e] > travel:
+            continue
         sa = _det(centre, p, a) > 0.0
         sb = _det(centre, p, b) > 0.0
         sc = _det(a, b, centre) > 0.0

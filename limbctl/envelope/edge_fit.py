@@ -51,7 +51,7 @@ from limbctl.envelope.region_shape import _gap_beyond, loop_area
 from limbctl.quat import direction_angle
 
 #: Spacing (deg) of the stations of the fitted edge.
-STEP_DEG = 2.0
+STEP_DEG = 3.0
 #: Window ladder (deg, Gaussian sigma along the loop) the fit chooses its window from.
 WINDOWS_DEG = (4.5, 6.5, 9.0, 13.0, 19.0, 27.0, 40.0, 60.0)
 #: The smallest window the choice starts from (deg).

@@ -6,7 +6,8 @@ Two kinds of region, one small API (:class:`Region`):
   are uniform over the cap; the ideal correction of an outside direction turns it toward the
   axis until its angle is ``R`` (keeping the swing axis).
 - :class:`PolygonRegion`: a polygon in (pan, tilt) degrees, the shape a person teaches by hand
-  (e.g. :data:`BEAN`). Samples are dense in the middle and sparse near the edge; the ideal
+  (e.g. :data:`BEAN`, sharp corners, or :data:`KIDNEY`, the same shape rounded). Samples are
+  dense in the middle and sparse near the edge; the ideal
   correction is the geodesically nearest direction on the boundary, found by dense boundary
   sampling (spacing ``boundary_step_deg``) and refined on the nearest boundary segment.
 
@@ -46,6 +47,23 @@ BEAN = np.array(
         [-53.0, 10.0],
     ]
 )
+
+
+def rounded(polygon_deg: np.ndarray, iterations: int = 4) -> np.ndarray:
+    """Chaikin's corner cutting of a closed (pan, tilt) polygon (M, 2), ``iterations`` times.
+
+    Each edge p -> q gives the points ``3/4 p + 1/4 q`` and ``1/4 p + 3/4 q``: the limit is the
+    quadratic B-spline of the polygon, a smooth curve inside it.
+    """
+    p = np.asarray(polygon_deg, dtype=np.float64)
+    for _ in range(iterations):
+        q = np.roll(p, -1, axis=0)
+        p = np.stack([0.75 * p + 0.25 * q, 0.25 * p + 0.75 * q], axis=1).reshape(-1, 2)
+    return p
+
+
+#: BEAN with its corners rounded (240 points): smooth, still irregular and concave on top.
+KIDNEY = rounded(BEAN)
 
 
 def to_quaternions(d: np.ndarray) -> np.ndarray:
