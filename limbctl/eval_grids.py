@@ -116,8 +116,11 @@ class Task:
 
     @property
     def key(self) -> str:
-        """A short hash of the whole definition: resuming never mixes changed tasks."""
-        return hashlib.sha1(repr(self).encode()).hexdigest()[:16]
+        """A short hash of the whole definition and of the gate's version: resuming never
+        mixes changed tasks, nor results of an older gate with a newer one."""
+        from limbctl.envelope.rigidmap import GATE_VERSION
+
+        return hashlib.sha1(f"{self!r}|gate {GATE_VERSION}".encode()).hexdigest()[:16]
 
 
 def respond_all(methods: Iterable[str], k: int) -> tuple[Answer, ...]:

@@ -90,6 +90,22 @@ def test_run_tasks_appends_as_it_goes_and_resumes(tmp_path):
         run_tasks([Task("test", "t", "seed", 9, 9, data, (CONE_SPEC,))], tmp_path / "x.csv", -1)
 
 
+def test_a_new_gate_version_does_not_resume_old_results(tmp_path, monkeypatch):
+    from limbctl.envelope import rigidmap
+
+    data = DataSpec(45.0, 100, 100, "around")
+    task = Task("test", "t", "seed", 0, 0, data, (CONE_SPEC,))
+    csv_path = tmp_path / "runs.csv"
+    old_key = task.key
+    run_tasks([task], csv_path, jobs=1, progress=False)
+    monkeypatch.setattr(rigidmap, "GATE_VERSION", rigidmap.GATE_VERSION + 1)
+    assert task.key != old_key
+    # the task runs again; the old rows stay in the file but are not returned
+    rows = run_tasks([task], csv_path, jobs=1, progress=False)
+    assert {r["task"] for r in rows} == {task.key}
+    assert len(read_rows(csv_path)) == 2 * len(rows)
+
+
 def test_grids_cover_every_experiment_at_every_scale():
     experiments = {"som-range", "som-patterns", "som-nodes", "som-ratio", "rm-range", "rm-k"}
     for scale in SCALES:
