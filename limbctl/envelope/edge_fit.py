@@ -16,13 +16,17 @@ loop by a smooth curve sampled every ``STEP_DEG`` (all angles below in radians):
    and grows again when they span real shape (a corner, a bay). ``W`` is the largest window of
    the ladder ``WINDOWS_DEG`` (from ``START_WINDOW_DEG`` up) before a step grows the residual
    by more than ``GROWTH``.
-3. *Edge offset*. Measured along each station's circle, the depth of the taught directions
-   nearest to the stations within ``W`` of it, ``o = angle(d, n_k) - rho_k``; the outermost
-   ``o_(1) >= ... >= o_(K)`` give the endpoint estimate ``o_(1) + gap``
-   (:func:`limbctl.envelope.region_shape._gap_beyond`): where the edge lies, not where the
+3. *Edge offset*. The depth of the taught directions nearest to the stations within ``W`` of
+   station ``k`` beyond the great circle tangent to its circle there, ``o = asin(d . t_k)``
+   (``t_k`` the outward normal; on a convex stretch far samples read shallower than they are,
+   never deeper, where the circle's own depth would read a mis-fitted curvature as room to
+   grow); the outermost
+   ``o_(1) >= ... >= o_(K)`` give the endpoint estimate ``o_(1) + gap`` with ``gap`` their
+   mean spacing (:func:`mean_spacing`): where the edge lies, not where the
    outermost sample happened to fall. Offsets are smoothed along the loop with the same ``W``,
    raised by smooth bumps (:func:`lift`) wherever a station would leave a taught direction
-   next to it outside, and capped at ``max_offset``.
+   next to it outside, moved out by the sagitta of the chords between stations (the polygon
+   of stations circumscribes the curve), and capped at ``max_offset``.
 4. *Acceptance* (:func:`learned_edge`). The smooth edges replace the data-supported loops only
    when the data agree with them: the data hold no bay (:func:`pockets`: no hole, no pocket
    between a loop and its convex hull worth more than ``POCKET_SAMPLES`` samples at the
@@ -47,7 +51,7 @@ import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
 from limbctl.envelope.boundary import DirectionMesh
-from limbctl.envelope.region_shape import _gap_beyond, loop_area
+from limbctl.envelope.region_shape import loop_area
 from limbctl.quat import direction_angle
 
 #: Spacing (deg) of the stations of the fitted edge.
@@ -56,6 +60,8 @@ STEP_DEG = 3.0
 WINDOWS_DEG = (4.5, 6.5, 9.0, 13.0, 19.0, 27.0, 40.0, 60.0)
 #: The smallest window the choice starts from (deg).
 START_WINDOW_DEG = 13.0
+#: A window (Gaussian sigma) spans at least this many mean vertex spacings of the loop.
+MIN_VERTICES_PER_WINDOW = 3.0
 #: A ladder step may grow the mean fit residual by at most this factor.
 GROWTH = 1.2
 #: Fitted circles are at least this large (deg of angular radius), either side.
@@ -159,8 +165,14 @@ def on_circle(x: np.ndarray, pole: np.ndarray, rho: np.ndarray) -> np.ndarray:
 def choose_window(
     loop: np.ndarray, at_vertex: np.ndarray, s: np.ndarray, total: float, outward: np.ndarray
 ) -> float:
-    """The window (rad) by the residual-growth rule of the module docstring."""
-    ladder = [np.radians(w) for w in WINDOWS_DEG if w >= START_WINDOW_DEG]
+    """The window (rad) by the residual-growth rule of the module docstring.
+
+    The ladder starts at ``START_WINDOW_DEG`` or at ``MIN_VERTICES_PER_WINDOW`` mean vertex
+    spacings of the loop, whichever is larger: a circle through a handful of sparse vertices
+    takes their noise for curvature.
+    """
+    floor = max(START_WINDOW_DEG, np.degrees(MIN_VERTICES_PER_WINDOW * total / loop.shape[0]))
+    ladder = [np.radians(w) for w in WINDOWS_DEG if w >= floor] or [np.radians(WINDOWS_DEG[-1])]
     best = ladder[0]
     last = float(np.mean(circle_fits(loop, at_vertex, s, total, outward, best)[2]))
     for window in ladder[1:]:
@@ -195,17 +207,33 @@ def edge_offsets(
     order = np.argsort(owner, kind="stable")
     bounds = np.searchsorted(owner[order], np.arange(k + 1))
     reach = max(1, int(round(window / (total / k))))
+    # outward unit normal of the circle at each station: (x (x . n) - n) / |...|
+    normal = stations * np.einsum("ij,ij->i", stations, pole)[:, None] - pole
+    normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-15)
     out = np.zeros(k)
     for i in range(k):
         idx = np.arange(i - reach, i + reach + 1) % k
         rows = np.concatenate([order[bounds[j] : bounds[j + 1]] for j in idx])
         if rows.size == 0:
             continue
-        # o = angle(d, n) - rho: signed depth beyond the station's circle
-        o = np.arccos(np.clip(data[rows] @ pole[i], -1.0, 1.0)) - rho[i]
+        # o = asin(d . t): signed depth beyond the great circle tangent to the edge at the
+        # station (outward normal t); on a convex stretch, samples far along the window read
+        # shallower than they are, never deeper
+        o = np.arcsin(np.clip(data[rows] @ normal[i], -1.0, 1.0))
         o = -np.sort(-o)[:ORDER_STATISTICS]
-        out[i] = o[0] + _gap_beyond(o)
+        out[i] = o[0] + mean_spacing(o)
     return out
+
+
+def mean_spacing(depths: np.ndarray) -> float:
+    """The expected gap (rad) between the outermost of sorted ``depths`` (K,) and the edge.
+
+    Near an edge with locally even density the outermost depths are evenly spaced on
+    average, and the edge lies one spacing beyond the first: ``(o_(1) - o_(K)) / (K - 1)``
+    (0 for fewer than 3 depths).
+    """
+    k = depths.size
+    return float((depths[0] - depths[-1]) / (k - 1)) if k >= 3 else 0.0
 
 
 def arcs_cross(loops: list[np.ndarray]) -> bool:
@@ -250,6 +278,11 @@ def fit_edge(loop: np.ndarray, data: np.ndarray, max_offset: float) -> np.ndarra
     base = on_circle(stations, pole, rho)
     offset = smooth_along(edge_offsets(base, pole, rho, s, total, data, window), s, total, window)
     offset += lift(sample_need(base, pole, rho, data) - offset, s, total, 0.5 * window)
+    # stations out by the sagitta of a chord: the chords between them then lie on or outside
+    # the curve, not inside it; sagitta = step^2 / (8 tan rho) for a circle of angular
+    # radius rho (geodesic curvature 1 / tan rho), none where it curves the other way
+    step = total / s.shape[0]
+    offset += np.maximum(step**2 / (8.0 * np.tan(np.minimum(rho, 0.5 * np.pi - 1e-9))), 0.0)
     return on_circle(base, pole, rho + np.minimum(offset, max_offset))
 
 
