@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from limbctl.errors import ConfigError
+from limbctl.gate import REGION_TOLERANCE_DEG, written_tolerance_deg
 
 
 def _say(text: str) -> None:
@@ -119,11 +120,19 @@ def run_demo(out: Path, teach_seconds: float = 45.0, seed: int = 0) -> int:
     model = load_model(model_path)
     excursion = goal_log_excursions(goals, model)
     worst = float(excursion.max()) if len(excursion) else 0.0
+    bound = written_tolerance_deg()
+    beyond = int((excursion > bound).sum())
     _say(f"   goals received by the servos: {len(excursion)}")
-    _say(f"   outside the learned region: {int((excursion > 0.05).sum())} (by more than 0.05 deg)")
-    _say(f"   largest excursion: {worst:.3f} deg (a tick is 0.088 deg)")
+    _say(
+        f"   largest excursion outside the learned region: {worst:.3f} deg "
+        f"(bound {bound:.3f} deg: the gate's {REGION_TOLERANCE_DEG} deg + rounding to ticks)"
+    )
+    _say(f"   goals beyond the bound: {beyond}")
     _plot_teleop(out / "teleop.png", model, data, telemetry)
     _say(f"   pictures: {out / 'model.png'}, {out / 'teleop.png'}")
+    if beyond:
+        _say(f"FAILED: {beyond} goals reached the servos beyond the gate's bound; see {goals}")
+        return 1
     _say(f"done: everything is in {out}/")
     return status
 

@@ -46,6 +46,10 @@ class Outcome(enum.Enum):
     HELD = "held"  # nothing safe to do with it: the last safe pose is kept
 
 
+#: Default gate tolerance (deg): how far outside the region a written pose may be.
+REGION_TOLERANCE_DEG = 0.01
+
+
 @dataclass(frozen=True)
 class GateLimits:
     """Hard limits and rates the gate enforces; angles in radians.
@@ -70,7 +74,7 @@ class GateLimits:
     tilt_max: float
     max_step: float
     max_joint_step: float
-    region_tolerance: float = math.radians(0.01)
+    region_tolerance: float = math.radians(REGION_TOLERANCE_DEG)
 
     def __post_init__(self) -> None:
         values = [getattr(self, f) for f in self.__dataclass_fields__]
@@ -83,6 +87,17 @@ class GateLimits:
                 "gate limits: max_step and max_joint_step must be positive, "
                 "region_tolerance non-negative"
             )
+
+
+def written_tolerance_deg(ticks_per_turn: int = 4096) -> float:
+    """How far (deg) a goal that reached a servo may lie outside the model's region.
+
+    The gate's tolerance (``REGION_TOLERANCE_DEG``) plus the rounding of both joints to whole
+    ticks: half a tick each moves the limb direction by at most ``sqrt(2) * half tick``
+    (``|dd|^2 = (cos(tilt) dpan)^2 + dtilt^2``). 0.072 deg for 4096-tick servos.
+    """
+    half_tick = 360.0 / ticks_per_turn / 2.0
+    return REGION_TOLERANCE_DEG + math.sqrt(2.0) * half_tick
 
 
 @dataclass(frozen=True)

@@ -23,6 +23,7 @@ import numpy as np
 
 from calib import default_sim_profile
 from firmware_sim import SimulatedBus
+from limbctl import gate
 from limbctl.bus import ServoBus
 from limbctl.envelope import RigidMap
 from limbctl.envelope.synthetic import BEAN, PolygonRegion, to_quaternions
@@ -32,19 +33,16 @@ from limbctl.rig import Rig
 from limbctl.sources import CommandSource
 
 PROFILE = default_sim_profile()
-#: Half an encoder tick (deg): the most rounding to ticks moves one joint.
-HALF_TICK_DEG = 360.0 / 4096 / 2
-#: Most a half-tick rounding of both joints moves the limb direction (deg):
-#: |dd|^2 = (cos(tilt) dpan)^2 + dtilt^2 <= 2 (half tick)^2.
-ROUNDING_DEG = math.sqrt(2.0) * HALF_TICK_DEG
 
 
 def written_tolerance_deg(limits: GateLimits) -> float:
     """How far (deg) a goal that reached a servo may lie outside the model's region.
 
-    The gate's own stated tolerance (``region_tolerance``) plus the rounding to whole ticks.
+    The gate's own stated tolerance (``region_tolerance``) plus the rounding to whole ticks
+    (:func:`limbctl.gate.written_tolerance_deg` for the default tolerance).
     """
-    return math.degrees(limits.region_tolerance) + ROUNDING_DEG
+    extra = math.degrees(limits.region_tolerance) - gate.REGION_TOLERANCE_DEG
+    return gate.written_tolerance_deg() + extra
 
 
 def gate_limits(rate_hz: float = 200.0, max_speed_deg_s: float = 120.0) -> GateLimits:
