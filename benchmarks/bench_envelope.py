@@ -188,6 +188,36 @@ def corner_noise_rows(n_test: int, sigmas: tuple[float, ...], repeats: int) -> l
     return rows
 
 
+def smooth_noise_rows(n_test: int, sigmas: tuple[float, ...], repeats: int) -> list[list[str]]:
+    """How exact a smooth irregular edge must be: the true KIDNEY with its edge moved along
+    its normal by smooth random noise (12 cosine waves, wavelengths from the whole loop down to
+    a twelfth of it, scaled to standard deviation sigma deg), commands projected exactly."""
+    truth = PolygonRegion(KIDNEY)
+    test = truth.test_directions(n_test, np.random.default_rng(0))
+    ideal = truth.ideal(test)
+    # outward unit normals of the (pan, tilt) polygon, from the central difference
+    tangent = np.roll(KIDNEY, -1, axis=0) - np.roll(KIDNEY, 1, axis=0)
+    normal = np.column_stack([tangent[:, 1], -tangent[:, 0]])
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    x, y = KIDNEY[:, 0], KIDNEY[:, 1]
+    if np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y) < 0:
+        normal = -normal
+    phase = np.arange(len(KIDNEY)) / len(KIDNEY) * 2.0 * np.pi
+    rows = []
+    for sigma in sigmas:
+        errs = []
+        for rep in range(repeats):
+            rng = np.random.default_rng(rep)
+            wave = sum(
+                rng.normal() * np.cos(k * phase + rng.uniform(0.0, 2.0 * np.pi))
+                for k in range(1, 13)
+            )
+            moved = PolygonRegion(KIDNEY + (sigma * wave / wave.std())[:, None] * normal)
+            errs.append(float(np.degrees(direction_angle(moved.ideal(test), ideal)).mean()))
+        rows.append([f"{sigma:g}", f"{np.mean(errs):.3f}", f"{min(errs):.3f} .. {max(errs):.3f}"])
+    return rows
+
+
 def hand_rows(n_test: int, seeds: range, durations: tuple[float, ...]) -> list[list[str]]:
     """The simulator's hand over the irregular region, and the recorded fixture."""
     region = PolygonRegion(IRREGULAR)
@@ -355,6 +385,10 @@ def main() -> None:
         ["corner noise sigma (deg)", "mean angle to ideal (deg)", "range over 3 draws"],
         corner_noise_rows(args.test, (0.25, 0.5, 1.0), 3),
     )
+    smooth = table(
+        ["edge noise sigma (deg)", "mean angle to ideal (deg)", "range over 3 draws"],
+        smooth_noise_rows(args.test, (0.1, 0.25, 0.5), 3),
+    )
     hand = table(header, hand_rows(args.test, range(3), (20.0, 30.0, 60.0)))
     speed = table(["what", "time", "ratio"], speed_rows(args.seed))
     start = table(["import to first correct()", "time"], startup_rows(args.seed))
@@ -389,6 +423,13 @@ def main() -> None:
         "that far off would score. For scale: 1000 BEAN samples (seed 0) put 46 within 2 deg "
         "of its 286 deg long edge (0.08 per deg^2, about 6 per 2 deg x 20 deg edge "
         f"strip).\n\n{corners}\n\n"
+        "The same question for the smooth KIDNEY: its TRUE edge moved along its normal by "
+        "smooth random noise (wavelengths of 24 deg and more along its 290 deg loop). A "
+        "learner must place a smooth irregular edge to about 0.2 deg to reach 0.5 deg; at "
+        "0.08 samples per deg^2 the outermost sample of a 26 deg stretch lies about 0.5 deg "
+        "inside the edge, and so does the noise of any estimate from it. The cones reach "
+        "0.1-0.2 deg because one circle fits their whole edge.\n\n"
+        f"{smooth}\n\n"
         "## Hand-taught (the simulator's scripted hand over examples/regions/irregular.yaml)\n\n"
         "`hand S s, seed N`: the hand `limbctl record --duration S --seed N` records, sampled "
         "at 125 Hz without the servos (a real recording follows it to ~0.06 deg); "
