@@ -1,11 +1,15 @@
 """A region of limb directions on S^2 as a spherical mesh: build it, test it, project onto it.
 
 The region is bounded by closed loops of great-circle arcs (for the Rigid Map: the chi-peeled
-alpha shape of its support, see :mod:`limbctl.envelope.region_shape`), each arc ``e`` widened by
-its own ``margin_e`` (rad): a direction is inside when it lies inside the loops or within
-``margin_e`` of some arc ``e``. The nearest region direction of a point outside is exact (the
-arc minimising ``angle(p, e) - margin_e``, then ``margin_e`` back toward p) and moves
-continuously; the region never reaches farther than ``max(margin)`` beyond the loops.
+alpha shape of its support, see :mod:`limbctl.envelope.region_shape`, or the smooth edge of
+:mod:`limbctl.envelope.edge_fit`), each arc ``e`` widened by its own ``margin_e`` (rad): a
+direction is inside when it lies inside the loops or within ``margin_e`` of some arc ``e``. The
+nearest region direction of a point outside is exact (the arc minimising
+``angle(p, e) - margin_e``, then ``margin_e`` back toward p); the region never reaches farther
+than ``max(margin)`` beyond the loops. It moves continuously with the point near the edge, and
+everywhere when the region is convex; far outside a concave stretch two boundary points can be
+equally near (the medial axis), and the answer switches from one to the other there, as any
+exact nearest-point map does.
 
 :class:`DirectionMesh` holds the arrays; the queries run in the numba kernels of
 :mod:`limbctl.envelope.boundary_kernels` over a grid of cells about the region's axis, each
