@@ -250,3 +250,14 @@ def slerp(a: np.ndarray, b: np.ndarray, t: np.ndarray) -> np.ndarray:
     wa = np.where(small, 1.0 - t, np.sin((1.0 - t) * theta) / s_safe)
     wb = np.where(small, t, np.sin(t * theta) / s_safe)
     return normalize(wa * a + wb * b)
+
+
+def tangent_frame(axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Unit vectors u, v (3,) completing unit ``axis`` (3,) to a right-handed frame (u x v = axis).
+
+    ``u = (h x axis) / |h x axis|`` with helper ``h = +z`` (``+y`` when the axis is near z).
+    """
+    helper = np.array([0.0, 0.0, 1.0]) if abs(axis[2]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    u = np.cross(helper, axis)
+    u /= np.linalg.norm(u)
+    return u, np.cross(axis, u)

@@ -64,3 +64,13 @@ def test_slerp_endpoints_and_midpoint():
     np.testing.assert_allclose(quat.slerp(a, b, 1.0), b, atol=1e-12)
     mid = quat.slerp(a, b, 0.5)
     assert quat.geodesic_distance(mid, a) == pytest.approx(0.5)
+
+
+@pytest.mark.parametrize("axis", [[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.6, 0.0, -0.8]])
+def test_tangent_frame_is_right_handed_and_orthonormal(axis):
+    from limbctl.quat import tangent_frame
+
+    a = np.asarray(axis)
+    u, v = tangent_frame(a)
+    np.testing.assert_allclose([u @ u, v @ v, u @ v, u @ a, v @ a], [1, 1, 0, 0, 0], atol=1e-12)
+    np.testing.assert_allclose(np.cross(u, v), a, atol=1e-12)

@@ -52,7 +52,7 @@ from scipy.spatial import ConvexHull, QhullError
 
 from limbctl.envelope.boundary import DirectionMesh
 from limbctl.envelope.region_shape import loop_area
-from limbctl.quat import direction_angle
+from limbctl.quat import direction_angle, tangent_frame
 
 #: Spacing (deg) of the stations of the fitted edge.
 STEP_DEG = 3.0
@@ -112,6 +112,13 @@ def loop_length(loop: np.ndarray) -> float:
     return float(np.arccos(np.clip(np.einsum("ij,ij->i", loop, nxt), -1.0, 1.0)).sum())
 
 
+def loop_gaps(a: np.ndarray, b: np.ndarray, total: float) -> np.ndarray:
+    """Distances (A, B) along a closed loop of length ``total`` between positions ``a`` (A,)
+    and ``b`` (B,): ``min(|a - b|, total - |a - b|)``."""
+    gap = np.abs(a[:, None] - b[None, :])
+    return np.minimum(gap, total - gap)
+
+
 def outward_at_stations(loop: np.ndarray, s: np.ndarray, at_vertex: np.ndarray) -> np.ndarray:
     """Outward pole (K, 3) of the loop arc each station lies on: ``-(a x b) / |a x b|``."""
     nxt = np.roll(loop, -1, axis=0)
@@ -135,8 +142,7 @@ def circle_fits(
     distance along the loop); the pole is taken on the region's side (``n . outward <= 0``)
     and the radius kept within ``[MIN_RADIUS_DEG, 180 - MIN_RADIUS_DEG]``.
     """
-    gap = np.abs(s[:, None] - at_vertex[None, :])
-    gap = np.minimum(gap, total - gap)
+    gap = loop_gaps(s, at_vertex, total)
     w = np.exp(-0.5 * (gap / window) ** 2)
     # the four nearest vertices always count: a fit needs three points off one great circle
     nearest = np.argsort(gap, axis=1)[:, :4]
@@ -185,8 +191,7 @@ def choose_window(
 
 def smooth_along(values: np.ndarray, s: np.ndarray, total: float, width: float) -> np.ndarray:
     """Gaussian smoothing (width ``width`` rad) of per-station ``values`` (K,) along the loop."""
-    gap = np.abs(s[:, None] - s[None, :])
-    gap = np.minimum(gap, total - gap)
+    gap = loop_gaps(s, s, total)
     g = np.exp(-0.5 * (gap / width) ** 2)
     return (g @ values) / g.sum(axis=1)
 
@@ -311,8 +316,7 @@ def lift(deficit: np.ndarray, s: np.ndarray, total: float, width: float) -> np.n
     short = np.flatnonzero(deficit > 0.0)
     if short.size == 0:
         return np.zeros(s.shape[0])
-    gap = np.abs(s[:, None] - s[None, short])
-    gap = np.minimum(gap, total - gap)
+    gap = loop_gaps(s, s[short], total)
     return np.max(deficit[short][None, :] * np.exp(-0.5 * (gap / width) ** 2), axis=1)
 
 
@@ -362,10 +366,7 @@ def pockets(loop: np.ndarray, data: np.ndarray) -> list[tuple[int, int, float]]:
     """
     centre = data.mean(axis=0)
     centre /= np.linalg.norm(centre)
-    helper = np.array([0.0, 0.0, 1.0]) if abs(centre[2]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    u = np.cross(helper, centre)
-    u /= np.linalg.norm(u)
-    v = np.cross(centre, u)
+    u, v = tangent_frame(centre)
     z = np.maximum(loop @ centre, np.cos(np.radians(HULL_REACH_DEG)))
     try:
         hull = sorted(ConvexHull(np.column_stack([loop @ u / z, loop @ v / z])).vertices.tolist())

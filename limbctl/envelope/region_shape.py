@@ -34,6 +34,7 @@ from limbctl.envelope.boundary import (
     nearest_on_edges_reference,
     spherical_delaunay,
 )
+from limbctl.quat import tangent_frame
 
 
 def chord(angle: float) -> float:
@@ -287,10 +288,7 @@ def surrounded(p: np.ndarray, data: np.ndarray, radius: float, max_gap: float) -
         if len(near) < 3:
             continue
         x = p[i]
-        helper = np.array([0.0, 0.0, 1.0]) if abs(x[2]) < 0.9 else np.array([0.0, 1.0, 0.0])
-        u = np.cross(helper, x)
-        u /= np.linalg.norm(u)
-        v = np.cross(x, u)
+        u, v = tangent_frame(x)
         s = data[near]
         # bearing of each datum about p: atan2(s.v, s.u)
         bearing = np.sort(np.arctan2(s @ v, s @ u))

@@ -25,7 +25,7 @@ from abc import ABC, abstractmethod
 import numpy as np
 
 from limbctl.gimbal import direction_to_pan_tilt, pan_tilt_to_direction
-from limbctl.quat import direction_angle, swing_from_direction
+from limbctl.quat import direction_angle, swing_from_direction, tangent_frame
 
 #: A kidney-shaped region in (pan, tilt) degrees, concave on top: the shape of a hand-taught limit.
 BEAN = np.array(
@@ -77,18 +77,10 @@ def _cap_directions(n: int, axis: np.ndarray, radius: float, rng: np.random.Gene
     cos_t = rng.uniform(np.cos(radius), 1.0, n)
     sin_t = np.sqrt(np.clip(1.0 - cos_t**2, 0.0, 1.0))
     phi = rng.uniform(-np.pi, np.pi, n)
-    u, v = _tangent_frame(axis)
+    u, v = tangent_frame(axis)
     return cos_t[:, None] * axis + sin_t[:, None] * (
         np.cos(phi)[:, None] * u + np.sin(phi)[:, None] * v
     )
-
-
-def _tangent_frame(axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Two unit vectors completing ``axis`` to a right-handed orthonormal frame."""
-    helper = np.array([0.0, 0.0, 1.0]) if abs(axis[2]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    u = np.cross(helper, axis)
-    u /= np.linalg.norm(u)
-    return u, np.cross(axis, u)
 
 
 class Region(ABC):
@@ -313,7 +305,7 @@ def _edge_track(region: Region, inset: float) -> np.ndarray:
     """Dense directions (K, 3) ``inset`` (rad) inside the region's boundary, in loop order."""
     if isinstance(region, ConeRegion):
         t = np.linspace(-np.pi, np.pi, 3600, endpoint=False)
-        u, v = _tangent_frame(region.axis)
+        u, v = tangent_frame(region.axis)
         r = region.radius - inset
         return np.cos(r) * region.axis + np.sin(r) * (
             np.cos(t)[:, None] * u + np.sin(t)[:, None] * v
