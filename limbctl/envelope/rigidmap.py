@@ -36,9 +36,10 @@ optionally interpolated with the runner-ups.
 5. *Smooth edge* (``smooth_edge``, :mod:`limbctl.envelope.edge_fit`): each loop is replaced by
    a smooth curve, local small circles fitted to the loop over a window the data choose, moved
    out to where the outermost samples' depths put the edge (at most ``max_offset_deg``). The
-   smooth edge is kept only when the data agree with it (simple, every taught sample still
-   inside, nothing beyond ``max_offset_deg`` of the supported region); otherwise the gate
-   keeps the supported loops of step 4. ``edge`` says which one a trained model uses.
+   smooth edge is kept only when the data agree with it (no bay in the data, no crossing arcs,
+   every taught sample still inside, every stretch it adds one the sampling density explains);
+   otherwise the gate keeps the supported loops of step 4. ``edge`` says which one a trained
+   model uses.
 
 ``contains(q)`` asks whether the limb direction lies in that region; ``correct(q)`` returns
 ``q`` itself then, otherwise the orientation whose limb direction is the nearest direction of
@@ -109,7 +110,7 @@ class RigidMap(Envelope):
     smooth_edge : bool
         Try the smooth edge of step 5 (kept only when the data agree with it).
     max_offset_deg : float
-        How far (degrees) the smooth edge may lie beyond the data-supported region.
+        The most (degrees) the smooth edge is moved out beyond its fitted curve.
     """
 
     kind: ClassVar[str] = "rigidmap"
