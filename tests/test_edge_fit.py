@@ -172,3 +172,39 @@ def test_a_polygon_with_corners_keeps_the_supported_edge():
     test = square.test_directions(5000, rng)
     depth = square.depth(limb_direction(m.correct(to_quaternions(test))))
     assert depth.min() > -np.radians(1.0)
+
+
+def test_residual_ratio_is_near_one_on_a_circle_and_high_past_a_tight_tip():
+    from limbctl.envelope.synthetic import EGG
+
+    def ratio(loop):
+        _, s, at_vertex = ef.resample_loop(loop, np.radians(ef.STEP_DEG))
+        total = ef.loop_length(loop)
+        outward = ef.outward_at_stations(loop, s, at_vertex)
+        window = np.radians(13.0)
+        return ef.residual_ratio(ef.circle_fits(loop, at_vertex, s, total, outward, window)[2])
+
+    # a noisy circle: every station's residual is the same noise
+    assert ratio(circle(20.0, 60, wobble_deg=1.0)) < 1.3
+    # the egg's loop (60 vertices, about 2.5 deg apart) with as much vertex noise: a 13 deg
+    # window spans its tight end
+    rng = np.random.default_rng(0)
+    pan_tilt = EGG[::4] + rng.uniform(-1.0, 1.0, (60, 2)) / np.sqrt(2.0)
+    loop = pan_tilt_to_direction(np.radians(pan_tilt[:, 0]), np.radians(pan_tilt[:, 1]))
+    assert ratio(loop) > ef.RESOLVED_RATIO
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_an_egg_with_a_tight_end_keeps_every_output_near_the_true_region(seed):
+    from limbctl.envelope.synthetic import EGG, PolygonRegion
+
+    region = PolygonRegion(EGG)
+    rng = np.random.default_rng(seed)
+    m = RigidMap(nodes=2000, layout="uniform", seed=seed).fit(
+        to_quaternions(region.sample(1000, rng))
+    )
+    test = region.test_directions(5000, rng)
+    depth = region.depth(limb_direction(m.correct(to_quaternions(test))))
+    # gate v4 took a smooth edge here that put 15-25 % of outputs more than 1 deg outside
+    assert (depth >= -np.radians(1.0)).mean() >= 0.995
+    assert depth.min() > -np.radians(2.0)

@@ -30,14 +30,17 @@ loop by a smooth curve sampled every ``STEP_DEG`` (all angles below in radians):
 4. *Acceptance* (:func:`learned_edge`). The smooth edges replace the data-supported loops only
    when the data agree with them: the data hold no bay (:func:`pockets`: no hole, no pocket
    between a loop and its convex hull worth more than ``POCKET_SAMPLES`` samples at the
-   data's density), no two arcs cross, every taught direction the supported region holds
+   data's density), the window follows the loop's shape at every station (no station's fit
+   residual above ``RESOLVED_RATIO`` times the median, :func:`residual_ratio`), no two arcs
+   cross, every taught direction the supported region holds
    stays inside (up to ``MISS_FRACTION`` more than ``MISS_TOLERANCE_DEG`` out), and every
    stretch added beyond the supported region (the loops widened by their learned margins) is
    one the local sampling density could leave empty by chance. A smooth curve that cuts a
    taught corner or bridges a bay fails one of these, and the gate keeps the supported loops,
    corners and bays as taught. In practice: a round, convex taught region (a cone) gets the
-   smooth edge; a polygon with corners, a kidney with a dent, a hand-taught region keep the
-   supported loops (docs/bench_envelope.md lists which edge every benchmark row took).
+   smooth edge; a polygon with corners, a kidney with a dent, an egg whose tip is tighter
+   than the window, a hand-taught region keep the supported loops (docs/bench_envelope.md
+   lists which edge every benchmark row took).
 
 Splicing the supported loop into the smooth edge over the bays only (smooth elsewhere) was
 tried and dropped: on the BEAN polygon it put 10-20 % of corrected outputs more than 1 deg
@@ -54,6 +57,8 @@ from limbctl.envelope.boundary import DirectionMesh
 from limbctl.envelope.region_shape import loop_area
 from limbctl.quat import direction_angle, tangent_frame
 
+#: No station's fit residual may exceed this multiple of the loop's median residual.
+RESOLVED_RATIO = 1.4
 #: Spacing (deg) of the stations of the fitted edge.
 STEP_DEG = 3.0
 #: Window ladder (deg, Gaussian sigma along the loop) the fit chooses its window from.
@@ -270,16 +275,17 @@ def arcs_cross(loops: list[np.ndarray]) -> bool:
     return False
 
 
-def fit_edge(loop: np.ndarray, data: np.ndarray, max_offset: float) -> np.ndarray:
+def fit_edge(loop: np.ndarray, data: np.ndarray, max_offset: float) -> tuple[np.ndarray, float]:
     """The smooth edge (K, 3) of one data-supported ``loop`` (M, 3), steps 1-3.
 
     ``data`` (N, 3) are the taught directions; ``max_offset`` (rad) caps the edge offset.
+    Also returns how well the window resolves the loop's shape (:func:`residual_ratio`).
     """
     stations, s, at_vertex = resample_loop(loop, np.radians(STEP_DEG))
     total = loop_length(loop)
     outward = outward_at_stations(loop, s, at_vertex)
     window = choose_window(loop, at_vertex, s, total, outward)
-    pole, rho, _ = circle_fits(loop, at_vertex, s, total, outward, window)
+    pole, rho, resid = circle_fits(loop, at_vertex, s, total, outward, window)
     base = on_circle(stations, pole, rho)
     offset = smooth_along(edge_offsets(base, pole, rho, s, total, data, window), s, total, window)
     offset += lift(sample_need(base, pole, rho, data) - offset, s, total, 0.5 * window)
@@ -288,7 +294,19 @@ def fit_edge(loop: np.ndarray, data: np.ndarray, max_offset: float) -> np.ndarra
     # radius rho (geodesic curvature 1 / tan rho), none where it curves the other way
     step = total / s.shape[0]
     offset += np.maximum(step**2 / (8.0 * np.tan(np.minimum(rho, 0.5 * np.pi - 1e-9))), 0.0)
-    return on_circle(base, pole, rho + np.minimum(offset, max_offset))
+    return on_circle(base, pole, rho + np.minimum(offset, max_offset)), residual_ratio(resid)
+
+
+def residual_ratio(resid: np.ndarray) -> float:
+    """The largest station fit residual over the median one, of ``resid`` (K,) rad.
+
+    Where one window fits the whole loop, every station's residual is the sampling noise
+    (ratio near 1: 1.01-1.25 on cones). Where the window spans real shape it cannot follow, a
+    tip of an egg or a corner, the residual there is the misfit (1.5-2.1 measured on egg
+    and hull shapes), the circle there cuts inside the tip, and the offsets that make up for
+    it push the neighbouring flanks 1-2 deg past the true edge.
+    """
+    return float(np.max(resid) / max(float(np.median(resid)), 1e-12))
 
 
 def sample_need(base: np.ndarray, pole: np.ndarray, rho: np.ndarray, data: np.ndarray):
@@ -414,7 +432,9 @@ def learned_edge(
     :class:`limbctl.envelope.boundary.DirectionMesh` over the same loops with their learned
     margins). The smooth edges are tried only when the data hold no bay (:func:`protected`:
     a hole, or a pocket between a loop and its convex hull worth more than
-    ``POCKET_SAMPLES``), and kept only when, together, they are simple (no two arcs cross),
+    ``POCKET_SAMPLES``), and kept only when each one's window follows its loop's shape
+    (:func:`residual_ratio` at most ``RESOLVED_RATIO``) and, together, they are simple (no
+    two arcs cross),
     contain every taught direction the supported region contains (up to ``MISS_FRACTION``
     of them lying more than ``MISS_TOLERANCE_DEG`` outside), and
     every stretch they add beyond the supported region is one the local sampling density
@@ -425,7 +445,10 @@ def learned_edge(
         _, s, at_vertex = resample_loop(loop, np.radians(STEP_DEG))
         if protected(loop, data, s, at_vertex).any():
             return None
-        edges.append(fit_edge(loop, data, max_offset))
+        edge, ratio = fit_edge(loop, data, max_offset)
+        if ratio > RESOLVED_RATIO:
+            return None
+        edges.append(edge)
     if arcs_cross(edges):
         return None
     for edge in edges:

@@ -36,8 +36,9 @@ optionally interpolated with the runner-ups.
 5. *Smooth edge* (``smooth_edge``, :mod:`limbctl.envelope.edge_fit`): each loop is replaced by
    a smooth curve, local small circles fitted to the loop over a window the data choose, moved
    out to where the outermost samples' depths put the edge (at most ``max_offset_deg``). The
-   smooth edge is kept only when the data agree with it (no bay in the data, no crossing arcs,
-   every taught sample still inside, every stretch it adds one the sampling density explains);
+   smooth edge is kept only when the data agree with it (no bay in the data, a window that
+   follows the loop's shape everywhere, no crossing arcs, every taught sample still inside,
+   every stretch it adds one the sampling density explains);
    otherwise the gate keeps the supported loops of step 4. ``edge`` says which one a trained
    model uses.
 
@@ -72,7 +73,7 @@ SURROUND_GAP_DEG = 165.0
 #: Arcs longer than this fraction of the peel length count as bridges (no learned widening).
 BRIDGE_FRACTION = 0.75
 #: Version of the gate's saved arrays; models of older versions must be retrained.
-GATE_VERSION = 4
+GATE_VERSION = 5
 
 
 class RigidMap(Envelope):

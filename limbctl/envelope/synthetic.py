@@ -66,6 +66,22 @@ def rounded(polygon_deg: np.ndarray, iterations: int = 4) -> np.ndarray:
 KIDNEY = rounded(BEAN)
 
 
+def egg(length_deg: float = 48.0, width_deg: float = 26.4, n: int = 240) -> np.ndarray:
+    """A convex egg (n, 2) in (pan, tilt) degrees, ``length_deg`` long and about ``width_deg`` wide.
+
+    ``pan = a cos t + a / 8``, ``tilt = b sin t (1 + cos t / 4)`` (``a``, ``b`` the half
+    length and half width): blunt towards +pan, tight towards -pan (there the radius of
+    curvature is about ``b^2 / a``, 7 deg for the defaults).
+    """
+    t = np.linspace(0.0, 2.0 * np.pi, n, endpoint=False)
+    a, b = 0.5 * length_deg, 0.5 * width_deg
+    return np.column_stack([a * np.cos(t) + a / 8.0, b * np.sin(t) * (1.0 + 0.25 * np.cos(t))])
+
+
+#: A convex egg 48 x 26 deg: smooth and convex, but not one circle (a tight and a blunt end).
+EGG = egg()
+
+
 def to_quaternions(d: np.ndarray) -> np.ndarray:
     """Twist-free quaternions (..., 4), w >= 0, that point the limb along directions ``d``."""
     return swing_from_direction(d)
