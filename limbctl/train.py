@@ -72,6 +72,7 @@ class TrainSummary:
 #: What each Rigid Map edge means, for the summary.
 EDGE_MEANING = {
     "smooth": "fitted to where the samples end; the data agreed with it",
+    "traced": "walked out to where the samples end, station by station; the data agreed",
     "supported": "through the outermost taught samples; corners and bays kept as taught",
 }
 

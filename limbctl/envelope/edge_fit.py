@@ -27,20 +27,20 @@ loop by a smooth curve sampled every ``STEP_DEG`` (all angles below in radians):
    raised by smooth bumps (:func:`lift`) wherever a station would leave a taught direction
    next to it outside, moved out by the sagitta of the chords between stations (the polygon
    of stations circumscribes the curve), and capped at ``max_offset``.
-4. *Acceptance* (:func:`learned_edge`). The smooth edges replace the data-supported loops only
-   when the data agree with them: the data hold no bay (:func:`pockets`: no hole, no pocket
-   between a loop and its convex hull worth more than ``POCKET_SAMPLES`` samples at the
-   data's density), the window follows the loop's shape at every station (no station's fit
-   residual above ``RESOLVED_RATIO`` times the median, :func:`residual_ratio`), no two arcs
-   cross, every taught direction the supported region holds
-   stays inside (up to ``MISS_FRACTION`` more than ``MISS_TOLERANCE_DEG`` out), and every
-   stretch added beyond the supported region (the loops widened by their learned margins) is
-   one the local sampling density could leave empty by chance. A smooth curve that cuts a
-   taught corner or bridges a bay fails one of these, and the gate keeps the supported loops,
-   corners and bays as taught. In practice: a round, convex taught region (a cone) gets the
-   smooth edge; a polygon with corners, a kidney with a dent, an egg whose tip is tighter
-   than the window, a hand-taught region keep the supported loops (docs/bench_envelope.md
-   lists which edge every benchmark row took).
+4. *Acceptance* (:mod:`limbctl.envelope.edge_choice`). The smooth edges replace the
+   data-supported loops only when the data agree with them: the data hold no bay
+   (:func:`pockets`: no hole, no pocket between a loop and its convex hull worth more than
+   ``POCKET_SAMPLES`` samples at the data's density), the window follows the loop's shape at
+   every station (no station's fit residual above ``RESOLVED_RATIO`` times the median,
+   :func:`residual_ratio`), no two arcs cross, every taught direction the supported region
+   holds stays inside (up to ``MISS_FRACTION`` more than ``MISS_TOLERANCE_DEG`` out), and
+   every stretch added beyond the supported region (the loops widened by their learned
+   margins) is one the local sampling density could leave empty by chance. A smooth curve
+   that cuts a taught corner or bridges a bay fails one of these. In practice a round,
+   convex taught region (a cone) gets the smooth edge; an egg whose tip is tighter than the
+   window, a kidney with a dent, a polygon with corners do not, and the gate tries the traced
+   edge (:mod:`limbctl.envelope.edge_trace`) before it keeps the supported loops
+   (docs/bench_envelope.md lists which edge every benchmark row took).
 
 Splicing the supported loop into the smooth edge over the bays only (smooth elsewhere) was
 tried and dropped: on the BEAN polygon it put 10-20 % of corrected outputs more than 1 deg
@@ -55,7 +55,7 @@ from scipy.spatial import ConvexHull, QhullError
 
 from limbctl.envelope.boundary import DirectionMesh
 from limbctl.envelope.region_shape import loop_area
-from limbctl.quat import direction_angle, tangent_frame
+from limbctl.quat import tangent_frame
 
 #: No station's fit residual may exceed this multiple of the loop's median residual.
 RESOLVED_RATIO = 1.4
@@ -418,50 +418,3 @@ def protected(
         start, length = at_vertex[a], (at_vertex[b] - at_vertex[a]) % total
         mask |= (s - start) % total <= length
     return mask
-
-
-def learned_edge(
-    loops: list[np.ndarray],
-    data: np.ndarray,
-    supported: DirectionMesh,
-    max_offset: float,
-) -> list[np.ndarray] | None:
-    """Smooth edges for all ``loops``, or None when the data refuse them (step 4).
-
-    ``supported`` is the data-supported region (a
-    :class:`limbctl.envelope.boundary.DirectionMesh` over the same loops with their learned
-    margins). The smooth edges are tried only when the data hold no bay (:func:`protected`:
-    a hole, or a pocket between a loop and its convex hull worth more than
-    ``POCKET_SAMPLES``), and kept only when each one's window follows its loop's shape
-    (:func:`residual_ratio` at most ``RESOLVED_RATIO``) and, together, they are simple (no
-    two arcs cross),
-    contain every taught direction the supported region contains (up to ``MISS_FRACTION``
-    of them lying more than ``MISS_TOLERANCE_DEG`` outside), and
-    every stretch they add beyond the supported region is one the local sampling density
-    could leave empty by chance (:func:`unexplained_gap` at most ``GAP_EXPECTED``).
-    """
-    edges = []
-    for loop in loops:
-        _, s, at_vertex = resample_loop(loop, np.radians(STEP_DEG))
-        if protected(loop, data, s, at_vertex).any():
-            return None
-        edge, ratio = fit_edge(loop, data, max_offset)
-        if ratio > RESOLVED_RATIO:
-            return None
-        edges.append(edge)
-    if arcs_cross(edges):
-        return None
-    for edge in edges:
-        if unexplained_gap(edge, data, supported) > GAP_EXPECTED:
-            return None
-    smooth = DirectionMesh.from_loops(edges, 0.0)
-    before = supported.contains(data)
-    missed = before & ~smooth.contains(data)
-    # a sample a hair outside (the edge estimate's own noise) is not a cut corner
-    far = direction_angle(smooth.project(data[missed]), data[missed]) > np.radians(
-        MISS_TOLERANCE_DEG
-    )
-    missed[np.flatnonzero(missed)[~far]] = False
-    if missed.sum() > MISS_FRACTION * max(1, before.sum()):
-        return None
-    return edges

@@ -33,14 +33,16 @@ optionally interpolated with the runner-ups.
    sample beyond it, at most ``max_margin_deg``: the region never reaches more than that
    beyond the data-supported shape. Arcs longer than ``BRIDGE_FRACTION`` of the peel length
    (bridges across gaps with no sample along them) widen only to cover samples beyond them.
-5. *Smooth edge* (``smooth_edge``, :mod:`limbctl.envelope.edge_fit`): each loop is replaced by
-   a smooth curve, local small circles fitted to the loop over a window the data choose, moved
-   out to where the outermost samples' depths put the edge (at most ``max_offset_deg``). The
-   smooth edge is kept only when the data agree with it (no bay in the data, a window that
-   follows the loop's shape everywhere, no crossing arcs, every taught sample still inside,
-   every stretch it adds one the sampling density explains);
-   otherwise the gate keeps the supported loops of step 4. ``edge`` says which one a trained
-   model uses.
+5. *Learned edge* (``smooth_edge``, :mod:`limbctl.envelope.edge_choice`): each loop is
+   replaced by a learned curve moved out to where the outermost samples put the edge (each
+   round at most ``max_offset_deg``): the *smooth* edge, local small circles over one window
+   (:mod:`limbctl.envelope.edge_fit`), or else the *traced* edge, a curve walked out station
+   by station that follows eggs, kidneys and bays where the edge is taught densely enough
+   (:mod:`limbctl.envelope.edge_trace`). A learned edge is kept only when the data agree with
+   it (no crossing arcs, every taught sample still inside, every stretch it adds one the
+   sampling density explains, and for the smooth edge no bay and a window that follows the
+   loop's shape); otherwise the gate keeps the supported loops of step 4. ``edge`` says which
+   one a trained model uses: ``"smooth"``, ``"traced"`` or ``"supported"``.
 
 ``contains(q)`` asks whether the limb direction lies in that region; ``correct(q)`` returns
 ``q`` itself then, otherwise the orientation whose limb direction is the nearest direction of
@@ -59,7 +61,7 @@ from limbctl.envelope import region_shape as rs
 from limbctl.envelope import rigidmap_kernels as rk
 from limbctl.envelope.base import Envelope
 from limbctl.envelope.boundary import DirectionMesh, boundary_edges
-from limbctl.envelope.edge_fit import learned_edge
+from limbctl.envelope.edge_choice import learned_edge
 from limbctl.envelope.layouts import make_layout
 from limbctl.errors import ConfigError, InvalidInputError
 from limbctl.quat import as_quaternions, limb_direction
@@ -73,7 +75,7 @@ SURROUND_GAP_DEG = 165.0
 #: Arcs longer than this fraction of the peel length count as bridges (no learned widening).
 BRIDGE_FRACTION = 0.75
 #: Version of the gate's saved arrays; models of older versions must be retrained.
-GATE_VERSION = 5
+GATE_VERSION = 6
 
 
 class RigidMap(Envelope):
@@ -109,9 +111,11 @@ class RigidMap(Envelope):
     max_margin_deg : float
         How far (degrees) the learned edge may lie beyond the data-supported shape.
     smooth_edge : bool
-        Try the smooth edge of step 5 (kept only when the data agree with it).
+        Try the learned edges of step 5 (each kept only when the data agree with it); False
+        keeps the supported loops.
     max_offset_deg : float
-        The most (degrees) the smooth edge is moved out beyond its fitted curve.
+        The most (degrees) a learned edge is moved out in one step (beyond the smooth edge's
+        fitted curve; beyond the traced curve in one round).
     """
 
     kind: ClassVar[str] = "rigidmap"
@@ -269,11 +273,11 @@ class RigidMap(Envelope):
         self.edge = "supported"
         if not self.smooth_edge:
             return supported
-        smooth = learned_edge(loops, d_train, supported, np.radians(self.max_offset_deg))
-        if smooth is None:
+        learned = learned_edge(loops, d_train, supported, np.radians(self.max_offset_deg))
+        if learned is None:
             return supported
-        self.edge = "smooth"
-        return DirectionMesh.from_loops(smooth, 0.0)
+        self.edge, edges = learned
+        return DirectionMesh.from_loops(edges, 0.0)
 
     # ---- answering ---------------------------------------------------------------------------
     def _trained(self) -> None:

@@ -81,6 +81,10 @@ def egg(length_deg: float = 48.0, width_deg: float = 26.4, n: int = 240) -> np.n
 #: A convex egg 48 x 26 deg: smooth and convex, but not one circle (a tight and a blunt end).
 EGG = egg()
 
+#: KIDNEY at 0.35 scale (39 x 23 deg, reaching 19.7 deg from its axis like a 20 deg cone):
+#: the irregular region at the size the cone targets are set for.
+SMALL_KIDNEY = 0.35 * KIDNEY
+
 
 def to_quaternions(d: np.ndarray) -> np.ndarray:
     """Twist-free quaternions (..., 4), w >= 0, that point the limb along directions ``d``."""
