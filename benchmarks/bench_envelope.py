@@ -2,10 +2,12 @@
 
 Run: ``.venv/bin/python benchmarks/bench_envelope.py`` (writes docs/bench_envelope.md).
 
-Accuracy, per region (cones of 20 and 90 degrees, the irregular BEAN polygon; 1000 teaching
-samples; test commands uniform within R + min(R, 45 deg) of the axis; the ideal is the nearest
-valid direction): mean angle to the ideal, valid commands (2 deg or more inside) returned
-unchanged, outputs inside the true region or within 1 deg of it, and the papers' metrics
+Accuracy, per region (cones of 20 and 90 degrees; irregular regions, dense in the middle and
+sparse at the edge: a small kidney and an egg about a 20 deg cone's size, the BEAN polygon and
+its rounded KIDNEY at 113 x 78 deg; 1000 teaching samples; test commands uniform within
+R + min(R, 45 deg) of the axis; the ideal is the nearest valid direction): mean angle to the
+ideal, valid commands (2 deg or more inside) returned unchanged, outputs inside the true
+region or within 1 deg of it, and the papers' metrics
 (quaternion MSE against the ideal, RMS 3D end-point error of a unit limb).
 
 Speed, as ratios measured side by side: training kernel versus the straightforward numpy
@@ -32,7 +34,9 @@ from limbctl.envelope import RigidMap
 from limbctl.envelope import rigidmap_kernels as rk
 from limbctl.envelope.synthetic import (
     BEAN,
+    EGG,
     KIDNEY,
+    SMALL_KIDNEY,
     ConeRegion,
     PolygonRegion,
     covered,
@@ -115,6 +119,18 @@ def score_rows(name, region, model, train, t_fit, n_test, rng, answers) -> list[
     return rows
 
 
+def iid_regions() -> list[tuple[str, object]]:
+    """The regions taught by i.i.d. samples, with their table names."""
+    return [
+        ("cone 20", ConeRegion(np.radians(20.0))),
+        ("cone 90", ConeRegion(np.radians(90.0))),
+        ("small kidney (39 x 23 deg)", PolygonRegion(SMALL_KIDNEY)),
+        ("egg (48 x 26 deg)", PolygonRegion(EGG)),
+        ("bean (113 x 78 deg)", PolygonRegion()),
+        ("kidney (bean rounded)", PolygonRegion(KIDNEY)),
+    ]
+
+
 def fit(train: np.ndarray, seed: int) -> tuple[RigidMap, float]:
     model = RigidMap(nodes=2000, layout="uniform", seed=seed)
     t = time.perf_counter()
@@ -125,12 +141,7 @@ def fit(train: np.ndarray, seed: int) -> tuple[RigidMap, float]:
 def accuracy_rows(n_train: int, n_test: int, n_strokes: int, seed: int) -> list[list[str]]:
     rows = []
     papers = ["none", "geometric k=8", "correct"]
-    for name, region in (
-        ("cone 20", ConeRegion(np.radians(20.0))),
-        ("cone 90", ConeRegion(np.radians(90.0))),
-        ("bean", PolygonRegion()),
-        ("kidney (bean rounded)", PolygonRegion(KIDNEY)),
-    ):
+    for name, region in iid_regions():
         rng = np.random.default_rng(seed)
         train = region.sample(n_train, rng)
         model, t_fit = fit(train, seed)
@@ -149,12 +160,7 @@ def accuracy_rows(n_train: int, n_test: int, n_strokes: int, seed: int) -> list[
 def seed_rows(n_train: int, n_test: int, seeds: range) -> list[list[str]]:
     """``correct``'s mean angle to the ideal over several teaching seeds, per region."""
     rows = []
-    for name, region in (
-        ("cone 20", ConeRegion(np.radians(20.0))),
-        ("cone 90", ConeRegion(np.radians(90.0))),
-        ("bean", PolygonRegion()),
-        ("kidney (bean rounded)", PolygonRegion(KIDNEY)),
-    ):
+    for name, region in iid_regions():
         cells, unchanged = [], []
         for seed in seeds:
             rng = np.random.default_rng(seed)
@@ -410,10 +416,14 @@ def main() -> None:
         "outside.\n\n"
         f"## Accuracy\n\n{acc}\n\n"
         "`correct (smooth edge)`: the gate took the smooth learned edge "
-        "(limbctl/envelope/edge_fit.py); `(supported edge)`: the data held a bay or corners "
+        "(limbctl/envelope/edge_fit.py: small circles over one window); `(traced edge)`: "
+        "the edge walked out station by station (limbctl/envelope/edge_trace.py), for "
+        "shapes one window cannot follow where the edge is taught densely enough; "
+        "`(supported edge)`: the data refused both (corners, or an edge taught too sparsely) "
         "and the gate kept the loops through the outermost taught samples.\n\n"
         "## Over teaching seeds\n\n"
-        f"`correct`'s mean angle to the ideal (deg; `sm`/`su`: smooth/supported edge), "
+        "`correct`'s mean angle to the ideal (deg; `sm`/`tr`/`su`: smooth/traced/supported "
+        "edge), "
         f"{args.train} samples, {args.test // 2} test commands per seed.\n\n{spread}\n\n"
         "## How exact must a sharp-cornered edge be?\n\n"
         "The BEAN's test commands reach 60 deg beyond its edge, and a far command's nearest "

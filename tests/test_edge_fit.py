@@ -120,9 +120,9 @@ def test_smooth_edge_can_be_switched_off_and_is_saved(tmp_path):
     off = RigidMap(nodes=300, seed=0, smooth_edge=False).fit(q)
     assert off.edge == "supported"
     on = RigidMap(nodes=300, seed=0).fit(q)
-    assert on.edge == "smooth"
+    assert on.edge in ("smooth", "traced")
     back = RigidMap.load(on.save(tmp_path / "m.npz"))
-    assert back.edge == "smooth" and back.max_offset_deg == on.max_offset_deg
+    assert back.edge == on.edge and back.max_offset_deg == on.max_offset_deg
     test = to_quaternions(ConeRegion(np.radians(30.0)).test_directions(500, rng))
     np.testing.assert_array_equal(back.correct(test), on.correct(test))
 
@@ -194,7 +194,8 @@ def test_residual_ratio_is_near_one_on_a_circle_and_high_past_a_tight_tip():
     assert ratio(loop) > ef.RESOLVED_RATIO
 
 
-@pytest.mark.parametrize("seed", [0, 1, 2])
+# seed 4: the smooth edge passes its own checks there, and only the traced edge refuses it
+@pytest.mark.parametrize("seed", [0, 1, 2, 4])
 def test_an_egg_with_a_tight_end_keeps_every_output_near_the_true_region(seed):
     from limbctl.envelope.synthetic import EGG, PolygonRegion
 

@@ -104,4 +104,4 @@ def test_a_small_kidney_gets_a_traced_edge_near_its_true_edge(seed):
     valid = region.depth(test) >= np.radians(2.0)
     assert np.all(out[valid] == q[valid], axis=1).mean() >= 0.99
     # taught samples stay inside (up to the acceptance's tolerance)
-    assert m.contains(to_quaternions(train)).mean() >= 0.99
+    assert m.contains(to_quaternions(train)).mean() >= 0.999

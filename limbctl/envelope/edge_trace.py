@@ -68,6 +68,8 @@ K = 12
 #: for points of density rho below a straight edge (simulated, 3000 draws each at 30 and 100
 #: points per unit depth; ``tests/test_edge_trace.py`` checks it).
 HULL_GAP = 2.19
+#: After the lift every taught direction lies at least this far (deg) inside, not on the edge.
+LIFT_MARGIN_DEG = 0.01
 #: Outermost readings per window the majorant is built from.
 TOP_READINGS = 40
 
@@ -198,7 +200,7 @@ def trace_edge(loop: np.ndarray, data: np.ndarray, max_offset: float) -> np.ndar
     total = loop_length(curve)
     s = np.arange(curve.shape[0]) * total / curve.shape[0]
     for _ in range(2):
-        need = chord_need(curve, data)
+        need = chord_need(curve, data) + np.radians(LIFT_MARGIN_DEG)
         curve = _moved(curve, station_normals(curve), lift(need, s, total, step))
     return curve
 

@@ -276,8 +276,8 @@ class RigidMap(Envelope):
         learned = learned_edge(loops, d_train, supported, np.radians(self.max_offset_deg))
         if learned is None:
             return supported
-        self.edge, edges = learned
-        return DirectionMesh.from_loops(edges, 0.0)
+        self.edge, region = learned
+        return region
 
     # ---- answering ---------------------------------------------------------------------------
     def _trained(self) -> None:
