@@ -26,6 +26,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from edge_figure import edge_figure
 from scipy.spatial import cKDTree
 
 from firmware_sim.hand import Hand
@@ -415,6 +416,9 @@ def main() -> None:
         "unchanged; all rows >= 99.5% inside or within 1 deg and nothing more than 2 deg "
         "outside.\n\n"
         f"## Accuracy\n\n{acc}\n\n"
+        "![the gate's edges on the irregular regions](figures/edges.png)\n\n"
+        "The edges of the seed-0 models above (`benchmarks/edge_figure.py`): the taught "
+        "samples, the true boundary, the data-supported loops and the edge the gate took.\n\n"
         "`correct (smooth edge)`: the gate took the smooth learned edge "
         "(limbctl/envelope/edge_fit.py: small circles over one window); `(traced edge)`: "
         "the edge walked out station by station (limbctl/envelope/edge_trace.py), for "
@@ -447,6 +451,7 @@ def main() -> None:
         f"## Speed\n\n{speed}\n\n## Start-up\n\n{start}\n"
     )
     print(text)
+    edge_figure(args.out.parent / "figures" / "edges.png", args.seed)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(text)
 

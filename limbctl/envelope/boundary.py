@@ -1,8 +1,8 @@
 """A region of limb directions on S^2 as a spherical mesh: build it, test it, project onto it.
 
 The region is bounded by closed loops of great-circle arcs (for the Rigid Map: the chi-peeled
-alpha shape of its support, see :mod:`limbctl.envelope.region_shape`, or the smooth edge of
-:mod:`limbctl.envelope.edge_fit`), each arc ``e`` widened by its own ``margin_e`` (rad): a
+alpha shape of its support, see :mod:`limbctl.envelope.region_shape`, or a learned edge of
+:mod:`limbctl.envelope.edge_choice`), each arc ``e`` widened by its own ``margin_e`` (rad): a
 direction is inside when it lies inside the loops or within ``margin_e`` of some arc ``e``. The
 nearest region direction of a point outside is exact (the arc minimising
 ``angle(p, e) - margin_e``, then ``margin_e`` back toward p); the region never reaches farther
