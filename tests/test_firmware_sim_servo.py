@@ -156,3 +156,24 @@ def test_blocked_goal_beyond_end_stop_overloads(sdk, sim):
     wait_for(lambda: read(sdk, 1, HARDWARE_ERROR, 1, signed=False), 10.0, "the stall to trip")
     assert sim.truth()["servos"][1]["torque_on"] is False
     assert sim.truth()["joints_deg"]["pan"] <= 120.0 + 1e-6
+
+
+def test_bus_watchdog_stops_a_velocity_servo_the_bus_went_silent_on(sdk, sim):
+    operating_mode, bus_watchdog, goal_velocity, present_velocity = 11, 98, 104, 128
+    write(sdk, 1, operating_mode, 1, 1)  # velocity control (EEPROM: torque still off)
+    write(sdk, 1, bus_watchdog, 1, 5)  # 5 x 20 ms = 100 ms of silence allowed
+    write(sdk, 1, TORQUE_ENABLE, 1, 1)
+    write(sdk, 1, goal_velocity, 4, 50)
+    # polling keeps the watchdog fed: it must not trip while the bus talks
+    wait_for(lambda: read(sdk, 1, present_velocity, 4) >= 45 or None, 5.0, "spin-up")
+    assert read(sdk, 1, bus_watchdog, 1, signed=False) == 5
+    # the behaviour under test is silence itself: 300 ms without a packet to this servo
+    time.sleep(0.3)
+    assert read(sdk, 1, bus_watchdog, 1, signed=False) == 0xFF  # tripped: reads -1
+    wait_for(lambda: read(sdk, 1, present_velocity, 4) == 0, 5.0, "the stop")
+    # velocity goals are refused (Data Range Error) until the watchdog is cleared
+    comm, error = sdk.packet.write4ByteTxRx(sdk.port, 1, goal_velocity, 50)
+    assert (comm, error & 0x7F) == (COMM_SUCCESS, 4)
+    write(sdk, 1, bus_watchdog, 1, 0)
+    write(sdk, 1, goal_velocity, 4, 50)
+    wait_for(lambda: read(sdk, 1, present_velocity, 4) >= 45 or None, 5.0, "restart")
