@@ -9,6 +9,7 @@ from collections.abc import Sequence
 
 from firmware_sim.bus import PtyEndpoint, build_simulator, serve
 from firmware_sim.control_table import MODELS
+from firmware_sim.events import EventSchedule, ScheduledEvent, parse_event
 from firmware_sim.simulator import parse_ids
 
 DESCRIPTION = """\
@@ -31,6 +32,14 @@ limb_dir is where the limb points once every servo reaches its current goal (tru
 
 Faults are drawn from --seed: --drop P loses a reply, --corrupt P flips one byte of a reply,
 --latency-ms X delays a reply by X ms (with probability --latency-p, default 1).
+
+--event T:KIND:ID:VALUE (repeatable) applies a fault T seconds after start:
+  vanish:ID:S        servo ID neither executes nor answers for S seconds
+  voltage:ID:V       servo ID measures a supply of V volts from then on (limits: XL430
+                     6.0..14.0 V, XM430 9.5..16.0 V; outside them: input voltage error, alert)
+  temperature:ID:C   servo ID measures C deg C from then on (limit 72 XL430, 80 XM430; above:
+                     overheating error, torque off)
+  e.g. --event 5:vanish:2:1.5 --event 10:voltage:1:5
 
 Example:
   firmware-sim --ids 1,2 --link /tmp/ttyDXL &
@@ -105,7 +114,22 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="P",
         help="probability that a reply gets the latency spike (default 1)",
     )
+    parser.add_argument(
+        "--event",
+        type=_event,
+        action="append",
+        default=[],
+        metavar="T:KIND:ID:VALUE",
+        help="scheduled fault, repeatable (see below)",
+    )
     return parser
+
+
+def _event(text: str) -> ScheduledEvent:
+    try:
+        return parse_event(text)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -127,8 +151,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     def request_stop(signum, frame) -> None:
         stop["requested"] = True
 
+    schedule = EventSchedule(args.event)
     try:
         sim = build_simulator(config)
+        schedule.check(sim)
         endpoint = PtyEndpoint(args.link)
     except (ValueError, OSError) as error:
         print(f"firmware-sim: error: {error}", file=sys.stderr)
@@ -142,7 +168,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             f"linked at {endpoint.port}",
             flush=True,
         )
-        serve(sim, endpoint, lambda: stop["requested"])
+        serve(sim, endpoint, lambda: stop["requested"], schedule=schedule)
     finally:
         endpoint.close()
         sim.close()

@@ -30,6 +30,7 @@ from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import Any
 
+from firmware_sim.events import EventSchedule
 from firmware_sim.faults import FaultPlan
 from firmware_sim.hand import Hand
 from firmware_sim.simulator import Simulator
@@ -125,14 +126,18 @@ def serve(
     should_stop: Callable[[], bool],
     control: Any | None = None,
     on_control: Callable[[Any], bool] | None = None,
+    schedule: EventSchedule | None = None,
 ) -> None:
     """Run the firmware until ``should_stop()`` (or ``on_control`` returns False).
 
     ``control`` is a readable object with ``fileno()`` (a pipe end) whose readiness makes the
-    loop call ``on_control(control)``.
+    loop call ``on_control(control)``; ``schedule`` holds faults applied when their time comes
+    (checked on every pass of the loop, at most ``TICK_S`` plus one packet's handling apart).
     """
     sources = [endpoint.master] + ([control] if control is not None else [])
     while not should_stop():
+        if schedule is not None:
+            schedule.apply_due(sim)
         ready, _, _ = select.select(sources, [], [], TICK_S)
         if endpoint.master in ready:
             data = endpoint.read_available()

@@ -27,6 +27,8 @@ def test_help_documents_every_option():
         "--drop",
         "--corrupt",
         "--latency-ms",
+        "--event",
+        "vanish:ID:S",
         "xm430-w350",
         "limb_dir",
         "polygon",

@@ -1,0 +1,91 @@
+"""Faults scheduled from the command line: a servo that vanishes, a sagging supply, a hot motor.
+
+``firmware-sim --event T:KIND:ID:VALUE`` (repeatable) applies, ``T`` seconds after start:
+
+- ``vanish``: servo ``ID`` neither executes nor answers for ``VALUE`` seconds;
+- ``voltage``: servo ``ID`` measures a supply of ``VALUE`` volts from then on;
+- ``temperature``: servo ``ID`` measures a motor temperature of ``VALUE`` deg C from then on.
+
+The same faults are available from Python as :meth:`Simulator.vanish` and
+:meth:`Simulator.set_environment`; a voltage or temperature outside the servo's limits raises
+its Hardware Error Status bit and the alert, exactly as those calls do.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from firmware_sim.simulator import Simulator
+
+#: What an event can do, with the unit of its value.
+KINDS = {"vanish": "s", "voltage": "V", "temperature": "deg C"}
+
+
+@dataclass(frozen=True)
+class ScheduledEvent:
+    """One fault: ``kind`` on servo ``servo_id`` with ``value``, ``at_s`` seconds after start."""
+
+    at_s: float
+    kind: str
+    servo_id: int
+    value: float
+
+    def apply(self, sim: Simulator) -> None:
+        """Apply the fault to ``sim`` now."""
+        if self.kind == "vanish":
+            sim.vanish(self.servo_id, self.value)
+        elif self.kind == "voltage":
+            sim.set_environment(self.servo_id, voltage=self.value)
+        else:
+            sim.set_environment(self.servo_id, temperature=self.value)
+
+
+def parse_event(text: str) -> ScheduledEvent:
+    """A :class:`ScheduledEvent` from ``T:KIND:ID:VALUE``; ValueError saying what is wrong."""
+    parts = text.split(":")
+    if len(parts) != 4:
+        raise ValueError(f"event {text!r}: expected T:KIND:ID:VALUE, e.g. 2.5:vanish:1:0.5")
+    at_text, kind, id_text, value_text = (part.strip() for part in parts)
+    if kind not in KINDS:
+        raise ValueError(f"event {text!r}: kind must be one of {', '.join(KINDS)}")
+    try:
+        at_s, value, servo_id = float(at_text), float(value_text), int(id_text)
+    except ValueError:
+        raise ValueError(f"event {text!r}: T and VALUE must be numbers, ID an integer") from None
+    if not (math.isfinite(at_s) and at_s >= 0.0):
+        raise ValueError(f"event {text!r}: T must be a finite number of seconds >= 0")
+    if not 0 <= servo_id <= 252:
+        raise ValueError(f"event {text!r}: ID must be 0..252")
+    if not math.isfinite(value) or (kind != "temperature" and value < 0.0):
+        unit = KINDS[kind]
+        raise ValueError(f"event {text!r}: VALUE must be a finite number of {unit} >= 0")
+    return ScheduledEvent(at_s, kind, servo_id, value)
+
+
+@dataclass
+class EventSchedule:
+    """Events waiting for their time, applied once each by :meth:`apply_due`."""
+
+    events: list[ScheduledEvent] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        self.events = sorted(self.events, key=lambda event: event.at_s)
+
+    def check(self, sim: Simulator) -> None:
+        """ValueError naming the event if one names a servo ``sim`` does not have."""
+        for event in self.events:
+            if event.servo_id not in sim.ids:
+                raise ValueError(
+                    f"event at {event.at_s:g} s: no servo {event.servo_id}; "
+                    f"the bus has {', '.join(map(str, sim.ids))}"
+                )
+
+    def apply_due(self, sim: Simulator) -> int:
+        """Apply every event whose time has come (``sim.now()``); how many were applied."""
+        now = sim.now()
+        due = [event for event in self.events if event.at_s <= now]
+        for event in due:
+            event.apply(sim)
+        self.events = self.events[len(due) :]
+        return len(due)

@@ -1,0 +1,107 @@
+"""Scheduled faults (``firmware-sim --event``): parsing, timing, and their effect over the pty."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import time
+
+import pytest
+from dynamixel_sdk import COMM_RX_TIMEOUT, COMM_SUCCESS, PacketHandler, PortHandler
+
+from firmware_sim.bus import build_simulator
+from firmware_sim.events import EventSchedule, ScheduledEvent, parse_event
+from firmware_sim.simulator import Simulator
+
+COMMAND = [sys.executable, "-m", "firmware_sim"]
+TORQUE_ENABLE, HARDWARE_ERROR = 64, 70
+VOLTAGE_BIT, OVERHEATING_BIT, ALERT = 0x01, 0x04, 0x80
+
+
+def test_parse_event_reads_every_kind():
+    assert parse_event("2.5:vanish:1:0.5") == ScheduledEvent(2.5, "vanish", 1, 0.5)
+    assert parse_event("0:voltage:2:5") == ScheduledEvent(0.0, "voltage", 2, 5.0)
+    assert parse_event(" 1 : temperature : 2 : -5 ") == ScheduledEvent(1.0, "temperature", 2, -5.0)
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ("1:vanish:1", "T:KIND:ID:VALUE"),
+        ("1:melt:1:2", "one of vanish, voltage, temperature"),
+        ("x:vanish:1:2", "must be numbers"),
+        ("1:vanish:1.5:2", "ID an integer"),
+        ("-1:vanish:1:2", ">= 0"),
+        ("nan:vanish:1:2", "finite"),
+        ("1:vanish:300:2", "0..252"),
+        ("1:vanish:1:-2", "s >= 0"),
+        ("1:voltage:1:inf", "V >= 0"),
+    ],
+)
+def test_parse_event_names_what_is_wrong(text, message):
+    with pytest.raises(ValueError, match=message.replace(".", r"\.")):
+        parse_event(text)
+
+
+def test_schedule_applies_each_event_once_when_its_time_comes():
+    clock = {"now": 0.0}
+    sim = Simulator(ids=(1, 2), clock=lambda: clock["now"])
+    schedule = EventSchedule(
+        [ScheduledEvent(2.0, "voltage", 1, 5.0), ScheduledEvent(1.0, "vanish", 2, 0.5)]
+    )
+    schedule.check(sim)
+    assert schedule.apply_due(sim) == 0
+    clock["now"] = 1.0
+    assert schedule.apply_due(sim) == 1
+    assert not sim.faults.present(2, 1.2) and sim.faults.present(2, 1.5)
+    assert sim.servo(1).environment.voltage != 5.0
+    clock["now"] = 3.0
+    assert schedule.apply_due(sim) == 1
+    assert sim.servo(1).environment.voltage == 5.0
+    assert schedule.apply_due(sim) == 0 and schedule.events == []
+    sim.close()
+
+
+def test_schedule_refuses_an_unknown_servo():
+    sim = build_simulator({"ids": (1, 2)})
+    with pytest.raises(ValueError, match="no servo 7; the bus has 1, 2"):
+        EventSchedule([ScheduledEvent(0.0, "vanish", 7, 1.0)]).check(sim)
+    sim.close()
+
+
+def test_command_line_events_reach_the_servos(tmp_path):
+    link = tmp_path / "ttyDXL"
+    events = ["--event", "0:vanish:2:60", "--event", "0:voltage:1:5"]
+    process = subprocess.Popen(
+        [*COMMAND, "--ids", "1,2", "--link", str(link), *events],
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert "ready" in process.stdout.readline()
+        port = PortHandler(str(link))
+        assert port.openPort()
+        packet = PacketHandler(2.0)
+        # servo 1 sees 5 V, below its 6.0 V limit: input voltage error and the alert
+        deadline = time.monotonic() + 5.0
+        while packet.read1ByteTxRx(port, 1, HARDWARE_ERROR)[0] != VOLTAGE_BIT:
+            assert time.monotonic() < deadline, "no input voltage error on servo 1"
+        assert packet.read1ByteTxRx(port, 1, TORQUE_ENABLE) == (0, COMM_SUCCESS, ALERT)
+        # servo 2 has vanished for the whole test
+        assert packet.ping(port, 2)[1] == COMM_RX_TIMEOUT
+        port.closePort()
+    finally:
+        process.terminate()
+        assert process.wait(timeout=10) == 0
+        process.stdout.close()
+
+
+def test_bad_events_are_refused_before_serving(tmp_path):
+    for event, message in (("1:melt:1:2", "kind must be one of"), ("0:vanish:7:1", "no servo 7")):
+        result = subprocess.run(
+            [*COMMAND, "--link", str(tmp_path / "tty"), "--event", event],
+            capture_output=True,
+            text=True,
+        )
+        assert result.returncode == 2 and message in result.stderr
+        assert not (tmp_path / "tty").exists()
