@@ -44,7 +44,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from limbctl.envelope.edge_fit import lift, loop_length, resample_loop, smooth_along
+from limbctl.envelope.edge_fit import lift, loop_length, mean_spacing, resample_loop, smooth_along
 
 #: Spacing (deg) of the traced curve's stations.
 TRACE_STEP_DEG = 1.5
@@ -126,7 +126,7 @@ def edge_estimate(u: np.ndarray, o: np.ndarray) -> float:
     left = u < 0.0
     if o.size < K or not left.any() or left.all():
         o = np.sort(o)[::-1][:K]
-        return float(o[0] + ((o[0] - o[-1]) / (o.size - 1) if o.size >= 3 else 0.0))
+        return float(o[0] + mean_spacing(o))
     ul, ol, ur, orr = u[left], o[left], u[~left], o[~left]
     # the chord from (u_i, o_i) to (u_j, o_j) at u = 0, for every left-right pair
     frac = -ul[:, None] / (ur[None, :] - ul[:, None])
@@ -147,10 +147,8 @@ def local_quadratic(curve: np.ndarray, sigma: float) -> np.ndarray:
     only to second order and shrinks by about ``sigma^4 / (8 r^3)`` (measured for sigma 6 deg:
     0.02 deg at r = 20 deg, 0.14 deg at 10 deg); the next round's estimate moves it back out.
     """
-    k = curve.shape[0]
-    total = loop_length(curve)
-    s = np.arange(k) * total / k
-    u = (s[None, :] - s[:, None] + 0.5 * total) % total - 0.5 * total
+    s, total = station_positions(curve)
+    u = signed_offset(s[None, :], s[:, None], total)
     w = np.exp(-0.5 * (u / sigma) ** 2)
     basis = np.stack([np.ones_like(u), u, u * u], axis=-1)
     # normal equations per station: (X^T W X) beta = X^T W c
@@ -174,8 +172,7 @@ def trace_edge(loop: np.ndarray, data: np.ndarray, max_offset: float) -> np.ndar
     cap = np.radians(TRACE_SMOOTH_CAP_DEG)
     for _ in range(TRACE_ITERATIONS):
         k = curve.shape[0]
-        total = loop_length(curve)
-        s = np.arange(k) * total / k
+        s, total = station_positions(curve)
         owner, depth = readings(curve, data)
         order = np.argsort(owner, kind="stable")
         bounds = np.searchsorted(owner[order], np.arange(k + 1))
@@ -185,7 +182,7 @@ def trace_edge(loop: np.ndarray, data: np.ndarray, max_offset: float) -> np.ndar
             near = np.arange(i - reach, i + reach + 1) % k
             rows = np.concatenate([order[bounds[j] : bounds[j + 1]] for j in near])
             if rows.size:
-                u = (s[owner[rows]] - s[i] + 0.5 * total) % total - 0.5 * total
+                u = signed_offset(s[owner[rows]], s[i], total)
                 move[i] = edge_estimate(u, depth[rows])
         move = smooth_along(move, s, total, 0.5 * h)
         normal = station_normals(curve)
@@ -198,8 +195,7 @@ def trace_edge(loop: np.ndarray, data: np.ndarray, max_offset: float) -> np.ndar
         smooth[far] = _moved(curve[far], normal[far], np.full(int(far.sum()), cap))
         curve, _, _ = resample_loop(smooth, step)
     # lift: no taught direction left beyond the chords next to the station it belongs to
-    total = loop_length(curve)
-    s = np.arange(curve.shape[0]) * total / curve.shape[0]
+    s, total = station_positions(curve)
     for _ in range(2):
         need = chord_need(curve, data) + np.radians(LIFT_MARGIN_DEG)
         curve = _moved(curve, station_normals(curve), lift(need, s, total, step))
@@ -231,6 +227,18 @@ def chord_need(curve: np.ndarray, data: np.ndarray) -> np.ndarray:
     for shift in (-1, 0, 1):
         np.maximum.at(need, (owner + shift) % k, depth)
     return need
+
+
+def station_positions(curve: np.ndarray) -> tuple[np.ndarray, float]:
+    """Arc-length positions (K,) rad of a closed curve's evenly spaced stations, and its length."""
+    total = loop_length(curve)
+    return np.arange(curve.shape[0]) * total / curve.shape[0], total
+
+
+def signed_offset(a: np.ndarray, b: np.ndarray, total: float) -> np.ndarray:
+    """Signed along-loop offset ``a - b`` (rad) on a closed loop of length ``total``, in
+    ``[-total / 2, total / 2)``."""
+    return (a - b + 0.5 * total) % total - 0.5 * total
 
 
 def _moved(curve: np.ndarray, normal: np.ndarray, by: np.ndarray) -> np.ndarray:
