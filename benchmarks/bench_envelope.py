@@ -30,7 +30,6 @@ from edge_figure import edge_figure
 from scipy.spatial import cKDTree
 
 from firmware_sim.hand import Hand
-from limbctl.dataset import load_dataset
 from limbctl.envelope import RigidMap
 from limbctl.envelope import rigidmap_kernels as rk
 from limbctl.envelope.synthetic import (
@@ -44,8 +43,9 @@ from limbctl.envelope.synthetic import (
     to_quaternions,
     trajectory_samples,
 )
-from limbctl.gimbal import pan_tilt_to_direction
-from limbctl.quat import direction_angle, euclidean_distance, limb_direction
+from limbctl.geometry.gimbal import pan_tilt_to_direction
+from limbctl.geometry.quat import direction_angle, euclidean_distance, limb_direction
+from limbctl.teach.dataset import load_dataset
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -420,8 +420,8 @@ def main() -> None:
         "The edges of the seed-0 models above (`benchmarks/edge_figure.py`): the taught "
         "samples, the true boundary, the data-supported loops and the edge the gate took.\n\n"
         "`correct (smooth edge)`: the gate took the smooth learned edge "
-        "(limbctl/envelope/edge_fit.py: small circles over one window); `(traced edge)`: "
-        "the edge walked out station by station (limbctl/envelope/edge_trace.py), for "
+        "(limbctl/region/edge_smooth.py: small circles over one window); `(traced edge)`: "
+        "the edge walked out station by station (limbctl/region/edge_traced.py), for "
         "shapes one window cannot follow where the edge is taught densely enough; "
         "`(supported edge)`: the data refused both (corners, or an edge taught too sparsely) "
         "and the gate kept the loops through the outermost taught samples.\n\n"

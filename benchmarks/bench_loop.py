@@ -1,6 +1,6 @@
 """Teleop loop rate on the simulator, and the gate's share of a cycle.
 
-Runs the real control loop (limbctl.teleop.run) through the real dynamixel-sdk against the
+Runs the real control loop (limbctl.teleop.loop.run) through the real dynamixel-sdk against the
 embedded simulator for ``--seconds`` per case, with a replayed command stream that sweeps in and
 out of the region, and reports the achieved rate, cycle-time percentiles, overruns and the gate's
 share of the cycle. The peer in the same run is the same loop with a pass-through gate (a model
@@ -27,8 +27,8 @@ from limbctl.envelope import Cone, RigidMap
 from limbctl.envelope.synthetic import PolygonRegion, to_quaternions
 from limbctl.jobs import gate_for
 from limbctl.session import open_rig
-from limbctl.sources import ReplaySource
-from limbctl.teleop import LoopConfig, run
+from limbctl.teleop.loop import LoopConfig, run
+from limbctl.teleop.sources import ReplaySource
 
 
 def write_stream(path: Path, seconds: float, rate_hz: float = 100.0) -> None:

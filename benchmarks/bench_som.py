@@ -38,7 +38,7 @@ COMMAND = ".venv/bin/python benchmarks/bench_som.py"
 
 def cone_patterns(n: int, half_angle: float, seed: int) -> np.ndarray:
     """``n`` twist-free orientations with limb directions uniform inside the cone."""
-    from limbctl import quat
+    from limbctl.geometry import quat
 
     rng = np.random.default_rng(seed)
     chunks, count = [], 0
@@ -83,8 +83,8 @@ def run_child(args: argparse.Namespace, cache_dir: str) -> dict:
 
 
 def rms_error(som, half_angle: float, seed: int, n: int = 20000) -> dict[str, float]:
-    from limbctl import quat
     from limbctl.envelope.cone import Cone
+    from limbctl.geometry import quat
 
     rng = np.random.default_rng(seed + 1000)
     q = quat.swing_from_direction(quat.normalize(rng.normal(size=(n, 3))))

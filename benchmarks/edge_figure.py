@@ -19,7 +19,6 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from limbctl.envelope import RigidMap  # noqa: E402
-from limbctl.envelope.boundary import DirectionMesh  # noqa: E402
 from limbctl.envelope.synthetic import (  # noqa: E402
     BEAN,
     EGG,
@@ -27,7 +26,8 @@ from limbctl.envelope.synthetic import (  # noqa: E402
     PolygonRegion,
     to_quaternions,
 )
-from limbctl.gimbal import direction_to_pan_tilt  # noqa: E402
+from limbctl.geometry.gimbal import direction_to_pan_tilt  # noqa: E402
+from limbctl.region.mesh import DirectionMesh  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -35,14 +35,15 @@ from pathlib import Path
 import numpy as np
 
 from calib import default_sim_profile
-from limbctl.commands import parse_command
 from limbctl.envelope import RigidMap
 from limbctl.envelope.synthetic import BEAN, PolygonRegion, to_quaternions
 from limbctl.errors import InvalidInputError
-from limbctl.gate import Gate, GateLimits, Outcome
-from limbctl.gimbal import pan_tilt_to_direction
-from limbctl.quat import direction_angle, limb_direction, swing_from_direction
-from limbctl.rig import Rig
+from limbctl.geometry.gimbal import pan_tilt_to_direction
+from limbctl.geometry.quat import direction_angle, limb_direction, swing_from_direction
+from limbctl.servo.profiles import joint_tick_limits
+from limbctl.servo.rig import Rig
+from limbctl.teleop.commands import parse_command
+from limbctl.teleop.gate import Gate, GateLimits, Outcome
 
 PROFILE = default_sim_profile()
 #: Most a half-tick rounding of both joints moves the limb direction (deg).
@@ -124,8 +125,8 @@ def compressed_soak(cycles: int, seed: int = 0, model=None) -> CompressedResult:
     gate.start(0.0, 0.0)
     rng = np.random.default_rng(seed)
     inside = PolygonRegion(BEAN).sample(256, rng)
-    lo_pan, hi_pan = PROFILE.pan.tick_limits
-    lo_tilt, hi_tilt = PROFILE.tilt.tick_limits
+    lo_pan, hi_pan = joint_tick_limits(PROFILE.pan)
+    lo_tilt, hi_tilt = joint_tick_limits(PROFILE.tilt)
     out = CompressedResult(tolerance_deg=tolerance)
     last_ticks = rig.goal_for(0.0, 0.0)
     last_ticks = (last_ticks.pan, last_ticks.tilt)
@@ -225,9 +226,9 @@ class LiveResult:
 def live_soak(seconds: float, seed: int = 0, model=None, rate_hz: float = 500.0) -> LiveResult:
     """The real loop against the simulator for ``seconds``, faults switched every 0.5 s."""
     from firmware_sim import SimulatedBus
-    from limbctl.bus import ServoBus
-    from limbctl.sources import ReplaySource
-    from limbctl.teleop import LoopConfig, run
+    from limbctl.servo.bus import ServoBus
+    from limbctl.teleop.loop import LoopConfig, run
+    from limbctl.teleop.sources import ReplaySource
 
     model = model if model is not None else product_model(seed)
     limits = limits_for(rate_hz, 240.0)
@@ -305,8 +306,8 @@ def live_soak(seconds: float, seed: int = 0, model=None, rate_hz: float = 500.0)
             row = json.loads(raw)
             by_time[row["t"]] = row
             heard.setdefault(row["t"], set()).add(row["id"])
-        lo_pan, hi_pan = PROFILE.pan.tick_limits
-        lo_tilt, hi_tilt = PROFILE.tilt.tick_limits
+        lo_pan, hi_pan = joint_tick_limits(PROFILE.pan)
+        lo_tilt, hi_tilt = joint_tick_limits(PROFILE.tilt)
         goals_now: dict[int, int] = {}
         for raw in log.read_text().splitlines():
             row = json.loads(raw)

@@ -3,6 +3,8 @@
 from calib.profile import (
     SIM_PORT,
     JointProfile,
+    ProfileError,
+    ProfileFileError,
     RigProfile,
     default_sim_profile,
     load_profile,
@@ -13,6 +15,8 @@ from calib.profile import (
 __all__ = [
     "SIM_PORT",
     "JointProfile",
+    "ProfileError",
+    "ProfileFileError",
     "RigProfile",
     "default_sim_profile",
     "load_profile",

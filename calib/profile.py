@@ -11,9 +11,12 @@ A profile is a small YAML file (see ``calib/rigs/sim.yaml``)::
     tilt: {id: 2, zero_tick: 1890, direction: -1, min_deg: -55.0,  max_deg: 70.0}
     rest_direction: [1.0, 0.0, 0.0]
 
-It is validated on load; every error names the file and the field, e.g.
+It is validated on load as data (types, ranges, required keys); every error names the file and
+the field, e.g.
 ``calib/rigs/x.yaml: pan.direction must be +1 or -1, got 2``. The result is an immutable
 :class:`RigProfile`. :func:`save_profile` writes atomically (``limbctl calibrate`` uses it).
+What only the servos know (which baud rates and models exist, how far one turn of ticks
+reaches) is checked by the controller when it opens a rig. This package imports nothing of it.
 """
 
 from __future__ import annotations
@@ -28,10 +31,9 @@ from typing import Any
 
 import yaml
 
-from limbctl.control_table import BAUD_RATE_VALUES, MAX_TICK, MODEL_BY_NAME
-from limbctl.errors import ConfigError, FileFormatError
-from limbctl.ticks import tick_limits
-
+#: Encoder ticks in one turn of a Dynamixel X-series shaft; a zero tick lies in 0..MAX_TICK.
+TICKS_PER_TURN = 4096
+MAX_TICK = TICKS_PER_TURN - 1
 #: The port name that stands for the embedded simulator.
 SIM_PORT = "sim"
 #: Protocol versions limbctl speaks.
@@ -73,11 +75,6 @@ class JointProfile:
     def max_rad(self) -> float:
         """Upper hard limit in radians."""
         return math.radians(self.max_deg)
-
-    @property
-    def tick_limits(self) -> tuple[int, int]:
-        """Integer tick range ``(lo, hi)`` strictly inside the hard limits."""
-        return tick_limits(self.min_deg, self.max_deg, self.zero_tick, self.direction)
 
 
 @dataclass(frozen=True)
@@ -126,6 +123,25 @@ def _joint_dict(joint: JointProfile) -> dict[str, Any]:
     return {key: getattr(joint, key) for key in _JOINT_KEYS}
 
 
+# ---- errors ------------------------------------------------------------------------------------
+class ProfileError(ValueError):
+    """A rig profile is missing or invalid; the message names the file and the field."""
+
+
+class ProfileFileError(ProfileError):
+    """A rig profile file cannot be read or is not YAML.
+
+    Attributes
+    ----------
+    path : pathlib.Path
+        The file.
+    """
+
+    def __init__(self, path: str | os.PathLike[str], problem: str) -> None:
+        self.path = Path(path)
+        super().__init__(f"{self.path}: {problem}")
+
+
 # ---- validation --------------------------------------------------------------------------------
 class _Checker:
     """Collects the file name so every error names file and field."""
@@ -133,8 +149,8 @@ class _Checker:
     def __init__(self, source: str) -> None:
         self.source = source
 
-    def fail(self, field: str, problem: str) -> ConfigError:
-        return ConfigError(f"{self.source}: {field} {problem}")
+    def fail(self, field: str, problem: str) -> ProfileError:
+        return ProfileError(f"{self.source}: {field} {problem}")
 
     def mapping(self, value: Any, field: str, keys: tuple[str, ...]) -> dict[str, Any]:
         if not isinstance(value, dict):
@@ -184,15 +200,7 @@ class _Checker:
                 f"{field}.min_deg/max_deg",
                 f"must satisfy -180 < min_deg < max_deg < 180, got {min_deg} and {max_deg}",
             )
-        joint = JointProfile(servo_id, zero_tick, int(direction), min_deg, max_deg)
-        lo, hi = joint.tick_limits
-        if lo < 0 or hi > MAX_TICK:
-            raise self.fail(
-                f"{field}.min_deg/max_deg",
-                f"reach ticks {lo}..{hi} from zero_tick {zero_tick}, outside one servo turn "
-                f"0..{MAX_TICK}; narrow the limits or re-mount the horn and recalibrate",
-            )
-        return joint
+        return JointProfile(servo_id, zero_tick, int(direction), min_deg, max_deg)
 
     def direction3(self, value: Any, field: str) -> tuple[float, float, float]:
         if not isinstance(value, (list, tuple)) or len(value) != 3:
@@ -209,7 +217,7 @@ def profile_from_dict(data: Any, source: str = "<profile>") -> RigProfile:
 
     Raises
     ------
-    ConfigError
+    ProfileError
         Naming ``source`` and the offending field.
     """
     check = _Checker(source)
@@ -221,13 +229,8 @@ def profile_from_dict(data: Any, source: str = "<profile>") -> RigProfile:
     check.mapping(raw, "profile", _TOP_KEYS)
     name = check.text(raw["name"], "name")
     port = check.text(raw["port"], "port")
-    baud = raw["baud"]
-    if isinstance(baud, bool) or baud not in BAUD_RATE_VALUES:
-        choices = ", ".join(str(b) for b in BAUD_RATE_VALUES)
-        raise check.fail("baud", f"must be one of {choices}, got {baud!r}")
-    model = raw["model"]
-    if model not in MODEL_BY_NAME:
-        raise check.fail("model", f"must be one of {', '.join(MODEL_BY_NAME)}, got {model!r}")
+    baud = check.integer(raw["baud"], "baud", 1, 10_500_000)
+    model = check.text(raw["model"], "model")
     protocol = raw["protocol"]
     if isinstance(protocol, bool) or protocol not in PROTOCOLS:
         raise check.fail("protocol", f"must be 2.0 (X series, Protocol 2.0), got {protocol!r}")
@@ -245,25 +248,25 @@ def load_profile(path: str | os.PathLike[str]) -> RigProfile:
 
     Raises
     ------
-    ConfigError
+    ProfileError
         If the file is missing or a field is invalid (the message names file and field).
-    FileFormatError
+    ProfileFileError
         If the file is not readable YAML.
     """
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
-        raise ConfigError(
+        raise ProfileError(
             f"{path}: no such rig profile; give the right path or create one with "
             f"`limbctl calibrate`"
         ) from None
     except (OSError, UnicodeDecodeError) as exc:
-        raise FileFormatError(path, f"cannot read the rig profile ({exc})") from exc
+        raise ProfileFileError(path, f"cannot read the rig profile ({exc})") from exc
     try:
         data = yaml.safe_load(text)
     except yaml.YAMLError as exc:
-        raise FileFormatError(path, f"not valid YAML ({exc})") from exc
+        raise ProfileFileError(path, f"not valid YAML ({exc})") from exc
     return profile_from_dict(data, str(path))
 
 

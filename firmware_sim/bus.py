@@ -270,7 +270,7 @@ class SimulatedBus:
     model : str
         ``"xl430-w250"`` (default) or ``"xm430-w350"``.
     hand : mapping, path or None
-        REGION.yaml content or path (see DESIGN.md); the hand moves the limb while torque is off.
+        REGION.yaml content or path (firmware_sim.regions); moves the limb while torque is off.
     goal_log : path or None
         JSON-lines goal log.
     seed : int

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from limbctl.errors import ConfigError
-from limbctl.gate import REGION_TOLERANCE_DEG, written_tolerance_deg
+from limbctl.teleop.gate import REGION_TOLERANCE_DEG, written_tolerance_deg
 
 
 def _say(text: str) -> None:
@@ -56,7 +56,7 @@ def goal_log_excursions(goal_log: Path, model: object) -> np.ndarray:
     commands is the last line of each ``t`` (earlier lines mix the new goal of one servo with
     the old goal of the other, a state that lasts no longer than the packet).
     """
-    from limbctl.quat import direction_angle, limb_direction, swing_from_direction
+    from limbctl.geometry.quat import direction_angle, limb_direction, swing_from_direction
 
     by_time: dict[float, list[float]] = {}
     with open(goal_log, encoding="utf-8") as fh:
@@ -138,9 +138,9 @@ def run_demo(out: Path, teach_seconds: float = 45.0, seed: int = 0) -> int:
 
 
 def _plot_teleop(path: Path, model: object, data: Path, telemetry: Path) -> None:
-    from limbctl.dataset import load_dataset
-    from limbctl.gimbal import pan_tilt_to_direction
+    from limbctl.geometry.gimbal import pan_tilt_to_direction
     from limbctl.plot import plot
+    from limbctl.teach.dataset import load_dataset
 
     commanded, written = [], []
     with open(telemetry, encoding="utf-8") as fh:

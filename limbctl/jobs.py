@@ -18,8 +18,8 @@ def _say(text: str) -> None:
 
 # ---- record ---------------------------------------------------------------------------------
 def cmd_record(args: argparse.Namespace) -> int:
-    from limbctl.dataset import DatasetWriter
-    from limbctl.record import record, stop_on_enter
+    from limbctl.teach.dataset import DatasetWriter
+    from limbctl.teach.record import record, stop_on_enter
 
     profile = load_rig_profile(args.rig)
     hand = args.hand if args.hand is not None else demo_region_path()
@@ -51,7 +51,7 @@ def cmd_record(args: argparse.Namespace) -> int:
 def cmd_train(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
-    from limbctl.train import STAGES, train
+    from limbctl.teach.train import STAGES, train
 
     options: dict[str, object] = {}
     if args.kind == "rigidmap":
@@ -85,10 +85,10 @@ def cmd_train(args: argparse.Namespace) -> int:
 
 # ---- plot / info ----------------------------------------------------------------------------
 def _plot_files(paths: list[Path], out: Path, extra: dict | None = None) -> Path:
-    from limbctl.dataset import load_dataset
     from limbctl.envelope import load_model
     from limbctl.errors import FileFormatError
     from limbctl.plot import plot
+    from limbctl.teach.dataset import load_dataset
 
     samples, model, names = None, None, []
     for path in paths:
@@ -116,7 +116,7 @@ def cmd_plot(args: argparse.Namespace) -> int:
 def cmd_info(args: argparse.Namespace) -> int:
     if args.file is not None:
         return _info_file(args.file)
-    from limbctl.control_table import Register, model_name
+    from limbctl.servo.control_table import Register, model_name
 
     with open_rig(
         args.port, args.rig, args.baud, seed=args.seed, latency_timer_ms=args.latency_timer
@@ -139,9 +139,9 @@ def cmd_info(args: argparse.Namespace) -> int:
 
 
 def _info_file(path: Path) -> int:
-    from limbctl.dataset import load_dataset
     from limbctl.envelope import load_header
     from limbctl.errors import FileFormatError
+    from limbctl.teach.dataset import load_dataset
 
     try:
         header = load_header(path)
@@ -165,7 +165,7 @@ def _info_file(path: Path) -> int:
 def gate_for(model_path: Path, profile, rate_hz: float, max_speed_deg_s: float):
     """Load a model (refusing one trained for another rig) and build the gate around it."""
     from limbctl.envelope import load_header, load_model
-    from limbctl.gate import Gate, GateLimits
+    from limbctl.teleop.gate import Gate, GateLimits
 
     trained_for = load_header(model_path).get("metadata", {}).get("rig")
     if trained_for and trained_for != profile.name:
@@ -186,8 +186,8 @@ def gate_for(model_path: Path, profile, rate_hz: float, max_speed_deg_s: float):
 
 
 def cmd_teleop(args: argparse.Namespace) -> int:
-    from limbctl.sources import open_source
-    from limbctl.teleop import LoopConfig, SafeState, Telemetry, open_telemetry, run
+    from limbctl.teleop.loop import LoopConfig, SafeState, Telemetry, open_telemetry, run
+    from limbctl.teleop.sources import open_source
 
     profile = load_rig_profile(args.rig)
     gate = gate_for(args.model, profile, args.rate, args.max_speed)
@@ -205,11 +205,12 @@ def cmd_teleop(args: argparse.Namespace) -> int:
         latency_timer_ms=args.latency_timer,
     ) as session:
         if leader_ids:
-            from limbctl.leader import LeaderSource
+            from limbctl.servo.setup import configure_servos
+            from limbctl.teleop.leader import LeaderSource
 
             limits = session.rig.tick_limits()
             limits.update({servo_id: (0, 4095) for servo_id in leader_ids})
-            session.rig.bus.configure(limits)
+            configure_servos(session.rig.bus, limits)
             source = LeaderSource(session.rig, leader_ids)
         else:
             session.rig.configure()
@@ -253,8 +254,8 @@ def _leader_ids(spec: str) -> tuple[int, ...]:
 def cmd_calibrate(args: argparse.Namespace) -> int:
     from importlib import resources
 
-    from calib.profile import save_profile
-    from limbctl.calibrate import find_zero_and_directions, profile_from_calibration
+    from limbctl.servo.calibrate import find_zero_and_directions, profile_from_calibration
+    from limbctl.servo.profiles import save_rig_profile
 
     base = load_rig_profile(args.rig)
     pan_id, tilt_id = _pair(args.ids, "--ids")
@@ -276,7 +277,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     pan_limits = _limits(args.pan_limits, "--pan-limits", (base.pan.min_deg, base.pan.max_deg))
     tilt_limits = _limits(args.tilt_limits, "--tilt-limits", (base.tilt.min_deg, base.tilt.max_deg))
     profile = profile_from_calibration(base, result, args.name, port, pan_limits, tilt_limits)
-    save_profile(profile, args.out)
+    save_rig_profile(profile, args.out)
     _say(
         f"pan: zero tick {result.pan_zero}, direction {result.pan_direction:+d}; "
         f"tilt: zero tick {result.tilt_zero}, direction {result.tilt_direction:+d}"
@@ -309,7 +310,7 @@ def _pair(text: str, option: str) -> tuple[int, int]:
 
 # ---- eval -----------------------------------------------------------------------------------
 def cmd_eval(args: argparse.Namespace) -> int:
-    from limbctl.evaluate import run_eval
+    from limbctl.eval.experiments import run_eval
 
     return int(run_eval(out=args.out, quick=args.quick, jobs=args.jobs))
 

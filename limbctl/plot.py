@@ -12,8 +12,8 @@ from typing import Any
 
 import numpy as np
 
-from limbctl.gimbal import direction_to_pan_tilt, pan_tilt_to_direction
-from limbctl.quat import limb_direction, swing_from_direction
+from limbctl.geometry.gimbal import direction_to_pan_tilt, pan_tilt_to_direction
+from limbctl.geometry.quat import limb_direction, swing_from_direction
 
 
 def _pan_tilt_deg(directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

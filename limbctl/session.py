@@ -19,9 +19,10 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from calib.profile import RigProfile, default_sim_profile, load_profile
-from limbctl.bus import ServoBus
-from limbctl.rig import Rig
+from calib.profile import RigProfile
+from limbctl.servo.bus import ServoBus
+from limbctl.servo.profiles import load_rig_profile
+from limbctl.servo.rig import Rig
 
 
 @dataclass
@@ -40,11 +41,6 @@ class Session:
 def demo_region_path() -> Path:
     """The packaged REGION.yaml the demo's scripted hand teaches."""
     return Path(str(resources.files("limbctl").joinpath("data", "demo_region.yaml")))
-
-
-def load_rig_profile(path: Path | None) -> RigProfile:
-    """The rig profile at ``path``, or the packaged simulated rig."""
-    return load_profile(path) if path is not None else default_sim_profile()
 
 
 @contextmanager

@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 import yaml
 
-from limbctl.dataset import load_dataset
 from limbctl.demo import run_demo, write_command_stream
 from limbctl.envelope.synthetic import PolygonRegion
 from limbctl.errors import ConfigError
 from limbctl.session import demo_region_path
+from limbctl.teach.dataset import load_dataset
 
 
 def packet_directions(goal_log):

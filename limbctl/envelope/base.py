@@ -17,7 +17,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from limbctl.errors import FileFormatError
-from limbctl.quat import as_quaternions
+from limbctl.geometry.quat import as_quaternions
 
 #: Bumped whenever the saved layout changes; older files are refused with a clear message.
 FORMAT_VERSION = 1

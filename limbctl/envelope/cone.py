@@ -25,7 +25,7 @@ import numpy as np
 from limbctl.envelope import interpolation as ip
 from limbctl.envelope.base import Envelope
 from limbctl.errors import ConfigError
-from limbctl.quat import swing_angle
+from limbctl.geometry.quat import swing_angle
 
 #: ``contains`` accepts w^2 + x^2 >= cos^2(R/2) - CONTAINS_TOLERANCE, so that ``correct``'s
 #: boundary points (exact up to rounding, a few 1e-16) count as inside. In angle this is

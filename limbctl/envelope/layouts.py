@@ -8,8 +8,8 @@ Hemisphere choice
 -----------------
 The papers place nodes on the whole of S^3 (the 720-node union is the 600-cell's 120 vertices
 plus the 120-cell's 600). A quaternion and its antipode are one rotation, and the valid set lives
-on the canonical side w >= 0 (DESIGN.md), so by default (``hemisphere=True``) every layout lives
-on w >= 0 only:
+on the canonical side w >= 0 (the project's convention), so by default (``hemisphere=True``)
+every layout lives on w >= 0 only:
 
 - polytopes (centrally symmetric) are *folded*: each antipodal pair keeps its member with
   w > 0 (on w = 0, the member whose first non-zero component is positive). The counts halve:

@@ -6,7 +6,7 @@ schedules, see :mod:`limbctl.envelope.rigidmap_kernels`), winner by weight when 
 optionally interpolated with the runner-ups.
 
 ``contains``/``correct`` make that system exact, on top of the trained map
-(:mod:`limbctl.envelope.region_shape` holds the geometry):
+(:mod:`limbctl.region.shape` holds the geometry):
 
 1. *Support refinement*: a second layer of nodes is placed where the data lies: positions at
    training orientations thinned to at least ``thin_deg`` apart (outermost kept; at most
@@ -33,12 +33,12 @@ optionally interpolated with the runner-ups.
    sample beyond it, at most ``max_margin_deg``: the region never reaches more than that
    beyond the data-supported shape. Arcs longer than ``BRIDGE_FRACTION`` of the peel length
    (bridges across gaps with no sample along them) widen only to cover samples beyond them.
-5. *Learned edge* (``smooth_edge``, :mod:`limbctl.envelope.edge_choice`): each loop is
+5. *Learned edge* (``smooth_edge``, :mod:`limbctl.region.edge_choice`): each loop is
    replaced by a learned curve moved out to where the outermost samples put the edge (each
    round at most ``max_offset_deg``): the *smooth* edge, local small circles over one window
-   (:mod:`limbctl.envelope.edge_fit`), or else the *traced* edge, a curve walked out station
+   (:mod:`limbctl.region.edge_smooth`), or else the *traced* edge, a curve walked out station
    by station that follows eggs, kidneys and bays where the edge is taught densely enough
-   (:mod:`limbctl.envelope.edge_trace`). A learned edge is kept only when the data agree with
+   (:mod:`limbctl.region.edge_traced`). A learned edge is kept only when the data agree with
    it (no crossing arcs, every taught sample still inside, every stretch it adds one the
    sampling density explains, and for the smooth edge no bay and a window that follows the
    loop's shape); otherwise the gate keeps the supported loops of step 4. ``edge`` says which
@@ -57,14 +57,14 @@ from typing import Any, ClassVar
 import numpy as np
 from scipy.spatial import cKDTree
 
-from limbctl.envelope import region_shape as rs
 from limbctl.envelope import rigidmap_kernels as rk
 from limbctl.envelope.base import Envelope
-from limbctl.envelope.boundary import DirectionMesh, boundary_edges
-from limbctl.envelope.edge_choice import learned_edge
 from limbctl.envelope.layouts import make_layout
 from limbctl.errors import ConfigError, InvalidInputError
-from limbctl.quat import as_quaternions, limb_direction
+from limbctl.geometry.quat import as_quaternions, limb_direction
+from limbctl.region import shape as rs
+from limbctl.region.edge_choice import learned_edge
+from limbctl.region.mesh import DirectionMesh, boundary_edges
 
 #: Outermost samples per boundary window used to estimate the gap to the true edge.
 EDGE_ORDER_STATISTICS = 12

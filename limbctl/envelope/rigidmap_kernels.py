@@ -28,8 +28,6 @@ import math
 import numba as nb
 import numpy as np
 
-from limbctl.envelope import boundary_kernels as bk
-
 # The answering kernels (winner by weight, interpolation) are the ones the SOM uses too; they are
 # re-exported here so the Rigid Map's code and tests name them in one place.
 from limbctl.envelope.interpolation import (  # noqa: F401
@@ -45,6 +43,7 @@ from limbctl.envelope.interpolation import (  # noqa: F401
     respond_batch,
     respond_reference,
 )
+from limbctl.region import mesh_kernels as bk
 
 
 # ---- training ----------------------------------------------------------------------------------

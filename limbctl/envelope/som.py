@@ -46,7 +46,7 @@ from limbctl.envelope import interpolation as ip
 from limbctl.envelope.base import Envelope
 from limbctl.envelope.som_kernels import train_som
 from limbctl.errors import ConfigError
-from limbctl.quat import canonical
+from limbctl.geometry.quat import canonical
 
 
 def table_i_schedule(

@@ -24,8 +24,8 @@ from abc import ABC, abstractmethod
 
 import numpy as np
 
-from limbctl.gimbal import direction_to_pan_tilt, pan_tilt_to_direction
-from limbctl.quat import direction_angle, swing_from_direction, tangent_frame
+from limbctl.geometry.gimbal import direction_to_pan_tilt, pan_tilt_to_direction
+from limbctl.geometry.quat import direction_angle, swing_from_direction, tangent_frame
 
 #: A kidney-shaped region in (pan, tilt) degrees, concave on top: the shape of a hand-taught limit.
 BEAN = np.array(
@@ -311,7 +311,7 @@ def covered(
     edge); a direction beyond the data's edge, or in a wide bay the hand never entered, is not.
     The benchmarks count valid commands "where the recording covered it" with this.
     """
-    from limbctl.envelope.region_shape import surrounded
+    from limbctl.region.shape import surrounded
 
     return surrounded(
         np.asarray(d, dtype=np.float64),

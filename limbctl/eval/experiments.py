@@ -1,0 +1,304 @@
+"""`limbctl eval`: the seed papers' experiments, side by side with the gate, as CSV, tables, plots.
+
+What runs (see :func:`build_tasks`; docs/results.md explains every choice):
+
+- the SOM paper (Jenkins & Dacey): error against the constraint range (10x10, 20x20 and 30x30
+  grids), the number of training patterns (10x10 and 30x30), the output-layer size and the
+  central/boundary pattern ratio; Table I defaults (100 nodes, 500 patterns, 90 degrees) where a
+  factor is not varied; test directions uniform over the whole sphere;
+- the Rigid Map paper (Jenkins & Angel): error against the range for 720 polytope nodes and
+  2000 uniform nodes, discrete and interpolated (idw, geometric, geometric-winner,
+  topological), and against the number of interpolating nodes; 1000 training and 1000 test
+  patterns, range 20 degrees by default; test directions within ``R + min(R, 45 deg)`` of +x;
+- beside each paper network, the gate (``correct``) of Rigid Maps trained on the same data,
+  on the paper's layout and on alternatives (super-Fibonacci; nodes placed on the data).
+
+One *task* is one data set (one experiment, one x value, one seed) and every model of that
+experiment trained on it; each answer is scored on all, valid and invalid test inputs
+(:func:`limbctl.eval.metrics.score`). Tasks run in worker processes (numba limited to one thread
+each); every finished task appends its rows to ``runs.csv`` at once, and a rerun with the same
+``--out`` skips tasks already there (the task id is a hash of its full definition).
+"""
+
+from __future__ import annotations
+
+import csv
+import multiprocessing
+import os
+import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from limbctl.envelope import Cone
+from limbctl.envelope import interpolation as ip
+from limbctl.envelope.synthetic import ConeRegion, to_quaternions
+from limbctl.errors import ConfigError
+from limbctl.eval.grids import DataSpec, ModelSpec, Task, build_tasks
+from limbctl.eval.metrics import METRIC_NAMES, score
+from limbctl.geometry.quat import swing_angle
+
+#: Columns of runs.csv, in order.
+CSV_FIELDS = (
+    "task",
+    "grid",
+    "experiment",
+    "x_name",
+    "x",
+    "seed",
+    "model",
+    "answer",
+    "k",
+    "subset",
+    *METRIC_NAMES,
+    "fit_seconds",
+)
+
+
+_NO_TOPOLOGY = np.empty((0, 0), dtype=np.int64)
+
+
+# ---- data --------------------------------------------------------------------------------------
+def draw_training(data: DataSpec, rng: np.random.Generator) -> np.ndarray:
+    """Valid training orientations (patterns, 4), twist-free, inside the cone of ``range_deg``.
+
+    Uniform over the cap, or with the boundary band (swing in (R/2, R]) ``boundary_ratio``
+    times as dense as the central cap (swing <= R/2).
+    """
+    radius = np.radians(data.range_deg)
+    cone = ConeRegion(radius)
+    if data.boundary_ratio == 1.0:
+        return to_quaternions(cone.sample(data.patterns, rng))
+    inner = 0.5 * radius
+    # cap areas are proportional to 1 - cos(angle)
+    area_centre = 1.0 - np.cos(inner)
+    area_band = np.cos(inner) - np.cos(radius)
+    share_band = data.boundary_ratio * area_band / (data.boundary_ratio * area_band + area_centre)
+    n_band = int(round(data.patterns * share_band))
+    centre = ConeRegion(inner).sample(data.patterns - n_band, rng)
+    band = np.empty((0, 3))
+    while len(band) < n_band:
+        candidates = cone.sample(2 * n_band, rng)
+        band = np.vstack([band, candidates[candidates[:, 0] < np.cos(inner)]])
+    directions = np.vstack([centre, band[:n_band]])
+    return to_quaternions(directions[rng.permutation(len(directions))])
+
+
+def draw_test(data: DataSpec, rng: np.random.Generator) -> np.ndarray:
+    """Test orientations (test_patterns, 4), twist-free, spread as ``data.test_spread`` says."""
+    if data.test_spread == "sphere":
+        # uniform on the sphere: normalised Gaussian 3-vectors
+        d = rng.normal(size=(data.test_patterns, 3))
+        d /= np.linalg.norm(d, axis=1, keepdims=True)
+    elif data.test_spread == "around":
+        d = ConeRegion(np.radians(data.range_deg)).test_directions(data.test_patterns, rng)
+    else:
+        raise ConfigError(f"unknown test_spread {data.test_spread!r}; choose sphere or around")
+    return to_quaternions(d)
+
+
+# ---- one task ----------------------------------------------------------------------------------
+def build_model(spec: ModelSpec, seed: int, range_deg: float) -> Any:
+    """A fresh, untrained model for ``spec`` (the cone is the exact truth of ``range_deg``)."""
+    options = dict(spec.options)
+    if spec.kind == "cone":
+        return Cone(np.radians(range_deg))
+    if spec.kind == "som":
+        from limbctl.envelope.som import SOM
+
+        return SOM(seed=seed, **options)
+    if spec.kind == "rigidmap":
+        from limbctl.envelope import RigidMap
+
+        return RigidMap(seed=seed, **options)
+    raise ConfigError(f"unknown model kind {spec.kind!r}; choose som, rigidmap or cone")
+
+
+def respond_on_data_nodes(model: Any, q: np.ndarray, interpolation: str, k: int) -> np.ndarray:
+    """The papers' answering rule over a fitted Rigid Map's support layer (nodes on the data).
+
+    Parameters
+    ----------
+    model : RigidMap
+        Fitted; its ``support_weights`` (S, 4) are the trained weights of the nodes it placed
+        on the training orientations.
+    q : ndarray, shape (N, 4)
+    interpolation : str
+        ``none`` or an interpolation by weight (``idw``, ``geometric``, ``geometric-winner``).
+    k : int
+        Runner-ups.
+    """
+    weights = np.ascontiguousarray(model.support_weights, dtype=np.float64)
+    mode = ip.interpolation_code(interpolation)
+    return ip.respond_batch(weights, q, max(k, 1), ip.EUCLIDEAN, mode, _NO_TOPOLOGY)
+
+
+def run_task(task: Task) -> list[dict[str, Any]]:
+    """Draw the task's data, train each model, score each answer; one row per subset."""
+    rng = np.random.default_rng(task.seed)
+    train = draw_training(task.data, rng)
+    test = draw_test(task.data, rng)
+    truth = Cone(np.radians(task.data.range_deg))
+    ideal = truth.correct(test)
+    valid = truth.contains(test)
+    rows = []
+    for spec in task.models:
+        start = time.perf_counter()
+        model = build_model(spec, task.seed, task.data.range_deg).fit(train)
+        fit_seconds = time.perf_counter() - start
+        for answer in spec.answers:
+            if answer.how == "correct":
+                out = model.correct(test)
+            elif answer.how == "data-nodes":
+                out = respond_on_data_nodes(model, test, answer.interpolation, answer.k)
+            else:
+                out = model.respond(test, interpolation=answer.interpolation, k=max(answer.k, 1))
+            # how far outside the cone an answer lies: max(swing angle - R, 0)
+            outside = np.degrees(np.maximum(swing_angle(out) - truth.half_angle, 0.0))
+            scores = score(test, out, ideal, valid, truth.contains(out), outside)
+            x = answer.k if task.x_from_k else task.x
+            for subset, values in scores.items():
+                rows.append(
+                    {
+                        "task": task.key,
+                        "grid": task.grid,
+                        "experiment": task.experiment,
+                        "x_name": task.x_name,
+                        "x": x,
+                        "seed": task.seed,
+                        "model": spec.label,
+                        "answer": answer.label,
+                        "k": answer.k,
+                        "subset": subset,
+                        **values,
+                        "fit_seconds": round(fit_seconds, 4),
+                    }
+                )
+    return rows
+
+
+# ---- running many tasks ------------------------------------------------------------------------
+def _worker_init() -> None:
+    """One numba thread per worker process: the pool already fills the cores."""
+    import numba
+
+    numba.set_num_threads(1)
+
+
+def read_rows(csv_path: Path) -> list[dict[str, Any]]:
+    """Rows of a runs.csv (numbers as float, text as str); [] when the file does not exist."""
+    if not csv_path.exists():
+        return []
+    text_fields = {"task", "grid", "experiment", "x_name", "model", "answer", "subset"}
+    rows = []
+    with open(csv_path, newline="") as fh:
+        for raw in csv.DictReader(fh):
+            rows.append({k: v if k in text_fields else float(v) for k, v in raw.items()})
+    return rows
+
+
+def run_tasks(
+    tasks: list[Task], csv_path: Path, jobs: int = 0, progress: bool = True
+) -> list[dict[str, Any]]:
+    """Run the tasks not yet in ``csv_path``, appending each one's rows as it finishes.
+
+    Parameters
+    ----------
+    tasks : list of Task
+    csv_path : Path
+        runs.csv; created with a header when missing, appended to otherwise.
+    jobs : int
+        Worker processes; 0 means one per core, 1 runs everything in this process.
+    progress : bool
+        Show a tqdm progress bar.
+
+    Returns
+    -------
+    list of dict
+        The rows of every task in ``tasks`` (earlier runs' included), in CSV order.
+    """
+    from tqdm import tqdm
+
+    wanted = {t.key for t in tasks}
+    done = {row["task"] for row in read_rows(csv_path)}
+    todo = [t for t in tasks if t.key not in done]
+    jobs = (os.cpu_count() or 1) if jobs == 0 else jobs
+    if jobs < 0:
+        raise ConfigError(f"--jobs must be >= 0 (0 = one per core), got {jobs}")
+    new_file = not csv_path.exists()
+    with (
+        open(csv_path, "a", newline="") as fh,
+        tqdm(
+            total=len(tasks),
+            initial=len(tasks) - len(todo),
+            disable=not progress,
+            unit="task",
+            desc="eval",
+        ) as bar,
+    ):
+        writer = csv.DictWriter(fh, fieldnames=CSV_FIELDS)
+        if new_file:
+            writer.writeheader()
+
+        def record(rows: list[dict[str, Any]]) -> None:
+            writer.writerows(rows)
+            fh.flush()
+            bar.update(1)
+
+        if jobs == 1 or len(todo) <= 1:
+            for task in todo:
+                record(run_task(task))
+        else:
+            # spawn, not fork: numba's OpenMP threads in this process do not survive a fork
+            context = multiprocessing.get_context("spawn")
+            with ProcessPoolExecutor(jobs, context, initializer=_worker_init) as pool:
+                futures = [pool.submit(run_task, task) for task in todo]
+                for future in as_completed(futures):
+                    record(future.result())
+    return [row for row in read_rows(csv_path) if row["task"] in wanted]
+
+
+def run_eval(
+    out: Path, quick: bool = False, jobs: int = 0, progress: bool = True, smoke: bool = False
+) -> int:
+    """`limbctl eval`: run the grid, write runs.csv, summary.md and the figures into ``out``.
+
+    Parameters
+    ----------
+    out : Path
+        Output folder (created). A rerun into the same folder resumes: finished tasks are kept.
+    quick : bool
+        The reduced grid (under two minutes on two cores) instead of the full one.
+    jobs : int
+        Worker processes (0: one per core).
+    progress : bool
+        Show a progress bar.
+    smoke : bool
+        The tiny test grid (overrides ``quick``); for the test suite.
+
+    Returns
+    -------
+    int
+        0 when the run finished and the reproduction check passed (or was not in the grid),
+        1 when the SOM reproduction number fell outside its expected band.
+    """
+    from limbctl.eval import plots as eval_plots
+
+    scale = "smoke" if smoke else "quick" if quick else "full"
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    started = time.perf_counter()
+    rows = run_tasks(build_tasks(scale), out / "runs.csv", jobs=jobs, progress=progress)
+    table = eval_plots.aggregate(rows)
+    figures = eval_plots.draw_all(table, out)
+    summary = eval_plots.summary_markdown(table, scale)
+    (out / "summary.md").write_text(summary.text)
+    elapsed = time.perf_counter() - started
+    print(f"limbctl eval ({scale}): {len(rows)} rows in {elapsed:.1f} s -> {out}")
+    for line in summary.headline:
+        print(f"  {line}")
+    for path in figures:
+        print(f"  figure {path}")
+    return 0 if summary.reproduction_ok is not False else 1

@@ -1,0 +1,174 @@
+"""Error metrics of a constraint model's answers against Lee's ideal corrections.
+
+Every function takes the model's answers, the ideal answers and (where needed) the inputs as
+(N, 4) unit quaternions (w, x, y, z) and returns per-row values; :func:`score` reduces them to
+the numbers the evaluation tables report, split by valid and invalid inputs.
+
+The papers' metrics
+    ``mse``: mean over test patterns of the squared R^4 distance between answer and ideal,
+    ``|y - y*|^2`` summed over the four components (sign-aware: q and -q are one rotation,
+    so the smaller of ``|y - y*|`` and ``|y + y*|`` is used).
+    ``err3d_rms``: root-mean-square distance between the end points of a unit limb (resting
+    along +x) turned by the answer and by the ideal, ``sqrt(mean |d(y) - d(y*)|^2)``.
+
+Our additions
+    ``angle_mean_deg``, ``angle_p95_deg``: mean and 95th percentile of the angle (degrees)
+    between those two limb directions.
+    ``unchanged_share``: share of inputs the model returns unchanged (rotation angle between
+    input and answer at most :data:`UNCHANGED_TOLERANCE`); on valid inputs this should be 1.
+    ``inside_share``: share of answers inside the true region (``truth.contains``).
+    ``outside_p95_deg``: 95th percentile of how far (degrees) answers lie outside the true
+    region (0 for an answer inside): how much an answer outside actually matters.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from limbctl.errors import ConfigError
+from limbctl.geometry.quat import direction_angle, geodesic_distance, limb_direction
+
+#: An answer counts as "unchanged" when it is within this rotation angle of the input
+#: (1e-6 rad = 0.2 arc seconds, far below any servo step, far above float64 rounding).
+UNCHANGED_TOLERANCE = 1e-6
+
+#: Names of the per-subset numbers :func:`score` returns, in table order.
+METRIC_NAMES = (
+    "n",
+    "mse",
+    "err3d_rms",
+    "angle_mean_deg",
+    "angle_p95_deg",
+    "unchanged_share",
+    "inside_share",
+    "outside_p95_deg",
+)
+
+#: The input subsets :func:`score` reports.
+SUBSETS = ("all", "valid", "invalid")
+
+
+def _pair(answer: np.ndarray, ideal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    answer = np.asarray(answer, dtype=np.float64)
+    ideal = np.asarray(ideal, dtype=np.float64)
+    if answer.shape != ideal.shape or answer.ndim != 2 or answer.shape[1] != 4:
+        raise ConfigError(
+            f"metrics need two (N, 4) quaternion arrays of one shape, got {answer.shape} "
+            f"and {ideal.shape}"
+        )
+    return answer, ideal
+
+
+def quaternion_sq_error(answer: np.ndarray, ideal: np.ndarray) -> np.ndarray:
+    """Sign-aware squared R^4 distance per row, shape (N,).
+
+    ``min(|y - y*|^2, |y + y*|^2)``: q and -q are one rotation, so a hemisphere flip costs
+    nothing.
+    """
+    answer, ideal = _pair(answer, ideal)
+    minus = np.sum((answer - ideal) ** 2, axis=1)
+    plus = np.sum((answer + ideal) ** 2, axis=1)
+    return np.minimum(minus, plus)
+
+
+def endpoint_error(answer: np.ndarray, ideal: np.ndarray) -> np.ndarray:
+    """Distance between the end points of a unit limb turned by answer and ideal, (N,).
+
+    ``|d(y) - d(y*)|`` with ``d(q)`` the limb direction (rest along +x).
+    """
+    answer, ideal = _pair(answer, ideal)
+    return np.linalg.norm(limb_direction(answer) - limb_direction(ideal), axis=1)
+
+
+def direction_error_deg(answer: np.ndarray, ideal: np.ndarray) -> np.ndarray:
+    """Angle (degrees) between the limb directions of answer and ideal, (N,)."""
+    answer, ideal = _pair(answer, ideal)
+    return np.degrees(direction_angle(limb_direction(answer), limb_direction(ideal)))
+
+
+def unchanged(
+    answer: np.ndarray, q: np.ndarray, tolerance: float = UNCHANGED_TOLERANCE
+) -> np.ndarray:
+    """Whether each answer is the input itself (rotation angle <= ``tolerance`` rad), (N,) bool."""
+    answer, q = _pair(answer, q)
+    return geodesic_distance(answer, q) <= tolerance
+
+
+def score(
+    q: np.ndarray,
+    answer: np.ndarray,
+    ideal: np.ndarray,
+    valid: np.ndarray,
+    inside: np.ndarray,
+    outside_deg: np.ndarray | None = None,
+) -> dict[str, dict[str, float]]:
+    """All metrics on all inputs, on the valid ones and on the invalid ones.
+
+    Parameters
+    ----------
+    q : ndarray, shape (N, 4)
+        Test inputs.
+    answer : ndarray, shape (N, 4)
+        The model's answers.
+    ideal : ndarray, shape (N, 4)
+        Lee's ideal answers (the input itself when valid).
+    valid : ndarray, shape (N,) bool
+        Whether each input lies in the true region.
+    inside : ndarray, shape (N,) bool
+        Whether each answer lies in the true region.
+    outside_deg : ndarray, shape (N,), optional
+        How far each answer lies outside the true region (degrees, 0 inside); NaN if omitted.
+
+    Returns
+    -------
+    dict
+        ``{subset: {metric: value}}`` for subset in :data:`SUBSETS` and metric in
+        :data:`METRIC_NAMES`. An empty subset has ``n = 0`` and NaN elsewhere.
+    """
+    sq = quaternion_sq_error(answer, ideal)
+    end = endpoint_error(answer, ideal)
+    angle = direction_error_deg(answer, ideal)
+    same = unchanged(answer, q)
+    valid = np.asarray(valid, dtype=bool)
+    inside = np.asarray(inside, dtype=bool)
+    if outside_deg is None:
+        outside_deg = np.full(sq.shape, math.nan)
+    outside_deg = np.asarray(outside_deg, dtype=np.float64)
+    if valid.shape != sq.shape or inside.shape != sq.shape or outside_deg.shape != sq.shape:
+        raise ConfigError(
+            f"valid {valid.shape}, inside {inside.shape} and outside_deg {outside_deg.shape} "
+            f"must have one entry per row ({sq.shape[0]})"
+        )
+    masks = {"all": np.ones_like(valid), "valid": valid, "invalid": ~valid}
+    out: dict[str, dict[str, float]] = {}
+    for subset, mask in masks.items():
+        n = int(mask.sum())
+        if n == 0:
+            out[subset] = {"n": 0.0} | {m: math.nan for m in METRIC_NAMES[1:]}
+            continue
+        out[subset] = {
+            "n": float(n),
+            # MSE = mean_i |y_i - y*_i|^2
+            "mse": float(sq[mask].mean()),
+            # 3D error = sqrt(mean_i |d(y_i) - d(y*_i)|^2)
+            "err3d_rms": float(np.sqrt(np.mean(end[mask] ** 2))),
+            "angle_mean_deg": float(angle[mask].mean()),
+            "angle_p95_deg": float(np.percentile(angle[mask], 95.0)),
+            "unchanged_share": float(same[mask].mean()),
+            "inside_share": float(inside[mask].mean()),
+            "outside_p95_deg": float(np.percentile(outside_deg[mask], 95.0)),
+        }
+    return out
+
+
+def mean_and_spread(values: Any) -> tuple[float, float]:
+    """Mean and sample standard deviation (ddof=1; 0 for a single value), ignoring NaN."""
+    arr = np.asarray(values, dtype=np.float64)
+    arr = arr[np.isfinite(arr)]
+    if arr.size == 0:
+        return math.nan, math.nan
+    spread = float(arr.std(ddof=1)) if arr.size > 1 else 0.0
+    return float(arr.mean()), spread

@@ -1,0 +1,263 @@
+"""Quaternion algebra for limb orientations.
+
+Conventions (docs/architecture.md): float64 arrays of shape (4,) or (N, 4), scalar first
+``(w, x, y, z)``, unit length, canonical hemisphere ``w >= 0``. The limb rests along +x;
+``limb_direction(q)`` is where a unit limb points after rotating by ``q``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from limbctl.errors import InvalidInputError
+
+#: Tolerance on | |q| - 1 | for input quaternions.
+UNIT_TOLERANCE = 1e-6
+
+REST_DIRECTION = np.array([1.0, 0.0, 0.0])
+
+
+def as_quaternions(
+    q: object, name: str = "q", tol: float = UNIT_TOLERANCE
+) -> tuple[np.ndarray, bool]:
+    """Validate quaternion input and return it as an (N, 4) float64 array.
+
+    Parameters
+    ----------
+    q : array_like, shape (4,) or (N, 4)
+        Unit quaternions (w, x, y, z).
+    name : str
+        Name used in error messages.
+    tol : float
+        Allowed deviation of the norm from 1.
+
+    Returns
+    -------
+    q2 : ndarray, shape (N, 4)
+        A float64 copy, canonicalised to w >= 0.
+    single : bool
+        True when the input was a single (4,) quaternion.
+
+    Raises
+    ------
+    InvalidInputError
+        (a ValueError) naming the first offending row when a value is non-finite,
+        the shape is wrong, or a row is not unit length.
+    """
+    try:
+        arr = np.array(q, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise InvalidInputError(f"{name}: cannot read as float quaternions ({exc})") from exc
+    single = arr.ndim == 1
+    if single:
+        arr = arr[None, :]
+    if arr.ndim != 2 or arr.shape[1] != 4:
+        raise InvalidInputError(f"{name}: expected shape (4,) or (N, 4), got {np.shape(q)}")
+    finite = np.isfinite(arr).all(axis=1)
+    if not finite.all():
+        row = int(np.flatnonzero(~finite)[0])
+        raise InvalidInputError(f"{name}: row {row} is not finite: {arr[row].tolist()}")
+    norms = np.linalg.norm(arr, axis=1)
+    bad = ~(np.abs(norms - 1.0) <= tol)
+    if bad.any():
+        row = int(np.flatnonzero(bad)[0])
+        raise InvalidInputError(
+            f"{name}: row {row} has norm {norms[row]:.9g}, expected a unit quaternion "
+            f"(normalise it first)"
+        )
+    return canonical(arr), single
+
+
+def canonical(q: np.ndarray) -> np.ndarray:
+    """Flip quaternions into the w >= 0 hemisphere (q and -q are one rotation).
+
+    Parameters
+    ----------
+    q : ndarray, shape (..., 4)
+
+    Returns
+    -------
+    ndarray, shape (..., 4)
+    """
+    q = np.asarray(q, dtype=np.float64)
+    sign = np.where(q[..., :1] < 0.0, -1.0, 1.0)
+    return q * sign
+
+
+def normalize(q: np.ndarray) -> np.ndarray:
+    """Scale quaternions to unit length (no hemisphere change). Shape (..., 4)."""
+    q = np.asarray(q, dtype=np.float64)
+    return q / np.linalg.norm(q, axis=-1, keepdims=True)
+
+
+def multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton product ``a * b`` (apply b, then a). Shapes broadcast over (..., 4)."""
+    a = np.asarray(a, dtype=np.float64)
+    b = np.asarray(b, dtype=np.float64)
+    aw, ax, ay, az = np.moveaxis(a, -1, 0)
+    bw, bx, by, bz = np.moveaxis(b, -1, 0)
+    # (aw, av)(bw, bv) = (aw bw - av.bv, aw bv + bw av + av x bv)
+    return np.stack(
+        [
+            aw * bw - ax * bx - ay * by - az * bz,
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+        ],
+        axis=-1,
+    )
+
+
+def conjugate(q: np.ndarray) -> np.ndarray:
+    """Conjugate (the inverse of a unit quaternion). Shape (..., 4)."""
+    q = np.asarray(q, dtype=np.float64)
+    return q * np.array([1.0, -1.0, -1.0, -1.0])
+
+
+def from_axis_angle(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
+    """Quaternion of a rotation by ``angle`` (rad) about unit ``axis`` (..., 3)."""
+    axis = np.asarray(axis, dtype=np.float64)
+    half = 0.5 * np.asarray(angle, dtype=np.float64)
+    # q = (cos(angle/2), sin(angle/2) * axis)
+    return np.concatenate([np.cos(half)[..., None], np.sin(half)[..., None] * axis], axis=-1)
+
+
+def rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Rotate vectors ``v`` (..., 3) by unit quaternions ``q`` (..., 4)."""
+    q = np.asarray(q, dtype=np.float64)
+    v = np.asarray(v, dtype=np.float64)
+    w = q[..., :1]
+    u = q[..., 1:]
+    # v' = v + 2 w (u x v) + 2 u x (u x v)
+    t = 2.0 * np.cross(u, v)
+    return v + w * t + np.cross(u, t)
+
+
+def limb_direction(q: np.ndarray) -> np.ndarray:
+    """Direction of a unit limb resting along +x after rotation by ``q``.
+
+    Parameters
+    ----------
+    q : ndarray, shape (..., 4)
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+        Unit vectors. Closed form of ``rotate(q, [1, 0, 0])``:
+        ``(w^2 + x^2 - y^2 - z^2, 2(xy + wz), 2(xz - wy))``.
+    """
+    q = np.asarray(q, dtype=np.float64)
+    w, x, y, z = np.moveaxis(q, -1, 0)
+    return np.stack(
+        [w * w + x * x - y * y - z * z, 2 * (x * y + w * z), 2 * (x * z - w * y)], axis=-1
+    )
+
+
+def swing_from_direction(d: np.ndarray) -> np.ndarray:
+    """The twist-free quaternion that turns +x onto direction ``d`` by the shortest arc.
+
+    Parameters
+    ----------
+    d : ndarray, shape (..., 3)
+        Limb directions (normalised here).
+
+    Returns
+    -------
+    ndarray, shape (..., 4)
+        ``normalize((1 + d_x, 0, -d_z, d_y))``, i.e. (1 + x.d, x cross d). For d = -x
+        (no unique shortest arc) the rotation about +z by pi is returned.
+    """
+    d = np.asarray(d, dtype=np.float64)
+    d = d / np.linalg.norm(d, axis=-1, keepdims=True)
+    q = np.stack([1.0 + d[..., 0], np.zeros_like(d[..., 0]), -d[..., 2], d[..., 1]], axis=-1)
+    n = np.linalg.norm(q, axis=-1, keepdims=True)
+    antipodal = n[..., 0] < 1e-12
+    q = np.where(antipodal[..., None], np.array([0.0, 0.0, 0.0, 1.0]), q / np.where(n > 0, n, 1.0))
+    return q
+
+
+def swing_twist(q: np.ndarray, axis: np.ndarray = REST_DIRECTION) -> tuple[np.ndarray, np.ndarray]:
+    """Split ``q = swing * twist`` with the twist about ``axis`` (default +x, Lee's split).
+
+    Parameters
+    ----------
+    q : ndarray, shape (..., 4)
+    axis : ndarray, shape (3,)
+
+    Returns
+    -------
+    swing, twist : ndarray, shape (..., 4)
+        Both unit, w >= 0. For q = swing * twist about x, the swing angle is
+        ``2 acos(sqrt(w^2 + x^2))``.
+    """
+    q = canonical(np.asarray(q, dtype=np.float64))
+    axis = np.asarray(axis, dtype=np.float64)
+    # twist = normalize(w, (v . a) a); degenerate when the rotation is a half-turn about an axis
+    # perpendicular to a: then the twist is the identity.
+    proj = (q[..., 1:] @ axis)[..., None] * axis
+    twist = np.concatenate([q[..., :1], proj], axis=-1)
+    n = np.linalg.norm(twist, axis=-1, keepdims=True)
+    ident = np.array([1.0, 0.0, 0.0, 0.0])
+    twist = np.where(n > 1e-12, twist / np.where(n > 0, n, 1.0), ident)
+    twist = canonical(twist)
+    swing = canonical(multiply(q, conjugate(twist)))
+    return swing, twist
+
+
+def swing_angle(q: np.ndarray) -> np.ndarray:
+    """Swing angle (rad) of ``q`` about +x: the angle between the limb and its rest direction.
+
+    ``2 acos(sqrt(w^2 + x^2))`` (Lee). Shape (...,).
+    """
+    q = np.asarray(q, dtype=np.float64)
+    c = np.sqrt(np.clip(q[..., 0] ** 2 + q[..., 1] ** 2, 0.0, 1.0))
+    return 2.0 * np.arccos(c)
+
+
+def geodesic_distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Rotation angle (rad) between orientations: ``2 acos(|<a, b>|)``. Shapes broadcast."""
+    dot = np.abs(np.sum(np.asarray(a, dtype=np.float64) * np.asarray(b, dtype=np.float64), axis=-1))
+    return 2.0 * np.arccos(np.clip(dot, 0.0, 1.0))
+
+
+def euclidean_distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Euclidean distance in R^4 between quaternions, sign-aware: ``min(|a - b|, |a + b|)``."""
+    a = np.asarray(a, dtype=np.float64)
+    b = np.asarray(b, dtype=np.float64)
+    return np.minimum(np.linalg.norm(a - b, axis=-1), np.linalg.norm(a + b, axis=-1))
+
+
+def direction_angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Angle (rad) between unit direction vectors ``a`` and ``b`` (..., 3), robust near 0."""
+    a = np.asarray(a, dtype=np.float64)
+    b = np.asarray(b, dtype=np.float64)
+    # atan2(|a x b|, a . b) is accurate for tiny and near-pi angles alike
+    return np.arctan2(np.linalg.norm(np.cross(a, b), axis=-1), np.sum(a * b, axis=-1))
+
+
+def slerp(a: np.ndarray, b: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Spherical linear interpolation from ``a`` (t=0) to ``b`` (t=1) on the short arc."""
+    a = np.asarray(a, dtype=np.float64)
+    b = np.asarray(b, dtype=np.float64)
+    t = np.asarray(t, dtype=np.float64)[..., None]
+    dot = np.sum(a * b, axis=-1, keepdims=True)
+    b = np.where(dot < 0, -b, b)
+    dot = np.abs(dot)
+    theta = np.arccos(np.clip(dot, -1.0, 1.0))
+    s = np.sin(theta)
+    small = s < 1e-9
+    s_safe = np.where(small, 1.0, s)
+    wa = np.where(small, 1.0 - t, np.sin((1.0 - t) * theta) / s_safe)
+    wb = np.where(small, t, np.sin(t * theta) / s_safe)
+    return normalize(wa * a + wb * b)
+
+
+def tangent_frame(axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Unit vectors u, v (3,) completing unit ``axis`` (3,) to a right-handed frame (u x v = axis).
+
+    ``u = (h x axis) / |h x axis|`` with helper ``h = +z`` (``+y`` when the axis is near z).
+    """
+    helper = np.array([0.0, 0.0, 1.0]) if abs(axis[2]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    u = np.cross(helper, axis)
+    u /= np.linalg.norm(u)
+    return u, np.cross(axis, u)

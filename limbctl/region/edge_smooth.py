@@ -1,0 +1,420 @@
+"""The learned edge: a smooth boundary fitted to the data-supported loops and the outermost data.
+
+The loops the region shape traces (:mod:`limbctl.region.shape`) run through taught
+samples, so their corners are wherever a sample happened to lie: a command far outside snaps to
+one of them, and sparse edges leave the loop inside the true edge. This module replaces each
+loop by a smooth curve sampled every ``STEP_DEG`` (all angles below in radians):
+
+1. *Local small circles*. At each station ``k`` of the loop (arc-length position ``s_k``), a
+   small circle ``{x : angle(x, n_k) = rho_k}`` is fitted to the loop's vertices ``x_i`` with
+   Gaussian weights ``w_ki = exp(-(s_i - s_k)^2 / (2 W^2))``: ``n_k`` is the normal of the
+   weighted least-squares plane (the smallest eigenvector of the weighted covariance) on the
+   region's side, ``rho_k`` the weighted mean of ``angle(x_i, n_k)``. A boundary that is a
+   circle (a cone's) is fitted by one circle whatever ``W``; straight edges by great circles.
+2. *Window*. The weighted residual ``r(W)`` of those fits, averaged over the loop, grows with
+   ``W`` while the windows still resolve the sampling noise, levels off once they average it,
+   and grows again when they span real shape (a corner, a bay). ``W`` is the largest window of
+   the ladder ``WINDOWS_DEG`` (from ``START_WINDOW_DEG`` up) before a step grows the residual
+   by more than ``GROWTH``.
+3. *Edge offset*. The depth of the taught directions nearest to the stations within ``W`` of
+   station ``k`` beyond the great circle tangent to its circle there, ``o = asin(d . t_k)``
+   (``t_k`` the outward normal; on a convex stretch far samples read shallower than they are,
+   never deeper, where the circle's own depth would read a mis-fitted curvature as room to
+   grow); the outermost
+   ``o_(1) >= ... >= o_(K)`` give the endpoint estimate ``o_(1) + gap`` with ``gap`` their
+   mean spacing (:func:`mean_spacing`): where the edge lies, not where the
+   outermost sample happened to fall. Offsets are smoothed along the loop with the same ``W``,
+   raised by smooth bumps (:func:`lift`) wherever a station would leave a taught direction
+   next to it outside, moved out by the sagitta of the chords between stations (the polygon
+   of stations circumscribes the curve), and capped at ``max_offset``.
+4. *Acceptance* (:mod:`limbctl.region.edge_choice`). The smooth edges replace the
+   data-supported loops only when the data agree with them: the data hold no bay
+   (:func:`pockets`: no hole, no pocket between a loop and its convex hull worth more than
+   ``POCKET_SAMPLES`` samples at the data's density), the window follows the loop's shape at
+   every station (no station's fit residual above ``RESOLVED_RATIO`` times the median,
+   :func:`residual_ratio`), no two arcs cross, every taught direction the supported region
+   holds stays inside (up to ``MISS_FRACTION`` more than ``MISS_TOLERANCE_DEG`` out), and
+   every stretch added beyond the supported region (the loops widened by their learned
+   margins) is one the local sampling density could leave empty by chance. A smooth curve
+   that cuts a taught corner or bridges a bay fails one of these. In practice a round,
+   convex taught region (a cone) gets the smooth edge; an egg whose tip is tighter than the
+   window, a kidney with a dent, a polygon with corners do not, and the gate tries the traced
+   edge (:mod:`limbctl.region.edge_traced`) before it keeps the supported loops
+   (docs/bench_envelope.md lists which edge every benchmark row took).
+
+Splicing the supported loop into the smooth edge over the bays only (smooth elsewhere) was
+tried and dropped: on the BEAN polygon it put 10-20 % of corrected outputs more than 1 deg
+outside the true region (worst 3.1 deg), where the fitted circles bulge past straight edges
+next to corners.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import ConvexHull, QhullError
+
+from limbctl.geometry.quat import tangent_frame
+from limbctl.region.mesh import DirectionMesh
+from limbctl.region.shape import loop_area
+
+#: No station's fit residual may exceed this multiple of the loop's median residual.
+RESOLVED_RATIO = 1.4
+#: Spacing (deg) of the stations of the fitted edge.
+STEP_DEG = 3.0
+#: Window ladder (deg, Gaussian sigma along the loop) the fit chooses its window from.
+WINDOWS_DEG = (4.5, 6.5, 9.0, 13.0, 19.0, 27.0, 40.0, 60.0)
+#: The smallest window the choice starts from (deg).
+START_WINDOW_DEG = 13.0
+#: A window (Gaussian sigma) spans at least this many mean vertex spacings of the loop.
+MIN_VERTICES_PER_WINDOW = 3.0
+#: A ladder step may grow the mean fit residual by at most this factor.
+GROWTH = 1.2
+#: Fitted circles are at least this large (deg of angular radius), either side.
+MIN_RADIUS_DEG = 5.0
+#: Outermost samples per window used for the edge offset.
+ORDER_STATISTICS = 12
+#: The smooth edge may leave out at most this fraction of the taught directions.
+MISS_FRACTION = 0.001
+#: A taught direction at most this far (deg) outside the smooth edge does not count as left out.
+MISS_TOLERANCE_DEG = 0.1
+#: A stretch added beyond the supported region may be worth at most this many samples.
+GAP_EXPECTED = 40.0
+#: A pocket between a loop and its convex hull worth more samples than this is a taught bay.
+POCKET_SAMPLES = 40.0
+#: Loop vertices farther (deg) than this from the data's mean are clipped for the hull.
+HULL_REACH_DEG = 89.0
+#: Radius (deg) of the neighbourhood the local sample density is counted in.
+DENSITY_RADIUS_DEG = 6.0
+
+
+def resample_loop(loop: np.ndarray, step: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Stations every ~``step`` (rad) along a closed loop (M, 3).
+
+    Returns the stations (K, 3), their arc-length positions (K,) and the positions of the
+    loop's own vertices (M,), both measured from vertex 0 (the loop's length is the last
+    vertex position plus its closing arc: :func:`loop_length`).
+    """
+    nxt = np.roll(loop, -1, axis=0)
+    seg = np.arccos(np.clip(np.einsum("ij,ij->i", loop, nxt), -1.0, 1.0))
+    at_vertex = np.concatenate([[0.0], np.cumsum(seg)[:-1]])
+    total = float(seg.sum())
+    k = max(8, int(np.ceil(total / step)))
+    s = np.arange(k) * total / k
+    e = np.clip(np.searchsorted(at_vertex, s, side="right") - 1, 0, loop.shape[0] - 1)
+    t = (s - at_vertex[e]) / np.maximum(seg[e], 1e-15)
+    # slerp along arc e: (sin((1 - t) om) a + sin(t om) b) / sin(om)
+    om = seg[e]
+    so = np.where(np.sin(om) < 1e-12, 1.0, np.sin(om))
+    x = (np.sin((1.0 - t) * om) / so)[:, None] * loop[e] + (np.sin(t * om) / so)[:, None] * nxt[e]
+    small = np.sin(om) < 1e-12
+    x[small] = loop[e[small]]
+    return x / np.linalg.norm(x, axis=1, keepdims=True), s, at_vertex
+
+
+def loop_length(loop: np.ndarray) -> float:
+    """Length (rad) of a closed loop (M, 3)."""
+    nxt = np.roll(loop, -1, axis=0)
+    return float(np.arccos(np.clip(np.einsum("ij,ij->i", loop, nxt), -1.0, 1.0)).sum())
+
+
+def loop_gaps(a: np.ndarray, b: np.ndarray, total: float) -> np.ndarray:
+    """Distances (A, B) along a closed loop of length ``total`` between positions ``a`` (A,)
+    and ``b`` (B,): ``min(|a - b|, total - |a - b|)``."""
+    gap = np.abs(a[:, None] - b[None, :])
+    return np.minimum(gap, total - gap)
+
+
+def outward_at_stations(loop: np.ndarray, s: np.ndarray, at_vertex: np.ndarray) -> np.ndarray:
+    """Outward pole (K, 3) of the loop arc each station lies on: ``-(a x b) / |a x b|``."""
+    nxt = np.roll(loop, -1, axis=0)
+    pole = -np.cross(loop, nxt)
+    pole /= np.maximum(np.linalg.norm(pole, axis=1, keepdims=True), 1e-15)
+    e = np.clip(np.searchsorted(at_vertex, s, side="right") - 1, 0, loop.shape[0] - 1)
+    return pole[e]
+
+
+def circle_fits(
+    loop: np.ndarray,
+    at_vertex: np.ndarray,
+    s: np.ndarray,
+    total: float,
+    outward: np.ndarray,
+    window: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Weighted small-circle fit at every station: poles (K, 3), radii (K,), residuals (K,).
+
+    Weights ``w_ki = exp(-(s_i - s_k)^2 / (2 window^2))`` over the loop's vertices (circular
+    distance along the loop); the pole is taken on the region's side (``n . outward <= 0``)
+    and the radius kept within ``[MIN_RADIUS_DEG, 180 - MIN_RADIUS_DEG]``.
+    """
+    gap = loop_gaps(s, at_vertex, total)
+    w = np.exp(-0.5 * (gap / window) ** 2)
+    # the four nearest vertices always count: a fit needs three points off one great circle
+    nearest = np.argsort(gap, axis=1)[:, :4]
+    np.put_along_axis(w, nearest, np.maximum(np.take_along_axis(w, nearest, axis=1), 1e-3), 1)
+    w /= w.sum(axis=1, keepdims=True)
+    mean = w @ loop
+    # weighted covariance sum_i w_ki x_i x_i^T - mean mean^T, per station
+    cov = np.einsum("ki,ia,ib->kab", w, loop, loop) - np.einsum("ka,kb->kab", mean, mean)
+    _, vecs = np.linalg.eigh(cov)
+    pole = vecs[:, :, 0]
+    pole *= np.where(np.einsum("ij,ij->i", pole, outward) > 0.0, -1.0, 1.0)[:, None]
+    ang = np.arccos(np.clip(pole @ loop.T, -1.0, 1.0))
+    rho = np.sum(w * ang, axis=1)
+    resid = np.sqrt(np.sum(w * (ang - rho[:, None]) ** 2, axis=1))
+    lo = np.radians(MIN_RADIUS_DEG)
+    return pole, np.clip(rho, lo, np.pi - lo), resid
+
+
+def on_circle(x: np.ndarray, pole: np.ndarray, rho: np.ndarray) -> np.ndarray:
+    """The point (K, 3) at angle ``rho`` from ``pole`` on the great circle through ``x``."""
+    u = x - np.einsum("ij,ij->i", x, pole)[:, None] * pole
+    u /= np.maximum(np.linalg.norm(u, axis=1, keepdims=True), 1e-15)
+    return np.cos(rho)[:, None] * pole + np.sin(rho)[:, None] * u
+
+
+def choose_window(
+    loop: np.ndarray, at_vertex: np.ndarray, s: np.ndarray, total: float, outward: np.ndarray
+) -> float:
+    """The window (rad) by the residual-growth rule of the module docstring.
+
+    The ladder starts at ``START_WINDOW_DEG`` or at ``MIN_VERTICES_PER_WINDOW`` mean vertex
+    spacings of the loop, whichever is larger: a circle through a handful of sparse vertices
+    takes their noise for curvature.
+    """
+    floor = max(START_WINDOW_DEG, np.degrees(MIN_VERTICES_PER_WINDOW * total / loop.shape[0]))
+    ladder = [np.radians(w) for w in WINDOWS_DEG if w >= floor] or [np.radians(WINDOWS_DEG[-1])]
+    best = ladder[0]
+    last = float(np.mean(circle_fits(loop, at_vertex, s, total, outward, best)[2]))
+    for window in ladder[1:]:
+        r = float(np.mean(circle_fits(loop, at_vertex, s, total, outward, window)[2]))
+        if r > GROWTH * max(last, 1e-12):
+            break
+        best, last = window, r
+    return best
+
+
+def smooth_along(values: np.ndarray, s: np.ndarray, total: float, width: float) -> np.ndarray:
+    """Gaussian smoothing (width ``width`` rad) of per-station ``values`` (K,) along the loop."""
+    gap = loop_gaps(s, s, total)
+    g = np.exp(-0.5 * (gap / width) ** 2)
+    return (g @ values) / g.sum(axis=1)
+
+
+def edge_offsets(
+    stations: np.ndarray,
+    pole: np.ndarray,
+    rho: np.ndarray,
+    s: np.ndarray,
+    total: float,
+    data: np.ndarray,
+    window: float,
+) -> np.ndarray:
+    """Endpoint estimate (K,) rad of the edge beyond each station's circle (step 3)."""
+    k = stations.shape[0]
+    # each datum belongs to its nearest station; a station reads those within +- window
+    owner = np.argmax(data @ stations.T, axis=1)
+    order = np.argsort(owner, kind="stable")
+    bounds = np.searchsorted(owner[order], np.arange(k + 1))
+    reach = max(1, int(round(window / (total / k))))
+    # outward unit normal of the circle at each station: (x (x . n) - n) / |...|
+    normal = stations * np.einsum("ij,ij->i", stations, pole)[:, None] - pole
+    normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-15)
+    out = np.zeros(k)
+    for i in range(k):
+        idx = np.arange(i - reach, i + reach + 1) % k
+        rows = np.concatenate([order[bounds[j] : bounds[j + 1]] for j in idx])
+        if rows.size == 0:
+            continue
+        # o = asin(d . t): signed depth beyond the great circle tangent to the edge at the
+        # station (outward normal t); on a convex stretch, samples far along the window read
+        # shallower than they are, never deeper
+        o = np.arcsin(np.clip(data[rows] @ normal[i], -1.0, 1.0))
+        o = -np.sort(-o)[:ORDER_STATISTICS]
+        out[i] = o[0] + mean_spacing(o)
+    return out
+
+
+def mean_spacing(depths: np.ndarray) -> float:
+    """The expected gap (rad) between the outermost of sorted ``depths`` (K,) and the edge.
+
+    Near an edge with locally even density the outermost depths are evenly spaced on
+    average, and the edge lies one spacing beyond the first: ``(o_(1) - o_(K)) / (K - 1)``
+    (0 for fewer than 3 depths).
+    """
+    k = depths.size
+    return float((depths[0] - depths[-1]) / (k - 1)) if k >= 3 else 0.0
+
+
+def arcs_cross(loops: list[np.ndarray]) -> bool:
+    """Whether any two non-adjacent arcs of the closed ``loops`` (each (M, 3)) cross.
+
+    Arcs ``i`` and ``j`` cross when the ends of each lie on both sides of the other's great
+    circle (``sign(a_j . p_i) != sign(b_j . p_i)``, ``p_i = a_i x b_i``, and the converse) and
+    their midpoints face the same way.
+    """
+    a = np.vstack(loops)
+    b = np.vstack([np.roll(lp, -1, axis=0) for lp in loops])
+    owner = np.concatenate([np.full(lp.shape[0], i) for i, lp in enumerate(loops)])
+    index = np.concatenate([np.arange(lp.shape[0]) for lp in loops])
+    size = np.array([lp.shape[0] for lp in loops])[owner]
+    pole = np.cross(a, b)
+    mid = a + b
+    for start in range(0, a.shape[0], 256):
+        sl = slice(start, start + 256)
+        # (J, I): arc j's ends on both sides of arc i's great circle, and the converse
+        j_split = np.sign(a @ pole[sl].T) * np.sign(b @ pole[sl].T) < 0
+        i_split = (np.sign(a[sl] @ pole.T) * np.sign(b[sl] @ pole.T)).T < 0
+        hit = j_split & i_split & (mid @ mid[sl].T > 0.0)
+        rows = np.arange(a.shape[0])[:, None]
+        cols = np.arange(a.shape[0])[sl][None, :]
+        apart = np.abs(index[rows] - index[cols])
+        adjacent = (owner[rows] == owner[cols]) & ((apart <= 1) | (apart == size[rows] - 1))
+        if np.any(hit & ~adjacent):
+            return True
+    return False
+
+
+def fit_edge(loop: np.ndarray, data: np.ndarray, max_offset: float) -> tuple[np.ndarray, float]:
+    """The smooth edge (K, 3) of one data-supported ``loop`` (M, 3), steps 1-3.
+
+    ``data`` (N, 3) are the taught directions; ``max_offset`` (rad) caps the edge offset.
+    Also returns how well the window resolves the loop's shape (:func:`residual_ratio`).
+    """
+    stations, s, at_vertex = resample_loop(loop, np.radians(STEP_DEG))
+    total = loop_length(loop)
+    outward = outward_at_stations(loop, s, at_vertex)
+    window = choose_window(loop, at_vertex, s, total, outward)
+    pole, rho, resid = circle_fits(loop, at_vertex, s, total, outward, window)
+    base = on_circle(stations, pole, rho)
+    offset = smooth_along(edge_offsets(base, pole, rho, s, total, data, window), s, total, window)
+    offset += lift(sample_need(base, pole, rho, data) - offset, s, total, 0.5 * window)
+    # stations out by the sagitta of a chord: the chords between them then lie on or outside
+    # the curve, not inside it; sagitta = step^2 / (8 tan rho) for a circle of angular
+    # radius rho (geodesic curvature 1 / tan rho), none where it curves the other way
+    step = total / s.shape[0]
+    offset += np.maximum(step**2 / (8.0 * np.tan(np.minimum(rho, 0.5 * np.pi - 1e-9))), 0.0)
+    return on_circle(base, pole, rho + np.minimum(offset, max_offset)), residual_ratio(resid)
+
+
+def residual_ratio(resid: np.ndarray) -> float:
+    """The largest station fit residual over the median one, of ``resid`` (K,) rad.
+
+    Where one window fits the whole loop, every station's residual is the sampling noise
+    (ratio near 1: 1.01-1.25 on cones). Where the window spans real shape it cannot follow, a
+    tip of an egg or a corner, the residual there is the misfit (1.5-2.1 measured on egg
+    and hull shapes), the circle there cuts inside the tip, and the offsets that make up for
+    it push the neighbouring flanks 1-2 deg past the true edge.
+    """
+    return float(np.max(resid) / max(float(np.median(resid)), 1e-12))
+
+
+def sample_need(base: np.ndarray, pole: np.ndarray, rho: np.ndarray, data: np.ndarray):
+    """Offset (K,) rad each station needs to hold the taught directions around it.
+
+    The largest depth ``angle(d, n_k) - rho_k`` of the data nearest to station ``k`` or to
+    its two neighbours (-inf where there are none).
+    """
+    k = base.shape[0]
+    owner = np.argmax(data @ base.T, axis=1)
+    need = np.full(k, -np.inf)
+    for shift in (-1, 0, 1):
+        station = (owner + shift) % k
+        depth = np.arccos(np.clip(np.einsum("ij,ij->i", data, pole[station]), -1.0, 1.0))
+        np.maximum.at(need, station, depth - rho[station])
+    return need
+
+
+def lift(deficit: np.ndarray, s: np.ndarray, total: float, width: float) -> np.ndarray:
+    """Smooth bumps (K,) that make up every positive ``deficit`` (K,) at its station.
+
+    ``max_j deficit_j exp(-(s_k - s_j)^2 / (2 width^2))`` over stations with a deficit: each
+    bump is exactly as high as its station needs and fades along the loop.
+    """
+    short = np.flatnonzero(deficit > 0.0)
+    if short.size == 0:
+        return np.zeros(s.shape[0])
+    gap = loop_gaps(s, s[short], total)
+    return np.max(deficit[short][None, :] * np.exp(-0.5 * (gap / width) ** 2), axis=1)
+
+
+def unexplained_gap(edge: np.ndarray, data: np.ndarray, supported: DirectionMesh) -> float:
+    """The most samples (expected) any stretch the ``edge`` (K, 3) adds would hold.
+
+    Each station lies ``b_k`` (rad) beyond the supported region (0 inside). Over a run of
+    consecutive stations with ``b_k > 0`` the added area is ``A = sum_k b_k ds`` (``ds`` the
+    station spacing), and a teacher sampling at the local density ``rho`` (taught directions
+    within ``DENSITY_RADIUS_DEG`` of the stations' nearest supported points, per area of half
+    that cap: those points sit on the supported edge) would have put ``rho A`` samples
+    there; the chance of finding none is ``exp(-rho A)``. Sparse i.i.d. teaching leaves
+    gaps worth a few samples; a bay the hand went around is worth tens to hundreds.
+    """
+    foot = supported.project(edge)
+    beyond = np.arccos(np.clip(np.einsum("ij,ij->i", foot, edge), -1.0, 1.0))
+    beyond[supported.contains(edge)] = 0.0
+    if not np.any(beyond > 0.0):
+        return 0.0
+    ds = loop_length(edge) / edge.shape[0]
+    radius = np.radians(DENSITY_RADIUS_DEG)
+    counts = np.sum(foot @ data.T >= np.cos(radius), axis=1)
+    # half a cap of angular radius r has area pi (1 - cos r)
+    rho = counts / (np.pi * (1.0 - np.cos(radius)))
+    worst = 0.0
+    out = beyond > 0.0
+    # runs of stations beyond the supported region, the loop read circularly
+    first = int(np.argmin(out)) if not out.all() else 0
+    expected = 0.0
+    for i in np.roll(np.arange(edge.shape[0]), -first):
+        if out[i]:
+            expected += rho[i] * beyond[i] * ds
+            worst = max(worst, expected)
+        else:
+            expected = 0.0
+    return worst
+
+
+def pockets(loop: np.ndarray, data: np.ndarray) -> list[tuple[int, int, float]]:
+    """The bays of a loop (M, 3): stretches between consecutive vertices of its convex hull.
+
+    Returns ``(a, b, worth)`` per hull edge whose stretch ``a -> b`` of the loop leaves a
+    pocket, ``worth = rho * area`` the samples a teacher at the data's mean density ``rho``
+    (``N / area of the loop``) would have put into it. The hull is taken in the gnomonic
+    projection about the data's mean direction (great circles map to lines), vertices
+    farther than ``HULL_REACH_DEG`` from it clipped to that angle.
+    """
+    centre = data.mean(axis=0)
+    centre /= np.linalg.norm(centre)
+    u, v = tangent_frame(centre)
+    z = np.maximum(loop @ centre, np.cos(np.radians(HULL_REACH_DEG)))
+    try:
+        hull = sorted(ConvexHull(np.column_stack([loop @ u / z, loop @ v / z])).vertices.tolist())
+    except QhullError:
+        return [(0, loop.shape[0] - 1, np.inf)]
+    rho = data.shape[0] / max(abs(loop_area(loop)), 1e-12)
+    m = loop.shape[0]
+    out = []
+    for i, a in enumerate(hull):
+        b = hull[(i + 1) % len(hull)]
+        stretch = [(a + k) % m for k in range(((b - a) % m) + 1)]
+        if len(stretch) >= 3:
+            out.append((a, b, rho * abs(loop_area(loop[stretch]))))
+    return out
+
+
+def protected(
+    loop: np.ndarray, data: np.ndarray, s: np.ndarray, at_vertex: np.ndarray
+) -> np.ndarray:
+    """(K,) bool: stations on a bay the data hold (a pocket worth > ``POCKET_SAMPLES``).
+
+    A hole (a loop running clockwise) is protected whole: its edge is concave throughout.
+    """
+    if loop_area(loop) < 0.0:
+        return np.ones(s.shape[0], dtype=bool)
+    total = loop_length(loop)
+    mask = np.zeros(s.shape[0], dtype=bool)
+    for a, b, worth in pockets(loop, data):
+        if worth <= POCKET_SAMPLES:
+            continue
+        start, length = at_vertex[a], (at_vertex[b] - at_vertex[a]) % total
+        mask |= (s - start) % total <= length
+    return mask

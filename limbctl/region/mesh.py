@@ -1,0 +1,351 @@
+"""A region of limb directions on S^2 as a spherical mesh: build it, test it, project onto it.
+
+The region is bounded by closed loops of great-circle arcs (for the Rigid Map: the chi-peeled
+alpha shape of its support, see :mod:`limbctl.region.shape`, or a learned edge of
+:mod:`limbctl.region.edge_choice`), each arc ``e`` widened by its own ``margin_e`` (rad): a
+direction is inside when it lies inside the loops or within ``margin_e`` of some arc ``e``. The
+nearest region direction of a point outside is exact (the arc minimising
+``angle(p, e) - margin_e``, then ``margin_e`` back toward p); the region never reaches farther
+than ``max(margin)`` beyond the loops. It moves continuously with the point near the edge, and
+everywhere when the region is convex; far outside a concave stretch two boundary points can be
+equally near (the medial axis), and the answer switches from one to the other there, as any
+exact nearest-point map does.
+
+:class:`DirectionMesh` holds the arrays; the queries run in the numba kernels of
+:mod:`limbctl.region.mesh_kernels` over a grid of cells about the region's axis, each
+knowing whether it lies deep inside and which arcs can be nearest to a point in it. Plain
+numpy references (``*_reference`` here) answer the same questions by brute force.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import ConvexHull, QhullError
+
+from limbctl.errors import InvalidInputError
+from limbctl.region import mesh_kernels as bk
+
+#: contains() accepts directions up to this far (rad) beyond the region; correct() lands inside it.
+CONTAIN_TOLERANCE = 1e-9
+
+
+@dataclass
+class DirectionMesh:
+    """The learned region in direction space (all angles in radians).
+
+    Attributes
+    ----------
+    vertices : (V, 3) unit directions of the boundary loops.
+    edges : (E, 2) int64 boundary arcs (short great-circle arcs), the region on the left of
+        a -> b seen from outside the sphere; they form closed loops.
+    margins : (E,) float64, each arc's widening (rad), >= 0.
+    axis : (3,) unit axis of the lookup grid; grid_* / cell_* : the lookup grid (see
+        boundary_kernels).
+    """
+
+    vertices: np.ndarray
+    edges: np.ndarray
+    margins: np.ndarray
+    axis: np.ndarray
+    grid_shape: np.ndarray
+    cell_inside: np.ndarray
+    cell_deep: np.ndarray
+    cell_start: np.ndarray
+    cell_edges: np.ndarray
+    cell_keys: np.ndarray
+
+    @classmethod
+    def from_loops(
+        cls,
+        loops: list[np.ndarray],
+        margins: float | list[np.ndarray],
+        cells_per_radian: float = 60.0,
+    ) -> DirectionMesh:
+        """Region bounded by closed ``loops`` (each (M, 3) directions, region on the left).
+
+        ``margins``: one widening (rad) for every arc, or per loop an (M,) array whose entry
+        ``i`` widens the arc from point ``i`` to point ``i + 1``. The lookup grid has
+        ``cells_per_radian`` cells per radian of polar angle.
+        """
+        keep = [i for i, lp in enumerate(loops) if len(lp) >= 3]
+        if not keep:
+            raise InvalidInputError(
+                "the taught directions do not span an area (need at least 3 distinct, "
+                "not all on one great circle, near each other); teach more poses"
+            )
+        loops = [np.asarray(loops[i], dtype=np.float64) for i in keep]
+        if isinstance(margins, (int, float, np.floating)):
+            widen = np.full(sum(lp.shape[0] for lp in loops), float(margins))
+        else:
+            widen = np.concatenate([np.asarray(margins[i], dtype=np.float64) for i in keep])
+        if widen.shape[0] != sum(lp.shape[0] for lp in loops) or not np.all(widen >= 0.0):
+            raise InvalidInputError("margins: need one finite value >= 0 per boundary arc")
+        d = np.vstack(loops)
+        d = np.ascontiguousarray(d / np.linalg.norm(d, axis=1, keepdims=True))
+        edges = []
+        start = 0
+        for lp in loops:
+            idx = np.arange(start, start + lp.shape[0])
+            edges.append(np.column_stack([idx, np.roll(idx, -1)]))
+            start += lp.shape[0]
+        edges = np.ascontiguousarray(np.vstack(edges), dtype=np.int64)
+        widen = np.ascontiguousarray(widen)
+        axis = d.mean(axis=0)
+        axis /= np.linalg.norm(axis)
+        n_theta = max(8, int(np.ceil(np.pi * cells_per_radian)))
+        grid_shape = np.array([n_theta, 2 * n_theta], dtype=np.int64)
+        inside = cell_centres_inside(d, edges, axis, grid_shape)
+        deep, start_, cell_edges, cell_keys = bk.build_grid(
+            d, edges, widen, axis, grid_shape, inside
+        )
+        return cls(d, edges, widen, axis, grid_shape, inside, deep, start_, cell_edges, cell_keys)
+
+    @classmethod
+    def alpha_shape(cls, directions: np.ndarray, alpha: float, margin: float) -> DirectionMesh:
+        """The plain alpha shape of ``directions`` (V, 3) (circumradius <= ``alpha``)."""
+        d = np.asarray(directions, dtype=np.float64)
+        d = d / np.linalg.norm(d, axis=1, keepdims=True)
+        tri = alpha_triangles(d, alpha)
+        edges = boundary_edges(tri) if tri.shape[0] else np.empty((0, 2), dtype=np.int64)
+        return cls.from_edges(d, edges, margin)
+
+    @classmethod
+    def from_edges(cls, d: np.ndarray, edges: np.ndarray, margin: float) -> DirectionMesh:
+        """Region bounded by directed ``edges`` (E, 2) over directions ``d`` (closed loops)."""
+        nxt = {int(a): int(b) for a, b in edges}
+        loops, seen = [], set()
+        for a in nxt:
+            if a in seen:
+                continue
+            loop = []
+            while a not in seen:
+                seen.add(a)
+                loop.append(a)
+                a = nxt[a]
+            loops.append(d[loop])
+        return cls.from_loops(loops, margin)
+
+    @property
+    def max_margin(self) -> float:
+        """The largest widening (rad): how far beyond its loops the region can reach."""
+        return float(self.margins.max()) if self.margins.size else 0.0
+
+    def contains(self, d: np.ndarray) -> np.ndarray:
+        """(N,) bool for directions ``d`` (N, 3)."""
+        return bk.contains_batch(*self.kernel_args(), np.ascontiguousarray(d, dtype=np.float64))
+
+    def project(self, d: np.ndarray) -> np.ndarray:
+        """Each direction itself if inside, else the nearest direction of the widened region."""
+        return bk.project_batch(*self.kernel_args(), np.ascontiguousarray(d, dtype=np.float64))
+
+    def kernel_args(self) -> tuple:
+        """The arrays the query kernels take, in their order."""
+        return (
+            self.vertices,
+            self.edges,
+            self.margins,
+            self.axis,
+            self.grid_shape,
+            self.cell_inside,
+            self.cell_deep,
+            self.cell_start,
+            self.cell_edges,
+            self.cell_keys,
+        )
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """Everything needed to rebuild the mesh without recomputation (for saving)."""
+        return {
+            "mesh_vertices": self.vertices,
+            "mesh_edges": self.edges,
+            "mesh_margins": self.margins,
+            "mesh_axis": self.axis,
+            "mesh_grid_shape": self.grid_shape,
+            "mesh_cell_inside": self.cell_inside,
+            "mesh_cell_deep": self.cell_deep,
+            "mesh_cell_start": self.cell_start,
+            "mesh_cell_edges": self.cell_edges,
+            "mesh_cell_keys": self.cell_keys,
+        }
+
+    @classmethod
+    def from_arrays(cls, arrays: dict[str, np.ndarray]) -> DirectionMesh:
+        """Inverse of :meth:`arrays`."""
+        return cls(
+            np.ascontiguousarray(arrays["mesh_vertices"], dtype=np.float64),
+            np.ascontiguousarray(arrays["mesh_edges"], dtype=np.int64),
+            np.ascontiguousarray(arrays["mesh_margins"], dtype=np.float64),
+            np.ascontiguousarray(arrays["mesh_axis"], dtype=np.float64),
+            np.ascontiguousarray(arrays["mesh_grid_shape"], dtype=np.int64),
+            np.ascontiguousarray(arrays["mesh_cell_inside"], dtype=np.bool_),
+            np.ascontiguousarray(arrays["mesh_cell_deep"], dtype=np.bool_),
+            np.ascontiguousarray(arrays["mesh_cell_start"], dtype=np.int64),
+            np.ascontiguousarray(arrays["mesh_cell_edges"], dtype=np.int64),
+            np.ascontiguousarray(arrays["mesh_cell_keys"], dtype=np.float64),
+        )
+
+
+def cell_centres_inside(
+    vertices: np.ndarray, edges: np.ndarray, axis: np.ndarray, grid_shape: np.ndarray
+) -> np.ndarray:
+    """Whether each grid cell's centre lies inside the loops (n_theta * n_phi,) bool.
+
+    All cells of one column share the half-meridian from the axis through their centres to
+    ``-axis``; the crossings of the boundary arcs with it are found once per column, and a
+    centre is inside when ``-axis`` is and the number of crossings beyond it is even, or when
+    ``-axis`` is outside and that number is odd.
+    """
+    n_theta, n_phi = int(grid_shape[0]), int(grid_shape[1])
+    u, v = bk._frame(axis)
+    a = vertices[edges[:, 0]]
+    b = vertices[edges[:, 1]]
+    theta_c = (np.arange(n_theta) + 0.5) * np.pi / n_theta
+    far_inside = bool(inside_reference(-axis[None, :], vertices, edges)[0])
+    out = np.empty((n_theta, n_phi), dtype=bool)
+    for j in range(n_phi):
+        phi = -np.pi + (j + 0.5) * 2.0 * np.pi / n_phi
+        e = np.cos(phi) * u + np.sin(phi) * v
+        n = -np.sin(phi) * u + np.cos(phi) * v
+        an = a @ n
+        bn = b @ n
+        cross = (an > 0.0) != (bn > 0.0)
+        # the arc meets the meridian plane at x = (1 - t) a + t b, t = a.n / (a.n - b.n)
+        t = an[cross] / (an[cross] - bn[cross])
+        x = (1.0 - t)[:, None] * a[cross] + t[:, None] * b[cross]
+        xe = x @ e
+        theta_x = np.sort(np.arctan2(xe, x @ axis)[xe > 0.0])
+        beyond = theta_x.size - np.searchsorted(theta_x, theta_c, side="right")
+        out[:, j] = far_inside != (beyond % 2 == 1)
+    return out.ravel()
+
+
+def fan_area(p: np.ndarray, vertices: np.ndarray, edges: np.ndarray) -> np.ndarray:
+    """Sum (N,) over boundary arcs a -> b of the signed area of the spherical triangle (p, a, b).
+
+    ``2 atan2(det(p, a, b), 1 + p.a + a.b + b.p)`` per arc. For a region R of area A bounded
+    by the arcs (R on their left) it equals ``A`` when ``-p`` is outside R and ``A - 4 pi``
+    when ``-p`` is inside: its sign says where the antipode of p lies.
+    """
+    a = vertices[edges[:, 0]]
+    b = vertices[edges[:, 1]]
+    cross = np.cross(a, b)
+    ab = np.sum(a * b, axis=1)
+    total = np.zeros(p.shape[0])
+    for start in range(0, p.shape[0], 2048):
+        q = p[start : start + 2048]
+        ang = 2.0 * np.arctan2(q @ cross.T, 1.0 + q @ a.T + ab[None, :] + q @ b.T)
+        total[start : start + 2048] = ang.sum(axis=1)
+    return total
+
+
+def inside_reference(p: np.ndarray, vertices: np.ndarray, edges: np.ndarray) -> np.ndarray:
+    """(N,) bool: directions ``p`` (N, 3) inside the region bounded by ``edges``.
+
+    By :func:`fan_area`: p is inside exactly when the fan area from ``-p`` is negative.
+    """
+    return fan_area(-p, vertices, edges) < 0.0
+
+
+def spherical_delaunay(d: np.ndarray) -> np.ndarray:
+    """Delaunay triangles (T, 3) of unit directions ``d`` (V, 3), counter-clockwise from outside.
+
+    The convex hull of points on the sphere is their spherical Delaunay triangulation; the
+    antipode of their mean is added so that points inside one hemisphere still close a hull,
+    and every face touching it is dropped.
+    """
+    mean = d.mean(axis=0)
+    pole = -mean / np.linalg.norm(mean) if np.linalg.norm(mean) > 1e-9 else -d[0]
+    pts = np.vstack([d, pole])
+    try:
+        hull = ConvexHull(pts)
+    except QhullError as exc:
+        raise InvalidInputError(f"taught directions are degenerate: {exc}") from None
+    tri = hull.simplices[(hull.simplices < d.shape[0]).all(axis=1)]
+    a, b, c = pts[tri[:, 0]], pts[tri[:, 1]], pts[tri[:, 2]]
+    # counter-clockwise from outside: det(a, b, c) = a . (b x c) > 0
+    flip = np.einsum("ij,ij->i", a, np.cross(b, c)) < 0
+    tri[flip] = tri[flip][:, [0, 2, 1]]
+    return np.ascontiguousarray(tri, dtype=np.int64)
+
+
+def circumradius(d: np.ndarray, tri: np.ndarray) -> np.ndarray:
+    """Angular circumradius (rad) of spherical triangles ``tri`` (T, 3) over vertices ``d``."""
+    a, b, c = d[tri[:, 0]], d[tri[:, 1]], d[tri[:, 2]]
+    # the circumcentre is the unit normal of the plane through a, b, c: (b - a) x (c - a)
+    n = np.cross(b - a, c - a)
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    return np.arccos(np.clip(np.abs(np.einsum("ij,ij->i", n, a)), -1.0, 1.0))
+
+
+def alpha_triangles(d: np.ndarray, alpha: float) -> np.ndarray:
+    """The Delaunay triangles of ``d`` whose circumradius is at most ``alpha`` (rad)."""
+    tri = spherical_delaunay(d)
+    return tri[circumradius(d, tri) <= alpha]
+
+
+def boundary_edges(tri: np.ndarray) -> np.ndarray:
+    """Directed edges (E, 2) used by exactly one triangle, the triangle on their left."""
+    directed = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
+    key = np.sort(directed, axis=1)
+    _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    return np.ascontiguousarray(directed[counts[inverse.ravel()] == 1], dtype=np.int64)
+
+
+# ---- brute-force references --------------------------------------------------------------------
+def in_triangles_reference(d: np.ndarray, vertices: np.ndarray, tri: np.ndarray) -> np.ndarray:
+    """(N,) bool: each direction in at least one spherical triangle (edges included)."""
+    a, b, c = vertices[tri[:, 0]], vertices[tri[:, 1]], vertices[tri[:, 2]]
+    # inside iff on the left of (or on) all three edge planes: det(a, b, p) >= 0, ...
+    s1 = d @ np.cross(a, b).T >= 0
+    s2 = d @ np.cross(b, c).T >= 0
+    s3 = d @ np.cross(c, a).T >= 0
+    front = d @ (a + b + c).T > 0
+    return (s1 & s2 & s3 & front).any(axis=1)
+
+
+def nearest_on_edges_reference(
+    d: np.ndarray, vertices: np.ndarray, edges: np.ndarray, margins: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """By brute force, for directions ``d`` (N, 3): the arc minimising ``angle - margin`` (N,)
+    int, the nearest point on it (N, 3) and its angle (N,) rad (``margins`` default zero)."""
+    margins = np.zeros(edges.shape[0]) if margins is None else margins
+    best = np.empty_like(d)
+    best_angle = np.full(d.shape[0], np.inf)
+    best_key = np.full(d.shape[0], np.inf)
+    best_edge = np.full(d.shape[0], -1, dtype=np.int64)
+    for k, (e0, e1) in enumerate(edges):
+        a, b = vertices[e0], vertices[e1]
+        n = np.cross(a, b)
+        n /= np.linalg.norm(n)
+        foot = d - np.outer(d @ n, n)
+        foot /= np.linalg.norm(foot, axis=1, keepdims=True)
+        within = (foot @ np.cross(n, a) >= 0) & (foot @ np.cross(b, n) >= 0)
+        pa = np.arccos(np.clip(d @ a, -1, 1))
+        pb = np.arccos(np.clip(d @ b, -1, 1))
+        end = np.where((pa <= pb)[:, None], a, b)
+        point = np.where(within[:, None], foot, end)
+        ang = np.arctan2(np.linalg.norm(np.cross(d, point), axis=1), np.sum(d * point, axis=1))
+        better = ang - margins[k] < best_key
+        best[better] = point[better]
+        best_angle[better] = ang[better]
+        best_key[better] = ang[better] - margins[k]
+        best_edge[better] = k
+    return best_edge, best, best_angle
+
+
+def project_reference(mesh: DirectionMesh, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Brute-force ``(contains, project)`` for directions ``d`` (N, 3)."""
+    inside_mesh = inside_reference(d, mesh.vertices, mesh.edges)
+    edge, point, angle = nearest_on_edges_reference(d, mesh.vertices, mesh.edges, mesh.margins)
+    margin = mesh.margins[edge]
+    inside = inside_mesh | (angle - margin <= CONTAIN_TOLERANCE)
+    # outside: from the nearest boundary point, go that arc's margin along the path toward d
+    out = np.empty_like(d)
+    for i in range(d.shape[0]):
+        if inside[i]:
+            out[i] = d[i]
+        else:
+            out[i] = bk.slerp_dir(point[i], d[i], angle[i], margin[i])
+    return inside, out

@@ -1,0 +1,451 @@
+"""Numba kernels of the direction-space region: lookup grid, containment and nearest projection.
+
+The grid divides the sphere into ``n_theta x n_phi`` cells in polar coordinates about ``axis``
+(``theta = angle to axis``, ``phi = atan2(p.v, p.u)``). For each cell, built once:
+
+- ``cell_inside``: whether its centre lies in the region (computed in numpy, see
+  :func:`limbctl.region.mesh.cell_centres_inside`);
+- ``cell_deep``: every point of the cell is inside the region (centre inside the mesh and at
+  least the cell radius ``r`` from the boundary, or all of it within one arc's widening);
+- candidate boundary arcs (CSR ``cell_start``/``cell_edges``, sorted by ``cell_keys``): the arcs
+  whose widened distance from the centre, ``key = angle(centre, arc) - margin_arc``, is at most
+  ``min key + 2 r`` (any other arc is farther from every point of the cell than the best one),
+  and every arc within ``r`` of the centre (those can cross the path from the centre to a point).
+
+Each boundary arc ``e`` has its own widening ``margin_e`` (rad): the region is the mesh united
+with every direction within ``margin_e`` of some arc ``e``, so its distance from a point outside
+is ``min_e (angle(p, e) - margin_e)``, exact, and the widening never reaches farther out than the
+largest margin.
+
+A query finds its cell; if deep it is inside; otherwise it takes the nearest widened arc over
+the candidates (stopping once the sorted keys bound the rest away), and whether it lies in the
+mesh from the centre's status and the parity of boundary crossings on the arc centre -> point.
+No fastmath: every comparison sees NaN as failing. The numpy references live in
+:mod:`limbctl.region.mesh`.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+
+#: Must equal boundary.CONTAIN_TOLERANCE (rad).
+CONTAIN_TOLERANCE = 1e-9
+
+
+@nb.njit(cache=True)
+def _dot(a, b) -> float:
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+@nb.njit(cache=True)
+def _det(a, b, c) -> float:
+    # det(a, b, c) = a . (b x c)
+    return (
+        a[0] * (b[1] * c[2] - b[2] * c[1])
+        + a[1] * (b[2] * c[0] - b[0] * c[2])
+        + a[2] * (b[0] * c[1] - b[1] * c[0])
+    )
+
+
+@nb.njit(cache=True)
+def _angle(a, b) -> float:
+    # atan2(|a x b|, a . b): accurate near 0 and pi
+    cx = a[1] * b[2] - a[2] * b[1]
+    cy = a[2] * b[0] - a[0] * b[2]
+    cz = a[0] * b[1] - a[1] * b[0]
+    return math.atan2(math.sqrt(cx * cx + cy * cy + cz * cz), _dot(a, b))
+
+
+@nb.njit(cache=True)
+def nearest_on_arc(p, a, b, out) -> float:
+    """Nearest point ``out`` (3,) on the short great-circle arc a-b to ``p``; returns its angle."""
+    nx = a[1] * b[2] - a[2] * b[1]
+    ny = a[2] * b[0] - a[0] * b[2]
+    nz = a[0] * b[1] - a[1] * b[0]
+    nn = math.sqrt(nx * nx + ny * ny + nz * nz)
+    if nn > 0.0:
+        nx /= nn
+        ny /= nn
+        nz /= nn
+        # foot of p on the arc's great circle: p - (p.n) n, normalised
+        pn = p[0] * nx + p[1] * ny + p[2] * nz
+        fx = p[0] - pn * nx
+        fy = p[1] - pn * ny
+        fz = p[2] - pn * nz
+        fn = math.sqrt(fx * fx + fy * fy + fz * fz)
+        if fn > 0.0:
+            fx /= fn
+            fy /= fn
+            fz /= fn
+            # within the arc: (n x a) . f >= 0 and (b x n) . f >= 0
+            s1 = (
+                (ny * a[2] - nz * a[1]) * fx
+                + (nz * a[0] - nx * a[2]) * fy
+                + (nx * a[1] - ny * a[0]) * fz
+            )
+            s2 = (
+                (b[1] * nz - b[2] * ny) * fx
+                + (b[2] * nx - b[0] * nz) * fy
+                + (b[0] * ny - b[1] * nx) * fz
+            )
+            if s1 >= 0.0 and s2 >= 0.0:
+                out[0] = fx
+                out[1] = fy
+                out[2] = fz
+                return _angle(p, out)
+    da = _angle(p, a)
+    db = _angle(p, b)
+    end = a if da <= db else b
+    out[0] = end[0]
+    out[1] = end[1]
+    out[2] = end[2]
+    return da if da <= db else db
+
+
+@nb.njit(cache=True)
+def slerp_into(p, d, angle, margin, out) -> None:
+    """Write into ``out`` (3,) the direction ``margin`` (rad) from ``p`` toward ``d``.
+
+    ``cos(m) p + sin(m) u`` with ``u = (d - (d.p) p) / |d - (d.p) p|``; ``angle`` is the angle
+    between ``p`` and ``d``; ``p`` itself when ``margin`` or ``angle`` is zero.
+    """
+    c = _dot(d, p)
+    ux = d[0] - c * p[0]
+    uy = d[1] - c * p[1]
+    uz = d[2] - c * p[2]
+    un = math.sqrt(ux * ux + uy * uy + uz * uz)
+    if not (margin > 0.0 and angle > 0.0 and un > 0.0):
+        out[0] = p[0]
+        out[1] = p[1]
+        out[2] = p[2]
+        return
+    cm = math.cos(margin)
+    sm = math.sin(margin)
+    x = cm * p[0] + sm * ux / un
+    y = cm * p[1] + sm * uy / un
+    z = cm * p[2] + sm * uz / un
+    n = math.sqrt(x * x + y * y + z * z)
+    out[0] = x / n
+    out[1] = y / n
+    out[2] = z / n
+
+
+@nb.njit(cache=True)
+def slerp_dir(p, d, angle, margin) -> np.ndarray:
+    """:func:`slerp_into` returning a new (3,) array."""
+    out = np.empty(3)
+    slerp_into(p, d, angle, margin, out)
+    return out
+
+
+@nb.njit(cache=True)
+def frame_into(axis, work) -> None:
+    """Write the grid frame's u, v (see :func:`_frame`) into rows 0 and 1 of ``work``."""
+    u, v = _frame(axis)
+    work[0, :] = u
+    work[1, :] = v
+
+
+@nb.njit(cache=True)
+def _frame(axis):
+    """Unit u, v completing ``axis`` to a right-handed frame (same rule as synthetic)."""
+    if abs(axis[2]) < 0.9:
+        h = np.array([0.0, 0.0, 1.0])
+    else:
+        h = np.array([0.0, 1.0, 0.0])
+    u = np.cross(h, axis)
+    u /= math.sqrt(_dot(u, u))
+    v = np.cross(axis, u)
+    return u, v
+
+
+@nb.njit(cache=True)
+def _cell_of(p, axis, u, v, n_theta, n_phi) -> int:
+    theta = _angle(p, axis)
+    phi = math.atan2(_dot(p, v), _dot(p, u))
+    i = int(theta / math.pi * n_theta)
+    j = int((phi + math.pi) / (2.0 * math.pi) * n_phi)
+    # NaN never reaches here (inputs are checked); clamp rounding at the ends
+    i = min(max(i, 0), n_theta - 1)
+    j = min(max(j, 0), n_phi - 1)
+    return i * n_phi + j
+
+
+@nb.njit(cache=True)
+def _polar_point(theta, phi, axis, u, v):
+    st = math.sin(theta)
+    return math.cos(theta) * axis + st * (math.cos(phi) * u + math.sin(phi) * v)
+
+
+@nb.njit(cache=True)
+def _edge_bounds(vertices, edges):
+    """Unit midpoint (E, 3) and half length (E,) rad of each boundary arc."""
+    n_edges = edges.shape[0]
+    mids = np.empty((n_edges, 3))
+    half = np.empty(n_edges)
+    for e in range(n_edges):
+        a = vertices[edges[e, 0]]
+        b = vertices[edges[e, 1]]
+        m = a + b
+        m /= math.sqrt(_dot(m, m))
+        mids[e] = m
+        half[e] = 0.5 * _angle(a, b)
+    return mids, half
+
+
+@nb.njit(cache=True)
+def _min_key(centre, vertices, edges, margins, mids, half, max_half, max_margin, tmp):
+    """``min_e (angle(centre, arc e) - margin_e)`` and the plain ``min_e angle(centre, arc e)``."""
+    n_edges = edges.shape[0]
+    # an upper bound first: every point of an arc lies within its half length of the midpoint
+    top = np.inf
+    for e in range(n_edges):
+        top = min(top, _angle(centre, mids[e]) + half[e] - margins[e])
+    # only arcs whose midpoint is within top + max_half + max_margin can reach below it
+    limit = math.cos(min(top + max_half + max_margin + 1e-9, math.pi))
+    best_key = np.inf
+    best_plain = np.inf
+    for e in range(n_edges):
+        if _dot(centre, mids[e]) < limit:
+            continue
+        dist = nearest_on_arc(centre, vertices[edges[e, 0]], vertices[edges[e, 1]], tmp)
+        best_key = min(best_key, dist - margins[e])
+        best_plain = min(best_plain, dist)
+    return best_key, best_plain
+
+
+@nb.njit(cache=True)
+def _cell_geometry(cell, n_theta, n_phi, axis, u, v):
+    """Centre (3,) of a grid cell and a radius (rad) that every point of the cell lies within."""
+    i = cell // n_phi
+    j = cell % n_phi
+    t0 = i * math.pi / n_theta
+    p0 = -math.pi + j * 2.0 * math.pi / n_phi
+    dt = math.pi / n_theta
+    dp = 2.0 * math.pi / n_phi
+    centre = _polar_point(t0 + 0.5 * dt, p0 + 0.5 * dp, axis, u, v)
+    r = 0.0
+    for a in range(2):
+        for b in range(2):
+            corner = _polar_point(t0 + a * dt, p0 + b * dp, axis, u, v)
+            r = max(r, _angle(centre, corner))
+    # the widest point of a cell edge lies on its middle; 1 % covers it (cells are < 3 deg)
+    return centre, r * 1.01 + 1e-12
+
+
+@nb.njit(cache=True, parallel=True)
+def build_grid(vertices, edges, margins, axis, grid_shape, inside):
+    """Cell depth status and sorted candidate arcs (module docstring) -> deep, start, arcs, keys.
+
+    ``inside`` (cells,) says whether each cell's centre lies in the mesh; ``margins`` (E,) is
+    each arc's widening (rad). A cell is deep when all of it lies in the mesh (centre inside,
+    the boundary at least the cell radius ``r`` away) or in one arc's widening
+    (``min_e (angle(centre, e) - m_e) <= -r``). Otherwise its candidates are the arcs with
+    ``key_e = angle(centre, e) - m_e <= min_key + 2 r`` (the nearest widened arc of any point
+    of the cell is among them: pruned by the smallest upper bound ``min_key + r``) and the arcs
+    within ``r`` of the centre (every arc crossing the path centre -> point), sorted by key.
+    """
+    n_theta = grid_shape[0]
+    n_phi = grid_shape[1]
+    n_cells = n_theta * n_phi
+    u, v = _frame(axis)
+    n_edges = edges.shape[0]
+    mids, half = _edge_bounds(vertices, edges)
+    max_half = 0.0
+    max_margin = 0.0
+    for e in range(n_edges):
+        max_half = max(max_half, half[e])
+        max_margin = max(max_margin, margins[e])
+    deep = np.zeros(n_cells, dtype=np.bool_)
+    counts = np.zeros(n_cells, dtype=np.int64)
+    bound = np.empty(n_cells)
+    radius = np.empty(n_cells)
+    centres = np.empty((n_cells, 3))
+    for cell in nb.prange(n_cells):
+        centre, r = _cell_geometry(cell, n_theta, n_phi, axis, u, v)
+        centres[cell] = centre
+        radius[cell] = r
+        tmp = np.empty(3)
+        best_key, best_plain = _min_key(
+            centre, vertices, edges, margins, mids, half, max_half, max_margin, tmp
+        )
+        deep[cell] = (inside[cell] and best_plain >= r) or (best_key + r <= 0.0)
+        bound[cell] = best_key + 2.0 * r
+        if not deep[cell]:
+            c = 0
+            limit = math.cos(min(max(bound[cell], r) + max_margin + max_half + 1e-9, math.pi))
+            for e in range(n_edges):
+                if _dot(centre, mids[e]) < limit:
+                    continue
+                dist = nearest_on_arc(centre, vertices[edges[e, 0]], vertices[edges[e, 1]], tmp)
+                if dist - margins[e] <= bound[cell] or dist <= r:
+                    c += 1
+            counts[cell] = c
+    start = np.zeros(n_cells + 1, dtype=np.int64)
+    for cell in range(n_cells):
+        start[cell + 1] = start[cell] + counts[cell]
+    cell_edges = np.empty(start[n_cells], dtype=np.int64)
+    cell_keys = np.empty(start[n_cells])
+    for cell in nb.prange(n_cells):
+        if deep[cell]:
+            continue
+        k0 = start[cell]
+        k = k0
+        tmp = np.empty(3)
+        centre = centres[cell]
+        r = radius[cell]
+        limit = math.cos(min(max(bound[cell], r) + max_margin + max_half + 1e-9, math.pi))
+        for e in range(n_edges):
+            if _dot(centre, mids[e]) < limit:
+                continue
+            dist = nearest_on_arc(centre, vertices[edges[e, 0]], vertices[edges[e, 1]], tmp)
+            if dist - margins[e] <= bound[cell] or dist <= r:
+                cell_edges[k] = e
+                cell_keys[k] = dist - margins[e]
+                k += 1
+        order = np.argsort(cell_keys[k0:k], kind="mergesort")
+        cell_edges[k0:k] = cell_edges[k0:k][order]
+        cell_keys[k0:k] = cell_keys[k0:k][order]
+    return deep, start, cell_edges, cell_keys
+
+
+#: Rows of the scratch array the query kernels take: u, v of the frame, the cell centre, a
+#: temporary point and the best point (callers may use rows beyond these).
+WORK_ROWS = 5
+
+
+@nb.njit(cache=True, inline="always")
+def query(
+    p, vertices, edges, margins, axis, grid_shape, inside, deep, start, cell_edges, keys, out, work
+):
+    """Whether direction ``p`` is in the region; ``out`` gets its projection (p itself inside).
+
+    ``work`` (>= WORK_ROWS, 3) is scratch whose rows 0, 1 hold the frame (:func:`frame_into`):
+    nothing is allocated per query. The candidates are visited by increasing key; once
+    ``key - angle(centre, p)`` exceeds the best widened distance found (a lower bound of every
+    later arc's) and ``key`` exceeds ``angle(centre, p)`` (no later arc can cross the path
+    centre -> p), the rest are skipped.
+    """
+    n_theta = grid_shape[0]
+    n_phi = grid_shape[1]
+    u = work[0]
+    v = work[1]
+    cell = _cell_of(p, axis, u, v, n_theta, n_phi)
+    out[0] = p[0]
+    out[1] = p[1]
+    out[2] = p[2]
+    if deep[cell]:
+        return True
+    i = cell // n_phi
+    j = cell % n_phi
+    theta = (i + 0.5) * math.pi / n_theta
+    phi = -math.pi + (j + 0.5) * 2.0 * math.pi / n_phi
+    st = math.sin(theta)
+    cp = math.cos(phi)
+    sp = math.sin(phi)
+    centre = work[2]
+    tmp = work[3]
+    best_point = work[4]
+    for c in range(3):
+        centre[c] = math.cos(theta) * axis[c] + st * (cp * u[c] + sp * v[c])
+    travel = _angle(centre, p)
+    crossings = 0
+    best = np.inf
+    best_dist = np.inf
+    best_margin = 0.0
+    for k in range(start[cell], start[cell + 1]):
+        if keys[k] > travel and keys[k] - travel > best:
+            break
+        e = cell_edges[k]
+        a = vertices[edges[e, 0]]
+        b = vertices[edges[e, 1]]
+        dist = nearest_on_arc(p, a, b, tmp)
+        if dist - margins[e] < best:
+            best = dist - margins[e]
+            best_dist = dist
+            best_margin = margins[e]
+            best_point[0] = tmp[0]
+            best_point[1] = tmp[1]
+            best_point[2] = tmp[2]
+        # does arc centre -> p cross arc a -> b? (half-open sign rule; same hemisphere)
+        # Not when the arc lies farther than `travel` from the centre: every point of the
+        # path centre -> p is within `travel` of it.
+        if keys[k] + margins[e] > travel:
+            continue
+        sa = _det(centre, p, a) > 0.0
+        sb = _det(centre, p, b) > 0.0
+        sc = _det(a, b, centre) > 0.0
+        sq = _det(a, b, p) > 0.0
+        if (
+            sa != sb
+            and sc != sq
+            and _dot(a, centre) + _dot(b, centre) + _dot(a, p) + _dot(b, p) > 0.0
+        ):
+            crossings += 1
+    in_mesh = inside[cell] != (crossings % 2 == 1)
+    if in_mesh or best <= CONTAIN_TOLERANCE:
+        return True
+    slerp_into(best_point, p, best_dist, best_margin, out)
+    return False
+
+
+#: Rows per chunk of a batch: scratch is allocated once per chunk, not per row.
+CHUNK = 512
+
+
+@nb.njit(cache=True, parallel=True)
+def contains_batch(vertices, edges, margins, axis, grid_shape, inside, deep, start, arcs, keys, d):
+    """(N,) bool for directions ``d`` (N, 3)."""
+    n = d.shape[0]
+    res = np.empty(n, dtype=np.bool_)
+    for chunk in nb.prange((n + CHUNK - 1) // CHUNK):
+        work = np.empty((WORK_ROWS, 3))
+        frame_into(axis, work)
+        out = np.empty(3)
+        for j in range(chunk * CHUNK, min(n, (chunk + 1) * CHUNK)):
+            res[j] = query(
+                d[j],
+                vertices,
+                edges,
+                margins,
+                axis,
+                grid_shape,
+                inside,
+                deep,
+                start,
+                arcs,
+                keys,
+                out,
+                work,
+            )
+    return res
+
+
+@nb.njit(cache=True, parallel=True)
+def project_batch(vertices, edges, margins, axis, grid_shape, inside, deep, start, arcs, keys, d):
+    """Projection (N, 3) of directions ``d`` (N, 3): themselves inside, nearest region point out."""
+    n = d.shape[0]
+    res = np.empty((n, 3))
+    for chunk in nb.prange((n + CHUNK - 1) // CHUNK):
+        work = np.empty((WORK_ROWS, 3))
+        frame_into(axis, work)
+        for j in range(chunk * CHUNK, min(n, (chunk + 1) * CHUNK)):
+            query(
+                d[j],
+                vertices,
+                edges,
+                margins,
+                axis,
+                grid_shape,
+                inside,
+                deep,
+                start,
+                arcs,
+                keys,
+                res[j],
+                work,
+            )
+    return res

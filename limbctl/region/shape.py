@@ -1,0 +1,428 @@
+"""From scattered limb directions to the closed boundary loops of the region they fill.
+
+The steps the Rigid Map's gate runs on its support (all angles radians):
+
+1. :func:`thin` keeps a subset of directions at least ``spacing`` apart (greedy Poisson-disk,
+   outermost first), so that a 100 Hz hand recording and i.i.d. samples look alike.
+2. :func:`learn_alpha` picks the alpha-shape radius from the data's own scale: the gaps the
+   points leave inside the region they enclose (strokes of a hand recording cross and enclose
+   the empty space between them; that space's empty-circle radii set the scale).
+3. :func:`alpha_complex` triangulates, keeps triangles with circumradius <= alpha and fills
+   holes smaller than ``max_hole``: the gaps between strokes close.
+4. :func:`peel` (a chi-shape) then removes, longest first, the outside triangles whose exposed
+   edge is longer than ``max_length`` and whose middle the data do not surround
+   (:func:`surrounded`): a large alpha may bridge a concavity or a bay of the taught region,
+   the peel takes the bridge away again, down to where the data are; the boundary loops
+   (:func:`trace_loops`) run through taught directions.
+5. :func:`edge_margins` widens each boundary arc by how far beyond it the data say the true edge
+   lies (an endpoint estimate on the outermost samples' depths), at least as far as the samples
+   that lie beyond it, and never more than a cap: the region never reaches more than the cap
+   beyond the data-supported shape, and concavities are not smoothed away.
+"""
+
+from __future__ import annotations
+
+import heapq
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from limbctl.geometry.quat import tangent_frame
+from limbctl.region.mesh import (
+    boundary_edges,
+    circumradius,
+    inside_reference,
+    nearest_on_edges_reference,
+    spherical_delaunay,
+)
+
+
+def chord(angle: float) -> float:
+    """Chord length of an angle (rad) on the unit sphere: ``2 sin(angle / 2)``."""
+    return 2.0 * np.sin(0.5 * angle)
+
+
+def thin(d: np.ndarray, spacing: float) -> np.ndarray:
+    """Indices of directions ``d`` (N, 3) kept at least ``spacing`` (rad) apart.
+
+    Greedy Poisson-disk thinning, outermost first (largest angle from the mean direction): every
+    direction of ``d`` lies within ``spacing`` of a kept one, and the points that reach farthest
+    out are the ones kept.
+    """
+    mean = d.mean(axis=0)
+    norm = np.linalg.norm(mean)
+    axis = mean / norm if norm > 1e-9 else d[0]
+    order = np.argsort(d @ axis, kind="stable")
+    tree = cKDTree(d)
+    taken = np.zeros(d.shape[0], dtype=bool)
+    keep = []
+    for i, near in zip(order, tree.query_ball_point(d[order], chord(spacing)), strict=True):
+        if taken[i]:
+            continue
+        keep.append(i)
+        taken[near] = True
+    return np.sort(np.asarray(keep, dtype=np.int64))
+
+
+def _components(n: int, tri: np.ndarray) -> np.ndarray:
+    """Label (n,) of the connected component of each vertex under triangles ``tri``."""
+    parent = np.arange(n)
+
+    def root(i: int) -> int:
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+
+    for a, b, c in tri:
+        ra, rb, rc = root(a), root(b), root(c)
+        parent[rb] = ra
+        parent[root(rc)] = ra
+    return np.array([root(i) for i in range(n)])
+
+
+def learn_alpha(d: np.ndarray, factor: float, quantile: float = 0.9) -> float:
+    """The alpha-shape radius (rad) from the scale of the gaps inside the data ``d`` (V, 3).
+
+    ``alpha0`` is the smallest circumradius at which the alpha complex joins 99% of the points
+    into one piece; the gaps are the Delaunay triangles enclosed by that piece (inside its outer
+    loop), and ``alpha = factor * quantile(circumradius of enclosed triangles)``, at least
+    ``alpha0``. On i.i.d. samples this is a few times the sample spacing; on hand strokes it is
+    the size of the holes between strokes, so they fill while concavities larger than that stay.
+    """
+    tri = spherical_delaunay(d)
+    radius = circumradius(d, tri)
+    order = np.argsort(radius)
+    n = d.shape[0]
+    parent = np.arange(n)
+    size = np.ones(n, dtype=np.int64)
+
+    def root(i: int) -> int:
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+
+    alpha0 = float(radius[order[-1]])
+    target = int(np.ceil(0.99 * n))
+    for t in order:
+        a = root(tri[t, 0])
+        for v in tri[t, 1:]:
+            b = root(v)
+            if a != b:
+                if size[a] < size[b]:
+                    a, b = b, a
+                parent[b] = a
+                size[a] += size[b]
+        if size[a] >= target:
+            alpha0 = float(radius[t])
+            break
+    _, _, inside = alpha_complex(d, alpha0, max_hole=4.0 * np.pi)
+    if not inside.any():
+        return alpha0
+    return max(alpha0, factor * float(np.quantile(radius[inside], quantile)))
+
+
+def tri_centroids(d: np.ndarray, tri: np.ndarray) -> np.ndarray:
+    """Unit centroid directions (T, 3) of triangles ``tri`` over vertices ``d``."""
+    c = d[tri[:, 0]] + d[tri[:, 1]] + d[tri[:, 2]]
+    return c / np.linalg.norm(c, axis=1, keepdims=True)
+
+
+def enclosed(p: np.ndarray, loops: list[np.ndarray]) -> np.ndarray:
+    """(N,) bool: directions ``p`` (N, 3) inside the closed loops (region on their left)."""
+    if not loops:
+        return np.zeros(p.shape[0], dtype=bool)
+    vertices, edges = loops_to_edges(loops)
+    return inside_reference(p, vertices, edges)
+
+
+def loops_to_edges(loops: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """Stack loops into vertices (V, 3) and directed edges (V, 2) joining consecutive points."""
+    vertices = np.vstack(loops)
+    idx = []
+    start = 0
+    for lp in loops:
+        i = np.arange(start, start + lp.shape[0])
+        idx.append(np.column_stack([i, np.roll(i, -1)]))
+        start += lp.shape[0]
+    return vertices, np.vstack(idx)
+
+
+def loop_area(loop: np.ndarray) -> float:
+    """Signed area (sr) enclosed by a loop (M, 3): positive when the region is on its left.
+
+    Sum of the signed spherical triangles (c, a, b) from the loop's mean direction ``c``:
+    ``2 atan2(det(c, a, b), 1 + c.a + a.b + b.c)``.
+    """
+    c = loop.mean(axis=0)
+    c /= np.linalg.norm(c)
+    a = loop
+    b = np.roll(loop, -1, axis=0)
+    det = np.cross(a, b) @ c
+    den = 1.0 + a @ c + np.sum(a * b, axis=1) + b @ c
+    return float(np.sum(2.0 * np.arctan2(det, den)))
+
+
+def trace_loops(d: np.ndarray, edges: np.ndarray) -> list[np.ndarray]:
+    """Chain directed boundary edges (E, 2) into closed loops of vertex indices.
+
+    At a vertex with several outgoing edges (two pieces touching at a point) the loop takes the
+    one turning most to the left, which keeps each piece's boundary separate.
+    """
+    outgoing: dict[int, list[int]] = {}
+    for e, (a, _) in enumerate(edges):
+        outgoing.setdefault(int(a), []).append(e)
+    used = np.zeros(edges.shape[0], dtype=bool)
+    loops = []
+    for first in range(edges.shape[0]):
+        if used[first]:
+            continue
+        loop = []
+        e = first
+        while not used[e]:
+            used[e] = True
+            a, v = int(edges[e, 0]), int(edges[e, 1])
+            loop.append(a)
+            choices = [c for c in outgoing.get(v, []) if not used[c]]
+            if not choices:
+                break
+            if len(choices) == 1:
+                e = choices[0]
+                continue
+            # heading at v: -(a - (a.v) v); turn to each candidate b: atan2(v.(h x t), h.t)
+            pv = d[v]
+            heading = -(d[a] - (d[a] @ pv) * pv)
+            best, best_turn = choices[0], -np.inf
+            for c in choices:
+                b = d[edges[c, 1]]
+                t = b - (b @ pv) * pv
+                turn = np.arctan2(pv @ np.cross(heading, t), heading @ t)
+                if turn > best_turn:
+                    best, best_turn = c, turn
+            e = best
+        if len(loop) >= 3:
+            loops.append(np.asarray(loop, dtype=np.int64))
+    return loops
+
+
+def triangle_area(d: np.ndarray, tri: np.ndarray) -> np.ndarray:
+    """Area (T,) in sr of spherical triangles: ``2 atan2(|det(a,b,c)|, 1 + a.b + b.c + c.a)``."""
+    a, b, c = d[tri[:, 0]], d[tri[:, 1]], d[tri[:, 2]]
+    det = np.abs(np.einsum("ij,ij->i", a, np.cross(b, c)))
+    den = 1.0 + np.sum(a * b, axis=1) + np.sum(b * c, axis=1) + np.sum(c * a, axis=1)
+    return 2.0 * np.arctan2(det, den)
+
+
+def alpha_complex(
+    d: np.ndarray, alpha: float, max_hole: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Delaunay triangles (T, 3) of ``d``, their circumradii (T,) and which are in the region.
+
+    A triangle is in the region when its circumradius is at most ``alpha``, or when it belongs
+    to a hole: a piece of the other triangles (joined across shared edges) that does not reach
+    the outside of the triangulation, with a total area below ``max_hole`` (sr).
+    """
+    tri = spherical_delaunay(d)
+    radius = circumradius(d, tri)
+    kept = radius <= alpha
+    t = tri.shape[0]
+    key = np.sort(np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]), axis=1)
+    owner = np.tile(np.arange(t), 3)
+    _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    inverse = inverse.ravel()
+    order = np.argsort(inverse, kind="stable")
+    pairs = owner[order].reshape(-1)
+    shared = counts[inverse[order]] == 2
+    first = pairs[shared][0::2]
+    second = pairs[shared][1::2]
+    # pieces of non-region triangles joined across shared edges (union-find)
+    parent = np.arange(t)
+
+    def root(i: int) -> int:
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+
+    for a, b in zip(first, second, strict=True):
+        if not kept[a] and not kept[b]:
+            parent[root(a)] = root(b)
+    label = np.array([root(i) for i in range(t)])
+    outside = np.zeros(t, dtype=bool)
+    outside[label[owner[order][~shared]]] = True
+    area = np.bincount(label, weights=triangle_area(d, tri) * ~kept, minlength=t)
+    hole = ~kept & ~outside[label] & (area[label] < max_hole)
+    return tri, radius, kept | hole
+
+
+def alpha_loops(d: np.ndarray, alpha: float, max_hole: float) -> list[np.ndarray]:
+    """Boundary loops (each (M, 3) directions, region on the left) of the alpha shape of ``d``.
+
+    Holes with an area below ``max_hole`` (sr) are filled (see :func:`alpha_complex`). Returns
+    an empty list when no triangle has circumradius <= ``alpha``.
+    """
+    tri, _, inside = alpha_complex(d, alpha, max_hole)
+    if not inside.any():
+        return []
+    return [d[idx] for idx in trace_loops(d, boundary_edges(tri[inside]))]
+
+
+def edge_lengths(d: np.ndarray, pairs: np.ndarray) -> np.ndarray:
+    """Angle (rad) between the directions of each index pair (K, 2) over ``d`` (V, 3)."""
+    a, b = d[pairs[:, 0]], d[pairs[:, 1]]
+    # atan2(|a x b|, a . b)
+    return np.arctan2(np.linalg.norm(np.cross(a, b), axis=1), np.sum(a * b, axis=1))
+
+
+def surrounded(p: np.ndarray, data: np.ndarray, radius: float, max_gap: float) -> np.ndarray:
+    """(N,) bool: whether the ``data`` (K, 3) within ``radius`` of each ``p`` (N, 3) surround it.
+
+    Surrounded: at least three data lie within ``radius`` (rad) and, seen from ``p``, their
+    bearings leave no empty sector wider than ``max_gap`` (rad). A point among crossing strokes
+    is surrounded; a point beyond the data's edge (all data on one side) is not.
+    """
+    tree = cKDTree(data)
+    out = np.zeros(p.shape[0], dtype=bool)
+    for i, near in enumerate(tree.query_ball_point(p, chord(radius))):
+        if len(near) < 3:
+            continue
+        x = p[i]
+        u, v = tangent_frame(x)
+        s = data[near]
+        # bearing of each datum about p: atan2(s.v, s.u)
+        bearing = np.sort(np.arctan2(s @ v, s @ u))
+        gaps = np.diff(np.concatenate([bearing, bearing[:1] + 2.0 * np.pi]))
+        out[i] = gaps.max() < max_gap
+    return out
+
+
+def peel(
+    d: np.ndarray,
+    tri: np.ndarray,
+    kept: np.ndarray,
+    max_length: float,
+    protected: np.ndarray,
+) -> np.ndarray:
+    """Chi-shape peel: which of the triangles ``tri`` (T, 3) stay after peeling ``kept`` (T,).
+
+    Repeatedly, longest first, a kept triangle with an exposed edge (its neighbour across it
+    not kept) longer than ``max_length`` (rad) is removed, unless it is ``protected`` (T,) or
+    its third vertex already lies on the boundary (removing it would pinch the shape or drop a
+    vertex: every vertex of the shape stays in it). Returns the new kept mask.
+    """
+    kept = kept.copy()
+    key = np.sort(np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]), axis=1)
+    owners: dict[tuple[int, int], list[int]] = {}
+    for (a, b), t in zip(key.tolist(), np.tile(np.arange(tri.shape[0]), 3).tolist(), strict=True):
+        owners.setdefault((a, b), []).append(t)
+
+    def exposed(a: int, b: int) -> bool:
+        return sum(bool(kept[t]) for t in owners[(min(a, b), max(a, b))]) == 1
+
+    def length(a: int, b: int) -> float:
+        return float(edge_lengths(d, np.array([[a, b]]))[0])
+
+    on_boundary = np.zeros(d.shape[0], dtype=np.int64)
+    heap: list[tuple[float, int, int, int]] = []
+    for t in np.flatnonzero(kept):
+        a, b, c = (int(x) for x in tri[t])
+        for x, y in ((a, b), (b, c), (c, a)):
+            if exposed(x, y):
+                on_boundary[x] += 1
+                on_boundary[y] += 1
+                if length(x, y) > max_length:
+                    heapq.heappush(heap, (-length(x, y), x, y, int(t)))
+    while heap:
+        _, a, b, t = heapq.heappop(heap)
+        if not kept[t] or not exposed(a, b) or protected[t]:
+            continue
+        c = next(int(x) for x in tri[t] if x != a and x != b)
+        if on_boundary[c] > 0:
+            continue
+        kept[t] = False
+        # (a, b) leaves the boundary, (a, c) and (c, b) join it: only c gains boundary edges
+        on_boundary[c] += 2
+        for x, y in ((a, c), (c, b)):
+            if length(x, y) > max_length:
+                inner = next(s for s in owners[(min(x, y), max(x, y))] if kept[s])
+                heapq.heappush(heap, (-length(x, y), x, y, inner))
+    return kept
+
+
+def edge_margins(
+    loops: list[np.ndarray],
+    data: np.ndarray,
+    window: float,
+    top: int,
+    max_margin: float | list[np.ndarray],
+    max_bridge: float = np.inf,
+) -> list[np.ndarray]:
+    """How far (rad) to widen each arc of the loops so the region reaches the true edge.
+
+    Each data direction (N, 3) is assigned to its nearest arc. For an arc ``a -> b`` with
+    outward pole ``n = -(a x b) / |a x b|``, the data assigned to arcs within +- ``window``
+    (rad, along the loop) are measured beyond its great circle, ``o = asin(x . n)``; their
+    outermost ``o_(1) >= ... >= o_(top)`` give the endpoint estimate ``o_(1) + gap`` (see
+    :func:`_gap_beyond`): a notch between outer samples fills up to them, a straight or convex
+    stretch reaches one sample spacing beyond its outermost samples. The margin is that
+    estimate, at least the distance of every sample outside the loops assigned to the arc,
+    and at most ``max_margin`` (one value, or per loop an (M,) array of caps per arc). An arc
+    longer than ``max_bridge`` (rad) bridges a gap without samples along it: the data say
+    nothing of an edge beyond it, so it widens only to cover the samples beyond it. Returns
+    one (M,) array per loop, entry ``i`` for the arc from point ``i`` to ``i + 1``.
+    """
+    vertices, edges = loops_to_edges(loops)
+    nearest, _, angle = nearest_on_edges_reference(data, vertices, edges)
+    outside = ~inside_reference(data, vertices, edges)
+    need = np.zeros(edges.shape[0])
+    np.maximum.at(need, nearest[outside], angle[outside])
+    out = []
+    start = 0
+    for number, lp in enumerate(loops):
+        m = lp.shape[0]
+        cap = max_margin if np.isscalar(max_margin) else max_margin[number]
+        nxt = np.roll(lp, -1, axis=0)
+        pole = -np.cross(lp, nxt)
+        pole /= np.linalg.norm(pole, axis=1, keepdims=True)
+        seg = edge_lengths(lp, np.column_stack([np.arange(m), (np.arange(m) + 1) % m]))
+        # arc-length position of each arc's middle along the loop
+        middle = np.cumsum(seg) - 0.5 * seg
+        total = float(seg.sum())
+        mine = np.flatnonzero((nearest >= start) & (nearest < start + m))
+        local = nearest[mine] - start
+        order = np.argsort(local, kind="stable")
+        local, mine = local[order], mine[order]
+        bounds = np.searchsorted(local, np.arange(m + 1))
+        est = np.zeros(m)
+        for e in np.flatnonzero(seg <= max_bridge):
+            # circular distance along the loop between arc middles
+            apart = np.abs(middle - middle[e])
+            near = np.flatnonzero(np.minimum(apart, total - apart) <= window)
+            rows = np.concatenate([mine[bounds[k] : bounds[k + 1]] for k in near])
+            if rows.size == 0:
+                continue
+            # o = asin(x . n): signed angle beyond the arc's great circle
+            vals = np.arcsin(np.clip(data[rows] @ pole[e], -1.0, 1.0))
+            vals = -np.sort(-vals)[:top]
+            est[e] = vals[0] + _gap_beyond(vals)
+        out.append(np.clip(np.maximum(est, need[start : start + m]), 0.0, cap))
+        start += m
+    return out
+
+
+def _gap_beyond(vals: np.ndarray) -> float:
+    """How far beyond the outermost of sorted depths ``vals`` (K,) the edge is expected.
+
+    Near an edge with locally even density the outermost depths fall on a line,
+    ``E[o_(i)] = edge - i g``; the least-squares line through ``(i, o_(i))``, i = 1..K, gives
+    the edge at ``i = 0``, and the result is ``max(edge - o_(1), 0)``.
+    """
+    k = vals.size
+    if k < 3:
+        return 0.0
+    i = np.arange(1, k + 1, dtype=np.float64)
+    # slope and intercept of the least-squares line o = c + s i
+    slope = np.sum((i - i.mean()) * (vals - vals.mean())) / np.sum((i - i.mean()) ** 2)
+    intercept = vals.mean() - slope * i.mean()
+    return max(float(intercept - vals[0]), 0.0)

@@ -1,0 +1,477 @@
+"""The servo bus: the real dynamixel-sdk (Protocol 2.0) with retries, typed errors and alarms.
+
+:class:`ServoBus` opens a serial port (a U2D2's device, or the simulator's pty), pings every
+servo and checks its model, and then offers exactly what the controller needs: configure for
+position control, torque on/off, both present positions in ONE sync read (Fast Sync Read where
+the firmware has it), both goals in ONE sync write, hardware-error status, reboot. Registers
+are named only through :class:`limbctl.servo.control_table.Register`.
+
+Every transaction is retried a bounded number of times within a time budget; what still fails
+raises one of (see :mod:`limbctl.errors`)::
+
+    BusError               a servo refused an instruction (status error 1-7), port busy
+    ├── PortError          the port cannot be opened or failed while in use
+    ├── BusTimeout         a servo did not answer (names the id, says what to check)
+    ├── CorruptReply       replies kept failing CRC / framing
+    └── ServoAlarm         a status packet had the alert bit and Hardware Error Status is set
+
+A status packet with the alert bit set does not stop the transaction that carried it (its data
+are valid); when the transaction is complete the bus reads Hardware Error Status of the servos
+that raised the alert and raises :class:`ServoAlarm` with the decoded bits. ``reboot(id)`` is
+the way out (X-series shutdowns keep torque off until a reboot).
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+import time
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from contextlib import AbstractContextManager
+from dataclasses import dataclass
+from typing import Any
+
+import serial
+from dynamixel_sdk import COMM_RX_CORRUPT, COMM_RX_TIMEOUT, COMM_SUCCESS, PacketHandler, PortHandler
+
+from limbctl.errors import (
+    BusError,
+    BusTimeout,
+    ConfigError,
+    CorruptReply,
+    InvalidInputError,
+    PortError,
+    ServoAlarm,
+)
+from limbctl.servo import transfers
+from limbctl.servo.control_table import (
+    ALERT_BIT,
+    FAST_SYNC_READ_MIN_FIRMWARE,
+    HARDWARE_ERROR_ADVICE,
+    MAX_TICK,
+    MODEL_BY_NAME,
+    HardwareError,
+    ModelNumber,
+    Register,
+    StatusError,
+    decode_hardware_error,
+    describe_status_error,
+    model_name,
+)
+from limbctl.servo.transfers import SDK_LATENCY_TIMER_MS, Attempt, TunedPortHandler
+
+try:  # POSIX serial ports report a vanished device through termios as well
+    from termios import error as _TermiosError
+except ImportError:  # pragma: no cover - not POSIX
+    _TermiosError = OSError
+
+#: What the serial layer raises when the port fails or disappears.
+_PORT_FAILURES = (serial.SerialException, OSError, _TermiosError)
+
+
+@dataclass
+class BusStats:
+    """Counters for telemetry: transactions attempted and how they went."""
+
+    transactions: int = 0
+    retries: int = 0
+    timeouts: int = 0
+    corrupt: int = 0
+    alarms: int = 0
+
+
+class ServoBus:
+    """Servos on one serial port; a context manager (``close()`` is safe to call twice).
+
+    Parameters
+    ----------
+    port : str
+        Serial device path, e.g. ``/dev/ttyUSB0`` or the simulator's pty link.
+    baud : int
+        Bit rate the servos are set to (the rig profile's ``baud``).
+    ids : sequence of int
+        Servo ids, e.g. ``(1, 2)`` for (pan, tilt).
+    model : str or None
+        Expected model name (``"xl430-w250"`` / ``"xm430-w350"``); None accepts either.
+    retry_budget_s : float
+        Time within which a failing transaction is retried.
+    max_attempts : int
+        Most tries per transaction (at least 1).
+    fast_sync_read : bool or None
+        Force Fast Sync Read on/off; None decides from firmware version and a probe.
+    latency_timer_ms : float
+        The USB adapter's latency timer (ms); sets how long a reply is waited for. 16 is the
+        FTDI default; use 1 after lowering it (README), or for the simulator's pty.
+    """
+
+    def __init__(
+        self,
+        port: str,
+        baud: int,
+        ids: Sequence[int],
+        model: str | None = None,
+        retry_budget_s: float = 0.25,
+        max_attempts: int = 3,
+        fast_sync_read: bool | None = None,
+        latency_timer_ms: float = SDK_LATENCY_TIMER_MS,
+    ) -> None:
+        if not ids or len(set(ids)) != len(ids):
+            raise ConfigError(f"ids must be distinct servo ids, got {list(ids)}")
+        if model is not None and model not in MODEL_BY_NAME:
+            raise ConfigError(f"model must be one of {', '.join(MODEL_BY_NAME)}, got {model!r}")
+        self.port_name = str(port)
+        self.baud = int(baud)
+        self.ids = tuple(int(i) for i in ids)
+        self.expected_model = MODEL_BY_NAME[model] if model else None
+        self.retry_budget_s = float(retry_budget_s)
+        self.max_attempts = max(1, int(max_attempts))
+        self.fast_sync_read = fast_sync_read
+        if not 0.0 <= latency_timer_ms <= 255.0:
+            raise ConfigError(f"latency_timer_ms must be 0..255, got {latency_timer_ms}")
+        self.latency_timer_ms = float(latency_timer_ms)
+        self.models: dict[int, ModelNumber] = {}
+        self.firmware: dict[int, int] = {}
+        self.stats = BusStats()
+        self._port: PortHandler | None = None
+        self._packets = PacketHandler(2.0)
+        self._lock = threading.RLock()
+        self._alerted: set[int] = set()
+
+    @classmethod
+    def from_profile(cls, profile: Any, port: str | None = None, **options: Any) -> ServoBus:
+        """A bus for a :class:`calib.profile.RigProfile` (``port`` overrides the profile's)."""
+        return cls(port or profile.port, profile.baud, profile.ids, profile.model, **options)
+
+    # ---- lifecycle ----
+    def open(self) -> ServoBus:
+        """Open the port, ping every servo, check models, pick the sync-read flavour."""
+        with self._lock:
+            if self._port is not None:
+                return self
+            self._port = port = self._open_port()
+            try:
+                # identification is not time-critical: wait as long as the SDK would (16 ms
+                # latency timer) so a busy machine or a slow adapter is not taken for silence
+                port.latency_timer_ms = max(self.latency_timer_ms, SDK_LATENCY_TIMER_MS)
+                for servo_id in self.ids:
+                    self._identify(servo_id)
+                if self.fast_sync_read is None:
+                    self.fast_sync_read = self._probe_fast_sync_read()
+                port.latency_timer_ms = self.latency_timer_ms
+            except BaseException:
+                self.close()
+                raise
+            return self
+
+    def close(self) -> None:
+        """Close the port (torque is left as it is). Safe to call twice."""
+        with self._lock:
+            port, self._port = self._port, None
+            if port is not None and port.is_open:
+                port.closePort()
+
+    def __enter__(self) -> ServoBus:
+        return self.open()
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    @property
+    def is_open(self) -> bool:
+        """True between :meth:`open` and :meth:`close`."""
+        return self._port is not None
+
+    def _open_port(self) -> PortHandler:
+        hint = "check the cable / permissions (dialout group) / --port"
+        if not os.path.exists(self.port_name):
+            raise PortError(f"serial port {self.port_name} does not exist: {hint}")
+        port = TunedPortHandler(self.port_name, self.latency_timer_ms)
+        try:
+            opened = port.setBaudRate(self.baud)
+        except _PORT_FAILURES as exc:
+            raise PortError(f"cannot open serial port {self.port_name} ({exc}): {hint}") from exc
+        if not opened:
+            raise ConfigError(f"baud {self.baud} is not supported by the serial port driver")
+        return port
+
+    def _identify(self, servo_id: int) -> None:
+        number = self._transact(
+            f"ping servo {servo_id}",
+            lambda: transfers.ping(self._packets, self._port, servo_id),
+            check_alert=False,
+        )
+        try:
+            model = ModelNumber(number)
+        except ValueError:
+            raise ConfigError(
+                f"servo {servo_id} is {model_name(number)}, which limbctl does not support "
+                f"(supported: {', '.join(MODEL_BY_NAME)})"
+            ) from None
+        if self.expected_model is not None and model != self.expected_model:
+            raise ConfigError(
+                f"servo {servo_id} is {model_name(model)} but the rig profile says "
+                f"{model_name(self.expected_model)}: fix `model:` in the profile or connect the "
+                f"right servo"
+            )
+        self.models[servo_id] = model
+        self.firmware[servo_id] = self.read(Register.FIRMWARE_VERSION, servo_id, check_alert=False)
+
+    def _probe_fast_sync_read(self) -> bool:
+        if min(self.firmware.values()) < FAST_SYNC_READ_MIN_FIRMWARE:
+            return False
+        with self._lock:
+            port = self._require_port()
+            outcome = transfers.fast_sync_read(
+                self._packets, port, Register.PRESENT_POSITION, self.ids
+            )
+        return outcome.result == COMM_SUCCESS
+
+    # ---- the retry engine ----
+    def _require_port(self) -> PortHandler:
+        if self._port is None:
+            raise PortError(f"the bus on {self.port_name} is not open; use it as a context manager")
+        return self._port
+
+    def _transact(self, what: str, attempt: Callable[[], Attempt], check_alert: bool = True) -> Any:
+        """Run ``attempt`` until it succeeds, the attempts or the time budget run out."""
+        with self._lock:
+            port = self._require_port()
+            self.stats.transactions += 1
+            deadline = time.monotonic() + self.retry_budget_s
+            outcome: Attempt | None = None
+            for number in range(self.max_attempts):
+                try:
+                    if number:
+                        self.stats.retries += 1
+                        port.clearPort()
+                    outcome = attempt()
+                except _PORT_FAILURES as exc:
+                    raise PortError(
+                        f"{what}: serial port {self.port_name} failed ({exc}); was the adapter "
+                        f"unplugged? check the cable and reconnect",
+                    ) from exc
+                if outcome.result == COMM_SUCCESS:
+                    refused = {
+                        i: e & ~ALERT_BIT for i, e in outcome.errors.items() if e & ~ALERT_BIT
+                    }
+                    if not refused:
+                        break
+                    servo_id, code = next(iter(refused.items()))
+                    if code != StatusError.CRC:
+                        raise BusError(
+                            f"{what}: servo {servo_id} refused it ({describe_status_error(code)})",
+                            servo_id,
+                        )
+                    outcome.result = COMM_RX_CORRUPT  # our packet was garbled: retry
+                    outcome.culprit = servo_id
+                if time.monotonic() >= deadline:
+                    break
+            assert outcome is not None
+            if outcome.result != COMM_SUCCESS:
+                self.stats.timeouts += outcome.result == COMM_RX_TIMEOUT
+                self.stats.corrupt += outcome.result == COMM_RX_CORRUPT
+                raise transfers.failure(what, outcome, number + 1, self.baud, self.port_name)
+            alerted = {i for i, e in outcome.errors.items() if e & ALERT_BIT}
+            self._alerted |= alerted
+            if check_alert and self._alerted:
+                self._raise_alarms()
+            return outcome.value
+
+    # ---- alarms ----
+    def _raise_alarms(self) -> None:
+        alerted = sorted(self._alerted)
+        errors = self._hardware_errors(alerted)
+        # the reads above carry the alert bit again: they answered it, so forget them
+        self._alerted.difference_update(alerted)
+        found = {i: bits for i, bits in errors.items() if bits}
+        if not found:
+            return
+        self.stats.alarms += 1
+        servo_id, bits = next(iter(found.items()))
+        detail = "; ".join(f"servo {i}: {', '.join(b)}" for i, b in found.items())
+        advice = "; ".join(
+            HARDWARE_ERROR_ADVICE[flag]
+            for flag in HardwareError
+            if flag.name.lower().replace("_", " ") in bits
+        )
+        raise ServoAlarm(
+            f"hardware error reported ({detail}). {advice}. The servo keeps torque off until it "
+            f"is rebooted: fix the cause, then reboot it (ServoBus.reboot({servo_id}))",
+            servo_id,
+            bits,
+        )
+
+    def _hardware_errors(self, ids: Iterable[int]) -> dict[int, tuple[str, ...]]:
+        return {
+            i: decode_hardware_error(self.read(Register.HARDWARE_ERROR_STATUS, i, False))
+            for i in ids
+        }
+
+    def read_hardware_errors(self) -> dict[int, tuple[str, ...]]:
+        """Decoded Hardware Error Status of every servo (empty tuple = healthy)."""
+        with self._lock:
+            return self._hardware_errors(self.ids)
+
+    def check_alarms(self) -> None:
+        """Raise :class:`ServoAlarm` if any servo has a hardware error set."""
+        with self._lock:
+            self._alerted |= set(self.ids)
+            self._raise_alarms()
+
+    # ---- single registers ----
+    def read(self, register: Register, servo_id: int, check_alert: bool = True) -> int:
+        """Value of ``register`` on one servo."""
+
+        return self._transact(
+            f"read {register.name} of servo {servo_id}",
+            lambda: transfers.read(self._packets, self._port, register, servo_id),
+            check_alert,
+        )
+
+    def write(
+        self, register: Register, servo_id: int, value: int, check_alert: bool = True
+    ) -> None:
+        """Write ``value`` to ``register`` of one servo and wait for its status.
+
+        EEPROM registers (``register.is_eeprom``) need torque off; the servo refuses otherwise.
+        With ``check_alert=False`` a servo in alarm does not raise :class:`ServoAlarm`.
+        """
+        data = register.encode(value)
+
+        self._transact(
+            f"write {register.name}={value} to servo {servo_id}",
+            lambda: transfers.write(self._packets, self._port, register, servo_id, data),
+            check_alert,
+        )
+
+    # ---- group transfers ----
+    def sync_read(
+        self, register: Register, ids: Sequence[int] | None = None, check_alert: bool = True
+    ) -> dict[int, int]:
+        """``register`` of every servo in ``ids`` (default all) in ONE sync read.
+
+        With ``check_alert=False`` a servo's alert bit does not raise :class:`ServoAlarm`
+        (to inspect a servo that is in alarm).
+        """
+        ids = self._known(ids)
+        flavour = "fast sync read" if self.fast_sync_read else "sync read"
+        read = transfers.fast_sync_read if self.fast_sync_read else transfers.sync_read
+        with self._lock:
+            try:
+                return self._transact(
+                    f"{flavour} {register.name}",
+                    lambda: read(self._packets, self._port, register, ids),
+                    check_alert,
+                )
+            except (BusTimeout, CorruptReply) as exc:
+                # one silent servo cuts a combined reply short, which looks like corruption:
+                # ask each servo once so the message names the one that is gone
+                silent = [i for i in ids if self._silent(i)]
+                if not silent or len(silent) == len(ids):
+                    raise
+                names = ", ".join(str(i) for i in silent)
+                raise BusTimeout(
+                    f"{flavour} {register.name}: servo {names} did not answer (not even a "
+                    f"ping): check its power supply and cable; the others answer",
+                    silent[0],
+                ) from exc
+
+    def _silent(self, servo_id: int) -> bool:
+        """True if ``servo_id`` does not answer one ping (a diagnostic; no retries)."""
+        port = self._require_port()
+        try:
+            outcome = transfers.ping(self._packets, port, servo_id)
+        except _PORT_FAILURES:
+            return False  # the port itself failed: that is not this servo's fault
+        return outcome.result == COMM_RX_TIMEOUT
+
+    def sync_write(self, register: Register, values: Mapping[int, int]) -> None:
+        """Write one value per servo to ``register`` in ONE sync write (no reply)."""
+        self._known(values)
+        params = {servo_id: register.encode(value) for servo_id, value in values.items()}
+
+        self._transact(
+            f"sync write {register.name}",
+            lambda: transfers.sync_write(self._packets, self._port, register, params),
+        )
+
+    def _known(self, ids: Iterable[int] | None) -> tuple[int, ...]:
+        if ids is None:
+            return self.ids
+        ids = tuple(ids)
+        unknown = [i for i in ids if i not in self.ids]
+        if unknown or not ids:
+            raise ConfigError(f"servo ids {unknown or '[]'} are not on this bus {list(self.ids)}")
+        return ids
+
+    # ---- what the controller uses ----
+    def read_positions(self) -> dict[int, int]:
+        """Present Position (ticks) of every servo, read in one sync read."""
+        return self.sync_read(Register.PRESENT_POSITION)
+
+    def write_goals(self, goals: Mapping[int, int]) -> None:
+        """Goal Position (ticks, 0..4095) for each servo in ``goals``, in one sync write."""
+        for servo_id, tick in goals.items():
+            if isinstance(tick, bool) or int(tick) != tick or not 0 <= tick <= MAX_TICK:
+                raise InvalidInputError(
+                    f"goal for servo {servo_id} must be an integer tick in 0..{MAX_TICK}, "
+                    f"got {tick!r}"
+                )
+        self.sync_write(Register.GOAL_POSITION, {i: int(t) for i, t in goals.items()})
+
+    def set_torque(self, enabled: bool, ids: Sequence[int] | None = None) -> None:
+        """Torque on or off, servo by servo, each write confirmed by its status packet.
+
+        Switching torque off is the safe state: it ignores alarms and tries every servo even
+        when one fails, then raises the first failure.
+        """
+        if enabled:
+            for servo_id in self._known(ids):
+                self.write(Register.TORQUE_ENABLE, servo_id, 1)
+            return
+        failures: list[BusError] = []
+        for servo_id in self._known(ids):
+            try:
+                self.write(Register.TORQUE_ENABLE, servo_id, 0, check_alert=False)
+            except BusError as exc:
+                failures.append(exc)
+        if failures:
+            raise failures[0]
+
+    def torque_enabled(self) -> dict[int, bool]:
+        """Torque Enable of every servo."""
+        return {i: bool(v) for i, v in self.sync_read(Register.TORQUE_ENABLE).items()}
+
+    def exclusive(self) -> AbstractContextManager[object]:
+        """Hold the bus for a sequence of transfers that no other thread may interleave.
+
+        Re-entrant: the bus's own methods may be called inside. Used as ``with bus.exclusive():``.
+        """
+        return self._lock
+
+    def reboot(self, servo_id: int, timeout_s: float = 3.0) -> None:
+        """Reboot one servo (clears a hardware-error shutdown) and wait until it answers again.
+
+        Torque is off after a reboot; RAM settings (profile velocity, ...) are back to defaults.
+        """
+        self._known([servo_id])
+
+        with self._lock:
+            self._transact(
+                f"reboot servo {servo_id}",
+                lambda: transfers.reboot(self._packets, self._port, servo_id),
+                check_alert=False,
+            )
+            self._alerted.discard(servo_id)
+            deadline = time.monotonic() + timeout_s
+            while True:
+                # each ping blocks until its own reply timeout: this waits on the servo
+                _, result, _ = self._packets.ping(self._port, servo_id)
+                if result == COMM_SUCCESS:
+                    return
+                if time.monotonic() >= deadline:
+                    raise BusTimeout(
+                        f"servo {servo_id} did not come back within {timeout_s} s of a reboot: "
+                        f"power-cycle it",
+                        servo_id,
+                    )

@@ -1,0 +1,81 @@
+"""One-time servo set-up for position control, with the rig's hard limits in EEPROM.
+
+It uses only the bus's public reads and writes, inside :meth:`ServoBus.exclusive` so that no
+other thread's transfer falls between them.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import TYPE_CHECKING
+
+from limbctl.errors import BusError, ConfigError
+from limbctl.servo.control_table import MAX_TICK, DriveModeBit, OperatingMode, Register
+
+if TYPE_CHECKING:
+    from limbctl.servo.bus import ServoBus
+
+#: Status Return Level at which every instruction is answered.
+STATUS_RETURN_ALL = 2
+
+
+def configure_servos(
+    bus: ServoBus,
+    position_limits: Mapping[int, tuple[int, int]],
+    profile_velocity: int = 200,
+    profile_acceleration: int = 50,
+) -> None:
+    """Prepare every servo for position control. Turns torque OFF (EEPROM needs it).
+
+    Parameters
+    ----------
+    position_limits : mapping id -> (min_tick, max_tick)
+        Written to Min/Max Position Limit (EEPROM), so the servo itself refuses goals
+        beyond the rig's hard limits: the last line of defence.
+    profile_velocity : int
+        Profile Velocity in units of 0.229 rev/min (0 = no limit).
+    profile_acceleration : int
+        Profile Acceleration in units of 214.577 rev/min^2 (0 = no limit).
+    """
+    if set(position_limits) != set(bus.ids):
+        raise ConfigError(
+            f"position_limits must cover exactly the servos {list(bus.ids)}, "
+            f"got {sorted(position_limits)}"
+        )
+    for servo_id, (lo, hi) in position_limits.items():
+        if not 0 <= lo <= hi <= MAX_TICK:
+            raise ConfigError(
+                f"position limits of servo {servo_id} must satisfy 0 <= min <= max <= "
+                f"{MAX_TICK}, got ({lo}, {hi})"
+            )
+    with bus.exclusive():
+        bus.set_torque(False)
+        for servo_id in bus.ids:
+            level = bus.read(Register.STATUS_RETURN_LEVEL, servo_id)
+            if level != STATUS_RETURN_ALL:
+                raise ConfigError(
+                    f"servo {servo_id} has Status Return Level {level}; limbctl needs "
+                    f"{STATUS_RETURN_ALL} (answer every instruction): set it with Dynamixel "
+                    f"Wizard"
+                )
+            lo, hi = position_limits[servo_id]
+            drive = bus.read(Register.DRIVE_MODE, servo_id)
+            eeprom = {
+                Register.OPERATING_MODE: int(OperatingMode.POSITION),
+                Register.DRIVE_MODE: drive & ~int(DriveModeBit.TIME_BASED_PROFILE),
+                Register.RETURN_DELAY_TIME: 0,
+                Register.MIN_POSITION_LIMIT: lo,
+                Register.MAX_POSITION_LIMIT: hi,
+            }
+            for register, value in eeprom.items():
+                # EEPROM wears: write only what differs, then read it back
+                if bus.read(register, servo_id) != value:
+                    bus.write(register, servo_id, value)
+                    got = bus.read(register, servo_id)
+                    if got != value:
+                        raise BusError(
+                            f"servo {servo_id} kept {register.name}={got} after writing {value}",
+                            servo_id,
+                        )
+            bus.write(Register.PROFILE_ACCELERATION, servo_id, profile_acceleration)
+            bus.write(Register.PROFILE_VELOCITY, servo_id, profile_velocity)

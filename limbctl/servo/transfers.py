@@ -1,0 +1,203 @@
+"""One try of each dynamixel-sdk transfer that :class:`ServoBus` uses, as plain functions.
+
+Each function sends one instruction with the real SDK (Protocol 2.0) and returns an
+:class:`Attempt`: the decoded value, the SDK's communication result, the error byte each servo
+put in its status packet, and which servo to blame if it failed. Retrying, alarms and locking
+live in :mod:`limbctl.servo.bus`; :func:`failure` turns a final failed attempt into the typed error.
+
+The SDK's group sync read drops the status error bytes, so sync reads are assembled here from
+its packet-level calls (``syncReadTx`` + ``readRx`` / ``rxPacket``) to keep the alert bit.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from dynamixel_sdk import (
+    BROADCAST_ID,
+    COMM_NOT_AVAILABLE,
+    COMM_PORT_BUSY,
+    COMM_RX_CORRUPT,
+    COMM_RX_TIMEOUT,
+    COMM_SUCCESS,
+    COMM_TX_FAIL,
+    GroupSyncWrite,
+    PortHandler,
+)
+
+from limbctl.errors import BusError, BusTimeout, CorruptReply, PortError
+from limbctl.servo.control_table import ALERT_BIT, Register
+
+#: Protocol 2.0 status packet: header(4) id(1) length(2) instruction(1), then parameters.
+_PKT_ID, _PKT_LENGTH_L, _PKT_LENGTH_H, _PKT_PARAMETER0 = 4, 5, 6, 8
+
+
+#: The SDK's assumption for the USB adapter's latency timer (ms): an FTDI chip's default.
+SDK_LATENCY_TIMER_MS = 16.0
+
+
+class TunedPortHandler(PortHandler):
+    """The SDK's PortHandler with the reply timeout computed for the adapter's real latency.
+
+    The SDK waits ``bytes * byte time + 2 * 16 ms + 2 ms`` for a reply, assuming an FTDI latency
+    timer of 16 ms; with the timer lowered to 1 ms (README) or on the simulator's pty, a dropped
+    reply then costs one control cycle instead of seven.
+    """
+
+    def __init__(self, port_name: str, latency_timer_ms: float) -> None:
+        super().__init__(port_name)
+        self.latency_timer_ms = float(latency_timer_ms)
+
+    def setPacketTimeout(self, packet_length: int) -> None:  # noqa: N802 (SDK's name)
+        self.packet_start_time = self.getCurrentTime()
+        # timeout = bytes * byte time + 2 * latency timer + 2 ms (the SDK's rule)
+        self.packet_timeout = (
+            self.tx_time_per_byte * packet_length + 2.0 * self.latency_timer_ms + 2.0
+        )
+
+
+@dataclass
+class Attempt:
+    """One try of a transaction.
+
+    Attributes
+    ----------
+    value : Any
+        What was read (None for writes or failures).
+    result : int
+        The SDK's ``COMM_*`` result.
+    errors : dict
+        Servo id -> error byte of its status packet (alert bit and error number).
+    culprit : int or None
+        The servo that did not answer or answered badly.
+    """
+
+    value: Any
+    result: int
+    errors: dict[int, int]
+    culprit: int | None = None
+
+
+def _refused(error: int) -> bool:
+    return bool(error & ~ALERT_BIT)
+
+
+def ping(packets: Any, port: PortHandler, servo_id: int) -> Attempt:
+    """PING one servo; the value is its model number."""
+    number, result, error = packets.ping(port, servo_id)
+    return Attempt(number, result, {servo_id: error}, servo_id)
+
+
+def read(packets: Any, port: PortHandler, register: Register, servo_id: int) -> Attempt:
+    """READ ``register`` of one servo."""
+    data, result, error = packets.readTxRx(port, servo_id, register.address, register.size)
+    if result == COMM_SUCCESS and not _refused(error) and len(data) != register.size:
+        result = COMM_RX_CORRUPT
+    value = register.decode(data) if len(data) == register.size else None
+    return Attempt(value, result, {servo_id: error}, servo_id)
+
+
+def write(
+    packets: Any, port: PortHandler, register: Register, servo_id: int, data: list[int]
+) -> Attempt:
+    """WRITE encoded ``data`` to ``register`` of one servo and take its status packet."""
+    result, error = packets.writeTxRx(port, servo_id, register.address, register.size, data)
+    return Attempt(None, result, {servo_id: error}, servo_id)
+
+
+def reboot(packets: Any, port: PortHandler, servo_id: int) -> Attempt:
+    """REBOOT one servo (it answers before restarting)."""
+    result, error = packets.reboot(port, servo_id)
+    return Attempt(None, result, {servo_id: error}, servo_id)
+
+
+def sync_read(packets: Any, port: PortHandler, register: Register, ids: Sequence[int]) -> Attempt:
+    """SYNC READ: one instruction, one status packet per servo; value is id -> int."""
+    result = packets.syncReadTx(port, register.address, register.size, list(ids), len(ids), False)
+    if result != COMM_SUCCESS:
+        return Attempt(None, result, {})
+    values: dict[int, int] = {}
+    errors: dict[int, int] = {}
+    for servo_id in ids:
+        data, result, error = packets.readRx(port, servo_id, register.size)
+        if result == COMM_SUCCESS and not _refused(error) and len(data) != register.size:
+            result = COMM_RX_CORRUPT
+        if result != COMM_SUCCESS:
+            return Attempt(None, result, errors, servo_id)
+        errors[servo_id] = error
+        if len(data) == register.size:
+            values[servo_id] = register.decode(data)
+    return Attempt(values, COMM_SUCCESS, errors)
+
+
+def fast_sync_read(
+    packets: Any, port: PortHandler, register: Register, ids: Sequence[int]
+) -> Attempt:
+    """FAST SYNC READ: one instruction, ONE combined status packet; value is id -> int.
+
+    The reply carries, per servo in request order, ``error, id, data, crc``; the packet's
+    own CRC (checked by the SDK) covers all of it.
+    """
+    result = packets.syncReadTx(port, register.address, register.size, list(ids), len(ids), True)
+    if result != COMM_SUCCESS:
+        return Attempt(None, result, {})
+    packet, result = packets.rxPacket(port, True)
+    if result != COMM_SUCCESS:
+        # a silent first servo sends nothing at all; a later one cuts the packet short
+        return Attempt(None, result, {}, ids[0] if result == COMM_RX_TIMEOUT else None)
+    # LEN = instruction + per servo (error + id + data + crc)
+    expected = 1 + len(ids) * (register.size + 4)
+    length = packet[_PKT_LENGTH_L] | packet[_PKT_LENGTH_H] << 8
+    if packet[_PKT_ID] != BROADCAST_ID or length != expected:
+        return Attempt(None, COMM_RX_CORRUPT, {})
+    values: dict[int, int] = {}
+    errors: dict[int, int] = {}
+    offset = _PKT_PARAMETER0
+    for servo_id in ids:
+        error, answered_id = packet[offset], packet[offset + 1]
+        if answered_id != servo_id:
+            return Attempt(None, COMM_RX_CORRUPT, errors, servo_id)
+        errors[servo_id] = error
+        values[servo_id] = register.decode(packet[offset + 2 : offset + 2 + register.size])
+        offset += register.size + 4
+    return Attempt(values, COMM_SUCCESS, errors)
+
+
+def sync_write(
+    packets: Any, port: PortHandler, register: Register, params: Mapping[int, list[int]]
+) -> Attempt:
+    """SYNC WRITE encoded data (id -> bytes) to ``register`` of several servos (no reply)."""
+    group = GroupSyncWrite(port, packets, register.address, register.size)
+    for servo_id, data in params.items():
+        group.addParam(servo_id, data)
+    return Attempt(None, group.txPacket(), {})
+
+
+def failure(what: str, outcome: Attempt, attempts: int, baud: int, port_name: str) -> BusError:
+    """The typed error for a transaction whose last attempt was ``outcome``."""
+    servo = f"servo {outcome.culprit}" if outcome.culprit is not None else "the bus"
+    tried = f"after {attempts} attempt{'s' if attempts > 1 else ''}"
+    if outcome.result == COMM_RX_TIMEOUT:
+        return BusTimeout(
+            f"{what}: {servo} did not answer {tried}: check its power supply and cable, and "
+            f"that its id and baud ({baud}) match the rig profile (scan with Dynamixel Wizard)",
+            outcome.culprit,
+        )
+    if outcome.result == COMM_RX_CORRUPT:
+        return CorruptReply(
+            f"{what}: replies from {servo} kept failing CRC/framing {tried}: check the cable "
+            f"and connectors, keep the bus away from motor power leads, try a lower baud",
+            outcome.culprit,
+        )
+    if outcome.result == COMM_TX_FAIL:
+        return PortError(
+            f"{what}: could not send on {port_name}: check the adapter and --port",
+            outcome.culprit,
+        )
+    if outcome.result == COMM_PORT_BUSY:
+        return BusError(f"{what}: the port is busy (used from another thread?)")
+    if outcome.result == COMM_NOT_AVAILABLE:
+        return BusError(f"{what}: not available with Protocol 2.0 / this id", outcome.culprit)
+    return BusError(f"{what}: failed with SDK result {outcome.result}", outcome.culprit)

@@ -1,0 +1,208 @@
+"""Dataset -> model file: fit an envelope to recorded valid orientations and summarise it."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from limbctl.errors import ConfigError
+from limbctl.geometry.gimbal import direction_to_pan_tilt
+from limbctl.geometry.quat import direction_angle, limb_direction
+
+
+@dataclass(frozen=True)
+class TrainSummary:
+    """What a training run produced, in the units a person reads (degrees).
+
+    Attributes
+    ----------
+    samples : int
+        Orientations the model was fitted to.
+    pan_range_deg, tilt_range_deg : tuple of float
+        Extent of the samples' joint angles.
+    spread_deg : float
+        Largest angle between a sample's limb direction and the samples' mean direction.
+    boundary_pan_range_deg, boundary_tilt_range_deg : tuple of float
+        Extent of the learned region's boundary (from the model's own boundary points, where it
+        exposes them; otherwise of the samples the model contains).
+    contained_fraction : float
+        Share of the training samples the trained model says are inside (should be ~1).
+    nodes : int
+        Number of node weights in the model.
+    edge : str
+        Which edge a Rigid Map gate uses: ``smooth`` (fitted, the data agreed with it) or
+        ``supported`` (through the taught samples); empty for other models.
+    """
+
+    samples: int
+    pan_range_deg: tuple[float, float]
+    tilt_range_deg: tuple[float, float]
+    spread_deg: float
+    boundary_pan_range_deg: tuple[float, float]
+    boundary_tilt_range_deg: tuple[float, float]
+    contained_fraction: float
+    nodes: int
+    edge: str = ""
+
+    def lines(self) -> list[str]:
+        """Human-readable summary lines."""
+        return [
+            f"samples            {self.samples}",
+            f"pan range          {self.pan_range_deg[0]:+.1f} .. {self.pan_range_deg[1]:+.1f} deg",
+            f"tilt range         {self.tilt_range_deg[0]:+.1f} .. "
+            f"{self.tilt_range_deg[1]:+.1f} deg",
+            f"angular spread     {self.spread_deg:.1f} deg from the mean direction",
+            f"learned boundary   pan {self.boundary_pan_range_deg[0]:+.1f} .. "
+            f"{self.boundary_pan_range_deg[1]:+.1f} deg, tilt "
+            f"{self.boundary_tilt_range_deg[0]:+.1f} .. {self.boundary_tilt_range_deg[1]:+.1f} deg",
+            f"samples inside     {100 * self.contained_fraction:.2f} %",
+            f"nodes              {self.nodes}",
+        ] + (
+            [f"edge               {self.edge} ({EDGE_MEANING[self.edge]})"]
+            if self.edge in EDGE_MEANING
+            else []
+        )
+
+
+#: What each Rigid Map edge means, for the summary.
+EDGE_MEANING = {
+    "smooth": "fitted to where the samples end; the data agreed with it",
+    "traced": "walked out to where the samples end, station by station; the data agreed",
+    "supported": "through the outermost taught samples; corners and bays kept as taught",
+}
+
+
+def _range_deg(values: np.ndarray) -> tuple[float, float]:
+    return (math.degrees(float(values.min())), math.degrees(float(values.max())))
+
+
+def summarize(model: Any, q: np.ndarray) -> TrainSummary:
+    """Describe a trained model and the samples it learned from.
+
+    Parameters
+    ----------
+    model : Envelope
+        A fitted model.
+    q : ndarray, shape (N, 4)
+        The training orientations.
+    """
+    directions = limb_direction(q)
+    pan, tilt = direction_to_pan_tilt(directions)
+    mean = directions.mean(axis=0)
+    mean /= np.linalg.norm(mean)
+    spread = math.degrees(float(direction_angle(directions, mean).max()))
+    inside = np.asarray(model.contains(q), dtype=bool)
+    b_pan, b_tilt = _region_extent(model, pan, tilt)
+    return TrainSummary(
+        samples=len(q),
+        pan_range_deg=_range_deg(pan),
+        tilt_range_deg=_range_deg(tilt),
+        spread_deg=spread,
+        boundary_pan_range_deg=_range_deg(b_pan),
+        boundary_tilt_range_deg=_range_deg(b_tilt),
+        contained_fraction=float(inside.mean()),
+        nodes=len(model.weights),
+        edge=str(getattr(model, "edge", "")),
+    )
+
+
+def _region_extent(
+    model: Any, pan: np.ndarray, tilt: np.ndarray, margin_deg: float = 20.0, step_deg: float = 0.5
+) -> tuple[np.ndarray, np.ndarray]:
+    """Joint angles (rad) of the grid points the model contains, on a ``step_deg`` pan/tilt grid
+    spanning the samples' extent plus ``margin_deg`` (what the learned region really covers)."""
+    from limbctl.geometry.gimbal import pan_tilt_to_quat
+
+    margin, step = math.radians(margin_deg), math.radians(step_deg)
+    pans = np.arange(max(pan.min() - margin, -math.pi), min(pan.max() + margin, math.pi), step)
+    tilts = np.arange(
+        max(tilt.min() - margin, -math.pi / 2), min(tilt.max() + margin, math.pi / 2), step
+    )
+    grid_pan, grid_tilt = (a.ravel() for a in np.meshgrid(pans, tilts))
+    inside = np.asarray(model.contains(pan_tilt_to_quat(grid_pan, grid_tilt)), dtype=bool)
+    if not inside.any():
+        return pan, tilt
+    return grid_pan[inside], grid_tilt[inside]
+
+
+MODEL_KINDS = ("rigidmap", "som", "cone")
+
+
+def build_model(kind: str, **options: Any) -> Any:
+    """Construct an unfitted envelope by name.
+
+    Raises
+    ------
+    ConfigError
+        For an unknown kind, listing the choices.
+    """
+    from limbctl import envelope
+
+    constructors = {
+        "rigidmap": lambda: envelope.RigidMap(**options),
+        "som": lambda: envelope.SOM(**options),
+        "cone": lambda: envelope.Cone(**options),
+    }
+    if kind not in constructors:
+        raise ConfigError(f"unknown model kind {kind!r}; choose one of {', '.join(MODEL_KINDS)}")
+    try:
+        return constructors[kind]()
+    except TypeError as exc:
+        raise ConfigError(f"bad options for {kind}: {exc}") from exc
+
+
+#: The stages :func:`train` reports to its ``progress`` callback, in order.
+STAGES = ("load dataset", "fit model", "save model", "summarise")
+
+
+def train(
+    data_path: str | Path,
+    out_path: str | Path,
+    kind: str = "rigidmap",
+    options: dict[str, Any] | None = None,
+    progress: Callable[[str], None] | None = None,
+) -> TrainSummary:
+    """Fit a model to a recorded dataset and save it next to nothing else (one file).
+
+    Parameters
+    ----------
+    data_path : path
+        A dataset written by ``limbctl record``.
+    out_path : path
+        The model file to write (replaced atomically).
+    kind : str
+        One of :data:`MODEL_KINDS`.
+    options : dict
+        Keyword options of the model's constructor (nodes, layout, seed, ...).
+    progress : callable, optional
+        Called with the name of each stage of :data:`STAGES` as it finishes.
+
+    Returns
+    -------
+    TrainSummary
+    """
+    from limbctl.teach.dataset import load_dataset
+
+    done = progress or (lambda stage: None)
+    data = load_dataset(data_path)
+    q = data.quaternions
+    done(STAGES[0])
+    if len(q) < 10:
+        raise ConfigError(
+            f"{data_path}: only {len(q)} samples; record longer (at least a few seconds "
+            "of moving the limb through its whole range)"
+        )
+    model = build_model(kind, **(options or {}))
+    model.fit(q)
+    done(STAGES[1])
+    metadata = {"rig": data.header.rig, "dataset": str(data_path), "samples": len(q)}
+    model.save(out_path, metadata=metadata)
+    done(STAGES[2])
+    summary = summarize(model, q)
+    done(STAGES[3])
+    return summary

@@ -1,0 +1,142 @@
+"""Parse one command (a JSON line or datagram) into a target orientation.
+
+Accepted forms, one JSON object per line (an optional numeric ``"t"`` in seconds is kept for
+replay timing; any other key is refused so that a typo never silently becomes a default):
+
+- ``{"pan": deg, "tilt": deg}``: joint angles in degrees, pan in [-180, 180], tilt in [-90, 90];
+- ``{"dir": [x, y, z]}``: a limb direction (any positive length, normalised here);
+- ``{"q": [w, x, y, z]}``: a unit quaternion; the gimbal has no twist, so only the direction it
+  points the limb along is used.
+
+Anything else (NaN, inf, out of range, wrong type, malformed JSON, oversize line) raises
+:class:`~limbctl.errors.InvalidInputError` with the reason; callers count and drop it.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from limbctl.errors import InvalidInputError
+from limbctl.geometry.gimbal import pan_tilt_to_direction
+from limbctl.geometry.quat import limb_direction, swing_from_direction
+
+#: Longest accepted line or datagram, in bytes.
+MAX_LINE_BYTES = 1024
+#: Allowed deviation of a commanded quaternion's norm from 1.
+QUAT_NORM_TOLERANCE = 1e-3
+#: Shortest accepted ``dir`` vector; shorter ones carry no direction.
+MIN_DIRECTION_NORM = 1e-6
+#: Largest accepted component magnitude (rejects huge values before they overflow).
+MAX_COMPONENT = 1e6
+
+_FORMS = ("pan/tilt", "dir", "q")
+_ALLOWED_KEYS = {"pan", "tilt", "dir", "q", "t"}
+
+
+@dataclass(frozen=True)
+class Command:
+    """A parsed, validated target.
+
+    Attributes
+    ----------
+    q : ndarray, shape (4,)
+        Twist-free target orientation (w >= 0).
+    direction : ndarray, shape (3,)
+        Unit limb direction of the target.
+    t : float or None
+        Timestamp in seconds from the line, if it had one.
+    """
+
+    q: np.ndarray
+    direction: np.ndarray
+    t: float | None = None
+
+
+def _finite_number(value: object, name: str) -> float:
+    # bool is an int subclass in Python; `true` is not a number here
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise InvalidInputError(f"{name} must be a number, got {type(value).__name__}")
+    try:
+        x = float(value)
+    except OverflowError:  # a JSON integer too large for a float
+        raise InvalidInputError(f"{name} is out of range: {value!r:.40}") from None
+    if not math.isfinite(x):
+        raise InvalidInputError(f"{name} must be finite, got {value!r}")
+    if abs(x) > MAX_COMPONENT:
+        raise InvalidInputError(f"{name} is out of range: {value!r}")
+    return x
+
+
+def _vector(value: object, name: str, length: int) -> np.ndarray:
+    if not isinstance(value, list) or len(value) != length:
+        raise InvalidInputError(f"{name} must be a list of {length} numbers")
+    return np.array([_finite_number(v, f"{name}[{i}]") for i, v in enumerate(value)])
+
+
+def parse_command(line: str | bytes) -> Command:
+    """Parse one JSON command into a :class:`Command`.
+
+    Parameters
+    ----------
+    line : str or bytes
+        One JSON object (trailing newline allowed).
+
+    Raises
+    ------
+    InvalidInputError
+        With the reason, for anything that is not exactly one valid command.
+    """
+    if isinstance(line, bytes):
+        if len(line) > MAX_LINE_BYTES:
+            raise InvalidInputError(f"line longer than {MAX_LINE_BYTES} bytes")
+        try:
+            line = line.decode("utf-8")
+        except UnicodeDecodeError as exc:
+            raise InvalidInputError("line is not UTF-8") from exc
+    if len(line.encode("utf-8", "surrogatepass")) > MAX_LINE_BYTES:
+        raise InvalidInputError(f"line longer than {MAX_LINE_BYTES} bytes")
+    try:
+        # NaN/Infinity literals are refused at parse time, not just later
+        obj = json.loads(line, parse_constant=_refuse_constant)
+    except (json.JSONDecodeError, RecursionError) as exc:
+        raise InvalidInputError(f"malformed JSON: {exc}") from exc
+    if not isinstance(obj, dict):
+        raise InvalidInputError('expected a JSON object such as {"pan": 10, "tilt": 5}')
+    unknown = set(obj) - _ALLOWED_KEYS
+    if unknown:
+        raise InvalidInputError(f"unknown key(s) {sorted(unknown)}; use one of {_FORMS}")
+    t = _finite_number(obj["t"], "t") if "t" in obj else None
+    forms = [("pan" in obj or "tilt" in obj), "dir" in obj, "q" in obj]
+    if sum(forms) != 1:
+        raise InvalidInputError(f"give exactly one of {_FORMS}")
+    if forms[0]:
+        if "pan" not in obj or "tilt" not in obj:
+            raise InvalidInputError("pan and tilt must be given together")
+        pan = _finite_number(obj["pan"], "pan")
+        tilt = _finite_number(obj["tilt"], "tilt")
+        if not -180.0 <= pan <= 180.0:
+            raise InvalidInputError(f"pan {pan} deg is outside [-180, 180]")
+        if not -90.0 <= tilt <= 90.0:
+            raise InvalidInputError(f"tilt {tilt} deg is outside [-90, 90]")
+        direction = pan_tilt_to_direction(math.radians(pan), math.radians(tilt))
+    elif forms[1]:
+        d = _vector(obj["dir"], "dir", 3)
+        norm = float(np.linalg.norm(d))
+        if not norm >= MIN_DIRECTION_NORM:
+            raise InvalidInputError(f"dir has length {norm:.3g}; it needs a direction")
+        direction = d / norm
+    else:
+        q = _vector(obj["q"], "q", 4)
+        norm = float(np.linalg.norm(q))
+        if not abs(norm - 1.0) <= QUAT_NORM_TOLERANCE:
+            raise InvalidInputError(f"q has norm {norm:.6g}; send a unit quaternion")
+        direction = limb_direction(q / norm)
+    return Command(q=swing_from_direction(direction), direction=direction, t=t)
+
+
+def _refuse_constant(name: str) -> float:
+    raise InvalidInputError(f"{name} is not a valid number")

@@ -1,0 +1,298 @@
+"""The one place every commanded pose passes before it may become a goal position.
+
+Per command (the safety model in docs/architecture.md):
+
+1. ``correct``: the envelope returns the target itself inside the taught region, else the
+   nearest orientation on its boundary;
+2. slew limit: the limb direction moves at most ``max_step`` (rad) per cycle from the last safe
+   pose along the great circle toward the corrected target; the intermediate pose is corrected
+   again, so a non-convex region is followed along its edge, never cut across;
+3. inverse kinematics to (pan, tilt), keeping the current pan at the singularity;
+4. hard joint limits clamp (pan, tilt); a joint step larger than ``max_joint_step`` is refused;
+5. final check: the pose that would be written is inside the region (``contains``) and inside
+   the hard limits; if not, the last safe pose is held.
+
+The outcome of a cycle is a value (:class:`Outcome`), not an exception (after ruckig).
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+from limbctl.errors import ConfigError
+from limbctl.geometry.gimbal import SINGULAR_COS
+
+
+class RegionModel(Protocol):
+    """What the gate needs of an envelope (any :class:`limbctl.envelope.Envelope`)."""
+
+    def contains(self, q: np.ndarray) -> bool | np.ndarray: ...
+
+    def correct(self, q: np.ndarray) -> np.ndarray: ...
+
+
+class Outcome(enum.Enum):
+    """What the gate did with one command."""
+
+    PASSED = "passed"  # inside the region, within one step: written as commanded
+    CORRECTED = "corrected"  # moved onto the region's boundary
+    CLAMPED = "clamped"  # a hard joint limit trimmed it
+    SLEWED = "slewed"  # on its way: the step limit shortened it
+    HELD = "held"  # nothing safe to do with it: the last safe pose is kept
+
+
+#: Default gate tolerance (deg): how far outside the region a written pose may be.
+REGION_TOLERANCE_DEG = 0.01
+
+
+@dataclass(frozen=True)
+class GateLimits:
+    """Hard limits and rates the gate enforces; angles in radians.
+
+    Attributes
+    ----------
+    pan_min, pan_max, tilt_min, tilt_max : float
+        Hard joint limits (rad) from the rig profile.
+    max_step : float
+        Largest change of limb direction per cycle (rad).
+    max_joint_step : float
+        Largest change of either joint per cycle (rad); guards the singularity where a small
+        direction change asks for a large pan swing.
+    region_tolerance : float
+        How far (rad, limb direction) outside the learned region a written pose may be: the
+        round trip through joint angles moves a boundary point by ~1e-12 rad, never more.
+    """
+
+    pan_min: float
+    pan_max: float
+    tilt_min: float
+    tilt_max: float
+    max_step: float
+    max_joint_step: float
+    region_tolerance: float = math.radians(REGION_TOLERANCE_DEG)
+
+    def __post_init__(self) -> None:
+        values = [getattr(self, f) for f in self.__dataclass_fields__]
+        if not all(math.isfinite(v) for v in values):
+            raise ConfigError(f"gate limits must be finite: {self}")
+        if not (self.pan_min < self.pan_max and self.tilt_min < self.tilt_max):
+            raise ConfigError(f"gate limits: each min must be below its max: {self}")
+        if not (self.max_step > 0 and self.max_joint_step > 0 and self.region_tolerance >= 0):
+            raise ConfigError(
+                "gate limits: max_step and max_joint_step must be positive, "
+                "region_tolerance non-negative"
+            )
+
+
+def written_tolerance_deg(ticks_per_turn: int = 4096) -> float:
+    """How far (deg) a goal that reached a servo may lie outside the model's region.
+
+    The gate's tolerance (``REGION_TOLERANCE_DEG``) plus the rounding of both joints to whole
+    ticks: half a tick each moves the limb direction by at most ``sqrt(2) * half tick``
+    (``|dd|^2 = (cos(tilt) dpan)^2 + dtilt^2``). 0.072 deg for 4096-tick servos.
+    """
+    half_tick = 360.0 / ticks_per_turn / 2.0
+    return REGION_TOLERANCE_DEG + math.sqrt(2.0) * half_tick
+
+
+@dataclass(frozen=True)
+class GateResult:
+    """One cycle's answer.
+
+    Attributes
+    ----------
+    pan, tilt : float
+        The pose to write (rad); the last safe pose when ``outcome`` is HELD.
+    outcome : Outcome
+        The strongest thing that happened (HELD > CLAMPED > CORRECTED > SLEWED > PASSED).
+    corrected, clamped, slewed : bool
+        Each stage that changed the command.
+    reason : str
+        Why the command was held, empty otherwise.
+    """
+
+    pan: float
+    tilt: float
+    outcome: Outcome
+    corrected: bool = False
+    clamped: bool = False
+    slewed: bool = False
+    reason: str = ""
+
+
+# Scalar kinematics for the hot path: one pose per cycle, so plain floats beat numpy's
+# per-call overhead by ~10x. Same formulas as limbctl.geometry.gimbal and limbctl.geometry.quat.
+Vec3 = tuple[float, float, float]
+
+
+def _direction(pan: float, tilt: float) -> Vec3:
+    # d = (cos t cos p, cos t sin p, sin t)
+    ct = math.cos(tilt)
+    return (ct * math.cos(pan), ct * math.sin(pan), math.sin(tilt))
+
+
+def _swing(d: Vec3) -> np.ndarray:
+    """Twist-free quaternion turning +x onto unit ``d``: normalize(1 + d_x, 0, -d_z, d_y)."""
+    w, y, z = 1.0 + d[0], -d[2], d[1]
+    norm = math.sqrt(w * w + y * y + z * z)
+    if norm < 1e-12:  # d = -x: the half-turn about +z, as quat.swing_from_direction
+        return np.array([0.0, 0.0, 0.0, 1.0])
+    return np.array([w / norm, 0.0, y / norm, z / norm])
+
+
+def _limb(q: np.ndarray) -> Vec3:
+    # d = (w^2 + x^2 - y^2 - z^2, 2(xy + wz), 2(xz - wy)): +x rotated by q
+    w, x, y, z = q.tolist()
+    return (w * w + x * x - y * y - z * z, 2.0 * (x * y + w * z), 2.0 * (x * z - w * y))
+
+
+def _angle(a: Vec3, b: Vec3) -> float:
+    # atan2(|a x b|, a . b): accurate for tiny angles
+    cx = a[1] * b[2] - a[2] * b[1]
+    cy = a[2] * b[0] - a[0] * b[2]
+    cz = a[0] * b[1] - a[1] * b[0]
+    return math.atan2(
+        math.sqrt(cx * cx + cy * cy + cz * cz), a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+    )
+
+
+def _toward(a: Vec3, b: Vec3, step: float) -> Vec3:
+    """Unit direction ``step`` rad from ``a`` along the great circle toward ``b``."""
+    # d = cos(step) a + sin(step) u, with u the unit tangent at a toward b
+    dot = a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+    t = (b[0] - dot * a[0], b[1] - dot * a[1], b[2] - dot * a[2])
+    norm = math.sqrt(t[0] * t[0] + t[1] * t[1] + t[2] * t[2])
+    if norm < 1e-12:
+        return a
+    c, s = math.cos(step), math.sin(step) / norm
+    return (c * a[0] + s * t[0], c * a[1] + s * t[1], c * a[2] + s * t[2])
+
+
+def _pan_tilt(d: Vec3, current_pan: float) -> tuple[float, float]:
+    # pan = atan2(d_y, d_x), tilt = atan2(d_z, |d_xy|); at the singularity keep the current pan
+    horizontal = math.hypot(d[0], d[1])
+    pan = math.atan2(d[1], d[0]) if horizontal > SINGULAR_COS else current_pan
+    return pan, math.atan2(d[2], horizontal)
+
+
+class Gate:
+    """Turns commanded orientations into safe joint goals, one cycle at a time.
+
+    Parameters
+    ----------
+    envelope : RegionModel
+        The trained region (``contains``/``correct`` on single quaternions).
+    limits : GateLimits
+        Hard limits and per-cycle step limits.
+    """
+
+    def __init__(self, envelope: RegionModel, limits: GateLimits) -> None:
+        self.envelope = envelope
+        self.limits = limits
+        self._pan: float | None = None
+        self._tilt: float | None = None
+        self._direction: Vec3 | None = None
+
+    @property
+    def safe_pose(self) -> tuple[float, float] | None:
+        """The last pose the gate let through (rad), or None before :meth:`start`."""
+        if self._pan is None or self._tilt is None:
+            return None
+        return self._pan, self._tilt
+
+    def is_safe(self, pan: float, tilt: float) -> bool:
+        """True when the pose is finite, inside the hard limits and inside the region."""
+        lim = self.limits
+        if not (lim.pan_min <= pan <= lim.pan_max and lim.tilt_min <= tilt <= lim.tilt_max):
+            return False  # NaN fails every comparison above and lands here
+        direction = _direction(pan, tilt)
+        q = _swing(direction)
+        if bool(self.envelope.contains(q)):
+            return True
+        # inside up to the stated tolerance: the nearest region point is within region_tolerance
+        nearest = _limb(self.envelope.correct(q))
+        return _angle(direction, nearest) <= lim.region_tolerance
+
+    def start(self, current_pan: float, current_tilt: float) -> None:
+        """Begin from the limb's present pose, which must already be safe.
+
+        Raises
+        ------
+        SafetyError
+            When the present pose is outside the region or the hard limits: the gate will not
+            drive the limb from there (move it inside by hand with torque off, then start again).
+        """
+        from limbctl.errors import SafetyError
+
+        if not self.is_safe(current_pan, current_tilt):
+            raise SafetyError(
+                f"the limb is at pan {math.degrees(current_pan):.1f} deg, tilt "
+                f"{math.degrees(current_tilt):.1f} deg, outside the taught region or the rig's "
+                "hard limits; move it inside by hand (torque off) before starting"
+            )
+        self._pan, self._tilt = float(current_pan), float(current_tilt)
+        self._direction = _direction(self._pan, self._tilt)
+
+    def hold(self, reason: str) -> GateResult:
+        """Keep the last safe pose."""
+        if self._pan is None or self._tilt is None:
+            raise RuntimeError("Gate.start() must be called before the first cycle")
+        return GateResult(self._pan, self._tilt, Outcome.HELD, reason=reason)
+
+    def step(self, target_q: np.ndarray) -> GateResult:
+        """Gate one commanded orientation (4,) and return the pose to write this cycle."""
+        if self._direction is None or self._pan is None or self._tilt is None:
+            raise RuntimeError("Gate.start() must be called before the first cycle")
+        target_q = np.asarray(target_q, dtype=np.float64)
+        if target_q.shape != (4,):
+            return self.hold("malformed target")
+        w, x, y, z = target_q.tolist()
+        # | |q| - 1 | <= 1e-6; NaN and inf fail the comparison and are held
+        if not abs(math.sqrt(w * w + x * x + y * y + z * z) - 1.0) <= 1e-6:
+            return self.hold("non-finite or non-unit target")
+        lim = self.limits
+
+        corrected_q = self.envelope.correct(target_q)
+        target_dir = _limb(corrected_q)
+        corrected = not np.array_equal(corrected_q, target_q)
+
+        # slew: at most max_step along the great circle from the last safe direction
+        slewed = False
+        if _angle(self._direction, target_dir) > lim.max_step:
+            slewed = True
+            step_dir = _toward(self._direction, target_dir, lim.max_step)
+            target_dir = _limb(self.envelope.correct(_swing(step_dir)))
+
+        pan, tilt = _pan_tilt(target_dir, self._pan)
+        clamped_pan = min(max(pan, lim.pan_min), lim.pan_max)
+        clamped_tilt = min(max(tilt, lim.tilt_min), lim.tilt_max)
+        clamped = clamped_pan != pan or clamped_tilt != tilt
+        pan, tilt = clamped_pan, clamped_tilt
+
+        # near the singularity a short direction step can ask for a long pan swing: shorten it
+        # in joint space, pan' = pan0 + f (pan - pan0) with f = max_joint_step / largest step
+        largest = max(abs(pan - self._pan), abs(tilt - self._tilt))
+        if largest > lim.max_joint_step:
+            f = lim.max_joint_step / largest
+            pan = self._pan + f * (pan - self._pan)
+            tilt = self._tilt + f * (tilt - self._tilt)
+            slewed = True
+        if not self.is_safe(pan, tilt):
+            return self.hold("corrected pose failed the final region/limit check")
+
+        self._pan, self._tilt = pan, tilt
+        self._direction = _direction(pan, tilt)
+        if clamped:
+            outcome = Outcome.CLAMPED
+        elif corrected:
+            outcome = Outcome.CORRECTED
+        elif slewed:
+            outcome = Outcome.SLEWED
+        else:
+            outcome = Outcome.PASSED
+        return GateResult(pan, tilt, outcome, corrected=corrected, clamped=clamped, slewed=slewed)

@@ -1,0 +1,190 @@
+import numpy as np
+import pytest
+
+from limbctl.envelope import SOM, Cone, Envelope
+from limbctl.envelope.som import table_i_schedule
+from limbctl.errors import ConfigError, FileFormatError, InvalidInputError
+from limbctl.geometry import quat
+
+X = np.array([1.0, 0.0, 0.0])
+
+
+def cone_patterns(n, half_angle, seed):
+    rng = np.random.default_rng(seed)
+    d = quat.normalize(rng.normal(size=(8 * n, 3)))
+    d = d[quat.direction_angle(d, X) <= half_angle][:n]
+    return quat.swing_from_direction(d)
+
+
+def sphere_directions(n, seed):
+    rng = np.random.default_rng(seed)
+    return quat.normalize(rng.normal(size=(n, 3)))
+
+
+@pytest.fixture(scope="module")
+def small_som():
+    # Table I's constant sizes: 100 output nodes, 500 training patterns, 90 degree cone
+    patterns = cone_patterns(500, np.pi / 2, seed=1)
+    return SOM(rows=10, cols=10, seed=2).fit(patterns), patterns
+
+
+def test_table_i_schedule():
+    lr, radii = table_i_schedule(60)
+    for t, want_lr, want_radius in [
+        (0, 1.0, 4.0),
+        (9, 1.0, 4.0),
+        (10, 0.5, 2.0),
+        (20, 0.25, 1.0),
+        (30, 0.125, 0.5),
+        (40, 0.0625, 0.25),
+        (59, 0.0625, 0.25),
+    ]:
+        assert lr[t] == want_lr and radii[t] == want_radius
+    assert len(lr) == len(radii) == 60
+    assert SOM().schedule()[0].shape == (10_000,)
+    # floors hold when the periods run on
+    lr, radii = table_i_schedule(200, periods=20)
+    assert lr.min() == 0.02 and radii.min() == pytest.approx(4.0 * 0.5**19)
+
+
+def test_fit_converges_and_weights_cover_the_data(small_som):
+    som, patterns = small_som
+    assert som.weights.shape == (100, 4)
+    assert som.converged and 40 < som.steps < som.max_steps
+    # every training pattern is close to some node, and nodes sit on the data (not at init)
+    nodes = som.respond(patterns)
+    assert np.max(np.linalg.norm(nodes - patterns, axis=1)) == pytest.approx(som.threshold)
+    assert np.min(np.linalg.norm(som.weights, axis=1)) > 0.5
+    assert som.contains(patterns).all()
+
+
+def test_fit_is_seeded():
+    patterns = cone_patterns(200, np.radians(60), seed=3)
+    a = SOM(rows=6, cols=6, seed=7, lr0=0.8).fit(patterns).weights
+    b = SOM(rows=6, cols=6, seed=7, lr0=0.8).fit(patterns).weights
+    c = SOM(rows=6, cols=6, seed=8, lr0=0.8).fit(patterns).weights
+    np.testing.assert_array_equal(a, b)
+    assert not np.array_equal(a, c)
+    g = SOM(rows=6, cols=6, seed=np.random.default_rng(7), lr0=0.8).fit(patterns).weights
+    np.testing.assert_array_equal(a, g)
+
+
+def test_table_i_first_step_overwrites_the_initial_weights():
+    # lr(0) = 1 copies each pattern onto its neighbourhood: once every node has been reached,
+    # the random initial weights no longer matter (documented in som.py)
+    patterns = cone_patterns(200, np.radians(60), seed=3)
+    a = SOM(rows=6, cols=6, seed=7).fit(patterns).weights
+    c = SOM(rows=6, cols=6, seed=8).fit(patterns).weights
+    np.testing.assert_array_equal(a, c)
+
+
+def test_respond_none_is_the_normalised_winner(small_som):
+    som, _ = small_som
+    q = quat.swing_from_direction(sphere_directions(300, seed=4))
+    out = som.respond(q)
+    d2 = np.sum((q[:, None, :] - som.weights[None]) ** 2, axis=2)
+    winner = som.weights[np.argmin(d2, axis=1)]
+    np.testing.assert_allclose(out, quat.canonical(quat.normalize(winner)), atol=1e-15)
+    assert som.respond(q[0]).shape == (4,)
+
+
+def test_900_node_som_matches_the_paper_figure():
+    # the paper: 900 nodes, 5000 patterns, 90 deg cone -> 3D error 5.63e-2 on a unit limb;
+    # here the RMS end-point error against Lee's ideal over directions uniform on the sphere
+    som = SOM(seed=0).fit(cone_patterns(5000, np.pi / 2, seed=5))
+    q = quat.swing_from_direction(sphere_directions(4000, seed=6))
+    ideal = quat.limb_direction(Cone(np.pi / 2).correct(q))
+
+    def rms(answer):
+        return np.sqrt(np.mean(np.sum((quat.limb_direction(answer) - ideal) ** 2, axis=1)))
+
+    err_none = rms(som.respond(q))
+    assert 0.03 < err_none < 0.08
+    # interpolation between the winner and its runner-ups helps (Rigid Map paper's finding)
+    assert rms(som.respond(q, interpolation="geometric", k=8)) < 0.85 * err_none
+
+
+@pytest.mark.parametrize("mode", ["idw", "geometric", "geometric-winner", "topological"])
+def test_interpolated_answers_are_unit_canonical_and_exact_on_a_node(small_som, mode):
+    som, _ = small_som
+    q = quat.swing_from_direction(sphere_directions(200, seed=7))
+    out = som.respond(q, interpolation=mode, k=4)
+    np.testing.assert_allclose(np.linalg.norm(out, axis=1), 1.0, atol=1e-14)
+    assert (out[:, 0] >= 0).all()
+    # an input exactly on a (unit) node: idw returns the node
+    if mode == "idw":
+        node = quat.normalize(som.weights[0])
+        som_unit = SOM(rows=10, cols=10)
+        som_unit._weights = quat.normalize(som.weights)
+        np.testing.assert_allclose(som_unit.respond(node, "idw", k=4), node, atol=1e-15)
+
+
+def test_topological_uses_grid_neighbours(small_som):
+    som, _ = small_som
+    topo = som._grid_topology(4)
+    # node (2, 3) = 23: its 4 edge neighbours on the 10 x 10 grid
+    assert sorted(topo[23]) == [13, 22, 24, 33]
+
+
+def test_contains_and_correct(small_som):
+    som, patterns = small_som
+    q = quat.swing_from_direction(sphere_directions(2000, seed=8))
+    inside = som.contains(q)
+    truth = Cone(np.pi / 2).contains(q)
+    # the simple threshold gate agrees with the true cone on most directions
+    assert np.mean(inside == truth) > 0.9
+    out = som.correct(q)
+    assert out[inside].tobytes() == q[inside].tobytes()
+    np.testing.assert_allclose(out[~inside], som.respond(q[~inside]), atol=0)
+    assert som.contains(out).all()
+    assert isinstance(som.contains(q[0]), bool)
+
+
+def test_bad_input_rejected(small_som):
+    som, _ = small_som
+    q = quat.swing_from_direction(sphere_directions(4, seed=9))
+    q[2, 0] = np.inf
+    with pytest.raises(InvalidInputError, match="row 2"):
+        som.correct(q)
+    with pytest.raises(ConfigError, match="unknown interpolation 'spline'.*geometric"):
+        som.respond(q[:1], interpolation="spline")
+    with pytest.raises(ConfigError, match="integer >= 1"):
+        som.respond(q[:1], interpolation="idw", k=0)
+    with pytest.raises(ConfigError, match="empty"):
+        SOM().fit(np.empty((0, 4)))
+
+
+def test_untrained_and_bad_options():
+    som = SOM(rows=3, cols=3)
+    with pytest.raises(ConfigError, match="not trained"):
+        som.respond(np.array([1.0, 0, 0, 0]))
+    with pytest.raises(ConfigError, match="not trained"):
+        som.contains(np.array([1.0, 0, 0, 0]))
+    with pytest.raises(ConfigError, match="rows must be an integer"):
+        SOM(rows=0)
+    with pytest.raises(ConfigError, match="lr0 must be"):
+        SOM(lr0=float("nan"))
+    with pytest.raises(ConfigError, match="above 1"):
+        SOM(lr0=1.5)
+
+
+def test_save_load_round_trip(small_som, tmp_path):
+    som, _ = small_som
+    path = som.save(tmp_path / "som.npz", metadata={"rig": "sim"})
+    back = SOM.load(path)
+    assert isinstance(Envelope.load(path), SOM)
+    np.testing.assert_array_equal(back.weights, som.weights)
+    assert (back.rows, back.cols, back.threshold, back.steps, back.converged) == (
+        som.rows,
+        som.cols,
+        som.threshold,
+        som.steps,
+        som.converged,
+    )
+    q = quat.swing_from_direction(sphere_directions(100, seed=10))
+    np.testing.assert_array_equal(back.correct(q), som.correct(q))
+    np.testing.assert_array_equal(back.respond(q, "topological"), som.respond(q, "topological"))
+    with pytest.raises(FileFormatError, match="holds a som model, not a cone"):
+        Cone.load(path)
+    with pytest.raises(ConfigError, match="not trained"):
+        SOM().save(tmp_path / "untrained.npz")

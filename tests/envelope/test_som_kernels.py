@@ -1,0 +1,97 @@
+import numpy as np
+
+from limbctl.envelope.som import SOM, table_i_schedule
+from limbctl.envelope.som_kernels import train_som, train_som_reference
+from limbctl.geometry import quat
+
+
+def cone_patterns(n, half_angle, seed):
+    rng = np.random.default_rng(seed)
+    d = quat.normalize(rng.normal(size=(8 * n, 3)))
+    d = d[quat.direction_angle(d, [1.0, 0.0, 0.0]) <= half_angle][:n]
+    return quat.swing_from_direction(d)
+
+
+def run_both(weights, patterns, grid_distance, lr, radii):
+    wk, wr = weights.copy(), weights.copy()
+    win_k = np.full(len(patterns), -1, dtype=np.int64)
+    win_r = win_k.copy()
+    out_k = train_som(wk, patterns, grid_distance, lr, radii, win_k)
+    out_r = train_som_reference(wr, patterns, grid_distance, lr, radii, win_r)
+    return (wk, win_k, out_k), (wr, win_r, out_r)
+
+
+def test_kernel_matches_reference_on_a_small_problem():
+    som = SOM(rows=5, cols=6, seed=3, max_steps=60)
+    patterns = cone_patterns(80, np.radians(70), seed=4)
+    lr, radii = som.schedule()
+    (wk, win_k, out_k), (wr, win_r, out_r) = run_both(
+        som.initial_weights(), patterns, som.grid_distance(), lr, radii
+    )
+    np.testing.assert_allclose(wk, wr, atol=1e-10, rtol=0)
+    np.testing.assert_array_equal(win_k, win_r)
+    assert out_k == out_r
+    assert out_k[0] > 10  # it really trained through several periods
+
+
+def test_kernel_matches_reference_to_convergence():
+    som = SOM(rows=4, cols=4, seed=5, max_steps=500)
+    patterns = cone_patterns(40, np.radians(45), seed=6)
+    lr, radii = som.schedule()
+    (wk, _, out_k), (wr, _, out_r) = run_both(
+        som.initial_weights(), patterns, som.grid_distance(), lr, radii
+    )
+    steps, converged = out_k
+    assert converged and steps < 500
+    assert out_r == out_k
+    np.testing.assert_allclose(wk, wr, atol=1e-10, rtol=0)
+
+
+def test_one_update_moves_by_the_learning_rate():
+    weights = np.array([[0.0, 0.0, 0.0, 0.0], [1.0, 1.0, 1.0, 1.0]])
+    pattern = np.array([[1.0, 0.0, 0.0, 0.0]])
+    grid_distance = np.array([[0.0, 1.0], [1.0, 0.0]])
+    winners = np.full(1, -1, dtype=np.int64)
+    steps, converged = train_som(
+        weights, pattern, grid_distance, np.array([0.25]), np.array([0.0]), winners
+    )
+    # node 0 wins (D = 1 < 3); w += 0.25 (x - w); radius 0: node 1 untouched
+    np.testing.assert_array_equal(weights[0], [0.25, 0.0, 0.0, 0.0])
+    np.testing.assert_array_equal(weights[1], [1.0, 1.0, 1.0, 1.0])
+    assert winners[0] == 0 and steps == 1 and not converged
+
+
+def test_neighbourhood_radius_reaches_grid_neighbours_only():
+    som = SOM(rows=3, cols=3, seed=0)
+    weights = np.zeros((9, 4))
+    weights[4] = [1.0, 0.0, 0.0, 0.0]  # the centre node wins
+    pattern = np.array([[1.0, 0.0, 0.0, 0.0]])
+    winners = np.full(1, -1, dtype=np.int64)
+    train_som(weights, pattern, som.grid_distance(), np.array([0.5]), np.array([1.0]), winners)
+    moved = np.flatnonzero(weights[:, 0] > 0)
+    # radius 1 on the grid: the centre and its 4 edge neighbours, not the diagonals
+    assert list(moved) == [1, 3, 4, 5, 7]
+    np.testing.assert_allclose(weights[[1, 3, 5, 7], 0], 0.5)
+
+
+def test_convergence_stops_when_no_winner_changes():
+    patterns = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0]])
+    weights = patterns.copy()
+    grid_distance = np.array([[0.0, 1.0], [1.0, 0.0]])
+    lr, radii = table_i_schedule(100)
+    winners = np.full(2, -1, dtype=np.int64)
+    steps, converged = train_som(weights, patterns, grid_distance, lr, 0 * radii, winners)
+    # step 1 sets the winners (changed from -1), step 2 changes none
+    assert (steps, converged) == (2, True)
+    np.testing.assert_array_equal(winners, [0, 1])
+
+
+def test_cap_is_honoured_without_convergence():
+    som = SOM(rows=8, cols=8, seed=1, max_steps=3)
+    patterns = cone_patterns(200, np.radians(60), seed=2)
+    lr, radii = som.schedule()
+    winners = np.full(len(patterns), -1, dtype=np.int64)
+    steps, converged = train_som(
+        som.initial_weights(), patterns, som.grid_distance(), lr, radii, winners
+    )
+    assert steps == 3 and not converged

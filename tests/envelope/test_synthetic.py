@@ -1,0 +1,55 @@
+import numpy as np
+
+from limbctl.envelope.synthetic import ConeRegion, PolygonRegion, to_quaternions
+from limbctl.geometry.quat import direction_angle, limb_direction
+
+
+def test_cone_samples_inside_and_ideal_is_lee():
+    rng = np.random.default_rng(0)
+    cone = ConeRegion(np.radians(30.0))
+    assert cone.contains(cone.sample(500, rng)).all()
+    test = cone.test_directions(2000, rng)
+    assert np.degrees(direction_angle(test, cone.axis)).max() <= 60.0 + 1e-9
+    ideal = cone.ideal(test)
+    outside = ~cone.contains(test)
+    np.testing.assert_allclose(
+        direction_angle(ideal[outside], cone.axis), np.radians(30), atol=1e-12
+    )
+    np.testing.assert_array_equal(ideal[~outside], test[~outside])
+
+
+def test_polygon_ideal_is_nearest_boundary_point():
+    rng = np.random.default_rng(1)
+    bean = PolygonRegion()
+    s = bean.sample(1000, rng)
+    assert bean.contains(s).all()
+    test = bean.test_directions(300, rng)
+    ideal = bean.ideal(test)
+    outside = ~bean.contains(test)
+    # the ideal is no farther than any dense boundary sample
+    dist = direction_angle(test[outside], ideal[outside])
+    brute = np.min(np.arccos(np.clip(test[outside] @ bean.boundary.T, -1, 1)), axis=1)
+    assert (dist <= brute + 1e-12).all()
+    # the sampling is dense in the middle, sparse at the edge
+    depth = bean.depth(s)
+    assert (depth < np.radians(3)).mean() < 0.2
+
+
+def test_to_quaternions_points_the_limb():
+    d = ConeRegion(1.0).sample(10, np.random.default_rng(2))
+    np.testing.assert_allclose(limb_direction(to_quaternions(d)), d, atol=1e-12)
+
+
+def test_trajectory_samples_are_continuous_strokes_inside():
+    from limbctl.envelope.synthetic import trajectory_samples
+
+    rng = np.random.default_rng(3)
+    bean = PolygonRegion()
+    d = trajectory_samples(bean, 3000, rng)
+    assert d.shape == (3000, 3)
+    assert bean.contains(d).all()
+    steps = np.degrees(direction_angle(d[1:], d[:-1]))
+    # consecutive samples are close (a 100 Hz recording), except where a stroke ends
+    assert np.quantile(steps, 0.98) <= 0.31
+    # some strokes creep along the edge
+    assert (bean.depth(d) < np.radians(1.0)).mean() > 0.05

@@ -1,0 +1,106 @@
+"""Metric functions against hand-computed cases."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from limbctl.errors import ConfigError
+from limbctl.eval.metrics import (
+    METRIC_NAMES,
+    direction_error_deg,
+    endpoint_error,
+    mean_and_spread,
+    quaternion_sq_error,
+    score,
+    unchanged,
+)
+
+IDENTITY = np.array([1.0, 0.0, 0.0, 0.0])
+#: 90 degrees about +z: the limb turns from +x to +y.
+QUARTER_Z = np.array([math.cos(math.pi / 4), 0.0, 0.0, math.sin(math.pi / 4)])
+
+
+def test_quaternion_sq_error_by_hand():
+    answer = np.array([IDENTITY, [0.0, 0.0, 0.0, 1.0]])
+    ideal = np.array([[0.6, 0.8, 0.0, 0.0], [0.0, 0.0, 0.0, -1.0]])
+    # |(1,0,0,0) - (0.6,0.8,0,0)|^2 = 0.16 + 0.64; the second pair is q and -q: no error
+    np.testing.assert_allclose(quaternion_sq_error(answer, ideal), [0.8, 0.0], atol=1e-15)
+
+
+def test_endpoint_and_angle_error_of_a_quarter_turn():
+    answer = np.array([IDENTITY, QUARTER_Z])
+    ideal = np.array([QUARTER_Z, QUARTER_Z])
+    # limb +x vs +y: the end points are sqrt(2) apart, 90 degrees
+    np.testing.assert_allclose(endpoint_error(answer, ideal), [math.sqrt(2.0), 0.0], atol=1e-12)
+    np.testing.assert_allclose(direction_error_deg(answer, ideal), [90.0, 0.0], atol=1e-9)
+
+
+def test_unchanged_uses_the_rotation_angle_tolerance():
+    def about_x(angle):
+        return [math.cos(angle / 2), math.sin(angle / 2), 0.0, 0.0]
+
+    q = np.array([IDENTITY, IDENTITY, IDENTITY])
+    answer = np.array([IDENTITY, about_x(1e-7), about_x(1e-3)])
+    assert unchanged(answer, q).tolist() == [True, True, False]
+
+
+def test_score_splits_valid_and_invalid_by_hand():
+    q = np.array([IDENTITY, IDENTITY, IDENTITY, QUARTER_Z])
+    ideal = q.copy()
+    answer = np.array([IDENTITY, IDENTITY, QUARTER_Z, QUARTER_Z])
+    valid = np.array([True, True, False, False])
+    inside = np.array([True, True, False, True])
+    outside = np.array([0.0, 0.0, 2.0, 0.0])
+    s = score(q, answer, ideal, valid, inside, outside)
+    quarter_sq = 2.0 - math.sqrt(2.0)  # |identity - quarter|^2 = 2 - 2 cos(45 deg)
+    assert s["all"]["n"] == 4
+    assert s["all"]["mse"] == pytest.approx(quarter_sq / 4)
+    assert s["all"]["err3d_rms"] == pytest.approx(math.sqrt(2.0 / 4))
+    assert s["all"]["angle_mean_deg"] == pytest.approx(22.5)
+    # 95th percentile of [0, 0, 0, 90] by linear interpolation: position 2.85 -> 0.85 * 90
+    assert s["all"]["angle_p95_deg"] == pytest.approx(76.5)
+    assert s["all"]["unchanged_share"] == pytest.approx(0.75)
+    assert s["all"]["inside_share"] == pytest.approx(0.75)
+    assert s["all"]["outside_p95_deg"] == pytest.approx(0.85 * 2.0)
+    assert s["valid"] == {
+        "n": 2.0,
+        "mse": 0.0,
+        "err3d_rms": 0.0,
+        "angle_mean_deg": 0.0,
+        "angle_p95_deg": 0.0,
+        "unchanged_share": 1.0,
+        "inside_share": 1.0,
+        "outside_p95_deg": 0.0,
+    }
+    assert s["invalid"]["mse"] == pytest.approx(quarter_sq / 2)
+    assert s["invalid"]["angle_p95_deg"] == pytest.approx(85.5)
+    assert s["invalid"]["unchanged_share"] == pytest.approx(0.5)
+    assert s["invalid"]["inside_share"] == pytest.approx(0.5)
+    assert s["invalid"]["outside_p95_deg"] == pytest.approx(0.95 * 2.0)
+
+
+def test_score_reports_an_empty_subset_as_nan():
+    q = np.array([IDENTITY])
+    s = score(q, q, q, np.array([True]), np.array([True]))
+    assert s["invalid"]["n"] == 0
+    assert all(math.isnan(s["invalid"][m]) for m in METRIC_NAMES[1:])
+
+
+def test_shape_mismatch_is_refused_with_the_shapes():
+    with pytest.raises(ConfigError, match=r"\(2, 4\) and \(1, 4\)"):
+        quaternion_sq_error(np.zeros((2, 4)), np.zeros((1, 4)))
+    q = np.array([IDENTITY])
+    with pytest.raises(ConfigError, match="one entry per row"):
+        score(q, q, q, np.array([True, False]), np.array([True]))
+    with pytest.raises(ConfigError, match="outside_deg"):
+        score(q, q, q, np.array([True]), np.array([True]), np.zeros(3))
+
+
+def test_mean_and_spread():
+    assert mean_and_spread([1.0, 2.0, 3.0]) == pytest.approx((2.0, 1.0))
+    assert mean_and_spread([5.0]) == (5.0, 0.0)
+    assert mean_and_spread([math.nan, 1.0, 3.0]) == pytest.approx((2.0, math.sqrt(2.0)))
+    assert all(math.isnan(v) for v in mean_and_spread([math.nan]))

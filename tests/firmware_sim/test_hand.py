@@ -1,0 +1,232 @@
+"""The scripted hand: stays in its region, covers it like a person, follows scripts, is seeded."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from firmware_sim.hand import DEFAULT_TREMOR_DEG, EDGE_INSET_DEG, MIN_PATH_DEPTH_DEG, Hand
+from firmware_sim.world import World
+
+REGIONS = Path(__file__).resolve().parents[2] / "examples" / "regions"
+OFF = {1: None, 2: None}
+
+
+def record(hand: Hand, seconds: float = 60.0, rate_hz: int = 100, seed: int = 0) -> np.ndarray:
+    """Joint angles (M, 2) deg sampled at ``rate_hz`` while the hand backdrives the world."""
+    world = World(hand=hand, seed=seed)
+    per_sample = 1000 // rate_hz
+    samples = []
+    for _ in range(int(seconds * rate_hz)):
+        for _ in range(per_sample):
+            world.step(0.001, OFF)
+        angles = world.joint_angles_deg()
+        samples.append((angles["pan"], angles["tilt"]))
+    return np.array(samples)
+
+
+def largest_boundary_gap(region, samples: np.ndarray, band_deg: float) -> float:
+    """Largest fraction of the perimeter with no sample within ``band_deg`` of the edge."""
+    depth = region.edge_distance_deg(samples[:, 0], samples[:, 1])
+    u = np.sort(
+        region.boundary_fraction(samples[depth < band_deg, 0], samples[depth < band_deg, 1])
+    )
+    return float(np.max(np.diff(np.concatenate([u, u[:1] + 1.0]))))
+
+
+def density_by_depth(region, samples: np.ndarray, lo: float, hi: float) -> float:
+    """Share of samples over share of area in a band of depth fractions [lo, hi)."""
+    p_lo, p_hi, t_lo, t_hi = region.bbox_deg
+    grid = np.stack(np.meshgrid(np.linspace(p_lo, p_hi, 150), np.linspace(t_lo, t_hi, 150)), -1)
+    grid_depth = region.edge_distance_deg(grid[..., 0], grid[..., 1]).ravel()
+    grid_fraction = grid_depth[grid_depth >= 0] / region.depth_max_deg
+    fraction = region.edge_distance_deg(samples[:, 0], samples[:, 1]) / region.depth_max_deg
+    share_samples = np.mean((fraction >= lo) & (fraction < hi))
+    share_area = np.mean((grid_fraction >= lo) & (grid_fraction < hi))
+    return float(share_samples / share_area)
+
+
+@pytest.fixture(scope="module", params=["irregular.yaml", "cone30.yaml"])
+def minute(request):
+    """A 60 s, 100 Hz recording of the limb backdriven through an example region."""
+    hand = Hand.from_yaml(REGIONS / request.param, seed=11)
+    return hand, record(hand)
+
+
+def test_recording_stays_in_the_region_up_to_tremor(minute):
+    hand, samples = minute
+    depth = hand.region.edge_distance_deg(samples[:, 0], samples[:, 1])
+    # the planned path keeps MIN_PATH_DEPTH_DEG inside; the tremor may eat part of that
+    assert depth.min() > -DEFAULT_TREMOR_DEG
+    assert np.mean(depth < 0.0) < 0.001
+
+
+def test_recording_covers_the_boundary_all_around(minute):
+    hand, samples = minute
+    depth = hand.region.edge_distance_deg(samples[:, 0], samples[:, 1])
+    near = samples[depth < 3.0]
+    arcs = np.floor(hand.region.boundary_fraction(near[:, 0], near[:, 1]) * 8).astype(int)
+    assert set(arcs.tolist()) == set(range(8))  # every eighth of the perimeter is visited
+    # and no stretch longer than 12 % of the perimeter is left out
+    assert largest_boundary_gap(hand.region, samples, 3.0) < 0.12
+
+
+def test_recording_covers_the_interior(minute):
+    hand, samples = minute
+    region = hand.region
+    p_lo, p_hi, t_lo, t_hi = region.bbox_deg
+    cells = np.stack(np.meshgrid(np.arange(p_lo, p_hi, 5.0), np.arange(t_lo, t_hi, 5.0)), -1)
+    cells = cells.reshape(-1, 2)
+    cells = cells[region.edge_distance_deg(cells[:, 0], cells[:, 1]) >= 5.0]
+    gap = np.min(np.hypot(*(cells[:, None, :] - samples[None, ::5, :]).transpose(2, 0, 1)), axis=1)
+    assert np.mean(gap < 8.0) > 0.9
+
+
+def test_dense_in_the_middle_sparse_and_slow_near_the_edge(minute):
+    hand, samples = minute
+    region = hand.region
+    middle = density_by_depth(region, samples, 0.5, 1.01)
+    outer = density_by_depth(region, samples, 0.05, 0.35)
+    assert middle > 1.1 * outer
+    speed = np.hypot(*np.diff(samples, axis=0).T) * 100.0  # deg/s at 100 Hz
+    depth = region.edge_distance_deg(samples[1:, 0], samples[1:, 1])
+    near_edge, middle_speed = speed[depth < 3.0], speed[depth > 0.5 * region.depth_max_deg]
+    assert np.median(near_edge) < 0.75 * np.median(middle_speed)
+
+
+def test_hand_takes_hold_where_the_limb_is_without_a_yank():
+    hand = Hand.from_yaml(REGIONS / "irregular.yaml", seed=17)
+    world = World(hand=hand, seed=17)
+    start = world.joint_angles_deg()
+    assert hand.pose_deg(0.0) == pytest.approx(
+        (start["pan"], start["tilt"]), abs=DEFAULT_TREMOR_DEG
+    )
+    samples = record(hand, seconds=3.0, seed=17)
+    speed = np.hypot(*np.diff(samples, axis=0).T) * 100.0
+    # a minimum-jerk move peaks at 1.875 x its mean speed; the tremor adds a little
+    assert speed.max() < 2.0 * hand.speed_deg_s + 15.0
+    assert np.hypot(*(samples[-1] - samples[0])) > 10.0  # it did take the limb somewhere
+
+
+def test_planned_path_keeps_its_margin_without_tremor():
+    hand = Hand.from_mapping(
+        {
+            "region": {"polygon": [[-40, -30], [40, -30], [40, 30], [0, 0], [-40, 30]]},
+            "tremor_deg": 0,
+        },
+        seed=12,
+    )
+    t = np.arange(0.0, 120.0, 0.01)
+    poses = np.array([hand.pose_deg(float(s)) for s in t])
+    depth = hand.region.edge_distance_deg(poses[:, 0], poses[:, 1])
+    assert depth.min() >= MIN_PATH_DEPTH_DEG - 1e-9
+    assert np.mean(depth < EDGE_INSET_DEG + 0.5) > 0.01  # it does go to the edge
+
+
+U_SHAPE = [[-60, -30], [60, -30], [60, 40], [40, 40], [40, -10], [-40, -10], [-40, 40], [-60, 40]]
+
+
+def test_non_convex_region_is_walked_round_its_corners_continuously():
+    hand = Hand.from_mapping({"region": {"polygon": U_SHAPE}, "tremor_deg": 0}, seed=18)
+    poses = np.array([hand.pose_deg(float(t)) for t in np.arange(0.0, 120.0, 0.001)])
+    depth = hand.region.edge_distance_deg(poses[:, 0], poses[:, 1])
+    assert depth.min() >= MIN_PATH_DEPTH_DEG - 1e-9  # never across the gap between the arms
+    # continuous: a minimum-jerk move peaks at 1.875 x its mean speed
+    assert np.hypot(*np.diff(poses, axis=0).T).max() / 0.001 < 2.0 * hand.speed_deg_s
+    for arm in (poses[:, 0] < -40.0, poses[:, 0] > 40.0):
+        assert np.any(arm & (poses[:, 1] > 30.0))  # both arms' tips are reached
+
+
+def test_a_boxed_in_hand_retraces_its_steps():
+    hand = Hand.from_mapping({"region": {"polygon": U_SHAPE}, "tremor_deg": 0}, seed=19)
+    hand.pose_deg(20.0)
+    *_, last_move = (s for s in hand._segments if s[2:4] != s[4:6])  # moves, not pauses
+    before = len(hand._segments)
+    hand._reach = lambda target: False  # nothing reachable from here: boxed in
+    hand._plan_next()
+    (retrace,) = (s for s in hand._segments[before:] if s[6])
+    # back along the last move: its end to its start, bowed the same way
+    assert retrace[2:6] == (*last_move[4:6], *last_move[2:4])
+    assert retrace[7:9] == last_move[7:9]
+
+
+def test_tremor_is_a_few_tenths_of_a_degree():
+    still = {"script": [[0.0, 10.0, 5.0]]}
+    hand = Hand.from_mapping(still, seed=13)
+    poses = np.array([hand.pose_deg(t) for t in np.arange(0.0, 10.0, 0.001)])
+    amplitude = np.abs(poses - [10.0, 5.0]).max(axis=0)
+    assert np.all(amplitude > 0.1) and np.all(amplitude <= DEFAULT_TREMOR_DEG + 1e-12)
+    calm = Hand.from_mapping({**still, "tremor_deg": 0}, seed=13)
+    assert calm.pose_deg(3.3) == (10.0, 5.0)
+
+
+def test_same_seed_same_path_whatever_order_it_is_asked_in():
+    a = Hand.from_yaml(REGIONS / "irregular.yaml", seed=14)
+    b = Hand.from_yaml(REGIONS / "irregular.yaml", seed=14)
+    times = np.arange(0.0, 40.0, 0.37)
+    late_first = {t: b.pose_deg(t) for t in times[::-1]}
+    assert [a.pose_deg(t) for t in times] == [late_first[t] for t in times]
+    c = Hand.from_yaml(REGIONS / "irregular.yaml", seed=15)
+    assert [c.pose_deg(t) for t in times] != [a.pose_deg(t) for t in times]
+
+
+def test_calibration_script_is_followed():
+    hand = Hand.from_yaml(REGIONS / "calibration.yaml")
+    assert hand.region is None
+    expected = {1.0: (0, 0), 3.0: (22.5, 0), 5.0: (45, 0), 7.0: (22.5, 0), 8.5: (0, 0),
+                10.0: (0, 15), 12.0: (0, 30), 14.0: (0, 15), 100.0: (0, 0)}  # fmt: skip
+    for t, pose in expected.items():
+        assert hand.pose_deg(t) == pytest.approx(pose, abs=DEFAULT_TREMOR_DEG)
+
+
+def test_calibration_script_moves_the_backdriven_limb():
+    world = World(hand=Hand.from_yaml(REGIONS / "calibration.yaml"), seed=16)
+    seen = {}
+    for k in range(1, 16001):
+        world.step(0.001, OFF)
+        if k % 1000 == 0:
+            seen[k // 1000] = world.joint_angles_deg()
+    assert seen[1] == pytest.approx({"pan": 0.0, "tilt": 0.0}, abs=0.3)
+    assert seen[5] == pytest.approx({"pan": 45.0, "tilt": 0.0}, abs=0.3)
+    assert seen[12] == pytest.approx({"pan": 0.0, "tilt": 30.0}, abs=0.3)
+    assert seen[16] == pytest.approx({"pan": 0.0, "tilt": 0.0}, abs=0.3)
+
+
+BAD_FILES = {
+    "missing-region": ("speed_deg_s: 30\n", "exactly one of 'region' or 'script'"),
+    "both": ("region: {cone: {half_angle_deg: 20}}\nscript: [[0, 0, 0]]\n", "exactly one"),
+    "unknown-key": ("region: {cone: {half_angle_deg: 20}}\nspeed: 3\n", "unknown key"),
+    "no-shape": ("region: {}\n", "exactly one of polygon or cone"),
+    "two-points": ("region: {polygon: [[0, 0], [10, 0]]}\n", "at least 3 vertices"),
+    "nan": ("region: {polygon: [[0, 0], [10, .nan], [0, 10]]}\n", "finite"),
+    "text": ("region: {polygon: [[0, 0], [10, ten], [0, 10]]}\n", "must be a number"),
+    "bow-tie": ("region: {polygon: [[0, 0], [10, 10], [10, 0], [0, 10]]}\n", "crosses itself"),
+    "flat": ("region: {polygon: [[0, 0], [5, 0], [10, 0]]}\n", "crosses itself|zero area"),
+    "cone-zero": ("region: {cone: {half_angle_deg: 0}}\n", r"\(0, 180\)"),
+    "cone-180": ("region: {cone: {half_angle_deg: 180}}\n", r"\(0, 180\)"),
+    "cone-key": ("region: {cone: {half_angle: 20}}\n", "half_angle_deg"),
+    "speed": ("region: {cone: {half_angle_deg: 20}}\nspeed_deg_s: -1\n", "speed_deg_s"),
+    "script-order": ("script: [[0, 0, 0], [2, 1, 1], [1, 2, 2]]\n", "later than"),
+    "script-row": ("script: [[0, 0]]\n", r"script\[0\]"),
+    "too-thin": ("region: {polygon: [[0, 0], [40, 0], [40, 1]]}\n", "too small"),
+    "tiny-cone": ("region: {cone: {half_angle_deg: 1.5}}\n", "too small"),
+    "not-yaml": ("region: [unclosed\n", "not valid YAML"),
+    "not-mapping": ("- 1\n- 2\n", "expected a mapping"),
+}
+
+
+@pytest.mark.parametrize("name", sorted(BAD_FILES))
+def test_malformed_region_files_name_the_file_and_the_problem(tmp_path, name):
+    text, problem = BAD_FILES[name]
+    path = tmp_path / f"{name}.yaml"
+    path.write_text(text)
+    with pytest.raises(ValueError, match=problem) as caught:
+        Hand.from_yaml(path)
+    assert str(path) in str(caught.value)
+
+
+def test_missing_region_file_is_a_clear_error(tmp_path):
+    with pytest.raises(ValueError, match="cannot read the region file"):
+        Hand.from_yaml(tmp_path / "nowhere.yaml")

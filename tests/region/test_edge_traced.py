@@ -1,0 +1,107 @@
+import numpy as np
+import pytest
+
+from limbctl.envelope import RigidMap
+from limbctl.envelope.synthetic import SMALL_KIDNEY, ConeRegion, PolygonRegion, to_quaternions
+from limbctl.geometry.quat import direction_angle, limb_direction
+from limbctl.region import edge_traced as et
+
+X = np.array([1.0, 0.0, 0.0])
+
+
+def circle(radius_deg: float, n: int) -> np.ndarray:
+    """A counter-clockwise loop (n, 3) at ``radius_deg`` about +x."""
+    phi = np.linspace(-np.pi, np.pi, n, endpoint=False)
+    r = np.radians(radius_deg)
+    return np.column_stack(
+        [np.full(n, np.cos(r)), np.sin(r) * np.cos(phi), np.sin(r) * np.sin(phi)]
+    )
+
+
+@pytest.mark.parametrize("per_depth", [30, 100])
+def test_edge_estimate_is_unbiased_below_a_straight_edge(per_depth):
+    # Poisson points of density rho under a straight edge at depth 0 over u in [-1, 1]:
+    # per_depth = rho * 2 points per unit of depth; HULL_GAP makes the estimate centred on 0
+    rng = np.random.default_rng(0)
+    est = []
+    for _ in range(1500):
+        n = rng.poisson(per_depth * 3)
+        est.append(et.edge_estimate(rng.uniform(-1.0, 1.0, n), -rng.uniform(0.0, 3.0, n)))
+    est = np.array(est) * per_depth
+    # in units of 1 / (rho 2h): mean 0 within 3 standard errors (sd about 1.5)
+    assert abs(est.mean()) < 3 * 1.5 / np.sqrt(len(est))
+    assert 1.0 < est.std() < 2.0
+
+
+def test_edge_estimate_is_local():
+    # flat readings 1 unit deep across the window, and one reading 1 unit out at its end: the
+    # outermost reading would put the station 1 unit out; the majorant's chord from the far
+    # left to that reading passes the station at 0 (plus the small gap estimate)
+    u = np.concatenate([np.linspace(-1.0, 1.0, 41), [1.0]])
+    o = np.concatenate([np.full(41, -1.0), [1.0]])
+    assert et.edge_estimate(u, o) < 0.5
+
+
+def test_local_quadratic_keeps_a_circle_and_removes_wiggles():
+    sigma = np.radians(et.TRACE_SMOOTH_DEG)
+    for radius, shrink in ((20.0, 0.03), (10.0, 0.16)):
+        loop = circle(radius, int(radius * 24))
+        got = np.degrees(direction_angle(et.local_quadratic(loop, sigma), X))
+        assert np.all(got <= radius + 1e-9) and np.all(got >= radius - shrink)
+    # a 0.2 deg wiggle every 6 stations (1.5 deg along a 20 deg circle's 480 stations)
+    n = 480
+    phi = np.linspace(-np.pi, np.pi, n, endpoint=False)
+    r = np.radians(20.0 + 0.2 * np.cos(np.arange(n) * 2.0 * np.pi / 6.0))
+    ring = np.column_stack([np.cos(phi), np.sin(phi)])
+    bumpy = np.column_stack([np.cos(r), np.sin(r)[:, None] * ring])
+    radius = np.degrees(direction_angle(et.local_quadratic(bumpy, sigma), X))
+    assert np.abs(radius - 20.0).max() < 0.04
+
+
+def test_trace_window_follows_the_density_and_refuses_a_sparse_edge():
+    rng = np.random.default_rng(0)
+    loop = circle(19.5, 80)
+    dense = ConeRegion(np.radians(20.0)).sample(1000, rng)
+    h = et.trace_window(loop, dense)
+    assert h is not None
+    assert et.TRACE_MIN_WINDOW_DEG <= np.degrees(h) <= et.TRACE_MAX_WINDOW_DEG
+    # 100 samples over a 20 deg cap: about 0.08 per deg^2 at the edge, a 30 deg window
+    assert et.trace_window(loop, dense[:100]) is None
+
+
+def test_chord_need_lifts_a_sample_past_the_chord():
+    loop = circle(20.0, 60)
+    # a direction at the middle of the chord between stations 0 and 1, 0.01 deg outside the
+    # circle: inside the circle but outside the polygon of stations (sagitta 0.06 deg)
+    mid = loop[0] + loop[1]
+    mid /= np.linalg.norm(mid)
+    outward = mid - X * np.cos(np.radians(20.0)) / 1.0
+    outward -= (outward @ mid) * mid
+    outward /= np.linalg.norm(outward)
+    sample = np.cos(np.radians(0.01)) * mid + np.sin(np.radians(0.01)) * outward
+    need = et.chord_need(loop, sample[None, :])
+    assert need[0] > 0.0 and need[1] > 0.0
+    assert np.sum(np.isfinite(need)) == 3
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_a_small_kidney_gets_a_traced_edge_near_its_true_edge(seed):
+    region = PolygonRegion(SMALL_KIDNEY)
+    rng = np.random.default_rng(seed)
+    train = region.sample(1000, rng)
+    m = RigidMap(nodes=2000, layout="uniform", seed=seed).fit(to_quaternions(train))
+    # a dent on top: no smooth edge, but the samples trace the edge densely enough
+    assert m.edge == "traced"
+    test = region.test_directions(5000, rng)
+    q = to_quaternions(test)
+    out = m.correct(q)
+    d_out = limb_direction(out)
+    err = np.degrees(direction_angle(d_out, region.ideal(test)))
+    # the supported loops give about 1.0 deg here
+    assert err.mean() < 0.6
+    depth = region.depth(d_out)
+    assert (depth >= -np.radians(1.0)).mean() >= 0.995
+    valid = region.depth(test) >= np.radians(2.0)
+    assert np.all(out[valid] == q[valid], axis=1).mean() >= 0.99
+    # taught samples stay inside (up to the acceptance's tolerance)
+    assert m.contains(to_quaternions(train)).mean() >= 0.999

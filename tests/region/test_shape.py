@@ -1,0 +1,107 @@
+import numpy as np
+
+from limbctl.envelope.synthetic import ConeRegion, PolygonRegion, trajectory_samples
+from limbctl.geometry.quat import direction_angle
+from limbctl.region import shape as rs
+from limbctl.region.mesh import DirectionMesh, boundary_edges
+
+
+def test_thin_keeps_spacing_and_covers_every_point():
+    d = ConeRegion(np.radians(30.0)).sample(3000, np.random.default_rng(0))
+    spacing = np.radians(2.0)
+    keep = rs.thin(d, spacing)
+    kept = d[keep]
+    dots = kept @ kept.T
+    np.fill_diagonal(dots, -1.0)
+    assert np.arccos(np.clip(dots.max(axis=1), -1, 1)).min() >= spacing - 1e-12
+    cover = np.arccos(np.clip((d @ kept.T).max(axis=1), -1, 1))
+    assert cover.max() <= spacing + 1e-12
+    assert keep.size < d.shape[0] / 2
+
+
+def _ring(inner_deg, outer_deg, n, rng):
+    d = ConeRegion(np.radians(outer_deg)).sample(n, rng)
+    return d[direction_angle(d, np.array([1.0, 0, 0])) >= np.radians(inner_deg)]
+
+
+def test_holes_below_the_limit_are_filled_larger_ones_kept():
+    d = _ring(8.0, 25.0, 3000, np.random.default_rng(1))
+    alpha = np.radians(3.0)
+    probe = np.array([[1.0, 0.0, 0.0]])
+    filled = rs.alpha_loops(d, alpha, max_hole=0.1)
+    kept = rs.alpha_loops(d, alpha, max_hole=1e-4)
+    assert rs.enclosed(probe, filled)[0]
+    assert not rs.enclosed(probe, kept)[0]
+    assert len(kept) == len(filled) + 1
+
+
+def test_learned_alpha_follows_the_data_scale():
+    rng = np.random.default_rng(2)
+    cone = ConeRegion(np.radians(30.0))
+    dense = rs.learn_alpha(cone.sample(2000, rng), 2.0)
+    sparse = rs.learn_alpha(cone.sample(200, rng), 2.0)
+    assert sparse > 2.0 * dense
+    # hand strokes leave gaps far wider than their sample spacing: alpha follows the gaps
+    strokes = trajectory_samples(cone, 3000, rng)
+    thin = strokes[rs.thin(strokes, np.radians(1.0))]
+    assert rs.learn_alpha(thin, 2.0) > np.radians(3.0)
+
+
+def test_edge_margins_reach_the_circle_and_cover_every_sample():
+    rng = np.random.default_rng(3)
+    cone = ConeRegion(np.radians(25.0))
+    data = cone.sample(4000, rng)
+    loops = rs.alpha_loops(data, np.radians(4.0), max_hole=0.1)
+    assert len(loops) == 1
+    cap = np.radians(0.75)
+    margins = rs.edge_margins(loops, data, np.radians(6.0), 12, cap)[0]
+    assert margins.shape == (loops[0].shape[0],)
+    assert (margins >= 0.0).all() and (margins <= cap).all()
+    mesh = DirectionMesh.from_loops(loops, [margins])
+    # every taught sample inside; the widened edge sits at the circle (within the cap)
+    assert mesh.contains(data).all()
+    probe = cone.test_directions(20000, rng)
+    inside = mesh.contains(probe)
+    depth = np.degrees(cone.depth(probe))
+    assert inside[depth > 1.0].mean() > 0.99
+    assert not inside[depth < -0.76].any()
+
+
+def test_peel_takes_back_a_bridged_concavity_and_keeps_every_vertex():
+    # samples of a "C": a bay (the notch at +y) that a large alpha bridges
+    rng = np.random.default_rng(5)
+    d = ConeRegion(np.radians(25.0)).sample(3000, rng)
+    bay = (d[:, 1] > 0.0) & (np.abs(d[:, 2]) < np.sin(np.radians(6.0)))
+    d = d[~bay]
+    tri, _, inside = rs.alpha_complex(d, np.radians(20.0), max_hole=0.0)
+    probe = np.array([[np.cos(np.radians(15.0)), np.sin(np.radians(15.0)), 0.0]])
+    bridged = [d[i] for i in rs.trace_loops(d, boundary_edges(tri[inside]))]
+    assert rs.enclosed(probe, bridged)[0]
+    protected = rs.surrounded(rs.tri_centroids(d, tri), d, np.radians(4.0), np.radians(150.0))
+    kept = rs.peel(d, tri, inside, np.radians(4.0), protected)
+    peeled = [d[i] for i in rs.trace_loops(d, boundary_edges(tri[kept]))]
+    assert not rs.enclosed(probe, peeled)[0]
+    # no vertex of the shape is dropped; the middle of the disc stays
+    assert np.isin(np.unique(tri[inside]), np.unique(tri[kept])).all()
+    below = np.array([[np.cos(np.radians(12.0)), 0.0, -np.sin(np.radians(12.0))]])
+    assert rs.enclosed(below, peeled)[0]
+
+
+def test_surrounded_tells_middle_from_edge():
+    d = ConeRegion(np.radians(20.0)).sample(3000, np.random.default_rng(6))
+    middle = np.array([[1.0, 0.0, 0.0]])
+    near_edge = np.array([[np.cos(np.radians(18.0)), np.sin(np.radians(18.0)), 0.0]])
+    # just beyond the data's edge: all samples on one side
+    beyond = np.array([[np.cos(np.radians(20.5)), np.sin(np.radians(20.5)), 0.0]])
+    out = np.array([[np.cos(np.radians(30.0)), np.sin(np.radians(30.0)), 0.0]])
+    probe = np.vstack([middle, near_edge, beyond, out])
+    got = rs.surrounded(probe, d, np.radians(4.0), np.radians(150.0))
+    np.testing.assert_array_equal(got, [True, True, False, False])
+
+
+def test_loop_area_and_gap_estimate():
+    bean = PolygonRegion()
+    loop = bean.boundary[::-1] if rs.loop_area(bean.boundary) < 0 else bean.boundary
+    assert rs.loop_area(loop) > 0 and rs.loop_area(loop[::-1]) < 0
+    assert abs(rs._gap_beyond(np.array([1.0, 0.9, 0.8, 0.7, 0.6])) - 0.1) < 1e-12
+    assert rs._gap_beyond(np.array([1.0, 1.0, 1.0, 1.0])) == 0.0

@@ -1,0 +1,255 @@
+"""Shared pieces of the safety campaign (tests/test_safety_*.py, benchmarks/soak.py).
+
+Everything here is real: the simulator process, the dynamixel-sdk on its pty, the Rig, the Gate
+and the control loop. The only additions are observers: :class:`RecordingGate` remembers what
+the gate returned, :class:`PacedSource` hands the loop one line per cycle (so every command of
+a generated stream meets the gate), and :func:`goal_log_poses` reads what reached the servos
+from the simulator's own goal log.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import math
+import threading
+import time
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from calib import default_sim_profile
+from firmware_sim import SimulatedBus
+from limbctl.envelope import RigidMap
+from limbctl.envelope.synthetic import BEAN, PolygonRegion, to_quaternions
+from limbctl.geometry.quat import direction_angle, limb_direction, swing_from_direction
+from limbctl.servo.bus import ServoBus
+from limbctl.servo.profiles import joint_tick_limits
+from limbctl.servo.rig import Rig
+from limbctl.teleop import gate
+from limbctl.teleop.gate import Gate, GateLimits, GateResult, Outcome
+from limbctl.teleop.sources import CommandSource
+
+PROFILE = default_sim_profile()
+
+
+def written_tolerance_deg(limits: GateLimits) -> float:
+    """How far (deg) a goal that reached a servo may lie outside the model's region.
+
+    The gate's own stated tolerance (``region_tolerance``) plus the rounding to whole ticks
+    (:func:`limbctl.teleop.gate.written_tolerance_deg` for the default tolerance).
+    """
+    extra = math.degrees(limits.region_tolerance) - gate.REGION_TOLERANCE_DEG
+    return gate.written_tolerance_deg() + extra
+
+
+def gate_limits(rate_hz: float = 200.0, max_speed_deg_s: float = 120.0) -> GateLimits:
+    """The sim rig's hard limits and the slew limits ``limbctl teleop`` would use."""
+    step = math.radians(max_speed_deg_s) / rate_hz
+    return GateLimits(
+        pan_min=PROFILE.pan.min_rad,
+        pan_max=PROFILE.pan.max_rad,
+        tilt_min=PROFILE.tilt.min_rad,
+        tilt_max=PROFILE.tilt.max_rad,
+        max_step=step,
+        max_joint_step=max(3.0 * step, math.radians(1.0)),
+    )
+
+
+@functools.cache
+def bean_model(seed: int = 0, nodes: int = 300, samples: int = 800) -> RigidMap:
+    """The product model (a Rigid Map) taught the kidney-shaped BEAN region by a synthetic hand.
+
+    The rest pose (pan 0, tilt 0) is inside it. Cached: fitting takes seconds.
+    """
+    region = PolygonRegion(BEAN)
+    q = to_quaternions(region.sample(samples, np.random.default_rng(seed)))
+    return RigidMap(nodes=nodes, seed=seed).fit(q)
+
+
+class RecordingGate(Gate):
+    """The real :class:`Gate`; it also keeps every result it returned (``results``)."""
+
+    def __init__(self, envelope, limits: GateLimits) -> None:
+        super().__init__(envelope, limits)
+        self.results: list[GateResult] = []
+
+    def step(self, target_q: np.ndarray) -> GateResult:
+        result = super().step(target_q)
+        self.results.append(result)
+        return result
+
+    def hold(self, reason: str) -> GateResult:
+        result = super().hold(reason)
+        self.results.append(result)
+        return result
+
+    def produced_ticks(self, rig: Rig) -> list[tuple[int, int]]:
+        """Goal ticks (pan, tilt) of every pose the gate let through, in order."""
+        goals = (rig.goal_for(r.pan, r.tilt) for r in self.results if r.outcome is not Outcome.HELD)
+        return [(g.pan, g.tilt) for g in goals]
+
+
+class PacedSource(CommandSource):
+    """A command source that releases one line per :meth:`poll` (one per loop cycle).
+
+    Lines go through the real parser (:meth:`CommandSource.feed`): malformed ones are refused
+    and counted exactly as from stdin or UDP. It ends when every line was released.
+    """
+
+    name = "paced"
+
+    def __init__(self, lines: Sequence[str | bytes], per_poll: int = 1) -> None:
+        super().__init__()
+        self._lines = list(lines)
+        self._next = 0
+        self._per_poll = per_poll
+
+    def start(self) -> None:  # no reader thread: poll feeds
+        return None
+
+    def poll(self, timeout: float = 0.0):
+        for line in self._lines[self._next : self._next + self._per_poll]:
+            self.feed(line)
+        self._next = min(len(self._lines), self._next + self._per_poll)
+        return super().poll(0.0)
+
+    @property
+    def finished(self) -> bool:
+        return self._next >= len(self._lines) and self._queue.empty()
+
+
+@dataclass(frozen=True)
+class LoggedGoal:
+    """One goal packet as the simulator received it."""
+
+    t: float
+    ticks: tuple[int, int]  # (pan, tilt) goals after this packet
+    limb_dir: np.ndarray  # (3,) where the limb points once it reaches them (true geometry)
+
+
+def goal_log_poses(path: Path, start_offset: int = 0) -> list[LoggedGoal]:
+    """Goal packets from the simulator's goal log (from byte ``start_offset``).
+
+    A sync write logs one line per servo with the same ``t``; the last line of each ``t`` is
+    the pose the packet commands (see :func:`limbctl.demo.goal_log_excursions`).
+    """
+    goals: dict[int, int] = {}
+    poses: dict[float, LoggedGoal] = {}
+    with open(path, "rb") as fh:
+        fh.seek(start_offset)
+        for raw in fh:
+            row = json.loads(raw)
+            goals[row["id"]] = row["goal"]
+            if PROFILE.pan.id in goals and PROFILE.tilt.id in goals:
+                ticks = (goals[PROFILE.pan.id], goals[PROFILE.tilt.id])
+                poses[row["t"]] = LoggedGoal(row["t"], ticks, np.asarray(row["limb_dir"]))
+    return list(poses.values())
+
+
+def excursion_deg(model, directions: np.ndarray) -> np.ndarray:
+    """Angle (deg) each limb direction (N, 3) lies outside ``model``'s region (0 inside)."""
+    d = np.atleast_2d(np.asarray(directions, dtype=np.float64))
+    d = d / np.linalg.norm(d, axis=1, keepdims=True)
+    q = swing_from_direction(d)
+    inside = np.asarray(model.contains(q), dtype=bool)
+    nearest = limb_direction(model.correct(q))
+    return np.where(inside, 0.0, np.degrees(direction_angle(d, nearest)))
+
+
+def assert_goals_safe(
+    logged: list[LoggedGoal], model, limits: GateLimits, produced: list[tuple[int, int]]
+) -> float:
+    """Promise 1 on what reached the servos; returns the largest excursion (deg).
+
+    Every logged goal pair was produced by the gate (``produced``, in order), lies inside the
+    rig's hard limits (in ticks) and inside the model's region up to
+    :func:`written_tolerance_deg`. One exception is physics, not software: a servo that drops
+    off the bus in the instant between a good read and the sync write misses that write, so the
+    pair mixes two consecutive gated poses; such a pair must be exactly that mix and lie within
+    one joint step (``max_joint_step``) of the region.
+    """
+    exact = set(produced)
+    mixes = {(b[0], a[1]) for a, b in zip(produced, produced[1:])} | {
+        (a[0], b[1]) for a, b in zip(produced, produced[1:])
+    }
+    lo_pan, hi_pan = joint_tick_limits(PROFILE.pan)
+    lo_tilt, hi_tilt = joint_tick_limits(PROFILE.tilt)
+    mixed = []
+    for goal in logged:
+        if goal.ticks not in exact:
+            assert goal.ticks in mixes, f"goal {goal} reached a servo but the gate never made it"
+            mixed.append(goal)
+        pan, tilt = goal.ticks
+        assert lo_pan <= pan <= hi_pan and lo_tilt <= tilt <= hi_tilt, f"{goal} past hard limits"
+    assert len(mixed) <= 2, f"{len(mixed)} mixed poses: a lost servo kept receiving writes"
+    if not logged:
+        return 0.0
+    exact_dirs = np.array([g.limb_dir for g in logged if g.ticks in exact]).reshape(-1, 3)
+    worst = float(excursion_deg(model, exact_dirs).max()) if len(exact_dirs) else 0.0
+    assert worst <= written_tolerance_deg(limits), f"a goal lies {worst:.4f} deg outside"
+    if mixed:
+        worst_mix = float(excursion_deg(model, np.array([g.limb_dir for g in mixed])).max())
+        bound = written_tolerance_deg(limits) + math.degrees(limits.max_joint_step)
+        assert worst_mix <= bound, f"a mixed pose lies {worst_mix:.4f} deg outside"
+    return worst
+
+
+@contextmanager
+def live_rig(goal_log: Path | None = None, **sim_options) -> Iterator[tuple[SimulatedBus, Rig]]:
+    """The simulated rig through the real SDK: configured, torque on, at rest."""
+    with SimulatedBus(ids=PROFILE.ids, goal_log=goal_log, **sim_options) as sim:
+        with ServoBus.from_profile(PROFILE, port=sim.port) as bus:
+            rig = Rig(PROFILE, bus)
+            rig.configure()
+            rig.set_torque(True)
+            yield sim, rig
+
+
+def wait_for(condition, timeout_s: float, what: str):
+    """Poll ``condition`` until it returns something true, or fail after ``timeout_s``."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        value = condition()
+        if value:
+            return value
+        assert time.monotonic() < deadline, f"timed out after {timeout_s} s waiting for {what}"
+        time.sleep(0.01)
+
+
+def settle_at(rig: Rig, pan: float, tilt: float, timeout_s: float = 20.0) -> None:
+    """Drive the limb (outside any gate: test set-up only) to a pose and wait until it is there."""
+    rig.write_pose(pan, tilt)
+    tol = math.radians(0.5)
+
+    def arrived() -> bool:
+        p, t = rig.read_pose()
+        return abs(p - pan) < tol and abs(t - tilt) < tol
+
+    wait_for(arrived, timeout_s, f"the limb to reach pan {pan:.3f}, tilt {tilt:.3f} rad")
+
+
+class CycleCounter:
+    """A text stream for :class:`limbctl.teleop.loop.Telemetry`: counts cycles, keeps rows."""
+
+    def __init__(self) -> None:
+        self.rows: list[dict] = []
+        self._cond = threading.Condition()
+
+    def write(self, text: str) -> int:
+        with self._cond:
+            self.rows.append(json.loads(text))
+            self._cond.notify_all()
+        return len(text)
+
+    def flush(self) -> None:
+        return None
+
+    def wait_cycles(self, count: int, timeout_s: float = 20.0) -> None:
+        """Block until at least ``count`` cycles were logged."""
+        with self._cond:
+            ok = self._cond.wait_for(lambda: len(self.rows) >= count, timeout_s)
+        assert ok, f"the loop did not run {count} cycles within {timeout_s} s"

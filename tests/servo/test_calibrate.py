@@ -1,0 +1,33 @@
+"""Guided calibration on the simulator finds the world's true zero ticks and directions."""
+
+import pytest
+
+from calib.profile import default_sim_profile, load_profile
+from limbctl.cli import build_parser
+from limbctl.errors import SafetyError
+from limbctl.jobs import cmd_calibrate
+from limbctl.servo.calibrate import CalibrationResult, profile_from_calibration
+
+
+def test_calibration_on_the_simulator_finds_the_truth(tmp_path):
+    out = tmp_path / "rig.yaml"
+    args = build_parser().parse_args(
+        ["calibrate", "--out", str(out), "--name", "bench"]
+        + ["--pan-limits=-100,100", "--tilt-limits=-40,60"]
+    )
+    assert cmd_calibrate(args) == 0
+    found = load_profile(out)
+    truth = default_sim_profile()  # the simulated world's true geometry
+    assert abs(found.pan.zero_tick - truth.pan.zero_tick) <= 3
+    assert abs(found.tilt.zero_tick - truth.tilt.zero_tick) <= 3
+    assert found.pan.direction == truth.pan.direction
+    assert found.tilt.direction == truth.tilt.direction
+    assert (found.pan.min_deg, found.pan.max_deg) == (-100.0, 100.0)
+    assert (found.tilt.min_deg, found.tilt.max_deg) == (-40.0, 60.0)
+    assert found.name == "bench" and found.port == "sim"
+
+
+def test_limits_must_contain_the_rest_pose():
+    result = CalibrationResult(2000, 2000, 1, -1, 500, -300)
+    with pytest.raises(SafetyError, match="rest pose"):
+        profile_from_calibration(default_sim_profile(), result, "x", "sim", (10, 90), (-10, 10))

@@ -1,0 +1,265 @@
+import json
+import os
+import selectors
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+
+import numpy as np
+import pytest
+
+from limbctl.errors import ConfigError, FileFormatError, InvalidInputError
+from limbctl.geometry import gimbal
+from limbctl.teach.dataset import (
+    COLUMNS,
+    FORMAT_NAME,
+    DatasetWriter,
+    _seal,
+    check_writable,
+    load_dataset,
+)
+
+SMALL = 1024  # min_free_bytes for tests: the check runs, the tmp disk is never that full
+
+
+def record(path, n=20, rig="sim", meta=None):
+    rng = np.random.default_rng(1)
+    pan = rng.uniform(-1.5, 1.5, n)
+    tilt = rng.uniform(-0.9, 1.2, n)
+    with DatasetWriter(path, rig=rig, meta=meta, min_free_bytes=SMALL) as out:
+        for i in range(n):
+            out.append(0.01 * i, pan[i], tilt[i])
+    return pan, tilt
+
+
+def test_round_trip_is_exact(tmp_path):
+    path = tmp_path / "a.limb"
+    pan, tilt = record(path, meta={"rate_hz": 100})
+    data = load_dataset(path)
+    assert len(data) == 20 and data.dropped_tail is None
+    assert data.header.rig == "sim" and data.header.columns == COLUMNS
+    assert data.header.meta == {"rate_hz": 100}
+    np.testing.assert_array_equal(data.t, 0.01 * np.arange(20))
+    np.testing.assert_allclose(data.pan, pan, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(data.tilt, tilt, rtol=0, atol=1e-15)
+    assert data.quaternions.shape == (20, 4)
+    np.testing.assert_array_equal(data.quaternions, gimbal.pan_tilt_to_quat(pan, tilt))
+
+
+def test_explicit_quaternion_is_stored_and_validated(tmp_path):
+    path = tmp_path / "q.limb"
+    q = np.array([0.0, 0.6, 0.0, -0.8])
+    with DatasetWriter(path, rig="sim", min_free_bytes=SMALL) as out:
+        out.append(0.0, 0.1, 0.2, q)
+        with pytest.raises(InvalidInputError, match="sample 1 quaternion"):
+            out.append(0.01, 0.1, 0.2, [1.0, 1.0, 0.0, 0.0])
+        with pytest.raises(InvalidInputError, match="non-finite"):
+            out.append(float("nan"), 0.1, 0.2)
+    data = load_dataset(path)
+    assert len(data) == 1
+    # stored canonical (w >= 0; here w == 0 so the sign is kept) and exact
+    np.testing.assert_array_equal(data.quaternions[0], q)
+
+
+def test_records_are_visible_before_close(tmp_path):
+    path = tmp_path / "live.limb"
+    with DatasetWriter(path, rig="sim", min_free_bytes=SMALL) as out:
+        for i in range(5):
+            out.append(0.01 * i, 0.0, 0.0)
+        assert len(load_dataset(path)) == 5  # a second reader sees them: they reached the OS
+
+
+def test_close_twice_and_append_after_close(tmp_path):
+    out = DatasetWriter(tmp_path / "c.limb", rig="sim", min_free_bytes=SMALL).open()
+    out.close()
+    out.close()
+    with pytest.raises(RuntimeError, match="not open"):
+        out.append(0.0, 0.0, 0.0)
+
+
+def test_torn_last_line_is_dropped_and_reported(tmp_path):
+    path = tmp_path / "torn.limb"
+    record(path, n=10)
+    with open(path, "ab") as handle:
+        handle.write(b"0.1,3.0,4.0,0.99")
+    data = load_dataset(path)
+    assert len(data) == 10
+    assert data.dropped_tail is not None and "line 12" in data.dropped_tail
+
+
+def lines_of(path):
+    return path.read_bytes().split(b"\n")[:-1]
+
+
+def rewrite(path, lines):
+    path.write_bytes(b"\n".join(lines) + b"\n")
+
+
+def test_edited_record_is_refused_with_line_number(tmp_path):
+    path = tmp_path / "edit.limb"
+    record(path)
+    lines = lines_of(path)
+    payload, crc = lines[4].split(b"|")
+    fields = payload.split(b",")
+    fields[1] = b"10.0"  # a hand edit of pan_deg, old checksum kept
+    lines[4] = b",".join(fields) + b"|" + crc
+    rewrite(path, lines)
+    with pytest.raises(FileFormatError, match=r"edit\.limb: line 5: checksum mismatch"):
+        load_dataset(path)
+
+
+def test_deleted_middle_record_breaks_the_chain(tmp_path):
+    path = tmp_path / "del.limb"
+    record(path)
+    lines = lines_of(path)
+    del lines[6]
+    rewrite(path, lines)
+    with pytest.raises(FileFormatError, match="line 7: checksum mismatch"):
+        load_dataset(path)
+
+
+def test_binary_corruption_in_the_middle(tmp_path):
+    path = tmp_path / "bin.limb"
+    record(path)
+    blob = bytearray(path.read_bytes())
+    third_line = blob.index(b"\n", blob.index(b"\n", blob.index(b"\n") + 1) + 1) + 1
+    blob[third_line + 3] = 0xFF
+    path.write_bytes(bytes(blob))
+    with pytest.raises(FileFormatError, match="line 4: not UTF-8"):
+        load_dataset(path)
+
+
+def test_missing_checksum_field(tmp_path):
+    path = tmp_path / "nocrc.limb"
+    record(path)
+    lines = lines_of(path)
+    lines[2] = lines[2].split(b"|")[0]
+    rewrite(path, lines)
+    with pytest.raises(FileFormatError, match="line 3: no checksum field"):
+        load_dataset(path)
+
+
+def header_line(**changes):
+    header = {
+        "format": FORMAT_NAME,
+        "version": 1,
+        "rig": "sim",
+        "created": "now",
+        "columns": list(COLUMNS),
+        "meta": {},
+    }
+    header.update(changes)
+    return _seal(json.dumps(header), 0)[0]
+
+
+def test_wrong_version_is_refused(tmp_path):
+    path = tmp_path / "v2.limb"
+    path.write_bytes(header_line(version=2))
+    with pytest.raises(FileFormatError, match="line 1: dataset format version 2.*reads version 1"):
+        load_dataset(path)
+
+
+def test_wrong_columns_are_refused(tmp_path):
+    path = tmp_path / "cols.limb"
+    path.write_bytes(header_line(columns=["t", "q"]))
+    with pytest.raises(FileFormatError, match="line 1: columns"):
+        load_dataset(path)
+
+
+@pytest.mark.parametrize(
+    "content",
+    [b"t,pan,tilt\n0,1,2\n", b'{"format": "other"}|00000000\n', b"\x89PNG\r\n\x1a\n\x00\x00"],
+)
+def test_foreign_files_are_refused(tmp_path, content):
+    path = tmp_path / "foreign.limb"
+    path.write_bytes(content)
+    with pytest.raises(FileFormatError, match="not a limbctl orientation dataset"):
+        load_dataset(path)
+
+
+def test_empty_or_header_torn_file(tmp_path):
+    path = tmp_path / "empty.limb"
+    path.write_bytes(b"")
+    with pytest.raises(FileFormatError, match="no complete header"):
+        load_dataset(path)
+    path.write_bytes(header_line()[:20])
+    with pytest.raises(FileFormatError, match="no complete header"):
+        load_dataset(path)
+
+
+def test_non_unit_quaternion_with_valid_checksum_is_refused(tmp_path):
+    path = tmp_path / "unit.limb"
+    head = header_line()
+    crc = int(head.rstrip(b"\n").split(b"|")[1], 16)
+    line, _ = _seal("0.0,1.0,2.0,1.0,1.0,0.0,0.0", crc)
+    path.write_bytes(head + line)
+    with pytest.raises(FileFormatError, match="line 2: quaternion is not unit length"):
+        load_dataset(path)
+
+
+def test_preflight_checks(tmp_path):
+    existing = tmp_path / "exists.limb"
+    existing.write_text("x")
+    with pytest.raises(ConfigError, match="already exists"):
+        DatasetWriter(existing, rig="sim", min_free_bytes=SMALL)
+    with pytest.raises(ConfigError, match="does not exist"):
+        check_writable(tmp_path / "no" / "such" / "dir.limb", SMALL)
+    with pytest.raises(ConfigError, match="MB free on that disk"):
+        check_writable(tmp_path / "big.limb", min_free_bytes=1 << 62)
+    assert not (tmp_path / "big.limb").exists()
+
+
+CHILD = textwrap.dedent(
+    """
+    import sys, time
+    from limbctl.teach.dataset import DatasetWriter
+    period = 0.01
+    with DatasetWriter(sys.argv[1], rig="sim", min_free_bytes=1024) as out:
+        start = time.monotonic()
+        for i in range(100000):
+            # pace at 100 Hz against a deadline (the sample clock, not a test sync)
+            delay = start + i * period - time.monotonic()
+            if delay > 0:
+                time.sleep(delay)
+            t = time.monotonic() - start
+            out.append(t, 0.001 * i, -0.0005 * i)
+            print(repr(t), flush=True)
+    """
+)
+
+
+def test_kill_9_loses_at_most_half_a_second(tmp_path):
+    path = tmp_path / "killed.limb"
+    proc = subprocess.Popen(
+        [sys.executable, "-c", CHILD, str(path)], stdout=subprocess.PIPE, text=True
+    )
+    reported: list[float] = []
+    selector = selectors.DefaultSelector()
+    selector.register(proc.stdout, selectors.EVENT_READ)
+    deadline = time.monotonic() + 30.0
+    try:
+        # wait (on the child's own reports) until it has recorded for a second
+        while not reported or reported[-1] < 1.0:
+            remaining = deadline - time.monotonic()
+            assert remaining > 0, "child did not record for 1 s within 30 s"
+            if selector.select(timeout=remaining):
+                line = proc.stdout.readline()
+                assert line, f"child exited early with {proc.poll()}"
+                reported.append(float(line))
+        os.kill(proc.pid, signal.SIGKILL)
+        assert proc.wait(timeout=10) == -signal.SIGKILL
+        reported.extend(float(line) for line in proc.stdout.read().split())
+    finally:
+        selector.close()
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        proc.stdout.close()
+    data = load_dataset(path)
+    lost_s = reported[-1] - data.t[-1]
+    assert lost_s <= 0.5, f"lost {lost_s:.3f} s of samples"
+    # every sample the child reported as appended is in the file, in order
+    np.testing.assert_array_equal(data.t[: len(reported)], reported)
+    assert len(data) >= len(reported) >= 100

@@ -1,0 +1,195 @@
+"""The layers import only downward, with no loops, counting imports inside functions.
+
+Order, bottom to top (a module may import its own layer and any layer below)::
+
+    errors, calib                 (calib imports nothing of limbctl)
+    geometry, servo               (servo may use geometry)
+    region                        (the taught region)
+    envelope                      (the papers' networks; RigidMap delegates to region)
+    teach, teleop, view           (never each other)
+    eval                          (used only by the app)
+    app: cli, jobs, demo, session, plot, __init__
+
+``firmware_sim`` imports nothing of the project.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGES = ("limbctl", "calib", "firmware_sim")
+
+#: Rank of each layer; a module may import modules of equal or lower rank (siblings excepted
+#: where SIBLINGS_APART says so).
+RANK = {
+    "errors": 0,
+    "calib": 0,
+    "geometry": 1,
+    "servo": 2,
+    "region": 3,
+    "envelope": 4,
+    "teach": 5,
+    "teleop": 5,
+    "view": 5,
+    "eval": 6,
+    "app": 7,
+}
+#: Layers of one rank that must not import each other.
+SIBLINGS_APART = {"teach", "teleop", "view"}
+#: Modules directly in limbctl/ that are the app.
+APP = {"cli", "jobs", "demo", "session", "plot", "__init__", "__main__"}
+
+
+def module_name(path: Path) -> str:
+    parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts = parts[:-1]
+    return ".".join(parts)
+
+
+def all_modules() -> dict[str, Path]:
+    return {
+        module_name(path): path for package in PACKAGES for path in (ROOT / package).rglob("*.py")
+    }
+
+
+def imported(path: Path, name: str, modules: dict[str, Path]) -> set[str]:
+    """Every module ``path`` imports, at top level or inside functions, as dotted names.
+
+    ``from package import module`` counts as importing ``package.module`` only (the package's
+    ``__init__`` runs too, but it re-exports from below, which its own edges show).
+    """
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    found: set[str] = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.Import):
+            found.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                parts = package.split(".")
+                parts = parts[: len(parts) - node.level + 1]
+                base = ".".join([*parts, base] if base else parts)
+            subs = {f"{base}.{alias.name}" for alias in node.names}
+            found.update(subs & modules.keys())
+            if not subs <= modules.keys():
+                found.add(base)
+    return found
+
+
+def layer(name: str) -> str | None:
+    """The layer of a project module, None for anything outside the project."""
+    parts = name.split(".")
+    if parts[0] == "calib":
+        return "calib"
+    if parts[0] == "firmware_sim":
+        return "firmware_sim"
+    if parts[0] != "limbctl":
+        return None
+    if len(parts) == 1:
+        return "app"
+    if parts[1] in RANK:
+        return parts[1]
+    if parts[1] in APP:
+        return "app"
+    raise AssertionError(f"{name}: not in any layer; add it to a subpackage or to APP")
+
+
+def project_edges() -> dict[str, set[str]]:
+    modules = all_modules()
+    edges: dict[str, set[str]] = {}
+    for name, path in modules.items():
+        targets = set()
+        for target in imported(path, name, modules):
+            while target and target not in modules:
+                target = target.rpartition(".")[0]
+            if target and target != name:
+                targets.add(target)
+        edges[name] = targets
+    return edges
+
+
+EDGES = project_edges()
+
+
+@pytest.mark.parametrize("name", sorted(EDGES))
+def test_imports_point_down(name):
+    source = layer(name)
+    for target in EDGES[name]:
+        goal = layer(target)
+        if source == "firmware_sim" or goal == "firmware_sim":
+            assert source == goal or source == "app", f"{name} imports {target}"
+            continue
+        if source == "calib":
+            assert goal == "calib", f"calib must import nothing of limbctl: {name} -> {target}"
+            continue
+        assert RANK[goal] <= RANK[source], f"{name} ({source}) imports {target} ({goal}) above it"
+        if goal != source and goal in SIBLINGS_APART:
+            assert source not in SIBLINGS_APART, f"{name} imports its sibling layer {target}"
+        if goal == "eval":
+            assert source in ("eval", "app"), f"eval is used only by the app: {name} -> {target}"
+
+
+def test_no_import_loops():
+    """Tarjan's strongly connected components over the module graph: each must be one module."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    loops: list[list[str]] = []
+
+    def visit(node: str) -> None:
+        index[node] = low[node] = len(index)
+        stack.append(node)
+        on_stack.add(node)
+        for target in EDGES[node]:
+            if target in EDGES and _is_real_edge(node, target):
+                if target not in index:
+                    visit(target)
+                    low[node] = min(low[node], low[target])
+                elif target in on_stack:
+                    low[node] = min(low[node], index[target])
+        if low[node] == index[node]:
+            component = []
+            while True:
+                top = stack.pop()
+                on_stack.discard(top)
+                component.append(top)
+                if top == node:
+                    break
+            if len(component) > 1:
+                loops.append(sorted(component))
+
+    for node in EDGES:
+        if node not in index:
+            visit(node)
+    assert not loops, f"import loops: {loops}"
+
+
+def _is_real_edge(source: str, target: str) -> bool:
+    """A package's ``__init__`` re-exporting its own submodules is not a loop back up."""
+    return not source.startswith(target + ".")
+
+
+def test_no_module_over_500_lines():
+    long = {
+        name: n
+        for name, path in all_modules().items()
+        if (n := len(path.read_text(encoding="utf-8").splitlines())) > 500
+    }
+    assert not long, f"modules over 500 lines: {long}"
+
+
+def test_at_most_a_dozen_modules_directly_in_limbctl():
+    flat = sorted(p.name for p in (ROOT / "limbctl").glob("*.py"))
+    assert len(flat) <= 12, flat
+
+
+def test_no_reference_outside_the_repository():
+    for name, path in all_modules().items():
+        text = path.read_text(encoding="utf-8")
+        assert "DESIGN.md" not in text and "../shared" not in text, name
