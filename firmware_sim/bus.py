@@ -37,6 +37,8 @@ from firmware_sim.simulator import Simulator
 
 # The physics keeps moving (hand, profiles) at least this often without traffic.
 TICK_S = 0.005
+# Bytes read from the pty at once: larger than any packet the SDK sends (a sync write of
+# 253 servos is ~1.3 kB), so one read takes a whole burst.
 READ_CHUNK = 4096
 # Waits shorter than this are spun rather than slept (a sleep can overshoot by ~1 ms).
 SPIN_BELOW_S = 0.0015

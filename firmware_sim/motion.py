@@ -16,6 +16,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+#: Encoder resolution of the X series (e-Manual: 0..4095 per turn).
 TICKS_PER_TURN = 4096
 # 1 velocity unit = 0.229 rev/min
 VELOCITY_UNIT_TICKS_S = 0.229 * TICKS_PER_TURN / 60.0

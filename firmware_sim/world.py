@@ -34,6 +34,7 @@ import numpy as np
 
 from firmware_sim.hand import Hand
 
+#: Encoder resolution of the X series (e-Manual: 0..4095 per turn).
 TICKS_PER_TURN = 4096
 RAD_PER_TICK = 2.0 * math.pi / TICKS_PER_TURN
 #: Position loop: natural frequency (rad/s) of the critically damped tracking response.
