@@ -25,7 +25,8 @@ from typing import Protocol
 import numpy as np
 
 from limbctl.errors import ConfigError
-from limbctl.geometry.gimbal import SINGULAR_COS
+from limbctl.geometry import scalar
+from limbctl.geometry.scalar import Vec3
 
 
 class RegionModel(Protocol):
@@ -125,61 +126,6 @@ class GateResult:
     reason: str = ""
 
 
-# Scalar kinematics for the hot path: one pose per cycle, so plain floats beat numpy's
-# per-call overhead by ~10x. Same formulas as limbctl.geometry.gimbal and limbctl.geometry.quat.
-Vec3 = tuple[float, float, float]
-
-
-def _direction(pan: float, tilt: float) -> Vec3:
-    # d = (cos t cos p, cos t sin p, sin t)
-    ct = math.cos(tilt)
-    return (ct * math.cos(pan), ct * math.sin(pan), math.sin(tilt))
-
-
-def _swing(d: Vec3) -> np.ndarray:
-    """Twist-free quaternion turning +x onto unit ``d``: normalize(1 + d_x, 0, -d_z, d_y)."""
-    w, y, z = 1.0 + d[0], -d[2], d[1]
-    norm = math.sqrt(w * w + y * y + z * z)
-    if norm < 1e-12:  # d = -x: the half-turn about +z, as quat.swing_from_direction
-        return np.array([0.0, 0.0, 0.0, 1.0])
-    return np.array([w / norm, 0.0, y / norm, z / norm])
-
-
-def _limb(q: np.ndarray) -> Vec3:
-    # d = (w^2 + x^2 - y^2 - z^2, 2(xy + wz), 2(xz - wy)): +x rotated by q
-    w, x, y, z = q.tolist()
-    return (w * w + x * x - y * y - z * z, 2.0 * (x * y + w * z), 2.0 * (x * z - w * y))
-
-
-def _angle(a: Vec3, b: Vec3) -> float:
-    # atan2(|a x b|, a . b): accurate for tiny angles
-    cx = a[1] * b[2] - a[2] * b[1]
-    cy = a[2] * b[0] - a[0] * b[2]
-    cz = a[0] * b[1] - a[1] * b[0]
-    return math.atan2(
-        math.sqrt(cx * cx + cy * cy + cz * cz), a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-    )
-
-
-def _toward(a: Vec3, b: Vec3, step: float) -> Vec3:
-    """Unit direction ``step`` rad from ``a`` along the great circle toward ``b``."""
-    # d = cos(step) a + sin(step) u, with u the unit tangent at a toward b
-    dot = a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-    t = (b[0] - dot * a[0], b[1] - dot * a[1], b[2] - dot * a[2])
-    norm = math.sqrt(t[0] * t[0] + t[1] * t[1] + t[2] * t[2])
-    if norm < 1e-12:
-        return a
-    c, s = math.cos(step), math.sin(step) / norm
-    return (c * a[0] + s * t[0], c * a[1] + s * t[1], c * a[2] + s * t[2])
-
-
-def _pan_tilt(d: Vec3, current_pan: float) -> tuple[float, float]:
-    # pan = atan2(d_y, d_x), tilt = atan2(d_z, |d_xy|); at the singularity keep the current pan
-    horizontal = math.hypot(d[0], d[1])
-    pan = math.atan2(d[1], d[0]) if horizontal > SINGULAR_COS else current_pan
-    return pan, math.atan2(d[2], horizontal)
-
-
 class Gate:
     """Turns commanded orientations into safe joint goals, one cycle at a time.
 
@@ -210,13 +156,13 @@ class Gate:
         lim = self.limits
         if not (lim.pan_min <= pan <= lim.pan_max and lim.tilt_min <= tilt <= lim.tilt_max):
             return False  # NaN fails every comparison above and lands here
-        direction = _direction(pan, tilt)
-        q = _swing(direction)
+        direction = scalar.direction(pan, tilt)
+        q = scalar.swing(direction)
         if bool(self.envelope.contains(q)):
             return True
         # inside up to the stated tolerance: the nearest region point is within region_tolerance
-        nearest = _limb(self.envelope.correct(q))
-        return _angle(direction, nearest) <= lim.region_tolerance
+        nearest = scalar.limb(self.envelope.correct(q))
+        return scalar.angle(direction, nearest) <= lim.region_tolerance
 
     def start(self, current_pan: float, current_tilt: float) -> None:
         """Begin from the limb's present pose, which must already be safe.
@@ -236,7 +182,7 @@ class Gate:
                 "hard limits; move it inside by hand (torque off) before starting"
             )
         self._pan, self._tilt = float(current_pan), float(current_tilt)
-        self._direction = _direction(self._pan, self._tilt)
+        self._direction = scalar.direction(self._pan, self._tilt)
 
     def hold(self, reason: str) -> GateResult:
         """Keep the last safe pose."""
@@ -258,17 +204,17 @@ class Gate:
         lim = self.limits
 
         corrected_q = self.envelope.correct(target_q)
-        target_dir = _limb(corrected_q)
+        target_dir = scalar.limb(corrected_q)
         corrected = not np.array_equal(corrected_q, target_q)
 
         # slew: at most max_step along the great circle from the last safe direction
         slewed = False
-        if _angle(self._direction, target_dir) > lim.max_step:
+        if scalar.angle(self._direction, target_dir) > lim.max_step:
             slewed = True
-            step_dir = _toward(self._direction, target_dir, lim.max_step)
-            target_dir = _limb(self.envelope.correct(_swing(step_dir)))
+            step_dir = scalar.toward(self._direction, target_dir, lim.max_step)
+            target_dir = scalar.limb(self.envelope.correct(scalar.swing(step_dir)))
 
-        pan, tilt = _pan_tilt(target_dir, self._pan)
+        pan, tilt = scalar.pan_tilt(target_dir, self._pan)
         clamped_pan = min(max(pan, lim.pan_min), lim.pan_max)
         clamped_tilt = min(max(tilt, lim.tilt_min), lim.tilt_max)
         clamped = clamped_pan != pan or clamped_tilt != tilt
@@ -286,7 +232,7 @@ class Gate:
             return self.hold("corrected pose failed the final region/limit check")
 
         self._pan, self._tilt = pan, tilt
-        self._direction = _direction(pan, tilt)
+        self._direction = scalar.direction(pan, tilt)
         if clamped:
             outcome = Outcome.CLAMPED
         elif corrected:
