@@ -9,6 +9,7 @@
     │                          (also a ValueError, so numeric callers can catch that)
     ├── BusError               anything on the servo bus
     │   ├── PortError          the port cannot be opened or vanished
+    │   │   └── PortInUse      another process holds the port (the message names it)
     │   ├── BusTimeout         a servo did not answer in time
     │   ├── CorruptReply       a reply failed its CRC or framing
     │   └── ServoAlarm         a servo reported a hardware error (carries the decoded bits)
@@ -51,6 +52,10 @@ class BusError(LimbctlError):
 
 class PortError(BusError):
     """The serial port cannot be opened, or it disappeared."""
+
+
+class PortInUse(PortError):
+    """Another controller holds the serial port; the message names its pid and command."""
 
 
 class BusTimeout(BusError):

@@ -11,6 +11,7 @@ raises one of (see :mod:`limbctl.errors`)::
 
     BusError               a servo refused an instruction (status error 1-7), port busy
     ├── PortError          the port cannot be opened or failed while in use
+    │   └── PortInUse      another controller holds the port (names its pid and command)
     ├── BusTimeout         a servo did not answer (names the id, says what to check)
     ├── CorruptReply       replies kept failing CRC / framing
     └── ServoAlarm         a status packet had the alert bit and Hardware Error Status is set
@@ -23,6 +24,7 @@ the way out (X-series shutdowns keep torque off until a reboot).
 
 from __future__ import annotations
 
+import errno
 import os
 import threading
 import time
@@ -41,6 +43,7 @@ from limbctl.errors import (
     CorruptReply,
     InvalidInputError,
     PortError,
+    PortInUse,
     ServoAlarm,
 )
 from limbctl.servo import transfers
@@ -58,6 +61,7 @@ from limbctl.servo.control_table import (
     describe_status_error,
     model_name,
 )
+from limbctl.servo.port_lock import describe_holders
 from limbctl.servo.transfers import SDK_LATENCY_TIMER_MS, Attempt, TunedPortHandler
 
 try:  # POSIX serial ports report a vanished device through termios as well
@@ -189,6 +193,12 @@ class ServoBus:
         try:
             opened = port.setBaudRate(self.baud)
         except _PORT_FAILURES as exc:
+            if getattr(exc, "errno", None) in (errno.EAGAIN, errno.EWOULDBLOCK):
+                raise PortInUse(
+                    f"serial port {self.port_name} is in use by "
+                    f"{describe_holders(self.port_name)}: only one controller may drive a bus; "
+                    f"stop that one first (nothing was sent to the servos)"
+                ) from None
             raise PortError(f"cannot open serial port {self.port_name} ({exc}): {hint}") from exc
         if not opened:
             raise ConfigError(f"baud {self.baud} is not supported by the serial port driver")

@@ -15,6 +15,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+import serial
 from dynamixel_sdk import (
     BROADCAST_ID,
     COMM_NOT_AVAILABLE,
@@ -49,6 +50,27 @@ class TunedPortHandler(PortHandler):
     def __init__(self, port_name: str, latency_timer_ms: float) -> None:
         super().__init__(port_name)
         self.latency_timer_ms = float(latency_timer_ms)
+
+    def setupPort(self, cflag_baud: int) -> bool:  # noqa: N802 (SDK's name)
+        """Open the port as the SDK does, but exclusively (an advisory ``flock`` on the device).
+
+        A second controller on the same port then fails to open it (``SerialException`` with
+        ``errno`` EAGAIN) instead of writing goals under the first one.
+        """
+        if self.is_open:
+            self.closePort()
+        self.ser = serial.Serial(
+            port=self.port_name,
+            baudrate=self.baudrate,
+            bytesize=serial.EIGHTBITS,
+            timeout=0,
+            exclusive=True,
+        )
+        self.is_open = True
+        self.ser.reset_input_buffer()
+        # one byte on the wire: start bit, 8 data bits, stop bit = 10 bit times (ms)
+        self.tx_time_per_byte = (1000.0 / self.baudrate) * 10.0
+        return True
 
     def setPacketTimeout(self, packet_length: int) -> None:  # noqa: N802 (SDK's name)
         self.packet_start_time = self.getCurrentTime()
@@ -197,7 +219,10 @@ def failure(what: str, outcome: Attempt, attempts: int, baud: int, port_name: st
             outcome.culprit,
         )
     if outcome.result == COMM_PORT_BUSY:
-        return BusError(f"{what}: the port is busy (used from another thread?)")
+        return BusError(
+            f"{what}: the SDK reports the port busy (a transfer of this process did not "
+            f"finish): a limbctl bug, please report it with the command you ran"
+        )
     if outcome.result == COMM_NOT_AVAILABLE:
         return BusError(f"{what}: not available with Protocol 2.0 / this id", outcome.culprit)
     return BusError(f"{what}: failed with SDK result {outcome.result}", outcome.culprit)
