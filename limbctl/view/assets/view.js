@@ -1,0 +1,218 @@
+// limbctl live view: draws the pan/tilt plane from the server's WebSocket pushes.
+// Two kinds of message: "scene" (samples, region edge loops, hard limits, guide; about 1 Hz)
+// and "live" (pose, sample count, teleop cycle, fault; up to 25 Hz). No build step, no CDN.
+"use strict";
+
+const COLORS = {
+  sample: "#999999",
+  region: "rgb(150, 220, 150)",
+  traced: "#1a7f1a",
+  untraced: "#e08000",
+  limits: "#cc2222",
+  pose: "#1f5fd0",
+  commanded: "#9040c0",
+  written: "#000000",
+  grid: "#e4e4e4",
+  axis: "#b0b0b0",
+};
+// Degrees of margin around the hard limits (or the data) so markers on the edge stay visible.
+const MARGIN_DEG = 5;
+// Wait before reconnecting after the server closed or vanished (ms).
+const RECONNECT_MS = 1000;
+
+const state = { scene: null, live: null, liveFrames: 0, sceneFrames: 0 };
+const canvas = document.getElementById("plane");
+const ctx = canvas.getContext("2d");
+let drawPending = false;
+
+function byId(id) { return document.getElementById(id); }
+function fmtPose(p) { return p ? `${p[0].toFixed(1)}, ${p[1].toFixed(1)}` : "-"; }
+
+// The plotted window in degrees: the hard limits when known, else what there is to draw.
+function bounds() {
+  const s = state.scene;
+  if (s && s.limits) {
+    return { pan: [s.limits.pan[0] - MARGIN_DEG, s.limits.pan[1] + MARGIN_DEG],
+             tilt: [s.limits.tilt[0] - MARGIN_DEG, s.limits.tilt[1] + MARGIN_DEG] };
+  }
+  const pts = [];
+  if (s) { pts.push(...s.samples); s.loops.forEach((l) => pts.push(...l.points)); }
+  if (state.live && state.live.pose) pts.push(state.live.pose);
+  if (pts.length === 0) return { pan: [-180, 180], tilt: [-90, 90] };
+  const pans = pts.map((p) => p[0]), tilts = pts.map((p) => p[1]);
+  return { pan: [Math.min(...pans) - MARGIN_DEG, Math.max(...pans) + MARGIN_DEG],
+           tilt: [Math.min(...tilts) - MARGIN_DEG, Math.max(...tilts) + MARGIN_DEG] };
+}
+
+// Degrees to canvas pixels, equal scale on both axes, pan to the right and tilt up.
+function projector() {
+  const b = bounds();
+  const pad = 30;
+  const w = canvas.width - 2 * pad, h = canvas.height - 2 * pad;
+  const spanPan = b.pan[1] - b.pan[0], spanTilt = b.tilt[1] - b.tilt[0];
+  const scale = Math.min(w / spanPan, h / spanTilt);
+  const x0 = pad + (w - scale * spanPan) / 2, y0 = pad + (h - scale * spanTilt) / 2;
+  return {
+    bounds: b,
+    scale: scale,
+    x: (pan) => x0 + (pan - b.pan[0]) * scale,
+    y: (tilt) => y0 + (b.tilt[1] - tilt) * scale,
+  };
+}
+
+function drawGrid(P) {
+  const b = P.bounds;
+  const step = (b.pan[1] - b.pan[0]) > 120 ? 30 : 10;
+  ctx.lineWidth = 1;
+  ctx.font = "11px sans-serif";
+  ctx.fillStyle = "#777";
+  for (let pan = Math.ceil(b.pan[0] / step) * step; pan <= b.pan[1]; pan += step) {
+    ctx.strokeStyle = pan === 0 ? COLORS.axis : COLORS.grid;
+    ctx.beginPath(); ctx.moveTo(P.x(pan), P.y(b.tilt[0])); ctx.lineTo(P.x(pan), P.y(b.tilt[1])); ctx.stroke();
+    ctx.fillText(String(pan), P.x(pan) + 2, P.y(b.tilt[0]) + 12);
+  }
+  for (let tilt = Math.ceil(b.tilt[0] / step) * step; tilt <= b.tilt[1]; tilt += step) {
+    ctx.strokeStyle = tilt === 0 ? COLORS.axis : COLORS.grid;
+    ctx.beginPath(); ctx.moveTo(P.x(b.pan[0]), P.y(tilt)); ctx.lineTo(P.x(b.pan[1]), P.y(tilt)); ctx.stroke();
+    ctx.fillText(String(tilt), P.x(b.pan[0]) - 24, P.y(tilt) + 4);
+  }
+}
+
+function drawRegion(P, loops) {
+  if (loops.length === 0) return;
+  ctx.beginPath();
+  for (const loop of loops) {
+    loop.points.forEach((p, i) => (i ? ctx.lineTo(P.x(p[0]), P.y(p[1])) : ctx.moveTo(P.x(p[0]), P.y(p[1]))));
+    ctx.closePath();
+  }
+  ctx.fillStyle = COLORS.region;
+  ctx.fill("evenodd");
+  ctx.lineWidth = 3;
+  for (const loop of loops) {
+    const n = loop.points.length;
+    for (let i = 0; i < n; i++) {
+      const a = loop.points[i], b = loop.points[(i + 1) % n];
+      ctx.strokeStyle = loop.traced[i] ? COLORS.traced : COLORS.untraced;
+      ctx.setLineDash(loop.traced[i] ? [] : [6, 4]);
+      ctx.beginPath(); ctx.moveTo(P.x(a[0]), P.y(a[1])); ctx.lineTo(P.x(b[0]), P.y(b[1])); ctx.stroke();
+    }
+  }
+  ctx.setLineDash([]);
+}
+
+function drawLimits(P, limits) {
+  if (!limits) return;
+  ctx.strokeStyle = COLORS.limits;
+  ctx.lineWidth = 2;
+  ctx.setLineDash([8, 4]);
+  ctx.strokeRect(P.x(limits.pan[0]), P.y(limits.tilt[1]),
+                 (limits.pan[1] - limits.pan[0]) * P.scale, (limits.tilt[1] - limits.tilt[0]) * P.scale);
+  ctx.setLineDash([]);
+}
+
+function drawMarker(P, pose, kind) {
+  if (!pose) return;
+  const x = P.x(pose[0]), y = P.y(pose[1]);
+  ctx.lineWidth = 2;
+  ctx.strokeStyle = ctx.fillStyle = COLORS[kind];
+  ctx.beginPath();
+  if (kind === "pose") { ctx.arc(x, y, 7, 0, 2 * Math.PI); ctx.fill(); }
+  else if (kind === "written") { ctx.arc(x, y, 11, 0, 2 * Math.PI); ctx.stroke(); }
+  else { ctx.moveTo(x - 9, y - 9); ctx.lineTo(x + 9, y + 9); ctx.moveTo(x + 9, y - 9); ctx.lineTo(x - 9, y + 9); ctx.stroke(); }
+}
+
+function draw() {
+  drawPending = false;
+  const P = projector();
+  ctx.clearRect(0, 0, canvas.width, canvas.height);
+  drawGrid(P);
+  const s = state.scene;
+  if (s) {
+    drawRegion(P, s.loops);
+    ctx.fillStyle = COLORS.sample;
+    for (const p of s.samples) ctx.fillRect(P.x(p[0]) - 1, P.y(p[1]) - 1, 2, 2);
+    drawLimits(P, s.limits);
+  }
+  const live = state.live;
+  if (live) {
+    if (live.teleop) { drawMarker(P, live.teleop.commanded, "commanded"); drawMarker(P, live.teleop.written, "written"); }
+    drawMarker(P, live.pose, "pose");
+  }
+}
+
+function scheduleDraw() {
+  if (!drawPending) { drawPending = true; requestAnimationFrame(draw); }
+}
+
+function showScene(s) {
+  byId("region-note").textContent = s.region_note || "-";
+  byId("loop-count").textContent = String(s.loops.length);
+  let total = 0, traced = 0;
+  s.loops.forEach((l) => { total += l.traced.length; traced += l.traced.reduce((a, b) => a + b, 0); });
+  byId("traced-share").textContent = total ? `${(100 * traced / total).toFixed(0)} % of ${total} stretches` : "-";
+  byId("limits").textContent = s.limits
+    ? `pan ${s.limits.pan[0]}..${s.limits.pan[1]}, tilt ${s.limits.tilt[0]}..${s.limits.tilt[1]}` : "-";
+  const guide = byId("guide");
+  guide.replaceChildren();
+  if (s.guide.length === 0) {
+    guide.insertRow().insertCell().textContent = "no guide figures yet";
+  }
+  for (const f of s.guide) {
+    const row = guide.insertRow();
+    const th = document.createElement("th");
+    th.textContent = f.label;
+    row.appendChild(th);
+    row.insertCell().textContent = `${f.value.toFixed(1)} ${f.unit}`.trim();
+  }
+  byId("guide-text").textContent = s.guide_text;
+}
+
+function showLive(l) {
+  byId("mode").textContent = l.mode;
+  byId("note").textContent = l.note;
+  byId("sample-count").textContent = String(l.sample_count);
+  byId("pose").textContent = fmtPose(l.pose);
+  const fault = byId("fault");
+  fault.textContent = l.fault;
+  fault.hidden = !l.fault;
+  const t = l.teleop;
+  byId("teleop").hidden = !t;
+  if (t) {
+    byId("commanded").textContent = fmtPose(t.commanded);
+    byId("written").textContent = fmtPose(t.written);
+    byId("outcome").textContent = t.outcome;
+    byId("rate").textContent = `${t.rate_hz.toFixed(1)} Hz`;
+    byId("cycles").textContent = String(t.cycles);
+  }
+}
+
+function connect() {
+  const socket = new WebSocket(`ws://${location.host}/ws`);
+  socket.onopen = () => { byId("connection").textContent = "live"; byId("connection").className = "up"; };
+  socket.onmessage = (event) => {
+    const message = JSON.parse(event.data);
+    if (message.kind === "scene") { state.scene = message; state.sceneFrames++; showScene(message); }
+    else if (message.kind === "live") { state.live = message; state.liveFrames++; showLive(message); }
+    byId("live-frames").textContent = String(state.liveFrames);
+    byId("scene-frames").textContent = String(state.sceneFrames);
+    scheduleDraw();
+  };
+  socket.onclose = () => {
+    byId("connection").textContent = "disconnected, retrying";
+    byId("connection").className = "down";
+    setTimeout(connect, RECONNECT_MS);
+  };
+}
+
+// For tests and the curious: where a pose lands on the canvas, and what was last received.
+window.limbview = {
+  state: state,
+  toCanvas: (pan, tilt) => { const P = projector(); return [P.x(pan), P.y(tilt)]; },
+  pixel: (pan, tilt) => {
+    const P = projector();
+    return Array.from(ctx.getImageData(Math.round(P.x(pan)), Math.round(P.y(tilt)), 1, 1).data);
+  },
+};
+
+draw();
+connect();

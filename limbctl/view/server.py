@@ -1,0 +1,214 @@
+"""The live view's web server: the page, its assets and a WebSocket that pushes the board.
+
+aiohttp serves the page (HTML, JS and CSS shipped as package data, nothing fetched from the
+internet) and one WebSocket per browser at ``/ws``. Each browser has its own coroutine that looks
+at the :class:`~limbctl.view.state.Board` every :data:`PUSH_PERIOD_S` and sends the newest scene
+and live state it has not sent yet; older ones are never queued, so a slow browser only gets
+fewer frames and a vanished one is dropped, while the producers never wait for any of them.
+Each version is turned into JSON once, whatever the number of browsers.
+
+:class:`ViewServer` runs the server on its own event loop in a background thread::
+
+    board = Board()
+    with ViewServer(board, port=0) as server:   # port 0: any free port
+        print(server.url)                         # http://127.0.0.1:PORT/
+        board.publish_live(Live(mode="record"))
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import threading
+import weakref
+from importlib import resources
+
+from aiohttp import WSMsgType, web
+
+from limbctl.errors import ConfigError
+from limbctl.view.state import Board
+
+#: How often each browser's coroutine looks for a newer state (s): 25 Hz is above the page's
+#: 5 Hz pose promise with margin, yet costs the producers nothing (they never wake the server).
+PUSH_PERIOD_S = 0.04
+#: WebSocket ping interval (s): a browser that stops answering is dropped within two of these.
+HEARTBEAT_S = 5.0
+#: Longest wait (s) for the server thread to bind its port or to stop.
+START_STOP_TIMEOUT_S = 10.0
+#: The page's files (package data in limbctl/view/assets) and their content types.
+ASSETS = {
+    "index.html": "text/html",
+    "view.js": "application/javascript",
+    "view.css": "text/css",
+}
+DEFAULT_HOST = "127.0.0.1"
+#: The view's default port (0 lets the system choose a free one).
+DEFAULT_PORT = 8765
+
+
+class _JsonCache:
+    """The JSON text of the newest scene and live state, made once per version."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._texts: dict[str, tuple[int, str]] = {}
+
+    def text(self, part: str, version: int, value) -> str:
+        with self._lock:
+            cached = self._texts.get(part)
+            if cached is not None and cached[0] == version:
+                return cached[1]
+        text = json.dumps(value.to_json(), separators=(",", ":"))
+        with self._lock:
+            self._texts[part] = (version, text)
+        return text
+
+
+def build_app(board: Board) -> web.Application:
+    """The aiohttp application serving ``board``: ``/``, the assets, ``/ws`` and ``/state.json``."""
+    app = web.Application()
+    cache = _JsonCache()
+    sockets: weakref.WeakSet[web.WebSocketResponse] = weakref.WeakSet()
+    assets = resources.files("limbctl.view") / "assets"
+
+    async def page(request: web.Request) -> web.Response:
+        name = request.match_info.get("name") or "index.html"
+        if name not in ASSETS:
+            raise web.HTTPNotFound(text=f"no such file: {name}; the page has {sorted(ASSETS)}")
+        body = (assets / name).read_bytes()
+        return web.Response(
+            body=body, content_type=ASSETS[name], headers={"Cache-Control": "no-store"}
+        )
+
+    async def state(request: web.Request) -> web.Response:
+        snap = board.snapshot()
+        parts = {}
+        if snap.scene is not None:
+            parts["scene"] = json.loads(cache.text("scene", snap.scene_version, snap.scene))
+        if snap.live is not None:
+            parts["live"] = json.loads(cache.text("live", snap.live_version, snap.live))
+        return web.json_response(parts)
+
+    async def stream(request: web.Request) -> web.WebSocketResponse:
+        socket = web.WebSocketResponse(heartbeat=HEARTBEAT_S)
+        await socket.prepare(request)
+        sockets.add(socket)
+        reader = asyncio.ensure_future(_drain_incoming(socket))
+        sent_scene = sent_live = 0
+        try:
+            while not socket.closed and not reader.done():
+                snap = board.snapshot()
+                if snap.scene is not None and snap.scene_version != sent_scene:
+                    await socket.send_str(cache.text("scene", snap.scene_version, snap.scene))
+                    sent_scene = snap.scene_version
+                if snap.live is not None and snap.live_version != sent_live:
+                    await socket.send_str(cache.text("live", snap.live_version, snap.live))
+                    sent_live = snap.live_version
+                await asyncio.sleep(PUSH_PERIOD_S)
+        except (ConnectionError, RuntimeError):
+            pass  # the browser went away mid-send: nothing to do but stop serving it
+        finally:
+            reader.cancel()
+            await socket.close()
+        return socket
+
+    async def close_sockets(app: web.Application) -> None:
+        for socket in list(sockets):
+            await socket.close(message=b"server stopping")
+
+    app.router.add_get("/", page)
+    app.router.add_get("/ws", stream)
+    app.router.add_get("/state.json", state)
+    app.router.add_get("/{name}", page)
+    app.on_shutdown.append(close_sockets)
+    return app
+
+
+async def _drain_incoming(socket: web.WebSocketResponse) -> None:
+    """Read (and ignore) what the browser sends, so pings are answered and a close is seen."""
+    async for message in socket:
+        if message.type in (WSMsgType.CLOSE, WSMsgType.ERROR):
+            break
+
+
+class ViewServer:
+    """The live view served from a background thread; a context manager.
+
+    Parameters
+    ----------
+    board : Board
+        What to show.
+    host : str
+        Address to bind (127.0.0.1 keeps the view on this machine).
+    port : int
+        Port to bind; 0 lets the system choose a free one (see :attr:`url`).
+    """
+
+    def __init__(self, board: Board, host: str = DEFAULT_HOST, port: int = DEFAULT_PORT) -> None:
+        self.board = board
+        self.host = host
+        self.port = port
+        self.url = ""
+        self._thread: threading.Thread | None = None
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._stop: asyncio.Event | None = None
+        self._ready = threading.Event()
+        self._error: BaseException | None = None
+
+    def __enter__(self) -> ViewServer:
+        self.start()
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        self.stop()
+
+    def start(self) -> None:
+        """Bind and serve; returns once :attr:`url` is known, raises ConfigError if it cannot."""
+        self._thread = threading.Thread(target=self._run, name="limbctl-view", daemon=True)
+        self._thread.start()
+        if not self._ready.wait(START_STOP_TIMEOUT_S):
+            raise ConfigError(f"the live view did not start within {START_STOP_TIMEOUT_S:.0f} s")
+        if self._error is not None:
+            self._thread.join(START_STOP_TIMEOUT_S)
+            raise ConfigError(
+                f"the live view cannot serve on {self.host}:{self.port} ({self._error}); "
+                "pick another port with --view-port (0 lets the system choose) or pass --no-view"
+            ) from self._error
+
+    def stop(self) -> None:
+        """Close every browser's connection and the port, and end the thread."""
+        if self._thread is None:
+            return
+        if self._loop is not None and self._stop is not None and self._thread.is_alive():
+            self._loop.call_soon_threadsafe(self._stop.set)
+        self._thread.join(START_STOP_TIMEOUT_S)
+        self._thread = None
+
+    @property
+    def running(self) -> bool:
+        """Whether the server thread is alive."""
+        return self._thread is not None and self._thread.is_alive()
+
+    def _run(self) -> None:
+        try:
+            asyncio.run(self._serve())
+        except BaseException as error:  # reported to start(); the thread must not die silently
+            self._error = error
+            self._ready.set()
+
+    async def _serve(self) -> None:
+        self._loop = asyncio.get_running_loop()
+        self._stop = asyncio.Event()
+        runner = web.AppRunner(
+            build_app(self.board), handle_signals=False, access_log=None, shutdown_timeout=1.0
+        )
+        await runner.setup()
+        try:
+            site = web.TCPSite(runner, self.host, self.port)
+            await site.start()
+            host, port = runner.addresses[0][:2]
+            self.url = f"http://{host}:{port}/"
+            self._ready.set()
+            await self._stop.wait()
+        finally:
+            await runner.cleanup()

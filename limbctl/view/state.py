@@ -1,0 +1,302 @@
+"""What the live view shows, as plain values, and the board the producers publish it on.
+
+The view knows nothing of the recorder, the gate or the region: the app hands it these
+dataclasses. A view is two parts that change at different paces:
+
+- :class:`Live`: the limb's present pose, the sample count, the teleop cycle (commanded and
+  written poses, the gate's outcome, the loop's rate) and any fault; published as often as the
+  producer likes (every recorder sample or loop cycle).
+- :class:`Scene`: the samples so far (thinned for drawing), the region's edge loops with which
+  stretches are traced, the rig's hard limits and the guide's figures; published about once a
+  second.
+
+:class:`Board` keeps the latest of each under a lock. Publishing only swaps a reference and bumps
+a counter, so it costs the producer O(1) whatever the clients do; the server reads the newest
+value at its own pace and never sends a stale one.
+
+Every angle is in degrees, on the pan/tilt plane (pan = atan2(dy, dx), tilt = asin(dz)).
+"""
+
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass, field
+
+import numpy as np
+
+#: Most samples sent to a browser per scene: enough to show coverage, small enough to draw at once.
+MAX_DRAWN_SAMPLES = 4000
+#: Cell size (deg) for thinning: samples closer than this add nothing visible at page scale.
+THIN_CELL_DEG = 0.5
+
+
+@dataclass(frozen=True)
+class PanTilt:
+    """A pose on the pan/tilt plane, degrees."""
+
+    pan_deg: float
+    tilt_deg: float
+
+    def to_json(self) -> list[float]:
+        return [round(float(self.pan_deg), 3), round(float(self.tilt_deg), 3)]
+
+
+@dataclass(frozen=True)
+class HardLimits:
+    """The rig's hard joint limits, (low, high) degrees each."""
+
+    pan_deg: tuple[float, float]
+    tilt_deg: tuple[float, float]
+
+    def to_json(self) -> dict[str, list[float]]:
+        return {"pan": [float(v) for v in self.pan_deg], "tilt": [float(v) for v in self.tilt_deg]}
+
+
+@dataclass(frozen=True)
+class EdgeLoop:
+    """One closed loop of the region's edge on the pan/tilt plane.
+
+    Parameters
+    ----------
+    pan_tilt_deg : ndarray, shape (N, 2)
+        The loop's vertices in order, degrees; the last joins back to the first.
+    traced : ndarray, shape (N,), bool
+        ``traced[i]`` says whether the stretch from vertex ``i`` to vertex ``i + 1`` (mod N) has
+        been traced by the teacher.
+    """
+
+    pan_tilt_deg: np.ndarray
+    traced: np.ndarray
+
+    def __post_init__(self) -> None:
+        points = np.asarray(self.pan_tilt_deg, dtype=np.float64).reshape(-1, 2)
+        flags = np.asarray(self.traced, dtype=bool).reshape(-1)
+        if len(flags) != len(points):
+            raise ValueError(
+                f"an edge loop has {len(points)} vertices but {len(flags)} traced flags; "
+                "give one flag per vertex (the stretch to the next vertex)"
+            )
+        object.__setattr__(self, "pan_tilt_deg", points)
+        object.__setattr__(self, "traced", flags)
+
+    def to_json(self) -> dict[str, list]:
+        return {
+            "points": np.round(self.pan_tilt_deg, 3).tolist(),
+            "traced": self.traced.astype(int).tolist(),
+        }
+
+
+@dataclass(frozen=True)
+class GuideFigure:
+    """One figure of the teaching guide, e.g. ("edge closed", 62.5, "%")."""
+
+    label: str
+    value: float
+    unit: str = ""
+
+    def to_json(self) -> dict[str, object]:
+        return {"label": self.label, "value": float(self.value), "unit": self.unit}
+
+
+@dataclass(frozen=True)
+class TeleopStatus:
+    """One teleop cycle as the page shows it.
+
+    Parameters
+    ----------
+    commanded : PanTilt or None
+        What the command source asked for (None while it has said nothing).
+    written : PanTilt or None
+        The goal the gate let through to the servos (None before the first write).
+    outcome : str
+        The gate's outcome for this cycle, by name (e.g. "inside", "corrected", "held").
+    rate_hz : float
+        The loop's measured rate.
+    cycles : int
+        Cycles run so far.
+    """
+
+    commanded: PanTilt | None
+    written: PanTilt | None
+    outcome: str
+    rate_hz: float
+    cycles: int = 0
+
+    def to_json(self) -> dict[str, object]:
+        return {
+            "commanded": self.commanded.to_json() if self.commanded else None,
+            "written": self.written.to_json() if self.written else None,
+            "outcome": self.outcome,
+            "rate_hz": round(float(self.rate_hz), 1),
+            "cycles": int(self.cycles),
+        }
+
+
+@dataclass(frozen=True)
+class Live:
+    """The fast part of the view: published as often as the producer likes.
+
+    Parameters
+    ----------
+    mode : str
+        What is running: "record", "teleop" or "demo: <phase>".
+    pose : PanTilt or None
+        The limb's present pose as last read.
+    sample_count : int
+        Samples recorded so far (all of them, not the thinned drawing).
+    teleop : TeleopStatus or None
+        The teleop cycle, None outside teleop.
+    fault : str
+        The present fault in words, "" when there is none.
+    note : str
+        One line for the person, e.g. "torque off: move the limb by hand".
+    """
+
+    mode: str
+    pose: PanTilt | None = None
+    sample_count: int = 0
+    teleop: TeleopStatus | None = None
+    fault: str = ""
+    note: str = ""
+
+    def to_json(self) -> dict[str, object]:
+        return {
+            "kind": "live",
+            "mode": self.mode,
+            "pose": self.pose.to_json() if self.pose else None,
+            "sample_count": int(self.sample_count),
+            "teleop": self.teleop.to_json() if self.teleop else None,
+            "fault": self.fault,
+            "note": self.note,
+        }
+
+
+@dataclass(frozen=True)
+class Scene:
+    """The slow part of the view: published about once a second.
+
+    Parameters
+    ----------
+    samples_deg : ndarray, shape (M, 2)
+        Samples to draw, pan/tilt degrees (already thinned, see :func:`thin_samples`).
+    loops : tuple of EdgeLoop
+        The edge of the region ``train`` would learn from the samples so far (empty until one
+        can be fitted).
+    limits : HardLimits or None
+        The rig's hard joint limits.
+    region_note : str
+        How the region was obtained, e.g. "fitted on 1200 samples" or why there is none yet.
+    guide : tuple of GuideFigure
+        The guide's figures (edge closed %, inside covered %, gaps); empty when there are none.
+    guide_text : str
+        The guide's advice in words, "" when there is none.
+    """
+
+    samples_deg: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    loops: tuple[EdgeLoop, ...] = ()
+    limits: HardLimits | None = None
+    region_note: str = ""
+    guide: tuple[GuideFigure, ...] = ()
+    guide_text: str = ""
+
+    def __post_init__(self) -> None:
+        samples = np.asarray(self.samples_deg, dtype=np.float64).reshape(-1, 2)
+        object.__setattr__(self, "samples_deg", samples)
+        object.__setattr__(self, "loops", tuple(self.loops))
+        object.__setattr__(self, "guide", tuple(self.guide))
+
+    def to_json(self) -> dict[str, object]:
+        return {
+            "kind": "scene",
+            "samples": np.round(self.samples_deg, 2).tolist(),
+            "loops": [loop.to_json() for loop in self.loops],
+            "limits": self.limits.to_json() if self.limits else None,
+            "region_note": self.region_note,
+            "guide": [figure.to_json() for figure in self.guide],
+            "guide_text": self.guide_text,
+        }
+
+
+def thin_samples(
+    pan_tilt_deg: np.ndarray, cell_deg: float = THIN_CELL_DEG, limit: int = MAX_DRAWN_SAMPLES
+) -> np.ndarray:
+    """Samples thinned for drawing: one per ``cell_deg`` grid cell, at most ``limit``.
+
+    Parameters
+    ----------
+    pan_tilt_deg : ndarray, shape (N, 2)
+        Samples in degrees, in recording order.
+    cell_deg : float
+        Grid cell size, degrees.
+    limit : int
+        Most samples returned; beyond it every k-th kept cell is taken.
+
+    Returns
+    -------
+    ndarray, shape (M, 2), M <= limit
+        The first sample of each occupied cell, in recording order.
+    """
+    points = np.asarray(pan_tilt_deg, dtype=np.float64).reshape(-1, 2)
+    if len(points) == 0:
+        return points
+    cells = np.floor(points / cell_deg).astype(np.int64)
+    _, first = np.unique(cells, axis=0, return_index=True)
+    kept = points[np.sort(first)]
+    # Ceiling division: the stride that brings the kept cells down to at most ``limit``.
+    stride = max(1, -(-len(kept) // limit))
+    return kept[::stride]
+
+
+@dataclass(frozen=True)
+class Snapshot:
+    """The board's contents at one instant; a version increases with every publish of its part."""
+
+    live: Live | None
+    live_version: int
+    scene: Scene | None
+    scene_version: int
+
+
+class Board:
+    """The latest :class:`Live` and :class:`Scene`, swapped under a lock.
+
+    Producers call :meth:`publish_live` / :meth:`publish_scene` from any thread; each is a
+    reference swap and a counter increment (O(1), never waits on a client). The server reads
+    :meth:`snapshot` at its own pace.
+    """
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._live: Live | None = None
+        self._scene: Scene | None = None
+        self._live_version = 0
+        self._scene_version = 0
+
+    def publish_live(self, live: Live) -> None:
+        """Make ``live`` the newest fast part (replaces the previous one)."""
+        with self._lock:
+            self._live = live
+            self._live_version += 1
+
+    def publish_scene(self, scene: Scene) -> None:
+        """Make ``scene`` the newest slow part (replaces the previous one)."""
+        with self._lock:
+            self._scene = scene
+            self._scene_version += 1
+
+    def snapshot(self) -> Snapshot:
+        """The newest of both parts with their versions, read together."""
+        with self._lock:
+            return Snapshot(self._live, self._live_version, self._scene, self._scene_version)
+
+    @property
+    def live(self) -> Live | None:
+        """The newest fast part (None before the first publish)."""
+        with self._lock:
+            return self._live
+
+    @property
+    def scene(self) -> Scene | None:
+        """The newest slow part (None before the first publish)."""
+        with self._lock:
+            return self._scene

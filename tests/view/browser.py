@@ -1,0 +1,58 @@
+"""Headless Chromium through Selenium, started the way this machine needs (root, no network).
+
+Used by the view's tests and by ``benchmarks/view_screenshots.py``. ``Service`` is given the
+system chromedriver so Selenium Manager never tries to download one.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import tempfile
+from collections.abc import Iterator
+
+from selenium import webdriver
+from selenium.webdriver.chrome.service import Service
+from selenium.webdriver.support.ui import WebDriverWait
+
+CHROMIUM = "/usr/bin/chromium"
+CHROMEDRIVER = "/usr/bin/chromedriver"
+#: Flags without which Chromium stalls here (root, closed network, no GPU).
+FLAGS = (
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--window-size=1300,700",
+)
+#: Longest wait (s) for what a page should show: generous for a 2-core machine under load.
+WAIT_S = 30.0
+
+
+@contextlib.contextmanager
+def chromium() -> Iterator[webdriver.Chrome]:
+    """A headless Chromium with a new empty profile, quit on exit."""
+    with tempfile.TemporaryDirectory(prefix="limbctl-chromium-") as profile:
+        options = webdriver.ChromeOptions()
+        options.binary_location = CHROMIUM
+        for flag in FLAGS:
+            options.add_argument(flag)
+        options.add_argument(f"--user-data-dir={profile}")
+        driver = webdriver.Chrome(service=Service(CHROMEDRIVER), options=options)
+        try:
+            yield driver
+        finally:
+            driver.quit()
+
+
+def wait_for(driver: webdriver.Chrome, condition, message: str, timeout: float = WAIT_S):
+    """Wait until ``condition(driver)`` is truthy and return it; fail with ``message`` if not."""
+    return WebDriverWait(driver, timeout, poll_frequency=0.05).until(condition, message)
+
+
+def text_of(driver: webdriver.Chrome, element_id: str) -> str:
+    """The text an element shows (textContent, so hidden tables read too)."""
+    return driver.execute_script(f"return document.getElementById('{element_id}').textContent;")

@@ -1,0 +1,142 @@
+"""The page in headless Chromium: what it shows matches what was published, and it keeps up."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from limbctl.view import (
+    Board,
+    EdgeLoop,
+    GuideFigure,
+    HardLimits,
+    Live,
+    PanTilt,
+    Scene,
+    TeleopStatus,
+    ViewServer,
+)
+from tests.view.browser import chromium, text_of, wait_for
+
+#: A 40 x 20 deg rectangle, its top edge traced, the rest not yet.
+SQUARE = EdgeLoop(
+    pan_tilt_deg=[[-20.0, -10.0], [20.0, -10.0], [20.0, 10.0], [-20.0, 10.0]],
+    traced=[False, False, True, False],
+)
+LIMITS = HardLimits(pan_deg=(-90.0, 90.0), tilt_deg=(-40.0, 60.0))
+#: RGB of the region's fill in view.js (COLORS.region).
+REGION_RGB = (150, 220, 150)
+
+
+@pytest.fixture(scope="module")
+def browser():
+    with chromium() as driver:
+        yield driver
+
+
+@pytest.fixture
+def served():
+    board = Board()
+    with ViewServer(board, port=0) as server:
+        yield board, server
+    assert not server.running
+
+
+def pixel(driver, pan: float, tilt: float) -> tuple[int, int, int]:
+    return tuple(driver.execute_script(f"return window.limbview.pixel({pan}, {tilt});")[:3])
+
+
+def test_page_shows_the_published_record_state(browser, served):
+    board, server = served
+    samples = np.column_stack([np.linspace(-15, 15, 300), np.linspace(-8, 8, 300)])
+    board.publish_scene(
+        Scene(
+            samples_deg=samples,
+            loops=(SQUARE,),
+            limits=LIMITS,
+            region_note="fitted on 300 samples",
+            guide=(GuideFigure("edge closed", 25.0, "%"),),
+            guide_text="trace the lower edge",
+        )
+    )
+    board.publish_live(Live(mode="record", pose=PanTilt(31.25, -12.5), sample_count=300))
+    browser.get(server.url)
+
+    wait_for(browser, lambda d: text_of(d, "sample-count") == "300", "sample count not shown")
+    assert text_of(browser, "pose") == "31.3, -12.5"
+    assert text_of(browser, "mode") == "record"
+    assert text_of(browser, "region-note") == "fitted on 300 samples"
+    assert text_of(browser, "loop-count") == "1"
+    assert text_of(browser, "traced-share") == "25 % of 4 stretches"
+    assert text_of(browser, "limits") == "pan -90..90, tilt -40..60"
+    assert "edge closed" in text_of(browser, "guide") and "25.0 %" in text_of(browser, "guide")
+    assert text_of(browser, "guide-text") == "trace the lower edge"
+    assert browser.find_element("id", "teleop").is_displayed() is False
+    assert browser.find_element("id", "fault").is_displayed() is False
+    # the region is drawn: its fill inside the rectangle (away from samples, markers), not outside
+    wait_for(browser, lambda d: pixel(d, -15.0, 5.0) == REGION_RGB, "region fill not drawn")
+    assert pixel(browser, 50.0, 40.0) != REGION_RGB
+
+
+def test_page_follows_live_updates_and_teleop(browser, served):
+    board, server = served
+    board.publish_scene(Scene(loops=(SQUARE,), limits=LIMITS))
+    board.publish_live(Live(mode="teleop"))
+    browser.get(server.url)
+    wait_for(browser, lambda d: text_of(d, "mode") == "teleop", "mode not shown")
+
+    for cycle in range(1, 6):
+        board.publish_live(
+            Live(
+                mode="teleop",
+                pose=PanTilt(2.0 * cycle, 1.0),
+                teleop=TeleopStatus(
+                    commanded=PanTilt(60.0, 30.0 + cycle),
+                    written=PanTilt(20.0, 10.0),
+                    outcome="corrected",
+                    rate_hz=199.6,
+                    cycles=cycle,
+                ),
+            )
+        )
+        wait_for(browser, lambda d, c=cycle: text_of(d, "cycles") == str(c), f"cycle {cycle}")
+        assert text_of(browser, "commanded") == f"60.0, {30.0 + cycle:.1f}"
+        assert text_of(browser, "pose") == f"{2.0 * cycle:.1f}, 1.0"
+    assert text_of(browser, "written") == "20.0, 10.0"
+    assert text_of(browser, "outcome") == "corrected"
+    assert text_of(browser, "rate") == "199.6 Hz"
+    assert browser.find_element("id", "teleop").is_displayed()
+
+    board.publish_live(Live(mode="teleop", fault="servo 2 vanished: holding the last safe pose"))
+    wait_for(browser, lambda d: d.find_element("id", "fault").is_displayed(), "fault not shown")
+    assert "servo 2 vanished" in text_of(browser, "fault")
+
+
+def test_page_updates_the_pose_at_least_five_times_a_second(browser, served):
+    board, server = served
+    board.publish_live(Live(mode="record", pose=PanTilt(0.0, 0.0)))
+    browser.get(server.url)
+    wait_for(browser, lambda d: text_of(d, "pose") == "0.0, 0.0", "first pose not shown")
+    # the page counts the live frames it received; publish a new pose every few ms for ~2 s
+    start = int(text_of(browser, "live-frames"))
+    t0 = browser.execute_script("return performance.now();")
+    pose = 0
+    while browser.execute_script("return performance.now();") - t0 < 2000.0:
+        pose += 1
+        board.publish_live(Live(mode="record", pose=PanTilt(float(pose % 90), 0.0)))
+    elapsed_s = (browser.execute_script("return performance.now();") - t0) / 1000.0
+    frames = int(text_of(browser, "live-frames")) - start
+    assert frames / elapsed_s >= 5.0, f"{frames} pose updates in {elapsed_s:.2f} s"
+
+
+def test_several_browsers_watch_at_once(served):
+    board, server = served
+    board.publish_live(Live(mode="record", sample_count=7))
+    with chromium() as second:
+        second.get(server.url)
+        wait_for(second, lambda d: text_of(d, "sample-count") == "7", "second browser")
+        with chromium() as third:
+            third.get(server.url)
+            board.publish_live(Live(mode="record", sample_count=8))
+            for driver in (second, third):
+                wait_for(driver, lambda d: text_of(d, "sample-count") == "8", "both update")
