@@ -115,6 +115,12 @@ class Rig:
             ticks.append(min(max(tick, lo), hi))
         return GoalTicks(ticks[0], ticks[1], pan_c, tilt_c, clamped)
 
+    def held_pose(self, pan: float, tilt: float) -> tuple[float, float]:
+        """The joint angles (rad) the servos hold once ``(pan, tilt)`` is written: clamped to
+        the hard limits and rounded to whole ticks."""
+        goal = self.goal_for(pan, tilt)
+        return self.ticks_to_angles(goal.pan, goal.tilt)
+
     # ---- the bus ---------------------------------------------------------------------------------
     def _bus(self) -> ServoBus:
         if self.bus is None:

@@ -122,3 +122,16 @@ def test_write_pose_reaches_the_pose_and_clamps(sim):
             assert time.monotonic() < deadline, sim.truth()["joints_deg"]
             rig.read_pose()  # one bus round trip per wait step
         assert math.degrees(rig.read_pose()[1]) <= PROFILE.tilt.max_deg
+
+
+@given(pan=st.floats(-4.0, 4.0), tilt=st.floats(-4.0, 4.0))
+def test_held_pose_is_the_written_goal_back_in_radians(pan, tilt):
+    rig = Rig(PROFILE)
+    held = rig.held_pose(pan, tilt)
+    goal = rig.goal_for(pan, tilt)
+    assert rig.angles_to_ticks(*held) == (goal.pan, goal.tilt)
+    # half a tick of rounding per joint after the clamp; a clamped joint is kept on a tick
+    # strictly inside its limit, up to a whole tick from it
+    rounding = TICK_RAD if goal.clamped else TICK_RAD / 2
+    assert abs(held[0] - goal.pan_rad) <= rounding + 1e-12
+    assert abs(held[1] - goal.tilt_rad) <= rounding + 1e-12
