@@ -42,6 +42,12 @@ class RecordSummary:
     spread_deg: float = 0.0
     cells_visited: int = 0
     ended_by: str = ""
+    fault: str = ""
+
+    @property
+    def exit_code(self) -> int:
+        """0 for a recording that ended as asked (Enter, signal, duration), 3 for a bus failure."""
+        return 3 if self.fault else 0
 
     @property
     def rate_hz(self) -> float:
@@ -49,7 +55,7 @@ class RecordSummary:
 
     def lines(self) -> list[str]:
         return [
-            f"ended by           {self.ended_by}",
+            f"ended by           {self.ended_by}" + (f": {self.fault}" if self.fault else ""),
             f"samples            {self.samples} in {self.elapsed_s:.1f} s ({self.rate_hz:.1f} Hz)",
             f"angular spread     {self.spread_deg:.1f} deg from the mean direction",
             f"failed reads       {self.failed_reads}",
@@ -125,7 +131,8 @@ def record(
             summary.failed_reads += 1
             failed_in_a_row += 1
             if failed_in_a_row >= MAX_FAILED_READS:
-                summary.ended_by = f"bus failure: {exc}"
+                summary.ended_by = "bus failure"
+                summary.fault = f"{MAX_FAILED_READS} reads in a row failed, the last: {exc}"
                 break
         else:
             failed_in_a_row = 0

@@ -47,3 +47,18 @@ def test_slow_rates_are_refused(tmp_path):
     with DatasetWriter(tmp_path / "x.limb", rig="sim") as writer:
         with pytest.raises(ConfigError, match="100 Hz"):
             record(None, writer, rate_hz=50.0)
+
+
+def test_a_bus_failure_ends_the_recording_as_a_fault_and_keeps_the_samples(tmp_path):
+    out = tmp_path / "teach.limb"
+    with open_rig(hand=demo_region_path()) as session, DatasetWriter(out, rig="sim") as writer:
+        # the tilt servo drops off the bus for good half a second in
+        timer = threading.Timer(0.5, session.simulator.vanish, args=(2, 600.0))
+        timer.start()
+        summary = record(session.rig, writer, rate_hz=100.0, duration_s=20.0)
+        timer.join()
+    assert summary.ended_by == "bus failure" and summary.exit_code == 3
+    assert "servo 2" in summary.fault and "50 reads in a row failed" in summary.fault
+    assert summary.lines()[0].startswith("ended by           bus failure: ")
+    assert summary.elapsed_s < 20.0
+    assert len(load_dataset(out)) == summary.samples > 20
