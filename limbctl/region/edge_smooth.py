@@ -22,11 +22,12 @@ loop by a smooth curve sampled every ``STEP_DEG`` (all angles below in radians):
    never deeper, where the circle's own depth would read a mis-fitted curvature as room to
    grow); the outermost
    ``o_(1) >= ... >= o_(K)`` give the endpoint estimate ``o_(1) + gap`` with ``gap`` their
-   mean spacing (:func:`mean_spacing`): where the edge lies, not where the
-   outermost sample happened to fall. Offsets are smoothed along the loop with the same ``W``,
-   raised by smooth bumps (:func:`lift`) wherever a station would leave a taught direction
-   next to it outside, moved out by the sagitta of the chords between stations (the polygon
-   of stations circumscribes the curve), and capped at ``max_offset``.
+   mean spacing (:func:`limbctl.region.gaps.spacing_gap`): where the edge lies, not where
+   the outermost sample happened to fall. Offsets are smoothed along the loop with the same
+   ``W``, raised by smooth bumps (:func:`limbctl.region.loops.lift`) wherever a station would
+   leave a taught direction next to it outside, moved out by the sagitta of the chords
+   between stations (the polygon of stations circumscribes the curve), and capped at
+   ``max_offset``.
 4. *Acceptance* (:mod:`limbctl.region.edge_choice`). The smooth edges replace the
    data-supported loops only when the data agree with them: the data hold no bay
    (:func:`pockets`: no hole, no pocket between a loop and its convex hull worth more than
@@ -54,8 +55,18 @@ import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
 from limbctl.geometry.quat import tangent_frame
+from limbctl.region.gaps import ORDER_STATISTICS, spacing_gap
+from limbctl.region.loops import (
+    StationBuckets,
+    lift,
+    loop_area,
+    loop_gaps,
+    loop_length,
+    nearest_station,
+    resample_loop,
+    smooth_along,
+)
 from limbctl.region.mesh import DirectionMesh
-from limbctl.region.shape import loop_area
 
 #: No station's fit residual may exceed this multiple of the loop's median residual.
 RESOLVED_RATIO = 1.4
@@ -71,8 +82,6 @@ MIN_VERTICES_PER_WINDOW = 3.0
 GROWTH = 1.2
 #: Fitted circles are at least this large (deg of angular radius), either side.
 MIN_RADIUS_DEG = 5.0
-#: Outermost samples per window used for the edge offset.
-ORDER_STATISTICS = 12
 #: The smooth edge may leave out at most this fraction of the taught directions.
 MISS_FRACTION = 0.001
 #: A taught direction at most this far (deg) outside the smooth edge does not count as left out.
@@ -85,43 +94,6 @@ POCKET_SAMPLES = 40.0
 HULL_REACH_DEG = 89.0
 #: Radius (deg) of the neighbourhood the local sample density is counted in.
 DENSITY_RADIUS_DEG = 6.0
-
-
-def resample_loop(loop: np.ndarray, step: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Stations every ~``step`` (rad) along a closed loop (M, 3).
-
-    Returns the stations (K, 3), their arc-length positions (K,) and the positions of the
-    loop's own vertices (M,), both measured from vertex 0 (the loop's length is the last
-    vertex position plus its closing arc: :func:`loop_length`).
-    """
-    nxt = np.roll(loop, -1, axis=0)
-    seg = np.arccos(np.clip(np.einsum("ij,ij->i", loop, nxt), -1.0, 1.0))
-    at_vertex = np.concatenate([[0.0], np.cumsum(seg)[:-1]])
-    total = float(seg.sum())
-    k = max(8, int(np.ceil(total / step)))
-    s = np.arange(k) * total / k
-    e = np.clip(np.searchsorted(at_vertex, s, side="right") - 1, 0, loop.shape[0] - 1)
-    t = (s - at_vertex[e]) / np.maximum(seg[e], 1e-15)
-    # slerp along arc e: (sin((1 - t) om) a + sin(t om) b) / sin(om)
-    om = seg[e]
-    so = np.where(np.sin(om) < 1e-12, 1.0, np.sin(om))
-    x = (np.sin((1.0 - t) * om) / so)[:, None] * loop[e] + (np.sin(t * om) / so)[:, None] * nxt[e]
-    small = np.sin(om) < 1e-12
-    x[small] = loop[e[small]]
-    return x / np.linalg.norm(x, axis=1, keepdims=True), s, at_vertex
-
-
-def loop_length(loop: np.ndarray) -> float:
-    """Length (rad) of a closed loop (M, 3)."""
-    nxt = np.roll(loop, -1, axis=0)
-    return float(np.arccos(np.clip(np.einsum("ij,ij->i", loop, nxt), -1.0, 1.0)).sum())
-
-
-def loop_gaps(a: np.ndarray, b: np.ndarray, total: float) -> np.ndarray:
-    """Distances (A, B) along a closed loop of length ``total`` between positions ``a`` (A,)
-    and ``b`` (B,): ``min(|a - b|, total - |a - b|)``."""
-    gap = np.abs(a[:, None] - b[None, :])
-    return np.minimum(gap, total - gap)
 
 
 def outward_at_stations(loop: np.ndarray, s: np.ndarray, at_vertex: np.ndarray) -> np.ndarray:
@@ -194,13 +166,6 @@ def choose_window(
     return best
 
 
-def smooth_along(values: np.ndarray, s: np.ndarray, total: float, width: float) -> np.ndarray:
-    """Gaussian smoothing (width ``width`` rad) of per-station ``values`` (K,) along the loop."""
-    gap = loop_gaps(s, s, total)
-    g = np.exp(-0.5 * (gap / width) ** 2)
-    return (g @ values) / g.sum(axis=1)
-
-
 def edge_offsets(
     stations: np.ndarray,
     pole: np.ndarray,
@@ -213,17 +178,14 @@ def edge_offsets(
     """Endpoint estimate (K,) rad of the edge beyond each station's circle (step 3)."""
     k = stations.shape[0]
     # each datum belongs to its nearest station; a station reads those within +- window
-    owner = np.argmax(data @ stations.T, axis=1)
-    order = np.argsort(owner, kind="stable")
-    bounds = np.searchsorted(owner[order], np.arange(k + 1))
+    buckets = StationBuckets(nearest_station(data, stations), k)
     reach = max(1, int(round(window / (total / k))))
     # outward unit normal of the circle at each station: (x (x . n) - n) / |...|
     normal = stations * np.einsum("ij,ij->i", stations, pole)[:, None] - pole
     normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-15)
     out = np.zeros(k)
     for i in range(k):
-        idx = np.arange(i - reach, i + reach + 1) % k
-        rows = np.concatenate([order[bounds[j] : bounds[j + 1]] for j in idx])
+        rows = buckets.around(i, reach)
         if rows.size == 0:
             continue
         # o = asin(d . t): signed depth beyond the great circle tangent to the edge at the
@@ -231,19 +193,8 @@ def edge_offsets(
         # shallower than they are, never deeper
         o = np.arcsin(np.clip(data[rows] @ normal[i], -1.0, 1.0))
         o = -np.sort(-o)[:ORDER_STATISTICS]
-        out[i] = o[0] + mean_spacing(o)
+        out[i] = o[0] + spacing_gap(o)
     return out
-
-
-def mean_spacing(depths: np.ndarray) -> float:
-    """The expected gap (rad) between the outermost of sorted ``depths`` (K,) and the edge.
-
-    Near an edge with locally even density the outermost depths are evenly spaced on
-    average, and the edge lies one spacing beyond the first: ``(o_(1) - o_(K)) / (K - 1)``
-    (0 for fewer than 3 depths).
-    """
-    k = depths.size
-    return float((depths[0] - depths[-1]) / (k - 1)) if k >= 3 else 0.0
 
 
 def arcs_cross(loops: list[np.ndarray]) -> bool:
@@ -316,26 +267,13 @@ def sample_need(base: np.ndarray, pole: np.ndarray, rho: np.ndarray, data: np.nd
     its two neighbours (-inf where there are none).
     """
     k = base.shape[0]
-    owner = np.argmax(data @ base.T, axis=1)
+    owner = nearest_station(data, base)
     need = np.full(k, -np.inf)
     for shift in (-1, 0, 1):
         station = (owner + shift) % k
         depth = np.arccos(np.clip(np.einsum("ij,ij->i", data, pole[station]), -1.0, 1.0))
         np.maximum.at(need, station, depth - rho[station])
     return need
-
-
-def lift(deficit: np.ndarray, s: np.ndarray, total: float, width: float) -> np.ndarray:
-    """Smooth bumps (K,) that make up every positive ``deficit`` (K,) at its station.
-
-    ``max_j deficit_j exp(-(s_k - s_j)^2 / (2 width^2))`` over stations with a deficit: each
-    bump is exactly as high as its station needs and fades along the loop.
-    """
-    short = np.flatnonzero(deficit > 0.0)
-    if short.size == 0:
-        return np.zeros(s.shape[0])
-    gap = loop_gaps(s, s[short], total)
-    return np.max(deficit[short][None, :] * np.exp(-0.5 * (gap / width) ** 2), axis=1)
 
 
 def unexplained_gap(edge: np.ndarray, data: np.ndarray, supported: DirectionMesh) -> float:

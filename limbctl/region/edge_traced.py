@@ -18,8 +18,8 @@ Starting from a data-supported loop, resampled to stations ``TRACE_STEP_DEG`` ap
    ``+- h`` along the curve: the upper concave majorant of the (position, depth) points,
    evaluated at the station (the line through two of them that passes over all the others and
    is lowest there; a lone deep point lifts a station only as far as the line from it does),
-   plus the expected gap between that line and the edge, ``HULL_GAP / K`` times the
-   ``K``-th smallest residual below the line.
+   plus the expected gap between that line and the edge
+   (:func:`limbctl.region.gaps.majorant_gap`).
 3. *Move* each station out (or in) by its estimate, smoothed along the curve (Gaussian, ``h/2``).
 4. *Smooth* the curve by local quadratic regression of its positions (:func:`local_quadratic`,
    Gaussian weights of width ``TRACE_SMOOTH_DEG``): circles and other quadratic stretches come
@@ -44,7 +44,17 @@ from __future__ import annotations
 
 import numpy as np
 
-from limbctl.region.edge_smooth import lift, loop_length, mean_spacing, resample_loop, smooth_along
+from limbctl.region.gaps import ORDER_STATISTICS, majorant_gap, spacing_gap
+from limbctl.region.loops import (
+    StationBuckets,
+    lift,
+    loop_length,
+    nearest_station,
+    resample_loop,
+    signed_offset,
+    smooth_along,
+    station_positions,
+)
 
 #: Spacing (deg) of the traced curve's stations.
 TRACE_STEP_DEG = 1.5
@@ -54,7 +64,7 @@ TRACE_ITERATIONS = 10
 TRACE_SMOOTH_DEG = 6.0
 #: The most (deg) one round's smoothing may move a station outward.
 TRACE_SMOOTH_CAP_DEG = 0.25
-#: The estimate window is chosen so the K outermost samples are about this far apart (deg).
+#: The estimate window is chosen so the outermost samples are about this far apart (deg).
 TRACE_SPACING_DEG = 0.2
 #: Smallest half window (deg) along the curve.
 TRACE_MIN_WINDOW_DEG = 3.0
@@ -62,13 +72,6 @@ TRACE_MIN_WINDOW_DEG = 3.0
 TRACE_MAX_WINDOW_DEG = 10.0
 #: Depth (deg) of the band inside the loop the edge's sample density is counted in.
 DENSITY_BAND_DEG = 3.0
-#: Residuals below the majorant used for the gap estimate.
-K = 12
-#: Expected gap between the majorant at the station and the edge, in units of the K-th
-#: smallest residual over K: E[gap] = 1.85 / (rho 2h) and E[r_(12) / 12] = 0.85 / (rho 2h)
-#: for points of density rho below a straight edge (simulated, 3000 draws each at 30 and 100
-#: points per unit depth; ``tests/test_edge_trace.py`` checks it).
-HULL_GAP = 2.19
 #: After the lift every taught direction lies at least this far (deg) inside, not on the edge.
 LIFT_MARGIN_DEG = 0.01
 #: Outermost readings per window the majorant is built from.
@@ -88,7 +91,7 @@ def station_normals(curve: np.ndarray) -> np.ndarray:
 
 def readings(curve: np.ndarray, data: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Owner station (N,) and depth (N,) rad beyond the curve of each taught direction (N, 3)."""
-    owner = np.argmax(data @ curve.T, axis=1)
+    owner = nearest_station(data, curve)
     normal = station_normals(curve)
     depth = np.arcsin(np.clip(np.einsum("ij,ij->i", data, normal[owner]), -1.0, 1.0))
     return owner, depth
@@ -118,15 +121,16 @@ def edge_estimate(u: np.ndarray, o: np.ndarray) -> float:
     ``u`` (M,) are the readings' positions along the curve relative to the station, ``o`` (M,)
     their depths. The upper concave majorant at ``u = 0`` is the highest chord value
     ``o_i + (o_j - o_i) (0 - u_i) / (u_j - u_i)`` over pairs with ``u_i < 0 <= u_j``; the edge
-    lies ``HULL_GAP r_(K) / K`` beyond it (``r`` the residuals below the chord). With readings
-    on one side only (or fewer than K), the outermost depth plus their mean spacing.
+    lies :func:`limbctl.region.gaps.majorant_gap` beyond it (from the residuals below the
+    chord). With readings on one side only (or fewer than ``ORDER_STATISTICS``), the outermost
+    depth plus their mean spacing (:func:`limbctl.region.gaps.spacing_gap`).
     """
     top = np.argsort(-o)[:TOP_READINGS]
     u, o = u[top], o[top]
     left = u < 0.0
-    if o.size < K or not left.any() or left.all():
-        o = np.sort(o)[::-1][:K]
-        return float(o[0] + mean_spacing(o))
+    if o.size < ORDER_STATISTICS or not left.any() or left.all():
+        o = np.sort(o)[::-1][:ORDER_STATISTICS]
+        return float(o[0] + spacing_gap(o))
     ul, ol, ur, orr = u[left], o[left], u[~left], o[~left]
     # the chord from (u_i, o_i) to (u_j, o_j) at u = 0, for every left-right pair
     frac = -ul[:, None] / (ur[None, :] - ul[:, None])
@@ -134,8 +138,8 @@ def edge_estimate(u: np.ndarray, o: np.ndarray) -> float:
     i, j = np.unravel_index(np.argmax(chord), chord.shape)
     at_station = chord[i, j]
     slope = (orr[j] - ol[i]) / (ur[j] - ul[i])
-    resid = np.sort(at_station + slope * u - o)[:K]
-    return float(at_station + HULL_GAP * resid[-1] / K)
+    resid = np.sort(at_station + slope * u - o)[:ORDER_STATISTICS]
+    return float(at_station + majorant_gap(resid))
 
 
 def local_quadratic(curve: np.ndarray, sigma: float) -> np.ndarray:
@@ -174,13 +178,11 @@ def trace_edge(loop: np.ndarray, data: np.ndarray, max_offset: float) -> np.ndar
         k = curve.shape[0]
         s, total = station_positions(curve)
         owner, depth = readings(curve, data)
-        order = np.argsort(owner, kind="stable")
-        bounds = np.searchsorted(owner[order], np.arange(k + 1))
+        buckets = StationBuckets(owner, k)
         reach = max(1, int(round(h * k / total)))
         move = np.zeros(k)
         for i in range(k):
-            near = np.arange(i - reach, i + reach + 1) % k
-            rows = np.concatenate([order[bounds[j] : bounds[j + 1]] for j in near])
+            rows = buckets.around(i, reach)
             if rows.size:
                 u = signed_offset(s[owner[rows]], s[i], total)
                 move[i] = edge_estimate(u, depth[rows])
@@ -215,7 +217,7 @@ def chord_need(curve: np.ndarray, data: np.ndarray) -> np.ndarray:
     nxt = np.roll(curve, -1, axis=0)
     pole = -np.cross(curve, nxt)
     pole /= np.maximum(np.linalg.norm(pole, axis=1, keepdims=True), 1e-15)
-    owner = np.argmax(data @ curve.T, axis=1)
+    owner = nearest_station(data, curve)
     before = np.einsum("ij,ij->i", data, pole[(owner - 1) % k])
     after = np.einsum("ij,ij->i", data, pole[owner])
     # convex at k: the next station lies inside the previous chord's great circle
@@ -227,18 +229,6 @@ def chord_need(curve: np.ndarray, data: np.ndarray) -> np.ndarray:
     for shift in (-1, 0, 1):
         np.maximum.at(need, (owner + shift) % k, depth)
     return need
-
-
-def station_positions(curve: np.ndarray) -> tuple[np.ndarray, float]:
-    """Arc-length positions (K,) rad of a closed curve's evenly spaced stations, and its length."""
-    total = loop_length(curve)
-    return np.arange(curve.shape[0]) * total / curve.shape[0], total
-
-
-def signed_offset(a: np.ndarray, b: np.ndarray, total: float) -> np.ndarray:
-    """Signed along-loop offset ``a - b`` (rad) on a closed loop of length ``total``, in
-    ``[-total / 2, total / 2)``."""
-    return (a - b + 0.5 * total) % total - 0.5 * total
 
 
 def _moved(curve: np.ndarray, normal: np.ndarray, by: np.ndarray) -> np.ndarray:

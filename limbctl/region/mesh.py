@@ -26,9 +26,7 @@ from scipy.spatial import ConvexHull, QhullError
 
 from limbctl.errors import InvalidInputError
 from limbctl.region import mesh_kernels as bk
-
-#: contains() accepts directions up to this far (rad) beyond the region; correct() lands inside it.
-CONTAIN_TOLERANCE = 1e-9
+from limbctl.region.mesh_kernels import CONTAIN_TOLERANCE
 
 
 @dataclass
@@ -42,7 +40,7 @@ class DirectionMesh:
         a -> b seen from outside the sphere; they form closed loops.
     margins : (E,) float64, each arc's widening (rad), >= 0.
     axis : (3,) unit axis of the lookup grid; grid_* / cell_* : the lookup grid (see
-        boundary_kernels).
+        :mod:`limbctl.region.mesh_kernels`).
     """
 
     vertices: np.ndarray

@@ -31,7 +31,8 @@ import math
 import numba as nb
 import numpy as np
 
-#: Must equal boundary.CONTAIN_TOLERANCE (rad).
+#: contains() accepts directions up to this far (rad) beyond the region and correct() lands
+#: within it: rounding of the projection's last step, far below a servo tick (0.088 deg).
 CONTAIN_TOLERANCE = 1e-9
 
 

@@ -28,6 +28,8 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from limbctl.geometry.quat import tangent_frame
+from limbctl.region.gaps import line_gap
+from limbctl.region.loops import StationBuckets, chord, loops_to_edges
 from limbctl.region.mesh import (
     boundary_edges,
     circumradius,
@@ -35,11 +37,11 @@ from limbctl.region.mesh import (
     nearest_on_edges_reference,
     spherical_delaunay,
 )
+from limbctl.region.union_find import UnionFind
 
-
-def chord(angle: float) -> float:
-    """Chord length of an angle (rad) on the unit sphere: ``2 sin(angle / 2)``."""
-    return 2.0 * np.sin(0.5 * angle)
+#: The alpha complex's scale is set where it joins this share of the points into one piece: the
+#: rest (1 %) are strays whose isolating gaps must not set the scale of the whole region.
+JOINED_FRACTION = 0.99
 
 
 def thin(d: np.ndarray, spacing: float) -> np.ndarray:
@@ -64,27 +66,11 @@ def thin(d: np.ndarray, spacing: float) -> np.ndarray:
     return np.sort(np.asarray(keep, dtype=np.int64))
 
 
-def _components(n: int, tri: np.ndarray) -> np.ndarray:
-    """Label (n,) of the connected component of each vertex under triangles ``tri``."""
-    parent = np.arange(n)
-
-    def root(i: int) -> int:
-        while parent[i] != i:
-            parent[i] = parent[parent[i]]
-            i = parent[i]
-        return i
-
-    for a, b, c in tri:
-        ra, rb, rc = root(a), root(b), root(c)
-        parent[rb] = ra
-        parent[root(rc)] = ra
-    return np.array([root(i) for i in range(n)])
-
-
 def learn_alpha(d: np.ndarray, factor: float, quantile: float = 0.9) -> float:
     """The alpha-shape radius (rad) from the scale of the gaps inside the data ``d`` (V, 3).
 
-    ``alpha0`` is the smallest circumradius at which the alpha complex joins 99% of the points
+    ``alpha0`` is the smallest circumradius at which the alpha complex joins ``JOINED_FRACTION``
+    of the points
     into one piece; the gaps are the Delaunay triangles enclosed by that piece (inside its outer
     loop), and ``alpha = factor * quantile(circumradius of enclosed triangles)``, at least
     ``alpha0``. On i.i.d. samples this is a few times the sample spacing; on hand strokes it is
@@ -94,27 +80,14 @@ def learn_alpha(d: np.ndarray, factor: float, quantile: float = 0.9) -> float:
     radius = circumradius(d, tri)
     order = np.argsort(radius)
     n = d.shape[0]
-    parent = np.arange(n)
-    size = np.ones(n, dtype=np.int64)
-
-    def root(i: int) -> int:
-        while parent[i] != i:
-            parent[i] = parent[parent[i]]
-            i = parent[i]
-        return i
-
+    pieces = UnionFind(n)
     alpha0 = float(radius[order[-1]])
-    target = int(np.ceil(0.99 * n))
+    target = int(np.ceil(JOINED_FRACTION * n))
     for t in order:
-        a = root(tri[t, 0])
+        a = pieces.root(tri[t, 0])
         for v in tri[t, 1:]:
-            b = root(v)
-            if a != b:
-                if size[a] < size[b]:
-                    a, b = b, a
-                parent[b] = a
-                size[a] += size[b]
-        if size[a] >= target:
+            a = pieces.union(a, v)
+        if pieces.size[a] >= target:
             alpha0 = float(radius[t])
             break
     _, _, inside = alpha_complex(d, alpha0, max_hole=4.0 * np.pi)
@@ -135,33 +108,6 @@ def enclosed(p: np.ndarray, loops: list[np.ndarray]) -> np.ndarray:
         return np.zeros(p.shape[0], dtype=bool)
     vertices, edges = loops_to_edges(loops)
     return inside_reference(p, vertices, edges)
-
-
-def loops_to_edges(loops: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-    """Stack loops into vertices (V, 3) and directed edges (V, 2) joining consecutive points."""
-    vertices = np.vstack(loops)
-    idx = []
-    start = 0
-    for lp in loops:
-        i = np.arange(start, start + lp.shape[0])
-        idx.append(np.column_stack([i, np.roll(i, -1)]))
-        start += lp.shape[0]
-    return vertices, np.vstack(idx)
-
-
-def loop_area(loop: np.ndarray) -> float:
-    """Signed area (sr) enclosed by a loop (M, 3): positive when the region is on its left.
-
-    Sum of the signed spherical triangles (c, a, b) from the loop's mean direction ``c``:
-    ``2 atan2(det(c, a, b), 1 + c.a + a.b + b.c)``.
-    """
-    c = loop.mean(axis=0)
-    c /= np.linalg.norm(c)
-    a = loop
-    b = np.roll(loop, -1, axis=0)
-    det = np.cross(a, b) @ c
-    den = 1.0 + a @ c + np.sum(a * b, axis=1) + b @ c
-    return float(np.sum(2.0 * np.arctan2(det, den)))
 
 
 def trace_loops(d: np.ndarray, edges: np.ndarray) -> list[np.ndarray]:
@@ -236,19 +182,12 @@ def alpha_complex(
     shared = counts[inverse[order]] == 2
     first = pairs[shared][0::2]
     second = pairs[shared][1::2]
-    # pieces of non-region triangles joined across shared edges (union-find)
-    parent = np.arange(t)
-
-    def root(i: int) -> int:
-        while parent[i] != i:
-            parent[i] = parent[parent[i]]
-            i = parent[i]
-        return i
-
+    # pieces of non-region triangles joined across shared edges
+    pieces = UnionFind(t)
     for a, b in zip(first, second, strict=True):
         if not kept[a] and not kept[b]:
-            parent[root(a)] = root(b)
-    label = np.array([root(i) for i in range(t)])
+            pieces.union(a, b)
+    label = pieces.labels()
     outside = np.zeros(t, dtype=bool)
     outside[label[owner[order][~shared]]] = True
     area = np.bincount(label, weights=triangle_area(d, tri) * ~kept, minlength=t)
@@ -363,14 +302,15 @@ def edge_margins(
     Each data direction (N, 3) is assigned to its nearest arc. For an arc ``a -> b`` with
     outward pole ``n = -(a x b) / |a x b|``, the data assigned to arcs within +- ``window``
     (rad, along the loop) are measured beyond its great circle, ``o = asin(x . n)``; their
-    outermost ``o_(1) >= ... >= o_(top)`` give the endpoint estimate ``o_(1) + gap`` (see
-    :func:`_gap_beyond`): a notch between outer samples fills up to them, a straight or convex
-    stretch reaches one sample spacing beyond its outermost samples. The margin is that
-    estimate, at least the distance of every sample outside the loops assigned to the arc,
-    and at most ``max_margin`` (one value, or per loop an (M,) array of caps per arc). An arc
-    longer than ``max_bridge`` (rad) bridges a gap without samples along it: the data say
-    nothing of an edge beyond it, so it widens only to cover the samples beyond it. Returns
-    one (M,) array per loop, entry ``i`` for the arc from point ``i`` to ``i + 1``.
+    outermost ``o_(1) >= ... >= o_(top)`` give the endpoint estimate ``o_(1) + gap``
+    (:func:`limbctl.region.gaps.line_gap`): a notch between outer samples fills up to them,
+    a straight or convex stretch reaches one sample spacing beyond its outermost samples.
+    The margin is that estimate, at least the distance of every sample outside the loops
+    assigned to the arc, and at most ``max_margin`` (one value, or per loop an (M,) array of
+    caps per arc). An arc longer than ``max_bridge`` (rad) bridges a gap without samples
+    along it: the data say nothing of an edge beyond it, so it widens only to cover the
+    samples beyond it. Returns one (M,) array per loop, entry ``i`` for the arc from point
+    ``i`` to ``i + 1``.
     """
     vertices, edges = loops_to_edges(loops)
     nearest, _, angle = nearest_on_edges_reference(data, vertices, edges)
@@ -389,40 +329,20 @@ def edge_margins(
         # arc-length position of each arc's middle along the loop
         middle = np.cumsum(seg) - 0.5 * seg
         total = float(seg.sum())
-        mine = np.flatnonzero((nearest >= start) & (nearest < start + m))
-        local = nearest[mine] - start
-        order = np.argsort(local, kind="stable")
-        local, mine = local[order], mine[order]
-        bounds = np.searchsorted(local, np.arange(m + 1))
+        # the data of each arc of this loop
+        buckets = StationBuckets(nearest - start, m)
         est = np.zeros(m)
         for e in np.flatnonzero(seg <= max_bridge):
             # circular distance along the loop between arc middles
             apart = np.abs(middle - middle[e])
             near = np.flatnonzero(np.minimum(apart, total - apart) <= window)
-            rows = np.concatenate([mine[bounds[k] : bounds[k + 1]] for k in near])
+            rows = buckets.rows(near)
             if rows.size == 0:
                 continue
             # o = asin(x . n): signed angle beyond the arc's great circle
             vals = np.arcsin(np.clip(data[rows] @ pole[e], -1.0, 1.0))
             vals = -np.sort(-vals)[:top]
-            est[e] = vals[0] + _gap_beyond(vals)
+            est[e] = vals[0] + line_gap(vals)
         out.append(np.clip(np.maximum(est, need[start : start + m]), 0.0, cap))
         start += m
     return out
-
-
-def _gap_beyond(vals: np.ndarray) -> float:
-    """How far beyond the outermost of sorted depths ``vals`` (K,) the edge is expected.
-
-    Near an edge with locally even density the outermost depths fall on a line,
-    ``E[o_(i)] = edge - i g``; the least-squares line through ``(i, o_(i))``, i = 1..K, gives
-    the edge at ``i = 0``, and the result is ``max(edge - o_(1), 0)``.
-    """
-    k = vals.size
-    if k < 3:
-        return 0.0
-    i = np.arange(1, k + 1, dtype=np.float64)
-    # slope and intercept of the least-squares line o = c + s i
-    slope = np.sum((i - i.mean()) * (vals - vals.mean())) / np.sum((i - i.mean()) ** 2)
-    intercept = vals.mean() - slope * i.mean()
-    return max(float(intercept - vals[0]), 0.0)

@@ -8,6 +8,7 @@ from limbctl.envelope.synthetic import ConeRegion, to_quaternions
 from limbctl.geometry.gimbal import pan_tilt_to_direction
 from limbctl.geometry.quat import direction_angle, limb_direction
 from limbctl.region import edge_smooth as ef
+from limbctl.region.loops import loop_length, resample_loop
 from limbctl.region.mesh import DirectionMesh
 from limbctl.teach.dataset import load_dataset
 
@@ -23,27 +24,13 @@ def circle(radius_deg: float, n: int, wobble_deg: float = 0.0, seed: int = 0) ->
     return np.column_stack([np.cos(r), np.sin(r) * np.cos(phi), np.sin(r) * np.sin(phi)])
 
 
-def test_resample_puts_stations_evenly_on_the_loop():
-    loop = circle(20.0, 17)
-    stations, s, at_vertex = ef.resample_loop(loop, np.radians(0.5))
-    total = ef.loop_length(loop)
-    assert at_vertex[0] == 0.0 and np.all(np.diff(at_vertex) > 0)
-    np.testing.assert_allclose(np.diff(s), total / s.size, rtol=1e-12)
-    assert total / s.size <= np.radians(0.5)
-    np.testing.assert_allclose(np.linalg.norm(stations, axis=1), 1.0, atol=1e-12)
-    # every station lies on an arc of the loop: within the arc's great circle
-    mesh = DirectionMesh.from_loops([loop], 0.0)
-    foot = mesh.project(stations)
-    assert np.all(mesh.contains(stations) | (direction_angle(foot, stations) < 1e-9))
-
-
 @pytest.mark.parametrize("window_deg", [4.5, 13.0, 60.0])
 def test_circle_fits_recover_an_exact_small_circle(window_deg):
     loop = circle(35.0, 40)
-    stations, s, at_vertex = ef.resample_loop(loop, np.radians(0.5))
+    stations, s, at_vertex = resample_loop(loop, np.radians(0.5))
     outward = ef.outward_at_stations(loop, s, at_vertex)
     pole, rho, resid = ef.circle_fits(
-        loop, at_vertex, s, ef.loop_length(loop), outward, np.radians(window_deg)
+        loop, at_vertex, s, loop_length(loop), outward, np.radians(window_deg)
     )
     # the pole is on the region's side (+x), the radius is the circle's
     np.testing.assert_allclose(pole, np.tile(X, (s.size, 1)), atol=1e-9)
@@ -54,9 +41,9 @@ def test_circle_fits_recover_an_exact_small_circle(window_deg):
 def test_window_grows_on_a_noisy_circle():
     # noise only: the residual levels off, the window goes to the top of the ladder
     loop = circle(25.0, 60, wobble_deg=1.0)
-    stations, s, at_vertex = ef.resample_loop(loop, np.radians(0.5))
+    stations, s, at_vertex = resample_loop(loop, np.radians(0.5))
     outward = ef.outward_at_stations(loop, s, at_vertex)
-    w = ef.choose_window(loop, at_vertex, s, ef.loop_length(loop), outward)
+    w = ef.choose_window(loop, at_vertex, s, loop_length(loop), outward)
     assert np.degrees(w) == pytest.approx(max(ef.WINDOWS_DEG))
 
 
@@ -141,24 +128,10 @@ def test_pockets_weigh_a_bay_against_the_sampling():
     loop = pan_tilt_to_direction(np.radians(BEAN[:, 0]), np.radians(BEAN[:, 1]))
     worth = max(w for _, _, w in ef.pockets(loop, data))
     assert worth > ef.POCKET_SAMPLES
-    _, s, at_vertex = ef.resample_loop(loop, np.radians(ef.STEP_DEG))
+    _, s, at_vertex = resample_loop(loop, np.radians(ef.STEP_DEG))
     assert ef.protected(loop, data, s, at_vertex).any()
     # a hole (a loop running clockwise) is protected whole
     assert ef.protected(loop[::-1], data, s, at_vertex).all()
-
-
-def test_lift_makes_up_each_deficit_and_nothing_more():
-    s = np.radians(np.arange(0.0, 360.0, 2.0))
-    total = np.radians(360.0)
-    none = ef.lift(np.full(s.size, -1.0), s, total, np.radians(5.0))
-    np.testing.assert_array_equal(none, 0.0)
-    deficit = np.full(s.size, -0.01)
-    deficit[[10, 100]] = [0.02, 0.005]
-    up = ef.lift(deficit, s, total, np.radians(5.0))
-    assert up[10] == pytest.approx(0.02) and up[100] >= 0.005
-    assert np.all(up <= 0.02) and np.all(up >= 0.0)
-    # bumps fade: 30 deg (6 widths) away nothing is left
-    assert up[25] < 1e-6
 
 
 def test_a_polygon_with_corners_keeps_the_supported_edge():
@@ -178,8 +151,8 @@ def test_residual_ratio_is_near_one_on_a_circle_and_high_past_a_tight_tip():
     from limbctl.envelope.synthetic import EGG
 
     def ratio(loop):
-        _, s, at_vertex = ef.resample_loop(loop, np.radians(ef.STEP_DEG))
-        total = ef.loop_length(loop)
+        _, s, at_vertex = resample_loop(loop, np.radians(ef.STEP_DEG))
+        total = loop_length(loop)
         outward = ef.outward_at_stations(loop, s, at_vertex)
         window = np.radians(13.0)
         return ef.residual_ratio(ef.circle_fits(loop, at_vertex, s, total, outward, window)[2])

@@ -1,6 +1,6 @@
 import numpy as np
 
-from limbctl.envelope.synthetic import ConeRegion, PolygonRegion, trajectory_samples
+from limbctl.envelope.synthetic import ConeRegion, trajectory_samples
 from limbctl.geometry.quat import direction_angle
 from limbctl.region import shape as rs
 from limbctl.region.mesh import DirectionMesh, boundary_edges
@@ -97,11 +97,3 @@ def test_surrounded_tells_middle_from_edge():
     probe = np.vstack([middle, near_edge, beyond, out])
     got = rs.surrounded(probe, d, np.radians(4.0), np.radians(150.0))
     np.testing.assert_array_equal(got, [True, True, False, False])
-
-
-def test_loop_area_and_gap_estimate():
-    bean = PolygonRegion()
-    loop = bean.boundary[::-1] if rs.loop_area(bean.boundary) < 0 else bean.boundary
-    assert rs.loop_area(loop) > 0 and rs.loop_area(loop[::-1]) < 0
-    assert abs(rs._gap_beyond(np.array([1.0, 0.9, 0.8, 0.7, 0.6])) - 0.1) < 1e-12
-    assert rs._gap_beyond(np.array([1.0, 1.0, 1.0, 1.0])) == 0.0
