@@ -2,10 +2,13 @@
 
 from calib.profile import (
     SIM_PORT,
+    Calibration,
+    JointCalibration,
     JointProfile,
     ProfileError,
     ProfileFileError,
     RigProfile,
+    calibration_from_dict,
     default_sim_profile,
     load_profile,
     profile_from_dict,
@@ -14,10 +17,13 @@ from calib.profile import (
 
 __all__ = [
     "SIM_PORT",
+    "Calibration",
+    "JointCalibration",
     "JointProfile",
     "ProfileError",
     "ProfileFileError",
     "RigProfile",
+    "calibration_from_dict",
     "default_sim_profile",
     "load_profile",
     "profile_from_dict",

@@ -7,14 +7,26 @@ A profile is a small YAML file (see ``calib/rigs/sim.yaml``)::
     baud: 57600
     model: xl430-w250      # or xm430-w350
     protocol: 2.0
-    pan:  {id: 1, zero_tick: 2185, direction: 1,  min_deg: -115.0, max_deg: 115.0}
-    tilt: {id: 2, zero_tick: 1890, direction: -1, min_deg: -55.0,  max_deg: 70.0}
+    pan:  {id: 1, zero_tick: 2185, direction: 1,  min_deg: -115.0, max_deg: 115.0,
+           stop_min_deg: -120.0, stop_max_deg: 120.0}
+    tilt: {id: 2, zero_tick: 1890, direction: -1, min_deg: -55.0,  max_deg: 70.0,
+           stop_min_deg: -60.0, stop_max_deg: 75.0}
     rest_direction: [1.0, 0.0, 0.0]
+
+``min_deg``/``max_deg`` are the hard limits the controller enforces (and writes to the servos'
+position limits); ``stop_min_deg``/``stop_max_deg`` are the gimbal's physical end stops, where
+the joint's travel ends mechanically. The hard limits must lie at least END_STOP_MARGIN_DEG
+inside the end stops. The end stops are optional: a joint that does not state them is taken to
+stop at +-DEFAULT_END_STOP_DEG (90 deg), the safe guess, so a profile whose limits reach further
+must say where its end stops really are.
 
 It is validated on load as data (types, ranges, required keys); every error names the file and
 the field, e.g.
-``calib/rigs/x.yaml: pan.direction must be +1 or -1, got 2``. The result is an immutable
-:class:`RigProfile`. :func:`save_profile` writes atomically (``limbctl calibrate`` uses it).
+``calib/rigs/x.yaml: pan.direction must be +1 or -1, got 2``, on one line, and quotes values
+only in bounded form. The file itself is read through :mod:`calib.yaml_guard` (no aliases, no
+duplicate keys, bounded size). The result is an immutable :class:`RigProfile`; its
+:attr:`RigProfile.calibration` is what a model trained on the rig depends on.
+:func:`save_profile` writes atomically (``limbctl calibrate`` uses it).
 What only the servos know (which baud rates and models exist, how far one turn of ticks
 reaches) is checked by the controller when it opens a rig. This package imports nothing of it.
 """
@@ -31,6 +43,8 @@ from typing import Any
 
 import yaml
 
+from calib.yaml_guard import YamlRefused, read_yaml, shown
+
 #: Encoder ticks in one turn of a Dynamixel X-series shaft; a zero tick lies in 0..MAX_TICK.
 TICKS_PER_TURN = 4096
 MAX_TICK = TICKS_PER_TURN - 1
@@ -40,7 +54,20 @@ SIM_PORT = "sim"
 PROTOCOLS = (2.0,)
 #: Largest id a servo can have (253 and up are reserved / broadcast).
 MAX_SERVO_ID = 252
+#: End stops assumed for a joint whose profile does not state them (deg, either side of zero):
+#: a quarter turn, where the tilt of a pan-tilt gimbal points straight up or down; a rig that
+#: travels further has to write its end stops down before its limits may reach past this.
+DEFAULT_END_STOP_DEG = 90.0
+#: Least distance (deg) between a hard limit and its end stop: a goal at the limit, rounded to
+#: ticks and held by the servo's position loop, must leave the horn clear of the stop.
+END_STOP_MARGIN_DEG = 1.0
+#: Longest rig name: it is copied into every recording and model and quoted in messages.
+MAX_NAME_CHARS = 64
+#: Longest port or model string (a device path is well under this).
+MAX_TEXT_CHARS = 256
 _JOINT_KEYS = ("id", "zero_tick", "direction", "min_deg", "max_deg")
+_JOINT_OPTIONAL_KEYS = ("stop_min_deg", "stop_max_deg")
+_CALIBRATION_KEYS = ("zero_tick", "direction", "min_deg", "max_deg")
 _TOP_KEYS = ("name", "port", "baud", "model", "protocol", "pan", "tilt", "rest_direction")
 
 
@@ -58,6 +85,9 @@ class JointProfile:
         +1 if ticks grow with the joint angle, -1 if they shrink.
     min_deg, max_deg : float
         Hard joint limits in degrees, ``min_deg < max_deg``.
+    stop_min_deg, stop_max_deg : float
+        The physical end stops in degrees (joint angle), at least END_STOP_MARGIN_DEG outside
+        the hard limits; +-DEFAULT_END_STOP_DEG when the profile does not state them.
     """
 
     id: int
@@ -65,6 +95,8 @@ class JointProfile:
     direction: int
     min_deg: float
     max_deg: float
+    stop_min_deg: float = -DEFAULT_END_STOP_DEG
+    stop_max_deg: float = DEFAULT_END_STOP_DEG
 
     @property
     def min_rad(self) -> float:
@@ -75,6 +107,57 @@ class JointProfile:
     def max_rad(self) -> float:
         """Upper hard limit in radians."""
         return math.radians(self.max_deg)
+
+
+@dataclass(frozen=True)
+class JointCalibration:
+    """What a model depends on in one joint: where its zero is, which way it turns, its limits.
+
+    Attributes
+    ----------
+    zero_tick : int
+        Encoder tick (0..4095) at joint angle 0.
+    direction : int
+        +1 or -1.
+    min_deg, max_deg : float
+        Hard joint limits in degrees.
+    """
+
+    zero_tick: int
+    direction: int
+    min_deg: float
+    max_deg: float
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """The calibration a recording was made under and a model was trained under.
+
+    Orientations are computed from ticks through each joint's zero tick and direction, so the
+    same ticks read through another calibration are other orientations: a model is only valid
+    on a rig whose calibration is the one it was trained under. :meth:`to_dict` is the form
+    stored in dataset and model headers; :func:`calibration_from_dict` reads it back.
+    """
+
+    pan: JointCalibration
+    tilt: JointCalibration
+
+    def to_dict(self) -> dict[str, dict[str, Any]]:
+        """Plain data: ``{"pan": {"zero_tick": ..., ...}, "tilt": {...}}``."""
+        return {
+            name: {key: getattr(joint, key) for key in _CALIBRATION_KEYS}
+            for name, joint in (("pan", self.pan), ("tilt", self.tilt))
+        }
+
+    def differences(self, other: Calibration) -> tuple[str, ...]:
+        """Each field that differs, as ``"pan.zero_tick 2185 vs 2385"`` (self's value first)."""
+        found = []
+        for name in ("pan", "tilt"):
+            mine, theirs = getattr(self, name), getattr(other, name)
+            for key in _CALIBRATION_KEYS:
+                if getattr(mine, key) != getattr(theirs, key):
+                    found.append(f"{name}.{key} {getattr(mine, key):g} vs {getattr(theirs, key):g}")
+        return tuple(found)
 
 
 @dataclass(frozen=True)
@@ -101,6 +184,16 @@ class RigProfile:
         return self.port == SIM_PORT
 
     @property
+    def calibration(self) -> Calibration:
+        """Zero ticks, directions and hard limits: what a model trained on this rig depends on."""
+        return Calibration(
+            *(
+                JointCalibration(joint.zero_tick, joint.direction, joint.min_deg, joint.max_deg)
+                for joint in (self.pan, self.tilt)
+            )
+        )
+
+    @property
     def ids(self) -> tuple[int, int]:
         """Servo ids ``(pan, tilt)``."""
         return (self.pan.id, self.tilt.id)
@@ -120,7 +213,7 @@ class RigProfile:
 
 
 def _joint_dict(joint: JointProfile) -> dict[str, Any]:
-    return {key: getattr(joint, key) for key in _JOINT_KEYS}
+    return {key: getattr(joint, key) for key in _JOINT_KEYS + _JOINT_OPTIONAL_KEYS}
 
 
 # ---- errors ------------------------------------------------------------------------------------
@@ -143,6 +236,17 @@ class ProfileFileError(ProfileError):
 
 
 # ---- validation --------------------------------------------------------------------------------
+#: Unknown keys named in one message; the rest are counted (a message stays one short line).
+MAX_LISTED_KEYS = 5
+
+
+def _key_name(key: Any) -> str:
+    """A mapping key as a message names it: bare if a short printable string, else bounded."""
+    if isinstance(key, str) and key.isprintable() and len(key) <= 40:
+        return key
+    return shown(key)
+
+
 class _Checker:
     """Collects the file name so every error names file and field."""
 
@@ -152,47 +256,78 @@ class _Checker:
     def fail(self, field: str, problem: str) -> ProfileError:
         return ProfileError(f"{self.source}: {field} {problem}")
 
-    def mapping(self, value: Any, field: str, keys: tuple[str, ...]) -> dict[str, Any]:
+    def mapping(
+        self, value: Any, field: str, keys: tuple[str, ...], optional: tuple[str, ...] = ()
+    ) -> dict[str, Any]:
         if not isinstance(value, dict):
-            raise self.fail(field, f"must be a mapping with keys {', '.join(keys)}, got {value!r}")
+            raise self.fail(
+                field, f"must be a mapping with keys {', '.join(keys)}, got {shown(value)}"
+            )
         missing = [k for k in keys if k not in value]
         if missing:
             raise self.fail(field, f"is missing {', '.join(missing)} (expected {', '.join(keys)})")
-        unknown = sorted(str(k) for k in value if k not in keys)
+        allowed = keys + optional
+        unknown = sorted(_key_name(k) for k in value if k not in allowed)
         if unknown:
+            listed = ", ".join(unknown[:MAX_LISTED_KEYS])
+            if len(unknown) > MAX_LISTED_KEYS:
+                listed += f" and {len(unknown) - MAX_LISTED_KEYS} more"
             raise self.fail(
                 field,
-                f"has unknown keys {', '.join(unknown)} (allowed: "
-                f"{', '.join(keys)}); check the spelling",
+                f"has unknown keys {listed} (allowed: {', '.join(allowed)}); check the spelling",
             )
         return value
 
     def integer(self, value: Any, field: str, lo: int, hi: int) -> int:
         if isinstance(value, bool) or not isinstance(value, int):
-            raise self.fail(field, f"must be an integer in {lo}..{hi}, got {value!r}")
+            raise self.fail(field, f"must be an integer in {lo}..{hi}, got {shown(value)}")
         if not lo <= value <= hi:
-            raise self.fail(field, f"must be in {lo}..{hi}, got {value}")
+            raise self.fail(field, f"must be in {lo}..{hi}, got {shown(value)}")
         return value
 
     def number(self, value: Any, field: str) -> float:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise self.fail(field, f"must be a number, got {value!r}")
-        if not math.isfinite(value):
-            raise self.fail(field, f"must be finite, got {value!r}")
-        return float(value)
+            raise self.fail(field, f"must be a number, got {shown(value)}")
+        try:
+            number = float(value)
+        except OverflowError:  # an integer beyond any float
+            number = math.inf
+        if not math.isfinite(number):
+            raise self.fail(field, f"must be finite, got {shown(value)}")
+        return number
 
-    def text(self, value: Any, field: str) -> str:
+    def text(self, value: Any, field: str, max_chars: int = MAX_TEXT_CHARS) -> str:
         if not isinstance(value, str) or not value.strip():
-            raise self.fail(field, f"must be a non-empty string, got {value!r}")
+            raise self.fail(field, f"must be a non-empty string, got {shown(value)}")
+        if len(value) > max_chars:
+            raise self.fail(
+                field, f"must be at most {max_chars} characters, got {len(value)} characters"
+            )
+        if not value.isprintable():
+            raise self.fail(
+                field, f"must be printable text (no newlines or control codes), got {shown(value)}"
+            )
         return value
 
+    def direction(self, value: Any, field: str) -> int:
+        if isinstance(value, bool) or value not in (1, -1):
+            raise self.fail(field, f"must be +1 or -1, got {shown(value)}")
+        return int(value)
+
+    def joint_calibration(self, value: Any, field: str) -> JointCalibration:
+        raw = self.mapping(value, field, _CALIBRATION_KEYS)
+        return JointCalibration(
+            self.integer(raw["zero_tick"], f"{field}.zero_tick", 0, MAX_TICK),
+            self.direction(raw["direction"], f"{field}.direction"),
+            self.number(raw["min_deg"], f"{field}.min_deg"),
+            self.number(raw["max_deg"], f"{field}.max_deg"),
+        )
+
     def joint(self, value: Any, field: str) -> JointProfile:
-        raw = self.mapping(value, field, _JOINT_KEYS)
+        raw = self.mapping(value, field, _JOINT_KEYS, _JOINT_OPTIONAL_KEYS)
         servo_id = self.integer(raw["id"], f"{field}.id", 0, MAX_SERVO_ID)
         zero_tick = self.integer(raw["zero_tick"], f"{field}.zero_tick", 0, MAX_TICK)
-        direction = raw["direction"]
-        if isinstance(direction, bool) or direction not in (1, -1):
-            raise self.fail(f"{field}.direction", f"must be +1 or -1, got {direction!r}")
+        direction = self.direction(raw["direction"], f"{field}.direction")
         min_deg = self.number(raw["min_deg"], f"{field}.min_deg")
         max_deg = self.number(raw["max_deg"], f"{field}.max_deg")
         if not -180.0 < min_deg < max_deg < 180.0:
@@ -200,11 +335,42 @@ class _Checker:
                 f"{field}.min_deg/max_deg",
                 f"must satisfy -180 < min_deg < max_deg < 180, got {min_deg} and {max_deg}",
             )
-        return JointProfile(servo_id, zero_tick, int(direction), min_deg, max_deg)
+        stop_min = self.number(
+            raw.get("stop_min_deg", -DEFAULT_END_STOP_DEG), f"{field}.stop_min_deg"
+        )
+        stop_max = self.number(
+            raw.get("stop_max_deg", DEFAULT_END_STOP_DEG), f"{field}.stop_max_deg"
+        )
+        if not -180.0 <= stop_min < stop_max <= 180.0:
+            raise self.fail(
+                f"{field}.stop_min_deg/stop_max_deg",
+                f"must satisfy -180 <= stop_min_deg < stop_max_deg <= 180, got {stop_min} and "
+                f"{stop_max}",
+            )
+        for key, limit, stop, beyond in (
+            ("min_deg", min_deg, stop_min, min_deg < stop_min + END_STOP_MARGIN_DEG),
+            ("max_deg", max_deg, stop_max, max_deg > stop_max - END_STOP_MARGIN_DEG),
+        ):
+            if not beyond:
+                continue
+            stop_key = "stop_" + key
+            advice = (
+                f"narrow {field}.{key}, or correct {field}.{stop_key} if the joint really "
+                f"travels further"
+                if stop_key in raw
+                else f"narrow {field}.{key}, or write down where the end stop really is "
+                f"({field}.{stop_key}; unstated, it is taken to be {stop:+g})"
+            )
+            raise self.fail(
+                f"{field}.{key}",
+                f"{limit:g} is not {END_STOP_MARGIN_DEG:g} deg inside the end stop at {stop:g}: "
+                f"{advice}",
+            )
+        return JointProfile(servo_id, zero_tick, direction, min_deg, max_deg, stop_min, stop_max)
 
     def direction3(self, value: Any, field: str) -> tuple[float, float, float]:
         if not isinstance(value, (list, tuple)) or len(value) != 3:
-            raise self.fail(field, f"must be a list of 3 numbers [x, y, z], got {value!r}")
+            raise self.fail(field, f"must be a list of 3 numbers [x, y, z], got {shown(value)}")
         xyz = [self.number(v, f"{field}[{i}]") for i, v in enumerate(value)]
         norm = math.sqrt(sum(v * v for v in xyz))
         if norm == 0.0:
@@ -227,19 +393,35 @@ def profile_from_dict(data: Any, source: str = "<profile>") -> RigProfile:
     raw = dict(data)
     raw.setdefault("rest_direction", [1.0, 0.0, 0.0])
     check.mapping(raw, "profile", _TOP_KEYS)
-    name = check.text(raw["name"], "name")
+    name = check.text(raw["name"], "name", MAX_NAME_CHARS)
     port = check.text(raw["port"], "port")
     baud = check.integer(raw["baud"], "baud", 1, 10_500_000)
     model = check.text(raw["model"], "model")
     protocol = raw["protocol"]
     if isinstance(protocol, bool) or protocol not in PROTOCOLS:
-        raise check.fail("protocol", f"must be 2.0 (X series, Protocol 2.0), got {protocol!r}")
+        raise check.fail("protocol", f"must be 2.0 (X series, Protocol 2.0), got {shown(protocol)}")
     pan = check.joint(raw["pan"], "pan")
     tilt = check.joint(raw["tilt"], "tilt")
     if pan.id == tilt.id:
         raise check.fail("tilt.id", f"must differ from pan.id, both are {pan.id}")
     rest = check.direction3(raw["rest_direction"], "rest_direction")
     return RigProfile(name, port, int(baud), model, float(protocol), pan, tilt, rest, source)
+
+
+def calibration_from_dict(data: Any, source: str = "<calibration>") -> Calibration:
+    """Validate plain data (as :meth:`Calibration.to_dict` wrote it) into a :class:`Calibration`.
+
+    Raises
+    ------
+    ProfileError
+        Naming ``source`` and the offending field.
+    """
+    check = _Checker(source)
+    raw = check.mapping(data, "calibration", ("pan", "tilt"))
+    return Calibration(
+        check.joint_calibration(raw["pan"], "calibration.pan"),
+        check.joint_calibration(raw["tilt"], "calibration.tilt"),
+    )
 
 
 # ---- files -------------------------------------------------------------------------------------
@@ -255,18 +437,16 @@ def load_profile(path: str | os.PathLike[str]) -> RigProfile:
     """
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        data = read_yaml(path)
     except FileNotFoundError:
         raise ProfileError(
             f"{path}: no such rig profile; give the right path or create one with "
             f"`limbctl calibrate`"
         ) from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ProfileFileError(path, f"cannot read the rig profile ({exc})") from exc
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise ProfileFileError(path, f"not valid YAML ({exc})") from exc
+    except YamlRefused as exc:
+        raise ProfileFileError(path, str(exc)) from None
+    except OSError as exc:
+        raise ProfileFileError(path, f"cannot read the rig profile ({exc.strerror})") from None
     return profile_from_dict(data, str(path))
 
 

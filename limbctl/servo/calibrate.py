@@ -21,7 +21,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Protocol
 
-from calib.profile import JointProfile, RigProfile
+from calib.profile import RigProfile
 from limbctl.errors import ConfigError, SafetyError
 
 #: A joint moving less than this (ticks, about 0.35 deg) counts as still.
@@ -128,14 +128,23 @@ def profile_from_calibration(
     pan_limits_deg: tuple[float, float],
     tilt_limits_deg: tuple[float, float],
 ) -> RigProfile:
-    """A new rig profile: ``base``'s bus settings with the calibrated joints and limits."""
+    """A new rig profile: ``base``'s bus settings and end stops with the calibrated joints and
+    the given hard limits (which must lie inside those end stops when the profile is saved)."""
     for label, (lo, hi) in (("pan", pan_limits_deg), ("tilt", tilt_limits_deg)):
         if not lo < 0.0 < hi:
             raise SafetyError(f"{label} limits must contain the rest pose 0: got {lo}..{hi}")
-    pan = JointProfile(
-        base.pan.id, result.pan_zero, result.pan_direction, *map(float, pan_limits_deg)
+    pan = dataclasses.replace(
+        base.pan,
+        zero_tick=result.pan_zero,
+        direction=result.pan_direction,
+        min_deg=float(pan_limits_deg[0]),
+        max_deg=float(pan_limits_deg[1]),
     )
-    tilt = JointProfile(
-        base.tilt.id, result.tilt_zero, result.tilt_direction, *map(float, tilt_limits_deg)
+    tilt = dataclasses.replace(
+        base.tilt,
+        zero_tick=result.tilt_zero,
+        direction=result.tilt_direction,
+        min_deg=float(tilt_limits_deg[0]),
+        max_deg=float(tilt_limits_deg[1]),
     )
     return dataclasses.replace(base, name=name, port=port, pan=pan, tilt=tilt, source=None)

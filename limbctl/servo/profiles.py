@@ -3,24 +3,34 @@
 :mod:`calib` validates a profile as data and knows nothing of the controller. What only the
 servo layer knows is checked here before a profile is used: the baud rate is one the servos
 offer, the model is one the controller drives, and each joint's hard limits map to ticks inside
-one turn of the encoder. Errors from :mod:`calib` come out as the controller's own
+one turn of the encoder. A profile built in code (``limbctl calibrate``) is validated as data
+too, so its hard limits meet the same end-stop check as a file's before they reach a servo.
+Errors from :mod:`calib` come out as the controller's own
 (:class:`~limbctl.errors.ConfigError`, :class:`~limbctl.errors.FileFormatError`).
+
+:func:`check_trained_for` refuses a model (or anything else trained on a recording) whose
+recorded rig name or calibration differs from the profile's.
 """
 
 from __future__ import annotations
 
 import os
+from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
 
 from calib.profile import (
     JointProfile,
     ProfileError,
     ProfileFileError,
     RigProfile,
+    calibration_from_dict,
     default_sim_profile,
     load_profile,
+    profile_from_dict,
     save_profile,
 )
+from calib.yaml_guard import shown
 from limbctl.errors import ConfigError, FileFormatError
 from limbctl.servo.control_table import BAUD_RATE_VALUES, MAX_TICK, MODEL_BY_NAME
 from limbctl.servo.ticks import tick_limits
@@ -40,6 +50,10 @@ def check_profile(profile: RigProfile) -> RigProfile:
         Naming the profile's file and the field.
     """
     source = profile.source or "<profile>"
+    try:
+        profile_from_dict(profile.to_dict(), source)
+    except ProfileError as exc:
+        raise _controller_error(exc) from None
     if profile.baud not in BAUD_RATE_VALUES:
         choices = ", ".join(str(b) for b in BAUD_RATE_VALUES)
         raise ConfigError(f"{source}: baud must be one of {choices}, got {profile.baud!r}")
@@ -88,3 +102,50 @@ def save_rig_profile(profile: RigProfile, path: str | os.PathLike[str]) -> Path:
         return save_profile(profile, path)
     except ProfileError as exc:
         raise _controller_error(exc) from None
+
+
+def check_trained_for(metadata: Mapping[str, Any], profile: RigProfile, what: str) -> None:
+    """Refuse something trained on another rig, or under another calibration of this one.
+
+    Parameters
+    ----------
+    metadata : mapping
+        What the trained thing recorded: ``rig`` (the profile name) and ``calibration``
+        (:meth:`calib.profile.Calibration.to_dict`).
+    profile : RigProfile
+        The rig it is about to drive.
+    what : str
+        What to name in messages (the model file).
+
+    Raises
+    ------
+    ConfigError
+        Another rig's name; no recorded calibration (trained before limbctl recorded one:
+        refused, as nothing shows it fits); a recorded calibration that is malformed or differs
+        from the profile's, naming each field that differs.
+    """
+    source = profile.source or "the rig profile"
+    trained_rig = metadata.get("rig")
+    if trained_rig is not None and trained_rig != profile.name:
+        raise ConfigError(
+            f"{what} was trained for rig {shown(trained_rig)}, not {profile.name!r}; "
+            "train a model on a recording from this rig"
+        )
+    recorded = metadata.get("calibration")
+    if recorded is None:
+        raise ConfigError(
+            f"{what} does not record the calibration it was trained under (it predates that "
+            f"record), so nothing shows it fits {source}; record and train again with this "
+            f"limbctl (`limbctl record`, then `limbctl train`)"
+        )
+    try:
+        trained = calibration_from_dict(recorded, what)
+    except ProfileError as exc:
+        raise ConfigError(f"{exc}; train the model again") from None
+    differences = trained.differences(profile.calibration)
+    if differences:
+        raise ConfigError(
+            f"{what} was trained under another calibration than {source} "
+            f"(trained vs now: {'; '.join(differences)}); the same ticks would be other poses. "
+            f"Use the profile it was trained with, or record and train again"
+        )

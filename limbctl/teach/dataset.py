@@ -10,6 +10,10 @@ Every line is ``payload|crc`` where ``crc`` is the CRC-32 (8 hex digits) of the 
 *chained*: ``crc_i = crc32(payload_i, crc_{i-1})`` with ``crc_0 = crc32(header)``. An edited,
 deleted or reordered record therefore breaks the chain at that line. Records are the columns
 ``t_s, pan_deg, tilt_deg, w, x, y, z`` written with ``repr`` (floats round-trip exactly).
+The header may hold ``calibration`` (:meth:`calib.profile.Calibration.to_dict`: the zero ticks,
+directions and hard limits the joint angles were read under); a model trained on the recording
+carries it on, and teleop refuses a rig whose calibration differs. Files written before this
+field existed have none (still version 1: the field is optional).
 
 Crash safety: each record reaches the operating system in one ``write`` as soon as it is
 appended (a killed process loses nothing already appended), and the file is ``fsync``-ed at
@@ -34,6 +38,7 @@ from typing import Any
 
 import numpy as np
 
+from calib.profile import Calibration, ProfileError, calibration_from_dict
 from limbctl.errors import ConfigError, FileFormatError, InvalidInputError
 from limbctl.geometry.gimbal import pan_tilt_to_quat
 from limbctl.geometry.quat import UNIT_TOLERANCE, as_quaternions
@@ -46,17 +51,24 @@ SYNC_INTERVAL_S = 0.25
 #: Free space required before a recording starts (an hour at 100 Hz is about 30 MB).
 MIN_FREE_BYTES = 64 * 1024 * 1024
 _SEPARATOR = "|"
+#: How every dataset file begins (the header's first key, written first).
+MAGIC = ('{"format": "' + FORMAT_NAME + '"').encode()
 
 
 @dataclass(frozen=True)
 class DatasetHeader:
-    """The first line of a dataset file."""
+    """The first line of a dataset file.
+
+    ``calibration`` is the rig's calibration the samples were read under, or None in a file
+    written before datasets recorded it.
+    """
 
     rig: str
     created: str
     columns: tuple[str, ...] = COLUMNS
     version: int = FORMAT_VERSION
     meta: dict[str, Any] = field(default_factory=dict)
+    calibration: Calibration | None = None
 
 
 @dataclass(frozen=True)
@@ -149,6 +161,9 @@ class DatasetWriter:
         Name of the rig profile the samples come from.
     meta : dict, optional
         Extra JSON-serialisable header fields (e.g. sample rate, region name).
+    calibration : Calibration, optional
+        The rig's calibration (``profile.calibration``); recorded so a model trained on the
+        file can be checked against the rig it drives. ``limbctl record`` always gives it.
     sync_interval_s : float
         Longest time an appended record waits for ``fsync``.
     min_free_bytes : int
@@ -167,12 +182,14 @@ class DatasetWriter:
         meta: dict[str, Any] | None = None,
         sync_interval_s: float = SYNC_INTERVAL_S,
         min_free_bytes: int = MIN_FREE_BYTES,
+        calibration: Calibration | None = None,
     ) -> None:
         self.path = check_writable(path, min_free_bytes)
         self.header = DatasetHeader(
             rig=rig,
             created=datetime.now(timezone.utc).isoformat(timespec="seconds"),
             meta=dict(meta or {}),
+            calibration=calibration,
         )
         self.sync_interval_s = float(sync_interval_s)
         self.count = 0
@@ -197,6 +214,8 @@ class DatasetWriter:
             "columns": list(self.header.columns),
             "meta": self.header.meta,
         }
+        if self.header.calibration is not None:
+            header["calibration"] = self.header.calibration.to_dict()
         line, self._crc = _seal(json.dumps(header, separators=(", ", ": ")), 0)
         try:
             self._fd = os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_APPEND, 0o644)
@@ -333,14 +352,34 @@ def _parse_header(path: Path, raw: bytes) -> tuple[DatasetHeader, int]:
     columns = tuple(data.get("columns", ()))
     if columns != COLUMNS:
         raise FileFormatError(path, f"line 1: columns {list(columns)}, expected {list(COLUMNS)}")
+    calibration = None
+    if data.get("calibration") is not None:
+        try:
+            calibration = calibration_from_dict(data["calibration"], "header")
+        except ProfileError as exc:
+            raise FileFormatError(path, f"line 1: {str(exc).removeprefix('header: ')}") from None
     header = DatasetHeader(
         rig=str(data.get("rig")),
         created=str(data.get("created")),
         columns=columns,
         version=version,
         meta=dict(data.get("meta") or {}),
+        calibration=calibration,
     )
     return header, crc
+
+
+def is_dataset_file(path: str | os.PathLike[str]) -> bool:
+    """Whether the file at ``path`` begins as a dataset does (its first bytes only).
+
+    A damaged dataset whose header survived still answers True, so its loader can name the
+    real problem; False for a missing or unreadable file.
+    """
+    try:
+        with open(path, "rb") as handle:
+            return handle.read(len(MAGIC)) == MAGIC
+    except OSError:
+        return False
 
 
 def load_dataset(path: str | os.PathLike[str]) -> Dataset:

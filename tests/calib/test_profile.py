@@ -1,20 +1,26 @@
 import copy
 import math
 import os
+import time
 from pathlib import Path
 
 import pytest
 import yaml
 
 from calib import (
+    Calibration,
+    JointCalibration,
     JointProfile,
     ProfileError,
     RigProfile,
+    calibration_from_dict,
     default_sim_profile,
     load_profile,
     profile_from_dict,
     save_profile,
 )
+from calib.profile import DEFAULT_END_STOP_DEG, END_STOP_MARGIN_DEG
+from firmware_sim.world import DEFAULT_JOINTS
 from limbctl.errors import ConfigError, FileFormatError
 from limbctl.servo.profiles import joint_tick_limits, load_rig_profile
 
@@ -96,6 +102,18 @@ def test_save_replaces_atomically_and_refuses_invalid(tmp_path):
         (lambda d: d.update(prot=2.0), "profile", "unknown keys prot"),
         (lambda d: d.update(rest_direction=[0, 0, 0]), "rest_direction", "zero vector"),
         (lambda d: d.update(rest_direction=[1, 0]), "rest_direction", "3 numbers"),
+        (lambda d: d["tilt"].update(max_deg=80.0), "tilt.max_deg", "end stop at 75"),
+        (lambda d: d["tilt"].update(max_deg=74.5), "tilt.max_deg", "1 deg inside"),
+        (lambda d: d["pan"].update(min_deg=-170.0), "pan.min_deg", "end stop at -120"),
+        (lambda d: d["pan"].update(stop_max_deg=100.0), "pan.max_deg", "end stop at 100"),
+        (lambda d: d["pan"].update(stop_min_deg="far"), "pan.stop_min_deg", "number"),
+        (lambda d: d["pan"].update(stop_max_deg=200.0), "pan.stop_min_deg/stop_max_deg", "<= 180"),
+        (lambda d: d["pan"].update(stop_min_deg=130.0), "pan.stop_min_deg/stop_max_deg", "<"),
+        (lambda d: d.update(name="n" * 65), "name", "at most 64 characters, got 65"),
+        (lambda d: d.update(name="sim\x1b[2J"), "name", "printable"),
+        (lambda d: d.update(port="p" * 300), "port", "at most 256 characters"),
+        (lambda d: d.update(baud=10**1000), "baud", "<an integer of about 1001 digits>"),
+        (lambda d: d["pan"].update(max_deg=10**400), "pan.max_deg", "must be finite"),
     ],
 )
 def test_invalid_fields_name_file_and_field(tmp_path, sim_data, edit, field, fragment):
@@ -155,3 +173,129 @@ def test_save_into_current_directory(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     save_profile(default_sim_profile(), "here.yaml")
     assert load_profile(os.path.join(tmp_path, "here.yaml")) == default_sim_profile()
+
+
+# ---- end stops --------------------------------------------------------------------------------
+def test_sim_end_stops_are_the_simulated_worlds():
+    profile = default_sim_profile()
+    world = {joint.name: joint for joint in DEFAULT_JOINTS}
+    for name in ("pan", "tilt"):
+        joint = getattr(profile, name)
+        assert (joint.stop_min_deg, joint.stop_max_deg) == (
+            world[name].stop_min_deg,
+            world[name].stop_max_deg,
+        )
+        assert joint.stop_min_deg + END_STOP_MARGIN_DEG <= joint.min_deg
+        assert joint.max_deg <= joint.stop_max_deg - END_STOP_MARGIN_DEG
+
+
+def test_unstated_end_stops_default_to_a_quarter_turn(tmp_path, sim_data):
+    for name in ("pan", "tilt"):
+        del sim_data[name]["stop_min_deg"], sim_data[name]["stop_max_deg"]
+    sim_data["pan"].update(min_deg=-80.0, max_deg=80.0)
+    profile = load_rig_profile(write(tmp_path, sim_data))
+    assert (profile.pan.stop_min_deg, profile.pan.stop_max_deg) == (
+        -DEFAULT_END_STOP_DEG,
+        DEFAULT_END_STOP_DEG,
+    )
+    sim_data["pan"].update(min_deg=-115.0, max_deg=115.0)
+    path = write(tmp_path, sim_data, "wide.yaml")
+    with pytest.raises(ConfigError) as err:
+        load_rig_profile(path)
+    assert str(err.value) == (
+        f"{path}: pan.min_deg -115 is not 1 deg inside the end stop at -90: narrow pan.min_deg, "
+        "or write down where the end stop really is (pan.stop_min_deg; unstated, it is taken "
+        "to be -90)"
+    )
+
+
+def test_end_stops_are_saved_and_in_code_profiles_meet_the_same_check(tmp_path):
+    profile = default_sim_profile()
+    out = save_profile(profile, tmp_path / "rig.yaml")
+    assert "stop_max_deg: 75.0" in out.read_text()
+    too_wide = RigProfile(
+        **{**profile.__dict__, "tilt": JointProfile(2, 1890, -1, -55.0, 80.0, -60.0, 75.0)}
+    )
+    with pytest.raises(ProfileError, match="tilt.max_deg 80 is not 1 deg inside"):
+        save_profile(too_wide, tmp_path / "wide.yaml")
+    assert not (tmp_path / "wide.yaml").exists()
+
+
+# ---- files that cannot hurt -------------------------------------------------------------------
+def test_duplicate_keys_are_refused_naming_the_lines(tmp_path):
+    path = tmp_path / "dup.yaml"
+    text = SIM_YAML.read_text().replace("  max_deg: 70.0\n", "  max_deg: 70.0\n  max_deg: 170.0\n")
+    path.write_text(text)
+    line = text.splitlines().index("  max_deg: 170.0") + 1
+    with pytest.raises(FileFormatError) as err:
+        load_rig_profile(path)
+    assert str(err.value) == (
+        f"{path}: line {line}: key 'max_deg' appears twice (also on line {line - 1}); keep "
+        "one, a later value would silently win"
+    )
+
+
+def test_alias_bomb_in_a_field_is_refused_fast_and_not_echoed(tmp_path):
+    bomb = ["  - &a0 [x, x, x, x, x, x, x, x, x]"]
+    bomb += [f"  - &a{i} [" + ", ".join([f"*a{i - 1}"] * 9) + "]" for i in range(1, 9)]
+    path = tmp_path / "bomb.yaml"
+    path.write_text(SIM_YAML.read_text().replace("name: sim\n", "name:\n" + "\n".join(bomb) + "\n"))
+    started = time.perf_counter()
+    with pytest.raises(FileFormatError, match=r"bomb.yaml: line \d+: anchors and aliases") as err:
+        load_rig_profile(path)
+    assert time.perf_counter() - started < 1.0
+    assert "x, x" not in str(err.value) and "\n" not in str(err.value)
+
+
+@pytest.mark.parametrize(
+    "value",
+    [
+        ["x" * 1000] * 10,
+        {"k" * 1000: "v"},
+        "y" * 1000,
+        [[[[["deep"]]]] for _ in range(40)],
+    ],
+)
+def test_messages_quote_values_boundedly(tmp_path, sim_data, value):
+    for field in ("name", "baud", "protocol"):
+        data = copy.deepcopy(sim_data)
+        data[field] = value
+        with pytest.raises(ConfigError) as err:
+            load_rig_profile(write(tmp_path, data))
+        message = str(err.value)
+        assert len(message) < 300 and "\n" not in message, message
+
+
+def test_many_unknown_keys_are_counted_not_listed(tmp_path, sim_data):
+    sim_data.update({f"extra{i}": i for i in range(1000)})
+    with pytest.raises(ConfigError, match="and 995 more") as err:
+        load_rig_profile(write(tmp_path, sim_data))
+    assert len(str(err.value)) < 300
+
+
+# ---- the calibration a model depends on -------------------------------------------------------
+def test_calibration_of_a_profile_round_trips_and_names_differences():
+    profile = default_sim_profile()
+    calibration = profile.calibration
+    assert calibration == Calibration(
+        JointCalibration(2185, 1, -115.0, 115.0), JointCalibration(1890, -1, -55.0, 70.0)
+    )
+    assert calibration_from_dict(calibration.to_dict()) == calibration
+    assert calibration.differences(calibration) == ()
+    moved = Calibration(
+        JointCalibration(2385, 1, -115.0, 115.0), JointCalibration(1890, 1, -55.0, 60.0)
+    )
+    assert calibration.differences(moved) == (
+        "pan.zero_tick 2185 vs 2385",
+        "tilt.direction -1 vs 1",
+        "tilt.max_deg 70 vs 60",
+    )
+
+
+def test_malformed_calibration_names_the_field():
+    data = default_sim_profile().calibration.to_dict()
+    data["tilt"]["direction"] = 0
+    with pytest.raises(ProfileError, match=r"^model.npz: calibration.tilt.direction must be \+1"):
+        calibration_from_dict(data, "model.npz")
+    with pytest.raises(ProfileError, match="calibration must be a mapping"):
+        calibration_from_dict(["x"] * 10_000, "model.npz")

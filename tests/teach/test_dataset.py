@@ -10,6 +10,7 @@ import time
 import numpy as np
 import pytest
 
+from calib.profile import default_sim_profile
 from limbctl.errors import ConfigError, FileFormatError, InvalidInputError
 from limbctl.geometry import gimbal
 from limbctl.teach.dataset import (
@@ -18,6 +19,7 @@ from limbctl.teach.dataset import (
     DatasetWriter,
     _seal,
     check_writable,
+    is_dataset_file,
     load_dataset,
 )
 
@@ -263,3 +265,57 @@ def test_kill_9_loses_at_most_half_a_second(tmp_path):
     # every sample the child reported as appended is in the file, in order
     np.testing.assert_array_equal(data.t[: len(reported)], reported)
     assert len(data) >= len(reported) >= 100
+
+
+# ---- the calibration the samples were read under -----------------------------------------------
+def test_calibration_round_trips_and_old_files_have_none(tmp_path):
+    calibration = default_sim_profile().calibration
+    path = tmp_path / "calibrated.limb"
+    with DatasetWriter(path, rig="sim", calibration=calibration, min_free_bytes=SMALL) as out:
+        out.append(0.0, 0.1, 0.2)
+    assert load_dataset(path).header.calibration == calibration
+    first = path.read_bytes().split(b"\n")[0]
+    assert b'"calibration": {"pan": {"zero_tick": 2185, "direction": 1' in first
+
+    older = tmp_path / "older.limb"  # written before datasets recorded a calibration
+    older.write_bytes(header_line())
+    assert load_dataset(older).header.calibration is None
+
+
+@pytest.mark.parametrize(
+    ("calibration", "fragment"),
+    [
+        ({"pan": {}}, "line 1: calibration is missing tilt"),
+        (
+            {
+                "pan": {"zero_tick": 9999, "direction": 1, "min_deg": -1, "max_deg": 1},
+                "tilt": {"zero_tick": 1, "direction": 1, "min_deg": -1, "max_deg": 1},
+            },
+            "line 1: calibration.pan.zero_tick must be in 0..4095, got 9999",
+        ),
+        ("x" * 100_000, "line 1: calibration must be a mapping"),
+    ],
+)
+def test_malformed_calibration_is_refused_on_line_one(tmp_path, calibration, fragment):
+    path = tmp_path / "bad-calibration.limb"
+    path.write_bytes(header_line(calibration=calibration))
+    with pytest.raises(FileFormatError) as err:
+        load_dataset(path)
+    assert fragment in str(err.value)
+    assert len(str(err.value)) < 400  # a 100,000-character value is not echoed
+
+
+def test_is_dataset_file_reads_only_the_beginning(tmp_path):
+    path = tmp_path / "a.limb"
+    record(path)
+    assert is_dataset_file(path)
+    damaged = tmp_path / "damaged.limb"
+    blob = bytearray(path.read_bytes())
+    blob[-30] ^= 0x55  # damage far from the header: still a dataset, with a problem to name
+    damaged.write_bytes(bytes(blob))
+    assert is_dataset_file(damaged)
+    other = tmp_path / "model.npz"
+    other.write_bytes(b"PK\x03\x04" + bytes(100))
+    assert not is_dataset_file(other)
+    assert not is_dataset_file(tmp_path / "missing.limb")
+    assert not is_dataset_file(tmp_path)

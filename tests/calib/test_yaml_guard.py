@@ -1,0 +1,125 @@
+"""calib.yaml_guard: hostile and botched YAML is refused fast, on one line, without echoing it."""
+
+import time
+
+import pytest
+import yaml
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from calib.yaml_guard import (
+    MAX_DEPTH,
+    MAX_FILE_BYTES,
+    MAX_SCALAR_CHARS,
+    MAX_SHOWN_CHARS,
+    YamlRefused,
+    parse_yaml,
+    read_yaml,
+    shown,
+)
+
+
+def alias_bomb(levels: int = 9) -> str:
+    """``levels`` lines of nested aliases: 9**levels strings when expanded."""
+    lines = ['a0: &a0 ["x","x","x","x","x","x","x","x","x"]']
+    for i in range(1, levels):
+        lines.append(f"a{i}: &a{i} [" + ",".join([f"*a{i - 1}"] * 9) + "]")
+    return "\n".join(lines) + "\n"
+
+
+def test_plain_yaml_still_reads():
+    text = "name: sim\npan: {id: 1, min_deg: -115.0}\nlist: [1, 2.5, x]\nwhen: 2024-01-02\n"
+    assert parse_yaml(text) == yaml.safe_load(text)
+
+
+def test_alias_bomb_is_refused_at_the_first_anchor_within_a_second():
+    started = time.perf_counter()
+    with pytest.raises(YamlRefused, match=r"^line 1: anchors and aliases") as err:
+        parse_yaml(alias_bomb())
+    assert time.perf_counter() - started < 1.0
+    assert "\n" not in str(err.value)
+
+
+def test_a_lone_alias_and_a_merge_key_are_refused():
+    with pytest.raises(YamlRefused, match="line 2: anchors and aliases"):
+        parse_yaml("a: 1\nb: *a\n")
+    with pytest.raises(YamlRefused, match="line 2: merge keys"):
+        parse_yaml("pan:\n  <<: {min_deg: -170}\n  min_deg: -10\n")
+
+
+def test_duplicate_keys_name_both_lines():
+    text = "pan:\n  max_deg: 70.0\n  id: 1\n  max_deg: 170.0\n"
+    with pytest.raises(
+        YamlRefused, match=r"line 4: key 'max_deg' appears twice \(also on line 2\)"
+    ):
+        parse_yaml(text)
+    with pytest.raises(YamlRefused, match="line 1: key 'a' appears twice"):
+        parse_yaml("{a: 1, a: 2}")
+    # the same key in two different mappings is fine
+    assert parse_yaml("pan: {id: 1}\ntilt: {id: 2}\n") == {"pan": {"id": 1}, "tilt": {"id": 2}}
+
+
+def test_deep_nesting_is_refused_not_a_recursion_error():
+    depth = 20_000
+    with pytest.raises(YamlRefused, match=f"nested more than {MAX_DEPTH} levels"):
+        parse_yaml("[" * depth + "]" * depth)
+    assert parse_yaml("[" * (MAX_DEPTH - 1) + "]" * (MAX_DEPTH - 1)) is not None
+
+
+def test_huge_scalars_are_refused_before_construction():
+    # 60,000 digits: PyYAML's own int() would raise ValueError (Python's 4,300-digit limit)
+    with pytest.raises(YamlRefused, match="a value of 60000 characters"):
+        parse_yaml("baud: " + "9" * 60_000 + "\n")
+    with pytest.raises(YamlRefused, match=f"at most {MAX_SCALAR_CHARS}"):
+        parse_yaml("name: " + "x" * (MAX_SCALAR_CHARS + 1) + "\n")
+
+
+def test_constructor_failures_are_refused_not_raised():
+    with pytest.raises(YamlRefused, match="a value cannot be read"):
+        parse_yaml("when: 2001-02-30\n")  # PyYAML raises ValueError: day is out of range
+
+
+def test_syntax_errors_are_one_line_with_the_place():
+    with pytest.raises(YamlRefused, match=r"not valid YAML \(line 3, column 5: expected ") as err:
+        parse_yaml("name: sim\npan: [1, 2\ntilt: {id: 2}\n")
+    assert "\n" not in str(err.value)
+
+
+def test_files_too_large_or_not_regular(tmp_path):
+    big = tmp_path / "big.yaml"
+    big.write_bytes(b"# " + b"x" * MAX_FILE_BYTES + b"\n")
+    started = time.perf_counter()
+    with pytest.raises(YamlRefused, match="larger than 64 KiB"):
+        read_yaml(big)
+    assert time.perf_counter() - started < 1.0
+    with pytest.raises(YamlRefused, match="not a regular file"):
+        read_yaml(tmp_path)
+    with pytest.raises(FileNotFoundError):
+        read_yaml(tmp_path / "missing.yaml")
+    binary = tmp_path / "binary.yaml"
+    binary.write_bytes(b"name: \xff\xfe\n")
+    with pytest.raises(YamlRefused, match="not UTF-8 text"):
+        read_yaml(binary)
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    value=st.recursive(
+        st.none()
+        | st.booleans()
+        | st.integers(min_value=-(10**4000), max_value=10**4000)
+        | st.floats()
+        | st.text(max_size=5000),
+        lambda inner: st.lists(inner, max_size=50) | st.dictionaries(st.text(), inner),
+        max_leaves=200,
+    )
+)
+def test_shown_is_bounded_and_never_raises(value):
+    text = shown(value)
+    assert len(text) <= MAX_SHOWN_CHARS
+
+
+def test_shown_describes_huge_integers():
+    assert shown(10**5000) == "<an integer of about 5001 digits>"
+    assert shown(12345) == "12345"
+    assert "..." in shown("x" * 1000) and len(shown("x" * 1000)) <= MAX_SHOWN_CHARS

@@ -1,0 +1,78 @@
+"""limbctl.servo.profiles: the controller's checks of a profile and of what was trained on it."""
+
+from dataclasses import replace
+
+import pytest
+
+from calib.profile import default_sim_profile
+from limbctl.errors import ConfigError
+from limbctl.servo.profiles import check_profile, check_trained_for, save_rig_profile
+
+PROFILE = default_sim_profile()
+
+
+def trained(profile=PROFILE, **changes):
+    """The metadata a model trained on ``profile`` records, with ``changes``."""
+    return {"rig": profile.name, "calibration": profile.calibration.to_dict(), **changes}
+
+
+def test_a_profile_built_in_code_meets_the_end_stop_check(tmp_path):
+    # limbctl calibrate builds the profile in code; its limits must not pass unchecked
+    beyond = replace(PROFILE, tilt=replace(PROFILE.tilt, max_deg=80.0), source=None)
+    with pytest.raises(ConfigError, match=r"^<profile>: tilt.max_deg 80 is not 1 deg inside"):
+        check_profile(beyond)
+    with pytest.raises(ConfigError, match="tilt.max_deg 80"):
+        save_rig_profile(beyond, tmp_path / "rig.yaml")
+    assert not (tmp_path / "rig.yaml").exists()
+    assert check_profile(PROFILE) is PROFILE
+
+
+def test_the_same_rig_and_calibration_pass():
+    check_trained_for(trained(), PROFILE, "model.npz")
+
+
+def test_another_rig_is_refused():
+    with pytest.raises(ConfigError, match="model.npz was trained for rig 'bench-2', not 'sim'"):
+        check_trained_for(trained(rig="bench-2"), PROFILE, "model.npz")
+    with pytest.raises(ConfigError) as err:
+        check_trained_for(trained(rig="b" * 100_000), PROFILE, "model.npz")
+    assert len(str(err.value)) < 200
+
+
+def test_a_zero_tick_off_by_200_is_refused_naming_it():
+    shifted = replace(PROFILE, pan=replace(PROFILE.pan, zero_tick=PROFILE.pan.zero_tick + 200))
+    with pytest.raises(ConfigError) as err:
+        check_trained_for(trained(), shifted, "model.npz")
+    message = str(err.value)
+    assert "model.npz was trained under another calibration" in message
+    assert "(trained vs now: pan.zero_tick 2185 vs 2385)" in message
+
+
+def test_every_calibration_field_is_compared():
+    changes = {
+        "direction": dict(direction=1),
+        "min_deg": dict(min_deg=-50.0),
+        "max_deg": dict(max_deg=60.0),
+    }
+    for field, change in changes.items():
+        other = replace(PROFILE, tilt=replace(PROFILE.tilt, **change))
+        with pytest.raises(ConfigError, match=f"tilt.{field} "):
+            check_trained_for(trained(), other, "model.npz")
+    # the servo id and the end stops are not part of what a model depends on
+    moved = replace(PROFILE, tilt=replace(PROFILE.tilt, id=7, stop_max_deg=80.0))
+    check_trained_for(trained(), moved, "model.npz")
+
+
+def test_no_recorded_calibration_is_refused_with_what_to_do():
+    with pytest.raises(ConfigError) as err:
+        check_trained_for({"rig": "sim"}, PROFILE, "old.npz")
+    message = str(err.value)
+    assert message.startswith("old.npz does not record the calibration it was trained under")
+    assert "`limbctl record`, then `limbctl train`" in message
+
+
+def test_a_malformed_recorded_calibration_is_refused():
+    bad = trained()
+    bad["calibration"]["pan"]["zero_tick"] = "2185"
+    with pytest.raises(ConfigError, match=r"model.npz: calibration.pan.zero_tick must be an"):
+        check_trained_for(bad, PROFILE, "model.npz")
