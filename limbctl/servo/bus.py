@@ -47,13 +47,12 @@ from limbctl.errors import (
     ServoAlarm,
 )
 from limbctl.servo import transfers
+from limbctl.servo.alarms import alarm_message
 from limbctl.servo.control_table import (
     ALERT_BIT,
     FAST_SYNC_READ_MIN_FIRMWARE,
-    HARDWARE_ERROR_ADVICE,
     MAX_TICK,
     MODEL_BY_NAME,
-    HardwareError,
     ModelNumber,
     Register,
     StatusError,
@@ -61,6 +60,7 @@ from limbctl.servo.control_table import (
     describe_status_error,
     model_name,
 )
+from limbctl.servo.cycle import CycleReads
 from limbctl.servo.port_lock import describe_holders
 from limbctl.servo.transfers import SDK_LATENCY_TIMER_MS, Attempt, TunedPortHandler
 
@@ -84,7 +84,7 @@ class BusStats:
     alarms: int = 0
 
 
-class ServoBus:
+class ServoBus(CycleReads):
     """Servos on one serial port; a context manager (``close()`` is safe to call twice).
 
     Parameters
@@ -242,14 +242,23 @@ class ServoBus:
             raise PortError(f"the bus on {self.port_name} is not open; use it as a context manager")
         return self._port
 
-    def _transact(self, what: str, attempt: Callable[[], Attempt], check_alert: bool = True) -> Any:
-        """Run ``attempt`` until it succeeds, the attempts or the time budget run out."""
+    def _transact(
+        self,
+        what: str,
+        attempt: Callable[[], Attempt],
+        check_alert: bool = True,
+        once: bool = False,
+    ) -> Any:
+        """Run ``attempt`` until it succeeds, the attempts or the time budget run out.
+
+        ``once``: a single try (the control cycle's read, which must keep its time budget).
+        """
         with self._lock:
             port = self._require_port()
             self.stats.transactions += 1
             deadline = time.monotonic() + self.retry_budget_s
             outcome: Attempt | None = None
-            for number in range(self.max_attempts):
+            for number in range(1 if once else self.max_attempts):
                 try:
                     if number:
                         self.stats.retries += 1
@@ -297,19 +306,14 @@ class ServoBus:
         if not found:
             return
         self.stats.alarms += 1
+        torque: dict[int, bool] = {}
+        for i in found:
+            try:
+                torque[i] = bool(self.read(Register.TORQUE_ENABLE, i, check_alert=False))
+            except BusError:
+                pass  # unknown: the message says so
         servo_id, bits = next(iter(found.items()))
-        detail = "; ".join(f"servo {i}: {', '.join(b)}" for i, b in found.items())
-        advice = "; ".join(
-            HARDWARE_ERROR_ADVICE[flag]
-            for flag in HardwareError
-            if flag.name.lower().replace("_", " ") in bits
-        )
-        raise ServoAlarm(
-            f"hardware error reported ({detail}). {advice}. The servo keeps torque off until it "
-            f"is rebooted: fix the cause, then reboot it (ServoBus.reboot({servo_id}))",
-            servo_id,
-            bits,
-        )
+        raise ServoAlarm(alarm_message(found, torque), servo_id, bits)
 
     def _hardware_errors(self, ids: Iterable[int]) -> dict[int, tuple[str, ...]]:
         return {

@@ -12,6 +12,7 @@ read :attr:`Register.HARDWARE_ERROR_STATUS`), bits 0-6 hold a :class:`StatusErro
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from enum import Enum, IntEnum, IntFlag
 
 #: Encoder ticks per output-shaft revolution (12-bit absolute encoder).
@@ -73,6 +74,10 @@ class Register(Enum):
     POSITION_TRAJECTORY = (140, 4, True)
     PRESENT_INPUT_VOLTAGE = (144, 2, False)  # unit 0.1 V
     PRESENT_TEMPERATURE = (146, 1, False)  # unit 1 degC
+    # Indirect Address n (n = 1..28) at 168 + 2 (n - 1) names the RAM address (64..661) that
+    # Indirect Data n at 224 + (n - 1) reads and writes; both are RAM (reset at power-up/reboot)
+    INDIRECT_ADDRESS_1 = (168, 2, False)
+    INDIRECT_DATA_1 = (224, 1, False)
 
     def __init__(self, address: int, size: int, signed: bool) -> None:
         self.address = address
@@ -120,6 +125,36 @@ class Register(Enum):
         if self.signed and raw >= 1 << (8 * self.size - 1):
             raw -= 1 << (8 * self.size)
         return raw
+
+
+#: Number of Indirect Address / Indirect Data pairs in the first block (addresses 168-251).
+INDIRECT_SLOTS = 28
+
+
+@dataclass(frozen=True)
+class Block:
+    """``size`` consecutive bytes from ``start``'s address, read or written as raw bytes.
+
+    Quacks like a :class:`Register` for the transfers (``name``, ``address``, ``size``,
+    ``decode``), so one sync read can carry several registers mapped through indirect addresses.
+    """
+
+    start: Register
+    size: int
+
+    @property
+    def name(self) -> str:
+        return f"{self.start.name}[{self.size} bytes]"
+
+    @property
+    def address(self) -> int:
+        return self.start.address
+
+    def decode(self, data: bytes | bytearray | list[int]) -> bytes:
+        """The block's bytes, checked for length."""
+        if len(data) != self.size:
+            raise ValueError(f"{self.name} is {self.size} bytes wide, got {len(data)} bytes")
+        return bytes(data)
 
 
 class OperatingMode(IntEnum):

@@ -19,6 +19,7 @@ from limbctl.errors import InvalidInputError, SafetyError
 from limbctl.geometry.gimbal import pan_tilt_to_direction, pan_tilt_to_quat
 from limbctl.servo.bus import ServoBus
 from limbctl.servo.control_table import Register
+from limbctl.servo.cycle import CycleRead
 from limbctl.servo.profiles import joint_tick_limits
 from limbctl.servo.setup import configure_servos
 from limbctl.servo.ticks import angle_to_ticks, ticks_to_angle
@@ -138,6 +139,17 @@ class Rig:
         """Present ticks ``(pan, tilt)``, both from one sync read."""
         positions = self._bus().read_positions()
         return positions[self.profile.pan.id], positions[self.profile.tilt.id]
+
+    def read_cycle(self) -> CycleRead:
+        """Both servos' position, goal, torque and alarm in ONE sync read, tried once."""
+        return self._bus().read_cycle()
+
+    def pose_of(self, read: CycleRead) -> tuple[float, float]:
+        """Present joint angles ``(pan, tilt)`` in rad from a successful cycle read."""
+        reports = read.reports
+        return self.ticks_to_angles(
+            reports[self.profile.pan.id].present, reports[self.profile.tilt.id].present
+        )
 
     def read_pose(self) -> tuple[float, float]:
         """Present joint angles ``(pan, tilt)`` in rad."""

@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING
 
 from limbctl.errors import BusError, ConfigError
 from limbctl.servo.control_table import MAX_TICK, DriveModeBit, OperatingMode, Register
+from limbctl.servo.cycle import INDIRECT_MAP_BLOCK, indirect_map
 
 if TYPE_CHECKING:
     from limbctl.servo.bus import ServoBus
@@ -26,6 +27,9 @@ def configure_servos(
     profile_acceleration: int = 50,
 ) -> None:
     """Prepare every servo for position control. Turns torque OFF (EEPROM needs it).
+
+    Also maps the control cycle's registers onto Indirect Data 1.. (see
+    :mod:`limbctl.servo.cycle`), so :meth:`ServoBus.read_cycle` works from here on.
 
     Parameters
     ----------
@@ -79,3 +83,11 @@ def configure_servos(
                         )
             bus.write(Register.PROFILE_ACCELERATION, servo_id, profile_acceleration)
             bus.write(Register.PROFILE_VELOCITY, servo_id, profile_velocity)
+            # the control cycle reads position, goal, torque and alarm through one block
+            bus.write_block(INDIRECT_MAP_BLOCK, servo_id, indirect_map())
+            if bus.read_block(INDIRECT_MAP_BLOCK, servo_id) != indirect_map():
+                raise BusError(
+                    f"servo {servo_id} did not keep the indirect address map limbctl wrote "
+                    f"(Indirect Address 1-{len(indirect_map()) // 2}): check its firmware",
+                    servo_id,
+                )

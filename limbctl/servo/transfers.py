@@ -29,7 +29,7 @@ from dynamixel_sdk import (
 )
 
 from limbctl.errors import BusError, BusTimeout, CorruptReply, PortError
-from limbctl.servo.control_table import ALERT_BIT, Register
+from limbctl.servo.control_table import ALERT_BIT, Block, Register
 
 #: Protocol 2.0 status packet: header(4) id(1) length(2) instruction(1), then parameters.
 _PKT_ID, _PKT_LENGTH_L, _PKT_LENGTH_H, _PKT_PARAMETER0 = 4, 5, 6, 8
@@ -112,7 +112,7 @@ def ping(packets: Any, port: PortHandler, servo_id: int) -> Attempt:
     return Attempt(number, result, {servo_id: error}, servo_id)
 
 
-def read(packets: Any, port: PortHandler, register: Register, servo_id: int) -> Attempt:
+def read(packets: Any, port: PortHandler, register: Register | Block, servo_id: int) -> Attempt:
     """READ ``register`` of one servo."""
     data, result, error = packets.readTxRx(port, servo_id, register.address, register.size)
     if result == COMM_SUCCESS and not _refused(error) and len(data) != register.size:
@@ -122,7 +122,7 @@ def read(packets: Any, port: PortHandler, register: Register, servo_id: int) -> 
 
 
 def write(
-    packets: Any, port: PortHandler, register: Register, servo_id: int, data: list[int]
+    packets: Any, port: PortHandler, register: Register | Block, servo_id: int, data: list[int]
 ) -> Attempt:
     """WRITE encoded ``data`` to ``register`` of one servo and take its status packet."""
     result, error = packets.writeTxRx(port, servo_id, register.address, register.size, data)
@@ -135,7 +135,9 @@ def reboot(packets: Any, port: PortHandler, servo_id: int) -> Attempt:
     return Attempt(None, result, {servo_id: error}, servo_id)
 
 
-def sync_read(packets: Any, port: PortHandler, register: Register, ids: Sequence[int]) -> Attempt:
+def sync_read(
+    packets: Any, port: PortHandler, register: Register | Block, ids: Sequence[int]
+) -> Attempt:
     """SYNC READ: one instruction, one status packet per servo; value is id -> int."""
     result = packets.syncReadTx(port, register.address, register.size, list(ids), len(ids), False)
     if result != COMM_SUCCESS:
@@ -155,7 +157,7 @@ def sync_read(packets: Any, port: PortHandler, register: Register, ids: Sequence
 
 
 def fast_sync_read(
-    packets: Any, port: PortHandler, register: Register, ids: Sequence[int]
+    packets: Any, port: PortHandler, register: Register | Block, ids: Sequence[int]
 ) -> Attempt:
     """FAST SYNC READ: one instruction, ONE combined status packet; value is id -> int.
 
@@ -167,8 +169,7 @@ def fast_sync_read(
         return Attempt(None, result, {})
     packet, result = packets.rxPacket(port, True)
     if result != COMM_SUCCESS:
-        # a silent first servo sends nothing at all; a later one cuts the packet short
-        return Attempt(None, result, {}, ids[0] if result == COMM_RX_TIMEOUT else None)
+        return Attempt(None, result, {}, _first_silent(packet, register.size, ids))
     # LEN = instruction + per servo (error + id + data + crc)
     expected = 1 + len(ids) * (register.size + 4)
     length = packet[_PKT_LENGTH_L] | packet[_PKT_LENGTH_H] << 8
@@ -185,6 +186,17 @@ def fast_sync_read(
         values[servo_id] = register.decode(packet[offset + 2 : offset + 2 + register.size])
         offset += register.size + 4
     return Attempt(values, COMM_SUCCESS, errors)
+
+
+def _first_silent(partial: list[int], size: int, ids: Sequence[int]) -> int | None:
+    """The servo whose part is missing from a Fast Sync Read reply cut short (None: not cut).
+
+    Each servo appends ``error, id, data, crc`` in turn; a silent servo sends nothing and the
+    ones after it have nothing to follow, so the reply stops where the silent one's part begins.
+    """
+    # complete parts = (bytes received - header, id, length, instruction) // part size
+    complete = max(0, len(partial) - _PKT_PARAMETER0) // (size + 4)
+    return ids[complete] if complete < len(ids) else None
 
 
 def sync_write(

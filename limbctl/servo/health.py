@@ -1,0 +1,152 @@
+"""Per-cycle health of the servos, judged from each :class:`limbctl.servo.cycle.CycleRead`.
+
+:class:`HealthMonitor` is fed one cycle read per control cycle and answers, as a value, what to
+say and whether to stop:
+
+- a servo that stops answering is named on the first read it misses (a notice), and again with
+  how long it was gone when it answers (a dropout); silent for ``lost_after_s``: lost (a fault);
+- Torque Enable reading 0 on a servo the loop drives (switched off, or the servo restarted after
+  a brown-out, which also clears the indirect map so every mapped byte reads 0): a fault;
+- a hardware error (alarm) in Hardware Error Status: a fault, saying what each servo's torque is;
+- a servo that does not follow: its present position further than ``max_tracking_error_deg``
+  from the goal it holds for longer than ``tracking_grace_s``: a fault.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from limbctl.errors import ConfigError
+from limbctl.servo.alarms import alarm_message
+from limbctl.servo.control_table import TICKS_PER_REV
+from limbctl.servo.cycle import CycleRead
+
+#: Degrees per encoder tick.
+DEG_PER_TICK = 360.0 / TICKS_PER_REV
+
+
+@dataclass(frozen=True)
+class HealthLimits:
+    """When a servo's state becomes a fault.
+
+    Attributes
+    ----------
+    lost_after_s : float
+        A servo silent this long is lost (s); the loop holds meanwhile.
+    max_tracking_error_deg : float
+        Largest |present - goal| of a servo that follows (deg).
+    tracking_grace_s : float
+        How long the error may exceed the bound before the servo is said not to follow (s).
+    """
+
+    # the limb may be held blind this long: the time budget for noticing a fault (issue 13)
+    lost_after_s: float = 0.5
+    # the gate's joint step plus the profile's lag at full slew stay under ~5 deg (measured,
+    # docs/bench_faults.md); a torque-less limb sags tens of degrees
+    max_tracking_error_deg: float = 15.0
+    # a hard start or a bump may lag briefly; 0.25 s keeps detection under the 0.5 s budget
+    tracking_grace_s: float = 0.25
+
+    def __post_init__(self) -> None:
+        for name in ("lost_after_s", "max_tracking_error_deg", "tracking_grace_s"):
+            if not getattr(self, name) > 0:
+                raise ConfigError(f"{name} must be > 0, got {getattr(self, name)!r}")
+
+
+@dataclass(frozen=True)
+class ServoFault:
+    """Why the servos can no longer be driven: the servo, what kind, and the message."""
+
+    servo_id: int
+    kind: str  # "lost", "torque off", "alarm", "not following"
+    message: str
+    bits: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class Dropout:
+    """A servo that was silent and answered again."""
+
+    servo_id: int
+    started_s: float
+    duration_s: float
+
+    def describe(self) -> str:
+        return f"servo {self.servo_id} answered again after {self.duration_s:.3f} s silent"
+
+
+@dataclass(frozen=True)
+class Health:
+    """The verdict on one cycle: notices to print, and a fault that ends driving (or None)."""
+
+    notices: tuple[str, ...] = ()
+    fault: ServoFault | None = None
+
+
+@dataclass
+class HealthMonitor:
+    """Judges each cycle read; see the module docstring. ``now`` is a monotonic time in s."""
+
+    limits: HealthLimits = field(default_factory=HealthLimits)
+    silent_since: dict[int, float] = field(default_factory=dict)
+    lagging_since: dict[int, float] = field(default_factory=dict)
+    dropouts: list[Dropout] = field(default_factory=list)
+
+    def observe(self, read: CycleRead, now: float) -> Health:
+        """The verdict on ``read``, taken at time ``now`` (s)."""
+        notices: list[str] = []
+        for servo_id in read.silent:
+            if servo_id not in self.silent_since:
+                self.silent_since[servo_id] = now
+                notices.append(f"servo {servo_id} stopped answering; holding its last goal")
+        for servo_id in list(self.silent_since):
+            if servo_id in read.reports:
+                started = self.silent_since.pop(servo_id)
+                dropout = Dropout(servo_id, started, now - started)
+                self.dropouts.append(dropout)
+                notices.append(dropout.describe())
+        fault = self._lost(now) or self._judge(read, now)
+        return Health(tuple(notices), fault)
+
+    def _lost(self, now: float) -> ServoFault | None:
+        for servo_id, since in self.silent_since.items():
+            if now - since >= self.limits.lost_after_s:
+                return ServoFault(
+                    servo_id,
+                    "lost",
+                    f"servo {servo_id} lost: no answer for {now - since:.3f} s: check its power "
+                    f"supply and cable",
+                )
+        return None
+
+    def _judge(self, read: CycleRead, now: float) -> ServoFault | None:
+        for servo_id, report in read.reports.items():
+            if report.hardware_error:
+                return ServoFault(
+                    servo_id,
+                    "alarm",
+                    alarm_message({servo_id: report.hardware_error}, {servo_id: report.torque_on}),
+                    report.hardware_error,
+                )
+            if not report.torque_on:
+                return ServoFault(
+                    servo_id,
+                    "torque off",
+                    f"servo {servo_id} reports torque off while it is being driven (switched "
+                    f"off, or it restarted after a brown-out): the limb is not held",
+                )
+        for servo_id, report in read.reports.items():
+            error_deg = abs(report.present - report.goal) * DEG_PER_TICK
+            if error_deg <= self.limits.max_tracking_error_deg:
+                self.lagging_since.pop(servo_id, None)
+                continue
+            since = self.lagging_since.setdefault(servo_id, now)
+            if now - since >= self.limits.tracking_grace_s:
+                return ServoFault(
+                    servo_id,
+                    "not following",
+                    f"servo {servo_id} does not follow: {error_deg:.1f} deg from its goal for "
+                    f"{now - since:.2f} s (limit {self.limits.max_tracking_error_deg:g} deg): "
+                    f"free the limb, check the load",
+                )
+        return None

@@ -1,0 +1,99 @@
+"""The control cycle's one read through indirect addresses: the real SDK on the simulator.
+
+Set-up maps Present/Goal Position, Torque Enable and Hardware Error Status onto Indirect Data;
+one (fast) sync read then shows each fault the loop must notice: a silent servo (named, one try,
+no retries), torque switched off (one broadcast write), an alarm, a restart (map lost).
+"""
+
+from __future__ import annotations
+
+import pytest
+from dynamixel_sdk import BROADCAST_ID
+
+from calib import default_sim_profile
+from limbctl.servo.bus import ServoBus
+from limbctl.servo.control_table import Register
+from limbctl.servo.cycle import CYCLE_BYTES, INDIRECT_MAP_BLOCK, ServoReport, indirect_map
+from limbctl.servo.rig import Rig
+
+PROFILE = default_sim_profile()
+
+
+@pytest.fixture(params=[True, False], ids=["fast-sync-read", "sync-read"])
+def rig(sim, request):
+    bus = ServoBus.from_profile(
+        PROFILE, port=sim.port, fast_sync_read=request.param
+    )
+    with bus:
+        rig = Rig(PROFILE, bus)
+        rig.configure()
+        rig.set_torque(True)
+        yield rig
+
+
+def read_ok(rig, tries: int = 50):
+    """A cycle read that succeeded (on a loaded machine a reply may miss its 6 ms timeout)."""
+    for _ in range(tries):
+        read = rig.read_cycle()
+        if read.ok:
+            return read
+    raise AssertionError(f"{tries} cycle reads failed, the last: {read.problem}")
+
+
+def test_indirect_map_names_each_mapped_byte():
+    addresses = [int.from_bytes(indirect_map()[k : k + 2], "little") for k in range(0, 20, 2)]
+    assert addresses == [132, 133, 134, 135, 116, 117, 118, 119, 64, 70]
+    assert CYCLE_BYTES == 10
+    report = ServoReport.decode(bytes([0x00, 0x08, 0, 0, 0xFF, 0x07, 0, 0, 1, 0x24]))
+    assert report == ServoReport(2048, 2047, True, ("overheating", "overload"))
+
+
+def test_cycle_read_agrees_with_direct_reads(rig):
+    bus = rig.bus
+    for servo_id in PROFILE.ids:
+        assert bus.read_block(INDIRECT_MAP_BLOCK, servo_id) == indirect_map()
+    read = read_ok(rig)
+    assert read.silent == ()
+    positions = bus.read_positions()
+    goals = bus.sync_read(Register.GOAL_POSITION)
+    for servo_id, report in read.reports.items():
+        assert abs(report.present - positions[servo_id]) <= 1
+        assert report.goal == goals[servo_id]
+        assert report.torque_on and report.hardware_error == ()
+    assert rig.pose_of(read) == pytest.approx(rig.read_pose(), abs=2e-3)
+
+
+def test_a_silent_servo_is_named_after_one_try(sim, rig):
+    bus = rig.bus
+    sim.vanish(2, 5.0)
+    retries = bus.stats.retries
+    read = rig.read_cycle()
+    assert not read.ok and read.silent == (2,) and read.reports == {}
+    assert "servo 2 did not answer" in read.problem
+    assert bus.stats.retries == retries, "the cycle read retried"
+    # one reply timeout (~35 ms at the SDK's 16 ms latency timer), generous for a loaded machine
+    assert read.duration_s < 0.5
+
+
+def test_torque_switched_off_by_one_broadcast_write_is_reported(sim, sdk, rig):
+    # what a servo's brown-out reset leaves: Torque Enable 0 (sent by another handle, no reply)
+    sdk.packet.write1ByteTxOnly(sdk.port, BROADCAST_ID, Register.TORQUE_ENABLE.address, 0)
+    read = read_ok(rig)
+    assert [r.torque_on for r in read.reports.values()] == [False, False]
+
+
+def test_an_alarm_is_in_the_report_with_its_torque(sim, rig):
+    sim.set_voltage(1, 5.0)  # below the voltage limit; the factory Shutdown mask keeps torque on
+    sim.set_temperature(2, 90.0)  # over the limit: shuts down, torque off
+    read = read_ok(rig)
+    while not read.reports[2].hardware_error:  # the simulator latches on its next step
+        read = read_ok(rig)
+    assert read.reports[1].hardware_error == ("input voltage",) and read.reports[1].torque_on
+    assert read.reports[2].hardware_error == ("overheating",) and not read.reports[2].torque_on
+
+
+def test_a_rebooted_servo_loses_the_map_and_reads_torque_off(rig):
+    rig.bus.reboot(1)
+    read = read_ok(rig)
+    assert read.reports[1] == ServoReport(0, 0, False, ())
+    assert read.reports[2].torque_on

@@ -1,0 +1,78 @@
+"""HealthMonitor's verdicts on cycle reads (values in, values out), on a controlled clock."""
+
+from __future__ import annotations
+
+import pytest
+
+from limbctl.errors import ConfigError
+from limbctl.servo.cycle import CycleRead, ServoReport
+from limbctl.servo.health import HealthLimits, HealthMonitor
+
+HEALTHY = ServoReport(2048, 2048, True, ())
+
+
+def reads(**reports: ServoReport) -> CycleRead:
+    both = {1: HEALTHY, 2: HEALTHY}
+    both.update({int(k[1:]): v for k, v in reports.items()})
+    return CycleRead(both)
+
+
+def silent(servo_id: int) -> CycleRead:
+    return CycleRead({}, (servo_id,), f"servo {servo_id} did not answer the cycle's read")
+
+
+def test_a_dropout_is_named_at_once_and_reported_with_its_duration():
+    monitor = HealthMonitor()
+    assert monitor.observe(reads(), 0.0).notices == ()
+    first = monitor.observe(silent(2), 0.005)
+    assert first.notices == ("servo 2 stopped answering; holding its last goal",)
+    assert first.fault is None
+    assert monitor.observe(silent(2), 0.2).notices == ()  # named once
+    back = monitor.observe(reads(), 0.305)
+    assert back.notices == ("servo 2 answered again after 0.300 s silent",)
+    assert back.fault is None
+    assert [(d.servo_id, d.duration_s) for d in monitor.dropouts] == [(2, pytest.approx(0.3))]
+
+
+def test_a_servo_silent_for_lost_after_s_is_lost():
+    monitor = HealthMonitor(HealthLimits(lost_after_s=0.1))
+    monitor.observe(silent(1), 1.0)
+    assert monitor.observe(silent(1), 1.09).fault is None
+    fault = monitor.observe(silent(1), 1.1).fault
+    assert fault.servo_id == 1 and fault.kind == "lost"
+    assert "servo 1 lost: no answer for 0.100 s" in fault.message
+
+
+def test_torque_off_is_a_fault_at_once():
+    fault = HealthMonitor().observe(reads(s2=ServoReport(2048, 2048, False, ())), 0.0).fault
+    assert fault.servo_id == 2 and fault.kind == "torque off"
+    assert "servo 2 reports torque off" in fault.message
+
+
+@pytest.mark.parametrize(
+    "torque_on, said, not_said",
+    [(True, "keeps torque on", "switched torque off"), (False, "switched torque off", "on (")],
+)
+def test_an_alarm_says_one_thing_about_torque(torque_on, said, not_said):
+    report = ServoReport(2048, 2048, torque_on, ("input voltage",))
+    fault = HealthMonitor().observe(reads(s1=report), 0.0).fault
+    assert fault.kind == "alarm" and fault.bits == ("input voltage",)
+    assert said in fault.message and not_said not in fault.message
+    assert "limbctl reboot" in fault.message
+
+
+def test_a_servo_that_does_not_follow_is_a_fault_after_the_grace():
+    limits = HealthLimits(max_tracking_error_deg=15.0, tracking_grace_s=0.25)
+    monitor = HealthMonitor(limits)
+    lagging = ServoReport(2048 + 200, 2048, True, ())  # 17.6 deg behind
+    assert monitor.observe(reads(s1=lagging), 0.0).fault is None
+    assert monitor.observe(reads(), 0.1).fault is None  # caught up: the grace restarts
+    assert monitor.observe(reads(s1=lagging), 0.2).fault is None
+    assert monitor.observe(reads(s1=lagging), 0.4).fault is None
+    fault = monitor.observe(reads(s1=lagging), 0.45).fault
+    assert fault.kind == "not following" and "17.6 deg from its goal" in fault.message
+
+
+def test_limits_must_be_positive():
+    with pytest.raises(ConfigError, match="lost_after_s"):
+        HealthLimits(lost_after_s=0.0)
