@@ -21,9 +21,7 @@ PROFILE = default_sim_profile()
 
 @pytest.fixture(params=[True, False], ids=["fast-sync-read", "sync-read"])
 def rig(sim, request):
-    bus = ServoBus.from_profile(
-        PROFILE, port=sim.port, fast_sync_read=request.param
-    )
+    bus = ServoBus.from_profile(PROFILE, port=sim.port, fast_sync_read=request.param)
     with bus:
         rig = Rig(PROFILE, bus)
         rig.configure()
