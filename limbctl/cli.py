@@ -1,4 +1,4 @@
-"""The ``limbctl`` command line: one subcommand per job, options parsed in one place.
+"""The ``limbctl`` command line: one small parser per subcommand, each calling a typed job.
 
 Every job that touches servos runs on the embedded simulator when no ``--port`` is given, and
 on real servos with ``--port /dev/ttyUSB0``. Errors print one clear message (what went wrong and
@@ -10,16 +10,25 @@ from __future__ import annotations
 import argparse
 import math
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
-from limbctl.errors import LimbctlError
+from limbctl import jobs
+from limbctl.demo import DemoOptions, run_demo_job
+from limbctl.envelope import MODEL_KINDS
+from limbctl.errors import ConfigError, LimbctlError
+from limbctl.teleop.loop import SafeState
 
 EPILOG_HARDWARE = (
     "On real hardware: give --port (e.g. /dev/ttyUSB0 for a U2D2) and --rig (a profile written "
     "by `limbctl calibrate`). Without --port the embedded simulator is started."
 )
 
+Subparsers = argparse._SubParsersAction
+Job = Callable[[argparse.Namespace], int]
 
+
+# ---- shared option helpers ------------------------------------------------------------------
 def _positive(text: str) -> float:
     try:
         value = float(text)
@@ -60,18 +69,54 @@ def _add_connection(p: argparse.ArgumentParser, hand: bool = False) -> None:
     g.add_argument("--seed", type=int, default=0, help="simulator seed (default: 0)")
 
 
-def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog="limbctl",
-        description="Teach a two-servo Dynamixel gimbal its allowed orientations by hand, learn "
-        "them as an interpolated Rigid Map, and gate every command through that model.",
-        epilog=EPILOG_HARDWARE,
+def _connection(args: argparse.Namespace) -> jobs.Connection:
+    return jobs.Connection(
+        port=args.port,
+        rig=args.rig,
+        baud=args.baud,
+        latency_timer_ms=args.latency_timer,
+        seed=args.seed,
     )
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    sub.required = True
 
-    p = sub.add_parser(
+
+def _limits(text: str | None, option: str) -> tuple[float, float] | None:
+    """``MIN,MAX`` in degrees, or None when the option was not given."""
+    if text is None:
+        return None
+    try:
+        lo, hi = (float(v) for v in text.split(","))
+    except ValueError:
+        raise ConfigError(
+            f"{option} expects MIN,MAX in degrees like -90,90; got {text!r}"
+        ) from None
+    if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+        raise ConfigError(f"{option}: need finite MIN < MAX, got {text!r}")
+    return lo, hi
+
+
+def _pair(text: str, option: str) -> tuple[int, int]:
+    try:
+        a, b = (int(v) for v in text.split(","))
+    except ValueError:
+        raise ConfigError(f"{option} expects two integers like 1,2; got {text!r}") from None
+    return a, b
+
+
+def _command(
+    sub: Subparsers, name: str, job: Job, **parser_options: str
+) -> argparse.ArgumentParser:
+    """A subcommand's parser whose parsed arguments are handed to ``job``."""
+    p = sub.add_parser(name, **parser_options)
+    p.set_defaults(job=job)
+    return p
+
+
+# ---- one parser per subcommand --------------------------------------------------------------
+def _add_demo(sub: Subparsers) -> None:
+    p = _command(
+        sub,
         "demo",
+        lambda a: run_demo_job(DemoOptions(out=a.out, duration=a.duration, seed=a.seed)),
         help="the whole flow on the simulator: teach, train, teleop, plot",
         description="Run teach-by-hand, training, a teleop session that tries to leave the "
         "region, and plots, all on the embedded simulator, writing everything to --out.",
@@ -82,8 +127,25 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--seed", type=int, default=0, help="simulator and model seed")
 
-    p = sub.add_parser(
+
+def _calibrate(a: argparse.Namespace) -> int:
+    return jobs.run_calibrate(
+        jobs.CalibrateOptions(
+            out=a.out,
+            name=a.name,
+            ids=_pair(a.ids, "--ids"),
+            pan_limits=_limits(a.pan_limits, "--pan-limits"),
+            tilt_limits=_limits(a.tilt_limits, "--tilt-limits"),
+            connection=_connection(a),
+        )
+    )
+
+
+def _add_calibrate(sub: Subparsers) -> None:
+    p = _command(
+        sub,
         "calibrate",
+        _calibrate,
         help="find each joint's zero and direction by hand and write a rig profile",
         description="Guided, hand-held: with torque off, hold the limb at rest along +x, then "
         "turn the pan joint toward +y (left), then raise the limb (tilt up), following the "
@@ -107,8 +169,20 @@ def build_parser() -> argparse.ArgumentParser:
         "rig profile's)",
     )
 
-    p = sub.add_parser(
+
+def _record(a: argparse.Namespace) -> int:
+    return jobs.run_record(
+        jobs.RecordOptions(
+            out=a.out, duration=a.duration, rate=a.rate, hand=a.hand, connection=_connection(a)
+        )
+    )
+
+
+def _add_record(sub: Subparsers) -> None:
+    p = _command(
+        sub,
         "record",
+        _record,
         help="teach by hand: torque off, sample the limb and write a dataset",
         description="Torque off; move the limb by hand through every pose it may take. "
         "Samples both joints at --rate Hz and appends to the dataset as it goes. Stops on "
@@ -122,23 +196,60 @@ def build_parser() -> argparse.ArgumentParser:
         "--rate", type=_positive, default=125.0, help="samples per second (>= 100; default 125)"
     )
 
-    p = sub.add_parser(
+
+def _train(a: argparse.Namespace) -> int:
+    return jobs.run_train(
+        jobs.TrainOptions(
+            data=a.data,
+            out=a.out,
+            kind=a.kind,
+            nodes=a.nodes,
+            layout=a.layout,
+            seed=a.seed,
+            plot=a.plot,
+        )
+    )
+
+
+def _add_train(sub: Subparsers) -> None:
+    p = _command(
+        sub,
         "train",
+        _train,
         help="learn the valid region from a dataset and write a model file",
         description="Fit an envelope model (default: the interpolated Rigid Map) to a dataset.",
     )
     p.add_argument("data", type=Path, help="dataset written by `limbctl record`")
     p.add_argument("--out", type=Path, required=True, help="model file to write (.npz)")
-    p.add_argument(
-        "--kind", default="rigidmap", choices=("rigidmap", "som", "cone"), help="model type"
-    )
+    p.add_argument("--kind", default=MODEL_KINDS[0], choices=MODEL_KINDS, help="model type")
     p.add_argument("--nodes", type=int, help="number of nodes (Rigid Map)")
     p.add_argument("--layout", help="node layout (Rigid Map), e.g. uniform, 720, super-fibonacci")
     p.add_argument("--seed", type=int, default=0, help="random seed")
     p.add_argument("--plot", type=Path, help="also draw the model and data to this PNG")
 
-    p = sub.add_parser(
+
+def _teleop(a: argparse.Namespace) -> int:
+    return jobs.run_teleop(
+        jobs.TeleopOptions(
+            model=a.model,
+            source=a.source,
+            rate=a.rate,
+            max_speed=a.max_speed,
+            on_fault=SafeState(a.on_fault),
+            duration=a.duration,
+            telemetry=a.telemetry,
+            goal_log=a.goal_log,
+            quiet=a.quiet,
+            connection=_connection(a),
+        )
+    )
+
+
+def _add_teleop(sub: Subparsers) -> None:
+    p = _command(
+        sub,
         "teleop",
+        _teleop,
         help="drive the limb from a command source, every command through the gate",
         description="Read commands from --source at --rate Hz; each is corrected by the model, "
         "converted to joint angles, clamped to the rig's hard limits, slew-limited, and only "
@@ -157,8 +268,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--on-fault",
-        choices=("hold", "torque-off"),
-        default="hold",
+        choices=[state.value for state in SafeState],
+        default=SafeState.HOLD.value,
         help="safe state after a bus fault or servo alarm (default: hold)",
     )
     p.add_argument("--duration", type=_positive, help="stop after this many seconds")
@@ -166,35 +277,73 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--goal-log", type=Path, help="simulator only: the simulator's goal log")
     p.add_argument("--quiet", action="store_true", help="no status line")
 
-    p = sub.add_parser(
+
+def _add_plot(sub: Subparsers) -> None:
+    p = _command(
+        sub,
         "plot",
+        lambda a: jobs.run_plot(jobs.PlotOptions(inputs=tuple(a.inputs), out=a.out)),
         help="draw a model or a dataset (region, samples, node weights) to a PNG",
     )
     p.add_argument("inputs", type=Path, nargs="+", help="a model file and/or a dataset")
     p.add_argument("--out", type=Path, required=True, help="PNG file to write")
 
-    p = sub.add_parser(
+
+def _add_eval(sub: Subparsers) -> None:
+    p = _command(
+        sub,
         "eval",
+        lambda a: jobs.run_evaluation(jobs.EvalOptions(out=a.out, quick=a.quick, jobs=a.jobs)),
         help="reproduce the papers' experiments beside the gate; tables and plots",
     )
     p.add_argument("--quick", action="store_true", help="a reduced grid (under two minutes)")
     p.add_argument("--out", type=Path, default=Path("eval-results"), help="output folder")
     p.add_argument("--jobs", type=int, default=0, help="worker processes (0: all cores)")
 
-    p = sub.add_parser("info", help="what is on the bus, or what a model/dataset file holds")
+
+def _add_info(sub: Subparsers) -> None:
+    p = _command(
+        sub,
+        "info",
+        lambda a: jobs.run_info(jobs.InfoOptions(file=a.file, connection=_connection(a))),
+        help="what is on the bus, or what a model/dataset file holds",
+    )
     _add_connection(p)
     p.add_argument("file", type=Path, nargs="?", help="a model or dataset file to describe")
+
+
+#: The subcommands in the order ``--help`` lists them.
+SUBCOMMANDS = (
+    _add_demo,
+    _add_calibrate,
+    _add_record,
+    _add_train,
+    _add_teleop,
+    _add_plot,
+    _add_eval,
+    _add_info,
+)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="limbctl",
+        description="Teach a two-servo Dynamixel gimbal its allowed orientations by hand, learn "
+        "them as an interpolated Rigid Map, and gate every command through that model.",
+        epilog=EPILOG_HARDWARE,
+    )
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub.required = True
+    for add in SUBCOMMANDS:
+        add(sub)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``limbctl`` console script; returns the exit status."""
     args = build_parser().parse_args(argv)
-    from limbctl import jobs
-
-    handler = getattr(jobs, f"cmd_{args.command}")
     try:
-        return int(handler(args) or 0)
+        return int(args.job(args) or 0)
     except LimbctlError as exc:
         print(f"limbctl {args.command}: error: {exc}", file=sys.stderr)
         return 2

@@ -13,18 +13,46 @@ from __future__ import annotations
 
 import json
 import math
-import sys
-from argparse import Namespace
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from limbctl.errors import ConfigError
+from limbctl.jobs import (
+    Connection,
+    RecordOptions,
+    TeleopOptions,
+    TrainOptions,
+    run_record,
+    run_teleop,
+    run_train,
+    say,
+)
 from limbctl.teleop.gate import REGION_TOLERANCE_DEG, written_tolerance_deg
 
+#: Loop rate of the demo's teleop (Hz): the controller's default rate.
+DEMO_RATE_HZ = 200.0
+#: Sampling rate of the demo's recording (samples/s): the recorder's default, above its 100 Hz
+#: minimum.
+DEMO_RECORD_HZ = 125.0
+#: Slew limit of the demo's teleop (deg/s): the CLI's default.
+DEMO_MAX_SPEED_DEG_S = 120.0
 
-def _say(text: str) -> None:
-    print(text, file=sys.stderr, flush=True)
+
+@dataclass(frozen=True)
+class DemoOptions:
+    """``limbctl demo``: everything goes to folder ``out``; ``duration`` s of teaching;
+    ``seed`` for the simulator and the model."""
+
+    out: Path = Path("limbctl-demo")
+    duration: float = 60.0
+    seed: int = 0
+
+
+def run_demo_job(options: DemoOptions) -> int:
+    """The ``demo`` job: :func:`run_demo` with the command line's options."""
+    return run_demo(options.out, options.duration, options.seed)
 
 
 def write_command_stream(path: Path, seconds: float = 12.0, rate_hz: float = 50.0) -> int:
@@ -76,7 +104,6 @@ def goal_log_excursions(goal_log: Path, model: object) -> np.ndarray:
 
 def run_demo(out: Path, teach_seconds: float = 45.0, seed: int = 0) -> int:
     """Run the whole flow into folder ``out``; returns the exit status."""
-    from limbctl import jobs
     from limbctl.envelope import load_model
     from limbctl.session import demo_region_path
 
@@ -92,48 +119,57 @@ def run_demo(out: Path, teach_seconds: float = 45.0, seed: int = 0) -> int:
         if stale.exists():
             raise ConfigError(f"{stale} exists from an earlier run; use another --out or remove it")
 
-    _say(f"== 1/4 teach: the simulator's hand moves the limb for {teach_seconds:.0f} s")
-    common = {"port": None, "rig": None, "baud": None, "seed": seed, "latency_timer": None}
-    jobs.cmd_record(
-        Namespace(**common, hand=demo_region_path(), out=data, duration=teach_seconds, rate=125.0)
+    say(f"== 1/4 teach: the simulator's hand moves the limb for {teach_seconds:.0f} s")
+    simulator = Connection(seed=seed)
+    run_record(
+        RecordOptions(
+            out=data,
+            duration=teach_seconds,
+            rate=DEMO_RECORD_HZ,
+            hand=demo_region_path(),
+            connection=simulator,
+        )
     )
 
-    _say("== 2/4 train: an interpolated Rigid Map learns the region from the samples alone")
-    jobs.cmd_train(
-        Namespace(
-            data=data, out=model_path, kind="rigidmap", nodes=None, layout=None, seed=seed,
-            plot=out / "model.png",
-        )
-    )  # fmt: skip
+    say("== 2/4 train: an interpolated Rigid Map learns the region from the samples alone")
+    run_train(
+        TrainOptions(data=data, out=model_path, kind="rigidmap", seed=seed, plot=out / "model.png")
+    )
 
-    _say("== 3/4 teleop: a sweep far outside the region, replayed through the gate at 200 Hz")
+    say("== 3/4 teleop: a sweep far outside the region, replayed through the gate at 200 Hz")
     valid = write_command_stream(commands)
-    _say(f"   {valid} commands (+ a few NaN/malformed lines) in {commands}")
-    status = jobs.cmd_teleop(
-        Namespace(
-            **common, model=model_path, source=f"replay:{commands}", rate=200.0, max_speed=120.0,
-            on_fault="hold", duration=None, telemetry=telemetry, goal_log=goals, quiet=True,
+    say(f"   {valid} commands (+ a few NaN/malformed lines) in {commands}")
+    status = run_teleop(
+        TeleopOptions(
+            model=model_path,
+            source=f"replay:{commands}",
+            rate=DEMO_RATE_HZ,
+            max_speed=DEMO_MAX_SPEED_DEG_S,
+            telemetry=telemetry,
+            goal_log=goals,
+            quiet=True,
+            connection=simulator,
         )
-    )  # fmt: skip
+    )
 
-    _say("== 4/4 check: every goal the simulator received, against the model's region")
+    say("== 4/4 check: every goal the simulator received, against the model's region")
     model = load_model(model_path)
     excursion = goal_log_excursions(goals, model)
     worst = float(excursion.max()) if len(excursion) else 0.0
     bound = written_tolerance_deg()
     beyond = int((excursion > bound).sum())
-    _say(f"   goals received by the servos: {len(excursion)}")
-    _say(
+    say(f"   goals received by the servos: {len(excursion)}")
+    say(
         f"   largest excursion outside the learned region: {worst:.3f} deg "
         f"(bound {bound:.3f} deg: the gate's {REGION_TOLERANCE_DEG} deg + rounding to ticks)"
     )
-    _say(f"   goals beyond the bound: {beyond}")
+    say(f"   goals beyond the bound: {beyond}")
     _plot_teleop(out / "teleop.png", model, data, telemetry)
-    _say(f"   pictures: {out / 'model.png'}, {out / 'teleop.png'}")
+    say(f"   pictures: {out / 'model.png'}, {out / 'teleop.png'}")
     if beyond:
-        _say(f"FAILED: {beyond} goals reached the servos beyond the gate's bound; see {goals}")
+        say(f"FAILED: {beyond} goals reached the servos beyond the gate's bound; see {goals}")
         return 1
-    _say(f"done: everything is in {out}/")
+    say(f"done: everything is in {out}/")
     return status
 
 

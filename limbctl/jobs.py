@@ -1,71 +1,139 @@
-"""The jobs behind each ``limbctl`` subcommand (argument parsing lives in :mod:`limbctl.cli`)."""
+"""The jobs behind ``limbctl``'s subcommands as typed functions: one options value in, a status out.
+
+:mod:`limbctl.cli` parses the command line into these options; :mod:`limbctl.demo` builds them
+directly. Each job prints what a person reads to stderr and returns the exit status; failures
+are :class:`~limbctl.errors.LimbctlError` raised to the caller.
+"""
 
 from __future__ import annotations
 
-import argparse
 import math
 import sys
-from dataclasses import replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from limbctl.errors import ConfigError
-from limbctl.session import demo_region_path, load_rig_profile, open_rig, stop_on_signals
+from limbctl.errors import ConfigError, FileFormatError
+from limbctl.servo.profiles import load_rig_profile
+from limbctl.session import open_rig, stop_on_signals
+from limbctl.teleop.loop import SafeState
 
 
-def _say(text: str) -> None:
+def say(text: str) -> None:
+    """One line for the person at the terminal (stderr, flushed)."""
     print(text, file=sys.stderr, flush=True)
 
 
+@dataclass(frozen=True)
+class Connection:
+    """Where the servos are, shared by every job that talks to them.
+
+    Attributes
+    ----------
+    port : str or None
+        Serial device; None starts the embedded simulator (or uses the profile's device).
+    rig : path or None
+        Rig profile YAML; None is the simulated rig.
+    baud : int or None
+        Overrides the profile's baud rate.
+    latency_timer_ms : float or None
+        The USB adapter's latency timer (ms); None is the default of :func:`open_rig`.
+    seed : int
+        Simulator seed.
+    """
+
+    port: str | None = None
+    rig: Path | None = None
+    baud: int | None = None
+    latency_timer_ms: float | None = None
+    seed: int = 0
+
+
 # ---- record ---------------------------------------------------------------------------------
-def cmd_record(args: argparse.Namespace) -> int:
+@dataclass(frozen=True)
+class RecordOptions:
+    """``limbctl record``: ``out`` dataset, ``rate`` samples/s, ``duration`` s (None: until
+    Enter/Ctrl-C), ``hand`` the simulator's scripted region (None: the packaged one)."""
+
+    out: Path
+    duration: float | None = None
+    rate: float = 125.0
+    hand: Path | None = None
+    connection: Connection = field(default_factory=Connection)
+
+
+def run_record(options: RecordOptions) -> int:
+    """Torque off, sample the limb moved by hand, write the dataset as it goes."""
+    from limbctl.session import demo_region_path
     from limbctl.teach.dataset import DatasetWriter
     from limbctl.teach.record import record, stop_on_enter
 
-    profile = load_rig_profile(args.rig)
-    hand = args.hand if args.hand is not None else demo_region_path()
-    meta = {"rate_hz": args.rate, "simulated": args.port is None and profile.is_sim}
+    conn = options.connection
+    profile = load_rig_profile(conn.rig)
+    hand = options.hand if options.hand is not None else demo_region_path()
+    meta = {"rate_hz": options.rate, "simulated": conn.port is None and profile.is_sim}
     # the writer checks the path and free space before any servo is touched
-    with DatasetWriter(args.out, rig=profile.name, meta=meta) as writer:
-        with open_rig(
-            args.port,
-            args.rig,
-            args.baud,
-            hand=hand,
-            seed=args.seed,
-            latency_timer_ms=args.latency_timer,
-        ) as session:
+    with DatasetWriter(options.out, rig=profile.name, meta=meta) as writer:
+        with _open(conn, hand=hand) as session:
             with stop_on_signals() as stop:
                 if session.simulated:
-                    _say(f"simulator: a scripted hand teaches the region in {hand}")
+                    say(f"simulator: a scripted hand teaches the region in {hand}")
                 stop_on_enter(stop)
                 summary = record(
-                    session.rig, writer, args.rate, args.duration, stop, progress=sys.stderr
+                    session.rig, writer, options.rate, options.duration, stop, progress=sys.stderr
                 )
     for line in summary.lines():
-        _say(line)
-    _say(f"wrote {writer.count} samples to {args.out}")
+        say(line)
+    say(f"wrote {writer.count} samples to {options.out}")
     return 0
 
 
 # ---- train ----------------------------------------------------------------------------------
-def cmd_train(args: argparse.Namespace) -> int:
+@dataclass(frozen=True)
+class TrainOptions:
+    """``limbctl train``: fit a model of ``kind`` to dataset ``data``, write it to ``out``;
+    ``nodes``/``layout`` only for kinds that take them (None: the model's default); ``plot``
+    also draws the model and data to that PNG."""
+
+    data: Path
+    out: Path
+    kind: str = "rigidmap"
+    nodes: int | None = None
+    layout: str | None = None
+    seed: int = 0
+    plot: Path | None = None
+
+
+def model_options(kind: str, seed: int, **chosen: object) -> dict[str, object]:
+    """Constructor keywords for a model of ``kind``: the seed where it takes one, and each
+    ``chosen`` option given (not None).
+
+    Raises
+    ------
+    ConfigError
+        For an unknown kind, or an option given that the kind does not take.
+    """
+    from limbctl.envelope import model_class, model_kinds
+
+    settable = model_class(kind).settable
+    given = {name: value for name, value in chosen.items() if value is not None}
+    if set(given) - set(settable):
+        takers = [k for k in model_kinds() if set(chosen) <= set(model_class(k).settable)]
+        flags = " and ".join(f"--{name}" for name in chosen)
+        raise ConfigError(f"{flags} apply to --kind {' or '.join(takers)} only")
+    return {"seed": seed, **given} if "seed" in settable else given
+
+
+def run_train(options: TrainOptions) -> int:
+    """Fit the model, save it, print its summary (and draw it with ``plot``)."""
     from tqdm import tqdm
 
     from limbctl.teach.train import STAGES, train
 
-    options: dict[str, object] = {}
-    if args.kind == "rigidmap":
-        options["seed"] = args.seed
-        if args.nodes is not None:
-            options["nodes"] = args.nodes
-        if args.layout is not None:
-            options["layout"] = args.layout
-    elif args.kind == "som":
-        options["seed"] = args.seed
-    elif args.nodes is not None or args.layout is not None:
-        raise ConfigError("--nodes and --layout apply to --kind rigidmap only")
+    constructor = model_options(
+        options.kind, options.seed, nodes=options.nodes, layout=options.layout
+    )
     with tqdm(
-        total=len(STAGES), desc=f"training {args.kind}", unit="stage", file=sys.stderr
+        total=len(STAGES), desc=f"training {options.kind}", unit="stage", file=sys.stderr
     ) as bar:
 
         def advance(finished: str) -> None:
@@ -73,20 +141,20 @@ def cmd_train(args: argparse.Namespace) -> int:
             bar.set_postfix_str(STAGES[following] if following < len(STAGES) else "done")
             bar.update(1)
 
-        summary = train(args.data, args.out, args.kind, options, progress=advance)
+        summary = train(options.data, options.out, options.kind, constructor, progress=advance)
     for line in summary.lines():
-        _say(line)
-    _say(f"wrote {args.out}")
-    if args.plot is not None:
-        _plot_files([args.data, args.out], args.plot)
-        _say(f"wrote {args.plot}")
+        say(line)
+    say(f"wrote {options.out}")
+    if options.plot is not None:
+        plot_files([options.data, options.out], options.plot)
+        say(f"wrote {options.plot}")
     return 0
 
 
 # ---- plot / info ----------------------------------------------------------------------------
-def _plot_files(paths: list[Path], out: Path, extra: dict | None = None) -> Path:
+def plot_files(paths: list[Path], out: Path, extra: dict | None = None) -> Path:
+    """Draw the models and datasets among ``paths`` (told apart by content) to PNG ``out``."""
     from limbctl.envelope import load_model
-    from limbctl.errors import FileFormatError
     from limbctl.plot import plot
     from limbctl.teach.dataset import load_dataset
 
@@ -108,19 +176,33 @@ def _plot_files(paths: list[Path], out: Path, extra: dict | None = None) -> Path
     return plot(out, samples=samples, model=model, title=", ".join(names), extra=extra)
 
 
-def cmd_plot(args: argparse.Namespace) -> int:
-    _say(f"wrote {_plot_files(args.inputs, args.out)}")
+@dataclass(frozen=True)
+class PlotOptions:
+    """``limbctl plot``: draw the model and/or dataset files ``inputs`` to PNG ``out``."""
+
+    inputs: tuple[Path, ...]
+    out: Path
+
+
+def run_plot(options: PlotOptions) -> int:
+    say(f"wrote {plot_files(list(options.inputs), options.out)}")
     return 0
 
 
-def cmd_info(args: argparse.Namespace) -> int:
-    if args.file is not None:
-        return _info_file(args.file)
+@dataclass(frozen=True)
+class InfoOptions:
+    """``limbctl info``: describe ``file`` (a model or dataset), or the bus when None."""
+
+    file: Path | None = None
+    connection: Connection = field(default_factory=Connection)
+
+
+def run_info(options: InfoOptions) -> int:
+    if options.file is not None:
+        return _info_file(options.file)
     from limbctl.servo.control_table import Register, model_name
 
-    with open_rig(
-        args.port, args.rig, args.baud, seed=args.seed, latency_timer_ms=args.latency_timer
-    ) as session:
+    with _open(options.connection) as session:
         bus = session.rig.bus
         where = "embedded simulator" if session.simulated else bus.port_name
         print(f"bus: {where} at {bus.baud} bps, fast sync read: {bus.fast_sync_read}")
@@ -140,7 +222,6 @@ def cmd_info(args: argparse.Namespace) -> int:
 
 def _info_file(path: Path) -> int:
     from limbctl.envelope import load_header
-    from limbctl.errors import FileFormatError
     from limbctl.teach.dataset import load_dataset
 
     try:
@@ -180,42 +261,55 @@ def gate_for(model_path: Path, profile, rate_hz: float, max_speed_deg_s: float):
         tilt_min=profile.tilt.min_rad,
         tilt_max=profile.tilt.max_rad,
         max_step=step,
+        # a joint may move 3 Cartesian steps per cycle near the pole (where pan turns fast for
+        # a small direction change), and never less than 1 degree
         max_joint_step=max(3.0 * step, math.radians(1.0)),
     )
     return Gate(load_model(model_path), limits)
 
 
-def cmd_teleop(args: argparse.Namespace) -> int:
-    from limbctl.teleop.loop import LoopConfig, SafeState, Telemetry, open_telemetry, run
-    from limbctl.teleop.sources import open_source
+@dataclass(frozen=True)
+class TeleopOptions:
+    """``limbctl teleop``: drive the limb from ``source`` through the gate of ``model``.
 
-    profile = load_rig_profile(args.rig)
-    gate = gate_for(args.model, profile, args.rate, args.max_speed)
+    ``rate`` Hz, ``max_speed`` deg/s, ``on_fault`` the safe state, ``duration`` s (None: until
+    the source ends or Ctrl-C), ``telemetry`` a JSON-lines log, ``goal_log`` the simulator's,
+    ``quiet`` no status line.
+    """
+
+    model: Path
+    source: str = "stdin"
+    rate: float = 200.0
+    max_speed: float = 120.0
+    on_fault: SafeState = SafeState.HOLD
+    duration: float | None = None
+    telemetry: Path | None = None
+    goal_log: Path | None = None
+    quiet: bool = False
+    connection: Connection = field(default_factory=Connection)
+
+
+def run_teleop(options: TeleopOptions) -> int:
+    """Run the control loop; 0 for a clean end, 3 after a fault."""
+    from limbctl.servo.control_table import MAX_TICK
+    from limbctl.servo.setup import configure_servos
+    from limbctl.teleop.loop import LoopConfig, Telemetry, open_telemetry, run
+    from limbctl.teleop.sources import SourceContext, parse_source
+
+    spec = parse_source(options.source)  # a bad source is refused before anything opens
+    conn = options.connection
+    profile = load_rig_profile(conn.rig)
+    gate = gate_for(options.model, profile, options.rate, options.max_speed)
     config = LoopConfig(
-        rate_hz=args.rate, safe_state=SafeState(args.on_fault), duration_s=args.duration
+        rate_hz=options.rate, safe_state=options.on_fault, duration_s=options.duration
     )
-    leader_ids = _leader_ids(args.source)
-    with open_rig(
-        args.port,
-        args.rig,
-        args.baud,
-        goal_log=args.goal_log,
-        seed=args.seed,
-        extra_ids=leader_ids,
-        latency_timer_ms=args.latency_timer,
-    ) as session:
-        if leader_ids:
-            from limbctl.servo.setup import configure_servos
-            from limbctl.teleop.leader import LeaderSource
-
-            limits = session.rig.tick_limits()
-            limits.update({servo_id: (0, 4095) for servo_id in leader_ids})
-            configure_servos(session.rig.bus, limits)
-            source = LeaderSource(session.rig, leader_ids)
-        else:
-            session.rig.configure()
-            source = open_source(args.source)
-        telemetry_file = open_telemetry(args.telemetry)
+    with _open(conn, goal_log=options.goal_log, extra_ids=spec.extra_ids) as session:
+        # the rig's servos get its hard limits; servos of the source (a leader) their full range
+        limits = session.rig.tick_limits()
+        limits.update({servo_id: (0, MAX_TICK) for servo_id in spec.extra_ids})
+        configure_servos(session.rig.bus, limits)
+        source = spec.open(SourceContext(rig=session.rig))
+        telemetry_file = open_telemetry(options.telemetry)
         try:
             with source, stop_on_signals() as stop:
                 session.rig.set_torque(True)
@@ -225,98 +319,87 @@ def cmd_teleop(args: argparse.Namespace) -> int:
                     source,
                     config,
                     telemetry=Telemetry(telemetry_file) if telemetry_file else None,
-                    status=None if args.quiet else sys.stderr,
+                    status=None if options.quiet else sys.stderr,
                     stop=stop,
                 )
         finally:
             if telemetry_file is not None:
                 telemetry_file.close()
     for line in summary.lines():
-        _say(line)
+        say(line)
     if summary.fault:
-        _say(f"FAULT: {summary.fault}")
+        say(f"FAULT: {summary.fault}")
     return summary.exit_code
 
 
-def _leader_ids(spec: str) -> tuple[int, ...]:
-    if not spec.startswith("leader:"):
-        return ()
-    try:
-        ids = tuple(int(i) for i in spec[len("leader:") :].split(","))
-    except ValueError:
-        raise ConfigError(f"bad leader source {spec!r}; expected leader:ID,ID") from None
-    if len(ids) != 2:
-        raise ConfigError(f"bad leader source {spec!r}; expected leader:ID,ID (pan, tilt)")
-    return ids
-
-
 # ---- calibrate ------------------------------------------------------------------------------
-def cmd_calibrate(args: argparse.Namespace) -> int:
+@dataclass(frozen=True)
+class CalibrateOptions:
+    """``limbctl calibrate``: write rig profile ``out`` named ``name`` for servos ``ids`` (pan,
+    tilt); ``pan_limits``/``tilt_limits`` (MIN, MAX) in degrees, None: the base profile's."""
+
+    out: Path
+    name: str = "my-rig"
+    ids: tuple[int, int] = (1, 2)
+    pan_limits: tuple[float, float] | None = None
+    tilt_limits: tuple[float, float] | None = None
+    connection: Connection = field(default_factory=Connection)
+
+
+def run_calibrate(options: CalibrateOptions) -> int:
+    """Find each joint's zero tick and direction by hand and write the rig profile."""
     from importlib import resources
 
     from limbctl.servo.calibrate import find_zero_and_directions, profile_from_calibration
     from limbctl.servo.profiles import save_rig_profile
 
-    base = load_rig_profile(args.rig)
-    pan_id, tilt_id = _pair(args.ids, "--ids")
+    conn = options.connection
+    base = load_rig_profile(conn.rig)
+    pan_id, tilt_id = options.ids
     base = replace(base, pan=replace(base.pan, id=pan_id), tilt=replace(base.tilt, id=tilt_id))
     script = Path(str(resources.files("limbctl").joinpath("data", "calibration_hand.yaml")))
-    with open_rig(
-        args.port,
-        args.rig,
-        args.baud,
-        hand=script,
-        seed=args.seed,
-        latency_timer_ms=args.latency_timer,
-    ) as session:
+    with _open(conn, hand=script) as session:
         if session.simulated:
-            _say("simulator: a scripted hand follows the prompts below")
+            say("simulator: a scripted hand follows the prompts below")
         with stop_on_signals() as stop:
-            result = find_zero_and_directions(session.rig, say=_say, stop=stop)
+            result = find_zero_and_directions(session.rig, say=say, stop=stop)
         port = "sim" if session.simulated else session.rig.bus.port_name
-    pan_limits = _limits(args.pan_limits, "--pan-limits", (base.pan.min_deg, base.pan.max_deg))
-    tilt_limits = _limits(args.tilt_limits, "--tilt-limits", (base.tilt.min_deg, base.tilt.max_deg))
-    profile = profile_from_calibration(base, result, args.name, port, pan_limits, tilt_limits)
-    save_rig_profile(profile, args.out)
-    _say(
+    pan_limits = options.pan_limits or (base.pan.min_deg, base.pan.max_deg)
+    tilt_limits = options.tilt_limits or (base.tilt.min_deg, base.tilt.max_deg)
+    profile = profile_from_calibration(base, result, options.name, port, pan_limits, tilt_limits)
+    save_rig_profile(profile, options.out)
+    say(
         f"pan: zero tick {result.pan_zero}, direction {result.pan_direction:+d}; "
         f"tilt: zero tick {result.tilt_zero}, direction {result.tilt_direction:+d}"
     )
-    _say(f"wrote {args.out} (check the hard limits in it before teleoperating)")
+    say(f"wrote {options.out} (check the hard limits in it before teleoperating)")
     return 0
 
 
-def _limits(text: str | None, option: str, default: tuple[float, float]) -> tuple[float, float]:
-    if text is None:
-        return default
-    try:
-        lo, hi = (float(v) for v in text.split(","))
-    except ValueError:
-        raise ConfigError(
-            f"{option} expects MIN,MAX in degrees like -90,90; got {text!r}"
-        ) from None
-    if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
-        raise ConfigError(f"{option}: need finite MIN < MAX, got {text!r}")
-    return lo, hi
-
-
-def _pair(text: str, option: str) -> tuple[int, int]:
-    try:
-        a, b = (int(v) for v in text.split(","))
-    except ValueError:
-        raise ConfigError(f"{option} expects two integers like 1,2; got {text!r}") from None
-    return a, b
-
-
 # ---- eval -----------------------------------------------------------------------------------
-def cmd_eval(args: argparse.Namespace) -> int:
+@dataclass(frozen=True)
+class EvalOptions:
+    """``limbctl eval``: the papers' grid (``quick``: reduced) into ``out`` with ``jobs``
+    worker processes (0: all cores)."""
+
+    out: Path = Path("eval-results")
+    quick: bool = False
+    jobs: int = 0
+
+
+def run_evaluation(options: EvalOptions) -> int:
     from limbctl.eval.experiments import run_eval
 
-    return int(run_eval(out=args.out, quick=args.quick, jobs=args.jobs))
+    return int(run_eval(out=options.out, quick=options.quick, jobs=options.jobs))
 
 
-# ---- demo -----------------------------------------------------------------------------------
-def cmd_demo(args: argparse.Namespace) -> int:
-    from limbctl.demo import run_demo
-
-    return run_demo(args.out, args.duration, args.seed)
+def _open(conn: Connection, **rig_options: object):
+    """:func:`open_rig` for a connection; ``rig_options`` are its other keywords."""
+    return open_rig(
+        conn.port,
+        conn.rig,
+        conn.baud,
+        seed=conn.seed,
+        latency_timer_ms=conn.latency_timer_ms,
+        **rig_options,
+    )

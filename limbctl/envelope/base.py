@@ -16,7 +16,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from limbctl.errors import FileFormatError
+from limbctl.errors import ConfigError, FileFormatError
 from limbctl.geometry.quat import as_quaternions
 
 #: Bumped whenever the saved layout changes; older files are refused with a clear message.
@@ -34,6 +34,8 @@ class Envelope(ABC):
     """
 
     kind: ClassVar[str] = ""
+    #: Constructor keywords a user may set by name (``limbctl train --nodes``, ...).
+    settable: ClassVar[tuple[str, ...]] = ()
     _registry: ClassVar[dict[str, type[Envelope]]] = {}
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
@@ -128,6 +130,40 @@ class Envelope(ABC):
     def _input(q: object) -> tuple[np.ndarray, bool]:
         """Validate input: (N, 4) canonical float64, and whether a single (4,) came in."""
         return as_quaternions(q)
+
+
+def model_kinds() -> tuple[str, ...]:
+    """The name of every model kind, in the order their classes were defined."""
+    return tuple(Envelope._registry)
+
+
+def model_class(kind: str) -> type[Envelope]:
+    """The class of a model kind.
+
+    Raises
+    ------
+    ConfigError
+        For an unknown kind, listing the choices.
+    """
+    target = Envelope._registry.get(kind)
+    if target is None:
+        raise ConfigError(f"unknown model kind {kind!r}; choose one of {', '.join(model_kinds())}")
+    return target
+
+
+def build_model(kind: str, **options: Any) -> Envelope:
+    """An unfitted model of ``kind`` built with constructor keywords ``options``.
+
+    Raises
+    ------
+    ConfigError
+        For an unknown kind (listing the choices) or options its constructor does not take.
+    """
+    target = model_class(kind)
+    try:
+        return target(**options)
+    except TypeError as exc:
+        raise ConfigError(f"bad options for {kind}: {exc}") from exc
 
 
 def load_model(path: str | Path) -> Envelope:

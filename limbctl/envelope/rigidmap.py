@@ -119,6 +119,7 @@ class RigidMap(Envelope):
     """
 
     kind: ClassVar[str] = "rigidmap"
+    settable: ClassVar[tuple[str, ...]] = ("seed", "nodes", "layout")
 
     def __init__(
         self,

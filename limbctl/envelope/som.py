@@ -108,6 +108,7 @@ class SOM(Envelope):
     """
 
     kind = "som"
+    settable = ("seed",)
 
     def __init__(
         self,

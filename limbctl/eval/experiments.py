@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from limbctl.envelope import Cone
+from limbctl.envelope import Cone, model_class
 from limbctl.envelope import interpolation as ip
 from limbctl.envelope.synthetic import ConeRegion, to_quaternions
 from limbctl.errors import ConfigError
@@ -102,18 +102,13 @@ def draw_test(data: DataSpec, rng: np.random.Generator) -> np.ndarray:
 # ---- one task ----------------------------------------------------------------------------------
 def build_model(spec: ModelSpec, seed: int, range_deg: float) -> Any:
     """A fresh, untrained model for ``spec`` (the cone is the exact truth of ``range_deg``)."""
+    kind = model_class(spec.kind)  # an unknown kind is refused with the list of choices
     options = dict(spec.options)
-    if spec.kind == "cone":
-        return Cone(np.radians(range_deg))
-    if spec.kind == "som":
-        from limbctl.envelope.som import SOM
-
-        return SOM(seed=seed, **options)
-    if spec.kind == "rigidmap":
-        from limbctl.envelope import RigidMap
-
-        return RigidMap(seed=seed, **options)
-    raise ConfigError(f"unknown model kind {spec.kind!r}; choose som, rigidmap or cone")
+    if "seed" in kind.settable:
+        options["seed"] = seed
+    if kind is Cone:
+        options["half_angle"] = np.radians(range_deg)
+    return kind(**options)
 
 
 def respond_on_data_nodes(model: Any, q: np.ndarray, interpolation: str, k: int) -> np.ndarray:

@@ -130,32 +130,6 @@ def _region_extent(
     return grid_pan[inside], grid_tilt[inside]
 
 
-MODEL_KINDS = ("rigidmap", "som", "cone")
-
-
-def build_model(kind: str, **options: Any) -> Any:
-    """Construct an unfitted envelope by name.
-
-    Raises
-    ------
-    ConfigError
-        For an unknown kind, listing the choices.
-    """
-    from limbctl import envelope
-
-    constructors = {
-        "rigidmap": lambda: envelope.RigidMap(**options),
-        "som": lambda: envelope.SOM(**options),
-        "cone": lambda: envelope.Cone(**options),
-    }
-    if kind not in constructors:
-        raise ConfigError(f"unknown model kind {kind!r}; choose one of {', '.join(MODEL_KINDS)}")
-    try:
-        return constructors[kind]()
-    except TypeError as exc:
-        raise ConfigError(f"bad options for {kind}: {exc}") from exc
-
-
 #: The stages :func:`train` reports to its ``progress`` callback, in order.
 STAGES = ("load dataset", "fit model", "save model", "summarise")
 
@@ -176,7 +150,7 @@ def train(
     out_path : path
         The model file to write (replaced atomically).
     kind : str
-        One of :data:`MODEL_KINDS`.
+        A model kind of :data:`limbctl.envelope.MODEL_KINDS`.
     options : dict
         Keyword options of the model's constructor (nodes, layout, seed, ...).
     progress : callable, optional
@@ -186,6 +160,7 @@ def train(
     -------
     TrainSummary
     """
+    from limbctl.envelope import build_model
     from limbctl.teach.dataset import load_dataset
 
     done = progress or (lambda stage: None)

@@ -116,14 +116,8 @@ def parse_command(line: str | bytes) -> Command:
     if forms[0]:
         if "pan" not in obj or "tilt" not in obj:
             raise InvalidInputError("pan and tilt must be given together")
-        pan = _finite_number(obj["pan"], "pan")
-        tilt = _finite_number(obj["tilt"], "tilt")
-        if not -180.0 <= pan <= 180.0:
-            raise InvalidInputError(f"pan {pan} deg is outside [-180, 180]")
-        if not -90.0 <= tilt <= 90.0:
-            raise InvalidInputError(f"tilt {tilt} deg is outside [-90, 90]")
-        direction = pan_tilt_to_direction(math.radians(pan), math.radians(tilt))
-    elif forms[1]:
+        return command_from_pan_tilt(obj["pan"], obj["tilt"], t)
+    if forms[1]:
         d = _vector(obj["dir"], "dir", 3)
         norm = float(np.linalg.norm(d))
         if not norm >= MIN_DIRECTION_NORM:
@@ -135,6 +129,31 @@ def parse_command(line: str | bytes) -> Command:
         if not abs(norm - 1.0) <= QUAT_NORM_TOLERANCE:
             raise InvalidInputError(f"q has norm {norm:.6g}; send a unit quaternion")
         direction = limb_direction(q / norm)
+    return Command(q=swing_from_direction(direction), direction=direction, t=t)
+
+
+def command_from_pan_tilt(pan_deg: object, tilt_deg: object, t: float | None = None) -> Command:
+    """A :class:`Command` from joint angles in degrees, with the same checks as a JSON line.
+
+    Parameters
+    ----------
+    pan_deg, tilt_deg : float
+        Pan in [-180, 180] deg, tilt in [-90, 90] deg.
+    t : float, optional
+        Timestamp (s) to keep with the command.
+
+    Raises
+    ------
+    InvalidInputError
+        For a value that is not a finite number or lies outside its range.
+    """
+    pan = _finite_number(pan_deg, "pan")
+    tilt = _finite_number(tilt_deg, "tilt")
+    if not -180.0 <= pan <= 180.0:
+        raise InvalidInputError(f"pan {pan} deg is outside [-180, 180]")
+    if not -90.0 <= tilt <= 90.0:
+        raise InvalidInputError(f"tilt {tilt} deg is outside [-90, 90]")
+    direction = pan_tilt_to_direction(math.radians(pan), math.radians(tilt))
     return Command(q=swing_from_direction(direction), direction=direction, t=t)
 
 

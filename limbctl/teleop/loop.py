@@ -6,36 +6,41 @@ Each cycle (default 200 Hz):
 2. take the newest valid command from the source (bad lines were already refused and counted);
 3. the gate turns it into a safe pose (correct, slew limit, IK, hard limits, final check);
 4. write both goals (one sync write) — only ever a pose the gate returned;
-5. log telemetry and pace to the next period.
+5. report the cycle's value (telemetry, status, ``on_cycle``) and pace to the next period.
 
 A silent source holds the last safe pose. A cycle whose read fails writes nothing (a servo
 that is not answering would miss the sync write and leave a pose the gate never produced).
-Bus failures are retried; after
-``max_failed_cycles`` consecutive failed cycles, or on a servo alarm, the loop ends in the
-configured safe state (hold: torque stays on at the last goal; torque-off) with a message naming
-the servo and the cause. The loop's outcome is a value (:class:`TeleopSummary`), after ruckig.
+Bus failures are retried; after ``max_failed_cycles`` consecutive failed cycles, or on a servo
+alarm, the loop ends in the configured safe state (hold: torque stays on at the last goal;
+torque-off) with a message naming the servo and the cause.
+
+After ruckig, every cycle is a value: :meth:`ControlLoop.step` returns a
+:class:`~limbctl.teleop.cycle.Cycle` (running, finished or fault, with the gate's result, the
+command, the written pose and the timings) and :func:`run` is a short loop over it; the
+session's outcome is a :class:`~limbctl.teleop.cycle.TeleopSummary`.
 """
 
 from __future__ import annotations
 
 import enum
-import json
 import math
 import threading
 import time
-from collections import Counter, deque
-from dataclasses import dataclass, field
-from pathlib import Path
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass
 from typing import IO, Protocol
 
 import numpy as np
 
 from limbctl.errors import BusError, ConfigError, ServoAlarm
+from limbctl.teleop.cycle import Cycle, CycleState, CycleTimings, TeleopSummary
 from limbctl.teleop.gate import Gate, GateResult, Outcome
+from limbctl.teleop.report import StatusLine, Telemetry, open_telemetry
 from limbctl.teleop.sources import CommandSource
 
-#: Cycle and gate times kept for the summary's percentiles (the most recent ones).
-TIMING_WINDOW = 100_000
+__all__ = ["Cycle", "CycleState", "TeleopSummary", "Telemetry", "open_telemetry"]
+__all__ += ["SafeState", "Limb", "LoopConfig", "ControlLoop", "run"]
 
 
 class SafeState(enum.Enum):
@@ -76,6 +81,10 @@ class LoopConfig:
         Stop after this long (None: until the source ends or Ctrl-C).
     max_backlog : int
         Most commands of a scripted stream waiting to be gated; older ones are skipped.
+    on_cycle : callable (Cycle) -> None, optional
+        Called in the loop's thread with every cycle's value (e.g. to publish it to a live
+        view). It must return at once: hand the value on (a queue, a latest-value slot) rather
+        than doing work; an exception from it ends the loop.
     """
 
     rate_hz: float = 200.0
@@ -84,6 +93,7 @@ class LoopConfig:
     safe_state: SafeState = SafeState.HOLD
     duration_s: float | None = None
     max_backlog: int = 20
+    on_cycle: Callable[[Cycle], None] | None = None
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.rate_hz) and 1.0 <= self.rate_hz <= 2000.0):
@@ -92,88 +102,215 @@ class LoopConfig:
             raise ConfigError("max_failed_cycles must be at least 1")
 
 
-@dataclass
-class TeleopSummary:
-    """How a teleop session went; ``exit_code`` is what the CLI returns."""
-
-    cycles: int = 0
-    goals_written: int = 0
-    outcomes: Counter = field(default_factory=Counter)
-    commands: int = 0
-    skipped: int = 0
-    rejected: int = 0
-    bus_errors: int = 0
-    failed_cycles: int = 0
-    overruns: int = 0
-    # the latest TIMING_WINDOW cycles only: a session of hours must not grow without bound
-    cycle_times_s: deque = field(default_factory=lambda: deque(maxlen=TIMING_WINDOW))
-    gate_times_s: deque = field(default_factory=lambda: deque(maxlen=TIMING_WINDOW))
-    ended_by: str = ""
-    fault: str = ""
-    exit_code: int = 0
-    elapsed_s: float = 0.0
-
-    @property
-    def rate_hz(self) -> float:
-        return self.cycles / self.elapsed_s if self.elapsed_s > 0 else 0.0
-
-    def percentile_ms(self, p: float, gate: bool = False) -> float:
-        values = self.gate_times_s if gate else self.cycle_times_s
-        return 1e3 * float(np.percentile(values, p)) if values else float("nan")
-
-    def lines(self) -> list[str]:
-        outcome = ", ".join(f"{o.value} {n}" for o, n in sorted(self.outcomes.items(), key=str))
-        return [
-            f"ended by           {self.ended_by}" + (f": {self.fault}" if self.fault else ""),
-            f"cycles             {self.cycles} in {self.elapsed_s:.1f} s ({self.rate_hz:.1f} Hz)",
-            f"cycle time         p50 {self.percentile_ms(50):.2f} ms, "
-            f"p99 {self.percentile_ms(99):.2f} ms, overruns {self.overruns}",
-            f"gate time          p50 {self.percentile_ms(50, True):.3f} ms, "
-            f"p99 {self.percentile_ms(99, True):.3f} ms",
-            f"commands           {self.commands} accepted ({self.skipped} skipped as stale), "
-            f"{self.rejected} refused",
-            f"gate outcomes      {outcome or 'none'}",
-            f"goals written      {self.goals_written}",
-            f"bus errors         {self.bus_errors} ({self.failed_cycles} cycles lost)",
-        ]
-
-
-class Telemetry:
-    """One JSON line per cycle: command, gated pose, written goal and present pose (degrees)."""
-
-    def __init__(self, stream: IO[str]) -> None:
-        self._stream = stream
-
-    def write(
-        self,
-        t: float,
-        command_deg: tuple[float, float] | None,
-        result: GateResult | None,
-        present_rad: tuple[float, float] | None,
-        written: bool,
-        cycle_s: float,
-    ) -> None:
-        row = {
-            "t": round(t, 6),
-            "cmd": None if command_deg is None else [round(v, 4) for v in command_deg],
-            "out": None
-            if result is None
-            else [round(math.degrees(result.pan), 4), round(math.degrees(result.tilt), 4)],
-            "outcome": None if result is None else result.outcome.value,
-            "written": written,
-            "present": None
-            if present_rad is None
-            else [round(math.degrees(v), 4) for v in present_rad],
-            "cycle_ms": round(1e3 * cycle_s, 3),
-        }
-        self._stream.write(json.dumps(row) + "\n")
-
-
 def _command_deg(q: np.ndarray) -> tuple[float, float]:
     from limbctl.geometry.gimbal import quat_to_pan_tilt
 
     pan, tilt = quat_to_pan_tilt(q)
     return math.degrees(float(pan)), math.degrees(float(tilt))
+
+
+class ControlLoop:
+    """The loop's state between cycles; each :meth:`step` is one cycle and returns its value.
+
+    Parameters
+    ----------
+    limb : Limb
+        The rig (already connected, configured, torque on).
+    gate : Gate
+        Not yet started; :meth:`start` starts it from the limb's present pose.
+    source : CommandSource
+        Started command source.
+    config : LoopConfig
+    stop : threading.Event, optional
+        Set from a signal handler to end the loop cleanly.
+    """
+
+    def __init__(
+        self,
+        limb: Limb,
+        gate: Gate,
+        source: CommandSource,
+        config: LoopConfig,
+        stop: threading.Event | None = None,
+    ) -> None:
+        self.limb, self.gate, self.source, self.config = limb, gate, source, config
+        self.stop = stop or threading.Event()
+        self.summary = TeleopSummary()
+        self.period = 1.0 / config.rate_hz
+        self._last_error: BusError | None = None
+        self._failed_in_a_row = 0
+        self._pending: deque = deque()
+        self._target_q: np.ndarray | None = None
+        self._target_deg: tuple[float, float] | None = None
+        self._started_at = self._next_tick = self._last_command_at = 0.0
+
+    def start(self) -> Cycle:
+        """Read the start pose and start the gate from it; the value is RUNNING or FAULT.
+
+        The start pose is read with the same patience as a running loop (a dropped reply is
+        normal): up to ``max_failed_cycles`` attempts.
+        """
+        present: tuple[float, float] | None = None
+        for _ in range(self.config.max_failed_cycles):
+            try:
+                present = self.limb.read_pose()
+                break
+            except ServoAlarm as exc:
+                return self._fault(exc, 0.0)
+            except BusError as exc:
+                self.summary.bus_errors += 1
+                self._last_error = exc
+        if present is None:
+            attempts = self.config.max_failed_cycles
+            cause = f"could not read the start pose {attempts} times: {self._last_error}"
+            return self._fault(BusError(cause, self._last_error.servo_id), 0.0)
+        self.gate.start(*present)
+        self._started_at = self._next_tick = self._last_command_at = time.perf_counter()
+        return Cycle(index=0, t=0.0, state=CycleState.RUNNING, present=present)
+
+    def step(self) -> Cycle:
+        """One cycle: read, take the next command, gate, write; returns what happened."""
+        summary, config = self.summary, self.config
+        cycle_start = time.perf_counter()
+        t = cycle_start - self._started_at
+        if self.stop.is_set():
+            return self._end("stopped", t)
+        if config.duration_s is not None and t >= config.duration_s:
+            return self._end("duration", t)
+
+        # 1. present pose; a failed read means a servo may not be listening: this cycle holds
+        # (a sync write that one servo misses would leave a pose the gate never produced)
+        present: tuple[float, float] | None = None
+        try:
+            present = self.limb.read_pose()
+        except ServoAlarm as exc:
+            return self._fault(exc, t)
+        except BusError as exc:
+            summary.bus_errors += 1
+            self._last_error = exc
+
+        # 2. next valid command
+        self._take_command(cycle_start)
+
+        # 3. gate
+        gate_start = time.perf_counter()
+        if self._target_q is None:
+            result = self.gate.hold("no command yet")
+        elif present is None:
+            result = self.gate.hold("the bus failed this cycle")
+        else:
+            result = self.gate.step(self._target_q)
+        gate_s = time.perf_counter() - gate_start
+        summary.gate_times_s.append(gate_s)
+        summary.outcomes[result.outcome] += 1
+        if cycle_start - self._last_command_at > config.silence_s:
+            self._target_q = None  # a silent source: hold from here on
+
+        # 4. write (only what the gate returned)
+        written = False
+        if result.outcome is not Outcome.HELD:
+            try:
+                self.limb.write_pose(result.pan, result.tilt)
+                written = True
+                summary.goals_written += 1
+            except ServoAlarm as exc:
+                return self._fault(exc, t, result)
+            except BusError as exc:
+                summary.bus_errors += 1
+                self._last_error = exc
+                present = None
+        if present is None:
+            self._failed_in_a_row += 1
+            summary.failed_cycles += 1
+            if self._failed_in_a_row >= config.max_failed_cycles:
+                cause = BusError(
+                    f"the bus failed {self._failed_in_a_row} cycles in a row; last error: "
+                    f"{self._last_error}",
+                    getattr(self._last_error, "servo_id", None),
+                )
+                return self._fault(cause, t, result)
+        else:
+            self._failed_in_a_row = 0
+
+        cycle_s = time.perf_counter() - cycle_start
+        summary.cycle_times_s.append(cycle_s)
+        summary.cycles += 1
+        state, ended_by = CycleState.RUNNING, ""
+        if self.source.finished and not self._pending and not result.slewed:
+            # end of input: every command was gated and the last one reached (or held)
+            state, ended_by = CycleState.FINISHED, "end of input"
+            summary.ended_by = ended_by
+        return Cycle(
+            index=summary.cycles - 1,
+            t=t,
+            state=state,
+            complete=True,
+            command_deg=self._target_deg,
+            result=result,
+            present=present,
+            written=written,
+            timings=CycleTimings(cycle_s=cycle_s, gate_s=gate_s),
+            ended_by=ended_by,
+            refused=summary.rejected,
+        )
+
+    def pace(self) -> None:
+        """Wait for the next period; if late by a whole period, start afresh (an overrun)."""
+        self._next_tick += self.period
+        delay = self._next_tick - time.perf_counter()
+        if delay > 0:
+            self.stop.wait(delay)
+        elif delay < -self.period:
+            self.summary.overruns += 1
+            self._next_tick = time.perf_counter()
+
+    def finish(self) -> TeleopSummary:
+        """The session's summary, its elapsed time set."""
+        if self._started_at:
+            self.summary.elapsed_s = time.perf_counter() - self._started_at
+        return self.summary
+
+    def _take_command(self, now: float) -> None:
+        """Realtime sources (UDP, keyboard, leader) keep only the newest command; scripted
+        streams (stdin, replay) are gated in order, one per cycle, with a bounded backlog so a
+        fast producer cannot build up latency."""
+        commands = self.source.poll()
+        if commands:
+            self.summary.commands += len(commands)
+            self._pending.extend(commands)
+            keep = 1 if self.source.latest_only else self.config.max_backlog
+            while len(self._pending) > keep:
+                self._pending.popleft()
+                self.summary.skipped += 1
+        if self._pending:
+            self._target_q = self._pending.popleft().q
+            self._target_deg = _command_deg(self._target_q)
+            self._last_command_at = now
+        self.summary.rejected = self.source.stats.rejected
+
+    def _end(self, ended_by: str, t: float) -> Cycle:
+        self.summary.ended_by = ended_by
+        return Cycle(
+            index=self.summary.cycles,
+            t=t,
+            state=CycleState.FINISHED,
+            command_deg=self._target_deg,
+            ended_by=ended_by,
+            refused=self.summary.rejected,
+        )
+
+    def _fault(self, cause: BusError, t: float, result: GateResult | None = None) -> Cycle:
+        _enter_safe_state(self.limb, self.config, self.summary, cause)
+        return Cycle(
+            index=self.summary.cycles,
+            t=t,
+            state=CycleState.FAULT,
+            command_deg=self._target_deg,
+            result=result,
+            ended_by="fault",
+            fault=self.summary.fault,
+            refused=self.summary.rejected,
+        )
 
 
 def run(
@@ -189,169 +326,40 @@ def run(
 
     Parameters
     ----------
-    limb : Limb
-        The rig (already connected, configured, torque on).
-    gate : Gate
-        Not yet started; it starts from the limb's present pose.
-    source : CommandSource
-        Started command source.
-    config : LoopConfig
+    limb, gate, source, config, stop
+        As for :class:`ControlLoop`.
     telemetry : Telemetry, optional
+        Logs every complete cycle.
     status : text stream, optional
-        Where a one-line status is refreshed twice a second (e.g. stderr).
-    stop : threading.Event, optional
-        Set from a signal handler to end the loop cleanly.
+        Where a one-line status is refreshed (twice a second on a terminal, e.g. stderr).
 
     Returns
     -------
     TeleopSummary
         ``exit_code`` 0 for a clean end (source ended, duration, stop), 3 for a fault.
     """
-    summary = TeleopSummary()
-    period = 1.0 / config.rate_hz
-    stop = stop or threading.Event()
-
-    # the start pose, read with the same patience as a running loop (a dropped reply is normal)
-    present: tuple[float, float] | None = None
-    last_error: BusError | None = None
-    for _ in range(config.max_failed_cycles):
-        try:
-            present = limb.read_pose()
-            break
-        except ServoAlarm as exc:
-            _enter_safe_state(limb, config, summary, exc)
-            return summary
-        except BusError as exc:
-            summary.bus_errors += 1
-            last_error = exc
-    if present is None:
-        cause = f"could not read the start pose {config.max_failed_cycles} times: {last_error}"
-        _enter_safe_state(limb, config, summary, BusError(cause, last_error.servo_id))
-        return summary
-    gate.start(*present)
-
-    start = time.perf_counter()
-    next_tick = start
-    last_command_at = start
-    last_status = start
-    status_every = 0.5 if status is not None and status.isatty() else 5.0
-    failed_in_a_row = 0
-    target_q: np.ndarray | None = None
-    pending: deque = deque()
-    target_deg: tuple[float, float] | None = None
-
+    loop = ControlLoop(limb, gate, source, config, stop)
+    cycle = loop.start()
+    if config.on_cycle is not None:
+        config.on_cycle(cycle)
+    if cycle.state is not CycleState.RUNNING:
+        return loop.finish()
+    status_line = StatusLine(status) if status is not None else None
     while True:
-        cycle_start = time.perf_counter()
-        elapsed = cycle_start - start
-        if stop.is_set():
-            summary.ended_by = "stopped"
+        cycle = loop.step()
+        if cycle.complete:
+            if telemetry is not None:
+                telemetry.write(cycle)
+            if status_line is not None:
+                status_line.update(cycle, loop.summary)
+        if config.on_cycle is not None:
+            config.on_cycle(cycle)
+        if cycle.state is not CycleState.RUNNING:
             break
-        if config.duration_s is not None and elapsed >= config.duration_s:
-            summary.ended_by = "duration"
-            break
-
-        # 1. present pose; a failed read means a servo may not be listening: this cycle holds
-        # (a sync write that one servo misses would leave a pose the gate never produced)
-        present_now: tuple[float, float] | None = None
-        try:
-            present_now = limb.read_pose()
-        except ServoAlarm as exc:
-            _enter_safe_state(limb, config, summary, exc)
-            break
-        except BusError as exc:
-            summary.bus_errors += 1
-            last_error = exc
-
-        # 2. next valid command: realtime sources (UDP, keyboard, leader) keep only the newest;
-        # scripted streams (stdin, replay) are gated in order, one per cycle, with a bounded
-        # backlog so a fast producer cannot build up latency
-        commands = source.poll()
-        if commands:
-            summary.commands += len(commands)
-            pending.extend(commands)
-            keep = 1 if source.latest_only else config.max_backlog
-            while len(pending) > keep:
-                pending.popleft()
-                summary.skipped += 1
-        if pending:
-            target_q = pending.popleft().q
-            target_deg = _command_deg(target_q)
-            last_command_at = cycle_start
-        summary.rejected = source.stats.rejected
-
-        # 3. gate
-        gate_start = time.perf_counter()
-        if target_q is None:
-            result = gate.hold("no command yet")
-        elif present_now is None:
-            result = gate.hold("the bus failed this cycle")
-        else:
-            result = gate.step(target_q)
-        summary.gate_times_s.append(time.perf_counter() - gate_start)
-        summary.outcomes[result.outcome] += 1
-        if cycle_start - last_command_at > config.silence_s:
-            target_q = None  # a silent source: hold from here on
-
-        # 4. write (only what the gate returned)
-        written = False
-        if result.outcome is not Outcome.HELD:
-            try:
-                limb.write_pose(result.pan, result.tilt)
-                written = True
-                summary.goals_written += 1
-            except ServoAlarm as exc:
-                _enter_safe_state(limb, config, summary, exc)
-                break
-            except BusError as exc:
-                summary.bus_errors += 1
-                last_error = exc
-                present_now = None
-        if present_now is None:
-            failed_in_a_row += 1
-            summary.failed_cycles += 1
-            if failed_in_a_row >= config.max_failed_cycles:
-                _enter_safe_state(
-                    limb,
-                    config,
-                    summary,
-                    BusError(
-                        f"the bus failed {failed_in_a_row} cycles in a row; last error: "
-                        f"{last_error}",
-                        getattr(last_error, "servo_id", None),
-                    ),
-                )
-                break
-        else:
-            failed_in_a_row = 0
-
-        cycle_s = time.perf_counter() - cycle_start
-        summary.cycle_times_s.append(cycle_s)
-        summary.cycles += 1
-        if telemetry is not None:
-            telemetry.write(elapsed, target_deg, result, present_now, written, cycle_s)
-        if status is not None and cycle_start - last_status >= status_every:
-            last_status = cycle_start
-            _print_status(status, summary, elapsed)
-
-        if source.finished and not pending and not result.slewed:
-            # end of input: every command was gated and the last one reached (or held)
-            summary.ended_by = "end of input"
-            break
-
-        # 5. pace: wait for the next period; if late by a whole period, start afresh
-        next_tick += period
-        delay = next_tick - time.perf_counter()
-        if delay > 0:
-            stop.wait(delay)
-        elif delay < -period:
-            summary.overruns += 1
-            next_tick = time.perf_counter()
-
-    summary.elapsed_s = time.perf_counter() - start
-    if status is not None:
-        _print_status(status, summary, summary.elapsed_s)
-        if status.isatty():
-            status.write("\n")
+        loop.pace()
+    summary = loop.finish()
+    if status_line is not None:
+        status_line.close(summary)
     return summary
 
 
@@ -391,24 +399,3 @@ def _hold_state(limb: Limb) -> str:
         f"{' and '.join(off)} torque off (shut down by the servo's firmware: reboot it once the "
         f"cause is fixed){held}"
     )
-
-
-def _print_status(stream: IO[str], summary: TeleopSummary, elapsed: float) -> None:
-    n = max(1, sum(summary.outcomes.values()))
-    share = {o: 100.0 * summary.outcomes[o] / n for o in Outcome}
-    rate = summary.cycles / elapsed if elapsed > 0 else 0.0
-    stream.write(
-        ("\r" if stream.isatty() else "")
-        + f"{elapsed:7.1f} s  {rate:6.1f} Hz  pass {share[Outcome.PASSED]:5.1f}%  "
-        f"corr {share[Outcome.CORRECTED]:5.1f}%  clamp {share[Outcome.CLAMPED]:4.1f}%  "
-        f"held {share[Outcome.HELD]:5.1f}%  refused {summary.rejected}  "
-        f"bus errors {summary.bus_errors}   " + ("" if stream.isatty() else "\n")
-    )
-    stream.flush()
-
-
-def open_telemetry(path: str | Path | None) -> IO[str] | None:
-    """Open a telemetry file for line-buffered writing (None: no telemetry)."""
-    if path is None:
-        return None
-    return open(path, "w", buffering=1, encoding="utf-8")

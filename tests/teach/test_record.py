@@ -8,7 +8,6 @@ import pytest
 from firmware_sim.hand import Hand
 from limbctl.cli import build_parser
 from limbctl.errors import ConfigError
-from limbctl.jobs import cmd_record
 from limbctl.session import demo_region_path, open_rig
 from limbctl.teach.dataset import DatasetWriter, load_dataset
 from limbctl.teach.record import record
@@ -19,7 +18,7 @@ def test_record_job_writes_every_sample_inside_the_taught_region(tmp_path):
     args = build_parser().parse_args(
         ["record", "--out", str(out), "--duration", "4", "--seed", "1"]
     )
-    assert cmd_record(args) == 0
+    assert args.job(args) == 0  # the typed record job the parser chose
     data = load_dataset(out)
     assert data.header.rig == "sim"
     rate = (len(data) - 1) / (data.t[-1] - data.t[0])

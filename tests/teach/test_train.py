@@ -5,11 +5,11 @@ import math
 import numpy as np
 import pytest
 
-from limbctl.envelope import Cone, load_header, load_model
+from limbctl.envelope import Cone, build_model, load_header, load_model
 from limbctl.errors import ConfigError
-from limbctl.jobs import _plot_files
+from limbctl.jobs import plot_files
 from limbctl.teach.dataset import DatasetWriter
-from limbctl.teach.train import build_model, train
+from limbctl.teach.train import train
 
 
 def write_cone_dataset(path, n=400, half_angle_deg=30.0, seed=0):
@@ -46,7 +46,7 @@ def test_train_rigidmap_contains_its_samples(tmp_path):
     # the summary says which edge the gate took, and what that means
     assert summary.edge in ("smooth", "traced", "supported")
     assert any(line.startswith(f"edge               {summary.edge} (") for line in summary.lines())
-    png = _plot_files([data, tmp_path / "rm.npz"], tmp_path / "rm.png")
+    png = plot_files([data, tmp_path / "rm.npz"], tmp_path / "rm.png")
     assert png.stat().st_size > 20_000
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
@@ -59,3 +59,30 @@ def test_too_few_samples_and_unknown_kinds_are_refused(tmp_path):
         build_model("kmeans")
     with pytest.raises(ConfigError, match="bad options"):
         build_model("cone", nodes=3)
+
+
+def test_model_kinds_come_from_one_registry():
+    from limbctl.cli import build_parser
+    from limbctl.envelope import MODEL_KINDS, RigidMap, model_class
+    from limbctl.eval.experiments import build_model as eval_build_model
+    from limbctl.eval.grids import ModelSpec
+    from limbctl.jobs import model_options
+
+    assert MODEL_KINDS == ("rigidmap", "som", "cone")
+    assert model_class("rigidmap") is RigidMap
+    train_parser = next(a for a in build_parser()._actions if a.dest == "command").choices["train"]
+    kind = next(a for a in train_parser._actions if a.dest == "kind")
+    assert tuple(kind.choices) == MODEL_KINDS and kind.default == "rigidmap"
+    # options by kind: the seed where the kind takes one, node options for the Rigid Map only
+    assert model_options("rigidmap", 7, nodes=50, layout=None) == {"seed": 7, "nodes": 50}
+    assert model_options("som", 7, nodes=None, layout=None) == {"seed": 7}
+    assert model_options("cone", 7, nodes=None, layout=None) == {}
+    with pytest.raises(ConfigError, match="--nodes and --layout apply to --kind rigidmap only"):
+        model_options("cone", 0, nodes=50, layout=None)
+    with pytest.raises(ConfigError, match="rigidmap, som, cone"):
+        eval_build_model(
+            ModelSpec(label="k", kind="kmeans", options=(), answers=()), seed=0, range_deg=30.0
+        )
+    assert isinstance(
+        eval_build_model(ModelSpec(label="c", kind="cone", options=(), answers=()), 0, 30.0), Cone
+    )

@@ -8,7 +8,7 @@ from hypothesis import strategies as st
 from limbctl.errors import InvalidInputError
 from limbctl.geometry.gimbal import pan_tilt_to_direction
 from limbctl.geometry.quat import limb_direction
-from limbctl.teleop.commands import MAX_LINE_BYTES, parse_command
+from limbctl.teleop.commands import MAX_LINE_BYTES, command_from_pan_tilt, parse_command
 
 
 def test_pan_tilt_line():
@@ -70,3 +70,20 @@ def test_arbitrary_text_never_escapes_as_a_non_finite_command(text):
     except InvalidInputError:
         return
     assert np.isfinite(c.q).all() and abs(np.linalg.norm(c.q) - 1) < 1e-9
+
+
+@given(st.floats(-180.0, 180.0, allow_nan=False), st.floats(-90.0, 90.0, allow_nan=False))
+def test_commands_built_from_numbers_equal_the_parsed_line(pan, tilt):
+    built = command_from_pan_tilt(pan, tilt)
+    parsed = parse_command(f'{{"pan": {pan!r}, "tilt": {tilt!r}}}')
+    np.testing.assert_array_equal(built.q, parsed.q)
+    np.testing.assert_array_equal(built.direction, parsed.direction)
+
+
+@pytest.mark.parametrize(
+    ("pan", "tilt", "reason"),
+    [(float("nan"), 0.0, "finite"), (181.0, 0.0, "outside"), (0.0, -90.5, "outside")],
+)
+def test_commands_built_from_numbers_are_checked_like_lines(pan, tilt, reason):
+    with pytest.raises(InvalidInputError, match=reason):
+        command_from_pan_tilt(pan, tilt)

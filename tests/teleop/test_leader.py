@@ -18,8 +18,8 @@ from limbctl.jobs import gate_for
 from limbctl.servo.control_table import Register
 from limbctl.servo.setup import configure_servos
 from limbctl.session import open_rig
-from limbctl.teleop.leader import LeaderSource
 from limbctl.teleop.loop import LoopConfig, run
+from limbctl.teleop.sources import LeaderSource
 
 
 def test_follower_mirrors_a_pushed_leader_within_the_region(tmp_path):

@@ -17,7 +17,9 @@ from limbctl.geometry.gimbal import pan_tilt_to_direction
 from limbctl.geometry.quat import direction_angle
 from limbctl.jobs import gate_for
 from limbctl.session import open_rig
-from limbctl.teleop.loop import LoopConfig, SafeState, Telemetry, run
+from limbctl.teleop.cycle import CycleState
+from limbctl.teleop.gate import Outcome
+from limbctl.teleop.loop import ControlLoop, LoopConfig, SafeState, Telemetry, run
 from limbctl.teleop.sources import ReplaySource, StreamSource
 
 RATE = 200.0
@@ -120,6 +122,7 @@ def test_overload_ends_in_the_configured_safe_state(tmp_path, cone_model, safe_s
     gate = gate_for(cone_model, profile, RATE, MAX_SPEED)
     read_end, write_end = os.pipe()
     outcome = {}
+    seen = []
     with open_rig(goal_log=tmp_path / "goals.jsonl") as session:
         session.rig.configure()
         session.rig.set_torque(True)
@@ -128,7 +131,11 @@ def test_overload_ends_in_the_configured_safe_state(tmp_path, cone_model, safe_s
 
             def loop():
                 outcome["summary"] = run(
-                    session.rig, gate, source, LoopConfig(safe_state=safe_state), stop=stop
+                    session.rig,
+                    gate,
+                    source,
+                    LoopConfig(safe_state=safe_state, on_cycle=seen.append),
+                    stop=stop,
                 )
 
             thread = threading.Thread(target=loop)
@@ -149,5 +156,61 @@ def test_overload_ends_in_the_configured_safe_state(tmp_path, cone_model, safe_s
         assert not truth["servos"][2]["torque_on"]
     else:
         assert "holding the last safe pose" in summary.fault
+    # the last cycle's value carries the fault the summary reports
+    assert seen[-1].state is CycleState.FAULT and seen[-1].fault == summary.fault
     # overload itself switches the pan servo's torque off (X-series shutdown)
     assert not truth["servos"][1]["torque_on"]
+
+
+def test_every_cycle_is_a_value_the_observer_and_the_telemetry_see(tmp_path, cone_model):
+    rows = [{"pan": 5.0 * math.sin(i / 10), "tilt": 2.0} for i in range(80)]
+    rows += [{"pan": 90.0, "tilt": 0.0}] * 20  # outside the cone: corrected
+    commands = write_lines(tmp_path / "cmds.jsonl", rows)
+    telemetry_path = tmp_path / "telemetry.jsonl"
+    seen = []
+    config = LoopConfig(rate_hz=RATE, on_cycle=seen.append)
+    with open(telemetry_path, "w") as fh:
+        summary, _ = run_session(
+            cone_model, ReplaySource(commands), tmp_path / "g.jsonl", Telemetry(fh), config=config
+        )
+    assert summary.exit_code == 0
+    start, cycles = seen[0], seen[1:]
+    # the start value: the pose read before the first cycle, nothing gated yet
+    assert start.state is CycleState.RUNNING and not start.complete and start.present
+    assert all(c.complete for c in cycles) and len(cycles) == summary.cycles
+    assert [c.index for c in cycles] == list(range(summary.cycles))
+    assert all(c.state is CycleState.RUNNING for c in cycles[:-1])
+    assert cycles[-1].state is CycleState.FINISHED and cycles[-1].ended_by == "end of input"
+    assert sum(c.written for c in cycles) == summary.goals_written
+    assert all(c.result.outcome is not Outcome.HELD for c in cycles if c.written)
+    assert any(c.result.outcome is Outcome.CORRECTED for c in cycles)
+    assert all(0.0 <= c.timings.gate_s <= c.timings.cycle_s for c in cycles)
+    # telemetry is written from the same values, one line per complete cycle
+    logged = [json.loads(x) for x in telemetry_path.read_text().splitlines()]
+    assert len(logged) == len(cycles)
+    assert [r["written"] for r in logged] == [c.written for c in cycles]
+    assert [r["t"] for r in logged] == [round(c.t, 6) for c in cycles]
+
+
+def test_a_set_stop_ends_the_next_cycle_before_any_bus_transfer(cone_model):
+    gate = gate_for(cone_model, default_sim_profile(), RATE, MAX_SPEED)
+    stop = threading.Event()
+    read_end, write_end = os.pipe()  # a source that stays open and silent
+    with (
+        open_rig() as session,
+        os.fdopen(read_end, "rb", buffering=0) as reader,
+        StreamSource(reader) as source,
+    ):
+        session.rig.configure()
+        loop = ControlLoop(session.rig, gate, source, LoopConfig(), stop=stop)
+        assert loop.start().state is CycleState.RUNNING
+        running = loop.step()
+        stop.set()
+        stopped = loop.step()
+    assert running.state is CycleState.RUNNING and running.complete
+    assert running.result.outcome is Outcome.HELD  # no command yet: nothing written
+    assert not running.written
+    assert stopped.state is CycleState.FINISHED and stopped.ended_by == "stopped"
+    assert not stopped.complete and stopped.result is None
+    os.close(write_end)
+    assert loop.finish().cycles == 1

@@ -6,7 +6,15 @@ import pytest
 
 from limbctl.errors import ConfigError
 from limbctl.teleop.commands import MAX_LINE_BYTES
-from limbctl.teleop.sources import ReplaySource, StreamSource, UdpSource, open_source
+from limbctl.teleop.sources import (
+    SOURCE_FORMS,
+    SOURCES,
+    ReplaySource,
+    StreamSource,
+    UdpSource,
+    open_source,
+    parse_source,
+)
 
 
 def drain(source, timeout=5.0):
@@ -65,6 +73,27 @@ def test_open_source_rejects_unknown_names():
         open_source("udp://nohostport")
     with pytest.raises(ConfigError, match="does not exist"):
         open_source("replay:/nonexistent/file.jsonl")
+
+
+def test_every_scheme_is_in_the_registry_and_named_in_the_refusal():
+    assert tuple(SOURCES) == ("stdin", "udp", "replay", "keyboard", "leader")
+    with pytest.raises(ConfigError) as refused:
+        parse_source("serial:/dev/ttyUSB0")
+    for form in SOURCE_FORMS:
+        assert form in str(refused.value)
+    with pytest.raises(ConfigError, match="takes no argument"):
+        open_source("stdin:now")
+
+
+def test_leader_spec_names_its_servos_and_needs_the_open_rig():
+    spec = parse_source("leader:3,4")
+    assert spec.kind.scheme == "leader" and spec.extra_ids == (3, 4)
+    assert parse_source("udp://127.0.0.1:9000").extra_ids == ()
+    for bad in ("leader:3", "leader:3,x", "leader:3,4,5"):
+        with pytest.raises(ConfigError, match="leader:ID,ID"):
+            parse_source(bad)
+    with pytest.raises(ConfigError, match="needs the open rig"):
+        spec.open()
 
 
 def test_keyboard_source_on_a_pseudo_terminal():

@@ -13,8 +13,8 @@ import math
 from limbctl.errors import BusError, ConfigError, InvalidInputError
 from limbctl.servo.control_table import Register
 from limbctl.servo.rig import Rig
-from limbctl.teleop.commands import Command, parse_command
-from limbctl.teleop.sources import CommandSource
+from limbctl.teleop.commands import Command, command_from_pan_tilt
+from limbctl.teleop.sources.base import CommandSource
 
 
 class LeaderSource(CommandSource):
@@ -62,12 +62,29 @@ class LeaderSource(CommandSource):
             return []
         pan, tilt = self.rig.ticks_to_angles(ticks[self.leader_ids[0]], ticks[self.leader_ids[1]])
         try:
-            # through the same parser as every other source: range checks included
-            command = parse_command(
-                f'{{"pan": {math.degrees(pan)!r}, "tilt": {math.degrees(tilt)!r}}}'
-            )
+            # the same range checks as every other source's commands
+            command = command_from_pan_tilt(math.degrees(pan), math.degrees(tilt))
         except InvalidInputError as exc:
             self.stats.reject(f"leader pose refused: {exc}")
             return []
         self.stats.accepted += 1
         return [command]
+
+
+def leader_ids(argument: str) -> tuple[int, int]:
+    """The (pan, tilt) servo ids of a ``leader:ID,ID`` spec's argument ``ID,ID``.
+
+    Raises
+    ------
+    ConfigError
+        Unless the argument is exactly two integers.
+    """
+    try:
+        ids = tuple(int(i) for i in argument.split(","))
+    except ValueError:
+        raise ConfigError(f"bad leader source 'leader:{argument}'; expected leader:ID,ID") from None
+    if len(ids) != 2:
+        raise ConfigError(
+            f"bad leader source 'leader:{argument}'; expected leader:ID,ID (pan, tilt)"
+        )
+    return ids[0], ids[1]

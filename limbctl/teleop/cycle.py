@@ -1,0 +1,139 @@
+"""What the control loop returns: one value per cycle and one summary per session (after ruckig).
+
+Each cycle of :class:`limbctl.teleop.loop.ControlLoop` returns a :class:`Cycle`: its state
+(running, finished, fault), the command it followed, the gate's result, the pose it read and
+whether it wrote one, and its timings. Telemetry, the status line and any observer (e.g. a live
+view) are fed from these values; the session's totals are a :class:`TeleopSummary`.
+"""
+
+from __future__ import annotations
+
+import enum
+from collections import Counter, deque
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from limbctl.teleop.gate import GateResult
+
+#: Cycle and gate times kept for the summary's percentiles (the most recent ones): a session of
+#: hours must not grow without bound, and 100,000 cycles are over 8 minutes at 200 Hz.
+TIMING_WINDOW = 100_000
+
+
+class CycleState(enum.Enum):
+    """Where the loop stands after a cycle."""
+
+    RUNNING = "running"  # the loop goes on
+    FINISHED = "finished"  # a clean end: the source ended, the duration passed, or stop was set
+    FAULT = "fault"  # a bus fault or servo alarm; the rig was left in the configured safe state
+
+
+@dataclass(frozen=True)
+class CycleTimings:
+    """How long a cycle's work took (the wait for the next period not included).
+
+    Attributes
+    ----------
+    cycle_s : float
+        Read, gate and write (s).
+    gate_s : float
+        The gate alone (s).
+    """
+
+    cycle_s: float
+    gate_s: float
+
+
+@dataclass(frozen=True)
+class Cycle:
+    """What one control cycle did.
+
+    Attributes
+    ----------
+    index : int
+        Complete cycles before this one (the first cycle is 0).
+    t : float
+        Start of the cycle, in seconds after the loop started.
+    state : CycleState
+        Whether the loop goes on after this cycle.
+    complete : bool
+        The cycle read, gated and wrote (or held) to its end; only complete cycles are counted
+        and logged. A cycle that found ``stop`` set, the duration over, or met a fault is not.
+    command_deg : tuple of float or None
+        The command being followed as (pan, tilt) in degrees; None before the first one.
+    result : GateResult or None
+        The gate's answer; None when the cycle ended before the gate ran.
+    present : tuple of float or None
+        The pose read this cycle, (pan, tilt) in rad; None when the read failed.
+    written : bool
+        Whether the gate's pose was written to the servos.
+    timings : CycleTimings or None
+        Set for complete cycles.
+    ended_by : str
+        Why the loop ended (``end of input``, ``duration``, ``stopped``, ``fault``); empty while
+        running.
+    fault : str
+        The fault and the safe state it left, for a ``FAULT`` cycle.
+    refused : int
+        Input lines the source refused so far.
+    """
+
+    index: int
+    t: float
+    state: CycleState
+    complete: bool = False
+    command_deg: tuple[float, float] | None = None
+    result: GateResult | None = None
+    present: tuple[float, float] | None = None
+    written: bool = False
+    timings: CycleTimings | None = None
+    ended_by: str = ""
+    fault: str = ""
+    refused: int = 0
+
+
+@dataclass
+class TeleopSummary:
+    """How a teleop session went; ``exit_code`` is what the CLI returns."""
+
+    cycles: int = 0
+    goals_written: int = 0
+    outcomes: Counter = field(default_factory=Counter)
+    commands: int = 0
+    skipped: int = 0
+    rejected: int = 0
+    bus_errors: int = 0
+    failed_cycles: int = 0
+    overruns: int = 0
+    # the latest TIMING_WINDOW cycles only
+    cycle_times_s: deque = field(default_factory=lambda: deque(maxlen=TIMING_WINDOW))
+    gate_times_s: deque = field(default_factory=lambda: deque(maxlen=TIMING_WINDOW))
+    ended_by: str = ""
+    fault: str = ""
+    exit_code: int = 0
+    elapsed_s: float = 0.0
+
+    @property
+    def rate_hz(self) -> float:
+        return self.cycles / self.elapsed_s if self.elapsed_s > 0 else 0.0
+
+    def percentile_ms(self, p: float, gate: bool = False) -> float:
+        values = self.gate_times_s if gate else self.cycle_times_s
+        return 1e3 * float(np.percentile(values, p)) if values else float("nan")
+
+    def lines(self) -> list[str]:
+        outcome = ", ".join(f"{o.value} {n}" for o, n in sorted(self.outcomes.items(), key=str))
+        return [
+            f"ended by           {self.ended_by}" + (f": {self.fault}" if self.fault else ""),
+            f"cycles             {self.cycles} in {self.elapsed_s:.1f} s ({self.rate_hz:.1f} Hz)",
+            f"cycle time         p50 {self.percentile_ms(50):.2f} ms, "
+            f"p99 {self.percentile_ms(99):.2f} ms, overruns {self.overruns}",
+            f"gate time          p50 {self.percentile_ms(50, True):.3f} ms, "
+            f"p99 {self.percentile_ms(99, True):.3f} ms",
+            f"commands           {self.commands} accepted ({self.skipped} skipped as stale), "
+            f"{self.rejected} refused",
+            f"gate outcomes      {outcome or 'none'}",
+            f"goals written      {self.goals_written}",
+            f"bus errors         {self.bus_errors} ({self.failed_cycles} cycles lost)",
+        ]

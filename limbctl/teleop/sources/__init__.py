@@ -1,0 +1,143 @@
+"""Command sources for teleoperation, chosen by the scheme of their spec.
+
+Each scheme has its own module and one entry in :data:`SOURCES`::
+
+    stdin                  JSON lines on standard input
+    udp://127.0.0.1:PORT   the same lines as UDP datagrams (loopback unless told otherwise)
+    replay:FILE            JSON lines from a file, paced by their "t" (seconds) when present
+    keyboard               arrow keys in the terminal (q quits)
+    leader:ID,ID           a second gimbal on the same bus, moved by hand with torque off
+
+:func:`parse_source` checks a spec before anything is opened (and says which extra servos the
+bus must hold); :meth:`SourceSpec.open` builds the source from a :class:`SourceContext`, which
+carries what a source may need of the job (the open rig, for the leader).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+from limbctl.errors import ConfigError
+from limbctl.teleop.sources.base import CommandSource, SourceStats
+from limbctl.teleop.sources.keyboard import KeyboardSource
+from limbctl.teleop.sources.leader import LeaderSource, leader_ids
+from limbctl.teleop.sources.replay import ReplaySource
+from limbctl.teleop.sources.stdin import StreamSource
+from limbctl.teleop.sources.udp import UdpSource
+
+__all__ = ["CommandSource", "SourceStats", "KeyboardSource", "LeaderSource", "ReplaySource"]
+__all__ += ["StreamSource", "UdpSource", "SOURCES", "SOURCE_FORMS", "SourceContext"]
+__all__ += ["SourceKind", "SourceSpec", "parse_source", "open_source"]
+
+
+@dataclass(frozen=True)
+class SourceContext:
+    """What a source may need of the job that opens it.
+
+    Attributes
+    ----------
+    rig : limbctl.servo.rig.Rig or None
+        The open, configured rig (its bus also holds the spec's ``extra_ids``); None where no
+        rig is open (sources that need one refuse to be built then).
+    """
+
+    rig: Any = None
+
+
+@dataclass(frozen=True)
+class SourceKind:
+    """One scheme of command source.
+
+    Attributes
+    ----------
+    scheme : str
+        The spec's prefix (``udp`` for ``udp://...``).
+    form : str
+        How a spec of this scheme is written, for help and error messages.
+    build : callable (argument, context) -> CommandSource
+        Builds an unstarted source from the spec's argument (the text after the scheme).
+    extra_ids : callable (argument) -> tuple of int
+        Servo ids the bus must hold besides the rig's (none for most sources).
+    """
+
+    scheme: str
+    form: str
+    build: Callable[[str, SourceContext], CommandSource]
+    extra_ids: Callable[[str], tuple[int, ...]] = lambda argument: ()
+
+
+def _no_argument(scheme: str, make: Callable[[], CommandSource]) -> Callable:
+    def build(argument: str, context: SourceContext) -> CommandSource:
+        if argument:
+            raise ConfigError(f"source {scheme!r} takes no argument, got {scheme}:{argument}")
+        return make()
+
+    return build
+
+
+def _udp(argument: str, context: SourceContext) -> CommandSource:
+    host, sep, port = argument.removeprefix("//").rpartition(":")
+    if not argument.startswith("//") or not sep or not port.isdigit() or not host:
+        raise ConfigError(f"bad UDP source 'udp:{argument}'; expected udp://127.0.0.1:PORT")
+    return UdpSource(host, int(port))
+
+
+def _leader(argument: str, context: SourceContext) -> CommandSource:
+    if context.rig is None:
+        raise ConfigError(f"source 'leader:{argument}' reads servos: it needs the open rig")
+    return LeaderSource(context.rig, leader_ids(argument))
+
+
+#: Every command source by scheme.
+SOURCES: dict[str, SourceKind] = {
+    kind.scheme: kind
+    for kind in (
+        SourceKind("stdin", "stdin", _no_argument("stdin", StreamSource)),
+        SourceKind("udp", "udp://HOST:PORT", _udp),
+        SourceKind("replay", "replay:FILE", lambda argument, context: ReplaySource(argument)),
+        SourceKind("keyboard", "keyboard", _no_argument("keyboard", KeyboardSource)),
+        SourceKind("leader", "leader:ID,ID", _leader, extra_ids=leader_ids),
+    )
+}
+#: How each source is written, in the order of :data:`SOURCES`.
+SOURCE_FORMS = tuple(kind.form for kind in SOURCES.values())
+
+
+@dataclass(frozen=True)
+class SourceSpec:
+    """A checked source spec: its kind and the text after the scheme."""
+
+    kind: SourceKind
+    argument: str
+
+    @property
+    def extra_ids(self) -> tuple[int, ...]:
+        """Servo ids the bus must hold besides the rig's."""
+        return self.kind.extra_ids(self.argument)
+
+    def open(self, context: SourceContext | None = None) -> CommandSource:
+        """Build the source (not yet started)."""
+        return self.kind.build(self.argument, context or SourceContext())
+
+
+def parse_source(spec: str) -> SourceSpec:
+    """Check a source spec such as ``stdin``, ``udp://127.0.0.1:9000`` or ``leader:3,4``.
+
+    Raises
+    ------
+    ConfigError
+        For an unknown scheme, listing the accepted forms, or a malformed argument.
+    """
+    scheme, _, argument = spec.partition(":")
+    kind = SOURCES.get(scheme)
+    if kind is None:
+        raise ConfigError(f"unknown source {spec!r}; choose one of {', '.join(SOURCE_FORMS)}")
+    kind.extra_ids(argument)  # a malformed id list is refused before anything opens
+    return SourceSpec(kind, argument)
+
+
+def open_source(spec: str, context: SourceContext | None = None) -> CommandSource:
+    """Build a command source from its spec (see :func:`parse_source`)."""
+    return parse_source(spec).open(context)

@@ -1,0 +1,132 @@
+"""What every command source shares: counts of refused input and a queue drained by ``poll``.
+
+Each source is a context manager. A reader thread turns input into commands as it arrives (text
+from outside through :func:`limbctl.teleop.commands.parse_command`; sources that produce numbers
+build :class:`~limbctl.teleop.commands.Command` values directly) and the control loop calls
+:meth:`CommandSource.poll` once per cycle, which never blocks. Malformed input is counted and its
+reason kept, never forwarded.
+"""
+
+from __future__ import annotations
+
+import queue
+import threading
+from dataclasses import dataclass, field
+
+from limbctl.errors import InvalidInputError
+from limbctl.teleop.commands import Command, parse_command
+
+
+@dataclass
+class SourceStats:
+    """Counts kept by every source; read by the loop's status line and telemetry."""
+
+    accepted: int = 0
+    rejected: int = 0
+    last_rejection: str = ""
+    rejections: dict[str, int] = field(default_factory=dict)
+
+    def reject(self, reason: str) -> None:
+        self.rejected += 1
+        self.last_rejection = reason
+        key = reason.split(":")[0][:60]
+        self.rejections[key] = self.rejections.get(key, 0) + 1
+
+
+class CommandSource:
+    """Base: a queue filled by a reader thread; ``poll`` drains it without blocking.
+
+    ``latest_only`` tells the control loop how to use what arrives: a realtime source (UDP,
+    keyboard, leader) is followed by its newest command only; a scripted stream (stdin,
+    replay) is gated command by command.
+    """
+
+    name = "source"
+    latest_only = False
+
+    def __init__(self) -> None:
+        self.stats = SourceStats()
+        self._queue: queue.SimpleQueue[Command | None] = queue.SimpleQueue()
+        self._stop = threading.Event()
+        self._ended = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    # -- lifecycle --------------------------------------------------------------------------
+    def __enter__(self) -> CommandSource:
+        self.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def start(self) -> None:
+        if self._thread is None:
+            self._thread = threading.Thread(target=self._run_guarded, name=self.name, daemon=True)
+            self._thread.start()
+
+    def close(self) -> None:
+        """Stop the reader; safe to call twice."""
+        self._stop.set()
+        if self._thread is not None and self._thread is not threading.current_thread():
+            self._thread.join(timeout=2.0)
+
+    def _run_guarded(self) -> None:
+        try:
+            self._run()
+        finally:
+            self._ended.set()
+            self._queue.put(None)
+
+    def _run(self) -> None:  # pragma: no cover - every subclass overrides it
+        raise RuntimeError("subclasses implement _run")
+
+    # -- input ------------------------------------------------------------------------------
+    def feed(self, line: bytes | str) -> None:
+        """Parse one line and queue it, or count the rejection."""
+        text = line.strip() if isinstance(line, str) else line.strip()
+        if not text:
+            return
+        try:
+            command = parse_command(text)
+        except InvalidInputError as exc:
+            self.stats.reject(str(exc))
+            return
+        self.offer(command)
+
+    def offer(self, command: Command) -> None:
+        """Queue a command built from numbers (already validated) and count it."""
+        self.stats.accepted += 1
+        self._queue.put(command)
+
+    @property
+    def finished(self) -> bool:
+        """True once the input ended and every queued command was polled."""
+        return self._ended.is_set() and self._queue.empty()
+
+    def wait_finished(self, timeout: float) -> bool:
+        """Block until the input ends (for tests and batch use); True if it did."""
+        return self._ended.wait(timeout)
+
+    def poll(self, timeout: float = 0.0) -> list[Command]:
+        """Every command parsed since the last call, oldest first.
+
+        With ``timeout`` 0 (the control loop's use) it never blocks; otherwise it waits up to
+        ``timeout`` seconds for the first command to arrive.
+        """
+        out: list[Command] = []
+        if timeout > 0:
+            try:
+                item = self._queue.get(timeout=timeout)
+            except queue.Empty:
+                return out
+            if item is not None:
+                out.append(item)
+            else:
+                self._queue.put(None)  # keep the end marker for later polls
+        while True:
+            try:
+                item = self._queue.get_nowait()
+            except queue.Empty:
+                return out
+            if item is not None:
+                out.append(item)
