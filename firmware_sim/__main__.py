@@ -39,6 +39,8 @@ Faults are drawn from --seed: --drop P loses a reply, --corrupt P flips one byte
                      6.0..14.0 V, XM430 9.5..16.0 V; outside them: input voltage error, alert)
   temperature:ID:C   servo ID measures C deg C from then on (limit 72 XL430, 80 XM430; above:
                      overheating error, torque off)
+  restart:ID:S       servo ID browns out: off the bus for S seconds, then back as after
+                     power-up (RAM at defaults: torque off, indirect addresses unmapped)
   e.g. --event 5:vanish:2:1.5 --event 10:voltage:1:5
 
 Example:

@@ -221,6 +221,9 @@ class _ControlServer:
     def do_vanish(self, servo_id: int, duration_s: float) -> None:
         self.sim.vanish(servo_id, duration_s)
 
+    def do_restart(self, servo_id: int, off_s: float) -> None:
+        self.sim.restart(servo_id, off_s)
+
     def do_set_environment(self, servo_id: int, voltage: float | None, temperature: float | None):
         self.sim.set_environment(servo_id, voltage, temperature)
 
@@ -404,6 +407,10 @@ class SimulatedBus:
     def vanish(self, servo_id: int, duration_s: float) -> None:
         """Make a servo unreachable for ``duration_s`` seconds (it keeps its state)."""
         self._call("vanish", servo_id, float(duration_s))
+
+    def restart(self, servo_id: int, off_s: float = 0.0) -> None:
+        """Brown-out: off the bus for ``off_s`` s, then back with RAM at its defaults."""
+        self._call("restart", servo_id, float(off_s))
 
     def set_voltage(self, servo_id: int, volts: float) -> None:
         """Supply voltage the servo measures (V)."""

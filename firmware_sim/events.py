@@ -4,11 +4,14 @@
 
 - ``vanish``: servo ``ID`` neither executes nor answers for ``VALUE`` seconds;
 - ``voltage``: servo ``ID`` measures a supply of ``VALUE`` volts from then on;
-- ``temperature``: servo ``ID`` measures a motor temperature of ``VALUE`` deg C from then on.
+- ``temperature``: servo ``ID`` measures a motor temperature of ``VALUE`` deg C from then on;
+- ``restart``: servo ``ID`` browns out: it is off the bus for ``VALUE`` seconds and comes back
+  as after power-up (RAM at its defaults: torque off, indirect addresses unmapped).
 
-The same faults are available from Python as :meth:`Simulator.vanish` and
-:meth:`Simulator.set_environment`; a voltage or temperature outside the servo's limits raises
-its Hardware Error Status bit and the alert, exactly as those calls do.
+The same faults are available from Python as :meth:`Simulator.vanish`,
+:meth:`Simulator.set_environment` and :meth:`Simulator.restart`; a voltage or temperature
+outside the servo's limits raises its Hardware Error Status bit and the alert, exactly as those
+calls do.
 """
 
 from __future__ import annotations
@@ -19,7 +22,7 @@ from dataclasses import dataclass, field
 from firmware_sim.simulator import Simulator
 
 #: What an event can do, with the unit of its value.
-KINDS = {"vanish": "s", "voltage": "V", "temperature": "deg C"}
+KINDS = {"vanish": "s", "voltage": "V", "temperature": "deg C", "restart": "s"}
 
 
 @dataclass(frozen=True)
@@ -35,6 +38,8 @@ class ScheduledEvent:
         """Apply the fault to ``sim`` now."""
         if self.kind == "vanish":
             sim.vanish(self.servo_id, self.value)
+        elif self.kind == "restart":
+            sim.restart(self.servo_id, self.value)
         elif self.kind == "voltage":
             sim.set_environment(self.servo_id, voltage=self.value)
         else:

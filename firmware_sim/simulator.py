@@ -206,6 +206,17 @@ class Simulator:
         self.servo(servo_id)
         self.faults.vanish(servo_id, self.now(), duration_s)
 
+    def restart(self, servo_id: int, off_s: float = 0.0) -> None:
+        """Brown-out: the servo is off the bus for ``off_s`` s and restarts as after power-up.
+
+        Its RAM is back at the defaults (torque off, Goal Position = where the shaft is,
+        indirect addresses unmapped, hardware errors cleared); EEPROM is kept.
+        """
+        servo = self.servo(servo_id)
+        self.advance()
+        servo.reboot()
+        self.faults.vanish(servo_id, self.now(), off_s)
+
     def set_environment(
         self, servo_id: int, voltage: float | None = None, temperature: float | None = None
     ) -> None:

@@ -105,3 +105,26 @@ def test_bad_events_are_refused_before_serving(tmp_path):
         )
         assert result.returncode == 2 and message in result.stderr
         assert not (tmp_path / "tty").exists()
+
+
+def test_restart_event_browns_the_servo_out_then_back_with_ram_defaults():
+    clock = {"now": 0.0}
+    sim = Simulator(ids=(1, 2), clock=lambda: clock["now"])
+    servo = sim.servo(2)
+    servo.write(64, bytes([1]))  # torque on
+    servo.write(168, (132).to_bytes(2, "little"))  # Indirect Address 1 -> Present Position
+    schedule = EventSchedule([parse_event("1:restart:2:0.25")])
+    clock["now"] = 1.0
+    assert schedule.apply_due(sim) == 1
+    assert not servo.torque_on
+    assert servo.read(168, 2) == (224).to_bytes(2, "little"), "the indirect map is unmapped"
+    assert not sim.faults.present(2, 1.2) and sim.faults.present(2, 1.25)
+    assert sim.servo(1).torque_on is False and sim.faults.present(1, 1.0)
+    sim.close()
+
+
+def test_restart_over_the_pty_reads_torque_off(sim, sdk):
+    assert sdk.packet.write1ByteTxRx(sdk.port, 1, TORQUE_ENABLE, 1)[0] == COMM_SUCCESS
+    sim.restart(1, 0.0)
+    torque, result, error = sdk.packet.read1ByteTxRx(sdk.port, 1, TORQUE_ENABLE)
+    assert (torque, result, error) == (0, COMM_SUCCESS, 0)
