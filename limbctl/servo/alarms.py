@@ -10,12 +10,17 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 from limbctl.servo.control_table import HARDWARE_ERROR_ADVICE, HardwareError
 
-if TYPE_CHECKING:
-    from limbctl.servo.bus import ServoBus
+
+class RebootableBus(Protocol):
+    """What :func:`reboot_servos_in_alarm` needs of a bus (:class:`limbctl.servo.bus.ServoBus`)."""
+
+    def read_hardware_errors(self) -> dict[int, tuple[str, ...]]: ...
+
+    def reboot(self, servo_id: int, timeout_s: float = 3.0) -> None: ...
 
 
 def _advice(bits: tuple[str, ...]) -> str:
@@ -69,7 +74,7 @@ class Rebooted:
         return f"servo {self.servo_id} was in alarm ({', '.join(self.alarm)}): rebooted, torque off"
 
 
-def reboot_servos_in_alarm(bus: ServoBus) -> list[Rebooted]:
+def reboot_servos_in_alarm(bus: RebootableBus) -> list[Rebooted]:
     """Reboot every servo whose Hardware Error Status is set; the ones rebooted, with the alarm.
 
     A reboot clears the error, switches torque off and resets RAM (profile velocity, the cycle's
