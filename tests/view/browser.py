@@ -26,7 +26,7 @@ FLAGS = (
     "--disable-background-networking",
     "--disable-component-update",
     "--disable-sync",
-    "--window-size=1300,700",
+    "--window-size=1300,820",
 )
 #: Longest wait (s) for what a page should show: generous for a 2-core machine under load.
 WAIT_S = 30.0

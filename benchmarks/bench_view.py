@@ -1,0 +1,114 @@
+"""The recorder's sample rate with the live view off and on (docs/bench_view.md).
+
+Run: ``.venv/bin/python benchmarks/bench_view.py --seconds 30 --out docs/bench_view.md``
+
+Each run records from the embedded simulator's scripted hand at 100 Hz for ``--seconds``:
+
+- ``off``: the recorder reads the rig directly;
+- ``on``: the recorder reads through the view's pose tap, the scene feeder refits the region in
+  its own process (at most once a second), the server runs, and a headless Chromium watches.
+
+Reported: samples per second, and the gaps between consecutive samples (median, p99, max), from
+the recorded file's own timestamps.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import sys
+import tempfile
+import threading
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))  # for tests.view.browser (headless Chromium, test helper)
+
+from limbctl.session import demo_region_path, open_rig  # noqa: E402
+from limbctl.teach.dataset import DatasetWriter, load_dataset  # noqa: E402
+from limbctl.teach.record import record  # noqa: E402
+from limbctl.view import Board, HardLimits, ViewServer  # noqa: E402
+from limbctl.view.feed import PoseTap, SceneFeeder  # noqa: E402
+from tests.view.browser import chromium, text_of, wait_for  # noqa: E402
+
+#: The runs: name -> (view served and watched, region refitted).
+MODES = {"off": (False, False), "on, no refit": (True, False), "on": (True, True)}
+
+
+def run(view: bool, refit: bool, seconds: float, seed: int) -> dict[str, float]:
+    """Record ``seconds`` with the view on or off; the rate and sample gaps measured."""
+    with tempfile.TemporaryDirectory() as folder, contextlib.ExitStack() as stack:
+        out = Path(folder) / "teach.limb"
+        session = stack.enter_context(open_rig(hand=demo_region_path(), seed=seed))
+        writer = stack.enter_context(DatasetWriter(out, rig=session.profile.name))
+        limb = session.rig
+        fits = 0
+        if view:
+            board = Board()
+            server = stack.enter_context(ViewServer(board, port=0))
+            browser = stack.enter_context(chromium())
+            browser.get(server.url)
+            profile = session.profile
+            limits = HardLimits(
+                (profile.pan.min_deg, profile.pan.max_deg),
+                (profile.tilt.min_deg, profile.tilt.max_deg),
+            )
+            limb = PoseTap(session.rig, board, "record")
+            feeder = stack.enter_context(SceneFeeder(board, limb.samples, limits, fit=refit))
+        summary = record(limb, writer, 100.0, seconds, threading.Event())
+        if view:
+            wait_for(browser, lambda d: text_of(d, "sample-count") == str(summary.samples), "")
+            fits = feeder.fits_done
+        writer.close()
+        data = load_dataset(out)
+    gaps_ms = np.diff(data.t) * 1000.0
+    return {
+        "samples": len(data),
+        "rate_hz": (len(data) - 1) / (data.t[-1] - data.t[0]),
+        "gap_median_ms": float(np.median(gaps_ms)),
+        "gap_p99_ms": float(np.percentile(gaps_ms, 99)),
+        "gap_max_ms": float(gaps_ms.max()),
+        "fits": fits,
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seconds", type=float, default=30.0)
+    parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--out", type=Path, default=None, help="write the table here (markdown)")
+    args = parser.parse_args()
+    rows = []
+    for mode, (view, refit) in MODES.items():
+        result = run(view, refit, args.seconds, args.seed)
+        rows.append(
+            f"| {mode} | {result['samples']} | {result['rate_hz']:.2f} | "
+            f"{result['gap_median_ms']:.2f} | {result['gap_p99_ms']:.2f} | "
+            f"{result['gap_max_ms']:.2f} | {result['fits']} |"
+        )
+        print(rows[-1], flush=True)
+    table = "\n".join(
+        [
+            f"Recorder at 100 Hz on the simulator's scripted hand, {args.seconds:g} s each, "
+            f"seed {args.seed}.",
+            "",
+            "| view | samples | rate (Hz) | gap median (ms) | gap p99 (ms) | gap max (ms) | fits |",
+            "| --- | --- | --- | --- | --- | --- | --- |",
+            *rows,
+        ]
+    )
+    if args.out is not None:
+        args.out.write_text(
+            "# Live view: the recorder's rate\n\n"
+            "`python benchmarks/bench_view.py --seconds "
+            f"{args.seconds:g} --out {args.out}` (2-core machine shared with other work).\n\n"
+            + table
+            + "\n"
+        )
+    print(table)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,182 @@
+"""Feeding the board while teaching: a pose tap on the limb and a scene feeder thread.
+
+- :class:`PoseTap` stands in for the limb the recorder reads: each ``read_pose`` is passed
+  through, kept in memory and published as the live pose (a list append and a board swap, a few
+  microseconds on the recorder's own thread; nothing there ever waits on the view).
+- :class:`SceneFeeder` runs on its own thread: every :data:`SCENE_PERIOD_S` it thins the samples
+  so far, asks the guide (if any) for its figures, and publishes a scene with the newest region
+  fitted by a :class:`~limbctl.view.region.FitProcess` (a new fit starts when the last one is done,
+  at most once a second, and only when there are new samples).
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from limbctl.errors import LimbctlError
+from limbctl.view.region import MIN_FIT_SAMPLES, FitProcess, RegionFit
+from limbctl.view.state import Board, GuideFigure, HardLimits, Live, PanTilt, Scene, thin_samples
+
+#: How often the scene is republished (s): twice the page's promise of once a second.
+SCENE_PERIOD_S = 0.5
+#: Least time between the starts of two fits (s): the region is refitted at most once a second.
+REFIT_PERIOD_S = 1.0
+#: Longest wait (s) for the feeder thread to finish when stopped.
+JOIN_TIMEOUT_S = 10.0
+
+#: What the guide gives the feeder: (figures, advice) for samples (N, 2) in degrees.
+Guide = Callable[[np.ndarray], tuple[tuple[GuideFigure, ...], str]]
+
+
+class PoseTap:
+    """A limb that also shows every pose it reads on the board.
+
+    Parameters
+    ----------
+    limb : object
+        The rig (anything with ``read_pose() -> (pan, tilt)`` in radians); every other
+        attribute is passed through.
+    board : Board
+        Where the live pose and sample count go.
+    mode : str
+        The mode the page shows ("record", "demo: teach").
+    note : str
+        The line shown to the person.
+    """
+
+    def __init__(self, limb: Any, board: Board, mode: str, note: str = "") -> None:
+        self._limb = limb
+        self._board = board
+        self.mode = mode
+        self.note = note
+        self._poses: list[tuple[float, float]] = []
+
+    def read_pose(self) -> tuple[float, float]:
+        """Read the limb's pose (rad), keep it and publish it; a failed read shows as a fault."""
+        try:
+            pan, tilt = self._limb.read_pose()
+        except LimbctlError as exc:
+            self._board.publish_live(
+                Live(self.mode, self._last_pose(), len(self._poses), fault=str(exc), note=self.note)
+            )
+            raise
+        self._poses.append((pan, tilt))
+        pose = PanTilt(math.degrees(pan), math.degrees(tilt))
+        self._board.publish_live(Live(self.mode, pose, len(self._poses), note=self.note))
+        return pan, tilt
+
+    def _last_pose(self) -> PanTilt | None:
+        if not self._poses:
+            return None
+        pan, tilt = self._poses[-1]
+        return PanTilt(math.degrees(pan), math.degrees(tilt))
+
+    @property
+    def count(self) -> int:
+        """Poses read so far."""
+        return len(self._poses)
+
+    def samples(self) -> np.ndarray:
+        """The poses read so far, shape (N, 2), radians (pan, tilt)."""
+        poses = self._poses[: len(self._poses)]
+        return np.array(poses, dtype=np.float64).reshape(-1, 2)
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._limb, name)
+
+
+class SceneFeeder:
+    """Publishes the scene (samples, the region fitted so far, limits, guide) from its own thread.
+
+    Parameters
+    ----------
+    board : Board
+        Where scenes go.
+    samples : callable
+        Returns the samples so far, shape (N, 2), radians (pan, tilt).
+    limits : HardLimits or None
+        The rig's hard limits.
+    guide : callable, optional
+        ``guide(samples_deg) -> (figures, advice)``; none shows no guide figures.
+    fit : bool
+        Fit the region in a separate process (False: samples only).
+    """
+
+    def __init__(
+        self,
+        board: Board,
+        samples: Callable[[], np.ndarray],
+        limits: HardLimits | None = None,
+        guide: Guide | None = None,
+        fit: bool = True,
+    ) -> None:
+        self.board = board
+        self._samples = samples
+        self.limits = limits
+        self.guide = guide
+        self._fit_wanted = fit
+        self._fits: FitProcess | None = None
+        waiting = "the first fit is running" if fit else "not fitted"
+        self.latest = RegionFit((), 0, 0.0, problem=waiting)
+        self.fits_done = 0
+        self._fitted_count = -1
+        self._last_start = -math.inf
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    def __enter__(self) -> SceneFeeder:
+        if self._fit_wanted:
+            self._fits = FitProcess()
+        self._thread = threading.Thread(target=self._run, name="limbctl-view-scene", daemon=True)
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(JOIN_TIMEOUT_S)
+        if self._fits is not None:
+            self._fits.close()
+        self.publish_once()
+
+    def _run(self) -> None:
+        while not self._stop.wait(SCENE_PERIOD_S):
+            self.publish_once()
+
+    def publish_once(self) -> Scene:
+        """Collect a finished fit, start the next if due, and publish the scene; returns it."""
+        pan_tilt_rad = self._samples()
+        fits = self._fits
+        if fits is not None and fits.alive:
+            done = fits.result()
+            if done is not None:
+                self.latest = done
+                self.fits_done += 1
+            now = time.monotonic()
+            if (
+                not fits.busy
+                and len(pan_tilt_rad) >= MIN_FIT_SAMPLES
+                and len(pan_tilt_rad) != self._fitted_count
+                and now - self._last_start >= REFIT_PERIOD_S
+            ):
+                fits.submit(pan_tilt_rad)
+                self._fitted_count = len(pan_tilt_rad)
+                self._last_start = now
+        samples_deg = np.degrees(pan_tilt_rad)
+        figures, advice = self.guide(samples_deg) if self.guide is not None else ((), "")
+        scene = Scene(
+            samples_deg=thin_samples(samples_deg),
+            loops=self.latest.loops,
+            limits=self.limits,
+            region_note=self.latest.note,
+            guide=figures,
+            guide_text=advice,
+        )
+        self.board.publish_scene(scene)
+        return scene

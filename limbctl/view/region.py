@@ -1,0 +1,234 @@
+"""The region ``train`` would learn from the samples so far, as edge loops the page draws.
+
+:func:`fit_outline` fits the same model ``limbctl train`` fits by default (a
+:class:`~limbctl.envelope.RigidMap` with its default options) and turns its gate's region into
+:class:`~limbctl.view.state.EdgeLoop` values on the pan/tilt plane. Each loop is cut into
+stretches of at most :data:`STRETCH_DEG`; a stretch counts as traced when a taught sample lies
+within :data:`TRACED_WITHIN_DEG` of its middle.
+
+:class:`FitProcess` runs :func:`fit_outline` in a separate process: the fit's numba kernels hold
+the GIL for seconds, and a thread would stall the 100 Hz recorder for that long; the process
+runs at the lowest CPU priority on one thread.
+"""
+
+from __future__ import annotations
+
+import math
+import multiprocessing
+import os
+import time
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+from scipy.spatial import cKDTree
+
+from limbctl.envelope import RigidMap
+from limbctl.errors import LimbctlError
+from limbctl.geometry.gimbal import direction_to_pan_tilt, pan_tilt_to_direction
+from limbctl.geometry.quat import limb_direction, swing_from_direction
+from limbctl.view.state import EdgeLoop
+
+#: Longest drawn stretch of edge (deg): fine enough that traced and untraced parts show apart.
+STRETCH_DEG = 1.0
+#: A stretch is traced when a sample lies this close (deg) to its middle: the learned edge may
+#: lie up to RigidMap's max_offset_deg (3 deg) beyond the samples that taught it.
+TRACED_WITHIN_DEG = 3.0
+#: Fewest samples worth a fit: fewer cannot span an area at the recorder's 100 Hz.
+MIN_FIT_SAMPLES = 50
+#: Niceness of the fit process (19, the lowest priority): a refit may wait, the recorder not.
+FIT_NICENESS = 19
+#: Longest wait (s) for the fit process to start or to finish a fit when asked to stop.
+STOP_TIMEOUT_S = 5.0
+
+
+@dataclass(frozen=True)
+class RegionFit:
+    """One fit's outcome: the edge loops (empty if none could be fitted) and how it went."""
+
+    loops: tuple[EdgeLoop, ...]
+    samples: int
+    seconds: float
+    edge: str = ""
+    problem: str = ""
+
+    @property
+    def note(self) -> str:
+        """The region's status in words, for the page."""
+        if self.problem:
+            return f"no region yet from {self.samples} samples: {self.problem}"
+        return f"fitted on {self.samples} samples in {self.seconds:.1f} s ({self.edge} edge)"
+
+
+def mesh_loops(vertices: np.ndarray, edges: np.ndarray) -> list[np.ndarray]:
+    """The closed loops of a region's boundary arcs, as index arrays in walking order.
+
+    Parameters
+    ----------
+    vertices : ndarray, shape (V, 3)
+        Boundary directions (only their count is used).
+    edges : ndarray, shape (E, 2), int
+        Directed arcs ``a -> b``; each vertex starts at most one arc.
+    """
+    following = {int(a): int(b) for a, b in np.asarray(edges)}
+    loops, seen = [], set()
+    for start in following:
+        if start in seen:
+            continue
+        loop = []
+        vertex = start
+        while vertex not in seen and vertex in following:
+            seen.add(vertex)
+            loop.append(vertex)
+            vertex = following[vertex]
+        if len(loop) >= 3:
+            loops.append(np.array(loop, dtype=np.int64))
+    return loops
+
+
+def subdivide(loop: np.ndarray, step_rad: float) -> np.ndarray:
+    """A closed loop of directions (M, 3) with each arc cut into pieces of at most ``step_rad``.
+
+    Points between two vertices are the normalised chord points (they lie on the great circle).
+    """
+    following = np.roll(loop, -1, axis=0)
+    angles = np.arccos(np.clip(np.sum(loop * following, axis=1), -1.0, 1.0))
+    pieces = np.maximum(1, np.ceil(angles / step_rad).astype(np.int64))
+    points = []
+    for a, b, n in zip(loop, following, pieces):
+        t = np.arange(n)[:, None] / n
+        chord = (1.0 - t) * a + t * b
+        points.append(chord / np.linalg.norm(chord, axis=1, keepdims=True))
+    return np.vstack(points)
+
+
+def traced_stretches(loop: np.ndarray, sample_tree: cKDTree, within_rad: float) -> np.ndarray:
+    """Whether each stretch ``i -> i + 1`` of a loop (M, 3) has a sample near its middle: (M,)."""
+    middle = loop + np.roll(loop, -1, axis=0)
+    middle /= np.linalg.norm(middle, axis=1, keepdims=True)
+    # chord length of the angle ``within_rad``: 2 sin(angle / 2)
+    chord = 2.0 * math.sin(0.5 * within_rad)
+    distance, _ = sample_tree.query(middle, k=1, distance_upper_bound=chord)
+    return np.isfinite(distance)
+
+
+def region_loops(
+    vertices: np.ndarray, edges: np.ndarray, sample_directions: np.ndarray | None
+) -> tuple[EdgeLoop, ...]:
+    """A region's boundary (directions and arcs) as pan/tilt edge loops with traced flags.
+
+    Parameters
+    ----------
+    vertices : ndarray, shape (V, 3)
+        Boundary directions.
+    edges : ndarray, shape (E, 2), int
+        Directed boundary arcs.
+    sample_directions : ndarray, shape (N, 3), or None
+        Taught directions; None marks every stretch traced (a loaded model, no samples at hand).
+    """
+    tree = cKDTree(sample_directions) if sample_directions is not None else None
+    out = []
+    for index in mesh_loops(vertices, edges):
+        loop = subdivide(vertices[index], math.radians(STRETCH_DEG))
+        if tree is None:
+            traced = np.ones(len(loop), dtype=bool)
+        else:
+            traced = traced_stretches(loop, tree, math.radians(TRACED_WITHIN_DEG))
+        pan, tilt = direction_to_pan_tilt(loop)
+        out.append(EdgeLoop(np.degrees(np.column_stack([pan, tilt])), traced))
+    return tuple(out)
+
+
+def model_loops(model: RigidMap, sample_directions: np.ndarray | None = None) -> tuple:
+    """A fitted Rigid Map's region as edge loops (see :func:`region_loops`)."""
+    mesh = getattr(model, "mesh", None)
+    if mesh is None:
+        return ()
+    return region_loops(mesh.vertices, mesh.edges, sample_directions)
+
+
+def fit_outline(pan_tilt_rad: np.ndarray) -> RegionFit:
+    """Fit the default Rigid Map to samples (N, 2) of joint angles (rad) and outline its region."""
+    samples = np.asarray(pan_tilt_rad, dtype=np.float64).reshape(-1, 2)
+    started = time.perf_counter()
+    if len(samples) < MIN_FIT_SAMPLES:
+        return RegionFit((), len(samples), 0.0, problem=f"need {MIN_FIT_SAMPLES} samples")
+    directions = pan_tilt_to_direction(samples[:, 0], samples[:, 1])
+    try:
+        model = RigidMap().fit(swing_from_direction(directions))
+    except (LimbctlError, ValueError) as exc:
+        return RegionFit((), len(samples), time.perf_counter() - started, problem=str(exc))
+    loops = model_loops(model, limb_direction(swing_from_direction(directions)))
+    return RegionFit(loops, len(samples), time.perf_counter() - started, edge=model.edge)
+
+
+def serve_fits(connection) -> None:
+    """The fit process: answer each array of samples received with its :class:`RegionFit`.
+
+    The fit runs on one numba thread (the process already runs at :data:`FIT_NICENESS`), so
+    that on a small machine the recorder, the servos' bus and the teleop loop come first.
+    """
+    numba.set_num_threads(1)
+    while True:
+        samples = connection.recv()
+        if samples is None:
+            return
+        connection.send(fit_outline(samples))
+
+
+class FitProcess:
+    """:func:`fit_outline` in its own process, one fit at a time; a context manager.
+
+    ``submit`` hands over samples and returns at once; ``result`` returns the fit once it is
+    done (None before). Stopping ends a fit in progress.
+    """
+
+    def __init__(self) -> None:
+        context = multiprocessing.get_context("spawn")
+        self._connection, child = context.Pipe()
+        self._process = context.Process(
+            target=serve_fits, args=(child,), name="limbctl-view-fit", daemon=True
+        )
+        self._process.start()
+        # lowest priority from its first instant, before its imports take seconds of CPU
+        os.setpriority(os.PRIO_PROCESS, self._process.pid, FIT_NICENESS)
+        child.close()
+        self.busy = False
+
+    def __enter__(self) -> FitProcess:
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        self.close()
+
+    def submit(self, pan_tilt_rad: np.ndarray) -> None:
+        """Start fitting samples (N, 2) of joint angles (rad); one fit at a time."""
+        if self.busy:
+            raise RuntimeError("a fit is already running; wait for its result first")
+        self._connection.send(np.ascontiguousarray(pan_tilt_rad, dtype=np.float64))
+        self.busy = True
+
+    def result(self, timeout_s: float = 0.0) -> RegionFit | None:
+        """The running fit's outcome if it is done within ``timeout_s``, else None."""
+        if not self.busy or not self._connection.poll(timeout_s):
+            return None
+        self.busy = False
+        return self._connection.recv()
+
+    def close(self) -> None:
+        """End the process (a fit in progress is abandoned)."""
+        if self._process.is_alive():
+            if self.busy:
+                self._process.terminate()
+            else:
+                self._connection.send(None)
+            self._process.join(STOP_TIMEOUT_S)
+            if self._process.is_alive():
+                self._process.kill()
+                self._process.join(STOP_TIMEOUT_S)
+        self._connection.close()
+
+    @property
+    def alive(self) -> bool:
+        """Whether the fit process is running."""
+        return self._process.is_alive()

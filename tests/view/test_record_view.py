@@ -1,0 +1,123 @@
+"""A record on the simulator watched in headless Chromium: the page shows what the recorder has."""
+
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+
+from limbctl.geometry.gimbal import pan_tilt_to_direction
+from limbctl.session import demo_region_path, open_rig
+from limbctl.teach.dataset import DatasetWriter, load_dataset
+from limbctl.teach.record import record
+from limbctl.view import Board, HardLimits, ViewServer
+from limbctl.view.feed import PoseTap, SceneFeeder
+from limbctl.view.region import TRACED_WITHIN_DEG, fit_outline, region_loops
+from tests.view.browser import chromium, text_of, wait_for
+
+#: The first region needs the fit process to start and numba's cached kernels to load.
+FIRST_REGION_S = 120.0
+
+
+def test_page_shows_the_recording_as_it_happens(tmp_path):
+    board = Board()
+    out = tmp_path / "teach.limb"
+    with (
+        ViewServer(board, port=0) as server,
+        chromium() as browser,
+        open_rig(hand=demo_region_path(), seed=1) as session,
+        DatasetWriter(out, rig=session.profile.name) as writer,
+    ):
+        profile = session.profile
+        limits = HardLimits(
+            (profile.pan.min_deg, profile.pan.max_deg), (profile.tilt.min_deg, profile.tilt.max_deg)
+        )
+        tap = PoseTap(session.rig, board, "record", note="torque off: move the limb by hand")
+        browser.get(server.url)
+        stop = threading.Event()
+        summary = {}
+        with SceneFeeder(board, tap.samples, limits) as feeder:
+            recorder = threading.Thread(
+                target=lambda: summary.update(done=record(tap, writer, 100.0, None, stop))
+            )
+            recorder.start()
+            try:
+                # the page counts up while recording
+                wait_for(browser, lambda d: int(text_of(d, "sample-count")) > 0, "no samples")
+                first = int(text_of(browser, "sample-count"))
+                wait_for(
+                    browser, lambda d: int(text_of(d, "sample-count")) > first + 100, "count stuck"
+                )
+                # the region train would learn appears, with traced stretches
+                wait_for(
+                    browser,
+                    lambda d: text_of(d, "loop-count") not in ("", "0"),
+                    "no region drawn",
+                    timeout=FIRST_REGION_S,
+                )
+                assert "fitted on" in text_of(browser, "region-note")
+                assert text_of(browser, "limits") == (
+                    f"pan {limits.pan_deg[0]:g}..{limits.pan_deg[1]:g}, "
+                    f"tilt {limits.tilt_deg[0]:g}..{limits.tilt_deg[1]:g}"
+                )
+            finally:
+                stop.set()
+                recorder.join()
+        assert feeder.fits_done >= 1
+        recorded = summary["done"]
+        assert recorded.samples == tap.count
+        # after the recording the page holds the recorder's final count and last pose
+        wait_for(
+            browser,
+            lambda d: text_of(d, "sample-count") == str(recorded.samples),
+            f"the page never showed the recorder's {recorded.samples} samples",
+        )
+        pan, tilt = np.degrees(tap.samples()[-1])
+        assert text_of(browser, "pose") == f"{pan:.1f}, {tilt:.1f}"
+    data = load_dataset(out)
+    assert len(data) == recorded.samples
+    assert abs(data.pan_deg[-1] - pan) < 1e-9 and abs(data.tilt_deg[-1] - tilt) < 1e-9
+
+
+def ring(radius_deg: float, angles: np.ndarray) -> np.ndarray:
+    """Directions (N, 3) on a circle of ``radius_deg`` around the rest direction +x."""
+    radius = np.radians(radius_deg)
+    return pan_tilt_to_direction(radius * np.cos(angles), radius * np.sin(angles))
+
+
+def test_stretches_without_a_sample_nearby_are_untraced():
+    """A circular edge traced all round but for a 90 deg gap on the right."""
+    loop = ring(20.0, np.linspace(0.0, 2.0 * np.pi, 72, endpoint=False))
+    edges = np.column_stack([np.arange(72), np.roll(np.arange(72), -1)])
+    taught = np.random.default_rng(0).uniform(np.pi / 4, 7 * np.pi / 4, 3000)
+    (outline,) = region_loops(loop, edges, ring(20.0, taught))
+    angle = np.arctan2(outline.pan_tilt_deg[:, 1], outline.pan_tilt_deg[:, 0])
+    following = np.roll(angle, -1)
+    middle = np.angle(np.exp(1j * angle) + np.exp(1j * following))
+    # a sample within TRACED_WITHIN_DEG reaches this far (rad of the circle's angle) into the gap
+    reach = 1.1 * TRACED_WITHIN_DEG / 20.0
+    in_gap = np.abs(middle) < np.pi / 4 - reach
+    beyond = np.abs(middle) > np.pi / 4 + np.radians(1.0)
+    assert not outline.traced[in_gap].any()
+    assert outline.traced[beyond].all()
+    # traced: all but the gap less what the samples at its ends reach
+    expected = 1.0 - (np.pi / 2 - 2.0 * TRACED_WITHIN_DEG / 20.0) / (2.0 * np.pi)
+    assert abs(outline.traced.mean() - expected) < 0.03
+    # a loaded model (no samples): every stretch counts as traced
+    (plain,) = region_loops(loop, edges, None)
+    assert plain.traced.all()
+
+
+def test_fit_outline_outlines_a_taught_disc():
+    rng = np.random.default_rng(0)
+    radius = np.radians(20.0) * np.sqrt(rng.uniform(0.0, 1.0, 3000))
+    angle = rng.uniform(0.0, 2.0 * np.pi, 3000)
+    fit = fit_outline(np.column_stack([radius * np.cos(angle), radius * np.sin(angle)]))
+    assert len(fit.loops) == 1 and not fit.problem, fit.note
+    (outline,) = fit.loops
+    distance = np.hypot(outline.pan_tilt_deg[:, 0], outline.pan_tilt_deg[:, 1])
+    assert np.all((distance > 17.0) & (distance < 23.0))
+    assert outline.traced.mean() > 0.95
+    assert fit.note.startswith("fitted on 3000 samples")
+    too_few = fit_outline(np.zeros((10, 2)))
+    assert not too_few.loops and "need 50 samples" in too_few.note
