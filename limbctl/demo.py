@@ -46,7 +46,7 @@ class DemoOptions:
     ``seed`` for the simulator and the model."""
 
     out: Path = Path("limbctl-demo")
-    duration: float = 60.0
+    duration: float = 60.0  # ample: tests/test_demo.py keeps every goal inside after 20 s
     seed: int = 0
 
 
@@ -58,11 +58,13 @@ def run_demo_job(options: DemoOptions) -> int:
 def write_command_stream(path: Path, seconds: float = 12.0, rate_hz: float = 50.0) -> int:
     """A replay file: a wide Lissajous sweep (pan +-110, tilt -55..75 deg) with bad lines mixed in.
 
-    Returns the number of valid command lines written.
+    12 s at 50 lines/s: one full figure, slow enough (a quarter of the loop's rate) that the
+    gate's slew limit, not the stream, shapes the motion. Returns the number of valid lines.
     """
     n = int(seconds * rate_hz)
     t = np.arange(n) / rate_hz
-    # a Lissajous figure that crosses the taught region and leaves it on every side
+    # a Lissajous figure that crosses the taught region and leaves it on every side (the taught
+    # region spans about pan -70..80, tilt -35..60 deg)
     pan = 110.0 * np.sin(2 * math.pi * t / seconds)
     tilt = 10.0 + 65.0 * np.sin(4 * math.pi * t / seconds + 0.6)
     bad = ['{"pan": NaN, "tilt": 0}', '{"pan": 10, "tilt": "up"}', "not json at all", "{}"]

@@ -56,7 +56,7 @@ class RecordOptions:
 
     out: Path
     duration: float | None = None
-    rate: float = 125.0
+    rate: float = 125.0  # above the recorder's 100 Hz minimum with room for a late sample
     hand: Path | None = None
     connection: Connection = field(default_factory=Connection)
 
@@ -279,8 +279,8 @@ class TeleopOptions:
 
     model: Path
     source: str = "stdin"
-    rate: float = 200.0
-    max_speed: float = 120.0
+    rate: float = 200.0  # the loop's default (see LoopConfig.rate_hz)
+    max_speed: float = 120.0  # a brisk hand's speed, well under an XL430's ~340 deg/s
     on_fault: SafeState = SafeState.HOLD
     duration: float | None = None
     telemetry: Path | None = None

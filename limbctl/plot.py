@@ -24,7 +24,11 @@ def _pan_tilt_deg(directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def region_grid(
     model: Any, pan_deg: tuple[float, float], tilt_deg: tuple[float, float], n: int = 200
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Evaluate ``model.contains`` on an n x n pan/tilt grid (degrees) -> (P, T, inside)."""
+    """Evaluate ``model.contains`` on an n x n pan/tilt grid (degrees) -> (P, T, inside).
+
+    The default 200 x 200 draws a 360-degree pan range in 1.8-degree cells, about the width of a
+    line in the figure.
+    """
     pans = np.linspace(*pan_deg, n)
     tilts = np.linspace(*tilt_deg, n)
     grid_pan, grid_tilt = np.meshgrid(pans, tilts)
@@ -67,7 +71,7 @@ def plot(
     pan_lim, tilt_lim = (-180.0, 180.0), (-90.0, 90.0)
     if samples is not None and len(samples):
         sp, st = _pan_tilt_deg(limb_direction(samples))
-        margin = 25.0
+        margin = 25.0  # degrees around the samples: room to see the region's edge beyond them
         pan_lim = (max(-180.0, sp.min() - margin), min(180.0, sp.max() + margin))
         tilt_lim = (max(-90.0, st.min() - margin), min(90.0, st.max() + margin))
 
@@ -122,6 +126,6 @@ def plot(
         fig.suptitle(title)
     fig.tight_layout()
     out = Path(out)
-    fig.savefig(out, dpi=110)
+    fig.savefig(out, dpi=110)  # 1320 x 605 pixels: the whole figure on one screen
     plt.close(fig)
     return out

@@ -92,6 +92,7 @@ def open_rig(
             )
             device = simulator.port
         if latency_timer_ms is None:
+            # the FTDI default on a real port; a pty has no USB latency, 2 ms covers scheduling
             latency_timer_ms = 2.0 if simulator is not None else 16.0
         bus = ServoBus(
             device,

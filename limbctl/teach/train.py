@@ -115,7 +115,11 @@ def _region_extent(
     model: Any, pan: np.ndarray, tilt: np.ndarray, margin_deg: float = 20.0, step_deg: float = 0.5
 ) -> tuple[np.ndarray, np.ndarray]:
     """Joint angles (rad) of the grid points the model contains, on a ``step_deg`` pan/tilt grid
-    spanning the samples' extent plus ``margin_deg`` (what the learned region really covers)."""
+    spanning the samples' extent plus ``margin_deg`` (what the learned region really covers).
+
+    20 degrees of margin is well past any edge a model draws beyond its samples; with 0.5-degree
+    steps the extent is within half a degree of the model's.
+    """
     from limbctl.geometry.gimbal import pan_tilt_to_quat
 
     margin, step = math.radians(margin_deg), math.radians(step_deg)
@@ -129,6 +133,10 @@ def _region_extent(
         return pan, tilt
     return grid_pan[inside], grid_tilt[inside]
 
+
+#: Fewest samples a model is fitted to: fewer cannot outline a region (and a real recording of
+#: a few seconds at 125 Hz has hundreds).
+MIN_SAMPLES = 10
 
 #: The stages :func:`train` reports to its ``progress`` callback, in order.
 STAGES = ("load dataset", "fit model", "save model", "summarise")
@@ -167,7 +175,7 @@ def train(
     data = load_dataset(data_path)
     q = data.quaternions
     done(STAGES[0])
-    if len(q) < 10:
+    if len(q) < MIN_SAMPLES:
         raise ConfigError(
             f"{data_path}: only {len(q)} samples; record longer (at least a few seconds "
             "of moving the limb through its whole range)"

@@ -24,13 +24,17 @@ from limbctl.errors import InvalidInputError
 from limbctl.geometry.gimbal import pan_tilt_to_direction
 from limbctl.geometry.quat import limb_direction, swing_from_direction
 
-#: Longest accepted line or datagram, in bytes.
+#: Longest accepted line or datagram, in bytes: a valid command with full float precision and a
+#: timestamp is under 200 bytes; the rest is room for whitespace, and longer input is refused.
 MAX_LINE_BYTES = 1024
-#: Allowed deviation of a commanded quaternion's norm from 1.
+#: Allowed deviation of a commanded quaternion's norm from 1: a unit quaternion written with 3
+#: decimals per component is off by at most sqrt(4) * 5e-4 = 1e-3.
 QUAT_NORM_TOLERANCE = 1e-3
-#: Shortest accepted ``dir`` vector; shorter ones carry no direction.
+#: Shortest accepted ``dir`` vector: shorter ones are zero up to a sender's rounding and carry
+#: no direction.
 MIN_DIRECTION_NORM = 1e-6
-#: Largest accepted component magnitude (rejects huge values before they overflow).
+#: Largest accepted component magnitude: far beyond any valid value (degrees <= 180, unit
+#: vectors), yet its square cannot overflow a float.
 MAX_COMPONENT = 1e6
 
 _FORMS = ("pan/tilt", "dir", "q")

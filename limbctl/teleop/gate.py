@@ -47,8 +47,12 @@ class Outcome(enum.Enum):
     HELD = "held"  # nothing safe to do with it: the last safe pose is kept
 
 
-#: Default gate tolerance (deg): how far outside the region a written pose may be.
+#: Default gate tolerance (deg): how far outside the region a written pose may be; a seventh of
+#: the 0.072 deg a pose moves when rounded to 4096-tick servos, so rounding dominates the error.
 REGION_TOLERANCE_DEG = 0.01
+#: Largest | |q| - 1 | of a target the gate follows: the parser's quaternions are normalised to
+#: ~1e-16, so anything further off was damaged on the way and is held.
+UNIT_NORM_TOLERANCE = 1e-6
 
 
 @dataclass(frozen=True)
@@ -198,8 +202,8 @@ class Gate:
         if target_q.shape != (4,):
             return self.hold("malformed target")
         w, x, y, z = target_q.tolist()
-        # | |q| - 1 | <= 1e-6; NaN and inf fail the comparison and are held
-        if not abs(math.sqrt(w * w + x * x + y * y + z * z) - 1.0) <= 1e-6:
+        # | |q| - 1 | <= UNIT_NORM_TOLERANCE; NaN and inf fail the comparison and are held
+        if not abs(math.sqrt(w * w + x * x + y * y + z * z) - 1.0) <= UNIT_NORM_TOLERANCE:
             return self.hold("non-finite or non-unit target")
         lim = self.limits
 

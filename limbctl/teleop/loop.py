@@ -87,15 +87,21 @@ class LoopConfig:
         than doing work; an exception from it ends the loop.
     """
 
+    # 0.6 deg per cycle at the default 120 deg/s slew (smooth); reachable on real servos with
+    # the latency timer at 1 ms (README)
     rate_hz: float = 200.0
+    # a person notices a stalled command stream after about half a second
     silence_s: float = 0.5
+    # 100 ms at 200 Hz: a dropped reply or two is normal, 20 in a row is a broken bus
     max_failed_cycles: int = 20
     safe_state: SafeState = SafeState.HOLD
     duration_s: float | None = None
+    # 100 ms of a scripted stream at 200 Hz: more waiting commands would only add latency
     max_backlog: int = 20
     on_cycle: Callable[[Cycle], None] | None = None
 
     def __post_init__(self) -> None:
+        # below 1 Hz the slew limit per cycle gets coarse; above 2 kHz no bus keeps up
         if not (math.isfinite(self.rate_hz) and 1.0 <= self.rate_hz <= 2000.0):
             raise ConfigError(f"rate must be 1..2000 Hz, got {self.rate_hz}")
         if self.max_failed_cycles < 1:

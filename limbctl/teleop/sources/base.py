@@ -16,6 +16,13 @@ from dataclasses import dataclass, field
 from limbctl.errors import InvalidInputError
 from limbctl.teleop.commands import Command, parse_command
 
+#: How often (s) a reader thread that waits for input checks whether its source was closed: a
+#: close then takes at most this long, and an idle reader wakes only 10 times a second.
+WAKE_INTERVAL_S = 0.1
+#: Longest wait (s) for a reader thread to end on close: many wake intervals, so only a reader
+#: stuck in a system call is left behind (it is a daemon thread).
+CLOSE_WAIT_S = 2.0
+
 
 @dataclass
 class SourceStats:
@@ -68,7 +75,7 @@ class CommandSource:
         """Stop the reader; safe to call twice."""
         self._stop.set()
         if self._thread is not None and self._thread is not threading.current_thread():
-            self._thread.join(timeout=2.0)
+            self._thread.join(timeout=CLOSE_WAIT_S)
 
     def _run_guarded(self) -> None:
         try:

@@ -7,7 +7,13 @@ import select
 
 from limbctl.errors import ConfigError
 from limbctl.teleop.commands import command_from_pan_tilt
-from limbctl.teleop.sources.base import CommandSource
+from limbctl.teleop.sources.base import WAKE_INTERVAL_S, CommandSource
+
+#: Degrees one arrow key moves pan or tilt: fine enough to creep up to an edge, coarse enough to
+#: cross 90 degrees in 45 presses.
+KEY_STEP_DEG = 2.0
+#: Most bytes taken per read: a burst of held-down arrow keys (3 bytes each).
+READ_CHUNK_BYTES = 64
 
 
 class KeyboardSource(CommandSource):
@@ -23,7 +29,7 @@ class KeyboardSource(CommandSource):
 
     def __init__(
         self,
-        step_deg: float = 2.0,
+        step_deg: float = KEY_STEP_DEG,
         start_deg: tuple[float, float] = (0.0, 0.0),
         tty_path: str = "/dev/tty",
     ) -> None:
@@ -66,10 +72,10 @@ class KeyboardSource(CommandSource):
         pending = b""
         try:
             while not self._stop.is_set():
-                ready, _, _ = select.select([self._fd], [], [], 0.1)
+                ready, _, _ = select.select([self._fd], [], [], WAKE_INTERVAL_S)
                 if not ready:
                     continue
-                pending += os.read(self._fd, 64)
+                pending += os.read(self._fd, READ_CHUNK_BYTES)
                 # split the bytes into keys: an escape sequence is three bytes, others one
                 while pending:
                     size = 3 if pending[:1] == b"\x1b" else 1

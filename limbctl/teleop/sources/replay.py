@@ -10,6 +10,10 @@ from limbctl.errors import ConfigError, InvalidInputError
 from limbctl.teleop.commands import parse_command
 from limbctl.teleop.sources.base import CommandSource
 
+#: Rate (lines/s) at which lines without a ``"t"`` follow each other: half the loop's default
+#: 200 Hz, so each line is gated rather than skipped as stale.
+UNSTAMPED_RATE_HZ = 100.0
+
 
 class ReplaySource(CommandSource):
     """JSON lines from a file, paced: a line with ``"t"`` (s) is released at that time after the
@@ -18,7 +22,9 @@ class ReplaySource(CommandSource):
 
     name = "replay"
 
-    def __init__(self, path: str | Path, speed: float = 1.0, rate_hz: float = 100.0) -> None:
+    def __init__(
+        self, path: str | Path, speed: float = 1.0, rate_hz: float = UNSTAMPED_RATE_HZ
+    ) -> None:
         super().__init__()
         self.path = Path(path)
         if not self.path.is_file():

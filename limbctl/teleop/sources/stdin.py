@@ -8,7 +8,10 @@ import sys
 from typing import BinaryIO
 
 from limbctl.teleop.commands import MAX_LINE_BYTES
-from limbctl.teleop.sources.base import CommandSource
+from limbctl.teleop.sources.base import WAKE_INTERVAL_S, CommandSource
+
+#: Most bytes taken per read: the size of a Linux pipe's buffer, so one read drains it.
+READ_CHUNK_BYTES = 65536
 
 
 class StreamSource(CommandSource):
@@ -25,10 +28,10 @@ class StreamSource(CommandSource):
         fd = self._stream.fileno()
         buffer = b""
         while not self._stop.is_set():
-            ready, _, _ = select.select([fd], [], [], 0.1)
+            ready, _, _ = select.select([fd], [], [], WAKE_INTERVAL_S)
             if not ready:
                 continue
-            chunk = os.read(fd, 65536)
+            chunk = os.read(fd, READ_CHUNK_BYTES)
             if not chunk:
                 break
             buffer += chunk

@@ -6,7 +6,7 @@ import socket
 
 from limbctl.errors import ConfigError
 from limbctl.teleop.commands import MAX_LINE_BYTES
-from limbctl.teleop.sources.base import CommandSource
+from limbctl.teleop.sources.base import WAKE_INTERVAL_S, CommandSource
 
 
 class UdpSource(CommandSource):
@@ -26,7 +26,7 @@ class UdpSource(CommandSource):
         except OSError as exc:
             self._sock.close()
             raise ConfigError(f"cannot listen on udp://{host}:{port}: {exc}") from exc
-        self._sock.settimeout(0.1)
+        self._sock.settimeout(WAKE_INTERVAL_S)
         self.address = self._sock.getsockname()
 
     def _run(self) -> None:
