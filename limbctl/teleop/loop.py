@@ -34,6 +34,7 @@ from typing import IO, Protocol
 import numpy as np
 
 from limbctl.errors import BusError, ConfigError, ServoAlarm
+from limbctl.geometry.gimbal import quat_to_pan_tilt
 from limbctl.teleop.cycle import Cycle, CycleState, CycleTimings, TeleopSummary
 from limbctl.teleop.gate import Gate, GateResult, Outcome
 from limbctl.teleop.report import StatusLine, Telemetry, open_telemetry
@@ -71,8 +72,8 @@ class LoopConfig:
     rate_hz : float
         Cycle rate (Hz).
     silence_s : float
-        After this long without a valid command the status says "holding" (the pose is held
-        from the first silent cycle on; this only labels it).
+        After this long without a valid command the last one is dropped and the gate holds the
+        pose it reached (until then it keeps moving toward the last command).
     max_failed_cycles : int
         Consecutive cycles whose bus transfer failed before the safe state is entered.
     safe_state : SafeState
@@ -84,7 +85,8 @@ class LoopConfig:
     on_cycle : callable (Cycle) -> None, optional
         Called in the loop's thread with every cycle's value (e.g. to publish it to a live
         view). It must return at once: hand the value on (a queue, a latest-value slot) rather
-        than doing work; an exception from it ends the loop.
+        than doing work. An exception from it propagates out of :func:`run`, the rig left as
+        the last cycle wrote it.
     """
 
     # 0.6 deg per cycle at the default 120 deg/s slew (smooth); reachable on real servos with
@@ -109,8 +111,6 @@ class LoopConfig:
 
 
 def _command_deg(q: np.ndarray) -> tuple[float, float]:
-    from limbctl.geometry.gimbal import quat_to_pan_tilt
-
     pan, tilt = quat_to_pan_tilt(q)
     return math.degrees(float(pan)), math.degrees(float(tilt))
 
