@@ -13,6 +13,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+import time
 import zipfile
 
 import numpy as np
@@ -240,3 +241,53 @@ def test_npz_that_is_a_zip_of_something_else(tmp_path):
     with pytest.raises(FileFormatError) as err:
         load_model(other)
     assert str(other) in str(err.value)
+
+
+# ---- rig profiles that cannot hurt, through the CLI ---------------------------------------------
+#: Longest a refused profile may take through the whole CLI (python start and imports included,
+#: on a loaded 2-core box); the refusal itself is under a second (tests/calib/test_yaml_guard.py).
+CLI_REFUSAL_S = 10.0
+
+
+def _alias_bomb_in_name() -> str:
+    """The sim profile whose name is 9 levels of nested aliases (9**9 strings expanded)."""
+    levels = ["  - &a0 [x, x, x, x, x, x, x, x, x]"]
+    levels += [f"  - &a{i} [" + ", ".join([f"*a{i - 1}"] * 9) + "]" for i in range(1, 9)]
+    return SIM_YAML.decode().replace("name: sim\n", "name:\n" + "\n".join(levels) + "\n")
+
+
+@pytest.mark.parametrize(
+    ("case", "text", "problem"),
+    [
+        ("alias bomb", _alias_bomb_in_name(), "anchors and aliases (&name, *name) are not allowed"),
+        (
+            "duplicate key",
+            SIM_YAML.decode().replace("  max_deg: 70.0\n", "  max_deg: 70.0\n  max_deg: 170.0\n"),
+            "key 'max_deg' appears twice",
+        ),
+        (
+            "oversized value",
+            SIM_YAML.decode().replace("baud: 57600", "baud: " + "9" * 50_000),
+            "a value of 50000 characters",
+        ),
+        ("oversized file", SIM_YAML.decode() + "#" * 70_000 + "\n", "larger than 64 KiB"),
+        (
+            "limit past the end stop",
+            SIM_YAML.decode().replace("  max_deg: 70.0\n", "  max_deg: 80.0\n"),
+            "tilt.max_deg 80 is not 1 deg inside the end stop at 75",
+        ),
+    ],
+)
+def test_cli_refuses_a_harmful_profile_fast_on_one_line(tmp_path, model_files, case, text, problem):
+    _, model = model_files["cone"]
+    rig = tmp_path / "rig.yaml"
+    rig.write_text(text)
+    started = time.perf_counter()
+    done = limbctl("teleop", "--rig", rig, "--model", model, cwd=tmp_path)
+    elapsed = time.perf_counter() - started
+    assert done.returncode == 2, (case, done.stderr[:500])
+    assert elapsed < CLI_REFUSAL_S, (case, elapsed)
+    lines = done.stderr.splitlines()
+    assert len(lines) == 1 and len(lines[0]) < 400, (case, done.stderr[:500])
+    assert str(rig) in lines[0] and problem in lines[0], (case, lines[0])
+    assert "simulator" not in done.stderr  # refused before a servo (or its EEPROM) was touched
