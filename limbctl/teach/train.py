@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -37,6 +38,9 @@ class TrainSummary:
     edge : str
         Which edge a Rigid Map gate uses: ``smooth`` (fitted, the data agreed with it) or
         ``supported`` (through the taught samples); empty for other models.
+    calibration_recorded : bool
+        Whether the dataset recorded the rig calibration it was made under (and the model now
+        carries it); teleop refuses a model without one.
     """
 
     samples: int
@@ -48,10 +52,11 @@ class TrainSummary:
     contained_fraction: float
     nodes: int
     edge: str = ""
+    calibration_recorded: bool = True
 
     def lines(self) -> list[str]:
         """Human-readable summary lines."""
-        return [
+        lines = [
             f"samples            {self.samples}",
             f"pan range          {self.pan_range_deg[0]:+.1f} .. {self.pan_range_deg[1]:+.1f} deg",
             f"tilt range         {self.tilt_range_deg[0]:+.1f} .. "
@@ -67,6 +72,12 @@ class TrainSummary:
             if self.edge in EDGE_MEANING
             else []
         )
+        if not self.calibration_recorded:
+            lines.append(
+                "calibration        NOT RECORDED: the dataset predates recorded calibrations, "
+                "so teleop will refuse this model; record again with this limbctl"
+            )
+        return lines
 
 
 #: What each Rigid Map edge means, for the summary.
@@ -183,9 +194,16 @@ def train(
     model = build_model(kind, **(options or {}))
     model.fit(q)
     done(STAGES[1])
-    metadata = {"rig": data.header.rig, "dataset": str(data_path), "samples": len(q)}
+    metadata: dict[str, Any] = {
+        "rig": data.header.rig,
+        "dataset": str(data_path),
+        "samples": len(q),
+    }
+    if data.header.calibration is not None:
+        # the calibration the samples were read under; teleop refuses a rig with another one
+        metadata["calibration"] = data.header.calibration.to_dict()
     model.save(out_path, metadata=metadata)
     done(STAGES[2])
     summary = summarize(model, q)
     done(STAGES[3])
-    return summary
+    return dataclasses.replace(summary, calibration_recorded=data.header.calibration is not None)

@@ -5,6 +5,7 @@ import math
 import numpy as np
 import pytest
 
+from calib.profile import default_sim_profile
 from limbctl.envelope import Cone, build_model, load_header, load_model
 from limbctl.errors import ConfigError
 from limbctl.jobs import plot_files
@@ -12,9 +13,9 @@ from limbctl.teach.dataset import DatasetWriter
 from limbctl.teach.train import train
 
 
-def write_cone_dataset(path, n=400, half_angle_deg=30.0, seed=0):
+def write_cone_dataset(path, n=400, half_angle_deg=30.0, seed=0, calibration=None):
     rng = np.random.default_rng(seed)
-    with DatasetWriter(path, rig="sim") as writer:
+    with DatasetWriter(path, rig="sim", calibration=calibration) as writer:
         for i in range(n):
             # directions uniform over the cap: cos(angle) uniform in [cos R, 1]
             c = rng.uniform(math.cos(math.radians(half_angle_deg)), 1.0)
@@ -36,6 +37,22 @@ def test_train_cone_from_a_dataset_and_read_it_back(tmp_path):
     assert 28.0 <= model.half_angle_deg <= 30.0
     assert load_header(tmp_path / "cone.npz")["metadata"]["rig"] == "sim"
     assert any("samples inside" in line for line in summary.lines())
+
+
+def test_the_model_carries_the_recordings_calibration(tmp_path):
+    calibration = default_sim_profile().calibration
+    data = write_cone_dataset(tmp_path / "teach.limb", n=50, calibration=calibration)
+    summary = train(data, tmp_path / "cone.npz", kind="cone")
+    metadata = load_header(tmp_path / "cone.npz")["metadata"]
+    assert metadata["calibration"] == calibration.to_dict()
+    assert summary.calibration_recorded
+    assert not any("calibration" in line for line in summary.lines())
+
+    older = write_cone_dataset(tmp_path / "older.limb", n=50)  # no calibration recorded
+    summary = train(older, tmp_path / "older.npz", kind="cone")
+    assert "calibration" not in load_header(tmp_path / "older.npz")["metadata"]
+    assert not summary.calibration_recorded
+    assert summary.lines()[-1].startswith("calibration        NOT RECORDED")
 
 
 def test_train_rigidmap_contains_its_samples(tmp_path):
