@@ -22,6 +22,8 @@ from limbctl.geometry.quat import as_quaternions
 #: Bumped whenever the saved layout changes; older files are refused with a clear message.
 FORMAT_VERSION = 1
 _MAGIC = "limbctl-envelope"
+#: How every .npz file (a zip archive) begins: a local file header's signature.
+_ZIP_MAGIC = b"PK\x03\x04"
 
 
 class Envelope(ABC):
@@ -177,6 +179,16 @@ def load_header(path: str | Path) -> dict[str, Any]:
     return header
 
 
+def is_model_file(path: str | Path) -> bool:
+    """Whether the file at ``path`` begins as a model file does (a zip archive, its first bytes
+    only); False for a missing or unreadable file."""
+    try:
+        with open(path, "rb") as handle:
+            return handle.read(len(_ZIP_MAGIC)) == _ZIP_MAGIC
+    except OSError:
+        return False
+
+
 def _digest(header: dict[str, Any], arrays: dict[str, np.ndarray]) -> str:
     """SHA-256 over the header (less its checksum) and each array's name, dtype, shape, bytes."""
     h = hashlib.sha256()
@@ -192,6 +204,13 @@ def _digest(header: dict[str, Any], arrays: dict[str, np.ndarray]) -> str:
 def _read(path: Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
     if not path.exists():
         raise FileFormatError(path, "no such model file (train one with `limbctl train`)")
+    if not is_model_file(path):
+        # np.load would take any other bytes for a pickle and advise allow_pickle=True
+        raise FileFormatError(
+            path,
+            "not a readable model file (truncated or corrupt: it does not begin as an .npz "
+            "archive does)",
+        )
     try:
         with np.load(path, allow_pickle=False) as data:
             raw = {name: data[name] for name in data.files}
