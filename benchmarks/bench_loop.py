@@ -87,7 +87,8 @@ def main(argv: list[str] | None = None) -> int:
         rows = {}
         for name, model in models.items():
             path = tmp / f"{len(rows)}.npz"
-            model.save(path, metadata={"rig": "sim"})
+            sim = default_sim_profile()
+            model.save(path, metadata={"rig": sim.name, "calibration": sim.calibration.to_dict()})
             print(f"running {name} for {args.seconds:.0f} s ...", file=sys.stderr)
             rows[name] = run_case(path, stream, args.seconds)
 

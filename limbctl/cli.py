@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -136,6 +137,8 @@ def _calibrate(a: argparse.Namespace) -> int:
             ids=_pair(a.ids, "--ids"),
             pan_limits=_limits(a.pan_limits, "--pan-limits"),
             tilt_limits=_limits(a.tilt_limits, "--tilt-limits"),
+            pan_stops=_limits(a.pan_stops, "--pan-stops"),
+            tilt_stops=_limits(a.tilt_stops, "--tilt-stops"),
             connection=_connection(a),
         )
     )
@@ -167,6 +170,17 @@ def _add_calibrate(sub: Subparsers) -> None:
         "--tilt-limits",
         help="hard tilt limits MIN,MAX in degrees, e.g. --tilt-limits=-40,60 (default: the base "
         "rig profile's)",
+    )
+    p.add_argument(
+        "--pan-stops",
+        help="where the pan joint's travel ends mechanically, MIN,MAX in degrees, e.g. "
+        "--pan-stops=-120,120; the hard limits must lie 1 deg inside (default: the --rig "
+        "profile's, else +-90)",
+    )
+    p.add_argument(
+        "--tilt-stops",
+        help="where the tilt joint's travel ends mechanically, MIN,MAX in degrees, e.g. "
+        "--tilt-stops=-60,75 (default: the --rig profile's, else +-90)",
     )
 
 
@@ -343,7 +357,17 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``limbctl`` console script; returns the exit status."""
     args = build_parser().parse_args(argv)
     try:
-        return int(args.job(args) or 0)
+        status = int(args.job(args) or 0)
+        # flushed here, so a reader that went away is noticed below and not at interpreter exit
+        sys.stdout.flush()
+        return status
+    except BrokenPipeError:
+        # the reader of stdout went away (`limbctl info | head`). As the Python docs' note on
+        # SIGPIPE does it: point stdout at devnull so the interpreter's last flush cannot raise
+        # again, and exit with 1
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return 1
     except LimbctlError as exc:
         print(f"limbctl {args.command}: error: {exc}", file=sys.stderr)
         return 2

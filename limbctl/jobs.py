@@ -72,7 +72,11 @@ def run_record(options: RecordOptions) -> int:
     hand = options.hand if options.hand is not None else demo_region_path()
     meta = {"rate_hz": options.rate, "simulated": conn.port is None and profile.is_sim}
     # the writer checks the path and free space before any servo is touched
-    with DatasetWriter(options.out, rig=profile.name, meta=meta) as writer:
+    # the calibration the joint angles are read under goes into the header, and from there into
+    # every model trained on the recording
+    with DatasetWriter(
+        options.out, rig=profile.name, meta=meta, calibration=profile.calibration
+    ) as writer:
         with _open(conn, hand=hand) as session:
             with stop_on_signals() as stop:
                 if session.simulated:
@@ -221,39 +225,61 @@ def run_info(options: InfoOptions) -> int:
 
 
 def _info_file(path: Path) -> int:
+    """Describe a model or dataset file; which one it is is read from its first bytes, so a
+    damaged file's error is its own loader's (the line and the problem), not the other's."""
     from limbctl.envelope import load_header
-    from limbctl.teach.dataset import load_dataset
+    from limbctl.envelope.base import is_model_file
+    from limbctl.teach.dataset import is_dataset_file, load_dataset
 
-    try:
+    if is_model_file(path):
         header = load_header(path)
         print(f"{path}: {header['kind']} model, format {header['format_version']}")
         for key, value in {**header["params"], **header["metadata"]}.items():
             print(f"  {key}: {value}")
         return 0
-    except FileFormatError as model_error:
-        try:
-            data = load_dataset(path)
-        except FileFormatError:
-            raise model_error from None
+    if not is_dataset_file(path):
+        _neither(path)
+    data = load_dataset(path)
     print(f"{path}: dataset of {len(data)} samples from rig {data.header.rig!r}")
     print(f"  created {data.header.created}, {data.t[-1] if len(data) else 0:.1f} s recorded")
+    calibration = data.header.calibration
+    if calibration is None:
+        print("  calibration: not recorded (made before limbctl recorded it)")
+    else:
+        for name, joint in (("pan", calibration.pan), ("tilt", calibration.tilt)):
+            print(
+                f"  {name}: zero tick {joint.zero_tick}, direction {joint.direction:+d}, "
+                f"limits {joint.min_deg:g} .. {joint.max_deg:g} deg"
+            )
     if data.dropped_tail:
         print(f"  note: {data.dropped_tail}")
     return 0
 
 
+def _neither(path: Path) -> None:
+    """Refuse a file that begins as neither a model nor a dataset, with both loaders' words."""
+    from limbctl.envelope import load_header
+    from limbctl.teach.dataset import load_dataset
+
+    problems = []
+    for kind, loader in (("a model", load_header), ("a dataset", load_dataset)):
+        try:
+            loader(path)
+        except FileFormatError as exc:
+            problems.append(f"as {kind}: {exc.problem}")
+    raise FileFormatError(path, f"neither a limbctl model nor a dataset ({'; '.join(problems)})")
+
+
 # ---- teleop ---------------------------------------------------------------------------------
 def gate_for(model_path: Path, profile, rate_hz: float, max_speed_deg_s: float):
-    """Load a model (refusing one trained for another rig) and build the gate around it."""
+    """Load a model and build the gate around it, refusing a model trained for another rig,
+    under another calibration of this one, or recording no calibration
+    (:func:`limbctl.servo.profiles.check_trained_for`)."""
     from limbctl.envelope import load_header, load_model
+    from limbctl.servo.profiles import check_trained_for
     from limbctl.teleop.gate import Gate, GateLimits
 
-    trained_for = load_header(model_path).get("metadata", {}).get("rig")
-    if trained_for and trained_for != profile.name:
-        raise ConfigError(
-            f"{model_path} was trained for rig {trained_for!r}, not {profile.name!r}; "
-            "train a model on a recording from this rig"
-        )
+    check_trained_for(load_header(model_path).get("metadata", {}), profile, str(model_path))
     step = math.radians(max_speed_deg_s) / rate_hz
     limits = GateLimits(
         pan_min=profile.pan.min_rad,
@@ -336,13 +362,18 @@ def run_teleop(options: TeleopOptions) -> int:
 @dataclass(frozen=True)
 class CalibrateOptions:
     """``limbctl calibrate``: write rig profile ``out`` named ``name`` for servos ``ids`` (pan,
-    tilt); ``pan_limits``/``tilt_limits`` (MIN, MAX) in degrees, None: the base profile's."""
+    tilt); ``pan_limits``/``tilt_limits`` (MIN, MAX) in degrees, None: the base profile's;
+    ``pan_stops``/``tilt_stops`` the gimbal's end stops (MIN, MAX) in degrees, None: the base
+    profile's when it describes this gimbal (``--rig`` given, or the simulator), else unknown
+    (+-90 deg, :data:`calib.profile.DEFAULT_END_STOP_DEG`)."""
 
     out: Path
     name: str = "my-rig"
     ids: tuple[int, int] = (1, 2)
     pan_limits: tuple[float, float] | None = None
     tilt_limits: tuple[float, float] | None = None
+    pan_stops: tuple[float, float] | None = None
+    tilt_stops: tuple[float, float] | None = None
     connection: Connection = field(default_factory=Connection)
 
 
@@ -354,9 +385,7 @@ def run_calibrate(options: CalibrateOptions) -> int:
     from limbctl.servo.profiles import save_rig_profile
 
     conn = options.connection
-    base = load_rig_profile(conn.rig)
-    pan_id, tilt_id = options.ids
-    base = replace(base, pan=replace(base.pan, id=pan_id), tilt=replace(base.tilt, id=tilt_id))
+    base = _calibration_base(options, load_rig_profile(conn.rig))
     script = Path(str(resources.files("limbctl").joinpath("data", "calibration_hand.yaml")))
     with _open(conn, hand=script) as session:
         if session.simulated:
@@ -364,8 +393,8 @@ def run_calibrate(options: CalibrateOptions) -> int:
         with stop_on_signals() as stop:
             result = find_zero_and_directions(session.rig, say=say, stop=stop)
         port = "sim" if session.simulated else session.rig.bus.port_name
-    pan_limits = options.pan_limits or (base.pan.min_deg, base.pan.max_deg)
-    tilt_limits = options.tilt_limits or (base.tilt.min_deg, base.tilt.max_deg)
+    pan_limits = (base.pan.min_deg, base.pan.max_deg)
+    tilt_limits = (base.tilt.min_deg, base.tilt.max_deg)
     profile = profile_from_calibration(base, result, options.name, port, pan_limits, tilt_limits)
     save_rig_profile(profile, options.out)
     say(
@@ -374,6 +403,44 @@ def run_calibrate(options: CalibrateOptions) -> int:
     )
     say(f"wrote {options.out} (check the hard limits in it before teleoperating)")
     return 0
+
+
+def _calibration_base(options: CalibrateOptions, base):
+    """The profile a calibration starts from: ``base`` with the chosen ids, hard limits and end
+    stops, checked before any servo moves (limits past the end stops are refused up front, not
+    after the person has gone through the prompts)."""
+    from calib.profile import DEFAULT_END_STOP_DEG, ProfileError, profile_from_dict
+
+    conn = options.connection
+    # the base profile's end stops describe this gimbal only if the person named its profile
+    # or the simulator (whose profile it is) is what will be calibrated
+    describes_gimbal = conn.rig is not None or (conn.port is None and base.is_sim)
+    unknown = (-DEFAULT_END_STOP_DEG, DEFAULT_END_STOP_DEG)
+    joints = {}
+    for name, servo_id, limits, stops in (
+        ("pan", options.ids[0], options.pan_limits, options.pan_stops),
+        ("tilt", options.ids[1], options.tilt_limits, options.tilt_stops),
+    ):
+        joint = getattr(base, name)
+        limits = limits or (joint.min_deg, joint.max_deg)
+        stops = stops or ((joint.stop_min_deg, joint.stop_max_deg) if describes_gimbal else unknown)
+        joints[name] = replace(
+            joint,
+            id=servo_id,
+            min_deg=float(limits[0]),
+            max_deg=float(limits[1]),
+            stop_min_deg=float(stops[0]),
+            stop_max_deg=float(stops[1]),
+        )
+    chosen = replace(base, **joints, source=None)
+    try:
+        profile_from_dict(chosen.to_dict(), "limbctl calibrate")
+    except ProfileError as exc:
+        raise ConfigError(
+            f"{exc} (give hard limits inside the end stops: --pan-limits inside --pan-stops, "
+            f"--tilt-limits inside --tilt-stops)"
+        ) from None
+    return chosen
 
 
 # ---- eval -----------------------------------------------------------------------------------

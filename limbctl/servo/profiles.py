@@ -125,6 +125,8 @@ def check_trained_for(metadata: Mapping[str, Any], profile: RigProfile, what: st
         from the profile's, naming each field that differs.
     """
     source = profile.source or "the rig profile"
+    if not isinstance(metadata, Mapping):  # a hand-made header: it records nothing
+        metadata = {}
     trained_rig = metadata.get("rig")
     if trained_rig is not None and trained_rig != profile.name:
         raise ConfigError(

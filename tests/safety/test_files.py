@@ -11,6 +11,7 @@ refuse bad files before it touches a servo.
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 import time
@@ -66,9 +67,10 @@ def model_files(tmp_path_factory):
     folder = tmp_path_factory.mktemp("models")
     cone = Cone(np.radians(35.0))
     rigid = bean_model()
+    trained = {"rig": "sim", "calibration": PROFILE.calibration.to_dict()}
     return {
-        "cone": (cone, cone.save(folder / "cone.npz", metadata={"rig": "sim"})),
-        "rigidmap": (rigid, rigid.save(folder / "rigid.npz", metadata={"rig": "sim"})),
+        "cone": (cone, cone.save(folder / "cone.npz", metadata=trained)),
+        "rigidmap": (rigid, rigid.save(folder / "rigid.npz", metadata=trained)),
     }
 
 
@@ -291,3 +293,78 @@ def test_cli_refuses_a_harmful_profile_fast_on_one_line(tmp_path, model_files, c
     assert len(lines) == 1 and len(lines[0]) < 400, (case, done.stderr[:500])
     assert str(rig) in lines[0] and problem in lines[0], (case, lines[0])
     assert "simulator" not in done.stderr  # refused before a servo (or its EEPROM) was touched
+
+
+# ---- a model is tied to the calibration it was trained under -----------------------------------
+def test_cli_refuses_a_model_trained_under_another_calibration(tmp_path):
+    recording = tmp_path / "teach.limb"
+    rng = np.random.default_rng(1)
+    with DatasetWriter(
+        recording, rig="sim", calibration=PROFILE.calibration, min_free_bytes=1024
+    ) as out:
+        for i, (pan, tilt) in enumerate(rng.uniform(-0.4, 0.4, (60, 2))):
+            out.append(0.01 * i, pan, tilt)
+    model = tmp_path / "model.npz"
+    trained = limbctl("train", recording, "--out", model, "--kind", "cone", cwd=tmp_path)
+    assert trained.returncode == 0, trained.stderr
+    assert "NOT RECORDED" not in trained.stderr
+
+    # the same rig name, the pan zero tick off by 200 (17.6 deg)
+    shifted = tmp_path / "shifted.yaml"
+    shifted.write_text(SIM_YAML.decode().replace("zero_tick: 2185", "zero_tick: 2385"))
+    older = Cone(np.radians(35.0)).save(tmp_path / "older.npz", metadata={"rig": "sim"})
+    cases = [
+        (["--rig", shifted, "--model", model], "(trained vs now: pan.zero_tick 2185 vs 2385)"),
+        (["--model", older], "does not record the calibration it was trained under"),
+    ]
+    for args, problem in cases:
+        done = limbctl("teleop", *args, cwd=tmp_path)
+        assert done.returncode == 2, (args, done.stderr)
+        assert problem in done.stderr and "Traceback" not in done.stderr, done.stderr
+        assert "simulator" not in done.stderr  # refused before any servo was touched
+    assert gate_for(model, PROFILE, 200.0, 120.0) is not None  # its own rig: accepted
+
+
+# ---- info names a damaged file's real problem ---------------------------------------------------
+def test_info_names_a_damaged_datasets_problem(tmp_path, dataset_file):
+    path, _ = dataset_file
+    lines = path.read_bytes().split(b"\n")
+    lines[10] = lines[10].replace(b"0.", b"1.", 1)  # an edited record, line 11
+    damaged = tmp_path / "damaged.limb"
+    damaged.write_bytes(b"\n".join(lines))
+    done = limbctl("info", damaged, cwd=tmp_path)
+    assert done.returncode == 2, done.stderr
+    assert f"{damaged}: line 11: checksum mismatch" in done.stderr, done.stderr
+    assert "pickle" not in done.stderr and "Traceback" not in done.stderr
+
+    intact = limbctl("info", path, cwd=tmp_path)
+    assert intact.returncode == 0, intact.stderr
+    assert "dataset of 60 samples from rig 'sim'" in intact.stdout
+    assert "calibration: not recorded" in intact.stdout
+
+    headless = tmp_path / "headless.limb"  # the header itself is gone
+    headless.write_bytes(b"\n".join(lines[1:]))
+    done = limbctl("info", headless, cwd=tmp_path)
+    assert done.returncode == 2
+    assert "neither a limbctl model nor a dataset (as a model: " in done.stderr, done.stderr
+    assert "as a dataset: line 1: not a limbctl orientation dataset" in done.stderr
+    assert "pickle" not in done.stderr
+
+
+def test_info_into_a_closed_pipe_prints_no_traceback(tmp_path, model_files):
+    _, model = model_files["rigidmap"]
+    read_end, write_end = os.pipe()
+    os.close(read_end)  # the reader is gone before limbctl writes a byte, as after `| head`
+    try:
+        done = subprocess.run(
+            [sys.executable, "-m", "limbctl.cli", "info", str(model)],
+            stdout=write_end,
+            stderr=subprocess.PIPE,
+            text=True,
+            timeout=120,
+            cwd=tmp_path,
+        )
+    finally:
+        os.close(write_end)
+    assert done.returncode == 1, done.stderr
+    assert done.stderr == "", done.stderr  # no traceback, no "Exception ignored"

@@ -4,7 +4,7 @@ import pytest
 
 from calib.profile import default_sim_profile, load_profile
 from limbctl.cli import build_parser
-from limbctl.errors import SafetyError
+from limbctl.errors import ConfigError, SafetyError
 from limbctl.servo.calibrate import CalibrationResult, profile_from_calibration
 
 
@@ -24,6 +24,21 @@ def test_calibration_on_the_simulator_finds_the_truth(tmp_path):
     assert (found.pan.min_deg, found.pan.max_deg) == (-100.0, 100.0)
     assert (found.tilt.min_deg, found.tilt.max_deg) == (-40.0, 60.0)
     assert found.name == "bench" and found.port == "sim"
+    # the simulator's profile describes the calibrated gimbal: its end stops carry over
+    assert (found.tilt.stop_min_deg, found.tilt.stop_max_deg) == (-60.0, 75.0)
+
+
+def test_limits_past_the_end_stops_are_refused_before_calibrating(tmp_path):
+    out = tmp_path / "rig.yaml"
+    for options, problem in (
+        (["--tilt-limits=-40,80"], "tilt.max_deg 80 is not 1 deg inside the end stop at 75"),
+        (["--pan-stops=-95,95"], "pan.min_deg -115 is not 1 deg inside the end stop at -95"),
+    ):
+        args = build_parser().parse_args(["calibrate", "--out", str(out), *options])
+        with pytest.raises(ConfigError) as err:
+            args.job(args)  # raised before the simulator starts: nothing to clean up
+        assert problem in str(err.value) and "--pan-limits inside --pan-stops" in str(err.value)
+    assert not out.exists()
 
 
 def test_limits_must_contain_the_rest_pose():

@@ -24,7 +24,10 @@ from limbctl.teleop.sources import LeaderSource
 
 def test_follower_mirrors_a_pushed_leader_within_the_region(tmp_path):
     model = tmp_path / "cone.npz"
-    Cone(half_angle_deg=30.0).save(model, metadata={"rig": "sim"})
+    sim = default_sim_profile()
+    Cone(half_angle_deg=30.0).save(
+        model, metadata={"rig": sim.name, "calibration": sim.calibration.to_dict()}
+    )
     gate = gate_for(model, default_sim_profile(), 200.0, 120.0)
     with open_rig(extra_ids=(3, 4)) as session:
         rig = session.rig

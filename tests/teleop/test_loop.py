@@ -31,7 +31,10 @@ HALF_TICK_DEG = 360.0 / 4096 / 2
 @pytest.fixture
 def cone_model(tmp_path):
     path = tmp_path / "cone.npz"
-    Cone(half_angle_deg=40.0).save(path, metadata={"rig": "sim"})
+    sim = default_sim_profile()
+    Cone(half_angle_deg=40.0).save(
+        path, metadata={"rig": sim.name, "calibration": sim.calibration.to_dict()}
+    )
     return path
 
 
