@@ -86,6 +86,17 @@ EGG = egg()
 SMALL_KIDNEY = 0.35 * KIDNEY
 
 
+#: A 40 x 30 deg rectangle with a rectangular notch 12 deg wide and 12 deg deep cut into its top
+#: edge, in (pan, tilt) degrees: an obstacle the limb must go round. Its two inner corners,
+#: (-6, 3) and (6, 3), are reflex corners of the region.
+NOTCH = np.array(
+    [[-20.0, -15.0], [20.0, -15.0], [20.0, 15.0], [6.0, 15.0], [6.0, 3.0], [-6.0, 3.0],
+     [-6.0, 15.0], [-20.0, 15.0]]
+)  # fmt: skip
+#: The notch itself (pan range, tilt range) in degrees: the directions NOTCH must never reach.
+NOTCH_HOLE = ((-6.0, 6.0), (3.0, 15.0))
+
+
 def to_quaternions(d: np.ndarray) -> np.ndarray:
     """Twist-free quaternions (..., 4), w >= 0, that point the limb along directions ``d``."""
     return swing_from_direction(d)
@@ -362,3 +373,77 @@ def _nearest_on_arc(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[np.nda
     end = np.where((da <= db)[:, None], a, b)
     point = np.where(within[:, None], foot, end)
     return point, direction_angle(p, point)
+
+
+def inset_track(polygon_deg: np.ndarray, inset_deg: float, step_deg: float) -> np.ndarray:
+    """Points (K, 2) ``step_deg`` apart along the curve ``inset_deg`` inside a (pan, tilt) polygon.
+
+    The inner parallel curve of a polygon (M, 2) in degrees, either winding, in loop order from
+    its first vertex: each edge moved inward by ``inset_deg``; at a convex corner the moved
+    edges meet in a corner, at a reflex corner they are joined by an arc of radius
+    ``inset_deg`` about it (what a hand tracing the edge at that distance does). Planar in
+    (pan, tilt): near the equator a degree of pan is about a degree of angle. Each edge must be
+    longer than the insets of its corners take away.
+    """
+    p = np.asarray(polygon_deg, dtype=np.float64)
+    x, y = p[:, 0], p[:, 1]
+    # shoelace: positive area = counter-clockwise, the region on the left of each edge
+    if np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y) < 0.0:
+        p = p[::-1]
+    edge = np.roll(p, -1, axis=0) - p
+    tangent = edge / np.linalg.norm(edge, axis=1, keepdims=True)
+    # the inward normal is the tangent turned left
+    normal = np.column_stack([-tangent[:, 1], tangent[:, 0]])
+    m = len(p)
+    enter, leave, arcs = np.empty((m, 2)), np.empty((m, 2)), []
+    for k in range(m):
+        i = k - 1
+        # turn at corner p[k] from edge i to edge k: >= 0 convex, < 0 reflex
+        turn = tangent[i, 0] * tangent[k, 1] - tangent[i, 1] * tangent[k, 0]
+        if turn >= 0.0:
+            # the moved edges meet at p_k + r (n_i + n_k) / (1 + t_i . t_k)
+            corner = p[k] + inset_deg * (normal[i] + normal[k]) / (1.0 + tangent[i] @ tangent[k])
+            enter[k] = leave[k] = corner
+            arcs.append(np.empty((0, 2)))
+            continue
+        enter[k] = p[k] + inset_deg * normal[i]
+        leave[k] = p[k] + inset_deg * normal[k]
+        a0 = np.arctan2(normal[i, 1], normal[i, 0])
+        # a reflex corner turns clockwise: the arc about p_k runs from n_i down to n_k
+        sweep = (a0 - np.arctan2(normal[k, 1], normal[k, 0])) % (2.0 * np.pi)
+        a = a0 - np.linspace(0.0, sweep, max(2, int(np.ceil(sweep * inset_deg / step_deg))))
+        arcs.append(p[k] + inset_deg * np.column_stack([np.cos(a), np.sin(a)])[:-1])
+    path = []
+    for k in range(m):
+        nxt = (k + 1) % m
+        length = float(np.linalg.norm(enter[nxt] - leave[k]))
+        s = np.linspace(0.0, 1.0, max(2, int(np.ceil(length / step_deg))), endpoint=False)
+        path.append(leave[k] + s[:, None] * (enter[nxt] - leave[k]))
+        path.append(arcs[nxt])
+    return np.vstack(path)
+
+
+def traced_teaching(
+    region: PolygonRegion,
+    seconds: float,
+    rng: np.random.Generator,
+    rate_hz: float = 125.0,
+    trace_deg_s: float = 15.0,
+    inset_deg: float = 1.0,
+    wander_deg_s: float = 30.0,
+) -> tuple[np.ndarray, int]:
+    """A teaching that traces the edge first, then wanders inside: directions (n, 3), trace length.
+
+    The hand goes once round the curve ``inset_deg`` inside the polygon (:func:`inset_track`)
+    at ``trace_deg_s``, then strokes through the middle (:func:`trajectory_samples`, no edge
+    strokes) at ``wander_deg_s``, all sampled at ``rate_hz`` for ``seconds`` in total
+    (``n = seconds * rate_hz``). Returns the directions and how many of the first ones trace.
+    """
+    n = int(round(seconds * rate_hz))
+    track = inset_track(np.degrees(region.polygon), inset_deg, trace_deg_s / rate_hz)
+    trace = pan_tilt_to_direction(np.radians(track[:, 0]), np.radians(track[:, 1]))[:n]
+    rest = n - trace.shape[0]
+    if rest <= 0:
+        return trace, trace.shape[0]
+    wander = trajectory_samples(region, rest, rng, step_deg=wander_deg_s / rate_hz, edge_share=0.0)
+    return np.vstack([trace, wander]), trace.shape[0]

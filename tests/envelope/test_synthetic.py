@@ -53,3 +53,40 @@ def test_trajectory_samples_are_continuous_strokes_inside():
     assert np.quantile(steps, 0.98) <= 0.31
     # some strokes creep along the edge
     assert (bean.depth(d) < np.radians(1.0)).mean() > 0.05
+
+
+def test_inset_track_runs_the_inset_distance_inside_round_reflex_corners():
+    from limbctl.envelope.synthetic import NOTCH, inset_track
+    from limbctl.geometry.gimbal import pan_tilt_to_direction
+
+    track = inset_track(NOTCH, 1.0, 0.12)
+    notch = PolygonRegion(NOTCH)
+    depth = np.degrees(notch.depth(pan_tilt_to_direction(*np.radians(track).T)))
+    # 1 deg in (pan, tilt); a degree of pan is cos(tilt) >= cos(15 deg) = 0.966 deg of angle
+    assert depth.min() >= 0.96 and depth.max() <= 1.0 + 1e-5
+    steps = np.linalg.norm(np.diff(track, axis=0), axis=1)
+    assert steps.max() <= 0.121 and steps.min() >= 0.11
+    # the reflex corner (6, 3) is rounded: track points 1 deg from it, none nearer
+    near = np.linalg.norm(track - [6.0, 3.0], axis=1)
+    assert near.min() >= 1.0 - 1e-9 and (near < 1.0 + 1e-6).sum() >= 10
+    # either winding gives the same curve
+    np.testing.assert_allclose(
+        np.sort(inset_track(NOTCH[::-1], 1.0, 0.12)[:, 0])[::50],
+        np.sort(track[:, 0])[::50],
+        atol=0.2,
+    )
+
+
+def test_traced_teaching_traces_the_edge_then_wanders_inside():
+    from limbctl.envelope.synthetic import NOTCH, traced_teaching
+
+    notch = PolygonRegion(NOTCH)
+    d, traced = traced_teaching(notch, 20.0, np.random.default_rng(4))
+    assert d.shape == (2500, 3) and 1000 < traced < 2500
+    assert notch.contains(d).all()
+    depth = np.degrees(notch.depth(d))
+    assert np.all(np.abs(depth[:traced] - 1.0) < 0.05)
+    assert np.median(depth[traced:]) > 3.0
+    steps = np.degrees(direction_angle(d[1:traced], d[: traced - 1]))
+    # 15 deg/s at 125 Hz
+    np.testing.assert_allclose(np.median(steps), 0.12, atol=0.005)
