@@ -254,17 +254,36 @@ def best_of(fn, repeat: int) -> float:
     return best
 
 
+def reference_problem(seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """The training problem the speed rows time: 2000 node positions (uniform layout) and
+    1000 patterns from a 45 deg cone, as (positions (2000, 4), patterns (1000, 4))."""
+    rng = np.random.default_rng(seed)
+    patterns = np.ascontiguousarray(to_quaternions(ConeRegion(np.radians(45.0)).sample(1000, rng)))
+    return RigidMap(nodes=2000, seed=seed).positions, patterns
+
+
+def train_args(max_epochs: int) -> tuple:
+    """Table I's schedule for the training kernels, ``max_epochs`` at most, tol 1e-9."""
+    return (1.0, 0.15, 2 * np.pi, 1.0, 0.04, max_epochs, 1e-9)
+
+
+def reference_seconds(seed: int, max_epochs: int, repeat: int = 1) -> float:
+    """Seconds the numpy reference of the Rigid Map rule takes on :func:`reference_problem`."""
+    pos, patterns = reference_problem(seed)
+    args = train_args(max_epochs)
+    return best_of(lambda: rk.train_rigid_map_reference(pos, pos.copy(), patterns, *args), repeat)
+
+
 def speed_rows(seed: int) -> list[list[str]]:
     rng = np.random.default_rng(seed)
     region = ConeRegion(np.radians(45.0))
     q_train = to_quaternions(region.sample(1000, rng))
     model = RigidMap(nodes=2000, seed=seed)
     model.fit(q_train)
-    pos = model.positions
-    patterns = np.ascontiguousarray(q_train)
-    args = (1.0, 0.15, 2 * np.pi, 1.0, 0.04, 1000, 1e-9)
+    pos, patterns = reference_problem(seed)
+    args = train_args(1000)
     t_kernel = best_of(lambda: rk.train_rigid_map(pos, pos.copy(), patterns, *args), 3)
-    t_ref = best_of(lambda: rk.train_rigid_map_reference(pos, pos.copy(), patterns, *args), 1)
+    t_ref = reference_seconds(seed, 1000)
     t_fit = best_of(lambda: RigidMap(nodes=2000, seed=seed).fit(q_train), 1)
     tree = cKDTree(model.weights)
     singles = to_quaternions(region.test_directions(2000, rng))

@@ -447,3 +447,24 @@ def traced_teaching(
         return trace, trace.shape[0]
     wander = trajectory_samples(region, rest, rng, step_deg=wander_deg_s / rate_hz, edge_share=0.0)
     return np.vstack([trace, wander]), trace.shape[0]
+
+
+def reach_into(
+    contains, region: PolygonRegion, box_deg=NOTCH_HOLE, step_deg: float = 0.05
+) -> float:
+    """How far (deg) a learned region reaches into a (pan, tilt) box outside ``region``, at most.
+
+    ``contains`` answers quaternions (N, 4) -> (N,) bool (a model's ``contains``); the box
+    ``((pan_min, pan_max), (tilt_min, tilt_max))`` in degrees is scanned on a grid
+    ``step_deg`` apart, and the deepest direction it holds counts, its depth measured to
+    ``region``'s boundary (0 when it holds none).
+    """
+    (p0, p1), (t0, t1) = box_deg
+    pan, tilt = np.meshgrid(
+        np.arange(p0, p1 + 0.5 * step_deg, step_deg), np.arange(t0, t1 + 0.5 * step_deg, step_deg)
+    )
+    d = pan_tilt_to_direction(np.radians(pan.ravel()), np.radians(tilt.ravel()))
+    held = d[np.asarray(contains(to_quaternions(d)), dtype=bool)]
+    if held.shape[0] == 0:
+        return 0.0
+    return float(max(0.0, np.degrees(-region.depth(held)).max()))
