@@ -87,6 +87,82 @@ def _min_neighbour_angle(positions: np.ndarray) -> float:
 
 
 @nb.njit(cache=True)
+def _winner_slots(winners: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray]:
+    """The distinct winners (U,) in order of first appearance, and each pattern's slot (N,)."""
+    slot = np.full(m, -1, dtype=np.int64)
+    distinct = np.empty(winners.shape[0], dtype=np.int64)
+    pattern_slot = np.empty(winners.shape[0], dtype=np.int64)
+    u = 0
+    for j in range(winners.shape[0]):
+        c = winners[j]
+        if slot[c] < 0:
+            slot[c] = u
+            distinct[u] = c
+            u += 1
+        pattern_slot[j] = slot[c]
+    return distinct[:u], pattern_slot
+
+
+@nb.njit(cache=True)
+def _winner_angles(positions: np.ndarray, distinct: np.ndarray) -> np.ndarray:
+    """``theta[i, s]``: angle (rad) between node ``i`` and distinct winner ``s`` (M, U).
+
+    ``acos(p_c . p_i)`` summed in the rule's order, and exactly 0 for the winner itself.
+    """
+    m = positions.shape[0]
+    theta = np.empty((m, distinct.shape[0]))
+    for i in range(m):
+        for s in range(distinct.shape[0]):
+            c = distinct[s]
+            dot = 0.0
+            for k in range(4):
+                dot += positions[c, k] * positions[i, k]
+            theta[i, s] = 0.0 if i == c else math.acos(min(1.0, max(-1.0, dot)))
+    return theta
+
+
+@nb.njit(cache=True)
+def _slot_patterns(pattern_slot: np.ndarray, u: int) -> tuple[np.ndarray, np.ndarray]:
+    """Patterns grouped by their winner's slot, in order: (start (U + 1,), patterns (N,))."""
+    start = np.zeros(u + 1, dtype=np.int64)
+    for j in range(pattern_slot.shape[0]):
+        start[pattern_slot[j] + 1] += 1
+    for s in range(u):
+        start[s + 1] += start[s]
+    fill = start[:-1].copy()
+    out = np.empty(pattern_slot.shape[0], dtype=np.int64)
+    for j in range(pattern_slot.shape[0]):
+        out[fill[pattern_slot[j]]] = j
+        fill[pattern_slot[j]] += 1
+    return start, out
+
+
+@nb.njit(cache=True)
+def _patterns_near(
+    h: np.ndarray, slot_start: np.ndarray, slot_patterns: np.ndarray, buffer: np.ndarray
+) -> int:
+    """The patterns whose winner has ``h > 0``, in order, into ``buffer``: their count.
+
+    -1 when they are more than a quarter of all patterns: scanning all of them in order is then
+    cheaper than gathering and sorting.
+    """
+    total = 0
+    for s in range(h.shape[0]):
+        if h[s] > 0.0:
+            total += slot_start[s + 1] - slot_start[s]
+    if 4 * total > slot_patterns.shape[0]:
+        return -1
+    count = 0
+    for s in range(h.shape[0]):
+        if h[s] > 0.0:
+            for k in range(slot_start[s], slot_start[s + 1]):
+                buffer[count] = slot_patterns[k]
+                count += 1
+    buffer[:count].sort()
+    return count
+
+
+@nb.njit(cache=True)
 def train_rigid_map(
     positions: np.ndarray,
     weights: np.ndarray,
@@ -101,7 +177,12 @@ def train_rigid_map(
 ) -> int:
     """Train ``weights`` (M, 4) in place by the Rigid Map rule (module docstring).
 
-    Winners by position never change between epochs, so they are found once. An epoch whose
+    Winners by position never change between epochs, so they are found once, and so are the
+    angles between every node and the distinct winners. A node's weight depends only on the
+    patterns whose winner is near it, in their order, never on another node's weight: an epoch
+    runs node by node, each through all patterns in order, the same arithmetic in the same
+    order as pattern by pattern (the same weights to the last bit), with its neighbourhood
+    values computed once per distinct winner instead of once per pattern. An epoch whose
     neighbourhood radius ``sigma sqrt(2 ln(1/phi))`` is below the closest node spacing updates
     the winner only. Returns the number of epochs run.
     """
@@ -109,6 +190,11 @@ def train_rigid_map(
     m = positions.shape[0]
     winners = position_winners(positions, patterns)
     min_angle = _min_neighbour_angle(positions) if m > 1 else np.pi
+    distinct, pattern_slot = _winner_slots(winners, m)
+    theta = _winner_angles(positions, distinct)
+    slot_start, slot_patterns = _slot_patterns(pattern_slot, distinct.shape[0])
+    h = np.empty(distinct.shape[0])
+    buffer = np.empty(n, dtype=np.int64)
     epochs = 0
     for t in range(max_epochs):
         epochs = t + 1
@@ -117,34 +203,52 @@ def train_rigid_map(
         sigma = sigma0 * math.exp(-sigma_decay * t)
         # h >= phi  <=>  theta <= sigma sqrt(2 ln(1/phi))
         reach = sigma * math.sqrt(2.0 * math.log(1.0 / phi)) if phi < 1.0 else 0.0
-        winner_only = reach < min_angle
-        cos_reach = math.cos(reach) - 1e-12 if reach < np.pi else -2.0
+        # beyond reach + 1e-9 rad, h falls below phi < 1 by far more than exp's rounding
+        far = reach + 1e-9 if phi < 1.0 else np.inf
         moved = 0.0
-        for j in range(n):
-            c = winners[j]
-            if winner_only:
+        if reach < min_angle:
+            for j in range(n):
+                c = winners[j]
                 for k in range(4):
                     step = lr * (patterns[j, k] - weights[c, k])
                     weights[c, k] += step
                     moved = max(moved, abs(step))
-                continue
+        else:
             for i in range(m):
-                dot = 0.0
-                for k in range(4):
-                    dot += positions[c, k] * positions[i, k]
-                if dot < cos_reach:
+                near = False
+                for s in range(distinct.shape[0]):
+                    th = theta[i, s]
+                    h[s] = 0.0
+                    if th > far:
+                        continue
+                    # h = exp(-theta^2 / (2 sigma^2)); h >= phi > 0 marks a neighbour
+                    value = math.exp(-(th * th) / (2.0 * sigma * sigma))
+                    if value >= phi:
+                        h[s] = value
+                        near = True
+                if not near:
                     continue
-                # theta_cc = 0 exactly (acos of a rounded self-dot is not)
-                theta = 0.0 if i == c else math.acos(min(1.0, max(-1.0, dot)))
-                # h = exp(-theta^2 / (2 sigma^2))
-                h = math.exp(-(theta * theta) / (2.0 * sigma * sigma))
-                if not h >= phi:
-                    continue
-                a = lr * h
-                for k in range(4):
-                    step = a * (patterns[j, k] - weights[i, k])
-                    weights[i, k] += step
+                order = _patterns_near(h, slot_start, slot_patterns, buffer)
+                w0, w1, w2, w3 = weights[i, 0], weights[i, 1], weights[i, 2], weights[i, 3]
+                for jj in range(n if order < 0 else order):
+                    j = jj if order < 0 else buffer[jj]
+                    value = h[pattern_slot[j]]
+                    if value == 0.0:
+                        continue
+                    a = lr * value
+                    step = a * (patterns[j, 0] - w0)
+                    w0 += step
                     moved = max(moved, abs(step))
+                    step = a * (patterns[j, 1] - w1)
+                    w1 += step
+                    moved = max(moved, abs(step))
+                    step = a * (patterns[j, 2] - w2)
+                    w2 += step
+                    moved = max(moved, abs(step))
+                    step = a * (patterns[j, 3] - w3)
+                    w3 += step
+                    moved = max(moved, abs(step))
+                weights[i, 0], weights[i, 1], weights[i, 2], weights[i, 3] = w0, w1, w2, w3
         if moved < tol:
             break
     return epochs

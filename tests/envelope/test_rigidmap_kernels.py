@@ -33,6 +33,36 @@ def test_training_kernel_matches_numpy_reference(metric):
     assert not np.allclose(w_kernel, positions)
 
 
+def test_training_kernel_matches_reference_on_nodes_at_the_data():
+    # the support refinement's case: every node a winner, two clusters far apart, so that in
+    # the middle epochs a node sees only a few patterns (gathered) and early on all (scanned)
+    rng = np.random.default_rng(7)
+    near = _patterns(70, 8, half_angle_deg=10.0)
+    far = to_quaternions(-ConeRegion(np.radians(10.0)).sample(12, rng))
+    patterns = np.ascontiguousarray(np.vstack([near, far])[rng.permutation(82)])
+    positions = np.ascontiguousarray(patterns[::2])
+    w_kernel = positions.copy()
+    w_ref = positions.copy()
+    args = (1.0, 0.15, 2 * np.pi, 1.0, 0.04, 1000, 1e-9)
+    e_kernel = rk.train_rigid_map(positions, w_kernel, patterns, *args)
+    e_ref = rk.train_rigid_map_reference(positions, w_ref, patterns, *args)
+    assert e_kernel == e_ref < 1000
+    np.testing.assert_allclose(w_kernel, w_ref, atol=1e-12)
+
+
+def test_patterns_near_gathers_few_in_order_and_scans_many():
+    pattern_slot = np.array([2, 0, 1, 2, 0, 0, 1, 2, 0, 0, 0, 0], dtype=np.int64)
+    start, grouped = rk._slot_patterns(pattern_slot, 3)
+    np.testing.assert_array_equal(start, [0, 7, 9, 12])
+    np.testing.assert_array_equal(grouped, [1, 4, 5, 8, 9, 10, 11, 2, 6, 0, 3, 7])
+    buffer = np.empty(12, dtype=np.int64)
+    # slots 1 and 2: 5 of 12 patterns, more than a quarter: scan them all
+    assert rk._patterns_near(np.array([0.0, 0.5, 0.2]), start, grouped, buffer) == -1
+    # slot 1 alone: 2 patterns, gathered in order
+    count = rk._patterns_near(np.array([0.0, 0.5, 0.0]), start, grouped, buffer)
+    np.testing.assert_array_equal(buffer[:count], [2, 6])
+
+
 def test_position_winners_is_nearest_position():
     positions = _gaussian_layout(200, 3)
     patterns = _patterns(50, 4)
