@@ -5,22 +5,35 @@ Run: ``.venv/bin/python benchmarks/view_figures.py`` (about a minute on the simu
 ``record``: the embedded simulator's scripted hand teaches for ``--seconds`` while the view's
 pose tap and scene feeder publish; the page is captured once the region fitted so far has been
 drawn at least twice.
+
+``teleop``: a Rigid Map trained on that recording gates a sweep sent over UDP that leaves the
+region; the page is captured while the gate corrects the command onto the region's edge, then
+the job is ended as Ctrl-C would.
 """
 
 from __future__ import annotations
 
 import argparse
 import contextlib
+import json
+import math
+import os
+import signal
+import socket
 import sys
 import tempfile
 import threading
+import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))  # for tests.view.browser (headless Chromium, test helper)
 
+from limbctl.envelope import RigidMap  # noqa: E402
+from limbctl.jobs import TeleopOptions, run_teleop  # noqa: E402
+from limbctl.live import ViewOptions, open_view  # noqa: E402
 from limbctl.session import demo_region_path, open_rig  # noqa: E402
-from limbctl.teach.dataset import DatasetWriter  # noqa: E402
+from limbctl.teach.dataset import DatasetWriter, load_dataset  # noqa: E402
 from limbctl.teach.record import record  # noqa: E402
 from limbctl.view import Board, HardLimits, ViewServer  # noqa: E402
 from limbctl.view.feed import PoseTap, SceneFeeder  # noqa: E402
@@ -35,15 +48,14 @@ def limits_of(profile) -> HardLimits:
     )
 
 
-def record_figure(out: Path, seconds: float, seed: int) -> None:
-    """Screenshot of the page during a record on the simulator."""
+def record_figure(out: Path, data: Path, seconds: float, seed: int) -> None:
+    """Screenshot of the page during a record on the simulator (the samples go to ``data``)."""
     board = Board()
     with (
-        tempfile.TemporaryDirectory() as folder,
         ViewServer(board, port=0) as server,
         chromium() as browser,
         open_rig(hand=demo_region_path(), seed=seed) as session,
-        DatasetWriter(Path(folder) / "teach.limb", rig=session.profile.name) as writer,
+        DatasetWriter(data, rig=session.profile.name) as writer,
     ):
         tap = PoseTap(session.rig, board, "record", note="torque off: move the limb by hand")
         browser.get(server.url)
@@ -70,6 +82,48 @@ def record_figure(out: Path, seconds: float, seed: int) -> None:
     print(f"wrote {out}")
 
 
+def teleop_figure(out: Path, model: Path) -> None:
+    """Screenshot of the page while ``limbctl teleop`` gates a sweep that leaves the region."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    options = TeleopOptions(
+        model=model, source=f"udp://127.0.0.1:{port}", quiet=True, duration=300.0
+    )
+    with (
+        open_view(ViewOptions(enabled=True, port=0), print) as live,
+        chromium() as browser,
+        socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sender,
+    ):
+        browser.get(live.url)
+        started = time.monotonic()
+
+        def sweep(driver) -> bool:
+            # a circle of 45 deg around (20, 20) deg, once every 8 s: it leaves the region
+            phase = 2.0 * math.pi * (time.monotonic() - started) / 8.0
+            command = {"pan": 20.0 + 45.0 * math.cos(phase), "tilt": 20.0 + 45.0 * math.sin(phase)}
+            sender.sendto(json.dumps(command).encode(), ("127.0.0.1", port))
+            return (
+                time.monotonic() - started > 5.0
+                and text_of(driver, "outcome").startswith("corrected")
+                and float(text_of(driver, "rate").split()[0]) > 0.0
+            )
+
+        def capture() -> None:
+            try:
+                wait_for(browser, sweep, "the gate never corrected the sweep", timeout=120)
+                browser.save_screenshot(str(out))
+            finally:
+                if text_of(browser, "cycles") not in ("", "-"):
+                    os.kill(os.getpid(), signal.SIGINT)  # Ctrl-C ends the job
+
+        watcher = threading.Thread(target=capture)
+        watcher.start()
+        run_teleop(options, view=live)
+        watcher.join()
+    print(f"wrote {out}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=25.0, help="teaching time before capture")
@@ -77,7 +131,11 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=FIGURES)
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
-    record_figure(args.out / "view_record.png", args.seconds, args.seed)
+    with tempfile.TemporaryDirectory() as folder:
+        data, model = Path(folder) / "teach.limb", Path(folder) / "model.npz"
+        record_figure(args.out / "view_record.png", data, args.seconds, args.seed)
+        RigidMap().fit(load_dataset(data).quaternions).save(model, metadata={"rig": "sim"})
+        teleop_figure(args.out / "view_teleop.png", model)
 
 
 if __name__ == "__main__":

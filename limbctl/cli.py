@@ -18,6 +18,8 @@ from limbctl import jobs
 from limbctl.demo import DemoOptions, run_demo_job
 from limbctl.envelope import MODEL_KINDS
 from limbctl.errors import ConfigError, LimbctlError
+from limbctl.live import DEFAULT_PORT as DEFAULT_VIEW_PORT
+from limbctl.live import ViewOptions
 from limbctl.teleop.loop import SafeState
 
 EPILOG_HARDWARE = (
@@ -80,6 +82,30 @@ def _connection(args: argparse.Namespace) -> jobs.Connection:
     )
 
 
+def _add_view(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("live view")
+    g.add_argument(
+        "--view",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="serve a page that shows the limb, the samples and the region live (default: on "
+        "when this runs in a terminal)",
+    )
+    g.add_argument(
+        "--view-port",
+        type=int,
+        help=f"port of the live view (default: {DEFAULT_VIEW_PORT}, or any free port if taken; "
+        "0: any free port)",
+    )
+    g.add_argument(
+        "--view-host", default="127.0.0.1", help="address of the live view (default: 127.0.0.1)"
+    )
+
+
+def _view(args: argparse.Namespace) -> ViewOptions:
+    return ViewOptions(enabled=args.view, host=args.view_host, port=args.view_port)
+
+
 def _limits(text: str | None, option: str) -> tuple[float, float] | None:
     """``MIN,MAX`` in degrees, or None when the option was not given."""
     if text is None:
@@ -117,7 +143,9 @@ def _add_demo(sub: Subparsers) -> None:
     p = _command(
         sub,
         "demo",
-        lambda a: run_demo_job(DemoOptions(out=a.out, duration=a.duration, seed=a.seed)),
+        lambda a: run_demo_job(
+            DemoOptions(out=a.out, duration=a.duration, seed=a.seed, view=_view(a))
+        ),
         help="the whole flow on the simulator: teach, train, teleop, plot",
         description="Run teach-by-hand, training, a teleop session that tries to leave the "
         "region, and plots, all on the embedded simulator, writing everything to --out.",
@@ -127,6 +155,7 @@ def _add_demo(sub: Subparsers) -> None:
         "--duration", type=_positive, default=60.0, help="seconds of teaching (default: 60)"
     )
     p.add_argument("--seed", type=int, default=0, help="simulator and model seed")
+    _add_view(p)
 
 
 def _calibrate(a: argparse.Namespace) -> int:
@@ -187,7 +216,12 @@ def _add_calibrate(sub: Subparsers) -> None:
 def _record(a: argparse.Namespace) -> int:
     return jobs.run_record(
         jobs.RecordOptions(
-            out=a.out, duration=a.duration, rate=a.rate, hand=a.hand, connection=_connection(a)
+            out=a.out,
+            duration=a.duration,
+            rate=a.rate,
+            hand=a.hand,
+            connection=_connection(a),
+            view=_view(a),
         )
     )
 
@@ -209,6 +243,7 @@ def _add_record(sub: Subparsers) -> None:
     p.add_argument(
         "--rate", type=_positive, default=125.0, help="samples per second (>= 100; default 125)"
     )
+    _add_view(p)
 
 
 def _train(a: argparse.Namespace) -> int:
@@ -255,6 +290,7 @@ def _teleop(a: argparse.Namespace) -> int:
             goal_log=a.goal_log,
             quiet=a.quiet,
             connection=_connection(a),
+            view=_view(a),
         )
     )
 
@@ -290,6 +326,7 @@ def _add_teleop(sub: Subparsers) -> None:
     p.add_argument("--telemetry", type=Path, help="JSON-lines log of every cycle")
     p.add_argument("--goal-log", type=Path, help="simulator only: the simulator's goal log")
     p.add_argument("--quiet", action="store_true", help="no status line")
+    _add_view(p)
 
 
 def _add_plot(sub: Subparsers) -> None:

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -29,6 +29,7 @@ from limbctl.jobs import (
     run_train,
     say,
 )
+from limbctl.live import LiveView, ViewOptions, open_view
 from limbctl.teleop.gate import REGION_TOLERANCE_DEG, written_tolerance_deg
 
 #: Loop rate of the demo's teleop (Hz): the controller's default rate.
@@ -48,11 +49,12 @@ class DemoOptions:
     out: Path = Path("limbctl-demo")
     duration: float = 60.0  # ample: tests/test_demo.py keeps every goal inside after 20 s
     seed: int = 0
+    view: ViewOptions = field(default_factory=ViewOptions)
 
 
 def run_demo_job(options: DemoOptions) -> int:
     """The ``demo`` job: :func:`run_demo` with the command line's options."""
-    return run_demo(options.out, options.duration, options.seed)
+    return run_demo(options.out, options.duration, options.seed, options.view)
 
 
 def write_command_stream(path: Path, seconds: float = 12.0, rate_hz: float = 50.0) -> int:
@@ -104,12 +106,19 @@ def goal_log_excursions(goal_log: Path, model: object) -> np.ndarray:
     return np.where(outside, np.degrees(direction_angle(d, nearest)), 0.0)
 
 
-def run_demo(out: Path, teach_seconds: float = 45.0, seed: int = 0) -> int:
-    """Run the whole flow into folder ``out``; returns the exit status."""
+def run_demo(
+    out: Path, teach_seconds: float = 45.0, seed: int = 0, view: ViewOptions | None = None
+) -> int:
+    """Run the whole flow into folder ``out``; returns the exit status. ``view``: whether and
+    where to serve the live view (one page for the teaching and the teleop)."""
+    with open_view(view or ViewOptions(), say) as live:
+        return _run_demo(Path(out), teach_seconds, seed, live)
+
+
+def _run_demo(out: Path, teach_seconds: float, seed: int, live: LiveView) -> int:
     from limbctl.envelope import load_model
     from limbctl.session import demo_region_path
 
-    out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     data, model_path = out / "teach.limb", out / "model.npz"
     commands, goals, telemetry = (
@@ -130,7 +139,8 @@ def run_demo(out: Path, teach_seconds: float = 45.0, seed: int = 0) -> int:
             rate=DEMO_RECORD_HZ,
             hand=demo_region_path(),
             connection=simulator,
-        )
+        ),
+        view=live,
     )
 
     say("== 2/4 train: an interpolated Rigid Map learns the region from the samples alone")
@@ -151,7 +161,8 @@ def run_demo(out: Path, teach_seconds: float = 45.0, seed: int = 0) -> int:
             goal_log=goals,
             quiet=True,
             connection=simulator,
-        )
+        ),
+        view=live,
     )
 
     say("== 4/4 check: every goal the simulator received, against the model's region")

@@ -7,12 +7,14 @@ are :class:`~limbctl.errors.LimbctlError` raised to the caller.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import sys
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from limbctl.errors import ConfigError, FileFormatError
+from limbctl.live import LiveView, ViewOptions, open_view
 from limbctl.servo.profiles import load_rig_profile
 from limbctl.session import open_rig, stop_on_signals
 from limbctl.teleop.loop import SafeState
@@ -59,10 +61,17 @@ class RecordOptions:
     rate: float = 125.0  # above the recorder's 100 Hz minimum with room for a late sample
     hand: Path | None = None
     connection: Connection = field(default_factory=Connection)
+    view: ViewOptions = field(default_factory=ViewOptions)
 
 
-def run_record(options: RecordOptions) -> int:
-    """Torque off, sample the limb moved by hand, write the dataset as it goes."""
+def _viewing(options: ViewOptions, view: LiveView | None):
+    """The live view to publish on: ``view`` when the caller has one open, else as asked."""
+    return contextlib.nullcontext(view) if view is not None else open_view(options, say)
+
+
+def run_record(options: RecordOptions, view: LiveView | None = None) -> int:
+    """Torque off, sample the limb moved by hand, write the dataset as it goes (shown live on
+    ``view``, or on a view opened as ``options.view`` asks)."""
     from limbctl.session import demo_region_path
     from limbctl.teach.dataset import DatasetWriter
     from limbctl.teach.record import record, stop_on_enter
@@ -77,13 +86,13 @@ def run_record(options: RecordOptions) -> int:
     with DatasetWriter(
         options.out, rig=profile.name, meta=meta, calibration=profile.calibration
     ) as writer:
-        with _open(conn, hand=hand) as session:
-            with stop_on_signals() as stop:
+        with _viewing(options.view, view) as live, _open(conn, hand=hand) as session:
+            with stop_on_signals() as stop, live.teaching(session.rig, session.profile) as limb:
                 if session.simulated:
                     say(f"simulator: a scripted hand teaches the region in {hand}")
                 stop_on_enter(stop)
                 summary = record(
-                    session.rig, writer, options.rate, options.duration, stop, progress=sys.stderr
+                    limb, writer, options.rate, options.duration, stop, progress=sys.stderr
                 )
     for line in summary.lines():
         say(line)
@@ -313,10 +322,12 @@ class TeleopOptions:
     goal_log: Path | None = None
     quiet: bool = False
     connection: Connection = field(default_factory=Connection)
+    view: ViewOptions = field(default_factory=ViewOptions)
 
 
-def run_teleop(options: TeleopOptions) -> int:
-    """Run the control loop; 0 for a clean end, 3 after a fault."""
+def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
+    """Run the control loop; 0 for a clean end, 3 after a fault (shown live on ``view``, or on
+    a view opened as ``options.view`` asks)."""
     from limbctl.servo.control_table import MAX_TICK
     from limbctl.servo.setup import configure_servos
     from limbctl.teleop.loop import LoopConfig, Telemetry, open_telemetry, run
@@ -326,10 +337,16 @@ def run_teleop(options: TeleopOptions) -> int:
     conn = options.connection
     profile = load_rig_profile(conn.rig)
     gate = gate_for(options.model, profile, options.rate, options.max_speed)
-    config = LoopConfig(
-        rate_hz=options.rate, safe_state=options.on_fault, duration_s=options.duration
-    )
-    with _open(conn, goal_log=options.goal_log, extra_ids=spec.extra_ids) as session:
+    with (
+        _viewing(options.view, view) as live,
+        _open(conn, goal_log=options.goal_log, extra_ids=spec.extra_ids) as session,
+    ):
+        config = LoopConfig(
+            rate_hz=options.rate,
+            safe_state=options.on_fault,
+            duration_s=options.duration,
+            on_cycle=live.teleop_observer(gate.envelope, profile),
+        )
         # the rig's servos get its hard limits; servos of the source (a leader) their full range
         limits = session.rig.tick_limits()
         limits.update({servo_id: (0, MAX_TICK) for servo_id in spec.extra_ids})

@@ -41,7 +41,7 @@ RANK = {
 #: Layers of one rank that must not import each other.
 SIBLINGS_APART = {"teach", "teleop", "view"}
 #: Modules directly in limbctl/ that are the app.
-APP = {"cli", "jobs", "demo", "session", "plot", "__init__", "__main__"}
+APP = {"cli", "jobs", "demo", "live", "session", "plot", "__init__", "__main__"}
 
 
 def module_name(path: Path) -> str:

@@ -131,8 +131,6 @@ class SceneFeeder:
         self._thread: threading.Thread | None = None
 
     def __enter__(self) -> SceneFeeder:
-        if self._fit_wanted:
-            self._fits = FitProcess()
         self._thread = threading.Thread(target=self._run, name="limbctl-view-scene", daemon=True)
         self._thread.start()
         return self
@@ -141,6 +139,7 @@ class SceneFeeder:
         self._stop.set()
         if self._thread is not None:
             self._thread.join(JOIN_TIMEOUT_S)
+        self._fit_wanted = False
         if self._fits is not None:
             self._fits.close()
         self.publish_once()
@@ -152,6 +151,10 @@ class SceneFeeder:
     def publish_once(self) -> Scene:
         """Collect a finished fit, start the next if due, and publish the scene; returns it."""
         pan_tilt_rad = self._samples()
+        if self._fit_wanted and self._fits is None and len(pan_tilt_rad) >= MIN_FIT_SAMPLES:
+            # started once there is something to fit: by then the recorder has switched torque
+            # off and is sampling, and a process starting up cannot delay that first write
+            self._fits = FitProcess()
         fits = self._fits
         if fits is not None and fits.alive:
             done = fits.result()

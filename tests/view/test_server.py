@@ -152,7 +152,11 @@ def test_stop_closes_connected_browsers_and_frees_the_port():
     assert not server.running
     port = int(server.url.rstrip("/").rsplit(":", 1)[1])
     with socket.socket() as probe:
-        probe.bind(("127.0.0.1", port))  # free again
+        # free again: nobody listens (closed connections may linger in TIME_WAIT, as for any
+        # server, hence SO_REUSEADDR, which a listener still there would make bind refuse)
+        probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        probe.bind(("127.0.0.1", port))
+        probe.listen()
 
 
 def test_a_port_in_use_is_refused_with_what_to_do():

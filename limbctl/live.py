@@ -1,0 +1,177 @@
+"""The jobs' side of the live view: open it, feed it from a recording and from the teleop loop.
+
+The view layer (:mod:`limbctl.view`) knows nothing of teaching or teleop; this module, in the
+app, turns their values into the view's: the recorder reads the limb through a
+:class:`~limbctl.view.feed.PoseTap`, a :class:`~limbctl.view.feed.SceneFeeder` refits the region
+from the samples so far, and each teleop :class:`~limbctl.teleop.cycle.Cycle` is published by a
+:class:`TeleopFeed` (O(1), from the loop's own thread).
+
+The view is on by default when standard error is a terminal (a person is there to open the
+page); ``--view`` / ``--no-view`` decide otherwise.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import sys
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from typing import Any
+
+from limbctl.errors import ConfigError
+from limbctl.teleop.cycle import Cycle
+from limbctl.view import Board, HardLimits, Live, PanTilt, Scene, TeleopStatus, ViewServer
+from limbctl.view.feed import PoseTap, SceneFeeder
+from limbctl.view.region import model_loops
+
+#: The view's usual port; when it is taken and no port was asked for, any free port is used.
+DEFAULT_PORT = 8765
+#: How often the teleop loop's shown rate is recomputed (s): steady to read, recent enough.
+RATE_WINDOW_S = 1.0
+
+
+@dataclass(frozen=True)
+class ViewOptions:
+    """Whether and where to serve the live view.
+
+    Attributes
+    ----------
+    enabled : bool or None
+        True serves it, False not; None serves it when standard error is a terminal.
+    host : str
+        Address to serve on (127.0.0.1: this machine only).
+    port : int or None
+        Port; None is :data:`DEFAULT_PORT`, or any free port when that one is taken.
+    """
+
+    enabled: bool | None = None
+    host: str = "127.0.0.1"
+    port: int | None = None
+
+    def wanted(self) -> bool:
+        """Whether to serve the view."""
+        if self.enabled is not None:
+            return self.enabled
+        return bool(getattr(sys.stderr, "isatty", lambda: False)())
+
+
+def rig_limits(profile: Any) -> HardLimits:
+    """A rig profile's hard joint limits for the view."""
+    return HardLimits(
+        (profile.pan.min_deg, profile.pan.max_deg), (profile.tilt.min_deg, profile.tilt.max_deg)
+    )
+
+
+class LiveView:
+    """An open live view (or none: every method then does nothing and costs nothing).
+
+    Parameters
+    ----------
+    board : Board or None
+        Where to publish; None when the view is off.
+    url : str
+        The page's address ("" when off).
+    """
+
+    def __init__(self, board: Board | None = None, url: str = "") -> None:
+        self.board = board
+        self.url = url
+
+    @property
+    def active(self) -> bool:
+        return self.board is not None
+
+    @contextlib.contextmanager
+    def teaching(self, limb: Any, profile: Any, mode: str = "record") -> Iterator[Any]:
+        """The limb the recorder should read while the view shows the teaching.
+
+        Yields the limb itself when the view is off; otherwise a pose tap on it, while a scene
+        feeder refits the region from the samples so far (in its own process).
+        """
+        if self.board is None:
+            yield limb
+            return
+        tap = PoseTap(limb, self.board, mode, note="torque off: move the limb by hand")
+        with SceneFeeder(self.board, tap.samples, rig_limits(profile)):
+            yield tap
+
+    def teleop_observer(
+        self, envelope: Any, profile: Any, mode: str = "teleop"
+    ) -> Callable[[Cycle], None] | None:
+        """Show the model's region and the rig's limits; the loop's ``on_cycle`` (None if off)."""
+        if self.board is None:
+            return None
+        loops = model_loops(envelope) if getattr(envelope, "mesh", None) is not None else ()
+        kind = getattr(envelope, "kind", type(envelope).__name__)
+        note = f"the {kind} model's region" if loops else f"a {kind} model: region not drawn"
+        self.board.publish_scene(Scene(loops=loops, limits=rig_limits(profile), region_note=note))
+        return TeleopFeed(self.board, mode)
+
+
+class TeleopFeed:
+    """The teleop loop's ``on_cycle``: publishes each cycle's poses, outcome and rate.
+
+    The pose shown is the last one read and the written pose the last one written (a cycle
+    whose read failed, or that held, keeps them).
+
+    Called in the loop's thread; each call builds a few small values and swaps them onto the
+    board (a few microseconds), whatever the browsers do.
+    """
+
+    def __init__(self, board: Board, mode: str = "teleop") -> None:
+        self.board = board
+        self.mode = mode
+        self.written: PanTilt | None = None
+        self.present: PanTilt | None = None
+        self.rate_hz = 0.0
+        self._window_start: tuple[int, float] | None = None
+
+    def __call__(self, cycle: Cycle) -> None:
+        if cycle.written and cycle.result is not None:
+            self.written = PanTilt(math.degrees(cycle.result.pan), math.degrees(cycle.result.tilt))
+        self._update_rate(cycle)
+        if cycle.present is not None:
+            self.present = PanTilt(math.degrees(cycle.present[0]), math.degrees(cycle.present[1]))
+        commanded = PanTilt(*cycle.command_deg) if cycle.command_deg is not None else None
+        outcome = cycle.result.outcome.value if cycle.result is not None else cycle.state.value
+        if cycle.result is not None and cycle.result.reason:
+            outcome += f" ({cycle.result.reason})"
+        status = TeleopStatus(commanded, self.written, outcome, self.rate_hz, cycle.index)
+        note = f"ended by {cycle.ended_by}" if cycle.ended_by else "every command through the gate"
+        self.board.publish_live(
+            Live(self.mode, self.present, teleop=status, fault=cycle.fault, note=note)
+        )
+
+    def _update_rate(self, cycle: Cycle) -> None:
+        # rate = cycles completed / time, over the last RATE_WINDOW_S
+        if self._window_start is None:
+            self._window_start = (cycle.index, cycle.t)
+            return
+        first_index, first_t = self._window_start
+        if cycle.t - first_t >= RATE_WINDOW_S:
+            self.rate_hz = (cycle.index - first_index) / (cycle.t - first_t)
+            self._window_start = (cycle.index, cycle.t)
+
+
+@contextlib.contextmanager
+def open_view(options: ViewOptions, say: Callable[[str], None]) -> Iterator[LiveView]:
+    """Serve the live view if wanted (printing its address) and stop it on exit."""
+    if not options.wanted():
+        yield LiveView()
+        return
+    board = Board()
+    try:
+        port = DEFAULT_PORT if options.port is None else options.port
+        server = ViewServer(board, options.host, port)
+        server.start()
+    except ConfigError:
+        if options.port is not None:
+            raise
+        server = ViewServer(board, options.host, 0)
+        server.start()
+    try:
+        say(f"live view: {server.url}")
+        yield LiveView(board, server.url)
+    finally:
+        server.stop()
