@@ -29,6 +29,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))  # for tests.view.browser (headless Chromium, test helper)
 
+from calib.profile import default_sim_profile  # noqa: E402
 from limbctl.envelope import RigidMap  # noqa: E402
 from limbctl.jobs import TeleopOptions, run_teleop  # noqa: E402
 from limbctl.live import ViewOptions, open_view  # noqa: E402
@@ -134,7 +135,9 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as folder:
         data, model = Path(folder) / "teach.limb", Path(folder) / "model.npz"
         record_figure(args.out / "view_record.png", data, args.seconds, args.seed)
-        RigidMap().fit(load_dataset(data).quaternions).save(model, metadata={"rig": "sim"})
+        sim = default_sim_profile()
+        metadata = {"rig": sim.name, "calibration": sim.calibration.to_dict()}
+        RigidMap().fit(load_dataset(data).quaternions).save(model, metadata=metadata)
         teleop_figure(args.out / "view_teleop.png", model)
 
 

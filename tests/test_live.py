@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from calib.profile import default_sim_profile
 from limbctl.envelope import RigidMap
 from limbctl.errors import ConfigError
 from limbctl.jobs import Connection, RecordOptions, TeleopOptions, run_record, run_teleop
@@ -54,7 +55,9 @@ class Watcher(threading.Thread):
 def model_path(tmp_path_factory):
     """A Rigid Map trained on a 20 s recording of the simulated rig."""
     path = tmp_path_factory.mktemp("model") / "model.npz"
-    RigidMap().fit(load_dataset(DATA).quaternions).save(path, metadata={"rig": "sim"})
+    sim = default_sim_profile()
+    metadata = {"rig": sim.name, "calibration": sim.calibration.to_dict()}
+    RigidMap().fit(load_dataset(DATA).quaternions).save(path, metadata=metadata)
     return path
 
 
