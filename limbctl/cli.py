@@ -14,7 +14,7 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
-from limbctl import jobs
+from limbctl import jobs, upkeep
 from limbctl.demo import DemoOptions, run_demo_job
 from limbctl.envelope import MODEL_KINDS
 from limbctl.errors import ConfigError, LimbctlError
@@ -329,6 +329,20 @@ def _add_teleop(sub: Subparsers) -> None:
     _add_view(p)
 
 
+def _add_reboot(sub: Subparsers) -> None:
+    p = _command(
+        sub,
+        "reboot",
+        lambda a: upkeep.run_reboot(upkeep.RebootOptions(connection=_connection(a))),
+        help="reboot the servos in alarm (a hardware error) and say what each alarm was",
+        description="Reads each servo's Hardware Error Status; reboots the ones that report an "
+        "error (overload, overheating, input voltage, ...), which clears it and leaves torque "
+        "off. Fix the cause first. Healthy servos are left alone.",
+        epilog=EPILOG_HARDWARE,
+    )
+    _add_connection(p)
+
+
 def _add_plot(sub: Subparsers) -> None:
     p = _command(
         sub,
@@ -370,6 +384,7 @@ SUBCOMMANDS = (
     _add_record,
     _add_train,
     _add_teleop,
+    _add_reboot,
     _add_plot,
     _add_eval,
     _add_info,

@@ -2,12 +2,13 @@
 
 import subprocess
 import sys
+import time
 
 import pytest
 
 from limbctl.cli import build_parser, main
 
-COMMANDS = ["demo", "calibrate", "record", "train", "teleop", "plot", "eval", "info"]
+COMMANDS = ["demo", "calibrate", "record", "train", "teleop", "reboot", "plot", "eval", "info"]
 
 
 def test_top_level_help_lists_every_command(capsys):
@@ -60,3 +61,18 @@ def test_bad_numbers_are_refused_by_the_parser(capsys):
         main(["record", "--out", "x.limb", "--rate", "nan"])
     assert exit_info.value.code == 2
     assert "positive number" in capsys.readouterr().err
+
+
+def test_reboot_reboots_the_servo_in_alarm_and_says_what_it_was(sim, capsys):
+    sim.set_temperature(2, 95.0)  # over the limit: overheating, torque off
+    deadline = time.monotonic() + 10.0
+    while not sim.truth()["servos"][2]["hardware_error_status"]:
+        assert time.monotonic() < deadline, "the simulated servo never raised its alarm"
+    sim.set_temperature(2, 30.0)  # the cause is fixed
+    assert main(["reboot", "--port", sim.port]) == 0
+    err = capsys.readouterr().err
+    assert "servo 2 was in alarm (overheating): rebooted, torque off" in err
+    assert "servo 1" not in err
+    assert sim.truth()["servos"][2]["hardware_error_status"] == 0
+    assert main(["reboot", "--port", sim.port]) == 0
+    assert "no servo is in alarm" in capsys.readouterr().err

@@ -247,18 +247,18 @@ class ServoBus(CycleReads):
         what: str,
         attempt: Callable[[], Attempt],
         check_alert: bool = True,
-        once: bool = False,
+        attempts: int | None = None,
     ) -> Any:
         """Run ``attempt`` until it succeeds, the attempts or the time budget run out.
 
-        ``once``: a single try (the control cycle's read, which must keep its time budget).
+        ``attempts`` overrides ``max_attempts`` (the control cycle's read keeps its budget).
         """
         with self._lock:
             port = self._require_port()
             self.stats.transactions += 1
             deadline = time.monotonic() + self.retry_budget_s
             outcome: Attempt | None = None
-            for number in range(1 if once else self.max_attempts):
+            for number in range(attempts or self.max_attempts):
                 try:
                     if number:
                         self.stats.retries += 1

@@ -12,6 +12,7 @@ reboot) loses it with the rest of its RAM: its Indirect Data then read 0, so Tor
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 from limbctl.errors import BusTimeout, ConfigError, CorruptReply
@@ -129,14 +130,16 @@ class CycleReads:
             lambda: transfers.write(self._packets, self._port, block, servo_id, list(data)),
         )
 
-    def read_cycle(self) -> CycleRead:
-        """Every servo's :class:`ServoReport` in ONE (fast) sync read, tried ONCE.
+    def read_cycle(self, ids: Sequence[int] | None = None, attempts: int = 1) -> CycleRead:
+        """Each servo's (``ids``, default all) :class:`ServoReport` in ONE (fast) sync read,
+        tried at most ``attempts`` times.
 
-        For the control loop: no retry and no diagnostic ping, so a silent servo costs one
-        reply timeout, not seconds. A failed read is a value (``silent`` names the servo the
+        For the control loop: no diagnostic ping, and a silent servo costs ``attempts`` reply
+        timeouts, not seconds. A failed read is a value (``silent`` names the servo the
         reply stopped at); only a failing port raises (:class:`PortError`). The indirect map
         must have been written (:func:`limbctl.servo.setup.configure_servos`).
         """
+        ids = self._known(ids)
         fast = bool(self.fast_sync_read)
         read = transfers.fast_sync_read if fast else transfers.sync_read
         start = time.monotonic()
@@ -144,9 +147,9 @@ class CycleReads:
             try:
                 raw = self._transact(
                     f"{'fast ' if fast else ''}sync read of the cycle's registers",
-                    lambda: read(self._packets, self._port, CYCLE_BLOCK, self.ids),
+                    lambda: read(self._packets, self._port, CYCLE_BLOCK, ids),
                     check_alert=False,
-                    once=True,
+                    attempts=max(1, int(attempts)),
                 )
             except (BusTimeout, CorruptReply) as exc:
                 self._require_port().clearPort()  # a late or partial reply must not linger

@@ -140,9 +140,9 @@ class Rig:
         positions = self._bus().read_positions()
         return positions[self.profile.pan.id], positions[self.profile.tilt.id]
 
-    def read_cycle(self) -> CycleRead:
-        """Both servos' position, goal, torque and alarm in ONE sync read, tried once."""
-        return self._bus().read_cycle()
+    def read_cycle(self, attempts: int = 1) -> CycleRead:
+        """Both servos' position, goal, torque and alarm in ONE sync read (``attempts`` tries)."""
+        return self._bus().read_cycle(self.profile.ids, attempts)
 
     def pose_of(self, read: CycleRead) -> tuple[float, float]:
         """Present joint angles ``(pan, tilt)`` in rad from a successful cycle read."""

@@ -14,11 +14,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from limbctl.servo.health import Dropout
 from limbctl.teleop.gate import GateResult
 
 #: Cycle and gate times kept for the summary's percentiles (the most recent ones): a session of
 #: hours must not grow without bound, and 100,000 cycles are over 8 minutes at 200 Hz.
 TIMING_WINDOW = 100_000
+#: Health notices kept for the summary: the latest ones; a flapping cable must not grow memory.
+NOTICE_WINDOW = 1000
 
 
 class CycleState(enum.Enum):
@@ -77,6 +80,9 @@ class Cycle:
         The fault and the safe state it left, for a ``FAULT`` cycle.
     refused : int
         Input lines the source refused so far.
+    notices : tuple of str
+        What the servos' health monitor said this cycle (a servo stopped answering, answered
+        again after a dropout of so long).
     """
 
     index: int
@@ -91,6 +97,7 @@ class Cycle:
     ended_by: str = ""
     fault: str = ""
     refused: int = 0
+    notices: tuple[str, ...] = ()
 
 
 @dataclass
@@ -113,6 +120,9 @@ class TeleopSummary:
     fault: str = ""
     exit_code: int = 0
     elapsed_s: float = 0.0
+    # what the health monitor said, with the time (a servo stopped answering, came back)
+    notices: deque = field(default_factory=lambda: deque(maxlen=NOTICE_WINDOW))
+    dropouts: list[Dropout] = field(default_factory=list)
 
     @property
     def rate_hz(self) -> float:
@@ -136,4 +146,10 @@ class TeleopSummary:
             f"gate outcomes      {outcome or 'none'}",
             f"goals written      {self.goals_written}",
             f"bus errors         {self.bus_errors} ({self.failed_cycles} cycles lost)",
+            f"servo dropouts     {self._dropouts()}",
         ]
+
+    def _dropouts(self) -> str:
+        if not self.dropouts:
+            return "none"
+        return "; ".join(f"servo {d.servo_id} {d.duration_s:.3f} s" for d in self.dropouts)

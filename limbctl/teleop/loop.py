@@ -2,7 +2,9 @@
 
 Each cycle (default 200 Hz):
 
-1. read both present positions (one sync read; retried within the cycle budget);
+1. read both servos' position, goal, torque and alarm (ONE sync read, at most
+   ``read_attempts`` tries, no diagnostic pings) and judge
+   them (:class:`limbctl.servo.health.HealthMonitor`);
 2. take the newest valid command from the source (bad lines were already refused and counted);
 3. the gate turns it into a safe pose (correct, slew limit, IK, hard limits, final check);
 4. write both goals (one sync write) — only ever a pose the gate returned;
@@ -10,9 +12,12 @@ Each cycle (default 200 Hz):
 
 A silent source holds the last safe pose. A cycle whose read fails writes nothing (a servo
 that is not answering would miss the sync write and leave a pose the gate never produced).
-Bus failures are retried; after ``max_failed_cycles`` consecutive failed cycles, or on a servo
-alarm, the loop ends in the configured safe state (hold: torque stays on at the last goal;
-torque-off) with a message naming the servo and the cause.
+A servo that stops answering is named on the first cycle it misses and its dropout is reported
+with its length when it answers again; the loop ends in the configured safe state (hold: torque
+stays on at the last goal; torque-off) with a message naming the servo and the cause when a
+servo is silent for ``health.lost_after_s``, reports torque off or an alarm, or does not follow
+its goal, and after ``max_failed_cycles`` consecutive cycles whose read failed without naming a
+servo (corrupt or late replies).
 
 After ruckig, every cycle is a value: :meth:`ControlLoop.step` returns a
 :class:`~limbctl.teleop.cycle.Cycle` (running, finished or fault, with the gate's result, the
@@ -35,6 +40,8 @@ import numpy as np
 
 from limbctl.errors import BusError, ConfigError, ServoAlarm
 from limbctl.geometry.gimbal import quat_to_pan_tilt
+from limbctl.servo.cycle import CycleRead
+from limbctl.servo.health import HealthLimits, HealthMonitor, ServoFault
 from limbctl.teleop.cycle import Cycle, CycleState, CycleTimings, TeleopSummary
 from limbctl.teleop.gate import Gate, GateResult, Outcome
 from limbctl.teleop.report import StatusLine, Telemetry, open_telemetry
@@ -56,6 +63,10 @@ class Limb(Protocol):
 
     def read_pose(self) -> tuple[float, float]: ...
 
+    def read_cycle(self, attempts: int = 1) -> CycleRead: ...
+
+    def pose_of(self, read: CycleRead) -> tuple[float, float]: ...
+
     def write_pose(self, pan: float, tilt: float) -> object: ...
 
     def set_torque(self, enabled: bool) -> None: ...
@@ -75,7 +86,12 @@ class LoopConfig:
         After this long without a valid command the last one is dropped and the gate holds the
         pose it reached (until then it keeps moving toward the last command).
     max_failed_cycles : int
-        Consecutive cycles whose bus transfer failed before the safe state is entered.
+        Consecutive cycles whose read failed without naming a silent servo (corrupt or late
+        replies) before the safe state is entered.
+    read_attempts : int
+        Tries of the cycle's read before the cycle holds.
+    health : HealthLimits
+        When a silent servo is lost, and how far and how long a servo may lag its goal.
     safe_state : SafeState
         Where a fault leaves the rig.
     duration_s : float or None
@@ -96,6 +112,10 @@ class LoopConfig:
     silence_s: float = 0.5
     # 100 ms at 200 Hz: a dropped reply or two is normal, 20 in a row is a broken bus
     max_failed_cycles: int = 20
+    # a second try rides through one lost reply (one in five lost becomes one in 25) for one
+    # more reply timeout (~6 ms on the simulator's pty, ~4 ms on a U2D2 at a 1 ms latency timer)
+    read_attempts: int = 2
+    health: HealthLimits = HealthLimits()
     safe_state: SafeState = SafeState.HOLD
     duration_s: float | None = None
     # 100 ms of a scripted stream at 200 Hz: more waiting commands would only add latency
@@ -108,6 +128,8 @@ class LoopConfig:
             raise ConfigError(f"rate must be 1..2000 Hz, got {self.rate_hz}")
         if self.max_failed_cycles < 1:
             raise ConfigError("max_failed_cycles must be at least 1")
+        if self.read_attempts < 1:
+            raise ConfigError("read_attempts must be at least 1")
 
 
 def _command_deg(q: np.ndarray) -> tuple[float, float]:
@@ -144,6 +166,7 @@ class ControlLoop:
         self.summary = TeleopSummary()
         self.period = 1.0 / config.rate_hz
         self._last_error: BusError | None = None
+        self.health = HealthMonitor(config.health)
         self._failed_in_a_row = 0
         self._pending: deque = deque()
         self._target_q: np.ndarray | None = None
@@ -184,16 +207,27 @@ class ControlLoop:
         if config.duration_s is not None and t >= config.duration_s:
             return self._end("duration", t)
 
-        # 1. present pose; a failed read means a servo may not be listening: this cycle holds
-        # (a sync write that one servo misses would leave a pose the gate never produced)
+        # 1. present pose and the servos' health; a failed read means a servo may not be
+        # listening: this cycle holds (a sync write that one servo misses would leave a pose the
+        # gate never produced)
         present: tuple[float, float] | None = None
+        silent = False
         try:
-            present = self.limb.read_pose()
-        except ServoAlarm as exc:
-            return self._fault(exc, t)
-        except BusError as exc:
-            summary.bus_errors += 1
+            read = self.limb.read_cycle(self.config.read_attempts)
+        except BusError as exc:  # the port itself failed
+            read = CycleRead({}, (), str(exc))
             self._last_error = exc
+        verdict = self.health.observe(read, t)
+        summary.notices.extend(f"{t:.3f} s: {notice}" for notice in verdict.notices)
+        if verdict.fault is not None:
+            return self._fault(_servo_error(verdict.fault), t, notices=verdict.notices)
+        if read.ok:
+            present = self.limb.pose_of(read)
+        else:
+            summary.bus_errors += 1
+            silent = bool(read.silent)
+            if self._last_error is None or str(self._last_error) != read.problem:
+                self._last_error = BusError(read.problem, read.silent[0] if silent else None)
 
         # 2. next valid command
         self._take_command(cycle_start)
@@ -226,8 +260,9 @@ class ControlLoop:
                 self._last_error = exc
                 present = None
         if present is None:
-            self._failed_in_a_row += 1
             summary.failed_cycles += 1
+            # a named silent servo is judged by the health monitor (lost_after_s)
+            self._failed_in_a_row = 0 if silent else self._failed_in_a_row + 1
             if self._failed_in_a_row >= config.max_failed_cycles:
                 cause = BusError(
                     f"the bus failed {self._failed_in_a_row} cycles in a row; last error: "
@@ -258,6 +293,7 @@ class ControlLoop:
             timings=CycleTimings(cycle_s=cycle_s, gate_s=gate_s),
             ended_by=ended_by,
             refused=summary.rejected,
+            notices=verdict.notices,
         )
 
     def pace(self) -> None:
@@ -271,7 +307,8 @@ class ControlLoop:
             self._next_tick = time.perf_counter()
 
     def finish(self) -> TeleopSummary:
-        """The session's summary, its elapsed time set."""
+        """The session's summary, its elapsed time and dropouts set."""
+        self.summary.dropouts = list(self.health.dropouts)
         if self._started_at:
             self.summary.elapsed_s = time.perf_counter() - self._started_at
         return self.summary
@@ -305,8 +342,15 @@ class ControlLoop:
             refused=self.summary.rejected,
         )
 
-    def _fault(self, cause: BusError, t: float, result: GateResult | None = None) -> Cycle:
+    def _fault(
+        self,
+        cause: BusError,
+        t: float,
+        result: GateResult | None = None,
+        notices: tuple[str, ...] = (),
+    ) -> Cycle:
         _enter_safe_state(self.limb, self.config, self.summary, cause)
+        self.summary.dropouts = list(self.health.dropouts)
         return Cycle(
             index=self.summary.cycles,
             t=t,
@@ -316,6 +360,7 @@ class ControlLoop:
             ended_by="fault",
             fault=self.summary.fault,
             refused=self.summary.rejected,
+            notices=notices,
         )
 
 
@@ -353,6 +398,10 @@ def run(
     status_line = StatusLine(status) if status is not None else None
     while True:
         cycle = loop.step()
+        if status is not None:
+            lead = "\n" if status.isatty() else ""  # below the line refreshed in place
+            for notice in cycle.notices:
+                status.write(f"{lead}{cycle.t:.3f} s: {notice}\n")
         if cycle.complete:
             if telemetry is not None:
                 telemetry.write(cycle)
@@ -369,10 +418,18 @@ def run(
     return summary
 
 
+def _servo_error(fault: ServoFault) -> BusError:
+    """The typed error for a fault the health monitor found."""
+    if fault.kind == "alarm":
+        return ServoAlarm(fault.message, fault.servo_id, fault.bits)
+    return BusError(fault.message, fault.servo_id)
+
+
 def _enter_safe_state(
     limb: Limb, config: LoopConfig, summary: TeleopSummary, cause: BusError
 ) -> None:
-    where = f"servo {cause.servo_id}: " if cause.servo_id is not None else ""
+    named = cause.servo_id is not None and not str(cause).startswith(f"servo {cause.servo_id}")
+    where = f"servo {cause.servo_id}: " if named else ""
     summary.fault = f"{where}{cause}"
     summary.ended_by = "fault"
     summary.exit_code = 3
@@ -402,6 +459,6 @@ def _hold_state(limb: Limb) -> str:
     on = [name for name, on in zip(("pan", "tilt"), torque, strict=True) if on]
     held = f"; {' and '.join(on)} holding the last safe pose (torque on)" if on else ""
     return (
-        f"{' and '.join(off)} torque off (shut down by the servo's firmware: reboot it once the "
-        f"cause is fixed){held}"
+        f"{' and '.join(off)} torque off as the servo reports it (after an alarm: fix the "
+        f"cause, then `limbctl reboot`){held}"
     )

@@ -24,14 +24,23 @@ def silent(servo_id: int) -> CycleRead:
 def test_a_dropout_is_named_at_once_and_reported_with_its_duration():
     monitor = HealthMonitor()
     assert monitor.observe(reads(), 0.0).notices == ()
-    first = monitor.observe(silent(2), 0.005)
-    assert first.notices == ("servo 2 stopped answering; holding its last goal",)
-    assert first.fault is None
+    assert monitor.observe(silent(2), 0.005).notices == ()
+    assert monitor.observe(silent(2), 0.010).notices == ()
+    third = monitor.observe(silent(2), 0.015)
+    assert third.notices == ("servo 2 stopped answering; holding its last goal",)
+    assert third.fault is None
     assert monitor.observe(silent(2), 0.2).notices == ()  # named once
     back = monitor.observe(reads(), 0.305)
     assert back.notices == ("servo 2 answered again after 0.300 s silent",)
     assert back.fault is None
     assert [(d.servo_id, d.duration_s) for d in monitor.dropouts] == [(2, pytest.approx(0.3))]
+
+
+def test_a_single_lost_reply_is_not_a_dropout():
+    monitor = HealthMonitor()
+    for k in range(10):  # every other reply lost: never three in a row
+        assert monitor.observe(silent(1) if k % 2 else reads(), k * 0.005).notices == ()
+    assert monitor.dropouts == []
 
 
 def test_a_servo_silent_for_lost_after_s_is_lost():

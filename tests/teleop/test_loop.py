@@ -205,6 +205,7 @@ def test_a_set_stop_ends_the_next_cycle_before_any_bus_transfer(cone_model):
         StreamSource(reader) as source,
     ):
         session.rig.configure()
+        session.rig.set_torque(True)  # the loop drives a held limb (torque off is a fault)
         loop = ControlLoop(session.rig, gate, source, LoopConfig(), stop=stop)
         assert loop.start().state is CycleState.RUNNING
         running = loop.step()
