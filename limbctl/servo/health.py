@@ -4,8 +4,8 @@
 say and whether to stop:
 
 - a servo that misses ``named_after_misses`` reads in a row is named (a notice), and again with
-  how long it was gone when it answers (a dropout, timed from its first miss); a single lost
-  reply is bus noise, counted by the loop as a lost cycle; silent for ``lost_after_s``: lost
+  how long it was gone when it answers (a dropout, timed from its first miss); misses below
+  that count are counted by the loop as lost cycles only; silent for ``lost_after_s``: lost
   (a fault);
 - Torque Enable reading 0 on a servo the loop drives (switched off, or the servo restarted after
   a brown-out, which also clears the indirect map so every mapped byte reads 0): a fault;
@@ -45,9 +45,9 @@ class HealthLimits:
 
     # the limb may be held blind this long: the time budget for noticing a fault (issue 13)
     lost_after_s: float = 0.5
-    # one reply lost in ten (a very noisy bus) makes three in a row one in a thousand; three
-    # failed reads cost ~20 ms on the simulator, well inside the 100 ms allowed for naming
-    named_after_misses: int = 3
+    # the loop's read already had two tries: naming at the first failed read keeps naming within
+    # 100 ms even at the FTDI default latency timer (2 tries x ~35 ms)
+    named_after_misses: int = 1
     # the gate's joint step plus the profile's lag at full slew stay under ~5 deg (measured,
     # docs/bench_faults.md); a torque-less limb sags tens of degrees
     max_tracking_error_deg: float = 15.0

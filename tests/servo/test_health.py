@@ -21,8 +21,15 @@ def silent(servo_id: int) -> CycleRead:
     return CycleRead({}, (servo_id,), f"servo {servo_id} did not answer the cycle's read")
 
 
-def test_a_dropout_is_named_at_once_and_reported_with_its_duration():
+def test_the_first_failed_read_names_the_servo_by_default():
     monitor = HealthMonitor()
+    assert monitor.observe(silent(1), 0.0).notices == (
+        "servo 1 stopped answering; holding its last goal",
+    )
+
+
+def test_a_dropout_is_named_after_the_misses_and_reported_with_its_duration():
+    monitor = HealthMonitor(HealthLimits(named_after_misses=3))
     assert monitor.observe(reads(), 0.0).notices == ()
     assert monitor.observe(silent(2), 0.005).notices == ()
     assert monitor.observe(silent(2), 0.010).notices == ()
@@ -36,8 +43,8 @@ def test_a_dropout_is_named_at_once_and_reported_with_its_duration():
     assert [(d.servo_id, d.duration_s) for d in monitor.dropouts] == [(2, pytest.approx(0.3))]
 
 
-def test_a_single_lost_reply_is_not_a_dropout():
-    monitor = HealthMonitor()
+def test_misses_below_the_count_are_not_a_dropout():
+    monitor = HealthMonitor(HealthLimits(named_after_misses=2))
     for k in range(10):  # every other reply lost: never three in a row
         assert monitor.observe(silent(1) if k % 2 else reads(), k * 0.005).notices == ()
     assert monitor.dropouts == []
