@@ -48,8 +48,8 @@ class HealthLimits:
     # the loop's read already had two tries: naming at the first failed read keeps naming within
     # 100 ms even at the FTDI default latency timer (2 tries x ~35 ms)
     named_after_misses: int = 1
-    # the gate's joint step plus the profile's lag at full slew stay under ~5 deg (measured,
-    # docs/bench_faults.md); a torque-less limb sags tens of degrees
+    # a healthy servo lags its goal by at most 3.6 deg at the 120 deg/s slew limit (measured,
+    # docs/bench_faults.md); a torque-less or blocked limb is off by tens of degrees
     max_tracking_error_deg: float = 15.0
     # a hard start or a bump may lag briefly; 0.25 s keeps detection under the 0.5 s budget
     tracking_grace_s: float = 0.25
