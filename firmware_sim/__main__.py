@@ -22,9 +22,13 @@ PATH."""
 EPILOG = """\
 REGION.yaml (--hand), degrees:
   region: {polygon: [[pan, tilt], ...]}     or   region: {cone: {half_angle_deg: A}}
+  style: trace                                   (optional: trace or wander, see below)
   speed_deg_s: 40                                (optional)
   script: [[t_s, pan, tilt], ...]                (instead of region: waypoints to follow)
-While a servo's torque is off, the hand moves the limb through the region.
+While a servo's torque is off, the hand moves the limb through the region. style: trace (the
+default) teaches as a person does: it traces the whole edge once, slowly (18 deg/s, about 1 deg
+inside), then wanders through the middle; style: wander only wanders, visiting the edge every
+other move (12 visits a lap round it).
 
 --goal-log FILE.jsonl gets one line per Goal Position write that reaches a servo:
   {"t": s, "id": n, "goal": ticks, "limb_dir": [x, y, z]}

@@ -4,18 +4,22 @@ A :class:`Hand` answers one question, ``pose_deg(t)``: the (pan_deg, tilt_deg) i
 at ``t`` seconds after it took hold. Two kinds, both read from a REGION.yaml::
 
     region: {polygon: [[pan_deg, tilt_deg], ...]}    # or {cone: {half_angle_deg: A}}
+    style: trace           # optional: trace (default) or wander, see below
     speed_deg_s: 40        # optional: mean speed of a move through the middle
     tremor_deg: 0.2        # optional: peak tremor amplitude, 0 switches it off
 
     script: [[t_s, pan_deg, tilt_deg], ...]          # instead of region: follow waypoints
 
-A *region* hand wanders the way a person teaching limits does: gently curved minimum-jerk moves
-between waypoints drawn with a density that falls toward the edge, easing in and out near the
-edge, short pauses, and, every other move, a visit to the edge that traces a few degrees of it
-just inside (the visits work round the perimeter in laps of EDGE_VISITS_PER_LAP, so a minute of
-wandering touches the whole edge). Every move is checked to stay MIN_PATH_DEPTH_DEG inside the
-region (the tremor alone may cross the edge by a fraction of a degree). A *script* hand moves
-linearly in time between the waypoints and holds the last.
+A *region* hand teaches the way range of motion is taught. With ``style: trace`` it first traces
+the whole edge once, slowly (TRACE_SPEED_DEG_S, a person's pace), about EDGE_INSET_DEG inside with
+a slight wobble, starting at the edge point nearest where it took hold, then wanders. With
+``style: wander`` it only wanders. Wandering is what a person does through the middle: gently
+curved minimum-jerk moves between waypoints drawn with a density that falls toward the edge,
+easing in and out near the edge, short pauses, and, every other move, a visit to the edge that
+traces a few degrees of it just inside (the visits work round the perimeter in laps of
+EDGE_VISITS_PER_LAP, so a minute of wandering touches the whole edge). Every move is checked to
+stay MIN_PATH_DEPTH_DEG inside the region (the tremor alone may cross the edge by a fraction of a
+degree). A *script* hand moves linearly in time between the waypoints and holds the last.
 The path is generated lazily, in a fixed order from ``seed``: the same seed gives the same path
 whatever times it is asked at.
 """
@@ -29,7 +33,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from firmware_sim.regions import Region, region_from_mapping
+from firmware_sim.regions import Region, deepen, region_from_mapping
 
 DEFAULT_SPEED_DEG_S = 40.0
 DEFAULT_TREMOR_DEG = 0.2
@@ -58,8 +62,11 @@ MIN_MOVE_S = 0.3
 #: Probability of a pause after a move, and its duration range (s).
 PAUSE_PROBABILITY = 0.1
 PAUSE_S = (0.2, 0.6)
-#: Waypoints drawn for each move through the middle; the nearest is taken.
+#: Waypoints drawn for each move through the middle; the nearest is taken. Once the edge has
+#: been traced the hand takes the first (long strokes across the middle: in the few seconds
+#: left of a half-minute teaching they close the middle fastest; edge visits are then dropped).
 WAYPOINT_CHOICES = 2
+WAYPOINT_CHOICES_AFTER_TRACE = 1
 #: Intermediate poses tried (after the centre) to get round a corner of the region.
 VIA_TRIES = 8
 #: Candidate waypoints tried before backing up along the path already walked.
@@ -69,8 +76,28 @@ ARC_BOW_FRACTION = 0.2
 #: Spacing (deg) of checks along a move and of points along a traced edge.
 PATH_CHECK_STEP_DEG = 0.5
 TRACE_STEP_DEG = 1.0
+#: Speed (deg/s) of the first full trace of the edge: a person's careful pace (10-20 deg/s),
+#: slow enough to feel the edge, fast enough that a ~400 deg perimeter takes under half a minute.
+TRACE_SPEED_DEG_S = 18.0
+#: The full trace's depth wobbles about EDGE_INSET_DEG by up to TRACE_WOBBLE_DEG (a hand does not
+#: keep an exact distance from the edge), and its speed by up to TRACE_SPEED_WOBBLE of itself.
+TRACE_WOBBLE_DEG = 0.3
+TRACE_SPEED_WOBBLE = 0.2
+#: Wavelengths (deg along the edge) of the two sines in each wobble: slow drifts, not jitter.
+TRACE_WOBBLE_WAVELENGTH_DEG = (23.0, 61.0)
+#: A trace step that would pass too close to a reflex corner is halved (midpoint deepened) up
+#: to TRACE_SPLITS times: a 1 deg step becomes 1/8 deg, finer than any corner arc needs.
+TRACE_SPLITS = 3
+#: The full trace runs this fraction of the perimeter past where it started, to close the loop.
+TRACE_OVERLAP = 0.03
+#: Teaching styles of a region hand: what a REGION.yaml's ``style:`` may name.
+STYLES = {
+    "trace": "trace the whole edge once, slowly, about a degree inside; then wander",
+    "wander": "wander through the middle from the start, visiting the edge every other move",
+}
+DEFAULT_STYLE = "trace"
 
-_TOP_LEVEL_KEYS = {"region", "script", "speed_deg_s", "tremor_deg"}
+_TOP_LEVEL_KEYS = {"region", "script", "speed_deg_s", "tremor_deg", "style"}
 
 
 def _positive(data: dict, key: str, default: float, source: str, allow_zero: bool) -> float:
@@ -112,6 +139,11 @@ class Hand:
         The region a wandering hand stays in (``contains(pan_deg, tilt_deg) -> bool``); ``None``
         for a script hand.
     script : list of (t_s, pan_deg, tilt_deg) or None
+    style : str
+        How a region hand teaches, one of :data:`STYLES` (ignored by a script hand).
+    trace_span_s : tuple of float or None
+        (start, end) in s of a ``trace`` hand's full trace of the edge, after it took hold;
+        ``None`` for other hands.
     """
 
     def __init__(
@@ -122,9 +154,15 @@ class Hand:
         tremor_deg: float = DEFAULT_TREMOR_DEG,
         seed: int = 0,
         source: str = "<hand>",
+        style: str = DEFAULT_STYLE,
     ) -> None:
         if (region is None) == (script is None):
             raise ValueError(f"{source}: a Hand needs exactly one of region or script")
+        if style not in STYLES:
+            choices = "; ".join(f"{name}: {meaning}" for name, meaning in STYLES.items())
+            raise ValueError(f"{source}: unknown style {style!r}; choose one of ({choices})")
+        self.style = style
+        self.trace_span_s: tuple[float, float] | None = None
         if region is not None and region.depth_max_deg < MIN_REGION_DEPTH_DEG:
             raise ValueError(
                 f"{source}: the region is too small for a hand to move in: its deepest point is "
@@ -177,8 +215,14 @@ class Hand:
         self._trail: list[tuple[float, float, tuple[float, float]]] = []
         pan, tilt = float(pan_deg), float(tilt_deg)
         self._add(0.0, PAUSE_S[0], pan, tilt, pan, tilt, False)
-        if (pan, tilt) != self.region.center_deg:
+        self.trace_span_s = None
+        inside = float(self.region.edge_distance_deg(pan, tilt)) >= MIN_PATH_DEPTH_DEG
+        if self.style == "trace" and inside:
+            self._trace_whole_edge()
+        elif (pan, tilt) != self.region.center_deg:
             self._move(self.region.center_deg)
+            if self.style == "trace":
+                self._trace_whole_edge()
 
     @classmethod
     def from_mapping(cls, data: object, seed: int = 0, source: str = "<mapping>") -> Hand:
@@ -194,6 +238,9 @@ class Hand:
             )
         if ("region" in data) == ("script" in data):
             raise ValueError(f"{source}: give exactly one of 'region' or 'script'")
+        style = data.get("style", DEFAULT_STYLE)
+        if "style" in data and "script" in data:
+            raise ValueError(f"{source}: 'style' applies to a region hand, not to a script")
         speed = _positive(data, "speed_deg_s", DEFAULT_SPEED_DEG_S, source, allow_zero=False)
         tremor = _positive(data, "tremor_deg", DEFAULT_TREMOR_DEG, source, allow_zero=True)
         if "script" in data:
@@ -202,7 +249,14 @@ class Hand:
                 script=script, speed_deg_s=speed, tremor_deg=tremor, seed=seed, source=source
             )
         region = region_from_mapping(data["region"], source)
-        return cls(region=region, speed_deg_s=speed, tremor_deg=tremor, seed=seed, source=source)
+        return cls(
+            region=region,
+            speed_deg_s=speed,
+            tremor_deg=tremor,
+            seed=seed,
+            source=source,
+            style=style,
+        )
 
     @classmethod
     def from_yaml(cls, path: str | Path, seed: int = 0) -> Hand:
@@ -317,8 +371,10 @@ class Hand:
         return False
 
     def _plan_next(self) -> None:
-        """Append the next stretch of wandering: a move through the middle or an edge visit."""
-        if self._edge_due:
+        """Append the next stretch of wandering: a move through the middle or, unless the whole
+        edge has been traced, an edge visit."""
+        traced = self.trace_span_s is not None
+        if self._edge_due and not traced:
             self._edge_due = False
             # next visit: one spacing further round, jittered by up to a sixth of a spacing
             self._edge_u = (self._edge_u + self._edge_step) % 1.0
@@ -328,8 +384,9 @@ class Hand:
         self._edge_due = True
         _, pan, tilt = self._end()
         for _ in range(WAYPOINT_TRIES):
-            # of WAYPOINT_CHOICES drawn waypoints a person picks the nearest: no pointless tours
-            options = [self._draw_waypoint() for _ in range(WAYPOINT_CHOICES)]
+            # of the drawn waypoints a person picks the nearest: no pointless tours
+            choices = WAYPOINT_CHOICES_AFTER_TRACE if traced else WAYPOINT_CHOICES
+            options = [self._draw_waypoint() for _ in range(choices)]
             nearest = min(options, key=lambda w: math.hypot(w[0] - pan, w[1] - tilt))
             if self._reach(nearest):
                 break
@@ -365,3 +422,62 @@ class Hand:
             self._add(t, t + duration, pan, tilt, b[0], b[1], False)
             self._trail.append((pan, tilt, (0.0, 0.0)))
         return True
+
+    def _trace_whole_edge(self) -> None:
+        """Trace the whole edge once from its point nearest the hand: at TRACE_SPEED_DEG_S,
+        EDGE_INSET_DEG inside, both wobbling slowly; sets :attr:`trace_span_s`."""
+        region = self.region
+        _, pan, tilt = self._end()
+        n = max(int(region.perimeter_deg / TRACE_STEP_DEG), 8)
+        u = np.arange(n) / n
+        starts = np.array([region.boundary_point(float(v), EDGE_INSET_DEG) for v in u])
+        order = np.argsort(np.hypot(starts[:, 0] - pan, starts[:, 1] - tilt))
+        for k in order[:WAYPOINT_TRIES]:
+            if self._reach((float(starts[k, 0]), float(starts[k, 1]))):
+                break
+        else:
+            return  # no edge point reachable inside the region: wander only
+        t_start = self._end()[0]
+        sense = 1.0 if self._rng.uniform() < 0.5 else -1.0
+        steps = int(n * (1.0 + TRACE_OVERLAP))
+        arc_deg = np.arange(steps + 1) * (region.perimeter_deg / n)
+        # wobble(s) = amplitude (0.6 sin(2 pi s / L1 + f1) + 0.4 sin(2 pi s / L2 + f2)), s in deg
+        phases = self._rng.uniform(0.0, 2.0 * math.pi, size=4)
+        shape = [
+            0.6 * np.sin(2.0 * math.pi * arc_deg / TRACE_WOBBLE_WAVELENGTH_DEG[0] + phases[a])
+            + 0.4 * np.sin(2.0 * math.pi * arc_deg / TRACE_WOBBLE_WAVELENGTH_DEG[1] + phases[b])
+            for a, b in ((0, 1), (2, 3))
+        ]
+        inset = EDGE_INSET_DEG + TRACE_WOBBLE_DEG * shape[0]
+        speed = TRACE_SPEED_DEG_S * (1.0 + TRACE_SPEED_WOBBLE * shape[1])
+        u_trace = u[int(k)] + sense * arc_deg / region.perimeter_deg
+        points = np.array(
+            [region.boundary_point(float(v), float(d)) for v, d in zip(u_trace, inset, strict=True)]
+        )
+        points = deepen(self.region, points, inset)
+        for b, d, v in zip(points[1:], inset[1:], speed[1:], strict=True):
+            self._trace_to((float(b[0]), float(b[1])), float(d), float(v), TRACE_SPLITS)
+        self.trace_span_s = (t_start, self._end()[0])
+
+    def _trace_to(
+        self, b: tuple[float, float], depth_deg: float, speed: float, splits: int
+    ) -> bool:
+        """Trace straight to ``b`` at ``speed`` deg/s if that keeps MIN_PATH_DEPTH_DEG inside,
+        else through the midpoint set ``depth_deg`` deep (rounding a reflex corner), at most
+        ``splits`` halvings deep; False (nothing added) when even that fails."""
+        t, pan, tilt = self._end()
+        duration = math.hypot(b[0] - pan, b[1] - tilt) / speed
+        if duration <= 0.0:
+            return True
+        if self._path_ok((pan, tilt), b):
+            self._add(t, t + duration, pan, tilt, b[0], b[1], False)
+            self._trail.append((pan, tilt, (0.0, 0.0)))
+            return True
+        if splits == 0:
+            return False
+        middle = deepen(
+            self.region, np.array([[(pan + b[0]) / 2, (tilt + b[1]) / 2]]), np.array([depth_deg])
+        )[0]
+        if not self._trace_to((float(middle[0]), float(middle[1])), depth_deg, speed, splits - 1):
+            return False
+        return self._trace_to(b, depth_deg, speed, splits - 1)

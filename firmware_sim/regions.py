@@ -19,6 +19,12 @@ import numpy as np
 
 #: Grid step (deg) of the search for a polygon's deepest point.
 CENTER_GRID_STEP_DEG = 1.0
+#: :func:`deepen` moves a point inward in up to DEEPEN_ROUNDS steps along the edge distance's
+#: gradient (central differences of DEEPEN_STEP_DEG) until within DEEPEN_TOLERANCE_DEG of its
+#: depth: the distance is piecewise linear or smooth, so a few rounds settle even a corner.
+DEEPEN_ROUNDS = 4
+DEEPEN_STEP_DEG = 0.05
+DEEPEN_TOLERANCE_DEG = 0.02
 
 
 def _number(value: object, source: str, what: str) -> float:
@@ -240,6 +246,78 @@ class ConeRegion:
 
 
 Region = PolygonRegion | ConeRegion
+
+
+def deepen(region: Region, points_deg: np.ndarray, depth_deg: np.ndarray) -> np.ndarray:
+    """Points moved inward until each is as deep as asked.
+
+    Each point shallower than its depth is moved along the gradient of
+    :meth:`edge_distance_deg` (the direction away from the nearest edge) by what it lacks, in up
+    to DEEPEN_ROUNDS rounds. Near a reflex corner a point set in from one side lies too close to
+    the other; deepened, the points round the corner on an arc.
+
+    Parameters
+    ----------
+    region : PolygonRegion | ConeRegion
+    points_deg : ndarray, shape (M, 2)
+        (pan_deg, tilt_deg) points.
+    depth_deg : ndarray, shape (M,)
+        The depth inside the region (deg) each point should reach.
+
+    Returns
+    -------
+    ndarray, shape (M, 2)
+        A new array; points already deep enough are unchanged.
+    """
+    points = np.array(points_deg, dtype=np.float64)
+    h = DEEPEN_STEP_DEG
+    for _ in range(DEEPEN_ROUNDS):
+        short = depth_deg - region.edge_distance_deg(points[:, 0], points[:, 1])
+        if np.all(short <= DEEPEN_TOLERANCE_DEG):
+            break
+        # inward = grad(edge distance) / |grad|, by central differences of step h
+        grad = np.stack(
+            [
+                region.edge_distance_deg(points[:, 0] + h, points[:, 1])
+                - region.edge_distance_deg(points[:, 0] - h, points[:, 1]),
+                region.edge_distance_deg(points[:, 0], points[:, 1] + h)
+                - region.edge_distance_deg(points[:, 0], points[:, 1] - h),
+            ],
+            axis=1,
+        )
+        norm = np.maximum(np.hypot(grad[:, 0], grad[:, 1]), 1e-12)
+        move = np.where(short > DEEPEN_TOLERANCE_DEG, short, 0.0)
+        points += grad / norm[:, None] * move[:, None]
+    return points
+
+
+def grid_inside(region: Region, step_deg: float, min_depth_deg: float) -> np.ndarray:
+    """Poses on a pan/tilt grid over the region's bounding box that lie at least
+    ``min_depth_deg`` inside it: what a taught model should hold.
+
+    Parameters
+    ----------
+    region : PolygonRegion | ConeRegion
+    step_deg : float
+        Grid spacing (deg) in pan and in tilt, from the box's low corner.
+    min_depth_deg : float
+        Least depth (deg) of a kept pose, :meth:`edge_distance_deg` >= it.
+
+    Returns
+    -------
+    ndarray, shape (M, 2)
+        (pan_deg, tilt_deg) of the kept grid poses.
+    """
+    pan_lo, pan_hi, tilt_lo, tilt_hi = region.bbox_deg
+    pan, tilt = (
+        a.ravel()
+        for a in np.meshgrid(
+            np.arange(pan_lo, pan_hi + step_deg, step_deg),
+            np.arange(tilt_lo, tilt_hi + step_deg, step_deg),
+        )
+    )
+    keep = region.edge_distance_deg(pan, tilt) >= min_depth_deg
+    return np.stack([pan[keep], tilt[keep]], axis=1)
 
 
 def region_from_mapping(spec: object, source: str = "<region>") -> Region:

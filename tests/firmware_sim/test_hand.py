@@ -6,8 +6,16 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 
-from firmware_sim.hand import DEFAULT_TREMOR_DEG, EDGE_INSET_DEG, MIN_PATH_DEPTH_DEG, Hand
+from firmware_sim.hand import (
+    DEFAULT_TREMOR_DEG,
+    EDGE_INSET_DEG,
+    MIN_PATH_DEPTH_DEG,
+    STYLES,
+    TRACE_SPEED_DEG_S,
+    Hand,
+)
 from firmware_sim.world import World
 
 REGIONS = Path(__file__).resolve().parents[2] / "examples" / "regions"
@@ -50,9 +58,20 @@ def density_by_depth(region, samples: np.ndarray, lo: float, hi: float) -> float
 
 @pytest.fixture(scope="module", params=["irregular.yaml", "cone30.yaml"])
 def minute(request):
-    """A 60 s, 100 Hz recording of the limb backdriven through an example region."""
-    hand = Hand.from_yaml(REGIONS / request.param, seed=11)
+    """A 60 s, 100 Hz recording of the limb backdriven through an example region by a hand that
+    only wanders (``style: wander``)."""
+    hand = Hand.from_mapping({**yaml.safe_load((REGIONS / request.param).read_text()),
+                              "style": "wander"}, seed=11)  # fmt: skip
     return hand, record(hand)
+
+
+@pytest.fixture(scope="module", params=["irregular.yaml", "cone30.yaml"])
+def taught(request):
+    """A 60 s, 100 Hz recording by the default hand (trace the edge, then wander), with the
+    samples' times (s)."""
+    hand = Hand.from_yaml(REGIONS / request.param, seed=11)
+    samples = record(hand)
+    return hand, samples, np.arange(1, len(samples) + 1) / 100.0
 
 
 def test_recording_stays_in_the_region_up_to_tremor(minute):
@@ -94,6 +113,78 @@ def test_dense_in_the_middle_sparse_and_slow_near_the_edge(minute):
     depth = region.edge_distance_deg(samples[1:, 0], samples[1:, 1])
     near_edge, middle_speed = speed[depth < 3.0], speed[depth > 0.5 * region.depth_max_deg]
     assert np.median(near_edge) < 0.75 * np.median(middle_speed)
+
+
+def test_the_default_hand_traces_the_whole_edge_first_then_wanders(taught):
+    hand, samples, t = taught
+    region = hand.region
+    start, end = hand.trace_span_s
+    assert hand.style == "trace"
+    # it reaches the edge within a couple of seconds of taking hold ...
+    assert start < 3.0
+    tracing = (t >= start) & (t < end)
+    depth = region.edge_distance_deg(samples[:, 0], samples[:, 1])
+    assert np.all(depth[tracing] < 2.5)
+    # ... goes all the way round (no stretch of more than 2 % of the perimeter left out) ...
+    u = np.sort(region.boundary_fraction(samples[tracing, 0], samples[tracing, 1]))
+    assert np.max(np.diff(np.concatenate([u, u[:1] + 1.0]))) < 0.02
+    # ... in one lap: its duration is the perimeter at a person's pace
+    assert region.perimeter_deg / 20.0 < end - start < region.perimeter_deg / 10.0
+    # then wanders through the middle: deep poses, none of them on the edge band any more
+    after = t >= end + 1.0
+    assert np.max(depth[after]) > 0.6 * region.depth_max_deg
+    assert np.mean(depth[after] > 5.0) > 0.8
+
+
+def test_the_trace_is_at_a_persons_pace(taught):
+    hand, samples, t = taught
+    start, end = hand.trace_span_s
+    tracing = samples[(t >= start) & (t < end)]
+    # speed over half-second windows (the tremor's 7-12 Hz averages out)
+    speed = np.hypot(*(tracing[50:] - tracing[:-50]).T) / 0.5
+    assert 10.0 < np.median(speed) < 20.0
+    assert np.median(speed) == pytest.approx(TRACE_SPEED_DEG_S, rel=0.1)
+    assert np.percentile(speed, 95) < 22.0 and np.percentile(speed, 5) > 8.0
+
+
+def test_the_trace_runs_about_a_degree_inside_with_a_wobble(taught):
+    hand, samples, t = taught
+    start, end = hand.trace_span_s
+    tracing = samples[(t >= start) & (t < end)]
+    depth = hand.region.edge_distance_deg(tracing[:, 0], tracing[:, 1])
+    assert np.median(depth) == pytest.approx(EDGE_INSET_DEG, abs=0.1)
+    assert depth.min() > MIN_PATH_DEPTH_DEG - DEFAULT_TREMOR_DEG
+    # a hand does not keep an exact distance: the depth wanders by a few tenths of a degree
+    assert 0.3 < np.percentile(depth, 95) - np.percentile(depth, 5) < 1.0
+
+
+def test_the_trace_rounds_a_reflex_corner_without_cutting_across():
+    # the U's inner corners are reflex: a trace set in from one side would cut the corner
+    hand = Hand.from_mapping({"region": {"polygon": U_SHAPE}, "tremor_deg": 0}, seed=20)
+    start, end = hand.trace_span_s
+    poses = np.array([hand.pose_deg(float(s)) for s in np.arange(start, end, 0.01)])
+    depth = hand.region.edge_distance_deg(poses[:, 0], poses[:, 1])
+    assert depth.min() >= MIN_PATH_DEPTH_DEG - 1e-9
+    assert np.median(depth) == pytest.approx(EDGE_INSET_DEG, abs=0.1)
+    # both arms' tips and the floor between them are traced, not skipped
+    for corner in ([-60, 40], [60, 40], [-40, 40], [40, 40], [0, -10]):
+        assert np.min(np.hypot(*(poses - corner).T)) < 2.0
+
+
+def test_style_wander_keeps_the_wandering_hand(minute):
+    hand, samples = minute
+    assert hand.style == "wander" and hand.trace_span_s is None
+    # it reaches the deep middle within seconds instead of tracing the edge first
+    depth = hand.region.edge_distance_deg(samples[:300, 0], samples[:300, 1])
+    assert depth.max() > 0.8 * hand.region.depth_max_deg
+
+
+def test_unknown_styles_are_refused_with_the_choices():
+    with pytest.raises(ValueError, match="unknown style 'spiral'") as caught:
+        Hand.from_mapping({"region": {"cone": {"half_angle_deg": 30}}, "style": "spiral"})
+    assert all(name in str(caught.value) for name in STYLES)
+    with pytest.raises(ValueError, match="not to a script"):
+        Hand.from_mapping({"script": [[0, 0, 0]], "style": "trace"})
 
 
 def test_hand_takes_hold_where_the_limb_is_without_a_yank():

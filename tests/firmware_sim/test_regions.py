@@ -7,7 +7,14 @@ import math
 import numpy as np
 import pytest
 
-from firmware_sim.regions import ConeRegion, PolygonRegion, region_from_mapping
+from firmware_sim.regions import (
+    DEEPEN_TOLERANCE_DEG,
+    ConeRegion,
+    PolygonRegion,
+    deepen,
+    grid_inside,
+    region_from_mapping,
+)
 
 SQUARE = [[-10.0, -10.0], [10.0, -10.0], [10.0, 10.0], [-10.0, 10.0]]
 
@@ -74,3 +81,27 @@ def test_region_from_mapping_picks_the_shape():
         region_from_mapping({"circle": 3}, "source.yaml")
     with pytest.raises(ValueError, match="repeats the next vertex"):
         PolygonRegion([[0, 0], [0, 0], [1, 0], [0, 1]])
+
+
+def test_deepen_moves_shallow_points_inward_and_rounds_a_reflex_corner():
+    ell = PolygonRegion([[0, 0], [20, 0], [20, 10], [10, 10], [10, 20], [0, 20]])
+    points = np.array([[5.0, 0.0], [15.0, 9.5], [5.0, 5.0], [9.6, 9.6]])
+    deep = deepen(ell, points, np.array([1.0, 1.0, 1.0, 1.0]))
+    depth = ell.edge_distance_deg(deep[:, 0], deep[:, 1])
+    assert depth == pytest.approx([1.0, 1.0, 5.0, 1.0], abs=DEEPEN_TOLERANCE_DEG)
+    assert deep[0] == pytest.approx([5.0, 1.0])  # straight in from a side
+    assert deep[2] == pytest.approx([5.0, 5.0])  # deep enough already: untouched
+    # by the reflex corner (10, 10): moved away from the corner itself, onto the 1 deg arc
+    assert np.hypot(*(deep[3] - [10.0, 10.0])) == pytest.approx(1.0, abs=DEEPEN_TOLERANCE_DEG)
+    assert np.all(points[1] == [15.0, 9.5])  # the input is not changed
+
+
+def test_grid_inside_keeps_the_poses_deep_enough():
+    square = PolygonRegion([[0, 0], [10, 0], [10, 10], [0, 10]])
+    poses = grid_inside(square, step_deg=1.0, min_depth_deg=2.0)
+    assert len(poses) == 7 * 7  # 2..8 on both axes
+    assert poses.min(axis=0) == pytest.approx([2.0, 2.0])
+    assert poses.max(axis=0) == pytest.approx([8.0, 8.0])
+    cone = grid_inside(ConeRegion(30.0), step_deg=2.0, min_depth_deg=5.0)
+    assert np.all(ConeRegion(30.0).edge_distance_deg(cone[:, 0], cone[:, 1]) >= 5.0)
+    assert len(cone) > 100
