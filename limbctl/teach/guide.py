@@ -1,0 +1,412 @@
+"""Guided teaching: from the samples so far, how closed the edge is, how covered the inside is,
+where the gaps are, and when the region is complete enough to train.
+
+The protocol a teacher follows (and the simulator's hand, ``style: trace``): trace the whole edge
+once, slowly, then wander through the middle. The guide measures both from the samples alone (it
+does not know the region), in a flat picture of the taught directions:
+
+*Picture.* Every sample's limb direction ``d`` is drawn at ``x = rho (cos phi, sin phi)`` (deg):
+the azimuthal equidistant projection about a centre direction ``c`` (``rho`` = angle between
+``d`` and ``c``, ``phi`` = azimuth about ``c`` in the tangent frame of
+:func:`limbctl.geometry.quat.tangent_frame`). Distances from ``c`` are true angles; the taught
+region is assumed star-shaped about ``c`` (every ray from the centre leaves it once).
+
+*Outline.* The turn about ``c`` is cut into :data:`SECTORS` equal sectors; the outermost sample of
+each non-empty sector is an outline point. ``r_out(phi)``, the outline, is the periodic linear
+interpolation of the outline points' ``rho`` against their ``phi``. The centre is found by
+fitting a circle to the outline points (Kasa's algebraic fit: minimise
+``sum (|x_k|^2 + D x_k + E y_k + F)^2``, centre ``-(D, E) / 2``) and recomputing,
+:data:`CENTRE_ROUNDS` times from the samples' mean direction: a circle traced in part gives its
+own centre whatever part is missing.
+
+*Edge closed.* A sample is *on the edge* when it lies in the outline's band, ``rho >= r_out(phi)
+- EDGE_BAND_DEG``, and the limb moved slowly there (at most EDGE_MAX_SPEED_DEG_S over
+SPEED_WINDOW_S: an edge is traced slowly, strokes through the middle are fast). The turn is cut
+into :data:`EDGE_BINS` fine bins; a bin is *closed* when it holds an on-edge sample and the outline
+at its middle reaches at least NOTCH_RATIO of the way to the samples' convex hull (between strokes
+the samples' outline is a deep notch, not an edge). ``edge_closed`` = closed bins / EDGE_BINS. A
+traced edge closes every bin (1.0); strokes that poke out to the edge close a few; a circle traced
+but for a 90 deg stretch gives 0.75. Runs of open bins are the *edge gaps*, located by their ends
+and middle on the outline (pan/tilt deg) and sized as a share of the turn.
+
+*Inside covered.* The inside is the set of picture points with ``rho <= r_out(phi) -
+EDGE_BAND_DEG`` (the region less its edge band), on a grid of :data:`CELL_DEG` cells (a cell is
+inside when its centre is); a cell is covered when a sample lies in it. ``inside_covered`` =
+covered inside cells / inside cells. Uncovered inside cells joined by their sides are the *inside
+gaps*, sized as a share of the inside cells and located by their middle (pan/tilt deg).
+
+*Ready to train* when ``edge_closed >= READY_EDGE_CLOSED`` and ``inside_covered >=
+READY_INSIDE_COVERED``: the whole edge is traced and strokes have crossed the middle.
+
+*Phase*: ``start`` (too few samples to say), ``edge`` (the edge is not closed yet: trace it),
+``middle`` (closed; wander through the middle), ``ready``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage
+from scipy.spatial import ConvexHull, QhullError
+
+from limbctl.geometry.gimbal import direction_to_pan_tilt, pan_tilt_to_direction
+from limbctl.geometry.quat import tangent_frame
+
+#: Azimuth sectors for the outline: 5 deg each, fine enough to follow a kidney's lobes, coarse
+#: enough that each holds samples of a traced edge.
+SECTORS = 72
+#: Fine azimuth bins for edge closure: 2 deg each; a trace at 100 Hz and a person's pace
+#: (<= 20 deg/s) leaves no bin empty on an outline 10 deg or more from the centre.
+EDGE_BINS = 180
+#: Depth (deg) of the band below the outline that counts as on the edge: a trace wobbles a few
+#: tenths of a degree and the tremor as much again.
+EDGE_BAND_DEG = 1.5
+#: The outline counts as the edge only where it reaches at least this share of the way from the
+#: centre to the samples' convex hull: between strokes that poke out to the edge the samples'
+#: outline is a deep notch, not an edge (the dent of examples/regions/irregular.yaml reaches 0.6).
+NOTCH_RATIO = 0.5
+#: A sample counts toward the edge only where the limb moved at most this fast (deg/s, over
+#: SPEED_WINDOW_S, long enough to average out a 7-12 Hz tremor): the edge is traced slowly (a
+#: person's pace, 10-20 deg/s); strokes through the middle run at 40 deg/s and more.
+EDGE_MAX_SPEED_DEG_S = 25.0
+SPEED_WINDOW_S = 0.2
+#: Centre refinements by the circle fit (the second changes the centre by well under a degree).
+CENTRE_ROUNDS = 2
+#: Cell size (deg) of the inside-coverage grid: a stroke of the hand covers a band of about this
+#: width in the learned region (the gaps the Rigid Map closes between strokes).
+CELL_DEG = 4.0
+#: Ready to train: the edge closed in at least this share of the turn ...
+READY_EDGE_CLOSED = 0.97
+#: ... and at least this share of the inside covered: a few strokes across the middle (the
+#: simulator's hand reaches 0.14-0.17 after 30 s of teaching irregular.yaml, when the models
+#: trained on it hold the whole region; docs/teaching.md).
+READY_INSIDE_COVERED = 0.1
+#: Fewer samples than this say nothing yet (phase ``start``).
+MIN_SAMPLES = 20
+#: Gaps listed in a result, largest first.
+MAX_GAPS = 5
+
+#: What each phase asks of the teacher.
+PHASES = {
+    "start": "move the limb to its edge",
+    "edge": "trace the whole edge once, slowly",
+    "middle": "wander through the middle",
+    "ready": "ready to train",
+}
+
+
+@dataclass(frozen=True)
+class EdgeGap:
+    """A stretch of the outline no sample has traced.
+
+    Attributes
+    ----------
+    fraction : float
+        Its share of the turn about the centre, in (0, 1].
+    start_deg, middle_deg, end_deg : tuple of float
+        (pan_deg, tilt_deg) of its two ends and its middle on the outline, counter-clockwise
+        about the centre.
+    """
+
+    fraction: float
+    start_deg: tuple[float, float]
+    middle_deg: tuple[float, float]
+    end_deg: tuple[float, float]
+
+
+@dataclass(frozen=True)
+class InsideGap:
+    """Uncovered inside cells joined by their sides.
+
+    Attributes
+    ----------
+    fraction : float
+        Its share of the inside cells, in (0, 1].
+    middle_deg : tuple of float
+        (pan_deg, tilt_deg) of its cells' mean picture position.
+    """
+
+    fraction: float
+    middle_deg: tuple[float, float]
+
+
+@dataclass(frozen=True)
+class Guidance:
+    """What the guide says about a teaching so far (all angles in degrees).
+
+    Attributes
+    ----------
+    samples : int
+    phase : str
+        One of :data:`PHASES`.
+    edge_closed : float
+        Share of the turn about the centre whose edge has been traced, in [0, 1].
+    inside_covered : float
+        Share of the inside cells holding a sample, in [0, 1].
+    edge_gaps, inside_gaps : tuple
+        :class:`EdgeGap` and :class:`InsideGap`, largest first (at most :data:`MAX_GAPS`).
+    ready : bool
+        Complete enough to train (module docstring).
+    centre_deg : tuple of float
+        (pan_deg, tilt_deg) of the centre the picture is drawn about.
+    spread_deg : float
+        Largest angle between a sample and the samples' mean direction.
+    """
+
+    samples: int
+    phase: str
+    edge_closed: float
+    inside_covered: float
+    edge_gaps: tuple[EdgeGap, ...]
+    inside_gaps: tuple[InsideGap, ...]
+    ready: bool
+    centre_deg: tuple[float, float]
+    spread_deg: float
+
+    @property
+    def largest_gap(self) -> EdgeGap | InsideGap | None:
+        """The gap to teach next: the largest edge gap while tracing, else the largest inside
+        gap; None when there is none."""
+        if self.phase in ("start", "edge") and self.edge_gaps:
+            return self.edge_gaps[0]
+        return self.inside_gaps[0] if self.inside_gaps else None
+
+    def line(self) -> str:
+        """One line for the terminal: phase, edge closed, inside covered, largest gap, ready."""
+        head = (
+            f"{self.phase:6s} edge closed {100 * self.edge_closed:3.0f} %  "
+            f"inside covered {100 * self.inside_covered:3.0f} %"
+        )
+        gap = self.largest_gap
+        if isinstance(gap, EdgeGap):
+            (p0, t0), (p1, t1) = gap.start_deg, gap.end_deg
+            where = (
+                f"edge gap {100 * gap.fraction:.0f} % from ({p0:+.0f}, {t0:+.0f}) "
+                f"to ({p1:+.0f}, {t1:+.0f})"
+            )
+        elif isinstance(gap, InsideGap):
+            p, t = gap.middle_deg
+            where = f"inside gap {100 * gap.fraction:.0f} % around ({p:+.0f}, {t:+.0f})"
+        else:
+            where = "no gap"
+        tail = "READY TO TRAIN" if self.ready else PHASES[self.phase]
+        return f"{head}  {where} (pan, tilt deg)  -> {tail}"
+
+
+def _project(d: np.ndarray, centre: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(rho_deg, phi_rad) of directions (N, 3) about ``centre`` (3,): azimuthal equidistant."""
+    u, v = tangent_frame(centre)
+    # rho = acos(d . c), phi = atan2(d . v, d . u)
+    rho = np.degrees(np.arccos(np.clip(d @ centre, -1.0, 1.0)))
+    phi = np.arctan2(d @ v, d @ u)
+    return rho, phi
+
+
+def _unproject(x: np.ndarray, y: np.ndarray, centre: np.ndarray) -> np.ndarray:
+    """Directions (M, 3) of picture points x, y (M,) deg:
+    d = cos(rho) c + sin(rho) (cos(phi) u + sin(phi) v)."""
+    u, v = tangent_frame(centre)
+    rho = np.radians(np.hypot(x, y))
+    phi = np.arctan2(y, x)
+    d = np.cos(rho)[:, None] * centre + np.sin(rho)[:, None] * (
+        np.cos(phi)[:, None] * u + np.sin(phi)[:, None] * v
+    )
+    return d
+
+
+def _pan_tilt_deg(x: np.ndarray, y: np.ndarray, centre: np.ndarray) -> list[tuple[float, float]]:
+    pan, tilt = direction_to_pan_tilt(_unproject(np.atleast_1d(x), np.atleast_1d(y), centre))
+    return [(math.degrees(p), math.degrees(t)) for p, t in zip(pan, tilt, strict=True)]
+
+
+def _outline(rho: np.ndarray, phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The outline points (phi_rad, rho_deg) sorted by phi: the outermost sample per sector."""
+    sector = ((phi + math.pi) / (2.0 * math.pi) * SECTORS).astype(np.int64) % SECTORS
+    outermost = np.full(SECTORS, -1.0)
+    np.maximum.at(outermost, sector, rho)
+    # the phi of a sample reaching its sector's outermost rho (any one of equals)
+    at_max = rho == outermost[sector]
+    outline_phi = np.zeros(SECTORS)
+    outline_phi[sector[at_max]] = phi[at_max]
+    held = outermost >= 0.0
+    return outline_phi[held], outermost[held]
+
+
+def _outline_at(phi: np.ndarray, outline_phi: np.ndarray, outline_rho: np.ndarray) -> np.ndarray:
+    """r_out(phi): periodic linear interpolation of the outline points (deg)."""
+    return np.interp(phi, outline_phi, outline_rho, period=2.0 * math.pi)
+
+
+def _fit_centre(outline_phi: np.ndarray, outline_rho: np.ndarray, centre: np.ndarray) -> np.ndarray:
+    """The centre direction of the circle best fitting the outline points (Kasa)."""
+    x = np.radians(outline_rho) * np.cos(outline_phi)
+    y = np.radians(outline_rho) * np.sin(outline_phi)
+    # x^2 + y^2 + D x + E y + F = 0 in least squares; centre (-D / 2, -E / 2)
+    a = np.stack([x, y, np.ones_like(x)], axis=1)
+    (d_coef, e_coef, _), *_ = np.linalg.lstsq(a, -(x * x + y * y), rcond=None)
+    moved = _unproject(np.degrees([-d_coef / 2.0]), np.degrees([-e_coef / 2.0]), centre)[0]
+    return moved / np.linalg.norm(moved)
+
+
+def _hull_at(phi: np.ndarray, outline_phi: np.ndarray, outline_rho: np.ndarray) -> np.ndarray:
+    """r_hull(phi): distance (deg) from the centre to the outline points' convex hull along
+    azimuth ``phi`` (M,); the centre must lie inside the hull."""
+    points = np.stack([outline_rho * np.cos(outline_phi), outline_rho * np.sin(outline_phi)], 1)
+    facets = ConvexHull(points).equations  # n . x + b <= 0 inside, |n| = 1
+    ray = np.stack([np.cos(phi), np.sin(phi)], axis=1)
+    # the ray t (cos phi, sin phi) leaves facet j at t = -b_j / (n_j . ray), for n_j . ray > 0
+    along = ray @ facets[:, :2].T
+    with np.errstate(divide="ignore"):
+        exit_at = np.where(along > 1e-12, -facets[:, 2] / along, np.inf)
+    return exit_at.min(axis=1)
+
+
+def _speed_deg_s(t_s: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """Speed (deg/s, (N,)) of the limb at each sample, over a window of about SPEED_WINDOW_S."""
+    n = len(d)
+    if n < 2:
+        return np.zeros(n)
+    step = float(np.median(np.diff(t_s)))
+    w = max(1, int(round(SPEED_WINDOW_S / step))) if step > 0.0 else 1
+    k = np.arange(n)
+    before, after = np.maximum(k - w, 0), np.minimum(k + w, n - 1)
+    # speed = angle(d[k - w], d[k + w]) / (t[k + w] - t[k - w]), angle = 2 asin(|chord| / 2)
+    chord = np.linalg.norm(d[after] - d[before], axis=1)
+    angle = np.degrees(2.0 * np.arcsin(np.clip(chord / 2.0, 0.0, 1.0)))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(t_s[after] > t_s[before], angle / (t_s[after] - t_s[before]), 0.0)
+
+
+def _edge(rho, phi, slow, outline_phi, outline_rho, centre) -> tuple[float, tuple[EdgeGap, ...]]:
+    on_edge = slow & (rho >= _outline_at(phi, outline_phi, outline_rho) - EDGE_BAND_DEG)
+    fine = ((phi[on_edge] + math.pi) / (2.0 * math.pi) * EDGE_BINS).astype(np.int64) % EDGE_BINS
+    filled = np.zeros(EDGE_BINS, dtype=bool)
+    filled[fine] = True
+    # bin b covers phi in [-pi + b w, -pi + (b + 1) w); a notch at its middle is not an edge
+    middles = -math.pi + (np.arange(EDGE_BINS) + 0.5) * (2.0 * math.pi / EDGE_BINS)
+    try:
+        hull = _hull_at(middles, outline_phi, outline_rho)
+    except QhullError:
+        return 0.0, ()  # the samples lie on a line: no edge to speak of
+    filled &= _outline_at(middles, outline_phi, outline_rho) >= NOTCH_RATIO * hull
+    closed = float(filled.mean())
+    if closed in (0.0, 1.0):
+        return closed, ()
+    # runs of empty bins, read round the turn from a filled bin so none is split in two
+    first = int(np.argmax(filled))
+    rolled = np.roll(filled, -first)
+    edges = np.flatnonzero(np.diff(np.r_[True, rolled, True].astype(np.int8)))
+    starts, ends = edges[::2], edges[1::2]  # empty runs [start, end) in the rolled order
+    gaps = []
+    width = 2.0 * math.pi / EDGE_BINS
+    for s, e in sorted(zip(starts, ends, strict=True), key=lambda r: r[0] - r[1])[:MAX_GAPS]:
+        phis = -math.pi + (np.array([s, (s + e) / 2.0, e]) + first) * width
+        r = _outline_at(phis, outline_phi, outline_rho)
+        ends_deg = _pan_tilt_deg(r * np.cos(phis), r * np.sin(phis), centre)
+        gaps.append(EdgeGap((e - s) / EDGE_BINS, *ends_deg))
+    return closed, tuple(gaps)
+
+
+def _inside(rho, phi, outline_phi, outline_rho, centre) -> tuple[float, tuple[InsideGap, ...]]:
+    x, y = rho * np.cos(phi), rho * np.sin(phi)
+    reach = float(outline_rho.max())
+    n = int(math.ceil(reach / CELL_DEG)) + 1
+    # cell (i, j) spans x in [(i - n) CELL, (i - n + 1) CELL), likewise y with j
+    centres = (np.arange(2 * n) - n + 0.5) * CELL_DEG
+    cx, cy = np.meshgrid(centres, centres, indexing="ij")
+    c_rho, c_phi = np.hypot(cx, cy), np.arctan2(cy, cx)
+    inside = c_rho <= _outline_at(c_phi, outline_phi, outline_rho) - EDGE_BAND_DEG
+    if not inside.any():
+        return 0.0, ()
+    covered = np.zeros_like(inside)
+    i = np.clip(np.floor(x / CELL_DEG).astype(np.int64) + n, 0, 2 * n - 1)
+    j = np.clip(np.floor(y / CELL_DEG).astype(np.int64) + n, 0, 2 * n - 1)
+    covered[i, j] = True
+    total = int(inside.sum())
+    fraction = float((covered & inside).sum()) / total
+    labels, count = ndimage.label(inside & ~covered)
+    if count == 0:
+        return fraction, ()
+    sizes = np.bincount(labels.ravel(), minlength=count + 1)[1:]
+    gaps = []
+    for k in np.argsort(-sizes)[:MAX_GAPS]:
+        member = labels == k + 1
+        where = _pan_tilt_deg(np.array([cx[member].mean()]), np.array([cy[member].mean()]), centre)
+        gaps.append(InsideGap(float(sizes[k]) / total, where[0]))
+    return fraction, tuple(gaps)
+
+
+def assess_directions(t_s: np.ndarray, d: np.ndarray) -> Guidance:
+    """What the guide says about the samples' limb directions ``d`` (N, 3), unit vectors, taken
+    at times ``t_s`` (N,) in s, in time order."""
+    d = np.asarray(d, dtype=np.float64).reshape(-1, 3)
+    t_s = np.asarray(t_s, dtype=np.float64).reshape(-1)
+    if len(t_s) != len(d):
+        raise ValueError(f"assess: {len(t_s)} times for {len(d)} samples; give one time each")
+    n = len(d)
+    if n == 0:
+        return Guidance(0, "start", 0.0, 0.0, (), (), False, (0.0, 0.0), 0.0)
+    mean = d.sum(axis=0)
+    mean /= max(float(np.linalg.norm(mean)), 1e-12)
+    spread = float(np.degrees(np.arccos(np.clip(d @ mean, -1.0, 1.0))).max())
+    centre = mean
+    rho, phi = _project(d, centre)
+    outline_phi, outline_rho = _outline(rho, phi)
+    for _ in range(CENTRE_ROUNDS):
+        if len(outline_phi) < 3:
+            break
+        centre = _fit_centre(outline_phi, outline_rho, centre)
+        rho, phi = _project(d, centre)
+        outline_phi, outline_rho = _outline(rho, phi)
+    centre_deg = _pan_tilt_deg(np.zeros(1), np.zeros(1), centre)[0]
+    if n < MIN_SAMPLES or len(outline_phi) < 3:
+        return Guidance(n, "start", 0.0, 0.0, (), (), False, centre_deg, spread)
+    slow = _speed_deg_s(t_s, d) <= EDGE_MAX_SPEED_DEG_S
+    edge_closed, edge_gaps = _edge(rho, phi, slow, outline_phi, outline_rho, centre)
+    inside_covered, inside_gaps = _inside(rho, phi, outline_phi, outline_rho, centre)
+    edge_done = edge_closed >= READY_EDGE_CLOSED
+    ready = edge_done and inside_covered >= READY_INSIDE_COVERED
+    phase = "ready" if ready else ("middle" if edge_done else "edge")
+    return Guidance(
+        n, phase, edge_closed, inside_covered, edge_gaps, inside_gaps, ready, centre_deg, spread
+    )
+
+
+def assess(t_s: np.ndarray, pan_rad: np.ndarray, tilt_rad: np.ndarray) -> Guidance:
+    """What the guide says about samples at times ``t_s`` (N,) in s given as joint angles (N,)
+    in radians."""
+    d = pan_tilt_to_direction(np.asarray(pan_rad), np.asarray(tilt_rad))
+    return assess_directions(t_s, d)
+
+
+class Guide:
+    """Collects samples as they are recorded and assesses them on demand.
+
+    ``add`` is O(1) (growing buffers, doubled when full); ``assess`` costs milliseconds on ten
+    thousand samples (docs/teaching.md), so a 100 Hz recorder may call it once a second.
+    """
+
+    def __init__(self, capacity: int = 4096) -> None:
+        self._t = np.empty(max(int(capacity), 1))
+        self._d = np.empty((len(self._t), 3))
+        self.samples = 0
+
+    def add(self, t_s: float, pan_rad: float, tilt_rad: float) -> None:
+        """Add one sample: its time (s) and joint angles (rad)."""
+        if self.samples == len(self._t):
+            self._t = np.concatenate([self._t, np.empty_like(self._t)])
+            self._d = np.concatenate([self._d, np.empty_like(self._d)])
+        cos_tilt = math.cos(tilt_rad)
+        self._t[self.samples] = t_s
+        self._d[self.samples] = (
+            cos_tilt * math.cos(pan_rad),
+            cos_tilt * math.sin(pan_rad),
+            math.sin(tilt_rad),
+        )
+        self.samples += 1
+
+    def assess(self) -> Guidance:
+        """The guide's figures for every sample added so far."""
+        return assess_directions(self._t[: self.samples], self._d[: self.samples])
