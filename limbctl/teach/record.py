@@ -3,6 +3,11 @@
 The recorder never buffers: each sample is handed to :class:`limbctl.teach.dataset.DatasetWriter`
 as it is read (one ``write`` per record, fsync at least every 0.25 s), so Ctrl-C or SIGTERM
 lose nothing and a kill -9 loses at most the last half second.
+
+While recording, the teaching guide (:mod:`limbctl.teach.guide`) assesses the samples once every
+GUIDE_EVERY_S: one updating line says the phase (trace the edge, then wander the middle), how much
+of the edge is closed and of the inside covered, the largest gap (pan/tilt deg) and when the
+region is ready to train. Each assessment is also handed to ``on_guidance`` (a live view).
 """
 
 from __future__ import annotations
@@ -11,17 +16,23 @@ import math
 import sys
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import IO, Protocol
 
 from limbctl.errors import BusError, ConfigError
-from limbctl.teach.coverage import CoverageMap
 from limbctl.teach.dataset import DatasetWriter
+from limbctl.teach.guide import Guidance, Guide
 
 #: Slowest accepted sampling rate (Hz): a person's hand moves fast.
 MIN_RATE_HZ = 100.0
 #: Consecutive failed reads after which the recording stops (what was recorded is kept).
 MAX_FAILED_READS = 50
+#: Seconds between the guide's assessments: a teacher reads the line about once a second, and an
+#: assessment of ten thousand samples takes milliseconds (docs/teaching.md).
+GUIDE_EVERY_S = 1.0
+#: Seconds between progress lines when the progress stream is not a terminal (a log file).
+LOG_EVERY_S = 5.0
 
 
 class Backdrivable(Protocol):
@@ -40,9 +51,9 @@ class RecordSummary:
     elapsed_s: float = 0.0
     failed_reads: int = 0
     spread_deg: float = 0.0
-    cells_visited: int = 0
     ended_by: str = ""
     fault: str = ""
+    guidance: Guidance | None = None
 
     @property
     def exit_code(self) -> int:
@@ -59,7 +70,7 @@ class RecordSummary:
             f"samples            {self.samples} in {self.elapsed_s:.1f} s ({self.rate_hz:.1f} Hz)",
             f"angular spread     {self.spread_deg:.1f} deg from the mean direction",
             f"failed reads       {self.failed_reads}",
-        ]
+        ] + ([f"guide              {self.guidance.line()}"] if self.guidance else [])
 
 
 def stop_on_enter(stop: threading.Event, stream: IO[str] | None = None) -> threading.Thread | None:
@@ -84,6 +95,7 @@ def record(
     duration_s: float | None = None,
     stop: threading.Event | None = None,
     progress: IO[str] | None = None,
+    on_guidance: Callable[[Guidance], None] | None = None,
 ) -> RecordSummary:
     """Switch torque off and record until ``stop`` is set or ``duration_s`` passes.
 
@@ -100,21 +112,28 @@ def record(
     stop : threading.Event, optional
         Set by Ctrl-C/SIGTERM handlers or the Enter key to end the recording.
     progress : text stream, optional
-        Where live progress (count, spread, coverage picture) is drawn.
+        Where the live progress line (time, samples, the guide's figures) is drawn: updated in
+        place on a terminal, a line every LOG_EVERY_S otherwise.
+    on_guidance : callable, optional
+        Called with each :class:`~limbctl.teach.guide.Guidance` (every GUIDE_EVERY_S and at the
+        end), in the recording thread: keep it quick.
     """
     if not (math.isfinite(rate_hz) and rate_hz >= MIN_RATE_HZ):
         raise ConfigError(f"record at {MIN_RATE_HZ:.0f} Hz or faster, got {rate_hz}")
     stop = stop or threading.Event()
     period = 1.0 / rate_hz
-    coverage = CoverageMap()
+    guide = Guide()
     summary = RecordSummary()
     limb.set_torque(False)
 
-    redraw_every = 0.5 if progress is not None and progress.isatty() else 5.0
-    drawn_lines = 0
+    on_terminal = progress is not None and progress.isatty()
+    draw_every = GUIDE_EVERY_S if on_terminal else LOG_EVERY_S
     start = time.perf_counter()
     next_tick = start
-    last_draw = start
+    last_guide = last_draw = start
+    guidance = guide.assess()
+    if progress is not None:
+        progress.write("torque off: move the limb by hand (Enter or Ctrl-C stops)\n")
     failed_in_a_row = 0
     while True:
         now = time.perf_counter()
@@ -137,11 +156,16 @@ def record(
         else:
             failed_in_a_row = 0
             writer.append(elapsed, pan, tilt)
-            coverage.add(pan, tilt)
+            guide.add(elapsed, pan, tilt)
             summary.samples += 1
-        if progress is not None and now - last_draw >= redraw_every:
+        if now - last_guide >= GUIDE_EVERY_S and (progress is not None or on_guidance):
+            last_guide = now
+            guidance = guide.assess()
+            if on_guidance is not None:
+                on_guidance(guidance)
+        if progress is not None and now - last_draw >= draw_every:
             last_draw = now
-            drawn_lines = _draw(progress, coverage, summary, elapsed, duration_s, drawn_lines)
+            _draw(progress, guidance, summary, elapsed, duration_s, on_terminal)
         # pace: a late sample is followed at once by the next, so the average rate holds;
         # only after a long stall (a second behind) does the schedule restart from now
         next_tick += period
@@ -152,35 +176,33 @@ def record(
             next_tick = time.perf_counter()
 
     summary.elapsed_s = time.perf_counter() - start
-    summary.spread_deg = coverage.spread_deg()
-    summary.cells_visited = coverage.cells_visited()
+    summary.guidance = guide.assess()
+    summary.spread_deg = summary.guidance.spread_deg
+    if on_guidance is not None:
+        on_guidance(summary.guidance)
     if progress is not None:
-        _draw(progress, coverage, summary, summary.elapsed_s, duration_s, drawn_lines)
+        _draw(progress, summary.guidance, summary, summary.elapsed_s, duration_s, on_terminal)
+        if on_terminal:
+            progress.write("\n")
+            progress.flush()
     return summary
 
 
 def _draw(
     stream: IO[str],
-    coverage: CoverageMap,
+    guidance: Guidance,
     summary: RecordSummary,
     elapsed: float,
     duration_s: float | None,
-    previous_lines: int,
-) -> int:
-    total = f" / {duration_s:.0f} s" if duration_s else ""
-    head = (
-        f"recording {elapsed:6.1f} s{total}  samples {summary.samples}  "
-        f"spread {coverage.spread_deg():5.1f} deg  cells {coverage.cells_visited()}  "
-        f"failed reads {summary.failed_reads}   (Enter or Ctrl-C stops)"
-    )
-    if not stream.isatty():
-        stream.write(head + "\n")
-        stream.flush()
-        return 0
-    lines = [head, *coverage.render()]
-    # move the cursor up over the previous picture and draw over it
-    if previous_lines:
-        stream.write(f"\x1b[{previous_lines}F")
-    stream.write("\n".join(line + "\x1b[K" for line in lines) + "\n")
+    on_terminal: bool,
+) -> None:
+    """One progress line: time, samples, failed reads and the guide's line; on a terminal it
+    replaces the previous one (carriage return, erase to the end of the line)."""
+    total = f"/{duration_s:.0f}" if duration_s else ""
+    failed = f"  failed reads {summary.failed_reads}" if summary.failed_reads else ""
+    line = f"{elapsed:5.1f}{total} s  {summary.samples} samples{failed}  {guidance.line()}"
+    if on_terminal:
+        stream.write("\r" + line + "\x1b[K")
+    else:
+        stream.write(line + "\n")
     stream.flush()
-    return len(lines)

@@ -1,5 +1,6 @@
 """Teach by hand on the simulator: the recorder samples the scripted hand at >= 100 Hz."""
 
+import io
 import threading
 from pathlib import Path
 
@@ -14,6 +15,7 @@ from limbctl.errors import ConfigError
 from limbctl.geometry.gimbal import pan_tilt_to_quat
 from limbctl.session import demo_region_path, open_rig
 from limbctl.teach.dataset import DatasetWriter, load_dataset
+from limbctl.teach.guide import Guidance
 from limbctl.teach.record import record
 from limbctl.teach.train import train
 
@@ -49,6 +51,46 @@ def test_record_stops_on_the_event_and_keeps_what_it_wrote(tmp_path):
     assert len(load_dataset(out)) == summary.samples > 50
 
 
+class Terminal(io.StringIO):
+    """A text stream that says it is a terminal, so the recorder updates its line in place."""
+
+    def isatty(self) -> bool:
+        return True
+
+
+def test_the_recorder_shows_the_guide_on_one_updating_line(tmp_path):
+    progress, seen = Terminal(), []
+    with open_rig(hand=demo_region_path(), seed=2) as session:
+        with DatasetWriter(tmp_path / "teach.limb", rig="sim") as writer:
+            summary = record(
+                session.rig, writer, 100.0, 3.5, progress=progress, on_guidance=seen.append
+            )
+    assert len(seen) >= 3 and all(isinstance(g, Guidance) for g in seen)
+    assert seen[-1] is summary.guidance and summary.guidance.samples == summary.samples
+    head, updates = progress.getvalue().split("\n", 1)
+    assert "Enter or Ctrl-C stops" in head
+    # one line, rewritten in place: carriage returns, no new line until the end
+    lines = updates.rstrip("\n").split("\r")[1:]
+    assert len(lines) >= 3 and "\n" not in updates.rstrip("\n")
+    last = lines[-1]
+    assert f"{summary.samples} samples" in last and "edge closed" in last
+    assert "inside covered" in last and "(pan, tilt deg)" in last
+    # 3.5 s in, the hand is tracing the edge: the guide says so and where the gap is
+    assert summary.guidance.phase == "edge" and "edge gap" in last
+    assert any(line.startswith("guide ") for line in summary.lines())
+
+
+def test_without_a_terminal_the_progress_is_logged_every_few_seconds(tmp_path):
+    progress = io.StringIO()
+    with open_rig(hand=demo_region_path(), seed=2) as session:
+        with DatasetWriter(tmp_path / "teach.limb", rig="sim") as writer:
+            record(session.rig, writer, 100.0, 6.0, progress=progress)
+    lines = progress.getvalue().splitlines()
+    assert "\r" not in progress.getvalue()
+    assert len(lines) == 3  # the head, one at 5 s, the last
+    assert all("edge closed" in line for line in lines[1:])
+
+
 def test_slow_rates_are_refused(tmp_path):
     with DatasetWriter(tmp_path / "x.limb", rig="sim") as writer:
         with pytest.raises(ConfigError, match="100 Hz"):
@@ -75,11 +117,20 @@ def test_thirty_seconds_of_the_simulators_hand_teach_a_model_that_holds_the_regi
     then wanders), train, and the model holds >= 98 % of the poses 2 deg or more inside."""
     region_file = REGIONS / "irregular.yaml"
     data_path, model_path = tmp_path / "teach.limb", tmp_path / "model.npz"
+    progress, seen = Terminal(), []
     with open_rig(hand=region_file, seed=3) as session:
         with DatasetWriter(data_path, rig="sim") as writer:
-            summary = record(session.rig, writer, rate_hz=100.0, duration_s=30.0)
-    # 100 Hz for 30 s; on a loaded machine a few reads time out (they are counted, not kept)
+            summary = record(
+                session.rig, writer, 100.0, 30.0, progress=progress, on_guidance=seen.append
+            )
+    # 100 Hz for 30 s with the guide running once a second; on a loaded machine a few reads
+    # time out (they are counted, not kept)
     assert summary.ended_by == "duration" and summary.samples + summary.failed_reads > 2700
+    # the guide saw the phases in order, and says ready at the end
+    phases = [g.phase for g in seen]
+    assert len(seen) >= 29 and phases[-1] == "ready" and summary.guidance.ready
+    assert phases.index("edge") < phases.index("middle") < phases.index("ready")
+    assert "READY TO TRAIN" in progress.getvalue().rsplit("\r", 1)[-1]
     train(data_path, model_path, options={"seed": 3})
     model = RigidMap.load(model_path)
     poses = grid_inside(Hand.from_yaml(region_file).region, step_deg=1.0, min_depth_deg=2.0)
