@@ -14,6 +14,7 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
+from calib.yaml_guard import shown
 from limbctl import jobs, upkeep
 from limbctl.demo import DemoOptions, run_demo_job
 from limbctl.envelope import MODEL_KINDS
@@ -36,9 +37,9 @@ def _positive(text: str) -> float:
     try:
         value = float(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+        raise argparse.ArgumentTypeError(f"expected a number, got {shown(text)}") from None
     if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {shown(text)}")
     return value
 
 
@@ -114,10 +115,10 @@ def _limits(text: str | None, option: str) -> tuple[float, float] | None:
         lo, hi = (float(v) for v in text.split(","))
     except ValueError:
         raise ConfigError(
-            f"{option} expects MIN,MAX in degrees like -90,90; got {text!r}"
+            f"{option} expects MIN,MAX in degrees like -90,90; got {shown(text)}"
         ) from None
     if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
-        raise ConfigError(f"{option}: need finite MIN < MAX, got {text!r}")
+        raise ConfigError(f"{option}: need finite MIN < MAX, got {shown(text)}")
     return lo, hi
 
 
@@ -125,7 +126,7 @@ def _pair(text: str, option: str) -> tuple[int, int]:
     try:
         a, b = (int(v) for v in text.split(","))
     except ValueError:
-        raise ConfigError(f"{option} expects two integers like 1,2; got {text!r}") from None
+        raise ConfigError(f"{option} expects two integers like 1,2; got {shown(text)}") from None
     return a, b
 
 

@@ -56,6 +56,18 @@ def test_errors_are_one_clear_line_and_exit_2(tmp_path, capsys):
     assert "bad.yaml" in capsys.readouterr().err
 
 
+def test_bad_option_values_are_quoted_boundedly(tmp_path, capsys):
+    huge = "9" * 100_000
+    out = str(tmp_path / "rig.yaml")
+    for option in ("--pan-stops", "--tilt-limits", "--ids"):
+        assert main(["calibrate", "--out", out, f"{option}={huge},"]) == 2
+        err = capsys.readouterr().err
+        assert f"limbctl calibrate: error: {option}" in err and len(err) < 300, err[:300]
+    with pytest.raises(SystemExit):
+        main(["record", "--out", "x.limb", "--rate", huge + "x"])
+    assert len(capsys.readouterr().err) < 1000
+
+
 def test_bad_numbers_are_refused_by_the_parser(capsys):
     with pytest.raises(SystemExit) as exit_info:
         main(["record", "--out", "x.limb", "--rate", "nan"])
