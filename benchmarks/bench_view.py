@@ -10,12 +10,17 @@ Each run records from the embedded simulator's scripted hand at 100 Hz for ``--s
 
 Reported: samples per second, and the gaps between consecutive samples (median, p99, max), from
 the recorded file's own timestamps.
+
+Then ``limbctl teleop`` at 200 Hz on a replayed sweep (``--teleop-seconds``), view off and on
+(watched by Chromium): cycles per second and cycle time (p50, p99) from its telemetry.
 """
 
 from __future__ import annotations
 
 import argparse
 import contextlib
+import json
+import math
 import sys
 import tempfile
 import threading
@@ -26,10 +31,14 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))  # for tests.view.browser (headless Chromium, test helper)
 
+from calib.profile import default_sim_profile  # noqa: E402
+from limbctl.envelope import RigidMap  # noqa: E402
+from limbctl.jobs import TeleopOptions, run_teleop  # noqa: E402
+from limbctl.live import ViewOptions, open_view, rig_limits  # noqa: E402
 from limbctl.session import demo_region_path, open_rig  # noqa: E402
 from limbctl.teach.dataset import DatasetWriter, load_dataset  # noqa: E402
 from limbctl.teach.record import record  # noqa: E402
-from limbctl.view import Board, HardLimits, ViewServer  # noqa: E402
+from limbctl.view import Board, ViewServer  # noqa: E402
 from limbctl.view.feed import PoseTap, SceneFeeder  # noqa: E402
 from tests.view.browser import chromium, text_of, wait_for  # noqa: E402
 
@@ -41,21 +50,19 @@ def run(view: bool, refit: bool, seconds: float, seed: int) -> dict[str, float]:
     """Record ``seconds`` with the view on or off; the rate and sample gaps measured."""
     with tempfile.TemporaryDirectory() as folder, contextlib.ExitStack() as stack:
         out = Path(folder) / "teach.limb"
+        if view:
+            # the browser first, as a person opens the page before teaching
+            board = Board()
+            server = stack.enter_context(ViewServer(board, port=0))
+            browser = stack.enter_context(chromium())
+            browser.get(server.url)
         session = stack.enter_context(open_rig(hand=demo_region_path(), seed=seed))
         writer = stack.enter_context(DatasetWriter(out, rig=session.profile.name))
         limb = session.rig
         fits = 0
         if view:
-            board = Board()
-            server = stack.enter_context(ViewServer(board, port=0))
-            browser = stack.enter_context(chromium())
-            browser.get(server.url)
-            profile = session.profile
-            limits = HardLimits(
-                (profile.pan.min_deg, profile.pan.max_deg),
-                (profile.tilt.min_deg, profile.tilt.max_deg),
-            )
             limb = PoseTap(session.rig, board, "record")
+            limits = rig_limits(session.profile)
             feeder = stack.enter_context(SceneFeeder(board, limb.samples, limits, fit=refit))
         summary = record(limb, writer, 100.0, seconds, threading.Event())
         if view:
@@ -74,10 +81,67 @@ def run(view: bool, refit: bool, seconds: float, seed: int) -> dict[str, float]:
     }
 
 
+def teleop_run(view: bool, model: Path, seconds: float, folder: Path) -> dict[str, float]:
+    """``run_teleop`` at 200 Hz on a replayed sweep, the view off or on; rates from telemetry."""
+    commands = folder / "sweep.jsonl"
+    with open(commands, "w", encoding="utf-8") as fh:
+        for i in range(int(seconds * 50)):
+            t = i / 50.0
+            phase = 2.0 * math.pi * t / 8.0
+            pan, tilt = 20.0 + 45.0 * math.cos(phase), 20.0 + 45.0 * math.sin(phase)
+            fh.write(json.dumps({"t": t, "pan": pan, "tilt": tilt}) + "\n")
+    telemetry = folder / f"telemetry_{view}.jsonl"
+    options = TeleopOptions(
+        model=model, source=f"replay:{commands}", telemetry=telemetry, quiet=True
+    )
+    with contextlib.ExitStack() as stack:
+        live = stack.enter_context(open_view(ViewOptions(enabled=view, port=0), print))
+        if view:
+            stack.enter_context(chromium()).get(live.url)
+        run_teleop(options, view=live)
+    rows = [json.loads(line) for line in telemetry.read_text().splitlines()]
+    cycle_ms = np.array([row["cycle_ms"] for row in rows])
+    return {
+        "cycles": len(rows),
+        "rate_hz": (len(rows) - 1) / (rows[-1]["t"] - rows[0]["t"]),
+        "p50": float(np.median(cycle_ms)),
+        "p99": float(np.percentile(cycle_ms, 99)),
+    }
+
+
+def teleop_table(seconds: float) -> str:
+    rows = []
+    with tempfile.TemporaryDirectory() as name:
+        folder = Path(name)
+        model = folder / "model.npz"
+        data = load_dataset(ROOT / "tests" / "data" / "hand_irregular_seed0_20s.limb")
+        sim = default_sim_profile()
+        metadata = {"rig": sim.name, "calibration": sim.calibration.to_dict()}
+        RigidMap().fit(data.quaternions).save(model, metadata=metadata)
+        for view in (False, True, False, True):
+            result = teleop_run(view, model, seconds, folder)
+            rows.append(
+                f"| {'on' if view else 'off'} | {result['cycles']} | {result['rate_hz']:.1f} | "
+                f"{result['p50']:.2f} | {result['p99']:.2f} |"
+            )
+            print(rows[-1], flush=True)
+    return "\n".join(
+        [
+            f"Teleop at 200 Hz, a replayed sweep leaving the region, {seconds:g} s each, "
+            "alternating:",
+            "",
+            "| view | cycles | rate (Hz) | cycle p50 (ms) | cycle p99 (ms) |",
+            "| --- | --- | --- | --- | --- |",
+            *rows,
+        ]
+    )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=30.0)
     parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--teleop-seconds", type=float, default=15.0)
     parser.add_argument("--out", type=Path, default=None, help="write the table here (markdown)")
     args = parser.parse_args()
     rows = []
@@ -99,6 +163,7 @@ def main() -> None:
             *rows,
         ]
     )
+    table += "\n\n" + teleop_table(args.teleop_seconds)
     if args.out is not None:
         args.out.write_text(
             "# Live view: the recorder's rate\n\n"

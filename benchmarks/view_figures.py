@@ -14,7 +14,6 @@ the job is ended as Ctrl-C would.
 from __future__ import annotations
 
 import argparse
-import contextlib
 import json
 import math
 import os
@@ -65,17 +64,14 @@ def record_figure(out: Path, data: Path, seconds: float, seed: int) -> None:
             recorder = threading.Thread(target=record, args=(tap, writer, 100.0, None, stop))
             recorder.start()
             try:
-                with contextlib.suppress(Exception):
-                    # wait for the chosen length of teaching, measured by samples at 100 Hz
-                    wait_for(
-                        browser,
-                        lambda d: (
-                            int(text_of(d, "sample-count")) >= 100 * seconds
-                            and feeder.fits_done >= 2
-                        ),
-                        "",
-                        timeout=seconds * 4 + 120,
-                    )
+                # the chosen length of teaching (samples at 100 Hz), and two fits done
+                wait_for(
+                    browser,
+                    lambda d: tap.count >= 100 * seconds and feeder.fits_done >= 2,
+                    "the region was not fitted twice",
+                    timeout=600,
+                )
+                wait_for(browser, lambda d: "fitted on" in text_of(d, "region-note"), "no region")
                 browser.save_screenshot(str(out))
             finally:
                 stop.set()

@@ -34,8 +34,9 @@ STRETCH_DEG = 1.0
 #: A stretch is traced when a sample lies this close (deg) to its middle: the learned edge may
 #: lie up to RigidMap's max_offset_deg (3 deg) beyond the samples that taught it.
 TRACED_WITHIN_DEG = 3.0
-#: Fewest samples worth a fit: fewer cannot span an area at the recorder's 100 Hz.
-MIN_FIT_SAMPLES = 50
+#: Fewest samples worth a fit (2 s at the recorder's 100 Hz): fits of fewer, a stroke or two of
+#: the hand, were slivers or stray arcs that said nothing of the region being taught.
+MIN_FIT_SAMPLES = 200
 #: Niceness of the fit process (19, the lowest priority): a refit may wait, the recorder not.
 FIT_NICENESS = 19
 #: Longest wait (s) for the fit process to start or to finish a fit when asked to stop.

@@ -120,4 +120,4 @@ def test_fit_outline_outlines_a_taught_disc():
     assert outline.traced.mean() > 0.95
     assert fit.note.startswith("fitted on 3000 samples")
     too_few = fit_outline(np.zeros((10, 2)))
-    assert not too_few.loops and "need 50 samples" in too_few.note
+    assert not too_few.loops and "need 200 samples" in too_few.note

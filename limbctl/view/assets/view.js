@@ -22,7 +22,7 @@ const RECONNECT_MS = 1000;
 
 const state = { scene: null, live: null, liveFrames: 0, sceneFrames: 0 };
 const canvas = document.getElementById("plane");
-const ctx = canvas.getContext("2d");
+let ctx = canvas.getContext("2d");
 let drawPending = false;
 
 function byId(id) { return document.getElementById(id); }
@@ -121,9 +121,18 @@ function drawMarker(P, pose, kind) {
   else { ctx.moveTo(x - 9, y - 9); ctx.lineTo(x + 9, y + 9); ctx.moveTo(x + 9, y - 9); ctx.lineTo(x - 9, y + 9); ctx.stroke(); }
 }
 
-function draw() {
-  drawPending = false;
-  const P = projector();
+// The scene (grid, region, samples, limits) changes about twice a second: it is drawn once
+// into an offscreen layer, and each live frame only copies that layer and draws the markers.
+const sceneLayer = document.createElement("canvas");
+sceneLayer.width = canvas.width;
+sceneLayer.height = canvas.height;
+let sceneDirty = true;
+let layerBounds = "";
+
+function drawScene(P) {
+  const layer = sceneLayer.getContext("2d");
+  const screen = ctx;
+  ctx = layer;
   ctx.clearRect(0, 0, canvas.width, canvas.height);
   drawGrid(P);
   const s = state.scene;
@@ -133,6 +142,21 @@ function draw() {
     for (const p of s.samples) ctx.fillRect(P.x(p[0]) - 1, P.y(p[1]) - 1, 2, 2);
     drawLimits(P, s.limits);
   }
+  ctx = screen;
+}
+
+function draw() {
+  drawPending = false;
+  const P = projector();
+  // without limits the window follows the data: a new window redraws the scene layer too
+  const key = JSON.stringify(P.bounds);
+  if (sceneDirty || key !== layerBounds) {
+    drawScene(P);
+    sceneDirty = false;
+    layerBounds = key;
+  }
+  ctx.clearRect(0, 0, canvas.width, canvas.height);
+  ctx.drawImage(sceneLayer, 0, 0);
   const live = state.live;
   if (live) {
     if (live.teleop) { drawMarker(P, live.teleop.commanded, "commanded"); drawMarker(P, live.teleop.written, "written"); }
@@ -168,6 +192,8 @@ function showScene(s) {
 }
 
 function showLive(l) {
+  // rows about teaching mean nothing in teleop (no samples, the model's edge)
+  for (const id of ["sample-count", "traced-share"]) byId(id).parentElement.hidden = Boolean(l.teleop);
   byId("mode").textContent = l.mode;
   byId("note").textContent = l.note;
   byId("sample-count").textContent = String(l.sample_count);
@@ -191,7 +217,7 @@ function connect() {
   socket.onopen = () => { byId("connection").textContent = "live"; byId("connection").className = "up"; };
   socket.onmessage = (event) => {
     const message = JSON.parse(event.data);
-    if (message.kind === "scene") { state.scene = message; state.sceneFrames++; showScene(message); }
+    if (message.kind === "scene") { state.scene = message; state.sceneFrames++; sceneDirty = true; showScene(message); }
     else if (message.kind === "live") { state.live = message; state.liveFrames++; showLive(message); }
     byId("live-frames").textContent = String(state.liveFrames);
     byId("scene-frames").textContent = String(state.sceneFrames);
