@@ -87,12 +87,18 @@ def run_record(options: RecordOptions, view: LiveView | None = None) -> int:
         options.out, rig=profile.name, meta=meta, calibration=profile.calibration
     ) as writer:
         with _viewing(options.view, view) as live, _open(conn, hand=hand) as session:
-            with stop_on_signals() as stop, live.teaching(session.rig, session.profile) as limb:
+            with stop_on_signals() as stop, live.teaching(session.rig, session.profile) as taught:
                 if session.simulated:
                     say(f"simulator: a scripted hand teaches the region in {hand}")
                 stop_on_enter(stop)
                 summary = record(
-                    limb, writer, options.rate, options.duration, stop, progress=sys.stderr
+                    taught.limb,
+                    writer,
+                    options.rate,
+                    options.duration,
+                    stop,
+                    progress=sys.stderr,
+                    on_guidance=taught.on_guidance,
                 )
     for line in summary.lines():
         say(line)

@@ -20,8 +20,18 @@ from dataclasses import dataclass
 from typing import Any
 
 from limbctl.errors import ConfigError
+from limbctl.teach.guide import Guidance
 from limbctl.teleop.cycle import Cycle
-from limbctl.view import Board, HardLimits, Live, PanTilt, Scene, TeleopStatus, ViewServer
+from limbctl.view import (
+    Board,
+    GuideFigure,
+    HardLimits,
+    Live,
+    PanTilt,
+    Scene,
+    TeleopStatus,
+    ViewServer,
+)
 from limbctl.view.feed import PoseTap, SceneFeeder
 from limbctl.view.region import model_loops
 
@@ -63,6 +73,26 @@ def rig_limits(profile: Any) -> HardLimits:
     )
 
 
+@dataclass(frozen=True)
+class Teaching:
+    """The recorder's side of a live teaching: ``limb`` to read, ``on_guidance`` for the guide's
+    assessments (None: nobody shows them)."""
+
+    limb: Any
+    on_guidance: Callable[[Guidance], None] | None
+
+
+def guide_figures(guidance: Guidance) -> tuple[tuple[GuideFigure, ...], str]:
+    """The guide's assessment as the page shows it: its figures and its one-line advice."""
+    figures = (
+        GuideFigure("edge closed", 100.0 * guidance.edge_closed, "%"),
+        GuideFigure("inside covered", 100.0 * guidance.inside_covered, "%"),
+        GuideFigure("edge gaps", len(guidance.edge_gaps)),
+        GuideFigure("inside gaps", len(guidance.inside_gaps)),
+    )
+    return figures, guidance.line()
+
+
 class LiveView:
     """An open live view (or none: every method then does nothing and costs nothing).
 
@@ -83,18 +113,19 @@ class LiveView:
         return self.board is not None
 
     @contextlib.contextmanager
-    def teaching(self, limb: Any, profile: Any, mode: str = "record") -> Iterator[Any]:
-        """The limb the recorder should read while the view shows the teaching.
+    def teaching(self, limb: Any, profile: Any, mode: str = "record") -> Iterator[Teaching]:
+        """What the recorder should read and tell while the view shows the teaching.
 
-        Yields the limb itself when the view is off; otherwise a pose tap on it, while a scene
-        feeder refits the region from the samples so far (in its own process).
+        Yields the limb itself and no guidance hook when the view is off; otherwise a pose tap
+        on the limb and the guide's hook, while a scene feeder refits the region from the
+        samples so far (in its own process).
         """
         if self.board is None:
-            yield limb
+            yield Teaching(limb, None)
             return
         tap = PoseTap(limb, self.board, mode, note="torque off: move the limb by hand")
-        with SceneFeeder(self.board, tap.samples, rig_limits(profile)):
-            yield tap
+        with SceneFeeder(self.board, tap.samples, rig_limits(profile)) as feeder:
+            yield Teaching(tap, lambda guidance: feeder.set_guide(*guide_figures(guidance)))
 
     def teleop_observer(
         self, envelope: Any, profile: Any, mode: str = "teleop"

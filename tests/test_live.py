@@ -16,8 +16,9 @@ from calib.profile import default_sim_profile
 from limbctl.envelope import RigidMap
 from limbctl.errors import ConfigError
 from limbctl.jobs import Connection, RecordOptions, TeleopOptions, run_record, run_teleop
-from limbctl.live import DEFAULT_PORT, TeleopFeed, ViewOptions, open_view
+from limbctl.live import DEFAULT_PORT, TeleopFeed, ViewOptions, guide_figures, open_view
 from limbctl.teach.dataset import load_dataset
+from limbctl.teach.guide import Guidance
 from limbctl.teleop.cycle import Cycle, CycleState
 from limbctl.teleop.gate import GateResult, Outcome
 from limbctl.view import Board
@@ -87,6 +88,10 @@ def test_record_job_shows_its_samples_on_the_page(tmp_path):
         )
         assert text_of(browser, "pose") == pose_text(data.pan_deg[-1], data.tilt_deg[-1])
         assert text_of(browser, "limits") == "pan -115..115, tilt -55..70"
+        # the guide's last assessment, as the recorder's summary has it
+        wait_for(browser, lambda d: "edge closed" in text_of(d, "guide"), "no guide figures")
+        assert "inside covered" in text_of(browser, "guide")
+        assert "edge closed" in text_of(browser, "guide-text")
 
 
 def free_udp_port() -> int:
@@ -175,6 +180,25 @@ def test_teleop_feed_keeps_the_last_written_pose_and_measures_the_rate():
     assert status.commanded.pan_deg == 10.0
     assert status.rate_hz == pytest.approx(200.0)
     assert status.cycles == 200 and status.outcome == "passed"
+
+
+def test_guide_figures_say_what_the_guidance_says():
+    guidance = Guidance(
+        samples=500,
+        phase="edge",
+        edge_closed=0.625,
+        inside_covered=0.25,
+        edge_gaps=(),
+        inside_gaps=(),
+        ready=False,
+        centre_deg=(10.0, 5.0),
+        spread_deg=20.0,
+    )
+    figures, advice = guide_figures(guidance)
+    shown = {figure.label: (figure.value, figure.unit) for figure in figures}
+    assert shown["edge closed"] == (62.5, "%") and shown["inside covered"] == (25.0, "%")
+    assert shown["edge gaps"] == (0, "") and shown["inside gaps"] == (0, "")
+    assert advice == guidance.line()
 
 
 def test_view_options_and_ports():

@@ -4,7 +4,8 @@
   through, kept in memory and published as the live pose (a list append and a board swap, a few
   microseconds on the recorder's own thread; nothing there ever waits on the view).
 - :class:`SceneFeeder` runs on its own thread: every :data:`SCENE_PERIOD_S` it thins the samples
-  so far, asks the guide (if any) for its figures, and publishes a scene with the newest region
+  so far and publishes a scene with the guide's latest figures (handed over with
+  :meth:`SceneFeeder.set_guide`, a reference swap) and the newest region
   fitted by a :class:`~limbctl.view.region.FitProcess` (a new fit starts when the last one is done,
   at most once a second, and only when there are new samples).
 """
@@ -29,9 +30,6 @@ SCENE_PERIOD_S = 0.5
 REFIT_PERIOD_S = 1.0
 #: Longest wait (s) for the feeder thread to finish when stopped.
 JOIN_TIMEOUT_S = 10.0
-
-#: What the guide gives the feeder: (figures, advice) for samples (N, 2) in degrees.
-Guide = Callable[[np.ndarray], tuple[tuple[GuideFigure, ...], str]]
 
 
 class PoseTap:
@@ -102,8 +100,6 @@ class SceneFeeder:
         Returns the samples so far, shape (N, 2), radians (pan, tilt).
     limits : HardLimits or None
         The rig's hard limits.
-    guide : callable, optional
-        ``guide(samples_deg) -> (figures, advice)``; none shows no guide figures.
     fit : bool
         Fit the region in a separate process (False: samples only).
     """
@@ -113,13 +109,12 @@ class SceneFeeder:
         board: Board,
         samples: Callable[[], np.ndarray],
         limits: HardLimits | None = None,
-        guide: Guide | None = None,
         fit: bool = True,
     ) -> None:
         self.board = board
         self._samples = samples
         self.limits = limits
-        self.guide = guide
+        self._guide: tuple[tuple[GuideFigure, ...], str] = ((), "")
         self._fit_wanted = fit
         self._fits: FitProcess | None = None
         waiting = "the first fit is running" if fit else "not fitted"
@@ -143,6 +138,10 @@ class SceneFeeder:
         if self._fits is not None:
             self._fits.close()
         self.publish_once()
+
+    def set_guide(self, figures: tuple[GuideFigure, ...], advice: str) -> None:
+        """The guide's newest figures and advice, shown with the next scene (from any thread)."""
+        self._guide = (tuple(figures), advice)
 
     def _run(self) -> None:
         while not self._stop.wait(SCENE_PERIOD_S):
@@ -172,7 +171,7 @@ class SceneFeeder:
                 self._fitted_count = len(pan_tilt_rad)
                 self._last_start = now
         samples_deg = np.degrees(pan_tilt_rad)
-        figures, advice = self.guide(samples_deg) if self.guide is not None else ((), "")
+        figures, advice = self._guide
         scene = Scene(
             samples_deg=thin_samples(samples_deg),
             loops=self.latest.loops,
