@@ -25,6 +25,7 @@ import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
 from limbctl.errors import InvalidInputError
+from limbctl.region import grid_kernels
 from limbctl.region import mesh_kernels as bk
 from limbctl.region.mesh_kernels import CONTAIN_TOLERANCE
 
@@ -95,7 +96,7 @@ class DirectionMesh:
         n_theta = max(8, int(np.ceil(np.pi * cells_per_radian)))
         grid_shape = np.array([n_theta, 2 * n_theta], dtype=np.int64)
         inside = cell_centres_inside(d, edges, axis, grid_shape)
-        deep, start_, cell_edges, cell_keys = bk.build_grid(
+        deep, start_, cell_edges, cell_keys = grid_kernels.build_grid(
             d, edges, widen, axis, grid_shape, inside
         )
         return cls(d, edges, widen, axis, grid_shape, inside, deep, start_, cell_edges, cell_keys)

@@ -7,10 +7,11 @@ The grid divides the sphere into ``n_theta x n_phi`` cells in polar coordinates 
   :func:`limbctl.region.mesh.cell_centres_inside`);
 - ``cell_deep``: every point of the cell is inside the region (centre inside the mesh and at
   least the cell radius ``r`` from the boundary, or all of it within one arc's widening);
-- candidate boundary arcs (CSR ``cell_start``/``cell_edges``, sorted by ``cell_keys``): the arcs
-  whose widened distance from the centre, ``key = angle(centre, arc) - margin_arc``, is at most
-  ``min key + 2 r`` (any other arc is farther from every point of the cell than the best one),
-  and every arc within ``r`` of the centre (those can cross the path from the centre to a point).
+- candidate boundary arcs (CSR ``cell_start``/``cell_edges``, sorted by ``cell_keys``; built by
+  :func:`limbctl.region.grid_kernels.build_grid`): the arcs whose widened distance from the
+  centre, ``key = angle(centre, arc) - margin_arc``, is at most ``min key + 2 r`` (any other
+  arc is farther from every point of the cell than the best one), and every arc within ``r``
+  of the centre (those can cross the path from the centre to a point).
 
 Each boundary arc ``e`` has its own widening ``margin_e`` (rad): the region is the mesh united
 with every direction within ``margin_e`` of some arc ``e``, so its distance from a point outside
@@ -179,138 +180,6 @@ def _cell_of(p, axis, u, v, n_theta, n_phi) -> int:
 def _polar_point(theta, phi, axis, u, v):
     st = math.sin(theta)
     return math.cos(theta) * axis + st * (math.cos(phi) * u + math.sin(phi) * v)
-
-
-@nb.njit(cache=True)
-def _edge_bounds(vertices, edges):
-    """Unit midpoint (E, 3) and half length (E,) rad of each boundary arc."""
-    n_edges = edges.shape[0]
-    mids = np.empty((n_edges, 3))
-    half = np.empty(n_edges)
-    for e in range(n_edges):
-        a = vertices[edges[e, 0]]
-        b = vertices[edges[e, 1]]
-        m = a + b
-        m /= math.sqrt(_dot(m, m))
-        mids[e] = m
-        half[e] = 0.5 * _angle(a, b)
-    return mids, half
-
-
-@nb.njit(cache=True)
-def _min_key(centre, vertices, edges, margins, mids, half, max_half, max_margin, tmp):
-    """``min_e (angle(centre, arc e) - margin_e)`` and the plain ``min_e angle(centre, arc e)``."""
-    n_edges = edges.shape[0]
-    # an upper bound first: every point of an arc lies within its half length of the midpoint
-    top = np.inf
-    for e in range(n_edges):
-        top = min(top, _angle(centre, mids[e]) + half[e] - margins[e])
-    # only arcs whose midpoint is within top + max_half + max_margin can reach below it
-    limit = math.cos(min(top + max_half + max_margin + 1e-9, math.pi))
-    best_key = np.inf
-    best_plain = np.inf
-    for e in range(n_edges):
-        if _dot(centre, mids[e]) < limit:
-            continue
-        dist = nearest_on_arc(centre, vertices[edges[e, 0]], vertices[edges[e, 1]], tmp)
-        best_key = min(best_key, dist - margins[e])
-        best_plain = min(best_plain, dist)
-    return best_key, best_plain
-
-
-@nb.njit(cache=True)
-def _cell_geometry(cell, n_theta, n_phi, axis, u, v):
-    """Centre (3,) of a grid cell and a radius (rad) that every point of the cell lies within."""
-    i = cell // n_phi
-    j = cell % n_phi
-    t0 = i * math.pi / n_theta
-    p0 = -math.pi + j * 2.0 * math.pi / n_phi
-    dt = math.pi / n_theta
-    dp = 2.0 * math.pi / n_phi
-    centre = _polar_point(t0 + 0.5 * dt, p0 + 0.5 * dp, axis, u, v)
-    r = 0.0
-    for a in range(2):
-        for b in range(2):
-            corner = _polar_point(t0 + a * dt, p0 + b * dp, axis, u, v)
-            r = max(r, _angle(centre, corner))
-    # the widest point of a cell edge lies on its middle; 1 % covers it (cells are < 3 deg)
-    return centre, r * 1.01 + 1e-12
-
-
-@nb.njit(cache=True, parallel=True)
-def build_grid(vertices, edges, margins, axis, grid_shape, inside):
-    """Cell depth status and sorted candidate arcs (module docstring) -> deep, start, arcs, keys.
-
-    ``inside`` (cells,) says whether each cell's centre lies in the mesh; ``margins`` (E,) is
-    each arc's widening (rad). A cell is deep when all of it lies in the mesh (centre inside,
-    the boundary at least the cell radius ``r`` away) or in one arc's widening
-    (``min_e (angle(centre, e) - m_e) <= -r``). Otherwise its candidates are the arcs with
-    ``key_e = angle(centre, e) - m_e <= min_key + 2 r`` (the nearest widened arc of any point
-    of the cell is among them: pruned by the smallest upper bound ``min_key + r``) and the arcs
-    within ``r`` of the centre (every arc crossing the path centre -> point), sorted by key.
-    """
-    n_theta = grid_shape[0]
-    n_phi = grid_shape[1]
-    n_cells = n_theta * n_phi
-    u, v = _frame(axis)
-    n_edges = edges.shape[0]
-    mids, half = _edge_bounds(vertices, edges)
-    max_half = 0.0
-    max_margin = 0.0
-    for e in range(n_edges):
-        max_half = max(max_half, half[e])
-        max_margin = max(max_margin, margins[e])
-    deep = np.zeros(n_cells, dtype=np.bool_)
-    counts = np.zeros(n_cells, dtype=np.int64)
-    bound = np.empty(n_cells)
-    radius = np.empty(n_cells)
-    centres = np.empty((n_cells, 3))
-    for cell in nb.prange(n_cells):
-        centre, r = _cell_geometry(cell, n_theta, n_phi, axis, u, v)
-        centres[cell] = centre
-        radius[cell] = r
-        tmp = np.empty(3)
-        best_key, best_plain = _min_key(
-            centre, vertices, edges, margins, mids, half, max_half, max_margin, tmp
-        )
-        deep[cell] = (inside[cell] and best_plain >= r) or (best_key + r <= 0.0)
-        bound[cell] = best_key + 2.0 * r
-        if not deep[cell]:
-            c = 0
-            limit = math.cos(min(max(bound[cell], r) + max_margin + max_half + 1e-9, math.pi))
-            for e in range(n_edges):
-                if _dot(centre, mids[e]) < limit:
-                    continue
-                dist = nearest_on_arc(centre, vertices[edges[e, 0]], vertices[edges[e, 1]], tmp)
-                if dist - margins[e] <= bound[cell] or dist <= r:
-                    c += 1
-            counts[cell] = c
-    start = np.zeros(n_cells + 1, dtype=np.int64)
-    for cell in range(n_cells):
-        start[cell + 1] = start[cell] + counts[cell]
-    cell_edges = np.empty(start[n_cells], dtype=np.int64)
-    cell_keys = np.empty(start[n_cells])
-    for cell in nb.prange(n_cells):
-        if deep[cell]:
-            continue
-        k0 = start[cell]
-        k = k0
-        tmp = np.empty(3)
-        centre = centres[cell]
-        r = radius[cell]
-        limit = math.cos(min(max(bound[cell], r) + max_margin + max_half + 1e-9, math.pi))
-        for e in range(n_edges):
-            if _dot(centre, mids[e]) < limit:
-                continue
-            dist = nearest_on_arc(centre, vertices[edges[e, 0]], vertices[edges[e, 1]], tmp)
-            if dist - margins[e] <= bound[cell] or dist <= r:
-                cell_edges[k] = e
-                cell_keys[k] = dist - margins[e]
-                k += 1
-        order = np.argsort(cell_keys[k0:k], kind="mergesort")
-        cell_edges[k0:k] = cell_edges[k0:k][order]
-        cell_keys[k0:k] = cell_keys[k0:k][order]
-    return deep, start, cell_edges, cell_keys
 
 
 #: Rows of the scratch array the query kernels take: u, v of the frame, the cell centre, a
