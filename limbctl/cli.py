@@ -21,6 +21,7 @@ from limbctl.envelope import MODEL_KINDS
 from limbctl.errors import ConfigError, LimbctlError
 from limbctl.live import DEFAULT_PORT as DEFAULT_VIEW_PORT
 from limbctl.live import ViewOptions
+from limbctl.teleop.approach import DEFAULT_WAIT_S, MAX_APPROACH_SPEED_DEG_S
 from limbctl.teleop.loop import SafeState
 
 EPILOG_HARDWARE = (
@@ -290,6 +291,8 @@ def _teleop(a: argparse.Namespace) -> int:
             telemetry=a.telemetry,
             goal_log=a.goal_log,
             quiet=a.quiet,
+            wait=a.wait,
+            approach=a.approach,
             connection=_connection(a),
             view=_view(a),
         )
@@ -304,7 +307,10 @@ def _add_teleop(sub: Subparsers) -> None:
         help="drive the limb from a command source, every command through the gate",
         description="Read commands from --source at --rate Hz; each is corrected by the model, "
         "converted to joint angles, clamped to the rig's hard limits, slew-limited, and only "
-        "then written. A silent source holds the last safe pose; end of input exits with 0.",
+        "then written. A silent source holds the last safe pose; end of input exits with 0. "
+        "A limb that rests outside the region is not driven from there: see --wait and "
+        "--approach. Lines that are refused are counted by reason; if every line is refused the "
+        "exit status is 2.",
         epilog="Sources: stdin (JSON lines {'pan': deg, 'tilt': deg}, {'dir': [x, y, z]} or "
         "{'q': [w, x, y, z]}), udp://127.0.0.1:PORT (the same lines), keyboard (arrows), "
         "leader:ID,ID (a second gimbal on the same bus, torque off), replay:FILE. "
@@ -327,6 +333,23 @@ def _add_teleop(sub: Subparsers) -> None:
     p.add_argument("--telemetry", type=Path, help="JSON-lines log of every cycle")
     p.add_argument("--goal-log", type=Path, help="simulator only: the simulator's goal log")
     p.add_argument("--quiet", action="store_true", help="no status line")
+    p.add_argument(
+        "--wait",
+        type=_positive,
+        default=DEFAULT_WAIT_S,
+        metavar="S",
+        help="a limb outside the taught region or the hard limits keeps torque off and is "
+        "waited for this long while you move it inside by hand (the way is shown live); then "
+        f"exit 2 (default: {DEFAULT_WAIT_S:.0f})",
+    )
+    p.add_argument(
+        "--approach",
+        type=_positive,
+        metavar="DEG_S",
+        help="instead of waiting for the hand, let the servos drive a limb outside to the "
+        f"nearest pose inside, slowly (at most {MAX_APPROACH_SPEED_DEG_S:.0f} deg/s), every "
+        "goal checked",
+    )
     _add_view(p)
 
 

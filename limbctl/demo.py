@@ -37,6 +37,9 @@ DEMO_RATE_HZ = 200.0
 #: Sampling rate of the demo's recording (samples/s): the recorder's default, above its 100 Hz
 #: minimum.
 DEMO_RECORD_HZ = 125.0
+#: The demo has no hand to move a limb that rests outside the learned region (where the teaching
+#: hand let go): the servos drive it in, at a third of the fastest approach allowed.
+DEMO_APPROACH_DEG_S = 10.0
 #: Slew limit of the demo's teleop (deg/s): the CLI's default.
 DEMO_MAX_SPEED_DEG_S = 120.0
 
@@ -160,6 +163,7 @@ def _run_demo(out: Path, teach_seconds: float, seed: int, live: LiveView) -> int
             telemetry=telemetry,
             goal_log=goals,
             quiet=True,
+            approach=DEMO_APPROACH_DEG_S,
             connection=simulator,
         ),
         view=live,

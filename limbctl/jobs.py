@@ -17,6 +17,7 @@ from limbctl.errors import ConfigError, FileFormatError
 from limbctl.live import LiveView, ViewOptions, open_view
 from limbctl.servo.profiles import load_rig_profile
 from limbctl.session import open_rig, stop_on_signals
+from limbctl.teleop.approach import DEFAULT_WAIT_S
 from limbctl.teleop.loop import SafeState
 
 
@@ -71,7 +72,8 @@ def _viewing(options: ViewOptions, view: LiveView | None):
 
 def run_record(options: RecordOptions, view: LiveView | None = None) -> int:
     """Torque off, sample the limb moved by hand, write the dataset as it goes (shown live on
-    ``view``, or on a view opened as ``options.view`` asks)."""
+    ``view``, or on a view opened as ``options.view`` asks); 0 for an end asked for (Enter,
+    Ctrl-C, duration), 3 when a bus failure ended it."""
     from limbctl.session import demo_region_path
     from limbctl.teach.dataset import DatasetWriter
     from limbctl.teach.record import record, stop_on_enter
@@ -103,7 +105,9 @@ def run_record(options: RecordOptions, view: LiveView | None = None) -> int:
     for line in summary.lines():
         say(line)
     say(f"wrote {writer.count} samples to {options.out}")
-    return 0
+    if summary.fault:
+        say(f"FAULT: the recording ended early: {summary.fault} (the samples above are kept)")
+    return summary.exit_code
 
 
 # ---- train ----------------------------------------------------------------------------------
@@ -315,7 +319,8 @@ class TeleopOptions:
 
     ``rate`` Hz, ``max_speed`` deg/s, ``on_fault`` the safe state, ``duration`` s (None: until
     the source ends or Ctrl-C), ``telemetry`` a JSON-lines log, ``goal_log`` the simulator's,
-    ``quiet`` no status line.
+    ``quiet`` no status line. A limb outside the region is waited for ``wait`` s (torque off),
+    or with ``approach`` (deg/s) driven inside by the servos.
     """
 
     model: Path
@@ -327,16 +332,22 @@ class TeleopOptions:
     telemetry: Path | None = None
     goal_log: Path | None = None
     quiet: bool = False
+    wait: float = DEFAULT_WAIT_S
+    approach: float | None = None
     connection: Connection = field(default_factory=Connection)
     view: ViewOptions = field(default_factory=ViewOptions)
 
 
 def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
-    """Run the control loop; 0 for a clean end, 3 after a fault (shown live on ``view``, or on
-    a view opened as ``options.view`` asks)."""
+    """Start from the limb's pose (waiting for it, or approaching, when outside), run the control
+    loop, park the limb where the next start accepts it (shown live on ``view``, or on a view
+    opened as ``options.view`` asks); 0 for a clean end, 2 when it never started or every
+    command line was refused, 3 after a fault."""
     from limbctl.servo.control_table import MAX_TICK
     from limbctl.servo.setup import configure_servos
-    from limbctl.teleop.loop import LoopConfig, Telemetry, open_telemetry, run
+    from limbctl.teleop.approach import StartOptions
+    from limbctl.teleop.lifecycle import run_session
+    from limbctl.teleop.loop import LoopConfig
     from limbctl.teleop.sources import SourceContext, parse_source
 
     spec = parse_source(options.source)  # a bad source is refused before anything opens
@@ -353,32 +364,30 @@ def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
             duration_s=options.duration,
             on_cycle=live.teleop_observer(gate.envelope, profile),
         )
+        rig = session.rig
+        # read before configuring switches it off: a limb outside is then told why it went limp
+        torque_was_on = any(rig.torque_enabled())
         # the rig's servos get its hard limits; servos of the source (a leader) their full range
-        limits = session.rig.tick_limits()
+        limits = rig.tick_limits()
         limits.update({servo_id: (0, MAX_TICK) for servo_id in spec.extra_ids})
-        configure_servos(session.rig.bus, limits)
-        source = spec.open(SourceContext(rig=session.rig))
-        telemetry_file = open_telemetry(options.telemetry)
-        try:
-            with source, stop_on_signals() as stop:
-                session.rig.set_torque(True)
-                summary = run(
-                    session.rig,
-                    gate,
-                    source,
-                    config,
-                    telemetry=Telemetry(telemetry_file) if telemetry_file else None,
-                    status=None if options.quiet else sys.stderr,
-                    stop=stop,
-                )
-        finally:
-            if telemetry_file is not None:
-                telemetry_file.close()
-    for line in summary.lines():
+        configure_servos(rig.bus, limits)
+        with spec.open(SourceContext(rig=rig)) as source, stop_on_signals() as stop:
+            result = run_session(
+                rig,
+                gate,
+                source,
+                config,
+                StartOptions(options.wait, options.approach, options.rate),
+                telemetry_path=options.telemetry,
+                stream=sys.stderr,
+                status=None if options.quiet else sys.stderr,
+                stop=stop,
+                torque_was_on=torque_was_on,
+                publish=live.start_observer(),
+            )
+    for line in result.lines():
         say(line)
-    if summary.fault:
-        say(f"FAULT: {summary.fault}")
-    return summary.exit_code
+    return result.exit_code
 
 
 # ---- calibrate ------------------------------------------------------------------------------

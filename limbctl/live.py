@@ -127,6 +127,19 @@ class LiveView:
         with SceneFeeder(self.board, tap.samples, rig_limits(profile)) as feeder:
             yield Teaching(tap, lambda guidance: feeder.set_guide(*guide_figures(guidance)))
 
+    def start_observer(self, mode: str = "teleop: waiting") -> Callable[[Any], None] | None:
+        """Where a limb outside the region is shown while teleop waits for it: publishes each
+        :class:`~limbctl.teleop.margin.StartStatus` (pose, how far and which way); None if off."""
+        board = self.board
+        if board is None:
+            return None
+
+        def publish(status: Any) -> None:
+            pose = PanTilt(status.pan_deg, status.tilt_deg)
+            board.publish_live(Live(mode, pose, note=status.line()))
+
+        return publish
+
     def teleop_observer(
         self, envelope: Any, profile: Any, mode: str = "teleop"
     ) -> Callable[[Cycle], None] | None:

@@ -51,8 +51,9 @@ DEFAULT_WAIT_S = 60.0
 #: a full 90 deg swing takes 3 s, time enough to see it coming and let go or grab it.
 MAX_APPROACH_SPEED_DEG_S = 30.0
 #: How close (deg) the present pose must come to the approach's target before it starts: a
-#: holding servo sits within a couple of ticks (0.18 deg) of its goal.
-SETTLE_DEG = 0.5
+#: holding servo sits within a couple of ticks (0.18 deg) of its goal; the start pose is then
+#: still inside by START_MARGIN_DEG - SETTLE_DEG = 0.15 deg.
+SETTLE_DEG = 0.2
 #: Longest wait (s) for the limb to reach the approach's target once the last goal is written:
 #: the servos' position loop settles in well under 0.5 s.
 SETTLE_TIMEOUT_S = 3.0
@@ -202,6 +203,7 @@ def start_session(
     stream: IO[str] | None = None,
     publish: Callable[[StartStatus], None] | None = None,
     stop: threading.Event | None = None,
+    torque_was_on: bool = False,
 ) -> StartOutcome:
     """Start the gate from the limb's present pose, waiting for it (or approaching) if outside.
 
@@ -218,6 +220,9 @@ def start_session(
         Called with each :class:`StartStatus` while the limb is outside (e.g. a live view).
     stop : threading.Event, optional
         Set (Ctrl-C) to give up waiting.
+    torque_was_on : bool
+        Torque was on before the caller switched it off (e.g. to configure the servos): a limb
+        outside is then told that torque went off, as if it had been found on.
 
     Returns
     -------
@@ -230,14 +235,14 @@ def start_session(
     stop = stop or threading.Event()
     waiter = _Waiter(limb, gate, options, stream, publish, stop)
     try:
-        return _start(waiter)
+        return _start(waiter, torque_was_on)
     except BusError as exc:
         where = f"servo {exc.servo_id}: " if exc.servo_id is not None else ""
         note = _torque_off(limb)
         return waiter.outcome(False, "bus failure", f"{where}{exc} before the start; {note}", 3)
 
 
-def _start(waiter: _Waiter) -> StartOutcome:
+def _start(waiter: _Waiter, torque_was_on: bool) -> StartOutcome:
     limb, gate, options = waiter.limb, waiter.gate, waiter.options
     pose = waiter.read()
     if gate.is_safe(*pose):
@@ -245,6 +250,8 @@ def _start(waiter: _Waiter) -> StartOutcome:
         return _begin(waiter, "inside")
     if any(limb.torque_enabled()):
         limb.set_torque(False)
+        torque_was_on = True
+    if torque_was_on:
         _say(waiter.stream, "the limb is outside: torque switched off so it can be moved by hand")
     approach = options.approach_deg_s
     period = 1.0 / options.poll_hz
@@ -312,7 +319,6 @@ def _drive(
         f"{math.degrees(target[1]):+.1f} deg",
     )
     limb.set_torque(True)
-    next_tick = time.monotonic()
     while True:
         remaining = scalar.angle(here, goal)
         if remaining <= step:
@@ -332,8 +338,9 @@ def _drive(
         here = scalar.direction(pan, tilt)
         if (pan, tilt) == target:
             break
-        next_tick += 1.0 / options.rate_hz
-        waiter.stop.wait(max(0.0, next_tick - time.monotonic()))
+        # a late cycle is not caught up: goals stay a period apart, so the limb never moves
+        # faster than the approach speed (a loaded machine makes it slower, never faster)
+        waiter.stop.wait(1.0 / options.rate_hz)
     deadline = time.monotonic() + SETTLE_TIMEOUT_S
     while True:
         present = waiter.read()
@@ -365,7 +372,8 @@ def park(
     The last pose the gate let through is rounded to ticks as the servos hold it; when that is
     not inside the region and the hard limits by :data:`START_MARGIN_DEG`, the gate itself
     drives the limb (slew-limited, corrected, checked) to the nearest pose that is, one goal
-    per ``1 / rate_hz`` s. Bus errors end the park (reported in ``note``), never raise.
+    per ``1 / rate_hz`` s; when it is, it is written once more (the session's last write may
+    have failed). Bus errors end the park (reported in ``note``), never raise.
     """
     stop = stop or threading.Event()
     pose = gate.safe_pose
@@ -373,6 +381,11 @@ def park(
         return ParkOutcome(False, None, note="the gate never started")
     margin = math.radians(START_MARGIN_DEG)
     if inside_by_margin(gate, np.array([limb.held_pose(*pose)]), margin)[0]:
+        # written once more: the session's last write may have failed, leaving an older goal
+        try:
+            limb.write_pose(*pose)
+        except BusError as exc:
+            return ParkOutcome(False, pose, note=f"could not write the last pose again: {exc}")
         return ParkOutcome(False, pose)
     target = nearest_start_pose(gate, *pose, margin, limb.held_pose)
     if target is None:
@@ -383,7 +396,6 @@ def park(
     distance = scalar.angle(scalar.direction(*pose), scalar.direction(*target))
     # a few cycles more than the slew limit needs, for the joint-step limit near the poles
     cycles = math.ceil(distance / gate.limits.max_step) + 10
-    next_tick = time.monotonic()
     for _ in range(cycles):
         result = gate.step(target_q)
         if result.outcome is Outcome.HELD:
@@ -394,6 +406,5 @@ def park(
             return ParkOutcome(False, gate.safe_pose, note=f"could not park: {exc}")
         if not result.slewed:
             return ParkOutcome(True, (result.pan, result.tilt), math.degrees(distance))
-        next_tick += 1.0 / rate_hz
-        stop.wait(max(0.0, next_tick - time.monotonic()))
+        stop.wait(1.0 / rate_hz)  # a period between goals, late or not: never faster
     return ParkOutcome(False, gate.safe_pose, note="the gate did not reach the park pose")

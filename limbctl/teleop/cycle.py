@@ -83,6 +83,9 @@ class Cycle:
     notices : tuple of str
         What the servos' health monitor said this cycle (a servo stopped answering, answered
         again after a dropout of so long).
+    refused_reasons : tuple of str
+        Why each line refused since the previous cycle was refused (at most
+        :data:`limbctl.teleop.refusals.MAX_RECENT`), oldest first.
     """
 
     index: int
@@ -98,6 +101,7 @@ class Cycle:
     fault: str = ""
     refused: int = 0
     notices: tuple[str, ...] = ()
+    refused_reasons: tuple[str, ...] = ()
 
 
 @dataclass
@@ -123,6 +127,13 @@ class TeleopSummary:
     # what the health monitor said, with the time (a servo stopped answering, came back)
     notices: deque = field(default_factory=lambda: deque(maxlen=NOTICE_WINDOW))
     dropouts: list[Dropout] = field(default_factory=list)
+    # one line per refusal reason with its count and first examples (set when the loop ends)
+    refusal_lines: list[str] = field(default_factory=list)
+
+    @property
+    def all_refused(self) -> bool:
+        """Lines came in and every one was refused: nothing the user sent was followed."""
+        return self.commands == 0 and self.rejected > 0
 
     @property
     def rate_hz(self) -> float:
@@ -143,6 +154,7 @@ class TeleopSummary:
             f"p99 {self.percentile_ms(99, True):.3f} ms",
             f"commands           {self.commands} accepted ({self.skipped} skipped as stale), "
             f"{self.rejected} refused",
+            *(f"  {line}" for line in self.refusal_lines),
             f"gate outcomes      {outcome or 'none'}",
             f"goals written      {self.goals_written}",
             f"bus errors         {self.bus_errors} ({self.failed_cycles} cycles lost)",

@@ -171,6 +171,7 @@ class ControlLoop:
         self._pending: deque = deque()
         self._target_q: np.ndarray | None = None
         self._target_deg: tuple[float, float] | None = None
+        self._refused_reasons: tuple[str, ...] = ()
         self._started_at = self._next_tick = self._last_command_at = 0.0
 
     def start(self) -> Cycle:
@@ -294,6 +295,7 @@ class ControlLoop:
             ended_by=ended_by,
             refused=summary.rejected,
             notices=verdict.notices,
+            refused_reasons=self._refused_reasons,
         )
 
     def pace(self) -> None:
@@ -307,11 +309,17 @@ class ControlLoop:
             self._next_tick = time.perf_counter()
 
     def finish(self) -> TeleopSummary:
-        """The session's summary, its elapsed time and dropouts set."""
-        self.summary.dropouts = list(self.health.dropouts)
+        """The session's summary: its elapsed time, dropouts and refusal reasons set; a
+        session whose every line was refused ends with exit code 2 (unless a fault set 3)."""
+        summary = self.summary
+        summary.dropouts = list(self.health.dropouts)
         if self._started_at:
-            self.summary.elapsed_s = time.perf_counter() - self._started_at
-        return self.summary
+            summary.elapsed_s = time.perf_counter() - self._started_at
+        summary.rejected = self.source.stats.rejected
+        summary.refusal_lines = self.source.stats.refusals.lines()
+        if summary.all_refused and summary.exit_code == 0:
+            summary.exit_code = 2
+        return summary
 
     def _take_command(self, now: float) -> None:
         """Realtime sources (UDP, keyboard, leader) keep only the newest command; scripted
@@ -330,6 +338,7 @@ class ControlLoop:
             self._target_deg = _command_deg(self._target_q)
             self._last_command_at = now
         self.summary.rejected = self.source.stats.rejected
+        self._refused_reasons = tuple(self.source.stats.refusals.take_recent())
 
     def _end(self, ended_by: str, t: float) -> Cycle:
         self.summary.ended_by = ended_by

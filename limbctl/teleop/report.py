@@ -12,7 +12,8 @@ from limbctl.teleop.gate import Outcome
 
 
 class Telemetry:
-    """One JSON line per complete cycle: command, gated pose, written goal, present pose (deg)."""
+    """One JSON line per complete cycle: command, gated pose, written goal, present pose (deg),
+    and the reasons of the lines refused since the previous cycle."""
 
     def __init__(self, stream: IO[str]) -> None:
         self._stream = stream
@@ -32,6 +33,7 @@ class Telemetry:
             if cycle.present is None
             else [round(math.degrees(v), 4) for v in cycle.present],
             "cycle_ms": round(1e3 * cycle.timings.cycle_s, 3) if cycle.timings else None,
+            "refused": list(cycle.refused_reasons),
         }
         self._stream.write(json.dumps(row) + "\n")
 

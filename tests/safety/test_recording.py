@@ -9,7 +9,9 @@
 - a path that cannot be written is refused before the simulator (or a servo) is touched; the
   free-space preflight is tested in tests/test_dataset.py::test_preflight_checks;
 - the disk filling up mid-recording (a file-size limit on the recorder) ends the recording
-  with a message naming the file, and every sample before it still loads.
+  with a message naming the file, and every sample before it still loads;
+- a servo lost mid-recording ends it as a fault (exit 3, "bus failure", the servo named), and
+  every sample before it still loads.
 """
 
 from __future__ import annotations
@@ -143,3 +145,19 @@ def test_disk_full_mid_recording_is_reported_and_keeps_what_was_written(tmp_path
     data = load_dataset(out)
     assert len(data) > 100
     assert out.stat().st_size <= limit
+
+
+def test_a_servo_lost_mid_recording_exits_3_and_keeps_the_samples(tmp_path, sim):
+    out = tmp_path / "teach.limb"
+    proc = start_record(out, "--port", sim.port, "--duration", 600)
+    try:
+        before = wait_for_samples(proc, out, 50)
+        sim.vanish(2, 600.0)  # the tilt servo drops off the bus for good
+    finally:
+        code, err = finish(proc)
+    assert code == 3, err
+    assert "ended by           bus failure: 50 reads in a row failed" in err
+    assert "FAULT: the recording ended early" in err and "servo 2" in err
+    data = load_dataset(out)
+    assert f"wrote {len(data)} samples to {out}" in err
+    assert_prefix(before, data)

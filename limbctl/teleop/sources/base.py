@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 
 from limbctl.errors import InvalidInputError
 from limbctl.teleop.commands import Command, parse_command
+from limbctl.teleop.refusals import Refusals
 
 #: How often (s) a reader thread that waits for input checks whether its source was closed: a
 #: close then takes at most this long, and an idle reader wakes only 10 times a second.
@@ -26,18 +27,21 @@ CLOSE_WAIT_S = 2.0
 
 @dataclass
 class SourceStats:
-    """Counts kept by every source; read by the loop's status line and telemetry."""
+    """Counts kept by every source; read by the loop's status line, telemetry and summary.
+
+    ``refusals`` keeps why lines were refused (by reason, with the first examples).
+    """
 
     accepted: int = 0
     rejected: int = 0
     last_rejection: str = ""
-    rejections: dict[str, int] = field(default_factory=dict)
+    refusals: Refusals = field(default_factory=Refusals)
 
-    def reject(self, reason: str) -> None:
+    def reject(self, reason: str, line: bytes | str = b"", line_no: int = 0) -> None:
+        """Count one refused input: the parser's ``reason``, the ``line`` and its number."""
         self.rejected += 1
         self.last_rejection = reason
-        key = reason.split(":")[0][:60]
-        self.rejections[key] = self.rejections.get(key, 0) + 1
+        self.refusals.add(reason, line, line_no)
 
 
 class CommandSource:
@@ -53,6 +57,7 @@ class CommandSource:
 
     def __init__(self) -> None:
         self.stats = SourceStats()
+        self._lines_fed = 0  # lines handed to feed, for the line numbers of refused ones
         self._queue: queue.SimpleQueue[Command | None] = queue.SimpleQueue()
         self._stop = threading.Event()
         self._ended = threading.Event()
@@ -90,13 +95,14 @@ class CommandSource:
     # -- input ------------------------------------------------------------------------------
     def feed(self, line: bytes | str) -> None:
         """Parse one line and queue it, or count the rejection."""
+        self._lines_fed += 1
         text = line.strip() if isinstance(line, str) else line.strip()
         if not text:
             return
         try:
             command = parse_command(text)
         except InvalidInputError as exc:
-            self.stats.reject(str(exc))
+            self.stats.reject(str(exc), text, self._lines_fed)
             return
         self.offer(command)
 
