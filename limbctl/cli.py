@@ -15,7 +15,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from calib.yaml_guard import shown
-from limbctl import jobs, upkeep
+from limbctl import file_jobs, jobs, upkeep
 from limbctl.demo import DemoOptions, run_demo_job
 from limbctl.envelope import MODEL_KINDS
 from limbctl.errors import ConfigError, LimbctlError
@@ -249,8 +249,8 @@ def _add_record(sub: Subparsers) -> None:
 
 
 def _train(a: argparse.Namespace) -> int:
-    return jobs.run_train(
-        jobs.TrainOptions(
+    return file_jobs.run_train(
+        file_jobs.TrainOptions(
             data=a.data,
             out=a.out,
             kind=a.kind,
@@ -371,7 +371,7 @@ def _add_plot(sub: Subparsers) -> None:
     p = _command(
         sub,
         "plot",
-        lambda a: jobs.run_plot(jobs.PlotOptions(inputs=tuple(a.inputs), out=a.out)),
+        lambda a: file_jobs.run_plot(file_jobs.PlotOptions(inputs=tuple(a.inputs), out=a.out)),
         help="draw a model or a dataset (region, samples, node weights) to a PNG",
     )
     p.add_argument("inputs", type=Path, nargs="+", help="a model file and/or a dataset")
@@ -382,7 +382,9 @@ def _add_eval(sub: Subparsers) -> None:
     p = _command(
         sub,
         "eval",
-        lambda a: jobs.run_evaluation(jobs.EvalOptions(out=a.out, quick=a.quick, jobs=a.jobs)),
+        lambda a: file_jobs.run_evaluation(
+            file_jobs.EvalOptions(out=a.out, quick=a.quick, jobs=a.jobs)
+        ),
         help="reproduce the papers' experiments beside the gate; tables and plots",
     )
     p.add_argument("--quick", action="store_true", help="a reduced grid (under two minutes)")
@@ -394,7 +396,7 @@ def _add_info(sub: Subparsers) -> None:
     p = _command(
         sub,
         "info",
-        lambda a: jobs.run_info(jobs.InfoOptions(file=a.file, connection=_connection(a))),
+        lambda a: file_jobs.run_info(file_jobs.InfoOptions(file=a.file, connection=_connection(a))),
         help="what is on the bus, or what a model/dataset file holds",
     )
     _add_connection(p)

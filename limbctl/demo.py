@@ -19,16 +19,8 @@ from pathlib import Path
 import numpy as np
 
 from limbctl.errors import ConfigError
-from limbctl.jobs import (
-    Connection,
-    RecordOptions,
-    TeleopOptions,
-    TrainOptions,
-    run_record,
-    run_teleop,
-    run_train,
-    say,
-)
+from limbctl.file_jobs import TrainOptions, run_train
+from limbctl.jobs import Connection, RecordOptions, TeleopOptions, run_record, run_teleop, say
 from limbctl.live import LiveView, ViewOptions, open_view
 from limbctl.teleop.gate import REGION_TOLERANCE_DEG, written_tolerance_deg
 

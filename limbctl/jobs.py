@@ -1,4 +1,5 @@
-"""The jobs behind ``limbctl``'s subcommands as typed functions: one options value in, a status out.
+"""The jobs that drive servos (record, teleop, calibrate) as typed functions: one options value
+in, a status out (the jobs on files are in :mod:`limbctl.file_jobs`).
 
 :mod:`limbctl.cli` parses the command line into these options; :mod:`limbctl.demo` builds them
 directly. Each job prints what a person reads to stderr and returns the exit status; failures
@@ -10,14 +11,18 @@ from __future__ import annotations
 import contextlib
 import math
 import sys
+from contextlib import AbstractContextManager
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import Any
 
-from limbctl.errors import ConfigError, FileFormatError
+from calib.profile import RigProfile
+from limbctl.errors import ConfigError
 from limbctl.live import LiveView, ViewOptions, open_view
 from limbctl.servo.profiles import load_rig_profile
-from limbctl.session import open_rig, stop_on_signals
+from limbctl.session import Session, open_rig, stop_on_signals
 from limbctl.teleop.approach import DEFAULT_WAIT_S
+from limbctl.teleop.gate import Gate
 from limbctl.teleop.loop import SafeState
 
 
@@ -88,7 +93,7 @@ def run_record(options: RecordOptions, view: LiveView | None = None) -> int:
     with DatasetWriter(
         options.out, rig=profile.name, meta=meta, calibration=profile.calibration
     ) as writer:
-        with _viewing(options.view, view) as live, _open(conn, hand=hand) as session:
+        with _viewing(options.view, view) as live, open_connection(conn, hand=hand) as session:
             with stop_on_signals() as stop, live.teaching(session.rig, session.profile) as taught:
                 if session.simulated:
                     say(f"simulator: a scripted hand teaches the region in {hand}")
@@ -110,193 +115,17 @@ def run_record(options: RecordOptions, view: LiveView | None = None) -> int:
     return summary.exit_code
 
 
-# ---- train ----------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class TrainOptions:
-    """``limbctl train``: fit a model of ``kind`` to dataset ``data``, write it to ``out``;
-    ``nodes``/``layout`` only for kinds that take them (None: the model's default); ``plot``
-    also draws the model and data to that PNG."""
-
-    data: Path
-    out: Path
-    kind: str = "rigidmap"
-    nodes: int | None = None
-    layout: str | None = None
-    seed: int = 0
-    plot: Path | None = None
-
-
-def model_options(kind: str, seed: int, **chosen: object) -> dict[str, object]:
-    """Constructor keywords for a model of ``kind``: the seed where it takes one, and each
-    ``chosen`` option given (not None).
-
-    Raises
-    ------
-    ConfigError
-        For an unknown kind, or an option given that the kind does not take.
-    """
-    from limbctl.envelope import model_class, model_kinds
-
-    settable = model_class(kind).settable
-    given = {name: value for name, value in chosen.items() if value is not None}
-    if set(given) - set(settable):
-        takers = [k for k in model_kinds() if set(chosen) <= set(model_class(k).settable)]
-        flags = " and ".join(f"--{name}" for name in chosen)
-        raise ConfigError(f"{flags} apply to --kind {' or '.join(takers)} only")
-    return {"seed": seed, **given} if "seed" in settable else given
-
-
-def run_train(options: TrainOptions) -> int:
-    """Fit the model, save it, print its summary (and draw it with ``plot``)."""
-    from tqdm import tqdm
-
-    from limbctl.teach.train import STAGES, train
-
-    constructor = model_options(
-        options.kind, options.seed, nodes=options.nodes, layout=options.layout
-    )
-    with tqdm(
-        total=len(STAGES), desc=f"training {options.kind}", unit="stage", file=sys.stderr
-    ) as bar:
-
-        def advance(finished: str) -> None:
-            following = STAGES.index(finished) + 1
-            bar.set_postfix_str(STAGES[following] if following < len(STAGES) else "done")
-            bar.update(1)
-
-        summary = train(options.data, options.out, options.kind, constructor, progress=advance)
-    for line in summary.lines():
-        say(line)
-    say(f"wrote {options.out}")
-    if options.plot is not None:
-        plot_files([options.data, options.out], options.plot)
-        say(f"wrote {options.plot}")
-    return 0
-
-
-# ---- plot / info ----------------------------------------------------------------------------
-def plot_files(paths: list[Path], out: Path, extra: dict | None = None) -> Path:
-    """Draw the models and datasets among ``paths`` (told apart by content) to PNG ``out``."""
-    from limbctl.envelope import load_model
-    from limbctl.plot import plot
-    from limbctl.teach.dataset import load_dataset
-
-    samples, model, names = None, None, []
-    for path in paths:
-        try:
-            model = load_model(path)
-            names.append(f"model {path.name}")
-            continue
-        except FileFormatError as model_error:
-            try:
-                samples = load_dataset(path).quaternions
-                names.append(f"data {path.name}")
-            except FileFormatError as data_error:
-                raise ConfigError(
-                    f"{path} is neither a model ({model_error.problem}) nor a dataset "
-                    f"({data_error.problem})"
-                ) from None
-    return plot(out, samples=samples, model=model, title=", ".join(names), extra=extra)
-
-
-@dataclass(frozen=True)
-class PlotOptions:
-    """``limbctl plot``: draw the model and/or dataset files ``inputs`` to PNG ``out``."""
-
-    inputs: tuple[Path, ...]
-    out: Path
-
-
-def run_plot(options: PlotOptions) -> int:
-    say(f"wrote {plot_files(list(options.inputs), options.out)}")
-    return 0
-
-
-@dataclass(frozen=True)
-class InfoOptions:
-    """``limbctl info``: describe ``file`` (a model or dataset), or the bus when None."""
-
-    file: Path | None = None
-    connection: Connection = field(default_factory=Connection)
-
-
-def run_info(options: InfoOptions) -> int:
-    if options.file is not None:
-        return _info_file(options.file)
-    from limbctl.servo.control_table import Register, model_name
-
-    with _open(options.connection) as session:
-        bus = session.rig.bus
-        where = "embedded simulator" if session.simulated else bus.port_name
-        print(f"bus: {where} at {bus.baud} bps, fast sync read: {bus.fast_sync_read}")
-        errors = bus.read_hardware_errors()
-        torque = bus.torque_enabled()
-        for servo_id in bus.ids:
-            print(
-                f"servo {servo_id}: {model_name(bus.models[servo_id])}, firmware "
-                f"{bus.firmware[servo_id]}, torque {'on' if torque[servo_id] else 'off'}"
-                f", position {bus.read(Register.PRESENT_POSITION, servo_id)}, "
-                f"hardware errors: {', '.join(errors[servo_id]) or 'none'}"
-            )
-        pan, tilt = session.rig.read_pose()
-        print(f"pose: pan {math.degrees(pan):+.1f} deg, tilt {math.degrees(tilt):+.1f} deg")
-    return 0
-
-
-def _info_file(path: Path) -> int:
-    """Describe a model or dataset file; which one it is is read from its first bytes, so a
-    damaged file's error is its own loader's (the line and the problem), not the other's."""
-    from limbctl.envelope import load_header
-    from limbctl.envelope.base import is_model_file
-    from limbctl.teach.dataset import is_dataset_file, load_dataset
-
-    if is_model_file(path):
-        header = load_header(path)
-        print(f"{path}: {header['kind']} model, format {header['format_version']}")
-        for key, value in {**header["params"], **header["metadata"]}.items():
-            print(f"  {key}: {value}")
-        return 0
-    if not is_dataset_file(path):
-        _neither(path)
-    data = load_dataset(path)
-    print(f"{path}: dataset of {len(data)} samples from rig {data.header.rig!r}")
-    print(f"  created {data.header.created}, {data.t[-1] if len(data) else 0:.1f} s recorded")
-    calibration = data.header.calibration
-    if calibration is None:
-        print("  calibration: not recorded (made before limbctl recorded it)")
-    else:
-        for name, joint in (("pan", calibration.pan), ("tilt", calibration.tilt)):
-            print(
-                f"  {name}: zero tick {joint.zero_tick}, direction {joint.direction:+d}, "
-                f"limits {joint.min_deg:g} .. {joint.max_deg:g} deg"
-            )
-    if data.dropped_tail:
-        print(f"  note: {data.dropped_tail}")
-    return 0
-
-
-def _neither(path: Path) -> None:
-    """Refuse a file that begins as neither a model nor a dataset, with both loaders' words."""
-    from limbctl.envelope import load_header
-    from limbctl.teach.dataset import load_dataset
-
-    problems = []
-    for kind, loader in (("a model", load_header), ("a dataset", load_dataset)):
-        try:
-            loader(path)
-        except FileFormatError as exc:
-            problems.append(f"as {kind}: {exc.problem}")
-    raise FileFormatError(path, f"neither a limbctl model nor a dataset ({'; '.join(problems)})")
-
-
 # ---- teleop ---------------------------------------------------------------------------------
-def gate_for(model_path: Path, profile, rate_hz: float, max_speed_deg_s: float):
+def gate_for(model_path: Path, profile: RigProfile, rate_hz: float, max_speed_deg_s: float) -> Gate:
     """Load a model and build the gate around it, refusing a model trained for another rig,
     under another calibration of this one, or recording no calibration
-    (:func:`limbctl.servo.profiles.check_trained_for`)."""
+    (:func:`limbctl.servo.profiles.check_trained_for`).
+
+    The gate's step limit is ``max_speed_deg_s / rate_hz`` (converted to rad per cycle).
+    """
     from limbctl.envelope import load_header, load_model
     from limbctl.servo.profiles import check_trained_for
-    from limbctl.teleop.gate import Gate, GateLimits
+    from limbctl.teleop.gate import GateLimits
 
     check_trained_for(load_header(model_path).get("metadata", {}), profile, str(model_path))
     step = math.radians(max_speed_deg_s) / rate_hz
@@ -356,7 +185,7 @@ def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
     gate = gate_for(options.model, profile, options.rate, options.max_speed)
     with (
         _viewing(options.view, view) as live,
-        _open(conn, goal_log=options.goal_log, extra_ids=spec.extra_ids) as session,
+        open_connection(conn, goal_log=options.goal_log, extra_ids=spec.extra_ids) as session,
     ):
         config = LoopConfig(
             rate_hz=options.rate,
@@ -419,7 +248,7 @@ def run_calibrate(options: CalibrateOptions) -> int:
     conn = options.connection
     base = _calibration_base(options, load_rig_profile(conn.rig))
     script = Path(str(resources.files("limbctl").joinpath("data", "calibration_hand.yaml")))
-    with _open(conn, hand=script) as session:
+    with open_connection(conn, hand=script) as session:
         if session.simulated:
             say("simulator: a scripted hand follows the prompts below")
         with stop_on_signals() as stop:
@@ -475,24 +304,7 @@ def _calibration_base(options: CalibrateOptions, base):
     return chosen
 
 
-# ---- eval -----------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class EvalOptions:
-    """``limbctl eval``: the papers' grid (``quick``: reduced) into ``out`` with ``jobs``
-    worker processes (0: all cores)."""
-
-    out: Path = Path("eval-results")
-    quick: bool = False
-    jobs: int = 0
-
-
-def run_evaluation(options: EvalOptions) -> int:
-    from limbctl.eval.experiments import run_eval
-
-    return int(run_eval(out=options.out, quick=options.quick, jobs=options.jobs))
-
-
-def _open(conn: Connection, **rig_options: object):
+def open_connection(conn: Connection, **rig_options: Any) -> AbstractContextManager[Session]:
     """:func:`open_rig` for a connection; ``rig_options`` are its other keywords."""
     return open_rig(
         conn.port,

@@ -8,7 +8,7 @@ Order, bottom to top (a module may import its own layer and any layer below)::
     envelope                      (the papers' networks; RigidMap delegates to region)
     teach, teleop, view           (never each other)
     eval                          (used only by the app)
-    app: cli, jobs, upkeep, demo, session, plot, __init__
+    app: cli, jobs, file_jobs, upkeep, demo, session, plot, __init__
 
 ``firmware_sim`` imports nothing of the project.
 """
@@ -41,7 +41,18 @@ RANK = {
 #: Layers of one rank that must not import each other.
 SIBLINGS_APART = {"teach", "teleop", "view"}
 #: Modules directly in limbctl/ that are the app.
-APP = {"cli", "jobs", "upkeep", "demo", "live", "session", "plot", "__init__", "__main__"}
+APP = {
+    "cli",
+    "jobs",
+    "file_jobs",
+    "upkeep",
+    "demo",
+    "live",
+    "session",
+    "plot",
+    "__init__",
+    "__main__",
+}
 
 
 def module_name(path: Path) -> str:

@@ -8,7 +8,7 @@ import pytest
 from calib.profile import default_sim_profile
 from limbctl.envelope import Cone, build_model, load_header, load_model
 from limbctl.errors import ConfigError
-from limbctl.jobs import plot_files
+from limbctl.file_jobs import plot_files
 from limbctl.teach.dataset import DatasetWriter
 from limbctl.teach.train import train
 
@@ -83,7 +83,7 @@ def test_model_kinds_come_from_one_registry():
     from limbctl.envelope import MODEL_KINDS, RigidMap, model_class
     from limbctl.eval.experiments import build_model as eval_build_model
     from limbctl.eval.grids import ModelSpec
-    from limbctl.jobs import model_options
+    from limbctl.file_jobs import model_options
 
     assert MODEL_KINDS == ("rigidmap", "som", "cone")
     assert model_class("rigidmap") is RigidMap

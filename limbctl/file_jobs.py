@@ -1,0 +1,212 @@
+"""The jobs on files (train, plot, info, eval) as typed functions: one options value in, a
+status out. ``info`` without a file describes the bus instead (through :mod:`limbctl.jobs`).
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from limbctl.errors import ConfigError, FileFormatError
+from limbctl.jobs import Connection, open_connection, say
+
+
+# ---- train ----------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class TrainOptions:
+    """``limbctl train``: fit a model of ``kind`` to dataset ``data``, write it to ``out``;
+    ``nodes``/``layout`` only for kinds that take them (None: the model's default); ``plot``
+    also draws the model and data to that PNG."""
+
+    data: Path
+    out: Path
+    kind: str = "rigidmap"
+    nodes: int | None = None
+    layout: str | None = None
+    seed: int = 0
+    plot: Path | None = None
+
+
+def model_options(kind: str, seed: int, **chosen: object) -> dict[str, object]:
+    """Constructor keywords for a model of ``kind``: the seed where it takes one, and each
+    ``chosen`` option given (not None).
+
+    Raises
+    ------
+    ConfigError
+        For an unknown kind, or an option given that the kind does not take.
+    """
+    from limbctl.envelope import model_class, model_kinds
+
+    settable = model_class(kind).settable
+    given = {name: value for name, value in chosen.items() if value is not None}
+    if set(given) - set(settable):
+        takers = [k for k in model_kinds() if set(chosen) <= set(model_class(k).settable)]
+        flags = " and ".join(f"--{name}" for name in chosen)
+        raise ConfigError(f"{flags} apply to --kind {' or '.join(takers)} only")
+    return {"seed": seed, **given} if "seed" in settable else given
+
+
+def run_train(options: TrainOptions) -> int:
+    """Fit the model, save it, print its summary (and draw it with ``plot``)."""
+    from tqdm import tqdm
+
+    from limbctl.teach.train import STAGES, train
+
+    constructor = model_options(
+        options.kind, options.seed, nodes=options.nodes, layout=options.layout
+    )
+    with tqdm(
+        total=len(STAGES), desc=f"training {options.kind}", unit="stage", file=sys.stderr
+    ) as bar:
+
+        def advance(finished: str) -> None:
+            following = STAGES.index(finished) + 1
+            bar.set_postfix_str(STAGES[following] if following < len(STAGES) else "done")
+            bar.update(1)
+
+        summary = train(options.data, options.out, options.kind, constructor, progress=advance)
+    for line in summary.lines():
+        say(line)
+    say(f"wrote {options.out}")
+    if options.plot is not None:
+        plot_files([options.data, options.out], options.plot)
+        say(f"wrote {options.plot}")
+    return 0
+
+
+# ---- plot / info ----------------------------------------------------------------------------
+def plot_files(paths: list[Path], out: Path, extra: dict | None = None) -> Path:
+    """Draw the models and datasets among ``paths`` (told apart by content) to PNG ``out``."""
+    from limbctl.envelope import load_model
+    from limbctl.plot import plot
+    from limbctl.teach.dataset import load_dataset
+
+    samples, model, names = None, None, []
+    for path in paths:
+        try:
+            model = load_model(path)
+            names.append(f"model {path.name}")
+            continue
+        except FileFormatError as model_error:
+            try:
+                samples = load_dataset(path).quaternions
+                names.append(f"data {path.name}")
+            except FileFormatError as data_error:
+                raise ConfigError(
+                    f"{path} is neither a model ({model_error.problem}) nor a dataset "
+                    f"({data_error.problem})"
+                ) from None
+    return plot(out, samples=samples, model=model, title=", ".join(names), extra=extra)
+
+
+@dataclass(frozen=True)
+class PlotOptions:
+    """``limbctl plot``: draw the model and/or dataset files ``inputs`` to PNG ``out``."""
+
+    inputs: tuple[Path, ...]
+    out: Path
+
+
+def run_plot(options: PlotOptions) -> int:
+    """Draw the inputs to the PNG."""
+    say(f"wrote {plot_files(list(options.inputs), options.out)}")
+    return 0
+
+
+@dataclass(frozen=True)
+class InfoOptions:
+    """``limbctl info``: describe ``file`` (a model or dataset), or the bus when None."""
+
+    file: Path | None = None
+    connection: Connection = field(default_factory=Connection)
+
+
+def run_info(options: InfoOptions) -> int:
+    """Print what a file holds, or every servo on the bus and the limb's pose."""
+    if options.file is not None:
+        return _info_file(options.file)
+    from limbctl.servo.control_table import Register, model_name
+
+    with open_connection(options.connection) as session:
+        bus = session.rig.bus
+        where = "embedded simulator" if session.simulated else bus.port_name
+        print(f"bus: {where} at {bus.baud} bps, fast sync read: {bus.fast_sync_read}")
+        errors = bus.read_hardware_errors()
+        torque = bus.torque_enabled()
+        for servo_id in bus.ids:
+            print(
+                f"servo {servo_id}: {model_name(bus.models[servo_id])}, firmware "
+                f"{bus.firmware[servo_id]}, torque {'on' if torque[servo_id] else 'off'}"
+                f", position {bus.read(Register.PRESENT_POSITION, servo_id)}, "
+                f"hardware errors: {', '.join(errors[servo_id]) or 'none'}"
+            )
+        pan, tilt = session.rig.read_pose()
+        print(f"pose: pan {math.degrees(pan):+.1f} deg, tilt {math.degrees(tilt):+.1f} deg")
+    return 0
+
+
+def _info_file(path: Path) -> int:
+    """Describe a model or dataset file; which one it is is read from its first bytes, so a
+    damaged file's error is its own loader's (the line and the problem), not the other's."""
+    from limbctl.envelope import load_header
+    from limbctl.envelope.base import is_model_file
+    from limbctl.teach.dataset import is_dataset_file, load_dataset
+
+    if is_model_file(path):
+        header = load_header(path)
+        print(f"{path}: {header['kind']} model, format {header['format_version']}")
+        for key, value in {**header["params"], **header["metadata"]}.items():
+            print(f"  {key}: {value}")
+        return 0
+    if not is_dataset_file(path):
+        _neither(path)
+    data = load_dataset(path)
+    print(f"{path}: dataset of {len(data)} samples from rig {data.header.rig!r}")
+    print(f"  created {data.header.created}, {data.t[-1] if len(data) else 0:.1f} s recorded")
+    calibration = data.header.calibration
+    if calibration is None:
+        print("  calibration: not recorded (made before limbctl recorded it)")
+    else:
+        for name, joint in (("pan", calibration.pan), ("tilt", calibration.tilt)):
+            print(
+                f"  {name}: zero tick {joint.zero_tick}, direction {joint.direction:+d}, "
+                f"limits {joint.min_deg:g} .. {joint.max_deg:g} deg"
+            )
+    if data.dropped_tail:
+        print(f"  note: {data.dropped_tail}")
+    return 0
+
+
+def _neither(path: Path) -> None:
+    """Refuse a file that begins as neither a model nor a dataset, with both loaders' words."""
+    from limbctl.envelope import load_header
+    from limbctl.teach.dataset import load_dataset
+
+    problems = []
+    for kind, loader in (("a model", load_header), ("a dataset", load_dataset)):
+        try:
+            loader(path)
+        except FileFormatError as exc:
+            problems.append(f"as {kind}: {exc.problem}")
+    raise FileFormatError(path, f"neither a limbctl model nor a dataset ({'; '.join(problems)})")
+
+
+# ---- eval -----------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class EvalOptions:
+    """``limbctl eval``: the papers' grid (``quick``: reduced) into ``out`` with ``jobs``
+    worker processes (0: all cores)."""
+
+    out: Path = Path("eval-results")
+    quick: bool = False
+    jobs: int = 0
+
+
+def run_evaluation(options: EvalOptions) -> int:
+    """Run the papers' experiments; the status of :func:`limbctl.eval.experiments.run_eval`."""
+    from limbctl.eval.experiments import run_eval
+
+    return int(run_eval(out=options.out, quick=options.quick, jobs=options.jobs))
