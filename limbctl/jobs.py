@@ -110,8 +110,6 @@ def run_record(options: RecordOptions, view: LiveView | None = None) -> int:
     for line in summary.lines():
         say(line)
     say(f"wrote {writer.count} samples to {options.out}")
-    if summary.fault:
-        say(f"FAULT: the recording ended early: {summary.fault} (the samples above are kept)")
     return summary.exit_code
 
 
@@ -168,10 +166,9 @@ class TeleopOptions:
 
 
 def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
-    """Start from the limb's pose (waiting for it, or approaching, when outside), run the control
-    loop, park the limb where the next start accepts it (shown live on ``view``, or on a view
-    opened as ``options.view`` asks); 0 for a clean end, 2 when it never started or every
-    command line was refused, 3 after a fault."""
+    """Start from the limb's pose (waiting or approaching when outside), run the loop, park the
+    limb (shown live on ``view``, or on a view as ``options.view`` asks); 0 for a clean end, 2
+    when it never started or every command line was refused, 3 after a fault."""
     from limbctl.servo.control_table import MAX_TICK
     from limbctl.servo.setup import configure_servos
     from limbctl.teleop.approach import StartOptions
@@ -197,8 +194,7 @@ def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
         # read before configuring switches it off: a limb outside is then told why it went limp
         torque_was_on = any(rig.torque_enabled())
         # the rig's servos get its hard limits; servos of the source (a leader) their full range
-        limits = rig.tick_limits()
-        limits.update({servo_id: (0, MAX_TICK) for servo_id in spec.extra_ids})
+        limits = {**rig.tick_limits(), **{servo_id: (0, MAX_TICK) for servo_id in spec.extra_ids}}
         configure_servos(rig.bus, limits)
         with spec.open(SourceContext(rig=rig)) as source, stop_on_signals() as stop:
             result = run_session(

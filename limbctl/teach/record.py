@@ -65,12 +65,17 @@ class RecordSummary:
         return self.samples / self.elapsed_s if self.elapsed_s > 0 else 0.0
 
     def lines(self) -> list[str]:
-        return [
+        out = [
             f"ended by           {self.ended_by}" + (f": {self.fault}" if self.fault else ""),
             f"samples            {self.samples} in {self.elapsed_s:.1f} s ({self.rate_hz:.1f} Hz)",
             f"angular spread     {self.spread_deg:.1f} deg from the mean direction",
             f"failed reads       {self.failed_reads}",
-        ] + ([f"guide              {self.guidance.line()}"] if self.guidance else [])
+        ]
+        if self.guidance:
+            out.append(f"guide              {self.guidance.line()}")
+        if self.fault:
+            out.append(f"FAULT: the recording ended early: {self.fault} (the samples are kept)")
+        return out
 
 
 def stop_on_enter(stop: threading.Event, stream: IO[str] | None = None) -> threading.Thread | None:
