@@ -4,7 +4,7 @@ Run: ``.venv/bin/python benchmarks/edge_figure.py`` (bench_envelope.py also draw
 
 One panel per region (the small kidney, the egg, the BEAN; 1000 i.i.d. teaching samples,
 seed 0), in pan/tilt degrees: the taught samples, the true boundary, the data-supported loops
-(``smooth_edge=False``) and the edge the gate took.
+(the region with ``RegionParams(edge="supported")``) and the edge the gate took.
 """
 
 from __future__ import annotations
@@ -27,6 +27,7 @@ from limbctl.envelope.synthetic import (  # noqa: E402
     to_quaternions,
 )
 from limbctl.geometry.gimbal import direction_to_pan_tilt  # noqa: E402
+from limbctl.region import RegionParams, TaughtRegion  # noqa: E402
 from limbctl.region.mesh import DirectionMesh  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -46,7 +47,7 @@ def draw(ax, name: str, polygon: np.ndarray, seed: int) -> None:
     train = region.sample(1000, rng)
     q = to_quaternions(train)
     gate = RigidMap(nodes=2000, layout="uniform", seed=seed).fit(q)
-    supported = RigidMap(nodes=2000, layout="uniform", seed=seed, smooth_edge=False).fit(q)
+    supported = TaughtRegion(RegionParams(edge="supported")).fit(q)
     pan, tilt = direction_to_pan_tilt(train)
     ax.plot(np.degrees(pan), np.degrees(tilt), ".", ms=2, color="0.6", label="taught samples")
     closed = np.vstack([polygon, polygon[:1]])

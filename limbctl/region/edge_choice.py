@@ -1,115 +1,217 @@
-"""Which edge the gate uses: the smooth edge, the traced edge, or the data-supported loops.
+"""Which edge the gate uses: interchangeable edge strategies, chosen by name.
 
-The data-supported loops (:mod:`limbctl.region.shape`) run through taught samples and
-are always safe, but sit inside a sparsely taught edge and have corners wherever a sample
-fell. Two learned edges can replace them (:func:`learned_edge`):
+The shape (:mod:`limbctl.region.shape`) gives the *supported loops*: they run through the
+outermost taught samples, widened by learned margins, and are always safe, but sit inside a
+sparsely taught edge and have corners wherever a sample fell. An edge strategy proposes an
+edge from those loops and the taught directions; :func:`limbctl.region.acceptance.judge`
+gives every answer its :class:`~limbctl.region.acceptance.Verdict`. The strategies
+(:data:`EDGE_STRATEGIES`):
 
-1. *smooth* (:func:`limbctl.region.edge_smooth.fit_edge`): local small circles over one window
-   for the whole loop, moved out by the outermost samples. Tried when the data hold no bay
-   (:func:`limbctl.region.edge_smooth.protected`) and kept only when the window follows the
-   loop's shape at every station (``residual_ratio`` at most ``RESOLVED_RATIO``). Best on
-   round regions (a cone's edge is one circle).
-2. *traced* (:func:`limbctl.region.edge_traced.trace_edge`): a curve walked out to the
-   edge station by station; follows eggs, kidneys and bays, but only where the edge is taught
-   densely enough (``TRACE_MAX_WINDOW_DEG``).
+- ``"smooth"`` (:class:`SmoothEdge`, :func:`limbctl.region.edge_smooth.fit_edge`): local small
+  circles over one window for the whole loop, moved out by the outermost samples. Refused
+  where the data hold a bay (:func:`limbctl.region.edge_smooth.protected`) or the window cannot
+  follow the loop's shape at some station (``residual_ratio`` above ``RESOLVED_RATIO``). Best
+  on round regions (a cone's edge is one circle).
+- ``"traced"`` (:class:`TracedEdge`, :func:`limbctl.region.edge_traced.trace_edge`): a curve
+  walked out to the edge station by station; follows eggs, kidneys and bays, refused where
+  the edge is taught too sparsely (estimate window above ``TRACE_MAX_WINDOW_DEG``).
+- ``"supported"`` (:class:`SupportedEdge`): the supported loops themselves; the fallback,
+  accepted without checks.
 
-Either is kept only when, over all loops together, no two arcs cross, every taught direction
-the supported region holds stays inside (up to ``MISS_FRACTION`` of them lying more than
-``MISS_TOLERANCE_DEG`` outside), and every stretch it adds beyond the supported region is one
-the local sampling density could leave empty by chance (``unexplained_gap`` at most
-``GAP_EXPECTED``). Where both pass, the smooth edge (fewer free parameters, the better fit
-when it is right) is kept only if it reaches nowhere more than ``CONFIRM_DEG`` beyond the
-traced edge: on an egg whose tip the window cannot follow, the smooth edge passed every other
-check on one teaching seed of five, reached 2.0 deg beyond the traced edge and put 24 % of
-corrected outputs more than 1 deg outside the true region; on cones of 20 deg (1000 samples,
-5 seeds) it reaches 0.4-0.6 deg beyond. Where neither passes, the gate keeps the supported
-loops.
+:func:`choose_edge` takes a choice by name (:data:`EDGE_CHOICES`). ``"auto"`` judges the
+strategies of :data:`AUTO_ORDER` (smooth, traced, supported) and takes the first accepted,
+where an edge must also stay within ``CONFIRM_DEG`` of every learned edge accepted later in
+the order (the smooth edge, fewer free parameters and the better fit when it is right, must
+agree with the traced edge where both pass). A single strategy's name judges it alone and
+falls back to the supported loops if it is refused.
+
+A strategy is a class with a ``name``, a ``safe`` flag (True only for an edge that holds the
+taught samples by construction) and ``propose(loops, data, supported, max_offset)``; adding
+one to :data:`EDGE_STRATEGIES` makes it a choice (``docs/region.md``).
 """
 
 from __future__ import annotations
 
+from typing import ClassVar, Protocol
+
 import numpy as np
 
-from limbctl.geometry.quat import direction_angle
+from limbctl.errors import ConfigError
 from limbctl.region import edge_smooth as ef
-from limbctl.region.edge_traced import trace_edge
+from limbctl.region import edge_traced as et
+from limbctl.region.acceptance import Proposal, Refusal, Verdict, judge
+from limbctl.region.loops import loop_area, resample_loop
 from limbctl.region.mesh import DirectionMesh
 
-#: The smooth edge may reach at most this far (deg) beyond the traced edge, where both exist.
-CONFIRM_DEG = 1.0
+
+class EdgeStrategy(Protocol):
+    """What every edge strategy provides (see the module docstring)."""
+
+    name: ClassVar[str]
+    safe: ClassVar[bool]
+
+    def propose(
+        self,
+        loops: list[np.ndarray],
+        data: np.ndarray,
+        supported: DirectionMesh,
+        max_offset: float,
+    ) -> Proposal | Refusal:
+        """An edge for all ``loops`` (each (M, 3), counter-clockwise), or why not.
+
+        ``data`` (N, 3) are the taught directions, ``supported`` the supported region (the
+        loops widened by their margins), ``max_offset`` (rad) caps how far the edge moves
+        past a loop in one step.
+        """
+        ...
 
 
-def learned_edge(
+class SupportedEdge:
+    """The supported loops with their learned margins: safe by construction, the fallback."""
+
+    name: ClassVar[str] = "supported"
+    safe: ClassVar[bool] = True
+
+    def propose(
+        self,
+        loops: list[np.ndarray],
+        data: np.ndarray,
+        supported: DirectionMesh,
+        max_offset: float,
+    ) -> Proposal:
+        """The ``supported`` region itself (see :class:`EdgeStrategy`)."""
+        note = "runs through the outermost taught samples, holding them by construction"
+        return Proposal(self.name, loops, region=supported, note=note)
+
+
+class SmoothEdge:
+    """Local small circles over one window, moved out by the outermost samples."""
+
+    name: ClassVar[str] = "smooth"
+    safe: ClassVar[bool] = False
+
+    def propose(
+        self,
+        loops: list[np.ndarray],
+        data: np.ndarray,
+        supported: DirectionMesh,
+        max_offset: float,
+    ) -> Proposal | Refusal:
+        """The smooth edge of every loop, or the first loop's reason to refuse it."""
+        edges = []
+        for number, loop in enumerate(loops):
+            _, s, at_vertex = resample_loop(loop, np.radians(ef.STEP_DEG))
+            if ef.protected(loop, data, s, at_vertex).any():
+                if loop_area(loop) < 0.0:
+                    return Refusal(self.name, f"loop {number} is a hole (concave throughout)")
+                worth = max((w for _, _, w in ef.pockets(loop, data)), default=np.inf)
+                return Refusal(
+                    self.name,
+                    f"loop {number} holds a bay worth {worth:.0f} samples "
+                    f"(at most {ef.POCKET_SAMPLES:.0f}) that a smooth curve would bridge",
+                    {"bay_samples": float(worth)},
+                )
+            edge, ratio = ef.fit_edge(loop, data, max_offset)
+            if ratio > ef.RESOLVED_RATIO:
+                return Refusal(
+                    self.name,
+                    f"its window cannot follow loop {number}'s shape (a station's fit "
+                    f"residual is {ratio:.2f} x the median, at most {ef.RESOLVED_RATIO:g})",
+                    {"residual_ratio": ratio},
+                )
+            edges.append(edge)
+        return Proposal(self.name, edges)
+
+
+class TracedEdge:
+    """A curve walked out to where the samples put the edge, station by station."""
+
+    name: ClassVar[str] = "traced"
+    safe: ClassVar[bool] = False
+
+    def propose(
+        self,
+        loops: list[np.ndarray],
+        data: np.ndarray,
+        supported: DirectionMesh,
+        max_offset: float,
+    ) -> Proposal | Refusal:
+        """The traced edge of every loop, or the first loop taught too sparsely."""
+        edges = []
+        for number, loop in enumerate(loops):
+            edge = et.trace_edge(loop, data, max_offset)
+            if edge is None:
+                curve, _, _ = resample_loop(loop, np.radians(et.TRACE_STEP_DEG))
+                window = np.degrees(et.trace_window(curve, data))
+                return Refusal(
+                    self.name,
+                    f"loop {number} is taught too sparsely (its estimate window would be "
+                    f"{window:.1f} deg, at most {et.TRACE_MAX_WINDOW_DEG:g})",
+                    {"window_deg": float(window)},
+                )
+            edges.append(edge)
+        return Proposal(self.name, edges)
+
+
+#: The edge strategies by name.
+EDGE_STRATEGIES: dict[str, EdgeStrategy] = {
+    strategy.name: strategy for strategy in (SmoothEdge(), TracedEdge(), SupportedEdge())
+}
+#: The order ``"auto"`` judges the strategies in; the first accepted is taken.
+AUTO_ORDER = ("smooth", "traced", "supported")
+#: The strategy every choice falls back to (safe: always accepted).
+FALLBACK = "supported"
+#: Every name :func:`choose_edge` takes.
+EDGE_CHOICES = ("auto", *EDGE_STRATEGIES)
+
+
+def check_choice(choice: str) -> str:
+    """``choice`` itself if it names an edge choice; otherwise ConfigError listing them."""
+    if choice not in EDGE_CHOICES:
+        raise ConfigError(f"unknown edge {choice!r}; choose one of: {', '.join(EDGE_CHOICES)}")
+    return choice
+
+
+def choose_edge(
+    choice: str,
     loops: list[np.ndarray],
     data: np.ndarray,
     supported: DirectionMesh,
     max_offset: float,
-) -> tuple[str, DirectionMesh] | None:
-    """The learned edge for all ``loops`` (each (M, 3)) as ``(kind, region)``, or None.
+) -> tuple[Verdict, tuple[Verdict, ...]]:
+    """The edge the gate takes and the verdicts on every strategy judged, in order.
 
-    ``kind`` is ``"smooth"`` or ``"traced"``, ``region`` the :class:`DirectionMesh` inside
-    the learned edges; ``data`` (N, 3) are the taught directions, ``supported`` the
-    data-supported region (a :class:`DirectionMesh` over the same loops with their learned
-    margins), ``max_offset`` (rad) caps how far an edge moves past its loop in one step.
-    None when the data refuse both (see the module docstring).
+    Parameters
+    ----------
+    choice : str
+        One of :data:`EDGE_CHOICES` (module docstring).
+    loops : list of ndarray, each (M, 3)
+        The supported loops (counter-clockwise, region on the left).
+    data : ndarray, shape (N, 3)
+        The taught directions.
+    supported : DirectionMesh
+        The supported region: ``loops`` widened by their learned margins.
+    max_offset : float
+        The most (rad) a learned edge moves past its loop in one step.
+
+    Returns
+    -------
+    taken : Verdict
+        The first accepted verdict (its ``region`` is the gate's region).
+    verdicts : tuple of Verdict
+        Every strategy judged, in the choice's order.
     """
-    smooth = smooth_edges(loops, data, max_offset)
-    smooth_region = agreeing_region(smooth, data, supported)
-    traced = [trace_edge(loop, data, max_offset) for loop in loops]
-    traced_region = agreeing_region(traced, data, supported)
-    if smooth_region is not None and (
-        traced_region is None or reach_beyond(smooth, traced_region) <= np.radians(CONFIRM_DEG)
-    ):
-        return "smooth", smooth_region
-    if traced_region is not None:
-        return "traced", traced_region
-    return None
-
-
-def reach_beyond(edges: list[np.ndarray], region: DirectionMesh) -> float:
-    """How far (rad) the stations of ``edges`` (each (K, 3)) reach beyond ``region``, at most."""
-    stations = np.vstack(edges)
-    return float(np.max(direction_angle(region.project(stations), stations)))
-
-
-def smooth_edges(
-    loops: list[np.ndarray], data: np.ndarray, max_offset: float
-) -> list[np.ndarray] | None:
-    """Smooth edges for all ``loops``, or None where a bay or an unresolved shape refuses them."""
-    edges = []
-    for loop in loops:
-        _, s, at_vertex = ef.resample_loop(loop, np.radians(ef.STEP_DEG))
-        if ef.protected(loop, data, s, at_vertex).any():
-            return None
-        edge, ratio = ef.fit_edge(loop, data, max_offset)
-        if ratio > ef.RESOLVED_RATIO:
-            return None
-        edges.append(edge)
-    return edges
-
-
-def agreeing_region(
-    edges: list[np.ndarray | None] | None, data: np.ndarray, supported: DirectionMesh
-) -> DirectionMesh | None:
-    """The region inside learned ``edges`` if they agree with the data, else None.
-
-    Agreeing: every edge exists, they are simple (no two arcs cross), they hold the taught
-    samples the ``supported`` region holds (up to ``MISS_FRACTION`` farther out than
-    ``MISS_TOLERANCE_DEG``), and they add no stretch beyond it the sampling cannot explain.
-    """
-    if edges is None or any(edge is None for edge in edges):
-        return None
-    if ef.arcs_cross(edges):
-        return None
-    if any(ef.unexplained_gap(edge, data, supported) > ef.GAP_EXPECTED for edge in edges):
-        return None
-    learned = DirectionMesh.from_loops(edges, 0.0)
-    before = supported.contains(data)
-    missed = before & ~learned.contains(data)
-    # a sample a hair outside (the edge estimate's own noise) is not a cut corner
-    far = direction_angle(learned.project(data[missed]), data[missed]) > np.radians(
-        ef.MISS_TOLERANCE_DEG
-    )
-    if int(far.sum()) > ef.MISS_FRACTION * max(1, int(before.sum())):
-        return None
-    return learned
+    order = AUTO_ORDER if check_choice(choice) == "auto" else tuple({choice: 0, FALLBACK: 0})
+    judged: dict[str, Verdict] = {}
+    rivals: list[Verdict] = []
+    # later strategies first: an edge is checked against the learned edges accepted after it
+    for name in reversed(order):
+        strategy = EDGE_STRATEGIES[name]
+        answer = strategy.propose(loops, data, supported, max_offset)
+        verdict = judge(answer, data, supported, tuple(rivals) if choice == "auto" else ())
+        judged[name] = verdict
+        if verdict.accepted and not strategy.safe:
+            rivals.append(verdict)
+    verdicts = tuple(judged[name] for name in order)
+    taken = next(v for v in verdicts if v.accepted)
+    return taken, verdicts

@@ -28,25 +28,15 @@ loop by a smooth curve sampled every ``STEP_DEG`` (all angles below in radians):
    leave a taught direction next to it outside, moved out by the sagitta of the chords
    between stations (the polygon of stations circumscribes the curve), and capped at
    ``max_offset``.
-4. *Acceptance* (:mod:`limbctl.region.edge_choice`). The smooth edges replace the
-   data-supported loops only when the data agree with them: the data hold no bay
-   (:func:`pockets`: no hole, no pocket between a loop and its convex hull worth more than
-   ``POCKET_SAMPLES`` samples at the data's density), the window follows the loop's shape at
-   every station (no station's fit residual above ``RESOLVED_RATIO`` times the median,
-   :func:`residual_ratio`), no two arcs cross, every taught direction the supported region
-   holds stays inside (up to ``MISS_FRACTION`` more than ``MISS_TOLERANCE_DEG`` out), and
-   every stretch added beyond the supported region (the loops widened by their learned
-   margins) is one the local sampling density could leave empty by chance. A smooth curve
-   that cuts a taught corner or bridges a bay fails one of these. In practice a round,
-   convex taught region (a cone) gets the smooth edge; an egg whose tip is tighter than the
-   window, a kidney with a dent, a polygon with corners do not, and the gate tries the traced
-   edge (:mod:`limbctl.region.edge_traced`) before it keeps the supported loops
-   (docs/bench_envelope.md lists which edge every benchmark row took).
-
-Splicing the supported loop into the smooth edge over the bays only (smooth elsewhere) was
-tried and dropped: on the BEAN polygon it put 10-20 % of corrected outputs more than 1 deg
-outside the true region (worst 3.1 deg), where the fitted circles bulge past straight edges
-next to corners.
+4. *Refusal* (:class:`limbctl.region.edge_choice.SmoothEdge`). The strategy refuses where
+   the data hold a bay (:func:`protected`: a hole, or a pocket between a loop and its convex
+   hull worth more than ``POCKET_SAMPLES`` samples at the data's density) or where the window
+   cannot follow the loop's shape at some station (a fit residual above ``RESOLVED_RATIO``
+   times the median, :func:`residual_ratio`). What it proposes is then judged like every
+   edge (:mod:`limbctl.region.acceptance`). A round, convex taught region (a cone) gets the
+   smooth edge; an egg whose tip is tighter than the window, a kidney with a dent and a
+   polygon with corners do not (docs/bench_envelope.md lists which edge every benchmark row
+   took).
 """
 
 from __future__ import annotations
@@ -66,34 +56,34 @@ from limbctl.region.loops import (
     resample_loop,
     smooth_along,
 )
-from limbctl.region.mesh import DirectionMesh
 
-#: No station's fit residual may exceed this multiple of the loop's median residual.
+#: No station's fit residual may exceed this multiple of the loop's median residual: cones
+#: measure 1.01-1.25, eggs and hulls whose tip a window spans 1.5-2.1 (:func:`residual_ratio`).
 RESOLVED_RATIO = 1.4
-#: Spacing (deg) of the stations of the fitted edge.
+#: Spacing (deg) of the stations of the fitted edge: well inside the smallest window (4.5 deg),
+#: and the chords between stations cut at most 0.06 deg into a 20 deg cone (added back).
 STEP_DEG = 3.0
-#: Window ladder (deg, Gaussian sigma along the loop) the fit chooses its window from.
+#: Window ladder (deg, Gaussian sigma along the loop) the fit chooses its window from: about
+#: x1.45 a step, fine enough to stop near where the residual turns up, 4.5 to 60 deg in 8 fits.
 WINDOWS_DEG = (4.5, 6.5, 9.0, 13.0, 19.0, 27.0, 40.0, 60.0)
-#: The smallest window the choice starts from (deg).
+#: The smallest window the choice starts from (deg): narrower windows follow where single
+#: samples fell on the supported loop (its vertices) and take that for shape.
 START_WINDOW_DEG = 13.0
-#: A window (Gaussian sigma) spans at least this many mean vertex spacings of the loop.
+#: A window (Gaussian sigma) spans at least this many mean vertex spacings of the loop: a
+#: circle through fewer vertices takes their noise for curvature.
 MIN_VERTICES_PER_WINDOW = 3.0
-#: A ladder step may grow the mean fit residual by at most this factor.
+#: A ladder step may grow the mean fit residual by at most this factor: more than 20 % for a
+#: x1.45 wider window means real shape (a corner, a bay) entered it, not more noise averaged.
 GROWTH = 1.2
-#: Fitted circles are at least this large (deg of angular radius), either side.
+#: Fitted circles are at least this large (deg of angular radius), either side: a few noisy
+#: vertices must not fit a circle tighter than any taught edge bends.
 MIN_RADIUS_DEG = 5.0
-#: The smooth edge may leave out at most this fraction of the taught directions.
-MISS_FRACTION = 0.001
-#: A taught direction at most this far (deg) outside the smooth edge does not count as left out.
-MISS_TOLERANCE_DEG = 0.1
-#: A stretch added beyond the supported region may be worth at most this many samples.
-GAP_EXPECTED = 40.0
-#: A pocket between a loop and its convex hull worth more samples than this is a taught bay.
+#: A pocket between a loop and its convex hull worth more samples than this is a taught bay:
+#: the same bound as a stretch the acceptance lets an edge add (``GAP_EXPECTED``).
 POCKET_SAMPLES = 40.0
-#: Loop vertices farther (deg) than this from the data's mean are clipped for the hull.
+#: Loop vertices farther (deg) than this from the data's mean are clipped for the hull: the
+#: gnomonic projection sends 90 deg to infinity.
 HULL_REACH_DEG = 89.0
-#: Radius (deg) of the neighbourhood the local sample density is counted in.
-DENSITY_RADIUS_DEG = 6.0
 
 
 def outward_at_stations(loop: np.ndarray, s: np.ndarray, at_vertex: np.ndarray) -> np.ndarray:
@@ -197,35 +187,6 @@ def edge_offsets(
     return out
 
 
-def arcs_cross(loops: list[np.ndarray]) -> bool:
-    """Whether any two non-adjacent arcs of the closed ``loops`` (each (M, 3)) cross.
-
-    Arcs ``i`` and ``j`` cross when the ends of each lie on both sides of the other's great
-    circle (``sign(a_j . p_i) != sign(b_j . p_i)``, ``p_i = a_i x b_i``, and the converse) and
-    their midpoints face the same way.
-    """
-    a = np.vstack(loops)
-    b = np.vstack([np.roll(lp, -1, axis=0) for lp in loops])
-    owner = np.concatenate([np.full(lp.shape[0], i) for i, lp in enumerate(loops)])
-    index = np.concatenate([np.arange(lp.shape[0]) for lp in loops])
-    size = np.array([lp.shape[0] for lp in loops])[owner]
-    pole = np.cross(a, b)
-    mid = a + b
-    for start in range(0, a.shape[0], 256):
-        sl = slice(start, start + 256)
-        # (J, I): arc j's ends on both sides of arc i's great circle, and the converse
-        j_split = np.sign(a @ pole[sl].T) * np.sign(b @ pole[sl].T) < 0
-        i_split = (np.sign(a[sl] @ pole.T) * np.sign(b[sl] @ pole.T)).T < 0
-        hit = j_split & i_split & (mid @ mid[sl].T > 0.0)
-        rows = np.arange(a.shape[0])[:, None]
-        cols = np.arange(a.shape[0])[sl][None, :]
-        apart = np.abs(index[rows] - index[cols])
-        adjacent = (owner[rows] == owner[cols]) & ((apart <= 1) | (apart == size[rows] - 1))
-        if np.any(hit & ~adjacent):
-            return True
-    return False
-
-
 def fit_edge(loop: np.ndarray, data: np.ndarray, max_offset: float) -> tuple[np.ndarray, float]:
     """The smooth edge (K, 3) of one data-supported ``loop`` (M, 3), steps 1-3.
 
@@ -274,41 +235,6 @@ def sample_need(base: np.ndarray, pole: np.ndarray, rho: np.ndarray, data: np.nd
         depth = np.arccos(np.clip(np.einsum("ij,ij->i", data, pole[station]), -1.0, 1.0))
         np.maximum.at(need, station, depth - rho[station])
     return need
-
-
-def unexplained_gap(edge: np.ndarray, data: np.ndarray, supported: DirectionMesh) -> float:
-    """The most samples (expected) any stretch the ``edge`` (K, 3) adds would hold.
-
-    Each station lies ``b_k`` (rad) beyond the supported region (0 inside). Over a run of
-    consecutive stations with ``b_k > 0`` the added area is ``A = sum_k b_k ds`` (``ds`` the
-    station spacing), and a teacher sampling at the local density ``rho`` (taught directions
-    within ``DENSITY_RADIUS_DEG`` of the stations' nearest supported points, per area of half
-    that cap: those points sit on the supported edge) would have put ``rho A`` samples
-    there; the chance of finding none is ``exp(-rho A)``. Sparse i.i.d. teaching leaves
-    gaps worth a few samples; a bay the hand went around is worth tens to hundreds.
-    """
-    foot = supported.project(edge)
-    beyond = np.arccos(np.clip(np.einsum("ij,ij->i", foot, edge), -1.0, 1.0))
-    beyond[supported.contains(edge)] = 0.0
-    if not np.any(beyond > 0.0):
-        return 0.0
-    ds = loop_length(edge) / edge.shape[0]
-    radius = np.radians(DENSITY_RADIUS_DEG)
-    counts = np.sum(foot @ data.T >= np.cos(radius), axis=1)
-    # half a cap of angular radius r has area pi (1 - cos r)
-    rho = counts / (np.pi * (1.0 - np.cos(radius)))
-    worst = 0.0
-    out = beyond > 0.0
-    # runs of stations beyond the supported region, the loop read circularly
-    first = int(np.argmin(out)) if not out.all() else 0
-    expected = 0.0
-    for i in np.roll(np.arange(edge.shape[0]), -first):
-        if out[i]:
-            expected += rho[i] * beyond[i] * ds
-            worst = max(worst, expected)
-        else:
-            expected = 0.0
-    return worst
 
 
 def pockets(loop: np.ndarray, data: np.ndarray) -> list[tuple[int, int, float]]:

@@ -33,11 +33,10 @@ A final lift moves stations out where a taught direction next to them still lies
 Measured (``benchmarks/bench_envelope.py``: 1000 i.i.d. samples, dense middle, sparse edge, 5
 teaching seeds): on the 39 x 23 deg small kidney the gate's mean angle to the ideal correction
 is 0.35-0.45 deg (the supported edge: 1.0-1.1 deg), on the 48 x 26 deg egg 0.39-0.55 deg
-(supported: 1.1-1.2 deg), with every output inside or within 1 deg of the true region. On
-regions taught sparsely (windows wider than ``TRACE_MAX_WINDOW_DEG``: the 113 x 78 deg BEAN and
-KIDNEY at 1000 samples) prototype runs of the same procedure put up to 16 % of outputs more
-than 1 deg outside, so :func:`trace_window` refuses them and the gate keeps the supported
-loops. Sharp corners come out rounded.
+(supported: 1.1-1.2 deg), with every output inside or within 1 deg of the true region. Regions
+taught too sparsely (windows wider than ``TRACE_MAX_WINDOW_DEG``: the 113 x 78 deg BEAN and
+KIDNEY at 1000 samples) are refused (:class:`limbctl.region.edge_choice.TracedEdge`). Sharp
+corners come out rounded.
 """
 
 from __future__ import annotations
@@ -56,25 +55,37 @@ from limbctl.region.loops import (
     station_positions,
 )
 
-#: Spacing (deg) of the traced curve's stations.
+#: Spacing (deg) of the traced curve's stations: half the smooth edge's, to follow an egg's
+#: tip, and at least two stations either side of the smallest half window.
 TRACE_STEP_DEG = 1.5
-#: Rounds of read, estimate, move, smooth.
+#: Rounds of read, estimate, move, smooth: each round's smoothing moves out at most
+#: TRACE_SMOOTH_CAP_DEG, so the curve can settle a few degrees from where it started.
 TRACE_ITERATIONS = 10
-#: Width (deg, Gaussian sigma along the curve) of the local quadratic smoothing.
+#: Width (deg, Gaussian sigma along the curve) of the local quadratic smoothing: averages
+#: the estimates of several windows while a 10 deg circle shrinks only 0.14 deg a round.
 TRACE_SMOOTH_DEG = 6.0
-#: The most (deg) one round's smoothing may move a station outward.
+#: The most (deg) one round's smoothing may move a station outward: smoothing across a bay
+#: narrower than its width would bridge it; the next estimate pulls a station back this much.
 TRACE_SMOOTH_CAP_DEG = 0.25
-#: The estimate window is chosen so the outermost samples are about this far apart (deg).
+#: The estimate window is chosen so the outermost samples are about this far apart (deg):
+#: an estimate's noise is about one spacing, well under the 0.5 deg accuracy target.
 TRACE_SPACING_DEG = 0.2
-#: Smallest half window (deg) along the curve.
+#: Smallest half window (deg) along the curve: two stations either side, however dense.
 TRACE_MIN_WINDOW_DEG = 3.0
-#: Largest half window (deg): sparser edges are refused (see the module docstring).
+#: Largest half window (deg): wider windows span corners and dents and average them away;
+#: sparser edges are refused (see the module docstring).
 TRACE_MAX_WINDOW_DEG = 10.0
-#: Depth (deg) of the band inside the loop the edge's sample density is counted in.
+#: Depth (deg) of the band inside the loop the edge's sample density is counted in: near the
+#: edge, where a region taught densely in the middle is sparser.
 DENSITY_BAND_DEG = 3.0
-#: After the lift every taught direction lies at least this far (deg) inside, not on the edge.
+#: Samples up to this far (deg) beyond the curve still count in the band: the supported loop's
+#: own samples sit on it, up to rounding and the resampled chords.
+BAND_BEYOND_DEG = 0.05
+#: After the lift every taught direction lies at least this far (deg) inside, not on the edge
+#: where rounding decides: far below a servo tick (0.088 deg).
 LIFT_MARGIN_DEG = 0.01
-#: Outermost readings per window the majorant is built from.
+#: Outermost readings per window the majorant is built from: the majorant and its
+#: ORDER_STATISTICS smallest residuals lie among them, and the pair search stays 40 x 40.
 TOP_READINGS = 40
 
 
@@ -97,22 +108,24 @@ def readings(curve: np.ndarray, data: np.ndarray) -> tuple[np.ndarray, np.ndarra
     return owner, depth
 
 
-def trace_window(curve: np.ndarray, data: np.ndarray) -> float | None:
-    """Half window (rad) for the edge estimates, or None when the edge is taught too sparsely.
+def trace_window(curve: np.ndarray, data: np.ndarray) -> float:
+    """Half window (rad) for the edge estimates (inf when no sample lies near the curve).
 
-    The samples within ``DENSITY_BAND_DEG`` inside the curve give the edge's density ``rho``
-    (per sr); a window of ``2 h`` then holds ``rho 2h`` samples per radian of depth, and the
-    outermost ones lie ``1 / (rho 2h)`` apart. ``h`` makes that ``TRACE_SPACING_DEG``, at least
-    ``TRACE_MIN_WINDOW_DEG``; above ``TRACE_MAX_WINDOW_DEG`` the edge is refused.
+    The samples within ``DENSITY_BAND_DEG`` inside the curve (or up to ``BAND_BEYOND_DEG``
+    beyond it) give the edge's density ``rho`` (per sr); a window of ``2 h`` then holds
+    ``rho 2h`` samples per radian of depth, and the outermost ones lie ``1 / (rho 2h)`` apart.
+    ``h`` makes that ``TRACE_SPACING_DEG``, at least ``TRACE_MIN_WINDOW_DEG``; above
+    ``TRACE_MAX_WINDOW_DEG`` the edge is taught too sparsely and :func:`trace_edge` refuses it.
     """
     _, depth = readings(curve, data)
     band = np.radians(DENSITY_BAND_DEG)
-    count = int(np.sum((depth > -band) & (depth <= np.radians(0.05))))
+    count = int(np.sum((depth > -band) & (depth <= np.radians(BAND_BEYOND_DEG))))
     if count == 0:
-        return None
+        return float(np.inf)
     rho = count / (loop_length(curve) * band)
-    h = max(1.0 / (2.0 * rho * np.radians(TRACE_SPACING_DEG)), np.radians(TRACE_MIN_WINDOW_DEG))
-    return None if h > np.radians(TRACE_MAX_WINDOW_DEG) else float(h)
+    return float(
+        max(1.0 / (2.0 * rho * np.radians(TRACE_SPACING_DEG)), np.radians(TRACE_MIN_WINDOW_DEG))
+    )
 
 
 def edge_estimate(u: np.ndarray, o: np.ndarray) -> float:
@@ -171,7 +184,7 @@ def trace_edge(loop: np.ndarray, data: np.ndarray, max_offset: float) -> np.ndar
     step = np.radians(TRACE_STEP_DEG)
     curve, _, _ = resample_loop(loop, step)
     h = trace_window(curve, data)
-    if h is None:
+    if h > np.radians(TRACE_MAX_WINDOW_DEG):
         return None
     cap = np.radians(TRACE_SMOOTH_CAP_DEG)
     for _ in range(TRACE_ITERATIONS):

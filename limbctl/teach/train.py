@@ -36,11 +36,13 @@ class TrainSummary:
     nodes : int
         Number of node weights in the model.
     edge : str
-        Which edge a Rigid Map gate uses: ``smooth`` (fitted, the data agreed with it) or
-        ``supported`` (through the taught samples); empty for other models.
+        Which edge a Rigid Map gate uses: ``smooth``, ``traced`` (learned, the data agreed with
+        it) or ``supported`` (through the taught samples); empty for other models.
     calibration_recorded : bool
         Whether the dataset recorded the rig calibration it was made under (and the model now
         carries it); teleop refuses a model without one.
+    edge_refusals : tuple of str
+        Why the gate refused the other edges it tried, one line each.
     """
 
     samples: int
@@ -53,6 +55,7 @@ class TrainSummary:
     nodes: int
     edge: str = ""
     calibration_recorded: bool = True
+    edge_refusals: tuple[str, ...] = ()
 
     def lines(self) -> list[str]:
         """Human-readable summary lines."""
@@ -69,6 +72,7 @@ class TrainSummary:
             f"nodes              {self.nodes}",
         ] + (
             [f"edge               {self.edge} ({EDGE_MEANING[self.edge]})"]
+            + [f"  {line}" for line in self.edge_refusals]
             if self.edge in EDGE_MEANING
             else []
         )
@@ -119,6 +123,11 @@ def summarize(model: Any, q: np.ndarray) -> TrainSummary:
         contained_fraction=float(inside.mean()),
         nodes=len(model.weights),
         edge=str(getattr(model, "edge", "")),
+        edge_refusals=tuple(
+            f"{v.strategy} refused: {v.reasons[0]}"
+            for v in getattr(getattr(model, "region", None), "verdicts", ())
+            if not v.accepted
+        ),
     )
 
 

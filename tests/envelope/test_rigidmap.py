@@ -8,6 +8,7 @@ from limbctl.envelope.base import load_model
 from limbctl.envelope.synthetic import ConeRegion, PolygonRegion, to_quaternions
 from limbctl.errors import ConfigError
 from limbctl.geometry.quat import direction_angle, geodesic_distance, limb_direction, swing_twist
+from limbctl.region import RegionParams
 
 
 @pytest.fixture(scope="module")
@@ -163,6 +164,44 @@ def test_hand_strokes_are_contained_and_gaps_filled(which):
     depth_out = region.depth(limb_direction(out))
     assert depth_out.min() > -np.radians(2.0)
     assert (depth_out >= -np.radians(1.0)).mean() >= 0.995
+
+
+def test_region_settings_are_one_object_saved_with_the_model(tmp_path):
+    rng = np.random.default_rng(3)
+    q = to_quaternions(ConeRegion(np.radians(30.0)).sample(600, rng))
+    settings = RegionParams(edge="supported", max_offset_deg=2.0)
+    off = RigidMap(nodes=300, seed=0, region=settings).fit(q)
+    assert off.edge == "supported" and off.region.params is settings
+    back = RigidMap.load(off.save(tmp_path / "m.npz"))
+    assert back.region.params == settings and back.edge == "supported"
+    test = to_quaternions(ConeRegion(np.radians(30.0)).test_directions(500, rng))
+    np.testing.assert_array_equal(back.correct(test), off.correct(test))
+    with pytest.raises(ConfigError, match="choose one of: auto, smooth, traced, supported"):
+        RigidMap(region=RegionParams(edge="round"))
+    with pytest.raises(TypeError):
+        RigidMap(smooth_edge=False)
+    with pytest.raises(ConfigError, match="region must be a RegionParams"):
+        RigidMap(region={"edge": "supported"})
+
+
+def test_models_saved_with_the_region_settings_among_the_maps_still_load(cone_model, tmp_path):
+    # the header gate v6 models were saved with before RegionParams: flat settings and
+    # smooth_edge (written by the real save, only the params replaced)
+    _, m = cone_model
+    params = {k: v for k, v in m._params().items() if k != "region"}
+    flat = m.region.params.as_dict()
+    flat.pop("edge")
+    params.update(flat, smooth_edge=False, max_offset_deg=2.5)
+    m._params = lambda: params
+    try:
+        path = m.save(tmp_path / "v6.npz")
+    finally:
+        del m._params
+    back = RigidMap.load(path)
+    assert back.region.params == RegionParams(edge="supported", max_offset_deg=2.5)
+    assert back.edge == m.edge
+    q = to_quaternions(ConeRegion(np.radians(30.0)).test_directions(500, np.random.default_rng(4)))
+    np.testing.assert_array_equal(back.correct(q), m.correct(q))
 
 
 def test_old_gate_files_are_refused(cone_model, tmp_path):

@@ -1,65 +1,100 @@
 import numpy as np
+import pytest
 
-from limbctl.envelope.synthetic import ConeRegion
+from limbctl.envelope.synthetic import EGG, ConeRegion, PolygonRegion
+from limbctl.errors import ConfigError
+from limbctl.geometry.gimbal import pan_tilt_to_direction
 from limbctl.region import edge_choice as ec
-from limbctl.region import edge_smooth as ef
+from limbctl.region.acceptance import Proposal, Refusal
+from limbctl.region.loops import loop_area
 from limbctl.region.mesh import DirectionMesh
 
-X = np.array([1.0, 0.0, 0.0])
 
-
-def circle(radius_deg: float, n: int, shift_deg: float = 0.0) -> np.ndarray:
-    """A counter-clockwise loop (n, 3) at ``radius_deg`` about +x, tilted ``shift_deg`` about z."""
+def circle(radius_deg: float, n: int) -> np.ndarray:
+    """A counter-clockwise loop (n, 3) at ``radius_deg`` about +x."""
     phi = np.linspace(-np.pi, np.pi, n, endpoint=False)
     r = np.radians(radius_deg)
-    ring = np.column_stack([np.cos(phi), np.sin(phi)])
-    loop = np.column_stack([np.full(n, np.cos(r)), np.sin(r) * ring])
-    a = np.radians(shift_deg)
-    turn = np.array([[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0], [0.0, 0.0, 1.0]])
-    return loop @ turn.T
-
-
-def test_reach_beyond_measures_how_far_stations_leave_a_region():
-    region = DirectionMesh.from_loops([circle(20.0, 120)], 0.0)
-    assert ec.reach_beyond([circle(19.0, 60)], region) == 0.0
-    reach = np.degrees(ec.reach_beyond([circle(21.0, 60)], region))
-    # 1 deg out everywhere; the 120-gon's chords lie up to 0.01 deg inside the circle
-    assert 1.0 <= reach < 1.02
-
-
-def test_agreeing_region_refuses_edges_that_cut_the_taught_samples():
-    rng = np.random.default_rng(0)
-    data = ConeRegion(np.radians(20.0)).sample(1000, rng)
-    supported = DirectionMesh.from_loops([circle(19.5, 120)], np.radians(0.5))
-    # a circle on the edge holds the samples and adds nothing the sampling cannot explain
-    assert ec.agreeing_region([circle(20.0, 240)], data, supported) is not None
-    # one 2 deg inside leaves about a fifth of them out
-    assert ec.agreeing_region([circle(18.0, 240)], data, supported) is None
-    # a missing edge (the traced edge refused) refuses the set
-    assert ec.agreeing_region([None], data, supported) is None
-    assert ec.agreeing_region(None, data, supported) is None
-
-
-def test_agreeing_region_refuses_a_stretch_no_sample_ever_reached():
-    rng = np.random.default_rng(0)
-    data = ConeRegion(np.radians(20.0)).sample(1000, rng)
-    supported = DirectionMesh.from_loops([circle(19.5, 120)], np.radians(0.5))
-    # an edge 3 deg wider and 3 deg off centre adds a crescent up to 6 deg wide where the dense
-    # data put nothing
-    wide = circle(23.0, 240, shift_deg=3.0)
-    assert ef.unexplained_gap(wide, data, supported) > ef.GAP_EXPECTED
-    assert ec.agreeing_region([wide], data, supported) is None
-
-
-def test_a_cone_keeps_the_smooth_edge_and_a_sparse_bean_neither():
-    from limbctl.envelope import RigidMap
-    from limbctl.envelope.synthetic import PolygonRegion, to_quaternions
-
-    rng = np.random.default_rng(1)
-    cone = RigidMap(nodes=1000, seed=1).fit(
-        to_quaternions(ConeRegion(np.radians(20.0)).sample(1000, rng))
+    return np.column_stack(
+        [np.full(n, np.cos(r)), np.sin(r) * np.cos(phi), np.sin(r) * np.sin(phi)]
     )
-    assert cone.edge == "smooth"
-    # 1000 samples over 113 x 78 deg: too sparse at the edge for the traced edge, and corners
-    bean = RigidMap(nodes=1000, seed=1).fit(to_quaternions(PolygonRegion().sample(1000, rng)))
-    assert bean.edge == "supported"
+
+
+@pytest.fixture(scope="module")
+def cone():
+    """1000 samples of a 20 deg cone, a supported loop 0.5 deg inside and its region."""
+    data = ConeRegion(np.radians(20.0)).sample(1000, np.random.default_rng(0))
+    loops = [circle(19.5, 120)]
+    return loops, data, DirectionMesh.from_loops(loops, np.radians(0.5))
+
+
+def test_choices_come_from_the_registry_and_unknown_names_are_refused():
+    assert ec.EDGE_CHOICES == ("auto", "smooth", "traced", "supported")
+    assert all(name == strategy.name for name, strategy in ec.EDGE_STRATEGIES.items())
+    assert [s.safe for s in ec.EDGE_STRATEGIES.values()] == [False, False, True]
+    assert set(ec.AUTO_ORDER) == set(ec.EDGE_STRATEGIES) and ec.AUTO_ORDER[-1] == ec.FALLBACK
+    with pytest.raises(ConfigError, match="choose one of: auto, smooth, traced, supported"):
+        ec.check_choice("round")
+    with pytest.raises(ConfigError, match="unknown edge 'round'"):
+        ec.choose_edge("round", *_args(circle(19.5, 60)))
+
+
+def _args(loop):
+    data = ConeRegion(np.radians(20.0)).sample(300, np.random.default_rng(1))
+    return [loop], data, DirectionMesh.from_loops([loop], 0.0), np.radians(3.0)
+
+
+def test_auto_takes_the_smooth_edge_of_a_cone_after_checking_it_against_the_traced(cone):
+    taken, verdicts = ec.choose_edge("auto", *cone, np.radians(3.0))
+    assert [v.strategy for v in verdicts] == ["smooth", "traced", "supported"]
+    assert taken is verdicts[0] and all(v.accepted for v in verdicts)
+    assert "within 1 deg of the traced edge" in taken.reasons
+    # the edge lies near the true circle, beyond the supported loop
+    radius = np.degrees(np.arccos(np.clip(taken.region.vertices[:, 0], -1.0, 1.0)))
+    assert abs(radius.mean() - 20.0) < 0.5
+
+
+def test_one_strategy_by_name_is_judged_alone_and_falls_back_to_the_supported_loops(cone):
+    loops, data, supported = cone
+    taken, verdicts = ec.choose_edge("traced", loops, data, supported, np.radians(3.0))
+    assert taken.strategy == "traced" and [v.strategy for v in verdicts] == ["traced", "supported"]
+    # no rival check outside "auto"
+    assert taken.reasons == (taken.reasons[0],)
+    taken, verdicts = ec.choose_edge("supported", loops, data, supported, np.radians(3.0))
+    assert taken.strategy == "supported" and taken.region is supported and len(verdicts) == 1
+    # too few samples for the traced edge: refused, and the supported loops are taken
+    few = data[:100]
+    taken, verdicts = ec.choose_edge("traced", loops, few, supported, np.radians(3.0))
+    assert taken.strategy == "supported" and not verdicts[0].accepted
+
+
+def test_the_traced_strategy_says_how_sparse_an_edge_is(cone):
+    loops, data, supported = cone
+    answer = ec.TracedEdge().propose(loops, data[:100], supported, np.radians(3.0))
+    assert isinstance(answer, Refusal)
+    # 100 samples over a 20 deg cap: a window about twice the largest
+    assert answer.figures["window_deg"] > 15.0
+    assert answer.reason.startswith("loop 0 is taught too sparsely")
+    assert isinstance(ec.TracedEdge().propose(loops, data, supported, 0.05), Proposal)
+
+
+def counter_clockwise(loop: np.ndarray) -> np.ndarray:
+    return loop[::-1] if loop_area(loop) < 0 else loop
+
+
+def test_the_smooth_strategy_refuses_a_bay_and_a_shape_its_window_cannot_follow():
+    bean = PolygonRegion()
+    data = bean.sample(1000, np.random.default_rng(2))
+    loop = counter_clockwise(bean.boundary)
+    answer = ec.SmoothEdge().propose([loop], data, None, np.radians(3.0))
+    assert isinstance(answer, Refusal) and answer.figures["bay_samples"] > 40.0
+    assert "bay worth" in answer.reason
+    # a hole (clockwise loop) is concave throughout
+    answer = ec.SmoothEdge().propose([loop[::-1]], data, None, np.radians(3.0))
+    assert answer.reason == "loop 0 is a hole (concave throughout)"
+    # the egg's tight end: 60 vertices with vertex noise, a window spanning its tip
+    rng = np.random.default_rng(0)
+    pan_tilt = np.radians(EGG[::4] + rng.uniform(-1.0, 1.0, (60, 2)) / np.sqrt(2.0))
+    loop = counter_clockwise(pan_tilt_to_direction(pan_tilt[:, 0], pan_tilt[:, 1]))
+    data = PolygonRegion(EGG).sample(1000, rng)
+    answer = ec.SmoothEdge().propose([loop], data, None, np.radians(3.0))
+    assert isinstance(answer, Refusal) and answer.figures["residual_ratio"] > 1.4

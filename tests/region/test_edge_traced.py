@@ -63,10 +63,11 @@ def test_trace_window_follows_the_density_and_refuses_a_sparse_edge():
     loop = circle(19.5, 80)
     dense = ConeRegion(np.radians(20.0)).sample(1000, rng)
     h = et.trace_window(loop, dense)
-    assert h is not None
     assert et.TRACE_MIN_WINDOW_DEG <= np.degrees(h) <= et.TRACE_MAX_WINDOW_DEG
     # 100 samples over a 20 deg cap: about 0.08 per deg^2 at the edge, a 30 deg window
-    assert et.trace_window(loop, dense[:100]) is None
+    assert np.degrees(et.trace_window(loop, dense[:100])) > et.TRACE_MAX_WINDOW_DEG
+    assert et.trace_edge(loop, dense[:100], np.radians(3.0)) is None
+    assert et.trace_window(loop, -dense) == np.inf
 
 
 def test_chord_need_lifts_a_sample_past_the_chord():

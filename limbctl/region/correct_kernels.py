@@ -1,0 +1,147 @@
+"""Numba kernels that correct quaternions against the region: inside kept, outside moved.
+
+A command's limb direction is looked up in the region's grid
+(:func:`limbctl.region.mesh_kernels.query`); inside, the command comes back as it is (canonical,
+``w >= 0``); outside, its limb direction moves to the nearest region direction and the twist
+about the limb is kept. No ``fastmath``: NaN must fail every comparison.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+
+from limbctl.region import mesh_kernels as bk
+
+
+@nb.njit(cache=True, inline="always")
+def _correct_one(
+    q, vertices, edges, margins, axis, grid_shape, inside, deep, start, cell_edges, keys, out, work
+) -> int:
+    """Correct one quaternion into ``out``; returns 1 inside, 0 corrected, -1 bad input.
+
+    Inside (limb direction in the region): ``out = q`` (canonical). Outside: the limb direction
+    moves to the nearest region direction and the twist about the limb is kept:
+    ``out = swing(d') * twist(q)`` with ``twist = normalise(w, x, 0, 0)``. ``work``
+    (WORK_ROWS + 2, 3) is scratch with the grid frame in rows 0, 1 (``bk.frame_into``).
+    """
+    norm2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]
+    # NaN fails every comparison, so it is refused here
+    if not abs(math.sqrt(norm2) - 1.0) <= 1e-6:
+        return -1
+    sign = -1.0 if q[0] < 0.0 else 1.0
+    w = sign * q[0]
+    x = sign * q[1]
+    y = sign * q[2]
+    z = sign * q[3]
+    # limb direction: (w^2 + x^2 - y^2 - z^2, 2(xy + wz), 2(xz - wy)), normalised
+    d = work[bk.WORK_ROWS]
+    d[0] = w * w + x * x - y * y - z * z
+    d[1] = 2.0 * (x * y + w * z)
+    d[2] = 2.0 * (x * z - w * y)
+    dn = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+    d[0] /= dn
+    d[1] /= dn
+    d[2] /= dn
+    p = work[bk.WORK_ROWS + 1]
+    if bk.query(
+        d,
+        vertices,
+        edges,
+        margins,
+        axis,
+        grid_shape,
+        inside,
+        deep,
+        start,
+        cell_edges,
+        keys,
+        p,
+        work,
+    ):
+        out[0] = w
+        out[1] = x
+        out[2] = y
+        out[3] = z
+        return 1
+    # swing from +x to p: normalise(1 + p_x, 0, -p_z, p_y)
+    sw = 1.0 + p[0]
+    sy = -p[2]
+    sz = p[1]
+    sn = math.sqrt(sw * sw + sy * sy + sz * sz)
+    if sn < 1e-12:
+        sw, sy, sz, sn = 0.0, 0.0, 1.0, 1.0
+    sw /= sn
+    sy /= sn
+    sz /= sn
+    tn = math.sqrt(w * w + x * x)
+    tw, tx = (w / tn, x / tn) if tn > 1e-12 else (1.0, 0.0)
+    # (sw, 0, sy, sz) * (tw, tx, 0, 0)
+    rw = sw * tw
+    rx = sw * tx
+    ry = sy * tw + sz * tx
+    rz = sz * tw - sy * tx
+    s2 = -1.0 if rw < 0.0 else 1.0
+    out[0] = s2 * rw
+    out[1] = s2 * rx
+    out[2] = s2 * ry
+    out[3] = s2 * rz
+    return 0
+
+
+@nb.njit(cache=True, parallel=True)
+def correct_batch(
+    q, vertices, edges, margins, axis, grid_shape, inside, deep, start, cell_edges, keys
+):
+    """Correct each row of ``q`` (N, 4) -> (out (N, 4), status (N,) int8: 1 in, 0 fixed, -1 bad)."""
+    n = q.shape[0]
+    out = np.empty((n, 4))
+    status = np.empty(n, dtype=np.int8)
+    for chunk in nb.prange((n + bk.CHUNK - 1) // bk.CHUNK):
+        work = np.empty((bk.WORK_ROWS + 2, 3))
+        bk.frame_into(axis, work)
+        for j in range(chunk * bk.CHUNK, min(n, (chunk + 1) * bk.CHUNK)):
+            status[j] = _correct_one(
+                q[j],
+                vertices,
+                edges,
+                margins,
+                axis,
+                grid_shape,
+                inside,
+                deep,
+                start,
+                cell_edges,
+                keys,
+                out[j],
+                work,
+            )
+    return out, status
+
+
+@nb.njit(cache=True)
+def correct_single(
+    q, vertices, edges, margins, axis, grid_shape, inside, deep, start, cell_edges, keys
+):
+    """:func:`correct_batch` for one (4,) quaternion, without the thread pool: (out, status)."""
+    out = np.empty(4)
+    work = np.empty((bk.WORK_ROWS + 2, 3))
+    bk.frame_into(axis, work)
+    status = _correct_one(
+        q,
+        vertices,
+        edges,
+        margins,
+        axis,
+        grid_shape,
+        inside,
+        deep,
+        start,
+        cell_edges,
+        keys,
+        out,
+        work,
+    )
+    return out, status

@@ -1,0 +1,212 @@
+"""The taught region the gate enforces, built from the positions of taught samples.
+
+:class:`TaughtRegion` runs every step from taught samples to the grid that answers commands
+(all angles radians below; the settings are a :class:`~limbctl.region.params.RegionParams`):
+
+1. *Thin*: samples at least ``thin_deg`` apart, outermost kept (:func:`limbctl.region.shape.thin`),
+   at most ``support_nodes`` (the spacing grows until they fit).
+2. *Shape*: the thinned directions are triangulated (spherical Delaunay); triangles with
+   circumradius at most ``alpha`` are kept, ``alpha`` learned from the data's scale
+   (``alpha_factor`` times the 90th percentile of the empty-circle radii of the gaps the
+   samples enclose), and holes smaller than ``hole_fraction`` of the region are filled.
+3. *Peel*: outside triangles whose exposed edge is longer than the peel length (``peel_factor``
+   median nearest-neighbour spacings, at least ``min_peel_deg``) and whose middle the samples
+   do not surround (samples within ``surround_deg`` leave an empty sector wider than
+   ``SURROUND_GAP_DEG``) are peeled away, longest first: the *supported loops* run through
+   taught samples, corners and concavities as taught.
+4. *Margins*: each arc of the supported loops is widened to where the outermost samples put the
+   edge (:func:`limbctl.region.shape.edge_margins`; windows of ``EDGE_WINDOW`` peel lengths,
+   at most ``max_margin_deg``); arcs longer than ``BRIDGE_FRACTION`` peel lengths only cover
+   the samples beyond them. This is the *supported region*.
+5. *Edge*: the edge strategy ``edge`` names (:mod:`limbctl.region.edge_choice`) replaces the
+   supported loops by a learned edge where the data agree with it, or keeps them;
+   :attr:`TaughtRegion.verdicts` says which strategies were refused and why.
+6. *Mesh*: a :class:`~limbctl.region.mesh.DirectionMesh` over the chosen edge answers
+   :meth:`TaughtRegion.contains` and :meth:`TaughtRegion.correct` in O(1) per command.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from limbctl.errors import ConfigError, InvalidInputError
+from limbctl.geometry.quat import UNIT_TOLERANCE, as_quaternions, limb_direction
+from limbctl.region import correct_kernels as ck
+from limbctl.region import shape as rs
+from limbctl.region.acceptance import Verdict
+from limbctl.region.edge_choice import choose_edge
+from limbctl.region.gaps import ORDER_STATISTICS
+from limbctl.region.mesh import DirectionMesh, boundary_edges
+from limbctl.region.params import RegionParams
+
+#: Half width of the windows (along the loop) the margins read, in peel lengths: wide enough to
+#: hold ORDER_STATISTICS outermost samples along a sparse edge, narrow enough to stay local.
+EDGE_WINDOW = 1.5
+#: A point is surrounded when no empty sector about it is wider than this (deg): a point on a
+#: straight edge sees every sample on one side (an empty half, 180 deg); 15 deg less leaves
+#: room for the scatter of samples along the edge.
+SURROUND_GAP_DEG = 165.0
+#: Arcs longer than this fraction of the peel length are bridges over a gap with no sample
+#: along them: the data say nothing of an edge beyond them, so they get no learned widening.
+BRIDGE_FRACTION = 0.75
+#: Growth factor floor of the thinning spacing while the thinned samples exceed the cap: at
+#: least 5 % a step, so the loop ends within a few steps.
+THIN_GROWTH = 1.05
+
+
+class TaughtRegion:
+    """The region of limb directions the gate enforces (see the module docstring).
+
+    Parameters
+    ----------
+    params : RegionParams, optional
+        The settings; the defaults when None.
+
+    Attributes
+    ----------
+    mesh : DirectionMesh or None
+        The region's mesh once fitted or loaded.
+    edge : str
+        The edge strategy taken (``"smooth"``, ``"traced"`` or ``"supported"``).
+    verdicts : tuple of Verdict
+        Every strategy judged by the last :meth:`fit`, in order (empty after loading).
+    support_index : ndarray (K,) int or None
+        The rows of the fitted samples the shape was built on (thinned), after :meth:`fit`.
+    """
+
+    def __init__(self, params: RegionParams | None = None) -> None:
+        self.params = params if params is not None else RegionParams()
+        self.mesh: DirectionMesh | None = None
+        self.edge = "supported"
+        self.verdicts: tuple[Verdict, ...] = ()
+        self.support_index: np.ndarray | None = None
+
+    # ---- building ----------------------------------------------------------------------------
+    def fit(self, samples: np.ndarray) -> TaughtRegion:
+        """Build the region from taught ``samples``: directions (N, 3) or quaternions (N, 4)."""
+        d = taught_directions(samples)
+        self.support_index = self._thinned(d)
+        self.mesh = self._build(d[self.support_index], d)
+        return self
+
+    def _thinned(self, d: np.ndarray) -> np.ndarray:
+        """Rows of ``d`` (N, 3) kept by thinning, at most ``support_nodes`` of them."""
+        spacing = np.radians(self.params.thin_deg)
+        while True:
+            keep = rs.thin(d, spacing)
+            if keep.size <= self.params.support_nodes:
+                return keep
+            # area per sample ~ spacing^2: grow the spacing to fit the cap
+            spacing *= max(THIN_GROWTH, np.sqrt(keep.size / self.params.support_nodes))
+
+    def _build(self, d: np.ndarray, d_train: np.ndarray) -> DirectionMesh:
+        """The mesh from the thinned directions (K, 3) and all taught directions (N, 3)."""
+        p = self.params
+        alpha = rs.learn_alpha(d, p.alpha_factor)
+        tri, _, inside = rs.alpha_complex(d, alpha, max_hole=0.0)
+        area = float(rs.triangle_area(d, tri[inside]).sum())
+        tri, _, inside = rs.alpha_complex(d, alpha, max_hole=p.hole_fraction * area)
+        self.edge, self.verdicts = "supported", ()
+        if not inside.any():
+            return DirectionMesh.from_loops([], 0.0)
+        # peel length: peel_factor x the median spacing of the support (nearest neighbour),
+        # at least min_peel_deg: an exposed edge longer than that bridges a gap in the data
+        spacing, _ = cKDTree(d).query(d, k=2)
+        length = max(
+            np.radians(p.min_peel_deg),
+            p.peel_factor * 2.0 * np.arcsin(0.5 * float(np.median(spacing[:, 1]))),
+        )
+        protected = rs.surrounded(
+            rs.tri_centroids(d, tri), d, np.radians(p.surround_deg), np.radians(SURROUND_GAP_DEG)
+        )
+        kept = rs.peel(d, tri, inside, length, protected)
+        loops = [d[idx] for idx in rs.trace_loops(d, boundary_edges(tri[kept]))]
+        margins = rs.edge_margins(
+            loops,
+            d_train,
+            EDGE_WINDOW * length,
+            ORDER_STATISTICS,
+            np.radians(p.max_margin_deg),
+            max_bridge=BRIDGE_FRACTION * length,
+        )
+        supported = DirectionMesh.from_loops(loops, margins)
+        taken, self.verdicts = choose_edge(
+            p.edge, loops, d_train, supported, np.radians(p.max_offset_deg)
+        )
+        self.edge = taken.strategy
+        return taken.region
+
+    # ---- answering ---------------------------------------------------------------------------
+    def _mesh(self) -> DirectionMesh:
+        if self.mesh is None:
+            raise ConfigError("this region is not built: call fit(samples) or load a model")
+        return self.mesh
+
+    def contains(self, q: np.ndarray) -> np.ndarray | bool:
+        """Whether each limb direction of ``q`` ((N, 4) or (4,)) lies in the region."""
+        args = self._mesh().kernel_args()
+        arr = np.asarray(q, dtype=np.float64) if isinstance(q, np.ndarray) else None
+        if arr is not None and arr.shape == (4,):
+            # fast path for one command (the gate's final check, every cycle): no thread pool
+            _, one = ck.correct_single(arr, *args)
+            if one < 0:
+                as_quaternions(q)
+            return bool(one == 1)
+        arr, single = as_quaternions(q)
+        _, status = ck.correct_batch(arr, *args)
+        inside = status == 1
+        return bool(inside[0]) if single else inside
+
+    def correct(self, q: np.ndarray) -> np.ndarray:
+        """``q`` itself inside the region; outside, the nearest region orientation (twist kept)."""
+        args = self._mesh().kernel_args()
+        arr = np.asarray(q, dtype=np.float64) if isinstance(q, np.ndarray) else None
+        if arr is not None and arr.shape == (4,):
+            # fast path for one command: the kernel checks finiteness and norm itself
+            out, status = ck.correct_single(arr, *args)
+            if status < 0:
+                as_quaternions(q)
+            return out
+        arr, single = as_quaternions(q)
+        out, _ = ck.correct_batch(arr, *args)
+        return out[0] if single else out
+
+    # ---- persistence -------------------------------------------------------------------------
+    def arrays(self) -> dict[str, np.ndarray]:
+        """The mesh's arrays, everything needed to answer without rebuilding (for saving)."""
+        return self._mesh().arrays()
+
+    @classmethod
+    def from_arrays(
+        cls, arrays: dict[str, np.ndarray], params: RegionParams, edge: str
+    ) -> TaughtRegion:
+        """Inverse of :meth:`arrays`, with the settings and the edge taken when it was fitted."""
+        region = cls(params)
+        region.mesh = DirectionMesh.from_arrays(arrays)
+        region.edge = edge
+        return region
+
+
+def taught_directions(samples: np.ndarray) -> np.ndarray:
+    """Limb directions (N, 3) of taught ``samples``: directions (N, 3) or quaternions (N, 4).
+
+    Raises
+    ------
+    InvalidInputError
+        For fewer than 3 samples, another shape, non-finite values or non-unit rows.
+    """
+    arr = np.asarray(samples, dtype=np.float64)
+    if arr.ndim != 2 or arr.shape[1] not in (3, 4):
+        raise InvalidInputError(
+            f"samples: need directions (N, 3) or quaternions (N, 4), got shape {arr.shape}"
+        )
+    if arr.shape[0] < 3:
+        raise InvalidInputError(f"samples: need at least 3, got {arr.shape[0]}")
+    if arr.shape[1] == 4:
+        q, _ = as_quaternions(arr, name="samples")
+        return limb_direction(q)
+    norm = np.linalg.norm(arr, axis=1)
+    if not (np.all(np.isfinite(arr)) and np.all(np.abs(norm - 1.0) <= UNIT_TOLERANCE)):
+        raise InvalidInputError("samples: directions must be finite unit vectors")
+    return arr

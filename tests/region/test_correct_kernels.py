@@ -1,0 +1,48 @@
+import numpy as np
+
+from limbctl.geometry.quat import limb_direction, multiply
+from limbctl.region import correct_kernels as ck
+from limbctl.region.mesh import DirectionMesh
+
+
+def cap(radius_deg: float, n: int = 120) -> DirectionMesh:
+    """The region within ``radius_deg`` of +x, as a mesh."""
+    phi = np.linspace(-np.pi, np.pi, n, endpoint=False)
+    r = np.radians(radius_deg)
+    loop = np.column_stack(
+        [np.full(n, np.cos(r)), np.sin(r) * np.cos(phi), np.sin(r) * np.sin(phi)]
+    )
+    return DirectionMesh.from_loops([loop], 0.0)
+
+
+def about(axis, angle_deg):
+    """The rotation by ``angle_deg`` about unit ``axis`` as a quaternion (w, x, y, z)."""
+    half = np.radians(angle_deg) / 2.0
+    return np.concatenate([[np.cos(half)], np.sin(half) * np.asarray(axis, dtype=float)])
+
+
+def test_inside_comes_back_canonical_and_outside_moves_to_the_edge_keeping_the_twist():
+    args = cap(20.0).kernel_args()
+    twist = about([1, 0, 0], 30.0)
+    inside = -multiply(about([0, 0, 1], 10.0), twist)  # w < 0: comes back with w >= 0
+    outside = multiply(about([0, 0, 1], 40.0), twist)
+    out, status = ck.correct_batch(np.vstack([inside, outside]), *args)
+    np.testing.assert_array_equal(status, [1, 0])
+    np.testing.assert_array_equal(out[0], -inside)
+    moved = limb_direction(out[1])
+    # the nearest region direction: 20 deg (less the 120-gon's chord) along the same meridian
+    assert 19.9 < np.degrees(np.arccos(moved[0])) <= 20.0 and abs(moved[2]) < 1e-12
+    # the twist about the limb is kept: out = swing(d') * twist
+    swing = about([0, 0, 1], np.degrees(np.arctan2(moved[1], moved[0])))
+    np.testing.assert_allclose(out[1], multiply(swing, twist), atol=1e-12)
+
+
+def test_bad_input_is_refused_one_and_many():
+    args = cap(20.0).kernel_args()
+    bad = np.array([[np.nan, 0.0, 0.0, 0.0], [2.0, 0.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0]])
+    _, status = ck.correct_batch(bad, *args)
+    np.testing.assert_array_equal(status, [-1, -1, 1])
+    _, one = ck.correct_single(bad[0], *args)
+    assert one == -1
+    out, one = ck.correct_single(bad[2], *args)
+    assert one == 1 and np.array_equal(out, bad[2])

@@ -1,0 +1,91 @@
+import numpy as np
+import pytest
+
+from limbctl.envelope.synthetic import EGG, ConeRegion, PolygonRegion, to_quaternions
+from limbctl.errors import ConfigError, InvalidInputError
+from limbctl.geometry.quat import limb_direction
+from limbctl.region import RegionParams, TaughtRegion
+
+
+@pytest.fixture(scope="module")
+def cone():
+    rng = np.random.default_rng(0)
+    region = ConeRegion(np.radians(20.0))
+    return region, region.sample(800, rng), region.test_directions(4000, rng)
+
+
+@pytest.fixture(scope="module")
+def fitted(cone):
+    return TaughtRegion().fit(cone[1])
+
+
+def test_directions_and_quaternions_build_the_same_region(cone, fitted):
+    _, train, _ = cone
+    from_q = TaughtRegion().fit(to_quaternions(train))
+    assert from_q.edge == fitted.edge == "smooth"
+    # the quaternions' limb directions differ from the directions by rounding only
+    np.testing.assert_allclose(from_q.mesh.vertices, fitted.mesh.vertices, atol=1e-12)
+    np.testing.assert_allclose(from_q.mesh.margins, fitted.mesh.margins, atol=1e-12)
+    q = to_quaternions(cone[2])
+    np.testing.assert_allclose(from_q.correct(q), fitted.correct(q), atol=1e-12)
+    # the shape was built on thinned samples, all of them among the taught ones
+    assert 0 < fitted.support_index.size < train.shape[0]
+
+
+def test_contains_and_correct_answer_one_command_and_many_alike(cone, fitted):
+    region, train, test = cone
+    q = to_quaternions(test)
+    assert fitted.contains(to_quaternions(train)).mean() > 0.999
+    inside = fitted.contains(q)
+    out = fitted.correct(q)
+    np.testing.assert_array_equal(out[inside], q[inside])
+    # corrected commands land in the region, within 1 deg of the true cone
+    assert fitted.contains(out).all()
+    assert region.depth(limb_direction(out)).min() > -np.radians(1.0)
+    for i in range(0, 4000, 400):
+        assert fitted.contains(q[i]) == inside[i]
+        np.testing.assert_array_equal(fitted.correct(q[i]), out[i])
+
+
+def test_the_arrays_rebuild_the_region_without_fitting(cone, fitted):
+    back = TaughtRegion.from_arrays(fitted.arrays(), fitted.params, fitted.edge)
+    q = to_quaternions(cone[2])
+    np.testing.assert_array_equal(back.correct(q), fitted.correct(q))
+    assert back.edge == "smooth" and back.verdicts == ()
+
+
+def test_the_edge_is_chosen_by_name_and_every_verdict_kept(cone):
+    train = cone[1]
+    plain = TaughtRegion(RegionParams(edge="supported")).fit(train)
+    assert plain.edge == "supported" and [v.strategy for v in plain.verdicts] == ["supported"]
+    traced = TaughtRegion(RegionParams(edge="traced")).fit(train)
+    assert traced.edge == "traced" and [v.strategy for v in traced.verdicts] == [
+        "traced",
+        "supported",
+    ]
+
+
+def test_auto_refuses_a_smooth_edge_that_reaches_past_the_traced_edge():
+    # egg, seed 4: the smooth edge passes every data check but reaches 2 deg beyond the traced
+    rng = np.random.default_rng(4)
+    region = TaughtRegion().fit(PolygonRegion(EGG).sample(1000, rng))
+    smooth, traced, supported = region.verdicts
+    assert region.edge == "traced" and traced.accepted and supported.accepted
+    assert not smooth.accepted and smooth.figures["reach_beyond_deg"] > 1.5
+    assert "beyond the traced edge" in smooth.reasons[0]
+
+
+def test_the_support_is_capped(cone):
+    region = TaughtRegion(RegionParams(support_nodes=60)).fit(cone[1])
+    assert region.support_index.size <= 60
+
+
+def test_bad_samples_and_an_unbuilt_region_are_refused():
+    with pytest.raises(InvalidInputError, match="directions \\(N, 3\\) or quaternions"):
+        TaughtRegion().fit(np.zeros((10, 2)))
+    with pytest.raises(InvalidInputError, match="at least 3"):
+        TaughtRegion().fit(np.array([[1.0, 0.0, 0.0]]))
+    with pytest.raises(InvalidInputError, match="finite unit vectors"):
+        TaughtRegion().fit(np.full((10, 3), 2.0))
+    with pytest.raises(ConfigError, match="not built"):
+        TaughtRegion().contains(np.array([1.0, 0.0, 0.0, 0.0]))
