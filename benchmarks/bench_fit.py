@@ -29,6 +29,7 @@ import numpy as np
 from bench_envelope import IRREGULAR, reference_seconds, table
 
 import limbctl.envelope.rigidmap as rigidmap_module
+import limbctl.region.taught as taught_module
 from limbctl.envelope import RigidMap
 from limbctl.envelope import rigidmap_kernels as rk
 from limbctl.envelope.synthetic import (
@@ -41,6 +42,7 @@ from limbctl.envelope.synthetic import (
 from limbctl.geometry.quat import limb_direction
 from limbctl.region import shape as rs
 from limbctl.region.mesh import DirectionMesh
+from limbctl.region.taught import TaughtRegion
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -102,9 +104,9 @@ def stage_seconds(q: np.ndarray, seed: int) -> tuple[dict[str, float], float]:
         (RigidMap, "_train", _train_label),
         (RigidMap, "respond", "support refinement"),
         (rs, "thin", "thinning"),
-        (RigidMap, "_build_mesh", "shape (alpha complex, peel, loops)"),
+        (TaughtRegion, "_build", "shape (alpha complex, peel, loops)"),
         (rs, "edge_margins", "margins"),
-        (rigidmap_module, "learned_edge", "edge (smooth, traced, acceptance)"),
+        (taught_module, "choose_edge", "edge (smooth, traced, acceptance)"),
         (rigidmap_module, "make_layout", "node layout (construction)"),
         (rk, "position_topology", "node topology (construction)"),
     ]
