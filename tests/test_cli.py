@@ -1,5 +1,6 @@
 """The command line: complete --help, clear errors, exit codes."""
 
+import os
 import subprocess
 import sys
 import time
@@ -88,3 +89,14 @@ def test_reboot_reboots_the_servo_in_alarm_and_says_what_it_was(sim, capsys):
     assert sim.truth()["servos"][2]["hardware_error_status"] == 0
     assert main(["reboot", "--port", sim.port]) == 0
     assert "no servo is in alarm" in capsys.readouterr().err
+
+
+def test_a_command_on_a_port_another_controller_holds_is_refused_naming_it(sim, capsys):
+    from limbctl.servo.bus import ServoBus
+
+    with ServoBus(sim.port, 57600, (1, 2)) as holder:
+        assert main(["reboot", "--port", sim.port]) == 2
+        err = capsys.readouterr().err
+        assert f"in use by this process, pid {os.getpid()}" in err
+        assert "cable" not in err and "thread" not in err
+        assert holder.read_positions().keys() == {1, 2}  # the holder runs on
