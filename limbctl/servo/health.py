@@ -11,7 +11,9 @@ say and whether to stop:
   a brown-out, which also clears the indirect map so every mapped byte reads 0): a fault;
 - a hardware error (alarm) in Hardware Error Status: a fault, saying what each servo's torque is;
 - a servo that does not follow: its present position further than ``max_tracking_error_deg``
-  from the goal it holds for longer than ``tracking_grace_s``: a fault.
+  from the goal it holds for longer than ``tracking_grace_s`` while it moved less than
+  ``min_progress_deg`` toward that goal (a servo chasing a goal that moves faster than its
+  profile allows is following): a fault.
 """
 
 from __future__ import annotations
@@ -41,6 +43,8 @@ class HealthLimits:
         Largest |present - goal| of a servo that follows (deg).
     tracking_grace_s : float
         How long the error may exceed the bound before the servo is said not to follow (s).
+    min_progress_deg : float
+        How far toward its goal a lagging servo must have moved over that time to be following.
     """
 
     # the limb may be held blind this long: the time budget for noticing a fault (issue 13)
@@ -53,6 +57,9 @@ class HealthLimits:
     max_tracking_error_deg: float = 15.0
     # a hard start or a bump may lag briefly; 0.25 s keeps detection under the 0.5 s budget
     tracking_grace_s: float = 0.25
+    # a servo at even a tenth of its profile velocity (275 deg/s here) covers 7 deg in 0.25 s;
+    # a blocked or limp one covers nothing toward its goal, or moves away from it
+    min_progress_deg: float = 2.0
 
     def __post_init__(self) -> None:
         for name in (
@@ -60,6 +67,7 @@ class HealthLimits:
             "named_after_misses",
             "max_tracking_error_deg",
             "tracking_grace_s",
+            "min_progress_deg",
         ):
             if not getattr(self, name) > 0:
                 raise ConfigError(f"{name} must be > 0, got {getattr(self, name)!r}")
@@ -102,7 +110,8 @@ class HealthMonitor:
     limits: HealthLimits = field(default_factory=HealthLimits)
     silent_since: dict[int, float] = field(default_factory=dict)
     misses: dict[int, int] = field(default_factory=dict)
-    lagging_since: dict[int, float] = field(default_factory=dict)
+    # servo id -> (when it fell behind (s), its present position then (ticks))
+    lagging_since: dict[int, tuple[float, int]] = field(default_factory=dict)
     dropouts: list[Dropout] = field(default_factory=list)
 
     def observe(self, read: CycleRead, now: float) -> Health:
@@ -155,8 +164,13 @@ class HealthMonitor:
             if error_deg <= self.limits.max_tracking_error_deg:
                 self.lagging_since.pop(servo_id, None)
                 continue
-            since = self.lagging_since.setdefault(servo_id, now)
-            if now - since >= self.limits.tracking_grace_s:
+            since, present_then = self.lagging_since.setdefault(servo_id, (now, report.present))
+            # progress = how far it moved since falling behind, signed toward its goal now
+            toward = 1 if report.goal > report.present else -1
+            progress_deg = (report.present - present_then) * toward * DEG_PER_TICK
+            if progress_deg >= self.limits.min_progress_deg:
+                self.lagging_since[servo_id] = (now, report.present)  # following: judge anew
+            elif now - since >= self.limits.tracking_grace_s:
                 return ServoFault(
                     servo_id,
                     "not following",

@@ -89,6 +89,24 @@ def test_a_servo_that_does_not_follow_is_a_fault_after_the_grace():
     assert fault.kind == "not following" and "17.6 deg from its goal" in fault.message
 
 
+def test_a_servo_chasing_a_faster_goal_is_following():
+    monitor = HealthMonitor(HealthLimits(tracking_grace_s=0.25, min_progress_deg=2.0))
+    # 40 deg behind a goal that runs away, but moving toward it at ~100 deg/s
+    for k in range(20):
+        present = 2048 + 23 * k  # 23 ticks = 2.0 deg per 20 ms
+        report = ServoReport(present, present + 455, True, ())
+        assert monitor.observe(reads(s1=report), 0.02 * k).fault is None
+
+
+def test_a_servo_pushed_away_from_its_goal_does_not_follow():
+    monitor = HealthMonitor()
+    faults = [
+        monitor.observe(reads(s1=ServoReport(2048 - 200 - 5 * k, 2048, True, ())), 0.05 * k).fault
+        for k in range(8)
+    ]
+    assert faults[-1] is not None and faults[-1].kind == "not following"
+
+
 def test_limits_must_be_positive():
     with pytest.raises(ConfigError, match="lost_after_s"):
         HealthLimits(lost_after_s=0.0)
