@@ -300,8 +300,36 @@ def train_rigid_map_reference(
 
 # ---- answering: shared with the SOM (limbctl.envelope.interpolation) ----------------------
 def position_topology(positions: np.ndarray, k: int) -> np.ndarray:
-    """For each node, its ``k`` nearest other nodes by position (M, k) int64, nearest first."""
+    """For each node, its ``k`` nearest other nodes by position (M, k) int64, nearest first.
+
+    Nearest: the largest ``p_i . p_j``; equal dots in index order (a stable sort's order).
+    """
     dots = positions @ positions.T
     np.fill_diagonal(dots, -np.inf)
-    k = min(k, positions.shape[0] - 1)
-    return np.ascontiguousarray(np.argsort(-dots, axis=1, kind="stable")[:, :k], dtype=np.int64)
+    return _largest_per_row(dots, min(k, positions.shape[0] - 1))
+
+
+@nb.njit(cache=True)
+def _largest_per_row(values: np.ndarray, k: int) -> np.ndarray:
+    """Columns of the ``k`` largest values of each row (M, k), largest first, ties by column:
+    the first ``k`` of a stable argsort of ``-values``, without sorting whole rows."""
+    m, n = values.shape
+    out = np.empty((m, k), dtype=np.int64)
+    best = np.empty(k)
+    for i in range(m):
+        size = 0
+        for j in range(n):
+            x = values[i, j]
+            if size == k and not x > best[k - 1]:
+                continue
+            # after every kept value >= x: equal values stay in column order
+            at = min(size, k - 1)
+            while at > 0 and best[at - 1] < x:
+                at -= 1
+            for s in range(min(size, k - 1), at, -1):
+                best[s] = best[s - 1]
+                out[i, s] = out[i, s - 1]
+            best[at] = x
+            out[i, at] = j
+            size = min(size + 1, k)
+    return out

@@ -104,3 +104,16 @@ def test_position_topology_lists_nearest_other_nodes():
         dots = p @ p[i]
         dots[i] = -np.inf
         np.testing.assert_array_equal(np.sort(topo[i]), np.sort(np.argsort(-dots)[:3]))
+
+
+@pytest.mark.parametrize("layout", ["600-cell", "24-cell"])
+def test_position_topology_breaks_ties_in_index_order(layout):
+    # polytope layouts hold many equal dots: the order is a stable sort's, nearest first
+    from limbctl.envelope.layouts import make_layout
+
+    p = make_layout(layout, None, seed=0)
+    dots = p @ p.T
+    np.fill_diagonal(dots, -np.inf)
+    for k in (1, 5, 12):
+        want = np.argsort(-dots, axis=1, kind="stable")[:, : min(k, len(p) - 1)]
+        np.testing.assert_array_equal(rk.position_topology(p, k), want)
