@@ -319,3 +319,69 @@ def project_batch(vertices, edges, margins, axis, grid_shape, inside, deep, star
                 work,
             )
     return res
+
+
+@nb.njit(cache=True, parallel=True)
+def nearest_arcs(d, vertices, edges):
+    """For directions ``d`` (N, 3): the nearest arc (N,) int64 (the first on ties), the nearest
+    point on it (N, 3) and its angle (N,) rad; the kernel of
+    :func:`limbctl.region.mesh.nearest_on_edges_reference` without margins.
+
+    Every arc lies within its half length of its midpoint: starting from the arc with the
+    nearest midpoint, an arc whose midpoint is farther than the best angle plus its half
+    length (and 1e-9 rad for rounding) cannot be as near, and is not measured.
+    """
+    n = d.shape[0]
+    mids = np.empty((edges.shape[0], 3))
+    half = np.empty(edges.shape[0])
+    for e in range(edges.shape[0]):
+        a = vertices[edges[e, 0]]
+        b = vertices[edges[e, 1]]
+        mid = a + b
+        mids[e] = mid / math.sqrt(_dot(mid, mid))
+        half[e] = 0.5 * _angle(a, b)
+    best_edge = np.full(n, -1, dtype=np.int64)
+    best = np.empty((n, 3))
+    best_angle = np.full(n, np.inf)
+    for chunk in nb.prange((n + CHUNK - 1) // CHUNK):
+        tmp = np.empty(3)
+        for i in range(chunk * CHUNK, min(n, (chunk + 1) * CHUNK)):
+            start = 0
+            top = -np.inf
+            for e in range(edges.shape[0]):
+                dot = _dot(d[i], mids[e])
+                if dot > top:
+                    top = dot
+                    start = e
+            for step in range(edges.shape[0] + 1):
+                e = start if step == 0 else step - 1
+                if step > 0 and (
+                    e == start
+                    or _dot(d[i], mids[e]) < math.cos(min(best_angle[i] + half[e] + 1e-9, math.pi))
+                ):
+                    continue
+                angle = nearest_on_arc(d[i], vertices[edges[e, 0]], vertices[edges[e, 1]], tmp)
+                if angle < best_angle[i] or (angle == best_angle[i] and e < best_edge[i]):
+                    best_angle[i] = angle
+                    best_edge[i] = e
+                    best[i] = tmp
+    return best_edge, best, best_angle
+
+
+@nb.njit(cache=True, parallel=True)
+def fan_area(p, vertices, edges):
+    """Sum (N,) over arcs a -> b of the signed area of the spherical triangle (p, a, b): the
+    kernel of :func:`limbctl.region.mesh.fan_area` (its docstring says what the sign means)."""
+    n = p.shape[0]
+    total = np.zeros(n)
+    for i in nb.prange(n):
+        acc = 0.0
+        for e in range(edges.shape[0]):
+            a = vertices[edges[e, 0]]
+            b = vertices[edges[e, 1]]
+            # 2 atan2(det(p, a, b), 1 + p.a + a.b + b.p)
+            acc += 2.0 * math.atan2(
+                _det(p[i], a, b), 1.0 + _dot(p[i], a) + _dot(a, b) + _dot(b, p[i])
+            )
+        total[i] = acc
+    return total
