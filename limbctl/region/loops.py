@@ -12,6 +12,7 @@ in radians.
 from __future__ import annotations
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 
 def chord(angle: float) -> float:
@@ -116,8 +117,11 @@ def lift(deficit: np.ndarray, s: np.ndarray, total: float, width: float) -> np.n
 
 
 def nearest_station(data: np.ndarray, stations: np.ndarray) -> np.ndarray:
-    """Index (N,) of the station (K, 3) nearest to each direction of ``data`` (N, 3)."""
-    return np.argmax(data @ stations.T, axis=1)
+    """Index (N,) of the station (K, 3) nearest to each direction of ``data`` (N, 3).
+
+    On unit directions the nearest by chord ``|x - s|^2 = 2 - 2 x.s`` is the nearest by angle.
+    """
+    return cKDTree(stations).query(data)[1]
 
 
 class StationBuckets:

@@ -27,8 +27,8 @@ import heapq
 import numpy as np
 from scipy.spatial import cKDTree
 
-from limbctl.geometry.quat import tangent_frame
 from limbctl.region import mesh_kernels as bk
+from limbctl.region import shape_kernels
 from limbctl.region.gaps import line_gap
 from limbctl.region.loops import StationBuckets, chord, loops_to_edges
 from limbctl.region.mesh import boundary_edges, circumradius, spherical_delaunay
@@ -217,19 +217,14 @@ def surrounded(p: np.ndarray, data: np.ndarray, radius: float, max_gap: float) -
     bearings leave no empty sector wider than ``max_gap`` (rad). A point among crossing strokes
     is surrounded; a point beyond the data's edge (all data on one side) is not.
     """
-    tree = cKDTree(data)
-    out = np.zeros(p.shape[0], dtype=bool)
-    for i, near in enumerate(tree.query_ball_point(p, chord(radius))):
-        if len(near) < 3:
-            continue
-        x = p[i]
-        u, v = tangent_frame(x)
-        s = data[near]
-        # bearing of each datum about p: atan2(s.v, s.u)
-        bearing = np.sort(np.arctan2(s @ v, s @ u))
-        gaps = np.diff(np.concatenate([bearing, bearing[:1] + 2.0 * np.pi]))
-        out[i] = gaps.max() < max_gap
-    return out
+    near = cKDTree(data).query_ball_point(p, chord(radius))
+    counts = np.array([len(rows) for rows in near], dtype=np.int64)
+    start = np.concatenate([[0], np.cumsum(counts)])
+    flat = np.fromiter((j for rows in near for j in rows), dtype=np.int64, count=int(start[-1]))
+    widest = shape_kernels.widest_bearing_gaps(
+        np.ascontiguousarray(p, dtype=np.float64), np.ascontiguousarray(data), start, flat
+    )
+    return (counts >= 3) & (widest < max_gap)
 
 
 def peel(

@@ -1,0 +1,51 @@
+"""Numba kernels of the region's shape (:mod:`limbctl.region.shape`).
+
+No fastmath: every comparison sees NaN as failing.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+
+
+@nb.njit(cache=True)
+def widest_bearing_gaps(p: np.ndarray, data: np.ndarray, start: np.ndarray, near: np.ndarray):
+    """The widest empty sector (rad) about each ``p`` (N, 3) of its neighbours among ``data``.
+
+    The neighbours of point ``i`` are ``data[near[start[i]:start[i + 1]]]``; seen from ``p``
+    in the tangent frame ``u = (h x p) / |h x p|``, ``v = p x u`` (``h = +z``, ``+y`` when
+    ``p`` is near z: :func:`limbctl.geometry.quat.tangent_frame`), their bearings
+    ``atan2(s.v, s.u)`` sorted leave gaps; the widest, the wrap-around included, is returned
+    (2 pi for fewer than one neighbour).
+    """
+    n = p.shape[0]
+    out = np.full(n, 2.0 * np.pi)
+    for i in range(n):
+        count = start[i + 1] - start[i]
+        if count < 1:
+            continue
+        x, y, z = p[i, 0], p[i, 1], p[i, 2]
+        # u = h x p with h = (0, 0, 1): (-y, x, 0); with h = (0, 1, 0): (z, 0, -x)
+        if abs(z) < 0.9:
+            ux, uy, uz = -y, x, 0.0
+        else:
+            ux, uy, uz = z, 0.0, -x
+        norm = math.sqrt(ux * ux + uy * uy + uz * uz)
+        ux, uy, uz = ux / norm, uy / norm, uz / norm
+        # v = p x u
+        vx, vy, vz = y * uz - z * uy, z * ux - x * uz, x * uy - y * ux
+        bearing = np.empty(count)
+        for k in range(count):
+            s = data[near[start[i] + k]]
+            bearing[k] = math.atan2(
+                s[0] * vx + s[1] * vy + s[2] * vz, s[0] * ux + s[1] * uy + s[2] * uz
+            )
+        bearing.sort()
+        widest = bearing[0] + 2.0 * np.pi - bearing[count - 1]
+        for k in range(1, count):
+            widest = max(widest, bearing[k] - bearing[k - 1])
+        out[i] = widest
+    return out
