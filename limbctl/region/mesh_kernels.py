@@ -321,7 +321,7 @@ def project_batch(vertices, edges, margins, axis, grid_shape, inside, deep, star
     return res
 
 
-@nb.njit(cache=True, parallel=True)
+@nb.njit(cache=True)
 def nearest_arcs(d, vertices, edges):
     """For directions ``d`` (N, 3): the nearest arc (N,) int64 (the first on ties), the nearest
     point on it (N, 3) and its angle (N,) rad; the kernel of
@@ -343,38 +343,37 @@ def nearest_arcs(d, vertices, edges):
     best_edge = np.full(n, -1, dtype=np.int64)
     best = np.empty((n, 3))
     best_angle = np.full(n, np.inf)
-    for chunk in nb.prange((n + CHUNK - 1) // CHUNK):
-        tmp = np.empty(3)
-        for i in range(chunk * CHUNK, min(n, (chunk + 1) * CHUNK)):
-            start = 0
-            top = -np.inf
-            for e in range(edges.shape[0]):
-                dot = _dot(d[i], mids[e])
-                if dot > top:
-                    top = dot
-                    start = e
-            for step in range(edges.shape[0] + 1):
-                e = start if step == 0 else step - 1
-                if step > 0 and (
-                    e == start
-                    or _dot(d[i], mids[e]) < math.cos(min(best_angle[i] + half[e] + 1e-9, math.pi))
-                ):
-                    continue
-                angle = nearest_on_arc(d[i], vertices[edges[e, 0]], vertices[edges[e, 1]], tmp)
-                if angle < best_angle[i] or (angle == best_angle[i] and e < best_edge[i]):
-                    best_angle[i] = angle
-                    best_edge[i] = e
-                    best[i] = tmp
+    tmp = np.empty(3)
+    for i in range(n):
+        start = 0
+        top = -np.inf
+        for e in range(edges.shape[0]):
+            dot = _dot(d[i], mids[e])
+            if dot > top:
+                top = dot
+                start = e
+        for step in range(edges.shape[0] + 1):
+            e = start if step == 0 else step - 1
+            if step > 0 and (
+                e == start
+                or _dot(d[i], mids[e]) < math.cos(min(best_angle[i] + half[e] + 1e-9, math.pi))
+            ):
+                continue
+            angle = nearest_on_arc(d[i], vertices[edges[e, 0]], vertices[edges[e, 1]], tmp)
+            if angle < best_angle[i] or (angle == best_angle[i] and e < best_edge[i]):
+                best_angle[i] = angle
+                best_edge[i] = e
+                best[i] = tmp
     return best_edge, best, best_angle
 
 
-@nb.njit(cache=True, parallel=True)
+@nb.njit(cache=True)
 def fan_area(p, vertices, edges):
     """Sum (N,) over arcs a -> b of the signed area of the spherical triangle (p, a, b): the
     kernel of :func:`limbctl.region.mesh.fan_area` (its docstring says what the sign means)."""
     n = p.shape[0]
     total = np.zeros(n)
-    for i in nb.prange(n):
+    for i in range(n):
         acc = 0.0
         for e in range(edges.shape[0]):
             a = vertices[edges[e, 0]]
