@@ -229,25 +229,29 @@ def train_rigid_map(
                     continue
                 order = _patterns_near(h, slot_start, slot_patterns, buffer)
                 w0, w1, w2, w3 = weights[i, 0], weights[i, 1], weights[i, 2], weights[i, 3]
+                # the largest step per component, kept apart so the four updates do not wait
+                # on one another (max is exact: the same largest step)
+                m0 = m1 = m2 = m3 = 0.0
                 for jj in range(n if order < 0 else order):
                     j = jj if order < 0 else buffer[jj]
                     value = h[pattern_slot[j]]
                     if value == 0.0:
                         continue
                     a = lr * value
-                    step = a * (patterns[j, 0] - w0)
-                    w0 += step
-                    moved = max(moved, abs(step))
-                    step = a * (patterns[j, 1] - w1)
-                    w1 += step
-                    moved = max(moved, abs(step))
-                    step = a * (patterns[j, 2] - w2)
-                    w2 += step
-                    moved = max(moved, abs(step))
-                    step = a * (patterns[j, 3] - w3)
-                    w3 += step
-                    moved = max(moved, abs(step))
+                    step0 = a * (patterns[j, 0] - w0)
+                    step1 = a * (patterns[j, 1] - w1)
+                    step2 = a * (patterns[j, 2] - w2)
+                    step3 = a * (patterns[j, 3] - w3)
+                    w0 += step0
+                    w1 += step1
+                    w2 += step2
+                    w3 += step3
+                    m0 = max(m0, abs(step0))
+                    m1 = max(m1, abs(step1))
+                    m2 = max(m2, abs(step2))
+                    m3 = max(m3, abs(step3))
                 weights[i, 0], weights[i, 1], weights[i, 2], weights[i, 3] = w0, w1, w2, w3
+                moved = max(moved, max(max(m0, m1), max(m2, m3)))
         if moved < tol:
             break
     return epochs
