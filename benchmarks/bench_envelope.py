@@ -36,11 +36,13 @@ from limbctl.envelope.synthetic import (
     BEAN,
     EGG,
     KIDNEY,
+    NOTCH,
     SMALL_KIDNEY,
     ConeRegion,
     PolygonRegion,
     covered,
     to_quaternions,
+    traced_teaching,
     trajectory_samples,
 )
 from limbctl.geometry.gimbal import pan_tilt_to_direction
@@ -155,6 +157,13 @@ def accuracy_rows(n_train: int, n_test: int, n_strokes: int, seed: int) -> list[
         train = trajectory_samples(region, n_strokes, rng)
         model, t_fit = fit(train, seed)
         rows += score_rows(name, region, model, train, t_fit, n_test, rng, papers)
+    # an obstacle the limb must go round, its edge traced (issue 12 item 6; bench_fit.py too)
+    notch = PolygonRegion(NOTCH)
+    rng = np.random.default_rng(seed)
+    train, _ = traced_teaching(notch, 60.0, rng)
+    model, t_fit = fit(train, seed)
+    name = "traced 60 s: notch (40 x 30 deg)"
+    rows += score_rows(name, notch, model, train, t_fit, n_test, rng, papers)
     return rows
 
 
@@ -425,7 +434,11 @@ def main() -> None:
         f"{os.getloadavg()[0]:.1f} at the end of the run).\n\n"
         "i.i.d. rows: teaching samples from the region's density; stroke rows: "
         f"{args.strokes} samples of synthetic hand strokes (`trajectory_samples`: continuous "
-        "strokes 0.3 deg apart, slow edge strokes, gaps between strokes).\n\n"
+        "strokes 0.3 deg apart, slow edge strokes, gaps between strokes); the notch row: "
+        "`synthetic.NOTCH` (a 12 x 12 deg notch cut into a 40 x 30 deg rectangle) taught "
+        "for 60 s by `traced_teaching` (its edge traced 1 deg inside, then wandering), its "
+        "*worst outside* how far a corrected command lands in the notch "
+        "(docs/bench_fit.md: the region's own reach).\n\n"
         "Columns: *valid* = test commands 2 deg or more inside the true region; *covered* = "
         "those the taught samples surround (`synthetic.covered`: samples within 6 deg leave "
         "no empty sector wider than 150 deg; the rest of the region was never taught); "

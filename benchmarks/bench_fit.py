@@ -3,8 +3,8 @@
 Run: ``.venv/bin/python benchmarks/bench_fit.py`` (writes docs/bench_fit.md).
 
 Speed (issue 12 item 5): the whole fit (``RigidMap.fit``: map and region) of a 60 s teaching
-(125 Hz, 7,500 samples: the edge traced about 1 deg inside at 15 deg/s, then wandering inside,
-:func:`limbctl.envelope.synthetic.traced_teaching` over the simulator's irregular region),
+(125 Hz, 7,500 samples: the simulator's hand over its irregular region, tracing the edge about
+1 deg inside, then wandering; ``bench_envelope.hand_samples``),
 against the numpy reference of the bare Rigid Map rule (2,000 nodes, 1,000 samples, 100
 epochs; ``bench_envelope.reference_seconds``) timed in the same run, reference and fits
 interleaved, the best of each; and the fit's time by stage (exclusive: a stage's time leaves
@@ -26,7 +26,7 @@ from contextlib import ExitStack, contextmanager
 from pathlib import Path
 
 import numpy as np
-from bench_envelope import IRREGULAR, reference_seconds, table
+from bench_envelope import hand_samples, reference_seconds, table
 
 import limbctl.envelope.rigidmap as rigidmap_module
 import limbctl.region.taught as taught_module
@@ -131,8 +131,7 @@ def fit_seconds(q: np.ndarray, seed: int) -> float:
 
 def speed(seed: int, repeat: int) -> tuple[list[list[str]], list[list[str]], float, int]:
     """The speed table, the stage table, the ratio and the teaching's sample count."""
-    d, _ = traced_teaching(PolygonRegion(IRREGULAR), TEACHING_S, np.random.default_rng(seed))
-    q = to_quaternions(d)
+    q = to_quaternions(hand_samples(TEACHING_S, seed))
     fit_seconds(q, seed)  # compiles the kernels (cached on disk after the first run)
     refs, fits = [], []
     for i in range(repeat):
@@ -211,10 +210,11 @@ def main() -> None:
         f"{os.getloadavg()[0]:.1f} at the end of the run).\n\n"
         "## Speed (issue 12 item 5)\n\n"
         f"The whole `RigidMap.fit` of a {TEACHING_S:g} s teaching ({n} samples at 125 Hz: "
-        "the simulator's irregular region, its edge traced 1 deg inside at 15 deg/s, then "
-        "wandering inside at 30 deg/s; `synthetic.traced_teaching`, seed "
-        f"{args.seed}) against the numpy reference of the bare Rigid Map rule, timed in the "
-        "same run (reference and fits interleaved, the best of each counts). Target: the "
+        "the simulator's hand over examples/regions/irregular.yaml, tracing its edge about "
+        "1 deg inside, then wandering; what `limbctl record --duration 60 --seed "
+        f"{args.seed}` records, without the servos) against the numpy reference of the bare "
+        "Rigid Map rule, timed in the same run (reference and fits interleaved, the best of "
+        "each counts). Target: the "
         f"fit takes at most {TARGET_RATIO} of the reference.\n\n"
         + table(["what", "best", "each run (s)", "ratio to the reference"], rows)
         + "\n\nWhere the fit's time goes (one fit, each stage's own time, without the stages "
