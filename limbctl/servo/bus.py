@@ -3,8 +3,11 @@
 :class:`ServoBus` opens a serial port (a U2D2's device, or the simulator's pty), pings every
 servo and checks its model, and then offers exactly what the controller needs: configure for
 position control, torque on/off, both present positions in ONE sync read (Fast Sync Read where
-the firmware has it), both goals in ONE sync write, hardware-error status, reboot. Registers
-are named only through :class:`limbctl.servo.control_table.Register`.
+the firmware has it), both goals in ONE sync write, hardware-error status, reboot, and the
+control cycle's read of position, goal, torque and alarm through indirect addresses
+(:meth:`read_cycle`, :mod:`limbctl.servo.cycle`). The port is held exclusively (a second
+controller gets :class:`limbctl.errors.PortInUse` naming the holder). Registers are named only
+through :class:`limbctl.servo.control_table.Register`.
 
 Every transaction is retried a bounded number of times within a time budget; what still fails
 raises one of (see :mod:`limbctl.errors`)::
