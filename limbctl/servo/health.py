@@ -11,9 +11,9 @@ say and whether to stop:
   a brown-out, which also clears the indirect map so every mapped byte reads 0): a fault;
 - a hardware error (alarm) in Hardware Error Status: a fault, saying what each servo's torque is;
 - a servo that does not follow: its present position further than ``max_tracking_error_deg``
-  from the goal it holds for longer than ``tracking_grace_s`` while it moved less than
-  ``min_progress_deg`` toward that goal (a servo chasing a goal that moves faster than its
-  profile allows is following): a fault.
+  from the goal it holds for longer than ``tracking_grace_s`` in which no ``progress_window_s``
+  saw it move ``min_progress_deg`` toward that goal (a servo chasing a goal that moves faster
+  than its profile allows, or turning round to follow one that reversed, is following): a fault.
 """
 
 from __future__ import annotations
@@ -43,8 +43,10 @@ class HealthLimits:
         Largest |present - goal| of a servo that follows (deg).
     tracking_grace_s : float
         How long the error may exceed the bound before the servo is said not to follow (s).
+    progress_window_s : float
+        The span over which a lagging servo's progress toward its goal is measured (s).
     min_progress_deg : float
-        How far toward its goal a lagging servo must have moved over that time to be following.
+        How far toward its goal a lagging servo must move in one window to be following.
     """
 
     # the limb may be held blind this long: the time budget for noticing a fault (issue 13)
@@ -55,11 +57,15 @@ class HealthLimits:
     # a healthy servo lags its goal by at most 3.6 deg at the 120 deg/s slew limit (measured,
     # docs/bench_faults.md); a torque-less or blocked limb is off by tens of degrees
     max_tracking_error_deg: float = 15.0
-    # a hard start or a bump may lag briefly; 0.25 s keeps detection under the 0.5 s budget
-    tracking_grace_s: float = 0.25
-    # a servo at even a tenth of its profile velocity (275 deg/s here) covers 7 deg in 0.25 s;
-    # a blocked or limp one covers nothing toward its goal, or moves away from it
-    min_progress_deg: float = 2.0
+    # a servo reversing at full speed decelerates away from its goal for 0.26 s (275 deg/s at
+    # 1073 deg/s^2, the set-up's profile) before it can make way toward it; 0.4 s stays under
+    # the 0.5 s budget for noticing a fault
+    tracking_grace_s: float = 0.4
+    # short enough to see the turn within the grace, long enough for several ticks of motion
+    progress_window_s: float = 0.1
+    # 10 deg/s toward the goal: a servo at a twentieth of its profile velocity is following;
+    # a blocked or limp one makes no way toward its goal, or moves away from it
+    min_progress_deg: float = 1.0
 
     def __post_init__(self) -> None:
         for name in (
@@ -67,6 +73,7 @@ class HealthLimits:
             "named_after_misses",
             "max_tracking_error_deg",
             "tracking_grace_s",
+            "progress_window_s",
             "min_progress_deg",
         ):
             if not getattr(self, name) > 0:
@@ -110,8 +117,8 @@ class HealthMonitor:
     limits: HealthLimits = field(default_factory=HealthLimits)
     silent_since: dict[int, float] = field(default_factory=dict)
     misses: dict[int, int] = field(default_factory=dict)
-    # servo id -> (when it fell behind (s), its present position then (ticks))
-    lagging_since: dict[int, tuple[float, int]] = field(default_factory=dict)
+    # servo id -> [since when it lags without making way (s), window start (s), present then]
+    lagging_since: dict[int, list[float]] = field(default_factory=dict)
     dropouts: list[Dropout] = field(default_factory=list)
 
     def observe(self, read: CycleRead, now: float) -> Health:
@@ -164,18 +171,21 @@ class HealthMonitor:
             if error_deg <= self.limits.max_tracking_error_deg:
                 self.lagging_since.pop(servo_id, None)
                 continue
-            since, present_then = self.lagging_since.setdefault(servo_id, (now, report.present))
-            # progress = how far it moved since falling behind, signed toward its goal now
-            toward = 1 if report.goal > report.present else -1
-            progress_deg = (report.present - present_then) * toward * DEG_PER_TICK
-            if progress_deg >= self.limits.min_progress_deg:
-                self.lagging_since[servo_id] = (now, report.present)  # following: judge anew
-            elif now - since >= self.limits.tracking_grace_s:
+            lag = self.lagging_since.setdefault(servo_id, [now, now, report.present])
+            since, window_start, present_then = lag
+            if now - window_start >= self.limits.progress_window_s:
+                # progress = how far it moved over the window, signed toward its goal now
+                toward = 1 if report.goal > report.present else -1
+                progress_deg = (report.present - present_then) * toward * DEG_PER_TICK
+                if progress_deg >= self.limits.min_progress_deg:
+                    since = now  # it is making way: following, judged anew
+                lag[:] = [since, now, report.present]
+            if now - since >= self.limits.tracking_grace_s:
                 return ServoFault(
                     servo_id,
                     "not following",
                     f"servo {servo_id} does not follow: {error_deg:.1f} deg from its goal for "
                     f"{now - since:.2f} s (limit {self.limits.max_tracking_error_deg:g} deg): "
-                    f"free the limb, check the load",
+                    f"the limb is blocked or overloaded: free it, check the load",
                 )
         return None

@@ -102,7 +102,7 @@ def test_a_servo_pushed_away_from_its_goal_does_not_follow():
     monitor = HealthMonitor()
     faults = [
         monitor.observe(reads(s1=ServoReport(2048 - 200 - 5 * k, 2048, True, ())), 0.05 * k).fault
-        for k in range(8)
+        for k in range(10)
     ]
     assert faults[-1] is not None and faults[-1].kind == "not following"
 
