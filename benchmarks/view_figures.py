@@ -3,8 +3,8 @@
 Run: ``.venv/bin/python benchmarks/view_figures.py`` (about a minute on the simulator).
 
 ``record``: the embedded simulator's scripted hand teaches for ``--seconds`` while the view's
-pose tap and scene feeder publish; the page is captured once the region fitted so far has been
-drawn at least twice.
+pose tap and scene feeder publish; the page is captured once the region has been fitted on at least
+three quarters of that teaching.
 
 ``teleop``: a Rigid Map trained on that recording gates a sweep sent over UDP that leaves the
 region; the page is captured while the gate corrects the command onto the region's edge, then
@@ -31,21 +31,14 @@ sys.path.insert(0, str(ROOT))  # for tests.view.browser (headless Chromium, test
 from calib.profile import default_sim_profile  # noqa: E402
 from limbctl.envelope import RigidMap  # noqa: E402
 from limbctl.jobs import TeleopOptions, run_teleop  # noqa: E402
-from limbctl.live import ViewOptions, open_view  # noqa: E402
+from limbctl.live import LiveView, ViewOptions, open_view  # noqa: E402
 from limbctl.session import demo_region_path, open_rig  # noqa: E402
 from limbctl.teach.dataset import DatasetWriter, load_dataset  # noqa: E402
 from limbctl.teach.record import record  # noqa: E402
-from limbctl.view import Board, HardLimits, ViewServer  # noqa: E402
-from limbctl.view.feed import PoseTap, SceneFeeder  # noqa: E402
+from limbctl.view import Board, ViewServer  # noqa: E402
 from tests.view.browser import chromium, text_of, wait_for  # noqa: E402
 
 FIGURES = ROOT / "docs" / "figures"
-
-
-def limits_of(profile) -> HardLimits:
-    return HardLimits(
-        (profile.pan.min_deg, profile.pan.max_deg), (profile.tilt.min_deg, profile.tilt.max_deg)
-    )
 
 
 def record_figure(out: Path, data: Path, seconds: float, seed: int) -> None:
@@ -57,18 +50,23 @@ def record_figure(out: Path, data: Path, seconds: float, seed: int) -> None:
         open_rig(hand=demo_region_path(), seed=seed) as session,
         DatasetWriter(data, rig=session.profile.name) as writer,
     ):
-        tap = PoseTap(session.rig, board, "record", note="torque off: move the limb by hand")
         browser.get(server.url)
         stop = threading.Event()
-        with SceneFeeder(board, tap.samples, limits_of(session.profile)) as feeder:
-            recorder = threading.Thread(target=record, args=(tap, writer, 100.0, None, stop))
+        with LiveView(board, server.url).teaching(session.rig, session.profile) as taught:
+            tap, feeder = taught.limb, taught.feeder
+            recorder = threading.Thread(
+                target=record,
+                args=(tap, writer, 100.0, None, stop),
+                kwargs={"on_guidance": taught.on_guidance},
+            )
             recorder.start()
             try:
-                # the chosen length of teaching (samples at 100 Hz), and two fits done
+                # the chosen length of teaching (samples at 100 Hz), and a region fitted on at
+                # least 3/4 of it (a fit takes seconds: the region lags the samples)
                 wait_for(
                     browser,
-                    lambda d: tap.count >= 100 * seconds and feeder.fits_done >= 2,
-                    "the region was not fitted twice",
+                    lambda d: tap.count >= 100 * seconds and feeder.latest.samples >= 75 * seconds,
+                    "the region did not catch up with the teaching",
                     timeout=600,
                 )
                 wait_for(browser, lambda d: "fitted on" in text_of(d, "region-note"), "no region")

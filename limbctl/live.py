@@ -76,10 +76,11 @@ def rig_limits(profile: Any) -> HardLimits:
 @dataclass(frozen=True)
 class Teaching:
     """The recorder's side of a live teaching: ``limb`` to read, ``on_guidance`` for the guide's
-    assessments (None: nobody shows them)."""
+    assessments (None: nobody shows them), and the ``feeder`` publishing the scene."""
 
     limb: Any
     on_guidance: Callable[[Guidance], None] | None
+    feeder: SceneFeeder | None = None
 
 
 def guide_figures(guidance: Guidance) -> tuple[tuple[GuideFigure, ...], str]:
@@ -125,7 +126,7 @@ class LiveView:
             return
         tap = PoseTap(limb, self.board, mode, note="torque off: move the limb by hand")
         with SceneFeeder(self.board, tap.samples, rig_limits(profile)) as feeder:
-            yield Teaching(tap, lambda guidance: feeder.set_guide(*guide_figures(guidance)))
+            yield Teaching(tap, lambda guidance: feeder.set_guide(*guide_figures(guidance)), feeder)
 
     def start_observer(self, mode: str = "teleop: waiting") -> Callable[[Any], None] | None:
         """Where a limb outside the region is shown while teleop waits for it: publishes each

@@ -55,7 +55,7 @@ def test_page_shows_the_published_record_state(browser, served):
             loops=(SQUARE,),
             limits=LIMITS,
             region_note="fitted on 300 samples",
-            guide=(GuideFigure("edge closed", 25.0, "%"),),
+            guide=(GuideFigure("edge closed", 25.0, "%"), GuideFigure("edge gaps", 3)),
             guide_text="trace the lower edge",
         )
     )
@@ -70,6 +70,7 @@ def test_page_shows_the_published_record_state(browser, served):
     assert text_of(browser, "traced-share") == "25 % of 4 stretches"
     assert text_of(browser, "limits") == "pan -90..90, tilt -40..60"
     assert "edge closed" in text_of(browser, "guide") and "25.0 %" in text_of(browser, "guide")
+    assert "edge gaps3" in text_of(browser, "guide")  # a count, without decimals
     assert text_of(browser, "guide-text") == "trace the lower edge"
     assert browser.find_element("id", "teleop").is_displayed() is False
     assert browser.find_element("id", "fault").is_displayed() is False

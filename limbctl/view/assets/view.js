@@ -186,7 +186,9 @@ function showScene(s) {
     const th = document.createElement("th");
     th.textContent = f.label;
     row.appendChild(th);
-    row.insertCell().textContent = `${f.value.toFixed(1)} ${f.unit}`.trim();
+    // counts (whole, no unit) as they are; measures to one decimal
+    const value = Number.isInteger(f.value) && !f.unit ? String(f.value) : f.value.toFixed(1);
+    row.insertCell().textContent = `${value} ${f.unit}`.trim();
   }
   byId("guide-text").textContent = s.guide_text;
 }
