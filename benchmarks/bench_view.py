@@ -42,6 +42,8 @@ from limbctl.view import Board, ViewServer  # noqa: E402
 from limbctl.view.feed import PoseTap, SceneFeeder  # noqa: E402
 from tests.view.browser import chromium, text_of, wait_for  # noqa: E402
 
+#: The teleop runs, in turn: (name, (view served, Chromium watching)).
+TELEOP_MODES = (("off", (False, False)), ("on", (True, False)), ("on, watched", (True, True)))
 #: The runs: name -> (view served and watched, region refitted).
 MODES = {"off": (False, False), "on, no refit": (True, False), "on": (True, True)}
 
@@ -81,8 +83,11 @@ def run(view: bool, refit: bool, seconds: float, seed: int) -> dict[str, float]:
     }
 
 
-def teleop_run(view: bool, model: Path, seconds: float, folder: Path) -> dict[str, float]:
-    """``run_teleop`` at 200 Hz on a replayed sweep, the view off or on; rates from telemetry."""
+def teleop_run(
+    view: bool, browser: bool, model: Path, seconds: float, folder: Path
+) -> dict[str, float]:
+    """``run_teleop`` at 200 Hz on a replayed sweep, the view off or on (watched by Chromium or
+    not); rates from telemetry."""
     commands = folder / "sweep.jsonl"
     with open(commands, "w", encoding="utf-8") as fh:
         for i in range(int(seconds * 50)):
@@ -96,7 +101,7 @@ def teleop_run(view: bool, model: Path, seconds: float, folder: Path) -> dict[st
     )
     with contextlib.ExitStack() as stack:
         live = stack.enter_context(open_view(ViewOptions(enabled=view, port=0), print))
-        if view:
+        if browser:
             stack.enter_context(chromium()).get(live.url)
         run_teleop(options, view=live)
     rows = [json.loads(line) for line in telemetry.read_text().splitlines()]
@@ -118,17 +123,17 @@ def teleop_table(seconds: float) -> str:
         sim = default_sim_profile()
         metadata = {"rig": sim.name, "calibration": sim.calibration.to_dict()}
         RigidMap().fit(data.quaternions).save(model, metadata=metadata)
-        for view in (False, True, False, True):
-            result = teleop_run(view, model, seconds, folder)
+        for mode, (view, browser) in TELEOP_MODES * 2:
+            result = teleop_run(view, browser, model, seconds, folder)
             rows.append(
-                f"| {'on' if view else 'off'} | {result['cycles']} | {result['rate_hz']:.1f} | "
+                f"| {mode} | {result['cycles']} | {result['rate_hz']:.1f} | "
                 f"{result['p50']:.2f} | {result['p99']:.2f} |"
             )
             print(rows[-1], flush=True)
     return "\n".join(
         [
             f"Teleop at 200 Hz, a replayed sweep leaving the region, {seconds:g} s each, "
-            "alternating:",
+            "in turn (watched: a headless Chromium on the same machine shows the page):",
             "",
             "| view | cycles | rate (Hz) | cycle p50 (ms) | cycle p99 (ms) |",
             "| --- | --- | --- | --- | --- |",

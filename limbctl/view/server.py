@@ -28,9 +28,10 @@ from aiohttp import WSMsgType, web
 from limbctl.errors import ConfigError
 from limbctl.view.state import Board
 
-#: How often each browser's coroutine looks for a newer state (s): 25 Hz is above the page's
-#: 5 Hz pose promise with margin, yet costs the producers nothing (they never wake the server).
-PUSH_PERIOD_S = 0.04
+#: How often each browser's coroutine looks for a newer state (s): 10 Hz is twice the page's
+#: 5 Hz pose promise; every frame costs the browser a redraw, on the same small machine as the
+#: recorder and the loop when it watches 127.0.0.1 (the producers never wake the server).
+PUSH_PERIOD_S = 0.1
 #: WebSocket ping interval (s): a browser that stops answering is dropped within two of these.
 HEARTBEAT_S = 5.0
 #: Longest wait (s) for the server thread to bind its port or to stop.

@@ -1,6 +1,6 @@
 // limbctl live view: draws the pan/tilt plane from the server's WebSocket pushes.
 // Two kinds of message: "scene" (samples, region edge loops, hard limits, guide; about 1 Hz)
-// and "live" (pose, sample count, teleop cycle, fault; up to 25 Hz). No build step, no CDN.
+// and "live" (pose, sample count, teleop cycle, fault; up to 10 Hz). No build step, no CDN.
 "use strict";
 
 const COLORS = {
