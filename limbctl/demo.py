@@ -29,8 +29,9 @@ DEMO_RATE_HZ = 200.0
 #: Sampling rate of the demo's recording (samples/s): the recorder's default, above its 100 Hz
 #: minimum.
 DEMO_RECORD_HZ = 125.0
-#: The demo has no hand to move a limb that rests outside the learned region (where the teaching
-#: hand let go): the servos drive it in, at a third of the fastest approach allowed.
+#: Nobody is at the demo to move a limb that rests outside the learned region by hand (as it may
+#: after teaching, wherever the hand let go): the servos drive it in, at a third of the fastest
+#: approach allowed.
 DEMO_APPROACH_DEG_S = 10.0
 #: Slew limit of the demo's teleop (deg/s): the CLI's default.
 DEMO_MAX_SPEED_DEG_S = 120.0

@@ -180,6 +180,7 @@ def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
     conn = options.connection
     profile = load_rig_profile(conn.rig)
     gate = gate_for(options.model, profile, options.rate, options.max_speed)
+    starting = StartOptions(options.wait, options.approach, options.rate)  # checked before opening
     with (
         _viewing(options.view, view) as live,
         open_connection(conn, goal_log=options.goal_log, extra_ids=spec.extra_ids) as session,
@@ -202,7 +203,7 @@ def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
                 gate,
                 source,
                 config,
-                StartOptions(options.wait, options.approach, options.rate),
+                starting,
                 telemetry_path=options.telemetry,
                 stream=sys.stderr,
                 status=None if options.quiet else sys.stderr,

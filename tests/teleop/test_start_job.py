@@ -10,6 +10,7 @@ import pytest
 
 from calib import default_sim_profile
 from limbctl.envelope import Cone
+from limbctl.errors import ConfigError
 from limbctl.jobs import Connection, TeleopOptions, run_teleop
 from limbctl.servo.bus import ServoBus
 from limbctl.servo.rig import Rig
@@ -125,3 +126,11 @@ def test_every_line_refused_exits_2_with_the_reasons(tmp_path, sim, cone_model, 
     assert sorted(reasons) == sorted(
         ["malformed JSON"] * 2 + ["pan N deg is outside [N, N]"] * 2 + ["NaN is not a valid number"]
     )
+
+
+def test_an_approach_faster_than_allowed_is_refused_before_the_port_opens(tmp_path, cone_model):
+    # a port that does not exist: the refusal must come first
+    connection = Connection(port=str(tmp_path / "no-such-port"))
+    source = replay(tmp_path, [{"pan": 0, "tilt": 0}])
+    with pytest.raises(ConfigError, match="--approach must be above 0 and at most 30 deg/s"):
+        run_teleop(TeleopOptions(cone_model, source, approach=45.0, connection=connection))
