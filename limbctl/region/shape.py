@@ -27,11 +27,16 @@ import heapq
 import numpy as np
 from scipy.spatial import cKDTree
 
-from limbctl.region import mesh_kernels as bk
 from limbctl.region import shape_kernels
 from limbctl.region.gaps import line_gap
 from limbctl.region.loops import StationBuckets, chord, loops_to_edges
-from limbctl.region.mesh import boundary_edges, circumradius, spherical_delaunay
+from limbctl.region.mesh import (
+    boundary_edges,
+    circumradius,
+    inside_reference,
+    nearest_on_edges_reference,
+    spherical_delaunay,
+)
 from limbctl.region.union_find import UnionFind
 
 #: The alpha complex's scale is set where it joins this share of the points into one piece: the
@@ -102,8 +107,7 @@ def enclosed(p: np.ndarray, loops: list[np.ndarray]) -> np.ndarray:
     if not loops:
         return np.zeros(p.shape[0], dtype=bool)
     vertices, edges = loops_to_edges(loops)
-    # inside exactly when the fan area from -p is negative (limbctl.region.mesh.fan_area)
-    return bk.fan_area(-np.ascontiguousarray(p, dtype=np.float64), vertices, edges) < 0.0
+    return inside_reference(p, vertices, edges)
 
 
 def trace_loops(d: np.ndarray, edges: np.ndarray) -> list[np.ndarray]:
@@ -304,9 +308,8 @@ def edge_margins(
     ``i`` to ``i + 1``.
     """
     vertices, edges = loops_to_edges(loops)
-    data = np.ascontiguousarray(data, dtype=np.float64)
-    nearest, _, angle = bk.nearest_arcs(data, vertices, edges)
-    outside = ~enclosed(data, loops)
+    nearest, _, angle = nearest_on_edges_reference(data, vertices, edges)
+    outside = ~inside_reference(data, vertices, edges)
     need = np.zeros(edges.shape[0])
     np.maximum.at(need, nearest[outside], angle[outside])
     out = []

@@ -153,28 +153,3 @@ def test_bad_margins_are_refused():
         DirectionMesh.from_loops([loop], [np.array([0.1, -0.1, 0.0])])
     with pytest.raises(InvalidInputError, match="margins"):
         DirectionMesh.from_loops([loop], [np.array([0.1, 0.1])])
-
-
-def test_nearest_arcs_kernel_matches_brute_force_reference(mesh_and_region):
-    mesh, region = mesh_and_region
-    # inside and far outside: the pruning by midpoints must never skip the nearest arc
-    test = region.test_directions(3000, np.random.default_rng(5))
-    edge, point, angle = bk.nearest_arcs(test, mesh.vertices, mesh.edges)
-    edge_ref, point_ref, angle_ref = nearest_on_edges_reference(test, mesh.vertices, mesh.edges)
-    np.testing.assert_allclose(angle, angle_ref, atol=1e-12)
-    np.testing.assert_allclose(point, point_ref, atol=1e-9)
-    # away from vertices (where two arcs tie) the arc is the reference's
-    clear = direction_angle(point_ref, mesh.vertices[mesh.edges[edge_ref, 0]]) > 1e-6
-    clear &= direction_angle(point_ref, mesh.vertices[mesh.edges[edge_ref, 1]]) > 1e-6
-    assert clear.mean() > 0.3
-    np.testing.assert_array_equal(edge[clear], edge_ref[clear])
-
-
-def test_fan_area_kernel_matches_reference(mesh_and_region):
-    from limbctl.region.mesh import fan_area
-
-    mesh, region = mesh_and_region
-    test = region.test_directions(2000, np.random.default_rng(6))
-    got = bk.fan_area(test, mesh.vertices, mesh.edges)
-    np.testing.assert_allclose(got, fan_area(test, mesh.vertices, mesh.edges), atol=1e-9)
-    np.testing.assert_array_equal(got < 0.0, inside_reference(-test, mesh.vertices, mesh.edges))
