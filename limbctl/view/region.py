@@ -8,7 +8,7 @@ within :data:`TRACED_WITHIN_DEG` of its middle.
 
 :class:`FitProcess` runs :func:`fit_outline` in a separate process: the fit's numba kernels hold
 the GIL for seconds, and a thread would stall the 100 Hz recorder for that long; the process
-runs at the lowest CPU priority on one thread.
+runs at the lowest CPU priority (niceness 19 and Linux's SCHED_IDLE) on one thread.
 """
 
 from __future__ import annotations
@@ -193,6 +193,8 @@ class FitProcess:
         self._process.start()
         # lowest priority from its first instant, before its imports take seconds of CPU
         os.setpriority(os.PRIO_PROCESS, self._process.pid, FIT_NICENESS)
+        # and only on CPU time nothing else wants (Linux SCHED_IDLE): the recorder first
+        os.sched_setscheduler(self._process.pid, os.SCHED_IDLE, os.sched_param(0))
         child.close()
         self.busy = False
 
