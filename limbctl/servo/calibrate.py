@@ -22,7 +22,7 @@ from dataclasses import dataclass
 from typing import Protocol
 
 from calib.profile import RigProfile
-from limbctl.errors import ConfigError, SafetyError
+from limbctl.errors import BusTimeout, ConfigError, CorruptReply, SafetyError
 
 #: A joint moving less than this (ticks, about 0.35 deg) counts as still.
 STILL_TICKS = 4
@@ -32,6 +32,10 @@ STILL_S = 0.75
 MOVE_TICKS = 150
 #: Sampling period while waiting (s).
 PERIOD_S = 0.01
+#: Consecutive unanswered or garbled reads after which calibration gives up: a dropped reply
+#: now and then is normal on a busy bus (each read already retries), and 50 in a row (at least
+#: half a second at ``PERIOD_S``) is a servo or cable that is gone, as for the recorder.
+MAX_FAILED_READS = 50
 
 
 class TickReader(Protocol):
@@ -58,12 +62,29 @@ def wait_still(
     timeout_s: float,
     stop: threading.Event,
 ) -> tuple[int, int]:
-    """Read until the limb is still for ``STILL_S`` at a pose ``accept`` likes; return it."""
+    """Read until the limb is still for ``STILL_S`` at a pose ``accept`` likes; return it.
+
+    A read that fails (no reply, a garbled reply) is skipped; ``MAX_FAILED_READS`` in a row end
+    the calibration with the last error. A port that vanished or a servo alarm ends it at once.
+    """
     window: deque[tuple[float, tuple[int, int]]] = deque()
     deadline = time.monotonic() + timeout_s
+    failed_in_a_row = 0
     while time.monotonic() < deadline and not stop.is_set():
         now = time.monotonic()
-        ticks = reader.read_ticks()
+        try:
+            ticks = reader.read_ticks()
+        except (BusTimeout, CorruptReply) as exc:
+            failed_in_a_row += 1
+            if failed_in_a_row >= MAX_FAILED_READS:
+                raise type(exc)(
+                    f"calibration stopped, nothing was written: {MAX_FAILED_READS} reads in a "
+                    f"row failed, the last: {exc}",
+                    exc.servo_id,
+                ) from exc
+            stop.wait(PERIOD_S)
+            continue
+        failed_in_a_row = 0
         window.append((now, ticks))
         while window and now - window[0][0] > STILL_S:
             window.popleft()

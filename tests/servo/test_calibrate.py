@@ -1,11 +1,34 @@
 """Guided calibration on the simulator finds the world's true zero ticks and directions."""
 
+import threading
+
 import pytest
 
 from calib.profile import default_sim_profile, load_profile
 from limbctl.cli import build_parser
-from limbctl.errors import ConfigError, SafetyError
-from limbctl.servo.calibrate import CalibrationResult, profile_from_calibration
+from limbctl.errors import BusTimeout, ConfigError, SafetyError
+from limbctl.servo.calibrate import (
+    MAX_FAILED_READS,
+    CalibrationResult,
+    profile_from_calibration,
+    wait_still,
+)
+
+
+class FlakyStillLimb:
+    """A limb held still at ``ticks`` whose reads fail where ``fails(n)`` says (read n)."""
+
+    def __init__(self, ticks, fails):
+        self.ticks, self.fails, self.reads = ticks, fails, 0
+
+    def read_ticks(self):
+        self.reads += 1
+        if self.fails(self.reads):
+            raise BusTimeout("servo 1 did not answer", 1)
+        return self.ticks
+
+    def set_torque(self, enabled):
+        pass
 
 
 def test_calibration_on_the_simulator_finds_the_truth(tmp_path):
@@ -45,3 +68,19 @@ def test_limits_must_contain_the_rest_pose():
     result = CalibrationResult(2000, 2000, 1, -1, 500, -300)
     with pytest.raises(SafetyError, match="rest pose"):
         profile_from_calibration(default_sim_profile(), result, "x", "sim", (10, 90), (-10, 10))
+
+
+def test_a_dropped_reply_now_and_then_does_not_end_the_calibration():
+    limb = FlakyStillLimb((2000, 1500), fails=lambda n: n % 3 == 0)  # every third read fails
+    assert wait_still(limb, lambda t: True, 5.0, threading.Event()) == (2000, 1500)
+    assert limb.reads > 3
+
+
+def test_a_servo_that_stays_silent_ends_the_calibration_naming_it():
+    limb = FlakyStillLimb((2000, 1500), fails=lambda n: n > 5)
+    with pytest.raises(BusTimeout) as err:
+        wait_still(limb, lambda t: False, 30.0, threading.Event())
+    assert limb.reads == 5 + MAX_FAILED_READS
+    assert err.value.servo_id == 1
+    assert f"{MAX_FAILED_READS} reads in a row failed" in str(err.value)
+    assert "nothing was written" in str(err.value)
