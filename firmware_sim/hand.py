@@ -35,7 +35,11 @@ import yaml
 
 from firmware_sim.regions import Region, deepen, region_from_mapping
 
+#: Mean speed (deg/s) of a move through the middle: a relaxed arm sweep, about twice the careful
+#: pace of the edge trace, so strokes cross a 100 deg region in a few seconds.
 DEFAULT_SPEED_DEG_S = 40.0
+#: Peak tremor amplitude (deg): the physiological tremor of a hand steadying a light limb is a
+#: few tenths of a degree at the joint; 0 switches it off.
 DEFAULT_TREMOR_DEG = 0.2
 #: Physiological tremor band (Hz) the two tremor components per axis are drawn from.
 TREMOR_BAND_HZ = (7.0, 12.0)
