@@ -1,0 +1,296 @@
+"""docs/architecture.md against the code, so the document cannot silently go stale.
+
+What the document writes in backticks is checked:
+
+- every path under ``limbctl/``, ``firmware_sim/``, ``calib/``, ``docs/``, ``tests/`` or
+  ``benchmarks/`` exists (a folder of limbctl named with a trailing slash is a package);
+- every dotted name such as ``limbctl.teleop.sources.SOURCES`` imports and resolves;
+- every class, ``Class.attribute``, ``function()`` and CONSTANT named bare resolves in one of
+  the modules the document names;
+- every subpackage of limbctl and every module directly in ``limbctl/`` is named;
+- the rank table equals ``RANK`` of ``tests/test_layers.py``, the import rule's enforcer;
+- every relative link reaches a file (and its heading, for ``#anchor`` links).
+
+The checks are plain functions over the document's text; the last tests feed them a stale
+document to show that they fail.
+"""
+
+from __future__ import annotations
+
+import importlib
+import re
+from functools import cache
+from pathlib import Path
+from types import ModuleType
+
+import pytest
+
+from tests.test_layers import RANK
+
+ROOT = Path(__file__).resolve().parents[1]
+DOC = ROOT / "docs" / "architecture.md"
+#: Top folders whose paths the document may cite.
+PATH_ROOTS = ("limbctl", "firmware_sim", "calib", "docs", "tests", "benchmarks")
+#: Top packages whose dotted names the document may cite.
+PACKAGES = ("limbctl", "firmware_sim", "calib")
+#: The registries section 5 must cite, as dotted names.
+REGISTRIES = (
+    "limbctl.teleop.sources.SOURCES",
+    "limbctl.region.edge_choice.EDGE_STRATEGIES",
+    "limbctl.region.edge_choice.AUTO_ORDER",
+    "limbctl.envelope.MODEL_KINDS",
+    "limbctl.servo.control_table.MODEL_BY_NAME",
+    "firmware_sim.control_table.MODELS",
+    "limbctl.cli.SUBCOMMANDS",
+)
+
+_FENCE = re.compile(r"^```.*?^```", re.S | re.M)
+_CODE = re.compile(r"`([^`]+)`")
+_PATH = re.compile(rf"^(?:{'|'.join(PATH_ROOTS)})/[\w./*-]*$")
+_DOTTED = re.compile(rf"^(?:{'|'.join(PACKAGES)})(?:\.\w+)+(?:\(\))?$")
+_CLASS = re.compile(r"^[A-Z][a-z]\w*(?:\.\w+)*(?:\(\))?$")
+_CONSTANT = re.compile(r"^[A-Z][A-Z0-9]*_[A-Z0-9_]*$|^[A-Z]{3,}$")
+_FUNCTION = re.compile(r"^_?[a-z]\w*\(\)$")
+_MODULE_ATTRIBUTE = re.compile(r"^[a-z]\w*(?:\.\w+)+$")
+_LINK = re.compile(r"\]\(([^)\s]+)\)")
+_RANK_ROW = re.compile(r"^\|\s*(\d+)\s*\|\s*`(\w+)`\s*\|", re.M)
+
+
+def doc_text() -> str:
+    return DOC.read_text(encoding="utf-8")
+
+
+def code_spans(text: str) -> list[str]:
+    """Every inline code span outside fenced blocks, in order (a line break inside a span, as
+    Markdown renders it, is one space)."""
+    return [re.sub(r"\s*\n\s*", " ", span) for span in _CODE.findall(_FENCE.sub("", text))]
+
+
+def cited_paths(text: str) -> list[str]:
+    return [span for span in code_spans(text) if _PATH.match(span)]
+
+
+def missing_paths(text: str, root: Path = ROOT) -> list[str]:
+    """Cited paths that do not exist (a glob must match something; a cited limbctl folder must
+    be a package)."""
+    missing = []
+    for span in cited_paths(text):
+        if "*" in span:
+            found = any(root.glob(span))
+        elif span.endswith("/"):
+            found = (root / span).is_dir()
+            if span.startswith("limbctl/"):
+                found = found and (root / span / "__init__.py").is_file()
+        else:
+            found = (root / span).exists()
+        if not found:
+            missing.append(span)
+    return missing
+
+
+def module_of_path(span: str) -> str | None:
+    """The importable module a cited path stands for (None for data files and folders that are
+    not packages)."""
+    path = ROOT / span.rstrip("/")
+    if path.is_dir() and (path / "__init__.py").is_file():
+        return ".".join(path.relative_to(ROOT).parts)
+    if path.suffix == ".py" and path.is_file() and path.parent != ROOT / "benchmarks":
+        parts = list(path.relative_to(ROOT).with_suffix("").parts)
+        return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+    return None
+
+
+@cache
+def _import(name: str) -> ModuleType | None:
+    try:
+        return importlib.import_module(name)
+    except ImportError:
+        return None
+
+
+def resolve(dotted: str) -> object:
+    """The object a dotted name stands for: the longest importable prefix, then attributes.
+
+    Raises
+    ------
+    LookupError
+        When no prefix imports or an attribute is missing.
+    """
+    parts = dotted.removesuffix("()").split(".")
+    for cut in range(len(parts), 0, -1):
+        module = _import(".".join(parts[:cut]))
+        if module is None:
+            continue
+        target: object = module
+        for attribute in parts[cut:]:
+            if not hasattr(target, attribute):
+                raise LookupError(f"{dotted}: {'.'.join(parts[:cut])} has no {attribute!r} path")
+            target = getattr(target, attribute)
+        return target
+    raise LookupError(f"{dotted}: no importable module")
+
+
+def named_modules(text: str) -> list[ModuleType]:
+    """The modules the document names, by path or by dotted name."""
+    names = {module_of_path(span) for span in cited_paths(text)}
+    for span in code_spans(text):
+        if _DOTTED.match(span):
+            parts = span.removesuffix("()").split(".")
+            names.update(".".join(parts[:cut]) for cut in range(1, len(parts) + 1))
+    return [m for name in sorted(n for n in names if n) if (m := _import(name)) is not None]
+
+
+def unresolved_dotted(text: str) -> list[str]:
+    bad = []
+    for span in code_spans(text):
+        if _DOTTED.match(span):
+            try:
+                resolve(span)
+            except LookupError as exc:
+                bad.append(str(exc))
+    return bad
+
+
+def unresolved_bare(text: str) -> list[str]:
+    """Classes, ``Class.attribute``, ``function()`` and CONSTANTS that no named module has, and
+    ``module.attribute`` (``scalar.toward``) that the named module of that name lacks."""
+    modules = named_modules(text)
+    by_last_name: dict[str, list[ModuleType]] = {}
+    for module in modules:
+        by_last_name.setdefault(module.__name__.rpartition(".")[2], []).append(module)
+    bad = []
+    for span in dict.fromkeys(code_spans(text)):
+        parts = span.removesuffix("()").split(".")
+        if _CLASS.match(span) or _CONSTANT.match(span) or _FUNCTION.match(span):
+            if not any(_has_path(module, parts) for module in modules):
+                bad.append(span)
+        elif _MODULE_ATTRIBUTE.match(span) and not _DOTTED.match(span):
+            candidates = by_last_name.get(parts[0], [])
+            if candidates and not any(_has_path(m, parts[1:]) for m in candidates):
+                bad.append(span)
+    return bad
+
+
+def _has_path(target: object, parts: list[str]) -> bool:
+    for attribute in parts:
+        if not hasattr(target, attribute):
+            return False
+        target = getattr(target, attribute)
+    return True
+
+
+def unmentioned_parts(text: str, root: Path = ROOT) -> list[str]:
+    """Subpackages of limbctl and modules directly in it that the document never names."""
+    cited = set(cited_paths(text))
+    wanted = [
+        f"{path.parent.relative_to(root).as_posix()}/"
+        for path in sorted((root / "limbctl").rglob("__init__.py"))
+        if path.parent != root / "limbctl"
+    ]
+    wanted += [f"limbctl/{path.name}" for path in sorted((root / "limbctl").glob("*.py"))]
+    return [part for part in wanted if part not in cited]
+
+
+def rank_table(text: str) -> dict[str, int]:
+    return {layer: int(rank) for rank, layer in _RANK_ROW.findall(text)}
+
+
+def broken_links(text: str, doc: Path = DOC) -> list[str]:
+    """Relative links whose file (or ``#anchor`` heading) does not exist."""
+    bad = []
+    for target in _LINK.findall(_FENCE.sub("", text)):
+        if re.match(r"^[a-z]+://", target):
+            bad.append(f"{target}: links outside the repository")
+            continue
+        file_part, _, anchor = target.partition("#")
+        path = (doc.parent / file_part) if file_part else doc
+        if not path.is_file():
+            bad.append(target)
+        elif anchor and anchor not in _anchors(path.read_text(encoding="utf-8")):
+            bad.append(target)
+    return bad
+
+
+def _anchors(markdown: str) -> set[str]:
+    """GitHub's heading anchors: lower case, punctuation dropped, spaces to hyphens."""
+    return {
+        re.sub(r"[^\w\- ]", "", heading.strip().lower()).replace(" ", "-")
+        for heading in re.findall(r"^#+\s+(.+)$", _FENCE.sub("", markdown), re.M)
+    }
+
+
+# ---- the document against the code ------------------------------------------------------------
+def test_cited_paths_exist():
+    assert cited_paths(doc_text()), "the document cites no paths: the checks see nothing"
+    assert missing_paths(doc_text()) == []
+
+
+def test_every_subpackage_and_app_module_is_named():
+    assert unmentioned_parts(doc_text()) == []
+
+
+def test_dotted_names_resolve():
+    assert unresolved_dotted(doc_text()) == []
+
+
+def test_registries_are_cited_and_exist():
+    spans = set(code_spans(doc_text()))
+    for registry in REGISTRIES:
+        assert registry in spans, f"{registry} is not cited in {DOC.name}"
+        assert isinstance(resolve(registry), (dict, tuple)), registry
+
+
+def test_bare_names_resolve_in_named_modules():
+    assert unresolved_bare(doc_text()) == []
+
+
+def test_rank_table_is_the_enforced_one():
+    assert rank_table(doc_text()) == RANK
+
+
+def test_links_reach_files_and_headings():
+    assert broken_links(doc_text()) == []
+
+
+def test_no_reference_outside_the_repository():
+    text = doc_text()
+    for outside in ("DESIGN" + ".md", "../" + "shared", "](/", "file://"):
+        assert outside not in text, outside
+
+
+# ---- the checks can fail ----------------------------------------------------------------------
+STALE = """# Stale
+
+| rank | layer | where |
+|---|---|---|
+| 0 | `errors` | `limbctl/errors.py` |
+| 9 | `teleop` | `limbctl/teleop/` |
+
+`limbctl/teleop/gate.py`, `limbctl/teleop/no_such_module.py`, `limbctl/data/`,
+`limbctl.teleop.sources.NO_SUCH_REGISTRY`, `Gate.step()`, `Gate.no_such_method`, `NoSuchClass`,
+`no_such_function()`, `NO_SUCH_CONSTANT`, `gate.NO_SUCH`, `gate.Gate`
+([gone](no_such_doc.md), [no heading](region.md#no-such-heading)).
+"""
+
+
+def test_checks_report_a_stale_document():
+    assert missing_paths(STALE) == ["limbctl/teleop/no_such_module.py", "limbctl/data/"]
+    assert "limbctl/cli.py" in unmentioned_parts(STALE)
+    assert "limbctl/teleop/sources/" in unmentioned_parts(STALE)
+    assert len(unresolved_dotted(STALE)) == 1
+    assert unresolved_bare(STALE) == [
+        "Gate.no_such_method",
+        "NoSuchClass",
+        "no_such_function()",
+        "NO_SUCH_CONSTANT",
+        "gate.NO_SUCH",
+    ]
+    assert rank_table(STALE) != RANK
+    assert broken_links(STALE) == ["no_such_doc.md", "region.md#no-such-heading"]
+
+
+@pytest.mark.parametrize(
+    "name", ["limbctl.teleop.sources.SOURCES", "limbctl.envelope.base.Envelope._registry"]
+)
+def test_resolve_finds_real_names(name):
+    assert resolve(name)
