@@ -17,7 +17,7 @@ Usage (the full soak; about 5-10 minutes on one core)::
 
     .venv/bin/python benchmarks/soak.py --cycles 1000000 --live-seconds 60 --out docs/soak.md
 
-tests/test_safety_soak.py runs the same code in a reduced form.
+tests/safety/test_soak.py runs the same code in a reduced form.
 """
 
 from __future__ import annotations

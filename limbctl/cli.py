@@ -306,8 +306,9 @@ def _add_teleop(sub: Subparsers) -> None:
         _teleop,
         help="drive the limb from a command source, every command through the gate",
         description="Read commands from --source at --rate Hz; each is corrected by the model, "
-        "converted to joint angles, clamped to the rig's hard limits, slew-limited, and only "
-        "then written. A silent source holds the last safe pose; end of input exits with 0. "
+        "slew-limited to --max-speed along the region, converted to joint angles, clamped to "
+        "the rig's hard limits and a per-cycle joint step, checked once more, and only then "
+        "written. A silent source holds the last safe pose; end of input exits with 0. "
         "A limb that rests outside the region is not driven from there: see --wait and "
         "--approach. Lines that are refused are counted by reason; if every line is refused the "
         "exit status is 2.",

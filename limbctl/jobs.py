@@ -168,7 +168,8 @@ class TeleopOptions:
 def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
     """Start from the limb's pose (waiting or approaching when outside), run the loop, park the
     limb (shown live on ``view``, or on a view as ``options.view`` asks); 0 for a clean end, 2
-    when it never started or every command line was refused, 3 after a fault."""
+    when it never started (the wait ran out) or every command line was refused, 3 after a fault
+    (a bus failure before the start included), 130 when stopped while waiting."""
     from limbctl.servo.control_table import MAX_TICK
     from limbctl.servo.setup import configure_servos
     from limbctl.teleop.approach import StartOptions

@@ -8,7 +8,7 @@ Order, bottom to top (a module may import its own layer and any layer below)::
     envelope                      (the papers' networks; RigidMap delegates to region)
     teach, teleop, view           (never each other)
     eval                          (used only by the app)
-    app: cli, jobs, file_jobs, upkeep, demo, session, plot, __init__
+    app: cli, jobs, file_jobs, upkeep, demo, live, session, plot, __init__, __main__
 
 ``firmware_sim`` imports nothing of the project.
 """

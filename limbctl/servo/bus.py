@@ -1,8 +1,9 @@
 """The servo bus: the real dynamixel-sdk (Protocol 2.0) with retries, typed errors and alarms.
 
 :class:`ServoBus` opens a serial port (a U2D2's device, or the simulator's pty), pings every
-servo and checks its model, and then offers exactly what the controller needs: configure for
-position control, torque on/off, both present positions in ONE sync read (Fast Sync Read where
+servo and checks its model, and then offers exactly what the controller needs: register reads
+and writes (set-up for position control is :mod:`limbctl.servo.setup`, which uses them),
+torque on/off, both present positions in ONE sync read (Fast Sync Read where
 the firmware has it), both goals in ONE sync write, hardware-error status, reboot, and the
 control cycle's read of position, goal, torque and alarm through indirect addresses
 (:meth:`read_cycle`, :mod:`limbctl.servo.cycle`). The port is held exclusively (a second

@@ -131,7 +131,7 @@ class Rig:
     def configure(self, profile_velocity: int = 200, profile_acceleration: int = 50) -> None:
         """Configure the servos for position control with the hard limits in EEPROM.
 
-        Turns torque OFF (see :meth:`ServoBus.configure`).
+        Turns torque OFF (see :func:`limbctl.servo.setup.configure_servos`).
         """
         configure_servos(self._bus(), self.tick_limits(), profile_velocity, profile_acceleration)
 

@@ -1,4 +1,5 @@
 """Teaching: record hand-guided poses (torque off), dataset files, coverage, and training a model.
 
-Imports the layers below (envelope, region, servo, geometry); never teleop or the app.
+May import only the layers below it (envelope, region, servo, geometry, errors, calib); never
+teleop, view or the app.
 """

@@ -1,8 +1,8 @@
 """Teach by hand: torque off, sample both joints at a fixed rate, append every sample to disk.
 
 The recorder never buffers: each sample is handed to :class:`limbctl.teach.dataset.DatasetWriter`
-as it is read (one ``write`` per record, fsync at least every 0.25 s), so Ctrl-C or SIGTERM
-lose nothing and a kill -9 loses at most the last half second.
+as it is read (one ``write`` per record, fsync at least every 0.25 s), so Ctrl-C, SIGTERM or
+a kill -9 lose nothing already read, and a power cut at most the last half second.
 
 While recording, the teaching guide (:mod:`limbctl.teach.guide`) assesses the samples once every
 GUIDE_EVERY_S: one updating line says the phase (trace the edge, then wander the middle), how much

@@ -1,4 +1,5 @@
 """Teleoperation: command sources, the gate every pose passes, and the control loop.
 
-Imports the layers below (envelope, region, servo, geometry); never teach or the app.
+May import only the layers below it (envelope, region, servo, geometry, errors, calib); never
+teach, view or the app. The gate takes any model with ``contains`` and ``correct``.
 """

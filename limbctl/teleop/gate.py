@@ -8,7 +8,8 @@ Per command (the safety model in docs/architecture.md):
    pose along the great circle toward the corrected target; the intermediate pose is corrected
    again, so a non-convex region is followed along its edge, never cut across;
 3. inverse kinematics to (pan, tilt), keeping the current pan at the singularity;
-4. hard joint limits clamp (pan, tilt); a joint step larger than ``max_joint_step`` is refused;
+4. hard joint limits clamp (pan, tilt); a joint step larger than ``max_joint_step`` is scaled
+   down, both joints by one factor, so the largest step is ``max_joint_step`` (``SLEWED``);
 5. final check: the pose that would be written is inside the region (``contains``) and inside
    the hard limits; if not, the last safe pose is held.
 

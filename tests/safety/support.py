@@ -1,4 +1,4 @@
-"""Shared pieces of the safety campaign (tests/test_safety_*.py, benchmarks/soak.py).
+"""Shared pieces of the safety campaign (tests/safety/, benchmarks/soak.py).
 
 Everything here is real: the simulator process, the dynamixel-sdk on its pty, the Rig, the Gate
 and the control loop. The only additions are observers: :class:`RecordingGate` remembers what

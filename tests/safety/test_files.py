@@ -3,7 +3,7 @@ are refused with an error naming the file and the problem; a model trained for a
 refused for this one.
 
 Line-level dataset damage (an edited record, a deleted line, a torn tail, a wrong version) is
-covered case by case in tests/test_dataset.py; here every kind of file meets random damage
+covered case by case in tests/teach/test_dataset.py; here every kind of file meets random damage
 (hypothesis: truncation, byte flips, inserted and deleted bytes), and the CLI is checked to
 refuse bad files before it touches a servo.
 """

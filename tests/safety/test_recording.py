@@ -5,9 +5,9 @@
   lost;
 - SIGKILL: the file still loads and keeps every sample that had reached the disk; the
   power-cut bound (fsync at least every 0.25 s, so at most the last half second) is measured by
-  tests/test_dataset.py::test_kill_9_loses_at_most_half_a_second and not repeated here;
+  tests/teach/test_dataset.py::test_kill_9_loses_at_most_half_a_second and not repeated here;
 - a path that cannot be written is refused before the simulator (or a servo) is touched; the
-  free-space preflight is tested in tests/test_dataset.py::test_preflight_checks;
+  free-space preflight is tested in tests/teach/test_dataset.py::test_preflight_checks;
 - the disk filling up mid-recording (a file-size limit on the recorder) ends the recording
   with a message naming the file, and every sample before it still loads;
 - a servo lost mid-recording ends it as a fault (exit 3, "bus failure", the servo named), and

@@ -1,6 +1,6 @@
 """Headless Chromium through Selenium, started the way this machine needs (root, no network).
 
-Used by the view's tests and by ``benchmarks/view_screenshots.py``. ``Service`` is given the
+Used by the view's tests and by ``benchmarks/view_figures.py``. ``Service`` is given the
 system chromedriver so Selenium Manager never tries to download one.
 """
 
