@@ -1,8 +1,11 @@
 """The region ``train`` would learn from the samples so far, as edge loops the page draws.
 
-:func:`fit_outline` fits the same model ``limbctl train`` fits by default (a
-:class:`~limbctl.envelope.RigidMap` with its default options) and turns its gate's region into
-:class:`~limbctl.view.state.EdgeLoop` values on the pan/tilt plane. Each loop is cut into
+:func:`fit_outline` fits the region the gate of ``limbctl train``'s default model (a
+:class:`~limbctl.envelope.RigidMap` with its default options) would enforce: a
+:class:`~limbctl.region.TaughtRegion` with the default :class:`~limbctl.region.RegionParams`,
+built from the samples' directions alone (the map's trained weights play no part in it, so they
+are not trained here), and turns it into :class:`~limbctl.view.state.EdgeLoop` values on the
+pan/tilt plane. Each loop is cut into
 stretches of at most :data:`STRETCH_DEG`; a stretch counts as traced when a taught sample lies
 within :data:`TRACED_WITHIN_DEG` of its middle.
 
@@ -27,6 +30,7 @@ from limbctl.envelope import RigidMap
 from limbctl.errors import LimbctlError
 from limbctl.geometry.gimbal import direction_to_pan_tilt, pan_tilt_to_direction
 from limbctl.geometry.quat import limb_direction, swing_from_direction
+from limbctl.region import TaughtRegion
 from limbctl.view.state import EdgeLoop
 
 #: Longest drawn stretch of edge (deg): fine enough that traced and untraced parts show apart.
@@ -149,18 +153,21 @@ def model_loops(model: RigidMap, sample_directions: np.ndarray | None = None) ->
 
 
 def fit_outline(pan_tilt_rad: np.ndarray) -> RegionFit:
-    """Fit the default Rigid Map to samples (N, 2) of joint angles (rad) and outline its region."""
+    """Fit the default model's region to samples (N, 2) of joint angles (rad) and outline it."""
     samples = np.asarray(pan_tilt_rad, dtype=np.float64).reshape(-1, 2)
     started = time.perf_counter()
     if len(samples) < MIN_FIT_SAMPLES:
         return RegionFit((), len(samples), 0.0, problem=f"need {MIN_FIT_SAMPLES} samples")
-    directions = pan_tilt_to_direction(samples[:, 0], samples[:, 1])
+    # the directions as train sees them: through the swing quaternion and back
+    directions = limb_direction(
+        swing_from_direction(pan_tilt_to_direction(samples[:, 0], samples[:, 1]))
+    )
     try:
-        model = RigidMap().fit(swing_from_direction(directions))
+        region = TaughtRegion().fit(directions)  # RigidMap()'s region: the default settings
     except (LimbctlError, ValueError) as exc:
         return RegionFit((), len(samples), time.perf_counter() - started, problem=str(exc))
-    loops = model_loops(model, limb_direction(swing_from_direction(directions)))
-    return RegionFit(loops, len(samples), time.perf_counter() - started, edge=model.edge)
+    loops = region_loops(region.mesh.vertices, region.mesh.edges, directions)
+    return RegionFit(loops, len(samples), time.perf_counter() - started, edge=region.edge)
 
 
 def serve_fits(connection) -> None:

@@ -3,16 +3,19 @@
 from __future__ import annotations
 
 import threading
+from pathlib import Path
 
 import numpy as np
 
+from limbctl.envelope import RigidMap
 from limbctl.geometry.gimbal import pan_tilt_to_direction
+from limbctl.geometry.quat import limb_direction, swing_from_direction
 from limbctl.session import demo_region_path, open_rig
 from limbctl.teach.dataset import DatasetWriter, load_dataset
 from limbctl.teach.record import record
 from limbctl.view import Board, HardLimits, ViewServer
 from limbctl.view.feed import PoseTap, SceneFeeder
-from limbctl.view.region import TRACED_WITHIN_DEG, fit_outline, region_loops
+from limbctl.view.region import TRACED_WITHIN_DEG, fit_outline, model_loops, region_loops
 from tests.view.browser import chromium, text_of, wait_for
 
 #: The first region needs the fit process to start and numba's cached kernels to load.
@@ -121,3 +124,17 @@ def test_fit_outline_outlines_a_taught_disc():
     assert fit.note.startswith("fitted on 3000 samples")
     too_few = fit_outline(np.zeros((10, 2)))
     assert not too_few.loops and "need 200 samples" in too_few.note
+
+
+def test_fit_outline_draws_the_region_of_the_default_rigid_map():
+    """The view fits the region alone; it is the one a default RigidMap's gate enforces."""
+    data = load_dataset(Path(__file__).parents[1] / "data" / "hand_irregular_seed0_20s.limb")
+    pan_tilt = np.radians(np.column_stack([data.pan_deg, data.tilt_deg]))
+    fit = fit_outline(pan_tilt)
+    directions = pan_tilt_to_direction(pan_tilt[:, 0], pan_tilt[:, 1])
+    model = RigidMap().fit(swing_from_direction(directions))
+    expected = model_loops(model, limb_direction(swing_from_direction(directions)))
+    assert fit.edge == model.edge and len(fit.loops) == len(expected) > 0
+    for drawn, learned in zip(fit.loops, expected, strict=True):
+        np.testing.assert_array_equal(drawn.pan_tilt_deg, learned.pan_tilt_deg)
+        np.testing.assert_array_equal(drawn.traced, learned.traced)
