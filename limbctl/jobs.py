@@ -81,19 +81,22 @@ def run_record(options: RecordOptions, view: LiveView | None = None) -> int:
     Ctrl-C, duration), 3 when a bus failure ended it."""
     from limbctl.session import demo_region_path
     from limbctl.teach.dataset import DatasetWriter
-    from limbctl.teach.record import record, stop_on_enter
+    from limbctl.teach.record import check_rate, record, stop_on_enter
 
+    check_rate(options.rate)
     conn = options.connection
     profile = load_rig_profile(conn.rig)
     hand = options.hand if options.hand is not None else demo_region_path()
     meta = {"rate_hz": options.rate, "simulated": conn.port is None and profile.is_sim}
-    # the writer checks the path and free space before any servo is touched
-    # the calibration the joint angles are read under goes into the header, and from there into
-    # every model trained on the recording
-    with DatasetWriter(
+    # the writer checks the path and free space before any servo is touched, and creates the
+    # file only once the port is ours: a refused start (port in use, no servo) leaves no empty
+    # dataset behind to block the next `--out`. The calibration the joint angles are read under
+    # goes into the header, and from there into every model trained on the recording.
+    writer = DatasetWriter(
         options.out, rig=profile.name, meta=meta, calibration=profile.calibration
-    ) as writer:
-        with _viewing(options.view, view) as live, open_connection(conn, hand=hand) as session:
+    )
+    with _viewing(options.view, view) as live, open_connection(conn, hand=hand) as session:
+        with writer:
             with stop_on_signals() as stop, live.teaching(session.rig, session.profile) as taught:
                 if session.simulated:
                     say(f"simulator: a scripted hand teaches the region in {hand}")

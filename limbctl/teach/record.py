@@ -93,6 +93,18 @@ def stop_on_enter(stop: threading.Event, stream: IO[str] | None = None) -> threa
     return thread
 
 
+def check_rate(rate_hz: float) -> None:
+    """Refuse a sampling rate (Hz) below :data:`MIN_RATE_HZ` (or not a number).
+
+    Raises
+    ------
+    ConfigError
+        Naming the least rate; callers check before any file or port is opened.
+    """
+    if not (math.isfinite(rate_hz) and rate_hz >= MIN_RATE_HZ):
+        raise ConfigError(f"--rate: record at {MIN_RATE_HZ:.0f} Hz or faster, got {rate_hz:g}")
+
+
 def record(
     limb: Backdrivable,
     writer: DatasetWriter,
@@ -123,8 +135,7 @@ def record(
         Called with each :class:`~limbctl.teach.guide.Guidance` (every GUIDE_EVERY_S and at the
         end), in the recording thread: keep it quick.
     """
-    if not (math.isfinite(rate_hz) and rate_hz >= MIN_RATE_HZ):
-        raise ConfigError(f"record at {MIN_RATE_HZ:.0f} Hz or faster, got {rate_hz}")
+    check_rate(rate_hz)
     stop = stop or threading.Event()
     period = 1.0 / rate_hz
     guide = Guide()

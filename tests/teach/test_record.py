@@ -9,10 +9,11 @@ import pytest
 
 from firmware_sim.hand import Hand
 from firmware_sim.regions import grid_inside
-from limbctl.cli import build_parser
+from limbctl.cli import build_parser, main
 from limbctl.envelope import RigidMap
 from limbctl.errors import ConfigError
 from limbctl.geometry.gimbal import pan_tilt_to_quat
+from limbctl.servo.bus import ServoBus
 from limbctl.session import demo_region_path, open_rig
 from limbctl.teach.dataset import DatasetWriter, load_dataset
 from limbctl.teach.guide import Guidance
@@ -95,6 +96,25 @@ def test_slow_rates_are_refused(tmp_path):
     with DatasetWriter(tmp_path / "x.limb", rig="sim") as writer:
         with pytest.raises(ConfigError, match="100 Hz"):
             record(None, writer, rate_hz=50.0)
+
+
+def test_a_slow_rate_is_refused_before_a_file_or_a_port_is_opened(tmp_path, sim):
+    out = tmp_path / "slow.limb"
+    with ServoBus(sim.port, 57600, (1, 2)) as bus:
+        bus.set_torque(True)  # as a finished teleop leaves it
+    status = main(["record", "--port", sim.port, "--out", str(out), "--rate", "50", "--no-view"])
+    assert status == 2 and not out.exists()
+    assert all(servo["torque_on"] for servo in sim.truth()["servos"].values())  # untouched
+
+
+def test_a_record_refused_at_the_port_leaves_no_empty_dataset(tmp_path, sim, capsys):
+    out = tmp_path / "refused.limb"
+    with ServoBus(sim.port, 57600, (1, 2)):  # another controller holds the port
+        status = main(["record", "--port", sim.port, "--out", str(out), "--no-view"])
+    assert status == 2 and "in use by this process" in capsys.readouterr().err
+    assert not out.exists()  # so the same --out works once the port is free
+    status = main(["record", "--port", sim.port, "--out", str(out), "--duration", "0.5"])
+    assert status == 0 and len(load_dataset(out)) > 20
 
 
 def test_a_bus_failure_ends_the_recording_as_a_fault_and_keeps_the_samples(tmp_path):
