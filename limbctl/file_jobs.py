@@ -125,26 +125,39 @@ class InfoOptions:
 
 
 def run_info(options: InfoOptions) -> int:
-    """Print what a file holds, or every servo on the bus and the limb's pose."""
+    """Print what a file holds, or every servo on the bus and the limb's pose.
+
+    A servo in alarm is described like the others (its alert bit does not end the listing);
+    the listing then ends with the way out (``limbctl reboot``) and the exit status is 3.
+    """
     if options.file is not None:
         return _info_file(options.file)
     from limbctl.servo.control_table import Register, model_name
 
     with open_connection(options.connection) as session:
-        bus = session.rig.bus
+        bus, rig = session.rig.bus, session.rig
         where = "embedded simulator" if session.simulated else bus.port_name
         print(f"bus: {where} at {bus.baud} bps, fast sync read: {bus.fast_sync_read}")
         errors = bus.read_hardware_errors()
-        torque = bus.torque_enabled()
+        # read past the alert bit: a servo in alarm is what info is asked about
+        torque = bus.sync_read(Register.TORQUE_ENABLE, check_alert=False)
+        ticks = bus.sync_read(Register.PRESENT_POSITION, check_alert=False)
         for servo_id in bus.ids:
             print(
                 f"servo {servo_id}: {model_name(bus.models[servo_id])}, firmware "
                 f"{bus.firmware[servo_id]}, torque {'on' if torque[servo_id] else 'off'}"
-                f", position {bus.read(Register.PRESENT_POSITION, servo_id)}, "
+                f", position {ticks[servo_id]}, "
                 f"hardware errors: {', '.join(errors[servo_id]) or 'none'}"
             )
-        pan, tilt = session.rig.read_pose()
+        pan, tilt = rig.ticks_to_angles(ticks[rig.profile.pan.id], ticks[rig.profile.tilt.id])
         print(f"pose: pan {math.degrees(pan):+.1f} deg, tilt {math.degrees(tilt):+.1f} deg")
+    in_alarm = [str(i) for i, bits in errors.items() if bits]
+    if in_alarm:
+        say(
+            f"servo {', '.join(in_alarm)} in alarm: fix the cause, then `limbctl reboot` "
+            f"(with the same --port/--rig) clears it"
+        )
+        return 3
     return 0
 
 

@@ -100,3 +100,31 @@ def test_a_command_on_a_port_another_controller_holds_is_refused_naming_it(sim, 
         assert f"in use by this process, pid {os.getpid()}" in err
         assert "cable" not in err and "thread" not in err
         assert holder.read_positions().keys() == {1, 2}  # the holder runs on
+
+
+def _wait_for_alarm(sim, servo_id):
+    deadline = time.monotonic() + 10.0
+    while not sim.truth()["servos"][servo_id]["hardware_error_status"]:
+        assert time.monotonic() < deadline, "the simulated servo never raised its alarm"
+
+
+def test_reboot_says_when_the_alarm_comes_straight_back(sim, capsys):
+    sim.set_voltage(1, 5.0)  # under the input voltage limit, and it stays there
+    _wait_for_alarm(sim, 1)
+    assert main(["reboot", "--port", sim.port]) == 3
+    err = capsys.readouterr().err
+    assert "servo 1 was in alarm (input voltage): rebooted, torque off" in err
+    assert "servo 1 is in alarm again right after its reboot (input voltage)" in err
+    sim.set_voltage(1, 12.0)  # the cause is fixed
+    assert main(["reboot", "--port", sim.port]) == 0
+    assert "in alarm again" not in capsys.readouterr().err
+
+
+def test_info_lists_a_servo_in_alarm_and_the_way_out(sim, capsys):
+    sim.set_temperature(2, 95.0)
+    _wait_for_alarm(sim, 2)
+    assert main(["info", "--port", sim.port]) == 3
+    out, err = capsys.readouterr()
+    assert "servo 1: " in out and "hardware errors: none" in out
+    assert "servo 2: " in out and "hardware errors: overheating" in out and "pose: pan" in out
+    assert "servo 2 in alarm: fix the cause, then `limbctl reboot`" in err
