@@ -195,12 +195,12 @@ def _add_calibrate(sub: Subparsers) -> None:
     p.add_argument(
         "--pan-limits",
         help="hard pan limits MIN,MAX in degrees, e.g. --pan-limits=-90,90 (default: the base "
-        "rig profile's)",
+        "rig profile's, narrowed to 1 deg inside the end stops)",
     )
     p.add_argument(
         "--tilt-limits",
         help="hard tilt limits MIN,MAX in degrees, e.g. --tilt-limits=-40,60 (default: the base "
-        "rig profile's)",
+        "rig profile's, narrowed to 1 deg inside the end stops)",
     )
     p.add_argument(
         "--pan-stops",

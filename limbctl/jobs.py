@@ -271,7 +271,12 @@ def _calibration_base(options: CalibrateOptions, base):
     """The profile a calibration starts from: ``base`` with the chosen ids, hard limits and end
     stops, checked before any servo moves (limits past the end stops are refused up front, not
     after the person has gone through the prompts)."""
-    from calib.profile import DEFAULT_END_STOP_DEG, ProfileError, profile_from_dict
+    from calib.profile import (
+        DEFAULT_END_STOP_DEG,
+        END_STOP_MARGIN_DEG,
+        ProfileError,
+        profile_from_dict,
+    )
 
     conn = options.connection
     # the base profile's end stops describe this gimbal only if the person named its profile
@@ -284,8 +289,18 @@ def _calibration_base(options: CalibrateOptions, base):
         ("tilt", options.ids[1], options.tilt_limits, options.tilt_stops),
     ):
         joint = getattr(base, name)
-        limits = limits or (joint.min_deg, joint.max_deg)
         stops = stops or ((joint.stop_min_deg, joint.stop_max_deg) if describes_gimbal else unknown)
+        if limits is None:
+            # the base profile's limits, narrowed to lie inside these end stops by the margin
+            # every profile keeps: a default never asks for travel the gimbal may not have
+            low = max(joint.min_deg, stops[0] + END_STOP_MARGIN_DEG)
+            high = min(joint.max_deg, stops[1] - END_STOP_MARGIN_DEG)
+            if (low, high) != (joint.min_deg, joint.max_deg):
+                say(
+                    f"{name} hard limits {low:g}..{high:g} deg ({END_STOP_MARGIN_DEG:g} deg inside "
+                    f"the end stops {stops[0]:g}..{stops[1]:g}); --{name}-limits chooses others"
+                )
+            limits = (low, high)
         joints[name] = replace(
             joint,
             id=servo_id,
@@ -296,7 +311,7 @@ def _calibration_base(options: CalibrateOptions, base):
         )
     chosen = replace(base, **joints, source=None)
     try:
-        profile_from_dict(chosen.to_dict(), "limbctl calibrate")
+        profile_from_dict(chosen.to_dict(), "the chosen limits")
     except ProfileError as exc:
         raise ConfigError(
             f"{exc} (give hard limits inside the end stops: --pan-limits inside --pan-stops, "

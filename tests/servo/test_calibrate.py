@@ -1,11 +1,13 @@
 """Guided calibration on the simulator finds the world's true zero ticks and directions."""
 
 import threading
+from importlib import resources
+from pathlib import Path
 
 import pytest
 
 from calib.profile import default_sim_profile, load_profile
-from limbctl.cli import build_parser
+from limbctl.cli import build_parser, main
 from limbctl.errors import BusTimeout, ConfigError, SafetyError
 from limbctl.servo.calibrate import (
     MAX_FAILED_READS,
@@ -55,12 +57,16 @@ def test_limits_past_the_end_stops_are_refused_before_calibrating(tmp_path):
     out = tmp_path / "rig.yaml"
     for options, problem in (
         (["--tilt-limits=-40,80"], "tilt.max_deg 80 is not 1 deg inside the end stop at 75"),
-        (["--pan-stops=-95,95"], "pan.min_deg -115 is not 1 deg inside the end stop at -95"),
+        (
+            ["--pan-stops=-95,95", "--pan-limits=-100,100"],
+            "pan.min_deg -100 is not 1 deg inside the end stop at -95",
+        ),
     ):
         args = build_parser().parse_args(["calibrate", "--out", str(out), *options])
         with pytest.raises(ConfigError) as err:
             args.job(args)  # raised before the simulator starts: nothing to clean up
         assert problem in str(err.value) and "--pan-limits inside --pan-stops" in str(err.value)
+        assert not str(err.value).startswith("limbctl calibrate")  # the CLI adds its own prefix
     assert not out.exists()
 
 
@@ -84,3 +90,20 @@ def test_a_servo_that_stays_silent_ends_the_calibration_naming_it():
     assert err.value.servo_id == 1
     assert f"{MAX_FAILED_READS} reads in a row failed" in str(err.value)
     assert "nothing was written" in str(err.value)
+
+
+def test_without_limits_a_real_port_gets_limits_inside_the_assumed_end_stops(sim, tmp_path, capsys):
+    """On a port (not the embedded simulator) with no profile, the end stops are unknown and
+    taken to be +-90 deg: the default limits are narrowed to 1 deg inside them, and said so."""
+    sim.set_hand(Path(str(resources.files("limbctl").joinpath("data", "calibration_hand.yaml"))))
+    out = tmp_path / "rig.yaml"
+    assert main(["calibrate", "--port", sim.port, "--out", str(out)]) == 0
+    found = load_profile(out)
+    base = default_sim_profile()
+    assert (found.pan.min_deg, found.pan.max_deg) == (-89.0, 89.0)  # base -115..115 narrowed
+    assert (found.pan.stop_min_deg, found.pan.stop_max_deg) == (-90.0, 90.0)
+    assert (found.tilt.min_deg, found.tilt.max_deg) == (base.tilt.min_deg, base.tilt.max_deg)
+    assert (
+        "pan hard limits -89..89 deg (1 deg inside the end stops -90..90)"
+        in capsys.readouterr().err
+    )
