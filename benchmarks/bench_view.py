@@ -6,10 +6,11 @@ Each run records from the embedded simulator's scripted hand at 100 Hz for ``--s
 
 - ``off``: the recorder reads the rig directly;
 - ``on``: the recorder reads through the view's pose tap, the scene feeder refits the region in
-  its own process (at most once a second), the server runs, and a headless Chromium watches.
+  its own process (fits back to back), the server runs, and a headless Chromium watches.
 
 Reported: samples per second, and the gaps between consecutive samples (median, p99, max), from
-the recorded file's own timestamps.
+the recorded file's own timestamps; the fits drawn and the intervals between the region's
+redraws once the first region is drawn (median, max).
 
 Then ``limbctl teleop`` at 200 Hz on a replayed sweep (``--teleop-seconds``), view off and on
 (watched by Chromium): cycles per second and cycle time (p50, p99) from its telemetry.
@@ -62,6 +63,7 @@ def run(view: bool, refit: bool, seconds: float, seed: int) -> dict[str, float]:
         writer = stack.enter_context(DatasetWriter(out, rig=session.profile.name))
         limb = session.rig
         fits = 0
+        redraws_s: list[float] = []
         if view:
             limb = PoseTap(session.rig, board, "record")
             limits = rig_limits(session.profile)
@@ -70,6 +72,7 @@ def run(view: bool, refit: bool, seconds: float, seed: int) -> dict[str, float]:
         if view:
             wait_for(browser, lambda d: text_of(d, "sample-count") == str(summary.samples), "")
             fits = feeder.fits_done
+            redraws_s = list(feeder.fit_times)
         writer.close()
         data = load_dataset(out)
     gaps_ms = np.diff(data.t) * 1000.0
@@ -80,6 +83,9 @@ def run(view: bool, refit: bool, seconds: float, seed: int) -> dict[str, float]:
         "gap_p99_ms": float(np.percentile(gaps_ms, 99)),
         "gap_max_ms": float(gaps_ms.max()),
         "fits": fits,
+        # the region's redraw intervals once the first region is drawn
+        "redraw_median_s": float(np.median(np.diff(redraws_s))) if len(redraws_s) > 1 else math.nan,
+        "redraw_max_s": float(np.max(np.diff(redraws_s))) if len(redraws_s) > 1 else math.nan,
     }
 
 
@@ -155,7 +161,8 @@ def main() -> None:
         rows.append(
             f"| {mode} | {result['samples']} | {result['rate_hz']:.2f} | "
             f"{result['gap_median_ms']:.2f} | {result['gap_p99_ms']:.2f} | "
-            f"{result['gap_max_ms']:.2f} | {result['fits']} |"
+            f"{result['gap_max_ms']:.2f} | {result['fits']} | "
+            f"{result['redraw_median_s']:.2f} | {result['redraw_max_s']:.2f} |"
         )
         print(rows[-1], flush=True)
     table = "\n".join(
@@ -163,8 +170,9 @@ def main() -> None:
             f"Recorder at 100 Hz on the simulator's scripted hand, {args.seconds:g} s each, "
             f"seed {args.seed}.",
             "",
-            "| view | samples | rate (Hz) | gap median (ms) | gap p99 (ms) | gap max (ms) | fits |",
-            "| --- | --- | --- | --- | --- | --- | --- |",
+            "| view | samples | rate (Hz) | gap median (ms) | gap p99 (ms) | gap max (ms) | fits "
+            "| region redraw median (s) | region redraw max (s) |",
+            "| --- | --- | --- | --- | --- | --- | --- | --- | --- |",
             *rows,
         ]
     )

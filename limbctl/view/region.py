@@ -218,6 +218,11 @@ class FitProcess:
         self._connection.send(np.ascontiguousarray(pan_tilt_rad, dtype=np.float64))
         self.busy = True
 
+    def wait(self, timeout_s: float) -> bool:
+        """Wait up to ``timeout_s`` for the running fit to finish; whether it has (False when
+        none is running)."""
+        return self.busy and self._connection.poll(timeout_s)
+
     def result(self, timeout_s: float = 0.0) -> RegionFit | None:
         """The running fit's outcome if it is done within ``timeout_s``, else None."""
         if not self.busy or not self._connection.poll(timeout_s):
