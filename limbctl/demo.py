@@ -174,7 +174,7 @@ def _run_demo(out: Path, teach_seconds: float, seed: int, live: LiveView) -> int
         f"(bound {bound:.3f} deg: the gate's {REGION_TOLERANCE_DEG} deg + rounding to ticks)"
     )
     say(f"   goals beyond the bound: {beyond}")
-    _plot_teleop(out / "teleop.png", model, data, telemetry)
+    _plot_teleop(out / "teleop.png", model, data, telemetry, demo_region_path())
     say(f"   pictures: {out / 'model.png'}, {out / 'teleop.png'}")
     if beyond:
         say(f"FAILED: {beyond} goals reached the servos beyond the gate's bound; see {goals}")
@@ -183,7 +183,21 @@ def _run_demo(out: Path, teach_seconds: float, seed: int, live: LiveView) -> int
     return status
 
 
-def _plot_teleop(path: Path, model: object, data: Path, telemetry: Path) -> None:
+#: Points along the hand's true outline in the teleop picture: one per half degree of a
+#: region's perimeter of a few hundred degrees, finer than the picture's pixels.
+TRUE_OUTLINE_POINTS = 720
+
+
+def true_outline(region_yaml: Path) -> np.ndarray:
+    """The region a REGION.yaml's hand teaches, as a closed outline (M, 2) in pan/tilt degrees."""
+    from firmware_sim.hand import Hand
+
+    region = Hand.from_yaml(region_yaml).region
+    fractions = np.linspace(0.0, 1.0, TRUE_OUTLINE_POINTS, endpoint=False)
+    return np.array([region.boundary_point(u, 0.0) for u in fractions])
+
+
+def _plot_teleop(path: Path, model: object, data: Path, telemetry: Path, region_yaml: Path) -> None:
     from limbctl.geometry.gimbal import pan_tilt_to_direction
     from limbctl.plot import plot
     from limbctl.teach.dataset import load_dataset
@@ -205,6 +219,7 @@ def _plot_teleop(path: Path, model: object, data: Path, telemetry: Path) -> None
         path,
         samples=load_dataset(data).quaternions,
         model=model,
-        title="teleop: commanded sweep vs. what the gate wrote",
+        title="teleop: commanded sweep vs. what the gate wrote; the hand's true region dashed",
         extra={"commanded": directions(commanded), "written (gated)": directions(written)},
+        outlines={"taught by the hand (true region)": true_outline(region_yaml)},
     )

@@ -43,6 +43,7 @@ def plot(
     model: Any = None,
     title: str = "",
     extra: dict[str, np.ndarray] | None = None,
+    outlines: dict[str, np.ndarray] | None = None,
 ) -> Path:
     """Draw samples (N, 4) and/or a model to a PNG file and return its path.
 
@@ -58,6 +59,9 @@ def plot(
         Figure title.
     extra : dict of name -> (M, 3) directions, optional
         More point sets to draw (e.g. commanded and corrected poses).
+    outlines : dict of name -> (M, 2) pan/tilt in degrees, optional
+        Closed outlines to draw as lines on the plane and the sphere (e.g. the region the
+        simulator's hand taught, beside the region learned from it).
     """
     import matplotlib
 
@@ -74,6 +78,12 @@ def plot(
         margin = 25.0  # degrees around the samples: room to see the region's edge beyond them
         pan_lim = (max(-180.0, sp.min() - margin), min(180.0, sp.max() + margin))
         tilt_lim = (max(-90.0, st.min() - margin), min(90.0, st.max() + margin))
+    for outline in (outlines or {}).values():
+        # an outline is drawn whole, with a little room around it
+        pan_lim = (max(-180.0, min(pan_lim[0], outline[:, 0].min() - 5.0)), pan_lim[1])
+        pan_lim = (pan_lim[0], min(180.0, max(pan_lim[1], outline[:, 0].max() + 5.0)))
+        tilt_lim = (max(-90.0, min(tilt_lim[0], outline[:, 1].min() - 5.0)), tilt_lim[1])
+        tilt_lim = (tilt_lim[0], min(90.0, max(tilt_lim[1], outline[:, 1].max() + 5.0)))
 
     if model is not None:
         grid_pan, grid_tilt, inside = region_grid(model, pan_lim, tilt_lim)
@@ -97,6 +107,11 @@ def plot(
         sp, st = _pan_tilt_deg(sd)
         ax_plane.scatter(sp, st, s=1, c="tab:blue", alpha=0.3, label=f"samples ({len(sp)})")
         ax_sphere.scatter(*sd.T, s=1, c="tab:blue", alpha=0.3)
+    for (name, outline), color in zip((outlines or {}).items(), ("tab:orange", "tab:brown")):
+        closed = np.vstack([outline, outline[:1]])
+        ax_plane.plot(closed[:, 0], closed[:, 1], color=color, lw=1.5, ls="--", label=name)
+        od = pan_tilt_to_direction(np.radians(closed[:, 0]), np.radians(closed[:, 1]))
+        ax_sphere.plot(*od.T, color=color, lw=1.2, ls="--")
     styles = [("tab:red", "x", 10), ("k", ".", 4), ("tab:purple", "+", 10)]
     for (name, directions), (color, marker, size) in zip((extra or {}).items(), styles):
         ep, et = _pan_tilt_deg(np.asarray(directions))

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 import yaml
 
-from limbctl.demo import run_demo, write_command_stream
+from firmware_sim.regions import PolygonRegion as SimPolygon
+from limbctl.demo import TRUE_OUTLINE_POINTS, run_demo, true_outline, write_command_stream
 from limbctl.envelope.synthetic import PolygonRegion
 from limbctl.errors import ConfigError
 from limbctl.session import demo_region_path
@@ -65,3 +66,14 @@ def test_demo_refuses_to_overwrite_an_earlier_run(tmp_path):
     with pytest.raises(ConfigError, match="exists"):
         run_demo(tmp_path, teach_seconds=5.0)
     assert (tmp_path / "teach.limb").read_text() == "old data"
+
+
+def test_the_teleop_picture_outlines_the_hands_true_region():
+    outline = true_outline(demo_region_path())
+    vertices = np.asarray(yaml.safe_load(demo_region_path().read_text())["region"]["polygon"])
+    truth = SimPolygon(vertices.tolist())
+    assert outline.shape == (TRUE_OUTLINE_POINTS, 2)
+    # every point on the polygon's edge, and the outline spans it (points ~0.7 deg apart)
+    assert np.abs(truth.edge_distance_deg(outline[:, 0], outline[:, 1])).max() < 1e-9
+    assert np.ptp(outline[:, 0]) == pytest.approx(np.ptp(vertices[:, 0]), abs=1.0)
+    assert np.ptp(outline[:, 1]) == pytest.approx(np.ptp(vertices[:, 1]), abs=1.0)
