@@ -11,14 +11,10 @@ controller gets :class:`limbctl.errors.PortInUse` naming the holder). Registers 
 through :class:`limbctl.servo.control_table.Register`.
 
 Every transaction is retried a bounded number of times within a time budget; what still fails
-raises one of (see :mod:`limbctl.errors`)::
-
-    BusError               a servo refused an instruction (status error 1-7), port busy
-    ├── PortError          the port cannot be opened or failed while in use
-    │   └── PortInUse      another controller holds the port (names its pid and command)
-    ├── BusTimeout         a servo did not answer (names the id, says what to check)
-    ├── CorruptReply       replies kept failing CRC / framing
-    └── ServoAlarm         a status packet had the alert bit and Hardware Error Status is set
+raises :class:`~limbctl.errors.BusError` (a refused instruction) or one of its subclasses
+(:mod:`limbctl.errors` draws the tree): ``PortError``/``PortInUse`` (the port),
+``BusTimeout`` (no answer: names the id, says what to check), ``CorruptReply`` (CRC/framing
+kept failing), ``ServoAlarm`` (the alert bit with Hardware Error Status set).
 
 A status packet with the alert bit set does not stop the transaction that carried it (its data
 are valid); when the transaction is complete the bus reads Hardware Error Status of the servos
@@ -252,17 +248,24 @@ class ServoBus(CycleReads):
         attempt: Callable[[], Attempt],
         check_alert: bool = True,
         attempts: int | None = None,
+        patient: bool = False,
     ) -> Any:
         """Run ``attempt`` until it succeeds, the attempts or the time budget run out.
 
-        ``attempts`` overrides ``max_attempts`` (the control cycle's read keeps its budget).
+        ``attempts`` overrides ``max_attempts`` (the control cycle's read keeps its budget);
+        ``patient`` (single-register writes: set-up, torque switching) retries until
+        ``transfers.PATIENT_BUDGET_S`` has passed.
         """
         with self._lock:
             port = self._require_port()
             self.stats.transactions += 1
-            deadline = time.monotonic() + self.retry_budget_s
+            deadline = time.monotonic() + (
+                transfers.PATIENT_BUDGET_S if patient else self.retry_budget_s
+            )
             outcome: Attempt | None = None
-            for number in range(attempts or self.max_attempts):
+            for number in range(
+                attempts or (transfers.PATIENT_MAX_ATTEMPTS if patient else self.max_attempts)
+            ):
                 try:
                     if number:
                         self.stats.retries += 1
@@ -339,7 +342,6 @@ class ServoBus(CycleReads):
     # ---- single registers ----
     def read(self, register: Register, servo_id: int, check_alert: bool = True) -> int:
         """Value of ``register`` on one servo."""
-
         return self._transact(
             f"read {register.name} of servo {servo_id}",
             lambda: transfers.read(self._packets, self._port, register, servo_id),
@@ -355,11 +357,11 @@ class ServoBus(CycleReads):
         With ``check_alert=False`` a servo in alarm does not raise :class:`ServoAlarm`.
         """
         data = register.encode(value)
-
         self._transact(
             f"write {register.name}={value} to servo {servo_id}",
             lambda: transfers.write(self._packets, self._port, register, servo_id, data),
             check_alert,
+            patient=True,
         )
 
     # ---- group transfers ----

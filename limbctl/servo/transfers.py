@@ -37,6 +37,12 @@ _PKT_ID, _PKT_LENGTH_L, _PKT_LENGTH_H, _PKT_PARAMETER0 = 4, 5, 6, 8
 
 #: The SDK's assumption for the USB adapter's latency timer (ms): an FTDI chip's default.
 SDK_LATENCY_TIMER_MS = 16.0
+#: How long a patient transaction (a set-up or torque write to one servo) keeps trying (s): a busy
+#: machine can stall the simulator's process longer than three reply timeouts; a servo silent
+#: for a second is gone all the same.
+PATIENT_BUDGET_S = 1.0
+#: Most attempts of a patient transaction (the budget ends it first: >= 6 ms each on a pty).
+PATIENT_MAX_ATTEMPTS = 200
 
 
 class TunedPortHandler(PortHandler):
