@@ -29,6 +29,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))  # for tests.view.browser (headless Chromium, test helper)
 
 from calib.profile import default_sim_profile  # noqa: E402
+from limbctl.demo import DEMO_APPROACH_DEG_S  # noqa: E402
 from limbctl.envelope import RigidMap  # noqa: E402
 from limbctl.jobs import TeleopOptions, run_teleop  # noqa: E402
 from limbctl.live import LiveView, ViewOptions, open_view  # noqa: E402
@@ -82,8 +83,14 @@ def teleop_figure(out: Path, model: Path) -> None:
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
         probe.bind(("127.0.0.1", 0))
         port = probe.getsockname()[1]
+    # nobody is there to move the limb in by hand if it rests outside the region after the
+    # teaching: the servos drive it in slowly, as in the demo
     options = TeleopOptions(
-        model=model, source=f"udp://127.0.0.1:{port}", quiet=True, duration=300.0
+        model=model,
+        source=f"udp://127.0.0.1:{port}",
+        quiet=True,
+        duration=300.0,
+        approach=DEMO_APPROACH_DEG_S,
     )
     with (
         open_view(ViewOptions(enabled=True, port=0), print) as live,
