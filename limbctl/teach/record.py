@@ -17,7 +17,7 @@ import sys
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import IO, Protocol
 
 from limbctl.errors import BusError, ConfigError
@@ -33,6 +33,9 @@ MAX_FAILED_READS = 50
 GUIDE_EVERY_S = 1.0
 #: Seconds between progress lines when the progress stream is not a terminal (a log file).
 LOG_EVERY_S = 5.0
+#: A run of failed reads this long (s) or longer is reported as a dropout, with the servo and
+#: its length: ten samples at 100 Hz; shorter runs are a dropped reply or two, only counted.
+DROPOUT_REPORT_S = 0.1
 
 
 class Backdrivable(Protocol):
@@ -54,6 +57,7 @@ class RecordSummary:
     ended_by: str = ""
     fault: str = ""
     guidance: Guidance | None = None
+    dropouts: list[str] = field(default_factory=list)
 
     @property
     def exit_code(self) -> int:
@@ -71,6 +75,7 @@ class RecordSummary:
             f"angular spread     {self.spread_deg:.1f} deg from the mean direction",
             f"failed reads       {self.failed_reads}",
         ]
+        out.extend(f"dropout            {dropout}" for dropout in self.dropouts)
         if self.guidance:
             out.append(f"guide              {self.guidance.line()}")
         if self.fault:
@@ -151,6 +156,7 @@ def record(
     if progress is not None:
         progress.write("torque off: move the limb by hand (Enter or Ctrl-C stops)\n")
     failed_in_a_row = 0
+    silent_since, silent_servo = 0.0, None
     while True:
         now = time.perf_counter()
         elapsed = now - start
@@ -165,11 +171,22 @@ def record(
         except BusError as exc:
             summary.failed_reads += 1
             failed_in_a_row += 1
+            if failed_in_a_row == 1:
+                silent_since, silent_servo = elapsed, exc.servo_id
             if failed_in_a_row >= MAX_FAILED_READS:
                 summary.ended_by = "bus failure"
                 summary.fault = f"{MAX_FAILED_READS} reads in a row failed, the last: {exc}"
                 break
         else:
+            if failed_in_a_row and elapsed - silent_since >= DROPOUT_REPORT_S:
+                who = f"servo {silent_servo}" if silent_servo is not None else "the bus"
+                dropout = (
+                    f"{who} silent {elapsed - silent_since:.3f} s from {silent_since:.1f} s "
+                    f"({failed_in_a_row} reads failed)"
+                )
+                summary.dropouts.append(dropout)
+                if progress is not None:
+                    progress.write(f"\n{dropout}; recording on\n")
             failed_in_a_row = 0
             writer.append(elapsed, pan, tilt)
             guide.add(elapsed, pan, tilt)

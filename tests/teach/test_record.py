@@ -132,6 +132,25 @@ def test_a_bus_failure_ends_the_recording_as_a_fault_and_keeps_the_samples(tmp_p
     assert len(load_dataset(out)) == summary.samples > 20
 
 
+def test_a_dropout_is_reported_with_the_servo_and_its_length_and_the_recording_goes_on(tmp_path):
+    out = tmp_path / "teach.limb"
+    progress = io.StringIO()
+    with open_rig(hand=demo_region_path()) as session, DatasetWriter(out, rig="sim") as writer:
+        # the tilt servo drops off the bus for 0.3 s, half a second in
+        timer = threading.Timer(0.5, session.simulator.vanish, args=(2, 0.3))
+        timer.start()
+        summary = record(session.rig, writer, 100.0, duration_s=2.0, progress=progress)
+        timer.join()
+    assert summary.ended_by == "duration" and summary.exit_code == 0
+    assert len(summary.dropouts) == 1, summary.dropouts
+    (dropout,) = summary.dropouts
+    assert dropout.startswith("servo 2 silent ") and "reads failed" in dropout
+    length_s = float(dropout.split()[3])
+    assert 0.25 <= length_s <= 0.6  # 0.3 s off the bus, give or take a read and its timeouts
+    assert f"dropout            {dropout}" in summary.lines()
+    assert f"{dropout}; recording on" in progress.getvalue()
+
+
 def test_thirty_seconds_of_the_simulators_hand_teach_a_model_that_holds_the_region(tmp_path):
     """Issue 12: record 30 s from the simulator through the real SDK (the hand traces the edge,
     then wanders), train, and the model holds >= 98 % of the poses 2 deg or more inside."""
