@@ -8,7 +8,9 @@ The steps the Rigid Map's gate runs on its support (all angles radians):
    points leave inside the region they enclose (strokes of a hand recording cross and enclose
    the empty space between them; that space's empty-circle radii set the scale).
 3. :func:`alpha_complex` triangulates, keeps triangles with circumradius <= alpha and fills
-   holes smaller than ``max_hole``: the gaps between strokes close.
+   holes smaller than ``max_hole``: the gaps between strokes close. A hole open to the outside
+   only through gaps no wider than ``mouth`` (between neighbouring samples of one stroke or
+   traced edge) is closed too.
 4. :func:`peel` (a chi-shape) then removes, longest first, the outside triangles whose exposed
    edge is longer than ``max_length`` and whose middle the data do not surround
    (:func:`surrounded`): a large alpha may bridge a concavity or a bay of the taught region,
@@ -161,13 +163,36 @@ def triangle_area(d: np.ndarray, tri: np.ndarray) -> np.ndarray:
 
 
 def alpha_complex(
-    d: np.ndarray, alpha: float, max_hole: float
+    d: np.ndarray, alpha: float, max_hole: float, mouth: float = 0.0
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Delaunay triangles (T, 3) of ``d``, their circumradii (T,) and which are in the region.
 
     A triangle is in the region when its circumradius is at most ``alpha``, or when it belongs
-    to a hole: a piece of the other triangles (joined across shared edges) that does not reach
-    the outside of the triangulation, with a total area below ``max_hole`` (sr).
+    to a hole: a piece of the other triangles that does not reach the outside of the
+    triangulation, with a total area below ``max_hole`` (sr). Pieces join across shared edges,
+    and reach the outside across hull edges, only where the edge is longer than ``mouth``
+    (rad): a gap no wider than ``mouth`` between two samples (two neighbours along a traced
+    edge) closes what lies behind it.
+
+    Parameters
+    ----------
+    d : ndarray (V, 3)
+        Unit directions.
+    alpha : float
+        Circumradius (rad) up to which a triangle is in the region.
+    max_hole : float
+        Holes with a total area below this (sr) are filled.
+    mouth : float, optional
+        Gaps (rad) up to this wide close a piece; 0 (default): every gap lets it through.
+
+    Returns
+    -------
+    tri : ndarray (T, 3) int
+        The Delaunay triangles.
+    radius : ndarray (T,)
+        Their circumradii (rad).
+    inside : ndarray (T,) bool
+        Which are in the region.
     """
     tri = spherical_delaunay(d)
     radius = circumradius(d, tri)
@@ -182,14 +207,17 @@ def alpha_complex(
     shared = counts[inverse[order]] == 2
     first = pairs[shared][0::2]
     second = pairs[shared][1::2]
-    # pieces of non-region triangles joined across shared edges
+    # pieces of non-region triangles joined across shared edges wider than the mouth
+    wide = edge_lengths(d, key[order][shared][0::2]) > mouth
     pieces = UnionFind(t)
-    for a, b in zip(first, second, strict=True):
-        if not kept[a] and not kept[b]:
+    for a, b, w in zip(first, second, wide, strict=True):
+        if w and not kept[a] and not kept[b]:
             pieces.union(a, b)
     label = pieces.labels()
     outside = np.zeros(t, dtype=bool)
-    outside[label[owner[order][~shared]]] = True
+    # hull edges (one triangle each) wide enough to let the outside in
+    open_ = edge_lengths(d, key[order][~shared]) > mouth
+    outside[label[owner[order][~shared][open_]]] = True
     area = np.bincount(label, weights=triangle_area(d, tri) * ~kept, minlength=t)
     hole = ~kept & ~outside[label] & (area[label] < max_hole)
     return tri, radius, kept | hole

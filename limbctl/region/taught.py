@@ -8,7 +8,9 @@
 2. *Shape*: the thinned directions are triangulated (spherical Delaunay); triangles with
    circumradius at most ``alpha`` are kept, ``alpha`` learned from the data's scale
    (``alpha_factor`` times the 90th percentile of the empty-circle radii of the gaps the
-   samples enclose), and holes smaller than ``hole_fraction`` of the region are filled.
+   samples enclose), and holes smaller than ``hole_fraction`` of the region are filled; a
+   hole open to the outside only through gaps of at most ``MOUTH_SPACINGS`` thinning
+   spacings (between neighbouring samples of a traced edge) counts as closed.
 3. *Peel*: outside triangles whose exposed edge is longer than the peel length (``peel_factor``
    median nearest-neighbour spacings, at least ``min_peel_deg``) and whose middle the samples
    do not surround (samples within ``surround_deg`` leave an empty sector wider than
@@ -50,6 +52,10 @@ SURROUND_GAP_DEG = 165.0
 #: Arcs longer than this fraction of the peel length are bridges over a gap with no sample
 #: along them: the data say nothing of an edge beyond them, so they get no learned widening.
 BRIDGE_FRACTION = 0.75
+#: Gaps in the alpha complex up to this many thinning spacings wide close what lies behind
+#: them (a hole, filled): neighbouring thinned samples of one stroke or traced edge lie 1 to 2
+#: spacings apart, so a stroke encloses what it passes, not opens it to the outside.
+MOUTH_SPACINGS = 2.0
 #: Growth factor floor of the thinning spacing while the thinned samples exceed the cap: at
 #: least 5 % a step, so the loop ends within a few steps.
 THIN_GROWTH = 1.05
@@ -86,27 +92,31 @@ class TaughtRegion:
     def fit(self, samples: np.ndarray) -> TaughtRegion:
         """Build the region from taught ``samples``: directions (N, 3) or quaternions (N, 4)."""
         d = taught_directions(samples)
-        self.support_index = self._thinned(d)
-        self.mesh = self._build(d[self.support_index], d)
+        self.support_index, spacing = self._thinned(d)
+        self.mesh = self._build(d[self.support_index], d, spacing)
         return self
 
-    def _thinned(self, d: np.ndarray) -> np.ndarray:
-        """Rows of ``d`` (N, 3) kept by thinning, at most ``support_nodes`` of them."""
+    def _thinned(self, d: np.ndarray) -> tuple[np.ndarray, float]:
+        """Rows of ``d`` (N, 3) kept by thinning, at most ``support_nodes`` of them, and the
+        spacing (rad) that kept them."""
         spacing = np.radians(self.params.thin_deg)
         while True:
             keep = rs.thin(d, spacing)
             if keep.size <= self.params.support_nodes:
-                return keep
+                return keep, spacing
             # area per sample ~ spacing^2: grow the spacing to fit the cap
             spacing *= max(THIN_GROWTH, np.sqrt(keep.size / self.params.support_nodes))
 
-    def _build(self, d: np.ndarray, d_train: np.ndarray) -> DirectionMesh:
-        """The mesh from the thinned directions (K, 3) and all taught directions (N, 3)."""
+    def _build(self, d: np.ndarray, d_train: np.ndarray, thinning: float) -> DirectionMesh:
+        """The mesh from the thinned directions (K, 3), all taught directions (N, 3) and the
+        thinning's spacing (rad)."""
         p = self.params
         alpha = rs.learn_alpha(d, p.alpha_factor)
         tri, _, inside = rs.alpha_complex(d, alpha, max_hole=0.0)
         area = float(rs.triangle_area(d, tri[inside]).sum())
-        tri, _, inside = rs.alpha_complex(d, alpha, max_hole=p.hole_fraction * area)
+        # gaps up to MOUTH_SPACINGS thinning spacings close a hole
+        mouth = MOUTH_SPACINGS * thinning
+        tri, _, inside = rs.alpha_complex(d, alpha, max_hole=p.hole_fraction * area, mouth=mouth)
         self.edge, self.verdicts = "supported", ()
         if not inside.any():
             return DirectionMesh.from_loops([], 0.0)

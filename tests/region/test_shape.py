@@ -97,3 +97,38 @@ def test_surrounded_tells_middle_from_edge():
     probe = np.vstack([middle, near_edge, beyond, out])
     got = rs.surrounded(probe, d, np.radians(4.0), np.radians(150.0))
     np.testing.assert_array_equal(got, [True, True, False, False])
+
+
+def _pond(gap_deg):
+    """Jittered 1 deg grid over +-10 deg (gnomonic: rows are great circles) with an empty pond
+    |x| < 4, 3 < y < 10 whose top is one row of samples ``gap_deg`` apart, and three far
+    samples above it so that the outside lies beyond that row."""
+    rng = np.random.default_rng(0)
+    x, y = np.meshgrid(np.arange(-10.0, 10.5), np.arange(-10.0, 10.5))
+    x, y = x.ravel(), y.ravel()
+    keep = ~((np.abs(x) < 4.0) & (y > 2.5))
+    grid = np.column_stack([x[keep], y[keep]]) + rng.normal(0.0, 0.05, (keep.sum(), 2))
+    row = np.arange(-4.0 + gap_deg, 4.0 - 1e-9, gap_deg)
+    top = np.column_stack([row, np.full(row.size, 10.0)])
+    far = np.array([[-10.0, 20.0], [0.0, 20.0], [10.0, 20.0]])
+    xy = np.radians(np.vstack([grid, top, far]))
+    d = np.column_stack([np.ones(len(xy)), xy])
+    return d / np.linalg.norm(d, axis=1, keepdims=True)
+
+
+def _holds_pond(d, mouth_deg):
+    tri, _, inside = rs.alpha_complex(
+        d, np.radians(1.0), max_hole=0.05, mouth=np.radians(mouth_deg)
+    )
+    loops = [d[i] for i in rs.trace_loops(d, boundary_edges(tri[inside]))]
+    probe = np.array([[1.0, 0.0, np.tan(np.radians(6.5))]])
+    return bool(rs.enclosed(probe / np.linalg.norm(probe), loops)[0])
+
+
+def test_a_hole_open_only_through_a_gap_narrower_than_the_mouth_is_filled():
+    # the pond's top row: samples 1.6 deg apart (a traced edge) closes it under a 2 deg mouth
+    assert _holds_pond(_pond(1.6), mouth_deg=2.0)
+    # 2.67 deg apart: wider than the mouth, the pond is open to the outside, not a hole
+    assert not _holds_pond(_pond(8.0 / 3.0), mouth_deg=2.0)
+    # without a mouth (the rule off) every gap lets the outside in
+    assert not _holds_pond(_pond(1.6), mouth_deg=0.0)

@@ -1,0 +1,84 @@
+"""Notches taught by tracing stay notches, and traced edges close what lies behind them
+(issue 12 item 6).
+
+``synthetic.NOTCH`` (a 40 x 30 deg rectangle with a 12 x 12 deg notch in its top edge) taught
+for 60 s the way ``benchmarks/bench_fit.py`` teaches it (``traced_teaching``: the edge traced
+1 deg inside, then wandering), one fit per teaching seed: the taught samples stay inside, at
+least 99 % of the valid test commands (2 deg or more inside) pass unchanged, and the learned
+region reaches into the notch no more than :data:`REACH_BOUND_DEG`.
+
+The issue's target for the reach is 1.0 deg and it is NOT met yet: seeds 0-4 reach 1.20 /
+1.30 / 1.10 / 0.70 / 0.75 deg, at the notch floor's two reflex corners (docs/decisions/region.md,
+"The traced notch"). :data:`REACH_BOUND_DEG` is the measured worst seed rounded up to the next
+0.05 deg, a regression guard; lower it to 1.0 when a fix reaches the target.
+
+Before the mouth rule (``alpha_complex``'s ``mouth``) seeds 1, 2 and 4 changed 1.9-2.8 % of
+the valid commands (holes behind the traced edge left open through the 1 deg gaps between its
+samples), and the simulator hand's 60 s teaching (seed 0) had holes too.
+"""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from firmware_sim.hand import Hand
+from limbctl.envelope.synthetic import (
+    NOTCH,
+    PolygonRegion,
+    reach_into,
+    to_quaternions,
+    traced_teaching,
+)
+from limbctl.geometry.gimbal import pan_tilt_to_direction
+from limbctl.region import TaughtRegion
+
+REPO = Path(__file__).resolve().parents[2]
+#: The teaching's length (s), as in benchmarks/bench_fit.py.
+TEACHING_S = 60.0
+#: Test commands per seed: about 2,000 of them valid, so one changed command is 0.05 %.
+TEST_COMMANDS = 20000
+#: How far (deg) the region may reach into the notch: the worst seed today (1.296 deg, seed 1)
+#: rounded up to 0.05 deg. The issue's target is 1.0 deg, not met yet (see the module docstring).
+REACH_BOUND_DEG = 1.30
+
+
+@pytest.fixture(scope="module")
+def notch():
+    return PolygonRegion(NOTCH)
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_a_traced_notch_stays_a_notch(notch, seed):
+    taught, traced = traced_teaching(notch, TEACHING_S, np.random.default_rng(seed))
+    assert traced > 1000  # the whole edge was traced before the wandering
+    region = TaughtRegion().fit(taught)
+    # the taught samples stay inside (the benchmarks' target for hand-taught rows: 99.5 %)
+    assert region.contains(to_quaternions(taught)).mean() >= 0.995
+    reach = reach_into(region.contains, notch)
+    assert reach <= REACH_BOUND_DEG, f"seed {seed}: the region reaches {reach:.2f} deg"
+    test = notch.test_directions(TEST_COMMANDS, np.random.default_rng(1000 + seed))
+    q = to_quaternions(test)
+    valid = notch.depth(test) >= np.radians(2.0)
+    unchanged = np.all(region.correct(q[valid]) == q[valid], axis=1).mean()
+    assert unchanged >= 0.99, f"seed {seed}: {100 * unchanged:.2f} % of valid commands unchanged"
+
+
+def test_the_simulator_hands_60_s_teaching_leaves_no_holes():
+    """What ``limbctl demo`` teaches by default: the simulator's hand over
+    examples/regions/irregular.yaml for 60 s, seed 0, at 125 Hz (as
+    ``bench_envelope.hand_samples`` records it). Before the mouth rule the region kept holes
+    behind the traced edge and held 89.9 % of the directions 2 deg or more inside."""
+    path = REPO / "examples" / "regions" / "irregular.yaml"
+    hand = Hand.from_yaml(path, seed=0)
+    hand.start_from(0.0, 0.0)
+    pose = np.radians([hand.pose_deg(t) for t in np.arange(int(60.0 * 125.0)) / 125.0])
+    taught = pan_tilt_to_direction(pose[:, 0], pose[:, 1])
+    region = TaughtRegion().fit(taught)
+    polygon = PolygonRegion(np.array(yaml.safe_load(path.read_text())["region"]["polygon"]))
+    test = polygon.test_directions(TEST_COMMANDS, np.random.default_rng(0))
+    valid = test[polygon.depth(test) >= np.radians(2.0)]
+    assert valid.shape[0] > 3000
+    held = region.contains(to_quaternions(valid)).mean()
+    assert held >= 0.99, f"the region holds {100 * held:.2f} % of the valid directions"
