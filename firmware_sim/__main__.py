@@ -45,6 +45,8 @@ Faults are drawn from --seed: --drop P loses a reply, --corrupt P flips one byte
                      overheating error, torque off)
   restart:ID:S       servo ID browns out: off the bus for S seconds, then back as after
                      power-up (RAM at defaults: torque off, indirect addresses unmapped)
+  push:ID:P          servo ID's joint is pushed with P % of stall torque from then on
+                     (signed; 0 lets go; above 100 %: PWM saturates, overload after 0.5 s)
   e.g. --event 5:vanish:2:1.5 --event 10:voltage:1:5
 
 Example:

@@ -1,4 +1,5 @@
-"""Faults scheduled from the command line: a servo that vanishes, a sagging supply, a hot motor.
+"""Faults scheduled from the command line: a servo that vanishes, a sagging supply, a hot motor,
+a hand that leans on a joint.
 
 ``firmware-sim --event T:KIND:ID:VALUE`` (repeatable) applies, ``T`` seconds after start:
 
@@ -6,12 +7,15 @@
 - ``voltage``: servo ``ID`` measures a supply of ``VALUE`` volts from then on;
 - ``temperature``: servo ``ID`` measures a motor temperature of ``VALUE`` deg C from then on;
 - ``restart``: servo ``ID`` browns out: it is off the bus for ``VALUE`` seconds and comes back
-  as after power-up (RAM at its defaults: torque off, indirect addresses unmapped).
+  as after power-up (RAM at its defaults: torque off, indirect addresses unmapped);
+- ``push``: servo ``ID``'s joint is pushed with a steady ``VALUE`` percent of stall torque from
+  then on (signed, toward increasing raw ticks; 0 lets go). Above 100 % the motor cannot hold
+  it: Present PWM saturates and, after 0.5 s, the overload shutdown trips.
 
 The same faults are available from Python as :meth:`Simulator.vanish`,
-:meth:`Simulator.set_environment` and :meth:`Simulator.restart`; a voltage or temperature
-outside the servo's limits raises its Hardware Error Status bit and the alert, exactly as those
-calls do.
+:meth:`Simulator.set_environment`, :meth:`Simulator.restart` and :meth:`Simulator.push`; a
+voltage or temperature outside the servo's limits raises its Hardware Error Status bit and the
+alert, exactly as those calls do.
 """
 
 from __future__ import annotations
@@ -22,7 +26,9 @@ from dataclasses import dataclass, field
 from firmware_sim.simulator import Simulator
 
 #: What an event can do, with the unit of its value.
-KINDS = {"vanish": "s", "voltage": "V", "temperature": "deg C", "restart": "s"}
+KINDS = {"vanish": "s", "voltage": "V", "temperature": "deg C", "restart": "s", "push": "%"}
+#: Kinds whose value may be negative (a cold motor, a push the other way).
+SIGNED_KINDS = ("temperature", "push")
 
 
 @dataclass(frozen=True)
@@ -40,6 +46,8 @@ class ScheduledEvent:
             sim.vanish(self.servo_id, self.value)
         elif self.kind == "restart":
             sim.restart(self.servo_id, self.value)
+        elif self.kind == "push":
+            sim.push(self.servo_id, self.value)
         elif self.kind == "voltage":
             sim.set_environment(self.servo_id, voltage=self.value)
         else:
@@ -62,9 +70,10 @@ def parse_event(text: str) -> ScheduledEvent:
         raise ValueError(f"event {text!r}: T must be a finite number of seconds >= 0")
     if not 0 <= servo_id <= 252:
         raise ValueError(f"event {text!r}: ID must be 0..252")
-    if not math.isfinite(value) or (kind != "temperature" and value < 0.0):
+    if not math.isfinite(value) or (kind not in SIGNED_KINDS and value < 0.0):
         unit = KINDS[kind]
-        raise ValueError(f"event {text!r}: VALUE must be a finite number of {unit} >= 0")
+        bound = "" if kind in SIGNED_KINDS else " >= 0"
+        raise ValueError(f"event {text!r}: VALUE must be a finite number of {unit}{bound}")
     return ScheduledEvent(at_s, kind, servo_id, value)
 
 

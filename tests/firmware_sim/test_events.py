@@ -1,4 +1,7 @@
-"""Scheduled faults (``firmware-sim --event``): parsing, timing, and their effect over the pty."""
+"""Scheduled faults (``firmware-sim --event``): parsing, timing, and their effect over the pty.
+
+Kinds: vanish, voltage, temperature, restart and push (a steady torque on a joint).
+"""
 
 from __future__ import annotations
 
@@ -10,25 +13,28 @@ import pytest
 from dynamixel_sdk import COMM_RX_TIMEOUT, COMM_SUCCESS, PacketHandler, PortHandler
 
 from firmware_sim.bus import build_simulator
+from firmware_sim.control_table import Register
 from firmware_sim.events import EventSchedule, ScheduledEvent, parse_event
 from firmware_sim.simulator import Simulator
 
 COMMAND = [sys.executable, "-m", "firmware_sim"]
-TORQUE_ENABLE, HARDWARE_ERROR = 64, 70
-VOLTAGE_BIT, OVERHEATING_BIT, ALERT = 0x01, 0x04, 0x80
+TORQUE_ENABLE, HARDWARE_ERROR, PRESENT_PWM = 64, 70, 124
+VOLTAGE_BIT, OVERHEATING_BIT, OVERLOAD_BIT, ALERT = 0x01, 0x04, 0x20, 0x80
 
 
 def test_parse_event_reads_every_kind():
     assert parse_event("2.5:vanish:1:0.5") == ScheduledEvent(2.5, "vanish", 1, 0.5)
     assert parse_event("0:voltage:2:5") == ScheduledEvent(0.0, "voltage", 2, 5.0)
     assert parse_event(" 1 : temperature : 2 : -5 ") == ScheduledEvent(1.0, "temperature", 2, -5.0)
+    assert parse_event("3:push:1:-300") == ScheduledEvent(3.0, "push", 1, -300.0)
 
 
 @pytest.mark.parametrize(
     "text, message",
     [
         ("1:vanish:1", "T:KIND:ID:VALUE"),
-        ("1:melt:1:2", "one of vanish, voltage, temperature"),
+        ("1:melt:1:2", "one of vanish, voltage, temperature, restart, push"),
+        ("1:push:1:nan", "finite number of %"),
         ("x:vanish:1:2", "must be numbers"),
         ("1:vanish:1.5:2", "ID an integer"),
         ("-1:vanish:1:2", ">= 0"),
@@ -121,6 +127,57 @@ def test_restart_event_browns_the_servo_out_then_back_with_ram_defaults():
     assert not sim.faults.present(2, 1.2) and sim.faults.present(2, 1.25)
     assert sim.servo(1).torque_on is False and sim.faults.present(1, 1.0)
     sim.close()
+
+
+def test_push_event_leans_on_the_joint_until_the_servo_saturates_and_trips():
+    clock = {"now": 0.0}
+    sim = Simulator(ids=(1, 2), clock=lambda: clock["now"])
+    servo = sim.servo(1)
+    servo.write(64, bytes([1]))  # torque on: the servo holds its pose
+    schedule = EventSchedule([parse_event("0.5:push:1:300"), parse_event("2:push:1:0")])
+    clock["now"] = 0.5
+    sim.advance()
+    assert schedule.apply_due(sim) == 1
+    clock["now"] = 0.6
+    sim.advance()
+    servo.refresh(sim.now())  # what a READ would return now
+    # 300 % of stall is beyond what the motor holds: deflected 6 deg, drive at the PWM Limit
+    assert servo.value(Register.PRESENT_PWM) == -885
+    goal, present = servo.value(Register.GOAL_POSITION), servo.value(Register.PRESENT_POSITION)
+    assert abs(present - goal) == pytest.approx(6.0 / 360 * 4096, abs=2)
+    assert servo.value(Register.HARDWARE_ERROR_STATUS) == 0
+    clock["now"] = 1.2  # over 0.5 s of overload: the firmware's shutdown
+    sim.advance()
+    servo.refresh(sim.now())
+    assert servo.value(Register.HARDWARE_ERROR_STATUS) == OVERLOAD_BIT and not servo.torque_on
+    clock["now"] = 2.0
+    assert schedule.apply_due(sim) == 1
+    assert sim.truth()["servos"][1]["load_percent"] == 0.0  # torque off, let go
+    sim.close()
+
+
+def test_push_event_from_the_command_line_saturates_present_pwm(tmp_path):
+    link = tmp_path / "ttyDXL"
+    process = subprocess.Popen(
+        [*COMMAND, "--ids", "1,2", "--link", str(link), "--event", "0:push:2:-250"],
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert "ready" in process.stdout.readline()
+        port = PortHandler(str(link))
+        assert port.openPort()
+        packet = PacketHandler(2.0)
+        assert packet.write1ByteTxRx(port, 2, TORQUE_ENABLE, 1)[:1] == (COMM_SUCCESS,)
+        # pushed the other way: the drive saturates positive (two's complement 885)
+        deadline = time.monotonic() + 5.0
+        while packet.read2ByteTxRx(port, 2, PRESENT_PWM)[0] != 885:
+            assert time.monotonic() < deadline, "servo 2's Present PWM did not saturate"
+        port.closePort()
+    finally:
+        process.terminate()
+        assert process.wait(timeout=10) == 0
+        process.stdout.close()
 
 
 def test_restart_over_the_pty_reads_torque_off(sim, sdk):
