@@ -3,7 +3,9 @@
 An X-series servo latches a hardware error into Hardware Error Status (70) and raises the alert
 bit of every status packet until it is rebooted. Whether it also switched torque off depends on
 its Shutdown (63) mask: the factory mask leaves an input-voltage error out, so after a voltage
-alarm torque is still on. Messages therefore state the torque each servo REPORTS, never both.
+alarm torque is still on. Messages therefore state the torque each servo REPORTS, and state it
+once: the control loop describes the alarm alone (:func:`alarm_message` without torque) and
+then the torque its safe state left (:func:`held_torque`, :func:`switched_off`).
 """
 
 from __future__ import annotations
@@ -12,6 +14,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Protocol
 
+from limbctl.errors import ServoAlarm
 from limbctl.servo.control_table import HARDWARE_ERROR_ADVICE, HardwareError
 
 
@@ -39,11 +42,12 @@ def _torque_clause(servo_id: int, torque_on: bool | None) -> str:
             f"servo {servo_id} keeps torque on (this error is not in its Shutdown mask) and "
             f"the alert stays until it is rebooted"
         )
-    return f"servo {servo_id} switched torque off and keeps it off until it is rebooted"
+    # off: shut down by this error, or never switched on; either way it stays off until a reboot
+    return f"servo {servo_id} has torque off, and it cannot be switched on until it is rebooted"
 
 
 def alarm_message(
-    found: Mapping[int, tuple[str, ...]], torque_on: Mapping[int, bool | None]
+    found: Mapping[int, tuple[str, ...]], torque_on: Mapping[int, bool | None] | None = None
 ) -> str:
     """The message of a :class:`limbctl.errors.ServoAlarm`.
 
@@ -51,16 +55,70 @@ def alarm_message(
     ----------
     found : mapping id -> decoded hardware error bits
         Only servos with bits set.
-    torque_on : mapping id -> bool
-        Torque Enable as each servo reports it (a missing id: could not be read).
+    torque_on : mapping id -> bool, optional
+        Torque Enable as each servo reports it (a missing id: could not be read). None: the
+        message describes the alarm alone (the control loop then says the torque its safe
+        state left).
     """
     detail = "; ".join(f"servo {i}: {', '.join(bits)}" for i, bits in found.items())
     advice = "; ".join(_advice(bits) for bits in found.values())
+    if torque_on is None:
+        return f"hardware error reported ({detail}). {advice}: fix the cause, then `limbctl reboot`"
     torque = "; ".join(_torque_clause(i, torque_on.get(i)) for i in found)
     return (
         f"hardware error reported ({detail}). {advice}. {torque}: fix the cause, then "
-        f"`limbctl reboot` (ServoBus.reboot)"
+        f"`limbctl reboot`"
     )
+
+
+def alarm_alone(alarm: ServoAlarm) -> ServoAlarm:
+    """An alarm the bus raised (its message says the torque before any safe state), told as the
+    alarm alone (of the first servo in alarm), for a caller that then says the torque."""
+    if alarm.servo_id is None or not alarm.bits:
+        return alarm
+    return ServoAlarm(alarm_message({alarm.servo_id: alarm.bits}), alarm.servo_id, alarm.bits)
+
+
+def _joined(names: list[str]) -> str:
+    return " and ".join(names)
+
+
+def held_torque(torque: Mapping[str, bool], after_alarm: bool = False) -> str:
+    """What the HOLD safe state left, from Torque Enable as each servo reports it afterwards.
+
+    Parameters
+    ----------
+    torque : mapping joint name -> bool
+        Torque Enable per joint (``pan``, ``tilt``), read after the fault.
+    after_alarm : bool
+        The fault was an alarm, whose message already says how to clear it.
+    """
+    on = [name for name, enabled in torque.items() if enabled]
+    off = [name for name, enabled in torque.items() if not enabled]
+    if not off:
+        return "holding the last safe pose (torque on)"
+    held = f"; {_joined(on)} holding the last safe pose (torque on)" if on else ""
+    advice = "" if after_alarm else " (after an alarm: fix the cause, then `limbctl reboot`)"
+    return f"{_joined(off)} torque off as the servo reports it{advice}{held}"
+
+
+def switched_off(reported: Mapping[str, bool | None]) -> str:
+    """What the TORQUE_OFF safe state says once every servo's torque is off.
+
+    Parameters
+    ----------
+    reported : mapping joint name -> bool or None
+        Torque Enable per joint as its last read before the fault reported it (None: unknown).
+    """
+    already = [name for name, enabled in reported.items() if enabled is False]
+    switched = [name for name in reported if name not in already]
+    if not already:
+        return "torque switched off"
+    servos = "servos" if len(already) > 1 else "servo"
+    was = f"{_joined(already)} torque was already off (as the {servos} reported it)"
+    if not switched:
+        return f"{was}; it stays off"
+    return f"torque switched off on {_joined(switched)}; {was}"
 
 
 @dataclass(frozen=True)

@@ -9,7 +9,8 @@ say and whether to stop:
   (a fault);
 - Torque Enable reading 0 on a servo the loop drives (switched off, or the servo restarted after
   a brown-out, which also clears the indirect map so every mapped byte reads 0): a fault;
-- a hardware error (alarm) in Hardware Error Status: a fault, saying what each servo's torque is;
+- a hardware error (alarm) in Hardware Error Status: a fault naming every servo in alarm (the
+  loop's safe state then says each servo's torque);
 - a servo that does not follow: its present position further than ``max_tracking_error_deg``
   from the goal it holds for longer than ``tracking_grace_s`` in which no ``progress_window_s``
   saw it move ``min_progress_deg`` toward that goal (a servo chasing a goal that moves faster
@@ -151,14 +152,13 @@ class HealthMonitor:
         return None
 
     def _judge(self, read: CycleRead, now: float) -> ServoFault | None:
+        found = {
+            i: report.hardware_error for i, report in read.reports.items() if report.hardware_error
+        }
+        if found:
+            servo_id, bits = next(iter(found.items()))
+            return ServoFault(servo_id, "alarm", alarm_message(found), bits)
         for servo_id, report in read.reports.items():
-            if report.hardware_error:
-                return ServoFault(
-                    servo_id,
-                    "alarm",
-                    alarm_message({servo_id: report.hardware_error}, {servo_id: report.torque_on}),
-                    report.hardware_error,
-                )
             if not report.torque_on:
                 return ServoFault(
                     servo_id,

@@ -140,6 +140,11 @@ class Rig:
         positions = self._bus().read_positions()
         return positions[self.profile.pan.id], positions[self.profile.tilt.id]
 
+    @property
+    def ids(self) -> tuple[int, int]:
+        """The servo ids ``(pan, tilt)``."""
+        return self.profile.ids
+
     def read_cycle(self, attempts: int = 1) -> CycleRead:
         """Both servos' position, goal, torque and alarm in ONE sync read (``attempts`` tries)."""
         return self._bus().read_cycle(self.profile.ids, attempts)

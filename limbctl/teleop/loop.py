@@ -17,7 +17,8 @@ with its length when it answers again; the loop ends in the configured safe stat
 stays on at the last goal; torque-off) with a message naming the servo and the cause when a
 servo is silent for ``health.lost_after_s``, reports torque off or an alarm, or does not follow
 its goal, and after ``max_failed_cycles`` consecutive cycles whose read failed without naming a
-servo (corrupt or late replies).
+servo (corrupt or late replies). The message states each servo's torque once, as the safe
+state left it.
 
 After ruckig, every cycle is a value: :meth:`ControlLoop.step` returns a
 :class:`~limbctl.teleop.cycle.Cycle` (running, finished or fault, with the gate's result, the
@@ -40,6 +41,7 @@ import numpy as np
 
 from limbctl.errors import BusError, ConfigError, ServoAlarm
 from limbctl.geometry.gimbal import quat_to_pan_tilt
+from limbctl.servo.alarms import alarm_alone, held_torque, switched_off
 from limbctl.servo.cycle import CycleRead
 from limbctl.servo.health import HealthLimits, HealthMonitor, ServoFault
 from limbctl.teleop.cycle import Cycle, CycleState, CycleTimings, TeleopSummary
@@ -60,6 +62,9 @@ class SafeState(enum.Enum):
 
 class Limb(Protocol):
     """What the loop needs of a rig (see :class:`limbctl.servo.rig.Rig`)."""
+
+    @property
+    def ids(self) -> tuple[int, int]: ...  # (pan, tilt)
 
     def read_pose(self) -> tuple[float, float]: ...
 
@@ -168,6 +173,8 @@ class ControlLoop:
         self._last_error: BusError | None = None
         self.health = HealthMonitor(config.health)
         self._failed_in_a_row = 0
+        # servo id -> Torque Enable as its latest read reported it (for the safe state's words)
+        self._torque_seen: dict[int, bool] = {}
         self._pending: deque = deque()
         self._target_q: np.ndarray | None = None
         self._target_deg: tuple[float, float] | None = None
@@ -186,7 +193,7 @@ class ControlLoop:
                 present = self.limb.read_pose()
                 break
             except ServoAlarm as exc:
-                return self._fault(exc, 0.0)
+                return self._fault(alarm_alone(exc), 0.0)
             except BusError as exc:
                 self.summary.bus_errors += 1
                 self._last_error = exc
@@ -218,6 +225,7 @@ class ControlLoop:
         except BusError as exc:  # the port itself failed
             read = CycleRead({}, (), str(exc))
             self._last_error = exc
+        self._torque_seen.update((i, report.torque_on) for i, report in read.reports.items())
         verdict = self.health.observe(read, t)
         summary.notices.extend(f"{t:.3f} s: {notice}" for notice in verdict.notices)
         if verdict.fault is not None:
@@ -255,7 +263,7 @@ class ControlLoop:
                 written = True
                 summary.goals_written += 1
             except ServoAlarm as exc:
-                return self._fault(exc, t, result)
+                return self._fault(alarm_alone(exc), t, result)
             except BusError as exc:
                 summary.bus_errors += 1
                 self._last_error = exc
@@ -358,7 +366,7 @@ class ControlLoop:
         result: GateResult | None = None,
         notices: tuple[str, ...] = (),
     ) -> Cycle:
-        _enter_safe_state(self.limb, self.config, self.summary, cause)
+        _enter_safe_state(self.limb, self.config, self.summary, cause, self._torque_seen)
         self.summary.dropouts = list(self.health.dropouts)
         return Cycle(
             index=self.summary.cycles,
@@ -435,24 +443,33 @@ def _servo_error(fault: ServoFault) -> BusError:
 
 
 def _enter_safe_state(
-    limb: Limb, config: LoopConfig, summary: TeleopSummary, cause: BusError
+    limb: Limb,
+    config: LoopConfig,
+    summary: TeleopSummary,
+    cause: BusError,
+    torque_seen: dict[int, bool],
 ) -> None:
+    """Apply ``config.safe_state`` and say what it left; ``torque_seen`` is each servo's Torque
+    Enable as its latest read reported it (to tell torque switched off from torque already
+    off)."""
     named = cause.servo_id is not None and not str(cause).startswith(f"servo {cause.servo_id}")
     where = f"servo {cause.servo_id}: " if named else ""
     summary.fault = f"{where}{cause}"
     summary.ended_by = "fault"
     summary.exit_code = 3
+    names = dict(zip(limb.ids, ("pan", "tilt"), strict=True))
     if config.safe_state is SafeState.TORQUE_OFF:
         try:
             limb.set_torque(False)
-            summary.fault += " — torque switched off"
+            reported = {name: torque_seen.get(i) for i, name in names.items()}
+            summary.fault += " — " + switched_off(reported)
         except BusError as exc:
             summary.fault += f" — could not switch torque off ({exc}); cut the servo power"
     else:
-        summary.fault += " — " + _hold_state(limb)
+        summary.fault += " — " + _hold_state(limb, isinstance(cause, ServoAlarm))
 
 
-def _hold_state(limb: Limb) -> str:
+def _hold_state(limb: Limb, after_alarm: bool) -> str:
     """What HOLD really left: torque as the servos report it (an alarm may have cut it)."""
     try:
         torque = limb.torque_enabled()
@@ -462,12 +479,4 @@ def _hold_state(limb: Limb) -> str:
             "gate gave it unless its firmware shut it down; cut the servo power if the limb "
             "must not move"
         )
-    if all(torque):
-        return "holding the last safe pose (torque on)"
-    off = [name for name, on in zip(("pan", "tilt"), torque, strict=True) if not on]
-    on = [name for name, on in zip(("pan", "tilt"), torque, strict=True) if on]
-    held = f"; {' and '.join(on)} holding the last safe pose (torque on)" if on else ""
-    return (
-        f"{' and '.join(off)} torque off as the servo reports it (after an alarm: fix the "
-        f"cause, then `limbctl reboot`){held}"
-    )
+    return held_torque(dict(zip(("pan", "tilt"), torque, strict=True)), after_alarm)

@@ -4,7 +4,7 @@ real SDK and the simulator, injected while the loop runs.
 - torque switched off under a running teleop (one broadcast Torque Enable = 0, what a brown-out
   reset leaves) and a servo that browns out and restarts: noticed, named, safe state, exit 3;
 - a servo that drops out briefly: named while it is away, reported with the dropout's length;
-- an alarm message says one thing about torque.
+- an alarm message says each servo's torque once, as the safe state left it.
 
 Detection times are measured by ``benchmarks/bench_faults.py`` (docs/bench_faults.md); the
 bounds here are generous, for a loaded machine.
@@ -58,7 +58,10 @@ def test_torque_switched_off_under_teleop_is_noticed(tmp_path, safe_state):
     if safe_state is SafeState.HOLD:
         assert "pan and tilt torque off as the servo reports it" in summary.fault
     else:
-        assert "torque switched off" in summary.fault
+        # the servos had already lost it: torque-off says so, not that it switched it off
+        assert summary.fault.endswith(
+            "— pan and tilt torque was already off (as the servos reported it); it stays off"
+        )
     assert_goals_safe(
         goal_log_poses(log), loop.gate.envelope, LIMITS, loop.gate.produced_ticks(rig)
     )
@@ -109,15 +112,39 @@ def test_a_brief_dropout_is_named_and_its_length_reported(tmp_path):
     )
 
 
-def test_voltage_alarm_says_torque_stays_on_and_nothing_else(tmp_path):
+@pytest.mark.parametrize("safe_state", [SafeState.HOLD, SafeState.TORQUE_OFF])
+@pytest.mark.parametrize("alarm", ["voltage", "overheating"])
+def test_an_alarm_message_says_each_servos_torque_once(alarm, safe_state):
     with live_rig() as (sim, rig):
-        config = LoopConfig(rate_hz=RATE, duration_s=60.0)
+        config = LoopConfig(rate_hz=RATE, duration_s=60.0, safe_state=safe_state)
         with LoopThread(rig, config, sweep_lines(20000)) as loop:
             loop.cycles.wait_cycles(20)
-            sim.set_voltage(1, 5.0)
+            if alarm == "voltage":
+                sim.set_voltage(1, 5.0)  # not in the Shutdown mask: torque stays on
+            else:
+                sim.set_temperature(2, 95.0)  # shuts servo 2 down: its torque goes off
             loop.join(timeout_s=30.0)
         summary = loop.summary
-    assert summary.exit_code == 3 and "servo 1: input voltage" in summary.fault
-    assert "keeps torque on" in summary.fault
-    assert "holding the last safe pose (torque on)" in summary.fault
-    assert "torque off" not in summary.fault, summary.fault
+        truth = sim.truth()
+    fault = summary.fault
+    assert summary.exit_code == 3, fault
+    assert ("servo 1: input voltage" if alarm == "voltage" else "servo 2: overheating") in fault
+    assert "`limbctl reboot`" in fault and "ServoBus" not in fault
+    alarm_part, state = fault.split(" — ")
+    assert "torque" not in alarm_part, "the alarm part must leave torque to the safe state"
+    expected = {
+        ("voltage", SafeState.HOLD): "holding the last safe pose (torque on)",
+        ("voltage", SafeState.TORQUE_OFF): "torque switched off",
+        ("overheating", SafeState.HOLD): (
+            "tilt torque off as the servo reports it; pan holding the last safe pose (torque on)"
+        ),
+        ("overheating", SafeState.TORQUE_OFF): (
+            "torque switched off on pan; tilt torque was already off (as the servo reported it)"
+        ),
+    }
+    assert state == expected[alarm, safe_state]
+    torque = {sid: servo["torque_on"] for sid, servo in truth["servos"].items()}
+    if safe_state is SafeState.TORQUE_OFF:
+        assert torque == {1: False, 2: False}
+    else:
+        assert torque == {1: True, 2: alarm == "voltage"}
