@@ -73,8 +73,8 @@ class TrackingRig(Rig):
 
     worst_error_deg = 0.0
 
-    def read_cycle(self, attempts: int = 1):
-        read = super().read_cycle(attempts)
+    def read_cycle(self, attempts: int = 1, ids=None):
+        read = super().read_cycle(attempts, ids)
         for report in read.reports.values():
             error = abs(report.present - report.goal) * DEG_PER_TICK
             self.worst_error_deg = max(self.worst_error_deg, error)

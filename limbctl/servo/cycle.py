@@ -7,12 +7,15 @@ onto Indirect Data 1..10 lets one (Fast) Sync Read of 10 bytes per servo carry a
 (:func:`limbctl.servo.setup.configure_servos`) writes the map; a servo that restarts (brown-out,
 reboot) loses it with the rest of its RAM: its Indirect Data then read 0, so Torque Enable reads
 0 and the restart is noticed as torque loss.
+
+While a servo is silent, :func:`read_around_silent` reads the others and probes the silent ones
+with one try each, so a missing servo costs the loop a reply timeout per probe, not per cycle.
 """
 
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 from limbctl.errors import BusTimeout, ConfigError, CorruptReply
@@ -87,24 +90,78 @@ class CycleRead:
     Attributes
     ----------
     reports : dict
-        Servo id -> :class:`ServoReport` (every servo when the read succeeded, else empty).
+        Servo id -> :class:`ServoReport` of each servo that answered (every servo when the read
+        succeeded; none when one sync read failed).
     silent : tuple of int
-        Servos that did not answer (the first one the reply names; more may be silent).
+        Servos that did not answer (a failed sync read names the first one its reply stops at;
+        more may be silent).
     problem : str
-        Why the read failed ('' when it succeeded).
+        Why the read is incomplete ('' when every servo answered).
     duration_s : float
         How long the read took (s).
+    unread : tuple of int
+        Silent servos not asked this cycle (waiting for their next probe).
     """
 
     reports: dict[int, ServoReport]
     silent: tuple[int, ...] = ()
     problem: str = ""
     duration_s: float = 0.0
+    unread: tuple[int, ...] = ()
 
     @property
     def ok(self) -> bool:
         """True when every servo answered."""
         return not self.problem
+
+
+#: A cycle read of some servos: ``read(attempts, ids)`` (``Rig.read_cycle``).
+ReadCycle = Callable[[int, Sequence[int]], CycleRead]
+
+
+def read_around_silent(
+    read: ReadCycle,
+    ids: Sequence[int],
+    silent: Sequence[int],
+    probe: Sequence[int],
+    attempts: int,
+) -> CycleRead:
+    """One cycle's read while servos are silent: the others, and a probe of some silent ones.
+
+    The servos in ``ids`` that are not ``silent`` are read as usual (``attempts`` tries); each
+    servo in ``probe`` (a subset of ``silent``) is asked once, alone, with ONE try, so a servo
+    that is still gone costs one reply timeout and does not cut the others' reply short. The
+    silent servos not probed are ``unread``. A probed servo that gives no good answer is silent.
+
+    Returns
+    -------
+    CycleRead
+        Every report that came back; ``ok`` only if every servo answered.
+    """
+    parts = []
+    answering = [i for i in ids if i not in silent]
+    if answering:
+        parts.append(read(attempts, answering))
+    probes = [read(1, [servo_id]) for servo_id in probe]
+    parts += probes
+    reports: dict[int, ServoReport] = {}
+    for part in parts:
+        reports.update(part.reports)
+    named = [i for part in parts[: len(parts) - len(probes)] for i in part.silent]
+    still = named + [i for i in probe if i not in reports and i not in named]
+    unread = tuple(i for i in silent if i not in probe)
+    problems = [part.problem for part in parts if part.problem and not part.silent]
+    if still:
+        problems.insert(0, f"servo {', '.join(map(str, still))} did not answer the cycle's read")
+    if unread:
+        problems.append(f"servo {', '.join(map(str, unread))} silent, not read until its probe")
+    return CycleRead(
+        reports,
+        tuple(still),
+        "; ".join(problems),
+        sum(part.duration_s for part in parts),
+        unread,
+    )
 
 
 class CycleReads:

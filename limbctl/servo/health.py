@@ -5,8 +5,11 @@ say and whether to stop:
 
 - a servo that misses ``named_after_misses`` reads in a row is named (a notice), and again with
   how long it was gone when it answers (a dropout, timed from its first miss); misses below
-  that count are counted by the loop as lost cycles only; silent for ``lost_after_s``: lost
-  (a fault);
+  that count are counted by the loop as lost cycles only. While it is silent the loop reads the
+  other servos and probes it once every ``probe_interval_s`` (:meth:`HealthMonitor.probes_due`,
+  :func:`limbctl.servo.cycle.read_around_silent`); a probe that finds it silent for
+  ``lost_after_s``: lost (a fault). A dropout still going on when the session ends is reported
+  with its length so far (:meth:`HealthMonitor.ongoing`);
 - Torque Enable reading 0 on a servo the loop drives (switched off, or the servo restarted after
   a brown-out, which also clears the indirect map so every mapped byte reads 0): a fault;
 - a hardware error (alarm) in Hardware Error Status: a fault naming every servo in alarm (the
@@ -19,12 +22,13 @@ say and whether to stop:
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 from limbctl.errors import ConfigError
 from limbctl.servo.alarms import alarm_message
 from limbctl.servo.control_table import TICKS_PER_REV
-from limbctl.servo.cycle import CycleRead
+from limbctl.servo.cycle import CycleRead, ReadCycle, ServoReport, read_around_silent
 
 #: Degrees per encoder tick.
 DEG_PER_TICK = 360.0 / TICKS_PER_REV
@@ -40,6 +44,8 @@ class HealthLimits:
         A servo silent this long is lost (s); the loop holds meanwhile.
     named_after_misses : int
         Reads in a row a servo must miss to be named as silent.
+    probe_interval_s : float
+        How often a silent servo is asked (one try) whether it is back (s).
     max_tracking_error_deg : float
         Largest |present - goal| of a servo that follows (deg).
     tracking_grace_s : float
@@ -55,6 +61,9 @@ class HealthLimits:
     # the loop's read already had two tries: naming at the first failed read keeps naming within
     # 100 ms even at the FTDI default latency timer (2 tries x ~35 ms)
     named_after_misses: int = 1
+    # a dropout's length is known to within this, and a probe costs one reply timeout per
+    # interval (~6 ms of every 50 on the simulator's pty, ~4 ms on a U2D2 at a 1 ms latency timer)
+    probe_interval_s: float = 0.05
     # a healthy servo lags its goal by at most 3.6 deg at the 120 deg/s slew limit (measured,
     # docs/bench_faults.md); a torque-less or blocked limb is off by tens of degrees
     max_tracking_error_deg: float = 15.0
@@ -72,6 +81,7 @@ class HealthLimits:
         for name in (
             "lost_after_s",
             "named_after_misses",
+            "probe_interval_s",
             "max_tracking_error_deg",
             "tracking_grace_s",
             "progress_window_s",
@@ -93,13 +103,19 @@ class ServoFault:
 
 @dataclass(frozen=True)
 class Dropout:
-    """A servo that was silent and answered again."""
+    """A servo that was silent and answered again (or still had not when the session ended)."""
 
     servo_id: int
     started_s: float
     duration_s: float
+    ongoing: bool = False
 
     def describe(self) -> str:
+        if self.ongoing:
+            return (
+                f"servo {self.servo_id} still silent when the session ended: "
+                f"{self.duration_s:.3f} s so far"
+            )
         return f"servo {self.servo_id} answered again after {self.duration_s:.3f} s silent"
 
 
@@ -118,30 +134,68 @@ class HealthMonitor:
     limits: HealthLimits = field(default_factory=HealthLimits)
     silent_since: dict[int, float] = field(default_factory=dict)
     misses: dict[int, int] = field(default_factory=dict)
+    # servo id -> when it was last asked (a failed read or a probe), while silent
+    asked_at: dict[int, float] = field(default_factory=dict)
     # servo id -> [since when it lags without making way (s), window start (s), present then]
     lagging_since: dict[int, list[float]] = field(default_factory=dict)
     dropouts: list[Dropout] = field(default_factory=list)
+    probes: int = 0
+
+    def silent(self) -> tuple[int, ...]:
+        """The servos silent since their last read or probe."""
+        return tuple(self.silent_since)
+
+    def probes_due(self, now: float) -> tuple[int, ...]:
+        """The silent servos to probe this cycle: each once every ``probe_interval_s``, and any
+        whose silence reached ``lost_after_s`` (it is lost only if that probe fails too)."""
+        due = tuple(
+            servo_id
+            for servo_id, since in self.silent_since.items()
+            if now - self.asked_at[servo_id] >= self.limits.probe_interval_s
+            or now - since >= self.limits.lost_after_s
+        )
+        self.probes += len(due)
+        return due
+
+    def read(self, read: ReadCycle, ids: Sequence[int], now: float, attempts: int) -> CycleRead:
+        """This cycle's read through ``read`` (``Rig.read_cycle``) of the servos ``ids``: all of
+        them, or, while some are silent, the others and the silent ones whose probe is due."""
+        silent = self.silent()
+        if not silent:
+            return read(attempts, ids)
+        return read_around_silent(read, ids, silent, self.probes_due(now), attempts)
+
+    def ongoing(self, now: float) -> list[Dropout]:
+        """The dropouts still going on at ``now``: each named silent servo, its length so far."""
+        return [
+            Dropout(servo_id, since, now - since, ongoing=True)
+            for servo_id, since in self.silent_since.items()
+            if self.misses[servo_id] >= self.limits.named_after_misses
+        ]
 
     def observe(self, read: CycleRead, now: float) -> Health:
         """The verdict on ``read``, taken at time ``now`` (s)."""
         notices: list[str] = []
         for servo_id in read.silent:
             self.silent_since.setdefault(servo_id, now)
+            self.asked_at[servo_id] = now
             self.misses[servo_id] = self.misses.get(servo_id, 0) + 1
             if self.misses[servo_id] == self.limits.named_after_misses:
                 notices.append(f"servo {servo_id} stopped answering; holding its last goal")
         for servo_id in list(self.silent_since):
             if servo_id in read.reports:
                 started = self.silent_since.pop(servo_id)
+                del self.asked_at[servo_id]
                 if self.misses.pop(servo_id) >= self.limits.named_after_misses:
                     dropout = Dropout(servo_id, started, now - started)
                     self.dropouts.append(dropout)
                     notices.append(dropout.describe())
-        fault = self._lost(now) or self._judge(read, now)
+        fault = self._lost(read, now) or self._judge(read, now)
         return Health(tuple(notices), fault)
 
-    def _lost(self, now: float) -> ServoFault | None:
-        for servo_id, since in self.silent_since.items():
+    def _lost(self, read: CycleRead, now: float) -> ServoFault | None:
+        for servo_id in read.silent:
+            since = self.silent_since[servo_id]
             if now - since >= self.limits.lost_after_s:
                 return ServoFault(
                     servo_id,
@@ -168,24 +222,33 @@ class HealthMonitor:
                 )
         for servo_id, report in read.reports.items():
             error_deg = abs(report.present - report.goal) * DEG_PER_TICK
-            if error_deg <= self.limits.max_tracking_error_deg:
-                self.lagging_since.pop(servo_id, None)
-                continue
-            lag = self.lagging_since.setdefault(servo_id, [now, now, report.present])
-            since, window_start, present_then = lag
-            if now - window_start >= self.limits.progress_window_s:
-                # progress = how far it moved over the window, signed toward its goal now
-                toward = 1 if report.goal > report.present else -1
-                progress_deg = (report.present - present_then) * toward * DEG_PER_TICK
-                if progress_deg >= self.limits.min_progress_deg:
-                    since = now  # it is making way: following, judged anew
-                lag[:] = [since, now, report.present]
-            if now - since >= self.limits.tracking_grace_s:
-                return ServoFault(
-                    servo_id,
-                    "not following",
-                    f"servo {servo_id} does not follow: {error_deg:.1f} deg from its goal for "
-                    f"{now - since:.2f} s (limit {self.limits.max_tracking_error_deg:g} deg): "
-                    f"the limb is blocked or overloaded: free it, check the load",
-                )
+            fault = self._lagging(servo_id, report, error_deg, now)
+            if fault is not None:
+                return fault
         return None
+
+    def _lagging(
+        self, servo_id: int, report: ServoReport, error_deg: float, now: float
+    ) -> ServoFault | None:
+        """Far from its goal for ``tracking_grace_s`` without making way toward it."""
+        if error_deg <= self.limits.max_tracking_error_deg:
+            self.lagging_since.pop(servo_id, None)
+            return None
+        lag = self.lagging_since.setdefault(servo_id, [now, now, report.present])
+        since, window_start, present_then = lag
+        if now - window_start >= self.limits.progress_window_s:
+            # progress = how far it moved over the window, signed toward its goal now
+            toward = 1 if report.goal > report.present else -1
+            progress_deg = (report.present - present_then) * toward * DEG_PER_TICK
+            if progress_deg >= self.limits.min_progress_deg:
+                since = now  # it is making way: following, judged anew
+            lag[:] = [since, now, report.present]
+        if now - since < self.limits.tracking_grace_s:
+            return None
+        return ServoFault(
+            servo_id,
+            "not following",
+            f"servo {servo_id} does not follow: {error_deg:.1f} deg from its goal for "
+            f"{now - since:.2f} s (limit {self.limits.max_tracking_error_deg:g} deg): "
+            f"the limb is blocked or overloaded: free it, check the load",
+        )

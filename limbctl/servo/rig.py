@@ -10,6 +10,7 @@ moves the limb on its own: the only way a goal leaves it is :meth:`Rig.write_goa
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -145,9 +146,10 @@ class Rig:
         """The servo ids ``(pan, tilt)``."""
         return self.profile.ids
 
-    def read_cycle(self, attempts: int = 1) -> CycleRead:
-        """Both servos' position, goal, torque and alarm in ONE sync read (``attempts`` tries)."""
-        return self._bus().read_cycle(self.profile.ids, attempts)
+    def read_cycle(self, attempts: int = 1, ids: Sequence[int] | None = None) -> CycleRead:
+        """The servos' (``ids``, default both) position, goal, torque, alarm and PWM in ONE sync
+        read (``attempts`` tries)."""
+        return self._bus().read_cycle(self.profile.ids if ids is None else ids, attempts)
 
     def pose_of(self, read: CycleRead) -> tuple[float, float]:
         """Present joint angles ``(pan, tilt)`` in rad from a successful cycle read."""

@@ -12,13 +12,15 @@ Each cycle (default 200 Hz):
 
 A silent source holds the last safe pose. A cycle whose read fails writes nothing (a servo
 that is not answering would miss the sync write and leave a pose the gate never produced).
-A servo that stops answering is named on the first cycle it misses and its dropout is reported
-with its length when it answers again; the loop ends in the configured safe state (hold: torque
-stays on at the last goal; torque-off) with a message naming the servo and the cause when a
-servo is silent for ``health.lost_after_s``, reports torque off or an alarm, or does not follow
-its goal, and after ``max_failed_cycles`` consecutive cycles whose read failed without naming a
-servo (corrupt or late replies). The message states each servo's torque once, as the safe
-state left it.
+A servo that stops answering is named on the first cycle it misses; while it is silent each
+cycle reads the others (their torque and alarms are still judged) and probes it with one try
+every ``health.probe_interval_s``, so the loop keeps its rate, and its dropout is reported with
+its length when a probe finds it back (or, still silent at a clean end, with its length so far).
+The loop ends in the configured safe state (hold: torque stays on at the last goal;
+torque-off) with a message naming the servo and the cause when a servo is silent for
+``health.lost_after_s``, reports torque off or an alarm, or does not follow its goal, and after
+``max_failed_cycles`` consecutive cycles whose read failed without naming a servo (corrupt or
+late replies). The message states each servo's torque once, as the safe state left it.
 
 After ruckig, every cycle is a value: :meth:`ControlLoop.step` returns a
 :class:`~limbctl.teleop.cycle.Cycle` (running, finished or fault, with the gate's result, the
@@ -33,7 +35,7 @@ import math
 import threading
 import time
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import IO, Protocol
 
@@ -68,7 +70,7 @@ class Limb(Protocol):
 
     def read_pose(self) -> tuple[float, float]: ...
 
-    def read_cycle(self, attempts: int = 1) -> CycleRead: ...
+    def read_cycle(self, attempts: int = 1, ids: Sequence[int] | None = None) -> CycleRead: ...
 
     def pose_of(self, read: CycleRead) -> tuple[float, float]: ...
 
@@ -175,6 +177,7 @@ class ControlLoop:
         self._failed_in_a_row = 0
         # servo id -> Torque Enable as its latest read reported it (for the safe state's words)
         self._torque_seen: dict[int, bool] = {}
+        self._dropouts_noted = False
         self._pending: deque = deque()
         self._target_q: np.ndarray | None = None
         self._target_deg: tuple[float, float] | None = None
@@ -217,11 +220,11 @@ class ControlLoop:
 
         # 1. present pose and the servos' health; a failed read means a servo may not be
         # listening: this cycle holds (a sync write that one servo misses would leave a pose the
-        # gate never produced)
+        # gate never produced); a silent servo is probed now and then, not waited for each cycle
         present: tuple[float, float] | None = None
         silent = False
         try:
-            read = self.limb.read_cycle(self.config.read_attempts)
+            read = self.health.read(self.limb.read_cycle, self.limb.ids, t, config.read_attempts)
         except BusError as exc:  # the port itself failed
             read = CycleRead({}, (), str(exc))
             self._last_error = exc
@@ -234,9 +237,10 @@ class ControlLoop:
             present = self.limb.pose_of(read)
         else:
             summary.bus_errors += 1
-            silent = bool(read.silent)
+            missing = read.silent + read.unread
+            silent = bool(missing)
             if self._last_error is None or str(self._last_error) != read.problem:
-                self._last_error = BusError(read.problem, read.silent[0] if silent else None)
+                self._last_error = BusError(read.problem, missing[0] if silent else None)
 
         # 2. next valid command
         self._take_command(cycle_start)
@@ -317,17 +321,27 @@ class ControlLoop:
             self._next_tick = time.perf_counter()
 
     def finish(self) -> TeleopSummary:
-        """The session's summary: its elapsed time, dropouts and refusal reasons set; a
-        session whose every line was refused ends with exit code 2 (unless a fault set 3)."""
+        """The session's summary: its elapsed time, dropouts (one still going on with its
+        length so far) and refusal reasons set; a session whose every line was refused ends with
+        exit code 2 (unless a fault set 3)."""
         summary = self.summary
-        summary.dropouts = list(self.health.dropouts)
         if self._started_at:
             summary.elapsed_s = time.perf_counter() - self._started_at
+        self._note_dropouts(summary.elapsed_s)
         summary.rejected = self.source.stats.rejected
         summary.refusal_lines = self.source.stats.refusals.lines()
         if summary.all_refused and summary.exit_code == 0:
             summary.exit_code = 2
         return summary
+
+    def _note_dropouts(self, t: float) -> None:
+        """The summary's dropouts: those that ended, then those still going on at ``t``."""
+        if self._dropouts_noted:
+            return
+        self._dropouts_noted = True
+        ongoing = self.health.ongoing(t)
+        self.summary.dropouts = list(self.health.dropouts) + ongoing
+        self.summary.notices.extend(f"{t:.3f} s: {dropout.describe()}" for dropout in ongoing)
 
     def _take_command(self, now: float) -> None:
         """Realtime sources (UDP, keyboard, leader) keep only the newest command; scripted
@@ -367,7 +381,7 @@ class ControlLoop:
         notices: tuple[str, ...] = (),
     ) -> Cycle:
         _enter_safe_state(self.limb, self.config, self.summary, cause, self._torque_seen)
-        self.summary.dropouts = list(self.health.dropouts)
+        self._note_dropouts(t)
         return Cycle(
             index=self.summary.cycles,
             t=t,

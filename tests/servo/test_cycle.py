@@ -2,7 +2,8 @@
 
 Set-up maps Present/Goal Position, Torque Enable and Hardware Error Status onto Indirect Data;
 one (fast) sync read then shows each fault the loop must notice: a silent servo (named, one try,
-no retries), torque switched off (one broadcast write), an alarm, a restart (map lost).
+no retries), torque switched off (one broadcast write), an alarm, a restart (map lost). While a
+servo is silent the others are read on their own and it is probed with one try.
 """
 
 from __future__ import annotations
@@ -13,7 +14,13 @@ from dynamixel_sdk import BROADCAST_ID
 from calib import default_sim_profile
 from limbctl.servo.bus import ServoBus
 from limbctl.servo.control_table import Register
-from limbctl.servo.cycle import CYCLE_BYTES, INDIRECT_MAP_BLOCK, ServoReport, indirect_map
+from limbctl.servo.cycle import (
+    CYCLE_BYTES,
+    INDIRECT_MAP_BLOCK,
+    ServoReport,
+    indirect_map,
+    read_around_silent,
+)
 from limbctl.servo.rig import Rig
 
 PROFILE = default_sim_profile()
@@ -88,6 +95,29 @@ def test_an_alarm_is_in_the_report_with_its_torque(sim, rig):
         read = read_ok(rig)
     assert read.reports[1].hardware_error == ("input voltage",) and read.reports[1].torque_on
     assert read.reports[2].hardware_error == ("overheating",) and not read.reports[2].torque_on
+
+
+def test_while_a_servo_is_silent_the_others_are_read_and_it_is_probed_once(sim, rig):
+    sim.vanish(2, 5.0)
+    retries = rig.bus.stats.retries
+    read = read_around_silent(rig.read_cycle, rig.ids, silent=(2,), probe=(), attempts=2)
+    assert set(read.reports) == {1} and read.unread == (2,) and read.silent == ()
+    assert not read.ok and "servo 2 silent, not read until its probe" in read.problem
+    probed = read_around_silent(rig.read_cycle, rig.ids, silent=(2,), probe=(2,), attempts=2)
+    assert set(probed.reports) == {1} and probed.silent == (2,) and probed.unread == ()
+    assert "servo 2 did not answer" in probed.problem
+    assert rig.bus.stats.retries == retries, "the probe retried"
+    # the other servo's read is one short transfer; the probe one reply timeout (~35 ms here)
+    assert read.duration_s < probed.duration_s < 0.5
+
+
+def test_a_probe_finds_the_servo_back_and_the_read_is_whole(sim, rig):
+    sim.vanish(2, 0.05)
+    for _ in range(100):  # each probe waits one reply timeout: 100 of them outlast 0.05 s
+        read = read_around_silent(rig.read_cycle, rig.ids, silent=(2,), probe=(2,), attempts=1)
+        if read.ok:
+            break
+    assert set(read.reports) == {1, 2} and read.silent == read.unread == () and read.problem == ""
 
 
 def test_a_rebooted_servo_loses_the_map_and_reads_torque_off(rig):

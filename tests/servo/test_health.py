@@ -116,3 +116,58 @@ def test_a_servo_pushed_away_from_its_goal_does_not_follow():
 def test_limits_must_be_positive():
     with pytest.raises(ConfigError, match="lost_after_s"):
         HealthLimits(lost_after_s=0.0)
+
+
+def unread(servo_id: int) -> CycleRead:
+    """A read while ``servo_id`` is silent and not probed: the other servo answered."""
+    other = 2 if servo_id == 1 else 1
+    return CycleRead({other: HEALTHY}, (), f"servo {servo_id} silent", 0.0, (servo_id,))
+
+
+def test_a_silent_servo_is_probed_once_per_interval_and_lost_only_by_a_failed_probe():
+    monitor = HealthMonitor(HealthLimits(probe_interval_s=0.05, lost_after_s=0.5))
+    assert monitor.probes_due(0.0) == ()
+    monitor.observe(silent(2), 0.0)  # named at its first failed read
+    assert monitor.silent() == (2,)
+    due = []
+    for k in range(1, 110):  # 5 ms cycles
+        now = 0.005 * k
+        probe = monitor.probes_due(now)
+        due += [now] * len(probe)
+        verdict = monitor.observe(silent(2) if probe else unread(2), now)
+        if verdict.fault is not None:
+            break
+    # one probe per 50 ms, and the loss is declared by the probe at 0.5 s
+    # one probe per 50 ms (on 5 ms cycles: 50 or 55 ms apart), and one more when the silence
+    # reaches lost_after_s: the loss is declared by that probe failing
+    gaps = [b - a for a, b in zip([0.0, *due], due[:-1], strict=False)]
+    assert min(gaps) >= 0.05 - 1e-9 and max(gaps) <= 0.055 + 1e-9
+    assert len(due) == monitor.probes <= 11 and due[-1] == pytest.approx(0.5)
+    assert verdict.fault.kind == "lost" and now == pytest.approx(0.5)
+
+
+def test_cycles_that_do_not_ask_a_silent_servo_do_not_count_as_misses():
+    monitor = HealthMonitor(HealthLimits(named_after_misses=2))
+    assert monitor.observe(silent(2), 0.0).notices == ()
+    for k in range(1, 9):
+        assert monitor.observe(unread(2), 0.005 * k).notices == ()  # not asked: no miss
+    assert monitor.observe(silent(2), 0.05).notices == (
+        "servo 2 stopped answering; holding its last goal",
+    )
+
+
+def test_a_probe_that_answers_ends_the_dropout_with_its_length():
+    monitor = HealthMonitor()
+    monitor.observe(silent(2), 1.0)
+    monitor.observe(unread(2), 1.1)
+    back = monitor.observe(reads(), 1.25)
+    assert back.notices == ("servo 2 answered again after 0.250 s silent",)
+    assert monitor.silent() == () and monitor.ongoing(2.0) == []
+
+
+def test_a_dropout_still_going_on_is_reported_with_its_length_so_far():
+    monitor = HealthMonitor()
+    monitor.observe(silent(1), 1.0)
+    (dropout,) = monitor.ongoing(1.3)
+    assert (dropout.servo_id, dropout.duration_s, dropout.ongoing) == (1, pytest.approx(0.3), True)
+    assert dropout.describe() == "servo 1 still silent when the session ended: 0.300 s so far"
