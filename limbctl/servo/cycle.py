@@ -1,12 +1,13 @@
 """What each servo reports in the control cycle's ONE sync read, through indirect addresses.
 
-Present Position, Goal Position, Torque Enable and Hardware Error Status live far apart in the
-control table (132, 116, 64, 70). The X series' Indirect Address n (168 + 2 (n - 1)) names the
-RAM address that Indirect Data n (224 + (n - 1)) stands for, so mapping those registers' bytes
-onto Indirect Data 1..10 lets one (Fast) Sync Read of 10 bytes per servo carry all four. Set-up
-(:func:`limbctl.servo.setup.configure_servos`) writes the map; a servo that restarts (brown-out,
-reboot) loses it with the rest of its RAM: its Indirect Data then read 0, so Torque Enable reads
-0 and the restart is noticed as torque loss.
+Present Position, Goal Position, Torque Enable, Hardware Error Status and Present PWM live far
+apart in the control table (132, 116, 64, 70, 124). The X series' Indirect Address n
+(168 + 2 (n - 1)) names the RAM address that Indirect Data n (224 + (n - 1)) stands for, so
+mapping those registers' bytes onto Indirect Data 1..12 lets one (Fast) Sync Read of 12 bytes
+per servo carry all five. Set-up (:func:`limbctl.servo.setup.configure_servos`) writes the map
+and reads each servo's PWM Limit (EEPROM, which no indirect address can reach); a servo that
+restarts (brown-out, reboot) loses the map with the rest of its RAM: its Indirect Data then read
+0, so Torque Enable reads 0 and the restart is noticed as torque loss.
 
 While a servo is silent, :func:`read_around_silent` reads the others and probes the silent ones
 with one try each, so a missing servo costs the loop a reply timeout per probe, not per cycle.
@@ -15,8 +16,9 @@ with one try each, so a missing servo costs the loop a reply timeout per probe, 
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
+from types import MappingProxyType
 
 from limbctl.errors import BusTimeout, ConfigError, CorruptReply
 from limbctl.servo import transfers
@@ -33,8 +35,9 @@ CYCLE_REGISTERS = (
     Register.GOAL_POSITION,
     Register.TORQUE_ENABLE,
     Register.HARDWARE_ERROR_STATUS,
+    Register.PRESENT_PWM,
 )
-#: Bytes each servo returns per cycle (4 + 4 + 1 + 1).
+#: Bytes each servo returns per cycle (4 + 4 + 1 + 1 + 2).
 CYCLE_BYTES = sum(register.size for register in CYCLE_REGISTERS)
 #: What the cycle reads: Indirect Data 1 .. CYCLE_BYTES.
 CYCLE_BLOCK = Block(Register.INDIRECT_DATA_1, CYCLE_BYTES)
@@ -42,6 +45,9 @@ CYCLE_BLOCK = Block(Register.INDIRECT_DATA_1, CYCLE_BYTES)
 INDIRECT_MAP_BLOCK = Block(Register.INDIRECT_ADDRESS_1, 2 * CYCLE_BYTES)
 
 assert CYCLE_BYTES <= INDIRECT_SLOTS
+
+#: PWM Limit (36) as the XL430-W250 and XM430-W350 leave the factory: Present PWM's full scale.
+FACTORY_PWM_LIMIT = 885
 
 
 def indirect_map() -> bytes:
@@ -64,23 +70,30 @@ class ServoReport:
         Torque Enable.
     hardware_error : tuple of str
         Decoded Hardware Error Status (empty = healthy).
+    pwm : int
+        Present PWM: the drive the position controller applies, signed, in units of the PWM
+        Limit's scale (at most ``pwm_limit`` in magnitude).
+    pwm_limit : int
+        The servo's PWM Limit (read at set-up): where its drive saturates.
     """
 
     present: int
     goal: int
     torque_on: bool
     hardware_error: tuple[str, ...]
+    pwm: int = 0
+    pwm_limit: int = FACTORY_PWM_LIMIT
 
     @classmethod
-    def decode(cls, data: bytes) -> ServoReport:
+    def decode(cls, data: bytes, pwm_limit: int = FACTORY_PWM_LIMIT) -> ServoReport:
         """A report from the CYCLE_BYTES bytes of Indirect Data 1..N."""
         values = []
         offset = 0
         for register in CYCLE_REGISTERS:
             values.append(register.decode(data[offset : offset + register.size]))
             offset += register.size
-        present, goal, torque, error = values
-        return cls(present, goal, bool(torque), decode_hardware_error(error))
+        present, goal, torque, error, pwm = values
+        return cls(present, goal, bool(torque), decode_hardware_error(error), pwm, pwm_limit)
 
 
 @dataclass(frozen=True)
@@ -171,6 +184,13 @@ class CycleReads:
     lock and port, and nothing else of it.
     """
 
+    #: Each servo's PWM Limit as set-up read it (until then, the factory value).
+    pwm_limits: Mapping[int, int] = MappingProxyType({})
+
+    def note_pwm_limits(self, limits: Mapping[int, int]) -> None:
+        """Remember each servo's PWM Limit (EEPROM), the full scale of its Present PWM."""
+        self.pwm_limits = MappingProxyType(dict(limits))
+
     def read_block(self, block: Block, servo_id: int) -> bytes:
         """The raw bytes of ``block`` on one servo (e.g. its indirect address map)."""
         return self._transact(
@@ -218,5 +238,8 @@ class CycleReads:
                 return CycleRead({}, (), str(exc), time.monotonic() - start)
             # the reports carry Hardware Error Status: their alert bits are answered
             self._alerted.difference_update(raw)
-        reports = {i: ServoReport.decode(data) for i, data in raw.items()}
+        reports = {
+            i: ServoReport.decode(data, self.pwm_limits.get(i, FACTORY_PWM_LIMIT))
+            for i, data in raw.items()
+        }
         return CycleRead(reports, (), "", time.monotonic() - start)

@@ -14,10 +14,16 @@ say and whether to stop:
   a brown-out, which also clears the indirect map so every mapped byte reads 0): a fault;
 - a hardware error (alarm) in Hardware Error Status: a fault naming every servo in alarm (the
   loop's safe state then says each servo's torque);
-- a servo that does not follow: its present position further than ``max_tracking_error_deg``
-  from the goal it holds for longer than ``tracking_grace_s`` in which no ``progress_window_s``
-  saw it move ``min_progress_deg`` toward that goal (a servo chasing a goal that moves faster
-  than its profile allows, or turning round to follow one that reversed, is following): a fault.
+- a servo that does not follow, found two ways:
+
+  - blocked: its drive saturated (``|Present PWM| >= pwm_saturation x PWM Limit``) in every read
+    for ``blocked_window_s`` while more than ``blocked_error_deg`` from its goal and not closing
+    in on it by ``min_progress_deg``: pushed or jammed beyond what the motor can move;
+  - the backstop, for a servo that fails without saturating (a limp or slipping horn): its
+    present position further than ``max_tracking_error_deg`` from the goal it holds for longer
+    than ``tracking_grace_s`` in which no ``progress_window_s`` saw it move ``min_progress_deg``
+    toward that goal (a servo chasing a goal that moves faster than its profile allows, or
+    turning round to follow one that reversed, is following).
 """
 
 from __future__ import annotations
@@ -53,7 +59,14 @@ class HealthLimits:
     progress_window_s : float
         The span over which a lagging servo's progress toward its goal is measured (s).
     min_progress_deg : float
-        How far toward its goal a lagging servo must move in one window to be following.
+        How far toward its goal a lagging servo must move in one window to be following, and
+        how much closer a saturated one must get in ``blocked_window_s`` not to be blocked.
+    pwm_saturation : float
+        The fraction of its PWM Limit at which a servo's drive counts as saturated.
+    blocked_error_deg : float
+        How far from its goal a saturated servo must be to count as blocked (deg).
+    blocked_window_s : float
+        How long a servo must stay saturated and off its goal without closing in (s).
     """
 
     # the limb may be held blind this long: the time budget for noticing a fault (issue 13)
@@ -76,6 +89,15 @@ class HealthLimits:
     # 10 deg/s toward the goal: a servo at a twentieth of its profile velocity is following;
     # a blocked or limp one makes no way toward its goal, or moves away from it
     min_progress_deg: float = 1.0
+    # the position controller's drive is clipped at PWM Limit: a servo that cannot reach its
+    # goal winds up to it; healthy moves stay below 60 % (docs/bench_faults.md), 10 % is left
+    # for a real servo's noisy reading
+    pwm_saturation: float = 0.9
+    # above the 3.6 deg a healthy servo lags by, so a saturated but following servo is not blocked
+    blocked_error_deg: float = 5.0
+    # 30 reads at 200 Hz: a saturated start toward a far goal closes in within it; with the
+    # read and the safe state it leaves 0.3 s of the 0.5 s budget
+    blocked_window_s: float = 0.15
 
     def __post_init__(self) -> None:
         for name in (
@@ -86,9 +108,16 @@ class HealthLimits:
             "tracking_grace_s",
             "progress_window_s",
             "min_progress_deg",
+            "pwm_saturation",
+            "blocked_error_deg",
+            "blocked_window_s",
         ):
             if not getattr(self, name) > 0:
                 raise ConfigError(f"{name} must be > 0, got {getattr(self, name)!r}")
+        if self.pwm_saturation > 1.0:
+            raise ConfigError(
+                f"pwm_saturation is a fraction of PWM Limit, got {self.pwm_saturation}"
+            )
 
 
 @dataclass(frozen=True)
@@ -138,6 +167,8 @@ class HealthMonitor:
     asked_at: dict[int, float] = field(default_factory=dict)
     # servo id -> [since when it lags without making way (s), window start (s), present then]
     lagging_since: dict[int, list[float]] = field(default_factory=dict)
+    # servo id -> [since when it is saturated and off its goal (s), its error then (deg)]
+    saturated_since: dict[int, list[float]] = field(default_factory=dict)
     dropouts: list[Dropout] = field(default_factory=list)
     probes: int = 0
 
@@ -222,10 +253,37 @@ class HealthMonitor:
                 )
         for servo_id, report in read.reports.items():
             error_deg = abs(report.present - report.goal) * DEG_PER_TICK
-            fault = self._lagging(servo_id, report, error_deg, now)
+            fault = self._blocked(servo_id, report, error_deg, now) or self._lagging(
+                servo_id, report, error_deg, now
+            )
             if fault is not None:
                 return fault
         return None
+
+    def _blocked(
+        self, servo_id: int, report: ServoReport, error_deg: float, now: float
+    ) -> ServoFault | None:
+        """Saturated and off its goal for ``blocked_window_s`` without closing in: blocked."""
+        limits = self.limits
+        saturated = abs(report.pwm) >= limits.pwm_saturation * report.pwm_limit
+        if not (saturated and error_deg > limits.blocked_error_deg):
+            self.saturated_since.pop(servo_id, None)
+            return None
+        state = self.saturated_since.setdefault(servo_id, [now, error_deg])
+        since, error_then = state
+        if now - since < limits.blocked_window_s:
+            return None
+        # closing in = how much nearer its goal it got over the window
+        if error_then - error_deg >= limits.min_progress_deg:
+            state[:] = [now, error_deg]  # it is getting there: judged anew
+            return None
+        return ServoFault(
+            servo_id,
+            "not following",
+            f"servo {servo_id} does not follow (blocked): {error_deg:.1f} deg from its goal with "
+            f"its drive saturated (PWM {report.pwm} of {report.pwm_limit}) for {now - since:.2f} "
+            f"s, not closing in: the limb is blocked or overloaded: free it, check the load",
+        )
 
     def _lagging(
         self, servo_id: int, report: ServoReport, error_deg: float, now: float

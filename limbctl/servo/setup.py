@@ -29,7 +29,8 @@ def configure_servos(
     """Prepare every servo for position control. Turns torque OFF (EEPROM needs it).
 
     Also maps the control cycle's registers onto Indirect Data 1.. (see
-    :mod:`limbctl.servo.cycle`), so :meth:`ServoBus.read_cycle` works from here on.
+    :mod:`limbctl.servo.cycle`), so :meth:`ServoBus.read_cycle` works from here on, and reads
+    each servo's PWM Limit, the full scale of the Present PWM the cycle reports.
 
     Parameters
     ----------
@@ -52,6 +53,7 @@ def configure_servos(
                 f"position limits of servo {servo_id} must satisfy 0 <= min <= max <= "
                 f"{MAX_TICK}, got ({lo}, {hi})"
             )
+    pwm_limits: dict[int, int] = {}
     with bus.exclusive():
         bus.set_torque(False)
         for servo_id in bus.ids:
@@ -83,7 +85,7 @@ def configure_servos(
                         )
             bus.write(Register.PROFILE_ACCELERATION, servo_id, profile_acceleration)
             bus.write(Register.PROFILE_VELOCITY, servo_id, profile_velocity)
-            # the control cycle reads position, goal, torque and alarm through one block
+            # the control cycle reads position, goal, torque, alarm and PWM through one block
             bus.write_block(INDIRECT_MAP_BLOCK, servo_id, indirect_map())
             if bus.read_block(INDIRECT_MAP_BLOCK, servo_id) != indirect_map():
                 raise BusError(
@@ -91,3 +93,6 @@ def configure_servos(
                     f"(Indirect Address 1-{len(indirect_map()) // 2}): check its firmware",
                     servo_id,
                 )
+            # EEPROM, out of the indirect addresses' reach: read once, it changes only by hand
+            pwm_limits[servo_id] = bus.read(Register.PWM_LIMIT, servo_id)
+        bus.note_pwm_limits(pwm_limits)

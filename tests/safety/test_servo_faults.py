@@ -7,6 +7,9 @@ real SDK and the simulator, injected while the loop runs.
   every cycle, the silent one probed with one try at most every ``probe_interval_s``), the
   dropout reported with its length when it answers, or with its length so far when the session
   ends first;
+- a servo pushed beyond what its motor holds: its drive saturates and it is reported as blocked
+  before the firmware's own overload shutdown; a push the motor holds only with an overload
+  still ends in the firmware's alarm;
 - an alarm message says each servo's torque once, as the safe state left it.
 
 Detection times are measured by ``benchmarks/bench_faults.py`` (docs/bench_faults.md); the
@@ -23,7 +26,7 @@ from dynamixel_sdk import BROADCAST_ID, PacketHandler, PortHandler
 
 from firmware_sim import SimulatedBus
 from limbctl.servo.bus import ServoBus
-from limbctl.servo.control_table import Register
+from limbctl.servo.control_table import HardwareError, Register
 from limbctl.servo.health import HealthLimits
 from limbctl.servo.rig import Rig
 from limbctl.teleop.loop import LoopConfig, SafeState
@@ -74,6 +77,11 @@ def sim_rig(goal_log=None):
             rig.configure()
             rig.set_torque(True)
             yield sim, rig
+
+
+def still_lines(n: int) -> list[str]:
+    """A command that holds the limb still (inside the BEAN region), ``n`` lines long."""
+    return ['{"pan": 5.0, "tilt": 0.0}'] * n
 
 
 @pytest.mark.parametrize("safe_state", [SafeState.HOLD, SafeState.TORQUE_OFF])
@@ -191,6 +199,59 @@ def test_a_dropout_still_going_on_at_a_clean_end_is_reported_with_its_length_so_
     said = [n for n in summary.notices if "servo 2 still silent when the session ended" in n]
     assert len(said) == 1 and f"{dropout.duration_s:.3f} s so far" in said[0]
     assert "servo dropouts     servo 2 " in "\n".join(summary.lines())
+
+
+@pytest.mark.parametrize("safe_state", [SafeState.HOLD, SafeState.TORQUE_OFF])
+def test_a_servo_pushed_hard_is_reported_blocked_before_the_firmware_trips(tmp_path, safe_state):
+    log = tmp_path / "goals.jsonl"
+    with sim_rig(goal_log=log) as (sim, rig):
+        config = LoopConfig(rate_hz=RATE, duration_s=60.0, safe_state=safe_state)
+        with LoopThread(rig, config, still_lines(20000)) as loop:
+            loop.cycles.wait_cycles(200)
+            sim.push(1, 300.0)  # three times stall torque: the motor cannot hold it
+            loop.join(timeout_s=30.0)
+        summary = loop.summary
+        truth = sim.truth()
+        if safe_state is SafeState.HOLD:
+            # torque stays on against the push: the firmware's own overload shutdown follows
+            overload = int(HardwareError.OVERLOAD)
+            wait_for(
+                lambda: sim.truth()["servos"][1]["hardware_error_status"] & overload,
+                NOTICE_BOUND_S,
+                "the firmware's overload shutdown after the loop's fault",
+            )
+    assert summary.exit_code == 3 and summary.ended_by == "fault", summary.fault
+    # the loop's own rule, not the firmware's alarm (which it would report as a hardware error)
+    assert summary.fault.startswith("servo 1 does not follow (blocked): "), summary.fault
+    assert "drive saturated (PWM" in summary.fault and "blocked or overloaded" in summary.fault
+    assert "hardware error" not in summary.fault
+    assert truth["servos"][1]["hardware_error_status"] == 0
+    if safe_state is SafeState.HOLD:
+        assert summary.fault.endswith("— holding the last safe pose (torque on)")
+        assert all(servo["torque_on"] for servo in truth["servos"].values())
+    else:
+        assert summary.fault.endswith("— torque switched off")
+        assert not any(servo["torque_on"] for servo in truth["servos"].values())
+    assert_goals_safe(
+        goal_log_poses(log), loop.gate.envelope, LIMITS, loop.gate.produced_ticks(rig)
+    )
+
+
+def test_a_push_the_motor_holds_only_overloaded_ends_in_the_firmwares_alarm():
+    with sim_rig() as (sim, rig):
+        config = LoopConfig(rate_hz=RATE, duration_s=60.0)
+        with LoopThread(rig, config, still_lines(20000)) as loop:
+            loop.cycles.wait_cycles(200)
+            # 150 % of stall: held 3 deg off its goal (not blocked), overloaded: after 0.5 s
+            # the firmware shuts the servo down
+            sim.push(1, 150.0)
+            loop.join(timeout_s=30.0)
+        summary = loop.summary
+        truth = sim.truth()
+    assert summary.exit_code == 3, summary.fault
+    assert "servo 1: hardware error reported (servo 1: overload)" in summary.fault
+    assert "pan torque off as the servo reports it; tilt holding" in summary.fault
+    assert not truth["servos"][1]["torque_on"] and truth["servos"][2]["torque_on"]
 
 
 @pytest.mark.parametrize("safe_state", [SafeState.HOLD, SafeState.TORQUE_OFF])

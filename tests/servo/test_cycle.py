@@ -1,9 +1,10 @@
 """The control cycle's one read through indirect addresses: the real SDK on the simulator.
 
-Set-up maps Present/Goal Position, Torque Enable and Hardware Error Status onto Indirect Data;
-one (fast) sync read then shows each fault the loop must notice: a silent servo (named, one try,
-no retries), torque switched off (one broadcast write), an alarm, a restart (map lost). While a
-servo is silent the others are read on their own and it is probed with one try.
+Set-up maps Present/Goal Position, Torque Enable, Hardware Error Status and Present PWM onto
+Indirect Data; one (fast) sync read then shows each fault the loop must notice: a silent servo
+(named, one try, no retries), torque switched off (one broadcast write), an alarm, a restart
+(map lost), a pushed servo (its drive saturated). While a servo is silent the others are read on
+their own and it is probed with one try.
 """
 
 from __future__ import annotations
@@ -46,11 +47,12 @@ def read_ok(rig, tries: int = 50):
 
 
 def test_indirect_map_names_each_mapped_byte():
-    addresses = [int.from_bytes(indirect_map()[k : k + 2], "little") for k in range(0, 20, 2)]
-    assert addresses == [132, 133, 134, 135, 116, 117, 118, 119, 64, 70]
-    assert CYCLE_BYTES == 10
-    report = ServoReport.decode(bytes([0x00, 0x08, 0, 0, 0xFF, 0x07, 0, 0, 1, 0x24]))
-    assert report == ServoReport(2048, 2047, True, ("overheating", "overload"))
+    addresses = [int.from_bytes(indirect_map()[k : k + 2], "little") for k in range(0, 24, 2)]
+    assert addresses == [132, 133, 134, 135, 116, 117, 118, 119, 64, 70, 124, 125]
+    assert CYCLE_BYTES == 12
+    data = bytes([0x00, 0x08, 0, 0, 0xFF, 0x07, 0, 0, 1, 0x24, 0x8B, 0xFC])  # PWM -885
+    report = ServoReport.decode(data, pwm_limit=885)
+    assert report == ServoReport(2048, 2047, True, ("overheating", "overload"), -885, 885)
 
 
 def test_cycle_read_agrees_with_direct_reads(rig):
@@ -61,10 +63,14 @@ def test_cycle_read_agrees_with_direct_reads(rig):
     assert read.silent == ()
     positions = bus.read_positions()
     goals = bus.sync_read(Register.GOAL_POSITION)
+    pwm = bus.sync_read(Register.PRESENT_PWM)
     for servo_id, report in read.reports.items():
         assert abs(report.present - positions[servo_id]) <= 1
         assert report.goal == goals[servo_id]
         assert report.torque_on and report.hardware_error == ()
+        # at rest the drive is near zero; set-up read the PWM Limit it is a fraction of
+        assert abs(report.pwm) < 0.1 * report.pwm_limit and abs(pwm[servo_id]) < 0.1 * 885
+        assert report.pwm_limit == bus.read(Register.PWM_LIMIT, servo_id) == 885
     assert rig.pose_of(read) == pytest.approx(rig.read_pose(), abs=2e-3)
 
 
@@ -95,6 +101,16 @@ def test_an_alarm_is_in_the_report_with_its_torque(sim, rig):
         read = read_ok(rig)
     assert read.reports[1].hardware_error == ("input voltage",) and read.reports[1].torque_on
     assert read.reports[2].hardware_error == ("overheating",) and not read.reports[2].torque_on
+
+
+def test_a_pushed_servo_reports_its_drive_saturated(sim, rig):
+    sim.push(1, 300.0)  # beyond stall: the position controller's drive winds up to its limit
+    for _ in range(200):  # the simulator applies the push on its next physics step
+        read = read_ok(rig)
+        if abs(read.reports[1].pwm) == read.reports[1].pwm_limit:
+            break
+    assert abs(read.reports[1].pwm) == 885 and abs(read.reports[2].pwm) < 0.1 * 885
+    assert abs(read.reports[1].present - read.reports[1].goal) * 360 / 4096 > 5.0
 
 
 def test_while_a_servo_is_silent_the_others_are_read_and_it_is_probed_once(sim, rig):

@@ -171,3 +171,57 @@ def test_a_dropout_still_going_on_is_reported_with_its_length_so_far():
     (dropout,) = monitor.ongoing(1.3)
     assert (dropout.servo_id, dropout.duration_s, dropout.ongoing) == (1, pytest.approx(0.3), True)
     assert dropout.describe() == "servo 1 still silent when the session ended: 0.300 s so far"
+
+
+def saturated(present: int, goal: int = 2048, pwm: int = -885, limit: int = 885) -> ServoReport:
+    return ServoReport(present, goal, True, (), pwm, limit)
+
+
+def test_a_servo_saturated_off_its_goal_without_closing_in_is_blocked():
+    monitor = HealthMonitor()  # 90 % of PWM Limit, 5 deg, 0.15 s
+    pushed = saturated(2048 - 70)  # 6.2 deg from its goal, drive at its limit
+    faults = [monitor.observe(reads(s1=pushed), 0.005 * k).fault for k in range(31)]
+    assert all(f is None for f in faults[:30])  # 0.145 s
+    fault = faults[30]
+    assert fault.servo_id == 1 and fault.kind == "not following"
+    assert "servo 1 does not follow (blocked): 6.2 deg from its goal" in fault.message
+    assert "PWM -885 of 885" in fault.message and "blocked or overloaded" in fault.message
+
+
+def test_saturation_is_judged_against_the_servos_own_pwm_limit():
+    monitor = HealthMonitor()
+    pushed = saturated(2048 + 80, pwm=450, limit=500)  # 90 % of a lowered PWM Limit
+    faults = [monitor.observe(reads(s2=pushed), 0.005 * k).fault for k in range(31)]
+    assert faults[-1] is not None and faults[-1].servo_id == 2
+    monitor = HealthMonitor()
+    faults = [
+        monitor.observe(reads(s2=saturated(2048 + 80, pwm=440, limit=500)), 0.005 * k).fault
+        for k in range(100)
+    ]
+    assert faults == [None] * 100  # 88 %: not saturated
+
+
+@pytest.mark.parametrize(
+    "case, reports",
+    [
+        # saturated, but closing in on its goal at 30 deg/s (a hard start toward a far goal)
+        ("closing in", [saturated(2048 - 200 + 2 * k) for k in range(100)]),
+        # saturated, 4.4 deg off: within what a loaded but following servo lags by
+        ("near its goal", [saturated(2048 - 50)] * 100),
+        # off its goal and moving away from it (a reversal), drive well below its limit
+        ("not saturated", [saturated(2048 - 100 - k, pwm=-300) for k in range(100)]),
+        # saturated for 0.1 s, then a read below: the window starts again
+        ("saturation broken", ([saturated(1978)] * 20 + [saturated(1978, pwm=-700)]) * 5),
+    ],
+)
+def test_a_servo_that_is_not_blocked_is_not_called_blocked(case, reports):
+    monitor = HealthMonitor()
+    faults = [monitor.observe(reads(s1=r), 0.005 * k).fault for k, r in enumerate(reports)]
+    assert faults == [None] * len(reports), case
+
+
+def test_blocked_limits_must_be_sane():
+    with pytest.raises(ConfigError, match="pwm_saturation"):
+        HealthLimits(pwm_saturation=1.5)
+    with pytest.raises(ConfigError, match="blocked_window_s"):
+        HealthLimits(blocked_window_s=0.0)
