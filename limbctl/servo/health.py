@@ -75,7 +75,7 @@ class HealthLimits:
     # 100 ms even at the FTDI default latency timer (2 tries x ~35 ms)
     named_after_misses: int = 1
     # a dropout's length is known to within this, and a probe costs one reply timeout per
-    # interval (~6 ms of every 50 on the simulator's pty, ~4 ms on a U2D2 at a 1 ms latency timer)
+    # interval (~12 ms of every 50 on the simulator's pty, ~4 ms on a U2D2 at a 1 ms latency timer)
     probe_interval_s: float = 0.05
     # a healthy servo lags its goal by at most 3.6 deg at the 120 deg/s slew limit (measured,
     # docs/bench_faults.md); a torque-less or blocked limb is off by tens of degrees
@@ -90,8 +90,8 @@ class HealthLimits:
     # a blocked or limp one makes no way toward its goal, or moves away from it
     min_progress_deg: float = 1.0
     # the position controller's drive is clipped at PWM Limit: a servo that cannot reach its
-    # goal winds up to it; healthy moves stay below 60 % (docs/bench_faults.md), 10 % is left
-    # for a real servo's noisy reading
+    # goal winds up to it; healthy moves stay far below (simulator <= 31 %, docs/bench_faults.md;
+    # 120 deg/s is a third of an XL430's no-load speed), 10 % is left for a noisy reading
     pwm_saturation: float = 0.9
     # above the 3.6 deg a healthy servo lags by, so a saturated but following servo is not blocked
     blocked_error_deg: float = 5.0
