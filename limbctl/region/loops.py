@@ -47,6 +47,21 @@ def loop_area(loop: np.ndarray) -> float:
     return float(np.sum(2.0 * np.arctan2(det, den)))
 
 
+def vertex_turns(loop: np.ndarray) -> np.ndarray:
+    """Signed turn (M,) rad of a closed loop (M, 3) at each vertex, positive to the left.
+
+    At vertex ``v`` (from ``a`` before it to ``b`` after it) the heading
+    ``h = -(a - (a.v) v)`` turns to ``t = b - (b.v) v`` by ``atan2(v . (h x t), h . t)``. With
+    the region on the left, a positive turn is a convex corner, a negative one a concave corner.
+    """
+    prev = np.roll(loop, 1, axis=0)
+    nxt = np.roll(loop, -1, axis=0)
+    heading = -(prev - np.einsum("ij,ij->i", prev, loop)[:, None] * loop)
+    out = nxt - np.einsum("ij,ij->i", nxt, loop)[:, None] * loop
+    det = np.einsum("ij,ij->i", loop, np.cross(heading, out))
+    return np.arctan2(det, np.einsum("ij,ij->i", heading, out))
+
+
 def loop_length(loop: np.ndarray) -> float:
     """Length (rad) of a closed loop (M, 3)."""
     nxt = np.roll(loop, -1, axis=0)

@@ -31,7 +31,7 @@ from scipy.spatial import cKDTree
 
 from limbctl.region import shape_kernels
 from limbctl.region.gaps import line_gap
-from limbctl.region.loops import StationBuckets, chord, loops_to_edges
+from limbctl.region.loops import StationBuckets, chord, loops_to_edges, vertex_turns
 from limbctl.region.mesh import (
     boundary_edges,
     circumradius,
@@ -319,6 +319,8 @@ def edge_margins(
     top: int,
     max_margin: float | list[np.ndarray],
     max_bridge: float = np.inf,
+    traced_arc: float = 0.0,
+    corner_turn: float = np.pi,
 ) -> list[np.ndarray]:
     """How far (rad) to widen each arc of the loops so the region reaches the true edge.
 
@@ -332,8 +334,10 @@ def edge_margins(
     assigned to the arc, and at most ``max_margin`` (one value, or per loop an (M,) array of
     caps per arc). An arc longer than ``max_bridge`` (rad) bridges a gap without samples
     along it: the data say nothing of an edge beyond it, so it widens only to cover the
-    samples beyond it. Returns one (M,) array per loop, entry ``i`` for the arc from point
-    ``i`` to ``i + 1``.
+    samples beyond it. An arc that cuts a concave corner of a traced edge is widened no further
+    than where its neighbours' widened great circles meet (:func:`corner_limits`: across the
+    corner the other side's samples lie beyond the arc without the edge doing so). Returns one
+    (M,) array per loop, entry ``i`` for the arc from point ``i`` to ``i + 1``.
     """
     vertices, edges = loops_to_edges(loops)
     nearest, _, angle = nearest_on_edges_reference(data, vertices, edges)
@@ -366,6 +370,61 @@ def edge_margins(
             vals = np.arcsin(np.clip(data[rows] @ pole[e], -1.0, 1.0))
             vals = -np.sort(-vals)[:top]
             est[e] = vals[0] + line_gap(vals)
-        out.append(np.clip(np.maximum(est, need[start : start + m]), 0.0, cap))
+        margin = np.clip(np.maximum(est, need[start : start + m]), 0.0, cap)
+        limit = corner_limits(lp, margin, seg, max_bridge, traced_arc, corner_turn)
+        out.append(np.maximum(np.minimum(margin, limit), need[start : start + m]))
         start += m
     return out
+
+
+def corner_limits(
+    loop: np.ndarray,
+    margin: np.ndarray,
+    seg: np.ndarray,
+    max_bridge: float,
+    traced_arc: float,
+    corner_turn: float,
+) -> np.ndarray:
+    """Largest margin (M,) rad each arc of a loop (M, 3) may take at a traced concave corner.
+
+    A *corner arc* ``e`` (from vertex ``e`` to ``e + 1``) turns concavely at both its ends, by
+    at least ``corner_turn`` (rad) together, one of its neighbouring arcs ``e - 1``, ``e + 1``
+    is traced (at most ``traced_arc`` long) and none of the three is a bridge (longer than
+    ``max_bridge``). Its neighbours widened by their ``margin`` (M,) lie on the small circles
+    ``n_p . x = sin(m_p)`` and ``n_q . x = sin(m_q)`` (outward poles ``n``); they meet at the
+    corner ``x`` nearer the arc, and the arc may widen up to ``asin(x . n_e)`` (at least 0):
+    the widened arc does not cut beyond both widened neighbours. Other arcs: ``inf``. ``seg``
+    (M,) are the arcs' lengths.
+    """
+    m = loop.shape[0]
+    limit = np.full(m, np.inf)
+    turn = vertex_turns(loop)
+    e = np.arange(m)
+    p, q = (e - 1) % m, (e + 1) % m
+    corner = (
+        (turn < 0.0)
+        & (turn[q] < 0.0)
+        & (-(turn + turn[q]) >= corner_turn)
+        & (np.minimum(seg[p], seg[q]) <= traced_arc)
+        & (np.maximum(np.maximum(seg[p], seg[q]), seg) <= max_bridge)
+    )
+    e, p, q = e[corner], p[corner], q[corner]
+    if e.size == 0:
+        return limit
+    nxt = np.roll(loop, -1, axis=0)
+    pole = -np.cross(loop, nxt)
+    pole /= np.linalg.norm(pole, axis=1, keepdims=True)
+    n1, n2 = pole[p], pole[q]
+    s1, s2 = np.sin(margin[p]), np.sin(margin[q])
+    # x = a n1 + b n2 + g (n1 x n2) with n1 . x = s1, n2 . x = s2, |x| = 1 (c = n1 . n2)
+    c = np.einsum("ij,ij->i", n1, n2)
+    det = np.maximum(1.0 - c * c, 1e-12)
+    base = ((s1 - c * s2) / det)[:, None] * n1 + ((s2 - c * s1) / det)[:, None] * n2
+    k = np.cross(n1, n2)
+    g = np.sqrt(np.maximum(1.0 - np.einsum("ij,ij->i", base, base), 0.0) / det)
+    middle = loop[e] + nxt[e]
+    # of the two meeting points, the one on the arc's side of the sphere
+    sign = np.where(np.einsum("ij,ij->i", k, middle) >= 0.0, 1.0, -1.0)
+    x = base + (sign * g)[:, None] * k
+    limit[e] = np.maximum(np.arcsin(np.clip(np.einsum("ij,ij->i", x, pole[e]), -1.0, 1.0)), 0.0)
+    return limit

@@ -19,7 +19,9 @@
 4. *Margins*: each arc of the supported loops is widened to where the outermost samples put the
    edge (:func:`limbctl.region.shape.edge_margins`; windows of ``EDGE_WINDOW`` peel lengths,
    at most ``max_margin_deg``); arcs longer than ``BRIDGE_FRACTION`` peel lengths only cover
-   the samples beyond them. This is the *supported region*.
+   the samples beyond them; an arc cutting a traced concave corner widens no further than
+   where its neighbours' widened great circles meet (``TRACED_SPACINGS``,
+   ``CORNER_TURN_DEG``). This is the *supported region*.
 5. *Edge*: the edge strategy ``edge`` names (:mod:`limbctl.region.edge_choice`) replaces the
    supported loops by a learned edge where the data agree with it, or keeps them;
    :attr:`TaughtRegion.verdicts` says which strategies were refused and why.
@@ -56,6 +58,13 @@ BRIDGE_FRACTION = 0.75
 #: them (a hole, filled): neighbouring thinned samples of one stroke or traced edge lie 1 to 2
 #: spacings apart, so a stroke encloses what it passes, not opens it to the outside.
 MOUTH_SPACINGS = 2.0
+#: Arcs up to this many thinning spacings long are traced (consecutive samples of a slow
+#: stroke along the edge, 1 to 1.25 spacings apart); sparse data leave arcs of 2 and more.
+TRACED_SPACINGS = 1.25
+#: A concave corner turns the loop by at least this much (deg) over one arc: a traced corner
+#: is bridged by one or two arcs turning 60-100 deg together, dents of sparse loops less
+#: where their neighbours are traced.
+CORNER_TURN_DEG = 60.0
 #: Growth factor floor of the thinning spacing while the thinned samples exceed the cap: at
 #: least 5 % a step, so the loop ends within a few steps.
 THIN_GROWTH = 1.05
@@ -139,6 +148,8 @@ class TaughtRegion:
             ORDER_STATISTICS,
             np.radians(p.max_margin_deg),
             max_bridge=BRIDGE_FRACTION * length,
+            traced_arc=TRACED_SPACINGS * thinning,
+            corner_turn=np.radians(CORNER_TURN_DEG),
         )
         supported = DirectionMesh.from_loops(loops, margins)
         taken, self.verdicts = choose_edge(

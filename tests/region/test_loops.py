@@ -90,3 +90,13 @@ def test_nearest_station_and_smoothing_along_the_loop():
     # symmetric about station 0 across the wrap, and a constant stays constant
     assert smooth[1] == pytest.approx(smooth[-1]) and smooth[0] > smooth[1]
     np.testing.assert_allclose(loops.smooth_along(np.ones(36), s, total, 0.1), 1.0)
+
+
+def test_vertex_turns_are_left_positive_and_close_the_loop():
+    loop = circle(20.0, 36)
+    turns = loops.vertex_turns(loop)
+    assert (turns > 0.0).all()
+    # Gauss-Bonnet: the turns of a simple loop add up to 2 pi minus the area it encloses
+    assert turns.sum() == pytest.approx(2.0 * np.pi - loops.loop_area(loop), abs=1e-9)
+    # walked the other way round every corner is concave
+    np.testing.assert_allclose(loops.vertex_turns(loop[::-1]), -turns[::-1], atol=1e-12)

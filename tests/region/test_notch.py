@@ -5,16 +5,14 @@
 for 60 s the way ``benchmarks/bench_fit.py`` teaches it (``traced_teaching``: the edge traced
 1 deg inside, then wandering), one fit per teaching seed: the taught samples stay inside, at
 least 99 % of the valid test commands (2 deg or more inside) pass unchanged, and the learned
-region reaches into the notch no more than :data:`REACH_BOUND_DEG`.
+region reaches at most 1 deg into the notch (0.65 / 0.75 / 0.60 / 0.15 / 0.69 deg, seeds 0-4).
 
-The issue's target for the reach is 1.0 deg and it is NOT met yet: seeds 0-4 reach 1.20 /
-1.30 / 1.10 / 0.70 / 0.75 deg, at the notch floor's two reflex corners (docs/decisions/region.md,
-"The traced notch"). :data:`REACH_BOUND_DEG` is the measured worst seed rounded up to the next
-0.05 deg, a regression guard; lower it to 1.0 when a fix reaches the target.
-
-Before the mouth rule (``alpha_complex``'s ``mouth``) seeds 1, 2 and 4 changed 1.9-2.8 % of
-the valid commands (holes behind the traced edge left open through the 1 deg gaps between its
-samples), and the simulator hand's 60 s teaching (seed 0) had holes too.
+Before the corner limit (``shape.corner_limits``) seeds 0-2 reached 1.20 / 1.30 / 1.10 deg into
+the notch, at the floor's reflex corners: an arc bridging the corner was widened by the cap,
+because across a concave corner the other wall's samples lie beyond the arc. Before the mouth
+rule (``alpha_complex``'s ``mouth``) seeds 1, 2 and 4 changed 1.9-2.8 % of the valid commands
+(holes behind the traced edge left open through the 1 deg gaps between its samples), and the
+simulator hand's 60 s teaching (seed 0) had holes too.
 """
 
 from pathlib import Path
@@ -39,9 +37,8 @@ REPO = Path(__file__).resolve().parents[2]
 TEACHING_S = 60.0
 #: Test commands per seed: about 2,000 of them valid, so one changed command is 0.05 %.
 TEST_COMMANDS = 20000
-#: How far (deg) the region may reach into the notch: the worst seed today (1.296 deg, seed 1)
-#: rounded up to 0.05 deg. The issue's target is 1.0 deg, not met yet (see the module docstring).
-REACH_BOUND_DEG = 1.30
+#: How far (deg) the region may reach into the notch (issue 12 item 6).
+REACH_BOUND_DEG = 1.0
 
 
 @pytest.fixture(scope="module")

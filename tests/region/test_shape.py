@@ -1,4 +1,5 @@
 import numpy as np
+import pytest
 
 from limbctl.envelope.synthetic import ConeRegion, trajectory_samples
 from limbctl.geometry.quat import direction_angle
@@ -132,3 +133,38 @@ def test_a_hole_open_only_through_a_gap_narrower_than_the_mouth_is_filled():
     assert not _holds_pond(_pond(8.0 / 3.0), mouth_deg=2.0)
     # without a mouth (the rule off) every gap lets the outside in
     assert not _holds_pond(_pond(1.6), mouth_deg=0.0)
+
+
+def _plane(uv_deg):
+    """Directions (N, 3) of gnomonic coordinates (N, 2) deg about +x (straight lines are
+    great circles; counter-clockwise in (u, v) is counter-clockwise seen from outside)."""
+    uv = np.tan(np.radians(np.asarray(uv_deg, dtype=float)))
+    d = np.column_stack([np.ones(len(uv)), uv])
+    return d / np.linalg.norm(d, axis=1, keepdims=True)
+
+
+def _traced_notch_loop():
+    """A square loop (+-15) with a notch |u| < 7, v > 2 cut into its top, its floor and left
+    wall traced 1 deg apart, the left corner cut by one bridge (-4, 2) -> (-7, 5)."""
+    floor = [(u, 2.0) for u in np.arange(7.0, -4.5, -1.0)]
+    wall = [(-7.0, v) for v in np.arange(5.0, 15.5, 1.0)]
+    uv = [(-15.0, -15.0), (15.0, -15.0), (15.0, 15.0), (7.2, 15.0), *floor, *wall, (-15.0, 15.0)]
+    return _plane(uv), len(floor) + 3  # the bridge's arc starts at the floor's last point
+
+
+def test_a_traced_concave_corner_arc_widens_no_further_than_its_neighbours_meet():
+    loop, bridge = _traced_notch_loop()
+    m = loop.shape[0]
+    seg = rs.edge_lengths(loop, np.column_stack([np.arange(m), (np.arange(m) + 1) % m]))
+    traced, turn = np.radians(1.25), np.radians(60.0)
+    # neighbours widened by 0.75 deg meet at (-6.25, 2.75), inside the bridge: no widening
+    limit = rs.corner_limits(loop, np.full(m, np.radians(0.75)), seg, np.radians(6.0), traced, turn)
+    assert limit[bridge] == 0.0
+    assert np.isinf(np.delete(limit, bridge)).all()
+    # widened by 2 deg they meet at (-5, 4): (-5 + 4 + 2) / sqrt(2) deg beyond the bridge
+    limit = rs.corner_limits(loop, np.full(m, np.radians(2.0)), seg, np.radians(6.0), traced, turn)
+    assert np.degrees(limit[bridge]) == pytest.approx(1.0 / np.sqrt(2.0), abs=0.03)
+    # not a corner arc: no traced neighbour, a turn below corner_turn, or a bridge among them
+    for args in ((0.5 * traced, turn), (traced, np.radians(100.0))):
+        assert np.isinf(rs.corner_limits(loop, np.zeros(m), seg, np.radians(6.0), *args)).all()
+    assert np.isinf(rs.corner_limits(loop, np.zeros(m), seg, np.radians(4.0), traced, turn)).all()
