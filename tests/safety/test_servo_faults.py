@@ -69,14 +69,22 @@ class ReadLog(Rig):
 
 @contextmanager
 def sim_rig(goal_log=None):
-    """The simulated rig as ``open_rig`` makes it (latency timer 2 ms), logging its reads."""
+    """The simulated rig driven as ``open_rig`` drives it (latency timer 2 ms), logging its
+    reads; set up beforehand at the SDK's patient 16 ms, so a loaded machine's late reply does
+    not fail the set-up."""
     with SimulatedBus(ids=PROFILE.ids, goal_log=goal_log) as sim:
+        with ServoBus.from_profile(PROFILE, port=sim.port) as setup:
+            Rig(PROFILE, setup).configure()
+            Rig(PROFILE, setup).set_torque(True)
         bus = ServoBus.from_profile(PROFILE, port=sim.port, latency_timer_ms=SIM_LATENCY_TIMER_MS)
         with bus:
-            rig = ReadLog(PROFILE, bus)
-            rig.configure()
-            rig.set_torque(True)
-            yield sim, rig
+            bus.note_pwm_limits(setup.pwm_limits)  # what set-up read, for this bus's reports
+            yield sim, ReadLog(PROFILE, bus)
+
+
+def dropouts_line(summary) -> str:
+    """The summary's line listing the dropouts."""
+    return next(line for line in summary.lines() if line.startswith("servo dropouts"))
 
 
 def still_lines(n: int) -> list[str]:
@@ -128,18 +136,22 @@ def test_a_servo_that_browns_out_and_restarts_is_noticed(tmp_path):
 def test_a_dropout_keeps_the_loop_cycling_probes_the_servo_and_reports_its_length(tmp_path):
     log = tmp_path / "goals.jsonl"
     seen: list[tuple[float, str]] = []
+    # loop time -> perf_counter, from each cycle's value as it is handed on (its end)
+    clock: list[float] = []
+
+    def observe(cycle) -> None:
+        clock.append(time.perf_counter() - cycle.t)
+        seen.extend((cycle.t, n) for n in cycle.notices)
+
     vanish_s = 0.3
     with sim_rig(goal_log=log) as (sim, rig):
-        config = LoopConfig(
-            rate_hz=RATE,
-            duration_s=60.0,
-            on_cycle=lambda cycle: seen.extend((cycle.t, n) for n in cycle.notices),
-        )
+        config = LoopConfig(rate_hz=RATE, duration_s=60.0, on_cycle=observe)
         with LoopThread(rig, config, sweep_lines(20000)) as loop:
             loop.cycles.wait_cycles(200)
+            injected = loop.cycles.rows[-1]["t"]
             sim.vanish(2, vanish_s)
-            back = wait_for(
-                lambda: [n for _, n in seen if n.startswith("servo 2 answered again after")],
+            wait_for(
+                lambda: any(t > injected and n.startswith("servo 2 answered") for t, n in seen),
                 30.0,
                 "servo 2 to be reported back",
             )
@@ -147,30 +159,36 @@ def test_a_dropout_keeps_the_loop_cycling_probes_the_servo_and_reports_its_lengt
         summary = loop.summary
         reads = list(rig.reads)
     assert summary.exit_code == 0 and summary.ended_by == "stopped", summary.fault
+    # (on a loaded machine a late reply may name a servo for a moment too: this is the dropout
+    # that began after the injection)
+    dropout = next(d for d in summary.dropouts if d.servo_id == 2 and d.started_s > injected)
+    assert not dropout.ongoing
+    start, end = dropout.started_s, dropout.started_s + dropout.duration_s
     named = [t for t, n in seen if n == "servo 2 stopped answering; holding its last goal"]
-    assert len(named) == 1 and len(back) == 1
-    (dropout,) = summary.dropouts
-    assert dropout.servo_id == 2 and not dropout.ongoing
+    assert any(start <= t < start + NOTICE_BOUND_S for t in named)
+    assert any(abs(t - end) < 1e-6 and n == dropout.describe() for t, n in seen)
     # timed from the first missed read to the probe that found it back: the 0.3 s, known to
     # within a probe interval (0.05 s) and a cycle; generous for a loaded machine
     assert vanish_s - 0.05 <= dropout.duration_s < vanish_s + NOTICE_BOUND_S
-    assert named[0] - dropout.started_s < NOTICE_BOUND_S
-    assert "servo dropouts     servo 2 0." in "\n".join(summary.lines())
+    assert f"servo 2 {dropout.duration_s:.3f} s" in dropouts_line(summary)
     # the loop kept cycling: the cycles completed during the dropout are a large share of what
     # it ran before it (waiting for the silent servo in each cycle gave about a fifth)
     times = [row["t"] for row in loop.cycles.rows]
-    start, end = dropout.started_s, dropout.started_s + dropout.duration_s
     before = [t for t in times if t < start][-100:]
     healthy_hz = (len(before) - 1) / (before[-1] - before[0])
     during = sum(start <= t < end for t in times)
     assert during >= 0.4 * healthy_hz * dropout.duration_s, (during, healthy_hz)
     # while it was away, servo 2 was only probed: alone, one try each, at most one per 0.05 s
-    probes = [at for at, ids, _ in reads if ids == (2,)]
-    assert probes and all(attempts == 1 for _, ids, attempts in reads if ids == (2,))
-    between = [at for at, ids, _ in reads if len(ids) == 2 and probes[0] < at < probes[-1]]
-    assert between == [], "a full read waited for the silent servo"
+    # (inside the dropout: after the read that missed it, before the probe that found it)
+    offset = min(clock)  # perf_counter at loop time 0, to within a cycle's end
+    inside = [(at, ids, n) for at, ids, n in reads if 2 in ids and start + 0.02 < at - offset]
+    inside = [(at, ids, n) for at, ids, n in inside if at - offset < end - 0.005]
+    assert inside and all(ids == (2,) and n == 1 for _, ids, n in inside), inside
+    probes = [at for at, _, _ in inside]
     gaps = [b - a for a, b in zip(probes, probes[1:], strict=False)]
-    assert min(gaps, default=1.0) >= 0.04, gaps
+    # (the loop keeps 0.05 s between probe cycles; the answering servo's read before each probe
+    # takes longer when one of its replies is late)
+    assert min(gaps, default=1.0) >= 0.03, gaps
     assert len(probes) <= dropout.duration_s / 0.05 + 2
     assert_goals_safe(
         goal_log_poses(log), loop.gate.envelope, LIMITS, loop.gate.produced_ticks(rig)
@@ -194,11 +212,11 @@ def test_a_dropout_still_going_on_at_a_clean_end_is_reported_with_its_length_so_
             loop.cycles.wait_cycles(len(loop.cycles.rows) + 40)
         summary = loop.summary
     assert summary.exit_code == 0 and summary.ended_by == "stopped", summary.fault
-    (dropout,) = summary.dropouts
-    assert dropout.servo_id == 2 and dropout.ongoing and dropout.duration_s > 0.1
+    (dropout,) = [d for d in summary.dropouts if d.ongoing and d.servo_id == 2]
+    assert dropout.servo_id == 2 and dropout.duration_s > 0.1
     said = [n for n in summary.notices if "servo 2 still silent when the session ended" in n]
     assert len(said) == 1 and f"{dropout.duration_s:.3f} s so far" in said[0]
-    assert "servo dropouts     servo 2 " in "\n".join(summary.lines())
+    assert f"servo 2 {dropout.duration_s:.3f} s" in dropouts_line(summary)
 
 
 @pytest.mark.parametrize("safe_state", [SafeState.HOLD, SafeState.TORQUE_OFF])
