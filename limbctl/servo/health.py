@@ -265,6 +265,7 @@ class HealthMonitor:
     ) -> ServoFault | None:
         """Saturated and off its goal for ``blocked_window_s`` without closing in: blocked."""
         limits = self.limits
+        # saturated: |Present PWM| >= pwm_saturation x PWM Limit
         saturated = abs(report.pwm) >= limits.pwm_saturation * report.pwm_limit
         if not (saturated and error_deg > limits.blocked_error_deg):
             self.saturated_since.pop(servo_id, None)
