@@ -253,7 +253,7 @@ class ServoBus(CycleReads):
         """Run ``attempt`` until it succeeds, the attempts or the time budget run out.
 
         ``attempts`` overrides ``max_attempts`` (the control cycle's read keeps its budget);
-        ``patient`` (single-register writes: set-up, torque switching) retries until
+        ``patient`` (set-up's reads and writes, torque switching) retries until
         ``transfers.PATIENT_BUDGET_S`` has passed.
         """
         with self._lock:
@@ -340,12 +340,15 @@ class ServoBus(CycleReads):
             self._raise_alarms()
 
     # ---- single registers ----
-    def read(self, register: Register, servo_id: int, check_alert: bool = True) -> int:
-        """Value of ``register`` on one servo."""
+    def read(
+        self, register: Register, servo_id: int, check_alert: bool = True, patient: bool = False
+    ) -> int:
+        """Value of ``register`` on one servo (``patient`` for set-up: see :meth:`_transact`)."""
         return self._transact(
             f"read {register.name} of servo {servo_id}",
             lambda: transfers.read(self._packets, self._port, register, servo_id),
             check_alert,
+            patient=patient,
         )
 
     def write(

@@ -196,6 +196,7 @@ class CycleReads:
         return self._transact(
             f"read {block.name} of servo {servo_id}",
             lambda: transfers.read(self._packets, self._port, block, servo_id),
+            patient=True,  # set-up: nothing waits on it but the person
         )
 
     def write_block(self, block: Block, servo_id: int, data: bytes) -> None:
@@ -205,6 +206,7 @@ class CycleReads:
         self._transact(
             f"write {block.name} to servo {servo_id}",
             lambda: transfers.write(self._packets, self._port, block, servo_id, list(data)),
+            patient=True,  # set-up: nothing waits on it but the person
         )
 
     def read_cycle(self, ids: Sequence[int] | None = None, attempts: int = 1) -> CycleRead:

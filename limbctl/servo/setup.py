@@ -57,7 +57,7 @@ def configure_servos(
     with bus.exclusive():
         bus.set_torque(False)
         for servo_id in bus.ids:
-            level = bus.read(Register.STATUS_RETURN_LEVEL, servo_id)
+            level = bus.read(Register.STATUS_RETURN_LEVEL, servo_id, patient=True)
             if level != STATUS_RETURN_ALL:
                 raise ConfigError(
                     f"servo {servo_id} has Status Return Level {level}; limbctl needs "
@@ -65,7 +65,7 @@ def configure_servos(
                     f"Wizard"
                 )
             lo, hi = position_limits[servo_id]
-            drive = bus.read(Register.DRIVE_MODE, servo_id)
+            drive = bus.read(Register.DRIVE_MODE, servo_id, patient=True)
             eeprom = {
                 Register.OPERATING_MODE: int(OperatingMode.POSITION),
                 Register.DRIVE_MODE: drive & ~int(DriveModeBit.TIME_BASED_PROFILE),
@@ -75,9 +75,9 @@ def configure_servos(
             }
             for register, value in eeprom.items():
                 # EEPROM wears: write only what differs, then read it back
-                if bus.read(register, servo_id) != value:
+                if bus.read(register, servo_id, patient=True) != value:
                     bus.write(register, servo_id, value)
-                    got = bus.read(register, servo_id)
+                    got = bus.read(register, servo_id, patient=True)
                     if got != value:
                         raise BusError(
                             f"servo {servo_id} kept {register.name}={got} after writing {value}",
@@ -94,5 +94,5 @@ def configure_servos(
                     servo_id,
                 )
             # EEPROM, out of the indirect addresses' reach: read once, it changes only by hand
-            pwm_limits[servo_id] = bus.read(Register.PWM_LIMIT, servo_id)
+            pwm_limits[servo_id] = bus.read(Register.PWM_LIMIT, servo_id, patient=True)
         bus.note_pwm_limits(pwm_limits)

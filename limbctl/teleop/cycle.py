@@ -164,4 +164,8 @@ class TeleopSummary:
     def _dropouts(self) -> str:
         if not self.dropouts:
             return "none"
-        return "; ".join(f"servo {d.servo_id} {d.duration_s:.3f} s" for d in self.dropouts)
+        still = " so far (still silent)"
+        return "; ".join(
+            f"servo {d.servo_id} {d.duration_s:.3f} s{still if d.ongoing else ''}"
+            for d in self.dropouts
+        )
