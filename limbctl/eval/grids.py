@@ -116,11 +116,14 @@ class Task:
 
     @property
     def key(self) -> str:
-        """A short hash of the whole definition and of the gate's version: resuming never
-        mixes changed tasks, nor results of an older gate with a newer one."""
+        """A short hash of the whole definition and of the gate's and the region fit's
+        versions: resuming never mixes changed tasks, nor results of an older gate or region
+        construction with a newer one."""
         from limbctl.envelope.rigidmap import GATE_VERSION
+        from limbctl.region.taught import FIT_VERSION
 
-        return hashlib.sha1(f"{self!r}|gate {GATE_VERSION}".encode()).hexdigest()[:16]
+        versions = f"gate {GATE_VERSION} fit {FIT_VERSION}"
+        return hashlib.sha1(f"{self!r}|{versions}".encode()).hexdigest()[:16]
 
 
 def respond_all(methods: Iterable[str], k: int) -> tuple[Answer, ...]:

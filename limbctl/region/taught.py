@@ -68,6 +68,10 @@ CORNER_TURN_DEG = 60.0
 #: Growth factor floor of the thinning spacing while the thinned samples exceed the cap: at
 #: least 5 % a step, so the loop ends within a few steps.
 THIN_GROWTH = 1.05
+#: Version of what a fit builds from given samples, raised whenever the construction changes
+#: the region some data give: cached `limbctl eval` results are keyed on it. Saved models carry
+#: their mesh and keep answering as they did (their format is ``GATE_VERSION``'s business).
+FIT_VERSION = 2
 
 
 class TaughtRegion:
