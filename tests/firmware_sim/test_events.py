@@ -8,6 +8,7 @@ from __future__ import annotations
 import subprocess
 import sys
 import time
+from contextlib import contextmanager
 
 import pytest
 from dynamixel_sdk import COMM_RX_TIMEOUT, COMM_SUCCESS, PacketHandler, PortHandler
@@ -18,6 +19,28 @@ from firmware_sim.events import EventSchedule, ScheduledEvent, parse_event
 from firmware_sim.simulator import Simulator
 
 COMMAND = [sys.executable, "-m", "firmware_sim"]
+
+
+@contextmanager
+def served(link, *events: str):
+    """``firmware-sim --ids 1,2`` with ``--event`` for each of ``events`` on ``link``, started in
+    its own process; yields an open SDK port and packet handler, then stops it cleanly."""
+    args = [arg for event in events for arg in ("--event", event)]
+    process = subprocess.Popen(
+        [*COMMAND, "--ids", "1,2", "--link", str(link), *args], stdout=subprocess.PIPE, text=True
+    )
+    try:
+        assert "ready" in process.stdout.readline()
+        port = PortHandler(str(link))
+        assert port.openPort()
+        yield port, PacketHandler(2.0)
+        port.closePort()
+    finally:
+        process.terminate()
+        assert process.wait(timeout=10) == 0
+        process.stdout.close()
+
+
 TORQUE_ENABLE, HARDWARE_ERROR, PRESENT_PWM = 64, 70, 124
 VOLTAGE_BIT, OVERHEATING_BIT, OVERLOAD_BIT, ALERT = 0x01, 0x04, 0x20, 0x80
 
@@ -76,18 +99,7 @@ def test_schedule_refuses_an_unknown_servo():
 
 
 def test_command_line_events_reach_the_servos(tmp_path):
-    link = tmp_path / "ttyDXL"
-    events = ["--event", "0:vanish:2:60", "--event", "0:voltage:1:5"]
-    process = subprocess.Popen(
-        [*COMMAND, "--ids", "1,2", "--link", str(link), *events],
-        stdout=subprocess.PIPE,
-        text=True,
-    )
-    try:
-        assert "ready" in process.stdout.readline()
-        port = PortHandler(str(link))
-        assert port.openPort()
-        packet = PacketHandler(2.0)
+    with served(tmp_path / "ttyDXL", "0:vanish:2:60", "0:voltage:1:5") as (port, packet):
         # servo 1 sees 5 V, below its 6.0 V limit: input voltage error and the alert
         deadline = time.monotonic() + 5.0
         while packet.read1ByteTxRx(port, 1, HARDWARE_ERROR)[0] != VOLTAGE_BIT:
@@ -95,11 +107,6 @@ def test_command_line_events_reach_the_servos(tmp_path):
         assert packet.read1ByteTxRx(port, 1, TORQUE_ENABLE) == (0, COMM_SUCCESS, ALERT)
         # servo 2 has vanished for the whole test
         assert packet.ping(port, 2)[1] == COMM_RX_TIMEOUT
-        port.closePort()
-    finally:
-        process.terminate()
-        assert process.wait(timeout=10) == 0
-        process.stdout.close()
 
 
 def test_bad_events_are_refused_before_serving(tmp_path):
@@ -157,27 +164,12 @@ def test_push_event_leans_on_the_joint_until_the_servo_saturates_and_trips():
 
 
 def test_push_event_from_the_command_line_saturates_present_pwm(tmp_path):
-    link = tmp_path / "ttyDXL"
-    process = subprocess.Popen(
-        [*COMMAND, "--ids", "1,2", "--link", str(link), "--event", "0:push:2:-250"],
-        stdout=subprocess.PIPE,
-        text=True,
-    )
-    try:
-        assert "ready" in process.stdout.readline()
-        port = PortHandler(str(link))
-        assert port.openPort()
-        packet = PacketHandler(2.0)
+    with served(tmp_path / "ttyDXL", "0:push:2:-250") as (port, packet):
         assert packet.write1ByteTxRx(port, 2, TORQUE_ENABLE, 1)[:1] == (COMM_SUCCESS,)
         # pushed the other way: the drive saturates positive (two's complement 885)
         deadline = time.monotonic() + 5.0
         while packet.read2ByteTxRx(port, 2, PRESENT_PWM)[0] != 885:
             assert time.monotonic() < deadline, "servo 2's Present PWM did not saturate"
-        port.closePort()
-    finally:
-        process.terminate()
-        assert process.wait(timeout=10) == 0
-        process.stdout.close()
 
 
 def test_restart_over_the_pty_reads_torque_off(sim, sdk):
