@@ -54,6 +54,7 @@ from limbctl.region.loops import (
     smooth_along,
     station_positions,
 )
+from limbctl.region.trace_kernels import station_moves
 
 #: Spacing (deg) of the traced curve's stations: half the smooth edge's, to follow an egg's
 #: tip, and at least two stations either side of the smallest half window.
@@ -138,7 +139,7 @@ def edge_estimate(u: np.ndarray, o: np.ndarray) -> float:
     chord). With readings on one side only (or fewer than ``ORDER_STATISTICS``), the outermost
     depth plus their mean spacing (:func:`limbctl.region.gaps.spacing_gap`).
     """
-    top = np.argsort(-o)[:TOP_READINGS]
+    top = np.argsort(-o, kind="stable")[:TOP_READINGS]
     u, o = u[top], o[top]
     left = u < 0.0
     if o.size < ORDER_STATISTICS or not left.any() or left.all():
@@ -153,6 +154,34 @@ def edge_estimate(u: np.ndarray, o: np.ndarray) -> float:
     slope = (orr[j] - ol[i]) / (ur[j] - ul[i])
     resid = np.sort(at_station + slope * u - o)[:ORDER_STATISTICS]
     return float(at_station + majorant_gap(resid))
+
+
+def station_estimates(
+    s: np.ndarray, total: float, owner: np.ndarray, depth: np.ndarray, reach: int
+) -> np.ndarray:
+    """:func:`edge_estimate` (K,) rad at every station, from the readings of the stations
+    ``i - reach .. i + reach`` (0 where they hold none): the numba kernel
+    :func:`limbctl.region.trace_kernels.station_moves`.
+
+    ``s`` (K,) are the stations' positions along the curve of length ``total`` (rad),
+    ``owner`` (N,) and ``depth`` (N,) each reading's station and depth (:func:`readings`).
+    """
+    buckets = StationBuckets(owner, s.shape[0])
+    return station_moves(s, total, owner, depth, buckets.order, buckets.bounds, reach, TOP_READINGS)
+
+
+def station_estimates_reference(
+    s: np.ndarray, total: float, owner: np.ndarray, depth: np.ndarray, reach: int
+) -> np.ndarray:
+    """:func:`station_estimates` in numpy, station by station."""
+    buckets = StationBuckets(owner, s.shape[0])
+    move = np.zeros(s.shape[0])
+    for i in range(s.shape[0]):
+        rows = buckets.around(i, reach)
+        if rows.size:
+            u = signed_offset(s[owner[rows]], s[i], total)
+            move[i] = edge_estimate(u, depth[rows])
+    return move
 
 
 def local_quadratic(curve: np.ndarray, sigma: float) -> np.ndarray:
@@ -191,15 +220,8 @@ def trace_edge(loop: np.ndarray, data: np.ndarray, max_offset: float) -> np.ndar
         k = curve.shape[0]
         s, total = station_positions(curve)
         owner, depth = readings(curve, data)
-        buckets = StationBuckets(owner, k)
         reach = max(1, int(round(h * k / total)))
-        move = np.zeros(k)
-        for i in range(k):
-            rows = buckets.around(i, reach)
-            if rows.size:
-                u = signed_offset(s[owner[rows]], s[i], total)
-                move[i] = edge_estimate(u, depth[rows])
-        move = smooth_along(move, s, total, 0.5 * h)
+        move = smooth_along(station_estimates(s, total, owner, depth, reach), s, total, 0.5 * h)
         normal = station_normals(curve)
         curve = _moved(curve, normal, np.minimum(move, max_offset))
         # smoothing: outward by at most ``cap`` a round

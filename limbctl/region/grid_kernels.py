@@ -35,22 +35,36 @@ def _edge_bounds(vertices, edges):
 
 
 @nb.njit(cache=True)
-def _cell_geometry(cell, n_theta, n_phi, axis, u, v):
-    """Centre (3,) of a grid cell and a radius (rad) that every point of the cell lies within."""
+def _polar_into(theta, phi, axis, u, v, out) -> None:
+    """Write into ``out`` (3,) the direction at polar angles ``theta``, ``phi`` (rad) about
+    ``axis`` in the frame ``u``, ``v``: :func:`limbctl.region.mesh_kernels._polar_point`,
+    component by component with the same arithmetic, without allocating."""
+    st = math.sin(theta)
+    ct = math.cos(theta)
+    cp = math.cos(phi)
+    sp = math.sin(phi)
+    for k in range(3):
+        out[k] = ct * axis[k] + st * (cp * u[k] + sp * v[k])
+
+
+@nb.njit(cache=True)
+def _cell_geometry(cell, n_theta, n_phi, axis, u, v, centre, corner):
+    """A grid cell's centre into ``centre`` (3,) and a radius (rad) every point of the cell
+    lies within (``corner`` (3,) is scratch)."""
     i = cell // n_phi
     j = cell % n_phi
     t0 = i * math.pi / n_theta
     p0 = -math.pi + j * 2.0 * math.pi / n_phi
     dt = math.pi / n_theta
     dp = 2.0 * math.pi / n_phi
-    centre = _polar_point(t0 + 0.5 * dt, p0 + 0.5 * dp, axis, u, v)
+    _polar_into(t0 + 0.5 * dt, p0 + 0.5 * dp, axis, u, v, centre)
     r = 0.0
     for a in range(2):
         for b in range(2):
-            corner = _polar_point(t0 + a * dt, p0 + b * dp, axis, u, v)
+            _polar_into(t0 + a * dt, p0 + b * dp, axis, u, v, corner)
             r = max(r, _angle(centre, corner))
     # the widest point of a cell edge lies on its middle; 1 % covers it (cells are < 3 deg)
-    return centre, r * 1.01 + 1e-12
+    return r * 1.01 + 1e-12
 
 
 #: Cells per side of the grid's blocks (theta and phi): a block finds the arcs its cells can need
@@ -59,7 +73,21 @@ BLOCK = 8
 
 
 @nb.njit(cache=True)
-def _block(
+def _block_cells(block, blocks_phi, n_theta, n_phi):
+    """The cells (K,) of one block, row by row."""
+    bi, bj = block // blocks_phi, block % blocks_phi
+    i1, j1 = min(n_theta, (bi + 1) * BLOCK), min(n_phi, (bj + 1) * BLOCK)
+    cells = np.empty((i1 - bi * BLOCK) * (j1 - bj * BLOCK), dtype=np.int64)
+    k = 0
+    for i in range(bi * BLOCK, i1):
+        for j in range(bj * BLOCK, j1):
+            cells[k] = i * n_phi + j
+            k += 1
+    return cells
+
+
+@nb.njit(cache=True)
+def _block_arcs(
     block,
     blocks_phi,
     grid_shape,
@@ -69,53 +97,79 @@ def _block(
     vertices,
     edges,
     margins,
+    mids,
+    longest_half,
     max_margin,
     centres,
     radius,
     tmp,
+    dist,
+    arcs,
+    arc_dist,
+    from_block,
 ):
-    """The cells (K,) of one block, their geometry into ``centres``/``radius``, and the arcs
-    (A,) in order that any of them can need.
+    """The arcs in order that any cell of one block can need, into ``arcs`` (E,), and their
+    angles (rad) from the block's centre into ``arc_dist`` (E,); returns their number. The
+    cells' geometry must be in ``centres``/``radius``; each cell's angle from the block's
+    centre goes into ``from_block`` (cells,); ``dist`` (E,) is scratch.
 
     With ``C`` the block's centre, ``D`` its cells' centres' largest angle from ``C`` and
     ``r`` their largest radius: a cell's candidates and both its minimisers (key and plain)
     have ``key_e(C) <= min key(C) + 2 D + 2 r + max margin`` or ``angle(C, e) <= D + r``
-    (each angle moves by at most ``D`` from ``C`` to a cell's centre).
+    (each angle moves by at most ``D`` from ``C`` to a cell's centre). Only arcs whose
+    midpoint lies close enough to ``C`` to meet either bound are measured (the bound of
+    :func:`_cell`): the same arcs as measuring all of them.
     """
     n_theta, n_phi = grid_shape[0], grid_shape[1]
     bi, bj = block // blocks_phi, block % blocks_phi
     i1, j1 = min(n_theta, (bi + 1) * BLOCK), min(n_phi, (bj + 1) * BLOCK)
-    cells = np.empty((i1 - bi * BLOCK) * (j1 - bj * BLOCK), dtype=np.int64)
-    k = 0
-    for i in range(bi * BLOCK, i1):
-        for j in range(bj * BLOCK, j1):
-            cells[k] = i * n_phi + j
-            centres[cells[k]], radius[cells[k]] = _cell_geometry(
-                cells[k], n_theta, n_phi, axis, u, v
-            )
-            k += 1
     # the block's centre: the middle of its polar rectangle
     theta = 0.5 * (bi * BLOCK + i1) * math.pi / n_theta
     c = _polar_point(theta, -math.pi + 0.5 * (bj * BLOCK + j1) * 2.0 * math.pi / n_phi, axis, u, v)
     spread = 0.0
     r = 0.0
-    for cell in cells:
-        spread = max(spread, _angle(c, centres[cell]))
-        r = max(r, radius[cell])
-    dist = np.empty(edges.shape[0])
+    for i in range(bi * BLOCK, i1):
+        for j in range(bj * BLOCK, j1):
+            cell = i * n_phi + j
+            from_block[cell] = _angle(c, centres[cell])
+            spread = max(spread, from_block[cell])
+            r = max(r, radius[cell])
+    # an upper bound on the smallest key: every point of an arc lies within its half length
+    # of its midpoint, so the arc whose midpoint is nearest (largest dot) gives one
+    nearest = -1
+    best_dot = -np.inf
+    for e in range(edges.shape[0]):
+        dot = _dot(c, mids[e])
+        if dot > best_dot:
+            best_dot = dot
+            nearest = e
+    top = np.inf
+    if nearest >= 0:
+        top = (
+            _angle(c, mids[nearest])
+            + 0.5 * _angle(vertices[edges[nearest, 0]], vertices[edges[nearest, 1]])
+            - margins[nearest]
+        )
+    # an arc kept or minimising lies within x of C (its key <= top + 2 D + 2 r + max margin,
+    # its margin <= max margin), so its midpoint within x + its half length
+    x = max(top + 2.0 * spread + 2.0 * r + 2.0 * max_margin, spread + r) + 1e-9
+    near = math.cos(min(x + longest_half + 1e-9, math.pi))
     best = np.inf
     for e in range(edges.shape[0]):
+        dist[e] = np.inf
+        if _dot(c, mids[e]) < near:
+            continue
         dist[e] = nearest_on_arc(c, vertices[edges[e, 0]], vertices[edges[e, 1]], tmp)
         best = min(best, dist[e] - margins[e])
     # 1e-9 rad of slack for rounding: a few arcs too many cost nothing
     limit = best + 2.0 * spread + 2.0 * r + max_margin + 1e-9
-    arcs = np.empty(edges.shape[0], dtype=np.int64)
     n = 0
     for e in range(edges.shape[0]):
         if dist[e] - margins[e] <= limit or dist[e] <= spread + r + 1e-9:
             arcs[n] = e
+            arc_dist[n] = dist[e]
             n += 1
-    return cells, arcs[:n]
+    return n
 
 
 #: Candidate arcs a cell keeps from its first pass (most cells have about a dozen); a cell with
@@ -128,6 +182,8 @@ def _cell(
     cell,
     inside,
     arcs,
+    arc_dist,
+    from_block,
     centres,
     radius,
     vertices,
@@ -142,28 +198,35 @@ def _cell(
     out_edges,
     out_keys,
 ):
-    """One cell: (deep, bound, number of candidates); the first ``len(out_edges)`` candidates
+    """One cell: (deep, number of candidates); the first ``len(out_edges)`` candidates
     (in arc order) and their keys into ``out_edges``/``out_keys``.
 
-    ``arcs`` (A,) must hold the cell's candidates and both minimisers (:func:`_block`),
-    ``reach`` is the longest half arc plus the largest margin, ``dist`` (A,) scratch.
+    ``arcs`` (A,) must hold the cell's candidates and both minimisers (:func:`_block_arcs`),
+    ``arc_dist`` (A,) their angles (rad) from the block's centre, ``from_block`` the angle of
+    the cell's centre from it, ``reach`` the longest half arc plus the largest margin,
+    ``dist`` (A,) scratch.
     """
     centre, r = centres[cell], radius[cell]
-    # an upper bound on the smallest key: every point of an arc lies within its half length of
-    # its midpoint, so the arc whose midpoint is nearest (largest dot) gives one
-    nearest = -1
-    best_dot = -np.inf
-    for e in arcs:
-        dot = _dot(centre, mids[e])
-        if dot > best_dot:
-            best_dot = dot
-            nearest = e
+    if inside[cell]:
+        # deep when no arc comes within r: each arc's angle from the cell's centre is at least
+        # its angle from the block's centre less ``from_block``
+        clear = True
+        for s in range(arcs.shape[0]):
+            if arc_dist[s] - from_block - 1e-9 <= r:
+                clear = False
+                break
+        if clear:
+            return True, 0
+    # an upper bound on the smallest key: the block's arcs hold the minimiser, and each arc's
+    # angle from the cell's centre is within ``from_block`` of its angle from the block's
     top = np.inf
-    if nearest >= 0:
-        top = _angle(centre, mids[nearest]) + half[nearest] - margins[nearest]
+    for s in range(arcs.shape[0]):
+        top = min(top, arc_dist[s] + from_block - margins[arcs[s]])
+    top += 1e-9
     # a minimiser (key or plain) or a candidate (key <= top + 2 r, or within r) lies within
     # x = max(top + 2 r, r) + max margin of the centre, so its midpoint within x + half + margin:
-    # the longest arc's bound first (cheap), then the arc's own
+    # an arc is measured only if no bound puts it beyond (the block's distance first, then the
+    # longest arc's midpoint bound, then the arc's own; all cheap next to measuring it)
     x = max(top + 2.0 * r, r) + max_margin
     limit = math.cos(min(x + reach + 1e-9, math.pi))
     best_key = np.inf
@@ -171,6 +234,9 @@ def _cell(
     for s in range(arcs.shape[0]):
         e = arcs[s]
         dist[s] = np.inf
+        closest = arc_dist[s] - from_block - 1e-9
+        if closest - margins[e] > top + 2.0 * r and closest > r:
+            continue
         dot = _dot(centre, mids[e])
         if dot < limit or dot < math.cos(min(x + half[e] + margins[e] + 1e-9, math.pi)):
             continue
@@ -180,7 +246,7 @@ def _cell(
     deep = (inside[cell] and best_plain >= r) or (best_key + r <= 0.0)
     bound = best_key + 2.0 * r
     if deep:
-        return deep, bound, 0
+        return deep, 0
     k = 0
     for s in range(arcs.shape[0]):
         e = arcs[s]
@@ -190,7 +256,23 @@ def _cell(
                 out_edges[k] = e
                 out_keys[k] = dist[s] - margins[e]
             k += 1
-    return deep, bound, k
+    return deep, k
+
+
+@nb.njit(cache=True)
+def _sort_by_key(cell_edges, cell_keys) -> None:
+    """Sort one cell's candidates (in place) by key, equal keys kept in their order: an
+    insertion sort, as a stable sort orders them (a cell holds a few dozen at most)."""
+    for a in range(1, cell_keys.shape[0]):
+        key = cell_keys[a]
+        edge = cell_edges[a]
+        b = a - 1
+        while b >= 0 and cell_keys[b] > key:
+            cell_keys[b + 1] = cell_keys[b]
+            cell_edges[b + 1] = cell_edges[b]
+            b -= 1
+        cell_keys[b + 1] = key
+        cell_edges[b + 1] = edge
 
 
 @nb.njit(cache=True, parallel=True)
@@ -207,26 +289,36 @@ def build_grid(vertices, edges, margins, axis, grid_shape, inside):
     """
     n_theta, n_phi = grid_shape[0], grid_shape[1]
     n_cells = n_theta * n_phi
+    n_edges = edges.shape[0]
     u, v = _frame(axis)
     mids, half = _edge_bounds(vertices, edges)
     max_margin = 0.0
-    reach = 0.0
-    for e in range(edges.shape[0]):
+    longest_half = 0.0
+    for e in range(n_edges):
         max_margin = max(max_margin, margins[e])
-        reach = max(reach, half[e])
-    reach += max_margin
+        longest_half = max(longest_half, half[e])
+    reach = longest_half + max_margin
     deep = np.zeros(n_cells, dtype=np.bool_)
     counts = np.zeros(n_cells, dtype=np.int64)
-    bound = np.empty(n_cells)
     radius = np.empty(n_cells)
     centres = np.empty((n_cells, 3))
     first_edges = np.empty((n_cells, FIRST_PASS_ARCS), dtype=np.int64)
     first_keys = np.empty((n_cells, FIRST_PASS_ARCS))
     blocks_phi = (n_phi + BLOCK - 1) // BLOCK
     n_blocks = ((n_theta + BLOCK - 1) // BLOCK) * blocks_phi
+    # each block's arcs, found once and read by both passes
+    block_arcs = np.empty((n_blocks, n_edges), dtype=np.int64)
+    block_arc_dist = np.empty((n_blocks, n_edges))
+    block_count = np.zeros(n_blocks, dtype=np.int64)
+    from_block = np.empty(n_cells)
     for block in nb.prange(n_blocks):
         tmp = np.empty(3)
-        cells, arcs = _block(
+        corner = np.empty(3)
+        cells = _block_cells(block, blocks_phi, n_theta, n_phi)
+        for cell in cells:
+            radius[cell] = _cell_geometry(cell, n_theta, n_phi, axis, u, v, centres[cell], corner)
+        dist = np.empty(n_edges)
+        block_count[block] = _block_arcs(
             block,
             blocks_phi,
             grid_shape,
@@ -236,17 +328,26 @@ def build_grid(vertices, edges, margins, axis, grid_shape, inside):
             vertices,
             edges,
             margins,
+            mids,
+            longest_half,
             max_margin,
             centres,
             radius,
             tmp,
+            dist,
+            block_arcs[block],
+            block_arc_dist[block],
+            from_block,
         )
-        dist = np.empty(arcs.shape[0])
+        arcs = block_arcs[block, : block_count[block]]
+        arc_dist = block_arc_dist[block, : block_count[block]]
         for cell in cells:
-            deep[cell], bound[cell], counts[cell] = _cell(
+            deep[cell], counts[cell] = _cell(
                 cell,
                 inside,
                 arcs,
+                arc_dist,
+                from_block[cell],
                 centres,
                 radius,
                 vertices,
@@ -268,23 +369,10 @@ def build_grid(vertices, edges, margins, axis, grid_shape, inside):
     cell_keys = np.empty(start[n_cells])
     for block in nb.prange(n_blocks):
         tmp = np.empty(3)
-        cells, arcs = _block(
-            block,
-            blocks_phi,
-            grid_shape,
-            axis,
-            u,
-            v,
-            vertices,
-            edges,
-            margins,
-            max_margin,
-            centres,
-            radius,
-            tmp,
-        )
-        dist = np.empty(arcs.shape[0])
-        for cell in cells:
+        dist = np.empty(n_edges)
+        arcs = block_arcs[block, : block_count[block]]
+        arc_dist = block_arc_dist[block, : block_count[block]]
+        for cell in _block_cells(block, blocks_phi, n_theta, n_phi):
             k0, k = start[cell], start[cell + 1]
             if k - k0 <= FIRST_PASS_ARCS:
                 cell_edges[k0:k] = first_edges[cell, : k - k0]
@@ -294,6 +382,8 @@ def build_grid(vertices, edges, margins, axis, grid_shape, inside):
                     cell,
                     inside,
                     arcs,
+                    arc_dist,
+                    from_block[cell],
                     centres,
                     radius,
                     vertices,
@@ -308,7 +398,51 @@ def build_grid(vertices, edges, margins, axis, grid_shape, inside):
                     cell_edges[k0:k],
                     cell_keys[k0:k],
                 )
-            order = np.argsort(cell_keys[k0:k], kind="mergesort")
-            cell_edges[k0:k] = cell_edges[k0:k][order]
-            cell_keys[k0:k] = cell_keys[k0:k][order]
+            _sort_by_key(cell_edges[k0:k], cell_keys[k0:k])
+    return deep, start, cell_edges, cell_keys
+
+
+@nb.njit(cache=True)
+def build_grid_reference(vertices, edges, margins, axis, grid_shape, inside):
+    """:func:`build_grid` by brute force: every arc measured from every cell's centre."""
+    n_theta, n_phi = grid_shape[0], grid_shape[1]
+    n_cells = n_theta * n_phi
+    n_edges = edges.shape[0]
+    u, v = _frame(axis)
+    centre = np.empty(3)
+    corner = np.empty(3)
+    tmp = np.empty(3)
+    dist = np.empty((n_cells, n_edges))
+    radius = np.empty(n_cells)
+    deep = np.zeros(n_cells, dtype=np.bool_)
+    start = np.zeros(n_cells + 1, dtype=np.int64)
+    for cell in range(n_cells):
+        radius[cell] = _cell_geometry(cell, n_theta, n_phi, axis, u, v, centre, corner)
+        for e in range(n_edges):
+            dist[cell, e] = nearest_on_arc(
+                centre, vertices[edges[e, 0]], vertices[edges[e, 1]], tmp
+            )
+        r = radius[cell]
+        best_key = np.min(dist[cell] - margins)
+        deep[cell] = (inside[cell] and np.min(dist[cell]) >= r) or (best_key + r <= 0.0)
+        count = 0
+        if not deep[cell]:
+            for e in range(n_edges):
+                if dist[cell, e] - margins[e] <= best_key + 2.0 * r or dist[cell, e] <= r:
+                    count += 1
+        start[cell + 1] = start[cell] + count
+    cell_edges = np.empty(start[n_cells], dtype=np.int64)
+    cell_keys = np.empty(start[n_cells])
+    for cell in range(n_cells):
+        if deep[cell]:
+            continue
+        r = radius[cell]
+        best_key = np.min(dist[cell] - margins)
+        k = start[cell]
+        for e in range(n_edges):
+            if dist[cell, e] - margins[e] <= best_key + 2.0 * r or dist[cell, e] <= r:
+                cell_edges[k] = e
+                cell_keys[k] = dist[cell, e] - margins[e]
+                k += 1
+        _sort_by_key(cell_edges[start[cell] : k], cell_keys[start[cell] : k])
     return deep, start, cell_edges, cell_keys
