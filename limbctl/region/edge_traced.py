@@ -196,10 +196,14 @@ def local_quadratic(curve: np.ndarray, sigma: float) -> np.ndarray:
     s, total = station_positions(curve)
     u = signed_offset(s[None, :], s[:, None], total)
     w = np.exp(-0.5 * (u / sigma) ** 2)
-    basis = np.stack([np.ones_like(u), u, u * u], axis=-1)
-    # normal equations per station: (X^T W X) beta = X^T W c
-    lhs = np.einsum("kj,kja,kjb->kab", w, basis, basis)
-    rhs = np.einsum("kj,kja,jd->kad", w, basis, curve)
+    # weighted powers w u^p (p = 0 .. 4): the normal equations (X^T W X) beta = X^T W c of
+    # the basis (1, u, u^2) hold sums of w u^(a + b) on the left and w u^a c on the right
+    powers = [w]
+    for _ in range(4):
+        powers.append(powers[-1] * u)
+    moment = np.stack([p.sum(axis=1) for p in powers], axis=-1)
+    lhs = np.stack([moment[:, a : a + 3] for a in range(3)], axis=1)
+    rhs = np.stack([powers[a] @ curve for a in range(3)], axis=1)
     out = np.linalg.solve(lhs, rhs)[:, 0, :]
     return out / np.linalg.norm(out, axis=1, keepdims=True)
 

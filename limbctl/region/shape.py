@@ -36,7 +36,6 @@ from limbctl.region.mesh import (
     boundary_edges,
     circumradius,
     inside_reference,
-    nearest_on_edges_reference,
     spherical_delaunay,
 )
 from limbctl.region.union_find import UnionFind
@@ -340,7 +339,7 @@ def edge_margins(
     (M,) array per loop, entry ``i`` for the arc from point ``i`` to ``i + 1``.
     """
     vertices, edges = loops_to_edges(loops)
-    nearest, _, angle = nearest_on_edges_reference(data, vertices, edges)
+    nearest, angle = shape_kernels.nearest_arcs(data, vertices, edges)
     outside = ~inside_reference(data, vertices, edges)
     need = np.zeros(edges.shape[0])
     np.maximum.at(need, nearest[outside], angle[outside])

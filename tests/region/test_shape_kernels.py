@@ -1,8 +1,11 @@
 import numpy as np
+import pytest
 
 from limbctl.envelope.synthetic import ConeRegion
 from limbctl.geometry.quat import tangent_frame
 from limbctl.region import shape_kernels
+from limbctl.region.loops import loops_to_edges
+from limbctl.region.mesh import nearest_on_edges_reference
 
 
 def test_widest_bearing_gaps_match_numpy_in_the_tangent_frame():
@@ -28,3 +31,26 @@ def test_widest_bearing_gaps_match_numpy_in_the_tangent_frame():
     outside = np.degrees(np.arccos(np.clip(p[:, 0], -1, 1))) > 31.0
     assert (got[inside] < np.radians(120.0)).all()
     assert (got[outside] > np.radians(150.0)).all()
+
+
+@pytest.mark.parametrize("loop_points", [12, 90])
+def test_nearest_arcs_agree_with_the_brute_force_reference(loop_points):
+    # loops of a few long arcs and of many short ones; taught directions on both sides of
+    # them, and some exactly on their vertices (equally near two arcs: either may be named)
+    rng = np.random.default_rng(loop_points)
+    data = ConeRegion(np.radians(30.0)).sample(4000, rng)
+    t = np.linspace(0.0, 2.0 * np.pi, loop_points, endpoint=False)
+    r = np.radians(20.0 + 4.0 * np.sin(3.0 * t))
+    loop = np.column_stack([np.sin(r) * np.cos(t), np.sin(r) * np.sin(t), np.cos(r)])
+    data = np.vstack([data, loop])
+    vertices, edges = loops_to_edges([loop])
+    want_arc, _, want_angle = nearest_on_edges_reference(data, vertices, edges)
+    got_arc, got_angle = shape_kernels.nearest_arcs(data, vertices, edges)
+    np.testing.assert_allclose(got_angle, want_angle, rtol=0.0, atol=1e-12)
+    # where the arcs named differ, both are nearest: the reference's arc is as near
+    other = got_arc != want_arc
+    assert other.sum() <= loop_points
+    for i in np.flatnonzero(other):
+        arc = edges[got_arc[i]][None, :]
+        _, _, angle_to_got = nearest_on_edges_reference(data[i : i + 1], vertices, arc)
+        assert abs(angle_to_got[0] - want_angle[i]) <= 1e-12
