@@ -158,7 +158,7 @@ def judge(
                 f"samples and none was taught (at most {GAP_EXPECTED:.0f})",
                 unexplained_samples=worth,
             )
-    learned = DirectionMesh.from_loops(edges, 0.0)
+    learned = DirectionMesh.from_loops(edges, 0.0, lookup=False)
     before = supported.contains(data)
     missed = before & ~learned.contains(data)
     # a sample a hair outside (the edge estimate's own noise) is not a cut corner

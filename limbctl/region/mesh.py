@@ -19,13 +19,13 @@ numpy references (``*_reference`` here) answer the same questions by brute force
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
 from limbctl.errors import InvalidInputError
-from limbctl.region import grid_kernels
+from limbctl.region import direct_kernels, grid_kernels
 from limbctl.region import mesh_kernels as bk
 from limbctl.region.mesh_kernels import CONTAIN_TOLERANCE
 
@@ -40,8 +40,14 @@ class DirectionMesh:
     edges : (E, 2) int64 boundary arcs (short great-circle arcs), the region on the left of
         a -> b seen from outside the sphere; they form closed loops.
     margins : (E,) float64, each arc's widening (rad), >= 0.
-    axis : (3,) unit axis of the lookup grid; grid_* / cell_* : the lookup grid (see
-        :mod:`limbctl.region.mesh_kernels`).
+    axis : (3,) unit axis of the lookup grid; grid_shape : its (n_theta, n_phi) cells.
+    cell_* : the lookup grid (see :mod:`limbctl.region.mesh_kernels`), None until built
+        (:meth:`build_lookup`; a mesh built with ``lookup=False`` builds it when the gate's
+        kernels or saving first need it).
+
+    Queries (:meth:`contains`, :meth:`project`) read the grid once it is built, and the arcs
+    alone before (:mod:`limbctl.region.direct_kernels`): the same answers, the grid's costing
+    a tenth of a second to build and the arcs' a few microseconds a direction more.
     """
 
     vertices: np.ndarray
@@ -49,11 +55,12 @@ class DirectionMesh:
     margins: np.ndarray
     axis: np.ndarray
     grid_shape: np.ndarray
-    cell_inside: np.ndarray
-    cell_deep: np.ndarray
-    cell_start: np.ndarray
-    cell_edges: np.ndarray
-    cell_keys: np.ndarray
+    cell_inside: np.ndarray | None = None
+    cell_deep: np.ndarray | None = None
+    cell_start: np.ndarray | None = None
+    cell_edges: np.ndarray | None = None
+    cell_keys: np.ndarray | None = None
+    _far_inside: bool | None = field(default=None, repr=False, compare=False)
 
     @classmethod
     def from_loops(
@@ -61,12 +68,14 @@ class DirectionMesh:
         loops: list[np.ndarray],
         margins: float | list[np.ndarray],
         cells_per_radian: float = 60.0,
+        lookup: bool = True,
     ) -> DirectionMesh:
         """Region bounded by closed ``loops`` (each (M, 3) directions, region on the left).
 
         ``margins``: one widening (rad) for every arc, or per loop an (M,) array whose entry
         ``i`` widens the arc from point ``i`` to point ``i + 1``. The lookup grid has
-        ``cells_per_radian`` cells per radian of polar angle.
+        ``cells_per_radian`` cells per radian of polar angle; it is built now when ``lookup``,
+        else when first needed (:meth:`build_lookup`).
         """
         keep = [i for i, lp in enumerate(loops) if len(lp) >= 3]
         if not keep:
@@ -95,11 +104,19 @@ class DirectionMesh:
         axis /= np.linalg.norm(axis)
         n_theta = max(8, int(np.ceil(np.pi * cells_per_radian)))
         grid_shape = np.array([n_theta, 2 * n_theta], dtype=np.int64)
-        inside = cell_centres_inside(d, edges, axis, grid_shape)
-        deep, start_, cell_edges, cell_keys = grid_kernels.build_grid(
-            d, edges, widen, axis, grid_shape, inside
-        )
-        return cls(d, edges, widen, axis, grid_shape, inside, deep, start_, cell_edges, cell_keys)
+        mesh = cls(d, edges, widen, axis, grid_shape)
+        return mesh.build_lookup() if lookup else mesh
+
+    def build_lookup(self) -> DirectionMesh:
+        """Build the lookup grid if it is not built yet; returns the mesh."""
+        if self.cell_inside is None:
+            inside = cell_centres_inside(self.vertices, self.edges, self.axis, self.grid_shape)
+            deep, start, cell_edges, cell_keys = grid_kernels.build_grid(
+                self.vertices, self.edges, self.margins, self.axis, self.grid_shape, inside
+            )
+            self.cell_inside, self.cell_deep = inside, deep
+            self.cell_start, self.cell_edges, self.cell_keys = start, cell_edges, cell_keys
+        return self
 
     @classmethod
     def alpha_shape(cls, directions: np.ndarray, alpha: float, margin: float) -> DirectionMesh:
@@ -133,14 +150,32 @@ class DirectionMesh:
 
     def contains(self, d: np.ndarray) -> np.ndarray:
         """(N,) bool for directions ``d`` (N, 3)."""
-        return bk.contains_batch(*self.kernel_args(), np.ascontiguousarray(d, dtype=np.float64))
+        d = np.ascontiguousarray(d, dtype=np.float64)
+        if self.cell_inside is None:
+            return self._direct(d, project=False)[0]
+        return bk.contains_batch(*self.kernel_args(), d)
 
     def project(self, d: np.ndarray) -> np.ndarray:
         """Each direction itself if inside, else the nearest direction of the widened region."""
-        return bk.project_batch(*self.kernel_args(), np.ascontiguousarray(d, dtype=np.float64))
+        d = np.ascontiguousarray(d, dtype=np.float64)
+        if self.cell_inside is None:
+            return self._direct(d, project=True)[1]
+        return bk.project_batch(*self.kernel_args(), d)
+
+    def _direct(self, d: np.ndarray, project: bool) -> tuple[np.ndarray, np.ndarray]:
+        """Containment (N,) and projection (N, 3) (if ``project``) of ``d`` (N, 3) from the
+        arcs alone (:func:`limbctl.region.direct_kernels.query_batch`)."""
+        if self._far_inside is None:
+            self._far_inside = bool(
+                inside_reference(-self.axis[None, :], self.vertices, self.edges)[0]
+            )
+        return direct_kernels.query_batch(
+            self.vertices, self.edges, self.margins, self.axis, self._far_inside, d, project
+        )
 
     def kernel_args(self) -> tuple:
-        """The arrays the query kernels take, in their order."""
+        """The arrays the query kernels take, in their order (the grid built if need be)."""
+        self.build_lookup()
         return (
             self.vertices,
             self.edges,
@@ -156,6 +191,7 @@ class DirectionMesh:
 
     def arrays(self) -> dict[str, np.ndarray]:
         """Everything needed to rebuild the mesh without recomputation (for saving)."""
+        self.build_lookup()
         return {
             "mesh_vertices": self.vertices,
             "mesh_edges": self.edges,

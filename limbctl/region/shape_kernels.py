@@ -10,7 +10,7 @@ import math
 import numba as nb
 import numpy as np
 
-from limbctl.region.mesh_kernels import _angle, _dot, nearest_on_arc
+from limbctl.region.direct_kernels import arc_bounds, nearest_widened
 
 
 @nb.njit(cache=True)
@@ -58,44 +58,18 @@ def nearest_arcs(data: np.ndarray, vertices: np.ndarray, edges: np.ndarray):
     """The nearest boundary arc (N,) of each direction of ``data`` (N, 3) and its angle (N,) rad.
 
     ``edges`` (E, 2) index great-circle arcs between ``vertices`` (V, 3). Of equally near arcs
-    the first wins. Only arcs that can be nearest are measured: every point of an arc lies
-    within its half length of its midpoint, so the arc whose midpoint is nearest bounds the
-    answer from above, ``U = angle(p, mid) + half``, and an arc whose midpoint lies farther
-    than ``U`` plus the longest half length cannot be nearer. The brute-force reference is
-    :func:`limbctl.region.mesh.nearest_on_edges_reference`.
+    the first wins; only arcs that can be nearest are measured
+    (:func:`limbctl.region.direct_kernels.nearest_widened` with no widening). The brute-force
+    reference is :func:`limbctl.region.mesh.nearest_on_edges_reference`.
     """
-    n_edges = edges.shape[0]
-    mids = np.empty((n_edges, 3))
-    half = np.empty(n_edges)
-    longest_half = 0.0
-    for e in range(n_edges):
-        a = vertices[edges[e, 0]]
-        b = vertices[edges[e, 1]]
-        m = a + b
-        mids[e] = m / math.sqrt(_dot(m, m))
-        half[e] = 0.5 * _angle(a, b)
-        longest_half = max(longest_half, half[e])
+    mids, half, longest = arc_bounds(vertices, edges)
+    no_margins = np.zeros(edges.shape[0])
     nearest = np.full(data.shape[0], -1, dtype=np.int64)
     angle = np.full(data.shape[0], np.inf)
     tmp = np.empty(3)
+    point = np.empty(3)
     for i in range(data.shape[0]):
-        p = data[i]
-        closest = -1
-        best_dot = -np.inf
-        for e in range(n_edges):
-            dot = _dot(p, mids[e])
-            if dot > best_dot:
-                best_dot = dot
-                closest = e
-        if closest < 0:
-            continue
-        top = _angle(p, mids[closest]) + half[closest]
-        limit = math.cos(min(top + longest_half + 1e-9, math.pi))
-        for e in range(n_edges):
-            if _dot(p, mids[e]) < limit:
-                continue
-            d = nearest_on_arc(p, vertices[edges[e, 0]], vertices[edges[e, 1]], tmp)
-            if d < angle[i]:
-                angle[i] = d
-                nearest[i] = e
+        nearest[i], _, angle[i] = nearest_widened(
+            data[i], vertices, edges, no_margins, mids, half, longest, tmp, point
+        )
     return nearest, angle

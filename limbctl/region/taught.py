@@ -102,11 +102,17 @@ class TaughtRegion:
         self.support_index: np.ndarray | None = None
 
     # ---- building ----------------------------------------------------------------------------
-    def fit(self, samples: np.ndarray) -> TaughtRegion:
-        """Build the region from taught ``samples``: directions (N, 3) or quaternions (N, 4)."""
+    def fit(self, samples: np.ndarray, lookup: bool = True) -> TaughtRegion:
+        """Build the region from taught ``samples``: directions (N, 3) or quaternions (N, 4).
+
+        With ``lookup`` the region's lookup grid is built too, ready for the gate; without,
+        it is built when first needed (a live view that only draws the loops never needs it).
+        """
         d = taught_directions(samples)
         self.support_index, spacing = self._thinned(d)
         self.mesh = self._build(d[self.support_index], d, spacing)
+        if lookup:
+            self.mesh.build_lookup()
         return self
 
     def _thinned(self, d: np.ndarray) -> tuple[np.ndarray, float]:
@@ -155,7 +161,8 @@ class TaughtRegion:
             traced_arc=TRACED_SPACINGS * thinning,
             corner_turn=np.radians(CORNER_TURN_DEG),
         )
-        supported = DirectionMesh.from_loops(loops, margins)
+        # the lookup grid waits until this region is taken (fit) or first asked (gate)
+        supported = DirectionMesh.from_loops(loops, margins, lookup=False)
         taken, self.verdicts = choose_edge(
             p.edge, loops, d_train, supported, np.radians(p.max_offset_deg)
         )

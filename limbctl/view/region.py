@@ -163,7 +163,9 @@ def fit_outline(pan_tilt_rad: np.ndarray) -> RegionFit:
         swing_from_direction(pan_tilt_to_direction(samples[:, 0], samples[:, 1]))
     )
     try:
-        region = TaughtRegion().fit(directions)  # RigidMap()'s region: the default settings
+        # RigidMap()'s region (the default settings); the page draws its loops, so the gate's
+        # lookup grid is not built
+        region = TaughtRegion().fit(directions, lookup=False)
     except (LimbctlError, ValueError) as exc:
         return RegionFit((), len(samples), time.perf_counter() - started, problem=str(exc))
     loops = region_loops(region.mesh.vertices, region.mesh.edges, directions)

@@ -1,0 +1,163 @@
+"""Numba kernels that answer the region's queries without its lookup grid.
+
+The grid (:mod:`limbctl.region.grid_kernels`) costs a tenth of a second to build and then
+answers one direction in about a microsecond: right for the gate, which asks every cycle of a
+model that is built once. While a region is fitted, the fit asks a few thousand questions of
+meshes it may then throw away (the acceptance checks of each candidate edge,
+:mod:`limbctl.region.acceptance`); these kernels answer them from the arcs alone, with the
+same rule as the grid's queries (:func:`limbctl.region.mesh_kernels.query`):
+
+- *in the loops*: by the parity of the boundary arcs crossing the half-meridian from the
+  direction to ``-axis`` (as :func:`limbctl.region.mesh.cell_centres_inside` decides a cell's
+  centre), given whether ``-axis`` is inside;
+- *the nearest widened arc*: the arc minimising ``angle(p, e) - margin_e`` (the first of equal
+  ones, in arc order), measured only where the midpoint bound (below) cannot rule it out;
+- inside when in the loops or ``min key <= CONTAIN_TOLERANCE``; outside, the projection goes
+  ``margin`` from the nearest point of that arc toward the direction.
+
+Both answer alike except within rounding of the loops, where the tolerance makes both say
+inside (``tests/region/test_direct_kernels.py`` compares them). Angles in radians. No
+fastmath: every comparison sees NaN as failing.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+
+from limbctl.region.mesh_kernels import (
+    CONTAIN_TOLERANCE,
+    _angle,
+    _dot,
+    _frame,
+    nearest_on_arc,
+    slerp_into,
+)
+
+#: Rows per chunk of a batch: scratch is allocated once per chunk, not per row.
+CHUNK = 256
+
+
+@nb.njit(cache=True)
+def arc_bounds(vertices, edges):
+    """Unit midpoints (E, 3), half lengths (E,) rad and the longest half length of the arcs."""
+    n_edges = edges.shape[0]
+    mids = np.empty((n_edges, 3))
+    half = np.empty(n_edges)
+    longest = 0.0
+    for e in range(n_edges):
+        a = vertices[edges[e, 0]]
+        b = vertices[edges[e, 1]]
+        m = a + b
+        mids[e] = m / math.sqrt(_dot(m, m))
+        half[e] = 0.5 * _angle(a, b)
+        longest = max(longest, half[e])
+    return mids, half, longest
+
+
+@nb.njit(cache=True)
+def nearest_widened(p, vertices, edges, margins, mids, half, reach, tmp, best_point):
+    """The nearest widened arc of ``p`` (3,): its index, ``angle - margin`` and angle (rad);
+    its nearest point goes into ``best_point`` (3,).
+
+    Every point of an arc lies within its half length of its midpoint, so the arc whose
+    midpoint is nearest gives an upper bound ``top`` on the smallest key; an arc whose
+    midpoint lies farther than ``top + reach`` (``reach``: the longest half length plus the
+    largest margin) cannot do better and is not measured.
+    """
+    closest = -1
+    best_dot = -np.inf
+    for e in range(edges.shape[0]):
+        dot = _dot(p, mids[e])
+        if dot > best_dot:
+            best_dot = dot
+            closest = e
+    best_arc = -1
+    best_key = np.inf
+    best_angle = np.inf
+    if closest < 0:
+        return best_arc, best_key, best_angle
+    top = _angle(p, mids[closest]) + half[closest] - margins[closest]
+    limit = math.cos(min(top + reach + 1e-9, math.pi))
+    for e in range(edges.shape[0]):
+        if _dot(p, mids[e]) < limit:
+            continue
+        angle = nearest_on_arc(p, vertices[edges[e, 0]], vertices[edges[e, 1]], tmp)
+        if angle - margins[e] < best_key:
+            best_key = angle - margins[e]
+            best_angle = angle
+            best_arc = e
+            best_point[0] = tmp[0]
+            best_point[1] = tmp[1]
+            best_point[2] = tmp[2]
+    return best_arc, best_key, best_angle
+
+
+@nb.njit(cache=True)
+def in_loops(p, vertices, edges, axis, u, v, far_inside) -> bool:
+    """Whether ``p`` (3,) lies inside the loops: the arcs crossing the half-meridian from the
+    axis through ``p`` to ``-axis`` beyond ``p`` are counted; ``p`` is inside when ``-axis``
+    is (``far_inside``) and the count is even, or when it is not and the count is odd."""
+    phi = math.atan2(_dot(p, v), _dot(p, u))
+    cp = math.cos(phi)
+    sp = math.sin(phi)
+    theta = _angle(p, axis)
+    crossings = 0
+    for e in range(edges.shape[0]):
+        a = vertices[edges[e, 0]]
+        b = vertices[edges[e, 1]]
+        # n: the meridian plane's normal, -sin(phi) u + cos(phi) v
+        an = 0.0
+        bn = 0.0
+        for k in range(3):
+            n_k = -sp * u[k] + cp * v[k]
+            an += a[k] * n_k
+            bn += b[k] * n_k
+        if (an > 0.0) == (bn > 0.0):
+            continue
+        # the arc meets the plane at x = (1 - t) a + t b, t = a.n / (a.n - b.n); on the
+        # half-meridian when x.e > 0 (e = cos(phi) u + sin(phi) v)
+        t = an / (an - bn)
+        xe = 0.0
+        xa = 0.0
+        for k in range(3):
+            x_k = (1.0 - t) * a[k] + t * b[k]
+            xe += x_k * (cp * u[k] + sp * v[k])
+            xa += x_k * axis[k]
+        if xe > 0.0 and math.atan2(xe, xa) > theta:
+            crossings += 1
+    return far_inside != (crossings % 2 == 1)
+
+
+@nb.njit(cache=True, parallel=True)
+def query_batch(vertices, edges, margins, axis, far_inside, d, project):
+    """Whether each direction of ``d`` (N, 3) is in the region (N,) bool, and, when
+    ``project``, its projection (N, 3) (the direction itself inside); else a (0, 3) array."""
+    n = d.shape[0]
+    inside = np.empty(n, dtype=np.bool_)
+    out = np.empty((n if project else 0, 3))
+    mids, half, longest = arc_bounds(vertices, edges)
+    max_margin = 0.0
+    for e in range(edges.shape[0]):
+        max_margin = max(max_margin, margins[e])
+    u, v = _frame(axis)
+    for chunk in nb.prange((n + CHUNK - 1) // CHUNK):
+        tmp = np.empty(3)
+        best_point = np.empty(3)
+        for j in range(chunk * CHUNK, min(n, (chunk + 1) * CHUNK)):
+            p = d[j]
+            arc, key, angle = nearest_widened(
+                p, vertices, edges, margins, mids, half, longest + max_margin, tmp, best_point
+            )
+            inside[j] = key <= CONTAIN_TOLERANCE or in_loops(
+                p, vertices, edges, axis, u, v, far_inside
+            )
+            if not project:
+                continue
+            if inside[j] or arc < 0:
+                out[j] = p
+            else:
+                slerp_into(best_point, p, angle, margins[arc], out[j])
+    return inside, out
