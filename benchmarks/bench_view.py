@@ -1,8 +1,9 @@
 """The recorder's sample rate with the live view off and on (docs/bench_view.md).
 
-Run: ``.venv/bin/python benchmarks/bench_view.py --seconds 30 --out docs/bench_view.md``
+Run: ``.venv/bin/python benchmarks/bench_view.py --seconds 30,60 --out docs/bench_view.md``
 
-Each run records from the embedded simulator's scripted hand at 100 Hz for ``--seconds``:
+Each run records from the embedded simulator's scripted hand at 100 Hz for each length of
+``--seconds``:
 
 - ``off``: the recorder reads the rig directly;
 - ``on``: the recorder reads through the view's pose tap, the scene feeder refits the region in
@@ -148,42 +149,58 @@ def teleop_table(seconds: float) -> str:
     )
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seconds", type=float, default=30.0)
-    parser.add_argument("--seed", type=int, default=1)
-    parser.add_argument("--teleop-seconds", type=float, default=15.0)
-    parser.add_argument("--out", type=Path, default=None, help="write the table here (markdown)")
-    args = parser.parse_args()
+def recorder_table(lengths_s: list[float], seed: int) -> str:
+    """The recorder's rows: each mode for each teaching length."""
     rows = []
-    for mode, (view, refit) in MODES.items():
-        result = run(view, refit, args.seconds, args.seed)
-        rows.append(
-            f"| {mode} | {result['samples']} | {result['rate_hz']:.2f} | "
-            f"{result['gap_median_ms']:.2f} | {result['gap_p99_ms']:.2f} | "
-            f"{result['gap_max_ms']:.2f} | {result['fits']} | "
-            f"{result['redraw_median_s']:.2f} | {result['redraw_max_s']:.2f} |"
-        )
-        print(rows[-1], flush=True)
-    table = "\n".join(
+    for seconds in lengths_s:
+        for mode, (view, refit) in MODES.items():
+            result = run(view, refit, seconds, seed)
+            rows.append(
+                f"| {seconds:g} s | {mode} | {result['samples']} | {result['rate_hz']:.2f} | "
+                f"{result['gap_median_ms']:.2f} | {result['gap_p99_ms']:.2f} | "
+                f"{result['gap_max_ms']:.2f} | {result['fits']} | "
+                f"{result['redraw_median_s']:.2f} | {result['redraw_max_s']:.2f} |"
+            )
+            print(rows[-1], flush=True)
+    return "\n".join(
         [
-            f"Recorder at 100 Hz on the simulator's scripted hand, {args.seconds:g} s each, "
-            f"seed {args.seed}.",
+            f"Recorder at 100 Hz on the simulator's scripted hand, seed {seed}.",
             "",
-            "| view | samples | rate (Hz) | gap median (ms) | gap p99 (ms) | gap max (ms) | fits "
-            "| region redraw median (s) | region redraw max (s) |",
-            "| --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+            "| teaching | view | samples | rate (Hz) | gap median (ms) | gap p99 (ms) "
+            "| gap max (ms) | fits | region redraw median (s) | region redraw max (s) |",
+            "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
             *rows,
         ]
     )
-    table += "\n\n" + teleop_table(args.teleop_seconds)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument(
+        "--seconds",
+        default="30",
+        help="teaching lengths to record, comma-separated (s; default 30)",
+    )
+    parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument(
+        "--teleop-seconds", type=float, default=15.0, help="each teleop run (s); 0 skips them"
+    )
+    parser.add_argument("--out", type=Path, default=None, help="write the table here (markdown)")
+    args = parser.parse_args()
+    try:
+        lengths = [float(x) for x in args.seconds.split(",")]
+    except ValueError:
+        parser.error(
+            f"--seconds: need lengths in seconds separated by commas, got {args.seconds!r}"
+        )
+    table = recorder_table(lengths, args.seed)
+    if args.teleop_seconds > 0:
+        table += "\n\n" + teleop_table(args.teleop_seconds)
     if args.out is not None:
+        command = " ".join(["python", "benchmarks/bench_view.py", *sys.argv[1:]])
         args.out.write_text(
             "# Live view: the recorder's rate\n\n"
-            "`python benchmarks/bench_view.py --seconds "
-            f"{args.seconds:g} --out {args.out}` (2-core machine shared with other work).\n\n"
-            + table
-            + "\n"
+            f"`{command}` (2-core machine shared with other work).\n\n" + table + "\n"
         )
     print(table)
 

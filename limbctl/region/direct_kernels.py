@@ -58,9 +58,10 @@ def arc_bounds(vertices, edges):
 
 
 @nb.njit(cache=True)
-def nearest_widened(p, vertices, edges, margins, mids, half, reach, tmp, best_point):
+def nearest_widened(p, vertices, edges, margins, mids, half, reach, tie, tmp, best_point):
     """The nearest widened arc of ``p`` (3,): its index, ``angle - margin`` and angle (rad);
-    its nearest point goes into ``best_point`` (3,).
+    its nearest point goes into ``best_point`` (3,). Arcs are visited in order, and a later
+    arc replaces the best only when nearer by more than ``tie`` (rad; 0: any nearer).
 
     Every point of an arc lies within its half length of its midpoint, so the arc whose
     midpoint is nearest gives an upper bound ``top`` on the smallest key; an arc whose
@@ -85,7 +86,7 @@ def nearest_widened(p, vertices, edges, margins, mids, half, reach, tmp, best_po
         if _dot(p, mids[e]) < limit:
             continue
         angle = nearest_on_arc(p, vertices[edges[e, 0]], vertices[edges[e, 1]], tmp)
-        if angle - margins[e] < best_key:
+        if angle - margins[e] < best_key - tie:
             best_key = angle - margins[e]
             best_angle = angle
             best_arc = e
@@ -149,7 +150,7 @@ def query_batch(vertices, edges, margins, axis, far_inside, d, project):
         for j in range(chunk * CHUNK, min(n, (chunk + 1) * CHUNK)):
             p = d[j]
             arc, key, angle = nearest_widened(
-                p, vertices, edges, margins, mids, half, longest + max_margin, tmp, best_point
+                p, vertices, edges, margins, mids, half, longest + max_margin, 0.0, tmp, best_point
             )
             inside[j] = key <= CONTAIN_TOLERANCE or in_loops(
                 p, vertices, edges, axis, u, v, far_inside

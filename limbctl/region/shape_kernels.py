@@ -12,6 +12,10 @@ import numpy as np
 
 from limbctl.region.direct_kernels import arc_bounds, nearest_widened
 
+#: Arcs nearer than each other by at most this much (rad) are equally near: far above the
+#: rounding of an angle (1e-16 rad), far below anything a margin could notice.
+TIE = 1e-12
+
 
 @nb.njit(cache=True)
 def widest_bearing_gaps(p: np.ndarray, data: np.ndarray, start: np.ndarray, near: np.ndarray):
@@ -57,10 +61,11 @@ def widest_bearing_gaps(p: np.ndarray, data: np.ndarray, start: np.ndarray, near
 def nearest_arcs(data: np.ndarray, vertices: np.ndarray, edges: np.ndarray):
     """The nearest boundary arc (N,) of each direction of ``data`` (N, 3) and its angle (N,) rad.
 
-    ``edges`` (E, 2) index great-circle arcs between ``vertices`` (V, 3). Of equally near arcs
-    the first wins; only arcs that can be nearest are measured
-    (:func:`limbctl.region.direct_kernels.nearest_widened` with no widening). The brute-force
-    reference is :func:`limbctl.region.mesh.nearest_on_edges_reference`.
+    ``edges`` (E, 2) index great-circle arcs between ``vertices`` (V, 3); only arcs that can
+    be nearest are measured (:func:`limbctl.region.direct_kernels.nearest_widened` with no
+    widening). Of arcs within :data:`TIE` of each other the first wins: a direction on a
+    vertex lies ~1e-16 rad from both its arcs, and rounding would otherwise pick one. The
+    brute-force reference is :func:`limbctl.region.mesh.nearest_on_edges_reference`.
     """
     mids, half, longest = arc_bounds(vertices, edges)
     no_margins = np.zeros(edges.shape[0])
@@ -70,6 +75,6 @@ def nearest_arcs(data: np.ndarray, vertices: np.ndarray, edges: np.ndarray):
     point = np.empty(3)
     for i in range(data.shape[0]):
         nearest[i], _, angle[i] = nearest_widened(
-            data[i], vertices, edges, no_margins, mids, half, longest, tmp, point
+            data[i], vertices, edges, no_margins, mids, half, longest, TIE, tmp, point
         )
     return nearest, angle

@@ -3,13 +3,14 @@
 - :class:`PoseTap` stands in for the limb the recorder reads: each ``read_pose`` is passed
   through, kept in memory and published as the live pose (a list append and a board swap, a few
   microseconds on the recorder's own thread; nothing there ever waits on the view).
-- :class:`SceneFeeder` runs on its own thread: every :data:`SCENE_PERIOD_S`, and at once when a
-  fit finishes, it thins the samples so far and publishes a scene with the guide's latest
-  figures (handed over with :meth:`SceneFeeder.set_guide`, a reference swap) and the newest
-  region fitted by a :class:`~limbctl.view.region.FitProcess`. Fits run back to back: the next
-  starts as soon as the last one is collected (when there are new samples), so the region is
-  redrawn as often as the fit's own time allows; the fit process only takes CPU time nothing
-  else wants, so this never slows the recorder.
+- :class:`SceneFeeder` runs on its own thread: every :data:`SCENE_PERIOD_S`, at once when a
+  fit finishes, and when the next fit is due, it thins the samples so far and publishes a scene
+  with the guide's latest figures (handed over with :meth:`SceneFeeder.set_guide`, a reference
+  swap) and the newest region fitted by a :class:`~limbctl.view.region.FitProcess`. Fits run
+  back to back: the next starts as soon as the last one is collected (when there are new
+  samples), at most every :data:`REFIT_PERIOD_S`, so the region is redrawn as often as the
+  fit's own time allows; the fit process only takes CPU time nothing else wants, so this never
+  slows the recorder.
 """
 
 from __future__ import annotations
@@ -151,14 +152,20 @@ class SceneFeeder:
 
     def _run(self) -> None:
         while not self._stop.is_set():
-            deadline = time.monotonic() + SCENE_PERIOD_S
+            wake = time.monotonic() + SCENE_PERIOD_S
             self.publish_once()
-            # until the next scene is due, or earlier: as soon as the running fit is done
             fits = self._fits
-            remaining = deadline - time.monotonic()
-            if fits is not None and fits.busy and remaining > 0.0:
-                fits.wait(remaining)
-            elif remaining > 0.0:
+            if fits is not None and fits.busy:
+                # until the next scene is due, or earlier: as soon as the running fit is done
+                fits.wait(wake - time.monotonic())
+                continue
+            refit_at = self._last_start + REFIT_PERIOD_S
+            if fits is not None and self._fit_wanted and time.monotonic() < refit_at:
+                # a fit done sooner than REFIT_PERIOD_S after its start: the next one starts
+                # as soon as that period is over, not a whole scene period later
+                wake = min(wake, refit_at)
+            remaining = wake - time.monotonic()
+            if remaining > 0.0:
                 self._stop.wait(remaining)
 
     def publish_once(self) -> Scene:
