@@ -159,14 +159,18 @@ class SceneFeeder:
                 # until the next scene is due, or earlier: as soon as the running fit is done
                 fits.wait(wake - time.monotonic())
                 continue
-            refit_at = self._last_start + REFIT_PERIOD_S
-            if fits is not None and self._fit_wanted and time.monotonic() < refit_at:
-                # a fit done sooner than REFIT_PERIOD_S after its start: the next one starts
-                # as soon as that period is over, not a whole scene period later
-                wake = min(wake, refit_at)
-            remaining = wake - time.monotonic()
+            remaining = self.wake_time(time.monotonic(), wake) - time.monotonic()
             if remaining > 0.0:
                 self._stop.wait(remaining)
+
+    def wake_time(self, now: float, scene_due: float) -> float:
+        """When the feeder, idle at ``now`` with no fit running, wakes next (monotonic s):
+        when the next scene is due, or sooner when a fit finished less than
+        :data:`REFIT_PERIOD_S` after it started and the next may start once that is over."""
+        refit_at = self._last_start + REFIT_PERIOD_S
+        if self._fits is not None and self._fit_wanted and now < refit_at:
+            return min(scene_due, refit_at)
+        return scene_due
 
     def publish_once(self) -> Scene:
         """Collect a finished fit, start the next if due, and publish the scene; returns it."""
