@@ -32,7 +32,7 @@ A final lift moves stations out where a taught direction next to them still lies
 
 Measured (``benchmarks/bench_envelope.py``: 1000 i.i.d. samples, dense middle, sparse edge, 5
 teaching seeds): on the 39 x 23 deg small kidney the gate's mean angle to the ideal correction
-is 0.35-0.45 deg (the supported edge: 1.0-1.1 deg), on the 48 x 26 deg egg 0.39-0.55 deg
+is 0.36-0.48 deg (the supported edge: 1.0-1.1 deg), on the 48 x 26 deg egg 0.37-0.56 deg
 (supported: 1.1-1.2 deg), with every output inside or within 1 deg of the true region. Regions
 taught too sparsely (windows wider than ``TRACE_MAX_WINDOW_DEG``: the 113 x 78 deg BEAN and
 KIDNEY at 1000 samples) are refused (:class:`limbctl.region.edge_choice.TracedEdge`). Sharp
