@@ -10,8 +10,9 @@ Each run records from the embedded simulator's scripted hand at 100 Hz for each 
   its own process (fits back to back), the server runs, and a headless Chromium watches.
 
 Reported: samples per second, and the gaps between consecutive samples (median, p99, max), from
-the recorded file's own timestamps; the fits drawn and the intervals between the region's
-redraws once the first region is drawn (median, max).
+the recorded file's own timestamps; the fits drawn, the intervals between the region's redraws
+once the first region is drawn (median, max), and each fit's own time in the fit process (median,
+max; on idle CPU only, so waits for the CPU count).
 
 Then ``limbctl teleop`` at 200 Hz on a replayed sweep (``--teleop-seconds``), view off and on
 (watched by Chromium): cycles per second and cycle time (p50, p99) from its telemetry.
@@ -65,6 +66,7 @@ def run(view: bool, refit: bool, seconds: float, seed: int) -> dict[str, float]:
         limb = session.rig
         fits = 0
         redraws_s: list[float] = []
+        fit_s: list[float] = []
         if view:
             limb = PoseTap(session.rig, board, "record")
             limits = rig_limits(session.profile)
@@ -74,6 +76,7 @@ def run(view: bool, refit: bool, seconds: float, seed: int) -> dict[str, float]:
             wait_for(browser, lambda d: text_of(d, "sample-count") == str(summary.samples), "")
             fits = feeder.fits_done
             redraws_s = list(feeder.fit_times)
+            fit_s = list(feeder.fit_seconds)
         writer.close()
         data = load_dataset(out)
     gaps_ms = np.diff(data.t) * 1000.0
@@ -87,6 +90,9 @@ def run(view: bool, refit: bool, seconds: float, seed: int) -> dict[str, float]:
         # the region's redraw intervals once the first region is drawn
         "redraw_median_s": float(np.median(np.diff(redraws_s))) if len(redraws_s) > 1 else math.nan,
         "redraw_max_s": float(np.max(np.diff(redraws_s))) if len(redraws_s) > 1 else math.nan,
+        # each fit's own time in the fit process (waits for CPU included)
+        "fit_median_s": float(np.median(fit_s)) if fit_s else math.nan,
+        "fit_max_s": float(np.max(fit_s)) if fit_s else math.nan,
     }
 
 
@@ -159,7 +165,8 @@ def recorder_table(lengths_s: list[float], seed: int) -> str:
                 f"| {seconds:g} s | {mode} | {result['samples']} | {result['rate_hz']:.2f} | "
                 f"{result['gap_median_ms']:.2f} | {result['gap_p99_ms']:.2f} | "
                 f"{result['gap_max_ms']:.2f} | {result['fits']} | "
-                f"{result['redraw_median_s']:.2f} | {result['redraw_max_s']:.2f} |"
+                f"{result['redraw_median_s']:.2f} | {result['redraw_max_s']:.2f} | "
+                f"{result['fit_median_s']:.2f} | {result['fit_max_s']:.2f} |"
             )
             print(rows[-1], flush=True)
     return "\n".join(
@@ -167,8 +174,9 @@ def recorder_table(lengths_s: list[float], seed: int) -> str:
             f"Recorder at 100 Hz on the simulator's scripted hand, seed {seed}.",
             "",
             "| teaching | view | samples | rate (Hz) | gap median (ms) | gap p99 (ms) "
-            "| gap max (ms) | fits | region redraw median (s) | region redraw max (s) |",
-            "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+            "| gap max (ms) | fits | region redraw median (s) | region redraw max (s) "
+            "| fit median (s) | fit max (s) |",
+            "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
             *rows,
         ]
     )

@@ -15,23 +15,8 @@ import math
 import numba as nb
 import numpy as np
 
+from limbctl.region.direct_kernels import arc_bounds
 from limbctl.region.mesh_kernels import _angle, _dot, _frame, _polar_point, nearest_on_arc
-
-
-@nb.njit(cache=True)
-def _edge_bounds(vertices, edges):
-    """Unit midpoint (E, 3) and half length (E,) rad of each boundary arc."""
-    n_edges = edges.shape[0]
-    mids = np.empty((n_edges, 3))
-    half = np.empty(n_edges)
-    for e in range(n_edges):
-        a = vertices[edges[e, 0]]
-        b = vertices[edges[e, 1]]
-        m = a + b
-        m /= math.sqrt(_dot(m, m))
-        mids[e] = m
-        half[e] = 0.5 * _angle(a, b)
-    return mids, half
 
 
 @nb.njit(cache=True)
@@ -291,12 +276,10 @@ def build_grid(vertices, edges, margins, axis, grid_shape, inside):
     n_cells = n_theta * n_phi
     n_edges = edges.shape[0]
     u, v = _frame(axis)
-    mids, half = _edge_bounds(vertices, edges)
+    mids, half, longest_half = arc_bounds(vertices, edges)
     max_margin = 0.0
-    longest_half = 0.0
     for e in range(n_edges):
         max_margin = max(max_margin, margins[e])
-        longest_half = max(longest_half, half[e])
     reach = longest_half + max_margin
     deep = np.zeros(n_cells, dtype=np.bool_)
     counts = np.zeros(n_cells, dtype=np.int64)

@@ -127,6 +127,8 @@ class SceneFeeder:
         self.fits_done = 0
         #: When each fit was collected and published (monotonic s): the region's redraw times.
         self.fit_times: list[float] = []
+        #: How long each of those fits took in the fit process (s), its waits for CPU included.
+        self.fit_seconds: list[float] = []
         self._fitted_count = -1
         self._last_start = -math.inf
         self._stop = threading.Event()
@@ -186,6 +188,7 @@ class SceneFeeder:
                 self.latest = done
                 self.fits_done += 1
                 self.fit_times.append(time.monotonic())
+                self.fit_seconds.append(done.seconds)
             now = time.monotonic()
             if (
                 not fits.busy
