@@ -58,6 +58,20 @@ def arc_bounds(vertices, edges):
 
 
 @nb.njit(cache=True)
+def nearest_midpoint(p, mids) -> int:
+    """Index of the arc whose midpoint (``mids`` (E, 3)) is nearest ``p`` (3,), the first of
+    equal ones; -1 when there are no arcs."""
+    nearest = -1
+    best_dot = -np.inf
+    for e in range(mids.shape[0]):
+        dot = _dot(p, mids[e])
+        if dot > best_dot:
+            best_dot = dot
+            nearest = e
+    return nearest
+
+
+@nb.njit(cache=True)
 def nearest_widened(p, vertices, edges, margins, mids, half, reach, tie, tmp, best_point):
     """The nearest widened arc of ``p`` (3,): its index, ``angle - margin`` and angle (rad);
     its nearest point goes into ``best_point`` (3,). Arcs are visited in order, and a later
@@ -68,13 +82,7 @@ def nearest_widened(p, vertices, edges, margins, mids, half, reach, tie, tmp, be
     midpoint lies farther than ``top + reach`` (``reach``: the longest half length plus the
     largest margin) cannot do better and is not measured.
     """
-    closest = -1
-    best_dot = -np.inf
-    for e in range(edges.shape[0]):
-        dot = _dot(p, mids[e])
-        if dot > best_dot:
-            best_dot = dot
-            closest = e
+    closest = nearest_midpoint(p, mids)
     best_arc = -1
     best_key = np.inf
     best_angle = np.inf

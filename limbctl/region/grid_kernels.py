@@ -15,7 +15,7 @@ import math
 import numba as nb
 import numpy as np
 
-from limbctl.region.direct_kernels import arc_bounds
+from limbctl.region.direct_kernels import arc_bounds, nearest_midpoint
 from limbctl.region.mesh_kernels import _angle, _dot, _frame, _polar_point, nearest_on_arc
 
 
@@ -121,13 +121,7 @@ def _block_arcs(
             r = max(r, radius[cell])
     # an upper bound on the smallest key: every point of an arc lies within its half length
     # of its midpoint, so the arc whose midpoint is nearest (largest dot) gives one
-    nearest = -1
-    best_dot = -np.inf
-    for e in range(edges.shape[0]):
-        dot = _dot(c, mids[e])
-        if dot > best_dot:
-            best_dot = dot
-            nearest = e
+    nearest = nearest_midpoint(c, mids)
     top = np.inf
     if nearest >= 0:
         top = (
