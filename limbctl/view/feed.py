@@ -30,8 +30,9 @@ from limbctl.view.state import Board, GuideFigure, HardLimits, Live, PanTilt, Sc
 #: How often the scene is republished (s) when no fit finishes: the samples and the guide's
 #: figures twice a second, twice the page's promise of once a second.
 SCENE_PERIOD_S = 0.5
-#: Least time between the starts of two fits (s): a fit of a few hundred samples takes about a
-#: tenth of a second, and more than four redraws a second would show the same region again.
+#: Least time between the starts of two fits (s): a fit of a 30-60 s teaching takes 0.1-0.25 s
+#: (docs/bench_fit.md); more than four redraws a second would show much the same region again,
+#: and each costs the browser a repaint at normal priority, beside the recorder.
 REFIT_PERIOD_S = 0.25
 #: Longest wait (s) for the feeder thread to finish when stopped.
 JOIN_TIMEOUT_S = 10.0

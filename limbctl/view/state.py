@@ -173,7 +173,7 @@ class Live:
 
 @dataclass(frozen=True)
 class Scene:
-    """The slow part of the view: published about once a second.
+    """The slow part of the view: published at least twice a second and when a fit is done.
 
     Parameters
     ----------
