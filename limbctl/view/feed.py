@@ -132,6 +132,8 @@ class SceneFeeder:
         self.fit_seconds: list[float] = []
         self._fitted_count = -1
         self._last_start = -math.inf
+        #: A fit is due and waits only for REFIT_PERIOD_S since the last start to pass.
+        self._refit_waiting = False
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
 
@@ -162,17 +164,17 @@ class SceneFeeder:
                 # until the next scene is due, or earlier: as soon as the running fit is done
                 fits.wait(wake - time.monotonic())
                 continue
-            remaining = self.wake_time(time.monotonic(), wake) - time.monotonic()
+            remaining = self.wake_time(wake) - time.monotonic()
             if remaining > 0.0:
                 self._stop.wait(remaining)
 
-    def wake_time(self, now: float, scene_due: float) -> float:
-        """When the feeder, idle at ``now`` with no fit running, wakes next (monotonic s):
-        when the next scene is due, or sooner when a fit finished less than
-        :data:`REFIT_PERIOD_S` after it started and the next may start once that is over."""
-        refit_at = self._last_start + REFIT_PERIOD_S
-        if self._fits is not None and self._fit_wanted and now < refit_at:
-            return min(scene_due, refit_at)
+    def wake_time(self, scene_due: float) -> float:
+        """When the feeder, idle with no fit running, wakes next (monotonic s):
+        when the next scene is due, or sooner when the last :meth:`publish_once` left a fit
+        waiting only for :data:`REFIT_PERIOD_S` since the last start to pass (that moment,
+        even if it has passed since: the next fit then starts at once)."""
+        if self._refit_waiting:
+            return min(scene_due, self._last_start + REFIT_PERIOD_S)
         return scene_due
 
     def publish_once(self) -> Scene:
@@ -183,6 +185,7 @@ class SceneFeeder:
             # off and is sampling, and a process starting up cannot delay that first write
             self._fits = FitProcess()
         fits = self._fits
+        self._refit_waiting = False
         if fits is not None and fits.alive:
             done = fits.result()
             if done is not None:
@@ -191,12 +194,13 @@ class SceneFeeder:
                 self.fit_times.append(time.monotonic())
                 self.fit_seconds.append(done.seconds)
             now = time.monotonic()
-            if (
+            due = (
                 not fits.busy
                 and len(pan_tilt_rad) >= MIN_FIT_SAMPLES
                 and len(pan_tilt_rad) != self._fitted_count
-                and now - self._last_start >= REFIT_PERIOD_S
-            ):
+            )
+            self._refit_waiting = due and now - self._last_start < REFIT_PERIOD_S
+            if due and not self._refit_waiting:
                 fits.submit(pan_tilt_rad)
                 self._fitted_count = len(pan_tilt_rad)
                 self._last_start = now

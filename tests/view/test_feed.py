@@ -6,40 +6,74 @@ import time
 
 import numpy as np
 
-from limbctl.view import Board
-from limbctl.view.feed import REFIT_PERIOD_S, SCENE_PERIOD_S, SceneFeeder
+from limbctl.view import Board, feed
+from limbctl.view.feed import SCENE_PERIOD_S, SceneFeeder
 from limbctl.view.region import MIN_FIT_SAMPLES
 
 
-def _samples() -> np.ndarray:
-    """Joint angles (N, 2) rad filling a 20 deg disc: enough for a fit."""
-    rng = np.random.default_rng(0)
-    r = np.radians(20.0) * np.sqrt(rng.uniform(0.0, 1.0, MIN_FIT_SAMPLES + 100))
-    a = rng.uniform(-np.pi, np.pi, r.size)
-    return np.column_stack([r * np.cos(a), r * np.sin(a)])
+class GrowingSamples:
+    """Joint angles (N, 2) rad filling a 20 deg disc, ten more each time they are read."""
+
+    def __init__(self) -> None:
+        rng = np.random.default_rng(0)
+        r = np.radians(20.0) * np.sqrt(rng.uniform(0.0, 1.0, 10 * MIN_FIT_SAMPLES))
+        a = rng.uniform(-np.pi, np.pi, r.size)
+        self._all = np.column_stack([r * np.cos(a), r * np.sin(a)])
+        self._count = MIN_FIT_SAMPLES
+
+    def __call__(self) -> np.ndarray:
+        self._count += 10
+        return self._all[: self._count]
 
 
-def test_a_fast_fit_is_followed_by_the_next_when_the_refit_period_is_over():
-    samples = _samples()
-    feeder = SceneFeeder(Board(), lambda: samples)
+def _first_fit_done(feeder: SceneFeeder) -> tuple[float, float]:
+    """Start the first fit and wait for it; returns monotonic times just before and just after
+    it was started."""
+    before = time.monotonic()
+    feeder.publish_once()
+    after = time.monotonic()
+    assert feeder._fits is not None and feeder._fits.wait(120.0), "the first fit never finished"
+    return before, after
+
+
+def test_a_fit_done_before_the_refit_period_is_over_is_followed_when_it_is(monkeypatch):
+    feeder = SceneFeeder(Board(), GrowingSamples())
     try:
-        before = time.monotonic()
-        feeder.publish_once()  # starts the fit process and the first fit
-        after = time.monotonic()
-        scene_due = after + SCENE_PERIOD_S
-        # idle right after the start: wake when REFIT_PERIOD_S is over, not a scene later
-        wake = feeder.wake_time(after, scene_due)
-        assert before + REFIT_PERIOD_S <= wake <= after + REFIT_PERIOD_S < scene_due
-        # once the period is over nothing is gained by waking early: the next scene
-        assert feeder.wake_time(after + REFIT_PERIOD_S, scene_due) == scene_due
+        before, after = _first_fit_done(feeder)
+        # the period outlasts the first fit (its process start included) by 0.2 s
+        period = time.monotonic() - before + 0.2
+        monkeypatch.setattr(feed, "REFIT_PERIOD_S", period)
+        feeder.publish_once()  # collects the fit; the next waits for the period
+        assert feeder.fits_done == 1 and not feeder._fits.busy
+        # wakes when the period since the fit's start is over, before the next scene
+        scene_due = after + period + 1.0
+        assert before + period <= feeder.wake_time(scene_due) <= after + period
+    finally:
+        feeder.__exit__(None, None, None)
+
+
+def test_a_refit_due_already_starts_at_once_not_a_scene_later(monkeypatch):
+    # the race that left redraws 0.5 s apart: the period ended between the collect and the
+    # wait; the wake time is then in the past, so the feeder does not wait
+    feeder = SceneFeeder(Board(), GrowingSamples())
+    try:
+        before, after = _first_fit_done(feeder)
+        period = time.monotonic() - before + 0.05
+        monkeypatch.setattr(feed, "REFIT_PERIOD_S", period)
+        feeder.publish_once()  # collects the fit; the next waits for the period
+        # the period ends here (not a race: the test makes the situation)
+        time.sleep(max(0.0, after + period - time.monotonic()) + 0.01)
+        now = time.monotonic()
+        assert feeder.wake_time(now + SCENE_PERIOD_S) < now
+        feeder.publish_once()  # and the next fit starts
+        assert feeder._fits.busy
     finally:
         feeder.__exit__(None, None, None)
 
 
 def test_without_fits_the_feeder_wakes_for_the_next_scene_only():
-    samples = _samples()
-    feeder = SceneFeeder(Board(), lambda: samples, fit=False)
+    feeder = SceneFeeder(Board(), GrowingSamples(), fit=False)
     feeder.publish_once()
-    now = time.monotonic()
-    assert feeder.wake_time(now, now + SCENE_PERIOD_S) == now + SCENE_PERIOD_S
+    due = time.monotonic() + SCENE_PERIOD_S
+    assert feeder.wake_time(due) == due
     feeder.__exit__(None, None, None)
