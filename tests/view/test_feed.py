@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+from contextlib import contextmanager
 
 import numpy as np
 
@@ -26,49 +27,43 @@ class GrowingSamples:
         return self._all[: self._count]
 
 
-def _first_fit_done(feeder: SceneFeeder) -> tuple[float, float]:
-    """Start the first fit and wait for it; returns monotonic times just before and just after
-    it was started."""
-    before = time.monotonic()
-    feeder.publish_once()
-    after = time.monotonic()
-    assert feeder._fits is not None and feeder._fits.wait(120.0), "the first fit never finished"
-    return before, after
-
-
-def test_a_fit_done_before_the_refit_period_is_over_is_followed_when_it_is(monkeypatch):
+@contextmanager
+def fit_left_waiting(monkeypatch):
+    """A feeder whose first fit is done and collected, the next left waiting for a refit
+    period that outlasts the first fit (its process start included) by 0.2 s; yields the
+    feeder and the monotonic times just before and after the first fit was started, and the
+    period."""
     feeder = SceneFeeder(Board(), GrowingSamples())
     try:
-        before, after = _first_fit_done(feeder)
-        # the period outlasts the first fit (its process start included) by 0.2 s
+        before = time.monotonic()
+        feeder.publish_once()  # starts the fit process and the first fit
+        after = time.monotonic()
+        assert feeder._fits is not None and feeder._fits.wait(120.0), "the first fit never ended"
         period = time.monotonic() - before + 0.2
         monkeypatch.setattr(feed, "REFIT_PERIOD_S", period)
         feeder.publish_once()  # collects the fit; the next waits for the period
         assert feeder.fits_done == 1 and not feeder._fits.busy
+        yield feeder, before, after, period
+    finally:
+        feeder.__exit__(None, None, None)
+
+
+def test_a_fit_done_before_the_refit_period_is_over_is_followed_when_it_is(monkeypatch):
+    with fit_left_waiting(monkeypatch) as (feeder, before, after, period):
         # wakes when the period since the fit's start is over, before the next scene
         scene_due = after + period + 1.0
         assert before + period <= feeder.wake_time(scene_due) <= after + period
-    finally:
-        feeder.__exit__(None, None, None)
 
 
 def test_a_refit_due_already_starts_at_once_not_a_scene_later(monkeypatch):
     # the race that left redraws 0.5 s apart: the period ended between the collect and the
     # wait; the wake time is then in the past, so the feeder does not wait
-    feeder = SceneFeeder(Board(), GrowingSamples())
-    try:
-        before, after = _first_fit_done(feeder)
-        period = time.monotonic() - before + 0.05
-        monkeypatch.setattr(feed, "REFIT_PERIOD_S", period)
-        feeder.publish_once()  # collects the fit; the next waits for the period
-        # the period ends here (not a race: the test makes the situation)
-        time.sleep(max(0.0, after + period - time.monotonic()) + 0.01)
+    with fit_left_waiting(monkeypatch) as (feeder, _, _, _):
+        monkeypatch.setattr(feed, "REFIT_PERIOD_S", 0.0)  # the period is over
         now = time.monotonic()
         assert feeder.wake_time(now + SCENE_PERIOD_S) < now
         feeder.publish_once()  # and the next fit starts
         assert feeder._fits.busy
-    finally:
-        feeder.__exit__(None, None, None)
 
 
 def test_without_fits_the_feeder_wakes_for_the_next_scene_only():
