@@ -35,6 +35,7 @@ import numba as nb
 import numpy as np
 
 from limbctl.errors import ConfigError
+from limbctl.geometry.jit import njit
 
 #: Metric codes (kernels take ints).
 EUCLIDEAN = 0
@@ -82,7 +83,7 @@ def check_k(k: object) -> int:
 
 
 # ---- numba kernels -----------------------------------------------------------------------------
-@nb.njit(cache=True)
+@njit
 def _distance(x: np.ndarray, w: np.ndarray, metric: int) -> float:
     """``|x - w|^2`` (EUCLIDEAN) or ``acos(x . w / |w|)^2`` (COSINE)."""
     if metric == EUCLIDEAN:
@@ -101,7 +102,7 @@ def _distance(x: np.ndarray, w: np.ndarray, metric: int) -> float:
     return angle * angle
 
 
-@nb.njit(cache=True)
+@njit
 def _nearest(weights, x, count, metric, idx, dist) -> None:
     """Fill ``idx``, ``dist`` (count,) with the ``count`` nearest weights, nearest first.
 
@@ -124,7 +125,7 @@ def _nearest(weights, x, count, metric, idx, dist) -> None:
         dist[r] = d
 
 
-@nb.njit(cache=True)
+@njit
 def _combine(weights, x, idx, dist, count, mode, out) -> None:
     """Combine the winner ``idx[0]`` with runner-ups ``idx[1:count]``; unit answer in ``out``."""
     win = idx[0]
@@ -171,7 +172,7 @@ def _combine(weights, x, idx, dist, count, mode, out) -> None:
         out[c] = sign * y[c] / norm
 
 
-@nb.njit(cache=True, parallel=True)
+@njit(parallel=True)
 def respond_batch(
     weights: np.ndarray, q: np.ndarray, k: int, metric: int, mode: int, topology: np.ndarray
 ) -> np.ndarray:
@@ -214,7 +215,7 @@ def respond_batch(
     return out
 
 
-@nb.njit(cache=True, parallel=True)
+@njit(parallel=True)
 def nearest_distance(weights: np.ndarray, q: np.ndarray) -> np.ndarray:
     """Euclidean distance ``min_i |q_j - w_i|`` from each row of ``q`` (N, 4) to ``weights``.
 

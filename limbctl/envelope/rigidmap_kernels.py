@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import math
 
-import numba as nb
 import numpy as np
 
 # The answering kernels (winner by weight, interpolation) are the ones the SOM uses too; they are
@@ -43,10 +42,11 @@ from limbctl.envelope.interpolation import (  # noqa: F401
     respond_batch,
     respond_reference,
 )
+from limbctl.geometry.jit import njit
 
 
 # ---- training ----------------------------------------------------------------------------------
-@nb.njit(cache=True)
+@njit
 def position_winners(positions: np.ndarray, patterns: np.ndarray) -> np.ndarray:
     """Index of the node position nearest each pattern: ``argmax_i <x, p_i>`` (first on ties).
 
@@ -70,7 +70,7 @@ def position_winners(positions: np.ndarray, patterns: np.ndarray) -> np.ndarray:
     return out
 
 
-@nb.njit(cache=True)
+@njit
 def _min_neighbour_angle(positions: np.ndarray) -> float:
     """Smallest angle (rad) between two distinct node positions."""
     m = positions.shape[0]
@@ -85,7 +85,7 @@ def _min_neighbour_angle(positions: np.ndarray) -> float:
     return math.acos(min(1.0, max(-1.0, best)))
 
 
-@nb.njit(cache=True)
+@njit
 def _winner_slots(winners: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray]:
     """The distinct winners (U,) in order of first appearance, and each pattern's slot (N,)."""
     slot = np.full(m, -1, dtype=np.int64)
@@ -102,7 +102,7 @@ def _winner_slots(winners: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray]:
     return distinct[:u], pattern_slot
 
 
-@nb.njit(cache=True)
+@njit
 def _winner_angles(positions: np.ndarray, distinct: np.ndarray) -> np.ndarray:
     """``theta[i, s]``: angle (rad) between node ``i`` and distinct winner ``s`` (M, U).
 
@@ -120,7 +120,7 @@ def _winner_angles(positions: np.ndarray, distinct: np.ndarray) -> np.ndarray:
     return theta
 
 
-@nb.njit(cache=True)
+@njit
 def _slot_patterns(pattern_slot: np.ndarray, u: int) -> tuple[np.ndarray, np.ndarray]:
     """Patterns grouped by their winner's slot, in order: (start (U + 1,), patterns (N,))."""
     start = np.zeros(u + 1, dtype=np.int64)
@@ -136,7 +136,7 @@ def _slot_patterns(pattern_slot: np.ndarray, u: int) -> tuple[np.ndarray, np.nda
     return start, out
 
 
-@nb.njit(cache=True)
+@njit
 def _patterns_near(
     h: np.ndarray, slot_start: np.ndarray, slot_patterns: np.ndarray, buffer: np.ndarray
 ) -> int:
@@ -161,7 +161,7 @@ def _patterns_near(
     return count
 
 
-@nb.njit(cache=True)
+@njit
 def train_rigid_map(
     positions: np.ndarray,
     weights: np.ndarray,
@@ -313,7 +313,7 @@ def position_topology(positions: np.ndarray, k: int) -> np.ndarray:
     return _largest_per_row(dots, min(k, positions.shape[0] - 1))
 
 
-@nb.njit(cache=True)
+@njit
 def _largest_per_row(values: np.ndarray, k: int) -> np.ndarray:
     """Columns of the ``k`` largest values of each row (M, k), largest first, ties by column:
     the first ``k`` of a stable argsort of ``-values``, without sorting whole rows."""

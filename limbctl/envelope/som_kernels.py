@@ -17,11 +17,12 @@ No fastmath: comparisons stay NaN-safe. Compiled once and cached on disk (``cach
 
 from __future__ import annotations
 
-import numba as nb
 import numpy as np
 
+from limbctl.geometry.jit import njit
 
-@nb.njit(cache=True)
+
+@njit
 def train_som(
     weights: np.ndarray,
     patterns: np.ndarray,

@@ -13,10 +13,11 @@ import math
 import numba as nb
 import numpy as np
 
+from limbctl.geometry.jit import njit
 from limbctl.region import mesh_kernels as bk
 
 
-@nb.njit(cache=True, inline="always")
+@njit(inline="always")
 def _correct_one(
     q, vertices, edges, margins, axis, grid_shape, inside, deep, start, cell_edges, keys, out, work
 ) -> int:
@@ -91,7 +92,7 @@ def _correct_one(
     return 0
 
 
-@nb.njit(cache=True, parallel=True)
+@njit(parallel=True)
 def correct_batch(
     q, vertices, edges, margins, axis, grid_shape, inside, deep, start, cell_edges, keys
 ):
@@ -121,7 +122,7 @@ def correct_batch(
     return out, status
 
 
-@nb.njit(cache=True)
+@njit
 def correct_single(
     q, vertices, edges, margins, axis, grid_shape, inside, deep, start, cell_edges, keys
 ):

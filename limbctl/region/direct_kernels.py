@@ -27,6 +27,7 @@ import math
 import numba as nb
 import numpy as np
 
+from limbctl.geometry.jit import njit
 from limbctl.region.mesh_kernels import (
     CONTAIN_TOLERANCE,
     _angle,
@@ -40,7 +41,7 @@ from limbctl.region.mesh_kernels import (
 CHUNK = 256
 
 
-@nb.njit(cache=True)
+@njit
 def arc_bounds(vertices, edges):
     """Unit midpoints (E, 3), half lengths (E,) rad and the longest half length of the arcs."""
     n_edges = edges.shape[0]
@@ -57,7 +58,7 @@ def arc_bounds(vertices, edges):
     return mids, half, longest
 
 
-@nb.njit(cache=True)
+@njit
 def nearest_midpoint(p, mids) -> int:
     """Index of the arc whose midpoint (``mids`` (E, 3)) is nearest ``p`` (3,), the first of
     equal ones; -1 when there are no arcs."""
@@ -71,7 +72,7 @@ def nearest_midpoint(p, mids) -> int:
     return nearest
 
 
-@nb.njit(cache=True)
+@njit
 def nearest_widened(p, vertices, edges, margins, mids, half, reach, tie, tmp, best_point):
     """The nearest widened arc of ``p`` (3,): its index, ``angle - margin`` and angle (rad);
     its nearest point goes into ``best_point`` (3,). Arcs are visited in order, and a later
@@ -104,7 +105,7 @@ def nearest_widened(p, vertices, edges, margins, mids, half, reach, tie, tmp, be
     return best_arc, best_key, best_angle
 
 
-@nb.njit(cache=True)
+@njit
 def in_loops(p, vertices, edges, axis, u, v, far_inside) -> bool:
     """Whether ``p`` (3,) lies inside the loops: the arcs crossing the half-meridian from the
     axis through ``p`` to ``-axis`` beyond ``p`` are counted; ``p`` is inside when ``-axis``
@@ -140,7 +141,7 @@ def in_loops(p, vertices, edges, axis, u, v, far_inside) -> bool:
     return far_inside != (crossings % 2 == 1)
 
 
-@nb.njit(cache=True, parallel=True)
+@njit(parallel=True)
 def query_batch(vertices, edges, margins, axis, far_inside, d, project):
     """Whether each direction of ``d`` (N, 3) is in the region (N,) bool, and, when
     ``project``, its projection (N, 3) (the direction itself inside); else a (0, 3) array."""

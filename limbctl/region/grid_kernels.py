@@ -15,11 +15,12 @@ import math
 import numba as nb
 import numpy as np
 
+from limbctl.geometry.jit import njit
 from limbctl.region.direct_kernels import arc_bounds, nearest_midpoint
 from limbctl.region.mesh_kernels import _angle, _dot, _frame, _polar_point, nearest_on_arc
 
 
-@nb.njit(cache=True)
+@njit
 def _polar_into(theta, phi, axis, u, v, out) -> None:
     """Write into ``out`` (3,) the direction at polar angles ``theta``, ``phi`` (rad) about
     ``axis`` in the frame ``u``, ``v``: :func:`limbctl.region.mesh_kernels._polar_point`,
@@ -32,7 +33,7 @@ def _polar_into(theta, phi, axis, u, v, out) -> None:
         out[k] = ct * axis[k] + st * (cp * u[k] + sp * v[k])
 
 
-@nb.njit(cache=True)
+@njit
 def _cell_geometry(cell, n_theta, n_phi, axis, u, v, centre, corner):
     """A grid cell's centre into ``centre`` (3,) and a radius (rad) every point of the cell
     lies within (``corner`` (3,) is scratch)."""
@@ -57,7 +58,7 @@ def _cell_geometry(cell, n_theta, n_phi, axis, u, v, centre, corner):
 BLOCK = 8
 
 
-@nb.njit(cache=True)
+@njit
 def _block_cells(block, blocks_phi, n_theta, n_phi):
     """The cells (K,) of one block, row by row."""
     bi, bj = block // blocks_phi, block % blocks_phi
@@ -71,7 +72,7 @@ def _block_cells(block, blocks_phi, n_theta, n_phi):
     return cells
 
 
-@nb.njit(cache=True)
+@njit
 def _block_arcs(
     block,
     blocks_phi,
@@ -156,7 +157,7 @@ def _block_arcs(
 FIRST_PASS_ARCS = 32
 
 
-@nb.njit(cache=True)
+@njit
 def _cell(
     cell,
     inside,
@@ -238,7 +239,7 @@ def _cell(
     return deep, k
 
 
-@nb.njit(cache=True)
+@njit
 def _sort_by_key(cell_edges, cell_keys) -> None:
     """Sort one cell's candidates (in place) by key, equal keys kept in their order: an
     insertion sort, as a stable sort orders them (a cell holds a few dozen at most)."""
@@ -254,7 +255,7 @@ def _sort_by_key(cell_edges, cell_keys) -> None:
         cell_edges[b + 1] = edge
 
 
-@nb.njit(cache=True, parallel=True)
+@njit(parallel=True)
 def build_grid(vertices, edges, margins, axis, grid_shape, inside):
     """Cell depth status and sorted candidate arcs (module docstring) -> deep, start, arcs, keys.
 
@@ -379,7 +380,7 @@ def build_grid(vertices, edges, margins, axis, grid_shape, inside):
     return deep, start, cell_edges, cell_keys
 
 
-@nb.njit(cache=True)
+@njit
 def build_grid_reference(vertices, edges, margins, axis, grid_shape, inside):
     """:func:`build_grid` by brute force: every arc measured from every cell's centre."""
     n_theta, n_phi = grid_shape[0], grid_shape[1]

@@ -32,17 +32,19 @@ import math
 import numba as nb
 import numpy as np
 
+from limbctl.geometry.jit import njit
+
 #: contains() accepts directions up to this far (rad) beyond the region and correct() lands
 #: within it: rounding of the projection's last step, far below a servo tick (0.088 deg).
 CONTAIN_TOLERANCE = 1e-9
 
 
-@nb.njit(cache=True)
+@njit
 def _dot(a, b) -> float:
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
-@nb.njit(cache=True)
+@njit
 def _det(a, b, c) -> float:
     # det(a, b, c) = a . (b x c)
     return (
@@ -52,7 +54,7 @@ def _det(a, b, c) -> float:
     )
 
 
-@nb.njit(cache=True)
+@njit
 def _angle(a, b) -> float:
     # atan2(|a x b|, a . b): accurate near 0 and pi
     cx = a[1] * b[2] - a[2] * b[1]
@@ -61,7 +63,7 @@ def _angle(a, b) -> float:
     return math.atan2(math.sqrt(cx * cx + cy * cy + cz * cz), _dot(a, b))
 
 
-@nb.njit(cache=True)
+@njit
 def nearest_on_arc(p, a, b, out) -> float:
     """Nearest point ``out`` (3,) on the short great-circle arc a-b to ``p``; returns its angle."""
     nx = a[1] * b[2] - a[2] * b[1]
@@ -107,7 +109,7 @@ def nearest_on_arc(p, a, b, out) -> float:
     return da if da <= db else db
 
 
-@nb.njit(cache=True)
+@njit
 def slerp_into(p, d, angle, margin, out) -> None:
     """Write into ``out`` (3,) the direction ``margin`` (rad) from ``p`` toward ``d``.
 
@@ -135,7 +137,7 @@ def slerp_into(p, d, angle, margin, out) -> None:
     out[2] = z / n
 
 
-@nb.njit(cache=True)
+@njit
 def slerp_dir(p, d, angle, margin) -> np.ndarray:
     """:func:`slerp_into` returning a new (3,) array."""
     out = np.empty(3)
@@ -143,7 +145,7 @@ def slerp_dir(p, d, angle, margin) -> np.ndarray:
     return out
 
 
-@nb.njit(cache=True)
+@njit
 def frame_into(axis, work) -> None:
     """Write the grid frame's u, v (see :func:`_frame`) into rows 0 and 1 of ``work``."""
     u, v = _frame(axis)
@@ -151,7 +153,7 @@ def frame_into(axis, work) -> None:
     work[1, :] = v
 
 
-@nb.njit(cache=True)
+@njit
 def _frame(axis):
     """Unit u, v completing ``axis`` to a right-handed frame (same rule as synthetic)."""
     if abs(axis[2]) < 0.9:
@@ -164,7 +166,7 @@ def _frame(axis):
     return u, v
 
 
-@nb.njit(cache=True)
+@njit
 def _cell_of(p, axis, u, v, n_theta, n_phi) -> int:
     theta = _angle(p, axis)
     phi = math.atan2(_dot(p, v), _dot(p, u))
@@ -176,7 +178,7 @@ def _cell_of(p, axis, u, v, n_theta, n_phi) -> int:
     return i * n_phi + j
 
 
-@nb.njit(cache=True)
+@njit
 def _polar_point(theta, phi, axis, u, v):
     st = math.sin(theta)
     return math.cos(theta) * axis + st * (math.cos(phi) * u + math.sin(phi) * v)
@@ -187,7 +189,7 @@ def _polar_point(theta, phi, axis, u, v):
 WORK_ROWS = 5
 
 
-@nb.njit(cache=True, inline="always")
+@njit(inline="always")
 def query(
     p, vertices, edges, margins, axis, grid_shape, inside, deep, start, cell_edges, keys, out, work
 ):
@@ -266,7 +268,7 @@ def query(
 CHUNK = 512
 
 
-@nb.njit(cache=True, parallel=True)
+@njit(parallel=True)
 def contains_batch(vertices, edges, margins, axis, grid_shape, inside, deep, start, arcs, keys, d):
     """(N,) bool for directions ``d`` (N, 3)."""
     n = d.shape[0]
@@ -294,7 +296,7 @@ def contains_batch(vertices, edges, margins, axis, grid_shape, inside, deep, sta
     return res
 
 
-@nb.njit(cache=True, parallel=True)
+@njit(parallel=True)
 def project_batch(vertices, edges, margins, axis, grid_shape, inside, deep, start, arcs, keys, d):
     """Projection (N, 3) of directions ``d`` (N, 3): themselves inside, nearest region point out."""
     n = d.shape[0]

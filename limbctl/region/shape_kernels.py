@@ -7,9 +7,9 @@ from __future__ import annotations
 
 import math
 
-import numba as nb
 import numpy as np
 
+from limbctl.geometry.jit import njit
 from limbctl.region.direct_kernels import arc_bounds, nearest_widened
 
 #: Arcs nearer than each other by at most this much (rad) are equally near: far above the
@@ -17,7 +17,7 @@ from limbctl.region.direct_kernels import arc_bounds, nearest_widened
 TIE = 1e-12
 
 
-@nb.njit(cache=True)
+@njit
 def widest_bearing_gaps(p: np.ndarray, data: np.ndarray, start: np.ndarray, near: np.ndarray):
     """The widest empty sector (rad) about each ``p`` (N, 3) of its neighbours among ``data``.
 
@@ -57,7 +57,7 @@ def widest_bearing_gaps(p: np.ndarray, data: np.ndarray, start: np.ndarray, near
     return out
 
 
-@nb.njit(cache=True)
+@njit
 def nearest_arcs(data: np.ndarray, vertices: np.ndarray, edges: np.ndarray):
     """The nearest boundary arc (N,) of each direction of ``data`` (N, 3) and its angle (N,) rad.
 

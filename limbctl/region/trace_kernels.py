@@ -8,13 +8,13 @@ radians. No fastmath: every comparison sees NaN as failing.
 
 from __future__ import annotations
 
-import numba as nb
 import numpy as np
 
+from limbctl.geometry.jit import njit
 from limbctl.region.gaps import MAJORANT_GAP, ORDER_STATISTICS
 
 
-@nb.njit(cache=True)
+@njit
 def _estimate(u, o, top_readings):
     """:func:`limbctl.region.edge_traced.edge_estimate` of readings at positions ``u`` (M,)
     and depths ``o`` (M,) rad, keeping the ``top_readings`` outermost."""
@@ -63,7 +63,7 @@ def _estimate(u, o, top_readings):
     return at_station + MAJORANT_GAP * resid[ORDER_STATISTICS - 1] / ORDER_STATISTICS
 
 
-@nb.njit(cache=True)
+@njit
 def station_moves(s, total, owner, depth, order, bounds, reach, top_readings):
     """The edge estimate (K,) rad at each of K stations (0 where a window holds no reading).
 

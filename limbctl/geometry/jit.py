@@ -1,0 +1,200 @@
+"""The one way limbctl compiles a numba kernel: :func:`njit`, cached soundly or not at all.
+
+Every kernel in the project is decorated with :func:`njit` instead of ``numba.njit(cache=True)``::
+
+    from limbctl.geometry.jit import njit
+
+    @njit  # or @njit(parallel=True), @njit(inline="always"), @njit("f8(f8[:])")
+    def kernel(x): ...
+
+It takes numba's own options (``cache=`` is accepted and ignored: caching is decided here) and
+returns numba's dispatcher, so it is a drop-in for ``numba.njit(cache=True, ...)``.
+
+Two things numba's own cache gets wrong for us, and what this module does instead:
+
+- **Stale code.** numba checks only the file that defines a kernel. A kernel that calls or inlines a
+  kernel of another file keeps its old machine code after that other file changes. Here the
+  cache directory is named after a hash of every source file of the layers that hold kernels
+  (:data:`KERNEL_PACKAGES`) and of numba's version, so a changed kernel source anywhere starts a
+  fresh, empty cache: nothing compiled from an older source is ever loaded.
+- **No writable place.** numba raises ``RuntimeError: cannot cache function ...: no
+  locator available`` at import when neither the package's folder nor the home folder is writable
+  (a read-only install run by a service account). Here the kernels then compile in memory, and one
+  line on stderr says where a cache would make the next start faster.
+
+Where the cache lives (the first writable one of :func:`cache_candidates`):
+
+1. ``$NUMBA_CACHE_DIR/limbctl-<key>`` when ``NUMBA_CACHE_DIR`` is set;
+2. ``<package>/__pycache__/numba-<key>`` beside the installed ``limbctl`` package: the checkout
+   for an editable install, site-packages for a normal install into a writable environment;
+3. ``$XDG_CACHE_HOME/limbctl/numba-<key>`` (``~/.cache/limbctl/numba-<key>`` without that variable),
+   for a read-only install run by a user with a home;
+4. nowhere: compile in memory, every process anew.
+
+``<key>`` is :func:`source_key`. Folders of other keys beside the package are removed when a new
+one is made (they can never be used again); those under 1. and 3. may serve other installs and
+stay.
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import os
+import shutil
+import sys
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+
+import numba
+from numba.core import caching
+
+#: The limbctl subpackages whose modules may hold kernels or constants kernels freeze in; the cache
+#: key hashes every ``.py`` file in them. Kernels outside them would escape the key, which
+#: tests/geometry/test_jit.py forbids.
+KERNEL_PACKAGES = ("geometry", "region", "envelope")
+
+#: How many hex digits of the sha256 name a cache folder: 16 (64 bits) never collide between the few
+#: versions of the sources one machine sees, and keep paths short.
+KEY_DIGITS = 16
+
+_PACKAGE = Path(__file__).resolve().parents[1]
+
+
+@functools.cache
+def source_key() -> str:
+    """Hash of every kernel-bearing source file and of numba's version.
+
+    Returns
+    -------
+    str
+        :data:`KEY_DIGITS` hex digits of the sha256 over (relative path, contents) of each
+        ``.py`` file under :data:`KERNEL_PACKAGES`, sorted by path, then ``numba.__version__``.
+    """
+    digest = hashlib.sha256()
+    for package in KERNEL_PACKAGES:
+        for path in sorted((_PACKAGE / package).rglob("*.py")):
+            digest.update(path.relative_to(_PACKAGE).as_posix().encode())
+            digest.update(b"\0")
+            digest.update(path.read_bytes())
+            digest.update(b"\0")
+    digest.update(numba.__version__.encode())
+    return digest.hexdigest()[:KEY_DIGITS]
+
+
+def cache_candidates() -> list[Path]:
+    """The cache folders tried, in order (see the module's docstring)."""
+    key = source_key()
+    found = []
+    if os.environ.get("NUMBA_CACHE_DIR"):
+        found.append(Path(os.environ["NUMBA_CACHE_DIR"]) / f"limbctl-{key}")
+    found.append(_PACKAGE / "__pycache__" / f"numba-{key}")
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    found.append(Path(base) / "limbctl" / f"numba-{key}")
+    return found
+
+
+def _writable(folder: Path) -> bool:
+    """True when ``folder`` exists or can be made, and a file can be written in it."""
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        tempfile.TemporaryFile(dir=folder).close()
+    except OSError:
+        return False
+    return True
+
+
+def _drop_other_keys(folder: Path) -> None:
+    """Remove the package's cache folders of other source keys: no source can match them again."""
+    if folder.parent != _PACKAGE / "__pycache__":
+        return
+    for other in folder.parent.glob("numba-*"):
+        if other != folder and other.is_dir():
+            shutil.rmtree(other, ignore_errors=True)
+
+
+@functools.cache
+def cache_dir() -> Path | None:
+    """The folder this process caches kernels in, or None to compile in memory.
+
+    Decided once per process. When no candidate is writable it writes one line to stderr saying
+    where a cache would help.
+    """
+    tried = cache_candidates()
+    for folder in tried:
+        if _writable(folder):
+            _drop_other_keys(folder)
+            return folder
+    print(
+        "limbctl: no writable folder for compiled kernels (tried "
+        + ", ".join(str(f) for f in tried)
+        + "); compiling in memory, so every start compiles again: set NUMBA_CACHE_DIR to a "
+        "writable folder to keep them",
+        file=sys.stderr,
+    )
+    return None
+
+
+class _KeyedLocator(caching._SourceFileBackedLocatorMixin, caching._CacheLocator):
+    """numba's cache locator for one kernel: a subfolder of :func:`cache_dir` per source folder."""
+
+    def __init__(self, py_func, py_file):
+        self._py_file = py_file
+        self._lineno = py_func.__code__.co_firstlineno
+        root = cache_dir()
+        assert root is not None, "a keyed locator needs a cache folder"
+        self._cache_path = str(root / self.get_suitable_cache_subpath(py_file))
+
+    def get_cache_path(self):
+        return self._cache_path
+
+    @classmethod
+    def from_function(cls, py_func, py_file):
+        if cache_dir() is None:
+            return None
+        return super().from_function(py_func, py_file)
+
+
+class _KeyedImpl(caching.CompileResultCacheImpl):
+    _locator_classes = [_KeyedLocator]
+
+
+class _KeyedCache(caching.FunctionCache):
+    """numba's per-function cache, found only through :class:`_KeyedLocator`."""
+
+    _impl_class = _KeyedImpl
+
+
+def njit(function: Callable | str | None = None, /, **options) -> Callable:
+    """Compile ``function`` with numba in nopython mode, cached under :func:`cache_dir`.
+
+    Parameters
+    ----------
+    function : callable or signature, optional
+        The kernel (bare ``@njit``), or an eager signature (``@njit("f8(f8[:])")``), or nothing
+        (``@njit(parallel=True)``).
+    **options
+        numba's ``njit`` options. ``cache`` is ignored.
+
+    Returns
+    -------
+    numba dispatcher, or a decorator making one.
+    """
+    options.pop("cache", None)
+    signatures = None
+    if function is not None and not callable(function):
+        signatures, function = function, None
+
+    def decorate(py_func: Callable):
+        dispatcher = numba.njit(**options)(py_func)
+        if cache_dir() is not None:
+            # what numba's enable_caching does, with a locator of our own
+            dispatcher._cache = _KeyedCache(py_func)
+        if signatures is not None:
+            for signature in signatures if isinstance(signatures, list) else [signatures]:
+                dispatcher.compile(signature)
+            dispatcher.disable_compile()
+        return dispatcher
+
+    return decorate(function) if function is not None else decorate
