@@ -1,0 +1,185 @@
+"""limbctl.geometry.jit: sound caching (never stale across files) and no crash without a cache.
+
+The subprocess tests run a copy of the package in a temporary folder, as a new install would be.
+Where the tests run as root (who ignores file permissions), the read-only case runs the child in a
+user namespace as an ordinary user, so the permissions bite as they do for a service account.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from limbctl.geometry import jit
+from limbctl.region import correct_kernels as ck
+from limbctl.region.mesh import DirectionMesh
+
+ROOT = Path(__file__).resolve().parents[2]
+#: A command 10 degrees of pan from rest: inside the 20 degree cap of :func:`_cap_args`.
+QUATERNION = np.array([np.cos(np.radians(5.0)), 0.0, 0.0, np.sin(np.radians(5.0))])
+
+#: What the child prints: the corrected quaternion of an inside command, and where its kernel came
+#: from (numba's cache hits and misses of correct_single).
+CHILD = """
+import sys
+import numpy as np
+from limbctl.region import correct_kernels as ck
+args = np.load(sys.argv[1])
+arrays = [args[f"a{i}"] for i in range(len(args.files))]
+q = np.array([0.9961946980917455, 0.0, 0.0, 0.08715574274765817])  # QUATERNION
+out, status = ck.correct_single(q, *arrays)
+stats = ck.correct_single.stats
+print(repr(out.tolist()), status, sum(stats.cache_hits.values()), sum(stats.cache_misses.values()))
+"""
+
+
+def _package_copy(into: Path) -> Path:
+    """A copy of limbctl (sources only, no compiled caches) under ``into``; returns ``into``."""
+    shutil.copytree(
+        ROOT / "limbctl", into / "limbctl", ignore=shutil.ignore_patterns("__pycache__")
+    )
+    return into
+
+
+def _env(home: Path, path: Path) -> dict[str, str]:
+    env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "XDG_CACHE_HOME")}
+    env.update(HOME=str(home), PYTHONPATH=str(path), PYTHONDONTWRITEBYTECODE="1")
+    return env
+
+
+def _cap_args(path: Path) -> None:
+    """The kernel arrays of a 20 degree cap about +x, saved to ``path`` (npz)."""
+    phi = np.linspace(-np.pi, np.pi, 120, endpoint=False)
+    r = np.radians(20.0)
+    loop = np.column_stack(
+        [np.full(120, np.cos(r)), np.sin(r) * np.cos(phi), np.sin(r) * np.sin(phi)]
+    )
+    args = DirectionMesh.from_loops([loop], 0.0).kernel_args()
+    np.savez(path, **{f"a{i}": a for i, a in enumerate(args)})
+
+
+def _run(tree: Path, home: Path, args: Path) -> tuple[list[float], int, int, int]:
+    done = subprocess.run(
+        [sys.executable, "-c", CHILD, str(args)],
+        env=_env(home, tree),
+        cwd=tree,  # python -c puts the working folder first on sys.path
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    out, status, hits, misses = done.stdout.strip().rsplit(" ", 3)
+    return eval(out), int(status), int(hits), int(misses)  # noqa: S307 - our own child's repr
+
+
+def test_editing_an_inlined_kernel_in_another_file_changes_the_answer(tmp_path):
+    """mesh_kernels.query is inlined into correct_kernels.correct_single: edit it, and the cached
+    correct_single must not be used (numba alone checks only correct_kernels.py and loads it)."""
+    tree = _package_copy(tmp_path / "tree")
+    args = tmp_path / "args.npz"
+    _cap_args(args)
+    first = _run(tree, tmp_path, args)
+    again = _run(tree, tmp_path, args)
+    assert first[1] == 1 and first[3] == 1, first  # inside; compiled
+    assert again == (first[0], 1, 1, 0), again  # the same answer, loaded from the cache
+    # the edited query calls every direction outside: the inside command now comes back corrected
+    mesh = tree / "limbctl" / "region" / "mesh_kernels.py"
+    source = mesh.read_text(encoding="utf-8")
+    edits = {
+        "    if deep[cell]:\n        return True\n": "    if deep[cell]:\n        return False\n",
+        "    if in_mesh or best <= CONTAIN_TOLERANCE:\n        return True\n": (
+            "    if in_mesh or best <= CONTAIN_TOLERANCE:\n        return False\n"
+        ),
+    }
+    for old, new in edits.items():
+        assert source.count(old) == 1, old
+        source = source.replace(old, new)
+    mesh.write_text(source, encoding="utf-8")
+    edited = _run(tree, tmp_path, args)
+    assert edited[1:] == (0, 0, 1), edited  # the edited answer, compiled anew, nothing loaded
+    # the unedited child answered as this process's kernels do
+    arrays = np.load(args)
+    here = ck.correct_single(QUATERNION, *[arrays[f"a{i}"] for i in range(len(arrays.files))])
+    assert first[0] == here[0].tolist() and first[1] == here[1]
+
+
+def test_the_key_changes_with_any_kernel_source_and_names_the_folder():
+    key = jit.source_key()
+    assert re.fullmatch(rf"[0-9a-f]{{{jit.KEY_DIGITS}}}", key)
+    assert all(key in folder.name for folder in jit.cache_candidates())
+    assert jit.cache_dir() in jit.cache_candidates()
+
+
+def test_numba_cache_dir_comes_first(monkeypatch):
+    monkeypatch.setenv("NUMBA_CACHE_DIR", "/somewhere")
+    assert jit.cache_candidates()[0] == Path("/somewhere") / f"limbctl-{jit.source_key()}"
+
+
+def _unprivileged() -> list[str]:
+    """A command prefix that runs the child as a user file permissions apply to."""
+    if os.geteuid() != 0:
+        return []
+    prefix = ["unshare", "--user", "--map-user=1000", "--map-group=1000"]
+    probe = subprocess.run([*prefix, "true"], capture_output=True)
+    if probe.returncode != 0:
+        pytest.skip("root without user namespaces: permissions cannot be made to bite")
+    return prefix
+
+
+def test_a_read_only_install_with_an_unwritable_home_compiles_in_memory_and_says_so_once():
+    # not pytest's tmp_path: its parent is private to root, and the child runs as another user
+    with tempfile.TemporaryDirectory(prefix="limbctl_ro_") as tmp:
+        tree = _package_copy(Path(tmp) / "tree")
+        home = Path(tmp) / "home"
+        home.mkdir()
+        for folder in [home, *(p for p in tree.rglob("*") if p.is_dir()), tree]:
+            folder.chmod(0o555)
+        Path(tmp).chmod(0o755)
+        child = (
+            "import numpy as np\n"
+            "import limbctl.envelope, limbctl.region\n"  # every kernel module, decorated
+            "from limbctl.region import mesh_kernels as m\n"
+            "print(m._angle(np.array([1.0, 0, 0]), np.array([0.0, 1, 0])))\n"
+            "print(m._angle(np.array([1.0, 0, 0]), np.array([0.0, 0, 1])))\n"
+        )
+        try:
+            done = subprocess.run(
+                [*_unprivileged(), sys.executable, "-c", child],
+                env=_env(home, tree),
+                cwd=tree,
+                capture_output=True,
+                text=True,
+            )
+        finally:
+            for folder in [Path(tmp), home, tree, *(p for p in tree.rglob("*") if p.is_dir())]:
+                folder.chmod(0o755)
+        assert done.returncode == 0, done.stderr
+        assert [float(x) for x in done.stdout.split()] == [np.pi / 2, np.pi / 2]
+        lines = done.stderr.strip().splitlines()
+        assert len(lines) == 1 and "no writable folder" in lines[0], done.stderr
+        assert "NUMBA_CACHE_DIR" in lines[0] and str(home) in lines[0]
+        assert not list(tree.rglob("*.nbi")) and not list(home.rglob("*"))
+
+
+def test_every_kernel_uses_this_decorator_and_lives_where_the_key_looks():
+    """numba.njit elsewhere would cache outside the key (stale) or crash when nothing is
+    writable; a kernel outside KERNEL_PACKAGES would not change the key when edited."""
+    offenders = []
+    for path in (ROOT / "limbctl").rglob("*.py"):
+        text = path.read_text(encoding="utf-8")
+        if path == Path(jit.__file__):
+            continue
+        if re.search(r"\b(?:nb|numba)\.(?:njit|jit|vectorize|guvectorize|cfunc)\b", text):
+            offenders.append(f"{path.relative_to(ROOT)}: calls numba's decorator itself")
+        uses = "from limbctl.geometry.jit import njit" in text
+        package = path.relative_to(ROOT / "limbctl").parts[0]
+        if uses and package not in jit.KERNEL_PACKAGES:
+            offenders.append(f"{path.relative_to(ROOT)}: a kernel outside {jit.KERNEL_PACKAGES}")
+    assert not offenders, offenders
