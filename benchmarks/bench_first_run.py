@@ -1,0 +1,254 @@
+"""A new user's wait: record, train, teleop on a fresh clone, venv and home, first and second.
+
+Run: ``.venv/bin/python benchmarks/bench_first_run.py --out docs/bench_first_run.md``
+(``--rev REV`` measures another revision of this repository the same way, e.g. the one before a
+change; ``--seconds`` is the teaching's length).
+
+Steps, each timed from outside (the wall time a person waits, Python's start included):
+
+1. ``git clone`` this repository at ``--rev`` into a temporary folder, make a fresh venv there and
+   ``pip install -e ".[test]"`` as the README says, with ``HOME`` a fresh empty folder (so no numba
+   cache of any earlier run exists anywhere: ``NUMBA_CACHE_DIR`` and ``XDG_CACHE_HOME`` are unset).
+2. As a user does: ``limbctl record`` (a teaching of ``--seconds`` on the embedded simulator),
+   ``limbctl train``, ``limbctl teleop`` of two commands from stdin, each twice in a row: first and
+   second run side by side.
+3. Without anything compiled before: the kernel cache emptied, ``train`` first and second; emptied
+   again, ``teleop`` first and second (with no train before it).
+
+Each command runs under a probe that records numba's compile events (``numba:compile``): which
+dispatchers compiled, how long each took with the compiles it started (inclusive) and without
+them (self), and how many kernels were loaded from the cache. A background process a command
+starts (the warm-up) compiles outside the probe: its work shows as kernels loaded later.
+Timings are of one machine at one moment; the load average is printed beside them, and the ratios
+(first / second) are what to compare between runs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+#: The probe each command runs under: numba's compile events, timed inclusive and self, written as
+#: JSON to the file named by the first argument when the command ends.
+PROBE = r"""
+import atexit, json, sys, time
+import numba.core.event as ev
+
+compiles = []
+stack = []
+
+class Timer(ev.Listener):
+    def on_start(self, event):
+        stack.append([time.perf_counter(), 0.0])
+
+    def on_end(self, event):
+        start, inner = stack.pop()
+        total = time.perf_counter() - start
+        if stack:
+            stack[-1][1] += total
+        f = event.data["dispatcher"].py_func
+        compiles.append({
+            "name": f"{f.__module__}.{f.__qualname__}",
+            "args": str(event.data["args"]),
+            "total": total,
+            "self": total - inner,
+            "nested": bool(stack),
+        })
+
+ev.register("numba:compile", Timer())
+
+def loaded():
+    from numba.core.registry import CPUDispatcher
+    hits = 0
+    for name, module in list(sys.modules.items()):
+        if name.startswith("limbctl") and module is not None:
+            for value in vars(module).values():
+                if isinstance(value, CPUDispatcher):
+                    hits += sum(value.stats.cache_hits.values())
+    return hits
+
+def dump():
+    with open(out, "w") as f:
+        json.dump({"compiles": compiles, "loaded": loaded()}, f)
+
+atexit.register(dump)
+out = sys.argv[1]
+sys.argv = ["limbctl", *sys.argv[2:]]
+from limbctl.cli import main
+sys.exit(main())
+"""
+
+#: What teleop is fed: two commands, the second far outside any taught region.
+COMMANDS = '{"pan": 20, "tilt": 10}\n{"pan": 120, "tilt": 80}\n'
+
+
+def run(cmd, cwd: Path, env: dict, stdin: str | None = None) -> float:
+    """Run ``cmd``; returns its wall time in seconds. Fails loudly with its output."""
+    start = time.perf_counter()
+    done = subprocess.run(cmd, cwd=cwd, env=env, input=stdin, capture_output=True, text=True)
+    wall = time.perf_counter() - start
+    if done.returncode != 0:
+        raise SystemExit(f"{' '.join(map(str, cmd))} failed:\n{done.stdout}\n{done.stderr}")
+    return wall
+
+
+def install(rev: str, work: Path) -> tuple[Path, dict, float]:
+    """Clone at ``rev``, make a venv, install per the README; returns (clone, env, seconds)."""
+    clone = work / "clone"
+    subprocess.run(["git", "clone", "--quiet", str(ROOT), str(clone)], check=True)
+    subprocess.run(["git", "-C", str(clone), "checkout", "--quiet", rev], check=True)
+    home = work / "home"
+    home.mkdir()
+    env = {
+        k: v
+        for k, v in os.environ.items()
+        if k not in ("NUMBA_CACHE_DIR", "XDG_CACHE_HOME", "PYTHONPATH", "VIRTUAL_ENV")
+    }
+    # pip's own download cache is not a limbctl cache: reuse it so the install does not download
+    env["PIP_CACHE_DIR"] = os.environ.get("PIP_CACHE_DIR", str(Path.home() / ".cache" / "pip"))
+    env["HOME"] = str(home)
+    bin_dir = clone / ".venv" / "bin"
+    env["PATH"] = f"{bin_dir}:{env.get('PATH', '/usr/bin:/bin')}"
+    start = time.perf_counter()
+    subprocess.run([sys.executable, "-m", "venv", ".venv"], cwd=clone, check=True)
+    subprocess.run(
+        [str(bin_dir / "pip"), "install", "--quiet", "-e", ".[test]"],
+        cwd=clone,
+        env=env,
+        check=True,
+    )
+    return clone, env, time.perf_counter() - start
+
+
+def empty_caches(clone: Path, home: Path) -> None:
+    """Remove every numba cache a run could have left: in the tree and under the home."""
+    for path in clone.joinpath("limbctl").rglob("__pycache__"):
+        for cached in [*path.glob("numba-*"), *path.glob("*.nbi"), *path.glob("*.nbc")]:
+            shutil.rmtree(cached) if cached.is_dir() else cached.unlink()
+    shutil.rmtree(home / ".cache" / "limbctl", ignore_errors=True)
+    shutil.rmtree(home / ".cache" / "numba", ignore_errors=True)
+
+
+def measure(clone: Path, env: dict, probe: Path, label: str, args: list[str], stdin=None) -> dict:
+    log = clone / f"compiles-{label}.json"
+    python = str(clone / ".venv" / "bin" / "python")
+    wall = run([python, str(probe), str(log), *args], clone, env, stdin)
+    result = json.loads(log.read_text())
+    result.update(label=label, wall=wall)
+    return result
+
+
+def scenario(clone: Path, env: dict, probe: Path, seconds: float) -> dict[str, list[dict]]:
+    """Every command first and second, in the order a user runs them, then from an empty cache."""
+
+    def record(i):
+        return ["record", "--out", f"teach-{i}.limb", "--duration", f"{seconds:g}"]
+
+    def train(i):
+        return ["train", "teach-1.limb", "--out", f"model-{i}.npz"]
+
+    def teleop(i):
+        return ["teleop", "--model", "model-1.npz", "--source", "stdin"]
+
+    found: dict[str, list[dict]] = {}
+    for name, args, stdin in (("record", record, ""), ("train", train, None)):
+        found[name] = [measure(clone, env, probe, f"{name}-{i}", args(i), stdin) for i in (1, 2)]
+    found["teleop"] = [
+        measure(clone, env, probe, f"teleop-{i}", teleop(i), COMMANDS) for i in (1, 2)
+    ]
+    home = Path(env["HOME"])
+    for name, args, stdin in (("train", train, None), ("teleop", teleop, COMMANDS)):
+        empty_caches(clone, home)
+        found[f"{name}, cache empty"] = [
+            measure(clone, env, probe, f"{name}-cold-{i}", args(f"cold-{i}"), stdin) for i in (1, 2)
+        ]
+    return found
+
+
+def limbctl_kernel(name: str) -> bool:
+    return name.startswith("limbctl.")
+
+
+def report(found: dict[str, list[dict]], rev: str, install_s: float, load: tuple) -> str:
+    lines = [
+        "# First run: record, train, teleop on a fresh clone, venv and home",
+        "",
+        "Reproduce: `.venv/bin/python benchmarks/bench_first_run.py --out docs/bench_first_run.md"
+        f" --rev {rev}`.",
+        f'Revision `{rev}`; install (`pip install -e ".[test]"` into a fresh venv) '
+        f"{install_s:.0f} s; load average {load[0]} before, {load[1]} after (2 cores, shared).",
+        "",
+        "| command | first run | second run | first / second | compiled first: limbctl kernels"
+        " + numba's helpers | compile s (top level) | loaded from cache first |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for name, (first, second) in found.items():
+        ours = sum(limbctl_kernel(c["name"]) for c in first["compiles"])
+        helpers = len(first["compiles"]) - ours
+        compile_s = sum(c["total"] for c in first["compiles"] if not c["nested"])
+        lines.append(
+            f"| {name} | {first['wall']:.2f} s | {second['wall']:.2f} s | "
+            f"{first['wall'] / second['wall']:.1f} | {ours} + {helpers} | {compile_s:.2f} |"
+            f" {first['loaded']} |"
+        )
+    for name, (first, _) in found.items():
+        if not first["compiles"]:
+            continue
+        lines += [
+            "",
+            f"## {name}, first run: each compile, largest first",
+            "",
+            "| dispatcher | signature | with its compiles (s) | alone (s) |",
+            "|---|---|---|---|",
+        ]
+        for c in sorted(first["compiles"], key=lambda c: -c["total"]):
+            args = c["args"] if len(c["args"]) < 60 else c["args"][:57] + "..."
+            lines.append(f"| `{c['name']}` | `{args}` | {c['total']:.2f} | {c['self']:.2f} |")
+    return "\n".join(lines) + "\n"
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--rev", default="HEAD", help="revision of this repository to measure")
+    parser.add_argument("--seconds", type=float, default=30.0, help="teaching length (s)")
+    parser.add_argument("--out", type=Path, help="write the Markdown report here")
+    parser.add_argument("--keep", action="store_true", help="keep the temporary folder")
+    options = parser.parse_args()
+    rev = subprocess.run(
+        ["git", "-C", str(ROOT), "rev-parse", "--short", options.rev],
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout.strip()
+    work = Path(tempfile.mkdtemp(prefix="bench_first_run_"))
+    try:
+        before = os.getloadavg()
+        clone, env, install_s = install(rev, work)
+        # alone in its folder: python puts the script's folder first on sys.path
+        probe = work / "probe" / "probe.py"
+        probe.parent.mkdir()
+        probe.write_text(PROBE)
+        found = scenario(clone, env, probe, options.seconds)
+        after = os.getloadavg()
+        text = report(found, rev, install_s, (f"{before[0]:.1f}", f"{after[0]:.1f}"))
+    finally:
+        if options.keep:
+            print(f"kept {work}", file=sys.stderr)
+        else:
+            shutil.rmtree(work, ignore_errors=True)
+    print(text)
+    if options.out:
+        options.out.write_text(text)
+
+
+if __name__ == "__main__":
+    main()
