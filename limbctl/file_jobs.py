@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from limbctl.errors import ConfigError, FileFormatError
-from limbctl.jobs import Connection, open_connection, say
+from limbctl.jobs import Connection, open_connection, prepare, say
 
 
 # ---- train ----------------------------------------------------------------------------------
@@ -53,11 +53,13 @@ def run_train(options: TrainOptions) -> int:
     """Fit the model, save it, print its summary (and draw it with ``plot``)."""
     from tqdm import tqdm
 
+    from limbctl.geometry.jit import mark_prepared
     from limbctl.teach.train import STAGES, train
 
     constructor = model_options(
         options.kind, options.seed, nodes=options.nodes, layout=options.layout
     )
+    prepare("train")
     with tqdm(
         total=len(STAGES), desc=f"training {options.kind}", unit="stage", file=sys.stderr
     ) as bar:
@@ -68,6 +70,7 @@ def run_train(options: TrainOptions) -> int:
             bar.update(1)
 
         summary = train(options.data, options.out, options.kind, constructor, progress=advance)
+    mark_prepared("train")
     for line in summary.lines():
         say(line)
     say(f"wrote {options.out}")

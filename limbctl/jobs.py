@@ -31,6 +31,17 @@ def say(text: str) -> None:
     print(text, file=sys.stderr, flush=True)
 
 
+def prepare(stage: str) -> None:
+    """Where the kernels of ``stage`` (``train``, ``gate``) are not in the cache yet, say so and
+    wait for a warm-up still compiling them (:mod:`limbctl.teach.warm`)."""
+    from limbctl.geometry import jit
+
+    if jit.cache_dir() is None or jit.prepared(stage):
+        return  # in memory, every run compiles (the cache's own line said so); or all is ready
+    say("preparing (first run only)")
+    jit.wait_for_warm_up()
+
+
 @dataclass(frozen=True)
 class Connection:
     """Where the servos are, shared by every job that talks to them.
@@ -82,6 +93,7 @@ def run_record(options: RecordOptions, view: LiveView | None = None) -> int:
     from limbctl.session import demo_region_path
     from limbctl.teach.dataset import DatasetWriter
     from limbctl.teach.record import check_rate, record, stop_on_enter
+    from limbctl.teach.warm import warming_in_background
 
     check_rate(options.rate)
     conn = options.connection
@@ -95,7 +107,11 @@ def run_record(options: RecordOptions, view: LiveView | None = None) -> int:
     writer = DatasetWriter(
         options.out, rig=profile.name, meta=meta, calibration=profile.calibration
     )
-    with _viewing(options.view, view) as live, open_connection(conn, hand=hand) as session:
+    with (
+        _viewing(options.view, view) as live,
+        open_connection(conn, hand=hand) as session,
+        warming_in_background(),  # the first train and teleop then find their kernels compiled
+    ):
         with writer:
             with stop_on_signals() as stop, live.teaching(session.rig, session.profile) as taught:
                 if session.simulated:
@@ -184,6 +200,7 @@ def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
     conn = options.connection
     profile = load_rig_profile(conn.rig)
     gate = gate_for(options.model, profile, options.rate, options.max_speed)
+    prepare("gate")
     starting = StartOptions(options.wait, options.approach, options.rate)  # checked before opening
     with (
         _viewing(options.view, view) as live,
@@ -215,6 +232,9 @@ def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
                 torque_was_on=torque_was_on,
                 publish=live.start_observer(),
             )
+    from limbctl.geometry.jit import mark_prepared
+
+    mark_prepared("gate")
     for line in result.lines():
         say(line)
     return result.exit_code

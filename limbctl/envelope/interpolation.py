@@ -201,18 +201,51 @@ def respond_batch(
     out = np.empty((n, 4))
     count = 1 if mode == NONE else min(k + 1, weights.shape[0])
     for j in nb.prange(n):
-        idx = np.empty(count, dtype=np.int64)
-        dist = np.empty(count)
-        if mode == TOPOLOGICAL:
-            _nearest(weights, q[j], 1, metric, idx, dist)
-            used = min(count, topology.shape[1] + 1)
-            for r in range(1, used):
-                idx[r] = topology[idx[0], r - 1]
-            _combine(weights, q[j], idx, dist, used, mode, out[j])
-        else:
-            _nearest(weights, q[j], count, metric, idx, dist)
-            _combine(weights, q[j], idx, dist, count, mode, out[j])
+        _respond_one(weights, q[j], count, metric, mode, topology, out[j])
     return out
+
+
+@njit
+def _respond_one(weights, x, count, metric, mode, topology, out) -> None:
+    """One row of :func:`respond_batch`: the answer for ``x`` (4,) into ``out`` (4,)."""
+    idx = np.empty(count, dtype=np.int64)
+    dist = np.empty(count)
+    if mode == TOPOLOGICAL:
+        _nearest(weights, x, 1, metric, idx, dist)
+        used = min(count, topology.shape[1] + 1)
+        for r in range(1, used):
+            idx[r] = topology[idx[0], r - 1]
+        _combine(weights, x, idx, dist, used, mode, out)
+    else:
+        _nearest(weights, x, count, metric, idx, dist)
+        _combine(weights, x, idx, dist, count, mode, out)
+
+
+@njit
+def respond_serial(
+    weights: np.ndarray, q: np.ndarray, k: int, metric: int, mode: int, topology: np.ndarray
+) -> np.ndarray:
+    """:func:`respond_batch` on one thread: the same answers, row for row."""
+    n = q.shape[0]
+    out = np.empty((n, 4))
+    count = 1 if mode == NONE else min(k + 1, weights.shape[0])
+    for j in range(n):
+        _respond_one(weights, q[j], count, metric, mode, topology, out[j])
+    return out
+
+
+#: Rows up to which :func:`respond_rows` answers on one thread: the fit's refinement asks a few
+#: thousand support samples (~10 ms), where the thread pool saves little and the parallel
+#: kernel's compile costs seconds on a first run.
+PARALLEL_ROWS = 100_000
+
+
+def respond_rows(
+    weights: np.ndarray, q: np.ndarray, k: int, metric: int, mode: int, topology: np.ndarray
+) -> np.ndarray:
+    """:func:`respond_batch` or, up to :data:`PARALLEL_ROWS` rows, :func:`respond_serial`."""
+    kernel = respond_batch if q.shape[0] > PARALLEL_ROWS else respond_serial
+    return kernel(weights, q, k, metric, mode, topology)
 
 
 @njit(parallel=True)

@@ -194,7 +194,7 @@ class RigidMap(Envelope):
         if not 0 <= int(k) <= top:
             raise ConfigError(f"k must be in 0..{top} for {interpolation} interpolation")
         arr, single = self._input(q)
-        out = rk.respond_batch(
+        out = rk.respond_rows(
             self._weights,
             arr,
             int(k),

@@ -41,6 +41,7 @@ from limbctl.envelope.interpolation import (  # noqa: F401
     TOPOLOGICAL,
     respond_batch,
     respond_reference,
+    respond_rows,
 )
 from limbctl.geometry.jit import njit
 

@@ -38,6 +38,8 @@ stay.
 
 from __future__ import annotations
 
+import contextlib
+import fcntl
 import functools
 import hashlib
 import os
@@ -198,3 +200,80 @@ def njit(function: Callable | str | None = None, /, **options) -> Callable:
         return dispatcher
 
     return decorate(function) if function is not None else decorate
+
+
+# ---- first run: a warm-up compiles ahead, commands wait for it ----------------------------------
+#: What a warm-up compiles ahead and a command marks once its kernels are in the cache: the
+#: training's kernels and the gate's (teleop's start and park check).
+STAGES = ("train", "gate")
+
+
+def _marker(stage: str) -> Path | None:
+    if stage not in STAGES:
+        raise ValueError(f"unknown stage {stage!r}; choose from {', '.join(STAGES)}")
+    folder = cache_dir()
+    return None if folder is None else folder / f"prepared-{stage}"
+
+
+def prepared(stage: str) -> bool:
+    """Whether the kernels of ``stage`` (one of :data:`STAGES`) are already in the cache.
+
+    Always False when compiling in memory: then every process compiles them anew.
+    """
+    marker = _marker(stage)
+    return marker is not None and marker.exists()
+
+
+def mark_prepared(stage: str) -> None:
+    """Note that the kernels of ``stage`` are in the cache (nothing when there is none)."""
+    marker = _marker(stage)
+    if marker is not None:
+        try:
+            marker.touch()
+        except OSError:
+            pass  # a cache folder made read-only meanwhile: the next run says "preparing" again
+
+
+@contextlib.contextmanager
+def warming():
+    """Hold the cache's warm-up lock (exclusive) while the body compiles; yields whether it
+    got it (False: no cache, or another warm-up holds it, so there is nothing to do here)."""
+    folder = cache_dir()
+    if folder is None:
+        yield False
+        return
+    with open(folder / "warming.lock", "a+b") as lock:
+        try:
+            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            yield False
+            return
+        try:
+            yield True
+        finally:
+            fcntl.flock(lock, fcntl.LOCK_UN)
+
+
+def wait_for_warm_up(on_wait: Callable[[], None] | None = None) -> bool:
+    """Block until no warm-up holds the cache's lock; returns whether one was running.
+
+    ``on_wait`` is called once just before blocking, when a warm-up is running.
+    """
+    folder = cache_dir()
+    if folder is None:
+        return False
+    try:
+        lock = open(folder / "warming.lock", "a+b")
+    except OSError:
+        return False
+    with lock:
+        try:
+            fcntl.flock(lock, fcntl.LOCK_SH | fcntl.LOCK_NB)
+            running = False
+        except OSError:
+            running = True
+            if on_wait is not None:
+                on_wait()
+            fcntl.flock(lock, fcntl.LOCK_SH)
+        fcntl.flock(lock, fcntl.LOCK_UN)
+    return running

@@ -146,3 +146,61 @@ def correct_single(
         work,
     )
     return out, status
+
+
+@njit
+def correct_serial(
+    q, vertices, edges, margins, axis, grid_shape, inside, deep, start, cell_edges, keys
+):
+    """:func:`correct_batch` on one thread: the same answers, row for row."""
+    n = q.shape[0]
+    out = np.empty((n, 4))
+    status = np.empty(n, dtype=np.int8)
+    work = np.empty((bk.WORK_ROWS + 2, 3))
+    bk.frame_into(axis, work)
+    for j in range(n):
+        status[j] = _correct_one(
+            q[j],
+            vertices,
+            edges,
+            margins,
+            axis,
+            grid_shape,
+            inside,
+            deep,
+            start,
+            cell_edges,
+            keys,
+            out[j],
+            work,
+        )
+    return out, status
+
+
+#: Rows up to which a batch goes command by command through :func:`correct_single`, the kernel
+#: the gate compiles anyway: teleop's few small batches (the park check's 13 probes) then compile
+#: nothing more. 64 rows cost ~0.2 ms this way (~3 us each from Python).
+SINGLE_ROWS = 64
+#: Rows up to which a batch runs on one thread (:func:`correct_serial`); larger ones take the
+#: thread pool (:func:`correct_batch`). At ~1-2 us a row, train's largest batch (the extent grid
+#: of its summary, ~50,000 rows) takes ~0.1 s on one thread: two cores save at most half of
+#: that, and the parallel kernel's compile (seconds) is then paid only by the larger batches of
+#: evaluations and benchmarks, never by train or teleop.
+PARALLEL_ROWS = 100_000
+
+
+def correct_rows(q, *args):
+    """Correct each row of ``q`` (N, 4) C-contiguous -> (out (N, 4), status (N,) int8), through
+    the kernel that suits N (:data:`SINGLE_ROWS`, :data:`PARALLEL_ROWS`): the same answers,
+    row for row, from every one of them. ``args``: the mesh's kernel arguments."""
+    n = q.shape[0]
+    if n > PARALLEL_ROWS:
+        return correct_batch(q, *args)
+    if n > SINGLE_ROWS:
+        return correct_serial(q, *args)
+    out = np.empty((n, 4))
+    status = np.empty(n, dtype=np.int8)
+    for j in range(n):
+        row, status[j] = correct_single(q[j], *args)
+        out[j] = row
+    return out, status

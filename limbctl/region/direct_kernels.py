@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import math
 
-import numba as nb
 import numpy as np
 
 from limbctl.geometry.jit import njit
@@ -37,9 +36,6 @@ from limbctl.region.mesh_kernels import (
     slerp_into,
 )
 
-#: Rows per chunk of a batch: scratch is allocated once per chunk, not per row.
-CHUNK = 256
-
 
 @njit
 def arc_bounds(vertices, edges):
@@ -51,8 +47,15 @@ def arc_bounds(vertices, edges):
     for e in range(n_edges):
         a = vertices[edges[e, 0]]
         b = vertices[edges[e, 1]]
-        m = a + b
-        mids[e] = m / math.sqrt(_dot(m, m))
+        # component by component: assigning a whole row would bring in numba's shape checks
+        # and their error formatting, seconds of compiling for nothing
+        mx = a[0] + b[0]
+        my = a[1] + b[1]
+        mz = a[2] + b[2]
+        norm = math.sqrt(mx * mx + my * my + mz * mz)
+        mids[e, 0] = mx / norm
+        mids[e, 1] = my / norm
+        mids[e, 2] = mz / norm
         half[e] = 0.5 * _angle(a, b)
         longest = max(longest, half[e])
     return mids, half, longest
@@ -141,10 +144,14 @@ def in_loops(p, vertices, edges, axis, u, v, far_inside) -> bool:
     return far_inside != (crossings % 2 == 1)
 
 
-@njit(parallel=True)
+@njit
 def query_batch(vertices, edges, margins, axis, far_inside, d, project):
     """Whether each direction of ``d`` (N, 3) is in the region (N,) bool, and, when
-    ``project``, its projection (N, 3) (the direction itself inside); else a (0, 3) array."""
+    ``project``, its projection (N, 3) (the direction itself inside); else a (0, 3) array.
+
+    One thread: the fit asks a few thousand directions at a time (~10 ms), where a thread pool
+    saves little and its parallel compile costs seconds on a first run.
+    """
     n = d.shape[0]
     inside = np.empty(n, dtype=np.bool_)
     out = np.empty((n if project else 0, 3))
@@ -153,21 +160,20 @@ def query_batch(vertices, edges, margins, axis, far_inside, d, project):
     for e in range(edges.shape[0]):
         max_margin = max(max_margin, margins[e])
     u, v = _frame(axis)
-    for chunk in nb.prange((n + CHUNK - 1) // CHUNK):
-        tmp = np.empty(3)
-        best_point = np.empty(3)
-        for j in range(chunk * CHUNK, min(n, (chunk + 1) * CHUNK)):
-            p = d[j]
-            arc, key, angle = nearest_widened(
-                p, vertices, edges, margins, mids, half, longest + max_margin, 0.0, tmp, best_point
-            )
-            inside[j] = key <= CONTAIN_TOLERANCE or in_loops(
-                p, vertices, edges, axis, u, v, far_inside
-            )
-            if not project:
-                continue
-            if inside[j] or arc < 0:
-                out[j] = p
-            else:
-                slerp_into(best_point, p, angle, margins[arc], out[j])
+    tmp = np.empty(3)
+    best_point = np.empty(3)
+    for j in range(n):
+        p = d[j]
+        arc, key, angle = nearest_widened(
+            p, vertices, edges, margins, mids, half, longest + max_margin, 0.0, tmp, best_point
+        )
+        inside[j] = key <= CONTAIN_TOLERANCE or in_loops(p, vertices, edges, axis, u, v, far_inside)
+        if not project:
+            continue
+        if inside[j] or arc < 0:
+            out[j, 0] = p[0]
+            out[j, 1] = p[1]
+            out[j, 2] = p[2]
+        else:
+            slerp_into(best_point, p, angle, margins[arc], out[j])
     return inside, out

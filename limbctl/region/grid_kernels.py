@@ -255,6 +255,153 @@ def _sort_by_key(cell_edges, cell_keys) -> None:
         cell_edges[b + 1] = edge
 
 
+@njit
+def _first_pass(
+    block,
+    blocks_phi,
+    grid_shape,
+    axis,
+    u,
+    v,
+    vertices,
+    edges,
+    margins,
+    inside,
+    mids,
+    half,
+    longest_half,
+    max_margin,
+    reach,
+    centres,
+    radius,
+    from_block,
+    block_arcs,
+    block_arc_dist,
+    block_count,
+    deep,
+    counts,
+    first_edges,
+    first_keys,
+) -> None:
+    """:func:`build_grid`'s first pass over one block: its cells' geometry, its arcs, and each
+    cell's depth, count and first :data:`FIRST_PASS_ARCS` candidates."""
+    n_theta, n_phi = grid_shape[0], grid_shape[1]
+    n_edges = edges.shape[0]
+    tmp = np.empty(3)
+    corner = np.empty(3)
+    cells = _block_cells(block, blocks_phi, n_theta, n_phi)
+    for cell in cells:
+        radius[cell] = _cell_geometry(cell, n_theta, n_phi, axis, u, v, centres[cell], corner)
+    dist = np.empty(n_edges)
+    block_count[block] = _block_arcs(
+        block,
+        blocks_phi,
+        grid_shape,
+        axis,
+        u,
+        v,
+        vertices,
+        edges,
+        margins,
+        mids,
+        longest_half,
+        max_margin,
+        centres,
+        radius,
+        tmp,
+        dist,
+        block_arcs[block],
+        block_arc_dist[block],
+        from_block,
+    )
+    arcs = block_arcs[block, : block_count[block]]
+    arc_dist = block_arc_dist[block, : block_count[block]]
+    for cell in cells:
+        deep[cell], counts[cell] = _cell(
+            cell,
+            inside,
+            arcs,
+            arc_dist,
+            from_block[cell],
+            centres,
+            radius,
+            vertices,
+            edges,
+            margins,
+            mids,
+            half,
+            reach,
+            max_margin,
+            tmp,
+            dist,
+            first_edges[cell],
+            first_keys[cell],
+        )
+
+
+@njit
+def _second_pass(
+    block,
+    blocks_phi,
+    grid_shape,
+    vertices,
+    edges,
+    margins,
+    inside,
+    mids,
+    half,
+    max_margin,
+    reach,
+    centres,
+    radius,
+    from_block,
+    block_arcs,
+    block_arc_dist,
+    block_count,
+    first_edges,
+    first_keys,
+    start,
+    cell_edges,
+    cell_keys,
+) -> None:
+    """:func:`build_grid`'s second pass over one block: each cell's candidates into its slice
+    of ``cell_edges``/``cell_keys`` (found again when the first pass kept too few), sorted."""
+    n_theta, n_phi = grid_shape[0], grid_shape[1]
+    tmp = np.empty(3)
+    dist = np.empty(edges.shape[0])
+    arcs = block_arcs[block, : block_count[block]]
+    arc_dist = block_arc_dist[block, : block_count[block]]
+    for cell in _block_cells(block, blocks_phi, n_theta, n_phi):
+        k0, k = start[cell], start[cell + 1]
+        if k - k0 <= FIRST_PASS_ARCS:
+            # element by element: a slice assignment brings in numba's shape checks
+            for s in range(k - k0):
+                cell_edges[k0 + s] = first_edges[cell, s]
+                cell_keys[k0 + s] = first_keys[cell, s]
+        else:
+            _cell(
+                cell,
+                inside,
+                arcs,
+                arc_dist,
+                from_block[cell],
+                centres,
+                radius,
+                vertices,
+                edges,
+                margins,
+                mids,
+                half,
+                reach,
+                max_margin,
+                tmp,
+                dist,
+                cell_edges[k0:k],
+                cell_keys[k0:k],
+            )
+        _sort_by_key(cell_edges[k0:k], cell_keys[k0:k])
+
+
 @njit(parallel=True)
 def build_grid(vertices, edges, margins, axis, grid_shape, inside):
     """Cell depth status and sorted candidate arcs (module docstring) -> deep, start, arcs, keys.
@@ -289,15 +436,11 @@ def build_grid(vertices, edges, margins, axis, grid_shape, inside):
     block_arc_dist = np.empty((n_blocks, n_edges))
     block_count = np.zeros(n_blocks, dtype=np.int64)
     from_block = np.empty(n_cells)
+    # each prange body is one call with the block as int64: the parallel compile then handles
+    # a small loop, and every kernel below compiles once, for one index type
     for block in nb.prange(n_blocks):
-        tmp = np.empty(3)
-        corner = np.empty(3)
-        cells = _block_cells(block, blocks_phi, n_theta, n_phi)
-        for cell in cells:
-            radius[cell] = _cell_geometry(cell, n_theta, n_phi, axis, u, v, centres[cell], corner)
-        dist = np.empty(n_edges)
-        block_count[block] = _block_arcs(
-            block,
+        _first_pass(
+            np.int64(block),
             blocks_phi,
             grid_shape,
             axis,
@@ -306,121 +449,51 @@ def build_grid(vertices, edges, margins, axis, grid_shape, inside):
             vertices,
             edges,
             margins,
+            inside,
             mids,
+            half,
             longest_half,
             max_margin,
+            reach,
             centres,
             radius,
-            tmp,
-            dist,
-            block_arcs[block],
-            block_arc_dist[block],
             from_block,
+            block_arcs,
+            block_arc_dist,
+            block_count,
+            deep,
+            counts,
+            first_edges,
+            first_keys,
         )
-        arcs = block_arcs[block, : block_count[block]]
-        arc_dist = block_arc_dist[block, : block_count[block]]
-        for cell in cells:
-            deep[cell], counts[cell] = _cell(
-                cell,
-                inside,
-                arcs,
-                arc_dist,
-                from_block[cell],
-                centres,
-                radius,
-                vertices,
-                edges,
-                margins,
-                mids,
-                half,
-                reach,
-                max_margin,
-                tmp,
-                dist,
-                first_edges[cell],
-                first_keys[cell],
-            )
     start = np.zeros(n_cells + 1, dtype=np.int64)
     for cell in range(n_cells):
         start[cell + 1] = start[cell] + counts[cell]
     cell_edges = np.empty(start[n_cells], dtype=np.int64)
     cell_keys = np.empty(start[n_cells])
     for block in nb.prange(n_blocks):
-        tmp = np.empty(3)
-        dist = np.empty(n_edges)
-        arcs = block_arcs[block, : block_count[block]]
-        arc_dist = block_arc_dist[block, : block_count[block]]
-        for cell in _block_cells(block, blocks_phi, n_theta, n_phi):
-            k0, k = start[cell], start[cell + 1]
-            if k - k0 <= FIRST_PASS_ARCS:
-                cell_edges[k0:k] = first_edges[cell, : k - k0]
-                cell_keys[k0:k] = first_keys[cell, : k - k0]
-            else:
-                _cell(
-                    cell,
-                    inside,
-                    arcs,
-                    arc_dist,
-                    from_block[cell],
-                    centres,
-                    radius,
-                    vertices,
-                    edges,
-                    margins,
-                    mids,
-                    half,
-                    reach,
-                    max_margin,
-                    tmp,
-                    dist,
-                    cell_edges[k0:k],
-                    cell_keys[k0:k],
-                )
-            _sort_by_key(cell_edges[k0:k], cell_keys[k0:k])
-    return deep, start, cell_edges, cell_keys
-
-
-@njit
-def build_grid_reference(vertices, edges, margins, axis, grid_shape, inside):
-    """:func:`build_grid` by brute force: every arc measured from every cell's centre."""
-    n_theta, n_phi = grid_shape[0], grid_shape[1]
-    n_cells = n_theta * n_phi
-    n_edges = edges.shape[0]
-    u, v = _frame(axis)
-    centre = np.empty(3)
-    corner = np.empty(3)
-    tmp = np.empty(3)
-    dist = np.empty((n_cells, n_edges))
-    radius = np.empty(n_cells)
-    deep = np.zeros(n_cells, dtype=np.bool_)
-    start = np.zeros(n_cells + 1, dtype=np.int64)
-    for cell in range(n_cells):
-        radius[cell] = _cell_geometry(cell, n_theta, n_phi, axis, u, v, centre, corner)
-        for e in range(n_edges):
-            dist[cell, e] = nearest_on_arc(
-                centre, vertices[edges[e, 0]], vertices[edges[e, 1]], tmp
-            )
-        r = radius[cell]
-        best_key = np.min(dist[cell] - margins)
-        deep[cell] = (inside[cell] and np.min(dist[cell]) >= r) or (best_key + r <= 0.0)
-        count = 0
-        if not deep[cell]:
-            for e in range(n_edges):
-                if dist[cell, e] - margins[e] <= best_key + 2.0 * r or dist[cell, e] <= r:
-                    count += 1
-        start[cell + 1] = start[cell] + count
-    cell_edges = np.empty(start[n_cells], dtype=np.int64)
-    cell_keys = np.empty(start[n_cells])
-    for cell in range(n_cells):
-        if deep[cell]:
-            continue
-        r = radius[cell]
-        best_key = np.min(dist[cell] - margins)
-        k = start[cell]
-        for e in range(n_edges):
-            if dist[cell, e] - margins[e] <= best_key + 2.0 * r or dist[cell, e] <= r:
-                cell_edges[k] = e
-                cell_keys[k] = dist[cell, e] - margins[e]
-                k += 1
-        _sort_by_key(cell_edges[start[cell] : k], cell_keys[start[cell] : k])
+        _second_pass(
+            np.int64(block),
+            blocks_phi,
+            grid_shape,
+            vertices,
+            edges,
+            margins,
+            inside,
+            mids,
+            half,
+            max_margin,
+            reach,
+            centres,
+            radius,
+            from_block,
+            block_arcs,
+            block_arc_dist,
+            block_count,
+            first_edges,
+            first_keys,
+            start,
+            cell_edges,
+            cell_keys,
+        )
     return deep, start, cell_edges, cell_keys

@@ -149,20 +149,32 @@ def slerp_dir(p, d, angle, margin) -> np.ndarray:
 def frame_into(axis, work) -> None:
     """Write the grid frame's u, v (see :func:`_frame`) into rows 0 and 1 of ``work``."""
     u, v = _frame(axis)
-    work[0, :] = u
-    work[1, :] = v
+    for k in range(3):
+        work[0, k] = u[k]
+        work[1, k] = v[k]
 
 
 @njit
 def _frame(axis):
     """Unit u, v completing ``axis`` to a right-handed frame (same rule as synthetic)."""
     if abs(axis[2]) < 0.9:
-        h = np.array([0.0, 0.0, 1.0])
+        h0, h1, h2 = 0.0, 0.0, 1.0
     else:
-        h = np.array([0.0, 1.0, 0.0])
-    u = np.cross(h, axis)
-    u /= math.sqrt(_dot(u, u))
-    v = np.cross(axis, u)
+        h0, h1, h2 = 0.0, 1.0, 0.0
+    # u = h x axis, v = axis x u: the arithmetic of np.cross, written out (np.cross compiles
+    # for seconds)
+    u = np.empty(3)
+    u[0] = h1 * axis[2] - h2 * axis[1]
+    u[1] = h2 * axis[0] - h0 * axis[2]
+    u[2] = h0 * axis[1] - h1 * axis[0]
+    norm = math.sqrt(_dot(u, u))
+    u[0] /= norm
+    u[1] /= norm
+    u[2] /= norm
+    v = np.empty(3)
+    v[0] = axis[1] * u[2] - axis[2] * u[1]
+    v[1] = axis[2] * u[0] - axis[0] * u[2]
+    v[2] = axis[0] * u[1] - axis[1] * u[0]
     return u, v
 
 

@@ -11,6 +11,7 @@ import numpy as np
 
 from limbctl.geometry.jit import njit
 from limbctl.region.direct_kernels import arc_bounds, nearest_widened
+from limbctl.region.sort_kernels import sort_values
 
 #: Arcs nearer than each other by at most this much (rad) are equally near: far above the
 #: rounding of an angle (1e-16 rad), far below anything a margin could notice.
@@ -49,7 +50,7 @@ def widest_bearing_gaps(p: np.ndarray, data: np.ndarray, start: np.ndarray, near
             bearing[k] = math.atan2(
                 s[0] * vx + s[1] * vy + s[2] * vz, s[0] * ux + s[1] * uy + s[2] * uz
             )
-        bearing.sort()
+        sort_values(bearing)
         widest = bearing[0] + 2.0 * np.pi - bearing[count - 1]
         for k in range(1, count):
             widest = max(widest, bearing[k] - bearing[k - 1])

@@ -186,7 +186,7 @@ class TaughtRegion:
                 as_quaternions(q)
             return bool(one == 1)
         arr, single = as_quaternions(q)
-        _, status = ck.correct_batch(arr, *args)
+        _, status = ck.correct_rows(np.ascontiguousarray(arr), *args)
         inside = status == 1
         return bool(inside[0]) if single else inside
 
@@ -201,7 +201,7 @@ class TaughtRegion:
                 as_quaternions(q)
             return out
         arr, single = as_quaternions(q)
-        out, _ = ck.correct_batch(arr, *args)
+        out, _ = ck.correct_rows(np.ascontiguousarray(arr), *args)
         return out[0] if single else out
 
     # ---- persistence -------------------------------------------------------------------------

@@ -12,13 +12,18 @@ import numpy as np
 
 from limbctl.geometry.jit import njit
 from limbctl.region.gaps import MAJORANT_GAP, ORDER_STATISTICS
+from limbctl.region.sort_kernels import argsort_stable, sort_values
 
 
 @njit
 def _estimate(u, o, top_readings):
     """:func:`limbctl.region.edge_traced.edge_estimate` of readings at positions ``u`` (M,)
     and depths ``o`` (M,) rad, keeping the ``top_readings`` outermost."""
-    top = np.argsort(-o, kind="mergesort")[:top_readings]
+    negated = np.empty(o.shape[0])
+    for m in range(o.shape[0]):
+        negated[m] = -o[m]
+    # the outermost first, equal depths in reading order (np.argsort(-o, kind="stable"))
+    top = argsort_stable(negated)[:top_readings]
     u = u[top]
     o = o[top]
     n_left = 0
@@ -26,7 +31,9 @@ def _estimate(u, o, top_readings):
         if u[a] < 0.0:
             n_left += 1
     if o.shape[0] < ORDER_STATISTICS or n_left == 0 or n_left == u.shape[0]:
-        outer = np.sort(o)[::-1][:ORDER_STATISTICS]
+        outer = o.copy()
+        sort_values(outer)
+        outer = outer[::-1][:ORDER_STATISTICS]
         k = outer.shape[0]
         gap = (outer[0] - outer[k - 1]) / (k - 1) if k >= 3 else 0.0
         return outer[0] + gap
@@ -59,7 +66,8 @@ def _estimate(u, o, top_readings):
                 best_i = i
                 best_j = j
     slope = (orr[best_j] - ol[best_i]) / (ur[best_j] - ul[best_i])
-    resid = np.sort(at_station + slope * u - o)[:ORDER_STATISTICS]
+    resid = at_station + slope * u - o
+    sort_values(resid)
     return at_station + MAJORANT_GAP * resid[ORDER_STATISTICS - 1] / ORDER_STATISTICS
 
 

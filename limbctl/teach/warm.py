@@ -1,0 +1,125 @@
+"""Compile the training's and the gate's kernels ahead, in a low-priority background process.
+
+``limbctl record`` starts :func:`warming_in_background` as it begins. The recorder waits on the
+bus most of the time, and a teaching lasts tens of seconds: enough to compile every kernel the
+first ``limbctl train`` and ``limbctl teleop`` would otherwise compile while the person waits.
+The process runs at the lowest priority (:data:`NICENESS`) on one numba thread, so the recorder
+keeps its rate. It trains a Rigid Map on a synthetic teaching of the demo region through
+:func:`limbctl.teach.train.train`, the function ``limbctl train`` runs (so the same kernels
+compile, for the same argument types), then asks the model what the gate asks: one command,
+and a small batch as the park check does. The kernels land in the cache of
+:mod:`limbctl.geometry.jit`; the first real train and teleop load them, and wait for a warm-up
+still running (:func:`limbctl.geometry.jit.wait_for_warm_up`) instead of compiling the same
+kernels beside it.
+
+With no cache folder (kernels compiled in memory) a warm-up would help no other process, and
+none starts; nor does one when both stages are already prepared.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import subprocess
+import sys
+import tempfile
+from collections.abc import Iterator
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from limbctl.geometry import jit
+
+#: The warm-up's priority: the lowest, so the recorder's sampling (and anything else) goes first.
+NICENESS = 19
+#: Length (s) of the synthetic teaching: like a short real one (30 s at 125 Hz), long enough
+#: for the fit to try each edge strategy and build the gate's grid.
+TEACHING_S = 30.0
+#: Commands of the small batch asked of the model: the park check's 13 probes.
+SMALL_BATCH = 13
+
+
+def _demo_polygon() -> np.ndarray:
+    """The demo region's polygon (V, 2), (pan, tilt) degrees."""
+    text = resources.files("limbctl").joinpath("data", "demo_region.yaml").read_text()
+    return np.asarray(yaml.safe_load(text)["region"]["polygon"], dtype=np.float64)
+
+
+def _write_teaching(path: Path) -> None:
+    """A synthetic teaching of the demo region (its edge traced, then the middle), as a dataset."""
+    from limbctl.envelope.synthetic import PolygonRegion, traced_teaching
+    from limbctl.geometry.gimbal import direction_to_pan_tilt
+    from limbctl.teach.dataset import DatasetWriter
+
+    rate_hz = 125.0
+    directions, _ = traced_teaching(
+        PolygonRegion(_demo_polygon()), TEACHING_S, np.random.default_rng(0), rate_hz
+    )
+    pan, tilt = direction_to_pan_tilt(directions)
+    with DatasetWriter(path, rig="warm-up") as writer:
+        for i in range(len(pan)):
+            writer.append(i / rate_hz, float(pan[i]), float(tilt[i]))
+
+
+def warm_up() -> bool:
+    """Compile (or load) the kernels of every stage not yet prepared, in this process.
+
+    Returns whether it ran (False: no cache folder, or another warm-up holds the lock).
+    """
+    with jit.warming() as mine:
+        if not mine:
+            return False
+        if all(jit.prepared(stage) for stage in jit.STAGES):
+            return True
+        from limbctl.envelope import load_model
+        from limbctl.teach.dataset import load_dataset
+        from limbctl.teach.train import train
+
+        with tempfile.TemporaryDirectory(prefix="limbctl-warm-") as tmp:
+            data, model_path = Path(tmp) / "warm.limb", Path(tmp) / "warm.npz"
+            _write_teaching(data)
+            # the options `limbctl train` passes by default
+            train(data, model_path, "rigidmap", {"seed": 0})
+            jit.mark_prepared("train")
+            model = load_model(model_path)
+            q = np.ascontiguousarray(load_dataset(data).quaternions[:SMALL_BATCH])
+            model.contains(q[0])
+            model.correct(q[0])
+            model.contains(q)
+            model.correct(q)
+            jit.mark_prepared("gate")
+    return True
+
+
+@contextlib.contextmanager
+def warming_in_background() -> Iterator[subprocess.Popen | None]:
+    """Start the warm-up in its own low-priority process, unless nothing needs it; yields it.
+
+    The process is left running on exit (a train started soon after waits for it), in its own
+    session so that a Ctrl-C ending the recording does not end it too; its output is discarded.
+    """
+    if jit.cache_dir() is None or all(jit.prepared(stage) for stage in jit.STAGES):
+        yield None
+        return
+    process = subprocess.Popen(
+        [sys.executable, "-m", "limbctl.teach.warm"],
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        start_new_session=True,
+        env={**os.environ, "NUMBA_NUM_THREADS": "1"},
+    )
+    yield process
+
+
+def main() -> int:
+    """The background process: lowest priority, then :func:`warm_up`."""
+    os.nice(NICENESS)
+    warm_up()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,119 @@
+"""What a first run compiles: ``train`` and a teleop start, each from an empty kernel cache.
+
+Each command runs in a fresh process with its own empty ``NUMBA_CACHE_DIR`` under a probe that
+counts numba's compile events (``numba:compile``): limbctl's kernels and numba's own helpers
+apart. A count above the documented one (docs/bench_first_run.md, "Compiles per command") means
+a change made the first run slower: look at the new compiles, then raise the count only if the
+cost is worth it. Kernels a two-servo train or teleop never calls are not counted, so new
+kernels elsewhere leave these counts alone.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from limbctl.servo.profiles import load_rig_profile
+from limbctl.teach.dataset import DatasetWriter, load_dataset
+
+ROOT = Path(__file__).resolve().parents[1]
+TEACHING = ROOT / "tests" / "data" / "hand_irregular_seed0_20s.limb"
+
+#: Dispatchers ``limbctl train`` compiles from an empty cache: limbctl's kernels, numba's helpers.
+TRAIN_COMPILES = (46, 70)
+#: The same for ``limbctl teleop`` of two commands (start, run, park check), with no train before.
+TELEOP_COMPILES = (15, 30)
+
+PROBE = r"""
+import json, sys
+import numba.core.event as ev
+
+compiled = []
+
+class Count(ev.Listener):
+    def on_start(self, event):
+        pass
+
+    def on_end(self, event):
+        f = event.data["dispatcher"].py_func
+        compiled.append(f"{f.__module__}.{f.__qualname__}")
+
+ev.register("numba:compile", Count())
+from limbctl.cli import main
+status = main(sys.argv[2:])
+with open(sys.argv[1], "w") as out:
+    json.dump(compiled, out)
+sys.exit(status)
+"""
+
+
+def compiled_by(
+    args: list[str], tmp: Path, stdin: str = "", prepared: bool = False
+) -> tuple[list[str], list[str]]:
+    """Run ``limbctl ARGS`` from an empty cache: (limbctl kernels, numba helpers) compiled."""
+    log = tmp / "compiled.json"
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp / "numba-cache"), "PYTHONPATH": str(ROOT)}
+    done = subprocess.run(
+        [sys.executable, "-c", PROBE, str(log), *args],
+        cwd=tmp,
+        env=env,
+        input=stdin,
+        capture_output=True,
+        text=True,
+    )
+    assert done.returncode == 0, done.stderr
+    # a first run says why it waits; a run that finds everything compiled does not
+    assert ("preparing (first run only)" in done.stderr) != prepared, done.stderr
+    names = json.loads(log.read_text())
+    ours = [n for n in names if n.startswith("limbctl.")]
+    return ours, [n for n in names if not n.startswith("limbctl.")]
+
+
+def _within(what: str, found: tuple[list[str], list[str]], limits: tuple[int, int]) -> None:
+    ours, helpers = found
+    assert len(ours) <= limits[0], f"{what} compiles {len(ours)} kernels: {sorted(ours)}"
+    assert len(helpers) <= limits[1], f"{what} compiles {len(helpers)} helpers: {sorted(helpers)}"
+
+
+def teaching(path: Path) -> Path:
+    """The recorded teaching, written again under the simulated rig's calibration (teleop
+    refuses a model that does not record the calibration it was trained under)."""
+    data = load_dataset(TEACHING)
+    profile = load_rig_profile(None)
+    with DatasetWriter(path, rig=profile.name, calibration=profile.calibration) as writer:
+        for t, pan, tilt in zip(data.t, data.pan_deg, data.tilt_deg, strict=True):
+            writer.append(float(t), math.radians(pan), math.radians(tilt))
+    return path
+
+
+@pytest.fixture(scope="module")
+def model(tmp_path_factory) -> tuple[Path, tuple[list[str], list[str]]]:
+    """A model trained from an empty cache, and what that train compiled."""
+    tmp = tmp_path_factory.mktemp("train")
+    data = teaching(tmp / "teach.limb")
+    found = compiled_by(["train", str(data), "--out", str(tmp / "model.npz")], tmp)
+    return tmp / "model.npz", found
+
+
+def test_train_compiles_at_most_the_documented_count(model):
+    _within("train", model[1], TRAIN_COMPILES)
+    # the parallel batch kernels are for large batches: train's are served on one thread
+    ours = model[1][0]
+    assert not {"limbctl.region.correct_kernels.correct_batch"} & set(ours)
+
+
+def test_a_teleop_start_compiles_at_most_the_documented_count(model, tmp_path):
+    commands = '{"pan": 20, "tilt": 10}\n{"pan": 120, "tilt": 80}\n'
+    found = compiled_by(
+        ["teleop", "--model", str(model[0]), "--source", "stdin"], tmp_path, stdin=commands
+    )
+    _within("teleop", found, TELEOP_COMPILES)
+    # the park check's small batch goes through the gate's own single-command kernel
+    assert "limbctl.region.correct_kernels.correct_single" in found[0]
+    assert not {"limbctl.region.correct_kernels.correct_batch"} & set(found[0])
