@@ -138,12 +138,32 @@ def empty_caches(clone: Path, home: Path) -> None:
     shutil.rmtree(home / ".cache" / "numba", ignore_errors=True)
 
 
+#: What a recording's sampling was: its rate and its largest gaps (ms), from the file itself.
+SAMPLING = r"""
+import sys, numpy as np
+from limbctl.teach.dataset import load_dataset
+t = load_dataset(sys.argv[1]).t
+gaps = 1000.0 * np.diff(t)
+print(f"{(len(t) - 1) / (t[-1] - t[0]):.1f} Hz, gaps p99 {np.percentile(gaps, 99):.1f} ms, "
+      f"largest {gaps.max():.1f} ms")
+"""
+
+
 def measure(clone: Path, env: dict, probe: Path, label: str, args: list[str], stdin=None) -> dict:
     log = clone / f"compiles-{label}.json"
     python = str(clone / ".venv" / "bin" / "python")
     wall = run([python, str(probe), str(log), *args], clone, env, stdin)
     result = json.loads(log.read_text())
-    result.update(label=label, wall=wall)
+    result.update(label=label, wall=wall, note="")
+    if args[0] == "record":
+        result["note"] = subprocess.run(
+            [python, "-c", SAMPLING, args[args.index("--out") + 1]],
+            cwd=clone,
+            env=env,
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout.strip()
     return result
 
 
@@ -200,6 +220,8 @@ def report(found: dict[str, list[dict]], rev: str, install_s: float, load: tuple
             f"{first['wall'] / second['wall']:.1f} | {ours} + {helpers} | {compile_s:.2f} |"
             f" {first['loaded']} |"
         )
+    lines += ["", "Sampling of the recordings (the first ran beside the warm-up):", ""]
+    lines += [f"- record {i}: {run_['note']}" for i, run_ in enumerate(found["record"], 1)]
     for name, (first, _) in found.items():
         if not first["compiles"]:
             continue
