@@ -32,14 +32,14 @@ def say(text: str) -> None:
 
 
 def prepare(stage: str) -> None:
-    """Where the kernels of ``stage`` (``train``, ``gate``) are not in the cache yet, say so and
-    wait for a warm-up still compiling them (:mod:`limbctl.teach.warm`)."""
+    """Say why a first run waits: the kernels of ``stage`` (``train``, ``gate``) are not all in
+    the cache yet. It loads those a warm-up (:mod:`limbctl.teach.warm`) has cached and compiles
+    the rest itself rather than wait for a warm-up still running at the lowest priority."""
     from limbctl.geometry import jit
 
     if jit.cache_dir() is None or jit.prepared(stage):
         return  # in memory, every run compiles (the cache's own line said so); or all is ready
     say("preparing (first run only)")
-    jit.wait_for_warm_up()
 
 
 @dataclass(frozen=True)

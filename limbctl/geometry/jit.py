@@ -252,28 +252,3 @@ def warming():
             yield True
         finally:
             fcntl.flock(lock, fcntl.LOCK_UN)
-
-
-def wait_for_warm_up(on_wait: Callable[[], None] | None = None) -> bool:
-    """Block until no warm-up holds the cache's lock; returns whether one was running.
-
-    ``on_wait`` is called once just before blocking, when a warm-up is running.
-    """
-    folder = cache_dir()
-    if folder is None:
-        return False
-    try:
-        lock = open(folder / "warming.lock", "a+b")
-    except OSError:
-        return False
-    with lock:
-        try:
-            fcntl.flock(lock, fcntl.LOCK_SH | fcntl.LOCK_NB)
-            running = False
-        except OSError:
-            running = True
-            if on_wait is not None:
-                on_wait()
-            fcntl.flock(lock, fcntl.LOCK_SH)
-        fcntl.flock(lock, fcntl.LOCK_UN)
-    return running

@@ -8,9 +8,8 @@ keeps its rate. It trains a Rigid Map on a synthetic teaching of the demo region
 :func:`limbctl.teach.train.train`, the function ``limbctl train`` runs (so the same kernels
 compile, for the same argument types), then asks the model what the gate asks: one command,
 and a small batch as the park check does. The kernels land in the cache of
-:mod:`limbctl.geometry.jit`; the first real train and teleop load them, and wait for a warm-up
-still running (:func:`limbctl.geometry.jit.wait_for_warm_up`) instead of compiling the same
-kernels beside it.
+:mod:`limbctl.geometry.jit` one by one as they compile; the first real train and teleop load
+them, and compile themselves whatever a warm-up still running has not reached yet.
 
 With no cache folder (kernels compiled in memory) a warm-up would help no other process, and
 none starts; nor does one when both stages are already prepared.
@@ -97,8 +96,9 @@ def warm_up() -> bool:
 def warming_in_background() -> Iterator[subprocess.Popen | None]:
     """Start the warm-up in its own low-priority process, unless nothing needs it; yields it.
 
-    The process is left running on exit (a train started soon after waits for it), in its own
-    session so that a Ctrl-C ending the recording does not end it too; its output is discarded.
+    The process is left running on exit (it may still be compiling what the next train loads),
+    in its own session so that a Ctrl-C ending the recording does not end it too; its output is
+    discarded.
     """
     if jit.cache_dir() is None or all(jit.prepared(stage) for stage in jit.STAGES):
         yield None

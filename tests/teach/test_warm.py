@@ -5,7 +5,6 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
-import threading
 from pathlib import Path
 
 from limbctl.geometry import jit
@@ -43,9 +42,8 @@ def test_no_warm_up_starts_when_everything_is_prepared_or_nothing_can_be_cached(
         assert process is None
 
 
-def test_a_command_waits_for_a_warm_up_holding_the_lock(tmp_path, monkeypatch):
+def test_a_second_warm_up_stands_aside_while_one_holds_the_lock(tmp_path, monkeypatch):
     monkeypatch.setattr(jit, "cache_dir", lambda: Path(tmp_path))
-    assert not jit.wait_for_warm_up()  # nobody warming: no wait
     holder = subprocess.Popen(
         [
             sys.executable,
@@ -62,18 +60,10 @@ def test_a_command_waits_for_a_warm_up_holding_the_lock(tmp_path, monkeypatch):
     try:
         assert holder.stdout.readline().strip() == "locked"
         with jit.warming() as mine:
-            assert not mine  # a second warm-up stands aside
-        blocked = threading.Event()
-        waited = []
-        waiter = threading.Thread(
-            target=lambda: waited.append(jit.wait_for_warm_up(on_wait=blocked.set))
-        )
-        waiter.start()
-        assert blocked.wait(timeout=60)
-        assert waiter.is_alive() or waited == [True]
-        holder.stdin.write("\n")  # the holder lets go: the wait ends, saying it waited
-        holder.stdin.flush()
-        waiter.join()
-        assert waited == [True]
+            assert not mine
     finally:
+        holder.stdin.write("\n")  # the holder lets go and ends
+        holder.stdin.close()
         holder.wait()
+    with jit.warming() as mine:
+        assert mine
