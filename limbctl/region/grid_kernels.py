@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import math
 
-import numba as nb
 import numpy as np
 
 from limbctl.geometry.jit import njit
@@ -402,7 +401,7 @@ def _second_pass(
         _sort_by_key(cell_edges[k0:k], cell_keys[k0:k])
 
 
-@njit(parallel=True)
+@njit
 def build_grid(vertices, edges, margins, axis, grid_shape, inside):
     """Cell depth status and sorted candidate arcs (module docstring) -> deep, start, arcs, keys.
 
@@ -413,6 +412,9 @@ def build_grid(vertices, edges, margins, axis, grid_shape, inside):
     ``key_e = angle(centre, e) - m_e <= min_key + 2 r`` (the nearest widened arc of any point
     of the cell is among them: pruned by the smallest upper bound ``min_key + r``) and the arcs
     within ``r`` of the centre (every arc crossing the path centre -> point), sorted by key.
+
+    One thread, block by block: on two shared cores the thread pool left the fit's time as it
+    was, and its parallel compile cost seconds (far more on a loaded machine) on a first run.
     """
     n_theta, n_phi = grid_shape[0], grid_shape[1]
     n_cells = n_theta * n_phi
@@ -436,11 +438,9 @@ def build_grid(vertices, edges, margins, axis, grid_shape, inside):
     block_arc_dist = np.empty((n_blocks, n_edges))
     block_count = np.zeros(n_blocks, dtype=np.int64)
     from_block = np.empty(n_cells)
-    # each prange body is one call with the block as int64: the parallel compile then handles
-    # a small loop, and every kernel below compiles once, for one index type
-    for block in nb.prange(n_blocks):
+    for block in range(n_blocks):
         _first_pass(
-            np.int64(block),
+            block,
             blocks_phi,
             grid_shape,
             axis,
@@ -471,9 +471,9 @@ def build_grid(vertices, edges, margins, axis, grid_shape, inside):
         start[cell + 1] = start[cell] + counts[cell]
     cell_edges = np.empty(start[n_cells], dtype=np.int64)
     cell_keys = np.empty(start[n_cells])
-    for block in nb.prange(n_blocks):
+    for block in range(n_blocks):
         _second_pass(
-            np.int64(block),
+            block,
             blocks_phi,
             grid_shape,
             vertices,
