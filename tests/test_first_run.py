@@ -25,10 +25,12 @@ from limbctl.teach.dataset import DatasetWriter, load_dataset
 ROOT = Path(__file__).resolve().parents[1]
 TEACHING = ROOT / "tests" / "data" / "hand_irregular_seed0_20s.limb"
 
-#: Dispatchers ``limbctl train`` compiles from an empty cache: limbctl's kernels, numba's helpers.
-TRAIN_COMPILES = (46, 70)
-#: The same for ``limbctl teleop`` of two commands (start, run, park check), with no train before.
-TELEOP_COMPILES = (15, 30)
+#: Dispatchers ``limbctl train`` compiles from an empty cache: limbctl's kernels, numba's helpers
+#: (41 and 147 before the first run was made fast).
+TRAIN_COMPILES = (46, 32)
+#: The same for ``limbctl teleop`` of two commands (start, run, park check), with no train before
+#: (11 and 56 before).
+TELEOP_COMPILES = (10, 7)
 
 PROBE = r"""
 import json, sys
