@@ -2,12 +2,15 @@
 
 Present Position, Goal Position, Torque Enable, Hardware Error Status and Present PWM live far
 apart in the control table (132, 116, 64, 70, 124). The X series' Indirect Address n
-(168 + 2 (n - 1)) names the RAM address that Indirect Data n (224 + (n - 1)) stands for, so
-mapping those registers' bytes onto Indirect Data 1..12 lets one (Fast) Sync Read of 12 bytes
-per servo carry all five. Set-up (:func:`limbctl.servo.setup.configure_servos`) writes the map
-and reads each servo's PWM Limit (EEPROM, which no indirect address can reach); a servo that
-restarts (brown-out, reboot) loses the map with the rest of its RAM: its Indirect Data then read
-0, so Torque Enable reads 0 and the restart is noticed as torque loss.
+(168 + 2 (n - 1)) names the RAM address that Indirect Data n (224 + (n - 1); on a 330 with
+firmware up to 52, 208 + (n - 1)) stands for, so mapping those registers' bytes onto Indirect
+Data 1..12 lets one (Fast) Sync Read of 12 bytes per servo carry all five. Set-up probes where
+each servo's Indirect Data 1 is (:func:`limbctl.servo.setup.probe_indirect_data`); one sync
+read needs it at the same address on every servo. Set-up
+(:func:`limbctl.servo.setup.configure_servos`) writes the map and reads each servo's PWM Limit
+(EEPROM, which no indirect address can reach); a servo that restarts (brown-out, reboot) loses
+the map with the rest of its RAM: its Indirect Data then read 0, so Torque Enable reads 0 and
+the restart is noticed as torque loss.
 
 While a servo is silent, :func:`read_around_silent` reads the others and probes the silent ones
 with one try each, so a missing servo costs the loop a reply timeout per probe, not per cycle.
@@ -23,6 +26,7 @@ from types import MappingProxyType
 from limbctl.errors import BusTimeout, ConfigError, CorruptReply
 from limbctl.servo import transfers
 from limbctl.servo.control_table import (
+    INDIRECT_DATA_1_CANDIDATES,
     INDIRECT_SLOTS,
     Block,
     Register,
@@ -186,6 +190,27 @@ class CycleReads:
 
     #: Each servo's PWM Limit as set-up read it (until then, the factory value).
     pwm_limits: Mapping[int, int] = MappingProxyType({})
+    #: What the cycle reads: Indirect Data 1.. where set-up found it (224 until then).
+    cycle_block: Block = CYCLE_BLOCK
+
+    def note_indirect_data(self, addresses: Mapping[int, int]) -> None:
+        """Remember where each servo's Indirect Data 1 is (set-up's probe); one address for all.
+
+        Raises
+        ------
+        ConfigError
+            If the servos differ: one sync read cannot serve both layouts.
+        """
+        found = sorted(set(addresses.values()))
+        if len(found) > 1:
+            where = ", ".join(f"servo {i}: {a}" for i, a in sorted(addresses.items()))
+            raise ConfigError(
+                f"the servos keep Indirect Data 1 at different addresses ({where}), so one sync "
+                f"read cannot serve them: put servos of one family and firmware on the bus, or "
+                f"update the 330s' firmware so that all have it at {INDIRECT_DATA_1_CANDIDATES[0]}"
+            )
+        if found:
+            self.cycle_block = Block(Register.INDIRECT_DATA_1, CYCLE_BYTES, at=found[0])
 
     def note_pwm_limits(self, limits: Mapping[int, int]) -> None:
         """Remember each servo's PWM Limit (EEPROM), the full scale of its Present PWM."""
@@ -226,7 +251,7 @@ class CycleReads:
             try:
                 raw = self._transact(
                     f"{'fast ' if fast else ''}sync read of the cycle's registers",
-                    lambda: read(self._packets, self._port, CYCLE_BLOCK, ids),
+                    lambda: read(self._packets, self._port, self.cycle_block, ids),
                     check_alert=False,
                     attempts=max(1, int(attempts)),
                 )

@@ -246,3 +246,25 @@ def test_one_instruction_packet_per_pose_read_and_per_goal_write(sim, fast):
         bus.write_goals({1: PROFILE.pan.zero_tick, 2: PROFILE.tilt.zero_tick})
         after_write = sim.truth()["packets"]
         assert (after_read - before, after_write - after_read) == (1, 1)
+
+
+@pytest.mark.parametrize("model", ["xl330-m077", "xl330-m288"])
+def test_an_xl330_bus_finds_its_indirect_data_at_208_and_reads_the_cycle(tmp_path, model):
+    with SimulatedBus(ids=(1, 2), model=model, link=tmp_path / "ttyDXL") as sim:
+        with ServoBus(sim.port, PROFILE.baud, (1, 2), model) as bus:
+            assert bus.models == {1: 1190 if model.endswith("077") else 1200} | {
+                2: 1190 if model.endswith("077") else 1200
+            }
+            configure_servos(bus, LIMITS)
+            assert bus.cycle_block.address == 208
+            read = bus.read_cycle(attempts=5)
+            assert read.ok, read.problem
+            goals = bus.sync_read(Register.GOAL_POSITION)
+            assert {i: r.goal for i, r in read.reports.items()} == goals
+            assert not any(r.torque_on for r in read.reports.values())
+
+
+def test_servos_with_indirect_data_at_two_addresses_are_refused(sim):
+    with open_bus(sim) as bus:
+        with pytest.raises(ConfigError, match=r"\(servo 1: 224, servo 2: 208\), so one sync read"):
+            bus.note_indirect_data({1: 224, 2: 208})
