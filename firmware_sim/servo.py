@@ -122,6 +122,10 @@ class Servo:
         item = self.model.item(register)
         return self._decode(item, self.memory[item.address : item.address + item.size])
 
+    def preset(self, register: Register, value: int) -> None:
+        """Set ``register`` as a previous session left it (before power-up; no checks)."""
+        self._set(register, value)
+
     def _set(self, register: Register, value: int) -> None:
         item = self.model.item(register)
         self.memory[item.address : item.address + item.size] = self._encode(item, value)
