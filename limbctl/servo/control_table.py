@@ -187,32 +187,54 @@ class DriveModeBit(IntFlag):
 
 
 class ModelNumber(IntEnum):
-    """What :attr:`Register.MODEL_NUMBER` (and a ping) reports for the supported servos."""
+    """What :attr:`Register.MODEL_NUMBER` (and a ping) reports for the supported servos
+    (the X series; :mod:`limbctl.servo.families` says what differs by family)."""
 
-    XL430_W250 = 1060
+    XH430_W350 = 1000
+    XH430_W210 = 1010
     XM430_W350 = 1020
+    XM430_W210 = 1030
+    XH430_V350 = 1040
+    XH430_V210 = 1050
+    XL430_W250 = 1060
+    XC430_W150 = 1070
+    XC430_W240 = 1080
+    XL430_W250_2X = 1090  # the 2XL430-W250: two axes, one ID each
+    XH540_W270 = 1100
+    XH540_W150 = 1110
+    XM540_W270 = 1120
+    XM540_W150 = 1130
+    XH540_V270 = 1140
+    XH540_V150 = 1150
     XL330_M077 = 1190
     XL330_M288 = 1200
+    XC330_T181 = 1210
+    XC330_T288 = 1220
+    XC330_M181 = 1230
+    XC330_M288 = 1240
+
+    @property
+    def title(self) -> str:
+        """The e-Manual's name, e.g. ``'XL330-M288'`` or ``'2XL430-W250'``."""
+        if self is ModelNumber.XL430_W250_2X:
+            return "2XL430-W250"
+        return self.name.replace("_", "-")
 
 
-#: Rig-profile model names -> model numbers.
-MODEL_BY_NAME: dict[str, ModelNumber] = {
-    "xl430-w250": ModelNumber.XL430_W250,
-    "xm430-w350": ModelNumber.XM430_W350,
-    "xl330-m077": ModelNumber.XL330_M077,
-    "xl330-m288": ModelNumber.XL330_M288,
-}
+#: Rig-profile model names -> model numbers (the title in lower case, e.g. ``"xl330-m288"``).
+MODEL_BY_NAME: dict[str, ModelNumber] = {model.title.lower(): model for model in ModelNumber}
 
 
 def model_name(model_number: int) -> str:
     """Readable name of a model number, e.g. ``'XL430-W250 (1060)'`` or ``'unknown (77)'``."""
     try:
-        return f"{ModelNumber(model_number).name.replace('_', '-')} ({model_number})"
+        return f"{ModelNumber(model_number).title} ({model_number})"
     except ValueError:
         return f"unknown model ({model_number})"
 
 
-#: Baud rate in bit/s -> value of :attr:`Register.BAUD_RATE` (X series).
+#: Baud rate in bit/s -> value of :attr:`Register.BAUD_RATE` (X series; 4.5 Mbps on the 430s and
+#: 540s only).
 BAUD_RATE_VALUES: dict[int, int] = {
     9600: 0,
     57600: 1,
@@ -223,6 +245,11 @@ BAUD_RATE_VALUES: dict[int, int] = {
     4_000_000: 6,
     4_500_000: 7,
 }
+#: The rates the dynamixel-sdk's PortHandler opens (it refuses others, 4.5 Mbps among them).
+SDK_BAUDS = frozenset(
+    {9600, 19200, 38400, 57600, 115200, 230400, 460800, 500000, 576000, 921600, 1_000_000}
+    | {1_152_000, 2_000_000, 2_500_000, 3_000_000, 3_500_000, 4_000_000}
+)
 
 
 class HardwareError(IntFlag):
