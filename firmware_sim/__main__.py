@@ -16,7 +16,7 @@ from firmware_sim.wire import BAUD_BY_VALUE, RIG_BAUD
 DESCRIPTION = """\
 Simulated Dynamixel X-series servos (Protocol 2.0) on a pseudo-terminal, byte for byte like real
 servos behind a U2D2 adapter. Open PATH with the dynamixel-sdk at the servos' baud rate
-(--baud, default 1000000; factory-fresh servos are at 57600), protocol 2.0: as on a real bus a
+(--baud, default 4000000; factory-fresh servos are at 57600), protocol 2.0: as on a real bus a
 servo hears only its own baud rate, bytes take their time on the wire, and servos sharing an ID
 garble each other's replies. Servo 1 is the pan joint and servo 2 the tilt joint of a simulated
 gimbal (true geometry in calib/rigs/sim.yaml); other IDs drive free shafts. With --factory N,

@@ -11,7 +11,7 @@ the test process cannot starve it) and talks to it over a pipe::
 
     with SimulatedBus(ids=(1, 2)) as sim:
         port = PortHandler(sim.port)        # the real dynamixel-sdk, on the pty
-        port.setBaudRate(1_000_000)         # the servos' speed (factory-fresh: 57600)
+        port.setBaudRate(4_000_000)         # the servos' speed (factory-fresh: 57600)
         sim.push(1, 150.0)                  # push the pan joint with 150 % of stall torque
         sim.truth()["joints_deg"]           # where the limb really is
 """
@@ -305,7 +305,7 @@ class SimulatedBus:
         How long to wait for the process to come up.
     baud, factory, connect, eeprom_dir
         The wire and the bench: see :class:`firmware_sim.simulator.Simulator` (servos at
-        1 Mbps by default; ``factory=N``: N factory-fresh servos at 57600).
+        4 Mbps by default; ``factory=N``: N factory-fresh servos at 57600).
     """
 
     def __init__(

@@ -31,9 +31,11 @@ BAUD_BY_VALUE = {
 }
 #: The factory baud rate (register value 1).
 FACTORY_BAUD = 57_600
-#: The simulated rig's servos (not --factory): 1 Mbps, fast enough that one 200 Hz cycle's
-#: ~132 bytes take 1.3 ms of the 5 ms period (at 57600 they would take 23 ms).
-RIG_BAUD = 1_000_000
+#: The simulated rig's servos (not --factory): 4 Mbps, the fastest every family runs at. One
+#: 200 Hz cycle's ~60 bytes then take 0.15 ms of the 5 ms period, so a dropped reply's timeout
+#: still fits the period as it did before wire time was modelled (at 1 Mbps it took 0.6 ms and
+#: tipped such cycles over; at 57600 the bytes alone take 10 ms).
+RIG_BAUD = 4_000_000
 #: Bits per byte on the wire: start bit, 8 data bits, stop bit (8N1).
 BITS_PER_BYTE = 10
 #: How late a colliding servo's bits arrive (bit times): any skew that is not a whole byte

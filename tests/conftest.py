@@ -25,7 +25,7 @@ def sim(tmp_path):
 
 @pytest.fixture
 def sdk(sim):
-    """The real dynamixel-sdk opened on ``sim`` at its servos' 1 Mbps: ``.port``, ``.packet``."""
+    """The real dynamixel-sdk opened on ``sim`` at its servos' 4 Mbps: ``.port``, ``.packet``."""
     port = PortHandler(sim.port)
     assert port.setBaudRate(RIG_BAUD), f"cannot open {sim.port}"
     yield SimpleNamespace(port=port, packet=PacketHandler(2.0))

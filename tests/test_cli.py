@@ -94,7 +94,7 @@ def test_reboot_reboots_the_servo_in_alarm_and_says_what_it_was(sim, capsys):
 def test_a_command_on_a_port_another_controller_holds_is_refused_naming_it(sim, capsys):
     from limbctl.servo.bus import ServoBus
 
-    with ServoBus(sim.port, 1_000_000, (1, 2)) as holder:
+    with ServoBus(sim.port, 4_000_000, (1, 2)) as holder:
         assert main(["reboot", "--port", sim.port]) == 2
         err = capsys.readouterr().err
         assert f"in use by this process, pid {os.getpid()}" in err

@@ -177,7 +177,7 @@ def test_factory_reset_options_and_broadcast_rule(sdk):
     assert p.ping(port, 5)[1] == COMM_SUCCESS
     assert ok(p.factoryReset(port, 5, 0xFF)) == 0  # everything, ID back to 1
     assert p.ping(port, 5)[1] == COMM_RX_TIMEOUT
-    # unknown option: only the reset servo answers as ID 1 at 57600 (the other is at 1 Mbps)
+    # unknown option: only the reset servo answers as ID 1 at 57600 (the other is at 4 Mbps)
     assert ok(p.factoryReset(port, 1, 0x03)) == 4
 
 
