@@ -87,7 +87,7 @@ def open_rig(
                     hand=hand,
                     goal_log=goal_log,
                     seed=seed,
-                    **dict(sim_options or {}),
+                    **{"baud": baud or profile.baud, **dict(sim_options or {})},
                 )
             )
             device = simulator.port

@@ -24,7 +24,7 @@ from dynamixel_sdk.protocol2_packet_handler import Protocol2PacketHandler
 
 from limbctl.errors import PortError
 from limbctl.servo.control_table import BAUD_RATE_VALUES, SDK_BAUDS, model_name
-from limbctl.servo.transfers import TunedPortHandler
+from limbctl.servo.transfers import SDK_LATENCY_TIMER_MS, TunedPortHandler
 
 #: Scan order: the factory rate first, then the fast ones set-up uses, then the rest.
 SCAN_BAUDS = (57_600, 1_000_000, 115_200, 2_000_000, 3_000_000, 4_000_000, 9600, 4_500_000)
@@ -247,8 +247,8 @@ def scan(
     Parameters
     ----------
     latency_timer_ms : float
-        The USB adapter's latency timer (ms): how late bytes may arrive (16 for an FTDI at its
-        default; 1 after the README's udev rule, or on the simulator).
+        The USB adapter's latency timer (ms): how late bytes may arrive; at least the SDK's
+        16 ms is allowed (the scan is not time-critical).
     on_baud : callable(index, count, baud) or None
         Called before each baud rate (a progress bar).
     budget_per_baud_s : float
@@ -260,6 +260,8 @@ def scan(
         If the port cannot be opened.
     """
     bauds = list(bauds)
+    # not time-critical: wait as the SDK would, so a busy machine is not taken for silence
+    latency_timer_ms = max(latency_timer_ms, SDK_LATENCY_TIMER_MS)
     total = ScanResult()
     port = TunedPortHandler(port_name, latency_timer_ms)
     link = RawLink(port)
