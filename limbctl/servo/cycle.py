@@ -54,6 +54,44 @@ assert CYCLE_BYTES <= INDIRECT_SLOTS
 FACTORY_PWM_LIMIT = 885
 
 
+#: Bits per byte on the wire: start, 8 data, stop.
+BITS_PER_BYTE = 10
+#: The baud rate :func:`wire_budget` advises: every family runs at it and a 200 Hz loop of a
+#: few servos spends under a fifth of its period on the wire there.
+ADVISED_BAUD = 1_000_000
+
+
+def cycle_wire_bytes(n_servos: int, fast: bool = True) -> int:
+    """Bytes one control cycle puts on the wire: the cycle's read and the goals' sync write.
+
+    Protocol 2.0 packets: an instruction is 10 bytes plus parameters; a status packet 11 plus
+    data. Fast Sync Read: ``14 + n`` out, ``8 + n (CYCLE_BYTES + 4)`` back (one packet); Sync
+    Read: ``14 + n`` out, ``n (11 + CYCLE_BYTES)`` back; Sync Write of 4-byte goals: ``14 + 5 n``.
+    """
+    back = 8 + n_servos * (CYCLE_BYTES + 4) if fast else n_servos * (11 + CYCLE_BYTES)
+    return (14 + n_servos) + back + (14 + 5 * n_servos)
+
+
+def wire_budget(rate_hz: float, baud: int, n_servos: int, fast: bool = True) -> str:
+    """What to tell a person whose loop rate the wire cannot carry ('' when it can).
+
+    The cycle's bytes take ``bytes * 10 / baud`` seconds; a loop cannot run faster than one
+    cycle in that time.
+    """
+    count = cycle_wire_bytes(n_servos, fast)
+    # t = bytes * 10 bits / baud
+    wire_s = count * BITS_PER_BYTE / baud
+    most_hz = 1.0 / wire_s
+    if most_hz >= rate_hz:
+        return ""
+    return (
+        f"at {baud} baud one cycle's {count} bytes take {wire_s * 1e3:.1f} ms on the wire, so "
+        f"the loop runs at most {most_hz:.0f} Hz, not {rate_hz:g} Hz: raise the servos' baud "
+        f"to {ADVISED_BAUD} (`limbctl motors setup --baud {ADVISED_BAUD} --rig PROFILE`, then "
+        f"`baud: {ADVISED_BAUD}` in the profile)"
+    )
+
+
 def indirect_map() -> bytes:
     """The bytes of Indirect Address 1..N: each mapped register's addresses, little-endian."""
     addresses = [

@@ -32,7 +32,8 @@ from calib.profile import (
 )
 from calib.yaml_guard import shown
 from limbctl.errors import ConfigError, FileFormatError
-from limbctl.servo.control_table import BAUD_RATE_VALUES, MAX_TICK, MODEL_BY_NAME
+from limbctl.servo.control_table import BAUD_RATE_VALUES, MAX_TICK, MODEL_BY_NAME, SDK_BAUDS
+from limbctl.servo.families import family_of
 from limbctl.servo.ticks import tick_limits
 
 
@@ -60,6 +61,18 @@ def check_profile(profile: RigProfile) -> RigProfile:
     if profile.model not in MODEL_BY_NAME:
         raise ConfigError(
             f"{source}: model must be one of {', '.join(MODEL_BY_NAME)}, got {profile.model!r}"
+        )
+    if profile.baud not in SDK_BAUDS:
+        usable = ", ".join(str(b) for b in BAUD_RATE_VALUES if b in SDK_BAUDS)
+        raise ConfigError(
+            f"{source}: baud {profile.baud} is one the servos know, but the serial driver "
+            f"(dynamixel-sdk) cannot open it; choose one of {usable}"
+        )
+    family = family_of(profile.model)
+    if profile.baud not in family.bauds:
+        raise ConfigError(
+            f"{source}: the {family.name} servos do not run at {profile.baud} baud; choose one "
+            f"of {', '.join(str(b) for b in family.bauds)}"
         )
     for field, joint in (("pan", profile.pan), ("tilt", profile.tilt)):
         lo, hi = joint_tick_limits(joint)

@@ -19,6 +19,7 @@ from limbctl.servo.control_table import (
     Register,
 )
 from limbctl.servo.cycle import CYCLE_BYTES, INDIRECT_MAP_BLOCK, ServoReport, indirect_map
+from limbctl.servo.families import family_of
 
 if TYPE_CHECKING:
     from limbctl.servo.bus import ServoBus
@@ -64,13 +65,14 @@ def configure_servos(
     indirect_data: dict[int, int] = {}
     with bus.exclusive():
         bus.set_torque(False)
+        check_supply(bus)
         for servo_id in bus.ids:
             level = bus.read(Register.STATUS_RETURN_LEVEL, servo_id, patient=True)
             if level != STATUS_RETURN_ALL:
                 raise ConfigError(
                     f"servo {servo_id} has Status Return Level {level}; limbctl needs "
-                    f"{STATUS_RETURN_ALL} (answer every instruction): set it with Dynamixel "
-                    f"Wizard"
+                    f"{STATUS_RETURN_ALL} (answer every instruction): run `limbctl motors "
+                    f"setup`, or power the servo off and on (the level is RAM)"
                 )
             lo, hi = position_limits[servo_id]
             drive = bus.read(Register.DRIVE_MODE, servo_id, patient=True)
@@ -106,6 +108,23 @@ def configure_servos(
             pwm_limits[servo_id] = bus.read(Register.PWM_LIMIT, servo_id, patient=True)
         bus.note_pwm_limits(pwm_limits)
         bus.note_indirect_data(indirect_data)
+
+
+def check_supply(bus: ServoBus) -> None:
+    """Refuse, before torque goes on, a servo whose supply is outside its family's limits.
+
+    Raises
+    ------
+    ConfigError
+        Naming the servo, the voltage it measures and what its model expects (a 5 V XL330 on
+        a 12 V bus, say).
+    """
+    for servo_id in bus.ids:
+        model = bus.models[servo_id]
+        volts = bus.read(Register.PRESENT_INPUT_VOLTAGE, servo_id, patient=True, check_alert=False)
+        problem = family_of(model).voltage_problem(model, volts)
+        if problem:
+            raise ConfigError(f"servo {servo_id}: {problem}")
 
 
 def probe_indirect_data(bus: ServoBus, servo_id: int) -> int:

@@ -222,7 +222,8 @@ def failure(what: str, outcome: Attempt, attempts: int, baud: int, port_name: st
     if outcome.result == COMM_RX_TIMEOUT:
         return BusTimeout(
             f"{what}: {servo} did not answer {tried}: check its power supply and cable, and "
-            f"that its id and baud ({baud}) match the rig profile (scan with Dynamixel Wizard)",
+            f"that its id and baud ({baud}) match the rig profile (`limbctl motors scan` finds "
+            f"them)",
             outcome.culprit,
         )
     if outcome.result == COMM_RX_CORRUPT:
