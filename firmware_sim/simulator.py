@@ -105,7 +105,8 @@ class Simulator:
         eeprom_dir: str | Path | None = None,
     ) -> None:
         slots = parse_ids(range(1, factory + 1) if factory > 0 else ids)
-        self.ids = parse_ids(connect) if connect is not None else slots
+        # --connect names the slots plugged in (none: an empty bus)
+        self.ids = (parse_ids(connect) if connect else ()) if connect is not None else slots
         if not set(self.ids) <= set(slots):
             raise ValueError(f"--connect {list(self.ids)} names slots beyond {list(slots)}")
         models = self._models(model, len(slots))

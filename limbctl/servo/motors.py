@@ -24,7 +24,13 @@ from dataclasses import dataclass
 
 from limbctl.errors import BusError, ConfigError, LimbctlError
 from limbctl.servo.bus import ServoBus
-from limbctl.servo.control_table import BAUD_RATE_VALUES, MODEL_BY_NAME, Register, model_name
+from limbctl.servo.control_table import (
+    BAUD_RATE_VALUES,
+    MODEL_BY_NAME,
+    SDK_BAUDS,
+    Register,
+    model_name,
+)
 from limbctl.servo.families import family_of
 from limbctl.servo.scan import NOTHING_ANSWERS, SCAN_BAUDS, ScanResult, scan
 from limbctl.servo.transfers import SDK_LATENCY_TIMER_MS
@@ -100,6 +106,12 @@ def _the_one_servo(result: ScanResult, target: JointTarget) -> tuple[int, int, i
 def check_target(target: JointTarget) -> None:
     """Refuse a target the servo's family cannot take (ConfigError naming it)."""
     family = family_of(target.model)
+    if target.baud in family.bauds and target.baud not in SDK_BAUDS:
+        usable = ", ".join(str(b) for b in family.bauds if b in SDK_BAUDS)
+        raise ConfigError(
+            f"baud {target.baud} is one the servos know, but the serial driver (dynamixel-sdk) "
+            f"cannot open it; choose one of {usable}"
+        )
     if target.baud not in BAUD_RATE_VALUES or target.baud not in family.bauds:
         rates = ", ".join(str(b) for b in family.bauds)
         raise ConfigError(
