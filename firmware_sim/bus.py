@@ -145,6 +145,7 @@ def serve(
     (checked on every pass of the loop, at most ``TICK_S`` plus one packet's handling apart).
     """
     sources = [endpoint.master] + ([control] if control is not None else [])
+    free_at = 0.0  # when the wire is quiet again (a write without reply still occupies it)
     while not should_stop():
         if schedule is not None:
             schedule.apply_due(sim)
@@ -153,8 +154,9 @@ def serve(
             data = endpoint.read_available()
             if data:
                 baud = endpoint.baud()
-                # the pty delivers at once; on the wire the last byte lands this much later
-                quiet = time.monotonic() + wire_s(len(data), baud)
+                # the pty delivers at once; on the wire the last byte lands this much later,
+                # behind whatever the wire still carries
+                quiet = max(time.monotonic(), free_at) + wire_s(len(data), baud)
                 replies = sim.receive(data, sim.now(), baud)
                 for packet, delay in replies:
                     # each servo waits its Return Delay Time after the bus goes quiet, then
@@ -163,6 +165,7 @@ def serve(
                     _wait_until(quiet)
                     endpoint.write_all(packet)
                     quiet = max(quiet, time.monotonic())
+                free_at = quiet
         if control is not None and control in ready and on_control is not None:
             if not on_control(control):
                 return
