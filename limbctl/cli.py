@@ -405,49 +405,14 @@ def _add_info(sub: Subparsers) -> None:
 
 
 def _add_motors(sub: Subparsers) -> None:
-    p = sub.add_parser(
-        "motors",
-        help="find the servos on a bus, and set up servos out of the box (ID, baud)",
-        description="Servos leave the factory as ID 1 at 57600 baud. `motors scan` finds every "
-        "servo at every baud rate and names IDs that two servos share; `motors setup` gives each "
-        "joint's servo, connected alone, the profile's ID and baud rate.",
-        epilog=EPILOG_HARDWARE,
-    )
-    motors = p.add_subparsers(dest="motors_command", metavar="ACTION")
-    motors.required = True
-    scan = _command(
-        motors,
-        "scan",
-        lambda a: upkeep.run_motor_scan(
-            upkeep.MotorScanOptions(connection=_connection(a), bauds=tuple(a.scan_baud or ()))
-        ),
-        help="ping every servo at every baud rate (the factory's 57600 first)",
-    )
+    p = sub.add_parser("motors", help=upkeep.MOTORS_HELP, description=upkeep.MOTORS_DESCRIPTION)
+    motors = p.add_subparsers(dest="motors_command", metavar="ACTION", required=True)
+    scan = _command(motors, "scan", upkeep.motor_scan_job(_connection), help=upkeep.SCAN_HELP)
     _add_connection(scan)
-    scan.add_argument(
-        "--scan-baud",
-        type=int,
-        action="append",
-        metavar="BPS",
-        help="scan only this baud rate (repeatable; default: every rate the X series has)",
-    )
-    setup = _command(
-        motors,
-        "setup",
-        lambda a: upkeep.run_motor_setup(
-            upkeep.MotorSetupOptions(
-                connection=_connection(a), joints=tuple(a.joint or ()), yes=a.yes
-            )
-        ),
-        help="one servo at a time: ID, baud, Return Delay Time 0, Status Return Level 2",
-        description="For each joint of the rig profile (or --joint): connect only that servo; "
-        "it is found at any baud and ID, checked (one servo, the profile's model, its supply) "
-        "and given the joint's ID and the profile's baud (or --baud), then read back.",
-    )
+    scan.add_argument("--scan-baud", type=int, action="append", help=upkeep.SCAN_BAUD_HELP)
+    setup = _command(motors, "setup", upkeep.motor_setup_job(_connection), help=upkeep.SETUP_HELP)
     _add_connection(setup)
-    setup.add_argument(
-        "--joint", action="append", help="set up only this joint (repeatable: pan, tilt)"
-    )
+    setup.add_argument("--joint", action="append", help="only this joint (repeatable: pan, tilt)")
     setup.add_argument("--yes", action="store_true", help="do not ask before each servo")
 
 

@@ -9,9 +9,10 @@ jobs that drive the limb stay in one module of readable size.
 from __future__ import annotations
 
 import sys
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
+from typing import Any
 
 from limbctl.errors import ConfigError
 from limbctl.jobs import Connection, say
@@ -55,6 +56,29 @@ def run_reboot(options: RebootOptions) -> int:
         "calibrate sets them again"
     )
     return 3 if again else 0
+
+
+MOTORS_HELP = "find the servos at any baud; set up servos out of the box (ID, baud)"
+MOTORS_DESCRIPTION = (
+    "Servos leave the factory as ID 1 at 57600 baud. `motors scan` finds every servo at every "
+    "baud rate and names IDs that two servos share; `motors setup` gives each joint's servo, "
+    "connected alone, the profile's ID and baud rate (or --baud), then reads them back."
+)
+SCAN_HELP = "ping every servo at every baud rate (the factory's 57600 first)"
+SCAN_BAUD_HELP = "scan only this baud rate (repeatable; default: every rate the X series has)"
+SETUP_HELP = "one servo at a time: ID, baud, Return Delay Time 0, Status Return Level 2"
+
+
+def motor_scan_job(connection: Callable[[Any], Connection]) -> Callable[[Any], int]:
+    """The ``motors scan`` job for parsed arguments (``connection`` reads their options)."""
+    return lambda a: run_motor_scan(MotorScanOptions(connection(a), tuple(a.scan_baud or ())))
+
+
+def motor_setup_job(connection: Callable[[Any], Connection]) -> Callable[[Any], int]:
+    """The ``motors setup`` job for parsed arguments."""
+    return lambda a: run_motor_setup(
+        MotorSetupOptions(connection(a), tuple(a.joint or ()), bool(a.yes))
+    )
 
 
 @dataclass(frozen=True)
