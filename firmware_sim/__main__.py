@@ -44,7 +44,8 @@ Faults are drawn from --seed: --drop P loses a reply, --corrupt P flips one byte
 --event T:KIND:ID:VALUE (repeatable) applies a fault T seconds after start:
   vanish:ID:S        servo ID neither executes nor answers for S seconds
   voltage:ID:V       servo ID measures a supply of V volts from then on (limits: XL430
-                     6.0..14.0 V, XM430 9.5..16.0 V; outside them: input voltage error, alert)
+                     6.0..14.0 V, XM430 9.5..16.0 V, XL330 3.5..7.0 V (it sits on 5 V);
+                     outside them: input voltage error, alert)
   temperature:ID:C   servo ID measures C deg C from then on (limit 72 XL430, 80 XM430; above:
                      overheating error, torque off)
   restart:ID:S       servo ID browns out: off the bus for S seconds, then back as after
@@ -163,7 +164,7 @@ def build_parser() -> argparse.ArgumentParser:
 def _models(text: str) -> str:
     keys = [part.strip().lower() for part in text.split(",")]
     for key in keys:
-        if key not in MODELS:
+        if key.partition("@")[0] not in MODELS:
             raise argparse.ArgumentTypeError(
                 f"invalid choice: {key!r} (choose from {', '.join(sorted(MODELS))})"
             )

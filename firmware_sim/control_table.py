@@ -456,10 +456,17 @@ MODELS: dict[str, Model] = {
 
 
 def get_model(key: str) -> Model:
-    """The model called ``key`` (case-insensitive); ValueError listing the choices otherwise."""
+    """The model called ``key`` (case-insensitive); ValueError listing the choices otherwise.
+
+    A 330 may name its firmware, ``"xl330-m288@53"``: after 52 its Indirect Data moved to 224.
+    """
+    name, _, firmware = key.lower().partition("@")
     try:
-        return MODELS[key.lower()]
-    except KeyError:
+        if firmware:
+            return X330_BUILDERS[name](int(firmware))
+        return MODELS[name]
+    except (KeyError, ValueError):
         raise ValueError(
-            f"unknown servo model {key!r}; choose one of: {', '.join(sorted(MODELS))}"
+            f"unknown servo model {key!r}; choose one of: {', '.join(sorted(MODELS))} (a 330 "
+            f"with its firmware version: xl330-m288@53)"
         ) from None

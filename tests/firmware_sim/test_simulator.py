@@ -80,3 +80,23 @@ def test_a_reply_takes_its_bytes_wire_time(tmp_path):
         assert PacketHandler(2.0).ping(port, 1)[1] == COMM_SUCCESS
         assert time.monotonic() - start >= (10 + 14) * 10 / 9600 + 500e-6
         port.closePort()
+
+
+def test_a_lerobot_style_setup_of_a_factory_fresh_servo(tmp_path):
+    """LeRobot's setup_motors flow through the SDK alone: broadcast ping per baud until one
+    servo answers, write its ID, then its baud, and find it again at the new ID and baud."""
+    with SimulatedBus(factory=1, link=tmp_path / "tty") as sim:
+        packet = PacketHandler(2.0)
+        port = PortHandler(sim.port)
+        found = {}
+        for baud in (1_000_000, 57_600):
+            assert port.setBaudRate(baud)
+            found, result = packet.broadcastPing(port)
+            if found:
+                break
+        assert (baud, found) == (57_600, {1: [XL430, 46]})
+        assert packet.write1ByteTxRx(port, 1, ID, 6) == (COMM_SUCCESS, 0)
+        assert packet.write1ByteTxRx(port, 6, BAUD_RATE, 3) == (COMM_SUCCESS, 0)
+        assert port.setBaudRate(1_000_000)
+        assert packet.broadcastPing(port)[0] == {6: [XL430, 46]}
+        port.closePort()

@@ -268,3 +268,12 @@ def test_servos_with_indirect_data_at_two_addresses_are_refused(sim):
     with open_bus(sim) as bus:
         with pytest.raises(ConfigError, match=r"\(servo 1: 224, servo 2: 208\), so one sync read"):
             bus.note_indirect_data({1: 224, 2: 208})
+
+
+def test_a_330_with_later_firmware_is_found_at_224(tmp_path):
+    with SimulatedBus(ids=(1, 2), model="xl330-m288@53", link=tmp_path / "ttyDXL") as sim:
+        with ServoBus(sim.port, PROFILE.baud, (1, 2), "xl330-m288") as bus:
+            assert bus.firmware == {1: 53, 2: 53}
+            configure_servos(bus, LIMITS)
+            assert bus.cycle_block.address == 224
+            assert bus.read_cycle(attempts=5).ok
