@@ -6,7 +6,8 @@ apart in the control table (132, 116, 64, 70, 124). The X series' Indirect Addre
 firmware up to 52, 208 + (n - 1)) stands for, so mapping those registers' bytes onto Indirect
 Data 1..12 lets one (Fast) Sync Read of 12 bytes per servo carry all five. Set-up probes where
 each servo's Indirect Data 1 is (:func:`limbctl.servo.setup.probe_indirect_data`); one sync
-read needs it at the same address on every servo. Set-up
+read needs it at the same address on every servo, so a bus of mixed layouts takes one read per
+address. Set-up
 (:func:`limbctl.servo.setup.configure_servos`) writes the map and reads each servo's PWM Limit
 (EEPROM, which no indirect address can reach); a servo that restarts (brown-out, reboot) loses
 the map with the rest of its RAM: its Indirect Data then read 0, so Torque Enable reads 0 and
@@ -26,7 +27,6 @@ from types import MappingProxyType
 from limbctl.errors import BusTimeout, ConfigError, CorruptReply
 from limbctl.servo import transfers
 from limbctl.servo.control_table import (
-    INDIRECT_DATA_1_CANDIDATES,
     INDIRECT_SLOTS,
     Block,
     Register,
@@ -228,27 +228,14 @@ class CycleReads:
 
     #: Each servo's PWM Limit as set-up read it (until then, the factory value).
     pwm_limits: Mapping[int, int] = MappingProxyType({})
-    #: What the cycle reads: Indirect Data 1.. where set-up found it (224 until then).
-    cycle_block: Block = CYCLE_BLOCK
+    #: Where each servo keeps Indirect Data 1, as set-up's probe found it (224 until then).
+    indirect_at: Mapping[int, int] = MappingProxyType({})
 
     def note_indirect_data(self, addresses: Mapping[int, int]) -> None:
-        """Remember where each servo's Indirect Data 1 is (set-up's probe); one address for all.
-
-        Raises
-        ------
-        ConfigError
-            If the servos differ: one sync read cannot serve both layouts.
-        """
-        found = sorted(set(addresses.values()))
-        if len(found) > 1:
-            where = ", ".join(f"servo {i}: {a}" for i, a in sorted(addresses.items()))
-            raise ConfigError(
-                f"the servos keep Indirect Data 1 at different addresses ({where}), so one sync "
-                f"read cannot serve them: put servos of one family and firmware on the bus, or "
-                f"update the 330s' firmware so that all have it at {INDIRECT_DATA_1_CANDIDATES[0]}"
-            )
-        if found:
-            self.cycle_block = Block(Register.INDIRECT_DATA_1, CYCLE_BYTES, at=found[0])
+        """Remember where each servo's Indirect Data 1 is (set-up's probe). Servos that keep
+        it at different addresses (a 330 with firmware up to 52 beside a 430) are read in one
+        sync read per address."""
+        self.indirect_at = MappingProxyType(dict(addresses))
 
     def note_pwm_limits(self, limits: Mapping[int, int]) -> None:
         """Remember each servo's PWM Limit (EEPROM), the full scale of its Present PWM."""
@@ -274,14 +261,34 @@ class CycleReads:
 
     def read_cycle(self, ids: Sequence[int] | None = None, attempts: int = 1) -> CycleRead:
         """Each servo's (``ids``, default all) :class:`ServoReport` in ONE (fast) sync read,
-        tried at most ``attempts`` times.
+        tried at most ``attempts`` times (one read per Indirect Data address on a bus of
+        mixed layouts).
 
         For the control loop: no diagnostic ping, and a silent servo costs ``attempts`` reply
         timeouts, not seconds. A failed read is a value (``silent`` names the servo the
         reply stopped at); only a failing port raises (:class:`PortError`). The indirect map
         must have been written (:func:`limbctl.servo.setup.configure_servos`).
         """
-        ids = self._known(ids)
+        groups: dict[int, list[int]] = {}
+        for servo_id in self._known(ids):
+            groups.setdefault(self.indirect_at.get(servo_id, CYCLE_BLOCK.address), []).append(
+                servo_id
+            )
+        parts = [self._read_cycle_at(at, group, attempts) for at, group in groups.items()]
+        if len(parts) == 1:
+            return parts[0]
+        return CycleRead(
+            {i: r for part in parts for i, r in part.reports.items()},
+            tuple(i for part in parts for i in part.silent),
+            "; ".join(part.problem for part in parts if part.problem),
+            sum(part.duration_s for part in parts),
+        )
+
+    def _read_cycle_at(self, at: int, ids: Sequence[int], attempts: int) -> CycleRead:
+        """The cycle's read of ``ids``, whose Indirect Data 1 is at address ``at``."""
+        block = (
+            CYCLE_BLOCK if at == CYCLE_BLOCK.address else Block(CYCLE_BLOCK.start, CYCLE_BYTES, at)
+        )
         fast = bool(self.fast_sync_read)
         read = transfers.fast_sync_read if fast else transfers.sync_read
         start = time.monotonic()
@@ -289,7 +296,7 @@ class CycleReads:
             try:
                 raw = self._transact(
                     f"{'fast ' if fast else ''}sync read of the cycle's registers",
-                    lambda: read(self._packets, self._port, self.cycle_block, ids),
+                    lambda: read(self._packets, self._port, block, ids),
                     check_alert=False,
                     attempts=max(1, int(attempts)),
                 )
