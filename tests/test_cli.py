@@ -165,3 +165,18 @@ def test_motors_setup_needs_a_port_and_a_known_joint(capsys):
         "(dynamixel-sdk) cannot open it; choose one of 9600, 57600, 115200, 1000000, 2000000, "
         "3000000, 4000000\n"
     )
+
+
+def test_teleop_at_57600_baud_says_the_wire_cannot_carry_200_hz(tmp_path, capsys):
+    from calib.profile import default_sim_profile
+    from limbctl.envelope import Cone
+
+    sim = default_sim_profile()
+    model = tmp_path / "all.npz"
+    metadata = {"rig": sim.name, "calibration": sim.calibration.to_dict()}
+    Cone(half_angle_deg=180.0).save(model, metadata=metadata)
+    commands = tmp_path / "commands.jsonl"
+    commands.write_text("".join(f'{{"pan": {i * 0.2}, "tilt": 0.0}}\n' for i in range(20)))
+    teleop = ["teleop", "--model", str(model), "--source", f"replay:{commands}", "--quiet"]
+    assert main([*teleop, "--baud", "57600", "--latency-timer", "16"]) == 0
+    assert "warning: at 57600 baud one cycle's 80 bytes take 13.9 ms" in capsys.readouterr().err
