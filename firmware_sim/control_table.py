@@ -453,6 +453,8 @@ X330_BUILDERS = {
 MODELS: dict[str, Model] = {
     m.key: m for m in (_xl430_w250(), _xm430_w350(), *(build() for build in X330_BUILDERS.values()))
 }
+# the rest of the X series shares these tables: firmware_sim.x_models adds it to MODELS
+from firmware_sim import x_models  # noqa: E402, F401
 
 
 def get_model(key: str) -> Model:

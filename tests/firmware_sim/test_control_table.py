@@ -82,3 +82,18 @@ def test_the_330s_indirect_data_moved_after_firmware_52():
     assert len(slots) == 40
     first = min(slots, key=lambda item: item.address)
     assert (first.address, first.default, first.maximum) == (168, 224, 243)
+
+
+def test_every_x_series_model_is_served_with_its_familys_values():
+    assert len(MODELS) == 22
+    numbers = sorted(model.model_number for model in MODELS.values())
+    assert numbers[:3] == [1000, 1010, 1020] and numbers[-1] == 1240
+    xh430v = get_model("xh430-v350")
+    assert (xh430v.model_number, xh430v.current_unit_ma, xh430v.supply_v) == (1040, 1.34, 24.0)
+    assert xh430v.item(Register.CURRENT_LIMIT).default == 689
+    assert xh430v.item(Register.MAX_VOLTAGE_LIMIT).default == 300
+    xc430 = get_model("xc430-w240")
+    assert xc430.has(Register.PRESENT_LOAD) and xc430.item(Register.TEMPERATURE_LIMIT).default == 80
+    xc330t = get_model("xc330-t288@53")
+    assert xc330t.indirect_blocks == ((168, 224, 20),) and xc330t.supply_v == 11.1
+    assert xc330t.item(Register.CURRENT_LIMIT).default == 910

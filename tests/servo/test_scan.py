@@ -37,3 +37,21 @@ def test_nothing_answering_says_what_to_check(tmp_path):
         result = scan(sim.port, [57_600], latency_timer_ms=2.0)
     assert result.empty and result.report() == NOTHING_ANSWERS
     assert "dialout" in NOTHING_ANSWERS and "latency timer" in NOTHING_ANSWERS
+
+
+def test_every_model_on_one_bus_is_found_and_set_up_for_the_cycle(tmp_path):
+    from limbctl.servo.bus import ServoBus
+    from limbctl.servo.control_table import MODEL_BY_NAME
+    from limbctl.servo.setup import configure_servos
+
+    names = sorted(MODEL_BY_NAME)
+    ids = tuple(range(1, len(names) + 1))
+    with SimulatedBus(ids=ids, model=",".join(names), link=tmp_path / "tty") as sim:
+        result = scan(sim.port, [4_000_000], latency_timer_ms=2.0)
+        assert {f.servo_id: f.model_number for f in result.found} == {
+            i: MODEL_BY_NAME[name] for i, name in zip(ids, names, strict=True)
+        }
+        with ServoBus(sim.port, 4_000_000, ids) as bus:
+            # each family on its own supply passes the voltage check; 330s and 430s mix
+            configure_servos(bus, {i: (0, 4095) for i in ids})
+            assert set(bus.read_cycle(attempts=5).reports) == set(ids)
