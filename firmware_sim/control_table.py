@@ -16,70 +16,10 @@ to firmware 52 but at 224-243 in later firmware (ROBOTIS moved it), so a client 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from enum import Enum, auto
+from enum import Enum
 
-
-class Register(Enum):
-    """Typed names of every control-table item of the supported models."""
-
-    MODEL_NUMBER = auto()
-    MODEL_INFORMATION = auto()
-    FIRMWARE_VERSION = auto()
-    ID = auto()
-    BAUD_RATE = auto()
-    RETURN_DELAY_TIME = auto()
-    DRIVE_MODE = auto()
-    OPERATING_MODE = auto()
-    SECONDARY_ID = auto()
-    PROTOCOL_TYPE = auto()
-    HOMING_OFFSET = auto()
-    MOVING_THRESHOLD = auto()
-    TEMPERATURE_LIMIT = auto()
-    MAX_VOLTAGE_LIMIT = auto()
-    MIN_VOLTAGE_LIMIT = auto()
-    PWM_LIMIT = auto()
-    CURRENT_LIMIT = auto()
-    VELOCITY_LIMIT = auto()
-    MAX_POSITION_LIMIT = auto()
-    MIN_POSITION_LIMIT = auto()
-    EXTERNAL_PORT_MODE_1 = auto()
-    EXTERNAL_PORT_MODE_2 = auto()
-    EXTERNAL_PORT_MODE_3 = auto()
-    SHUTDOWN = auto()
-    TORQUE_ENABLE = auto()
-    LED = auto()
-    STATUS_RETURN_LEVEL = auto()
-    REGISTERED_INSTRUCTION = auto()
-    HARDWARE_ERROR_STATUS = auto()
-    VELOCITY_I_GAIN = auto()
-    VELOCITY_P_GAIN = auto()
-    POSITION_D_GAIN = auto()
-    POSITION_I_GAIN = auto()
-    POSITION_P_GAIN = auto()
-    FEEDFORWARD_2ND_GAIN = auto()
-    FEEDFORWARD_1ST_GAIN = auto()
-    BUS_WATCHDOG = auto()
-    GOAL_PWM = auto()
-    GOAL_CURRENT = auto()
-    GOAL_VELOCITY = auto()
-    PROFILE_ACCELERATION = auto()
-    PROFILE_VELOCITY = auto()
-    GOAL_POSITION = auto()
-    REALTIME_TICK = auto()
-    MOVING = auto()
-    MOVING_STATUS = auto()
-    PRESENT_PWM = auto()
-    PRESENT_LOAD = auto()
-    PRESENT_CURRENT = auto()
-    PRESENT_VELOCITY = auto()
-    PRESENT_POSITION = auto()
-    VELOCITY_TRAJECTORY = auto()
-    POSITION_TRAJECTORY = auto()
-    PRESENT_INPUT_VOLTAGE = auto()
-    PRESENT_TEMPERATURE = auto()
-    STARTUP_CONFIGURATION = auto()
-    PWM_SLOPE = auto()
-    BACKUP_READY = auto()
+from firmware_sim.registers import Register
+from firmware_sim.x_models import register_into
 
 
 class Access(Enum):
@@ -453,8 +393,8 @@ X330_BUILDERS = {
 MODELS: dict[str, Model] = {
     m.key: m for m in (_xl430_w250(), _xm430_w350(), *(build() for build in X330_BUILDERS.values()))
 }
-# the rest of the X series shares these tables: firmware_sim.x_models adds it to MODELS
-from firmware_sim import x_models  # noqa: E402, F401
+# the rest of the X series shares these tables (firmware_sim.x_models)
+register_into(MODELS, X330_BUILDERS)
 
 
 def get_model(key: str) -> Model:

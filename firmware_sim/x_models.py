@@ -1,4 +1,5 @@
-"""The rest of the X series for the simulator, registered into ``control_table.MODELS``.
+"""The rest of the X series for the simulator, registered into ``control_table.MODELS``
+(:func:`register_into`, called by that module).
 
 Each model shares a sibling's control table (XL430-W250, XM430-W350 or XL330-M288: the same
 addresses) and carries its own model number and what its family changes, from the e-Manual:
@@ -9,9 +10,11 @@ stall current at that supply, rounded from the e-Manual's specifications).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, replace
+from typing import Any
 
-from firmware_sim.control_table import MODELS, X330_BUILDERS, Model, Register
+from firmware_sim.registers import Register
 
 
 @dataclass(frozen=True)
@@ -74,8 +77,8 @@ X_MODELS = (
 )
 
 
-def derive(base: Model, key: str, title: str, number: int, family: Family) -> Model:
-    """``base``'s table as model ``number`` of ``family``."""
+def derive(base: Any, key: str, title: str, number: int, family: Family) -> Any:
+    """``base``'s table (a ``control_table.Model``) as model ``number`` of ``family``."""
     reg = Register
     updates: dict[Register, dict[str, int]] = {reg.MODEL_NUMBER: {"default": number}}
     if family.voltage is not None:
@@ -107,19 +110,18 @@ def derive(base: Model, key: str, title: str, number: int, family: Family) -> Mo
     )
 
 
-def _register() -> None:
+def register_into(models: dict[str, Any], x330_builders: dict[str, Callable[[int], Any]]) -> None:
+    """Add every model of :data:`X_MODELS` to ``models`` (key -> Model), and the 330s' builders
+    by firmware version to ``x330_builders``."""
     for key, title, number, name in X_MODELS:
         family = FAMILIES[name]
-        if family.base in X330_BUILDERS:
-            base_builder = X330_BUILDERS[family.base]
+        if family.base in x330_builders:
+            base_builder = x330_builders[family.base]
 
             def build(firmware: int, b=base_builder, k=key, t=title, n=number, f=family):
                 return derive(b(firmware), k, t, n, f)
 
-            X330_BUILDERS[key] = build
-            MODELS[key] = build(MODELS[family.base].firmware_version)
+            x330_builders[key] = build
+            models[key] = build(models[family.base].firmware_version)
         else:
-            MODELS[key] = derive(MODELS[family.base], key, title, number, family)
-
-
-_register()
+            models[key] = derive(models[family.base], key, title, number, family)

@@ -9,7 +9,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import TYPE_CHECKING
 
-from limbctl.errors import BusError, BusTimeout, ConfigError, PortError
+from limbctl.errors import BusError, ConfigError
 from limbctl.servo.control_table import (
     INDIRECT_DATA_1_CANDIDATES,
     MAX_TICK,
@@ -147,10 +147,10 @@ def probe_indirect_data(bus: ServoBus, servo_id: int) -> int:
         block = Block(Register.INDIRECT_DATA_1, CYCLE_BYTES, at=address)
         try:
             report = ServoReport.decode(bus.read_block(block, servo_id))
-        except (PortError, BusTimeout):
-            raise
-        except BusError:
-            continue  # the servo refused the address: not there
+        except BusError as exc:
+            if type(exc) is not BusError:
+                raise  # silent, garbled, in alarm, port gone: not an answer about the address
+            continue  # the servo refused the address (its status packet said so): not there
         if (report.goal, report.torque_on, bool(report.hardware_error)) == (
             goal,
             torque,
