@@ -21,7 +21,7 @@ from typing import Any
 
 from calib.profile import RigProfile
 from limbctl.servo.bus import ServoBus
-from limbctl.servo.profiles import load_rig_profile
+from limbctl.servo.profiles import check_models, load_rig_profile
 from limbctl.servo.rig import Rig
 
 
@@ -87,21 +87,24 @@ def open_rig(
                     hand=hand,
                     goal_log=goal_log,
                     seed=seed,
-                    **dict(sim_options or {}),
+                    **{"baud": baud or profile.baud, **dict(sim_options or {})},
                 )
             )
             device = simulator.port
         if latency_timer_ms is None:
             # the FTDI default on a real port; a pty has no USB latency, 2 ms covers scheduling
             latency_timer_ms = 2.0 if simulator is not None else 16.0
+        # a leader on the same bus may be another model: only the rig's servos are checked
         bus = ServoBus(
             device,
             baud or profile.baud,
             profile.ids + tuple(extra_ids),
-            profile.model,
+            None if extra_ids else profile.model,
             latency_timer_ms=latency_timer_ms,
         )
         stack.enter_context(bus)
+        if extra_ids:
+            check_models(bus, profile.ids, profile.model)
         yield Session(rig=Rig(profile, bus), profile=profile, simulator=simulator)
 
 

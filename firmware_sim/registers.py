@@ -1,0 +1,71 @@
+"""Typed names of the control-table items of the simulated X-series servos.
+
+Where each item lives, and per model its default and range, is :mod:`firmware_sim.control_table`.
+"""
+
+from __future__ import annotations
+
+from enum import Enum, auto
+
+
+class Register(Enum):
+    """Typed names of every control-table item of the supported models."""
+
+    MODEL_NUMBER = auto()
+    MODEL_INFORMATION = auto()
+    FIRMWARE_VERSION = auto()
+    ID = auto()
+    BAUD_RATE = auto()
+    RETURN_DELAY_TIME = auto()
+    DRIVE_MODE = auto()
+    OPERATING_MODE = auto()
+    SECONDARY_ID = auto()
+    PROTOCOL_TYPE = auto()
+    HOMING_OFFSET = auto()
+    MOVING_THRESHOLD = auto()
+    TEMPERATURE_LIMIT = auto()
+    MAX_VOLTAGE_LIMIT = auto()
+    MIN_VOLTAGE_LIMIT = auto()
+    PWM_LIMIT = auto()
+    CURRENT_LIMIT = auto()
+    VELOCITY_LIMIT = auto()
+    MAX_POSITION_LIMIT = auto()
+    MIN_POSITION_LIMIT = auto()
+    EXTERNAL_PORT_MODE_1 = auto()
+    EXTERNAL_PORT_MODE_2 = auto()
+    EXTERNAL_PORT_MODE_3 = auto()
+    SHUTDOWN = auto()
+    TORQUE_ENABLE = auto()
+    LED = auto()
+    STATUS_RETURN_LEVEL = auto()
+    REGISTERED_INSTRUCTION = auto()
+    HARDWARE_ERROR_STATUS = auto()
+    VELOCITY_I_GAIN = auto()
+    VELOCITY_P_GAIN = auto()
+    POSITION_D_GAIN = auto()
+    POSITION_I_GAIN = auto()
+    POSITION_P_GAIN = auto()
+    FEEDFORWARD_2ND_GAIN = auto()
+    FEEDFORWARD_1ST_GAIN = auto()
+    BUS_WATCHDOG = auto()
+    GOAL_PWM = auto()
+    GOAL_CURRENT = auto()
+    GOAL_VELOCITY = auto()
+    PROFILE_ACCELERATION = auto()
+    PROFILE_VELOCITY = auto()
+    GOAL_POSITION = auto()
+    REALTIME_TICK = auto()
+    MOVING = auto()
+    MOVING_STATUS = auto()
+    PRESENT_PWM = auto()
+    PRESENT_LOAD = auto()
+    PRESENT_CURRENT = auto()
+    PRESENT_VELOCITY = auto()
+    PRESENT_POSITION = auto()
+    VELOCITY_TRAJECTORY = auto()
+    POSITION_TRAJECTORY = auto()
+    PRESENT_INPUT_VOLTAGE = auto()
+    PRESENT_TEMPERATURE = auto()
+    STARTUP_CONFIGURATION = auto()
+    PWM_SLOPE = auto()
+    BACKUP_READY = auto()
