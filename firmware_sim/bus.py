@@ -176,6 +176,7 @@ def build_simulator(config: Mapping[str, Any]) -> Simulator:
         goal_log=config.get("goal_log"),
         seed=seed,
         faults=plan,
+        leader=config.get("leader"),
     )
 
 
@@ -214,6 +215,9 @@ class _ControlServer:
 
     def do_set_hand(self, spec: Any) -> None:
         self.sim.set_hand(_make_hand(spec, self.sim.seed))
+
+    def do_set_operator(self, spec: Any) -> None:
+        self.sim.set_operator(spec)
 
     def do_push(self, servo_id: int, torque_percent: float) -> None:
         self.sim.push(servo_id, torque_percent)
@@ -284,6 +288,8 @@ class SimulatedBus:
         Fault options (:class:`firmware_sim.faults.FaultPlan`).
     link : path or None
         Also make this path a symlink to the pty.
+    leader : mapping or None
+        A leader gimbal (:meth:`firmware_sim.leader.LeaderWorld.from_spec`), plain data.
     start_timeout_s : float
         How long to wait for the process to come up.
     """
@@ -301,6 +307,7 @@ class SimulatedBus:
         latency_p: float = 1.0,
         link: str | os.PathLike | None = None,
         start_timeout_s: float = 60.0,
+        leader: Mapping | None = None,
     ) -> None:
         FaultPlan(drop=drop, corrupt=corrupt, latency_ms=latency_ms, latency_p=latency_p)
         self.config = {
@@ -316,6 +323,7 @@ class SimulatedBus:
             "latency_ms": latency_ms,
             "latency_p": latency_p,
             "link": None if link is None else str(link),
+            "leader": None if leader is None else dict(leader),
         }
         self._start_timeout_s = start_timeout_s
         self._process: subprocess.Popen | None = None
@@ -399,6 +407,10 @@ class SimulatedBus:
     def set_hand(self, hand: Mapping | str | os.PathLike | None) -> None:
         """Give the limb to a hand (REGION mapping or YAML path), or take it away (None)."""
         self._call("set_hand", _hand_spec(hand))
+
+    def set_operator(self, operator: Mapping | None) -> None:
+        """Give the leader gimbal to an operator (``firmware_sim.leader.Operator`` as data)."""
+        self._call("set_operator", None if operator is None else dict(operator))
 
     def push(self, servo_id: int, torque_percent: float) -> None:
         """Push a joint with a steady torque (% of stall, shaft frame); 0 clears it."""

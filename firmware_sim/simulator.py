@@ -14,7 +14,7 @@ from __future__ import annotations
 import json
 import math
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import IO, Any
 
@@ -22,6 +22,7 @@ from firmware_sim.control_table import Register, get_model
 from firmware_sim.dispatch import dispatch
 from firmware_sim.faults import FaultInjector, FaultPlan
 from firmware_sim.hand import Hand
+from firmware_sim.leader import LeaderWorld, Operator
 from firmware_sim.protocol import MAX_SERVO_ID, PacketParser
 from firmware_sim.servo import Environment, Servo
 from firmware_sim.world import World
@@ -71,6 +72,8 @@ class Simulator:
     faults : FaultPlan or None
     clock : callable
         Monotonic seconds.
+    leader : mapping or None
+        A leader gimbal (:meth:`firmware_sim.leader.LeaderWorld.from_spec`) whose ids join the bus.
     """
 
     def __init__(
@@ -82,12 +85,19 @@ class Simulator:
         seed: int = 0,
         faults: FaultPlan | None = None,
         clock: Callable[[], float] = time.monotonic,
+        leader: Mapping[str, Any] | None = None,
     ) -> None:
         self.model = get_model(model)
-        self.ids = parse_ids(ids)
+        self.leader = None if leader is None else LeaderWorld.from_spec(leader)
+        leader_ids = () if self.leader is None else self.leader.ids
+        self.ids = parse_ids(tuple(ids) + tuple(i for i in leader_ids if i not in ids))
         self.seed = seed
         self.world = World(hand=hand, seed=seed)
         self._joint_ids = {joint.servo_id for joint in self.world.joints}
+        if self._joint_ids & set(leader_ids):
+            raise ValueError(
+                f"leader ids {leader_ids} must not be the follower's {self._joint_ids}"
+            )
         self._clock = clock
         self._start = clock()
         self.time_s = 0.0
@@ -96,6 +106,11 @@ class Simulator:
         for servo_id in self.ids:
             if servo_id in self._joint_ids:
                 start = self.world.raw_tick(servo_id)
+            elif servo_id in leader_ids:
+                start = self.leader.raw_tick(servo_id)
+                # the goal log is the follower's: a leader's goals are not in it
+                self.servos.append(Servo(servo_id, get_model(self.leader.model), start))
+                continue
             else:
                 start = FREE_SHAFT_START_TICK
                 self._free_shafts[servo_id] = [start, 0.0]
@@ -130,8 +145,12 @@ class Simulator:
         for servo in self.servos:
             drive[self._home_ids[id(servo)]] = servo.drive_setpoint(dt)
         self.world.step(dt, {k: v for k, v in drive.items() if k in self._joint_ids})
+        if self.leader is not None:
+            self.leader.step(dt, {i: self.servo(i) for i in self.leader.ids}, drive)
         for servo in self.servos:
             home = self._home_ids[id(servo)]
+            if self.leader is not None and home in self.leader.ids:
+                continue  # the leader world observed it
             if home in self._joint_ids:
                 raw = self.world.raw_tick(home)
                 velocity = self.world.velocity(home)
@@ -186,6 +205,8 @@ class Simulator:
         if self._goal_log is not None:
             self._goal_log.close()
             self._goal_log = None
+        if self.leader is not None:
+            self.leader.close()
 
     # ------------------------------------------------------------------ test handles
     def servo(self, servo_id: int) -> Servo:
@@ -197,6 +218,13 @@ class Simulator:
 
     def set_hand(self, hand: Hand | None) -> None:
         self.world.set_hand(hand)
+
+    def set_operator(self, operator: Mapping[str, Any] | None) -> None:
+        """Give the leader to an operator (:class:`firmware_sim.leader.Operator` as data)."""
+        if self.leader is None:
+            raise ValueError("this simulator has no leader gimbal; start it with leader=...")
+        self.advance()
+        self.leader.set_operator(None if operator is None else Operator.from_mapping(operator))
 
     def push(self, servo_id: int, torque_percent: float) -> None:
         self.servo(servo_id)
@@ -249,6 +277,7 @@ class Simulator:
             "joints_deg": self.world.joint_angles_deg(),
             "servos": servos,
             "faults": self.faults.counters(),
+            "leader": None if self.leader is None else self.leader.truth(),
             "packets": self.packets,
             "junk_bytes": self.parser.junk_bytes,
         }

@@ -1,0 +1,144 @@
+"""What a servo's motor does to its shaft, by Operating Mode: the torque model of a leader gimbal.
+
+The follower's world (:mod:`firmware_sim.world`) tracks setpoints kinematically; a leader gimbal
+(:mod:`firmware_sim.leader`) is moved by a hand and by its motors, so it needs their torque. The
+firmware's position loop is modelled as a stiff PD loop toward the profile's setpoint, its output
+clipped by the current the mode allows (joint frame, N m)::
+
+    tau_loop = KP * (setpoint - angle) - KD * velocity
+    mode 5 (current-based position): tau = clip(tau_loop, +-kt * min(|Goal Current|, Current Limit))
+    mode 3 / 4 (position, today's):  tau = clip(tau_loop, +-kt * Current Limit)
+    mode 0 (current):                tau = kt * clip(Goal Current, +-Current Limit)
+    torque off:                      tau = 0
+
+so Goal Current 0 in mode 5 gives exactly zero torque, whatever the setpoint. ``kt`` is the
+model's stall torque over its stall current. Present Current follows from the torque:
+``I = tau / kt`` (in the model's current unit). A tripped Bus Watchdog stops the servo (its
+profile holds where the shaft is) and, in mode 0, zeroes the current.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from firmware_sim.control_table import OperatingMode, Register
+from firmware_sim.servo import WATCHDOG_TRIPPED, Servo
+
+
+@dataclass(frozen=True)
+class Motor:
+    """A model's motor: stall torque (N m) at its stall current (mA), and its current unit (mA).
+
+    Attributes
+    ----------
+    stall_torque_nm : float
+    stall_current_ma : float
+    current_unit_ma : float
+        One unit of Goal/Present Current and Current Limit (mA).
+    """
+
+    stall_torque_nm: float
+    stall_current_ma: float
+    current_unit_ma: float
+
+    @property
+    def nm_per_ma(self) -> float:
+        """Torque constant at the output (N m per mA): stall torque / stall current."""
+        return self.stall_torque_nm / self.stall_current_ma
+
+
+#: e-Manual specifications: XM430-W350 4.1 N m at 2.3 A (12 V), current unit 2.69 mA; the
+#: XL430-W250 has no current sensing (1.5 N m at 1.4 A, 12 V; its unit is only used internally).
+MOTORS: dict[str, Motor] = {
+    "xm430-w350": Motor(4.1, 2300.0, 2.69),
+    "xl430-w250": Motor(1.5, 1400.0, 1.0),
+}
+
+#: The position loop reaches stall torque at this error (deg): a stiff loop, as the firmware's
+#: default P gain is; stiffer would only shorten the simulated time step the loop needs.
+LOOP_STALL_ERROR_DEG = 2.0
+#: Damping ratio of the position loop with the leader's inertia: well damped, no ringing.
+LOOP_DAMPING_RATIO = 0.7
+
+
+def motor_of(servo: Servo) -> Motor:
+    """The motor of ``servo``'s model; ValueError naming the models known."""
+    try:
+        return MOTORS[servo.model.key]
+    except KeyError:
+        raise ValueError(
+            f"no motor data for {servo.model.title}; known: {', '.join(sorted(MOTORS))}"
+        ) from None
+
+
+def current_limit_ma(servo: Servo, motor: Motor) -> float:
+    """The Current Limit (mA), or the stall current on a model without one."""
+    if servo.model.has(Register.CURRENT_LIMIT):
+        return servo.value(Register.CURRENT_LIMIT) * motor.current_unit_ma
+    return motor.stall_current_ma
+
+
+@dataclass(frozen=True)
+class LoopGains:
+    """The position loop's gains for one joint: KP (N m/rad), KD (N m s/rad)."""
+
+    kp: float
+    kd: float
+
+    @classmethod
+    def for_joint(cls, motor: Motor, inertia: float) -> LoopGains:
+        # stall torque at LOOP_STALL_ERROR_DEG; KD = 2 zeta sqrt(KP J)
+        kp = motor.stall_torque_nm / math.radians(LOOP_STALL_ERROR_DEG)
+        return cls(kp, 2.0 * LOOP_DAMPING_RATIO * math.sqrt(kp * inertia))
+
+
+def motor_torque(
+    servo: Servo,
+    setpoint_rad: float | None,
+    angle_rad: float,
+    velocity_rad_s: float,
+    gains: LoopGains,
+    joint_direction: int,
+) -> float:
+    """The torque (N m, joint frame) ``servo``'s motor applies now; 0 with torque off.
+
+    Parameters
+    ----------
+    servo : Servo
+    setpoint_rad : float or None
+        The profile's setpoint as a joint angle (rad); None with torque off.
+    angle_rad, velocity_rad_s : float
+        Where the joint is and how fast it turns (joint frame).
+    gains : LoopGains
+    joint_direction : int
+        +1 or -1: the joint's direction relative to the shaft (currents are in the shaft frame).
+    """
+    if setpoint_rad is None or not servo.torque_on:
+        return 0.0
+    motor = motor_of(servo)
+    limit = current_limit_ma(servo, motor)
+    mode = OperatingMode(servo.value(Register.OPERATING_MODE))
+    goal = 0.0
+    if servo.model.has(Register.GOAL_CURRENT):
+        goal = servo.value(Register.GOAL_CURRENT) * motor.current_unit_ma
+    tripped = servo.value(Register.BUS_WATCHDOG) & 0xFF == WATCHDOG_TRIPPED
+    if mode is OperatingMode.CURRENT:
+        # the shaft-frame current, turned into the joint frame
+        current = 0.0 if tripped else min(max(goal, -limit), limit)
+        return joint_direction * current * motor.nm_per_ma
+    cap_ma = min(abs(goal), limit) if mode is OperatingMode.CURRENT_BASED_POSITION else limit
+    if cap_ma <= 0.0:
+        return 0.0
+    cap = cap_ma * motor.nm_per_ma
+    # tau = KP (setpoint - angle) - KD velocity, clipped at the current the mode allows
+    tau = gains.kp * (setpoint_rad - angle_rad) - gains.kd * velocity_rad_s
+    return min(max(tau, -cap), cap)
+
+
+def present_current_units(servo: Servo, torque_nm: float, joint_direction: int) -> int:
+    """Present Current (the model's units, shaft frame) that follows from the joint torque."""
+    motor = motor_of(servo)
+    # I = tau / kt, in the shaft frame and the model's unit
+    current = joint_direction * torque_nm / motor.nm_per_ma / motor.current_unit_ma
+    return round(max(-32768.0, min(32767.0, current)))
