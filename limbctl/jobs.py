@@ -201,7 +201,9 @@ def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
         # the rig's servos get its hard limits; servos of the source (a leader) their full range
         limits = {**rig.tick_limits(), **{servo_id: (0, MAX_TICK) for servo_id in spec.extra_ids}}
         configure_servos(rig.bus, limits)
-        with spec.open(SourceContext(rig=rig)) as source, stop_on_signals() as stop:
+        with spec.open(SourceContext(rig, options.rate)) as source, stop_on_signals() as stop:
+            if source.report_lines():
+                say(source.report_lines()[0])  # what the leader will do, before it starts
             result = run_session(
                 rig,
                 gate,
@@ -215,7 +217,7 @@ def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
                 torque_was_on=torque_was_on,
                 publish=live.start_observer(),
             )
-    for line in result.lines():
+    for line in (*result.lines(), *source.report_lines()[1:]):
         say(line)
     return result.exit_code
 

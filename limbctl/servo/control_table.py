@@ -47,6 +47,7 @@ class Register(Enum):
     MAX_VOLTAGE_LIMIT = (32, 2, False)
     MIN_VOLTAGE_LIMIT = (34, 2, False)
     PWM_LIMIT = (36, 2, False)
+    CURRENT_LIMIT = (38, 2, False)  # models that sense current (not the XL430): their unit
     VELOCITY_LIMIT = (44, 4, False)
     MAX_POSITION_LIMIT = (48, 4, False)
     MIN_POSITION_LIMIT = (52, 4, False)
@@ -59,6 +60,7 @@ class Register(Enum):
     HARDWARE_ERROR_STATUS = (70, 1, False)
     BUS_WATCHDOG = (98, 1, True)  # unit 20 ms; -1 = watchdog tripped
     GOAL_PWM = (100, 2, True)
+    GOAL_CURRENT = (102, 2, True)  # models that sense current (not the XL430): their unit
     GOAL_VELOCITY = (104, 4, True)
     PROFILE_ACCELERATION = (108, 4, False)
     PROFILE_VELOCITY = (112, 4, False)
