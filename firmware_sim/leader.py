@@ -27,7 +27,7 @@ from pathlib import Path
 from typing import IO, Any
 
 from firmware_sim.servo import Servo
-from firmware_sim.torque import LoopGains, motor_of, motor_torque, present_current_units
+from firmware_sim.torque import Drive, LoopGains, drive_of, motor_of, present_current_units
 from firmware_sim.world import DEFAULT_JOINTS, RAD_PER_TICK, Joint
 
 #: Rotor inertia at the joint (kg m^2): a light printed leader link plus the reflected inertia of
@@ -203,14 +203,15 @@ class LeaderWorld:
             self._gains = [
                 LoopGains.for_joint(motor_of(servos[i]), LEADER_INERTIA_KG_M2) for i in self.ids
             ]
-        targets = []
+        targets, drives = [], []
         for joint in self.joints:
             tick = setpoints.get(joint.servo_id)
             targets.append(None if tick is None else joint.angle_rad(tick))
+            drives.append(drive_of(servos[joint.servo_id], joint.direction))
         count = max(1, math.ceil(dt / LEADER_SUBSTEP_S - 1e-9))
         h = dt / count
         for _ in range(count):
-            self._substep(h, servos, targets)
+            self._substep(h, drives, targets)
         for i, joint in enumerate(self.joints):
             servo = servos[joint.servo_id]
             servo.current_units = present_current_units(servo, self.motor_nm[i], joint.direction)
@@ -224,14 +225,12 @@ class LeaderWorld:
             )
         self._write_log()
 
-    def _substep(self, h: float, servos: Mapping[int, Servo], targets: list[float | None]):
+    def _substep(self, h: float, drives: list[Drive], targets: list[float | None]) -> None:
         self.time_s += h
         self.operator_time_s += h
-        for i, joint in enumerate(self.joints):
+        for i in (0, 1):
             angle, velocity = self.angle[i], self.velocity[i]
-            motor = motor_torque(
-                servos[joint.servo_id], targets[i], angle, velocity, self._gains[i], joint.direction
-            )
+            motor = drives[i].torque(targets[i], angle, velocity, self._gains[i])
             hand = 0.0
             if self.operator is not None:
                 hand = self.operator.torque(self.operator_time_s, i, angle, velocity)

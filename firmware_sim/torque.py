@@ -93,47 +93,54 @@ class LoopGains:
         return cls(kp, 2.0 * LOOP_DAMPING_RATIO * math.sqrt(kp * inertia))
 
 
-def motor_torque(
-    servo: Servo,
-    setpoint_rad: float | None,
-    angle_rad: float,
-    velocity_rad_s: float,
-    gains: LoopGains,
-    joint_direction: int,
-) -> float:
-    """The torque (N m, joint frame) ``servo``'s motor applies now; 0 with torque off.
+@dataclass(frozen=True)
+class Drive:
+    """What a servo's registers let its motor do this instant (read once per physics step).
 
-    Parameters
+    Attributes
     ----------
-    servo : Servo
-    setpoint_rad : float or None
-        The profile's setpoint as a joint angle (rad); None with torque off.
-    angle_rad, velocity_rad_s : float
-        Where the joint is and how fast it turns (joint frame).
-    gains : LoopGains
-    joint_direction : int
-        +1 or -1: the joint's direction relative to the shaft (currents are in the shaft frame).
+    cap_nm : float
+        Largest torque the position loop may apply (N m); 0 with torque off or no current.
+    current_nm : float or None
+        Mode 0: the torque the current asks for (N m, joint frame); None in position modes.
     """
-    if setpoint_rad is None or not servo.torque_on:
-        return 0.0
+
+    cap_nm: float
+    current_nm: float | None = None
+
+    def torque(self, setpoint: float | None, angle: float, velocity: float, gains: LoopGains):
+        """The motor's torque (N m, joint frame) toward ``setpoint`` (rad; None: torque off)."""
+        if setpoint is None:
+            return 0.0
+        if self.current_nm is not None:
+            return self.current_nm
+        if self.cap_nm <= 0.0:
+            return 0.0
+        # tau = KP (setpoint - angle) - KD velocity, clipped at the current the mode allows
+        tau = gains.kp * (setpoint - angle) - gains.kd * velocity
+        return min(max(tau, -self.cap_nm), self.cap_nm)
+
+
+def drive_of(servo: Servo, joint_direction: int) -> Drive:
+    """The :class:`Drive` of ``servo`` now, by its Operating Mode (module docstring).
+
+    ``joint_direction`` (+1 or -1) turns the shaft-frame Goal Current of mode 0 into the joint
+    frame.
+    """
+    if not servo.torque_on:
+        return Drive(0.0)
     motor = motor_of(servo)
     limit = current_limit_ma(servo, motor)
     mode = OperatingMode(servo.value(Register.OPERATING_MODE))
     goal = 0.0
     if servo.model.has(Register.GOAL_CURRENT):
         goal = servo.value(Register.GOAL_CURRENT) * motor.current_unit_ma
-    tripped = servo.value(Register.BUS_WATCHDOG) & 0xFF == WATCHDOG_TRIPPED
     if mode is OperatingMode.CURRENT:
-        # the shaft-frame current, turned into the joint frame
+        tripped = servo.value(Register.BUS_WATCHDOG) & 0xFF == WATCHDOG_TRIPPED
         current = 0.0 if tripped else min(max(goal, -limit), limit)
-        return joint_direction * current * motor.nm_per_ma
+        return Drive(0.0, joint_direction * current * motor.nm_per_ma)
     cap_ma = min(abs(goal), limit) if mode is OperatingMode.CURRENT_BASED_POSITION else limit
-    if cap_ma <= 0.0:
-        return 0.0
-    cap = cap_ma * motor.nm_per_ma
-    # tau = KP (setpoint - angle) - KD velocity, clipped at the current the mode allows
-    tau = gains.kp * (setpoint_rad - angle_rad) - gains.kd * velocity_rad_s
-    return min(max(tau, -cap), cap)
+    return Drive(cap_ma * motor.nm_per_ma)
 
 
 def present_current_units(servo: Servo, torque_nm: float, joint_direction: int) -> int:

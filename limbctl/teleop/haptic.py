@@ -7,12 +7,12 @@ the command and the region's correction of it (not the slew-limited pose the fol
 
 The law (:class:`FeelLaw`), per cycle of period T::
 
-    inside, or engaged and back inside (d = 0):  Goal Current 0               (no torque at all)
-    d > DEADBAND, or engaged and d > 0:          tau = clip(K (d - DEADBAND), HOLD, CAP)
-                                                 Goal Current = tau / kt      (rounded down)
-                                                 Goal Position = the corrected pose, reached
-                                                 from the leader's pose by at most LEAD
-                                                 Profile Velocity = RETURN_SPEED
+    d <= DEADBAND (inside: d = 0):  Goal Current 0                   (no torque at all)
+    d > DEADBAND:                   tau = min(K (d - DEADBAND), CAP)
+                                    Goal Current = tau / kt           (rounded down)
+                                    Goal Position = the corrected pose, reached from the
+                                    leader's pose by at most LEAD
+                                    Profile Velocity = RETURN_SPEED
 
 The servo's own position loop (mode 5) pushes toward Goal Position with at most Goal Current,
 so the torque points toward the region and never exceeds CAP, which is also written into the
@@ -20,6 +20,8 @@ servo's Current Limit at start so the firmware refuses more. The wall is a sprin
 sampled at T; it is passive when the leader's own damping b exceeds K T / 2 + B (Colgate and
 Schenkel's bound for a sampled virtual wall, B = 0 here): with b = 0.05 N m s/rad (the simulated
 leader) and T = 5 ms, K < 20 N m/rad = 0.35 N m/deg. docs/haptic.md states every figure.
+A released leader is walked back by its own profile (at most RETURN_SPEED) until the law lets
+go at the deadband, so it rests within DEADBAND of the edge, never inside the region.
 """
 
 from __future__ import annotations
@@ -44,38 +46,36 @@ class FeelLaw:
     Attributes
     ----------
     deadband_deg : float
-        0.5 deg: beyond the gate's own tolerance and the leader's tick (0.088 deg) and tremor
-        (a few tenths of a degree), so a hand resting at the edge is not buzzed.
+        0.4 deg: beyond the leader's tick (0.088 deg) and a hand's tremor (a few tenths of a
+        degree), so a hand resting at the edge is not buzzed; a released leader rests within it.
     gain_nm_per_deg : float
-        K = 0.25 N m/deg (14.3 N m/rad): K T / 2 = 0.036 N m s/rad at 200 Hz, under the
-        simulated leader's b = 0.05 with a margin of 1.4; a hand of 0.3 N m stops 1.2 deg past
-        the deadband.
+        K = 0.2 N m/deg (11.5 N m/rad): K T / 2 = 0.029 N m s/rad at 200 Hz, under the
+        simulated leader's b = 0.05 with a margin of 1.75 (the loop's read-to-write delay adds
+        to T); a hand of 0.3 N m stops 1.5 deg past the deadband, 1.9 deg past the edge.
     cap_nm : float
         0.4 N m: enough to stop a relaxed hand (0.3 N m) with room, a tenth of an XM430-W350's
         stall torque (the servo neither heats nor trips overload at it), and small enough that
         a person overpowers it at once.
-    hold_nm : float
-        0.02 N m: an engaged leader keeps at least this on its way back, twice the simulated
-        leader's Coulomb friction, so it reaches the edge instead of sticking short of it.
     return_speed_deg_s : float
-        30 deg/s: a released leader walks back at most this fast (Profile Velocity).
+        30 deg/s: a released leader walks back at most this fast (Profile Velocity, rounded
+        down to 21 units = 28.9 deg/s).
     lead_deg : float
-        0.25 deg: how far ahead of the leader's pose Goal Position may lie. The servo's profile
+        0.3 deg: how far ahead of the leader's pose Goal Position may lie. The servo's profile
         continues from its own setpoint, so a goal at the edge would snap a released leader
         back at whatever speed the cap gives; a goal a little ahead keeps the setpoint beside
-        the leader, and the servo's loop still saturates at the cap (0.25 deg of error is
-        half an XM430's stall torque in the simulator's loop).
+        the leader. The servo's loop must still reach the cap within the lead once the goal
+        is rounded to whole ticks (0.088 deg): the simulator's XM430 loop gives stall torque
+        at 2 deg, so 0.3 deg (3.4 ticks) gives 0.6 N m, over the cap with a tick to spare.
     """
 
-    deadband_deg: float = 0.5
-    gain_nm_per_deg: float = 0.25
+    deadband_deg: float = 0.4
+    gain_nm_per_deg: float = 0.2
     cap_nm: float = 0.4
-    hold_nm: float = 0.02
     return_speed_deg_s: float = 30.0
-    lead_deg: float = 0.25
+    lead_deg: float = 0.3
 
     def __post_init__(self) -> None:
-        for name in ("deadband_deg", "gain_nm_per_deg", "cap_nm", "hold_nm", "lead_deg"):
+        for name in ("deadband_deg", "gain_nm_per_deg", "cap_nm", "lead_deg"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0.0):
                 raise ConfigError(f"feel law {name} must be finite and >= 0, got {value!r}")
@@ -83,20 +83,13 @@ class FeelLaw:
             raise ConfigError(
                 f"return_speed_deg_s must be in (0, 30] deg/s, got {self.return_speed_deg_s}"
             )
-        if self.hold_nm > self.cap_nm:
-            raise ConfigError(f"hold_nm {self.hold_nm} must not exceed cap_nm {self.cap_nm}")
 
-    def torque_nm(self, distance_deg: float, engaged: bool) -> float:
-        """The torque the law asks for at ``distance_deg`` beyond the edge (N m, >= 0).
-
-        ``engaged`` says the wall was on last cycle: it then stays on (at least HOLD) until the
-        command is back inside (d = 0); otherwise it engages beyond the deadband.
-        """
-        if not distance_deg > 0.0 or (not engaged and distance_deg <= self.deadband_deg):
+    def torque_nm(self, distance_deg: float) -> float:
+        """The torque the law asks for at ``distance_deg`` beyond the edge (N m, >= 0)."""
+        if not distance_deg > self.deadband_deg:
             return 0.0
-        # tau = clip(K (d - DEADBAND), HOLD, CAP)
-        tau = self.gain_nm_per_deg * (distance_deg - self.deadband_deg)
-        return min(max(tau, self.hold_nm), self.cap_nm)
+        # tau = min(K (d - DEADBAND), CAP)
+        return min(self.gain_nm_per_deg * (distance_deg - self.deadband_deg), self.cap_nm)
 
     def passivity_margin(self, damping_nm_s_rad: float, rate_hz: float) -> float:
         """b / (K T / 2 + B) with B = 0: above 1 the sampled wall is passive."""
@@ -157,7 +150,6 @@ def push_for(
     present: tuple[float, float],
     q: np.ndarray,
     corrected: np.ndarray,
-    engaged: bool,
 ) -> Push:
     """The leader's command this cycle (see the module docstring).
 
@@ -170,11 +162,9 @@ def push_for(
         The leader's pose (pan, tilt, rad).
     q, corrected : ndarray (4,)
         The command (the leader's pose as a quaternion) and the region's correction of it.
-    engaged : bool
-        Whether the wall was on last cycle.
     """
     distance = beyond_deg(q, corrected)
-    tau = law.torque_nm(distance, engaged)
+    tau = law.torque_nm(distance)
     units = motor.units_for(tau)
     if units == 0:
         return Push(0, 0, present[0], present[1], 0.0, distance)

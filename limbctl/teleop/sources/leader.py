@@ -34,8 +34,10 @@ from limbctl.teleop.sources.base import CommandSource
 #: loop, not the watchdog, is what notices a failing bus; the watchdog covers a dead controller.
 WATCHDOG_UNITS = 5
 #: Cycles timed at start (one follower read, one leader read, one leader write each) to check the
-#: rate can be kept: a quarter of a second at 200 Hz, enough for a median.
+#: rate can be kept: a quarter of a second at 200 Hz, enough for a median; up to three batches,
+#: so a moment of load on a shared machine does not refuse a bus that keeps the rate.
 RATE_CHECK_CYCLES = 50
+RATE_CHECK_TRIES = 3
 
 
 class LeaderSource(CommandSource):
@@ -73,9 +75,9 @@ class LeaderSource(CommandSource):
         self.notice = ""
         self.feel_stats = FeelStats()
         self.last_push: Push | None = None
-        self._engaged = False
         self._cycle: tuple[tuple[float, float], np.ndarray] | None = None
         self._notes: list[str] = []
+        self._rearm = False  # the leader was not heard: its watchdog may have tripped
 
     @property
     def felt(self) -> bool:
@@ -101,7 +103,7 @@ class LeaderSource(CommandSource):
         cap = motor.units_for(self.law.cap_nm)
         configure_felt_leader(bus, self.leader_ids, cap, WATCHDOG_UNITS)
         try:
-            self._check_rate(motor)
+            self._check_rate()
         except ConfigError:
             self._switch_off()
             raise
@@ -112,25 +114,29 @@ class LeaderSource(CommandSource):
             f"(Current Limit {cap})"
         )
 
-    def _check_rate(self, motor) -> None:
-        """Time a felt cycle's transfers; refuse when their median does not fit the period."""
-        bus, times = self.rig.bus, []
-        for _ in range(RATE_CHECK_CYCLES):
-            start = time.perf_counter()
-            self.rig.read_cycle(attempts=1)
-            read = bus.read_cycle(ids=self.leader_ids, attempts=1)
-            if read.ok:
-                pose = self._pose(read)
-                self._write(Push(0, 0, pose[0], pose[1], 0.0, 0.0))
-            times.append(time.perf_counter() - start)
-        median = float(np.median(times))
-        if median > 1.0 / self.rate_hz:
-            raise ConfigError(
-                f"a cycle with the felt leader takes {median * 1e3:.1f} ms (median of "
-                f"{RATE_CHECK_CYCLES}), more than the {1e3 / self.rate_hz:.1f} ms period at "
-                f"{self.rate_hz:g} Hz: lower --rate, or raise the baud rate and lower the "
-                f"adapter's latency timer (README)"
-            )
+    def _check_rate(self) -> None:
+        """Time felt cycles' transfers; refuse when no batch's median fits the period (a batch
+        taken while the machine was busy for a moment is tried again)."""
+        medians = []
+        for _ in range(RATE_CHECK_TRIES):
+            times = []
+            for _ in range(RATE_CHECK_CYCLES):
+                start = time.perf_counter()
+                self.rig.read_cycle(attempts=1)
+                read = self.rig.bus.read_cycle(ids=self.leader_ids, attempts=1)
+                if read.ok:
+                    pose = self._pose(read)
+                    self._write(Push(0, 0, pose[0], pose[1], 0.0, 0.0))
+                times.append(time.perf_counter() - start)
+            medians.append(float(np.median(times)))
+            if medians[-1] <= 1.0 / self.rate_hz:
+                return
+        raise ConfigError(
+            f"a cycle with the felt leader takes {min(medians) * 1e3:.1f} ms (the best median of "
+            f"{RATE_CHECK_TRIES} x {RATE_CHECK_CYCLES}), more than the {1e3 / self.rate_hz:.1f} ms "
+            f"period at {self.rate_hz:g} Hz: lower --rate, or raise the baud rate and lower the "
+            f"adapter's latency timer (README)"
+        )
 
     def close(self) -> None:
         """A felt leader goes limp (no current, torque off); safe to call twice."""
@@ -173,10 +179,15 @@ class LeaderSource(CommandSource):
     def _poll_felt(self) -> list[Command]:
         """The felt leader's read: its pose, and whether it is still fit to push."""
         self._cycle = None
-        read = self.rig.bus.read_cycle(ids=self.leader_ids, attempts=1)
+        # two tries, as the loop's own read: one lost reply should not drop the push
+        read = self.rig.bus.read_cycle(ids=self.leader_ids, attempts=2)
         if not read.ok:
             self.read_failures += 1
+            self._rearm = True
             return []
+        if self._rearm:
+            self._rearm = False
+            self._arm_watchdog()
         for servo_id, report in read.reports.items():
             if report.hardware_error:
                 self._lose_feel(
@@ -197,6 +208,16 @@ class LeaderSource(CommandSource):
             self._cycle = ((pan, tilt), command.q)
         return [command]
 
+    def _arm_watchdog(self) -> None:
+        """Clear a Bus Watchdog that may have tripped while the leader was not heard, and arm
+        it again (a tripped servo refuses every goal, Goal Current 0 included)."""
+        try:
+            for servo_id in self.leader_ids:
+                self.rig.bus.write(Register.BUS_WATCHDOG, servo_id, 0, check_alert=False)
+                self.rig.bus.write(Register.BUS_WATCHDOG, servo_id, WATCHDOG_UNITS, False)
+        except BusError:
+            self._rearm = True  # tried again on the next good read
+
     def _pose(self, read) -> tuple[float, float]:
         pan_id, tilt_id = self.leader_ids
         return self.rig.ticks_to_angles(read.reports[pan_id].present, read.reports[tilt_id].present)
@@ -204,7 +225,6 @@ class LeaderSource(CommandSource):
     def _lose_feel(self, cause: str) -> None:
         """Switch the push off for good; the mirroring goes on and the operator is told."""
         self.motor = None
-        self._engaged = False
         self._switch_off()
         note = f"{cause}: the push is off, mirroring goes on without feel"
         self.feel_stats.events.append(note)
@@ -222,20 +242,16 @@ class LeaderSource(CommandSource):
             push = Push(0, 0, cycle[0][0], cycle[0][1], 0.0, 0.0)
         else:
             q = cycle[1]
-            push = push_for(
-                self.law, self.motor, cycle[0], q, gate.envelope.correct(q), self._engaged
-            )
+            push = push_for(self.law, self.motor, cycle[0], q, gate.envelope.correct(q))
         if push is None:
             self.release()
             return notes
-        self._engaged = push.goal_current > 0
         self._write(push)
         self.feel_stats.add(push.torque_nm, 1.0 / self.rate_hz)
         return notes
 
     def release(self) -> None:
         """No current on the leader from now until the next push (one sync write)."""
-        self._engaged = False
         self.last_push = None
         if self.felt:
             try:
