@@ -160,8 +160,11 @@ class LeaderWorld:
         self.velocity = [0.0, 0.0]
         self.hand_nm = [0.0, 0.0]
         self.motor_nm = [0.0, 0.0]
-        #: Work (J) each motor did on its joint since the start: integral of tau_motor v dt.
+        #: Work (J) each motor and the hand did on each joint since the start: integral of
+        #: tau dtheta. Over a closed excursion the leader is passive at the hand when the hand's
+        #: net work is >= 0 (the device gives back no more than it was given).
         self.motor_work_j = [0.0, 0.0]
+        self.hand_work_j = [0.0, 0.0]
         self.time_s = 0.0
         self.operator_time_s = 0.0
         self.operator = operator
@@ -250,6 +253,7 @@ class LeaderWorld:
                 new_angle, new_velocity = min(max(new_angle, self._lo[i]), self._hi[i]), 0.0
             # the motor's work on the joint: tau_motor * dtheta
             self.motor_work_j[i] += motor * (new_angle - angle)
+            self.hand_work_j[i] += hand * (new_angle - angle)
             self.angle[i], self.velocity[i] = new_angle, new_velocity
             self.hand_nm[i], self.motor_nm[i] = hand, motor
 
@@ -258,7 +262,7 @@ class LeaderWorld:
             self._log.write(json.dumps(self.sample()) + "\n")
 
     def sample(self) -> dict[str, Any]:
-        """The ground truth now: time, pose (deg), hand and motor torque (N m), motor work (J)."""
+        """The ground truth now: time, pose (deg), hand and motor torque (N m), their work (J)."""
         return {
             "t": round(self.time_s, 6),
             "pose_deg": [math.degrees(a) for a in self.angle],
@@ -266,6 +270,7 @@ class LeaderWorld:
             "hand_nm": list(self.hand_nm),
             "motor_nm": list(self.motor_nm),
             "motor_work_j": list(self.motor_work_j),
+            "hand_work_j": list(self.hand_work_j),
         }
 
     def truth(self) -> dict[str, Any]:

@@ -33,6 +33,7 @@ from limbctl.teleop.sources.base import CommandSource
 #: where it is, at most at the cap). As long as the loop's own 20 failed cycles at 200 Hz, so the
 #: loop, not the watchdog, is what notices a failing bus; the watchdog covers a dead controller.
 WATCHDOG_UNITS = 5
+WATCHDOG_UNIT_S = 0.020
 #: Cycles timed at start (one follower read, one leader read, one leader write each) to check the
 #: rate can be kept: a quarter of a second at 200 Hz, enough for a median; up to three batches,
 #: so a moment of load on a shared machine does not refuse a bus that keeps the rate.
@@ -77,7 +78,7 @@ class LeaderSource(CommandSource):
         self.last_push: Push | None = None
         self._cycle: tuple[tuple[float, float], np.ndarray] | None = None
         self._notes: list[str] = []
-        self._rearm = False  # the leader was not heard: its watchdog may have tripped
+        self._heard_at = math.inf  # when the leader last answered (perf_counter s)
 
     @property
     def felt(self) -> bool:
@@ -181,13 +182,13 @@ class LeaderSource(CommandSource):
         self._cycle = None
         # two tries, as the loop's own read: one lost reply should not drop the push
         read = self.rig.bus.read_cycle(ids=self.leader_ids, attempts=2)
+        now = time.perf_counter()
         if not read.ok:
             self.read_failures += 1
-            self._rearm = True
             return []
-        if self._rearm:
-            self._rearm = False
-            self._arm_watchdog()
+        unheard_s, self._heard_at = now - self._heard_at, now
+        if unheard_s > WATCHDOG_UNITS * WATCHDOG_UNIT_S / 2.0:
+            self._arm_watchdog()  # long enough unheard that its watchdog may have tripped
         for servo_id, report in read.reports.items():
             if report.hardware_error:
                 self._lose_feel(
@@ -216,7 +217,7 @@ class LeaderSource(CommandSource):
                 self.rig.bus.write(Register.BUS_WATCHDOG, servo_id, 0, check_alert=False)
                 self.rig.bus.write(Register.BUS_WATCHDOG, servo_id, WATCHDOG_UNITS, False)
         except BusError:
-            self._rearm = True  # tried again on the next good read
+            self._heard_at = -math.inf  # tried again on the next good read
 
     def _pose(self, read) -> tuple[float, float]:
         pan_id, tilt_id = self.leader_ids
