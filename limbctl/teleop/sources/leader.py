@@ -226,6 +226,7 @@ class LeaderSource(CommandSource):
     def _lose_feel(self, cause: str) -> None:
         """Switch the push off for good; the mirroring goes on and the operator is told."""
         self.motor = None
+        self.last_push = None
         self._switch_off()
         note = f"{cause}: the push is off, mirroring goes on without feel"
         self.feel_stats.events.append(note)
