@@ -39,8 +39,8 @@ LEADER_DAMPING_NM_S_RAD = 0.05
 #: Coulomb backdrive friction (N m): a geared servo does not move under a small touch.
 LEADER_COULOMB_NM = 0.01
 #: Physics step of the leader (s): the stiff position loop (stall at 2 deg) with 1e-3 kg m^2
-#: rings at ~340 rad/s; 0.25 ms keeps omega dt < 0.1.
-LEADER_SUBSTEP_S = 0.00025
+#: rings at ~340 rad/s; 0.5 ms keeps omega dt under 0.2 (semi-implicit: stable below 2).
+LEADER_SUBSTEP_S = 0.0005
 #: The operator's defaults: a relaxed grip (N m/deg, N m s/rad) pushing with at most TAU_MAX.
 HAND_STIFFNESS_NM_DEG = 0.05
 HAND_DAMPING_NM_S_RAD = 0.02

@@ -21,7 +21,7 @@ import time
 import numpy as np
 
 from limbctl.errors import BusError, ConfigError, InvalidInputError
-from limbctl.servo.control_table import MAX_TICK, Register, model_name
+from limbctl.servo.control_table import MAX_TICK, Block, Register, model_name
 from limbctl.servo.leader import FEEL_DATA, configure_felt_leader, encode_feel, felt_motor
 from limbctl.servo.rig import Rig
 from limbctl.teleop.commands import Command, command_from_pan_tilt
@@ -34,6 +34,8 @@ from limbctl.teleop.sources.base import CommandSource
 #: loop, not the watchdog, is what notices a failing bus; the watchdog covers a dead controller.
 WATCHDOG_UNITS = 5
 WATCHDOG_UNIT_S = 0.020
+#: Goal Current alone, written as raw bytes (sent even to a servo in alarm).
+GOAL_CURRENT_BLOCK = Block(Register.GOAL_CURRENT, Register.GOAL_CURRENT.size)
 #: Cycles timed at start (one follower read, one leader read, one leader write each) to check the
 #: rate can be kept: a quarter of a second at 200 Hz, enough for a median; up to three batches,
 #: so a moment of load on a shared machine does not refuse a bus that keeps the rate.
@@ -145,9 +147,18 @@ class LeaderSource(CommandSource):
             self.motor = None
             self._switch_off()
 
-    def _switch_off(self) -> None:
+    def _zero_current(self) -> None:
+        """Goal Current 0 on both leader servos in one sync write, alarm or not."""
+        zero = dict.fromkeys(self.leader_ids, bytes(Register.GOAL_CURRENT.encode(0)))
         try:
-            self.rig.bus.sync_write(Register.GOAL_CURRENT, dict.fromkeys(self.leader_ids, 0))
+            self.rig.bus.sync_write_block(GOAL_CURRENT_BLOCK, zero, check_alert=False)
+        except BusError:
+            pass  # the Bus Watchdog stops a leader that hears nothing
+
+    def _switch_off(self) -> None:
+        """No current, then torque off (each tried even if the other failed)."""
+        self._zero_current()
+        try:
             self.rig.bus.set_torque(False, self.leader_ids)
         except BusError:
             pass  # the watchdog stops it; nothing more can be sent on a failed bus
@@ -256,10 +267,7 @@ class LeaderSource(CommandSource):
         """No current on the leader from now until the next push (one sync write)."""
         self.last_push = None
         if self.felt:
-            try:
-                self.rig.bus.sync_write(Register.GOAL_CURRENT, dict.fromkeys(self.leader_ids, 0))
-            except BusError:
-                pass  # the Bus Watchdog stops a leader that hears nothing
+            self._zero_current()
 
     def _write(self, push: Push) -> None:
         ticks = self.rig.angles_to_ticks(push.goal_pan, push.goal_tilt)
