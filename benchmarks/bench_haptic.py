@@ -242,7 +242,9 @@ def exact_rate_case(stiffness: float, script: list, seconds: float, let_go_s=Non
         for step in range(5):
             if step == READ_TO_WRITE_MS:
                 for servo, tick in zip(servos, goal, strict=True):
-                    data = encode_feel(push.goal_current, push.profile_velocity, tick)
+                    velocity = push.profile_velocity.to_bytes(4, "little")
+                    servo.write(112, velocity)  # Profile Velocity (its own write in the source)
+                    data = encode_feel(push.goal_current, tick)
                     servo.write(FEEL_DATA.address, data)
             clock[0] += 0.001
             sim.advance()
@@ -294,7 +296,7 @@ def transfers_case(rounds: int = 400) -> dict:
         rig = session.rig
         configure_servos(rig.bus, {**rig.tick_limits(), **dict.fromkeys(LEADER_IDS, (0, 4095))})
         pose = rig.read_pose()
-        free = {i: encode_feel(0, 0, 2048) for i in LEADER_IDS}
+        free = {i: encode_feel(0, 2048) for i in LEADER_IDS}
         for _ in range(rounds):
             for kind in ("passive", "felt"):
                 start = time.perf_counter()

@@ -5,10 +5,13 @@ drives toward Goal Position, but never with more current than Goal Current (and 
 in EEPROM, bounds that). Models without current sensing (the XL430-W250) cannot; their leader
 stays passive, torque off, as before.
 
-Each cycle's command to a felt leader is one sync write of three registers mapped onto Indirect
-Data after the cycle's read block (:data:`FEEL_BLOCK`)::
+Each cycle's command to a felt leader is one sync write of two registers mapped onto Indirect
+Data after the cycle's read block (:data:`FEEL_DATA`; 12 + 6 bytes fit the 20 slots every
+family has)::
 
-    Goal Current (2 bytes) | Profile Velocity (4 bytes) | Goal Position (4 bytes)
+    Goal Current (2 bytes) | Goal Position (4 bytes)
+
+Profile Velocity changes only when the wall comes on or goes off: a sync write of its own.
 """
 
 from __future__ import annotations
@@ -69,7 +72,7 @@ FELT_MODELS: dict[ModelNumber, LeaderMotor] = {
 }
 
 #: The felt leader's registers, in Indirect Data order after the cycle's read block.
-FEEL_REGISTERS = (Register.GOAL_CURRENT, Register.PROFILE_VELOCITY, Register.GOAL_POSITION)
+FEEL_REGISTERS = (Register.GOAL_CURRENT, Register.GOAL_POSITION)
 FEEL_BYTES = sum(register.size for register in FEEL_REGISTERS)
 assert CYCLE_BYTES + FEEL_BYTES <= INDIRECT_SLOTS
 
@@ -101,9 +104,9 @@ def feel_map() -> bytes:
     return b"".join(address.to_bytes(2, "little") for address in addresses)
 
 
-def encode_feel(goal_current: int, profile_velocity: int, goal_position: int) -> bytes:
+def encode_feel(goal_current: int, goal_position: int) -> bytes:
     """One servo's :data:`FEEL_DATA` bytes."""
-    values = (goal_current, profile_velocity, goal_position)
+    values = (goal_current, goal_position)
     return b"".join(
         bytes(register.encode(value))
         for register, value in zip(FEEL_REGISTERS, values, strict=True)
@@ -163,6 +166,7 @@ def configure_felt_leader(
                 raise BusError(f"servo {servo_id} did not keep the feel map", servo_id)
             bus.write(Register.GOAL_CURRENT, servo_id, 0)
             bus.write(Register.PROFILE_ACCELERATION, servo_id, 0)
+            bus.write(Register.PROFILE_VELOCITY, servo_id, 0)  # free: the setpoint rides along
             bus.write(Register.BUS_WATCHDOG, servo_id, 0)  # clears a trip from before
             bus.write(Register.BUS_WATCHDOG, servo_id, watchdog_units)
         bus.set_torque(True, ids)

@@ -127,7 +127,9 @@ def felt_at_200_hz(script, seconds, stiffness=0.05, let_go_s=None):
             if step == 1:
                 ticks = rig.angles_to_ticks(push.goal_pan, push.goal_tilt)
                 for servo, tick in zip(servos, ticks, strict=True):
-                    servo.write(FEEL_DATA.address, encode_feel(push.goal_current, 21, tick))
+                    velocity = push.profile_velocity.to_bytes(4, "little")
+                    servo.write(112, velocity)  # Profile Velocity (its own write in the source)
+                    servo.write(FEEL_DATA.address, encode_feel(push.goal_current, tick))
             clock[0] += 0.001
             sim.advance()
             rows.append(sim.leader.sample())

@@ -81,6 +81,7 @@ class LeaderSource(CommandSource):
         self._cycle: tuple[tuple[float, float], np.ndarray] | None = None
         self._notes: list[str] = []
         self._heard_at = math.inf  # when the leader last answered (perf_counter s)
+        self._profile_velocity: int | None = 0  # what the leader's servos hold (set-up: 0)
 
     @property
     def felt(self) -> bool:
@@ -272,12 +273,15 @@ class LeaderSource(CommandSource):
     def _write(self, push: Push) -> None:
         ticks = self.rig.angles_to_ticks(push.goal_pan, push.goal_tilt)
         data = {
-            servo_id: encode_feel(
-                push.goal_current, push.profile_velocity, min(max(int(tick), 0), MAX_TICK)
-            )
+            servo_id: encode_feel(push.goal_current, min(max(int(tick), 0), MAX_TICK))
             for servo_id, tick in zip(self.leader_ids, ticks, strict=True)
         }
         try:
+            if push.profile_velocity != self._profile_velocity:  # the wall comes on or goes off
+                self._profile_velocity = None
+                velocity = dict.fromkeys(self.leader_ids, push.profile_velocity)
+                self.rig.bus.sync_write(Register.PROFILE_VELOCITY, velocity)
+                self._profile_velocity = push.profile_velocity
             self.rig.bus.sync_write_block(FEEL_DATA, data)
             self.last_push = push
         except BusError:
