@@ -32,6 +32,7 @@ from dynamixel_sdk import BROADCAST_ID, PacketHandler, PortHandler
 
 from calib.profile import default_sim_profile
 from firmware_sim import SimulatedBus
+from firmware_sim.wire import RIG_BAUD
 from limbctl.envelope import Cone
 from limbctl.errors import BusError, PortInUse
 from limbctl.servo.bus import ServoBus
@@ -165,7 +166,7 @@ def gate(max_speed_deg_s: float = 120.0) -> Gate:
 def broadcast_torque_off(sim: SimulatedBus) -> None:
     """One broadcast Torque Enable = 0 from a second handle (what a brown-out reset leaves)."""
     port = PortHandler(sim.port)
-    port.openPort()
+    port.setBaudRate(RIG_BAUD)
     try:
         PacketHandler(2.0).write1ByteTxOnly(port, BROADCAST_ID, Register.TORQUE_ENABLE.address, 0)
     finally:

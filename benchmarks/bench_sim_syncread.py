@@ -19,6 +19,7 @@ from pathlib import Path
 from dynamixel_sdk import COMM_SUCCESS, GroupSyncRead, PacketHandler, PortHandler
 
 from firmware_sim import SimulatedBus
+from firmware_sim.wire import RIG_BAUD
 
 PRESENT_POSITION, RETURN_DELAY_TIME = 132, 9
 OUTPUT = Path(__file__).resolve().parent.parent / "docs" / "bench_sim.md"
@@ -47,7 +48,7 @@ def main() -> None:
     rows = []
     with SimulatedBus(ids=(1, 2)) as sim:
         port = PortHandler(sim.port)
-        assert port.openPort(), f"cannot open {sim.port}"
+        assert port.setBaudRate(RIG_BAUD), f"cannot open {sim.port}"
         packet = PacketHandler(2.0)
         for delay in (0, 250):
             for servo_id in (1, 2):

@@ -8,16 +8,20 @@ import sys
 from collections.abc import Sequence
 
 from firmware_sim.bus import PtyEndpoint, build_simulator, serve
-from firmware_sim.control_table import MODELS
+from firmware_sim.control_table import MODELS, Register
 from firmware_sim.events import EventSchedule, ScheduledEvent, parse_event
 from firmware_sim.simulator import parse_ids
+from firmware_sim.wire import BAUD_BY_VALUE, RIG_BAUD
 
 DESCRIPTION = """\
 Simulated Dynamixel X-series servos (Protocol 2.0) on a pseudo-terminal, byte for byte like real
-servos behind a U2D2 adapter. Open PATH with the dynamixel-sdk (any baud rate, protocol 2.0).
-Servo 1 is the pan joint and servo 2 the tilt joint of a simulated gimbal (true geometry in
-calib/rigs/sim.yaml); other IDs drive free shafts. Runs until SIGINT or SIGTERM, then removes
-PATH."""
+servos behind a U2D2 adapter. Open PATH with the dynamixel-sdk at the servos' baud rate
+(--baud, default 4000000; factory-fresh servos are at 57600), protocol 2.0: as on a real bus a
+servo hears only its own baud rate, bytes take their time on the wire, and servos sharing an ID
+garble each other's replies. Servo 1 is the pan joint and servo 2 the tilt joint of a simulated
+gimbal (true geometry in calib/rigs/sim.yaml); other IDs drive free shafts. With --factory N,
+N factory-fresh servos (all ID 1, 57600 baud) sit in slots 1..N (slot 1 drives pan, 2 tilt).
+Runs until SIGINT or SIGTERM, then removes PATH."""
 
 EPILOG = """\
 REGION.yaml (--hand), degrees:
@@ -40,7 +44,8 @@ Faults are drawn from --seed: --drop P loses a reply, --corrupt P flips one byte
 --event T:KIND:ID:VALUE (repeatable) applies a fault T seconds after start:
   vanish:ID:S        servo ID neither executes nor answers for S seconds
   voltage:ID:V       servo ID measures a supply of V volts from then on (limits: XL430
-                     6.0..14.0 V, XM430 9.5..16.0 V; outside them: input voltage error, alert)
+                     6.0..14.0 V, XM430 9.5..16.0 V, XL330 3.5..7.0 V (it sits on 5 V);
+                     outside them: input voltage error, alert)
   temperature:ID:C   servo ID measures C deg C from then on (limit 72 XL430, 80 XM430; above:
                      overheating error, torque off)
   restart:ID:S       servo ID browns out: off the bus for S seconds, then back as after
@@ -98,10 +103,33 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument(
         "--model",
-        choices=sorted(MODELS),
         default="xl430-w250",
-        type=str.lower,
-        help="servo model (default xl430-w250)",
+        type=_models,
+        help=f"servo model, or one per servo comma-separated (default xl430-w250): "
+        f"{', '.join(sorted(MODELS))}",
+    )
+    parser.add_argument(
+        "--baud",
+        type=int,
+        choices=sorted(BAUD_BY_VALUE.values()),
+        default=RIG_BAUD,
+        metavar="BPS",
+        help=f"the servos' baud rate (default {RIG_BAUD}; not with --factory)",
+    )
+    parser.add_argument(
+        "--factory",
+        type=int,
+        default=0,
+        metavar="N",
+        help="serve N factory-fresh servos (ID 1, 57600 baud, Return Delay Time 250)",
+    )
+    parser.add_argument(
+        "--connect", type=_ids, metavar="SLOTS", help="only these slots are plugged in, e.g. 2"
+    )
+    parser.add_argument(
+        "--eeprom",
+        metavar="DIR",
+        help="keep each servo's EEPROM in DIR/servo-SLOT.eeprom across runs",
     )
     parser.add_argument("--hand", metavar="REGION.yaml", help="scripted hand (see below)")
     parser.add_argument("--goal-log", metavar="FILE.jsonl", help="log every goal position write")
@@ -133,6 +161,16 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _models(text: str) -> str:
+    keys = [part.strip().lower() for part in text.split(",")]
+    for key in keys:
+        if key.partition("@")[0] not in MODELS:
+            raise argparse.ArgumentTypeError(
+                f"invalid choice: {key!r} (choose from {', '.join(sorted(MODELS))})"
+            )
+    return ",".join(keys)
+
+
 def _event(text: str) -> ScheduledEvent:
     try:
         return parse_event(text)
@@ -153,6 +191,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         "corrupt": args.corrupt,
         "latency_ms": args.latency_ms,
         "latency_p": args.latency_p,
+        "baud": args.baud,
+        "factory": args.factory,
+        "connect": args.connect,
+        "eeprom_dir": args.eeprom,
     }
     stop = {"requested": False}
 
@@ -170,10 +212,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     signal.signal(signal.SIGINT, request_stop)
     signal.signal(signal.SIGTERM, request_stop)
     try:
-        ids = ",".join(str(i) for i in sim.ids)
+        servos = ", ".join(
+            f"{s.model.title} ID {s.servo_id} at {BAUD_BY_VALUE[s.value(Register.BAUD_RATE)]}"
+            for s in sim.servos
+        )
         print(
-            f"firmware-sim ready: {sim.model.title} IDs {ids} on {endpoint.device} "
-            f"linked at {endpoint.port}",
+            f"firmware-sim ready: {servos} on {endpoint.device} linked at {endpoint.port}",
             flush=True,
         )
         serve(sim, endpoint, lambda: stop["requested"], schedule=schedule)

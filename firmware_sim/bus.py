@@ -3,12 +3,15 @@
 :class:`PtyEndpoint` opens a pty, keeps its slave side open in raw mode (so the controller may
 open and close it freely) and optionally points a symlink at it. :func:`serve` is the firmware's
 main loop: wait for bytes (or a control command, or the physics tick), hand them to the
-:class:`~firmware_sim.simulator.Simulator`, write the answers after each servo's Return Delay
-Time. :class:`SimulatedBus` runs that loop in a separate process (so a controller's busy polling
-in the test process cannot starve it) and talks to it over a pipe::
+:class:`~firmware_sim.simulator.Simulator` with the speed the host set on the pty, and write the
+answers when they would have crossed the wire: the instruction's bytes, each servo's Return
+Delay Time, then the reply's bytes, at that speed (:mod:`firmware_sim.wire`).
+:class:`SimulatedBus` runs that loop in a separate process (so a controller's busy polling in
+the test process cannot starve it) and talks to it over a pipe::
 
     with SimulatedBus(ids=(1, 2)) as sim:
         port = PortHandler(sim.port)        # the real dynamixel-sdk, on the pty
+        port.setBaudRate(4_000_000)         # the servos' speed (factory-fresh: 57600)
         sim.push(1, 150.0)                  # push the pan joint with 150 % of stall torque
         sim.truth()["joints_deg"]           # where the limb really is
 """
@@ -34,6 +37,7 @@ from firmware_sim.events import EventSchedule
 from firmware_sim.faults import FaultPlan
 from firmware_sim.hand import Hand
 from firmware_sim.simulator import Simulator
+from firmware_sim.wire import RIG_BAUD, host_baud, wire_s
 
 # The physics keeps moving (hand, profiles) at least this often without traffic.
 TICK_S = 0.005
@@ -69,6 +73,10 @@ class PtyEndpoint:
                     f"{self.link} exists and is not a symlink; choose another --link path"
                 )
             self.link.symlink_to(self.device)
+
+    def baud(self) -> int | None:
+        """The speed (bit/s) the controller set on the pty (None if the system cannot tell)."""
+        return host_baud(self.master)
 
     @property
     def port(self) -> str:
@@ -137,6 +145,7 @@ def serve(
     (checked on every pass of the loop, at most ``TICK_S`` plus one packet's handling apart).
     """
     sources = [endpoint.master] + ([control] if control is not None else [])
+    free_at = 0.0  # when the wire is quiet again (a write without reply still occupies it)
     while not should_stop():
         if schedule is not None:
             schedule.apply_due(sim)
@@ -144,13 +153,19 @@ def serve(
         if endpoint.master in ready:
             data = endpoint.read_available()
             if data:
-                arrived = time.monotonic()
-                replies = sim.receive(data, sim.now())
+                baud = endpoint.baud()
+                # the pty delivers at once; on the wire the last byte lands this much later,
+                # behind whatever the wire still carries
+                quiet = max(time.monotonic(), free_at) + wire_s(len(data), baud)
+                replies = sim.receive(data, sim.now(), baud)
                 for packet, delay in replies:
-                    # each servo waits its Return Delay Time after the bus goes quiet
-                    _wait_until(arrived + delay)
+                    # each servo waits its Return Delay Time after the bus goes quiet, then
+                    # its reply takes its bytes' wire time; the host reads it whole
+                    quiet += delay + wire_s(len(packet), baud)
+                    _wait_until(quiet)
                     endpoint.write_all(packet)
-                    arrived = time.monotonic()
+                    quiet = max(quiet, time.monotonic())
+                free_at = quiet
         if control is not None and control in ready and on_control is not None:
             if not on_control(control):
                 return
@@ -176,6 +191,10 @@ def build_simulator(config: Mapping[str, Any]) -> Simulator:
         goal_log=config.get("goal_log"),
         seed=seed,
         faults=plan,
+        baud=config.get("baud", RIG_BAUD),
+        factory=int(config.get("factory", 0)),
+        connect=config.get("connect"),
+        eeprom_dir=config.get("eeprom_dir"),
         leader=config.get("leader"),
     )
 
@@ -277,7 +296,8 @@ class SimulatedBus:
     ids : sequence of int
         Servo IDs (1 = pan, 2 = tilt of the simulated gimbal; others are free shafts).
     model : str
-        ``"xl430-w250"`` (default) or ``"xm430-w350"``.
+        A key of :data:`firmware_sim.control_table.MODELS` (default ``"xl430-w250"``), or one
+        per servo separated by commas.
     hand : mapping, path or None
         REGION.yaml content or path (firmware_sim.regions); moves the limb while torque is off.
     goal_log : path or None
@@ -292,6 +312,9 @@ class SimulatedBus:
         A leader gimbal (:meth:`firmware_sim.leader.LeaderWorld.from_spec`), plain data.
     start_timeout_s : float
         How long to wait for the process to come up.
+    baud, factory, connect, eeprom_dir
+        The wire and the bench: see :class:`firmware_sim.simulator.Simulator` (servos at
+        4 Mbps by default; ``factory=N``: N factory-fresh servos at 57600).
     """
 
     def __init__(
@@ -307,6 +330,10 @@ class SimulatedBus:
         latency_p: float = 1.0,
         link: str | os.PathLike | None = None,
         start_timeout_s: float = 60.0,
+        baud: int = RIG_BAUD,
+        factory: int = 0,
+        connect=None,
+        eeprom_dir: str | os.PathLike | None = None,
         leader: Mapping | None = None,
     ) -> None:
         FaultPlan(drop=drop, corrupt=corrupt, latency_ms=latency_ms, latency_p=latency_p)
@@ -323,6 +350,10 @@ class SimulatedBus:
             "latency_ms": latency_ms,
             "latency_p": latency_p,
             "link": None if link is None else str(link),
+            "baud": int(baud),
+            "factory": int(factory),
+            "connect": None if connect is None else list(connect),
+            "eeprom_dir": None if eeprom_dir is None else str(eeprom_dir),
             "leader": None if leader is None else dict(leader),
         }
         self._start_timeout_s = start_timeout_s

@@ -1,4 +1,4 @@
-"""X-series control tables (XL430-W250, XM430-W350) as typed data, from the e-Manual.
+"""X-series control tables (XL430-W250, XM430-W350, XL330-M077/M288) from the e-Manual.
 
 Each :class:`Item` says where a register lives, how wide it is, who may write it, its
 factory default and the range a write must respect. Two kinds of bounds are kept apart because
@@ -8,7 +8,9 @@ the firmware reports them with different error numbers:
 - ``bound``: a limit set by *other* items (e.g. Goal Position within Min/Max Position Limit,
   Goal Velocity within +-Velocity Limit); violations answer Data Limit Error, 6.
 
-Addresses 168-223/224-251 and 578-633/634-661 are the indirect address/data blocks.
+Addresses 168-223/224-251 and 578-633/634-661 are the 430s' indirect address/data blocks. The
+330s have one block of 20: Indirect Address 1-20 at 168-206, and Indirect Data 1-20 at 208-227 up
+to firmware 52 but at 224-243 in later firmware (ROBOTIS moved it), so a client has to probe.
 """
 
 from __future__ import annotations
@@ -75,6 +77,9 @@ class Register(Enum):
     POSITION_TRAJECTORY = auto()
     PRESENT_INPUT_VOLTAGE = auto()
     PRESENT_TEMPERATURE = auto()
+    STARTUP_CONFIGURATION = auto()
+    PWM_SLOPE = auto()
+    BACKUP_READY = auto()
 
 
 class Access(Enum):
@@ -109,6 +114,11 @@ EEPROM_END = 64  # addresses below this are EEPROM: locked while Torque Enable i
 INDIRECT_BLOCKS = ((168, 224, 28), (578, 634, 28))  # (first address item, first data item, count)
 MEMORY_SIZE = 662
 INDIRECT_ADDRESS_RANGE = (64, 661)
+#: The 330s' one block of 20 slots; Indirect Data 1 moved from 208 (firmware <= 52) to 224.
+X330_INDIRECT_SLOTS = 20
+X330_LAST_FIRMWARE_WITH_DATA_AT_208 = 52
+#: Firmware the simulated 330s report unless told otherwise (the e-Manual's layout, data at 208).
+X330_FIRMWARE = 52
 
 
 @dataclass(frozen=True)
@@ -161,6 +171,14 @@ class Model:
     firmware_version: int
     operating_modes: frozenset[int]
     items: tuple[Item, ...]
+    indirect_blocks: tuple[tuple[int, int, int], ...] = INDIRECT_BLOCKS
+    memory_size: int = MEMORY_SIZE
+    #: Present Current's unit (mA) and the stall current (mA) at the nominal voltage, which
+    #: the simulated load (percent of stall) is scaled by; models with Present Load ignore them
+    current_unit_ma: float = 2.69
+    stall_current_ma: float = 2300.0
+    #: The supply the simulated servo sits on (V): the 330s are 5 V servos (3.7..6.0 V)
+    supply_v: float = 11.1
 
     def __post_init__(self) -> None:
         lookup = {item.register: item for item in self.items if item.register is not None}
@@ -186,29 +204,43 @@ def _item(register, address, size, access, default, minimum, maximum, **kw) -> I
     return Item(register, address, size, access, default, minimum, maximum, name=name, **kw)
 
 
-def _common_items(temperature_limit, voltage, velocity_limit, gains) -> list[Item]:
-    """Items shared by the XL430-W250 and XM430-W350 (defaults that differ are arguments)."""
+def _common_items(
+    temperature_limit,
+    voltage,
+    velocity_limit,
+    gains,
+    *,
+    baud_max=7,
+    protocols=(1, 2),
+    velocity_max=1023,
+    shutdown=52,
+) -> list[Item]:
+    """Items every supported model has (defaults and ranges that differ are arguments).
+
+    ``baud_max`` is the largest Baud Rate value (7 = 4.5 Mbps on the 430s, 6 = 4 Mbps on the
+    330s); ``protocols`` the Protocol Type range; ``velocity_max`` Velocity Limit's range.
+    """
     (v_min, v_max, v_default_max, v_default_min) = voltage
     (vel_i, vel_p, pos_d, pos_i, pos_p) = gains
     reg = Register
     return [
         _item(reg.ID, 7, 1, RW, 1, 0, 252),
-        _item(reg.BAUD_RATE, 8, 1, RW, 1, 0, 7),
+        _item(reg.BAUD_RATE, 8, 1, RW, 1, 0, baud_max),
         _item(reg.RETURN_DELAY_TIME, 9, 1, RW, 250, 0, 254),
         _item(reg.DRIVE_MODE, 10, 1, RW, 0, 0, 5),
         _item(reg.OPERATING_MODE, 11, 1, RW, 3, 0, 16),
         _item(reg.SECONDARY_ID, 12, 1, RW, 255, 0, 255),
-        _item(reg.PROTOCOL_TYPE, 13, 1, RW, 2, 1, 2),
+        _item(reg.PROTOCOL_TYPE, 13, 1, RW, 2, *protocols),
         _item(reg.HOMING_OFFSET, 20, 4, RW, 0, -1_044_479, 1_044_479, signed=True),
         _item(reg.MOVING_THRESHOLD, 24, 4, RW, 10, 0, 1023),
         _item(reg.TEMPERATURE_LIMIT, 31, 1, RW, temperature_limit, 0, 100),
         _item(reg.MAX_VOLTAGE_LIMIT, 32, 2, RW, v_default_max, v_min, v_max),
         _item(reg.MIN_VOLTAGE_LIMIT, 34, 2, RW, v_default_min, v_min, v_max),
         _item(reg.PWM_LIMIT, 36, 2, RW, 885, 0, 885),
-        _item(reg.VELOCITY_LIMIT, 44, 4, RW, velocity_limit, 0, 1023),
+        _item(reg.VELOCITY_LIMIT, 44, 4, RW, velocity_limit, 0, velocity_max),
         _item(reg.MAX_POSITION_LIMIT, 48, 4, RW, 4095, 0, 4095),
         _item(reg.MIN_POSITION_LIMIT, 52, 4, RW, 0, 0, 4095),
-        _item(reg.SHUTDOWN, 63, 1, RW, 52, 0, 255),
+        _item(reg.SHUTDOWN, 63, 1, RW, shutdown, 0, 255),
         _item(reg.TORQUE_ENABLE, 64, 1, RW, 0, 0, 1),
         _item(reg.LED, 65, 1, RW, 0, 0, 1),
         _item(reg.STATUS_RETURN_LEVEL, 68, 1, RW, 2, 0, 2),
@@ -230,8 +262,8 @@ def _common_items(temperature_limit, voltage, velocity_limit, gains) -> list[Ite
             4,
             RW,
             0,
-            -1023,
-            1023,
+            -velocity_max,
+            velocity_max,
             signed=True,
             bound=(None, reg.VELOCITY_LIMIT),
         ),
@@ -270,11 +302,11 @@ def _header_items(model_number: int, firmware_version: int) -> list[Item]:
     ]
 
 
-def _indirect_items() -> list[Item]:
+def _indirect_items(blocks=INDIRECT_BLOCKS, address_range=INDIRECT_ADDRESS_RANGE) -> list[Item]:
     """Indirect Address n (2 bytes, default = address of Indirect Data n) and Indirect Data n."""
     items = []
-    for first_address, first_data, count in INDIRECT_BLOCKS:
-        base = 1 if first_address == INDIRECT_BLOCKS[0][0] else 1 + INDIRECT_BLOCKS[0][2]
+    for first_address, first_data, count in blocks:
+        base = 1 if first_address == blocks[0][0] else 1 + blocks[0][2]
         for k in range(count):
             items.append(
                 Item(
@@ -283,7 +315,7 @@ def _indirect_items() -> list[Item]:
                     2,
                     RW,
                     first_data + k,
-                    *INDIRECT_ADDRESS_RANGE,
+                    *address_range,
                     name=f"Indirect Address {base + k}",
                 )
             )
@@ -351,14 +383,90 @@ def _xm430_w350() -> Model:
     )
 
 
-MODELS: dict[str, Model] = {m.key: m for m in (_xl430_w250(), _xm430_w350())}
+def x330_indirect_blocks(firmware_version: int) -> tuple[tuple[int, int, int], ...]:
+    """The 330s' indirect block for a firmware version: Indirect Data 1 at 208, or 224 after 52."""
+    first_data = 208 if firmware_version <= X330_LAST_FIRMWARE_WITH_DATA_AT_208 else 224
+    return ((168, first_data, X330_INDIRECT_SLOTS),)
+
+
+def _xl330(key: str, title: str, number: int, velocity_limit: int, gains, stall_ma: float):
+    """An XL330 (5 V family): Present Current in 1 mA, Current Limit 1750 mA, six modes."""
+
+    def build(firmware_version: int = X330_FIRMWARE) -> Model:
+        reg = Register
+        blocks = x330_indirect_blocks(firmware_version)
+        end = blocks[0][1] + blocks[0][2]  # one past the last Indirect Data
+        items = _header_items(number, firmware_version)
+        items += _common_items(
+            temperature_limit=70,
+            voltage=(31, 70, 70, 35),
+            velocity_limit=velocity_limit,
+            gains=gains,
+            baud_max=6,
+            protocols=(2, 22),
+            velocity_max=2047,
+            shutdown=53,
+        )
+        items += [
+            _item(reg.CURRENT_LIMIT, 38, 2, RW, 1750, 0, 1750),
+            _item(reg.STARTUP_CONFIGURATION, 60, 1, RW, 0, 0, 3),
+            _item(reg.PWM_SLOPE, 62, 1, RW, 140, 1, 255),
+            _item(
+                reg.GOAL_CURRENT,
+                102,
+                2,
+                RW,
+                0,
+                -1750,
+                1750,
+                signed=True,
+                bound=(None, reg.CURRENT_LIMIT),
+            ),
+            _item(reg.PRESENT_CURRENT, 126, 2, R, 0, -32768, 32767, signed=True),
+            _item(reg.BACKUP_READY, 147, 1, R, 0, 0, 1),
+        ]
+        items += _indirect_items(blocks, (64, end - 1))
+        return Model(
+            key,
+            title,
+            number,
+            firmware_version,
+            frozenset({0, 1, 3, 4, 5, 16}),
+            tuple(sorted(items, key=lambda i: i.address)),
+            indirect_blocks=blocks,
+            memory_size=end,
+            current_unit_ma=1.0,
+            stall_current_ma=stall_ma,
+            supply_v=5.0,
+        )
+
+    return build
+
+
+#: Builders of the 330s by firmware version (the indirect data address depends on it).
+X330_BUILDERS = {
+    # gains (Velocity I, Velocity P, Position D, Position I, Position P); stall 1.47 A at 5 V
+    "xl330-m077": _xl330("xl330-m077", "XL330-M077", 1190, 1620, (400, 40, 0, 400, 400), 1470.0),
+    "xl330-m288": _xl330("xl330-m288", "XL330-M288", 1200, 445, (1600, 180, 0, 0, 400), 1470.0),
+}
+
+MODELS: dict[str, Model] = {
+    m.key: m for m in (_xl430_w250(), _xm430_w350(), *(build() for build in X330_BUILDERS.values()))
+}
 
 
 def get_model(key: str) -> Model:
-    """The model called ``key`` (case-insensitive); ValueError listing the choices otherwise."""
+    """The model called ``key`` (case-insensitive); ValueError listing the choices otherwise.
+
+    A 330 may name its firmware, ``"xl330-m288@53"``: after 52 its Indirect Data moved to 224.
+    """
+    name, _, firmware = key.lower().partition("@")
     try:
-        return MODELS[key.lower()]
-    except KeyError:
+        if firmware:
+            return X330_BUILDERS[name](int(firmware))
+        return MODELS[name]
+    except (KeyError, ValueError):
         raise ValueError(
-            f"unknown servo model {key!r}; choose one of: {', '.join(sorted(MODELS))}"
+            f"unknown servo model {key!r}; choose one of: {', '.join(sorted(MODELS))} (a 330 "
+            f"with its firmware version: xl330-m288@53)"
         ) from None

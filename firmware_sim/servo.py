@@ -26,8 +26,6 @@ from firmware_sim.control_table import (
     HW_INPUT_VOLTAGE,
     HW_OVERHEATING,
     HW_OVERLOAD,
-    INDIRECT_BLOCKS,
-    MEMORY_SIZE,
     Access,
     Item,
     Model,
@@ -99,13 +97,13 @@ class Servo:
         on_goal: Callable[[Servo, int], None] | None = None,
     ) -> None:
         self.model = model
-        self.memory = bytearray(MEMORY_SIZE)
-        self._by_address: list[Item | None] = [None] * MEMORY_SIZE
+        self.memory = bytearray(model.memory_size)
+        self._by_address: list[Item | None] = [None] * model.memory_size
         for item in model.items:
             for offset in range(item.size):
                 self._by_address[item.address + offset] = item
         self._on_goal = on_goal
-        self.environment = Environment()
+        self.environment = Environment(voltage=model.supply_v)
         self.raw_tick = float(raw_tick)
         self.raw_velocity = 0.0
         self.load_percent = 0.0
@@ -124,6 +122,10 @@ class Servo:
         """Current value of ``register`` (signed items decoded)."""
         item = self.model.item(register)
         return self._decode(item, self.memory[item.address : item.address + item.size])
+
+    def preset(self, register: Register, value: int) -> None:
+        """Set ``register`` as a previous session left it (before power-up; no checks)."""
+        self._set(register, value)
 
     def _set(self, register: Register, value: int) -> None:
         item = self.model.item(register)
@@ -185,7 +187,7 @@ class Servo:
     # ------------------------------------------------------------------ memory access
     def _resolve(self, address: int) -> int:
         """Address actually touched by ``address`` (indirect data redirects)."""
-        for first_address, first_data, count in INDIRECT_BLOCKS:
+        for first_address, first_data, count in self.model.indirect_blocks:
             if first_data <= address < first_data + count:
                 k = address - first_data
                 slot = first_address + 2 * k
@@ -196,8 +198,8 @@ class Servo:
         """Bytes ``address .. address+length`` (indirect data resolved). Raises ServoError."""
         if length <= 0:
             raise ServoError(ErrorNumber.DATA_LENGTH, "READ of zero bytes")
-        if address + length > MEMORY_SIZE:
-            raise ServoError(ErrorNumber.ACCESS, f"READ beyond address {MEMORY_SIZE - 1}")
+        if address + length > len(self.memory):
+            raise ServoError(ErrorNumber.ACCESS, f"READ beyond address {len(self.memory) - 1}")
         targets = [self._resolve(address + offset) for offset in range(length)]
         if all(self._by_address[t] is None for t in targets):
             raise ServoError(ErrorNumber.ACCESS, f"no item at address {address}")
@@ -214,8 +216,8 @@ class Servo:
         """
         if not data:
             raise ServoError(ErrorNumber.DATA_LENGTH, "WRITE without data")
-        if address + len(data) > MEMORY_SIZE:
-            raise ServoError(ErrorNumber.ACCESS, f"WRITE beyond address {MEMORY_SIZE - 1}")
+        if address + len(data) > len(self.memory):
+            raise ServoError(ErrorNumber.ACCESS, f"WRITE beyond address {len(self.memory) - 1}")
         staged: dict[int, int] = {}
         for offset, byte in enumerate(data):
             staged[self._resolve(address + offset)] = byte
@@ -454,8 +456,8 @@ class Servo:
         elif self.current_units is not None:  # a leader's motor says it (firmware_sim.torque)
             self._set(Register.PRESENT_CURRENT, round(sign * self.current_units))
         else:
-            # unit 2.69 mA; stall current of the XM430-W350 at 12 V is 2.3 A
-            current = load / 100.0 * 2300.0 / 2.69
+            # the model's unit (2.69 mA on the XM430-W350, stall 2.3 A at 12 V; 1 mA on the 330s)
+            current = load / 100.0 * self.model.stall_current_ma / self.model.current_unit_ma
             self._set(Register.PRESENT_CURRENT, round(max(-32768, min(32767, current))))
         pwm_limit = self.value(Register.PWM_LIMIT)
         pwm = load / 100.0 * 885.0 if self.torque_on else 0.0

@@ -6,7 +6,12 @@ from a periodic tick of the serving loop, the world is advanced to "now" in subs
 1 ms, each servo's profile advancing with it.
 
 Servos with IDs 1 and 2 drive the gimbal of :mod:`firmware_sim.world` (pan, tilt); a servo with
-any other ID drives a free, unloaded shaft that follows its setpoint exactly.
+any other ID drives a free, unloaded shaft that follows its setpoint exactly. What a servo
+drives is fixed by its *slot* (its ID at start; with ``factory=N`` the slots are 1..N and every
+servo starts as ID 1), so a servo keeps its joint when set-up changes its ID.
+
+The wire is strict (:mod:`firmware_sim.wire`): a servo hears the host only at the baud rate its
+Baud Rate register names, and two servos answering at once garble each other's replies.
 """
 
 from __future__ import annotations
@@ -18,13 +23,15 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import IO, Any
 
-from firmware_sim.control_table import Register, get_model
+from firmware_sim.control_table import Model, Register, get_model
 from firmware_sim.dispatch import dispatch
+from firmware_sim.eeprom import EepromFile
 from firmware_sim.faults import FaultInjector, FaultPlan
 from firmware_sim.hand import Hand
 from firmware_sim.leader import LeaderWorld, Operator
 from firmware_sim.protocol import MAX_SERVO_ID, PacketParser
 from firmware_sim.servo import Environment, Servo
+from firmware_sim.wire import BAUD_BY_VALUE, RIG_BAUD, collide, value_for_baud
 from firmware_sim.world import World
 
 #: Longest physics step (s): 1 ms keeps the 80 rad/s tracking loop stable (omega * dt = 0.08).
@@ -60,9 +67,10 @@ class Simulator:
     Parameters
     ----------
     ids : sequence of int
-        Servo IDs.
+        Servo IDs (their slots).
     model : str
-        ``"xl430-w250"`` or ``"xm430-w350"``.
+        A key of :data:`firmware_sim.control_table.MODELS`, or one per servo separated by
+        commas (mixed models on one bus), e.g. ``"xl430-w250,xl330-m288"``.
     hand : Hand or None
         Scripted hand moving the limb while torque is off.
     goal_log : path or None
@@ -72,6 +80,15 @@ class Simulator:
     faults : FaultPlan or None
     clock : callable
         Monotonic seconds.
+    baud : int
+        The servos' baud rate (their Baud Rate register); factory servos are at 57600.
+    factory : int
+        If > 0, serve this many factory-fresh servos in slots 1..N instead of ``ids``: all ID 1,
+        57600 baud, Return Delay Time 250 (2 us units: 500 us).
+    connect : sequence of int or None
+        The slots on the bus (default: all); the others are unplugged.
+    eeprom_dir : path or None
+        Keep each slot's EEPROM in a file there (:class:`firmware_sim.eeprom.EepromFile`).
     leader : mapping or None
         A leader gimbal (:meth:`firmware_sim.leader.LeaderWorld.from_spec`) whose ids join the bus.
     """
@@ -85,12 +102,23 @@ class Simulator:
         seed: int = 0,
         faults: FaultPlan | None = None,
         clock: Callable[[], float] = time.monotonic,
+        baud: int = RIG_BAUD,
+        factory: int = 0,
+        connect: Sequence[int] | None = None,
+        eeprom_dir: str | Path | None = None,
         leader: Mapping[str, Any] | None = None,
     ) -> None:
-        self.model = get_model(model)
         self.leader = None if leader is None else LeaderWorld.from_spec(leader)
         leader_ids = () if self.leader is None else self.leader.ids
-        self.ids = parse_ids(tuple(ids) + tuple(i for i in leader_ids if i not in ids))
+        ids = tuple(ids) + tuple(i for i in leader_ids if i not in tuple(ids))
+        slots = parse_ids(range(1, factory + 1) if factory > 0 else ids)
+        # --connect names the slots plugged in (none: an empty bus)
+        self.ids = (parse_ids(connect) if connect else ()) if connect is not None else slots
+        if not set(self.ids) <= set(slots):
+            raise ValueError(f"--connect {list(self.ids)} names slots beyond {list(slots)}")
+        models = self._models(model, len(slots))
+        self.model = models[0]
+        baud_value = value_for_baud(int(baud))
         self.seed = seed
         self.world = World(hand=hand, seed=seed)
         self._joint_ids = {joint.servo_id for joint in self.world.joints}
@@ -103,18 +131,27 @@ class Simulator:
         self.time_s = 0.0
         self._free_shafts: dict[int, list[float]] = {}
         self.servos: list[Servo] = []
-        for servo_id in self.ids:
-            if servo_id in self._joint_ids:
-                start = self.world.raw_tick(servo_id)
-            elif servo_id in leader_ids:
-                start = self.leader.raw_tick(servo_id)
-                # the goal log is the follower's: a leader's goals are not in it
-                self.servos.append(Servo(servo_id, get_model(self.leader.model), start))
+        self._eeproms: dict[int, EepromFile] = {}
+        for slot, slot_model in zip(slots, models, strict=True):
+            if slot not in self.ids:
                 continue
+            on_goal = self._log_goal
+            if slot in self._joint_ids:
+                start = self.world.raw_tick(slot)
+            elif slot in leader_ids:
+                start = self.leader.raw_tick(slot)
+                slot_model = get_model(self.leader.model)
+                on_goal = None  # the goal log is the follower's: a leader's goals are not in it
             else:
                 start = FREE_SHAFT_START_TICK
-                self._free_shafts[servo_id] = [start, 0.0]
-            self.servos.append(Servo(servo_id, self.model, start, on_goal=self._log_goal))
+                self._free_shafts[slot] = [start, 0.0]
+            servo = Servo(1 if factory > 0 else slot, slot_model, start, on_goal=on_goal)
+            if factory <= 0:
+                servo.preset(Register.BAUD_RATE, baud_value)
+            if eeprom_dir is not None:
+                self._eeproms[slot] = EepromFile(eeprom_dir, slot)
+                self._eeproms[slot].load(servo)
+            self.servos.append(servo)
         self._home_ids = {id(servo): sid for servo, sid in zip(self.servos, self.ids, strict=True)}
         self.faults = FaultInjector(faults or FaultPlan(seed=seed))
         self.parser = PacketParser()
@@ -122,6 +159,22 @@ class Simulator:
         if goal_log is not None:
             self._goal_log = open(goal_log, "a", encoding="utf-8", buffering=1)  # noqa: SIM115
         self.packets = 0
+
+    @staticmethod
+    def _models(model: str, count: int) -> list[Model]:
+        """One model per slot from ``"key"`` (all alike) or ``"key,key,..."`` (one each)."""
+        keys = [part.strip() for part in model.split(",") if part.strip()]
+        if len(keys) == 1:
+            keys *= count
+        if len(keys) != count:
+            raise ValueError(
+                f"--model names {len(keys)} models for {count} servos; give 1 or {count}"
+            )
+        return [get_model(key) for key in keys]
+
+    def hears(self, servo: Servo, baud: int | None) -> bool:
+        """Whether ``servo`` decodes a host talking at ``baud`` (None: no wire, always)."""
+        return baud is None or BAUD_BY_VALUE.get(servo.value(Register.BAUD_RATE)) == baud
 
     # ------------------------------------------------------------------ time
     def now(self) -> float:
@@ -164,23 +217,42 @@ class Simulator:
             servo.observe(raw, velocity, load, dt)
 
     # ------------------------------------------------------------------ traffic
-    def receive(self, data: bytes, arrived_s: float | None = None) -> list[tuple[bytes, float]]:
+    def receive(
+        self, data: bytes, arrived_s: float | None = None, baud: int | None = None
+    ) -> list[tuple[bytes, float]]:
         """Process bytes from the controller; ``(packet, delay_s)`` to send, in order.
 
-        ``arrived_s`` is the simulator time the bytes arrived (default: now).
+        ``arrived_s`` is the simulator time the bytes arrived (default: now); ``baud`` the
+        host's speed (None: every servo hears it). Replies of servos sharing an ID collide.
         """
         now = self.now() if arrived_s is None else arrived_s
         self.advance(now)
         out: list[tuple[bytes, float]] = []
         for packet in self.parser.feed(data, now):
             self.packets += 1
-            present = [s for s in self.servos if self.faults.present(self._home_ids[id(s)], now)]
+            present = [
+                s
+                for s in self.servos
+                if self.faults.present(self._home_ids[id(s)], now) and self.hears(s, baud)
+            ]
             for servo in present:
                 servo.refresh(now)
-            for reply in dispatch(packet, present):
-                sent, extra = self.faults.outgoing(reply.packet)
+            replies = dispatch(packet, present)
+            k = 0
+            while k < len(replies):
+                # servos answering as one ID talk at once: their replies collide on the wire
+                end = k + 1
+                while end < len(replies) and replies[end].servo_id == replies[k].servo_id:
+                    end += 1
+                together, k = replies[k:end], end
+                packet_out = collide([r.packet for r in together])
+                sent, extra = self.faults.outgoing(packet_out)
                 if sent is not None:
-                    out.append((sent, reply.delay_s + extra))
+                    out.append((sent, min(r.delay_s for r in together) + extra))
+        for servo in self.servos:
+            eeprom = self._eeproms.get(self._home_ids[id(servo)])
+            if eeprom is not None:
+                eeprom.save(servo)
         return out
 
     def _log_goal(self, servo: Servo, goal: int) -> None:

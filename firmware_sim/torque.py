@@ -48,11 +48,14 @@ class Motor:
         return self.stall_torque_nm / self.stall_current_ma
 
 
-#: e-Manual specifications: XM430-W350 4.1 N m at 2.3 A (12 V), current unit 2.69 mA; the
-#: XL430-W250 has no current sensing (1.5 N m at 1.4 A, 12 V; its unit is only used internally).
+#: e-Manual specifications: XM430-W350 4.1 N m at 2.3 A (12 V), current unit 2.69 mA;
+#: XL330-M077 0.215 N m and XL330-M288 0.52 N m at 1.47 A (5 V), 1 mA; the XL430-W250 has no
+#: current sensing (1.5 N m at 1.4 A, 12 V; its unit is only used internally).
 MOTORS: dict[str, Motor] = {
     "xm430-w350": Motor(4.1, 2300.0, 2.69),
     "xl430-w250": Motor(1.5, 1400.0, 1.0),
+    "xl330-m077": Motor(0.215, 1470.0, 1.0),
+    "xl330-m288": Motor(0.52, 1470.0, 1.0),
 }
 
 #: The position loop reaches stall torque at this error (deg): a stiff loop, as the firmware's
@@ -65,7 +68,7 @@ LOOP_DAMPING_RATIO = 0.7
 def motor_of(servo: Servo) -> Motor:
     """The motor of ``servo``'s model; ValueError naming the models known."""
     try:
-        return MOTORS[servo.model.key]
+        return MOTORS[servo.model.key.partition("@")[0]]  # "xl330-m288@53": its firmware
     except KeyError:
         raise ValueError(
             f"no motor data for {servo.model.title}; known: {', '.join(sorted(MOTORS))}"

@@ -404,6 +404,18 @@ def _add_info(sub: Subparsers) -> None:
     p.add_argument("file", type=Path, nargs="?", help="a model or dataset file to describe")
 
 
+def _add_motors(sub: Subparsers) -> None:
+    p = sub.add_parser("motors", help=upkeep.MOTORS_HELP, description=upkeep.MOTORS_DESCRIPTION)
+    motors = p.add_subparsers(dest="motors_command", metavar="ACTION", required=True)
+    scan = _command(motors, "scan", upkeep.motor_scan_job(_connection), help=upkeep.SCAN_HELP)
+    _add_connection(scan)
+    scan.add_argument("--scan-baud", type=int, action="append", help=upkeep.SCAN_BAUD_HELP)
+    setup = _command(motors, "setup", upkeep.motor_setup_job(_connection), help=upkeep.SETUP_HELP)
+    _add_connection(setup)
+    setup.add_argument("--joint", action="append", help="only this joint (repeatable: pan, tilt)")
+    setup.add_argument("--yes", action="store_true", help="do not ask before each servo")
+
+
 #: The subcommands in the order ``--help`` lists them.
 SUBCOMMANDS = (
     _add_demo,
@@ -412,6 +424,7 @@ SUBCOMMANDS = (
     _add_train,
     _add_teleop,
     _add_reboot,
+    _add_motors,
     _add_plot,
     _add_eval,
     _add_info,

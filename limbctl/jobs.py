@@ -31,6 +31,15 @@ def say(text: str) -> None:
     print(text, file=sys.stderr, flush=True)
 
 
+def _say_wire_budget(rate_hz: float, bus: Any) -> None:
+    """Tell the person when the bus's baud cannot carry ``rate_hz`` (limbctl.servo.cycle)."""
+    from limbctl.servo.cycle import wire_budget
+
+    problem = wire_budget(rate_hz, bus.baud, len(bus.ids), bool(bus.fast_sync_read))
+    if problem:
+        say(f"warning: {problem}")
+
+
 @dataclass(frozen=True)
 class Connection:
     """Where the servos are, shared by every job that talks to them.
@@ -201,6 +210,7 @@ def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
         # the rig's servos get its hard limits; servos of the source (a leader) their full range
         limits = {**rig.tick_limits(), **{servo_id: (0, MAX_TICK) for servo_id in spec.extra_ids}}
         configure_servos(rig.bus, limits)
+        _say_wire_budget(options.rate, rig.bus)
         with spec.open(SourceContext(rig, options.rate)) as source, stop_on_signals() as stop:
             if source.report_lines():
                 say(source.report_lines()[0])  # what the leader will do, before it starts

@@ -20,10 +20,8 @@ from pathlib import Path
 from typing import Any
 
 from calib.profile import RigProfile
-from limbctl.errors import ConfigError
 from limbctl.servo.bus import ServoBus
-from limbctl.servo.control_table import MODEL_BY_NAME, model_name
-from limbctl.servo.profiles import load_rig_profile
+from limbctl.servo.profiles import check_models, load_rig_profile
 from limbctl.servo.rig import Rig
 
 
@@ -89,36 +87,25 @@ def open_rig(
                     hand=hand,
                     goal_log=goal_log,
                     seed=seed,
-                    **dict(sim_options or {}),
+                    **{"baud": baud or profile.baud, **dict(sim_options or {})},
                 )
             )
             device = simulator.port
         if latency_timer_ms is None:
             # the FTDI default on a real port; a pty has no USB latency, 2 ms covers scheduling
             latency_timer_ms = 2.0 if simulator is not None else 16.0
+        # a leader on the same bus may be another model: only the rig's servos are checked
         bus = ServoBus(
             device,
             baud or profile.baud,
             profile.ids + tuple(extra_ids),
-            # a leader (extra ids) may be another model: the rig's servos are checked below
             None if extra_ids else profile.model,
             latency_timer_ms=latency_timer_ms,
         )
         stack.enter_context(bus)
-        _check_rig_models(bus, profile)
+        if extra_ids:
+            check_models(bus, profile.ids, profile.model)
         yield Session(rig=Rig(profile, bus), profile=profile, simulator=simulator)
-
-
-def _check_rig_models(bus: ServoBus, profile: RigProfile) -> None:
-    """Refuse rig servos of another model than the profile's (the bus checked none)."""
-    expected = MODEL_BY_NAME[profile.model]
-    for servo_id in profile.ids:
-        if bus.models[servo_id] != expected:
-            raise ConfigError(
-                f"servo {servo_id} is {model_name(bus.models[servo_id])} but the rig profile "
-                f"says {model_name(expected)}: fix `model:` in the profile or connect the right "
-                f"servo"
-            )
 
 
 @contextmanager

@@ -1,4 +1,6 @@
-"""Jobs that look after the servos rather than drive them: ``limbctl reboot``.
+"""Jobs that look after the servos rather than drive them: ``limbctl reboot`` and ``limbctl
+motors scan`` / ``limbctl motors setup`` (the logic of those is in :mod:`limbctl.servo.scan` and
+:mod:`limbctl.servo.motors`).
 
 Typed like :mod:`limbctl.jobs` (one options value in, an exit status out); kept apart so the
 jobs that drive the limb stay in one module of readable size.
@@ -6,8 +8,13 @@ jobs that drive the limb stay in one module of readable size.
 
 from __future__ import annotations
 
+import sys
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
+from typing import Any
 
+from limbctl.errors import ConfigError
 from limbctl.jobs import Connection, say
 from limbctl.session import open_rig
 
@@ -49,3 +56,125 @@ def run_reboot(options: RebootOptions) -> int:
         "calibrate sets them again"
     )
     return 3 if again else 0
+
+
+MOTORS_HELP = "find the servos at any baud; set up servos out of the box (ID, baud)"
+MOTORS_DESCRIPTION = (
+    "Servos leave the factory as ID 1 at 57600 baud. `motors scan` finds every servo at every "
+    "baud rate and names IDs that two servos share; `motors setup` gives each joint's servo, "
+    "connected alone, the profile's ID and baud rate (or --baud), then reads them back."
+)
+SCAN_HELP = "ping every servo at every baud rate (the factory's 57600 first)"
+SCAN_BAUD_HELP = "scan only this baud rate (repeatable; default: every rate the X series has)"
+SETUP_HELP = "one servo at a time: ID, baud, Return Delay Time 0, Status Return Level 2"
+
+
+def motor_scan_job(connection: Callable[[Any], Connection]) -> Callable[[Any], int]:
+    """The ``motors scan`` job for parsed arguments (``connection`` reads their options)."""
+    return lambda a: run_motor_scan(MotorScanOptions(connection(a), tuple(a.scan_baud or ())))
+
+
+def motor_setup_job(connection: Callable[[Any], Connection]) -> Callable[[Any], int]:
+    """The ``motors setup`` job for parsed arguments."""
+    return lambda a: run_motor_setup(
+        MotorSetupOptions(connection(a), tuple(a.joint or ()), bool(a.yes))
+    )
+
+
+@dataclass(frozen=True)
+class MotorScanOptions:
+    """``limbctl motors scan``: every servo on the port at each baud rate (``bauds``: all)."""
+
+    connection: Connection = field(default_factory=Connection)
+    bauds: tuple[int, ...] = ()
+
+
+def _progress(index: int, count: int, baud: int) -> None:
+    # a bar over the baud rates: one mark a rate
+    bar = "#" * (index + 1) + "-" * (count - index - 1)
+    end = "\r" if sys.stderr.isatty() else "\n"
+    print(f"scanning [{bar}] {index + 1}/{count}: {baud} baud", end=end, file=sys.stderr)
+
+
+def run_motor_scan(options: MotorScanOptions) -> int:
+    """Scan and print what answered; 0 when servos were found without collisions, 1 when
+    nothing answered, 3 when servos share an ID."""
+    from limbctl.servo.scan import SCAN_BAUDS, scan
+
+    conn = options.connection
+    with _bus_port(conn) as (port, latency_ms):
+        result = scan(port, options.bauds or SCAN_BAUDS, latency_ms, on_baud=_progress)
+    print(file=sys.stderr)
+    print(result.report())
+    if result.collisions or result.unreadable:
+        return 3
+    return 1 if result.empty else 0
+
+
+@dataclass(frozen=True)
+class MotorSetupOptions:
+    """``limbctl motors setup``: give the profile's joints' servos their IDs and baud, one
+    at a time (``joints``: all), asking to connect each unless ``yes``."""
+
+    connection: Connection = field(default_factory=Connection)
+    joints: tuple[str, ...] = ()
+    yes: bool = False
+
+
+def run_motor_setup(options: MotorSetupOptions) -> int:
+    """Set up each joint's servo; 0 when every one succeeded, 1 when one failed (the others
+    keep what was done: the summary says which)."""
+    from limbctl.servo.motors import JointTarget, check_target, setup_joint
+    from limbctl.servo.profiles import load_rig_profile
+
+    conn = options.connection
+    profile = load_rig_profile(conn.rig)
+    baud = conn.baud or profile.baud
+    joints = {"pan": profile.pan, "tilt": profile.tilt}
+    for name in ("roll",):  # a third joint, once a profile has one
+        if getattr(profile, name, None) is not None:
+            joints[name] = getattr(profile, name)
+    chosen = options.joints or tuple(joints)
+    unknown = [j for j in chosen if j not in joints]
+    if unknown:
+        raise ConfigError(f"unknown joint {unknown[0]!r}: the profile has {', '.join(joints)}")
+    targets = [JointTarget(j, joints[j].id, profile.model, baud) for j in chosen]
+    for target in targets:
+        check_target(target)  # a bad baud or model is refused before anything is asked
+    outcomes = []
+    with _bus_port(conn, setup=True) as (port, latency_ms):
+        for target in targets:
+            if not options.yes:
+                input(
+                    f"Connect only the {target.joint} servo (it becomes ID {target.servo_id}), "
+                    f"power it, then press Enter (Ctrl-C stops): "
+                )
+            outcome = setup_joint(port, target, latency_ms)
+            say(outcome.message if outcome.ok else f"{target.joint}: FAILED: {outcome.message}")
+            outcomes.append(outcome)
+    done = [o.joint for o in outcomes if o.ok]
+    failed = [o.joint for o in outcomes if not o.ok]
+    say(f"set up: {', '.join(done) or 'none'}; failed: {', '.join(failed) or 'none'}")
+    return 1 if failed else 0
+
+
+@contextmanager
+def _bus_port(conn: Connection, setup: bool = False) -> Iterator[tuple[str, float]]:
+    """(port, latency timer ms) of the bus: --port, the profile's device, or (scan only) the
+    embedded simulator's rig."""
+    from limbctl.servo.profiles import load_rig_profile
+
+    profile = load_rig_profile(conn.rig)
+    device = conn.port if conn.port is not None else (None if profile.is_sim else profile.port)
+    if device is not None:
+        yield device, conn.latency_timer_ms or 16.0
+        return
+    if setup:
+        raise ConfigError(
+            "motors setup needs --port: the serial device of the servos (or a `firmware-sim "
+            "--factory 2 --link PATH` to try it)"
+        )
+    from firmware_sim import SimulatedBus
+
+    with SimulatedBus(ids=profile.ids, model=profile.model, baud=conn.baud or profile.baud) as sim:
+        yield sim.port, conn.latency_timer_ms or 2.0

@@ -9,6 +9,7 @@ import pytest
 from dynamixel_sdk import PacketHandler, PortHandler
 
 from firmware_sim import SimulatedBus
+from firmware_sim.wire import RIG_BAUD
 
 
 @pytest.fixture
@@ -24,9 +25,9 @@ def sim(tmp_path):
 
 @pytest.fixture
 def sdk(sim):
-    """The real dynamixel-sdk opened on ``sim``: ``.port`` (PortHandler), ``.packet`` (2.0)."""
+    """The real dynamixel-sdk opened on ``sim`` at its servos' 4 Mbps: ``.port``, ``.packet``."""
     port = PortHandler(sim.port)
-    assert port.openPort(), f"cannot open {sim.port}"
+    assert port.setBaudRate(RIG_BAUD), f"cannot open {sim.port}"
     yield SimpleNamespace(port=port, packet=PacketHandler(2.0))
     port.closePort()
     assert not port.is_open

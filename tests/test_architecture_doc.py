@@ -41,6 +41,7 @@ REGISTRIES = (
     "limbctl.envelope.MODEL_KINDS",
     "limbctl.servo.control_table.MODEL_BY_NAME",
     "firmware_sim.control_table.MODELS",
+    "limbctl.servo.families.FAMILIES",
     "limbctl.cli.SUBCOMMANDS",
 )
 

@@ -9,7 +9,18 @@ import pytest
 
 from limbctl.cli import build_parser, main
 
-COMMANDS = ["demo", "calibrate", "record", "train", "teleop", "reboot", "plot", "eval", "info"]
+COMMANDS = [
+    "demo",
+    "calibrate",
+    "record",
+    "train",
+    "teleop",
+    "reboot",
+    "motors",
+    "plot",
+    "eval",
+    "info",
+]
 
 
 def test_top_level_help_lists_every_command(capsys):
@@ -94,7 +105,7 @@ def test_reboot_reboots_the_servo_in_alarm_and_says_what_it_was(sim, capsys):
 def test_a_command_on_a_port_another_controller_holds_is_refused_naming_it(sim, capsys):
     from limbctl.servo.bus import ServoBus
 
-    with ServoBus(sim.port, 57600, (1, 2)) as holder:
+    with ServoBus(sim.port, 4_000_000, (1, 2)) as holder:
         assert main(["reboot", "--port", sim.port]) == 2
         err = capsys.readouterr().err
         assert f"in use by this process, pid {os.getpid()}" in err
@@ -128,3 +139,44 @@ def test_info_lists_a_servo_in_alarm_and_the_way_out(sim, capsys):
     assert "servo 1: " in out and "hardware errors: none" in out
     assert "servo 2: " in out and "hardware errors: overheating" in out and "pose: pan" in out
     assert "servo 2 in alarm: fix the cause, then `limbctl reboot`" in err
+
+
+def test_motors_scan_finds_the_simulated_rig(capsys):
+    assert main(["motors", "scan", "--scan-baud", "57600", "--scan-baud", "4000000"]) == 0
+    captured = capsys.readouterr()
+    assert captured.out.splitlines() == [
+        "ID   1  XL430-W250 (1060)        firmware  46  at 4000000 baud",
+        "ID   2  XL430-W250 (1060)        firmware  46  at 4000000 baud",
+    ]
+    assert "scanning [##] 2/2: 4000000 baud" in captured.err
+
+
+def test_motors_setup_needs_a_port_and_a_known_joint(capsys):
+    assert main(["motors", "setup", "--yes"]) == 2
+    assert capsys.readouterr().err == (
+        "limbctl motors: error: motors setup needs --port: the serial device of the servos (or "
+        "a `firmware-sim --factory 2 --link PATH` to try it)\n"
+    )
+    assert main(["motors", "setup", "--yes", "--joint", "elbow", "--port", "/dev/null"]) == 2
+    assert "unknown joint 'elbow': the profile has pan, tilt" in capsys.readouterr().err
+    assert main(["motors", "setup", "--yes", "--baud", "4500000", "--port", "/dev/null"]) == 2
+    assert capsys.readouterr().err == (
+        "limbctl motors: error: baud 4500000 is one the servos know, but the serial driver "
+        "(dynamixel-sdk) cannot open it; choose one of 9600, 57600, 115200, 1000000, 2000000, "
+        "3000000, 4000000\n"
+    )
+
+
+def test_teleop_at_57600_baud_says_the_wire_cannot_carry_200_hz(tmp_path, capsys):
+    from calib.profile import default_sim_profile
+    from limbctl.envelope import Cone
+
+    sim = default_sim_profile()
+    model = tmp_path / "all.npz"
+    metadata = {"rig": sim.name, "calibration": sim.calibration.to_dict()}
+    Cone(half_angle_deg=180.0).save(model, metadata=metadata)
+    commands = tmp_path / "commands.jsonl"
+    commands.write_text("".join(f'{{"pan": {i * 0.2}, "tilt": 0.0}}\n' for i in range(20)))
+    teleop = ["teleop", "--model", str(model), "--source", f"replay:{commands}", "--quiet"]
+    assert main([*teleop, "--baud", "57600", "--latency-timer", "16"]) == 0
+    assert "warning: at 57600 baud one cycle's 80 bytes take 13.9 ms" in capsys.readouterr().err

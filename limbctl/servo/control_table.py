@@ -2,9 +2,10 @@
 
 Every register access in limbctl goes through :class:`Register` (address, size in bytes,
 signedness), never through a bare number or a string. Addresses follow the ROBOTIS e-Manual
-control tables of the XL430-W250 and XM430-W350 (identical at every address used here; where
-the two differ the member's comment says so). Addresses below 64 are EEPROM: they can only be
-written while Torque Enable is 0.
+control tables of the X series (430, 540 and 330 families: identical at every address used
+here; where they differ the member's comment says so, and :mod:`limbctl.servo.families` holds
+what differs per family). Addresses below 64 are EEPROM: they can only be written while Torque
+Enable is 0.
 
 Status packets carry an error byte: bit 7 is the *alert* bit (the servo has a hardware error,
 read :attr:`Register.HARDWARE_ERROR_STATUS`), bits 0-6 hold a :class:`StatusError` number.
@@ -47,7 +48,7 @@ class Register(Enum):
     MAX_VOLTAGE_LIMIT = (32, 2, False)
     MIN_VOLTAGE_LIMIT = (34, 2, False)
     PWM_LIMIT = (36, 2, False)
-    CURRENT_LIMIT = (38, 2, False)  # models that sense current (not the XL430): their unit
+    CURRENT_LIMIT = (38, 2, False)  # not on XL430/XC430; unit: the family's current unit
     VELOCITY_LIMIT = (44, 4, False)
     MAX_POSITION_LIMIT = (48, 4, False)
     MIN_POSITION_LIMIT = (52, 4, False)
@@ -60,7 +61,7 @@ class Register(Enum):
     HARDWARE_ERROR_STATUS = (70, 1, False)
     BUS_WATCHDOG = (98, 1, True)  # unit 20 ms; -1 = watchdog tripped
     GOAL_PWM = (100, 2, True)
-    GOAL_CURRENT = (102, 2, True)  # models that sense current (not the XL430): their unit
+    GOAL_CURRENT = (102, 2, True)  # not on XL430/XC430; unit: the family's current unit
     GOAL_VELOCITY = (104, 4, True)
     PROFILE_ACCELERATION = (108, 4, False)
     PROFILE_VELOCITY = (112, 4, False)
@@ -69,7 +70,8 @@ class Register(Enum):
     MOVING = (122, 1, False)
     MOVING_STATUS = (123, 1, False)
     PRESENT_PWM = (124, 2, True)
-    PRESENT_LOAD = (126, 2, True)  # XL430: load in 0.1 %; XM430: Present Current in mA units
+    PRESENT_LOAD = (126, 2, True)  # XL430/XC430: load in 0.1 %; the others: Present Current
+    PRESENT_CURRENT = (126, 2, True)  # the same register (an alias): mA units by family
     PRESENT_VELOCITY = (128, 4, True)
     PRESENT_POSITION = (132, 4, True)
     VELOCITY_TRAJECTORY = (136, 4, True)
@@ -77,7 +79,8 @@ class Register(Enum):
     PRESENT_INPUT_VOLTAGE = (144, 2, False)  # unit 0.1 V
     PRESENT_TEMPERATURE = (146, 1, False)  # unit 1 degC
     # Indirect Address n (n = 1..28) at 168 + 2 (n - 1) names the RAM address (64..661) that
-    # Indirect Data n at 224 + (n - 1) reads and writes; both are RAM (reset at power-up/reboot)
+    # Indirect Data n at 224 + (n - 1) reads and writes; both are RAM (reset at power-up/reboot).
+    # The 330s have 20 slots, and their Indirect Data 1 is at 208 or 224 by firmware: probed
     INDIRECT_ADDRESS_1 = (168, 2, False)
     INDIRECT_DATA_1 = (224, 1, False)
 
@@ -129,8 +132,11 @@ class Register(Enum):
         return raw
 
 
-#: Number of Indirect Address / Indirect Data pairs in the first block (addresses 168-251).
-INDIRECT_SLOTS = 28
+#: Indirect Address / Indirect Data pairs every family has at 168.. (the 330s have 20, the
+#: 430s and 540s 28 in the first block).
+INDIRECT_SLOTS = 20
+#: Where Indirect Data 1 may be: 224 on the 430s and 540s; 208 (330 firmware <= 52) or 224.
+INDIRECT_DATA_1_CANDIDATES = (224, 208)
 
 
 @dataclass(frozen=True)
@@ -139,18 +145,21 @@ class Block:
 
     Quacks like a :class:`Register` for the transfers (``name``, ``address``, ``size``,
     ``decode``), so one sync read can carry several registers mapped through indirect addresses.
+    ``at`` moves the block to another address (a 330's Indirect Data 1 at 208, say).
     """
 
     start: Register
     size: int
+    at: int | None = None
 
     @property
     def name(self) -> str:
-        return f"{self.start.name}[{self.size} bytes]"
+        moved = "" if self.at is None or self.at == self.start.address else f"@{self.at}"
+        return f"{self.start.name}{moved}[{self.size} bytes]"
 
     @property
     def address(self) -> int:
-        return self.start.address
+        return self.start.address if self.at is None else self.at
 
     def decode(self, data: bytes | bytearray | list[int]) -> bytes:
         """The block's bytes, checked for length."""
@@ -162,11 +171,11 @@ class Block:
 class OperatingMode(IntEnum):
     """Values of :attr:`Register.OPERATING_MODE`."""
 
-    CURRENT = 0  # XM430 only
+    CURRENT = 0  # not on XL430/XC430 (see limbctl.servo.families)
     VELOCITY = 1
     POSITION = 3
     EXTENDED_POSITION = 4
-    CURRENT_BASED_POSITION = 5  # XM430 only
+    CURRENT_BASED_POSITION = 5  # not on XL430/XC430
     PWM = 16
 
 
@@ -178,28 +187,54 @@ class DriveModeBit(IntFlag):
 
 
 class ModelNumber(IntEnum):
-    """What :attr:`Register.MODEL_NUMBER` (and a ping) reports for the supported servos."""
+    """What :attr:`Register.MODEL_NUMBER` (and a ping) reports for the supported servos
+    (the X series; :mod:`limbctl.servo.families` says what differs by family)."""
 
-    XL430_W250 = 1060
+    XH430_W350 = 1000
+    XH430_W210 = 1010
     XM430_W350 = 1020
+    XM430_W210 = 1030
+    XH430_V350 = 1040
+    XH430_V210 = 1050
+    XL430_W250 = 1060
+    XC430_W150 = 1070
+    XC430_W240 = 1080
+    XL430_W250_2X = 1090  # the 2XL430-W250: two axes, one ID each
+    XH540_W270 = 1100
+    XH540_W150 = 1110
+    XM540_W270 = 1120
+    XM540_W150 = 1130
+    XH540_V270 = 1140
+    XH540_V150 = 1150
+    XL330_M077 = 1190
+    XL330_M288 = 1200
+    XC330_T181 = 1210
+    XC330_T288 = 1220
+    XC330_M181 = 1230
+    XC330_M288 = 1240
+
+    @property
+    def title(self) -> str:
+        """The e-Manual's name, e.g. ``'XL330-M288'`` or ``'2XL430-W250'``."""
+        if self is ModelNumber.XL430_W250_2X:
+            return "2XL430-W250"
+        return self.name.replace("_", "-")
 
 
-#: Rig-profile model names -> model numbers.
-MODEL_BY_NAME: dict[str, ModelNumber] = {
-    "xl430-w250": ModelNumber.XL430_W250,
-    "xm430-w350": ModelNumber.XM430_W350,
-}
+#: Rig-profile model names -> model numbers (the title in lower case, e.g. ``"xl330-m288"``).
+MODEL_BY_NAME: dict[str, ModelNumber] = {model.title.lower(): model for model in ModelNumber}
 
 
 def model_name(model_number: int) -> str:
     """Readable name of a model number, e.g. ``'XL430-W250 (1060)'`` or ``'unknown (77)'``."""
     try:
-        return f"{ModelNumber(model_number).name.replace('_', '-')} ({model_number})"
+        return f"{ModelNumber(model_number).title} ({model_number})"
     except ValueError:
         return f"unknown model ({model_number})"
 
 
-#: Baud rate in bit/s -> value of :attr:`Register.BAUD_RATE` (X series).
+#: Baud rate in bit/s -> value of :attr:`Register.BAUD_RATE` (X series; 4.5 Mbps on the 430s and
+#: 540s only).
 BAUD_RATE_VALUES: dict[int, int] = {
     9600: 0,
     57600: 1,
@@ -210,6 +245,11 @@ BAUD_RATE_VALUES: dict[int, int] = {
     4_000_000: 6,
     4_500_000: 7,
 }
+#: The rates the dynamixel-sdk's PortHandler opens (it refuses others, 4.5 Mbps among them).
+SDK_BAUDS = frozenset(
+    {9600, 19200, 38400, 57600, 115200, 230400, 460800, 500000, 576000, 921600, 1_000_000}
+    | {1_152_000, 2_000_000, 2_500_000, 3_000_000, 3_500_000, 4_000_000}
+)
 
 
 class HardwareError(IntFlag):

@@ -2,12 +2,16 @@
 
 Present Position, Goal Position, Torque Enable, Hardware Error Status and Present PWM live far
 apart in the control table (132, 116, 64, 70, 124). The X series' Indirect Address n
-(168 + 2 (n - 1)) names the RAM address that Indirect Data n (224 + (n - 1)) stands for, so
-mapping those registers' bytes onto Indirect Data 1..12 lets one (Fast) Sync Read of 12 bytes
-per servo carry all five. Set-up (:func:`limbctl.servo.setup.configure_servos`) writes the map
-and reads each servo's PWM Limit (EEPROM, which no indirect address can reach); a servo that
-restarts (brown-out, reboot) loses the map with the rest of its RAM: its Indirect Data then read
-0, so Torque Enable reads 0 and the restart is noticed as torque loss.
+(168 + 2 (n - 1)) names the RAM address that Indirect Data n (224 + (n - 1); on a 330 with
+firmware up to 52, 208 + (n - 1)) stands for, so mapping those registers' bytes onto Indirect
+Data 1..12 lets one (Fast) Sync Read of 12 bytes per servo carry all five. Set-up probes where
+each servo's Indirect Data 1 is (:func:`limbctl.servo.setup.probe_indirect_data`); one sync
+read needs it at the same address on every servo, so a bus of mixed layouts takes one read per
+address. Set-up
+(:func:`limbctl.servo.setup.configure_servos`) writes the map and reads each servo's PWM Limit
+(EEPROM, which no indirect address can reach); a servo that restarts (brown-out, reboot) loses
+the map with the rest of its RAM: its Indirect Data then read 0, so Torque Enable reads 0 and
+the restart is noticed as torque loss.
 
 While a servo is silent, :func:`read_around_silent` reads the others and probes the silent ones
 with one try each, so a missing servo costs the loop a reply timeout per probe, not per cycle.
@@ -48,6 +52,44 @@ assert CYCLE_BYTES <= INDIRECT_SLOTS
 
 #: PWM Limit (36) as the XL430-W250 and XM430-W350 leave the factory: Present PWM's full scale.
 FACTORY_PWM_LIMIT = 885
+
+
+#: Bits per byte on the wire: start, 8 data, stop.
+BITS_PER_BYTE = 10
+#: The baud rate :func:`wire_budget` advises: every family runs at it and a 200 Hz loop of a
+#: few servos spends under a fifth of its period on the wire there.
+ADVISED_BAUD = 1_000_000
+
+
+def cycle_wire_bytes(n_servos: int, fast: bool = True) -> int:
+    """Bytes one control cycle puts on the wire: the cycle's read and the goals' sync write.
+
+    Protocol 2.0 packets: an instruction is 10 bytes plus parameters; a status packet 11 plus
+    data. Fast Sync Read: ``14 + n`` out, ``8 + n (CYCLE_BYTES + 4)`` back (one packet); Sync
+    Read: ``14 + n`` out, ``n (11 + CYCLE_BYTES)`` back; Sync Write of 4-byte goals: ``14 + 5 n``.
+    """
+    back = 8 + n_servos * (CYCLE_BYTES + 4) if fast else n_servos * (11 + CYCLE_BYTES)
+    return (14 + n_servos) + back + (14 + 5 * n_servos)
+
+
+def wire_budget(rate_hz: float, baud: int, n_servos: int, fast: bool = True) -> str:
+    """What to tell a person whose loop rate the wire cannot carry ('' when it can).
+
+    The cycle's bytes take ``bytes * 10 / baud`` seconds; a loop cannot run faster than one
+    cycle in that time.
+    """
+    count = cycle_wire_bytes(n_servos, fast)
+    # t = bytes * 10 bits / baud
+    wire_s = count * BITS_PER_BYTE / baud
+    most_hz = 1.0 / wire_s
+    if most_hz >= rate_hz:
+        return ""
+    return (
+        f"at {baud} baud one cycle's {count} bytes take {wire_s * 1e3:.1f} ms on the wire, so "
+        f"the loop runs at most {most_hz:.0f} Hz, not {rate_hz:g} Hz: raise the servos' baud "
+        f"to {ADVISED_BAUD} (`limbctl motors setup --baud {ADVISED_BAUD} --rig PROFILE`, then "
+        f"`baud: {ADVISED_BAUD}` in the profile)"
+    )
 
 
 def indirect_map() -> bytes:
@@ -186,6 +228,14 @@ class CycleReads:
 
     #: Each servo's PWM Limit as set-up read it (until then, the factory value).
     pwm_limits: Mapping[int, int] = MappingProxyType({})
+    #: Where each servo keeps Indirect Data 1, as set-up's probe found it (224 until then).
+    indirect_at: Mapping[int, int] = MappingProxyType({})
+
+    def note_indirect_data(self, addresses: Mapping[int, int]) -> None:
+        """Remember where each servo's Indirect Data 1 is (set-up's probe). Servos that keep
+        it at different addresses (a 330 with firmware up to 52 beside a 430) are read in one
+        sync read per address."""
+        self.indirect_at = MappingProxyType(dict(addresses))
 
     def note_pwm_limits(self, limits: Mapping[int, int]) -> None:
         """Remember each servo's PWM Limit (EEPROM), the full scale of its Present PWM."""
@@ -228,14 +278,34 @@ class CycleReads:
 
     def read_cycle(self, ids: Sequence[int] | None = None, attempts: int = 1) -> CycleRead:
         """Each servo's (``ids``, default all) :class:`ServoReport` in ONE (fast) sync read,
-        tried at most ``attempts`` times.
+        tried at most ``attempts`` times (one read per Indirect Data address on a bus of
+        mixed layouts).
 
         For the control loop: no diagnostic ping, and a silent servo costs ``attempts`` reply
         timeouts, not seconds. A failed read is a value (``silent`` names the servo the
         reply stopped at); only a failing port raises (:class:`PortError`). The indirect map
         must have been written (:func:`limbctl.servo.setup.configure_servos`).
         """
-        ids = self._known(ids)
+        groups: dict[int, list[int]] = {}
+        for servo_id in self._known(ids):
+            groups.setdefault(self.indirect_at.get(servo_id, CYCLE_BLOCK.address), []).append(
+                servo_id
+            )
+        parts = [self._read_cycle_at(at, group, attempts) for at, group in groups.items()]
+        if len(parts) == 1:
+            return parts[0]
+        return CycleRead(
+            {i: r for part in parts for i, r in part.reports.items()},
+            tuple(i for part in parts for i in part.silent),
+            "; ".join(part.problem for part in parts if part.problem),
+            sum(part.duration_s for part in parts),
+        )
+
+    def _read_cycle_at(self, at: int, ids: Sequence[int], attempts: int) -> CycleRead:
+        """The cycle's read of ``ids``, whose Indirect Data 1 is at address ``at``."""
+        block = (
+            CYCLE_BLOCK if at == CYCLE_BLOCK.address else Block(CYCLE_BLOCK.start, CYCLE_BYTES, at)
+        )
         fast = bool(self.fast_sync_read)
         read = transfers.fast_sync_read if fast else transfers.sync_read
         start = time.monotonic()
@@ -243,7 +313,7 @@ class CycleReads:
             try:
                 raw = self._transact(
                     f"{'fast ' if fast else ''}sync read of the cycle's registers",
-                    lambda: read(self._packets, self._port, CYCLE_BLOCK, ids),
+                    lambda: read(self._packets, self._port, block, ids),
                     check_alert=False,
                     attempts=max(1, int(attempts)),
                 )

@@ -64,11 +64,25 @@ class LeaderMotor:
         """The torque (N m) a current of ``units`` gives."""
         return units * self.current_unit_ma * self.stall_torque_nm / self.stall_current_ma
 
+    def cap_nm(self, asked_nm: float) -> float:
+        """The most this motor may push a hand with: ``asked_nm``, but at most
+        :data:`CAP_STALL_FRACTION` of its stall torque."""
+        return min(asked_nm, CAP_STALL_FRACTION * self.stall_torque_nm)
 
-#: Models whose leader can push back (they have Operating Mode 5 and sense current). The
-#: XM430-W350: 4.1 N m at 2.3 A (12 V), 2.69 mA units, Current Limit up to 1193.
+
+#: A felt leader pushes with at most half its motor's stall torque: a push is held for
+#: seconds while the operator presses, and half of stall keeps the motor out of the overload
+#: region (the firmware's Overload error) and cool.
+CAP_STALL_FRACTION = 0.5
+
+
+#: Models whose leader can push back (they have Operating Mode 5 and sense current), with the
+#: e-Manual's stall figures: XM430-W350 4.1 N m at 2.3 A (12 V), 2.69 mA units, Current Limit up
+#: to 1193; XL330-M077 0.215 N m and XL330-M288 0.52 N m at 1.47 A (5 V), 1 mA units, up to 1750.
 FELT_MODELS: dict[ModelNumber, LeaderMotor] = {
     ModelNumber.XM430_W350: LeaderMotor(4.1, 2300.0, 2.69, 1193),
+    ModelNumber.XL330_M077: LeaderMotor(0.215, 1470.0, 1.0, 1750),
+    ModelNumber.XL330_M288: LeaderMotor(0.52, 1470.0, 1.0, 1750),
 }
 
 #: The felt leader's registers, in Indirect Data order after the cycle's read block.
@@ -77,25 +91,20 @@ FEEL_BYTES = sum(register.size for register in FEEL_REGISTERS)
 assert CYCLE_BYTES + FEEL_BYTES <= INDIRECT_SLOTS
 
 
-@dataclass(frozen=True)
-class _OffsetBlock(Block):
-    """A :class:`Block` that starts ``offset`` bytes after its register's address."""
-
-    offset: int = 0
-
-    @property
-    def address(self) -> int:
-        return self.start.address + self.offset
-
-    @property
-    def name(self) -> str:
-        return f"{self.start.name}+{self.offset}[{self.size} bytes]"
+def feel_data(indirect_data_1: int = Register.INDIRECT_DATA_1.address) -> Block:
+    """Where a felt leader's command is written: Indirect Data after the cycle's read block,
+    counted from the servo's Indirect Data 1 (224; 208 on a 330 with firmware up to 52)."""
+    return Block(Register.INDIRECT_DATA_1, FEEL_BYTES, indirect_data_1 + CYCLE_BYTES)
 
 
-#: Where the felt leader's command is written: Indirect Data after the cycle's read block.
-FEEL_DATA = _OffsetBlock(Register.INDIRECT_DATA_1, FEEL_BYTES, CYCLE_BYTES)
-#: The Indirect Addresses that map it (two bytes per data byte).
-FEEL_MAP = _OffsetBlock(Register.INDIRECT_ADDRESS_1, 2 * FEEL_BYTES, 2 * CYCLE_BYTES)
+#: :func:`feel_data` where Indirect Data 1 is at 224 (the 430s, a 330 with firmware 53 on).
+FEEL_DATA = feel_data()
+#: The Indirect Addresses that map it (two bytes per data byte; at 168 + 2 n on every family).
+FEEL_MAP = Block(
+    Register.INDIRECT_ADDRESS_1,
+    2 * FEEL_BYTES,
+    Register.INDIRECT_ADDRESS_1.address + 2 * CYCLE_BYTES,
+)
 
 
 def feel_map() -> bytes:

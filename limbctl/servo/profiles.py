@@ -15,7 +15,7 @@ recorded rig name or calibration differs from the profile's.
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -32,7 +32,14 @@ from calib.profile import (
 )
 from calib.yaml_guard import shown
 from limbctl.errors import ConfigError, FileFormatError
-from limbctl.servo.control_table import BAUD_RATE_VALUES, MAX_TICK, MODEL_BY_NAME
+from limbctl.servo.control_table import (
+    BAUD_RATE_VALUES,
+    MAX_TICK,
+    MODEL_BY_NAME,
+    SDK_BAUDS,
+    model_name,
+)
+from limbctl.servo.families import family_of
 from limbctl.servo.ticks import tick_limits
 
 
@@ -61,6 +68,18 @@ def check_profile(profile: RigProfile) -> RigProfile:
         raise ConfigError(
             f"{source}: model must be one of {', '.join(MODEL_BY_NAME)}, got {profile.model!r}"
         )
+    if profile.baud not in SDK_BAUDS:
+        usable = ", ".join(str(b) for b in BAUD_RATE_VALUES if b in SDK_BAUDS)
+        raise ConfigError(
+            f"{source}: baud {profile.baud} is one the servos know, but the serial driver "
+            f"(dynamixel-sdk) cannot open it; choose one of {usable}"
+        )
+    family = family_of(profile.model)
+    if profile.baud not in family.bauds:
+        raise ConfigError(
+            f"{source}: the {family.name} servos do not run at {profile.baud} baud; choose one "
+            f"of {', '.join(str(b) for b in family.bauds)}"
+        )
     for field, joint in (("pan", profile.pan), ("tilt", profile.tilt)):
         lo, hi = joint_tick_limits(joint)
         if lo < 0 or hi > MAX_TICK:
@@ -70,6 +89,24 @@ def check_profile(profile: RigProfile) -> RigProfile:
                 f"or re-mount the horn and recalibrate"
             )
     return profile
+
+
+def check_models(bus: Any, ids: Sequence[int], model: str) -> None:
+    """Refuse a rig servo (``ids``) on an open bus that is not the profile's ``model``.
+
+    Raises
+    ------
+    ConfigError
+        Naming the servo, its model and the profile's.
+    """
+    expected = MODEL_BY_NAME[model]
+    for servo_id in ids:
+        found = bus.models[servo_id]
+        if found != expected:
+            raise ConfigError(
+                f"servo {servo_id} is {model_name(found)} but the rig profile says "
+                f"{model_name(expected)}: fix `model:` in the profile or connect the right servo"
+            )
 
 
 def _controller_error(exc: ProfileError) -> ConfigError | FileFormatError:

@@ -9,9 +9,17 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import TYPE_CHECKING
 
-from limbctl.errors import BusError, ConfigError
-from limbctl.servo.control_table import MAX_TICK, DriveModeBit, OperatingMode, Register
-from limbctl.servo.cycle import INDIRECT_MAP_BLOCK, indirect_map
+from limbctl.errors import BusError, BusTimeout, ConfigError, PortError
+from limbctl.servo.control_table import (
+    INDIRECT_DATA_1_CANDIDATES,
+    MAX_TICK,
+    Block,
+    DriveModeBit,
+    OperatingMode,
+    Register,
+)
+from limbctl.servo.cycle import CYCLE_BYTES, INDIRECT_MAP_BLOCK, ServoReport, indirect_map
+from limbctl.servo.families import family_of
 
 if TYPE_CHECKING:
     from limbctl.servo.bus import ServoBus
@@ -54,15 +62,17 @@ def configure_servos(
                 f"{MAX_TICK}, got ({lo}, {hi})"
             )
     pwm_limits: dict[int, int] = {}
+    indirect_data: dict[int, int] = {}
     with bus.exclusive():
         bus.set_torque(False)
+        check_supply(bus)
         for servo_id in bus.ids:
             level = bus.read(Register.STATUS_RETURN_LEVEL, servo_id, patient=True)
             if level != STATUS_RETURN_ALL:
                 raise ConfigError(
                     f"servo {servo_id} has Status Return Level {level}; limbctl needs "
-                    f"{STATUS_RETURN_ALL} (answer every instruction): set it with Dynamixel "
-                    f"Wizard"
+                    f"{STATUS_RETURN_ALL} (answer every instruction): run `limbctl motors "
+                    f"setup`, or power the servo off and on (the level is RAM)"
                 )
             lo, hi = position_limits[servo_id]
             drive = bus.read(Register.DRIVE_MODE, servo_id, patient=True)
@@ -93,6 +103,62 @@ def configure_servos(
                     f"(Indirect Address 1-{len(indirect_map()) // 2}): check its firmware",
                     servo_id,
                 )
+            indirect_data[servo_id] = probe_indirect_data(bus, servo_id)
             # EEPROM, out of the indirect addresses' reach: read once, it changes only by hand
             pwm_limits[servo_id] = bus.read(Register.PWM_LIMIT, servo_id, patient=True)
         bus.note_pwm_limits(pwm_limits)
+        bus.note_indirect_data(indirect_data)
+
+
+def check_supply(bus: ServoBus) -> None:
+    """Refuse, before torque goes on, a servo whose supply is outside its family's limits.
+
+    Raises
+    ------
+    ConfigError
+        Naming the servo, the voltage it measures and what its model expects (a 5 V XL330 on
+        a 12 V bus, say).
+    """
+    for servo_id in bus.ids:
+        model = bus.models[servo_id]
+        volts = bus.read(Register.PRESENT_INPUT_VOLTAGE, servo_id, patient=True, check_alert=False)
+        problem = family_of(model).voltage_problem(model, volts)
+        if problem:
+            raise ConfigError(f"servo {servo_id}: {problem}")
+
+
+def probe_indirect_data(bus: ServoBus, servo_id: int) -> int:
+    """Where ``servo_id`` keeps Indirect Data 1: 224, or 208 on a 330 with firmware up to 52.
+
+    The indirect map (:func:`limbctl.servo.cycle.indirect_map`) must be written. Each candidate
+    address is read as the cycle's block; the one whose Goal Position, Torque Enable and
+    Hardware Error Status bytes equal those registers read directly is it. The firmware version
+    is not trusted: ROBOTIS moved the 330s' block, and a servo may run either firmware.
+
+    Raises
+    ------
+    BusError
+        If no candidate mirrors the registers (the servo does not keep the map).
+    """
+    goal = bus.read(Register.GOAL_POSITION, servo_id, patient=True)
+    torque = bool(bus.read(Register.TORQUE_ENABLE, servo_id, patient=True))
+    status = bus.read(Register.HARDWARE_ERROR_STATUS, servo_id, patient=True, check_alert=False)
+    for address in INDIRECT_DATA_1_CANDIDATES:
+        block = Block(Register.INDIRECT_DATA_1, CYCLE_BYTES, at=address)
+        try:
+            report = ServoReport.decode(bus.read_block(block, servo_id))
+        except (PortError, BusTimeout):
+            raise
+        except BusError:
+            continue  # the servo refused the address: not there
+        if (report.goal, report.torque_on, bool(report.hardware_error)) == (
+            goal,
+            torque,
+            bool(status),
+        ):
+            return address
+    raise BusError(
+        f"servo {servo_id} mirrors its registers at none of the Indirect Data addresses "
+        f"{', '.join(map(str, INDIRECT_DATA_1_CANDIDATES))}: check its model and firmware",
+        servo_id,
+    )

@@ -78,11 +78,23 @@ class TunedPortHandler(PortHandler):
         self.tx_time_per_byte = (1000.0 / self.baudrate) * 10.0
         return True
 
+    #: Bytes of the last instruction written: still on the wire when the wait for the reply
+    #: starts (the adapter sends them after writePort returns).
+    sent_bytes = 0
+
+    def writePort(self, packet: Any) -> int:  # noqa: N802 (SDK's name)
+        self.sent_bytes = len(packet)
+        return super().writePort(packet)
+
     def setPacketTimeout(self, packet_length: int) -> None:  # noqa: N802 (SDK's name)
         self.packet_start_time = self.getCurrentTime()
-        # timeout = bytes * byte time + 2 * latency timer + 2 ms (the SDK's rule)
+        # timeout = (instruction + reply bytes) * byte time + 2 * latency timer + 2 ms: the
+        # SDK's rule plus the instruction's own bytes, which take 2.8 ms at 57600 baud (more
+        # than the 2 ms allowance once the latency timer is lowered to 1 ms)
         self.packet_timeout = (
-            self.tx_time_per_byte * packet_length + 2.0 * self.latency_timer_ms + 2.0
+            self.tx_time_per_byte * (packet_length + self.sent_bytes)
+            + 2.0 * self.latency_timer_ms
+            + 2.0
         )
 
 
@@ -222,7 +234,8 @@ def failure(what: str, outcome: Attempt, attempts: int, baud: int, port_name: st
     if outcome.result == COMM_RX_TIMEOUT:
         return BusTimeout(
             f"{what}: {servo} did not answer {tried}: check its power supply and cable, and "
-            f"that its id and baud ({baud}) match the rig profile (scan with Dynamixel Wizard)",
+            f"that its id and baud ({baud}) match the rig profile (`limbctl motors scan` finds "
+            f"them)",
             outcome.culprit,
         )
     if outcome.result == COMM_RX_CORRUPT:

@@ -164,7 +164,7 @@ def push_for(
         The command (the leader's pose as a quaternion) and the region's correction of it.
     """
     distance = beyond_deg(q, corrected)
-    tau = law.torque_nm(distance)
+    tau = min(law.torque_nm(distance), motor.cap_nm(law.cap_nm))
     units = motor.units_for(tau)
     if units == 0:
         return Push(0, 0, present[0], present[1], 0.0, distance)

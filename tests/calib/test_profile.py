@@ -95,7 +95,7 @@ def test_save_replaces_atomically_and_refuses_invalid(tmp_path):
         (lambda d: d["pan"].pop("zero_tick"), "pan", "missing zero_tick"),
         (lambda d: d["pan"].update(zero=1), "pan", "unknown keys zero"),
         (lambda d: d.update(baud=12345), "baud", "must be one of"),
-        (lambda d: d.update(model="ax12"), "model", "xl430-w250, xm430-w350"),
+        (lambda d: d.update(model="ax12"), "model", "xl330-m077, xl330-m288, xc330-t181"),
         (lambda d: d.update(protocol=1.0), "protocol", "2.0"),
         (lambda d: d.update(port=""), "port", "non-empty"),
         (lambda d: d.pop("name"), "profile", "missing name"),

@@ -11,6 +11,8 @@ import sys
 import pytest
 from dynamixel_sdk import COMM_SUCCESS, PacketHandler, PortHandler
 
+from firmware_sim.wire import RIG_BAUD
+
 COMMAND = [sys.executable, "-m", "firmware_sim"]
 GOAL_POSITION, TORQUE_ENABLE = 116, 64
 
@@ -66,7 +68,7 @@ def test_serves_until_signal_then_removes_link(tmp_path, stop_signal):
         assert "ready" in ready and str(link) in ready
         assert os.path.islink(link)
         port = PortHandler(str(link))
-        assert port.openPort()
+        assert port.setBaudRate(RIG_BAUD)
         packet = PacketHandler(2.0)
         assert packet.ping(port, 1) == (1060, COMM_SUCCESS, 0)
         assert packet.write1ByteTxRx(port, 1, TORQUE_ENABLE, 1) == (COMM_SUCCESS, 0)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from firmware_sim.control_table import MEMORY_SIZE, MODELS, Register, get_model
+from firmware_sim.control_table import MEMORY_SIZE, MODELS, X330_BUILDERS, Register, get_model
 
 # (register, address, size) straight from the e-Manual, common to both models
 EMANUAL = [
@@ -45,3 +45,40 @@ def test_models_differ_where_the_emanual_says():
     assert xm.item(Register.PRESENT_CURRENT).address == 126
     with pytest.raises(ValueError, match="xl430-w250"):
         get_model("ax-12")
+
+
+@pytest.mark.parametrize(
+    ("key", "number", "velocity_limit"), [("xl330-m077", 1190, 1620), ("xl330-m288", 1200, 445)]
+)
+def test_the_xl330s_follow_their_e_manual_tables(key, number, velocity_limit):
+    model = get_model(key)
+    assert model.model_number == number
+    defaults = {
+        Register.CURRENT_LIMIT: (38, 1750, 0, 1750),
+        Register.VELOCITY_LIMIT: (44, velocity_limit, 0, 2047),
+        Register.MAX_VOLTAGE_LIMIT: (32, 70, 31, 70),  # 0.1 V: a 5 V servo, 3.1..7.0 V
+        Register.MIN_VOLTAGE_LIMIT: (34, 35, 31, 70),
+        Register.TEMPERATURE_LIMIT: (31, 70, 0, 100),
+        Register.SHUTDOWN: (63, 53, 0, 255),
+        Register.BAUD_RATE: (8, 1, 0, 6),  # no 4.5 Mbps
+        Register.RETURN_DELAY_TIME: (9, 250, 0, 254),
+    }
+    for register, expected in defaults.items():
+        item = model.item(register)
+        assert (item.address, item.default, item.minimum, item.maximum) == expected, item.name
+    assert model.item(Register.GOAL_CURRENT).address == 102
+    assert model.item(Register.PRESENT_CURRENT).address == 126
+    assert not model.has(Register.PRESENT_LOAD)
+    assert model.current_unit_ma == 1.0
+    assert model.operating_modes == frozenset({0, 1, 3, 4, 5, 16})  # 5: current-based position
+
+
+def test_the_330s_indirect_data_moved_after_firmware_52():
+    assert get_model("xl330-m288").indirect_blocks == ((168, 208, 20),)
+    assert X330_BUILDERS["xl330-m288"](52).indirect_blocks == ((168, 208, 20),)
+    later = X330_BUILDERS["xl330-m288"](53)
+    assert later.indirect_blocks == ((168, 224, 20),)
+    slots = [item for item in later.items if item.register is None]
+    assert len(slots) == 40
+    first = min(slots, key=lambda item: item.address)
+    assert (first.address, first.default, first.maximum) == (168, 224, 243)

@@ -17,6 +17,7 @@ from firmware_sim.bus import build_simulator
 from firmware_sim.control_table import Register
 from firmware_sim.events import EventSchedule, ScheduledEvent, parse_event
 from firmware_sim.simulator import Simulator
+from firmware_sim.wire import RIG_BAUD
 
 COMMAND = [sys.executable, "-m", "firmware_sim"]
 
@@ -32,7 +33,7 @@ def served(link, *events: str):
     try:
         assert "ready" in process.stdout.readline()
         port = PortHandler(str(link))
-        assert port.openPort()
+        assert port.setBaudRate(RIG_BAUD)
         yield port, PacketHandler(2.0)
         port.closePort()
     finally:

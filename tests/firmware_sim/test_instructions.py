@@ -15,6 +15,7 @@ from dynamixel_sdk import (
 )
 
 from firmware_sim.protocol import Instruction, build_packet, crc16
+from firmware_sim.wire import RIG_BAUD
 
 # e-Manual addresses (XL430-W250)
 ID, RETURN_DELAY, DRIVE_MODE, OPERATING_MODE, HOMING_OFFSET = 7, 9, 10, 11, 20
@@ -39,7 +40,7 @@ def ok(result):
 
 def raw_exchange(port_name: str, packet: bytes, expect: int, timeout_s: float = 1.0) -> bytes:
     """Send raw bytes with pyserial and read ``expect`` bytes back (or what came in time)."""
-    with serial.Serial(port_name, timeout=timeout_s) as link:
+    with serial.Serial(port_name, baudrate=RIG_BAUD, timeout=timeout_s) as link:
         link.reset_input_buffer()
         link.write(packet)
         return link.read(expect)
@@ -168,13 +169,16 @@ def test_factory_reset_options_and_broadcast_rule(sdk):
     assert ok(p.factoryReset(port, 2, 0x02)) == 0  # keep ID and baud
     assert p.read1ByteTxRx(port, 2, RETURN_DELAY) == (250, COMM_SUCCESS, 0)
     assert ok(p.write1ByteTxRx(port, 2, ID, 5)) == 0
-    assert ok(p.factoryReset(port, 5, 0x01)) == 0  # keep ID
+    assert ok(p.factoryReset(port, 5, 0x01)) == 0  # keep ID: the baud is back at 57600
+    assert p.ping(port, 5)[1] == COMM_RX_TIMEOUT
+    assert port.setBaudRate(57600)
     assert p.ping(port, 5)[1] == COMM_SUCCESS
     p.factoryReset(port, 0xFE, 0xFF)  # refused on broadcast: IDs would collide
     assert p.ping(port, 5)[1] == COMM_SUCCESS
     assert ok(p.factoryReset(port, 5, 0xFF)) == 0  # everything, ID back to 1
     assert p.ping(port, 5)[1] == COMM_RX_TIMEOUT
-    assert ok(p.factoryReset(port, 1, 0x03)) == 4  # unknown option (both ID-1 servos answer)
+    # unknown option: only the reset servo answers as ID 1 at 57600 (the other is at 4 Mbps)
+    assert ok(p.factoryReset(port, 1, 0x03)) == 4
 
 
 def test_reboot_restores_ram_and_keeps_eeprom(sdk):

@@ -269,7 +269,7 @@ def _alias_bomb_in_name() -> str:
         ),
         (
             "oversized value",
-            SIM_YAML.decode().replace("baud: 57600", "baud: " + "9" * 50_000),
+            SIM_YAML.decode().replace("baud: 4000000", "baud: " + "9" * 50_000),
             "a value of 50000 characters",
         ),
         ("oversized file", SIM_YAML.decode() + "#" * 70_000 + "\n", "larger than 64 KiB"),

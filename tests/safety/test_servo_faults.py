@@ -25,6 +25,7 @@ import pytest
 from dynamixel_sdk import BROADCAST_ID, PacketHandler, PortHandler
 
 from firmware_sim import SimulatedBus
+from firmware_sim.wire import RIG_BAUD
 from limbctl.servo.bus import ServoBus
 from limbctl.servo.control_table import HardwareError, Register
 from limbctl.servo.health import HealthLimits
@@ -42,7 +43,7 @@ SIM_LATENCY_TIMER_MS = 2.0
 def broadcast_torque_off(port_name: str) -> None:
     """One broadcast Torque Enable = 0 from another handle on the bus (no reply, no lock)."""
     port = PortHandler(port_name)
-    assert port.openPort()
+    assert port.setBaudRate(RIG_BAUD)
     try:
         PacketHandler(2.0).write1ByteTxOnly(port, BROADCAST_ID, Register.TORQUE_ENABLE.address, 0)
     finally:

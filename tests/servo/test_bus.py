@@ -246,3 +246,42 @@ def test_one_instruction_packet_per_pose_read_and_per_goal_write(sim, fast):
         bus.write_goals({1: PROFILE.pan.zero_tick, 2: PROFILE.tilt.zero_tick})
         after_write = sim.truth()["packets"]
         assert (after_read - before, after_write - after_read) == (1, 1)
+
+
+@pytest.mark.parametrize("model", ["xl330-m077", "xl330-m288"])
+def test_an_xl330_bus_finds_its_indirect_data_at_208_and_reads_the_cycle(tmp_path, model):
+    with SimulatedBus(ids=(1, 2), model=model, link=tmp_path / "ttyDXL") as sim:
+        with ServoBus(sim.port, PROFILE.baud, (1, 2), model) as bus:
+            assert bus.models == {1: 1190 if model.endswith("077") else 1200} | {
+                2: 1190 if model.endswith("077") else 1200
+            }
+            configure_servos(bus, LIMITS)
+            assert bus.indirect_at == {1: 208, 2: 208}
+            read = bus.read_cycle(attempts=5)
+            assert read.ok, read.problem
+            goals = bus.sync_read(Register.GOAL_POSITION)
+            assert {i: r.goal for i, r in read.reports.items()} == goals
+            assert not any(r.torque_on for r in read.reports.values())
+
+
+def test_a_follower_and_a_leader_of_two_layouts_share_the_bus(tmp_path):
+    # an XL430 (Indirect Data at 224) and an XL330 with firmware 52 (at 208) on one bus
+    with SimulatedBus(ids=(1, 2), model="xl430-w250,xl330-m288", link=tmp_path / "tty") as sim:
+        with ServoBus(sim.port, PROFILE.baud, (1, 2)) as bus:
+            assert bus.models == {1: 1060, 2: 1200}
+            configure_servos(bus, LIMITS)
+            assert bus.indirect_at == {1: 224, 2: 208}
+            read = bus.read_cycle(attempts=5)
+            assert read.ok, read.problem
+            assert {i: r.goal for i, r in read.reports.items()} == bus.sync_read(
+                Register.GOAL_POSITION
+            )
+
+
+def test_a_330_with_later_firmware_is_found_at_224(tmp_path):
+    with SimulatedBus(ids=(1, 2), model="xl330-m288@53", link=tmp_path / "ttyDXL") as sim:
+        with ServoBus(sim.port, PROFILE.baud, (1, 2), "xl330-m288") as bus:
+            assert bus.firmware == {1: 53, 2: 53}
+            configure_servos(bus, LIMITS)
+            assert bus.indirect_at == {1: 224, 2: 224}
+            assert bus.read_cycle(attempts=5).ok

@@ -99,6 +99,16 @@ def test_model_numbers():
     assert MODEL_BY_NAME["xl430-w250"] is ModelNumber.XL430_W250
     assert model_name(1020) == "XM430-W350 (1020)"
     assert model_name(7) == "unknown model (7)"
+    assert MODEL_BY_NAME["xl330-m077"] == 1190 and MODEL_BY_NAME["xl330-m288"] == 1200
+    assert model_name(1200) == "XL330-M288 (1200)"
+
+
+def test_current_registers():
+    # 330s and 430s other than XL430/XC430: Current Limit, Goal Current, Present Current
+    assert (Register.CURRENT_LIMIT.address, Register.CURRENT_LIMIT.size) == (38, 2)
+    assert (Register.GOAL_CURRENT.address, Register.GOAL_CURRENT.signed) == (102, True)
+    # Present Load and Present Current are one register whose meaning depends on the family
+    assert Register.PRESENT_CURRENT is Register.PRESENT_LOAD
 
 
 def test_operating_mode_and_baud_values():

@@ -141,3 +141,17 @@ def test_a_rebooted_servo_loses_the_map_and_reads_torque_off(rig):
     read = read_ok(rig)
     assert read.reports[1] == ServoReport(0, 0, False, ())
     assert read.reports[2].torque_on
+
+
+def test_the_wire_budget_of_a_cycle():
+    from limbctl.servo.cycle import cycle_wire_bytes, wire_budget
+
+    # fast sync read out 14 + 2, back 8 + 2 x 16, sync write of goals 14 + 2 x 5
+    assert cycle_wire_bytes(2) == 80
+    assert cycle_wire_bytes(2, fast=False) == 16 + 2 * 23 + 24
+    assert wire_budget(200.0, 4_000_000, 2) == ""
+    assert wire_budget(200.0, 57_600, 2) == (
+        "at 57600 baud one cycle's 80 bytes take 13.9 ms on the wire, so the loop runs at most "
+        "72 Hz, not 200 Hz: raise the servos' baud to 1000000 (`limbctl motors setup --baud "
+        "1000000 --rig PROFILE`, then `baud: 1000000` in the profile)"
+    )

@@ -22,14 +22,14 @@ from limbctl.servo.port_lock import PortHolder, port_holders
 HOLDER_SCRIPT = (
     "import sys\n"
     "from limbctl.servo.bus import ServoBus\n"
-    "with ServoBus(sys.argv[1], 57600, (1, 2), latency_timer_ms=2.0) as bus:\n"
+    "with ServoBus(sys.argv[1], 4000000, (1, 2), latency_timer_ms=2.0) as bus:\n"
     "    print('holding', flush=True)\n"
     "    sys.stdin.read()\n"
 )
 
 
 def open_bus(port: str) -> ServoBus:
-    return ServoBus(port, 57600, (1, 2), latency_timer_ms=2.0)
+    return ServoBus(port, 4_000_000, (1, 2), latency_timer_ms=2.0)
 
 
 def test_second_bus_in_the_same_process_is_refused_and_the_first_goes_on(sim):

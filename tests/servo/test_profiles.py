@@ -76,3 +76,28 @@ def test_a_malformed_recorded_calibration_is_refused():
     bad["calibration"]["pan"]["zero_tick"] = "2185"
     with pytest.raises(ConfigError, match=r"model.npz: calibration.pan.zero_tick must be an"):
         check_trained_for(bad, PROFILE, "model.npz")
+
+
+def test_a_rig_servo_of_another_model_is_refused_when_a_leader_shares_the_bus(tmp_path):
+    from firmware_sim import SimulatedBus
+    from limbctl.servo.bus import ServoBus
+    from limbctl.servo.profiles import check_models
+
+    models = "xl430-w250,xm430-w350,xl330-m288"
+    with SimulatedBus(ids=(1, 2, 3), model=models, link=tmp_path / "t") as sim:
+        with ServoBus(sim.port, 4_000_000, (1, 2, 3)) as bus:
+            check_models(bus, (1,), "xl430-w250")  # the leader (3) is another model: fine
+            with pytest.raises(ConfigError, match=r"^servo 2 is XM430-W350 \(1020\) but the rig"):
+                check_models(bus, (1, 2), "xl430-w250")
+
+
+def test_a_baud_the_serial_driver_cannot_open_is_refused():
+    for model in ("xl430-w250", "xl330-m288"):
+        fast = replace(PROFILE, baud=4_500_000, model=model, source=None)
+        with pytest.raises(ConfigError) as err:
+            check_profile(fast)
+        assert str(err.value) == (
+            "<profile>: baud 4500000 is one the servos know, but the serial driver "
+            "(dynamixel-sdk) cannot open it; choose one of 9600, 57600, 115200, 1000000, "
+            "2000000, 3000000, 4000000"
+        )

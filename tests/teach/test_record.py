@@ -100,7 +100,7 @@ def test_slow_rates_are_refused(tmp_path):
 
 def test_a_slow_rate_is_refused_before_a_file_or_a_port_is_opened(tmp_path, sim):
     out = tmp_path / "slow.limb"
-    with ServoBus(sim.port, 57600, (1, 2)) as bus:
+    with ServoBus(sim.port, 4_000_000, (1, 2)) as bus:
         bus.set_torque(True)  # as a finished teleop leaves it
     status = main(["record", "--port", sim.port, "--out", str(out), "--rate", "50", "--no-view"])
     assert status == 2 and not out.exists()
@@ -109,7 +109,7 @@ def test_a_slow_rate_is_refused_before_a_file_or_a_port_is_opened(tmp_path, sim)
 
 def test_a_record_refused_at_the_port_leaves_no_empty_dataset(tmp_path, sim, capsys):
     out = tmp_path / "refused.limb"
-    with ServoBus(sim.port, 57600, (1, 2)):  # another controller holds the port
+    with ServoBus(sim.port, 4_000_000, (1, 2)):  # another controller holds the port
         status = main(["record", "--port", sim.port, "--out", str(out), "--no-view"])
     assert status == 2 and "in use by this process" in capsys.readouterr().err
     assert not out.exists()  # so the same --out works once the port is free

@@ -33,11 +33,13 @@ PRESS = {"script": [[0.0, 0.0, 0.0], [1.5, EDGE + 20.0, 0.0]], **HAND}
 
 
 @contextmanager
-def felt_session(tmp_path, model="xm430-w350", rate_hz=50.0):
+def felt_session(tmp_path, model="xm430-w350", rate_hz=100.0):
     """An open rig with a leader gimbal, configured; yields (session, source, log path).
 
-    The source checks its start against ``rate_hz``: 50 Hz, so a test machine busy with other
-    work does not refuse the start (the check is tested on its own, at 2 kHz)."""
+    The source checks its start, and watches the loop's pace, against ``rate_hz``: 100 Hz, so
+    a test machine busy with other work does not refuse the start (the check is tested on its
+    own, at 2 kHz). A loop that falls under 80 Hz switches the feel off (said in a notice):
+    :func:`paced_out` tells such a run, whose wall could not be judged."""
     cone = tmp_path / "cone.npz"
     sim = default_sim_profile()
     Cone(half_angle_deg=EDGE).save(
@@ -92,17 +94,30 @@ class Running:
         self.thread.join(timeout=10.0)
 
 
+def paced_out(source) -> bool:
+    """Whether the felt leader switched its push off because the loop lost its pace."""
+    return any("the loop runs at" in event for event in source.feel_stats.events)
+
+
+def skip_if_paced_out(source) -> None:
+    if paced_out(source):
+        pytest.skip("this machine could not keep the loop's pace: the feel went off first")
+
+
 def truth_rows(log):
     return [json.loads(line) for line in log.read_text().splitlines()]
 
 
 def pressing(pushes) -> bool:
+    """100 cycles pushed on, or the feel is off (a lost pace; the test then skips)."""
+    if pushes and not pushes[-1][2]:
+        return True
     return sum(1 for _, push, _ in pushes if push is not None and push.goal_current) >= 100
 
 
 def test_the_leader_stops_near_the_edge_free_inside_never_above_the_cap(tmp_path):
     with felt_session(tmp_path) as (session, source, log), source:
-        cap = source.motor.torque_of(source.motor.units_for(source.law.cap_nm))
+        cap = source.motor.torque_of(source.motor.units_for(source.motor.cap_nm(source.law.cap_nm)))
         session.rig.set_torque(True)
         with Running(session, source) as running:
             session.simulator.set_operator(PRESS)
@@ -111,6 +126,7 @@ def test_the_leader_stops_near_the_edge_free_inside_never_above_the_cap(tmp_path
             running.until(lambda p: len(p) > seen + 300)  # 1.5 s more pressing
             now = session.simulator.truth()["leader"]["t"]
         lines = source.report_lines()
+    skip_if_paced_out(source)
     assert "feels the edge" in lines[0] and "pressed beyond the edge for" in lines[1]
     rows = truth_rows(log)
     # the hand means 20 deg beyond; over its last second of pressing the wall held it well short
@@ -132,6 +148,7 @@ def test_a_leader_restart_ends_the_feel_and_mirroring_goes_on(tmp_path):
         with Running(session, source) as running:
             session.simulator.set_operator(PRESS)
             running.until(pressing)
+            skip_if_paced_out(source)
             session.simulator.restart(IDS[0])
             running.until(lambda p: not p[-1][2])
             lost = len(running.pushes)
@@ -155,6 +172,7 @@ def test_a_leader_alarm_switches_the_push_off_and_the_session_faults(tmp_path):
         with Running(session, source) as running:
             session.simulator.set_operator(PRESS)
             running.until(pressing)
+            skip_if_paced_out(source)
             session.simulator.set_temperature(IDS[0], 95.0)  # overheating shuts it down
             running.thread.join(timeout=20.0)
             truth = session.simulator.truth()
@@ -171,6 +189,7 @@ def test_a_failed_bus_or_a_held_gate_switches_the_push_off_in_that_cycle(tmp_pat
         with Running(session, source) as running:
             session.simulator.set_operator(PRESS)
             running.until(pressing)
+            skip_if_paced_out(source)
             session.simulator.set_faults(drop=1.0)  # every reply lost: reads fail, writes land
             running.until(lambda p: sum(1 for c, _, _ in p[-5:] if c.present is None) == 5)
             during = session.simulator.truth()["leader"]["motor_nm"]
@@ -184,14 +203,18 @@ def test_a_failed_bus_or_a_held_gate_switches_the_push_off_in_that_cycle(tmp_pat
 
 def test_a_silent_leader_is_bounded_by_its_cap_and_is_re_armed(tmp_path):
     with felt_session(tmp_path) as (session, source, log), source:
-        cap = source.motor.torque_of(source.motor.units_for(source.law.cap_nm))
+        cap = source.motor.torque_of(source.motor.units_for(source.motor.cap_nm(source.law.cap_nm)))
         session.rig.set_torque(True)
         with Running(session, source) as running:
             session.simulator.set_operator(PRESS)
             running.until(pressing)
+            skip_if_paced_out(source)
             session.simulator.vanish(IDS[0], 0.3)  # past its 100 ms watchdog
             running.until(lambda p: p[-1][1] is None)
-            running.until(lambda p: p[-1][1] is not None and p[-1][1].goal_current > 0)
+            running.until(
+                lambda p: (p[-1][1] is not None and p[-1][1].goal_current > 0) or not p[-1][2]
+            )
+            skip_if_paced_out(source)
             truth = session.simulator.truth()
             felt = source.felt
     assert truth["servos"][IDS[0]]["present"]
@@ -244,7 +267,7 @@ def test_property_random_streams_and_faults_never_above_the_cap_off_at_once(
     tmp_path = tmp_path_factory.mktemp("felt")
     script = [[0.8 * k, pan, tilt] for k, (pan, tilt) in enumerate([(0.0, 0.0), *targets])]
     with felt_session(tmp_path) as (session, source, log), source:
-        cap = source.motor.torque_of(source.motor.units_for(source.law.cap_nm))
+        cap = source.motor.torque_of(source.motor.units_for(source.motor.cap_nm(source.law.cap_nm)))
         session.rig.set_torque(True)
         with Running(session, source) as running:
             session.simulator.set_operator({"script": script, **HAND})
@@ -259,3 +282,26 @@ def test_property_random_streams_and_faults_never_above_the_cap_off_at_once(
         if push is not None and push.goal_current and cycle.complete:
             assert felt and cycle.present is not None
             assert cycle.result.outcome is not Outcome.HELD
+
+
+@pytest.mark.parametrize("model", ["xl330-m288", "xl330-m077@52"])
+def test_an_xl330_leader_feels_the_edge_with_half_its_stall_torque_at_most(tmp_path, model):
+    # beside an XL430 follower; the M077 with firmware 52 keeps its Indirect Data at 208
+    with felt_session(tmp_path, model=model) as (session, source, log), source:
+        cap = source.motor.torque_of(source.motor.units_for(source.motor.cap_nm(source.law.cap_nm)))
+        assert "XL330" in source.notice and "feels the edge" in source.notice
+        assert cap <= 0.5 * source.motor.stall_torque_nm
+        session.rig.set_torque(True)
+        with Running(session, source) as running:
+            session.simulator.set_operator(PRESS)
+            running.until(
+                lambda p: (
+                    sum(1 for _, push, _ in p if push and push.goal_current) > 50
+                    or paced_out(source)
+                )
+            )
+    skip_if_paced_out(source)
+    rows = truth_rows(log)
+    pushed = [abs(row["motor_nm"][0]) for row in rows if row["pose_deg"][0] > EDGE + 0.5]
+    assert pushed and max(pushed) > 0.5 * cap  # the motor pushed, at most by the cap
+    assert max(abs(m) for row in rows for m in row["motor_nm"]) <= cap + 1e-12

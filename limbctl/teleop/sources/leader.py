@@ -17,12 +17,13 @@ from __future__ import annotations
 
 import math
 import time
+from collections import deque
 
 import numpy as np
 
 from limbctl.errors import BusError, ConfigError, InvalidInputError
 from limbctl.servo.control_table import MAX_TICK, Block, Register, model_name
-from limbctl.servo.leader import FEEL_DATA, configure_felt_leader, encode_feel, felt_motor
+from limbctl.servo.leader import configure_felt_leader, encode_feel, feel_data, felt_motor
 from limbctl.servo.rig import Rig
 from limbctl.teleop.commands import Command, command_from_pan_tilt
 from limbctl.teleop.gate import Outcome
@@ -41,6 +42,11 @@ GOAL_CURRENT_BLOCK = Block(Register.GOAL_CURRENT, Register.GOAL_CURRENT.size)
 #: so a moment of load on a shared machine does not refuse a bus that keeps the rate.
 RATE_CHECK_CYCLES = 50
 RATE_CHECK_TRIES = 3
+#: While felt, the loop's pace is watched over the last PACE_WINDOW cycles (0.2 s at 200 Hz):
+#: a median period over PACE_SLACK periods (160 Hz at 200 Hz) switches the push off for good.
+#: The wall's passivity margin at 200 Hz is 1.75 (haptic.FeelLaw); at 160 Hz it is 1.4.
+PACE_WINDOW = 40
+PACE_SLACK = 1.25
 
 
 class LeaderSource(CommandSource):
@@ -82,6 +88,9 @@ class LeaderSource(CommandSource):
         self._notes: list[str] = []
         self._heard_at = math.inf  # when the leader last answered (perf_counter s)
         self._profile_velocity: int | None = 0  # what the leader's servos hold (set-up: 0)
+        self._feel_block = feel_data()  # where its command goes (set at start)
+        self._felt_at: float | None = None  # when feel() last ran (perf_counter s)
+        self._periods: deque[float] = deque(maxlen=PACE_WINDOW)
 
     @property
     def felt(self) -> bool:
@@ -104,7 +113,14 @@ class LeaderSource(CommandSource):
             bus.set_torque(False, self.leader_ids)
             self.notice = f"leader {model} senses no current: it stays passive, nothing is felt"
             return
-        cap = motor.units_for(self.law.cap_nm)
+        cap = motor.units_for(motor.cap_nm(self.law.cap_nm))
+        at = {bus.indirect_at.get(i, Register.INDIRECT_DATA_1.address) for i in self.leader_ids}
+        if len(at) != 1:
+            raise ConfigError(
+                f"the leader's servos keep Indirect Data at different addresses {sorted(at)}: "
+                f"give them the same firmware"
+            )
+        self._feel_block = feel_data(at.pop())
         configure_felt_leader(bus, self.leader_ids, cap, WATCHDOG_UNITS)
         try:
             self._check_rate()
@@ -245,7 +261,10 @@ class LeaderSource(CommandSource):
         self._notes.append(note)
 
     def feel(self, gate, result, bus_ok: bool) -> tuple[str, ...]:
-        """Write this cycle's push (none unless the gate ran on a good read of both gimbals)."""
+        """Write this cycle's push (none unless the gate ran on a good read of both gimbals);
+        a loop that no longer keeps the rate switches the push off for good."""
+        if self.felt:
+            self._check_pace()
         notes, self._notes = tuple(self._notes), []
         cycle, self._cycle = self._cycle, None
         if not self.felt:
@@ -263,6 +282,21 @@ class LeaderSource(CommandSource):
         self._write(push)
         self.feel_stats.add(push.torque_nm, 1.0 / self.rate_hz)
         return notes
+
+    def _check_pace(self) -> None:
+        """The wall is passive only at its rate (docs/haptic.md): when the median of the last
+        PACE_WINDOW cycles' periods is over PACE_SLACK periods, the push goes off for good."""
+        now = time.perf_counter()
+        if self._felt_at is not None:
+            self._periods.append(now - self._felt_at)
+        self._felt_at = now
+        if len(self._periods) == self._periods.maxlen:
+            median = float(np.median(self._periods))
+            if median > PACE_SLACK / self.rate_hz:
+                self._lose_feel(
+                    f"the loop runs at {1.0 / median:.0f} Hz, under the {self.rate_hz:g} Hz "
+                    f"the leader's wall needs to stay passive"
+                )
 
     def release(self) -> None:
         """No current on the leader from now until the next push (one sync write)."""
@@ -282,7 +316,7 @@ class LeaderSource(CommandSource):
                 velocity = dict.fromkeys(self.leader_ids, push.profile_velocity)
                 self.rig.bus.sync_write(Register.PROFILE_VELOCITY, velocity)
                 self._profile_velocity = push.profile_velocity
-            self.rig.bus.sync_write_block(FEEL_DATA, data)
+            self.rig.bus.sync_write_block(self._feel_block, data)
             self.last_push = push
         except BusError:
             self.last_push = None  # the next cycle tries again; the watchdog is the backstop

@@ -1,0 +1,106 @@
+"""The wire between the host and the servos: its speed, its time, and what collisions do to it.
+
+A pty carries bytes instantly and at any speed, so the strictness of a real bus is added here:
+
+- :func:`host_baud` reads the speed the host set on the pty (its termios, ``TCGETS2``, which
+  holds any rate the SDK opens, custom ones too); a servo answers only when that speed equals
+  its Baud Rate register (:data:`BAUD_BY_VALUE`), as a UART at another rate sees only noise.
+- :func:`wire_s` is how long bytes take on the wire: 10 bit times each (start, 8 data, stop).
+- :func:`collide` is what the host receives when two servos talk at once (two with one ID):
+  the TTL bus is open-drain, so a 0 from either wins, and the second servo's bits arrive
+  :data:`COLLISION_SKEW_BITS` bit times late (their clocks and Return Delay Times never agree
+  exactly). The result fails its header or its CRC: the host sees a garbled reply.
+"""
+
+from __future__ import annotations
+
+import fcntl
+import struct
+from collections.abc import Sequence
+
+#: Baud Rate register value -> bit/s (X series; 7 = 4.5 Mbps exists on the 430s and 540s only).
+BAUD_BY_VALUE = {
+    0: 9600,
+    1: 57_600,
+    2: 115_200,
+    3: 1_000_000,
+    4: 2_000_000,
+    5: 3_000_000,
+    6: 4_000_000,
+    7: 4_500_000,
+}
+#: The factory baud rate (register value 1).
+FACTORY_BAUD = 57_600
+#: The simulated rig's servos (not --factory): 4 Mbps, the fastest every family runs at. One
+#: 200 Hz cycle's ~60 bytes then take 0.15 ms of the 5 ms period, so a dropped reply's timeout
+#: still fits the period as it did before wire time was modelled (at 1 Mbps it took 0.6 ms and
+#: tipped such cycles over; at 57600 the bytes alone take 10 ms).
+RIG_BAUD = 4_000_000
+#: Bits per byte on the wire: start bit, 8 data bits, stop bit (8N1).
+BITS_PER_BYTE = 10
+#: How late a colliding servo's bits arrive (bit times): any skew that is not a whole byte
+#: garbles the frames; 3 stands for a few microseconds of clock and delay mismatch.
+COLLISION_SKEW_BITS = 3
+# Linux ioctl reading struct termios2 (c_ispeed/c_ospeed hold the rate in bit/s).
+_TCGETS2 = 0x802C542A
+_TERMIOS2_SIZE = 44
+_OSPEED_OFFSET = 40
+
+
+def value_for_baud(baud: int) -> int:
+    """The Baud Rate register value for ``baud`` bit/s; ValueError listing the rates."""
+    for value, rate in BAUD_BY_VALUE.items():
+        if rate == baud:
+            return value
+    rates = ", ".join(str(rate) for rate in BAUD_BY_VALUE.values())
+    raise ValueError(f"no X-series servo runs at {baud} baud; choose one of {rates}")
+
+
+def host_baud(fd: int) -> int | None:
+    """The output speed (bit/s) set on the tty behind ``fd`` (a pty master reports its
+    slave's), or None when the system cannot tell."""
+    buffer = bytearray(_TERMIOS2_SIZE)
+    try:
+        fcntl.ioctl(fd, _TCGETS2, buffer)
+    except OSError:
+        return None
+    (speed,) = struct.unpack_from("I", buffer, _OSPEED_OFFSET)
+    return int(speed) or None
+
+
+def wire_s(n_bytes: int, baud: int | None) -> float:
+    """Seconds ``n_bytes`` take on the wire at ``baud`` (0 when the speed is unknown)."""
+    # t = n * 10 bits / (bits per second)
+    return n_bytes * BITS_PER_BYTE / baud if baud else 0.0
+
+
+def _bits(packet: bytes, skew: int) -> list[int]:
+    """The line level bit by bit: ``skew`` idle bits (1), then each byte framed 8N1."""
+    bits = [1] * skew
+    for byte in packet:
+        bits += [0] + [(byte >> i) & 1 for i in range(8)] + [1]
+    return bits
+
+
+def _frames(bits: Sequence[int]) -> bytes:
+    """What a UART decodes from a line: a 0 starts a frame, 8 data bits follow, LSB first."""
+    out = bytearray()
+    i = 0
+    while i + 9 <= len(bits):
+        if bits[i] == 0:
+            out.append(sum(bit << k for k, bit in enumerate(bits[i + 1 : i + 9])))
+            i += 10
+        else:
+            i += 1
+    return bytes(out)
+
+
+def collide(packets: Sequence[bytes]) -> bytes:
+    """The bytes the host reads when ``packets`` are sent at once (see module docstring)."""
+    if len(packets) == 1:
+        return packets[0]
+    lines = [_bits(p, k * COLLISION_SKEW_BITS) for k, p in enumerate(packets)]
+    length = max(len(line) for line in lines)
+    # open drain: the line is low while any transmitter pulls it low
+    merged = [min(line[i] if i < len(line) else 1 for line in lines) for i in range(length)]
+    return _frames(merged)

@@ -1,0 +1,242 @@
+"""The X series by family: what differs between the servos limbctl drives, one row a family.
+
+The control-table addresses are shared (:mod:`limbctl.servo.control_table`); what is not:
+
+- address 126 is Present Load (0.1 %) on the XL430/XC430 and Present Current on the others,
+  in 1 mA (330s), 2.69 mA (XM430, XH430-W, 540s) or 1.34 mA (XH430-V) units;
+- Current Limit (38) and the current modes (0 and 5) exist only where Present Current does;
+- the input voltage (a 5 V XL330 on a 12 V bus burns), the factory voltage and temperature
+  limits and the Shutdown default;
+- the baud table: 4.5 Mbps only on the 430s and 540s (the 330s stop at 4 Mbps);
+- the indirect block: 20 slots on the 330s, with Indirect Data 1 at 208 or 224 by firmware
+  (probed, :func:`limbctl.servo.setup.probe_indirect_data`), 28 at 168/224 elsewhere.
+
+Values are the ROBOTIS e-Manual's factory defaults.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from limbctl.errors import ConfigError
+from limbctl.servo.control_table import ModelNumber, OperatingMode
+
+_ALL_MODES = frozenset(OperatingMode)
+_NO_CURRENT_MODES = frozenset(
+    {
+        OperatingMode.VELOCITY,
+        OperatingMode.POSITION,
+        OperatingMode.EXTENDED_POSITION,
+        OperatingMode.PWM,
+    }
+)
+#: Bauds (bit/s) up to 4 Mbps, by Baud Rate register value: every family has them.
+_BAUDS_4M = (9600, 57_600, 115_200, 1_000_000, 2_000_000, 3_000_000, 4_000_000)
+_BAUDS_4M5 = (*_BAUDS_4M, 4_500_000)
+
+
+@dataclass(frozen=True)
+class Family:
+    """What one X-series family has that others do not.
+
+    Attributes
+    ----------
+    name : str
+        e.g. ``"XL330"``.
+    models : dict
+        :class:`ModelNumber` -> profile name (``"xl330-m288"``).
+    rated_v : tuple of float
+        The e-Manual's input voltage range and recommended supply (V): ``(lo, hi, nominal)``.
+    voltage_limits : tuple of int
+        Factory Min/Max Voltage Limit (32, 34), in 0.1 V: outside it the servo alarms.
+    temperature_limit : int
+        Factory Temperature Limit (31), deg C.
+    shutdown : int
+        Factory Shutdown (63) bits.
+    current_unit_ma : float or None
+        Unit of Present Current (126), mA; None where 126 is Present Load (0.1 %).
+    modes : frozenset of OperatingMode
+    bauds : tuple of int
+        Baud rates (bit/s) it runs at, by Baud Rate register value.
+    indirect_slots : int
+        Indirect Address/Data pairs from 168.
+    indirect_data : tuple of int
+        Where Indirect Data 1 may be (probed in this order).
+    """
+
+    name: str
+    models: dict[ModelNumber, str]
+    rated_v: tuple[float, float, float]
+    voltage_limits: tuple[int, int]
+    temperature_limit: int
+    shutdown: int
+    current_unit_ma: float | None
+    modes: frozenset[OperatingMode]
+    bauds: tuple[int, ...]
+    indirect_slots: int = 28
+    indirect_data: tuple[int, ...] = (224,)
+
+    @property
+    def has_current(self) -> bool:
+        """Present Current (and Current Limit, Goal Current) rather than Present Load."""
+        return self.current_unit_ma is not None
+
+    def voltage_problem(self, model: ModelNumber, tenths_v: int) -> str:
+        """Why a measured Present Input Voltage (0.1 V) must not meet torque ('' if fine)."""
+        lo, hi = self.voltage_limits
+        if lo <= tenths_v <= hi:
+            return ""
+        rated_lo, rated_hi, nominal = self.rated_v
+        return (
+            f"{self.models[model].upper()} measures {tenths_v / 10:.1f} V, outside its "
+            f"{lo / 10:.1f}..{hi / 10:.1f} V limits: it expects {rated_lo:g}..{rated_hi:g} V "
+            f"({nominal:g} V recommended); fix the supply before torque goes on"
+        )
+
+
+_M = ModelNumber
+_X330 = dict(
+    temperature_limit=70,
+    current_unit_ma=1.0,
+    modes=_ALL_MODES,
+    bauds=_BAUDS_4M,
+    indirect_slots=20,
+    indirect_data=(224, 208),
+)
+#: Every family limbctl knows, by name.
+FAMILIES: dict[str, Family] = {
+    f.name: f
+    for f in (
+        Family(
+            "XL330",
+            {_M.XL330_M077: "xl330-m077", _M.XL330_M288: "xl330-m288"},
+            (3.7, 6.0, 5.0),
+            (35, 70),
+            shutdown=53,
+            **_X330,
+        ),
+        Family(
+            "XC330-M",
+            {_M.XC330_M181: "xc330-m181", _M.XC330_M288: "xc330-m288"},
+            (3.7, 6.0, 5.0),
+            (35, 70),
+            shutdown=52,
+            **_X330,
+        ),
+        Family(
+            "XC330-T",
+            {_M.XC330_T181: "xc330-t181", _M.XC330_T288: "xc330-t288"},
+            (6.5, 12.0, 11.1),
+            (55, 140),
+            shutdown=52,
+            **_X330,
+        ),
+        Family(
+            "XL430",
+            {_M.XL430_W250: "xl430-w250", _M.XL430_W250_2X: "2xl430-w250"},
+            (6.5, 12.0, 11.1),
+            (60, 140),
+            72,
+            52,
+            None,
+            _NO_CURRENT_MODES,
+            _BAUDS_4M5,
+        ),
+        Family(
+            "XC430",
+            {_M.XC430_W150: "xc430-w150", _M.XC430_W240: "xc430-w240"},
+            (6.5, 12.0, 11.1),
+            (60, 160),
+            80,
+            52,
+            None,
+            _NO_CURRENT_MODES,
+            _BAUDS_4M5,
+        ),
+        Family(
+            "XM430",
+            {_M.XM430_W210: "xm430-w210", _M.XM430_W350: "xm430-w350"},
+            (10.0, 14.8, 12.0),
+            (95, 160),
+            80,
+            52,
+            2.69,
+            _ALL_MODES,
+            _BAUDS_4M5,
+        ),
+        Family(
+            "XH430-W",
+            {_M.XH430_W210: "xh430-w210", _M.XH430_W350: "xh430-w350"},
+            (10.0, 14.8, 12.0),
+            (95, 160),
+            80,
+            52,
+            2.69,
+            _ALL_MODES,
+            _BAUDS_4M5,
+        ),
+        Family(
+            "XH430-V",
+            {_M.XH430_V210: "xh430-v210", _M.XH430_V350: "xh430-v350"},
+            (24.0, 24.0, 24.0),
+            (110, 300),
+            80,
+            52,
+            1.34,
+            _ALL_MODES,
+            _BAUDS_4M5,
+        ),
+        Family(
+            "XM540",
+            {_M.XM540_W150: "xm540-w150", _M.XM540_W270: "xm540-w270"},
+            (10.0, 14.8, 12.0),
+            (95, 160),
+            80,
+            52,
+            2.69,
+            _ALL_MODES,
+            _BAUDS_4M5,
+        ),
+        Family(
+            "XH540-W",
+            {_M.XH540_W150: "xh540-w150", _M.XH540_W270: "xh540-w270"},
+            (10.0, 14.8, 12.0),
+            (95, 160),
+            80,
+            52,
+            2.69,
+            _ALL_MODES,
+            _BAUDS_4M5,
+        ),
+        Family(
+            "XH540-V",
+            {_M.XH540_V150: "xh540-v150", _M.XH540_V270: "xh540-v270"},
+            (24.0, 24.0, 24.0),
+            (110, 300),
+            80,
+            52,
+            2.69,
+            _ALL_MODES,
+            _BAUDS_4M5,
+        ),
+    )
+}
+#: Profile model name -> family.
+FAMILY_OF_NAME: dict[str, Family] = {
+    name: family for family in FAMILIES.values() for name in family.models.values()
+}
+
+
+def family_of(model: int | str) -> Family:
+    """The family of a model number or profile model name.
+
+    Raises
+    ------
+    ConfigError
+        Naming the model and the supported ones.
+    """
+    for family in FAMILIES.values():
+        if model in family.models or model in family.models.values():
+            return family
+    names = ", ".join(sorted(FAMILY_OF_NAME))
+    raise ConfigError(f"unknown servo model {model!r}: limbctl supports {names}")

@@ -1,0 +1,208 @@
+"""Set up servos out of the box for a rig profile's joints, one servo at a time.
+
+Factory servos all answer as ID 1 at 57600 baud, so they are set up one at a time, as a person
+does it: only the joint's servo connected, it is found at any baud rate and ID
+(:func:`limbctl.servo.scan.scan`), and refused when more than one servo answers, when two
+collide on one ID, when its model is not the profile's, or when its supply is outside its
+family's voltage limits. With torque off it then gets, in this order:
+
+1. ID (EEPROM) - the joint's ID in the profile;
+2. Baud Rate (EEPROM) - the profile's baud: the servo answers this write at the old rate and
+   listens at the new one from then on;
+3. Return Delay Time 0 (EEPROM): a reply comes at once instead of 500 us late;
+4. Status Return Level 2 (RAM): answer every instruction. RAM is reset at power-up, so this
+   lasts until then; every record, teleop and calibrate sets it again at their start.
+
+Then it is pinged at the new ID and baud and every value written is read back. Only values that
+differ are written (EEPROM wears), so running set-up twice is harmless. Each joint's outcome is
+a value: a failed joint does not undo the others.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from limbctl.errors import BusError, ConfigError, LimbctlError
+from limbctl.servo.bus import ServoBus
+from limbctl.servo.control_table import (
+    BAUD_RATE_VALUES,
+    MODEL_BY_NAME,
+    SDK_BAUDS,
+    Register,
+    model_name,
+)
+from limbctl.servo.families import family_of
+from limbctl.servo.scan import NOTHING_ANSWERS, SCAN_BAUDS, ScanResult, scan
+from limbctl.servo.transfers import SDK_LATENCY_TIMER_MS
+
+#: Return Delay Time set-up writes (2 us units): reply at once.
+RETURN_DELAY = 0
+#: Status Return Level set-up writes: answer every instruction.
+STATUS_RETURN_ALL = 2
+
+
+@dataclass(frozen=True)
+class JointTarget:
+    """What one joint's servo must become: ``joint`` name, ``servo_id``, ``model``, ``baud``."""
+
+    joint: str
+    servo_id: int
+    model: str
+    baud: int
+
+
+@dataclass(frozen=True)
+class SetupOutcome:
+    """One joint's set-up, as a value.
+
+    Attributes
+    ----------
+    joint : str
+    ok : bool
+    message : str
+        What was done, or why it was refused.
+    written : tuple of str
+        The registers written (empty when the servo was already set up).
+    """
+
+    joint: str
+    ok: bool
+    message: str
+    written: tuple[str, ...] = ()
+
+
+def _the_one_servo(result: ScanResult, target: JointTarget) -> tuple[int, int, int]:
+    """(ID, baud, model number) of the only servo connected, or ConfigError saying why not."""
+    joint = target.joint
+    if result.collisions:
+        first = result.collisions[0]
+        raise ConfigError(
+            f"two or more servos answer as ID {first.servo_id} at {first.baud} baud: connect "
+            f"only the {joint} servo and run again"
+        )
+    if result.unreadable:
+        raise ConfigError(
+            f"garbled replies at {result.unreadable[0]} baud (servos sharing an ID): connect "
+            f"only the {joint} servo and run again"
+        )
+    if not result.found:
+        raise ConfigError(f"no servo answers for the {joint} joint: {NOTHING_ANSWERS}")
+    if len(result.found) > 1:
+        seen = ", ".join(f"ID {f.servo_id} at {f.baud} baud" for f in result.found)
+        raise ConfigError(
+            f"more than one servo answers ({seen}): connect only the {joint} servo and run again"
+        )
+    servo = result.found[0]
+    expected = MODEL_BY_NAME[target.model]
+    if servo.model_number != expected:
+        raise ConfigError(
+            f"the connected servo is {model_name(servo.model_number)} but the profile's {joint} "
+            f"is {model_name(expected)}: connect the {joint} servo, or fix `model:` in the "
+            f"profile"
+        )
+    return servo.servo_id, servo.baud, servo.model_number
+
+
+def check_target(target: JointTarget) -> None:
+    """Refuse a target the servo's family cannot take (ConfigError naming it)."""
+    family = family_of(target.model)
+    if target.baud in family.bauds and target.baud not in SDK_BAUDS:
+        usable = ", ".join(str(b) for b in family.bauds if b in SDK_BAUDS)
+        raise ConfigError(
+            f"baud {target.baud} is one the servos know, but the serial driver (dynamixel-sdk) "
+            f"cannot open it; choose one of {usable}"
+        )
+    if target.baud not in BAUD_RATE_VALUES or target.baud not in family.bauds:
+        rates = ", ".join(str(b) for b in family.bauds)
+        raise ConfigError(
+            f"{target.model.upper()} servos do not run at {target.baud} baud; they run at {rates}"
+        )
+    if not 0 <= target.servo_id <= 252:
+        raise ConfigError(f"servo IDs are 0..252, got {target.servo_id} for {target.joint}")
+
+
+def setup_joint(
+    port: str, target: JointTarget, latency_timer_ms: float = 16.0, scan_bauds=SCAN_BAUDS
+) -> SetupOutcome:
+    """Find the one connected servo and make it ``target`` (see module docstring).
+
+    Set-up is not time-critical: replies are awaited as the SDK would (a 16 ms latency timer)
+    even when ``latency_timer_ms`` is lower, so a busy machine is not taken for silence.
+    """
+    latency_timer_ms = max(latency_timer_ms, SDK_LATENCY_TIMER_MS)
+    try:
+        check_target(target)
+        servo_id, baud, number = _the_one_servo(scan(port, scan_bauds, latency_timer_ms), target)
+        written = _configure(port, target, servo_id, baud, latency_timer_ms)
+        _verify(port, target, latency_timer_ms)
+    except LimbctlError as exc:
+        return SetupOutcome(target.joint, False, str(exc))
+    done = (
+        f"{target.joint}: {model_name(number)} now ID {target.servo_id} at {target.baud} baud, "
+        f"Return Delay Time {RETURN_DELAY}, Status Return Level {STATUS_RETURN_ALL} (RAM: set "
+        f"again at every start)"
+    )
+    if not written:
+        done += "; it was set up already: nothing written"
+    else:
+        done += f" (found as ID {servo_id} at {baud} baud; wrote {', '.join(written)})"
+    return SetupOutcome(target.joint, True, done, tuple(written))
+
+
+def _open(port: str, baud: int, servo_id: int, model: str, latency_ms: float) -> ServoBus:
+    return ServoBus(port, baud, (servo_id,), model, latency_timer_ms=latency_ms).open()
+
+
+def _configure(port: str, target: JointTarget, servo_id: int, baud: int, latency_ms: float):
+    """Torque off, then ID, baud, Return Delay Time, Status Return Level; the names written."""
+    written: list[str] = []
+    family = family_of(target.model)
+    bus = _open(port, baud, servo_id, target.model, latency_ms)
+    try:
+        volts = bus.read(Register.PRESENT_INPUT_VOLTAGE, servo_id, check_alert=False)
+        problem = family.voltage_problem(MODEL_BY_NAME[target.model], volts)
+        if problem:
+            raise ConfigError(f"{target.joint}: {problem}")
+        bus.write(Register.TORQUE_ENABLE, servo_id, 0, check_alert=False)
+        if servo_id != target.servo_id:
+            bus.write(Register.ID, servo_id, target.servo_id, check_alert=False)
+            written.append(f"ID {servo_id} -> {target.servo_id}")
+        value = BAUD_RATE_VALUES[target.baud]
+        if baud != target.baud:
+            # the servo answers at the old rate, then listens at the new one
+            bus.close()
+            bus = _open_unchecked(port, baud, target.servo_id, latency_ms)
+            bus.write(Register.BAUD_RATE, target.servo_id, value, check_alert=False)
+            written.append(f"baud {baud} -> {target.baud}")
+    finally:
+        bus.close()
+    with _open(port, target.baud, target.servo_id, target.model, latency_ms) as bus:
+        if bus.read(Register.RETURN_DELAY_TIME, target.servo_id, patient=True) != RETURN_DELAY:
+            bus.write(Register.RETURN_DELAY_TIME, target.servo_id, RETURN_DELAY)
+            written.append(f"Return Delay Time {RETURN_DELAY}")
+        bus.write(Register.STATUS_RETURN_LEVEL, target.servo_id, STATUS_RETURN_ALL)
+    return written
+
+
+def _open_unchecked(port: str, baud: int, servo_id: int, latency_ms: float) -> ServoBus:
+    """A bus on ``servo_id`` that checks no model (the ID just changed: the same servo)."""
+    return ServoBus(port, baud, (servo_id,), None, latency_timer_ms=latency_ms).open()
+
+
+def _verify(port: str, target: JointTarget, latency_ms: float) -> None:
+    """Ping at the new ID and baud and read back every value set-up writes."""
+    expected = {
+        Register.ID: target.servo_id,
+        Register.BAUD_RATE: BAUD_RATE_VALUES[target.baud],
+        Register.RETURN_DELAY_TIME: RETURN_DELAY,
+        Register.STATUS_RETURN_LEVEL: STATUS_RETURN_ALL,
+    }
+    with _open(port, target.baud, target.servo_id, target.model, latency_ms) as bus:
+        for register, value in expected.items():
+            got = bus.read(register, target.servo_id, patient=True)
+            if got != value:
+                raise BusError(
+                    f"{target.joint}: servo {target.servo_id} reads back {register.name}={got} "
+                    f"after set-up wrote {value}",
+                    target.servo_id,
+                )

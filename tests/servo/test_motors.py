@@ -1,0 +1,115 @@
+"""Setting up servos out of the box, as a person does it, and every refusal's message."""
+
+from importlib import resources
+from pathlib import Path
+
+import pytest
+
+from calib import default_sim_profile
+from firmware_sim import SimulatedBus
+from limbctl.cli import main
+from limbctl.errors import ConfigError
+from limbctl.servo.bus import ServoBus
+from limbctl.servo.control_table import Register
+from limbctl.servo.motors import JointTarget, check_target, setup_joint
+from limbctl.servo.setup import configure_servos
+from limbctl.session import demo_region_path
+
+PROFILE = default_sim_profile()
+PAN = JointTarget("pan", PROFILE.pan.id, PROFILE.model, PROFILE.baud)
+TILT = JointTarget("tilt", PROFILE.tilt.id, PROFILE.model, PROFILE.baud)
+#: The bauds scanned in these tests: the factory's and the profile's (a full scan is 6 s).
+BAUDS = (57_600, PROFILE.baud)
+
+
+def setup(sim, target):
+    return setup_joint(sim.port, target, latency_timer_ms=2.0, scan_bauds=BAUDS)
+
+
+def test_two_factory_servos_set_up_one_then_the_other_then_both(tmp_path):
+    eeprom, link = tmp_path / "eeprom", tmp_path / "tty"
+    with SimulatedBus(factory=2, connect=(1,), eeprom_dir=eeprom, link=link) as sim:
+        pan = setup(sim, PAN)
+        assert pan.ok, pan.message
+        assert pan.written == (f"baud 57600 -> {PROFILE.baud}", "Return Delay Time 0")
+        again = setup(sim, PAN)
+        assert again.ok and again.written == ()  # harmless the second time
+    with SimulatedBus(factory=2, connect=(2,), eeprom_dir=eeprom, link=link) as sim:
+        tilt = setup(sim, TILT)
+        assert tilt.ok, tilt.message
+        assert tilt.written[0] == "ID 1 -> 2"
+    with SimulatedBus(factory=2, eeprom_dir=eeprom, link=link) as sim:
+        with ServoBus(sim.port, PROFILE.baud, PROFILE.ids, PROFILE.model) as bus:
+            for servo_id in PROFILE.ids:
+                assert bus.read(Register.ID, servo_id) == servo_id
+                assert bus.read(Register.RETURN_DELAY_TIME, servo_id) == 0
+        run_the_flow_on(sim, tmp_path)
+        refused = setup(sim, PAN)
+    assert not refused.ok
+    assert refused.message == (
+        f"more than one servo answers (ID 1 at {PROFILE.baud} baud, ID 2 at {PROFILE.baud} "
+        f"baud): connect only the pan servo and run again"
+    )
+
+
+def run_the_flow_on(sim, tmp_path):
+    """calibrate, record, train and teleop, unchanged, on the servos set-up left."""
+    port = sim.port
+    data = resources.files("limbctl").joinpath("data")
+    sim.set_hand(Path(str(data.joinpath("calibration_hand.yaml"))))
+    assert main(["calibrate", "--port", port, "--out", str(tmp_path / "rig.yaml")]) == 0
+    sim.set_hand(demo_region_path())
+    recording, model = tmp_path / "teach.limb", tmp_path / "model.npz"
+    assert main(["record", "--port", port, "--out", str(recording), "--duration", "3"]) == 0
+    assert main(["train", str(recording), "--out", str(model), "--kind", "cone"]) == 0
+    commands = tmp_path / "commands.jsonl"
+    commands.write_text("".join(f'{{"pan": {i * 0.1}, "tilt": 0.0}}\n' for i in range(50)))
+    teleop = ["teleop", "--port", port, "--model", str(model), "--source", f"replay:{commands}"]
+    assert main([*teleop, "--quiet", "--approach", "20"]) == 0
+
+
+def test_a_collision_is_refused(tmp_path):
+    with SimulatedBus(factory=2, link=tmp_path / "tty") as sim:
+        outcome = setup(sim, PAN)
+    assert outcome.message == (
+        "two or more servos answer as ID 1 at 57600 baud: connect only the pan servo and run again"
+    )
+
+
+def test_another_model_is_refused(tmp_path):
+    with SimulatedBus(factory=1, model="xl330-m288", link=tmp_path / "tty") as sim:
+        outcome = setup(sim, PAN)
+    assert outcome.message == (
+        "the connected servo is XL330-M288 (1200) but the profile's pan is XL430-W250 (1060): "
+        "connect the pan servo, or fix `model:` in the profile"
+    )
+
+
+def test_nothing_connected_is_refused(tmp_path):
+    with SimulatedBus(factory=2, connect=(), link=tmp_path / "tty") as sim:
+        outcome = setup(sim, PAN)
+    assert outcome.message.startswith("no servo answers for the pan joint: no servo answered")
+
+
+def test_a_5_v_servo_on_12_v_is_refused_by_setup_and_before_torque(tmp_path):
+    target = JointTarget("pan", 1, "xl330-m288", PROFILE.baud)
+    with SimulatedBus(factory=1, model="xl330-m288", link=tmp_path / "tty") as sim:
+        sim.set_voltage(1, 12.0)
+        outcome = setup(sim, target)
+        assert outcome.message == (
+            "pan: XL330-M288 measures 12.0 V, outside its 3.5..7.0 V limits: it expects "
+            "3.7..6 V (5 V recommended); fix the supply before torque goes on"
+        )
+    with SimulatedBus(ids=(1,), model="xl330-m288", link=tmp_path / "tty") as sim:
+        sim.set_voltage(1, 12.0)
+        with ServoBus(sim.port, PROFILE.baud, (1,), "xl330-m288") as bus:
+            with pytest.raises(ConfigError, match=r"^servo 1: XL330-M288 measures 12.0 V"):
+                configure_servos(bus, {1: (0, 4095)})
+            assert bus.read(Register.TORQUE_ENABLE, 1, check_alert=False) == 0
+
+
+def test_targets_the_family_cannot_take_are_refused():
+    with pytest.raises(ConfigError, match="XL330-M288 servos do not run at 4500000 baud"):
+        check_target(JointTarget("pan", 1, "xl330-m288", 4_500_000))
+    with pytest.raises(ConfigError, match="servo IDs are 0..252, got 300 for tilt"):
+        check_target(JointTarget("tilt", 300, "xl430-w250", 57_600))

@@ -1,0 +1,39 @@
+"""Scanning a port: servos at every baud the simulator serves, and collisions named."""
+
+import pytest
+
+from firmware_sim import SimulatedBus
+from limbctl.servo.scan import NOTHING_ANSWERS, SCAN_BAUDS, scan
+
+
+@pytest.mark.parametrize("baud", [b for b in SCAN_BAUDS if b != 4_500_000])
+def test_a_servo_is_found_at_each_baud(tmp_path, baud):
+    with SimulatedBus(ids=(3,), baud=baud, model="xl330-m288", link=tmp_path / "tty") as sim:
+        result = scan(sim.port, [baud], latency_timer_ms=2.0)
+    assert [(f.servo_id, f.model_number, f.baud) for f in result.found] == [(3, 1200, baud)]
+    assert result.collisions == [] and not result.empty
+
+
+def test_factory_fresh_servos_are_named_as_a_collision(tmp_path):
+    with SimulatedBus(factory=2, link=tmp_path / "tty") as sim:
+        result = scan(sim.port, [57_600, 4_500_000], latency_timer_ms=2.0)
+    assert result.found == []
+    assert [(c.servo_id, c.baud) for c in result.collisions] == [(1, 57_600)]
+    assert result.report().splitlines() == [
+        "two or more servos answer as ID 1 at 57600 baud: their replies collide; connect them "
+        "one at a time and give each its own ID (`limbctl motors setup`)",
+        "4500000 baud not tried: the serial driver (dynamixel-sdk) cannot open it",
+    ]
+
+
+def test_servos_at_two_bauds_are_both_found(tmp_path):
+    with SimulatedBus(factory=2, connect=(2,), link=tmp_path / "tty") as sim:
+        result = scan(sim.port, [4_000_000, 57_600], latency_timer_ms=2.0)
+    assert [(f.servo_id, f.baud) for f in result.found] == [(1, 57_600)]
+
+
+def test_nothing_answering_says_what_to_check(tmp_path):
+    with SimulatedBus(ids=(1,), link=tmp_path / "tty") as sim:
+        result = scan(sim.port, [57_600], latency_timer_ms=2.0)
+    assert result.empty and result.report() == NOTHING_ANSWERS
+    assert "dialout" in NOTHING_ANSWERS and "latency timer" in NOTHING_ANSWERS
