@@ -91,8 +91,8 @@ def run_once(workdir: Path, name: str, operator: dict, seconds: float, model: st
         rig = session.rig
         limits = {**rig.tick_limits(), **dict.fromkeys(LEADER_IDS, (0, 4095))}
         configure_servos(rig.bus, limits)
-        # the start's rate check against 50 Hz: a shared machine's load must not stop the run
-        # (the loop runs at 200 Hz and what it achieved is reported)
+        # the start's rate check and the pace watch against 50 Hz: a shared machine's load
+        # must not stop the run (the loop runs at 200 Hz; what it achieved is reported)
         source = LeaderSource(rig, LEADER_IDS, rate_hz=50.0)
         stop = threading.Event()
         out: dict = {}
@@ -171,7 +171,7 @@ def push_case(workdir: Path) -> dict:
         "return_window": float(np.max(-window, initial=0.0)),
         "final": float(np.mean(settled) - EDGE_DEG),
         "deepest": float(EDGE_DEG - np.min(pan[after])),
-        "report": source.report_lines()[1] if len(source.report_lines()) > 1 else "",
+        "report": " / ".join(source.report_lines()[1:]),
         "cycles": summary.cycles,
     }
 
