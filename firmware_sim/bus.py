@@ -195,6 +195,7 @@ def build_simulator(config: Mapping[str, Any]) -> Simulator:
         factory=int(config.get("factory", 0)),
         connect=config.get("connect"),
         eeprom_dir=config.get("eeprom_dir"),
+        leader=config.get("leader"),
     )
 
 
@@ -233,6 +234,9 @@ class _ControlServer:
 
     def do_set_hand(self, spec: Any) -> None:
         self.sim.set_hand(_make_hand(spec, self.sim.seed))
+
+    def do_set_operator(self, spec: Any) -> None:
+        self.sim.set_operator(spec)
 
     def do_push(self, servo_id: int, torque_percent: float) -> None:
         self.sim.push(servo_id, torque_percent)
@@ -304,6 +308,8 @@ class SimulatedBus:
         Fault options (:class:`firmware_sim.faults.FaultPlan`).
     link : path or None
         Also make this path a symlink to the pty.
+    leader : mapping or None
+        A leader gimbal (:meth:`firmware_sim.leader.LeaderWorld.from_spec`), plain data.
     start_timeout_s : float
         How long to wait for the process to come up.
     baud, factory, connect, eeprom_dir
@@ -328,6 +334,7 @@ class SimulatedBus:
         factory: int = 0,
         connect=None,
         eeprom_dir: str | os.PathLike | None = None,
+        leader: Mapping | None = None,
     ) -> None:
         FaultPlan(drop=drop, corrupt=corrupt, latency_ms=latency_ms, latency_p=latency_p)
         self.config = {
@@ -347,6 +354,7 @@ class SimulatedBus:
             "factory": int(factory),
             "connect": None if connect is None else list(connect),
             "eeprom_dir": None if eeprom_dir is None else str(eeprom_dir),
+            "leader": None if leader is None else dict(leader),
         }
         self._start_timeout_s = start_timeout_s
         self._process: subprocess.Popen | None = None
@@ -430,6 +438,10 @@ class SimulatedBus:
     def set_hand(self, hand: Mapping | str | os.PathLike | None) -> None:
         """Give the limb to a hand (REGION mapping or YAML path), or take it away (None)."""
         self._call("set_hand", _hand_spec(hand))
+
+    def set_operator(self, operator: Mapping | None) -> None:
+        """Give the leader gimbal to an operator (``firmware_sim.leader.Operator`` as data)."""
+        self._call("set_operator", None if operator is None else dict(operator))
 
     def push(self, servo_id: int, torque_percent: float) -> None:
         """Push a joint with a steady torque (% of stall, shaft frame); 0 clears it."""

@@ -107,6 +107,7 @@ class Servo:
         self.raw_tick = float(raw_tick)
         self.raw_velocity = 0.0
         self.load_percent = 0.0
+        self.current_units: int | None = None  # Present Current set by a torque model
         self.trajectory = Trajectory(self.raw_tick)
         self.turn_offset = 0  # whole turns removed by CLEAR (multi-turn reset)
         self._overload_seconds = 0.0
@@ -250,7 +251,9 @@ class Servo:
             raise ServoError(ErrorNumber.DATA_RANGE, f"{self.model.title} has no mode {value}")
         if register is Register.TORQUE_ENABLE and value == 1 and self.alert:
             raise ServoError(ErrorNumber.RESULT_FAIL, "hardware error latched: REBOOT first")
-        if register in (Register.GOAL_VELOCITY, Register.GOAL_PWM, Register.GOAL_CURRENT):
+        if register in (Register.GOAL_VELOCITY, Register.GOAL_PWM, Register.GOAL_CURRENT) or (
+            register is Register.GOAL_POSITION and self._mode() not in POSITION_MODES[:2]
+        ):
             if self.memory[self.model.item(Register.BUS_WATCHDOG).address] == WATCHDOG_TRIPPED:
                 raise ServoError(ErrorNumber.DATA_RANGE, "bus watchdog tripped: write 0 to it")
         if item.bound is None:
@@ -385,14 +388,15 @@ class Servo:
             return None
         self._silent_seconds += dt
         watchdog = self.memory[self.model.item(Register.BUS_WATCHDOG).address]
-        if (
-            0 < watchdog < WATCHDOG_TRIPPED
-            and self._mode() not in POSITION_MODES
-            and self._silent_seconds > watchdog * WATCHDOG_UNIT_S
-        ):
-            # watchdog trip: stop, and refuse velocity goals until it is cleared
+        watched = self._mode() not in POSITION_MODES[:2]  # a leader's mode 5 too
+        late = self._silent_seconds > watchdog * WATCHDOG_UNIT_S
+        if 0 < watchdog < WATCHDOG_TRIPPED and watched and late:
+            # watchdog trip: stop (mode 5 holds where it is), refuse goals until it is cleared
             self._set(Register.BUS_WATCHDOG, -1 & 0xFF)
-            self.trajectory.run_at(0.0, self.trajectory.limits)
+            if self._mode() is OperatingMode.CURRENT_BASED_POSITION:
+                self.trajectory.hold(self.raw_tick)
+            else:
+                self.trajectory.run_at(0.0, self.trajectory.limits)
         return self.trajectory.step(dt)
 
     def heard_from_bus(self) -> None:
@@ -449,6 +453,8 @@ class Servo:
         if self.model.has(Register.PRESENT_LOAD):
             # unit 0.1 %
             self._set(Register.PRESENT_LOAD, round(max(-1000.0, min(1000.0, load * 10.0))))
+        elif self.current_units is not None:  # a leader's motor says it (firmware_sim.torque)
+            self._set(Register.PRESENT_CURRENT, round(sign * self.current_units))
         else:
             # the model's unit (2.69 mA on the XM430-W350, stall 2.3 A at 12 V; 1 mA on the 330s)
             current = load / 100.0 * self.model.stall_current_ma / self.model.current_unit_ma

@@ -19,7 +19,7 @@ from __future__ import annotations
 import json
 import math
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import IO, Any
 
@@ -28,6 +28,7 @@ from firmware_sim.dispatch import dispatch
 from firmware_sim.eeprom import EepromFile
 from firmware_sim.faults import FaultInjector, FaultPlan
 from firmware_sim.hand import Hand
+from firmware_sim.leader import LeaderWorld, Operator
 from firmware_sim.protocol import MAX_SERVO_ID, PacketParser
 from firmware_sim.servo import Environment, Servo
 from firmware_sim.wire import BAUD_BY_VALUE, RIG_BAUD, collide, value_for_baud
@@ -88,6 +89,8 @@ class Simulator:
         The slots on the bus (default: all); the others are unplugged.
     eeprom_dir : path or None
         Keep each slot's EEPROM in a file there (:class:`firmware_sim.eeprom.EepromFile`).
+    leader : mapping or None
+        A leader gimbal (:meth:`firmware_sim.leader.LeaderWorld.from_spec`) whose ids join the bus.
     """
 
     def __init__(
@@ -103,7 +106,11 @@ class Simulator:
         factory: int = 0,
         connect: Sequence[int] | None = None,
         eeprom_dir: str | Path | None = None,
+        leader: Mapping[str, Any] | None = None,
     ) -> None:
+        self.leader = None if leader is None else LeaderWorld.from_spec(leader)
+        leader_ids = () if self.leader is None else self.leader.ids
+        ids = tuple(ids) + tuple(i for i in leader_ids if i not in tuple(ids))
         slots = parse_ids(range(1, factory + 1) if factory > 0 else ids)
         # --connect names the slots plugged in (none: an empty bus)
         self.ids = (parse_ids(connect) if connect else ()) if connect is not None else slots
@@ -115,6 +122,10 @@ class Simulator:
         self.seed = seed
         self.world = World(hand=hand, seed=seed)
         self._joint_ids = {joint.servo_id for joint in self.world.joints}
+        if self._joint_ids & set(leader_ids):
+            raise ValueError(
+                f"leader ids {leader_ids} must not be the follower's {self._joint_ids}"
+            )
         self._clock = clock
         self._start = clock()
         self.time_s = 0.0
@@ -124,12 +135,17 @@ class Simulator:
         for slot, slot_model in zip(slots, models, strict=True):
             if slot not in self.ids:
                 continue
+            on_goal = self._log_goal
             if slot in self._joint_ids:
                 start = self.world.raw_tick(slot)
+            elif slot in leader_ids:
+                start = self.leader.raw_tick(slot)
+                slot_model = get_model(self.leader.model)
+                on_goal = None  # the goal log is the follower's: a leader's goals are not in it
             else:
                 start = FREE_SHAFT_START_TICK
                 self._free_shafts[slot] = [start, 0.0]
-            servo = Servo(1 if factory > 0 else slot, slot_model, start, on_goal=self._log_goal)
+            servo = Servo(1 if factory > 0 else slot, slot_model, start, on_goal=on_goal)
             if factory <= 0:
                 servo.preset(Register.BAUD_RATE, baud_value)
             if eeprom_dir is not None:
@@ -182,8 +198,12 @@ class Simulator:
         for servo in self.servos:
             drive[self._home_ids[id(servo)]] = servo.drive_setpoint(dt)
         self.world.step(dt, {k: v for k, v in drive.items() if k in self._joint_ids})
+        if self.leader is not None:
+            self.leader.step(dt, {i: self.servo(i) for i in self.leader.ids}, drive)
         for servo in self.servos:
             home = self._home_ids[id(servo)]
+            if self.leader is not None and home in self.leader.ids:
+                continue  # the leader world observed it
             if home in self._joint_ids:
                 raw = self.world.raw_tick(home)
                 velocity = self.world.velocity(home)
@@ -257,6 +277,8 @@ class Simulator:
         if self._goal_log is not None:
             self._goal_log.close()
             self._goal_log = None
+        if self.leader is not None:
+            self.leader.close()
 
     # ------------------------------------------------------------------ test handles
     def servo(self, servo_id: int) -> Servo:
@@ -268,6 +290,13 @@ class Simulator:
 
     def set_hand(self, hand: Hand | None) -> None:
         self.world.set_hand(hand)
+
+    def set_operator(self, operator: Mapping[str, Any] | None) -> None:
+        """Give the leader to an operator (:class:`firmware_sim.leader.Operator` as data)."""
+        if self.leader is None:
+            raise ValueError("this simulator has no leader gimbal; start it with leader=...")
+        self.advance()
+        self.leader.set_operator(None if operator is None else Operator.from_mapping(operator))
 
     def push(self, servo_id: int, torque_percent: float) -> None:
         self.servo(servo_id)
@@ -320,6 +349,7 @@ class Simulator:
             "joints_deg": self.world.joint_angles_deg(),
             "servos": servos,
             "faults": self.faults.counters(),
+            "leader": None if self.leader is None else self.leader.truth(),
             "packets": self.packets,
             "junk_bytes": self.parser.junk_bytes,
         }

@@ -6,7 +6,9 @@
 3. teleop: a command stream that sweeps far outside the region (with a few NaN and malformed
    lines mixed in) is replayed through the gate at 200 Hz;
 4. check: the simulator's own goal log (what reached the servos) is compared with the model's
-   region, and pictures are drawn.
+   region, and pictures are drawn;
+5. leader: a simulated operator pushes a felt leader gimbal past the learned edge; the
+   follower mirrors it through the gate, the leader pushes back (leader.png).
 """
 
 from __future__ import annotations
@@ -126,7 +128,7 @@ def _run_demo(out: Path, teach_seconds: float, seed: int, live: LiveView) -> int
         if stale.exists():
             raise ConfigError(f"{stale} exists from an earlier run; use another --out or remove it")
 
-    say(f"== 1/4 teach: the simulator's hand moves the limb for {teach_seconds:.0f} s")
+    say(f"== 1/5 teach: the simulator's hand moves the limb for {teach_seconds:.0f} s")
     simulator = Connection(seed=seed)
     run_record(
         RecordOptions(
@@ -139,12 +141,12 @@ def _run_demo(out: Path, teach_seconds: float, seed: int, live: LiveView) -> int
         view=live,
     )
 
-    say("== 2/4 train: an interpolated Rigid Map learns the region from the samples alone")
+    say("== 2/5 train: an interpolated Rigid Map learns the region from the samples alone")
     run_train(
         TrainOptions(data=data, out=model_path, kind="rigidmap", seed=seed, plot=out / "model.png")
     )
 
-    say("== 3/4 teleop: a sweep far outside the region, replayed through the gate at 200 Hz")
+    say("== 3/5 teleop: a sweep far outside the region, replayed through the gate at 200 Hz")
     valid = write_command_stream(commands)
     say(f"   {valid} commands (+ a few NaN/malformed lines) in {commands}")
     status = run_teleop(
@@ -162,7 +164,7 @@ def _run_demo(out: Path, teach_seconds: float, seed: int, live: LiveView) -> int
         view=live,
     )
 
-    say("== 4/4 check: every goal the simulator received, against the model's region")
+    say("== 4/5 check: every goal the simulator received, against the model's region")
     model = load_model(model_path)
     excursion = goal_log_excursions(goals, model)
     worst = float(excursion.max()) if len(excursion) else 0.0
@@ -179,8 +181,69 @@ def _run_demo(out: Path, teach_seconds: float, seed: int, live: LiveView) -> int
     if beyond:
         say(f"FAILED: {beyond} goals reached the servos beyond the gate's bound; see {goals}")
         return 1
+    say("== 5/5 leader: an operator pushes a felt leader past the learned edge and lets go")
+    status = max(status, _leader_run(out, model_path, seed))
     say(f"done: everything is in {out}/")
     return status
+
+
+#: The demo's leader run: the operator's hand (0.3 N m at most) takes the leader from the middle
+#: to pan 100 deg at tilt 10, about 20 deg past the learned edge, holds it there, then lets go.
+LEADER_SCRIPT = [[0.0, 0.0, 10.0], [1.0, 0.0, 10.0], [3.5, 100.0, 10.0]]
+LEADER_LET_GO_S = 6.0
+LEADER_SECONDS = 8.0
+LEADER_IDS = (3, 4)
+
+
+def _leader_run(out: Path, model_path: Path, seed: int) -> int:
+    """Step 5: the felt leader on the simulator; leader.png shows leader vs follower and the
+    push. A machine too busy to keep the rate with the leader's extra write is said so."""
+    from limbctl.jobs import gate_for
+    from limbctl.plot import plot_leader
+    from limbctl.servo.control_table import MAX_TICK
+    from limbctl.servo.profiles import load_rig_profile
+    from limbctl.servo.setup import configure_servos
+    from limbctl.session import open_rig
+    from limbctl.teleop.loop import LoopConfig, run
+    from limbctl.teleop.sources import LeaderSource
+
+    profile = load_rig_profile(None)
+    gate = gate_for(model_path, profile, DEMO_RATE_HZ, DEMO_MAX_SPEED_DEG_S)
+    leader = {"ids": list(LEADER_IDS), "model": "xm430-w350", "start_deg": [0.0, 10.0]}
+    rows: list[tuple[float, ...]] = []
+    with open_rig(seed=seed, extra_ids=LEADER_IDS, sim_options={"leader": leader}) as session:
+        rig = session.rig
+        limits = {**rig.tick_limits(), **dict.fromkeys(LEADER_IDS, (0, MAX_TICK))}
+        configure_servos(rig.bus, limits)
+        source = LeaderSource(rig, LEADER_IDS, rate_hz=DEMO_RATE_HZ)
+        try:
+            source.start()
+        except ConfigError as exc:
+            say(f"   skipped: {exc}")
+            return 0
+        try:
+            say(f"   {source.notice}")
+            rig.set_torque(True)
+
+            def record(cycle) -> None:
+                push, result = source.last_push, cycle.result
+                if cycle.complete and cycle.command_deg is not None and result is not None:
+                    gated = (math.degrees(result.pan), math.degrees(result.tilt))
+                    torque = push.torque_nm if push is not None else 0.0
+                    rows.append((cycle.t, *cycle.command_deg, *gated, torque))
+
+            config = LoopConfig(rate_hz=DEMO_RATE_HZ, duration_s=LEADER_SECONDS, on_cycle=record)
+            operator = {"script": LEADER_SCRIPT, "let_go_s": LEADER_LET_GO_S}
+            session.simulator.set_operator(operator)
+            summary = run(rig, gate, source, config)
+        finally:
+            source.close()
+        for line in source.report_lines()[1:]:
+            say(f"   {line}")
+    table = np.asarray(rows, dtype=np.float64).reshape(-1, 6)
+    plot_leader(out / "leader.png", table[:, 0], table[:, 1:3], table[:, 3:5], table[:, 5])
+    say(f"   picture: {out / 'leader.png'}")
+    return summary.exit_code
 
 
 #: Points along the hand's true outline in the teleop picture: one per half degree of a

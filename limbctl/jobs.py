@@ -228,7 +228,9 @@ def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
         limits = {**rig.tick_limits(), **{servo_id: (0, MAX_TICK) for servo_id in spec.extra_ids}}
         configure_servos(rig.bus, limits)
         _say_wire_budget(options.rate, rig.bus)
-        with spec.open(SourceContext(rig=rig)) as source, stop_on_signals() as stop:
+        with spec.open(SourceContext(rig, options.rate)) as source, stop_on_signals() as stop:
+            if source.report_lines():
+                say(source.report_lines()[0])  # what the leader will do, before it starts
             result = run_session(
                 rig,
                 gate,
@@ -245,7 +247,7 @@ def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
     from limbctl.geometry.jit import mark_prepared
 
     mark_prepared("gate")
-    for line in result.lines():
+    for line in (*result.lines(), *source.report_lines()[1:]):
         say(line)
     return result.exit_code
 

@@ -144,3 +144,38 @@ def plot(
     fig.savefig(out, dpi=110)  # 1320 x 605 pixels: the whole figure on one screen
     plt.close(fig)
     return out
+
+
+def plot_leader(path: Path, t: np.ndarray, leader: np.ndarray, follower: np.ndarray, torque):
+    """The demo's leader run: leader versus follower pan and tilt over time, and the leader's
+    push.
+
+    Parameters
+    ----------
+    path : Path
+        The PNG to write.
+    t : ndarray (N,)
+        Cycle times (s).
+    leader, follower : ndarray (N, 2)
+        Pan and tilt (deg) of the leader (the command) and of the follower (what was written).
+    torque : ndarray (N,)
+        The torque the leader pushed back with (N m; 0 inside the region).
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, (ax_pose, ax_force) = plt.subplots(2, 1, figsize=(10, 6), sharex=True)
+    for k, name in enumerate(("pan", "tilt")):
+        ax_pose.plot(t, leader[:, k], label=f"leader {name} (the operator's hand)")
+        ax_pose.plot(t, follower[:, k], "--", label=f"follower {name} (gated)")
+    ax_pose.set_ylabel("deg")
+    ax_pose.legend(loc="best", fontsize=8)
+    ax_pose.set_title("leader vs follower: the follower stops at the edge, the leader is pushed")
+    ax_force.plot(t, torque, color="crimson")
+    ax_force.set_ylabel("leader push (N m)")
+    ax_force.set_xlabel("s")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)

@@ -259,6 +259,23 @@ class CycleReads:
             patient=True,  # set-up: nothing waits on it but the person
         )
 
+    def sync_write_block(
+        self, block: Block, data: Mapping[int, bytes], check_alert: bool = True
+    ) -> None:
+        """Write ``block.size`` raw bytes per servo from ``block``'s address in ONE sync write
+        (no reply; e.g. registers mapped onto Indirect Data). ``check_alert=False`` sends it
+        even to a servo known to be in alarm (to switch something off)."""
+        for values in data.values():
+            if len(values) != block.size:
+                raise ConfigError(f"{block.name} takes {block.size} bytes, got {len(values)}")
+        self._known(data)
+        params = {servo_id: list(values) for servo_id, values in data.items()}
+        self._transact(
+            f"sync write {block.name}",
+            lambda: transfers.sync_write(self._packets, self._port, block, params),
+            check_alert,
+        )
+
     def read_cycle(self, ids: Sequence[int] | None = None, attempts: int = 1) -> CycleRead:
         """Each servo's (``ids``, default all) :class:`ServoReport` in ONE (fast) sync read,
         tried at most ``attempts`` times (one read per Indirect Data address on a bus of

@@ -272,6 +272,8 @@ class ControlLoop:
                 summary.bus_errors += 1
                 self._last_error = exc
                 present = None
+        felt = self.source.feel(self.gate, result, present is not None)  # a felt leader's push
+        summary.notices.extend(f"{t:.3f} s: {notice}" for notice in felt)
         if present is None:
             summary.failed_cycles += 1
             # a named silent servo is judged by the health monitor (lost_after_s)
@@ -306,7 +308,7 @@ class ControlLoop:
             timings=CycleTimings(cycle_s=cycle_s, gate_s=gate_s),
             ended_by=ended_by,
             refused=summary.rejected,
-            notices=verdict.notices,
+            notices=verdict.notices + felt,
             refused_reasons=self._refused_reasons,
         )
 
@@ -363,6 +365,7 @@ class ControlLoop:
         self._refused_reasons = tuple(self.source.stats.refusals.take_recent())
 
     def _end(self, ended_by: str, t: float) -> Cycle:
+        self.source.release()  # a felt leader stops pushing when the session ends
         self.summary.ended_by = ended_by
         return Cycle(
             index=self.summary.cycles,
@@ -380,6 +383,7 @@ class ControlLoop:
         result: GateResult | None = None,
         notices: tuple[str, ...] = (),
     ) -> Cycle:
+        self.source.release()  # a felt leader stops pushing before anything else
         _enter_safe_state(self.limb, self.config, self.summary, cause, self._torque_seen)
         self._note_dropouts(t)
         return Cycle(

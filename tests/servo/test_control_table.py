@@ -34,6 +34,8 @@ E_MANUAL = {
     "HARDWARE_ERROR_STATUS": (70, 1, False),
     "BUS_WATCHDOG": (98, 1, True),
     "GOAL_PWM": (100, 2, True),
+    "GOAL_CURRENT": (102, 2, True),
+    "CURRENT_LIMIT": (38, 2, False),
     "PROFILE_ACCELERATION": (108, 4, False),
     "PROFILE_VELOCITY": (112, 4, False),
     "GOAL_POSITION": (116, 4, True),

@@ -44,6 +44,8 @@ class SourceContext:
     """
 
     rig: Any = None
+    #: The loop's rate (Hz): a felt leader checks at start that its cycle keeps it.
+    rate_hz: float = 200.0
 
 
 @dataclass(frozen=True)
@@ -87,7 +89,7 @@ def _udp(argument: str, context: SourceContext) -> CommandSource:
 def _leader(argument: str, context: SourceContext) -> CommandSource:
     if context.rig is None:
         raise ConfigError(f"source 'leader:{argument}' reads servos: it needs the open rig")
-    return LeaderSource(context.rig, leader_ids(argument))
+    return LeaderSource(context.rig, leader_ids(argument), rate_hz=context.rate_hz)
 
 
 #: Every command source by scheme.

@@ -111,6 +111,18 @@ class CommandSource:
         self.stats.accepted += 1
         self._queue.put(command)
 
+    # -- what a source that pushes back on the operator adds (a felt leader); nothing here ----
+    def feel(self, gate: object, result: object, bus_ok: bool) -> tuple[str, ...]:
+        """Called by the loop after each cycle's gate and write; notices for the operator."""
+        return ()
+
+    def release(self) -> None:
+        """Called by the loop on a fault: stop pushing on the operator at once."""
+
+    def report_lines(self) -> tuple[str, ...]:
+        """Lines for the session's report (none for most sources)."""
+        return ()
+
     @property
     def finished(self) -> bool:
         """True once the input ended and every queued command was polled."""

@@ -1,20 +1,52 @@
-"""A leader gimbal as a command source: a second pair of servos, torque off, moved by hand.
+"""A leader gimbal as a command source: a second pair of servos moved by hand.
 
 The leader sits on the same bus as the follower (``leader:3,4`` = pan id 3, tilt id 4) and is
 assumed to be built and calibrated like the follower: its ticks are read with the follower's
-zero ticks and directions. Each control cycle reads both leader positions in one sync read and
-offers that pose as the newest command; it goes through the gate like any other.
+zero ticks and directions. Each control cycle reads the leader in one sync read and offers its
+pose as the newest command; it goes through the gate like any other.
+
+A leader whose model senses current (:data:`limbctl.servo.leader.FELT_MODELS`) *feels the edge*:
+its servos run in current-based position mode, free inside the region, pushing back beyond it
+(:mod:`limbctl.teleop.haptic`); after each cycle's gate, :meth:`LeaderSource.feel` writes that
+push in one sync write. Any doubt switches the push off at once: a leader that is silent, in
+alarm or restarted, a failed bus, a held gate, a fault (:meth:`LeaderSource.release`) or the
+session's end. Bus Watchdog is the backstop. Other models stay passive (torque off), as before.
 """
 
 from __future__ import annotations
 
 import math
+import time
+from collections import deque
+
+import numpy as np
 
 from limbctl.errors import BusError, ConfigError, InvalidInputError
-from limbctl.servo.control_table import Register
+from limbctl.servo.control_table import MAX_TICK, Block, Register, model_name
+from limbctl.servo.leader import configure_felt_leader, encode_feel, feel_data, felt_motor
 from limbctl.servo.rig import Rig
 from limbctl.teleop.commands import Command, command_from_pan_tilt
+from limbctl.teleop.gate import Outcome
+from limbctl.teleop.haptic import FeelLaw, FeelStats, Push, push_for
 from limbctl.teleop.sources.base import CommandSource
+
+#: Bus Watchdog of a felt leader: 5 x 20 ms = 100 ms without a packet stops it (the servo holds
+#: where it is, at most at the cap). As long as the loop's own 20 failed cycles at 200 Hz, so the
+#: loop, not the watchdog, is what notices a failing bus; the watchdog covers a dead controller.
+WATCHDOG_UNITS = 5
+WATCHDOG_UNIT_S = 0.020
+#: Goal Current alone, written as raw bytes (sent even to a servo in alarm).
+GOAL_CURRENT_BLOCK = Block(Register.GOAL_CURRENT, Register.GOAL_CURRENT.size)
+#: Cycles timed at start (one follower read, one leader read, one leader write each) to check the
+#: rate can be kept: a quarter of a second at 200 Hz, enough for a median; up to three batches,
+#: so a moment of load on a shared machine does not refuse a bus that keeps the rate.
+RATE_CHECK_CYCLES = 50
+RATE_CHECK_TRIES = 3
+#: While felt, the loop's pace is watched over the last PACE_WINDOW cycles (0.2 s at 200 Hz):
+#: a median period over PACE_SLACK periods (160 Hz at 200 Hz) switches the push off for good.
+#: The wall's passivity margin at 200 Hz is 1.75 (haptic.FeelLaw); at 160 Hz it is 1.4.
+PACE_WINDOW = 40
+PACE_SLACK = 1.25
 
 
 class LeaderSource(CommandSource):
@@ -31,7 +63,13 @@ class LeaderSource(CommandSource):
     name = "leader"
     latest_only = True
 
-    def __init__(self, rig: Rig, leader_ids: tuple[int, int]) -> None:
+    def __init__(
+        self,
+        rig: Rig,
+        leader_ids: tuple[int, int],
+        rate_hz: float = 200.0,
+        law: FeelLaw | None = None,
+    ) -> None:
         super().__init__()
         if rig.bus is None or not set(leader_ids) <= set(rig.bus.ids):
             raise ConfigError(f"leader servos {leader_ids} are not on the bus")
@@ -40,13 +78,107 @@ class LeaderSource(CommandSource):
         self.rig = rig
         self.leader_ids = tuple(leader_ids)
         self.read_failures = 0
+        self.rate_hz = float(rate_hz)
+        self.law = law or FeelLaw()
+        self.motor = None  # a LeaderMotor while the leader feels the edge
+        self.notice = ""
+        self.feel_stats = FeelStats()
+        self.last_push: Push | None = None
+        self._cycle: tuple[tuple[float, float], np.ndarray] | None = None
+        self._notes: list[str] = []
+        self._heard_at = math.inf  # when the leader last answered (perf_counter s)
+        self._profile_velocity: int | None = 0  # what the leader's servos hold (set-up: 0)
+        self._feel_block = feel_data()  # where its command goes (set at start)
+        self._felt_at: float | None = None  # when feel() last ran (perf_counter s)
+        self._periods: deque[float] = deque(maxlen=PACE_WINDOW)
+
+    @property
+    def felt(self) -> bool:
+        """True while the leader pushes back at the edge."""
+        return self.motor is not None
 
     def start(self) -> None:
-        """Switch the leader's torque off so a hand can move it (no reader thread)."""
-        self.rig.bus.set_torque(False, self.leader_ids)
+        """Switch the leader's torque off so a hand can move it (no reader thread); a leader
+        that senses current is set up to feel the edge instead (torque on, no current yet).
+
+        Raises
+        ------
+        ConfigError
+            If a felt leader's servo refuses mode 5, or its cycle cannot keep the rate.
+        """
+        bus = self.rig.bus
+        motor = felt_motor(bus, self.leader_ids)
+        model = model_name(bus.models[self.leader_ids[0]])
+        if motor is None:
+            bus.set_torque(False, self.leader_ids)
+            self.notice = f"leader {model} senses no current: it stays passive, nothing is felt"
+            return
+        cap = motor.units_for(motor.cap_nm(self.law.cap_nm))
+        at = {bus.indirect_at.get(i, Register.INDIRECT_DATA_1.address) for i in self.leader_ids}
+        if len(at) != 1:
+            raise ConfigError(
+                f"the leader's servos keep Indirect Data at different addresses {sorted(at)}: "
+                f"give them the same firmware"
+            )
+        self._feel_block = feel_data(at.pop())
+        configure_felt_leader(bus, self.leader_ids, cap, WATCHDOG_UNITS)
+        try:
+            self._check_rate()
+        except ConfigError:
+            self._switch_off()
+            raise
+        self.motor = motor
+        self.notice = (
+            f"leader {model} feels the edge: free inside, pushed back beyond "
+            f"{self.law.deadband_deg:g} deg, at most {motor.torque_of(cap):.2f} N m "
+            f"(Current Limit {cap})"
+        )
+
+    def _check_rate(self) -> None:
+        """Time felt cycles' transfers; refuse when no batch's median fits the period (a batch
+        taken while the machine was busy for a moment is tried again)."""
+        medians = []
+        for _ in range(RATE_CHECK_TRIES):
+            times = []
+            for _ in range(RATE_CHECK_CYCLES):
+                start = time.perf_counter()
+                self.rig.read_cycle(attempts=1)
+                read = self.rig.bus.read_cycle(ids=self.leader_ids, attempts=1)
+                if read.ok:
+                    pose = self._pose(read)
+                    self._write(Push(0, 0, pose[0], pose[1], 0.0, 0.0))
+                times.append(time.perf_counter() - start)
+            medians.append(float(np.median(times)))
+            if medians[-1] <= 1.0 / self.rate_hz:
+                return
+        raise ConfigError(
+            f"a cycle with the felt leader takes {min(medians) * 1e3:.1f} ms (the best median of "
+            f"{RATE_CHECK_TRIES} x {RATE_CHECK_CYCLES}), more than the {1e3 / self.rate_hz:.1f} ms "
+            f"period at {self.rate_hz:g} Hz: lower --rate, or raise the baud rate and lower the "
+            f"adapter's latency timer (README)"
+        )
 
     def close(self) -> None:
-        """Nothing to stop; safe to call twice."""
+        """A felt leader goes limp (no current, torque off); safe to call twice."""
+        if self.felt:
+            self.motor = None
+            self._switch_off()
+
+    def _zero_current(self) -> None:
+        """Goal Current 0 on both leader servos in one sync write, alarm or not."""
+        zero = dict.fromkeys(self.leader_ids, bytes(Register.GOAL_CURRENT.encode(0)))
+        try:
+            self.rig.bus.sync_write_block(GOAL_CURRENT_BLOCK, zero, check_alert=False)
+        except BusError:
+            pass  # the Bus Watchdog stops a leader that hears nothing
+
+    def _switch_off(self) -> None:
+        """No current, then torque off (each tried even if the other failed)."""
+        self._zero_current()
+        try:
+            self.rig.bus.set_torque(False, self.leader_ids)
+        except BusError:
+            pass  # the watchdog stops it; nothing more can be sent on a failed bus
 
     @property
     def finished(self) -> bool:
@@ -55,6 +187,9 @@ class LeaderSource(CommandSource):
 
     def poll(self, timeout: float = 0.0) -> list[Command]:
         """Read the leader's pose now and offer it as the newest command."""
+        return self._poll_felt() if self.felt else self._poll_passive()
+
+    def _poll_passive(self) -> list[Command]:
         try:
             ticks = self.rig.bus.sync_read(Register.PRESENT_POSITION, self.leader_ids)
         except BusError:
@@ -69,6 +204,131 @@ class LeaderSource(CommandSource):
             return []
         self.stats.accepted += 1
         return [command]
+
+    def _poll_felt(self) -> list[Command]:
+        """The felt leader's read: its pose, and whether it is still fit to push."""
+        self._cycle = None
+        # two tries, as the loop's own read: one lost reply should not drop the push
+        read = self.rig.bus.read_cycle(ids=self.leader_ids, attempts=2)
+        now = time.perf_counter()
+        if not read.ok:
+            self.read_failures += 1
+            return []
+        unheard_s, self._heard_at = now - self._heard_at, now
+        if unheard_s > WATCHDOG_UNITS * WATCHDOG_UNIT_S / 2.0:
+            self._arm_watchdog()  # long enough unheard that its watchdog may have tripped
+        for servo_id, report in read.reports.items():
+            if report.hardware_error:
+                self._lose_feel(
+                    f"leader servo {servo_id} alarm ({', '.join(report.hardware_error)})"
+                )
+            elif not report.torque_on:
+                self._lose_feel(f"leader servo {servo_id} restarted (its torque went off)")
+            if not self.felt:  # a restarted servo's indirect map is gone: read it plainly
+                return self._poll_passive()
+        pan, tilt = self._pose(read)
+        try:
+            command = command_from_pan_tilt(math.degrees(pan), math.degrees(tilt))
+        except InvalidInputError as exc:
+            self.stats.reject(f"leader pose refused: {exc}")
+            return []
+        self.stats.accepted += 1
+        if self.felt:
+            self._cycle = ((pan, tilt), command.q)
+        return [command]
+
+    def _arm_watchdog(self) -> None:
+        """Clear a Bus Watchdog that may have tripped while the leader was not heard, and arm
+        it again (a tripped servo refuses every goal, Goal Current 0 included)."""
+        try:
+            for servo_id in self.leader_ids:
+                self.rig.bus.write(Register.BUS_WATCHDOG, servo_id, 0, check_alert=False)
+                self.rig.bus.write(Register.BUS_WATCHDOG, servo_id, WATCHDOG_UNITS, False)
+        except BusError:
+            self._heard_at = -math.inf  # tried again on the next good read
+
+    def _pose(self, read) -> tuple[float, float]:
+        pan_id, tilt_id = self.leader_ids
+        return self.rig.ticks_to_angles(read.reports[pan_id].present, read.reports[tilt_id].present)
+
+    def _lose_feel(self, cause: str) -> None:
+        """Switch the push off for good; the mirroring goes on and the operator is told."""
+        self.motor = None
+        self.last_push = None
+        self._switch_off()
+        note = f"{cause}: the push is off, mirroring goes on without feel"
+        self.feel_stats.events.append(note)
+        self._notes.append(note)
+
+    def feel(self, gate, result, bus_ok: bool) -> tuple[str, ...]:
+        """Write this cycle's push (none unless the gate ran on a good read of both gimbals);
+        a loop that no longer keeps the rate switches the push off for good."""
+        if self.felt:
+            self._check_pace()
+        notes, self._notes = tuple(self._notes), []
+        cycle, self._cycle = self._cycle, None
+        if not self.felt:
+            return notes
+        if cycle is None:  # the leader was not read: it may not hear a push either
+            push = None
+        elif not bus_ok or result is None or result.outcome is Outcome.HELD:
+            push = Push(0, 0, cycle[0][0], cycle[0][1], 0.0, 0.0)
+        else:
+            q = cycle[1]
+            push = push_for(self.law, self.motor, cycle[0], q, gate.envelope.correct(q))
+        if push is None:
+            self.release()
+            return notes
+        self._write(push)
+        self.feel_stats.add(push.torque_nm, 1.0 / self.rate_hz)
+        return notes
+
+    def _check_pace(self) -> None:
+        """The wall is passive only at its rate (docs/haptic.md): when the median of the last
+        PACE_WINDOW cycles' periods is over PACE_SLACK periods, the push goes off for good."""
+        now = time.perf_counter()
+        if self._felt_at is not None:
+            self._periods.append(now - self._felt_at)
+        self._felt_at = now
+        if len(self._periods) == self._periods.maxlen:
+            median = float(np.median(self._periods))
+            if median > PACE_SLACK / self.rate_hz:
+                self._lose_feel(
+                    f"the loop runs at {1.0 / median:.0f} Hz, under the {self.rate_hz:g} Hz "
+                    f"the leader's wall needs to stay passive"
+                )
+
+    def release(self) -> None:
+        """No current on the leader from now until the next push (one sync write)."""
+        self.last_push = None
+        if self.felt:
+            self._zero_current()
+
+    def _write(self, push: Push) -> None:
+        ticks = self.rig.angles_to_ticks(push.goal_pan, push.goal_tilt)
+        data = {
+            servo_id: encode_feel(push.goal_current, min(max(int(tick), 0), MAX_TICK))
+            for servo_id, tick in zip(self.leader_ids, ticks, strict=True)
+        }
+        try:
+            if push.profile_velocity != self._profile_velocity:  # the wall comes on or goes off
+                self._profile_velocity = None
+                velocity = dict.fromkeys(self.leader_ids, push.profile_velocity)
+                self.rig.bus.sync_write(Register.PROFILE_VELOCITY, velocity)
+                self._profile_velocity = push.profile_velocity
+            self.rig.bus.sync_write_block(self._feel_block, data)
+            self.last_push = push
+        except BusError:
+            self.last_push = None  # the next cycle tries again; the watchdog is the backstop
+
+    def report_lines(self) -> tuple[str, ...]:
+        """The start notice, how long and how hard the operator pressed, what switched it off."""
+        if not self.notice:
+            return ()
+        lines = [self.notice]
+        if "feels the edge" in self.notice:
+            lines.append(self.feel_stats.describe())
+        return (*lines, *self.feel_stats.events)
 
 
 def leader_ids(argument: str) -> tuple[int, int]:

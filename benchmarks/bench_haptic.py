@@ -1,0 +1,464 @@
+"""The leader feels the edge: a simulated operator pushes a felt leader past a taught edge.
+
+Run: ``python benchmarks/bench_haptic.py`` (writes docs/bench_haptic.md; about two minutes).
+
+Every case runs the real control loop at 200 Hz through the real dynamixel-sdk on the
+simulator's pty. The follower is gated by a 30 deg cone around +x, so along pan (tilt 0) the
+edge lies at pan 30 deg. The leader (XM430-W350, ids 3 and 4) is moved by the simulator's
+operator: a bounded spring-damper hand toward scripted targets (firmware_sim/leader.py). Ground
+truth comes from the leader's log (hand torque, motor torque, pose, motor work, every 1 ms);
+the controller's side from each cycle's push (what was written to the leader).
+
+Cases:
+
+- *push*: the hand means to go 20 deg beyond the edge (pan 50) and holds there for 3 s, then
+  lets go: where the leader stops, the torque inside and outside, the return after release;
+- *ripple*: the hand means to go 5 deg beyond at several stiffnesses: the pose's peak to peak
+  while pressed;
+- *passivity*: a closed excursion 10 deg past the edge and back: the motor's net work on the
+  leader (a passive wall does none: it gives back at most what it took);
+- *rate*: the same wandering hand with a passive leader (an XL430, today's path) and a felt one:
+  the loop's cycle time, p99, side by side.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+
+from calib.profile import default_sim_profile
+from firmware_sim.control_table import Register as FirmwareRegister
+from firmware_sim.simulator import Simulator
+from limbctl.envelope import Cone
+from limbctl.errors import BusError
+from limbctl.jobs import gate_for
+from limbctl.servo.control_table import ModelNumber, Register
+from limbctl.servo.leader import FEEL_DATA, FEEL_MAP, FELT_MODELS, encode_feel, feel_map
+from limbctl.servo.rig import Rig
+from limbctl.servo.setup import configure_servos
+from limbctl.session import open_rig
+from limbctl.teleop.commands import command_from_pan_tilt
+from limbctl.teleop.haptic import FeelLaw, push_for
+from limbctl.teleop.loop import LoopConfig, run
+from limbctl.teleop.sources import LeaderSource
+
+EDGE_DEG = 30.0
+LEADER_IDS = (3, 4)
+#: The relaxed hand of the push case: N m/deg, N m s/rad, bound N m.
+#: A closed excursion 10 deg past the edge and back: pan 20 -> 40 -> 20.
+EXCURSION = [[0.0, 20.0, 0.0], [1.0, 20.0, 0.0], [2.0, 40.0, 0.0], [2.5, 40.0, 0.0]]
+EXCURSION += [[3.5, 20.0, 0.0], [4.5, 20.0, 0.0]]
+#: The exact-rate cases write READ_TO_WRITE_MS after the read: the loop's read, gate and
+#: write take about 1 ms on the simulator's pty (the bus work's p50 below).
+READ_TO_WRITE_MS = 1
+HAND = {"stiffness_nm_deg": 0.05, "damping_nm_s_rad": 0.02, "max_torque_nm": 0.3}
+
+
+def run_case(workdir: Path, name: str, operator: dict, seconds: float, model="xm430-w350"):
+    """:func:`run_once`, run again once if the set-up met a garbled reply (a busy machine)."""
+    try:
+        return run_once(workdir, name, operator, seconds, model)
+    except (BusError, LoopFault) as exc:
+        print(f"{name}: {exc}; running it again")
+        return run_once(workdir, name, operator, seconds, model)
+
+
+class LoopFault(RuntimeError):
+    """A case's loop ended in a fault (on a starved machine: the simulator missed replies)."""
+
+
+def run_once(workdir: Path, name: str, operator: dict, seconds: float, model: str):
+    """Run the loop with a leader held by ``operator``; the cycles' pushes and the truth log."""
+    log = workdir / f"{name}.jsonl"
+    log.write_text("")
+    cone = workdir / "cone.npz"
+    sim = default_sim_profile()
+    if not cone.exists():
+        metadata = {"rig": sim.name, "calibration": sim.calibration.to_dict()}
+        Cone(half_angle_deg=EDGE_DEG).save(cone, metadata=metadata)
+    gate = gate_for(cone, sim, 200.0, 120.0)
+    leader = {"ids": list(LEADER_IDS), "model": model, "log": str(log)}
+    pushes: list[tuple[float, float, int, float]] = []
+    with open_rig(extra_ids=LEADER_IDS, sim_options={"leader": leader}) as session:
+        rig = session.rig
+        limits = {**rig.tick_limits(), **dict.fromkeys(LEADER_IDS, (0, 4095))}
+        configure_servos(rig.bus, limits)
+        # the start's rate check and the pace watch against 50 Hz: a shared machine's load
+        # must not stop the run (the loop runs at 200 Hz; what it achieved is reported)
+        source = LeaderSource(rig, LEADER_IDS, rate_hz=50.0)
+        stop = threading.Event()
+        out: dict = {}
+
+        def observe(cycle) -> None:
+            push = source.last_push
+            if cycle.complete and push is not None:
+                pushes.append((cycle.t, push.distance_deg, push.goal_current, push.torque_nm))
+
+        with source:
+            rig.set_torque(True)
+            config = LoopConfig(on_cycle=observe)
+            thread = threading.Thread(
+                target=lambda: out.update(s=run(rig, gate, source, config, stop=stop))
+            )
+            thread.start()
+            session.simulator.set_operator(operator)
+            start = session.simulator.truth()["leader"]["t"]
+            # the operator's script runs on the simulator's clock: wait until it has played
+            while thread.is_alive() and session.simulator.truth()["leader"]["t"] < start + seconds:
+                time.sleep(0.05)
+            stop.set()
+            thread.join(timeout=10.0)
+    if out["s"].exit_code != 0:
+        raise LoopFault(f"{name}: the loop ended with {out['s'].exit_code}: {out['s'].fault}")
+    rows = [json.loads(line) for line in log.read_text().splitlines()]
+    for row in rows:
+        row["t"] -= start  # operator time
+    return out["s"], source, pushes, [r for r in rows if r["t"] >= 0.0]
+
+
+def contact_energy(rows) -> dict:
+    """Energy over the samples beyond the edge (a closed path: in and out at the edge), mJ:
+    the motor's net work (the sampled wall's leak when > 0), the hand's net work (what the
+    operator put in; passive at the hand when >= 0) and what the leader's friction took."""
+    pan = pan_of(rows)[1:]
+    motor = np.diff([r["motor_work_j"][0] for r in rows])[pan > EDGE_DEG].sum()
+    hand = np.diff([r["hand_work_j"][0] for r in rows])[pan > EDGE_DEG].sum()
+    # energy balance over a closed path: friction took what the motor and the hand put in
+    return {"motor_mj": 1e3 * motor, "hand_mj": 1e3 * hand, "friction_mj": 1e3 * (motor + hand)}
+
+
+def pan_of(rows, key="pose_deg"):
+    return np.array([r[key][0] for r in rows])
+
+
+def push_case(workdir: Path) -> dict:
+    script = [[0.0, 0.0, 0.0], [2.0, EDGE_DEG + 20.0, 0.0], [5.0, EDGE_DEG + 20.0, 0.0]]
+    summary, source, pushes, rows = run_case(
+        workdir, "push", {"script": script, "let_go_s": 5.0, **HAND}, 7.0
+    )
+    t = np.array([r["t"] for r in rows])
+    pan, motor = pan_of(rows), pan_of(rows, "motor_nm")
+    velocity = pan_of(rows, "velocity_deg_s")
+    hold = (t >= 3.0) & (t < 5.0)
+    after = t >= 5.0
+    inside_cycles = [p for p in pushes if p[1] == 0.0]
+    outside = (pan > EDGE_DEG) & (motor != 0.0)
+    # speed averaged over 20 ms windows (20 samples of 1 ms) after let go
+    window = np.convolve(velocity[after], np.ones(20) / 20.0, mode="valid")
+    settled = pan[after][-200:]
+    return {
+        "stop_mean": float(np.mean(pan[hold]) - EDGE_DEG),
+        "stop_max": float(np.max(pan[hold]) - EDGE_DEG),
+        "inside_cycles": len(inside_cycles),
+        "inside_nonzero": sum(1 for p in inside_cycles if p[2] != 0),
+        "truth_inside_nonzero": int(np.sum((pan < EDGE_DEG) & (motor != 0.0))),
+        "truth_inside_depth": float(
+            np.max(EDGE_DEG - pan[(pan < EDGE_DEG) & (motor != 0.0)], initial=0.0)
+        ),
+        "outward": int(np.sum(outside & (motor > 0.0))),
+        "outside_samples": int(np.sum(outside)),
+        "peak_nm": float(np.max(np.abs(motor))),
+        "cap_nm": source.law.cap_nm,
+        "return_peak": float(np.max(-velocity[after], initial=0.0)),
+        "return_window": float(np.max(-window, initial=0.0)),
+        "final": float(np.mean(settled) - EDGE_DEG),
+        "deepest": float(EDGE_DEG - np.min(pan[after])),
+        "report": " / ".join(source.report_lines()[1:]),
+        "cycles": summary.cycles,
+    }
+
+
+def ripple_case(workdir: Path, stiffness: float) -> dict:
+    script = [[0.0, 0.0, 0.0], [1.5, EDGE_DEG + 5.0, 0.0], [5.0, EDGE_DEG + 5.0, 0.0]]
+    hand = {**HAND, "stiffness_nm_deg": stiffness}
+    _, _, _, rows = run_case(workdir, f"ripple{stiffness}", {"script": script, **hand}, 4.5)
+    t = np.array([r["t"] for r in rows])
+    pan = pan_of(rows)
+    steady = (t >= 3.0) & (t < 4.5)
+    return {
+        "stiffness": stiffness,
+        "beyond": float(np.mean(pan[steady]) - EDGE_DEG),
+        "ripple": float(np.ptp(pan[steady])),
+    }
+
+
+def passivity_case(workdir: Path, stiffness: float) -> dict:
+    hand = {**HAND, "stiffness_nm_deg": stiffness}
+    _, _, _, rows = run_case(workdir, f"passive{stiffness}", {"script": EXCURSION, **hand}, 4.5)
+    return {"stiffness": stiffness, **contact_energy(rows)}
+
+
+def rate_case(workdir: Path, model: str) -> dict:
+    # in and out across the edge, 4 s per lap
+    script = [[4.0 * k + dt, pan, 0.0] for k in range(3) for dt, pan in ((0, 0), (2, 45))]
+    summary, _, _, _ = run_case(workdir, f"rate-{model}", {"script": script, **HAND}, 10.0, model)
+    times = np.array(summary.cycle_times_s) * 1e3
+    return {
+        "model": model,
+        "cycles": summary.cycles,
+        "rate": summary.cycles / summary.elapsed_s,
+        "p50": float(np.percentile(times, 50)),
+        "p99": float(np.percentile(times, 99)),
+        "overruns": summary.overruns,
+    }
+
+
+def exact_rate_case(stiffness: float, script: list, seconds: float, let_go_s=None) -> dict:
+    """The same law at exactly 200 Hz, without the bus: the simulator in this process on a
+    stepped clock, and every 5 ms the controller's part done on the leader servos' registers
+    (read Present Position, :func:`push_for`, write the same ten bytes to Indirect Data
+    READ_TO_WRITE_MS later). It measures the law, not the machine's load."""
+    clock = [0.0]
+    sim = Simulator(ids=(1, 2), leader={"ids": list(LEADER_IDS)}, clock=lambda: clock[0])
+    profile = default_sim_profile()
+    rig = Rig(profile)
+    cone = Cone(half_angle_deg=EDGE_DEG)
+    law, motor = FeelLaw(), FELT_MODELS[ModelNumber.XM430_W350]
+    servos = [sim.servo(i) for i in LEADER_IDS]
+    for servo in servos:
+        servo.write(11, bytes([5]))  # Operating Mode 5
+        servo.write(38, motor.units_for(law.cap_nm).to_bytes(2, "little"))  # Current Limit
+        servo.write(FEEL_MAP.address, feel_map())
+        servo.write(64, bytes([1]))  # torque on
+    hand = {**HAND, "stiffness_nm_deg": stiffness, "script": script, "let_go_s": let_go_s}
+    sim.set_operator(hand)
+    rows = []
+    for _ in range(round(seconds * 200.0)):
+        for servo in servos:
+            servo.refresh(sim.time_s)
+        ticks = [servo.value(FirmwareRegister.PRESENT_POSITION) for servo in servos]
+        pose = rig.ticks_to_angles(*ticks)
+        q = command_from_pan_tilt(*np.degrees(pose)).q
+        push = push_for(law, motor, pose, q, cone.correct(q))
+        goal = rig.angles_to_ticks(push.goal_pan, push.goal_tilt)
+        for step in range(5):
+            if step == READ_TO_WRITE_MS:
+                for servo, tick in zip(servos, goal, strict=True):
+                    velocity = push.profile_velocity.to_bytes(4, "little")
+                    servo.write(112, velocity)  # Profile Velocity (its own write in the source)
+                    data = encode_feel(push.goal_current, tick)
+                    servo.write(FEEL_DATA.address, data)
+            clock[0] += 0.001
+            sim.advance()
+            rows.append(sim.leader.sample())
+    return {"rows": rows}
+
+
+def exact_cases() -> dict:
+    push_script = [[0.0, 0.0, 0.0], [2.0, EDGE_DEG + 20.0, 0.0], [5.0, EDGE_DEG + 20.0, 0.0]]
+    rows = exact_rate_case(HAND["stiffness_nm_deg"], push_script, 7.0, let_go_s=5.0)["rows"]
+    t = np.array([r["t"] for r in rows])
+    pan, velocity = pan_of(rows), pan_of(rows, "velocity_deg_s")
+    after = t >= 5.0
+    window = np.convolve(velocity[after], np.ones(20) / 20.0, mode="valid")
+    out = {
+        "stop": float(np.mean(pan[(t >= 3.0) & (t < 5.0)]) - EDGE_DEG),
+        "return_peak": float(np.max(-velocity[after], initial=0.0)),
+        "return_window": float(np.max(-window, initial=0.0)),
+        "final": float(np.mean(pan[after][-200:]) - EDGE_DEG),
+        "deepest": float(EDGE_DEG - np.min(pan[after])),
+        "ripples": [],
+        "passes": [],
+    }
+    for k in (0.02, 0.05, 0.1, 0.2):
+        script = [[0.0, 0.0, 0.0], [1.5, EDGE_DEG + 5.0, 0.0], [5.0, EDGE_DEG + 5.0, 0.0]]
+        rows = exact_rate_case(k, script, 4.5)["rows"]
+        t, pan = np.array([r["t"] for r in rows]), pan_of(rows)
+        steady = (t >= 3.0) & (t < 4.5)
+        out["ripples"].append(
+            {
+                "stiffness": k,
+                "beyond": float(np.mean(pan[steady]) - EDGE_DEG),
+                "ripple": float(np.ptp(pan[steady])),
+            }
+        )
+    for k in (0.02, 0.05, 0.2):
+        rows = exact_rate_case(k, EXCURSION, 4.5)["rows"]
+        out["passes"].append({"stiffness": k, **contact_energy(rows)})
+    return out
+
+
+def transfers_case(rounds: int = 400) -> dict:
+    """The loop's bus work per cycle with a passive and with a felt leader, interleaved A/B so a
+    change in the machine's load falls on both: follower cycle read, the leader's part, the
+    follower's goal write."""
+    leader = {"ids": list(LEADER_IDS), "model": "xm430-w350"}
+    times = {"passive": [], "felt": []}
+    with open_rig(extra_ids=LEADER_IDS, sim_options={"leader": leader}) as session:
+        rig = session.rig
+        configure_servos(rig.bus, {**rig.tick_limits(), **dict.fromkeys(LEADER_IDS, (0, 4095))})
+        pose = rig.read_pose()
+        free = {i: encode_feel(0, 2048) for i in LEADER_IDS}
+        for _ in range(rounds):
+            for kind in ("passive", "felt"):
+                start = time.perf_counter()
+                rig.read_cycle(attempts=2)
+                if kind == "passive":
+                    rig.bus.sync_read(Register.PRESENT_POSITION, LEADER_IDS)
+                else:
+                    rig.bus.read_cycle(ids=LEADER_IDS, attempts=2)
+                    rig.bus.sync_write_block(FEEL_DATA, free)
+                rig.write_pose(*pose)
+                times[kind].append(time.perf_counter() - start)
+    return {
+        kind: (float(np.percentile(v, 50)) * 1e3, float(np.percentile(v, 99)) * 1e3)
+        for kind, v in times.items()
+    }
+
+
+def energy_table(passes: list[dict]) -> list[str]:
+    """The passivity table: a closed excursion 10 deg past the edge and back."""
+    return [
+        "A closed excursion 10 deg past the edge and back (pan 20 -> 40 -> 20), energy over the "
+        "1 ms samples beyond the edge. The motor's net work is the sampled wall's leak; the "
+        "leader's friction takes more, so the hand's net work stays >= 0: the operator gets "
+        "back less than they put in (passive at the hand; the motor does no net work on it).",
+        "",
+        "| hand stiffness (N m/deg) | motor net work (mJ) | friction took (mJ) | "
+        "hand net work (mJ) | work the motor did on the hand (mJ) |",
+        "| ---: | ---: | ---: | ---: | ---: |",
+        *(
+            f"| {p['stiffness']:g} | {p['motor_mj']:+.3f} | {p['friction_mj']:.3f} | "
+            f"{p['hand_mj']:+.3f} | {-p['hand_mj']:+.3f} |"
+            for p in passes
+        ),
+    ]
+
+
+def render(push, ripples, passes, rates, load, exact, transfers) -> str:
+    law = FeelLaw()
+    margin = law.passivity_margin(0.05, 200.0)
+    lines = [
+        "# The leader feels the edge",
+        "",
+        "`python benchmarks/bench_haptic.py`: the real 200 Hz loop over the simulator's pty, the "
+        f"follower gated by a {EDGE_DEG:g} deg cone (edge at pan {EDGE_DEG:g} deg), a felt "
+        "XM430-W350 leader on ids 3, 4 moved by the simulated operator "
+        "(`firmware_sim/leader.py`). Law (`limbctl/teleop/haptic.py`): deadband "
+        f"{law.deadband_deg:g} deg, K = {law.gain_nm_per_deg:g} N m/deg, cap {law.cap_nm:g} N m, "
+        f"Profile Velocity {law.profile_velocity_units()} units "
+        f"({law.profile_velocity_units() * 1.374:.1f} deg/s). Sampled-wall passivity margin "
+        f"b / (K T / 2) = {margin:.2f} at 200 Hz with the simulated leader's b = 0.05 N m s/rad. "
+        f"Machine load at start: {load[0]:.2f} {load[1]:.2f} {load[2]:.2f} (2 cores, shared).",
+        "",
+        "## The law at exactly 200 Hz",
+        "",
+        "The controller's part done on the simulated servos' registers every 5 ms of a stepped "
+        "clock, in one process (`exact_rate_case`): the law's own figures, whatever the "
+        "machine's load. The same hand and cases as the runs over the pty below.",
+        "",
+        "| measure | value |",
+        "| --- | ---: |",
+        f"| pushed 20 deg beyond: leader beyond the edge while held (deg) | {exact['stop']:.2f} |",
+        f"| after let go: peak speed, peak of 20 ms mean speed (deg/s) | "
+        f"{exact['return_peak']:.1f}, {exact['return_window']:.1f} |",
+        f"| after let go: rest beyond the edge (deg) | {exact['final']:.3f} |",
+        f"| after let go: deepest inside the edge (deg) | {max(exact['deepest'], 0.0):.3f} |",
+        "",
+        "Pressing 5 deg beyond, by hand stiffness:",
+        "",
+        "| hand stiffness (N m/deg) | held beyond the edge (deg) | ripple, peak to peak (deg) |",
+        "| ---: | ---: | ---: |",
+        *(
+            f"| {r['stiffness']:g} | {r['beyond']:.2f} | {r['ripple']:.3f} |"
+            for r in exact["ripples"]
+        ),
+        "",
+        *energy_table(exact["passes"]),
+        "",
+        "## Over the pty: push 20 deg beyond the edge, hold 3 s, let go",
+        "",
+        f"Hand: stiffness {HAND['stiffness_nm_deg']} N m/deg, damping "
+        f"{HAND['damping_nm_s_rad']} N m s/rad, bounded at {HAND['max_torque_nm']} N m.",
+        "",
+        "| measure | value |",
+        "| --- | ---: |",
+        f"| leader beyond the edge while held, mean (deg) | {push['stop_mean']:.2f} |",
+        f"| leader beyond the edge while held, most (deg) | {push['stop_max']:.2f} |",
+        f"| cycles whose command was inside | {push['inside_cycles']} |",
+        f"| of those with a Goal Current other than 0 | {push['inside_nonzero']} |",
+        f"| truth: 1 ms samples inside with motor torque | {push['truth_inside_nonzero']} |",
+        f"| truth: deepest such sample inside the edge (deg) | {push['truth_inside_depth']:.3f} |",
+        f"| truth: samples outside with torque / pointing outward | "
+        f"{push['outside_samples']} / {push['outward']} |",
+        f"| truth: largest motor torque (N m), cap | {push['peak_nm']:.3f}, {push['cap_nm']:g} |",
+        f"| return after let go: peak speed (deg/s) | {push['return_peak']:.1f} |",
+        f"| return after let go: peak of 20 ms mean speed (deg/s) | {push['return_window']:.1f} |",
+        f"| rest after let go, beyond the edge (deg) | {push['final']:.3f} |",
+        f"| deepest inside the edge after let go (deg) | {max(push['deepest'], 0.0):.3f} |",
+        "",
+        f'Teleop report: "{push["report"]}"',
+        "",
+        "## Ripple while pressing 5 deg beyond, by hand stiffness",
+        "",
+        "| hand stiffness (N m/deg) | beyond the edge (deg) | ripple, peak to peak (deg) |",
+        "| ---: | ---: | ---: |",
+        *(f"| {r['stiffness']:g} | {r['beyond']:.2f} | {r['ripple']:.3f} |" for r in ripples),
+        "",
+        "## Passivity over the pty",
+        "",
+        *energy_table(passes),
+        "",
+        "## Loop cycle with the leader's extra write",
+        "",
+        "The same wandering hand, 10 s each: a passive XL430 leader (one sync read per cycle, "
+        "today's path) and a felt XM430 leader (one cycle read and one sync write).",
+        "",
+        "| leader | cycles | rate (Hz) | cycle p50 (ms) | cycle p99 (ms) | overruns |",
+        "| --- | ---: | ---: | ---: | ---: | ---: |",
+        *(
+            f"| {r['model']} | {r['cycles']} | {r['rate']:.1f} | {r['p50']:.2f} | "
+            f"{r['p99']:.2f} | {r['overruns']} |"
+            for r in rates
+        ),
+        "",
+        f"p99 ratio felt / passive: {rates[1]['p99'] / rates[0]['p99']:.2f}.",
+        "",
+        "The bus work alone, 400 cycles each, interleaved (follower cycle read, the leader's "
+        "part, the follower's goal write):",
+        "",
+        "| leader | p50 (ms) | p99 (ms) |",
+        "| --- | ---: | ---: |",
+        f"| passive (sync read) | {transfers['passive'][0]:.2f} | {transfers['passive'][1]:.2f} |",
+        f"| felt (cycle read + sync write) | {transfers['felt'][0]:.2f} | "
+        f"{transfers['felt'][1]:.2f} |",
+        "",
+        f"p99 ratio felt / passive: {transfers['felt'][1] / transfers['passive'][1]:.2f}; "
+        f"the 200 Hz period is 5 ms.",
+        "",
+    ]
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--out", type=Path, default=Path("docs/bench_haptic.md"))
+    args = parser.parse_args(argv)
+    load = os.getloadavg()
+    with tempfile.TemporaryDirectory() as tmp:
+        workdir = Path(tmp)
+        started = time.monotonic()
+        exact = exact_cases()
+        print(f"exact-rate cases done in {time.monotonic() - started:.0f} s")
+        transfers = transfers_case()
+        push = push_case(workdir)
+        ripples = [ripple_case(workdir, k) for k in (0.02, 0.05, 0.1, 0.2)]
+        passes = [passivity_case(workdir, k) for k in (0.02, 0.05, 0.2)]
+        rates = [rate_case(workdir, "xl430-w250"), rate_case(workdir, "xm430-w350")]
+        print(f"ran in {time.monotonic() - started:.0f} s")
+    text = render(push, ripples, passes, rates, load, exact, transfers)
+    args.out.write_text(text)
+    print(text)
+    return 0 if math.isfinite(push["stop_mean"]) else 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

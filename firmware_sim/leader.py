@@ -1,0 +1,286 @@
+"""A leader gimbal: a second pan/tilt pair moved by an operator's hand and by its own motors.
+
+The leader is built like the follower (the same joint geometry and ticks, at other servo ids)
+but it is a physical thing the operator holds, so each joint is a rotor with inertia and
+backdrive friction (joint frame, SI units)::
+
+    J a = tau_motor + tau_hand - B v - C sign(v)        (sticks while |tau_motor + tau_hand| <= C)
+
+``tau_motor`` comes from the servo by its Operating Mode (:mod:`firmware_sim.torque`).
+``tau_hand`` is the operator (:class:`Operator`): a bounded spring-damper toward where the
+operator means to go, a script of targets like the teaching hand's, with a let-go time::
+
+    tau_hand = clip(K_h (target - angle) - D_h v, +-tau_max)      (0 after let go)
+
+End stops clamp as on the follower. Ground truth (hand torque, motor torque, pose, the motor's
+work) is kept for tests: :meth:`LeaderWorld.truth`, and one JSON line per physics step in the log.
+"""
+
+from __future__ import annotations
+
+import bisect
+import json
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import IO, Any
+
+from firmware_sim.servo import Servo
+from firmware_sim.torque import Drive, LoopGains, drive_of, motor_of, present_current_units
+from firmware_sim.world import DEFAULT_JOINTS, RAD_PER_TICK, Joint
+
+#: Rotor inertia at the joint (kg m^2): a light printed leader link plus the reflected inertia of
+#: a small geared motor; it sets how fast a released joint accelerates.
+LEADER_INERTIA_KG_M2 = 1.0e-3
+#: Viscous backdrive friction (N m s/rad): what the operator feels moving the leader free. It is
+#: the device damping ``b`` of the sampled-wall passivity bound (docs/haptic.md).
+LEADER_DAMPING_NM_S_RAD = 0.05
+#: Coulomb backdrive friction (N m): a geared servo does not move under a small touch.
+LEADER_COULOMB_NM = 0.01
+#: Physics step of the leader (s): the stiff position loop (stall at 2 deg) with 1e-3 kg m^2
+#: rings at ~340 rad/s; 0.5 ms keeps omega dt under 0.2 (semi-implicit: stable below 2).
+LEADER_SUBSTEP_S = 0.0005
+#: The operator's defaults: a relaxed grip (N m/deg, N m s/rad) pushing with at most TAU_MAX.
+HAND_STIFFNESS_NM_DEG = 0.05
+HAND_DAMPING_NM_S_RAD = 0.02
+HAND_MAX_TORQUE_NM = 0.3
+
+
+@dataclass
+class Operator:
+    """A hand holding the leader: a bounded spring-damper toward scripted targets.
+
+    Parameters
+    ----------
+    script : sequence of (t_s, pan_deg, tilt_deg)
+        Where the operator means to go, linear in time between the points, holding the last.
+        Times count from when the operator takes hold.
+    let_go_s : float or None
+        From this time on the hand applies no torque (released); None: never.
+    stiffness_nm_deg, damping_nm_s_rad, max_torque_nm : float
+        The grip: K_h (N m per deg), D_h (N m s/rad) and the bound tau_max (N m).
+    """
+
+    script: Sequence[tuple[float, float, float]]
+    let_go_s: float | None = None
+    stiffness_nm_deg: float = HAND_STIFFNESS_NM_DEG
+    damping_nm_s_rad: float = HAND_DAMPING_NM_S_RAD
+    max_torque_nm: float = HAND_MAX_TORQUE_NM
+    _times: list[float] = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        points = [tuple(float(v) for v in p) for p in self.script]
+        if not points or any(len(p) != 3 or not all(map(math.isfinite, p)) for p in points):
+            raise ValueError("operator script must be [[t_s, pan_deg, tilt_deg], ...], finite")
+        times = [p[0] for p in points]
+        if times != sorted(times):
+            raise ValueError(f"operator script times must not decrease, got {times}")
+        for name in ("stiffness_nm_deg", "damping_nm_s_rad", "max_torque_nm"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0.0):
+                raise ValueError(f"operator {name} must be finite and >= 0, got {value!r}")
+        self.script = points
+        self._times = times
+
+    @classmethod
+    def from_mapping(cls, data: Mapping[str, Any]) -> Operator:
+        """An operator from plain data (keys as the parameters); ValueError naming a bad key."""
+        known = {"script", "let_go_s", "stiffness_nm_deg", "damping_nm_s_rad", "max_torque_nm"}
+        unknown = set(data) - known
+        if unknown:
+            raise ValueError(f"unknown operator keys {sorted(unknown)}; known: {sorted(known)}")
+        return cls(**dict(data))
+
+    def target_deg(self, t: float) -> tuple[float, float]:
+        """(pan, tilt) the operator means at ``t`` s: linear between the script's points."""
+        k = bisect.bisect_right(self._times, t)
+        if k == 0:
+            return self.script[0][1], self.script[0][2]
+        if k == len(self.script):
+            return self.script[-1][1], self.script[-1][2]
+        (t0, p0, q0), (t1, p1, q1) = self.script[k - 1], self.script[k]
+        u = (t - t0) / (t1 - t0) if t1 > t0 else 1.0
+        return p0 + u * (p1 - p0), q0 + u * (q1 - q0)
+
+    def torque(self, t: float, slot: int, angle_rad: float, velocity_rad_s: float) -> float:
+        """The hand's torque (N m) on joint ``slot`` (0 pan, 1 tilt) at ``t`` s."""
+        if self.let_go_s is not None and t >= self.let_go_s:
+            return 0.0
+        target = math.radians(self.target_deg(t)[slot])
+        # tau = K_h (target - angle) - D_h v, K_h per rad, bounded by tau_max
+        tau = (
+            self.stiffness_nm_deg * math.degrees(target - angle_rad)
+            - self.damping_nm_s_rad * velocity_rad_s
+        )
+        return min(max(tau, -self.max_torque_nm), self.max_torque_nm)
+
+
+def leader_joints(ids: Sequence[int]) -> tuple[Joint, Joint]:
+    """The follower's joint geometry at the leader's (pan, tilt) ids."""
+    if len(ids) != 2 or ids[0] == ids[1]:
+        raise ValueError(f"a leader needs two distinct ids (pan, tilt), got {list(ids)}")
+    return tuple(
+        Joint(int(i), j.name, j.zero_tick, j.direction, j.stop_min_deg, j.stop_max_deg)
+        for i, j in zip(ids, DEFAULT_JOINTS, strict=True)
+    )
+
+
+class LeaderWorld:
+    """The leader gimbal's physics (see the module docstring).
+
+    Parameters
+    ----------
+    ids : (int, int)
+        The leader's (pan, tilt) servo ids.
+    model : str
+        The leader servos' model (a key of :data:`firmware_sim.control_table.MODELS`).
+    operator : Operator or None
+        Who holds it; None: nobody (only the motors and friction act).
+    log : path or None
+        JSON-lines ground truth, one line per physics step.
+    start_deg : (float, float)
+        Where the leader rests at start (pan, tilt).
+    """
+
+    def __init__(
+        self,
+        ids: Sequence[int],
+        model: str,
+        operator: Operator | None = None,
+        log: str | Path | None = None,
+        start_deg: tuple[float, float] = (0.0, 0.0),
+    ) -> None:
+        self.joints = leader_joints(ids)
+        self.ids = tuple(j.servo_id for j in self.joints)
+        self.model = model
+        self._lo = [math.radians(j.stop_min_deg) for j in self.joints]
+        self._hi = [math.radians(j.stop_max_deg) for j in self.joints]
+        self.angle = [math.radians(float(a)) for a in start_deg]
+        self.velocity = [0.0, 0.0]
+        self.hand_nm = [0.0, 0.0]
+        self.motor_nm = [0.0, 0.0]
+        #: Work (J) each motor and the hand did on each joint since the start: integral of
+        #: tau dtheta. Over a closed excursion the leader is passive at the hand when the hand's
+        #: net work is >= 0 (the device gives back no more than it was given).
+        self.motor_work_j = [0.0, 0.0]
+        self.hand_work_j = [0.0, 0.0]
+        self.time_s = 0.0
+        self.operator_time_s = 0.0
+        self.operator = operator
+        self._gains: list[LoopGains] | None = None
+        self._log: IO[str] | None = None
+        if log is not None:
+            self._log = open(log, "a", encoding="utf-8")  # noqa: SIM115 (closed by close())
+
+    @classmethod
+    def from_spec(cls, spec: Mapping[str, Any]) -> LeaderWorld:
+        """A leader from plain data: ``{"ids": [3, 4], "model": ..., "operator": {...},
+        "log": path, "start_deg": [pan, tilt]}``."""
+        known = {"ids", "model", "operator", "log", "start_deg"}
+        unknown = set(spec) - known
+        if unknown:
+            raise ValueError(f"unknown leader keys {sorted(unknown)}; known: {sorted(known)}")
+        operator = spec.get("operator")
+        return cls(
+            spec.get("ids", (3, 4)),
+            spec.get("model", "xm430-w350"),
+            None if operator is None else Operator.from_mapping(operator),
+            spec.get("log"),
+            tuple(spec.get("start_deg", (0.0, 0.0))),
+        )
+
+    def set_operator(self, operator: Operator | None) -> None:
+        """Hand the leader to ``operator`` (its script's clock starts now), or let it go."""
+        self.operator = operator
+        self.operator_time_s = 0.0
+
+    def raw_tick(self, servo_id: int) -> float:
+        """Where the shaft of ``servo_id`` is (raw ticks)."""
+        i = self.ids.index(servo_id)
+        return self.joints[i].raw_tick(self.angle[i])
+
+    def step(self, dt: float, servos: Mapping[int, Servo], setpoints: Mapping[int, float | None]):
+        """Advance ``dt`` s with each servo's motor driving toward its setpoint (raw ticks)."""
+        if self._gains is None:
+            self._gains = [
+                LoopGains.for_joint(motor_of(servos[i]), LEADER_INERTIA_KG_M2) for i in self.ids
+            ]
+        targets, drives = [], []
+        for joint in self.joints:
+            tick = setpoints.get(joint.servo_id)
+            targets.append(None if tick is None else joint.angle_rad(tick))
+            drives.append(drive_of(servos[joint.servo_id], joint.direction))
+        count = max(1, math.ceil(dt / LEADER_SUBSTEP_S - 1e-9))
+        h = dt / count
+        for _ in range(count):
+            self._substep(h, drives, targets)
+        for i, joint in enumerate(self.joints):
+            servo = servos[joint.servo_id]
+            servo.current_units = present_current_units(servo, self.motor_nm[i], joint.direction)
+            stall = motor_of(servo).stall_torque_nm
+            # shaft frame: ticks/s = direction * v / rad per tick; load in % of stall
+            servo.observe(
+                joint.raw_tick(self.angle[i]),
+                joint.direction * self.velocity[i] / RAD_PER_TICK,
+                joint.direction * 100.0 * self.motor_nm[i] / stall,
+                dt,
+            )
+        self._write_log()
+
+    def _substep(self, h: float, drives: list[Drive], targets: list[float | None]) -> None:
+        self.time_s += h
+        self.operator_time_s += h
+        for i in (0, 1):
+            angle, velocity = self.angle[i], self.velocity[i]
+            motor = drives[i].torque(targets[i], angle, velocity, self._gains[i])
+            hand = 0.0
+            if self.operator is not None:
+                hand = self.operator.torque(self.operator_time_s, i, angle, velocity)
+            drive = motor + hand
+            if velocity == 0.0 and abs(drive) <= LEADER_COULOMB_NM:
+                new_velocity = 0.0  # stiction holds it
+            else:
+                sliding = math.copysign(LEADER_COULOMB_NM, velocity if velocity else drive)
+                # J a = tau_motor + tau_hand - B v - C sign(v), semi-implicit in the damping
+                new_velocity = (velocity + h * (drive - sliding) / LEADER_INERTIA_KG_M2) / (
+                    1.0 + h * LEADER_DAMPING_NM_S_RAD / LEADER_INERTIA_KG_M2
+                )
+                if velocity and new_velocity * velocity < 0.0:
+                    new_velocity = 0.0  # friction stops it; it does not push it back
+            new_angle = angle + new_velocity * h
+            if not self._lo[i] <= new_angle <= self._hi[i]:
+                new_angle, new_velocity = min(max(new_angle, self._lo[i]), self._hi[i]), 0.0
+            # the motor's work on the joint: tau_motor * dtheta
+            self.motor_work_j[i] += motor * (new_angle - angle)
+            self.hand_work_j[i] += hand * (new_angle - angle)
+            self.angle[i], self.velocity[i] = new_angle, new_velocity
+            self.hand_nm[i], self.motor_nm[i] = hand, motor
+
+    def _write_log(self) -> None:
+        if self._log is not None:
+            self._log.write(json.dumps(self.sample()) + "\n")
+
+    def sample(self) -> dict[str, Any]:
+        """The ground truth now: time, pose (deg), hand and motor torque (N m), their work (J)."""
+        return {
+            "t": round(self.time_s, 6),
+            "pose_deg": [math.degrees(a) for a in self.angle],
+            "velocity_deg_s": [math.degrees(v) for v in self.velocity],
+            "hand_nm": list(self.hand_nm),
+            "motor_nm": list(self.motor_nm),
+            "motor_work_j": list(self.motor_work_j),
+            "hand_work_j": list(self.hand_work_j),
+        }
+
+    def truth(self) -> dict[str, Any]:
+        """:meth:`sample` (the log is flushed, so a reader sees every line so far)."""
+        if self._log is not None:
+            self._log.flush()
+        return self.sample()
+
+    def close(self) -> None:
+        """Close the log (safe to call twice)."""
+        if self._log is not None:
+            self._log.close()
+            self._log = None

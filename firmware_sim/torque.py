@@ -1,0 +1,154 @@
+"""What a servo's motor does to its shaft, by Operating Mode: the torque model of a leader gimbal.
+
+The follower's world (:mod:`firmware_sim.world`) tracks setpoints kinematically; a leader gimbal
+(:mod:`firmware_sim.leader`) is moved by a hand and by its motors, so it needs their torque. The
+firmware's position loop is modelled as a stiff PD loop toward the profile's setpoint, its output
+clipped by the current the mode allows (joint frame, N m)::
+
+    tau_loop = KP * (setpoint - angle) - KD * velocity
+    mode 5 (current-based position): tau = clip(tau_loop, +-kt * min(|Goal Current|, Current Limit))
+    mode 3 / 4 (position, today's):  tau = clip(tau_loop, +-kt * Current Limit)
+    mode 0 (current):                tau = kt * clip(Goal Current, +-Current Limit)
+    torque off:                      tau = 0
+
+so Goal Current 0 in mode 5 gives exactly zero torque, whatever the setpoint. ``kt`` is the
+model's stall torque over its stall current. Present Current follows from the torque:
+``I = tau / kt`` (in the model's current unit). A tripped Bus Watchdog stops the servo (its
+profile holds where the shaft is) and, in mode 0, zeroes the current.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from firmware_sim.control_table import OperatingMode, Register
+from firmware_sim.servo import WATCHDOG_TRIPPED, Servo
+
+
+@dataclass(frozen=True)
+class Motor:
+    """A model's motor: stall torque (N m) at its stall current (mA), and its current unit (mA).
+
+    Attributes
+    ----------
+    stall_torque_nm : float
+    stall_current_ma : float
+    current_unit_ma : float
+        One unit of Goal/Present Current and Current Limit (mA).
+    """
+
+    stall_torque_nm: float
+    stall_current_ma: float
+    current_unit_ma: float
+
+    @property
+    def nm_per_ma(self) -> float:
+        """Torque constant at the output (N m per mA): stall torque / stall current."""
+        return self.stall_torque_nm / self.stall_current_ma
+
+
+#: e-Manual specifications: XM430-W350 4.1 N m at 2.3 A (12 V), current unit 2.69 mA;
+#: XL330-M077 0.215 N m and XL330-M288 0.52 N m at 1.47 A (5 V), 1 mA; the XL430-W250 has no
+#: current sensing (1.5 N m at 1.4 A, 12 V; its unit is only used internally).
+MOTORS: dict[str, Motor] = {
+    "xm430-w350": Motor(4.1, 2300.0, 2.69),
+    "xl430-w250": Motor(1.5, 1400.0, 1.0),
+    "xl330-m077": Motor(0.215, 1470.0, 1.0),
+    "xl330-m288": Motor(0.52, 1470.0, 1.0),
+}
+
+#: The position loop reaches stall torque at this error (deg): a stiff loop, as the firmware's
+#: default P gain is; stiffer would only shorten the simulated time step the loop needs.
+LOOP_STALL_ERROR_DEG = 2.0
+#: Damping ratio of the position loop with the leader's inertia: well damped, no ringing.
+LOOP_DAMPING_RATIO = 0.7
+
+
+def motor_of(servo: Servo) -> Motor:
+    """The motor of ``servo``'s model; ValueError naming the models known."""
+    try:
+        return MOTORS[servo.model.key.partition("@")[0]]  # "xl330-m288@53": its firmware
+    except KeyError:
+        raise ValueError(
+            f"no motor data for {servo.model.title}; known: {', '.join(sorted(MOTORS))}"
+        ) from None
+
+
+def current_limit_ma(servo: Servo, motor: Motor) -> float:
+    """The Current Limit (mA), or the stall current on a model without one."""
+    if servo.model.has(Register.CURRENT_LIMIT):
+        return servo.value(Register.CURRENT_LIMIT) * motor.current_unit_ma
+    return motor.stall_current_ma
+
+
+@dataclass(frozen=True)
+class LoopGains:
+    """The position loop's gains for one joint: KP (N m/rad), KD (N m s/rad)."""
+
+    kp: float
+    kd: float
+
+    @classmethod
+    def for_joint(cls, motor: Motor, inertia: float) -> LoopGains:
+        # stall torque at LOOP_STALL_ERROR_DEG; KD = 2 zeta sqrt(KP J)
+        kp = motor.stall_torque_nm / math.radians(LOOP_STALL_ERROR_DEG)
+        return cls(kp, 2.0 * LOOP_DAMPING_RATIO * math.sqrt(kp * inertia))
+
+
+@dataclass(frozen=True)
+class Drive:
+    """What a servo's registers let its motor do this instant (read once per physics step).
+
+    Attributes
+    ----------
+    cap_nm : float
+        Largest torque the position loop may apply (N m); 0 with torque off or no current.
+    current_nm : float or None
+        Mode 0: the torque the current asks for (N m, joint frame); None in position modes.
+    """
+
+    cap_nm: float
+    current_nm: float | None = None
+
+    def torque(self, setpoint: float | None, angle: float, velocity: float, gains: LoopGains):
+        """The motor's torque (N m, joint frame) toward ``setpoint`` (rad; None: torque off)."""
+        if setpoint is None:
+            return 0.0
+        if self.current_nm is not None:
+            return self.current_nm
+        if self.cap_nm <= 0.0:
+            return 0.0
+        # tau = KP (setpoint - angle) - KD velocity, clipped at the current the mode allows
+        tau = gains.kp * (setpoint - angle) - gains.kd * velocity
+        return min(max(tau, -self.cap_nm), self.cap_nm)
+
+
+def drive_of(servo: Servo, joint_direction: int) -> Drive:
+    """The :class:`Drive` of ``servo`` now, by its Operating Mode (module docstring).
+
+    ``joint_direction`` (+1 or -1) turns the shaft-frame Goal Current of mode 0 into the joint
+    frame.
+    """
+    if not servo.torque_on:
+        return Drive(0.0)
+    motor = motor_of(servo)
+    limit = current_limit_ma(servo, motor)
+    mode = OperatingMode(servo.value(Register.OPERATING_MODE))
+    goal = 0.0
+    if servo.model.has(Register.GOAL_CURRENT):
+        goal = servo.value(Register.GOAL_CURRENT) * motor.current_unit_ma
+    if mode is OperatingMode.CURRENT:
+        tripped = servo.value(Register.BUS_WATCHDOG) & 0xFF == WATCHDOG_TRIPPED
+        current = 0.0 if tripped else min(max(goal, -limit), limit)
+        return Drive(0.0, joint_direction * current * motor.nm_per_ma)
+    cap_ma = min(abs(goal), limit) if mode is OperatingMode.CURRENT_BASED_POSITION else limit
+    return Drive(cap_ma * motor.nm_per_ma)
+
+
+def present_current_units(servo: Servo, torque_nm: float, joint_direction: int) -> int:
+    """Present Current (the model's units, shaft frame) that follows from the joint torque."""
+    motor = motor_of(servo)
+    # I = tau / kt, in the shaft frame and the model's unit
+    current = joint_direction * torque_nm / motor.nm_per_ma / motor.current_unit_ma
+    return round(max(-32768.0, min(32767.0, current)))

@@ -1,0 +1,181 @@
+"""A leader gimbal's servos in current-based position mode: which models can, and their set-up.
+
+A leader that pushes back needs Operating Mode 5 (current-based position): the position loop
+drives toward Goal Position, but never with more current than Goal Current (and Current Limit,
+in EEPROM, bounds that). Models without current sensing (the XL430-W250) cannot; their leader
+stays passive, torque off, as before.
+
+Each cycle's command to a felt leader is one sync write of two registers mapped onto Indirect
+Data after the cycle's read block (:data:`FEEL_DATA`; 12 + 6 bytes fit the 20 slots every
+family has)::
+
+    Goal Current (2 bytes) | Goal Position (4 bytes)
+
+Profile Velocity changes only when the wall comes on or goes off: a sync write of its own.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+from limbctl.errors import BusError, ConfigError
+from limbctl.servo.control_table import (
+    INDIRECT_SLOTS,
+    Block,
+    ModelNumber,
+    OperatingMode,
+    Register,
+    model_name,
+)
+from limbctl.servo.cycle import CYCLE_BYTES
+
+if TYPE_CHECKING:
+    from limbctl.servo.bus import ServoBus
+
+
+@dataclass(frozen=True)
+class LeaderMotor:
+    """What the controller needs of a current-sensing model's motor.
+
+    Attributes
+    ----------
+    stall_torque_nm, stall_current_ma : float
+        The e-Manual's stall torque (N m) at its stall current (mA).
+    current_unit_ma : float
+        One unit of Goal Current / Current Limit / Present Current (mA).
+    max_current_units : int
+        The Current Limit's factory maximum (units).
+    """
+
+    stall_torque_nm: float
+    stall_current_ma: float
+    current_unit_ma: float
+    max_current_units: int
+
+    def units_for(self, torque_nm: float) -> int:
+        """Goal Current units for a torque (N m), rounded down: never more than asked."""
+        # I = tau * stall current / stall torque, in the model's unit
+        units = abs(torque_nm) * self.stall_current_ma / self.stall_torque_nm / self.current_unit_ma
+        return min(int(units), self.max_current_units)
+
+    def torque_of(self, units: int) -> float:
+        """The torque (N m) a current of ``units`` gives."""
+        return units * self.current_unit_ma * self.stall_torque_nm / self.stall_current_ma
+
+    def cap_nm(self, asked_nm: float) -> float:
+        """The most this motor may push a hand with: ``asked_nm``, but at most
+        :data:`CAP_STALL_FRACTION` of its stall torque."""
+        return min(asked_nm, CAP_STALL_FRACTION * self.stall_torque_nm)
+
+
+#: A felt leader pushes with at most half its motor's stall torque: a push is held for
+#: seconds while the operator presses, and half of stall keeps the motor out of the overload
+#: region (the firmware's Overload error) and cool.
+CAP_STALL_FRACTION = 0.5
+
+
+#: Models whose leader can push back (they have Operating Mode 5 and sense current), with the
+#: e-Manual's stall figures: XM430-W350 4.1 N m at 2.3 A (12 V), 2.69 mA units, Current Limit up
+#: to 1193; XL330-M077 0.215 N m and XL330-M288 0.52 N m at 1.47 A (5 V), 1 mA units, up to 1750.
+FELT_MODELS: dict[ModelNumber, LeaderMotor] = {
+    ModelNumber.XM430_W350: LeaderMotor(4.1, 2300.0, 2.69, 1193),
+    ModelNumber.XL330_M077: LeaderMotor(0.215, 1470.0, 1.0, 1750),
+    ModelNumber.XL330_M288: LeaderMotor(0.52, 1470.0, 1.0, 1750),
+}
+
+#: The felt leader's registers, in Indirect Data order after the cycle's read block.
+FEEL_REGISTERS = (Register.GOAL_CURRENT, Register.GOAL_POSITION)
+FEEL_BYTES = sum(register.size for register in FEEL_REGISTERS)
+assert CYCLE_BYTES + FEEL_BYTES <= INDIRECT_SLOTS
+
+
+def feel_data(indirect_data_1: int = Register.INDIRECT_DATA_1.address) -> Block:
+    """Where a felt leader's command is written: Indirect Data after the cycle's read block,
+    counted from the servo's Indirect Data 1 (224; 208 on a 330 with firmware up to 52)."""
+    return Block(Register.INDIRECT_DATA_1, FEEL_BYTES, indirect_data_1 + CYCLE_BYTES)
+
+
+#: :func:`feel_data` where Indirect Data 1 is at 224 (the 430s, a 330 with firmware 53 on).
+FEEL_DATA = feel_data()
+#: The Indirect Addresses that map it (two bytes per data byte; at 168 + 2 n on every family).
+FEEL_MAP = Block(
+    Register.INDIRECT_ADDRESS_1,
+    2 * FEEL_BYTES,
+    Register.INDIRECT_ADDRESS_1.address + 2 * CYCLE_BYTES,
+)
+
+
+def feel_map() -> bytes:
+    """The bytes of the Indirect Addresses that map :data:`FEEL_REGISTERS`, little-endian."""
+    addresses = [r.address + k for r in FEEL_REGISTERS for k in range(r.size)]
+    return b"".join(address.to_bytes(2, "little") for address in addresses)
+
+
+def encode_feel(goal_current: int, goal_position: int) -> bytes:
+    """One servo's :data:`FEEL_DATA` bytes."""
+    values = (goal_current, goal_position)
+    return b"".join(
+        bytes(register.encode(value))
+        for register, value in zip(FEEL_REGISTERS, values, strict=True)
+    )
+
+
+def felt_motor(bus: ServoBus, ids: Sequence[int]) -> LeaderMotor | None:
+    """The motor of a leader whose servos can push back; None when their model cannot.
+
+    Raises
+    ------
+    ConfigError
+        If the leader's servos are of different models.
+    """
+    models = {bus.models[i] for i in ids}
+    if len(models) != 1:
+        names = ", ".join(f"servo {i}: {model_name(bus.models[i])}" for i in ids)
+        raise ConfigError(f"the leader's servos must be one model, got {names}")
+    return FELT_MODELS.get(models.pop())
+
+
+def configure_felt_leader(
+    bus: ServoBus, ids: Sequence[int], cap_units: int, watchdog_units: int
+) -> None:
+    """Set the leader's servos up for feel; torque ends ON with Goal Current 0 (no torque).
+
+    Operating Mode 5 and Current Limit = ``cap_units`` (EEPROM, torque off first), Bus Watchdog
+    ``watchdog_units`` x 20 ms, and the indirect map of :data:`FEEL_DATA`.
+
+    Raises
+    ------
+    ConfigError
+        If a servo refuses mode 5 (its model has no current-based position mode).
+    BusError
+        If a servo does not keep what was written.
+    """
+    with bus.exclusive():
+        bus.set_torque(False, ids)
+        for servo_id in ids:
+            eeprom: Mapping[Register, int] = {
+                Register.OPERATING_MODE: int(OperatingMode.CURRENT_BASED_POSITION),
+                Register.CURRENT_LIMIT: cap_units,
+            }
+            for register, value in eeprom.items():
+                if bus.read(register, servo_id, patient=True) != value:
+                    try:
+                        bus.write(register, servo_id, value)
+                    except BusError as exc:
+                        raise ConfigError(
+                            f"leader servo {servo_id} refused {register.name}={value} ({exc}): "
+                            f"a felt leader needs current-based position mode (mode 5)"
+                        ) from None
+                if bus.read(register, servo_id, patient=True) != value:
+                    raise BusError(f"servo {servo_id} did not keep {register.name}", servo_id)
+            bus.write_block(FEEL_MAP, servo_id, feel_map())
+            if bus.read_block(FEEL_MAP, servo_id) != feel_map():
+                raise BusError(f"servo {servo_id} did not keep the feel map", servo_id)
+            bus.write(Register.GOAL_CURRENT, servo_id, 0)
+            bus.write(Register.PROFILE_ACCELERATION, servo_id, 0)
+            bus.write(Register.PROFILE_VELOCITY, servo_id, 0)  # free: the setpoint rides along
+            bus.write(Register.BUS_WATCHDOG, servo_id, 0)  # clears a trip from before
+            bus.write(Register.BUS_WATCHDOG, servo_id, watchdog_units)
+        bus.set_torque(True, ids)

@@ -1,0 +1,218 @@
+"""The leader feels the edge: a haptic wall on a leader gimbal, from the taught region.
+
+Each cycle the leader's pose is the command. Its distance beyond the region is measured between
+the command and the region's correction of it (not the slew-limited pose the follower is sent)::
+
+    d = angle between the command's direction and the corrected direction        (deg)
+
+The law (:class:`FeelLaw`), per cycle of period T::
+
+    d <= DEADBAND (inside: d = 0):  Goal Current 0                   (no torque at all)
+    d > DEADBAND:                   tau = min(K (d - DEADBAND), CAP)
+                                    Goal Current = tau / kt           (rounded down)
+                                    Goal Position = the corrected pose, reached from the
+                                    leader's pose by at most LEAD
+                                    Profile Velocity = RETURN_SPEED
+
+The servo's own position loop (mode 5) pushes toward Goal Position with at most Goal Current,
+so the torque points toward the region and never exceeds CAP, which is also written into the
+servo's Current Limit at start so the firmware refuses more. The wall is a spring of stiffness K
+sampled at T; it is passive when the leader's own damping b exceeds K T / 2 + B (Colgate and
+Schenkel's bound for a sampled virtual wall, B = 0 here): with b = 0.05 N m s/rad (the simulated
+leader) and T = 5 ms, K < 20 N m/rad = 0.35 N m/deg. docs/haptic.md states every figure.
+A released leader is walked back by its own profile (at most RETURN_SPEED) until the law lets
+go at the deadband, so it rests within DEADBAND of the edge, never inside the region.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from limbctl.errors import ConfigError
+from limbctl.geometry.gimbal import quat_to_pan_tilt
+from limbctl.servo.leader import LeaderMotor
+
+#: Velocity unit of Profile Velocity: 0.229 rev/min = 1.374 deg/s.
+PROFILE_VELOCITY_UNIT_DEG_S = 0.229 * 360.0 / 60.0
+
+
+@dataclass(frozen=True)
+class FeelLaw:
+    """The haptic wall's constants (see the module docstring for the law).
+
+    Attributes
+    ----------
+    deadband_deg : float
+        0.4 deg: beyond the leader's tick (0.088 deg) and a hand's tremor (a few tenths of a
+        degree), so a hand resting at the edge is not buzzed; a released leader rests within it.
+    gain_nm_per_deg : float
+        K = 0.2 N m/deg (11.5 N m/rad): K T / 2 = 0.029 N m s/rad at 200 Hz, under the
+        simulated leader's b = 0.05 with a margin of 1.75 (the loop's read-to-write delay adds
+        to T); a hand of 0.3 N m stops 1.5 deg past the deadband, 1.9 deg past the edge.
+    cap_nm : float
+        0.4 N m: enough to stop a relaxed hand (0.3 N m) with room, a tenth of an XM430-W350's
+        stall torque (the servo neither heats nor trips overload at it), and small enough that
+        a person overpowers it at once.
+    return_speed_deg_s : float
+        30 deg/s: a released leader walks back at most this fast (Profile Velocity, rounded
+        down to 21 units = 28.9 deg/s).
+    lead_deg : float
+        0.3 deg: how far ahead of the leader's pose Goal Position may lie. The servo's profile
+        continues from its own setpoint, so a goal at the edge would snap a released leader
+        back at whatever speed the cap gives; a goal a little ahead keeps the setpoint beside
+        the leader. The servo's loop must still reach the cap within the lead once the goal
+        is rounded to whole ticks (0.088 deg): the simulator's XM430 loop gives stall torque
+        at 2 deg, so 0.3 deg (3.4 ticks) gives 0.6 N m, over the cap with a tick to spare.
+    """
+
+    deadband_deg: float = 0.4
+    gain_nm_per_deg: float = 0.2
+    cap_nm: float = 0.4
+    return_speed_deg_s: float = 30.0
+    lead_deg: float = 0.3
+
+    def __post_init__(self) -> None:
+        for name in ("deadband_deg", "gain_nm_per_deg", "cap_nm", "lead_deg"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0.0):
+                raise ConfigError(f"feel law {name} must be finite and >= 0, got {value!r}")
+        if not 0.0 < self.return_speed_deg_s <= 30.0:
+            raise ConfigError(
+                f"return_speed_deg_s must be in (0, 30] deg/s, got {self.return_speed_deg_s}"
+            )
+
+    def torque_nm(self, distance_deg: float) -> float:
+        """The torque the law asks for at ``distance_deg`` beyond the edge (N m, >= 0)."""
+        if not distance_deg > self.deadband_deg:
+            return 0.0
+        # tau = min(K (d - DEADBAND), CAP)
+        return min(self.gain_nm_per_deg * (distance_deg - self.deadband_deg), self.cap_nm)
+
+    def passivity_margin(self, damping_nm_s_rad: float, rate_hz: float) -> float:
+        """b / (K T / 2 + B) with B = 0: above 1 the sampled wall is passive."""
+        stiffness_nm_rad = self.gain_nm_per_deg * 180.0 / math.pi
+        # K T / 2 with T = 1 / rate
+        return damping_nm_s_rad / (stiffness_nm_rad / rate_hz / 2.0)
+
+    def profile_velocity_units(self) -> int:
+        """Profile Velocity (0.229 rev/min units) no faster than ``return_speed_deg_s``."""
+        return max(1, int(self.return_speed_deg_s / PROFILE_VELOCITY_UNIT_DEG_S))
+
+
+@dataclass(frozen=True)
+class Push:
+    """One cycle's command to the leader's servos (both get the same current).
+
+    Attributes
+    ----------
+    goal_current : int
+        Goal Current units (0: no torque).
+    profile_velocity : int
+        Profile Velocity units (0: the Velocity Limit, used while free).
+    goal_pan, goal_tilt : float
+        Goal pose (rad).
+    torque_nm : float
+        The torque the current allows (N m): what the report and the page show.
+    distance_deg : float
+        How far the command lies beyond the region (deg).
+    """
+
+    goal_current: int
+    profile_velocity: int
+    goal_pan: float
+    goal_tilt: float
+    torque_nm: float
+    distance_deg: float
+
+
+def beyond_deg(q: np.ndarray, corrected: np.ndarray) -> float:
+    """Angle (deg) between the directions of a command and its correction; 0 when the same."""
+    if np.array_equal(q, corrected):
+        return 0.0
+    a = np.asarray(quat_to_pan_tilt(q), dtype=float)
+    b = np.asarray(quat_to_pan_tilt(corrected), dtype=float)
+    # d = (cos t cos p, cos t sin p, sin t); angle = atan2(|a x b|, a . b)
+    da = np.array(
+        [math.cos(a[1]) * math.cos(a[0]), math.cos(a[1]) * math.sin(a[0]), math.sin(a[1])]
+    )
+    db = np.array(
+        [math.cos(b[1]) * math.cos(b[0]), math.cos(b[1]) * math.sin(b[0]), math.sin(b[1])]
+    )
+    return math.degrees(math.atan2(float(np.linalg.norm(np.cross(da, db))), float(da @ db)))
+
+
+def push_for(
+    law: FeelLaw,
+    motor: LeaderMotor,
+    present: tuple[float, float],
+    q: np.ndarray,
+    corrected: np.ndarray,
+) -> Push:
+    """The leader's command this cycle (see the module docstring).
+
+    Parameters
+    ----------
+    law : FeelLaw
+    motor : LeaderMotor
+        The leader's model (its current unit and torque constant).
+    present : (float, float)
+        The leader's pose (pan, tilt, rad).
+    q, corrected : ndarray (4,)
+        The command (the leader's pose as a quaternion) and the region's correction of it.
+    """
+    distance = beyond_deg(q, corrected)
+    tau = min(law.torque_nm(distance), motor.cap_nm(law.cap_nm))
+    units = motor.units_for(tau)
+    if units == 0:
+        return Push(0, 0, present[0], present[1], 0.0, distance)
+    pan, tilt = (float(v) for v in quat_to_pan_tilt(corrected))
+    # the goal on the joint-space line toward the corrected pose, at most LEAD ahead
+    step = (pan - present[0], tilt - present[1])
+    longest = max(abs(step[0]), abs(step[1]))
+    scale = min(1.0, math.radians(law.lead_deg) / longest) if longest > 0.0 else 0.0
+    goal = (present[0] + scale * step[0], present[1] + scale * step[1])
+    return Push(
+        units, law.profile_velocity_units(), goal[0], goal[1], motor.torque_of(units), distance
+    )
+
+
+@dataclass
+class FeelStats:
+    """How long and how hard the operator pressed beyond the edge (for the teleop report).
+
+    Attributes
+    ----------
+    engaged_s : float
+        Time the wall was on (s).
+    impulse_nm_s : float
+        Integral of the leader's torque over that time (N m s).
+    peak_nm : float
+        The largest torque commanded (N m).
+    events : list of str
+        What switched the feel off (a leader restart, an alarm), with the time.
+    """
+
+    engaged_s: float = 0.0
+    impulse_nm_s: float = 0.0
+    peak_nm: float = 0.0
+    events: list[str] = field(default_factory=list)
+
+    def add(self, torque_nm: float, period_s: float) -> None:
+        """Count one cycle of ``period_s`` with the wall at ``torque_nm`` (0: not engaged)."""
+        if torque_nm > 0.0:
+            self.engaged_s += period_s
+            self.impulse_nm_s += torque_nm * period_s
+            self.peak_nm = max(self.peak_nm, torque_nm)
+
+    def describe(self) -> str:
+        """One line for the teleop report."""
+        if self.engaged_s == 0.0:
+            return "leader: never pressed beyond the edge"
+        mean = self.impulse_nm_s / self.engaged_s
+        return (
+            f"leader: pressed beyond the edge for {self.engaged_s:.2f} s, "
+            f"pushed back with {mean:.2f} N m on average, {self.peak_nm:.2f} N m at most"
+        )

@@ -1,0 +1,165 @@
+"""The haptic law: zero inside, toward the region outside, never above the cap."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from calib.profile import default_sim_profile
+from firmware_sim.control_table import Register as SimRegister
+from firmware_sim.simulator import Simulator
+from limbctl.envelope import Cone
+from limbctl.errors import ConfigError
+from limbctl.geometry.gimbal import pan_tilt_to_quat, quat_to_pan_tilt
+from limbctl.servo.control_table import ModelNumber
+from limbctl.servo.leader import FEEL_DATA, FEEL_MAP, FELT_MODELS, encode_feel, feel_map
+from limbctl.servo.rig import Rig
+from limbctl.teleop.haptic import FeelLaw, FeelStats, beyond_deg, push_for
+
+LAW = FeelLaw()
+MOTOR = FELT_MODELS[ModelNumber.XM430_W350]
+CONE = Cone(half_angle_deg=30.0)
+
+
+def q_of(pan_deg: float, tilt_deg: float) -> np.ndarray:
+    return np.asarray(pan_tilt_to_quat(math.radians(pan_deg), math.radians(tilt_deg)))
+
+
+def test_torque_is_zero_inside_and_within_the_deadband_then_grows_to_the_cap():
+    assert LAW.torque_nm(0.0) == 0.0
+    assert LAW.torque_nm(LAW.deadband_deg) == 0.0
+    assert LAW.torque_nm(1.4) == pytest.approx(0.2)  # K (1.4 - 0.4)
+    assert LAW.torque_nm(50.0) == LAW.cap_nm
+
+
+def test_the_law_is_passive_at_200_hz_with_the_simulated_leader():
+    # b / (K T / 2): 0.05 / (11.46 x 0.005 / 2) = 1.75
+    assert LAW.passivity_margin(0.05, 200.0) == pytest.approx(1.745, abs=1e-3)
+    assert LAW.passivity_margin(0.05, 100.0) < 1.0  # at 100 Hz the same wall is not
+
+
+def test_profile_velocity_stays_under_30_deg_s():
+    assert LAW.profile_velocity_units() * 0.229 * 6.0 <= 30.0
+    with pytest.raises(ConfigError, match="return_speed_deg_s"):
+        FeelLaw(return_speed_deg_s=45.0)
+    with pytest.raises(ConfigError, match="cap_nm"):
+        FeelLaw(cap_nm=-1.0)
+
+
+def test_distance_is_between_the_command_and_its_correction():
+    q = q_of(40.0, 0.0)
+    assert beyond_deg(q, CONE.correct(q)) == pytest.approx(10.0, abs=1e-6)
+    assert beyond_deg(q_of(10.0, 5.0), CONE.correct(q_of(10.0, 5.0))) == 0.0
+
+
+def test_a_push_leads_the_leader_toward_the_corrected_pose_by_at_most_the_lead():
+    q = q_of(40.0, 0.0)
+    push = push_for(LAW, MOTOR, (math.radians(40.0), 0.0), q, CONE.correct(q))
+    assert push.goal_current == MOTOR.units_for(LAW.cap_nm)
+    assert math.degrees(push.goal_pan) == pytest.approx(40.0 - LAW.lead_deg)
+    assert push.profile_velocity == LAW.profile_velocity_units()
+    inside = push_for(LAW, MOTOR, (0.1, 0.0), q_of(5.7, 0.0), q_of(5.7, 0.0))
+    assert (inside.goal_current, inside.profile_velocity, inside.torque_nm) == (0, 0, 0.0)
+    assert inside.goal_pan == 0.1  # free: the goal rides with the leader
+
+
+angles = st.floats(-100.0, 100.0, allow_nan=False)
+
+
+@settings(max_examples=300, deadline=None)
+@given(angles, st.floats(-50.0, 65.0), st.floats(-1.0, 1.0), st.floats(-1.0, 1.0))
+def test_property_never_above_the_cap_zero_inside_toward_the_region(pan, tilt, dp, dt):
+    q = q_of(pan, tilt)
+    corrected = CONE.correct(q)
+    present = (math.radians(pan + dp), math.radians(tilt + dt))  # the read lags a little
+    push = push_for(LAW, MOTOR, present, q, corrected)
+    assert 0 <= push.goal_current <= MOTOR.units_for(LAW.cap_nm)
+    assert push.torque_nm <= LAW.cap_nm
+    if bool(CONE.contains(q)):
+        assert push.goal_current == 0
+    if push.goal_current:
+        # the goal lies from the leader toward the corrected pose, no further than the lead
+        step = np.subtract((push.goal_pan, push.goal_tilt), present)
+        assert np.max(np.abs(step)) <= math.radians(LAW.lead_deg) + 1e-12
+        target = np.subtract(np.asarray(quat_to_pan_tilt(corrected), dtype=float), present)
+        assert float(step @ target) >= 0.0
+
+
+def test_stats_say_how_long_and_how_hard():
+    stats = FeelStats()
+    assert "never pressed" in stats.describe()
+    for torque in (0.0, 0.2, 0.4):
+        stats.add(torque, 0.005)
+    assert stats.engaged_s == pytest.approx(0.01) and stats.peak_nm == 0.4
+    assert "0.01 s" in stats.describe() and "0.30 N m on average" in stats.describe()
+
+
+# -- the law against the simulated leader, at exactly 200 Hz --------------------------------------
+
+
+def felt_at_200_hz(script, seconds, stiffness=0.05, let_go_s=None):
+    """The controller's part on the simulated leader's registers every 5 ms of a stepped clock
+    (read Present Position, push_for, the same ten bytes to Indirect Data 1 ms later), in this
+    process: the law's own behaviour, whatever the machine's load. Returns the 1 ms truth."""
+    clock = [0.0]
+    sim = Simulator(ids=(1, 2), leader={"ids": [3, 4]}, clock=lambda: clock[0])
+    rig = Rig(default_sim_profile())
+    servos = [sim.servo(3), sim.servo(4)]
+    for servo in servos:
+        servo.write(11, bytes([5]))  # Operating Mode 5 (EEPROM, torque off)
+        servo.write(38, MOTOR.units_for(LAW.cap_nm).to_bytes(2, "little"))  # Current Limit
+        servo.write(FEEL_MAP.address, feel_map())
+        servo.write(64, bytes([1]))  # torque on
+    hand = {"script": script, "let_go_s": let_go_s, "stiffness_nm_deg": stiffness}
+    sim.set_operator({**hand, "damping_nm_s_rad": 0.02, "max_torque_nm": 0.3})
+    rows = []
+    for _ in range(round(seconds * 200.0)):
+        for servo in servos:
+            servo.refresh(sim.time_s)
+        pose = rig.ticks_to_angles(*(s.value(SimRegister.PRESENT_POSITION) for s in servos))
+        q = q_of(*np.degrees(pose))
+        push = push_for(LAW, MOTOR, pose, q, CONE.correct(q))
+        for step in range(5):
+            if step == 1:
+                ticks = rig.angles_to_ticks(push.goal_pan, push.goal_tilt)
+                for servo, tick in zip(servos, ticks, strict=True):
+                    velocity = push.profile_velocity.to_bytes(4, "little")
+                    servo.write(112, velocity)  # Profile Velocity (its own write in the source)
+                    servo.write(FEEL_DATA.address, encode_feel(push.goal_current, tick))
+            clock[0] += 0.001
+            sim.advance()
+            rows.append(sim.leader.sample())
+    return rows
+
+
+def test_at_200_hz_the_leader_stops_within_2_deg_and_a_release_walks_back_to_the_edge():
+    script = [[0.0, 0.0, 0.0], [2.0, 50.0, 0.0]]  # 20 deg beyond the 30 deg edge
+    rows = felt_at_200_hz(script, 7.0, let_go_s=5.0)
+    t = np.array([r["t"] for r in rows])
+    pan = np.array([r["pose_deg"][0] for r in rows])
+    velocity = np.array([r["velocity_deg_s"][0] for r in rows])
+    held = pan[(t >= 3.0) & (t < 5.0)]
+    assert 30.0 < held.min() and held.max() < 32.0  # a 0.3 N m hand, stiffness 0.05 N m/deg
+    assert np.ptp(held) < 0.2  # no ripple
+    after = t >= 5.0
+    # walked back by the profile: the speed averaged over 20 ms stays under 30 deg/s
+    assert np.convolve(-velocity[after], np.ones(20) / 20.0, mode="valid").max() <= 30.0
+    assert 30.0 <= pan[after].min() and pan[-1] < 30.5  # rests within 0.5 deg, never inside
+    inside = [r for r in rows if r["pose_deg"][0] < 30.0]
+    assert inside and all(r["motor_nm"] == [0.0, 0.0] for r in inside)
+
+
+@pytest.mark.parametrize("stiffness", [0.02, 0.2])
+def test_at_200_hz_a_closed_excursion_gives_the_hand_back_less_than_it_put_in(stiffness):
+    script = [[0.0, 20.0, 0.0], [1.0, 20.0, 0.0], [2.0, 40.0, 0.0], [2.5, 40.0, 0.0]]
+    rows = felt_at_200_hz([*script, [3.5, 20.0, 0.0], [4.5, 20.0, 0.0]], 4.5, stiffness)
+    beyond = np.array([r["pose_deg"][0] for r in rows])[1:] > 30.0
+    hand = np.diff([r["hand_work_j"][0] for r in rows])[beyond].sum()
+    motor = np.diff([r["motor_work_j"][0] for r in rows])[beyond].sum()
+    # the sampled wall leaks a little (motor > 0), the leader's friction takes more: the hand's
+    # net work stays positive, the motor does no net work on the hand
+    assert hand > 0.0 and motor < hand
