@@ -54,6 +54,8 @@ class CommandSource:
 
     name = "source"
     latest_only = False
+    #: A person steers it: the status line then shows poses and the gate's outcome in words.
+    explains = False
 
     def __init__(self) -> None:
         self.stats = SourceStats()
@@ -110,6 +112,10 @@ class CommandSource:
         """Queue a command built from numbers (already validated) and count it."""
         self.stats.accepted += 1
         self._queue.put(command)
+
+    def describe(self) -> str:
+        """What the status line should say about the source itself ("" for nothing)."""
+        return ""
 
     @property
     def finished(self) -> bool:
