@@ -44,15 +44,31 @@ class Explanation:
 
 
 def blocked_directions(
-    commanded_deg: tuple[float, float], written_deg: tuple[float, float]
+    commanded_deg: tuple[float, float],
+    written_deg: tuple[float, float],
+    previous_deg: tuple[float, float] | None = None,
 ) -> tuple[str, ...]:
-    """Joint directions in which the command lies beyond the written pose (pan first)."""
+    """Joint directions the command asks for but the limb does not go (pan first).
+
+    The gap ``c = commanded - written`` asks for a joint direction when it exceeds
+    :data:`BLOCKED_MIN_DEG` there. The last move ``m = written - previous`` (none without
+    ``previous``) goes that way in its share ``m_j sign(c_j) / |m|``. The direction is blocked
+    when that share is under half the command's share ``|c_j| / |c|``: a limb travelling toward
+    the command has equal shares, one sliding along an edge has none toward it.
+    """
+    gap = [wanted - got for wanted, got in zip(commanded_deg, written_deg, strict=True)]
+    move = [0.0, 0.0]
+    if previous_deg is not None:
+        move = [got - before for got, before in zip(written_deg, previous_deg, strict=True)]
+    gap_norm = math.hypot(*gap)
+    move_norm = math.hypot(*move)
     out = []
-    for joint, wanted, got in zip(("pan", "tilt"), commanded_deg, written_deg, strict=True):
-        if wanted - got > BLOCKED_MIN_DEG:
-            out.append(f"+{joint}")
-        elif got - wanted > BLOCKED_MIN_DEG:
-            out.append(f"-{joint}")
+    for joint, c, m in zip(("pan", "tilt"), gap, move, strict=True):
+        if abs(c) <= BLOCKED_MIN_DEG:
+            continue
+        moving_share = m * math.copysign(1.0, c) / move_norm if move_norm > MOVING_MIN_DEG else 0.0
+        if moving_share < 0.5 * abs(c) / gap_norm:
+            out.append(f"{'+' if c > 0 else '-'}{joint}")
     return tuple(out)
 
 
@@ -84,20 +100,20 @@ def explain(
     written = (math.degrees(result.pan), math.degrees(result.tilt))
     if result.outcome is Outcome.PASSED:
         return Explanation("inside: following the command")
-    blocked = blocked_directions(commanded_deg, written)
-    if result.outcome is Outcome.SLEWED and not blocked:
+    if not (result.corrected or result.clamped):
         return Explanation("on the way: the speed limit paces it")
     where = "at a hard limit" if result.clamped else "at the edge"
+    blocked = blocked_directions(commanded_deg, written, previous_deg)
+    moving = previous_deg is not None and (
+        math.hypot(written[0] - previous_deg[0], written[1] - previous_deg[1]) > MOVING_MIN_DEG
+    )
     if not blocked:
+        if moving:  # toward the nearest pose inside, which the command lies beyond
+            return Explanation(
+                f"on the way to {where.removeprefix('at ')}: the command lies beyond"
+            )
         return Explanation(f"{where}: corrected onto it")
     ways = " and ".join(names[d] for d in blocked)
     verb = "is" if len(blocked) == 1 else "are"
-    if result.slewed:
-        how = "on the way along it"
-    elif previous_deg is not None and max(abs(a - b) for a, b in zip(written, previous_deg)) > (
-        MOVING_MIN_DEG
-    ):
-        how = "sliding along it"
-    else:
-        how = "holding there"
+    how = "sliding along it" if moving else "holding there"
     return Explanation(f"{where}: {ways} {verb} blocked, {how}", blocked)
