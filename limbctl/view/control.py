@@ -166,7 +166,9 @@ class ControlDesk:
                 return False, "you hold control, but this session takes no commands from the page"
             if mine:
                 return True, f"you steer the limb ({self._holder_text})"
-            return False, f"refused: {self._holder_text or 'another page'} holds control"
+            if self._holder is None:
+                return False, "control is free again: reload this page to take it"
+            return False, f"refused: {self._holder_text} holds control"
 
     def release(self, token: object) -> None:
         """Free the slot if ``token`` holds it."""

@@ -9,6 +9,7 @@ from __future__ import annotations
 import contextlib
 import tempfile
 from collections.abc import Iterator
+from pathlib import Path
 
 from selenium import webdriver
 from selenium.webdriver.chrome.service import Service
@@ -56,3 +57,20 @@ def wait_for(driver: webdriver.Chrome, condition, message: str, timeout: float =
 def text_of(driver: webdriver.Chrome, element_id: str) -> str:
     """The text an element shows (textContent, so hidden tables read too)."""
     return driver.execute_script(f"return document.getElementById('{element_id}').textContent;")
+
+
+def browser_pids(driver: webdriver.Chrome) -> list[int]:
+    """The browser's processes (every descendant of chromedriver), to freeze or kill them."""
+    children: dict[int, list[int]] = {}
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue  # the process ended while being read
+        children.setdefault(int(fields[1]), []).append(int(stat.parent.name))
+    out, todo = [], list(children.get(driver.service.process.pid, []))
+    while todo:
+        pid = todo.pop()
+        out.append(pid)
+        todo += children.get(pid, [])
+    return out
