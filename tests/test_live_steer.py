@@ -15,7 +15,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from selenium.webdriver.common.action_chains import ActionChains
 
 from limbctl.demo import goal_log_excursions
 from limbctl.envelope import load_model
@@ -24,7 +23,7 @@ from limbctl.jobs import TeleopOptions, run_teleop
 from limbctl.live import ViewOptions, open_view
 from limbctl.teleop.gate import written_tolerance_deg
 from tests.test_live import Watcher, model_path  # noqa: F401 (the module's model fixture)
-from tests.view.browser import browser_pids, chromium, text_of, wait_for
+from tests.view.browser import browser_pids, chromium, drag_on_plane, text_of, wait_for
 
 #: Cycles in a row that must hold, with no goal written, before a frozen page counts as held:
 #: a second at 200 Hz, twice the loop's 0.5 s silence.
@@ -59,23 +58,6 @@ def held_since(rows: list[dict], start: int) -> int:
             break
         count += 1
     return count
-
-
-def drag(page, points, pause_s: float = 0.15) -> ActionChains:
-    """Press on the plane at the first point and move through the others (not released)."""
-    canvas = page.find_element("id", "plane")
-    size = page.execute_script("const c = arguments[0]; return [c.width, c.height];", canvas)
-    actions = ActionChains(page, duration=50)
-    for i, (pan, tilt) in enumerate(points):
-        x, y = page.execute_script(f"return window.limbview.toCanvas({pan}, {tilt});")
-        dx, dy = round(x - size[0] / 2), round(y - size[1] / 2)  # from the canvas's centre
-        if i == 0:
-            actions.move_to_element_with_offset(canvas, dx, dy).click_and_hold()
-        else:
-            actions.move_to_element_with_offset(canvas, dx, dy)
-        actions.pause(pause_s)
-    actions.perform()
-    return actions
 
 
 def test_a_page_steers_along_the_edge_a_frozen_page_holds_a_killed_one_ends_well(
@@ -113,7 +95,7 @@ def test_a_page_steers_along_the_edge_a_frozen_page_holds_a_killed_one_ends_well
                 assert not page.find_element("id", "guide-panel").is_displayed()
 
                 # drag out through the top edge and along it, and keep the button down there
-                drag(page, PATH)
+                drag_on_plane(page, PATH)
                 wait_for(
                     page,
                     lambda d: "up" in text_of(d, "words") and "blocked" in text_of(d, "words"),
@@ -133,7 +115,7 @@ def test_a_page_steers_along_the_edge_a_frozen_page_holds_a_killed_one_ends_well
                 seen["at_edge"] = telemetry_rows(telemetry)[-1]["out"]
 
                 # drag back inside, and freeze the whole browser mid-drag
-                drag(page, [PATH[-1], (0.0, 10.0), (-10.0, 0.0)], pause_s=0.05)
+                drag_on_plane(page, [PATH[-1], (0.0, 10.0), (-10.0, 0.0)], pause_s=0.05)
                 pids = browser_pids(page)
                 frozen_at = len(telemetry_rows(telemetry))
                 for pid in pids:
