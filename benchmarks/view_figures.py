@@ -96,7 +96,8 @@ def teleop_figure(out: Path, model: Path) -> None:
                 wait_for(browser, lambda d: "you steer" in text_of(d, "control"), "no control")
                 wait_for(browser, lambda d: text_of(d, "cycles") not in ("", "-"), "no teleop")
                 # from the region's middle up through its top edge, then along it to the right
-                written = [float(v) for v in text_of(browser, "written").split(",")]
+                wait_for(browser, lambda d: text_of(d, "pose") != "-", "no pose read")
+                written = [float(v) for v in text_of(browser, "pose").split(",")]
                 top = max(
                     p[1]
                     for p in browser.execute_script(

@@ -43,7 +43,7 @@ class ExplainedStatus:
         self._tty = stream.isatty()
         self._every = STATUS_EVERY_TTY_S if self._tty else STATUS_EVERY_LOG_S
         self._last_shown = 0.0
-        self._window = (0, 0.0)  # (cycles, t) at the last line: the rate since then
+        self._window: tuple[int, float] | None = None  # (cycles, t) at the last line
         self._rate_hz = 0.0
         self._cycle: Cycle | None = None
         self._written: tuple[float, float] | None = None
@@ -55,6 +55,8 @@ class ExplainedStatus:
         if cycle.result is not None:
             self._previous = self._written
             self._written = (math.degrees(cycle.result.pan), math.degrees(cycle.result.tilt))
+        if self._window is None:
+            self._window = (summary.cycles, cycle.t)
         if cycle.t - self._last_shown >= self._every:
             # rate = cycles since the last line / time since it
             cycles, t = self._window

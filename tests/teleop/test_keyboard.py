@@ -127,3 +127,44 @@ def test_keyboard_session_explains_itself_in_a_terminal(tmp_path, model_path):
 
     excursions = goal_log_excursions(goal_log, load_model(model_path))
     assert len(excursions) > 100 and excursions.max() <= written_tolerance_deg()
+
+
+def test_keys_start_from_the_gates_pose_hold_release_and_show_the_guide():
+    import io
+    import math
+    import os
+    import pty
+
+    from limbctl.envelope import Cone
+    from limbctl.teleop.gate import Gate, GateLimits
+    from limbctl.teleop.sources import KeyboardSource
+    from limbctl.teleop.sources.keyboard import MAX_LEAD_DEG
+
+    gate = Gate(Cone(math.radians(40)), GateLimits(-1.7, 1.7, -0.5, 1.4, 0.01, 0.02))
+    gate.start(math.radians(10.0), math.radians(5.0))
+    guide = io.StringIO()
+    master, slave = pty.openpty()
+    try:
+        with KeyboardSource(tty_path=os.ttyname(slave), gate=gate, guide=guide) as source:
+            # up from where the gate holds the limb (not from 0, 0); space holds: up is ignored;
+            # space releases from the limb's pose; a larger step; up; the guide again; quit
+            os.write(master, b"w w +\x1b[A?q")
+            assert source.wait_finished(10.0)
+        assert source.stats.accepted == 3
+        assert (source.pan_deg, source.tilt_deg) == pytest.approx((10.0, 10.0))
+        assert not source.holding and source.step_deg == 5.0
+        assert guide.getvalue().count("q          quit") == 2
+        # a burst of held-down ups runs no further ahead of the limb than MAX_LEAD_DEG
+        master2, slave2 = pty.openpty()
+        try:
+            with KeyboardSource(step_deg=10.0, tty_path=os.ttyname(slave2), gate=gate) as ahead:
+                os.write(master2, b"wawawawawawaq")  # alternating: each one a press
+                assert ahead.wait_finished(10.0)
+            assert ahead.tilt_deg == pytest.approx(5.0 + MAX_LEAD_DEG)
+            assert ahead.pan_deg == pytest.approx(10.0 + MAX_LEAD_DEG)
+        finally:
+            os.close(master2)
+            os.close(slave2)
+    finally:
+        os.close(master)
+        os.close(slave)

@@ -194,9 +194,11 @@ class KeyboardSource(CommandSource):
         distance = self._held.distance(action, now, self.step_deg)
         pan = min(max(self.pan_deg + move[0] * distance, -180.0), 180.0)
         tilt = min(max(self.tilt_deg + move[1] * distance, -90.0), 90.0)
-        if written is not None:  # never far ahead of the limb
-            pan = min(max(pan, written[0] - MAX_LEAD_DEG), written[0] + MAX_LEAD_DEG)
-            tilt = min(max(tilt, written[1] - MAX_LEAD_DEG), written[1] + MAX_LEAD_DEG)
+        if written is not None:  # never far ahead of the limb along the joint the key moves
+            if move[0]:
+                pan = min(max(pan, written[0] - MAX_LEAD_DEG), written[0] + MAX_LEAD_DEG)
+            if move[1]:
+                tilt = min(max(tilt, written[1] - MAX_LEAD_DEG), written[1] + MAX_LEAD_DEG)
         self.pan_deg, self.tilt_deg = pan, tilt
         self._offer_pose(now)
 
