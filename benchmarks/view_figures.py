@@ -128,35 +128,49 @@ def teleop_figure(out: Path, model: Path) -> None:
 
 
 def keyboard_capture(out: Path, model: Path) -> None:
-    """The text of a keyboard session in a 160 x 40 terminal: guide, status, the edge named."""
+    """The text of a keyboard session in a 160 x 40 terminal: the guide, then the status line
+    as it stood after each thing the person did, then the summary after q."""
     command = (
         f"{sys.executable} -m limbctl teleop --model {model} --source keyboard --no-view "
         f"--approach {DEMO_APPROACH_DEG_S}"
     )
+    shots: list[str] = []
     with tmux_pane(command, env={"PYTHONPATH": str(ROOT)}) as pane:
         pane.wait_for(lambda t: "written pan" in pane.status(), "no status line", timeout=120)
-        pane.keys("c")  # to the region's centre
-        pane.wait_for(lambda t: "inside: following" in pane.status(), "not at the centre")
-        pane.keys("-")  # a 1 deg step
+        guide = pane.text().split("\n    ")[0].rstrip()
+
+        def shot(did: str, shows: str) -> None:
+            pane.wait_for(lambda t: shows in pane.status(), f"after {did}: no {shows!r}")
+            shots.append(f"[{did}]\n{pane.status().strip()}")
+
+        pane.keys("c")
+        shot("c: back to the region's centre", "inside: following")
+        pane.keys("-")
+        shot("-: a smaller step", "step 1 deg")
         for _ in range(3):
             pane.keys("Left")
             time.sleep(0.3)  # three separate presses, as a person makes them
-        pane.keys("+", "+")  # 5 deg
+        time.sleep(0.6)  # one status refresh later
+        shot("left, left, left: 1 deg each", "inside: following")
+        pane.keys("+", "+")
         started = time.monotonic()
         pane.keys("Up")
         time.sleep(0.5)  # the terminal's repeat delay, then its repeats at 30 Hz
         while time.monotonic() - started < 3.0:
             pane.keys("Up")
             time.sleep(1 / 30)
-        pane.wait_for(
-            lambda t: " up is blocked" in pane.status() or "up are blocked" in pane.status(),
-            "the edge is not named",
-        )
-        text = pane.text(history=True).rstrip() + "\n"
-    out.write_text(
-        "$ limbctl teleop --model model.npz --source keyboard\n"
-        + text.replace(str(model), "model.npz")
-    )
+        shot("+, +, then up held for 3 s: 50 deg/s", "blocked")
+        pane.keys("Space")
+        shot("space: hold", "HOLDING")
+        pane.keys("Space", "Down", "Down")
+        time.sleep(0.6)
+        shot("space: release, then down, down", "inside")
+        pane.keys("q")
+        pane.wait_for(lambda t: "EXIT" in t, "the session did not end")
+        summary = pane.text(history=True).rstrip().split("\n")
+        ended = next(i for i, line in enumerate(summary) if line.startswith(("parked", "ended")))
+    text = "\n\n".join([guide, *shots, "[q: quit]\n" + "\n".join(summary[ended:])]) + "\n"
+    out.write_text("$ limbctl teleop --model model.npz --source keyboard\n" + text)
     print(f"wrote {out}")
 
 
@@ -165,7 +179,11 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=25.0, help="teaching time before capture")
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--out", type=Path, default=FIGURES)
+    parser.add_argument("--keyboard-only", type=Path, metavar="MODEL", help="only the capture")
     args = parser.parse_args()
+    if args.keyboard_only:
+        keyboard_capture(args.out / "keyboard_session.txt", args.keyboard_only)
+        return
     args.out.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as folder:
         data, model = Path(folder) / "teach.limb", Path(folder) / "model.npz"
