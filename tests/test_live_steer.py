@@ -166,3 +166,11 @@ def test_a_page_steers_along_the_edge_a_frozen_page_holds_a_killed_one_ends_well
     corrected = [row for row in rows if row["outcome"] == "corrected" and row["written"]]
     assert len(corrected) > 50  # the limb slid along the edge, written pose by pose
     assert seen["at_edge"] == pytest.approx([edge_pan, edge_tilt], abs=1.0)
+
+
+def test_the_page_source_refuses_no_view_before_anything_opens(model_path):  # noqa: F811
+    from limbctl.errors import ConfigError
+
+    options = TeleopOptions(model=model_path, source="page", view=ViewOptions(enabled=False))
+    with pytest.raises(ConfigError, match="drop --no-view"):
+        run_teleop(options)
