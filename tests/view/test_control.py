@@ -188,3 +188,37 @@ def test_access_and_the_desk_as_values():
     page = object()
     assert desk.claim(page, "the page at here") and not desk.forward(page, "x")  # no source
     assert desk.told(page, keyed=True)[1].endswith("takes no commands from the page")
+
+
+def test_the_keyed_page_steers_by_click_and_arrow_keys_and_resends_its_point():
+    from selenium.webdriver.common.action_chains import ActionChains
+    from selenium.webdriver.common.keys import Keys
+
+    from limbctl.view import HardLimits, PanTilt, Scene, TeleopStatus
+    from tests.view.browser import chromium, drag_on_plane, text_of, wait_for
+
+    with served() as (server, sink, holder), chromium() as page:
+        server.board.publish_scene(Scene(limits=HardLimits((-90.0, 90.0), (-40.0, 60.0))))
+        written = PanTilt(5.0, 5.0)
+        status = TeleopStatus(commanded=None, written=written, outcome="held", rate_hz=200.0)
+        server.board.publish_live(Live(mode="teleop", pose=written, teleop=status))
+        page.get(server.control_url)
+        wait_for(page, lambda d: "you steer the limb" in text_of(d, "control"), "no control")
+        # an arrow key moves the point one degree from the written pose
+        ActionChains(page).send_keys(Keys.ARROW_UP).perform()
+        sink.wait_for('{"pan":5,"tilt":6}')
+        # a click sets the point where it lands (to the canvas's pixel: within half a degree)
+        drag_on_plane(page, [(-30.0, 20.0)])
+        ActionChains(page).release().perform()
+        with sink.changed:
+            assert sink.changed.wait_for(
+                lambda: any(abs(json.loads(t)["pan"] + 30.0) < 0.5 for t in sink.lines), WAIT_S
+            )
+        last = json.loads(sink.lines[-1])
+        assert last["pan"] == pytest.approx(-30.0, abs=0.5)
+        assert last["tilt"] == pytest.approx(20.0, abs=0.5)
+        # the page resends its point while it steers (the loop holds when it stops)
+        count = len(sink.lines)
+        with sink.changed:
+            assert sink.changed.wait_for(lambda: len(sink.lines) >= count + 5, WAIT_S)
+        assert json.loads(sink.lines[-1]) == last
