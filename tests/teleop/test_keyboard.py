@@ -150,7 +150,7 @@ def test_keys_start_from_the_gates_pose_hold_release_and_show_the_guide():
             # space releases from the limb's pose; a larger step; up; the guide again; quit
             os.write(master, b"w w +\x1b[A?q")
             assert source.wait_finished(10.0)
-        assert source.stats.accepted == 3
+        assert source.stats.accepted == 4  # up, the hold's own pose, the release's, up
         assert (source.pan_deg, source.tilt_deg) == pytest.approx((10.0, 10.0))
         assert not source.holding and source.step_deg == 5.0
         assert guide.getvalue().count("q          quit") == 2

@@ -176,10 +176,12 @@ class KeyboardSource(CommandSource):
         if action in (Action.COARSER, Action.FINER):
             self.step_deg = next_step(self.step_deg, action is Action.COARSER)
         elif action is Action.HOLD:
+            # holding: the limb is told to stay where it is, then the source goes quiet and the
+            # loop holds; releasing goes on from there
             self.holding = not self.holding
             written = self._written_deg()
-            if not self.holding and written is not None:
-                self.pan_deg, self.tilt_deg = written  # go on from where the limb was held
+            if written is not None:
+                self.pan_deg, self.tilt_deg = written
                 self._offer_pose(now)
         elif action is Action.CENTRE and self._centre is not None and not self.holding:
             self.pan_deg, self.tilt_deg = self._centre
