@@ -12,8 +12,9 @@ and held there; it is captured once the gate says which way is blocked, then the
 Ctrl-C would.
 
 ``keyboard``: ``limbctl teleop --source keyboard`` in a 160 x 40 tmux pane with the same model:
-the key guide, a smaller step, a few presses, a held key up to the edge; the pane's text is kept
-(docs/figures/keyboard_session.txt).
+the key guide, a smaller step, a few presses, a held key up to the edge, a hold and a release;
+the guide and the status line after each step are kept (docs/figures/keyboard_session.txt).
+``--keyboard-only MODEL`` makes only this capture, with a model already trained.
 """
 
 from __future__ import annotations
