@@ -222,5 +222,7 @@ async def read_commands(socket: web.WebSocketResponse, desk: ControlDesk, token:
                 newest.clear()
             newest.append(message.data)
             arrived.set()
+        if newest:  # the page closed with a message waiting: every message is accounted for
+            desk.forward(token, newest.pop())
     finally:
         forwarder.cancel()
