@@ -168,3 +168,31 @@ def test_keys_start_from_the_gates_pose_hold_release_and_show_the_guide():
     finally:
         os.close(master)
         os.close(slave)
+
+
+def test_the_centre_is_the_point_deepest_inside_the_region(model_path):
+    import math
+
+    import numpy as np
+
+    from limbctl.envelope import Cone
+    from limbctl.geometry.gimbal import pan_tilt_to_direction, pan_tilt_to_quat
+    from limbctl.teleop.sources.keyboard import region_centre
+
+    model = load_model(model_path)
+    pan, tilt = region_centre(model)
+    assert bool(model.contains(pan_tilt_to_quat(math.radians(pan), math.radians(tilt))))
+    edge = model.mesh.vertices
+
+    def clearance(p: float, t: float) -> float:
+        d = pan_tilt_to_direction(math.radians(p), math.radians(t))
+        return float(np.degrees(np.arccos(np.clip((edge @ d).max(), -1.0, 1.0))))
+
+    # deeper than the edge's mean direction, and than any point a step away
+    mean = edge.mean(axis=0)
+    mean_pan = math.degrees(math.atan2(mean[1], mean[0]))
+    mean_tilt = math.degrees(math.asin(mean[2] / np.linalg.norm(mean)))
+    assert clearance(pan, tilt) > clearance(mean_pan, mean_tilt) + 5.0
+    for dp, dt in ((2, 0), (-2, 0), (0, 2), (0, -2)):
+        assert clearance(pan, tilt) >= clearance(pan + dp, tilt + dt) - 1e-9
+    assert region_centre(Cone(math.radians(30))) is None  # no mesh: the centre key does nothing

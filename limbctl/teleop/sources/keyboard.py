@@ -45,21 +45,36 @@ KEEPALIVE_S = WAKE_INTERVAL_S
 MAX_LEAD_DEG = 10.0
 
 
+#: Grid (deg) on which the region's centre is looked for: a few thousand candidates inside a
+#: hand-taught region, looked for once when the source opens (a fraction of a second),
+#: finer than the default step.
+CENTRE_GRID_DEG = 2.0
+
+
 def region_centre(envelope: Any) -> tuple[float, float] | None:
-    """(pan, tilt) deg of a region's centre: its mesh vertices' mean direction, corrected inside.
+    """(pan, tilt) deg of the point deepest inside a region: of the grid points inside, the one
+    whose nearest edge vertex is farthest (a mean of the edge could lie in a hole or a bay).
 
     None for a model without a mesh (the centre key then does nothing).
     """
-    from limbctl.geometry.gimbal import quat_to_pan_tilt
-    from limbctl.geometry.quat import swing_from_direction
+    from limbctl.geometry.gimbal import pan_tilt_to_direction, pan_tilt_to_quat
 
     mesh = getattr(envelope, "mesh", None)
-    if mesh is None or len(getattr(mesh, "vertices", ())) == 0:
+    edge = np.asarray(getattr(mesh, "vertices", ()), dtype=np.float64).reshape(-1, 3)
+    if len(edge) == 0:
         return None
-    mean = np.asarray(mesh.vertices, dtype=np.float64).mean(axis=0)
-    q = envelope.correct(swing_from_direction(mean / np.linalg.norm(mean)))
-    pan, tilt = quat_to_pan_tilt(q)
-    return float(np.degrees(pan)), float(np.degrees(tilt))
+    # the grid stays off the poles, where pan is undefined
+    pans = np.radians(np.arange(-180.0, 180.0, CENTRE_GRID_DEG))
+    tilts = np.radians(np.arange(-88.0, 88.0 + CENTRE_GRID_DEG / 2, CENTRE_GRID_DEG))
+    pan, tilt = (a.ravel() for a in np.meshgrid(pans, tilts))
+    inside = np.asarray(envelope.contains(pan_tilt_to_quat(pan, tilt)), dtype=bool)
+    if not inside.any():
+        return None
+    pan, tilt = pan[inside], tilt[inside]
+    # clearance = the angle from each candidate to its nearest edge vertex, arccos(max d . v)
+    nearest_cos = (pan_tilt_to_direction(pan, tilt) @ edge.T).max(axis=1)
+    best = int(np.argmin(nearest_cos))
+    return float(np.degrees(pan[best])), float(np.degrees(tilt[best]))
 
 
 class KeyboardSource(CommandSource):
