@@ -162,7 +162,7 @@ def keyboard_capture(out: Path, model: Path) -> None:
             time.sleep(1 / 30)
         shot("+, +, then up held for 3 s: 50 deg/s", "blocked")
         pane.keys("Space")
-        shot("space: hold", "HOLDING")
+        shot("space: hold", "holding the last safe pose")
         pane.keys("Space", "Down", "Down")
         time.sleep(0.6)
         shot("space: release, then down, down", "inside")

@@ -1,9 +1,10 @@
 """The status line of a source a person steers (keyboard, page): poses, step and the gate in words.
 
-One line, refreshed in place on a terminal::
+One line, refreshed in place on a terminal (cut to its width, so the refresh stays on one row;
+the words come before the poses, as they matter most)::
 
-    12.5 s  199.8 Hz  step 2 deg  commanded pan 10.0 tilt 34.0  written pan 10.0 tilt 27.4
-        at the edge: up is blocked, sliding along it
+    12.5 s  199.8 Hz  step 2 deg  ? keys  at the edge: up is blocked, sliding along it
+        commanded pan 10.0 tilt 34.0  written pan 10.0 tilt 27.4
 
 (on one line). Sources that say nothing about themselves keep the counts of
 :class:`~limbctl.teleop.report.StatusLine`; :func:`status_line_for` picks one by the source.
@@ -12,6 +13,7 @@ One line, refreshed in place on a terminal::
 from __future__ import annotations
 
 import math
+import os
 from typing import IO, Any
 
 from limbctl.teleop.cycle import Cycle, TeleopSummary
@@ -82,12 +84,19 @@ class ExplainedStatus:
         detail = self._source.describe()
         parts = [f"{elapsed:7.1f} s", f"{self._rate_hz:6.1f} Hz"]
         parts += [detail] if detail else []
-        parts += [_pose("commanded", command), _pose("written", self._written), words]
+        parts += [words, _pose("commanded", command), _pose("written", self._written)]
         return "  ".join(parts)
 
     def show(self, elapsed: float) -> None:
         if self._tty:
-            self._stream.write("\r" + self.line(elapsed) + ERASE_TO_END)
+            line = self.line(elapsed)
+            try:  # a line longer than the terminal wraps, and "\r" would refresh its last row only
+                columns = os.get_terminal_size(self._stream.fileno()).columns
+            except (OSError, ValueError, AttributeError):
+                columns = 0  # not a terminal whose size can be asked
+            if columns > 1:  # a terminal of unknown size says 0: the whole line then
+                line = line[: columns - 1]
+            self._stream.write("\r" + line + ERASE_TO_END)
         else:
             self._stream.write(self.line(elapsed) + "\n")
         self._stream.flush()

@@ -2,10 +2,14 @@
 
 from __future__ import annotations
 
+import fcntl
 import io
 import math
 import os
 import pty
+import select
+import struct
+import termios
 
 from limbctl.envelope import Cone
 from limbctl.geometry.gimbal import pan_tilt_to_quat
@@ -60,12 +64,14 @@ def test_a_log_gets_the_step_poses_words_and_rate():
     last = lines[-1]
     assert "200.0 Hz" in last and "step 2 deg" in last
     assert "commanded pan    0.0 tilt   60.0" in last
-    assert "written pan    0.0 tilt   30.0" in last
-    assert last.endswith("at the edge: up is blocked, holding there")
+    assert last.endswith("written pan    0.0 tilt   30.0")
+    assert "at the edge: up is blocked, holding there" in last
 
 
 def test_a_terminal_line_is_refreshed_in_place_and_ended_on_close():
     master, slave = pty.openpty()
+    # a terminal 100 columns wide: each refreshed line is cut to 99
+    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 40, 100, 0, 0))
     try:
         with os.fdopen(slave, "w", closefd=False) as terminal:
             status = ExplainedStatus(terminal, Steered())
@@ -73,12 +79,16 @@ def test_a_terminal_line_is_refreshed_in_place_and_ended_on_close():
                 status.update(cycle, summary)
             summary.elapsed_s = 0.6
             status.close(summary)
-        shown = os.read(master, 65536).decode()
+        shown = ""
+        while select.select([master], [], [], 0.5)[0]:  # all that was written is there already
+            shown += os.read(master, 65536).decode()
     finally:
         os.close(master)
         os.close(slave)
     assert shown.count("\r") >= 2 and shown.count(ERASE_TO_END) >= 2
     assert "up is blocked" in shown and shown.endswith("\n")
+    refreshed = [part.split(ERASE_TO_END)[0] for part in shown.split("\r") if ERASE_TO_END in part]
+    assert refreshed and all(len(line) == 99 for line in refreshed)
 
 
 def test_the_status_line_is_chosen_by_the_source():

@@ -130,7 +130,7 @@ class KeyboardSource(CommandSource):
     def describe(self) -> str:
         """The step, and the hold when on: the status line's words about the keyboard."""
         text = f"step {self.step_deg:g} deg"
-        return text + ("  HOLDING (space releases)" if self.holding else "") + "  ? keys"
+        return text + ("  HOLDING: space releases" if self.holding else "  ? keys")
 
     def close(self) -> None:
         """Stop the reader and give the terminal back as it was; safe to call twice."""
