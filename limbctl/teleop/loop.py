@@ -249,7 +249,9 @@ class ControlLoop:
         # 3. gate
         gate_start = time.perf_counter()
         if self._target_q is None:
-            result = self.gate.hold("no command yet")
+            result = self.gate.hold(
+                "no command yet" if self._target_deg is None else "source silent"
+            )
         elif present is None:
             result = self.gate.hold("the bus failed this cycle")
         else:
