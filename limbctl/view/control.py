@@ -4,7 +4,8 @@ A page that can move motors is a network input, and any web site open in the per
 can open a WebSocket to 127.0.0.1. So:
 
 - :class:`Access` holds a per-session secret (``?key=...`` in the URL printed once). Steering
-  needs it; watching needs it too when the view is served beyond this machine.
+  needs it. When the view is served beyond this machine, watching needs a second one
+  (``?watch=...``), so the people watching cannot take the controls.
 - :func:`check_request` refuses a WebSocket whose Origin is not the page's own (another site's
   script) and, on 127.0.0.1, a Host that is not a loopback name (DNS rebinding); steering needs
   an Origin at all (a browser's page, not any program that learned the port).
@@ -56,7 +57,9 @@ class Access:
     Attributes
     ----------
     secret : str
-        The key a page must carry (``?key=``) to steer, and to watch when ``watch_needs_key``.
+        The key a page must carry (``?key=``) to steer; it lets it watch too.
+    watch_secret : str
+        The key that lets a page watch (``?watch=``) when ``watch_needs_key``.
     watch_needs_key : bool
         True when the server is reachable beyond this machine.
     loopback : bool
@@ -64,18 +67,24 @@ class Access:
     """
 
     secret: str
+    watch_secret: str
     watch_needs_key: bool = False
     loopback: bool = True
 
     @classmethod
     def for_host(cls, host: str) -> Access:
-        """A new secret; watching needs it unless ``host`` is a loopback address."""
+        """New secrets; watching needs one unless ``host`` is a loopback address."""
         local = is_loopback(host)
-        return cls(secrets.token_urlsafe(SECRET_BYTES), not local, local)
+        new = secrets.token_urlsafe
+        return cls(new(SECRET_BYTES), new(SECRET_BYTES), not local, local)
 
     def key_ok(self, given: str | None) -> bool:
-        """Whether ``given`` is the secret (compared in constant time)."""
+        """Whether ``given`` is the steering secret (compared in constant time)."""
         return given is not None and hmac.compare_digest(given.encode(), self.secret.encode())
+
+    def watch_ok(self, given: str | None) -> bool:
+        """Whether ``given`` is the watching secret (compared in constant time)."""
+        return given is not None and hmac.compare_digest(given.encode(), self.watch_secret.encode())
 
 
 @dataclass(frozen=True)
@@ -89,15 +98,17 @@ class Verdict:
 
 def check_request(request: web.Request, access: Access, websocket: bool) -> Verdict:
     """Judge a request for the page, its state or its WebSocket (see the module's rules)."""
-    key = request.query.get("key")
+    key, watch = request.query.get("key"), request.query.get("watch")
     if key is not None and not access.key_ok(key):
         return Verdict(False, problem="wrong key: use the address printed when the view started")
+    if watch is not None and not access.watch_ok(watch):
+        return Verdict(False, problem="wrong watch key: use the address printed at the start")
     keyed = key is not None
     hostname = request.host.rsplit(":", 1)[0] if request.host else ""
     if access.loopback and hostname not in LOOPBACK_NAMES:
         return Verdict(False, problem=f"host {request.host!r} is not this machine's loopback")
-    if access.watch_needs_key and not keyed:
-        return Verdict(False, problem="this view is served beyond this machine: add ?key=...")
+    if access.watch_needs_key and not keyed and watch is None:
+        return Verdict(False, problem="this view is served beyond this machine: add ?watch=...")
     if not websocket:
         return Verdict(True)
     origin = request.headers.get("Origin")

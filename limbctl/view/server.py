@@ -179,8 +179,8 @@ class ViewServer:
     desk : ControlDesk, optional
         The controller slot a page with the key may hold (a new one by default).
 
-    :attr:`url` is the address to watch (with the key when the host is not a loopback one) and
-    :attr:`control_url` the address that steers: it carries the session's secret.
+    :attr:`url` is the address to watch (with the watching key when the host is not a loopback
+    one) and :attr:`control_url` the address that steers: it carries the steering key.
     """
 
     def __init__(
@@ -259,7 +259,8 @@ class ViewServer:
             host, port = runner.addresses[0][:2]
             base = f"http://{host}:{port}/"
             self.control_url = f"{base}?key={self.access.secret}"
-            self.url = self.control_url if self.access.watch_needs_key else base
+            watching = f"{base}?watch={self.access.watch_secret}"
+            self.url = watching if self.access.watch_needs_key else base
             self._ready.set()
             await self._stop.wait()
         finally:

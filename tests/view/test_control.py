@@ -171,20 +171,29 @@ def test_a_flood_reaches_the_source_as_its_newest_message_at_a_bounded_rate():
         assert desk.forwarded < sent / 10, (desk.forwarded, FORWARD_PERIOD_S)
 
 
-def test_beyond_this_machine_watching_needs_the_key_too():
+def test_beyond_this_machine_watching_needs_a_key_and_only_the_steering_key_steers():
     with served(host="0.0.0.0") as (server, sink, holder):
-        assert server.access.watch_needs_key and f"key={server.access.secret}" in server.url
+        access = server.access
+        assert access.watch_needs_key and f"watch={access.watch_secret}" in server.url
+        assert access.secret not in server.url  # the people watching cannot steer
         plain = server.url.split("?")[0].replace("0.0.0.0", "127.0.0.1")
         for path in ("", "state.json"):
             with pytest.raises(urllib.error.HTTPError) as refused:
                 urllib.request.urlopen(plain + path, timeout=WAIT_S)
-            assert refused.value.code == 403 and "key" in refused.value.read().decode()
-        keyed = f"{plain}?key={server.access.secret}"
-        assert b"<canvas" in urllib.request.urlopen(keyed, timeout=WAIT_S).read()
-        url = plain.replace("http://", "ws://") + "ws"
-        origin = plain.rstrip("/")
+            assert refused.value.code == 403 and "watch=" in refused.value.read().decode()
+        for query in (f"?watch={access.watch_secret}", f"?key={access.secret}"):
+            assert b"<canvas" in urllib.request.urlopen(plain + query, timeout=WAIT_S).read()
+        url, origin = plain.replace("http://", "ws://") + "ws", plain.rstrip("/")
         with pytest.raises(websocket.WebSocketBadStatusException):
             websocket.create_connection(url, timeout=WAIT_S, origin=origin)
+        with pytest.raises(websocket.WebSocketBadStatusException):
+            websocket.create_connection(url + "?watch=wrong", timeout=WAIT_S, origin=origin)
+        watched = f"{url}?watch={access.watch_secret}"
+        with contextlib.closing(websocket.create_connection(watched, origin=origin)) as watcher:
+            assert control_message(watcher)["steer"] is False
+            keyed = f"{url}?key={access.secret}"
+            with contextlib.closing(websocket.create_connection(keyed, origin=origin)) as steers:
+                assert control_message(steers)["steer"] is True
 
 
 def test_access_and_the_desk_as_values():

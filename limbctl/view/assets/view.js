@@ -25,8 +25,9 @@ const RECONNECT_MS = 1000;
 const TRAIL_LENGTH = 60;
 // Which edge of the picture holds the limb, by blocked joint direction (pan right, tilt up).
 const EDGE_WORDS = { "+tilt": "upper", "-tilt": "lower", "+pan": "right", "-pan": "left" };
-// The session's key, when the address carries one: the page then asks to steer.
+// The session's keys, when the address carries them: "key" steers, "watch" only watches.
 const KEY = new URLSearchParams(location.search).get("key");
+const WATCH = new URLSearchParams(location.search).get("watch");
 
 const state = { scene: null, live: null, liveFrames: 0, sceneFrames: 0, trail: [], socket: null };
 const canvas = document.getElementById("plane");
@@ -268,7 +269,8 @@ function showLive(l) {
 }
 
 function connect() {
-  const socket = new WebSocket(`ws://${location.host}/ws` + (KEY ? `?key=${encodeURIComponent(KEY)}` : ""));
+  const query = KEY ? `?key=${encodeURIComponent(KEY)}` : WATCH ? `?watch=${encodeURIComponent(WATCH)}` : "";
+  const socket = new WebSocket(`ws://${location.host}/ws${query}`);
   state.socket = socket;
   socket.onopen = () => { byId("connection").textContent = "live"; byId("connection").className = "up"; };
   socket.onmessage = (event) => {
