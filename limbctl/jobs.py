@@ -209,8 +209,7 @@ def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
         context = SourceContext(rig=rig, gate=gate, page=live.page_connect)
         with spec.open(context) as source, stop_on_signals() as stop:
             if spec.kind.scheme == "page":  # printed once: whoever has it can steer
-                keyed = live.control_url if live.control_url != live.url else "the one above"
-                say(f"steer from this address (it holds this session's key): {keyed}")
+                say(f"steer from this address (it holds this session's key): {live.control_url}")
             result = run_session(
                 rig,
                 gate,
