@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from selenium.webdriver.common.action_chains import ActionChains
 
 from limbctl.demo import goal_log_excursions
 from limbctl.envelope import load_model
@@ -115,6 +116,7 @@ def test_a_page_steers_along_the_edge_a_frozen_page_holds_a_killed_one_ends_well
                 seen["at_edge"] = telemetry_rows(telemetry)[-1]["out"]
 
                 # drag back inside, and freeze the whole browser mid-drag
+                ActionChains(page).release().perform()
                 drag_on_plane(page, [PATH[-1], (0.0, 10.0), (-10.0, 0.0)], pause_s=0.05)
                 pids = browser_pids(page)
                 frozen_at = len(telemetry_rows(telemetry))
