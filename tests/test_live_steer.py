@@ -162,7 +162,7 @@ def test_a_page_steers_along_the_edge_a_frozen_page_holds_a_killed_one_ends_well
     # every goal the simulator received lies inside the region, up to rounding to ticks
     excursions = goal_log_excursions(goal_log, model)
     print(f"seen {seen}; {len(excursions)} goals, at most {excursions.max():.4f} deg outside")
-    assert len(excursions) > 200
+    assert len(excursions) > 50  # goal packets the simulator logged (a few hundred here)
     assert excursions.max() <= written_tolerance_deg(), excursions.max()
     rows = telemetry_rows(telemetry)
     corrected = [row for row in rows if row["outcome"] == "corrected" and row["written"]]
