@@ -313,7 +313,9 @@ def _add_teleop(sub: Subparsers) -> None:
         "--approach. Lines that are refused are counted by reason; if every line is refused the "
         "exit status is 2.",
         epilog="Sources: stdin (JSON lines {'pan': deg, 'tilt': deg}, {'dir': [x, y, z]} or "
-        "{'q': [w, x, y, z]}), udp://127.0.0.1:PORT (the same lines), keyboard (arrows), "
+        "{'q': [w, x, y, z]}), udp://127.0.0.1:PORT (the same lines), keyboard (arrows; ? "
+        "shows the keys), page (the live view's page: drag on the plane or use the arrows; "
+        "open the address printed with the key), "
         "leader:ID,ID (a second gimbal on the same bus, torque off), replay:FILE. "
         + EPILOG_HARDWARE,
     )

@@ -206,13 +206,18 @@ def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
     from limbctl.teleop.sources import SourceContext, parse_source
 
     spec = parse_source(options.source)  # a bad source is refused before anything opens
+    view_options = options.view
+    if spec.kind.scheme == "page":  # the page is the source: the view must be served
+        if view_options.enabled is False:
+            raise ConfigError("--source page steers from the live view: drop --no-view")
+        view_options = replace(view_options, enabled=True)
     conn = options.connection
     profile = load_rig_profile(conn.rig)
     gate = gate_for(options.model, profile, options.rate, options.max_speed)
     prepare("gate")
     starting = StartOptions(options.wait, options.approach, options.rate)  # checked before opening
     with (
-        _viewing(options.view, view) as live,
+        _viewing(view_options, view) as live,
         open_connection(conn, goal_log=options.goal_log, extra_ids=spec.extra_ids) as session,
     ):
         config = LoopConfig(
@@ -228,7 +233,10 @@ def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
         limits = {**rig.tick_limits(), **{servo_id: (0, MAX_TICK) for servo_id in spec.extra_ids}}
         configure_servos(rig.bus, limits)
         _say_wire_budget(options.rate, rig.bus)
-        with spec.open(SourceContext(rig, options.rate)) as source, stop_on_signals() as stop:
+        context = SourceContext(rig=rig, rate_hz=options.rate, gate=gate, page=live.page_connect)
+        with spec.open(context) as source, stop_on_signals() as stop:
+            if spec.kind.scheme == "page":  # printed once: whoever has it can steer
+                say(f"steer from this address (it holds this session's key): {live.control_url}")
             if source.report_lines():
                 say(source.report_lines()[0])  # what the leader will do, before it starts
             result = run_session(

@@ -22,6 +22,7 @@ from typing import Any
 from limbctl.errors import ConfigError
 from limbctl.teach.guide import Guidance
 from limbctl.teleop.cycle import Cycle
+from limbctl.teleop.explain import PLANE_NAMES, explain
 from limbctl.view import (
     Board,
     GuideFigure,
@@ -103,11 +104,26 @@ class LiveView:
         Where to publish; None when the view is off.
     url : str
         The page's address ("" when off).
+    server : ViewServer or None
+        The server, whose controller slot a page source attaches to (None when off).
     """
 
-    def __init__(self, board: Board | None = None, url: str = "") -> None:
+    def __init__(
+        self, board: Board | None = None, url: str = "", server: ViewServer | None = None
+    ) -> None:
         self.board = board
         self.url = url
+        self.server = server
+
+    @property
+    def control_url(self) -> str:
+        """The address that steers (it carries the session's secret); "" when off."""
+        return self.server.control_url if self.server is not None else ""
+
+    @property
+    def page_connect(self):
+        """How a page source attaches to the controller slot (None when the view is off)."""
+        return self.server.desk.attach if self.server is not None else None
 
     @property
     def active(self) -> bool:
@@ -173,6 +189,7 @@ class TeleopFeed:
         self._window_start: tuple[int, float] | None = None
 
     def __call__(self, cycle: Cycle) -> None:
+        previous = self.written
         if cycle.written and cycle.result is not None:
             self.written = PanTilt(math.degrees(cycle.result.pan), math.degrees(cycle.result.tilt))
         self._update_rate(cycle)
@@ -182,7 +199,11 @@ class TeleopFeed:
         outcome = cycle.result.outcome.value if cycle.result is not None else cycle.state.value
         if cycle.result is not None and cycle.result.reason:
             outcome += f" ({cycle.result.reason})"
-        status = TeleopStatus(commanded, self.written, outcome, self.rate_hz, cycle.index)
+        before = (previous.pan_deg, previous.tilt_deg) if previous is not None else None
+        told = explain(cycle.result, cycle.command_deg, before, PLANE_NAMES)
+        status = TeleopStatus(
+            commanded, self.written, outcome, self.rate_hz, cycle.index, told.words, told.blocked
+        )
         note = f"ended by {cycle.ended_by}" if cycle.ended_by else "every command through the gate"
         self.board.publish_live(
             Live(self.mode, self.present, teleop=status, fault=cycle.fault, note=note)
@@ -217,6 +238,6 @@ def open_view(options: ViewOptions, say: Callable[[str], None]) -> Iterator[Live
         server.start()
     try:
         say(f"live view: {server.url}")
-        yield LiveView(board, server.url)
+        yield LiveView(board, server.url, server)
     finally:
         server.stop()

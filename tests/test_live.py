@@ -180,6 +180,29 @@ def test_teleop_feed_keeps_the_last_written_pose_and_measures_the_rate():
     assert status.commanded.pan_deg == 10.0
     assert status.rate_hz == pytest.approx(200.0)
     assert status.cycles == 200 and status.outcome == "passed"
+    assert status.words == "inside: following the command" and status.blocked == ()
+
+
+def test_teleop_feed_names_the_edge_that_holds_as_the_page_draws_it():
+    board = Board()
+    feed = TeleopFeed(board)
+    # the command lies up and to the +pan side of where the gate keeps writing the same pose
+    for index in range(3):
+        feed(
+            Cycle(
+                index=index,
+                t=index / 200.0,
+                state=CycleState.RUNNING,
+                complete=True,
+                command_deg=(20.0, 40.0),
+                result=GateResult(0.1, 0.2, Outcome.CORRECTED, corrected=True),
+                present=(0.1, 0.2),
+                written=True,
+            )
+        )
+    status = board.live.teleop
+    assert status.blocked == ("+pan", "+tilt")
+    assert status.words == "at the edge: right and up are blocked, holding there"
 
 
 def test_guide_figures_say_what_the_guidance_says():

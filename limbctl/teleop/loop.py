@@ -48,8 +48,9 @@ from limbctl.servo.cycle import CycleRead
 from limbctl.servo.health import HealthLimits, HealthMonitor, ServoFault
 from limbctl.teleop.cycle import Cycle, CycleState, CycleTimings, TeleopSummary
 from limbctl.teleop.gate import Gate, GateResult, Outcome
-from limbctl.teleop.report import StatusLine, Telemetry, open_telemetry
+from limbctl.teleop.report import Telemetry, open_telemetry
 from limbctl.teleop.sources import CommandSource
+from limbctl.teleop.status import status_line_for
 
 __all__ = ["Cycle", "CycleState", "TeleopSummary", "Telemetry", "open_telemetry"]
 __all__ += ["SafeState", "Limb", "LoopConfig", "ControlLoop", "run"]
@@ -248,7 +249,9 @@ class ControlLoop:
         # 3. gate
         gate_start = time.perf_counter()
         if self._target_q is None:
-            result = self.gate.hold("no command yet")
+            result = self.gate.hold(
+                "no command yet" if self._target_deg is None else "source silent"
+            )
         elif present is None:
             result = self.gate.hold("the bus failed this cycle")
         else:
@@ -430,7 +433,7 @@ def run(
         config.on_cycle(cycle)
     if cycle.state is not CycleState.RUNNING:
         return loop.finish()
-    status_line = StatusLine(status) if status is not None else None
+    status_line = status_line_for(status, source) if status is not None else None
     while True:
         cycle = loop.step()
         if status is not None:

@@ -23,9 +23,17 @@ import threading
 import weakref
 from importlib import resources
 
-from aiohttp import WSMsgType, web
+from aiohttp import web
 
 from limbctl.errors import ConfigError
+from limbctl.view.control import (
+    MAX_MESSAGE_BYTES,
+    Access,
+    ControlDesk,
+    check_request,
+    describe_peer,
+    read_commands,
+)
 from limbctl.view.state import Board
 
 #: How often each browser's coroutine looks for a newer state (s): 10 Hz is twice the page's
@@ -40,6 +48,7 @@ START_STOP_TIMEOUT_S = 10.0
 ASSETS = {
     "index.html": "text/html",
     "view.js": "application/javascript",
+    "control.js": "application/javascript",
     "view.css": "text/css",
 }
 DEFAULT_HOST = "127.0.0.1"
@@ -65,8 +74,16 @@ class _JsonCache:
         return text
 
 
-def build_app(board: Board) -> web.Application:
-    """The aiohttp application serving ``board``: ``/``, the assets, ``/ws`` and ``/state.json``."""
+def build_app(
+    board: Board, access: Access | None = None, desk: ControlDesk | None = None
+) -> web.Application:
+    """The aiohttp application serving ``board``: ``/``, the assets, ``/ws`` and ``/state.json``.
+
+    ``access`` decides who may watch and steer (default: a new secret, watching open);
+    ``desk`` is the controller slot (default: one nobody can steer through).
+    """
+    access = access or Access.for_host(DEFAULT_HOST)
+    desk = desk or ControlDesk()
     app = web.Application()
     cache = _JsonCache()
     sockets: weakref.WeakSet[web.WebSocketResponse] = weakref.WeakSet()
@@ -74,6 +91,10 @@ def build_app(board: Board) -> web.Application:
 
     async def page(request: web.Request) -> web.Response:
         name = request.match_info.get("name") or "index.html"
+        if name == "index.html":
+            verdict = check_request(request, access, websocket=False)
+            if not verdict.watch:
+                raise web.HTTPForbidden(text=verdict.problem)
         if name not in ASSETS:
             raise web.HTTPNotFound(text=f"no such file: {name}; the page has {sorted(ASSETS)}")
         body = (assets / name).read_bytes()
@@ -82,6 +103,9 @@ def build_app(board: Board) -> web.Application:
         )
 
     async def state(request: web.Request) -> web.Response:
+        verdict = check_request(request, access, websocket=False)
+        if not verdict.watch:
+            raise web.HTTPForbidden(text=verdict.problem)
         snap = board.snapshot()
         parts = {}
         if snap.scene is not None:
@@ -91,13 +115,22 @@ def build_app(board: Board) -> web.Application:
         return web.json_response(parts)
 
     async def stream(request: web.Request) -> web.WebSocketResponse:
-        socket = web.WebSocketResponse(heartbeat=HEARTBEAT_S)
+        verdict = check_request(request, access, websocket=True)
+        if not verdict.watch:
+            raise web.HTTPForbidden(text=verdict.problem)
+        socket = web.WebSocketResponse(heartbeat=HEARTBEAT_S, max_msg_size=MAX_MESSAGE_BYTES)
         await socket.prepare(request)
         sockets.add(socket)
-        reader = asyncio.ensure_future(_drain_incoming(socket))
-        sent_scene = sent_live = 0
+        token = object()  # this page, as the controller slot knows it
+        if verdict.steer:
+            desk.claim(token, describe_peer(request))
+        reader = asyncio.ensure_future(read_commands(socket, desk, token))
+        sent_scene = sent_live = sent_control = 0
         try:
             while not socket.closed and not reader.done():
+                if desk.version != sent_control:
+                    sent_control = desk.version
+                    await socket.send_str(_control_text(desk, token, verdict.steer))
                 snap = board.snapshot()
                 if snap.scene is not None and snap.scene_version != sent_scene:
                     await socket.send_str(cache.text("scene", snap.scene_version, snap.scene))
@@ -110,6 +143,7 @@ def build_app(board: Board) -> web.Application:
             pass  # the browser went away mid-send: nothing to do but stop serving it
         finally:
             reader.cancel()
+            desk.release(token)
             await socket.close()
         return socket
 
@@ -125,11 +159,10 @@ def build_app(board: Board) -> web.Application:
     return app
 
 
-async def _drain_incoming(socket: web.WebSocketResponse) -> None:
-    """Read (and ignore) what the browser sends, so pings are answered and a close is seen."""
-    async for message in socket:
-        if message.type in (WSMsgType.CLOSE, WSMsgType.ERROR):
-            break
+def _control_text(desk: ControlDesk, token: object, keyed: bool) -> str:
+    """The control message a page gets: whether it steers, and what it is told."""
+    steer, told = desk.told(token, keyed)
+    return json.dumps({"kind": "control", "keyed": keyed, "steer": steer, "told": told})
 
 
 class ViewServer:
@@ -143,13 +176,26 @@ class ViewServer:
         Address to bind (127.0.0.1 keeps the view on this machine).
     port : int
         Port to bind; 0 lets the system choose a free one (see :attr:`url`).
+    desk : ControlDesk, optional
+        The controller slot a page with the key may hold (a new one by default).
+
+    :attr:`url` is the address to watch (with the watching key when the host is not a loopback
+    one) and :attr:`control_url` the address that steers: it carries the steering key.
     """
 
-    def __init__(self, board: Board, host: str = DEFAULT_HOST, port: int = DEFAULT_PORT) -> None:
+    def __init__(
+        self,
+        board: Board,
+        host: str = DEFAULT_HOST,
+        port: int = DEFAULT_PORT,
+        desk: ControlDesk | None = None,
+    ) -> None:
         self.board = board
         self.host = host
         self.port = port
-        self.url = ""
+        self.desk = desk or ControlDesk()
+        self.access = Access.for_host(host)
+        self.url = self.control_url = ""
         self._thread: threading.Thread | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
         self._stop: asyncio.Event | None = None
@@ -201,14 +247,20 @@ class ViewServer:
         self._loop = asyncio.get_running_loop()
         self._stop = asyncio.Event()
         runner = web.AppRunner(
-            build_app(self.board), handle_signals=False, access_log=None, shutdown_timeout=1.0
+            build_app(self.board, self.access, self.desk),
+            handle_signals=False,
+            access_log=None,
+            shutdown_timeout=1.0,
         )
         await runner.setup()
         try:
             site = web.TCPSite(runner, self.host, self.port)
             await site.start()
             host, port = runner.addresses[0][:2]
-            self.url = f"http://{host}:{port}/"
+            base = f"http://{host}:{port}/"
+            self.control_url = f"{base}?key={self.access.secret}"
+            watching = f"{base}?watch={self.access.watch_secret}"
+            self.url = watching if self.access.watch_needs_key else base
             self._ready.set()
             await self._stop.wait()
         finally:

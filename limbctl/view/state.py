@@ -114,6 +114,10 @@ class TeleopStatus:
         The loop's measured rate.
     cycles : int
         Cycles run so far.
+    words : str
+        The gate's outcome in words, e.g. "at the edge: up is blocked, sliding along it".
+    blocked : tuple of str
+        The joint directions the edge or a limit blocks ("+pan", "-pan", "+tilt", "-tilt").
     """
 
     commanded: PanTilt | None
@@ -121,6 +125,8 @@ class TeleopStatus:
     outcome: str
     rate_hz: float
     cycles: int = 0
+    words: str = ""
+    blocked: tuple[str, ...] = ()
 
     def to_json(self) -> dict[str, object]:
         return {
@@ -129,6 +135,8 @@ class TeleopStatus:
             "outcome": self.outcome,
             "rate_hz": round(float(self.rate_hz), 1),
             "cycles": int(self.cycles),
+            "words": self.words,
+            "blocked": list(self.blocked),
         }
 
 

@@ -76,7 +76,7 @@ def test_open_source_rejects_unknown_names():
 
 
 def test_every_scheme_is_in_the_registry_and_named_in_the_refusal():
-    assert tuple(SOURCES) == ("stdin", "udp", "replay", "keyboard", "leader")
+    assert tuple(SOURCES) == ("stdin", "udp", "replay", "keyboard", "leader", "page")
     with pytest.raises(ConfigError) as refused:
         parse_source("serial:/dev/ttyUSB0")
     for form in SOURCE_FORMS:
@@ -104,8 +104,8 @@ def test_keyboard_source_on_a_pseudo_terminal():
     master, slave = pty.openpty()
     try:
         with KeyboardSource(step_deg=5.0, tty_path=os.ttyname(slave)) as src:
-            # two ups and a left in one burst, a stray key, then another left
-            os.write(master, b"\x1b[A\x1b[A\x1b[Dx\x1b[D")
+            # up, left, a stray key, up (w), left (a) in one burst: each a press of its own key
+            os.write(master, b"\x1b[A\x1b[Dx" + b"wa")
             got = []
             while len(got) < 4:
                 batch = src.poll(timeout=5.0)

@@ -9,9 +9,11 @@ from __future__ import annotations
 import contextlib
 import tempfile
 from collections.abc import Iterator
+from pathlib import Path
 
 from selenium import webdriver
 from selenium.webdriver.chrome.service import Service
+from selenium.webdriver.common.action_chains import ActionChains
 from selenium.webdriver.support.ui import WebDriverWait
 
 CHROMIUM = "/usr/bin/chromium"
@@ -56,3 +58,36 @@ def wait_for(driver: webdriver.Chrome, condition, message: str, timeout: float =
 def text_of(driver: webdriver.Chrome, element_id: str) -> str:
     """The text an element shows (textContent, so hidden tables read too)."""
     return driver.execute_script(f"return document.getElementById('{element_id}').textContent;")
+
+
+def browser_pids(driver: webdriver.Chrome) -> list[int]:
+    """The browser's processes (every descendant of chromedriver), to freeze or kill them."""
+    children: dict[int, list[int]] = {}
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue  # the process ended while being read
+        children.setdefault(int(fields[1]), []).append(int(stat.parent.name))
+    out, todo = [], list(children.get(driver.service.process.pid, []))
+    while todo:
+        pid = todo.pop()
+        out.append(pid)
+        todo += children.get(pid, [])
+    return out
+
+
+def drag_on_plane(driver: webdriver.Chrome, points, pause_s: float = 0.15) -> None:
+    """Press on the page's pan/tilt plane at the first (pan, tilt) deg point and move through
+    the others, pausing ``pause_s`` at each; the button stays down."""
+    canvas = driver.find_element("id", "plane")
+    size = driver.execute_script("const c = arguments[0]; return [c.width, c.height];", canvas)
+    actions = ActionChains(driver, duration=50)
+    for i, (pan, tilt) in enumerate(points):
+        x, y = driver.execute_script(f"return window.limbview.toCanvas({pan}, {tilt});")
+        dx, dy = round(x - size[0] / 2), round(y - size[1] / 2)  # from the canvas's centre
+        actions.move_to_element_with_offset(canvas, dx, dy)
+        if i == 0:
+            actions.click_and_hold()
+        actions.pause(pause_s)
+    actions.perform()

@@ -141,3 +141,47 @@ def test_several_browsers_watch_at_once(served):
             board.publish_live(Live(mode="record", sample_count=8))
             for driver in (second, third):
                 wait_for(driver, lambda d: text_of(d, "sample-count") == "8", "both update")
+
+
+def test_the_teleop_page_tells_the_teleop_story(browser, served):
+    board, server = served
+    board.publish_scene(Scene(loops=(SQUARE,), limits=LIMITS, region_note="the model's region"))
+    browser.get(server.url)
+    # the limb slides right along the top edge, which blocks it upward
+    for step in range(6):
+        board.publish_live(
+            Live(
+                mode="teleop",
+                pose=PanTilt(2.0 * step, 10.0),
+                teleop=TeleopStatus(
+                    commanded=PanTilt(2.0 * step + 5.0, 30.0),
+                    written=PanTilt(2.0 * step, 10.0),
+                    outcome="corrected",
+                    rate_hz=200.0,
+                    cycles=step + 1,
+                    words="at the edge: up is blocked, sliding along it",
+                    blocked=("+tilt",),
+                ),
+            )
+        )
+        wait_for(browser, lambda d, s=step: text_of(d, "cycles") == str(s + 1), f"step {step}")
+    assert text_of(browser, "words") == "at the edge: up is blocked, sliding along it"
+    assert text_of(browser, "holds") == "the upper edge"
+    assert browser.find_element("id", "legend-teleop").is_displayed()
+    assert not browser.find_element("id", "legend-record").is_displayed()
+    assert not browser.find_element("id", "guide-panel").is_displayed()
+    # watching without the key: nobody's steering is offered
+    assert text_of(browser, "control") == "-"
+    # the written pose's trail, and the red bar above it (the edge that holds it)
+    trail = browser.execute_script("return window.limbview.state.trail;")
+    assert trail == [[2.0 * s, 10.0] for s in range(6)]
+
+    def red_above(driver) -> bool:
+        x, y = driver.execute_script("return window.limbview.toCanvas(10.0, 10.0);")
+        rgb = driver.execute_script(
+            "return Array.from(document.getElementById('plane').getContext('2d')"
+            f".getImageData({round(x)}, {round(y) - 16}, 1, 1).data);"
+        )
+        return tuple(rgb[:3]) == (208, 16, 16)
+
+    wait_for(browser, red_above, "no bar on the blocked side")

@@ -60,3 +60,27 @@ def test_board_versions_count_publishes_and_snapshot_reads_both_parts_together()
     snap = board.snapshot()
     assert snap.live_version == 4000 and snap.scene_version == 1
     assert snap.live.pose.tilt_deg == 999
+
+
+def test_teleop_json_carries_the_gates_words_and_the_blocked_sides():
+    from limbctl.view import Live, PanTilt, TeleopStatus
+
+    status = TeleopStatus(
+        PanTilt(0.0, 60.0),
+        PanTilt(0.0, 30.0),
+        "corrected",
+        199.96,
+        12,
+        words="at the edge: up is blocked, holding there",
+        blocked=("+tilt",),
+    )
+    shown = Live("teleop", teleop=status).to_json()["teleop"]
+    assert shown == {
+        "commanded": [0.0, 60.0],
+        "written": [0.0, 30.0],
+        "outcome": "corrected",
+        "rate_hz": 200.0,
+        "cycles": 12,
+        "words": "at the edge: up is blocked, holding there",
+        "blocked": ["+tilt"],
+    }

@@ -6,6 +6,7 @@ Each scheme has its own module and one entry in :data:`SOURCES`::
     udp://127.0.0.1:PORT   the same lines as UDP datagrams (loopback unless told otherwise)
     replay:FILE            JSON lines from a file, paced by their "t" (seconds) when present
     keyboard               arrow keys in the terminal (q quits)
+    page                   the live view's page (drag, click, arrows), opened with its secret
     leader:ID,ID           a second gimbal on the same bus, moved by hand with torque off
 
 :func:`parse_source` checks a spec before anything is opened (and says which extra servos the
@@ -21,15 +22,16 @@ from typing import Any
 
 from limbctl.errors import ConfigError
 from limbctl.teleop.sources.base import CommandSource, SourceStats
-from limbctl.teleop.sources.keyboard import KeyboardSource
+from limbctl.teleop.sources.keyboard import KeyboardSource, keyboard_source
 from limbctl.teleop.sources.leader import LeaderSource, leader_ids
+from limbctl.teleop.sources.page import PageSource
 from limbctl.teleop.sources.replay import ReplaySource
 from limbctl.teleop.sources.stdin import StreamSource
 from limbctl.teleop.sources.udp import UdpSource
 
 __all__ = ["CommandSource", "SourceStats", "KeyboardSource", "LeaderSource", "ReplaySource"]
 __all__ += ["StreamSource", "UdpSource", "SOURCES", "SOURCE_FORMS", "SourceContext"]
-__all__ += ["SourceKind", "SourceSpec", "parse_source", "open_source"]
+__all__ += ["SourceKind", "SourceSpec", "parse_source", "open_source", "PageSource"]
 
 
 @dataclass(frozen=True)
@@ -41,11 +43,19 @@ class SourceContext:
     rig : limbctl.servo.rig.Rig or None
         The open, configured rig (its bus also holds the spec's ``extra_ids``); None where no
         rig is open (sources that need one refuse to be built then).
+    gate : limbctl.teleop.gate.Gate or None
+        The session's gate: the keyboard starts from the pose it let through and knows its
+        region's centre.
+    page : callable or None
+        Attaches the page source to the live view's controller (see
+        :data:`limbctl.teleop.sources.page.Connect`); None when no view is served.
     """
 
     rig: Any = None
     #: The loop's rate (Hz): a felt leader checks at start that its cycle keeps it.
     rate_hz: float = 200.0
+    gate: Any = None
+    page: Any = None
 
 
 @dataclass(frozen=True)
@@ -86,6 +96,20 @@ def _udp(argument: str, context: SourceContext) -> CommandSource:
     return UdpSource(host, int(port))
 
 
+def _keyboard(argument: str, context: SourceContext) -> CommandSource:
+    if argument:
+        raise ConfigError(f"source 'keyboard' takes no argument, got keyboard:{argument}")
+    return keyboard_source(context.gate)
+
+
+def _page(argument: str, context: SourceContext) -> CommandSource:
+    if argument:
+        raise ConfigError(f"source 'page' takes no argument, got page:{argument}")
+    if context.page is None:
+        raise ConfigError("source 'page' steers from the live view: do not pass --no-view")
+    return PageSource(context.page)
+
+
 def _leader(argument: str, context: SourceContext) -> CommandSource:
     if context.rig is None:
         raise ConfigError(f"source 'leader:{argument}' reads servos: it needs the open rig")
@@ -99,8 +123,9 @@ SOURCES: dict[str, SourceKind] = {
         SourceKind("stdin", "stdin", _no_argument("stdin", StreamSource)),
         SourceKind("udp", "udp://HOST:PORT", _udp),
         SourceKind("replay", "replay:FILE", lambda argument, context: ReplaySource(argument)),
-        SourceKind("keyboard", "keyboard", _no_argument("keyboard", KeyboardSource)),
+        SourceKind("keyboard", "keyboard", _keyboard),
         SourceKind("leader", "leader:ID,ID", _leader, extra_ids=leader_ids),
+        SourceKind("page", "page", _page),
     )
 }
 #: How each source is written, in the order of :data:`SOURCES`.

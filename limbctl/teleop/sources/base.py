@@ -54,6 +54,8 @@ class CommandSource:
 
     name = "source"
     latest_only = False
+    #: A person steers it: the status line then shows poses and the gate's outcome in words.
+    explains = False
 
     def __init__(self) -> None:
         self.stats = SourceStats()
@@ -122,6 +124,10 @@ class CommandSource:
     def report_lines(self) -> tuple[str, ...]:
         """Lines for the session's report (none for most sources)."""
         return ()
+
+    def describe(self) -> str:
+        """What the status line should say about the source itself ("" for nothing)."""
+        return ""
 
     @property
     def finished(self) -> bool:

@@ -1,37 +1,103 @@
-"""Command source ``keyboard``: the arrow keys of a terminal nudge pan and tilt."""
+"""Command source ``keyboard``: the keys of a terminal steer pan and tilt, and say how.
+
+The keys are the table in :mod:`limbctl.teleop.keys`; the guide is printed when the source
+starts and again on ``?``. One press moves one step, a key held moves at the steady speed the
+step sets (:class:`~limbctl.teleop.keys.HeldKey`). The source repeats its command every
+:data:`KEEPALIVE_S`, so a limb pushed against the edge stays there and the status line keeps
+saying which way is blocked; the hold key stops the repeats and the loop holds the pose, as for
+any silent source.
+"""
 
 from __future__ import annotations
 
 import os
 import select
+import sys
+import time
+from typing import IO, Any
+
+import numpy as np
 
 from limbctl.errors import ConfigError
-from limbctl.teleop.commands import command_from_pan_tilt
+from limbctl.teleop.commands import Command, command_from_pan_tilt
+from limbctl.teleop.keys import (
+    DEFAULT_STEP_DEG,
+    KEYS,
+    SEQUENCES,
+    Action,
+    HeldKey,
+    key_guide,
+    next_step,
+    split_keys,
+)
 from limbctl.teleop.sources.base import WAKE_INTERVAL_S, CommandSource
 
-#: Degrees one arrow key moves pan or tilt: fine enough to creep up to an edge, coarse enough to
-#: cross 90 degrees in 45 presses.
-KEY_STEP_DEG = 2.0
+#: Degrees one arrow key moves pan or tilt (the keys' default step).
+KEY_STEP_DEG = DEFAULT_STEP_DEG
 #: Most bytes taken per read: a burst of held-down arrow keys (3 bytes each).
 READ_CHUNK_BYTES = 64
+#: How often (s) the source repeats its command while nothing is pressed: five times within the
+#: loop's 0.5 s silence, so only a hold (or a dead source) lets the loop hold.
+KEEPALIVE_S = WAKE_INTERVAL_S
+#: Farthest (deg, per joint) the command may run ahead of the pose the gate let through: far
+#: enough beyond an edge to slide along it, near enough that the opposite key answers at once
+#: (half a second at the default 20 deg/s) instead of first unwinding a long hold.
+MAX_LEAD_DEG = 10.0
+
+
+#: Grid (deg) on which the region's centre is looked for: a few thousand candidates inside a
+#: hand-taught region, looked for once when the source opens (a fraction of a second),
+#: finer than the default step.
+CENTRE_GRID_DEG = 2.0
+
+
+def region_centre(envelope: Any) -> tuple[float, float] | None:
+    """(pan, tilt) deg of the point deepest inside a region: of the grid points inside, the one
+    whose nearest edge vertex is farthest (a mean of the edge could lie in a hole or a bay).
+
+    None for a model without a mesh (the centre key then does nothing).
+    """
+    from limbctl.geometry.gimbal import pan_tilt_to_direction, pan_tilt_to_quat
+
+    mesh = getattr(envelope, "mesh", None)
+    edge = np.asarray(getattr(mesh, "vertices", ()), dtype=np.float64).reshape(-1, 3)
+    if len(edge) == 0:
+        return None
+    # the grid stays off the poles, where pan is undefined
+    pans = np.radians(np.arange(-180.0, 180.0, CENTRE_GRID_DEG))
+    tilts = np.radians(np.arange(-88.0, 88.0 + CENTRE_GRID_DEG / 2, CENTRE_GRID_DEG))
+    pan, tilt = (a.ravel() for a in np.meshgrid(pans, tilts))
+    inside = np.asarray(envelope.contains(pan_tilt_to_quat(pan, tilt)), dtype=bool)
+    if not inside.any():
+        return None
+    pan, tilt = pan[inside], tilt[inside]
+    # clearance = the angle from each candidate to its nearest edge vertex, arccos(max d . v)
+    nearest_cos = (pan_tilt_to_direction(pan, tilt) @ edge.T).max(axis=1)
+    best = int(np.argmin(nearest_cos))
+    return float(np.degrees(pan[best])), float(np.degrees(tilt[best]))
 
 
 class KeyboardSource(CommandSource):
-    """Arrow keys in the terminal nudge pan/tilt by ``step_deg``; ``q`` ends the session.
+    """Keys in the terminal steer pan/tilt by ``step_deg``; ``q`` ends the session.
 
     Up/down raise/lower the limb (tilt), left/right turn it (pan; left is +pan, toward +y).
-    ``tty_path`` is the terminal to read (the controlling terminal by default).
+    ``tty_path`` is the terminal to read (the controlling terminal by default). ``gate`` (the
+    session's, optional) gives the pose it let through: the first move starts from it and the
+    command never leads it by more than :data:`MAX_LEAD_DEG`; its region's centre is where the
+    centre key goes. ``guide`` is where the key guide is printed (None: nowhere).
     """
 
     name = "keyboard"
     latest_only = True
-    _KEYS = {b"\x1b[A": (0, 1), b"\x1b[B": (0, -1), b"\x1b[C": (-1, 0), b"\x1b[D": (1, 0)}
+    explains = True
 
     def __init__(
         self,
         step_deg: float = KEY_STEP_DEG,
         start_deg: tuple[float, float] = (0.0, 0.0),
         tty_path: str = "/dev/tty",
+        gate: Any = None,
+        guide: IO[str] | None = None,
     ) -> None:
         super().__init__()
         import termios
@@ -53,6 +119,18 @@ class KeyboardSource(CommandSource):
         self._fd = fd
         self.step_deg = step_deg
         self.pan_deg, self.tilt_deg = start_deg
+        self.holding = False
+        self._gate = gate
+        self._guide = guide
+        self._centre = region_centre(gate.envelope) if gate is not None else None
+        self._held = HeldKey()
+        self._command: Command | None = None
+        self._offered_at = 0.0
+
+    def describe(self) -> str:
+        """The step, and the hold when on: the status line's words about the keyboard."""
+        text = f"step {self.step_deg:g} deg"
+        return text + ("  HOLDING: space releases" if self.holding else "  ? keys")
 
     def close(self) -> None:
         """Stop the reader and give the terminal back as it was; safe to call twice."""
@@ -68,27 +146,85 @@ class KeyboardSource(CommandSource):
             os.close(self._fd)
             self._fd = -1
 
+    def _say(self, lines: list[str]) -> None:
+        if self._guide is not None:
+            self._guide.write("\n" + "\n".join(lines) + "\n")
+            self._guide.flush()
+
+    def _written_deg(self) -> tuple[float, float] | None:
+        pose = self._gate.safe_pose if self._gate is not None else None
+        return None if pose is None else (float(np.degrees(pose[0])), float(np.degrees(pose[1])))
+
     def _run(self) -> None:
         pending = b""
+        self._say(key_guide(self.step_deg))
         try:
             while not self._stop.is_set():
-                ready, _, _ = select.select([self._fd], [], [], WAKE_INTERVAL_S)
-                if not ready:
-                    continue
-                pending += os.read(self._fd, READ_CHUNK_BYTES)
-                # split the bytes into keys: an escape sequence is three bytes, others one
-                while pending:
-                    size = 3 if pending[:1] == b"\x1b" else 1
-                    if len(pending) < size:
-                        break
-                    key, pending = pending[:size], pending[size:]
-                    if key in (b"q", b"\x04"):
-                        return
-                    move = self._KEYS.get(key)
-                    if move is None:
-                        continue
-                    self.pan_deg = min(max(self.pan_deg + move[0] * self.step_deg, -180.0), 180.0)
-                    self.tilt_deg = min(max(self.tilt_deg + move[1] * self.step_deg, -90.0), 90.0)
-                    self.offer(command_from_pan_tilt(self.pan_deg, self.tilt_deg))
+                ready, _, _ = select.select([self._fd], [], [], KEEPALIVE_S)
+                now = time.monotonic()
+                if ready:
+                    data = os.read(self._fd, READ_CHUNK_BYTES)
+                    if not data:
+                        return  # the terminal went away: the input ended
+                    keys, pending = split_keys(pending + data)
+                    for key in keys:
+                        action = SEQUENCES.get(key)
+                        if action is Action.QUIT:
+                            return
+                        if action is not None:
+                            self._act(action, now)
+                if self._command is not None and not self.holding:
+                    if now - self._offered_at >= KEEPALIVE_S:
+                        self._queue.put(self._command)  # the same command again: not counted
+                        self._offered_at = now
         finally:
             self._release()
+
+    def _act(self, action: Action, now: float) -> None:
+        """Do what one key asks."""
+        move = KEYS[action].move
+        if move != (0, 0):
+            if not self.holding:
+                self._move(action, move, now)
+            return
+        self._held.reset()
+        if action in (Action.COARSER, Action.FINER):
+            self.step_deg = next_step(self.step_deg, action is Action.COARSER)
+        elif action is Action.HOLD:
+            # holding: the limb is told to stay where it is, then the source goes quiet and the
+            # loop holds; releasing goes on from there
+            self.holding = not self.holding
+            written = self._written_deg()
+            if written is not None:
+                self.pan_deg, self.tilt_deg = written
+                self._offer_pose(now)
+        elif action is Action.CENTRE and self._centre is not None and not self.holding:
+            self.pan_deg, self.tilt_deg = self._centre
+            self._offer_pose(now)
+        elif action is Action.HELP:
+            self._say(key_guide(self.step_deg))
+
+    def _move(self, action: Action, move: tuple[int, int], now: float) -> None:
+        written = self._written_deg()
+        if self._command is None and written is not None:
+            self.pan_deg, self.tilt_deg = written  # the first move starts where the limb is
+        distance = self._held.distance(action, now, self.step_deg)
+        pan = min(max(self.pan_deg + move[0] * distance, -180.0), 180.0)
+        tilt = min(max(self.tilt_deg + move[1] * distance, -90.0), 90.0)
+        if written is not None:  # never far ahead of the limb along the joint the key moves
+            if move[0]:
+                pan = min(max(pan, written[0] - MAX_LEAD_DEG), written[0] + MAX_LEAD_DEG)
+            if move[1]:
+                tilt = min(max(tilt, written[1] - MAX_LEAD_DEG), written[1] + MAX_LEAD_DEG)
+        self.pan_deg, self.tilt_deg = pan, tilt
+        self._offer_pose(now)
+
+    def _offer_pose(self, now: float) -> None:
+        self._command = command_from_pan_tilt(self.pan_deg, self.tilt_deg)
+        self._offered_at = now
+        self.offer(self._command)
+
+
+def keyboard_source(gate: Any = None) -> KeyboardSource:
+    """The keyboard of the controlling terminal, its guide on standard error."""
+    return KeyboardSource(gate=gate, guide=sys.stderr)

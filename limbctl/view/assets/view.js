@@ -12,6 +12,8 @@ const COLORS = {
   pose: "#1f5fd0",
   commanded: "#9040c0",
   written: "#000000",
+  trail: "rgba(0, 0, 0, 0.35)",
+  blocked: "#d01010",
   grid: "#e4e4e4",
   axis: "#b0b0b0",
 };
@@ -19,8 +21,15 @@ const COLORS = {
 const MARGIN_DEG = 5;
 // Wait before reconnecting after the server closed or vanished (ms).
 const RECONNECT_MS = 1000;
+// Written poses kept for the trail: 6 s of the server's 10 Hz pushes.
+const TRAIL_LENGTH = 60;
+// Which edge of the picture holds the limb, by blocked joint direction (pan right, tilt up).
+const EDGE_WORDS = { "+tilt": "upper", "-tilt": "lower", "+pan": "right", "-pan": "left" };
+// The session's keys, when the address carries them: "key" steers, "watch" only watches.
+const KEY = new URLSearchParams(location.search).get("key");
+const WATCH = new URLSearchParams(location.search).get("watch");
 
-const state = { scene: null, live: null, liveFrames: 0, sceneFrames: 0 };
+const state = { scene: null, live: null, liveFrames: 0, sceneFrames: 0, trail: [], socket: null };
 const canvas = document.getElementById("plane");
 let ctx = canvas.getContext("2d");
 let drawPending = false;
@@ -57,6 +66,8 @@ function projector() {
     scale: scale,
     x: (pan) => x0 + (pan - b.pan[0]) * scale,
     y: (tilt) => y0 + (b.tilt[1] - tilt) * scale,
+    pan: (x) => b.pan[0] + (x - x0) / scale,
+    tilt: (y) => b.tilt[1] - (y - y0) / scale,
   };
 }
 
@@ -121,6 +132,32 @@ function drawMarker(P, pose, kind) {
   else { ctx.moveTo(x - 9, y - 9); ctx.lineTo(x + 9, y + 9); ctx.moveTo(x + 9, y - 9); ctx.lineTo(x - 9, y + 9); ctx.stroke(); }
 }
 
+// The written pose's last seconds, fading into the past.
+function drawTrail(P) {
+  const t = state.trail;
+  if (t.length < 2) return;
+  ctx.strokeStyle = COLORS.trail;
+  ctx.lineWidth = 3;
+  ctx.beginPath();
+  t.forEach((p, i) => (i ? ctx.lineTo(P.x(p[0]), P.y(p[1])) : ctx.moveTo(P.x(p[0]), P.y(p[1]))));
+  ctx.stroke();
+}
+
+// A short thick wall beside the written pose on each blocked side: the edge that holds it.
+function drawBlocked(P, pose, blocked) {
+  if (!pose || !blocked) return;
+  const x = P.x(pose[0]), y = P.y(pose[1]), r = 16, half = 12;
+  ctx.strokeStyle = COLORS.blocked;
+  ctx.lineWidth = 5;
+  for (const d of blocked) {
+    const sx = d === "+pan" ? 1 : d === "-pan" ? -1 : 0, sy = d === "+tilt" ? -1 : d === "-tilt" ? 1 : 0;
+    ctx.beginPath();
+    ctx.moveTo(x + sx * r - sy * half, y + sy * r - sx * half);
+    ctx.lineTo(x + sx * r + sy * half, y + sy * r + sx * half);
+    ctx.stroke();
+  }
+}
+
 // The scene (grid, region, samples, limits) changes about twice a second: it is drawn once
 // into an offscreen layer, and each live frame only copies that layer and draws the markers.
 const sceneLayer = document.createElement("canvas");
@@ -159,7 +196,12 @@ function draw() {
   ctx.drawImage(sceneLayer, 0, 0);
   const live = state.live;
   if (live) {
-    if (live.teleop) { drawMarker(P, live.teleop.commanded, "commanded"); drawMarker(P, live.teleop.written, "written"); }
+    if (live.teleop) {
+      drawTrail(P);
+      drawMarker(P, live.teleop.commanded, "commanded");
+      drawMarker(P, live.teleop.written, "written");
+      drawBlocked(P, live.teleop.written, live.teleop.blocked);
+    }
     drawMarker(P, live.pose, "pose");
   }
 }
@@ -205,7 +247,19 @@ function showLive(l) {
   fault.hidden = !l.fault;
   const t = l.teleop;
   byId("teleop").hidden = !t;
+  // teleop tells its own story: its legend, no guide (nothing is being taught)
+  byId("legend-record").hidden = Boolean(t);
+  byId("legend-teleop").hidden = !t;
+  byId("guide-panel").hidden = Boolean(t);
   if (t) {
+    const last = state.trail[state.trail.length - 1];
+    if (t.written && (!last || last[0] !== t.written[0] || last[1] !== t.written[1])) {
+      state.trail.push(t.written);
+      if (state.trail.length > TRAIL_LENGTH) state.trail.shift();
+    }
+    byId("words").textContent = t.words || t.outcome;
+    byId("holds").textContent = t.blocked && t.blocked.length
+      ? `the ${t.blocked.map((d) => EDGE_WORDS[d]).join(" and ")} edge` : "nothing: free to move";
     byId("commanded").textContent = fmtPose(t.commanded);
     byId("written").textContent = fmtPose(t.written);
     byId("outcome").textContent = t.outcome;
@@ -215,12 +269,15 @@ function showLive(l) {
 }
 
 function connect() {
-  const socket = new WebSocket(`ws://${location.host}/ws`);
+  const query = KEY ? `?key=${encodeURIComponent(KEY)}` : WATCH ? `?watch=${encodeURIComponent(WATCH)}` : "";
+  const socket = new WebSocket(`ws://${location.host}/ws${query}`);
+  state.socket = socket;
   socket.onopen = () => { byId("connection").textContent = "live"; byId("connection").className = "up"; };
   socket.onmessage = (event) => {
     const message = JSON.parse(event.data);
     if (message.kind === "scene") { state.scene = message; state.sceneFrames++; sceneDirty = true; showScene(message); }
     else if (message.kind === "live") { state.live = message; state.liveFrames++; showLive(message); }
+    else if (message.kind === "control" && window.limbview.onControl) window.limbview.onControl(message);
     byId("live-frames").textContent = String(state.liveFrames);
     byId("scene-frames").textContent = String(state.sceneFrames);
     scheduleDraw();
@@ -236,6 +293,9 @@ function connect() {
 window.limbview = {
   state: state,
   toCanvas: (pan, tilt) => { const P = projector(); return [P.x(pan), P.y(tilt)]; },
+  fromCanvas: (x, y) => { const P = projector(); return [P.pan(x), P.tilt(y)]; },
+  send: (text) => { if (state.socket && state.socket.readyState === WebSocket.OPEN) state.socket.send(text); },
+  redraw: () => scheduleDraw(),
   pixel: (pan, tilt) => {
     const P = projector();
     return Array.from(ctx.getImageData(Math.round(P.x(pan)), Math.round(P.y(tilt)), 1, 1).data);

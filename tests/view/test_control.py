@@ -1,0 +1,243 @@
+"""Who may watch and who may steer: the key, the Origin, the Host, one controller, a flood."""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import threading
+import time
+import urllib.error
+import urllib.request
+
+import pytest
+import websocket
+
+from limbctl.view import Board, Live, ViewServer
+from limbctl.view.control import FORWARD_PERIOD_S, Access, ControlDesk, is_loopback
+
+#: Longest wait (s) for a message in these tests.
+WAIT_S = 10.0
+
+
+class Sink:
+    """Where the controller's text goes (the page source's ``feed`` in a session)."""
+
+    def __init__(self) -> None:
+        self.lines: list[str] = []
+        self.changed = threading.Condition()
+
+    def __call__(self, text: str) -> None:
+        with self.changed:
+            self.lines.append(text)
+            self.changed.notify_all()
+
+    def wait_for(self, text: str) -> None:
+        with self.changed:
+            assert self.changed.wait_for(lambda: text in self.lines, WAIT_S), self.lines[-5:]
+
+
+@contextlib.contextmanager
+def served(host: str = "127.0.0.1"):
+    board = Board()
+    board.publish_live(Live(mode="teleop"))
+    sink = Sink()
+    with ViewServer(board, host=host, port=0) as server:
+        detach, holder = server.desk.attach(sink)
+        try:
+            yield server, sink, holder
+        finally:
+            detach()
+
+
+def ws_url(server: ViewServer, key: str | None) -> str:
+    base = server.control_url.split("?")[0].replace("http://", "ws://") + "ws"
+    return base if key is None else f"{base}?key={key}"
+
+
+def origin_of(server: ViewServer) -> str:
+    return server.control_url.split("/?")[0]
+
+
+def open_socket(server: ViewServer, key: str | None, origin: str | None = "same", **kw):
+    """A WebSocket as a browser opens it (Origin: the page's own unless told otherwise)."""
+    origin = origin_of(server) if origin == "same" else origin
+    options = {"origin": origin} if origin is not None else {"suppress_origin": True}
+    return websocket.create_connection(ws_url(server, key), timeout=WAIT_S, **options, **kw)
+
+
+def control_message(client: websocket.WebSocket) -> dict:
+    """The next control message (scene and live pushes in between are skipped)."""
+    while True:
+        message = json.loads(client.recv())
+        if message["kind"] == "control":
+            return message
+
+
+def wait_until(condition, message: str) -> None:
+    """Wait for a condition of the server's counters (they change on its own thread)."""
+    deadline = time.monotonic() + WAIT_S
+    while not condition():
+        assert time.monotonic() < deadline, message
+        time.sleep(0.01)
+
+
+def refused_status(call) -> int:
+    with pytest.raises(websocket.WebSocketBadStatusException) as refused:
+        call()
+    return refused.value.status_code
+
+
+def test_the_key_is_needed_to_steer_and_only_the_right_one():
+    with served() as (server, sink, holder):
+        secret = server.access.secret
+        assert len(secret) >= 22 and f"?key={secret}" in server.control_url
+        assert "key" not in server.url  # watching 127.0.0.1 stays open
+        # no key: the page watches; what it sends never reaches the source
+        with contextlib.closing(open_socket(server, None)) as watcher:
+            told = control_message(watcher)
+            assert told["steer"] is False and "steering needs the key" in told["told"]
+            watcher.send(json.dumps({"pan": 1.0, "tilt": 2.0}))
+            wait_until(lambda: server.desk.ignored == 1, "the watcher's line was not ignored")
+        # a wrong key, or the right one in another case: refused outright
+        assert refused_status(lambda: open_socket(server, "not-the-key")) == 403
+        assert refused_status(lambda: open_socket(server, secret.swapcase())) == 403
+        with pytest.raises(urllib.error.HTTPError) as page:
+            urllib.request.urlopen(server.url + "?key=wrong", timeout=WAIT_S)
+        assert page.value.code == 403 and "wrong key" in page.value.read().decode()
+        # the key: this page steers, and its lines reach the source
+        with contextlib.closing(open_socket(server, secret)) as steering:
+            told = control_message(steering)
+            assert told["steer"] is True and "you steer the limb" in told["told"]
+            assert "127.0.0.1" in holder()
+            steering.send(json.dumps({"pan": 3.0, "tilt": 4.0}))
+            sink.wait_for('{"pan": 3.0, "tilt": 4.0}')
+        assert sink.lines == ['{"pan": 3.0, "tilt": 4.0}']
+        assert server.desk.ignored == 1
+
+
+def test_another_sites_page_is_refused_even_with_the_key():
+    with served() as (server, sink, holder):
+        secret = server.access.secret
+        for forged in ("http://evil.example", "http://127.0.0.1:1", "null"):
+            assert refused_status(lambda o=forged: open_socket(server, secret, origin=o)) == 403
+            assert refused_status(lambda o=forged: open_socket(server, None, origin=o)) == 403
+        # a program without an Origin may watch 127.0.0.1, but steering needs the page
+        assert refused_status(lambda: open_socket(server, secret, origin=None)) == 403
+        with contextlib.closing(open_socket(server, None, origin=None)) as watcher:
+            assert control_message(watcher)["steer"] is False
+        # DNS rebinding: a name that is not this machine's, pointed at 127.0.0.1
+        port = server.control_url.split(":")[2].split("/")[0]
+        request = urllib.request.Request(server.url, headers={"Host": f"evil.example:{port}"})
+        with pytest.raises(urllib.error.HTTPError) as rebound:
+            urllib.request.urlopen(request, timeout=WAIT_S)
+        assert rebound.value.code == 403
+        assert sink.lines == []
+
+
+def test_one_controller_at_a_time_and_the_second_is_told_who():
+    with served() as (server, sink, holder):
+        secret = server.access.secret
+        with contextlib.closing(open_socket(server, secret)) as first:
+            assert control_message(first)["steer"] is True
+            with contextlib.closing(open_socket(server, secret)) as second:
+                told = control_message(second)
+                assert told["steer"] is False
+                assert told["told"].startswith("refused: the page at 127.0.0.1:")
+                assert "holds control" in told["told"]
+                second.send(json.dumps({"pan": 9.0, "tilt": 9.0}))
+                first.send(json.dumps({"pan": 1.0, "tilt": 1.0}))
+                sink.wait_for('{"pan": 1.0, "tilt": 1.0}')
+                assert '{"pan": 9.0, "tilt": 9.0}' not in sink.lines
+                first.close()
+                # the first page went: the second is told the slot is free
+                assert "free again" in control_message(second)["told"]
+
+
+def test_a_flood_reaches_the_source_as_its_newest_message_at_a_bounded_rate():
+    with served() as (server, sink, holder):
+        with contextlib.closing(open_socket(server, server.access.secret)) as flooder:
+            assert control_message(flooder)["steer"] is True
+            sent = 10_000
+            for i in range(sent):
+                flooder.send(json.dumps({"pan": (i % 90) * 0.5, "tilt": 1.0}))
+            flooder.send('{"pan": 7.25, "tilt": 7.25}')
+            sink.wait_for('{"pan": 7.25, "tilt": 7.25}')
+        desk = server.desk
+        print(f"flood: {desk.forwarded} forwarded, {desk.superseded} superseded")
+        assert desk.forwarded == len(sink.lines)
+        assert desk.forwarded + desk.superseded == sent + 1
+        assert sink.lines[-1] == '{"pan": 7.25, "tilt": 7.25}'  # the newest wins
+        # at most one message per forward period reached the source
+        assert desk.forwarded < sent / 10, (desk.forwarded, FORWARD_PERIOD_S)
+
+
+def test_beyond_this_machine_watching_needs_a_key_and_only_the_steering_key_steers():
+    with served(host="0.0.0.0") as (server, sink, holder):
+        access = server.access
+        assert access.watch_needs_key and f"watch={access.watch_secret}" in server.url
+        assert access.secret not in server.url  # the people watching cannot steer
+        plain = server.url.split("?")[0].replace("0.0.0.0", "127.0.0.1")
+        for path in ("", "state.json"):
+            with pytest.raises(urllib.error.HTTPError) as refused:
+                urllib.request.urlopen(plain + path, timeout=WAIT_S)
+            assert refused.value.code == 403 and "watch=" in refused.value.read().decode()
+        for query in (f"?watch={access.watch_secret}", f"?key={access.secret}"):
+            assert b"<canvas" in urllib.request.urlopen(plain + query, timeout=WAIT_S).read()
+        url, origin = plain.replace("http://", "ws://") + "ws", plain.rstrip("/")
+        with pytest.raises(websocket.WebSocketBadStatusException):
+            websocket.create_connection(url, timeout=WAIT_S, origin=origin)
+        with pytest.raises(websocket.WebSocketBadStatusException):
+            websocket.create_connection(url + "?watch=wrong", timeout=WAIT_S, origin=origin)
+        watched = f"{url}?watch={access.watch_secret}"
+        with contextlib.closing(websocket.create_connection(watched, origin=origin)) as watcher:
+            assert control_message(watcher)["steer"] is False
+            keyed = f"{url}?key={access.secret}"
+            with contextlib.closing(websocket.create_connection(keyed, origin=origin)) as steers:
+                assert control_message(steers)["steer"] is True
+
+
+def test_access_and_the_desk_as_values():
+    assert is_loopback("127.0.0.1") and is_loopback("localhost") and is_loopback("::1")
+    assert not is_loopback("0.0.0.0") and not is_loopback("192.168.1.5")
+    local, wide = Access.for_host("127.0.0.1"), Access.for_host("0.0.0.0")
+    assert not local.watch_needs_key and wide.watch_needs_key
+    assert local.secret != Access.for_host("127.0.0.1").secret  # a new one per session
+    assert local.key_ok(local.secret) and not local.key_ok(None) and not local.key_ok("")
+    desk = ControlDesk()
+    page = object()
+    assert desk.claim(page, "the page at here") and not desk.forward(page, "x")  # no source
+    assert desk.told(page, keyed=True)[1].endswith("takes no commands from the page")
+
+
+def test_the_keyed_page_steers_by_click_and_arrow_keys_and_resends_its_point():
+    from selenium.webdriver.common.action_chains import ActionChains
+    from selenium.webdriver.common.keys import Keys
+
+    from limbctl.view import HardLimits, PanTilt, Scene, TeleopStatus
+    from tests.view.browser import chromium, drag_on_plane, text_of, wait_for
+
+    with served() as (server, sink, holder), chromium() as page:
+        server.board.publish_scene(Scene(limits=HardLimits((-90.0, 90.0), (-40.0, 60.0))))
+        written = PanTilt(5.0, 5.0)
+        status = TeleopStatus(commanded=None, written=written, outcome="held", rate_hz=200.0)
+        server.board.publish_live(Live(mode="teleop", pose=written, teleop=status))
+        page.get(server.control_url)
+        wait_for(page, lambda d: "you steer the limb" in text_of(d, "control"), "no control")
+        # an arrow key moves the point one degree from the written pose
+        ActionChains(page).send_keys(Keys.ARROW_UP).perform()
+        sink.wait_for('{"pan":5,"tilt":6}')
+        # a click sets the point where it lands (to the canvas's pixel: within half a degree)
+        drag_on_plane(page, [(-30.0, 20.0)])
+        ActionChains(page).release().perform()
+        with sink.changed:
+            assert sink.changed.wait_for(
+                lambda: any(abs(json.loads(t)["pan"] + 30.0) < 0.5 for t in sink.lines), WAIT_S
+            )
+        last = json.loads(sink.lines[-1])
+        assert last["pan"] == pytest.approx(-30.0, abs=0.5)
+        assert last["tilt"] == pytest.approx(20.0, abs=0.5)
+        # the page resends its point while it steers (the loop holds when it stops)
+        count = len(sink.lines)
+        with sink.changed:
+            assert sink.changed.wait_for(lambda: len(sink.lines) >= count + 5, WAIT_S)
+        assert json.loads(sink.lines[-1]) == last
