@@ -61,7 +61,7 @@ def check_profile(profile: RigProfile) -> RigProfile:
         raise ConfigError(
             f"{source}: model must be one of {', '.join(MODEL_BY_NAME)}, got {profile.model!r}"
         )
-    for field, joint in (("pan", profile.pan), ("tilt", profile.tilt)):
+    for field, joint in profile.joints:
         lo, hi = joint_tick_limits(joint)
         if lo < 0 or hi > MAX_TICK:
             raise ConfigError(
