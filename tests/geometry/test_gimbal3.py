@@ -17,6 +17,7 @@ from limbctl.geometry.gimbal3 import (
     unwrap_roll_scalar,
 )
 from limbctl.geometry.quat import limb_direction
+from limbctl.geometry.twist import decompose
 from limbctl.geometry.quat import multiply as quat_multiply
 
 angle = st.floats(-math.pi + 1e-6, math.pi - 1e-6)
@@ -37,9 +38,8 @@ def chain_by_products(pan, tilt, roll):
 
 
 def twist_about_x(q):
-    """Swing-twist twist angle about +x, in (-pi, pi]."""
-    tau = 2.0 * math.atan2(q[1], q[0])
-    return math.remainder(tau, 2 * math.pi)
+    """Swing-twist twist angle about +x, in (-pi, pi], from the module that owns twist."""
+    return float(decompose(q)[1])
 
 
 @pytest.mark.parametrize(
