@@ -17,8 +17,8 @@ from limbctl.geometry.gimbal3 import (
     unwrap_roll_scalar,
 )
 from limbctl.geometry.quat import limb_direction
-from limbctl.geometry.twist import decompose
 from limbctl.geometry.quat import multiply as quat_multiply
+from limbctl.geometry.twist import decompose
 
 angle = st.floats(-math.pi + 1e-6, math.pi - 1e-6)
 tilt_open = st.floats(-math.pi / 2 + 1e-3, math.pi / 2 - 1e-3)
