@@ -34,6 +34,7 @@ from firmware_sim.events import EventSchedule
 from firmware_sim.faults import FaultPlan
 from firmware_sim.hand import Hand
 from firmware_sim.simulator import Simulator
+from firmware_sim.twist_hand import TwistHand, hand_from_mapping, hand_from_yaml
 
 # The physics keeps moving (hand, profiles) at least this often without traffic.
 TICK_S = 0.005
@@ -176,15 +177,16 @@ def build_simulator(config: Mapping[str, Any]) -> Simulator:
         goal_log=config.get("goal_log"),
         seed=seed,
         faults=plan,
+        roll_id=config.get("roll_id"),
     )
 
 
-def _make_hand(spec: Any, seed: int) -> Hand | None:
+def _make_hand(spec: Any, seed: int) -> Hand | TwistHand | None:
     if spec is None:
         return None
     if isinstance(spec, Mapping):
-        return Hand.from_mapping(dict(spec), seed=seed)
-    return Hand.from_yaml(spec, seed=seed)
+        return hand_from_mapping(dict(spec), seed=seed)
+    return hand_from_yaml(spec, seed=seed)
 
 
 class _ControlServer:
@@ -284,6 +286,8 @@ class SimulatedBus:
         Fault options (:class:`firmware_sim.faults.FaultPlan`).
     link : path or None
         Also make this path a symlink to the pty.
+    roll_id : int or None
+        The servo (one of ``ids``) that turns the limb about its own axis; None: no roll joint.
     start_timeout_s : float
         How long to wait for the process to come up.
     """
@@ -301,6 +305,7 @@ class SimulatedBus:
         latency_p: float = 1.0,
         link: str | os.PathLike | None = None,
         start_timeout_s: float = 60.0,
+        roll_id: int | None = None,
     ) -> None:
         FaultPlan(drop=drop, corrupt=corrupt, latency_ms=latency_ms, latency_p=latency_p)
         self.config = {
@@ -316,6 +321,7 @@ class SimulatedBus:
             "latency_ms": latency_ms,
             "latency_p": latency_p,
             "link": None if link is None else str(link),
+            "roll_id": None if roll_id is None else int(roll_id),
         }
         self._start_timeout_s = start_timeout_s
         self._process: subprocess.Popen | None = None

@@ -5,8 +5,9 @@ back (with delays). Physics is stepped lazily on the wall clock: every time byte
 from a periodic tick of the serving loop, the world is advanced to "now" in substeps of at most
 1 ms, each servo's profile advancing with it.
 
-Servos with IDs 1 and 2 drive the gimbal of :mod:`firmware_sim.world` (pan, tilt); a servo with
-any other ID drives a free, unloaded shaft that follows its setpoint exactly.
+Servos with IDs 1 and 2 drive the gimbal of :mod:`firmware_sim.world` (pan, tilt), and the servo
+named by ``roll_id`` (if any) its roll joint; a servo with any other ID drives a free, unloaded
+shaft that follows its setpoint exactly.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ import json
 import math
 import time
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import IO, Any
 
@@ -24,7 +26,7 @@ from firmware_sim.faults import FaultInjector, FaultPlan
 from firmware_sim.hand import Hand
 from firmware_sim.protocol import MAX_SERVO_ID, PacketParser
 from firmware_sim.servo import Environment, Servo
-from firmware_sim.world import World
+from firmware_sim.world import DEFAULT_JOINTS, ROLL_JOINT, World
 
 #: Longest physics step (s): 1 ms keeps the 80 rad/s tracking loop stable (omega * dt = 0.08).
 MAX_SUBSTEP_S = 0.001
@@ -71,6 +73,9 @@ class Simulator:
     faults : FaultPlan or None
     clock : callable
         Monotonic seconds.
+    roll_id : int or None
+        The servo that turns the limb about its own axis (a three-joint gimbal); it must be in
+        ``ids``. None: a two-joint gimbal.
     """
 
     def __init__(
@@ -82,11 +87,20 @@ class Simulator:
         seed: int = 0,
         faults: FaultPlan | None = None,
         clock: Callable[[], float] = time.monotonic,
+        roll_id: int | None = None,
     ) -> None:
         self.model = get_model(model)
         self.ids = parse_ids(ids)
         self.seed = seed
-        self.world = World(hand=hand, seed=seed)
+        joints = DEFAULT_JOINTS
+        if roll_id is not None:
+            if roll_id not in self.ids or roll_id in (j.servo_id for j in DEFAULT_JOINTS):
+                raise ValueError(
+                    f"the roll joint's servo {roll_id} must be one of the ids {list(self.ids)} "
+                    f"other than pan and tilt ({', '.join(str(j.servo_id) for j in joints)})"
+                )
+            joints = (*DEFAULT_JOINTS, replace(ROLL_JOINT, servo_id=int(roll_id)))
+        self.world = World(joints=joints, hand=hand, seed=seed)
         self._joint_ids = {joint.servo_id for joint in self.world.joints}
         self._clock = clock
         self._start = clock()
@@ -179,6 +193,8 @@ class Simulator:
             "goal": goal,
             "limb_dir": None if direction is None else [float(v) for v in direction],
         }
+        if self.world.has_roll and gimbal:
+            line["limb_q"] = [float(v) for v in self.world.orientation_for_ticks(gimbal)]
         self._goal_log.write(json.dumps(line) + "\n")
 
     def close(self) -> None:
