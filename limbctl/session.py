@@ -23,6 +23,7 @@ from calib.profile import RigProfile
 from limbctl.servo.bus import ServoBus
 from limbctl.servo.profiles import load_rig_profile
 from limbctl.servo.rig import Rig
+from limbctl.servo.rig3 import rig_for
 
 
 @dataclass
@@ -87,6 +88,7 @@ def open_rig(
                     hand=hand,
                     goal_log=goal_log,
                     seed=seed,
+                    **({} if profile.roll is None else {"roll_id": profile.roll.id}),
                     **dict(sim_options or {}),
                 )
             )
@@ -102,7 +104,7 @@ def open_rig(
             latency_timer_ms=latency_timer_ms,
         )
         stack.enter_context(bus)
-        yield Session(rig=Rig(profile, bus), profile=profile, simulator=simulator)
+        yield Session(rig=rig_for(profile, bus), profile=profile, simulator=simulator)
 
 
 @contextmanager
