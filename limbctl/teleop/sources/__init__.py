@@ -41,9 +41,19 @@ class SourceContext:
     rig : limbctl.servo.rig.Rig or None
         The open, configured rig (its bus also holds the spec's ``extra_ids``); None where no
         rig is open (sources that need one refuse to be built then).
+    twist : bool
+        True when commands keep their twist (a three-servo rig); a rig with a roll joint sets
+        it whatever is given here.
     """
 
     rig: Any = None
+    twist: bool = False
+
+    @property
+    def takes_twist(self) -> bool:
+        """True for a three-servo rig (its profile has a roll joint) or when asked."""
+        profile = getattr(self.rig, "profile", None)
+        return self.twist or getattr(profile, "roll", None) is not None
 
 
 @dataclass(frozen=True)
@@ -118,8 +128,11 @@ class SourceSpec:
         return self.kind.extra_ids(self.argument)
 
     def open(self, context: SourceContext | None = None) -> CommandSource:
-        """Build the source (not yet started)."""
-        return self.kind.build(self.argument, context or SourceContext())
+        """Build the source (not yet started); on a three-servo rig its lines keep their twist."""
+        context = context or SourceContext()
+        source = self.kind.build(self.argument, context)
+        source.twist = context.takes_twist
+        return source
 
 
 def parse_source(spec: str) -> SourceSpec:

@@ -54,6 +54,8 @@ class CommandSource:
 
     name = "source"
     latest_only = False
+    #: True on a three-servo rig: lines keep their twist (``parse_command(..., twist=True)``).
+    twist = False
 
     def __init__(self) -> None:
         self.stats = SourceStats()
@@ -100,7 +102,7 @@ class CommandSource:
         if not text:
             return
         try:
-            command = parse_command(text)
+            command = parse_command(text, twist=self.twist)
         except InvalidInputError as exc:
             self.stats.reject(str(exc), text, self._lines_fed)
             return
