@@ -140,6 +140,20 @@ def gate_for(model_path: Path, profile: RigProfile, rate_hz: float, max_speed_de
         # a small direction change), and never less than 1 degree
         max_joint_step=max(3.0 * step, math.radians(1.0)),
     )
+    if profile.roll is not None:
+        from limbctl.teleop.gate3 import Gate3, GateLimits3
+
+        limits3 = GateLimits3(
+            pan_min=profile.pan.min_rad,
+            pan_max=profile.pan.max_rad,
+            tilt_min=profile.tilt.min_rad,
+            tilt_max=profile.tilt.max_rad,
+            roll_min=profile.roll.min_rad,
+            roll_max=profile.roll.max_rad,
+            max_step=step,  # a rotation of the limb per cycle on a three-servo rig
+            max_joint_step=limits.max_joint_step,
+        )
+        return Gate3(load_model(model_path), limits3)  # type: ignore[return-value]
     return Gate(load_model(model_path), limits)
 
 
@@ -202,19 +216,34 @@ def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
         limits = {**rig.tick_limits(), **{servo_id: (0, MAX_TICK) for servo_id in spec.extra_ids}}
         configure_servos(rig.bus, limits)
         with spec.open(SourceContext(rig=rig)) as source, stop_on_signals() as stop:
-            result = run_session(
-                rig,
-                gate,
-                source,
-                config,
-                starting,
-                telemetry_path=options.telemetry,
-                stream=sys.stderr,
-                status=None if options.quiet else sys.stderr,
-                stop=stop,
-                torque_was_on=torque_was_on,
-                publish=live.start_observer(),
-            )
+            if profile.roll is None:
+                result = run_session(
+                    rig,
+                    gate,
+                    source,
+                    config,
+                    starting,
+                    telemetry_path=options.telemetry,
+                    stream=sys.stderr,
+                    status=None if options.quiet else sys.stderr,
+                    stop=stop,
+                    torque_was_on=torque_was_on,
+                    publish=live.start_observer(),
+                )
+            else:  # three servos: wait for the limb to start, no park
+                from limbctl.teleop.start3 import run_session_three
+
+                result = run_session_three(
+                    rig,
+                    gate,
+                    source,
+                    config,
+                    starting,
+                    telemetry_path=options.telemetry,
+                    stream=sys.stderr,
+                    status=None if options.quiet else sys.stderr,
+                    stop=stop,
+                )
     for line in result.lines():
         say(line)
     return result.exit_code

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 from typing import IO, Protocol
 
 from limbctl.errors import BusError, ConfigError
+from limbctl.geometry.gimbal3 import pose_quat_scalar
 from limbctl.teach.dataset import DatasetWriter
 from limbctl.teach.guide import Guidance, Guide
 
@@ -167,7 +168,7 @@ def record(
             summary.ended_by = "duration"
             break
         try:
-            pan, tilt = limb.read_pose()
+            pose = limb.read_pose()
         except BusError as exc:
             summary.failed_reads += 1
             failed_in_a_row += 1
@@ -188,7 +189,10 @@ def record(
                 if progress is not None:
                     progress.write(f"\n{dropout}; recording on\n")
             failed_in_a_row = 0
-            writer.append(elapsed, pan, tilt)
+            pan, tilt = pose[0], pose[1]
+            # a three-servo rig's sample is its full orientation, twist included
+            full = None if len(pose) == 2 else pose_quat_scalar(*pose)
+            writer.append(elapsed, pan, tilt, full)
             guide.add(elapsed, pan, tilt)
             summary.samples += 1
         if now - last_guide >= GUIDE_EVERY_S and (progress is not None or on_guidance):
