@@ -20,11 +20,11 @@ from limbctl.teleop.start3 import run_session_three, safe_with_margin
 from tests.teleop.test_gate3 import ConeBand
 
 
-def sweep_lines(n=300):
+def sweep_lines(n=500):
     t = np.arange(n) / n
     pan = 90 * np.sin(2 * math.pi * t)
     tilt = 10 + 50 * np.sin(4 * math.pi * t + 0.5)
-    roll = 150 * np.sin(6 * math.pi * t)
+    roll = 150 * np.sin(2 * math.pi * t + 1.0)
     return "".join(
         json.dumps({"pan": p, "tilt": q, "roll": r}) + "\n"
         for p, q, r in zip(pan, tilt, roll, strict=True)
