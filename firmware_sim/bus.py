@@ -34,7 +34,7 @@ from firmware_sim.events import EventSchedule
 from firmware_sim.faults import FaultPlan
 from firmware_sim.hand import Hand
 from firmware_sim.simulator import Simulator
-from firmware_sim.twist_hand import TwistHand, hand_from_mapping, hand_from_yaml
+from firmware_sim.twist_hand import RollScriptHand, TwistHand, hand_from_mapping, hand_from_yaml
 
 # The physics keeps moving (hand, profiles) at least this often without traffic.
 TICK_S = 0.005
@@ -181,7 +181,7 @@ def build_simulator(config: Mapping[str, Any]) -> Simulator:
     )
 
 
-def _make_hand(spec: Any, seed: int) -> Hand | TwistHand | None:
+def _make_hand(spec: Any, seed: int) -> Hand | TwistHand | RollScriptHand | None:
     if spec is None:
         return None
     if isinstance(spec, Mapping):

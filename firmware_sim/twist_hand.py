@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from firmware_sim.hand import PAUSE_S, TREMOR_BAND_HZ, Hand
+from firmware_sim.hand import DEFAULT_TREMOR_DEG, PAUSE_S, TREMOR_BAND_HZ, Hand
 from firmware_sim.orientation import chain_twist, roll_for_twist_deg, wrap_deg
 from firmware_sim.twist_band import TwistBand
 
@@ -154,8 +154,62 @@ class TwistHand:
         return wrap_deg(roll_deg + math.degrees(tau))
 
 
-def hand_from_mapping(data: object, seed: int = 0, source: str = "<mapping>") -> Hand | TwistHand:
-    """A :class:`TwistHand` when the REGION.yaml mapping has ``twist:``, else a :class:`Hand`."""
+class RollScriptHand:
+    """A script hand that also turns the roll: ``script: [[t_s, pan, tilt, roll], ...]`` (deg),
+    linear in time between the waypoints, the first held before and the last after them (as a
+    :class:`Hand` script). Used where the simulator's "person" follows prompts, e.g. a
+    calibration of the roll joint."""
+
+    turns_roll = True
+    region = None
+    trace_span_s = None
+
+    def __init__(self, script: object, tremor_deg: float, seed: int, source: str) -> None:
+        rows = script if isinstance(script, (list, tuple)) else []
+        swing_rows, rolls = [], []
+        for k, row in enumerate(rows):
+            if not isinstance(row, (list, tuple)) or len(row) != 4:
+                raise ValueError(
+                    f"{source}: script[{k}] must be [t_s, pan_deg, tilt_deg, roll_deg] like the "
+                    f"first row, got {row!r}"
+                )
+            swing_rows.append(list(row[:3]))
+            rolls.append(row[3])
+        data = {"script": swing_rows, "tremor_deg": tremor_deg}
+        self.swing = Hand.from_mapping(data, seed=seed, source=source)
+        for k, value in enumerate(rolls):
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise ValueError(f"{source}: script[{k}] roll must be a number, got {value!r}")
+            if not math.isfinite(value):
+                raise ValueError(f"{source}: script[{k}] roll must be finite, got {value!r}")
+        self._times = [float(row[0]) for row in swing_rows]
+        self._rolls = [float(v) for v in rolls]
+
+    def start_from(self, pan_deg: float, tilt_deg: float, roll_deg: float = 0.0) -> None:
+        """A script says where the limb is: nothing to do."""
+
+    def pose_deg(self, t: float) -> tuple[float, float, float]:
+        """(pan_deg, tilt_deg, roll_deg) at ``t`` s after the hand took hold."""
+        pan, tilt = self.swing.pose_deg(t)
+        # roll = linear between waypoints, held outside them
+        return float(pan), float(tilt), float(np.interp(t, self._times, self._rolls))
+
+
+def hand_from_mapping(
+    data: object, seed: int = 0, source: str = "<mapping>"
+) -> Hand | TwistHand | RollScriptHand:
+    """A :class:`TwistHand` when the REGION.yaml mapping has ``twist:``, a
+    :class:`RollScriptHand` for a script whose rows carry a roll, else a :class:`Hand`."""
+    if isinstance(data, Mapping) and isinstance(data.get("script"), list):
+        first = data["script"][0] if data["script"] else None
+        if isinstance(first, (list, tuple)) and len(first) == 4:
+            extra = sorted(set(data) - {"script", "tremor_deg"}, key=str)
+            if extra:
+                raise ValueError(
+                    f"{source}: a script hand takes script and tremor_deg, not {extra}"
+                )
+            tremor = data.get("tremor_deg", DEFAULT_TREMOR_DEG)
+            return RollScriptHand(data["script"], tremor, seed, source)
     if isinstance(data, Mapping) and "twist" in data:
         rest = {k: v for k, v in data.items() if k != "twist"}
         if "script" in rest:
@@ -165,7 +219,7 @@ def hand_from_mapping(data: object, seed: int = 0, source: str = "<mapping>") ->
     return Hand.from_mapping(data, seed=seed, source=source)
 
 
-def hand_from_yaml(path: str | Path, seed: int = 0) -> Hand | TwistHand:
+def hand_from_yaml(path: str | Path, seed: int = 0) -> Hand | TwistHand | RollScriptHand:
     """A hand from a REGION.yaml file (with or without ``twist:``); ValueError names the file."""
     path = Path(path)
     try:

@@ -277,7 +277,9 @@ def run_calibrate(options: CalibrateOptions) -> int:
 
     conn = options.connection
     base = _calibration_base(options, load_rig_profile(conn.rig))
-    script = Path(str(resources.files("limbctl").joinpath("data", "calibration_hand.yaml")))
+    # the simulator's person follows the prompts: three steps, or four with a roll joint
+    name = "calibration_hand.yaml" if base.roll is None else "calibration_hand3.yaml"
+    script = Path(str(resources.files("limbctl").joinpath("data", name)))
     with open_connection(conn, hand=script) as session:
         if session.simulated:
             say("simulator: a scripted hand follows the prompts below")
@@ -291,6 +293,11 @@ def run_calibrate(options: CalibrateOptions) -> int:
     say(
         f"pan: zero tick {result.pan_zero}, direction {result.pan_direction:+d}; "
         f"tilt: zero tick {result.tilt_zero}, direction {result.tilt_direction:+d}"
+        + (
+            ""
+            if result.roll_zero is None
+            else f"; roll: zero tick {result.roll_zero}, direction {result.roll_direction:+d}"
+        )
     )
     say(f"wrote {options.out} (check the hard limits in it before teleoperating)")
     return 0

@@ -129,3 +129,18 @@ def test_roll_id_must_be_a_listed_servo_other_than_pan_and_tilt():
         Simulator(ids=(1, 2, 3), roll_id=2)
     two = Simulator(ids=(1, 2, 3))
     assert not two.world.has_roll  # servo 3 is a free shaft unless named the roll
+
+
+def test_a_script_with_roll_turns_the_roll_linearly_and_refuses_mixed_rows():
+    hand = hand_from_mapping(
+        {"script": [[0, 0, 0, 0], [2, 10, 0, 40]], "tremor_deg": 0}, source="s.yaml"
+    )
+    assert hand.turns_roll
+    assert hand.pose_deg(1.0) == pytest.approx((5.0, 0.0, 20.0))
+    assert hand.pose_deg(5.0) == pytest.approx((10.0, 0.0, 40.0))
+    with pytest.raises(
+        ValueError, match=r"script\[1\] must be \[t_s, pan_deg, tilt_deg, roll_deg\]"
+    ):
+        hand_from_mapping({"script": [[0, 0, 0, 0], [2, 10, 0]]}, source="s.yaml")
+    with pytest.raises(ValueError, match="roll must be finite"):
+        hand_from_mapping({"script": [[0, 0, 0, 0], [2, 10, 0, float("nan")]]}, source="s.yaml")
