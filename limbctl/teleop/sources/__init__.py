@@ -7,6 +7,7 @@ Each scheme has its own module and one entry in :data:`SOURCES`::
     replay:FILE            JSON lines from a file, paced by their "t" (seconds) when present
     keyboard               arrow keys in the terminal (q quits)
     leader:ID,ID           a second gimbal on the same bus, moved by hand with torque off
+                           (leader:ID,ID,ID: a three-servo leader, for a three-servo rig)
 
 :func:`parse_source` checks a spec before anything is opened (and says which extra servos the
 bus must hold); :meth:`SourceSpec.open` builds the source from a :class:`SourceContext`, which

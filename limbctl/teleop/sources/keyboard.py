@@ -1,4 +1,5 @@
-"""Command source ``keyboard``: the arrow keys of a terminal nudge pan and tilt."""
+"""Command source ``keyboard``: the arrow keys of a terminal nudge pan and tilt; on a
+three-servo rig ``[`` and ``]`` turn the limb about its own axis (roll)."""
 
 from __future__ import annotations
 
@@ -6,7 +7,7 @@ import os
 import select
 
 from limbctl.errors import ConfigError
-from limbctl.teleop.commands import command_from_pan_tilt
+from limbctl.teleop.commands import command_from_pan_tilt, command_from_pose
 from limbctl.teleop.sources.base import WAKE_INTERVAL_S, CommandSource
 
 #: Degrees one arrow key moves pan or tilt: fine enough to creep up to an edge, coarse enough to
@@ -20,12 +21,15 @@ class KeyboardSource(CommandSource):
     """Arrow keys in the terminal nudge pan/tilt by ``step_deg``; ``q`` ends the session.
 
     Up/down raise/lower the limb (tilt), left/right turn it (pan; left is +pan, toward +y).
+    On a three-servo rig (``twist``), ``]`` turns the roll by +``step_deg`` and ``[`` by
+    -``step_deg``; on two servos those keys are refused (counted, with the reason).
     ``tty_path`` is the terminal to read (the controlling terminal by default).
     """
 
     name = "keyboard"
     latest_only = True
     _KEYS = {b"\x1b[A": (0, 1), b"\x1b[B": (0, -1), b"\x1b[C": (-1, 0), b"\x1b[D": (1, 0)}
+    _ROLL_KEYS = {b"[": -1, b"]": 1}
 
     def __init__(
         self,
@@ -53,6 +57,7 @@ class KeyboardSource(CommandSource):
         self._fd = fd
         self.step_deg = step_deg
         self.pan_deg, self.tilt_deg = start_deg
+        self.roll_deg = 0.0
 
     def close(self) -> None:
         """Stop the reader and give the terminal back as it was; safe to call twice."""
@@ -84,11 +89,24 @@ class KeyboardSource(CommandSource):
                     key, pending = pending[:size], pending[size:]
                     if key in (b"q", b"\x04"):
                         return
-                    move = self._KEYS.get(key)
+                    turn = self._ROLL_KEYS.get(key)
+                    if turn is not None and not self.twist:
+                        self.stats.reject(
+                            "roll keys need a three-servo rig (this one has no roll joint to "
+                            "turn the limb about its own axis)",
+                            key,
+                        )
+                        continue
+                    move = (0, 0) if turn is not None else self._KEYS.get(key)
                     if move is None:
                         continue
                     self.pan_deg = min(max(self.pan_deg + move[0] * self.step_deg, -180.0), 180.0)
                     self.tilt_deg = min(max(self.tilt_deg + move[1] * self.step_deg, -90.0), 90.0)
-                    self.offer(command_from_pan_tilt(self.pan_deg, self.tilt_deg))
+                    if self.twist:
+                        step = (turn or 0) * self.step_deg
+                        self.roll_deg = min(max(self.roll_deg + step, -180.0), 180.0)
+                        self.offer(command_from_pose(self.pan_deg, self.tilt_deg, self.roll_deg))
+                    else:
+                        self.offer(command_from_pan_tilt(self.pan_deg, self.tilt_deg))
         finally:
             self._release()
