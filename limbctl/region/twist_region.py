@@ -29,8 +29,9 @@ from limbctl.geometry.quat import as_quaternions
 from limbctl.geometry.twist import SINGULAR_MARGIN, compose, decompose
 from limbctl.region import twist_kernels as tk
 from limbctl.region.params import RegionParams
+from limbctl.region.shape import thin
 from limbctl.region.taught import TaughtRegion
-from limbctl.region.twist_band import TwistBand
+from limbctl.region.twist_band import TwistBand, plane_to_direction
 
 #: Spacing (deg) of the seeds: the pattern search's first step is about it (``STEP_START``),
 #: and ~1000 seeds for 2 sr of region keep the seed scan near a microsecond.
@@ -167,38 +168,63 @@ def boundary_seeds(region: TwistRegion) -> np.ndarray:
     """Orientations (M, 4) on the region's boundary about SEED_STEP_DEG apart.
 
     The band's two limits over swing-region directions on a SEED_STEP_DEG lattice of the band's
-    plane, and, along every arc of the swing edge at that spacing, twists across the band.
+    plane, and, at points of the swing edge SEED_STEP_DEG apart, twists across the band.
     """
     band, mesh = region.band, region.swing.mesh
     step = math.radians(SEED_STEP_DEG)
+    inside = lattice(band, step)
+    inside = inside[mesh.contains(inside)]
+    c, h = band.at(inside)
+    bounded = h < math.pi
+    stops = [compose(inside[bounded], c[bounded] + sign * h[bounded]) for sign in (-1.0, 1.0)]
+    edge = edge_points(mesh, step)
+    return np.concatenate([*stops, across_band(band, edge, step)])
+
+
+def boundary_samples(region: TwistRegion, step_deg: float) -> np.ndarray:
+    """A dense sampling (M, 4) of the learned region's boundary, ``step_deg`` apart: the brute
+    force the tests and benchmarks check :meth:`TwistRegion.correct` against.
+
+    Both band limits over the swing region's directions on a ``step_deg`` lattice, and twists
+    across the band along the swing edge (its mesh arcs; an arc's widening is not sampled, so
+    these points lie up to the largest margin inside the edge).
+    """
+    step = math.radians(step_deg)
+    inside = lattice(region.band, step)
+    inside = inside[region.swing.mesh.contains(inside)]
+    c, h = region.band.at(inside)
+    stops = [compose(inside, c + sign * h) for sign in (-1.0, 1.0)]
+    return np.concatenate([*stops, across_band(region.band, edge_points(region.mesh, step), step)])
+
+
+def lattice(band: TwistBand, step: float) -> np.ndarray:
+    """Directions (K, 3) on a ``step`` (rad) square lattice of the band's plane, over its grid."""
     x0, y0, grid_step = band.grid
     nx, ny = band.centre.shape
-    every = max(1, int(round(step / grid_step)))
-    from limbctl.region.twist_band import plane_to_direction
+    gx = np.arange(x0, x0 + grid_step * (nx - 1), step)
+    gy = np.arange(y0, y0 + grid_step * (ny - 1), step)
+    xy = np.stack(np.meshgrid(gx, gy, indexing="ij"), axis=-1).reshape(-1, 2)
+    return plane_to_direction(xy, band.frame)
 
-    gx = x0 + grid_step * np.arange(0, nx, every)
-    gy = y0 + grid_step * np.arange(0, ny, every)
-    nodes = plane_to_direction(
-        np.stack(np.meshgrid(gx, gy, indexing="ij"), axis=-1).reshape(-1, 2), band.frame
-    )
-    nodes = nodes[mesh.contains(nodes)]
-    parts = []
-    c, h = band.at(nodes)
-    bounded = h < math.pi
-    for sign in (-1.0, 1.0):
-        parts.append(compose(nodes[bounded], c[bounded] + sign * h[bounded]))
-    # along the swing edge: points on each arc, twists across the band there
+
+def edge_points(mesh, step: float) -> np.ndarray:
+    """Points (K, 3) along every arc of the swing mesh's edge, at most ``step`` (rad) apart."""
     a = mesh.vertices[mesh.edges[:, 0]]
     b = mesh.vertices[mesh.edges[:, 1]]
     arc = np.arccos(np.clip(np.sum(a * b, axis=1), -1.0, 1.0))
-    for k in range(a.shape[0]):
-        n = max(1, int(math.ceil(arc[k] / step)))
-        f = np.arange(n)[:, None] / n
-        p = (1.0 - f) * a[k] + f * b[k]
-        p /= np.linalg.norm(p, axis=1, keepdims=True)
-        pc, ph = band.at(p)
-        for j in range(p.shape[0]):
-            m = max(1, int(math.ceil(2.0 * ph[j] / step)))
-            taus = pc[j] + ph[j] * np.linspace(-1.0, 1.0, m + 1)
-            parts.append(compose(np.repeat(p[j : j + 1], taus.size, axis=0), taus))
-    return np.concatenate(parts) if parts else np.zeros((0, 4))
+    n = np.maximum(1, np.ceil(arc / step).astype(int))
+    rows = np.repeat(np.arange(a.shape[0]), n)
+    f = (np.arange(rows.size) - np.repeat(np.cumsum(n) - n, n)) / np.repeat(n, n)
+    p = (1.0 - f)[:, None] * a[rows] + f[:, None] * b[rows]
+    p /= np.linalg.norm(p, axis=1, keepdims=True)
+    return p[thin(p, step)] if p.shape[0] > 1 else p
+
+
+def across_band(band: TwistBand, d: np.ndarray, step: float) -> np.ndarray:
+    """Orientations over directions ``d`` (K, 3) with twists across the band at most ``step``
+    (rad) apart, both limits included."""
+    c, h = band.at(d)
+    k = np.ceil(2.0 * h / step).astype(int) + 1
+    rows = np.repeat(np.arange(d.shape[0]), k)
+    frac = np.concatenate([np.linspace(-1.0, 1.0, m) for m in k]) if k.size else np.zeros(0)
+    return compose(d[rows], c[rows] + h[rows] * frac)
