@@ -30,14 +30,16 @@ from firmware_sim.twist_band import TwistBand
 #: How far inside each twist stop (deg) the hand turns: as the swing trace keeps EDGE_INSET_DEG
 #: (1 deg) from the swing edge, a person feels the stop and backs off about a degree.
 TWIST_INSET_DEG = 1.0
-#: Along the edge trace, one cycle to both stops: (u target, move s, hold s) steps. Six seconds
-#: a cycle at the trace's 18 deg/s reaches both stops about every 110 deg of edge, so a ~400 deg
-#: perimeter is turned to its stops at about four places.
-TRACE_TWIST_CYCLE = ((1.0, 1.2, 0.3), (-1.0, 2.0, 0.3), (0.0, 1.0, 1.2))
+#: Along the edge trace, one cycle to both stops: (u target, move s, hold s) steps. Three
+#: seconds a cycle at the trace's 18 deg/s reaches both stops about every 55 deg of edge, so a
+#: ~400 deg perimeter is turned to its stops at about seven places (at six seconds a cycle, four
+#: places left the band between them to guesswork: a 60 s teaching learned half widths ~20 deg
+#: short of the truth on the demo's region).
+TRACE_TWIST_CYCLE = ((1.0, 0.7, 0.15), (-1.0, 1.2, 0.15), (0.0, 0.6, 0.2))
 #: Wandering: every STOP_EVERY-th twist move goes to a stop; the others to a uniform draw in the
 #: band. A move over the whole band takes WANDER_MOVE_S[1] s, a short one at least WANDER_MOVE_S[0].
-STOP_EVERY = 3
-WANDER_MOVE_S = (0.4, 1.6)
+STOP_EVERY = 2
+WANDER_MOVE_S = (0.3, 1.0)
 #: The twist tremor's amplitude as a fraction of the hand's tremor_deg (one sine: the wrist's
 #: tremor about the forearm is about half that of the swing).
 TWIST_TREMOR_FRACTION = 0.5

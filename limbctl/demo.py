@@ -250,6 +250,7 @@ def _run_demo_twist(out: Path, teach_seconds: float, seed: int) -> int:
         twist_excursions,
         twist_picture,
         write_twist_stream,
+        written_orientations,
     )
     from limbctl.session import demo_region_path
     from limbctl.teach.dataset import load_dataset
@@ -297,7 +298,7 @@ def _run_demo_twist(out: Path, teach_seconds: float, seed: int) -> int:
     )
     say("== 4/4 check: every goal the simulator received, against the learned region")
     model = load_model(model_path)
-    excursion = twist_excursions(goals, model)
+    excursion = twist_excursions(goals, model, written_orientations(telemetry))
     worst = float(excursion.max()) if len(excursion) else 0.0
     bound = written_tolerance_deg3()
     beyond = int((excursion > bound).sum())

@@ -3,7 +3,11 @@
 - :func:`write_twist_stream`: a replay file sweeping far outside the taught region in swing and
   in twist (joint angles with roll), with malformed lines mixed in;
 - :func:`twist_excursions`: how far (deg of rotation, ``2 acos |<q1, q2>|``) each goal the
-  simulator logged (its true full orientation ``limb_q``) lies outside the learned region;
+  simulator logged (its true full orientation ``limb_q``) lies outside the learned region, at
+  most: the distance to the region is bounded by the distance to any orientation the region
+  contains, so the least of two such distances is taken, to ``correct(q)`` and to the nearest
+  region orientation the gate wrote or corrected its pose onto (the search of ``correct`` may
+  stop short of the nearest orientation by some tenths of a degree);
 - :func:`coverage`: the share of a true region's orientations the learned region holds;
 - :func:`twist_picture`: the taught samples over the swing plane coloured by twist, and twist
   against tilt with the true band's limits and the goals the gate wrote.
@@ -69,13 +73,45 @@ def rotation_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.degrees(4.0 * np.arctan2(near, far))
 
 
-def twist_excursions(goal_log: Path, model: object) -> np.ndarray:
-    """Rotation (deg) by which each logged goal lies outside ``model``'s region; 0 inside."""
+def twist_excursions(
+    goal_log: Path, model: object, written: np.ndarray | None = None
+) -> np.ndarray:
+    """Rotation (deg) by which each logged goal lies outside ``model``'s region, at most; 0
+    inside. ``written`` (M, 4): the orientations the gate wrote (its telemetry); those the
+    region contains bound each goal's distance too (module docstring)."""
     q = logged_orientations(goal_log)
     if not len(q):
         return np.zeros(0)
     outside = ~np.asarray(model.contains(q), dtype=bool)
-    return np.where(outside, rotation_deg(q, model.correct(q)), 0.0)
+    bound = rotation_deg(q, model.correct(q))
+    if written is not None and len(written):
+        # region points near the goals: the written poses the region contains, and for the
+        # others (within the gate's tolerance of it) their corrections
+        held = np.asarray(model.contains(written), dtype=bool)
+        inside = np.concatenate([written[held], model.correct(written[~held])])
+        inside = inside[np.asarray(model.contains(inside), dtype=bool)]
+        for k in np.flatnonzero(outside):
+            if len(inside):
+                nearest = rotation_deg(np.broadcast_to(q[k], inside.shape), inside).min()
+                bound[k] = min(bound[k], nearest)
+    return np.where(outside, bound, 0.0)
+
+
+def written_orientations(telemetry: Path) -> np.ndarray:
+    """The orientations (M, 4) the gate wrote, from a three-servo session's telemetry (each
+    written cycle's ``out``: pan, tilt, roll in deg)."""
+    from limbctl.geometry.gimbal3 import pan_tilt_roll_to_quat
+
+    rows = []
+    with open(telemetry, encoding="utf-8") as fh:
+        for line in fh:
+            row = json.loads(line)
+            if row["written"] and row["out"] is not None and len(row["out"]) == 3:
+                rows.append(row["out"])
+    if not rows:
+        return np.zeros((0, 4))
+    a = np.radians(np.asarray(rows, dtype=np.float64))
+    return pan_tilt_roll_to_quat(a[:, 0], a[:, 1], a[:, 2])
 
 
 def coverage(model: object, probes: np.ndarray) -> float:

@@ -26,6 +26,7 @@ from pathlib import Path
 from typing import IO, Any
 
 from limbctl.errors import BusError, SafetyError
+from limbctl.geometry.gimbal3 import pose_quat_scalar
 from limbctl.teleop.approach import StartOptions, StartOutcome
 from limbctl.teleop.gate3 import Gate3
 from limbctl.teleop.lifecycle import SessionResult
@@ -69,6 +70,8 @@ def start_three(
     if options.approach_deg_s is not None:
         _say(stream, "an approach is not offered on a three-servo rig: waiting for the hand")
     margin = math.radians(START_MARGIN_DEG)
+    # the region's kernels compile on their first call: here, not in the loop's first cycles
+    gate.envelope.correct(pose_quat_scalar(math.pi / 2, 0.0, math.pi / 2))
     started = time.monotonic()
     failed, first = 0, True
     while True:
