@@ -42,8 +42,8 @@ At a pose (pan, tilt) the band is C - H .. C + H deg; C and H are each a number 
 meaning a + b*pan + c*tilt (deg), so the limits may vary with pan and tilt, e.g.
   twist: {centre_deg: 0, half_width_deg: [40, 0, -0.3]}   (narrows as the limb rises)
 H must stay within 3..170 deg over the whole outline. While the swing traces the edge the twist
-goes to both stops (about 1 deg inside) every three seconds; while it wanders, every other twist
-move goes to a stop.
+goes to both stops (about 1 deg inside) every two seconds; while it wanders, it keeps turning
+from one stop to the other.
 
 --goal-log FILE.jsonl gets one line per Goal Position write that reaches a servo:
   {"t": s, "id": n, "goal": ticks, "limb_dir": [x, y, z]}

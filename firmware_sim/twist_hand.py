@@ -30,16 +30,20 @@ from firmware_sim.twist_band import TwistBand
 #: How far inside each twist stop (deg) the hand turns: as the swing trace keeps EDGE_INSET_DEG
 #: (1 deg) from the swing edge, a person feels the stop and backs off about a degree.
 TWIST_INSET_DEG = 1.0
-#: Along the edge trace, one cycle to both stops: (u target, move s, hold s) steps. Three
-#: seconds a cycle at the trace's 18 deg/s reaches both stops about every 55 deg of edge, so a
-#: ~400 deg perimeter is turned to its stops at about seven places (at six seconds a cycle, four
-#: places left the band between them to guesswork: a 60 s teaching learned half widths ~20 deg
-#: short of the truth on the demo's region).
-TRACE_TWIST_CYCLE = ((1.0, 0.7, 0.15), (-1.0, 1.2, 0.15), (0.0, 0.6, 0.2))
-#: Wandering: every STOP_EVERY-th twist move goes to a stop; the others to a uniform draw in the
-#: band. A move over the whole band takes WANDER_MOVE_S[1] s, a short one at least WANDER_MOVE_S[0].
-STOP_EVERY = 2
-WANDER_MOVE_S = (0.3, 1.0)
+#: Along the edge trace, one cycle to both stops: (u target, move s, hold s) steps. Two seconds
+#: a cycle at the trace's 18 deg/s reaches both stops about every 40 deg of edge, so each
+#: stretch of edge the region layer reads a band limit from (8 deg about a direction) sees a
+#: stop (at six seconds a cycle a 60 s teaching learned half widths ~20 deg short of the truth
+#: on the demo's region; docs/decisions/hand.md).
+TRACE_TWIST_CYCLE = ((1.0, 0.5, 0.1), (-1.0, 0.9, 0.1), (0.0, 0.4, 0.1))
+#: Wandering: every STOP_EVERY-th twist move goes to a stop, alternately the upper and the lower
+#: one; the others to a uniform draw in the band. 1: every move, so the twist keeps turning from
+#: stop to stop while the swing wanders (a place passed once still sees both stops). A move over
+#: the whole band takes WANDER_MOVE_S[1] s, a short one at least WANDER_MOVE_S[0] (a wrist turns
+#: through its range in under a second), and each ends in a hold of WANDER_HOLD_S.
+STOP_EVERY = 1
+WANDER_MOVE_S = (0.3, 0.8)
+WANDER_HOLD_S = (0.05, 0.2)
 #: The twist tremor's amplitude as a fraction of the hand's tremor_deg (one sine: the wrist's
 #: tremor about the forearm is about half that of the swing).
 TWIST_TREMOR_FRACTION = 0.5
@@ -118,7 +122,7 @@ class TwistHand:
                 target = float(self._rng.uniform(-1.0, 1.0))
             fraction = abs(target - u_end) / 2.0
             move_s = WANDER_MOVE_S[0] + fraction * (WANDER_MOVE_S[1] - WANDER_MOVE_S[0])
-            hold_s = float(self._rng.uniform(*PAUSE_S))
+            hold_s = float(self._rng.uniform(*WANDER_HOLD_S))
         self._append(t1, t1 + move_s, u_end, target)
         self._append(t1 + move_s, t1 + move_s + hold_s, target, target)
 
