@@ -87,6 +87,8 @@ def run_record(options: RecordOptions, view: LiveView | None = None) -> int:
     conn = options.connection
     profile = load_rig_profile(conn.rig)
     hand = options.hand if options.hand is not None else demo_region_path()
+    if options.hand is None and profile.roll is not None:  # the packaged region with twist
+        hand = hand.with_name("demo_region3.yaml")
     meta = {"rate_hz": options.rate, "simulated": conn.port is None and profile.is_sim}
     # the writer checks the path and free space before any servo is touched, and creates the
     # file only once the port is ours: a refused start (port in use, no servo) leaves no empty
