@@ -2,6 +2,7 @@
 
 from calib.profile import (
     SIM_PORT,
+    SIM_RIGS,
     Calibration,
     JointCalibration,
     JointProfile,
@@ -17,6 +18,7 @@ from calib.profile import (
 
 __all__ = [
     "SIM_PORT",
+    "SIM_RIGS",
     "Calibration",
     "JointCalibration",
     "JointProfile",

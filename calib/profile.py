@@ -12,6 +12,13 @@ A profile is a small YAML file (see ``calib/rigs/sim.yaml``)::
     tilt: {id: 2, zero_tick: 1890, direction: -1, min_deg: -55.0,  max_deg: 70.0,
            stop_min_deg: -60.0, stop_max_deg: 75.0}
     rest_direction: [1.0, 0.0, 0.0]
+    roll: {id: 3, zero_tick: 1960, direction: 1, min_deg: -100.0, max_deg: 100.0,
+           stop_min_deg: -105.0, stop_max_deg: 105.0}   # optional: a three-servo rig
+
+``roll`` is optional: a third servo that turns the limb about its own axis
+(``calib/rigs/sim3.yaml``). It is validated like the other two joints; a profile without it
+is a two-servo rig and reads, saves and calibrates exactly as before (its dictionaries carry
+no ``roll`` key).
 
 ``min_deg``/``max_deg`` are the hard limits the controller enforces (and writes to the servos'
 position limits); ``stop_min_deg``/``stop_max_deg`` are the gimbal's physical end stops, where
@@ -43,6 +50,7 @@ from typing import Any
 
 import yaml
 
+from calib.checker import Checker, ProfileError, ProfileFileError
 from calib.yaml_guard import YamlRefused, read_yaml, shown
 
 #: Encoder ticks in one turn of a Dynamixel X-series shaft; a zero tick lies in 0..MAX_TICK.
@@ -50,6 +58,8 @@ TICKS_PER_TURN = 4096
 MAX_TICK = TICKS_PER_TURN - 1
 #: The port name that stands for the embedded simulator.
 SIM_PORT = "sim"
+#: The packaged simulated rigs (``calib/rigs/NAME.yaml``): two servos, and three with roll.
+SIM_RIGS = ("sim", "sim3")
 #: Protocol versions limbctl speaks.
 PROTOCOLS = (2.0,)
 #: Largest id a servo can have (253 and up are reserved / broadcast).
@@ -63,12 +73,11 @@ DEFAULT_END_STOP_DEG = 90.0
 END_STOP_MARGIN_DEG = 1.0
 #: Longest rig name: it is copied into every recording and model and quoted in messages.
 MAX_NAME_CHARS = 64
-#: Longest port or model string (a device path is well under this).
-MAX_TEXT_CHARS = 256
 _JOINT_KEYS = ("id", "zero_tick", "direction", "min_deg", "max_deg")
 _JOINT_OPTIONAL_KEYS = ("stop_min_deg", "stop_max_deg")
 _CALIBRATION_KEYS = ("zero_tick", "direction", "min_deg", "max_deg")
 _TOP_KEYS = ("name", "port", "baud", "model", "protocol", "pan", "tilt", "rest_direction")
+_OPTIONAL_TOP_KEYS = ("roll",)
 
 
 @dataclass(frozen=True)
@@ -141,19 +150,33 @@ class Calibration:
 
     pan: JointCalibration
     tilt: JointCalibration
+    roll: JointCalibration | None = None
+
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        """``("pan", "tilt")``, or ``("pan", "tilt", "roll")`` on a three-servo rig."""
+        return ("pan", "tilt") if self.roll is None else ("pan", "tilt", "roll")
 
     def to_dict(self) -> dict[str, dict[str, Any]]:
-        """Plain data: ``{"pan": {"zero_tick": ..., ...}, "tilt": {...}}``."""
+        """Plain data: ``{"pan": {"zero_tick": ..., ...}, "tilt": {...}}`` (and ``"roll"`` when
+        the rig has one; a two-servo calibration has no ``roll`` key)."""
         return {
-            name: {key: getattr(joint, key) for key in _CALIBRATION_KEYS}
-            for name, joint in (("pan", self.pan), ("tilt", self.tilt))
+            name: {key: getattr(getattr(self, name), key) for key in _CALIBRATION_KEYS}
+            for name in self.joint_names
         }
 
     def differences(self, other: Calibration) -> tuple[str, ...]:
-        """Each field that differs, as ``"pan.zero_tick 2185 vs 2385"`` (self's value first)."""
+        """Each field that differs, as ``"pan.zero_tick 2185 vs 2385"`` (self's value first);
+        a roll joint on one side only is ``"roll present vs absent"``."""
         found = []
-        for name in ("pan", "tilt"):
+        if (self.roll is None) != (other.roll is None):
+            found.append(
+                "roll " + ("present vs absent" if self.roll is not None else "absent vs present")
+            )
+        for name in ("pan", "tilt", "roll"):
             mine, theirs = getattr(self, name), getattr(other, name)
+            if mine is None or theirs is None:
+                continue
             for key in _CALIBRATION_KEYS:
                 if getattr(mine, key) != getattr(theirs, key):
                     found.append(f"{name}.{key} {getattr(mine, key):g} vs {getattr(theirs, key):g}")
@@ -162,10 +185,10 @@ class Calibration:
 
 @dataclass(frozen=True)
 class RigProfile:
-    """A whole rig: bus settings and the pan and tilt joints.
+    """A whole rig: bus settings and the pan and tilt joints, and the roll joint if it has one.
 
     ``source`` is the file the profile was loaded from (None if built in code); it is not
-    compared and not saved.
+    compared and not saved. ``roll`` is None on a two-servo rig.
     """
 
     name: str
@@ -177,6 +200,13 @@ class RigProfile:
     tilt: JointProfile
     rest_direction: tuple[float, float, float] = (1.0, 0.0, 0.0)
     source: str | None = field(default=None, compare=False)
+    roll: JointProfile | None = None
+
+    @property
+    def joints(self) -> tuple[tuple[str, JointProfile], ...]:
+        """``(name, joint)`` of pan, tilt and, on a three-servo rig, roll, in that order."""
+        named = (("pan", self.pan), ("tilt", self.tilt))
+        return named if self.roll is None else (*named, ("roll", self.roll))
 
     @property
     def is_sim(self) -> bool:
@@ -189,14 +219,14 @@ class RigProfile:
         return Calibration(
             *(
                 JointCalibration(joint.zero_tick, joint.direction, joint.min_deg, joint.max_deg)
-                for joint in (self.pan, self.tilt)
+                for _, joint in self.joints
             )
         )
 
     @property
-    def ids(self) -> tuple[int, int]:
-        """Servo ids ``(pan, tilt)``."""
-        return (self.pan.id, self.tilt.id)
+    def ids(self) -> tuple[int, ...]:
+        """Servo ids ``(pan, tilt)``, or ``(pan, tilt, roll)`` on a three-servo rig."""
+        return tuple(joint.id for _, joint in self.joints)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain-data form, the same shape as the YAML file."""
@@ -209,110 +239,16 @@ class RigProfile:
             "pan": _joint_dict(self.pan),
             "tilt": _joint_dict(self.tilt),
             "rest_direction": [float(v) for v in self.rest_direction],
-        }
+        } | ({} if self.roll is None else {"roll": _joint_dict(self.roll)})
 
 
 def _joint_dict(joint: JointProfile) -> dict[str, Any]:
     return {key: getattr(joint, key) for key in _JOINT_KEYS + _JOINT_OPTIONAL_KEYS}
 
 
-# ---- errors ------------------------------------------------------------------------------------
-class ProfileError(ValueError):
-    """A rig profile is missing or invalid; the message names the file and the field."""
-
-
-class ProfileFileError(ProfileError):
-    """A rig profile file cannot be read or is not YAML.
-
-    Attributes
-    ----------
-    path : pathlib.Path
-        The file.
-    """
-
-    def __init__(self, path: str | os.PathLike[str], problem: str) -> None:
-        self.path = Path(path)
-        super().__init__(f"{self.path}: {problem}")
-
-
 # ---- validation --------------------------------------------------------------------------------
-#: Unknown keys named in one message; the rest are counted (a message stays one short line).
-MAX_LISTED_KEYS = 5
-
-
-def _key_name(key: Any) -> str:
-    """A mapping key as a message names it: bare if a short printable string, else bounded."""
-    if isinstance(key, str) and key.isprintable() and len(key) <= 40:
-        return key
-    return shown(key)
-
-
-class _Checker:
-    """Collects the file name so every error names file and field."""
-
-    def __init__(self, source: str) -> None:
-        self.source = source
-
-    def fail(self, field: str, problem: str) -> ProfileError:
-        return ProfileError(f"{self.source}: {field} {problem}")
-
-    def mapping(
-        self, value: Any, field: str, keys: tuple[str, ...], optional: tuple[str, ...] = ()
-    ) -> dict[str, Any]:
-        if not isinstance(value, dict):
-            raise self.fail(
-                field, f"must be a mapping with keys {', '.join(keys)}, got {shown(value)}"
-            )
-        missing = [k for k in keys if k not in value]
-        if missing:
-            raise self.fail(field, f"is missing {', '.join(missing)} (expected {', '.join(keys)})")
-        allowed = keys + optional
-        unknown = sorted(_key_name(k) for k in value if k not in allowed)
-        if unknown:
-            listed = ", ".join(unknown[:MAX_LISTED_KEYS])
-            if len(unknown) > MAX_LISTED_KEYS:
-                listed += f" and {len(unknown) - MAX_LISTED_KEYS} more"
-            raise self.fail(
-                field,
-                f"has unknown keys {listed} (allowed: {', '.join(allowed)}); check the spelling",
-            )
-        return value
-
-    def integer(self, value: Any, field: str, lo: int, hi: int) -> int:
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise self.fail(field, f"must be an integer in {lo}..{hi}, got {shown(value)}")
-        if not lo <= value <= hi:
-            raise self.fail(field, f"must be in {lo}..{hi}, got {shown(value)}")
-        return value
-
-    def number(self, value: Any, field: str) -> float:
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise self.fail(field, f"must be a number, got {shown(value)}")
-        try:
-            number = float(value)
-        except OverflowError:  # an integer beyond any float
-            number = math.inf
-        if not math.isfinite(number):
-            raise self.fail(field, f"must be finite, got {shown(value)}")
-        return number
-
-    def text(self, value: Any, field: str, max_chars: int = MAX_TEXT_CHARS) -> str:
-        if not isinstance(value, str) or not value.strip():
-            raise self.fail(field, f"must be a non-empty string, got {shown(value)}")
-        if len(value) > max_chars:
-            raise self.fail(
-                field, f"must be at most {max_chars} characters, got {len(value)} characters"
-            )
-        if not value.isprintable():
-            raise self.fail(
-                field, f"must be printable text (no newlines or control codes), got {shown(value)}"
-            )
-        return value
-
-    def direction(self, value: Any, field: str) -> int:
-        if isinstance(value, bool) or value not in (1, -1):
-            raise self.fail(field, f"must be +1 or -1, got {shown(value)}")
-        return int(value)
+class _Checker(Checker):
+    """The generic checks plus the joints, which build this module's dataclasses."""
 
     def joint_calibration(self, value: Any, field: str) -> JointCalibration:
         raw = self.mapping(value, field, _CALIBRATION_KEYS)
@@ -368,15 +304,6 @@ class _Checker:
             )
         return JointProfile(servo_id, zero_tick, direction, min_deg, max_deg, stop_min, stop_max)
 
-    def direction3(self, value: Any, field: str) -> tuple[float, float, float]:
-        if not isinstance(value, (list, tuple)) or len(value) != 3:
-            raise self.fail(field, f"must be a list of 3 numbers [x, y, z], got {shown(value)}")
-        xyz = [self.number(v, f"{field}[{i}]") for i, v in enumerate(value)]
-        norm = math.sqrt(sum(v * v for v in xyz))
-        if norm == 0.0:
-            raise self.fail(field, "must not be the zero vector")
-        return (xyz[0] / norm, xyz[1] / norm, xyz[2] / norm)
-
 
 def profile_from_dict(data: Any, source: str = "<profile>") -> RigProfile:
     """Validate plain data (as parsed from YAML) into a :class:`RigProfile`.
@@ -392,7 +319,7 @@ def profile_from_dict(data: Any, source: str = "<profile>") -> RigProfile:
         raise check.fail("top level", f"must be a mapping with keys {', '.join(required)}")
     raw = dict(data)
     raw.setdefault("rest_direction", [1.0, 0.0, 0.0])
-    check.mapping(raw, "profile", _TOP_KEYS)
+    check.mapping(raw, "profile", _TOP_KEYS, _OPTIONAL_TOP_KEYS)
     name = check.text(raw["name"], "name", MAX_NAME_CHARS)
     port = check.text(raw["port"], "port")
     baud = check.integer(raw["baud"], "baud", 1, 10_500_000)
@@ -404,8 +331,18 @@ def profile_from_dict(data: Any, source: str = "<profile>") -> RigProfile:
     tilt = check.joint(raw["tilt"], "tilt")
     if pan.id == tilt.id:
         raise check.fail("tilt.id", f"must differ from pan.id, both are {pan.id}")
+    roll = None
+    if "roll" in raw:
+        roll = check.joint(raw["roll"], "roll")
+        if roll.id in (pan.id, tilt.id):
+            raise check.fail(
+                "roll.id",
+                f"must differ from pan.id and tilt.id ({pan.id}, {tilt.id}), got {roll.id}",
+            )
     rest = check.direction3(raw["rest_direction"], "rest_direction")
-    return RigProfile(name, port, int(baud), model, float(protocol), pan, tilt, rest, source)
+    return RigProfile(
+        name, port, int(baud), model, float(protocol), pan, tilt, rest, source, roll=roll
+    )
 
 
 def calibration_from_dict(data: Any, source: str = "<calibration>") -> Calibration:
@@ -417,10 +354,11 @@ def calibration_from_dict(data: Any, source: str = "<calibration>") -> Calibrati
         Naming ``source`` and the offending field.
     """
     check = _Checker(source)
-    raw = check.mapping(data, "calibration", ("pan", "tilt"))
+    raw = check.mapping(data, "calibration", ("pan", "tilt"), ("roll",))
     return Calibration(
         check.joint_calibration(raw["pan"], "calibration.pan"),
         check.joint_calibration(raw["tilt"], "calibration.tilt"),
+        check.joint_calibration(raw["roll"], "calibration.roll") if "roll" in raw else None,
     )
 
 
@@ -480,8 +418,11 @@ def save_profile(profile: RigProfile, path: str | os.PathLike[str]) -> Path:
     return path
 
 
-def default_sim_profile() -> RigProfile:
-    """The packaged profile of the simulated rig (``calib/rigs/sim.yaml``)."""
-    resource = resources.files("calib").joinpath("rigs").joinpath("sim.yaml")
+def default_sim_profile(name: str = "sim") -> RigProfile:
+    """A packaged profile of a simulated rig: ``calib/rigs/sim.yaml`` (pan, tilt) by default,
+    ``"sim3"`` for ``calib/rigs/sim3.yaml`` (pan, tilt, roll)."""
+    if name not in SIM_RIGS:
+        raise ProfileError(f"no packaged rig {name!r}; the packaged rigs are {', '.join(SIM_RIGS)}")
+    resource = resources.files("calib").joinpath("rigs").joinpath(f"{name}.yaml")
     with resources.as_file(resource) as path:
         return load_profile(path)

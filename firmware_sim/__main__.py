@@ -12,6 +12,10 @@ from firmware_sim.control_table import MODELS, Register
 from firmware_sim.events import EventSchedule, ScheduledEvent, parse_event
 from firmware_sim.simulator import parse_ids
 from firmware_sim.wire import BAUD_BY_VALUE, RIG_BAUD
+from firmware_sim.world import ROLL_JOINT
+
+#: The servo the CLI makes the roll joint when it is listed (calib/rigs/sim3.yaml).
+ROLL_ID = ROLL_JOINT.servo_id
 
 DESCRIPTION = """\
 Simulated Dynamixel X-series servos (Protocol 2.0) on a pseudo-terminal, byte for byte like real
@@ -19,9 +23,10 @@ servos behind a U2D2 adapter. Open PATH with the dynamixel-sdk at the servos' ba
 (--baud, default 4000000; factory-fresh servos are at 57600), protocol 2.0: as on a real bus a
 servo hears only its own baud rate, bytes take their time on the wire, and servos sharing an ID
 garble each other's replies. Servo 1 is the pan joint and servo 2 the tilt joint of a simulated
-gimbal (true geometry in calib/rigs/sim.yaml); other IDs drive free shafts. With --factory N,
-N factory-fresh servos (all ID 1, 57600 baud) sit in slots 1..N (slot 1 drives pan, 2 tilt).
-Runs until SIGINT or SIGTERM, then removes PATH."""
+gimbal (true geometry in calib/rigs/sim.yaml); servo 3, when listed (--ids 1,2,3), is its roll
+joint, which turns the limb about its own axis (calib/rigs/sim3.yaml); other IDs drive free
+shafts. With --factory N, N factory-fresh servos (all ID 1, 57600 baud) sit in slots 1..N (slot 1
+drives pan, 2 tilt). Runs until SIGINT or SIGTERM, then removes PATH."""
 
 EPILOG = """\
 REGION.yaml (--hand), degrees:
@@ -29,14 +34,26 @@ REGION.yaml (--hand), degrees:
   style: trace                                   (optional: trace or wander, see below)
   speed_deg_s: 40                                (optional)
   script: [[t_s, pan, tilt], ...]                (instead of region: waypoints to follow)
+  twist: {centre_deg: C, half_width_deg: H}      (optional, with region; for the roll joint)
 While a servo's torque is off, the hand moves the limb through the region. style: trace (the
 default) teaches as a person does: it traces the whole edge once, slowly (18 deg/s, about 1 deg
 inside), then wanders through the middle; style: wander only wanders, visiting the edge every
 other move (12 visits a lap round it).
+twist: gives a band of allowed twist over the swing outline; the hand then moves the roll joint
+too. Twist is the turn about the limb's own axis from the swing-twist split about the rest axis
++x (twist = roll + 2 atan(tan(pan/2) tan(tilt/2)) on this gimbal), not the roll joint's angle.
+At a pose (pan, tilt) the band is C - H .. C + H deg; C and H are each a number or [a, b, c],
+meaning a + b*pan + c*tilt (deg), so the limits may vary with pan and tilt, e.g.
+  twist: {centre_deg: 0, half_width_deg: [40, 0, -0.3]}   (narrows as the limb rises)
+H must stay within 3..170 deg over the whole outline. While the swing traces the edge the twist
+goes to both stops (about 1 deg inside) every two seconds; while it wanders, it keeps turning
+from one stop to the other.
 
 --goal-log FILE.jsonl gets one line per Goal Position write that reaches a servo:
   {"t": s, "id": n, "goal": ticks, "limb_dir": [x, y, z]}
 limb_dir is where the limb points once every servo reaches its current goal (true geometry).
+With a roll joint each line also carries "limb_q": [w, x, y, z], that full orientation
+(q = Rz(pan) Ry(-tilt) Rx(roll), scalar first, w >= 0).
 
 Faults are drawn from --seed: --drop P loses a reply, --corrupt P flips one byte of a reply,
 --latency-ms X delays a reply by X ms (with probability --latency-p, default 1).
@@ -183,6 +200,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     config = {
         "ids": args.ids,
+        "roll_id": ROLL_ID if ROLL_ID in args.ids else None,
         "model": args.model,
         "hand": args.hand,
         "goal_log": args.goal_log,

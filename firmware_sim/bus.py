@@ -37,6 +37,7 @@ from firmware_sim.events import EventSchedule
 from firmware_sim.faults import FaultPlan
 from firmware_sim.hand import Hand
 from firmware_sim.simulator import Simulator
+from firmware_sim.twist_hand import RollScriptHand, TwistHand, hand_from_mapping, hand_from_yaml
 from firmware_sim.wire import RIG_BAUD, host_baud, wire_s
 
 # The physics keeps moving (hand, profiles) at least this often without traffic.
@@ -196,15 +197,16 @@ def build_simulator(config: Mapping[str, Any]) -> Simulator:
         connect=config.get("connect"),
         eeprom_dir=config.get("eeprom_dir"),
         leader=config.get("leader"),
+        roll_id=config.get("roll_id"),
     )
 
 
-def _make_hand(spec: Any, seed: int) -> Hand | None:
+def _make_hand(spec: Any, seed: int) -> Hand | TwistHand | RollScriptHand | None:
     if spec is None:
         return None
     if isinstance(spec, Mapping):
-        return Hand.from_mapping(dict(spec), seed=seed)
-    return Hand.from_yaml(spec, seed=seed)
+        return hand_from_mapping(dict(spec), seed=seed)
+    return hand_from_yaml(spec, seed=seed)
 
 
 class _ControlServer:
@@ -310,6 +312,8 @@ class SimulatedBus:
         Also make this path a symlink to the pty.
     leader : mapping or None
         A leader gimbal (:meth:`firmware_sim.leader.LeaderWorld.from_spec`), plain data.
+    roll_id : int or None
+        The servo (one of ``ids``) that turns the limb about its own axis; None: no roll joint.
     start_timeout_s : float
         How long to wait for the process to come up.
     baud, factory, connect, eeprom_dir
@@ -335,6 +339,7 @@ class SimulatedBus:
         connect=None,
         eeprom_dir: str | os.PathLike | None = None,
         leader: Mapping | None = None,
+        roll_id: int | None = None,
     ) -> None:
         FaultPlan(drop=drop, corrupt=corrupt, latency_ms=latency_ms, latency_p=latency_p)
         self.config = {
@@ -355,6 +360,7 @@ class SimulatedBus:
             "connect": None if connect is None else list(connect),
             "eeprom_dir": None if eeprom_dir is None else str(eeprom_dir),
             "leader": None if leader is None else dict(leader),
+            "roll_id": None if roll_id is None else int(roll_id),
         }
         self._start_timeout_s = start_timeout_s
         self._process: subprocess.Popen | None = None

@@ -5,10 +5,11 @@ back (with delays). Physics is stepped lazily on the wall clock: every time byte
 from a periodic tick of the serving loop, the world is advanced to "now" in substeps of at most
 1 ms, each servo's profile advancing with it.
 
-Servos with IDs 1 and 2 drive the gimbal of :mod:`firmware_sim.world` (pan, tilt); a servo with
-any other ID drives a free, unloaded shaft that follows its setpoint exactly. What a servo
-drives is fixed by its *slot* (its ID at start; with ``factory=N`` the slots are 1..N and every
-servo starts as ID 1), so a servo keeps its joint when set-up changes its ID.
+Servos with IDs 1 and 2 drive the gimbal of :mod:`firmware_sim.world` (pan, tilt), and the
+servo named by ``roll_id`` (if any) its roll joint; a servo with any other ID drives a free,
+unloaded shaft that follows its setpoint exactly. What a servo drives is fixed by its *slot*
+(its ID at start; with ``factory=N`` the slots are 1..N and every servo starts as ID 1), so a
+servo keeps its joint when set-up changes its ID.
 
 The wire is strict (:mod:`firmware_sim.wire`): a servo hears the host only at the baud rate its
 Baud Rate register names, and two servos answering at once garble each other's replies.
@@ -20,6 +21,7 @@ import json
 import math
 import time
 from collections.abc import Callable, Mapping, Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import IO, Any
 
@@ -32,7 +34,7 @@ from firmware_sim.leader import LeaderWorld, Operator
 from firmware_sim.protocol import MAX_SERVO_ID, PacketParser
 from firmware_sim.servo import Environment, Servo
 from firmware_sim.wire import BAUD_BY_VALUE, RIG_BAUD, collide, value_for_baud
-from firmware_sim.world import World
+from firmware_sim.world import DEFAULT_JOINTS, ROLL_JOINT, World
 
 #: Longest physics step (s): 1 ms keeps the 80 rad/s tracking loop stable (omega * dt = 0.08).
 MAX_SUBSTEP_S = 0.001
@@ -91,6 +93,9 @@ class Simulator:
         Keep each slot's EEPROM in a file there (:class:`firmware_sim.eeprom.EepromFile`).
     leader : mapping or None
         A leader gimbal (:meth:`firmware_sim.leader.LeaderWorld.from_spec`) whose ids join the bus.
+    roll_id : int or None
+        The servo that turns the limb about its own axis (a three-joint gimbal); it must be in
+        ``ids``. None: a two-joint gimbal.
     """
 
     def __init__(
@@ -107,6 +112,7 @@ class Simulator:
         connect: Sequence[int] | None = None,
         eeprom_dir: str | Path | None = None,
         leader: Mapping[str, Any] | None = None,
+        roll_id: int | None = None,
     ) -> None:
         self.leader = None if leader is None else LeaderWorld.from_spec(leader)
         leader_ids = () if self.leader is None else self.leader.ids
@@ -120,7 +126,15 @@ class Simulator:
         self.model = models[0]
         baud_value = value_for_baud(int(baud))
         self.seed = seed
-        self.world = World(hand=hand, seed=seed)
+        joints = DEFAULT_JOINTS
+        if roll_id is not None:
+            if roll_id not in self.ids or roll_id in (j.servo_id for j in DEFAULT_JOINTS):
+                raise ValueError(
+                    f"the roll joint's servo {roll_id} must be one of the ids {list(self.ids)} "
+                    f"other than pan and tilt ({', '.join(str(j.servo_id) for j in joints)})"
+                )
+            joints = (*DEFAULT_JOINTS, replace(ROLL_JOINT, servo_id=int(roll_id)))
+        self.world = World(joints=joints, hand=hand, seed=seed)
         self._joint_ids = {joint.servo_id for joint in self.world.joints}
         if self._joint_ids & set(leader_ids):
             raise ValueError(
@@ -270,6 +284,8 @@ class Simulator:
             "goal": goal,
             "limb_dir": None if direction is None else [float(v) for v in direction],
         }
+        if self.world.has_roll and gimbal:
+            line["limb_q"] = [float(v) for v in self.world.orientation_for_ticks(gimbal)]
         self._goal_log.write(json.dumps(line) + "\n")
 
     def close(self) -> None:

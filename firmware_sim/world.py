@@ -1,12 +1,17 @@
 """The simulated gimbal's physical world: true geometry, end stops, tracking, load, the hand.
 
-Two joints, pan (servo ID 1) and tilt (servo ID 2). A joint's angle relates to its servo's raw
+Two joints, pan (servo ID 1) and tilt (servo ID 2), and optionally a third, roll (ROLL_JOINT,
+servo ID 3), that turns the limb about its own axis. A joint's angle relates to its servo's raw
 shaft ticks (4096 per turn, before Homing Offset or Drive Mode apply) by its true zero and
 direction, which a calibration has to find::
 
     angle_rad = direction * (raw_tick - zero_tick) * 2 pi / 4096
 
-The limb points along ``d = (cos t cos p, cos t sin p, sin t)`` for pan ``p`` and tilt ``t``.
+The limb points along ``d = (cos t cos p, cos t sin p, sin t)`` for pan ``p`` and tilt ``t``;
+with a roll joint its full orientation is ``q = Rz(p) Ry(-t) Rx(roll)``
+(:mod:`firmware_sim.orientation`).
+Every joint follows the same physics below, each on its own; a hand that moves the roll too
+(:class:`firmware_sim.twist_hand.TwistHand`) gives its pose as (pan, tilt, roll).
 
 Torque on, a joint tracks its servo's setpoint like a stiff position loop: a critically damped
 second-order response (natural frequency TRACKING_OMEGA_RAD_S) limited to the motor's speed and
@@ -33,6 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from firmware_sim.hand import Hand
+from firmware_sim.orientation import chain_quat
 
 #: Encoder resolution of the X series (e-Manual: 0..4095 per turn).
 TICKS_PER_TURN = 4096
@@ -62,6 +68,10 @@ MAX_SUBSTEP_S = 0.001
 _STIFFNESS_PCT_PER_RAD = STIFFNESS_PCT_PER_DEG * 180.0 / math.pi
 
 
+#: The joints a world may have, in the order a hand's pose lists them.
+JOINT_NAMES = ("pan", "tilt", "roll")
+
+
 @dataclass(frozen=True)
 class Joint:
     """One joint's true geometry: ``angle_rad = direction * (raw - zero_tick) * 2 pi / 4096``.
@@ -77,8 +87,10 @@ class Joint:
     stop_max_deg: float
 
     def __post_init__(self) -> None:
-        if self.name not in ("pan", "tilt"):
-            raise ValueError(f"joint name must be 'pan' or 'tilt', got {self.name!r}")
+        if self.name not in JOINT_NAMES:
+            raise ValueError(
+                f"joint name must be one of {', '.join(JOINT_NAMES)}, got {self.name!r}"
+            )
         if self.direction not in (1, -1):
             raise ValueError(f"joint {self.name}: direction must be +1 or -1, got {self.direction}")
         numbers = (self.zero_tick, self.stop_min_deg, self.stop_max_deg)
@@ -103,6 +115,8 @@ DEFAULT_JOINTS = (
     Joint(1, "pan", 2185.0, +1, -120.0, 120.0),
     Joint(2, "tilt", 1890.0, -1, -60.0, 75.0),
 )  # must match calib/rigs/sim.yaml
+#: The roll joint of the three-servo gimbal (must match calib/rigs/sim3.yaml).
+ROLL_JOINT = Joint(3, "roll", 1960.0, +1, -105.0, 105.0)
 
 
 class World:
@@ -111,7 +125,7 @@ class World:
     Parameters
     ----------
     joints : tuple of Joint
-        Exactly one "pan" and one "tilt" joint with distinct servo IDs.
+        Exactly one "pan" and one "tilt" joint, and at most one "roll", with distinct servo IDs.
     hand : Hand or None
         The scripted hand that moves the joints whose torque is off.
     seed : int
@@ -120,13 +134,18 @@ class World:
 
     def __init__(self, joints=DEFAULT_JOINTS, hand: Hand | None = None, seed: int = 0) -> None:
         joints = tuple(joints)
-        if sorted(j.name for j in joints) != ["pan", "tilt"]:
-            raise ValueError("World needs exactly one 'pan' and one 'tilt' joint")
-        if joints[0].servo_id == joints[1].servo_id:
-            raise ValueError(f"pan and tilt need distinct servo IDs, both are {joints[0].servo_id}")
+        if sorted(j.name for j in joints) not in (["pan", "tilt"], ["pan", "roll", "tilt"]):
+            raise ValueError(
+                "World needs exactly one 'pan' and one 'tilt' joint, and at most one 'roll'"
+            )
+        if len({j.servo_id for j in joints}) != len(joints):
+            raise ValueError(
+                f"the joints need distinct servo IDs, got {[j.servo_id for j in joints]}"
+            )
         self.joints = joints
+        count = len(joints)
         self._index = {j.servo_id: i for i, j in enumerate(joints)}
-        self._pose_slot = [0 if j.name == "pan" else 1 for j in joints]
+        self._pose_slot = [JOINT_NAMES.index(j.name) for j in joints]
         self._lo = [math.radians(j.stop_min_deg) for j in joints]
         self._hi = [math.radians(j.stop_max_deg) for j in joints]
         rng = np.random.default_rng(seed)
@@ -136,11 +155,11 @@ class World:
             for s, lo, hi in zip(scatter, self._lo, self._hi, strict=True)
         ]
         self._free = list(self._angle)  # the position loop's tracked angle (rad)
-        self._free_velocity = [0.0, 0.0]  # rad/s
-        self._velocity = [0.0, 0.0]  # actual joint velocity, rad/s
-        self._load = [0.0, 0.0]  # joint frame, % of stall
-        self._push = [0.0, 0.0]  # joint frame, % of stall
-        self._torque_on = [False, False]
+        self._free_velocity = [0.0] * count  # rad/s
+        self._velocity = [0.0] * count  # actual joint velocity, rad/s
+        self._load = [0.0] * count  # joint frame, % of stall
+        self._push = [0.0] * count  # joint frame, % of stall
+        self._torque_on = [False] * count
         self.time_s = 0.0
         self.set_hand(hand)
 
@@ -169,17 +188,18 @@ class World:
 
     def _substep(self, h: float, setpoints: list[float | None]) -> None:
         pose = None
-        if self._hand is not None and (setpoints[0] is None or setpoints[1] is None):
+        if self._hand is not None and None in setpoints:
             self.hand_time_s += h
             pose = self._hand.pose_deg(self.hand_time_s)
         self.time_s += h
-        for i in (0, 1):
+        for i in range(len(setpoints)):
             target = setpoints[i]
             angle = self._angle[i]
             lo, hi = self._lo[i], self._hi[i]
             if target is None:
                 self._torque_on[i] = False
-                if pose is not None:
+                # a hand that gives no roll leaves the roll joint to pushes, like no hand
+                if pose is not None and self._pose_slot[i] < len(pose):
                     # grip: implicit first-order lag toward the hand, alpha = h / (tau + h)
                     step = (math.radians(pose[self._pose_slot[i]]) - angle) * (
                         h / (GRIP_TIME_CONSTANT_S + h)
@@ -261,14 +281,17 @@ class World:
         self.hand_time_s = 0.0
         if hand is not None:
             angles = self.joint_angles_deg()
-            hand.start_from(angles["pan"], angles["tilt"])
+            if "roll" in angles and getattr(hand, "turns_roll", False):
+                hand.start_from(angles["pan"], angles["tilt"], angles["roll"])
+            else:
+                hand.start_from(angles["pan"], angles["tilt"])
 
     @property
     def hand(self) -> Hand | None:
         return self._hand
 
     def joint_angles_deg(self) -> dict[str, float]:
-        """The true joint angles, ``{"pan": deg, "tilt": deg}``."""
+        """The true joint angles, ``{"pan": deg, "tilt": deg}`` (and ``"roll"`` if it has one)."""
         return {j.name: math.degrees(a) for j, a in zip(self.joints, self._angle, strict=True)}
 
     def direction_for_ticks(self, raw: dict[int, float]) -> np.ndarray:
@@ -277,13 +300,28 @@ class World:
         Uses the true zero and direction of each joint; a position past an end stop counts as the
         stop (where the limb really ends up); a servo missing from ``raw`` counts where it is.
         """
-        angles = [0.0, 0.0]
-        for i, joint in enumerate(self.joints):
-            tick = raw.get(joint.servo_id)
-            angle = self._angle[i] if tick is None else joint.angle_rad(float(tick))
-            angles[self._pose_slot[i]] = min(max(angle, self._lo[i]), self._hi[i])
-        pan, tilt = angles
+        pan, tilt = self._angles_for_ticks(raw)[:2]
         # d = (cos t cos p, cos t sin p, sin t)
         return np.array(
             [math.cos(tilt) * math.cos(pan), math.cos(tilt) * math.sin(pan), math.sin(tilt)]
         )
+
+    @property
+    def has_roll(self) -> bool:
+        """True when the limb has a roll joint (a three-servo gimbal)."""
+        return len(self.joints) == 3
+
+    def _angles_for_ticks(self, raw: dict[int, float]) -> list[float]:
+        """Joint angles (rad) in JOINT_NAMES order (roll 0 without a roll joint) at ``raw``,
+        each clamped to its stops; a servo missing from ``raw`` counts where it is."""
+        angles = [0.0, 0.0, 0.0]
+        for i, joint in enumerate(self.joints):
+            tick = raw.get(joint.servo_id)
+            angle = self._angle[i] if tick is None else joint.angle_rad(float(tick))
+            angles[self._pose_slot[i]] = min(max(angle, self._lo[i]), self._hi[i])
+        return angles
+
+    def orientation_for_ticks(self, raw: dict[int, float]) -> tuple[float, float, float, float]:
+        """Full orientation ``(w, x, y, z)``, w >= 0, with the shafts at ``raw`` ticks (true
+        geometry, stops and missing servos as in :meth:`direction_for_ticks`)."""
+        return chain_quat(*self._angles_for_ticks(raw))

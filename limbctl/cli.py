@@ -16,7 +16,7 @@ from pathlib import Path
 
 from calib.yaml_guard import shown
 from limbctl import file_jobs, jobs, upkeep
-from limbctl.demo import DemoOptions, run_demo_job
+from limbctl.demo import DEMO_RIGS, DemoOptions, run_demo_job
 from limbctl.envelope import MODEL_KINDS
 from limbctl.errors import ConfigError, LimbctlError
 from limbctl.live import DEFAULT_PORT as DEFAULT_VIEW_PORT
@@ -54,7 +54,8 @@ def _add_connection(p: argparse.ArgumentParser, hand: bool = False) -> None:
     g.add_argument(
         "--rig",
         type=Path,
-        help="rig profile YAML (default: the simulated rig, calib/rigs/sim.yaml)",
+        help="rig profile YAML (default: the simulated rig, calib/rigs/sim.yaml; sim3 names the "
+        "simulated three-servo rig, calib/rigs/sim3.yaml)",
     )
     g.add_argument("--baud", type=int, help="baud rate (default: the rig profile's)")
     g.add_argument(
@@ -146,7 +147,7 @@ def _add_demo(sub: Subparsers) -> None:
         sub,
         "demo",
         lambda a: run_demo_job(
-            DemoOptions(out=a.out, duration=a.duration, seed=a.seed, view=_view(a))
+            DemoOptions(out=a.out, duration=a.duration, seed=a.seed, view=_view(a), rig=a.rig)
         ),
         help="the whole flow on the simulator: teach, train, teleop, plot",
         description="Run teach-by-hand, training, a teleop session that tries to leave the "
@@ -157,6 +158,13 @@ def _add_demo(sub: Subparsers) -> None:
         "--duration", type=_positive, default=60.0, help="seconds of teaching (default: 60)"
     )
     p.add_argument("--seed", type=int, default=0, help="simulator and model seed")
+    p.add_argument(
+        "--rig",
+        choices=DEMO_RIGS,
+        default=DEMO_RIGS[0],
+        help="simulated rig: sim (pan, tilt; default) or sim3 (pan, tilt, roll: the region "
+        "has a twist band, taught, learned and enforced too)",
+    )
     _add_view(p)
 
 

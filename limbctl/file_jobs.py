@@ -186,7 +186,8 @@ def _info_file(path: Path) -> int:
     if calibration is None:
         print("  calibration: not recorded (made before limbctl recorded it)")
     else:
-        for name, joint in (("pan", calibration.pan), ("tilt", calibration.tilt)):
+        for name in calibration.joint_names:  # pan, tilt (and roll on a three-servo rig)
+            joint = getattr(calibration, name)
             print(
                 f"  {name}: zero tick {joint.zero_tick}, direction {joint.direction:+d}, "
                 f"limits {joint.min_deg:g} .. {joint.max_deg:g} deg"

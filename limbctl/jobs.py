@@ -108,6 +108,8 @@ def run_record(options: RecordOptions, view: LiveView | None = None) -> int:
     conn = options.connection
     profile = load_rig_profile(conn.rig)
     hand = options.hand if options.hand is not None else demo_region_path()
+    if options.hand is None and profile.roll is not None:  # the packaged region with twist
+        hand = hand.with_name("demo_region3.yaml")
     meta = {"rate_hz": options.rate, "simulated": conn.port is None and profile.is_sim}
     # the writer checks the path and free space before any servo is touched, and creates the
     # file only once the port is ours: a refused start (port in use, no servo) leaves no empty
@@ -165,6 +167,20 @@ def gate_for(model_path: Path, profile: RigProfile, rate_hz: float, max_speed_de
         # a small direction change), and never less than 1 degree
         max_joint_step=max(3.0 * step, math.radians(1.0)),
     )
+    if profile.roll is not None:
+        from limbctl.teleop.gate3 import Gate3, GateLimits3
+
+        limits3 = GateLimits3(
+            pan_min=profile.pan.min_rad,
+            pan_max=profile.pan.max_rad,
+            tilt_min=profile.tilt.min_rad,
+            tilt_max=profile.tilt.max_rad,
+            roll_min=profile.roll.min_rad,
+            roll_max=profile.roll.max_rad,
+            max_step=step,  # a rotation of the limb per cycle on a three-servo rig
+            max_joint_step=limits.max_joint_step,
+        )
+        return Gate3(load_model(model_path), limits3)  # type: ignore[return-value]
     return Gate(load_model(model_path), limits)
 
 
@@ -239,19 +255,34 @@ def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
                 say(f"steer from this address (it holds this session's key): {live.control_url}")
             if source.report_lines():
                 say(source.report_lines()[0])  # what the leader will do, before it starts
-            result = run_session(
-                rig,
-                gate,
-                source,
-                config,
-                starting,
-                telemetry_path=options.telemetry,
-                stream=sys.stderr,
-                status=None if options.quiet else sys.stderr,
-                stop=stop,
-                torque_was_on=torque_was_on,
-                publish=live.start_observer(),
-            )
+            if profile.roll is None:
+                result = run_session(
+                    rig,
+                    gate,
+                    source,
+                    config,
+                    starting,
+                    telemetry_path=options.telemetry,
+                    stream=sys.stderr,
+                    status=None if options.quiet else sys.stderr,
+                    stop=stop,
+                    torque_was_on=torque_was_on,
+                    publish=live.start_observer(),
+                )
+            else:  # three servos: wait for the limb to start, no park
+                from limbctl.teleop.start3 import run_session_three
+
+                result = run_session_three(
+                    rig,
+                    gate,
+                    source,
+                    config,
+                    starting,
+                    telemetry_path=options.telemetry,
+                    stream=sys.stderr,
+                    status=None if options.quiet else sys.stderr,
+                    stop=stop,
+                )
     from limbctl.geometry.jit import mark_prepared
 
     mark_prepared("gate")
@@ -288,7 +319,9 @@ def run_calibrate(options: CalibrateOptions) -> int:
 
     conn = options.connection
     base = _calibration_base(options, load_rig_profile(conn.rig))
-    script = Path(str(resources.files("limbctl").joinpath("data", "calibration_hand.yaml")))
+    # the simulator's person follows the prompts: three steps, or four with a roll joint
+    name = "calibration_hand.yaml" if base.roll is None else "calibration_hand3.yaml"
+    script = Path(str(resources.files("limbctl").joinpath("data", name)))
     with open_connection(conn, hand=script) as session:
         if session.simulated:
             say("simulator: a scripted hand follows the prompts below")
@@ -302,6 +335,11 @@ def run_calibrate(options: CalibrateOptions) -> int:
     say(
         f"pan: zero tick {result.pan_zero}, direction {result.pan_direction:+d}; "
         f"tilt: zero tick {result.tilt_zero}, direction {result.tilt_direction:+d}"
+        + (
+            ""
+            if result.roll_zero is None
+            else f"; roll: zero tick {result.roll_zero}, direction {result.roll_direction:+d}"
+        )
     )
     say(f"wrote {options.out} (check the hard limits in it before teleoperating)")
     return 0

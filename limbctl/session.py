@@ -23,6 +23,7 @@ from calib.profile import RigProfile
 from limbctl.servo.bus import ServoBus
 from limbctl.servo.profiles import check_models, load_rig_profile
 from limbctl.servo.rig import Rig
+from limbctl.servo.rig3 import rig_for
 
 
 @dataclass
@@ -87,6 +88,7 @@ def open_rig(
                     hand=hand,
                     goal_log=goal_log,
                     seed=seed,
+                    **({} if profile.roll is None else {"roll_id": profile.roll.id}),
                     **{"baud": baud or profile.baud, **dict(sim_options or {})},
                 )
             )
@@ -105,7 +107,7 @@ def open_rig(
         stack.enter_context(bus)
         if extra_ids:
             check_models(bus, profile.ids, profile.model)
-        yield Session(rig=Rig(profile, bus), profile=profile, simulator=simulator)
+        yield Session(rig=rig_for(profile, bus), profile=profile, simulator=simulator)
 
 
 @contextmanager

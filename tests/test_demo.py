@@ -77,3 +77,38 @@ def test_the_teleop_picture_outlines_the_hands_true_region():
     assert np.abs(truth.edge_distance_deg(outline[:, 0], outline[:, 1])).max() < 1e-9
     assert np.ptp(outline[:, 0]) == pytest.approx(np.ptp(vertices[:, 0]), abs=1.0)
     assert np.ptp(outline[:, 1]) == pytest.approx(np.ptp(vertices[:, 1]), abs=1.0)
+
+
+def test_the_three_servo_demo_keeps_every_goal_in_the_learned_region(tmp_path):
+    from limbctl.eval.twist_demo import (
+        logged_orientations,
+        twist_excursions,
+        written_orientations,
+    )
+    from limbctl.teleop.gate3 import written_tolerance_deg3
+
+    out = tmp_path / "demo3"
+    # 30 s: the hand traces the edge with the twist to its stops, then wanders
+    assert run_demo(out, teach_seconds=30.0, seed=0, rig="sim3") == 0
+    for name in ("teach.limb", "model.npz", "twist.png", "telemetry.jsonl", "goals.jsonl"):
+        assert (out / name).stat().st_size > 0, name
+    data = load_dataset(out / "teach.limb")
+    assert set(data.header.calibration.to_dict()) == {"pan", "tilt", "roll"}
+    from limbctl.envelope import load_model
+
+    model = load_model(out / "model.npz")
+    assert model.twist
+    goals = logged_orientations(out / "goals.jsonl")
+    assert len(goals) > 500
+    # the stream swings the roll +-150 deg: the goals turn the limb about its axis both ways
+    twist = np.degrees(2 * np.arctan2(goals[:, 1], goals[:, 0]))
+    assert twist.max() > 10 and twist.min() < -10
+    excursion = twist_excursions(
+        out / "goals.jsonl", model, written_orientations(out / "telemetry.jsonl")
+    )
+    assert excursion.max() <= written_tolerance_deg3()
+
+
+def test_the_demo_refuses_an_unknown_rig(tmp_path):
+    with pytest.raises(ConfigError, match="choose one of sim, sim3"):
+        run_demo(tmp_path / "x", rig="sim4")

@@ -33,6 +33,7 @@ from limbctl.geometry.quat import as_quaternions
 from limbctl.region.mesh import DirectionMesh
 from limbctl.region.params import RegionParams
 from limbctl.region.taught import TaughtRegion
+from limbctl.region.twist_region import TwistRegion
 
 #: Version of the gate's saved arrays; models of older versions must be retrained.
 GATE_VERSION = 6
@@ -78,6 +79,11 @@ class RigidMap(Envelope):
         Distance used to pick winners (Table I).
     region : RegionParams, optional
         Settings of the taught region the gate enforces (defaults when None).
+    twist : bool
+        Three-servo limbs: learn swing and twist from full orientations
+        (:class:`~limbctl.region.twist_region.TwistRegion`); ``correct`` then gives the nearest
+        orientation of the region on SO(3). False (default): the swing-only region of a
+        two-servo gimbal, twist kept.
     """
 
     kind: ClassVar[str] = "rigidmap"
@@ -97,6 +103,7 @@ class RigidMap(Envelope):
         tol: float = 1e-9,
         metric: str = "euclidean",
         region: RegionParams | None = None,
+        twist: bool = False,
     ) -> None:
         if metric not in rk.METRICS:
             raise ConfigError(f"unknown metric {metric!r}; choose one of: {', '.join(rk.METRICS)}")
@@ -117,8 +124,11 @@ class RigidMap(Envelope):
         self.max_epochs = int(max_epochs)
         self.tol = float(tol)
         self.metric = metric
+        self.twist = bool(twist)
         #: The taught region the gate enforces (built by fit, or loaded).
-        self.region = TaughtRegion(region)
+        self.region: TaughtRegion | TwistRegion = (TwistRegion if self.twist else TaughtRegion)(
+            region
+        )
         self.positions = make_layout(layout, nodes, seed=seed)
         self._weights: np.ndarray | None = None
         self.support_positions: np.ndarray | None = None
@@ -153,7 +163,7 @@ class RigidMap(Envelope):
         self._weights = weights
         # the gate's region, then the refinement: nodes on its thinned samples, starting
         # from the map's answer there
-        self.region = TaughtRegion(self.region.params).fit(q)
+        self.region = type(self.region)(self.region.params).fit(q)
         support = np.ascontiguousarray(q[self.region.support_index])
         self.support_positions = support
         support_weights = self.respond(support, interpolation="geometric", k=SUPPORT_START_K)
@@ -210,7 +220,8 @@ class RigidMap(Envelope):
         return self.region.contains(q)
 
     def correct(self, q: np.ndarray) -> np.ndarray:
-        """``q`` itself inside the region; outside, the nearest region orientation (twist kept)."""
+        """``q`` itself inside the region; outside, the nearest region orientation (twist kept;
+        with ``twist=True`` the nearest orientation of the region on SO(3))."""
         self._trained()
         return self.region.correct(q)
 
@@ -222,7 +233,10 @@ class RigidMap(Envelope):
 
     # ---- persistence -------------------------------------------------------------------------
     def _params(self) -> dict[str, Any]:
+        # a swing-only model's header stays as it was before twist (no "twist" key)
+        kind = {"twist": True} if self.twist else {}
         return {
+            **kind,
             "nodes": self.nodes,
             "layout": self.layout,
             "seed": self.seed,
@@ -256,6 +270,7 @@ class RigidMap(Envelope):
         if params.pop("gate_version", 1) != GATE_VERSION:
             raise ValueError("saved by an older limbctl gate; retrain with `limbctl train`")
         epochs = int(params.pop("epochs"))
+        twist = bool(params.pop("twist", False))
         edge = str(params.pop("edge"))
         if "region" in params:
             region = RegionParams.from_dict(params.pop("region"))
@@ -264,12 +279,12 @@ class RigidMap(Envelope):
             flat = {key: params.pop(key) for key in _FLAT_REGION_KEYS if key in params}
             choice = "auto" if params.pop("smooth_edge", True) else "supported"
             region = RegionParams(**flat, edge=choice)
-        model = cls(**params, region=region)
+        model = cls(**params, region=region, twist=twist)
         model.positions = np.ascontiguousarray(arrays["positions"], dtype=np.float64)
         model._topology = rk.position_topology(model.positions, TOPOLOGY_NEIGHBOURS)
         model._weights = np.ascontiguousarray(arrays["weights"], dtype=np.float64)
         model.support_positions = np.ascontiguousarray(arrays["support_positions"])
         model.support_weights = np.ascontiguousarray(arrays["support_weights"])
-        model.region = TaughtRegion.from_arrays(arrays, region, edge)
+        model.region = (TwistRegion if twist else TaughtRegion).from_arrays(arrays, region, edge)
         model.epochs = epochs
         return model

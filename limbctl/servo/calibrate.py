@@ -6,7 +6,10 @@ for a moment after each:
 1. rest: the limb straight ahead along +x, level -> the zero tick of both joints;
 2. pan: turn the limb to the left (toward +y) by 30-60 deg, keep it level -> the pan direction
    (+1 if its ticks grew);
-3. tilt: back to straight ahead, then raise the limb by 20-45 deg -> the tilt direction.
+3. tilt: back to straight ahead, then raise the limb by 20-45 deg -> the tilt direction;
+4. on a three-servo rig, roll: back to straight ahead and level, then turn the limb about its own
+   axis, right-handed (thumb along the limb, pointing out), by 30-60 deg -> the roll direction
+   (its zero tick is read at rest, step 1, with the others).
 
 "Still" means every joint stayed within ``STILL_TICKS`` for ``STILL_S`` seconds.
 """
@@ -54,6 +57,9 @@ class CalibrationResult:
     tilt_direction: int
     pan_move_ticks: int
     tilt_move_ticks: int
+    roll_zero: int | None = None  # None: a two-servo rig
+    roll_direction: int | None = None
+    roll_move_ticks: int | None = None
 
 
 def wait_still(
@@ -90,10 +96,10 @@ def wait_still(
             window.popleft()
         span_ok = now - window[0][0] >= STILL_S * 0.95
         if span_ok and accept(ticks):
-            pans = [t[1][0] for t in window]
-            tilts = [t[1][1] for t in window]
-            if max(pans) - min(pans) <= STILL_TICKS and max(tilts) - min(tilts) <= STILL_TICKS:
-                return round(sum(pans) / len(pans)), round(sum(tilts) / len(tilts))
+            # every joint (pan, tilt, and roll on a three-servo rig) still; the mean pose
+            joints = list(zip(*(t[1] for t in window), strict=True))
+            if all(max(j) - min(j) <= STILL_TICKS for j in joints):
+                return tuple(round(sum(j) / len(j)) for j in joints)  # type: ignore[return-value]
         stop.wait(PERIOD_S)
     if stop.is_set():
         raise ConfigError("calibration interrupted; nothing was written")
@@ -109,13 +115,18 @@ def find_zero_and_directions(
     timeout_s: float = 60.0,
     stop: threading.Event | None = None,
 ) -> CalibrationResult:
-    """Run the three guided steps (torque off) and return what they found."""
+    """Run the guided steps (torque off; three, or four with a roll joint) and return what they
+    found."""
     stop = stop or threading.Event()
     reader.set_torque(False)
-    say("Torque is off. 1/3: hold the limb straight ahead (along +x), level, and keep still.")
+    # a rig with a roll joint (three joints) has one step more
+    steps = 4 if len(getattr(reader, "joints", ())) == 3 else 3
+    say(
+        f"Torque is off. 1/{steps}: hold the limb straight ahead (along +x), level, and keep still."
+    )
     rest = wait_still(reader, lambda t: True, timeout_s, stop)
     say(f"   rest ticks: pan {rest[0]}, tilt {rest[1]}")
-    say("2/3: turn the limb to the LEFT by 30-60 deg, keep it level, and hold still.")
+    say(f"2/{steps}: turn the limb to the LEFT by 30-60 deg, keep it level, and hold still.")
     turned = wait_still(reader, lambda t: abs(t[0] - rest[0]) >= MOVE_TICKS, timeout_s, stop)
     if abs(turned[1] - rest[1]) > abs(turned[0] - rest[0]) / 3:
         raise ConfigError(
@@ -123,7 +134,7 @@ def find_zero_and_directions(
             "`limbctl calibrate` again"
         )
     say(f"   turned: pan {turned[0]} ticks")
-    say("3/3: bring it back straight ahead, then RAISE it by 20-45 deg and hold still.")
+    say(f"3/{steps}: bring it back straight ahead, then RAISE it by 20-45 deg and hold still.")
     raised = wait_still(
         reader,
         lambda t: abs(t[1] - rest[1]) >= MOVE_TICKS and abs(t[0] - rest[0]) <= MOVE_TICKS // 3,
@@ -131,6 +142,27 @@ def find_zero_and_directions(
         stop,
     )
     say(f"   raised: tilt {raised[1]} ticks")
+    roll = {}
+    if steps == 4:
+        say(
+            "4/4: bring it back straight ahead and level, then TURN it about its own axis by "
+            "30-60 deg, right-handed (thumb along the limb, pointing out), and hold still."
+        )
+        turned_roll = wait_still(
+            reader,
+            lambda t: (
+                abs(t[2] - rest[2]) >= MOVE_TICKS
+                and max(abs(t[0] - rest[0]), abs(t[1] - rest[1])) <= MOVE_TICKS // 3
+            ),
+            timeout_s,
+            stop,
+        )
+        say(f"   turned about its axis: roll {turned_roll[2]} ticks")
+        roll = {
+            "roll_zero": rest[2],
+            "roll_direction": 1 if turned_roll[2] > rest[2] else -1,
+            "roll_move_ticks": turned_roll[2] - rest[2],
+        }
     return CalibrationResult(
         pan_zero=rest[0],
         tilt_zero=rest[1],
@@ -138,6 +170,7 @@ def find_zero_and_directions(
         tilt_direction=1 if raised[1] > rest[1] else -1,
         pan_move_ticks=turned[0] - rest[0],
         tilt_move_ticks=raised[1] - rest[1],
+        **roll,
     )
 
 
@@ -168,4 +201,12 @@ def profile_from_calibration(
         min_deg=float(tilt_limits_deg[0]),
         max_deg=float(tilt_limits_deg[1]),
     )
-    return dataclasses.replace(base, name=name, port=port, pan=pan, tilt=tilt, source=None)
+    roll = base.roll
+    if roll is not None and result.roll_zero is not None and result.roll_direction is not None:
+        # the roll's hard limits and end stops are the base profile's
+        roll = dataclasses.replace(
+            roll, zero_tick=result.roll_zero, direction=result.roll_direction
+        )
+    return dataclasses.replace(
+        base, name=name, port=port, pan=pan, tilt=tilt, roll=roll, source=None
+    )

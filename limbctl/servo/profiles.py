@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from calib.profile import (
+    SIM_RIGS,
     JointProfile,
     ProfileError,
     ProfileFileError,
@@ -80,7 +81,7 @@ def check_profile(profile: RigProfile) -> RigProfile:
             f"{source}: the {family.name} servos do not run at {profile.baud} baud; choose one "
             f"of {', '.join(str(b) for b in family.bauds)}"
         )
-    for field, joint in (("pan", profile.pan), ("tilt", profile.tilt)):
+    for field, joint in profile.joints:
         lo, hi = joint_tick_limits(joint)
         if lo < 0 or hi > MAX_TICK:
             raise ConfigError(
@@ -118,6 +119,9 @@ def _controller_error(exc: ProfileError) -> ConfigError | FileFormatError:
 def load_rig_profile(path: str | os.PathLike[str] | None = None) -> RigProfile:
     """The checked rig profile at ``path``, or the packaged simulated rig when ``path`` is None.
 
+    A ``path`` that names a packaged simulated rig (``sim``, ``sim3``: :data:`calib.SIM_RIGS`)
+    and is not a file loads that rig.
+
     Raises
     ------
     ConfigError
@@ -125,8 +129,12 @@ def load_rig_profile(path: str | os.PathLike[str] | None = None) -> RigProfile:
     FileFormatError
         The file cannot be read or is not YAML.
     """
+    packaged = path is not None and str(path) in SIM_RIGS and not Path(path).exists()
     try:
-        profile = load_profile(path) if path is not None else default_sim_profile()
+        if packaged:
+            profile = default_sim_profile(str(path))
+        else:
+            profile = load_profile(path) if path is not None else default_sim_profile()
     except ProfileError as exc:
         raise _controller_error(exc) from None
     return check_profile(profile)

@@ -21,8 +21,10 @@ from dataclasses import dataclass, field
 from typing import IO, Protocol
 
 from limbctl.errors import BusError, ConfigError
+from limbctl.geometry.gimbal3 import pose_quat_scalar
 from limbctl.teach.dataset import DatasetWriter
 from limbctl.teach.guide import Guidance, Guide
+from limbctl.teach.twist_guide import TwistGuidance, TwistGuide
 
 #: Slowest accepted sampling rate (Hz): a person's hand moves fast.
 MIN_RATE_HZ = 100.0
@@ -58,6 +60,7 @@ class RecordSummary:
     fault: str = ""
     guidance: Guidance | None = None
     dropouts: list[str] = field(default_factory=list)
+    twist: TwistGuidance | None = None  # a three-servo rig: where the twist is untaught
 
     @property
     def exit_code(self) -> int:
@@ -78,6 +81,8 @@ class RecordSummary:
         out.extend(f"dropout            {dropout}" for dropout in self.dropouts)
         if self.guidance:
             out.append(f"guide              {self.guidance.line()}")
+        if self.twist:
+            out.append(f"guide              {self.twist.line()}")
         if self.fault:
             out.append(f"FAULT: the recording ended early: {self.fault} (the samples are kept)")
         return out
@@ -144,6 +149,7 @@ def record(
     stop = stop or threading.Event()
     period = 1.0 / rate_hz
     guide = Guide()
+    twist_guide = TwistGuide()
     summary = RecordSummary()
     limb.set_torque(False)
 
@@ -167,7 +173,7 @@ def record(
             summary.ended_by = "duration"
             break
         try:
-            pan, tilt = limb.read_pose()
+            pose = limb.read_pose()
         except BusError as exc:
             summary.failed_reads += 1
             failed_in_a_row += 1
@@ -188,7 +194,12 @@ def record(
                 if progress is not None:
                     progress.write(f"\n{dropout}; recording on\n")
             failed_in_a_row = 0
-            writer.append(elapsed, pan, tilt)
+            pan, tilt = pose[0], pose[1]
+            # a three-servo rig's sample is its full orientation, twist included
+            full = None if len(pose) == 2 else pose_quat_scalar(*pose)
+            writer.append(elapsed, pan, tilt, full)
+            if full is not None:
+                twist_guide.add(full)
             guide.add(elapsed, pan, tilt)
             summary.samples += 1
         if now - last_guide >= GUIDE_EVERY_S and (progress is not None or on_guidance):
@@ -199,6 +210,8 @@ def record(
         if progress is not None and now - last_draw >= draw_every:
             last_draw = now
             _draw(progress, guidance, summary, elapsed, duration_s, on_terminal)
+            if not on_terminal and summary.samples and twist_guide.assess().cells:
+                progress.write(f"{elapsed:5.1f} s  {twist_guide.assess().line()}\n")
         # pace: a late sample is followed at once by the next, so the average rate holds;
         # only after a long stall (a second behind) does the schedule restart from now
         next_tick += period
@@ -211,6 +224,8 @@ def record(
     summary.elapsed_s = time.perf_counter() - start
     summary.guidance = guide.assess()
     summary.spread_deg = summary.guidance.spread_deg
+    if twist_guide.assess().cells:
+        summary.twist = twist_guide.assess()
     if on_guidance is not None:
         on_guidance(summary.guidance)
     if progress is not None:

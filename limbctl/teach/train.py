@@ -200,7 +200,12 @@ def train(
             f"{data_path}: only {len(q)} samples; record longer (at least a few seconds "
             "of moving the limb through its whole range)"
         )
-    model = build_model(kind, **(options or {}))
+    options = dict(options or {})
+    calibration = data.header.calibration
+    if kind == "rigidmap" and calibration is not None and calibration.roll is not None:
+        # a three-servo recording: the region over full orientations, swing and twist
+        options.setdefault("twist", True)
+    model = build_model(kind, **options)
     model.fit(q)
     done(STAGES[1])
     metadata: dict[str, Any] = {

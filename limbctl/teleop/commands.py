@@ -8,6 +8,19 @@ replay timing; any other key is refused so that a typo never silently becomes a 
 - ``{"q": [w, x, y, z]}``: a unit quaternion; the gimbal has no twist, so only the direction it
   points the limb along is used.
 
+On a three-servo rig (``twist=True``: a roll joint turns the limb about its own axis) the target
+is a full orientation and three more forms carry twist:
+
+- ``{"q": [w, x, y, z]}`` keeps its twist;
+- ``{"pan": deg, "tilt": deg, "roll": deg}``: joint angles, roll in [-180, 180]
+  (``q = Rz(pan) Ry(-tilt) Rx(roll)``; the roll joint's angle is not the twist);
+- ``{"dir": [x, y, z], "twist": deg}``: a direction and the twist about it,
+  ``q = swing(d) * twist(tau)`` (twist in [-180, 180]).
+
+Without ``roll`` or ``twist``, ``pan``/``tilt`` and ``dir`` mean the twist-free orientation (twist
+0), as on two servos. On a two-servo rig a line with ``roll`` or ``twist`` is refused with the
+reason (the rig cannot turn the limb about its axis); a ``q`` keeps today's meaning there.
+
 Anything else (NaN, inf, out of range, wrong type, malformed JSON, oversize line) raises
 :class:`~limbctl.errors.InvalidInputError` with the reason; callers count and drop it.
 """
@@ -22,7 +35,9 @@ import numpy as np
 
 from limbctl.errors import InvalidInputError
 from limbctl.geometry.gimbal import pan_tilt_to_direction
-from limbctl.geometry.quat import limb_direction, swing_from_direction
+from limbctl.geometry.gimbal3 import pan_tilt_roll_to_quat
+from limbctl.geometry.quat import canonical, limb_direction, swing_from_direction
+from limbctl.geometry.twist import compose
 
 #: Longest accepted line or datagram, in bytes: a valid command with full float precision and a
 #: timestamp is under 200 bytes; the rest is room for whitespace, and longer input is refused.
@@ -39,6 +54,8 @@ MAX_COMPONENT = 1e6
 
 _FORMS = ("pan/tilt", "dir", "q")
 _ALLOWED_KEYS = {"pan", "tilt", "dir", "q", "t"}
+#: Keys that carry twist: accepted only on a three-servo rig.
+_TWIST_KEYS = {"roll", "twist"}
 
 
 @dataclass(frozen=True)
@@ -48,7 +65,8 @@ class Command:
     Attributes
     ----------
     q : ndarray, shape (4,)
-        Twist-free target orientation (w >= 0).
+        Target orientation (w >= 0): twist-free on a two-servo rig, the full orientation on a
+        three-servo rig.
     direction : ndarray, shape (3,)
         Unit limb direction of the target.
     t : float or None
@@ -81,13 +99,16 @@ def _vector(value: object, name: str, length: int) -> np.ndarray:
     return np.array([_finite_number(v, f"{name}[{i}]") for i, v in enumerate(value)])
 
 
-def parse_command(line: str | bytes) -> Command:
+def parse_command(line: str | bytes, twist: bool = False) -> Command:
     """Parse one JSON command into a :class:`Command`.
 
     Parameters
     ----------
     line : str or bytes
         One JSON object (trailing newline allowed).
+    twist : bool
+        True on a three-servo rig: the target keeps its twist and ``roll``/``twist`` are
+        accepted (see the module docstring).
 
     Raises
     ------
@@ -110,16 +131,28 @@ def parse_command(line: str | bytes) -> Command:
         raise InvalidInputError(f"malformed JSON: {exc}") from exc
     if not isinstance(obj, dict):
         raise InvalidInputError('expected a JSON object such as {"pan": 10, "tilt": 5}')
-    unknown = set(obj) - _ALLOWED_KEYS
+    carried = sorted(_TWIST_KEYS & set(obj))
+    if carried and not twist:
+        raise InvalidInputError(
+            f"{carried[0]!r} carries twist, and this rig has two servos (no roll joint) to turn "
+            "the limb about its own axis; send pan/tilt, dir or q, or use a three-servo rig"
+        )
+    unknown = set(obj) - _ALLOWED_KEYS - (_TWIST_KEYS if twist else set())
     if unknown:
         raise InvalidInputError(f"unknown key(s) {sorted(unknown)}; use one of {_FORMS}")
     t = _finite_number(obj["t"], "t") if "t" in obj else None
     forms = [("pan" in obj or "tilt" in obj), "dir" in obj, "q" in obj]
     if sum(forms) != 1:
         raise InvalidInputError(f"give exactly one of {_FORMS}")
+    if "roll" in obj and not forms[0]:
+        raise InvalidInputError("roll goes with pan and tilt")
+    if "twist" in obj and not forms[1]:
+        raise InvalidInputError('twist goes with dir: {"dir": [x, y, z], "twist": deg}')
     if forms[0]:
         if "pan" not in obj or "tilt" not in obj:
             raise InvalidInputError("pan and tilt must be given together")
+        if "roll" in obj:
+            return command_from_pose(obj["pan"], obj["tilt"], obj["roll"], t)
         return command_from_pan_tilt(obj["pan"], obj["tilt"], t)
     if forms[1]:
         d = _vector(obj["dir"], "dir", 3)
@@ -127,13 +160,43 @@ def parse_command(line: str | bytes) -> Command:
         if not norm >= MIN_DIRECTION_NORM:
             raise InvalidInputError(f"dir has length {norm:.3g}; it needs a direction")
         direction = d / norm
+        if twist:
+            tau = _angle_deg(obj.get("twist", 0.0), "twist", 180.0)
+            return Command(q=compose(direction, math.radians(tau)), direction=direction, t=t)
     else:
         q = _vector(obj["q"], "q", 4)
         norm = float(np.linalg.norm(q))
         if not abs(norm - 1.0) <= QUAT_NORM_TOLERANCE:
             raise InvalidInputError(f"q has norm {norm:.6g}; send a unit quaternion")
         direction = limb_direction(q / norm)
+        if twist:
+            return Command(q=canonical(q / norm), direction=direction, t=t)
     return Command(q=swing_from_direction(direction), direction=direction, t=t)
+
+
+def _angle_deg(value: object, name: str, bound: float) -> float:
+    angle = _finite_number(value, name)
+    if not -bound <= angle <= bound:
+        raise InvalidInputError(f"{name} {angle} deg is outside [-{bound:g}, {bound:g}]")
+    return angle
+
+
+def command_from_pose(
+    pan_deg: object, tilt_deg: object, roll_deg: object, t: float | None = None
+) -> Command:
+    """A full-orientation :class:`Command` of a three-servo rig from joint angles in degrees
+    (pan in [-180, 180], tilt in [-90, 90], roll in [-180, 180]), checked as a JSON line is.
+
+    Raises
+    ------
+    InvalidInputError
+        For a value that is not a finite number or lies outside its range.
+    """
+    swing = command_from_pan_tilt(pan_deg, tilt_deg, t)
+    roll = _angle_deg(roll_deg, "roll", 180.0)
+    pan, tilt = float(pan_deg), float(tilt_deg)  # checked just above
+    q = pan_tilt_roll_to_quat(math.radians(pan), math.radians(tilt), math.radians(roll))
+    return Command(q=q, direction=swing.direction, t=t)
 
 
 def command_from_pan_tilt(pan_deg: object, tilt_deg: object, t: float | None = None) -> Command:

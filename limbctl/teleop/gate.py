@@ -130,6 +130,11 @@ class GateResult:
     slewed: bool = False
     reason: str = ""
 
+    @property
+    def pose(self) -> tuple[float, float]:
+        """``(pan, tilt)`` (rad), what the rig writes."""
+        return (self.pan, self.tilt)
+
 
 class Gate:
     """Turns commanded orientations into safe joint goals, one cycle at a time.

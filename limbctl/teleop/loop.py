@@ -53,6 +53,8 @@ from limbctl.teleop.sources import CommandSource
 from limbctl.teleop.status import status_line_for
 
 __all__ = ["Cycle", "CycleState", "TeleopSummary", "Telemetry", "open_telemetry"]
+#: The joints in the order a rig lists its ids (a three-servo rig adds roll).
+JOINT_NAMES = ("pan", "tilt", "roll")
 __all__ += ["SafeState", "Limb", "LoopConfig", "ControlLoop", "run"]
 
 
@@ -266,7 +268,7 @@ class ControlLoop:
         written = False
         if result.outcome is not Outcome.HELD:
             try:
-                self.limb.write_pose(result.pan, result.tilt)
+                self.limb.write_pose(*result.pose)
                 written = True
                 summary.goals_written += 1
             except ServoAlarm as exc:
@@ -478,7 +480,7 @@ def _enter_safe_state(
     summary.fault = f"{where}{cause}"
     summary.ended_by = "fault"
     summary.exit_code = 3
-    names = dict(zip(limb.ids, ("pan", "tilt"), strict=True))
+    names = dict(zip(limb.ids, JOINT_NAMES[: len(limb.ids)], strict=True))
     if config.safe_state is SafeState.TORQUE_OFF:
         try:
             limb.set_torque(False)
@@ -500,4 +502,4 @@ def _hold_state(limb: Limb, after_alarm: bool) -> str:
             "gate gave it unless its firmware shut it down; cut the servo power if the limb "
             "must not move"
         )
-    return held_torque(dict(zip(("pan", "tilt"), torque, strict=True)), after_alarm)
+    return held_torque(dict(zip(JOINT_NAMES[: len(torque)], torque, strict=True)), after_alarm)

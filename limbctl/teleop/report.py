@@ -24,9 +24,7 @@ class Telemetry:
         row = {
             "t": round(cycle.t, 6),
             "cmd": None if cycle.command_deg is None else [round(v, 4) for v in cycle.command_deg],
-            "out": None
-            if result is None
-            else [round(math.degrees(result.pan), 4), round(math.degrees(result.tilt), 4)],
+            "out": None if result is None else [round(math.degrees(v), 4) for v in result.pose],
             "outcome": None if result is None else result.outcome.value,
             "written": cycle.written,
             "present": None

@@ -299,3 +299,57 @@ def test_malformed_calibration_names_the_field():
         calibration_from_dict(data, "model.npz")
     with pytest.raises(ProfileError, match="calibration must be a mapping"):
         calibration_from_dict(["x"] * 10_000, "model.npz")
+
+
+# ---- the optional roll joint (three-servo rigs) -----------------------------------------------
+SIM3_YAML = SIM_YAML.with_name("sim3.yaml")
+
+
+def test_sim3_profile_has_a_roll_joint_validated_like_the_others(tmp_path):
+    profile = default_sim_profile("sim3")
+    data = yaml.safe_load(SIM3_YAML.read_text())
+    assert profile.roll == JointProfile(**data["roll"])
+    assert profile.ids == (1, 2, 3)
+    assert [name for name, _ in profile.joints] == ["pan", "tilt", "roll"]
+    assert load_profile(save_profile(profile, tmp_path / "r.yaml")) == profile
+    bad = copy.deepcopy(data)
+    bad["roll"]["direction"] = 0
+    with pytest.raises(ProfileError, match="roll.direction must be"):
+        load_profile(write(tmp_path, bad))
+    bad = copy.deepcopy(data)
+    bad["roll"]["id"] = 2
+    with pytest.raises(ProfileError, match="roll.id must differ"):
+        load_profile(write(tmp_path, bad))
+    bad = copy.deepcopy(data)
+    bad["roll"]["max_deg"] = 104.5
+    with pytest.raises(ProfileError, match="roll.max_deg 104.5 is not 1 deg inside"):
+        load_profile(write(tmp_path, bad))
+    bad = copy.deepcopy(data)
+    del bad["roll"]["zero_tick"]
+    with pytest.raises(ProfileError, match="roll is missing zero_tick"):
+        load_profile(write(tmp_path, bad))
+
+
+def test_two_servo_profile_and_calibration_carry_no_roll(sim_data):
+    profile = default_sim_profile()
+    assert profile.roll is None
+    assert "roll" not in profile.to_dict()
+    assert set(profile.calibration.to_dict()) == {"pan", "tilt"}
+    assert profile.to_dict() == profile_from_dict(sim_data).to_dict()
+
+
+def test_calibration_with_roll_round_trips_and_differs_from_two_servos():
+    three = default_sim_profile("sim3").calibration
+    two = default_sim_profile().calibration
+    assert calibration_from_dict(three.to_dict()) == three
+    assert calibration_from_dict(two.to_dict()) == two
+    assert three.differences(two) == ("roll present vs absent",)
+    assert two.differences(three) == ("roll absent vs present",)
+    changed = three.to_dict()
+    changed["roll"]["zero_tick"] = 2000
+    assert three.differences(calibration_from_dict(changed)) == ("roll.zero_tick 1960 vs 2000",)
+
+
+def test_unknown_packaged_rig_is_refused_with_the_list():
+    with pytest.raises(ProfileError, match="the packaged rigs are sim, sim3"):
+        default_sim_profile("sim4")

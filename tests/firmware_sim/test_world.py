@@ -262,3 +262,50 @@ def test_bad_calls_raise_clear_errors():
         Joint(1, "pan", 2048.0, 1, 90.0, -90.0)
     with pytest.raises(ValueError, match="distinct servo IDs"):
         World(joints=(PAN, Joint(1, "tilt", 2048.0, 1, -60.0, 60.0)))
+
+
+# -- the roll joint (three-joint gimbal) --------------------------------------------------------
+
+
+def test_roll_joint_matches_the_sim3_rig_profile_and_tracks_like_the_others():
+    from firmware_sim.orientation import chain_quat
+    from firmware_sim.world import ROLL_JOINT
+
+    profile = yaml.safe_load((REPO / "calib" / "rigs" / "sim3.yaml").read_text())
+    entry = profile["roll"]
+    assert (entry["id"], entry["zero_tick"], entry["direction"]) == (
+        ROLL_JOINT.servo_id,
+        ROLL_JOINT.zero_tick,
+        ROLL_JOINT.direction,
+    )
+    assert (entry["stop_min_deg"], entry["stop_max_deg"]) == (
+        ROLL_JOINT.stop_min_deg,
+        ROLL_JOINT.stop_max_deg,
+    )
+    for name in ("pan", "tilt"):
+        assert (
+            profile[name]
+            == yaml.safe_load((REPO / "calib" / "rigs" / "sim.yaml").read_text())[name]
+        )
+    three = World(joints=(PAN, TILT, ROLL_JOINT), seed=2)
+    two = World(seed=2)
+    drive = {1: tick_at(PAN, 20.0), 2: tick_at(TILT, 10.0), 3: tick_at(ROLL_JOINT, 130.0)}
+    run(three, 2.0, drive)
+    run(two, 2.0, {1: drive[1], 2: drive[2]})
+    angles = three.joint_angles_deg()
+    # the roll drives to its end stop (105 deg) and loads the motor; pan and tilt as without it
+    assert angles["roll"] == pytest.approx(105.0)
+    assert three.load_percent(3) == pytest.approx(LOAD_LIMIT_PCT)
+    assert angles["pan"] == two.joint_angles_deg()["pan"]
+    assert angles["tilt"] == two.joint_angles_deg()["tilt"]
+    q = three.orientation_for_ticks({})
+    assert np.allclose(q, chain_quat(*(math.radians(angles[k]) for k in ("pan", "tilt", "roll"))))
+
+
+def test_world_refuses_two_roll_joints_or_shared_ids():
+    from firmware_sim.world import ROLL_JOINT
+
+    with pytest.raises(ValueError, match="at most one 'roll'"):
+        World(joints=(PAN, TILT, ROLL_JOINT, ROLL_JOINT))
+    with pytest.raises(ValueError, match="distinct servo IDs"):
+        World(joints=(PAN, TILT, Joint(2, "roll", 0.0, 1, -90.0, 90.0)))

@@ -107,3 +107,17 @@ def test_without_limits_a_real_port_gets_limits_inside_the_assumed_end_stops(sim
         "pan hard limits -89..89 deg (1 deg inside the end stops -90..90)"
         in capsys.readouterr().err
     )
+
+
+def test_calibration_of_a_three_servo_rig_finds_the_roll_too(tmp_path):
+    out = tmp_path / "rig3.yaml"
+    args = build_parser().parse_args(["calibrate", "--out", str(out), "--rig", "sim3"])
+    assert args.job(args) == 0
+    found = load_profile(out)
+    truth = default_sim_profile("sim3")
+    for name in ("pan", "tilt", "roll"):
+        assert abs(getattr(found, name).zero_tick - getattr(truth, name).zero_tick) <= 3, name
+        assert getattr(found, name).direction == getattr(truth, name).direction, name
+    # the roll's hard limits and end stops carry over from the base profile
+    assert (found.roll.min_deg, found.roll.max_deg) == (truth.roll.min_deg, truth.roll.max_deg)
+    assert found.roll.stop_max_deg == truth.roll.stop_max_deg

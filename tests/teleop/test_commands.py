@@ -1,3 +1,4 @@
+import json
 import math
 
 import numpy as np
@@ -87,3 +88,47 @@ def test_commands_built_from_numbers_equal_the_parsed_line(pan, tilt):
 def test_commands_built_from_numbers_are_checked_like_lines(pan, tilt, reason):
     with pytest.raises(InvalidInputError, match=reason):
         command_from_pan_tilt(pan, tilt)
+
+
+# ---- three-servo rigs: lines that carry twist ------------------------------------------------
+def test_twist_lines_are_refused_on_a_two_servo_rig_with_the_reason():
+    for line in ('{"pan": 10, "tilt": 5, "roll": 20}', '{"dir": [1, 0, 0], "twist": 30}'):
+        with pytest.raises(InvalidInputError, match="two servos \\(no roll joint\\)"):
+            parse_command(line)
+
+
+def test_three_servo_forms_keep_their_twist():
+    from limbctl.geometry.gimbal3 import pan_tilt_roll_to_quat
+    from limbctl.geometry.twist import decompose
+
+    c = parse_command('{"pan": 30, "tilt": 30, "roll": 20}', twist=True)
+    np.testing.assert_allclose(
+        c.q, pan_tilt_roll_to_quat(math.radians(30), math.radians(30), math.radians(20)), atol=1e-15
+    )
+    # the twist is roll + 2 atan(tan(pan/2) tan(tilt/2)) = 20 + 8.2 deg
+    assert math.degrees(float(decompose(c.q)[1])) == pytest.approx(28.2, abs=0.05)
+    c = parse_command('{"dir": [1, 1, 0], "twist": -40}', twist=True)
+    d, tau = decompose(c.q)
+    np.testing.assert_allclose(d, [2**-0.5, 2**-0.5, 0], atol=1e-12)
+    assert math.degrees(float(tau)) == pytest.approx(-40.0)
+    q = pan_tilt_roll_to_quat(0.3, -0.2, 2.5)
+    c = parse_command(json.dumps({"q": (-q).tolist()}), twist=True)
+    np.testing.assert_allclose(c.q, q, atol=1e-15)
+    # without roll/twist: the twist-free orientation, as on two servos
+    c = parse_command('{"pan": 20, "tilt": 10}', twist=True)
+    assert float(decompose(c.q)[1]) == pytest.approx(0.0, abs=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("line", "reason"),
+    [
+        ('{"pan": 10, "tilt": 5, "roll": 200}', "roll 200.0 deg is outside"),
+        ('{"dir": [1, 0, 0], "twist": NaN}', "not a valid number"),
+        ('{"q": [1, 0, 0, 0], "twist": 10}', "twist goes with dir"),
+        ('{"dir": [1, 0, 0], "roll": 10}', "roll goes with pan and tilt"),
+        ('{"pan": 1, "tilt": 2, "spin": 3}', "unknown key"),
+    ],
+)
+def test_bad_twist_lines_are_refused(line, reason):
+    with pytest.raises(InvalidInputError, match=reason):
+        parse_command(line, twist=True)

@@ -70,3 +70,36 @@ def test_leader_ids_must_be_on_the_bus_and_distinct():
             LeaderSource(session.rig, (3, 4))
         with pytest.raises(ConfigError):
             LeaderSource(session.rig, (1, 2))
+
+
+def test_a_three_servo_leader_gives_full_orientations_and_needs_a_three_servo_follower():
+    import numpy as np
+
+    from limbctl.geometry.gimbal3 import pose_quat_scalar
+
+    with open_rig(extra_ids=(3, 4)) as session:
+        with pytest.raises(ConfigError, match="needs a three-servo follower"):
+            LeaderSource(session.rig, (3, 4, 5))
+    with open_rig(rig_path="sim3", extra_ids=(4, 5, 6)) as session:
+        rig = session.rig
+        configure_servos(rig.bus, {**rig.tick_limits(), 4: (0, 4095), 5: (0, 4095), 6: (0, 4095)})
+        # play the person: put the leader's shafts at pan 20, tilt 10, roll -30 deg
+        goals = {
+            i: joint.zero_tick + joint.direction * round(deg * 4096 / 360)
+            for i, joint, deg in zip((4, 5, 6), rig.joints, (20, 10, -30), strict=True)
+        }
+        rig.bus.set_torque(True, (4, 5, 6))
+        rig.bus.sync_write(Register.GOAL_POSITION, goals)
+        deadline = time.monotonic() + 20
+        while any(
+            abs(rig.bus.sync_read(Register.PRESENT_POSITION, (i,))[i] - goals[i]) > 2 for i in goals
+        ):
+            assert time.monotonic() < deadline, "the leader shafts did not reach their goals"
+        with LeaderSource(rig, (4, 5, 6)) as source:
+            ticks = rig.bus.sync_read(Register.PRESENT_POSITION, (4, 5, 6))
+            [command] = source.poll()
+    expected = pose_quat_scalar(*rig.angles_of(tuple(ticks[i] for i in (4, 5, 6))))
+    np.testing.assert_allclose(command.q, expected, atol=1e-12)
+    assert math.degrees(rig.angles_of(tuple(ticks[i] for i in (4, 5, 6)))[2]) == pytest.approx(
+        -30.0, abs=0.2
+    )

@@ -1,7 +1,9 @@
 import json
+import math
 import os
 import socket
 
+import numpy as np
 import pytest
 
 from limbctl.errors import ConfigError
@@ -89,7 +91,9 @@ def test_leader_spec_names_its_servos_and_needs_the_open_rig():
     spec = parse_source("leader:3,4")
     assert spec.kind.scheme == "leader" and spec.extra_ids == (3, 4)
     assert parse_source("udp://127.0.0.1:9000").extra_ids == ()
-    for bad in ("leader:3", "leader:3,x", "leader:3,4,5"):
+    # a three-servo leader names its roll too
+    assert parse_source("leader:4,5,6").extra_ids == (4, 5, 6)
+    for bad in ("leader:3", "leader:3,x", "leader:3,4,5,6"):
         with pytest.raises(ConfigError, match="leader:ID,ID"):
             parse_source(bad)
     with pytest.raises(ConfigError, match="needs the open rig"):
@@ -129,3 +133,47 @@ def test_keyboard_source_needs_a_terminal(tmp_path):
     plain.write_text("")
     with pytest.raises(ConfigError, match="not a terminal"):
         KeyboardSource(tty_path=str(plain))
+
+
+def test_keyboard_roll_keys_turn_the_limb_on_three_servos_and_are_refused_on_two():
+    import pty
+
+    from limbctl.geometry.gimbal3 import pan_tilt_roll_to_quat
+    from limbctl.teleop.sources import KeyboardSource
+
+    for twist in (True, False):
+        master, slave = pty.openpty()
+        try:
+            with KeyboardSource(step_deg=5.0, tty_path=os.ttyname(slave)) as src:
+                src.twist = twist
+                # roll +2 steps, one up, roll -1 step
+                os.write(master, b"]]\x1b[A[")
+                expected = 4 if twist else 1
+                got = []
+                while len(got) < expected:
+                    batch = src.poll(timeout=5.0)
+                    assert batch, "no key arrived"
+                    got += batch
+                os.write(master, b"q")
+                assert src.wait_finished(5.0)
+            if twist:
+                assert (src.pan_deg, src.tilt_deg, src.roll_deg) == (0.0, 5.0, 5.0)
+                np.testing.assert_allclose(
+                    got[-1].q, pan_tilt_roll_to_quat(0.0, math.radians(5), math.radians(5))
+                )
+            else:
+                assert src.stats.rejected == 3
+                assert "roll keys need a three-servo rig" in src.stats.refusals.lines()[0]
+        finally:
+            os.close(master)
+            os.close(slave)
+
+
+def test_a_source_on_a_three_servo_rig_keeps_twist():
+    from calib import default_sim_profile
+    from limbctl.servo.rig3 import RollRig
+    from limbctl.teleop.sources import SourceContext, parse_source
+
+    rig = RollRig(default_sim_profile("sim3"))
+    assert parse_source("udp://127.0.0.1:0").open(SourceContext(rig=rig)).twist
+    assert not parse_source("udp://127.0.0.1:0").open(SourceContext()).twist

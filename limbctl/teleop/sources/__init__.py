@@ -8,6 +8,7 @@ Each scheme has its own module and one entry in :data:`SOURCES`::
     keyboard               arrow keys in the terminal (q quits)
     page                   the live view's page (drag, click, arrows), opened with its secret
     leader:ID,ID           a second gimbal on the same bus, moved by hand with torque off
+                           (leader:ID,ID,ID: a three-servo leader, for a three-servo rig)
 
 :func:`parse_source` checks a spec before anything is opened (and says which extra servos the
 bus must hold); :meth:`SourceSpec.open` builds the source from a :class:`SourceContext`, which
@@ -49,6 +50,9 @@ class SourceContext:
     page : callable or None
         Attaches the page source to the live view's controller (see
         :data:`limbctl.teleop.sources.page.Connect`); None when no view is served.
+    twist : bool
+        True when commands keep their twist (a three-servo rig); a rig with a roll joint sets
+        it whatever is given here.
     """
 
     rig: Any = None
@@ -56,6 +60,13 @@ class SourceContext:
     rate_hz: float = 200.0
     gate: Any = None
     page: Any = None
+    twist: bool = False
+
+    @property
+    def takes_twist(self) -> bool:
+        """True for a three-servo rig (its profile has a roll joint) or when asked."""
+        profile = getattr(self.rig, "profile", None)
+        return self.twist or getattr(profile, "roll", None) is not None
 
 
 @dataclass(frozen=True)
@@ -145,8 +156,11 @@ class SourceSpec:
         return self.kind.extra_ids(self.argument)
 
     def open(self, context: SourceContext | None = None) -> CommandSource:
-        """Build the source (not yet started)."""
-        return self.kind.build(self.argument, context or SourceContext())
+        """Build the source (not yet started); on a three-servo rig its lines keep their twist."""
+        context = context or SourceContext()
+        source = self.kind.build(self.argument, context)
+        source.twist = context.takes_twist
+        return source
 
 
 def parse_source(spec: str) -> SourceSpec:

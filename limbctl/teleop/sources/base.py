@@ -56,6 +56,8 @@ class CommandSource:
     latest_only = False
     #: A person steers it: the status line then shows poses and the gate's outcome in words.
     explains = False
+    #: True on a three-servo rig: lines keep their twist (``parse_command(..., twist=True)``).
+    twist = False
 
     def __init__(self) -> None:
         self.stats = SourceStats()
@@ -102,7 +104,7 @@ class CommandSource:
         if not text:
             return
         try:
-            command = parse_command(text)
+            command = parse_command(text, twist=self.twist)
         except InvalidInputError as exc:
             self.stats.reject(str(exc), text, self._lines_fed)
             return

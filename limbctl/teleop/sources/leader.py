@@ -1,6 +1,7 @@
 """A leader gimbal as a command source: a second pair of servos moved by hand.
 
-The leader sits on the same bus as the follower (``leader:3,4`` = pan id 3, tilt id 4) and is
+The leader sits on the same bus as the follower (``leader:3,4`` = pan id 3, tilt id 4; a
+three-servo leader ``leader:4,5,6`` adds its roll id and needs a three-servo follower) and is
 assumed to be built and calibrated like the follower: its ticks are read with the follower's
 zero ticks and directions. Each control cycle reads the leader in one sync read and offers its
 pose as the newest command; it goes through the gate like any other.
@@ -25,7 +26,7 @@ from limbctl.errors import BusError, ConfigError, InvalidInputError
 from limbctl.servo.control_table import MAX_TICK, Block, Register, model_name
 from limbctl.servo.leader import configure_felt_leader, encode_feel, feel_data, felt_motor
 from limbctl.servo.rig import Rig
-from limbctl.teleop.commands import Command, command_from_pan_tilt
+from limbctl.teleop.commands import Command, command_from_pan_tilt, command_from_pose
 from limbctl.teleop.gate import Outcome
 from limbctl.teleop.haptic import FeelLaw, FeelStats, Push, push_for
 from limbctl.teleop.sources.base import CommandSource
@@ -57,7 +58,7 @@ class LeaderSource(CommandSource):
     rig : Rig
         The follower rig; its bus must also hold the leader's ids.
     leader_ids : tuple of int
-        (pan id, tilt id) of the leader.
+        (pan id, tilt id) of the leader, or (pan, tilt, roll) ids of a three-servo leader.
     """
 
     name = "leader"
@@ -66,11 +67,16 @@ class LeaderSource(CommandSource):
     def __init__(
         self,
         rig: Rig,
-        leader_ids: tuple[int, int],
+        leader_ids: tuple[int, ...],
         rate_hz: float = 200.0,
         law: FeelLaw | None = None,
     ) -> None:
         super().__init__()
+        if len(leader_ids) == 3 and rig.profile.roll is None:
+            raise ConfigError(
+                f"a three-servo leader {leader_ids} needs a three-servo follower: rig "
+                f"{rig.profile.name!r} has no roll joint to follow its twist; give leader:ID,ID"
+            )
         if rig.bus is None or not set(leader_ids) <= set(rig.bus.ids):
             raise ConfigError(f"leader servos {leader_ids} are not on the bus")
         if set(leader_ids) & set(rig.profile.ids):
@@ -107,8 +113,12 @@ class LeaderSource(CommandSource):
             If a felt leader's servo refuses mode 5, or its cycle cannot keep the rate.
         """
         bus = self.rig.bus
-        motor = felt_motor(bus, self.leader_ids)
         model = model_name(bus.models[self.leader_ids[0]])
+        if len(self.leader_ids) == 3:  # the law pushes on pan and tilt only
+            bus.set_torque(False, self.leader_ids)
+            self.notice = "a three-servo leader stays passive: nothing is felt"
+            return
+        motor = felt_motor(bus, self.leader_ids)
         if motor is None:
             bus.set_torque(False, self.leader_ids)
             self.notice = f"leader {model} senses no current: it stays passive, nothing is felt"
@@ -195,10 +205,16 @@ class LeaderSource(CommandSource):
         except BusError:
             self.read_failures += 1
             return []
-        pan, tilt = self.rig.ticks_to_angles(ticks[self.leader_ids[0]], ticks[self.leader_ids[1]])
         try:
             # the same range checks as every other source's commands
-            command = command_from_pan_tilt(math.degrees(pan), math.degrees(tilt))
+            if len(self.leader_ids) == 3:  # a three-servo leader: read like the follower
+                angles = self.rig.angles_of(tuple(ticks[i] for i in self.leader_ids))
+                command = command_from_pose(*(math.degrees(a) for a in angles))
+            else:
+                pan, tilt = self.rig.ticks_to_angles(
+                    ticks[self.leader_ids[0]], ticks[self.leader_ids[1]]
+                )
+                command = command_from_pan_tilt(math.degrees(pan), math.degrees(tilt))
         except InvalidInputError as exc:
             self.stats.reject(f"leader pose refused: {exc}")
             return []
@@ -331,20 +347,22 @@ class LeaderSource(CommandSource):
         return (*lines, *self.feel_stats.events)
 
 
-def leader_ids(argument: str) -> tuple[int, int]:
-    """The (pan, tilt) servo ids of a ``leader:ID,ID`` spec's argument ``ID,ID``.
+def leader_ids(argument: str) -> tuple[int, ...]:
+    """The (pan, tilt) servo ids of a ``leader:ID,ID`` spec's argument ``ID,ID``, or the
+    (pan, tilt, roll) ids of a three-servo leader's ``ID,ID,ID``.
 
     Raises
     ------
     ConfigError
-        Unless the argument is exactly two integers.
+        Unless the argument is two or three integers.
     """
     try:
         ids = tuple(int(i) for i in argument.split(","))
     except ValueError:
         raise ConfigError(f"bad leader source 'leader:{argument}'; expected leader:ID,ID") from None
-    if len(ids) != 2:
+    if len(ids) not in (2, 3):
         raise ConfigError(
-            f"bad leader source 'leader:{argument}'; expected leader:ID,ID (pan, tilt)"
+            f"bad leader source 'leader:{argument}'; expected leader:ID,ID (pan, tilt) or "
+            "leader:ID,ID,ID (pan, tilt, roll)"
         )
-    return ids[0], ids[1]
+    return ids

@@ -44,7 +44,7 @@ class ReplaySource(CommandSource):
             for raw in fh:
                 if self._stop.is_set():
                     return
-                stamp = _peek_time(raw)
+                stamp = _peek_time(raw, self.twist)
                 if stamp is not None:
                     t0 = stamp if t0 is None else t0
                     due = start + (stamp - t0) / self.speed
@@ -55,8 +55,8 @@ class ReplaySource(CommandSource):
                 self.feed(raw)
 
 
-def _peek_time(raw: bytes) -> float | None:
+def _peek_time(raw: bytes, twist: bool = False) -> float | None:
     try:
-        return parse_command(raw).t
+        return parse_command(raw, twist=twist).t
     except InvalidInputError:
         return None

@@ -1,0 +1,156 @@
+"""The three-servo demo's stream, judgement and picture (``limbctl demo --rig sim3``).
+
+- :func:`write_twist_stream`: a replay file sweeping far outside the taught region in swing and
+  in twist (joint angles with roll), with malformed lines mixed in;
+- :func:`twist_excursions`: how far (deg of rotation, ``2 acos |<q1, q2>|``) each goal the
+  simulator logged (its true full orientation ``limb_q``) lies outside the learned region, at
+  most: the distance to the region is bounded by the distance to any orientation the region
+  contains, so the least of two such distances is taken, to ``correct(q)`` and to the nearest
+  region orientation the gate wrote or corrected its pose onto (the search of ``correct`` may
+  stop short of the nearest orientation by some tenths of a degree);
+- :func:`coverage`: the share of a true region's orientations the learned region holds;
+- :func:`twist_picture`: the taught samples over the swing plane coloured by twist, and twist
+  against tilt with the true band's limits and the goals the gate wrote.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from limbctl.geometry.gimbal import direction_to_pan_tilt
+from limbctl.geometry.twist import decompose
+
+
+def write_twist_stream(path: Path, seconds: float = 12.0, rate_hz: float = 50.0) -> int:
+    """A replay file: a Lissajous sweep (pan +-110, tilt -50..70 deg) with the roll swinging
+    +-150 deg, far outside the taught twist band, and a few bad lines. Returns the valid lines.
+
+    12 s at 50 lines/s, slow enough that the gate's slew limit, not the stream, shapes the
+    motion (as the two-servo demo's stream).
+    """
+    n = int(seconds * rate_hz)
+    t = np.arange(n) / rate_hz
+    pan = 110.0 * np.sin(2 * math.pi * t / seconds)
+    tilt = 10.0 + 60.0 * np.sin(4 * math.pi * t / seconds + 0.6)
+    roll = 150.0 * np.sin(6 * math.pi * t / seconds + 1.0)
+    bad = [
+        '{"pan": 10, "tilt": 0, "roll": NaN}',
+        '{"dir": [1, 0, 0], "twist": 400}',
+        '{"q": [1, 0, 0, 0], "twist": 5}',
+        "not json at all",
+    ]
+    with open(path, "w", encoding="utf-8") as fh:
+        for i in range(n):
+            row = {"t": round(float(t[i]), 4), "pan": pan[i], "tilt": tilt[i], "roll": roll[i]}
+            fh.write(json.dumps(row) + "\n")
+            if i % (n // len(bad)) == n // (2 * len(bad)):
+                fh.write(bad[(i * len(bad)) // n] + "\n")
+    return n
+
+
+def logged_orientations(goal_log: Path) -> np.ndarray:
+    """The full orientation (M, 4) each goal packet commanded: the last ``limb_q`` of each
+    ``t`` (a sync write's lines share it; earlier ones mix old and new goals)."""
+    by_time: dict[float, list[float]] = {}
+    with open(goal_log, encoding="utf-8") as fh:
+        for line in fh:
+            if line.strip():
+                row = json.loads(line)
+                by_time[row["t"]] = row["limb_q"]
+    return np.asarray(list(by_time.values()), dtype=np.float64).reshape(-1, 4)
+
+
+def rotation_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Rotation angle (deg) between rows of unit quaternions: ``4 atan2(|a - s b|, |a + s b|)``
+    with ``s = sign(a . b)`` (= ``2 acos |a . b|``, accurate near 0)."""
+    s = np.where(np.sum(a * b, axis=-1) < 0.0, -1.0, 1.0)[..., None]
+    near = np.linalg.norm(a - s * b, axis=-1)
+    far = np.linalg.norm(a + s * b, axis=-1)
+    return np.degrees(4.0 * np.arctan2(near, far))
+
+
+def twist_excursions(
+    goal_log: Path, model: object, written: np.ndarray | None = None
+) -> np.ndarray:
+    """Rotation (deg) by which each logged goal lies outside ``model``'s region, at most; 0
+    inside. ``written`` (M, 4): the orientations the gate wrote (its telemetry); those the
+    region contains bound each goal's distance too (module docstring)."""
+    q = logged_orientations(goal_log)
+    if not len(q):
+        return np.zeros(0)
+    outside = ~np.asarray(model.contains(q), dtype=bool)
+    bound = rotation_deg(q, model.correct(q))
+    if written is not None and len(written):
+        # region points near the goals: the written poses the region contains, and for the
+        # others (within the gate's tolerance of it) their corrections
+        held = np.asarray(model.contains(written), dtype=bool)
+        inside = np.concatenate([written[held], model.correct(written[~held])])
+        inside = inside[np.asarray(model.contains(inside), dtype=bool)]
+        for k in np.flatnonzero(outside):
+            if len(inside):
+                nearest = rotation_deg(np.broadcast_to(q[k], inside.shape), inside).min()
+                bound[k] = min(bound[k], nearest)
+    return np.where(outside, bound, 0.0)
+
+
+def written_orientations(telemetry: Path) -> np.ndarray:
+    """The orientations (M, 4) the gate wrote, from a three-servo session's telemetry (each
+    written cycle's ``out``: pan, tilt, roll in deg)."""
+    from limbctl.geometry.gimbal3 import pan_tilt_roll_to_quat
+
+    rows = []
+    with open(telemetry, encoding="utf-8") as fh:
+        for line in fh:
+            row = json.loads(line)
+            if row["written"] and row["out"] is not None and len(row["out"]) == 3:
+                rows.append(row["out"])
+    if not rows:
+        return np.zeros((0, 4))
+    a = np.radians(np.asarray(rows, dtype=np.float64))
+    return pan_tilt_roll_to_quat(a[:, 0], a[:, 1], a[:, 2])
+
+
+def coverage(model: object, probes: np.ndarray) -> float:
+    """Share of the orientations ``probes`` (N, 4) that ``model`` contains."""
+    if not len(probes):
+        return 0.0
+    return float(np.mean(np.asarray(model.contains(probes), dtype=bool)))
+
+
+def twist_picture(
+    path: Path, samples: np.ndarray, goals: np.ndarray, band_tilt_deg: np.ndarray, band_deg
+) -> None:
+    """Two panels: the taught samples over (pan, tilt) coloured by twist; twist against tilt of
+    the samples (grey) and of the goals written (red) with the true band's ``band_deg``
+    (low, high) limits at ``band_tilt_deg``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    def pose(q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        d, tau = decompose(q)
+        pan, tilt = direction_to_pan_tilt(d)
+        return np.degrees(pan), np.degrees(tilt), np.degrees(tau)
+
+    fig, (left, right) = plt.subplots(1, 2, figsize=(12, 5))
+    pan, tilt, tau = pose(samples)
+    dots = left.scatter(pan, tilt, c=tau, s=2, cmap="coolwarm")
+    fig.colorbar(dots, ax=left, label="twist (deg)")
+    left.set(xlabel="pan (deg)", ylabel="tilt (deg)", title="taught samples, coloured by twist")
+    right.scatter(tilt, tau, s=1, color="0.7", label="taught")
+    if len(goals):
+        _, goal_tilt, goal_tau = pose(goals)
+        right.scatter(goal_tilt, goal_tau, s=2, color="tab:red", label="goals written (gated)")
+    low, high = band_deg
+    right.plot(band_tilt_deg, low, "k--", label="true band (at the outline's centre pan)")
+    right.plot(band_tilt_deg, high, "k--")
+    right.set(xlabel="tilt (deg)", ylabel="twist (deg)", title="the twist band over the swing")
+    right.legend(loc="upper right", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)

@@ -1,0 +1,205 @@
+"""Twist: the one place that defines how a full orientation splits into direction and twist.
+
+Every orientation of the limb is written ::
+
+    q = swing(d) * twist(tau)
+
+- ``swing(d)`` is the shortest rotation from the rest axis +x onto the limb direction ``d``:
+  ``swing(d) = normalize(1 + d_x, 0, -d_z, d_y)`` (``quat.swing_from_direction``).
+  It has no x part, so it never turns the limb about its own axis.
+- ``twist(tau) = (cos(tau/2), sin(tau/2), 0, 0)`` turns the limb by ``tau`` (rad) about +x,
+  applied first (in the limb's rest frame), so it leaves the direction unchanged.
+
+Multiplying out, with ``swing(d) = (s_w, 0, s_y, s_z)``, ``c = cos(tau/2)``, ``s = sin(tau/2)``::
+
+    q = (s_w c, s_w s, s_y c + s_z s, s_z c - s_y s)
+
+so ``w^2 + x^2 = s_w^2`` and the twist is read back as ``tau = 2 atan2(x, w)``; the direction is
+``d = limb_direction(q)`` (+x rotated by q; the twist does not move it).
+
+Wrap-around. ``tau`` and ``tau + 2 pi`` are one rotation (``twist(tau + 2 pi) = -twist(tau)``),
+so twist is circular: :func:`decompose` returns ``tau`` in ``(-pi, pi]`` (a half-turn is ``+pi``)
+and :func:`compose` accepts any real ``tau``. Differences of twists go through :func:`wrap`.
+
+The singular direction ``d = -x``. There the shortest rotation from +x is not unique (every
+half-turn about an axis in the y-z plane is one), ``s_w = 0`` and ``atan2(x, w)`` says nothing.
+This module keeps the convention of ``swing_from_direction``: ``swing(-x)`` is the half-turn about
++z, ``(0, 0, 0, 1)``, so ``q = (0, 0, sin(tau/2), cos(tau/2))`` and ``tau = 2 atan2(y, z)``.
+Round trips hold there too, but twist jumps as ``d`` crosses -x (a different swing is chosen on
+each side), and near it ``tau`` loses precision like ``1e-16 / s_w`` rad. Regions of the limb's
+orientations therefore must stay away from -x (:data:`SINGULAR_MARGIN`); the region layer refuses
+data that come closer.
+
+Scalar twins (:func:`decompose_one`, :func:`compose_one`) compute the same formulas on one pose
+with plain floats for the gate's hot path (numpy's per-call overhead dwarfs four products).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from limbctl.geometry.quat import canonical, limb_direction, swing_from_direction
+
+Vec3 = tuple[float, float, float]
+
+#: Below this swing scalar ``s_w = sqrt(w^2 + x^2)`` the direction is taken as exactly -x and the
+#: twist is read from (y, z): float64 quaternions carry ~1e-16 absolute error, so 1e-12 only
+#: catches true half-turns about an axis perpendicular to x.
+SINGULAR_SW = 1e-12
+#: Closest angle (rad) a region's directions may come to -x: 20 deg keeps s_w = sin(10 deg)
+#: >= 0.17, so twist keeps ~1e-15 rad precision and the search over directions never meets the
+#: jump of the swing at -x.
+SINGULAR_MARGIN = math.radians(20.0)
+
+
+def wrap(angle: np.ndarray | float) -> np.ndarray:
+    """Angles (rad) wrapped into ``(-pi, pi]`` (the twist's range). Shape as given.
+
+    ``wrap(a) = a - 2 pi ceil((a - pi) / (2 pi))``.
+    """
+    a = np.asarray(angle, dtype=np.float64)
+    # a - 2 pi ceil((a - pi) / 2 pi) lies in (-pi, pi]
+    return a - 2.0 * np.pi * np.ceil((a - np.pi) / (2.0 * np.pi))
+
+
+def twist_quat(tau: np.ndarray | float) -> np.ndarray:
+    """Quaternions (..., 4) of turns by ``tau`` (rad) about +x: ``(cos(tau/2), sin(tau/2), 0, 0)``.
+
+    ``tau`` is wrapped into ``(-pi, pi]`` first, so the result has w >= 0.
+    """
+    half = 0.5 * wrap(tau)
+    zero = np.zeros_like(half)
+    return np.stack([np.cos(half), np.sin(half), zero, zero], axis=-1)
+
+
+def decompose(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Split unit quaternions into limb direction and twist: ``q = swing(d) * twist(tau)``.
+
+    Parameters
+    ----------
+    q : ndarray, shape (..., 4)
+        Unit quaternions (w, x, y, z), either hemisphere.
+
+    Returns
+    -------
+    d : ndarray, shape (..., 3)
+        Unit limb directions ``limb_direction(q)``.
+    tau : ndarray, shape (...,)
+        Twist (rad) in ``(-pi, pi]``: ``2 atan2(x, w)`` of the canonical q, or ``2 atan2(y, z)``
+        at d = -x (see the module docstring).
+    """
+    q = canonical(np.asarray(q, dtype=np.float64))
+    w, x, y, z = np.moveaxis(q, -1, 0)
+    singular = np.hypot(w, x) < SINGULAR_SW
+    # tau = 2 atan2(x, w); at d = -x, q = (0, 0, sin(tau/2), cos(tau/2)) so tau = 2 atan2(y, z)
+    tau = 2.0 * np.where(singular, np.arctan2(y, z), np.arctan2(x, w))
+    d = limb_direction(q)
+    d = np.where(singular[..., None], np.array([-1.0, 0.0, 0.0]), d)
+    d = d / np.linalg.norm(d, axis=-1, keepdims=True)
+    return d, wrap(tau)
+
+
+def compose(d: np.ndarray, tau: np.ndarray | float) -> np.ndarray:
+    """Orientations ``swing(d) * twist(tau)`` (..., 4), w >= 0.
+
+    Parameters
+    ----------
+    d : ndarray, shape (..., 3)
+        Limb directions (normalised here); -x takes the half-turn about +z as its swing.
+    tau : ndarray or float, shape (...,)
+        Twist (rad), any real value (wrapped).
+
+    Returns
+    -------
+    ndarray, shape (..., 4)
+        ``(s_w c, s_w s, s_y c + s_z s, s_z c - s_y s)`` with ``swing(d) = (s_w, 0, s_y, s_z)``,
+        ``c = cos(tau/2)``, ``s = sin(tau/2)``.
+    """
+    sw = swing_from_direction(d)
+    half = 0.5 * wrap(tau)
+    c, s = np.cos(half), np.sin(half)
+    s_w, s_y, s_z = sw[..., 0], sw[..., 2], sw[..., 3]
+    # q = swing(d) * twist(tau) = (s_w c, s_w s, s_y c + s_z s, s_z c - s_y s)
+    q = np.stack([s_w * c, s_w * s, s_y * c + s_z * s, s_z * c - s_y * s], axis=-1)
+    return canonical(q)
+
+
+def transported_twist(q: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """Twist (rad, ``(-pi, pi]``) that ``q`` carries to direction ``d`` along the shortest arc.
+
+    With ``r`` the shortest rotation from ``q``'s direction ``d_q`` onto ``d``, ``r * q`` is the
+    orientation over ``d`` nearest to ``q`` with angle ``theta = angle(d_q, d)``; its twist is
+    returned. Every orientation ``swing(d) * twist(tau)`` lies at geodesic angle ``g`` from ``q``
+    with ``cos(g/2) = cos(theta/2) |cos((tau - transported)/2)|`` (:func:`geodesic_over`).
+
+    Parameters
+    ----------
+    q : ndarray, shape (..., 4)
+    d : ndarray, shape (..., 3)
+        Unit directions not opposite to ``q``'s (there the shortest arc is not unique).
+
+    Returns
+    -------
+    ndarray, shape (...,)
+    """
+    q = np.asarray(q, dtype=np.float64)
+    d = np.asarray(d, dtype=np.float64)
+    dq = limb_direction(q)
+    # r = normalize(1 + d_q . d, d_q x d), the shortest arc from d_q onto d
+    r = np.concatenate([1.0 + np.sum(dq * d, axis=-1)[..., None], np.cross(dq, d)], axis=-1)
+    r = r / np.linalg.norm(r, axis=-1, keepdims=True)
+    rw, rv = r[..., 0], r[..., 1:]
+    qw, qv = q[..., 0], q[..., 1:]
+    # only the w and x parts of p = r * q are needed: tau = 2 atan2(p_x, p_w)
+    pw = rw * qw - np.sum(rv * qv, axis=-1)
+    px = rw * qv[..., 0] + qw * rv[..., 0] + rv[..., 1] * qv[..., 2] - rv[..., 2] * qv[..., 1]
+    return wrap(2.0 * np.arctan2(px, pw))
+
+
+def geodesic_over(theta: np.ndarray, delta: np.ndarray) -> np.ndarray:
+    """Geodesic angle (rad) from ``q`` to an orientation ``theta`` away in direction and ``delta``
+    away in twist from ``q``'s transported twist: ``g = 2 acos(cos(theta/2) |cos(delta/2)|)``.
+
+    Shapes broadcast; ``theta`` in [0, pi], ``delta`` any real (rad).
+    """
+    # cos(g/2) = cos(theta/2) |cos(delta/2)|
+    c = np.cos(0.5 * np.asarray(theta)) * np.abs(np.cos(0.5 * np.asarray(delta)))
+    return 2.0 * np.arccos(np.clip(c, 0.0, 1.0))
+
+
+def decompose_one(q: np.ndarray) -> tuple[Vec3, float]:
+    """Scalar twin of :func:`decompose` for one quaternion (4,)."""
+    w, x, y, z = q.tolist()
+    if w < 0.0:
+        w, x, y, z = -w, -x, -y, -z
+    if math.hypot(w, x) < SINGULAR_SW:
+        # d = -x, q = (0, 0, sin(tau/2), cos(tau/2))
+        return (-1.0, 0.0, 0.0), _wrap_one(2.0 * math.atan2(y, z))
+    # d = (w^2 + x^2 - y^2 - z^2, 2(xy + wz), 2(xz - wy)), tau = 2 atan2(x, w)
+    d0, d1, d2 = w * w + x * x - y * y - z * z, 2.0 * (x * y + w * z), 2.0 * (x * z - w * y)
+    n = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+    return (d0 / n, d1 / n, d2 / n), _wrap_one(2.0 * math.atan2(x, w))
+
+
+def compose_one(d: Vec3, tau: float) -> np.ndarray:
+    """Scalar twin of :func:`compose`: ``swing(d) * twist(tau)`` as a (4,) array, w >= 0."""
+    n = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+    # swing(d) = normalize(1 + d_x, 0, -d_z, d_y); the half-turn about +z at d = -x
+    s_w, s_y, s_z = 1.0 + d[0] / n, -d[2] / n, d[1] / n
+    m = math.sqrt(s_w * s_w + s_y * s_y + s_z * s_z)
+    if m < SINGULAR_SW:
+        s_w, s_y, s_z = 0.0, 0.0, 1.0
+    else:
+        s_w, s_y, s_z = s_w / m, s_y / m, s_z / m
+    half = 0.5 * _wrap_one(tau)
+    c, s = math.cos(half), math.sin(half)
+    # q = (s_w c, s_w s, s_y c + s_z s, s_z c - s_y s)
+    q = np.array([s_w * c, s_w * s, s_y * c + s_z * s, s_z * c - s_y * s])
+    return -q if q[0] < 0.0 else q
+
+
+def _wrap_one(a: float) -> float:
+    """Scalar :func:`wrap`."""
+    return a - 2.0 * math.pi * math.ceil((a - math.pi) / (2.0 * math.pi))

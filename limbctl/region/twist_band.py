@@ -1,0 +1,266 @@
+"""The twist band over the swing region: how far the limb may turn about its own axis, by direction.
+
+The band over direction ``d`` is the arc of twists ``|wrap(tau - c(d))| <= h(d)``: a centre ``c``
+and a half-width ``h`` (rad; ``h = pi`` is a free twist). Twist is circular, so a band is stored
+as centre and half-width, never as two limits that could straddle +-pi. Both are kept on a
+square grid in the azimuthal equidistant plane about the band's axis (the swing region's axis):
+``(x, y) = theta (d.u, d.v) / |(d.u, d.v)|`` with ``theta`` the angle from the axis, so the
+grid has no pole inside the region, and read bilinearly
+(:func:`limbctl.region.twist_kernels.band_at`; :func:`band_reference` is its numpy twin).
+
+Fitting, per grid node, from the taught samples within ``BAND_RADIUS_DEG`` of it
+(:mod:`limbctl.region.twist_fit_kernels`):
+
+1. *First reading*: the node's limits are the heights over the node of the upper and lower
+   hulls of (tangent position, twist) (``fit_nodes``). A limit that is linear across the
+   neighbourhood is read without bias whichever way it slopes, but the hull rides on the
+   highest stop. Nodes the samples do not surround take the nearest read node's band, and the
+   centres are unwrapped across the grid so bilinear reading never averages across +-pi.
+2. *Second reading*: the samples within ``STOP_BAND_DEG`` of a first-read limit are that stop's
+   samples; each limit becomes the height at the node of the weighted least-squares plane
+   through them (``refine_nodes``): their mean, unbiased by a slope, extrapolated linearly
+   near the swing edge. A limit stays as first read where fewer than 3 stops lie around a node.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from limbctl.errors import InvalidInputError
+from limbctl.geometry.quat import tangent_frame
+from limbctl.geometry.twist import wrap
+from limbctl.region import twist_fit_kernels as fk
+from limbctl.region import twist_kernels as tk
+
+#: Grid spacing (deg) of the band's nodes: a band limit sloping 1 deg per deg errs by at most
+#: its curvature over 1.5 deg between nodes, and 2 sr of region take ~3000 nodes.
+BAND_STEP_DEG = 1.5
+#: Neighbourhood (deg) a node reads its band from: of 6000 samples over ~1.6 sr it holds ~150,
+#: ~25 at each stop, so the first reading's hull surrounds the node; at 4 deg it did not for
+#: ~20 % of the nodes (upper limits 13 deg low at the 10th percentile, shoulder region).
+BAND_RADIUS_DEG = 8.0
+#: The highest (lowest) twists a node's hull is taken over: the stops among its neighbours;
+#: 24 keeps the search at 2024 triangles a node; 16 missed stops (error 0.31 -> 0.55 deg).
+HULL_TOP = 24
+#: A largest empty arc of the neighbours' twists below this (deg) leaves the twist free there:
+#: taught twists that go all the way round leave gaps of a few degrees only.
+FREE_GAP_DEG = 10.0
+#: Samples within this (deg) of a first-read limit count as at that stop for the second
+#: reading: a hand's stop scatters a few tenths of a degree, the first reading errs ~1 deg.
+STOP_BAND_DEG = 1.5
+#: Weight width (deg, one sigma) of the second reading's plane: ~8 stops of a few thousand
+#: samples over 2 sr within one sigma, local enough for a band's curvature.
+REFINE_SIGMA_DEG = 3.0
+#: Nodes kept beyond the farthest taught direction (grid steps): the swing region's margins.
+GRID_PAD = 4
+
+
+class TwistBand:
+    """Twist band over directions (see the module docstring).
+
+    Parameters
+    ----------
+    frame : ndarray, shape (3, 3)
+        Rows: the plane's axis, u, v (right-handed).
+    grid : ndarray, shape (3,)
+        ``(x0, y0, step)`` of the node grid (rad).
+    centre, half : ndarray, shape (nx, ny)
+        Band centre (unwrapped, rad) and half-width (rad, in [0, pi]) at each node.
+    """
+
+    def __init__(
+        self, frame: np.ndarray, grid: np.ndarray, centre: np.ndarray, half: np.ndarray
+    ) -> None:
+        self.frame = np.ascontiguousarray(frame, dtype=np.float64)
+        self.grid = np.ascontiguousarray(grid, dtype=np.float64)
+        self.centre = np.ascontiguousarray(centre, dtype=np.float64)
+        self.half = np.ascontiguousarray(half, dtype=np.float64)
+
+    @classmethod
+    def fit(cls, d: np.ndarray, tau: np.ndarray, axis: np.ndarray, reach: float) -> TwistBand:
+        """Learn the band from taught directions ``d`` (N, 3) and twists ``tau`` (N,) (rad).
+
+        ``axis`` (3,) is the plane's axis (the swing region's); ``reach`` (rad) how far beyond
+        the taught directions the grid must extend (the swing region's largest margin).
+        """
+        u, v = tangent_frame(np.asarray(axis, dtype=np.float64))
+        frame = np.stack([axis, u, v])
+        xy = plane_xy(d, frame)
+        step = math.radians(BAND_STEP_DEG)
+        pad = reach + GRID_PAD * step
+        lo = xy.min(axis=0) - pad
+        n = np.ceil((xy.max(axis=0) + pad - lo) / step).astype(int) + 1
+        gx = lo[0] + step * np.arange(n[0])
+        gy = lo[1] + step * np.arange(n[1])
+        nodes = plane_to_direction(
+            np.stack(np.meshgrid(gx, gy, indexing="ij"), axis=-1).reshape(-1, 2), frame
+        )
+        # chord of the neighbourhood's angle; pairs (node, sample) within it, by node
+        chord = 2.0 * math.sin(0.5 * math.radians(BAND_RADIUS_DEG))
+        pairs = cKDTree(nodes).sparse_distance_matrix(cKDTree(d), chord, output_type="ndarray")
+        order = np.argsort(pairs["i"], kind="stable")
+        members = np.ascontiguousarray(pairs["j"][order], dtype=np.int64)
+        counts = np.bincount(pairs["i"], minlength=nodes.shape[0])
+        start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+        centre, half = fk.fit_nodes(
+            nodes,
+            start,
+            members,
+            np.ascontiguousarray(d),
+            np.ascontiguousarray(tau),
+            HULL_TOP,
+            math.radians(FREE_GAP_DEG),
+        )
+        fitted = np.isfinite(centre)
+        if not fitted.any():
+            raise InvalidInputError(
+                "samples: no twist band could be learned (too few samples around any direction: "
+                "teach the twist both ways at many directions)"
+            )
+        if not fitted.all():
+            # nodes the samples do not surround: the nearest fitted node's band
+            _, nearest = cKDTree(nodes[fitted]).query(nodes[~fitted])
+            centre[~fitted] = centre[fitted][nearest]
+            half[~fitted] = half[fitted][nearest]
+        centre = unwrap_grid(centre.reshape(n[0], n[1])).ravel()
+        band = cls(frame, np.array([lo[0], lo[1], step]), centre.reshape(n), half.reshape(n))
+        band._refine(nodes, start, members, d, tau)
+        return band
+
+    def _refine(
+        self,
+        nodes: np.ndarray,
+        start: np.ndarray,
+        members: np.ndarray,
+        d: np.ndarray,
+        tau: np.ndarray,
+    ) -> None:
+        """Second reading of both limits (the module docstring, step 2)."""
+        c1, h1 = self.at(d)
+        # each sample's twist unwrapped against the (continuous) first centre over it
+        limit = c1 + wrap(tau - c1)
+        near = math.radians(STOP_BAND_DEG)
+        ref = self.centre.ravel()
+        half = self.half.ravel()
+        sigma = math.radians(REFINE_SIGMA_DEG)
+        limits = []
+        for sign in (1.0, -1.0):
+            stop = (sign * (limit - c1) >= h1 - near) & (h1 < math.pi)
+            rel = fk.refine_nodes(nodes, start, members, d, limit, stop, ref, sigma)
+            limits.append(np.where(np.isfinite(rel), rel, sign * half))
+        up, lo = limits
+        ok = up >= lo
+        centre = np.where(ok, ref + 0.5 * (up + lo), ref)
+        half = np.where(ok & (half < math.pi), 0.5 * (up - lo), half)
+        self.centre = np.ascontiguousarray(centre.reshape(self.centre.shape))
+        self.half = np.ascontiguousarray(np.clip(half, 0.0, math.pi).reshape(self.half.shape))
+
+    def at(self, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Centre and half-width (N,), (N,) (rad) over directions ``d`` (N, 3) (the kernel)."""
+        d = np.ascontiguousarray(np.atleast_2d(d), dtype=np.float64)
+        return tk.band_batch(d, self.frame, self.grid, self.centre, self.half)
+
+    def kernel_args(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The arrays the kernels take: ``(frame, grid, centre, half)``."""
+        return (self.frame, self.grid, self.centre, self.half)
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """Everything needed to answer without refitting (for saving)."""
+        return {
+            "twist_frame": self.frame,
+            "twist_grid": self.grid,
+            "twist_centre": self.centre,
+            "twist_half": self.half,
+        }
+
+    @classmethod
+    def from_arrays(cls, arrays: dict[str, np.ndarray]) -> TwistBand:
+        """Inverse of :meth:`arrays`."""
+        return cls(
+            arrays["twist_frame"],
+            arrays["twist_grid"],
+            arrays["twist_centre"],
+            arrays["twist_half"],
+        )
+
+
+def plane_xy(d: np.ndarray, frame: np.ndarray) -> np.ndarray:
+    """Azimuthal equidistant coordinates (N, 2) (rad) of unit directions ``d`` (N, 3) about
+    ``frame[0]``: ``theta (d.u, d.v) / |(d.u, d.v)|``, ``theta = atan2(|(d.u, d.v)|, d.axis)``."""
+    d = np.atleast_2d(np.asarray(d, dtype=np.float64))
+    su, sv, ca = d @ frame[1], d @ frame[2], d @ frame[0]
+    s = np.hypot(su, sv)
+    theta = np.arctan2(s, ca)
+    scale = np.where(s > 1e-15, theta / np.where(s > 0, s, 1.0), 0.0)
+    return np.stack([scale * su, scale * sv], axis=-1)
+
+
+def plane_to_direction(xy: np.ndarray, frame: np.ndarray) -> np.ndarray:
+    """Inverse of :func:`plane_xy`: unit directions (N, 3) of plane points (N, 2) (rad)."""
+    theta = np.hypot(xy[:, 0], xy[:, 1])
+    # d = cos(theta) axis + sin(theta) (x u + y v) / theta
+    scale = np.where(theta > 1e-15, np.sin(theta) / np.where(theta > 0, theta, 1.0), 1.0)
+    return (
+        np.cos(theta)[:, None] * frame[0]
+        + (scale * xy[:, 0])[:, None] * frame[1]
+        + (scale * xy[:, 1])[:, None] * frame[2]
+    )
+
+
+def unwrap_grid(centre: np.ndarray) -> np.ndarray:
+    """Centres (nx, ny) unwrapped: the first column along x, then every row along y from it,
+    so neighbouring nodes never differ by more than pi."""
+    out = np.array(centre, dtype=np.float64)
+    out[:, 0] = np.unwrap(out[:, 0])
+    return np.unwrap(out, axis=1)
+
+
+def band_reference(band: TwistBand, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Numpy twin of :func:`limbctl.region.twist_kernels.band_at` over directions (N, 3)."""
+    xy = plane_xy(d, band.frame)
+    x0, y0, step = band.grid
+    nx, ny = band.centre.shape
+    fx = (xy[:, 0] - x0) / step
+    fy = (xy[:, 1] - y0) / step
+    i = np.clip(np.floor(fx).astype(int), 0, nx - 2)
+    j = np.clip(np.floor(fy).astype(int), 0, ny - 2)
+    tx = np.clip(fx - i, 0.0, 1.0)
+    ty = np.clip(fy - j, 0.0, 1.0)
+
+    def lerp(f: np.ndarray) -> np.ndarray:
+        # (1-tx)(1-ty) f00 + tx(1-ty) f10 + (1-tx) ty f01 + tx ty f11
+        return (
+            (1 - tx) * (1 - ty) * f[i, j]
+            + tx * (1 - ty) * f[i + 1, j]
+            + (1 - tx) * ty * f[i, j + 1]
+            + tx * ty * f[i + 1, j + 1]
+        )
+
+    return lerp(band.centre), lerp(band.half)
+
+
+def upper_hull_reference(px: np.ndarray, py: np.ndarray, t: np.ndarray, top: int) -> float:
+    """Numpy twin of :func:`limbctl.region.twist_fit_kernels.upper_hull` (all triangles at once)."""
+    order = np.argsort(-t, kind="stable")[:top]
+    a, b, c = np.array(
+        [
+            (i, j, k)
+            for i in range(len(order))
+            for j in range(i + 1, len(order))
+            for k in range(j + 1, len(order))
+        ]
+    ).T
+    ia, ib, ic = order[a], order[b], order[c]
+    cab = px[ia] * py[ib] - py[ia] * px[ib]
+    cbc = px[ib] * py[ic] - py[ib] * px[ic]
+    cca = px[ic] * py[ia] - py[ic] * px[ia]
+    area = cab + cbc + cca
+    ok = area != 0
+    la, lb, lc = (np.where(ok, x / np.where(ok, area, 1.0), -1.0) for x in (cbc, cca, cab))
+    held = ok & (la >= 0) & (lb >= 0) & (lc >= 0)
+    if not held.any():
+        return float("nan")
+    return float(np.max((la * t[ia] + lb * t[ib] + lc * t[ic])[held]))

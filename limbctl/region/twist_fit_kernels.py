@@ -1,0 +1,175 @@
+"""Numba kernels that learn the twist band (:mod:`limbctl.region.twist_band`) from samples.
+
+Two readings per band node, each a small free function with explicit loops: the upper hull's
+height over the node (:func:`upper_hull`, :func:`fit_nodes`), then a weighted plane through
+the samples at each stop (:func:`refine_nodes`). Numpy twins: ``upper_hull_reference`` in
+:mod:`limbctl.region.twist_band`; the tests check each. No fastmath.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+
+from limbctl.region.twist_kernels import wrap
+
+
+@nb.njit(cache=True)
+def upper_hull(px, py, t, top) -> float:
+    """Height at the origin of the upper concave hull of points ``(px, py, t)`` (K,), over
+    the ``top`` highest ``t``: ``max sum(l_k t_k)`` over triangles whose barycentric weights
+    ``l`` of the origin are all >= 0. NaN when no triangle holds the origin.
+
+    For points on a plane this is the plane's height at the origin however they lie around it,
+    so a band limit sloping across a neighbourhood is not biased by the slope.
+    """
+    order = np.argsort(-t)[: min(top, t.shape[0])]
+    best = -np.inf
+    m = order.shape[0]
+    for a in range(m):
+        ia = order[a]
+        for b in range(a + 1, m):
+            ib = order[b]
+            for c in range(b + 1, m):
+                ic = order[c]
+                # l_a = cross(p_b, p_c) / A, l_b = cross(p_c, p_a) / A, l_c = cross(p_a, p_b) / A
+                cab = px[ia] * py[ib] - py[ia] * px[ib]
+                cbc = px[ib] * py[ic] - py[ib] * px[ic]
+                cca = px[ic] * py[ia] - py[ic] * px[ia]
+                area = cab + cbc + cca
+                if area == 0.0:
+                    continue
+                la, lb, lc = cbc / area, cca / area, cab / area
+                if la >= 0.0 and lb >= 0.0 and lc >= 0.0:
+                    v = la * t[ia] + lb * t[ib] + lc * t[ic]
+                    if v > best:
+                        best = v
+    return best if best > -np.inf else np.nan
+
+
+@nb.njit(cache=True, parallel=True)
+def fit_nodes(nodes, start, members, d, tau, top, free_gap):
+    """Band centre and half-width (rad) at each node direction (M, 3) from the samples near it.
+
+    ``members[start[i]:start[i + 1]]`` are the rows of ``d`` (N, 3), ``tau`` (N,) within the
+    neighbourhood of node ``i``. Twist is circular: the samples' twists are unwrapped about the
+    middle of the arc they occupy (the complement of their largest gap); a largest gap below
+    ``free_gap`` leaves the twist free there (half-width pi). The limits are the upper hull's
+    height over the node of (tangent coordinates, twist), and of its negative for the lower
+    limit (:func:`upper_hull`, ``top`` highest). NaN where fewer than 3 samples or no triangle
+    of them holds the node.
+    """
+    m = nodes.shape[0]
+    centre = np.full(m, np.nan)
+    half = np.full(m, np.nan)
+    for i in nb.prange(m):
+        idx = members[start[i] : start[i + 1]]
+        k = idx.shape[0]
+        if k < 3:
+            continue
+        ts = np.empty(k)
+        for a in range(k):
+            ts[a] = wrap(tau[idx[a]])
+        ts.sort()
+        gap = ts[0] + 2.0 * math.pi - ts[k - 1]
+        gap_start = ts[k - 1]
+        for a in range(k - 1):
+            if ts[a + 1] - ts[a] > gap:
+                gap = ts[a + 1] - ts[a]
+                gap_start = ts[a]
+        if gap < free_gap:
+            centre[i] = 0.0
+            half[i] = math.pi
+            continue
+        # the occupied arc runs from gap_start + gap over 2 pi - gap: its middle
+        ref = gap_start + gap + 0.5 * (2.0 * math.pi - gap)
+        node = nodes[i]
+        # tangent frame at the node (helper +z, or +y near the z axis)
+        if abs(node[2]) < 0.9:
+            e1 = np.array([-node[1], node[0], 0.0])
+        else:
+            e1 = np.array([node[2], 0.0, -node[0]])
+        e1 /= math.sqrt(e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2])
+        e2 = np.array(
+            [
+                node[1] * e1[2] - node[2] * e1[1],
+                node[2] * e1[0] - node[0] * e1[2],
+                node[0] * e1[1] - node[1] * e1[0],
+            ]
+        )
+        px = np.empty(k)
+        py = np.empty(k)
+        t = np.empty(k)
+        for a in range(k):
+            j = idx[a]
+            px[a] = d[j, 0] * e1[0] + d[j, 1] * e1[1] + d[j, 2] * e1[2]
+            py[a] = d[j, 0] * e2[0] + d[j, 1] * e2[1] + d[j, 2] * e2[2]
+            t[a] = wrap(tau[j] - ref)
+        up = upper_hull(px, py, t, top)
+        lo = -upper_hull(px, py, -t, top)
+        if not up >= lo:  # NaN (no hull over the node) fails too
+            continue
+        centre[i] = ref + 0.5 * (up + lo)
+        half[i] = 0.5 * (up - lo)
+    return centre, half
+
+
+@nb.njit(cache=True, parallel=True)
+def refine_nodes(nodes, start, members, d, limit, stop, ref, sigma):
+    """Band limits at nodes (M,) re-read as a weighted local plane through the stop samples.
+
+    ``limit`` (N,) are the samples' twists unwrapped against the first estimate's (continuous)
+    centre over each sample, ``stop`` (N,) bool marks the samples at one stop, ``ref`` (M,) the
+    first estimate's centre at each node. The limit, relative to ``ref``, is ``a`` of the
+    least-squares plane ``limit - ref = a + g . x`` over the stop samples near the node
+    (tangent position ``x``, weights
+    ``exp(-angle^2 / (2 sigma^2))``): the mean of the stops, so without the hull's pull toward
+    the highest one, and unbiased by a slope. NaN where fewer than 3 stop samples or they lie on
+    a line.
+    """
+    m = nodes.shape[0]
+    out = np.full(m, np.nan)
+    for i in nb.prange(m):
+        node = nodes[i]
+        if abs(node[2]) < 0.9:
+            e1 = np.array([-node[1], node[0], 0.0])
+        else:
+            e1 = np.array([node[2], 0.0, -node[0]])
+        e1 /= math.sqrt(e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2])
+        e2 = np.array(
+            [
+                node[1] * e1[2] - node[2] * e1[1],
+                node[2] * e1[0] - node[0] * e1[2],
+                node[0] * e1[1] - node[1] * e1[0],
+            ]
+        )
+        a = np.zeros((3, 3))
+        b = np.zeros(3)
+        count = 0
+        for k in range(start[i], start[i + 1]):
+            j = members[k]
+            if not stop[j]:
+                continue
+            x = d[j, 0] * e1[0] + d[j, 1] * e1[1] + d[j, 2] * e1[2]
+            y = d[j, 0] * e2[0] + d[j, 1] * e2[1] + d[j, 2] * e2[2]
+            c = d[j, 0] * node[0] + d[j, 1] * node[1] + d[j, 2] * node[2]
+            ang2 = 2.0 * (1.0 - c)
+            w = math.exp(-ang2 / (2.0 * sigma * sigma))
+            # the sample's limit relative to the node's centre
+            t = limit[j] - ref[i]
+            row = (1.0, x, y)
+            for r in range(3):
+                b[r] += w * row[r] * t
+                for s in range(3):
+                    a[r, s] += w * row[r] * row[s]
+            count += 1
+        if count < 3:
+            continue
+        # well conditioned: the stops spread in both directions around the node
+        if np.linalg.det(a) <= 1e-12 * a[0, 0] ** 3:
+            continue
+        sol = np.linalg.solve(a, b)
+        out[i] = sol[0]
+    return out

@@ -1,0 +1,366 @@
+"""Numba kernels of the three-dimensional region: the twist band, containment and the nearest
+orientation on SO(3).
+
+An orientation ``q = swing(d) * twist(tau)`` (:mod:`limbctl.geometry.twist`) is in the region when
+its direction ``d`` is in the swing region (the direction mesh, :mod:`limbctl.region.mesh_kernels`)
+and its twist lies in the band over ``d``: ``|wrap(tau - c(d))| <= h(d)``, with centre ``c`` and
+half-width ``h`` interpolated bilinearly from a grid in the azimuthal equidistant plane about the
+band's axis (:func:`band_at`).
+
+Nearest orientation. For a command ``q`` with direction ``d_q`` and a candidate direction ``d`` at
+angle ``theta`` from it, the orientations over ``d`` nearest to ``q`` have the transported twist
+``t(d)`` (``q`` carried along the shortest arc), and the best one in the band lies
+``delta(d) = max(0, |wrap(t - c)| - h)`` from it in twist, at geodesic angle ``g`` with ::
+
+    cos(g/2) = cos(theta/2) cos(delta/2)          (F(d), maximised)
+
+so the nearest orientation of the region is a search over the swing region's directions
+(:func:`_score`). ``F`` is smooth inside the swing region (``cos(max(0, e)/2)`` has no kink at 0),
+so a pattern search converges; points it tries outside the swing region are replaced by their
+exact projection onto it, so it slides along the swing edge. It starts from the better of the
+command's own swing projection and the direction of the nearest *seed* (orientations sampled on
+the region's boundary, a few degrees apart), and stops once its step is below ``STEP_MIN``.
+No fastmath: NaN must fail every comparison.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+
+from limbctl.region import mesh_kernels as bk
+
+#: contains() accepts twists this far (rad) outside the band: rounding of compose/decompose of
+#: an answer on the band's limit (~1e-15), far below a servo tick (0.088 deg).
+TWIST_TOLERANCE = 1e-9
+#: First step (rad) of the pattern search: about the seeds' spacing, so the search starts
+#: within one step of the seed's basin.
+STEP_START = math.radians(3.0)
+#: Last step (rad): 0.03 deg. The answer's direction is within one step of a local optimum, and
+#: the geodesic angle is flat to first order there (a smooth optimum) or moves along the exact
+#: swing edge, so its error is far below this.
+STEP_MIN = math.radians(0.03)
+#: Safety cap on the pattern search's polls (never reached in tests; a bound on the time).
+MAX_POLLS = 400
+#: Poll directions per step: six at 60 deg, the smallest positive spanning set that keeps the
+#: pattern isotropic enough for the search to follow a curved swing edge.
+POLL_DIRECTIONS = 6
+#: Rows of scratch the search needs beyond the direction mesh's (see ``_correct_one``).
+WORK_EXTRA = 8
+
+
+@nb.njit(cache=True, inline="always")
+def wrap(a: float) -> float:
+    """``a`` (rad) wrapped into (-pi, pi]: ``a - 2 pi ceil((a - pi) / 2 pi)``."""
+    return a - 2.0 * math.pi * math.ceil((a - math.pi) / (2.0 * math.pi))
+
+
+@nb.njit(cache=True, inline="always")
+def plane_xy(d, frame):
+    """Azimuthal equidistant coordinates (rad) of unit ``d`` about ``frame[0]`` (u = frame[1],
+    v = frame[2]): ``theta (d.u, d.v) / |(d.u, d.v)|``, ``theta = atan2(|(d.u, d.v)|, d.axis)``."""
+    ca = d[0] * frame[0, 0] + d[1] * frame[0, 1] + d[2] * frame[0, 2]
+    su = d[0] * frame[1, 0] + d[1] * frame[1, 1] + d[2] * frame[1, 2]
+    sv = d[0] * frame[2, 0] + d[1] * frame[2, 1] + d[2] * frame[2, 2]
+    s = math.sqrt(su * su + sv * sv)
+    if s < 1e-15:
+        return 0.0, 0.0
+    theta = math.atan2(s, ca)
+    return theta * su / s, theta * sv / s
+
+
+@nb.njit(cache=True, inline="always")
+def band_at(d, frame, grid, centre, half):
+    """Band centre and half-width (rad) over direction ``d``: bilinear in the plane grid.
+
+    ``grid = (x0, y0, step)``: node (i, j) sits at ``(x0 + i step, y0 + j step)``; points beyond
+    the grid take its edge values (clamped).
+    """
+    x, y = plane_xy(d, frame)
+    nx = centre.shape[0]
+    ny = centre.shape[1]
+    fx = (x - grid[0]) / grid[2]
+    fy = (y - grid[1]) / grid[2]
+    i = min(max(int(math.floor(fx)), 0), nx - 2)
+    j = min(max(int(math.floor(fy)), 0), ny - 2)
+    tx = min(max(fx - i, 0.0), 1.0)
+    ty = min(max(fy - j, 0.0), 1.0)
+    # f = (1-tx)(1-ty) f00 + tx(1-ty) f10 + (1-tx) ty f01 + tx ty f11
+    w00 = (1.0 - tx) * (1.0 - ty)
+    w10 = tx * (1.0 - ty)
+    w01 = (1.0 - tx) * ty
+    w11 = tx * ty
+    c = w00 * centre[i, j] + w10 * centre[i + 1, j] + w01 * centre[i, j + 1]
+    c += w11 * centre[i + 1, j + 1]
+    h = w00 * half[i, j] + w10 * half[i + 1, j] + w01 * half[i, j + 1] + w11 * half[i + 1, j + 1]
+    return c, h
+
+
+@nb.njit(cache=True, inline="always")
+def _score(q, dq, d, frame, grid, centre, half):
+    """``F = cos(theta/2) cos(delta/2)`` for candidate direction ``d`` and the best twist there.
+
+    ``q`` canonical (4,), ``dq`` its unit direction. Returns ``(F, tau)``. The transported twist
+    is ``2 atan2(p_x, p_w)`` of ``p = r q``, ``r = (1 + dq.d, dq x d)`` the (unnormalised)
+    shortest arc; ``cos(theta/2) = sqrt((1 + dq.d) / 2)``.
+    """
+    rw = 1.0 + dq[0] * d[0] + dq[1] * d[1] + dq[2] * d[2]
+    rx = dq[1] * d[2] - dq[2] * d[1]
+    ry = dq[2] * d[0] - dq[0] * d[2]
+    rz = dq[0] * d[1] - dq[1] * d[0]
+    # w and x parts of r * q
+    pw = rw * q[0] - rx * q[1] - ry * q[2] - rz * q[3]
+    px = rw * q[1] + q[0] * rx + ry * q[3] - rz * q[2]
+    t = 2.0 * math.atan2(px, pw)
+    c, h = band_at(d, frame, grid, centre, half)
+    e = wrap(t - c)
+    ch = math.sqrt(max(0.5 * rw, 0.0))
+    if abs(e) <= h:
+        return ch, t
+    delta = abs(e) - h
+    tau = c + h if e > 0.0 else c - h
+    return ch * math.cos(0.5 * delta), tau
+
+
+@nb.njit(cache=True, inline="always")
+def _compose_into(d, tau, out) -> None:
+    """``out = swing(d) * twist(tau)`` (w >= 0), as :func:`limbctl.geometry.twist.compose`."""
+    sw = 1.0 + d[0]
+    sy = -d[2]
+    sz = d[1]
+    sn = math.sqrt(sw * sw + sy * sy + sz * sz)
+    if sn < 1e-12:
+        sw, sy, sz, sn = 0.0, 0.0, 1.0, 1.0
+    sw /= sn
+    sy /= sn
+    sz /= sn
+    half = 0.5 * wrap(tau)
+    c = math.cos(half)
+    s = math.sin(half)
+    # (s_w c, s_w s, s_y c + s_z s, s_z c - s_y s)
+    sign = 1.0 if sw * c >= 0.0 else -1.0
+    out[0] = sign * sw * c
+    out[1] = sign * sw * s
+    out[2] = sign * (sy * c + sz * s)
+    out[3] = sign * (sz * c - sy * s)
+
+
+@nb.njit(cache=True, inline="always")
+def _correct_one(q, mesh, band, seeds, seed_dirs, out, work) -> int:
+    """Correct one quaternion into ``out``: 1 inside (``out = q``), 0 corrected, -1 bad input.
+
+    ``mesh`` is the direction mesh's kernel arguments, ``band = (frame, grid, centre, half)``;
+    ``work`` (WORK_ROWS + WORK_EXTRA, 3) holds the mesh frame in rows 0, 1.
+    """
+    vertices, edges, margins, axis, grid_shape, inside, deep, start, cell_edges, keys = mesh
+    frame, grid, centre, half = band
+    norm2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]
+    if not abs(math.sqrt(norm2) - 1.0) <= 1e-6:
+        return -1
+    sign = -1.0 if q[0] < 0.0 else 1.0
+    base = bk.WORK_ROWS
+    qc = np.empty(4)
+    for k in range(4):
+        qc[k] = sign * q[k] / math.sqrt(norm2)
+    w, x, y, z = qc[0], qc[1], qc[2], qc[3]
+    dq = work[base]
+    dq[0] = w * w + x * x - y * y - z * z
+    dq[1] = 2.0 * (x * y + w * z)
+    dq[2] = 2.0 * (x * z - w * y)
+    dn = math.sqrt(dq[0] * dq[0] + dq[1] * dq[1] + dq[2] * dq[2])
+    for k in range(3):
+        dq[k] /= dn
+    cur = work[base + 1]
+    if bk.query(
+        dq,
+        vertices,
+        edges,
+        margins,
+        axis,
+        grid_shape,
+        inside,
+        deep,
+        start,
+        cell_edges,
+        keys,
+        cur,
+        work,
+    ):
+        c, h = band_at(dq, frame, grid, centre, half)
+        if abs(wrap(2.0 * math.atan2(x, w) - c)) <= h + TWIST_TOLERANCE:
+            for k in range(4):
+                out[k] = qc[k]
+            return 1
+    best, best_tau = _score(qc, dq, cur, frame, grid, centre, half)
+    # the seed nearest q on SO(3): max |<q, s>|
+    top = -1.0
+    pick = 0
+    for s in range(seeds.shape[0]):
+        dot = abs(w * seeds[s, 0] + x * seeds[s, 1] + y * seeds[s, 2] + z * seeds[s, 3])
+        if dot > top:
+            top = dot
+            pick = s
+    if seeds.shape[0] > 0:
+        f, t = _score(qc, dq, seed_dirs[pick], frame, grid, centre, half)
+        if f > best:
+            best, best_tau = f, t
+            for k in range(3):
+                cur[k] = seed_dirs[pick, k]
+    trial = work[base + 2]
+    proj = work[base + 3]
+    e1 = work[base + 4]
+    e2 = work[base + 5]
+    step = STEP_START
+    turn = 0.0
+    last = 0
+    polls = 0
+    while step > STEP_MIN and polls < MAX_POLLS:
+        # tangent frame at cur, turned a little each step so the pattern varies
+        hx = 0.0 if abs(cur[2]) < 0.9 else 1.0
+        hz = 1.0 if abs(cur[2]) < 0.9 else 0.0
+        # e1 = normalise(h x cur) with h = (0, hx, hz)... as tangent_frame: h = +z or +y
+        e1[0] = hx * cur[2] - hz * cur[1]
+        e1[1] = hz * cur[0]
+        e1[2] = -hx * cur[0]
+        n1 = math.sqrt(e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2])
+        for k in range(3):
+            e1[k] /= n1
+        e2[0] = cur[1] * e1[2] - cur[2] * e1[1]
+        e2[1] = cur[2] * e1[0] - cur[0] * e1[2]
+        e2[2] = cur[0] * e1[1] - cur[1] * e1[0]
+        moved = False
+        cs = math.cos(step)
+        sn = math.sin(step)
+        for m in range(POLL_DIRECTIONS):
+            a = turn + 2.0 * math.pi * ((last + m) % POLL_DIRECTIONS) / POLL_DIRECTIONS
+            ca = math.cos(a)
+            sa = math.sin(a)
+            for k in range(3):
+                trial[k] = cs * cur[k] + sn * (ca * e1[k] + sa * e2[k])
+            polls += 1
+            if not bk.query(
+                trial,
+                vertices,
+                edges,
+                margins,
+                axis,
+                grid_shape,
+                inside,
+                deep,
+                start,
+                cell_edges,
+                keys,
+                proj,
+                work,
+            ):
+                for k in range(3):
+                    trial[k] = proj[k]
+            f, t = _score(qc, dq, trial, frame, grid, centre, half)
+            if f > best:
+                best, best_tau = f, t
+                for k in range(3):
+                    cur[k] = trial[k]
+                last = (last + m) % POLL_DIRECTIONS
+                moved = True
+                break
+        if not moved:
+            step *= 0.5
+            turn += 0.5 * math.pi / POLL_DIRECTIONS
+    _compose_into(cur, best_tau, out)
+    return 0
+
+
+@nb.njit(cache=True, parallel=True)
+def correct_batch(q, mesh, band, seeds, seed_dirs):
+    """Correct each row of ``q`` (N, 4) -> (out (N, 4), status (N,) int8: 1 in, 0 moved, -1 bad)."""
+    n = q.shape[0]
+    out = np.empty((n, 4))
+    status = np.empty(n, dtype=np.int8)
+    for chunk in nb.prange((n + bk.CHUNK - 1) // bk.CHUNK):
+        work = np.empty((bk.WORK_ROWS + WORK_EXTRA, 3))
+        bk.frame_into(mesh[3], work)
+        for j in range(chunk * bk.CHUNK, min(n, (chunk + 1) * bk.CHUNK)):
+            status[j] = _correct_one(q[j], mesh, band, seeds, seed_dirs, out[j], work)
+    return out, status
+
+
+@nb.njit(cache=True)
+def correct_single(q, mesh, band, seeds, seed_dirs):
+    """:func:`correct_batch` for one (4,) quaternion, without the thread pool: (out, status)."""
+    out = np.empty(4)
+    work = np.empty((bk.WORK_ROWS + WORK_EXTRA, 3))
+    bk.frame_into(mesh[3], work)
+    status = _correct_one(q, mesh, band, seeds, seed_dirs, out, work)
+    return out, status
+
+
+@nb.njit(cache=True, parallel=True)
+def contains_batch(q, mesh, band):
+    """(N,) int8 for rows of ``q`` (N, 4): 1 inside, 0 outside, -1 bad input."""
+    n = q.shape[0]
+    res = np.empty(n, dtype=np.int8)
+    frame, grid, centre, half = band
+    for chunk in nb.prange((n + bk.CHUNK - 1) // bk.CHUNK):
+        work = np.empty((bk.WORK_ROWS + 1, 3))
+        bk.frame_into(mesh[3], work)
+        for j in range(chunk * bk.CHUNK, min(n, (chunk + 1) * bk.CHUNK)):
+            res[j] = _contains_one(q[j], mesh, frame, grid, centre, half, work)
+    return res
+
+
+@nb.njit(cache=True, inline="always")
+def _contains_one(q, mesh, frame, grid, centre, half, work) -> int:
+    norm2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]
+    if not abs(math.sqrt(norm2) - 1.0) <= 1e-6:
+        return -1
+    sign = -1.0 if q[0] < 0.0 else 1.0
+    w, x, y, z = sign * q[0], sign * q[1], sign * q[2], sign * q[3]
+    d = work[bk.WORK_ROWS]
+    d[0] = w * w + x * x - y * y - z * z
+    d[1] = 2.0 * (x * y + w * z)
+    d[2] = 2.0 * (x * z - w * y)
+    dn = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+    for k in range(3):
+        d[k] /= dn
+    out = np.empty(3)
+    vertices, edges, margins, axis, grid_shape, inside, deep, start, cell_edges, keys = mesh
+    if not bk.query(
+        d,
+        vertices,
+        edges,
+        margins,
+        axis,
+        grid_shape,
+        inside,
+        deep,
+        start,
+        cell_edges,
+        keys,
+        out,
+        work,
+    ):
+        return 0
+    c, h = band_at(d, frame, grid, centre, half)
+    return 1 if abs(wrap(2.0 * math.atan2(x, w) - c)) <= h + TWIST_TOLERANCE else 0
+
+
+@nb.njit(cache=True)
+def contains_single(q, mesh, band) -> int:
+    """:func:`contains_batch` for one (4,) quaternion: 1, 0 or -1."""
+    work = np.empty((bk.WORK_ROWS + 1, 3))
+    bk.frame_into(mesh[3], work)
+    frame, grid, centre, half = band
+    return _contains_one(q, mesh, frame, grid, centre, half, work)
+
+
+@nb.njit(cache=True)
+def band_batch(d, frame, grid, centre, half):
+    """Band centre and half-width (N,), (N,) over directions ``d`` (N, 3)."""
+    n = d.shape[0]
+    c = np.empty(n)
+    h = np.empty(n)
+    for j in range(n):
+        c[j], h[j] = band_at(d[j], frame, grid, centre, half)
+    return c, h

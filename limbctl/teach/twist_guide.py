@@ -1,0 +1,107 @@
+"""Where the twist range is still untaught, on a three-servo rig: in words and figures.
+
+The teaching protocol asks, along the edge and in the middle, to turn the limb both ways to its
+stop. The guide does not know where the stops are; it sees how far the twist has been turned at
+each place. The swing plane is cut into cells of CELL_DEG in pan and tilt; each cell keeps the
+least and the greatest twist taught there (twist from :func:`limbctl.geometry.twist.decompose`).
+A cell visited with at least MIN_CELL_SAMPLES samples counts as *turned* once its twist span
+reaches TURNED_FRACTION of the widest spans taught anywhere (their WIDE_QUANTILE): the band
+narrows as the limb rises on a shoulder, so "both ways to its stop" is judged against what
+the person showed is possible, not against a fixed angle. The line names the cell turned least,
+with its span against the wide one, and asks for the twist there.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from limbctl.geometry.gimbal import direction_to_pan_tilt
+from limbctl.geometry.twist import decompose
+
+#: Cell size (deg of pan and of tilt): a hand-sized patch of the swing plane, fine enough that a
+#: shoulder's band (narrowing by ~0.3 deg of half width per degree of tilt) changes by under 10
+#: deg across one, coarse enough that a minute's teaching fills cells with hundreds of samples.
+CELL_DEG = 15.0
+#: Samples before a cell is judged: a quarter second at 125 Hz passing through.
+MIN_CELL_SAMPLES = 30
+#: The widest spans: this quantile of the judged cells' spans.
+WIDE_QUANTILE = 0.9
+#: A cell whose span reaches this share of the wide span was turned to both stops: the hand
+#: turns to about 1 deg inside each stop, and the band narrows across the plane by up to a half.
+TURNED_FRACTION = 0.5
+
+
+@dataclass(frozen=True)
+class TwistGuidance:
+    """How much of the twist range has been taught.
+
+    Attributes
+    ----------
+    cells : int
+        Cells of the swing plane judged (with at least MIN_CELL_SAMPLES samples).
+    turned : int
+        Of those, cells turned to both stops (span >= TURNED_FRACTION of the wide span).
+    wide_span_deg : float
+        The wide twist span (deg): WIDE_QUANTILE of the judged cells' spans.
+    least : tuple of float or None
+        (pan_deg, tilt_deg, span_deg) of the cell turned least, None when none is judged.
+    """
+
+    cells: int
+    turned: int
+    wide_span_deg: float
+    least: tuple[float, float, float] | None
+
+    def line(self) -> str:
+        """One line of words and figures for the progress line and the summary."""
+        if self.cells == 0 or self.least is None:
+            return "twist: not yet taught; turn the limb both ways to its stop as you go"
+        pan, tilt, span = self.least
+        head = (
+            f"twist: {self.turned} of {self.cells} places turned both ways "
+            f"(widest {self.wide_span_deg:.0f} deg)"
+        )
+        if self.turned == self.cells:
+            return head + "; every place visited was turned both ways"
+        return (
+            f"{head}; least at pan {pan:+.0f}, tilt {tilt:+.0f}: {span:.0f} deg -> turn the "
+            "limb both ways to its stop there"
+        )
+
+
+class TwistGuide:
+    """Collects full orientations and says where the twist is untaught (module docstring)."""
+
+    def __init__(self) -> None:
+        self._cells: dict[tuple[int, int], list[float]] = {}
+
+    def add(self, q: np.ndarray) -> None:
+        """One sample's full orientation (4,)."""
+        d, tau = decompose(np.asarray(q, dtype=np.float64))
+        pan, tilt = direction_to_pan_tilt(d)
+        key = (
+            math.floor(math.degrees(float(pan)) / CELL_DEG),
+            math.floor(math.degrees(float(tilt)) / CELL_DEG),
+        )
+        twist = math.degrees(float(tau))
+        cell = self._cells.get(key)
+        if cell is None:
+            self._cells[key] = [twist, twist, 1.0]
+        else:
+            cell[0], cell[1], cell[2] = min(cell[0], twist), max(cell[1], twist), cell[2] + 1.0
+
+    def assess(self) -> TwistGuidance:
+        """The guidance from the samples so far."""
+        judged = [(key, c) for key, c in self._cells.items() if c[2] >= MIN_CELL_SAMPLES]
+        if not judged:
+            return TwistGuidance(0, 0, 0.0, None)
+        spans = np.array([c[1] - c[0] for _, c in judged])
+        wide = float(np.quantile(spans, WIDE_QUANTILE))
+        turned = int(np.sum(spans >= TURNED_FRACTION * wide))
+        k = int(np.argmin(spans))
+        (i, j), _ = judged[k]
+        centre = ((i + 0.5) * CELL_DEG, (j + 0.5) * CELL_DEG, float(spans[k]))
+        return TwistGuidance(len(judged), turned, wide, centre)

@@ -1,0 +1,62 @@
+"""The simulator's own geometry of the three-joint gimbal, checked against quaternion products."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from firmware_sim.orientation import (
+    chain_quat,
+    chain_twist,
+    roll_for_twist_deg,
+    twist_of,
+    wrap_deg,
+)
+
+
+def product(a, b):
+    aw, ax, ay, az = a
+    bw, bx, by, bz = b
+    return (
+        aw * bw - ax * bx - ay * by - az * bz,
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+    )
+
+
+def axis(k, theta):
+    q = [math.cos(theta / 2), 0.0, 0.0, 0.0]
+    q[1 + k] = math.sin(theta / 2)
+    return tuple(q)
+
+
+@pytest.mark.parametrize(("pan", "tilt", "tau"), [(30, 30, 8.2), (60, 45, 26.9), (90, 60, 60.0)])
+def test_chain_twist_figures(pan, tilt, tau):
+    assert math.degrees(chain_twist(math.radians(pan), math.radians(tilt))) == pytest.approx(
+        tau, abs=0.05
+    )
+
+
+def test_chain_quat_is_the_product_and_its_twist_is_roll_plus_chain_twist():
+    rng = np.random.default_rng(3)
+    for pan, tilt, roll in rng.uniform([-3, -1.5, -3], [3, 1.5, 3], size=(200, 3)):
+        q = product(product(axis(2, pan), axis(1, -tilt)), axis(0, roll))
+        if q[0] < 0:
+            q = tuple(-v for v in q)
+        assert np.allclose(chain_quat(pan, tilt, roll), q, atol=1e-12)
+        twist = math.degrees(twist_of(chain_quat(pan, tilt, roll)))
+        expected = math.degrees(roll + chain_twist(pan, tilt))
+        assert wrap_deg(twist - expected) == pytest.approx(0.0, abs=1e-9)
+        # the roll that gives a twist undoes the chain's own twist
+        back = roll_for_twist_deg(math.degrees(pan), math.degrees(tilt), twist)
+        assert wrap_deg(back - math.degrees(roll)) == pytest.approx(0.0, abs=1e-9)
+
+
+def test_wrap_deg_range():
+    assert wrap_deg(180.0) == 180.0
+    assert wrap_deg(-180.0) == 180.0
+    assert wrap_deg(190.0) == pytest.approx(-170.0)
+    assert wrap_deg(-540.0) == 180.0

@@ -1,0 +1,146 @@
+"""Twist: the split q = swing(d) * twist(tau) about +x, its round trips, wrap-around and -x."""
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from limbctl.geometry import twist as tw
+from limbctl.geometry.quat import (
+    direction_angle,
+    geodesic_distance,
+    limb_direction,
+    multiply,
+    swing_from_direction,
+    swing_twist,
+)
+
+unit_quats = st.lists(st.floats(-1, 1, allow_nan=False), min_size=4, max_size=4).filter(
+    lambda v: np.linalg.norm(v) > 0.1
+)
+twists = st.floats(-3 * math.pi, 3 * math.pi, allow_nan=False)
+
+
+def _unit(v):
+    q = np.asarray(v, dtype=np.float64)
+    return q / np.linalg.norm(q)
+
+
+def _same_rotation(a, b, atol):
+    assert min(np.abs(a - b).max(), np.abs(a + b).max()) <= atol
+
+
+def test_wrap_range_and_half_turn():
+    a = np.array([-math.pi, math.pi, 3 * math.pi, -3 * math.pi, 0.0, 2 * math.pi, 7.0])
+    w = tw.wrap(a)
+    assert np.all(w > -math.pi) and np.all(w <= math.pi)
+    np.testing.assert_allclose(w[:4], math.pi)
+    np.testing.assert_allclose(np.cos(w), np.cos(a), atol=1e-12)
+    np.testing.assert_allclose(np.sin(w), np.sin(a), atol=1e-12)
+
+
+@settings(max_examples=300, deadline=None)
+@given(v=unit_quats)
+def test_decompose_then_compose_is_the_same_rotation(v):
+    """Away from -x (s_w > 1e-3, 0.11 deg): near it precision falls like 1e-16 / s_w^2."""
+    q = _unit(v)
+    if math.hypot(q[0], q[1]) < 1e-3:
+        return
+    d, tau = tw.decompose(q)
+    assert -math.pi < tau <= math.pi
+    _same_rotation(tw.compose(d, tau), q, 1e-9)
+    # the direction is +x rotated by q, the twist part the one of the product form
+    np.testing.assert_allclose(d, limb_direction(q) / np.linalg.norm(limb_direction(q)), atol=1e-12)
+    _same_rotation(multiply(swing_from_direction(d), tw.twist_quat(tau)), q, 1e-9)
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    pan=st.floats(-math.pi, math.pi),
+    tilt=st.floats(-1.5, 1.5),
+    tau=twists,
+)
+def test_compose_then_decompose_gives_back_direction_and_wrapped_twist(pan, tilt, tau):
+    d = np.array([math.cos(tilt) * math.cos(pan), math.cos(tilt) * math.sin(pan), math.sin(tilt)])
+    if direction_angle(d, np.array([-1.0, 0, 0])) < 1e-3:
+        return
+    q = tw.compose(d, tau)
+    assert q[0] >= 0.0
+    d2, tau2 = tw.decompose(q)
+    np.testing.assert_allclose(d2, d, atol=1e-12)
+    assert abs(tw.wrap(tau2 - tau)) < 1e-9
+    assert -math.pi < tau2 <= math.pi
+
+
+def test_twist_agrees_with_quats_swing_twist():
+    rng = np.random.default_rng(3)
+    q = rng.normal(size=(500, 4))
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    _, tau = tw.decompose(q)
+    _, t = swing_twist(q)
+    # quat.swing_twist returns the twist as a quaternion about +x: the same rotation
+    for a, b in zip(tw.twist_quat(tau), t):
+        _same_rotation(a, b, 1e-9)
+
+
+def test_half_turn_twist_is_plus_pi_both_ways():
+    d = np.array([0.0, 0.6, 0.8])
+    for tau in (math.pi, -math.pi, 3 * math.pi):
+        _, back = tw.decompose(tw.compose(d, tau))
+        assert back == pytest.approx(math.pi)
+
+
+def test_singular_direction_minus_x_round_trips_with_the_half_turn_about_z():
+    for tau in np.linspace(-math.pi, math.pi, 13):
+        q = tw.compose(np.array([-1.0, 0.0, 0.0]), tau)
+        np.testing.assert_allclose(q, tw.compose_one((-1.0, 0.0, 0.0), tau), atol=1e-15)
+        assert abs(q[0]) < 1e-15 and abs(q[1]) < 1e-15
+        d, back = tw.decompose(q)
+        np.testing.assert_array_equal(d, [-1.0, 0.0, 0.0])
+        assert abs(tw.wrap(back - tau)) < 1e-12
+        dd, bb = tw.decompose_one(q)
+        assert dd == (-1.0, 0.0, 0.0) and abs(tw.wrap(bb - tau)) < 1e-12
+    # the swing is the half-turn about +z: twist 0 at -x is exactly it
+    np.testing.assert_allclose(tw.compose(np.array([-1.0, 0, 0]), 0.0), [0, 0, 0, 1], atol=1e-15)
+
+
+@settings(max_examples=300, deadline=None)
+@given(v=unit_quats)
+def test_scalar_twins_match_arrays(v):
+    q = _unit(v)
+    d, tau = tw.decompose(q)
+    d1, tau1 = tw.decompose_one(q)
+    np.testing.assert_allclose(d1, d, atol=1e-12)
+    assert abs(tw.wrap(tau1 - tau)) < 1e-12
+    np.testing.assert_allclose(tw.compose_one(d1, tau1), tw.compose(d, tau), atol=1e-12)
+
+
+@settings(max_examples=300, deadline=None)
+@given(v=unit_quats, pan=st.floats(-math.pi, math.pi), tilt=st.floats(-1.5, 1.5), tau=twists)
+def test_geodesic_over_a_direction_is_the_product_formula(v, pan, tilt, tau):
+    """cos(g/2) = cos(theta/2) |cos(delta/2)| against the direct geodesic angle."""
+    q = _unit(v)
+    d = np.array([math.cos(tilt) * math.cos(pan), math.cos(tilt) * math.sin(pan), math.sin(tilt)])
+    dq = limb_direction(q)
+    if np.dot(dq, d) < -1 + 1e-6 or direction_angle(d, np.array([-1.0, 0, 0])) < 1e-3:
+        return
+    theta = direction_angle(dq, d)
+    moved = tw.transported_twist(q, d)
+    g = tw.geodesic_over(theta, tau - moved)
+    assert g == pytest.approx(float(geodesic_distance(q, tw.compose(d, tau))), abs=1e-6)
+    # the transported twist is the nearest orientation over d: theta away
+    assert float(geodesic_distance(q, tw.compose(d, moved))) == pytest.approx(theta, abs=1e-6)
+
+
+def test_nearest_over_a_direction_is_not_twist_kept():
+    """Moving the direction 30 deg while keeping the twist can be a much larger rotation."""
+    q = tw.compose(np.array([0.0, 0.0, 1.0]), 0.0)
+    d = np.array([math.cos(math.radians(60)), math.sin(math.radians(60)), 0.0]) * math.sin(
+        math.radians(30)
+    ) + np.array([0, 0, math.cos(math.radians(30))])
+    kept = float(geodesic_distance(q, tw.compose(d, 0.0)))
+    nearest = float(geodesic_distance(q, tw.compose(d, tw.transported_twist(q, d))))
+    assert nearest == pytest.approx(math.radians(30), abs=1e-9)
+    assert kept > nearest + math.radians(5)

@@ -1,0 +1,45 @@
+"""The twist guide names the place of the swing plane where the twist was turned least."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from limbctl.geometry.gimbal import pan_tilt_to_direction
+from limbctl.geometry.twist import compose
+from limbctl.teach.twist_guide import CELL_DEG, MIN_CELL_SAMPLES, TwistGuide
+
+
+def taught(guide, pan_deg, tilt_deg, twists_deg):
+    d = pan_tilt_to_direction(math.radians(pan_deg), math.radians(tilt_deg))
+    for tau in twists_deg:
+        guide.add(compose(d, math.radians(tau)))
+
+
+def test_every_place_turned_both_ways_and_one_left_untaught():
+    guide = TwistGuide()
+    assert "not yet taught" in guide.assess().line()
+    sweep = np.linspace(-40, 40, MIN_CELL_SAMPLES)
+    places = [(p, t) for p in (-30, 0, 30) for t in (-20, 10)]
+    for pan, tilt in places:
+        taught(guide, pan + 1, tilt + 1, sweep)
+    full = guide.assess()
+    assert (full.cells, full.turned) == (6, 6)
+    assert full.wide_span_deg == pytest.approx(80.0)
+    assert "every place visited was turned both ways" in full.line()
+    # a new place visited with hardly any twist: named, with its span against the widest
+    taught(guide, 46, 31, np.linspace(-3, 3, MIN_CELL_SAMPLES))
+    found = guide.assess()
+    assert (found.cells, found.turned) == (7, 6)
+    pan, tilt, span = found.least
+    assert abs(pan - 46) <= CELL_DEG / 2 and abs(tilt - 31) <= CELL_DEG / 2
+    assert span == pytest.approx(6.0)
+    assert "least at pan +52, tilt +38: 6 deg -> turn the limb both ways" in found.line()
+
+
+def test_cells_with_few_samples_are_not_judged():
+    guide = TwistGuide()
+    taught(guide, 0, 0, np.zeros(MIN_CELL_SAMPLES - 1))
+    assert guide.assess().cells == 0
