@@ -13,10 +13,11 @@ import math
 import numba as nb
 import numpy as np
 
+from limbctl.geometry.jit import njit
 from limbctl.region.twist_kernels import wrap
 
 
-@nb.njit(cache=True)
+@njit
 def upper_hull(px, py, t, top) -> float:
     """Height at the origin of the upper concave hull of points ``(px, py, t)`` (K,), over
     the ``top`` highest ``t``: ``max sum(l_k t_k)`` over triangles whose barycentric weights
@@ -49,7 +50,7 @@ def upper_hull(px, py, t, top) -> float:
     return best if best > -np.inf else np.nan
 
 
-@nb.njit(cache=True, parallel=True)
+@njit(parallel=True)
 def fit_nodes(nodes, start, members, d, tau, top, free_gap):
     """Band centre and half-width (rad) at each node direction (M, 3) from the samples near it.
 
@@ -116,7 +117,7 @@ def fit_nodes(nodes, start, members, d, tau, top, free_gap):
     return centre, half
 
 
-@nb.njit(cache=True, parallel=True)
+@njit(parallel=True)
 def refine_nodes(nodes, start, members, d, limit, stop, ref, sigma):
     """Band limits at nodes (M,) re-read as a weighted local plane through the stop samples.
 

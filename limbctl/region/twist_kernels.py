@@ -30,6 +30,7 @@ import math
 import numba as nb
 import numpy as np
 
+from limbctl.geometry.jit import njit
 from limbctl.region import mesh_kernels as bk
 
 #: contains() accepts twists this far (rad) outside the band: rounding of compose/decompose of
@@ -51,13 +52,13 @@ POLL_DIRECTIONS = 6
 WORK_EXTRA = 8
 
 
-@nb.njit(cache=True, inline="always")
+@njit(inline="always")
 def wrap(a: float) -> float:
     """``a`` (rad) wrapped into (-pi, pi]: ``a - 2 pi ceil((a - pi) / 2 pi)``."""
     return a - 2.0 * math.pi * math.ceil((a - math.pi) / (2.0 * math.pi))
 
 
-@nb.njit(cache=True, inline="always")
+@njit(inline="always")
 def plane_xy(d, frame):
     """Azimuthal equidistant coordinates (rad) of unit ``d`` about ``frame[0]`` (u = frame[1],
     v = frame[2]): ``theta (d.u, d.v) / |(d.u, d.v)|``, ``theta = atan2(|(d.u, d.v)|, d.axis)``."""
@@ -71,7 +72,7 @@ def plane_xy(d, frame):
     return theta * su / s, theta * sv / s
 
 
-@nb.njit(cache=True, inline="always")
+@njit(inline="always")
 def band_at(d, frame, grid, centre, half):
     """Band centre and half-width (rad) over direction ``d``: bilinear in the plane grid.
 
@@ -98,7 +99,7 @@ def band_at(d, frame, grid, centre, half):
     return c, h
 
 
-@nb.njit(cache=True, inline="always")
+@njit(inline="always")
 def _score(q, dq, d, frame, grid, centre, half):
     """``F = cos(theta/2) cos(delta/2)`` for candidate direction ``d`` and the best twist there.
 
@@ -124,7 +125,7 @@ def _score(q, dq, d, frame, grid, centre, half):
     return ch * math.cos(0.5 * delta), tau
 
 
-@nb.njit(cache=True, inline="always")
+@njit(inline="always")
 def _compose_into(d, tau, out) -> None:
     """``out = swing(d) * twist(tau)`` (w >= 0), as :func:`limbctl.geometry.twist.compose`."""
     sw = 1.0 + d[0]
@@ -147,7 +148,7 @@ def _compose_into(d, tau, out) -> None:
     out[3] = sign * (sz * c - sy * s)
 
 
-@nb.njit(cache=True, inline="always")
+@njit(inline="always")
 def _correct_one(q, mesh, band, seeds, seed_dirs, out, work) -> int:
     """Correct one quaternion into ``out``: 1 inside (``out = q``), 0 corrected, -1 bad input.
 
@@ -272,7 +273,7 @@ def _correct_one(q, mesh, band, seeds, seed_dirs, out, work) -> int:
     return 0
 
 
-@nb.njit(cache=True, parallel=True)
+@njit(parallel=True)
 def correct_batch(q, mesh, band, seeds, seed_dirs):
     """Correct each row of ``q`` (N, 4) -> (out (N, 4), status (N,) int8: 1 in, 0 moved, -1 bad)."""
     n = q.shape[0]
@@ -286,7 +287,7 @@ def correct_batch(q, mesh, band, seeds, seed_dirs):
     return out, status
 
 
-@nb.njit(cache=True)
+@njit
 def correct_single(q, mesh, band, seeds, seed_dirs):
     """:func:`correct_batch` for one (4,) quaternion, without the thread pool: (out, status)."""
     out = np.empty(4)
@@ -296,7 +297,7 @@ def correct_single(q, mesh, band, seeds, seed_dirs):
     return out, status
 
 
-@nb.njit(cache=True, parallel=True)
+@njit(parallel=True)
 def contains_batch(q, mesh, band):
     """(N,) int8 for rows of ``q`` (N, 4): 1 inside, 0 outside, -1 bad input."""
     n = q.shape[0]
@@ -310,7 +311,7 @@ def contains_batch(q, mesh, band):
     return res
 
 
-@nb.njit(cache=True, inline="always")
+@njit(inline="always")
 def _contains_one(q, mesh, frame, grid, centre, half, work) -> int:
     norm2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]
     if not abs(math.sqrt(norm2) - 1.0) <= 1e-6:
@@ -346,7 +347,7 @@ def _contains_one(q, mesh, frame, grid, centre, half, work) -> int:
     return 1 if abs(wrap(2.0 * math.atan2(x, w) - c)) <= h + TWIST_TOLERANCE else 0
 
 
-@nb.njit(cache=True)
+@njit
 def contains_single(q, mesh, band) -> int:
     """:func:`contains_batch` for one (4,) quaternion: 1, 0 or -1."""
     work = np.empty((bk.WORK_ROWS + 1, 3))
@@ -355,7 +356,7 @@ def contains_single(q, mesh, band) -> int:
     return _contains_one(q, mesh, frame, grid, centre, half, work)
 
 
-@nb.njit(cache=True)
+@njit
 def band_batch(d, frame, grid, centre, half):
     """Band centre and half-width (N,), (N,) over directions ``d`` (N, 3)."""
     n = d.shape[0]

@@ -2,30 +2,29 @@
 
 Each cycle (default 200 Hz):
 
-1. read both servos' position, goal, torque and alarm (ONE sync read, at most
-   ``read_attempts`` tries, no diagnostic pings) and judge
-   them (:class:`limbctl.servo.health.HealthMonitor`);
+1. read every servo's position, goal, torque and alarm (ONE sync read, at most
+   ``read_attempts`` tries, no pings) and judge them (:class:`limbctl.servo.health.HealthMonitor`);
 2. take the newest valid command from the source (bad lines were already refused and counted);
 3. the gate turns it into a safe pose (correct, slew limit, IK, hard limits, final check);
-4. write both goals (one sync write) — only ever a pose the gate returned;
+4. write the goals (one sync write) — only ever a pose the gate returned;
 5. report the cycle's value (telemetry, status, ``on_cycle``) and pace to the next period.
 
-A silent source holds the last safe pose. A cycle whose read fails writes nothing (a servo
-that is not answering would miss the sync write and leave a pose the gate never produced).
-A servo that stops answering is named on the first cycle it misses; while it is silent each
-cycle reads the others (their torque and alarms are still judged) and probes it with one try
-every ``health.probe_interval_s``, so the loop keeps its rate, and its dropout is reported with
-its length when a probe finds it back (or, still silent at a clean end, with its length so far).
-The loop ends in the configured safe state (hold: torque stays on at the last goal;
-torque-off) with a message naming the servo and the cause when a servo is silent for
-``health.lost_after_s``, reports torque off or an alarm, or does not follow its goal, and after
-``max_failed_cycles`` consecutive cycles whose read failed without naming a servo (corrupt or
-late replies). The message states each servo's torque once, as the safe state left it.
+A silent source holds the last safe pose. A cycle whose read fails writes nothing (a servo that is
+not answering would miss the sync write and leave a pose the gate never produced). A servo that
+stops answering is named on the first cycle it misses; while it is silent each cycle reads the
+others (their torque and alarms are still judged) and probes it with one try every
+``health.probe_interval_s``, so the loop keeps its rate, and its dropout is reported with its
+length when a probe finds it back (or, still silent at a clean end, with its length so far). The
+loop ends in the configured safe state (hold: torque stays on at the last goal; torque-off) with a
+message naming the servo and the cause when a servo is silent for ``health.lost_after_s``, reports
+torque off or an alarm, or does not follow its goal, and after ``max_failed_cycles`` consecutive
+cycles whose read failed without naming a servo (corrupt or late replies). The message states each
+servo's torque once, as the safe state left it.
 
 After ruckig, every cycle is a value: :meth:`ControlLoop.step` returns a
 :class:`~limbctl.teleop.cycle.Cycle` (running, finished or fault, with the gate's result, the
-command, the written pose and the timings) and :func:`run` is a short loop over it; the
-session's outcome is a :class:`~limbctl.teleop.cycle.TeleopSummary`.
+command, the written pose and the timings) and :func:`run` is a short loop over it; the session's
+outcome is a :class:`~limbctl.teleop.cycle.TeleopSummary`.
 """
 
 from __future__ import annotations
@@ -52,10 +51,9 @@ from limbctl.teleop.report import Telemetry, open_telemetry
 from limbctl.teleop.sources import CommandSource
 from limbctl.teleop.status import status_line_for
 
-__all__ = ["Cycle", "CycleState", "TeleopSummary", "Telemetry", "open_telemetry"]
-#: The joints in the order a rig lists its ids (a three-servo rig adds roll).
-JOINT_NAMES = ("pan", "tilt", "roll")
-__all__ += ["SafeState", "Limb", "LoopConfig", "ControlLoop", "run"]
+__all__ = ["Cycle", "CycleState", "TeleopSummary", "Telemetry", "open_telemetry", "SafeState"]
+__all__ += ["Limb", "LoopConfig", "ControlLoop", "run"]
+JOINT_NAMES = ("pan", "tilt", "roll")  #: in the order a rig lists its ids (roll: three servos)
 
 
 class SafeState(enum.Enum):
@@ -251,9 +249,7 @@ class ControlLoop:
         # 3. gate
         gate_start = time.perf_counter()
         if self._target_q is None:
-            result = self.gate.hold(
-                "no command yet" if self._target_deg is None else "source silent"
-            )
+            result = self.gate.hold("source silent" if self._target_deg else "no command yet")
         elif present is None:
             result = self.gate.hold("the bus failed this cycle")
         else:
@@ -472,9 +468,8 @@ def _enter_safe_state(
     cause: BusError,
     torque_seen: dict[int, bool],
 ) -> None:
-    """Apply ``config.safe_state`` and say what it left; ``torque_seen`` is each servo's Torque
-    Enable as its latest read reported it (to tell torque switched off from torque already
-    off)."""
+    """Apply ``config.safe_state`` and say what it left; ``torque_seen``: each servo's Torque
+    Enable as last read (to tell torque switched off from torque already off)."""
     named = cause.servo_id is not None and not str(cause).startswith(f"servo {cause.servo_id}")
     where = f"servo {cause.servo_id}: " if named else ""
     summary.fault = f"{where}{cause}"
