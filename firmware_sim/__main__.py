@@ -19,14 +19,15 @@ ROLL_ID = ROLL_JOINT.servo_id
 
 DESCRIPTION = """\
 Simulated Dynamixel X-series servos (Protocol 2.0) on a pseudo-terminal, byte for byte like real
-servos behind a U2D2 adapter. Open PATH with the dynamixel-sdk at the servos' baud rate
-(--baud, default 4000000; factory-fresh servos are at 57600), protocol 2.0: as on a real bus a
-servo hears only its own baud rate, bytes take their time on the wire, and servos sharing an ID
-garble each other's replies. Servo 1 is the pan joint and servo 2 the tilt joint of a simulated
-gimbal (true geometry in calib/rigs/sim.yaml); servo 3, when listed (--ids 1,2,3), is its roll
-joint, which turns the limb about its own axis (calib/rigs/sim3.yaml); other IDs drive free
-shafts. With --factory N, N factory-fresh servos (all ID 1, 57600 baud) sit in slots 1..N (slot 1
-drives pan, 2 tilt). Runs until SIGINT or SIGTERM, then removes PATH."""
+servos behind a U2D2 adapter. Open PATH with the dynamixel-sdk at the servos' baud rate (with
+--baud, or --factory at 57600; without either they answer at any rate until their Baud Rate
+register is written), protocol 2.0: as on a real bus a servo hears only its own baud rate, bytes
+take their time on the wire, and servos sharing an ID garble each other's replies. Servo 1 is the
+pan joint and servo 2 the tilt joint of a simulated gimbal (true geometry in calib/rigs/sim.yaml);
+servo 3, when listed (--ids 1,2,3), is its roll joint, which turns the limb about its own axis
+(calib/rigs/sim3.yaml); other IDs drive free shafts. With --factory N, N factory-fresh servos (all
+ID 1, 57600 baud) sit in slots 1..N (slot 1 drives pan, 2 tilt). Runs until SIGINT or SIGTERM, then
+removes PATH."""
 
 EPILOG = """\
 REGION.yaml (--hand), degrees:
@@ -129,9 +130,11 @@ def build_parser() -> argparse.ArgumentParser:
         "--baud",
         type=int,
         choices=sorted(BAUD_BY_VALUE.values()),
-        default=RIG_BAUD,
+        default=None,
         metavar="BPS",
-        help=f"the servos' baud rate (default {RIG_BAUD}; not with --factory)",
+        help=f"the servos' baud rate: they then answer only a host at that rate (limbctl's "
+        f"simulated rig: {RIG_BAUD}); without it they answer at any rate until their Baud Rate "
+        f"register is written. Not with --factory",
     )
     parser.add_argument(
         "--factory",

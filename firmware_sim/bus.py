@@ -38,7 +38,7 @@ from firmware_sim.faults import FaultPlan
 from firmware_sim.hand import Hand
 from firmware_sim.simulator import Simulator
 from firmware_sim.twist_hand import RollScriptHand, TwistHand, hand_from_mapping, hand_from_yaml
-from firmware_sim.wire import RIG_BAUD, host_baud, wire_s
+from firmware_sim.wire import host_baud, wire_s
 
 # The physics keeps moving (hand, profiles) at least this often without traffic.
 TICK_S = 0.005
@@ -192,7 +192,7 @@ def build_simulator(config: Mapping[str, Any]) -> Simulator:
         goal_log=config.get("goal_log"),
         seed=seed,
         faults=plan,
-        baud=config.get("baud", RIG_BAUD),
+        baud=config.get("baud"),
         factory=int(config.get("factory", 0)),
         connect=config.get("connect"),
         eeprom_dir=config.get("eeprom_dir"),
@@ -317,8 +317,9 @@ class SimulatedBus:
     start_timeout_s : float
         How long to wait for the process to come up.
     baud, factory, connect, eeprom_dir
-        The wire and the bench: see :class:`firmware_sim.simulator.Simulator` (servos at
-        4 Mbps by default; ``factory=N``: N factory-fresh servos at 57600).
+        The wire and the bench: see :class:`firmware_sim.simulator.Simulator` (no baud: the
+        servos answer at any rate until their Baud Rate is written; ``factory=N``: N
+        factory-fresh servos at 57600).
     """
 
     def __init__(
@@ -334,7 +335,7 @@ class SimulatedBus:
         latency_p: float = 1.0,
         link: str | os.PathLike | None = None,
         start_timeout_s: float = 60.0,
-        baud: int = RIG_BAUD,
+        baud: int | None = None,
         factory: int = 0,
         connect=None,
         eeprom_dir: str | os.PathLike | None = None,
@@ -355,7 +356,7 @@ class SimulatedBus:
             "latency_ms": latency_ms,
             "latency_p": latency_p,
             "link": None if link is None else str(link),
-            "baud": int(baud),
+            "baud": None if baud is None else int(baud),
             "factory": int(factory),
             "connect": None if connect is None else list(connect),
             "eeprom_dir": None if eeprom_dir is None else str(eeprom_dir),

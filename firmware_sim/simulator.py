@@ -33,7 +33,7 @@ from firmware_sim.hand import Hand
 from firmware_sim.leader import LeaderWorld, Operator
 from firmware_sim.protocol import MAX_SERVO_ID, PacketParser
 from firmware_sim.servo import Environment, Servo
-from firmware_sim.wire import BAUD_BY_VALUE, RIG_BAUD, collide, value_for_baud
+from firmware_sim.wire import BAUD_BY_VALUE, collide, value_for_baud
 from firmware_sim.world import DEFAULT_JOINTS, ROLL_JOINT, World
 
 #: Longest physics step (s): 1 ms keeps the 80 rad/s tracking loop stable (omega * dt = 0.08).
@@ -82,8 +82,10 @@ class Simulator:
     faults : FaultPlan or None
     clock : callable
         Monotonic seconds.
-    baud : int
-        The servos' baud rate (their Baud Rate register); factory servos are at 57600.
+    baud : int or None
+        The servos' baud rate (their Baud Rate register); factory servos are at 57600. None
+        (the default): the servos answer a host at any baud until their Baud Rate register is
+        written (:meth:`hears`); limbctl passes its rig profile's baud, so it is strict.
     factory : int
         If > 0, serve this many factory-fresh servos in slots 1..N instead of ``ids``: all ID 1,
         57600 baud, Return Delay Time 250 (2 us units: 500 us).
@@ -107,7 +109,7 @@ class Simulator:
         seed: int = 0,
         faults: FaultPlan | None = None,
         clock: Callable[[], float] = time.monotonic,
-        baud: int = RIG_BAUD,
+        baud: int | None = None,
         factory: int = 0,
         connect: Sequence[int] | None = None,
         eeprom_dir: str | Path | None = None,
@@ -124,7 +126,7 @@ class Simulator:
             raise ValueError(f"--connect {list(self.ids)} names slots beyond {list(slots)}")
         models = self._models(model, len(slots))
         self.model = models[0]
-        baud_value = value_for_baud(int(baud))
+        baud_value = None if baud is None else value_for_baud(int(baud))
         self.seed = seed
         joints = DEFAULT_JOINTS
         if roll_id is not None:
@@ -160,12 +162,18 @@ class Simulator:
                 start = FREE_SHAFT_START_TICK
                 self._free_shafts[slot] = [start, 0.0]
             servo = Servo(1 if factory > 0 else slot, slot_model, start, on_goal=on_goal)
-            if factory <= 0:
+            if factory <= 0 and baud_value is not None:
                 servo.preset(Register.BAUD_RATE, baud_value)
             if eeprom_dir is not None:
                 self._eeproms[slot] = EepromFile(eeprom_dir, slot)
                 self._eeproms[slot].load(servo)
             self.servos.append(servo)
+        # no baud given: each servo hears any host baud until its Baud Rate register is written
+        self._any_baud = (
+            {id(servo): servo.value(Register.BAUD_RATE) for servo in self.servos}
+            if baud is None and factory <= 0
+            else {}
+        )
         self._home_ids = {id(servo): sid for servo, sid in zip(self.servos, self.ids, strict=True)}
         self.faults = FaultInjector(faults or FaultPlan(seed=seed))
         self.parser = PacketParser()
@@ -187,8 +195,16 @@ class Simulator:
         return [get_model(key) for key in keys]
 
     def hears(self, servo: Servo, baud: int | None) -> bool:
-        """Whether ``servo`` decodes a host talking at ``baud`` (None: no wire, always)."""
-        return baud is None or BAUD_BY_VALUE.get(servo.value(Register.BAUD_RATE)) == baud
+        """Whether ``servo`` decodes a host talking at ``baud`` (None: no wire, always).
+
+        A simulator started without a baud serves clients at whatever rate they open the port
+        with (as before the wire was strict), until the host writes a servo's Baud Rate: from
+        then on that servo hears only its own rate, as a real one does.
+        """
+        register = servo.value(Register.BAUD_RATE)
+        if self._any_baud.get(id(servo)) == register:
+            return True
+        return baud is None or BAUD_BY_VALUE.get(register) == baud
 
     # ------------------------------------------------------------------ time
     def now(self) -> float:

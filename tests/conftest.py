@@ -14,9 +14,10 @@ from firmware_sim.wire import RIG_BAUD
 
 @pytest.fixture
 def sim(tmp_path):
-    """A :class:`SimulatedBus` with servos 1 (pan) and 2 (tilt); checks it shuts down cleanly."""
+    """A :class:`SimulatedBus` with servos 1 (pan) and 2 (tilt) at the rig's 4 Mbps, strict; checks
+    it shuts down cleanly."""
     link = tmp_path / "ttyDXL"
-    with SimulatedBus(ids=(1, 2), link=link) as bus:
+    with SimulatedBus(ids=(1, 2), link=link, baud=RIG_BAUD) as bus:
         yield bus
     assert not bus.running, "the simulator process is still running"
     assert bus.exitcode == 0, f"the simulator process exited with {bus.exitcode}"

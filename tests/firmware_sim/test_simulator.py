@@ -21,7 +21,7 @@ def sdk_at(port_name: str, baud: int) -> PortHandler:
 
 
 def test_a_servo_answers_only_at_its_own_baud(tmp_path):
-    with SimulatedBus(ids=(1, 2), link=tmp_path / "tty") as sim:
+    with SimulatedBus(ids=(1, 2), baud=RIG_BAUD, link=tmp_path / "tty") as sim:
         packet = PacketHandler(2.0)
         slow = sdk_at(sim.port, FACTORY_BAUD)
         assert packet.ping(slow, 1)[1] == COMM_RX_TIMEOUT

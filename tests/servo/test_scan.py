@@ -33,7 +33,7 @@ def test_servos_at_two_bauds_are_both_found(tmp_path):
 
 
 def test_nothing_answering_says_what_to_check(tmp_path):
-    with SimulatedBus(ids=(1,), link=tmp_path / "tty") as sim:
+    with SimulatedBus(ids=(1,), baud=4_000_000, link=tmp_path / "tty") as sim:
         result = scan(sim.port, [57_600], latency_timer_ms=2.0)
     assert result.empty and result.report() == NOTHING_ANSWERS
     assert "dialout" in NOTHING_ANSWERS and "latency timer" in NOTHING_ANSWERS
