@@ -51,9 +51,15 @@ FREE_GAP_DEG = 10.0
 #: Samples within this (deg) of a first-read limit count as at that stop for the second
 #: reading: a hand's stop scatters a few tenths of a degree, the first reading errs ~1 deg.
 STOP_BAND_DEG = 1.5
-#: Weight width (deg, one sigma) of the second reading's plane: ~8 stops of a few thousand
-#: samples over 2 sr within one sigma, local enough for a band's curvature.
-REFINE_SIGMA_DEG = 3.0
+#: Weight width (deg, one sigma) of the second reading's plane: ~10 stops of each side within
+#: one sigma when a few thousand samples hold ~1000 stops over 1.6 sr.
+REFINE_SIGMA_DEG = 5.0
+#: Steepest band limit (rad of twist per rad of direction) either reading believes: a
+#: shoulder's rotation range changes by ~0.5 deg per deg of elevation (0.7 with the centre's
+#: drift in the benchmark's regions). The first reading bounds a limit from below by each sample
+#: with it; the second refuses planes steeper. 3 let both go wrong beside sparse stops (mean
+#: error 0.33 -> 0.59 deg on the shoulder region).
+MAX_SLOPE = 1.0
 #: Nodes kept beyond the farthest taught direction (grid steps): the swing region's margins.
 GRID_PAD = 4
 
@@ -113,6 +119,7 @@ class TwistBand:
             np.ascontiguousarray(tau),
             HULL_TOP,
             math.radians(FREE_GAP_DEG),
+            MAX_SLOPE,
         )
         fitted = np.isfinite(centre)
         if not fitted.any():
@@ -149,8 +156,9 @@ class TwistBand:
         limits = []
         for sign in (1.0, -1.0):
             stop = (sign * (limit - c1) >= h1 - near) & (h1 < math.pi)
-            rel = fk.refine_nodes(nodes, start, members, d, limit, stop, ref, sigma)
-            limits.append(np.where(np.isfinite(rel), rel, sign * half))
+            first = sign * half
+            rel = fk.refine_nodes(nodes, start, members, d, limit, stop, ref, sigma, MAX_SLOPE)
+            limits.append(np.where(np.isfinite(rel), rel, first))
         up, lo = limits
         ok = up >= lo
         centre = np.where(ok, ref + 0.5 * (up + lo), ref)
