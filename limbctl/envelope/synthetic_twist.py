@@ -24,6 +24,7 @@ import numpy as np
 
 from limbctl.envelope.synthetic import PolygonRegion, _cap_directions
 from limbctl.geometry.gimbal import direction_to_pan_tilt, pan_tilt_to_direction
+from limbctl.geometry.quat import rotate, swing_from_direction
 from limbctl.geometry.twist import compose, decompose, wrap
 
 #: A shoulder's swing outline in (pan, tilt) degrees: wide below, a dent between two raised
@@ -176,6 +177,4 @@ class ShoulderRegion:
 def _turn_x_to(p: np.ndarray, offsets: np.ndarray) -> np.ndarray:
     """Directions (N, 3): ``offsets`` (small turns of +x) carried onto ``p`` (N, 3) by the
     shortest rotation from +x to each ``p``."""
-    from limbctl.geometry.quat import rotate, swing_from_direction
-
     return rotate(swing_from_direction(p), offsets)
