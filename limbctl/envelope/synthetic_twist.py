@@ -26,6 +26,7 @@ from limbctl.envelope.synthetic import PolygonRegion, _cap_directions
 from limbctl.geometry.gimbal import direction_to_pan_tilt, pan_tilt_to_direction
 from limbctl.geometry.quat import rotate, swing_from_direction
 from limbctl.geometry.twist import compose, decompose, wrap
+from limbctl.region.twist_kernels import TWIST_TOLERANCE
 
 #: A shoulder's swing outline in (pan, tilt) degrees: wide below, a dent between two raised
 #: lobes on top (concave), well away from pointing backwards (-x).
@@ -89,10 +90,11 @@ class ShoulderRegion:
         return np.radians(c0 + cp * pan_deg + ct * tilt_deg), np.radians(h)
 
     def contains(self, q: np.ndarray) -> np.ndarray:
-        """(N,) bool: direction inside the outline and twist inside the band there."""
+        """(N,) bool: direction inside the outline and twist inside the band there (up to
+        TWIST_TOLERANCE: an orientation composed on a limit reads back within ~1e-15 rad)."""
         d, tau = decompose(np.atleast_2d(q))
         c, h = self.band(d)
-        return self.swing.contains(d) & (np.abs(wrap(tau - c)) <= h)
+        return self.swing.contains(d) & (np.abs(wrap(tau - c)) <= h + TWIST_TOLERANCE)
 
     def _inside_directions(self, n: int, rng: np.random.Generator) -> np.ndarray:
         out = np.empty((0, 3))
