@@ -217,8 +217,23 @@ def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
         # the rig's servos get its hard limits; servos of the source (a leader) their full range
         limits = {**rig.tick_limits(), **{servo_id: (0, MAX_TICK) for servo_id in spec.extra_ids}}
         configure_servos(rig.bus, limits)
-        with spec.open(SourceContext(rig=rig)) as source, stop_on_signals() as stop:
-            if profile.roll is None:
+        if profile.roll is not None:  # three servos: wait for the limb, then open the source
+            from limbctl.teleop.start3 import run_session_three
+
+            with stop_on_signals() as stop:
+                result = run_session_three(
+                    rig,
+                    gate,
+                    lambda: spec.open(SourceContext(rig=rig)),
+                    config,
+                    starting,
+                    telemetry_path=options.telemetry,
+                    stream=sys.stderr,
+                    status=None if options.quiet else sys.stderr,
+                    stop=stop,
+                )
+        else:
+            with spec.open(SourceContext(rig=rig)) as source, stop_on_signals() as stop:
                 result = run_session(
                     rig,
                     gate,
@@ -231,20 +246,6 @@ def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
                     stop=stop,
                     torque_was_on=torque_was_on,
                     publish=live.start_observer(),
-                )
-            else:  # three servos: wait for the limb to start, no park
-                from limbctl.teleop.start3 import run_session_three
-
-                result = run_session_three(
-                    rig,
-                    gate,
-                    source,
-                    config,
-                    starting,
-                    telemetry_path=options.telemetry,
-                    stream=sys.stderr,
-                    status=None if options.quiet else sys.stderr,
-                    stop=stop,
                 )
     for line in result.lines():
         say(line)
