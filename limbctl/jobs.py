@@ -250,12 +250,30 @@ def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
         configure_servos(rig.bus, limits)
         _say_wire_budget(options.rate, rig.bus)
         context = SourceContext(rig=rig, rate_hz=options.rate, gate=gate, page=live.page_connect)
-        with spec.open(context) as source, stop_on_signals() as stop:
-            if spec.kind.scheme == "page":  # printed once: whoever has it can steer
-                say(f"steer from this address (it holds this session's key): {live.control_url}")
-            if source.report_lines():
-                say(source.report_lines()[0])  # what the leader will do, before it starts
-            if profile.roll is None:
+        if profile.roll is not None:  # three servos: wait for the limb, then open the source
+            from limbctl.teleop.start3 import run_session_three
+
+            with stop_on_signals() as stop:
+                result = run_session_three(
+                    rig,
+                    gate,
+                    lambda: spec.open(context),
+                    config,
+                    starting,
+                    telemetry_path=options.telemetry,
+                    stream=sys.stderr,
+                    status=None if options.quiet else sys.stderr,
+                    stop=stop,
+                )
+            source = None
+        else:
+            with spec.open(context) as source, stop_on_signals() as stop:
+                if spec.kind.scheme == "page":  # printed once: whoever has it can steer
+                    say(
+                        f"steer from this address (it holds this session's key): {live.control_url}"
+                    )
+                if source.report_lines():
+                    say(source.report_lines()[0])  # what the leader will do, before it starts
                 result = run_session(
                     rig,
                     gate,
@@ -269,24 +287,11 @@ def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
                     torque_was_on=torque_was_on,
                     publish=live.start_observer(),
                 )
-            else:  # three servos: wait for the limb to start, no park
-                from limbctl.teleop.start3 import run_session_three
-
-                result = run_session_three(
-                    rig,
-                    gate,
-                    source,
-                    config,
-                    starting,
-                    telemetry_path=options.telemetry,
-                    stream=sys.stderr,
-                    status=None if options.quiet else sys.stderr,
-                    stop=stop,
-                )
     from limbctl.geometry.jit import mark_prepared
 
     mark_prepared("gate")
-    for line in (*result.lines(), *source.report_lines()[1:]):
+    extra = () if source is None else source.report_lines()[1:]
+    for line in (*result.lines(), *extra):
         say(line)
     return result.exit_code
 

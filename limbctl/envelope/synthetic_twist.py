@@ -24,7 +24,9 @@ import numpy as np
 
 from limbctl.envelope.synthetic import PolygonRegion, _cap_directions
 from limbctl.geometry.gimbal import direction_to_pan_tilt, pan_tilt_to_direction
+from limbctl.geometry.quat import rotate, swing_from_direction
 from limbctl.geometry.twist import compose, decompose, wrap
+from limbctl.region.twist_kernels import TWIST_TOLERANCE
 
 #: A shoulder's swing outline in (pan, tilt) degrees: wide below, a dent between two raised
 #: lobes on top (concave), well away from pointing backwards (-x).
@@ -88,10 +90,11 @@ class ShoulderRegion:
         return np.radians(c0 + cp * pan_deg + ct * tilt_deg), np.radians(h)
 
     def contains(self, q: np.ndarray) -> np.ndarray:
-        """(N,) bool: direction inside the outline and twist inside the band there."""
+        """(N,) bool: direction inside the outline and twist inside the band there (up to
+        TWIST_TOLERANCE: an orientation composed on a limit reads back within ~1e-15 rad)."""
         d, tau = decompose(np.atleast_2d(q))
         c, h = self.band(d)
-        return self.swing.contains(d) & (np.abs(wrap(tau - c)) <= h)
+        return self.swing.contains(d) & (np.abs(wrap(tau - c)) <= h + TWIST_TOLERANCE)
 
     def _inside_directions(self, n: int, rng: np.random.Generator) -> np.ndarray:
         out = np.empty((0, 3))
@@ -176,6 +179,4 @@ class ShoulderRegion:
 def _turn_x_to(p: np.ndarray, offsets: np.ndarray) -> np.ndarray:
     """Directions (N, 3): ``offsets`` (small turns of +x) carried onto ``p`` (N, 3) by the
     shortest rotation from +x to each ``p``."""
-    from limbctl.geometry.quat import rotate, swing_from_direction
-
     return rotate(swing_from_direction(p), offsets)

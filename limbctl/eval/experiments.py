@@ -280,6 +280,7 @@ def run_eval(
         1 when the SOM reproduction number fell outside its expected band.
     """
     from limbctl.eval import plots as eval_plots
+    from limbctl.eval.twist import run_twist
 
     scale = "smoke" if smoke else "quick" if quick else "full"
     out = Path(out)
@@ -290,9 +291,10 @@ def run_eval(
     figures = eval_plots.draw_all(table, out)
     summary = eval_plots.summary_markdown(table, scale)
     (out / "summary.md").write_text(summary.text)
+    headline = [*summary.headline, *run_twist(out, scale)]
     elapsed = time.perf_counter() - started
     print(f"limbctl eval ({scale}): {len(rows)} rows in {elapsed:.1f} s -> {out}")
-    for line in summary.headline:
+    for line in headline:
         print(f"  {line}")
     for path in figures:
         print(f"  figure {path}")

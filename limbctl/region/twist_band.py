@@ -51,9 +51,18 @@ FREE_GAP_DEG = 10.0
 #: Samples within this (deg) of a first-read limit count as at that stop for the second
 #: reading: a hand's stop scatters a few tenths of a degree, the first reading errs ~1 deg.
 STOP_BAND_DEG = 1.5
-#: Weight width (deg, one sigma) of the second reading's plane: ~8 stops of a few thousand
-#: samples over 2 sr within one sigma, local enough for a band's curvature.
-REFINE_SIGMA_DEG = 3.0
+#: Weight width (deg, one sigma) of the second reading's plane: ~10 stops of each side within
+#: one sigma when a few thousand samples hold ~1000 stops over 1.6 sr.
+REFINE_SIGMA_DEG = 5.0
+#: Steepest band limit (rad of twist per rad of direction) either reading believes: a
+#: shoulder's rotation range changes by ~0.5 deg per deg of elevation (0.7 with the centre's
+#: drift in the benchmark's regions). The first reading bounds a limit from below by each sample
+#: with it; the second refuses planes steeper. 3 let both go wrong beside sparse stops (mean
+#: error 0.33 -> 0.59 deg on the shoulder region).
+MAX_SLOPE = 1.0
+#: The first reading's grid is this many times coarser than the band's: it only sorts samples
+#: into stops for the second, and the hull is most of the fit's time (x4 fewer nodes).
+FIRST_COARSENESS = 2
 #: Nodes kept beyond the farthest taught direction (grid steps): the swing region's margins.
 GRID_PAD = 4
 
@@ -84,8 +93,12 @@ class TwistBand:
         """Learn the band from taught directions ``d`` (N, 3) and twists ``tau`` (N,) (rad).
 
         ``axis`` (3,) is the plane's axis (the swing region's); ``reach`` (rad) how far beyond
-        the taught directions the grid must extend (the swing region's largest margin).
+        the taught directions the grid must extend (the swing region's largest margin). The
+        first reading runs on a grid FIRST_COARSENESS times coarser (it only sorts the samples
+        into stops), the second on the band's own grid.
         """
+        d = np.ascontiguousarray(d, dtype=np.float64)
+        tau = np.ascontiguousarray(tau, dtype=np.float64)
         u, v = tangent_frame(np.asarray(axis, dtype=np.float64))
         frame = np.stack([axis, u, v])
         xy = plane_xy(d, frame)
@@ -93,26 +106,21 @@ class TwistBand:
         pad = reach + GRID_PAD * step
         lo = xy.min(axis=0) - pad
         n = np.ceil((xy.max(axis=0) + pad - lo) / step).astype(int) + 1
-        gx = lo[0] + step * np.arange(n[0])
-        gy = lo[1] + step * np.arange(n[1])
-        nodes = plane_to_direction(
-            np.stack(np.meshgrid(gx, gy, indexing="ij"), axis=-1).reshape(-1, 2), frame
-        )
-        # chord of the neighbourhood's angle; pairs (node, sample) within it, by node
-        chord = 2.0 * math.sin(0.5 * math.radians(BAND_RADIUS_DEG))
-        pairs = cKDTree(nodes).sparse_distance_matrix(cKDTree(d), chord, output_type="ndarray")
-        order = np.argsort(pairs["i"], kind="stable")
-        members = np.ascontiguousarray(pairs["j"][order], dtype=np.int64)
-        counts = np.bincount(pairs["i"], minlength=nodes.shape[0])
-        start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+        coarse = cls._first(d, tau, frame, lo, step * FIRST_COARSENESS, n // FIRST_COARSENESS + 2)
+        nodes = _grid_nodes(frame, lo, step, n)
+        start, members = _neighbours(nodes, d)
+        ref, half = coarse.at(nodes)
+        band = cls(frame, np.array([lo[0], lo[1], step]), ref.reshape(n), half.reshape(n))
+        band._refine(coarse, nodes, start, members, d, tau)
+        return band
+
+    @classmethod
+    def _first(cls, d, tau, frame, lo, step, n) -> TwistBand:
+        """The first reading (the module docstring, step 1) on a grid ``step`` (rad) apart."""
+        nodes = _grid_nodes(frame, lo, step, n)
+        start, members = _neighbours(nodes, d)
         centre, half = fk.fit_nodes(
-            nodes,
-            start,
-            members,
-            np.ascontiguousarray(d),
-            np.ascontiguousarray(tau),
-            HULL_TOP,
-            math.radians(FREE_GAP_DEG),
+            nodes, start, members, d, tau, HULL_TOP, math.radians(FREE_GAP_DEG), MAX_SLOPE
         )
         fitted = np.isfinite(centre)
         if not fitted.any():
@@ -125,21 +133,20 @@ class TwistBand:
             _, nearest = cKDTree(nodes[fitted]).query(nodes[~fitted])
             centre[~fitted] = centre[fitted][nearest]
             half[~fitted] = half[fitted][nearest]
-        centre = unwrap_grid(centre.reshape(n[0], n[1])).ravel()
-        band = cls(frame, np.array([lo[0], lo[1], step]), centre.reshape(n), half.reshape(n))
-        band._refine(nodes, start, members, d, tau)
-        return band
+        centre = unwrap_grid(centre.reshape(n[0], n[1]))
+        return cls(frame, np.array([lo[0], lo[1], step]), centre, half.reshape(n[0], n[1]))
 
     def _refine(
         self,
+        first: TwistBand,
         nodes: np.ndarray,
         start: np.ndarray,
         members: np.ndarray,
         d: np.ndarray,
         tau: np.ndarray,
     ) -> None:
-        """Second reading of both limits (the module docstring, step 2)."""
-        c1, h1 = self.at(d)
+        """Second reading of both limits (the module docstring, step 2) from the ``first``."""
+        c1, h1 = first.at(d)
         # each sample's twist unwrapped against the (continuous) first centre over it
         limit = c1 + wrap(tau - c1)
         near = math.radians(STOP_BAND_DEG)
@@ -149,8 +156,9 @@ class TwistBand:
         limits = []
         for sign in (1.0, -1.0):
             stop = (sign * (limit - c1) >= h1 - near) & (h1 < math.pi)
-            rel = fk.refine_nodes(nodes, start, members, d, limit, stop, ref, sigma)
-            limits.append(np.where(np.isfinite(rel), rel, sign * half))
+            first_read = sign * half
+            rel = fk.refine_nodes(nodes, start, members, d, limit, stop, ref, sigma, MAX_SLOPE)
+            limits.append(np.where(np.isfinite(rel), rel, first_read))
         up, lo = limits
         ok = up >= lo
         centre = np.where(ok, ref + 0.5 * (up + lo), ref)
@@ -185,6 +193,26 @@ class TwistBand:
             arrays["twist_centre"],
             arrays["twist_half"],
         )
+
+
+def _grid_nodes(frame: np.ndarray, lo: np.ndarray, step: float, n: np.ndarray) -> np.ndarray:
+    """Directions (n0 n1, 3) of the plane grid from ``lo`` (2,), ``step`` (rad) apart, row major."""
+    gx = lo[0] + step * np.arange(n[0])
+    gy = lo[1] + step * np.arange(n[1])
+    return plane_to_direction(
+        np.stack(np.meshgrid(gx, gy, indexing="ij"), axis=-1).reshape(-1, 2), frame
+    )
+
+
+def _neighbours(nodes: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Samples within BAND_RADIUS_DEG of each node, CSR: ``members[start[i]:start[i + 1]]``."""
+    # chord of the neighbourhood's angle; pairs (node, sample) within it, by node
+    chord = 2.0 * math.sin(0.5 * math.radians(BAND_RADIUS_DEG))
+    pairs = cKDTree(nodes).sparse_distance_matrix(cKDTree(d), chord, output_type="ndarray")
+    order = np.argsort(pairs["i"], kind="stable")
+    members = np.ascontiguousarray(pairs["j"][order], dtype=np.int64)
+    counts = np.bincount(pairs["i"], minlength=nodes.shape[0])
+    return np.concatenate([[0], np.cumsum(counts)]).astype(np.int64), members
 
 
 def plane_xy(d: np.ndarray, frame: np.ndarray) -> np.ndarray:

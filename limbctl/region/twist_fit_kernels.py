@@ -51,7 +51,7 @@ def upper_hull(px, py, t, top) -> float:
 
 
 @njit(parallel=True)
-def fit_nodes(nodes, start, members, d, tau, top, free_gap):
+def fit_nodes(nodes, start, members, d, tau, top, free_gap, slope):
     """Band centre and half-width (rad) at each node direction (M, 3) from the samples near it.
 
     ``members[start[i]:start[i + 1]]`` are the rows of ``d`` (N, 3), ``tau`` (N,) within the
@@ -59,8 +59,10 @@ def fit_nodes(nodes, start, members, d, tau, top, free_gap):
     middle of the arc they occupy (the complement of their largest gap); a largest gap below
     ``free_gap`` leaves the twist free there (half-width pi). The limits are the upper hull's
     height over the node of (tangent coordinates, twist), and of its negative for the lower
-    limit (:func:`upper_hull`, ``top`` highest). NaN where fewer than 3 samples or no triangle
-    of them holds the node.
+    limit (:func:`upper_hull`, ``top`` highest), and never below what one sample bounds it to
+    if the limit slopes at most ``slope`` (rad/rad): ``max_i (t_i - slope |x_i|)`` (where no
+    triangle of the highest holds the node, as beside the swing edge, this alone reads it).
+    NaN where fewer than 3 samples.
     """
     m = nodes.shape[0]
     centre = np.full(m, np.nan)
@@ -110,7 +112,14 @@ def fit_nodes(nodes, start, members, d, tau, top, free_gap):
             t[a] = wrap(tau[j] - ref)
         up = upper_hull(px, py, t, top)
         lo = -upper_hull(px, py, -t, top)
-        if not up >= lo:  # NaN (no hull over the node) fails too
+        for a in range(k):
+            # one sample bounds a limit of slope <= slope: u(node) >= t_a - slope |x_a|
+            r = slope * math.sqrt(px[a] * px[a] + py[a] * py[a])
+            if not up >= t[a] - r:
+                up = t[a] - r
+            if not lo <= t[a] + r:
+                lo = t[a] + r
+        if not up >= lo:
             continue
         centre[i] = ref + 0.5 * (up + lo)
         half[i] = 0.5 * (up - lo)
@@ -118,7 +127,7 @@ def fit_nodes(nodes, start, members, d, tau, top, free_gap):
 
 
 @njit(parallel=True)
-def refine_nodes(nodes, start, members, d, limit, stop, ref, sigma):
+def refine_nodes(nodes, start, members, d, limit, stop, ref, sigma, max_slope):
     """Band limits at nodes (M,) re-read as a weighted local plane through the stop samples.
 
     ``limit`` (N,) are the samples' twists unwrapped against the first estimate's (continuous)
@@ -128,7 +137,8 @@ def refine_nodes(nodes, start, members, d, limit, stop, ref, sigma):
     (tangent position ``x``, weights
     ``exp(-angle^2 / (2 sigma^2))``): the mean of the stops, so without the hull's pull toward
     the highest one, and unbiased by a slope. NaN where fewer than 3 stop samples or they lie on
-    a line.
+    a line, and where the plane slopes more than ``max_slope`` (rad/rad), as one through stops
+    bunched on one side of the node can.
     """
     m = nodes.shape[0]
     out = np.full(m, np.nan)
@@ -172,5 +182,6 @@ def refine_nodes(nodes, start, members, d, limit, stop, ref, sigma):
         if np.linalg.det(a) <= 1e-12 * a[0, 0] ** 3:
             continue
         sol = np.linalg.solve(a, b)
-        out[i] = sol[0]
+        if math.hypot(sol[1], sol[2]) <= max_slope:
+            out[i] = sol[0]
     return out

@@ -164,7 +164,7 @@ def _correct_one(q, mesh, band, seeds, seed_dirs, out, work) -> int:
     base = bk.WORK_ROWS
     qc = np.empty(4)
     for k in range(4):
-        qc[k] = sign * q[k] / math.sqrt(norm2)
+        qc[k] = sign * q[k]
     w, x, y, z = qc[0], qc[1], qc[2], qc[3]
     dq = work[base]
     dq[0] = w * w + x * x - y * y - z * z

@@ -22,6 +22,7 @@ from __future__ import annotations
 import math
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import IO, Any
 
@@ -109,7 +110,7 @@ def start_three(
 def run_session_three(
     rig: Any,
     gate: Gate3,
-    source: CommandSource,
+    open_source: Callable[[], CommandSource],
     config: LoopConfig,
     starting: StartOptions,
     telemetry_path: str | Path | None = None,
@@ -117,8 +118,12 @@ def run_session_three(
     status: IO[str] | None = None,
     stop: threading.Event | None = None,
 ) -> SessionResult:
-    """Start (waiting), run the control loop; the same value as the two-servo session, with no
-    park (see the module docstring)."""
+    """Start (waiting), then open the command source with ``open_source()`` and run the control
+    loop; the same value as the two-servo session, with no park (see the module docstring).
+
+    The source opens only once the limb is held inside: a replayed stream paced by its ``"t"``
+    then starts with the loop, instead of running on (and going stale) while the start waits.
+    """
     stop = stop or threading.Event()
     telemetry_file = open_telemetry(telemetry_path)
     try:
@@ -127,7 +132,13 @@ def run_session_three(
             return SessionResult(start)
         telemetry = Telemetry(telemetry_file) if telemetry_file is not None else None
         try:
-            summary = run(rig, gate, source, config, telemetry, status, stop)  # type: ignore[arg-type]
+            opened = open_source()
+        except Exception:
+            rig.set_torque(False)  # no source after all: leave the limb free, as before the start
+            raise
+        try:
+            with opened as source:
+                summary = run(rig, gate, source, config, telemetry, status, stop)  # type: ignore[arg-type]
         except SafetyError:
             rig.set_torque(False)  # the limb moved out as the loop began: leave it free
             raise

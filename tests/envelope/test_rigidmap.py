@@ -271,3 +271,65 @@ def test_hand_taught_gate_promises(hand_model, pan, tilt, twist):
         assert hand_model.contains(out)
         np.testing.assert_array_equal(hand_model.correct(out), out)
         assert geodesic_distance(swing_twist(out)[1], swing_twist(q)[1]) < 1e-6
+
+
+# ---- three-servo limbs: RigidMap(twist=True) ---------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def twist_model():
+    from limbctl.envelope.synthetic import rounded
+    from limbctl.envelope.synthetic_twist import SHOULDER, ShoulderRegion
+
+    truth = ShoulderRegion(rounded(SHOULDER))
+    q = truth.teaching(800, 600, 1000, np.random.default_rng(0))
+    return truth, RigidMap(nodes=500, seed=0, twist=True).fit(q)
+
+
+def test_twist_model_round_trips_and_records_its_kind(twist_model, tmp_path):
+    from limbctl.envelope import load_header
+    from limbctl.region.twist_region import TwistRegion
+
+    truth, m = twist_model
+    path = m.save(tmp_path / "twist.npz")
+    header = load_header(path)
+    assert header["params"]["twist"] is True and len(header["sha256"]) == 64
+    m2 = RigidMap.load(path)
+    assert m2.twist and isinstance(m2.region, TwistRegion)
+    rng = np.random.default_rng(1)
+    q = rng.normal(size=(300, 4))
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    np.testing.assert_array_equal(m2.correct(q), m.correct(q))
+    np.testing.assert_array_equal(m2.contains(q), m.contains(q))
+    np.testing.assert_array_equal(m2.weights, m.weights)
+    # a changed byte is caught by the checksum
+    raw = bytearray(path.read_bytes())
+    raw[len(raw) // 2] ^= 0xFF
+    (tmp_path / "bad.npz").write_bytes(bytes(raw))
+    with pytest.raises(Exception, match="checksum|corrupt|readable"):
+        RigidMap.load(tmp_path / "bad.npz")
+
+
+def test_twist_model_corrects_on_so3_and_the_swing_model_keeps_twist(twist_model, cone_model):
+    from limbctl.geometry.twist import compose, decompose
+
+    truth, m = twist_model
+    d = truth._inside_directions(200, np.random.default_rng(2))
+    c, h = truth.band(d)
+    # twist far outside the band at directions well inside the outline
+    q = compose(d, c + h + np.radians(30.0))
+    out = m.correct(q)
+    assert m.contains(out).all() and not m.contains(q).any()
+    # the nearest orientation moves the twist (and maybe the direction), not only the direction
+    assert np.all(geodesic_distance(q, out) <= np.radians(30.0) + 1e-9)
+    _, region = cone_model
+    kept = region.correct(q)
+    np.testing.assert_allclose(decompose(kept)[1], decompose(q)[1], atol=1e-9)
+
+
+def test_swing_only_models_save_no_twist_key(cone_model, tmp_path):
+    from limbctl.envelope import load_header
+
+    _, m = cone_model
+    assert not m.twist
+    assert "twist" not in load_header(m.save(tmp_path / "m.npz"))["params"]

@@ -132,7 +132,7 @@ def test_grids_cover_every_experiment_at_every_scale():
 def test_run_eval_smoke_grid_end_to_end(tmp_path, capsys):
     out = tmp_path / "eval"
     assert run_eval(out, jobs=2, progress=False, smoke=True) == 0
-    for name in ("runs.csv", "summary.md", "som_figure2.png", "rigidmap_figure2.png"):
+    for name in ("runs.csv", "summary.md", "som_figure2.png", "rigidmap_figure2.png", "twist.md"):
         assert (out / name).stat().st_size > 0
     assert (out / "gate_metrics.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     rows = read_rows(out / "runs.csv")

@@ -46,12 +46,19 @@ def test_session_on_three_servos_keeps_every_goal_in_the_region(tmp_path):
         configure_servos(rig.bus, rig.tick_limits())
         stream = tmp_path / "commands.jsonl"
         stream.write_text(lines)
-        with parse_source(f"replay:{stream}").open(SourceContext(rig=rig)) as source:
+        opened = []
+
+        def open_source():
+            source = parse_source(f"replay:{stream}").open(SourceContext(rig=rig))
             assert source.twist  # a rig with roll: the lines keep their twist
-            result = run_session_three(
-                rig, gate, source, LoopConfig(rate_hz=200.0), StartOptions(wait_s=5.0),
-                stop=threading.Event(),
-            )  # fmt: skip
+            opened.append(source)
+            return source
+
+        result = run_session_three(
+            rig, gate, open_source, LoopConfig(rate_hz=200.0), StartOptions(wait_s=5.0),
+            stop=threading.Event(),
+        )  # fmt: skip
+        assert len(opened) == 1 and opened[0].finished
     assert result.start.started and result.start.how == "inside"
     assert result.summary.exit_code == 0, result.lines()
     assert result.summary.goals_written > 300

@@ -1,0 +1,89 @@
+"""The band's fitting kernels against their numpy twins and on planes they must read exactly."""
+
+import math
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from limbctl.geometry.twist import wrap
+from limbctl.region.twist_band import upper_hull_reference
+from limbctl.region.twist_fit_kernels import fit_nodes, refine_nodes, upper_hull
+
+
+@settings(max_examples=100, deadline=None)
+@given(seed=st.integers(0, 10**6), n=st.integers(3, 30), top=st.integers(3, 24))
+def test_upper_hull_matches_its_numpy_twin(seed, n, top):
+    rng = np.random.default_rng(seed)
+    px, py = rng.normal(size=(2, n))
+    t = rng.normal(size=n)
+    got = upper_hull(px, py, t, top)
+    expected = upper_hull_reference(px, py, t, top)
+    assert (np.isnan(got) and np.isnan(expected)) or math.isclose(got, expected, abs_tol=1e-12)
+
+
+def test_upper_hull_reads_a_sloping_plane_exactly_and_fails_outside_the_points():
+    rng = np.random.default_rng(1)
+    px, py = rng.uniform(-1, 1, (2, 40))
+    t = 0.3 + 0.7 * px - 0.4 * py
+    assert math.isclose(upper_hull(px, py, t, 24), 0.3, abs_tol=1e-12)
+    # points on one side only: no triangle holds the origin
+    assert np.isnan(upper_hull(np.abs(px) + 0.1, py, t, 24))
+
+
+def _disk_samples(rng, n, radius):
+    """Unit directions within ``radius`` of +z, and the node +z itself."""
+    r = radius * np.sqrt(rng.uniform(0, 1, n))
+    a = rng.uniform(-math.pi, math.pi, n)
+    d = np.stack([np.sin(r) * np.cos(a), np.sin(r) * np.sin(a), np.cos(r)], axis=-1)
+    return d, np.array([[0.0, 0.0, 1.0]])
+
+
+def test_both_readings_find_planar_limits_at_the_node():
+    rng = np.random.default_rng(2)
+    # few enough that the 24 highest twists are the upper stops all round the node
+    d, node = _disk_samples(rng, 60, math.radians(8))
+    # the kernels' tangent frame at +z: e1 = (z, 0, -x) = (1, 0, 0), e2 = node x e1 = (0, 1, 0)
+    x, y = d[:, 0], d[:, 1]
+    upper = 0.5 + 0.4 * x - 0.3 * y
+    lower = -0.4 + 0.2 * x + 0.1 * y
+    side = rng.choice([-1, 0, 1], d.shape[0])
+    tau = np.where(side > 0, upper, np.where(side < 0, lower, rng.uniform(lower, upper)))
+    start = np.array([0, d.shape[0]], dtype=np.int64)
+    members = np.arange(d.shape[0], dtype=np.int64)
+    centre, half = fit_nodes(node, start, members, d, tau, 24, math.radians(10), 1.0)
+    # the centre is the middle of the occupied arc, any turn of the circle
+    assert math.isclose(wrap(centre[0] + half[0] - 0.5), 0.0, abs_tol=1e-9)
+    assert math.isclose(wrap(centre[0] - half[0] + 0.4), 0.0, abs_tol=1e-9)
+    ref = np.array([centre[0]])
+    for limit, stop in ((upper, side > 0), (lower, side < 0)):
+        rel = refine_nodes(node, start, members, d, limit, stop, ref, math.radians(5), 1.0)
+        expected = 0.5 if limit is upper else -0.4
+        assert math.isclose(wrap(ref[0] + rel[0] - expected), 0.0, abs_tol=1e-9)
+
+
+def test_free_twist_and_too_few_samples():
+    rng = np.random.default_rng(3)
+    d, node = _disk_samples(rng, 300, math.radians(8))
+    tau = rng.uniform(-math.pi, math.pi, d.shape[0])
+    start = np.array([0, d.shape[0]], dtype=np.int64)
+    members = np.arange(d.shape[0], dtype=np.int64)
+    _, half = fit_nodes(node, start, members, d, tau, 24, math.radians(10), 1.0)
+    assert half[0] == math.pi
+    few = np.array([0, 2], dtype=np.int64)
+    centre, _ = fit_nodes(node, few, members, d, tau, 24, math.radians(10), 1.0)
+    assert np.isnan(centre[0])
+
+
+def test_refine_refuses_planes_steeper_than_allowed():
+    rng = np.random.default_rng(4)
+    d, node = _disk_samples(rng, 300, math.radians(8))
+    limit = 3.0 * d[:, 0]  # slope 3 rad/rad
+    start = np.array([0, d.shape[0]], dtype=np.int64)
+    members = np.arange(d.shape[0], dtype=np.int64)
+    stop = np.ones(d.shape[0], dtype=bool)
+    ref = np.zeros(1)
+    assert np.isnan(refine_nodes(node, start, members, d, limit, stop, ref, 0.1, 1.0)[0])
+    assert math.isclose(
+        refine_nodes(node, start, members, d, limit, stop, ref, 0.1, 4.0)[0], 0.0, abs_tol=1e-9
+    )

@@ -1,0 +1,70 @@
+"""The search's score against brute force over twists, and the kernels' compose and wrap."""
+
+import math
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from limbctl.geometry.quat import geodesic_distance, tangent_frame
+from limbctl.geometry.twist import compose, wrap
+from limbctl.region import twist_kernels as tk
+from limbctl.region.twist_band import TwistBand
+
+unit_quats = st.lists(st.floats(-1, 1, allow_nan=False), min_size=4, max_size=4).filter(
+    lambda v: np.linalg.norm(v) > 0.1
+)
+directions = st.lists(st.floats(-1, 1, allow_nan=False), min_size=3, max_size=3).filter(
+    lambda v: np.linalg.norm(v) > 0.1
+)
+
+
+def _band(centre: float, half: float) -> TwistBand:
+    axis = np.array([1.0, 0.0, 0.0])
+    u, v = tangent_frame(axis)
+    grid = np.array([-4.0, -4.0, 4.0])
+    return TwistBand(np.stack([axis, u, v]), grid, np.full((3, 3), centre), np.full((3, 3), half))
+
+
+@settings(max_examples=200, deadline=None)
+@given(v=unit_quats, dv=directions, centre=st.floats(-4, 4), half=st.floats(0, 3.2))
+def test_score_is_the_best_twist_over_a_direction(v, dv, centre, half):
+    q = np.asarray(v) / np.linalg.norm(v)
+    q = -q if q[0] < 0 else q
+    d = np.asarray(dv) / np.linalg.norm(dv)
+    dq = np.array(
+        [
+            q[0] ** 2 + q[1] ** 2 - q[2] ** 2 - q[3] ** 2,
+            2 * (q[1] * q[2] + q[0] * q[3]),
+            2 * (q[1] * q[3] - q[0] * q[2]),
+        ]
+    )
+    if d @ dq < -1 + 1e-6 or d[0] < -1 + 1e-6:
+        return
+    half = min(half, math.pi)
+    band = _band(centre, half)
+    f, tau = tk._score(q, dq, d, *band.kernel_args())
+    # brute force over twists in the band, 2001 of them
+    taus = centre + half * np.linspace(-1.0, 1.0, 2001)
+    g = geodesic_distance(q, compose(np.repeat(d[None], taus.size, axis=0), taus))
+    assert 2.0 * math.acos(min(f, 1.0)) <= g.min() + 1e-6
+    assert abs(2.0 * math.acos(min(f, 1.0)) - g.min()) < half * 2 / 2000 + 1e-6
+    # the twist it returns lies in the band and gives that distance
+    assert abs(wrap(tau - centre)) <= half + 1e-12
+    got = float(geodesic_distance(q, compose(d, tau)))
+    assert abs(got - 2.0 * math.acos(min(f, 1.0))) < 1e-6
+
+
+@settings(max_examples=200, deadline=None)
+@given(dv=directions, tau=st.floats(-10, 10))
+def test_kernel_compose_matches_geometry(dv, tau):
+    d = np.asarray(dv) / np.linalg.norm(dv)
+    out = np.empty(4)
+    tk._compose_into(d, tau, out)
+    np.testing.assert_allclose(out, compose(d, tau), atol=1e-12)
+
+
+@settings(max_examples=200, deadline=None)
+@given(a=st.floats(-100, 100))
+def test_kernel_wrap_matches_geometry(a):
+    assert tk.wrap(a) == float(wrap(a))

@@ -1,0 +1,225 @@
+"""The three-dimensional region: containment, and correct() as the nearest orientation on SO(3)
+checked against a brute-force nearest point over a dense sampling of the region's boundary."""
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.spatial import cKDTree
+
+from limbctl.envelope.synthetic import rounded
+from limbctl.envelope.synthetic_twist import SHOULDER, ShoulderRegion
+from limbctl.errors import ConfigError, InvalidInputError
+from limbctl.geometry.quat import geodesic_distance
+from limbctl.geometry.twist import compose, decompose, wrap
+from limbctl.region.twist_region import TwistRegion, boundary_samples
+
+unit_quats = st.lists(st.floats(-1, 1, allow_nan=False), min_size=4, max_size=4).filter(
+    lambda v: np.linalg.norm(v) > 0.1
+)
+
+#: 2 acos|<p, q>| resolves ~1e-8 rad near 0 (acos at 1): comparisons of distances allow this.
+ACOS_NOISE = 1e-7
+
+
+def _fitted(centre_deg: float, seed: int):
+    truth = ShoulderRegion(rounded(SHOULDER), centre_deg=centre_deg)
+    q = truth.teaching(1500, 1000, 1800, np.random.default_rng(seed))
+    return truth, TwistRegion().fit(q), q
+
+
+@pytest.fixture(scope="module")
+def shoulder():
+    return _fitted(10.0, 1)
+
+
+@pytest.fixture(scope="module")
+def wrapped():
+    """A band centred near 170 deg: it crosses +-180 over much of the outline."""
+    return _fitted(170.0, 2)
+
+
+@pytest.fixture(scope="module")
+def brute(shoulder):
+    _, region, _ = shoulder
+    b = boundary_samples(region, 0.3)
+    both = np.vstack([b, -b])
+    return cKDTree(both), both
+
+
+def _commands(truth, n, rng, outside_deg=30.0):
+    """Directions up to outside_deg beyond the outline's reach, twists up to 40 deg past the
+    band: inside and outside commands, some far."""
+    from limbctl.envelope.synthetic import _cap_directions
+
+    d = _cap_directions(n, truth.swing.axis, truth.swing.radius + math.radians(outside_deg), rng)
+    c, h = truth.band(d)
+    return compose(d, c + (h + math.radians(40.0)) * rng.uniform(-1.0, 1.0, n))
+
+
+def test_correct_is_the_brute_force_nearest_orientation(shoulder, brute):
+    truth, region, _ = shoulder
+    tree, points = brute
+    q = _commands(truth, 1500, np.random.default_rng(5))
+    out = region.correct(q)
+    outside = ~region.contains(q)
+    _, i = tree.query(q[outside])
+    reference = geodesic_distance(q[outside], points[i])
+    found = geodesic_distance(q[outside], out[outside])
+    excess = np.degrees(found - reference)
+    # the brute force's points are in the region, so an exact answer is never farther; its
+    # 0.3 deg lattice leaves it up to ~0.2 deg short of the nearest boundary point
+    assert excess.mean() < 0.0
+    assert np.percentile(excess, 99) < 0.1
+    assert excess.max() < 1.5
+    assert outside.sum() > 500
+
+
+def test_answers_lie_in_the_region_and_inside_commands_pass_unchanged(shoulder):
+    truth, region, _ = shoulder
+    q = _commands(truth, 3000, np.random.default_rng(6))
+    out = region.correct(q)
+    assert region.contains(out).all()
+    inside = region.contains(q)
+    assert inside.sum() > 300
+    np.testing.assert_array_equal(out[inside], q[inside] * np.sign(q[inside, :1] + 0.0))
+    assert np.allclose(np.linalg.norm(out, axis=1), 1.0, atol=1e-12)
+
+
+def test_correct_beats_the_swing_then_twist_clamp_on_the_same_region(shoulder):
+    truth, region, _ = shoulder
+    q = _commands(truth, 1500, np.random.default_rng(7))
+    d, tau = decompose(q)
+    d2 = region.mesh.project(d)
+    c, h = region.band.at(d2)
+    clamp = compose(d2, c + np.clip(wrap(tau - c), -h, h))
+    assert region.contains(clamp).all()
+    found = geodesic_distance(q, region.correct(q))
+    two_step = geodesic_distance(q, clamp)
+    # 2 acos|<p, q>| is good to ~1e-8 rad near 0 (acos at 1)
+    assert np.all(found <= two_step + ACOS_NOISE)
+    # and it is not the same answer: the clamp is several degrees farther on average
+    assert np.degrees(np.mean(two_step - found)) > 2.0
+
+
+def test_the_learned_region_is_the_true_one_within_a_degree(shoulder):
+    truth, region, taught = shoulder
+    rng = np.random.default_rng(8)
+    q = _commands(truth, 4000, rng)
+    out = region.correct(q)
+    # answers: inside the true region, or within 1 deg of its boundary
+    outside_truth = ~truth.contains(out)
+    # the lattice's points lie on the true boundary: a gap measured to them is never short
+    b = truth.boundary(0.4)
+    gap = np.degrees(cKDTree(np.vstack([b, -b])).query(out[outside_truth])[0])
+    # chord in R^4 of a geodesic angle g is 2 sin(g/4)
+    gap = 4.0 * np.degrees(np.arcsin(np.radians(gap) / 2.0))
+    assert np.mean(gap <= 1.0) * outside_truth.sum() >= outside_truth.sum() - 0.005 * len(q)
+
+
+def test_band_crossing_half_turn_is_held_and_corrected(wrapped):
+    truth, region, taught = wrapped
+    d, tau = decompose(taught)
+    assert np.mean(np.abs(tau) > math.radians(170.0)) > 0.1
+    rng = np.random.default_rng(9)
+    # poses 2 deg or more inside, with twists on both sides of +-180
+    dd = truth._inside_directions(3000, rng)
+    c, h = truth.band(dd)
+    q = compose(dd, c + (h - math.radians(2.0)) * rng.uniform(-1.0, 1.0, dd.shape[0]))
+    deep = truth.swing.depth(dd) >= math.radians(2.0)
+    assert region.contains(q[deep]).mean() >= 0.99
+    far = compose(dd, c + math.pi)  # the opposite twist: as far out as twist goes
+    out = region.correct(far)
+    assert region.contains(out).all()
+    _, t_out = decompose(out)
+    c_out, h_out = region.band.at(decompose(out)[0])
+    assert np.all(np.abs(wrap(t_out - c_out)) <= h_out + 1e-9)
+
+
+@settings(max_examples=150, deadline=None)
+@given(v=unit_quats)
+def test_commands_anywhere_on_so3_come_back_inside_and_no_farther_than_any_seed(shoulder, v):
+    _, region, _ = shoulder
+    q = np.asarray(v) / np.linalg.norm(v)
+    out = region.correct(q)
+    assert out.shape == (4,) and out[0] >= 0.0
+    assert abs(np.linalg.norm(out) - 1.0) < 1e-12
+    assert region.contains(out)
+    if region.contains(q):
+        np.testing.assert_array_equal(out, q if q[0] >= 0 else -q)
+    else:
+        g = geodesic_distance(q, out)
+        assert g <= geodesic_distance(q, region.seeds).min() + ACOS_NOISE
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    k=st.integers(0, 10**6),
+    inward=st.floats(-3.0, 3.0),
+    twist=st.floats(-1.0, 1.0),
+    beyond=st.floats(-5.0, 5.0),
+)
+def test_commands_near_the_edge_and_near_the_stops(shoulder, k, inward, twist, beyond):
+    """Directions within 3 deg of the swing edge, twists within 5 deg of a stop."""
+    _, region, _ = shoulder
+    mesh = region.mesh
+    e = mesh.edges[k % mesh.edges.shape[0]]
+    a, b = mesh.vertices[e[0]], mesh.vertices[e[1]]
+    p = (a + b) / np.linalg.norm(a + b)
+    towards = mesh.axis - np.dot(mesh.axis, p) * p
+    p = p * math.cos(math.radians(inward)) + towards / np.linalg.norm(towards) * math.sin(
+        math.radians(inward)
+    )
+    c, h = region.band.at(p[None])
+    tau = c[0] + math.copysign(1.0, twist) * (h[0] + math.radians(beyond))
+    q = compose(p, tau)
+    out = region.correct(q)
+    assert region.contains(out)
+    # never farther than the engines' two steps on the same region
+    d2 = mesh.project(p[None])
+    c2, h2 = region.band.at(d2)
+    clamp = compose(d2[0], c2[0] + np.clip(wrap(tau - c2[0]), -h2[0], h2[0]))
+    assert geodesic_distance(q, out) <= geodesic_distance(q, clamp) + ACOS_NOISE
+
+
+def test_single_and_batch_agree(shoulder):
+    truth, region, _ = shoulder
+    q = _commands(truth, 200, np.random.default_rng(10))
+    batch = region.correct(q)
+    for row, expected in zip(q, batch, strict=True):
+        np.testing.assert_array_equal(region.correct(row), expected)
+        assert region.contains(row) == region.contains(row[None])[0]
+
+
+def test_bad_input_is_refused_naming_the_row(shoulder):
+    _, region, _ = shoulder
+    with pytest.raises(InvalidInputError, match="row 1"):
+        region.correct(np.array([[1.0, 0, 0, 0], [np.nan, 0, 0, 0]]))
+    with pytest.raises(InvalidInputError, match="norm"):
+        region.correct(np.array([2.0, 0, 0, 0]))
+    with pytest.raises(InvalidInputError):
+        region.contains(np.array([0.5, 0, 0, 0]))
+
+
+def test_regions_reaching_backwards_are_refused():
+    rng = np.random.default_rng(11)
+    d = rng.normal(size=(300, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    q = compose(d, rng.uniform(-1, 1, 300))
+    with pytest.raises(InvalidInputError, match="-x"):
+        TwistRegion().fit(q)
+
+
+def test_unbuilt_region_says_how_to_build():
+    with pytest.raises(ConfigError, match="fit"):
+        TwistRegion().correct(np.array([1.0, 0, 0, 0]))
+
+
+def test_arrays_round_trip(shoulder):
+    truth, region, _ = shoulder
+    copy = TwistRegion.from_arrays(region.arrays(), region.params, region.edge)
+    q = _commands(truth, 500, np.random.default_rng(12))
+    np.testing.assert_array_equal(copy.correct(q), region.correct(q))
+    np.testing.assert_array_equal(copy.contains(q), region.contains(q))
