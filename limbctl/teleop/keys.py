@@ -27,6 +27,8 @@ class Action(enum.Enum):
     COARSER = "coarser"
     HOLD = "hold"
     CENTRE = "centre"
+    ROLL_LEFT = "roll left"
+    ROLL_RIGHT = "roll right"
     HELP = "help"
     QUIT = "quit"
 
@@ -47,6 +49,8 @@ class KeyBinding:
     move : tuple of int
         (pan, tilt) signs of a move, in steps; (0, 0) for actions that do not move. Left is
         +pan: seen from behind the limb (which rests along +x), +y is to the left.
+    roll : int
+        Sign of a roll step (a three-servo rig's turn about the limb's own axis); 0 otherwise.
     """
 
     action: Action
@@ -54,6 +58,7 @@ class KeyBinding:
     label: str
     does: str
     move: tuple[int, int] = (0, 0)
+    roll: int = 0
 
 
 #: Every key of the keyboard source, in the guide's order. Arrows come as ESC [ X, or ESC O X
@@ -73,6 +78,8 @@ KEYS: dict[Action, KeyBinding] = {
         KeyBinding(Action.FINER, (b"-", b"_"), "-", "a smaller step"),
         KeyBinding(Action.HOLD, (b" ",), "space", "hold here / release (the gate holds the pose)"),
         KeyBinding(Action.CENTRE, (b"c", b"C"), "c", "back to the region's centre"),
+        KeyBinding(Action.ROLL_LEFT, (b"[",), "[", "roll -1 step (three-servo rigs)", roll=-1),
+        KeyBinding(Action.ROLL_RIGHT, (b"]",), "]", "roll +1 step (three-servo rigs)", roll=1),
         KeyBinding(Action.HELP, (b"?", b"h"), "?", "this guide again"),
         KeyBinding(Action.QUIT, (b"q", b"Q", b"\x04"), "q", "quit (the limb is parked inside)"),
     )

@@ -19,7 +19,7 @@ from typing import IO, Any
 import numpy as np
 
 from limbctl.errors import ConfigError
-from limbctl.teleop.commands import Command, command_from_pan_tilt
+from limbctl.teleop.commands import Command, command_from_pan_tilt, command_from_pose
 from limbctl.teleop.keys import (
     DEFAULT_STEP_DEG,
     KEYS,
@@ -119,6 +119,7 @@ class KeyboardSource(CommandSource):
         self._fd = fd
         self.step_deg = step_deg
         self.pan_deg, self.tilt_deg = start_deg
+        self.roll_deg = 0.0  # a three-servo rig's roll (``twist``), moved by the roll keys
         self.holding = False
         self._gate = gate
         self._guide = guide
@@ -188,7 +189,14 @@ class KeyboardSource(CommandSource):
                 self._move(action, move, now)
             return
         self._held.reset()
-        if action in (Action.COARSER, Action.FINER):
+        roll = KEYS[action].roll
+        if roll and not self.twist:
+            reason = "roll keys need a three-servo rig (this one has no roll joint to turn)"
+            self.stats.reject(reason, KEYS[action].label)
+        elif roll and not self.holding:  # one step a press, the roll joint's range kept
+            self.roll_deg = min(max(self.roll_deg + roll * self.step_deg, -180.0), 180.0)
+            self._offer_pose(now)
+        elif action in (Action.COARSER, Action.FINER):
             self.step_deg = next_step(self.step_deg, action is Action.COARSER)
         elif action is Action.HOLD:
             # holding: the limb is told to stay where it is, then the source goes quiet and the
@@ -220,7 +228,10 @@ class KeyboardSource(CommandSource):
         self._offer_pose(now)
 
     def _offer_pose(self, now: float) -> None:
-        self._command = command_from_pan_tilt(self.pan_deg, self.tilt_deg)
+        if self.twist:
+            self._command = command_from_pose(self.pan_deg, self.tilt_deg, self.roll_deg)
+        else:
+            self._command = command_from_pan_tilt(self.pan_deg, self.tilt_deg)
         self._offered_at = now
         self.offer(self._command)
 
