@@ -435,10 +435,11 @@ def render(push, ripples, passes, rates, load, exact, transfers) -> str:
             [
                 f"**This run's loop reached {min(r['rate'] for r in rates):.0f}-"
                 f"{max(r['rate'] for r in rates):.0f} Hz, not 200** (the machine's load above): "
-                "the sections over the pty show a starved loop, whose sampled wall is not "
-                "passive (K T / 2 > b below ~115 Hz) and whose failed cycles release the leader; "
-                "they are reported as measured. The law's own figures are the exact-rate "
-                "section's. (The pace watch is set to 50 Hz for these runs so that they run.)",
+                "the sections over the pty show a loop short of its rate (below ~115 Hz the "
+                "sampled wall is not passive: K T / 2 > b), whose failed cycles release the "
+                "leader and let the hand push through for a moment; they are reported as "
+                "measured. The law's own figures are the exact-rate section's. (The pace watch "
+                "is set to 50 Hz for these runs so that they run.)",
                 "",
             ]
             if min(r["rate"] for r in rates) < 180.0
