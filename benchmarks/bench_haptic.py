@@ -292,6 +292,7 @@ def transfers_case(rounds: int = 400) -> dict:
     follower's goal write."""
     leader = {"ids": list(LEADER_IDS), "model": "xm430-w350"}
     times = {"passive": [], "felt": []}
+    failed = {"passive": 0, "felt": 0}
     with open_rig(extra_ids=LEADER_IDS, sim_options={"leader": leader}) as session:
         rig = session.rig
         configure_servos(rig.bus, {**rig.tick_limits(), **dict.fromkeys(LEADER_IDS, (0, 4095))})
@@ -300,16 +301,24 @@ def transfers_case(rounds: int = 400) -> dict:
         for _ in range(rounds):
             for kind in ("passive", "felt"):
                 start = time.perf_counter()
-                rig.read_cycle(attempts=2)
-                if kind == "passive":
-                    rig.bus.sync_read(Register.PRESENT_POSITION, LEADER_IDS)
-                else:
-                    rig.bus.read_cycle(ids=LEADER_IDS, attempts=2)
-                    rig.bus.sync_write_block(FEEL_DATA, free)
-                rig.write_pose(*pose)
+                try:
+                    rig.read_cycle(attempts=2)
+                    if kind == "passive":
+                        rig.bus.sync_read(Register.PRESENT_POSITION, LEADER_IDS)
+                    else:
+                        rig.bus.read_cycle(ids=LEADER_IDS, attempts=2)
+                        rig.bus.sync_write_block(FEEL_DATA, free)
+                    rig.write_pose(*pose)
+                except BusError:
+                    failed[kind] += 1  # a starved simulator missed a reply: not timed
+                    continue
                 times[kind].append(time.perf_counter() - start)
     return {
-        kind: (float(np.percentile(v, 50)) * 1e3, float(np.percentile(v, 99)) * 1e3)
+        kind: (
+            float(np.percentile(v, 50)) * 1e3,
+            float(np.percentile(v, 99)) * 1e3,
+            failed[kind],
+        )
         for kind, v in times.items()
     }
 
@@ -422,14 +431,29 @@ def render(push, ripples, passes, rates, load, exact, transfers) -> str:
         "",
         f"p99 ratio felt / passive: {rates[1]['p99'] / rates[0]['p99']:.2f}.",
         "",
+        *(
+            [
+                f"**This run's loop reached {min(r['rate'] for r in rates):.0f}-"
+                f"{max(r['rate'] for r in rates):.0f} Hz, not 200** (the machine's load above): "
+                "the sections over the pty show a loop short of its rate (below ~115 Hz the "
+                "sampled wall is not passive: K T / 2 > b), whose failed cycles release the "
+                "leader and let the hand push through for a moment; they are reported as "
+                "measured. The law's own figures are the exact-rate section's. (The pace watch "
+                "is set to 50 Hz for these runs so that they run.)",
+                "",
+            ]
+            if min(r["rate"] for r in rates) < 180.0
+            else []
+        ),
         "The bus work alone, 400 cycles each, interleaved (follower cycle read, the leader's "
         "part, the follower's goal write):",
         "",
-        "| leader | p50 (ms) | p99 (ms) |",
-        "| --- | ---: | ---: |",
-        f"| passive (sync read) | {transfers['passive'][0]:.2f} | {transfers['passive'][1]:.2f} |",
+        "| leader | p50 (ms) | p99 (ms) | rounds with a missed reply (not timed) |",
+        "| --- | ---: | ---: | ---: |",
+        f"| passive (sync read) | {transfers['passive'][0]:.2f} | "
+        f"{transfers['passive'][1]:.2f} | {transfers['passive'][2]} |",
         f"| felt (cycle read + sync write) | {transfers['felt'][0]:.2f} | "
-        f"{transfers['felt'][1]:.2f} |",
+        f"{transfers['felt'][1]:.2f} | {transfers['felt'][2]} |",
         "",
         f"p99 ratio felt / passive: {transfers['felt'][1] / transfers['passive'][1]:.2f}; "
         f"the 200 Hz period is 5 ms.",

@@ -255,6 +255,8 @@ def _leader_run(out: Path, model_path: Path, seed: int) -> int:
     table = np.asarray(rows, dtype=np.float64).reshape(-1, 6)
     plot_leader(out / "leader.png", table[:, 0], table[:, 1:3], table[:, 3:5], table[:, 5])
     say(f"   picture: {out / 'leader.png'}")
+    if summary.fault:
+        say(f"   the leader run ended by a fault: {summary.fault}")
     return summary.exit_code
 
 

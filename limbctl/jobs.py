@@ -274,6 +274,9 @@ def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
                     )
                 if source.report_lines():
                     say(source.report_lines()[0])  # what the leader will do, before it starts
+                if getattr(source, "felt", False) and config.on_cycle is not None:
+                    # the page says how hard a felt leader pushes back
+                    config.on_cycle.push_nm = lambda: getattr(source.last_push, "torque_nm", 0.0)
                 result = run_session(
                     rig,
                     gate,

@@ -187,6 +187,9 @@ class TeleopFeed:
         self.present: PanTilt | None = None
         self.rate_hz = 0.0
         self._window_start: tuple[int, float] | None = None
+        #: A felt leader's push now (N m), read each cycle and said in the page's note; None:
+        #: the source does not push back.
+        self.push_nm: Callable[[], float] | None = None
 
     def __call__(self, cycle: Cycle) -> None:
         previous = self.written
@@ -205,6 +208,9 @@ class TeleopFeed:
             commanded, self.written, outcome, self.rate_hz, cycle.index, told.words, told.blocked
         )
         note = f"ended by {cycle.ended_by}" if cycle.ended_by else "every command through the gate"
+        if self.push_nm is not None and not cycle.ended_by:
+            push = self.push_nm()
+            note = f"the leader pushes back with {push:.2f} N m" if push else "the leader is free"
         self.board.publish_live(
             Live(self.mode, self.present, teleop=status, fault=cycle.fault, note=note)
         )

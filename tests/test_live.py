@@ -205,6 +205,17 @@ def test_teleop_feed_names_the_edge_that_holds_as_the_page_draws_it():
     assert status.words == "at the edge: right and up are blocked, holding there"
 
 
+def test_teleop_feed_says_how_hard_a_felt_leader_pushes_back():
+    board = Board()
+    feed = TeleopFeed(board)
+    pushes = iter([0.0, 0.31])
+    feed.push_nm = lambda: next(pushes)
+    feed(cycle(0, 0.0, written=True, pan=0.1))
+    assert board.live.note == "the leader is free"
+    feed(cycle(1, 0.005, written=True, pan=0.1))
+    assert board.live.note == "the leader pushes back with 0.31 N m"
+
+
 def test_guide_figures_say_what_the_guidance_says():
     guidance = Guidance(
         samples=500,
