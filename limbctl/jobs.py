@@ -250,20 +250,18 @@ def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
         configure_servos(rig.bus, limits)
         _say_wire_budget(options.rate, rig.bus)
         context = SourceContext(rig=rig, rate_hz=options.rate, gate=gate, page=live.page_connect)
+        reporting = {
+            "telemetry_path": options.telemetry,
+            "stream": sys.stderr,
+            "status": None if options.quiet else sys.stderr,
+        }
         if profile.roll is not None:  # three servos: wait for the limb, then open the source
             from limbctl.teleop.start3 import run_session_three
 
             with stop_on_signals() as stop:
+                opener = lambda: spec.open(context)  # noqa: E731
                 result = run_session_three(
-                    rig,
-                    gate,
-                    lambda: spec.open(context),
-                    config,
-                    starting,
-                    telemetry_path=options.telemetry,
-                    stream=sys.stderr,
-                    status=None if options.quiet else sys.stderr,
-                    stop=stop,
+                    rig, gate, opener, config, starting, **reporting, stop=stop
                 )
             source = None
         else:
@@ -283,9 +281,7 @@ def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
                     source,
                     config,
                     starting,
-                    telemetry_path=options.telemetry,
-                    stream=sys.stderr,
-                    status=None if options.quiet else sys.stderr,
+                    **reporting,
                     stop=stop,
                     torque_was_on=torque_was_on,
                     publish=live.start_observer(),
