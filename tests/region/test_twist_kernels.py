@@ -61,7 +61,8 @@ def test_kernel_compose_matches_geometry(dv, tau):
     d = np.asarray(dv) / np.linalg.norm(dv)
     out = np.empty(4)
     tk._compose_into(d, tau, out)
-    np.testing.assert_allclose(out, compose(d, tau), atol=1e-12)
+    # near -x, 1 + d_x cancels: both lose digits there (1e-16 / s_w^2)
+    np.testing.assert_allclose(out, compose(d, tau), atol=1e-9)
 
 
 @settings(max_examples=200, deadline=None)
