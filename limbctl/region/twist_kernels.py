@@ -43,7 +43,8 @@ STEP_START = math.radians(3.0)
 #: the geodesic angle is flat to first order there (a smooth optimum) or moves along the exact
 #: swing edge, so its error is far below this.
 STEP_MIN = math.radians(0.03)
-#: Safety cap on the pattern search's polls (never reached in tests; a bound on the time).
+#: Cap on the pattern search's polls, a bound on its time: the 7 halvings from STEP_START to
+#: STEP_MIN poll 42 times without a move, leaving ~350 polls for moves.
 MAX_POLLS = 400
 #: Poll directions per step: six at 60 deg, the smallest positive spanning set that keeps the
 #: pattern isotropic enough for the search to follow a curved swing edge.
@@ -218,10 +219,10 @@ def _correct_one(q, mesh, band, seeds, seed_dirs, out, work) -> int:
     last = 0
     polls = 0
     while step > STEP_MIN and polls < MAX_POLLS:
-        # tangent frame at cur, turned a little each step so the pattern varies
+        # tangent frame at cur as quat.tangent_frame: e1 = normalise(h x cur), helper h = +z
+        # (+y near the z axis), e2 = cur x e1; the polls turn a little each halving
         hx = 0.0 if abs(cur[2]) < 0.9 else 1.0
         hz = 1.0 if abs(cur[2]) < 0.9 else 0.0
-        # e1 = normalise(h x cur) with h = (0, hx, hz)... as tangent_frame: h = +z or +y
         e1[0] = hx * cur[2] - hz * cur[1]
         e1[1] = hz * cur[0]
         e1[2] = -hx * cur[0]

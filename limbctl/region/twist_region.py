@@ -33,8 +33,9 @@ from limbctl.region.shape import thin
 from limbctl.region.taught import TaughtRegion
 from limbctl.region.twist_band import TwistBand, plane_to_direction
 
-#: Spacing (deg) of the seeds: the pattern search's first step is about it (``STEP_START``),
-#: and ~1000 seeds for 2 sr of region keep the seed scan near a microsecond.
+#: Spacing (deg) of the seeds: the pattern search's first step is about it (``STEP_START``);
+#: the shoulder benchmark's region (1.6 sr, a 25-75 deg half-width band) takes ~3500 of them,
+#: a scan of a few microseconds a command.
 SEED_STEP_DEG = 4.0
 
 

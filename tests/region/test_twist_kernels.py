@@ -59,9 +59,12 @@ def test_score_is_the_best_twist_over_a_direction(v, dv, centre, half):
 @given(dv=directions, tau=st.floats(-10, 10))
 def test_kernel_compose_matches_geometry(dv, tau):
     d = np.asarray(dv) / np.linalg.norm(dv)
+    if d[0] < -1 + 1e-6:  # within 0.1 deg of the singular -x (checked at -x itself elsewhere)
+        return
     out = np.empty(4)
     tk._compose_into(d, tau, out)
-    np.testing.assert_allclose(out, compose(d, tau), atol=1e-12)
+    # near -x, 1 + d_x cancels: both lose digits there (1e-16 / s_w^2)
+    np.testing.assert_allclose(out, compose(d, tau), atol=1e-9)
 
 
 @settings(max_examples=200, deadline=None)
