@@ -191,8 +191,10 @@ def njit(function: Callable | str | None = None, /, **options) -> Callable:
     def decorate(py_func: Callable):
         dispatcher = numba.njit(**options)(py_func)
         if cache_dir() is not None:
-            # what numba's enable_caching does, with a locator of our own
-            dispatcher._cache = _KeyedCache(py_func)
+            # what numba's enable_caching does, with a locator of our own; a function with no
+            # source file (defined in a string, an interactive session) compiles in memory
+            with contextlib.suppress(RuntimeError):
+                dispatcher._cache = _KeyedCache(py_func)
         if signatures is not None:
             for signature in signatures if isinstance(signatures, list) else [signatures]:
                 dispatcher.compile(signature)

@@ -183,3 +183,32 @@ def test_every_kernel_uses_this_decorator_and_lives_where_the_key_looks():
         if uses and package not in jit.KERNEL_PACKAGES:
             offenders.append(f"{path.relative_to(ROOT)}: a kernel outside {jit.KERNEL_PACKAGES}")
     assert not offenders, offenders
+
+
+def test_a_drop_in_for_numbas_njit_in_every_form(tmp_path):
+    """Bare, with options, with an eager signature (compiled at once, nothing else), and for a
+    function without a source file (no cache possible: compiled in memory, not refused)."""
+    (tmp_path / "kernels_here.py").write_text(
+        "from limbctl.geometry.jit import njit\n"
+        "@njit('f8(f8)')\n"
+        "def eager(x):\n    return 2.0 * x\n"
+        "@njit\n"
+        "def bare(x):\n    return x + 1\n"
+        "@njit(inline='always', cache=False)\n"
+        "def inlined(x):\n    return bare(x) - 2\n"
+    )
+    child = (
+        "import kernels_here as k\n"
+        "from limbctl.geometry.jit import njit\n"
+        "print(k.eager(2.0), k.bare(1), k.inlined(3), len(k.eager.signatures))\n"
+        "try:\n    k.eager(1j)\nexcept TypeError:\n    print('eager only')\n"
+        "print(njit(lambda x: 3 * x)(2))\n"
+    )
+    env = {**_env(tmp_path, ROOT), "NUMBA_CACHE_DIR": str(tmp_path / "cache")}
+    env["PYTHONPATH"] = f"{ROOT}{os.pathsep}{tmp_path}"
+    done = subprocess.run(
+        [sys.executable, "-c", child], env=env, cwd=tmp_path, capture_output=True, text=True
+    )
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split("\n")[:3] == ["4.0 2 2 1", "eager only", "6"]
+    assert list((tmp_path / "cache").rglob("kernels_here.bare-*.nbi"))

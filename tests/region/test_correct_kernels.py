@@ -46,3 +46,22 @@ def test_bad_input_is_refused_one_and_many():
     assert one == -1
     out, one = ck.correct_single(bad[2], *args)
     assert one == 1 and np.array_equal(out, bad[2])
+
+
+def test_every_batch_path_answers_as_the_parallel_kernel_row_for_row():
+    """correct_rows: one by one (small), one thread (medium) and the pool give the same arrays."""
+    args = cap(20.0).kernel_args()
+    rng = np.random.default_rng(7)
+    q = rng.normal(size=(300, 4))
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    q[5] = np.nan  # refused alike: status -1
+    q = np.ascontiguousarray(q)
+    out, status = ck.correct_batch(q, *args)
+    assert {-1, 0, 1} <= set(status.tolist())
+    serial = ck.correct_serial(q, *args)
+    np.testing.assert_array_equal(serial[1], status)
+    np.testing.assert_array_equal(serial[0][status >= 0], out[status >= 0])
+    small = ck.correct_rows(np.ascontiguousarray(q[: ck.SINGLE_ROWS]), *args)
+    np.testing.assert_array_equal(small[1], status[: ck.SINGLE_ROWS])
+    keep = status[: ck.SINGLE_ROWS] >= 0
+    np.testing.assert_array_equal(small[0][keep], out[: ck.SINGLE_ROWS][keep])
