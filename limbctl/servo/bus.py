@@ -205,11 +205,9 @@ class ServoBus(CycleReads):
         return port
 
     def _identify(self, servo_id: int) -> None:
-        number = self._transact(
-            f"ping servo {servo_id}",
-            lambda: transfers.ping(self._packets, self._port, servo_id),
-            check_alert=False,
-        )
+        first = servo_id == self.ids[0]  # patient: a servo just powered on may answer late
+        ping = lambda: transfers.ping(self._packets, self._port, servo_id)  # noqa: E731
+        number = self._transact(f"ping servo {servo_id}", ping, check_alert=False, patient=first)
         try:
             model = ModelNumber(number)
         except ValueError:
