@@ -130,10 +130,11 @@ class StartOutcome:
 
 @dataclass(frozen=True)
 class ParkOutcome:
-    """What :func:`park` did: ``moved`` by ``distance_deg`` to ``pose`` (rad), or why not."""
+    """What :func:`park` did: ``moved`` by ``distance_deg`` to ``pose`` (rad, one angle a
+    joint), or why not."""
 
     moved: bool
-    pose: tuple[float, float] | None
+    pose: tuple[float, ...] | None
     distance_deg: float = 0.0
     note: str = ""
 

@@ -1,20 +1,21 @@
 """Start and run a teleop session on a three-servo rig (pan, tilt, roll).
 
-The two-servo session (:mod:`limbctl.teleop.lifecycle`) starts from a limb outside the region by
-waiting for the hand or driving it in along a checked great circle, and parks it after. On three
-servos this module starts by waiting only:
+As the two-servo session (:mod:`limbctl.teleop.lifecycle`), on SO(3):
 
 1. with torque off, the pose is read at ``poll_hz``; it is taken once the pose the servos would
-   hold there (rounded to ticks) is safe for the gate (:meth:`Gate3.is_safe`) and stays safe
-   with every joint moved by START_MARGIN_DEG either way, so the limb may still drift a little
+   hold there (rounded to ticks) is inside by the margin
+   (:func:`~limbctl.teleop.approach3.safe_with_margin`: safe for :meth:`Gate3.is_safe` with
+   every joint moved by START_MARGIN_DEG either way), so the limb may still drift a little
    between that read and torque on;
-2. that pose is written as the goal and torque goes on, so the servos hold the limb where the
-   hand left it; the control loop then starts the gate from the pose it reads;
-3. after ``wait_s`` without such a pose the session does not start (exit code 2).
-
-A ``--approach`` is not offered on three servos: the path in from outside would need a search
-over SO(3) that the two-servo approach does over directions; the session says so and waits. The
-limb is not parked after the session.
+2. with ``approach_deg_s`` and the limb inside the hard limits, the servos instead drive it to
+   the nearest pose inside by the margin along the shortest rotation, every goal checked
+   (:func:`~limbctl.teleop.approach3.drive3`); a refused or stopped approach switches torque
+   off and waits for the hand;
+3. that pose is written as the goal and torque goes on, so the servos hold the limb where it is;
+   the control loop then starts the gate from the pose it reads;
+4. after ``wait_s`` without such a pose the session does not start (exit code 2);
+5. after a clean end the limb is parked inside by the margin
+   (:func:`~limbctl.teleop.approach3.park3`), so the next session starts at once.
 """
 
 from __future__ import annotations
@@ -29,28 +30,13 @@ from typing import IO, Any
 from limbctl.errors import BusError, SafetyError
 from limbctl.geometry.gimbal3 import pose_quat_scalar
 from limbctl.teleop.approach import StartOptions, StartOutcome
+from limbctl.teleop.approach3 import drive3, nearest_start_pose3, park3, safe_with_margin
 from limbctl.teleop.gate3 import Gate3
 from limbctl.teleop.lifecycle import SessionResult
 from limbctl.teleop.loop import LoopConfig, run
+from limbctl.teleop.margin import START_MARGIN_DEG
 from limbctl.teleop.report import Telemetry, open_telemetry
 from limbctl.teleop.sources import CommandSource
-
-#: Each joint may be this far (deg) off the pose taken and the limb still be safe: as the
-#: two-servo start margin (0.35 deg), room for the limb's drift between the read and torque on.
-START_MARGIN_DEG = 0.35
-
-
-def safe_with_margin(gate: Gate3, pose: tuple[float, float, float], margin: float) -> bool:
-    """True when ``pose`` and the six poses with one joint moved by +-``margin`` (rad) are safe."""
-    if not gate.is_safe(*pose):
-        return False
-    for k in range(3):
-        for sign in (-1.0, 1.0):
-            moved = list(pose)
-            moved[k] += sign * margin
-            if not gate.is_safe(*moved):
-                return False
-    return True
 
 
 def _say(stream: IO[str] | None, text: str) -> None:
@@ -66,10 +52,10 @@ def start_three(
     stream: IO[str] | None = None,
     stop: threading.Event | None = None,
 ) -> StartOutcome:
-    """Wait (torque off) until the limb rests safely inside, then hold it there (torque on)."""
+    """Wait (torque off) until the limb rests safely inside, or drive it in with
+    ``options.approach_deg_s``; then hold it there (torque on)."""
     stop = stop or threading.Event()
-    if options.approach_deg_s is not None:
-        _say(stream, "an approach is not offered on a three-servo rig: waiting for the hand")
+    approach = options.approach_deg_s
     margin = math.radians(START_MARGIN_DEG)
     # the region's kernels compile on their first call: here, not in the loop's first cycles
     gate.envelope.correct(pose_quat_scalar(math.pi / 2, 0.0, math.pi / 2))
@@ -104,7 +90,35 @@ def start_three(
             if first:
                 _say(stream, "the limb is outside the taught region: waiting for it (torque off)")
             first = False
+            if approach is not None and gate.limits.inside(*held):
+                target = nearest_start_pose3(gate, held, rig.held_pose3, margin)
+                why = "no pose inside by the margin near the limb" if target is None else ""
+                if target is not None:
+                    try:
+                        why = drive3(
+                            rig, gate, held, target, approach, options.rate_hz, stop, stream
+                        )
+                    except BusError as exc:
+                        note = _torque_off(rig)
+                        waited = time.monotonic() - started
+                        return StartOutcome(
+                            False, "bus failure", f"{exc} during the approach; {note}", waited, 3
+                        )
+                    if not why:
+                        rig.write_pose(*target)
+                        return StartOutcome(True, "approached", "", time.monotonic() - started, 0)
+                    rig.set_torque(False)
+                _say(stream, f"approach stopped, torque off ({why}); move the limb by hand")
+                approach = None
         stop.wait(1.0 / options.poll_hz)
+
+
+def _torque_off(rig: Any) -> str:
+    try:
+        rig.set_torque(False)
+    except BusError as exc:
+        return f"could not switch torque off ({exc}); cut the servo power"
+    return "torque switched off"
 
 
 def run_session_three(
@@ -118,8 +132,8 @@ def run_session_three(
     status: IO[str] | None = None,
     stop: threading.Event | None = None,
 ) -> SessionResult:
-    """Start (waiting), then open the command source with ``open_source()`` and run the control
-    loop; the same value as the two-servo session, with no park (see the module docstring).
+    """Start (waiting or approaching), then open the command source with ``open_source()``, run
+    the control loop and park; the same value as the two-servo session.
 
     The source opens only once the limb is held inside: a replayed stream paced by its ``"t"``
     then starts with the loop, instead of running on (and going stale) while the start waits.
@@ -145,4 +159,5 @@ def run_session_three(
     finally:
         if telemetry_file is not None:
             telemetry_file.close()
-    return SessionResult(start, summary, None)
+    parked = park3(rig, gate, config.rate_hz, stop) if summary.ended_by != "fault" else None
+    return SessionResult(start, summary, parked)

@@ -1,0 +1,248 @@
+"""Start a three-servo session from outside the region by driving in; park it after.
+
+The three-servo twin of :mod:`limbctl.teleop.approach`, on SO(3) instead of the sphere of
+directions. "Inside by the margin" is :func:`limbctl.teleop.start3.safe_with_margin`: the pose
+the servos would hold is safe for :class:`~limbctl.teleop.gate3.Gate3`, and stays safe with any
+one joint moved by the margin either way.
+
+:func:`nearest_start_pose3` finds such a pose near the present one. Candidates, all built on
+``c = correct(q)``, the region's orientation nearest the present ``q``:
+
+- on along the shortest rotation from ``q`` through ``c``, ``s`` margins past ``c`` (the inward
+  way across a smooth edge of swing or twist);
+- rings around ``c``: ``r(a, s m) * c``, the rotation by ``s`` margins about each of
+  :data:`RING_AXES` (corners and necks, and the twist's own stops, where the way in is a turn
+  about the limb's axis);
+
+with ``s`` over :data:`~limbctl.teleop.margin.SEARCH_RADII`. Each is rounded to ticks as the
+servos would hold it; the first, nearest ``q`` by geodesic angle, that is inside by the margin
+wins.
+
+:func:`drive3` moves the limb there along the shortest rotation at a speed the user chose, each
+goal checked: inside the hard limits, no joint step above the gate's, never further outside the
+region than where the limb started (plus the gate's tolerance). :func:`park3` is the gate itself
+driving the limb from the session's last pose to the nearest pose inside by the margin.
+
+Angles in radians unless a name ends in ``_deg``; orientations as unit quaternions (4,),
+scalar first.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from collections.abc import Callable
+from typing import IO, Any
+
+import numpy as np
+
+from limbctl.errors import BusError
+from limbctl.geometry.gimbal3 import pan_tilt_roll_scalar, pose_quat_scalar
+from limbctl.geometry.quat import multiply
+from limbctl.teleop.approach import SETTLE_DEG, SETTLE_TIMEOUT_S, ParkOutcome
+from limbctl.teleop.gate import Outcome
+from limbctl.teleop.gate3 import Gate3, Pose3, geodesic, toward
+from limbctl.teleop.margin import SEARCH_RADII, START_MARGIN_DEG
+
+#: Axes (world frame) the search rings turn the nearest orientation about: the six faces and
+#: eight corners of a cube, so every rotation axis lies within 35 deg of one of them; +x is
+#: among them, which is the limb's own axis at rest and near it in a region about +x.
+RING_AXES = np.array(
+    [[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]]
+    + [[sx, sy, sz] for sx in (1, -1) for sy in (1, -1) for sz in (1, -1)],
+    dtype=np.float64,
+)
+RING_AXES /= np.linalg.norm(RING_AXES, axis=1, keepdims=True)
+
+#: (pan, tilt, roll) rad -> the pose the servos hold once it is written (clamped, rounded).
+HeldPose3 = Callable[[Pose3], Pose3]
+
+
+def safe_with_margin(gate: Gate3, pose: Pose3, margin: float) -> bool:
+    """True when ``pose`` and the six poses with one joint moved by +-``margin`` (rad) are safe."""
+    if not gate.is_safe(*pose):
+        return False
+    for k in range(3):
+        for sign in (-1.0, 1.0):
+            moved = list(pose)
+            moved[k] += sign * margin
+            if not gate.is_safe(*moved):
+                return False
+    return True
+
+
+def outside_by3(gate: Gate3, pose: Pose3) -> float:
+    """Rotation (rad) from ``pose`` to the region's nearest orientation; 0 inside."""
+    q = pose_quat_scalar(*pose)
+    if bool(gate.envelope.contains(q)):
+        return 0.0
+    return geodesic(q, gate.envelope.correct(q))
+
+
+def _axis_rotation(axis: np.ndarray, angle: float) -> np.ndarray:
+    """Quaternion (4,) of a turn by ``angle`` (rad) about unit ``axis`` (3,)."""
+    half = angle / 2.0
+    return np.concatenate([[math.cos(half)], math.sin(half) * axis])
+
+
+def candidates3(gate: Gate3, q: np.ndarray, margin: float) -> list[np.ndarray]:
+    """Orientations (4,) that may be inside by ``margin``, near ``q`` (see the module docstring)."""
+    nearest = gate.envelope.correct(q)
+    out = [nearest]
+    gap = geodesic(q, nearest)
+    if gap > margin * 1e-3:
+        # across the edge: the shortest rotation from q through c, on by s margins past c
+        for s in SEARCH_RADII:
+            out.append(_beyond(q, nearest, gap + s * margin))
+    for s in SEARCH_RADII:
+        for axis in RING_AXES:
+            turned = multiply(_axis_rotation(axis, s * margin), nearest)
+            out.append(-turned if turned[0] < 0.0 else turned)
+    return out
+
+
+def _beyond(a: np.ndarray, b: np.ndarray, angle: float) -> np.ndarray:
+    """The orientation ``angle`` rad from ``a`` along the rotation from ``a`` to ``b``, which may
+    lie past ``b`` (``toward`` stops at its target, so the target is moved past it first)."""
+    gap = geodesic(a, b)
+    if gap == 0.0:
+        return b
+    sign = 1.0 if float(np.dot(a, b)) >= 0.0 else -1.0
+    # q(t) = sin((1 - t) h) / sin h a + sin(t h) / sin h s b, h = gap / 2, t = angle / gap
+    half, t = gap / 2.0, angle / gap
+    s = math.sin(half)
+    q = (math.sin((1.0 - t) * half) / s) * a + (sign * math.sin(t * half) / s) * b
+    q = q / math.sqrt(float(np.dot(q, q)))
+    return -q if q[0] < 0.0 else q
+
+
+def nearest_start_pose3(
+    gate: Gate3, pose: Pose3, held_pose: HeldPose3, margin: float = math.radians(START_MARGIN_DEG)
+) -> Pose3 | None:
+    """The pose nearest ``pose`` (rad) that is inside by ``margin`` once the servos hold it.
+
+    Returns
+    -------
+    (pan, tilt, roll) in rad, as the servos hold it (rounded to ticks), or None when no
+    candidate qualifies (a region thinner than twice the margin near the pose).
+    """
+    lim = gate.limits
+    here = held_pose(pose)
+    if safe_with_margin(gate, here, margin):
+        return here
+    q = pose_quat_scalar(*pose)
+    ranked = sorted(candidates3(gate, q, margin), key=lambda c: geodesic(q, c))
+    for c in ranked:
+        joints = pan_tilt_roll_scalar(c, pose[0], pose[2], lim.roll_min, lim.roll_max)
+        held = held_pose(joints)
+        if safe_with_margin(gate, held, margin):
+            return held
+    return None
+
+
+def drive3(
+    rig: Any,
+    gate: Gate3,
+    start: Pose3,
+    target: Pose3,
+    speed_deg_s: float,
+    rate_hz: float,
+    stop: threading.Event,
+    stream: IO[str] | None = None,
+) -> str:
+    """Drive the limb from ``start`` to ``target`` (rad) along the shortest rotation, torque on.
+
+    One goal each ``1 / rate_hz`` s, ``speed_deg_s / rate_hz`` of rotation apart. Returns an
+    empty string once the limb settled at the target, else why it stopped (torque is then still
+    on; the caller switches it off).
+    """
+    lim = gate.limits
+    step = math.radians(speed_deg_s) / rate_hz
+    here, goal = pose_quat_scalar(*start), pose_quat_scalar(*target)
+    # never further outside than where the hand left it (plus the gate's own tolerance)
+    worst_outside = outside_by3(gate, start) + lim.region_tolerance
+    if stream is not None:
+        stream.write(
+            f"approach: driving the limb {math.degrees(geodesic(here, goal)):.1f} deg at "
+            f"{speed_deg_s:g} deg/s to pan {math.degrees(target[0]):+.1f}, tilt "
+            f"{math.degrees(target[1]):+.1f}, roll {math.degrees(target[2]):+.1f} deg\n"
+        )
+        stream.flush()
+    pose = start
+    rig.set_torque(True)
+    while True:
+        if geodesic(here, goal) <= step:
+            new = target
+        else:
+            q = toward(here, goal, step)
+            new = pan_tilt_roll_scalar(q, pose[0], pose[2], lim.roll_min, lim.roll_max)
+        if not lim.inside(*new):
+            return "the path left the hard limits"
+        if max(abs(a - b) for a, b in zip(new, pose, strict=True)) > lim.max_joint_step:
+            return "the path asked for a joint step above the limit (near tilt +-90 deg)"
+        if outside_by3(gate, new) > worst_outside:
+            return "the path led further outside the taught region"
+        if stop.is_set():
+            return "stopped"
+        rig.write_pose(*new)
+        pose, here = new, pose_quat_scalar(*new)
+        if new == target:
+            break
+        # a late cycle is not caught up: goals stay a period apart, never faster than the speed
+        stop.wait(1.0 / rate_hz)
+    deadline = time.monotonic() + SETTLE_TIMEOUT_S
+    while True:
+        present = rig.read_pose()
+        off = math.degrees(geodesic(pose_quat_scalar(*present), goal))
+        if off <= SETTLE_DEG and gate.is_safe(*present):
+            return ""
+        if time.monotonic() >= deadline or stop.is_set():
+            return (
+                f"the limb did not reach the target within {SETTLE_TIMEOUT_S:.0f} s "
+                f"({off:.1f} deg away: is something holding it?)"
+            )
+        stop.wait(0.01)
+
+
+def park3(
+    rig: Any, gate: Gate3, rate_hz: float, stop: threading.Event | None = None
+) -> ParkOutcome:
+    """After a clean session, move the limb inside by the margin if it rests nearer the edge.
+
+    As :func:`limbctl.teleop.approach.park`: the gate drives the limb (slew-limited, corrected,
+    checked) to :func:`nearest_start_pose3` of the last pose it let through, one goal per
+    ``1 / rate_hz`` s; a pose already inside by the margin is written once more. Bus errors end
+    the park (reported in ``note``), never raise.
+    """
+    stop = stop or threading.Event()
+    pose = gate.safe_pose
+    if pose is None:
+        return ParkOutcome(False, None, note="the gate never started")
+    margin = math.radians(START_MARGIN_DEG)
+    if safe_with_margin(gate, rig.held_pose3(pose), margin):
+        try:
+            rig.write_pose(*pose)  # the session's last write may have failed
+        except BusError as exc:
+            return ParkOutcome(False, pose, note=f"could not write the last pose again: {exc}")
+        return ParkOutcome(False, pose)
+    target = nearest_start_pose3(gate, pose, rig.held_pose3, margin)
+    if target is None:
+        return ParkOutcome(
+            False, pose, note=f"no pose inside by {START_MARGIN_DEG} deg near the last one"
+        )
+    target_q = pose_quat_scalar(*target)
+    distance = geodesic(pose_quat_scalar(*pose), target_q)
+    # a few cycles more than the slew limit needs, for the joint-step limit near tilt +-90
+    for _ in range(math.ceil(distance / gate.limits.max_step) + 10):
+        result = gate.step(target_q)
+        if result.outcome is Outcome.HELD:
+            return ParkOutcome(False, pose, note=f"the gate held: {result.reason}")
+        try:
+            rig.write_pose(*result.pose)
+        except BusError as exc:
+            return ParkOutcome(False, gate.safe_pose, note=f"could not park: {exc}")
+        if not result.slewed:
+            return ParkOutcome(True, result.pose, math.degrees(distance))  # type: ignore[arg-type]
+        stop.wait(1.0 / rate_hz)  # a period between goals, late or not: never faster
+    return ParkOutcome(False, gate.safe_pose, note="the gate did not reach the park pose")
