@@ -24,6 +24,8 @@ from dynamixel_sdk import (
     COMM_RX_TIMEOUT,
     COMM_SUCCESS,
     COMM_TX_FAIL,
+    INST_READ,
+    INST_WRITE,
     GroupSyncWrite,
     PortHandler,
 )
@@ -32,7 +34,7 @@ from limbctl.errors import BusError, BusTimeout, CorruptReply, PortError
 from limbctl.servo.control_table import ALERT_BIT, Block, Register
 
 #: Protocol 2.0 status packet: header(4) id(1) length(2) instruction(1), then parameters.
-_PKT_ID, _PKT_LENGTH_L, _PKT_LENGTH_H, _PKT_PARAMETER0 = 4, 5, 6, 8
+_PKT_ID, _PKT_LENGTH_L, _PKT_LENGTH_H, _PKT_INSTRUCTION, _PKT_PARAMETER0 = 4, 5, 6, 7, 8
 
 
 #: The SDK's assumption for the USB adapter's latency timer (ms): an FTDI chip's default.
@@ -130,20 +132,59 @@ def ping(packets: Any, port: PortHandler, servo_id: int) -> Attempt:
     return Attempt(number, result, {servo_id: error}, servo_id)
 
 
+def _parameters(packet: list[int]) -> int:
+    """Parameter bytes of a status packet: its LENGTH counts instruction, error, parameters and
+    the two CRC bytes, so parameters = LENGTH - 4."""
+    return (packet[_PKT_LENGTH_L] | packet[_PKT_LENGTH_H] << 8) - 4
+
+
+def _instruction(servo_id: int, instruction: int, parameters: Sequence[int]) -> list[int]:
+    """A Protocol 2.0 instruction packet as the SDK's ``txRxPacket`` takes it (header and CRC
+    are filled in there): LENGTH = parameters + instruction + CRC(2)."""
+    packet = [0] * (_PKT_PARAMETER0 + len(parameters) + 2)
+    packet[_PKT_ID] = servo_id
+    packet[_PKT_LENGTH_L] = (len(parameters) + 3) & 0xFF
+    packet[_PKT_LENGTH_H] = (len(parameters) + 3) >> 8
+    packet[_PKT_INSTRUCTION] = instruction
+    packet[_PKT_PARAMETER0 : _PKT_PARAMETER0 + len(parameters)] = list(parameters)
+    return packet
+
+
 def read(packets: Any, port: PortHandler, register: Register | Block, servo_id: int) -> Attempt:
-    """READ ``register`` of one servo."""
-    data, result, error = packets.readTxRx(port, servo_id, register.address, register.size)
-    if result == COMM_SUCCESS and not _refused(error) and len(data) != register.size:
-        result = COMM_RX_CORRUPT
-    value = register.decode(data) if len(data) == register.size else None
+    """READ ``register`` of one servo.
+
+    As the SDK's ``readTxRx``, but a status packet whose parameters are not exactly the
+    register's size is corrupt: the SDK takes any packet from the servo's id, so a reply that
+    arrived late for an earlier instruction (a slow host, a servo answering after the timeout)
+    would otherwise be read as this register's value.
+    """
+    address = [register.address & 0xFF, register.address >> 8]
+    size = [register.size & 0xFF, register.size >> 8]
+    packet = _instruction(servo_id, INST_READ, address + size)
+    reply, result, error = packets.txRxPacket(port, packet)
+    value = None
+    if result == COMM_SUCCESS and not _refused(error):
+        if _parameters(reply) != register.size:
+            result = COMM_RX_CORRUPT
+        else:
+            start = _PKT_PARAMETER0 + 1  # after the error byte
+            value = register.decode(reply[start : start + register.size])
     return Attempt(value, result, {servo_id: error}, servo_id)
 
 
 def write(
     packets: Any, port: PortHandler, register: Register | Block, servo_id: int, data: list[int]
 ) -> Attempt:
-    """WRITE encoded ``data`` to ``register`` of one servo and take its status packet."""
-    result, error = packets.writeTxRx(port, servo_id, register.address, register.size, data)
+    """WRITE encoded ``data`` to ``register`` of one servo and take its status packet.
+
+    A status packet with parameters is a late reply to an earlier read, not this write's: it is
+    corrupt (see :func:`read`), and the write is tried again (writing twice is harmless).
+    """
+    address = [register.address & 0xFF, register.address >> 8]
+    packet = _instruction(servo_id, INST_WRITE, address + list(data[: register.size]))
+    reply, result, error = packets.txRxPacket(port, packet)
+    if result == COMM_SUCCESS and _parameters(reply) != 0:
+        result = COMM_RX_CORRUPT
     return Attempt(None, result, {servo_id: error}, servo_id)
 
 

@@ -61,3 +61,38 @@ def test_failure_maps_results_to_typed_errors(result, error_type, fragment):
     assert type(error) is error_type
     assert fragment in str(error) and str(error).startswith("read X: ")
     assert error.servo_id == (2 if result != COMM_PORT_BUSY else None)
+
+
+def test_a_late_reply_is_never_read_as_the_next_registers_value():
+    """Replies delayed past the host's timeout (the simulator's latency fault, 6 ms against a
+    ~4 ms timeout) arrive while the host waits for its next instruction's reply. The SDK takes
+    any packet from the servo's id; read() and write() refuse one of the wrong size instead, so
+    every value read is the register's own or the read failed."""
+    from dynamixel_sdk import PacketHandler
+
+    from firmware_sim.bus import SimulatedBus
+    from firmware_sim.wire import RIG_BAUD
+
+    wrong, late = [], 0
+    with SimulatedBus(ids=(1,), baud=RIG_BAUD, latency_ms=6.0, latency_p=0.3, seed=3) as sim:
+        port = transfers.TunedPortHandler(sim.port, latency_timer_ms=1.0)
+        assert port.setBaudRate(RIG_BAUD)
+        packets = PacketHandler(2.0)
+        try:
+            for k in range(150):
+                # a 2-byte register (model number 1060) between 1-byte ones (ID 1, LED k % 2)
+                for register, expected in (
+                    (Register.MODEL_NUMBER, ModelNumber.XL430_W250),
+                    (Register.ID, 1),
+                ):
+                    outcome = transfers.read(packets, port, register, 1)
+                    late += outcome.result != COMM_SUCCESS
+                    if outcome.result == COMM_SUCCESS and outcome.value != expected:
+                        wrong.append((register.name, outcome.value))
+                outcome = transfers.write(packets, port, Register.LED, 1, [k % 2])
+                late += outcome.result != COMM_SUCCESS
+        finally:
+            port.closePort()
+        delayed = sim.truth()["faults"]["delayed"]
+    assert delayed > 30 and late > 0  # the fault happened and some replies came late
+    assert wrong == []
