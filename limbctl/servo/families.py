@@ -95,132 +95,41 @@ class Family:
 
 
 _M = ModelNumber
-_X330 = dict(
-    temperature_limit=70,
-    current_unit_ma=1.0,
-    modes=_ALL_MODES,
-    bauds=_BAUDS_4M,
-    indirect_slots=20,
-    indirect_data=(224, 208),
-)
-#: Every family limbctl knows, by name.
-FAMILIES: dict[str, Family] = {
-    f.name: f
-    for f in (
-        Family(
-            "XL330",
-            {_M.XL330_M077: "xl330-m077", _M.XL330_M288: "xl330-m288"},
-            (3.7, 6.0, 5.0),
-            (35, 70),
-            shutdown=53,
-            **_X330,
-        ),
-        Family(
-            "XC330-M",
-            {_M.XC330_M181: "xc330-m181", _M.XC330_M288: "xc330-m288"},
-            (3.7, 6.0, 5.0),
-            (35, 70),
-            shutdown=52,
-            **_X330,
-        ),
-        Family(
-            "XC330-T",
-            {_M.XC330_T181: "xc330-t181", _M.XC330_T288: "xc330-t288"},
-            (6.5, 12.0, 11.1),
-            (55, 140),
-            shutdown=52,
-            **_X330,
-        ),
-        Family(
-            "XL430",
-            {_M.XL430_W250: "xl430-w250", _M.XL430_W250_2X: "2xl430-w250"},
-            (6.5, 12.0, 11.1),
-            (60, 140),
-            72,
-            52,
-            None,
-            _NO_CURRENT_MODES,
-            _BAUDS_4M5,
-        ),
-        Family(
-            "XC430",
-            {_M.XC430_W150: "xc430-w150", _M.XC430_W240: "xc430-w240"},
-            (6.5, 12.0, 11.1),
-            (60, 160),
-            80,
-            52,
-            None,
-            _NO_CURRENT_MODES,
-            _BAUDS_4M5,
-        ),
-        Family(
-            "XM430",
-            {_M.XM430_W210: "xm430-w210", _M.XM430_W350: "xm430-w350"},
-            (10.0, 14.8, 12.0),
-            (95, 160),
-            80,
-            52,
-            2.69,
-            _ALL_MODES,
-            _BAUDS_4M5,
-        ),
-        Family(
-            "XH430-W",
-            {_M.XH430_W210: "xh430-w210", _M.XH430_W350: "xh430-w350"},
-            (10.0, 14.8, 12.0),
-            (95, 160),
-            80,
-            52,
-            2.69,
-            _ALL_MODES,
-            _BAUDS_4M5,
-        ),
-        Family(
-            "XH430-V",
-            {_M.XH430_V210: "xh430-v210", _M.XH430_V350: "xh430-v350"},
-            (24.0, 24.0, 24.0),
-            (110, 300),
-            80,
-            52,
-            1.34,
-            _ALL_MODES,
-            _BAUDS_4M5,
-        ),
-        Family(
-            "XM540",
-            {_M.XM540_W150: "xm540-w150", _M.XM540_W270: "xm540-w270"},
-            (10.0, 14.8, 12.0),
-            (95, 160),
-            80,
-            52,
-            2.69,
-            _ALL_MODES,
-            _BAUDS_4M5,
-        ),
-        Family(
-            "XH540-W",
-            {_M.XH540_W150: "xh540-w150", _M.XH540_W270: "xh540-w270"},
-            (10.0, 14.8, 12.0),
-            (95, 160),
-            80,
-            52,
-            2.69,
-            _ALL_MODES,
-            _BAUDS_4M5,
-        ),
-        Family(
-            "XH540-V",
-            {_M.XH540_V150: "xh540-v150", _M.XH540_V270: "xh540-v270"},
-            (24.0, 24.0, 24.0),
-            (110, 300),
-            80,
-            52,
-            2.69,
-            _ALL_MODES,
-            _BAUDS_4M5,
-        ),
-    )
-}
+_CURRENT, _LOAD = _ALL_MODES, _NO_CURRENT_MODES
+_4M, _4M5 = _BAUDS_4M, _BAUDS_4M5
+#: The 330s' 20 indirect slots, Indirect Data 1 at 224 or (older firmware) 208.
+_X330_INDIRECT = (20, (224, 208))
+_X430_INDIRECT = (28, (224,))
+
+# fmt: off
+#: Every family limbctl knows, by name. Columns as :class:`Family`: models; rated input voltage
+#: (lo, hi, recommended, V); factory voltage limits (0.1 V); temperature limit (deg C); Shutdown
+#: bits; Present Current unit (mA, None: Present Load); operating modes; bauds; indirect block.
+FAMILIES: dict[str, Family] = {f.name: f for f in (
+    Family("XL330",   {_M.XL330_M077: "xl330-m077", _M.XL330_M288: "xl330-m288"},
+           (3.7, 6.0, 5.0),    (35, 70),   70, 53, 1.0,  _CURRENT, _4M,  *_X330_INDIRECT),
+    Family("XC330-M", {_M.XC330_M181: "xc330-m181", _M.XC330_M288: "xc330-m288"},
+           (3.7, 6.0, 5.0),    (35, 70),   70, 52, 1.0,  _CURRENT, _4M,  *_X330_INDIRECT),
+    Family("XC330-T", {_M.XC330_T181: "xc330-t181", _M.XC330_T288: "xc330-t288"},
+           (6.5, 12.0, 11.1),  (55, 140),  70, 52, 1.0,  _CURRENT, _4M,  *_X330_INDIRECT),
+    Family("XL430",   {_M.XL430_W250: "xl430-w250", _M.XL430_W250_2X: "2xl430-w250"},
+           (6.5, 12.0, 11.1),  (60, 140),  72, 52, None, _LOAD,    _4M5, *_X430_INDIRECT),
+    Family("XC430",   {_M.XC430_W150: "xc430-w150", _M.XC430_W240: "xc430-w240"},
+           (6.5, 12.0, 11.1),  (60, 160),  80, 52, None, _LOAD,    _4M5, *_X430_INDIRECT),
+    Family("XM430",   {_M.XM430_W210: "xm430-w210", _M.XM430_W350: "xm430-w350"},
+           (10.0, 14.8, 12.0), (95, 160),  80, 52, 2.69, _CURRENT, _4M5, *_X430_INDIRECT),
+    Family("XH430-W", {_M.XH430_W210: "xh430-w210", _M.XH430_W350: "xh430-w350"},
+           (10.0, 14.8, 12.0), (95, 160),  80, 52, 2.69, _CURRENT, _4M5, *_X430_INDIRECT),
+    Family("XH430-V", {_M.XH430_V210: "xh430-v210", _M.XH430_V350: "xh430-v350"},
+           (24.0, 24.0, 24.0), (110, 300), 80, 52, 1.34, _CURRENT, _4M5, *_X430_INDIRECT),
+    Family("XM540",   {_M.XM540_W150: "xm540-w150", _M.XM540_W270: "xm540-w270"},
+           (10.0, 14.8, 12.0), (95, 160),  80, 52, 2.69, _CURRENT, _4M5, *_X430_INDIRECT),
+    Family("XH540-W", {_M.XH540_W150: "xh540-w150", _M.XH540_W270: "xh540-w270"},
+           (10.0, 14.8, 12.0), (95, 160),  80, 52, 2.69, _CURRENT, _4M5, *_X430_INDIRECT),
+    Family("XH540-V", {_M.XH540_V150: "xh540-v150", _M.XH540_V270: "xh540-v270"},
+           (24.0, 24.0, 24.0), (110, 300), 80, 52, 2.69, _CURRENT, _4M5, *_X430_INDIRECT),
+)}
+# fmt: on
 #: Profile model name -> family.
 FAMILY_OF_NAME: dict[str, Family] = {
     name: family for family in FAMILIES.values() for name in family.models.values()
