@@ -124,12 +124,20 @@ def _limits(text: str | None, option: str) -> tuple[float, float] | None:
     return lo, hi
 
 
-def _pair(text: str, option: str) -> tuple[int, int]:
+def _joint_ids(text: str | None, option: str) -> tuple[int, ...] | None:
+    """Servo ids of pan, tilt and (a three-servo rig) roll, from ``1,2`` or ``1,2,3``."""
+    if text is None:
+        return None
     try:
-        a, b = (int(v) for v in text.split(","))
+        ids = tuple(int(v) for v in text.split(","))
     except ValueError:
-        raise ConfigError(f"{option} expects two integers like 1,2; got {shown(text)}") from None
-    return a, b
+        ids = ()
+    if len(ids) not in (2, 3):
+        raise ConfigError(
+            f"{option} expects two or three integers like 1,2 (pan, tilt) or 1,2,3 (pan, tilt, "
+            f"roll); got {shown(text)}"
+        )
+    return ids
 
 
 def _command(
@@ -173,11 +181,13 @@ def _calibrate(a: argparse.Namespace) -> int:
         jobs.CalibrateOptions(
             out=a.out,
             name=a.name,
-            ids=_pair(a.ids, "--ids"),
+            ids=_joint_ids(a.ids, "--ids"),
             pan_limits=_limits(a.pan_limits, "--pan-limits"),
             tilt_limits=_limits(a.tilt_limits, "--tilt-limits"),
+            roll_limits=_limits(a.roll_limits, "--roll-limits"),
             pan_stops=_limits(a.pan_stops, "--pan-stops"),
             tilt_stops=_limits(a.tilt_stops, "--tilt-stops"),
+            roll_stops=_limits(a.roll_stops, "--roll-stops"),
             connection=_connection(a),
         )
     )
@@ -198,7 +208,9 @@ def _add_calibrate(sub: Subparsers) -> None:
     p.add_argument("--out", type=Path, required=True, help="rig profile YAML to write")
     p.add_argument("--name", default="my-rig", help="name stored in the profile")
     p.add_argument(
-        "--ids", default="1,2", help="pan and tilt servo ids, comma separated (default: 1,2)"
+        "--ids",
+        help="servo ids, comma separated: PAN,TILT, or PAN,TILT,ROLL for a limb that also turns "
+        "about its own axis (default: the --rig profile's, else 1,2)",
     )
     p.add_argument(
         "--pan-limits",
@@ -221,6 +233,12 @@ def _add_calibrate(sub: Subparsers) -> None:
         help="where the tilt joint's travel ends mechanically, MIN,MAX in degrees, e.g. "
         "--tilt-stops=-60,75 (default: the --rig profile's, else +-90)",
     )
+    for flag, what, fallback in (
+        ("--roll-limits", "hard roll limits", "1 deg inside the end stops"),
+        ("--roll-stops", "the roll joint's end stops", "+-90"),
+    ):
+        p.add_argument(flag, help=f"{what}, MIN,MAX in degrees, three --ids only (default: the "
+                       f"--rig profile's, else {fallback})")  # fmt: skip
 
 
 def _record(a: argparse.Namespace) -> int:

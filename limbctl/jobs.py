@@ -299,18 +299,20 @@ def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
 @dataclass(frozen=True)
 class CalibrateOptions:
     """``limbctl calibrate``: write rig profile ``out`` named ``name`` for servos ``ids`` (pan,
-    tilt); ``pan_limits``/``tilt_limits`` (MIN, MAX) in degrees, None: the base profile's;
-    ``pan_stops``/``tilt_stops`` the gimbal's end stops (MIN, MAX) in degrees, None: the base
-    profile's when it describes this gimbal (``--rig`` given, or the simulator), else unknown
-    (+-90 deg, :data:`calib.profile.DEFAULT_END_STOP_DEG`)."""
+    tilt and, for a three-servo rig, roll; None: the base profile's); ``*_limits`` (MIN, MAX) in
+    degrees, None: the base profile's; ``*_stops`` the gimbal's end stops (MIN, MAX) in degrees,
+    None: the base profile's when it describes this gimbal (``--rig`` given, or the simulator),
+    else unknown (+-90 deg, :data:`calib.profile.DEFAULT_END_STOP_DEG`)."""
 
     out: Path
     name: str = "my-rig"
-    ids: tuple[int, int] = (1, 2)
+    ids: tuple[int, ...] | None = None
     pan_limits: tuple[float, float] | None = None
     tilt_limits: tuple[float, float] | None = None
+    roll_limits: tuple[float, float] | None = None
     pan_stops: tuple[float, float] | None = None
     tilt_stops: tuple[float, float] | None = None
+    roll_stops: tuple[float, float] | None = None
     connection: Connection = field(default_factory=Connection)
 
 
@@ -326,7 +328,8 @@ def run_calibrate(options: CalibrateOptions) -> int:
     # the simulator's person follows the prompts: three steps, or four with a roll joint
     name = "calibration_hand.yaml" if base.roll is None else "calibration_hand3.yaml"
     script = Path(str(resources.files("limbctl").joinpath("data", name)))
-    with open_connection(conn, hand=script) as session:
+    # the servos the person named: the chosen profile's ids, not the base profile's
+    with open_connection(conn, hand=script, profile=base) as session:
         if session.simulated:
             say("simulator: a scripted hand follows the prompts below")
         with stop_on_signals() as stop:
@@ -357,19 +360,34 @@ def _calibration_base(options: CalibrateOptions, base):
         DEFAULT_END_STOP_DEG,
         END_STOP_MARGIN_DEG,
         ProfileError,
+        default_sim_profile,
         profile_from_dict,
     )
 
     conn = options.connection
+    ids = options.ids or tuple(joint.id for _, joint in base.joints)
+    if len(ids) == 3 and base.roll is None:
+        # a roll joint to start from: the simulated three-servo rig's (its zero and direction
+        # are found by the calibration; its limits are narrowed inside the end stops below)
+        base = replace(base, roll=default_sim_profile("sim3").roll)
+    elif len(ids) == 2 and base.roll is not None:
+        raise ConfigError(
+            f"the rig profile {base.name!r} has a roll joint (servo {base.roll.id}): give three "
+            "ids, --ids PAN,TILT,ROLL"
+        )
     # the base profile's end stops describe this gimbal only if the person named its profile
     # or the simulator (whose profile it is) is what will be calibrated
     describes_gimbal = conn.rig is not None or (conn.port is None and base.is_sim)
     unknown = (-DEFAULT_END_STOP_DEG, DEFAULT_END_STOP_DEG)
     joints = {}
-    for name, servo_id, limits, stops in (
-        ("pan", options.ids[0], options.pan_limits, options.pan_stops),
-        ("tilt", options.ids[1], options.tilt_limits, options.tilt_stops),
-    ):
+    chosen_limits = (
+        ("pan", options.pan_limits, options.pan_stops),
+        ("tilt", options.tilt_limits, options.tilt_stops),
+        ("roll", options.roll_limits, options.roll_stops),
+    )
+    if len(ids) == 2 and (options.roll_limits or options.roll_stops):
+        raise ConfigError("--roll-limits and --roll-stops need a roll joint: --ids PAN,TILT,ROLL")
+    for servo_id, (name, limits, stops) in zip(ids, chosen_limits, strict=False):
         joint = getattr(base, name)
         stops = stops or ((joint.stop_min_deg, joint.stop_max_deg) if describes_gimbal else unknown)
         if limits is None:
@@ -397,7 +415,7 @@ def _calibration_base(options: CalibrateOptions, base):
     except ProfileError as exc:
         raise ConfigError(
             f"{exc} (give hard limits inside the end stops: --pan-limits inside --pan-stops, "
-            f"--tilt-limits inside --tilt-stops)"
+            f"--tilt-limits inside --tilt-stops, --roll-limits inside --roll-stops)"
         ) from None
     return chosen
 

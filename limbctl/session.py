@@ -55,6 +55,7 @@ def open_rig(
     sim_options: Mapping[str, Any] | None = None,
     extra_ids: tuple[int, ...] = (),
     latency_timer_ms: float | None = None,
+    profile: RigProfile | None = None,
 ) -> Iterator[Session]:
     """Connect to the rig's servos (starting the simulator if needed); close on exit.
 
@@ -73,8 +74,10 @@ def open_rig(
     latency_timer_ms : float, optional
         The USB adapter's latency timer; default 16 ms on a real port (the FTDI default), 2 ms
         on the simulator's pty (a reply is then awaited ~6 ms).
+    profile : RigProfile, optional
+        The rig itself, in place of ``rig_path`` (a calibration's chosen ids and joints).
     """
-    profile = load_rig_profile(rig_path)
+    profile = profile if profile is not None else load_rig_profile(rig_path)
     device = port if port is not None else (None if profile.is_sim else profile.port)
     with ExitStack() as stack:
         simulator = None

@@ -121,3 +121,59 @@ def test_calibration_of_a_three_servo_rig_finds_the_roll_too(tmp_path):
     # the roll's hard limits and end stops carry over from the base profile
     assert (found.roll.min_deg, found.roll.max_deg) == (truth.roll.min_deg, truth.roll.max_deg)
     assert found.roll.stop_max_deg == truth.roll.stop_max_deg
+
+
+def test_the_servos_named_by_ids_are_the_ones_calibrated(tmp_path):
+    """--ids names the servos that are read, not only the ids written to the profile: the
+    simulated gimbal's servos renumbered 5 (pan) and 6 (tilt) are calibrated through them."""
+    from dynamixel_sdk import PacketHandler, PortHandler
+
+    from firmware_sim import SimulatedBus
+    from limbctl.servo.control_table import Register
+
+    hand = Path(str(resources.files("limbctl").joinpath("data", "calibration_hand.yaml")))
+    out = tmp_path / "rig.yaml"
+    truth = default_sim_profile()
+    with SimulatedBus(ids=(1, 2), baud=truth.baud) as sim:
+        port, packets = PortHandler(sim.port), PacketHandler(2.0)
+        assert port.setBaudRate(truth.baud)
+        for old_id, new_id in ((1, 5), (2, 6)):  # torque is off: ID is EEPROM, written at once
+            assert packets.write1ByteTxRx(port, old_id, Register.ID.address, new_id)[0] == 0
+        port.closePort()
+        sim.set_hand(hand)
+        assert main(["calibrate", "--port", sim.port, "--ids", "5,6", "--out", str(out)]) == 0
+    found = load_profile(out)
+    assert (found.pan.id, found.tilt.id) == (5, 6)
+    assert abs(found.pan.zero_tick - truth.pan.zero_tick) <= 3
+    assert abs(found.tilt.zero_tick - truth.tilt.zero_tick) <= 3
+    assert found.tilt.direction == truth.tilt.direction
+
+
+def test_three_ids_calibrate_a_roll_joint_from_the_sim3_rigs_template(tmp_path):
+    out = tmp_path / "rig3.yaml"
+    args = build_parser().parse_args(
+        ["calibrate", "--out", str(out), "--ids", "1,2,3", "--roll-limits=-80,80"]
+    )
+    assert args.job(args) == 0
+    found = load_profile(out)
+    truth = default_sim_profile("sim3")
+    assert found.roll is not None and found.roll.id == 3
+    assert abs(found.roll.zero_tick - truth.roll.zero_tick) <= 3
+    assert found.roll.direction == truth.roll.direction
+    assert (found.roll.min_deg, found.roll.max_deg) == (-80.0, 80.0)
+
+
+@pytest.mark.parametrize(
+    ("options", "problem"),
+    [
+        (["--ids", "1,2,3,4"], "--ids expects two or three integers like 1,2 (pan, tilt)"),
+        (["--rig", "sim3", "--ids", "1,2"], "has a roll joint (servo 3): give three ids"),
+        (["--roll-limits=-10,10"], "--roll-limits and --roll-stops need a roll joint"),
+    ],
+)
+def test_ids_and_roll_options_that_do_not_fit_the_rig_are_refused(tmp_path, options, problem):
+    out = tmp_path / "rig.yaml"
+    args = build_parser().parse_args(["calibrate", "--out", str(out), *options])
+    with pytest.raises(ConfigError, match=problem.replace("(", r"\(").replace(")", r"\)")):
+        args.job(args)
+    assert not out.exists()
