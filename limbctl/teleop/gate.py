@@ -47,6 +47,16 @@ class Outcome(enum.Enum):
     SLEWED = "slewed"  # on its way: the step limit shortened it
     HELD = "held"  # nothing safe to do with it: the last safe pose is kept
 
+    @classmethod
+    def strongest(cls, corrected: bool, clamped: bool, slewed: bool) -> Outcome:
+        """The outcome a cycle reports for what its stages did: CLAMPED > CORRECTED > SLEWED >
+        PASSED (HELD is decided before, by the final check)."""
+        if clamped:
+            return cls.CLAMPED
+        if corrected:
+            return cls.CORRECTED
+        return cls.SLEWED if slewed else cls.PASSED
+
 
 #: Default gate tolerance (deg): how far outside the region a written pose may be; a seventh of
 #: the 0.072 deg a pose moves when rounded to 4096-tick servos, so rounding dominates the error.
@@ -243,12 +253,5 @@ class Gate:
 
         self._pan, self._tilt = pan, tilt
         self._direction = scalar.direction(pan, tilt)
-        if clamped:
-            outcome = Outcome.CLAMPED
-        elif corrected:
-            outcome = Outcome.CORRECTED
-        elif slewed:
-            outcome = Outcome.SLEWED
-        else:
-            outcome = Outcome.PASSED
+        outcome = Outcome.strongest(corrected, clamped, slewed)
         return GateResult(pan, tilt, outcome, corrected=corrected, clamped=clamped, slewed=slewed)

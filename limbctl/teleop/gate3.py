@@ -146,19 +146,8 @@ class GateLimits3:
 
 @dataclass(frozen=True)
 class GateResult3:
-    """One cycle's answer of the three-servo gate.
-
-    Attributes
-    ----------
-    pan, tilt, roll : float
-        The pose to write (rad); the last safe pose when ``outcome`` is HELD.
-    outcome : Outcome
-        The strongest thing that happened (HELD > CLAMPED > CORRECTED > SLEWED > PASSED).
-    corrected, clamped, slewed : bool
-        Each stage that changed the command.
-    reason : str
-        Why the command was held, empty otherwise.
-    """
+    """One cycle's answer of the three-servo gate: as :class:`~limbctl.teleop.gate.GateResult`,
+    with the pose to write ``(pan, tilt, roll)`` (rad)."""
 
     pan: float
     tilt: float
@@ -277,14 +266,7 @@ class Gate3:
 
         self._pose = (pan, tilt, roll)
         self._q = pose_quat_scalar(pan, tilt, roll)
-        if clamped:
-            outcome = Outcome.CLAMPED
-        elif corrected:
-            outcome = Outcome.CORRECTED
-        elif slewed:
-            outcome = Outcome.SLEWED
-        else:
-            outcome = Outcome.PASSED
+        outcome = Outcome.strongest(corrected, clamped, slewed)
         return GateResult3(
             pan, tilt, roll, outcome, corrected=corrected, clamped=clamped, slewed=slewed
         )
