@@ -191,8 +191,10 @@
     // the twist's turn nearest the range's middle, against both limits
     const v = g.twist + 360 * Math.round(((g.low + g.high) / 2 - g.twist) / 360);
     const room = Math.min(v - g.low, g.high - v);
+    // while recording, beyond the range is new twist being taught; in teleop, past the band
+    const past = g.of.startsWith("taught") ? "past what was taught here" : "beyond the band";
     byId("twist-margin").textContent = room >= 0
-      ? `${room.toFixed(1)} deg inside` : `${(-room).toFixed(1)} deg beyond`;
+      ? `${room.toFixed(1)} deg inside` : `${(-room).toFixed(1)} deg ${past}`;
   }
 
   function showMap(m) {
@@ -204,7 +206,8 @@
         `untaught (${counts.short || 0}), white dotted = too few samples ` +
         `(${counts.few || 0}), turned both ways: ${counts.turned || 0}`
       : `the learned twist band, by ${m.cell} deg place: colour = its width (twice the ` +
-        `half-width); numbers = its limits at the place's centre; free twist: ${counts.free || 0}`;
+        `half-width) at the place's centre (numbers, where they fit: its limits there); ` +
+        `free twist: ${counts.free || 0} places; the gauge gives the band at the limb`;
     byId("twist-legend").textContent = legend;
   }
 
