@@ -125,7 +125,7 @@ class TwistTeaching:
     def on_twist(self, twist: TwistGuidance) -> None:
         self.twist = twist
         shown = taught_map(twist.places, CELL_DEG, MIN_CELL_SAMPLES)
-        self.tap.twist_map = shown
+        self.tap.set_twist_map(shown)
         self.feeder.set_twist(shown)
         self._show()
 

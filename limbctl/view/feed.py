@@ -68,32 +68,46 @@ class PoseTap:
         #: app as the twist guide assesses.
         self.twist_map: TwistMap | None = None
         self._gauge: TwistGauge | None = None
+        self._last: tuple[float, ...] | None = None
+        self._fault = ""
 
     def read_pose(self) -> tuple[float, ...]:
         """Read the limb's pose (rad), keep it and publish it; a failed read shows as a fault."""
         try:
             pose = self._limb.read_pose()
         except LimbctlError as exc:
-            self._board.publish_live(
-                Live(
-                    self.mode,
-                    self._last_pose(),
-                    len(self._poses),
-                    fault=str(exc),
-                    note=self.note,
-                    twist=self._gauge,
-                )
-            )
+            self._fault = str(exc)
+            self._publish()
             raise
-        pan, tilt = pose[0], pose[1]
-        self._poses.append((pan, tilt))
-        shown = PanTilt(math.degrees(pan), math.degrees(tilt))
-        if len(pose) == 3:
-            self._gauge = taught_gauge(self.twist_map, pan, tilt, pose[2])
-        self._board.publish_live(
-            Live(self.mode, shown, len(self._poses), note=self.note, twist=self._gauge)
-        )
+        self._fault = ""
+        self._poses.append((pose[0], pose[1]))
+        self._last = tuple(pose)
+        self._publish()
         return pose
+
+    def set_twist_map(self, twist: TwistMap) -> None:
+        """The twist taught so far (a three-servo limb): the gauge's range from now on, shown at
+        once with the last pose read (call from the thread that reads the limb)."""
+        self.twist_map = twist
+        if self._last is not None:
+            self._publish()
+
+    def _publish(self) -> None:
+        """The last pose read (with its twist gauge on a three-servo limb), the count and the
+        fault of the last read, as the live part."""
+        pose = self._last
+        if pose is not None and len(pose) == 3:
+            self._gauge = taught_gauge(self.twist_map, *pose)
+        self._board.publish_live(
+            Live(
+                self.mode,
+                self._last_pose(),
+                len(self._poses),
+                fault=self._fault,
+                note=self.note,
+                twist=self._gauge,
+            )
+        )
 
     def _last_pose(self) -> PanTilt | None:
         if not self._poses:

@@ -17,6 +17,7 @@ from limbctl.teleop.cycle import Cycle, CycleState
 from limbctl.teleop.gate import Outcome
 from limbctl.teleop.gate3 import GateResult3
 from limbctl.view import Board, Live, PanTilt, Scene
+from limbctl.view.feed import PoseTap
 from limbctl.view.twist import (
     TwistGauge,
     TwistMap,
@@ -141,3 +142,29 @@ def test_the_teleop_feed_shows_the_twist_of_a_three_servo_rig(shoulder_model):
     two = TeleopFeed(plain)
     two(Cycle(index=0, t=0.0, state=CycleState.RUNNING, present=(0.1, 0.2)))
     assert plain.live.twist is None and "twist" not in plain.live.to_json()
+
+
+class StillLimb:
+    """A three-servo limb held still by a hand at one pose (rad)."""
+
+    def __init__(self, pose: tuple[float, float, float]) -> None:
+        self.pose = pose
+
+    def read_pose(self) -> tuple[float, float, float]:
+        return self.pose
+
+
+def test_the_pose_tap_shows_a_new_taught_range_at_once_with_the_last_pose():
+    board = Board()
+    pose = (math.radians(20.0), math.radians(5.0), math.radians(10.0))
+    tap = PoseTap(StillLimb(pose), board, "record")
+    assert tap.read_pose() == pose
+    first = board.live.twist
+    assert first.low_deg is None and first.of == "nothing taught here yet"
+    assert first.twist_deg == pytest.approx(math.degrees(pose_twist(*pose)))
+    # the guide's next assessment: the range there shows without waiting for the next read
+    places = (TwistPlace(1, 0, -30.0, 45.0, 100, True),)
+    tap.set_twist_map(taught_map(places, 15.0, 30))
+    shown = board.live
+    assert (shown.twist.low_deg, shown.twist.high_deg) == (-30.0, 45.0)
+    assert shown.sample_count == 1 and shown.pose.pan_deg == pytest.approx(20.0)
