@@ -265,8 +265,8 @@ def _draw(
     total = f"/{duration_s:.0f}" if duration_s else ""
     failed = f"  failed reads {summary.failed_reads}" if summary.failed_reads else ""
     line = f"{elapsed:5.1f}{total} s  {summary.samples} samples{failed}  {guidance.line()}"
-    if twist is not None:
-        line += f"  {twist.line()}"
+    if twist is not None:  # a terminal's line is rewritten in place: the short form there
+        line += f"  {twist.short() if on_terminal else twist.line()}"
     if on_terminal:
         stream.write("\r" + line + "\x1b[K")
     else:

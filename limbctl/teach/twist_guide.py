@@ -99,6 +99,17 @@ class TwistGuidance:
             "limb both ways to its stop there"
         )
 
+    def short(self) -> str:
+        """The line's figures and place in a few words, for the recorder's updating terminal
+        line (which must stay one screen line wide to be rewritten in place)."""
+        if self.cells == 0 or self.least is None:
+            return "twist: turn both ways to the stops"
+        head = f"twist {self.turned}/{self.cells} turned"
+        if self.turned == self.cells:
+            return head
+        pan, tilt, span = self.least
+        return f"{head}, least {span:.0f} deg at ({pan:+.0f}, {tilt:+.0f})"
+
 
 class TwistGuide:
     """Collects full orientations and says where the twist is untaught (module docstring)."""
