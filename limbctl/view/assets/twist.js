@@ -242,9 +242,12 @@
       const P = projector(), size = t.map.cell;
       return [P.x((i + 0.5) * size), P.y((j + 0.5) * size)];
     },
-    cellCorner: (i, j) => {
-      const P = projector(), size = t.map.cell;
-      return [P.x(i * size) + 4, P.y((j + 1) * size) + 4];
+    // the colours at a cell's four corners, 4 px in (the region's edge may cross one or two)
+    cellPixels: (i, j) => {
+      const P = projector(), size = t.map.cell, px = size * P.scale, c = plane.getContext("2d");
+      const x = P.x(i * size), y = P.y((j + 1) * size);
+      return [[4, 4], [px - 5, 4], [4, px - 5], [px - 5, px - 5]].map(
+        ([dx, dy]) => Array.from(c.getImageData(Math.round(x + dx), Math.round(y + dy), 1, 1).data).slice(0, 3));
     },
   };
 })();
