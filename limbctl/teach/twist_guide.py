@@ -3,7 +3,9 @@
 The teaching protocol asks, along the edge and in the middle, to turn the limb both ways to its
 stop. The guide does not know where the stops are; it sees how far the twist has been turned at
 each place. The swing plane is cut into cells of CELL_DEG in pan and tilt; each cell keeps the
-least and the greatest twist taught there (twist from :func:`limbctl.geometry.twist.decompose`).
+least and the greatest twist taught there (twist from :func:`limbctl.geometry.twist.decompose`),
+each twist taken on the turn nearest the cell's first one, so a range across +-180 deg stays one
+range (170..190, not -180..180).
 A cell visited with at least MIN_CELL_SAMPLES samples counts as *turned* once its twist span
 reaches TURNED_FRACTION of the widest spans taught anywhere (their WIDE_QUANTILE): the band
 narrows as the limb rises on a shoulder, so "both ways to its stop" is judged against what
@@ -130,8 +132,10 @@ class TwistGuide:
         twist = math.degrees(float(tau))
         cell = self._cells.get(key)
         if cell is None:
-            self._cells[key] = [twist, twist, 1.0]
+            self._cells[key] = [twist, twist, 1.0, twist]
         else:
+            # the turn of the twist nearest the cell's first: first + wrap(twist - first)
+            twist = cell[3] + (twist - cell[3] + 180.0) % 360.0 - 180.0
             cell[0], cell[1], cell[2] = min(cell[0], twist), max(cell[1], twist), cell[2] + 1.0
 
     def assess(self) -> TwistGuidance:

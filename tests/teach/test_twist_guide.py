@@ -45,3 +45,11 @@ def test_cells_with_few_samples_are_not_judged():
     guide = TwistGuide()
     taught(guide, 0, 0, np.zeros(MIN_CELL_SAMPLES - 1))
     assert guide.assess().cells == 0
+
+
+def test_a_range_across_half_a_turn_stays_one_range():
+    guide = TwistGuide()
+    taught(guide, 1, 1, np.linspace(170.0, 200.0, MIN_CELL_SAMPLES))  # 170..180, -180..-160
+    (place,) = guide.assess().places
+    assert place.high_deg - place.low_deg == pytest.approx(30.0)
+    assert place.low_deg == pytest.approx(170.0) and place.high_deg == pytest.approx(200.0)
