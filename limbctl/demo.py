@@ -119,9 +119,9 @@ def run_demo(
     :data:`DEMO_RIGS` (``sim3``: three servos, the region with its twist band)."""
     if rig not in DEMO_RIGS:
         raise ConfigError(f"unknown demo rig {rig!r}; choose one of {', '.join(DEMO_RIGS)}")
-    if rig == "sim3":
-        return _run_demo_twist(Path(out), teach_seconds, seed)
     with open_view(view or ViewOptions(), say) as live:
+        if rig == "sim3":
+            return _run_demo_twist(Path(out), teach_seconds, seed, live)
         return _run_demo(Path(out), teach_seconds, seed, live)
 
 
@@ -302,7 +302,7 @@ def _plot_teleop(path: Path, model: object, data: Path, telemetry: Path, region_
     )
 
 
-def _run_demo_twist(out: Path, teach_seconds: float, seed: int) -> int:
+def _run_demo_twist(out: Path, teach_seconds: float, seed: int, live: LiveView) -> int:
     """The whole flow on the three-servo rig (``calib/rigs/sim3.yaml``): the hand teaches a swing
     outline with a twist band over it (``limbctl/data/demo_region3.yaml``), a Rigid Map learns
     both (``RigidMap(twist=True)``), a stream sweeping far outside in swing and twist is gated,
@@ -342,7 +342,8 @@ def _run_demo_twist(out: Path, teach_seconds: float, seed: int) -> int:
             rate=DEMO_RECORD_HZ,
             hand=region_yaml,
             connection=simulator,
-        )  # fmt: skip
+        ),  # fmt: skip
+        view=live,
     )
     say("== 2/4 train: a Rigid Map learns the swing outline and the twist band over it")
     run_train(TrainOptions(data=data, out=model_path, kind="rigidmap", seed=seed))
@@ -359,7 +360,8 @@ def _run_demo_twist(out: Path, teach_seconds: float, seed: int) -> int:
             goal_log=goals,
             quiet=True,
             connection=simulator,
-        )  # fmt: skip
+        ),  # fmt: skip
+        view=live,
     )
     say("== 4/4 check: every goal the simulator received, against the learned region")
     model = load_model(model_path)
@@ -378,10 +380,9 @@ def _run_demo_twist(out: Path, teach_seconds: float, seed: int) -> int:
         f"   the learned region holds {100 * held:.2f} % of {len(probes)} orientations of the "
         f"true region lying {PROBE_DEPTH_DEG:g} deg or more inside (swing and twist)"
     )
-    tilt, band = true_band_lines(region_yaml)
-    twist_picture(
-        out / "twist.png", load_dataset(data).quaternions, logged_orientations(goals), tilt, band
-    )
+    pan, tilt, band = true_band_lines(region_yaml)
+    samples, goals_q = load_dataset(data).quaternions, logged_orientations(goals)
+    twist_picture(out / "twist.png", samples, goals_q, tilt, band, model=model, band_pan_deg=pan)
     say(f"   picture: {out / 'twist.png'}")
     if beyond:
         say(f"FAILED: {beyond} goals reached the servos beyond the gate's bound; see {goals}")
@@ -430,8 +431,9 @@ def _grid_inside(region: object, step_deg: float) -> np.ndarray:
     return grid_inside(region, step_deg, 0.0)
 
 
-def true_band_lines(region_yaml: Path) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
-    """The true band's limits (deg) against tilt at the pan of the outline's centre."""
+def true_band_lines(region_yaml: Path) -> tuple[float, np.ndarray, tuple[np.ndarray, np.ndarray]]:
+    """The pan (deg) of the outline's centre, and the true band's limits (deg) against tilt
+    there."""
     from firmware_sim.twist_hand import hand_from_yaml
 
     hand = hand_from_yaml(region_yaml)
@@ -439,4 +441,4 @@ def true_band_lines(region_yaml: Path) -> tuple[np.ndarray, tuple[np.ndarray, np
     lo_tilt, hi_tilt = hand.region.bbox_deg[2:]
     tilt = np.linspace(lo_tilt, hi_tilt, 50)
     limits = np.array([hand.band.limits_deg(pan, t) for t in tilt])
-    return tilt, (limits[:, 0], limits[:, 1])
+    return pan, tilt, (limits[:, 0], limits[:, 1])

@@ -136,6 +136,7 @@ def run_record(options: RecordOptions, view: LiveView | None = None) -> int:
                     stop,
                     progress=sys.stderr,
                     on_guidance=taught.on_guidance,
+                    on_twist=taught.on_twist,
                 )
     for line in summary.lines():
         say(line)

@@ -21,6 +21,7 @@ from typing import Any
 
 from limbctl.errors import ConfigError
 from limbctl.teach.guide import Guidance
+from limbctl.teach.twist_guide import CELL_DEG, MIN_CELL_SAMPLES, TwistGuidance
 from limbctl.teleop.cycle import Cycle
 from limbctl.teleop.explain import PLANE_NAMES, explain
 from limbctl.view import (
@@ -35,6 +36,7 @@ from limbctl.view import (
 )
 from limbctl.view.feed import PoseTap, SceneFeeder
 from limbctl.view.region import model_loops
+from limbctl.view.twist import band_gauge, model_band_map, pose_twist, taught_map
 
 #: The view's usual port; when it is taken and no port was asked for, any free port is used.
 DEFAULT_PORT = 8765
@@ -77,11 +79,13 @@ def rig_limits(profile: Any) -> HardLimits:
 @dataclass(frozen=True)
 class Teaching:
     """The recorder's side of a live teaching: ``limb`` to read, ``on_guidance`` for the guide's
-    assessments (None: nobody shows them), and the ``feeder`` publishing the scene."""
+    assessments and ``on_twist`` for the twist guide's (None: nobody shows them), and the
+    ``feeder`` publishing the scene."""
 
     limb: Any
     on_guidance: Callable[[Guidance], None] | None
     feeder: SceneFeeder | None = None
+    on_twist: Callable[[TwistGuidance], None] | None = None
 
 
 def guide_figures(guidance: Guidance) -> tuple[tuple[GuideFigure, ...], str]:
@@ -93,6 +97,44 @@ def guide_figures(guidance: Guidance) -> tuple[tuple[GuideFigure, ...], str]:
         GuideFigure("inside gaps", len(guidance.inside_gaps)),
     )
     return figures, guidance.line()
+
+
+def twist_figures(twist: TwistGuidance) -> tuple[GuideFigure, ...]:
+    """The twist guide's assessment as the page's guide figures (a three-servo rig)."""
+    return (
+        GuideFigure("twist: places judged", twist.cells),
+        GuideFigure("twist: turned both ways", twist.turned),
+        GuideFigure("twist: widest span", twist.wide_span_deg, "deg"),
+    )
+
+
+class TwistTeaching:
+    """Hands a three-servo teaching's twist to the view: the twist guide's cells as the scene's
+    twist map and the pose tap's gauge range, its figures and words beside the guide's."""
+
+    def __init__(self, feeder: SceneFeeder, tap: PoseTap) -> None:
+        self.feeder = feeder
+        self.tap = tap
+        self.guidance: Guidance | None = None
+        self.twist: TwistGuidance | None = None
+
+    def on_guidance(self, guidance: Guidance) -> None:
+        self.guidance = guidance
+        self._show()
+
+    def on_twist(self, twist: TwistGuidance) -> None:
+        self.twist = twist
+        shown = taught_map(twist.places, CELL_DEG, MIN_CELL_SAMPLES)
+        self.tap.set_twist_map(shown)
+        self.feeder.set_twist(shown)
+        self._show()
+
+    def _show(self) -> None:
+        figures, advice = guide_figures(self.guidance) if self.guidance else ((), "")
+        if self.twist is not None:
+            figures += twist_figures(self.twist)
+            advice = f"{advice}; {self.twist.line()}" if advice else self.twist.line()
+        self.feeder.set_guide(figures, advice)
 
 
 class LiveView:
@@ -142,6 +184,10 @@ class LiveView:
             return
         tap = PoseTap(limb, self.board, mode, note="torque off: move the limb by hand")
         with SceneFeeder(self.board, tap.samples, rig_limits(profile)) as feeder:
+            if getattr(profile, "roll", None) is not None:  # three servos: the twist too
+                twist = TwistTeaching(feeder, tap)
+                yield Teaching(tap, twist.on_guidance, feeder, twist.on_twist)
+                return
             yield Teaching(tap, lambda guidance: feeder.set_guide(*guide_figures(guidance)), feeder)
 
     def start_observer(self, mode: str = "teleop: waiting") -> Callable[[Any], None] | None:
@@ -166,8 +212,15 @@ class LiveView:
         loops = model_loops(envelope) if getattr(envelope, "mesh", None) is not None else ()
         kind = getattr(envelope, "kind", type(envelope).__name__)
         note = f"the {kind} model's region" if loops else f"a {kind} model: region not drawn"
-        self.board.publish_scene(Scene(loops=loops, limits=rig_limits(profile), region_note=note))
-        return TeleopFeed(self.board, mode)
+        limits = rig_limits(profile)
+        twist = None
+        if getattr(profile, "roll", None) is not None:  # three servos: the learned band too
+            twist = model_band_map(envelope, limits.pan_deg, limits.tilt_deg)
+        self.board.publish_scene(Scene(loops=loops, limits=limits, region_note=note, twist=twist))
+        feed = TeleopFeed(self.board, mode)
+        if twist is not None:
+            feed.band = envelope.region.band
+        return feed
 
 
 class TeleopFeed:
@@ -190,11 +243,18 @@ class TeleopFeed:
         #: A felt leader's push now (N m), read each cycle and said in the page's note; None:
         #: the source does not push back.
         self.push_nm: Callable[[], float] | None = None
+        #: The model's twist band (a three-servo rig; None on two servos): the gauge's range.
+        self.band: Any = None
+        self.written_twist: float | None = None
+        self.gauge = None
 
     def __call__(self, cycle: Cycle) -> None:
         previous = self.written
         if cycle.written and cycle.result is not None:
             self.written = PanTilt(math.degrees(cycle.result.pan), math.degrees(cycle.result.tilt))
+            roll = getattr(cycle.result, "roll", None)
+            if roll is not None:
+                self.written_twist = pose_twist(cycle.result.pan, cycle.result.tilt, roll)
         self._update_rate(cycle)
         if cycle.present is not None:
             self.present = PanTilt(math.degrees(cycle.present[0]), math.degrees(cycle.present[1]))
@@ -211,8 +271,17 @@ class TeleopFeed:
         if self.push_nm is not None and not cycle.ended_by:
             push = self.push_nm()
             note = f"the leader pushes back with {push:.2f} N m" if push else "the leader is free"
+        if self.band is not None and cycle.present is not None and len(cycle.present) == 3:
+            self.gauge = band_gauge(self.band, cycle.present, self.written_twist)
         self.board.publish_live(
-            Live(self.mode, self.present, teleop=status, fault=cycle.fault, note=note)
+            Live(
+                self.mode,
+                self.present,
+                teleop=status,
+                fault=cycle.fault,
+                note=note,
+                twist=self.gauge,
+            )
         )
 
     def _update_rate(self, cycle: Cycle) -> None:

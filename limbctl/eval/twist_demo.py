@@ -9,8 +9,9 @@
   region orientation the gate wrote or corrected its pose onto (the search of ``correct`` may
   stop short of the nearest orientation by some tenths of a degree);
 - :func:`coverage`: the share of a true region's orientations the learned region holds;
-- :func:`twist_picture`: the taught samples over the swing plane coloured by twist, and twist
-  against tilt with the true band's limits and the goals the gate wrote.
+- :func:`twist_picture`: the taught samples over the swing plane coloured by twist, twist
+  against tilt with the true band's limits, the learned band's and the goals the gate wrote,
+  and the learned band's width over the swing region.
 """
 
 from __future__ import annotations
@@ -122,11 +123,18 @@ def coverage(model: object, probes: np.ndarray) -> float:
 
 
 def twist_picture(
-    path: Path, samples: np.ndarray, goals: np.ndarray, band_tilt_deg: np.ndarray, band_deg
+    path: Path,
+    samples: np.ndarray,
+    goals: np.ndarray,
+    band_tilt_deg: np.ndarray,
+    band_deg,
+    model: object | None = None,
+    band_pan_deg: float = 0.0,
 ) -> None:
-    """Two panels: the taught samples over (pan, tilt) coloured by twist; twist against tilt of
-    the samples (grey) and of the goals written (red) with the true band's ``band_deg``
-    (low, high) limits at ``band_tilt_deg``."""
+    """The taught samples over (pan, tilt) coloured by twist; twist against tilt of the samples
+    (grey) and of the goals written (red) with the true band's ``band_deg`` (low, high) limits
+    at ``band_tilt_deg`` (at pan ``band_pan_deg``). With a ``model`` learned with twist, the
+    learned band too: its limits on the same line and its width over the swing plane."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -137,7 +145,10 @@ def twist_picture(
         pan, tilt = direction_to_pan_tilt(d)
         return np.degrees(pan), np.degrees(tilt), np.degrees(tau)
 
-    fig, (left, right) = plt.subplots(1, 2, figsize=(12, 5))
+    region = getattr(model, "region", None)
+    learned = getattr(region, "band", None) is not None and region.mesh is not None
+    fig, axes = plt.subplots(1, 3 if learned else 2, figsize=(18 if learned else 12, 5))
+    left, right = axes[0], axes[1]
     pan, tilt, tau = pose(samples)
     dots = left.scatter(pan, tilt, c=tau, s=2, cmap="coolwarm")
     fig.colorbar(dots, ax=left, label="twist (deg)")
@@ -147,10 +158,59 @@ def twist_picture(
         _, goal_tilt, goal_tau = pose(goals)
         right.scatter(goal_tilt, goal_tau, s=2, color="tab:red", label="goals written (gated)")
     low, high = band_deg
-    right.plot(band_tilt_deg, low, "k--", label="true band (at the outline's centre pan)")
+    right.plot(band_tilt_deg, low, "k--", label=f"true band (at pan {band_pan_deg:.0f} deg)")
     right.plot(band_tilt_deg, high, "k--")
+    if learned:
+        low_l, high_l = learned_band_line(region, band_pan_deg, band_tilt_deg)
+        right.plot(band_tilt_deg, low_l, color="tab:blue", label="learned band (same line)")
+        right.plot(band_tilt_deg, high_l, color="tab:blue")
+        _band_width_panel(fig, axes[2], region, pan, tilt)
     right.set(xlabel="tilt (deg)", ylabel="twist (deg)", title="the twist band over the swing")
     right.legend(loc="upper right", fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
+
+
+#: Grid step (deg) of the learned band's width picture: finer than the band's 1.5 deg nodes
+#: would show no more at the picture's ~3 px per degree.
+WIDTH_STEP_DEG = 2.0
+
+
+def learned_band_line(
+    region: object, pan_deg: float, tilt_deg: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The learned band's limits (deg) along tilts ``tilt_deg`` at ``pan_deg`` (NaN where the
+    swing region does not reach), each centre taken on the turn nearest 0."""
+    from limbctl.geometry.gimbal import pan_tilt_to_direction
+
+    d = pan_tilt_to_direction(np.full(len(tilt_deg), math.radians(pan_deg)), np.radians(tilt_deg))
+    c, h = region.band.at(d)
+    c = (c + math.pi) % (2.0 * math.pi) - math.pi
+    outside = ~np.asarray(region.mesh.contains(d), dtype=bool)
+    low, high = np.degrees(c - h), np.degrees(c + h)
+    low[outside] = high[outside] = np.nan
+    return low, high
+
+
+def _band_width_panel(fig, ax, region: object, pan: np.ndarray, tilt: np.ndarray) -> None:
+    """The learned band's width (twice its half-width, deg) over the swing region, on a
+    WIDTH_STEP_DEG grid over the taught samples' pan/tilt span."""
+    from limbctl.geometry.gimbal import pan_tilt_to_direction
+
+    step = WIDTH_STEP_DEG
+    gp = np.arange(math.floor(pan.min()) - step, pan.max() + step, step)
+    gt = np.arange(math.floor(tilt.min()) - step, tilt.max() + step, step)
+    p, t = np.meshgrid(gp, gt, indexing="xy")
+    d = pan_tilt_to_direction(np.radians(p.ravel()), np.radians(t.ravel()))
+    _, h = region.band.at(d)
+    width = np.degrees(2.0 * h)
+    width[~np.asarray(region.mesh.contains(d), dtype=bool)] = np.nan
+    mesh = ax.pcolormesh(gp, gt, width.reshape(p.shape), cmap="YlGnBu", shading="nearest")
+    fig.colorbar(mesh, ax=ax, label="learned band width (deg)")
+    ax.set(
+        xlabel="pan (deg)",
+        ylabel="tilt (deg)",
+        title="the learned twist band's width over the swing region",
+        aspect="equal",
+    )

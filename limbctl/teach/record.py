@@ -8,6 +8,8 @@ While recording, the teaching guide (:mod:`limbctl.teach.guide`) assesses the sa
 GUIDE_EVERY_S: one updating line says the phase (trace the edge, then wander the middle), how much
 of the edge is closed and of the inside covered, the largest gap (pan/tilt deg) and when the
 region is ready to train. Each assessment is also handed to ``on_guidance`` (a live view).
+On a three-servo rig the twist guide (:mod:`limbctl.teach.twist_guide`) says, on the same line
+and at the same pace, where the twist is still untaught; its assessments go to ``on_twist``.
 """
 
 from __future__ import annotations
@@ -123,6 +125,7 @@ def record(
     stop: threading.Event | None = None,
     progress: IO[str] | None = None,
     on_guidance: Callable[[Guidance], None] | None = None,
+    on_twist: Callable[[TwistGuidance], None] | None = None,
 ) -> RecordSummary:
     """Switch torque off and record until ``stop`` is set or ``duration_s`` passes.
 
@@ -144,6 +147,9 @@ def record(
     on_guidance : callable, optional
         Called with each :class:`~limbctl.teach.guide.Guidance` (every GUIDE_EVERY_S and at the
         end), in the recording thread: keep it quick.
+    on_twist : callable, optional
+        Called with each :class:`~limbctl.teach.twist_guide.TwistGuidance` of a three-servo rig,
+        with ``on_guidance``'s.
     """
     check_rate(rate_hz)
     stop = stop or threading.Event()
@@ -159,6 +165,7 @@ def record(
     next_tick = start
     last_guide = last_draw = start
     guidance = guide.assess()
+    twist: TwistGuidance | None = None
     if progress is not None:
         progress.write("torque off: move the limb by hand (Enter or Ctrl-C stops)\n")
     failed_in_a_row = 0
@@ -207,11 +214,13 @@ def record(
             guidance = guide.assess()
             if on_guidance is not None:
                 on_guidance(guidance)
+            if twist_guide.samples:
+                twist = twist_guide.assess()
+                if on_twist is not None:
+                    on_twist(twist)
         if progress is not None and now - last_draw >= draw_every:
             last_draw = now
-            _draw(progress, guidance, summary, elapsed, duration_s, on_terminal)
-            if not on_terminal and summary.samples and twist_guide.assess().cells:
-                progress.write(f"{elapsed:5.1f} s  {twist_guide.assess().line()}\n")
+            _draw(progress, guidance, summary, elapsed, duration_s, on_terminal, twist)
         # pace: a late sample is followed at once by the next, so the average rate holds;
         # only after a long stall (a second behind) does the schedule restart from now
         next_tick += period
@@ -224,12 +233,17 @@ def record(
     summary.elapsed_s = time.perf_counter() - start
     summary.guidance = guide.assess()
     summary.spread_deg = summary.guidance.spread_deg
-    if twist_guide.assess().cells:
-        summary.twist = twist_guide.assess()
+    twist = twist_guide.assess() if twist_guide.samples else None
+    if twist is not None and twist.cells:
+        summary.twist = twist
     if on_guidance is not None:
         on_guidance(summary.guidance)
+    if on_twist is not None and twist is not None:
+        on_twist(twist)
     if progress is not None:
-        _draw(progress, summary.guidance, summary, summary.elapsed_s, duration_s, on_terminal)
+        _draw(
+            progress, summary.guidance, summary, summary.elapsed_s, duration_s, on_terminal, twist
+        )
         if on_terminal:
             progress.write("\n")
             progress.flush()
@@ -243,12 +257,16 @@ def _draw(
     elapsed: float,
     duration_s: float | None,
     on_terminal: bool,
+    twist: TwistGuidance | None = None,
 ) -> None:
-    """One progress line: time, samples, failed reads and the guide's line; on a terminal it
-    replaces the previous one (carriage return, erase to the end of the line)."""
+    """One progress line: time, samples, failed reads and the guide's line, then on a
+    three-servo rig the twist guide's; on a terminal it replaces the previous one (carriage
+    return, erase to the end of the line)."""
     total = f"/{duration_s:.0f}" if duration_s else ""
     failed = f"  failed reads {summary.failed_reads}" if summary.failed_reads else ""
     line = f"{elapsed:5.1f}{total} s  {summary.samples} samples{failed}  {guidance.line()}"
+    if twist is not None:  # a terminal's line is rewritten in place: the short form there
+        line += f"  {twist.short() if on_terminal else twist.line()}"
     if on_terminal:
         stream.write("\r" + line + "\x1b[K")
     else:

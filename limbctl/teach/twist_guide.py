@@ -3,12 +3,15 @@
 The teaching protocol asks, along the edge and in the middle, to turn the limb both ways to its
 stop. The guide does not know where the stops are; it sees how far the twist has been turned at
 each place. The swing plane is cut into cells of CELL_DEG in pan and tilt; each cell keeps the
-least and the greatest twist taught there (twist from :func:`limbctl.geometry.twist.decompose`).
+least and the greatest twist taught there (twist from :func:`limbctl.geometry.twist.decompose`),
+each twist taken on the turn nearest the cell's first one, so a range across +-180 deg stays one
+range (170..190, not -180..180).
 A cell visited with at least MIN_CELL_SAMPLES samples counts as *turned* once its twist span
 reaches TURNED_FRACTION of the widest spans taught anywhere (their WIDE_QUANTILE): the band
 narrows as the limb rises on a shoulder, so "both ways to its stop" is judged against what
 the person showed is possible, not against a fixed angle. The line names the cell turned least,
-with its span against the wide one, and asks for the twist there.
+with its span against the wide one, and asks for the twist there. Every cell's range is also
+handed on (:attr:`TwistGuidance.places`), for the live page's picture of the band taught so far.
 """
 
 from __future__ import annotations
@@ -35,6 +38,30 @@ TURNED_FRACTION = 0.5
 
 
 @dataclass(frozen=True)
+class TwistPlace:
+    """One cell of the swing plane and the twist taught there.
+
+    Attributes
+    ----------
+    pan_index, tilt_index : int
+        The cell: pan in ``[pan_index, pan_index + 1) * CELL_DEG``, tilt likewise (deg).
+    low_deg, high_deg : float
+        The least and the greatest twist taught in the cell (deg).
+    samples : int
+        Samples taught in the cell.
+    turned : bool
+        Judged (MIN_CELL_SAMPLES or more) and turned to both stops (module docstring).
+    """
+
+    pan_index: int
+    tilt_index: int
+    low_deg: float
+    high_deg: float
+    samples: int
+    turned: bool
+
+
+@dataclass(frozen=True)
 class TwistGuidance:
     """How much of the twist range has been taught.
 
@@ -48,12 +75,15 @@ class TwistGuidance:
         The wide twist span (deg): WIDE_QUANTILE of the judged cells' spans.
     least : tuple of float or None
         (pan_deg, tilt_deg, span_deg) of the cell turned least, None when none is judged.
+    places : tuple of TwistPlace
+        Every cell visited, judged or not (the live page draws them).
     """
 
     cells: int
     turned: int
     wide_span_deg: float
     least: tuple[float, float, float] | None
+    places: tuple[TwistPlace, ...] = ()
 
     def line(self) -> str:
         """One line of words and figures for the progress line and the summary."""
@@ -71,15 +101,28 @@ class TwistGuidance:
             "limb both ways to its stop there"
         )
 
+    def short(self) -> str:
+        """The line's figures and place in a few words, for the recorder's updating terminal
+        line (which must stay one screen line wide to be rewritten in place)."""
+        if self.cells == 0 or self.least is None:
+            return "twist: turn both ways to the stops"
+        head = f"twist {self.turned}/{self.cells} turned"
+        if self.turned == self.cells:
+            return head
+        pan, tilt, span = self.least
+        return f"{head}, least {span:.0f} deg at ({pan:+.0f}, {tilt:+.0f})"
+
 
 class TwistGuide:
     """Collects full orientations and says where the twist is untaught (module docstring)."""
 
     def __init__(self) -> None:
         self._cells: dict[tuple[int, int], list[float]] = {}
+        self.samples = 0
 
     def add(self, q: np.ndarray) -> None:
         """One sample's full orientation (4,)."""
+        self.samples += 1
         d, tau = decompose(np.asarray(q, dtype=np.float64))
         pan, tilt = direction_to_pan_tilt(d)
         key = (
@@ -89,19 +132,31 @@ class TwistGuide:
         twist = math.degrees(float(tau))
         cell = self._cells.get(key)
         if cell is None:
-            self._cells[key] = [twist, twist, 1.0]
+            self._cells[key] = [twist, twist, 1.0, twist]
         else:
+            # the turn of the twist nearest the cell's first: first + wrap(twist - first)
+            twist = cell[3] + (twist - cell[3] + 180.0) % 360.0 - 180.0
             cell[0], cell[1], cell[2] = min(cell[0], twist), max(cell[1], twist), cell[2] + 1.0
 
     def assess(self) -> TwistGuidance:
         """The guidance from the samples so far."""
         judged = [(key, c) for key, c in self._cells.items() if c[2] >= MIN_CELL_SAMPLES]
         if not judged:
-            return TwistGuidance(0, 0, 0.0, None)
+            return TwistGuidance(0, 0, 0.0, None, self._places(math.inf))
         spans = np.array([c[1] - c[0] for _, c in judged])
         wide = float(np.quantile(spans, WIDE_QUANTILE))
         turned = int(np.sum(spans >= TURNED_FRACTION * wide))
         k = int(np.argmin(spans))
         (i, j), _ = judged[k]
         centre = ((i + 0.5) * CELL_DEG, (j + 0.5) * CELL_DEG, float(spans[k]))
-        return TwistGuidance(len(judged), turned, wide, centre)
+        places = self._places(TURNED_FRACTION * wide)
+        return TwistGuidance(len(judged), turned, wide, centre, places)
+
+    def _places(self, turned_span: float) -> tuple[TwistPlace, ...]:
+        """Every cell visited; judged cells whose span reaches ``turned_span`` (deg) turned."""
+        return tuple(
+            TwistPlace(
+                i, j, c[0], c[1], int(c[2]), c[2] >= MIN_CELL_SAMPLES and c[1] - c[0] >= turned_span
+            )
+            for (i, j), c in self._cells.items()
+        )

@@ -2,11 +2,14 @@
 
 - :class:`PoseTap` stands in for the limb the recorder reads: each ``read_pose`` is passed
   through, kept in memory and published as the live pose (a list append and a board swap, a few
-  microseconds on the recorder's own thread; nothing there ever waits on the view).
+  microseconds on the recorder's own thread; nothing there ever waits on the view). A
+  three-servo limb's pose ``(pan, tilt, roll)`` is shown with its twist gauge
+  (:mod:`limbctl.view.twist`) against the taught range of the twist map last handed over.
 - :class:`SceneFeeder` runs on its own thread: every :data:`SCENE_PERIOD_S`, at once when a
   fit finishes, and when the next fit is due, it thins the samples so far and publishes a scene
   with the guide's latest figures (handed over with :meth:`SceneFeeder.set_guide`, a reference
-  swap) and the newest region fitted by a :class:`~limbctl.view.region.FitProcess`. Fits run
+  swap), the twist taught so far on a three-servo limb (:meth:`SceneFeeder.set_twist`) and the
+  newest region fitted by a :class:`~limbctl.view.region.FitProcess`. Fits run
   back to back: the next starts as soon as the last one is collected (when there are new
   samples), at most every :data:`REFIT_PERIOD_S`, so the region is redrawn as often as the
   fit's own time allows; the fit process only takes CPU time nothing else wants, so this never
@@ -26,6 +29,7 @@ import numpy as np
 from limbctl.errors import LimbctlError
 from limbctl.view.region import MIN_FIT_SAMPLES, FitProcess, RegionFit
 from limbctl.view.state import Board, GuideFigure, HardLimits, Live, PanTilt, Scene, thin_samples
+from limbctl.view.twist import TwistGauge, TwistMap, taught_gauge
 
 #: How often the scene is republished (s) when no fit finishes: the samples and the guide's
 #: figures twice a second, twice the page's promise of once a second.
@@ -44,8 +48,8 @@ class PoseTap:
     Parameters
     ----------
     limb : object
-        The rig (anything with ``read_pose() -> (pan, tilt)`` in radians); every other
-        attribute is passed through.
+        The rig (anything with ``read_pose() -> (pan, tilt)`` or ``(pan, tilt, roll)`` in
+        radians); every other attribute is passed through.
     board : Board
         Where the live pose and sample count go.
     mode : str
@@ -60,20 +64,50 @@ class PoseTap:
         self.mode = mode
         self.note = note
         self._poses: list[tuple[float, float]] = []
+        #: The twist taught so far (a three-servo limb), the gauge's range: swapped in by the
+        #: app as the twist guide assesses.
+        self.twist_map: TwistMap | None = None
+        self._gauge: TwistGauge | None = None
+        self._last: tuple[float, ...] | None = None
+        self._fault = ""
 
-    def read_pose(self) -> tuple[float, float]:
+    def read_pose(self) -> tuple[float, ...]:
         """Read the limb's pose (rad), keep it and publish it; a failed read shows as a fault."""
         try:
-            pan, tilt = self._limb.read_pose()
+            pose = self._limb.read_pose()
         except LimbctlError as exc:
-            self._board.publish_live(
-                Live(self.mode, self._last_pose(), len(self._poses), fault=str(exc), note=self.note)
-            )
+            self._fault = str(exc)
+            self._publish()
             raise
-        self._poses.append((pan, tilt))
-        pose = PanTilt(math.degrees(pan), math.degrees(tilt))
-        self._board.publish_live(Live(self.mode, pose, len(self._poses), note=self.note))
-        return pan, tilt
+        self._fault = ""
+        self._poses.append((pose[0], pose[1]))
+        self._last = tuple(pose)
+        self._publish()
+        return pose
+
+    def set_twist_map(self, twist: TwistMap) -> None:
+        """The twist taught so far (a three-servo limb): the gauge's range from now on, shown at
+        once with the last pose read (call from the thread that reads the limb)."""
+        self.twist_map = twist
+        if self._last is not None:
+            self._publish()
+
+    def _publish(self) -> None:
+        """The last pose read (with its twist gauge on a three-servo limb), the count and the
+        fault of the last read, as the live part."""
+        pose = self._last
+        if pose is not None and len(pose) == 3:
+            self._gauge = taught_gauge(self.twist_map, *pose)
+        self._board.publish_live(
+            Live(
+                self.mode,
+                self._last_pose(),
+                len(self._poses),
+                fault=self._fault,
+                note=self.note,
+                twist=self._gauge,
+            )
+        )
 
     def _last_pose(self) -> PanTilt | None:
         if not self._poses:
@@ -121,6 +155,7 @@ class SceneFeeder:
         self._samples = samples
         self.limits = limits
         self._guide: tuple[tuple[GuideFigure, ...], str] = ((), "")
+        self._twist: TwistMap | None = None
         self._fit_wanted = fit
         self._fits: FitProcess | None = None
         waiting = "the first fit is running" if fit else "not fitted"
@@ -154,6 +189,10 @@ class SceneFeeder:
     def set_guide(self, figures: tuple[GuideFigure, ...], advice: str) -> None:
         """The guide's newest figures and advice, shown with the next scene (from any thread)."""
         self._guide = (tuple(figures), advice)
+
+    def set_twist(self, twist: TwistMap) -> None:
+        """The twist taught so far, shown with the next scene (from any thread)."""
+        self._twist = twist
 
     def _run(self) -> None:
         while not self._stop.is_set():
@@ -213,6 +252,7 @@ class SceneFeeder:
             region_note=self.latest.note,
             guide=figures,
             guide_text=advice,
+            twist=self._twist,
         )
         self.board.publish_scene(scene)
         return scene

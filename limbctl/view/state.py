@@ -24,6 +24,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from limbctl.view.twist import TwistGauge, TwistMap
+
 #: Most samples sent to a browser per scene: enough to show coverage, small enough to draw at once.
 MAX_DRAWN_SAMPLES = 4000
 #: Cell size (deg) for thinning: samples closer than this add nothing visible at page scale.
@@ -158,6 +160,9 @@ class Live:
         The present fault in words, "" when there is none.
     note : str
         One line for the person, e.g. "torque off: move the limb by hand".
+    twist : TwistGauge or None
+        A three-servo limb's twist gauge (:mod:`limbctl.view.twist`); None on two servos, whose
+        JSON then has no ``twist`` key.
     """
 
     mode: str
@@ -166,9 +171,10 @@ class Live:
     teleop: TeleopStatus | None = None
     fault: str = ""
     note: str = ""
+    twist: TwistGauge | None = None
 
     def to_json(self) -> dict[str, object]:
-        return {
+        out: dict[str, object] = {
             "kind": "live",
             "mode": self.mode,
             "pose": self.pose.to_json() if self.pose else None,
@@ -177,6 +183,9 @@ class Live:
             "fault": self.fault,
             "note": self.note,
         }
+        if self.twist is not None:
+            out["twist"] = self.twist.to_json()
+        return out
 
 
 @dataclass(frozen=True)
@@ -198,6 +207,9 @@ class Scene:
         The guide's figures (edge closed %, inside covered %, gaps); empty when there are none.
     guide_text : str
         The guide's advice in words, "" when there is none.
+    twist : TwistMap or None
+        A three-servo limb's twist over the swing plane (:mod:`limbctl.view.twist`); None on two
+        servos, whose JSON then has no ``twist`` key.
     """
 
     samples_deg: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
@@ -206,6 +218,7 @@ class Scene:
     region_note: str = ""
     guide: tuple[GuideFigure, ...] = ()
     guide_text: str = ""
+    twist: TwistMap | None = None
 
     def __post_init__(self) -> None:
         samples = np.asarray(self.samples_deg, dtype=np.float64).reshape(-1, 2)
@@ -214,7 +227,7 @@ class Scene:
         object.__setattr__(self, "guide", tuple(self.guide))
 
     def to_json(self) -> dict[str, object]:
-        return {
+        out: dict[str, object] = {
             "kind": "scene",
             "samples": np.round(self.samples_deg, 2).tolist(),
             "loops": [loop.to_json() for loop in self.loops],
@@ -223,6 +236,9 @@ class Scene:
             "guide": [figure.to_json() for figure in self.guide],
             "guide_text": self.guide_text,
         }
+        if self.twist is not None:
+            out["twist"] = self.twist.to_json()
+        return out
 
 
 def thin_samples(

@@ -19,6 +19,7 @@ from limbctl.teach.dataset import DatasetWriter, load_dataset
 from limbctl.teach.guide import Guidance
 from limbctl.teach.record import record
 from limbctl.teach.train import train
+from limbctl.teach.twist_guide import MIN_CELL_SAMPLES, TwistGuidance
 
 REGIONS = Path(__file__).resolve().parents[2] / "examples" / "regions"
 
@@ -79,6 +80,38 @@ def test_the_recorder_shows_the_guide_on_one_updating_line(tmp_path):
     # 3.5 s in, the hand is tracing the edge: the guide says so and where the gap is
     assert summary.guidance.phase == "edge" and "edge gap" in last
     assert any(line.startswith("guide ") for line in summary.lines())
+
+
+def test_a_three_servo_recording_says_where_the_twist_is_untaught(tmp_path):
+    """The twist guide's words on the updating line, its cells handed to ``on_twist``."""
+    progress, seen = Terminal(), []
+    region3 = demo_region_path().with_name("demo_region3.yaml")
+    with open_rig(rig_path="sim3", hand=region3, seed=2) as session:
+        with DatasetWriter(tmp_path / "teach.limb", rig="sim3") as writer:
+            summary = record(
+                session.rig, writer, 100.0, 4.5, progress=progress, on_twist=seen.append
+            )
+    assert len(seen) >= 3 and all(isinstance(t, TwistGuidance) for t in seen)
+    last = seen[-1]
+    # every sample lies in one of the places handed on, and the judged ones are counted
+    assert sum(place.samples for place in last.places) == summary.samples
+    judged = [p for p in last.places if p.samples >= MIN_CELL_SAMPLES]
+    assert len(judged) == last.cells and sum(p.turned for p in judged) == last.turned
+    assert all(p.low_deg <= p.high_deg for p in last.places)
+    line = progress.getvalue().rstrip("\n").split("\r")[-1]
+    # on a terminal the short form, so the line stays one screen line to be rewritten in place
+    assert "edge closed" in line and f"twist {last.turned}/{last.cells} turned" in line
+    assert summary.twist is not None and f"guide              {summary.twist.line()}" in (
+        summary.lines()
+    )
+
+
+def test_a_two_servo_recording_hands_no_twist_on(tmp_path):
+    seen = []
+    with open_rig(hand=demo_region_path(), seed=2) as session:
+        with DatasetWriter(tmp_path / "teach.limb", rig="sim") as writer:
+            summary = record(session.rig, writer, 100.0, 1.5, on_twist=seen.append)
+    assert seen == [] and summary.twist is None
 
 
 def test_without_a_terminal_the_progress_is_logged_every_few_seconds(tmp_path):

@@ -29,6 +29,7 @@ def test_every_place_turned_both_ways_and_one_left_untaught():
     assert (full.cells, full.turned) == (6, 6)
     assert full.wide_span_deg == pytest.approx(80.0)
     assert "every place visited was turned both ways" in full.line()
+    assert full.short() == "twist 6/6 turned"
     # a new place visited with hardly any twist: named, with its span against the widest
     taught(guide, 46, 31, np.linspace(-3, 3, MIN_CELL_SAMPLES))
     found = guide.assess()
@@ -37,9 +38,18 @@ def test_every_place_turned_both_ways_and_one_left_untaught():
     assert abs(pan - 46) <= CELL_DEG / 2 and abs(tilt - 31) <= CELL_DEG / 2
     assert span == pytest.approx(6.0)
     assert "least at pan +52, tilt +38: 6 deg -> turn the limb both ways" in found.line()
+    assert found.short() == "twist 6/7 turned, least 6 deg at (+52, +38)"
 
 
 def test_cells_with_few_samples_are_not_judged():
     guide = TwistGuide()
     taught(guide, 0, 0, np.zeros(MIN_CELL_SAMPLES - 1))
     assert guide.assess().cells == 0
+
+
+def test_a_range_across_half_a_turn_stays_one_range():
+    guide = TwistGuide()
+    taught(guide, 1, 1, np.linspace(170.0, 200.0, MIN_CELL_SAMPLES))  # 170..180, -180..-160
+    (place,) = guide.assess().places
+    assert place.high_deg - place.low_deg == pytest.approx(30.0)
+    assert place.low_deg == pytest.approx(170.0) and place.high_deg == pytest.approx(200.0)

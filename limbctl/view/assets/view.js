@@ -278,6 +278,7 @@ function connect() {
     if (message.kind === "scene") { state.scene = message; state.sceneFrames++; sceneDirty = true; showScene(message); }
     else if (message.kind === "live") { state.live = message; state.liveFrames++; showLive(message); }
     else if (message.kind === "control" && window.limbview.onControl) window.limbview.onControl(message);
+    if (window.limbview.onMessage) window.limbview.onMessage(message);  // twist.js
     byId("live-frames").textContent = String(state.liveFrames);
     byId("scene-frames").textContent = String(state.sceneFrames);
     scheduleDraw();
