@@ -262,8 +262,9 @@ def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
             with stop_on_signals() as stop:
                 opener = lambda: spec.open(context)  # noqa: E731
                 result = run_session_three(
-                    rig, gate, opener, config, starting, **reporting, stop=stop
-                )
+                    rig, gate, opener, config, starting, **reporting, stop=stop,
+                    publish=live.start_observer(),
+                )  # fmt: skip
             source = None
         else:
             with spec.open(context) as source, stop_on_signals() as stop:

@@ -33,6 +33,7 @@ import math
 import threading
 import time
 from collections.abc import Callable
+from dataclasses import asdict, dataclass
 from typing import IO, Any
 
 import numpy as np
@@ -139,6 +140,107 @@ def nearest_start_pose3(
         if safe_with_margin(gate, held, margin):
             return held
     return None
+
+
+@dataclass(frozen=True)
+class StartStatus3:
+    """Where a waiting three-servo limb is and where it must go before the session may start.
+
+    Angles in degrees; a joint change > 0 turns pan left, raises tilt, rolls the limb
+    right-handed about its own axis. The app prints :meth:`line` and may publish it to a live
+    view (``pan_deg``, ``tilt_deg`` place the limb there).
+
+    Attributes
+    ----------
+    pan_deg, tilt_deg, roll_deg : float
+        The present pose.
+    ready : bool
+        Inside by the margin (:func:`safe_with_margin`): the session starts.
+    inside_limits : bool
+        Every joint within its hard limits.
+    outside_deg : float
+        Rotation from the present orientation to the region's nearest (0 inside).
+    target : tuple of float or None
+        The nearest pose inside by the margin (pan, tilt, roll); None when none is near.
+    distance_deg : float
+        Rotation from the present orientation to the target (0 when ready or no target).
+    waited_s : float
+        Seconds spent waiting so far.
+    """
+
+    pan_deg: float
+    tilt_deg: float
+    roll_deg: float
+    ready: bool
+    inside_limits: bool
+    outside_deg: float
+    target: tuple[float, float, float] | None
+    distance_deg: float
+    waited_s: float = 0.0
+
+    def advice(self) -> str:
+        """Which way to move the limb, in words (empty when ready)."""
+        if self.ready:
+            return "inside the taught region: starting"
+        if self.target is None:
+            return (
+                "no pose far enough inside the taught region is near; move the limb toward the "
+                "middle of what you taught"
+            )
+        words = (("left", "right"), ("raise", "lower"), ("roll", "roll"))
+        here = (self.pan_deg, self.tilt_deg, self.roll_deg)
+        moves = []
+        for (more, less), now, goal in zip(words, here, self.target, strict=True):
+            change = goal - now
+            if abs(change) >= 0.05:
+                if more == "left":
+                    moves.append(f"turn it {more if change > 0 else less} {abs(change):.1f} deg")
+                elif more == "roll":
+                    moves.append(f"roll it {change:+.1f} deg about its axis")
+                else:
+                    moves.append(f"{more if change > 0 else less} it {abs(change):.1f} deg")
+        return f"move the limb {self.distance_deg:.1f} deg: " + (", ".join(moves) or "a hair")
+
+    def line(self) -> str:
+        """One status line: where the limb is, what is wrong, which way to move it."""
+        where = f"pan {self.pan_deg:+.1f}, tilt {self.tilt_deg:+.1f}, roll {self.roll_deg:+.1f} deg"
+        problems = []
+        if not self.inside_limits:
+            problems.append("beyond the rig's hard limits")
+        if self.outside_deg > 0.0:
+            problems.append(f"{self.outside_deg:.1f} deg outside the taught region")
+        if not problems and not self.ready:
+            problems.append("on the region's edge")
+        state = "; ".join(problems) if problems else "ready"
+        return f"limb at {where} ({state}): {self.advice()}"
+
+    def as_dict(self) -> dict:
+        """The status as plain JSON-ready values (for a live view or a log)."""
+        return {"kind": "start", **asdict(self), "advice": self.advice()}
+
+
+def assess3(
+    gate: Gate3,
+    pose: Pose3,
+    held_pose: HeldPose3,
+    waited_s: float = 0.0,
+    margin: float = math.radians(START_MARGIN_DEG),
+) -> StartStatus3:
+    """The :class:`StartStatus3` of a limb at ``pose`` (rad)."""
+    held = held_pose(pose)
+    ready = safe_with_margin(gate, held, margin)
+    target = held if ready else nearest_start_pose3(gate, pose, held_pose, margin)
+    q = pose_quat_scalar(*pose)
+    distance = 0.0 if ready or target is None else geodesic(q, pose_quat_scalar(*target))
+    return StartStatus3(
+        *(math.degrees(a) for a in pose),
+        ready=ready,
+        inside_limits=gate.limits.inside(*pose),
+        outside_deg=math.degrees(outside_by3(gate, pose)),
+        target=None if target is None else tuple(math.degrees(a) for a in target),  # type: ignore[arg-type]
+        distance_deg=math.degrees(distance),
+        waited_s=waited_s,
+    )
 
 
 def drive3(

@@ -29,8 +29,8 @@ from typing import IO, Any
 
 from limbctl.errors import BusError, SafetyError
 from limbctl.geometry.gimbal3 import pose_quat_scalar
-from limbctl.teleop.approach import StartOptions, StartOutcome
-from limbctl.teleop.approach3 import drive3, nearest_start_pose3, park3, safe_with_margin
+from limbctl.teleop.approach import LOG_EVERY_S, StartOptions, StartOutcome
+from limbctl.teleop.approach3 import StartStatus3, assess3, drive3, park3, safe_with_margin
 from limbctl.teleop.gate3 import Gate3
 from limbctl.teleop.lifecycle import SessionResult
 from limbctl.teleop.loop import LoopConfig, run
@@ -51,10 +51,30 @@ def start_three(
     options: StartOptions,
     stream: IO[str] | None = None,
     stop: threading.Event | None = None,
+    publish: Callable[[StartStatus3], None] | None = None,
 ) -> StartOutcome:
     """Wait (torque off) until the limb rests safely inside, or drive it in with
-    ``options.approach_deg_s``; then hold it there (torque on)."""
-    stop = stop or threading.Event()
+    ``options.approach_deg_s``; then hold it there (torque on).
+
+    While the limb is outside, its :class:`~limbctl.teleop.approach3.StartStatus3` (how far and
+    which way) goes to ``publish`` every poll and to ``stream``: an updating line on a terminal,
+    one line every LOG_EVERY_S s to a log or pipe."""
+    lines: list[float] = []  # when a status line was written (an updating one on a terminal)
+    outcome = _start_three(rig, gate, options, stream, stop or threading.Event(), publish, lines)
+    if lines and stream is not None and stream.isatty():
+        stream.write("\n")  # the updating line stays; what follows starts below it
+    return outcome
+
+
+def _start_three(
+    rig: Any,
+    gate: Gate3,
+    options: StartOptions,
+    stream: IO[str] | None,
+    stop: threading.Event,
+    publish: Callable[[StartStatus3], None] | None,
+    lines: list[float],
+) -> StartOutcome:
     approach = options.approach_deg_s
     margin = math.radians(START_MARGIN_DEG)
     # the region's kernels compile on their first call: here, not in the loop's first cycles
@@ -90,8 +110,16 @@ def start_three(
             if first:
                 _say(stream, "the limb is outside the taught region: waiting for it (torque off)")
             first = False
+            status = assess3(gate, held, rig.held_pose3, waited, margin)
+            _show(stream, status, lines)
+            if publish is not None:
+                publish(status)
             if approach is not None and gate.limits.inside(*held):
-                target = nearest_start_pose3(gate, held, rig.held_pose3, margin)
+                target = (
+                    None
+                    if status.target is None
+                    else rig.held_pose3(tuple(math.radians(a) for a in status.target))
+                )
                 why = "no pose inside by the margin near the limb" if target is None else ""
                 if target is not None:
                     try:
@@ -113,6 +141,21 @@ def start_three(
         stop.wait(1.0 / options.poll_hz)
 
 
+def _show(stream: IO[str] | None, status: StartStatus3, lines: list[float]) -> None:
+    """Write the status line (updating on a terminal, else every LOG_EVERY_S s); ``lines`` gets
+    the time of each line written."""
+    now = time.monotonic()
+    if stream is None:
+        return
+    tty = stream.isatty()
+    if tty or not lines or now - lines[-1] >= LOG_EVERY_S:
+        stream.write(
+            f"waiting {status.waited_s:5.1f} s  {status.line()}" + ("\x1b[K\r" if tty else "\n")
+        )
+        stream.flush()
+        lines.append(now)
+
+
 def _torque_off(rig: Any) -> str:
     try:
         rig.set_torque(False)
@@ -131,6 +174,7 @@ def run_session_three(
     stream: IO[str] | None = None,
     status: IO[str] | None = None,
     stop: threading.Event | None = None,
+    publish: Callable[[StartStatus3], None] | None = None,
 ) -> SessionResult:
     """Start (waiting or approaching), then open the command source with ``open_source()``, run
     the control loop and park; the same value as the two-servo session.
@@ -141,7 +185,7 @@ def run_session_three(
     stop = stop or threading.Event()
     telemetry_file = open_telemetry(telemetry_path)
     try:
-        start = start_three(rig, gate, starting, stream, stop)
+        start = start_three(rig, gate, starting, stream, stop, publish)
         if not start.started:
             return SessionResult(start)
         telemetry = Telemetry(telemetry_file) if telemetry_file is not None else None

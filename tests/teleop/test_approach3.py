@@ -14,6 +14,7 @@ from limbctl.servo.setup import configure_servos
 from limbctl.session import open_rig
 from limbctl.teleop.approach import MAX_APPROACH_SPEED_DEG_S, SETTLE_DEG, StartOptions
 from limbctl.teleop.approach3 import (
+    assess3,
     nearest_start_pose3,
     outside_by3,
     park3,
@@ -146,3 +147,49 @@ def test_a_three_servo_session_ending_on_the_twist_stop_parks_where_the_next_sta
         final = rig.read_pose()
     assert result.started and result.how == "inside", result.message
     assert safe_with_margin(again, final, math.radians(0.9 * START_MARGIN_DEG))
+
+
+def test_the_status_of_a_waiting_limb_says_how_far_and_which_way():
+    gate = Gate3(REGION, GateLimits3(-2, 2, -1, 1, -2.5, 2.5, 0.01, 0.03))
+    exact = lambda pose: pose  # noqa: E731
+    twisted = assess3(gate, (0.0, 0.0, math.radians(45)), exact, waited_s=2.0)
+    assert not twisted.ready and twisted.inside_limits
+    assert abs(twisted.outside_deg - 15.0) < 1e-6
+    assert 15.0 < twisted.distance_deg <= 15.0 + 3 * START_MARGIN_DEG
+    # the way in is a roll back toward the band, about -15 deg
+    assert twisted.target is not None and -16.5 < twisted.target[2] - 45.0 < -15.0
+    line = twisted.line()
+    assert "roll +45.0 deg (15.0 deg outside the taught region)" in line, line
+    assert "move the limb 15." in line and "deg about its axis" in line, line
+    inside = assess3(gate, (0.1, 0.05, 0.1), exact)
+    assert inside.ready and inside.distance_deg == 0.0
+    assert inside.line().endswith("(ready): inside the taught region: starting")
+    beyond = assess3(gate, (0.0, 1.2, 0.0), exact)  # tilt past its 1 rad hard limit
+    assert not beyond.inside_limits and "beyond the rig's hard limits" in beyond.line()
+
+
+def test_a_waiting_three_servo_start_prints_and_publishes_its_status(tmp_path):
+    import io
+
+    outside = (math.radians(50), math.radians(10), math.radians(-45))
+    published = []
+    stream = io.StringIO()
+    with open_rig(rig_path="sim3") as session:
+        rig, profile = session.rig, session.profile
+        configure_servos(rig.bus, rig.tick_limits())
+        rig.set_torque(True)
+        settle_at3(rig, outside)
+        rig.set_torque(False)
+        result = start_three(
+            rig, gate_for(profile), StartOptions(wait_s=0.5, poll_hz=20.0), stream=stream,
+            publish=published.append,
+        )  # fmt: skip
+    assert not result.started and result.how == "timed out" and result.exit_code == 2
+    assert len(published) >= 5 and all(not s.ready for s in published)
+    last = published[-1]
+    assert abs(last.pan_deg - 50.0) < 0.5 and abs(last.roll_deg + 45.0) < 0.5  # as settled
+    assert last.outside_deg > 10.0 and last.target is not None
+    text = stream.getvalue()
+    # to a log (not a terminal) one line every LOG_EVERY_S s: the first, here
+    status_lines = [ln for ln in text.splitlines() if ln.startswith("waiting ")]
+    assert len(status_lines) == 1 and last.advice().split(":")[0] in text, text
