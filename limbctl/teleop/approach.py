@@ -239,7 +239,7 @@ def start_session(
         return _start(waiter, torque_was_on)
     except BusError as exc:
         where = f"servo {exc.servo_id}: " if exc.servo_id is not None else ""
-        note = _torque_off(limb)
+        note = switch_torque_off(limb)
         return waiter.outcome(False, "bus failure", f"{where}{exc} before the start; {note}", 3)
 
 
@@ -357,7 +357,8 @@ def _drive(
         waiter.stop.wait(1.0 / options.poll_hz)
 
 
-def _torque_off(limb: StartLimb) -> str:
+def switch_torque_off(limb: StartLimb) -> str:
+    """Switch torque off; what happened, in words (a bus error is reported, not raised)."""
     try:
         limb.set_torque(False)
     except BusError as exc:

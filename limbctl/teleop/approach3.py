@@ -43,8 +43,8 @@ from limbctl.geometry.gimbal3 import pan_tilt_roll_scalar, pose_quat_scalar
 from limbctl.geometry.quat import multiply
 from limbctl.teleop.approach import SETTLE_DEG, SETTLE_TIMEOUT_S, ParkOutcome
 from limbctl.teleop.gate import Outcome
-from limbctl.teleop.gate3 import Gate3, Pose3, geodesic, toward
-from limbctl.teleop.margin import SEARCH_RADII, START_MARGIN_DEG
+from limbctl.teleop.gate3 import Gate3, Pose3, geodesic, toward, turn_by
+from limbctl.teleop.margin import SEARCH_RADII, START_MARGIN_DEG, status_line
 
 #: Axes (world frame) the search rings turn the nearest orientation about: the six faces and
 #: eight corners of a cube, so every rotation axis lies within 35 deg of one of them; +x is
@@ -95,27 +95,12 @@ def candidates3(gate: Gate3, q: np.ndarray, margin: float) -> list[np.ndarray]:
     if gap > margin * 1e-3:
         # across the edge: the shortest rotation from q through c, on by s margins past c
         for s in SEARCH_RADII:
-            out.append(_beyond(q, nearest, gap + s * margin))
+            out.append(turn_by(q, nearest, gap + s * margin))
     for s in SEARCH_RADII:
         for axis in RING_AXES:
             turned = multiply(_axis_rotation(axis, s * margin), nearest)
             out.append(-turned if turned[0] < 0.0 else turned)
     return out
-
-
-def _beyond(a: np.ndarray, b: np.ndarray, angle: float) -> np.ndarray:
-    """The orientation ``angle`` rad from ``a`` along the rotation from ``a`` to ``b``, which may
-    lie past ``b`` (``toward`` stops at its target, so the target is moved past it first)."""
-    gap = geodesic(a, b)
-    if gap == 0.0:
-        return b
-    sign = 1.0 if float(np.dot(a, b)) >= 0.0 else -1.0
-    # q(t) = sin((1 - t) h) / sin h a + sin(t h) / sin h s b, h = gap / 2, t = angle / gap
-    half, t = gap / 2.0, angle / gap
-    s = math.sin(half)
-    q = (math.sin((1.0 - t) * half) / s) * a + (sign * math.sin(t * half) / s) * b
-    q = q / math.sqrt(float(np.dot(q, q)))
-    return -q if q[0] < 0.0 else q
 
 
 def nearest_start_pose3(
@@ -204,15 +189,8 @@ class StartStatus3:
     def line(self) -> str:
         """One status line: where the limb is, what is wrong, which way to move it."""
         where = f"pan {self.pan_deg:+.1f}, tilt {self.tilt_deg:+.1f}, roll {self.roll_deg:+.1f} deg"
-        problems = []
-        if not self.inside_limits:
-            problems.append("beyond the rig's hard limits")
-        if self.outside_deg > 0.0:
-            problems.append(f"{self.outside_deg:.1f} deg outside the taught region")
-        if not problems and not self.ready:
-            problems.append("on the region's edge")
-        state = "; ".join(problems) if problems else "ready"
-        return f"limb at {where} ({state}): {self.advice()}"
+        outside = self.outside_deg if self.outside_deg > 0.0 else None
+        return status_line(where, self.ready, self.inside_limits, outside, self.advice())
 
     def as_dict(self) -> dict:
         """The status as plain JSON-ready values (for a live view or a log)."""

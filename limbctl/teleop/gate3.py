@@ -67,13 +67,22 @@ def geodesic(a: np.ndarray, b: np.ndarray) -> float:
 
 
 def toward(a: np.ndarray, b: np.ndarray, step: float) -> np.ndarray:
-    """Unit quaternion ``step`` rad of rotation from ``a`` along the shortest rotation to ``b``.
+    """Unit quaternion ``step`` rad of rotation from ``a`` along the shortest rotation to ``b``,
+    or ``b`` itself when it is nearer than that; w >= 0."""
+    if geodesic(a, b) <= step:
+        return b
+    return turn_by(a, b, step)
+
+
+def turn_by(a: np.ndarray, b: np.ndarray, step: float) -> np.ndarray:
+    """Unit quaternion ``step`` rad of rotation from ``a`` along the shortest rotation to ``b``,
+    which may lie past ``b``; ``b`` itself when the two are the same orientation.
 
     Slerp: ``q = sin((1 - t) h) / sin h * a + sin(t h) / sin h * s b`` with ``h`` half the angle
-    between them and ``t = step / angle``; w >= 0.
+    between them, ``t = step / angle`` and ``s = sign(a . b)``; w >= 0.
     """
     angle = geodesic(a, b)
-    if angle <= step or angle == 0.0:
+    if angle == 0.0:
         return b
     sign = 1.0 if float(np.dot(a, b)) >= 0.0 else -1.0
     half, t = angle / 2.0, step / angle

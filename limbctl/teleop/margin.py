@@ -166,6 +166,22 @@ def nearest_start_pose(
     return float(best[0]), float(best[1])
 
 
+def status_line(
+    where: str, ready: bool, inside_limits: bool, outside_deg: float | None, advice: str
+) -> str:
+    """A waiting limb's status line: ``where`` it is, what is wrong (beyond the hard limits,
+    ``outside_deg`` outside the region, None inside; on the edge), then the ``advice``."""
+    problems = []
+    if not inside_limits:
+        problems.append("beyond the rig's hard limits")
+    if outside_deg is not None:
+        problems.append(f"{outside_deg:.1f} deg outside the taught region")
+    if not problems and not ready:
+        problems.append("on the region's edge")
+    state = "; ".join(problems) if problems else "ready"
+    return f"limb at {where} ({state}): {advice}"
+
+
 @dataclass(frozen=True)
 class StartStatus:
     """Where a waiting limb is and where it must go before the session may start.
@@ -227,15 +243,8 @@ class StartStatus:
     def line(self) -> str:
         """One status line: where the limb is, what is wrong, which way to move it."""
         where = f"pan {self.pan_deg:+.1f} deg, tilt {self.tilt_deg:+.1f} deg"
-        problems = []
-        if not self.inside_limits:
-            problems.append("beyond the rig's hard limits")
-        if not self.inside_region:
-            problems.append(f"{self.outside_deg:.1f} deg outside the taught region")
-        if not problems and not self.ready:
-            problems.append("on the region's edge")
-        state = "; ".join(problems) if problems else "ready"
-        return f"limb at {where} ({state}): {self.advice()}"
+        outside = None if self.inside_region else self.outside_deg
+        return status_line(where, self.ready, self.inside_limits, outside, self.advice())
 
     def as_dict(self) -> dict:
         """The status as plain JSON-ready values (for a live view or a log)."""

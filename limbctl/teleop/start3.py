@@ -29,7 +29,7 @@ from typing import IO, Any
 
 from limbctl.errors import BusError, SafetyError
 from limbctl.geometry.gimbal3 import pose_quat_scalar
-from limbctl.teleop.approach import LOG_EVERY_S, StartOptions, StartOutcome
+from limbctl.teleop.approach import LOG_EVERY_S, StartOptions, StartOutcome, switch_torque_off
 from limbctl.teleop.approach3 import StartStatus3, assess3, drive3, park3, safe_with_margin
 from limbctl.teleop.gate3 import Gate3
 from limbctl.teleop.lifecycle import SessionResult
@@ -127,7 +127,7 @@ def _start_three(
                             rig, gate, held, target, approach, options.rate_hz, stop, stream
                         )
                     except BusError as exc:
-                        note = _torque_off(rig)
+                        note = switch_torque_off(rig)
                         waited = time.monotonic() - started
                         return StartOutcome(
                             False, "bus failure", f"{exc} during the approach; {note}", waited, 3
@@ -154,14 +154,6 @@ def _show(stream: IO[str] | None, status: StartStatus3, lines: list[float]) -> N
         )
         stream.flush()
         lines.append(now)
-
-
-def _torque_off(rig: Any) -> str:
-    try:
-        rig.set_torque(False)
-    except BusError as exc:
-        return f"could not switch torque off ({exc}); cut the servo power"
-    return "torque switched off"
 
 
 def run_session_three(
