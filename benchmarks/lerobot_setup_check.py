@@ -1,0 +1,368 @@
+"""LeRobot's own motor set-up and client against factory-fresh simulated servos.
+
+A person sets up a LeRobot arm with ``lerobot-setup-motors``: for each motor, last first, it
+asks "Connect the controller board to the '<motor>' motor only and press enter." and calls
+``DynamixelMotorsBus.setup_motor(motor)`` (a broadcast ping at every baud rate the model has,
+then torque off, ID, Baud Rate). This check does the same against ``firmware-sim --factory 2``
+(two factory-fresh XL430-W250: ID 1, 57600 baud, Return Delay Time 250), one servo plugged in
+per simulator run (``--connect``), each servo's EEPROM kept in a file between runs
+(``--eeprom``), then both on one bus:
+
+1. ``--factory 2 --connect 2``: LeRobot sets up ``tilt`` (ID 2 at its 1 Mbps default);
+   limbctl's SDK then finds ID 2 at 1 Mbps and nothing at 57600.
+2. ``--factory 2 --connect 1``: LeRobot sets up ``pan`` (ID 1 at 1 Mbps); the same check.
+3. ``--factory 2``, both plugged in: LeRobot's client connects (its handshake pings each
+   motor and checks the model), broadcast-pings, writes Return Delay Time 0
+   (``configure_motors``), sync-reads Present_Position, writes Goal_Position with a write and
+   a sync write and reads the servos there, and ``scan_port`` scans every baud rate it knows.
+
+The simulator restarts between steps, and its pty with it, so LeRobot's port is closed at each
+prompt and reopened by ``setup_motor`` (a real adapter stays open while the servo is swapped;
+the servo sees the same: a power-up with its EEPROM).
+
+LeRobot and its torch are too heavy for limbctl's own environment, so two pythons take part:
+this script runs under limbctl's (simulator, verification with the dynamixel-sdk) and starts
+itself under ``--lerobot-python`` with ``--client`` for LeRobot's side, which imports nothing of
+limbctl and talks over stdin/stdout (one JSON object a line). Peer: limbctl's own SDK reads of
+the same servos in the same run.
+
+    python benchmarks/lerobot_setup_check.py --lerobot-python /path/to/venv/bin/python \
+        [--out docs/lerobot_check.md]
+
+Exit status 0 when every step passed, 1 otherwise.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+#: The motors of limbctl's gimbal as LeRobot sees them: name -> (ID, LeRobot model name).
+MOTORS = {"pan": (1, "xl430-w250"), "tilt": (2, "xl430-w250")}
+#: LeRobot's DynamixelMotorsBus.default_baudrate: what its setup writes.
+LEROBOT_BAUD = 1_000_000
+FACTORY_BAUD = 57_600
+XL430_W250 = 1060
+#: Control table addresses (X series e-Manual): ID, Baud Rate, Return Delay Time.
+ID_ADDR, BAUD_ADDR, RDT_ADDR = 7, 8, 9
+#: Baud Rate register value for 1 Mbps (X series e-Manual's baud table).
+BAUD_VALUE_1M = 3
+#: Ticks the goal moves from where the servo is: 100 of 4096 (8.8 deg), clear of noise.
+GOAL_STEP_TICKS = 100
+#: A servo is "there" within this many ticks of its goal (the simulated XL430's settling).
+AT_GOAL_TICKS = 20
+#: How long the client waits for the servos to reach the goal (s); 8.8 deg at the XL430's
+#: profile-free speed takes well under a second.
+GOAL_WAIT_S = 5.0
+#: Niceness of LeRobot's process. A real servo is hardware of its own: its reply is on the wire
+#: on time however busy the host, and waits in the adapter's buffer until the host reads it. The
+#: simulator shares the host's cores, and at load 8 on 2 cores a write's round trip reached
+#: 44 ms against the SDK's 36 ms timeout (2 of 300 lost): LeRobot's side yields to it instead.
+CLIENT_NICE = 10
+#: Reply timeout of limbctl's verifying reads (ms): patient, as they only look.
+PATIENT_MS = 500.0
+#: How long a simulator run may take to create its pty link (s); it imports numpy and numba.
+SIM_START_S = 60.0
+#: How long one client step may take (s): a setup scans 9600 baud first, 4.5 s of broadcast.
+STEP_TIMEOUT_S = 120.0
+
+
+# ---------------------------------------------------------------- LeRobot's side (--client)
+def client(port: str) -> int:
+    """LeRobot's setup_motors flow and client on ``port``; prints one JSON object a line."""
+    from importlib.metadata import version
+
+    from lerobot.motors import Motor, MotorNormMode
+    from lerobot.motors.dynamixel import DynamixelMotorsBus
+
+    os.nice(CLIENT_NICE)
+
+    def say(**fields) -> None:
+        print(json.dumps(fields), flush=True)
+
+    def prompt(text: str) -> None:
+        say(prompt=text)
+        sys.stdin.readline()
+
+    say(
+        lerobot=version("lerobot"),
+        dynamixel_sdk=version("dynamixel-sdk"),
+        python=platform.python_version(),
+    )
+    motors = {
+        name: Motor(ident, model, MotorNormMode.RANGE_M100_100)
+        for name, (ident, model) in MOTORS.items()
+    }
+    bus = DynamixelMotorsBus(port=port, motors=motors)
+    # lerobot's robots' setup_motors(): for motor in reversed(bus.motors): input(...); setup
+    for motor in reversed(bus.motors):
+        if bus.is_connected:
+            bus.port_handler.closePort()  # the simulator restarts for the next servo
+        prompt(f"Connect the controller board to the '{motor}' motor only and press enter.")
+        start = time.monotonic()
+        bus.setup_motor(motor)
+        say(
+            step="setup_motor",
+            motor=motor,
+            id=bus.motors[motor].id,
+            baud=bus.get_baudrate(),
+            seconds=round(time.monotonic() - start, 2),
+        )
+    bus.port_handler.closePort()
+    prompt("Connect all motors and press enter.")
+    bus.connect()  # handshake: pings every motor, checks its model number
+    say(step="connect", ok=True)
+    say(step="broadcast_ping", found={str(k): v for k, v in bus.broadcast_ping().items()})
+    bus.configure_motors()  # Return Delay Time 0
+    say(step="configure_motors", rdt={m: bus.read("Return_Delay_Time", m) for m in motors})
+    before = bus.sync_read("Present_Position", normalize=False)
+    say(step="sync_read", present=before)
+    bus.enable_torque()
+    goals = {m: before[m] + GOAL_STEP_TICKS for m in motors}
+    bus.write("Goal_Position", "pan", goals["pan"], normalize=False)
+    bus.sync_write("Goal_Position", {"tilt": goals["tilt"]}, normalize=False)
+    deadline = time.monotonic() + GOAL_WAIT_S
+    while True:
+        after = bus.sync_read("Present_Position", normalize=False)
+        if all(abs(after[m] - goals[m]) <= AT_GOAL_TICKS for m in motors):
+            break
+        if time.monotonic() > deadline:
+            break
+    say(step="goal", goal=goals, present=after)
+    bus.disconnect()  # torque off, port closed
+    start = time.monotonic()
+    found = DynamixelMotorsBus.scan_port(port)
+    say(
+        step="scan_port",
+        found={str(k): v for k, v in found.items()},
+        seconds=round(time.monotonic() - start, 2),
+    )
+    say(step="done")
+    return 0
+
+
+# ---------------------------------------------------------------- limbctl's side
+class Simulator:
+    """One ``firmware-sim`` run: started with ``options``, stopped with SIGTERM."""
+
+    def __init__(self, link: Path, options: list[str]) -> None:
+        self.link = link
+        self.command = [sys.executable, "-m", "firmware_sim", "--link", str(link), *options]
+        env = dict(os.environ, PYTHONPATH=str(ROOT))
+        self.log = link.with_name("firmware-sim.log")
+        with open(self.log, "ab") as log:
+            self.process = subprocess.Popen(self.command, env=env, stdout=log, stderr=log)
+        deadline = time.monotonic() + SIM_START_S
+        while not link.exists():
+            if self.process.poll() is not None:
+                raise RuntimeError(f"firmware-sim exited: {self.log.read_text()[-2000:]}")
+            if time.monotonic() > deadline:
+                raise RuntimeError(f"firmware-sim made no {link} in {SIM_START_S} s")
+            time.sleep(0.05)
+
+    def stop(self) -> None:
+        self.process.send_signal(signal.SIGINT)
+        self.process.wait(timeout=30)
+
+
+def sdk_view(port: str) -> dict:
+    """What limbctl's dynamixel-sdk sees: IDs at 57600 and at 1 Mbps, ID/baud/RDT registers."""
+    from dynamixel_sdk import COMM_SUCCESS, PacketHandler, PortHandler
+
+    class PatientPort(PortHandler):
+        def setPacketTimeout(self, packet_length):  # noqa: N802 (SDK's name)
+            self.setPacketTimeoutMillis(PATIENT_MS)
+
+    packet = PacketHandler(2.0)
+    handler = PatientPort(port)
+    seen: dict = {}
+    try:
+        for baud in (FACTORY_BAUD, LEROBOT_BAUD):
+            if not handler.setBaudRate(baud):
+                raise RuntimeError(f"cannot open {port} at {baud}")
+            found, _ = packet.broadcastPing(handler)
+            seen[str(baud)] = {str(k): v[0] for k, v in sorted(found.items())}
+        for ident in sorted(int(k) for k in seen[str(LEROBOT_BAUD)]):
+            values = []
+            for addr in (ID_ADDR, BAUD_ADDR, RDT_ADDR):
+                value, result, error = packet.read1ByteTxRx(handler, ident, addr)
+                values.append(value if result == COMM_SUCCESS and error == 0 else None)
+            seen[f"id {ident}"] = dict(zip(("ID", "Baud_Rate", "Return_Delay_Time"), values))
+    finally:
+        handler.closePort()
+    return seen
+
+
+def expect(condition: bool, what: str, checks: list[tuple[bool, str]]) -> None:
+    checks.append((bool(condition), what))
+
+
+def run_check(lerobot_python: str, workdir: Path) -> dict:
+    """Drive LeRobot's client through the three simulator runs; every event and check."""
+    link = workdir / "tty"
+    eeprom = workdir / "eeprom"
+    runs = [["--factory", "2", "--connect", "2"], ["--factory", "2", "--connect", "1"]]
+    runs.append(["--factory", "2"])
+    for options in runs:
+        options += ["--eeprom", str(eeprom)]
+    events: list[dict] = []
+    checks: list[tuple[bool, str]] = []
+    sims: list[str] = []
+    views: list[dict] = []
+    errors = open(workdir / "lerobot.stderr", "w+", encoding="utf-8")  # noqa: SIM115
+    lerobot = subprocess.Popen(
+        [lerobot_python, str(Path(__file__).resolve()), "--client", str(link)],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        stderr=errors,  # a file: tqdm's bars must not fill a pipe nobody reads
+        text=True,
+        cwd=workdir,
+    )
+    sim: Simulator | None = None
+    try:
+        for line in lerobot.stdout:
+            if not line.startswith("{"):
+                continue
+            event = json.loads(line)
+            events.append(event)
+            if "prompt" in event:
+                if sim is not None:
+                    views.append(sdk_view(str(link)))
+                    sim.stop()
+                sim = Simulator(link, runs[len(sims)])
+                shown = " ".join(["firmware-sim", *sim.command[3:]])
+                sims.append(shown.replace(str(workdir), "$TMP"))
+                lerobot.stdin.write("\n")
+                lerobot.stdin.flush()
+            if event.get("step") == "done":
+                views.append(sdk_view(str(link)))
+        code = lerobot.wait(timeout=STEP_TIMEOUT_S)
+    finally:
+        if lerobot.poll() is None:
+            lerobot.kill()
+        if sim is not None:
+            sim.stop()
+    errors.seek(0)
+    stderr = errors.read()
+    errors.close()
+    steps = {(e.get("step"), e.get("motor")): e for e in events if "step" in e}
+    expect(code == 0, f"LeRobot's client exited {code}", checks)
+    for k, (motor, (ident, _)) in enumerate(reversed(MOTORS.items())):
+        done = steps.get(("setup_motor", motor), {})
+        expect(done.get("id") == ident, f"setup_motor('{motor}') set ID {ident}", checks)
+        view = views[k] if k < len(views) else {}
+        expect(
+            view.get(str(LEROBOT_BAUD)) == {str(ident): XL430_W250}
+            and view.get(str(FACTORY_BAUD)) == {},
+            f"limbctl's SDK finds only ID {ident} at {LEROBOT_BAUD}, nothing at {FACTORY_BAUD}",
+            checks,
+        )
+        registers = view.get(f"id {ident}", {})
+        expect(
+            registers.get("ID") == ident and registers.get("Baud_Rate") == BAUD_VALUE_1M,
+            f"ID {ident}'s registers read back ID {ident}, Baud Rate {BAUD_VALUE_1M} (1 Mbps)",
+            checks,
+        )
+    both = {str(i): XL430_W250 for i, _ in MOTORS.values()}
+    expect(steps.get(("connect", None), {}).get("ok"), "connect() with its handshake", checks)
+    ping = steps.get(("broadcast_ping", None), {}).get("found")
+    expect(ping == both, "broadcast_ping() finds IDs 1 and 2", checks)
+    rdt = steps.get(("configure_motors", None), {}).get("rdt")
+    expect(rdt == dict.fromkeys(MOTORS, 0), "configure_motors() leaves RDT 0", checks)
+    goal = steps.get(("goal", None), {})
+    reached = all(
+        abs(goal.get("present", {}).get(m, 1 << 20) - goal.get("goal", {}).get(m, 0))
+        <= AT_GOAL_TICKS
+        for m in MOTORS
+    )
+    expect(reached, f"Goal_Position write + sync_write reached within {AT_GOAL_TICKS}", checks)
+    scan = steps.get(("scan_port", None), {}).get("found")
+    expect(scan == {str(LEROBOT_BAUD): [1, 2]}, "scan_port() finds [1, 2] at 1 Mbps only", checks)
+    final = views[-1] if len(views) > len(MOTORS) else {}
+    expect(
+        final.get(str(LEROBOT_BAUD)) == both and final.get(str(FACTORY_BAUD)) == {},
+        "after both: limbctl's SDK finds IDs 1, 2 at 1 Mbps, nothing at 57600",
+        checks,
+    )
+    return {
+        "events": events,
+        "checks": checks,
+        "sims": sims,
+        "views": views,
+        "stderr": stderr,
+        "code": code,
+    }
+
+
+def report(result: dict, command: str) -> str:
+    """docs/lerobot_check.md's text."""
+    head = next((e for e in result["events"] if "lerobot" in e), {})
+    passed = all(ok for ok, _ in result["checks"])
+    lines = [
+        "# LeRobot's own motor set-up against the simulator",
+        "",
+        f"Command: `{command}`",
+        "",
+        f"LeRobot {head.get('lerobot', '?')} on Python {head.get('python', '?')} with "
+        f"dynamixel-sdk {head.get('dynamixel_sdk', '?')}; limbctl's side on Python "
+        f"{platform.python_version()} ({platform.machine()}, load average "
+        f"{', '.join(f'{x:.1f}' for x in os.getloadavg())} at the end).",
+        "",
+        f"Outcome: **{'PASS' if passed else 'FAIL'}** "
+        f"({sum(ok for ok, _ in result['checks'])} of {len(result['checks'])} checks).",
+        "",
+        "## Simulator runs (one per prompt, as a person plugs servos in)",
+        "",
+        *[f"{k + 1}. `{line}`" for k, line in enumerate(result["sims"])],
+        "",
+        "## What LeRobot did and said",
+        "",
+        "```",
+        *[json.dumps(e) for e in result["events"]],
+        "```",
+        "",
+        "## Checks",
+        "",
+        *[f"- {'ok  ' if ok else 'FAIL'} {what}" for ok, what in result["checks"]],
+        "",
+        "## limbctl's SDK view after each run (peer)",
+        "",
+        "```",
+        *[json.dumps(v) for v in result["views"]],
+        "```",
+    ]
+    if not passed and result["stderr"].strip():
+        lines += ["", "## LeRobot's stderr", "", "```", result["stderr"].strip()[-4000:], "```"]
+    return "\n".join(lines) + "\n"
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("--lerobot-python", default=sys.executable, help="a python with lerobot")
+    parser.add_argument("--out", type=Path, default=ROOT / "docs" / "lerobot_check.md")
+    parser.add_argument("--client", metavar="PORT", help=argparse.SUPPRESS)
+    args = parser.parse_args(argv)
+    if args.client:
+        return client(args.client)
+    with tempfile.TemporaryDirectory() as tmp:
+        result = run_check(args.lerobot_python, Path(tmp))
+    command = "python benchmarks/lerobot_setup_check.py --lerobot-python LEROBOT_VENV/bin/python"
+    text = report(result, command)
+    args.out.write_text(text, encoding="utf-8")
+    print(text)
+    return 0 if all(ok for ok, _ in result["checks"]) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
