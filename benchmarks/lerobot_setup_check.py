@@ -27,9 +27,16 @@ limbctl and talks over stdin/stdout (one JSON object a line). Peer: limbctl's ow
 the same servos in the same run.
 
     python benchmarks/lerobot_setup_check.py --lerobot-python /path/to/venv/bin/python \
-        [--out docs/lerobot_check.md]
+        [--lerobot-python another/bin/python ...] [--out docs/lerobot_check.md]
 
-Exit status 0 when every step passed, 1 otherwise.
+Exit status 0 when every step passed, 1 otherwise. A LeRobot venv without its heavy
+dependencies (what ``.ci/run`` does; lerobot 0.5 and later need Python 3.12 and import torch
+too, for which PyPI has only the CUDA build, about 5.5 GB):
+
+    python3.11 -m venv /tmp/lerobot-venv
+    /tmp/lerobot-venv/bin/pip install torch==2.13.0 dynamixel-sdk pyserial deepdiff tqdm \
+        draccus numpy accelerate datasets
+    /tmp/lerobot-venv/bin/pip install --no-deps lerobot==0.4.4
 """
 
 from __future__ import annotations
@@ -320,19 +327,13 @@ def run_check(lerobot_python: str, workdir: Path) -> dict:
     }
 
 
-def report(result: dict, command: str) -> str:
-    """docs/lerobot_check.md's text."""
+def section(result: dict) -> list[str]:
+    """One LeRobot's part of docs/lerobot_check.md."""
     head = next((e for e in result["events"] if "lerobot" in e), {})
     passed = all(ok for ok, _ in result["checks"])
     lines = [
-        "# LeRobot's own motor set-up against the simulator",
-        "",
-        f"Command: `{command}`",
-        "",
-        f"LeRobot {head.get('lerobot', '?')} on Python {head.get('python', '?')} with "
-        f"dynamixel-sdk {head.get('dynamixel_sdk', '?')}; limbctl's side on Python "
-        f"{platform.python_version()} ({platform.machine()}, load average "
-        f"{', '.join(f'{x:.1f}' for x in os.getloadavg())} at the end).",
+        f"## LeRobot {head.get('lerobot', '?')} (Python {head.get('python', '?')}, "
+        f"dynamixel-sdk {head.get('dynamixel_sdk', '?')})",
         "",
         f"Outcome: **{'PASS' if passed else 'FAIL'}** "
         f"({sum(ok for ok, _ in result['checks'])} of {len(result['checks'])} checks).",
@@ -340,48 +341,77 @@ def report(result: dict, command: str) -> str:
         f"Steps re-run after a lost reply (at most {RETRIES} each, as a person re-runs a "
         f"failed step): {sum('retry' in e for e in result['events'])}.",
         "",
-        "## Simulator runs (one per prompt, as a person plugs servos in)",
+        "Simulator runs, one per prompt, as a person plugs servos in:",
         "",
         *[f"{k + 1}. `{line}`" for k, line in enumerate(result["sims"])],
         "",
-        "## What LeRobot did and said",
+        "What LeRobot did and said:",
         "",
         "```",
         *[json.dumps(e) for e in result["events"]],
         "```",
         "",
-        "## Checks",
+        "Checks:",
         "",
         *[f"- {'ok  ' if ok else 'FAIL'} {what}" for ok, what in result["checks"]],
         "",
-        "## limbctl's SDK view after each run (peer)",
+        "limbctl's SDK view after each run (the peer):",
         "",
         "```",
         *[json.dumps(v) for v in result["views"]],
         "```",
+        "",
     ]
     if not passed and result["stderr"].strip():
-        lines += ["", "## LeRobot's stderr", "", "```", result["stderr"].strip()[-4000:], "```"]
-    return "\n".join(lines) + "\n"
+        lines += ["LeRobot's stderr:", "", "```", result["stderr"].strip()[-4000:], "```", ""]
+    return lines
+
+
+def report(results: list[dict], command: str) -> str:
+    """docs/lerobot_check.md's text."""
+    lines = [
+        "# LeRobot's own motor set-up against the simulator",
+        "",
+        f"Command: `{command}`",
+        "",
+        "What it does: benchmarks/lerobot_setup_check.py's docstring. limbctl's side on Python "
+        f"{platform.python_version()} ({platform.machine()}, {os.cpu_count()} cores, load "
+        f"average {', '.join(f'{x:.1f}' for x in os.getloadavg())} at the end).",
+        "",
+    ]
+    for result in results:
+        lines += section(result)
+    return "\n".join(lines)
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
-    parser.add_argument("--lerobot-python", default=sys.executable, help="a python with lerobot")
+    parser.add_argument(
+        "--lerobot-python",
+        action="append",
+        help="a python with lerobot (repeat for several LeRobots; default: this python)",
+    )
     parser.add_argument("--out", type=Path, default=ROOT / "docs" / "lerobot_check.md")
     parser.add_argument("--client", metavar="PORT", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.client:
         return client(args.client)
-    with tempfile.TemporaryDirectory() as tmp:
-        result = run_check(args.lerobot_python, Path(tmp))
-    command = "python benchmarks/lerobot_setup_check.py --lerobot-python LEROBOT_VENV/bin/python"
-    text = report(result, command)
+    results = []
+    for python in args.lerobot_python or [sys.executable]:
+        with tempfile.TemporaryDirectory() as tmp:
+            results.append(run_check(python, Path(tmp)))
+    command = "python benchmarks/lerobot_setup_check.py" + "".join(
+        f" --lerobot-python LEROBOT{k + 1}/bin/python"
+        if len(results) > 1
+        else " --lerobot-python LEROBOT_VENV/bin/python"
+        for k in range(len(results))
+    )
+    text = report(results, command)
     args.out.write_text(text, encoding="utf-8")
     print(text)
-    return 0 if all(ok for ok, _ in result["checks"]) else 1
+    return 0 if all(ok for r in results for ok, _ in r["checks"]) else 1
 
 
 if __name__ == "__main__":
