@@ -16,6 +16,10 @@ per simulator run (``--connect``), each servo's EEPROM kept in a file between ru
    (``configure_motors``), sync-reads Present_Position, writes Goal_Position with a write and
    a sync write and reads the servos there, and ``scan_port`` scans every baud rate it knows.
 
+``--arm koch`` does the same for LeRobot's Koch follower (six servos: two XL430-W250, four
+XL330-M288, as ``--factory 6 --model ...``) through its own ``KochFollower.setup_motors``, whose
+``input()`` prompts the check answers as the person would.
+
 The simulator restarts between steps, and its pty with it, so LeRobot's port is closed at each
 prompt and reopened by ``setup_motor`` (a real adapter stays open while the servo is swapped;
 the servo sees the same: a power-up with its EEPROM).
@@ -53,12 +57,25 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-#: The motors of limbctl's gimbal as LeRobot sees them: name -> (ID, LeRobot model name).
-MOTORS = {"pan": (1, "xl430-w250"), "tilt": (2, "xl430-w250")}
+#: The arms set up: name -> motors as LeRobot sees them, name -> (ID, LeRobot model name), the
+#: servo with ID n in the simulator's slot n. "gimbal" is limbctl's two joints; "koch" is
+#: LeRobot's Koch follower, set up by its own ``KochFollower.setup_motors``.
+ARMS = {
+    "gimbal": {"pan": (1, "xl430-w250"), "tilt": (2, "xl430-w250")},
+    "koch": {
+        "shoulder_pan": (1, "xl430-w250"),
+        "shoulder_lift": (2, "xl430-w250"),
+        "elbow_flex": (3, "xl330-m288"),
+        "wrist_flex": (4, "xl330-m288"),
+        "wrist_roll": (5, "xl330-m288"),
+        "gripper": (6, "xl330-m288"),
+    },
+}
+#: Model numbers (X series e-Manual), for what limbctl's SDK expects to find.
+MODEL_NUMBER = {"xl430-w250": 1060, "xl330-m288": 1200}
 #: LeRobot's DynamixelMotorsBus.default_baudrate: what its setup writes.
 LEROBOT_BAUD = 1_000_000
 FACTORY_BAUD = 57_600
-XL430_W250 = 1060
 #: Control table addresses (X series e-Manual): ID, Baud Rate, Return Delay Time.
 ID_ADDR, BAUD_ADDR, RDT_ADDR = 7, 8, 9
 #: Baud Rate register value for 1 Mbps (X series e-Manual's baud table).
@@ -87,7 +104,7 @@ STEP_TIMEOUT_S = 120.0
 
 
 # ---------------------------------------------------------------- LeRobot's side (--client)
-def client(port: str) -> int:
+def client(port: str, arm: str) -> int:
     """LeRobot's setup_motors flow and client on ``port``; prints one JSON object a line."""
     from importlib.metadata import version
 
@@ -120,23 +137,50 @@ def client(port: str) -> int:
     )
     motors = {
         name: Motor(ident, model, MotorNormMode.RANGE_M100_100)
-        for name, (ident, model) in MOTORS.items()
+        for name, (ident, model) in ARMS[arm].items()
     }
-    bus = DynamixelMotorsBus(port=port, motors=motors)
-    # lerobot's robots' setup_motors(): for motor in reversed(bus.motors): input(...); setup
-    for motor in reversed(bus.motors):
-        if bus.is_connected:
-            bus.port_handler.closePort()  # the simulator restarts for the next servo
-        prompt(f"Connect the controller board to the '{motor}' motor only and press enter.")
-        start = time.monotonic()
-        again(f"setup_motor('{motor}')", lambda m=motor: bus.setup_motor(m))
-        say(
-            step="setup_motor",
-            motor=motor,
-            id=bus.motors[motor].id,
-            baud=bus.get_baudrate(),
-            seconds=round(time.monotonic() - start, 2),
-        )
+    if arm == "koch":
+        import builtins
+
+        from lerobot.robots.koch_follower import KochFollower, KochFollowerConfig
+
+        robot = KochFollower(KochFollowerConfig(port=port, id="limbctl_sim"))
+        bus = robot.bus
+        asked: list[str] = []
+
+        def person(text: str = "") -> str:
+            """The person at the prompt: swaps the servo (a new simulator run), presses enter."""
+            if asked:
+                say(step="setup_motor", motor=asked[-1], id=bus.motors[asked[-1]].id)
+            if bus.is_connected:
+                bus.port_handler.closePort()  # the simulator restarts for the next servo
+            asked.append(text.split("'")[1])
+            prompt(text)
+            return ""
+
+        builtins.input = person
+        # LeRobot's own loop, verbatim; not re-run on a lost reply: it would start over at the
+        # first motor while the bench has moved on
+        robot.setup_motors()
+        say(step="setup_motor", motor=asked[-1], id=bus.motors[asked[-1]].id)
+    else:
+        bus = DynamixelMotorsBus(port=port, motors=motors)
+        # what LeRobot's robots' setup_motors() do: for motor in reversed(bus.motors):
+        # input("Connect the controller board to the '...' motor only and press enter.");
+        # bus.setup_motor(motor)
+        for motor in reversed(bus.motors):
+            if bus.is_connected:
+                bus.port_handler.closePort()  # the simulator restarts for the next servo
+            prompt(f"Connect the controller board to the '{motor}' motor only and press enter.")
+            start = time.monotonic()
+            again(f"setup_motor('{motor}')", lambda m=motor: bus.setup_motor(m))
+            say(
+                step="setup_motor",
+                motor=motor,
+                id=bus.motors[motor].id,
+                baud=bus.get_baudrate(),
+                seconds=round(time.monotonic() - start, 2),
+            )
     bus.port_handler.closePort()
     prompt("Connect all motors and press enter.")
     # the handshake pings every motor and checks its model; a lost reply there is a RuntimeError
@@ -152,8 +196,10 @@ def client(port: str) -> int:
     say(step="sync_read", present=before)
     again("enable_torque", bus.enable_torque)
     goals = {m: before[m] + GOAL_STEP_TICKS for m in motors}
-    again("write", lambda: bus.write("Goal_Position", "pan", goals["pan"], normalize=False))
-    bus.sync_write("Goal_Position", {"tilt": goals["tilt"]}, normalize=False)  # no reply
+    first, *rest = motors
+    again("write", lambda: bus.write("Goal_Position", first, goals[first], normalize=False))
+    others = {m: goals[m] for m in rest}
+    bus.sync_write("Goal_Position", others, normalize=False)  # no reply
     deadline = time.monotonic() + GOAL_WAIT_S
     while True:
         after = again("sync_read", lambda: bus.sync_read("Present_Position", normalize=False))
@@ -230,21 +276,24 @@ def expect(condition: bool, what: str, checks: list[tuple[bool, str]]) -> None:
     checks.append((bool(condition), what))
 
 
-def run_check(lerobot_python: str, workdir: Path) -> dict:
-    """Drive LeRobot's client through the three simulator runs; every event and check."""
+def run_check(lerobot_python: str, workdir: Path, arm: str = "gimbal") -> dict:
+    """Drive LeRobot's client through one simulator run per motor, then one with all of them;
+    every event and check."""
+    motors = ARMS[arm]
     link = workdir / "tty"
-    eeprom = workdir / "eeprom"
-    runs = [["--factory", "2", "--connect", "2"], ["--factory", "2", "--connect", "1"]]
-    runs.append(["--factory", "2"])
-    for options in runs:
-        options += ["--eeprom", str(eeprom)]
+    bench = ["--factory", str(len(motors)), "--eeprom", str(workdir / "eeprom")]
+    models = [model for _, model in motors.values()]
+    if len(set(models)) > 1:
+        bench += ["--model", ",".join(models)]
+    runs = [[*bench, "--connect", str(ident)] for ident, _ in reversed(motors.values())]
+    runs.append(bench)
     events: list[dict] = []
     checks: list[tuple[bool, str]] = []
     sims: list[str] = []
     views: list[dict] = []
     errors = open(workdir / "lerobot.stderr", "w+", encoding="utf-8")  # noqa: SIM115
     lerobot = subprocess.Popen(
-        [lerobot_python, str(Path(__file__).resolve()), "--client", str(link)],
+        [lerobot_python, str(Path(__file__).resolve()), "--client", str(link), "--arm", arm],
         stdin=subprocess.PIPE,
         stdout=subprocess.PIPE,
         stderr=errors,  # a file: tqdm's bars must not fill a pipe nobody reads
@@ -280,12 +329,12 @@ def run_check(lerobot_python: str, workdir: Path) -> dict:
     errors.close()
     steps = {(e.get("step"), e.get("motor")): e for e in events if "step" in e}
     expect(code == 0, f"LeRobot's client exited {code}", checks)
-    for k, (motor, (ident, _)) in enumerate(reversed(MOTORS.items())):
+    for k, (motor, (ident, model)) in enumerate(reversed(motors.items())):
         done = steps.get(("setup_motor", motor), {})
         expect(done.get("id") == ident, f"setup_motor('{motor}') set ID {ident}", checks)
         view = views[k] if k < len(views) else {}
         expect(
-            view.get(str(LEROBOT_BAUD)) == {str(ident): XL430_W250}
+            view.get(str(LEROBOT_BAUD)) == {str(ident): MODEL_NUMBER[model]}
             and view.get(str(FACTORY_BAUD)) == {},
             f"limbctl's SDK finds only ID {ident} at {LEROBOT_BAUD}, nothing at {FACTORY_BAUD}",
             checks,
@@ -296,28 +345,30 @@ def run_check(lerobot_python: str, workdir: Path) -> dict:
             f"ID {ident}'s registers read back ID {ident}, Baud Rate {BAUD_VALUE_1M} (1 Mbps)",
             checks,
         )
-    both = {str(i): XL430_W250 for i, _ in MOTORS.values()}
+    every = {str(i): MODEL_NUMBER[model] for i, model in motors.values()}
+    ids = sorted(i for i, _ in motors.values())
     expect(steps.get(("connect", None), {}).get("ok"), "connect() with its handshake", checks)
     ping = steps.get(("broadcast_ping", None), {}).get("found")
-    expect(ping == both, "broadcast_ping() finds IDs 1 and 2", checks)
+    expect(ping == every, f"broadcast_ping() finds IDs {ids} with their models", checks)
     rdt = steps.get(("configure_motors", None), {}).get("rdt")
-    expect(rdt == dict.fromkeys(MOTORS, 0), "configure_motors() leaves RDT 0", checks)
+    expect(rdt == dict.fromkeys(motors, 0), "configure_motors() leaves RDT 0", checks)
     goal = steps.get(("goal", None), {})
     reached = all(
         abs(goal.get("present", {}).get(m, 1 << 20) - goal.get("goal", {}).get(m, 0))
         <= AT_GOAL_TICKS
-        for m in MOTORS
+        for m in motors
     )
     expect(reached, f"Goal_Position write + sync_write reached within {AT_GOAL_TICKS}", checks)
     scan = steps.get(("scan_port", None), {}).get("found")
-    expect(scan == {str(LEROBOT_BAUD): [1, 2]}, "scan_port() finds [1, 2] at 1 Mbps only", checks)
-    final = views[-1] if len(views) > len(MOTORS) else {}
+    expect(scan == {str(LEROBOT_BAUD): ids}, f"scan_port() finds {ids} at 1 Mbps only", checks)
+    final = views[-1] if len(views) > len(motors) else {}
     expect(
-        final.get(str(LEROBOT_BAUD)) == both and final.get(str(FACTORY_BAUD)) == {},
-        "after both: limbctl's SDK finds IDs 1, 2 at 1 Mbps, nothing at 57600",
+        final.get(str(LEROBOT_BAUD)) == every and final.get(str(FACTORY_BAUD)) == {},
+        f"after all: limbctl's SDK finds IDs {ids} at 1 Mbps, nothing at 57600",
         checks,
     )
     return {
+        "arm": arm,
         "events": events,
         "checks": checks,
         "sims": sims,
@@ -332,8 +383,8 @@ def section(result: dict) -> list[str]:
     head = next((e for e in result["events"] if "lerobot" in e), {})
     passed = all(ok for ok, _ in result["checks"])
     lines = [
-        f"## LeRobot {head.get('lerobot', '?')} (Python {head.get('python', '?')}, "
-        f"dynamixel-sdk {head.get('dynamixel_sdk', '?')})",
+        f"## {result['arm']}: LeRobot {head.get('lerobot', '?')} (Python "
+        f"{head.get('python', '?')}, dynamixel-sdk {head.get('dynamixel_sdk', '?')})",
         "",
         f"Outcome: **{'PASS' if passed else 'FAIL'}** "
         f"({sum(ok for ok, _ in result['checks'])} of {len(result['checks'])} checks).",
@@ -367,11 +418,10 @@ def section(result: dict) -> list[str]:
     return lines
 
 
-def report(results: list[dict], command: str) -> str:
-    """docs/lerobot_check.md's text."""
-    lines = [
-        "# LeRobot's own motor set-up against the simulator",
-        "",
+def report(results: list[dict], command: str, title: bool = True) -> str:
+    """docs/lerobot_check.md's text (without its title: to append to it)."""
+    lines = ["# LeRobot's own motor set-up against the simulator", ""] if title else []
+    lines += [
         f"Command: `{command}`",
         "",
         "What it does: benchmarks/lerobot_setup_check.py's docstring. limbctl's side on Python "
@@ -394,21 +444,39 @@ def main(argv: list[str] | None = None) -> int:
         help="a python with lerobot (repeat for several LeRobots; default: this python)",
     )
     parser.add_argument("--out", type=Path, default=ROOT / "docs" / "lerobot_check.md")
+    parser.add_argument(
+        "--arm",
+        action="append",
+        choices=sorted(ARMS),
+        help="what to set up (repeatable; default: gimbal): limbctl's two joints, or LeRobot's "
+        "Koch follower (6 servos, XL430 and XL330) through its own setup_motors",
+    )
+    parser.add_argument(
+        "--append", action="store_true", help="add this run's sections to --out, keep the rest"
+    )
     parser.add_argument("--client", metavar="PORT", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
+    arms = args.arm or ["gimbal"]
     if args.client:
-        return client(args.client)
+        return client(args.client, arms[0])
     results = []
     for python in args.lerobot_python or [sys.executable]:
-        with tempfile.TemporaryDirectory() as tmp:
-            results.append(run_check(python, Path(tmp)))
+        for arm in arms:
+            with tempfile.TemporaryDirectory() as tmp:
+                results.append(run_check(python, Path(tmp), arm))
+    pythons = args.lerobot_python or [sys.executable]
     command = "python benchmarks/lerobot_setup_check.py" + "".join(
         f" --lerobot-python LEROBOT{k + 1}/bin/python"
-        if len(results) > 1
+        if len(pythons) > 1
         else " --lerobot-python LEROBOT_VENV/bin/python"
-        for k in range(len(results))
+        for k in range(len(pythons))
     )
-    text = report(results, command)
+    command += "".join(f" --arm {arm}" for arm in args.arm or [])
+    if args.append and args.out.exists():
+        command += " --append"
+        text = args.out.read_text(encoding="utf-8") + report(results, command, title=False)
+    else:
+        text = report(results, command)
     args.out.write_text(text, encoding="utf-8")
     print(text)
     return 0 if all(ok for r in results for ok, _ in r["checks"]) else 1
