@@ -2,8 +2,8 @@
 
 A person sets up a LeRobot arm with ``lerobot-setup-motors``: for each motor, last first, it
 asks "Connect the controller board to the '<motor>' motor only and press enter." and calls
-``DynamixelMotorsBus.setup_motor(motor)`` (a broadcast ping at every baud rate the model has,
-then torque off, ID, Baud Rate). This check does the same against ``firmware-sim --factory 2``
+``DynamixelMotorsBus.setup_motor(motor)`` (broadcast pings at the model's baud rates, 9600
+first, until one answers; then torque off, ID, Baud Rate). This check does the same against ``firmware-sim --factory 2``
 (two factory-fresh XL430-W250: ID 1, 57600 baud, Return Delay Time 250), one servo plugged in
 per simulator run (``--connect``), each servo's EEPROM kept in a file between runs
 (``--eeprom``), then both on one bus:
@@ -31,7 +31,12 @@ limbctl and talks over stdin/stdout (one JSON object a line). Peer: limbctl's ow
 the same servos in the same run.
 
     python benchmarks/lerobot_setup_check.py --lerobot-python /path/to/venv/bin/python \
-        [--lerobot-python another/bin/python ...] [--out docs/lerobot_check.md]
+        [--lerobot-python another/bin/python ...] [--arm gimbal|koch ...] [--append] \
+        [--out docs/lerobot_check.md]
+
+docs/lerobot_check.md came from two runs: the gimbal with LeRobot 0.6.1 and 0.4.4, then
+``--arm koch --append`` with 0.6.1. A step that loses a reply is re-run once and reported
+(RETRIES below).
 
 Exit status 0 when every step passed, 1 otherwise. A LeRobot venv without its heavy
 dependencies (what ``.ci/run`` does; lerobot 0.5 and later need Python 3.12 and import torch
