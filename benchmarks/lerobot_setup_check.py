@@ -3,10 +3,10 @@
 A person sets up a LeRobot arm with ``lerobot-setup-motors``: for each motor, last first, it
 asks "Connect the controller board to the '<motor>' motor only and press enter." and calls
 ``DynamixelMotorsBus.setup_motor(motor)`` (broadcast pings at the model's baud rates, 9600
-first, until one answers; then torque off, ID, Baud Rate). This check does the same against ``firmware-sim --factory 2``
-(two factory-fresh XL430-W250: ID 1, 57600 baud, Return Delay Time 250), one servo plugged in
-per simulator run (``--connect``), each servo's EEPROM kept in a file between runs
-(``--eeprom``), then both on one bus:
+first, until one answers; then torque off, ID, Baud Rate). This check does the same against
+``firmware-sim --factory 2`` (two factory-fresh XL430-W250: ID 1, 57600 baud, Return Delay
+Time 250), one servo plugged in per simulator run (``--connect``), each servo's EEPROM kept
+in a file between runs (``--eeprom``), then both on one bus:
 
 1. ``--factory 2 --connect 2``: LeRobot sets up ``tilt`` (ID 2 at its 1 Mbps default);
    limbctl's SDK then finds ID 2 at 1 Mbps and nothing at 57600.
