@@ -167,6 +167,7 @@ def serve(
                     endpoint.write_all(packet)
                     quiet = max(quiet, time.monotonic())
                 free_at = quiet
+                sim.persist()
         if control is not None and control in ready and on_control is not None:
             if not on_control(control):
                 return
