@@ -49,6 +49,7 @@ ASSETS = {
     "index.html": "text/html",
     "view.js": "application/javascript",
     "control.js": "application/javascript",
+    "leader.js": "application/javascript",
     "view.css": "text/css",
 }
 DEFAULT_HOST = "127.0.0.1"

@@ -90,6 +90,12 @@ class LeaderSource(CommandSource):
         self.notice = ""
         self.feel_stats = FeelStats()
         self.last_push: Push | None = None
+        #: The leader's (pan, tilt) as last read (rad; a three-servo leader's pan and tilt),
+        #: None before the first read: what the live page draws beside the follower.
+        self.last_pose: tuple[float, float] | None = None
+        #: The most a felt leader may push (N m: the law's cap as its Current Limit allows);
+        #: None while passive.
+        self.cap_nm: float | None = None
         self._cycle: tuple[tuple[float, float], np.ndarray] | None = None
         self._notes: list[str] = []
         self._heard_at = math.inf  # when the leader last answered (perf_counter s)
@@ -138,6 +144,7 @@ class LeaderSource(CommandSource):
             self._switch_off()
             raise
         self.motor = motor
+        self.cap_nm = motor.torque_of(cap)
         self.notice = (
             f"leader {model} feels the edge: free inside, pushed back beyond "
             f"{self.law.deadband_deg:g} deg, at most {motor.torque_of(cap):.2f} N m "
@@ -209,11 +216,13 @@ class LeaderSource(CommandSource):
             # the same range checks as every other source's commands
             if len(self.leader_ids) == 3:  # a three-servo leader: read like the follower
                 angles = self.rig.angles_of(tuple(ticks[i] for i in self.leader_ids))
+                self.last_pose = (angles[0], angles[1])
                 command = command_from_pose(*(math.degrees(a) for a in angles))
             else:
                 pan, tilt = self.rig.ticks_to_angles(
                     ticks[self.leader_ids[0]], ticks[self.leader_ids[1]]
                 )
+                self.last_pose = (pan, tilt)
                 command = command_from_pan_tilt(math.degrees(pan), math.degrees(tilt))
         except InvalidInputError as exc:
             self.stats.reject(f"leader pose refused: {exc}")
@@ -242,7 +251,7 @@ class LeaderSource(CommandSource):
                 self._lose_feel(f"leader servo {servo_id} restarted (its torque went off)")
             if not self.felt:  # a restarted servo's indirect map is gone: read it plainly
                 return self._poll_passive()
-        pan, tilt = self._pose(read)
+        pan, tilt = self.last_pose = self._pose(read)
         try:
             command = command_from_pan_tilt(math.degrees(pan), math.degrees(tilt))
         except InvalidInputError as exc:

@@ -31,6 +31,9 @@ const WATCH = new URLSearchParams(location.search).get("watch");
 
 const state = { scene: null, live: null, liveFrames: 0, sceneFrames: 0, trail: [], socket: null };
 const canvas = document.getElementById("plane");
+// Layers other assets add (leader.js): draw(ctx, P, live) after the markers, show(live) with
+// each live message.
+const layers = [];
 let ctx = canvas.getContext("2d");
 let drawPending = false;
 
@@ -203,6 +206,7 @@ function draw() {
       drawBlocked(P, live.teleop.written, live.teleop.blocked);
     }
     drawMarker(P, live.pose, "pose");
+    for (const layer of layers) if (layer.draw) layer.draw(ctx, P, live);
   }
 }
 
@@ -266,6 +270,7 @@ function showLive(l) {
     byId("rate").textContent = `${t.rate_hz.toFixed(1)} Hz`;
     byId("cycles").textContent = String(t.cycles);
   }
+  for (const layer of layers) if (layer.show) layer.show(l);
 }
 
 function connect() {
@@ -296,6 +301,7 @@ window.limbview = {
   fromCanvas: (x, y) => { const P = projector(); return [P.pan(x), P.tilt(y)]; },
   send: (text) => { if (state.socket && state.socket.readyState === WebSocket.OPEN) state.socket.send(text); },
   redraw: () => scheduleDraw(),
+  addLayer: (layer) => { layers.push(layer); scheduleDraw(); },
   pixel: (pan, tilt) => {
     const P = projector();
     return Array.from(ctx.getImageData(Math.round(P.x(pan)), Math.round(P.y(tilt)), 1, 1).data);
