@@ -46,7 +46,7 @@ from limbctl.servo.rig import Rig
 from limbctl.servo.setup import configure_servos
 from limbctl.session import open_rig
 from limbctl.teleop.commands import command_from_pan_tilt
-from limbctl.teleop.haptic import FeelLaw, push_for
+from limbctl.teleop.haptic import FeelLaw, Push, push_for
 from limbctl.teleop.loop import LoopConfig, run
 from limbctl.teleop.sources import LeaderSource
 
@@ -179,7 +179,9 @@ def push_case(workdir: Path) -> dict:
 def ripple_case(workdir: Path, stiffness: float) -> dict:
     script = [[0.0, 0.0, 0.0], [1.5, EDGE_DEG + 5.0, 0.0], [5.0, EDGE_DEG + 5.0, 0.0]]
     hand = {**HAND, "stiffness_nm_deg": stiffness}
-    _, _, _, rows = run_case(workdir, f"ripple{stiffness}", {"script": script, **hand}, 4.5)
+    summary, source, _, rows = run_case(
+        workdir, f"ripple{stiffness}", {"script": script, **hand}, 4.5
+    )
     t = np.array([r["t"] for r in rows])
     pan = pan_of(rows)
     steady = (t >= 3.0) & (t < 4.5)
@@ -187,6 +189,10 @@ def ripple_case(workdir: Path, stiffness: float) -> dict:
         "stiffness": stiffness,
         "beyond": float(np.mean(pan[steady]) - EDGE_DEG),
         "ripple": float(np.ptp(pan[steady])),
+        "rate": summary.cycles / summary.elapsed_s,
+        # cycles that released the leader: the follower's read failed (the gate held), or the
+        # leader's own read failed
+        "released": summary.failed_cycles + source.read_failures,
     }
 
 
@@ -211,11 +217,17 @@ def rate_case(workdir: Path, model: str) -> dict:
     }
 
 
-def exact_rate_case(stiffness: float, script: list, seconds: float, let_go_s=None) -> dict:
+def exact_rate_case(
+    stiffness: float, script: list, seconds: float, let_go_s=None, cycles=None
+) -> dict:
     """The same law at exactly 200 Hz, without the bus: the simulator in this process on a
     stepped clock, and every 5 ms the controller's part done on the leader servos' registers
     (read Present Position, :func:`push_for`, write the same ten bytes to Indirect Data
-    READ_TO_WRITE_MS later). It measures the law, not the machine's load."""
+    READ_TO_WRITE_MS later). It measures the law, not the machine's load.
+
+    ``cycles`` maps a cycle's index to what happens instead: "late" (nothing is written: a
+    stalled loop; the servos keep their last command) or "held" (what ``LeaderSource.feel``
+    writes when the gate held or the follower's read failed: Goal Current 0 at the leader)."""
     clock = [0.0]
     sim = Simulator(ids=(1, 2), leader={"ids": list(LEADER_IDS)}, clock=lambda: clock[0])
     profile = default_sim_profile()
@@ -231,16 +243,19 @@ def exact_rate_case(stiffness: float, script: list, seconds: float, let_go_s=Non
     hand = {**HAND, "stiffness_nm_deg": stiffness, "script": script, "let_go_s": let_go_s}
     sim.set_operator(hand)
     rows = []
-    for _ in range(round(seconds * 200.0)):
+    for k in range(round(seconds * 200.0)):
         for servo in servos:
             servo.refresh(sim.time_s)
         ticks = [servo.value(FirmwareRegister.PRESENT_POSITION) for servo in servos]
         pose = rig.ticks_to_angles(*ticks)
         q = command_from_pan_tilt(*np.degrees(pose)).q
         push = push_for(law, motor, pose, q, cone.correct(q))
+        instead = (cycles or {}).get(k)
+        if instead == "held":
+            push = Push(0, 0, pose[0], pose[1], 0.0, 0.0)
         goal = rig.angles_to_ticks(push.goal_pan, push.goal_tilt)
         for step in range(5):
-            if step == READ_TO_WRITE_MS:
+            if step == READ_TO_WRITE_MS and instead != "late":
                 for servo, tick in zip(servos, goal, strict=True):
                     velocity = push.profile_velocity.to_bytes(4, "little")
                     servo.write(112, velocity)  # Profile Velocity (its own write in the source)
@@ -283,7 +298,37 @@ def exact_cases() -> dict:
     for k in (0.02, 0.05, 0.2):
         rows = exact_rate_case(k, EXCURSION, 4.5)["rows"]
         out["passes"].append({"stiffness": k, **contact_energy(rows)})
+    # the same press, interrupted at 3.2 s (cycle 640): what a loaded machine does to the loop
+    press = [[0.0, 0.0, 0.0], [1.5, EDGE_DEG + 5.0, 0.0], [5.0, EDGE_DEG + 5.0, 0.0]]
+    out["interrupted"] = []
+    for label, schedule in INTERRUPTIONS:
+        for k in (0.05, 0.2):
+            rows = exact_rate_case(k, press, 4.5, cycles=schedule)["rows"]
+            t, pan = np.array([r["t"] for r in rows]), pan_of(rows)
+            steady = (t >= 3.0) & (t < 4.5)
+            out["interrupted"].append(
+                {
+                    "what": label,
+                    "stiffness": k,
+                    "ripple": float(np.ptp(pan[steady])),
+                    "peak": float(np.max(pan[steady]) - EDGE_DEG),
+                }
+            )
     return out
+
+
+#: Interruptions of the exact-rate press (cycle 640 = 3.2 s): a stalled loop writes nothing for
+#: 4 and 8 cycles (20, 40 ms); a held gate (the follower's read failed: the loop holds until its
+#: silent servo's probe, 50 ms = 10 cycles) releases the leader each cycle, as does one held
+#: cycle alone.
+INTERRUPTIONS = [
+    (
+        "loop stalled 20 ms, then 40 ms (late cycles)",
+        {k: "late" for k in (*range(640, 644), *range(760, 768))},
+    ),
+    ("one held cycle (leader released 5 ms)", {640: "held"}),
+    ("gate held 50 ms (10 cycles released)", {k: "held" for k in range(640, 650)}),
+]
 
 
 def transfers_case(rounds: int = 400) -> dict:
@@ -342,7 +387,7 @@ def energy_table(passes: list[dict]) -> list[str]:
     ]
 
 
-def render(push, ripples, passes, rates, load, exact, transfers) -> str:
+def render(push, ripples, passes, rates, load, exact, transfers, end_load) -> str:
     law = FeelLaw()
     margin = law.passivity_margin(0.05, 200.0)
     lines = [
@@ -356,7 +401,8 @@ def render(push, ripples, passes, rates, load, exact, transfers) -> str:
         f"Profile Velocity {law.profile_velocity_units()} units "
         f"({law.profile_velocity_units() * 1.374:.1f} deg/s). Sampled-wall passivity margin "
         f"b / (K T / 2) = {margin:.2f} at 200 Hz with the simulated leader's b = 0.05 N m s/rad. "
-        f"Machine load at start: {load[0]:.2f} {load[1]:.2f} {load[2]:.2f} (2 cores, shared).",
+        f"Machine load at start: {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}, at the end: "
+        f"{end_load[0]:.2f} {end_load[1]:.2f} {end_load[2]:.2f} (1, 5, 15 min; 2 cores, shared).",
         "",
         "## The law at exactly 200 Hz",
         "",
@@ -379,6 +425,19 @@ def render(push, ripples, passes, rates, load, exact, transfers) -> str:
         *(
             f"| {r['stiffness']:g} | {r['beyond']:.2f} | {r['ripple']:.3f} |"
             for r in exact["ripples"]
+        ),
+        "",
+        "The same press, interrupted once at 3.2 s as a loaded machine interrupts the loop: late "
+        "cycles leave the servos their last command (the wall stays); a cycle whose gate held "
+        "(the follower's read failed) releases the leader, as the safety rules require, and the "
+        "hand pushes it toward where it means to go until the wall is back:",
+        "",
+        "| interruption | hand stiffness (N m/deg) | ripple, peak to peak (deg) | "
+        "most beyond the edge (deg) |",
+        "| --- | ---: | ---: | ---: |",
+        *(
+            f"| {r['what']} | {r['stiffness']:g} | {r['ripple']:.3f} | {r['peak']:.2f} |"
+            for r in exact["interrupted"]
         ),
         "",
         *energy_table(exact["passes"]),
@@ -408,9 +467,17 @@ def render(push, ripples, passes, rates, load, exact, transfers) -> str:
         "",
         "## Ripple while pressing 5 deg beyond, by hand stiffness",
         "",
-        "| hand stiffness (N m/deg) | beyond the edge (deg) | ripple, peak to peak (deg) |",
-        "| ---: | ---: | ---: |",
-        *(f"| {r['stiffness']:g} | {r['beyond']:.2f} | {r['ripple']:.3f} |" for r in ripples),
+        "Each run's loop rate, and its cycles that released the leader (a failed read of the "
+        "follower, so a held gate, or of the leader), over the whole 4.5 s run:",
+        "",
+        "| hand stiffness (N m/deg) | beyond the edge (deg) | ripple, peak to peak (deg) | "
+        "loop rate (Hz) | cycles released |",
+        "| ---: | ---: | ---: | ---: | ---: |",
+        *(
+            f"| {r['stiffness']:g} | {r['beyond']:.2f} | {r['ripple']:.3f} | {r['rate']:.0f} | "
+            f"{r['released']} |"
+            for r in ripples
+        ),
         "",
         "## Passivity over the pty",
         "",
@@ -478,7 +545,7 @@ def main(argv: list[str] | None = None) -> int:
         passes = [passivity_case(workdir, k) for k in (0.02, 0.05, 0.2)]
         rates = [rate_case(workdir, "xl430-w250"), rate_case(workdir, "xm430-w350")]
         print(f"ran in {time.monotonic() - started:.0f} s")
-    text = render(push, ripples, passes, rates, load, exact, transfers)
+    text = render(push, ripples, passes, rates, load, exact, transfers, os.getloadavg())
     args.out.write_text(text)
     print(text)
     return 0 if math.isfinite(push["stop_mean"]) else 1
