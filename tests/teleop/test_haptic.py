@@ -19,6 +19,7 @@ from limbctl.servo.control_table import ModelNumber
 from limbctl.servo.leader import FEEL_DATA, FEEL_MAP, FELT_MODELS, encode_feel, feel_map
 from limbctl.servo.rig import Rig
 from limbctl.teleop.haptic import FeelLaw, FeelStats, Push, beyond_deg, push_for
+from limbctl.teleop.sources.leader import PaceWatch
 
 LAW = FeelLaw()
 MOTOR = FELT_MODELS[ModelNumber.XM430_W350]
@@ -159,6 +160,13 @@ def test_at_200_hz_the_leader_stops_within_2_deg_and_a_release_walks_back_to_the
     assert 30.0 <= pan[after].min() and pan[-1] < 30.5  # rests within 0.5 deg, never inside
     inside = [r for r in rows if r["pose_deg"][0] < 30.0]
     assert inside and all(r["motor_nm"] == [0.0, 0.0] for r in inside)
+    # never above the cap; pressed beyond the edge, the motor pulls pan back, never outward
+    assert max(abs(m) for r in rows for m in r["motor_nm"]) <= MOTOR.torque_of(
+        MOTOR.units_for(LAW.cap_nm)
+    )
+    pressed = [r for r in rows if r["pose_deg"][0] > 30.5 and r["hand_nm"][0] > 0.0]
+    assert pressed and all(r["motor_nm"][0] <= 0.0 for r in pressed)
+    assert min(r["motor_nm"][0] for r in pressed) < -0.25  # it did push: 0.3 N m hand held
 
 
 @pytest.mark.parametrize("stiffness", [0.02, 0.2])
@@ -208,3 +216,18 @@ def test_a_held_gate_releases_the_leader_at_once_and_the_hand_pushes_through():
     before, during = pan_between(rows, 3.0, 3.2), pan_between(rows, 3.2, 3.6)
     assert np.ptp(before) < 0.2 and during.max() - before.mean() > 1.0
     assert pan_between(rows, 4.3, 4.5).max() < before.max() + 0.2  # the wall took it back
+
+
+def test_the_pace_watch_switches_the_feel_off_when_the_median_period_is_over_1_25_periods():
+    ticks = iter([0.005 * k for k in range(41)] + [0.2 + 0.0066 * k for k in range(1, 100)])
+    watch = PaceWatch(200.0, clock=lambda: next(ticks))
+    # 200 Hz for 40 periods: kept; then 151 Hz (6.6 ms > 6.25 ms): lost once the median passes
+    assert [watch.lost() for _ in range(41)] == [None] * 41
+    verdicts = [watch.lost() for _ in range(99)]
+    first = next(k for k, v in enumerate(verdicts) if v is not None)
+    assert 15 <= first <= 25 and verdicts[first] == pytest.approx(0.0066)
+    assert all(v is None for v in verdicts[:first])
+    # a late cycle or a few do not: the median ignores them
+    ticks = iter([0.005 * k + (0.03 if k >= 20 else 0.0) for k in range(60)])
+    watch = PaceWatch(200.0, clock=lambda: next(ticks))
+    assert all(watch.lost() is None for _ in range(60))

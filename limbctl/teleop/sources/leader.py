@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 import time
 from collections import deque
+from collections.abc import Callable
 
 import numpy as np
 
@@ -48,6 +49,36 @@ RATE_CHECK_TRIES = 3
 #: The wall's passivity margin at 200 Hz is 1.75 (haptic.FeelLaw); at 160 Hz it is 1.4.
 PACE_WINDOW = 40
 PACE_SLACK = 1.25
+
+
+class PaceWatch:
+    """Whether the loop keeps the rate the wall needs: the median of the last PACE_WINDOW
+    periods between calls of :meth:`lost`, against PACE_SLACK periods.
+
+    Parameters
+    ----------
+    rate_hz : float
+        The rate the wall was made passive for (Hz).
+    clock : callable
+        Seconds, monotonic (``time.perf_counter``).
+    """
+
+    def __init__(self, rate_hz: float, clock: Callable[[], float] = time.perf_counter) -> None:
+        self.limit_s = PACE_SLACK / rate_hz
+        self.clock = clock
+        self._last: float | None = None
+        self._periods: deque[float] = deque(maxlen=PACE_WINDOW)
+
+    def lost(self) -> float | None:
+        """Count a cycle now; the median period (s) once it is over the limit, else None."""
+        now = self.clock()
+        if self._last is not None:
+            self._periods.append(now - self._last)
+        self._last = now
+        if len(self._periods) < PACE_WINDOW:
+            return None
+        median = float(np.median(self._periods))
+        return median if median > self.limit_s else None
 
 
 class LeaderSource(CommandSource):
@@ -101,8 +132,7 @@ class LeaderSource(CommandSource):
         self._heard_at = math.inf  # when the leader last answered (perf_counter s)
         self._profile_velocity: int | None = 0  # what the leader's servos hold (set-up: 0)
         self._feel_block = feel_data()  # where its command goes (set at start)
-        self._felt_at: float | None = None  # when feel() last ran (perf_counter s)
-        self._periods: deque[float] = deque(maxlen=PACE_WINDOW)
+        self.pace = PaceWatch(self.rate_hz)
 
     @property
     def felt(self) -> bool:
@@ -309,19 +339,14 @@ class LeaderSource(CommandSource):
         return notes
 
     def _check_pace(self) -> None:
-        """The wall is passive only at its rate (docs/haptic.md): when the median of the last
-        PACE_WINDOW cycles' periods is over PACE_SLACK periods, the push goes off for good."""
-        now = time.perf_counter()
-        if self._felt_at is not None:
-            self._periods.append(now - self._felt_at)
-        self._felt_at = now
-        if len(self._periods) == self._periods.maxlen:
-            median = float(np.median(self._periods))
-            if median > PACE_SLACK / self.rate_hz:
-                self._lose_feel(
-                    f"the loop runs at {1.0 / median:.0f} Hz, under the {self.rate_hz:g} Hz "
-                    f"the leader's wall needs to stay passive"
-                )
+        """The wall is passive only at its rate (docs/haptic.md): a lost pace switches the push
+        off for good (:class:`PaceWatch`)."""
+        median = self.pace.lost()
+        if median is not None:
+            self._lose_feel(
+                f"the loop runs at {1.0 / median:.0f} Hz, under the {self.rate_hz:g} Hz "
+                f"the leader's wall needs to stay passive"
+            )
 
     def release(self) -> None:
         """No current on the leader from now until the next push (one sync write)."""
