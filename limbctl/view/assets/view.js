@@ -50,6 +50,7 @@ function bounds() {
   const pts = [];
   if (s) { pts.push(...s.samples); s.loops.forEach((l) => pts.push(...l.points)); }
   if (state.live && state.live.pose) pts.push(state.live.pose);
+  if (state.live && state.live.leader && state.live.leader.pose) pts.push(state.live.leader.pose);
   if (pts.length === 0) return { pan: [-180, 180], tilt: [-90, 90] };
   const pans = pts.map((p) => p[0]), tilts = pts.map((p) => p[1]);
   return { pan: [Math.min(...pans) - MARGIN_DEG, Math.max(...pans) + MARGIN_DEG],
