@@ -193,13 +193,22 @@ def ripple_case(workdir: Path, stiffness: float) -> dict:
         # cycles that released the leader: the follower's read failed (the gate held), or the
         # leader's own read failed
         "released": summary.failed_cycles + source.read_failures,
+        "kept": kept_feel(source),
     }
 
 
 def passivity_case(workdir: Path, stiffness: float) -> dict:
     hand = {**HAND, "stiffness_nm_deg": stiffness}
-    _, _, _, rows = run_case(workdir, f"passive{stiffness}", {"script": EXCURSION, **hand}, 4.5)
-    return {"stiffness": stiffness, **contact_energy(rows)}
+    _, source, _, rows = run_case(
+        workdir, f"passive{stiffness}", {"script": EXCURSION, **hand}, 4.5
+    )
+    return {"stiffness": stiffness, "kept": kept_feel(source), **contact_energy(rows)}
+
+
+def kept_feel(source) -> bool:
+    """Whether the leader felt the edge to the end: its pace watch (50 Hz here) did not switch
+    the push off (a run that lost it measured a passive leader, not the wall)."""
+    return not any("the loop runs at" in event for event in source.feel_stats.events)
 
 
 def rate_case(workdir: Path, model: str) -> dict:
@@ -471,17 +480,21 @@ def render(push, ripples, passes, rates, load, exact, transfers, end_load) -> st
         "follower, so a held gate, or of the leader), over the whole 4.5 s run:",
         "",
         "| hand stiffness (N m/deg) | beyond the edge (deg) | ripple, peak to peak (deg) | "
-        "loop rate (Hz) | cycles released |",
-        "| ---: | ---: | ---: | ---: | ---: |",
+        "loop rate (Hz) | cycles released | felt to the end |",
+        "| ---: | ---: | ---: | ---: | ---: | --- |",
         *(
             f"| {r['stiffness']:g} | {r['beyond']:.2f} | {r['ripple']:.3f} | {r['rate']:.0f} | "
-            f"{r['released']} |"
+            f"{r['released']} | {'yes' if r['kept'] else 'no: the pace was lost'} |"
             for r in ripples
         ),
         "",
         "## Passivity over the pty",
         "",
         *energy_table(passes),
+        "",
+        "Felt to the end (the pace kept): "
+        + ", ".join(f"{p['stiffness']:g}: {'yes' if p['kept'] else 'no'}" for p in passes)
+        + ".",
         "",
         "## Loop cycle with the leader's extra write",
         "",
