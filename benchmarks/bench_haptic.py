@@ -477,7 +477,11 @@ def render(push, ripples, passes, rates, load, exact, transfers, end_load) -> st
         "## Ripple while pressing 5 deg beyond, by hand stiffness",
         "",
         "Each run's loop rate, and its cycles that released the leader (a failed read of the "
-        "follower, so a held gate, or of the leader), over the whole 4.5 s run:",
+        "follower, so a held gate, or of the leader), over the whole 4.5 s run. A release while "
+        "pressed lets the hand push the leader toward its own target, 5 deg beyond, for the "
+        "~50 ms the loop holds a silent follower (the exact-rate section's interruptions; "
+        "docs/decisions/haptic.md): a ripple of 3-4 deg where such a release fell in the "
+        "steady window, 0 where none did.",
         "",
         "| hand stiffness (N m/deg) | beyond the edge (deg) | ripple, peak to peak (deg) | "
         "loop rate (Hz) | cycles released | felt to the end |",
