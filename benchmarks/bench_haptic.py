@@ -46,7 +46,7 @@ from limbctl.servo.rig import Rig
 from limbctl.servo.setup import configure_servos
 from limbctl.session import open_rig
 from limbctl.teleop.commands import command_from_pan_tilt
-from limbctl.teleop.haptic import FeelLaw, push_for
+from limbctl.teleop.haptic import FeelLaw, Push, push_for
 from limbctl.teleop.loop import LoopConfig, run
 from limbctl.teleop.sources import LeaderSource
 
@@ -179,7 +179,9 @@ def push_case(workdir: Path) -> dict:
 def ripple_case(workdir: Path, stiffness: float) -> dict:
     script = [[0.0, 0.0, 0.0], [1.5, EDGE_DEG + 5.0, 0.0], [5.0, EDGE_DEG + 5.0, 0.0]]
     hand = {**HAND, "stiffness_nm_deg": stiffness}
-    _, _, _, rows = run_case(workdir, f"ripple{stiffness}", {"script": script, **hand}, 4.5)
+    summary, source, _, rows = run_case(
+        workdir, f"ripple{stiffness}", {"script": script, **hand}, 4.5
+    )
     t = np.array([r["t"] for r in rows])
     pan = pan_of(rows)
     steady = (t >= 3.0) & (t < 4.5)
@@ -187,13 +189,32 @@ def ripple_case(workdir: Path, stiffness: float) -> dict:
         "stiffness": stiffness,
         "beyond": float(np.mean(pan[steady]) - EDGE_DEG),
         "ripple": float(np.ptp(pan[steady])),
+        "rate": summary.cycles / summary.elapsed_s,
+        # cycles that released the leader: the follower's read failed (the gate held), or the
+        # leader's own read failed
+        "released": summary.failed_cycles + source.read_failures,
+        "kept": kept_feel(source),
     }
 
 
 def passivity_case(workdir: Path, stiffness: float) -> dict:
     hand = {**HAND, "stiffness_nm_deg": stiffness}
-    _, _, _, rows = run_case(workdir, f"passive{stiffness}", {"script": EXCURSION, **hand}, 4.5)
-    return {"stiffness": stiffness, **contact_energy(rows)}
+    summary, source, _, rows = run_case(
+        workdir, f"passive{stiffness}", {"script": EXCURSION, **hand}, 4.5
+    )
+    released = summary.failed_cycles + source.read_failures
+    return {
+        "stiffness": stiffness,
+        "kept": kept_feel(source),
+        "released": released,
+        **contact_energy(rows),
+    }
+
+
+def kept_feel(source) -> bool:
+    """Whether the leader felt the edge to the end: its pace watch (50 Hz here) did not switch
+    the push off (a run that lost it measured a passive leader, not the wall)."""
+    return not any("the loop runs at" in event for event in source.feel_stats.events)
 
 
 def rate_case(workdir: Path, model: str) -> dict:
@@ -211,11 +232,17 @@ def rate_case(workdir: Path, model: str) -> dict:
     }
 
 
-def exact_rate_case(stiffness: float, script: list, seconds: float, let_go_s=None) -> dict:
+def exact_rate_case(
+    stiffness: float, script: list, seconds: float, let_go_s=None, cycles=None
+) -> dict:
     """The same law at exactly 200 Hz, without the bus: the simulator in this process on a
     stepped clock, and every 5 ms the controller's part done on the leader servos' registers
     (read Present Position, :func:`push_for`, write the same ten bytes to Indirect Data
-    READ_TO_WRITE_MS later). It measures the law, not the machine's load."""
+    READ_TO_WRITE_MS later). It measures the law, not the machine's load.
+
+    ``cycles`` maps a cycle's index to what happens instead: "late" (nothing is written: a
+    stalled loop; the servos keep their last command) or "held" (what ``LeaderSource.feel``
+    writes when the gate held or the follower's read failed: Goal Current 0 at the leader)."""
     clock = [0.0]
     sim = Simulator(ids=(1, 2), leader={"ids": list(LEADER_IDS)}, clock=lambda: clock[0])
     profile = default_sim_profile()
@@ -231,16 +258,19 @@ def exact_rate_case(stiffness: float, script: list, seconds: float, let_go_s=Non
     hand = {**HAND, "stiffness_nm_deg": stiffness, "script": script, "let_go_s": let_go_s}
     sim.set_operator(hand)
     rows = []
-    for _ in range(round(seconds * 200.0)):
+    for k in range(round(seconds * 200.0)):
         for servo in servos:
             servo.refresh(sim.time_s)
         ticks = [servo.value(FirmwareRegister.PRESENT_POSITION) for servo in servos]
         pose = rig.ticks_to_angles(*ticks)
         q = command_from_pan_tilt(*np.degrees(pose)).q
         push = push_for(law, motor, pose, q, cone.correct(q))
+        instead = (cycles or {}).get(k)
+        if instead == "held":
+            push = Push(0, 0, pose[0], pose[1], 0.0, 0.0)
         goal = rig.angles_to_ticks(push.goal_pan, push.goal_tilt)
         for step in range(5):
-            if step == READ_TO_WRITE_MS:
+            if step == READ_TO_WRITE_MS and instead != "late":
                 for servo, tick in zip(servos, goal, strict=True):
                     velocity = push.profile_velocity.to_bytes(4, "little")
                     servo.write(112, velocity)  # Profile Velocity (its own write in the source)
@@ -283,7 +313,43 @@ def exact_cases() -> dict:
     for k in (0.02, 0.05, 0.2):
         rows = exact_rate_case(k, EXCURSION, 4.5)["rows"]
         out["passes"].append({"stiffness": k, **contact_energy(rows)})
+    # the same press, interrupted at 3.2 s (cycle 640): what a loaded machine does to the loop
+    press = [[0.0, 0.0, 0.0], [1.5, EDGE_DEG + 5.0, 0.0], [5.0, EDGE_DEG + 5.0, 0.0]]
+    out["interrupted"] = []
+    for label, schedule in INTERRUPTIONS:
+        for k in (0.05, 0.2):
+            rows = exact_rate_case(k, press, 4.5, cycles=schedule)["rows"]
+            t, pan = np.array([r["t"] for r in rows]), pan_of(rows)
+            steady = (t >= 3.0) & (t < 4.5)
+            out["interrupted"].append(
+                {
+                    "what": label,
+                    "stiffness": k,
+                    "ripple": float(np.ptp(pan[steady])),
+                    "peak": float(np.max(pan[steady]) - EDGE_DEG),
+                }
+            )
+    # the closed excursion with a 50 ms held gate at 1.9 s (cycle 380), on the way out
+    out["passes_held"] = []
+    for k in (0.05, 0.2):
+        held = {i: "held" for i in range(380, 390)}
+        rows = exact_rate_case(k, EXCURSION, 4.5, cycles=held)["rows"]
+        out["passes_held"].append({"stiffness": k, **contact_energy(rows)})
     return out
+
+
+#: Interruptions of the exact-rate press (cycle 640 = 3.2 s): a stalled loop writes nothing for
+#: 4 and 8 cycles (20, 40 ms); a held gate (the follower's read failed: the loop holds until its
+#: silent servo's probe, 50 ms = 10 cycles) releases the leader each cycle, as does one held
+#: cycle alone.
+INTERRUPTIONS = [
+    (
+        "loop stalled 20 ms, then 40 ms (late cycles)",
+        {k: "late" for k in (*range(640, 644), *range(760, 768))},
+    ),
+    ("one held cycle (leader released 5 ms)", {640: "held"}),
+    ("gate held 50 ms (10 cycles released)", {k: "held" for k in range(640, 650)}),
+]
 
 
 def transfers_case(rounds: int = 400) -> dict:
@@ -342,7 +408,7 @@ def energy_table(passes: list[dict]) -> list[str]:
     ]
 
 
-def render(push, ripples, passes, rates, load, exact, transfers) -> str:
+def render(push, ripples, passes, rates, load, exact, transfers, end_load) -> str:
     law = FeelLaw()
     margin = law.passivity_margin(0.05, 200.0)
     lines = [
@@ -356,7 +422,8 @@ def render(push, ripples, passes, rates, load, exact, transfers) -> str:
         f"Profile Velocity {law.profile_velocity_units()} units "
         f"({law.profile_velocity_units() * 1.374:.1f} deg/s). Sampled-wall passivity margin "
         f"b / (K T / 2) = {margin:.2f} at 200 Hz with the simulated leader's b = 0.05 N m s/rad. "
-        f"Machine load at start: {load[0]:.2f} {load[1]:.2f} {load[2]:.2f} (2 cores, shared).",
+        f"Machine load at start: {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}, at the end: "
+        f"{end_load[0]:.2f} {end_load[1]:.2f} {end_load[2]:.2f} (1, 5, 15 min; 2 cores, shared).",
         "",
         "## The law at exactly 200 Hz",
         "",
@@ -381,7 +448,34 @@ def render(push, ripples, passes, rates, load, exact, transfers) -> str:
             for r in exact["ripples"]
         ),
         "",
+        "The same press, interrupted once at 3.2 s as a loaded machine interrupts the loop: late "
+        "cycles leave the servos their last command (the wall stays); a cycle whose gate held "
+        "(the follower's read failed) releases the leader, as the safety rules require, and the "
+        "hand pushes it toward where it means to go until the wall is back:",
+        "",
+        "| interruption | hand stiffness (N m/deg) | ripple, peak to peak (deg) | "
+        "most beyond the edge (deg) |",
+        "| --- | ---: | ---: | ---: |",
+        *(
+            f"| {r['what']} | {r['stiffness']:g} | {r['ripple']:.3f} | {r['peak']:.2f} |"
+            for r in exact["interrupted"]
+        ),
+        "",
         *energy_table(exact["passes"]),
+        "",
+        "The same excursion with a 50 ms held gate at 1.9 s, on the way out: released, the leader "
+        "goes out with no wall to take its energy; back on, the wall pushes it in from deep. "
+        "Across a release the wall is not passive (the motor's net work is about the cap times "
+        "the way back), a cost of the rule that releases the leader on a held gate:",
+        "",
+        "| hand stiffness (N m/deg) | motor net work (mJ) | friction took (mJ) | "
+        "hand net work (mJ) |",
+        "| ---: | ---: | ---: | ---: |",
+        *(
+            f"| {p['stiffness']:g} | {p['motor_mj']:+.3f} | {p['friction_mj']:.3f} | "
+            f"{p['hand_mj']:+.3f} |"
+            for p in exact["passes_held"]
+        ),
         "",
         "## Over the pty: push 20 deg beyond the edge, hold 3 s, let go",
         "",
@@ -408,13 +502,33 @@ def render(push, ripples, passes, rates, load, exact, transfers) -> str:
         "",
         "## Ripple while pressing 5 deg beyond, by hand stiffness",
         "",
-        "| hand stiffness (N m/deg) | beyond the edge (deg) | ripple, peak to peak (deg) |",
-        "| ---: | ---: | ---: |",
-        *(f"| {r['stiffness']:g} | {r['beyond']:.2f} | {r['ripple']:.3f} |" for r in ripples),
+        "Each run's loop rate, and its cycles that released the leader (a failed read of the "
+        "follower, so a held gate, or of the leader), over the whole 4.5 s run. A release while "
+        "pressed lets the hand push the leader toward its own target, 5 deg beyond, for the "
+        "~50 ms the loop holds a silent follower (the exact-rate section's interruptions; "
+        "docs/decisions/haptic.md): a ripple of 3-4 deg where such a release fell in the "
+        "steady window, 0 where none did.",
+        "",
+        "| hand stiffness (N m/deg) | beyond the edge (deg) | ripple, peak to peak (deg) | "
+        "loop rate (Hz) | cycles released | felt to the end |",
+        "| ---: | ---: | ---: | ---: | ---: | --- |",
+        *(
+            f"| {r['stiffness']:g} | {r['beyond']:.2f} | {r['ripple']:.3f} | {r['rate']:.0f} | "
+            f"{r['released']} | {'yes' if r['kept'] else 'no: the pace was lost'} |"
+            for r in ripples
+        ),
         "",
         "## Passivity over the pty",
         "",
         *energy_table(passes),
+        "",
+        "Felt to the end (the pace kept), and cycles that released the leader (a release "
+        "while in contact makes the excursion non-passive, see the exact-rate section): "
+        + ", ".join(
+            f"{p['stiffness']:g}: {'yes' if p['kept'] else 'no'}, {p['released']} released"
+            for p in passes
+        )
+        + ".",
         "",
         "## Loop cycle with the leader's extra write",
         "",
@@ -478,7 +592,7 @@ def main(argv: list[str] | None = None) -> int:
         passes = [passivity_case(workdir, k) for k in (0.02, 0.05, 0.2)]
         rates = [rate_case(workdir, "xl430-w250"), rate_case(workdir, "xm430-w350")]
         print(f"ran in {time.monotonic() - started:.0f} s")
-    text = render(push, ripples, passes, rates, load, exact, transfers)
+    text = render(push, ripples, passes, rates, load, exact, transfers, os.getloadavg())
     args.out.write_text(text)
     print(text)
     return 0 if math.isfinite(push["stop_mean"]) else 1

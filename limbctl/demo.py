@@ -23,7 +23,7 @@ import numpy as np
 from limbctl.errors import ConfigError
 from limbctl.file_jobs import TrainOptions, run_train
 from limbctl.jobs import Connection, RecordOptions, TeleopOptions, run_record, run_teleop, say
-from limbctl.live import LiveView, ViewOptions, open_view
+from limbctl.live import LiveView, ViewOptions, leader_status, open_view
 from limbctl.teleop.gate import REGION_TOLERANCE_DEG, written_tolerance_deg
 
 #: Loop rate of the demo's teleop (Hz): the controller's default rate.
@@ -194,7 +194,7 @@ def _run_demo(out: Path, teach_seconds: float, seed: int, live: LiveView) -> int
         say(f"FAILED: {beyond} goals reached the servos beyond the gate's bound; see {goals}")
         return 1
     say("== 5/5 leader: an operator pushes a felt leader past the learned edge and lets go")
-    status = max(status, _leader_run(out, model_path, seed))
+    status = max(status, _leader_run(out, model_path, seed, live))
     say(f"done: everything is in {out}/")
     return status
 
@@ -207,9 +207,10 @@ LEADER_SECONDS = 8.0
 LEADER_IDS = (3, 4)
 
 
-def _leader_run(out: Path, model_path: Path, seed: int) -> int:
+def _leader_run(out: Path, model_path: Path, seed: int, live: LiveView | None = None) -> int:
     """Step 5: the felt leader on the simulator; leader.png shows leader vs follower and the
-    push. A machine too busy to keep the rate with the leader's extra write is said so."""
+    push, and the live page (when served) draws the leader beside the follower with its push.
+    A machine too busy to keep the rate with the leader's extra write is said so."""
     from limbctl.jobs import gate_for
     from limbctl.plot import plot_leader
     from limbctl.servo.control_table import MAX_TICK
@@ -236,8 +237,17 @@ def _leader_run(out: Path, model_path: Path, seed: int) -> int:
         try:
             say(f"   {source.notice}")
             rig.set_torque(True)
+            feed = (
+                None
+                if live is None
+                else live.teleop_observer(gate.envelope, profile, "demo: leader")
+            )
+            if feed is not None:
+                feed.leader = leader_status(source)
 
             def record(cycle) -> None:
+                if feed is not None:
+                    feed(cycle)
                 push, result = source.last_push, cycle.result
                 if cycle.complete and cycle.command_deg is not None and result is not None:
                     gated = (math.degrees(result.pan), math.degrees(result.tilt))

@@ -18,7 +18,7 @@ from typing import Any
 
 from calib.profile import RigProfile
 from limbctl.errors import ConfigError
-from limbctl.live import LiveView, ViewOptions, open_view
+from limbctl.live import LiveView, ViewOptions, leader_status, open_view
 from limbctl.servo.profiles import load_rig_profile
 from limbctl.session import Session, open_rig, stop_on_signals
 from limbctl.teleop.approach import DEFAULT_WAIT_S
@@ -277,6 +277,8 @@ def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
                 if getattr(source, "felt", False) and config.on_cycle is not None:
                     # the page says how hard a felt leader pushes back
                     config.on_cycle.push_nm = lambda: getattr(source.last_push, "torque_nm", 0.0)
+                if source.name == "leader" and config.on_cycle is not None:
+                    config.on_cycle.leader = leader_status(source)  # its pose and push, drawn
                 result = run_session(
                     rig,
                     gate,

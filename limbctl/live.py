@@ -35,6 +35,7 @@ from limbctl.view import (
     ViewServer,
 )
 from limbctl.view.feed import PoseTap, SceneFeeder
+from limbctl.view.leader import LeaderLive, LeaderStatus
 from limbctl.view.region import model_loops
 from limbctl.view.twist import band_gauge, model_band_map, pose_twist, taught_map
 
@@ -247,6 +248,9 @@ class TeleopFeed:
         self.band: Any = None
         self.written_twist: float | None = None
         self.gauge = None
+        #: A leader source's part of the page (its pose and push, :func:`leader_status`), read
+        #: each cycle; None: no leader, the page is as before.
+        self.leader: Callable[[], LeaderStatus] | None = None
 
     def __call__(self, cycle: Cycle) -> None:
         previous = self.written
@@ -273,16 +277,12 @@ class TeleopFeed:
             note = f"the leader pushes back with {push:.2f} N m" if push else "the leader is free"
         if self.band is not None and cycle.present is not None and len(cycle.present) == 3:
             self.gauge = band_gauge(self.band, cycle.present, self.written_twist)
-        self.board.publish_live(
-            Live(
-                self.mode,
-                self.present,
-                teleop=status,
-                fault=cycle.fault,
-                note=note,
-                twist=self.gauge,
-            )
+        live = Live(
+            self.mode, self.present, teleop=status, fault=cycle.fault, note=note, twist=self.gauge
         )
+        if self.leader is not None:
+            live = LeaderLive(**vars(live), leader=self.leader())
+        self.board.publish_live(live)
 
     def _update_rate(self, cycle: Cycle) -> None:
         # rate = cycles completed / time, over the last RATE_WINDOW_S
@@ -293,6 +293,29 @@ class TeleopFeed:
         if cycle.t - first_t >= RATE_WINDOW_S:
             self.rate_hz = (cycle.index - first_index) / (cycle.t - first_t)
             self._window_start = (cycle.index, cycle.t)
+
+
+def leader_status(source: Any) -> Callable[[], LeaderStatus]:
+    """What the page shows of a leader source (:class:`~limbctl.teleop.sources.LeaderSource`)
+    in each cycle: its pose as last read, and a felt leader's push (its torque, cap, where it
+    points and how far beyond the edge), from the push it was last sent."""
+
+    def status() -> LeaderStatus:
+        pose = source.last_pose
+        shown = PanTilt(math.degrees(pose[0]), math.degrees(pose[1])) if pose else None
+        if not source.felt:
+            events = source.feel_stats.events
+            return LeaderStatus(shown, state=events[-1] if events else source.notice)
+        push = source.last_push
+        if push is None or push.torque_nm == 0.0:
+            beyond = push.distance_deg if push is not None else None
+            return LeaderStatus(shown, 0.0, source.cap_nm, None, beyond, "free")
+        toward = PanTilt(math.degrees(push.goal_pan), math.degrees(push.goal_tilt))
+        return LeaderStatus(
+            shown, push.torque_nm, source.cap_nm, toward, push.distance_deg, "pushing back"
+        )
+
+    return status
 
 
 @contextlib.contextmanager

@@ -50,6 +50,7 @@ ASSETS = {
     "view.js": "application/javascript",
     "control.js": "application/javascript",
     "twist.js": "application/javascript",
+    "leader.js": "application/javascript",
     "view.css": "text/css",
 }
 DEFAULT_HOST = "127.0.0.1"

@@ -33,13 +33,16 @@ PRESS = {"script": [[0.0, 0.0, 0.0], [1.5, EDGE + 20.0, 0.0]], **HAND}
 
 
 @contextmanager
-def felt_session(tmp_path, model="xm430-w350", rate_hz=100.0):
+def felt_session(tmp_path, model="xm430-w350", rate_hz=25.0):
     """An open rig with a leader gimbal, configured; yields (session, source, log path).
 
-    The source checks its start, and watches the loop's pace, against ``rate_hz``: 100 Hz, so
-    a test machine busy with other work does not refuse the start (the check is tested on its
-    own, at 2 kHz). A loop that falls under 80 Hz switches the feel off (said in a notice):
-    :func:`paced_out` tells such a run, whose wall could not be judged."""
+    The source checks its start, and watches the loop's pace, against ``rate_hz``: 25 Hz, so a
+    test machine busy with other work (a shared 2-core box ran the loop at 30-47 Hz) neither
+    refuses the start nor loses the pace (the check is tested on its own, at 2 kHz; the pace
+    watch on a stepped clock in tests/teleop/test_haptic.py). What depends on the rate, how
+    far the wall holds the hand, is tested at exactly 200 Hz on a stepped clock there too. A
+    loop that still falls under 20 Hz switches the feel off (said in a notice):
+    :func:`paced_out` tells such a run, whose faults could not be judged."""
     cone = tmp_path / "cone.npz"
     sim = default_sim_profile()
     Cone(half_angle_deg=EDGE).save(
@@ -109,7 +112,7 @@ def truth_rows(log):
 
 
 def pressing(pushes) -> bool:
-    """100 cycles pushed on, or the feel is off (a lost pace; the test then skips)."""
+    """100 cycles pushed on, or the feel is off (a lost pace; a fault's test then skips)."""
     if pushes and not pushes[-1][2]:
         return True
     return sum(1 for _, push, _ in pushes if push is not None and push.goal_current) >= 100
@@ -126,13 +129,13 @@ def test_the_leader_stops_near_the_edge_free_inside_never_above_the_cap(tmp_path
             running.until(lambda p: len(p) > seen + 300)  # 1.5 s more pressing
             now = session.simulator.truth()["leader"]["t"]
         lines = source.report_lines()
-    skip_if_paced_out(source)
     assert "feels the edge" in lines[0] and "pressed beyond the edge for" in lines[1]
     rows = truth_rows(log)
-    # the hand means 20 deg beyond; over its last second of pressing the wall held it well short
-    # (within 2 deg at a kept 200 Hz: tests/teleop/test_haptic.py; a starved loop yields more)
+    # the hand means 20 deg beyond; over its last second of pressing the wall held it short
+    # (within 2 deg at exactly 200 Hz: tests/teleop/test_haptic.py; a starved loop, whose
+    # failed reads release the leader, yields more: docs/decisions/haptic.md)
     held = [row["pose_deg"][0] for row in rows if now - 1.0 <= row["t"] <= now]
-    assert EDGE < statistics.median(held) < EDGE + 10.0
+    assert EDGE < statistics.median(held) < EDGE + 10.0 or paced_out(source)
     assert max(abs(m) for row in rows for m in row["motor_nm"]) <= cap + 1e-12
     # every cycle whose command was inside wrote no current at all
     inside = [push for _, push, _ in running.pushes if push is not None and push.distance_deg == 0]

@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 import time
 from collections import deque
+from collections.abc import Callable
 
 import numpy as np
 
@@ -48,6 +49,36 @@ RATE_CHECK_TRIES = 3
 #: The wall's passivity margin at 200 Hz is 1.75 (haptic.FeelLaw); at 160 Hz it is 1.4.
 PACE_WINDOW = 40
 PACE_SLACK = 1.25
+
+
+class PaceWatch:
+    """Whether the loop keeps the rate the wall needs: the median of the last PACE_WINDOW
+    periods between calls of :meth:`lost`, against PACE_SLACK periods.
+
+    Parameters
+    ----------
+    rate_hz : float
+        The rate the wall was made passive for (Hz).
+    clock : callable
+        Seconds, monotonic (``time.perf_counter``).
+    """
+
+    def __init__(self, rate_hz: float, clock: Callable[[], float] = time.perf_counter) -> None:
+        self.limit_s = PACE_SLACK / rate_hz
+        self.clock = clock
+        self._last: float | None = None
+        self._periods: deque[float] = deque(maxlen=PACE_WINDOW)
+
+    def lost(self) -> float | None:
+        """Count a cycle now; the median period (s) once it is over the limit, else None."""
+        now = self.clock()
+        if self._last is not None:
+            self._periods.append(now - self._last)
+        self._last = now
+        if len(self._periods) < PACE_WINDOW:
+            return None
+        median = float(np.median(self._periods))
+        return median if median > self.limit_s else None
 
 
 class LeaderSource(CommandSource):
@@ -90,13 +121,18 @@ class LeaderSource(CommandSource):
         self.notice = ""
         self.feel_stats = FeelStats()
         self.last_push: Push | None = None
+        #: The leader's (pan, tilt) as last read (rad; a three-servo leader's pan and tilt),
+        #: None before the first read: what the live page draws beside the follower.
+        self.last_pose: tuple[float, float] | None = None
+        #: The most a felt leader may push (N m: the law's cap as its Current Limit allows);
+        #: None while passive.
+        self.cap_nm: float | None = None
         self._cycle: tuple[tuple[float, float], np.ndarray] | None = None
         self._notes: list[str] = []
         self._heard_at = math.inf  # when the leader last answered (perf_counter s)
         self._profile_velocity: int | None = 0  # what the leader's servos hold (set-up: 0)
         self._feel_block = feel_data()  # where its command goes (set at start)
-        self._felt_at: float | None = None  # when feel() last ran (perf_counter s)
-        self._periods: deque[float] = deque(maxlen=PACE_WINDOW)
+        self.pace = PaceWatch(self.rate_hz)
 
     @property
     def felt(self) -> bool:
@@ -138,6 +174,7 @@ class LeaderSource(CommandSource):
             self._switch_off()
             raise
         self.motor = motor
+        self.cap_nm = motor.torque_of(cap)
         self.notice = (
             f"leader {model} feels the edge: free inside, pushed back beyond "
             f"{self.law.deadband_deg:g} deg, at most {motor.torque_of(cap):.2f} N m "
@@ -209,11 +246,13 @@ class LeaderSource(CommandSource):
             # the same range checks as every other source's commands
             if len(self.leader_ids) == 3:  # a three-servo leader: read like the follower
                 angles = self.rig.angles_of(tuple(ticks[i] for i in self.leader_ids))
+                self.last_pose = (angles[0], angles[1])
                 command = command_from_pose(*(math.degrees(a) for a in angles))
             else:
                 pan, tilt = self.rig.ticks_to_angles(
                     ticks[self.leader_ids[0]], ticks[self.leader_ids[1]]
                 )
+                self.last_pose = (pan, tilt)
                 command = command_from_pan_tilt(math.degrees(pan), math.degrees(tilt))
         except InvalidInputError as exc:
             self.stats.reject(f"leader pose refused: {exc}")
@@ -242,7 +281,7 @@ class LeaderSource(CommandSource):
                 self._lose_feel(f"leader servo {servo_id} restarted (its torque went off)")
             if not self.felt:  # a restarted servo's indirect map is gone: read it plainly
                 return self._poll_passive()
-        pan, tilt = self._pose(read)
+        pan, tilt = self.last_pose = self._pose(read)
         try:
             command = command_from_pan_tilt(math.degrees(pan), math.degrees(tilt))
         except InvalidInputError as exc:
@@ -300,19 +339,14 @@ class LeaderSource(CommandSource):
         return notes
 
     def _check_pace(self) -> None:
-        """The wall is passive only at its rate (docs/haptic.md): when the median of the last
-        PACE_WINDOW cycles' periods is over PACE_SLACK periods, the push goes off for good."""
-        now = time.perf_counter()
-        if self._felt_at is not None:
-            self._periods.append(now - self._felt_at)
-        self._felt_at = now
-        if len(self._periods) == self._periods.maxlen:
-            median = float(np.median(self._periods))
-            if median > PACE_SLACK / self.rate_hz:
-                self._lose_feel(
-                    f"the loop runs at {1.0 / median:.0f} Hz, under the {self.rate_hz:g} Hz "
-                    f"the leader's wall needs to stay passive"
-                )
+        """The wall is passive only at its rate (docs/haptic.md): a lost pace switches the push
+        off for good (:class:`PaceWatch`)."""
+        median = self.pace.lost()
+        if median is not None:
+            self._lose_feel(
+                f"the loop runs at {1.0 / median:.0f} Hz, under the {self.rate_hz:g} Hz "
+                f"the leader's wall needs to stay passive"
+            )
 
     def release(self) -> None:
         """No current on the leader from now until the next push (one sync write)."""

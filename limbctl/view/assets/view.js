@@ -31,6 +31,9 @@ const WATCH = new URLSearchParams(location.search).get("watch");
 
 const state = { scene: null, live: null, liveFrames: 0, sceneFrames: 0, trail: [], socket: null };
 const canvas = document.getElementById("plane");
+// Layers other assets add (leader.js): draw(ctx, P, live) after the markers, show(live) with
+// each live message.
+const layers = [];
 let ctx = canvas.getContext("2d");
 let drawPending = false;
 
@@ -47,6 +50,7 @@ function bounds() {
   const pts = [];
   if (s) { pts.push(...s.samples); s.loops.forEach((l) => pts.push(...l.points)); }
   if (state.live && state.live.pose) pts.push(state.live.pose);
+  if (state.live && state.live.leader && state.live.leader.pose) pts.push(state.live.leader.pose);
   if (pts.length === 0) return { pan: [-180, 180], tilt: [-90, 90] };
   const pans = pts.map((p) => p[0]), tilts = pts.map((p) => p[1]);
   return { pan: [Math.min(...pans) - MARGIN_DEG, Math.max(...pans) + MARGIN_DEG],
@@ -203,6 +207,7 @@ function draw() {
       drawBlocked(P, live.teleop.written, live.teleop.blocked);
     }
     drawMarker(P, live.pose, "pose");
+    for (const layer of layers) if (layer.draw) layer.draw(ctx, P, live);
   }
 }
 
@@ -266,6 +271,7 @@ function showLive(l) {
     byId("rate").textContent = `${t.rate_hz.toFixed(1)} Hz`;
     byId("cycles").textContent = String(t.cycles);
   }
+  for (const layer of layers) if (layer.show) layer.show(l);
 }
 
 function connect() {
@@ -297,6 +303,7 @@ window.limbview = {
   fromCanvas: (x, y) => { const P = projector(); return [P.pan(x), P.tilt(y)]; },
   send: (text) => { if (state.socket && state.socket.readyState === WebSocket.OPEN) state.socket.send(text); },
   redraw: () => scheduleDraw(),
+  addLayer: (layer) => { layers.push(layer); scheduleDraw(); },
   pixel: (pan, tilt) => {
     const P = projector();
     return Array.from(ctx.getImageData(Math.round(P.x(pan)), Math.round(P.y(tilt)), 1, 1).data);

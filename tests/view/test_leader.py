@@ -1,0 +1,143 @@
+"""The leader gimbal on the page, in headless Chromium: its marker beside the follower's, its push
+as an arrow and a bar against the cap; a page without a leader is as before."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from limbctl.view import Board, HardLimits, Live, PanTilt, Scene, TeleopStatus, ViewServer
+from limbctl.view.leader import LeaderLive, LeaderStatus
+from tests.view.browser import chromium, text_of, wait_for
+
+LIMITS = HardLimits(pan_deg=(-90.0, 90.0), tilt_deg=(-40.0, 60.0))
+#: RGB of the leader's diamond and of its push (leader.js COLORS).
+LEADER_RGB = (0, 137, 123)
+PUSH_RGB = (216, 27, 96)
+
+
+def teleop(cycles: int) -> TeleopStatus:
+    return TeleopStatus(PanTilt(33.0, 0.0), PanTilt(29.0, 0.0), "corrected", 200.0, cycles)
+
+
+def test_leader_status_json_and_its_checks():
+    status = LeaderStatus(PanTilt(32.0, 1.0), 0.29, 0.4, PanTilt(31.7, 1.0), 1.95, "pushing back")
+    live = LeaderLive("teleop", PanTilt(29.0, 0.0), leader=status)
+    out = live.to_json()
+    assert out["leader"] == {
+        "pose": [32.0, 1.0],
+        "torque_nm": 0.29,
+        "cap_nm": 0.4,
+        "toward": [31.7, 1.0],
+        "beyond_deg": 1.95,
+        "state": "pushing back",
+    }
+    assert {k: v for k, v in out.items() if k != "leader"} == Live(
+        "teleop", PanTilt(29.0, 0.0)
+    ).to_json()
+    assert "leader" not in Live("teleop").to_json()  # the page of every other source: as before
+    with pytest.raises(ValueError, match="torque_nm"):
+        LeaderStatus(None, -0.1)
+    with pytest.raises(ValueError, match="cap_nm"):
+        LeaderStatus(None, 0.0, 0.0)
+    with pytest.raises(ValueError, match="beyond_deg"):
+        LeaderStatus(None, 0.0, None, None, math.nan)
+
+
+@pytest.fixture(scope="module")
+def browser():
+    with chromium() as driver:
+        yield driver
+
+
+@pytest.fixture
+def served():
+    board = Board()
+    with ViewServer(board, port=0) as server:
+        yield board, server
+
+
+def made(driver, element_id: str) -> bool:
+    """Whether the page has made the element yet (leader.js builds its panel on first sight)."""
+    return driver.execute_script(f"return document.getElementById('{element_id}') !== null;")
+
+
+def near(rgb, target, tolerance: int = 8) -> bool:
+    """The same colour but for the canvas's antialiasing."""
+    return all(abs(a - b) <= tolerance for a, b in zip(rgb, target, strict=True))
+
+
+def canvas_rgb(driver, x: float, y: float) -> tuple[int, int, int]:
+    return tuple(
+        driver.execute_script(
+            "return Array.from(document.getElementById('plane').getContext('2d')"
+            f".getImageData({round(x)}, {round(y)}, 1, 1).data);"
+        )[:3]
+    )
+
+
+def test_the_page_draws_the_leader_and_its_push_then_forgets_them_without_a_leader(browser, served):
+    board, server = served
+    board.publish_scene(Scene(limits=LIMITS))
+    browser.get(server.url)
+    # the leader is pressed 2 deg past an edge at pan 30: the wall pushes it back along -pan
+    leader = LeaderStatus(PanTilt(32.0, 0.0), 0.3, 0.4, PanTilt(31.7, 0.0), 2.0, "pushing back")
+    board.publish_live(LeaderLive("teleop", PanTilt(29.0, 0.0), teleop=teleop(1), leader=leader))
+    wait_for(
+        browser, lambda d: made(d, "leader-push") and text_of(d, "leader-push") != "-", "no panel"
+    )
+    assert text_of(browser, "leader-pose") == "32.0, 0.0"
+    assert text_of(browser, "leader-push") == "0.30 N m (cap 0.40 N m)"
+    assert text_of(browser, "leader-beyond") == "2.00 deg"
+    assert text_of(browser, "leader-state") == "pushing back"
+    assert text_of(browser, "pose") == "29.0, 0.0"  # the follower, beside it
+    fill = browser.execute_script("return document.getElementById('leader-bar-fill').style.width;")
+    assert fill == "75%"  # 0.3 of 0.4
+    assert browser.find_element("id", "leader-panel").is_displayed()
+    assert "leader (as read)" in text_of(browser, "legend-teleop")
+
+    x, y = browser.execute_script("return window.limbview.toCanvas(32.0, 0.0);")
+    wait_for(browser, lambda d: canvas_rgb(d, x, y) == LEADER_RGB, "no leader diamond")
+    # the arrow leaves the diamond toward -pan (left on the canvas), 9 + 14 + 0.75 * 56 px long
+    assert near(canvas_rgb(browser, x - 20, y), PUSH_RGB)
+    assert near(canvas_rgb(browser, x - 60, y), PUSH_RGB)
+    assert not near(canvas_rgb(browser, x + 20, y), PUSH_RGB)
+    follower = browser.execute_script("return window.limbview.toCanvas(29.0, 0.0);")
+    assert canvas_rgb(browser, *follower) != LEADER_RGB
+
+    # released: free, no arrow, an empty bar
+    free = LeaderStatus(PanTilt(30.2, 0.0), 0.0, 0.4, None, 0.2, "free")
+    board.publish_live(LeaderLive("teleop", PanTilt(29.0, 0.0), teleop=teleop(2), leader=free))
+    wait_for(browser, lambda d: text_of(d, "leader-state") == "free", "release not shown")
+    assert text_of(browser, "leader-push") == "0.00 N m (cap 0.40 N m)"
+    x, y = browser.execute_script("return window.limbview.toCanvas(30.2, 0.0);")
+    wait_for(browser, lambda d: not near(canvas_rgb(d, x - 40, y), PUSH_RGB), "the arrow stayed")
+
+    # a passive leader: its marker, no push figure, no bar
+    passive = LeaderStatus(PanTilt(10.0, 5.0), state="leader XL430-W250 senses no current")
+    board.publish_live(LeaderLive("teleop", PanTilt(9.0, 5.0), teleop=teleop(3), leader=passive))
+    wait_for(browser, lambda d: text_of(d, "leader-pose") == "10.0, 5.0", "passive not shown")
+    assert text_of(browser, "leader-push") == "passive: it cannot push"
+    assert text_of(browser, "leader-beyond") == "-"
+    assert not browser.find_element("id", "leader-bar").is_displayed()
+
+    # the same page given a plain teleop state (any other source): no leader drawn or told
+    board.publish_live(Live("teleop", PanTilt(9.0, 5.0), teleop=teleop(4)))
+    wait_for(browser, lambda d: text_of(d, "cycles") == "4", "plain state not shown")
+    wait_for(
+        browser, lambda d: not d.find_element("id", "leader-panel").is_displayed(), "panel stayed"
+    )
+    assert not browser.find_element("id", "leader-keys").is_displayed()
+    x, y = browser.execute_script("return window.limbview.toCanvas(10.0, 5.0);")
+    assert canvas_rgb(browser, x, y) != LEADER_RGB
+
+
+def test_a_page_that_never_sees_a_leader_has_no_leader_parts(browser, served):
+    board, server = served
+    board.publish_scene(Scene(limits=LIMITS))
+    board.publish_live(Live("teleop", PanTilt(5.0, 5.0), teleop=teleop(7)))
+    browser.get(server.url)
+    wait_for(browser, lambda d: text_of(d, "cycles") == "7", "teleop not shown")
+    assert browser.execute_script("return document.getElementById('leader-panel');") is None
+    assert browser.execute_script("return document.getElementById('leader-keys');") is None
