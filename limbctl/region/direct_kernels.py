@@ -32,7 +32,7 @@ from limbctl.region.mesh_kernels import (
     _angle,
     _dot,
     _frame,
-    nearest_on_arc,
+    edge_foot,
     slerp_into,
 )
 
@@ -68,7 +68,8 @@ def nearest_midpoint(p, mids) -> int:
     nearest = -1
     best_dot = -np.inf
     for e in range(mids.shape[0]):
-        dot = _dot(p, mids[e])
+        # p . mids[e], without handing a row to a kernel (edge_foot says why)
+        dot = p[0] * mids[e, 0] + p[1] * mids[e, 1] + p[2] * mids[e, 2]
         if dot > best_dot:
             best_dot = dot
             nearest = e
@@ -76,7 +77,7 @@ def nearest_midpoint(p, mids) -> int:
 
 
 @njit
-def nearest_widened(p, vertices, edges, margins, mids, half, reach, tie, tmp, best_point):
+def nearest_widened(p, vertices, edges, margins, mids, half, reach, tie, best_point):
     """The nearest widened arc of ``p`` (3,): its index, ``angle - margin`` and angle (rad);
     its nearest point goes into ``best_point`` (3,). Arcs are visited in order, and a later
     arc replaces the best only when nearer by more than ``tie`` (rad; 0: any nearer).
@@ -95,16 +96,16 @@ def nearest_widened(p, vertices, edges, margins, mids, half, reach, tie, tmp, be
     top = _angle(p, mids[closest]) + half[closest] - margins[closest]
     limit = math.cos(min(top + reach + 1e-9, math.pi))
     for e in range(edges.shape[0]):
-        if _dot(p, mids[e]) < limit:
+        if p[0] * mids[e, 0] + p[1] * mids[e, 1] + p[2] * mids[e, 2] < limit:
             continue
-        angle = nearest_on_arc(p, vertices[edges[e, 0]], vertices[edges[e, 1]], tmp)
+        angle, x, y, z = edge_foot(p, vertices, edges, e)
         if angle - margins[e] < best_key - tie:
             best_key = angle - margins[e]
             best_angle = angle
             best_arc = e
-            best_point[0] = tmp[0]
-            best_point[1] = tmp[1]
-            best_point[2] = tmp[2]
+            best_point[0] = x
+            best_point[1] = y
+            best_point[2] = z
     return best_arc, best_key, best_angle
 
 
@@ -160,12 +161,11 @@ def query_batch(vertices, edges, margins, axis, far_inside, d, project):
     for e in range(edges.shape[0]):
         max_margin = max(max_margin, margins[e])
     u, v = _frame(axis)
-    tmp = np.empty(3)
     best_point = np.empty(3)
     for j in range(n):
         p = d[j]
         arc, key, angle = nearest_widened(
-            p, vertices, edges, margins, mids, half, longest + max_margin, 0.0, tmp, best_point
+            p, vertices, edges, margins, mids, half, longest + max_margin, 0.0, best_point
         )
         inside[j] = key <= CONTAIN_TOLERANCE or in_loops(p, vertices, edges, axis, u, v, far_inside)
         if not project:

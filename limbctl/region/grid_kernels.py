@@ -16,7 +16,7 @@ import numpy as np
 
 from limbctl.geometry.jit import njit
 from limbctl.region.direct_kernels import arc_bounds, nearest_midpoint
-from limbctl.region.mesh_kernels import _angle, _dot, _frame, _polar_point, nearest_on_arc
+from limbctl.region.mesh_kernels import _angle, _dot, _frame, _polar_point, edge_foot
 
 
 @njit
@@ -87,7 +87,6 @@ def _block_arcs(
     max_margin,
     centres,
     radius,
-    tmp,
     dist,
     arcs,
     arc_dist,
@@ -138,7 +137,7 @@ def _block_arcs(
         dist[e] = np.inf
         if _dot(c, mids[e]) < near:
             continue
-        dist[e] = nearest_on_arc(c, vertices[edges[e, 0]], vertices[edges[e, 1]], tmp)
+        dist[e] = edge_foot(c, vertices, edges, e)[0]
         best = min(best, dist[e] - margins[e])
     # 1e-9 rad of slack for rounding: a few arcs too many cost nothing
     limit = best + 2.0 * spread + 2.0 * r + max_margin + 1e-9
@@ -172,7 +171,6 @@ def _cell(
     half,
     reach,
     max_margin,
-    tmp,
     dist,
     out_edges,
     out_keys,
@@ -219,7 +217,7 @@ def _cell(
         dot = _dot(centre, mids[e])
         if dot < limit or dot < math.cos(min(x + half[e] + margins[e] + 1e-9, math.pi)):
             continue
-        dist[s] = nearest_on_arc(centre, vertices[edges[e, 0]], vertices[edges[e, 1]], tmp)
+        dist[s] = edge_foot(centre, vertices, edges, e)[0]
         best_key = min(best_key, dist[s] - margins[e])
         best_plain = min(best_plain, dist[s])
     deep = (inside[cell] and best_plain >= r) or (best_key + r <= 0.0)
@@ -286,7 +284,6 @@ def _first_pass(
     cell's depth, count and first :data:`FIRST_PASS_ARCS` candidates."""
     n_theta, n_phi = grid_shape[0], grid_shape[1]
     n_edges = edges.shape[0]
-    tmp = np.empty(3)
     corner = np.empty(3)
     cells = _block_cells(block, blocks_phi, n_theta, n_phi)
     for cell in cells:
@@ -307,7 +304,6 @@ def _first_pass(
         max_margin,
         centres,
         radius,
-        tmp,
         dist,
         block_arcs[block],
         block_arc_dist[block],
@@ -331,7 +327,6 @@ def _first_pass(
             half,
             reach,
             max_margin,
-            tmp,
             dist,
             first_edges[cell],
             first_keys[cell],
@@ -366,7 +361,6 @@ def _second_pass(
     """:func:`build_grid`'s second pass over one block: each cell's candidates into its slice
     of ``cell_edges``/``cell_keys`` (found again when the first pass kept too few), sorted."""
     n_theta, n_phi = grid_shape[0], grid_shape[1]
-    tmp = np.empty(3)
     dist = np.empty(edges.shape[0])
     arcs = block_arcs[block, : block_count[block]]
     arc_dist = block_arc_dist[block, : block_count[block]]
@@ -393,7 +387,6 @@ def _second_pass(
                 half,
                 reach,
                 max_margin,
-                tmp,
                 dist,
                 cell_edges[k0:k],
                 cell_keys[k0:k],

@@ -110,6 +110,60 @@ def nearest_on_arc(p, a, b, out) -> float:
 
 
 @njit
+def _angle3(ax, ay, az, bx, by, bz) -> float:
+    """:func:`_angle` of ``a = (ax, ay, az)`` and ``b = (bx, by, bz)``: the same arithmetic."""
+    # atan2(|a x b|, a . b)
+    cx = ay * bz - az * by
+    cy = az * bx - ax * bz
+    cz = ax * by - ay * bx
+    return math.atan2(math.sqrt(cx * cx + cy * cy + cz * cz), ax * bx + ay * by + az * bz)
+
+
+@njit
+def edge_foot(p, vertices, edges, e):
+    """:func:`nearest_on_arc` of ``p`` (3,) and arc ``e`` of ``vertices``/``edges``, the same
+    arithmetic on scalars: (angle (rad), x, y, z of the nearest point).
+
+    For the batch kernels' loops over arcs: every array, or row of one, handed to a kernel costs
+    two atomic reference counts (numba's runtime), which were a third of the serial lookup
+    grid's time; a thread pool's kernels never pay them (docs/decisions/first_run.md).
+    """
+    i = edges[e, 0]
+    j = edges[e, 1]
+    px, py, pz = p[0], p[1], p[2]
+    ax, ay, az = vertices[i, 0], vertices[i, 1], vertices[i, 2]
+    bx, by, bz = vertices[j, 0], vertices[j, 1], vertices[j, 2]
+    nx = ay * bz - az * by
+    ny = az * bx - ax * bz
+    nz = ax * by - ay * bx
+    nn = math.sqrt(nx * nx + ny * ny + nz * nz)
+    if nn > 0.0:
+        nx /= nn
+        ny /= nn
+        nz /= nn
+        # foot of p on the arc's great circle: p - (p.n) n, normalised
+        pn = px * nx + py * ny + pz * nz
+        fx = px - pn * nx
+        fy = py - pn * ny
+        fz = pz - pn * nz
+        fn = math.sqrt(fx * fx + fy * fy + fz * fz)
+        if fn > 0.0:
+            fx /= fn
+            fy /= fn
+            fz /= fn
+            # within the arc: (n x a) . f >= 0 and (b x n) . f >= 0
+            s1 = (ny * az - nz * ay) * fx + (nz * ax - nx * az) * fy + (nx * ay - ny * ax) * fz
+            s2 = (by * nz - bz * ny) * fx + (bz * nx - bx * nz) * fy + (bx * ny - by * nx) * fz
+            if s1 >= 0.0 and s2 >= 0.0:
+                return _angle3(px, py, pz, fx, fy, fz), fx, fy, fz
+    da = _angle3(px, py, pz, ax, ay, az)
+    db = _angle3(px, py, pz, bx, by, bz)
+    if da <= db:
+        return da, ax, ay, az
+    return db, bx, by, bz
+
+
+@njit
 def slerp_into(p, d, angle, margin, out) -> None:
     """Write into ``out`` (3,) the direction ``margin`` (rad) from ``p`` toward ``d``.
 

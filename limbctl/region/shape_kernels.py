@@ -72,10 +72,9 @@ def nearest_arcs(data: np.ndarray, vertices: np.ndarray, edges: np.ndarray):
     no_margins = np.zeros(edges.shape[0])
     nearest = np.full(data.shape[0], -1, dtype=np.int64)
     angle = np.full(data.shape[0], np.inf)
-    tmp = np.empty(3)
     point = np.empty(3)
     for i in range(data.shape[0]):
         nearest[i], _, angle[i] = nearest_widened(
-            data[i], vertices, edges, no_margins, mids, half, longest, TIE, tmp, point
+            data[i], vertices, edges, no_margins, mids, half, longest, TIE, point
         )
     return nearest, angle

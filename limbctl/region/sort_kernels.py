@@ -1,9 +1,9 @@
 """Sorts for the region's kernels, written out: numba's own sorts compile for seconds each.
 
-Both are bottom-up merge sorts, O(N log N), with ``<`` as the only comparison: for keys
-without NaN, :func:`argsort_stable` gives the permutation of ``np.argsort(keys,
-kind="stable")`` and :func:`sort_values` the values of ``np.sort`` (any correct sort gives the
-same values). ``tests/region/test_sort_kernels.py`` compares them with numpy.
+Both compare with ``<`` only. For keys without NaN, :func:`largest_stable` gives the first ``k``
+of ``np.argsort(-values, kind="stable")`` and :func:`sort_values` the values of ``np.sort`` (any
+correct sort gives the same values). ``tests/region/test_sort_kernels.py`` compares them with
+numpy. Neither allocates for the few dozen values the fit's kernels sort at a time.
 """
 
 from __future__ import annotations
@@ -12,56 +12,90 @@ import numpy as np
 
 from limbctl.geometry.jit import njit
 
-
-@njit
-def _merge_pass(keys, src, dst, width) -> None:
-    """Merge each pair of sorted runs of ``width`` indices of ``src`` into ``dst`` by ``keys``,
-    the left run first on equal keys (stable)."""
-    n = src.shape[0]
-    for lo in range(0, n, 2 * width):
-        mid = min(lo + width, n)
-        hi = min(lo + 2 * width, n)
-        i = lo
-        j = mid
-        k = lo
-        while i < mid and j < hi:
-            if keys[src[j]] < keys[src[i]]:
-                dst[k] = src[j]
-                j += 1
-            else:
-                dst[k] = src[i]
-                i += 1
-            k += 1
-        while i < mid:
-            dst[k] = src[i]
-            i += 1
-            k += 1
-        while j < hi:
-            dst[k] = src[j]
-            j += 1
-            k += 1
+#: Values :func:`sort_values` sorts by insertion before merging runs: the bearings and residuals
+#: it sorts are 10-50 values, where insertion is fastest and needs no buffer; longer runs would
+#: make a long input's insertion passes quadratic.
+RUN = 16
 
 
 @njit
-def argsort_stable(keys):
-    """Indices (N,) int64 that sort ``keys`` (N,) ascending, equal keys in index order."""
-    n = keys.shape[0]
-    order = np.empty(n, dtype=np.int64)
-    spare = np.empty(n, dtype=np.int64)
-    for i in range(n):
-        order[i] = i
-    width = 1
-    while width < n:
-        _merge_pass(keys, order, spare, width)
-        order, spare = spare, order
-        width *= 2
-    return order
+def largest_stable(values, k):
+    """Indices (min(k, N),) int64 of the ``k`` largest of ``values`` (N,), largest first, equal
+    values in index order: ``np.argsort(-values, kind="stable")[:k]``.
+
+    One pass keeping the ``k`` best in order (insertion): O(N k) at worst, O(N) when most
+    values fall below the ``k``-th, as the fit's windows of a few hundred readings do.
+    """
+    n = values.shape[0]
+    k = min(k, n)
+    out = np.empty(k, dtype=np.int64)
+    if k == 0:
+        return out
+    count = 0
+    for m in range(n):
+        x = values[m]
+        if count == k:
+            # not above the k-th: an equal one comes later in index order, so after it
+            if not x > values[out[k - 1]]:
+                continue
+            p = k - 1
+        else:
+            p = count
+            count += 1
+        # kept values smaller than x move down one; equal ones stay ahead (stable)
+        while p > 0 and values[out[p - 1]] < x:
+            out[p] = out[p - 1]
+            p -= 1
+        out[p] = m
+    return out
 
 
 @njit
 def sort_values(values) -> None:
-    """Sort ``values`` (N,) float64 ascending, in place."""
-    order = argsort_stable(values)
-    copy = values.copy()
-    for i in range(values.shape[0]):
-        values[i] = copy[order[i]]
+    """Sort ``values`` (N,) float64 ascending, in place: insertion sort of runs of :data:`RUN`,
+    then bottom-up merges of the runs (a buffer of N only when N > :data:`RUN`)."""
+    n = values.shape[0]
+    for lo in range(0, n, RUN):
+        hi = min(lo + RUN, n)
+        for i in range(lo + 1, hi):
+            x = values[i]
+            p = i
+            while p > lo and x < values[p - 1]:
+                values[p] = values[p - 1]
+                p -= 1
+            values[p] = x
+    if n <= RUN:
+        return
+    src = values
+    dst = np.empty(n)
+    swapped = False
+    width = RUN
+    while width < n:
+        for lo in range(0, n, 2 * width):
+            mid = min(lo + width, n)
+            hi = min(lo + 2 * width, n)
+            i = lo
+            j = mid
+            k = lo
+            while i < mid and j < hi:
+                if src[j] < src[i]:
+                    dst[k] = src[j]
+                    j += 1
+                else:
+                    dst[k] = src[i]
+                    i += 1
+                k += 1
+            while i < mid:
+                dst[k] = src[i]
+                i += 1
+                k += 1
+            while j < hi:
+                dst[k] = src[j]
+                j += 1
+                k += 1
+        src, dst = dst, src
+        swapped = not swapped
+        width *= 2
+    if swapped:
+        for i in range(n):
+            values[i] = src[i]

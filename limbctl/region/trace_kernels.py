@@ -12,18 +12,15 @@ import numpy as np
 
 from limbctl.geometry.jit import njit
 from limbctl.region.gaps import MAJORANT_GAP, ORDER_STATISTICS
-from limbctl.region.sort_kernels import argsort_stable, sort_values
+from limbctl.region.sort_kernels import largest_stable, sort_values
 
 
 @njit
 def _estimate(u, o, top_readings):
     """:func:`limbctl.region.edge_traced.edge_estimate` of readings at positions ``u`` (M,)
     and depths ``o`` (M,) rad, keeping the ``top_readings`` outermost."""
-    negated = np.empty(o.shape[0])
-    for m in range(o.shape[0]):
-        negated[m] = -o[m]
     # the outermost first, equal depths in reading order (np.argsort(-o, kind="stable"))
-    top = argsort_stable(negated)[:top_readings]
+    top = largest_stable(o, top_readings)
     u = u[top]
     o = o[top]
     n_left = 0
