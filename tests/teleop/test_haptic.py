@@ -123,7 +123,7 @@ def felt_at_200_hz(script, seconds, stiffness=0.05, let_go_s=None, cycles=None):
         servo.write(64, bytes([1]))  # torque on
     hand = {"script": script, "let_go_s": let_go_s, "stiffness_nm_deg": stiffness}
     sim.set_operator({**hand, "damping_nm_s_rad": 0.02, "max_torque_nm": 0.3})
-    rows = []
+    rows, engaged = [], False
     for k in range(round(seconds * 200.0)):
         for servo in servos:
             servo.refresh(sim.time_s)
@@ -134,11 +134,17 @@ def felt_at_200_hz(script, seconds, stiffness=0.05, let_go_s=None, cycles=None):
         if instead == "held":
             push = Push(0, 0, pose[0], pose[1], 0.0, 0.0)
         if instead == "silent":
+            engaged = False  # LeaderSource.release: the next push is the wall coming on again
             for servo in servos:
                 servo.write(102, bytes(2))  # Goal Current 0 alone
         for step in range(5):
             if step == 1 and instead not in ("late", "silent"):
                 ticks = rig.angles_to_ticks(push.goal_pan, push.goal_tilt)
+                if push.goal_current and not engaged:  # the wall comes on: LeaderSource._write
+                    for servo in servos:
+                        servo.write(64, bytes([0]))  # torque off, then on: the setpoint is the
+                        servo.write(64, bytes([1]))  # present position
+                engaged = bool(push.goal_current)
                 for servo, tick in zip(servos, ticks, strict=True):
                     velocity = push.profile_velocity.to_bytes(4, "little")
                     servo.write(112, velocity)  # Profile Velocity (its own write in the source)
@@ -237,12 +243,6 @@ def test_the_pace_watch_switches_the_feel_off_when_the_median_period_is_over_1_2
     assert all(watch.lost() is None for _ in range(60))
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="known, not fixed: released by Goal Current alone, the servo's setpoint stays behind "
-    "while the hand moves the leader; the wall then pulls toward it and a leader let go snaps "
-    "back at ~390 deg/s (docs/decisions/haptic.md)",
-)
 def test_a_leader_released_by_goal_current_alone_still_walks_back_after_let_go():
     # the leader's read fails for 100 ms just before the hand lets go at 5 s: released by Goal
     # Current alone, the hand takes it ~19 deg further; let go, it must still walk back at the

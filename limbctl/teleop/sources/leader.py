@@ -360,7 +360,19 @@ class LeaderSource(CommandSource):
             servo_id: encode_feel(push.goal_current, min(max(int(tick), 0), MAX_TICK))
             for servo_id, tick in zip(self.leader_ids, ticks, strict=True)
         }
+        engaging = push.goal_current > 0 and (
+            self.last_push is None or not self.last_push.goal_current
+        )
         try:
+            if engaging:
+                # The servo's profile setpoint stays where the wall last put it while the leader
+                # is free (Goal Current 0) and the hand moves it; the wall would then pull toward
+                # that old setpoint at whatever speed the cap gives, not walk back at the profile's.
+                # Torque on puts the setpoint (and Goal Position) at the present position, so the
+                # wall starts from where the leader is.
+                off = dict.fromkeys(self.leader_ids, 0)
+                self.rig.bus.sync_write(Register.TORQUE_ENABLE, off)
+                self.rig.bus.sync_write(Register.TORQUE_ENABLE, dict.fromkeys(self.leader_ids, 1))
             if push.profile_velocity != self._profile_velocity:  # the wall comes on or goes off
                 self._profile_velocity = None
                 velocity = dict.fromkeys(self.leader_ids, push.profile_velocity)
