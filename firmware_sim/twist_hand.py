@@ -3,12 +3,12 @@
 :class:`TwistHand` moves the swing as a :class:`firmware_sim.hand.Hand` does and adds the twist,
 read from a REGION.yaml with a ``twist:`` section (:mod:`firmware_sim.twist_band`). It teaches as
 the protocol asks: while the swing hand traces the edge, the twist goes to both stops along the
-way (a cycle of TRACE_TWIST_CYCLE: to one stop, hold, to the other, hold, back to the middle,
-rest); afterwards, while the swing wanders, the twist wanders too, and every STOP_EVERY-th
-twist move goes to a stop (alternately the upper and the lower one), so the middle is taught to
-its stops as well. The twist's position in the band is ``u`` in [-1, 1]: the twist is
-``centre + u (half_width - TWIST_INSET_DEG)`` at the present swing pose (so it follows the band
-as the swing moves), plus a tremor. :meth:`TwistHand.pose_deg` returns (pan, tilt, roll) with
+way (a cycle of TRACE_TWIST_CYCLE: to one stop, hold, to the other, hold); afterwards, while
+the swing wanders, the twist wanders too, and every STOP_EVERY-th twist move goes to a stop
+(alternately the upper and the lower one), so the middle is taught to its stops as well. The
+twist's position in the band is ``u`` in [-1, 1]: the twist is ``centre + u (half_width -
+TWIST_INSET_DEG)`` at the present swing pose (so it follows the band as the swing moves), plus
+a tremor. :meth:`TwistHand.pose_deg` returns (pan, tilt, roll) with
 the roll that gives that twist at that swing (``roll = twist - chain_twist(pan, tilt)``).
 The path is a function of the seed and the pose the hand took hold at, as for :class:`Hand`.
 """
@@ -30,20 +30,24 @@ from firmware_sim.twist_band import TwistBand
 #: How far inside each twist stop (deg) the hand turns: as the swing trace keeps EDGE_INSET_DEG
 #: (1 deg) from the swing edge, a person feels the stop and backs off about a degree.
 TWIST_INSET_DEG = 1.0
-#: Along the edge trace, one cycle to both stops: (u target, move s, hold s) steps. Two seconds
-#: a cycle at the trace's 18 deg/s reaches both stops about every 40 deg of edge, so each
-#: stretch of edge the region layer reads a band limit from (8 deg about a direction) sees a
-#: stop (at six seconds a cycle a 60 s teaching learned half widths ~20 deg short of the truth
-#: on the demo's region; docs/decisions/hand.md).
-TRACE_TWIST_CYCLE = ((1.0, 0.5, 0.1), (-1.0, 0.9, 0.1), (0.0, 0.4, 0.1))
+#: Along the edge trace, one cycle to both stops: (u target, move s, hold s) steps. 0.9 s a
+#: cycle at the trace's 18 deg/s reaches each stop about every 16 deg of edge, so a band limit
+#: bridged between stops sags well under a degree (ENVELOPE_CURVATURE in
+#: limbctl/region/twist_band.py). The earlier cycle (one stop, the other, the middle: 2.2 s, each
+#: stop every 40 deg of edge) left the demo region's inner orientations 13 deg from the nearest
+#: stop at the 90th percentile, and its 60 s teaching held 65 % of them (docs/decisions/twist.md;
+#: at six seconds a cycle half widths came out ~20 deg short, docs/decisions/hand.md).
+TRACE_TWIST_CYCLE = ((1.0, 0.4, 0.05), (-1.0, 0.4, 0.05))
 #: Wandering: every STOP_EVERY-th twist move goes to a stop, alternately the upper and the lower
 #: one; the others to a uniform draw in the band. 1: every move, so the twist keeps turning from
 #: stop to stop while the swing wanders (a place passed once still sees both stops). A move over
-#: the whole band takes WANDER_MOVE_S[1] s, a short one at least WANDER_MOVE_S[0] (a wrist turns
-#: through its range in under a second), and each ends in a hold of WANDER_HOLD_S.
+#: the whole band takes WANDER_MOVE_S[1] s, a short one at least WANDER_MOVE_S[0] (a brisk
+#: wrist turns through its range in under half a second), and each ends in a hold of
+#: WANDER_HOLD_S (a touch of the stop). At (0.3, 0.8) and (0.05, 0.2) s the swing's 40 deg/s
+#: carried the limb ~70 deg between two visits of the same stop, at these ~35.
 STOP_EVERY = 1
-WANDER_MOVE_S = (0.3, 0.8)
-WANDER_HOLD_S = (0.05, 0.2)
+WANDER_MOVE_S = (0.2, 0.4)
+WANDER_HOLD_S = (0.03, 0.08)
 #: The twist tremor's amplitude as a fraction of the hand's tremor_deg (one sine: the wrist's
 #: tremor about the forearm is about half that of the swing).
 TWIST_TREMOR_FRACTION = 0.5

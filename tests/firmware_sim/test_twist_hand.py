@@ -75,8 +75,11 @@ def test_the_world_gives_the_hand_the_roll_joint():
         world.step(0.001, {1: None, 2: None, 3: None})
     angles = world.joint_angles_deg()
     pan, tilt, roll = hand.pose_deg(world.hand_time_s)
-    # the grip lags the hand by ~15 ms: within a few degrees, and the roll really moved
-    assert angles["roll"] == pytest.approx(roll, abs=3.0)
+    # the grip lags the hand by ~15 ms: the roll lies among the hand's rolls of the last 30 ms
+    # (a brisk twist turns a few degrees in that time), and the roll really moved
+    recent = [hand.pose_deg(world.hand_time_s - 0.001 * k)[2] for k in range(31)]
+    assert min(recent) - 1.0 <= angles["roll"] <= max(recent) + 1.0
+    assert abs(roll) > 1.0
     assert angles["pan"] == pytest.approx(pan, abs=3.0)
     # a plain hand leaves the roll joint where it rests
     plain = World(
@@ -144,3 +147,18 @@ def test_a_script_with_roll_turns_the_roll_linearly_and_refuses_mixed_rows():
         hand_from_mapping({"script": [[0, 0, 0, 0], [2, 10, 0]]}, source="s.yaml")
     with pytest.raises(ValueError, match="roll must be finite"):
         hand_from_mapping({"script": [[0, 0, 0, 0], [2, 10, 0, float("nan")]]}, source="s.yaml")
+
+
+def test_a_minute_of_the_hand_teaches_the_whole_band():
+    """The issue's demo: a 60 s teaching at the recorder's 125 Hz, learned, holds >= 99 % of the
+    true region's orientations 2 deg inside (the stops come often enough along the edge trace
+    and the wander for the band to be bridged between them: 65 % before)."""
+    from limbctl.demo import true_twist_probes
+    from limbctl.region.twist_region import TwistRegion
+
+    hand = hand_from_yaml(REGION3, seed=1)
+    hand.start_from(0.0, 0.0, 0.0)
+    poses = np.radians([hand.pose_deg(float(t)) for t in np.arange(0.0, 60.0, 1.0 / 125.0)])
+    q = np.array([chain_quat(*p) for p in poses])
+    region = TwistRegion().fit(q)
+    assert np.mean(region.contains(true_twist_probes(REGION3))) >= 0.99
