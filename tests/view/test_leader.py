@@ -7,9 +7,9 @@ import math
 
 import pytest
 
-from limbctl.view import Board, HardLimits, Live, PanTilt, Scene, TeleopStatus, ViewServer
+from limbctl.view import HardLimits, Live, PanTilt, Scene, TeleopStatus
 from limbctl.view.leader import LeaderLive, LeaderStatus
-from tests.view.browser import chromium, text_of, wait_for
+from tests.view.browser import text_of, wait_for
 
 LIMITS = HardLimits(pan_deg=(-90.0, 90.0), tilt_deg=(-40.0, 60.0))
 #: RGB of the leader's diamond and of its push (leader.js COLORS).
@@ -43,19 +43,6 @@ def test_leader_status_json_and_its_checks():
         LeaderStatus(None, 0.0, 0.0)
     with pytest.raises(ValueError, match="beyond_deg"):
         LeaderStatus(None, 0.0, None, None, math.nan)
-
-
-@pytest.fixture(scope="module")
-def browser():
-    with chromium() as driver:
-        yield driver
-
-
-@pytest.fixture
-def served():
-    board = Board()
-    with ViewServer(board, port=0) as server:
-        yield board, server
 
 
 def made(driver, element_id: str) -> bool:

@@ -3,10 +3,8 @@
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
 from limbctl.view import (
-    Board,
     EdgeLoop,
     GuideFigure,
     HardLimits,
@@ -14,7 +12,6 @@ from limbctl.view import (
     PanTilt,
     Scene,
     TeleopStatus,
-    ViewServer,
 )
 from tests.view.browser import chromium, text_of, wait_for
 
@@ -26,20 +23,6 @@ SQUARE = EdgeLoop(
 LIMITS = HardLimits(pan_deg=(-90.0, 90.0), tilt_deg=(-40.0, 60.0))
 #: RGB of the region's fill in view.js (COLORS.region).
 REGION_RGB = (150, 220, 150)
-
-
-@pytest.fixture(scope="module")
-def browser():
-    with chromium() as driver:
-        yield driver
-
-
-@pytest.fixture
-def served():
-    board = Board()
-    with ViewServer(board, port=0) as server:
-        yield board, server
-    assert not server.running
 
 
 def pixel(driver, pan: float, tilt: float) -> tuple[int, int, int]:
