@@ -69,21 +69,25 @@ def geodesic(a: np.ndarray, b: np.ndarray) -> float:
 def toward(a: np.ndarray, b: np.ndarray, step: float) -> np.ndarray:
     """Unit quaternion ``step`` rad of rotation from ``a`` along the shortest rotation to ``b``,
     or ``b`` itself when it is nearer than that; w >= 0."""
-    if geodesic(a, b) <= step:
+    angle = geodesic(a, b)
+    if angle <= step:
         return b
-    return turn_by(a, b, step)
+    return _slerp(a, b, angle, step)
 
 
 def turn_by(a: np.ndarray, b: np.ndarray, step: float) -> np.ndarray:
     """Unit quaternion ``step`` rad of rotation from ``a`` along the shortest rotation to ``b``,
-    which may lie past ``b``; ``b`` itself when the two are the same orientation.
-
-    Slerp: ``q = sin((1 - t) h) / sin h * a + sin(t h) / sin h * s b`` with ``h`` half the angle
-    between them, ``t = step / angle`` and ``s = sign(a . b)``; w >= 0.
-    """
+    which may lie past ``b``; ``b`` itself when the two are the same orientation."""
     angle = geodesic(a, b)
     if angle == 0.0:
         return b
+    return _slerp(a, b, angle, step)
+
+
+def _slerp(a: np.ndarray, b: np.ndarray, angle: float, step: float) -> np.ndarray:
+    """Slerp ``step`` rad of rotation from ``a`` toward ``b``, ``angle`` (> 0) rad apart:
+    ``q = sin((1 - t) h) / sin h * a + sin(t h) / sin h * s b`` with ``h = angle / 2``,
+    ``t = step / angle`` and ``s = sign(a . b)``; w >= 0."""
     sign = 1.0 if float(np.dot(a, b)) >= 0.0 else -1.0
     half, t = angle / 2.0, step / angle
     s = math.sin(half)
