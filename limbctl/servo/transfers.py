@@ -11,6 +11,7 @@ its packet-level calls (``syncReadTx`` + ``readRx`` / ``rxPacket``) to keep the 
 
 from __future__ import annotations
 
+import select
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -45,6 +46,12 @@ SDK_LATENCY_TIMER_MS = 16.0
 PATIENT_BUDGET_S = 1.0
 #: Most attempts of a patient transaction (the budget ends it first: >= 6 ms each on a pty).
 PATIENT_MAX_ATTEMPTS = 200
+
+
+#: Longest single wait for a reply's bytes in :meth:`TunedPortHandler.readPort` (s): the SDK's
+#: loop then checks its timeout again; a wait on the port's descriptor ends at the first byte,
+#: so this bounds only how late a timeout is noticed (1 ms, a fifth of a 200 Hz cycle).
+READ_WAIT_S = 0.001
 
 
 class TunedPortHandler(PortHandler):
@@ -87,6 +94,25 @@ class TunedPortHandler(PortHandler):
     def writePort(self, packet: Any) -> int:  # noqa: N802 (SDK's name)
         self.sent_bytes = len(packet)
         return super().writePort(packet)
+
+    def readPort(self, length: int) -> bytes:  # noqa: N802 (SDK's name)
+        """What has arrived, up to ``length`` bytes; with nothing there yet, wait for bytes
+        (at most the reply's remaining timeout, and at most ``READ_WAIT_S``) instead of returning.
+
+        The SDK polls this in a loop until the reply is whole or its timeout passes; the
+        port's own ``read`` never waits (``timeout=0``), so that loop spun a core at 100 % for
+        every reply. On a shared machine the spinning controller took the CPU the servo (the
+        simulator's process) needed to answer, and replies came after their timeout
+        (docs/decisions/haptic.md). ``select`` wakes on the first byte, so nothing is late.
+        """
+        data = self.ser.read(length)
+        if data or not self.is_open:
+            return data
+        remaining_ms = self.packet_timeout - self.getTimeSinceStart()
+        if remaining_ms > 0.0:
+            select.select([self.ser.fileno()], [], [], min(remaining_ms / 1e3, READ_WAIT_S))
+            data = self.ser.read(length)
+        return data
 
     def setPacketTimeout(self, packet_length: int) -> None:  # noqa: N802 (SDK's name)
         self.packet_start_time = self.getCurrentTime()
