@@ -47,6 +47,7 @@ from limbctl.servo.cycle import CycleRead
 from limbctl.servo.health import HealthLimits, HealthMonitor, ServoFault
 from limbctl.teleop.cycle import Cycle, CycleState, CycleTimings, TeleopSummary
 from limbctl.teleop.gate import Gate, GateResult, Outcome
+from limbctl.teleop.pacing import Pacer
 from limbctl.teleop.report import Telemetry, open_telemetry
 from limbctl.teleop.sources import CommandSource
 from limbctl.teleop.status import status_line_for
@@ -173,6 +174,7 @@ class ControlLoop:
         self.stop = stop or threading.Event()
         self.summary = TeleopSummary()
         self.period = 1.0 / config.rate_hz
+        self.pacer = Pacer(self.period)
         self._last_error: BusError | None = None
         self.health = HealthMonitor(config.health)
         self._failed_in_a_row = 0
@@ -183,7 +185,7 @@ class ControlLoop:
         self._target_q: np.ndarray | None = None
         self._target_deg: tuple[float, float] | None = None
         self._refused_reasons: tuple[str, ...] = ()
-        self._started_at = self._next_tick = self._last_command_at = 0.0
+        self._started_at = self._last_command_at = 0.0
 
     def start(self) -> Cycle:
         """Read the start pose and start the gate from it; the value is RUNNING or FAULT.
@@ -206,7 +208,8 @@ class ControlLoop:
             cause = f"could not read the start pose {attempts} times: {self._last_error}"
             return self._fault(BusError(cause, self._last_error.servo_id), 0.0)
         self.gate.start(*present)
-        self._started_at = self._next_tick = self._last_command_at = time.perf_counter()
+        self._started_at = self._last_command_at = time.perf_counter()
+        self.pacer.start(self._started_at)
         return Cycle(index=0, t=0.0, state=CycleState.RUNNING, present=present)
 
     def step(self) -> Cycle:
@@ -314,14 +317,9 @@ class ControlLoop:
         )
 
     def pace(self) -> None:
-        """Wait for the next period; if late by a whole period, start afresh (an overrun)."""
-        self._next_tick += self.period
-        delay = self._next_tick - time.perf_counter()
-        if delay > 0:
-            self.stop.wait(delay)
-        elif delay < -self.period:
-            self.summary.overruns += 1
-            self._next_tick = time.perf_counter()
+        """Wait for the next slot; a late loop catches up (``limbctl.teleop.pacing``)."""
+        self.pacer.wait(self.stop)
+        self.summary.overruns = self.pacer.overruns
 
     def finish(self) -> TeleopSummary:
         """The session's summary: its elapsed time, dropouts (one still going on with its

@@ -1,0 +1,68 @@
+"""The loop's clock (limbctl/teleop/pacing.py) on a stepped clock: a late loop catches up."""
+
+from __future__ import annotations
+
+import threading
+
+from limbctl.teleop.pacing import BACKLOG_PERIODS, Pacer
+
+PERIOD = 0.005
+
+
+class SteppedClock:
+    """A clock that a cycle's work and the pacer's waits move forward."""
+
+    def __init__(self) -> None:
+        self.now = 0.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
+class SteppedStop(threading.Event):
+    """``wait`` moves the stepped clock instead of sleeping."""
+
+    def __init__(self, clock: SteppedClock) -> None:
+        super().__init__()
+        self.clock = clock
+
+    def wait(self, timeout: float | None = None) -> bool:
+        self.clock.now += timeout or 0.0
+        return False
+
+
+def run(cycle_s: list[float]) -> tuple[Pacer, list[float]]:
+    """Cycles that take ``cycle_s`` each; the start time of every cycle."""
+    clock = SteppedClock()
+    pacer, stop = Pacer(PERIOD, clock), SteppedStop(clock)
+    pacer.start(clock.now)
+    starts = []
+    for work in cycle_s:
+        starts.append(clock.now)
+        clock.now += work
+        pacer.wait(stop)
+    return pacer, starts
+
+
+def test_an_on_time_loop_starts_each_cycle_on_its_slot():
+    pacer, starts = run([0.001] * 100)
+    assert all(abs(start - k * PERIOD) < 1e-9 for k, start in enumerate(starts))
+    assert pacer.overruns == 0
+
+
+def test_a_stall_of_a_few_periods_is_caught_up_and_no_slot_is_lost():
+    work = [0.001] * 200
+    work[50] = 3.5 * PERIOD  # one cycle stalls 17.5 ms
+    pacer, starts = run(work)
+    # after the stall the cycles run back to back until they are on their slots again
+    assert abs(starts[-1] - 199 * PERIOD) < 1e-9
+    assert pacer.overruns >= 1
+
+
+def test_a_long_stall_gives_up_its_slots_and_starts_afresh():
+    work = [0.001] * 200
+    work[50] = (BACKLOG_PERIODS + 2) * PERIOD
+    pacer, starts = run(work)
+    # the schedule restarted after the stall: the last cycle starts later than slot 199
+    assert starts[-1] > 199 * PERIOD + PERIOD
+    assert pacer.overruns == 1
