@@ -6,7 +6,7 @@ and keeps its rate on average instead of losing the slot::
 
     delay = due_k - now
     delay > 0:                    wait delay
-    -BACKLOG T <= delay <= 0:     no wait (catch up); late by more than T counts as an overrun
+    -BACKLOG T <= delay <= 0:     no wait (catch up); a spell late by more than T is an overrun
     delay < -BACKLOG T:           an overrun; the schedule starts afresh from now (slots lost)
 
 Late cycles are run back to back, each still one slot of the schedule: the gate's slew limit
@@ -39,7 +39,8 @@ class Pacer:
     Attributes
     ----------
     overruns : int
-        Cycles that started more than one period after their slot.
+        Spells of cycles that started more than one period after their slots (one for each
+        stall, however many cycles it took to catch up).
     """
 
     def __init__(self, period_s: float, clock: Callable[[], float] = time.perf_counter) -> None:
@@ -47,6 +48,7 @@ class Pacer:
         self.clock = clock
         self.overruns = 0
         self._due = 0.0
+        self._late = False
 
     def start(self, now: float) -> None:
         """Slot 0 is ``now`` (the loop's start)."""
@@ -62,5 +64,6 @@ class Pacer:
         elif delay < -BACKLOG_PERIODS * self.period_s:
             self.overruns += 1
             self._due = now
-        elif delay < -self.period_s:
-            self.overruns += 1
+        elif delay < -self.period_s and not self._late:
+            self.overruns += 1  # once per late spell, not for each cycle that catches up
+        self._late = delay < -self.period_s

@@ -49,6 +49,15 @@ RATE_CHECK_TRIES = 3
 #: The wall's passivity margin at 200 Hz is 1.75 (haptic.FeelLaw); at 160 Hz it is 1.4.
 PACE_WINDOW = 40
 PACE_SLACK = 1.25
+#: How the loop's gate says it held because the follower's read failed this cycle.
+FOLLOWER_UNREAD = "the bus failed this cycle"
+#: How long the wall stays on while the follower's reads fail and the leader's do not (s): the
+#: wall is computed from the leader's own pose and the region, not from the follower, so a
+#: follower that missed a reply (the loop holds it until its silent servo's probe, every 50 ms)
+#: need not drop the wall in the operator's hand. One probe interval and a cycle; after that
+#: the follower counts as faulted and the wall goes off until it is read again (the loop's own
+#: fault, 0.5 s of silence, releases it too). docs/decisions/haptic.md.
+FOLLOWER_GRACE_S = 0.055
 
 
 class PaceWatch:
@@ -130,6 +139,7 @@ class LeaderSource(CommandSource):
         self._cycle: tuple[tuple[float, float], np.ndarray] | None = None
         self._notes: list[str] = []
         self._heard_at = math.inf  # when the leader last answered (perf_counter s)
+        self._follower_read_at = -math.inf  # the follower's last good read (perf_counter s)
         self._profile_velocity: int | None = 0  # what the leader's servos hold (set-up: 0)
         self._feel_block = feel_data()  # where its command goes (set at start)
         self.pace = PaceWatch(self.rate_hz)
@@ -316,27 +326,45 @@ class LeaderSource(CommandSource):
         self._notes.append(note)
 
     def feel(self, gate, result, bus_ok: bool) -> tuple[str, ...]:
-        """Write this cycle's push (none unless the gate ran on a good read of both gimbals);
-        a loop that no longer keeps the rate switches the push off for good."""
+        """Write this cycle's push: none unless the leader was read and is fit to push, and the
+        gate ran on a good read of the follower, or held only because the follower's read failed
+        within FOLLOWER_GRACE_S of its last good one; a loop that no longer keeps the rate
+        switches the push off for good."""
         if self.felt:
             self._check_pace()
         notes, self._notes = tuple(self._notes), []
         cycle, self._cycle = self._cycle, None
         if not self.felt:
             return notes
+        now = time.perf_counter()
+        ran = bus_ok and result is not None and result.outcome is not Outcome.HELD
+        if ran:
+            self._follower_read_at = now
         if cycle is None:  # the leader was not read: it may not hear a push either
             push = None
-        elif not bus_ok or result is None or result.outcome is Outcome.HELD:
-            push = Push(0, 0, cycle[0][0], cycle[0][1], 0.0, 0.0)
-        else:
+        elif ran or self._follower_missed(result, bus_ok, now):
             q = cycle[1]
             push = push_for(self.law, self.motor, cycle[0], q, gate.envelope.correct(q))
+        else:
+            push = Push(0, 0, cycle[0][0], cycle[0][1], 0.0, 0.0)
         if push is None:
             self.release()
             return notes
         self._write(push)
         self.feel_stats.add(push.torque_nm, 1.0 / self.rate_hz)
         return notes
+
+    def _follower_missed(self, result, bus_ok: bool, now: float) -> bool:
+        """Whether the gate held only because the follower's read failed, within
+        FOLLOWER_GRACE_S of its last good read: the wall (the leader's pose against the region)
+        then stays on. Any other hold, a failed write, a longer silence: off."""
+        return (
+            not bus_ok
+            and result is not None
+            and result.outcome is Outcome.HELD
+            and result.reason == FOLLOWER_UNREAD
+            and now - self._follower_read_at <= FOLLOWER_GRACE_S
+        )
 
     def _check_pace(self) -> None:
         """The wall is passive only at its rate (docs/haptic.md): a lost pace switches the push
