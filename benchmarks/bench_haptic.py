@@ -257,23 +257,30 @@ def exact_rate_case(
         servo.write(64, bytes([1]))  # torque on
     hand = {**HAND, "stiffness_nm_deg": stiffness, "script": script, "let_go_s": let_go_s}
     sim.set_operator(hand)
-    rows = []
+    rows, previous, pushed = [], None, False
     for k in range(round(seconds * 200.0)):
         for servo in servos:
             servo.refresh(sim.time_s)
         ticks = [servo.value(FirmwareRegister.PRESENT_POSITION) for servo in servos]
         pose = rig.ticks_to_angles(*ticks)
         q = command_from_pan_tilt(*np.degrees(pose)).q
-        push = push_for(law, motor, pose, q, cone.correct(q))
+        push = push_for(law, motor, pose, q, cone.correct(q), previous, 0.005, pushed)
+        previous = pose
         instead = (cycles or {}).get(k)
         if instead == "held":
             push = Push(0, 0, pose[0], pose[1], 0.0, 0.0)
         goal = rig.angles_to_ticks(push.goal_pan, push.goal_tilt)
+        # the wall comes on from the present position (LeaderSource._write toggles the torque)
+        engaging = push.goal_current > 0 and not pushed
         for step in range(5):
             if step == READ_TO_WRITE_MS and instead != "late":
+                pushed = push.goal_current > 0
                 for servo, tick in zip(servos, goal, strict=True):
-                    velocity = push.profile_velocity.to_bytes(4, "little")
-                    servo.write(112, velocity)  # Profile Velocity (its own write in the source)
+                    if engaging:
+                        servo.write(64, bytes([0]))
+                        servo.write(64, bytes([1]))
+                    if push.goal_current:  # Profile Velocity: its own write in the source
+                        servo.write(112, push.profile_velocity.to_bytes(4, "little"))
                     data = encode_feel(push.goal_current, tick)
                     servo.write(FEEL_DATA.address, data)
             clock[0] += 0.001

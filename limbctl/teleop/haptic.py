@@ -66,6 +66,14 @@ class FeelLaw:
         the leader. The servo's loop must still reach the cap within the lead once the goal
         is rounded to whole ticks (0.088 deg): the simulator's XM430 loop gives stall torque
         at 2 deg, so 0.3 deg (3.4 ticks) gives 0.6 N m, over the cap with a tick to spare.
+    free_speed_deg_s : float
+        20 deg/s: a leader that moves toward the region faster than this (measured between two
+        reads) is left free (Goal Current 0). The servo's position loop pulls toward its profile
+        setpoint, which moves at most RETURN_SPEED and brakes what moves faster (its damping
+        term): a leader the hand carries back toward the region would be pulled back outward,
+        away from the region. Under RETURN_SPEED, so the setpoint stays ahead of any leader the
+        wall holds; over one reading tick per cycle at 200 Hz (0.088 deg in 5 ms = 17.6 deg/s),
+        so a pressed leader read a tick apart is not let go.
     """
 
     deadband_deg: float = 0.4
@@ -73,9 +81,11 @@ class FeelLaw:
     cap_nm: float = 0.4
     return_speed_deg_s: float = 30.0
     lead_deg: float = 0.3
+    free_speed_deg_s: float = 20.0
 
     def __post_init__(self) -> None:
-        for name in ("deadband_deg", "gain_nm_per_deg", "cap_nm", "lead_deg"):
+        names = ("deadband_deg", "gain_nm_per_deg", "cap_nm", "lead_deg", "free_speed_deg_s")
+        for name in names:
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0.0):
                 raise ConfigError(f"feel law {name} must be finite and >= 0, got {value!r}")
@@ -111,7 +121,8 @@ class Push:
     goal_current : int
         Goal Current units (0: no torque).
     profile_velocity : int
-        Profile Velocity units (0: the Velocity Limit, used while free).
+        Profile Velocity units (0 while free, where it is not written: the servo keeps the
+        wall's, and the wall always comes on from the present position).
     goal_pan, goal_tilt : float
         Goal pose (rad).
     torque_nm : float
@@ -150,6 +161,9 @@ def push_for(
     present: tuple[float, float],
     q: np.ndarray,
     corrected: np.ndarray,
+    previous: tuple[float, float] | None = None,
+    period_s: float = 0.0,
+    engaged: bool = True,
 ) -> Push:
     """The leader's command this cycle (see the module docstring).
 
@@ -162,16 +176,36 @@ def push_for(
         The leader's pose (pan, tilt, rad).
     q, corrected : ndarray (4,)
         The command (the leader's pose as a quaternion) and the region's correction of it.
+    previous : (float, float), optional
+        The leader's pose a cycle before (pan, tilt, rad); None on the first cycle.
+    period_s : float, optional
+        Time since ``previous`` was read (s).
+    engaged : bool, optional
+        Whether the wall pushed in the cycle before (with ``previous``).
     """
     distance = beyond_deg(q, corrected)
     tau = min(law.torque_nm(distance), motor.cap_nm(law.cap_nm))
     units = motor.units_for(tau)
+    free = Push(0, 0, present[0], present[1], 0.0, distance)
     if units == 0:
-        return Push(0, 0, present[0], present[1], 0.0, distance)
+        return free
     pan, tilt = (float(v) for v in quat_to_pan_tilt(corrected))
     # the goal on the joint-space line toward the corrected pose, at most LEAD ahead
     step = (pan - present[0], tilt - present[1])
     longest = max(abs(step[0]), abs(step[1]))
+    if previous is not None and longest > 0.0:
+        # moved in = (present - previous) . step / |step|, on the line toward the correction
+        moved = (present[0] - previous[0], present[1] - previous[1])
+        moved_in = math.degrees((moved[0] * step[0] + moved[1] * step[1]) / math.hypot(*step))
+        # moving toward the region faster than FREE_SPEED: the setpoint (at most RETURN_SPEED)
+        # would fall behind and the loop pull it back outward; at this pace within the
+        # deadband by the next read, its current still on inside: let go in both cases
+        if moved_in > law.free_speed_deg_s * period_s or distance - moved_in <= law.deadband_deg:
+            return free
+        # the wall comes on with the setpoint where the leader is (LeaderSource._write): while
+        # the leader still moves toward the region the loop's damping would brake it outward
+        if not engaged and moved_in > 0.0:
+            return free
     scale = min(1.0, math.radians(law.lead_deg) / longest) if longest > 0.0 else 0.0
     goal = (present[0] + scale * step[0], present[1] + scale * step[1])
     return Push(

@@ -123,13 +123,14 @@ def felt_at_200_hz(script, seconds, stiffness=0.05, let_go_s=None, cycles=None):
         servo.write(64, bytes([1]))  # torque on
     hand = {"script": script, "let_go_s": let_go_s, "stiffness_nm_deg": stiffness}
     sim.set_operator({**hand, "damping_nm_s_rad": 0.02, "max_torque_nm": 0.3})
-    rows, engaged = [], False
+    rows, engaged, previous = [], False, None
     for k in range(round(seconds * 200.0)):
         for servo in servos:
             servo.refresh(sim.time_s)
         pose = rig.ticks_to_angles(*(s.value(SimRegister.PRESENT_POSITION) for s in servos))
         q = q_of(*np.degrees(pose))
-        push = push_for(LAW, MOTOR, pose, q, CONE.correct(q))
+        push = push_for(LAW, MOTOR, pose, q, CONE.correct(q), previous, 0.005, engaged)
+        previous = pose
         instead = (cycles or {}).get(k)
         if instead == "held":
             push = Push(0, 0, pose[0], pose[1], 0.0, 0.0)
@@ -146,8 +147,8 @@ def felt_at_200_hz(script, seconds, stiffness=0.05, let_go_s=None, cycles=None):
                         servo.write(64, bytes([1]))  # present position
                 engaged = bool(push.goal_current)
                 for servo, tick in zip(servos, ticks, strict=True):
-                    velocity = push.profile_velocity.to_bytes(4, "little")
-                    servo.write(112, velocity)  # Profile Velocity (its own write in the source)
+                    if push.goal_current:  # Profile Velocity: its own write in the source
+                        servo.write(112, push.profile_velocity.to_bytes(4, "little"))
                     servo.write(FEEL_DATA.address, encode_feel(push.goal_current, tick))
             clock[0] += 0.001
             sim.advance()
@@ -214,11 +215,24 @@ def test_late_cycles_keep_the_wall_a_stalled_loop_does_not_release_it(stiffness)
     assert 30.0 < held.min() and np.ptp(held) < 0.2
 
 
+@pytest.mark.parametrize("stiffness", [0.05, 0.2])
+def test_a_hand_carrying_the_leader_back_toward_the_region_is_not_pulled_outward(stiffness):
+    # pressed 20 deg beyond, then the hand heads back inside: the servo's setpoint moves at
+    # most 30 deg/s, so its loop would brake the faster leader, pulling it away from the
+    # region; the law lets go once a read shows it moving in faster than FREE_SPEED. What is
+    # left: the cycle in which it starts, before any read can see it (at most 5 ms).
+    script = [[0.0, 0.0, 0.0], [2.0, 50.0, 0.0], [4.0, 50.0, 0.0], [4.2, 0.0, 0.0]]
+    rows = felt_at_200_hz(script, 5.0, stiffness)
+    outward = [r["t"] for r in rows if r["pose_deg"][0] > 30.0 and r["motor_nm"][0] > 0.0]
+    assert not outward or max(outward) - min(outward) <= 0.007
+    inside = [r for r in rows if r["pose_deg"][0] < 30.0 and r["t"] > 4.0]
+    assert inside and all(r["motor_nm"] == [0.0, 0.0] for r in inside)
+
+
 def test_a_held_gate_releases_the_leader_at_once_and_the_hand_pushes_through():
-    # a follower whose read failed: the loop holds 50 ms (its silent servo's probe interval, 10
-    # cycles at 200 Hz) and each held cycle releases the leader (the safety rule): the hand
-    # pushes it toward where it means to go, and the wall takes it back afterwards. This, not
-    # the law, is the ripple seen over the pty on a starved machine (docs/decisions/haptic.md).
+    # a gate that held (or a follower silent past FOLLOWER_GRACE_S): each held cycle releases
+    # the leader (the safety rule): the hand pushes it toward where it means to go, and the
+    # wall takes it back afterwards (docs/decisions/haptic.md).
     rows = felt_at_200_hz(PRESS_5, 4.5, 0.05, cycles={k: "held" for k in range(640, 650)})
     # from the held cycle's write (1 ms in) to the next cycle's, the motor applies nothing
     released = [r for r in rows if 3.2 + 0.0015 <= r["t"] < 3.25]

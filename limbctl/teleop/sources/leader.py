@@ -136,7 +136,9 @@ class LeaderSource(CommandSource):
         #: The most a felt leader may push (N m: the law's cap as its Current Limit allows);
         #: None while passive.
         self.cap_nm: float | None = None
-        self._cycle: tuple[tuple[float, float], np.ndarray] | None = None
+        self._cycle: tuple | None = None  # this cycle's pose, command, last read, read time
+        #: The leader's pose at its last good read and when (perf_counter s): how fast it moves.
+        self._last_read: tuple[tuple[float, float], float] | None = None
         self._notes: list[str] = []
         self._heard_at = math.inf  # when the leader last answered (perf_counter s)
         self._follower_read_at = -math.inf  # the follower's last good read (perf_counter s)
@@ -299,7 +301,8 @@ class LeaderSource(CommandSource):
             return []
         self.stats.accepted += 1
         if self.felt:
-            self._cycle = ((pan, tilt), command.q)
+            self._cycle = ((pan, tilt), command.q, self._last_read, now)
+            self._last_read = ((pan, tilt), now)
         return [command]
 
     def _arm_watchdog(self) -> None:
@@ -343,8 +346,11 @@ class LeaderSource(CommandSource):
         if cycle is None:  # the leader was not read: it may not hear a push either
             push = None
         elif ran or self._follower_missed(result, bus_ok, now):
-            q = cycle[1]
-            push = push_for(self.law, self.motor, cycle[0], q, gate.envelope.correct(q))
+            pose, q, last, read_at = cycle
+            previous, period = (None, 0.0) if last is None else (last[0], read_at - last[1])
+            engaged = self.last_push is not None and self.last_push.goal_current > 0
+            corrected = gate.envelope.correct(q)
+            push = push_for(self.law, self.motor, pose, q, corrected, previous, period, engaged)
         else:
             push = Push(0, 0, cycle[0][0], cycle[0][1], 0.0, 0.0)
         if push is None:
@@ -401,7 +407,9 @@ class LeaderSource(CommandSource):
                 off = dict.fromkeys(self.leader_ids, 0)
                 self.rig.bus.sync_write(Register.TORQUE_ENABLE, off)
                 self.rig.bus.sync_write(Register.TORQUE_ENABLE, dict.fromkeys(self.leader_ids, 1))
-            if push.profile_velocity != self._profile_velocity:  # the wall comes on or goes off
+            # the wall's speed, written once it first comes on; a free leader has no current,
+            # and the wall always comes on from the present position, so it is left as it is
+            if push.goal_current and push.profile_velocity != self._profile_velocity:
                 self._profile_velocity = None
                 velocity = dict.fromkeys(self.leader_ids, push.profile_velocity)
                 self.rig.bus.sync_write(Register.PROFILE_VELOCITY, velocity)
