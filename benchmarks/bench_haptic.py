@@ -164,6 +164,8 @@ def push_case(workdir: Path) -> dict:
             np.max(EDGE_DEG - pan[(pan < EDGE_DEG) & (motor != 0.0)], initial=0.0)
         ),
         "outward": int(np.sum(outside & (motor > 0.0))),
+        "outward_held": int(np.sum(outside & (motor > 0.0) & (t < 5.0))),
+        "outward_peak": float(np.max(motor[outside & (motor > 0.0)], initial=0.0)),
         "outside_samples": int(np.sum(outside)),
         "peak_nm": float(np.max(np.abs(motor))),
         "cap_nm": source.law.cap_nm,
@@ -190,9 +192,11 @@ def ripple_case(workdir: Path, stiffness: float) -> dict:
         "beyond": float(np.mean(pan[steady]) - EDGE_DEG),
         "ripple": float(np.ptp(pan[steady])),
         "rate": summary.cycles / summary.elapsed_s,
-        # cycles that released the leader: the follower's read failed (the gate held), or the
-        # leader's own read failed
-        "released": summary.failed_cycles + source.read_failures,
+        # cycles that released the leader (the leader's read failed, a held gate, the follower
+        # silent past the grace), and cycles whose follower read failed (the wall stays on
+        # within FOLLOWER_GRACE_S)
+        "released": source.released_cycles,
+        "unread": summary.failed_cycles,
         "kept": kept_feel(source),
     }
 
@@ -202,7 +206,7 @@ def passivity_case(workdir: Path, stiffness: float) -> dict:
     summary, source, _, rows = run_case(
         workdir, f"passive{stiffness}", {"script": EXCURSION, **hand}, 4.5
     )
-    released = summary.failed_cycles + source.read_failures
+    released = source.released_cycles
     return {
         "stiffness": stiffness,
         "kept": kept_feel(source),
@@ -320,6 +324,24 @@ def exact_cases() -> dict:
     for k in (0.02, 0.05, 0.2):
         rows = exact_rate_case(k, EXCURSION, 4.5)["rows"]
         out["passes"].append({"stiffness": k, **contact_energy(rows)})
+    # pressed 20 deg beyond, then the hand heads back inside (pan 50 -> 0 in 0.2 s at 4 s): the
+    # torque while the leader is outside, its sign, and where the outward samples fall
+    pull = [[0.0, 0.0, 0.0], [2.0, EDGE_DEG + 20.0, 0.0], [4.0, EDGE_DEG + 20.0, 0.0]]
+    out["pulls"] = []
+    for k in (0.05, 0.2):
+        rows = exact_rate_case(k, [*pull, [4.2, 0.0, 0.0]], 5.0)["rows"]
+        t, pan, motor = np.array([r["t"] for r in rows]), pan_of(rows), pan_of(rows, "motor_nm")
+        outward = (pan > EDGE_DEG) & (motor > 0.0)
+        out["pulls"].append(
+            {
+                "stiffness": k,
+                "outside": int(np.sum((pan > EDGE_DEG) & (motor != 0.0))),
+                "outward": int(np.sum(outward)),
+                "span_ms": float(np.ptp(t[outward]) * 1e3) if outward.any() else 0.0,
+                "peak": float(np.max(motor[outward], initial=0.0)),
+                "inside": int(np.sum((pan < EDGE_DEG) & (motor != 0.0))),
+            }
+        )
     # the same press, interrupted at 3.2 s (cycle 640): what a loaded machine does to the loop
     press = [[0.0, 0.0, 0.0], [1.5, EDGE_DEG + 5.0, 0.0], [5.0, EDGE_DEG + 5.0, 0.0]]
     out["interrupted"] = []
@@ -346,8 +368,8 @@ def exact_cases() -> dict:
 
 
 #: Interruptions of the exact-rate press (cycle 640 = 3.2 s): a stalled loop writes nothing for
-#: 4 and 8 cycles (20, 40 ms); a held gate (the follower's read failed: the loop holds until its
-#: silent servo's probe, 50 ms = 10 cycles) releases the leader each cycle, as does one held
+#: 4 and 8 cycles (20, 40 ms); a held gate (or a follower silent past the grace) releases the
+#: leader each cycle for 50 ms (10 cycles), as does one held
 #: cycle alone.
 INTERRUPTIONS = [
     (
@@ -455,9 +477,24 @@ def render(push, ripples, passes, rates, load, exact, transfers, end_load) -> st
             for r in exact["ripples"]
         ),
         "",
+        "Pressed 20 deg beyond, then the hand heads back inside (its target pan 50 -> 0 in "
+        "0.2 s at 4 s). The servo's setpoint moves at most 28.9 deg/s and its loop brakes a "
+        "faster leader (pulls it outward); the law leaves a leader moving toward the region "
+        "faster than 20 deg/s free, from the first read that shows it. 1 ms samples:",
+        "",
+        "| hand stiffness (N m/deg) | outside with torque | pointing outward | their span (ms) | "
+        "largest outward (N m) | inside with torque |",
+        "| ---: | ---: | ---: | ---: | ---: | ---: |",
+        *(
+            f"| {p['stiffness']:g} | {p['outside']} | {p['outward']} | {p['span_ms']:.0f} | "
+            f"{p['peak']:.3f} | {p['inside']} |"
+            for p in exact["pulls"]
+        ),
+        "",
         "The same press, interrupted once at 3.2 s as a loaded machine interrupts the loop: late "
         "cycles leave the servos their last command (the wall stays); a cycle whose gate held "
-        "(the follower's read failed) releases the leader, as the safety rules require, and the "
+        "(or whose follower stayed silent past the 55 ms grace) releases the leader, as the "
+        "safety rules require, and the "
         "hand pushes it toward where it means to go until the wall is back:",
         "",
         "| interruption | hand stiffness (N m/deg) | ripple, peak to peak (deg) | "
@@ -499,6 +536,8 @@ def render(push, ripples, passes, rates, load, exact, transfers, end_load) -> st
         f"| truth: deepest such sample inside the edge (deg) | {push['truth_inside_depth']:.3f} |",
         f"| truth: samples outside with torque / pointing outward | "
         f"{push['outside_samples']} / {push['outward']} |",
+        f"| of those pointing outward: while held (before let go), largest (N m) | "
+        f"{push['outward_held']}, {push['outward_peak']:.3f} |",
         f"| truth: largest motor torque (N m), cap | {push['peak_nm']:.3f}, {push['cap_nm']:g} |",
         f"| return after let go: peak speed (deg/s) | {push['return_peak']:.1f} |",
         f"| return after let go: peak of 20 ms mean speed (deg/s) | {push['return_window']:.1f} |",
@@ -509,19 +548,20 @@ def render(push, ripples, passes, rates, load, exact, transfers, end_load) -> st
         "",
         "## Ripple while pressing 5 deg beyond, by hand stiffness",
         "",
-        "Each run's loop rate, and its cycles that released the leader (a failed read of the "
-        "follower, so a held gate, or of the leader), over the whole 4.5 s run. A release while "
-        "pressed lets the hand push the leader toward its own target, 5 deg beyond, for the "
-        "~50 ms the loop holds a silent follower (the exact-rate section's interruptions; "
-        "docs/decisions/haptic.md): a ripple of 3-4 deg where such a release fell in the "
-        "steady window, 0 where none did.",
+        "Each run's loop rate, its cycles whose follower read failed (the loop holds the "
+        "follower until its silent servo's probe; the wall stays on for FOLLOWER_GRACE_S, "
+        "55 ms, of the follower's last good read) and its cycles that released the leader (the "
+        "leader's own read failed, or a longer silence), over the whole 4.5 s run. A release "
+        "while pressed lets the hand push the leader toward its own target, 5 deg beyond (the "
+        "exact-rate section's interruptions; docs/decisions/haptic.md).",
         "",
         "| hand stiffness (N m/deg) | beyond the edge (deg) | ripple, peak to peak (deg) | "
-        "loop rate (Hz) | cycles released | felt to the end |",
-        "| ---: | ---: | ---: | ---: | ---: | --- |",
+        "loop rate (Hz) | follower reads failed | cycles released | felt to the end |",
+        "| ---: | ---: | ---: | ---: | ---: | ---: | --- |",
         *(
             f"| {r['stiffness']:g} | {r['beyond']:.2f} | {r['ripple']:.3f} | {r['rate']:.0f} | "
-            f"{r['released']} | {'yes' if r['kept'] else 'no: the pace was lost'} |"
+            f"{r['unread']} | {r['released']} | "
+            f"{'yes' if r['kept'] else 'no: the pace was lost'} |"
             for r in ripples
         ),
         "",

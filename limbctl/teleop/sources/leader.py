@@ -124,6 +124,9 @@ class LeaderSource(CommandSource):
         self.rig = rig
         self.leader_ids = tuple(leader_ids)
         self.read_failures = 0
+        #: Cycles whose push the safety rules released (the leader unread, a held gate, a
+        #: failed write, a follower silent past FOLLOWER_GRACE_S), whether or not it pressed.
+        self.released_cycles = 0
         self.rate_hz = float(rate_hz)
         self.law = law or FeelLaw()
         self.motor = None  # a LeaderMotor while the leader feels the edge
@@ -343,9 +346,11 @@ class LeaderSource(CommandSource):
         ran = bus_ok and result is not None and result.outcome is not Outcome.HELD
         if ran:
             self._follower_read_at = now
+        released = cycle is None or not (ran or self._follower_missed(result, bus_ok, now))
+        self.released_cycles += released
         if cycle is None:  # the leader was not read: it may not hear a push either
             push = None
-        elif ran or self._follower_missed(result, bus_ok, now):
+        elif not released:
             pose, q, last, read_at = cycle
             previous, period = (None, 0.0) if last is None else (last[0], read_at - last[1])
             engaged = self.last_push is not None and self.last_push.goal_current > 0
