@@ -66,14 +66,13 @@ class FeelLaw:
         the leader. The servo's loop must still reach the cap within the lead once the goal
         is rounded to whole ticks (0.088 deg): the simulator's XM430 loop gives stall torque
         at 2 deg, so 0.3 deg (3.4 ticks) gives 0.6 N m, over the cap with a tick to spare.
-    free_speed_deg_s : float
-        20 deg/s: a leader that moves toward the region faster than this (measured between two
-        reads) is left free (Goal Current 0). The servo's position loop pulls toward its profile
-        setpoint, which moves at most RETURN_SPEED and brakes what moves faster (its damping
-        term): a leader the hand carries back toward the region would be pulled back outward,
-        away from the region. Under RETURN_SPEED, so the setpoint stays ahead of any leader the
-        wall holds; over one reading tick per cycle at 200 Hz (0.088 deg in 5 ms = 17.6 deg/s),
-        so a pressed leader read a tick apart is not let go.
+    outrun_slack_deg : float
+        0.1 deg: a leader that moved toward the region since the last read by more than its
+        setpoint can (RETURN_SPEED times the time between the reads) plus this has outrun the
+        setpoint, and the servo's loop would pull it back, away from the region: the wall lets
+        go. One reading tick (0.088 deg) rounded up, so a leader the wall walks back itself,
+        read a tick early, keeps its wall (a slack under the setpoint's own speed let the wall
+        go on its own walk back, and a hand pressing outward then won: decisions/haptic.md).
     """
 
     deadband_deg: float = 0.4
@@ -81,10 +80,10 @@ class FeelLaw:
     cap_nm: float = 0.4
     return_speed_deg_s: float = 30.0
     lead_deg: float = 0.3
-    free_speed_deg_s: float = 20.0
+    outrun_slack_deg: float = 0.1
 
     def __post_init__(self) -> None:
-        names = ("deadband_deg", "gain_nm_per_deg", "cap_nm", "lead_deg", "free_speed_deg_s")
+        names = ("deadband_deg", "gain_nm_per_deg", "cap_nm", "lead_deg", "outrun_slack_deg")
         for name in names:
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0.0):
@@ -197,10 +196,11 @@ def push_for(
         # moved in = (present - previous) . step / |step|, on the line toward the correction
         moved = (present[0] - previous[0], present[1] - previous[1])
         moved_in = math.degrees((moved[0] * step[0] + moved[1] * step[1]) / math.hypot(*step))
-        # moving toward the region faster than FREE_SPEED: the setpoint (at most RETURN_SPEED)
-        # would fall behind and the loop pull it back outward; at this pace within the
-        # deadband by the next read, its current still on inside: let go in both cases
-        if moved_in > law.free_speed_deg_s * period_s or distance - moved_in <= law.deadband_deg:
+        # faster toward the region than the setpoint (at most RETURN_SPEED): the loop would pull
+        # it back outward; at this pace within the deadband by the next read, its current
+        # still on inside: let go in both cases
+        outrun = moved_in > law.return_speed_deg_s * period_s + law.outrun_slack_deg
+        if outrun or distance - moved_in <= law.deadband_deg:
             return free
         # the wall comes on with the setpoint where the leader is (LeaderSource._write): while
         # the leader still moves toward the region the loop's damping would brake it outward

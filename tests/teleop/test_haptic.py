@@ -218,13 +218,17 @@ def test_late_cycles_keep_the_wall_a_stalled_loop_does_not_release_it(stiffness)
 @pytest.mark.parametrize("stiffness", [0.05, 0.2])
 def test_a_hand_carrying_the_leader_back_toward_the_region_is_not_pulled_outward(stiffness):
     # pressed 20 deg beyond, then the hand heads back inside: the servo's setpoint moves at
-    # most 30 deg/s, so its loop would brake the faster leader, pulling it away from the
-    # region; the law lets go once a read shows it moving in faster than FREE_SPEED. What is
-    # left: the cycle in which it starts, before any read can see it (at most 5 ms).
+    # most 30 deg/s, so its loop would pull a faster leader back, away from the region; the
+    # law lets go once a read shows it outrunning the setpoint by more than a tick. What is
+    # left: the cycles before a read can show that (within 20 ms), and, for a hand that takes
+    # it in at about the setpoint's own speed (0.05 N m/deg), the simulated loop's damping
+    # (decisions/haptic.md). Never any torque inside.
     script = [[0.0, 0.0, 0.0], [2.0, 50.0, 0.0], [4.0, 50.0, 0.0], [4.2, 0.0, 0.0]]
     rows = felt_at_200_hz(script, 5.0, stiffness)
-    outward = [r["t"] for r in rows if r["pose_deg"][0] > 30.0 and r["motor_nm"][0] > 0.0]
-    assert not outward or max(outward) - min(outward) <= 0.007
+    outward = [r for r in rows if r["pose_deg"][0] > 30.0 and r["motor_nm"][0] > 0.0]
+    if stiffness >= 0.2:  # it outruns the setpoint: let go from the first read that shows it
+        assert not outward or outward[-1]["t"] - outward[0]["t"] <= 0.02
+    assert max((r["motor_nm"][0] for r in outward), default=0.0) < 0.75 * LAW.cap_nm
     inside = [r for r in rows if r["pose_deg"][0] < 30.0 and r["t"] > 4.0]
     assert inside and all(r["motor_nm"] == [0.0, 0.0] for r in inside)
 
