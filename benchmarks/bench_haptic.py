@@ -479,8 +479,8 @@ def render(push, ripples, passes, rates, load, exact, transfers, end_load) -> st
         "",
         "Pressed 20 deg beyond, then the hand heads back inside (its target pan 50 -> 0 in "
         "0.2 s at 4 s). The servo's setpoint moves at most 28.9 deg/s and its loop brakes a "
-        "faster leader (pulls it outward); the law leaves a leader moving toward the region "
-        "faster than 20 deg/s free, from the first read that shows it. 1 ms samples:",
+        "faster leader (pulls it outward); the law leaves a leader that outran its setpoint "
+        "by more than a tick free, from the first read that shows it. 1 ms samples:",
         "",
         "| hand stiffness (N m/deg) | outside with torque | pointing outward | their span (ms) | "
         "largest outward (N m) | inside with torque |",
