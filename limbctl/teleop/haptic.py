@@ -13,6 +13,12 @@ The law (:class:`FeelLaw`), per cycle of period T::
                                     Goal Position = the corrected pose, reached from the
                                     leader's pose by at most LEAD
                                     Profile Velocity = RETURN_SPEED
+    but Goal Current 0 when, with m how far the leader moved toward the correction since the
+    last read (period T):
+        m > RETURN_SPEED T + SLACK       it outran the servo's setpoint, whose loop would
+                                         pull it back, away from the region
+        d - m <= DEADBAND                at this pace inside the deadband by the next read
+        m > 0 after a free cycle         still moving in: the wall comes on once it stops
 
 The servo's own position loop (mode 5) pushes toward Goal Position with at most Goal Current,
 so the torque points toward the region and never exceeds CAP, which is also written into the

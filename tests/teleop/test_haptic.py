@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from calib.profile import default_sim_profile
@@ -88,6 +88,26 @@ def test_property_never_above_the_cap_zero_inside_toward_the_region(pan, tilt, d
         assert np.max(np.abs(step)) <= math.radians(LAW.lead_deg) + 1e-12
         target = np.subtract(np.asarray(quat_to_pan_tilt(corrected), dtype=float), present)
         assert float(step @ target) >= 0.0
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.floats(31.0, 60.0), st.floats(-2.0, 2.0), st.floats(0.001, 0.05), st.booleans())
+def test_property_a_leader_outrunning_its_setpoint_or_still_moving_in_is_free(
+    pan, moved, period, engaged
+):
+    # along pan beyond the edge at 30 deg: moved > 0 is toward the region
+    assume(moved == 0.0 or abs(moved) > 1e-9)  # a motion the float subtraction keeps
+    q = q_of(pan, 0.0)
+    corrected = CONE.correct(q)
+    present, previous = (math.radians(pan), 0.0), (math.radians(pan + moved), 0.0)
+    push = push_for(LAW, MOTOR, present, q, corrected, previous, period, engaged)
+    free = push_for(LAW, MOTOR, present, q, corrected)
+    outrun = moved > LAW.return_speed_deg_s * period + LAW.outrun_slack_deg
+    near = (pan - 30.0) - moved <= LAW.deadband_deg
+    if outrun or near or (moved > 0.0 and not engaged):
+        assert push.goal_current == 0
+    else:
+        assert push == free  # otherwise the law as without the motion
 
 
 def test_stats_say_how_long_and_how_hard():
