@@ -11,7 +11,7 @@ The law (:class:`FeelLaw`), per cycle of period T::
     d > DEADBAND:                   tau = min(K (d - DEADBAND), CAP)
                                     Goal Current = tau / kt           (rounded down)
                                     Goal Position = the corrected pose, reached from the
-                                    leader's pose by at most LEAD
+                                    leader's pose by at most LEAD + max(m, 0)
                                     Profile Velocity = RETURN_SPEED
     but Goal Current 0 when, with m how far the leader moved toward the correction since the
     last read (period T):
@@ -72,6 +72,8 @@ class FeelLaw:
         the leader. The servo's loop must still reach the cap within the lead once the goal
         is rounded to whole ticks (0.088 deg): the simulator's XM430 loop gives stall torque
         at 2 deg, so 0.3 deg (3.4 ticks) gives 0.6 N m, over the cap with a tick to spare.
+        A leader the wall walks back gets, on top, how far it moved in the last cycle: the
+        setpoint then does not reach the goal and stop within a cycle (a stop brakes it).
     outrun_slack_deg : float
         0.1 deg: a leader that moved toward the region since the last read by more than its
         setpoint can (RETURN_SPEED times the time between the reads) plus this has outrun the
@@ -198,6 +200,7 @@ def push_for(
     # the goal on the joint-space line toward the corrected pose, at most LEAD ahead
     step = (pan - present[0], tilt - present[1])
     longest = max(abs(step[0]), abs(step[1]))
+    lead_deg = law.lead_deg
     if previous is not None and longest > 0.0:
         # moved in = (present - previous) . step / |step|, on the line toward the correction
         moved = (present[0] - previous[0], present[1] - previous[1])
@@ -212,7 +215,11 @@ def push_for(
         # the leader still moves toward the region the loop's damping would brake it outward
         if not engaged and moved_in > 0.0:
             return free
-    scale = min(1.0, math.radians(law.lead_deg) / longest) if longest > 0.0 else 0.0
+        # a leader the wall walks back: the goal leads it by how far it moved in the last
+        # cycle too, so the setpoint (at RETURN_SPEED) does not reach the goal and stop before
+        # the next write; a stopped setpoint brakes the leader, an outward pull
+        lead_deg += max(moved_in, 0.0)
+    scale = min(1.0, math.radians(lead_deg) / longest) if longest > 0.0 else 0.0
     goal = (present[0] + scale * step[0], present[1] + scale * step[1])
     return Push(
         units, law.profile_velocity_units(), goal[0], goal[1], motor.torque_of(units), distance

@@ -92,7 +92,7 @@ def test_property_never_above_the_cap_zero_inside_toward_the_region(pan, tilt, d
 
 @settings(max_examples=300, deadline=None)
 @given(st.floats(31.0, 60.0), st.floats(-2.0, 2.0), st.floats(0.001, 0.05), st.booleans())
-def test_property_a_leader_outrunning_its_setpoint_or_still_moving_in_is_free(
+def test_property_a_leader_outrunning_its_setpoint_or_still_moving_in_is_free_else_led(
     pan, moved, period, engaged
 ):
     # along pan beyond the edge at 30 deg: moved > 0 is toward the region
@@ -106,8 +106,10 @@ def test_property_a_leader_outrunning_its_setpoint_or_still_moving_in_is_free(
     near = (pan - 30.0) - moved <= LAW.deadband_deg
     if outrun or near or (moved > 0.0 and not engaged):
         assert push.goal_current == 0
-    else:
-        assert push == free  # otherwise the law as without the motion
+    else:  # otherwise the law's current, the goal further ahead by how far the leader moved
+        assert push.goal_current == free.goal_current
+        lead = math.radians(LAW.lead_deg + max(moved, 0.0))
+        assert 0.0 <= present[0] - push.goal_pan <= lead + 1e-12
 
 
 def test_stats_say_how_long_and_how_hard():
