@@ -119,6 +119,27 @@ def pressing(pushes) -> bool:
     return sum(1 for _, push, _ in pushes if push is not None and push.goal_current) >= 100
 
 
+def pushed_only_when_fit(pushes) -> None:
+    """A cycle pushes only when the leader was read and fit to push, and the gate ran on a good
+    read, or held only because the follower's read failed within FOLLOWER_GRACE_S (one cycle of
+    slack: the grace is timed when the push is written) of the follower's last good read."""
+    period = 1.0 / LoopConfig().rate_hz
+    last_read = None
+    for cycle, push, felt in pushes:
+        if not cycle.complete:
+            continue
+        ran = cycle.present is not None and cycle.result.outcome is not Outcome.HELD
+        if ran:
+            last_read = cycle.t
+        if push is not None and push.goal_current:
+            assert felt
+            if not ran:
+                assert cycle.result.outcome is Outcome.HELD
+                assert cycle.result.reason == FOLLOWER_UNREAD
+                assert last_read is not None
+                assert cycle.t - last_read <= FOLLOWER_GRACE_S + period
+
+
 def test_the_leader_stops_near_the_edge_free_inside_never_above_the_cap(tmp_path):
     with felt_session(tmp_path) as (session, source, log), source:
         cap = source.motor.torque_of(source.motor.units_for(source.motor.cap_nm(source.law.cap_nm)))
@@ -200,9 +221,12 @@ def test_a_failed_bus_or_a_held_gate_switches_the_push_off_in_that_cycle(tmp_pat
             session.simulator.set_faults(drop=0.0)
             running.until(lambda p: p[-1][0].present is not None and p[-1][1] is not None)
     assert during == [0.0, 0.0]
-    # each cycle whose read failed wrote no current (released, or a push of 0), from the first on
+    # each cycle whose reads failed wrote no current (released, or a push of 0), from the first
+    # on; a cycle whose follower read failed and whose leader read did not (the fault lifting
+    # between the two) may keep the wall within FOLLOWER_GRACE_S, and no other
     failed = [push for cycle, push, _ in running.pushes if cycle.complete and cycle.present is None]
-    assert failed and all(push is None or push.goal_current == 0 for push in failed)
+    assert failed and sum(1 for push in failed if push is None or push.goal_current == 0) >= 5
+    pushed_only_when_fit(running.pushes)
 
 
 def test_a_silent_leader_is_bounded_by_its_cap_and_is_re_armed(tmp_path):
@@ -248,27 +272,6 @@ FAULTS = {
     "bus": lambda sim: sim.set_faults(drop=1.0),
     "follower": lambda sim: sim.vanish(1, 0.2),
 }
-
-
-def pushed_only_when_fit(pushes) -> None:
-    """A cycle pushes only when the leader was read and fit to push, and the gate ran on a good
-    read, or held only because the follower's read failed within FOLLOWER_GRACE_S (one cycle of
-    slack: the grace is timed when the push is written) of the follower's last good read."""
-    period = 1.0 / LoopConfig().rate_hz
-    last_read = None
-    for cycle, push, felt in pushes:
-        if not cycle.complete:
-            continue
-        ran = cycle.present is not None and cycle.result.outcome is not Outcome.HELD
-        if ran:
-            last_read = cycle.t
-        if push is not None and push.goal_current:
-            assert felt
-            if not ran:
-                assert cycle.result.outcome is Outcome.HELD
-                assert cycle.result.reason == FOLLOWER_UNREAD
-                assert last_read is not None
-                assert cycle.t - last_read <= FOLLOWER_GRACE_S + period
 
 
 @settings(
