@@ -63,8 +63,11 @@ class FeelLaw:
         stall torque (the servo neither heats nor trips overload at it), and small enough that
         a person overpowers it at once.
     return_speed_deg_s : float
-        30 deg/s: a released leader walks back at most this fast (Profile Velocity, rounded
-        down to 21 units = 28.9 deg/s).
+        27 deg/s (Profile Velocity, rounded down to 19 units = 26.1 deg/s): a released leader
+        walks back at most 30 deg/s. The setpoint moves at this speed and the leader tracks it;
+        the snap of a let go (the leader reaching a setpoint the lead put ahead of it) adds up
+        to 2 deg/s to the 20 ms mean (a 0.2 N m/deg hand pressing 5 deg beyond, stepped
+        clock: 30.2 deg/s at 21 units, 29.5 at 20), so two units are kept in hand.
     lead_deg : float
         0.3 deg: how far ahead of the leader's pose Goal Position may lie. The servo's profile
         continues from its own setpoint, so a goal at the edge would snap a released leader
@@ -86,7 +89,7 @@ class FeelLaw:
     deadband_deg: float = 0.4
     gain_nm_per_deg: float = 0.2
     cap_nm: float = 0.4
-    return_speed_deg_s: float = 30.0
+    return_speed_deg_s: float = 27.0
     lead_deg: float = 0.3
     outrun_slack_deg: float = 0.1
 

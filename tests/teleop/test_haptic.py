@@ -202,6 +202,19 @@ def test_at_200_hz_the_leader_stops_within_2_deg_and_a_release_walks_back_to_the
     assert min(r["motor_nm"][0] for r in pressed) < -0.25  # it did push: 0.3 N m hand held
 
 
+@pytest.mark.parametrize("stiffness", [0.05, 0.2])
+def test_at_200_hz_a_leader_let_go_from_a_firm_press_walks_back_under_30_deg_s(stiffness):
+    # a stiff hand pressing 5 deg beyond: the let go's snap to the setpoint the lead put ahead
+    # adds to the walk back's 20 ms mean (30.2 deg/s with Profile Velocity at 28.9 deg/s)
+    rows = felt_at_200_hz([[0.0, 0.0, 0.0], [2.0, 35.0, 0.0]], 7.0, stiffness, let_go_s=5.0)
+    t = np.array([r["t"] for r in rows])
+    pan = np.array([r["pose_deg"][0] for r in rows])
+    velocity = np.array([r["velocity_deg_s"][0] for r in rows])
+    after = t >= 5.0
+    assert np.convolve(-velocity[after], np.ones(20) / 20.0, mode="valid").max() <= 30.0
+    assert 30.0 <= pan[after].min() and pan[-1] < 30.5
+
+
 @pytest.mark.parametrize("stiffness", [0.02, 0.2])
 def test_at_200_hz_a_closed_excursion_gives_the_hand_back_less_than_it_put_in(stiffness):
     script = [[0.0, 20.0, 0.0], [1.0, 20.0, 0.0], [2.0, 40.0, 0.0], [2.5, 40.0, 0.0]]
