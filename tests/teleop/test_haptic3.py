@@ -1,10 +1,9 @@
 """The three-servo leader's wall: zero inside, toward the correction on SO(3), never above the cap.
 
-The region is a twist region (:class:`limbctl.region.twist_region.TwistRegion`) fitted from a
-synthetic teaching of a square swing outline (pan and tilt within about +-30 and +-25 deg) with a
-twist band of +-30 deg about 0: the edge lies near pan 30 deg in swing and near roll 30 deg in
-twist. The law runs against the simulator's three-servo leader on a stepped clock at exactly
-200 Hz (the controller's part in this process, as tests/teleop/test_haptic.py does for two).
+The region is a twist region fitted from a synthetic teaching (tests/teleop/twist_square.py):
+its edge lies near pan 30 deg in swing and near roll 30 deg in twist. The law runs against the
+simulator's three-servo leader on a stepped clock at exactly 200 Hz (the controller's part in
+this process, as tests/teleop/test_haptic.py does for two).
 """
 
 from __future__ import annotations
@@ -20,9 +19,7 @@ from calib.profile import default_sim_profile
 from firmware_sim.control_table import Register as SimRegister
 from firmware_sim.leader3 import Operator3, leader_joints3
 from firmware_sim.simulator import Simulator
-from limbctl.envelope.synthetic_twist import ShoulderRegion
 from limbctl.geometry.gimbal3 import pose_quat_scalar
-from limbctl.region.twist_region import TwistRegion
 from limbctl.servo.control_table import ModelNumber
 from limbctl.servo.leader import FEEL_DATA, FEEL_MAP, FELT_MODELS, encode_feel, feel_map
 from limbctl.servo.rig3 import RollRig
@@ -30,11 +27,11 @@ from limbctl.servo.ticks import angle_to_ticks
 from limbctl.teleop.gate3 import geodesic
 from limbctl.teleop.haptic import FeelLaw
 from limbctl.teleop.haptic3 import Push3, beyond3_deg, corrected_pose, held3, push3_for
+from tests.teleop.twist_square import square_region
 
 LAW = FeelLaw()
 MOTOR = FELT_MODELS[ModelNumber.XM430_W350]
 CAP = MOTOR.torque_of(MOTOR.units_for(LAW.cap_nm))
-SQUARE = np.array([[-30.0, -25.0], [30.0, -25.0], [30.0, 25.0], [-30.0, 25.0]])
 RIG = RollRig(default_sim_profile("sim3"))
 IDS = (4, 5, 6)
 HAND = {"damping_nm_s_rad": 0.02, "max_torque_nm": 0.3}
@@ -42,8 +39,7 @@ HAND = {"damping_nm_s_rad": 0.02, "max_torque_nm": 0.3}
 
 @pytest.fixture(scope="module")
 def region():
-    truth = ShoulderRegion(SQUARE, 30.0, 30.0, 0.0, 0.0, 0.0)
-    return TwistRegion().fit(truth.teaching(1500, 1000, 1800, np.random.default_rng(0)))
+    return square_region()
 
 
 def q_of(pan_deg, tilt_deg, roll_deg):
