@@ -24,7 +24,7 @@ from limbctl.teleop.commands import Command, command_from_pose
 from limbctl.teleop.gate import Outcome
 from limbctl.teleop.haptic import Push
 from limbctl.teleop.haptic3 import Pose3, Push3, held3, push3_for
-from limbctl.teleop.sources.leader import WATCHDOG_UNITS, LeaderSource
+from limbctl.teleop.sources.leader import WATCHDOG_UNIT_S, WATCHDOG_UNITS, LeaderSource
 
 
 class LeaderSource3(LeaderSource):
@@ -117,7 +117,7 @@ class LeaderSource3(LeaderSource):
             self.read_failures += 1
             return []
         unheard_s, self._heard_at = now - self._heard_at, now
-        if unheard_s > WATCHDOG_UNITS * 0.020 / 2.0:
+        if unheard_s > WATCHDOG_UNITS * WATCHDOG_UNIT_S / 2.0:
             self._arm_watchdog()  # long enough unheard that its watchdog may have tripped
         for servo_id, report in read.reports.items():
             if report.hardware_error:
