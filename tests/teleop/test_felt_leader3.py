@@ -19,6 +19,8 @@ import numpy as np
 import pytest
 
 from limbctl.geometry.gimbal3 import pose_quat_scalar
+from limbctl.geometry.twist import decompose_one
+from limbctl.live import leader_status
 from limbctl.servo.setup import configure_servos
 from limbctl.session import open_rig
 from limbctl.teleop.gate import Outcome
@@ -271,6 +273,10 @@ def test_an_xl430_three_servo_leader_stays_passive_and_says_so(tmp_path):
         [command] = source.poll()
         assert source.last_pose3 is not None
         np.testing.assert_allclose(command.q, pose_quat_scalar(*source.last_pose3), atol=1e-12)
+        shown = leader_status(source)()  # what the live page is handed
+    _, twist = decompose_one(command.q)
+    assert shown.twist_deg == pytest.approx(math.degrees(twist))
+    assert shown.toward_twist_deg is None and shown.cap_nm is None
 
 
 @pytest.mark.parametrize("model", ["xl330-m288"])
@@ -282,7 +288,17 @@ def test_an_xl330_three_servo_leader_feels_the_twist_edge(tmp_path, model):
         with Running(session, source) as running:
             session.simulator.set_operator(TWIST_PRESS)
             running.until(pressing)
+            seen = []  # what the live page is handed, cycle by cycle, until it shows the push
+
+            def shown_pushing(_) -> bool:
+                seen.append(leader_status(source)())
+                return seen[-1].state == "pushing back" or not source.felt
+
+            running.until(shown_pushing)
+            shown = seen[-1]  # pushed in twist: its twist parts, no arrow on the plane
     skip_if_paced_out(source)
+    assert shown.state == "pushing back" and shown.toward is None
+    assert shown.twist_deg > 29.0 and shown.toward_twist_deg < shown.twist_deg
     rows = truth_rows(log)
     pushed = [abs(r["motor_nm"][2]) for r in rows if r["pose_deg"][2] > 31.0]
     assert pushed and max(pushed) > 0.5 * cap
