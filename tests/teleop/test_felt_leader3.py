@@ -19,6 +19,8 @@ from contextlib import contextmanager
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from limbctl.geometry.gimbal3 import pose_quat_scalar
 from limbctl.geometry.twist import decompose_one
@@ -356,3 +358,52 @@ def test_an_xl330_three_servo_leader_feels_the_twist_edge(tmp_path, model):
     pushed = [abs(r["motor_nm"][2]) for r in rows if r["pose_deg"][2] > 31.0]
     assert pushed and max(pushed) > 0.5 * cap
     assert max(abs(m) for r in rows for m in r["motor_nm"]) <= cap + 1e-12
+
+
+FAULTS = {
+    "silence": lambda sim: sim.vanish(IDS[2], 0.2),
+    "restart": lambda sim: sim.restart(IDS[0]),
+    "alarm": lambda sim: sim.set_temperature(IDS[1], 95.0),
+    "bus": lambda sim: sim.set_faults(drop=1.0),
+}
+
+
+@settings(
+    max_examples=4,
+    deadline=None,
+    derandomize=True,
+    suppress_health_check=[HealthCheck.function_scoped_fixture],
+)
+@given(
+    targets=st.lists(
+        st.tuples(st.floats(-20.0, 60.0), st.floats(-20.0, 35.0), st.floats(-60.0, 60.0)),
+        min_size=2,
+        max_size=3,
+    ),
+    fault=st.sampled_from(sorted(FAULTS)),
+    after=st.integers(20, 200),
+)
+def test_property_random_streams_and_faults_never_above_the_cap_off_at_once(
+    tmp_path_factory, targets, fault, after
+):
+    """Random operator streams over all three joints with one injected fault: never above the
+    cap, and a cycle pushes only when the leader was read, fit to push, and the gate ran on a
+    good read (so after any fault the push is off in the cycle that saw it)."""
+    tmp_path = tmp_path_factory.mktemp("felt3")
+    script = [[0.8 * k, *pose] for k, pose in enumerate([(0.0, 0.0, 0.0), *targets])]
+    with felt3_session(tmp_path) as (session, source, log), source:
+        cap = cap_of(source)
+        session.rig.set_torque(True)
+        with Running3(session, source) as running:
+            session.simulator.set_operator({"script": script, **HAND})
+            running.until(lambda p: len(p) >= after)
+            FAULTS[fault](session.simulator)
+            seen = len(running.pushes)
+            running.until(lambda p: len(p) > seen + 100 or running.ended)
+            session.simulator.set_faults(drop=0.0)
+    rows = truth_rows(log)
+    assert max(abs(m) for r in rows for m in r["motor_nm"]) <= cap + 1e-12
+    for cycle, push, felt in running.pushes:
+        if push is not None and push.goal_current and cycle.complete:
+            assert felt and cycle.present is not None
+            assert cycle.result.outcome is not Outcome.HELD

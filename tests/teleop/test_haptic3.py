@@ -91,7 +91,9 @@ angles = st.floats(-60.0, 60.0, allow_nan=False)
 
 
 @settings(max_examples=150, deadline=None)
-@given(angles, st.floats(-45.0, 45.0), angles, st.tuples(*[st.floats(-1.0, 1.0)] * 3))
+@given(
+    angles, st.floats(-45.0, 45.0), st.floats(-100.0, 100.0), st.tuples(*[st.floats(-1.0, 1.0)] * 3)
+)
 def test_property_never_above_the_cap_zero_inside_toward_the_correction(
     region, pan, tilt, roll, lag
 ):
