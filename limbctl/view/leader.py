@@ -73,6 +73,10 @@ class LeaderStatus:
                 raise ValueError(f"leader {name} must be finite and >= 0, got {value!r}")
         if self.cap_nm is not None and not (math.isfinite(self.cap_nm) and self.cap_nm > 0.0):
             raise ValueError(f"leader cap_nm must be finite and > 0 (or None), got {self.cap_nm}")
+        for name in ("twist_deg", "toward_twist_deg"):
+            value = getattr(self, name)
+            if value is not None and not math.isfinite(value):
+                raise ValueError(f"leader {name} must be finite (or None), got {value!r}")
 
     def to_json(self) -> dict[str, object]:
         return {

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import math
 
+import pytest
+
 from limbctl.view import HardLimits, PanTilt, Scene, TeleopStatus
 from limbctl.view.leader import LeaderLive, LeaderStatus, with_twist
 from tests.view.browser import text_of, wait_for
@@ -37,6 +39,8 @@ def test_a_push_in_twist_gives_the_twists_and_no_arrow_on_the_plane():
     free = with_twist(LeaderStatus(PanTilt(40.0, 30.0)), rad(40.0, 30.0, 10.0), None).to_json()
     assert free["toward_twist_deg"] is None and abs(free["twist_deg"] - 10.0) > 5.0
     assert "twist_deg" not in LeaderStatus(PanTilt(1.0, 2.0)).to_json()  # two servos: as before
+    with pytest.raises(ValueError, match="twist_deg"):
+        LeaderStatus(PanTilt(1.0, 2.0), twist_deg=math.nan)
 
 
 def test_the_page_shows_a_three_servo_leaders_twist_and_its_push(browser, served):
