@@ -228,3 +228,19 @@ def test_a_held_gate_switches_every_joint_off_within_the_cycle(region):
     rows, _ = felt3_at_200_hz(region, PRESSES["swing"], 4.0, cycles=silent)
     released = [r for r in rows if 3.5 + 0.0005 <= r["t"] < 3.55]
     assert released and all(r["motor_nm"] == [0.0, 0.0, 0.0] for r in released)
+
+
+def test_a_leader_released_by_goal_current_alone_still_walks_back_in_twist(region):
+    # the leader's read fails for 100 ms just before the hand lets go at 4.5 s: released by Goal
+    # Current alone, the hand turns it further; let go, the wall comes on again with Torque
+    # Enable off and on (its setpoints at the present pose) and walks it back at the profile's
+    # speed on every joint, resting beyond the edge
+    silent = {k: "silent" for k in range(880, 900)}
+    rows, _ = felt3_at_200_hz(region, PRESSES["twist"], 6.5, let_go_s=4.5, cycles=silent)
+    before = [beyond_of(region, r) for r in rows if 4.45 <= r["t"] < 4.5]
+    assert max(before) > 5.0  # the hand took it far out meanwhile
+    after = [r for r in rows if r["t"] >= 4.5]
+    speeds = np.abs([r["velocity_deg_s"] for r in after])
+    smoothed = [np.convolve(speeds[:, j], np.ones(20) / 20, mode="valid").max() for j in range(3)]
+    assert max(smoothed) <= 30.0
+    assert all(beyond_of(region, r) > 0.0 for r in after[::5])
