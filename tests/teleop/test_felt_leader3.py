@@ -22,6 +22,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from limbctl.errors import ConfigError
 from limbctl.geometry.gimbal3 import pose_quat_scalar
 from limbctl.geometry.twist import decompose_one
 from limbctl.live import leader_status
@@ -407,3 +408,34 @@ def test_property_random_streams_and_faults_never_above_the_cap_off_at_once(
         if push is not None and push.goal_current and cycle.complete:
             assert felt and cycle.present is not None
             assert cycle.result.outcome is not Outcome.HELD
+
+
+def test_at_the_real_rate_the_wall_holds_or_its_feel_goes_off_for_good(tmp_path):
+    """The source watching the loop's pace at 200 Hz, as `limbctl teleop` does: either the loop
+    keeps the rate and the pressed leader is held within 2 deg of the twist edge, or the start
+    refuses (leaving the leader limp), or the pace watch switches the push off for good and
+    from then on the motors apply nothing."""
+    with felt3_session(tmp_path, rate_hz=200.0) as (session, source, log):
+        try:
+            source.start()
+        except ConfigError as exc:
+            assert "lower --rate" in str(exc)
+            assert not any(session.rig.bus.torque_enabled()[i] for i in IDS)
+            return
+        try:
+            session.rig.set_torque(True)
+            with Running3(session, source) as running:
+                session.simulator.set_operator(TWIST_PRESS)
+                start = session.simulator.truth()["leader"]["t"]
+                running.until(lambda p: session.simulator.truth()["leader"]["t"] > start + 4.0)
+                truth = session.simulator.truth()
+        finally:
+            source.close()
+    if paced_out(source):
+        lost = next(k for k, (_, _, felt) in enumerate(running.pushes) if not felt)
+        assert all(push is None for _, push, _ in running.pushes[lost:])
+        assert truth["leader"]["motor_nm"] == [0.0, 0.0, 0.0]
+        assert not any(truth["servos"][i]["torque_on"] for i in IDS)
+    else:
+        held = [r for r in truth_rows(log) if start + 3.0 <= r["t"] < start + 4.0]
+        assert 0.4 < statistics.median(beyond(r) for r in held[::5]) < 2.0
