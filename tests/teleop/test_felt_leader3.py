@@ -109,8 +109,17 @@ class Running3:
             self.changed.notify_all()
 
     def until(self, predicate, timeout: float = 60.0) -> None:
+        """Wait until ``predicate(pushes)``; fail at once, saying why, if the loop ended first."""
         with self.changed:
-            assert self.changed.wait_for(lambda: predicate(self.pushes), timeout), "never happened"
+            self.changed.wait_for(lambda: predicate(self.pushes) or self.ended, timeout)
+            if predicate(self.pushes):
+                return
+            summary = self.out.get("s")
+            events = self.source.feel_stats.events
+            raise AssertionError(
+                f"never happened in {len(self.pushes)} cycles; loop ended: {self.ended}, "
+                f"fault: {getattr(summary, 'fault', None)!r}, feel events: {events}"
+            )
 
     def kept_pace(self, since: float, until: float) -> bool:
         """Whether the loop kept the wall's rate between two monotonic times: the median period
