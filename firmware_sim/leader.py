@@ -231,7 +231,7 @@ class LeaderWorld:
     def _substep(self, h: float, drives: list[Drive], targets: list[float | None]) -> None:
         self.time_s += h
         self.operator_time_s += h
-        for i in (0, 1):
+        for i in range(len(self.joints)):
             angle, velocity = self.angle[i], self.velocity[i]
             motor = drives[i].torque(targets[i], angle, velocity, self._gains[i])
             hand = 0.0

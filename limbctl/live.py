@@ -35,7 +35,7 @@ from limbctl.view import (
     ViewServer,
 )
 from limbctl.view.feed import PoseTap, SceneFeeder
-from limbctl.view.leader import LeaderLive, LeaderStatus
+from limbctl.view.leader import LeaderLive, LeaderStatus, with_twist
 from limbctl.view.region import model_loops
 from limbctl.view.twist import band_gauge, model_band_map, pose_twist, taught_map
 
@@ -298,9 +298,17 @@ class TeleopFeed:
 def leader_status(source: Any) -> Callable[[], LeaderStatus]:
     """What the page shows of a leader source (:class:`~limbctl.teleop.sources.LeaderSource`)
     in each cycle: its pose as last read, and a felt leader's push (its torque, cap, where it
-    points and how far beyond the edge), from the push it was last sent."""
+    points and how far beyond the edge), from the push it was last sent; a three-servo
+    leader's twist too (:func:`limbctl.view.leader.with_twist`)."""
 
     def status() -> LeaderStatus:
+        pose3, push = getattr(source, "last_pose3", None), source.last_push
+        if pose3 is None:  # two servos
+            return plain()
+        goal = getattr(push, "goal", None) if push is not None and push.torque_nm else None
+        return with_twist(plain(), pose3, goal if source.felt else None)
+
+    def plain() -> LeaderStatus:
         pose = source.last_pose
         shown = PanTilt(math.degrees(pose[0]), math.degrees(pose[1])) if pose else None
         if not source.felt:

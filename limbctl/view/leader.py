@@ -4,7 +4,9 @@ With ``--source leader:ID,ID`` the page draws the leader's pose as its own marke
 pan/tilt plane, beside the follower's, and for a leader that feels the edge
 (:mod:`limbctl.teleop.haptic`) the torque it pushes back with: an arrow from the leader's marker
 toward where the wall pushes it, its length the share of the cap, and a bar with the figure in
-newton metres and the cap in the side panel (``assets/leader.js``).
+newton metres and the cap in the side panel (``assets/leader.js``). A three-servo leader
+(``leader:ID,ID,ID``) adds its twist and, while it pushes, the twist it is pushed toward
+(:func:`with_twist`), shown on a twist gauge of its own in the panel.
 
 The app hands the view plain values: a :class:`LeaderStatus` per cycle, carried by
 :class:`LeaderLive`, a :class:`~limbctl.view.state.Live` with one more part. A page without a
@@ -15,9 +17,13 @@ looks and behaves as before.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
+from limbctl.geometry.gimbal3 import pose_quat_scalar
+from limbctl.geometry.twist import decompose_one
 from limbctl.view.state import Live, PanTilt
+
+Pose3 = tuple[float, float, float]
 
 
 @dataclass(frozen=True)
@@ -41,6 +47,12 @@ class LeaderStatus:
         measured (a passive leader).
     state : str
         In words: "free", "pushing back", "passive: ..." or why the feel went off.
+    twist_deg : float or None
+        A three-servo leader's twist about the rest axis (deg, in (-180, 180]); None for two
+        servos, whose page part is as before.
+    toward_twist_deg : float or None
+        The twist of a felt three-servo leader's Goal Position while it pushes (deg): the push's
+        twist part points from ``twist_deg`` toward it. None while free.
     """
 
     pose: PanTilt | None
@@ -49,6 +61,8 @@ class LeaderStatus:
     toward: PanTilt | None = None
     beyond_deg: float | None = None
     state: str = ""
+    twist_deg: float | None = None
+    toward_twist_deg: float | None = None
 
     def __post_init__(self) -> None:
         for name in ("torque_nm", "beyond_deg"):
@@ -59,6 +73,10 @@ class LeaderStatus:
                 raise ValueError(f"leader {name} must be finite and >= 0, got {value!r}")
         if self.cap_nm is not None and not (math.isfinite(self.cap_nm) and self.cap_nm > 0.0):
             raise ValueError(f"leader cap_nm must be finite and > 0 (or None), got {self.cap_nm}")
+        for name in ("twist_deg", "toward_twist_deg"):
+            value = getattr(self, name)
+            if value is not None and not math.isfinite(value):
+                raise ValueError(f"leader {name} must be finite (or None), got {value!r}")
 
     def to_json(self) -> dict[str, object]:
         return {
@@ -68,7 +86,51 @@ class LeaderStatus:
             "toward": self.toward.to_json() if self.toward else None,
             "beyond_deg": None if self.beyond_deg is None else round(float(self.beyond_deg), 2),
             "state": self.state,
+        } | self._twist_json()
+
+    def _twist_json(self) -> dict[str, object]:
+        """A three-servo leader's twist part; nothing for two servos (their JSON as before)."""
+        if self.twist_deg is None:
+            return {}
+        toward = self.toward_twist_deg
+        return {
+            "twist_deg": round(float(self.twist_deg), 2),
+            "toward_twist_deg": None if toward is None else round(float(toward), 2),
         }
+
+
+#: A three-servo leader's push is drawn as an arrow on the pan/tilt plane only when its swing
+#: part is at least this share of its largest joint step: a push mostly in twist moves pan and
+#: tilt by hundredths of a degree, whose direction on the plane means nothing.
+SWING_SHARE_DRAWN = 0.1
+
+
+def with_twist(status: LeaderStatus, pose: Pose3, goal: Pose3 | None) -> LeaderStatus:
+    """``status`` of a three-servo leader with its twist, and a push's twist part.
+
+    Parameters
+    ----------
+    status : LeaderStatus
+        What :func:`limbctl.live.leader_status` made of its pan and tilt.
+    pose : (float, float, float)
+        The leader's (pan, tilt, roll) as read (rad).
+    goal : (float, float, float) or None
+        Its Goal Position while pushing (rad), made from ``pose``; None while free or passive.
+    """
+    _, twist = decompose_one(pose_quat_scalar(*pose))
+    if goal is None:
+        return replace(status, twist_deg=math.degrees(twist))
+    _, toward = decompose_one(pose_quat_scalar(*goal))
+    # swing step = |(d pan, d tilt)|, against the largest joint step
+    swing = math.hypot(goal[0] - pose[0], goal[1] - pose[1])
+    largest = max(swing, abs(goal[2] - pose[2]))
+    drawn = status.toward if largest > 0.0 and swing >= SWING_SHARE_DRAWN * largest else None
+    return replace(
+        status,
+        toward=drawn,
+        twist_deg=math.degrees(twist),
+        toward_twist_deg=math.degrees(toward),
+    )
 
 
 @dataclass(frozen=True)

@@ -165,7 +165,7 @@ class LeaderSource(CommandSource):
         """
         bus = self.rig.bus
         model = model_name(bus.models[self.leader_ids[0]])
-        if len(self.leader_ids) == 3:  # the law pushes on pan and tilt only
+        if len(self.leader_ids) == 3:  # a felt one is a LeaderSource3 (sources/leader3.py)
             bus.set_torque(False, self.leader_ids)
             self.notice = "a three-servo leader stays passive: nothing is felt"
             return

@@ -2,6 +2,8 @@
 // diamond beside the follower's markers, and the force a felt leader applies as an arrow toward
 // where its wall pushes, with the figure in N m; the side panel gets a bar against the cap.
 // A live message without a "leader" part (every source but a leader) leaves the page as it was.
+// A three-servo leader's message adds "twist_deg" (and "toward_twist_deg" while it pushes): a row
+// with its own twist gauge, -180..180 deg, the leader's twist in teal, the push's in pink.
 "use strict";
 
 (function () {
@@ -25,7 +27,11 @@
       `.key.push::before { background: ${COLORS.push}; }\n` +
       `#leader-bar { background: ${COLORS.bar}; border: 1px solid #bbb; height: 12px; width: 100%; }\n` +
       `#leader-bar-fill { background: ${COLORS.push}; height: 100%; width: 0%; }\n` +
-      `#leader-panel h2 { margin-top: 0.6em; }`;
+      `#leader-panel h2 { margin-top: 0.6em; }\n` +
+      `#leader-twist-gauge { background: ${COLORS.bar}; border: 1px solid #bbb; height: 12px; position: relative; width: 100%; }\n` +
+      `#leader-twist-gauge div { height: 100%; position: absolute; top: 0; width: 3px; }\n` +
+      `#leader-twist-mark { background: ${COLORS.leader}; }\n` +
+      `#leader-twist-toward { background: ${COLORS.push}; }`;
     document.head.appendChild(style);
     const legend = byId("legend-teleop");
     const keys = document.createElement("span");
@@ -40,6 +46,9 @@
       '<tr><th>pushes back</th><td id="leader-push">-</td></tr>' +
       '<tr><th>of its cap</th><td><div id="leader-bar"><div id="leader-bar-fill"></div></div></td></tr>' +
       '<tr><th>beyond the edge</th><td id="leader-beyond">-</td></tr>' +
+      '<tr id="leader-twist-row"><th>leader twist</th><td><span id="leader-twist">-</span>' +
+      '<div id="leader-twist-gauge"><div id="leader-twist-mark"></div>' +
+      '<div id="leader-twist-toward"></div></div></td></tr>' +
       '<tr><th>feel</th><td id="leader-state">-</td></tr></table>';
     const teleop = byId("teleop");
     teleop.parentElement.insertBefore(section, teleop.nextSibling);
@@ -65,6 +74,24 @@
     byId("leader-beyond").textContent =
       leader.beyond_deg === null ? "-" : `${leader.beyond_deg.toFixed(2)} deg`;
     byId("leader-state").textContent = leader.state || "-";
+    showTwist(leader);
+  }
+
+  // The gauge's position (%) of a twist in -180..180 deg.
+  function gaugePercent(deg) { return `calc(${((deg + 180) / 3.6).toFixed(2)}% - 1px)`; }
+
+  function showTwist(leader) {
+    const twist = leader.twist_deg, toward = leader.toward_twist_deg;
+    const row = byId("leader-twist-row");
+    row.hidden = twist === undefined || twist === null;
+    if (row.hidden) return;
+    byId("leader-twist").textContent = toward === null || toward === undefined
+      ? `${twist.toFixed(1)} deg`
+      : `${twist.toFixed(1)} deg, pushed toward ${toward.toFixed(1)} deg`;
+    byId("leader-twist-mark").style.left = gaugePercent(twist);
+    const mark = byId("leader-twist-toward");
+    mark.hidden = toward === null || toward === undefined;
+    if (!mark.hidden) mark.style.left = gaugePercent(toward);
   }
 
   function draw(ctx, P, live) {

@@ -1,0 +1,321 @@
+"""A three-servo leader feels a twist region's edge, beside the two-servo leader as its peer.
+
+Run: ``python benchmarks/bench_haptic3.py`` (writes docs/bench_haptic3.md; about a minute).
+
+The three-servo follower is gated by a twist region fitted from a synthetic teaching of a square
+swing outline (pan within +-30 deg, tilt within +-25 deg) with a twist band of +-30 deg about 0:
+the learned edge lies near pan 30 deg in swing and near roll 30 deg in twist. The two-servo peer
+is the two-servo leader's bench set-up: a 30 deg cone, edge at pan 30 deg. Both leaders are
+XM430-W350s moved by the simulator's operator (firmware_sim/leader.py, firmware_sim/leader3.py),
+the same hand, the same law constants (limbctl/teleop/haptic.py, limbctl/teleop/haptic3.py).
+
+Cases:
+
+- *exact*: the law at exactly 200 Hz on a stepped clock, the controller's part done on the
+  simulated leader's registers in this process (as benchmarks/bench_haptic.py): a press 20 deg
+  beyond the edge held 2.5 s then let go, in swing for both leaders, and in twist and in both
+  for the three-servo one: how far beyond the edge it is held (rotation to the correction), the
+  ripple, the walk back, the rest; a closed excursion past the edge and back: the motor's and
+  the hand's net work (passivity at the hand); a held gate of 50 ms while pressed.
+- *transfers*: the felt cycle's bus work over the real SDK and the simulator's pty (follower
+  cycle read, leader cycle read, the leader's feel write, the follower's goal write), two
+  servos against three, interleaved A/B so a change of the machine's load falls on both.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+from contextlib import ExitStack
+from pathlib import Path
+
+import numpy as np
+
+from calib.profile import default_sim_profile
+from firmware_sim.control_table import Register as FirmwareRegister
+from firmware_sim.simulator import Simulator
+from limbctl.envelope import Cone
+from limbctl.envelope.synthetic_twist import ShoulderRegion
+from limbctl.errors import BusError
+from limbctl.geometry.gimbal import pan_tilt_to_quat
+from limbctl.geometry.gimbal3 import pose_quat_scalar
+from limbctl.region.twist_region import TwistRegion
+from limbctl.servo.control_table import ModelNumber
+from limbctl.servo.leader import FEEL_DATA, FEEL_MAP, FELT_MODELS, encode_feel, feel_map
+from limbctl.servo.rig import Rig
+from limbctl.servo.rig3 import RollRig
+from limbctl.servo.setup import configure_servos
+from limbctl.servo.ticks import angle_to_ticks
+from limbctl.session import open_rig
+from limbctl.teleop.haptic import FeelLaw, beyond_deg, push_for
+from limbctl.teleop.haptic3 import beyond3_deg, held3, push3_for
+
+LAW = FeelLaw()
+MOTOR = FELT_MODELS[ModelNumber.XM430_W350]
+CAP = MOTOR.torque_of(MOTOR.units_for(LAW.cap_nm))
+HAND = {"stiffness_nm_deg": 0.05, "damping_nm_s_rad": 0.02, "max_torque_nm": 0.3}
+SQUARE = np.array([[-30.0, -25.0], [30.0, -25.0], [30.0, 25.0], [-30.0, 25.0]])
+#: Presses 20 deg beyond the edge, reached in 2 s, held to 4.5 s, let go there (t, joints deg).
+PRESSES = {
+    "two servos, swing (pan 50)": [[0.0, 0.0, 0.0], [2.0, 50.0, 0.0]],
+    "three servos, swing (pan 50)": [[0.0, 0.0, 0.0, 0.0], [2.0, 50.0, 0.0, 0.0]],
+    "three servos, twist (roll 50)": [[0.0, 0.0, 0.0, 0.0], [2.0, 0.0, 0.0, 50.0]],
+    "three servos, both (pan 40, tilt 10, roll -45)": [
+        [0.0, 0.0, 0.0, 0.0],
+        [2.0, 40.0, 10.0, -45.0],
+    ],
+}
+#: Closed excursions 10 deg past the edge and back: 20 -> 40 -> 20 deg on pan or roll.
+EXCURSION_TIMES = (0.0, 1.0, 2.0, 2.5, 3.5, 4.5)
+EXCURSION_ANGLES = (20.0, 20.0, 40.0, 40.0, 20.0, 20.0)
+
+
+def square_region() -> TwistRegion:
+    """The three-servo follower's twist region (module docstring)."""
+    truth = ShoulderRegion(SQUARE, 30.0, 30.0, 0.0, 0.0, 0.0)
+    return TwistRegion().fit(truth.teaching(1500, 1000, 1800, np.random.default_rng(0)))
+
+
+def stepped(region, script, seconds, let_go_s=None, held=()):
+    """The law at exactly 200 Hz on a stepped clock (module docstring); ``held`` lists cycles
+    whose gate held (Goal Current 0 written). Returns the 1 ms truth rows and each row's
+    distance beyond the edge (deg of rotation; of direction for two servos)."""
+    three = len(script[0]) == 4
+    ids = (4, 5, 6) if three else (3, 4)
+    clock = [0.0]
+    follower = {"ids": (1, 2, 3), "roll_id": 3} if three else {"ids": (1, 2)}
+    sim = Simulator(**follower, leader={"ids": list(ids)}, clock=lambda: clock[0])
+    rig = RollRig(default_sim_profile("sim3")) if three else Rig(default_sim_profile())
+    servos = [sim.servo(i) for i in ids]
+    for servo in servos:
+        servo.write(11, bytes([5]))  # Operating Mode 5
+        servo.write(38, MOTOR.units_for(LAW.cap_nm).to_bytes(2, "little"))  # Current Limit
+        servo.write(FEEL_MAP.address, feel_map())
+        servo.write(64, bytes([1]))  # torque on
+    sim.set_operator({"script": script, "let_go_s": let_go_s, **HAND})
+    rows, engaged = [], False
+    for k in range(round(seconds * 200.0)):
+        for servo in servos:
+            servo.refresh(sim.time_s)
+        ticks = tuple(s.value(FirmwareRegister.PRESENT_POSITION) for s in servos)
+        if three:
+            pose = rig.angles_of(ticks)
+            q = pose_quat_scalar(*pose)
+            push = push3_for(LAW, MOTOR, pose, q, region.correct(q), rig.roll_limits)
+            push = held3(pose) if k in held else push
+            goal = push.goal
+        else:
+            pose = rig.ticks_to_angles(*ticks)
+            q = np.asarray(pan_tilt_to_quat(*pose))
+            push = push_for(LAW, MOTOR, pose, q, region.correct(q))
+            goal = (push.goal_pan, push.goal_tilt)
+        for step in range(5):
+            if step == 1:
+                if push.goal_current and not engaged:  # the wall comes on: torque off, on
+                    for servo in servos:
+                        servo.write(64, bytes([0]))
+                        servo.write(64, bytes([1]))
+                engaged = bool(push.goal_current)
+                for servo, angle, joint in zip(servos, goal, rig.joints, strict=False):
+                    tick = int(angle_to_ticks(angle, joint.zero_tick, joint.direction))
+                    servo.write(112, push.profile_velocity.to_bytes(4, "little"))
+                    servo.write(FEEL_DATA.address, encode_feel(push.goal_current, tick))
+            clock[0] += 0.001
+            sim.advance()
+            rows.append(sim.leader.sample())
+    return rows, [distance(region, r["pose_deg"], three) for r in rows]
+
+
+def distance(region, pose_deg, three: bool) -> float:
+    if three:
+        q = pose_quat_scalar(*np.radians(pose_deg))
+        return beyond3_deg(q, region.correct(q))
+    q = np.asarray(pan_tilt_to_quat(*np.radians(pose_deg)))
+    return beyond_deg(q, region.correct(q))
+
+
+def press_case(region, script) -> dict:
+    rows, beyond = stepped(region, script, 6.5, let_go_s=4.5)
+    t = np.array([r["t"] for r in rows])
+    beyond = np.array(beyond)
+    held = beyond[(t >= 3.0) & (t < 4.5)]
+    speeds = np.abs([r["velocity_deg_s"] for r in rows])[t >= 4.5]
+    window = max(
+        np.convolve(speeds[:, j], np.ones(20) / 20.0, mode="valid").max()
+        for j in range(speeds.shape[1])
+    )
+    return {
+        "held": float(np.mean(held)),
+        "ripple": float(np.ptp(held)),
+        "return": float(window),
+        "rest": float(beyond[-1]),
+        "peak_nm": max(abs(m) for r in rows for m in r["motor_nm"]),
+    }
+
+
+def excursion(joint: int, joints: int) -> list:
+    points = []
+    for t, angle in zip(EXCURSION_TIMES, EXCURSION_ANGLES, strict=True):
+        pose = [0.0] * joints
+        pose[joint] = angle
+        points.append([t, *pose])
+    return points
+
+
+def energy_case(region, script) -> dict:
+    """Net work (mJ) over the 1 ms samples beyond the edge, summed over the joints."""
+    rows, beyond = stepped(region, script, 4.5)
+    out = dict.fromkeys(("motor", "hand"), 0.0)
+    for a, b, d in zip(rows, rows[1:], beyond[1:], strict=False):
+        if d > 0.0:
+            for key in out:
+                out[key] += sum(np.subtract(b[f"{key}_work_j"], a[f"{key}_work_j"])) * 1e3
+    return out
+
+
+def held_case(region) -> dict:
+    """The twist press with the gate held 50 ms at 3.2 s (cycles 640-649): how far the hand
+    takes the released leader, and whether the motors were off from the first held write."""
+    rows, beyond = stepped(
+        region, PRESSES["three servos, twist (roll 50)"], 4.0, held=range(640, 650)
+    )
+    t = np.array([r["t"] for r in rows])
+    released = [r for r in rows if 3.2 + 0.0015 <= r["t"] < 3.25]
+    return {
+        "before": float(np.mean(np.array(beyond)[(t >= 3.0) & (t < 3.2)])),
+        "peak": float(np.max(np.array(beyond)[(t >= 3.2) & (t < 3.6)])),
+        "off": all(not any(r["motor_nm"]) for r in released),
+        "after": float(np.mean(np.array(beyond)[t >= 3.8])),
+    }
+
+
+def transfers_case(rounds: int = 300) -> dict:
+    """The felt cycle's bus work, two servos against three, interleaved A/B."""
+    kinds = {"two": ("sim", (3, 4)), "three": ("sim3", (4, 5, 6))}
+    times = {kind: [] for kind in kinds}
+    failed = dict.fromkeys(kinds, 0)
+    with ExitStack() as stack:
+        rigs = {}
+        for kind, (rig_path, ids) in kinds.items():
+            leader = {"ids": list(ids), "model": "xm430-w350"}
+            session = stack.enter_context(
+                open_rig(rig_path=rig_path, extra_ids=ids, sim_options={"leader": leader})
+            )
+            rig = session.rig
+            configure_servos(rig.bus, {**rig.tick_limits(), **dict.fromkeys(ids, (0, 4095))})
+            rigs[kind] = (rig, ids, rig.read_pose(), {i: encode_feel(0, 2048) for i in ids})
+        for _ in range(rounds):
+            for kind, (rig, ids, pose, free) in rigs.items():
+                start = time.perf_counter()
+                try:
+                    rig.read_cycle(attempts=2)
+                    rig.bus.read_cycle(ids=ids, attempts=2)
+                    rig.bus.sync_write_block(FEEL_DATA, free)
+                    rig.write_pose(*pose)
+                except BusError:
+                    failed[kind] += 1  # a starved simulator missed a reply: not timed
+                    continue
+                times[kind].append(time.perf_counter() - start)
+    return {
+        kind: (float(np.percentile(v, 50)) * 1e3, float(np.percentile(v, 99)) * 1e3, failed[kind])
+        for kind, v in times.items()
+    }
+
+
+def render(presses, energies, held, transfers, load, end_load, fit_s) -> str:
+    lines = [
+        "# A three-servo leader feels a twist region's edge",
+        "",
+        "`python benchmarks/bench_haptic3.py`: the three-servo felt leader "
+        "(`limbctl/teleop/haptic3.py`, `limbctl/teleop/sources/leader3.py`) beside the two-servo "
+        "one as its peer, XM430-W350 leaders, the same hand (0.05 N m/deg, at most 0.3 N m) and "
+        "law (deadband 0.4 deg, K = 0.2 N m/deg, cap 0.4 N m, lead 0.3 deg). Three servos: a "
+        "twist region fitted from a square swing outline (pan +-30, tilt +-25 deg) with a twist "
+        f"band of +-30 deg (fitted in {fit_s:.0f} s); two servos: a 30 deg cone. Machine load at "
+        f"start: {' '.join(f'{v:.2f}' for v in load)}, at the end: "
+        f"{' '.join(f'{v:.2f}' for v in end_load)} (1, 5, 15 min; 2 cores, shared).",
+        "",
+        "## The law at exactly 200 Hz",
+        "",
+        "A press 20 deg beyond the edge, reached in 2 s, let go at 4.5 s; on a stepped clock in "
+        "one process, so the figures are the law's, whatever the load. Beyond the edge: the "
+        "rotation from the leader's orientation to the region's correction (for two servos the "
+        "angle between directions). Walk back: the peak over the joints of the 20 ms mean speed "
+        "after let go.",
+        "",
+        "| press | held beyond the edge (deg) | ratio to two servos | ripple (deg) | "
+        "walk back (deg/s) | rest beyond (deg) | peak motor torque (N m, cap "
+        f"{CAP:.3f}) |",
+        "| --- | ---: | ---: | ---: | ---: | ---: | ---: |",
+    ]
+    peer = presses["two servos, swing (pan 50)"]["held"]
+    for name, p in presses.items():
+        lines.append(
+            f"| {name} | {p['held']:.3f} | {p['held'] / peer:.3f} | {p['ripple']:.3f} | "
+            f"{p['return']:.1f} | {p['rest']:.3f} | {p['peak_nm']:.3f} |"
+        )
+    lines += [
+        "",
+        "A closed excursion 10 deg past the edge and back (20 -> 40 -> 20 deg), energy over the "
+        "1 ms samples beyond the edge, summed over the joints: the hand's net work stays >= 0 "
+        "(the operator gets back less than they put in) when the wall is passive.",
+        "",
+        "| excursion | motor net work (mJ) | hand net work (mJ) |",
+        "| --- | ---: | ---: |",
+        *(f"| {n} | {e['motor']:+.3f} | {e['hand']:+.3f} |" for n, e in energies.items()),
+        "",
+        "The twist press with the gate held 50 ms at 3.2 s (a failed follower read): each held "
+        "cycle releases all three servos (Goal Current 0).",
+        "",
+        "| beyond before (deg) | most beyond while released (deg) | motors off from the first "
+        "held write | beyond after (deg) |",
+        "| ---: | ---: | --- | ---: |",
+        f"| {held['before']:.3f} | {held['peak']:.3f} | {'yes' if held['off'] else 'NO'} | "
+        f"{held['after']:.3f} |",
+        "",
+        "## The felt cycle's bus work over the pty",
+        "",
+        "Follower cycle read, leader cycle read, the leader's feel write, the follower's goal "
+        "write, through the real dynamixel-sdk on the simulator's pty (4 Mbaud profile), "
+        "interleaved two/three servos per round; rounds whose reply a starved simulator missed "
+        "are counted, not timed.",
+        "",
+        "| leader | p50 (ms) | p99 (ms) | missed | p50 ratio to two servos |",
+        "| --- | ---: | ---: | ---: | ---: |",
+    ]
+    for kind, (p50, p99, missed) in transfers.items():
+        ratio = p50 / transfers["two"][0]
+        lines.append(f"| {kind} servos | {p50:.3f} | {p99:.3f} | {missed} | {ratio:.2f} |")
+    return "\n".join(lines) + "\n"
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--out", type=Path, default=Path("docs/bench_haptic3.md"))
+    args = parser.parse_args(argv)
+    load = os.getloadavg()
+    started = time.monotonic()
+    region3 = square_region()
+    fit_s = time.monotonic() - started
+    cone = Cone(half_angle_deg=30.0)
+    presses = {
+        name: press_case(region3 if len(script[0]) == 4 else cone, script)
+        for name, script in PRESSES.items()
+    }
+    energies = {
+        "two servos, pan": energy_case(cone, excursion(0, 2)),
+        "three servos, pan": energy_case(region3, excursion(0, 3)),
+        "three servos, roll": energy_case(region3, excursion(2, 3)),
+    }
+    held = held_case(region3)
+    print(f"exact-rate cases done in {time.monotonic() - started:.0f} s")
+    transfers = transfers_case()
+    text = render(presses, energies, held, transfers, load, os.getloadavg(), fit_s)
+    args.out.write_text(text)
+    print(text)
+    return 0 if all(p["held"] < 2.0 for p in presses.values()) and held["off"] else 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

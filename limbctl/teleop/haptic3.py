@@ -1,0 +1,127 @@
+"""A three-servo leader feels the edge: the haptic wall of :mod:`limbctl.teleop.haptic` on SO(3).
+
+The leader's full orientation is the command. Its distance beyond the region is the rotation
+between the command and the twist region's correction of it (the nearest orientation of the
+region on SO(3), :meth:`limbctl.region.twist_region.TwistRegion.correct`)::
+
+    d = 2 acos |<q, correct(q)>|                                      (deg; 0 inside)
+
+The law is the two-servo leader's (:class:`~limbctl.teleop.haptic.FeelLaw`: the same deadband,
+gain, cap, return speed and lead), on three joints, per cycle::
+
+    d <= DEADBAND:  Goal Current 0 on all three                        (no torque at all)
+    d >  DEADBAND:  tau = min(K (d - DEADBAND), CAP),  Goal Current = tau / kt (rounded down)
+                    target = the corrected pose (pan, tilt, roll): its roll unwrapped within
+                             the roll joint's limits nearest the leader's roll, as the gate does
+                    Goal Position = present + s (target - present),
+                             s = min(1, LEAD / max_j |target_j - present_j|)
+                    Profile Velocity = RETURN_SPEED
+
+Each servo's position loop (mode 5) drives its joint toward its Goal Position with at most Goal
+Current; every Goal Position lies from the leader's joint toward the corrected pose's, so the
+vector of joint torques points toward the correction (its dot product with
+``target - present`` is >= 0) and no joint's torque exceeds CAP. Near the edge a rotation of
+``d`` needs joint moves of about ``d`` (the chain's Jacobian is near orthonormal away from tilt
++-90 deg), so the wall's stiffness per joint, and its passivity at 200 Hz, are the two-servo
+leader's (docs/haptic.md).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from limbctl.geometry.gimbal3 import pan_tilt_roll_scalar
+from limbctl.servo.leader import LeaderMotor
+from limbctl.teleop.gate3 import geodesic
+from limbctl.teleop.haptic import FeelLaw, Push
+
+Pose3 = tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class Push3(Push):
+    """One cycle's command to a three-servo leader's servos (all three get the same current):
+    :class:`~limbctl.teleop.haptic.Push` with the roll joint's goal.
+
+    Attributes
+    ----------
+    goal_roll : float
+        The roll joint's goal (rad).
+    """
+
+    goal_roll: float = 0.0
+
+    @property
+    def goal(self) -> Pose3:
+        """``(pan, tilt, roll)`` goal (rad)."""
+        return (self.goal_pan, self.goal_tilt, self.goal_roll)
+
+
+def beyond3_deg(q: np.ndarray, corrected: np.ndarray) -> float:
+    """Rotation (deg) between a command (4,) and its correction (4,); 0 when the same."""
+    if np.array_equal(q, corrected):
+        return 0.0
+    # d = 2 acos |<q, c>|, computed as gate3.geodesic does (accurate near 0)
+    return math.degrees(geodesic(np.asarray(q, dtype=float), np.asarray(corrected, dtype=float)))
+
+
+def held3(present: Pose3) -> Push3:
+    """The push of a cycle that may not push (a held gate, a failed read of the follower):
+    Goal Current 0, Profile Velocity 0, the goal where the leader is."""
+    return Push3(0, 0, present[0], present[1], 0.0, 0.0, goal_roll=present[2])
+
+
+def corrected_pose(
+    corrected: np.ndarray, present: Pose3, roll_limits: tuple[float, float]
+) -> Pose3:
+    """Joint angles (rad) of the correction (4,): pan kept at tilt +-90 deg, roll unwrapped
+    within ``roll_limits`` (rad) nearest the leader's present roll (as :class:`Gate3` does)."""
+    return pan_tilt_roll_scalar(corrected, present[0], present[2], *roll_limits)
+
+
+def push3_for(
+    law: FeelLaw,
+    motor: LeaderMotor,
+    present: Pose3,
+    q: np.ndarray,
+    corrected: np.ndarray,
+    roll_limits: tuple[float, float],
+) -> Push3:
+    """The three-servo leader's command this cycle (see the module docstring).
+
+    Parameters
+    ----------
+    law : FeelLaw
+    motor : LeaderMotor
+        The leader's model (its current unit and torque constant).
+    present : (float, float, float)
+        The leader's pose (pan, tilt, roll; rad).
+    q, corrected : ndarray (4,)
+        The command (the leader's orientation) and the twist region's correction of it.
+    roll_limits : (float, float)
+        The roll joint's hard limits (rad), within which the corrected roll is unwrapped.
+    """
+    distance = beyond3_deg(q, corrected)
+    tau = min(law.torque_nm(distance), motor.cap_nm(law.cap_nm))
+    units = motor.units_for(tau)
+    if units == 0:
+        push = held3(present)
+        return Push3(0, 0, push.goal_pan, push.goal_tilt, 0.0, distance, goal_roll=push.goal_roll)
+    target = corrected_pose(corrected, present, roll_limits)
+    # the goal on the joint-space line toward the corrected pose, at most LEAD ahead on any joint
+    step = [t - p for t, p in zip(target, present, strict=True)]
+    longest = max(abs(s) for s in step)
+    scale = min(1.0, math.radians(law.lead_deg) / longest) if longest > 0.0 else 0.0
+    goal = [p + scale * s for p, s in zip(present, step, strict=True)]
+    return Push3(
+        units,
+        law.profile_velocity_units(),
+        goal[0],
+        goal[1],
+        motor.torque_of(units),
+        distance,
+        goal_roll=goal[2],
+    )

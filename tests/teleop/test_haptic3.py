@@ -1,0 +1,246 @@
+"""The three-servo leader's wall: zero inside, toward the correction on SO(3), never above the cap.
+
+The region is a twist region fitted from a synthetic teaching (tests/teleop/twist_square.py):
+its edge lies near pan 30 deg in swing and near roll 30 deg in twist. The law runs against the
+simulator's three-servo leader on a stepped clock at exactly 200 Hz (the controller's part in
+this process, as tests/teleop/test_haptic.py does for two).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from calib.profile import default_sim_profile
+from firmware_sim.control_table import Register as SimRegister
+from firmware_sim.leader3 import Operator3, leader_joints3
+from firmware_sim.simulator import Simulator
+from limbctl.geometry.gimbal3 import pose_quat_scalar
+from limbctl.servo.control_table import ModelNumber
+from limbctl.servo.leader import FEEL_DATA, FEEL_MAP, FELT_MODELS, encode_feel, feel_map
+from limbctl.servo.rig3 import RollRig
+from limbctl.servo.ticks import angle_to_ticks
+from limbctl.teleop.gate3 import geodesic
+from limbctl.teleop.haptic import FeelLaw
+from limbctl.teleop.haptic3 import Push3, beyond3_deg, corrected_pose, held3, push3_for
+from tests.teleop.twist_square import square_region
+
+LAW = FeelLaw()
+MOTOR = FELT_MODELS[ModelNumber.XM430_W350]
+CAP = MOTOR.torque_of(MOTOR.units_for(LAW.cap_nm))
+RIG = RollRig(default_sim_profile("sim3"))
+IDS = (4, 5, 6)
+HAND = {"damping_nm_s_rad": 0.02, "max_torque_nm": 0.3}
+
+
+@pytest.fixture(scope="module")
+def region():
+    return square_region()
+
+
+def q_of(pan_deg, tilt_deg, roll_deg):
+    return pose_quat_scalar(*np.radians((pan_deg, tilt_deg, roll_deg)))
+
+
+def test_the_simulated_three_servo_leader_is_built_like_the_follower():
+    pan, tilt, roll = leader_joints3(IDS)
+    assert [j.servo_id for j in (pan, tilt, roll)] == list(IDS)
+    assert (roll.zero_tick, roll.direction) == (RIG.joints[2].zero_tick, RIG.joints[2].direction)
+    hand = Operator3([[0.0, 0.0, 0.0, 0.0], [2.0, 20.0, -10.0, 40.0]])
+    assert hand.target_deg(1.0) == pytest.approx((10.0, -5.0, 20.0))
+    assert hand.torque(1.0, 2, 0.0, 0.0) == pytest.approx(0.3)  # 20 deg x 0.05, bounded at 0.3
+    with pytest.raises(ValueError, match="roll_deg"):
+        Operator3([[0.0, 0.0, 0.0]])
+    with pytest.raises(ValueError, match="must not decrease"):
+        Operator3([[1.0, 0.0, 0.0, 0.0], [0.5, 0.0, 0.0, 0.0]])
+
+
+def test_distance_is_the_rotation_to_the_correction_and_the_push_leads_toward_it(region):
+    q = q_of(0.0, 0.0, 45.0)
+    corrected = region.correct(q)
+    distance = beyond3_deg(q, corrected)
+    assert distance == pytest.approx(math.degrees(geodesic(q, corrected)))
+    assert 10.0 < distance < 20.0  # the band's edge near 30 deg of roll
+    present = tuple(np.radians((0.0, 0.0, 45.0)))
+    push = push3_for(LAW, MOTOR, present, q, corrected, RIG.roll_limits)
+    assert push.goal_current == MOTOR.units_for(LAW.cap_nm)
+    assert math.degrees(push.goal_roll) == pytest.approx(45.0 - LAW.lead_deg, abs=1e-9)
+    inside = push3_for(LAW, MOTOR, (0.1, 0.0, 0.2), q_of(5.7, 0, 11.5), q_of(5.7, 0, 11.5), (-1, 1))
+    assert (inside.goal_current, inside.profile_velocity, inside.torque_nm) == (0, 0, 0.0)
+    assert inside.goal == (0.1, 0.0, 0.2)  # free: the goal rides with the leader
+    assert held3((0.1, 0.2, 0.3)) == Push3(0, 0, 0.1, 0.2, 0.0, 0.0, goal_roll=0.3)
+
+
+def test_the_corrected_roll_is_unwrapped_against_the_present_roll_within_the_limits():
+    # roll 190 deg is roll -170: within limits of (-200, 200) deg the one nearer the leader's
+    q = q_of(0.0, 0.0, 190.0)
+    limits = (math.radians(-200.0), math.radians(200.0))
+    assert math.degrees(corrected_pose(q, (0.0, 0.0, math.radians(170.0)), limits)[2]) == (
+        pytest.approx(190.0)
+    )
+    assert math.degrees(corrected_pose(q, (0.0, 0.0, math.radians(-150.0)), limits)[2]) == (
+        pytest.approx(-170.0)
+    )
+
+
+angles = st.floats(-60.0, 60.0, allow_nan=False)
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    angles, st.floats(-45.0, 45.0), st.floats(-100.0, 100.0), st.tuples(*[st.floats(-1.0, 1.0)] * 3)
+)
+def test_property_never_above_the_cap_zero_inside_toward_the_correction(
+    region, pan, tilt, roll, lag
+):
+    q = q_of(pan, tilt, roll)
+    corrected = region.correct(q)
+    present = tuple(math.radians(a + d) for a, d in zip((pan, tilt, roll), lag, strict=True))
+    push = push3_for(LAW, MOTOR, present, q, corrected, RIG.roll_limits)
+    assert 0 <= push.goal_current <= MOTOR.units_for(LAW.cap_nm)
+    assert push.torque_nm <= LAW.cap_nm
+    if bool(region.contains(q)):
+        assert push.goal_current == 0
+    if push.goal_current:
+        step = np.subtract(push.goal, present)
+        assert np.max(np.abs(step)) <= math.radians(LAW.lead_deg) + 1e-12
+        target = np.subtract(corrected_pose(corrected, present, RIG.roll_limits), present)
+        assert float(step @ target) >= 0.0
+
+
+# -- the law against the simulated three-servo leader, at exactly 200 Hz -------------------------
+
+
+def felt3_at_200_hz(region, script, seconds, let_go_s=None, cycles=None):
+    """The controller's part on the simulated leader's registers every 5 ms of a stepped clock:
+    read Present Position, push3_for, the bytes to Indirect Data 1 ms later (Torque Enable off
+    and on when the wall comes on, as LeaderSource3._write). Returns (1 ms truth rows, each
+    cycle's (pose, push)). ``cycles`` maps a cycle's index to "held" (a held gate's push:
+    Goal Current 0) or "silent" (a failed leader read: Goal Current 0 alone)."""
+    clock = [0.0]
+    sim = Simulator(ids=(1, 2, 3), roll_id=3, leader={"ids": list(IDS)}, clock=lambda: clock[0])
+    servos = [sim.servo(i) for i in IDS]
+    for servo in servos:
+        servo.write(11, bytes([5]))  # Operating Mode 5 (EEPROM, torque off)
+        servo.write(38, MOTOR.units_for(LAW.cap_nm).to_bytes(2, "little"))  # Current Limit
+        servo.write(FEEL_MAP.address, feel_map())
+        servo.write(64, bytes([1]))  # torque on
+    sim.set_operator({"script": script, "let_go_s": let_go_s, "stiffness_nm_deg": 0.05, **HAND})
+    rows, pushes, engaged = [], [], False
+    for k in range(round(seconds * 200.0)):
+        for servo in servos:
+            servo.refresh(sim.time_s)
+        pose = RIG.angles_of(tuple(s.value(SimRegister.PRESENT_POSITION) for s in servos))
+        q = pose_quat_scalar(*pose)
+        push = push3_for(LAW, MOTOR, pose, q, region.correct(q), RIG.roll_limits)
+        instead = (cycles or {}).get(k)
+        if instead == "held":
+            push = held3(pose)
+        pushes.append((pose, push, instead))
+        if instead == "silent":
+            engaged = False
+            for servo in servos:
+                servo.write(102, bytes(2))  # Goal Current 0 alone
+        for step in range(5):
+            if step == 1 and instead != "silent":
+                ticks = [
+                    int(angle_to_ticks(a, j.zero_tick, j.direction))
+                    for a, j in zip(push.goal, RIG.joints, strict=True)
+                ]
+                if push.goal_current and not engaged:
+                    for servo in servos:
+                        servo.write(64, bytes([0]))
+                        servo.write(64, bytes([1]))
+                engaged = bool(push.goal_current)
+                for servo, tick in zip(servos, ticks, strict=True):
+                    servo.write(112, push.profile_velocity.to_bytes(4, "little"))
+                    servo.write(FEEL_DATA.address, encode_feel(push.goal_current, tick))
+            clock[0] += 0.001
+            sim.advance()
+            rows.append(sim.leader.sample())
+    return rows, pushes
+
+
+def beyond_of(region, row):
+    q = q_of(*row["pose_deg"])
+    return beyond3_deg(q, region.correct(q))
+
+
+def judge(region, rows, pushes, start_s, end_s):
+    """The checks every press must pass; the held rows' distances beyond the edge (deg)."""
+    # every cycle whose command was inside wrote no current, on all three servos
+    inside = [push for _, push, _ in pushes if push.distance_deg == 0.0]
+    assert inside and all(push.goal_current == 0 for push in inside)
+    # in the ground truth: never above the cap on any joint; no torque while inside
+    assert max(abs(m) for r in rows for m in r["motor_nm"]) <= CAP + 1e-12
+    truly_inside = [r for r in rows[::5] if region.contains(q_of(*r["pose_deg"]))]
+    assert truly_inside and all(r["motor_nm"] == [0.0, 0.0, 0.0] for r in truly_inside)
+    # outside, pressed: the joint torques point toward the corrected pose
+    toward = []
+    for r in rows[::5]:
+        if not any(r["motor_nm"]):
+            continue
+        present = tuple(np.radians(r["pose_deg"]))
+        q = pose_quat_scalar(*present)
+        way = np.subtract(corrected_pose(region.correct(q), present, RIG.roll_limits), present)
+        if float(np.dot(r["hand_nm"], way)) < 0.0:  # the hand pushes outward
+            toward.append(float(np.dot(r["motor_nm"], way)))
+    assert len(toward) > 50 and min(toward) > 0.0
+    return np.array([beyond_of(region, r) for r in rows if start_s <= r["t"] < end_s])
+
+
+#: Pressing 20 deg beyond the edge from the middle in 2 s: in swing (pan) and in twist (roll).
+PRESSES = {
+    "swing": [[0.0, 0.0, 0.0, 0.0], [2.0, 50.0, 0.0, 0.0]],
+    "twist": [[0.0, 0.0, 0.0, 0.0], [2.0, 0.0, 0.0, 50.0]],
+    "both": [[0.0, 0.0, 0.0, 0.0], [2.0, 40.0, 10.0, -45.0]],
+}
+
+
+@pytest.mark.parametrize("press", sorted(PRESSES))
+def test_at_200_hz_the_leader_stops_within_2_deg_of_the_edge_and_walks_back(region, press):
+    rows, pushes = felt3_at_200_hz(region, PRESSES[press], 6.0, let_go_s=4.5)
+    held = judge(region, rows, pushes, 3.0, 4.5)
+    # a 0.3 N m hand of 0.05 N m/deg held beyond the edge, within 2 deg of rotation of it
+    assert 0.4 < held.min() and held.max() < 2.0
+    assert np.ptp(held) < 0.3  # no ripple
+    # let go: walked back by the profiles (under 30 deg/s on every joint), resting beyond
+    after = [r for r in rows if r["t"] >= 4.5]
+    speeds = np.abs([r["velocity_deg_s"] for r in after])
+    smoothed = [np.convolve(speeds[:, j], np.ones(20) / 20, mode="valid").max() for j in range(3)]
+    assert max(smoothed) <= 30.0
+    assert beyond_of(region, after[-1]) < LAW.deadband_deg + 0.1
+
+
+def test_a_held_gate_switches_every_joint_off_within_the_cycle(region):
+    # the gate holds for 10 cycles from 3.2 s (a failed follower read): each writes Goal
+    # Current 0, so from that write (1 ms in) the motors apply nothing until the next cycle's
+    held = {k: "held" for k in range(640, 650)}
+    rows, pushes = felt3_at_200_hz(region, PRESSES["twist"], 4.0, cycles=held)
+    released = [r for r in rows if 3.2 + 0.0015 <= r["t"] < 3.25]
+    assert released and all(r["motor_nm"] == [0.0, 0.0, 0.0] for r in released)
+    assert max(abs(r["motor_nm"][2]) for r in rows if 3.1 <= r["t"] < 3.2) > 0.25  # it pushed
+    silent = {k: "silent" for k in range(700, 710)}
+    rows, _ = felt3_at_200_hz(region, PRESSES["swing"], 4.0, cycles=silent)
+    released = [r for r in rows if 3.5 + 0.0005 <= r["t"] < 3.55]
+    assert released and all(r["motor_nm"] == [0.0, 0.0, 0.0] for r in released)
+
+
+def test_a_leader_released_by_goal_current_alone_still_walks_back_in_twist(region):
+    # the leader's read fails for 100 ms just before the hand lets go at 4.5 s: released by Goal
+    # Current alone, the hand turns it further; let go, the wall comes on again with Torque
+    # Enable off and on (its setpoints at the present pose) and walks it back at the profile's
+    # speed on every joint, resting beyond the edge
+    silent = {k: "silent" for k in range(880, 900)}
+    rows, _ = felt3_at_200_hz(region, PRESSES["twist"], 6.5, let_go_s=4.5, cycles=silent)
+    before = [beyond_of(region, r) for r in rows if 4.45 <= r["t"] < 4.5]
+    assert max(before) > 5.0  # the hand took it far out meanwhile
+    after = [r for r in rows if r["t"] >= 4.5]
+    speeds = np.abs([r["velocity_deg_s"] for r in after])
+    smoothed = [np.convolve(speeds[:, j], np.ones(20) / 20, mode="valid").max() for j in range(3)]
+    assert max(smoothed) <= 30.0
+    assert all(beyond_of(region, r) > 0.0 for r in after[::5])
