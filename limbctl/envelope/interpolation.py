@@ -211,7 +211,9 @@ def _respond_one(weights, x, count, metric, mode, topology, out) -> None:
     idx = np.empty(count, dtype=np.int64)
     dist = np.empty(count)
     if mode == TOPOLOGICAL:
-        _nearest(weights, x, 1, metric, idx, dist)
+        # the winner alone; count is >= 1: min(count, 1) is 1, typed as count is (a literal 1
+        # would compile _nearest a second time)
+        _nearest(weights, x, min(count, 1), metric, idx, dist)
         used = min(count, topology.shape[1] + 1)
         for r in range(1, used):
             idx[r] = topology[idx[0], r - 1]

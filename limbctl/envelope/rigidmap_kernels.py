@@ -139,12 +139,18 @@ def _slot_patterns(pattern_slot: np.ndarray, u: int) -> tuple[np.ndarray, np.nda
 
 @njit
 def _patterns_near(
-    h: np.ndarray, slot_start: np.ndarray, slot_patterns: np.ndarray, buffer: np.ndarray
+    h: np.ndarray,
+    slot_start: np.ndarray,
+    slot_patterns: np.ndarray,
+    buffer: np.ndarray,
+    mark: np.ndarray,
 ) -> int:
     """The patterns whose winner has ``h > 0``, in order, into ``buffer``: their count.
 
     -1 when they are more than a quarter of all patterns: scanning all of them in order is then
-    cheaper than gathering and sorting.
+    cheaper than gathering them. Gathered by marking them in ``mark`` (N,) bool, all False
+    (and left so), then reading the marks between the lowest and the highest in order: no sort
+    (numba's quicksort of int64 compiled for ~1 s; docs/decisions/first_run.md).
     """
     total = 0
     for s in range(h.shape[0]):
@@ -152,13 +158,21 @@ def _patterns_near(
             total += slot_start[s + 1] - slot_start[s]
     if 4 * total > slot_patterns.shape[0]:
         return -1
-    count = 0
+    lo = slot_patterns.shape[0]
+    hi = -1
     for s in range(h.shape[0]):
         if h[s] > 0.0:
             for k in range(slot_start[s], slot_start[s + 1]):
-                buffer[count] = slot_patterns[k]
-                count += 1
-    buffer[:count].sort()
+                j = slot_patterns[k]
+                mark[j] = True
+                lo = min(lo, j)
+                hi = max(hi, j)
+    count = 0
+    for j in range(lo, hi + 1):
+        if mark[j]:
+            mark[j] = False
+            buffer[count] = j
+            count += 1
     return count
 
 
@@ -195,6 +209,7 @@ def train_rigid_map(
     slot_start, slot_patterns = _slot_patterns(pattern_slot, distinct.shape[0])
     h = np.empty(distinct.shape[0])
     buffer = np.empty(n, dtype=np.int64)
+    mark = np.zeros(n, dtype=np.bool_)
     epochs = 0
     for t in range(max_epochs):
         epochs = t + 1
@@ -228,7 +243,7 @@ def train_rigid_map(
                         near = True
                 if not near:
                     continue
-                order = _patterns_near(h, slot_start, slot_patterns, buffer)
+                order = _patterns_near(h, slot_start, slot_patterns, buffer, mark)
                 w0, w1, w2, w3 = weights[i, 0], weights[i, 1], weights[i, 2], weights[i, 3]
                 # the largest step per component, kept apart so the four updates do not wait
                 # on one another (max is exact: the same largest step)
