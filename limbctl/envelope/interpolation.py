@@ -211,7 +211,9 @@ def _respond_one(weights, x, count, metric, mode, topology, out) -> None:
     idx = np.empty(count, dtype=np.int64)
     dist = np.empty(count)
     if mode == TOPOLOGICAL:
-        _nearest(weights, x, 1, metric, idx, dist)
+        # the winner alone; count is >= 1: min(count, 1) is 1, typed as count is (a literal 1
+        # would compile _nearest a second time)
+        _nearest(weights, x, min(count, 1), metric, idx, dist)
         used = min(count, topology.shape[1] + 1)
         for r in range(1, used):
             idx[r] = topology[idx[0], r - 1]
@@ -229,8 +231,20 @@ def respond_serial(
     n = q.shape[0]
     out = np.empty((n, 4))
     count = 1 if mode == NONE else min(k + 1, weights.shape[0])
+    idx = np.empty(count, dtype=np.int64)
+    dist = np.empty(count)
+    # _respond_one's body, written here: one level of calls less to compile (each level
+    # optimises its callees' code again; docs/decisions/first_run.md)
     for j in range(n):
-        _respond_one(weights, q[j], count, metric, mode, topology, out[j])
+        if mode == TOPOLOGICAL:
+            _nearest(weights, q[j], min(count, 1), metric, idx, dist)
+            used = min(count, topology.shape[1] + 1)
+            for r in range(1, used):
+                idx[r] = topology[idx[0], r - 1]
+            _combine(weights, q[j], idx, dist, used, mode, out[j])
+        else:
+            _nearest(weights, q[j], count, metric, idx, dist)
+            _combine(weights, q[j], idx, dist, count, mode, out[j])
     return out
 
 

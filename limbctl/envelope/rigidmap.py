@@ -219,6 +219,13 @@ class RigidMap(Envelope):
         self._trained()
         return self.region.contains(q)
 
+    def contains_from_arcs(self, q: np.ndarray) -> np.ndarray:
+        """:meth:`contains` of a batch (N, 4), for a process that never gates (train's summary):
+        the same answers, without compiling the gate's kernels where the region can
+        (:meth:`TaughtRegion.contains_from_arcs`)."""
+        self._trained()
+        return getattr(self.region, "contains_from_arcs", self.region.contains)(q)
+
     def correct(self, q: np.ndarray) -> np.ndarray:
         """``q`` itself inside the region; outside, the nearest region orientation (twist kept;
         with ``twist=True`` the nearest orientation of the region on SO(3))."""

@@ -86,21 +86,17 @@ def _min_neighbour_angle(positions: np.ndarray) -> float:
     return math.acos(min(1.0, max(-1.0, best)))
 
 
-@njit
 def _winner_slots(winners: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray]:
-    """The distinct winners (U,) in order of first appearance, and each pattern's slot (N,)."""
+    """The distinct winners (U,) in order of first appearance, and each pattern's slot (N,).
+
+    numpy, not a kernel: integers only, so the same arrays, and a compile saved
+    (docs/decisions/first_run.md).
+    """
+    values, first = np.unique(winners, return_index=True)
+    distinct = np.ascontiguousarray(values[np.argsort(first)], dtype=np.int64)
     slot = np.full(m, -1, dtype=np.int64)
-    distinct = np.empty(winners.shape[0], dtype=np.int64)
-    pattern_slot = np.empty(winners.shape[0], dtype=np.int64)
-    u = 0
-    for j in range(winners.shape[0]):
-        c = winners[j]
-        if slot[c] < 0:
-            slot[c] = u
-            distinct[u] = c
-            u += 1
-        pattern_slot[j] = slot[c]
-    return distinct[:u], pattern_slot
+    slot[distinct] = np.arange(distinct.shape[0])
+    return distinct, np.ascontiguousarray(slot[winners])
 
 
 @njit
@@ -121,30 +117,31 @@ def _winner_angles(positions: np.ndarray, distinct: np.ndarray) -> np.ndarray:
     return theta
 
 
-@njit
 def _slot_patterns(pattern_slot: np.ndarray, u: int) -> tuple[np.ndarray, np.ndarray]:
-    """Patterns grouped by their winner's slot, in order: (start (U + 1,), patterns (N,))."""
+    """Patterns grouped by their winner's slot, in order: (start (U + 1,), patterns (N,)).
+
+    numpy, not a kernel (integers only: the same arrays): a stable sort keeps each slot's
+    patterns in order.
+    """
     start = np.zeros(u + 1, dtype=np.int64)
-    for j in range(pattern_slot.shape[0]):
-        start[pattern_slot[j] + 1] += 1
-    for s in range(u):
-        start[s + 1] += start[s]
-    fill = start[:-1].copy()
-    out = np.empty(pattern_slot.shape[0], dtype=np.int64)
-    for j in range(pattern_slot.shape[0]):
-        out[fill[pattern_slot[j]]] = j
-        fill[pattern_slot[j]] += 1
-    return start, out
+    np.cumsum(np.bincount(pattern_slot, minlength=u), out=start[1:])
+    return start, np.argsort(pattern_slot, kind="stable").astype(np.int64)
 
 
 @njit
 def _patterns_near(
-    h: np.ndarray, slot_start: np.ndarray, slot_patterns: np.ndarray, buffer: np.ndarray
+    h: np.ndarray,
+    slot_start: np.ndarray,
+    slot_patterns: np.ndarray,
+    buffer: np.ndarray,
+    mark: np.ndarray,
 ) -> int:
     """The patterns whose winner has ``h > 0``, in order, into ``buffer``: their count.
 
     -1 when they are more than a quarter of all patterns: scanning all of them in order is then
-    cheaper than gathering and sorting.
+    cheaper than gathering them. Gathered by marking them in ``mark`` (N,) bool, all False
+    (and left so), then reading the marks between the lowest and the highest in order: no sort
+    (numba's quicksort of int64 compiled for ~1 s; docs/decisions/first_run.md).
     """
     total = 0
     for s in range(h.shape[0]):
@@ -152,17 +149,24 @@ def _patterns_near(
             total += slot_start[s + 1] - slot_start[s]
     if 4 * total > slot_patterns.shape[0]:
         return -1
-    count = 0
+    lo = slot_patterns.shape[0]
+    hi = -1
     for s in range(h.shape[0]):
         if h[s] > 0.0:
             for k in range(slot_start[s], slot_start[s + 1]):
-                buffer[count] = slot_patterns[k]
-                count += 1
-    buffer[:count].sort()
+                j = slot_patterns[k]
+                mark[j] = True
+                lo = min(lo, j)
+                hi = max(hi, j)
+    count = 0
+    for j in range(lo, hi + 1):
+        if mark[j]:
+            mark[j] = False
+            buffer[count] = j
+            count += 1
     return count
 
 
-@njit
 def train_rigid_map(
     positions: np.ndarray,
     weights: np.ndarray,
@@ -185,16 +189,59 @@ def train_rigid_map(
     values computed once per distinct winner instead of once per pattern. An epoch whose
     neighbourhood radius ``sigma sqrt(2 ln(1/phi))`` is below the closest node spacing updates
     the winner only. Returns the number of epochs run.
+
+    The winners' slots are grouped in numpy (:func:`_winner_slots`, :func:`_slot_patterns`),
+    the epochs run in :func:`_train_epochs`.
     """
+    winners = position_winners(positions, patterns)
+    distinct, pattern_slot = _winner_slots(winners, positions.shape[0])
+    slot_start, slot_patterns = _slot_patterns(pattern_slot, distinct.shape[0])
+    return _train_epochs(
+        positions,
+        weights,
+        patterns,
+        winners,
+        distinct,
+        pattern_slot,
+        slot_start,
+        slot_patterns,
+        lr0,
+        lr_decay,
+        sigma0,
+        sigma_decay,
+        phi,
+        max_epochs,
+        tol,
+    )
+
+
+@njit
+def _train_epochs(
+    positions: np.ndarray,
+    weights: np.ndarray,
+    patterns: np.ndarray,
+    winners: np.ndarray,
+    distinct: np.ndarray,
+    pattern_slot: np.ndarray,
+    slot_start: np.ndarray,
+    slot_patterns: np.ndarray,
+    lr0: float,
+    lr_decay: float,
+    sigma0: float,
+    sigma_decay: float,
+    phi: float,
+    max_epochs: int,
+    tol: float,
+) -> int:
+    """:func:`train_rigid_map`'s epochs, given each pattern's winner (N,), the distinct winners
+    (U,), each pattern's slot among them (N,) and the patterns grouped by slot (U + 1,), (N,)."""
     n = patterns.shape[0]
     m = positions.shape[0]
-    winners = position_winners(positions, patterns)
     min_angle = _min_neighbour_angle(positions) if m > 1 else np.pi
-    distinct, pattern_slot = _winner_slots(winners, m)
     theta = _winner_angles(positions, distinct)
-    slot_start, slot_patterns = _slot_patterns(pattern_slot, distinct.shape[0])
     h = np.empty(distinct.shape[0])
     buffer = np.empty(n, dtype=np.int64)
+    mark = np.zeros(n, dtype=np.bool_)
     epochs = 0
     for t in range(max_epochs):
         epochs = t + 1
@@ -228,7 +275,7 @@ def train_rigid_map(
                         near = True
                 if not near:
                     continue
-                order = _patterns_near(h, slot_start, slot_patterns, buffer)
+                order = _patterns_near(h, slot_start, slot_patterns, buffer, mark)
                 w0, w1, w2, w3 = weights[i, 0], weights[i, 1], weights[i, 2], weights[i, 3]
                 # the largest step per component, kept apart so the four updates do not wait
                 # on one another (max is exact: the same largest step)

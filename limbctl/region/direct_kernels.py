@@ -109,6 +109,27 @@ def nearest_widened(p, vertices, edges, margins, mids, half, reach, tie, best_po
     return best_arc, best_key, best_angle
 
 
+#: Slack (rad) of the midpoint bound of :func:`within_widening`: far above the rounding of a
+#: dot product's cosine (1e-16) even for an arc of length and margin zero (cos(1e-6) = 1 - 5e-13),
+#: and a few arcs measured too many cost nothing.
+SLACK = 1e-6
+
+
+@njit
+def within_widening(p, vertices, edges, margins, mids, reach_cos) -> bool:
+    """Whether some arc's widening holds ``p`` (3,): ``angle(p, e) - margin_e <=
+    CONTAIN_TOLERANCE`` for an arc ``e``, which is what :func:`nearest_widened`'s smallest key
+    says. Every point of an arc lies within its half length of its midpoint, so an arc whose
+    midpoint lies farther than its half length, margin and the tolerance (``reach_cos[e]``, the
+    cosine of that, :data:`SLACK` wider) cannot hold ``p`` and is not measured."""
+    for e in range(edges.shape[0]):
+        if p[0] * mids[e, 0] + p[1] * mids[e, 1] + p[2] * mids[e, 2] < reach_cos[e]:
+            continue
+        if edge_foot(p, vertices, edges, e)[0] - margins[e] <= CONTAIN_TOLERANCE:
+            return True
+    return False
+
+
 @njit
 def in_loops(p, vertices, edges, axis, u, v, far_inside) -> bool:
     """Whether ``p`` (3,) lies inside the loops: the arcs crossing the half-meridian from the
@@ -118,28 +139,45 @@ def in_loops(p, vertices, edges, axis, u, v, far_inside) -> bool:
     cp = math.cos(phi)
     sp = math.sin(phi)
     theta = _angle(p, axis)
+    # n: the meridian plane's normal, -sin(phi) u + cos(phi) v; m: cos(phi) u + sin(phi) v
+    n0 = -sp * u[0] + cp * v[0]
+    n1 = -sp * u[1] + cp * v[1]
+    n2 = -sp * u[2] + cp * v[2]
+    m0 = cp * u[0] + sp * v[0]
+    m1 = cp * u[1] + sp * v[1]
+    m2 = cp * u[2] + sp * v[2]
     crossings = 0
     for e in range(edges.shape[0]):
-        a = vertices[edges[e, 0]]
-        b = vertices[edges[e, 1]]
-        # n: the meridian plane's normal, -sin(phi) u + cos(phi) v
+        # the arc's ends as scalars: no row handed around (edge_foot says why)
+        i = edges[e, 0]
+        j = edges[e, 1]
+        a0, a1, a2 = vertices[i, 0], vertices[i, 1], vertices[i, 2]
+        b0, b1, b2 = vertices[j, 0], vertices[j, 1], vertices[j, 2]
+        # a.n and b.n, summed from 0 in component order
         an = 0.0
+        an += a0 * n0
+        an += a1 * n1
+        an += a2 * n2
         bn = 0.0
-        for k in range(3):
-            n_k = -sp * u[k] + cp * v[k]
-            an += a[k] * n_k
-            bn += b[k] * n_k
+        bn += b0 * n0
+        bn += b1 * n1
+        bn += b2 * n2
         if (an > 0.0) == (bn > 0.0):
             continue
         # the arc meets the plane at x = (1 - t) a + t b, t = a.n / (a.n - b.n); on the
-        # half-meridian when x.e > 0 (e = cos(phi) u + sin(phi) v)
+        # half-meridian when x.m > 0
         t = an / (an - bn)
+        x0 = (1.0 - t) * a0 + t * b0
+        x1 = (1.0 - t) * a1 + t * b1
+        x2 = (1.0 - t) * a2 + t * b2
         xe = 0.0
+        xe += x0 * m0
+        xe += x1 * m1
+        xe += x2 * m2
         xa = 0.0
-        for k in range(3):
-            x_k = (1.0 - t) * a[k] + t * b[k]
-            xe += x_k * (cp * u[k] + sp * v[k])
-            xa += x_k * axis[k]
+        xa += x0 * axis[0]
+        xa += x1 * axis[1]
+        xa += x2 * axis[2]
         if xe > 0.0 and math.atan2(xe, xa) > theta:
             crossings += 1
     return far_inside != (crossings % 2 == 1)
@@ -162,14 +200,23 @@ def query_batch(vertices, edges, margins, axis, far_inside, d, project):
         max_margin = max(max_margin, margins[e])
     u, v = _frame(axis)
     best_point = np.empty(3)
+    if not project:
+        # containment alone: any widening holding the direction will do, not the nearest
+        reach_cos = np.empty(edges.shape[0])
+        for e in range(edges.shape[0]):
+            reach_cos[e] = math.cos(min(half[e] + margins[e] + CONTAIN_TOLERANCE + SLACK, math.pi))
+        for j in range(n):
+            p = d[j]
+            inside[j] = within_widening(p, vertices, edges, margins, mids, reach_cos) or in_loops(
+                p, vertices, edges, axis, u, v, far_inside
+            )
+        return inside, out
     for j in range(n):
         p = d[j]
         arc, key, angle = nearest_widened(
             p, vertices, edges, margins, mids, half, longest + max_margin, 0.0, best_point
         )
         inside[j] = key <= CONTAIN_TOLERANCE or in_loops(p, vertices, edges, axis, u, v, far_inside)
-        if not project:
-            continue
         if inside[j] or arc < 0:
             out[j, 0] = p[0]
             out[j, 1] = p[1]

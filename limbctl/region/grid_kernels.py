@@ -253,148 +253,6 @@ def _sort_by_key(cell_edges, cell_keys) -> None:
 
 
 @njit
-def _first_pass(
-    block,
-    blocks_phi,
-    grid_shape,
-    axis,
-    u,
-    v,
-    vertices,
-    edges,
-    margins,
-    inside,
-    mids,
-    half,
-    longest_half,
-    max_margin,
-    reach,
-    centres,
-    radius,
-    from_block,
-    block_arcs,
-    block_arc_dist,
-    block_count,
-    deep,
-    counts,
-    first_edges,
-    first_keys,
-) -> None:
-    """:func:`build_grid`'s first pass over one block: its cells' geometry, its arcs, and each
-    cell's depth, count and first :data:`FIRST_PASS_ARCS` candidates."""
-    n_theta, n_phi = grid_shape[0], grid_shape[1]
-    n_edges = edges.shape[0]
-    corner = np.empty(3)
-    cells = _block_cells(block, blocks_phi, n_theta, n_phi)
-    for cell in cells:
-        radius[cell] = _cell_geometry(cell, n_theta, n_phi, axis, u, v, centres[cell], corner)
-    dist = np.empty(n_edges)
-    block_count[block] = _block_arcs(
-        block,
-        blocks_phi,
-        grid_shape,
-        axis,
-        u,
-        v,
-        vertices,
-        edges,
-        margins,
-        mids,
-        longest_half,
-        max_margin,
-        centres,
-        radius,
-        dist,
-        block_arcs[block],
-        block_arc_dist[block],
-        from_block,
-    )
-    arcs = block_arcs[block, : block_count[block]]
-    arc_dist = block_arc_dist[block, : block_count[block]]
-    for cell in cells:
-        deep[cell], counts[cell] = _cell(
-            cell,
-            inside,
-            arcs,
-            arc_dist,
-            from_block[cell],
-            centres,
-            radius,
-            vertices,
-            edges,
-            margins,
-            mids,
-            half,
-            reach,
-            max_margin,
-            dist,
-            first_edges[cell],
-            first_keys[cell],
-        )
-
-
-@njit
-def _second_pass(
-    block,
-    blocks_phi,
-    grid_shape,
-    vertices,
-    edges,
-    margins,
-    inside,
-    mids,
-    half,
-    max_margin,
-    reach,
-    centres,
-    radius,
-    from_block,
-    block_arcs,
-    block_arc_dist,
-    block_count,
-    first_edges,
-    first_keys,
-    start,
-    cell_edges,
-    cell_keys,
-) -> None:
-    """:func:`build_grid`'s second pass over one block: each cell's candidates into its slice
-    of ``cell_edges``/``cell_keys`` (found again when the first pass kept too few), sorted."""
-    n_theta, n_phi = grid_shape[0], grid_shape[1]
-    dist = np.empty(edges.shape[0])
-    arcs = block_arcs[block, : block_count[block]]
-    arc_dist = block_arc_dist[block, : block_count[block]]
-    for cell in _block_cells(block, blocks_phi, n_theta, n_phi):
-        k0, k = start[cell], start[cell + 1]
-        if k - k0 <= FIRST_PASS_ARCS:
-            # element by element: a slice assignment brings in numba's shape checks
-            for s in range(k - k0):
-                cell_edges[k0 + s] = first_edges[cell, s]
-                cell_keys[k0 + s] = first_keys[cell, s]
-        else:
-            _cell(
-                cell,
-                inside,
-                arcs,
-                arc_dist,
-                from_block[cell],
-                centres,
-                radius,
-                vertices,
-                edges,
-                margins,
-                mids,
-                half,
-                reach,
-                max_margin,
-                dist,
-                cell_edges[k0:k],
-                cell_keys[k0:k],
-            )
-        _sort_by_key(cell_edges[k0:k], cell_keys[k0:k])
-
-
-@njit
 def build_grid(vertices, edges, margins, axis, grid_shape, inside):
     """Cell depth status and sorted candidate arcs (module docstring) -> deep, start, arcs, keys.
 
@@ -431,8 +289,15 @@ def build_grid(vertices, edges, margins, axis, grid_shape, inside):
     block_arc_dist = np.empty((n_blocks, n_edges))
     block_count = np.zeros(n_blocks, dtype=np.int64)
     from_block = np.empty(n_cells)
+    corner = np.empty(3)
+    dist = np.empty(n_edges)
+    # first pass, block by block: its cells' geometry, its arcs, and each cell's depth, count
+    # and first FIRST_PASS_ARCS candidates
     for block in range(n_blocks):
-        _first_pass(
+        cells = _block_cells(block, blocks_phi, n_theta, n_phi)
+        for cell in cells:
+            radius[cell] = _cell_geometry(cell, n_theta, n_phi, axis, u, v, centres[cell], corner)
+        count = _block_arcs(
             block,
             blocks_phi,
             grid_shape,
@@ -442,51 +307,75 @@ def build_grid(vertices, edges, margins, axis, grid_shape, inside):
             vertices,
             edges,
             margins,
-            inside,
             mids,
-            half,
             longest_half,
             max_margin,
-            reach,
             centres,
             radius,
+            dist,
+            block_arcs[block],
+            block_arc_dist[block],
             from_block,
-            block_arcs,
-            block_arc_dist,
-            block_count,
-            deep,
-            counts,
-            first_edges,
-            first_keys,
         )
+        block_count[block] = count
+        arcs = block_arcs[block, :count]
+        arc_dist = block_arc_dist[block, :count]
+        for cell in cells:
+            deep[cell], counts[cell] = _cell(
+                cell,
+                inside,
+                arcs,
+                arc_dist,
+                from_block[cell],
+                centres,
+                radius,
+                vertices,
+                edges,
+                margins,
+                mids,
+                half,
+                reach,
+                max_margin,
+                dist,
+                first_edges[cell],
+                first_keys[cell],
+            )
     start = np.zeros(n_cells + 1, dtype=np.int64)
     for cell in range(n_cells):
         start[cell + 1] = start[cell] + counts[cell]
     cell_edges = np.empty(start[n_cells], dtype=np.int64)
     cell_keys = np.empty(start[n_cells])
+    # second pass: each cell's candidates into its slice of cell_edges/cell_keys (found again
+    # when the first pass kept too few), sorted
     for block in range(n_blocks):
-        _second_pass(
-            block,
-            blocks_phi,
-            grid_shape,
-            vertices,
-            edges,
-            margins,
-            inside,
-            mids,
-            half,
-            max_margin,
-            reach,
-            centres,
-            radius,
-            from_block,
-            block_arcs,
-            block_arc_dist,
-            block_count,
-            first_edges,
-            first_keys,
-            start,
-            cell_edges,
-            cell_keys,
-        )
+        arcs = block_arcs[block, : block_count[block]]
+        arc_dist = block_arc_dist[block, : block_count[block]]
+        for cell in _block_cells(block, blocks_phi, n_theta, n_phi):
+            k0, k = start[cell], start[cell + 1]
+            if k - k0 <= FIRST_PASS_ARCS:
+                # element by element: a slice assignment brings in numba's shape checks
+                for s in range(k - k0):
+                    cell_edges[k0 + s] = first_edges[cell, s]
+                    cell_keys[k0 + s] = first_keys[cell, s]
+            else:
+                _cell(
+                    cell,
+                    inside,
+                    arcs,
+                    arc_dist,
+                    from_block[cell],
+                    centres,
+                    radius,
+                    vertices,
+                    edges,
+                    margins,
+                    mids,
+                    half,
+                    reach,
+                    max_margin,
+                    dist,
+                    cell_edges[k0:k],
+                    cell_keys[k0:k],
+                )
+            _sort_by_key(cell_edges[k0:k], cell_keys[k0:k])
     return deep, start, cell_edges, cell_keys

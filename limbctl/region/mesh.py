@@ -162,6 +162,11 @@ class DirectionMesh:
             return self._direct(d, project=True)[1]
         return bk.project_batch(*self.kernel_args(), d)
 
+    def contains_from_arcs(self, d: np.ndarray) -> np.ndarray:
+        """:meth:`contains` answered from the arcs alone, grid built or not: the same answers
+        (tests/region/test_direct_kernels.py), through the kernel a fit compiles anyway."""
+        return self._direct(np.ascontiguousarray(d, dtype=np.float64), project=False)[0]
+
     def _direct(self, d: np.ndarray, project: bool) -> tuple[np.ndarray, np.ndarray]:
         """Containment (N,) and projection (N, 3) (if ``project``) of ``d`` (N, 3) from the
         arcs alone (:func:`limbctl.region.direct_kernels.query_batch`)."""

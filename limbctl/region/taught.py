@@ -190,6 +190,21 @@ class TaughtRegion:
         inside = status == 1
         return bool(inside[0]) if single else inside
 
+    def contains_from_arcs(self, q: np.ndarray) -> np.ndarray:
+        """:meth:`contains` of a batch ``q`` (N, 4) -> (N,) bool, answered from the region's arcs
+        (:meth:`DirectionMesh.contains_from_arcs`): the same answers, without compiling the
+        gate's kernels in a process that never gates (train's summary;
+        docs/decisions/first_run.md). The limb directions are those the gate's kernel computes,
+        operation for operation."""
+        arr, _ = as_quaternions(q)
+        w, x, y, z = arr[:, 0], arr[:, 1], arr[:, 2], arr[:, 3]
+        # d = (w^2 + x^2 - y^2 - z^2, 2(xy + wz), 2(xz - wy)) / |d|, as correct_kernels does
+        d = np.stack(
+            [w * w + x * x - y * y - z * z, 2.0 * (x * y + w * z), 2.0 * (x * z - w * y)], axis=1
+        )
+        norm = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2])
+        return self._mesh().contains_from_arcs(d / norm[:, None])
+
     def correct(self, q: np.ndarray) -> np.ndarray:
         """``q`` itself inside the region; outside, the nearest region orientation (twist kept)."""
         args = self._mesh().kernel_args()

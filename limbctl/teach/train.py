@@ -111,7 +111,10 @@ def summarize(model: Any, q: np.ndarray) -> TrainSummary:
     mean = directions.mean(axis=0)
     mean /= np.linalg.norm(mean)
     spread = math.degrees(float(direction_angle(directions, mean).max()))
-    inside = np.asarray(model.contains(q), dtype=bool)
+    # a model that can answers without the gate's kernels: train never gates, and compiling
+    # them was ~2 s of a first train (docs/decisions/first_run.md)
+    contains = getattr(model, "contains_from_arcs", model.contains)
+    inside = np.asarray(contains(q), dtype=bool)
     b_pan, b_tilt = _region_extent(model, pan, tilt)
     return TrainSummary(
         samples=len(q),
@@ -148,7 +151,8 @@ def _region_extent(
         max(tilt.min() - margin, -math.pi / 2), min(tilt.max() + margin, math.pi / 2), step
     )
     grid_pan, grid_tilt = (a.ravel() for a in np.meshgrid(pans, tilts))
-    inside = np.asarray(model.contains(pan_tilt_to_quat(grid_pan, grid_tilt)), dtype=bool)
+    contains = getattr(model, "contains_from_arcs", model.contains)
+    inside = np.asarray(contains(pan_tilt_to_quat(grid_pan, grid_tilt)), dtype=bool)
     if not inside.any():
         return pan, tilt
     return grid_pan[inside], grid_tilt[inside]

@@ -7,9 +7,10 @@ The process runs at the lowest priority (:data:`NICENESS`) on one numba thread, 
 keeps its rate. It trains a Rigid Map on a synthetic teaching of the demo region through
 :func:`limbctl.teach.train.train`, the function ``limbctl train`` runs (so the same kernels
 compile, for the same argument types), then asks the model what the gate asks: one command,
-and a small batch as the park check does. The kernels land in the cache of
-:mod:`limbctl.geometry.jit` one by one as they compile; the first real train and teleop load
-them, and compile themselves whatever a warm-up still running has not reached yet.
+a small batch as the park check does and a larger one as a start outside the region does. The
+kernels land in the cache of :mod:`limbctl.geometry.jit` one by one as they compile; the first
+real train and teleop load them, and compile themselves whatever a warm-up still running has not
+reached yet.
 
 With no cache folder (kernels compiled in memory) a warm-up would help no other process, and
 none starts; nor does one when both stages are already prepared.
@@ -38,6 +39,10 @@ NICENESS = 19
 TEACHING_S = 30.0
 #: Commands of the small batch asked of the model: the park check's 13 probes.
 SMALL_BATCH = 13
+#: Commands of the larger batch asked of the model: one more than a batch served command by
+#: command (``correct_kernels.SINGLE_ROWS``), as a start outside the region asks the approach's
+#: candidate poses; train itself no longer compiles that kernel (its summary asks the arcs).
+LARGE_BATCH = 65
 
 
 def _demo_polygon() -> np.ndarray:
@@ -83,11 +88,13 @@ def warm_up() -> bool:
             train(data, model_path, "rigidmap", {"seed": 0})
             jit.mark_prepared("train")
             model = load_model(model_path)
-            q = np.ascontiguousarray(load_dataset(data).quaternions[:SMALL_BATCH])
+            taught = load_dataset(data).quaternions
+            q = np.ascontiguousarray(taught[:SMALL_BATCH])
             model.contains(q[0])
             model.correct(q[0])
             model.contains(q)
             model.correct(q)
+            model.correct(np.ascontiguousarray(taught[:LARGE_BATCH]))
             jit.mark_prepared("gate")
     return True
 

@@ -56,11 +56,26 @@ def test_patterns_near_gathers_few_in_order_and_scans_many():
     np.testing.assert_array_equal(start, [0, 7, 9, 12])
     np.testing.assert_array_equal(grouped, [1, 4, 5, 8, 9, 10, 11, 2, 6, 0, 3, 7])
     buffer = np.empty(12, dtype=np.int64)
+    mark = np.zeros(12, dtype=np.bool_)
     # slots 1 and 2: 5 of 12 patterns, more than a quarter: scan them all
-    assert rk._patterns_near(np.array([0.0, 0.5, 0.2]), start, grouped, buffer) == -1
+    assert rk._patterns_near(np.array([0.0, 0.5, 0.2]), start, grouped, buffer, mark) == -1
     # slot 1 alone: 2 patterns, gathered in order
-    count = rk._patterns_near(np.array([0.0, 0.5, 0.0]), start, grouped, buffer)
+    count = rk._patterns_near(np.array([0.0, 0.5, 0.0]), start, grouped, buffer, mark)
     np.testing.assert_array_equal(buffer[:count], [2, 6])
+    assert not mark.any()
+
+
+def test_patterns_near_merges_the_slots_in_pattern_order():
+    rng = np.random.default_rng(5)
+    pattern_slot = rng.integers(0, 12, 400)
+    start, grouped = rk._slot_patterns(pattern_slot, 12)
+    h = np.zeros(12)
+    h[[3, 7, 8]] = [0.1, 1.0, 0.4]
+    buffer = np.empty(400, dtype=np.int64)
+    mark = np.zeros(400, dtype=np.bool_)
+    count = rk._patterns_near(h, start, grouped, buffer, mark)
+    np.testing.assert_array_equal(buffer[:count], np.flatnonzero(h[pattern_slot] > 0.0))
+    assert not mark.any()
 
 
 def test_position_winners_is_nearest_position():

@@ -47,6 +47,25 @@ def test_contains_and_correct_answer_one_command_and_many_alike(cone, fitted):
         np.testing.assert_array_equal(fitted.correct(q[i]), out[i])
 
 
+@pytest.mark.parametrize("shape", ["cone", "egg"])
+def test_containment_from_the_arcs_is_the_gates(cone, shape):
+    # train's summary asks the arcs (the fit's kernel); the gate asks its grid: the same answers
+    rng = np.random.default_rng(4)
+    if shape == "cone":
+        region, train, test = cone
+    else:
+        region = PolygonRegion(EGG)
+        train, test = region.sample(800, rng), region.test_directions(4000, rng)
+    fitted = TaughtRegion().fit(train)
+    near = fitted.mesh.vertices[fitted.mesh.edges[:, 0]]
+    far = rng.normal(size=(2000, 3))
+    for d in (train, test, near, far / np.linalg.norm(far, axis=1, keepdims=True)):
+        q = to_quaternions(d)
+        inside = fitted.contains(q)
+        np.testing.assert_array_equal(fitted.contains_from_arcs(q), inside)
+    assert 0 < fitted.contains_from_arcs(to_quaternions(test)).sum() < len(test)
+
+
 def test_the_arrays_rebuild_the_region_without_fitting(cone, fitted):
     back = TaughtRegion.from_arrays(fitted.arrays(), fitted.params, fitted.edge)
     q = to_quaternions(cone[2])

@@ -8,8 +8,14 @@ import sys
 from pathlib import Path
 
 from limbctl.geometry import jit
-from limbctl.teach.warm import warming_in_background
+from limbctl.region.correct_kernels import SINGLE_ROWS
+from limbctl.teach.warm import LARGE_BATCH, warming_in_background
 from tests.test_first_run import ROOT, compiled_by, teaching
+
+
+def test_the_larger_batch_takes_the_batch_kernel():
+    # served row by row up to SINGLE_ROWS; one more takes the kernel a start outside asks
+    assert LARGE_BATCH == SINGLE_ROWS + 1
 
 
 def test_after_a_warm_up_train_and_teleop_compile_no_kernel_and_say_nothing(tmp_path):
