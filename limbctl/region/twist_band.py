@@ -285,7 +285,7 @@ def envelope_heights(xy: np.ndarray, t: np.ndarray, node_xy: np.ndarray) -> np.n
         both = np.concatenate([node_xy[rows], xy])
         height, factor = _over_facets(both, *facets)
         height += 0.5 * k * np.sum(both * both, axis=1)
-        # stops: samples the envelope passes within STOP_BAND_DEG of (NaN: on the rim)
+        # stops: samples the envelope passes within STOP_BAND_DEG of
         stop = ~(height[rows.size :] - t > math.radians(STOP_BAND_DEG))
         out[rows] = height[: rows.size] + _raised(node_xy[rows], factor[: rows.size], xy[stop])
     if rows.size and rows.size < out.size:
