@@ -281,13 +281,11 @@ def envelope_heights(xy: np.ndarray, t: np.ndarray, node_xy: np.ndarray) -> np.n
     rows = np.flatnonzero(np.all(node_xy @ rim[:, :2].T + rim[:, 2] <= 1e-12, axis=1))
     out = np.full(node_xy.shape[0], np.nan)
     if rows.size:
-        # h(x) = hull(x) + k |x|^2 / 2 at the nodes and at the samples themselves
-        both = np.concatenate([node_xy[rows], xy])
-        height, factor = _over_facets(both, *facets)
-        height += 0.5 * k * np.sum(both * both, axis=1)
-        # stops: samples the envelope passes within STOP_BAND_DEG of
-        stop = ~(height[rows.size :] - t > math.radians(STOP_BAND_DEG))
-        out[rows] = height[: rows.size] + _raised(node_xy[rows], factor[: rows.size], xy[stop])
+        p = node_xy[rows]
+        height, factor = _over_facets(p, *facets)
+        # h(x) = hull(x) + k |x|^2 / 2
+        out[rows] = height + 0.5 * k * np.sum(p * p, axis=1)
+        out[rows] += _raised(p, factor, xy, t, np.unique(hull.simplices[up]), facets)
     if rows.size and rows.size < out.size:
         outside = np.setdiff1d(np.arange(out.size), rows)
         _, nearest = cKDTree(node_xy[rows]).query(node_xy[outside])
@@ -314,26 +312,52 @@ def _over_facets(
     return height, _sag_factor(p, corners[facet])
 
 
-def _raised(p: np.ndarray, factor: np.ndarray, stops: np.ndarray) -> np.ndarray:
+def _raised(
+    p: np.ndarray,
+    factor: np.ndarray,
+    xy: np.ndarray,
+    t: np.ndarray,
+    corners: np.ndarray,
+    facets: tuple[np.ndarray, np.ndarray, np.ndarray],
+) -> np.ndarray:
     """How far (M,) (rad) the envelope is raised at points ``p`` (M, 2) over facets of sag factor
-    ``factor`` (M,) (rad^2), ``stops`` (S, 2) the samples it passes near.
+    ``factor`` (M,) (rad^2); ``(xy, t)`` the samples, ``corners`` the indices of those on the
+    hull's upper facets, ``facets`` the hull's upper facets (as :func:`_over_facets` takes them).
 
     With curvature k the envelope sags ``k S`` below the plane through the corners of the facet
     over a point; its sag is capped at ``max(s, k_min S)`` (s = ENVELOPE_SAG_DEG, k_min =
-    ENVELOPE_CURVATURE_MIN): a curvature bound growing with the stops' density. A facet is wide
+    ENVELOPE_CURVATURE_MIN): a curvature bound growing with the stops' spacing. A facet is wide
     either because the stops are far apart (a hand passed mid-band) or because the truth curves
     up by more than k and the facet bridges over stops lying just beneath it; the sag factor is
     therefore taken at most ``ENVELOPE_STOP_SPAN r^2 / 2``, ``r`` the distance to the nearest
-    stop, which stays small in the second case. Continuous: S and r are.
+    stop (a sample the envelope passes within STOP_BAND_DEG of), which stays small in the second
+    case. Continuous: S and r are. The corners are stops; the other samples are judged only
+    within the distance to the nearest corner of the points a corner alone leaves raised (a
+    nearer stop can only lower the raise).
     """
-    if not stops.shape[0]:
-        return np.zeros(p.shape[0])
-    r, _ = cKDTree(stops).query(p)
     k = ENVELOPE_CURVATURE
-    factor = np.fmin(factor, 0.5 * ENVELOPE_STOP_SPAN * r * r)
-    # sag k S capped at max(s, k_min S)
-    cap = np.fmax(math.radians(ENVELOPE_SAG_DEG), ENVELOPE_CURVATURE_MIN * factor)
-    return np.fmax(k * factor - cap, 0.0)
+
+    def raised(f: np.ndarray, r: np.ndarray) -> np.ndarray:
+        f = np.fmin(f, 0.5 * ENVELOPE_STOP_SPAN * r * r)
+        # sag k S capped at max(s, k_min S)
+        return np.fmax(
+            k * f - np.fmax(math.radians(ENVELOPE_SAG_DEG), ENVELOPE_CURVATURE_MIN * f), 0.0
+        )
+
+    r, _ = cKDTree(xy[corners]).query(p)
+    need = np.flatnonzero(raised(factor, r) > 0.0)
+    if need.size:
+        near = cKDTree(xy).query_ball_point(p[need], r[need])
+        judged = np.setdiff1d(
+            np.unique(np.concatenate([np.asarray(n, int) for n in near])), corners
+        )
+        if judged.size:
+            h, _ = _over_facets(xy[judged], *facets)
+            h += 0.5 * k * np.sum(xy[judged] ** 2, axis=1)
+            stops = judged[h - t[judged] <= math.radians(STOP_BAND_DEG)]
+            if stops.size:
+                r[need] = np.fmin(r[need], cKDTree(xy[stops]).query(p[need])[0])
+    return raised(factor, r)
 
 
 def _sag_factor(p: np.ndarray, tri: np.ndarray) -> np.ndarray:
