@@ -34,6 +34,7 @@ import contextlib
 import io
 import json
 import os
+import shutil
 import tempfile
 import time
 from pathlib import Path
@@ -91,13 +92,16 @@ def loop_rate_hz(telemetry: Path) -> float:
     return (len(times) - 1) / (times[-1] - times[0]) if len(times) > 1 else 0.0
 
 
-def one(rig: str, seconds: float, seed: int) -> dict:
+def one(rig: str, seconds: float, seed: int, keep: Path | None = None) -> dict:
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "demo"
         started = time.perf_counter()
         with contextlib.redirect_stdout(io.StringIO()):
             status = run_demo(out, seconds, seed, rig=rig)
         wall = time.perf_counter() - started
+        if keep is not None:
+            # the run's files (teaching, model, logs), to analyse a surprising figure later
+            shutil.copytree(out, keep / f"{rig}_seed{seed}", dirs_exist_ok=True)
         model = load_model(out / "model.npz")
         taught = load_dataset(out / "teach.limb").quaternions
         over = float("nan")
@@ -130,11 +134,12 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=60.0)
     parser.add_argument("--seeds", default="0")
     parser.add_argument("--out", type=Path, default=ROOT / "docs" / "bench_twist_demo.md")
+    parser.add_argument("--keep", type=Path, default=None, help="copy each run's files here")
     args = parser.parse_args()
     rows = []
     for seed in (int(s) for s in args.seeds.split(",")):
-        peer = one("sim", args.seconds, seed)
-        three = one("sim3", args.seconds, seed)
+        peer = one("sim", args.seconds, seed, args.keep)
+        three = one("sim3", args.seconds, seed, args.keep)
         three["ratio"] = three["rate_hz"] / peer["rate_hz"] if peer["rate_hz"] else float("nan")
         peer["fit_s"], three["fit_s"] = fit_seconds(peer["taught"], three["taught"], seed)
         three["fit_ratio"] = three["fit_s"] / peer["fit_s"]
