@@ -165,6 +165,43 @@ def beyond_deg(q: np.ndarray, corrected: np.ndarray) -> float:
     return math.degrees(math.atan2(float(np.linalg.norm(np.cross(da, db))), float(da @ db)))
 
 
+def moved_in_deg(
+    present: tuple[float, ...], previous: tuple[float, ...], step: tuple[float, ...]
+) -> float:
+    """How far (deg) a leader moved toward its correction since the last read: its joint motion
+    projected on the joint-space line toward the corrected pose.
+
+    Parameters
+    ----------
+    present, previous : tuple of float, (n,)
+        The leader's joints now and at the last read (rad).
+    step : tuple of float, (n,)
+        The corrected pose's joints minus ``present`` (rad); not all zero.
+    """
+    # moved in = (present - previous) . step / |step|
+    dot = 0.0
+    for now, before, toward in zip(present, previous, step, strict=True):
+        dot += (now - before) * toward
+    return math.degrees(dot / math.hypot(*step))
+
+
+def lets_go(
+    law: FeelLaw, distance_deg: float, moved_in_deg: float, period_s: float, engaged: bool
+) -> bool:
+    """Whether a leader ``distance_deg`` beyond the edge, that moved ``moved_in_deg`` toward the
+    region in the ``period_s`` since the last read, is left free (the module docstring's "but").
+    ``engaged``: the wall pushed in the cycle before."""
+    # faster toward the region than the setpoint (at most RETURN_SPEED): the loop would pull
+    # it back outward; at this pace within the deadband by the next read, its current
+    # still on inside: let go in both cases
+    outrun = moved_in_deg > law.return_speed_deg_s * period_s + law.outrun_slack_deg
+    if outrun or distance_deg - moved_in_deg <= law.deadband_deg:
+        return True
+    # the wall comes on with the setpoint where the leader is (LeaderSource._write): while
+    # the leader still moves toward the region the loop's damping would brake it outward
+    return not engaged and moved_in_deg > 0.0
+
+
 def push_for(
     law: FeelLaw,
     motor: LeaderMotor,
@@ -205,18 +242,8 @@ def push_for(
     longest = max(abs(step[0]), abs(step[1]))
     lead_deg = law.lead_deg
     if previous is not None and longest > 0.0:
-        # moved in = (present - previous) . step / |step|, on the line toward the correction
-        moved = (present[0] - previous[0], present[1] - previous[1])
-        moved_in = math.degrees((moved[0] * step[0] + moved[1] * step[1]) / math.hypot(*step))
-        # faster toward the region than the setpoint (at most RETURN_SPEED): the loop would pull
-        # it back outward; at this pace within the deadband by the next read, its current
-        # still on inside: let go in both cases
-        outrun = moved_in > law.return_speed_deg_s * period_s + law.outrun_slack_deg
-        if outrun or distance - moved_in <= law.deadband_deg:
-            return free
-        # the wall comes on with the setpoint where the leader is (LeaderSource._write): while
-        # the leader still moves toward the region the loop's damping would brake it outward
-        if not engaged and moved_in > 0.0:
+        moved_in = moved_in_deg(present, previous, step)
+        if lets_go(law, distance, moved_in, period_s, engaged):
             return free
         # a leader the wall walks back: the goal leads it by how far it moved in the last
         # cycle too, so the setpoint (at RETURN_SPEED) does not reach the goal and stop before

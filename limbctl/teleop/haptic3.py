@@ -16,6 +16,14 @@ gain, cap, return speed and lead), on three joints, per cycle::
                     Goal Position = present + s (target - present),
                              s = min(1, LEAD / max_j |target_j - present_j|)
                     Profile Velocity = RETURN_SPEED
+    but Goal Current 0 when, with m the leader's rotation toward the correction since the last
+    read (its joint motion projected on the joint-space line toward the corrected pose, period
+    T), the two-servo law's rules hold (:func:`~limbctl.teleop.haptic.lets_go`):
+        m > RETURN_SPEED T + SLACK       it outran the setpoints, whose loops would pull it
+                                         back, away from the region
+        d - m <= DEADBAND                at this pace inside the deadband by the next read
+        m > 0 after a free cycle         still moving in: the wall comes on once it stops
+    and, pushing, LEAD grows by max(m, 0) (a leader the wall walks back keeps moving setpoints).
 
 Each servo's position loop (mode 5) drives its joint toward its Goal Position with at most Goal
 Current; every Goal Position lies from the leader's joint toward the corrected pose's, so the
@@ -36,7 +44,7 @@ import numpy as np
 from limbctl.geometry.gimbal3 import pan_tilt_roll_scalar
 from limbctl.servo.leader import LeaderMotor
 from limbctl.teleop.gate3 import geodesic
-from limbctl.teleop.haptic import FeelLaw, Push
+from limbctl.teleop.haptic import FeelLaw, Push, lets_go, moved_in_deg
 
 Pose3 = tuple[float, float, float]
 
@@ -89,6 +97,9 @@ def push3_for(
     q: np.ndarray,
     corrected: np.ndarray,
     roll_limits: tuple[float, float],
+    previous: Pose3 | None = None,
+    period_s: float = 0.0,
+    engaged: bool = True,
 ) -> Push3:
     """The three-servo leader's command this cycle (see the module docstring).
 
@@ -103,18 +114,33 @@ def push3_for(
         The command (the leader's orientation) and the twist region's correction of it.
     roll_limits : (float, float)
         The roll joint's hard limits (rad), within which the corrected roll is unwrapped.
+    previous : (float, float, float), optional
+        The leader's pose a cycle before (pan, tilt, roll; rad); None on the first cycle (and
+        the law is then the wall alone, without the let-go rules).
+    period_s : float, optional
+        Time since ``previous`` was read (s).
+    engaged : bool, optional
+        Whether the wall pushed in the cycle before (with ``previous``).
     """
     distance = beyond3_deg(q, corrected)
     tau = min(law.torque_nm(distance), motor.cap_nm(law.cap_nm))
     units = motor.units_for(tau)
+    free = Push3(0, 0, present[0], present[1], 0.0, distance, goal_roll=present[2])
     if units == 0:
-        push = held3(present)
-        return Push3(0, 0, push.goal_pan, push.goal_tilt, 0.0, distance, goal_roll=push.goal_roll)
+        return free
     target = corrected_pose(corrected, present, roll_limits)
     # the goal on the joint-space line toward the corrected pose, at most LEAD ahead on any joint
     step = [t - p for t, p in zip(target, present, strict=True)]
     longest = max(abs(s) for s in step)
-    scale = min(1.0, math.radians(law.lead_deg) / longest) if longest > 0.0 else 0.0
+    lead_deg = law.lead_deg
+    if previous is not None and longest > 0.0:
+        # the rotation toward the correction since the last read, on the joint-space line
+        moved_in = moved_in_deg(present, previous, tuple(step))
+        if lets_go(law, distance, moved_in, period_s, engaged):
+            return free
+        # a leader the wall walks back: the goal leads it by how far it moved in, too
+        lead_deg += max(moved_in, 0.0)
+    scale = min(1.0, math.radians(lead_deg) / longest) if longest > 0.0 else 0.0
     goal = [p + scale * s for p, s in zip(present, step, strict=True)]
     return Push3(
         units,

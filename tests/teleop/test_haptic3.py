@@ -112,15 +112,44 @@ def test_property_never_above_the_cap_zero_inside_toward_the_correction(
         assert float(step @ target) >= 0.0
 
 
+@settings(max_examples=150, deadline=None)
+@given(st.floats(35.0, 60.0), st.floats(-2.0, 2.0), st.floats(0.001, 0.05), st.booleans())
+def test_property_a_leader_outrunning_its_setpoints_or_still_moving_in_is_free_else_led(
+    region, roll, moved, period, engaged
+):
+    # beyond the twist edge in roll alone: the correction lies at a smaller roll, so a roll
+    # that decreased by ``moved`` moved toward it (the joint-space line is roll's own)
+    q = q_of(0.0, 0.0, roll)
+    corrected = region.correct(q)
+    present = tuple(np.radians((0.0, 0.0, roll)))
+    previous = tuple(np.radians((0.0, 0.0, roll + moved)))
+    push = push3_for(LAW, MOTOR, present, q, corrected, RIG.roll_limits, previous, period, engaged)
+    wall = push3_for(LAW, MOTOR, present, q, corrected, RIG.roll_limits)
+    way = np.subtract(corrected_pose(corrected, present, RIG.roll_limits), present)
+    moved_in = math.degrees(float(np.subtract(present, previous) @ way) / np.linalg.norm(way))
+    outrun = moved_in > LAW.return_speed_deg_s * period + LAW.outrun_slack_deg
+    near = wall.distance_deg - moved_in <= LAW.deadband_deg
+    if outrun or near or (moved_in > 0.0 and not engaged):
+        assert (push.goal_current, push.goal) == (0, present)
+    else:  # the wall's current, the goal further ahead by how far the leader moved in
+        assert push.goal_current == wall.goal_current
+        lead = math.radians(LAW.lead_deg + max(moved_in, 0.0))
+        assert np.max(np.abs(np.subtract(push.goal, present))) <= lead + 1e-12
+
+
 # -- the law against the simulated three-servo leader, at exactly 200 Hz -------------------------
 
 
-def felt3_at_200_hz(region, script, seconds, let_go_s=None, cycles=None):
+def felt3_at_200_hz(
+    region, script, seconds, let_go_s=None, cycles=None, stiffness=0.05, rules=True
+):
     """The controller's part on the simulated leader's registers every 5 ms of a stepped clock:
     read Present Position, push3_for, the bytes to Indirect Data 1 ms later (Torque Enable off
     and on when the wall comes on, as LeaderSource3._write). Returns (1 ms truth rows, each
     cycle's (pose, push)). ``cycles`` maps a cycle's index to "held" (a held gate's push:
-    Goal Current 0) or "silent" (a failed leader read: Goal Current 0 alone)."""
+    Goal Current 0) or "silent" (a failed leader read: Goal Current 0 alone). ``rules``: pass the
+    previous read, the period and whether the wall pushed (as LeaderSource3.feel); False is the
+    law without its let-go rules (as before round 3 on three servos)."""
     clock = [0.0]
     sim = Simulator(ids=(1, 2, 3), roll_id=3, leader={"ids": list(IDS)}, clock=lambda: clock[0])
     servos = [sim.servo(i) for i in IDS]
@@ -129,14 +158,22 @@ def felt3_at_200_hz(region, script, seconds, let_go_s=None, cycles=None):
         servo.write(38, MOTOR.units_for(LAW.cap_nm).to_bytes(2, "little"))  # Current Limit
         servo.write(FEEL_MAP.address, feel_map())
         servo.write(64, bytes([1]))  # torque on
-    sim.set_operator({"script": script, "let_go_s": let_go_s, "stiffness_nm_deg": 0.05, **HAND})
-    rows, pushes, engaged = [], [], False
+    sim.set_operator(
+        {"script": script, "let_go_s": let_go_s, "stiffness_nm_deg": stiffness, **HAND}
+    )
+    rows, pushes, engaged, previous = [], [], False, None
     for k in range(round(seconds * 200.0)):
         for servo in servos:
             servo.refresh(sim.time_s)
         pose = RIG.angles_of(tuple(s.value(SimRegister.PRESENT_POSITION) for s in servos))
         q = pose_quat_scalar(*pose)
-        push = push3_for(LAW, MOTOR, pose, q, region.correct(q), RIG.roll_limits)
+        if rules:
+            push = push3_for(
+                LAW, MOTOR, pose, q, region.correct(q), RIG.roll_limits, previous, 0.005, engaged
+            )
+        else:
+            push = push3_for(LAW, MOTOR, pose, q, region.correct(q), RIG.roll_limits)
+        previous = pose
         instead = (cycles or {}).get(k)
         if instead == "held":
             push = held3(pose)
@@ -214,6 +251,61 @@ def test_at_200_hz_the_leader_stops_within_2_deg_of_the_edge_and_walks_back(regi
     smoothed = [np.convolve(speeds[:, j], np.ones(20) / 20, mode="valid").max() for j in range(3)]
     assert max(smoothed) <= 30.0
     assert beyond_of(region, after[-1]) < LAW.deadband_deg + 0.1
+    assert all(beyond_of(region, r) > 0.0 for r in after[::5])  # never walked inside
+
+
+#: Pressed 20 deg beyond the edge, held, then pulled back inside in 0.2 s: in swing and twist.
+PULLS = {
+    "swing": [[0.0, 0.0, 0.0, 0.0], [2.0, 50.0, 0.0, 0.0], [4.0, 50.0, 0.0, 0.0], [4.2, 0, 0, 0]],
+    "twist": [[0.0, 0.0, 0.0, 0.0], [2.0, 0.0, 0.0, 50.0], [4.0, 0.0, 0.0, 50.0], [4.2, 0, 0, 0]],
+}
+
+
+def pulled_outward(region, rows):
+    """The 1 ms truth rows outside the region whose joint torques point away from the
+    correction (their dot product with ``corrected pose - pose`` < 0), and the rows inside
+    with any torque."""
+    outward, inside = [], []
+    for r in rows:
+        if not any(r["motor_nm"]):
+            continue
+        present = tuple(np.radians(r["pose_deg"]))
+        q = pose_quat_scalar(*present)
+        if bool(region.contains(q)):
+            inside.append(r)
+            continue
+        way = np.subtract(corrected_pose(region.correct(q), present, RIG.roll_limits), present)
+        if float(np.dot(r["motor_nm"], way)) < 0.0:
+            outward.append(r)
+    return outward, inside
+
+
+@pytest.mark.parametrize("stiffness", [0.05, 0.2])
+@pytest.mark.parametrize("pull", sorted(PULLS))
+def test_a_hand_carrying_the_leader_back_toward_the_region_is_pulled_outward_less(
+    region, pull, stiffness
+):
+    # as the two-servo leader's: the setpoints move at most 30 deg/s, so the loops would pull a
+    # faster leader back, away from the region; the law lets go once a read shows it outrunning
+    # the setpoints by more than a tick. Without the let-go rules (previous=None) the wall
+    # stays on until the leader is within the deadband.
+    rows, _ = felt3_at_200_hz(region, PULLS[pull], 5.0, stiffness=stiffness)
+    before, _ = felt3_at_200_hz(region, PULLS[pull], 5.0, stiffness=stiffness, rules=False)
+    outward, inside = pulled_outward(region, rows)
+    assert not inside  # never any torque inside
+    assert len(outward) < len(pulled_outward(region, before)[0])
+    if stiffness >= 0.2:  # it outruns the setpoints: let go from the first read that shows it
+        assert outward and outward[-1]["t"] - outward[0]["t"] <= 0.02
+    # along the way to the correction, never more than 0.75 of the cap outward
+    assert max(-float(np.dot(r["motor_nm"], unit_way(region, r))) for r in outward) < 0.75 * CAP
+
+
+def unit_way(region, row):
+    """The unit joint-space direction from a row's pose toward its correction."""
+    present = tuple(np.radians(row["pose_deg"]))
+    q = pose_quat_scalar(*present)
+    way = np.subtract(corrected_pose(region.correct(q), present, RIG.roll_limits), present)
+    return way / np.linalg.norm(way)
 
 
 def test_a_held_gate_switches_every_joint_off_within_the_cycle(region):

@@ -46,7 +46,9 @@ class LeaderSource3(LeaderSource):
         super().__init__(rig, leader_ids, rate_hz, law)
         #: The leader's (pan, tilt, roll) as last read (rad); None before the first read.
         self.last_pose3: Pose3 | None = None
-        self._cycle3: tuple[Pose3, object] | None = None
+        #: This cycle's pose, command, the last good read (pose, perf_counter s) and read time.
+        self._cycle3: tuple | None = None
+        self._last_read3: tuple[Pose3, float] | None = None
 
     def start(self) -> None:
         """Torque off for a passive model; a current-sensing one is set up to feel the edge on
@@ -137,7 +139,8 @@ class LeaderSource3(LeaderSource):
             return []
         self.stats.accepted += 1
         if self.felt:
-            self._cycle3 = (pose, command.q)
+            self._cycle3 = (pose, command.q, self._last_read3, now)
+            self._last_read3 = (pose, now)
         return [command]
 
     def feel(self, gate, result, bus_ok: bool) -> tuple[str, ...]:
@@ -154,9 +157,14 @@ class LeaderSource3(LeaderSource):
         elif not bus_ok or result is None or result.outcome is Outcome.HELD:
             push = held3(cycle[0])
         else:
-            q = cycle[1]
+            pose, q, last, read_at = cycle
+            previous, period = (None, 0.0) if last is None else (last[0], read_at - last[1])
+            engaged = self.last_push is not None and self.last_push.goal_current > 0
             limits = (gate.limits.roll_min, gate.limits.roll_max)
-            push = push3_for(self.law, self.motor, cycle[0], q, gate.envelope.correct(q), limits)
+            corrected = gate.envelope.correct(q)
+            push = push3_for(
+                self.law, self.motor, pose, q, corrected, limits, previous, period, engaged
+            )
         if push is None:
             self.release()
             return notes
