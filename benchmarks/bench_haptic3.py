@@ -15,8 +15,10 @@ Cases:
   simulated leader's registers in this process (as benchmarks/bench_haptic.py): a press 20 deg
   beyond the edge held 2.5 s then let go, in swing for both leaders, and in twist and in both
   for the three-servo one: how far beyond the edge it is held (rotation to the correction), the
-  ripple, the walk back, the rest; a closed excursion past the edge and back: the motor's and
-  the hand's net work (passivity at the hand); a held gate of 50 ms while pressed.
+  ripple, the walk back, the rest; a hand pulling the leader back inside: samples whose motor
+  torque points away from the region, without and with the let-go rules; a closed excursion
+  past the edge and back: the motor's and the hand's net work (passivity at the hand); a held
+  gate of 50 ms while pressed.
 - *transfers*: the felt cycle's bus work over the real SDK and the simulator's pty (follower
   cycle read, leader cycle read, the leader's feel write, the follower's goal write), two
   servos against three, interleaved A/B so a change of the machine's load falls on both.
@@ -38,8 +40,8 @@ from firmware_sim.simulator import Simulator
 from limbctl.envelope import Cone
 from limbctl.envelope.synthetic_twist import ShoulderRegion
 from limbctl.errors import BusError
-from limbctl.geometry.gimbal import pan_tilt_to_quat
-from limbctl.geometry.gimbal3 import pose_quat_scalar
+from limbctl.geometry.gimbal import pan_tilt_to_quat, quat_to_pan_tilt
+from limbctl.geometry.gimbal3 import pan_tilt_roll_scalar, pose_quat_scalar
 from limbctl.region.twist_region import TwistRegion
 from limbctl.servo.control_table import ModelNumber
 from limbctl.servo.leader import FEEL_DATA, FEEL_MAP, FELT_MODELS, encode_feel, feel_map
@@ -66,6 +68,22 @@ PRESSES = {
         [2.0, 40.0, 10.0, -45.0],
     ],
 }
+#: Pressed 20 deg beyond, held to 4 s, pulled back inside by 4.2 s (t, joints deg).
+PULLS = {
+    "two servos, swing (pan)": [[0.0, 0.0, 0.0], [2.0, 50.0, 0.0], [4.0, 50.0, 0.0], [4.2, 0, 0]],
+    "three servos, swing (pan)": [
+        [0.0, 0, 0, 0],
+        [2.0, 50.0, 0, 0],
+        [4.0, 50.0, 0, 0],
+        [4.2, 0, 0, 0],
+    ],
+    "three servos, twist (roll)": [
+        [0.0, 0, 0, 0],
+        [2.0, 0, 0, 50.0],
+        [4.0, 0, 0, 50.0],
+        [4.2, 0, 0, 0],
+    ],
+}
 #: Closed excursions 10 deg past the edge and back: 20 -> 40 -> 20 deg on pan or roll.
 EXCURSION_TIMES = (0.0, 1.0, 2.0, 2.5, 3.5, 4.5)
 EXCURSION_ANGLES = (20.0, 20.0, 40.0, 40.0, 20.0, 20.0)
@@ -77,10 +95,12 @@ def square_region() -> TwistRegion:
     return TwistRegion().fit(truth.teaching(1500, 1000, 1800, np.random.default_rng(0)))
 
 
-def stepped(region, script, seconds, let_go_s=None, held=()):
+def stepped(region, script, seconds, let_go_s=None, held=(), stiffness=0.05, rules=True):
     """The law at exactly 200 Hz on a stepped clock (module docstring); ``held`` lists cycles
-    whose gate held (Goal Current 0 written). Returns the 1 ms truth rows and each row's
-    distance beyond the edge (deg of rotation; of direction for two servos)."""
+    whose gate held (Goal Current 0 written); ``rules``: the law is given the previous read,
+    the period and whether the wall pushed (as the sources do), False: the wall alone (before
+    round 3's let-go rules). Returns the 1 ms truth rows and each row's distance beyond the
+    edge (deg of rotation; of direction for two servos)."""
     three = len(script[0]) == 4
     ids = (4, 5, 6) if three else (3, 4)
     clock = [0.0]
@@ -93,8 +113,10 @@ def stepped(region, script, seconds, let_go_s=None, held=()):
         servo.write(38, MOTOR.units_for(LAW.cap_nm).to_bytes(2, "little"))  # Current Limit
         servo.write(FEEL_MAP.address, feel_map())
         servo.write(64, bytes([1]))  # torque on
-    sim.set_operator({"script": script, "let_go_s": let_go_s, **HAND})
-    rows, engaged = [], False
+    sim.set_operator(
+        {"script": script, "let_go_s": let_go_s, **HAND, "stiffness_nm_deg": stiffness}
+    )
+    rows, engaged, previous = [], False, None
     for k in range(round(seconds * 200.0)):
         for servo in servos:
             servo.refresh(sim.time_s)
@@ -102,14 +124,17 @@ def stepped(region, script, seconds, let_go_s=None, held=()):
         if three:
             pose = rig.angles_of(ticks)
             q = pose_quat_scalar(*pose)
-            push = push3_for(LAW, MOTOR, pose, q, region.correct(q), rig.roll_limits)
+            past = (previous, 0.005, engaged) if rules else ()
+            push = push3_for(LAW, MOTOR, pose, q, region.correct(q), rig.roll_limits, *past)
             push = held3(pose) if k in held else push
             goal = push.goal
         else:
             pose = rig.ticks_to_angles(*ticks)
             q = np.asarray(pan_tilt_to_quat(*pose))
-            push = push_for(LAW, MOTOR, pose, q, region.correct(q))
+            past = (previous, 0.005, engaged) if rules else ()
+            push = push_for(LAW, MOTOR, pose, q, region.correct(q), *past)
             goal = (push.goal_pan, push.goal_tilt)
+        previous = pose
         for step in range(5):
             if step == 1:
                 if push.goal_current and not engaged:  # the wall comes on: torque off, on
@@ -174,6 +199,38 @@ def energy_case(region, script) -> dict:
     return out
 
 
+def outward_count(region, rows) -> tuple[int, int]:
+    """1 ms samples outside the region whose joint torques point away from the correction
+    (dot product with ``corrected pose - pose`` < 0); samples inside with any torque."""
+    outward = inside = 0
+    for r in rows:
+        if not any(r["motor_nm"]):
+            continue
+        present = np.radians(r["pose_deg"])
+        if len(present) == 3:
+            q = pose_quat_scalar(*present)
+            roll_limits = RollRig(default_sim_profile("sim3")).roll_limits
+            target = pan_tilt_roll_scalar(region.correct(q), present[0], present[2], *roll_limits)
+        else:
+            q = np.asarray(pan_tilt_to_quat(*present))
+            target = quat_to_pan_tilt(region.correct(q))
+        if bool(region.contains(q)):
+            inside += 1
+        elif float(np.dot(r["motor_nm"], np.subtract(target, present))) < 0.0:
+            outward += 1
+    return outward, inside
+
+
+def pull_case(region, script, stiffness) -> dict:
+    """Pressed 20 deg beyond, held, pulled back inside in 0.2 s: outward samples without and
+    with the let-go rules, and the samples inside with torque (with them)."""
+    before = outward_count(
+        region, stepped(region, script, 5.0, stiffness=stiffness, rules=False)[0]
+    )
+    after = outward_count(region, stepped(region, script, 5.0, stiffness=stiffness)[0])
+    return {"before": before[0], "after": after[0], "inside": after[1] + before[1]}
+
+
 def held_case(region) -> dict:
     """The twist press with the gate held 50 ms at 3.2 s (cycles 640-649): how far the hand
     takes the released leader, and whether the motors were off from the first held write."""
@@ -223,7 +280,7 @@ def transfers_case(rounds: int = 300) -> dict:
     }
 
 
-def render(presses, energies, held, transfers, load, end_load, fit_s) -> str:
+def render(presses, energies, pulls, held, transfers, load, end_load, fit_s) -> str:
     lines = [
         "# A three-servo leader feels a twist region's edge",
         "",
@@ -264,6 +321,22 @@ def render(presses, energies, held, transfers, load, end_load, fit_s) -> str:
         "| excursion | motor net work (mJ) | hand net work (mJ) |",
         "| --- | ---: | ---: |",
         *(f"| {n} | {e['motor']:+.3f} | {e['hand']:+.3f} |" for n, e in energies.items()),
+        "",
+        "A hand pulling the leader back inside: pressed 20 deg beyond the edge, held to 4 s, "
+        "pulled back to the middle by 4.2 s, hands of 0.05 and 0.2 N m/deg (at most 0.3 N m). "
+        "The setpoints move at most RETURN_SPEED, so their loops would pull a faster leader "
+        "back, away from the region; the let-go rules (decisions/haptic.md, round 3) leave it "
+        "free once a read shows it outrunning them. Counted: 1 ms samples outside the region "
+        "whose joint torques point away from the correction, the law without the rules "
+        "(before) and with them (after); inside: samples inside the region with any torque "
+        "(both runs).",
+        "",
+        "| pull | hand (N m/deg) | outward samples before | after | inside with torque |",
+        "| --- | ---: | ---: | ---: | ---: |",
+        *(
+            f"| {n} | {k:.2f} | {p['before']} | {p['after']} | {p['inside']} |"
+            for (n, k), p in pulls.items()
+        ),
         "",
         "The twist press with the gate held 50 ms at 3.2 s (a failed follower read): each held "
         "cycle releases all three servos (Goal Current 0).",
@@ -308,10 +381,15 @@ def main(argv: list[str] | None = None) -> int:
         "three servos, pan": energy_case(region3, excursion(0, 3)),
         "three servos, roll": energy_case(region3, excursion(2, 3)),
     }
+    pulls = {
+        (name, k): pull_case(region3 if len(script[0]) == 4 else cone, script, k)
+        for name, script in PULLS.items()
+        for k in (0.05, 0.2)
+    }
     held = held_case(region3)
     print(f"exact-rate cases done in {time.monotonic() - started:.0f} s")
     transfers = transfers_case()
-    text = render(presses, energies, held, transfers, load, os.getloadavg(), fit_s)
+    text = render(presses, energies, pulls, held, transfers, load, os.getloadavg(), fit_s)
     args.out.write_text(text)
     print(text)
     return 0 if all(p["held"] < 2.0 for p in presses.values()) and held["off"] else 1
