@@ -21,6 +21,10 @@ outline with a shoulder-like twist band over it, ``limbctl/data/demo_region3.yam
 - outside the truth: the share of the learned region (directions on a 1 deg lattice of its
   swing region, each with a twist drawn uniformly in its band) lying outside the true region
   (:func:`over_reach`): a region that held the truth by reaching far beyond it would show here;
+- largest gap: the longest time (ms) between two samples of the teaching. The recorder catches
+  up after a stall with back-to-back reads, so the samples column hides a hole; a hole of
+  ~0.3 s or more in the edge trace can cost several percent of the true region
+  (docs/decisions/twist.md, "A low-coverage teaching");
 - fit: the whole fit of each run's own 60 s teaching (``RigidMap(twist=True)`` on the
   three-servo recording, ``RigidMap()`` on the two-servo one, as ``limbctl train`` builds them),
   timed after both demos, interleaved, the best of FIT_REPEATS, and the ratio three / two servos
@@ -103,7 +107,9 @@ def one(rig: str, seconds: float, seed: int, keep: Path | None = None) -> dict:
             # the run's files (teaching, model, logs), to analyse a surprising figure later
             shutil.copytree(out, keep / f"{rig}_seed{seed}", dirs_exist_ok=True)
         model = load_model(out / "model.npz")
-        taught = load_dataset(out / "teach.limb").quaternions
+        dataset = load_dataset(out / "teach.limb")
+        taught = dataset.quaternions
+        gap_ms = 1e3 * float(np.diff(dataset.t).max()) if len(dataset.t) > 1 else float("nan")
         over = float("nan")
         if rig == "sim3":
             excursion = twist_excursions(
@@ -124,6 +130,7 @@ def one(rig: str, seconds: float, seed: int, keep: Path | None = None) -> dict:
             "held": held,
             "over": over,
             "taught": taught,
+            "gap_ms": gap_ms,
             "rate_hz": loop_rate_hz(out / "telemetry.jsonl"),
             "wall_s": wall,
         }
@@ -152,10 +159,10 @@ def main() -> None:
         f"{args.seeds}` (teaching {args.seconds:g} s per run; load average at the end "
         f"{load[0]:.1f} / {load[1]:.1f} on {os.cpu_count()} cores, shared with other work).",
         "",
-        "| rig | seed | exit | samples | goals | worst excursion (deg) "
+        "| rig | seed | exit | samples | largest gap (ms) | goals | worst excursion (deg) "
         "| true region held (2 deg in) | learned region outside the truth | loop rate (Hz) "
         "| rate vs two servos | fit (s) | fit vs two servos |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         held = "-" if np.isnan(r["held"]) else f"{100 * r['held']:.2f} %"
@@ -163,7 +170,8 @@ def main() -> None:
         ratio = f"{r['ratio']:.2f}" if "ratio" in r else "(peer)"
         fit_ratio = f"**{r['fit_ratio']:.2f}**" if "fit_ratio" in r else "(peer)"
         lines.append(
-            f"| {r['rig']} | {r['seed']} | {r['status']} | {len(r['taught'])} | {r['goals']} "
+            f"| {r['rig']} | {r['seed']} | {r['status']} | {len(r['taught'])} "
+            f"| {r['gap_ms']:.0f} | {r['goals']} "
             f"| {r['worst_deg']:.3f} | {held} | {over} | {r['rate_hz']:.1f} | {ratio} "
             f"| {r['fit_s']:.2f} | {fit_ratio} |"
         )
@@ -175,7 +183,8 @@ def main() -> None:
         "the true region's orientations 2 deg inside, and for the three-servo fit to take at "
         "most twice the two-servo fit of a 60 s teaching (fit columns: each run's own "
         f"teaching, the best of {FIT_REPEATS}, interleaved after the demos). A teaching "
-        "recorded under heavy load holds fewer samples than 60 s at 125 Hz (samples column).",
+        "recorded under heavy load holds fewer samples than 60 s at 125 Hz (samples column) "
+        "and longer gaps between them (largest gap column).",
     ]
     args.out.write_text("\n".join(lines) + "\n", encoding="utf-8")
     print("\n".join(lines))
