@@ -184,6 +184,52 @@ def station_estimates_reference(
     return move
 
 
+def over_hole(owner: np.ndarray, depth: np.ndarray, stations: int, limit: float) -> np.ndarray:
+    """Which of the stations (K,) bool lie over a hole in the taught edge.
+
+    A station lies over a hole when it owns readings (``owner`` (N,), ``depth`` (N,) rad,
+    :func:`readings`) but none of them within ``limit`` (rad) of the curve: its nearest taught
+    directions are interior samples, deeper than its window reaches along the curve, and say
+    nothing of where the edge lies there (a recorder that missed part of the edge trace).
+    """
+    outermost = np.full(stations, -np.inf)
+    np.maximum.at(outermost, owner, depth)
+    return np.isfinite(outermost) & (outermost < -limit)
+
+
+def bridged_estimates(
+    s: np.ndarray, total: float, owner: np.ndarray, depth: np.ndarray, reach: int, h: float
+) -> np.ndarray:
+    """:func:`station_estimates` (K,) rad, bridging the stations over a hole (:func:`over_hole`,
+    deeper than the half window ``h`` rad).
+
+    Without such stations the estimates are :func:`station_estimates` itself. Otherwise the
+    readings of those stations are left out of every window, and each station whose window
+    then holds no reading takes the estimate interpolated linearly along the curve between the
+    nearest stations either side whose windows hold readings: the curve keeps its course over
+    the hole (the supported loop's bridge), moved as the stations at the hole's two ends are.
+    Inward moves stay with the readings, which only ever lie at a hole's ends.
+    """
+    k = s.shape[0]
+    hole = over_hole(owner, depth, k, h)
+    if not hole.any():
+        return station_estimates(s, total, owner, depth, reach)
+    kept = ~hole[owner]
+    estimate = station_estimates(s, total, owner[kept], depth[kept], reach)
+    counts = np.bincount(owner[kept], minlength=k)
+    # readings in the window i - reach .. i + reach (circular)
+    window = sum(np.roll(counts, shift) for shift in range(-reach, reach + 1))
+    read = np.flatnonzero(window > 0)
+    if read.size == 0 or read.size == k:
+        return estimate
+    # linear along the curve, circularly: the read stations repeated one loop either side
+    at = np.concatenate([s[read] - total, s[read], s[read] + total])
+    value = np.tile(estimate[read], 3)
+    empty = window == 0
+    estimate[empty] = np.interp(s[empty], at, value)
+    return estimate
+
+
 def local_quadratic(curve: np.ndarray, sigma: float) -> np.ndarray:
     """Local quadratic regression (K, 3) of a closed curve's stations (K, 3), evenly spaced.
 
@@ -225,7 +271,8 @@ def trace_edge(loop: np.ndarray, data: np.ndarray, max_offset: float) -> np.ndar
         s, total = station_positions(curve)
         owner, depth = readings(curve, data)
         reach = max(1, int(round(h * k / total)))
-        move = smooth_along(station_estimates(s, total, owner, depth, reach), s, total, 0.5 * h)
+        estimate = bridged_estimates(s, total, owner, depth, reach, h)
+        move = smooth_along(estimate, s, total, 0.5 * h)
         normal = station_normals(curve)
         curve = _moved(curve, normal, np.minimum(move, max_offset))
         # smoothing: outward by at most ``cap`` a round
