@@ -71,7 +71,7 @@ THIN_GROWTH = 1.05
 #: Version of what a fit builds from given samples, raised whenever the construction changes
 #: the region some data give: cached `limbctl eval` results are keyed on it. Saved models carry
 #: their mesh and keep answering as they did (their format is ``GATE_VERSION``'s business).
-FIT_VERSION = 3
+FIT_VERSION = 4
 
 
 class TaughtRegion:

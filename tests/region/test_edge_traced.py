@@ -1,12 +1,17 @@
+from pathlib import Path
+
 import numpy as np
 import pytest
 
+from firmware_sim.regions import grid_inside
 from limbctl.envelope import RigidMap
 from limbctl.envelope.synthetic import SMALL_KIDNEY, ConeRegion, PolygonRegion, to_quaternions
 from limbctl.geometry.quat import direction_angle, limb_direction
 from limbctl.region import edge_traced as et
+from limbctl.region.loops import resample_loop, station_positions
 
 X = np.array([1.0, 0.0, 0.0])
+REPO = Path(__file__).resolve().parents[2]
 
 
 def circle(radius_deg: float, n: int) -> np.ndarray:
@@ -106,3 +111,96 @@ def test_a_small_kidney_gets_a_traced_edge_near_its_true_edge(seed):
     assert np.all(out[valid] == q[valid], axis=1).mean() >= 0.99
     # taught samples stay inside (up to the acceptance's tolerance)
     assert m.contains(to_quaternions(train)).mean() >= 0.999
+
+
+def _hole_readings():
+    """Stations of a 20 deg circle; readings on the curve at every station but 30..35 (a hole
+    in the edge trace), and interior readings 15 deg inside over the hole."""
+    curve, _, _ = resample_loop(circle(20.0, 400), np.radians(et.TRACE_STEP_DEG))
+    s, total = station_positions(curve)
+    k = curve.shape[0]
+    edge = np.setdiff1d(np.arange(k), np.arange(30, 36))
+    owner = np.concatenate([np.repeat(edge, 3), np.arange(31, 35)])
+    depth = np.concatenate([np.zeros(3 * edge.size), np.full(4, -np.radians(15.0))])
+    return s, total, owner, depth
+
+
+def test_without_a_hole_the_bridged_estimates_are_the_estimates_to_the_bit():
+    s, total, owner, depth = _hole_readings()
+    edge = depth == 0.0
+    h = np.radians(3.0)
+    plain = et.station_estimates(s, total, owner[edge], depth[edge], 2)
+    assert np.array_equal(et.bridged_estimates(s, total, owner[edge], depth[edge], 2, h), plain)
+    assert not et.over_hole(owner[edge], depth[edge], s.size, h).any()
+
+
+def test_a_hole_is_bridged_between_the_stations_that_read_the_edge():
+    s, total, owner, depth = _hole_readings()
+    h = np.radians(3.0)
+    hole = et.over_hole(owner, depth, s.size, h)
+    assert np.array_equal(np.flatnonzero(hole), np.arange(31, 35))
+    # without the bridge the interior readings pull the stations over the hole 15 deg in
+    plain = et.station_estimates(s, total, owner, depth, 2)
+    assert np.degrees(plain[31:35]).min() < -10.0
+    bridged = np.degrees(et.bridged_estimates(s, total, owner, depth, 2, h))
+    # with it the hole takes the estimates of its ends: the edge's readings at depth 0
+    assert np.abs(bridged).max() < 0.5
+
+
+#: The demo's teaching hand (both rigs: the same swing outline) from the rest pose, sampled at
+#: 125 Hz for 60 s as the recorder would without a stall (``bench_envelope.hand_samples``).
+DEMO_RATE_HZ = 125.0
+DEMO_SECONDS = 60.0
+#: Stretches cut out of the edge trace (start s, length s): the recorder's stall of issue 19.
+#: Without the bridge the two-servo teaching held 92.02 / 93.22 / 91.81 % of the true
+#: region 2 deg inside (docs/bench_edge_hole.md).
+CUTS = ((6.0, 0.4), (18.0, 0.4), (9.0, 0.5))
+
+
+def _demo_teaching(name: str):
+    """The hand of ``limbctl/data/NAME`` (seed 0) taking hold at the rest pose, its poses
+    (N, 3) rad (pan, tilt, roll; roll 0 on two servos) at DEMO_RATE_HZ and their times (N,) s."""
+    from firmware_sim.twist_hand import hand_from_yaml
+
+    hand = hand_from_yaml(REPO / "limbctl" / "data" / name, seed=0)
+    hand.start_from(0.0, 0.0)
+    t = np.arange(int(DEMO_SECONDS * DEMO_RATE_HZ)) / DEMO_RATE_HZ
+    pose = np.array([(tuple(hand.pose_deg(float(x))) + (0.0,))[:3] for x in t])
+    return hand, np.radians(pose), t
+
+
+def _cut(t: np.ndarray, start: float, length: float) -> np.ndarray:
+    """The rows (bool, (N,)) a recorder stalled from ``start`` for ``length`` s still holds."""
+    return ~((t >= start) & (t < start + length))
+
+
+def test_a_two_servo_edge_trace_with_a_recorder_hole_keeps_the_true_region():
+    from limbctl.demo import true_outline
+    from limbctl.geometry.gimbal import pan_tilt_to_direction, pan_tilt_to_quat
+
+    hand, pose, t = _demo_teaching("demo_region.yaml")
+    grid = np.radians(grid_inside(hand.region, 1.0, 0.0))
+    outline = np.radians(true_outline(REPO / "limbctl" / "data" / "demo_region.yaml"))
+    edge = pan_tilt_to_direction(outline[:, 0], outline[:, 1])
+    inner = direction_angle(
+        pan_tilt_to_direction(grid[:, 0], grid[:, 1])[:, None, :], edge[None, :, :]
+    ).min(axis=1) >= np.radians(2.0)
+    probes = pan_tilt_to_quat(grid[inner, 0], grid[inner, 1])
+    for start, length in CUTS:
+        keep = _cut(t, start, length)
+        m = RigidMap().fit(pan_tilt_to_quat(pose[keep, 0], pose[keep, 1]))
+        held = np.mean(m.contains(probes))
+        assert held >= 0.99, f"cut at {start} s: {100 * held:.2f} % held"
+
+
+def test_a_three_servo_edge_trace_with_a_recorder_hole_keeps_the_true_region():
+    from limbctl.demo import true_twist_probes
+    from limbctl.geometry.gimbal3 import pan_tilt_roll_to_quat
+
+    _, pose, t = _demo_teaching("demo_region3.yaml")
+    probes = true_twist_probes(REPO / "limbctl" / "data" / "demo_region3.yaml")
+    for start, length in CUTS[:2]:
+        keep = _cut(t, start, length)
+        m = RigidMap(twist=True).fit(pan_tilt_roll_to_quat(*pose[keep].T))
+        held = np.mean(np.asarray(m.contains(probes), dtype=bool))
+        assert held >= 0.99, f"cut at {start} s: {100 * held:.2f} % held"
