@@ -19,7 +19,12 @@ Starting from a data-supported loop, resampled to stations ``TRACE_STEP_DEG`` ap
    evaluated at the station (the line through two of them that passes over all the others and
    is lowest there; a lone deep point lifts a station only as far as the line from it does),
    plus the expected gap between that line and the edge
-   (:func:`limbctl.region.gaps.majorant_gap`).
+   (:func:`limbctl.region.gaps.majorant_gap`). A station whose own readings all lie deeper
+   than ``h`` lies over a hole in the taught edge (:func:`over_hole`: a recorder that missed
+   part of the edge trace leaves only interior samples there); its readings are left out and
+   the stations left without readings take the estimates interpolated between the hole's
+   ends (:func:`bridged_estimates`), so the curve bridges the hole instead of digging a notch
+   to the interior samples.
 3. *Move* each station out (or in) by its estimate, smoothed along the curve (Gaussian, ``h/2``).
 4. *Smooth* the curve by local quadratic regression of its positions (:func:`local_quadratic`,
    Gaussian weights of width ``TRACE_SMOOTH_DEG``): circles and other quadratic stretches come

@@ -152,8 +152,8 @@ def test_a_hole_is_bridged_between_the_stations_that_read_the_edge():
 DEMO_RATE_HZ = 125.0
 DEMO_SECONDS = 60.0
 #: Stretches cut out of the edge trace (start s, length s): the recorder's stall of issue 19.
-#: Without the bridge the two-servo teaching held 92.02 / 93.22 / 91.81 % of the true
-#: region 2 deg inside (docs/bench_edge_hole.md).
+#: Without the bridge the traced edge held 91.75 % (two servos) and 91.60 % (three) of the
+#: true region 2 deg inside at the first; docs/bench_edge_hole.md has every place.
 CUTS = ((6.0, 0.4), (18.0, 0.4), (9.0, 0.5))
 
 
