@@ -212,8 +212,8 @@ def bridged_estimates(
     readings of those stations are left out of every window, and each station whose window
     then holds no reading takes the estimate interpolated linearly along the curve between the
     nearest stations either side whose windows hold readings: the curve keeps its course over
-    the hole (the supported loop's bridge), moved as the stations at the hole's two ends are.
-    Inward moves stay with the readings, which only ever lie at a hole's ends.
+    the hole (the supported loop's bridge), moved as the stations at the hole's two ends are:
+    a station over a hole moves neither further in nor further out than those two.
     """
     k = s.shape[0]
     hole = over_hole(owner, depth, k, h)
