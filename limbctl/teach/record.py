@@ -10,6 +10,9 @@ of the edge is closed and of the inside covered, the largest gap (pan/tilt deg) 
 region is ready to train. Each assessment is also handed to ``on_guidance`` (a live view).
 On a three-servo rig the twist guide (:mod:`limbctl.teach.twist_guide`) says, on the same line
 and at the same pace, where the twist is still untaught; its assessments go to ``on_twist``.
+A hole in the recording (no sample for more than HOLE_MIN_S, :mod:`limbctl.teach.holes`) next
+to the edge keeps that stretch of edge open in the guide until it is traced again; the summary
+lists each hole with where the limb was before and after it.
 """
 
 from __future__ import annotations
@@ -82,6 +85,8 @@ class RecordSummary:
         ]
         out.extend(f"dropout            {dropout}" for dropout in self.dropouts)
         if self.guidance:
+            # gaps of more than HOLE_MIN_S between samples, and the stretch of edge each hides
+            out.extend(f"hole               {hole.line()}" for hole in self.guidance.holes)
             out.append(f"guide              {self.guidance.line()}")
         if self.twist:
             out.append(f"guide              {self.twist.line()}")
