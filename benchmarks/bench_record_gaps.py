@@ -1,4 +1,4 @@
-"""Where a recorder's hole comes from: the recorder and the simulator timed side by side, under load.
+"""Where a recorder's hole comes from: the recorder and the simulator timed side by side, loaded.
 
 Run: ``.venv/bin/python benchmarks/bench_record_gaps.py --seconds 20 --runs 3 --burners 0,4``
 (writes docs/bench_record_gaps.md).
@@ -33,6 +33,8 @@ import time
 from pathlib import Path
 
 import numpy as np
+
+from limbctl.errors import BusError
 
 ROOT = Path(__file__).resolve().parents[1]
 RIG = ROOT / "calib" / "rigs" / "sim3.yaml"
@@ -103,7 +105,7 @@ def serve_traced(link: str, trace: str, config_json: str) -> None:
     )
 
 
-def record_once(seconds: float, seed: int, workdir: Path) -> dict:
+def record_once(seconds: float, seed: int, workdir: Path, latency_ms: float = 2.0) -> dict:
     """One traced recording; its figures."""
     from limbctl.servo.bus import ServoBus
     from limbctl.servo.profiles import load_rig_profile
@@ -125,7 +127,7 @@ def record_once(seconds: float, seed: int, workdir: Path) -> dict:
     reads: list[tuple[float, float, int, float, float]] = []
     try:
         with ServoBus(
-            str(link), profile.baud, profile.ids, profile.model, latency_timer_ms=2.0
+            str(link), profile.baud, profile.ids, profile.model, latency_timer_ms=latency_ms
         ) as bus:
             rig = rig_for(profile, bus)
             port = bus._port  # the SDK's port handler: its calls kept for the slowest read
@@ -248,6 +250,12 @@ def main() -> None:
         help="burner counts, interleaved; a count ending in s starts its burners in a session "
         "of their own (another autogroup of the scheduler), else in the recorder's",
     )
+    parser.add_argument(
+        "--latency-ms",
+        default="2",
+        help="latency timers (ms) the recorder's bus assumes, interleaved: each sets how long a "
+        "reply is awaited (2 * timer + 2 ms + bytes); 2 is what `limbctl record` uses on the pty",
+    )
     parser.add_argument("--keep", type=Path, help="keep each run's files in a folder made here")
     parser.add_argument("--label", default="", help="a name for this set of runs")
     parser.add_argument("--json", type=Path, help="append each run's figures here")
@@ -257,22 +265,31 @@ def main() -> None:
         tmp = tempfile.mkdtemp(dir=args.keep) if args.keep else None
         tmp = tmp or stack.enter_context(tempfile.TemporaryDirectory())
         for run in range(args.runs):
-            for count, own_session in counts:
+            for (count, own_session), latency in (
+                (c, lat) for c in counts for lat in map(float, args.latency_ms.split(","))
+            ):
                 burners = [
                     subprocess.Popen(
                         [sys.executable, "-c", "while 1: pass"], start_new_session=own_session
                     )
                     for _ in range(count)
                 ]
+                where = Path(tmp) / f"{run}_{count}{'s' * own_session}_{latency:g}"
                 try:
-                    result = record_once(
-                        args.seconds, run, Path(tmp) / f"{run}_{count}{'s' * own_session}"
-                    )
+                    result = record_once(args.seconds, run, where, latency)
+                except BusError as exc:  # the bus did not open: the simulator starved then too
+                    result = {"open_failed": str(exc)}
                 finally:
                     for b in burners:
                         b.kill()
                         b.wait()
-                result.update(burners=count, run=run, label=args.label, own_session=own_session)
+                result.update(
+                    burners=count,
+                    run=run,
+                    label=args.label,
+                    own_session=own_session,
+                    latency_ms=latency,
+                )
                 print(json.dumps(result), flush=True)
                 if args.json is not None:
                     with args.json.open("a") as f:

@@ -43,6 +43,14 @@ LOG_EVERY_S = 5.0
 #: A run of failed reads this long (s) or longer is reported as a dropout, with the servo and
 #: its length: ten samples at 100 Hz; shorter runs are a dropped reply or two, only counted.
 DROPOUT_REPORT_S = 0.1
+#: The latency timer (ms) a recording on the embedded simulator assumes, so a reply is awaited
+#: 2 * 25 + 2 ms + bytes ~ 52 ms instead of ~6 ms (``open_rig``'s 2 ms for a pty). On a loaded
+#: machine the simulator's process runs in bursts 50-100 ms apart; a 6 ms wait let each late
+#: reply go and asked again, so a read failed until a burst happened to fall inside a wait, for
+#: 0.3-0.7 s (docs/decisions/twist.md, "The recorder's holes"). A recorder is no control loop:
+#: a late sample costs nothing, a missed one a stretch of edge. A servo truly off the bus then
+#: costs ~0.3 s a read (three tries and a ping of each servo); real servos keep the 16 ms default.
+SIM_LATENCY_TIMER_MS = 25.0
 
 
 class Backdrivable(Protocol):
