@@ -101,7 +101,7 @@ def run_record(options: RecordOptions, view: LiveView | None = None) -> int:
     Ctrl-C, duration), 3 when a bus failure ended it."""
     from limbctl.session import demo_region_path
     from limbctl.teach.dataset import DatasetWriter
-    from limbctl.teach.record import check_rate, record, stop_on_enter
+    from limbctl.teach.record import SIM_LATENCY_TIMER_MS, check_rate, record, stop_on_enter
     from limbctl.teach.warm import warming_in_background
 
     check_rate(options.rate)
@@ -111,6 +111,8 @@ def run_record(options: RecordOptions, view: LiveView | None = None) -> int:
     if options.hand is None and profile.roll is not None:  # the packaged region with twist
         hand = hand.with_name("demo_region3.yaml")
     meta = {"rate_hz": options.rate, "simulated": conn.port is None and profile.is_sim}
+    if meta["simulated"] and conn.latency_timer_ms is None:  # late replies kept: see the constant
+        conn = replace(conn, latency_timer_ms=SIM_LATENCY_TIMER_MS)
     # the writer checks the path and free space before any servo is touched, and creates the
     # file only once the port is ours: a refused start (port in use, no servo) leaves no empty
     # dataset behind to block the next `--out`. The calibration the joint angles are read under

@@ -35,8 +35,13 @@ inside when its centre is); a cell is covered when a sample lies in it. ``inside
 covered inside cells / inside cells. Uncovered inside cells joined by their sides are the *inside
 gaps*, sized as a share of the inside cells and located by their middle (pan/tilt deg).
 
-*Ready to train* when ``edge_closed >= READY_EDGE_CLOSED`` and ``inside_covered >=
-READY_INSIDE_COVERED``: the whole edge is traced and strokes have crossed the middle.
+*Holes.* A gap of more than HOLE_MIN_S between two samples (the recorder missed them) next to
+the edge may hide a stretch of it: its bins count as open until a later sample traces them
+(:mod:`limbctl.teach.holes`); the line then asks to re-trace the edge there.
+
+*Ready to train* when ``edge_closed >= READY_EDGE_CLOSED``, ``inside_covered >=
+READY_INSIDE_COVERED`` and no hole's stretch of edge is open: the whole edge is traced and
+strokes have crossed the middle.
 
 *Phase*: ``start`` (too few samples to say), ``edge`` (the edge is not closed yet: trace it),
 ``middle`` (closed; wander through the middle), ``ready``.
@@ -53,6 +58,7 @@ from scipy.spatial import ConvexHull, QhullError
 
 from limbctl.geometry.gimbal import direction_to_pan_tilt, pan_tilt_to_direction
 from limbctl.geometry.quat import tangent_frame
+from limbctl.teach.holes import Hole, find_holes
 
 #: Azimuth sectors for the outline: 5 deg each, fine enough to follow a kidney's lobes, coarse
 #: enough that each holds samples of a traced edge.
@@ -153,6 +159,9 @@ class Guidance:
         (pan_deg, tilt_deg) of the centre the picture is drawn about.
     spread_deg : float
         Largest angle between a sample and the samples' mean direction.
+    holes : tuple of Hole
+        Gaps of more than HOLE_MIN_S between samples: those hiding an open stretch of edge
+        first, then the longest (at most MAX_HOLES).
     """
 
     samples: int
@@ -164,6 +173,13 @@ class Guidance:
     ready: bool
     centre_deg: tuple[float, float]
     spread_deg: float
+    holes: tuple[Hole, ...] = ()
+
+    @property
+    def open_hole(self) -> Hole | None:
+        """The hole hiding the largest stretch of edge not re-traced yet; None when none."""
+        holes = [h for h in self.holes if h.open]
+        return max(holes, key=lambda h: h.open_fraction) if holes else None
 
     @property
     def largest_gap(self) -> EdgeGap | InsideGap | None:
@@ -179,7 +195,15 @@ class Guidance:
             f"{self.phase:6s} edge closed {100 * self.edge_closed:3.0f} %  "
             f"inside covered {100 * self.inside_covered:3.0f} %"
         )
-        gap = self.largest_gap
+        gap, hole = self.largest_gap, self.open_hole
+        if hole is not None and hole.edge_deg is not None:
+            p, t = hole.edge_deg
+            where = (
+                f"edge gap {100 * hole.open_fraction:.0f} % in a {hole.duration_s:.2f} s hole of "
+                f"the recording around ({p:+.0f}, {t:+.0f})"
+            )
+            tail = f"re-trace the edge near pan {p:+.0f}, tilt {t:+.0f}"
+            return f"{head}  {where} (pan, tilt deg)  -> {tail}"
         if isinstance(gap, EdgeGap):
             (p0, t0), (p1, t1) = gap.start_deg, gap.end_deg
             where = (
@@ -279,11 +303,13 @@ def _speed_deg_s(t_s: np.ndarray, d: np.ndarray) -> np.ndarray:
         return np.where(t_s[after] > t_s[before], angle / (t_s[after] - t_s[before]), 0.0)
 
 
-def _edge(rho, phi, slow, outline_phi, outline_rho, centre) -> tuple[float, tuple[EdgeGap, ...]]:
-    on_edge = slow & (rho >= _outline_at(phi, outline_phi, outline_rho) - EDGE_BAND_DEG)
+def _edge(
+    rho, phi, on_edge, outline_phi, outline_rho, centre, unseen
+) -> tuple[float, tuple[EdgeGap, ...]]:
     fine = ((phi[on_edge] + math.pi) / (2.0 * math.pi) * EDGE_BINS).astype(np.int64) % EDGE_BINS
     filled = np.zeros(EDGE_BINS, dtype=bool)
     filled[fine] = True
+    filled[unseen] = False  # the stretches of edge holes of the recording hide
     # bin b covers phi in [-pi + b w, -pi + (b + 1) w); a notch at its middle is not an edge
     middles = -math.pi + (np.arange(EDGE_BINS) + 0.5) * (2.0 * math.pi / EDGE_BINS)
     try:
@@ -364,13 +390,34 @@ def assess_directions(t_s: np.ndarray, d: np.ndarray) -> Guidance:
     if n < MIN_SAMPLES or len(outline_phi) < 3:
         return Guidance(n, "start", 0.0, 0.0, (), (), False, centre_deg, spread)
     slow = _speed_deg_s(t_s, d) <= EDGE_MAX_SPEED_DEG_S
-    edge_closed, edge_gaps = _edge(rho, phi, slow, outline_phi, outline_rho, centre)
+    in_band = rho >= _outline_at(phi, outline_phi, outline_rho) - EDGE_BAND_DEG
+    on_edge = slow & in_band
+    holes, unseen = find_holes(
+        t_s,
+        rho,
+        phi,
+        in_band,
+        on_edge,
+        EDGE_BINS,
+        outline_at=lambda p: _outline_at(p, outline_phi, outline_rho),
+        pan_tilt_deg=lambda x, y: _pan_tilt_deg(x, y, centre),
+    )
+    edge_closed, edge_gaps = _edge(rho, phi, on_edge, outline_phi, outline_rho, centre, unseen)
     inside_covered, inside_gaps = _inside(rho, phi, outline_phi, outline_rho, centre)
-    edge_done = edge_closed >= READY_EDGE_CLOSED
+    edge_done = edge_closed >= READY_EDGE_CLOSED and not any(h.open for h in holes)
     ready = edge_done and inside_covered >= READY_INSIDE_COVERED
     phase = "ready" if ready else ("middle" if edge_done else "edge")
     return Guidance(
-        n, phase, edge_closed, inside_covered, edge_gaps, inside_gaps, ready, centre_deg, spread
+        n,
+        phase,
+        edge_closed,
+        inside_covered,
+        edge_gaps,
+        inside_gaps,
+        ready,
+        centre_deg,
+        spread,
+        holes,
     )
 
 

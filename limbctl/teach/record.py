@@ -10,6 +10,9 @@ of the edge is closed and of the inside covered, the largest gap (pan/tilt deg) 
 region is ready to train. Each assessment is also handed to ``on_guidance`` (a live view).
 On a three-servo rig the twist guide (:mod:`limbctl.teach.twist_guide`) says, on the same line
 and at the same pace, where the twist is still untaught; its assessments go to ``on_twist``.
+A hole in the recording (no sample for more than HOLE_MIN_S, :mod:`limbctl.teach.holes`) next
+to the edge keeps that stretch of edge open in the guide until it is traced again; the summary
+lists each hole with where the limb was before and after it.
 """
 
 from __future__ import annotations
@@ -40,6 +43,14 @@ LOG_EVERY_S = 5.0
 #: A run of failed reads this long (s) or longer is reported as a dropout, with the servo and
 #: its length: ten samples at 100 Hz; shorter runs are a dropped reply or two, only counted.
 DROPOUT_REPORT_S = 0.1
+#: The latency timer (ms) a recording on the embedded simulator assumes, so a reply is awaited
+#: 2 * 25 + 2 ms + bytes ~ 52 ms instead of ~6 ms (``open_rig``'s 2 ms for a pty). On a loaded
+#: machine the simulator's process runs in bursts 50-100 ms apart; a 6 ms wait let each late
+#: reply go and asked again, so a read failed until a burst happened to fall inside a wait, for
+#: 0.3-0.7 s (docs/decisions/twist.md, "The recorder's holes"). A recorder is no control loop:
+#: a late sample costs nothing, a missed one a stretch of edge. A servo truly off the bus then
+#: costs ~0.3 s a read (three tries and a ping of each servo); real servos keep the 16 ms default.
+SIM_LATENCY_TIMER_MS = 25.0
 
 
 class Backdrivable(Protocol):
@@ -82,6 +93,8 @@ class RecordSummary:
         ]
         out.extend(f"dropout            {dropout}" for dropout in self.dropouts)
         if self.guidance:
+            # gaps of more than HOLE_MIN_S between samples, and the stretch of edge each hides
+            out.extend(f"hole               {hole.line()}" for hole in self.guidance.holes)
             out.append(f"guide              {self.guidance.line()}")
         if self.twist:
             out.append(f"guide              {self.twist.line()}")

@@ -210,3 +210,44 @@ def test_thirty_seconds_of_the_simulators_hand_teach_a_model_that_holds_the_regi
     held = model.contains(pan_tilt_to_quat(np.radians(poses[:, 0]), np.radians(poses[:, 1])))
     assert len(poses) > 9000
     assert np.mean(held) >= 0.98
+
+
+@pytest.mark.parametrize("rig", ["sim", "sim3"])
+def test_a_hole_in_the_recording_over_the_edge_trace_is_listed_and_asks_for_a_retrace(
+    tmp_path, rig
+):
+    """The pan servo drops off the bus for half a second while the hand traces the edge (as a
+    busy machine stalls the simulator, docs/decisions/twist.md): the summary lists the hole with
+    where the limb was, and the guide asks to re-trace the edge there instead of saying ready."""
+    hand = demo_region_path()
+    if rig == "sim3":
+        hand = hand.with_name("demo_region3.yaml")
+    vanished: list[Guidance] = []
+    with open_rig(rig_path=None if rig == "sim" else rig, hand=hand, seed=2) as session:
+
+        def on_guidance(guidance: Guidance) -> None:
+            # once, when the hand is tracing the edge (some of it closed)
+            if not vanished and guidance.edge_closed >= 0.1:
+                session.simulator.vanish(1, 0.5)
+                vanished.append(guidance)
+
+        with DatasetWriter(tmp_path / "teach.limb", rig=rig) as writer:
+            summary = record(session.rig, writer, 100.0, 6.0, on_guidance=on_guidance)
+    assert vanished, "the hand never reached the edge"
+    assert any(d.startswith("servo 1 silent") for d in summary.dropouts), summary.dropouts
+    final = summary.guidance
+    long_holes = [h for h in final.holes if h.duration_s >= 0.45]
+    assert long_holes, final.holes
+    hole = long_holes[0]
+    assert hole.at_edge and hole.open and hole.edge_deg is not None
+    assert not final.ready and "READY TO TRAIN" not in final.line()
+    p, t = final.open_hole.edge_deg
+    assert f"re-trace the edge near pan {p:+.0f}, tilt {t:+.0f}" in final.line()
+    lines = summary.lines()
+    assert f"hole               {hole.line()}" in lines
+    # the hole's time and places come from the samples written to disk
+    data = load_dataset(tmp_path / "teach.limb")
+    k = int(np.searchsorted(data.t, hole.start_s))
+    assert data.t[k] == hole.start_s and data.t[k + 1] == hole.end_s
+    assert hole.before_deg == pytest.approx((data.pan_deg[k], data.tilt_deg[k]), abs=1e-6)
+    assert hole.after_deg == pytest.approx((data.pan_deg[k + 1], data.tilt_deg[k + 1]), abs=1e-6)

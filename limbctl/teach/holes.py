@@ -1,0 +1,190 @@
+"""Holes in a teaching: stretches of time with no sample, and the stretch of edge one may hide.
+
+A recorder can miss a few tenths of a second of samples (a busy machine stalls the process that
+answers for the servos, or the recorder itself; docs/decisions/twist.md, "The recorder's holes")
+and catch up at once, so the sample count looks normal. A hole while the person traces the edge
+leaves a stretch of edge that was never seen; a fit digs a notch there. The guide
+(:mod:`limbctl.teach.guide`) finds such holes from the samples' times alone:
+
+*Hole.* Two consecutive samples more than :data:`HOLE_MIN_S` apart.
+
+*At the edge.* In the guide's picture (azimuth ``phi`` about the centre, distance ``rho``), a
+hole is at the edge when the sample before it or the one after it lies in the outline's band
+(``rho >= r_out(phi) - EDGE_BAND_DEG``, as for edge closure). The stretch of edge it may hide
+runs between the two samples' azimuths, the shorter way round: the guide's fine edge bins
+strictly between the bins of the two samples (the samples' own bins were seen).
+
+*Re-traced.* A bin of that stretch is taught again when a sample taken after the hole lies on
+the edge in it (slow and in the band, as for edge closure). Until every bin of the stretch is,
+the hole is *open*: the guide counts those bins as open edge, asks to re-trace the edge at the
+stretch's middle and does not say ready to train.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+#: A gap between two samples longer than this (s) is a hole. The guide counts a sample toward the
+#: edge when the limb moved at most 25 deg/s (guide.EDGE_MAX_SPEED_DEG_S); in 0.2 s a trace at
+#: that pace passes 5 deg of edge, about the shortest stretch whose loss cost the fit share of the
+#: region (cuts of 0.1-0.2 s, 2-4 deg of a traced edge, cost nothing; 0.3 s, ~5 deg, cost 4-7 %;
+#: docs/decisions/twist.md). A recorder at 100-125 Hz on an idle machine leaves gaps under 0.1 s.
+HOLE_MIN_S = 0.2
+#: Holes listed in a result, longest first.
+MAX_HOLES = 5
+
+
+@dataclass(frozen=True)
+class Hole:
+    """A stretch of time with no sample.
+
+    Attributes
+    ----------
+    start_s, end_s : float
+        Times (s) of the samples before and after it.
+    before_deg, after_deg : tuple of float
+        (pan_deg, tilt_deg) of the limb at those samples.
+    at_edge : bool
+        The sample before or after it lies in the outline's band (module docstring).
+    edge_deg : tuple of float or None
+        (pan_deg, tilt_deg) of the middle of the stretch of edge it may hide, on the outline;
+        None when it hides none (not at the edge, or its samples' azimuths share a bin).
+    fraction : float
+        That stretch's share of the turn about the centre.
+    open_fraction : float
+        The share of the turn of that stretch not yet re-traced; 0 once re-traced.
+    """
+
+    start_s: float
+    end_s: float
+    before_deg: tuple[float, float]
+    after_deg: tuple[float, float]
+    at_edge: bool
+    edge_deg: tuple[float, float] | None = None
+    fraction: float = 0.0
+    open_fraction: float = 0.0
+
+    @property
+    def duration_s(self) -> float:
+        return self.end_s - self.start_s
+
+    @property
+    def open(self) -> bool:
+        """It hides a stretch of edge not yet re-traced."""
+        return self.open_fraction > 0.0
+
+    def line(self) -> str:
+        """One line of words and figures for the recorder's summary."""
+        (p0, t0), (p1, t1) = self.before_deg, self.after_deg
+        head = (
+            f"{self.duration_s:.2f} s without samples from {self.start_s:.1f} s, the limb moved "
+            f"from ({p0:+.0f}, {t0:+.0f}) to ({p1:+.0f}, {t1:+.0f}) (pan, tilt deg)"
+        )
+        if self.edge_deg is None:
+            return head + ("; at the edge, no stretch of it missed" if self.at_edge else "; inside")
+        p, t = self.edge_deg
+        where = f"{100 * self.fraction:.0f} % of the edge around ({p:+.0f}, {t:+.0f})"
+        if self.open:
+            return f"{head}; {where} untaught -> re-trace the edge near pan {p:+.0f}, tilt {t:+.0f}"
+        return f"{head}; {where} re-traced since"
+
+
+def sample_gaps(t_s: np.ndarray, min_s: float = HOLE_MIN_S) -> np.ndarray:
+    """Indices ``k`` (H,) of the samples after which comes a hole: ``t[k + 1] - t[k] > min_s``."""
+    t_s = np.asarray(t_s, dtype=np.float64)
+    return np.flatnonzero(np.diff(t_s) > min_s)
+
+
+def hole_bins(phi_before: float, phi_after: float, bins: int) -> np.ndarray:
+    """The fine edge bins (indices into ``bins`` equal bins of the turn, bin b covering
+    ``[-pi + b w, -pi + (b + 1) w)``) strictly between the bins of two azimuths (rad), the
+    shorter way round; empty when they share a bin or are neighbours."""
+    width = 2.0 * math.pi / bins
+    b0 = int((phi_before + math.pi) // width) % bins
+    b1 = int((phi_after + math.pi) // width) % bins
+    # steps from b0 to b1 counter-clockwise; the other way round when that is shorter
+    ahead = (b1 - b0) % bins
+    if ahead <= bins // 2:
+        return (b0 + np.arange(1, ahead)) % bins
+    return (b1 + np.arange(1, bins - ahead)) % bins
+
+
+def open_bins(
+    t_s: np.ndarray,
+    phi: np.ndarray,
+    on_edge: np.ndarray,
+    after_s: float,
+    stretch: np.ndarray,
+    bins: int,
+) -> np.ndarray:
+    """The bins of ``stretch`` (S,) that no on-edge sample taken after ``after_s`` lies in.
+
+    ``t_s``, ``phi`` (rad) and ``on_edge`` (bool) are the samples' (N,), as the guide has them.
+    """
+    later = on_edge & (t_s > after_s)
+    width = 2.0 * math.pi / bins
+    seen = np.zeros(bins, dtype=bool)
+    seen[((phi[later] + math.pi) // width).astype(np.int64) % bins] = True
+    return stretch[~seen[stretch]]
+
+
+def find_holes(
+    t_s: np.ndarray,
+    rho: np.ndarray,
+    phi: np.ndarray,
+    in_band: np.ndarray,
+    on_edge: np.ndarray,
+    bins: int,
+    outline_at: Callable[[np.ndarray], np.ndarray],
+    pan_tilt_deg: Callable[[np.ndarray, np.ndarray], list[tuple[float, float]]],
+) -> tuple[tuple[Hole, ...], np.ndarray]:
+    """The recording's holes (module docstring) and the edge bins they leave unseen.
+
+    Parameters
+    ----------
+    t_s : ndarray, shape (N,)
+        The samples' times (s), in order.
+    rho, phi : ndarray, shape (N,)
+        Their places in the guide's picture: distance from the centre (deg), azimuth (rad).
+    in_band, on_edge : ndarray of bool, shape (N,)
+        In the outline's band; and on the edge (in the band and slow).
+    bins : int
+        Equal bins of the turn the edge is judged in.
+    outline_at : callable
+        ``r_out(phi)`` (deg) of azimuths (M,) rad.
+    pan_tilt_deg : callable
+        (pan_deg, tilt_deg) of picture points x, y (M,) deg.
+
+    Returns
+    -------
+    holes : tuple of Hole
+        Those hiding an open stretch of edge first, then the longest (at most MAX_HOLES).
+    unseen : ndarray of int
+        The bins of every open stretch (indices, repeats possible).
+    """
+    unseen: list[np.ndarray] = []
+    holes = []
+    width = 2.0 * math.pi / bins
+    for k in sample_gaps(t_s):
+        ends = np.array([k, k + 1])
+        before, after = pan_tilt_deg(rho[ends] * np.cos(phi[ends]), rho[ends] * np.sin(phi[ends]))
+        hole = Hole(float(t_s[k]), float(t_s[k + 1]), before, after, bool(in_band[ends].any()))
+        stretch = hole_bins(float(phi[k]), float(phi[k + 1]), bins) if hole.at_edge else ()
+        if len(stretch):
+            still = open_bins(t_s, phi, on_edge, hole.end_s, stretch, bins)
+            unseen.append(still)
+            # the stretch's middle, on the outline
+            middle = np.array([-math.pi + (stretch[len(stretch) // 2] + 0.5) * width])
+            r = outline_at(middle)
+            where = pan_tilt_deg(r * np.cos(middle), r * np.sin(middle))[0]
+            fraction, still_fraction = len(stretch) / bins, len(still) / bins
+            hole = Hole(
+                hole.start_s, hole.end_s, before, after, True, where, fraction, still_fraction
+            )
+        holes.append(hole)
+    holes.sort(key=lambda h: (-h.open_fraction, -h.duration_s))
+    return tuple(holes[:MAX_HOLES]), np.concatenate(unseen) if unseen else np.empty(0, np.int64)
