@@ -23,7 +23,6 @@ gain, cap, return speed and lead), on three joints, per cycle::
                                          back, away from the region
         d - m <= DEADBAND                at this pace inside the deadband by the next read
         m > 0 after a free cycle         still moving in: the wall comes on once it stops
-    and, pushing, LEAD grows by max(m, 0) (a leader the wall walks back keeps moving setpoints).
 
 Each servo's position loop (mode 5) drives its joint toward its Goal Position with at most Goal
 Current; every Goal Position lies from the leader's joint toward the corrected pose's, so the
@@ -132,15 +131,12 @@ def push3_for(
     # the goal on the joint-space line toward the corrected pose, at most LEAD ahead on any joint
     step = [t - p for t, p in zip(target, present, strict=True)]
     longest = max(abs(s) for s in step)
-    lead_deg = law.lead_deg
     if previous is not None and longest > 0.0:
         # the rotation toward the correction since the last read, on the joint-space line
         moved_in = moved_in_deg(present, previous, tuple(step))
         if lets_go(law, distance, moved_in, period_s, engaged):
             return free
-        # a leader the wall walks back: the goal leads it by how far it moved in, too
-        lead_deg += max(moved_in, 0.0)
-    scale = min(1.0, math.radians(lead_deg) / longest) if longest > 0.0 else 0.0
+    scale = min(1.0, math.radians(law.lead_deg) / longest) if longest > 0.0 else 0.0
     goal = [p + scale * s for p, s in zip(present, step, strict=True)]
     return Push3(
         units,

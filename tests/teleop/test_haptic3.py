@@ -131,9 +131,9 @@ def test_property_a_leader_outrunning_its_setpoints_or_still_moving_in_is_free_e
     near = wall.distance_deg - moved_in <= LAW.deadband_deg
     if outrun or near or (moved_in > 0.0 and not engaged):
         assert (push.goal_current, push.goal) == (0, present)
-    else:  # the wall's current, the goal further ahead by how far the leader moved in
-        assert push.goal_current == wall.goal_current
-        lead = math.radians(LAW.lead_deg + max(moved_in, 0.0))
+    else:  # the wall's current and goal, at most LEAD ahead (decisions/haptic.md, round 4)
+        assert push.goal_current == wall.goal_current and push.goal == wall.goal
+        lead = math.radians(LAW.lead_deg)
         assert np.max(np.abs(np.subtract(push.goal, present))) <= lead + 1e-12
 
 
