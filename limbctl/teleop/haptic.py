@@ -11,7 +11,8 @@ The law (:class:`FeelLaw`), per cycle of period T::
     d > DEADBAND:                   tau = min(K (d - DEADBAND), CAP)
                                     Goal Current = tau / kt           (rounded down)
                                     Goal Position = the corrected pose, reached from the
-                                    leader's pose by at most LEAD (two ticks)
+                                    leader's pose by at most LEAD (two ticks; three
+                                    where K (d - DEADBAND) > CAP)
                                     Profile Velocity = RETURN_SPEED
     but Goal Current 0 when, with m how far the leader moved toward the correction since the
     last read (period T):
@@ -84,7 +85,12 @@ class FeelLaw:
         (hold the leader, step Goal Position, read Present Current) and the lead set from it.
         It does not grow with the leader's step (as it did in round 3): the tick-quantized
         step flips between 0 and 1 tick at a slow walk, and a goal that moves back reverses
-        the setpoint onto the leader (decisions/haptic.md, round 4).
+        the setpoint onto the leader (decisions/haptic.md, round 4). One tick more (three)
+        for a leader deeper than a hand within the cap holds it (K (d - DEADBAND) > CAP: after a
+        release, or a hand that overpowered the wall): the wall then pushes it back at the cap,
+        which the loop must give wherever the leader sits within its tick, 2.5 ticks or more
+        (0.45 N m); at 1.5 ticks (0.27 N m) a hand pressing 0.27 N m held a released leader 15 deg
+        beyond the edge for good.
     outrun_slack_deg : float
         0.1 deg: a leader that moved toward the region since the last read by more than its
         setpoint can (RETURN_SPEED times the time between the reads) plus this has outrun the
@@ -118,6 +124,14 @@ class FeelLaw:
             return 0.0
         # tau = min(K (d - DEADBAND), CAP)
         return min(self.gain_nm_per_deg * (distance_deg - self.deadband_deg), self.cap_nm)
+
+    def lead_for_deg(self, distance_deg: float, cap_nm: float) -> float:
+        """Goal Position's lead (deg) for a leader ``distance_deg`` beyond the edge, pushed with
+        at most ``cap_nm``: LEAD, one tick more where the wall's spring asks for more than the
+        cap (see ``lead_deg``)."""
+        # K (d - DEADBAND) > CAP: deeper than a hand within the cap holds it
+        deeper = self.gain_nm_per_deg * (distance_deg - self.deadband_deg) > cap_nm
+        return self.lead_deg * (1.5 if deeper else 1.0)
 
     def passivity_margin(self, damping_nm_s_rad: float, rate_hz: float) -> float:
         """b / (K T / 2 + B) with B = 0: above 1 the sampled wall is passive."""
@@ -252,7 +266,8 @@ def push_for(
         moved_in = moved_in_deg(present, previous, step)
         if lets_go(law, distance, moved_in, period_s, engaged):
             return free
-    scale = min(1.0, math.radians(law.lead_deg) / longest) if longest > 0.0 else 0.0
+    lead = math.radians(law.lead_for_deg(distance, motor.cap_nm(law.cap_nm)))
+    scale = min(1.0, lead / longest) if longest > 0.0 else 0.0
     goal = (present[0] + scale * step[0], present[1] + scale * step[1])
     return Push(
         units, law.profile_velocity_units(), goal[0], goal[1], motor.torque_of(units), distance

@@ -15,6 +15,7 @@ gain, cap, return speed and lead), on three joints, per cycle::
                              the roll joint's limits nearest the leader's roll, as the gate does
                     Goal Position = present + s (target - present),
                              s = min(1, LEAD / max_j |target_j - present_j|)
+                             (LEAD: two ticks; three where K (d - DEADBAND) > CAP)
                     Profile Velocity = RETURN_SPEED
     but Goal Current 0 when, with m the leader's rotation toward the correction since the last
     read (its joint motion projected on the joint-space line toward the corrected pose, period
@@ -136,7 +137,8 @@ def push3_for(
         moved_in = moved_in_deg(present, previous, tuple(step))
         if lets_go(law, distance, moved_in, period_s, engaged):
             return free
-    scale = min(1.0, math.radians(law.lead_deg) / longest) if longest > 0.0 else 0.0
+    lead = math.radians(law.lead_for_deg(distance, motor.cap_nm(law.cap_nm)))
+    scale = min(1.0, lead / longest) if longest > 0.0 else 0.0
     goal = [p + scale * s for p, s in zip(present, step, strict=True)]
     return Push3(
         units,

@@ -62,7 +62,12 @@ def test_a_push_leads_the_leader_toward_the_corrected_pose_by_at_most_the_lead()
     q = q_of(40.0, 0.0)
     push = push_for(LAW, MOTOR, (math.radians(40.0), 0.0), q, CONE.correct(q))
     assert push.goal_current == MOTOR.units_for(LAW.cap_nm)
-    assert math.degrees(push.goal_pan) == pytest.approx(40.0 - LAW.lead_deg)
+    # 10 deg beyond, deeper than a hand within the cap holds it: one tick more than LEAD
+    assert math.degrees(push.goal_pan) == pytest.approx(40.0 - 1.5 * LAW.lead_deg)
+    near = push_for(
+        LAW, MOTOR, (math.radians(31.5), 0.0), q_of(31.5, 0.0), CONE.correct(q_of(31.5, 0.0))
+    )
+    assert math.degrees(near.goal_pan) == pytest.approx(31.5 - LAW.lead_deg)
     assert push.profile_velocity == LAW.profile_velocity_units()
     inside = push_for(LAW, MOTOR, (0.1, 0.0), q_of(5.7, 0.0), q_of(5.7, 0.0))
     assert (inside.goal_current, inside.profile_velocity, inside.torque_nm) == (0, 0, 0.0)
@@ -86,7 +91,8 @@ def test_property_never_above_the_cap_zero_inside_toward_the_region(pan, tilt, d
     if push.goal_current:
         # the goal lies from the leader toward the corrected pose, no further than the lead
         step = np.subtract((push.goal_pan, push.goal_tilt), present)
-        assert np.max(np.abs(step)) <= math.radians(LAW.lead_deg) + 1e-12
+        lead = LAW.lead_for_deg(push.distance_deg, MOTOR.cap_nm(LAW.cap_nm))
+        assert np.max(np.abs(step)) <= math.radians(lead) + 1e-12
         target = np.subtract(np.asarray(quat_to_pan_tilt(corrected), dtype=float), present)
         assert float(step @ target) >= 0.0
 
@@ -111,7 +117,8 @@ def test_property_a_leader_outrunning_its_setpoint_or_still_moving_in_is_free_el
         # the leader's step: decisions/haptic.md, round 4)
         assert push.goal_current == free.goal_current
         assert push.goal_pan == free.goal_pan
-        assert 0.0 <= present[0] - push.goal_pan <= math.radians(LAW.lead_deg) + 1e-12
+        lead = LAW.lead_for_deg(push.distance_deg, MOTOR.cap_nm(LAW.cap_nm))
+        assert 0.0 <= present[0] - push.goal_pan <= math.radians(lead) + 1e-12
 
 
 def test_stats_say_how_long_and_how_hard():
