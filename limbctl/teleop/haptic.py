@@ -20,6 +20,7 @@ The law (:class:`FeelLaw`), per cycle of period T::
                                          pull it back, away from the region
         d - m <= DEADBAND                at this pace inside the deadband by the next read
         m > 0 after a free cycle         still moving in: the wall comes on once it stops
+        d <= DEADBAND + SLACK after one  the wall comes on only a tick past the deadband
 
 The servo's own position loop (mode 5) pushes toward Goal Position with at most Goal Current,
 so the torque points toward the region and never exceeds CAP, which is also written into the
@@ -220,8 +221,11 @@ def lets_go(
     if outrun or distance_deg - moved_in_deg <= law.deadband_deg:
         return True
     # the wall comes on with the setpoint where the leader is (LeaderSource._write): while
-    # the leader still moves toward the region the loop's damping would brake it outward
-    return not engaged and moved_in_deg > 0.0
+    # the leader still moves toward the region the loop's damping would brake it outward; and
+    # it comes on only more than SLACK beyond the deadband: a leader let go there coasts in
+    # slower than a tick a cycle, which the read cannot tell from standing still
+    near = distance_deg - law.deadband_deg <= law.outrun_slack_deg
+    return not engaged and (moved_in_deg > 0.0 or near)
 
 
 def push_for(

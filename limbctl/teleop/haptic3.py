@@ -24,6 +24,7 @@ gain, cap, return speed and lead), on three joints, per cycle::
                                          back, away from the region
         d - m <= DEADBAND                at this pace inside the deadband by the next read
         m > 0 after a free cycle         still moving in: the wall comes on once it stops
+        d <= DEADBAND + SLACK after one  the wall comes on only a tick past the deadband
 
 Each servo's position loop (mode 5) drives its joint toward its Goal Position with at most Goal
 Current; every Goal Position lies from the leader's joint toward the corrected pose's, so the
