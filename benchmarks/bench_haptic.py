@@ -527,7 +527,8 @@ def render(push, ripples, passes, rates, load, exact, transfers, end_load) -> st
         f"| after let go: deepest inside the edge (deg) | {max(exact['deepest'], 0.0):.3f} |",
         "",
         "Let go from a press, by hand stiffness and depth, round 3's law (goal 0.3 deg ahead "
-        "plus the leader's last step, 26.1 deg/s) against today's (two ticks ahead, 13.7 deg/s) "
+        "plus the leader's last step, 26.1 deg/s; its let-go rules are today's) against "
+        "today's (two ticks ahead, 13.7 deg/s) "
         "in this run. Every 1 ms sample after the let go: outward samples are those outside "
         "the region with the motor pulling away from it; the peak speed is the largest 1 ms "
         "sample, the 20 ms mean the largest mean over 20 samples:",

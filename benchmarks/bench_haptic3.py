@@ -336,7 +336,8 @@ def render(presses, energies, pulls, held, transfers, load, end_load, fit_s) -> 
         "after let go; 1 ms peak: the largest 1 ms sample of any joint's speed after let go; "
         "outward: 1 ms samples after let go outside the region whose joint torques point away "
         "from the correction. Each press under today's law and under round 3's (goal 0.3 deg "
-        "ahead plus the leader's last step, 26.1 deg/s), in this run.",
+        "ahead plus the leader's last step, 26.1 deg/s; its let-go rules are today's), in this "
+        "run.",
         "",
         "| press | law | held beyond the edge (deg) | ratio to two servos | ripple (deg) | "
         "walk back (deg/s) | 1 ms peak (deg/s) | outward after let go | rest beyond (deg) | "
@@ -366,8 +367,8 @@ def render(presses, energies, pulls, held, transfers, load, end_load, fit_s) -> 
         "back, away from the region; the let-go rules (decisions/haptic.md, round 3) leave it "
         "free once a read shows it outrunning them. Counted: 1 ms samples outside the region "
         "whose joint torques point away from the correction, the law without the rules "
-        "(before) and with them (after); inside: samples inside the region with any torque "
-        "(both runs).",
+        "(before) and with them (after); inside: samples inside the region with any torque, "
+        "both runs summed.",
         "",
         "| pull | hand (N m/deg) | outward samples before | after | inside with torque |",
         "| --- | ---: | ---: | ---: | ---: |",

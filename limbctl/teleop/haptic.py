@@ -12,7 +12,7 @@ The law (:class:`FeelLaw`), per cycle of period T::
                                     Goal Current = tau / kt           (rounded down)
                                     Goal Position = the corrected pose, reached from the
                                     leader's pose by at most LEAD (two ticks; three
-                                    where K (d - DEADBAND) > CAP)
+                                    beyond 2 deg or where K (d - DEADBAND) > CAP)
                                     Profile Velocity = RETURN_SPEED
     but Goal Current 0 when, with m how far the leader moved toward the correction since the
     last read (period T):
@@ -92,6 +92,12 @@ class FeelLaw:
         which the loop must give wherever the leader sits within its tick, 2.5 ticks or more
         (0.45 N m); at 1.5 ticks (0.27 N m) a hand pressing 0.27 N m held a released leader 15 deg
         beyond the edge for good.
+    held_within_deg : float
+        2 deg: beyond it the goal leads by three ticks too. A relaxed hand (0.3 N m) is held
+        1.9 deg beyond (two ticks, the least snap at its let go); a leader the loop's jitter
+        let further (over the pty a held three-servo leader sat 2.31 deg beyond: two ticks give
+        only 0.27 N m where it sits at the inner edge of its tick) is pushed back within it, the
+        figure the wall must keep (issue 21: stop within 2 deg of the edge).
     outrun_slack_deg : float
         0.1 deg: a leader that moved toward the region since the last read by more than its
         setpoint can (RETURN_SPEED times the time between the reads) plus this has outrun the
@@ -106,10 +112,18 @@ class FeelLaw:
     cap_nm: float = 0.4
     return_speed_deg_s: float = 14.0
     lead_deg: float = 2.0 * 360.0 / TICKS_PER_REV
+    held_within_deg: float = 2.0
     outrun_slack_deg: float = 0.1
 
     def __post_init__(self) -> None:
-        names = ("deadband_deg", "gain_nm_per_deg", "cap_nm", "lead_deg", "outrun_slack_deg")
+        names = (
+            "deadband_deg",
+            "gain_nm_per_deg",
+            "cap_nm",
+            "lead_deg",
+            "outrun_slack_deg",
+            "held_within_deg",
+        )
         for name in names:
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0.0):
@@ -128,11 +142,11 @@ class FeelLaw:
 
     def lead_for_deg(self, distance_deg: float, cap_nm: float) -> float:
         """Goal Position's lead (deg) for a leader ``distance_deg`` beyond the edge, pushed with
-        at most ``cap_nm``: LEAD, one tick more where the wall's spring asks for more than the
-        cap (see ``lead_deg``)."""
-        # K (d - DEADBAND) > CAP: deeper than a hand within the cap holds it
+        at most ``cap_nm``: LEAD, one tick more beyond ``held_within_deg`` or where the wall's
+        spring asks for more than the cap (see ``lead_deg``)."""
+        # beyond HELD_WITHIN, or K (d - DEADBAND) > CAP: deeper than a hand within the cap holds it
         deeper = self.gain_nm_per_deg * (distance_deg - self.deadband_deg) > cap_nm
-        return self.lead_deg * (1.5 if deeper else 1.0)
+        return self.lead_deg * (1.5 if deeper or distance_deg > self.held_within_deg else 1.0)
 
     def passivity_margin(self, damping_nm_s_rad: float, rate_hz: float) -> float:
         """b / (K T / 2 + B) with B = 0: above 1 the sampled wall is passive."""

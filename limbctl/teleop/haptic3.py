@@ -15,7 +15,7 @@ gain, cap, return speed and lead), on three joints, per cycle::
                              the roll joint's limits nearest the leader's roll, as the gate does
                     Goal Position = present + s (target - present),
                              s = min(1, LEAD / max_j |target_j - present_j|)
-                             (LEAD: two ticks; three where K (d - DEADBAND) > CAP)
+                             (LEAD: two ticks; three beyond 2 deg or where K (d - DEADBAND) > CAP)
                     Profile Velocity = RETURN_SPEED
     but Goal Current 0 when, with m the leader's rotation toward the correction since the last
     read (its joint motion projected on the joint-space line toward the corrected pose, period
