@@ -24,6 +24,7 @@ Cases:
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 import os
@@ -39,6 +40,7 @@ from firmware_sim.control_table import Register as FirmwareRegister
 from firmware_sim.simulator import Simulator
 from limbctl.envelope import Cone
 from limbctl.errors import BusError
+from limbctl.geometry.gimbal import quat_to_pan_tilt
 from limbctl.jobs import gate_for
 from limbctl.servo.control_table import ModelNumber, Register
 from limbctl.servo.leader import FEEL_DATA, FEEL_MAP, FELT_MODELS, encode_feel, feel_map
@@ -46,7 +48,7 @@ from limbctl.servo.rig import Rig
 from limbctl.servo.setup import configure_servos
 from limbctl.session import open_rig
 from limbctl.teleop.commands import command_from_pan_tilt
-from limbctl.teleop.haptic import FeelLaw, Push, push_for
+from limbctl.teleop.haptic import FeelLaw, Push, moved_in_deg, push_for
 from limbctl.teleop.loop import LoopConfig, run
 from limbctl.teleop.sources import LeaderSource
 
@@ -60,6 +62,26 @@ EXCURSION += [[3.5, 20.0, 0.0], [4.5, 20.0, 0.0]]
 #: write take about 1 ms on the simulator's pty (the bus work's p50 below).
 READ_TO_WRITE_MS = 1
 HAND = {"stiffness_nm_deg": 0.05, "damping_nm_s_rad": 0.02, "max_torque_nm": 0.3}
+#: Round 3's law, the peer in the same run: its goal led the leader by 0.3 deg plus the leader's
+#: last step toward the region, at Profile Velocity 19 units (26.1 deg/s); decisions/haptic.md.
+ROUND3 = FeelLaw(return_speed_deg_s=27.0, lead_deg=0.3)
+
+
+def round3_push(law, motor, present, q, corrected, previous=None, period_s=0.0, engaged=True):
+    """Round 3's push (:data:`ROUND3`): today's law with the goal led further by the leader's
+    last step toward the region, ``max(m, 0)``, as round 3 did (``law`` is not used)."""
+    push = push_for(ROUND3, motor, present, q, corrected, previous, period_s, engaged)
+    if not push.goal_current or previous is None:
+        return push
+    target = tuple(float(v) for v in quat_to_pan_tilt(corrected))
+    step = (target[0] - present[0], target[1] - present[1])
+    longest = max(abs(step[0]), abs(step[1]))
+    moved = moved_in_deg(present, previous, step)
+    # the goal on the line toward the corrected pose, at most LEAD + max(m, 0) ahead
+    scale = min(1.0, math.radians(ROUND3.lead_deg + max(moved, 0.0)) / longest)
+    return dataclasses.replace(
+        push, goal_pan=present[0] + scale * step[0], goal_tilt=present[1] + scale * step[1]
+    )
 
 
 def run_case(workdir: Path, name: str, operator: dict, seconds: float, model="xm430-w350"):
@@ -237,7 +259,7 @@ def rate_case(workdir: Path, model: str) -> dict:
 
 
 def exact_rate_case(
-    stiffness: float, script: list, seconds: float, let_go_s=None, cycles=None
+    stiffness: float, script: list, seconds: float, let_go_s=None, cycles=None, push_fn=push_for
 ) -> dict:
     """The same law at exactly 200 Hz, without the bus: the simulator in this process on a
     stepped clock, and every 5 ms the controller's part done on the leader servos' registers
@@ -246,7 +268,8 @@ def exact_rate_case(
 
     ``cycles`` maps a cycle's index to what happens instead: "late" (nothing is written: a
     stalled loop; the servos keep their last command) or "held" (what ``LeaderSource.feel``
-    writes when the gate held or the follower's read failed: Goal Current 0 at the leader)."""
+    writes when the gate held or the follower's read failed: Goal Current 0 at the leader).
+    ``push_fn``: the law (:func:`push_for`, or :func:`round3_push` for the peer)."""
     clock = [0.0]
     sim = Simulator(ids=(1, 2), leader={"ids": list(LEADER_IDS)}, clock=lambda: clock[0])
     profile = default_sim_profile()
@@ -268,7 +291,7 @@ def exact_rate_case(
         ticks = [servo.value(FirmwareRegister.PRESENT_POSITION) for servo in servos]
         pose = rig.ticks_to_angles(*ticks)
         q = command_from_pan_tilt(*np.degrees(pose)).q
-        push = push_for(law, motor, pose, q, cone.correct(q), previous, 0.005, pushed)
+        push = push_fn(law, motor, pose, q, cone.correct(q), previous, 0.005, pushed)
         previous = pose
         instead = (cycles or {}).get(k)
         if instead == "held":
@@ -309,6 +332,12 @@ def exact_cases() -> dict:
         "ripples": [],
         "passes": [],
     }
+    out["let_go"] = [
+        let_go_case(k, beyond, law)
+        for k in (0.02, 0.05, 0.2)
+        for beyond in (5.0, 20.0)
+        for law in ("round 3", "round 4")
+    ]
     for k in (0.02, 0.05, 0.1, 0.2):
         script = [[0.0, 0.0, 0.0], [1.5, EDGE_DEG + 5.0, 0.0], [5.0, EDGE_DEG + 5.0, 0.0]]
         rows = exact_rate_case(k, script, 4.5)["rows"]
@@ -332,9 +361,11 @@ def exact_cases() -> dict:
         rows = exact_rate_case(k, [*pull, [4.2, 0.0, 0.0]], 5.0)["rows"]
         t, pan, motor = np.array([r["t"] for r in rows]), pan_of(rows), pan_of(rows, "motor_nm")
         outward = (pan > EDGE_DEG) & (motor > 0.0)
+        peer = exact_rate_case(k, [*pull, [4.2, 0.0, 0.0]], 5.0, push_fn=round3_push)["rows"]
         out["pulls"].append(
             {
                 "stiffness": k,
+                "round3": int(np.sum((pan_of(peer) > EDGE_DEG) & (pan_of(peer, "motor_nm") > 0.0))),
                 "outside": int(np.sum((pan > EDGE_DEG) & (motor != 0.0))),
                 "outward": int(np.sum(outward)),
                 "span_ms": float(np.ptp(t[outward]) * 1e3) if outward.any() else 0.0,
@@ -365,6 +396,33 @@ def exact_cases() -> dict:
         rows = exact_rate_case(k, EXCURSION, 4.5, cycles=held)["rows"]
         out["passes_held"].append({"stiffness": k, **contact_energy(rows)})
     return out
+
+
+def let_go_case(stiffness: float, beyond: float, law: str) -> dict:
+    """A hand of ``stiffness`` pressing ``beyond`` deg past the edge, let go at 5 s, under round
+    3's law or today's: after the let go, the 1 ms samples outside with the motor pulling
+    outward (count, the last one's time from the let go, the largest), the 1 ms and 20 ms peak
+    return speeds, the rest and the deepest point."""
+    script = [[0.0, 0.0, 0.0], [2.0, EDGE_DEG + beyond, 0.0], [5.0, EDGE_DEG + beyond, 0.0]]
+    push_fn = round3_push if law == "round 3" else push_for
+    rows = exact_rate_case(stiffness, script, 7.0, let_go_s=5.0, push_fn=push_fn)["rows"]
+    t = np.array([r["t"] for r in rows])
+    pan, velocity, motor = pan_of(rows), pan_of(rows, "velocity_deg_s"), pan_of(rows, "motor_nm")
+    after = t >= 5.0
+    outward = after & (pan > EDGE_DEG) & (motor > 0.0)
+    window = np.convolve(-velocity[after], np.ones(20) / 20.0, mode="valid")
+    return {
+        "stiffness": stiffness,
+        "beyond": beyond,
+        "law": law,
+        "outward": int(np.sum(outward)),
+        "last_ms": float((t[outward].max() - 5.0) * 1e3) if outward.any() else 0.0,
+        "outward_peak": float(np.max(motor[outward], initial=0.0)),
+        "peak": float(np.max(-velocity[after])),
+        "window": float(window.max()),
+        "rest": float(np.mean(pan[after][-200:]) - EDGE_DEG),
+        "deepest": float(max(EDGE_DEG - np.min(pan[after]), 0.0)),
+    }
 
 
 #: Interruptions of the exact-rate press (cycle 640 = 3.2 s): a stalled loop writes nothing for
@@ -468,6 +526,24 @@ def render(push, ripples, passes, rates, load, exact, transfers, end_load) -> st
         f"| after let go: rest beyond the edge (deg) | {exact['final']:.3f} |",
         f"| after let go: deepest inside the edge (deg) | {max(exact['deepest'], 0.0):.3f} |",
         "",
+        "Let go from a press, by hand stiffness and depth, round 3's law (goal 0.3 deg ahead "
+        "plus the leader's last step, 26.1 deg/s; its let-go rules are today's) against "
+        "today's (two ticks ahead, 13.7 deg/s) "
+        "in this run. Every 1 ms sample after the let go: outward samples are those outside "
+        "the region with the motor pulling away from it; the peak speed is the largest 1 ms "
+        "sample, the 20 ms mean the largest mean over 20 samples:",
+        "",
+        "| hand (N m/deg) | pressed beyond (deg) | law | outward samples | last one after let go "
+        "(ms) | largest outward (N m) | 1 ms peak speed (deg/s) | 20 ms mean (deg/s) | "
+        "rest beyond (deg) | deepest inside (deg) |",
+        "| ---: | ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
+        *(
+            f"| {g['stiffness']:g} | {g['beyond']:g} | {g['law']} | {g['outward']} | "
+            f"{g['last_ms']:.0f} | {g['outward_peak']:.3f} | {g['peak']:.1f} | "
+            f"{g['window']:.1f} | {g['rest']:.3f} | {g['deepest']:.3f} |"
+            for g in exact["let_go"]
+        ),
+        "",
         "Pressing 5 deg beyond, by hand stiffness:",
         "",
         "| hand stiffness (N m/deg) | held beyond the edge (deg) | ripple, peak to peak (deg) |",
@@ -478,16 +554,16 @@ def render(push, ripples, passes, rates, load, exact, transfers, end_load) -> st
         ),
         "",
         "Pressed 20 deg beyond, then the hand heads back inside (its target pan 50 -> 0 in "
-        "0.2 s at 4 s). The servo's setpoint moves at most 28.9 deg/s and its loop brakes a "
+        "0.2 s at 4 s). The servo's setpoint moves at most 13.7 deg/s and its loop brakes a "
         "faster leader (pulls it outward); the law leaves a leader that outran its setpoint "
         "by more than a tick free, from the first read that shows it. 1 ms samples:",
         "",
         "| hand stiffness (N m/deg) | outside with torque | pointing outward | their span (ms) | "
-        "largest outward (N m) | inside with torque |",
-        "| ---: | ---: | ---: | ---: | ---: | ---: |",
+        "largest outward (N m) | inside with torque | pointing outward, round 3's law |",
+        "| ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
         *(
             f"| {p['stiffness']:g} | {p['outside']} | {p['outward']} | {p['span_ms']:.0f} | "
-            f"{p['peak']:.3f} | {p['inside']} |"
+            f"{p['peak']:.3f} | {p['inside']} | {p['round3']} |"
             for p in exact["pulls"]
         ),
         "",

@@ -27,6 +27,8 @@ Cases:
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import math
 import os
 import time
 from contextlib import ExitStack
@@ -50,10 +52,13 @@ from limbctl.servo.rig3 import RollRig
 from limbctl.servo.setup import configure_servos
 from limbctl.servo.ticks import angle_to_ticks
 from limbctl.session import open_rig
-from limbctl.teleop.haptic import FeelLaw, beyond_deg, push_for
-from limbctl.teleop.haptic3 import beyond3_deg, held3, push3_for
+from limbctl.teleop.haptic import FeelLaw, beyond_deg, moved_in_deg, push_for
+from limbctl.teleop.haptic3 import beyond3_deg, corrected_pose, held3, push3_for
 
 LAW = FeelLaw()
+#: Round 3's law, the peer in the same run: the goal led the leader by 0.3 deg plus the leader's
+#: last step toward the region, at Profile Velocity 19 units (decisions/haptic.md, round 4).
+ROUND3 = FeelLaw(return_speed_deg_s=27.0, lead_deg=0.3)
 MOTOR = FELT_MODELS[ModelNumber.XM430_W350]
 CAP = MOTOR.torque_of(MOTOR.units_for(LAW.cap_nm))
 HAND = {"stiffness_nm_deg": 0.05, "damping_nm_s_rad": 0.02, "max_torque_nm": 0.3}
@@ -95,12 +100,28 @@ def square_region() -> TwistRegion:
     return TwistRegion().fit(truth.teaching(1500, 1000, 1800, np.random.default_rng(0)))
 
 
-def stepped(region, script, seconds, let_go_s=None, held=(), stiffness=0.05, rules=True):
+def round3(push, present, previous, target):
+    """Round 3's goal for a push of :data:`ROUND3`: at most LEAD + max(m, 0) ahead on the
+    joint-space line toward ``target`` (the corrected pose's joints), m the leader's step
+    toward it since ``previous``."""
+    if not push.goal_current or previous is None:
+        return push
+    step = tuple(t - p for t, p in zip(target, present, strict=True))
+    moved = moved_in_deg(present, previous, step)
+    # s = min(1, (LEAD + max(m, 0)) / max_j |step_j|)
+    scale = min(1.0, math.radians(ROUND3.lead_deg + max(moved, 0.0)) / max(map(abs, step)))
+    goal = [p + scale * d for p, d in zip(present, step, strict=True)]
+    names = ("goal_pan", "goal_tilt", "goal_roll")[: len(goal)]
+    return dataclasses.replace(push, **dict(zip(names, goal, strict=True)))
+
+
+def stepped(region, script, seconds, let_go_s=None, held=(), stiffness=0.05, rules=True, law=LAW):
     """The law at exactly 200 Hz on a stepped clock (module docstring); ``held`` lists cycles
     whose gate held (Goal Current 0 written); ``rules``: the law is given the previous read,
     the period and whether the wall pushed (as the sources do), False: the wall alone (before
-    round 3's let-go rules). Returns the 1 ms truth rows and each row's distance beyond the
-    edge (deg of rotation; of direction for two servos)."""
+    round 3's let-go rules); ``law``: :data:`LAW`, or :data:`ROUND3` for round 3's law. Returns
+    the 1 ms truth rows and each row's distance beyond the edge (deg of rotation; of direction
+    for two servos)."""
     three = len(script[0]) == 4
     ids = (4, 5, 6) if three else (3, 4)
     clock = [0.0]
@@ -125,14 +146,22 @@ def stepped(region, script, seconds, let_go_s=None, held=(), stiffness=0.05, rul
             pose = rig.angles_of(ticks)
             q = pose_quat_scalar(*pose)
             past = (previous, 0.005, engaged) if rules else ()
-            push = push3_for(LAW, MOTOR, pose, q, region.correct(q), rig.roll_limits, *past)
+            corrected = region.correct(q)
+            push = push3_for(law, MOTOR, pose, q, corrected, rig.roll_limits, *past)
+            if law is ROUND3 and rules:
+                target = corrected_pose(corrected, pose, rig.roll_limits)
+                push = round3(push, pose, previous, target)
             push = held3(pose) if k in held else push
             goal = push.goal
         else:
             pose = rig.ticks_to_angles(*ticks)
             q = np.asarray(pan_tilt_to_quat(*pose))
             past = (previous, 0.005, engaged) if rules else ()
-            push = push_for(LAW, MOTOR, pose, q, region.correct(q), *past)
+            corrected = region.correct(q)
+            push = push_for(law, MOTOR, pose, q, corrected, *past)
+            if law is ROUND3 and rules:
+                target = tuple(float(v) for v in quat_to_pan_tilt(corrected))
+                push = round3(push, pose, previous, target)
             goal = (push.goal_pan, push.goal_tilt)
         previous = pose
         for step in range(5):
@@ -160,8 +189,8 @@ def distance(region, pose_deg, three: bool) -> float:
     return beyond_deg(q, region.correct(q))
 
 
-def press_case(region, script) -> dict:
-    rows, beyond = stepped(region, script, 6.5, let_go_s=4.5)
+def press_case(region, script, law=LAW) -> dict:
+    rows, beyond = stepped(region, script, 6.5, let_go_s=4.5, law=law)
     t = np.array([r["t"] for r in rows])
     beyond = np.array(beyond)
     held = beyond[(t >= 3.0) & (t < 4.5)]
@@ -170,11 +199,15 @@ def press_case(region, script) -> dict:
         np.convolve(speeds[:, j], np.ones(20) / 20.0, mode="valid").max()
         for j in range(speeds.shape[1])
     )
+    outward, _ = outward_count(region, [r for r in rows if r["t"] >= 4.5])
     return {
         "held": float(np.mean(held)),
         "ripple": float(np.ptp(held)),
         "return": float(window),
+        "peak": float(speeds.max()),
+        "outward": outward,
         "rest": float(beyond[-1]),
+        "deepest": float(min(beyond[t >= 4.5])),
         "peak_nm": max(abs(m) for r in rows for m in r["motor_nm"]),
     }
 
@@ -287,7 +320,8 @@ def render(presses, energies, pulls, held, transfers, load, end_load, fit_s) -> 
         "`python benchmarks/bench_haptic3.py`: the three-servo felt leader "
         "(`limbctl/teleop/haptic3.py`, `limbctl/teleop/sources/leader3.py`) beside the two-servo "
         "one as its peer, XM430-W350 leaders, the same hand (0.05 N m/deg, at most 0.3 N m) and "
-        "law (deadband 0.4 deg, K = 0.2 N m/deg, cap 0.4 N m, lead 0.3 deg). Three servos: a "
+        "law (deadband 0.4 deg, K = 0.2 N m/deg, cap 0.4 N m, lead two ticks, Profile Velocity "
+        f"{LAW.profile_velocity_units()} units). Three servos: a "
         "twist region fitted from a square swing outline (pan +-30, tilt +-25 deg) with a twist "
         f"band of +-30 deg (fitted in {fit_s:.0f} s); two servos: a 30 deg cone. Machine load at "
         f"start: {' '.join(f'{v:.2f}' for v in load)}, at the end: "
@@ -299,18 +333,23 @@ def render(presses, energies, pulls, held, transfers, load, end_load, fit_s) -> 
         "one process, so the figures are the law's, whatever the load. Beyond the edge: the "
         "rotation from the leader's orientation to the region's correction (for two servos the "
         "angle between directions). Walk back: the peak over the joints of the 20 ms mean speed "
-        "after let go.",
+        "after let go; 1 ms peak: the largest 1 ms sample of any joint's speed after let go; "
+        "outward: 1 ms samples after let go outside the region whose joint torques point away "
+        "from the correction. Each press under today's law and under round 3's (goal 0.3 deg "
+        "ahead plus the leader's last step, 26.1 deg/s; its let-go rules are today's), in this "
+        "run.",
         "",
-        "| press | held beyond the edge (deg) | ratio to two servos | ripple (deg) | "
-        "walk back (deg/s) | rest beyond (deg) | peak motor torque (N m, cap "
-        f"{CAP:.3f}) |",
-        "| --- | ---: | ---: | ---: | ---: | ---: | ---: |",
+        "| press | law | held beyond the edge (deg) | ratio to two servos | ripple (deg) | "
+        "walk back (deg/s) | 1 ms peak (deg/s) | outward after let go | rest beyond (deg) | "
+        f"deepest after let go (deg beyond) | peak motor torque (N m, cap {CAP:.3f}) |",
+        "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
     ]
-    peer = presses["two servos, swing (pan 50)"]["held"]
-    for name, p in presses.items():
+    peer = presses[("two servos, swing (pan 50)", "round 4")]["held"]
+    for (name, law), p in presses.items():
         lines.append(
-            f"| {name} | {p['held']:.3f} | {p['held'] / peer:.3f} | {p['ripple']:.3f} | "
-            f"{p['return']:.1f} | {p['rest']:.3f} | {p['peak_nm']:.3f} |"
+            f"| {name} | {law} | {p['held']:.3f} | {p['held'] / peer:.3f} | {p['ripple']:.3f} | "
+            f"{p['return']:.1f} | {p['peak']:.1f} | {p['outward']} | {p['rest']:.3f} | "
+            f"{p['deepest']:.3f} | {p['peak_nm']:.3f} |"
         )
     lines += [
         "",
@@ -328,8 +367,8 @@ def render(presses, energies, pulls, held, transfers, load, end_load, fit_s) -> 
         "back, away from the region; the let-go rules (decisions/haptic.md, round 3) leave it "
         "free once a read shows it outrunning them. Counted: 1 ms samples outside the region "
         "whose joint torques point away from the correction, the law without the rules "
-        "(before) and with them (after); inside: samples inside the region with any torque "
-        "(both runs).",
+        "(before) and with them (after); inside: samples inside the region with any torque, "
+        "both runs summed.",
         "",
         "| pull | hand (N m/deg) | outward samples before | after | inside with torque |",
         "| --- | ---: | ---: | ---: | ---: |",
@@ -373,8 +412,9 @@ def main(argv: list[str] | None = None) -> int:
     fit_s = time.monotonic() - started
     cone = Cone(half_angle_deg=30.0)
     presses = {
-        name: press_case(region3 if len(script[0]) == 4 else cone, script)
+        (name, label): press_case(region3 if len(script[0]) == 4 else cone, script, law)
         for name, script in PRESSES.items()
+        for label, law in (("round 3", ROUND3), ("round 4", LAW))
     }
     energies = {
         "two servos, pan": energy_case(cone, excursion(0, 2)),

@@ -11,7 +11,8 @@ The law (:class:`FeelLaw`), per cycle of period T::
     d > DEADBAND:                   tau = min(K (d - DEADBAND), CAP)
                                     Goal Current = tau / kt           (rounded down)
                                     Goal Position = the corrected pose, reached from the
-                                    leader's pose by at most LEAD + max(m, 0)
+                                    leader's pose by at most LEAD (two ticks; three
+                                    beyond 2 deg or where K (d - DEADBAND) > CAP)
                                     Profile Velocity = RETURN_SPEED
     but Goal Current 0 when, with m how far the leader moved toward the correction since the
     last read (period T):
@@ -19,6 +20,7 @@ The law (:class:`FeelLaw`), per cycle of period T::
                                          pull it back, away from the region
         d - m <= DEADBAND                at this pace inside the deadband by the next read
         m > 0 after a free cycle         still moving in: the wall comes on once it stops
+        d <= DEADBAND + SLACK after one  the wall comes on only a tick past the deadband
 
 The servo's own position loop (mode 5) pushes toward Goal Position with at most Goal Current,
 so the torque points toward the region and never exceeds CAP, which is also written into the
@@ -40,6 +42,7 @@ import numpy as np
 from limbctl.errors import ConfigError
 from limbctl.geometry.gimbal import quat_to_pan_tilt
 from limbctl.servo.leader import LeaderMotor
+from limbctl.servo.ticks import TICKS_PER_REV
 
 #: Velocity unit of Profile Velocity: 0.229 rev/min = 1.374 deg/s.
 PROFILE_VELOCITY_UNIT_DEG_S = 0.229 * 360.0 / 60.0
@@ -63,20 +66,38 @@ class FeelLaw:
         stall torque (the servo neither heats nor trips overload at it), and small enough that
         a person overpowers it at once.
     return_speed_deg_s : float
-        27 deg/s (Profile Velocity, rounded down to 19 units = 26.1 deg/s): a released leader
-        walks back at most 30 deg/s. The setpoint moves at this speed and the leader tracks it;
-        the snap of a let go (the leader reaching a setpoint the lead put ahead of it) adds up
-        to 2 deg/s to the 20 ms mean (a 0.2 N m/deg hand pressing 5 deg beyond, stepped
-        clock: 30.2 deg/s at 21 units, 29.5 at 20), so two units are kept in hand.
+        14 deg/s (Profile Velocity, rounded down to 10 units = 13.7 deg/s): a released leader
+        walks back well under 30 deg/s, and the setpoint never reaches the goal within a cycle
+        while the wall walks the leader back (a setpoint that stops brakes the leader: an
+        outward pull). The goal lies LEAD from the leader; the setpoint runs ahead of the
+        leader by the loop's lag (0.066 deg at this speed on the simulated XM430 loop) and
+        covers RETURN_SPEED T (0.069 deg) in a cycle: 0.135 deg of the 0.176, 3 ms of travel to
+        spare. At 12 units (16.5 deg/s) none was left: the setpoint stopped twice in a walk
+        back, 3 outward 1 ms samples each (decisions/haptic.md, round 4).
     lead_deg : float
-        0.3 deg: how far ahead of the leader's pose Goal Position may lie. The servo's profile
-        continues from its own setpoint, so a goal at the edge would snap a released leader
-        back at whatever speed the cap gives; a goal a little ahead keeps the setpoint beside
-        the leader. The servo's loop must still reach the cap within the lead once the goal
-        is rounded to whole ticks (0.088 deg): the simulator's XM430 loop gives stall torque
-        at 2 deg, so 0.3 deg (3.4 ticks) gives 0.6 N m, over the cap with a tick to spare.
-        A leader the wall walks back gets, on top, how far it moved in the last cycle: the
-        setpoint then does not reach the goal and stop within a cycle (a stop brakes it).
+        Two ticks (0.176 deg): how far ahead of the leader's pose Goal Position lies. Holding
+        a hand, the servo's setpoint sits there, and a let go snaps the leader onto it: the
+        simulated loop gives about 13 deg/s of peak speed per tick of setpoint error (the
+        snap's 1 ms peak), so the lead is the least that still holds the cap. The read rounds
+        the leader's pose to a tick, so the setpoint lies between 1.5 and 2.5 ticks ahead;
+        the simulator's XM430 loop (stall torque at 2 deg) gives 0.45 N m at 2.5 ticks, over
+        the cap (0.4 N m), and one tick would give at most 0.27 N m: a firmer hand would push
+        the leader out tick by tick. On real servos the loop's stiffness must be measured
+        (hold the leader, step Goal Position, read Present Current) and the lead set from it.
+        It does not grow with the leader's step (as it did in round 3): the tick-quantized
+        step flips between 0 and 1 tick at a slow walk, and a goal that moves back reverses
+        the setpoint onto the leader (decisions/haptic.md, round 4). One tick more (three)
+        for a leader deeper than a hand within the cap holds it (K (d - DEADBAND) > CAP: after a
+        release, or a hand that overpowered the wall): the wall then pushes it back at the cap,
+        which the loop must give wherever the leader sits within its tick, 2.5 ticks or more
+        (0.45 N m); at 1.5 ticks (0.27 N m) a hand pressing 0.27 N m held a released leader 15 deg
+        beyond the edge for good.
+    held_within_deg : float
+        2 deg: beyond it the goal leads by three ticks too. A relaxed hand (0.3 N m) is held
+        1.9 deg beyond (two ticks, the least snap at its let go); a leader the loop's jitter
+        let further (over the pty a held three-servo leader sat 2.31 deg beyond: two ticks give
+        only 0.27 N m where it sits at the inner edge of its tick) is pushed back within it, the
+        figure the wall must keep (issue 21: stop within 2 deg of the edge).
     outrun_slack_deg : float
         0.1 deg: a leader that moved toward the region since the last read by more than its
         setpoint can (RETURN_SPEED times the time between the reads) plus this has outrun the
@@ -89,12 +110,20 @@ class FeelLaw:
     deadband_deg: float = 0.4
     gain_nm_per_deg: float = 0.2
     cap_nm: float = 0.4
-    return_speed_deg_s: float = 27.0
-    lead_deg: float = 0.3
+    return_speed_deg_s: float = 14.0
+    lead_deg: float = 2.0 * 360.0 / TICKS_PER_REV
+    held_within_deg: float = 2.0
     outrun_slack_deg: float = 0.1
 
     def __post_init__(self) -> None:
-        names = ("deadband_deg", "gain_nm_per_deg", "cap_nm", "lead_deg", "outrun_slack_deg")
+        names = (
+            "deadband_deg",
+            "gain_nm_per_deg",
+            "cap_nm",
+            "lead_deg",
+            "outrun_slack_deg",
+            "held_within_deg",
+        )
         for name in names:
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0.0):
@@ -110,6 +139,14 @@ class FeelLaw:
             return 0.0
         # tau = min(K (d - DEADBAND), CAP)
         return min(self.gain_nm_per_deg * (distance_deg - self.deadband_deg), self.cap_nm)
+
+    def lead_for_deg(self, distance_deg: float, cap_nm: float) -> float:
+        """Goal Position's lead (deg) for a leader ``distance_deg`` beyond the edge, pushed with
+        at most ``cap_nm``: LEAD, one tick more beyond ``held_within_deg`` or where the wall's
+        spring asks for more than the cap (see ``lead_deg``)."""
+        # beyond HELD_WITHIN, or K (d - DEADBAND) > CAP: deeper than a hand within the cap holds it
+        deeper = self.gain_nm_per_deg * (distance_deg - self.deadband_deg) > cap_nm
+        return self.lead_deg * (1.5 if deeper or distance_deg > self.held_within_deg else 1.0)
 
     def passivity_margin(self, damping_nm_s_rad: float, rate_hz: float) -> float:
         """b / (K T / 2 + B) with B = 0: above 1 the sampled wall is passive."""
@@ -198,8 +235,11 @@ def lets_go(
     if outrun or distance_deg - moved_in_deg <= law.deadband_deg:
         return True
     # the wall comes on with the setpoint where the leader is (LeaderSource._write): while
-    # the leader still moves toward the region the loop's damping would brake it outward
-    return not engaged and moved_in_deg > 0.0
+    # the leader still moves toward the region the loop's damping would brake it outward; and
+    # it comes on only more than SLACK beyond the deadband: a leader let go there coasts in
+    # slower than a tick a cycle, which the read cannot tell from standing still
+    near = distance_deg - law.deadband_deg <= law.outrun_slack_deg
+    return not engaged and (moved_in_deg > 0.0 or near)
 
 
 def push_for(
@@ -240,16 +280,12 @@ def push_for(
     # the goal on the joint-space line toward the corrected pose, at most LEAD ahead
     step = (pan - present[0], tilt - present[1])
     longest = max(abs(step[0]), abs(step[1]))
-    lead_deg = law.lead_deg
     if previous is not None and longest > 0.0:
         moved_in = moved_in_deg(present, previous, step)
         if lets_go(law, distance, moved_in, period_s, engaged):
             return free
-        # a leader the wall walks back: the goal leads it by how far it moved in the last
-        # cycle too, so the setpoint (at RETURN_SPEED) does not reach the goal and stop before
-        # the next write; a stopped setpoint brakes the leader, an outward pull
-        lead_deg += max(moved_in, 0.0)
-    scale = min(1.0, math.radians(lead_deg) / longest) if longest > 0.0 else 0.0
+    lead = math.radians(law.lead_for_deg(distance, motor.cap_nm(law.cap_nm)))
+    scale = min(1.0, lead / longest) if longest > 0.0 else 0.0
     goal = (present[0] + scale * step[0], present[1] + scale * step[1])
     return Push(
         units, law.profile_velocity_units(), goal[0], goal[1], motor.torque_of(units), distance

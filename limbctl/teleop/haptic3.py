@@ -15,6 +15,7 @@ gain, cap, return speed and lead), on three joints, per cycle::
                              the roll joint's limits nearest the leader's roll, as the gate does
                     Goal Position = present + s (target - present),
                              s = min(1, LEAD / max_j |target_j - present_j|)
+                             (LEAD: two ticks; three beyond 2 deg or where K (d - DEADBAND) > CAP)
                     Profile Velocity = RETURN_SPEED
     but Goal Current 0 when, with m the leader's rotation toward the correction since the last
     read (its joint motion projected on the joint-space line toward the corrected pose, period
@@ -23,7 +24,7 @@ gain, cap, return speed and lead), on three joints, per cycle::
                                          back, away from the region
         d - m <= DEADBAND                at this pace inside the deadband by the next read
         m > 0 after a free cycle         still moving in: the wall comes on once it stops
-    and, pushing, LEAD grows by max(m, 0) (a leader the wall walks back keeps moving setpoints).
+        d <= DEADBAND + SLACK after one  the wall comes on only a tick past the deadband
 
 Each servo's position loop (mode 5) drives its joint toward its Goal Position with at most Goal
 Current; every Goal Position lies from the leader's joint toward the corrected pose's, so the
@@ -132,15 +133,13 @@ def push3_for(
     # the goal on the joint-space line toward the corrected pose, at most LEAD ahead on any joint
     step = [t - p for t, p in zip(target, present, strict=True)]
     longest = max(abs(s) for s in step)
-    lead_deg = law.lead_deg
     if previous is not None and longest > 0.0:
         # the rotation toward the correction since the last read, on the joint-space line
         moved_in = moved_in_deg(present, previous, tuple(step))
         if lets_go(law, distance, moved_in, period_s, engaged):
             return free
-        # a leader the wall walks back: the goal leads it by how far it moved in, too
-        lead_deg += max(moved_in, 0.0)
-    scale = min(1.0, math.radians(lead_deg) / longest) if longest > 0.0 else 0.0
+    lead = math.radians(law.lead_for_deg(distance, motor.cap_nm(law.cap_nm)))
+    scale = min(1.0, lead / longest) if longest > 0.0 else 0.0
     goal = [p + scale * s for p, s in zip(present, step, strict=True)]
     return Push3(
         units,

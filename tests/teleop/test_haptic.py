@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -61,7 +62,12 @@ def test_a_push_leads_the_leader_toward_the_corrected_pose_by_at_most_the_lead()
     q = q_of(40.0, 0.0)
     push = push_for(LAW, MOTOR, (math.radians(40.0), 0.0), q, CONE.correct(q))
     assert push.goal_current == MOTOR.units_for(LAW.cap_nm)
-    assert math.degrees(push.goal_pan) == pytest.approx(40.0 - LAW.lead_deg)
+    # 10 deg beyond, deeper than a hand within the cap holds it: one tick more than LEAD
+    assert math.degrees(push.goal_pan) == pytest.approx(40.0 - 1.5 * LAW.lead_deg)
+    near = push_for(
+        LAW, MOTOR, (math.radians(31.5), 0.0), q_of(31.5, 0.0), CONE.correct(q_of(31.5, 0.0))
+    )
+    assert math.degrees(near.goal_pan) == pytest.approx(31.5 - LAW.lead_deg)
     assert push.profile_velocity == LAW.profile_velocity_units()
     inside = push_for(LAW, MOTOR, (0.1, 0.0), q_of(5.7, 0.0), q_of(5.7, 0.0))
     assert (inside.goal_current, inside.profile_velocity, inside.torque_nm) == (0, 0, 0.0)
@@ -85,7 +91,8 @@ def test_property_never_above_the_cap_zero_inside_toward_the_region(pan, tilt, d
     if push.goal_current:
         # the goal lies from the leader toward the corrected pose, no further than the lead
         step = np.subtract((push.goal_pan, push.goal_tilt), present)
-        assert np.max(np.abs(step)) <= math.radians(LAW.lead_deg) + 1e-12
+        lead = LAW.lead_for_deg(push.distance_deg, MOTOR.cap_nm(LAW.cap_nm))
+        assert np.max(np.abs(step)) <= math.radians(lead) + 1e-12
         target = np.subtract(np.asarray(quat_to_pan_tilt(corrected), dtype=float), present)
         assert float(step @ target) >= 0.0
 
@@ -104,12 +111,15 @@ def test_property_a_leader_outrunning_its_setpoint_or_still_moving_in_is_free_el
     free = push_for(LAW, MOTOR, present, q, corrected)
     outrun = moved > LAW.return_speed_deg_s * period + LAW.outrun_slack_deg
     near = (pan - 30.0) - moved <= LAW.deadband_deg
-    if outrun or near or (moved > 0.0 and not engaged):
+    low = (pan - 30.0) - LAW.deadband_deg <= LAW.outrun_slack_deg  # comes on only past this
+    if outrun or near or (not engaged and (moved > 0.0 or low)):
         assert push.goal_current == 0
-    else:  # otherwise the law's current, the goal further ahead by how far the leader moved
+    else:  # otherwise the law's current, the goal at most LEAD ahead (it no longer grows with
+        # the leader's step: decisions/haptic.md, round 4)
         assert push.goal_current == free.goal_current
-        lead = math.radians(LAW.lead_deg + max(moved, 0.0))
-        assert 0.0 <= present[0] - push.goal_pan <= lead + 1e-12
+        assert push.goal_pan == free.goal_pan
+        lead = LAW.lead_for_deg(push.distance_deg, MOTOR.cap_nm(LAW.cap_nm))
+        assert 0.0 <= present[0] - push.goal_pan <= math.radians(lead) + 1e-12
 
 
 def test_stats_say_how_long_and_how_hard():
@@ -202,17 +212,76 @@ def test_at_200_hz_the_leader_stops_within_2_deg_and_a_release_walks_back_to_the
     assert min(r["motor_nm"][0] for r in pressed) < -0.25  # it did push: 0.3 N m hand held
 
 
-@pytest.mark.parametrize("stiffness", [0.05, 0.2])
-def test_at_200_hz_a_leader_let_go_from_a_firm_press_walks_back_under_30_deg_s(stiffness):
-    # a stiff hand pressing 5 deg beyond: the let go's snap to the setpoint the lead put ahead
-    # adds to the walk back's 20 ms mean (30.2 deg/s with Profile Velocity at 28.9 deg/s)
-    rows = felt_at_200_hz([[0.0, 0.0, 0.0], [2.0, 35.0, 0.0]], 7.0, stiffness, let_go_s=5.0)
-    t = np.array([r["t"] for r in rows])
-    pan = np.array([r["pose_deg"][0] for r in rows])
-    velocity = np.array([r["velocity_deg_s"][0] for r in rows])
-    after = t >= 5.0
-    assert np.convolve(-velocity[after], np.ones(20) / 20.0, mode="valid").max() <= 30.0
-    assert 30.0 <= pan[after].min() and pan[-1] < 30.5
+@functools.cache
+def let_go(stiffness: float, beyond_deg: float) -> dict:
+    """A hand of ``stiffness`` pressing ``beyond_deg`` past the edge, let go at 5 s (stepped
+    clock): after the let go, the 1 ms samples outside whose motor torque points outward (their
+    times from the let go, s, and torques), the 1 ms and 20 ms peak return speeds, the rest."""
+    script = [[0.0, 0.0, 0.0], [2.0, 30.0 + beyond_deg, 0.0]]
+    rows = felt_at_200_hz(script, 7.0, stiffness, let_go_s=5.0)
+    after = [r for r in rows if r["t"] >= 5.0]
+    speed = -np.array([r["velocity_deg_s"][0] for r in after])
+    outward = [r for r in after if r["pose_deg"][0] > 30.0 and r["motor_nm"][0] > 0.0]
+    return {
+        "outward_s": [r["t"] - 5.0 for r in outward],
+        "outward_nm": [r["motor_nm"][0] for r in outward],
+        "peak": float(speed.max()),
+        "mean_20ms": float(np.convolve(speed, np.ones(20) / 20.0, mode="valid").max()),
+        "pan": np.array([r["pose_deg"][0] for r in after]),
+    }
+
+
+LET_GO_CASES = [(k, beyond) for k in (0.02, 0.05, 0.2) for beyond in (5.0, 20.0)]
+
+
+@pytest.mark.parametrize(("stiffness", "beyond_deg"), LET_GO_CASES)
+def test_at_200_hz_a_let_go_leader_walks_back_under_30_deg_s_and_rests_at_the_edge(
+    stiffness, beyond_deg
+):
+    out = let_go(stiffness, beyond_deg)
+    assert out["mean_20ms"] <= 30.0
+    # the snap onto the setpoint, 1.5-2.5 ticks ahead while held (the read's rounding), is at
+    # most 32.4 deg/s on the simulated XM430 loop; under 30 deg/s but in one case (below)
+    assert out["peak"] <= 32.5
+    assert 30.0 <= out["pan"].min() and out["pan"][-1] < 30.5  # within 0.5 deg, never inside
+
+
+@pytest.mark.parametrize(
+    ("stiffness", "beyond_deg"),
+    [
+        pytest.param(
+            *case,
+            marks=pytest.mark.xfail(
+                strict=True,
+                reason="the 1 ms peak is 31.3 deg/s: the hand left the setpoint 2.4 ticks "
+                "ahead of the held leader, and the snap onto it has no read in between "
+                "(decisions/haptic.md, round 4)",
+            ),
+        )
+        if case == (0.2, 5.0)
+        else case
+        for case in LET_GO_CASES
+    ],
+)
+def test_at_200_hz_a_let_go_leader_never_moves_faster_than_30_deg_s_in_any_1_ms_sample(
+    stiffness, beyond_deg
+):
+    assert let_go(stiffness, beyond_deg)["peak"] <= 30.0
+
+
+@pytest.mark.parametrize(("stiffness", "beyond_deg"), LET_GO_CASES)
+def test_at_200_hz_after_let_go_the_only_outward_torque_is_the_snap_onto_the_setpoint(
+    stiffness, beyond_deg
+):
+    # the held setpoint lies LEAD ahead; let go, the leader snaps onto it and the simulated
+    # loop's damping brakes it there (outward) for a few ms, before any read shows the motion.
+    # After that the setpoint runs ahead of the leader at RETURN_SPEED and never stops (it
+    # would brake the leader): no outward sample in the walk back (round 3: 3-5 in the snap,
+    # round 4 without the lead growing with the step: up to 39, from 12 to 86 ms)
+    out = let_go(stiffness, beyond_deg)
+    assert len(out["outward_s"]) <= 6
+    assert all(t <= 0.0105 for t in out["outward_s"])
+    assert max(out["outward_nm"], default=0.0) < 0.06
 
 
 @pytest.mark.parametrize("stiffness", [0.02, 0.2])
