@@ -29,7 +29,12 @@ from limbctl.teleop.loop import LoopConfig, run
 from limbctl.teleop.pacing import PaceWatch
 from limbctl.teleop.sources import LeaderSource
 from limbctl.teleop.sources.leader import FOLLOWER_GRACE_S, FOLLOWER_UNREAD
-from tests.teleop.pace_loss import FeelOff, assert_the_feel_went_off_for_the_pace, paced_out
+from tests.teleop.pace_loss import (
+    SIM_STARVED_HEALTH,
+    FeelOff,
+    assert_the_feel_went_off_for_the_pace,
+    paced_out,
+)
 
 IDS = (3, 4)
 EDGE = 30.0
@@ -77,7 +82,7 @@ class Running:
         self.changed = threading.Condition()
         self.stop = threading.Event()
         rig = session.rig
-        config = LoopConfig(on_cycle=self._observe)
+        config = LoopConfig(on_cycle=self._observe, health=SIM_STARVED_HEALTH)
 
         def body() -> None:
             try:

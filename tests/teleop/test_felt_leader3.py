@@ -35,7 +35,12 @@ from limbctl.teleop.loop import LoopConfig, run
 from limbctl.teleop.pacing import PaceWatch
 from limbctl.teleop.sources import LeaderSource3, SourceContext, parse_source
 from limbctl.teleop.sources.leader import FOLLOWER_GRACE_S, FOLLOWER_UNREAD
-from tests.teleop.pace_loss import FeelOff, assert_the_feel_went_off_for_the_pace, paced_out
+from tests.teleop.pace_loss import (
+    SIM_STARVED_HEALTH,
+    FeelOff,
+    assert_the_feel_went_off_for_the_pace,
+    paced_out,
+)
 from tests.teleop.twist_square import square_region
 
 IDS = (4, 5, 6)
@@ -96,7 +101,8 @@ class Running3:
         self.changed = threading.Condition()
         self.stop = threading.Event()
         self.ended = False
-        rig, config = session.rig, LoopConfig(on_cycle=self._observe)
+        rig = session.rig
+        config = LoopConfig(on_cycle=self._observe, health=SIM_STARVED_HEALTH)
 
         def body() -> None:
             try:
