@@ -142,6 +142,18 @@ class Running3:
         times = [t for t in self.clock if since <= t <= until]
         return len(times) > 2 and float(np.median(np.diff(times))) <= 1.25 / 200.0
 
+    def unreleased(self, since: float, until: float) -> bool:
+        """Whether every cycle between two monotonic times read both gimbals, ran the gate and
+        wrote the law's push (none released the leader, letting the hand carry it past)."""
+        cycles = [p for p, t in zip(self.pushes, self.clock, strict=True) if since <= t <= until]
+        return bool(cycles) and all(
+            push is not None
+            and cycle.present is not None
+            and cycle.result is not None
+            and cycle.result.outcome is not Outcome.HELD
+            for cycle, push, _ in cycles
+        )
+
     def paced_out(self) -> bool:
         """Whether the feel went off for a lost pace; if so, asserts its documented outcome."""
         if not paced_out(self.source):
@@ -217,7 +229,8 @@ def test_the_three_servo_leader_is_held_at_the_edge_in_swing_and_in_twist(tmp_pa
         lines = source.report_lines()
 
     def kept(sim_from: float, sim_to: float) -> bool:  # the simulator runs on the wall clock
-        return running.kept_pace(wall + sim_from - start, wall + sim_to - start)
+        since, until = wall + sim_from - start, wall + sim_to - start
+        return running.kept_pace(since, until) and running.unreleased(since, until)
 
     assert "three servos" in lines[0] and "pressed beyond the edge for" in lines[1]
     rows = truth_rows(log)
