@@ -8,7 +8,9 @@
 4. check: the simulator's own goal log (what reached the servos) is compared with the model's
    region, and pictures are drawn;
 5. leader: a simulated operator pushes a felt leader gimbal past the learned edge; the
-   follower mirrors it through the gate, the leader pushes back (leader.png).
+   follower mirrors it through the gate, the leader pushes back (leader.png). On the
+   three-servo rig (``--rig sim3``) the leader has three servos and is pushed past the edge
+   in swing, then in twist.
 """
 
 from __future__ import annotations
@@ -205,12 +207,33 @@ LEADER_SCRIPT = [[0.0, 0.0, 10.0], [1.0, 0.0, 10.0], [3.5, 100.0, 10.0]]
 LEADER_LET_GO_S = 6.0
 LEADER_SECONDS = 8.0
 LEADER_IDS = (3, 4)
+#: The three-servo rig's leader run ([t_s, pan, tilt, roll] deg): past the swing edge as above
+#: (pan 100 at tilt 10, the outline's edge near pan 79), back to the middle, then past the twist
+#: edge (roll 60 at pan 0, tilt 10, where the band ends near 37 deg), held, let go. Its leader
+#: is ids 4-6 (the follower's roll is id 3).
+LEADER_SCRIPT3 = [
+    [0.0, 0.0, 10.0, 0.0],
+    [1.0, 0.0, 10.0, 0.0],
+    [3.0, 100.0, 10.0, 0.0],
+    [4.5, 100.0, 10.0, 0.0],
+    [6.0, 0.0, 10.0, 0.0],
+    [7.5, 0.0, 10.0, 60.0],
+]
+LEADER_LET_GO_S3 = 9.0
+LEADER_SECONDS3 = 10.5
+LEADER_IDS3 = (4, 5, 6)
 
 
-def _leader_run(out: Path, model_path: Path, seed: int, live: LiveView | None = None) -> int:
-    """Step 5: the felt leader on the simulator; leader.png shows leader vs follower and the
-    push, and the live page (when served) draws the leader beside the follower with its push.
-    A machine too busy to keep the rate with the leader's extra write is said so."""
+def _leader_run(
+    out: Path, model_path: Path, seed: int, live: LiveView | None = None, rig: str = "sim"
+) -> int:
+    """Step 5: the felt leader on the simulator (three servos on ``rig`` ``sim3``, pushed past
+    the edge in swing and in twist); leader.png shows leader vs follower (pan, tilt; the twist
+    too for three) and the push, and the live page (when served) draws the leader beside the
+    follower with its push. A machine too busy to keep the rate with the leader's extra write
+    is said so."""
+    from limbctl.geometry.gimbal3 import pose_quat_scalar
+    from limbctl.geometry.twist import decompose_one
     from limbctl.jobs import gate_for
     from limbctl.plot import plot_leader
     from limbctl.servo.control_table import MAX_TICK
@@ -218,17 +241,30 @@ def _leader_run(out: Path, model_path: Path, seed: int, live: LiveView | None = 
     from limbctl.servo.setup import configure_servos
     from limbctl.session import open_rig
     from limbctl.teleop.loop import LoopConfig, run
-    from limbctl.teleop.sources import LeaderSource
+    from limbctl.teleop.sources import LeaderSource, LeaderSource3
 
-    profile = load_rig_profile(None)
+    three = rig == "sim3"
+    ids, script = (LEADER_IDS3, LEADER_SCRIPT3) if three else (LEADER_IDS, LEADER_SCRIPT)
+    let_go_s, seconds = (
+        (LEADER_LET_GO_S3, LEADER_SECONDS3) if three else (LEADER_LET_GO_S, LEADER_SECONDS)
+    )
+    rig_path = Path(rig) if three else None
+    profile = load_rig_profile(rig_path)
     gate = gate_for(model_path, profile, DEMO_RATE_HZ, DEMO_MAX_SPEED_DEG_S)
-    leader = {"ids": list(LEADER_IDS), "model": "xm430-w350", "start_deg": [0.0, 10.0]}
+    start = [0.0, 10.0, 0.0] if three else [0.0, 10.0]
+    leader = {"ids": list(ids), "model": "xm430-w350", "start_deg": start}
     rows: list[tuple[float, ...]] = []
-    with open_rig(seed=seed, extra_ids=LEADER_IDS, sim_options={"leader": leader}) as session:
-        rig = session.rig
-        limits = {**rig.tick_limits(), **dict.fromkeys(LEADER_IDS, (0, MAX_TICK))}
-        configure_servos(rig.bus, limits)
-        source = LeaderSource(rig, LEADER_IDS, rate_hz=DEMO_RATE_HZ)
+
+    def twist_deg(pose: tuple[float, ...]) -> float:  # about the rest axis, as the band is
+        return math.degrees(decompose_one(pose_quat_scalar(*pose))[1])
+
+    with open_rig(
+        rig_path=rig_path, seed=seed, extra_ids=ids, sim_options={"leader": leader}
+    ) as session:
+        sim_rig = session.rig
+        limits = {**sim_rig.tick_limits(), **dict.fromkeys(ids, (0, MAX_TICK))}
+        configure_servos(sim_rig.bus, limits)
+        source = (LeaderSource3 if three else LeaderSource)(sim_rig, ids, rate_hz=DEMO_RATE_HZ)
         try:
             source.start()
         except ConfigError as exc:
@@ -236,12 +272,9 @@ def _leader_run(out: Path, model_path: Path, seed: int, live: LiveView | None = 
             return 0
         try:
             say(f"   {source.notice}")
-            rig.set_torque(True)
-            feed = (
-                None
-                if live is None
-                else live.teleop_observer(gate.envelope, profile, "demo: leader")
-            )
+            sim_rig.set_torque(True)
+            observe = None if live is None else live.teleop_observer
+            feed = observe and observe(gate.envelope, profile, "demo: leader")
             if feed is not None:
                 feed.leader = leader_status(source)
 
@@ -250,20 +283,29 @@ def _leader_run(out: Path, model_path: Path, seed: int, live: LiveView | None = 
                     feed(cycle)
                 push, result = source.last_push, cycle.result
                 if cycle.complete and cycle.command_deg is not None and result is not None:
-                    gated = (math.degrees(result.pan), math.degrees(result.tilt))
                     torque = push.torque_nm if push is not None else 0.0
-                    rows.append((cycle.t, *cycle.command_deg, *gated, torque))
+                    if three and source.last_pose3 is not None:
+                        held = source.last_pose3
+                        gated3 = (result.pan, result.tilt, result.roll)
+                        commanded = (*map(math.degrees, held[:2]), twist_deg(held))
+                        gated = (*map(math.degrees, gated3[:2]), twist_deg(gated3))
+                        rows.append((cycle.t, *commanded, *gated, torque))
+                    elif not three:
+                        gated = (math.degrees(result.pan), math.degrees(result.tilt))
+                        rows.append((cycle.t, *cycle.command_deg, *gated, torque))
 
-            config = LoopConfig(rate_hz=DEMO_RATE_HZ, duration_s=LEADER_SECONDS, on_cycle=record)
-            operator = {"script": LEADER_SCRIPT, "let_go_s": LEADER_LET_GO_S}
+            config = LoopConfig(rate_hz=DEMO_RATE_HZ, duration_s=seconds, on_cycle=record)
+            operator = {"script": script, "let_go_s": let_go_s}
             session.simulator.set_operator(operator)
-            summary = run(rig, gate, source, config)
+            summary = run(sim_rig, gate, source, config)
         finally:
             source.close()
         for line in source.report_lines()[1:]:
             say(f"   {line}")
-    table = np.asarray(rows, dtype=np.float64).reshape(-1, 6)
-    plot_leader(out / "leader.png", table[:, 0], table[:, 1:3], table[:, 3:5], table[:, 5])
+    k = len(ids)
+    table = np.asarray(rows, dtype=np.float64).reshape(-1, 2 + 2 * k)
+    leader_deg, follower_deg = table[:, 1 : 1 + k], table[:, 1 + k : 1 + 2 * k]
+    plot_leader(out / "leader.png", table[:, 0], leader_deg, follower_deg, table[:, -1])
     say(f"   picture: {out / 'leader.png'}")
     if summary.fault:
         say(f"   the leader run ended by a fault: {summary.fault}")
@@ -344,7 +386,7 @@ def _run_demo_twist(out: Path, teach_seconds: float, seed: int, live: LiveView) 
     region_yaml = demo_region_path().with_name("demo_region3.yaml")
     simulator = Connection(seed=seed, rig=Path("sim3"))
 
-    say(f"== 1/4 teach (three servos): the hand teaches swing and twist for {teach_seconds:.0f} s")
+    say(f"== 1/5 teach (three servos): the hand teaches swing and twist for {teach_seconds:.0f} s")
     run_record(
         RecordOptions(
             out=data,
@@ -355,9 +397,9 @@ def _run_demo_twist(out: Path, teach_seconds: float, seed: int, live: LiveView) 
         ),  # fmt: skip
         view=live,
     )
-    say("== 2/4 train: a Rigid Map learns the swing outline and the twist band over it")
+    say("== 2/5 train: a Rigid Map learns the swing outline and the twist band over it")
     run_train(TrainOptions(data=data, out=model_path, kind="rigidmap", seed=seed))
-    say("== 3/4 teleop: a sweep far outside in swing and twist, through the gate at 200 Hz")
+    say("== 3/5 teleop: a sweep far outside in swing and twist, through the gate at 200 Hz")
     valid = write_twist_stream(commands)
     say(f"   {valid} commands (+ a few malformed lines) in {commands}")
     status = run_teleop(
@@ -373,7 +415,7 @@ def _run_demo_twist(out: Path, teach_seconds: float, seed: int, live: LiveView) 
         ),  # fmt: skip
         view=live,
     )
-    say("== 4/4 check: every goal the simulator received, against the learned region")
+    say("== 4/5 check: every goal the simulator received, against the learned region")
     model = load_model(model_path)
     excursion = twist_excursions(goals, model, written_orientations(telemetry))
     worst = float(excursion.max()) if len(excursion) else 0.0
@@ -397,6 +439,9 @@ def _run_demo_twist(out: Path, teach_seconds: float, seed: int, live: LiveView) 
     if beyond:
         say(f"FAILED: {beyond} goals reached the servos beyond the gate's bound; see {goals}")
         return 1
+    say("== 5/5 leader: an operator pushes a felt three-servo leader past the edge in swing, then")
+    say("   in twist, and lets go")
+    status = max(status, _leader_run(out, model_path, seed, live, rig="sim3"))
     say(f"done: everything is in {out}/")
     return status
 

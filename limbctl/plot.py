@@ -147,8 +147,8 @@ def plot(
 
 
 def plot_leader(path: Path, t: np.ndarray, leader: np.ndarray, follower: np.ndarray, torque):
-    """The demo's leader run: leader versus follower pan and tilt over time, and the leader's
-    push.
+    """The demo's leader run: leader versus follower pan and tilt (and, for a three-servo
+    leader, twist) over time, and the leader's push.
 
     Parameters
     ----------
@@ -156,8 +156,9 @@ def plot_leader(path: Path, t: np.ndarray, leader: np.ndarray, follower: np.ndar
         The PNG to write.
     t : ndarray (N,)
         Cycle times (s).
-    leader, follower : ndarray (N, 2)
-        Pan and tilt (deg) of the leader (the command) and of the follower (what was written).
+    leader, follower : ndarray (N, 2) or (N, 3)
+        Pan and tilt (deg) of the leader (the command) and of the follower (what was written);
+        a third column is the twist about the rest axis (deg), drawn on a panel of its own.
     torque : ndarray (N,)
         The torque the leader pushed back with (N m; 0 inside the region).
     """
@@ -166,15 +167,22 @@ def plot_leader(path: Path, t: np.ndarray, leader: np.ndarray, follower: np.ndar
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, (ax_pose, ax_force) = plt.subplots(2, 1, figsize=(10, 6), sharex=True)
+    twist = leader.shape[1] == 3
+    fig, axes = plt.subplots(3 if twist else 2, 1, figsize=(10, 8 if twist else 6), sharex=True)
+    ax_pose, ax_force = axes[0], axes[-1]
     for k, name in enumerate(("pan", "tilt")):
         ax_pose.plot(t, leader[:, k], label=f"leader {name} (the operator's hand)")
         ax_pose.plot(t, follower[:, k], "--", label=f"follower {name} (gated)")
     ax_pose.set_ylabel("deg")
     ax_pose.legend(loc="best", fontsize=8)
     ax_pose.set_title("leader vs follower: the follower stops at the edge, the leader is pushed")
+    if twist:
+        axes[1].plot(t, leader[:, 2], label="leader twist (the operator's hand)")
+        axes[1].plot(t, follower[:, 2], "--", label="follower twist (gated)")
+        axes[1].set_ylabel("twist (deg)")
+        axes[1].legend(loc="best", fontsize=8)
     ax_force.plot(t, torque, color="crimson")
-    ax_force.set_ylabel("leader push (N m)")
+    ax_force.set_ylabel("leader push (N m)" + (", largest joint" if twist else ""))
     ax_force.set_xlabel("s")
     fig.tight_layout()
     fig.savefig(path, dpi=100)

@@ -4,6 +4,7 @@ judge by the simulator's own goal log against the region the hand really taught.
 
 import json
 import math
+import re
 
 import numpy as np
 import pytest
@@ -79,7 +80,7 @@ def test_the_teleop_picture_outlines_the_hands_true_region():
     assert np.ptp(outline[:, 1]) == pytest.approx(np.ptp(vertices[:, 1]), abs=1.0)
 
 
-def test_the_three_servo_demo_keeps_every_goal_in_the_learned_region(tmp_path):
+def test_the_three_servo_demo_keeps_every_goal_in_the_learned_region(tmp_path, capsys):
     from limbctl.eval.twist_demo import (
         logged_orientations,
         twist_excursions,
@@ -109,6 +110,52 @@ def test_the_three_servo_demo_keeps_every_goal_in_the_learned_region(tmp_path):
         out / "goals.jsonl", model, written_orientations(out / "telemetry.jsonl")
     )
     assert excursion.max() <= written_tolerance_deg3()
+    # step 5, the felt three-servo leader pushed past the edge in swing, then in twist: its
+    # picture and its report; or, on a machine too busy for the leader's 200 Hz, the start's
+    # refusal (the leader left limp), as `limbctl teleop` would say it
+    said = capsys.readouterr().err  # say() writes to stderr
+    assert "== 5/5 leader" in said
+    if "skipped:" in said:
+        assert "lower --rate" in said and not (out / "leader.png").exists()
+        return
+    assert (out / "leader.png").stat().st_size > 0
+    assert "(three servos) feels the edge in swing and twist" in said
+    pressed = re.search(r"pressed beyond the edge for ([\d.]+) s", said)
+    # two presses of about 1.5 s each; or, a loop under 160 Hz (a loaded machine), the push
+    # switched off for good, which the run says, mirroring on
+    paced_out = re.search(r"the loop runs at \d+ Hz, under the 200 Hz .* without feel", said)
+    assert (pressed and float(pressed[1]) > 1.0) or paced_out, said[-600:]
+
+
+def test_the_three_servo_leader_run_goes_past_the_true_edge_in_swing_then_in_twist():
+    from firmware_sim.twist_hand import hand_from_yaml
+    from limbctl.demo import LEADER_LET_GO_S3, LEADER_SCRIPT3, LEADER_SECONDS3
+
+    hand = hand_from_yaml(demo_region_path().with_name("demo_region3.yaml"))
+    region, band = hand.region, hand.band
+    points = {tuple(p[1:]) for p in LEADER_SCRIPT3}
+    middle, swing, twist = (0.0, 10.0, 0.0), (100.0, 10.0, 0.0), (0.0, 10.0, 60.0)
+    assert points == {middle, swing, twist}
+    assert region.contains(*middle[:2]) and abs(middle[2]) < band.limits_deg(*middle[:2])[1]
+    # 20 deg past the swing outline's edge (pan 79 at tilt 10), and past the band's edge in
+    # twist at a swing well inside (at pan 0 the chain adds no twist: twist = roll)
+    assert not region.contains(*swing[:2])
+    assert region.edge_distance_deg(np.array([swing[0]]), np.array([swing[1]]))[0] < -15.0
+    assert region.contains(*twist[:2]) and twist[2] > band.limits_deg(*twist[:2])[1] + 15.0
+    # held at the twist edge before the let go, which leaves time to walk back
+    assert LEADER_SCRIPT3[-1][0] < LEADER_LET_GO_S3 < LEADER_SECONDS3 - 1.0
+
+
+def test_the_leader_picture_draws_the_twist_of_a_three_servo_leader(tmp_path):
+    from limbctl.plot import plot_leader
+
+    t = np.linspace(0.0, 1.0, 50)
+    poses = np.column_stack([t * 90, t * 0 + 10, t * 60])
+    plot_leader(tmp_path / "l3.png", t, poses, np.minimum(poses, 37.0), 0.3 * t)
+    plot_leader(tmp_path / "l2.png", t, poses[:, :2], np.minimum(poses[:, :2], 79.0), 0.3 * t)
+    from PIL import Image
+
+    assert Image.open(tmp_path / "l3.png").size[1] > Image.open(tmp_path / "l2.png").size[1]
 
 
 def test_the_demo_refuses_an_unknown_rig(tmp_path):

@@ -1,4 +1,5 @@
-"""The control loop's clock: when each cycle starts, and which cycles were late.
+"""The control loop's clock: when each cycle starts, which cycles were late, and whether the
+loop keeps the pace a felt leader's wall needs (:class:`PaceWatch`).
 
 Cycle ``k`` is due at ``t0 + k T`` (T = 1 / rate). After a cycle the loop waits for the next
 slot; a cycle that ran late is followed at once by the next (no wait), so the loop catches up
@@ -18,12 +19,20 @@ from __future__ import annotations
 
 import threading
 import time
+from collections import deque
 from collections.abc import Callable
+
+import numpy as np
 
 #: Most periods a late loop catches up on (20 ms at 200 Hz) before it gives up those slots and
 #: starts afresh: a stall of a few periods (a moment of load, a garbage collection) is made up
 #: by back-to-back cycles; a longer one would only send a burst of goals that are already old.
 BACKLOG_PERIODS = 4
+#: While felt, the loop's pace is watched over the last PACE_WINDOW cycles (0.2 s at 200 Hz):
+#: a median period over PACE_SLACK periods (160 Hz at 200 Hz) switches the push off for good.
+#: The wall's passivity margin at 200 Hz is 1.75 (haptic.FeelLaw); at 160 Hz it is 1.4.
+PACE_WINDOW = 40
+PACE_SLACK = 1.25
 
 
 class Pacer:
@@ -67,3 +76,33 @@ class Pacer:
         elif delay < -self.period_s and not self._late:
             self.overruns += 1  # once per late spell, not for each cycle that catches up
         self._late = delay < -self.period_s
+
+
+class PaceWatch:
+    """Whether the loop keeps the rate the wall needs: the median of the last PACE_WINDOW
+    periods between calls of :meth:`lost`, against PACE_SLACK periods.
+
+    Parameters
+    ----------
+    rate_hz : float
+        The rate the wall was made passive for (Hz).
+    clock : callable
+        Seconds, monotonic (``time.perf_counter``).
+    """
+
+    def __init__(self, rate_hz: float, clock: Callable[[], float] = time.perf_counter) -> None:
+        self.limit_s = PACE_SLACK / rate_hz
+        self.clock = clock
+        self._last: float | None = None
+        self._periods: deque[float] = deque(maxlen=PACE_WINDOW)
+
+    def lost(self) -> float | None:
+        """Count a cycle now; the median period (s) once it is over the limit, else None."""
+        now = self.clock()
+        if self._last is not None:
+            self._periods.append(now - self._last)
+        self._last = now
+        if len(self._periods) < PACE_WINDOW:
+            return None
+        median = float(np.median(self._periods))
+        return median if median > self.limit_s else None

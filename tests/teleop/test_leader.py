@@ -45,14 +45,31 @@ def test_follower_mirrors_a_pushed_leader_within_the_region(tmp_path):
         source = LeaderSource(rig, (3, 4))
         stop = threading.Event()
         out = {}
+        seen = {"written": 0, "angle": 0.0}
+        changed = threading.Condition()
+
+        def observe(cycle) -> None:  # wait on what the assertions need, however slow the loop
+            with changed:
+                seen["written"] += cycle.written
+                if cycle.present is not None:
+                    pan, tilt = cycle.present
+                    seen["angle"] = math.degrees(math.acos(math.cos(pan) * math.cos(tilt)))
+                changed.notify_all()
+
+        def at_the_edge() -> bool:
+            return seen["written"] > 100 and seen["angle"] > 29.0
+
         with source:
             assert rig.bus.torque_enabled()[3] is False
             rig.set_torque(True)
             thread = threading.Thread(
-                target=lambda: out.update(s=run(rig, gate, source, LoopConfig(), stop=stop))
+                target=lambda: out.update(
+                    s=run(rig, gate, source, LoopConfig(on_cycle=observe), stop=stop)
+                )
             )
             thread.start()
-            thread.join(timeout=3.0)  # the loop runs; the join times out by design
+            with changed:  # 100 goals written and the follower at the cone's edge
+                changed.wait_for(lambda: at_the_edge() or not thread.is_alive(), timeout=60.0)
             stop.set()
             thread.join(timeout=10)
         pan, tilt = rig.read_pose()

@@ -18,8 +18,6 @@ from __future__ import annotations
 
 import math
 import time
-from collections import deque
-from collections.abc import Callable
 
 import numpy as np
 
@@ -30,6 +28,7 @@ from limbctl.servo.rig import Rig
 from limbctl.teleop.commands import Command, command_from_pan_tilt, command_from_pose
 from limbctl.teleop.gate import Outcome
 from limbctl.teleop.haptic import FeelLaw, FeelStats, Push, push_for
+from limbctl.teleop.pacing import PaceWatch
 from limbctl.teleop.sources.base import CommandSource
 
 #: Bus Watchdog of a felt leader: 5 x 20 ms = 100 ms without a packet stops it (the servo holds
@@ -44,11 +43,6 @@ GOAL_CURRENT_BLOCK = Block(Register.GOAL_CURRENT, Register.GOAL_CURRENT.size)
 #: so a moment of load on a shared machine does not refuse a bus that keeps the rate.
 RATE_CHECK_CYCLES = 50
 RATE_CHECK_TRIES = 3
-#: While felt, the loop's pace is watched over the last PACE_WINDOW cycles (0.2 s at 200 Hz):
-#: a median period over PACE_SLACK periods (160 Hz at 200 Hz) switches the push off for good.
-#: The wall's passivity margin at 200 Hz is 1.75 (haptic.FeelLaw); at 160 Hz it is 1.4.
-PACE_WINDOW = 40
-PACE_SLACK = 1.25
 #: How the loop's gate says it held because the follower's read failed this cycle.
 FOLLOWER_UNREAD = "the bus failed this cycle"
 #: How long the wall stays on while the follower's reads fail and the leader's do not (s): the
@@ -58,36 +52,6 @@ FOLLOWER_UNREAD = "the bus failed this cycle"
 #: the follower counts as faulted and the wall goes off until it is read again (the loop's own
 #: fault, 0.5 s of silence, releases it too). docs/decisions/haptic.md.
 FOLLOWER_GRACE_S = 0.055
-
-
-class PaceWatch:
-    """Whether the loop keeps the rate the wall needs: the median of the last PACE_WINDOW
-    periods between calls of :meth:`lost`, against PACE_SLACK periods.
-
-    Parameters
-    ----------
-    rate_hz : float
-        The rate the wall was made passive for (Hz).
-    clock : callable
-        Seconds, monotonic (``time.perf_counter``).
-    """
-
-    def __init__(self, rate_hz: float, clock: Callable[[], float] = time.perf_counter) -> None:
-        self.limit_s = PACE_SLACK / rate_hz
-        self.clock = clock
-        self._last: float | None = None
-        self._periods: deque[float] = deque(maxlen=PACE_WINDOW)
-
-    def lost(self) -> float | None:
-        """Count a cycle now; the median period (s) once it is over the limit, else None."""
-        now = self.clock()
-        if self._last is not None:
-            self._periods.append(now - self._last)
-        self._last = now
-        if len(self._periods) < PACE_WINDOW:
-            return None
-        median = float(np.median(self._periods))
-        return median if median > self.limit_s else None
 
 
 class LeaderSource(CommandSource):
@@ -103,6 +67,9 @@ class LeaderSource(CommandSource):
 
     name = "leader"
     latest_only = True
+    #: How many servos this class makes feel the edge: a three-servo leader opened as a plain
+    #: LeaderSource stays passive (a felt one is a LeaderSource3, sources/leader3.py).
+    felt_joints = 2
 
     def __init__(
         self,
@@ -165,7 +132,7 @@ class LeaderSource(CommandSource):
         """
         bus = self.rig.bus
         model = model_name(bus.models[self.leader_ids[0]])
-        if len(self.leader_ids) == 3:  # a felt one is a LeaderSource3 (sources/leader3.py)
+        if len(self.leader_ids) != self.felt_joints:
             bus.set_torque(False, self.leader_ids)
             self.notice = "a three-servo leader stays passive: nothing is felt"
             return
@@ -190,9 +157,13 @@ class LeaderSource(CommandSource):
             raise
         self.motor = motor
         self.cap_nm = motor.torque_of(cap)
-        self.notice = (
+        self.notice = self._feel_notice(model, cap)
+
+    def _feel_notice(self, model: str, cap: int) -> str:
+        """What the operator is told at start when the leader feels the edge."""
+        return (
             f"leader {model} feels the edge: free inside, pushed back beyond "
-            f"{self.law.deadband_deg:g} deg, at most {motor.torque_of(cap):.2f} N m "
+            f"{self.law.deadband_deg:g} deg, at most {self.motor.torque_of(cap):.2f} N m "
             f"(Current Limit {cap})"
         )
 
@@ -208,7 +179,7 @@ class LeaderSource(CommandSource):
                 read = self.rig.bus.read_cycle(ids=self.leader_ids, attempts=1)
                 if read.ok:
                     pose = self._pose(read)
-                    self._write(Push(0, 0, pose[0], pose[1], 0.0, 0.0))
+                    self._write(self._free(pose))
                 times.append(time.perf_counter() - start)
             medians.append(float(np.median(times)))
             if medians[-1] <= 1.0 / self.rate_hz:
@@ -257,23 +228,39 @@ class LeaderSource(CommandSource):
         except BusError:
             self.read_failures += 1
             return []
-        try:
-            # the same range checks as every other source's commands
-            if len(self.leader_ids) == 3:  # a three-servo leader: read like the follower
-                angles = self.rig.angles_of(tuple(ticks[i] for i in self.leader_ids))
-                self.last_pose = (angles[0], angles[1])
-                command = command_from_pose(*(math.degrees(a) for a in angles))
-            else:
-                pan, tilt = self.rig.ticks_to_angles(
-                    ticks[self.leader_ids[0]], ticks[self.leader_ids[1]]
-                )
-                self.last_pose = (pan, tilt)
-                command = command_from_pan_tilt(math.degrees(pan), math.degrees(tilt))
+        pose = self._angles(tuple(ticks[i] for i in self.leader_ids))
+        self._seen(pose)
+        try:  # the same range checks as every other source's commands
+            command = self._command(pose)
         except InvalidInputError as exc:
             self.stats.reject(f"leader pose refused: {exc}")
             return []
         self.stats.accepted += 1
         return [command]
+
+    def _angles(self, ticks: tuple[int, ...]) -> tuple[float, ...]:
+        """The leader's joint angles (rad) at its ticks, read like the follower's: (pan, tilt),
+        or (pan, tilt, roll) for three servos."""
+        if len(ticks) == 3:
+            return tuple(self.rig.angles_of(ticks))
+        return self.rig.ticks_to_angles(*ticks)
+
+    def _seen(self, pose: tuple[float, ...]) -> None:
+        """Keep a read pose for the live page (:attr:`last_pose`: its pan and tilt)."""
+        self.last_pose = (pose[0], pose[1])
+
+    @staticmethod
+    def _command(pose: tuple[float, ...]) -> Command:
+        """The command of a pose (rad): a direction for two joints, an orientation for three.
+
+        Raises
+        ------
+        InvalidInputError
+            Outside the range every source's commands are checked against.
+        """
+        if len(pose) == 3:
+            return command_from_pose(*(math.degrees(a) for a in pose))
+        return command_from_pan_tilt(math.degrees(pose[0]), math.degrees(pose[1]))
 
     def _poll_felt(self) -> list[Command]:
         """The felt leader's read: its pose, and whether it is still fit to push."""
@@ -296,16 +283,17 @@ class LeaderSource(CommandSource):
                 self._lose_feel(f"leader servo {servo_id} restarted (its torque went off)")
             if not self.felt:  # a restarted servo's indirect map is gone: read it plainly
                 return self._poll_passive()
-        pan, tilt = self.last_pose = self._pose(read)
+        pose = self._pose(read)
+        self._seen(pose)
         try:
-            command = command_from_pan_tilt(math.degrees(pan), math.degrees(tilt))
+            command = self._command(pose)
         except InvalidInputError as exc:
             self.stats.reject(f"leader pose refused: {exc}")
             return []
         self.stats.accepted += 1
         if self.felt:
-            self._cycle = ((pan, tilt), command.q, self._last_read, now)
-            self._last_read = ((pan, tilt), now)
+            self._cycle = (pose, command.q, self._last_read, now)
+            self._last_read = (pose, now)
         return [command]
 
     def _arm_watchdog(self) -> None:
@@ -318,9 +306,9 @@ class LeaderSource(CommandSource):
         except BusError:
             self._heard_at = -math.inf  # tried again on the next good read
 
-    def _pose(self, read) -> tuple[float, float]:
-        pan_id, tilt_id = self.leader_ids
-        return self.rig.ticks_to_angles(read.reports[pan_id].present, read.reports[tilt_id].present)
+    def _pose(self, read) -> tuple[float, ...]:
+        """The pose (rad) of a good read of the leader."""
+        return self._angles(tuple(read.reports[i].present for i in self.leader_ids))
 
     def _lose_feel(self, cause: str) -> None:
         """Switch the push off for good; the mirroring goes on and the operator is told."""
@@ -354,16 +342,31 @@ class LeaderSource(CommandSource):
             pose, q, last, read_at = cycle
             previous, period = (None, 0.0) if last is None else (last[0], read_at - last[1])
             engaged = self.last_push is not None and self.last_push.goal_current > 0
-            corrected = gate.envelope.correct(q)
-            push = push_for(self.law, self.motor, pose, q, corrected, previous, period, engaged)
+            push = self._law(gate, pose, q, previous, period, engaged)
         else:
-            push = Push(0, 0, cycle[0][0], cycle[0][1], 0.0, 0.0)
+            push = self._free(cycle[0])
         if push is None:
             self.release()
             return notes
         self._write(push)
         self.feel_stats.add(push.torque_nm, 1.0 / self.rate_hz)
         return notes
+
+    def _law(self, gate, pose, q, previous, period: float, engaged: bool) -> Push:
+        """This cycle's push by the two-servo law (:func:`~limbctl.teleop.haptic.push_for`)
+        from the leader's pose (rad), its command ``q`` (4,), the pose read a cycle before (None
+        at first) and the time since (s), and whether the wall pushed then."""
+        corrected = gate.envelope.correct(q)
+        return push_for(self.law, self.motor, pose, q, corrected, previous, period, engaged)
+
+    @staticmethod
+    def _free(pose: tuple[float, ...]) -> Push:
+        """The push of a cycle that may not push: no current, the goal at the pose (rad)."""
+        return Push(0, 0, pose[0], pose[1], 0.0, 0.0)
+
+    def _goal_ticks(self, push: Push) -> tuple[int, ...]:
+        """The push's Goal Position ticks per leader servo (not clamped)."""
+        return self.rig.angles_to_ticks(push.goal_pan, push.goal_tilt)
 
     def _follower_missed(self, result, bus_ok: bool, now: float) -> bool:
         """Whether the gate held only because the follower's read failed, within
@@ -394,7 +397,9 @@ class LeaderSource(CommandSource):
             self._zero_current()
 
     def _write(self, push: Push) -> None:
-        ticks = self.rig.angles_to_ticks(push.goal_pan, push.goal_tilt)
+        """One sync write of Goal Current and Goal Position to the leader's servos; Torque
+        Enable off and on first when the wall comes on, Profile Velocity once with it."""
+        ticks = self._goal_ticks(push)
         data = {
             servo_id: encode_feel(push.goal_current, min(max(int(tick), 0), MAX_TICK))
             for servo_id, tick in zip(self.leader_ids, ticks, strict=True)
