@@ -9,11 +9,9 @@ from __future__ import annotations
 
 import json
 import statistics
-import threading
 import time
 from contextlib import contextmanager
 
-import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -24,15 +22,11 @@ from limbctl.errors import ConfigError
 from limbctl.jobs import gate_for
 from limbctl.servo.setup import configure_servos
 from limbctl.session import open_rig
-from limbctl.teleop.gate import Outcome
-from limbctl.teleop.loop import LoopConfig, run
 from limbctl.teleop.pacing import PaceWatch
 from limbctl.teleop.sources import LeaderSource
-from limbctl.teleop.sources.leader import FOLLOWER_GRACE_S, FOLLOWER_UNREAD
+from tests.teleop.felt_running import Running as FeltRunning
+from tests.teleop.felt_running import pushed_only_when_fit
 from tests.teleop.pace_loss import (
-    SIM_STARVED_HEALTH,
-    FeelOff,
-    assert_the_feel_went_off_for_the_pace,
     paced_out,
 )
 
@@ -70,85 +64,8 @@ def felt_session(tmp_path, model="xm430-w350", rate_hz=25.0):
         yield session, source, log
 
 
-class Running:
-    """The loop in a thread with every cycle's push kept, when each cycle ended (monotonic s),
-    and the cycle that switched the feel off with the ground truth at its end (``off``);
-    ``until(predicate)`` waits on the pushes."""
-
-    def __init__(self, session, source) -> None:
-        self.source, self.pushes, self.out = source, [], {}
-        self.clock: list[float] = []
-        self.off = FeelOff(session.simulator)
-        self.changed = threading.Condition()
-        self.stop = threading.Event()
-        rig = session.rig
-        config = LoopConfig(on_cycle=self._observe, health=SIM_STARVED_HEALTH)
-
-        def body() -> None:
-            try:
-                self.out.update(s=run(rig, session.gate, source, config, stop=self.stop))
-            finally:
-                with self.changed:
-                    self.ended = True
-                    self.changed.notify_all()
-
-        self.ended = False
-        self.thread = threading.Thread(target=body)
-
-    def _observe(self, cycle) -> None:
-        with self.changed:
-            was_felt = self.pushes[-1][2] if self.pushes else True
-            self.off.observe(len(self.pushes), was_felt, self.source.felt)
-            self.pushes.append((cycle, self.source.last_push, self.source.felt))
-            self.clock.append(time.monotonic())
-            self.changed.notify_all()
-
-    def until(self, predicate, timeout: float = 60.0) -> None:
-        """Wait until ``predicate(pushes)``; fail at once, saying why, if the loop ended first."""
-        with self.changed:
-            self.changed.wait_for(lambda: predicate(self.pushes) or self.ended, timeout)
-            if predicate(self.pushes):
-                return
-            summary = self.out.get("s")
-            raise AssertionError(
-                f"never happened in {len(self.pushes)} cycles; loop ended: {self.ended}, "
-                f"fault: {getattr(summary, 'fault', None)!r}, feel: {self.source.feel_stats.events}"
-            )
-
-    def kept_pace(self, since: float, until: float) -> bool:
-        """Whether the loop kept the wall's rate between two monotonic times: the median period
-        of its cycles within 1.25 periods at 200 Hz (the pace watch's rule, PaceWatch)."""
-        times = [t for t in self.clock if since <= t <= until]
-        return len(times) > 2 and float(np.median(np.diff(times))) <= 1.25 / 200.0
-
-    def unreleased(self, since: float, until: float) -> bool:
-        """Whether every cycle between two monotonic times read both gimbals, ran the gate and
-        wrote the law's push: none released the leader for a failed read or a held gate, after
-        which the hand may carry it past (docs/decisions/haptic.md)."""
-        cycles = [p for p, t in zip(self.pushes, self.clock, strict=True) if since <= t <= until]
-        return bool(cycles) and all(
-            push is not None
-            and cycle.present is not None
-            and cycle.result is not None
-            and cycle.result.outcome is not Outcome.HELD
-            for cycle, push, _ in cycles
-        )
-
-    def paced_out(self) -> bool:
-        """Whether the feel went off for a lost pace; if so, asserts its documented outcome."""
-        if not paced_out(self.source):
-            return False
-        with self.changed:
-            assert_the_feel_went_off_for_the_pace(self.pushes, self.off, self.source, IDS)
-        return True
-
-    def __enter__(self) -> Running:
-        self.thread.start()
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.stop.set()
-        self.thread.join(timeout=10.0)
+class Running(FeltRunning):
+    ids = IDS
 
 
 def truth_rows(log):
@@ -160,27 +77,6 @@ def pressing(pushes) -> bool:
     if pushes and not pushes[-1][2]:
         return True
     return sum(1 for _, push, _ in pushes if push is not None and push.goal_current) >= 100
-
-
-def pushed_only_when_fit(pushes) -> None:
-    """A cycle pushes only when the leader was read and fit to push, and the gate ran on a good
-    read, or held only because the follower's read failed within FOLLOWER_GRACE_S (one cycle of
-    slack: the grace is timed when the push is written) of the follower's last good read."""
-    period = 1.0 / LoopConfig().rate_hz
-    last_read = None
-    for cycle, push, felt in pushes:
-        if not cycle.complete:
-            continue
-        ran = cycle.present is not None and cycle.result.outcome is not Outcome.HELD
-        if ran:
-            last_read = cycle.t
-        if push is not None and push.goal_current:
-            assert felt
-            if not ran:
-                assert cycle.result.outcome is Outcome.HELD
-                assert cycle.result.reason == FOLLOWER_UNREAD
-                assert last_read is not None
-                assert cycle.t - last_read <= FOLLOWER_GRACE_S + period
 
 
 def test_the_leader_stops_near_the_edge_free_inside_never_above_the_cap(tmp_path):

@@ -13,7 +13,6 @@ from __future__ import annotations
 import json
 import math
 import statistics
-import threading
 import time
 from contextlib import contextmanager
 
@@ -28,19 +27,12 @@ from limbctl.geometry.twist import decompose_one
 from limbctl.live import leader_status
 from limbctl.servo.setup import configure_servos
 from limbctl.session import open_rig
-from limbctl.teleop.gate import Outcome
 from limbctl.teleop.gate3 import Gate3, GateLimits3
 from limbctl.teleop.haptic3 import beyond3_deg, corrected_pose
-from limbctl.teleop.loop import LoopConfig, run
 from limbctl.teleop.pacing import PaceWatch
 from limbctl.teleop.sources import LeaderSource3, SourceContext, parse_source
-from limbctl.teleop.sources.leader import FOLLOWER_GRACE_S, FOLLOWER_UNREAD
-from tests.teleop.pace_loss import (
-    SIM_STARVED_HEALTH,
-    FeelOff,
-    assert_the_feel_went_off_for_the_pace,
-    paced_out,
-)
+from tests.teleop.felt_running import Running as FeltRunning
+from tests.teleop.felt_running import pushed_only_when_fit
 from tests.teleop.twist_square import square_region
 
 IDS = (4, 5, 6)
@@ -88,108 +80,18 @@ def felt3_session(tmp_path, model="xm430-w350", rate_hz=25.0):
         yield session, source, log
 
 
-class Running3:
-    """The loop in a thread with every cycle's (cycle, push, felt) kept, the leader's pose each
-    push was made from and when (monotonic s), and the cycle that switched the feel off with the
-    ground truth at its end (``off``); ``until(predicate)`` waits on the pushes. (The two-servo
-    tests' ``Running``, kept here so the two test files change apart.)"""
+class Running3(FeltRunning):
+    """:class:`tests.teleop.felt_running.Running` that also keeps the leader's pose each push was
+    made from (``poses``)."""
+
+    ids = IDS
 
     def __init__(self, session, source) -> None:
-        self.source, self.pushes, self.out = source, [], {}
-        self.poses, self.clock = [], []
-        self.off = FeelOff(session.simulator)
-        self.changed = threading.Condition()
-        self.stop = threading.Event()
-        self.ended = False
-        rig = session.rig
-        config = LoopConfig(on_cycle=self._observe, health=SIM_STARVED_HEALTH)
+        self.poses = []
+        super().__init__(session, source)
 
-        def body() -> None:
-            try:
-                self.out.update(s=run(rig, session.gate, source, config, stop=self.stop))
-            finally:
-                with self.changed:
-                    self.ended = True
-                    self.changed.notify_all()
-
-        self.thread = threading.Thread(target=body)
-
-    def _observe(self, cycle) -> None:
-        with self.changed:
-            was_felt = self.pushes[-1][2] if self.pushes else True
-            self.off.observe(len(self.pushes), was_felt, self.source.felt)
-            self.pushes.append((cycle, self.source.last_push, self.source.felt))
-            self.poses.append(self.source.last_pose3)
-            self.clock.append(time.monotonic())
-            self.changed.notify_all()
-
-    def until(self, predicate, timeout: float = 60.0) -> None:
-        """Wait until ``predicate(pushes)``; fail at once, saying why, if the loop ended first."""
-        with self.changed:
-            self.changed.wait_for(lambda: predicate(self.pushes) or self.ended, timeout)
-            if predicate(self.pushes):
-                return
-            summary = self.out.get("s")
-            events = self.source.feel_stats.events
-            raise AssertionError(
-                f"never happened in {len(self.pushes)} cycles; loop ended: {self.ended}, "
-                f"fault: {getattr(summary, 'fault', None)!r}, feel events: {events}"
-            )
-
-    def kept_pace(self, since: float, until: float) -> bool:
-        """Whether the loop kept the wall's rate between two monotonic times: the median period
-        of its cycles within 1.25 periods at 200 Hz (the pace watch's rule, PaceWatch)."""
-        times = [t for t in self.clock if since <= t <= until]
-        return len(times) > 2 and float(np.median(np.diff(times))) <= 1.25 / 200.0
-
-    def unreleased(self, since: float, until: float) -> bool:
-        """Whether every cycle between two monotonic times read both gimbals, ran the gate and
-        wrote the law's push (none released the leader, letting the hand carry it past)."""
-        cycles = [p for p, t in zip(self.pushes, self.clock, strict=True) if since <= t <= until]
-        return bool(cycles) and all(
-            push is not None
-            and cycle.present is not None
-            and cycle.result is not None
-            and cycle.result.outcome is not Outcome.HELD
-            for cycle, push, _ in cycles
-        )
-
-    def paced_out(self) -> bool:
-        """Whether the feel went off for a lost pace; if so, asserts its documented outcome."""
-        if not paced_out(self.source):
-            return False
-        with self.changed:
-            assert_the_feel_went_off_for_the_pace(self.pushes, self.off, self.source, IDS)
-        return True
-
-    def __enter__(self) -> Running3:
-        self.thread.start()
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.stop.set()
-        self.thread.join(timeout=10.0)
-
-
-def pushed_only_when_fit(pushes) -> None:
-    """A cycle pushes only when the leader was read and fit to push, and the gate ran on a good
-    read, or held only because the follower's read failed within FOLLOWER_GRACE_S (one cycle of
-    slack: the grace is timed when the push is written) of the follower's last good read."""
-    period = 1.0 / LoopConfig().rate_hz
-    last_read = None
-    for cycle, push, felt in pushes:
-        if not cycle.complete:
-            continue
-        ran = cycle.present is not None and cycle.result.outcome is not Outcome.HELD
-        if ran:
-            last_read = cycle.t
-        if push is not None and push.goal_current:
-            assert felt
-            if not ran:
-                assert cycle.result.outcome is Outcome.HELD
-                assert cycle.result.reason == FOLLOWER_UNREAD
-                assert last_read is not None
-                assert cycle.t - last_read <= FOLLOWER_GRACE_S + period
+    def kept(self, cycle) -> None:
+        self.poses.append(self.source.last_pose3)
 
 
 def truth_rows(log):
