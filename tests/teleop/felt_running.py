@@ -14,6 +14,7 @@ import numpy as np
 
 from limbctl.teleop.gate import Outcome
 from limbctl.teleop.loop import LoopConfig, run
+from limbctl.teleop.pacing import PaceWatch
 from limbctl.teleop.sources.leader import FOLLOWER_GRACE_S, FOLLOWER_UNREAD
 from tests.teleop.pace_loss import (
     SIM_STARVED_HEALTH,
@@ -130,3 +131,19 @@ def pushed_only_when_fit(pushes) -> None:
                 assert cycle.result.reason == FOLLOWER_UNREAD
                 assert last_read is not None
                 assert cycle.t - last_read <= FOLLOWER_GRACE_S + period
+
+
+def check_a_forced_pace_loss(session, source, runner: type[Running], press: dict) -> None:
+    """The pace-loss outcome the other tests assert when a busy machine loses the pace, forced:
+    the source believes its wall needs 1 kHz, so the loop's 200 Hz is five periods late. The
+    feel goes off for good in its cycle (asserted cycle by cycle) and mirroring goes on."""
+    source.rate_hz, source.pace = 1000.0, PaceWatch(1000.0)
+    session.rig.set_torque(True)
+    with runner(session, source) as running:
+        session.simulator.set_operator(press)
+        running.until(lambda p: running.off.at is not None and len(p) > running.off.at + 20)
+        accepted = source.stats.accepted
+        running.until(lambda p: len(p) > running.off.at + 40)
+        assert running.paced_out()
+    assert source.stats.accepted > accepted  # still mirrored, without feel
+    assert not source.felt

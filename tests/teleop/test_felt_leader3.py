@@ -29,10 +29,9 @@ from limbctl.servo.setup import configure_servos
 from limbctl.session import open_rig
 from limbctl.teleop.gate3 import Gate3, GateLimits3
 from limbctl.teleop.haptic3 import beyond3_deg, corrected_pose
-from limbctl.teleop.pacing import PaceWatch
 from limbctl.teleop.sources import LeaderSource3, SourceContext, parse_source
 from tests.teleop.felt_running import Running as FeltRunning
-from tests.teleop.felt_running import pushed_only_when_fit
+from tests.teleop.felt_running import check_a_forced_pace_loss, pushed_only_when_fit
 from tests.teleop.twist_square import square_region
 
 IDS = (4, 5, 6)
@@ -336,19 +335,8 @@ def test_an_xl330_three_servo_leader_feels_the_twist_edge(tmp_path, model):
 
 
 def test_a_lost_pace_switches_the_feel_off_for_good_in_its_cycle_and_mirroring_goes_on(tmp_path):
-    """The pace-loss outcome the other tests assert when a busy machine loses the pace, forced:
-    the source believes its wall needs 1 kHz, so the loop's 200 Hz is five periods late."""
     with felt3_session(tmp_path) as (session, source, log), source:
-        source.rate_hz, source.pace = 1000.0, PaceWatch(1000.0)
-        session.rig.set_torque(True)
-        with Running3(session, source) as running:
-            session.simulator.set_operator(TWIST_PRESS)
-            running.until(lambda p: running.off.at is not None and len(p) > running.off.at + 20)
-            accepted = source.stats.accepted
-            running.until(lambda p: len(p) > running.off.at + 40)
-            assert running.paced_out()  # asserts the outcome cycle by cycle
-    assert source.stats.accepted > accepted  # still mirrored, without feel
-    assert not source.felt
+        check_a_forced_pace_loss(session, source, Running3, TWIST_PRESS)
 
 
 FAULTS = {
