@@ -24,6 +24,13 @@ from tests.teleop.pace_loss import (
 )
 
 
+def pressing(pushes) -> bool:
+    """100 cycles pushed on, or the feel is off (a lost pace, whose outcome the test asserts)."""
+    if pushes and not pushes[-1][2]:
+        return True
+    return sum(1 for _, push, _ in pushes if push is not None and push.goal_current) >= 100
+
+
 class Running:
     """The loop in a thread with every cycle's push kept (``pushes``: (cycle, push, felt)),
     when each cycle ended (``clock``, monotonic s), and the cycle that switched the feel off
@@ -35,6 +42,7 @@ class Running:
     def __init__(self, session, source) -> None:
         self.source, self.pushes, self.out = source, [], {}
         self.clock: list[float] = []
+        self.simulator = session.simulator
         self.off = FeelOff(session.simulator)
         self.changed = threading.Condition()
         self.stop = threading.Event()
@@ -99,6 +107,13 @@ class Running:
         with self.changed:
             assert_the_feel_went_off_for_the_pace(self.pushes, self.off, self.source, self.ids)
         return True
+
+    def pressed_or_paced_out(self, press: dict) -> bool:
+        """Start the operator's ``press`` and wait until the wall pushes (:func:`pressing`);
+        True when the feel went off for a lost pace instead (its outcome asserted)."""
+        self.simulator.set_operator(press)
+        self.until(pressing)
+        return self.paced_out()
 
     def kept(self, cycle) -> None:
         """What a subclass keeps of each cycle besides its push (under the lock)."""

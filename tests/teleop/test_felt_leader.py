@@ -71,21 +71,12 @@ def truth_rows(log):
     return [json.loads(line) for line in log.read_text().splitlines()]
 
 
-def pressing(pushes) -> bool:
-    """100 cycles pushed on, or the feel is off (a lost pace, whose outcome the test asserts)."""
-    if pushes and not pushes[-1][2]:
-        return True
-    return sum(1 for _, push, _ in pushes if push is not None and push.goal_current) >= 100
-
-
 def test_the_leader_stops_near_the_edge_free_inside_never_above_the_cap(tmp_path):
     with felt_session(tmp_path) as (session, source, log), source:
         cap = source.motor.torque_of(source.motor.units_for(source.motor.cap_nm(source.law.cap_nm)))
         session.rig.set_torque(True)
         with Running(session, source) as running:
-            session.simulator.set_operator(PRESS)
-            running.until(pressing)
-            if running.paced_out():  # the feel went off for good, as it must
+            if running.pressed_or_paced_out(PRESS):  # the feel went off for good, as it must
                 return
             seen, pressed_at = len(running.pushes), time.monotonic()
 
@@ -138,9 +129,7 @@ def test_a_leader_restart_ends_the_feel_and_mirroring_goes_on(tmp_path):
     with felt_session(tmp_path) as (session, source, log), source:
         session.rig.set_torque(True)
         with Running(session, source) as running:
-            session.simulator.set_operator(PRESS)
-            running.until(pressing)
-            if running.paced_out():
+            if running.pressed_or_paced_out(PRESS):
                 return
             session.simulator.restart(IDS[0])
             running.until(lambda p: not p[-1][2])
@@ -163,9 +152,7 @@ def test_a_leader_alarm_switches_the_push_off_and_the_session_faults(tmp_path):
     with felt_session(tmp_path) as (session, source, log), source:
         session.rig.set_torque(True)
         with Running(session, source) as running:
-            session.simulator.set_operator(PRESS)
-            running.until(pressing)
-            if running.paced_out():
+            if running.pressed_or_paced_out(PRESS):
                 return
             session.simulator.set_temperature(IDS[0], 95.0)  # overheating shuts it down
             running.thread.join(timeout=20.0)
@@ -181,9 +168,7 @@ def test_a_failed_bus_or_a_held_gate_switches_the_push_off_in_that_cycle(tmp_pat
     with felt_session(tmp_path) as (session, source, log), source:
         session.rig.set_torque(True)
         with Running(session, source) as running:
-            session.simulator.set_operator(PRESS)
-            running.until(pressing)
-            if running.paced_out():
+            if running.pressed_or_paced_out(PRESS):
                 return
             session.simulator.set_faults(drop=1.0)  # every reply lost: reads fail, writes land
             running.until(lambda p: sum(1 for c, _, _ in p[-5:] if c.present is None) == 5)
@@ -204,9 +189,7 @@ def test_a_silent_leader_is_bounded_by_its_cap_and_is_re_armed(tmp_path):
         cap = source.motor.torque_of(source.motor.units_for(source.motor.cap_nm(source.law.cap_nm)))
         session.rig.set_torque(True)
         with Running(session, source) as running:
-            session.simulator.set_operator(PRESS)
-            running.until(pressing)
-            if running.paced_out():
+            if running.pressed_or_paced_out(PRESS):
                 return
             session.simulator.vanish(IDS[0], 0.3)  # past its 100 ms watchdog
             running.until(lambda p: p[-1][1] is None)

@@ -31,7 +31,7 @@ from limbctl.teleop.gate3 import Gate3, GateLimits3
 from limbctl.teleop.haptic3 import beyond3_deg, corrected_pose
 from limbctl.teleop.sources import LeaderSource3, SourceContext, parse_source
 from tests.teleop.felt_running import Running as FeltRunning
-from tests.teleop.felt_running import check_a_forced_pace_loss, pushed_only_when_fit
+from tests.teleop.felt_running import check_a_forced_pace_loss, pressing, pushed_only_when_fit
 from tests.teleop.twist_square import square_region
 
 IDS = (4, 5, 6)
@@ -105,13 +105,6 @@ def cap_of(source) -> float:
 def beyond(row) -> float:
     q = pose_quat_scalar(*np.radians(row["pose_deg"]))
     return beyond3_deg(q, square_region().correct(q))
-
-
-def pressing(pushes) -> bool:
-    """100 cycles pushed on, or the feel is off (a lost pace, whose outcome the test asserts)."""
-    if pushes and not pushes[-1][2]:
-        return True
-    return sum(1 for _, push, _ in pushes if push is not None and push.goal_current) >= 100
 
 
 def test_the_three_servo_leader_is_held_at_the_edge_in_swing_and_in_twist(tmp_path):
@@ -192,9 +185,7 @@ def test_a_restart_of_the_roll_servo_ends_the_feel_on_all_three_and_mirroring_go
     with felt3_session(tmp_path) as (session, source, log), source:
         session.rig.set_torque(True)
         with Running3(session, source) as running:
-            session.simulator.set_operator(TWIST_PRESS)
-            running.until(pressing)
-            if running.paced_out():
+            if running.pressed_or_paced_out(TWIST_PRESS):
                 return
             session.simulator.restart(IDS[2])
             running.until(lambda p: not p[-1][2])
@@ -215,9 +206,7 @@ def test_an_alarm_switches_the_push_off_and_the_session_faults(tmp_path):
     with felt3_session(tmp_path) as (session, source, log), source:
         session.rig.set_torque(True)
         with Running3(session, source) as running:
-            session.simulator.set_operator(TWIST_PRESS)
-            running.until(pressing)
-            if running.paced_out():
+            if running.pressed_or_paced_out(TWIST_PRESS):
                 return
             session.simulator.set_temperature(IDS[2], 95.0)  # overheating shuts it down
             running.thread.join(timeout=20.0)
@@ -232,9 +221,7 @@ def test_a_failed_bus_switches_the_push_off_in_that_cycle_and_it_comes_back(tmp_
     with felt3_session(tmp_path) as (session, source, log), source:
         session.rig.set_torque(True)
         with Running3(session, source) as running:
-            session.simulator.set_operator(TWIST_PRESS)
-            running.until(pressing)
-            if running.paced_out():
+            if running.pressed_or_paced_out(TWIST_PRESS):
                 return
             session.simulator.set_faults(drop=1.0)  # every reply lost: reads fail, writes land
             running.until(lambda p: sum(1 for c, _, _ in p[-5:] if c.present is None) == 5)
@@ -263,9 +250,7 @@ def test_a_silent_leader_is_bounded_by_its_cap_and_is_re_armed(tmp_path):
         cap = cap_of(source)
         session.rig.set_torque(True)
         with Running3(session, source) as running:
-            session.simulator.set_operator(TWIST_PRESS)
-            running.until(pressing)
-            if running.paced_out():
+            if running.pressed_or_paced_out(TWIST_PRESS):
                 return
             session.simulator.vanish(IDS[2], 0.3)  # past its 100 ms watchdog
             running.until(lambda p: p[-1][1] is None)
@@ -284,9 +269,7 @@ def test_the_session_end_leaves_all_three_limp(tmp_path):
         with source:
             session.rig.set_torque(True)
             with Running3(session, source) as running:
-                session.simulator.set_operator(TWIST_PRESS)
-                running.until(pressing)
-                if running.paced_out():
+                if running.pressed_or_paced_out(TWIST_PRESS):
                     return
             ended = session.simulator.truth()  # the loop's end released it: no current
         closed = session.simulator.truth()  # the source's close: torque off
