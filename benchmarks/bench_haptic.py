@@ -24,7 +24,6 @@ Cases:
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import math
 import os
@@ -40,7 +39,6 @@ from firmware_sim.control_table import Register as FirmwareRegister
 from firmware_sim.simulator import Simulator
 from limbctl.envelope import Cone
 from limbctl.errors import BusError
-from limbctl.geometry.gimbal import quat_to_pan_tilt
 from limbctl.jobs import gate_for
 from limbctl.servo.control_table import ModelNumber, Register
 from limbctl.servo.leader import FEEL_DATA, FEEL_MAP, FELT_MODELS, encode_feel, feel_map
@@ -48,7 +46,7 @@ from limbctl.servo.rig import Rig
 from limbctl.servo.setup import configure_servos
 from limbctl.session import open_rig
 from limbctl.teleop.commands import command_from_pan_tilt
-from limbctl.teleop.haptic import FeelLaw, Push, moved_in_deg, push_for
+from limbctl.teleop.haptic import FeelLaw, Push, push_for
 from limbctl.teleop.loop import LoopConfig, run
 from limbctl.teleop.sources import LeaderSource
 
@@ -62,25 +60,21 @@ EXCURSION += [[3.5, 20.0, 0.0], [4.5, 20.0, 0.0]]
 #: write take about 1 ms on the simulator's pty (the bus work's p50 below).
 READ_TO_WRITE_MS = 1
 HAND = {"stiffness_nm_deg": 0.05, "damping_nm_s_rad": 0.02, "max_torque_nm": 0.3}
-#: Round 3's law, the peer in the same run: its goal led the leader by 0.3 deg plus the leader's
-#: last step toward the region, at Profile Velocity 19 units (26.1 deg/s); decisions/haptic.md.
-ROUND3 = FeelLaw(return_speed_deg_s=27.0, lead_deg=0.3)
 
 
-def round3_push(law, motor, present, q, corrected, previous=None, period_s=0.0, engaged=True):
-    """Round 3's push (:data:`ROUND3`): today's law with the goal led further by the leader's
-    last step toward the region, ``max(m, 0)``, as round 3 did (``law`` is not used)."""
-    push = push_for(ROUND3, motor, present, q, corrected, previous, period_s, engaged)
-    if not push.goal_current or previous is None:
-        return push
-    target = tuple(float(v) for v in quat_to_pan_tilt(corrected))
-    step = (target[0] - present[0], target[1] - present[1])
-    longest = max(abs(step[0]), abs(step[1]))
-    moved = moved_in_deg(present, previous, step)
-    # the goal on the line toward the corrected pose, at most LEAD + max(m, 0) ahead
-    scale = min(1.0, math.radians(ROUND3.lead_deg + max(moved, 0.0)) / longest)
-    return dataclasses.replace(
-        push, goal_pan=present[0] + scale * step[0], goal_tilt=present[1] + scale * step[1]
+def round4_push(law, motor, present, q, corrected, previous=None, period_s=0.0, engaged=True):
+    """Round 4's push, the peer in the same run: today's law without the rule on the read
+    motor torque (a wall whose servo brakes the leader outward lets go), decisions/haptic.md."""
+    return push_for(law, motor, present, q, corrected, previous, period_s, engaged)
+
+
+def joint_torques(servos, rig) -> tuple[float, ...]:
+    """The leader's motor torques (joint frame, N m) as its Present Current reads, each turned
+    into its joint's frame (what ``LeaderSource`` reads through the current map)."""
+    motor = FELT_MODELS[ModelNumber.XM430_W350]
+    return tuple(
+        joint.direction * motor.torque_of(servo.value(FirmwareRegister.PRESENT_CURRENT))
+        for servo, joint in zip(servos, rig.joints, strict=True)
     )
 
 
@@ -259,7 +253,14 @@ def rate_case(workdir: Path, model: str) -> dict:
 
 
 def exact_rate_case(
-    stiffness: float, script: list, seconds: float, let_go_s=None, cycles=None, push_fn=push_for
+    stiffness: float,
+    script: list,
+    seconds: float,
+    let_go_s=None,
+    cycles=None,
+    push_fn=push_for,
+    cut_s=None,
+    release_s=0.0,
 ) -> dict:
     """The same law at exactly 200 Hz, without the bus: the simulator in this process on a
     stepped clock, and every 5 ms the controller's part done on the leader servos' registers
@@ -269,7 +270,11 @@ def exact_rate_case(
     ``cycles`` maps a cycle's index to what happens instead: "late" (nothing is written: a
     stalled loop; the servos keep their last command) or "held" (what ``LeaderSource.feel``
     writes when the gate held or the follower's read failed: Goal Current 0 at the leader).
-    ``push_fn``: the law (:func:`push_for`, or :func:`round3_push` for the peer)."""
+    ``push_fn``: the law (:func:`push_for`, given the read motor torque, or :func:`round4_push`
+    for the peer).
+    ``cut_s``: at this time (s) the controller writes Goal Current 0 (no torque, whatever the
+    goal) and nothing after: an oracle that cuts the wall a chosen time after the let go
+    (benchmarks/bench_let_go.py). ``release_s``: how long the hand's let go takes."""
     clock = [0.0]
     sim = Simulator(ids=(1, 2), leader={"ids": list(LEADER_IDS)}, clock=lambda: clock[0])
     profile = default_sim_profile()
@@ -283,24 +288,32 @@ def exact_rate_case(
         servo.write(FEEL_MAP.address, feel_map())
         servo.write(64, bytes([1]))  # torque on
     hand = {**HAND, "stiffness_nm_deg": stiffness, "script": script, "let_go_s": let_go_s}
+    hand["release_s"] = release_s
     sim.set_operator(hand)
-    rows, previous, pushed = [], None, False
+    rows, previous, pushed, cut, goal = [], None, False, False, None
     for k in range(round(seconds * 200.0)):
         for servo in servos:
             servo.refresh(sim.time_s)
         ticks = [servo.value(FirmwareRegister.PRESENT_POSITION) for servo in servos]
         pose = rig.ticks_to_angles(*ticks)
         q = command_from_pan_tilt(*np.degrees(pose)).q
-        push = push_fn(law, motor, pose, q, cone.correct(q), previous, 0.005, pushed)
+        past = (previous, 0.005, pushed)
+        if push_fn is push_for:
+            past = (*past, joint_torques(servos, rig))
+        push = push_fn(law, motor, pose, q, cone.correct(q), *past)
         previous = pose
         instead = (cycles or {}).get(k)
         if instead == "held":
             push = Push(0, 0, pose[0], pose[1], 0.0, 0.0)
-        goal = rig.angles_to_ticks(push.goal_pan, push.goal_tilt)
+        goal = goal if cut else rig.angles_to_ticks(push.goal_pan, push.goal_tilt)
         # the wall comes on from the present position (LeaderSource._write toggles the torque)
         engaging = push.goal_current > 0 and not pushed
         for step in range(5):
-            if step == READ_TO_WRITE_MS and instead != "late":
+            if cut_s is not None and not cut and clock[0] >= cut_s - 1e-9:
+                cut = True
+                for servo, tick in zip(servos, goal, strict=True):
+                    servo.write(FEEL_DATA.address, encode_feel(0, tick))
+            if step == READ_TO_WRITE_MS and instead != "late" and not cut:
                 pushed = push.goal_current > 0
                 for servo, tick in zip(servos, goal, strict=True):
                     if engaging:
@@ -336,7 +349,7 @@ def exact_cases() -> dict:
         let_go_case(k, beyond, law)
         for k in (0.02, 0.05, 0.2)
         for beyond in (5.0, 20.0)
-        for law in ("round 3", "round 4")
+        for law in ("round 4", "round 5")
     ]
     for k in (0.02, 0.05, 0.1, 0.2):
         script = [[0.0, 0.0, 0.0], [1.5, EDGE_DEG + 5.0, 0.0], [5.0, EDGE_DEG + 5.0, 0.0]]
@@ -361,11 +374,14 @@ def exact_cases() -> dict:
         rows = exact_rate_case(k, [*pull, [4.2, 0.0, 0.0]], 5.0)["rows"]
         t, pan, motor = np.array([r["t"] for r in rows]), pan_of(rows), pan_of(rows, "motor_nm")
         outward = (pan > EDGE_DEG) & (motor > 0.0)
-        peer = exact_rate_case(k, [*pull, [4.2, 0.0, 0.0]], 5.0, push_fn=round3_push)["rows"]
+        peer = exact_rate_case(k, [*pull, [4.2, 0.0, 0.0]], 5.0, push_fn=round4_push)["rows"]
         out["pulls"].append(
             {
                 "stiffness": k,
-                "round3": int(np.sum((pan_of(peer) > EDGE_DEG) & (pan_of(peer, "motor_nm") > 0.0))),
+                "round4": int(np.sum((pan_of(peer) > EDGE_DEG) & (pan_of(peer, "motor_nm") > 0.0))),
+                "round4_peak": float(
+                    np.max(pan_of(peer, "motor_nm")[pan_of(peer) > EDGE_DEG], initial=0.0)
+                ),
                 "outside": int(np.sum((pan > EDGE_DEG) & (motor != 0.0))),
                 "outward": int(np.sum(outward)),
                 "span_ms": float(np.ptp(t[outward]) * 1e3) if outward.any() else 0.0,
@@ -404,7 +420,7 @@ def let_go_case(stiffness: float, beyond: float, law: str) -> dict:
     outward (count, the last one's time from the let go, the largest), the 1 ms and 20 ms peak
     return speeds, the rest and the deepest point."""
     script = [[0.0, 0.0, 0.0], [2.0, EDGE_DEG + beyond, 0.0], [5.0, EDGE_DEG + beyond, 0.0]]
-    push_fn = round3_push if law == "round 3" else push_for
+    push_fn = round4_push if law == "round 4" else push_for
     rows = exact_rate_case(stiffness, script, 7.0, let_go_s=5.0, push_fn=push_fn)["rows"]
     t = np.array([r["t"] for r in rows])
     pan, velocity, motor = pan_of(rows), pan_of(rows, "velocity_deg_s"), pan_of(rows, "motor_nm")
@@ -526,10 +542,10 @@ def render(push, ripples, passes, rates, load, exact, transfers, end_load) -> st
         f"| after let go: rest beyond the edge (deg) | {exact['final']:.3f} |",
         f"| after let go: deepest inside the edge (deg) | {max(exact['deepest'], 0.0):.3f} |",
         "",
-        "Let go from a press, by hand stiffness and depth, round 3's law (goal 0.3 deg ahead "
-        "plus the leader's last step, 26.1 deg/s; its let-go rules are today's) against "
-        "today's (two ticks ahead, 13.7 deg/s) "
-        "in this run. Every 1 ms sample after the let go: outward samples are those outside "
+        "Let go from a press, by hand stiffness and depth, round 4's law (today's without the "
+        "rule on the read motor torque) against today's (round 5: a wall whose read shows its "
+        "servo pulling away from the region lets go) in this run. Every 1 ms sample after the "
+        "let go: outward samples are those outside "
         "the region with the motor pulling away from it; the peak speed is the largest 1 ms "
         "sample, the 20 ms mean the largest mean over 20 samples:",
         "",
@@ -556,14 +572,17 @@ def render(push, ripples, passes, rates, load, exact, transfers, end_load) -> st
         "Pressed 20 deg beyond, then the hand heads back inside (its target pan 50 -> 0 in "
         "0.2 s at 4 s). The servo's setpoint moves at most 13.7 deg/s and its loop brakes a "
         "faster leader (pulls it outward); the law leaves a leader that outran its setpoint "
-        "by more than a tick free, from the first read that shows it. 1 ms samples:",
+        "by more than a tick free, and (round 5) a wall whose read shows its servo pulling "
+        "outward, from the first read that shows it. 1 ms samples, today's law against round "
+        "4's in this run:",
         "",
         "| hand stiffness (N m/deg) | outside with torque | pointing outward | their span (ms) | "
-        "largest outward (N m) | inside with torque | pointing outward, round 3's law |",
-        "| ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
+        "largest outward (N m) | inside with torque | pointing outward, round 4 | largest "
+        "outward, round 4 (N m) |",
+        "| ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
         *(
             f"| {p['stiffness']:g} | {p['outside']} | {p['outward']} | {p['span_ms']:.0f} | "
-            f"{p['peak']:.3f} | {p['inside']} | {p['round3']} |"
+            f"{p['peak']:.3f} | {p['inside']} | {p['round4']} | {p['round4_peak']:.3f} |"
             for p in exact["pulls"]
         ),
         "",

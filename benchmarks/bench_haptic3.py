@@ -142,10 +142,17 @@ def stepped(region, script, seconds, let_go_s=None, held=(), stiffness=0.05, rul
         for servo in servos:
             servo.refresh(sim.time_s)
         ticks = tuple(s.value(FirmwareRegister.PRESENT_POSITION) for s in servos)
+        # the motors' torque as Present Current reads, in the joints' frame (LeaderSource)
+        torque = tuple(
+            joint.direction * MOTOR.torque_of(servo.value(FirmwareRegister.PRESENT_CURRENT))
+            for servo, joint in zip(servos, rig.joints, strict=True)
+        )
+        # round 3's peer did not read it
+        read = () if law is ROUND3 else (torque,)
         if three:
             pose = rig.angles_of(ticks)
             q = pose_quat_scalar(*pose)
-            past = (previous, 0.005, engaged) if rules else ()
+            past = (previous, 0.005, engaged, *read) if rules else ()
             corrected = region.correct(q)
             push = push3_for(law, MOTOR, pose, q, corrected, rig.roll_limits, *past)
             if law is ROUND3 and rules:
@@ -156,7 +163,7 @@ def stepped(region, script, seconds, let_go_s=None, held=(), stiffness=0.05, rul
         else:
             pose = rig.ticks_to_angles(*ticks)
             q = np.asarray(pan_tilt_to_quat(*pose))
-            past = (previous, 0.005, engaged) if rules else ()
+            past = (previous, 0.005, engaged, *read) if rules else ()
             corrected = region.correct(q)
             push = push_for(law, MOTOR, pose, q, corrected, *past)
             if law is ROUND3 and rules:

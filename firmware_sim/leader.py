@@ -10,7 +10,10 @@ backdrive friction (joint frame, SI units)::
 ``tau_hand`` is the operator (:class:`Operator`): a bounded spring-damper toward where the
 operator means to go, a script of targets like the teaching hand's, with a let-go time::
 
-    tau_hand = clip(K_h (target - angle) - D_h v, +-tau_max)      (0 after let go)
+    tau_hand = clip(K_h (target - angle) - D_h v, +-tau_max * r(t))
+
+where ``r`` is 1 until the let go and 0 from ``release_s`` after it, falling linearly between
+(``release_s`` 0: the hand is gone at once, the hardest let go for a wall).
 
 End stops clamp as on the follower. Ground truth (hand torque, motor torque, pose, the motor's
 work) is kept for tests: :meth:`LeaderWorld.truth`, and one JSON line per physics step in the log.
@@ -57,13 +60,17 @@ class Operator:
         Where the operator means to go, linear in time between the points, holding the last.
         Times count from when the operator takes hold.
     let_go_s : float or None
-        From this time on the hand applies no torque (released); None: never.
+        From this time on the hand lets go; None: never.
+    release_s : float
+        How long the let go takes (s): the hand's bound falls linearly from ``max_torque_nm`` to
+        0 over it. 0 (the default): no torque at all from ``let_go_s`` on.
     stiffness_nm_deg, damping_nm_s_rad, max_torque_nm : float
         The grip: K_h (N m per deg), D_h (N m s/rad) and the bound tau_max (N m).
     """
 
     script: Sequence[tuple[float, float, float]]
     let_go_s: float | None = None
+    release_s: float = 0.0
     stiffness_nm_deg: float = HAND_STIFFNESS_NM_DEG
     damping_nm_s_rad: float = HAND_DAMPING_NM_S_RAD
     max_torque_nm: float = HAND_MAX_TORQUE_NM
@@ -76,7 +83,7 @@ class Operator:
         times = [p[0] for p in points]
         if times != sorted(times):
             raise ValueError(f"operator script times must not decrease, got {times}")
-        for name in ("stiffness_nm_deg", "damping_nm_s_rad", "max_torque_nm"):
+        for name in ("release_s", "stiffness_nm_deg", "damping_nm_s_rad", "max_torque_nm"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0.0):
                 raise ValueError(f"operator {name} must be finite and >= 0, got {value!r}")
@@ -86,7 +93,8 @@ class Operator:
     @classmethod
     def from_mapping(cls, data: Mapping[str, Any]) -> Operator:
         """An operator from plain data (keys as the parameters); ValueError naming a bad key."""
-        known = {"script", "let_go_s", "stiffness_nm_deg", "damping_nm_s_rad", "max_torque_nm"}
+        known = {"script", "let_go_s", "release_s"}
+        known |= {"stiffness_nm_deg", "damping_nm_s_rad", "max_torque_nm"}
         unknown = set(data) - known
         if unknown:
             raise ValueError(f"unknown operator keys {sorted(unknown)}; known: {sorted(known)}")
@@ -105,15 +113,20 @@ class Operator:
 
     def torque(self, t: float, slot: int, angle_rad: float, velocity_rad_s: float) -> float:
         """The hand's torque (N m) on joint ``slot`` (0 pan, 1 tilt) at ``t`` s."""
+        bound = self.max_torque_nm
         if self.let_go_s is not None and t >= self.let_go_s:
-            return 0.0
+            # r(t) = 1 - (t - let_go) / release, down to 0
+            left = 1.0 - (t - self.let_go_s) / self.release_s if self.release_s > 0.0 else 0.0
+            if left <= 0.0:
+                return 0.0
+            bound *= left
         target = math.radians(self.target_deg(t)[slot])
-        # tau = K_h (target - angle) - D_h v, K_h per rad, bounded by tau_max
+        # tau = K_h (target - angle) - D_h v, K_h per rad, bounded by tau_max r(t)
         tau = (
             self.stiffness_nm_deg * math.degrees(target - angle_rad)
             - self.damping_nm_s_rad * velocity_rad_s
         )
-        return min(max(tau, -self.max_torque_nm), self.max_torque_nm)
+        return min(max(tau, -bound), bound)
 
 
 def leader_joints(ids: Sequence[int]) -> tuple[Joint, Joint]:

@@ -47,7 +47,7 @@ class Operator3(Operator):
         self._times = [p[0] for p in points]
 
     def _grip(self) -> dict[str, Any]:
-        keys = ("let_go_s", "stiffness_nm_deg", "damping_nm_s_rad", "max_torque_nm")
+        keys = ("let_go_s", "release_s", "stiffness_nm_deg", "damping_nm_s_rad", "max_torque_nm")
         return {key: getattr(self, key) for key in keys}
 
     def target_deg(self, t: float) -> tuple[float, float, float]:  # type: ignore[override]

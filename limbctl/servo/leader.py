@@ -12,6 +12,10 @@ family has)::
     Goal Current (2 bytes) | Goal Position (4 bytes)
 
 Profile Velocity changes only when the wall comes on or goes off: a sync write of its own.
+
+A felt leader's read is the cycle's read block, but its two bytes of Present PWM are mapped to
+Present Current instead (:data:`CURRENT_MAP`): the law needs the motor's torque, and only the
+current gives its sign while the loop brakes (the PWM also carries the back-EMF).
 """
 
 from __future__ import annotations
@@ -29,7 +33,7 @@ from limbctl.servo.control_table import (
     Register,
     model_name,
 )
-from limbctl.servo.cycle import CYCLE_BYTES
+from limbctl.servo.cycle import CYCLE_BYTES, CYCLE_REGISTERS, ServoReport
 
 if TYPE_CHECKING:
     from limbctl.servo.bus import ServoBus
@@ -113,6 +117,31 @@ def feel_map() -> bytes:
     return b"".join(address.to_bytes(2, "little") for address in addresses)
 
 
+#: Where the cycle's read block holds Present PWM (bytes from Indirect Data 1): a felt leader
+#: maps Present Current there (the same size), so its one read each cycle carries its current.
+CURRENT_SLOT = sum(r.size for r in CYCLE_REGISTERS[: CYCLE_REGISTERS.index(Register.PRESENT_PWM)])
+assert Register.PRESENT_CURRENT.size == Register.PRESENT_PWM.size
+#: The Indirect Addresses of that slot.
+CURRENT_MAP = Block(
+    Register.INDIRECT_ADDRESS_1,
+    2 * Register.PRESENT_CURRENT.size,
+    Register.INDIRECT_ADDRESS_1.address + 2 * CURRENT_SLOT,
+)
+
+
+def current_map() -> bytes:
+    """The bytes of the Indirect Addresses that put Present Current in :data:`CURRENT_SLOT`."""
+    first = Register.PRESENT_CURRENT.address
+    addresses = [first + k for k in range(Register.PRESENT_CURRENT.size)]
+    return b"".join(address.to_bytes(2, "little") for address in addresses)
+
+
+def present_current(report: ServoReport) -> int:
+    """A felt leader's Present Current (the model's units, signed, shaft frame) from its cycle
+    read: :func:`configure_felt_leader` mapped it where a follower's read has Present PWM."""
+    return report.pwm
+
+
 def encode_feel(goal_current: int, goal_position: int) -> bytes:
     """One servo's :data:`FEEL_DATA` bytes."""
     values = (goal_current, goal_position)
@@ -143,7 +172,8 @@ def configure_felt_leader(
     """Set the leader's servos up for feel; torque ends ON with Goal Current 0 (no torque).
 
     Operating Mode 5 and Current Limit = ``cap_units`` (EEPROM, torque off first), Bus Watchdog
-    ``watchdog_units`` x 20 ms, and the indirect map of :data:`FEEL_DATA`.
+    ``watchdog_units`` x 20 ms, the indirect map of :data:`FEEL_DATA`, and Present Current in the
+    cycle read's Present PWM slot (:data:`CURRENT_MAP`).
 
     Raises
     ------
@@ -170,9 +200,10 @@ def configure_felt_leader(
                         ) from None
                 if bus.read(register, servo_id, patient=True) != value:
                     raise BusError(f"servo {servo_id} did not keep {register.name}", servo_id)
-            bus.write_block(FEEL_MAP, servo_id, feel_map())
-            if bus.read_block(FEEL_MAP, servo_id) != feel_map():
-                raise BusError(f"servo {servo_id} did not keep the feel map", servo_id)
+            for block, data in ((FEEL_MAP, feel_map()), (CURRENT_MAP, current_map())):
+                bus.write_block(block, servo_id, data)
+                if bus.read_block(block, servo_id) != data:
+                    raise BusError(f"servo {servo_id} did not keep the feel map", servo_id)
             bus.write(Register.GOAL_CURRENT, servo_id, 0)
             bus.write(Register.PROFILE_ACCELERATION, servo_id, 0)
             bus.write(Register.PROFILE_VELOCITY, servo_id, 0)  # free: the setpoint rides along

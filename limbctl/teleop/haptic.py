@@ -21,6 +21,11 @@ The law (:class:`FeelLaw`), per cycle of period T::
         d - m <= DEADBAND                at this pace inside the deadband by the next read
         m > 0 after a free cycle         still moving in: the wall comes on once it stops
         d <= DEADBAND + SLACK after one  the wall comes on only a tick past the deadband
+        tau_read . u < -NOISE            the read's motor torque (Present Current, joint frame)
+                                         pulls away from the region (u: the unit step toward
+                                         the correction): the servo's loop brakes a leader that
+                                         outran its setpoint; the wall lets go rather than pull
+                                         the hand outward for another cycle
 
 The servo's own position loop (mode 5) pushes toward Goal Position with at most Goal Current,
 so the torque points toward the region and never exceeds CAP, which is also written into the
@@ -105,6 +110,13 @@ class FeelLaw:
         go. One reading tick (0.088 deg) rounded up, so a leader the wall walks back itself,
         read a tick early, keeps its wall (a slack under the setpoint's own speed let the wall
         go on its own walk back, and a hand pressing outward then won: decisions/haptic.md).
+    outward_noise_nm : float
+        0.01 N m: a read whose motor torque pulls away from the region by more than this lets
+        the wall go. Two of the XM430-W350's current units (0.0048 N m each): one unit is the
+        reading's own rounding, so a torque near zero read as -1 unit does not free a wall
+        holding a hand; small beside the braking it is there to cut (up to 0.28 N m while a
+        hand drags the leader back inside, docs/bench_haptic.md). On real servos the current
+        reading's noise is to be measured and this set above it.
     """
 
     deadband_deg: float = 0.4
@@ -114,6 +126,7 @@ class FeelLaw:
     lead_deg: float = 2.0 * 360.0 / TICKS_PER_REV
     held_within_deg: float = 2.0
     outrun_slack_deg: float = 0.1
+    outward_noise_nm: float = 0.01
 
     def __post_init__(self) -> None:
         names = (
@@ -123,6 +136,7 @@ class FeelLaw:
             "lead_deg",
             "outrun_slack_deg",
             "held_within_deg",
+            "outward_noise_nm",
         )
         for name in names:
             value = getattr(self, name)
@@ -222,6 +236,15 @@ def moved_in_deg(
     return math.degrees(dot / math.hypot(*step))
 
 
+def pulls_outward(law: FeelLaw, torque_nm: tuple[float, ...], step: tuple[float, ...]) -> bool:
+    """Whether the leader's motor, read at ``torque_nm`` (joint frame, N m per joint), pulls
+    away from the region by more than ``law.outward_noise_nm``: its torque's component along
+    ``step`` (toward the corrected pose, joint space; not all zero) below -NOISE."""
+    # tau . step / |step|
+    along = sum(t * s for t, s in zip(torque_nm, step, strict=True))
+    return along / math.sqrt(sum(s * s for s in step)) < -law.outward_noise_nm
+
+
 def lets_go(
     law: FeelLaw, distance_deg: float, moved_in_deg: float, period_s: float, engaged: bool
 ) -> bool:
@@ -251,6 +274,7 @@ def push_for(
     previous: tuple[float, float] | None = None,
     period_s: float = 0.0,
     engaged: bool = True,
+    torque_nm: tuple[float, float] | None = None,
 ) -> Push:
     """The leader's command this cycle (see the module docstring).
 
@@ -269,6 +293,9 @@ def push_for(
         Time since ``previous`` was read (s).
     engaged : bool, optional
         Whether the wall pushed in the cycle before (with ``previous``).
+    torque_nm : (float, float), optional
+        The leader's motor torque as read with ``present`` (Present Current, joint frame,
+        N m); None: not read (the rule on it is then not applied).
     """
     distance = beyond_deg(q, corrected)
     tau = min(law.torque_nm(distance), motor.cap_nm(law.cap_nm))
@@ -284,6 +311,8 @@ def push_for(
         moved_in = moved_in_deg(present, previous, step)
         if lets_go(law, distance, moved_in, period_s, engaged):
             return free
+    if engaged and torque_nm is not None and longest > 0.0 and pulls_outward(law, torque_nm, step):
+        return free
     lead = math.radians(law.lead_for_deg(distance, motor.cap_nm(law.cap_nm)))
     scale = min(1.0, lead / longest) if longest > 0.0 else 0.0
     goal = (present[0] + scale * step[0], present[1] + scale * step[1])

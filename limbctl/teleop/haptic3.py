@@ -25,6 +25,8 @@ gain, cap, return speed and lead), on three joints, per cycle::
         d - m <= DEADBAND                at this pace inside the deadband by the next read
         m > 0 after a free cycle         still moving in: the wall comes on once it stops
         d <= DEADBAND + SLACK after one  the wall comes on only a tick past the deadband
+    and when the read's joint torques pull away from the correction (their component along
+    ``target - present`` below -NOISE, :func:`~limbctl.teleop.haptic.pulls_outward`).
 
 Each servo's position loop (mode 5) drives its joint toward its Goal Position with at most Goal
 Current; every Goal Position lies from the leader's joint toward the corrected pose's, so the
@@ -45,7 +47,7 @@ import numpy as np
 from limbctl.geometry.gimbal3 import pan_tilt_roll_scalar
 from limbctl.servo.leader import LeaderMotor
 from limbctl.teleop.gate3 import geodesic
-from limbctl.teleop.haptic import FeelLaw, Push, lets_go, moved_in_deg
+from limbctl.teleop.haptic import FeelLaw, Push, lets_go, moved_in_deg, pulls_outward
 
 Pose3 = tuple[float, float, float]
 
@@ -101,6 +103,7 @@ def push3_for(
     previous: Pose3 | None = None,
     period_s: float = 0.0,
     engaged: bool = True,
+    torque_nm: Pose3 | None = None,
 ) -> Push3:
     """The three-servo leader's command this cycle (see the module docstring).
 
@@ -122,6 +125,10 @@ def push3_for(
         Time since ``previous`` was read (s).
     engaged : bool, optional
         Whether the wall pushed in the cycle before (with ``previous``).
+    torque_nm : (float, float, float), optional
+        The motors' torque as read with ``present`` (Present Current, joint frame, N m); a wall
+        whose read pulls away from the region lets go (:func:`~limbctl.teleop.haptic.
+        pulls_outward`). None: not read.
     """
     distance = beyond3_deg(q, corrected)
     tau = min(law.torque_nm(distance), motor.cap_nm(law.cap_nm))
@@ -137,6 +144,9 @@ def push3_for(
         # the rotation toward the correction since the last read, on the joint-space line
         moved_in = moved_in_deg(present, previous, tuple(step))
         if lets_go(law, distance, moved_in, period_s, engaged):
+            return free
+    if engaged and torque_nm is not None and longest > 0.0:
+        if pulls_outward(law, tuple(torque_nm), tuple(step)):
             return free
     lead = math.radians(law.lead_for_deg(distance, motor.cap_nm(law.cap_nm)))
     scale = min(1.0, lead / longest) if longest > 0.0 else 0.0

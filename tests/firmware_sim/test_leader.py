@@ -92,3 +92,15 @@ def test_the_leader_servo_reads_where_the_hand_took_it():
     assert servo.raw_tick == pytest.approx(joint.raw_tick(math.radians(15.0)), abs=5.0)
     sim.set_operator(None)
     assert sim.leader.operator is None
+
+
+def test_a_slow_let_go_lowers_the_hands_bound_linearly_to_zero():
+    hand = Operator([[0.0, 90.0, 0.0]], let_go_s=1.0, release_s=0.1, max_torque_nm=0.3)
+    # far from its target the hand pushes with its whole bound, which falls over 100 ms
+    assert hand.torque(0.99, 0, 0.0, 0.0) == pytest.approx(0.3)
+    assert hand.torque(1.025, 0, 0.0, 0.0) == pytest.approx(0.225)
+    assert hand.torque(1.05, 0, 0.0, 0.0) == pytest.approx(0.15)
+    assert hand.torque(1.1, 0, 0.0, 0.0) == 0.0
+    assert Operator([[0.0, 90.0, 0.0]], let_go_s=1.0).torque(1.0, 0, 0.0, 0.0) == 0.0
+    with pytest.raises(ValueError, match="release_s"):
+        Operator([[0.0, 0.0, 0.0]], release_s=-1.0)

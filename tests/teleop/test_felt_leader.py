@@ -20,6 +20,8 @@ from calib.profile import default_sim_profile
 from limbctl.envelope import Cone
 from limbctl.errors import ConfigError
 from limbctl.jobs import gate_for
+from limbctl.servo.control_table import Register
+from limbctl.servo.leader import encode_feel, present_current
 from limbctl.servo.setup import configure_servos
 from limbctl.session import open_rig
 from limbctl.teleop.sources import LeaderSource
@@ -203,6 +205,26 @@ def test_a_silent_leader_is_bounded_by_its_cap_and_is_re_armed(tmp_path):
     rows = truth_rows(log)
     assert max(abs(m) for row in rows for m in row["motor_nm"]) <= cap + 1e-12
     assert felt
+
+
+def test_a_felt_leaders_cycle_read_carries_its_present_current(tmp_path):
+    # the felt leader's map puts Present Current where a follower's read has Present PWM: the
+    # law reads its motor's torque in the cycle's one read (round 5). A hand pressing outward
+    # against a motor of 40 units whose goal is pan 0: it pulls back at its Goal Current.
+    with felt_session(tmp_path) as (session, source, log), source:
+        bus, units = session.rig.bus, 40
+        session.simulator.set_operator(PRESS)
+        goal = session.rig.angles_to_ticks(0.0, 0.0)[0]
+        bus.write_block(source._feel_block, IDS[0], encode_feel(units, goal))
+        deadline = time.monotonic() + 5.0
+        while time.monotonic() < deadline:
+            read = bus.read_cycle(ids=IDS, attempts=2)
+            if read.ok and abs(present_current(read.reports[IDS[0]])) == units:
+                break
+        plain = bus.read(Register.PRESENT_CURRENT, IDS[0])
+        assert abs(present_current(read.reports[IDS[0]])) == units == abs(plain)
+        # toward pan 0 (pan decreasing) in the joint's frame
+        assert read.ok and source._torque(read)[0] == pytest.approx(-source.motor.torque_of(units))
 
 
 def test_an_xl430_leader_stays_passive_and_says_so(tmp_path):

@@ -23,7 +23,13 @@ import numpy as np
 
 from limbctl.errors import BusError, ConfigError, InvalidInputError
 from limbctl.servo.control_table import MAX_TICK, Block, Register, model_name
-from limbctl.servo.leader import configure_felt_leader, encode_feel, feel_data, felt_motor
+from limbctl.servo.leader import (
+    configure_felt_leader,
+    encode_feel,
+    feel_data,
+    felt_motor,
+    present_current,
+)
 from limbctl.servo.rig import Rig
 from limbctl.teleop.commands import Command, command_from_pan_tilt, command_from_pose
 from limbctl.teleop.gate import Outcome
@@ -106,7 +112,7 @@ class LeaderSource(CommandSource):
         #: The most a felt leader may push (N m: the law's cap as its Current Limit allows);
         #: None while passive.
         self.cap_nm: float | None = None
-        self._cycle: tuple | None = None  # this cycle's pose, command, last read, read time
+        self._cycle: tuple | None = None  # pose, command, last read, read time, torque
         #: The leader's pose at its last good read and when (perf_counter s): how fast it moves.
         self._last_read: tuple[tuple[float, float], float] | None = None
         self._notes: list[str] = []
@@ -292,9 +298,18 @@ class LeaderSource(CommandSource):
             return []
         self.stats.accepted += 1
         if self.felt:
-            self._cycle = (pose, command.q, self._last_read, now)
+            self._cycle = (pose, command.q, self._last_read, now, self._torque(read))
             self._last_read = (pose, now)
         return [command]
+
+    def _torque(self, read) -> tuple[float, ...]:
+        """The leader's motor torques (joint frame, N m) in a good read of a felt leader: its
+        Present Current (:func:`~limbctl.servo.leader.present_current`) turned into torque and
+        into the joint's frame by its direction."""
+        return tuple(
+            joint.direction * self.motor.torque_of(present_current(read.reports[servo_id]))
+            for servo_id, joint in zip(self.leader_ids, self.rig.joints, strict=True)
+        )
 
     def _arm_watchdog(self) -> None:
         """Clear a Bus Watchdog that may have tripped while the leader was not heard, and arm
@@ -339,10 +354,10 @@ class LeaderSource(CommandSource):
         if cycle is None:  # the leader was not read: it may not hear a push either
             push = None
         elif not released:
-            pose, q, last, read_at = cycle
+            pose, q, last, read_at, torque = cycle
             previous, period = (None, 0.0) if last is None else (last[0], read_at - last[1])
             engaged = self.last_push is not None and self.last_push.goal_current > 0
-            push = self._law(gate, pose, q, previous, period, engaged)
+            push = self._law(gate, pose, q, previous, period, engaged, torque)
         else:
             push = self._free(cycle[0])
         if push is None:
@@ -352,12 +367,13 @@ class LeaderSource(CommandSource):
         self.feel_stats.add(push.torque_nm, 1.0 / self.rate_hz)
         return notes
 
-    def _law(self, gate, pose, q, previous, period: float, engaged: bool) -> Push:
+    def _law(self, gate, pose, q, previous, period: float, engaged: bool, torque) -> Push:
         """This cycle's push by the two-servo law (:func:`~limbctl.teleop.haptic.push_for`)
         from the leader's pose (rad), its command ``q`` (4,), the pose read a cycle before (None
-        at first) and the time since (s), and whether the wall pushed then."""
+        at first) and the time since (s), whether the wall pushed then, and the motors' torque
+        as read (joint frame, N m)."""
         corrected = gate.envelope.correct(q)
-        return push_for(self.law, self.motor, pose, q, corrected, previous, period, engaged)
+        return push_for(self.law, self.motor, pose, q, corrected, previous, period, engaged, torque)
 
     @staticmethod
     def _free(pose: tuple[float, ...]) -> Push:
