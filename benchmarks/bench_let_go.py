@@ -10,15 +10,16 @@ to 0 from one 0.5 ms physics step to the next, the hardest let go for the wall.
 
 Three sweeps:
 
-- *phase*: today's law (limbctl/teleop/haptic.py) with the let go falling 0-4 ms after a
-  cycle's read. The first read that can see the let go is the next one, so the loop's first
-  write after it lands 6 - phase ms later;
-- *oracle cut*: the same presses, but the controller writes Goal Current 0 (no torque) a chosen
-  1-6 ms after the let go, knowing when it happened: how soon a wall must go so that no 1 ms
-  sample pulls the leader outward;
+- *phase*: today's law (limbctl/teleop/haptic.py, round 5: a wall whose read shows its servo
+  pulling outward lets go) and round 4's (without that rule) in the same run, the let go
+  falling 0-4 ms after a cycle's read. The first read that can see the let go is the next one,
+  so the loop's first write after it lands 6 - phase ms later;
+- *oracle cut*: the same presses under round 4's law, but the controller writes Goal Current 0
+  (no torque) a chosen 1-6 ms after the let go, knowing when it happened: how soon a wall must
+  go so that no 1 ms sample pulls the leader outward;
 - *lead*: the goal's lead (1, 2, 3 ticks) against how far the wall holds the hand and how fast
   the let go snaps: the hold's cost, before any controller can act;
-- *release*: the hand's bound falls to 0 over 10-100 ms instead of at once (today's law, every
+- *release*: the hand's bound falls to 0 over 10-100 ms instead of at once (both laws, every
   phase), followed until the leader rests.
 """
 
@@ -31,7 +32,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from bench_haptic import EDGE_DEG, exact_rate_case, pan_of
+from bench_haptic import EDGE_DEG, exact_rate_case, pan_of, round4_push
 
 from limbctl.servo.ticks import TICKS_PER_REV
 from limbctl.teleop.haptic import FeelLaw, push_for
@@ -46,6 +47,9 @@ LET_GO_S = 5.0
 #: the walk that follows.
 AFTER_S = 0.06
 TICK_DEG = 360.0 / TICKS_PER_REV
+#: The laws compared in the same run: today's (round 5) and round 4's (without the rule on the
+#: read motor torque).
+LAWS = (("round 4", round4_push), ("round 5", push_for))
 #: How long the hand takes to let go (ms): at once, then 10-100 ms.
 RELEASES_MS = (0.0, 10.0, 20.0, 50.0, 100.0)
 #: After a slow let go the run goes on this long past its end (s): the walk back from 2 deg at
@@ -57,13 +61,14 @@ def let_go(
     stiffness: float,
     beyond: float,
     phase_ms: float = 0.0,
-    cut_ms=None,
     push_fn=None,
     release_ms: float = 0.0,
     after_s: float = AFTER_S,
+    cut_ms=None,
 ):
     """One press let go ``phase_ms`` after a cycle's read; the 1 ms samples after it.
 
+    ``push_fn``: the law (today's :func:`push_for` when None, or :func:`round4_push`).
     ``cut_ms``: the oracle writes Goal Current 0 this long after the let go (None: never).
     ``release_ms``: how long the hand takes to let go; ``after_s``: how long the run goes on.
     Returns the outward samples (outside the region with the motor pulling away from it:
@@ -110,7 +115,7 @@ def first_write_ms(phase_ms: float) -> float:
 
 def lead_push(lead_ticks: int):
     """Today's push with the goal led by ``lead_ticks`` (one and a half times that beyond
-    2 deg, as today's law does with its two)."""
+    2 deg, as today's law does with its two); the motors' torque is passed on as read."""
     law = FeelLaw(lead_deg=lead_ticks * TICK_DEG)
 
     def push(_law, *args):
@@ -138,14 +143,17 @@ def render(phases, cuts, leads, releases, load, end_load, seconds) -> str:
         f"Load at start {load[0]:.2f}, at the end {end_load[0]:.2f} (1 min; 2 cores, shared); "
         f"{seconds:.0f} s.",
         "",
-        "## By where the let go falls in the 5 ms cycle (today's law)",
+        "## By where the let go falls in the 5 ms cycle",
         "",
-        "| hand (N m/deg) | pressed beyond (deg) | let go after a read (ms) | first write after "
-        "it (ms) | outward samples | first, last (ms) | largest outward (N m) | 1 ms peak speed "
-        "(deg/s) |",
-        "| ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
+        "Round 4's law (no rule on the read torque) and today's (round 5: a wall whose read "
+        "shows its servo pulling away from the region lets go), in this run.",
+        "",
+        "| hand (N m/deg) | pressed beyond (deg) | law | let go after a read (ms) | first write "
+        "after it (ms) | outward samples | first, last (ms) | largest outward (N m) | 1 ms peak "
+        "speed (deg/s) |",
+        "| ---: | ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: |",
         *(
-            f"| {r['stiffness']:g} | {r['beyond']:g} | {r['phase']:g} | "
+            f"| {r['stiffness']:g} | {r['beyond']:g} | {r['law']} | {r['phase']:g} | "
             f"{first_write_ms(r['phase']):g} | {r['outward']} | {fmt_ms(r['first_ms'])}, "
             f"{fmt_ms(r['last_ms'])} | {r['largest']:.3f} | {r['peak']:.1f} |"
             for r in phases
@@ -153,7 +161,8 @@ def render(phases, cuts, leads, releases, load, end_load, seconds) -> str:
         "",
         "## The wall cut a chosen time after the let go (an oracle that knows when it came)",
         "",
-        "Goal Current 0 written that long after the let go, nothing after: the leader coasts "
+        "Round 4's law, and Goal Current 0 written that long after the let go, nothing after: "
+        "the leader coasts "
         "on its friction from there (it is not walked to the edge in these runs; end = 60 ms "
         "after the let go).",
         "",
@@ -168,7 +177,7 @@ def render(phases, cuts, leads, releases, load, end_load, seconds) -> str:
         "",
         "## The goal's lead: the hold against the snap",
         "",
-        "Today's law with Goal Position led by 1, 2 (today) or 3 ticks; let go at a read "
+        "Today's law with Goal Position led by 1, 2 (today's) or 3 ticks; let go at a read "
         "(phase 0). The snap's 1 ms peak comes 2-3 ms after the let go, before the first "
         "write of any loop slower than 333 Hz.",
         "",
@@ -183,18 +192,19 @@ def render(phases, cuts, leads, releases, load, end_load, seconds) -> str:
         "",
         "## How fast the hand lets go",
         "",
-        "Today's law; the hand's bound falls linearly to 0 over the release time. Each row is "
+        "Both laws; the hand's bound falls linearly to 0 over the release time. Each row is "
         "the worst of five runs, the let go falling 0, 1, 2, 3 and 4 ms after a read, "
         f"followed {WALK_S:g} s past the release: outward samples (the most in one run), the "
         "1 ms peak speed, and where the leader rests (least and most beyond the edge; it never "
         "went inside in any run: deepest inside is the last column).",
         "",
-        "| hand (N m/deg) | pressed beyond (deg) | release (ms) | outward samples | largest "
-        "outward (N m) | 1 ms peak speed (deg/s) | rest beyond the edge (deg) | deepest inside "
-        "(deg) |",
-        "| ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
+        "| hand (N m/deg) | pressed beyond (deg) | release (ms) | law | outward samples | "
+        "largest outward (N m) | 1 ms peak speed (deg/s) | rest beyond the edge (deg) | deepest "
+        "inside (deg) |",
+        "| ---: | ---: | ---: | --- | ---: | ---: | ---: | ---: | ---: |",
         *(
-            f"| {r['stiffness']:g} | {r['beyond']:g} | {r['release']:g} | {r['outward']} | "
+            f"| {r['stiffness']:g} | {r['beyond']:g} | {r['release']:g} | {r['law']} | "
+            f"{r['outward']} | "
             f"{r['largest']:.3f} | {r['peak']:.1f} | {r['rest_min']:.2f}-{r['rest_max']:.2f} | "
             f"{r['deepest']:.3f} |"
             for r in releases
@@ -212,31 +222,36 @@ def main(argv: list[str] | None = None) -> int:
     phases, cuts, leads, releases = [], [], [], []
     for stiffness, beyond in PRESSES:
         base = {"stiffness": stiffness, "beyond": beyond}
-        for phase in (0.0, 1.0, 2.0, 3.0, 4.0):
-            phases.append({**base, "phase": phase, **let_go(stiffness, beyond, phase)})
+        for law, push_fn in LAWS:
+            for phase in (0.0, 1.0, 2.0, 3.0, 4.0):
+                run = let_go(stiffness, beyond, phase, push_fn=push_fn)
+                phases.append({**base, "law": law, "phase": phase, **run})
         for cut in (1, 2, 3, 4, 5, 6):
-            cuts.append({**base, "cut": cut, **let_go(stiffness, beyond, cut_ms=cut)})
+            run = let_go(stiffness, beyond, cut_ms=cut, push_fn=round4_push)
+            cuts.append({**base, "cut": cut, **run})
         for lead in (1, 2, 3):
             run = let_go(stiffness, beyond, push_fn=lead_push(lead))
             leads.append({**base, "lead": lead, **run})
         for release in RELEASES_MS:
-            after = release / 1000.0 + WALK_S
-            runs = [
-                let_go(stiffness, beyond, phase, release_ms=release, after_s=after)
-                for phase in (0.0, 1.0, 2.0, 3.0, 4.0)
-            ]
-            releases.append(
-                {
-                    **base,
-                    "release": release,
-                    "outward": max(r["outward"] for r in runs),
-                    "largest": max(r["largest"] for r in runs),
-                    "peak": max(r["peak"] for r in runs),
-                    "rest_min": min(r["end"] for r in runs),
-                    "rest_max": max(r["end"] for r in runs),
-                    "deepest": max(r["deepest"] for r in runs),
-                }
-            )
+            for law, push_fn in LAWS:
+                after = release / 1000.0 + WALK_S
+                runs = [
+                    let_go(stiffness, beyond, phase, push_fn, release, after)
+                    for phase in (0.0, 1.0, 2.0, 3.0, 4.0)
+                ]
+                releases.append(
+                    {
+                        **base,
+                        "law": law,
+                        "release": release,
+                        "outward": max(r["outward"] for r in runs),
+                        "largest": max(r["largest"] for r in runs),
+                        "peak": max(r["peak"] for r in runs),
+                        "rest_min": min(r["end"] for r in runs),
+                        "rest_max": max(r["end"] for r in runs),
+                        "deepest": max(r["deepest"] for r in runs),
+                    }
+                )
         print(f"hand {stiffness:g} N m/deg, {beyond:g} deg: done")
     elapsed = time.monotonic() - started
     text = render(phases, cuts, leads, releases, load, os.getloadavg(), elapsed)

@@ -20,7 +20,7 @@ The law (:class:`FeelLaw`), per cycle of period T::
                                          pull it back, away from the region
         d - m <= DEADBAND                at this pace inside the deadband by the next read
         m > 0 after a free cycle         still moving in: the wall comes on once it stops
-        d <= DEADBAND + SLACK after one  the wall comes on only a tick past the deadband
+        d <= DEADBAND + REARM after one  the wall comes on only past a band beyond the deadband
         tau_read . u < -NOISE            the read's motor torque (Present Current, joint frame)
                                          pulls away from the region (u: the unit step toward
                                          the correction): the servo's loop brakes a leader that
@@ -117,6 +117,13 @@ class FeelLaw:
         holding a hand; small beside the braking it is there to cut (up to 0.28 N m while a
         hand drags the leader back inside, docs/bench_haptic.md). On real servos the current
         reading's noise is to be measured and this set above it.
+    rearm_band_deg : float
+        0.05 deg: after a free cycle the wall comes on only beyond DEADBAND + this (read), so a
+        leader let go there, coasting in slower than a tick a cycle (read as still), is not
+        braked by a wall coming back on. Its top plus half a reading tick (0.044 deg) stays
+        under 0.5 deg, the rest the wall must keep: a leader freed there rests within 0.5 deg
+        of the edge. One tick (0.1 deg, the outrun slack) let one rest 0.512 deg beyond, read
+        0.498 (decisions/haptic.md, round 5).
     """
 
     deadband_deg: float = 0.4
@@ -127,6 +134,7 @@ class FeelLaw:
     held_within_deg: float = 2.0
     outrun_slack_deg: float = 0.1
     outward_noise_nm: float = 0.01
+    rearm_band_deg: float = 0.05
 
     def __post_init__(self) -> None:
         names = (
@@ -137,6 +145,7 @@ class FeelLaw:
             "outrun_slack_deg",
             "held_within_deg",
             "outward_noise_nm",
+            "rearm_band_deg",
         )
         for name in names:
             value = getattr(self, name)
@@ -259,9 +268,9 @@ def lets_go(
         return True
     # the wall comes on with the setpoint where the leader is (LeaderSource._write): while
     # the leader still moves toward the region the loop's damping would brake it outward; and
-    # it comes on only more than SLACK beyond the deadband: a leader let go there coasts in
+    # it comes on only more than REARM beyond the deadband: a leader let go there coasts in
     # slower than a tick a cycle, which the read cannot tell from standing still
-    near = distance_deg - law.deadband_deg <= law.outrun_slack_deg
+    near = distance_deg - law.deadband_deg <= law.rearm_band_deg
     return not engaged and (moved_in_deg > 0.0 or near)
 
 

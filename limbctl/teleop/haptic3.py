@@ -24,7 +24,7 @@ gain, cap, return speed and lead), on three joints, per cycle::
                                          back, away from the region
         d - m <= DEADBAND                at this pace inside the deadband by the next read
         m > 0 after a free cycle         still moving in: the wall comes on once it stops
-        d <= DEADBAND + SLACK after one  the wall comes on only a tick past the deadband
+        d <= DEADBAND + REARM after one  the wall comes on only past a band beyond the deadband
     and when the read's joint torques pull away from the correction (their component along
     ``target - present`` below -NOISE, :func:`~limbctl.teleop.haptic.pulls_outward`).
 

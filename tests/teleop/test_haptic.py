@@ -112,7 +112,7 @@ def test_property_a_leader_outrunning_its_setpoint_or_still_moving_in_is_free_el
     free = push_for(LAW, MOTOR, present, q, corrected)
     outrun = moved > LAW.return_speed_deg_s * period + LAW.outrun_slack_deg
     near = (pan - 30.0) - moved <= LAW.deadband_deg
-    low = (pan - 30.0) - LAW.deadband_deg <= LAW.outrun_slack_deg  # comes on only past this
+    low = (pan - 30.0) - LAW.deadband_deg <= LAW.rearm_band_deg  # comes on only past this
     if outrun or near or (not engaged and (moved > 0.0 or low)):
         assert push.goal_current == 0
     else:  # otherwise the law's current, the goal at most LEAD ahead (it no longer grows with

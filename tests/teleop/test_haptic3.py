@@ -132,7 +132,7 @@ def test_property_a_leader_outrunning_its_setpoints_or_still_moving_in_is_free_e
     moved_in = math.degrees(float(np.subtract(present, previous) @ way) / np.linalg.norm(way))
     outrun = moved_in > LAW.return_speed_deg_s * period + LAW.outrun_slack_deg
     near = wall.distance_deg - moved_in <= LAW.deadband_deg
-    low = wall.distance_deg - LAW.deadband_deg <= LAW.outrun_slack_deg  # comes on only past it
+    low = wall.distance_deg - LAW.deadband_deg <= LAW.rearm_band_deg  # comes on only past it
     if outrun or near or (not engaged and (moved_in > 0.0 or low)):
         assert (push.goal_current, push.goal) == (0, present)
     else:  # the wall's current and goal, at most LEAD ahead (decisions/haptic.md, round 4)
