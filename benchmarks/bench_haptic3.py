@@ -351,7 +351,7 @@ def render(presses, energies, pulls, held, transfers, load, end_load, fit_s) -> 
         f"deepest after let go (deg beyond) | peak motor torque (N m, cap {CAP:.3f}) |",
         "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
     ]
-    peer = presses[("two servos, swing (pan 50)", "round 4")]["held"]
+    peer = presses[("two servos, swing (pan 50)", "today (round 5)")]["held"]
     for (name, law), p in presses.items():
         lines.append(
             f"| {name} | {law} | {p['held']:.3f} | {p['held'] / peer:.3f} | {p['ripple']:.3f} | "
@@ -371,8 +371,9 @@ def render(presses, energies, pulls, held, transfers, load, end_load, fit_s) -> 
         "A hand pulling the leader back inside: pressed 20 deg beyond the edge, held to 4 s, "
         "pulled back to the middle by 4.2 s, hands of 0.05 and 0.2 N m/deg (at most 0.3 N m). "
         "The setpoints move at most RETURN_SPEED, so their loops would pull a faster leader "
-        "back, away from the region; the let-go rules (decisions/haptic.md, round 3) leave it "
-        "free once a read shows it outrunning them. Counted: 1 ms samples outside the region "
+        "back, away from the region; the let-go rules (decisions/haptic.md, rounds 3 and 5) "
+        "leave it free once a read shows it outrunning them or its motors pulling outward. "
+        "Counted: 1 ms samples outside the region "
         "whose joint torques point away from the correction, the law without the rules "
         "(before) and with them (after); inside: samples inside the region with any torque, "
         "both runs summed.",
@@ -421,7 +422,7 @@ def main(argv: list[str] | None = None) -> int:
     presses = {
         (name, label): press_case(region3 if len(script[0]) == 4 else cone, script, law)
         for name, script in PRESSES.items()
-        for label, law in (("round 3", ROUND3), ("round 4", LAW))
+        for label, law in (("round 3", ROUND3), ("today (round 5)", LAW))
     }
     energies = {
         "two servos, pan": energy_case(cone, excursion(0, 2)),
