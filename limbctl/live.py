@@ -298,7 +298,8 @@ class TeleopFeed:
 def leader_status(source: Any) -> Callable[[], LeaderStatus]:
     """What the page shows of a leader source (:class:`~limbctl.teleop.sources.LeaderSource`)
     in each cycle: its pose as last read, and a felt leader's push (its torque, cap, where it
-    points and how far beyond the edge), from the push it was last sent; a three-servo
+    points and how far beyond the edge), from the push it was last sent, with the torque its
+    motors applied as last read; a three-servo
     leader's twist too (:func:`limbctl.view.leader.with_twist`)."""
 
     def status() -> LeaderStatus:
@@ -314,13 +315,21 @@ def leader_status(source: Any) -> Callable[[], LeaderStatus]:
         if not source.felt:
             events = source.feel_stats.events
             return LeaderStatus(shown, state=events[-1] if events else source.notice)
-        push = source.last_push
+        push, read = source.last_push, getattr(source, "last_torque_nm", None)
+        # sensed = |tau| over the joints, as their Present Current reads
+        sensed = None if read is None else math.hypot(*read)
         if push is None or push.torque_nm == 0.0:
             beyond = push.distance_deg if push is not None else None
-            return LeaderStatus(shown, 0.0, source.cap_nm, None, beyond, "free")
+            return LeaderStatus(shown, 0.0, source.cap_nm, None, beyond, "free", sensed_nm=sensed)
         toward = PanTilt(math.degrees(push.goal_pan), math.degrees(push.goal_tilt))
         return LeaderStatus(
-            shown, push.torque_nm, source.cap_nm, toward, push.distance_deg, "pushing back"
+            shown,
+            push.torque_nm,
+            source.cap_nm,
+            toward,
+            push.distance_deg,
+            "pushing back",
+            sensed_nm=sensed,
         )
 
     return status

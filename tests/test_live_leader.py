@@ -118,7 +118,10 @@ def test_the_page_shows_the_felt_leader_beside_the_follower_and_how_hard_it_push
     # the readouts say those values, as JavaScript rounds them (0.125 -> "0.13")
     assert shown["pose"] == js_fixed(leader_part["pose"], 1)
     torque, cap = leader_part["torque_nm"], leader_part["cap_nm"]
-    assert shown["push"] == f"{js_fixed([torque], 2)} N m (cap {js_fixed([cap], 2)} N m)"
+    sensed = leader_part["sensed_nm"]  # the motors' torque as read, beside the push allowed
+    push = f"{js_fixed([torque], 2)} N m (cap {js_fixed([cap], 2)} N m)"
+    assert shown["push"] == f"{push}, sensed {js_fixed([sensed], 2)} N m"
+    assert 0.0 <= sensed <= cap + 0.01
     assert shown["state"] == "pushing back"
     assert tuple(shown["rgb"]) == LEADER_RGB  # the leader's diamond where it is
     # the leader is past the edge and the follower is not; the push is within the cap

@@ -53,6 +53,10 @@ class LeaderStatus:
     toward_twist_deg : float or None
         The twist of a felt three-servo leader's Goal Position while it pushes (deg): the push's
         twist part points from ``twist_deg`` toward it. None while free.
+    sensed_nm : float or None
+        The torque its motors apply as last read (N m, >= 0: the norm over its joints of their
+        Present Current as torque), beside ``torque_nm``, the most the push allows. None for a
+        passive leader or before a felt one's first read (and then not in the JSON).
     """
 
     pose: PanTilt | None
@@ -63,11 +67,12 @@ class LeaderStatus:
     state: str = ""
     twist_deg: float | None = None
     toward_twist_deg: float | None = None
+    sensed_nm: float | None = None
 
     def __post_init__(self) -> None:
-        for name in ("torque_nm", "beyond_deg"):
+        for name in ("torque_nm", "beyond_deg", "sensed_nm"):
             value = getattr(self, name)
-            if value is None and name == "beyond_deg":
+            if value is None and name != "torque_nm":
                 continue
             if not (math.isfinite(value) and value >= 0.0):
                 raise ValueError(f"leader {name} must be finite and >= 0, got {value!r}")
@@ -79,14 +84,22 @@ class LeaderStatus:
                 raise ValueError(f"leader {name} must be finite (or None), got {value!r}")
 
     def to_json(self) -> dict[str, object]:
-        return {
-            "pose": self.pose.to_json() if self.pose else None,
-            "torque_nm": round(float(self.torque_nm), 3),
-            "cap_nm": None if self.cap_nm is None else round(float(self.cap_nm), 3),
-            "toward": self.toward.to_json() if self.toward else None,
-            "beyond_deg": None if self.beyond_deg is None else round(float(self.beyond_deg), 2),
-            "state": self.state,
-        } | self._twist_json()
+        return (
+            {
+                "pose": self.pose.to_json() if self.pose else None,
+                "torque_nm": round(float(self.torque_nm), 3),
+                "cap_nm": None if self.cap_nm is None else round(float(self.cap_nm), 3),
+                "toward": self.toward.to_json() if self.toward else None,
+                "beyond_deg": None if self.beyond_deg is None else round(float(self.beyond_deg), 2),
+                "state": self.state,
+            }
+            | self._sensed_json()
+            | self._twist_json()
+        )
+
+    def _sensed_json(self) -> dict[str, object]:
+        """A felt leader's read torque; nothing before its first read or for a passive one."""
+        return {} if self.sensed_nm is None else {"sensed_nm": round(float(self.sensed_nm), 3)}
 
     def _twist_json(self) -> dict[str, object]:
         """A three-servo leader's twist part; nothing for two servos (their JSON as before)."""

@@ -43,6 +43,11 @@ def test_leader_status_json_and_its_checks():
         LeaderStatus(None, 0.0, 0.0)
     with pytest.raises(ValueError, match="beyond_deg"):
         LeaderStatus(None, 0.0, None, None, math.nan)
+    # a felt leader's read torque goes beside the push; none before its first read
+    sensed = LeaderStatus(PanTilt(32.0, 1.0), 0.29, 0.4, None, 1.95, "free", sensed_nm=0.2834)
+    assert sensed.to_json()["sensed_nm"] == 0.283
+    with pytest.raises(ValueError, match="sensed_nm"):
+        LeaderStatus(None, 0.0, 0.4, sensed_nm=-0.01)
 
 
 def made(driver, element_id: str) -> bool:

@@ -113,6 +113,9 @@ class LeaderSource(CommandSource):
         #: None while passive.
         self.cap_nm: float | None = None
         self._cycle: tuple | None = None  # pose, command, last read, read time, torque
+        #: A felt leader's motor torques as last read (joint frame, N m; Present Current);
+        #: None before its first read or while passive.
+        self.last_torque_nm: tuple[float, ...] | None = None
         #: The leader's pose at its last good read and when (perf_counter s): how fast it moves.
         self._last_read: tuple[tuple[float, float], float] | None = None
         self._notes: list[str] = []
@@ -298,7 +301,8 @@ class LeaderSource(CommandSource):
             return []
         self.stats.accepted += 1
         if self.felt:
-            self._cycle = (pose, command.q, self._last_read, now, self._torque(read))
+            self.last_torque_nm = self._torque(read)
+            self._cycle = (pose, command.q, self._last_read, now, self.last_torque_nm)
             self._last_read = (pose, now)
         return [command]
 

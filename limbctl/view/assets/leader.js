@@ -65,8 +65,11 @@
     panel.section.hidden = panel.keys.hidden = false;
     byId("leader-pose").textContent = fmtPose(leader.pose);
     const felt = leader.cap_nm !== null;
+    // the push the law allows, and what the motors applied as last read (Present Current)
+    const sensed =
+      leader.sensed_nm === undefined ? "" : `, sensed ${leader.sensed_nm.toFixed(2)} N m`;
     byId("leader-push").textContent = felt
-      ? `${leader.torque_nm.toFixed(2)} N m (cap ${leader.cap_nm.toFixed(2)} N m)`
+      ? `${leader.torque_nm.toFixed(2)} N m (cap ${leader.cap_nm.toFixed(2)} N m)${sensed}`
       : "passive: it cannot push";
     const share = felt ? Math.min(1, leader.torque_nm / leader.cap_nm) : 0;
     byId("leader-bar-fill").style.width = `${(100 * share).toFixed(1)}%`;
