@@ -271,7 +271,7 @@ def test_at_200_hz_a_let_go_leader_walks_back_under_30_deg_s_and_rests_at_the_ed
             *case,
             marks=pytest.mark.xfail(
                 strict=True,
-                reason="the 1 ms peak is 31.3 deg/s: the hand left the setpoint 2.4 ticks "
+                reason="the 1 ms peak is 31.1 deg/s: the hand left the setpoint 2.4 ticks "
                 "ahead of the held leader, and the snap onto it has no read in between "
                 "(decisions/haptic.md, round 4)",
             ),
