@@ -35,6 +35,7 @@ from contextlib import ExitStack
 from pathlib import Path
 
 import numpy as np
+from bench_haptic import joint_torques
 
 from calib.profile import default_sim_profile
 from firmware_sim.control_table import Register as FirmwareRegister
@@ -142,13 +143,8 @@ def stepped(region, script, seconds, let_go_s=None, held=(), stiffness=0.05, rul
         for servo in servos:
             servo.refresh(sim.time_s)
         ticks = tuple(s.value(FirmwareRegister.PRESENT_POSITION) for s in servos)
-        # the motors' torque as Present Current reads, in the joints' frame (LeaderSource)
-        torque = tuple(
-            joint.direction * MOTOR.torque_of(servo.value(FirmwareRegister.PRESENT_CURRENT))
-            for servo, joint in zip(servos, rig.joints, strict=True)
-        )
-        # round 3's peer did not read it
-        read = () if law is ROUND3 else (torque,)
+        # the motors' torque as Present Current reads (LeaderSource); round 3's peer did not
+        read = () if law is ROUND3 else (joint_torques(servos, rig),)
         if three:
             pose = rig.angles_of(ticks)
             q = pose_quat_scalar(*pose)

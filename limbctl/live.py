@@ -315,7 +315,7 @@ def leader_status(source: Any) -> Callable[[], LeaderStatus]:
         if not source.felt:
             events = source.feel_stats.events
             return LeaderStatus(shown, state=events[-1] if events else source.notice)
-        push, read = source.last_push, getattr(source, "last_torque_nm", None)
+        push, read = source.last_push, source.last_torque_nm
         # sensed = |tau| over the joints, as their Present Current reads
         sensed = None if read is None else math.hypot(*read)
         if push is None or push.torque_nm == 0.0:
