@@ -51,12 +51,31 @@ class LeaderMotor:
         One unit of Goal Current / Current Limit / Present Current (mA).
     max_current_units : int
         The Current Limit's factory maximum (units).
+    loop_stall_error_deg : float
+        The position error (deg) at which the servo's position loop, at its factory gains,
+        asks for its stall torque: its stiffness is stall torque over this. 2 deg is the
+        simulator's loop (``firmware_sim/torque.py``); the e-Manual gives no such figure, so on
+        real servos it is to be measured (hold the leader, step Goal Position, read Present
+        Current) and set here. The haptic law's lead follows from it (``FeelLaw.lead_for_deg``).
+    let_go_cap_nm : float or None
+        A cap below half the stall torque, where the loop is so soft that holding half its stall
+        torque stores more energy than a let go may spend: a released leader snaps back onto
+        its setpoint at about ``0.46 tau / sqrt(KP J)`` (KP the loop's stiffness, J the
+        leader's inertia, damping ratio 0.7), and it must return at 30 deg/s at most. None: half
+        the stall torque is within that (docs/haptic.md, "Which leaders feel it").
     """
 
     stall_torque_nm: float
     stall_current_ma: float
     current_unit_ma: float
     max_current_units: int
+    loop_stall_error_deg: float = 2.0
+    let_go_cap_nm: float | None = None
+
+    @property
+    def loop_nm_per_deg(self) -> float:
+        """The position loop's stiffness at the output (N m per deg of error)."""
+        return self.stall_torque_nm / self.loop_stall_error_deg
 
     def units_for(self, torque_nm: float) -> int:
         """Goal Current units for a torque (N m), rounded down: never more than asked."""
@@ -70,8 +89,9 @@ class LeaderMotor:
 
     def cap_nm(self, asked_nm: float) -> float:
         """The most this motor may push a hand with: ``asked_nm``, but at most
-        :data:`CAP_STALL_FRACTION` of its stall torque."""
-        return min(asked_nm, CAP_STALL_FRACTION * self.stall_torque_nm)
+        :data:`CAP_STALL_FRACTION` of its stall torque and its ``let_go_cap_nm``."""
+        cap = min(asked_nm, CAP_STALL_FRACTION * self.stall_torque_nm)
+        return cap if self.let_go_cap_nm is None else min(cap, self.let_go_cap_nm)
 
 
 #: A felt leader pushes with at most half its motor's stall torque: a push is held for
@@ -83,10 +103,13 @@ CAP_STALL_FRACTION = 0.5
 #: Models whose leader can push back (they have Operating Mode 5 and sense current), with the
 #: e-Manual's stall figures: XM430-W350 4.1 N m at 2.3 A (12 V), 2.69 mA units, Current Limit up
 #: to 1193; XL330-M077 0.215 N m and XL330-M288 0.52 N m at 1.47 A (5 V), 1 mA units, up to 1750.
+#: The XL330-M288 holds at most 0.12 N m: on the simulated loop (stall torque at 2 deg, 1e-3
+#: kg m^2) its half stall torque (0.26 N m) snapped a released leader back at 46-51 deg/s, 0.13
+#: and 0.14 N m at up to 30.1 and 30.6, 0.12 at up to 25.6 (docs/bench_haptic_models.md).
 FELT_MODELS: dict[ModelNumber, LeaderMotor] = {
     ModelNumber.XM430_W350: LeaderMotor(4.1, 2300.0, 2.69, 1193),
     ModelNumber.XL330_M077: LeaderMotor(0.215, 1470.0, 1.0, 1750),
-    ModelNumber.XL330_M288: LeaderMotor(0.52, 1470.0, 1.0, 1750),
+    ModelNumber.XL330_M288: LeaderMotor(0.52, 1470.0, 1.0, 1750, let_go_cap_nm=0.12),
 }
 
 #: The felt leader's registers, in Indirect Data order after the cycle's read block.

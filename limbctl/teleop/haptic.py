@@ -49,6 +49,8 @@ from limbctl.geometry.gimbal import quat_to_pan_tilt
 from limbctl.servo.leader import LeaderMotor
 from limbctl.servo.ticks import TICKS_PER_REV
 
+#: One position tick (deg).
+TICK_DEG = 360.0 / TICKS_PER_REV
 #: Velocity unit of Profile Velocity: 0.229 rev/min = 1.374 deg/s.
 PROFILE_VELOCITY_UNIT_DEG_S = 0.229 * 360.0 / 60.0
 
@@ -79,24 +81,31 @@ class FeelLaw:
         covers RETURN_SPEED T (0.069 deg) in a cycle: 0.135 deg of the 0.176, 3 ms of travel to
         spare. At 12 units (16.5 deg/s) none was left: the setpoint stopped twice in a walk
         back, 3 outward 1 ms samples each (decisions/haptic.md, round 4).
-    lead_deg : float
-        Two ticks (0.176 deg): how far ahead of the leader's pose Goal Position lies. Holding
-        a hand, the servo's setpoint sits there, and a let go snaps the leader onto it: the
-        simulated loop gives about 13 deg/s of peak speed per tick of setpoint error (the
-        snap's 1 ms peak), so the lead is the least that still holds the cap. The read rounds
-        the leader's pose to a tick, so the setpoint lies between 1.5 and 2.5 ticks ahead;
-        the simulator's XM430 loop (stall torque at 2 deg) gives 0.45 N m at 2.5 ticks, over
-        the cap (0.4 N m), and one tick would give at most 0.27 N m: a firmer hand would push
-        the leader out tick by tick. On real servos the loop's stiffness must be measured
-        (hold the leader, step Goal Position, read Present Current) and the lead set from it.
+    lead_fraction : float
+        0.9: Goal Position lies ahead of the leader's pose, toward the correction, by the whole
+        number of ticks nearest the error at which the servo's loop gives 0.9 of the cap
+        (``CAP / loop stiffness``, :attr:`LeaderMotor.loop_nm_per_deg`): two ticks (0.176 deg)
+        on the simulated XM430-W350, ten on an XL330 (whose caps are half its stall torque, a
+        loop error of 1 deg). Holding a hand, the servo's setpoint sits there, and a let go
+        snaps the leader onto it: the energy the loop stores is what the snap spends, so the
+        lead is the least that still holds. On the XM430 the read rounds the leader's pose to
+        a tick, so the setpoint lies between 1.5 and 2.5 ticks ahead: 0.27-0.45 N m, enough to
+        stop a 0.3 N m hand coming from inside (it pushes the leader out until the loop's
+        error reaches 1.66 ticks); one tick (at most 0.27 N m) would let a firmer hand push
+        the leader out tick by tick. A lead of a fixed two ticks on an XL330, whose simulated
+        loop is 8-19 times softer, gave it 0.02-0.06 N m: a relaxed hand pushed an XL330-M077
+        leader 19 deg beyond, and let go it rested 8 deg beyond (decisions/haptic.md, round 6).
         It does not grow with the leader's step (as it did in round 3): the tick-quantized
         step flips between 0 and 1 tick at a slow walk, and a goal that moves back reverses
-        the setpoint onto the leader (decisions/haptic.md, round 4). One tick more (three)
-        for a leader deeper than a hand within the cap holds it (K (d - DEADBAND) > CAP: after a
-        release, or a hand that overpowered the wall): the wall then pushes it back at the cap,
-        which the loop must give wherever the leader sits within its tick, 2.5 ticks or more
-        (0.45 N m); at 1.5 ticks (0.27 N m) a hand pressing 0.27 N m held a released leader 15 deg
-        beyond the edge for good.
+        the setpoint onto the leader (decisions/haptic.md, round 4). Half as much again (three
+        ticks on the XM430) for a leader deeper than a hand within the cap holds it
+        (K (d - DEADBAND) > CAP: after a release, or a hand that overpowered the wall): the
+        wall then pushes it back at the cap, which the loop must give wherever the leader sits
+        within its tick, 2.5 ticks or more (0.45 N m) on the XM430; at 1.5 ticks (0.27 N m) a
+        hand pressing 0.27 N m held a released leader 15 deg beyond the edge for good.
+    lead_deg : float or None
+        A fixed lead (deg) instead of the one from the loop's stiffness (benchmarks sweep it);
+        None (the default): from ``lead_fraction``.
     held_within_deg : float
         2 deg: beyond it the goal leads by three ticks too. A relaxed hand (0.3 N m) is held
         1.9 deg beyond (two ticks, the least snap at its let go); a leader the loop's jitter
@@ -130,7 +139,8 @@ class FeelLaw:
     gain_nm_per_deg: float = 0.2
     cap_nm: float = 0.4
     return_speed_deg_s: float = 14.0
-    lead_deg: float = 2.0 * 360.0 / TICKS_PER_REV
+    lead_fraction: float = 0.9
+    lead_deg: float | None = None
     held_within_deg: float = 2.0
     outrun_slack_deg: float = 0.1
     outward_noise_nm: float = 0.01
@@ -141,7 +151,7 @@ class FeelLaw:
             "deadband_deg",
             "gain_nm_per_deg",
             "cap_nm",
-            "lead_deg",
+            "lead_fraction",
             "outrun_slack_deg",
             "held_within_deg",
             "outward_noise_nm",
@@ -151,6 +161,8 @@ class FeelLaw:
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0.0):
                 raise ConfigError(f"feel law {name} must be finite and >= 0, got {value!r}")
+        if self.lead_deg is not None and not (math.isfinite(self.lead_deg) and self.lead_deg > 0):
+            raise ConfigError(f"feel law lead_deg must be finite and > 0, got {self.lead_deg!r}")
         if not 0.0 < self.return_speed_deg_s <= 30.0:
             raise ConfigError(
                 f"return_speed_deg_s must be in (0, 30] deg/s, got {self.return_speed_deg_s}"
@@ -163,13 +175,23 @@ class FeelLaw:
         # tau = min(K (d - DEADBAND), CAP)
         return min(self.gain_nm_per_deg * (distance_deg - self.deadband_deg), self.cap_nm)
 
-    def lead_for_deg(self, distance_deg: float, cap_nm: float) -> float:
-        """Goal Position's lead (deg) for a leader ``distance_deg`` beyond the edge, pushed with
-        at most ``cap_nm``: LEAD, one tick more beyond ``held_within_deg`` or where the wall's
-        spring asks for more than the cap (see ``lead_deg``)."""
+    def lead_for_deg(self, distance_deg: float, motor: LeaderMotor) -> float:
+        """Goal Position's lead (deg) for a leader ``distance_deg`` beyond the edge, of
+        ``motor``'s model: ``lead_fraction`` of its loop's error at the cap, or, beyond
+        ``held_within_deg`` or where the wall's spring asks for more than the cap, the least
+        that gives the cap wherever the leader sits within its tick (see ``lead_fraction``)."""
+        cap_nm = motor.cap_nm(self.cap_nm)
         # beyond HELD_WITHIN, or K (d - DEADBAND) > CAP: deeper than a hand within the cap holds it
         deeper = self.gain_nm_per_deg * (distance_deg - self.deadband_deg) > cap_nm
-        return self.lead_deg * (1.5 if deeper or distance_deg > self.held_within_deg else 1.0)
+        deeper = deeper or distance_deg > self.held_within_deg
+        if self.lead_deg is not None:
+            return self.lead_deg * (1.5 if deeper else 1.0)
+        cap_ticks = cap_nm / motor.loop_nm_per_deg / TICK_DEG  # the loop's error at the cap (ticks)
+        if deeper:
+            # the least whole ticks that give the cap wherever the leader sits in its tick
+            return math.ceil(cap_ticks + 0.5) * TICK_DEG
+        # the whole ticks nearest LEAD_FRACTION of the error at the cap, at least one
+        return max(1, round(self.lead_fraction * cap_ticks)) * TICK_DEG
 
     def passivity_margin(self, damping_nm_s_rad: float, rate_hz: float) -> float:
         """b / (K T / 2 + B) with B = 0: above 1 the sampled wall is passive."""
@@ -322,7 +344,7 @@ def push_for(
             return free
     if engaged and torque_nm is not None and longest > 0.0 and pulls_outward(law, torque_nm, step):
         return free
-    lead = math.radians(law.lead_for_deg(distance, motor.cap_nm(law.cap_nm)))
+    lead = math.radians(law.lead_for_deg(distance, motor))
     scale = min(1.0, lead / longest) if longest > 0.0 else 0.0
     goal = (present[0] + scale * step[0], present[1] + scale * step[1])
     return Push(

@@ -148,7 +148,7 @@ def push3_for(
     if engaged and torque_nm is not None and longest > 0.0:
         if pulls_outward(law, tuple(torque_nm), tuple(step)):
             return free
-    lead = math.radians(law.lead_for_deg(distance, motor.cap_nm(law.cap_nm)))
+    lead = math.radians(law.lead_for_deg(distance, motor))
     scale = min(1.0, lead / longest) if longest > 0.0 else 0.0
     goal = [p + scale * s for p, s in zip(present, step, strict=True)]
     return Push3(

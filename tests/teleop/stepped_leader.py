@@ -1,11 +1,34 @@
-"""What the stepped-clock felt-leader tests read of the simulated leader, as the source does."""
+"""The stepped-clock felt-leader harness: the controller's part done on the simulated leader's
+registers, as ``LeaderSource`` does it over the bus, every 5 ms of a clock stepped 1 ms at a time
+in this process, so the law's own behaviour is measured whatever the machine's load."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
+import numpy as np
+
+from calib.profile import default_sim_profile
+from firmware_sim.control_table import MODELS
 from firmware_sim.control_table import Register as SimRegister
-from limbctl.servo.leader import LeaderMotor
+from firmware_sim.simulator import Simulator
+from limbctl.envelope import Cone
+from limbctl.geometry.gimbal import pan_tilt_to_quat
+from limbctl.servo.control_table import ModelNumber
+from limbctl.servo.leader import (
+    FEEL_DATA,
+    FEEL_MAP,
+    FELT_MODELS,
+    LeaderMotor,
+    encode_feel,
+    feel_map,
+)
+from limbctl.servo.rig import Rig
+from limbctl.teleop.haptic import FeelLaw, Push, push_for
+
+#: The follower's region in these runs: a 30 deg cone around +x (along pan, the edge at pan 30).
+CONE = Cone(half_angle_deg=30.0)
 
 
 def read_torque(servos: Sequence, joints: Sequence, motor: LeaderMotor) -> tuple[float, ...]:
@@ -16,3 +39,82 @@ def read_torque(servos: Sequence, joints: Sequence, motor: LeaderMotor) -> tuple
         joint.direction * motor.torque_of(servo.value(SimRegister.PRESENT_CURRENT))
         for servo, joint in zip(servos, joints, strict=True)
     )
+
+
+def motor_of(model: str) -> LeaderMotor:
+    """The controller's :class:`LeaderMotor` for a simulator model key (``"xl330-m288@53"``)."""
+    return FELT_MODELS[ModelNumber(MODELS[model.partition("@")[0]].model_number)]
+
+
+def q_of(pan_deg: float, tilt_deg: float) -> np.ndarray:
+    return np.asarray(pan_tilt_to_quat(math.radians(pan_deg), math.radians(tilt_deg)))
+
+
+def felt_at_200_hz(
+    script,
+    seconds,
+    stiffness=0.05,
+    let_go_s=None,
+    cycles=None,
+    model="xm430-w350",
+    law=FeelLaw(),
+    max_torque_nm=0.3,
+    motor=None,
+):
+    """The controller's part on the simulated leader's registers every 5 ms of a stepped clock
+    (read Present Position and Present Current, push_for, the same ten bytes to Indirect Data
+    1 ms later), in this process. Returns the leader's 1 ms truth.
+
+    ``cycles`` maps a cycle's index to what happens instead: "late" (the controller does
+    nothing that cycle, as in a stalled loop: the servos keep their last command) or "held" (the
+    push of a cycle whose gate held or whose follower read failed: Goal Current 0, Profile
+    Velocity 0, Goal Position at the leader, as ``LeaderSource.feel`` writes) or "silent" (the
+    leader's read failed: ``LeaderSource.release`` writes Goal Current 0 alone). ``model``: the
+    leader servos' simulator model (a 330 named with firmware 53 or later, whose Indirect Data
+    is at 224); ``max_torque_nm``: the hand's bound; ``motor``: the controller's idea of the
+    model's motor (None: :data:`FELT_MODELS`'s)."""
+    motor = motor or motor_of(model)
+    clock = [0.0]
+    sim = Simulator(ids=(1, 2), leader={"ids": [3, 4], "model": model}, clock=lambda: clock[0])
+    rig = Rig(default_sim_profile())
+    servos = [sim.servo(3), sim.servo(4)]
+    for servo in servos:
+        servo.write(11, bytes([5]))  # Operating Mode 5 (EEPROM, torque off)
+        limit = motor.units_for(motor.cap_nm(law.cap_nm))
+        servo.write(38, limit.to_bytes(2, "little"))  # Current Limit
+        servo.write(FEEL_MAP.address, feel_map())
+        servo.write(64, bytes([1]))  # torque on
+    hand = {"script": script, "let_go_s": let_go_s, "stiffness_nm_deg": stiffness}
+    sim.set_operator({**hand, "damping_nm_s_rad": 0.02, "max_torque_nm": max_torque_nm})
+    rows, engaged, previous = [], False, None
+    for k in range(round(seconds * 200.0)):
+        for servo in servos:
+            servo.refresh(sim.time_s)
+        pose = rig.ticks_to_angles(*(s.value(SimRegister.PRESENT_POSITION) for s in servos))
+        q = q_of(*np.degrees(pose))
+        torque = read_torque(servos, rig.joints, motor)
+        push = push_for(law, motor, pose, q, CONE.correct(q), previous, 0.005, engaged, torque)
+        previous = pose
+        instead = (cycles or {}).get(k)
+        if instead == "held":
+            push = Push(0, 0, pose[0], pose[1], 0.0, 0.0)
+        if instead == "silent":
+            engaged = False  # LeaderSource.release: the next push is the wall coming on again
+            for servo in servos:
+                servo.write(102, bytes(2))  # Goal Current 0 alone
+        for step in range(5):
+            if step == 1 and instead not in ("late", "silent"):
+                ticks = rig.angles_to_ticks(push.goal_pan, push.goal_tilt)
+                if push.goal_current and not engaged:  # the wall comes on: LeaderSource._write
+                    for servo in servos:
+                        servo.write(64, bytes([0]))  # torque off, then on: the setpoint is the
+                        servo.write(64, bytes([1]))  # present position
+                engaged = bool(push.goal_current)
+                for servo, tick in zip(servos, ticks, strict=True):
+                    if push.goal_current:  # Profile Velocity: its own write in the source
+                        servo.write(112, push.profile_velocity.to_bytes(4, "little"))
+                    servo.write(FEEL_DATA.address, encode_feel(push.goal_current, tick))
+            clock[0] += 0.001
+            sim.advance()
+            rows.append(sim.leader.sample())
+    return rows

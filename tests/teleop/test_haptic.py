@@ -10,18 +10,14 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from calib.profile import default_sim_profile
-from firmware_sim.control_table import Register as SimRegister
-from firmware_sim.simulator import Simulator
 from limbctl.envelope import Cone
 from limbctl.errors import ConfigError
 from limbctl.geometry.gimbal import pan_tilt_to_quat, quat_to_pan_tilt
 from limbctl.servo.control_table import ModelNumber
-from limbctl.servo.leader import FEEL_DATA, FEEL_MAP, FELT_MODELS, encode_feel, feel_map
-from limbctl.servo.rig import Rig
-from limbctl.teleop.haptic import FeelLaw, FeelStats, Push, beyond_deg, push_for
+from limbctl.servo.leader import FELT_MODELS
+from limbctl.teleop.haptic import TICK_DEG, FeelLaw, FeelStats, beyond_deg, push_for
 from limbctl.teleop.sources.leader import PaceWatch
-from tests.teleop.stepped_leader import read_torque
+from tests.teleop.stepped_leader import felt_at_200_hz
 
 LAW = FeelLaw()
 MOTOR = FELT_MODELS[ModelNumber.XM430_W350]
@@ -63,12 +59,12 @@ def test_a_push_leads_the_leader_toward_the_corrected_pose_by_at_most_the_lead()
     q = q_of(40.0, 0.0)
     push = push_for(LAW, MOTOR, (math.radians(40.0), 0.0), q, CONE.correct(q))
     assert push.goal_current == MOTOR.units_for(LAW.cap_nm)
-    # 10 deg beyond, deeper than a hand within the cap holds it: one tick more than LEAD
-    assert math.degrees(push.goal_pan) == pytest.approx(40.0 - 1.5 * LAW.lead_deg)
+    # 10 deg beyond, deeper than a hand within the cap holds it: three ticks, not two
+    assert math.degrees(push.goal_pan) == pytest.approx(40.0 - 3 * TICK_DEG)
     near = push_for(
         LAW, MOTOR, (math.radians(31.5), 0.0), q_of(31.5, 0.0), CONE.correct(q_of(31.5, 0.0))
     )
-    assert math.degrees(near.goal_pan) == pytest.approx(31.5 - LAW.lead_deg)
+    assert math.degrees(near.goal_pan) == pytest.approx(31.5 - 2 * TICK_DEG)
     assert push.profile_velocity == LAW.profile_velocity_units()
     inside = push_for(LAW, MOTOR, (0.1, 0.0), q_of(5.7, 0.0), q_of(5.7, 0.0))
     assert (inside.goal_current, inside.profile_velocity, inside.torque_nm) == (0, 0, 0.0)
@@ -92,7 +88,7 @@ def test_property_never_above_the_cap_zero_inside_toward_the_region(pan, tilt, d
     if push.goal_current:
         # the goal lies from the leader toward the corrected pose, no further than the lead
         step = np.subtract((push.goal_pan, push.goal_tilt), present)
-        lead = LAW.lead_for_deg(push.distance_deg, MOTOR.cap_nm(LAW.cap_nm))
+        lead = LAW.lead_for_deg(push.distance_deg, MOTOR)
         assert np.max(np.abs(step)) <= math.radians(lead) + 1e-12
         target = np.subtract(np.asarray(quat_to_pan_tilt(corrected), dtype=float), present)
         assert float(step @ target) >= 0.0
@@ -119,7 +115,7 @@ def test_property_a_leader_outrunning_its_setpoint_or_still_moving_in_is_free_el
         # the leader's step: decisions/haptic.md, round 4)
         assert push.goal_current == free.goal_current
         assert push.goal_pan == free.goal_pan
-        lead = LAW.lead_for_deg(push.distance_deg, MOTOR.cap_nm(LAW.cap_nm))
+        lead = LAW.lead_for_deg(push.distance_deg, MOTOR)
         assert 0.0 <= present[0] - push.goal_pan <= math.radians(lead) + 1e-12
 
 
@@ -149,61 +145,6 @@ def test_stats_say_how_long_and_how_hard():
 
 
 # -- the law against the simulated leader, at exactly 200 Hz --------------------------------------
-
-
-def felt_at_200_hz(script, seconds, stiffness=0.05, let_go_s=None, cycles=None):
-    """The controller's part on the simulated leader's registers every 5 ms of a stepped clock
-    (read Present Position, push_for, the same ten bytes to Indirect Data 1 ms later), in this
-    process: the law's own behaviour, whatever the machine's load. Returns the 1 ms truth.
-
-    ``cycles`` maps a cycle's index to what happens instead: "late" (the controller does
-    nothing that cycle, as in a stalled loop: the servos keep their last command) or "held" (the
-    push of a cycle whose gate held or whose follower read failed: Goal Current 0, Profile
-    Velocity 0, Goal Position at the leader, as ``LeaderSource.feel`` writes) or "silent" (the
-    leader's read failed: ``LeaderSource.release`` writes Goal Current 0 alone)."""
-    clock = [0.0]
-    sim = Simulator(ids=(1, 2), leader={"ids": [3, 4]}, clock=lambda: clock[0])
-    rig = Rig(default_sim_profile())
-    servos = [sim.servo(3), sim.servo(4)]
-    for servo in servos:
-        servo.write(11, bytes([5]))  # Operating Mode 5 (EEPROM, torque off)
-        servo.write(38, MOTOR.units_for(LAW.cap_nm).to_bytes(2, "little"))  # Current Limit
-        servo.write(FEEL_MAP.address, feel_map())
-        servo.write(64, bytes([1]))  # torque on
-    hand = {"script": script, "let_go_s": let_go_s, "stiffness_nm_deg": stiffness}
-    sim.set_operator({**hand, "damping_nm_s_rad": 0.02, "max_torque_nm": 0.3})
-    rows, engaged, previous = [], False, None
-    for k in range(round(seconds * 200.0)):
-        for servo in servos:
-            servo.refresh(sim.time_s)
-        pose = rig.ticks_to_angles(*(s.value(SimRegister.PRESENT_POSITION) for s in servos))
-        q = q_of(*np.degrees(pose))
-        torque = read_torque(servos, rig.joints, MOTOR)
-        push = push_for(LAW, MOTOR, pose, q, CONE.correct(q), previous, 0.005, engaged, torque)
-        previous = pose
-        instead = (cycles or {}).get(k)
-        if instead == "held":
-            push = Push(0, 0, pose[0], pose[1], 0.0, 0.0)
-        if instead == "silent":
-            engaged = False  # LeaderSource.release: the next push is the wall coming on again
-            for servo in servos:
-                servo.write(102, bytes(2))  # Goal Current 0 alone
-        for step in range(5):
-            if step == 1 and instead not in ("late", "silent"):
-                ticks = rig.angles_to_ticks(push.goal_pan, push.goal_tilt)
-                if push.goal_current and not engaged:  # the wall comes on: LeaderSource._write
-                    for servo in servos:
-                        servo.write(64, bytes([0]))  # torque off, then on: the setpoint is the
-                        servo.write(64, bytes([1]))  # present position
-                engaged = bool(push.goal_current)
-                for servo, tick in zip(servos, ticks, strict=True):
-                    if push.goal_current:  # Profile Velocity: its own write in the source
-                        servo.write(112, push.profile_velocity.to_bytes(4, "little"))
-                    servo.write(FEEL_DATA.address, encode_feel(push.goal_current, tick))
-            clock[0] += 0.001
-            sim.advance()
-            rows.append(sim.leader.sample())
-    return rows
 
 
 def test_at_200_hz_the_leader_stops_within_2_deg_and_a_release_walks_back_to_the_edge():

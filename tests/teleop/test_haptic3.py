@@ -25,7 +25,7 @@ from limbctl.servo.leader import FEEL_DATA, FEEL_MAP, FELT_MODELS, encode_feel, 
 from limbctl.servo.rig3 import RollRig
 from limbctl.servo.ticks import angle_to_ticks
 from limbctl.teleop.gate3 import geodesic
-from limbctl.teleop.haptic import FeelLaw
+from limbctl.teleop.haptic import TICK_DEG, FeelLaw
 from limbctl.teleop.haptic3 import Push3, beyond3_deg, corrected_pose, held3, push3_for
 from tests.teleop.stepped_leader import read_torque
 from tests.teleop.twist_square import square_region
@@ -69,8 +69,8 @@ def test_distance_is_the_rotation_to_the_correction_and_the_push_leads_toward_it
     present = tuple(np.radians((0.0, 0.0, 45.0)))
     push = push3_for(LAW, MOTOR, present, q, corrected, RIG.roll_limits)
     assert push.goal_current == MOTOR.units_for(LAW.cap_nm)
-    # 10-20 deg beyond, deeper than a hand within the cap holds it: one tick more than LEAD
-    assert math.degrees(push.goal_roll) == pytest.approx(45.0 - 1.5 * LAW.lead_deg, abs=1e-9)
+    # 10-20 deg beyond, deeper than a hand within the cap holds it: three ticks, not two
+    assert math.degrees(push.goal_roll) == pytest.approx(45.0 - 3 * TICK_DEG, abs=1e-9)
     inside = push3_for(LAW, MOTOR, (0.1, 0.0, 0.2), q_of(5.7, 0, 11.5), q_of(5.7, 0, 11.5), (-1, 1))
     assert (inside.goal_current, inside.profile_velocity, inside.torque_nm) == (0, 0, 0.0)
     assert inside.goal == (0.1, 0.0, 0.2)  # free: the goal rides with the leader
@@ -109,7 +109,7 @@ def test_property_never_above_the_cap_zero_inside_toward_the_correction(
         assert push.goal_current == 0
     if push.goal_current:
         step = np.subtract(push.goal, present)
-        lead = LAW.lead_for_deg(push.distance_deg, MOTOR.cap_nm(LAW.cap_nm))
+        lead = LAW.lead_for_deg(push.distance_deg, MOTOR)
         assert np.max(np.abs(step)) <= math.radians(lead) + 1e-12
         target = np.subtract(corrected_pose(corrected, present, RIG.roll_limits), present)
         assert float(step @ target) >= 0.0
@@ -137,7 +137,7 @@ def test_property_a_leader_outrunning_its_setpoints_or_still_moving_in_is_free_e
         assert (push.goal_current, push.goal) == (0, present)
     else:  # the wall's current and goal, at most LEAD ahead (decisions/haptic.md, round 4)
         assert push.goal_current == wall.goal_current and push.goal == wall.goal
-        lead = math.radians(LAW.lead_for_deg(wall.distance_deg, MOTOR.cap_nm(LAW.cap_nm)))
+        lead = math.radians(LAW.lead_for_deg(wall.distance_deg, MOTOR))
         assert np.max(np.abs(np.subtract(push.goal, present))) <= lead + 1e-12
 
 
