@@ -27,7 +27,7 @@ from limbctl.servo.ticks import angle_to_ticks
 from limbctl.teleop.gate3 import geodesic
 from limbctl.teleop.haptic import TICK_DEG, FeelLaw
 from limbctl.teleop.haptic3 import Push3, beyond3_deg, corrected_pose, held3, push3_for
-from tests.teleop.stepped_leader import read_torque
+from tests.teleop.stepped_leader import motor_of, read_torque
 from tests.teleop.twist_square import square_region
 
 LAW = FeelLaw()
@@ -145,7 +145,14 @@ def test_property_a_leader_outrunning_its_setpoints_or_still_moving_in_is_free_e
 
 
 def felt3_at_200_hz(
-    region, script, seconds, let_go_s=None, cycles=None, stiffness=0.05, rules=True
+    region,
+    script,
+    seconds,
+    let_go_s=None,
+    cycles=None,
+    stiffness=0.05,
+    rules=True,
+    model="xm430-w350",
 ):
     """The controller's part on the simulated leader's registers every 5 ms of a stepped clock:
     read Present Position, push3_for, the bytes to Indirect Data 1 ms later (Torque Enable off
@@ -153,13 +160,17 @@ def felt3_at_200_hz(
     cycle's (pose, push)). ``cycles`` maps a cycle's index to "held" (a held gate's push:
     Goal Current 0) or "silent" (a failed leader read: Goal Current 0 alone). ``rules``: pass the
     previous read, the period and whether the wall pushed (as LeaderSource3.feel); False is the
-    law without its let-go rules (as before round 3 on three servos)."""
+    law without its let-go rules (as before round 3 on three servos). ``model``: the leader
+    servos' simulator model (a 330 named with firmware 53 or later)."""
+    motor = motor_of(model)
     clock = [0.0]
-    sim = Simulator(ids=(1, 2, 3), roll_id=3, leader={"ids": list(IDS)}, clock=lambda: clock[0])
+    leader = {"ids": list(IDS), "model": model}
+    sim = Simulator(ids=(1, 2, 3), roll_id=3, leader=leader, clock=lambda: clock[0])
     servos = [sim.servo(i) for i in IDS]
     for servo in servos:
         servo.write(11, bytes([5]))  # Operating Mode 5 (EEPROM, torque off)
-        servo.write(38, MOTOR.units_for(LAW.cap_nm).to_bytes(2, "little"))  # Current Limit
+        limit = motor.units_for(motor.cap_nm(LAW.cap_nm))
+        servo.write(38, limit.to_bytes(2, "little"))  # Current Limit
         servo.write(FEEL_MAP.address, feel_map())
         servo.write(64, bytes([1]))  # torque on
     sim.set_operator(
@@ -172,12 +183,12 @@ def felt3_at_200_hz(
         pose = RIG.angles_of(tuple(s.value(SimRegister.PRESENT_POSITION) for s in servos))
         q = pose_quat_scalar(*pose)
         if rules:
-            torque = read_torque(servos, RIG.joints, MOTOR)
+            torque = read_torque(servos, RIG.joints, motor)
             corrected = region.correct(q)
             past = (previous, 0.005, engaged, torque)
-            push = push3_for(LAW, MOTOR, pose, q, corrected, RIG.roll_limits, *past)
+            push = push3_for(LAW, motor, pose, q, corrected, RIG.roll_limits, *past)
         else:
-            push = push3_for(LAW, MOTOR, pose, q, region.correct(q), RIG.roll_limits)
+            push = push3_for(LAW, motor, pose, q, region.correct(q), RIG.roll_limits)
         previous = pose
         instead = (cycles or {}).get(k)
         if instead == "held":
@@ -319,6 +330,25 @@ def test_at_200_hz_a_let_go_leader_never_turns_faster_than_30_deg_s_in_any_1_ms_
 ):
     rows, _ = pressed_and_let_go(region, press)
     assert max(max(map(abs, r["velocity_deg_s"])) for r in rows if r["t"] >= 4.5) <= 30.0
+
+
+@pytest.mark.parametrize("model", ["xl330-m288@53", "xl330-m077@53"])
+@pytest.mark.parametrize("press", sorted(PRESSES))
+def test_at_200_hz_an_xl330_leader_pushes_with_its_cap_and_returns_under_30_deg_s(
+    region, model, press
+):
+    # the lead follows the soft loop (ten ticks and more on an XL330, two on the XM430), and
+    # the XL330-M288 holds at most 0.12 N m (decisions/haptic.md, round 6)
+    rows, _ = felt3_at_200_hz(region, PRESSES[press], 6.0, let_go_s=4.5, model=model)
+    motor = motor_of(model)
+    cap = motor.torque_of(motor.units_for(motor.cap_nm(LAW.cap_nm)))
+    held = [r for r in rows if 3.0 <= r["t"] < 4.5]
+    # the 0.3 N m hand overpowers an XL330's cap: the wall pushes with all of it, no more
+    assert max(max(map(abs, r["motor_nm"])) for r in held) == pytest.approx(cap, abs=1e-9)
+    after = [r for r in rows if r["t"] >= 4.5]
+    assert max(max(map(abs, r["velocity_deg_s"])) for r in after) <= 30.0  # every 1 ms sample
+    assert beyond_of(region, after[-1]) < 0.5
+    assert all(beyond_of(region, r) > 0.0 for r in after[::5])  # never walked inside
 
 
 #: Pressed 20 deg beyond the edge, held, then pulled back inside in 0.2 s: in swing and twist.
