@@ -35,13 +35,21 @@ from pathlib import Path
 import numpy as np
 
 from calib.profile import default_sim_profile
+from firmware_sim.control_table import MODELS
 from firmware_sim.control_table import Register as FirmwareRegister
 from firmware_sim.simulator import Simulator
 from limbctl.envelope import Cone
 from limbctl.errors import BusError
 from limbctl.jobs import gate_for
 from limbctl.servo.control_table import ModelNumber, Register
-from limbctl.servo.leader import FEEL_DATA, FEEL_MAP, FELT_MODELS, encode_feel, feel_map
+from limbctl.servo.leader import (
+    FEEL_DATA,
+    FEEL_MAP,
+    FELT_MODELS,
+    LeaderMotor,
+    encode_feel,
+    feel_map,
+)
 from limbctl.servo.rig import Rig
 from limbctl.servo.setup import configure_servos
 from limbctl.session import open_rig
@@ -68,14 +76,18 @@ def round4_push(law, motor, present, q, corrected, previous=None, period_s=0.0, 
     return push_for(law, motor, present, q, corrected, previous, period_s, engaged)
 
 
-def joint_torques(servos, rig) -> tuple[float, ...]:
+def joint_torques(servos, rig, motor=FELT_MODELS[ModelNumber.XM430_W350]) -> tuple[float, ...]:
     """The leader's motor torques (joint frame, N m) as its Present Current reads, each turned
     into its joint's frame (what ``LeaderSource`` reads through the current map)."""
-    motor = FELT_MODELS[ModelNumber.XM430_W350]
     return tuple(
         joint.direction * motor.torque_of(servo.value(FirmwareRegister.PRESENT_CURRENT))
         for servo, joint in zip(servos, rig.joints, strict=True)
     )
+
+
+def felt_motor(model: str) -> LeaderMotor:
+    """The controller's :class:`LeaderMotor` for a simulator model key (``"xl330-m288@53"``)."""
+    return FELT_MODELS[ModelNumber(MODELS[model.partition("@")[0]].model_number)]
 
 
 def run_case(workdir: Path, name: str, operator: dict, seconds: float, model="xm430-w350"):
@@ -261,6 +273,9 @@ def exact_rate_case(
     push_fn=push_for,
     cut_s=None,
     release_s=0.0,
+    model="xm430-w350",
+    law=None,
+    motor=None,
 ) -> dict:
     """The same law at exactly 200 Hz, without the bus: the simulator in this process on a
     stepped clock, and every 5 ms the controller's part done on the leader servos' registers
@@ -274,17 +289,23 @@ def exact_rate_case(
     for the peer).
     ``cut_s``: at this time (s) the controller writes Goal Current 0 (no torque, whatever the
     goal) and nothing after: an oracle that cuts the wall a chosen time after the let go
-    (benchmarks/bench_let_go.py). ``release_s``: how long the hand's let go takes."""
+    (benchmarks/bench_let_go.py). ``release_s``: how long the hand's let go takes. ``model``:
+    the leader servos' simulator model (a 330 named with firmware 53 or later: its Indirect
+    Data at 224); ``law``: the law's constants (None: today's); ``motor``: the controller's
+    idea of the model's motor (None: :data:`FELT_MODELS`'s)."""
     clock = [0.0]
-    sim = Simulator(ids=(1, 2), leader={"ids": list(LEADER_IDS)}, clock=lambda: clock[0])
+    leader = {"ids": list(LEADER_IDS), "model": model}
+    sim = Simulator(ids=(1, 2), leader=leader, clock=lambda: clock[0])
     profile = default_sim_profile()
     rig = Rig(profile)
     cone = Cone(half_angle_deg=EDGE_DEG)
-    law, motor = FeelLaw(), FELT_MODELS[ModelNumber.XM430_W350]
+    law = law or FeelLaw()
+    motor = motor or felt_motor(model)
     servos = [sim.servo(i) for i in LEADER_IDS]
     for servo in servos:
         servo.write(11, bytes([5]))  # Operating Mode 5
-        servo.write(38, motor.units_for(law.cap_nm).to_bytes(2, "little"))  # Current Limit
+        limit = motor.units_for(motor.cap_nm(law.cap_nm))
+        servo.write(38, limit.to_bytes(2, "little"))  # Current Limit
         servo.write(FEEL_MAP.address, feel_map())
         servo.write(64, bytes([1]))  # torque on
     hand = {**HAND, "stiffness_nm_deg": stiffness, "script": script, "let_go_s": let_go_s}
@@ -299,7 +320,7 @@ def exact_rate_case(
         q = command_from_pan_tilt(*np.degrees(pose)).q
         past = (previous, 0.005, pushed)
         if push_fn is not round4_push:  # today's law reads the motors' torque
-            past = (*past, joint_torques(servos, rig))
+            past = (*past, joint_torques(servos, rig, motor))
         push = push_fn(law, motor, pose, q, cone.correct(q), *past)
         previous = pose
         instead = (cycles or {}).get(k)

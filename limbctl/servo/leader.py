@@ -104,8 +104,9 @@ CAP_STALL_FRACTION = 0.5
 #: e-Manual's stall figures: XM430-W350 4.1 N m at 2.3 A (12 V), 2.69 mA units, Current Limit up
 #: to 1193; XL330-M077 0.215 N m and XL330-M288 0.52 N m at 1.47 A (5 V), 1 mA units, up to 1750.
 #: The XL330-M288 holds at most 0.12 N m: on the simulated loop (stall torque at 2 deg, 1e-3
-#: kg m^2) its half stall torque (0.26 N m) snapped a released leader back at 46-51 deg/s, 0.13
-#: and 0.14 N m at up to 30.1 and 30.6, 0.12 at up to 25.6 (docs/bench_haptic_models.md).
+#: kg m^2) holding its half stall torque (0.26 N m) snapped a released leader back at up to
+#: 51.6 deg/s on a 1 ms sample, 0.14 N m at 30.6, 0.13 at 29.9 (30.1 with another hand), 0.12
+#: at 25.6: the margin is for what the simulation does not know (docs/bench_haptic_models.md).
 FELT_MODELS: dict[ModelNumber, LeaderMotor] = {
     ModelNumber.XM430_W350: LeaderMotor(4.1, 2300.0, 2.69, 1193),
     ModelNumber.XL330_M077: LeaderMotor(0.215, 1470.0, 1.0, 1750),

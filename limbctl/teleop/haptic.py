@@ -11,8 +11,11 @@ The law (:class:`FeelLaw`), per cycle of period T::
     d > DEADBAND:                   tau = min(K (d - DEADBAND), CAP)
                                     Goal Current = tau / kt           (rounded down)
                                     Goal Position = the corrected pose, reached from the
-                                    leader's pose by at most LEAD (two ticks; three
-                                    beyond 2 deg or where K (d - DEADBAND) > CAP)
+                                    leader's pose by at most LEAD (from the servo loop's
+                                    stiffness KP: about 0.9 CAP / KP, two ticks on an
+                                    XM430; beyond 2 deg or where K (d - DEADBAND) > CAP
+                                    at least CAP / KP wherever the leader sits in its
+                                    tick, three on an XM430)
                                     Profile Velocity = RETURN_SPEED
     but Goal Current 0 when, with m how far the leader moved toward the correction since the
     last read (period T):
@@ -85,29 +88,33 @@ class FeelLaw:
         0.9: Goal Position lies ahead of the leader's pose, toward the correction, by the whole
         number of ticks nearest the error at which the servo's loop gives 0.9 of the cap
         (``CAP / loop stiffness``, :attr:`LeaderMotor.loop_nm_per_deg`): two ticks (0.176 deg)
-        on the simulated XM430-W350, ten on an XL330 (whose caps are half its stall torque, a
-        loop error of 1 deg). Holding a hand, the servo's setpoint sits there, and a let go
-        snaps the leader onto it: the energy the loop stores is what the snap spends, so the
-        lead is the least that still holds. On the XM430 the read rounds the leader's pose to
-        a tick, so the setpoint lies between 1.5 and 2.5 ticks ahead: 0.27-0.45 N m, enough to
-        stop a 0.3 N m hand coming from inside (it pushes the leader out until the loop's
-        error reaches 1.66 ticks); one tick (at most 0.27 N m) would let a firmer hand push
-        the leader out tick by tick. A lead of a fixed two ticks on an XL330, whose simulated
-        loop is 8-19 times softer, gave it 0.02-0.06 N m: a relaxed hand pushed an XL330-M077
+        on the simulated XM430-W350, five on an XL330-M288 (cap 0.12 N m), ten on an
+        XL330-M077 (cap 0.11 N m, half its stall torque: a loop error of 1 deg). Holding a
+        hand, the servo's setpoint sits there, and a let go snaps the leader onto it: the
+        energy the loop stores is what the snap spends, so the lead is the least that still
+        holds. On the XM430 the read rounds the leader's pose to a tick, so the setpoint lies
+        between 1.5 and 2.5 ticks ahead: 0.27-0.45 N m, enough to stop a 0.3 N m hand coming
+        from inside (it pushes the leader out until the loop's error reaches 1.66 ticks); one
+        tick (at most 0.27 N m) would let a firmer hand push the leader out tick by tick. A
+        lead of a fixed two ticks on an XL330, whose simulated loop is 8-19 times softer, gave
+        it 0.03-0.08 N m: a relaxed hand pushed an XL330-M077
         leader 19 deg beyond, and let go it rested 8 deg beyond (decisions/haptic.md, round 6).
         It does not grow with the leader's step (as it did in round 3): the tick-quantized
         step flips between 0 and 1 tick at a slow walk, and a goal that moves back reverses
-        the setpoint onto the leader (decisions/haptic.md, round 4). Half as much again (three
-        ticks on the XM430) for a leader deeper than a hand within the cap holds it
-        (K (d - DEADBAND) > CAP: after a release, or a hand that overpowered the wall): the
-        wall then pushes it back at the cap, which the loop must give wherever the leader sits
-        within its tick, 2.5 ticks or more (0.45 N m) on the XM430; at 1.5 ticks (0.27 N m) a
-        hand pressing 0.27 N m held a released leader 15 deg beyond the edge for good.
+        the setpoint onto the leader (decisions/haptic.md, round 4). More for a leader deeper
+        than a hand within the cap holds it (K (d - DEADBAND) > CAP: after a release, or a hand
+        that overpowered the wall): the wall then pushes it back at the cap, which the loop
+        must give wherever the leader sits within its tick, so the lead is the least whole
+        ticks of at least CAP / KP plus half a tick: three on the XM430 (at least 2.5 ticks
+        after the read, 0.45 N m; at 1.5 ticks, 0.27 N m, a hand pressing 0.27 N m held a
+        released leader 15 deg beyond the edge for good), six on the XL330-M288, twelve on the
+        XL330-M077 (round 5 led them by half as much again as the normal lead: on a soft loop
+        that stored more than the cap needs, and an XL330-M288 snapped back at up to 58 deg/s).
     lead_deg : float or None
-        A fixed lead (deg) instead of the one from the loop's stiffness (benchmarks sweep it);
-        None (the default): from ``lead_fraction``.
+        A fixed lead (deg) instead of the one from the loop's stiffness, half as much again
+        deeper (benchmarks sweep it); None (the default): from ``lead_fraction``.
     held_within_deg : float
-        2 deg: beyond it the goal leads by three ticks too. A relaxed hand (0.3 N m) is held
+        2 deg: beyond it the goal leads as a deeper leader's does. A relaxed hand (0.3 N m) is held
         1.9 deg beyond (two ticks, the least snap at its let go); a leader the loop's jitter
         let further (over the pty a held three-servo leader sat 2.31 deg beyond: two ticks give
         only 0.27 N m where it sits at the inner edge of its tick) is pushed back within it, the
