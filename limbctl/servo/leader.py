@@ -15,7 +15,9 @@ Profile Velocity changes only when the wall comes on or goes off: a sync write o
 
 A felt leader's read is the cycle's read block, but its two bytes of Present PWM are mapped to
 Present Current instead (:data:`CURRENT_MAP`): the law needs the motor's torque, and only the
-current gives its sign while the loop brakes (the PWM also carries the back-EMF).
+current gives its sign while the loop brakes (the PWM also carries the back-EMF). Its four bytes
+of Goal Position carry Present Velocity (:data:`VELOCITY_MAP`): the law needs the leader's speed
+(a let go is seen by it long before the tick-quantized pose shows it).
 """
 
 from __future__ import annotations
@@ -141,29 +143,57 @@ def feel_map() -> bytes:
     return b"".join(address.to_bytes(2, "little") for address in addresses)
 
 
-#: Where the cycle's read block holds Present PWM (bytes from Indirect Data 1): a felt leader
-#: maps Present Current there (the same size), so its one read each cycle carries its current.
-CURRENT_SLOT = sum(r.size for r in CYCLE_REGISTERS[: CYCLE_REGISTERS.index(Register.PRESENT_PWM)])
-assert Register.PRESENT_CURRENT.size == Register.PRESENT_PWM.size
+def _slot(register: Register) -> int:
+    """Where the cycle's read block holds ``register`` (bytes from Indirect Data 1)."""
+    return sum(r.size for r in CYCLE_REGISTERS[: CYCLE_REGISTERS.index(register)])
+
+
+def _slot_map(mapped: Register, slot_register: Register) -> Block:
+    """The Indirect Addresses of ``slot_register``'s slot in the cycle block, to hold
+    ``mapped`` instead (the same size)."""
+    assert mapped.size == slot_register.size
+    return Block(
+        Register.INDIRECT_ADDRESS_1,
+        2 * mapped.size,
+        Register.INDIRECT_ADDRESS_1.address + 2 * _slot(slot_register),
+    )
+
+
+def _addresses(register: Register) -> bytes:
+    """The bytes of Indirect Addresses that point at each byte of ``register``."""
+    return b"".join((register.address + k).to_bytes(2, "little") for k in range(register.size))
+
+
+#: A felt leader maps Present Current where the cycle's read block holds Present PWM (the same
+#: size), so its one read each cycle carries its current.
+CURRENT_SLOT = _slot(Register.PRESENT_PWM)
 #: The Indirect Addresses of that slot.
-CURRENT_MAP = Block(
-    Register.INDIRECT_ADDRESS_1,
-    2 * Register.PRESENT_CURRENT.size,
-    Register.INDIRECT_ADDRESS_1.address + 2 * CURRENT_SLOT,
-)
+CURRENT_MAP = _slot_map(Register.PRESENT_CURRENT, Register.PRESENT_PWM)
+#: And Present Velocity where the block holds Goal Position (a leader's goal is the law's, not
+#: read back), so the read carries its speed.
+VELOCITY_MAP = _slot_map(Register.PRESENT_VELOCITY, Register.GOAL_POSITION)
 
 
 def current_map() -> bytes:
     """The bytes of the Indirect Addresses that put Present Current in :data:`CURRENT_SLOT`."""
-    first = Register.PRESENT_CURRENT.address
-    addresses = [first + k for k in range(Register.PRESENT_CURRENT.size)]
-    return b"".join(address.to_bytes(2, "little") for address in addresses)
+    return _addresses(Register.PRESENT_CURRENT)
+
+
+def velocity_map() -> bytes:
+    """The bytes of the Indirect Addresses that put Present Velocity in the Goal Position slot."""
+    return _addresses(Register.PRESENT_VELOCITY)
 
 
 def present_current(report: ServoReport) -> int:
     """A felt leader's Present Current (the model's units, signed, shaft frame) from its cycle
     read: :func:`configure_felt_leader` mapped it where a follower's read has Present PWM."""
     return report.pwm
+
+
+def present_velocity(report: ServoReport) -> int:
+    """A felt leader's Present Velocity (0.229 rev/min units, signed, shaft frame) from its cycle
+    read: :func:`configure_felt_leader` mapped it where a follower's read has Goal Position."""
+    return report.goal
 
 
 def encode_feel(goal_current: int, goal_position: int) -> bytes:
@@ -196,8 +226,9 @@ def configure_felt_leader(
     """Set the leader's servos up for feel; torque ends ON with Goal Current 0 (no torque).
 
     Operating Mode 5 and Current Limit = ``cap_units`` (EEPROM, torque off first), Bus Watchdog
-    ``watchdog_units`` x 20 ms, the indirect map of :data:`FEEL_DATA`, and Present Current in the
-    cycle read's Present PWM slot (:data:`CURRENT_MAP`).
+    ``watchdog_units`` x 20 ms, the indirect map of :data:`FEEL_DATA`, and Present Current and
+    Present Velocity in the cycle read's Present PWM and Goal Position slots
+    (:data:`CURRENT_MAP`, :data:`VELOCITY_MAP`).
 
     Raises
     ------
@@ -224,7 +255,8 @@ def configure_felt_leader(
                         ) from None
                 if bus.read(register, servo_id, patient=True) != value:
                     raise BusError(f"servo {servo_id} did not keep {register.name}", servo_id)
-            for block, data in ((FEEL_MAP, feel_map()), (CURRENT_MAP, current_map())):
+            maps = ((FEEL_MAP, feel_map()), (CURRENT_MAP, current_map()))
+            for block, data in (*maps, (VELOCITY_MAP, velocity_map())):
                 bus.write_block(block, servo_id, data)
                 if bus.read_block(block, servo_id) != data:
                     raise BusError(f"servo {servo_id} did not keep the feel map", servo_id)

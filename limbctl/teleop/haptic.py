@@ -237,6 +237,11 @@ class Push:
     torque_nm: float
     distance_deg: float
 
+    @property
+    def goal(self) -> tuple[float, ...]:
+        """``(pan, tilt)`` goal (rad)."""
+        return (self.goal_pan, self.goal_tilt)
+
 
 def beyond_deg(q: np.ndarray, corrected: np.ndarray) -> float:
     """Angle (deg) between the directions of a command and its correction; 0 when the same."""

@@ -317,8 +317,9 @@ class ControlLoop:
         )
 
     def pace(self) -> None:
-        """Wait for the next slot; a late loop catches up (``limbctl.teleop.pacing``)."""
-        self.pacer.wait(self.stop)
+        """Wait for the next slot (a felt leader watches its snap meanwhile); a late loop
+        catches up (``limbctl.teleop.pacing``)."""
+        self.pacer.wait(self.stop, getattr(self.source, "idle_work", None))
         self.summary.overruns = self.pacer.overruns
 
     def finish(self) -> TeleopSummary:

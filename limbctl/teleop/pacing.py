@@ -63,11 +63,29 @@ class Pacer:
         """Slot 0 is ``now`` (the loop's start)."""
         self._due = now
 
-    def wait(self, stop: threading.Event) -> None:
-        """Wait for the next slot (returns at once when late, or when ``stop`` is set)."""
+    def wait(
+        self,
+        stop: threading.Event,
+        idle: Callable[[], None] | None = None,
+        idle_period_s: float = 0.001,
+    ) -> None:
+        """Wait for the next slot (returns at once when late, or when ``stop`` is set); with
+        ``idle``, call it about every ``idle_period_s`` while waiting (a felt leader's snap
+        watch), the last call at least ``idle_period_s`` before the slot."""
         self._due += self.period_s
         now = self.clock()
         delay = self._due - now
+        if idle is not None:
+            # a call every idle_period_s from now, the last one starting at least a period
+            # before the slot (a call that ran long is followed by the next at once, not by more)
+            call_at = now
+            while self._due - call_at > idle_period_s and not stop.is_set():
+                if call_at > now and stop.wait(call_at - now):
+                    break
+                idle()
+                now = self.clock()
+                call_at = max(call_at + idle_period_s, now)
+            delay = self._due - self.clock()
         if delay > 0.0:
             stop.wait(delay)
         elif delay < -BACKLOG_PERIODS * self.period_s:

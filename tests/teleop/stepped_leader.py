@@ -26,6 +26,7 @@ from limbctl.servo.leader import (
 )
 from limbctl.servo.rig import Rig
 from limbctl.teleop.haptic import FeelLaw, Push, push_for
+from limbctl.teleop.snap import VELOCITY_UNIT_DEG_S, SnapLaw, SnapWatch
 
 #: The follower's region in these runs: a 30 deg cone around +x (along pan, the edge at pan 30).
 CONE = Cone(half_angle_deg=30.0)
@@ -39,6 +40,44 @@ def read_torque(servos: Sequence, joints: Sequence, motor: LeaderMotor) -> tuple
         joint.direction * motor.torque_of(servo.value(SimRegister.PRESENT_CURRENT))
         for servo, joint in zip(servos, joints, strict=True)
     )
+
+
+def read_velocity(servos: Sequence, joints: Sequence) -> tuple[float, ...]:
+    """The leader's joint speeds (deg/s, joint frame) as their Present Velocity reads."""
+    return tuple(
+        joint.direction * servo.value(SimRegister.PRESENT_VELOCITY) * VELOCITY_UNIT_DEG_S
+        for servo, joint in zip(servos, joints, strict=True)
+    )
+
+
+class SteppedWatch:
+    """The snap watch between the cycles on the stepped clock, as ``LeaderSource.watch_snap``
+    runs it in the loop's wait: after the cycle's write, the leader's Present Velocity is read
+    every 1 ms; a snap's Goal Current 0 lands 1 ms after the read that saw it (the loop writes
+    it at once; a millisecond is the stepped clock's grain)."""
+
+    def __init__(self, servos: Sequence, joints: Sequence, now, on: bool = True) -> None:
+        self.servos, self.joints, self.now, self.on = servos, joints, now, on
+        self.snap = SnapWatch(SnapLaw())
+        self.cut_due: int | None = None  # the ms at which Goal Current 0 lands
+
+    def before_step(self, ms: int) -> bool:
+        """At the start of millisecond ``ms``: write a due cut; True if one was written."""
+        if self.cut_due != ms:
+            return False
+        self.cut_due = None
+        for servo in self.servos:
+            servo.write(102, bytes(2))  # Goal Current 0 alone, as LeaderSource.release
+        return True
+
+    def after_write(self, ms: int) -> None:
+        """After a cycle's write, between the cycles: read the speed, schedule a cut."""
+        if not self.on or self.snap.armed is None or self.cut_due is not None:
+            return
+        for servo in self.servos:
+            servo.refresh(self.now())
+        if self.snap.snaps(read_velocity(self.servos, self.joints)):
+            self.cut_due = ms + 1
 
 
 def motor_of(model: str) -> LeaderMotor:
@@ -60,6 +99,7 @@ def felt_at_200_hz(
     law=FeelLaw(),
     max_torque_nm=0.3,
     motor=None,
+    snap_watch=True,
 ):
     """The controller's part on the simulated leader's registers every 5 ms of a stepped clock
     (read Present Position and Present Current, push_for, the same ten bytes to Indirect Data
@@ -72,7 +112,8 @@ def felt_at_200_hz(
     leader's read failed: ``LeaderSource.release`` writes Goal Current 0 alone). ``model``: the
     leader servos' simulator model (a 330 named with firmware 53 or later, whose Indirect Data
     is at 224); ``max_torque_nm``: the hand's bound; ``motor``: the controller's idea of the
-    model's motor (None: :data:`FELT_MODELS`'s)."""
+    model's motor (None: :data:`FELT_MODELS`'s); ``snap_watch``: with the snap watch (False:
+    the law alone, as in round 6)."""
     motor = motor or motor_of(model)
     clock = [0.0]
     sim = Simulator(ids=(1, 2), leader={"ids": [3, 4], "model": model}, clock=lambda: clock[0])
@@ -87,33 +128,49 @@ def felt_at_200_hz(
     hand = {"script": script, "let_go_s": let_go_s, "stiffness_nm_deg": stiffness}
     sim.set_operator({**hand, "damping_nm_s_rad": 0.02, "max_torque_nm": max_torque_nm})
     rows, engaged, previous = [], False, None
+    watch = SteppedWatch(servos, rig.joints, lambda: sim.time_s, on=snap_watch)
     for k in range(round(seconds * 200.0)):
+        if watch.before_step(5 * k):
+            engaged = False  # the watch let the wall go: LeaderSource.release
         for servo in servos:
             servo.refresh(sim.time_s)
         pose = rig.ticks_to_angles(*(s.value(SimRegister.PRESENT_POSITION) for s in servos))
         q = q_of(*np.degrees(pose))
         torque = read_torque(servos, rig.joints, motor)
+        velocity = read_velocity(servos, rig.joints)
         push = push_for(law, motor, pose, q, CONE.correct(q), previous, 0.005, engaged, torque)
+        if snap_watch and push.goal_current:
+            if not watch.snap.allows(pose, push.goal, velocity, engaged):
+                push = Push(0, 0, pose[0], pose[1], 0.0, push.distance_deg)
         previous = pose
         instead = (cycles or {}).get(k)
         if instead == "held":
             push = Push(0, 0, pose[0], pose[1], 0.0, 0.0)
         if instead == "silent":
             engaged = False  # LeaderSource.release: the next push is the wall coming on again
+            watch.snap.armed = None
             for servo in servos:
                 servo.write(102, bytes(2))  # Goal Current 0 alone
         for step in range(5):
+            if step and watch.before_step(5 * k + step):
+                engaged = False
             if step == 1 and instead not in ("late", "silent"):
                 ticks = rig.angles_to_ticks(push.goal_pan, push.goal_tilt)
                 if push.goal_current and not engaged:  # the wall comes on: LeaderSource._write
                     for servo in servos:
                         servo.write(64, bytes([0]))  # torque off, then on: the setpoint is the
                         servo.write(64, bytes([1]))  # present position
-                engaged = bool(push.goal_current)
+                was_engaged, engaged = engaged, bool(push.goal_current)
                 for servo, tick in zip(servos, ticks, strict=True):
                     if push.goal_current:  # Profile Velocity: its own write in the source
                         servo.write(112, push.profile_velocity.to_bytes(4, "little"))
                     servo.write(FEEL_DATA.address, encode_feel(push.goal_current, tick))
+                if push.goal_current and instead != "held":
+                    watch.snap.arm(pose, push.goal, velocity, torque, was_engaged)
+                else:
+                    watch.snap.armed = None
+            if step >= 1:  # the loop's wait, from right after the cycle's write
+                watch.after_write(5 * k + step)
             clock[0] += 0.001
             sim.advance()
             rows.append(sim.leader.sample())

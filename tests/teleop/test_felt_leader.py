@@ -21,10 +21,11 @@ from limbctl.envelope import Cone
 from limbctl.errors import ConfigError
 from limbctl.jobs import gate_for
 from limbctl.servo.control_table import Register
-from limbctl.servo.leader import encode_feel, present_current
+from limbctl.servo.leader import encode_feel, present_current, present_velocity
 from limbctl.servo.setup import configure_servos
 from limbctl.session import open_rig
 from limbctl.teleop.sources import LeaderSource
+from limbctl.teleop.sources.leader_snap import cycle_velocity
 from tests.teleop.felt_running import Running as FeltRunning
 from tests.teleop.felt_running import check_a_forced_pace_loss, pushed_only_when_fit
 from tests.teleop.pace_loss import (
@@ -225,6 +226,52 @@ def test_a_felt_leaders_cycle_read_carries_its_present_current(tmp_path):
         assert abs(present_current(read.reports[IDS[0]])) == units == abs(plain)
         # toward pan 0 (pan decreasing) in the joint's frame
         assert read.ok and source._torque(read)[0] == pytest.approx(-source.motor.torque_of(units))
+
+
+def test_a_felt_leaders_cycle_read_carries_its_present_velocity(tmp_path):
+    # the felt leader's map puts Present Velocity where a follower's read has Goal Position:
+    # the snap watch's rules run on each cycle's own read too (limbctl/teleop/snap.py)
+    with felt_session(tmp_path) as (session, source, log), source:
+        bus = session.rig.bus
+        session.simulator.set_operator(PRESS)  # the hand carries the free leader out
+        deadline, pairs = time.monotonic() + 5.0, []
+        while time.monotonic() < deadline and len(pairs) < 5:
+            read = bus.read_cycle(ids=IDS, attempts=2)
+            plain = bus.read(Register.PRESENT_VELOCITY, IDS[0])
+            if read.ok and plain > 3:  # moving: a few units or more
+                pairs.append((present_velocity(read.reports[IDS[0]]), plain))
+        assert len(pairs) == 5
+        # the two reads are a millisecond apart on an accelerating leader: close, same sign
+        assert all(cycle > 0 and abs(cycle - plain) <= 3 for cycle, plain in pairs)
+        speed = cycle_velocity(read, IDS, session.rig.joints)[0]
+        assert speed * session.rig.joints[0].direction > 0.0
+
+
+def test_a_held_leader_let_go_is_freed_by_the_snap_watch(tmp_path):
+    # pressed and held still, then the hand is gone at once: the watch (or the next cycle's
+    # read) sees the leader snap toward the region and writes Goal Current 0 at once
+    with felt_session(tmp_path) as (session, source, log), source:
+        session.rig.set_torque(True)
+        with Running(session, source) as running:
+            if running.pressed_or_paced_out(PRESS):
+                return
+            held_at = time.monotonic()
+            running.until(
+                lambda p: source.snap.armed is not None or time.monotonic() > held_at + 20
+            )
+            if running.paced_out():
+                return
+            assert source.snap.armed is not None, "the wall never held the leader still"
+            let_go_at = session.simulator.truth()["leader"]["t"]
+            session.simulator.set_operator({"script": [[0.0, EDGE + 20.0, 0.0]], "let_go_s": 0.0})
+            seen = len(running.pushes)
+            running.until(lambda p: len(p) > seen + 100 or running.ended)
+            if running.paced_out():
+                return
+    assert source.snap.cuts >= 1
+    after = [r for r in truth_rows(log) if r["t"] >= let_go_at]
+    assert after and min(r["pose_deg"][0] for r in after) > EDGE  # never walked inside
+    assert all(r["motor_nm"] == [0.0, 0.0] for r in after if r["pose_deg"][0] < EDGE)
 
 
 def test_an_xl430_leader_stays_passive_and_says_so(tmp_path):

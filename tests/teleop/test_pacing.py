@@ -66,3 +66,48 @@ def test_a_long_stall_gives_up_its_slots_and_starts_afresh():
     # the schedule restarted after the stall: the last cycle starts later than slot 199
     assert starts[-1] > 199 * PERIOD + PERIOD
     assert pacer.overruns == 1
+
+
+def test_idle_work_runs_about_every_period_while_waiting_and_the_slot_is_kept():
+    clock = SteppedClock()
+    pacer, stop = Pacer(PERIOD, clock), SteppedStop(clock)
+    pacer.start(clock.now)
+    calls: list[float] = []
+
+    def watch() -> None:
+        calls.append(clock.now)
+        clock.now += 0.0003  # a read of the leader's speed
+
+    starts = []
+    for _ in range(20):
+        starts.append(clock.now)
+        clock.now += 0.0015  # the cycle's own work
+        pacer.wait(stop, watch, 0.001)
+    # each cycle's start stays on its slot; in the 3.5 ms left after the work, the watch runs
+    # from right after the cycle, a millisecond apart, and ends a millisecond before the slot
+    assert all(abs(start - k * PERIOD) < 1e-9 for k, start in enumerate(starts))
+    per_cycle = [[c for c in calls if k * PERIOD < c < (k + 1) * PERIOD] for k in range(20)]
+    assert all(len(cycle) == 3 for cycle in per_cycle)
+    gaps = [b - a for cycle in per_cycle for a, b in zip(cycle, cycle[1:], strict=False)]
+    assert all(abs(gap - 0.001) < 1e-9 for gap in gaps)
+    assert all(
+        slot_end - cycle[-1] >= 0.001
+        for slot_end, cycle in zip([(k + 1) * PERIOD for k in range(20)], per_cycle, strict=True)
+    )
+    assert pacer.overruns == 0
+
+
+def test_without_idle_work_the_wait_is_one_wait():
+    clock = SteppedClock()
+    waits: list[float] = []
+
+    class Recording(SteppedStop):
+        def wait(self, timeout=None):
+            waits.append(timeout)
+            return super().wait(timeout)
+
+    pacer, stop = Pacer(PERIOD, clock), Recording(clock)
+    pacer.start(clock.now)
+    clock.now += 0.0015
+    pacer.wait(stop)
+    assert waits == [PERIOD - 0.0015]

@@ -35,7 +35,9 @@ from limbctl.teleop.commands import Command, command_from_pan_tilt, command_from
 from limbctl.teleop.gate import Outcome
 from limbctl.teleop.haptic import FeelLaw, FeelStats, Push, push_for
 from limbctl.teleop.pacing import PaceWatch
+from limbctl.teleop.snap import SnapLaw, SnapWatch
 from limbctl.teleop.sources.base import CommandSource
+from limbctl.teleop.sources.leader_snap import SnapWatching, cycle_velocity
 
 #: Bus Watchdog of a felt leader: 5 x 20 ms = 100 ms without a packet stops it (the servo holds
 #: where it is, at most at the cap). As long as the loop's own 20 failed cycles at 200 Hz, so the
@@ -60,7 +62,7 @@ FOLLOWER_UNREAD = "the bus failed this cycle"
 FOLLOWER_GRACE_S = 0.055
 
 
-class LeaderSource(CommandSource):
+class LeaderSource(SnapWatching, CommandSource):
     """Mirror a hand-moved leader gimbal (read synchronously in :meth:`poll`).
 
     Parameters
@@ -112,7 +114,9 @@ class LeaderSource(CommandSource):
         #: The most a felt leader may push (N m: the law's cap as its Current Limit allows);
         #: None while passive.
         self.cap_nm: float | None = None
-        self._cycle: tuple | None = None  # pose, command, last read, read time, torque
+        self._cycle: tuple | None = None  # pose, command, last read, read time, torque, speed
+        #: Lets a held wall go the moment its leader snaps (limbctl.teleop.snap).
+        self.snap = SnapWatch(SnapLaw())
         #: A felt leader's motor torques as last read (joint frame, N m; Present Current);
         #: None before its first read or while passive.
         self.last_torque_nm: tuple[float, ...] | None = None
@@ -302,7 +306,8 @@ class LeaderSource(CommandSource):
         self.stats.accepted += 1
         if self.felt:
             self.last_torque_nm = self._torque(read)
-            self._cycle = (pose, command.q, self._last_read, now, self.last_torque_nm)
+            speed = cycle_velocity(read, self.leader_ids, self.rig.joints)
+            self._cycle = (pose, command.q, self._last_read, now, self.last_torque_nm, speed)
             self._last_read = (pose, now)
         return [command]
 
@@ -358,16 +363,22 @@ class LeaderSource(CommandSource):
         if cycle is None:  # the leader was not read: it may not hear a push either
             push = None
         elif not released:
-            pose, q, last, read_at, torque = cycle
+            pose, q, last, read_at, torque, speed = cycle
             previous, period = (None, 0.0) if last is None else (last[0], read_at - last[1])
             engaged = self.last_push is not None and self.last_push.goal_current > 0
             push = self._law(gate, pose, q, previous, period, engaged, torque)
+            if push.goal_current and not self.snap.allows(pose, push.goal, speed, engaged):
+                push = self._free(pose)  # it still moves in, or it snaps: no wall this cycle
         else:
             push = self._free(cycle[0])
         if push is None:
             self.release()
             return notes
         self._write(push)
+        if released or self.last_push is None or not push.goal_current:
+            self.snap.armed = None
+        else:
+            self.snap.arm(cycle[0], push.goal, cycle[5], cycle[4], engaged)
         self.feel_stats.add(push.torque_nm, 1.0 / self.rate_hz)
         return notes
 
@@ -412,6 +423,7 @@ class LeaderSource(CommandSource):
 
     def release(self) -> None:
         """No current on the leader from now until the next push (one sync write)."""
+        self.snap.armed = None
         self.last_push = None
         if self.felt:
             self._zero_current()

@@ -1,0 +1,140 @@
+"""The snap watch: a held wall lets go the moment its leader starts snapping toward the region.
+
+A hand pressing a felt leader against the wall leaves the servo's setpoint a lead ahead of the
+leader (:mod:`limbctl.teleop.haptic`). Let go, the leader snaps onto it, and the servo's loop
+brakes it there: an outward pull, 2-10 ms after the let go, which a 200 Hz read sees too late
+(docs/bench_let_go.md: cut within 3 ms of the let go, no outward sample; within 2 ms, the snap
+also stays under 30 deg/s). So the leader's speed is read between the cycles, about every
+millisecond while the wall holds a still leader, and the wall goes off (Goal Current 0) as soon
+as the leader moves toward the region::
+
+    armed    the wall pushed in this cycle and the one before, the read motor torque pushes
+             toward the region by at least HOLD, and the leader's speed toward it was at most
+             STILL at this read and the one before (a hand held still against the wall)
+    cut      armed, and the leader's speed toward the region (Present Velocity, along the unit
+             step u toward the correction, joint space) exceeds SNAP: Goal Current 0, at once
+    re-arm   a free wall comes on only when the read speed toward the region is at most STILL
+
+A wall pushing a deep leader back (the hand weaker than the cap) or walking a released one
+back is never armed: the leader moves, so the watch leaves those pushes alone. The same speed
+rules run on each cycle's own read (its Present Velocity is in the felt leader's cycle read,
+:data:`limbctl.servo.leader.VELOCITY_MAP`). The watch only ever takes torque away.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+#: Present Velocity's unit: 0.229 rev/min = 1.374 deg/s.
+VELOCITY_UNIT_DEG_S = 0.229 * 360.0 / 60.0
+
+
+@dataclass(frozen=True)
+class SnapLaw:
+    """The snap watch's constants.
+
+    Attributes
+    ----------
+    snap_speed_deg_s : float
+        4 deg/s (3 velocity units): over a held leader's reading (0, a unit of noise) and
+        under what a let go reaches within a millisecond (about 17 deg/s from a 0.3 N m hold
+        on the simulated 1e-3 kg m^2 leader: it accelerates at tau / J).
+    still_speed_deg_s : float
+        1.5 deg/s: one velocity unit (1.37 deg/s) read as still; a wall that came on with the
+        leader still moving in would brake it (outward), so it comes on only under this.
+    hold_nm : float
+        0.06 N m: the watch arms only while the motor pushes a hand at least this hard (the
+        0.02 N m/deg hand pressing 5 deg beyond is held with 0.09 N m); the loop walking a
+        released leader back needs 0.02-0.03 N m.
+    period_s : float
+        1 ms between the watch's reads: a cut within 2 ms of the let go (the read after it,
+        and its write) is what bench_let_go.md's oracle needs for both figures.
+    """
+
+    snap_speed_deg_s: float = 4.0
+    still_speed_deg_s: float = 1.5
+    hold_nm: float = 0.06
+    period_s: float = 0.001
+
+
+def unit_step(present: Sequence[float], goal: Sequence[float]) -> tuple[float, ...] | None:
+    """The unit joint-space step from ``present`` toward ``goal`` (rad); None if they are equal."""
+    step = [g - p for g, p in zip(goal, present, strict=True)]
+    norm = math.sqrt(sum(s * s for s in step))
+    return None if norm == 0.0 else tuple(s / norm for s in step)
+
+
+def along(values: Sequence[float], unit: Sequence[float]) -> float:
+    """The component of ``values`` (per joint) along ``unit``."""
+    return sum(v * u for v, u in zip(values, unit, strict=True))
+
+
+@dataclass
+class SnapWatch:
+    """One leader's watch state (see the module docstring).
+
+    Attributes
+    ----------
+    law : SnapLaw
+    armed : tuple of float or None
+        The unit step toward the correction (joint space) while armed.
+    cuts : int
+        How many times the watch (or a cycle's read) let a held wall go at a snap.
+    """
+
+    law: SnapLaw
+    armed: tuple[float, ...] | None = None
+    cuts: int = 0
+    _was_still: bool = False
+
+    def allows(
+        self,
+        present: Sequence[float],
+        goal: Sequence[float],
+        velocity_deg_s: Sequence[float],
+        engaged: bool,
+    ) -> bool:
+        """Whether a wall the law would push with (goal ``goal``, rad) may push at this read:
+        not if it is free and the leader still moves in (re-arm), nor if it is armed and the
+        leader snaps (cut)."""
+        unit = unit_step(present, goal)
+        if unit is None:
+            return True
+        toward = along(velocity_deg_s, unit)
+        if not engaged:
+            return toward <= self.law.still_speed_deg_s
+        if self.armed is not None and along(velocity_deg_s, self.armed) > self.law.snap_speed_deg_s:
+            self.cuts += 1
+            self.armed = None
+            return False
+        return True
+
+    def arm(
+        self,
+        present: Sequence[float],
+        goal: Sequence[float] | None,
+        velocity_deg_s: Sequence[float],
+        torque_nm: Sequence[float],
+        engaged: bool,
+    ) -> None:
+        """After a cycle's write: arm when the wall (goal ``goal``, None if free) holds a still
+        leader against a hand, else disarm."""
+        unit = None if goal is None else unit_step(present, goal)
+        if unit is None:
+            self.armed, self._was_still = None, False
+            return
+        still = abs(along(velocity_deg_s, unit)) <= self.law.still_speed_deg_s
+        holding = along(torque_nm, unit) >= self.law.hold_nm
+        self.armed = unit if engaged and holding and still and self._was_still else None
+        self._was_still = still
+
+    def snaps(self, velocity_deg_s: Sequence[float]) -> bool:
+        """Between cycles: whether an armed wall's leader, read at ``velocity_deg_s`` (joint
+        frame, deg/s), snaps toward the region (then the caller writes Goal Current 0)."""
+        if self.armed is None or along(velocity_deg_s, self.armed) <= self.law.snap_speed_deg_s:
+            return False
+        self.cuts += 1
+        self.armed = None
+        return True

@@ -1,0 +1,90 @@
+"""The snap watch (limbctl/teleop/snap.py): it arms on a held still leader, cuts at a snap, and
+lets a free wall come back only on a still leader; it only ever takes torque away."""
+
+from __future__ import annotations
+
+import math
+
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from limbctl.teleop.snap import SnapLaw, SnapWatch, along, unit_step
+
+LAW = SnapLaw()
+#: The leader 2 deg beyond a pan edge at 30 deg, the wall's goal two ticks in (rad).
+POSE = (math.radians(32.0), 0.0)
+GOAL = (math.radians(31.824), 0.0)
+HELD_NM = (-0.3, 0.0)  # the motor pushes a hand with 0.3 N m toward the region (-pan)
+STILL = (0.0, 0.0)
+
+
+def held_watch() -> SnapWatch:
+    """A watch after two cycles of a wall holding a still leader against a hand."""
+    watch = SnapWatch(LAW)
+    watch.arm(POSE, GOAL, STILL, HELD_NM, engaged=False)  # the wall came on: not yet
+    assert watch.armed is None
+    watch.arm(POSE, GOAL, STILL, HELD_NM, engaged=True)
+    return watch
+
+
+def test_the_unit_step_points_from_the_leader_to_the_goal():
+    assert unit_step(POSE, GOAL) == (-1.0, 0.0)
+    assert unit_step(POSE, POSE) is None
+    assert along((3.0, 4.0), (0.6, 0.8)) == 5.0
+
+
+def test_a_wall_holding_a_still_leader_against_a_hand_arms_the_watch():
+    assert held_watch().armed == (-1.0, 0.0)
+
+
+def test_a_leader_moving_in_or_a_light_push_does_not_arm_it():
+    moving = held_watch()
+    moving.arm(POSE, GOAL, (-5.0, 0.0), HELD_NM, engaged=True)  # pushed back at 5 deg/s
+    assert moving.armed is None
+    light = SnapWatch(LAW)
+    for engaged in (False, True):
+        light.arm(POSE, GOAL, STILL, (-0.03, 0.0), engaged)  # the loop walking it back
+    assert light.armed is None
+    free = held_watch()
+    free.arm(POSE, None, STILL, HELD_NM, engaged=True)  # this cycle's wall is off
+    assert free.armed is None
+
+
+def test_an_armed_watch_cuts_at_a_snap_toward_the_region_once():
+    watch = held_watch()
+    assert not watch.snaps((-LAW.snap_speed_deg_s, 0.0))  # at the threshold: not yet
+    assert not watch.snaps((20.0, 0.0))  # pushed outward by the hand: the wall holds
+    assert watch.snaps((-17.0, 0.0))  # a let go, 1 ms on
+    assert watch.armed is None and watch.cuts == 1
+    assert not watch.snaps((-25.0, 0.0))  # disarmed: once
+
+
+def test_a_cycles_read_applies_the_same_rules():
+    watch = held_watch()
+    assert watch.allows(POSE, GOAL, (-2.0, 0.0), engaged=True)
+    assert not watch.allows(POSE, GOAL, (-17.0, 0.0), engaged=True)  # the snap at a read
+    assert watch.cuts == 1
+    # a free wall comes back only on a still leader
+    assert not watch.allows(POSE, GOAL, (-3.0, 0.0), engaged=False)
+    assert watch.allows(POSE, GOAL, (-1.0, 0.0), engaged=False)
+    assert watch.allows(POSE, GOAL, (10.0, 0.0), engaged=False)  # moving out: the wall comes on
+
+
+speeds = st.floats(-100.0, 100.0, allow_nan=False)
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.tuples(speeds, speeds, st.booleans(), st.floats(-0.5, 0.5)), max_size=30))
+def test_property_the_watch_cuts_only_toward_the_region_and_only_when_armed(events):
+    # it only says when to let go: an unarmed watch never cuts, an armed one only at a speed
+    # toward the region above the threshold, and a cut always disarms it
+    watch = SnapWatch(LAW)
+    for pan_speed, tilt_speed, engaged, torque in events:
+        armed = watch.armed
+        snapped = watch.snaps((pan_speed, tilt_speed))
+        if snapped:
+            assert armed is not None and along((pan_speed, tilt_speed), armed) > 4.0
+            assert watch.armed is None
+        else:
+            assert armed is None or along((pan_speed, tilt_speed), armed) <= 4.0
+        watch.arm(POSE, GOAL, (pan_speed, tilt_speed), (torque, 0.0), engaged)
