@@ -57,6 +57,7 @@ from limbctl.teleop.commands import command_from_pan_tilt
 from limbctl.teleop.haptic import FeelLaw, Push, push_for
 from limbctl.teleop.loop import LoopConfig, run
 from limbctl.teleop.sources import LeaderSource
+from tests.teleop.stepped_leader import SteppedWatch, read_velocity
 
 EDGE_DEG = 30.0
 LEADER_IDS = (3, 4)
@@ -249,13 +250,18 @@ def kept_feel(source) -> bool:
     return not any("the loop runs at" in event for event in source.feel_stats.events)
 
 
-def rate_case(workdir: Path, model: str) -> dict:
-    # in and out across the edge, 4 s per lap
+def rate_case(workdir: Path, model: str, held: bool = False) -> dict:
+    # in and out across the edge, 4 s per lap; or (held) pressed 20 deg beyond and held from
+    # 2 s on, the snap watch reading between the cycles
     script = [[4.0 * k + dt, pan, 0.0] for k in range(3) for dt, pan in ((0, 0), (2, 45))]
-    summary, _, _, _ = run_case(workdir, f"rate-{model}", {"script": script, **HAND}, 10.0, model)
+    if held:
+        script = [[0.0, 0.0, 0.0], [2.0, EDGE_DEG + 20.0, 0.0]]
+    name = f"rate-{model}{'-held' if held else ''}"
+    summary, source, _, _ = run_case(workdir, name, {"script": script, **HAND}, 10.0, model)
     times = np.array(summary.cycle_times_s) * 1e3
     return {
-        "model": model,
+        "model": model + (", held against the wall (the snap watch on)" if held else ""),
+        "watch_reads": source.snap.reads,
         "cycles": summary.cycles,
         "rate": summary.cycles / summary.elapsed_s,
         "p50": float(np.percentile(times, 50)),
@@ -276,6 +282,7 @@ def exact_rate_case(
     model="xm430-w350",
     law=None,
     motor=None,
+    snap_watch=True,
 ) -> dict:
     """The same law at exactly 200 Hz, without the bus: the simulator in this process on a
     stepped clock, and every 5 ms the controller's part done on the leader servos' registers
@@ -292,7 +299,9 @@ def exact_rate_case(
     (benchmarks/bench_let_go.py). ``release_s``: how long the hand's let go takes. ``model``:
     the leader servos' simulator model (a 330 named with firmware 53 or later: its Indirect
     Data at 224); ``law``: the law's constants (None: today's); ``motor``: the controller's
-    idea of the model's motor (None: :data:`FELT_MODELS`'s)."""
+    idea of the model's motor (None: :data:`FELT_MODELS`'s). ``snap_watch``: the snap watch
+    (limbctl/teleop/snap.py) between the cycles and at each read, as ``LeaderSource`` runs it
+    (``tests.teleop.stepped_leader.SteppedWatch``); False: the law alone (round 6)."""
     clock = [0.0]
     leader = {"ids": list(LEADER_IDS), "model": model}
     sim = Simulator(ids=(1, 2), leader=leader, clock=lambda: clock[0])
@@ -312,16 +321,26 @@ def exact_rate_case(
     hand["release_s"] = release_s
     sim.set_operator(hand)
     rows, previous, pushed, cut, goal = [], None, False, False, None
+    on = snap_watch and push_fn is push_for and cut_s is None
+    watch = SteppedWatch(servos, rig.joints, lambda: sim.time_s, on=on)
     for k in range(round(seconds * 200.0)):
+        if watch.before_step(5 * k):
+            pushed = False  # the watch let the wall go: LeaderSource.release
         for servo in servos:
             servo.refresh(sim.time_s)
         ticks = [servo.value(FirmwareRegister.PRESENT_POSITION) for servo in servos]
         pose = rig.ticks_to_angles(*ticks)
         q = command_from_pan_tilt(*np.degrees(pose)).q
+        torque = joint_torques(servos, rig, motor)
+        velocity = read_velocity(servos, rig.joints)
+        read_s = sim.time_s  # when the cycle read the leader
         past = (previous, 0.005, pushed)
         if push_fn is not round4_push:  # today's law reads the motors' torque
-            past = (*past, joint_torques(servos, rig, motor))
+            past = (*past, torque)
         push = push_fn(law, motor, pose, q, cone.correct(q), *past)
+        if on and push.goal_current:
+            if not watch.snap.allows(pose, push.goal, velocity, pushed, read_s):
+                push = Push(0, 0, pose[0], pose[1], 0.0, push.distance_deg)
         previous = pose
         instead = (cycles or {}).get(k)
         if instead == "held":
@@ -330,12 +349,14 @@ def exact_rate_case(
         # the wall comes on from the present position (LeaderSource._write toggles the torque)
         engaging = push.goal_current > 0 and not pushed
         for step in range(5):
+            if step and watch.before_step(5 * k + step):
+                pushed = False
             if cut_s is not None and not cut and clock[0] >= cut_s - 1e-9:
                 cut = True
                 for servo, tick in zip(servos, goal, strict=True):
                     servo.write(FEEL_DATA.address, encode_feel(0, tick))
             if step == READ_TO_WRITE_MS and instead != "late" and not cut:
-                pushed = push.goal_current > 0
+                was_pushed, pushed = pushed, push.goal_current > 0
                 for servo, tick in zip(servos, goal, strict=True):
                     if engaging:
                         servo.write(64, bytes([0]))
@@ -344,6 +365,12 @@ def exact_rate_case(
                         servo.write(112, push.profile_velocity.to_bytes(4, "little"))
                     data = encode_feel(push.goal_current, tick)
                     servo.write(FEEL_DATA.address, data)
+                if push.goal_current and instead != "held":
+                    watch.snap.arm(pose, push.goal, velocity, torque, was_pushed, read_s)
+                else:
+                    watch.snap.disarm()
+            if step >= READ_TO_WRITE_MS:  # the loop's wait, from right after its write
+                watch.after_write(5 * k + step)
             clock[0] += 0.001
             sim.advance()
             rows.append(sim.leader.sample())
@@ -370,7 +397,7 @@ def exact_cases() -> dict:
         let_go_case(k, beyond, law)
         for k in (0.02, 0.05, 0.2)
         for beyond in (5.0, 20.0)
-        for law in ("round 4", "round 5")
+        for law in ("round 6", "round 7")
     ]
     for k in (0.02, 0.05, 0.1, 0.2):
         script = [[0.0, 0.0, 0.0], [1.5, EDGE_DEG + 5.0, 0.0], [5.0, EDGE_DEG + 5.0, 0.0]]
@@ -395,12 +422,12 @@ def exact_cases() -> dict:
         rows = exact_rate_case(k, [*pull, [4.2, 0.0, 0.0]], 5.0)["rows"]
         t, pan, motor = np.array([r["t"] for r in rows]), pan_of(rows), pan_of(rows, "motor_nm")
         outward = (pan > EDGE_DEG) & (motor > 0.0)
-        peer = exact_rate_case(k, [*pull, [4.2, 0.0, 0.0]], 5.0, push_fn=round4_push)["rows"]
+        peer = exact_rate_case(k, [*pull, [4.2, 0.0, 0.0]], 5.0, snap_watch=False)["rows"]
         out["pulls"].append(
             {
                 "stiffness": k,
-                "round4": int(np.sum((pan_of(peer) > EDGE_DEG) & (pan_of(peer, "motor_nm") > 0.0))),
-                "round4_peak": float(
+                "peer": int(np.sum((pan_of(peer) > EDGE_DEG) & (pan_of(peer, "motor_nm") > 0.0))),
+                "peer_peak": float(
                     np.max(pan_of(peer, "motor_nm")[pan_of(peer) > EDGE_DEG], initial=0.0)
                 ),
                 "outside": int(np.sum((pan > EDGE_DEG) & (motor != 0.0))),
@@ -437,12 +464,13 @@ def exact_cases() -> dict:
 
 def let_go_case(stiffness: float, beyond: float, law: str) -> dict:
     """A hand of ``stiffness`` pressing ``beyond`` deg past the edge, let go at 5 s, under round
-    3's law or today's: after the let go, the 1 ms samples outside with the motor pulling
-    outward (count, the last one's time from the let go, the largest), the 1 ms and 20 ms peak
-    return speeds, the rest and the deepest point."""
+    6's law (the law alone) or today's (round 7: with the snap watch): after the let go, the
+    1 ms samples outside with the motor pulling outward (count, the last one's time from the
+    let go, the largest), the 1 ms and 20 ms peak return speeds, the rest and the deepest
+    point."""
     script = [[0.0, 0.0, 0.0], [2.0, EDGE_DEG + beyond, 0.0], [5.0, EDGE_DEG + beyond, 0.0]]
-    push_fn = round4_push if law == "round 4" else push_for
-    rows = exact_rate_case(stiffness, script, 7.0, let_go_s=5.0, push_fn=push_fn)["rows"]
+    watch = law == "round 7"
+    rows = exact_rate_case(stiffness, script, 7.0, let_go_s=5.0, snap_watch=watch)["rows"]
     t = np.array([r["t"] for r in rows])
     pan, velocity, motor = pan_of(rows), pan_of(rows, "velocity_deg_s"), pan_of(rows, "motor_nm")
     after = t >= 5.0
@@ -563,10 +591,10 @@ def render(push, ripples, passes, rates, load, exact, transfers, end_load) -> st
         f"| after let go: rest beyond the edge (deg) | {exact['final']:.3f} |",
         f"| after let go: deepest inside the edge (deg) | {max(exact['deepest'], 0.0):.3f} |",
         "",
-        "Let go from a press, by hand stiffness and depth, round 4's law (today's without the "
-        "rule on the read motor torque) against today's (round 5: a wall whose read shows its "
-        "servo pulling away from the region lets go) in this run. Every 1 ms sample after the "
-        "let go: outward samples are those outside "
+        "Let go from a press, by hand stiffness and depth, round 6's law (the law alone) against "
+        "today's (round 7: with the snap watch, `limbctl/teleop/snap.py`, reading the leader's "
+        "speed every millisecond between the cycles while the wall holds it still) in this run. "
+        "Every 1 ms sample after the let go: outward samples are those outside "
         "the region with the motor pulling away from it; the peak speed is the largest 1 ms "
         "sample, the 20 ms mean the largest mean over 20 samples:",
         "",
@@ -593,17 +621,18 @@ def render(push, ripples, passes, rates, load, exact, transfers, end_load) -> st
         "Pressed 20 deg beyond, then the hand heads back inside (its target pan 50 -> 0 in "
         "0.2 s at 4 s). The servo's setpoint moves at most 13.7 deg/s and its loop brakes a "
         "faster leader (pulls it outward); the law leaves a leader that outran its setpoint "
-        "by more than a tick free, and (round 5) a wall whose read shows its servo pulling "
-        "outward, from the first read that shows it. 1 ms samples, today's law against round "
-        "4's in this run:",
+        "by more than a tick free, and a wall whose read shows its servo pulling "
+        "outward, from the first read that shows it; the snap watch lets a held wall go as the "
+        "leader starts moving in. 1 ms samples, today's law (round 7) against round 6's (the law "
+        "alone) in this run:",
         "",
         "| hand stiffness (N m/deg) | outside with torque | pointing outward | their span (ms) | "
-        "largest outward (N m) | inside with torque | pointing outward, round 4 | largest "
-        "outward, round 4 (N m) |",
+        "largest outward (N m) | inside with torque | pointing outward, round 6 | largest "
+        "outward, round 6 (N m) |",
         "| ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
         *(
             f"| {p['stiffness']:g} | {p['outside']} | {p['outward']} | {p['span_ms']:.0f} | "
-            f"{p['peak']:.3f} | {p['inside']} | {p['round4']} | {p['round4_peak']:.3f} |"
+            f"{p['peak']:.3f} | {p['inside']} | {p['peer']} | {p['peer_peak']:.3f} |"
             for p in exact["pulls"]
         ),
         "",
@@ -696,17 +725,22 @@ def render(push, ripples, passes, rates, load, exact, transfers, end_load) -> st
         "## Loop cycle with the leader's extra write",
         "",
         "The same wandering hand, 10 s each: a passive XL430 leader (one sync read per cycle, "
-        "today's path) and a felt XM430 leader (one cycle read and one sync write).",
+        "today's path) and a felt XM430 leader (one cycle read and one sync write); and the "
+        "felt leader pressed 20 deg beyond and held there from 2 s on, the snap watch reading "
+        "its speed (one sync read of Present Velocity) about every millisecond of the loop's "
+        "wait between the cycles.",
         "",
-        "| leader | cycles | rate (Hz) | cycle p50 (ms) | cycle p99 (ms) | overruns |",
-        "| --- | ---: | ---: | ---: | ---: | ---: |",
+        "| leader | cycles | rate (Hz) | cycle p50 (ms) | cycle p99 (ms) | overruns | "
+        "snap watch reads |",
+        "| --- | ---: | ---: | ---: | ---: | ---: | ---: |",
         *(
             f"| {r['model']} | {r['cycles']} | {r['rate']:.1f} | {r['p50']:.2f} | "
-            f"{r['p99']:.2f} | {r['overruns']} |"
+            f"{r['p99']:.2f} | {r['overruns']} | {r['watch_reads']} |"
             for r in rates
         ),
         "",
-        f"p99 ratio felt / passive: {rates[1]['p99'] / rates[0]['p99']:.2f}.",
+        f"p99 ratio felt / passive: {rates[1]['p99'] / rates[0]['p99']:.2f}; held with the "
+        f"snap watch / passive: {rates[2]['p99'] / rates[0]['p99']:.2f}.",
         "",
         *(
             [
@@ -754,6 +788,7 @@ def main(argv: list[str] | None = None) -> int:
         ripples = [ripple_case(workdir, k) for k in (0.02, 0.05, 0.1, 0.2)]
         passes = [passivity_case(workdir, k) for k in (0.02, 0.05, 0.2)]
         rates = [rate_case(workdir, "xl430-w250"), rate_case(workdir, "xm430-w350")]
+        rates.append(rate_case(workdir, "xm430-w350", held=True))
         print(f"ran in {time.monotonic() - started:.0f} s")
     text = render(push, ripples, passes, rates, load, exact, transfers, os.getloadavg())
     args.out.write_text(text)

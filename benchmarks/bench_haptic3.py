@@ -53,8 +53,9 @@ from limbctl.servo.rig3 import RollRig
 from limbctl.servo.setup import configure_servos
 from limbctl.servo.ticks import angle_to_ticks
 from limbctl.session import open_rig
-from limbctl.teleop.haptic import FeelLaw, beyond_deg, moved_in_deg, push_for
+from limbctl.teleop.haptic import FeelLaw, Push, beyond_deg, moved_in_deg, push_for
 from limbctl.teleop.haptic3 import beyond3_deg, corrected_pose, held3, push3_for
+from tests.teleop.stepped_leader import SteppedWatch, read_velocity
 
 LAW = FeelLaw()
 #: Round 3's law, the peer in the same run: the goal led the leader by 0.3 deg plus the leader's
@@ -116,11 +117,23 @@ def round3(push, present, previous, target):
     return dataclasses.replace(push, **dict(zip(names, goal, strict=True)))
 
 
-def stepped(region, script, seconds, let_go_s=None, held=(), stiffness=0.05, rules=True, law=LAW):
+def stepped(
+    region,
+    script,
+    seconds,
+    let_go_s=None,
+    held=(),
+    stiffness=0.05,
+    rules=True,
+    law=LAW,
+    watch=True,
+):
     """The law at exactly 200 Hz on a stepped clock (module docstring); ``held`` lists cycles
     whose gate held (Goal Current 0 written); ``rules``: the law is given the previous read,
     the period and whether the wall pushed (as the sources do), False: the wall alone (before
-    round 3's let-go rules); ``law``: :data:`LAW`, or :data:`ROUND3` for round 3's law. Returns
+    round 3's let-go rules); ``law``: :data:`LAW`, or :data:`ROUND3` for round 3's law;
+    ``watch``: today's law with the snap watch (limbctl/teleop/snap.py), False: without it
+    (round 6; round 3 never has it). Returns
     the 1 ms truth rows and each row's distance beyond the edge (deg of rotation; of direction
     for two servos)."""
     three = len(script[0]) == 4
@@ -139,10 +152,15 @@ def stepped(region, script, seconds, let_go_s=None, held=(), stiffness=0.05, rul
         {"script": script, "let_go_s": let_go_s, **HAND, "stiffness_nm_deg": stiffness}
     )
     rows, engaged, previous = [], False, None
+    snap = SteppedWatch(servos, rig.joints, lambda: sim.time_s, on=watch and rules and law is LAW)
     for k in range(round(seconds * 200.0)):
+        if snap.before_step(5 * k):
+            engaged = False  # the watch let the wall go: LeaderSource.release
         for servo in servos:
             servo.refresh(sim.time_s)
         ticks = tuple(s.value(FirmwareRegister.PRESENT_POSITION) for s in servos)
+        velocity, torque = read_velocity(servos, rig.joints), joint_torques(servos, rig)
+        read_s = sim.time_s  # when the cycle read the leader
         # the motors' torque as Present Current reads (LeaderSource); round 3's peer did not
         read = () if law is ROUND3 else (joint_torques(servos, rig),)
         if three:
@@ -154,6 +172,9 @@ def stepped(region, script, seconds, let_go_s=None, held=(), stiffness=0.05, rul
             if law is ROUND3 and rules:
                 target = corrected_pose(corrected, pose, rig.roll_limits)
                 push = round3(push, pose, previous, target)
+            if snap.on and push.goal_current:
+                if not snap.snap.allows(pose, push.goal, velocity, engaged, read_s):
+                    push = held3(pose)
             push = held3(pose) if k in held else push
             goal = push.goal
         else:
@@ -165,19 +186,30 @@ def stepped(region, script, seconds, let_go_s=None, held=(), stiffness=0.05, rul
             if law is ROUND3 and rules:
                 target = tuple(float(v) for v in quat_to_pan_tilt(corrected))
                 push = round3(push, pose, previous, target)
+            if snap.on and push.goal_current:
+                if not snap.snap.allows(pose, push.goal, velocity, engaged, sim.time_s):
+                    push = Push(0, 0, pose[0], pose[1], 0.0, push.distance_deg)
             goal = (push.goal_pan, push.goal_tilt)
         previous = pose
         for step in range(5):
+            if step and snap.before_step(5 * k + step):
+                engaged = False
             if step == 1:
                 if push.goal_current and not engaged:  # the wall comes on: torque off, on
                     for servo in servos:
                         servo.write(64, bytes([0]))
                         servo.write(64, bytes([1]))
-                engaged = bool(push.goal_current)
+                was_engaged, engaged = engaged, bool(push.goal_current)
                 for servo, angle, joint in zip(servos, goal, rig.joints, strict=False):
                     tick = int(angle_to_ticks(angle, joint.zero_tick, joint.direction))
                     servo.write(112, push.profile_velocity.to_bytes(4, "little"))
                     servo.write(FEEL_DATA.address, encode_feel(push.goal_current, tick))
+                if push.goal_current and k not in held:
+                    snap.snap.arm(pose, goal, velocity, torque, was_engaged, read_s)
+                else:
+                    snap.snap.disarm()
+            if step >= 1:  # the loop's wait, from right after its write
+                snap.after_write(5 * k + step)
             clock[0] += 0.001
             sim.advance()
             rows.append(sim.leader.sample())
@@ -192,8 +224,8 @@ def distance(region, pose_deg, three: bool) -> float:
     return beyond_deg(q, region.correct(q))
 
 
-def press_case(region, script, law=LAW) -> dict:
-    rows, beyond = stepped(region, script, 6.5, let_go_s=4.5, law=law)
+def press_case(region, script, law=LAW, watch=True) -> dict:
+    rows, beyond = stepped(region, script, 6.5, let_go_s=4.5, law=law, watch=watch)
     t = np.array([r["t"] for r in rows])
     beyond = np.array(beyond)
     held = beyond[(t >= 3.0) & (t < 4.5)]
@@ -338,7 +370,8 @@ def render(presses, energies, pulls, held, transfers, load, end_load, fit_s) -> 
         "angle between directions). Walk back: the peak over the joints of the 20 ms mean speed "
         "after let go; 1 ms peak: the largest 1 ms sample of any joint's speed after let go; "
         "outward: 1 ms samples after let go outside the region whose joint torques point away "
-        "from the correction. Each press under today's law and under round 3's (goal 0.3 deg "
+        "from the correction. Each press under today's law (round 7, with the snap watch), "
+        "round 6's (the law alone) and round 3's (goal 0.3 deg "
         "ahead plus the leader's last step, 26.1 deg/s; its let-go rules are today's), in this "
         "run.",
         "",
@@ -347,7 +380,7 @@ def render(presses, energies, pulls, held, transfers, load, end_load, fit_s) -> 
         f"deepest after let go (deg beyond) | peak motor torque (N m, cap {CAP:.3f}) |",
         "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
     ]
-    peer = presses[("two servos, swing (pan 50)", "today (round 5)")]["held"]
+    peer = presses[("two servos, swing (pan 50)", "today (round 7)")]["held"]
     for (name, law), p in presses.items():
         lines.append(
             f"| {name} | {law} | {p['held']:.3f} | {p['held'] / peer:.3f} | {p['ripple']:.3f} | "
@@ -416,9 +449,13 @@ def main(argv: list[str] | None = None) -> int:
     fit_s = time.monotonic() - started
     cone = Cone(half_angle_deg=30.0)
     presses = {
-        (name, label): press_case(region3 if len(script[0]) == 4 else cone, script, law)
+        (name, label): press_case(region3 if len(script[0]) == 4 else cone, script, law, watch)
         for name, script in PRESSES.items()
-        for label, law in (("round 3", ROUND3), ("today (round 5)", LAW))
+        for label, law, watch in (
+            ("round 3", ROUND3, False),
+            ("round 6 (the law alone)", LAW, False),
+            ("today (round 7)", LAW, True),
+        )
     }
     energies = {
         "two servos, pan": energy_case(cone, excursion(0, 2)),

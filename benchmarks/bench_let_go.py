@@ -10,10 +10,11 @@ to 0 from one 0.5 ms physics step to the next, the hardest let go for the wall.
 
 Three sweeps:
 
-- *phase*: today's law (limbctl/teleop/haptic.py, round 5: a wall whose read shows its servo
-  pulling outward lets go) and round 4's (without that rule) in the same run, the let go
-  falling 0-4 ms after a cycle's read. The first read that can see the let go is the next one,
-  so the loop's first write after it lands 6 - phase ms later;
+- *phase*: today's law (limbctl/teleop/haptic.py with the snap watch, limbctl/teleop/snap.py:
+  round 7) and round 6's (the law alone) in the same run, the let go falling 0-4 ms after a
+  cycle's read. Without the watch the first read that can see the let go is the next one, so
+  the loop's first write after it lands 6 - phase ms later; the watch reads the leader's speed
+  every millisecond between the cycles;
 - *oracle cut*: the same presses under round 4's law, but the controller writes Goal Current 0
   (no torque) a chosen 1-6 ms after the let go, knowing when it happened: how soon a wall must
   go so that no 1 ms sample pulls the leader outward;
@@ -47,9 +48,9 @@ LET_GO_S = 5.0
 #: the walk that follows.
 AFTER_S = 0.06
 TICK_DEG = 360.0 / TICKS_PER_REV
-#: The laws compared in the same run: today's (round 5) and round 4's (without the rule on the
-#: read motor torque).
-LAWS = (("round 4", round4_push), ("round 5", push_for))
+#: The laws compared in the same run: round 6's (the law alone) and today's (round 7: with the
+#: snap watch).
+LAWS = (("round 6", False), ("round 7", True))
 #: How long the hand takes to let go (ms): at once, then 10-100 ms.
 RELEASES_MS = (0.0, 10.0, 20.0, 50.0, 100.0)
 #: After a slow let go the run goes on this long past its end (s): the walk back from 2 deg at
@@ -65,12 +66,14 @@ def let_go(
     release_ms: float = 0.0,
     after_s: float = AFTER_S,
     cut_ms=None,
+    watch=True,
 ):
     """One press let go ``phase_ms`` after a cycle's read; the 1 ms samples after it.
 
     ``push_fn``: the law (today's :func:`push_for` when None, or :func:`round4_push`).
     ``cut_ms``: the oracle writes Goal Current 0 this long after the let go (None: never).
     ``release_ms``: how long the hand takes to let go; ``after_s``: how long the run goes on.
+    ``watch``: the snap watch on (only with today's law and no oracle cut).
     Returns the outward samples (outside the region with the motor pulling away from it:
     count, first and last in ms after the let go, largest in N m), the 1 ms peak speed
     (deg/s), where the leader sat before the let go and where it is at the end (deg beyond the
@@ -87,6 +90,7 @@ def let_go(
         push_fn=push_fn or push_for,
         cut_s=cut_s,
         release_s=release_ms / 1000.0,
+        snap_watch=watch,
     )["rows"]
     t = np.array([r["t"] for r in rows])
     pan, velocity, motor = pan_of(rows), pan_of(rows, "velocity_deg_s"), pan_of(rows, "motor_nm")
@@ -145,12 +149,13 @@ def render(phases, cuts, leads, releases, load, end_load, seconds) -> str:
         "",
         "## By where the let go falls in the 5 ms cycle",
         "",
-        "Round 4's law (no rule on the read torque) and today's (round 5: a wall whose read "
-        "shows its servo pulling away from the region lets go), in this run.",
+        "Round 6's law (the law alone: its first write after the let go lands 2-6 ms after "
+        "it) and today's (round 7: the snap watch reads the leader's speed every millisecond "
+        "between the cycles and lets a held wall go as it starts to snap), in this run.",
         "",
         "| hand (N m/deg) | pressed beyond (deg) | law | let go after a read (ms) | first write "
-        "after it (ms) | outward samples | first, last (ms) | largest outward (N m) | 1 ms peak "
-        "speed (deg/s) |",
+        "after it, law alone (ms) | outward samples | first, last (ms) | largest outward (N m) "
+        "| 1 ms peak speed (deg/s) |",
         "| ---: | ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: |",
         *(
             f"| {r['stiffness']:g} | {r['beyond']:g} | {r['law']} | {r['phase']:g} | "
@@ -222,9 +227,9 @@ def main(argv: list[str] | None = None) -> int:
     phases, cuts, leads, releases = [], [], [], []
     for stiffness, beyond in PRESSES:
         base = {"stiffness": stiffness, "beyond": beyond}
-        for law, push_fn in LAWS:
+        for law, watch in LAWS:
             for phase in (0.0, 1.0, 2.0, 3.0, 4.0):
-                run = let_go(stiffness, beyond, phase, push_fn=push_fn)
+                run = let_go(stiffness, beyond, phase, watch=watch)
                 phases.append({**base, "law": law, "phase": phase, **run})
         for cut in (1, 2, 3, 4, 5, 6):
             run = let_go(stiffness, beyond, cut_ms=cut, push_fn=round4_push)
@@ -233,10 +238,10 @@ def main(argv: list[str] | None = None) -> int:
             run = let_go(stiffness, beyond, push_fn=lead_push(lead))
             leads.append({**base, "lead": lead, **run})
         for release in RELEASES_MS:
-            for law, push_fn in LAWS:
+            for law, watch in LAWS:
                 after = release / 1000.0 + WALK_S
                 runs = [
-                    let_go(stiffness, beyond, phase, push_fn, release, after)
+                    let_go(stiffness, beyond, phase, None, release, after, watch=watch)
                     for phase in (0.0, 1.0, 2.0, 3.0, 4.0)
                 ]
                 releases.append(

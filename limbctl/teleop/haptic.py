@@ -30,6 +30,10 @@ The law (:class:`FeelLaw`), per cycle of period T::
                                          outran its setpoint; the wall lets go rather than pull
                                          the hand outward for another cycle
 
+Around the law, the snap watch (:mod:`limbctl.teleop.snap`) lets a wall that holds a still
+leader go the moment the leader starts to snap toward the region (a let go), between the cycles
+and at each read, and brings a freed wall back only on a still leader.
+
 The servo's own position loop (mode 5) pushes toward Goal Position with at most Goal Current,
 so the torque points toward the region and never exceeds CAP, which is also written into the
 servo's Current Limit at start so the firmware refuses more. The wall is a spring of stiffness K

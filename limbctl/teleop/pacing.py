@@ -70,8 +70,10 @@ class Pacer:
         idle_period_s: float = 0.001,
     ) -> None:
         """Wait for the next slot (returns at once when late, or when ``stop`` is set); with
-        ``idle``, call it about every ``idle_period_s`` while waiting (a felt leader's snap
-        watch), the last call at least ``idle_period_s`` before the slot."""
+        ``idle``, call it every ``idle_period_s`` while waiting, the last call starting at least
+        ``idle_period_s`` before the slot. 1 ms: a felt leader's snap watch
+        (:mod:`limbctl.teleop.snap`) must see a let go within about 2 ms of it, its read and
+        write included (docs/bench_let_go.md's oracle)."""
         self._due += self.period_s
         now = self.clock()
         delay = self._due - now

@@ -10,9 +10,13 @@ as the leader moves toward the region::
 
     armed    the wall pushed in this cycle and the one before, the read motor torque pushes
              toward the region by at least HOLD, and the leader's speed toward it was at most
-             STILL at this read and the one before (a hand held still against the wall)
+             STILL at this read and the one before (a hand held still against the wall); it
+             stays armed while the wall pushes with HOLD or more, the leader creeping or not
     cut      armed, and the leader's speed toward the region (Present Velocity, along the unit
-             step u toward the correction, joint space) exceeds SNAP: Goal Current 0, at once
+             step u toward the correction, joint space) exceeds SNAP, having risen since the
+             last read by what RELEASED of the held torque would give it alone in RISE
+             (dv >= RELEASED tau_hold / J min(dt, RISE): the hand is gone, not relaxing):
+             Goal Current 0, at once
     re-arm   a free wall comes on only when the read speed toward the region is at most STILL
 
 A wall pushing a deep leader back (the hand weaker than the cap) or walking a released one
@@ -48,15 +52,32 @@ class SnapLaw:
         0.06 N m: the watch arms only while the motor pushes a hand at least this hard (the
         0.02 N m/deg hand pressing 5 deg beyond is held with 0.09 N m); the loop walking a
         released leader back needs 0.02-0.03 N m.
-    period_s : float
-        1 ms between the watch's reads: a cut within 2 ms of the let go (the read after it,
-        and its write) is what bench_let_go.md's oracle needs for both figures.
+    released : float
+        0.5: a let go frees the motor's whole hold at once, so the leader speeds up at about
+        tau_hold / J; a hand whose grip fades over 50 ms lets it speed up at about a seventh of
+        that when it passes SNAP. Cut then, the wall would leave the leader to a hand still
+        pushing outward: it threw the leader 0.3 deg out at 60 deg/s, and the wall coming back
+        pushed it in at 30 deg/s (decisions/haptic.md, round 7). Half: between the two.
+    rise_s : float
+        1 ms: the speed a let go gives within a millisecond, whatever the gap between two
+        reads (the cycle's own work lies between the watch's last read and the cycle's: 2-3 ms
+        over the pty). A snap keeps speeding up for 2-3 ms (bench_let_go.md), so if the read
+        after a let go comes too soon to see that much, the next one does; a grip fading over
+        50 ms adds about 2 deg/s a millisecond, 5 over a 2.5 ms gap, under the 8.6 deg/s of a
+        0.3 N m hold.
+    inertia_kg_m2 : float
+        1e-3 kg m^2, the simulated leader's inertia at each joint (``firmware_sim/leader.py``);
+        a real leader's is to be measured (the coast-down that gives its damping gives it too).
+        Set too high, the watch would take a relaxing hand for a let go; too low, it leaves
+        more let goes to the law alone (as before the watch).
     """
 
     snap_speed_deg_s: float = 4.0
     still_speed_deg_s: float = 1.5
     hold_nm: float = 0.06
-    period_s: float = 0.001
+    released: float = 0.5
+    rise_s: float = 0.001
+    inertia_kg_m2: float = 1.0e-3
 
 
 def unit_step(present: Sequence[float], goal: Sequence[float]) -> tuple[float, ...] | None:
@@ -82,12 +103,38 @@ class SnapWatch:
         The unit step toward the correction (joint space) while armed.
     cuts : int
         How many times the watch (or a cycle's read) let a held wall go at a snap.
+    reads : int
+        How many speeds the watch was handed between the cycles.
     """
 
     law: SnapLaw
     armed: tuple[float, ...] | None = None
     cuts: int = 0
+    reads: int = 0
     _was_still: bool = False
+    _seen: tuple[float, float] | None = None  # speed toward the region (deg/s), read at (s)
+    _hold_nm: float = 0.0  # the torque the armed wall held the hand with (N m)
+
+    def disarm(self) -> None:
+        """No watch until a cycle arms it again (the wall went off)."""
+        self.armed, self._seen = None, None
+
+    def _snapping(self, velocity_deg_s: Sequence[float], now_s: float) -> bool:
+        """Whether the armed leader, read at ``now_s``, snaps: past SNAP, risen since the last
+        read by what RELEASED of the hold would give it; a cut disarms the watch."""
+        if self.armed is None:
+            return False
+        toward = along(velocity_deg_s, self.armed)
+        seen, self._seen = self._seen, (toward, now_s)
+        if toward <= self.law.snap_speed_deg_s or seen is None:
+            return False
+        # dv >= RELEASED tau_hold / J min(dt, RISE)   (rad/s^2 -> deg/s^2)
+        freed = math.degrees(self.law.released * self._hold_nm / self.law.inertia_kg_m2)
+        if toward - seen[0] < freed * min(max(now_s - seen[1], 0.0), self.law.rise_s):
+            return False
+        self.cuts += 1
+        self.armed, self._seen = None, None
+        return True
 
     def allows(
         self,
@@ -95,21 +142,17 @@ class SnapWatch:
         goal: Sequence[float],
         velocity_deg_s: Sequence[float],
         engaged: bool,
+        now_s: float,
     ) -> bool:
-        """Whether a wall the law would push with (goal ``goal``, rad) may push at this read:
-        not if it is free and the leader still moves in (re-arm), nor if it is armed and the
-        leader snaps (cut)."""
+        """Whether a wall the law would push with (goal ``goal``, rad) may push at this read
+        (at ``now_s``, s): not if it is free and the leader still moves in (re-arm), nor if it
+        is armed and the leader snaps (cut)."""
         unit = unit_step(present, goal)
         if unit is None:
             return True
-        toward = along(velocity_deg_s, unit)
         if not engaged:
-            return toward <= self.law.still_speed_deg_s
-        if self.armed is not None and along(velocity_deg_s, self.armed) > self.law.snap_speed_deg_s:
-            self.cuts += 1
-            self.armed = None
-            return False
-        return True
+            return along(velocity_deg_s, unit) <= self.law.still_speed_deg_s
+        return not self._snapping(velocity_deg_s, now_s)
 
     def arm(
         self,
@@ -118,23 +161,30 @@ class SnapWatch:
         velocity_deg_s: Sequence[float],
         torque_nm: Sequence[float],
         engaged: bool,
+        now_s: float,
     ) -> None:
         """After a cycle's write: arm when the wall (goal ``goal``, None if free) holds a still
-        leader against a hand, else disarm."""
+        leader against a hand (read at ``now_s``, s), else disarm."""
         unit = None if goal is None else unit_step(present, goal)
         if unit is None:
-            self.armed, self._was_still = None, False
+            self.armed, self._was_still, self._seen = None, False, None
             return
-        still = abs(along(velocity_deg_s, unit)) <= self.law.still_speed_deg_s
-        holding = along(torque_nm, unit) >= self.law.hold_nm
-        self.armed = unit if engaged and holding and still and self._was_still else None
+        toward = along(velocity_deg_s, unit)
+        still = abs(toward) <= self.law.still_speed_deg_s
+        holding = engaged and along(torque_nm, unit) >= self.law.hold_nm
+        if not holding:
+            self.disarm()
+        elif self.armed is not None:  # armed on a hold: stays, the leader creeping or not
+            self.armed, self._seen = unit, (toward, now_s)
+        elif still and self._was_still:
+            self.armed, self._seen = unit, (toward, now_s)
+            self._hold_nm = along(torque_nm, unit)
+        self._was_still = still
         self._was_still = still
 
-    def snaps(self, velocity_deg_s: Sequence[float]) -> bool:
+    def snaps(self, velocity_deg_s: Sequence[float], now_s: float) -> bool:
         """Between cycles: whether an armed wall's leader, read at ``velocity_deg_s`` (joint
-        frame, deg/s), snaps toward the region (then the caller writes Goal Current 0)."""
-        if self.armed is None or along(velocity_deg_s, self.armed) <= self.law.snap_speed_deg_s:
-            return False
-        self.cuts += 1
-        self.armed = None
-        return True
+        frame, deg/s) at ``now_s`` (s), snaps toward the region (then the caller writes Goal
+        Current 0)."""
+        self.reads += 1
+        return self._snapping(velocity_deg_s, now_s)

@@ -76,7 +76,7 @@ class SteppedWatch:
             return
         for servo in self.servos:
             servo.refresh(self.now())
-        if self.snap.snaps(read_velocity(self.servos, self.joints)):
+        if self.snap.snaps(read_velocity(self.servos, self.joints), self.now()):
             self.cut_due = ms + 1
 
 
@@ -138,9 +138,10 @@ def felt_at_200_hz(
         q = q_of(*np.degrees(pose))
         torque = read_torque(servos, rig.joints, motor)
         velocity = read_velocity(servos, rig.joints)
+        read_s = sim.time_s  # when the cycle read the leader
         push = push_for(law, motor, pose, q, CONE.correct(q), previous, 0.005, engaged, torque)
         if snap_watch and push.goal_current:
-            if not watch.snap.allows(pose, push.goal, velocity, engaged):
+            if not watch.snap.allows(pose, push.goal, velocity, engaged, sim.time_s):
                 push = Push(0, 0, pose[0], pose[1], 0.0, push.distance_deg)
         previous = pose
         instead = (cycles or {}).get(k)
@@ -148,7 +149,7 @@ def felt_at_200_hz(
             push = Push(0, 0, pose[0], pose[1], 0.0, 0.0)
         if instead == "silent":
             engaged = False  # LeaderSource.release: the next push is the wall coming on again
-            watch.snap.armed = None
+            watch.snap.disarm()
             for servo in servos:
                 servo.write(102, bytes(2))  # Goal Current 0 alone
         for step in range(5):
@@ -166,9 +167,9 @@ def felt_at_200_hz(
                         servo.write(112, push.profile_velocity.to_bytes(4, "little"))
                     servo.write(FEEL_DATA.address, encode_feel(push.goal_current, tick))
                 if push.goal_current and instead != "held":
-                    watch.snap.arm(pose, push.goal, velocity, torque, was_engaged)
+                    watch.snap.arm(pose, push.goal, velocity, torque, was_engaged, read_s)
                 else:
-                    watch.snap.armed = None
+                    watch.snap.disarm()
             if step >= 1:  # the loop's wait, from right after the cycle's write
                 watch.after_write(5 * k + step)
             clock[0] += 0.001

@@ -189,12 +189,13 @@ def felt3_at_200_hz(
         q = pose_quat_scalar(*pose)
         torque = read_torque(servos, RIG.joints, motor)
         velocity = read_velocity(servos, RIG.joints)
+        read_s = sim.time_s  # when the cycle read the leader
         if rules:
             corrected = region.correct(q)
             past = (previous, 0.005, engaged, torque)
             push = push3_for(LAW, motor, pose, q, corrected, RIG.roll_limits, *past)
             if watch.on and push.goal_current:
-                if not watch.snap.allows(pose, push.goal, velocity, engaged):
+                if not watch.snap.allows(pose, push.goal, velocity, engaged, sim.time_s):
                     push = held3(pose)
         else:
             push = push3_for(LAW, motor, pose, q, region.correct(q), RIG.roll_limits)
@@ -205,7 +206,7 @@ def felt3_at_200_hz(
         pushes.append((pose, push, instead))
         if instead == "silent":
             engaged = False
-            watch.snap.armed = None
+            watch.snap.disarm()
             for servo in servos:
                 servo.write(102, bytes(2))  # Goal Current 0 alone
         for step in range(5):
@@ -225,9 +226,9 @@ def felt3_at_200_hz(
                     servo.write(112, push.profile_velocity.to_bytes(4, "little"))
                     servo.write(FEEL_DATA.address, encode_feel(push.goal_current, tick))
                 if push.goal_current and instead != "held":
-                    watch.snap.arm(pose, push.goal, velocity, torque, was_engaged)
+                    watch.snap.arm(pose, push.goal, velocity, torque, was_engaged, read_s)
                 else:
-                    watch.snap.armed = None
+                    watch.snap.disarm()
             if step >= 1:  # the loop's wait, from right after the cycle's write
                 watch.after_write(5 * k + step)
             clock[0] += 0.001

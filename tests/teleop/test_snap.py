@@ -19,11 +19,12 @@ STILL = (0.0, 0.0)
 
 
 def held_watch() -> SnapWatch:
-    """A watch after two cycles of a wall holding a still leader against a hand."""
+    """A watch after two cycles of a wall holding a still leader against a hand, the last read
+    at 0 s."""
     watch = SnapWatch(LAW)
-    watch.arm(POSE, GOAL, STILL, HELD_NM, engaged=False)  # the wall came on: not yet
+    watch.arm(POSE, GOAL, STILL, HELD_NM, False, -0.005)  # the wall came on: not yet
     assert watch.armed is None
-    watch.arm(POSE, GOAL, STILL, HELD_NM, engaged=True)
+    watch.arm(POSE, GOAL, STILL, HELD_NM, True, 0.0)
     return watch
 
 
@@ -38,36 +39,58 @@ def test_a_wall_holding_a_still_leader_against_a_hand_arms_the_watch():
 
 
 def test_a_leader_moving_in_or_a_light_push_does_not_arm_it():
-    moving = held_watch()
-    moving.arm(POSE, GOAL, (-5.0, 0.0), HELD_NM, engaged=True)  # pushed back at 5 deg/s
+    moving = SnapWatch(LAW)  # a wall pushing a deep leader back at 5 deg/s
+    for k, engaged in enumerate((False, True, True)):
+        moving.arm(POSE, GOAL, (-5.0, 0.0), HELD_NM, engaged, 0.005 * k)
     assert moving.armed is None
     light = SnapWatch(LAW)
     for engaged in (False, True):
-        light.arm(POSE, GOAL, STILL, (-0.03, 0.0), engaged)  # the loop walking it back
+        light.arm(POSE, GOAL, STILL, (-0.03, 0.0), engaged, 0.0)  # the loop walking it back
     assert light.armed is None
+
+
+def test_an_armed_watch_stays_armed_while_the_wall_holds_and_goes_with_it():
+    creeping = held_watch()
+    creeping.arm(POSE, GOAL, (-3.0, 0.0), HELD_NM, True, 0.005)  # a relaxing hand: creeping in
+    assert creeping.armed == (-1.0, 0.0)
+    creeping.arm(POSE, GOAL, (-3.0, 0.0), (-0.03, 0.0), True, 0.010)  # the hold is gone
+    assert creeping.armed is None
     free = held_watch()
-    free.arm(POSE, None, STILL, HELD_NM, engaged=True)  # this cycle's wall is off
+    free.arm(POSE, None, STILL, HELD_NM, True, 0.005)  # this cycle's wall is off
     assert free.armed is None
 
 
 def test_an_armed_watch_cuts_at_a_snap_toward_the_region_once():
     watch = held_watch()
-    assert not watch.snaps((-LAW.snap_speed_deg_s, 0.0))  # at the threshold: not yet
-    assert not watch.snaps((20.0, 0.0))  # pushed outward by the hand: the wall holds
-    assert watch.snaps((-17.0, 0.0))  # a let go, 1 ms on
+    assert not watch.snaps((-LAW.snap_speed_deg_s, 0.0), 0.001)  # at the threshold: not yet
+    assert not watch.snaps((20.0, 0.0), 0.002)  # pushed outward by the hand: the wall holds
+    assert not watch.snaps((0.0, 0.0), 0.003)
+    assert watch.snaps((-17.0, 0.0), 0.004)  # a let go: 17 deg/s within a millisecond
     assert watch.armed is None and watch.cuts == 1
-    assert not watch.snaps((-25.0, 0.0))  # disarmed: once
+    assert not watch.snaps((-25.0, 0.0), 0.005)  # disarmed: once
+    assert watch.reads == 5
+
+
+def test_a_relaxing_hand_is_not_a_snap():
+    # a grip fading over 50 ms lets the leader speed up at about 2000 deg/s^2: the watch leaves
+    # the wall on (a cut would leave the leader to a hand still pushing outward)
+    watch = held_watch()
+    speeds = [-0.5, -1.5, -3.0, -5.0, -7.0, -9.0]
+    assert not any(watch.snaps((v, 0.0), 0.001 * (k + 1)) for k, v in enumerate(speeds))
+    assert watch.armed is not None
+    # and a let go while it creeps in is still one
+    assert watch.snaps((-25.0, 0.0), 0.007)
 
 
 def test_a_cycles_read_applies_the_same_rules():
     watch = held_watch()
-    assert watch.allows(POSE, GOAL, (-2.0, 0.0), engaged=True)
-    assert not watch.allows(POSE, GOAL, (-17.0, 0.0), engaged=True)  # the snap at a read
+    assert watch.allows(POSE, GOAL, (-2.0, 0.0), True, 0.001)
+    assert not watch.allows(POSE, GOAL, (-17.0, 0.0), True, 0.002)  # the snap at a read
     assert watch.cuts == 1
     # a free wall comes back only on a still leader
-    assert not watch.allows(POSE, GOAL, (-3.0, 0.0), engaged=False)
-    assert watch.allows(POSE, GOAL, (-1.0, 0.0), engaged=False)
-    assert watch.allows(POSE, GOAL, (10.0, 0.0), engaged=False)  # moving out: the wall comes on
+    assert not watch.allows(POSE, GOAL, (-3.0, 0.0), False, 0.003)
+    assert watch.allows(POSE, GOAL, (-1.0, 0.0), False, 0.004)
+    assert watch.allows(POSE, GOAL, (10.0, 0.0), False, 0.005)  # moving out: it comes on
 
 
 speeds = st.floats(-100.0, 100.0, allow_nan=False)
@@ -79,12 +102,12 @@ def test_property_the_watch_cuts_only_toward_the_region_and_only_when_armed(even
     # it only says when to let go: an unarmed watch never cuts, an armed one only at a speed
     # toward the region above the threshold, and a cut always disarms it
     watch = SnapWatch(LAW)
-    for pan_speed, tilt_speed, engaged, torque in events:
+    for k, (pan_speed, tilt_speed, engaged, torque) in enumerate(events):
         armed = watch.armed
-        snapped = watch.snaps((pan_speed, tilt_speed))
+        snapped = watch.snaps((pan_speed, tilt_speed), 0.005 * k + 0.001)
         if snapped:
             assert armed is not None and along((pan_speed, tilt_speed), armed) > 4.0
             assert watch.armed is None
         else:
-            assert armed is None or along((pan_speed, tilt_speed), armed) <= 4.0
-        watch.arm(POSE, GOAL, (pan_speed, tilt_speed), (torque, 0.0), engaged)
+            assert armed is None or watch.armed == armed
+        watch.arm(POSE, GOAL, (pan_speed, tilt_speed), (torque, 0.0), engaged, 0.005 * (k + 1))

@@ -12,6 +12,8 @@ its servos run in current-based position mode, free inside the region, pushing b
 push in one sync write. Any doubt switches the push off at once: a leader that is silent, in
 alarm or restarted, a failed bus, a held gate, a fault (:meth:`LeaderSource.release`) or the
 session's end. Bus Watchdog is the backstop. Other models stay passive (torque off), as before.
+While the wall holds the leader still, the loop's wait between cycles reads its speed and lets
+the wall go as soon as it snaps toward the region (:mod:`limbctl.teleop.snap`).
 """
 
 from __future__ import annotations
@@ -367,7 +369,7 @@ class LeaderSource(SnapWatching, CommandSource):
             previous, period = (None, 0.0) if last is None else (last[0], read_at - last[1])
             engaged = self.last_push is not None and self.last_push.goal_current > 0
             push = self._law(gate, pose, q, previous, period, engaged, torque)
-            if push.goal_current and not self.snap.allows(pose, push.goal, speed, engaged):
+            if push.goal_current and not self.snap.allows(pose, push.goal, speed, engaged, read_at):
                 push = self._free(pose)  # it still moves in, or it snaps: no wall this cycle
         else:
             push = self._free(cycle[0])
@@ -376,9 +378,9 @@ class LeaderSource(SnapWatching, CommandSource):
             return notes
         self._write(push)
         if released or self.last_push is None or not push.goal_current:
-            self.snap.armed = None
+            self.snap.disarm()
         else:
-            self.snap.arm(cycle[0], push.goal, cycle[5], cycle[4], engaged)
+            self.snap.arm(cycle[0], push.goal, cycle[5], cycle[4], engaged, cycle[3])
         self.feel_stats.add(push.torque_nm, 1.0 / self.rate_hz)
         return notes
 
@@ -423,7 +425,7 @@ class LeaderSource(SnapWatching, CommandSource):
 
     def release(self) -> None:
         """No current on the leader from now until the next push (one sync write)."""
-        self.snap.armed = None
+        self.snap.disarm()
         self.last_push = None
         if self.felt:
             self._zero_current()

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import time
 from collections.abc import Sequence
 
 from limbctl.errors import BusError
@@ -48,5 +49,6 @@ class SnapWatching:
         """Between cycles: read the leader's speed; a held leader that snaps toward the region
         is let go at once (:mod:`limbctl.teleop.snap`)."""
         speed = read_velocity(self.rig.bus, self.leader_ids, self.rig.joints)
-        if self.snap.armed is not None and speed is not None and self.snap.snaps(speed):
+        now = time.perf_counter()
+        if self.snap.armed is not None and speed is not None and self.snap.snaps(speed, now):
             self.release()
