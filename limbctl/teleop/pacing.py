@@ -78,14 +78,18 @@ class Pacer:
         now = self.clock()
         delay = self._due - now
         if idle is not None:
-            # a call every idle_period_s from now, the last one starting at least a period
-            # before the slot (a call that ran long is followed by the next at once, not by more)
-            call_at = now
-            while self._due - call_at > idle_period_s and not stop.is_set():
+            # a call every idle_period_s from now, each starting only while more than a period,
+            # and more than the last call took, is left before the slot (on a slow bus the
+            # work waits for the next wait rather than delay the cycle); a call that ran long
+            # is followed by the next at once, not by more
+            call_at, took = now, 0.0
+            while self._due - call_at > max(idle_period_s, took) and not stop.is_set():
                 if call_at > now and stop.wait(call_at - now):
                     break
+                started = self.clock()
                 idle()
                 now = self.clock()
+                took = now - started
                 call_at = max(call_at + idle_period_s, now)
             delay = self._due - self.clock()
         if delay > 0.0:

@@ -174,9 +174,9 @@ class SnapWatch:
         holding = engaged and along(torque_nm, unit) >= self.law.hold_nm
         if not holding:
             self.disarm()
-        elif self.armed is not None:  # armed on a hold: stays, the leader creeping or not
-            self.armed, self._seen = unit, (toward, now_s)
-        elif still and self._was_still:
+        elif self.armed is not None or (still and self._was_still):
+            # armed on a still hold; it stays while the wall holds, the leader creeping or not,
+            # judged against the hold as read now
             self.armed, self._seen = unit, (toward, now_s)
             self._hold_nm = along(torque_nm, unit)
         self._was_still = still

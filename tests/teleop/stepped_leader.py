@@ -70,6 +70,14 @@ class SteppedWatch:
             servo.write(102, bytes(2))  # Goal Current 0 alone, as LeaderSource.release
         return True
 
+    def wrote(self, pose, goal, velocity, torque, was_engaged: bool, read_s: float) -> None:
+        """After a cycle's write (``goal`` None: the wall is off): arm or disarm, as
+        ``LeaderSource.feel`` does."""
+        if goal is None:
+            self.snap.disarm()
+        else:
+            self.snap.arm(pose, goal, velocity, torque, was_engaged, read_s)
+
     def after_write(self, ms: int) -> None:
         """After a cycle's write, between the cycles: read the speed, schedule a cut."""
         if not self.on or self.snap.armed is None or self.cut_due is not None:
@@ -166,10 +174,8 @@ def felt_at_200_hz(
                     if push.goal_current:  # Profile Velocity: its own write in the source
                         servo.write(112, push.profile_velocity.to_bytes(4, "little"))
                     servo.write(FEEL_DATA.address, encode_feel(push.goal_current, tick))
-                if push.goal_current and instead != "held":
-                    watch.snap.arm(pose, push.goal, velocity, torque, was_engaged, read_s)
-                else:
-                    watch.snap.disarm()
+                goal = push.goal if push.goal_current and instead != "held" else None
+                watch.wrote(pose, goal, velocity, torque, was_engaged, read_s)
             if step >= 1:  # the loop's wait, from right after the cycle's write
                 watch.after_write(5 * k + step)
             clock[0] += 0.001

@@ -225,10 +225,8 @@ def felt3_at_200_hz(
                 for servo, tick in zip(servos, ticks, strict=True):
                     servo.write(112, push.profile_velocity.to_bytes(4, "little"))
                     servo.write(FEEL_DATA.address, encode_feel(push.goal_current, tick))
-                if push.goal_current and instead != "held":
-                    watch.snap.arm(pose, push.goal, velocity, torque, was_engaged, read_s)
-                else:
-                    watch.snap.disarm()
+                goal = push.goal if push.goal_current and instead != "held" else None
+                watch.wrote(pose, goal, velocity, torque, was_engaged, read_s)
             if step >= 1:  # the loop's wait, from right after the cycle's write
                 watch.after_write(5 * k + step)
             clock[0] += 0.001

@@ -111,3 +111,24 @@ def test_without_idle_work_the_wait_is_one_wait():
     clock.now += 0.0015
     pacer.wait(stop)
     assert waits == [PERIOD - 0.0015]
+
+
+def test_idle_work_slower_than_the_room_left_does_not_delay_the_cycle():
+    # a slow bus: each call takes 2.5 ms. After the 1.5 ms cycle it runs once (3.5 ms left), not
+    # again with 1 ms left: the cycle starts on its slot
+    clock = SteppedClock()
+    pacer, stop = Pacer(PERIOD, clock), SteppedStop(clock)
+    pacer.start(clock.now)
+    calls: list[float] = []
+
+    def slow() -> None:
+        calls.append(clock.now)
+        clock.now += 0.0025
+
+    starts = []
+    for _ in range(10):
+        starts.append(clock.now)
+        clock.now += 0.0015
+        pacer.wait(stop, slow, 0.001)
+    assert all(abs(start - k * PERIOD) < 1e-9 for k, start in enumerate(starts))
+    assert len(calls) == 10 and pacer.overruns == 0

@@ -111,3 +111,15 @@ def test_property_the_watch_cuts_only_toward_the_region_and_only_when_armed(even
         else:
             assert armed is None or watch.armed == armed
         watch.arm(POSE, GOAL, (pan_speed, tilt_speed), (torque, 0.0), engaged, 0.005 * (k + 1))
+
+
+def test_the_rise_is_judged_against_the_hold_as_read_at_the_last_cycle():
+    # armed while the hand pressed lightly (0.07 N m), the hold then grew to 0.3 N m: a grip
+    # fading from there (2 deg/s more each millisecond) is no let go
+    watch = SnapWatch(LAW)
+    light = (-0.07, 0.0)
+    watch.arm(POSE, GOAL, STILL, light, False, -0.005)
+    watch.arm(POSE, GOAL, STILL, light, True, 0.0)
+    watch.arm(POSE, GOAL, (-1.4, 0.0), HELD_NM, True, 0.005)
+    assert not any(watch.snaps((-1.4 - 2.0 * k, 0.0), 0.005 + 0.001 * k) for k in range(1, 5))
+    assert watch.armed is not None
