@@ -35,7 +35,6 @@ from pathlib import Path
 import numpy as np
 
 from calib.profile import default_sim_profile
-from firmware_sim.control_table import MODELS
 from firmware_sim.control_table import Register as FirmwareRegister
 from firmware_sim.simulator import Simulator
 from limbctl.envelope import Cone
@@ -46,7 +45,6 @@ from limbctl.servo.leader import (
     FEEL_DATA,
     FEEL_MAP,
     FELT_MODELS,
-    LeaderMotor,
     encode_feel,
     feel_map,
 )
@@ -57,7 +55,7 @@ from limbctl.teleop.commands import command_from_pan_tilt
 from limbctl.teleop.haptic import FeelLaw, Push, push_for
 from limbctl.teleop.loop import LoopConfig, run
 from limbctl.teleop.sources import LeaderSource
-from tests.teleop.stepped_leader import SteppedWatch, read_velocity
+from tests.teleop.stepped_leader import SteppedWatch, motor_of, read_velocity
 
 EDGE_DEG = 30.0
 LEADER_IDS = (3, 4)
@@ -86,9 +84,8 @@ def joint_torques(servos, rig, motor=FELT_MODELS[ModelNumber.XM430_W350]) -> tup
     )
 
 
-def felt_motor(model: str) -> LeaderMotor:
-    """The controller's :class:`LeaderMotor` for a simulator model key (``"xl330-m288@53"``)."""
-    return FELT_MODELS[ModelNumber(MODELS[model.partition("@")[0]].model_number)]
+#: The controller's :class:`LeaderMotor` for a simulator model key (``"xl330-m288@53"``).
+felt_motor = motor_of
 
 
 def run_case(workdir: Path, name: str, operator: dict, seconds: float, model="xm430-w350"):
@@ -365,10 +362,8 @@ def exact_rate_case(
                         servo.write(112, push.profile_velocity.to_bytes(4, "little"))
                     data = encode_feel(push.goal_current, tick)
                     servo.write(FEEL_DATA.address, data)
-                if push.goal_current and instead != "held":
-                    watch.snap.arm(pose, push.goal, velocity, torque, was_pushed, read_s)
-                else:
-                    watch.snap.disarm()
+                goal_on = push.goal if push.goal_current and instead != "held" else None
+                watch.wrote(pose, goal_on, velocity, torque, was_pushed, read_s)
             if step >= READ_TO_WRITE_MS:  # the loop's wait, from right after its write
                 watch.after_write(5 * k + step)
             clock[0] += 0.001

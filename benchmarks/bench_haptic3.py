@@ -204,10 +204,8 @@ def stepped(
                     tick = int(angle_to_ticks(angle, joint.zero_tick, joint.direction))
                     servo.write(112, push.profile_velocity.to_bytes(4, "little"))
                     servo.write(FEEL_DATA.address, encode_feel(push.goal_current, tick))
-                if push.goal_current and k not in held:
-                    snap.snap.arm(pose, goal, velocity, torque, was_engaged, read_s)
-                else:
-                    snap.snap.disarm()
+                goal_on = goal if push.goal_current and k not in held else None
+                snap.wrote(pose, goal_on, velocity, torque, was_engaged, read_s)
             if step >= 1:  # the loop's wait, from right after its write
                 snap.after_write(5 * k + step)
             clock[0] += 0.001

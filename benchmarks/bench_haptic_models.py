@@ -5,15 +5,16 @@ four minutes).
 
 An XL330's position loop is much softer than an XM430's (stall torque at the same error, but
 the stall torque is 8-19 times smaller), so a lead of two ticks (round 5) gave its wall a
-fraction of its cap. Today's law (round 6) sets the lead from the loop's stiffness and caps the
-XL330-M288 at 0.12 N m, so a let go snaps back under 30 deg/s. Both laws run here, on the same
-hands, in one run:
+fraction of its cap. Round 6's law sets the lead from the loop's stiffness and caps the
+XL330-M288 at 0.12 N m, so a let go snaps back under 30 deg/s even without the snap watch;
+today's (round 7) adds the snap watch (limbctl/teleop/snap.py). The three run here, on the
+same hands, in one run:
 
 - *let go*: the simulated operator presses 5 or 20 deg beyond the edge (pan 30 deg of a 30 deg
   cone) at several stiffnesses, bounded at 0.3 N m, and lets go at 5 s; every 1 ms sample after
   it (stepped clock, exactly 200 Hz, in this process: the law's own figures);
-- *cap*: the XL330-M288's let go at caps from 0.10 to 0.26 N m (half its stall torque): why its
-  cap is 0.12;
+- *cap*: the XL330-M288's let go at caps from 0.10 to 0.26 N m (half its stall torque), the law
+  alone (without the snap watch): why its cap is 0.12;
 - *pty*: the real 200 Hz loop through the real dynamixel-sdk on the simulator's pty, with each
   XL330 leader (firmware 52: its Indirect Data at 208), pushed 20 deg beyond and let go.
 """
@@ -50,11 +51,12 @@ def cap_of(motor) -> float:
     return motor.torque_of(motor.units_for(motor.cap_nm(FeelLaw().cap_nm)))
 
 
-def let_go(model: str, stiffness: float, beyond: float, law=None, motor=None) -> dict:
+def let_go(model: str, stiffness: float, beyond: float, law=None, motor=None, watch=True):
+    """A press of ``stiffness`` to ``beyond`` deg past the edge let go at 5 s (stepped clock);
+    ``watch``: with the snap watch. The held pose and torque, the return, the outward samples."""
     script = [[0.0, 0.0, 0.0], [2.0, EDGE_DEG + beyond, 0.0]]
-    rows = exact_rate_case(stiffness, script, 7.0, let_go_s=5.0, model=model, law=law, motor=motor)[
-        "rows"
-    ]
+    case = {"model": model, "law": law, "motor": motor, "snap_watch": watch}
+    rows = exact_rate_case(stiffness, script, 7.0, let_go_s=5.0, **case)["rows"]
     t = np.array([r["t"] for r in rows])
     pan, motor_nm = pan_of(rows), pan_of(rows, "motor_nm")
     velocity = pan_of(rows, "velocity_deg_s")
@@ -77,11 +79,12 @@ def let_go_rows() -> list[dict]:
     rows = []
     for name, model in MODELS.items():
         for stiffness, beyond in HANDS:
-            for law_name, law, motor in (
-                ("round 5", ROUND5, round5_motor(model)),
-                ("round 6", None, None),
+            for law_name, law, motor, watch in (
+                ("round 5", ROUND5, round5_motor(model), False),
+                ("round 6", None, None, False),
+                ("round 7", None, None, True),
             ):
-                out = let_go(model, stiffness, beyond, law, motor)
+                out = let_go(model, stiffness, beyond, law, motor, watch)
                 rows.append({"model": name, "k": stiffness, "beyond": beyond, "law": law_name})
                 rows[-1].update(out)
                 print(rows[-1], flush=True)
@@ -92,7 +95,7 @@ def cap_rows() -> list[dict]:
     rows = []
     for cap in M288_CAPS:
         motor = dataclasses.replace(felt_motor("xl330-m288@53"), let_go_cap_nm=cap)
-        runs = [let_go("xl330-m288@53", k, b, motor=motor) for k, b in HANDS]
+        runs = [let_go("xl330-m288@53", k, b, motor=motor, watch=False) for k, b in HANDS]
         rows.append(
             {
                 "cap": cap,
@@ -187,7 +190,9 @@ def render(let_go_table, caps, pty, load_start, load_end) -> str:
         "second before the let go. After the let go, every 1 ms sample: the peak speed, the "
         "largest 20 ms mean, the samples outside the region whose motor torque points away "
         "from it, the rest 2 s later, how far inside the edge it went; and over the whole run "
-        "the 1 ms samples inside the region with any motor torque.",
+        "the 1 ms samples inside the region with any motor torque. Round 5: two ticks of lead, "
+        "half the stall torque; round 6: the lead from the loop, the XL330-M288 at 0.12 N m; "
+        "round 7 (today): round 6 with the snap watch.",
         "",
         "| model | hand (N m/deg) | pressed beyond (deg) | law | held beyond (deg) | "
         "held torque (N m) | 1 ms peak (deg/s) | 20 ms mean (deg/s) | outward samples | "
@@ -202,7 +207,8 @@ def render(let_go_table, caps, pty, load_start, load_end) -> str:
         "",
         "## The XL330-M288's cap",
         "",
-        "Today's lead, the cap swept; over the six hands above, the largest of each figure. "
+        "Today's lead, the cap swept, the law alone (without the snap watch, which would hide "
+        "what the cap stores); over the six hands above, the largest of each figure. "
         "A let go spends what the loop stored holding the hand: about "
         "`0.46 tau / sqrt(KP J)` of peak speed (KP the loop's stiffness, J the leader's "
         "inertia, 1e-3 kg m^2 simulated), plus the read's rounding of the lead.",
