@@ -108,6 +108,7 @@ def felt_at_200_hz(
     max_torque_nm=0.3,
     motor=None,
     snap_watch=True,
+    release_s=0.0,
 ):
     """The controller's part on the simulated leader's registers every 5 ms of a stepped clock
     (read Present Position and Present Current, push_for, the same ten bytes to Indirect Data
@@ -121,7 +122,7 @@ def felt_at_200_hz(
     leader servos' simulator model (a 330 named with firmware 53 or later, whose Indirect Data
     is at 224); ``max_torque_nm``: the hand's bound; ``motor``: the controller's idea of the
     model's motor (None: :data:`FELT_MODELS`'s); ``snap_watch``: with the snap watch (False:
-    the law alone, as in round 6)."""
+    the law alone, as in round 6); ``release_s``: how long the hand's let go takes."""
     motor = motor or motor_of(model)
     clock = [0.0]
     sim = Simulator(ids=(1, 2), leader={"ids": [3, 4], "model": model}, clock=lambda: clock[0])
@@ -134,6 +135,7 @@ def felt_at_200_hz(
         servo.write(FEEL_MAP.address, feel_map())
         servo.write(64, bytes([1]))  # torque on
     hand = {"script": script, "let_go_s": let_go_s, "stiffness_nm_deg": stiffness}
+    hand["release_s"] = release_s
     sim.set_operator({**hand, "damping_nm_s_rad": 0.02, "max_torque_nm": max_torque_nm})
     rows, engaged, previous = [], False, None
     watch = SteppedWatch(servos, rig.joints, lambda: sim.time_s, on=snap_watch)

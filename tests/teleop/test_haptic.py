@@ -228,6 +228,19 @@ def test_at_200_hz_the_law_alone_brakes_a_let_go_leader_outward_and_snaps_over_3
     assert max(out["peak"] for out in alone) > 30.0
 
 
+@pytest.mark.parametrize("release_s", [0.05, 0.1])
+def test_at_200_hz_a_fading_grip_is_not_cut_like_a_let_go(release_s):
+    # a grip fading over 50-100 ms frees the hold gradually: the snap watch leaves the wall on.
+    # Cut on speed alone, the hand still pushing 0.25 N m threw the leader 0.3 deg out at
+    # 60 deg/s and the wall's return pushed it in at 30 deg/s (decisions/haptic.md, round 7)
+    script = [[0.0, 0.0, 0.0], [2.0, 35.0, 0.0]]
+    rows = felt_at_200_hz(script, 5.4, 0.2, let_go_s=5.002, release_s=release_s)
+    held = max(r["pose_deg"][0] for r in rows if 4.9 <= r["t"] < 5.002)
+    after = [r for r in rows if r["t"] >= 5.002]
+    assert max(r["pose_deg"][0] for r in after) < held + 0.02  # not thrown outward
+    assert max(-r["velocity_deg_s"][0] for r in after) < 20.0
+
+
 @pytest.mark.parametrize("stiffness", [0.02, 0.2])
 def test_at_200_hz_a_closed_excursion_gives_the_hand_back_less_than_it_put_in(stiffness):
     script = [[0.0, 20.0, 0.0], [1.0, 20.0, 0.0], [2.0, 40.0, 0.0], [2.5, 40.0, 0.0]]
