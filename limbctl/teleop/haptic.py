@@ -58,8 +58,8 @@ from limbctl.servo.ticks import TICKS_PER_REV
 
 #: One position tick (deg).
 TICK_DEG = 360.0 / TICKS_PER_REV
-#: Velocity unit of Profile Velocity: 0.229 rev/min = 1.374 deg/s.
-PROFILE_VELOCITY_UNIT_DEG_S = 0.229 * 360.0 / 60.0
+#: Velocity unit of Profile Velocity and Present Velocity: 0.229 rev/min = 1.374 deg/s.
+VELOCITY_UNIT_DEG_S = 0.229 * 360.0 / 60.0
 
 
 @dataclass(frozen=True)
@@ -212,7 +212,7 @@ class FeelLaw:
 
     def profile_velocity_units(self) -> int:
         """Profile Velocity (0.229 rev/min units) no faster than ``return_speed_deg_s``."""
-        return max(1, int(self.return_speed_deg_s / PROFILE_VELOCITY_UNIT_DEG_S))
+        return max(1, int(self.return_speed_deg_s / VELOCITY_UNIT_DEG_S))
 
 
 @dataclass(frozen=True)

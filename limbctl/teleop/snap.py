@@ -31,9 +31,6 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-#: Present Velocity's unit: 0.229 rev/min = 1.374 deg/s.
-VELOCITY_UNIT_DEG_S = 0.229 * 360.0 / 60.0
-
 
 @dataclass(frozen=True)
 class SnapLaw:

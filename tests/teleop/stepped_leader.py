@@ -25,8 +25,8 @@ from limbctl.servo.leader import (
     feel_map,
 )
 from limbctl.servo.rig import Rig
-from limbctl.teleop.haptic import FeelLaw, Push, push_for
-from limbctl.teleop.snap import VELOCITY_UNIT_DEG_S, SnapLaw, SnapWatch
+from limbctl.teleop.haptic import VELOCITY_UNIT_DEG_S, FeelLaw, Push, push_for
+from limbctl.teleop.snap import SnapLaw, SnapWatch
 
 #: The follower's region in these runs: a 30 deg cone around +x (along pan, the edge at pan 30).
 CONE = Cone(half_angle_deg=30.0)

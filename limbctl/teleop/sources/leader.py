@@ -379,8 +379,8 @@ class LeaderSource(SnapWatching, CommandSource):
         self._write(push)
         if released or self.last_push is None or not push.goal_current:
             self.snap.disarm()
-        else:
-            self.snap.arm(cycle[0], push.goal, cycle[5], cycle[4], engaged, cycle[3])
+        else:  # the law's push, written: pose, torque, speed and read time from this cycle
+            self.snap.arm(pose, push.goal, speed, torque, engaged, read_at)
         self.feel_stats.add(push.torque_nm, 1.0 / self.rate_hz)
         return notes
 

@@ -9,7 +9,7 @@ from limbctl.errors import BusError
 from limbctl.servo.control_table import Register
 from limbctl.servo.cycle import CycleRead
 from limbctl.servo.leader import present_velocity
-from limbctl.teleop.snap import VELOCITY_UNIT_DEG_S
+from limbctl.teleop.haptic import VELOCITY_UNIT_DEG_S
 
 
 def cycle_velocity(read: CycleRead, ids: Sequence[int], joints: Sequence) -> tuple[float, ...]:
