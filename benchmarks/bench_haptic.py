@@ -51,6 +51,7 @@ from limbctl.servo.leader import (
 from limbctl.servo.rig import Rig
 from limbctl.servo.setup import configure_servos
 from limbctl.session import open_rig
+from limbctl.teleop.brake import BrakeLaw
 from limbctl.teleop.commands import command_from_pan_tilt
 from limbctl.teleop.haptic import FeelLaw, Push, push_for
 from limbctl.teleop.loop import LoopConfig, run
@@ -280,6 +281,7 @@ def exact_rate_case(
     law=None,
     motor=None,
     snap_watch=True,
+    brake=BrakeLaw(),
 ) -> dict:
     """The same law at exactly 200 Hz, without the bus: the simulator in this process on a
     stepped clock, and every 5 ms the controller's part done on the leader servos' registers
@@ -319,7 +321,7 @@ def exact_rate_case(
     sim.set_operator(hand)
     rows, previous, pushed, cut, goal = [], None, False, False, None
     on = snap_watch and push_fn is push_for and cut_s is None
-    watch = SteppedWatch(servos, rig.joints, lambda: sim.time_s, on=on)
+    watch = SteppedWatch(servos, rig.joints, lambda: sim.time_s, on, motor, law, brake)
     for k in range(round(seconds * 200.0)):
         if watch.before_step(5 * k):
             pushed = False  # the watch let the wall go: LeaderSource.release
@@ -336,7 +338,7 @@ def exact_rate_case(
             past = (*past, torque)
         push = push_fn(law, motor, pose, q, cone.correct(q), *past)
         if on and push.goal_current:
-            if not watch.snap.allows(pose, push.goal, velocity, pushed, read_s):
+            if not watch.snap.allows(pose, push.goal, velocity, pushed, read_s, torque):
                 push = Push(0, 0, pose[0], pose[1], 0.0, push.distance_deg)
         previous = pose
         instead = (cycles or {}).get(k)
@@ -392,7 +394,7 @@ def exact_cases() -> dict:
         let_go_case(k, beyond, law)
         for k in (0.02, 0.05, 0.2)
         for beyond in (5.0, 20.0)
-        for law in ("round 6", "round 7")
+        for law in ("round 6", "round 7", "round 8")
     ]
     for k in (0.02, 0.05, 0.1, 0.2):
         script = [[0.0, 0.0, 0.0], [1.5, EDGE_DEG + 5.0, 0.0], [5.0, EDGE_DEG + 5.0, 0.0]]
@@ -418,9 +420,11 @@ def exact_cases() -> dict:
         t, pan, motor = np.array([r["t"] for r in rows]), pan_of(rows), pan_of(rows, "motor_nm")
         outward = (pan > EDGE_DEG) & (motor > 0.0)
         peer = exact_rate_case(k, [*pull, [4.2, 0.0, 0.0]], 5.0, snap_watch=False)["rows"]
+        snap = exact_rate_case(k, [*pull, [4.2, 0.0, 0.0]], 5.0, brake=None)["rows"]
         out["pulls"].append(
             {
                 "stiffness": k,
+                "snap": int(np.sum((pan_of(snap) > EDGE_DEG) & (pan_of(snap, "motor_nm") > 0.0))),
                 "peer": int(np.sum((pan_of(peer) > EDGE_DEG) & (pan_of(peer, "motor_nm") > 0.0))),
                 "peer_peak": float(
                     np.max(pan_of(peer, "motor_nm")[pan_of(peer) > EDGE_DEG], initial=0.0)
@@ -459,13 +463,14 @@ def exact_cases() -> dict:
 
 def let_go_case(stiffness: float, beyond: float, law: str) -> dict:
     """A hand of ``stiffness`` pressing ``beyond`` deg past the edge, let go at 5 s, under round
-    6's law (the law alone) or today's (round 7: with the snap watch): after the let go, the
+    6's law (the law alone), round 7's (with the snap watch) or today's (round 8: the snap watch
+    with its brake rules): after the let go, the
     1 ms samples outside with the motor pulling outward (count, the last one's time from the
     let go, the largest), the 1 ms and 20 ms peak return speeds, the rest and the deepest
     point."""
     script = [[0.0, 0.0, 0.0], [2.0, EDGE_DEG + beyond, 0.0], [5.0, EDGE_DEG + beyond, 0.0]]
-    watch = law == "round 7"
-    rows = exact_rate_case(stiffness, script, 7.0, let_go_s=5.0, snap_watch=watch)["rows"]
+    watch, brake = law != "round 6", BrakeLaw() if law == "round 8" else None
+    rows = exact_rate_case(stiffness, script, 7.0, 5.0, snap_watch=watch, brake=brake)["rows"]
     t = np.array([r["t"] for r in rows])
     pan, velocity, motor = pan_of(rows), pan_of(rows, "velocity_deg_s"), pan_of(rows, "motor_nm")
     after = t >= 5.0
@@ -586,9 +591,11 @@ def render(push, ripples, passes, rates, load, exact, transfers, end_load) -> st
         f"| after let go: rest beyond the edge (deg) | {exact['final']:.3f} |",
         f"| after let go: deepest inside the edge (deg) | {max(exact['deepest'], 0.0):.3f} |",
         "",
-        "Let go from a press, by hand stiffness and depth, round 6's law (the law alone) against "
-        "today's (round 7: with the snap watch, `limbctl/teleop/snap.py`, reading the leader's "
-        "speed every millisecond between the cycles while the wall holds it still) in this run. "
+        "Let go from a press, by hand stiffness and depth, round 6's law (the law alone), round "
+        "7's (with the snap watch, `limbctl/teleop/snap.py`, reading the leader's speed every "
+        "millisecond between the cycles while the wall holds it still) and today's (round 8: "
+        "the watch also reads the motors' torque while any wall is on and applies the brake "
+        "rules, `limbctl/teleop/brake.py`) in this run. "
         "Every 1 ms sample after the let go: outward samples are those outside "
         "the region with the motor pulling away from it; the peak speed is the largest 1 ms "
         "sample, the 20 ms mean the largest mean over 20 samples:",
@@ -618,16 +625,19 @@ def render(push, ripples, passes, rates, load, exact, transfers, end_load) -> st
         "faster leader (pulls it outward); the law leaves a leader that outran its setpoint "
         "by more than a tick free, and a wall whose read shows its servo pulling "
         "outward, from the first read that shows it; the snap watch lets a held wall go as the "
-        "leader starts moving in. 1 ms samples, today's law (round 7) against round 6's (the law "
-        "alone) in this run:",
+        "leader starts moving in, and its brake rules (round 8) let a wall go once the leader "
+        "gains on the setpoint or the motor's torque is about to turn outward. 1 ms samples, "
+        "today's law (round 8) against round 7's (the snap watch without the brake rules) and "
+        "round 6's (the law alone) in this run:",
         "",
         "| hand stiffness (N m/deg) | outside with torque | pointing outward | their span (ms) | "
-        "largest outward (N m) | inside with torque | pointing outward, round 6 | largest "
-        "outward, round 6 (N m) |",
-        "| ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
+        "largest outward (N m) | inside with torque | pointing outward, round 7 | pointing "
+        "outward, round 6 | largest outward, round 6 (N m) |",
+        "| ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
         *(
             f"| {p['stiffness']:g} | {p['outside']} | {p['outward']} | {p['span_ms']:.0f} | "
-            f"{p['peak']:.3f} | {p['inside']} | {p['peer']} | {p['peer_peak']:.3f} |"
+            f"{p['peak']:.3f} | {p['inside']} | {p['snap']} | {p['peer']} | "
+            f"{p['peer_peak']:.3f} |"
             for p in exact["pulls"]
         ),
         "",

@@ -53,6 +53,7 @@ from limbctl.servo.rig3 import RollRig
 from limbctl.servo.setup import configure_servos
 from limbctl.servo.ticks import angle_to_ticks
 from limbctl.session import open_rig
+from limbctl.teleop.brake import BrakeLaw
 from limbctl.teleop.haptic import FeelLaw, Push, beyond_deg, moved_in_deg, push_for
 from limbctl.teleop.haptic3 import beyond3_deg, corrected_pose, held3, push3_for
 from tests.teleop.stepped_leader import SteppedWatch, read_velocity
@@ -152,7 +153,9 @@ def stepped(
         {"script": script, "let_go_s": let_go_s, **HAND, "stiffness_nm_deg": stiffness}
     )
     rows, engaged, previous = [], False, None
-    snap = SteppedWatch(servos, rig.joints, lambda: sim.time_s, on=watch and rules and law is LAW)
+    on = bool(watch) and rules and law is LAW
+    brake = BrakeLaw() if watch is True else None  # "snap": round 7's watch, no brake rules
+    snap = SteppedWatch(servos, rig.joints, lambda: sim.time_s, on, MOTOR, LAW, brake)
     for k in range(round(seconds * 200.0)):
         if snap.before_step(5 * k):
             engaged = False  # the watch let the wall go: LeaderSource.release
@@ -173,7 +176,7 @@ def stepped(
                 target = corrected_pose(corrected, pose, rig.roll_limits)
                 push = round3(push, pose, previous, target)
             if snap.on and push.goal_current:
-                if not snap.snap.allows(pose, push.goal, velocity, engaged, read_s):
+                if not snap.snap.allows(pose, push.goal, velocity, engaged, read_s, torque):
                     push = held3(pose)
             push = held3(pose) if k in held else push
             goal = push.goal
@@ -187,7 +190,7 @@ def stepped(
                 target = tuple(float(v) for v in quat_to_pan_tilt(corrected))
                 push = round3(push, pose, previous, target)
             if snap.on and push.goal_current:
-                if not snap.snap.allows(pose, push.goal, velocity, engaged, sim.time_s):
+                if not snap.snap.allows(pose, push.goal, velocity, engaged, sim.time_s, torque):
                     push = Push(0, 0, pose[0], pose[1], 0.0, push.distance_deg)
             goal = (push.goal_pan, push.goal_tilt)
         previous = pose

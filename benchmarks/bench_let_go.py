@@ -10,18 +10,19 @@ to 0 from one 0.5 ms physics step to the next, the hardest let go for the wall.
 
 Three sweeps:
 
-- *phase*: today's law (limbctl/teleop/haptic.py with the snap watch, limbctl/teleop/snap.py:
-  round 7) and round 6's (the law alone) in the same run, the let go falling 0-4 ms after a
+- *phase*: today's law (limbctl/teleop/haptic.py with the snap watch, limbctl/teleop/snap.py,
+  and its brake rules, limbctl/teleop/brake.py: round 8), round 7's (the snap watch without the
+  brake rules) and round 6's (the law alone) in the same run, the let go falling 0-4 ms after a
   cycle's read. Without the watch the first read that can see the let go is the next one, so
   the loop's first write after it lands 6 - phase ms later; the watch reads the leader's speed
-  every millisecond between the cycles;
+  and torque every millisecond between the cycles;
 - *oracle cut*: the same presses under round 4's law, but the controller writes Goal Current 0
   (no torque) a chosen 1-6 ms after the let go, knowing when it happened: how soon a wall must
   go so that no 1 ms sample pulls the leader outward;
 - *lead*: the goal's lead (1, 2, 3 ticks) against how far the wall holds the hand and how fast
   the let go snaps: the hold's cost, before any controller can act;
-- *release*: the hand's bound falls to 0 over 10-100 ms instead of at once (both laws, every
-  phase), followed until the leader rests.
+- *release*: the hand's bound falls to 0 over 10-100 ms instead of at once (the three laws,
+  every phase), followed until the leader rests.
 """
 
 from __future__ import annotations
@@ -36,6 +37,7 @@ import numpy as np
 from bench_haptic import EDGE_DEG, exact_rate_case, pan_of, round4_push
 
 from limbctl.servo.ticks import TICKS_PER_REV
+from limbctl.teleop.brake import BrakeLaw
 from limbctl.teleop.haptic import FeelLaw, push_for
 
 #: The presses: hand stiffness (N m/deg) and how far beyond the edge it means to go (deg),
@@ -48,9 +50,9 @@ LET_GO_S = 5.0
 #: the walk that follows.
 AFTER_S = 0.06
 TICK_DEG = 360.0 / TICKS_PER_REV
-#: The laws compared in the same run: round 6's (the law alone) and today's (round 7: with the
-#: snap watch).
-LAWS = (("round 6", False), ("round 7", True))
+#: The laws compared in the same run: round 6's (the law alone), round 7's (the snap watch) and
+#: today's (round 8: the snap watch with its brake rules): label, snap watch, brake rules.
+LAWS = (("round 6", False, None), ("round 7", True, None), ("round 8", True, BrakeLaw()))
 #: How long the hand takes to let go (ms): at once, then 10-100 ms.
 RELEASES_MS = (0.0, 10.0, 20.0, 50.0, 100.0)
 #: After a slow let go the run goes on this long past its end (s): the walk back from 2 deg at
@@ -67,13 +69,15 @@ def let_go(
     after_s: float = AFTER_S,
     cut_ms=None,
     watch=True,
+    brake=BrakeLaw(),
 ):
     """One press let go ``phase_ms`` after a cycle's read; the 1 ms samples after it.
 
     ``push_fn``: the law (today's :func:`push_for` when None, or :func:`round4_push`).
     ``cut_ms``: the oracle writes Goal Current 0 this long after the let go (None: never).
     ``release_ms``: how long the hand takes to let go; ``after_s``: how long the run goes on.
-    ``watch``: the snap watch on (only with today's law and no oracle cut).
+    ``watch``: the snap watch on (only with today's law and no oracle cut); ``brake``: its
+    brake rules (None: round 7's watch, the snap rule alone).
     Returns the outward samples (outside the region with the motor pulling away from it:
     count, first and last in ms after the let go, largest in N m), the 1 ms peak speed
     (deg/s), where the leader sat before the let go and where it is at the end (deg beyond the
@@ -91,6 +95,7 @@ def let_go(
         cut_s=cut_s,
         release_s=release_ms / 1000.0,
         snap_watch=watch,
+        brake=brake,
     )["rows"]
     t = np.array([r["t"] for r in rows])
     pan, velocity, motor = pan_of(rows), pan_of(rows, "velocity_deg_s"), pan_of(rows, "motor_nm")
@@ -150,8 +155,10 @@ def render(phases, cuts, leads, releases, load, end_load, seconds) -> str:
         "## By where the let go falls in the 5 ms cycle",
         "",
         "Round 6's law (the law alone: its first write after the let go lands 2-6 ms after "
-        "it) and today's (round 7: the snap watch reads the leader's speed every millisecond "
-        "between the cycles and lets a held wall go as it starts to snap), in this run.",
+        "it), round 7's (the snap watch reads the leader's speed every millisecond "
+        "between the cycles and lets a held wall go as it starts to snap) and today's (round 8: "
+        "the same watch also reads the motors' torque and applies the brake rules), in this "
+        "run.",
         "",
         "| hand (N m/deg) | pressed beyond (deg) | law | let go after a read (ms) | first write "
         "after it, law alone (ms) | outward samples | first, last (ms) | largest outward (N m) "
@@ -197,19 +204,20 @@ def render(phases, cuts, leads, releases, load, end_load, seconds) -> str:
         "",
         "## How fast the hand lets go",
         "",
-        "Both laws; the hand's bound falls linearly to 0 over the release time. Each row is "
-        "the worst of five runs, the let go falling 0, 1, 2, 3 and 4 ms after a read, "
-        f"followed {WALK_S:g} s past the release: outward samples (the most in one run), the "
+        "The three laws; the hand's bound falls linearly to 0 over the release time. Each row "
+        "is the worst of five runs, the let go falling 0, 1, 2, 3 and 4 ms after a read, "
+        f"followed {WALK_S:g} s past the release: outward samples (the most in one run, and "
+        "summed over the five), the "
         "1 ms peak speed, and where the leader rests (least and most beyond the edge; it never "
         "went inside in any run: deepest inside is the last column).",
         "",
         "| hand (N m/deg) | pressed beyond (deg) | release (ms) | law | outward samples | "
-        "largest outward (N m) | 1 ms peak speed (deg/s) | rest beyond the edge (deg) | deepest "
-        "inside (deg) |",
-        "| ---: | ---: | ---: | --- | ---: | ---: | ---: | ---: | ---: |",
+        "summed | largest outward (N m) | 1 ms peak speed (deg/s) | rest beyond the edge (deg) "
+        "| deepest inside (deg) |",
+        "| ---: | ---: | ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: |",
         *(
             f"| {r['stiffness']:g} | {r['beyond']:g} | {r['release']:g} | {r['law']} | "
-            f"{r['outward']} | "
+            f"{r['outward']} | {r['summed']} | "
             f"{r['largest']:.3f} | {r['peak']:.1f} | {r['rest_min']:.2f}-{r['rest_max']:.2f} | "
             f"{r['deepest']:.3f} |"
             for r in releases
@@ -227,9 +235,9 @@ def main(argv: list[str] | None = None) -> int:
     phases, cuts, leads, releases = [], [], [], []
     for stiffness, beyond in PRESSES:
         base = {"stiffness": stiffness, "beyond": beyond}
-        for law, watch in LAWS:
+        for law, watch, brake in LAWS:
             for phase in (0.0, 1.0, 2.0, 3.0, 4.0):
-                run = let_go(stiffness, beyond, phase, watch=watch)
+                run = let_go(stiffness, beyond, phase, watch=watch, brake=brake)
                 phases.append({**base, "law": law, "phase": phase, **run})
         for cut in (1, 2, 3, 4, 5, 6):
             run = let_go(stiffness, beyond, cut_ms=cut, push_fn=round4_push)
@@ -238,10 +246,10 @@ def main(argv: list[str] | None = None) -> int:
             run = let_go(stiffness, beyond, push_fn=lead_push(lead))
             leads.append({**base, "lead": lead, **run})
         for release in RELEASES_MS:
-            for law, watch in LAWS:
+            for law, watch, brake in LAWS:
                 after = release / 1000.0 + WALK_S
                 runs = [
-                    let_go(stiffness, beyond, phase, None, release, after, watch=watch)
+                    let_go(stiffness, beyond, phase, None, release, after, None, watch, brake)
                     for phase in (0.0, 1.0, 2.0, 3.0, 4.0)
                 ]
                 releases.append(
@@ -250,6 +258,7 @@ def main(argv: list[str] | None = None) -> int:
                         "law": law,
                         "release": release,
                         "outward": max(r["outward"] for r in runs),
+                        "summed": sum(r["outward"] for r in runs),
                         "largest": max(r["largest"] for r in runs),
                         "peak": max(r["peak"] for r in runs),
                         "rest_min": min(r["end"] for r in runs),

@@ -22,7 +22,12 @@ as the leader moves toward the region::
 A wall pushing a deep leader back (the hand weaker than the cap) or walking a released one
 back is never armed: the leader moves, so the watch leaves those pushes alone. The same speed
 rules run on each cycle's own read (its Present Velocity is in the felt leader's cycle read,
-:data:`limbctl.servo.leader.VELOCITY_MAP`). The watch only ever takes torque away.
+:data:`limbctl.servo.leader.VELOCITY_MAP`).
+
+While any wall is on (held, walking a leader back, or pushing one back), the watch also reads
+the motor's torque and applies the brake rules (:mod:`limbctl.teleop.brake`): a leader that
+gains on the setpoint, or whose loop's torque is about to turn outward, is let go before the
+loop brakes it. The watch only ever takes torque away.
 """
 
 from __future__ import annotations
@@ -30,6 +35,8 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+
+from limbctl.teleop.brake import BrakeLaw, brakes_soon, outruns
 
 
 @dataclass(frozen=True)
@@ -96,25 +103,45 @@ class SnapWatch:
     Attributes
     ----------
     law : SnapLaw
+    brake : BrakeLaw or None
+        The brake rules (:mod:`limbctl.teleop.brake`); None: the snap rule alone (round 7).
+    walk_deg_s : float
+        How fast the wall's setpoint walks toward the region (deg/s): its Profile Velocity.
     armed : tuple of float or None
         The unit step toward the correction (joint space) while armed.
+    walking : tuple of float or None
+        The unit step toward the correction while a wall is on (the brake rules watch it).
     cuts : int
         How many times the watch (or a cycle's read) let a held wall go at a snap.
+    brakes : int
+        How many times the brake rules let a wall go.
     reads : int
-        How many speeds the watch was handed between the cycles.
+        How many reads the watch was handed between the cycles.
     """
 
     law: SnapLaw
+    brake: BrakeLaw | None = None
+    walk_deg_s: float = 0.0
     armed: tuple[float, ...] | None = None
+    walking: tuple[float, ...] | None = None
     cuts: int = 0
+    brakes: int = 0
     reads: int = 0
     _was_still: bool = False
     _seen: tuple[float, float] | None = None  # speed toward the region (deg/s), read at (s)
     _hold_nm: float = 0.0  # the torque the armed wall held the hand with (N m)
+    _torque_seen: tuple[float, float] | None = None  # torque toward the region (N m), at (s)
+
+    @property
+    def watching(self) -> bool:
+        """Whether the loop should read the leader between the cycles: a wall is on and some
+        rule watches it."""
+        return self.armed is not None or (self.brake is not None and self.walking is not None)
 
     def disarm(self) -> None:
         """No watch until a cycle arms it again (the wall went off)."""
         self.armed, self._seen = None, None
+        self.walking, self._torque_seen = None, None
 
     def _snapping(self, velocity_deg_s: Sequence[float], now_s: float) -> bool:
         """Whether the armed leader, read at ``now_s``, snaps: past SNAP, risen since the last
@@ -130,7 +157,27 @@ class SnapWatch:
         if toward - seen[0] < freed * min(max(now_s - seen[1], 0.0), self.law.rise_s):
             return False
         self.cuts += 1
-        self.armed, self._seen = None, None
+        self.disarm()
+        return True
+
+    def _braking(
+        self, velocity_deg_s: Sequence[float], torque_nm: Sequence[float] | None, now_s: float
+    ) -> bool:
+        """Whether a wall that is on must go by the brake rules at this read (``torque_nm``:
+        the motors' read torque, joint frame, N m; None: not read); a cut disarms the watch."""
+        if self.brake is None or self.walking is None or torque_nm is None:
+            return False
+        toward = along(velocity_deg_s, self.walking)
+        torque = along(torque_nm, self.walking)
+        seen, self._torque_seen = self._torque_seen, (torque, now_s)
+        still = self.law.still_speed_deg_s
+        if not (
+            outruns(toward, self.walk_deg_s, torque, self.brake)
+            or brakes_soon(toward, still, torque, now_s, seen, self.brake)
+        ):
+            return False
+        self.brakes += 1
+        self.disarm()
         return True
 
     def allows(
@@ -140,16 +187,18 @@ class SnapWatch:
         velocity_deg_s: Sequence[float],
         engaged: bool,
         now_s: float,
+        torque_nm: Sequence[float] | None = None,
     ) -> bool:
         """Whether a wall the law would push with (goal ``goal``, rad) may push at this read
         (at ``now_s``, s): not if it is free and the leader still moves in (re-arm), nor if it
-        is armed and the leader snaps (cut)."""
+        is armed and the leader snaps (cut), nor if the brake rules free it."""
         unit = unit_step(present, goal)
         if unit is None:
             return True
         if not engaged:
             return along(velocity_deg_s, unit) <= self.law.still_speed_deg_s
-        return not self._snapping(velocity_deg_s, now_s)
+        snapped = self._snapping(velocity_deg_s, now_s)
+        return not (snapped or self._braking(velocity_deg_s, torque_nm, now_s))
 
     def arm(
         self,
@@ -161,27 +210,36 @@ class SnapWatch:
         now_s: float,
     ) -> None:
         """After a cycle's write: arm when the wall (goal ``goal``, None if free) holds a still
-        leader against a hand (read at ``now_s``, s), else disarm."""
+        leader against a hand (read at ``now_s``, s), else disarm; the brake rules watch any
+        wall that is on."""
         unit = None if goal is None else unit_step(present, goal)
         if unit is None:
-            self.armed, self._was_still, self._seen = None, False, None
+            self.disarm()
+            self._was_still = False
             return
+        self.walking, self._torque_seen = unit, (along(torque_nm, unit), now_s)
         toward = along(velocity_deg_s, unit)
         still = abs(toward) <= self.law.still_speed_deg_s
         holding = engaged and along(torque_nm, unit) >= self.law.hold_nm
         if not holding:
-            self.disarm()
+            self.armed, self._seen = None, None
         elif self.armed is not None or (still and self._was_still):
             # armed on a still hold; it stays while the wall holds, the leader creeping or not,
             # judged against the hold as read now
             self.armed, self._seen = unit, (toward, now_s)
             self._hold_nm = along(torque_nm, unit)
         self._was_still = still
-        self._was_still = still
 
-    def snaps(self, velocity_deg_s: Sequence[float], now_s: float) -> bool:
-        """Between cycles: whether an armed wall's leader, read at ``velocity_deg_s`` (joint
-        frame, deg/s) at ``now_s`` (s), snaps toward the region (then the caller writes Goal
-        Current 0)."""
+    def snaps(
+        self,
+        velocity_deg_s: Sequence[float],
+        now_s: float,
+        torque_nm: Sequence[float] | None = None,
+    ) -> bool:
+        """Between cycles: whether a wall that is on must go at this read of the leader's speed
+        (``velocity_deg_s``, joint frame, deg/s) and torque (``torque_nm``, N m; None: not
+        read) at ``now_s`` (s): an armed leader snaps, or the brake rules free it (then the
+        caller writes Goal Current 0)."""
         self.reads += 1
-        return self._snapping(velocity_deg_s, now_s)
+        snapped = self._snapping(velocity_deg_s, now_s)
+        return snapped or self._braking(velocity_deg_s, torque_nm, now_s)

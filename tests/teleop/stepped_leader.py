@@ -25,6 +25,7 @@ from limbctl.servo.leader import (
     feel_map,
 )
 from limbctl.servo.rig import Rig
+from limbctl.teleop.brake import BrakeLaw
 from limbctl.teleop.haptic import VELOCITY_UNIT_DEG_S, FeelLaw, Push, push_for
 from limbctl.teleop.snap import SnapLaw, SnapWatch
 
@@ -52,13 +53,26 @@ def read_velocity(servos: Sequence, joints: Sequence) -> tuple[float, ...]:
 
 class SteppedWatch:
     """The snap watch between the cycles on the stepped clock, as ``LeaderSource.watch_snap``
-    runs it in the loop's wait: after the cycle's write, the leader's Present Velocity is read
-    every 1 ms; a snap's Goal Current 0 lands 1 ms after the read that saw it (the loop writes
-    it at once; a millisecond is the stepped clock's grain)."""
+    runs it in the loop's wait: after the cycle's write, the leader's Present Velocity and
+    Present Current are read every 1 ms while a wall is on; a cut's Goal Current 0 lands 1 ms
+    after the read that saw it (the loop writes it at once; a millisecond is the stepped clock's
+    grain). ``brake``: the brake rules (None: the snap rule alone, round 7); ``law``: the
+    feel law whose Profile Velocity the wall walks at; ``motor``: the controller's motor."""
 
-    def __init__(self, servos: Sequence, joints: Sequence, now, on: bool = True) -> None:
+    def __init__(
+        self,
+        servos: Sequence,
+        joints: Sequence,
+        now,
+        on: bool = True,
+        motor: LeaderMotor | None = None,
+        law: FeelLaw = FeelLaw(),
+        brake: BrakeLaw | None = BrakeLaw(),
+    ) -> None:
         self.servos, self.joints, self.now, self.on = servos, joints, now, on
-        self.snap = SnapWatch(SnapLaw())
+        self.motor = motor or FELT_MODELS[ModelNumber.XM430_W350]
+        walk = law.profile_velocity_units() * VELOCITY_UNIT_DEG_S
+        self.snap = SnapWatch(SnapLaw(), brake=brake, walk_deg_s=walk)
         self.cut_due: int | None = None  # the ms at which Goal Current 0 lands
 
     def before_step(self, ms: int) -> bool:
@@ -80,11 +94,13 @@ class SteppedWatch:
 
     def after_write(self, ms: int) -> None:
         """After a cycle's write, between the cycles: read the speed, schedule a cut."""
-        if not self.on or self.snap.armed is None or self.cut_due is not None:
+        if not self.on or not self.snap.watching or self.cut_due is not None:
             return
         for servo in self.servos:
             servo.refresh(self.now())
-        if self.snap.snaps(read_velocity(self.servos, self.joints), self.now()):
+        velocity = read_velocity(self.servos, self.joints)
+        torque = read_torque(self.servos, self.joints, self.motor)
+        if self.snap.snaps(velocity, self.now(), torque):
             self.cut_due = ms + 1
 
 
@@ -109,6 +125,7 @@ def felt_at_200_hz(
     motor=None,
     snap_watch=True,
     release_s=0.0,
+    brake=BrakeLaw(),
 ):
     """The controller's part on the simulated leader's registers every 5 ms of a stepped clock
     (read Present Position and Present Current, push_for, the same ten bytes to Indirect Data
@@ -138,7 +155,7 @@ def felt_at_200_hz(
     hand["release_s"] = release_s
     sim.set_operator({**hand, "damping_nm_s_rad": 0.02, "max_torque_nm": max_torque_nm})
     rows, engaged, previous = [], False, None
-    watch = SteppedWatch(servos, rig.joints, lambda: sim.time_s, on=snap_watch)
+    watch = SteppedWatch(servos, rig.joints, lambda: sim.time_s, snap_watch, motor, law, brake)
     for k in range(round(seconds * 200.0)):
         if watch.before_step(5 * k):
             engaged = False  # the watch let the wall go: LeaderSource.release
@@ -151,7 +168,7 @@ def felt_at_200_hz(
         read_s = sim.time_s  # when the cycle read the leader
         push = push_for(law, motor, pose, q, CONE.correct(q), previous, 0.005, engaged, torque)
         if snap_watch and push.goal_current:
-            if not watch.snap.allows(pose, push.goal, velocity, engaged, sim.time_s):
+            if not watch.snap.allows(pose, push.goal, velocity, engaged, sim.time_s, torque):
                 push = Push(0, 0, pose[0], pose[1], 0.0, push.distance_deg)
         previous = pose
         instead = (cycles or {}).get(k)

@@ -179,7 +179,7 @@ def felt3_at_200_hz(
         {"script": script, "let_go_s": let_go_s, "stiffness_nm_deg": stiffness, **HAND}
     )
     rows, pushes, engaged, previous = [], [], False, None
-    watch = SteppedWatch(servos, RIG.joints, lambda: sim.time_s, on=rules and snap_watch)
+    watch = SteppedWatch(servos, RIG.joints, lambda: sim.time_s, rules and snap_watch, motor)
     for k in range(round(seconds * 200.0)):
         if watch.before_step(5 * k):
             engaged = False  # the watch let the wall go: LeaderSource.release
@@ -195,7 +195,7 @@ def felt3_at_200_hz(
             past = (previous, 0.005, engaged, torque)
             push = push3_for(LAW, motor, pose, q, corrected, RIG.roll_limits, *past)
             if watch.on and push.goal_current:
-                if not watch.snap.allows(pose, push.goal, velocity, engaged, sim.time_s):
+                if not watch.snap.allows(pose, push.goal, velocity, engaged, sim.time_s, torque):
                     push = held3(pose)
         else:
             push = push3_for(LAW, motor, pose, q, region.correct(q), RIG.roll_limits)

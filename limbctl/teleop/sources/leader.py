@@ -37,9 +37,8 @@ from limbctl.teleop.commands import Command, command_from_pan_tilt, command_from
 from limbctl.teleop.gate import Outcome
 from limbctl.teleop.haptic import FeelLaw, FeelStats, Push, push_for
 from limbctl.teleop.pacing import PaceWatch
-from limbctl.teleop.snap import SnapLaw, SnapWatch
 from limbctl.teleop.sources.base import CommandSource
-from limbctl.teleop.sources.leader_snap import SnapWatching, cycle_velocity
+from limbctl.teleop.sources.leader_snap import SnapWatching, cycle_velocity, snap_watch
 
 #: Bus Watchdog of a felt leader: 5 x 20 ms = 100 ms without a packet stops it (the servo holds
 #: where it is, at most at the cap). As long as the loop's own 20 failed cycles at 200 Hz, so the
@@ -117,8 +116,9 @@ class LeaderSource(SnapWatching, CommandSource):
         #: None while passive.
         self.cap_nm: float | None = None
         self._cycle: tuple | None = None  # pose, command, last read, read time, torque, speed
-        #: Lets a held wall go the moment its leader snaps (limbctl.teleop.snap).
-        self.snap = SnapWatch(SnapLaw())
+        #: Lets a wall go the moment its leader snaps, or before its loop brakes the leader
+        #: outward (limbctl.teleop.snap, limbctl.teleop.brake).
+        self.snap = snap_watch(self.law)
         #: A felt leader's motor torques as last read (joint frame, N m; Present Current);
         #: None before its first read or while passive.
         self.last_torque_nm: tuple[float, ...] | None = None
@@ -369,8 +369,10 @@ class LeaderSource(SnapWatching, CommandSource):
             previous, period = (None, 0.0) if last is None else (last[0], read_at - last[1])
             engaged = self.last_push is not None and self.last_push.goal_current > 0
             push = self._law(gate, pose, q, previous, period, engaged, torque)
-            if push.goal_current and not self.snap.allows(pose, push.goal, speed, engaged, read_at):
-                push = self._free(pose)  # it still moves in, or it snaps: no wall this cycle
+            if push.goal_current and not self.snap.allows(
+                pose, push.goal, speed, engaged, read_at, torque
+            ):
+                push = self._free(pose)  # still moving in, snapping or outrunning: no wall
         else:
             push = self._free(cycle[0])
         if push is None:
