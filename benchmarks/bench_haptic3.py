@@ -133,8 +133,9 @@ def stepped(
     whose gate held (Goal Current 0 written); ``rules``: the law is given the previous read,
     the period and whether the wall pushed (as the sources do), False: the wall alone (before
     round 3's let-go rules); ``law``: :data:`LAW`, or :data:`ROUND3` for round 3's law;
-    ``watch``: today's law with the snap watch (limbctl/teleop/snap.py), False: without it
-    (round 6; round 3 never has it). Returns
+    ``watch``: True, today's law with the snap watch and its brake rules (limbctl/teleop/snap.py,
+    limbctl/teleop/brake.py: round 8); "snap", the snap watch alone (round 7); False: without
+    it (round 6; round 3 never has it). Returns
     the 1 ms truth rows and each row's distance beyond the edge (deg of rotation; of direction
     for two servos)."""
     three = len(script[0]) == 4
@@ -297,7 +298,13 @@ def pull_case(region, script, stiffness) -> dict:
         region, stepped(region, script, 5.0, stiffness=stiffness, rules=False)[0]
     )
     after = outward_count(region, stepped(region, script, 5.0, stiffness=stiffness)[0])
-    return {"before": before[0], "after": after[0], "inside": after[1] + before[1]}
+    snap = outward_count(region, stepped(region, script, 5.0, stiffness=stiffness, watch="snap")[0])
+    return {
+        "before": before[0],
+        "snap": snap[0],
+        "after": after[0],
+        "inside": after[1] + before[1] + snap[1],
+    }
 
 
 def held_case(region) -> dict:
@@ -371,8 +378,9 @@ def render(presses, energies, pulls, held, transfers, load, end_load, fit_s) -> 
         "angle between directions). Walk back: the peak over the joints of the 20 ms mean speed "
         "after let go; 1 ms peak: the largest 1 ms sample of any joint's speed after let go; "
         "outward: 1 ms samples after let go outside the region whose joint torques point away "
-        "from the correction. Each press under today's law (round 7, with the snap watch), "
-        "round 6's (the law alone) and round 3's (goal 0.3 deg "
+        "from the correction. Each press under today's law (round 8, the snap watch with its "
+        "brake rules), round 7's (the snap watch alone), round 6's (the law alone) and round "
+        "3's (goal 0.3 deg "
         "ahead plus the leader's last step, 26.1 deg/s; its let-go rules are today's), in this "
         "run.",
         "",
@@ -381,7 +389,7 @@ def render(presses, energies, pulls, held, transfers, load, end_load, fit_s) -> 
         f"deepest after let go (deg beyond) | peak motor torque (N m, cap {CAP:.3f}) |",
         "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
     ]
-    peer = presses[("two servos, swing (pan 50)", "today (round 7)")]["held"]
+    peer = presses[("two servos, swing (pan 50)", "today (round 8)")]["held"]
     for (name, law), p in presses.items():
         lines.append(
             f"| {name} | {law} | {p['held']:.3f} | {p['held'] / peer:.3f} | {p['ripple']:.3f} | "
@@ -402,16 +410,18 @@ def render(presses, energies, pulls, held, transfers, load, end_load, fit_s) -> 
         "pulled back to the middle by 4.2 s, hands of 0.05 and 0.2 N m/deg (at most 0.3 N m). "
         "The setpoints move at most RETURN_SPEED, so their loops would pull a faster leader "
         "back, away from the region; the let-go rules (decisions/haptic.md, rounds 3 and 5) "
-        "leave it free once a read shows it outrunning them or its motors pulling outward. "
-        "Counted: 1 ms samples outside the region "
+        "leave it free once a read shows it outrunning them or its motors pulling outward, and "
+        "the snap watch's brake rules (round 8) free it before the loop brakes, reading the "
+        "leader every millisecond. Counted: 1 ms samples outside the region "
         "whose joint torques point away from the correction, the law without the rules "
-        "(before) and with them (after); inside: samples inside the region with any torque, "
-        "both runs summed.",
+        "(before), with them and the snap watch alone (round 7), and today's (round 8); "
+        "inside: samples inside the region with any torque, the three runs summed.",
         "",
-        "| pull | hand (N m/deg) | outward samples before | after | inside with torque |",
-        "| --- | ---: | ---: | ---: | ---: |",
+        "| pull | hand (N m/deg) | outward samples before | round 7 | today (round 8) | "
+        "inside with torque |",
+        "| --- | ---: | ---: | ---: | ---: | ---: |",
         *(
-            f"| {n} | {k:.2f} | {p['before']} | {p['after']} | {p['inside']} |"
+            f"| {n} | {k:.2f} | {p['before']} | {p['snap']} | {p['after']} | {p['inside']} |"
             for (n, k), p in pulls.items()
         ),
         "",
@@ -455,7 +465,8 @@ def main(argv: list[str] | None = None) -> int:
         for label, law, watch in (
             ("round 3", ROUND3, False),
             ("round 6 (the law alone)", LAW, False),
-            ("today (round 7)", LAW, True),
+            ("round 7 (the snap watch)", LAW, "snap"),
+            ("today (round 8)", LAW, True),
         )
     }
     energies = {

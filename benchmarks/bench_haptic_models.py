@@ -7,8 +7,8 @@ An XL330's position loop is much softer than an XM430's (stall torque at the sam
 the stall torque is 8-19 times smaller), so a lead of two ticks (round 5) gave its wall a
 fraction of its cap. Round 6's law sets the lead from the loop's stiffness and caps the
 XL330-M288 at 0.12 N m, so a let go snaps back under 30 deg/s even without the snap watch;
-today's (round 7) adds the snap watch (limbctl/teleop/snap.py). The three run here, on the
-same hands, in one run:
+round 7 adds the snap watch (limbctl/teleop/snap.py), today's (round 8) its brake rules
+(limbctl/teleop/brake.py). The four run here, on the same hands, in one run:
 
 - *let go*: the simulated operator presses 5 or 20 deg beyond the edge (pan 30 deg of a 30 deg
   cone) at several stiffnesses, bounded at 0.3 N m, and lets go at 5 s; every 1 ms sample after
@@ -31,7 +31,11 @@ from pathlib import Path
 import numpy as np
 from bench_haptic import EDGE_DEG, HAND, exact_rate_case, felt_motor, pan_of, run_case
 
+from limbctl.teleop.brake import BrakeLaw
 from limbctl.teleop.haptic import TICK_DEG, FeelLaw
+
+#: Today's brake rules (round 8).
+BRAKE = BrakeLaw()
 
 MODELS = {"XM430-W350": "xm430-w350", "XL330-M288": "xl330-m288@53", "XL330-M077": "xl330-m077@53"}
 #: (hand stiffness N m/deg, how far beyond the edge it means to go, deg).
@@ -51,11 +55,14 @@ def cap_of(motor) -> float:
     return motor.torque_of(motor.units_for(motor.cap_nm(FeelLaw().cap_nm)))
 
 
-def let_go(model: str, stiffness: float, beyond: float, law=None, motor=None, watch=True):
+def let_go(
+    model: str, stiffness: float, beyond: float, law=None, motor=None, watch=True, brake=BRAKE
+):
     """A press of ``stiffness`` to ``beyond`` deg past the edge let go at 5 s (stepped clock);
-    ``watch``: with the snap watch. The held pose and torque, the return, the outward samples."""
+    ``watch``: with the snap watch, ``brake``: its brake rules (None: without). The held pose
+    and torque, the return, the outward samples."""
     script = [[0.0, 0.0, 0.0], [2.0, EDGE_DEG + beyond, 0.0]]
-    case = {"model": model, "law": law, "motor": motor, "snap_watch": watch}
+    case = {"model": model, "law": law, "motor": motor, "snap_watch": watch, "brake": brake}
     rows = exact_rate_case(stiffness, script, 7.0, let_go_s=5.0, **case)["rows"]
     t = np.array([r["t"] for r in rows])
     pan, motor_nm = pan_of(rows), pan_of(rows, "motor_nm")
@@ -79,12 +86,13 @@ def let_go_rows() -> list[dict]:
     rows = []
     for name, model in MODELS.items():
         for stiffness, beyond in HANDS:
-            for law_name, law, motor, watch in (
-                ("round 5", ROUND5, round5_motor(model), False),
-                ("round 6", None, None, False),
-                ("round 7", None, None, True),
+            for law_name, law, motor, watch, brake in (
+                ("round 5", ROUND5, round5_motor(model), False, None),
+                ("round 6", None, None, False, None),
+                ("round 7", None, None, True, None),
+                ("round 8", None, None, True, BRAKE),
             ):
-                out = let_go(model, stiffness, beyond, law, motor, watch)
+                out = let_go(model, stiffness, beyond, law, motor, watch, brake)
                 rows.append({"model": name, "k": stiffness, "beyond": beyond, "law": law_name})
                 rows[-1].update(out)
                 print(rows[-1], flush=True)
@@ -192,7 +200,7 @@ def render(let_go_table, caps, pty, load_start, load_end) -> str:
         "from it, the rest 2 s later, how far inside the edge it went; and over the whole run "
         "the 1 ms samples inside the region with any motor torque. Round 5: two ticks of lead, "
         "half the stall torque; round 6: the lead from the loop, the XL330-M288 at 0.12 N m; "
-        "round 7 (today): round 6 with the snap watch.",
+        "round 7: round 6 with the snap watch; round 8 (today): with its brake rules.",
         "",
         "| model | hand (N m/deg) | pressed beyond (deg) | law | held beyond (deg) | "
         "held torque (N m) | 1 ms peak (deg/s) | 20 ms mean (deg/s) | outward samples | "
