@@ -13,7 +13,8 @@ these rules free the wall (Goal Current 0) before the braking starts::
              held against the wall, which a cut would let throw the leader out)
     braking  the leader moves toward the region (faster than STILL), and the motor's torque
              toward the region, carried on at its rate since the last read (within SPAN),
-             falls under zero within HORIZON
+             falls under zero within HORIZON, or within the gap since the last read plus
+             LAND if that is longer (the next read comes about as late)
 
 A freed wall comes back only on a still leader (the snap watch's re-arm rule), from where the
 leader then is. The rules only ever take torque away.
@@ -21,6 +22,7 @@ leader then is. The rules only ever take torque away.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 
@@ -42,6 +44,11 @@ class BrakeLaw:
     horizon_s : float
         2 ms: a cut decided at a read lands within a millisecond over the bus, and the stepped
         clock's grain is another; the torque must still point toward the region then.
+    land_s : float
+        1 ms: a cut's write lands within it of the read that decided it. Over the pty the
+        watch's reads come 2-3 ms apart (a sync read and the cycle's own work between them),
+        so the torque must stay toward the region until the read after next could act: the gap
+        since the last read plus this.
     span_s : float
         4 ms: the torque's rate is taken only from two reads this close (the watch reads about
         every millisecond, the cycle's own work leaves 2-3 ms between two of its reads); an
@@ -51,6 +58,7 @@ class BrakeLaw:
     outrun_deg_s: float = 1.0
     loose_nm: float = 0.06
     horizon_s: float = 0.002
+    land_s: float = 0.001
     span_s: float = 0.004
 
 
@@ -72,13 +80,15 @@ def brakes_soon(
     """Whether the loop is about to brake a leader moving toward the region at
     ``toward_deg_s`` (deg/s; over ``still_deg_s``): its torque toward the region ``torque_nm``
     (N m, read at ``now_s``, s), carried on at its rate since ``seen`` (the torque and time of
-    the last read, None if none), falls under zero within HORIZON."""
+    the last read, None if none), falls under zero within HORIZON (or the gap since that read
+    plus LAND)."""
     if toward_deg_s <= still_deg_s:
         return False
     if torque_nm < 0.0:
         return True
-    if seen is None or not 0.0 < now_s - seen[1] <= law.span_s:
+    gap = math.inf if seen is None else now_s - seen[1]
+    if not 0.0 < gap <= law.span_s:
         return False
-    # tau(now + HORIZON) = tau(now) + HORIZON (tau(now) - tau(seen)) / (now - seen)
-    rate = (torque_nm - seen[0]) / (now_s - seen[1])
-    return torque_nm + law.horizon_s * rate < 0.0
+    # tau(now + h) = tau(now) + h (tau(now) - tau(seen)) / gap,  h = max(HORIZON, gap + LAND)
+    rate = (torque_nm - seen[0]) / gap
+    return torque_nm + max(law.horizon_s, gap + law.land_s) * rate < 0.0

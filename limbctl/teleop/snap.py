@@ -17,7 +17,8 @@ as the leader moves toward the region::
              last read by what RELEASED of the held torque would give it alone in RISE
              (dv >= RELEASED tau_hold / J min(dt, RISE): the hand is gone, not relaxing):
              Goal Current 0, at once
-    re-arm   a free wall comes on only when the read speed toward the region is at most STILL
+    re-arm   a free wall comes on only when the read speed toward the region is at most REARM
+             (the leader read as not moving in at all)
 
 A wall pushing a deep leader back (the hand weaker than the cap) or walking a released one
 back is never armed: the leader moves, so the watch leaves those pushes alone. The same speed
@@ -52,6 +53,12 @@ class SnapLaw:
     still_speed_deg_s : float
         1.5 deg/s: one velocity unit (1.37 deg/s) read as still; a wall that came on with the
         leader still moving in would brake it (outward), so it comes on only under this.
+    rearm_speed_deg_s : float
+        0.5 deg/s, under one velocity unit: a free wall comes on only on a leader read as not
+        moving in at all. The wall starts with its setpoint at the leader, so the servo's loop
+        brakes any leader still moving in (outward); over the pty a wall that came on at one
+        unit (1.37 deg/s) met a leader a hand had started pulling back inside, and braked it
+        for 2-4 ms, up to 0.03 N m (decisions/haptic.md, round 8).
     hold_nm : float
         0.06 N m: the watch arms only while the motor pushes a hand at least this hard (the
         0.02 N m/deg hand pressing 5 deg beyond is held with 0.09 N m); the loop walking a
@@ -78,6 +85,7 @@ class SnapLaw:
 
     snap_speed_deg_s: float = 4.0
     still_speed_deg_s: float = 1.5
+    rearm_speed_deg_s: float = 0.5
     hold_nm: float = 0.06
     released: float = 0.5
     rise_s: float = 0.001
@@ -196,7 +204,7 @@ class SnapWatch:
         if unit is None:
             return True
         if not engaged:
-            return along(velocity_deg_s, unit) <= self.law.still_speed_deg_s
+            return along(velocity_deg_s, unit) <= self.law.rearm_speed_deg_s
         snapped = self._snapping(velocity_deg_s, now_s)
         return not (snapped or self._braking(velocity_deg_s, torque_nm, now_s))
 

@@ -87,9 +87,10 @@ def test_a_cycles_read_applies_the_same_rules():
     assert watch.allows(POSE, GOAL, (-2.0, 0.0), True, 0.001)
     assert not watch.allows(POSE, GOAL, (-17.0, 0.0), True, 0.002)  # the snap at a read
     assert watch.cuts == 1
-    # a free wall comes back only on a still leader
+    # a free wall comes back only on a leader read as not moving in at all
     assert not watch.allows(POSE, GOAL, (-3.0, 0.0), False, 0.003)
-    assert watch.allows(POSE, GOAL, (-1.0, 0.0), False, 0.004)
+    assert not watch.allows(POSE, GOAL, (-1.37, 0.0), False, 0.0035)  # one velocity unit
+    assert watch.allows(POSE, GOAL, (0.0, 0.0), False, 0.004)
     assert watch.allows(POSE, GOAL, (10.0, 0.0), False, 0.005)  # moving out: it comes on
 
 

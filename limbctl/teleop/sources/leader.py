@@ -373,6 +373,8 @@ class LeaderSource(SnapWatching, CommandSource):
                 pose, push.goal, speed, engaged, read_at, torque
             ):
                 push = self._free(pose)  # still moving in, snapping or outrunning: no wall
+            if push.goal_current and not engaged and not self.still_to_engage(pose, push.goal):
+                push = self._free(pose)  # a hand took it in since the read: not yet
         else:
             push = self._free(cycle[0])
         if push is None:

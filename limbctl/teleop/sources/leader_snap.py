@@ -66,6 +66,16 @@ class SnapWatching:
         on (:meth:`watch_snap`), else None (the loop just waits, as for any source)."""
         return self.watch_snap if self.felt and self.snap.watching else None
 
+    def still_to_engage(self, pose: Sequence[float], goal: Sequence[float]) -> bool:
+        """Whether a wall about to come on (from ``pose`` toward ``goal``, rad) finds its leader
+        still, read again just before the write: the wall starts with its setpoint at the
+        leader, and the servo's loop would brake one a hand has started to take in since the
+        cycle's read (2-3 ms earlier over the bus), outward. A failed read: not now."""
+        motion = read_motion(self.rig.bus, self.leader_ids, self.rig.joints, self.motor)
+        if motion is None:
+            return False
+        return self.snap.allows(pose, goal, motion[0], False, time.perf_counter())
+
     def watch_snap(self) -> None:
         """Between cycles: read the leader's speed and torque; a held leader that snaps toward
         the region, or one its loop is about to brake outward, is let go at once
