@@ -89,21 +89,24 @@ def joint_torques(servos, rig, motor=FELT_MODELS[ModelNumber.XM430_W350]) -> tup
 felt_motor = motor_of
 
 
-def run_case(workdir: Path, name: str, operator: dict, seconds: float, model="xm430-w350"):
+def run_case(
+    workdir: Path, name: str, operator: dict, seconds: float, model="xm430-w350", watch=None
+):
     """:func:`run_once`, run again once if the set-up met a garbled reply (a busy machine)."""
     try:
-        return run_once(workdir, name, operator, seconds, model)
+        return run_once(workdir, name, operator, seconds, model, watch)
     except (BusError, LoopFault) as exc:
         print(f"{name}: {exc}; running it again")
-        return run_once(workdir, name, operator, seconds, model)
+        return run_once(workdir, name, operator, seconds, model, watch)
 
 
 class LoopFault(RuntimeError):
     """A case's loop ended in a fault (on a starved machine: the simulator missed replies)."""
 
 
-def run_once(workdir: Path, name: str, operator: dict, seconds: float, model: str):
-    """Run the loop with a leader held by ``operator``; the cycles' pushes and the truth log."""
+def run_once(workdir: Path, name: str, operator: dict, seconds: float, model: str, watch=None):
+    """Run the loop with a leader held by ``operator``; the cycles' pushes and the truth log.
+    ``watch``: a factory of the source's snap watch instead of its own (a peer's rules)."""
     log = workdir / f"{name}.jsonl"
     log.write_text("")
     cone = workdir / "cone.npz"
@@ -121,6 +124,8 @@ def run_once(workdir: Path, name: str, operator: dict, seconds: float, model: st
         # the start's rate check and the pace watch against 50 Hz: a shared machine's load
         # must not stop the run (the loop runs at 200 Hz; what it achieved is reported)
         source = LeaderSource(rig, LEADER_IDS, rate_hz=50.0)
+        if watch is not None:
+            source.snap = watch()
         stop = threading.Event()
         out: dict = {}
 
@@ -730,10 +735,11 @@ def render(push, ripples, passes, rates, load, exact, transfers, end_load) -> st
         "## Loop cycle with the leader's extra write",
         "",
         "The same wandering hand, 10 s each: a passive XL430 leader (one sync read per cycle, "
-        "today's path) and a felt XM430 leader (one cycle read and one sync write); and the "
-        "felt leader pressed 20 deg beyond and held there from 2 s on, the snap watch reading "
-        "its speed (one sync read of Present Velocity) about every millisecond of the loop's "
-        "wait between the cycles.",
+        "today's path) and a felt XM430 leader (one cycle read and one sync write; the snap "
+        "watch reads it while a wall is on); and the felt leader pressed 20 deg beyond and "
+        "held there from 2 s on, the snap watch reading its speed and torque (one sync read of "
+        "Present Current and Present Velocity) about every millisecond of the loop's wait "
+        "between the cycles.",
         "",
         "| leader | cycles | rate (Hz) | cycle p50 (ms) | cycle p99 (ms) | overruns | "
         "snap watch reads |",

@@ -1,6 +1,6 @@
 """What a let go asks of the felt leader's loop: how soon the wall must go, and what the hold costs.
 
-Run: ``python benchmarks/bench_let_go.py`` (writes docs/bench_let_go.md; about two minutes).
+Run: ``python benchmarks/bench_let_go.py`` (writes docs/bench_let_go.md; about six minutes).
 
 Everything runs on the stepped 200 Hz clock of bench_haptic's exact-rate cases (the simulator
 in this process, the controller's part done on the leader servos' registers every 5 ms, its
