@@ -16,8 +16,8 @@ these rules free the wall (Goal Current 0) before the braking starts::
              falls under zero within HORIZON, or within the gap since the last read plus
              LAND if that is longer (the next read comes about as late)
 
-A freed wall comes back only on a still leader (the snap watch's re-arm rule), from where the
-leader then is. The rules only ever take torque away.
+A freed wall comes back only on a leader read as not moving in (the snap watch's re-arm
+rule), from where the leader then is. The rules only ever take torque away.
 """
 
 from __future__ import annotations
@@ -33,10 +33,12 @@ class BrakeLaw:
     Attributes
     ----------
     outrun_deg_s : float
-        1.5 deg/s: over one Present Velocity unit (1.37 deg/s) beyond the setpoint's walk, so a
-        leader the wall walks back itself (its speed ripples up to 14.0 deg/s on the 13.7 deg/s
-        setpoint) keeps its wall, while a hand pulling it in (the setpoint's pace plus 2-3
-        deg/s a few milliseconds before the loop brakes) loses it.
+        1.0 deg/s, under one Present Velocity unit (1.37 deg/s): the first reading above the
+        setpoint's own units (10 units, 13.7 deg/s; the next reads 15.1) is an outrun. A leader
+        the wall walks back itself (its speed ripples up to 14.0 deg/s) keeps its wall; a hand
+        pulling it in, or a fading grip's last push, takes it past the setpoint's pace a few
+        milliseconds before the loop brakes. At 1.5 deg/s a 100 ms fade read at 15.1 deg/s
+        kept its wall and was braked (decisions/haptic.md, round 8).
     loose_nm : float
         0.06 N m, the snap watch's HOLD: under it no hand is held against the wall, so freeing
         the wall cannot let a hand throw the leader outward (a fading grip cut while the hand

@@ -51,8 +51,8 @@ class SnapLaw:
         under what a let go reaches within a millisecond (about 17 deg/s from a 0.3 N m hold
         on the simulated 1e-3 kg m^2 leader: it accelerates at tau / J).
     still_speed_deg_s : float
-        1.5 deg/s: one velocity unit (1.37 deg/s) read as still; a wall that came on with the
-        leader still moving in would brake it (outward), so it comes on only under this.
+        1.5 deg/s: one velocity unit (1.37 deg/s) read as still: the watch arms on a held
+        leader read so, and the brake rules watch only a leader moving in faster.
     rearm_speed_deg_s : float
         0.5 deg/s, under one velocity unit: a free wall comes on only on a leader read as not
         moving in at all. The wall starts with its setpoint at the leader, so the servo's loop

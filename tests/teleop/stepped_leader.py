@@ -57,7 +57,10 @@ class SteppedWatch:
     Present Current are read every 1 ms while a wall is on; a cut's Goal Current 0 lands 1 ms
     after the read that saw it (the loop writes it at once; a millisecond is the stepped clock's
     grain). ``brake``: the brake rules (None: the snap rule alone, round 7); ``law``: the
-    feel law whose Profile Velocity the wall walks at; ``motor``: the controller's motor."""
+    feel law whose Profile Velocity the wall walks at; ``motor``: the controller's motor.
+    A wall comes on here on the cycle's read, 1 ms before its write; the source also reads the
+    leader again just before that write (``LeaderSource.still_to_engage``), which only ever
+    keeps a wall off."""
 
     def __init__(
         self,
