@@ -115,6 +115,25 @@ class Running:
         self.until(pressing)
         return self.paced_out()
 
+    def held_then(self, press: dict, then: dict) -> float | None:
+        """Press with ``press`` until the snap watch holds the leader still (armed), then hand
+        the leader to the operator ``then`` (its script's clock starting there) and run 100
+        cycles more. Returns the simulator's leader time at the switch; None when the feel went
+        off for a lost pace instead (its outcome asserted)."""
+        if self.pressed_or_paced_out(press):
+            return None
+        held_at = time.monotonic()
+        armed = self.source.snap
+        self.until(lambda p: armed.armed is not None or time.monotonic() > held_at + 20)
+        if self.paced_out():
+            return None
+        assert armed.armed is not None, "the wall never held the leader still"
+        switched_at = self.simulator.truth()["leader"]["t"]
+        self.simulator.set_operator(then)
+        seen = len(self.pushes)
+        self.until(lambda p: len(p) > seen + 100 or self.ended)
+        return None if self.paced_out() else switched_at
+
     def kept(self, cycle) -> None:
         """What a subclass keeps of each cycle besides its push (under the lock)."""
 
