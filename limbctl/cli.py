@@ -21,6 +21,7 @@ from limbctl.envelope import MODEL_KINDS
 from limbctl.errors import ConfigError, LimbctlError
 from limbctl.live import DEFAULT_PORT as DEFAULT_VIEW_PORT
 from limbctl.live import ViewOptions
+from limbctl.operators import OPERATORS
 from limbctl.teleop.approach import DEFAULT_WAIT_S, MAX_APPROACH_SPEED_DEG_S
 from limbctl.teleop.loop import SafeState
 
@@ -305,23 +306,16 @@ def _add_train(sub: Subparsers) -> None:
     p.add_argument("--plot", type=Path, help="also draw the model and data to this PNG")
 
 
+#: teleop's options taken from the command line as they are.
+TELEOP_AS_GIVEN = ("model", "source", "rate", "max_speed", "duration", "telemetry", "goal_log")
+TELEOP_AS_GIVEN += ("quiet", "wait", "approach", "operator")
+
+
 def _teleop(a: argparse.Namespace) -> int:
+    given = {name: getattr(a, name) for name in TELEOP_AS_GIVEN}
+    on_fault, connection, view = SafeState(a.on_fault), _connection(a), _view(a)
     return jobs.run_teleop(
-        jobs.TeleopOptions(
-            model=a.model,
-            source=a.source,
-            rate=a.rate,
-            max_speed=a.max_speed,
-            on_fault=SafeState(a.on_fault),
-            duration=a.duration,
-            telemetry=a.telemetry,
-            goal_log=a.goal_log,
-            quiet=a.quiet,
-            wait=a.wait,
-            approach=a.approach,
-            connection=_connection(a),
-            view=_view(a),
-        )
+        jobs.TeleopOptions(**given, on_fault=on_fault, connection=connection, view=view)
     )
 
 
@@ -342,12 +336,18 @@ def _add_teleop(sub: Subparsers) -> None:
         "{'q': [w, x, y, z]}), udp://127.0.0.1:PORT (the same lines), keyboard (arrows; ? "
         "shows the keys), page (the live view's page: drag on the plane or use the arrows; "
         "open the address printed with the key), "
-        "leader:ID,ID (a second gimbal on the same bus, torque off), replay:FILE. "
-        + EPILOG_HARDWARE,
+        "leader:ID,ID (a second gimbal on the same bus; --operator moves one on the simulator), "
+        "replay:FILE. " + EPILOG_HARDWARE,
     )
     _add_connection(p)
     p.add_argument("--model", type=Path, required=True, help="model file from `limbctl train`")
     p.add_argument("--source", default="stdin", help="command source (default: stdin)")
+    p.add_argument(
+        "--operator",
+        metavar="NAME|FILE",
+        help="simulator only, with --source leader: a simulated hand moves a felt leader at those "
+        f"ids: {' or '.join(OPERATORS)} (past the edge, held, let go) or an operator YAML",
+    )
     p.add_argument("--rate", type=_positive, default=200.0, help="loop rate in Hz")
     p.add_argument(
         "--max-speed", type=_positive, default=120.0, help="slew limit of the limb, deg/s"

@@ -201,27 +201,12 @@ def _run_demo(out: Path, teach_seconds: float, seed: int, live: LiveView) -> int
     return status
 
 
-#: The demo's leader run: the operator's hand (0.3 N m at most) takes the leader from the middle
-#: to pan 100 deg at tilt 10, about 20 deg past the learned edge, holds it there, then lets go.
-LEADER_SCRIPT = [[0.0, 0.0, 10.0], [1.0, 0.0, 10.0], [3.5, 100.0, 10.0]]
-LEADER_LET_GO_S = 6.0
-LEADER_SECONDS = 8.0
-LEADER_IDS = (3, 4)
-#: The three-servo rig's leader run ([t_s, pan, tilt, roll] deg): past the swing edge as above
-#: (pan 100 at tilt 10, the outline's edge near pan 79), back to the middle, then past the twist
-#: edge (roll 60 at pan 0, tilt 10, where the band ends near 37 deg), held, let go. Its leader
-#: is ids 4-6 (the follower's roll is id 3).
-LEADER_SCRIPT3 = [
-    [0.0, 0.0, 10.0, 0.0],
-    [1.0, 0.0, 10.0, 0.0],
-    [3.0, 100.0, 10.0, 0.0],
-    [4.5, 100.0, 10.0, 0.0],
-    [6.0, 0.0, 10.0, 0.0],
-    [7.5, 0.0, 10.0, 60.0],
-]
-LEADER_LET_GO_S3 = 9.0
-LEADER_SECONDS3 = 10.5
-LEADER_IDS3 = (4, 5, 6)
+#: The demo's leader runs are the packaged operators (limbctl/operators.py): "push" takes a
+#: two-servo leader (ids 3, 4) 20 deg past the learned edge, holds it and lets go at 6 s;
+#: "push3" takes a three-servo leader (ids 4-6; the follower's roll is id 3) past the swing edge,
+#: back, past the twist band, and lets go at 9 s. Each run lasts 2 s (1.5 s for three) past the
+#: let go, time enough to see the leader walk back to the edge.
+LEADER_RUNS = {"sim": ("push", (3, 4), 8.0), "sim3": ("push3", (4, 5, 6), 10.5)}
 
 
 def _leader_run(
@@ -235,6 +220,7 @@ def _leader_run(
     from limbctl.geometry.gimbal3 import pose_quat_scalar
     from limbctl.geometry.twist import decompose_one
     from limbctl.jobs import gate_for
+    from limbctl.operators import load_operator
     from limbctl.plot import plot_leader
     from limbctl.servo.control_table import MAX_TICK
     from limbctl.servo.profiles import load_rig_profile
@@ -244,15 +230,12 @@ def _leader_run(
     from limbctl.teleop.sources import LeaderSource, LeaderSource3
 
     three = rig == "sim3"
-    ids, script = (LEADER_IDS3, LEADER_SCRIPT3) if three else (LEADER_IDS, LEADER_SCRIPT)
-    let_go_s, seconds = (
-        (LEADER_LET_GO_S3, LEADER_SECONDS3) if three else (LEADER_LET_GO_S, LEADER_SECONDS)
-    )
+    name, ids, seconds = LEADER_RUNS["sim3" if three else "sim"]
+    operator = load_operator(name, len(ids))
     rig_path = Path(rig) if three else None
     profile = load_rig_profile(rig_path)
     gate = gate_for(model_path, profile, DEMO_RATE_HZ, DEMO_MAX_SPEED_DEG_S)
-    start = [0.0, 10.0, 0.0] if three else [0.0, 10.0]
-    leader = {"ids": list(ids), "model": "xm430-w350", "start_deg": start}
+    leader = operator.leader_spec(ids)
     rows: list[tuple[float, ...]] = []
 
     def twist_deg(pose: tuple[float, ...]) -> float:  # about the rest axis, as the band is
@@ -295,8 +278,7 @@ def _leader_run(
                         rows.append((cycle.t, *cycle.command_deg, *gated, torque))
 
             config = LoopConfig(rate_hz=DEMO_RATE_HZ, duration_s=seconds, on_cycle=record)
-            operator = {"script": script, "let_go_s": let_go_s}
-            session.simulator.set_operator(operator)
+            session.simulator.set_operator(operator.grip)
             summary = run(sim_rig, gate, source, config)
         finally:
             source.close()

@@ -14,7 +14,7 @@ import sys
 from contextlib import AbstractContextManager
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from calib.profile import RigProfile
 from limbctl.errors import ConfigError
@@ -24,6 +24,12 @@ from limbctl.session import Session, open_rig, stop_on_signals
 from limbctl.teleop.approach import DEFAULT_WAIT_S
 from limbctl.teleop.gate import Gate
 from limbctl.teleop.loop import SafeState
+
+if TYPE_CHECKING:
+    from collections.abc import Iterator
+
+    from limbctl.operators import SimOperator
+    from limbctl.teleop.sources import CommandSource, SourceSpec
 
 
 def say(text: str) -> None:
@@ -208,6 +214,7 @@ class TeleopOptions:
     quiet: bool = False
     wait: float = DEFAULT_WAIT_S
     approach: float | None = None
+    operator: str | None = None
     connection: Connection = field(default_factory=Connection)
     view: ViewOptions = field(default_factory=ViewOptions)
 
@@ -235,9 +242,13 @@ def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
     gate = gate_for(options.model, profile, options.rate, options.max_speed)
     prepare("gate")
     starting = StartOptions(options.wait, options.approach, options.rate)  # checked before opening
+    operator = _sim_operator(options.operator, spec, conn)
+    sim_options = None if operator is None else {"leader": operator.leader_spec(spec.extra_ids)}
     with (
         _viewing(view_options, view) as live,
-        open_connection(conn, goal_log=options.goal_log, extra_ids=spec.extra_ids) as session,
+        open_connection(
+            conn, goal_log=options.goal_log, extra_ids=spec.extra_ids, sim_options=sim_options
+        ) as session,
     ):
         config = LoopConfig(
             rate_hz=options.rate,
@@ -258,18 +269,15 @@ def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
             "stream": sys.stderr,
             "status": None if options.quiet else sys.stderr,
         }
-        if profile.roll is not None:  # three servos: wait for the limb, then open the source
-            from limbctl.teleop.start3 import run_session_three
 
-            with stop_on_signals() as stop:
-                opener = lambda: spec.open(context)  # noqa: E731
-                result = run_session_three(
-                    rig, gate, opener, config, starting, **reporting, stop=stop,
-                    publish=live.start_observer(),
-                )  # fmt: skip
-            source = None
-        else:
-            with spec.open(context) as source, stop_on_signals() as stop:
+        opened: list[CommandSource] = []
+
+        @contextlib.contextmanager
+        def introduced(built: CommandSource) -> Iterator[CommandSource]:
+            """Start the source; say what it will do, hook it to the page, and hand a simulated
+            leader to its operator (whose script starts then)."""
+            with built as source:
+                opened.append(source)
                 if spec.kind.scheme == "page":  # printed once: whoever has it can steer
                     say(
                         f"steer from this address (it holds this session's key): {live.control_url}"
@@ -281,6 +289,22 @@ def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
                     config.on_cycle.push_nm = lambda: getattr(source.last_push, "torque_nm", 0.0)
                 if source.name == "leader" and config.on_cycle is not None:
                     config.on_cycle.leader = leader_status(source)  # its pose and push, drawn
+                if operator is not None:
+                    say(operator.describe())
+                    session.simulator.set_operator(operator.grip)
+                yield source
+
+        if profile.roll is not None:  # three servos: wait for the limb, then open the source
+            from limbctl.teleop.start3 import run_session_three
+
+            with stop_on_signals() as stop:
+                opener = lambda: introduced(spec.open(context))  # noqa: E731
+                result = run_session_three(
+                    rig, gate, opener, config, starting, **reporting, stop=stop,
+                    publish=live.start_observer(),
+                )  # fmt: skip
+        else:
+            with introduced(spec.open(context)) as source, stop_on_signals() as stop:
                 result = run_session(
                     rig,
                     gate,
@@ -295,10 +319,33 @@ def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
     from limbctl.geometry.jit import mark_prepared
 
     mark_prepared("gate")
-    extra = () if source is None else source.report_lines()[1:]
+    extra = opened[0].report_lines()[1:] if opened else ()
     for line in (*result.lines(), *extra):
         say(line)
     return result.exit_code
+
+
+def _sim_operator(name: str | None, spec: SourceSpec, conn: Connection) -> SimOperator | None:
+    """The simulated operator ``--operator`` names (:func:`limbctl.operators.load_operator`),
+    checked against the source ``spec`` and the connection; None without one.
+
+    Raises
+    ------
+    ConfigError
+        With a port (a real leader is moved by a real hand), or a source that is not a leader.
+    """
+    if name is None:
+        return None
+    if conn.port is not None:
+        raise ConfigError(
+            "--operator moves the embedded simulator's leader; with --port, move the leader by "
+            "hand (drop --operator)"
+        )
+    if spec.kind.scheme != "leader":
+        raise ConfigError("--operator holds a leader: use it with --source leader:ID,ID")
+    from limbctl.operators import load_operator
+
+    return load_operator(name, len(spec.extra_ids))
 
 
 # ---- calibrate ------------------------------------------------------------------------------

@@ -129,11 +129,16 @@ def test_the_three_servo_demo_keeps_every_goal_in_the_learned_region(tmp_path, c
 
 def test_the_three_servo_leader_run_goes_past_the_true_edge_in_swing_then_in_twist():
     from firmware_sim.twist_hand import hand_from_yaml
-    from limbctl.demo import LEADER_LET_GO_S3, LEADER_SCRIPT3, LEADER_SECONDS3
+    from limbctl.demo import LEADER_RUNS
+    from limbctl.operators import load_operator
+
+    name, ids, seconds = LEADER_RUNS["sim3"]
+    operator = load_operator(name, len(ids))
+    script, let_go_s = operator.grip["script"], operator.grip["let_go_s"]
 
     hand = hand_from_yaml(demo_region_path().with_name("demo_region3.yaml"))
     region, band = hand.region, hand.band
-    points = {tuple(p[1:]) for p in LEADER_SCRIPT3}
+    points = {tuple(p[1:]) for p in script}
     middle, swing, twist = (0.0, 10.0, 0.0), (100.0, 10.0, 0.0), (0.0, 10.0, 60.0)
     assert points == {middle, swing, twist}
     assert region.contains(*middle[:2]) and abs(middle[2]) < band.limits_deg(*middle[:2])[1]
@@ -143,7 +148,7 @@ def test_the_three_servo_leader_run_goes_past_the_true_edge_in_swing_then_in_twi
     assert region.edge_distance_deg(np.array([swing[0]]), np.array([swing[1]]))[0] < -15.0
     assert region.contains(*twist[:2]) and twist[2] > band.limits_deg(*twist[:2])[1] + 15.0
     # held at the twist edge before the let go, which leaves time to walk back
-    assert LEADER_SCRIPT3[-1][0] < LEADER_LET_GO_S3 < LEADER_SECONDS3 - 1.0
+    assert script[-1][0] < let_go_s < seconds - 1.0
 
 
 def test_the_leader_picture_draws_the_twist_of_a_three_servo_leader(tmp_path):

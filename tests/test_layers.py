@@ -50,6 +50,7 @@ APP = {
     "live",
     "session",
     "plot",
+    "operators",
     "__init__",
     "__main__",
 }

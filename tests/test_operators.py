@@ -1,0 +1,181 @@
+"""Simulated operators (limbctl/operators.py) and ``limbctl teleop --operator``: the packaged
+ones, files, refusals before anything opens, and a felt leader on the embedded simulator."""
+
+from __future__ import annotations
+
+import json
+import re
+
+import pytest
+
+from calib.profile import default_sim_profile
+from limbctl.cli import main
+from limbctl.envelope import Cone
+from limbctl.errors import ConfigError
+from limbctl.jobs import Connection, TeleopOptions, run_teleop
+from limbctl.live import ViewOptions
+from limbctl.operators import OPERATORS, load_operator
+
+EDGE = 30.0
+
+
+def test_the_packaged_operators_load_for_their_leaders():
+    push, push3 = load_operator("push", 2), load_operator("push3", 3)
+    assert (push.joints, push3.joints) == (2, 3)
+    assert push.model == push3.model == "xm430-w350"
+    assert push.grip["let_go_s"] == 6.0 and push3.grip["let_go_s"] == 9.0
+    assert push.leader_spec((3, 4)) == {"ids": [3, 4], "model": "xm430-w350", "start_deg": [0, 10]}
+    assert "(100, 10) deg by 3.5 s and lets go at 6.0 s" in push.describe()
+    assert set(OPERATORS) == {"push", "push3"}
+
+
+def test_an_operator_file_is_read_with_its_grip(tmp_path):
+    path = tmp_path / "hand.yaml"
+    path.write_text(
+        "model: xl330-m288\nstart_deg: [5, 0]\nscript: [[0, 5, 0], [2, 60, 0]]\n"
+        "max_torque_nm: 0.1\n"
+    )
+    operator = load_operator(str(path), 2)
+    assert operator.model == "xl330-m288" and operator.start_deg == (5.0, 0.0)
+    assert operator.grip == {"script": [[0, 5, 0], [2, 60, 0]], "max_torque_nm": 0.1}
+    assert "never lets go" in operator.describe()
+
+
+@pytest.mark.parametrize(
+    ("text", "says"),
+    [
+        ("script: [[0, 1, 2]]\nhand: 3\n", "unknown keys ['hand']; known: model"),
+        ("model: xl999\nscript: [[0, 1, 2]]\n", "unknown model 'xl999'; known: ['2xl430-w250'"),
+        ("script: [[0, 1]]\n", "script must be a list of [t_s, pan, tilt] rows"),
+        ("script: [[0, 1, .nan]]\n", "script must be a list of [t_s, pan, tilt] rows"),
+        ("script: [[1, 1, 2], [0, 1, 2]]\n", "times must not decrease"),
+        ("script: [[0, 1, 2]]\nmax_torque_nm: -1\n", "max_torque_nm must be finite and >= 0"),
+        ("start_deg: [0, 0, 0]\nscript: [[0, 1, 2, 3]]\n", "holds a 3-servo leader"),
+        ("start_deg: [0, true]\nscript: [[0, 1, 2]]\n", "start_deg must be [pan, tilt]"),
+        ("- 1\n", "expected a mapping of model, start_deg, script"),
+        ("script: [[0, 1, 2]\n", "not valid YAML"),
+    ],
+)
+def test_a_bad_operator_file_is_refused_naming_the_file_and_the_fault(tmp_path, text, says):
+    path = tmp_path / "hand.yaml"
+    path.write_text(text)
+    with pytest.raises(ConfigError) as caught:
+        load_operator(str(path), 2)
+    assert str(caught.value).startswith(f"operator file {path}: ") or "holds a" in str(caught.value)
+    assert says in str(caught.value)
+
+
+def test_unknown_names_and_missing_files_are_refused_with_the_known_names(tmp_path):
+    with pytest.raises(ConfigError, match=r"unknown operator 'shove'; known: push, push3"):
+        load_operator("shove", 2)
+    with pytest.raises(ConfigError, match="no such file"):
+        load_operator(str(tmp_path / "gone.yaml"), 2)
+    with pytest.raises(ConfigError, match="holds a 3-servo leader; the source's leader has 2"):
+        load_operator("push3", 2)
+
+
+@pytest.fixture(scope="module")
+def cone_model(tmp_path_factory):
+    """A 30 deg cone about the rest direction, for the simulated rig."""
+    path = tmp_path_factory.mktemp("cone") / "cone.npz"
+    sim = default_sim_profile()
+    metadata = {"rig": sim.name, "calibration": sim.calibration.to_dict()}
+    Cone(half_angle_deg=EDGE).save(path, metadata=metadata)
+    return path
+
+
+def test_operator_is_refused_before_anything_opens_without_a_leader_or_with_a_port(cone_model):
+    stdin = TeleopOptions(model=cone_model, source="stdin", operator="push")
+    with pytest.raises(ConfigError, match="use it with --source leader:ID,ID"):
+        run_teleop(stdin)
+    # the port is never opened: the refusal comes first
+    real = TeleopOptions(
+        model=cone_model,
+        source="leader:3,4",
+        operator="push",
+        connection=Connection(port="/dev/nonexistent-limbctl-port"),
+    )
+    with pytest.raises(ConfigError, match="with --port, move the leader by hand"):
+        run_teleop(real)
+
+
+def test_the_cli_refuses_an_unknown_operator_in_one_line(cone_model, capsys):
+    argv = ["teleop", "--model", str(cone_model), "--source", "leader:3,4", "--operator", "shove"]
+    assert main([*argv, "--no-view", "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "limbctl teleop: error: unknown operator 'shove'; known: push, push3" in err
+
+
+def test_a_simulated_operator_presses_a_felt_leader_past_the_edge_on_teleop(
+    cone_model, tmp_path, capsys
+):
+    """The real loop over the simulator's pty, the leader pressed 25 deg past a 30 deg cone for
+    2.5 s, then let go: the run reports the press, and the telemetry has the follower held at
+    the edge."""
+    hand = tmp_path / "hand.yaml"
+    hand.write_text(
+        "start_deg: [0, 0]\nscript: [[0, 0, 0], [0.5, 0, 0], [1.5, 55, 0]]\nlet_go_s: 4.0\n"
+    )
+    telemetry = tmp_path / "run.jsonl"
+    options = TeleopOptions(
+        model=cone_model,
+        source="leader:3,4",
+        operator=str(hand),
+        duration=5.0,
+        telemetry=telemetry,
+        quiet=True,
+        view=ViewOptions(enabled=False),
+    )
+    assert run_teleop(options) == 0
+    said = capsys.readouterr().err
+    assert "feels the edge" in said, said[-800:]
+    assert f"a simulated operator ({hand}) moves the xm430-w350 leader" in said
+    pressed = re.search(r"pressed beyond the edge for ([\d.]+) s, .* ([\d.]+) N m at most", said)
+    # a loop that cannot keep the rate on a loaded machine switches the feel off and says so
+    paced_out = re.search(r"the loop runs at \d+ Hz, under the 200 Hz .* without feel", said)
+    assert (pressed and float(pressed[1]) > 1.0 and float(pressed[2]) > 0.1) or paced_out, said
+    rows = [json.loads(line) for line in telemetry.read_text().splitlines()]
+    # nothing past the edge was written, however far the operator pressed
+    assert max(row["out"][0] for row in rows if row["written"]) <= EDGE + 1e-6
+    if pressed:  # the leader held within 2 deg of the edge while the hand pressed 25 deg past
+        held = [row["cmd"][0] for row in rows if 2.0 <= row["t"] <= 4.0]
+        assert held and EDGE < max(held) < EDGE + 2.0, max(held)
+
+
+def test_a_three_servo_leader_pressed_past_the_twist_band_is_reported_on_teleop(tmp_path, capsys):
+    """The three-servo session opens its source only once the limb is held inside; the leader's
+    notice and its press are still said (they were not before the sources were introduced in
+    one place)."""
+    from pathlib import Path
+
+    import numpy as np
+
+    from limbctl.envelope import RigidMap
+    from limbctl.envelope.synthetic_twist import ShoulderRegion
+
+    model = tmp_path / "shoulder.npz"
+    sim3 = default_sim_profile("sim3")
+    metadata = {"rig": sim3.name, "calibration": sim3.calibration.to_dict()}
+    taught = ShoulderRegion().teaching(2500, 1200, 1200, np.random.default_rng(0))
+    RigidMap(twist=True).fit(taught).save(model, metadata=metadata)
+    hand = tmp_path / "roll.yaml"  # roll 150 deg at pan 0, tilt 10: far past the twist band
+    hand.write_text(
+        "start_deg: [0, 10, 0]\nscript: [[0, 0, 10, 0], [0.5, 0, 10, 0], [2, 0, 10, 150]]\n"
+        "let_go_s: 4\n"
+    )
+    options = TeleopOptions(
+        model=model,
+        source="leader:4,5,6",
+        operator=str(hand),
+        duration=5.0,
+        quiet=True,
+        view=ViewOptions(enabled=False),
+        connection=Connection(rig=Path("sim3")),
+    )
+    assert run_teleop(options) == 0
+    said = capsys.readouterr().err
+    assert "(three servos) feels the edge in swing and twist" in said, said[-800:]
+    assert f"a simulated operator ({hand}) moves the xm430-w350 leader" in said
+    pressed = re.search(r"pressed beyond the edge for ([\d.]+) s", said)
+    paced_out = re.search(r"the loop runs at \d+ Hz, under the 200 Hz .* without feel", said)
+    assert (pressed and float(pressed[1]) > 1.0) or paced_out, said
