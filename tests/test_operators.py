@@ -99,6 +99,19 @@ def test_operator_is_refused_before_anything_opens_without_a_leader_or_with_a_po
         run_teleop(real)
 
 
+def test_a_leader_naming_the_rigs_servos_is_refused_before_anything_opens(cone_model, capsys):
+    # the embedded simulator used to refuse the repeated ids with a traceback; now it is said
+    # in one line before any port opens, a real one too
+    argv = ["teleop", "--model", str(cone_model), "--no-view", "--quiet"]
+    assert main([*argv, "--source", "leader:2,3", "--operator", "push"]) == 2
+    err = capsys.readouterr().err
+    assert "names the rig's servo 2 ('sim' is ids 1, 2): a leader is a second gimbal" in err
+    assert "Traceback" not in err
+    real = Connection(port="/dev/nonexistent-limbctl-port")
+    with pytest.raises(ConfigError, match="names the rig's servos 1, 2"):
+        run_teleop(TeleopOptions(model=cone_model, source="leader:1,2", connection=real))
+
+
 def test_the_cli_refuses_an_unknown_operator_in_one_line(cone_model, capsys):
     argv = ["teleop", "--model", str(cone_model), "--source", "leader:3,4", "--operator", "shove"]
     assert main([*argv, "--no-view", "--quiet"]) == 2

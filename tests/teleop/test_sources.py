@@ -96,6 +96,10 @@ def test_leader_spec_names_its_servos_and_needs_the_open_rig():
     for bad in ("leader:3", "leader:3,x", "leader:3,4,5,6"):
         with pytest.raises(ConfigError, match="leader:ID,ID"):
             parse_source(bad)
+    # each servo once, and a servo id the protocol has (0..252; 253-255 are reserved)
+    for bad in ("leader:3,3", "leader:4,5,4", "leader:253,4", "leader:-1,4", "leader:3,300"):
+        with pytest.raises(ConfigError, match=r"each id once, in 0\.\.252"):
+            parse_source(bad)
     with pytest.raises(ConfigError, match="needs the open rig"):
         spec.open()
 

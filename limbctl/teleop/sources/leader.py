@@ -33,6 +33,7 @@ from limbctl.servo.leader import (
     present_current,
 )
 from limbctl.servo.rig import Rig
+from limbctl.servo.scan import MAX_ID
 from limbctl.teleop.commands import Command, command_from_pan_tilt, command_from_pose
 from limbctl.teleop.gate import Outcome
 from limbctl.teleop.haptic import FeelLaw, FeelStats, Push, push_for
@@ -478,13 +479,12 @@ class LeaderSource(SnapWatching, CommandSource):
 
 
 def leader_ids(argument: str) -> tuple[int, ...]:
-    """The (pan, tilt) servo ids of a ``leader:ID,ID`` spec's argument ``ID,ID``, or the
-    (pan, tilt, roll) ids of a three-servo leader's ``ID,ID,ID``.
+    """The servo ids a leader source's argument names: ``ID,ID`` (pan, tilt), ``ID,ID,ID``.
 
     Raises
     ------
     ConfigError
-        Unless the argument is two or three integers.
+        Unless the argument is two or three distinct servo ids (0..252).
     """
     try:
         ids = tuple(int(i) for i in argument.split(","))
@@ -495,4 +495,6 @@ def leader_ids(argument: str) -> tuple[int, ...]:
             f"bad leader source 'leader:{argument}'; expected leader:ID,ID (pan, tilt) or "
             "leader:ID,ID,ID (pan, tilt, roll)"
         )
+    if not all(0 <= i <= MAX_ID for i in ids) or len(set(ids)) != len(ids):
+        raise ConfigError(f"bad leader source 'leader:{argument}'; each id once, in 0..{MAX_ID}")
     return ids
