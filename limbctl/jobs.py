@@ -229,7 +229,7 @@ def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
     from limbctl.teleop.approach import StartOptions
     from limbctl.teleop.lifecycle import run_session
     from limbctl.teleop.loop import LoopConfig
-    from limbctl.teleop.sources import SourceContext, parse_source
+    from limbctl.teleop.sources import SourceContext, check_leader_fits, parse_source
 
     spec = parse_source(options.source)  # a bad source is refused before anything opens
     view_options = options.view
@@ -239,13 +239,8 @@ def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
         view_options = replace(view_options, enabled=True)
     conn = options.connection
     profile = load_rig_profile(conn.rig)
-    if shared := sorted(set(spec.extra_ids) & set(profile.ids)):  # before any port opens
-        raise ConfigError(
-            f"--source {options.source} names the rig's {'servos' if shared[1:] else 'servo'} "
-            f"{', '.join(map(str, shared))} "
-            f"({profile.name!r} is ids {', '.join(map(str, profile.ids))}): a leader is a second "
-            "gimbal with ids of its own"
-        )
+    if spec.kind.scheme == "leader":  # before any port opens
+        check_leader_fits(spec.extra_ids, profile)
     gate = gate_for(options.model, profile, options.rate, options.max_speed)
     prepare("gate")
     starting = StartOptions(options.wait, options.approach, options.rate)  # checked before opening

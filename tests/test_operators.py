@@ -106,6 +106,12 @@ def test_a_leader_naming_the_rigs_servos_is_refused_before_anything_opens(cone_m
     assert main([*argv, "--source", "leader:2,3", "--operator", "push"]) == 2
     err = capsys.readouterr().err
     assert "names the rig's servo 2 ('sim' is ids 1, 2): a leader is a second gimbal" in err
+    # a two-servo leader gives no twist to a three-servo rig (it crashed in the loop)
+    three = ["--rig", "sim3", "--source", "leader:4,5"]
+    assert main([*argv, *three]) == 2
+    err = capsys.readouterr().err
+    assert "a 2-servo leader (4, 5) needs a 2-servo follower: rig 'sim3' has 3 servos; give " in err
+    assert "leader:ID,ID,ID (pan, tilt, roll)" in err
     assert "Traceback" not in err
     real = Connection(port="/dev/nonexistent-limbctl-port")
     with pytest.raises(ConfigError, match="names the rig's servos 1, 2"):

@@ -95,7 +95,8 @@ def test_a_three_servo_leader_gives_full_orientations_and_needs_a_three_servo_fo
     from limbctl.geometry.gimbal3 import pose_quat_scalar
 
     with open_rig(extra_ids=(3, 4)) as session:
-        with pytest.raises(ConfigError, match="needs a three-servo follower"):
+        refused = "needs a 3-servo follower: rig 'sim' has 2 servos; give leader:ID,ID"
+        with pytest.raises(ConfigError, match=refused):
             LeaderSource(session.rig, (3, 4, 5))
     with open_rig(rig_path="sim3", extra_ids=(4, 5, 6)) as session:
         rig = session.rig

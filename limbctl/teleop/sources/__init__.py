@@ -24,15 +24,16 @@ from typing import Any
 from limbctl.errors import ConfigError
 from limbctl.teleop.sources.base import CommandSource, SourceStats
 from limbctl.teleop.sources.keyboard import KeyboardSource, keyboard_source
-from limbctl.teleop.sources.leader import LeaderSource, leader_ids
+from limbctl.teleop.sources.leader import LeaderSource
 from limbctl.teleop.sources.leader3 import LeaderSource3
+from limbctl.teleop.sources.leader_ids import check_leader_fits, leader_ids
 from limbctl.teleop.sources.page import PageSource
 from limbctl.teleop.sources.replay import ReplaySource
 from limbctl.teleop.sources.stdin import StreamSource
 from limbctl.teleop.sources.udp import UdpSource
 
 __all__ = ["CommandSource", "SourceStats", "KeyboardSource", "LeaderSource", "ReplaySource"]
-__all__ += ["LeaderSource3"]
+__all__ += ["LeaderSource3", "check_leader_fits"]
 __all__ += ["StreamSource", "UdpSource", "SOURCES", "SOURCE_FORMS", "SourceContext"]
 __all__ += ["SourceKind", "SourceSpec", "parse_source", "open_source", "PageSource"]
 

@@ -33,12 +33,12 @@ from limbctl.servo.leader import (
     present_current,
 )
 from limbctl.servo.rig import Rig
-from limbctl.servo.scan import MAX_ID
 from limbctl.teleop.commands import Command, command_from_pan_tilt, command_from_pose
 from limbctl.teleop.gate import Outcome
 from limbctl.teleop.haptic import FeelLaw, FeelStats, Push, push_for
 from limbctl.teleop.pacing import PaceWatch
 from limbctl.teleop.sources.base import CommandSource
+from limbctl.teleop.sources.leader_ids import check_leader_fits
 from limbctl.teleop.sources.leader_snap import SnapWatching, cycle_velocity, snap_watch
 
 #: Bus Watchdog of a felt leader: 5 x 20 ms = 100 ms without a packet stops it (the servo holds
@@ -89,15 +89,9 @@ class LeaderSource(SnapWatching, CommandSource):
         law: FeelLaw | None = None,
     ) -> None:
         super().__init__()
-        if len(leader_ids) == 3 and rig.profile.roll is None:
-            raise ConfigError(
-                f"a three-servo leader {leader_ids} needs a three-servo follower: rig "
-                f"{rig.profile.name!r} has no roll joint to follow its twist; give leader:ID,ID"
-            )
+        check_leader_fits(leader_ids, rig.profile)
         if rig.bus is None or not set(leader_ids) <= set(rig.bus.ids):
             raise ConfigError(f"leader servos {leader_ids} are not on the bus")
-        if set(leader_ids) & set(rig.profile.ids):
-            raise ConfigError(f"leader ids {leader_ids} overlap the follower's {rig.profile.ids}")
         self.rig = rig
         self.leader_ids = tuple(leader_ids)
         self.read_failures = 0
@@ -476,25 +470,3 @@ class LeaderSource(SnapWatching, CommandSource):
         if "feels the edge" in self.notice:
             lines.append(self.feel_stats.describe())
         return (*lines, *self.feel_stats.events)
-
-
-def leader_ids(argument: str) -> tuple[int, ...]:
-    """The servo ids a leader source's argument names: ``ID,ID`` (pan, tilt), ``ID,ID,ID``.
-
-    Raises
-    ------
-    ConfigError
-        Unless the argument is two or three distinct servo ids (0..252).
-    """
-    try:
-        ids = tuple(int(i) for i in argument.split(","))
-    except ValueError:
-        raise ConfigError(f"bad leader source 'leader:{argument}'; expected leader:ID,ID") from None
-    if len(ids) not in (2, 3):
-        raise ConfigError(
-            f"bad leader source 'leader:{argument}'; expected leader:ID,ID (pan, tilt) or "
-            "leader:ID,ID,ID (pan, tilt, roll)"
-        )
-    if not all(0 <= i <= MAX_ID for i in ids) or len(set(ids)) != len(ids):
-        raise ConfigError(f"bad leader source 'leader:{argument}'; each id once, in 0..{MAX_ID}")
-    return ids
