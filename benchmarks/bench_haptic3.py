@@ -292,8 +292,8 @@ def outward_count(region, rows) -> tuple[int, int]:
 
 
 def pull_case(region, script, stiffness) -> dict:
-    """Pressed 20 deg beyond, held, pulled back inside in 0.2 s: outward samples without and
-    with the let-go rules, and the samples inside with torque (with them)."""
+    """Pressed 20 deg beyond, held, pulled back inside in 0.2 s: outward samples and samples
+    inside with torque, without the let-go rules, with the snap watch alone and today's."""
     before = outward_count(
         region, stepped(region, script, 5.0, stiffness=stiffness, rules=False)[0]
     )
@@ -303,7 +303,7 @@ def pull_case(region, script, stiffness) -> dict:
         "before": before[0],
         "snap": snap[0],
         "after": after[0],
-        "inside": after[1] + before[1] + snap[1],
+        "inside": f"{before[1]} / {snap[1]} / {after[1]}",
     }
 
 
@@ -415,10 +415,10 @@ def render(presses, energies, pulls, held, transfers, load, end_load, fit_s) -> 
         "leader every millisecond. Counted: 1 ms samples outside the region "
         "whose joint torques point away from the correction, the law without the rules "
         "(before), with them and the snap watch alone (round 7), and today's (round 8); "
-        "inside: samples inside the region with any torque, the three runs summed.",
+        "inside: samples inside the region with any torque, by the same three laws.",
         "",
         "| pull | hand (N m/deg) | outward samples before | round 7 | today (round 8) | "
-        "inside with torque |",
+        "inside with torque: before / round 7 / today |",
         "| --- | ---: | ---: | ---: | ---: | ---: |",
         *(
             f"| {n} | {k:.2f} | {p['before']} | {p['snap']} | {p['after']} | {p['inside']} |"
