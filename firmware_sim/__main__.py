@@ -10,6 +10,7 @@ from collections.abc import Sequence
 from firmware_sim.bus import PtyEndpoint, build_simulator, serve
 from firmware_sim.control_table import MODELS, Register
 from firmware_sim.events import EventSchedule, ScheduledEvent, parse_event
+from firmware_sim.operator_file import DEFAULT_MODEL, leader_spec, read_operator_file
 from firmware_sim.simulator import parse_ids
 from firmware_sim.wire import BAUD_BY_VALUE, RIG_BAUD
 from firmware_sim.world import ROLL_JOINT
@@ -49,6 +50,21 @@ meaning a + b*pan + c*tilt (deg), so the limits may vary with pan and tilt, e.g.
 H must stay within 3..170 deg over the whole outline. While the swing traces the edge the twist
 goes to both stops (about 1 deg inside) every two seconds; while it wanders, it keeps turning
 from one stop to the other.
+
+--leader IDS adds a leader gimbal on the same bus (a second gimbal an operator moves by hand, as
+a teleoperation leader): two IDs (pan, tilt) or three (pan, tilt, roll), none of the limb's. Its
+joints have inertia and backdrive friction, and its servos' torque follows their Operating Mode
+(mode 5: the position loop clipped at Goal Current; 3: today's position control; 0: current
+control), with Present Current following from it. --operator OPERATOR.yaml gives it a hand, a
+bounded spring-damper toward scripted targets that takes hold at start, degrees and seconds:
+  model: xm430-w350                  (optional: xm430-w350, xl430-w250, xl330-m077, xl330-m288)
+  start_deg: [pan, tilt]             (optional: where the leader rests at start; [.., roll])
+  script: [[t_s, pan, tilt], ...]    (where the hand means to go; [t_s, pan, tilt, roll])
+  let_go_s: T                        (optional: the hand lets go at T s)
+  release_s, stiffness_nm_deg, damping_nm_s_rad, max_torque_nm   (optional: the grip)
+Without --operator nobody holds it (an XM430-W350 leader at rest). --leader-log FILE.jsonl gets
+its ground truth every 1 ms: {"t", "pose_deg", "velocity_deg_s", "hand_nm", "motor_nm",
+"hand_work_j", "motor_work_j"}, a list entry per joint.
 
 --goal-log FILE.jsonl gets one line per Goal Position write that reaches a servo:
   {"t": s, "id": n, "goal": ticks, "limb_dir": [x, y, z]}
@@ -152,6 +168,18 @@ def build_parser() -> argparse.ArgumentParser:
         help="keep each servo's EEPROM in DIR/servo-SLOT.eeprom across runs",
     )
     parser.add_argument("--hand", metavar="REGION.yaml", help="scripted hand (see below)")
+    parser.add_argument(
+        "--leader",
+        type=_ids,
+        metavar="IDS",
+        help="a leader gimbal on the same bus at these IDs (pan, tilt[, roll]; see below)",
+    )
+    parser.add_argument(
+        "--operator", metavar="OPERATOR.yaml", help="the hand that holds the leader (see below)"
+    )
+    parser.add_argument(
+        "--leader-log", metavar="FILE.jsonl", help="the leader's ground truth every 1 ms"
+    )
     parser.add_argument("--goal-log", metavar="FILE.jsonl", help="log every goal position write")
     parser.add_argument("--seed", type=int, default=0, help="seed of world and faults (0)")
     parser.add_argument(
@@ -198,6 +226,25 @@ def _event(text: str) -> ScheduledEvent:
         raise argparse.ArgumentTypeError(str(error)) from None
 
 
+def _leader(args: argparse.Namespace) -> dict | None:
+    """The simulator's ``leader`` option from --leader, --operator and --leader-log; ValueError
+    naming what is wrong."""
+    if args.leader is None:
+        if args.operator or args.leader_log:
+            raise ValueError("--operator and --leader-log need a leader: give --leader IDS")
+        return None
+    if len(args.leader) not in (2, 3):
+        raise ValueError(f"--leader takes two or three IDs (pan, tilt[, roll]), got {args.leader}")
+    if not args.operator:  # nobody holds it: only its motors move it
+        spec = {"ids": list(args.leader), "model": DEFAULT_MODEL}
+        return spec if args.leader_log is None else {**spec, "log": args.leader_log}
+    data = read_operator_file(args.operator)  # its errors name the file
+    try:
+        return leader_spec(data, args.leader, args.leader_log)
+    except ValueError as error:
+        raise ValueError(f"{args.operator}: {error}") from None
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``firmware-sim``; returns the exit status."""
     args = build_parser().parse_args(argv)
@@ -224,6 +271,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     schedule = EventSchedule(args.event)
     try:
+        config["leader"] = _leader(args)
         sim = build_simulator(config)
         schedule.check(sim)
         endpoint = PtyEndpoint(args.link)

@@ -7,6 +7,7 @@ import os
 import signal
 import subprocess
 import sys
+import time
 
 import pytest
 from dynamixel_sdk import COMM_SUCCESS, PacketHandler, PortHandler
@@ -14,7 +15,7 @@ from dynamixel_sdk import COMM_SUCCESS, PacketHandler, PortHandler
 from firmware_sim.wire import RIG_BAUD
 
 COMMAND = [sys.executable, "-m", "firmware_sim"]
-GOAL_POSITION, TORQUE_ENABLE = 116, 64
+GOAL_POSITION, TORQUE_ENABLE, PRESENT_POSITION = 116, 64, 132
 
 
 def test_help_documents_every_option():
@@ -34,6 +35,10 @@ def test_help_documents_every_option():
         "xm430-w350",
         "limb_dir",
         "polygon",
+        "--leader",
+        "--operator",
+        "--leader-log",
+        "let_go_s",
     ):
         assert option in result.stdout
 
@@ -45,9 +50,17 @@ def test_help_documents_every_option():
         (["--drop", "2"], "within 0..1"),
         (["--model", "ax12"], "invalid choice"),
         ([], "--link"),
+        (["--operator", "hand.yaml"], "--operator and --leader-log need a leader"),
+        (["--leader", "3,4,5,6"], "--leader takes two or three IDs"),
+        (["--leader", "2,3"], "leader ids (2, 3) must not be the follower's"),
+        (["--leader", "3,4,5", "--operator", "OPERATOR"], "it holds a 2-servo leader"),
+        (["--leader", "3,4", "--operator", "missing.yaml"], "cannot read the operator file"),
     ],
 )
 def test_bad_options_are_named(tmp_path, arguments, message):
+    operator = tmp_path / "operator.yaml"
+    operator.write_text("script: [[0, 0, 0], [1, 40, 0]]\n")
+    arguments = [str(operator) if a == "OPERATOR" else a for a in arguments]
     if arguments:
         arguments = [*arguments, "--link", str(tmp_path / "tty")]
     result = subprocess.run([*COMMAND, *arguments], capture_output=True, text=True)
@@ -88,3 +101,46 @@ def test_serves_until_signal_then_removes_link(tmp_path, stop_signal):
     assert line["id"] == 1 and line["goal"] == 2185 + 1024
     x, y, z = line["limb_dir"]
     assert abs(x) < 0.02 and y > 0.99  # pan +90 deg points the limb along +y
+
+
+def test_a_leader_gimbal_moved_by_its_operator_is_served_and_logged(tmp_path):
+    """--leader 3,4 --operator: the leader's servos answer on the bus as their model, the
+    operator's hand turns the leader's pan (torque off) toward its target, and --leader-log
+    records the ground truth."""
+    link, log, operator = tmp_path / "ttyDXL", tmp_path / "leader.jsonl", tmp_path / "hand.yaml"
+    operator.write_text("model: xl330-m288\nscript: [[0, 0, 0], [0.5, 40, 0]]\n")
+    arguments = ["--ids", "1,2", "--link", str(link), "--leader", "3,4", "--operator"]
+    process = subprocess.Popen(
+        [*COMMAND, *arguments, str(operator), "--leader-log", str(log)],
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        ready = process.stdout.readline()
+        assert "XL330-M288 ID 3" in ready and "XL330-M288 ID 4" in ready, ready
+        port = PortHandler(str(link))
+        assert port.setBaudRate(RIG_BAUD)
+        packet = PacketHandler(2.0)
+        assert packet.ping(port, 3) == (1200, COMM_SUCCESS, 0)
+        start, result, error = packet.read4ByteTxRx(port, 3, PRESENT_POSITION)
+        assert (result, error) == (COMM_SUCCESS, 0)
+        # the hand takes the pan 40 deg (455 ticks) within 0.5 s; read until it has
+        turned = 0
+        deadline = time.monotonic() + 10.0
+        while abs(turned) < 440 and time.monotonic() < deadline:
+            now, result, _ = packet.read4ByteTxRx(port, 3, PRESENT_POSITION)
+            if result == COMM_SUCCESS:
+                turned = now - start
+        port.closePort()
+        process.send_signal(signal.SIGTERM)
+        assert process.wait(timeout=10) == 0
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+        process.stdout.close()
+    assert 440 <= abs(turned) <= 470, turned
+    rows = [json.loads(line) for line in log.read_text().splitlines()]
+    assert set(rows[-1]) >= {"t", "pose_deg", "hand_nm", "motor_nm", "motor_work_j"}
+    assert 38.0 < rows[-1]["pose_deg"][0] < 41.0 and abs(rows[-1]["pose_deg"][1]) < 1.0
+    assert all(r["motor_nm"] == [0.0, 0.0] for r in rows)  # torque off: only the hand moved it
