@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import signal
@@ -16,6 +17,20 @@ from firmware_sim.wire import RIG_BAUD
 
 COMMAND = [sys.executable, "-m", "firmware_sim"]
 GOAL_POSITION, TORQUE_ENABLE, PRESENT_POSITION = 116, 64, 132
+
+
+@contextlib.contextmanager
+def served(arguments: list[str]):
+    """``firmware-sim ARGUMENTS`` running: its process and its ready line, killed if the test
+    leaves it running."""
+    process = subprocess.Popen([*COMMAND, *arguments], stdout=subprocess.PIPE, text=True)
+    try:
+        yield process, process.stdout.readline()
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+        process.stdout.close()
 
 
 def test_help_documents_every_option():
@@ -71,13 +86,7 @@ def test_bad_options_are_named(tmp_path, arguments, message):
 def test_serves_until_signal_then_removes_link(tmp_path, stop_signal):
     link = tmp_path / "ttyDXL"
     log = tmp_path / "goals.jsonl"
-    process = subprocess.Popen(
-        [*COMMAND, "--ids", "1,2", "--link", str(link), "--goal-log", str(log)],
-        stdout=subprocess.PIPE,
-        text=True,
-    )
-    try:
-        ready = process.stdout.readline()
+    with served(["--ids", "1,2", "--link", str(link), "--goal-log", str(log)]) as (process, ready):
         assert "ready" in ready and str(link) in ready
         assert os.path.islink(link)
         port = PortHandler(str(link))
@@ -90,11 +99,6 @@ def test_serves_until_signal_then_removes_link(tmp_path, stop_signal):
         port.closePort()
         process.send_signal(stop_signal)
         assert process.wait(timeout=10) == 0
-    finally:
-        if process.poll() is None:
-            process.kill()
-            process.wait()
-        process.stdout.close()
     assert not os.path.lexists(link)
     (line,) = [json.loads(text) for text in log.read_text().splitlines()]
     assert set(line) == {"t", "id", "goal", "limb_dir"}
@@ -110,13 +114,7 @@ def test_a_leader_gimbal_moved_by_its_operator_is_served_and_logged(tmp_path):
     link, log, operator = tmp_path / "ttyDXL", tmp_path / "leader.jsonl", tmp_path / "hand.yaml"
     operator.write_text("model: xl330-m288\nscript: [[0, 0, 0], [0.5, 40, 0]]\n")
     arguments = ["--ids", "1,2", "--link", str(link), "--leader", "3,4", "--operator"]
-    process = subprocess.Popen(
-        [*COMMAND, *arguments, str(operator), "--leader-log", str(log)],
-        stdout=subprocess.PIPE,
-        text=True,
-    )
-    try:
-        ready = process.stdout.readline()
+    with served([*arguments, str(operator), "--leader-log", str(log)]) as (process, ready):
         assert "XL330-M288 ID 3" in ready and "XL330-M288 ID 4" in ready, ready
         port = PortHandler(str(link))
         assert port.setBaudRate(RIG_BAUD)
@@ -134,11 +132,6 @@ def test_a_leader_gimbal_moved_by_its_operator_is_served_and_logged(tmp_path):
         port.closePort()
         process.send_signal(signal.SIGTERM)
         assert process.wait(timeout=10) == 0
-    finally:
-        if process.poll() is None:
-            process.kill()
-            process.wait()
-        process.stdout.close()
     assert 440 <= abs(turned) <= 470, turned
     rows = [json.loads(line) for line in log.read_text().splitlines()]
     assert set(rows[-1]) >= {"t", "pose_deg", "hand_nm", "motor_nm", "motor_work_j"}
