@@ -120,13 +120,21 @@ class Simulator:
         self.leader = None if leader is None else leader_world(leader)
         leader_ids = () if self.leader is None else self.leader.ids
         ids = tuple(ids) + tuple(i for i in leader_ids if i not in tuple(ids))
+        if factory > 0 and leader_ids:
+            raise ValueError(
+                "a leader gimbal is not served with --factory (factory-fresh servos all answer "
+                "as ID 1): drop --factory or --leader"
+            )
         slots = parse_ids(range(1, factory + 1) if factory > 0 else ids)
         # --connect names the slots plugged in (none: an empty bus)
         self.ids = (parse_ids(connect) if connect else ()) if connect is not None else slots
         if not set(self.ids) <= set(slots):
             raise ValueError(f"--connect {list(self.ids)} names slots beyond {list(slots)}")
-        models = self._models(model, len(slots))
-        self.model = models[0]
+        # --model names the limb's (and free shafts') models; a leader's come from its spec
+        followers = [slot for slot in slots if slot not in leader_ids]
+        given = dict(zip(followers, self._models(model, len(followers)), strict=True))
+        models = [given.get(slot) for slot in slots]
+        self.model = next(iter(given.values()), None)
         baud_value = None if baud is None else value_for_baud(int(baud))
         self.seed = seed
         joints = DEFAULT_JOINTS

@@ -70,6 +70,7 @@ def test_help_documents_every_option():
         (["--leader", "2,3"], "leader ids (2, 3) must not be the follower's"),
         (["--leader", "3,4,5", "--operator", "OPERATOR"], "it holds a 2-servo leader"),
         (["--leader", "3,4", "--operator", "missing.yaml"], "cannot read the operator file"),
+        (["--factory", "2", "--leader", "3,4"], "not served with --factory"),
     ],
 )
 def test_bad_options_are_named(tmp_path, arguments, message):
@@ -113,9 +114,12 @@ def test_a_leader_gimbal_moved_by_its_operator_is_served_and_logged(tmp_path):
     records the ground truth."""
     link, log, operator = tmp_path / "ttyDXL", tmp_path / "leader.jsonl", tmp_path / "hand.yaml"
     operator.write_text("model: xl330-m288\nscript: [[0, 0, 0], [0.5, 40, 0]]\n")
-    arguments = ["--ids", "1,2", "--link", str(link), "--leader", "3,4", "--operator"]
+    # --model gives the limb's servos theirs; the leader's is the operator file's
+    models = ["--model", "xl430-w250,xm430-w350"]
+    arguments = ["--ids", "1,2", *models, "--link", str(link), "--leader", "3,4", "--operator"]
     with served([*arguments, str(operator), "--leader-log", str(log)]) as (process, ready):
         assert "XL330-M288 ID 3" in ready and "XL330-M288 ID 4" in ready, ready
+        assert "XL430-W250 ID 1" in ready and "XM430-W350 ID 2" in ready, ready
         port = PortHandler(str(link))
         assert port.setBaudRate(RIG_BAUD)
         packet = PacketHandler(2.0)
