@@ -244,7 +244,7 @@ def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
     gate = gate_for(options.model, profile, options.rate, options.max_speed)
     prepare("gate")
     starting = StartOptions(options.wait, options.approach, options.rate)  # checked before opening
-    operator = _sim_operator(options.operator, spec, conn)
+    operator = _sim_operator(options.operator, spec, conn, profile)
     sim_options = None if operator is None else {"leader": operator.leader_spec(spec.extra_ids)}
     with (
         _viewing(view_options, view) as live,
@@ -327,18 +327,22 @@ def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
     return result.exit_code
 
 
-def _sim_operator(name: str | None, spec: SourceSpec, conn: Connection) -> SimOperator | None:
+def _sim_operator(
+    name: str | None, spec: SourceSpec, conn: Connection, profile: RigProfile
+) -> SimOperator | None:
     """The simulated operator ``--operator`` names (:func:`limbctl.operators.load_operator`),
-    checked against the source ``spec`` and the connection; None without one.
+    checked against the source ``spec`` and where the servos are (``conn``, the rig
+    ``profile``); None without one.
 
     Raises
     ------
     ConfigError
-        With a port (a real leader is moved by a real hand), or a source that is not a leader.
+        On real servos (a port given, or a rig profile that names one: a real leader is moved
+        by a real hand), or with a source that is not a leader.
     """
     if name is None:
         return None
-    if conn.port is not None:
+    if conn.port is not None or not profile.is_sim:
         raise ConfigError(
             "--operator moves the embedded simulator's leader; with --port, move the leader by "
             "hand (drop --operator)"

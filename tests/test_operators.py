@@ -5,9 +5,12 @@ from __future__ import annotations
 
 import json
 import re
+from dataclasses import replace
+from pathlib import Path
 
 import pytest
 
+import calib
 from calib.profile import default_sim_profile
 from limbctl.cli import main
 from limbctl.envelope import Cone
@@ -88,7 +91,9 @@ def cone_model(tmp_path_factory):
     return path
 
 
-def test_operator_is_refused_before_anything_opens_without_a_leader_or_with_a_port(cone_model):
+def test_operator_is_refused_before_anything_opens_without_a_leader_or_on_real_servos(
+    cone_model, tmp_path
+):
     stdin = TeleopOptions(model=cone_model, source="stdin", operator="push")
     with pytest.raises(ConfigError, match="use it with --source leader:ID,ID"):
         run_teleop(stdin)
@@ -101,6 +106,13 @@ def test_operator_is_refused_before_anything_opens_without_a_leader_or_with_a_po
     )
     with pytest.raises(ConfigError, match="with --port, move the leader by hand"):
         run_teleop(real)
+    # nor on a rig profile that names a real port (no --port given)
+    profile = tmp_path / "real.yaml"
+    sim_yaml = Path(calib.__file__).parent / "rigs" / "sim.yaml"
+    profile.write_text(sim_yaml.read_text().replace("port: sim", "port: /dev/ttyUSB9", 1))
+    on_rig = replace(real, connection=Connection(rig=profile))
+    with pytest.raises(ConfigError, match="with --port, move the leader by hand"):
+        run_teleop(on_rig)
 
 
 def test_a_leader_naming_the_rigs_servos_is_refused_before_anything_opens(cone_model, capsys):
@@ -129,15 +141,16 @@ def test_the_cli_refuses_an_unknown_operator_in_one_line(cone_model, capsys):
     assert "limbctl teleop: error: unknown operator 'shove'; known: push, push3" in err
 
 
-#: What a felt run says at its end, and what it says when a loaded machine kept the loop under
-#: the rate, which switches the feel off (mirroring on).
+#: What a felt run says at its end, and what it says when the feel went off for good (a loaded
+#: machine kept the loop under the rate, or the leader went silent): mirroring goes on.
 PRESSED = r"pressed beyond the edge for ([\d.]+) s, .* ([\d.]+) N m at most"
-PACED_OUT = r"the loop runs at \d+ Hz, under the 200 Hz .* without feel"
+FEEL_OFF = r"the push is off, mirroring goes on without feel"
 
 
 def teleop_with_operator(capsys, hand, text: str, **options) -> tuple[str, re.Match | None]:
     """Write the operator file ``hand``, run ``limbctl teleop``'s job for 5 s with it, check
-    it said who moves the leader; what it said, and its press report (None when paced out)."""
+    it said who moves the leader; what it said, and its press report (None when a loaded
+    machine switched the feel off: the run says so)."""
     hand.write_text(text)
     view = ViewOptions(enabled=False)
     run = TeleopOptions(operator=str(hand), duration=5.0, quiet=True, view=view, **options)
@@ -145,7 +158,9 @@ def teleop_with_operator(capsys, hand, text: str, **options) -> tuple[str, re.Ma
     said = capsys.readouterr().err
     assert f"a simulated operator ({hand}) moves the xm430-w350 leader" in said, said[-800:]
     pressed = re.search(PRESSED, said)
-    assert pressed or re.search(PACED_OUT, said), said
+    if re.search(FEEL_OFF, said):
+        return said, None
+    assert pressed, said
     return said, pressed
 
 
@@ -169,9 +184,11 @@ def test_a_simulated_operator_presses_a_felt_leader_past_the_edge_on_teleop(
     rows = [json.loads(line) for line in telemetry.read_text().splitlines()]
     # nothing past the edge was written, however far the operator pressed
     assert max(row["out"][0] for row in rows if row["written"]) <= EDGE + 1e-6
-    if pressed:  # the leader held within 2 deg of the edge while the hand pressed 25 deg past
+    if pressed:  # the wall held the leader near the edge while the hand pressed 25 deg past:
+        # within 2 deg (bench_haptic.md), up to 6 where a loaded machine let a cycle release it
+        # (the same file's interruptions)
         held = [row["cmd"][0] for row in rows if 2.0 <= row["t"] <= 4.0]
-        assert held and EDGE < max(held) < EDGE + 2.0, max(held)
+        assert held and EDGE < max(held) < EDGE + 6.0, max(held)
 
 
 def test_a_three_servo_leader_pressed_past_the_twist_band_is_reported_on_teleop(tmp_path, capsys):
