@@ -199,11 +199,18 @@ def test_thirty_seconds_of_the_simulators_hand_teach_a_model_that_holds_the_regi
     # some reads come late or time out (2653 samples and 17 failed reads measured): the hand
     # keeps moving meanwhile, so a recording far short of its rate is no test of the hand
     assert summary.ended_by == "duration" and summary.samples > 2400
-    # the guide saw the phases in order, and says ready at the end
-    phases = [g.phase for g in seen]
-    assert len(seen) >= 29 and phases[-1] == "ready" and summary.guidance.ready
-    assert phases.index("edge") < phases.index("middle") < phases.index("ready")
-    assert "READY TO TRAIN" in progress.getvalue().rsplit("\r", 1)[-1]
+    phases, said = [g.phase for g in seen], "\n".join(summary.lines())
+    last_line = progress.getvalue().rsplit("\r", 1)[-1]
+    assert len(seen) >= 29, said
+    if any(hole.open for hole in summary.guidance.holes):
+        # a stall of the machine (CI once) left a hole over the edge trace, which this hand
+        # never re-traces: the guide must ask for it and not say ready (docs/teaching.md)
+        assert phases[-1] == "edge" and not summary.guidance.ready, said
+        assert "re-trace the edge near" in last_line and "READY" not in last_line, said
+    else:  # the guide saw the phases in order, and says ready at the end
+        assert phases[-1] == "ready" and summary.guidance.ready, said
+        assert phases.index("edge") < phases.index("middle") < phases.index("ready")
+        assert "READY TO TRAIN" in last_line
     train(data_path, model_path, options={"seed": 3})
     model = RigidMap.load(model_path)
     poses = grid_inside(Hand.from_yaml(region_file).region, step_deg=1.0, min_depth_deg=2.0)
