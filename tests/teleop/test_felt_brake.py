@@ -9,7 +9,6 @@ import time
 import pytest
 
 from limbctl.servo.control_table import Register
-from limbctl.servo.leader import encode_feel
 from limbctl.teleop.haptic import VELOCITY_UNIT_DEG_S
 from limbctl.teleop.sources.leader_snap import read_motion
 from tests.teleop.test_felt_leader import (
@@ -19,6 +18,7 @@ from tests.teleop.test_felt_leader import (
     PRESS,
     Running,
     felt_session,
+    press_against_pan_zero,
     truth_rows,
 )
 
@@ -27,10 +27,7 @@ def test_the_watchs_one_read_carries_the_leaders_torque_and_speed(tmp_path):
     # Present Current (126) and Present Velocity (128) side by side: one sync read of both. A
     # hand presses the leader outward against a motor of 40 units whose goal is pan 0
     with felt_session(tmp_path) as (session, source, log), source:
-        bus, units = session.rig.bus, 40
-        session.simulator.set_operator(PRESS)
-        goal = session.rig.angles_to_ticks(0.0, 0.0)[0]
-        bus.write_block(source._feel_block, IDS[0], encode_feel(units, goal))
+        bus, units = session.rig.bus, press_against_pan_zero(session, source)
         deadline, motion = time.monotonic() + 5.0, None
         while time.monotonic() < deadline:
             motion = read_motion(bus, IDS, session.rig.joints, source.motor)

@@ -40,6 +40,15 @@ PRESS = {"script": [[0.0, 0.0, 0.0], [1.5, EDGE + 20.0, 0.0]], **HAND}
 PRESSING_NM = HAND["stiffness_nm_deg"] * 1.0
 
 
+def press_against_pan_zero(session, source, units: int = 40) -> int:
+    """The hand presses the leader outward (PRESS) against its pan motor written straight to
+    ``units`` of Goal Current, goal pan 0; returns ``units``."""
+    session.simulator.set_operator(PRESS)
+    goal = session.rig.angles_to_ticks(0.0, 0.0)[0]
+    session.rig.bus.write_block(source._feel_block, IDS[0], encode_feel(units, goal))
+    return units
+
+
 @contextmanager
 def felt_session(tmp_path, model="xm430-w350", rate_hz=25.0):
     """An open rig with a leader gimbal, configured; yields (session, source, log path).
@@ -213,10 +222,7 @@ def test_a_felt_leaders_cycle_read_carries_its_present_current(tmp_path):
     # law reads its motor's torque in the cycle's one read (round 5). A hand pressing outward
     # against a motor of 40 units whose goal is pan 0: it pulls back at its Goal Current.
     with felt_session(tmp_path) as (session, source, log), source:
-        bus, units = session.rig.bus, 40
-        session.simulator.set_operator(PRESS)
-        goal = session.rig.angles_to_ticks(0.0, 0.0)[0]
-        bus.write_block(source._feel_block, IDS[0], encode_feel(units, goal))
+        bus, units = session.rig.bus, press_against_pan_zero(session, source)
         deadline = time.monotonic() + 5.0
         while time.monotonic() < deadline:
             read = bus.read_cycle(ids=IDS, attempts=2)
