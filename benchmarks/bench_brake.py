@@ -8,9 +8,11 @@ docs/bench_haptic.md's push case): the simulated operator presses the XM430-W350
 beyond a 30 deg cone's edge (pan 50) in 2 s, holds it there to 4 s, then heads back inside
 (target pan 50 -> 0 in 0.2 s, a 0.05 N m/deg hand bounded at 0.3 N m). The servo's setpoint
 walks at 13.7 deg/s; the hand takes the leader faster, so the servo's loop would brake it:
-an outward pull while it is still outside. Today's source (the snap watch with its brake rules,
-limbctl/teleop/brake.py, round 8) against the same source without the brake rules (its watch
-the snap rule alone, round 7), alternately in one run. Counted on the simulator's ground truth
+an outward pull while it is still outside. Today's source (round 9: the snap watch with its
+brake rules, limbctl/teleop/brake.py, judging each cycle's read as soon as it is read, a freed
+wall back only on two still cycle reads, and the walking lead of limbctl/teleop/haptic.py)
+against round 8's (the brake rules without those three) and round 7's (the snap rule alone,
+no brake rules), in turn in one run. Counted on the simulator's ground truth
 from 4 s on: samples outside the region with the motor pulling outward (their number, the
 largest, the span from the first to the last), samples inside with any torque, and how the
 wall was let go (the brake rules, the snap rule). The pty's timing varies from run to run (the
@@ -29,22 +31,33 @@ from pathlib import Path
 import numpy as np
 from bench_haptic import EDGE_DEG, HAND, pan_of, run_case
 
+from limbctl.teleop.brake import BrakeLaw
+from limbctl.teleop.haptic import VELOCITY_UNIT_DEG_S, FeelLaw
 from limbctl.teleop.snap import SnapLaw, SnapWatch
 
 #: Pressed 20 deg beyond by 2 s, held to 4 s, pulled back to the middle by 4.2 s.
 PULL = [[0.0, 0.0, 0.0], [2.0, EDGE_DEG + 20.0, 0.0], [4.0, EDGE_DEG + 20.0, 0.0], [4.2, 0.0, 0.0]]
 PULL_S = 4.0
-#: The sources compared: label and the watch factory (None: the source's own, today's).
+#: Round 8's law: no walking lead.
+ROUND8_LAW = FeelLaw(walk_lead_ticks=0)
+#: The wall's setpoint speed (deg/s) the brake rules compare with.
+WALK_DEG_S = FeelLaw().profile_velocity_units() * VELOCITY_UNIT_DEG_S
+#: The sources compared: label, the watch factory and the law (None: the source's own, today's).
 SOURCES = (
-    ("today (round 8)", None),
-    ("without the brake rules (round 7)", lambda: SnapWatch(SnapLaw())),
+    ("today (round 9)", None, None),
+    (
+        "round 8",
+        lambda: SnapWatch(SnapLaw(), brake=BrakeLaw(), walk_deg_s=WALK_DEG_S),
+        ROUND8_LAW,
+    ),
+    ("without the brake rules (round 7)", lambda: SnapWatch(SnapLaw()), ROUND8_LAW),
 )
 
 
-def pull_once(workdir: Path, name: str, watch) -> dict:
+def pull_once(workdir: Path, name: str, watch, law) -> dict:
     """One pull back over the pty; what the ground truth shows from the pull on."""
     operator = {"script": PULL, **HAND}
-    _, source, _, rows = run_case(workdir, name, operator, 4.6, watch=watch)
+    _, source, _, rows = run_case(workdir, name, operator, 4.6, watch=watch, law=law)
     t = np.array([r["t"] for r in rows])
     pan, motor = pan_of(rows), pan_of(rows, "motor_nm")
     after = t >= PULL_S
@@ -111,11 +124,11 @@ def main(argv: list[str] | None = None) -> int:
     if args.runs < 1:
         parser.error("--runs must be at least 1")
     load, started = os.getloadavg(), time.monotonic()
-    results: dict[str, list[dict]] = {label: [] for label, _ in SOURCES}
+    results: dict[str, list[dict]] = {label: [] for label, _, _ in SOURCES}
     with tempfile.TemporaryDirectory() as tmp:
         for k in range(args.runs):
-            for label, watch in SOURCES:
-                results[label].append(pull_once(Path(tmp), f"pull-{k}", watch))
+            for label, watch, law in SOURCES:
+                results[label].append(pull_once(Path(tmp), f"pull-{k}", watch, law))
                 print(f"run {k + 1}/{args.runs} {label}: {results[label][-1]}", flush=True)
     text = render(results, args.runs, load, os.getloadavg(), time.monotonic() - started)
     args.out.write_text(text)

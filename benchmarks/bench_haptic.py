@@ -90,23 +90,32 @@ felt_motor = motor_of
 
 
 def run_case(
-    workdir: Path, name: str, operator: dict, seconds: float, model="xm430-w350", watch=None
+    workdir: Path,
+    name: str,
+    operator: dict,
+    seconds: float,
+    model="xm430-w350",
+    watch=None,
+    law=None,
 ):
     """:func:`run_once`, run again once if the set-up met a garbled reply (a busy machine)."""
     try:
-        return run_once(workdir, name, operator, seconds, model, watch)
+        return run_once(workdir, name, operator, seconds, model, watch, law)
     except (BusError, LoopFault) as exc:
         print(f"{name}: {exc}; running it again")
-        return run_once(workdir, name, operator, seconds, model, watch)
+        return run_once(workdir, name, operator, seconds, model, watch, law)
 
 
 class LoopFault(RuntimeError):
     """A case's loop ended in a fault (on a starved machine: the simulator missed replies)."""
 
 
-def run_once(workdir: Path, name: str, operator: dict, seconds: float, model: str, watch=None):
+def run_once(
+    workdir: Path, name: str, operator: dict, seconds: float, model: str, watch=None, law=None
+):
     """Run the loop with a leader held by ``operator``; the cycles' pushes and the truth log.
-    ``watch``: a factory of the source's snap watch instead of its own (a peer's rules)."""
+    ``watch``: a factory of the source's snap watch instead of its own (a peer's rules);
+    ``law``: the source's feel law instead of today's (a peer's)."""
     log = workdir / f"{name}.jsonl"
     log.write_text("")
     cone = workdir / "cone.npz"
@@ -123,7 +132,7 @@ def run_once(workdir: Path, name: str, operator: dict, seconds: float, model: st
         configure_servos(rig.bus, limits)
         # the start's rate check and the pace watch against 50 Hz: a shared machine's load
         # must not stop the run (the loop runs at 200 Hz; what it achieved is reported)
-        source = LeaderSource(rig, LEADER_IDS, rate_hz=50.0)
+        source = LeaderSource(rig, LEADER_IDS, rate_hz=50.0, law=law)
         if watch is not None:
             source.snap = watch()
         stop = threading.Event()
@@ -341,6 +350,8 @@ def exact_rate_case(
         past = (previous, 0.005, pushed)
         if push_fn is not round4_push:  # today's law reads the motors' torque
             past = (*past, torque)
+        if on and brake is not None:  # and, with the brake rules, the speed: the walking lead
+            past = (*past, velocity)
         push = push_fn(law, motor, pose, q, cone.correct(q), *past)
         if on and push.goal_current:
             if not watch.snap.allows(pose, push.goal, velocity, pushed, read_s, torque):
@@ -399,7 +410,7 @@ def exact_cases() -> dict:
         let_go_case(k, beyond, law)
         for k in (0.02, 0.05, 0.2)
         for beyond in (5.0, 20.0)
-        for law in ("round 6", "round 7", "round 8")
+        for law in ("round 6", "round 7", "round 9")
     ]
     for k in (0.02, 0.05, 0.1, 0.2):
         script = [[0.0, 0.0, 0.0], [1.5, EDGE_DEG + 5.0, 0.0], [5.0, EDGE_DEG + 5.0, 0.0]]
@@ -468,13 +479,13 @@ def exact_cases() -> dict:
 
 def let_go_case(stiffness: float, beyond: float, law: str) -> dict:
     """A hand of ``stiffness`` pressing ``beyond`` deg past the edge, let go at 5 s, under round
-    6's law (the law alone), round 7's (with the snap watch) or today's (round 8: the snap watch
-    with its brake rules): after the let go, the
+    6's law (the law alone), round 7's (with the snap watch) or today's (round 9: the snap watch
+    with its brake rules, the walking lead, two still reads to re-arm): after the let go, the
     1 ms samples outside with the motor pulling outward (count, the last one's time from the
     let go, the largest), the 1 ms and 20 ms peak return speeds, the rest and the deepest
     point."""
     script = [[0.0, 0.0, 0.0], [2.0, EDGE_DEG + beyond, 0.0], [5.0, EDGE_DEG + beyond, 0.0]]
-    watch, brake = law != "round 6", BrakeLaw() if law == "round 8" else None
+    watch, brake = law != "round 6", BrakeLaw() if law == "round 9" else None
     rows = exact_rate_case(stiffness, script, 7.0, 5.0, snap_watch=watch, brake=brake)["rows"]
     t = np.array([r["t"] for r in rows])
     pan, velocity, motor = pan_of(rows), pan_of(rows, "velocity_deg_s"), pan_of(rows, "motor_nm")
@@ -598,9 +609,10 @@ def render(push, ripples, passes, rates, load, exact, transfers, end_load) -> st
         "",
         "Let go from a press, by hand stiffness and depth, round 6's law (the law alone), round "
         "7's (with the snap watch, `limbctl/teleop/snap.py`, reading the leader's speed every "
-        "millisecond between the cycles while the wall holds it still) and today's (round 8: "
+        "millisecond between the cycles while the wall holds it still) and today's (round 9: "
         "the watch also reads the motors' torque while any wall is on and applies the brake "
-        "rules, `limbctl/teleop/brake.py`) in this run. "
+        "rules, `limbctl/teleop/brake.py`; a wall walking its leader back leads its goal two "
+        "ticks more; a freed wall comes back on two still cycle reads) in this run. "
         "Every 1 ms sample after the let go: outward samples are those outside "
         "the region with the motor pulling away from it; the peak speed is the largest 1 ms "
         "sample, the 20 ms mean the largest mean over 20 samples:",
@@ -632,7 +644,7 @@ def render(push, ripples, passes, rates, load, exact, transfers, end_load) -> st
         "outward, from the first read that shows it; the snap watch lets a held wall go as the "
         "leader starts moving in, and its brake rules (round 8) let a wall go once the leader "
         "gains on the setpoint or the motor's torque is about to turn outward. 1 ms samples, "
-        "today's law (round 8) against round 7's (the snap watch without the brake rules) and "
+        "today's law (round 9) against round 7's (the snap watch without the brake rules) and "
         "round 6's (the law alone) in this run:",
         "",
         "| hand stiffness (N m/deg) | outside with torque | pointing outward | their span (ms) | "

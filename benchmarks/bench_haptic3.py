@@ -61,7 +61,7 @@ from tests.teleop.stepped_leader import SteppedWatch, read_velocity
 LAW = FeelLaw()
 #: Round 3's law, the peer in the same run: the goal led the leader by 0.3 deg plus the leader's
 #: last step toward the region, at Profile Velocity 19 units (decisions/haptic.md, round 4).
-ROUND3 = FeelLaw(return_speed_deg_s=27.0, lead_deg=0.3)
+ROUND3 = FeelLaw(return_speed_deg_s=27.0, lead_deg=0.3, walk_lead_ticks=0)
 MOTOR = FELT_MODELS[ModelNumber.XM430_W350]
 CAP = MOTOR.torque_of(MOTOR.units_for(LAW.cap_nm))
 HAND = {"stiffness_nm_deg": 0.05, "damping_nm_s_rad": 0.02, "max_torque_nm": 0.3}
@@ -134,7 +134,7 @@ def stepped(
     the period and whether the wall pushed (as the sources do), False: the wall alone (before
     round 3's let-go rules); ``law``: :data:`LAW`, or :data:`ROUND3` for round 3's law;
     ``watch``: True, today's law with the snap watch and its brake rules (limbctl/teleop/snap.py,
-    limbctl/teleop/brake.py: round 8); "snap", the snap watch alone (round 7); False: without
+    limbctl/teleop/brake.py, a walking lead, two still reads to re-arm: round 9); "snap", the snap watch alone (round 7); False: without
     it (round 6; round 3 never has it). Returns
     the 1 ms truth rows and each row's distance beyond the edge (deg of rotation; of direction
     for two servos)."""
@@ -167,6 +167,8 @@ def stepped(
         read_s = sim.time_s  # when the cycle read the leader
         # the motors' torque as Present Current reads (LeaderSource); round 3's peer did not
         read = () if law is ROUND3 else (joint_torques(servos, rig),)
+        if on and brake is not None:  # today's law reads the speed too: the walking lead
+            read = (*read, velocity)
         if three:
             pose = rig.angles_of(ticks)
             q = pose_quat_scalar(*pose)
@@ -378,8 +380,8 @@ def render(presses, energies, pulls, held, transfers, load, end_load, fit_s) -> 
         "angle between directions). Walk back: the peak over the joints of the 20 ms mean speed "
         "after let go; 1 ms peak: the largest 1 ms sample of any joint's speed after let go; "
         "outward: 1 ms samples after let go outside the region whose joint torques point away "
-        "from the correction. Each press under today's law (round 8, the snap watch with its "
-        "brake rules), round 7's (the snap watch alone), round 6's (the law alone) and round "
+        "from the correction. Each press under today's law (round 9, the snap watch with its "
+        "brake rules, a walking lead and two still reads to re-arm), round 7's (the snap watch alone), round 6's (the law alone) and round "
         "3's (goal 0.3 deg "
         "ahead plus the leader's last step, 26.1 deg/s; its let-go rules are today's), in this "
         "run.",
@@ -389,7 +391,7 @@ def render(presses, energies, pulls, held, transfers, load, end_load, fit_s) -> 
         f"deepest after let go (deg beyond) | peak motor torque (N m, cap {CAP:.3f}) |",
         "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
     ]
-    peer = presses[("two servos, swing (pan 50)", "today (round 8)")]["held"]
+    peer = presses[("two servos, swing (pan 50)", "today (round 9)")]["held"]
     for (name, law), p in presses.items():
         lines.append(
             f"| {name} | {law} | {p['held']:.3f} | {p['held'] / peer:.3f} | {p['ripple']:.3f} | "
@@ -414,10 +416,10 @@ def render(presses, energies, pulls, held, transfers, load, end_load, fit_s) -> 
         "the snap watch's brake rules (round 8) free it before the loop brakes, reading the "
         "leader every millisecond. Counted: 1 ms samples outside the region "
         "whose joint torques point away from the correction, the law without the rules "
-        "(before), with them and the snap watch alone (round 7), and today's (round 8); "
+        "(before), with them and the snap watch alone (round 7), and today's (round 9); "
         "inside: samples inside the region with any torque, by the same three laws.",
         "",
-        "| pull | hand (N m/deg) | outward samples before | round 7 | today (round 8) | "
+        "| pull | hand (N m/deg) | outward samples before | round 7 | today (round 9) | "
         "inside with torque: before / round 7 / today |",
         "| --- | ---: | ---: | ---: | ---: | ---: |",
         *(
@@ -466,7 +468,7 @@ def main(argv: list[str] | None = None) -> int:
             ("round 3", ROUND3, False),
             ("round 6 (the law alone)", LAW, False),
             ("round 7 (the snap watch)", LAW, "snap"),
-            ("today (round 8)", LAW, True),
+            ("today (round 9)", LAW, True),
         )
     }
     energies = {

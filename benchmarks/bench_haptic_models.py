@@ -7,8 +7,8 @@ An XL330's position loop is much softer than an XM430's (stall torque at the sam
 the stall torque is 8-19 times smaller), so a lead of two ticks (round 5) gave its wall a
 fraction of its cap. Round 6's law sets the lead from the loop's stiffness and caps the
 XL330-M288 at 0.12 N m, so a let go snaps back under 30 deg/s even without the snap watch;
-round 7 adds the snap watch (limbctl/teleop/snap.py), today's (round 8) its brake rules
-(limbctl/teleop/brake.py). The four run here, on the same hands, in one run:
+round 7 adds the snap watch (limbctl/teleop/snap.py), round 8 its brake rules
+(limbctl/teleop/brake.py), today's (round 9) a walking lead and two still reads to re-arm. The four run here, on the same hands, in one run:
 
 - *let go*: the simulated operator presses 5 or 20 deg beyond the edge (pan 30 deg of a 30 deg
   cone) at several stiffnesses, bounded at 0.3 N m, and lets go at 5 s; every 1 ms sample after
@@ -34,14 +34,14 @@ from bench_haptic import EDGE_DEG, HAND, exact_rate_case, felt_motor, pan_of, ru
 from limbctl.teleop.brake import BrakeLaw
 from limbctl.teleop.haptic import TICK_DEG, FeelLaw
 
-#: Today's brake rules (round 8).
+#: Today's brake rules (rounds 8 and 9).
 BRAKE = BrakeLaw()
 
 MODELS = {"XM430-W350": "xm430-w350", "XL330-M288": "xl330-m288@53", "XL330-M077": "xl330-m077@53"}
 #: (hand stiffness N m/deg, how far beyond the edge it means to go, deg).
 HANDS = [(0.02, 5.0), (0.05, 5.0), (0.05, 20.0), (0.1, 5.0), (0.2, 5.0), (0.2, 20.0)]
 #: Round 5's lead: two ticks, three deeper, on every model.
-ROUND5 = FeelLaw(lead_deg=2 * TICK_DEG)
+ROUND5 = FeelLaw(lead_deg=2 * TICK_DEG, walk_lead_ticks=0)  # round 5: no walking lead
 M288_CAPS = [0.10, 0.11, 0.12, 0.13, 0.14, 0.16, 0.20, 0.26]
 
 
@@ -90,7 +90,7 @@ def let_go_rows() -> list[dict]:
                 ("round 5", ROUND5, round5_motor(model), False, None),
                 ("round 6", None, None, False, None),
                 ("round 7", None, None, True, None),
-                ("round 8", None, None, True, BRAKE),
+                ("round 9", None, None, True, BRAKE),
             ):
                 out = let_go(model, stiffness, beyond, law, motor, watch, brake)
                 rows.append({"model": name, "k": stiffness, "beyond": beyond, "law": law_name})
@@ -200,7 +200,7 @@ def render(let_go_table, caps, pty, load_start, load_end) -> str:
         "from it, the rest 2 s later, how far inside the edge it went; and over the whole run "
         "the 1 ms samples inside the region with any motor torque. Round 5: two ticks of lead, "
         "half the stall torque; round 6: the lead from the loop, the XL330-M288 at 0.12 N m; "
-        "round 7: round 6 with the snap watch; round 8 (today): with its brake rules.",
+        "round 7: round 6 with the snap watch; round 9 (today): with its brake rules, a walking lead and two still reads to re-arm.",
         "",
         "| model | hand (N m/deg) | pressed beyond (deg) | law | held beyond (deg) | "
         "held torque (N m) | 1 ms peak (deg/s) | 20 ms mean (deg/s) | outward samples | "

@@ -11,7 +11,8 @@ to 0 from one 0.5 ms physics step to the next, the hardest let go for the wall.
 Three sweeps:
 
 - *phase*: today's law (limbctl/teleop/haptic.py with the snap watch, limbctl/teleop/snap.py,
-  and its brake rules, limbctl/teleop/brake.py: round 8), round 7's (the snap watch without the
+  and its brake rules, limbctl/teleop/brake.py, a walking lead and two still reads to
+  re-arm: round 9), round 7's (the snap watch without the
   brake rules) and round 6's (the law alone) in the same run, the let go falling 0-4 ms after a
   cycle's read. Without the watch the first read that can see the let go is the next one, so
   the loop's first write after it lands 6 - phase ms later; the watch reads the leader's speed
@@ -51,8 +52,8 @@ LET_GO_S = 5.0
 AFTER_S = 0.06
 TICK_DEG = 360.0 / TICKS_PER_REV
 #: The laws compared in the same run: round 6's (the law alone), round 7's (the snap watch) and
-#: today's (round 8: the snap watch with its brake rules): label, snap watch, brake rules.
-LAWS = (("round 6", False, None), ("round 7", True, None), ("round 8", True, BrakeLaw()))
+#: today's (round 9: the snap watch with its brake rules, a walking lead and two still reads to re-arm): label, snap watch, brake rules.
+LAWS = (("round 6", False, None), ("round 7", True, None), ("round 9", True, BrakeLaw()))
 #: How long the hand takes to let go (ms): at once, then 10-100 ms.
 RELEASES_MS = (0.0, 10.0, 20.0, 50.0, 100.0)
 #: After a slow let go the run goes on this long past its end (s): the walk back from 2 deg at
@@ -156,8 +157,10 @@ def render(phases, cuts, leads, releases, load, end_load, seconds) -> str:
         "",
         "Round 6's law (the law alone: its first write after the let go lands 2-6 ms after "
         "it), round 7's (the snap watch reads the leader's speed every millisecond "
-        "between the cycles and lets a held wall go as it starts to snap) and today's (round 8: "
-        "the same watch also reads the motors' torque and applies the brake rules), in this "
+        "between the cycles and lets a held wall go as it starts to snap) and today's (round 9: "
+        "the same watch also reads the motors' torque and applies the brake rules; a wall "
+        "walking its leader back leads two ticks more; a freed wall comes back on two still "
+        "cycle reads), in this "
         "run.",
         "",
         "| hand (N m/deg) | pressed beyond (deg) | law | let go after a read (ms) | first write "

@@ -144,6 +144,24 @@ class FeelLaw:
         under 0.5 deg, the rest the wall must keep: a leader freed there rests within 0.5 deg
         of the edge. One tick (0.1 deg, the outrun slack) let one rest 0.512 deg beyond, read
         0.498 (decisions/haptic.md, round 5).
+    walk_lead_ticks : int
+        2: a wall walking its leader back (the leader read moving toward the region faster
+        than ``walk_speed_deg_s``, its motors' torque toward the region under ``walk_hold_nm``:
+        no hand held against the wall) leads its goal by this many ticks more. The goal must
+        stay ahead of the setpoint until the next write: over the pty that write comes 1-2.5 ms
+        after its read, the read rounds the pose to a tick, and a cycle may come late; with
+        LEAD alone the setpoint reached its goal first in 3 of 8 push cases, stopped there, and
+        the servo's loop braked the leader outward (up to 0.010 N m) before the brake rules
+        freed the wall (decisions/haptic.md, round 9). Two ticks (0.18 deg) cover a read tick,
+        2.5 ms of latency and a cycle 5 ms late at the setpoint's 13.7 deg/s. A hand that grabs
+        the walking leader meets a setpoint at most one cycle's walk further ahead, and the
+        next cycle (torque over ``walk_hold_nm``) leads by LEAD again. 0: never.
+    walk_speed_deg_s : float
+        1.5 deg/s, the snap watch's STILL (one Present Velocity unit, 1.37 deg/s, is still):
+        faster, the leader is walking in.
+    walk_hold_nm : float
+        0.06 N m, the snap watch's HOLD: a wall holding a hand pushes with more; walking a
+        released leader back takes 0.02-0.03 N m.
     """
 
     deadband_deg: float = 0.4
@@ -156,6 +174,9 @@ class FeelLaw:
     outrun_slack_deg: float = 0.1
     outward_noise_nm: float = 0.01
     rearm_band_deg: float = 0.05
+    walk_lead_ticks: int = 2
+    walk_speed_deg_s: float = 1.5
+    walk_hold_nm: float = 0.06
 
     def __post_init__(self) -> None:
         names = (
@@ -167,6 +188,9 @@ class FeelLaw:
             "held_within_deg",
             "outward_noise_nm",
             "rearm_band_deg",
+            "walk_lead_ticks",
+            "walk_speed_deg_s",
+            "walk_hold_nm",
         )
         for name in names:
             value = getattr(self, name)
@@ -292,6 +316,37 @@ def pulls_outward(law: FeelLaw, torque_nm: tuple[float, ...], step: tuple[float,
     return along / math.sqrt(sum(s * s for s in step)) < -law.outward_noise_nm
 
 
+def walks_back(
+    law: FeelLaw,
+    step: tuple[float, ...],
+    torque_nm: tuple[float, ...] | None,
+    velocity_deg_s: tuple[float, ...] | None,
+) -> bool:
+    """Whether a wall that is on walks its leader back with no hand held against it: the
+    leader's read speed along ``step`` (toward the corrected pose, joint space; not all zero)
+    over ``law.walk_speed_deg_s``, its motors' torque along it under ``law.walk_hold_nm``
+    (joint frame, N m and deg/s; either None: not read, not walking)."""
+    if torque_nm is None or velocity_deg_s is None:
+        return False
+    norm = math.sqrt(sum(s * s for s in step))
+    # v . step / |step|  and  tau . step / |step|
+    toward = sum(v * s for v, s in zip(velocity_deg_s, step, strict=True)) / norm
+    pushing = sum(t * s for t, s in zip(torque_nm, step, strict=True)) / norm
+    return toward > law.walk_speed_deg_s and pushing < law.walk_hold_nm
+
+
+def goal_lead_rad(
+    law: FeelLaw,
+    motor: LeaderMotor,
+    distance_deg: float,
+    walking: bool,
+) -> float:
+    """Goal Position's lead (rad) ahead of the leader: LEAD (:meth:`FeelLaw.lead_for_deg`),
+    and ``walk_lead_ticks`` more while the wall walks the leader back (``walking``)."""
+    extra = law.walk_lead_ticks * TICK_DEG if walking else 0.0
+    return math.radians(law.lead_for_deg(distance_deg, motor) + extra)
+
+
 def lets_go(
     law: FeelLaw, distance_deg: float, moved_in_deg: float, period_s: float, engaged: bool
 ) -> bool:
@@ -322,6 +377,7 @@ def push_for(
     period_s: float = 0.0,
     engaged: bool = True,
     torque_nm: tuple[float, float] | None = None,
+    velocity_deg_s: tuple[float, float] | None = None,
 ) -> Push:
     """The leader's command this cycle (see the module docstring).
 
@@ -343,6 +399,10 @@ def push_for(
     torque_nm : (float, float), optional
         The leader's motor torque as read with ``present`` (Present Current, joint frame,
         N m); None: not read (the rule on it is then not applied).
+    velocity_deg_s : (float, float), optional
+        The leader's speed as read with ``present`` (Present Velocity, joint frame, deg/s):
+        with ``torque_nm``, whether an engaged wall walks the leader back (its goal then leads
+        by ``walk_lead_ticks`` more, :func:`walks_back`). None: not read, LEAD alone.
     """
     distance = beyond_deg(q, corrected)
     tau = min(law.torque_nm(distance), motor.cap_nm(law.cap_nm))
@@ -360,7 +420,8 @@ def push_for(
             return free
     if engaged and torque_nm is not None and longest > 0.0 and pulls_outward(law, torque_nm, step):
         return free
-    lead = math.radians(law.lead_for_deg(distance, motor))
+    walking = engaged and longest > 0.0 and walks_back(law, step, torque_nm, velocity_deg_s)
+    lead = goal_lead_rad(law, motor, distance, walking)
     scale = min(1.0, lead / longest) if longest > 0.0 else 0.0
     goal = (present[0] + scale * step[0], present[1] + scale * step[1])
     return Push(

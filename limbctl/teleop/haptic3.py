@@ -47,7 +47,15 @@ import numpy as np
 from limbctl.geometry.gimbal3 import pan_tilt_roll_scalar
 from limbctl.servo.leader import LeaderMotor
 from limbctl.teleop.gate3 import geodesic
-from limbctl.teleop.haptic import FeelLaw, Push, lets_go, moved_in_deg, pulls_outward
+from limbctl.teleop.haptic import (
+    FeelLaw,
+    Push,
+    goal_lead_rad,
+    lets_go,
+    moved_in_deg,
+    pulls_outward,
+    walks_back,
+)
 
 Pose3 = tuple[float, float, float]
 
@@ -104,6 +112,7 @@ def push3_for(
     period_s: float = 0.0,
     engaged: bool = True,
     torque_nm: Pose3 | None = None,
+    velocity_deg_s: Pose3 | None = None,
 ) -> Push3:
     """The three-servo leader's command this cycle (see the module docstring).
 
@@ -129,6 +138,10 @@ def push3_for(
         The motors' torque as read with ``present`` (Present Current, joint frame, N m); a wall
         whose read pulls away from the region lets go (:func:`~limbctl.teleop.haptic.
         pulls_outward`). None: not read.
+    velocity_deg_s : (float, float, float), optional
+        The motors' speed as read with ``present`` (Present Velocity, joint frame, deg/s):
+        with ``torque_nm``, whether an engaged wall walks the leader back (its goal then leads
+        by ``walk_lead_ticks`` more, :func:`~limbctl.teleop.haptic.walks_back`). None: LEAD.
     """
     distance = beyond3_deg(q, corrected)
     tau = min(law.torque_nm(distance), motor.cap_nm(law.cap_nm))
@@ -148,7 +161,8 @@ def push3_for(
     if engaged and torque_nm is not None and longest > 0.0:
         if pulls_outward(law, tuple(torque_nm), tuple(step)):
             return free
-    lead = math.radians(law.lead_for_deg(distance, motor))
+    walking = engaged and longest > 0.0 and walks_back(law, tuple(step), torque_nm, velocity_deg_s)
+    lead = goal_lead_rad(law, motor, distance, walking)
     scale = min(1.0, lead / longest) if longest > 0.0 else 0.0
     goal = [p + scale * s for p, s in zip(present, step, strict=True)]
     return Push3(

@@ -59,6 +59,10 @@ class SnapLaw:
         brakes any leader still moving in (outward); over the pty a wall that came on at one
         unit (1.37 deg/s) met a leader a hand had started pulling back inside, and braked it
         for 2-4 ms, up to 0.03 N m (decisions/haptic.md, round 8).
+    rearm_span_s : float
+        12 ms: with the watch's ``rearm_twice``, the cycle read before must be this recent to
+        count (two cycles at 200 Hz, one of them up to 2 ms late); an older one says nothing of
+        the leader now.
     hold_nm : float
         0.06 N m: the watch arms only while the motor pushes a hand at least this hard (the
         0.02 N m/deg hand pressing 5 deg beyond is held with 0.09 N m); the loop walking a
@@ -86,6 +90,7 @@ class SnapLaw:
     snap_speed_deg_s: float = 4.0
     still_speed_deg_s: float = 1.5
     rearm_speed_deg_s: float = 0.5
+    rearm_span_s: float = 0.012
     hold_nm: float = 0.06
     released: float = 0.5
     rise_s: float = 0.001
@@ -125,6 +130,22 @@ class SnapWatch:
         How many times the brake rules let a wall go.
     reads : int
         How many reads the watch was handed between the cycles.
+    at_read : bool
+        Whether the source judges each cycle's read by these rules as soon as it is read
+        (:meth:`judge`), before the cycle's gate work and the follower's write, and writes a
+        cut at once: over the pty that work takes 1-2 ms, and a cut decided at the read but
+        written with the cycle's own push landed after the loop had begun braking (docs/
+        haptic.md, round 9). False (the rounds before): the cycle's read is judged when its
+        push is decided (:meth:`allows`).
+    rearm_twice : bool
+        Whether a free wall comes back only when the cycle's read *and* the cycle read before
+        (within ``rearm_span_s``) show the leader not moving in. A hand reversing, from pushing
+        out to pulling in, leaves the leader still for a millisecond or two (the backdrive
+        friction holds it while the hand's torque passes through zero); a wall that came back
+        then met the hand's pull at once, and the servo's loop braked the leader outward before
+        a read could free it again (over the pty, up to 0.065 N m for 3 ms: docs/haptic.md,
+        round 9). A leader let go outside waits one cycle more before its wall walks it back.
+        False (the rounds before): one still read.
     """
 
     law: SnapLaw
@@ -135,7 +156,10 @@ class SnapWatch:
     cuts: int = 0
     brakes: int = 0
     reads: int = 0
+    at_read: bool = False
+    rearm_twice: bool = False
     _was_still: bool = False
+    _free_still_at: float | None = None  # the last cycle read of a free wall seen still (s)
     _seen: tuple[float, float] | None = None  # speed toward the region (deg/s), read at (s)
     _hold_nm: float = 0.0  # the torque the armed wall held the hand with (N m)
     _torque_seen: tuple[float, float] | None = None  # torque toward the region (N m), at (s)
@@ -204,9 +228,23 @@ class SnapWatch:
         if unit is None:
             return True
         if not engaged:
-            return along(velocity_deg_s, unit) <= self.law.rearm_speed_deg_s
+            still = self.still(present, goal, velocity_deg_s)
+            if not self.rearm_twice:
+                return still
+            before, self._free_still_at = self._free_still_at, now_s if still else None
+            return still and before is not None and now_s - before <= self.law.rearm_span_s
+        self._free_still_at = None
         snapped = self._snapping(velocity_deg_s, now_s)
         return not (snapped or self._braking(velocity_deg_s, torque_nm, now_s))
+
+    def still(
+        self, present: Sequence[float], goal: Sequence[float], velocity_deg_s: Sequence[float]
+    ) -> bool:
+        """Whether a leader at ``present`` (rad) moving at ``velocity_deg_s`` (joint frame,
+        deg/s) is read as not moving in toward ``goal`` (the re-arm speed); a read that leaves
+        the watch's state as it is (the source's read just before a wall comes on)."""
+        unit = unit_step(present, goal)
+        return unit is None or along(velocity_deg_s, unit) <= self.law.rearm_speed_deg_s
 
     def arm(
         self,
@@ -237,6 +275,18 @@ class SnapWatch:
             self.armed, self._seen = unit, (toward, now_s)
             self._hold_nm = along(torque_nm, unit)
         self._was_still = still
+
+    def judge(
+        self,
+        velocity_deg_s: Sequence[float],
+        now_s: float,
+        torque_nm: Sequence[float] | None = None,
+    ) -> bool:
+        """At a cycle's read (``at_read``): whether a wall that is on must go at once, by the
+        rules :meth:`snaps` applies between the cycles. A wall kept here is not judged again on
+        the same read (:meth:`allows` with ``judged``)."""
+        snapped = self._snapping(velocity_deg_s, now_s)
+        return snapped or self._braking(velocity_deg_s, torque_nm, now_s)
 
     def snaps(
         self,

@@ -75,7 +75,10 @@ class SteppedWatch:
         self.servos, self.joints, self.now, self.on = servos, joints, now, on
         self.motor = motor or FELT_MODELS[ModelNumber.XM430_W350]
         walk = law.profile_velocity_units() * VELOCITY_UNIT_DEG_S
-        self.snap = SnapWatch(SnapLaw(), brake=brake, walk_deg_s=walk)
+        # today's watch (with the brake rules) brings a freed wall back on two still reads
+        self.snap = SnapWatch(
+            SnapLaw(), brake=brake, walk_deg_s=walk, rearm_twice=brake is not None
+        )
         self.cut_due: int | None = None  # the ms at which Goal Current 0 lands
 
     def before_step(self, ms: int) -> bool:
@@ -169,7 +172,11 @@ def felt_at_200_hz(
         torque = read_torque(servos, rig.joints, motor)
         velocity = read_velocity(servos, rig.joints)
         read_s = sim.time_s  # when the cycle read the leader
-        push = push_for(law, motor, pose, q, CONE.correct(q), previous, 0.005, engaged, torque)
+        # today's law (the watch with its brake rules) also reads the speed: the walking lead
+        speed = velocity if snap_watch and brake is not None else None
+        push = push_for(
+            law, motor, pose, q, CONE.correct(q), previous, 0.005, engaged, torque, speed
+        )
         if snap_watch and push.goal_current:
             if not watch.snap.allows(pose, push.goal, velocity, engaged, sim.time_s, torque):
                 push = Push(0, 0, pose[0], pose[1], 0.0, push.distance_deg)

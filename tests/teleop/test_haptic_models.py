@@ -16,7 +16,7 @@ from tests.teleop.stepped_leader import felt_at_200_hz
 
 LAW = FeelLaw()
 #: Round 5's lead: two ticks (three deeper) on every model, the peer of the law by model.
-TWO_TICKS = FeelLaw(lead_deg=2 * TICK_DEG)
+TWO_TICKS = FeelLaw(lead_deg=2 * TICK_DEG, walk_lead_ticks=0)  # round 5: no walking lead
 EDGE = 30.0
 
 

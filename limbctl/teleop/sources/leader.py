@@ -111,6 +111,7 @@ class LeaderSource(SnapWatching, CommandSource):
         #: None while passive.
         self.cap_nm: float | None = None
         self._cycle: tuple | None = None  # pose, command, last read, read time, torque, speed
+        self._cycle_judged = False  # the snap and brake rules ran on the cycle's read
         #: Lets a wall go the moment its leader snaps, or before its loop brakes the leader
         #: outward (limbctl.teleop.snap, limbctl.teleop.brake).
         self.snap = snap_watch(self.law)
@@ -304,7 +305,9 @@ class LeaderSource(SnapWatching, CommandSource):
         if self.felt:
             self.last_torque_nm = self._torque(read)
             speed = cycle_velocity(read, self.leader_ids, self.rig.joints)
+            judged = self.judge_read(speed, self.last_torque_nm, now)
             self._cycle = (pose, command.q, self._last_read, now, self.last_torque_nm, speed)
+            self._cycle_judged = judged
             self._last_read = (pose, now)
         return [command]
 
@@ -363,9 +366,13 @@ class LeaderSource(SnapWatching, CommandSource):
             pose, q, last, read_at, torque, speed = cycle
             previous, period = (None, 0.0) if last is None else (last[0], read_at - last[1])
             engaged = self.last_push is not None and self.last_push.goal_current > 0
-            push = self._law(gate, pose, q, previous, period, engaged, torque)
-            if push.goal_current and not self.snap.allows(
-                pose, push.goal, speed, engaged, read_at, torque
+            push = self._law(gate, pose, q, previous, period, engaged, torque, speed)
+            # a wall kept by the rules at this very read (judge_read) is not judged twice
+            judged = engaged and self._cycle_judged
+            if (
+                push.goal_current
+                and not judged
+                and not self.snap.allows(pose, push.goal, speed, engaged, read_at, torque)
             ):
                 push = self._free(pose)  # still moving in, snapping or outrunning: no wall
             if push.goal_current and not engaged and not self.still_to_engage(pose, push.goal):
@@ -383,13 +390,15 @@ class LeaderSource(SnapWatching, CommandSource):
         self.feel_stats.add(push.torque_nm, 1.0 / self.rate_hz)
         return notes
 
-    def _law(self, gate, pose, q, previous, period: float, engaged: bool, torque) -> Push:
+    def _law(self, gate, pose, q, previous, period: float, engaged: bool, torque, speed) -> Push:
         """This cycle's push by the two-servo law (:func:`~limbctl.teleop.haptic.push_for`)
         from the leader's pose (rad), its command ``q`` (4,), the pose read a cycle before (None
         at first) and the time since (s), whether the wall pushed then, and the motors' torque
-        as read (joint frame, N m)."""
+        and speed as read (joint frame, N m and deg/s)."""
         corrected = gate.envelope.correct(q)
-        return push_for(self.law, self.motor, pose, q, corrected, previous, period, engaged, torque)
+        return push_for(
+            self.law, self.motor, pose, q, corrected, previous, period, engaged, torque, speed
+        )
 
     @staticmethod
     def _free(pose: tuple[float, ...]) -> Push:

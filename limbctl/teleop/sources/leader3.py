@@ -55,13 +55,23 @@ class LeaderSource3(LeaderSource):
     def _seen(self, pose: Pose3) -> None:
         self.last_pose3, self.last_pose = pose, (pose[0], pose[1])
 
-    def _law(self, gate, pose, q, previous, period: float, engaged: bool, torque) -> Push:
+    def _law(self, gate, pose, q, previous, period: float, engaged: bool, torque, speed) -> Push:
         """This cycle's push by the three-servo law (:func:`~limbctl.teleop.haptic3.push3_for`),
         the correction's roll unwrapped within the gate's roll limits."""
         limits = (gate.limits.roll_min, gate.limits.roll_max)
         corrected = gate.envelope.correct(q)
         return push3_for(
-            self.law, self.motor, pose, q, corrected, limits, previous, period, engaged, torque
+            self.law,
+            self.motor,
+            pose,
+            q,
+            corrected,
+            limits,
+            previous,
+            period,
+            engaged,
+            torque,
+            speed,
         )
 
     @staticmethod

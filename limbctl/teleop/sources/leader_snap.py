@@ -23,7 +23,7 @@ def snap_watch(law: FeelLaw) -> SnapWatch:
     """A felt leader's watch: the snap rule and the brake rules, the wall's setpoint walking at
     ``law``'s Profile Velocity."""
     walk = law.profile_velocity_units() * VELOCITY_UNIT_DEG_S
-    return SnapWatch(SnapLaw(), brake=BrakeLaw(), walk_deg_s=walk)
+    return SnapWatch(SnapLaw(), brake=BrakeLaw(), walk_deg_s=walk, at_read=True, rearm_twice=True)
 
 
 def cycle_velocity(read: CycleRead, ids: Sequence[int], joints: Sequence) -> tuple[float, ...]:
@@ -74,7 +74,17 @@ class SnapWatching:
         motion = read_motion(self.rig.bus, self.leader_ids, self.rig.joints, self.motor)
         if motion is None:
             return False
-        return self.snap.allows(pose, goal, motion[0], False, time.perf_counter())
+        return self.snap.still(pose, goal, motion[0])
+
+    def judge_read(self, speed: Sequence[float], torque: Sequence[float], now: float) -> bool:
+        """At the cycle's own read of a wall that is on (the watch's ``at_read``): let it go at
+        once if the snap or brake rules say so, before the cycle's gate work and the
+        follower's write. True if the rules ran on this read (and kept or freed the wall)."""
+        if not (self.snap.at_read and self.snap.watching):
+            return False
+        if self.snap.judge(speed, now, torque):
+            self.release()
+        return True
 
     def watch_snap(self) -> None:
         """Between cycles: read the leader's speed and torque; a held leader that snaps toward
