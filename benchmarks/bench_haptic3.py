@@ -134,10 +134,10 @@ def stepped(
     the period and whether the wall pushed (as the sources do), False: the wall alone (before
     round 3's let-go rules); ``law``: :data:`LAW`, or :data:`ROUND3` for round 3's law;
     ``watch``: True, today's law with the snap watch and its brake rules (limbctl/teleop/snap.py,
-    limbctl/teleop/brake.py, a walking lead, two still reads to re-arm: round 9); "snap", the snap watch alone (round 7); False: without
-    it (round 6; round 3 never has it). Returns
-    the 1 ms truth rows and each row's distance beyond the edge (deg of rotation; of direction
-    for two servos)."""
+    limbctl/teleop/brake.py, a walking lead, two still reads to re-arm: round 9);
+    "snap", the snap watch alone (round 7); False: without it (round 6; round 3 never has it).
+    Returns the 1 ms truth rows and each row's distance beyond the edge (deg of rotation; of
+    direction for two servos)."""
     three = len(script[0]) == 4
     ids = (4, 5, 6) if three else (3, 4)
     clock = [0.0]
@@ -381,7 +381,8 @@ def render(presses, energies, pulls, held, transfers, load, end_load, fit_s) -> 
         "after let go; 1 ms peak: the largest 1 ms sample of any joint's speed after let go; "
         "outward: 1 ms samples after let go outside the region whose joint torques point away "
         "from the correction. Each press under today's law (round 9, the snap watch with its "
-        "brake rules, a walking lead and two still reads to re-arm), round 7's (the snap watch alone), round 6's (the law alone) and round "
+        "brake rules, a walking lead and two still reads to re-arm), round 7's (the snap "
+        "watch alone), round 6's (the law alone) and round "
         "3's (goal 0.3 deg "
         "ahead plus the leader's last step, 26.1 deg/s; its let-go rules are today's), in this "
         "run.",

@@ -8,7 +8,8 @@ the stall torque is 8-19 times smaller), so a lead of two ticks (round 5) gave i
 fraction of its cap. Round 6's law sets the lead from the loop's stiffness and caps the
 XL330-M288 at 0.12 N m, so a let go snaps back under 30 deg/s even without the snap watch;
 round 7 adds the snap watch (limbctl/teleop/snap.py), round 8 its brake rules
-(limbctl/teleop/brake.py), today's (round 9) a walking lead and two still reads to re-arm. The four run here, on the same hands, in one run:
+(limbctl/teleop/brake.py), today's (round 9) a walking lead and two still reads to
+re-arm. The four run here, on the same hands, in one run:
 
 - *let go*: the simulated operator presses 5 or 20 deg beyond the edge (pan 30 deg of a 30 deg
   cone) at several stiffnesses, bounded at 0.3 N m, and lets go at 5 s; every 1 ms sample after
@@ -200,7 +201,8 @@ def render(let_go_table, caps, pty, load_start, load_end) -> str:
         "from it, the rest 2 s later, how far inside the edge it went; and over the whole run "
         "the 1 ms samples inside the region with any motor torque. Round 5: two ticks of lead, "
         "half the stall torque; round 6: the lead from the loop, the XL330-M288 at 0.12 N m; "
-        "round 7: round 6 with the snap watch; round 9 (today): with its brake rules, a walking lead and two still reads to re-arm.",
+        "round 7: round 6 with the snap watch; round 9 (today): with its brake rules, a walking "
+        "lead and two still reads to re-arm.",
         "",
         "| model | hand (N m/deg) | pressed beyond (deg) | law | held beyond (deg) | "
         "held torque (N m) | 1 ms peak (deg/s) | 20 ms mean (deg/s) | outward samples | "

@@ -52,7 +52,8 @@ LET_GO_S = 5.0
 AFTER_S = 0.06
 TICK_DEG = 360.0 / TICKS_PER_REV
 #: The laws compared in the same run: round 6's (the law alone), round 7's (the snap watch) and
-#: today's (round 9: the snap watch with its brake rules, a walking lead and two still reads to re-arm): label, snap watch, brake rules.
+#: today's (round 9: the snap watch with its brake rules, a walking lead and two still reads
+#: to re-arm): label, snap watch, brake rules.
 LAWS = (("round 6", False, None), ("round 7", True, None), ("round 9", True, BrakeLaw()))
 #: How long the hand takes to let go (ms): at once, then 10-100 ms.
 RELEASES_MS = (0.0, 10.0, 20.0, 50.0, 100.0)
