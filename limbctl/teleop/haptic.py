@@ -15,7 +15,9 @@ The law (:class:`FeelLaw`), per cycle of period T::
                                     stiffness KP: about 0.9 CAP / KP, two ticks on an
                                     XM430; beyond 2 deg or where K (d - DEADBAND) > CAP
                                     at least CAP / KP wherever the leader sits in its
-                                    tick, three on an XM430)
+                                    tick, three on an XM430), and WALK_LEAD more while
+                                    the wall walks its leader back (the leader read moving
+                                    in, its motors' torque under HOLD: no hand held)
                                     Profile Velocity = RETURN_SPEED
     but Goal Current 0 when, with m how far the leader moved toward the correction since the
     last read (period T):
@@ -32,7 +34,8 @@ The law (:class:`FeelLaw`), per cycle of period T::
 
 Around the law, the snap watch (:mod:`limbctl.teleop.snap`) lets a wall that holds a still
 leader go the moment the leader starts to snap toward the region (a let go), between the cycles
-and at each read, and brings a freed wall back only on a still leader.
+and at each read, frees any wall before its servo's loop would brake the leader outward (the
+brake rules, :mod:`limbctl.teleop.brake`), and brings a freed wall back only on a still leader.
 
 The servo's own position loop (mode 5) pushes toward Goal Position with at most Goal Current,
 so the torque points toward the region and never exceeds CAP, which is also written into the

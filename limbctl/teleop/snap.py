@@ -139,7 +139,9 @@ class SnapWatch:
         push is decided (:meth:`allows`).
     rearm_twice : bool
         Whether a free wall comes back only when the cycle's read *and* the cycle read before
-        (within ``rearm_span_s``) show the leader not moving in. A hand reversing, from pushing
+        (within ``rearm_span_s``) show the leader not moving in, or at once on a leader read
+        moving outward faster than STILL (a hand pushing it out, as after a held gate: one
+        cycle more of release let a 0.2 N m/deg hand push it 1.4 deg further). A hand reversing, from pushing
         out to pulling in, leaves the leader still for a millisecond or two (the backdrive
         friction holds it while the hand's torque passes through zero); a wall that came back
         then met the hand's pull at once, and the servo's loop braked the leader outward before
@@ -232,6 +234,8 @@ class SnapWatch:
             if not self.rearm_twice:
                 return still
             before, self._free_still_at = self._free_still_at, now_s if still else None
+            if along(velocity_deg_s, unit) < -self.law.still_speed_deg_s:
+                return True  # pushed outward by a hand: nothing for the loop to brake
             return still and before is not None and now_s - before <= self.law.rearm_span_s
         self._free_still_at = None
         snapped = self._snapping(velocity_deg_s, now_s)

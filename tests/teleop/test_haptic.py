@@ -71,6 +71,34 @@ def test_a_push_leads_the_leader_toward_the_corrected_pose_by_at_most_the_lead()
     assert inside.goal_pan == 0.1  # free: the goal rides with the leader
 
 
+def test_a_wall_walking_its_leader_back_with_no_hand_leads_two_ticks_more():
+    pose, q = (math.radians(31.5), 0.0), q_of(31.5, 0.0)
+    corrected = CONE.correct(q)
+
+    def lead_ticks(engaged: bool, torque, velocity) -> float:
+        push = push_for(LAW, MOTOR, pose, q, corrected, pose, 0.005, engaged, torque, velocity)
+        assert push.goal_current > 0
+        return round((31.5 - math.degrees(push.goal_pan)) / TICK_DEG, 6)
+
+    walking = (-0.02, 0.0), (-13.7, 0.0)  # 0.02 N m in, at the setpoint's 13.7 deg/s
+    assert lead_ticks(True, *walking) == 4
+    assert lead_ticks(False, *walking) == 2  # the wall comes on: from the leader, LEAD
+    assert lead_ticks(True, (-LAW.walk_hold_nm, 0.0), (-13.7, 0.0)) == 2  # a hand is held
+    assert lead_ticks(True, (-0.02, 0.0), (-1.37, 0.0)) == 2  # one velocity unit: still
+    assert lead_ticks(True, (-0.02, 0.0), (13.7, 0.0)) == 2  # moving out
+    assert lead_ticks(True, (-0.02, 0.0), None) == 2  # speed not read: LEAD alone
+    assert lead_ticks(True, None, (-13.7, 0.0)) == 2
+    # the lead never passes the corrected pose: 0.6 deg beyond, four ticks would reach 0.25
+    edge = q_of(30.6, 0.0)
+    near = push_for(
+        LAW, MOTOR, (math.radians(30.6), 0.0), edge, CONE.correct(edge), None, 0.0, True, *walking
+    )
+    assert math.degrees(near.goal_pan) >= 30.0 - 1e-9
+    without = FeelLaw(walk_lead_ticks=0)
+    push = push_for(without, MOTOR, pose, q, corrected, pose, 0.005, True, *walking)
+    assert math.degrees(push.goal_pan) == pytest.approx(31.5 - 2 * TICK_DEG)
+
+
 angles = st.floats(-100.0, 100.0, allow_nan=False)
 
 

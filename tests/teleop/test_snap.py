@@ -94,6 +94,48 @@ def test_a_cycles_read_applies_the_same_rules():
     assert watch.allows(POSE, GOAL, (10.0, 0.0), False, 0.005)  # moving out: it comes on
 
 
+def test_with_rearm_twice_a_free_wall_comes_back_on_two_still_cycle_reads():
+    watch = SnapWatch(LAW, rearm_twice=True)
+    assert not watch.allows(POSE, GOAL, STILL, False, 0.000)  # one still read: not yet
+    assert watch.allows(POSE, GOAL, STILL, False, 0.005)  # the next cycle's: it comes on
+    # a hand reversing: still for one read, then pulling in
+    reversing = SnapWatch(LAW, rearm_twice=True)
+    assert not reversing.allows(POSE, GOAL, (-3.0, 0.0), False, 0.000)
+    assert not reversing.allows(POSE, GOAL, STILL, False, 0.005)
+    assert not reversing.allows(POSE, GOAL, (-6.0, 0.0), False, 0.010)
+    # a still read older than the span says nothing of the leader now
+    stale = SnapWatch(LAW, rearm_twice=True)
+    assert not stale.allows(POSE, GOAL, STILL, False, 0.000)
+    assert not stale.allows(POSE, GOAL, STILL, False, LAW.rearm_span_s + 0.001)
+    # an engaged cycle in between forgets the still read before it
+    between = SnapWatch(LAW, rearm_twice=True)
+    assert not between.allows(POSE, GOAL, STILL, False, 0.000)
+    assert between.allows(POSE, GOAL, STILL, True, 0.005)
+    assert not between.allows(POSE, GOAL, STILL, False, 0.010)
+    # a leader a hand pushes outward (from inside, or after a held gate): at once
+    out = SnapWatch(LAW, rearm_twice=True)
+    assert out.allows(POSE, GOAL, (10.0, 0.0), False, 0.000)
+    # read at one velocity unit outward: still, so two reads
+    creeping = SnapWatch(LAW, rearm_twice=True)
+    assert not creeping.allows(POSE, GOAL, (1.37, 0.0), False, 0.000)
+    assert creeping.allows(POSE, GOAL, (1.37, 0.0), False, 0.005)
+
+
+def test_the_read_just_before_a_wall_comes_on_leaves_the_watch_as_it_is():
+    watch = SnapWatch(LAW, rearm_twice=True)
+    assert watch.still(POSE, GOAL, STILL)
+    assert not watch.still(POSE, GOAL, (-1.37, 0.0))  # one velocity unit in
+    assert watch.still(POSE, POSE, (-20.0, 0.0))  # no step: nothing to move in toward
+    assert not watch.allows(POSE, GOAL, STILL, False, 0.000)  # still the first still read
+
+
+def test_judging_a_cycles_read_applies_the_rules_without_counting_a_watch_read():
+    watch = held_watch()
+    assert not watch.judge((-2.0, 0.0), 0.001)
+    assert watch.judge((-17.0, 0.0), 0.002)  # the snap at the cycle's read
+    assert (watch.cuts, watch.reads, watch.armed) == (1, 0, None)
+
+
 speeds = st.floats(-100.0, 100.0, allow_nan=False)
 
 
