@@ -141,13 +141,13 @@ class SnapWatch:
         Whether a free wall comes back only when the cycle's read *and* the cycle read before
         (within ``rearm_span_s``) show the leader not moving in, or at once on a leader read
         moving outward faster than STILL (a hand pushing it out, as after a held gate: one
-        cycle more of release let a 0.2 N m/deg hand push it 1.4 deg further). A hand reversing, from pushing
-        out to pulling in, leaves the leader still for a millisecond or two (the backdrive
-        friction holds it while the hand's torque passes through zero); a wall that came back
-        then met the hand's pull at once, and the servo's loop braked the leader outward before
-        a read could free it again (over the pty, up to 0.065 N m for 3 ms: docs/haptic.md,
-        round 9). A leader let go outside waits one cycle more before its wall walks it back.
-        False (the rounds before): one still read.
+        cycle more of release let a 0.2 N m/deg hand push it 1.4 deg further). A hand
+        reversing, from pushing out to pulling in, leaves the leader still for a millisecond
+        or two (the backdrive friction holds it while the hand's torque passes through zero);
+        a wall that came back then met the hand's pull at once, and the servo's loop braked
+        the leader outward before a read could free it again (over the pty, up to 0.065 N m
+        for 3 ms: docs/haptic.md, round 9). A leader let go outside waits one cycle more
+        before its wall walks it back. False (the rounds before): one still read.
     """
 
     law: SnapLaw
