@@ -796,10 +796,42 @@ def render(push, ripples, passes, rates, load, exact, transfers, end_load) -> st
     return "\n".join(lines)
 
 
+def push_runs(runs: int) -> int:
+    """The push case ``runs`` times (the pty's timing varies): a line each, then the totals."""
+    load, results = os.getloadavg(), []
+    with tempfile.TemporaryDirectory() as tmp:
+        for k in range(runs):
+            r = push_case(Path(tmp))
+            results.append(r)
+            print(
+                f"run {k + 1}/{runs}: outward {r['outward']} of {r['outside_samples']} "
+                f"(largest {r['outward_peak']:.3f} N m), inside with torque "
+                f"{r['truth_inside_nonzero']}, held {r['stop_max']:.2f} deg beyond, return "
+                f"peak {r['return_peak']:.1f} deg/s, rest {r['final']:.3f} deg beyond, deepest "
+                f"inside {max(r['deepest'], 0.0):.3f} deg",
+                flush=True,
+            )
+    print(
+        f"{sum(1 for r in results if r['outward'])} of {runs} runs with an outward sample; "
+        f"load {load[0]:.2f} -> {os.getloadavg()[0]:.2f} (1 min)"
+    )
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--out", type=Path, default=Path("docs/bench_haptic.md"))
+    parser.add_argument(
+        "--push-runs",
+        type=int,
+        metavar="N",
+        help="run only the push case over the pty N times and print each (writes nothing)",
+    )
     args = parser.parse_args(argv)
+    if args.push_runs is not None:
+        if args.push_runs < 1:
+            parser.error("--push-runs must be at least 1")
+        return push_runs(args.push_runs)
     load = os.getloadavg()
     with tempfile.TemporaryDirectory() as tmp:
         workdir = Path(tmp)
