@@ -61,7 +61,12 @@ def wrap(angle: np.ndarray | float) -> np.ndarray:
     """
     a = np.asarray(angle, dtype=np.float64)
     # a - 2 pi ceil((a - pi) / 2 pi) lies in (-pi, pi]
-    return a - 2.0 * np.pi * np.ceil((a - np.pi) / (2.0 * np.pi))
+    wrapped = a - 2.0 * np.pi * np.ceil((a - np.pi) / (2.0 * np.pi))
+    # the quotient rounds near the ends: -pi + 4e-16 gave exactly -1 and wrapped to pi + 4e-16.
+    # An angle already in range is kept; one rounded a ulp past an end is folded back
+    wrapped = np.where(wrapped > np.pi, wrapped - 2.0 * np.pi, wrapped)
+    wrapped = np.where(wrapped <= -np.pi, wrapped + 2.0 * np.pi, wrapped)
+    return np.where((a > -np.pi) & (a <= np.pi), a, wrapped)
 
 
 def twist_quat(tau: np.ndarray | float) -> np.ndarray:
@@ -201,5 +206,10 @@ def compose_one(d: Vec3, tau: float) -> np.ndarray:
 
 
 def _wrap_one(a: float) -> float:
-    """Scalar :func:`wrap`."""
-    return a - 2.0 * math.pi * math.ceil((a - math.pi) / (2.0 * math.pi))
+    """Scalar :func:`wrap` (the same fold at the ends)."""
+    if -math.pi < a <= math.pi:
+        return a
+    wrapped = a - 2.0 * math.pi * math.ceil((a - math.pi) / (2.0 * math.pi))
+    if wrapped > math.pi:
+        return wrapped - 2.0 * math.pi
+    return wrapped + 2.0 * math.pi if wrapped <= -math.pi else wrapped

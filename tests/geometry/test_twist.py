@@ -41,6 +41,18 @@ def test_wrap_range_and_half_turn():
     np.testing.assert_allclose(np.sin(w), np.sin(a), atol=1e-12)
 
 
+def test_wrap_keeps_an_angle_a_ulp_inside_the_range():
+    # (-pi + 4e-16 - pi) / 2 pi rounds to exactly -1: the plain formula gave pi + 4e-16
+    inside = math.nextafter(-math.pi, 0.0) + 2e-16
+    for angle in (math.nextafter(-math.pi, 0.0), inside, math.pi, 2.0 * math.atan2(1.0, -2.2e-16)):
+        for wrapped in (float(tw.wrap(angle)), tw._wrap_one(angle)):
+            assert -math.pi < wrapped <= math.pi
+    assert float(tw.wrap(math.nextafter(-math.pi, 0.0))) == math.nextafter(-math.pi, 0.0)
+    v = [2.220446049250313e-16, -1.0, 0.0, 0.0]  # hypothesis found it: a half turn about -x
+    assert -math.pi < float(tw.decompose(_unit(v))[1]) <= math.pi
+    assert -math.pi < tw.decompose_one(_unit(v))[1] <= math.pi
+
+
 @settings(max_examples=300, deadline=None)
 @given(v=unit_quats)
 def test_decompose_then_compose_is_the_same_rotation(v):
