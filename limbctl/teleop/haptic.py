@@ -314,9 +314,14 @@ def pulls_outward(law: FeelLaw, torque_nm: tuple[float, ...], step: tuple[float,
     """Whether the leader's motor, read at ``torque_nm`` (joint frame, N m per joint), pulls
     away from the region by more than ``law.outward_noise_nm``: its torque's component along
     ``step`` (toward the corrected pose, joint space; not all zero) below -NOISE."""
-    # tau . step / |step|
-    along = sum(t * s for t, s in zip(torque_nm, step, strict=True))
-    return along / math.sqrt(sum(s * s for s in step)) < -law.outward_noise_nm
+    return along_step(torque_nm, step) < -law.outward_noise_nm
+
+
+def along_step(values: tuple[float, ...], step: tuple[float, ...]) -> float:
+    """The component of per-joint ``values`` along ``step`` (joint space; not all zero)."""
+    # v . step / |step|
+    dot = sum(v * s for v, s in zip(values, step, strict=True))
+    return dot / math.sqrt(sum(s * s for s in step))
 
 
 def walks_back(
@@ -331,11 +336,10 @@ def walks_back(
     (joint frame, N m and deg/s; either None: not read, not walking)."""
     if torque_nm is None or velocity_deg_s is None:
         return False
-    norm = math.sqrt(sum(s * s for s in step))
-    # v . step / |step|  and  tau . step / |step|
-    toward = sum(v * s for v, s in zip(velocity_deg_s, step, strict=True)) / norm
-    pushing = sum(t * s for t, s in zip(torque_nm, step, strict=True)) / norm
-    return toward > law.walk_speed_deg_s and pushing < law.walk_hold_nm
+    return (
+        along_step(velocity_deg_s, step) > law.walk_speed_deg_s
+        and along_step(torque_nm, step) < law.walk_hold_nm
+    )
 
 
 def goal_lead_rad(

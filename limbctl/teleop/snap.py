@@ -230,11 +230,12 @@ class SnapWatch:
         if unit is None:
             return True
         if not engaged:
-            still = self.still(present, goal, velocity_deg_s)
+            toward = along(velocity_deg_s, unit)
+            still = toward <= self.law.rearm_speed_deg_s
             if not self.rearm_twice:
                 return still
             before, self._free_still_at = self._free_still_at, now_s if still else None
-            if along(velocity_deg_s, unit) < -self.law.still_speed_deg_s:
+            if toward < -self.law.still_speed_deg_s:
                 return True  # pushed outward by a hand: nothing for the loop to brake
             return still and before is not None and now_s - before <= self.law.rearm_span_s
         self._free_still_at = None
@@ -303,5 +304,4 @@ class SnapWatch:
         read) at ``now_s`` (s): an armed leader snaps, or the brake rules free it (then the
         caller writes Goal Current 0)."""
         self.reads += 1
-        snapped = self._snapping(velocity_deg_s, now_s)
-        return snapped or self._braking(velocity_deg_s, torque_nm, now_s)
+        return self.judge(velocity_deg_s, now_s, torque_nm)
