@@ -22,28 +22,13 @@ from limbctl.teach.guide import Guidance
 from limbctl.teleop.cycle import Cycle, CycleState
 from limbctl.teleop.gate import GateResult, Outcome
 from limbctl.view import Board
-from tests.view.browser import chromium, text_of, wait_for
+from tests.view.browser import assert_pose_shown, chromium, text_of, wait_for
 
 DATA = Path(__file__).parent / "data" / "hand_irregular_seed0_20s.limb"
 
 
 def pose_text(pan_deg: float, tilt_deg: float) -> str:
     return f"{pan_deg:.1f}, {tilt_deg:.1f}"
-
-
-#: How far a pose the page shows (one decimal, rounded from the loop's float) may lie from the
-#: same pose in the telemetry (four decimals): half a shown digit plus half a logged one. The two
-#: roundings can land a tie on either side (-56.25 logged from -56.2500004 shown as -56.3).
-SHOWN_VS_LOGGED_DEG = 0.05 + 0.00005 + 1e-9
-
-
-def assert_shows_logged(text: str, logged: list[float]) -> None:
-    """The page's "pan, tilt" ``text`` is the telemetry's ``logged`` pose (deg), as each rounds."""
-    shown = [float(part) for part in text.split(",")]
-    assert len(shown) == 2, f"not a pose: {text!r}"
-    assert all(abs(a - b) <= SHOWN_VS_LOGGED_DEG for a, b in zip(shown, logged)), (
-        f"the page shows {text}, the telemetry logged {logged}"
-    )
 
 
 class Watcher(threading.Thread):
@@ -101,7 +86,7 @@ def test_record_job_shows_its_samples_on_the_page(tmp_path):
             lambda d: text_of(d, "sample-count") == str(len(data)),
             f"the page never showed the file's {len(data)} samples",
         )
-        assert text_of(browser, "pose") == pose_text(data.pan_deg[-1], data.tilt_deg[-1])
+        assert_pose_shown(text_of(browser, "pose"), (data.pan_deg[-1], data.tilt_deg[-1]))
         assert text_of(browser, "limits") == "pan -115..115, tilt -55..70"
         # the guide's last assessment, as the recorder's summary has it
         wait_for(browser, lambda d: "edge closed" in text_of(d, "guide"), "no guide figures")
@@ -165,10 +150,10 @@ def test_teleop_job_shows_commanded_and_written_poses(tmp_path, model_path):
         rows = [json.loads(line) for line in telemetry.read_text().splitlines()]
         last_written = [row for row in rows if row["written"]][-1]
         wait_for(page, lambda d: "ended by stopped" in text_of(d, "note"), "the end is not shown")
-        assert_shows_logged(text_of(page, "written"), last_written["out"])
+        assert_pose_shown(text_of(page, "written"), last_written["out"], logged_digits=4)
         assert text_of(page, "commanded") == pose_text(20.0, 20.0) == pose_text(*rows[-1]["cmd"])
         last_read = [row for row in rows if row["present"] is not None][-1]
-        assert_shows_logged(text_of(page, "pose"), last_read["present"])
+        assert_pose_shown(text_of(page, "pose"), last_read["present"], logged_digits=4)
 
 
 def cycle(index: int, t: float, written: bool, pan: float = 0.1) -> Cycle:

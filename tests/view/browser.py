@@ -60,6 +60,27 @@ def text_of(driver: webdriver.Chrome, element_id: str) -> str:
     return driver.execute_script(f"return document.getElementById('{element_id}').textContent;")
 
 
+#: Half the last digit of a pose the page shows ("pan, tilt", one decimal). The page rounds a
+#: tie away from zero (JavaScript's toFixed), Python's format to even; poses read from ticks hit
+#: exact ties (a tick is 360/4096 deg: -640 ticks is -56.25 deg), so a shown pose is compared
+#: with the value, not with Python's text of it.
+SHOWN_HALF_DIGIT_DEG = 0.05
+
+
+def assert_pose_shown(text: str, pose_deg, logged_digits: int | None = None) -> None:
+    """The page's "pan, tilt" ``text`` shows ``pose_deg`` (deg), within its rounding.
+
+    ``logged_digits``: the decimals ``pose_deg`` was itself rounded to (a telemetry's 4), whose
+    half a digit is allowed too.
+    """
+    shown = [float(part) for part in text.split(",")]
+    slack = SHOWN_HALF_DIGIT_DEG + (0.5 * 10.0**-logged_digits if logged_digits else 0.0)
+    assert len(shown) == len(pose_deg) == 2, f"not a pose: {text!r}"
+    assert all(abs(a - b) <= slack + 1e-9 for a, b in zip(shown, pose_deg)), (
+        f"the page shows {text}, the pose is {tuple(pose_deg)}"
+    )
+
+
 def browser_pids(driver: webdriver.Chrome) -> list[int]:
     """The browser's processes (every descendant of chromedriver), to freeze or kill them."""
     children: dict[int, list[int]] = {}

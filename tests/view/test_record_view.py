@@ -16,7 +16,7 @@ from limbctl.teach.record import record
 from limbctl.view import Board, HardLimits, ViewServer
 from limbctl.view.feed import PoseTap, SceneFeeder
 from limbctl.view.region import TRACED_WITHIN_DEG, fit_outline, model_loops, region_loops
-from tests.view.browser import chromium, text_of, wait_for
+from tests.view.browser import assert_pose_shown, chromium, text_of, wait_for
 
 #: The first region needs the fit process to start and numba's cached kernels to load.
 FIRST_REGION_S = 120.0
@@ -76,7 +76,7 @@ def test_page_shows_the_recording_as_it_happens(tmp_path):
             f"the page never showed the recorder's {recorded.samples} samples",
         )
         pan, tilt = np.degrees(tap.samples()[-1])
-        assert text_of(browser, "pose") == f"{pan:.1f}, {tilt:.1f}"
+        assert_pose_shown(text_of(browser, "pose"), (pan, tilt))
     data = load_dataset(out)
     assert len(data) == recorded.samples
     assert abs(data.pan_deg[-1] - pan) < 1e-9 and abs(data.tilt_deg[-1] - tilt) < 1e-9
