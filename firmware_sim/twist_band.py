@@ -9,6 +9,12 @@ A REGION.yaml for a three-joint gimbal adds a ``twist:`` section beside its ``re
 Each value is either a number (the same everywhere) or ``[a, b, c]``, meaning
 ``a + b * pan_deg + c * tilt_deg`` at the swing pose (pan_deg, tilt_deg): the band's limits may vary
 with pan and tilt (``[40, 0, -0.3]`` narrows as the limb rises, as a shoulder's rotation does).
+A value may also be a mapping for a curved band (every key optional)::
+
+    half_width_deg:
+      linear: [40, 0, -0.3]           # a + b pan + c tilt, as above
+      quadratic: [0.002, 0, -0.004]   # + p pan^2 + m pan tilt + t tilt^2 (deg^-1)
+      bumps: [[20, 10, -8, 12]]       # + sum of h exp(-((pan - p0)^2 + (tilt - t0)^2) / (2 w^2))
 At a pose the allowed twist is ``centre - half_width .. centre + half_width`` (deg), where twist is
 the swing-twist angle about the limb's rest axis (:mod:`firmware_sim.orientation`), not the roll
 joint's angle. Over the whole swing outline the half width must stay within
@@ -34,6 +40,69 @@ CHECK_GRID_STEP_DEG = 2.0
 _KEYS = ("centre_deg", "half_width_deg")
 
 
+_CURVED = ("linear", "quadratic", "bumps")
+
+
+class Curved:
+    """A band value curving with the pose (the module docstring's mapping form).
+
+    Parameters
+    ----------
+    linear, quadratic : tuple of 3 float
+        ``(a, b, c)``: ``a + b pan + c tilt``; ``(p, m, t)``: ``p pan^2 + m pan tilt + t tilt^2``.
+    bumps : tuple of (pan0, tilt0, height, width)
+        Gaussian bumps (deg): ``height exp(-((pan - pan0)^2 + (tilt - tilt0)^2) / (2 width^2))``.
+    """
+
+    def __init__(self, linear=(0.0, 0.0, 0.0), quadratic=(0.0, 0.0, 0.0), bumps=()) -> None:
+        self.linear = tuple(linear)
+        self.quadratic = tuple(quadratic)
+        self.bumps = tuple(tuple(b) for b in bumps)
+
+    def __call__(self, pan: float, tilt: float) -> float:
+        """The value (deg) at the pose (pan, tilt) deg."""
+        a, b, c = self.linear
+        p, m, t = self.quadratic
+        out = a + b * pan + c * tilt + p * pan * pan + m * pan * tilt + t * tilt * tilt
+        for p0, t0, height, width in self.bumps:
+            out += height * math.exp(-((pan - p0) ** 2 + (tilt - t0) ** 2) / (2.0 * width * width))
+        return out
+
+
+def _value(value: object, source: str, key: str) -> tuple[float, float, float] | Curved:
+    """A band value: ``(a, b, c)`` from a number or ``[a, b, c]``, or a :class:`Curved` from the
+    mapping form (the module docstring)."""
+    if not isinstance(value, dict):
+        return _linear(value, source, key)
+    unknown = sorted(set(value) - set(_CURVED), key=str)
+    if unknown:
+        raise ValueError(
+            f"{source}: twist.{key} takes {', '.join(_CURVED)} as a mapping, got {unknown}"
+        )
+    linear = _linear(value.get("linear", 0.0), source, f"{key}.linear")
+    quadratic = _linear(value.get("quadratic", 0.0), source, f"{key}.quadratic")
+    if value.get("quadratic", None) is not None and not isinstance(value["quadratic"], list):
+        raise ValueError(f"{source}: twist.{key}.quadratic must be [p, m, t] (deg^-1)")
+    bumps = value.get("bumps", [])
+    if not isinstance(bumps, list) or not all(
+        isinstance(b, list) and len(b) == 4 and b[3] != 0 for b in bumps
+    ):
+        raise ValueError(
+            f"{source}: twist.{key}.bumps must be a list of [pan_deg, tilt_deg, height_deg, "
+            f"width_deg] (width not 0), got {bumps!r}"
+        )
+    bumps = [_linear(b[:3], source, f"{key}.bumps") + (float(b[3]),) for b in bumps]
+    return Curved(linear, quadratic, bumps)
+
+
+def _at(value: tuple[float, float, float] | Curved, pan: float, tilt: float) -> float:
+    """A band value (deg) at the pose (pan, tilt) deg."""
+    if isinstance(value, Curved):
+        return value(pan, tilt)
+    a, b, c = value
+    return a + b * pan + c * tilt
+
+
 def _linear(value: object, source: str, key: str) -> tuple[float, float, float]:
     """``(a, b, c)`` of ``a + b pan + c tilt`` from a number or a list of three numbers."""
 
@@ -54,16 +123,19 @@ def _linear(value: object, source: str, key: str) -> tuple[float, float, float]:
 
 
 class TwistBand:
-    """The allowed twist (deg) at each swing pose: ``centre +- half_width``, each linear in pose.
+    """The allowed twist (deg) at a swing pose: ``centre +- half_width``, each varying with pose.
 
     Parameters
     ----------
-    centre, half_width : tuple of 3 float
-        ``(a, b, c)``: the value at (pan_deg, tilt_deg) is ``a + b pan_deg + c tilt_deg``.
+    centre, half_width : tuple of 3 float or Curved
+        ``(a, b, c)``: the value at (pan_deg, tilt_deg) is ``a + b pan_deg + c tilt_deg``; a
+        :class:`Curved` adds quadratic terms and bumps.
     """
 
     def __init__(
-        self, centre: tuple[float, float, float], half_width: tuple[float, float, float]
+        self,
+        centre: tuple[float, float, float] | Curved,
+        half_width: tuple[float, float, float] | Curved,
     ) -> None:
         self.centre = centre
         self.half_width = half_width
@@ -81,8 +153,8 @@ class TwistBand:
                 f"{sorted(data, key=str)}"
             )
         band = cls(
-            _linear(data.get("centre_deg", 0.0), source, "centre_deg"),
-            _linear(data["half_width_deg"], source, "half_width_deg"),
+            _value(data.get("centre_deg", 0.0), source, "centre_deg"),
+            _value(data["half_width_deg"], source, "half_width_deg"),
         )
         points = grid_inside(region, CHECK_GRID_STEP_DEG, 0.0)
         vertices = np.asarray(getattr(region, "vertices_deg", np.empty((0, 2))), dtype=float)
@@ -98,10 +170,8 @@ class TwistBand:
 
     def limits_deg(self, pan_deg: float, tilt_deg: float) -> tuple[float, float]:
         """``(low, high)`` twist (deg) allowed at the swing pose; ``low < high``."""
-        a, b, c = self.centre
-        centre = a + b * pan_deg + c * tilt_deg
-        a, b, c = self.half_width
-        half = a + b * pan_deg + c * tilt_deg
+        centre = _at(self.centre, pan_deg, tilt_deg)
+        half = _at(self.half_width, pan_deg, tilt_deg)
         return (centre - half, centre + half)
 
     def contains(self, pan_deg: float, tilt_deg: float, twist_deg: float) -> bool:

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import math
+import re
+
 import pytest
 
 from firmware_sim.regions import region_from_mapping
@@ -47,3 +50,36 @@ def test_contains_compares_on_the_circle():
 def test_bad_bands_are_refused_with_the_reason(spec, message):
     with pytest.raises(ValueError, match=message):
         TwistBand.from_mapping(spec, SQUARE, "r.yaml")
+
+
+def test_a_mapping_gives_a_curved_band_with_bumps_and_the_list_forms_still_load():
+    band = TwistBand.from_mapping(
+        {
+            "centre_deg": {"linear": [5, 0.1, 0], "quadratic": [0, 0, 0.01]},
+            "half_width_deg": {"linear": [40, 0, 0], "bumps": [[10, 20, -12, 5]]},
+        },
+        SQUARE,
+    )
+    low, high = band.limits_deg(0, 0)
+    # centre 5 + 0.01 * 0; half 40 - 12 exp(-(100 + 400) / 50) ~= 40
+    assert (high + low) / 2 == pytest.approx(5.0)
+    assert (high - low) / 2 == pytest.approx(40.0 - 12.0 * math.exp(-10.0))
+    low, high = band.limits_deg(10, 20)
+    assert (high + low) / 2 == pytest.approx(5.0 + 1.0 + 4.0)  # 0.1 pan + 0.01 tilt^2
+    assert (high - low) / 2 == pytest.approx(28.0)  # the bump's floor
+    assert TwistBand.from_mapping({"half_width_deg": [40, 0, -0.3]}, SQUARE).limits_deg(
+        0, 10
+    ) == pytest.approx((-37.0, 37.0))
+
+
+@pytest.mark.parametrize(
+    "value, words",
+    [
+        ({"linear": [40, 0, 0], "cubic": [1, 2, 3]}, "takes linear, quadratic, bumps"),
+        ({"linear": [40, 0, 0], "bumps": [[0, 0, 5]]}, "bumps must be a list"),
+        ({"linear": [40, 0, 0], "quadratic": 0.1}, "quadratic must be [p, m, t]"),
+    ],
+)
+def test_a_malformed_curved_band_is_refused_naming_the_key(value, words):
+    with pytest.raises(ValueError, match=re.escape(words)):
+        TwistBand.from_mapping({"half_width_deg": value}, SQUARE)
