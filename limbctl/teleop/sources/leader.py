@@ -39,6 +39,7 @@ from limbctl.teleop.haptic import FeelLaw, FeelStats, Push, push_for
 from limbctl.teleop.pacing import PaceWatch
 from limbctl.teleop.sources.base import CommandSource
 from limbctl.teleop.sources.leader_ids import check_leader_fits
+from limbctl.teleop.sources.leader_silence import LeaderSilence
 from limbctl.teleop.sources.leader_snap import SnapWatching, cycle_velocity, snap_watch
 
 #: Bus Watchdog of a felt leader: 5 x 20 ms = 100 ms without a packet stops it (the servo holds
@@ -121,6 +122,8 @@ class LeaderSource(SnapWatching, CommandSource):
         #: The leader's pose at its last good read and when (perf_counter s): how fast it moves.
         self._last_read: tuple[tuple[float, float], float] | None = None
         self._notes: list[str] = []
+        #: The leader's silent servos and dropouts (leader_silence.py).
+        self.silence = LeaderSilence()
         self._heard_at = math.inf  # when the leader last answered (perf_counter s)
         self._follower_read_at = -math.inf  # the follower's last good read (perf_counter s)
         self._profile_velocity: int | None = 0  # what the leader's servos hold (set-up: 0)
@@ -276,12 +279,12 @@ class LeaderSource(SnapWatching, CommandSource):
     def _poll_felt(self) -> list[Command]:
         """The felt leader's read: its pose, and whether it is still fit to push."""
         self._cycle = None
-        # two tries, as the loop's own read: one lost reply should not drop the push
-        read = self.rig.bus.read_cycle(ids=self.leader_ids, attempts=2)
+        read = self.read_leader()  # a miss switches the push off at once (leader_snap.py)
         now = time.perf_counter()
-        if not read.ok:
-            self.read_failures += 1
+        if read is None or not read.ok:
+            self.read_failures += read is not None
             return []
+        self._notes.extend(self.silence.heard(now))
         unheard_s, self._heard_at = now - self._heard_at, now
         if unheard_s > WATCHDOG_UNITS * WATCHDOG_UNIT_S / 2.0:
             self._arm_watchdog()  # long enough unheard that its watchdog may have tripped
@@ -478,4 +481,5 @@ class LeaderSource(SnapWatching, CommandSource):
         lines = [self.notice]
         if "feels the edge" in self.notice:
             lines.append(self.feel_stats.describe())
+            lines.extend(self.silence.lines(time.perf_counter()))
         return (*lines, *self.feel_stats.events)

@@ -6,17 +6,11 @@ from __future__ import annotations
 import time
 from collections.abc import Sequence
 
-from limbctl.errors import BusError
-from limbctl.servo.control_table import Block, Register
 from limbctl.servo.cycle import CycleRead
-from limbctl.servo.leader import LeaderMotor, present_velocity
+from limbctl.servo.leader import LeaderMotor, present_current, present_velocity
 from limbctl.teleop.brake import BrakeLaw
 from limbctl.teleop.haptic import VELOCITY_UNIT_DEG_S, FeelLaw
 from limbctl.teleop.snap import SnapLaw, SnapWatch
-
-#: Present Current (2 bytes) and Present Velocity (4) are neighbours on every X-series model
-#: (126-131): one sync read of this block gives the watch both.
-MOTION_BLOCK = Block(Register.PRESENT_CURRENT, Register.PRESENT_CURRENT.size + 4)
 
 
 def snap_watch(law: FeelLaw) -> SnapWatch:
@@ -36,29 +30,32 @@ def cycle_velocity(read: CycleRead, ids: Sequence[int], joints: Sequence) -> tup
     )
 
 
+def motion_of(
+    read: CycleRead, ids: Sequence[int], joints: Sequence, motor: LeaderMotor
+) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """The leader's joint speeds (deg/s) and motor torques (N m), joint frame, in a good cycle
+    read of a felt leader (Present Velocity and Present Current ride in its cycle read:
+    :data:`~limbctl.servo.leader.VELOCITY_MAP`)."""
+    speeds = cycle_velocity(read, ids, joints)
+    torques = tuple(
+        joint.direction * motor.torque_of(present_current(read.reports[servo_id]))
+        for servo_id, joint in zip(ids, joints, strict=True)
+    )
+    return speeds, torques
+
+
 def read_motion(
     bus, ids: Sequence[int], joints: Sequence, motor: LeaderMotor
 ) -> tuple[tuple[float, ...], tuple[float, ...]] | None:
-    """The leader's joint speeds (deg/s) and motor torques (N m), joint frame, in one sync read
-    of Present Current and Present Velocity (:data:`MOTION_BLOCK`); None if the read failed
-    (the next cycle's read decides what to do about the leader)."""
-    try:
-        blocks = bus.sync_read(MOTION_BLOCK, ids, check_alert=False)
-    except BusError:
-        return None
-    speeds, torques = [], []
-    for servo_id, joint in zip(ids, joints, strict=True):
-        data = blocks[servo_id]
-        current = int.from_bytes(data[:2], "little", signed=True)
-        velocity = int.from_bytes(data[2:6], "little", signed=True)
-        speeds.append(joint.direction * velocity * VELOCITY_UNIT_DEG_S)
-        torques.append(joint.direction * motor.torque_of(current))
-    return tuple(speeds), tuple(torques)
+    """The leader's joint speeds (deg/s) and motor torques (N m), joint frame, in one try of
+    the cycle read (:func:`motion_of`); None if it failed."""
+    read = bus.read_cycle(ids=ids, attempts=1)
+    return motion_of(read, ids, joints, motor) if read.ok else None
 
 
 class SnapWatching:
     """The loop's idle work for a felt leader source (mixed into ``LeaderSource``, which has
-    ``felt``, ``snap``, ``rig``, ``leader_ids``, ``motor`` and ``release``)."""
+    ``felt``, ``snap``, ``rig``, ``leader_ids``, ``motor``, ``release`` and ``missed``)."""
 
     @property
     def idle_work(self):
@@ -71,7 +68,7 @@ class SnapWatching:
         still, read again just before the write: the wall starts with its setpoint at the
         leader, and the servo's loop would brake one a hand has started to take in since the
         cycle's read (2-3 ms earlier over the bus), outward. A failed read: not now."""
-        motion = read_motion(self.rig.bus, self.leader_ids, self.rig.joints, self.motor)
+        motion = self.read_motion()
         if motion is None:
             return False
         return self.snap.still(pose, goal, motion[0])
@@ -90,7 +87,44 @@ class SnapWatching:
         """Between cycles: read the leader's speed and torque; a held leader that snaps toward
         the region, or one its loop is about to brake outward, is let go at once
         (:mod:`limbctl.teleop.snap`, :mod:`limbctl.teleop.brake`)."""
-        motion = read_motion(self.rig.bus, self.leader_ids, self.rig.joints, self.motor)
+        motion = self.read_motion()
         now = time.perf_counter()
         if self.snap.watching and motion is not None and self.snap.snaps(motion[0], now, motion[1]):
             self.release()
+
+    def read_leader(self) -> CycleRead | None:
+        """The cycle's read of the felt leader, one try and, after a miss, one more (a lost
+        reply need not drop the mirroring); every miss switches the push off at once
+        (:meth:`missed`). While a leader servo is silent, the leader is read only once per
+        probe interval (:class:`~limbctl.teleop.sources.leader_silence.LeaderSilence`): None
+        on the cycles between."""
+        if not self.silence.read_now(time.perf_counter()):
+            return None
+        read = self.rig.bus.read_cycle(ids=self.leader_ids, attempts=1)
+        if not read.ok:
+            self.missed(read)
+            if not self.silence.silent:
+                read = self.rig.bus.read_cycle(ids=self.leader_ids, attempts=1)
+                if not read.ok:
+                    self.missed(read)
+        return read
+
+    def missed(self, read: CycleRead) -> None:
+        """A failed read of the leader (``read``): every leader servo's push goes off at once
+        (one that does not answer may be gone, and the others must not push the hand alone),
+        and the miss is counted toward a dropout (:class:`LeaderSilence`)."""
+        self.silence.missed(read, time.perf_counter())
+        if self.felt:
+            self.release()
+
+    def read_motion(self) -> tuple[tuple[float, ...], tuple[float, ...]] | None:
+        """The leader's joint speeds (deg/s) and torques (N m) in one try of the cycle read
+        (:func:`motion_of`); a failed read switches every leader servo's push off at once
+        (``missed``) and gives None. One try, no diagnostic pings: a silent servo costs one
+        reply timeout (6.3 ms on the simulator's pty), not a stalled loop (a plain sync read's
+        three tries and pings took 31 ms and more, the push left on meanwhile)."""
+        read = self.rig.bus.read_cycle(ids=self.leader_ids, attempts=1)
+        if not read.ok:
+            self.missed(read)
+            return None
+        return motion_of(read, self.leader_ids, self.rig.joints, self.motor)

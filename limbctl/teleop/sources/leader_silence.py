@@ -1,0 +1,108 @@
+"""A felt leader's silent servos: when each stopped answering, for how long, and when to ask.
+
+Any failed read of the leader (the cycle's or the snap watch's between the cycles) switches
+every leader servo's push off at once (:meth:`LeaderSource.release`: Goal Current 0 in one
+sync write, which the servos that still listen obey): a servo that does not answer may be gone,
+and the others must not go on pushing the hand alone. This module keeps the account::
+
+    a miss          a failed read that names the servo its reply stopped at (one lost reply
+                    costs one miss; the read is tried once more in the same cycle)
+    a dropout       a servo missed by MISSES_FOR_DROPOUT reads in a row, timed from its first
+                    miss until it answers again (or the session ends: "so far")
+    while silent    the leader is read once per PROBE_INTERVAL_S only, one try: the loop keeps
+                    its rate (two failed tries every cycle cost 12 ms of the 5 ms period on the
+                    simulator's pty, and the pace watch would switch the feel off for good)
+
+The dropouts are the session's summary lines for the leader (:meth:`LeaderSilence.lines`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from limbctl.servo.cycle import CycleRead
+from limbctl.servo.health import Dropout
+
+#: Two reads in a row: one lost reply (a corrupt or late packet) is not a dropout; the cycle's
+#: read and its second try, or the watch's read and the cycle's, both missing the servo are.
+MISSES_FOR_DROPOUT = 2
+#: How often a silent leader is asked whether it is back (s): as the follower's silent servos
+#: (limbctl.servo.health.HealthLimits.probe_interval_s), a dropout's length known within it,
+#: and one failed read (6.3 ms on the simulator's pty) in ten cycles keeps the loop's rate.
+PROBE_INTERVAL_S = 0.05
+
+
+@dataclass
+class LeaderSilence:
+    """The leader's silent servos (see the module docstring). Times are perf_counter s.
+
+    Attributes
+    ----------
+    dropouts : list of Dropout
+        Each ended dropout: servo id, start, length (s).
+    misses : int
+        Failed reads of the leader (the cycle's and the watch's).
+    longest_failed_read_s : float
+        The longest a failed read took (s): the "one failed read" of the push-off bound.
+    """
+
+    dropouts: list[Dropout] = field(default_factory=list)
+    misses: int = 0
+    longest_failed_read_s: float = 0.0
+    _first_miss: dict[int, tuple[float, int]] = field(default_factory=dict)  # at, misses
+    _probed_at: float = -math.inf
+
+    @property
+    def silent(self) -> tuple[int, ...]:
+        """The servos missed by MISSES_FOR_DROPOUT reads in a row or more, now."""
+        return tuple(i for i, (_, n) in self._first_miss.items() if n >= MISSES_FOR_DROPOUT)
+
+    def missed(self, read: CycleRead, now_s: float) -> None:
+        """A failed read at ``now_s``: each servo it names missed once more (a read that names
+        none, a garbled reply, is counted only)."""
+        self.misses += 1
+        self.longest_failed_read_s = max(self.longest_failed_read_s, read.duration_s)
+        for servo_id in read.silent:
+            at, count = self._first_miss.get(servo_id, (now_s - read.duration_s, 0))
+            self._first_miss[servo_id] = (at, count + 1)
+
+    def heard(self, now_s: float) -> list[str]:
+        """A good read at ``now_s``: every silence ends; the notices of the dropouts it ends."""
+        notes = []
+        for servo_id, (at, count) in self._first_miss.items():
+            if count >= MISSES_FOR_DROPOUT:
+                dropout = Dropout(servo_id, at, now_s - at)
+                self.dropouts.append(dropout)
+                notes.append(f"leader {dropout.describe()}")
+        self._first_miss.clear()
+        return notes
+
+    def read_now(self, now_s: float) -> bool:
+        """Whether the cycle reads the leader now: always while no servo is silent, else once
+        per PROBE_INTERVAL_S (the read then is the probe)."""
+        if not self.silent or now_s - self._probed_at >= PROBE_INTERVAL_S:
+            self._probed_at = now_s
+            return True
+        return False
+
+    def lines(self, now_s: float) -> list[str]:
+        """The summary's line on the leader's dropouts: each with its servo and length (one
+        still going on at ``now_s`` with its length so far), and the failed reads."""
+        ongoing = [
+            Dropout(i, at, now_s - at, ongoing=True)
+            for i, (at, n) in self._first_miss.items()
+            if n >= MISSES_FOR_DROPOUT
+        ]
+        every = [*self.dropouts, *ongoing]
+        if not every and not self.misses:
+            return ["leader dropouts: none"]
+        still = " so far (still silent)"
+        said = "; ".join(
+            f"servo {d.servo_id} {d.duration_s:.3f} s{still if d.ongoing else ''}" for d in every
+        )
+        return [
+            f"leader dropouts: {said or 'none'} ({self.misses} failed reads, the longest "
+            f"{1e3 * self.longest_failed_read_s:.1f} ms; each switched every leader servo's "
+            f"push off at once)"
+        ]

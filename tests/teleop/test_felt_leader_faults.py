@@ -1,0 +1,67 @@
+"""A felt leader whose parts fail, two- and three-servo leaders alike, over the real SDK and the
+simulator's pty: a leader servo dropping off the bus mid-push switches every leader servo's
+push off within one period and one failed read, and the summary names the dropout."""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+
+from tests.teleop import test_felt_leader as two
+from tests.teleop import test_felt_leader3 as three
+
+#: Each rig: its session, its loop runner, the hand's press (along pan, the edge at pan 30 deg
+#: for both regions) and its leader ids.
+RIGS = {
+    "two-servo": (two.felt_session, two.Running, two.PRESS, two.IDS),
+    "three-servo": (three.felt3_session, three.Running3, three.PRESS, three.IDS),
+}
+#: The simulator's leader log has one row a millisecond: a push's end is seen within it.
+LOG_GRAIN_S = 0.001
+PERIOD_S = 1.0 / 200.0
+
+
+@pytest.mark.parametrize("rig", sorted(RIGS))
+def test_a_leader_servo_dropping_off_mid_push_switches_every_push_off_and_is_reported(
+    tmp_path, rig
+):
+    session_of, runner, press, ids = RIGS[rig]
+    gone, pusher = ids[-1], ids.index(ids[0])  # the last servo drops; the pan motor pushes
+    with session_of(tmp_path) as (session, source, log), source:
+        session.rig.set_torque(True)
+        with runner(session, source) as running:
+            if running.pressed_or_paced_out(press):
+                return  # the feel went off for a lost pace (its outcome asserted)
+            held_at = time.monotonic()
+            running.until(
+                lambda p: source.snap.armed is not None or time.monotonic() > held_at + 20.0
+            )
+            if running.paced_out():
+                return
+            assert source.snap.armed is not None, "the wall never held the leader still"
+            at = session.simulator.truth()["leader"]["t"]
+            session.simulator.vanish(gone, 0.3)
+            running.until(lambda p: session.simulator.truth()["leader"]["t"] > at + 0.5)
+            felt = source.felt
+        lines = source.report_lines()
+        # one failed read, timed on this bus with the loop stopped (the servo gone again)
+        session.simulator.vanish(gone, 0.1)
+        failed = session.rig.bus.read_cycle(ids=ids, attempts=1)
+        assert not failed.ok
+    rows = [row for row in two.truth_rows(log) if row["t"] >= at]
+    assert rows[0]["motor_nm"][pusher] != 0.0  # it pushed when the servo dropped off
+    off = next(row["t"] for row in rows if row["motor_nm"][pusher] == 0.0)
+    # one period (the cycle's work between its read and the watch's next) plus one failed read
+    seen = getattr(getattr(source, "silence", None), "longest_failed_read_s", 0.0)
+    bound = PERIOD_S + max(failed.duration_s, seen) + LOG_GRAIN_S
+    assert off - at <= bound, (off - at, bound)
+    # nothing pushed the hand while the servo was gone (the silent one's own push ends at its
+    # Bus Watchdog, 100 ms: it hears nothing)
+    during = [row for row in rows if off <= row["t"] <= at + 0.3]
+    assert during and all(row["motor_nm"][pusher] == 0.0 for row in during)
+    line = next(line for line in lines if line.startswith("leader dropouts"))
+    assert f"servo {gone} " in line, lines
+    length = float(line.split(f"servo {gone} ")[1].split(" s")[0])
+    assert 0.25 <= length <= 0.45, line  # 0.3 s, known within a probe interval and a read
+    assert felt or running.paced_out()
