@@ -10,6 +10,7 @@ from dynamixel_sdk import PacketHandler, PortHandler
 
 from firmware_sim import SimulatedBus
 from firmware_sim.wire import RIG_BAUD
+from tests import system_tools
 
 
 @pytest.fixture
@@ -32,3 +33,10 @@ def sdk(sim):
     yield SimpleNamespace(port=port, packet=PacketHandler(2.0))
     port.closePort()
     assert not port.is_open
+
+
+def pytest_sessionstart(session):
+    """Install the programs the browser and terminal tests drive, or say in one line what to
+    install (tests/system_tools.py)."""
+    reporter = session.config.pluginmanager.get_plugin("terminalreporter")
+    system_tools.ensure(say=reporter.write_line if reporter else print)

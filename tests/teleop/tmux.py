@@ -15,6 +15,8 @@ import uuid
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
+from tests.system_tools import require
+
 ROOT = Path(__file__).resolve().parents[2]
 #: The terminal the issue's user had.
 COLUMNS, ROWS = 160, 40
@@ -68,6 +70,7 @@ def tmux_pane(command: str, env: dict[str, str] | None = None) -> Iterator[Pane]
 
     The pane stays open after the command ends, its last line ``EXIT <status>``.
     """
+    require("tmux")
     name = f"limbctl-{uuid.uuid4().hex[:8]}"
     exports = "".join(f"export {k}={shlex.quote(v)}; " for k, v in (env or {}).items())
     line = f"cd {shlex.quote(str(ROOT))}; {exports}{command}; echo EXIT $?; sleep 3600"

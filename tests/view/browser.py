@@ -16,8 +16,8 @@ from selenium.webdriver.chrome.service import Service
 from selenium.webdriver.common.action_chains import ActionChains
 from selenium.webdriver.support.ui import WebDriverWait
 
-CHROMIUM = "/usr/bin/chromium"
-CHROMEDRIVER = "/usr/bin/chromedriver"
+from tests.system_tools import find
+
 #: Flags without which Chromium stalls here (root, closed network, no GPU).
 FLAGS = (
     "--headless",
@@ -39,11 +39,11 @@ def chromium() -> Iterator[webdriver.Chrome]:
     """A headless Chromium with a new empty profile, quit on exit."""
     with tempfile.TemporaryDirectory(prefix="limbctl-chromium-") as profile:
         options = webdriver.ChromeOptions()
-        options.binary_location = CHROMIUM
+        options.binary_location = find("chromium")
         for flag in FLAGS:
             options.add_argument(flag)
         options.add_argument(f"--user-data-dir={profile}")
-        driver = webdriver.Chrome(service=Service(CHROMEDRIVER), options=options)
+        driver = webdriver.Chrome(service=Service(find("chromedriver")), options=options)
         try:
             yield driver
         finally:

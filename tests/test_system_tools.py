@@ -1,0 +1,136 @@
+"""tests/system_tools.py: a test run installs the programs its browser and terminal tests drive,
+or says in one line what to install and those tests skip with it.
+
+The programs are hidden by giving a ``PATH`` without them (never by uninstalling them).
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from tests import system_tools
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def bare_path(tmp_path: Path, keep: tuple[str, ...] = ()) -> str:
+    """A PATH of one folder holding links to ``keep`` (programs found on this machine's PATH)."""
+    folder = tmp_path / "bin"
+    folder.mkdir(exist_ok=True)
+    for name in keep:
+        (folder / name).symlink_to(shutil.which(name))
+    return str(folder)
+
+
+def test_every_program_is_found_on_this_machine():
+    # the suite's own machine has them (installed by the session start when it may)
+    assert system_tools.missing() == []
+
+
+def test_without_root_one_line_says_what_to_install(tmp_path):
+    said = []
+    line = system_tools.ensure(path=bare_path(tmp_path), root=False, say=said.append)
+    assert said == [line]
+    assert "\n" not in line
+    assert "chromium, chromedriver, tmux not found" in line
+    assert "apt-get install chromium chromium-driver tmux" in line
+
+
+def test_as_root_it_installs_the_missing_packages_once_with_a_progress_line(tmp_path):
+    path = bare_path(tmp_path, keep=("chromium",))
+    asked = []
+
+    def install(names):
+        # what apt-get does, into the PATH the check reads: the programs appear
+        asked.append(list(names))
+        for name in names:
+            (Path(path) / name).symlink_to(shutil.which(name))
+        return subprocess.CompletedProcess([], 0, "", "")
+
+    said = []
+    assert system_tools.ensure(path=path, root=True, install=install, say=said.append) is None
+    assert asked == [["chromedriver", "tmux"]]
+    assert len(said) == 1 and "installing chromium-driver tmux with apt-get" in said[0]
+    # a second run finds them: nothing installed, nothing said
+    assert system_tools.ensure(path=path, root=True, install=install, say=said.append) is None
+    assert len(asked) == 1 and len(said) == 1
+
+
+def test_a_failed_install_ends_in_the_one_line_with_its_reason(tmp_path):
+    def install(names):
+        return subprocess.CompletedProcess([], 100, "", "E: Unable to locate package chromium")
+
+    said = []
+    line = system_tools.ensure(
+        path=bare_path(tmp_path), root=True, install=install, say=said.append
+    )
+    assert said[-1] == line and len(said) == 2  # the progress line, then the one line
+    assert "installing them failed (E: Unable to locate package chromium)" in line
+
+
+BROWSER_TEST = """
+from tests.view.browser import chromium
+from tests.teleop.tmux import tmux_pane
+
+def test_page():
+    with chromium():
+        pass
+
+def test_terminal():
+    with tmux_pane("true"):
+        pass
+
+def test_other():
+    assert True
+"""
+
+
+def run_hidden(tree: Path, tmp_path: Path) -> subprocess.CompletedProcess:
+    """``python -m pytest -q`` of BROWSER_TEST with tests/conftest.py of ``tree``, as a user who
+    may not install: a PATH without the programs (and without apt-get)."""
+    (tmp_path / "test_tools_needed.py").write_text(BROWSER_TEST)
+    return subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "pytest",
+            "-q",
+            "-p",
+            "tests.conftest",
+            "-p",
+            "no:cacheprovider",
+            "-ra",
+        ]
+        + ["--rootdir", str(tmp_path), str(tmp_path / "test_tools_needed.py")],
+        cwd=tree,
+        env={
+            **os.environ,
+            "PATH": bare_path(tmp_path, keep=("env", "sh")),
+            "PYTHONPATH": str(tree),
+        },
+        capture_output=True,
+        text=True,
+    )
+
+
+def test_a_run_without_the_programs_and_root_skips_their_tests_with_the_line(tmp_path):
+    done = run_hidden(ROOT, tmp_path)
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert "1 passed, 2 skipped" in done.stdout, done.stdout
+    line = "limbctl tests: chromium, chromedriver, tmux not found"
+    said = [text for text in done.stdout.splitlines() if text.startswith(line)]
+    assert len(said) == 1, done.stdout  # said once at the start; the skips give it as reason
+    assert sum(line in text for text in done.stdout.splitlines() if "SKIPPED" in text) >= 1
+
+
+@pytest.mark.parametrize("names", [["tmux"], ["chromium", "chromedriver"]])
+def test_packages_name_each_once(names):
+    assert system_tools.packages(names) == (
+        ["tmux"] if names == ["tmux"] else ["chromium", "chromium-driver"]
+    )
