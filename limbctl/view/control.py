@@ -9,10 +9,20 @@ can open a WebSocket to 127.0.0.1. So:
 - :func:`check_request` refuses a WebSocket whose Origin is not the page's own (another site's
   script) and, on 127.0.0.1, a Host that is not a loopback name (DNS rebinding); steering needs
   an Origin at all (a browser's page, not any program that learned the port).
-- :class:`ControlDesk` is the one controller slot: the first page with the key holds it until it
-  goes away; a second is refused and told who holds it. Only the holder's text reaches the sink
-  (the page source's ``feed``), at most one message per :data:`FORWARD_PERIOD_S`, the newest:
-  a flood only replaces the waiting message, it never queues work for the control loop.
+- :class:`ControlDesk` is the one controller slot: a page with the key takes it when a person
+  opens the address or clicks "take control" (never by itself: a page whose connection dropped
+  comes back watching), and holds it until it lets go or goes away; another is refused and told
+  which tab holds it, by the name that tab shows itself. A reload of the holding tab hands the
+  slot to the reloaded page (the tab's id survives a reload), so the new connection never races
+  the old one's release. Only the holder's text reaches the sink (the page source's ``feed``),
+  at most one message per :data:`FORWARD_PERIOD_S`, the newest: a flood only replaces the
+  waiting message, it never queues work for the control loop.
+
+A page says what it wants in its WebSocket's query: ``tab`` (its id, random, kept for a reload),
+``name`` (the words it shows itself, e.g. "tab K7, opened 19:02:13") and ``want``: ``take`` (a
+person opened the address; the default, for programs), ``reload`` (a person reloaded the tab:
+take it back from the same tab's old connection) or ``watch`` (the page reconnected by itself).
+Over the socket, ``{"control": "take"}`` and ``{"control": "release"}`` are a person's clicks.
 """
 
 from __future__ import annotations
@@ -20,6 +30,7 @@ from __future__ import annotations
 import asyncio
 import hmac
 import ipaddress
+import json
 import secrets
 import threading
 import time
@@ -38,6 +49,12 @@ FORWARD_PERIOD_S = 0.01
 MAX_MESSAGE_BYTES = 4096
 #: Host names that mean this machine, accepted in the Host header of a loopback server.
 LOOPBACK_NAMES = frozenset({"localhost", "127.0.0.1", "::1", "[::1]"})
+#: Longest tab id and tab name (characters) taken from a page: the page's own are 32 and about
+#: 25; the name is shown to every other page, so it is cut, never trusted to be short.
+MAX_TAB_ID_CHARS = 64
+MAX_TAB_NAME_CHARS = 40
+#: What a keyed page may ask for when it connects (see the module's docstring).
+WANTS = ("take", "reload", "watch")
 
 
 def is_loopback(host: str) -> bool:
@@ -132,6 +149,7 @@ class ControlDesk:
         self._sink: Callable[[str], None] | None = None
         self._holder: object | None = None
         self._holder_text = ""
+        self._holder_tab = ""  # the holding page's tab id ("" for a program)
         self.version = 0  # bumped whenever who holds control changes
         self.forwarded = 0  # messages handed to the sink
         self.superseded = 0  # messages replaced by a newer one before they were handed on
@@ -157,12 +175,18 @@ class ControlDesk:
                 return "nobody: this session takes no commands from the page"
             return self._holder_text or "nobody yet: open the address with the key"
 
-    def claim(self, token: object, who: str) -> bool:
-        """Give the slot to ``token`` if it is free; whether it holds it now."""
+    def claim(self, token: object, who: str, tab: str = "", reload: bool = False) -> bool:
+        """Give the slot to ``token`` if it is free; whether it holds it now.
+
+        ``tab`` is the page's tab id; with ``reload`` the slot also passes from an older
+        connection of the same tab (a reload: that page is going away).
+        """
         with self._lock:
-            if self._holder is not None and self._holder is not token:
+            taken = self._holder is not None and self._holder is not token
+            same_tab = reload and bool(tab) and tab == self._holder_tab
+            if taken and not same_tab:
                 return False
-            self._holder, self._holder_text = token, who
+            self._holder, self._holder_text, self._holder_tab = token, who, tab
             self.version += 1
             return True
 
@@ -176,16 +200,19 @@ class ControlDesk:
             if mine and self._sink is None:
                 return False, "you hold control, but this session takes no commands from the page"
             if mine:
-                return True, f"you steer the limb ({self._holder_text})"
+                return True, f"you steer the limb from this tab ({self._holder_text})"
             if self._holder is None:
-                return False, "control is free again: reload this page to take it"
-            return False, f"refused: {self._holder_text} holds control"
+                return False, 'nobody steers: click "take control" to steer from this tab'
+            return False, (
+                f"refused: {self._holder_text} steers; let go there (or close it), "
+                'then click "take control" here'
+            )
 
     def release(self, token: object) -> None:
         """Free the slot if ``token`` holds it."""
         with self._lock:
             if self._holder is token:
-                self._holder, self._holder_text = None, ""
+                self._holder, self._holder_text, self._holder_tab = None, "", ""
                 self.version += 1
 
     def forward(self, token: object, text: str) -> bool:
@@ -200,16 +227,47 @@ class ControlDesk:
         return True
 
 
-def describe_peer(request: web.Request) -> str:
-    """The page's address and when it connected, e.g. "the page at 127.0.0.1:51512, 12:03:07"."""
+def describe_peer(request: web.Request, name: str = "") -> str:
+    """The page in words: the name its tab shows, its address and when it connected, e.g.
+    "tab K7, opened 19:02:13 (127.0.0.1:51512, connected 19:03:07)"."""
     peer = request.transport.get_extra_info("peername") if request.transport else None
     where = f"{peer[0]}:{peer[1]}" if peer else (request.remote or "?")
-    return f"the page at {where}, since {time.strftime('%H:%M:%S')}"
+    since = time.strftime("%H:%M:%S")
+    if name:
+        return f"{name} ({where}, connected {since})"
+    return f"the page at {where}, since {since}"
 
 
-async def read_commands(socket: web.WebSocketResponse, desk: ControlDesk, token: object) -> None:
+def tab_of(request: web.Request) -> tuple[str, str, str]:
+    """The page's ``(tab id, tab name, want)`` from its WebSocket's query (cut to size; a name
+    keeps printable characters only; an unknown ``want`` is ``take``, a program's default)."""
+    query = request.query
+    tab = query.get("tab", "")[:MAX_TAB_ID_CHARS]
+    name = "".join(c for c in query.get("name", "") if c.isprintable())[:MAX_TAB_NAME_CHARS]
+    want = query.get("want", "take")
+    return tab, name.strip(), want if want in WANTS else "take"
+
+
+def control_request(text: str) -> str | None:
+    """ "take" or "release" when ``text`` is a person's click (``{"control": ...}``), else None."""
+    if not text.startswith('{"control"'):
+        return None
+    try:
+        asked = json.loads(text).get("control")
+    except (ValueError, AttributeError):
+        return None
+    return asked if asked in ("take", "release") else None
+
+
+async def read_commands(
+    socket: web.WebSocketResponse,
+    desk: ControlDesk,
+    token: object,
+    clicked: Callable[[str], None] | None = None,
+) -> None:
     """Read what a page sends; the controller's newest text goes to the desk at most once per
-    :data:`FORWARD_PERIOD_S`; the rest is counted as superseded or ignored."""
+    :data:`FORWARD_PERIOD_S`; the rest is counted as superseded or ignored. A person's click
+    (:func:`control_request`) goes to ``clicked`` at once (a page without the key has none)."""
     newest: list[str] = []
     arrived = asyncio.Event()
 
@@ -227,6 +285,13 @@ async def read_commands(socket: web.WebSocketResponse, desk: ControlDesk, token:
             if message.type in (WSMsgType.CLOSE, WSMsgType.ERROR):
                 break
             if message.type is not WSMsgType.TEXT:
+                continue
+            asked = control_request(message.data)
+            if asked is not None:
+                if clicked is None:
+                    desk.ignored += 1
+                else:
+                    clicked(asked)
                 continue
             if newest:
                 desk.superseded += 1

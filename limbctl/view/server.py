@@ -33,6 +33,7 @@ from limbctl.view.control import (
     check_request,
     describe_peer,
     read_commands,
+    tab_of,
 )
 from limbctl.view.state import Board
 
@@ -77,12 +78,16 @@ class _JsonCache:
 
 
 def build_app(
-    board: Board, access: Access | None = None, desk: ControlDesk | None = None
+    board: Board,
+    access: Access | None = None,
+    desk: ControlDesk | None = None,
+    heartbeat_s: float = HEARTBEAT_S,
 ) -> web.Application:
     """The aiohttp application serving ``board``: ``/``, the assets, ``/ws`` and ``/state.json``.
 
     ``access`` decides who may watch and steer (default: a new secret, watching open);
-    ``desk`` is the controller slot (default: one nobody can steer through).
+    ``desk`` is the controller slot (default: one nobody can steer through); a browser that
+    stops answering is dropped within two ``heartbeat_s`` (s).
     """
     access = access or Access.for_host(DEFAULT_HOST)
     desk = desk or ControlDesk()
@@ -120,13 +125,23 @@ def build_app(
         verdict = check_request(request, access, websocket=True)
         if not verdict.watch:
             raise web.HTTPForbidden(text=verdict.problem)
-        socket = web.WebSocketResponse(heartbeat=HEARTBEAT_S, max_msg_size=MAX_MESSAGE_BYTES)
+        socket = web.WebSocketResponse(heartbeat=heartbeat_s, max_msg_size=MAX_MESSAGE_BYTES)
         await socket.prepare(request)
         sockets.add(socket)
         token = object()  # this page, as the controller slot knows it
-        if verdict.steer:
-            desk.claim(token, describe_peer(request))
-        reader = asyncio.ensure_future(read_commands(socket, desk, token))
+        tab, name, want = tab_of(request)
+        who = describe_peer(request, name)
+        if verdict.steer and want != "watch":  # a person opened or reloaded the page
+            desk.claim(token, who, tab, reload=want == "reload")
+
+        def clicked(asked: str) -> None:  # a person's click on this page
+            if asked == "take":
+                desk.claim(token, describe_peer(request, name), tab)
+            else:
+                desk.release(token)
+
+        steer_clicks = clicked if verdict.steer else None
+        reader = asyncio.ensure_future(read_commands(socket, desk, token, steer_clicks))
         sent_scene = sent_live = sent_control = 0
         try:
             while not socket.closed and not reader.done():
@@ -180,6 +195,8 @@ class ViewServer:
         Port to bind; 0 lets the system choose a free one (see :attr:`url`).
     desk : ControlDesk, optional
         The controller slot a page with the key may hold (a new one by default).
+    heartbeat_s : float
+        WebSocket ping interval (s): a browser that stops answering is dropped within two.
 
     :attr:`url` is the address to watch (with the watching key when the host is not a loopback
     one) and :attr:`control_url` the address that steers: it carries the steering key.
@@ -191,8 +208,10 @@ class ViewServer:
         host: str = DEFAULT_HOST,
         port: int = DEFAULT_PORT,
         desk: ControlDesk | None = None,
+        heartbeat_s: float = HEARTBEAT_S,
     ) -> None:
         self.board = board
+        self.heartbeat_s = heartbeat_s
         self.host = host
         self.port = port
         self.desk = desk or ControlDesk()
@@ -249,7 +268,7 @@ class ViewServer:
         self._loop = asyncio.get_running_loop()
         self._stop = asyncio.Event()
         runner = web.AppRunner(
-            build_app(self.board, self.access, self.desk),
+            build_app(self.board, self.access, self.desk, self.heartbeat_s),
             handle_signals=False,
             access_log=None,
             shutdown_timeout=1.0,

@@ -143,14 +143,15 @@ def test_one_controller_at_a_time_and_the_second_is_told_who():
                 told = control_message(second)
                 assert told["steer"] is False
                 assert told["told"].startswith("refused: the page at 127.0.0.1:")
-                assert "holds control" in told["told"]
+                assert "steers; let go there" in told["told"] and "take control" in told["told"]
                 second.send(json.dumps({"pan": 9.0, "tilt": 9.0}))
                 first.send(json.dumps({"pan": 1.0, "tilt": 1.0}))
                 sink.wait_for('{"pan": 1.0, "tilt": 1.0}')
                 assert '{"pan": 9.0, "tilt": 9.0}' not in sink.lines
                 first.close()
-                # the first page went: the second is told the slot is free
-                assert "free again" in control_message(second)["told"]
+                # the first page went: the second is told the slot is free, and how to take it
+                told = control_message(second)
+                assert told["steer"] is False and 'click "take control"' in told["told"]
 
 
 def test_a_flood_reaches_the_source_as_its_newest_message_at_a_bounded_rate():

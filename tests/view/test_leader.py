@@ -91,10 +91,11 @@ def test_the_page_draws_the_leader_and_its_push_then_forgets_them_without_a_lead
 
     x, y = browser.execute_script("return window.limbview.toCanvas(32.0, 0.0);")
     wait_for(browser, lambda d: canvas_rgb(d, x, y) == LEADER_RGB, "no leader diamond")
-    # the arrow leaves the diamond toward -pan (left on the canvas), 9 + 14 + 0.75 * 56 px long
-    assert near(canvas_rgb(browser, x - 20, y), PUSH_RGB)
-    assert near(canvas_rgb(browser, x - 60, y), PUSH_RGB)
-    assert not near(canvas_rgb(browser, x + 20, y), PUSH_RGB)
+    # the arrow leaves the diamond toward -pan (right on the canvas: the plane is seen from
+    # behind the limb), 9 + 14 + 0.75 * 56 px long
+    assert near(canvas_rgb(browser, x + 20, y), PUSH_RGB)
+    assert near(canvas_rgb(browser, x + 60, y), PUSH_RGB)
+    assert not near(canvas_rgb(browser, x - 20, y), PUSH_RGB)
     follower = browser.execute_script("return window.limbview.toCanvas(29.0, 0.0);")
     assert canvas_rgb(browser, *follower) != LEADER_RGB
 
@@ -104,7 +105,7 @@ def test_the_page_draws_the_leader_and_its_push_then_forgets_them_without_a_lead
     wait_for(browser, lambda d: text_of(d, "leader-state") == "free", "release not shown")
     assert text_of(browser, "leader-push") == "0.00 N m (cap 0.40 N m)"
     x, y = browser.execute_script("return window.limbview.toCanvas(30.2, 0.0);")
-    wait_for(browser, lambda d: not near(canvas_rgb(d, x - 40, y), PUSH_RGB), "the arrow stayed")
+    wait_for(browser, lambda d: not near(canvas_rgb(d, x + 40, y), PUSH_RGB), "the arrow stayed")
 
     # a passive leader: its marker, no push figure, no bar
     passive = LeaderStatus(PanTilt(10.0, 5.0), state="leader XL430-W250 senses no current")

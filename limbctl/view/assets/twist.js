@@ -70,7 +70,7 @@
     return {
       scale: scale,
       right: x0 + scale * (pan[1] - pan[0]),
-      x: (p) => x0 + (p - pan[0]) * scale,
+      x: (p) => x0 + (pan[1] - p) * scale,  // +pan to the left: seen from behind the limb
       y: (q) => y0 + (tilt[1] - q) * scale,
     };
   }
@@ -85,7 +85,7 @@
     ctx.font = "10px sans-serif";
     ctx.textAlign = "center";
     for (const c of m.cells) {
-      const x = P.x(c[0] * size), y = P.y((c[1] + 1) * size);
+      const x = P.x((c[0] + 1) * size), y = P.y((c[1] + 1) * size);  // the cell's left edge
       ctx.fillStyle = fillOf(c, widest);
       ctx.fillRect(x, y, px, px);
       ctx.strokeStyle = CELL.outline;
@@ -245,7 +245,7 @@
     // the colours at a cell's four corners, 4 px in (the region's edge may cross one or two)
     cellPixels: (i, j) => {
       const P = projector(), size = t.map.cell, px = size * P.scale, c = plane.getContext("2d");
-      const x = P.x(i * size), y = P.y((j + 1) * size);
+      const x = P.x((i + 1) * size), y = P.y((j + 1) * size);
       return [[4, 4], [px - 5, 4], [4, px - 5], [px - 5, px - 5]].map(
         ([dx, dy]) => Array.from(c.getImageData(Math.round(x + dx), Math.round(y + dy), 1, 1).data).slice(0, 3));
     },

@@ -23,13 +23,34 @@ const MARGIN_DEG = 5;
 const RECONNECT_MS = 1000;
 // Written poses kept for the trail: 6 s of the server's 10 Hz pushes.
 const TRAIL_LENGTH = 60;
-// Which edge of the picture holds the limb, by blocked joint direction (pan right, tilt up).
-const EDGE_WORDS = { "+tilt": "upper", "-tilt": "lower", "+pan": "right", "-pan": "left" };
+// Which edge of the picture holds the limb, by blocked joint direction (+pan left, tilt up).
+const EDGE_WORDS = { "+tilt": "upper", "-tilt": "lower", "+pan": "left", "-pan": "right" };
 // The session's keys, when the address carries them: "key" steers, "watch" only watches.
 const KEY = new URLSearchParams(location.search).get("key");
 const WATCH = new URLSearchParams(location.search).get("watch");
+// Letters of a tab's tag (no I or O, which read as 1 and 0).
+const TAG_LETTERS = "ABCDEFGHJKLMNPQRSTUVWXYZ";
 
-const state = { scene: null, live: null, liveFrames: 0, sceneFrames: 0, trail: [], socket: null };
+// This tab, as the server and the other tabs name it: a random id and the name it shows
+// itself ("tab K7, opened 19:02:13"), kept in sessionStorage so a reload of this tab keeps
+// them (and takes control back from its own old connection) while another tab gets its own.
+function tabIdentity() {
+  let tab = null;
+  try { tab = JSON.parse(sessionStorage.getItem("limbctl-tab")); } catch (e) { tab = null; }
+  if (!tab || !tab.id || !tab.name) {
+    const bytes = crypto.getRandomValues(new Uint8Array(16));
+    const id = Array.from(bytes, (b) => b.toString(16).padStart(2, "0")).join("");
+    const tag = TAG_LETTERS[bytes[0] % TAG_LETTERS.length] + String(bytes[1] % 10);
+    tab = { id: id, name: `tab ${tag}, opened ${new Date().toTimeString().slice(0, 8)}` };
+    try { sessionStorage.setItem("limbctl-tab", JSON.stringify(tab)); } catch (e) { /* private mode */ }
+  }
+  return tab;
+}
+const TAB = tabIdentity();
+// How this page was opened: a reload keeps the tab's control; anything else takes it if free.
+const NAVIGATION = (performance.getEntriesByType("navigation")[0] || {}).type;
+
+const state = { scene: null, live: null, liveFrames: 0, sceneFrames: 0, trail: [], socket: null, opened: 0 };
 const canvas = document.getElementById("plane");
 // Layers other assets add (leader.js): draw(ctx, P, live) after the markers, show(live) with
 // each live message.
@@ -57,7 +78,9 @@ function bounds() {
            tilt: [Math.min(...tilts) - MARGIN_DEG, Math.max(...tilts) + MARGIN_DEG] };
 }
 
-// Degrees to canvas pixels, equal scale on both axes, pan to the right and tilt up.
+// Degrees to canvas pixels, equal scale on both axes, +pan to the left and tilt up: the limb's
+// directions as seen from behind it (it rests along +x; +pan turns it toward +y, to the left),
+// so left on the plane, the arrow key Left and the terminal's Left all turn the limb one way.
 function projector() {
   const b = bounds();
   const pad = 30;
@@ -68,15 +91,18 @@ function projector() {
   return {
     bounds: b,
     scale: scale,
-    x: (pan) => x0 + (pan - b.pan[0]) * scale,
+    x: (pan) => x0 + (b.pan[1] - pan) * scale,
     y: (tilt) => y0 + (b.tilt[1] - tilt) * scale,
-    pan: (x) => b.pan[0] + (x - x0) / scale,
+    pan: (x) => b.pan[1] - (x - x0) / scale,
     tilt: (y) => b.tilt[1] - (y - y0) / scale,
   };
 }
 
 function drawGrid(P) {
   const b = P.bounds;
+  ctx.font = "bold 12px sans-serif";
+  ctx.fillStyle = "#555";
+  ctx.fillText("seen from behind the limb: \u2190 +pan (left), \u2191 +tilt (up)", 8, 14);
   const step = (b.pan[1] - b.pan[0]) > 120 ? 30 : 10;
   ctx.lineWidth = 1;
   ctx.font = "11px sans-serif";
@@ -89,7 +115,7 @@ function drawGrid(P) {
   for (let tilt = Math.ceil(b.tilt[0] / step) * step; tilt <= b.tilt[1]; tilt += step) {
     ctx.strokeStyle = tilt === 0 ? COLORS.axis : COLORS.grid;
     ctx.beginPath(); ctx.moveTo(P.x(b.pan[0]), P.y(tilt)); ctx.lineTo(P.x(b.pan[1]), P.y(tilt)); ctx.stroke();
-    ctx.fillText(String(tilt), P.x(b.pan[0]) - 24, P.y(tilt) + 4);
+    ctx.fillText(String(tilt), P.x(b.pan[1]) - 24, P.y(tilt) + 4);  // on the left: the largest pan
   }
 }
 
@@ -120,7 +146,7 @@ function drawLimits(P, limits) {
   ctx.strokeStyle = COLORS.limits;
   ctx.lineWidth = 2;
   ctx.setLineDash([8, 4]);
-  ctx.strokeRect(P.x(limits.pan[0]), P.y(limits.tilt[1]),
+  ctx.strokeRect(P.x(limits.pan[1]), P.y(limits.tilt[1]),
                  (limits.pan[1] - limits.pan[0]) * P.scale, (limits.tilt[1] - limits.tilt[0]) * P.scale);
   ctx.setLineDash([]);
 }
@@ -154,7 +180,7 @@ function drawBlocked(P, pose, blocked) {
   ctx.strokeStyle = COLORS.blocked;
   ctx.lineWidth = 5;
   for (const d of blocked) {
-    const sx = d === "+pan" ? 1 : d === "-pan" ? -1 : 0, sy = d === "+tilt" ? -1 : d === "-tilt" ? 1 : 0;
+    const sx = d === "+pan" ? -1 : d === "-pan" ? 1 : 0, sy = d === "+tilt" ? -1 : d === "-tilt" ? 1 : 0;
     ctx.beginPath();
     ctx.moveTo(x + sx * r - sy * half, y + sy * r - sx * half);
     ctx.lineTo(x + sx * r + sy * half, y + sy * r + sx * half);
@@ -274,11 +300,18 @@ function showLive(l) {
   for (const layer of layers) if (layer.show) layer.show(l);
 }
 
+// What the connection asks for: the page's first one takes control as a person opened (or
+// reloaded) it; one made after a drop comes back watching (a person's click takes it again).
+function query() {
+  if (!KEY) return WATCH ? `?watch=${encodeURIComponent(WATCH)}` : "";
+  const want = state.opened > 0 ? "watch" : NAVIGATION === "reload" ? "reload" : "take";
+  return `?key=${encodeURIComponent(KEY)}&tab=${TAB.id}&name=${encodeURIComponent(TAB.name)}&want=${want}`;
+}
+
 function connect() {
-  const query = KEY ? `?key=${encodeURIComponent(KEY)}` : WATCH ? `?watch=${encodeURIComponent(WATCH)}` : "";
-  const socket = new WebSocket(`ws://${location.host}/ws${query}`);
+  const socket = new WebSocket(`ws://${location.host}/ws${query()}`);
   state.socket = socket;
-  socket.onopen = () => { byId("connection").textContent = "live"; byId("connection").className = "up"; };
+  socket.onopen = () => { state.opened++; byId("connection").textContent = "live"; byId("connection").className = "up"; };
   socket.onmessage = (event) => {
     const message = JSON.parse(event.data);
     if (message.kind === "scene") { state.scene = message; state.sceneFrames++; sceneDirty = true; showScene(message); }
@@ -290,6 +323,7 @@ function connect() {
     scheduleDraw();
   };
   socket.onclose = () => {
+    if (window.limbview.onDrop) window.limbview.onDrop();  // control.js: control is gone
     byId("connection").textContent = "disconnected, retrying";
     byId("connection").className = "down";
     setTimeout(connect, RECONNECT_MS);
@@ -299,6 +333,8 @@ function connect() {
 // For tests and the curious: where a pose lands on the canvas, and what was last received.
 window.limbview = {
   state: state,
+  tab: TAB,
+  keyed: Boolean(KEY),
   toCanvas: (pan, tilt) => { const P = projector(); return [P.x(pan), P.y(tilt)]; },
   fromCanvas: (x, y) => { const P = projector(); return [P.pan(x), P.tilt(y)]; },
   send: (text) => { if (state.socket && state.socket.readyState === WebSocket.OPEN) state.socket.send(text); },
@@ -310,5 +346,6 @@ window.limbview = {
   },
 };
 
+if (KEY) byId("tab-name").textContent = `this is ${TAB.name}`;
 draw();
 connect();
