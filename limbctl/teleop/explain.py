@@ -1,11 +1,12 @@
 """The gate's outcome in words: what it did with the command and which way is blocked.
 
 :func:`explain` compares the pose the command asked for with the pose the gate let through and
-says, e.g., "at the edge: up is blocked, sliding along it". A joint direction is *blocked* when
-the command lies beyond the written pose that way by more than :data:`BLOCKED_MIN_DEG`. Names of
-directions depend on who reads them: the terminal names pan as seen from behind the limb
-(:data:`KEYBOARD_NAMES`, left is +pan), the page as drawn on its plane (:data:`PLANE_NAMES`, +pan
-to the right).
+says, e.g., "at the edge: up is blocked, sliding left along it". A joint direction is *blocked*
+when the command lies beyond the written pose that way by more than :data:`BLOCKED_MIN_DEG`;
+given the directions a person pushes (a held key), only those are ever called blocked, and the
+way the limb slides is named apart. Every steering surface names directions alike, as seen from
+behind the limb (:data:`DIRECTION_NAMES`: left is +pan, toward +y), the terminal's keys and the
+page's plane and arrow keys.
 """
 
 from __future__ import annotations
@@ -15,10 +16,14 @@ from dataclasses import dataclass
 
 from limbctl.teleop.gate import GateResult, Outcome
 
-#: Directions as the terminal's arrow keys name them (left is +pan, toward +y).
-KEYBOARD_NAMES = {"+pan": "left", "-pan": "right", "+tilt": "up", "-tilt": "down"}
-#: Directions as the page's pan/tilt plane draws them (pan to the right, tilt up).
-PLANE_NAMES = {"+pan": "right", "-pan": "left", "+tilt": "up", "-tilt": "down"}
+#: Directions as seen from behind the limb, which rests along +x: +pan turns it toward +y, to
+#: the left; +tilt raises it. The terminal's keys and the page (its plane is drawn from there
+#: too) both speak these words.
+DIRECTION_NAMES = {"+pan": "left", "-pan": "right", "+tilt": "up", "-tilt": "down"}
+#: The names the terminal uses (the same: one key means one motion everywhere).
+KEYBOARD_NAMES = DIRECTION_NAMES
+#: The names the page uses (the same: its plane is seen from behind the limb).
+PLANE_NAMES = DIRECTION_NAMES
 #: How far (deg) the command must lie beyond the written pose along a joint for that way to be
 #: called blocked: well above the 0.01 deg the gate's correction may leave, well below one step.
 BLOCKED_MIN_DEG = 0.2
@@ -72,11 +77,36 @@ def blocked_directions(
     return tuple(out)
 
 
+def pushed_short(
+    commanded_deg: tuple[float, float],
+    written_deg: tuple[float, float],
+    pushing: tuple[str, ...],
+) -> tuple[str, ...]:
+    """Of the directions pushed (``"+tilt"``, ...), those the command lies beyond the written
+    pose by more than :data:`BLOCKED_MIN_DEG` (pan first)."""
+    out = []
+    for index, joint in enumerate(("pan", "tilt")):
+        for sign in ("+", "-"):
+            if f"{sign}{joint}" not in pushing:
+                continue
+            short = (commanded_deg[index] - written_deg[index]) * (1.0 if sign == "+" else -1.0)
+            if short > BLOCKED_MIN_DEG:
+                out.append(f"{sign}{joint}")
+    return tuple(out)
+
+
+def slide_direction(move_deg: tuple[float, float]) -> str:
+    """The joint direction of a move's larger component ("+pan", "-tilt", ...)."""
+    joint = 0 if abs(move_deg[0]) >= abs(move_deg[1]) else 1
+    return f"{'+' if move_deg[joint] > 0 else '-'}{('pan', 'tilt')[joint]}"
+
+
 def explain(
     result: GateResult | None,
     commanded_deg: tuple[float, float] | None,
     previous_deg: tuple[float, float] | None = None,
-    names: dict[str, str] = KEYBOARD_NAMES,
+    names: dict[str, str] = DIRECTION_NAMES,
+    pushing: tuple[str, ...] | None = None,
 ) -> Explanation:
     """Say what the gate did this cycle.
 
@@ -90,6 +120,9 @@ def explain(
         The pose the gate gave one cycle earlier, to tell sliding from standing.
     names : dict
         Words for "+pan", "-pan", "+tilt", "-tilt".
+    pushing : tuple of str or None
+        The directions a person pushes (a key held, e.g. ``("+tilt",)``): only those may be
+        called blocked. None: the command itself is what is asked (a point set by hand).
     """
     if result is None:
         return Explanation("not running")
@@ -103,10 +136,14 @@ def explain(
     if not (result.corrected or result.clamped):
         return Explanation("on the way: the speed limit paces it")
     where = "at a hard limit" if result.clamped else "at the edge"
-    blocked = blocked_directions(commanded_deg, written, previous_deg)
-    moving = previous_deg is not None and (
-        math.hypot(written[0] - previous_deg[0], written[1] - previous_deg[1]) > MOVING_MIN_DEG
-    )
+    move = (0.0, 0.0)
+    if previous_deg is not None:
+        move = (written[0] - previous_deg[0], written[1] - previous_deg[1])
+    moving = math.hypot(*move) > MOVING_MIN_DEG
+    if pushing is None:
+        blocked = blocked_directions(commanded_deg, written, previous_deg)
+    else:
+        blocked = pushed_short(commanded_deg, written, pushing)
     if not blocked:
         if moving:  # toward the nearest pose inside, which the command lies beyond
             return Explanation(
@@ -115,5 +152,5 @@ def explain(
         return Explanation(f"{where}: corrected onto it")
     ways = " and ".join(names[d] for d in blocked)
     verb = "is" if len(blocked) == 1 else "are"
-    how = "sliding along it" if moving else "holding there"
+    how = f"sliding {names[slide_direction(move)]} along it" if moving else "holding there"
     return Explanation(f"{where}: {ways} {verb} blocked, {how}", blocked)

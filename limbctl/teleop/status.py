@@ -3,7 +3,7 @@
 One line, refreshed in place on a terminal (cut to its width, so the refresh stays on one row;
 the words come before the poses, as they matter most)::
 
-    12.5 s  199.8 Hz  step 2 deg  ? keys  at the edge: up is blocked, sliding along it
+    12.5 s  199.8 Hz  step 2 deg  ? keys  at the edge: up is blocked, sliding left along it
         commanded pan 10.0 tilt 34.0  written pan 10.0 tilt 27.4
 
 (on one line). Sources that say nothing about themselves keep the counts of
@@ -17,7 +17,7 @@ import os
 from typing import IO, Any
 
 from limbctl.teleop.cycle import Cycle, TeleopSummary
-from limbctl.teleop.explain import KEYBOARD_NAMES, explain
+from limbctl.teleop.explain import DIRECTION_NAMES, explain
 from limbctl.teleop.report import STATUS_EVERY_LOG_S, STATUS_EVERY_TTY_S, StatusLine
 
 #: ANSI "erase to the end of the line": a shorter line leaves no tail of the longer one before.
@@ -80,7 +80,9 @@ class ExplainedStatus:
         cycle = self._cycle
         command = cycle.command_deg if cycle is not None else None
         result = cycle.result if cycle is not None else None
-        words = explain(result, command, self._previous, KEYBOARD_NAMES).words
+        pushing = getattr(self._source, "pushing", None)  # a keyboard: the way its key pushes
+        pushed = pushing() if pushing is not None else None
+        words = explain(result, command, self._previous, DIRECTION_NAMES, pushed).words
         detail = self._source.describe()
         parts = [f"{elapsed:7.1f} s", f"{self._rate_hz:6.1f} Hz"]
         parts += [detail] if detail else []

@@ -7,6 +7,7 @@ import math
 from limbctl.envelope import Cone
 from limbctl.geometry.gimbal import pan_tilt_to_quat
 from limbctl.teleop.explain import (
+    DIRECTION_NAMES,
     KEYBOARD_NAMES,
     PLANE_NAMES,
     blocked_directions,
@@ -62,12 +63,12 @@ def test_at_the_edge_the_blocked_way_is_named_and_sliding_told_from_standing():
     results = follow(g, 50.0, 60.0, 3)
     told = explain(results[-1], (50.0, 60.0), deg(results[-2]), KEYBOARD_NAMES)
     assert told.blocked == ("+tilt",)
-    assert told.words == "at the edge: up is blocked, sliding along it"
+    assert told.words == "at the edge: up is blocked, sliding left along it"
     # pushed into the edge with nothing to slide toward, both ways are blocked; the page
-    # names pan as drawn (+pan to the right)
+    # names pan as the terminal does (its plane is seen from behind the limb too)
     results = follow(g, 30.0, 60.0, 60)
     told = explain(results[-1], (30.0, 60.0), deg(results[-2]), PLANE_NAMES)
-    assert told.words == "at the edge: right and up are blocked, holding there"
+    assert told.words == "at the edge: left and up are blocked, holding there"
     assert told.blocked == ("+pan", "+tilt")
 
 
@@ -87,3 +88,30 @@ def test_blocked_needs_more_than_the_gates_rounding_and_no_move_that_way():
     assert blocked_directions((20.0, 10.0), (10.0, 5.0), (8.0, 4.0)) == ()
     # moving across it: the way it does not go is
     assert blocked_directions((20.0, 10.0), (10.0, 5.0), (8.0, 5.0)) == ("+tilt",)
+
+
+def test_one_key_one_motion_the_terminal_and_the_page_name_directions_alike():
+    assert KEYBOARD_NAMES == PLANE_NAMES == DIRECTION_NAMES
+    assert DIRECTION_NAMES["+pan"] == "left" and DIRECTION_NAMES["+tilt"] == "up"
+
+
+def test_a_key_held_up_against_a_slanted_edge_names_up_alone_and_the_way_it_slides():
+    """Up pressed step by step from the written pose (as the keyboard does) up the cone's
+    slanted edge at pan 20: the limb slides toward pan 0 (right, seen from behind it); the
+    status names up as blocked, never left or right, which nobody pressed."""
+    g = gate()
+    written = deg(follow(g, 20.0, 15.0, 20)[-1])
+    told_at_edge = []
+    for _ in range(12):
+        command = (written[0], written[1] + 2.0)
+        result = follow(g, *command, 1)[-1]
+        told = explain(result, command, written, DIRECTION_NAMES, pushing=("+tilt",))
+        written = deg(result)
+        if result.corrected:
+            told_at_edge.append(told)
+    sliding = [t for t in told_at_edge if t.blocked]
+    assert len(sliding) >= 8, [t.words for t in told_at_edge]
+    for told in sliding:
+        assert told.blocked == ("+tilt",)
+        assert told.words == "at the edge: up is blocked, sliding right along it"
+    assert written[0] < 15.0  # it did slide right, toward pan 0

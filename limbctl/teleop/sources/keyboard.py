@@ -3,13 +3,21 @@
 The keys are the table in :mod:`limbctl.teleop.keys`; the guide is printed when the source
 starts and again on ``?``. One press moves one step, a key held moves at the steady speed the
 step sets (:class:`~limbctl.teleop.keys.HeldKey`). The source repeats its command every
-:data:`KEEPALIVE_S`, so a limb pushed against the edge stays there and the status line keeps
-saying which way is blocked; the hold key stops the repeats and the loop holds the pose, as for
-any silent source.
+:data:`KEEPALIVE_S`; the hold key stops the repeats and the loop holds the pose, as for any
+silent source.
+
+The commanded point never runs on past what the gate wrote: the loop hands each cycle's result
+back (:meth:`KeyboardSource.feel`), and once an edge or a hard limit stopped the command short,
+the next key steps from the written pose, and a repeat with no key pressed sends the written
+pose itself. A key held against an edge therefore slides the limb along it, each step going
+where the gate puts one step from the limb (the nearest pose inside), and the first opposite
+key moves a full step at once. The status line names as blocked only the way the key pushes
+(:meth:`KeyboardSource.pushing`), and says which way the limb slides.
 """
 
 from __future__ import annotations
 
+import math
 import os
 import select
 import sys
@@ -20,6 +28,7 @@ import numpy as np
 
 from limbctl.errors import ConfigError
 from limbctl.teleop.commands import Command, command_from_pan_tilt, command_from_pose
+from limbctl.teleop.gate import Outcome
 from limbctl.teleop.keys import (
     DEFAULT_STEP_DEG,
     KEYS,
@@ -127,6 +136,38 @@ class KeyboardSource(CommandSource):
         self._held = HeldKey()
         self._command: Command | None = None
         self._offered_at = 0.0
+        # the newest command the loop took (it follows only the newest) and, once the gate
+        # stopped one short (an edge, a hard limit), that command and the (pan, tilt) deg written
+        self._taken: Command | None = None
+        self._stopped: tuple[Command, tuple[float, float]] | None = None
+        self._pushing: tuple[str, ...] = ()
+
+    def poll(self, timeout: float = 0.0) -> list[Command]:
+        """The loop's poll; the newest command taken is the one the next result answers."""
+        commands = super().poll(timeout)
+        if commands:
+            self._taken = commands[-1]
+        return commands
+
+    def feel(self, gate: object, result: object, bus_ok: bool) -> tuple[str, ...]:
+        """Learn, after each cycle, where the gate stopped the command taken (if it did)."""
+        taken = self._taken
+        stopped = getattr(result, "corrected", False) or getattr(result, "clamped", False)
+        if taken is not None and stopped and result.outcome is not Outcome.HELD:
+            self._stopped = (taken, (math.degrees(result.pan), math.degrees(result.tilt)))
+        return ()
+
+    def pushing(self) -> tuple[str, ...]:
+        """The joint directions the last move key pushes ("+pan", "-tilt", ...), none after
+        another action: the only ways the status line may call blocked."""
+        return self._pushing
+
+    def _stopped_at(self) -> tuple[float, float] | None:
+        """The written (pan, tilt) deg if the gate stopped the present command short of it."""
+        stopped = self._stopped
+        if stopped is None or self._command is None or stopped[0] is not self._command:
+            return None
+        return stopped[1]
 
     def describe(self) -> str:
         """The step, and the hold when on: the status line's words about the keyboard."""
@@ -176,7 +217,12 @@ class KeyboardSource(CommandSource):
                             self._act(action, now)
                 if self._command is not None and not self.holding:
                     if now - self._offered_at >= KEEPALIVE_S:
-                        self._queue.put(self._command)  # the same command again: not counted
+                        stopped_at = self._stopped_at()
+                        if stopped_at is not None:  # no key pushes: the point is the limb's
+                            self.pan_deg, self.tilt_deg = stopped_at
+                            self._command = self._pose_command()
+                            self._pushing = ()
+                        self._queue.put(self._command)  # a repeat, not a new command: not counted
                         self._offered_at = now
         finally:
             self._release()
@@ -189,6 +235,7 @@ class KeyboardSource(CommandSource):
                 self._move(action, move, now)
             return
         self._held.reset()
+        self._pushing = ()
         roll = KEYS[action].roll
         if roll and not self.twist:
             reason = "roll keys need a three-servo rig (this one has no roll joint to turn)"
@@ -214,8 +261,16 @@ class KeyboardSource(CommandSource):
 
     def _move(self, action: Action, move: tuple[int, int], now: float) -> None:
         written = self._written_deg()
-        if self._command is None and written is not None:
+        stopped_at = self._stopped_at()
+        if stopped_at is not None:  # the gate stopped the point short: go on from the limb
+            self.pan_deg, self.tilt_deg = stopped_at
+        elif self._command is None and written is not None:
             self.pan_deg, self.tilt_deg = written  # the first move starts where the limb is
+        self._pushing = tuple(
+            f"{'+' if sign > 0 else '-'}{joint}"
+            for joint, sign in zip(("pan", "tilt"), move, strict=True)
+            if sign
+        )
         distance = self._held.distance(action, now, self.step_deg)
         pan = min(max(self.pan_deg + move[0] * distance, -180.0), 180.0)
         tilt = min(max(self.tilt_deg + move[1] * distance, -90.0), 90.0)
@@ -227,11 +282,13 @@ class KeyboardSource(CommandSource):
         self.pan_deg, self.tilt_deg = pan, tilt
         self._offer_pose(now)
 
-    def _offer_pose(self, now: float) -> None:
+    def _pose_command(self) -> Command:
         if self.twist:
-            self._command = command_from_pose(self.pan_deg, self.tilt_deg, self.roll_deg)
-        else:
-            self._command = command_from_pan_tilt(self.pan_deg, self.tilt_deg)
+            return command_from_pose(self.pan_deg, self.tilt_deg, self.roll_deg)
+        return command_from_pan_tilt(self.pan_deg, self.tilt_deg)
+
+    def _offer_pose(self, now: float) -> None:
+        self._command = self._pose_command()
         self._offered_at = now
         self.offer(self._command)
 
