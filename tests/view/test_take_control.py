@@ -45,11 +45,19 @@ def steered_board(heartbeat_s: float = HEARTBEAT_S):
             detach()
 
 
-def publish(board: Board, written, outcome: str = "held", cycle: int = 1, commanded=None) -> None:
+def publish(
+    board: Board,
+    written,
+    outcome: str = "held",
+    cycle: int = 1,
+    commanded=None,
+    words: str = "",
+    blocked: tuple[str, ...] = (),
+) -> None:
     """A teleop state whose gate wrote ``written`` (pan, tilt deg) with ``outcome``."""
     pose = PanTilt(*written)
     commanded = PanTilt(*commanded) if commanded is not None else None
-    status = TeleopStatus(commanded, pose, outcome, 200.0, cycle)
+    status = TeleopStatus(commanded, pose, outcome, 200.0, cycle, words, blocked)
     board.publish_live(Live(mode="teleop", pose=pose, teleop=status))
 
 
@@ -170,3 +178,25 @@ def test_arrow_keys_step_from_the_written_pose_once_the_gate_stopped_the_point()
         wait_for(page, lambda d: text_of(d, "cycles") == "3", "no passed state")
         ActionChains(page).send_keys(Keys.ARROW_DOWN).perform()
         sink.wait_for('{"pan":4.5,"tilt":3.7}')
+
+
+def test_a_key_pushing_up_against_a_slanted_edge_is_told_as_up_alone():
+    """The server names every way the point lies beyond the written pose; the page names as
+    blocked only the way its arrow key pushes, as the terminal does, and the slide as told."""
+    with steered_board(heartbeat_s=5.0) as (board, server, sink, holder), chromium() as page:
+        publish(board, (5.0, 5.0), "passed")
+        page.get(server.control_url)
+        wait_for(page, steering, "the opened page does not steer")
+        ActionChains(page).send_keys(Keys.ARROW_UP).perform()
+        sink.wait_for('{"pan":5,"tilt":6}')
+        # the gate slid the written pose right and a little up along a slanted edge
+        words = "at the edge: left and up are blocked, sliding right along it"
+        publish(board, (4.4, 5.5), "corrected", 2, (5.0, 6.0), words, ("+pan", "+tilt"))
+        wait_for(page, lambda d: text_of(d, "cycles") == "2", "no stopped state")
+        assert text_of(page, "words") == "at the edge: up is blocked, sliding right along it"
+        assert text_of(page, "holds") == "the upper edge"
+        # a page that watches (no key pushes) tells the server's words as they are
+        page.get(server.url)
+        wait_for(page, lambda d: text_of(d, "cycles") == "2", "the watching page shows nothing")
+        assert text_of(page, "words") == words
+        assert text_of(page, "holds") == "the left and upper edge"

@@ -69,6 +69,7 @@ function planePoint(event) {
 
 plane.addEventListener("pointerdown", (event) => {
   if (!steer.allowed) return;
+  window.limbview.pushing = null;  // a point set by hand: the whole gap is what is asked
   steer.dragging = true;
   plane.setPointerCapture(event.pointerId);
   setAim(...planePoint(event));
@@ -94,6 +95,8 @@ document.addEventListener("keydown", (event) => {
   event.preventDefault();
   const from = keyBase();
   if (!from) return;
+  // the way this key pushes, the only one view.js may call blocked
+  window.limbview.pushing = [move[0] > 0 ? "+pan" : move[0] < 0 ? "-pan" : move[1] > 0 ? "+tilt" : "-tilt"];
   setAim(from[0] + move[0] * ARROW_STEP_DEG, from[1] + move[1] * ARROW_STEP_DEG);
 });
 
@@ -122,6 +125,7 @@ window.limbview.onControl = (message) => {
     steer.lost = steer.lettingGo ? `you let go at ${clock()}` : `this tab lost control at ${clock()}`;
   }
   steer.lettingGo = false;
+  if (!message.steer) window.limbview.pushing = null;
   steer.allowed = message.steer;
   steer.message = message;
   plane.classList.toggle("steering", message.steer);

@@ -25,6 +25,11 @@ const RECONNECT_MS = 1000;
 const TRAIL_LENGTH = 60;
 // Which edge of the picture holds the limb, by blocked joint direction (+pan left, tilt up).
 const EDGE_WORDS = { "+tilt": "upper", "-tilt": "lower", "+pan": "left", "-pan": "right" };
+// Directions as seen from behind the limb, as the terminal names them (left is +pan).
+const DIRECTION_NAMES = { "+pan": "left", "-pan": "right", "+tilt": "up", "-tilt": "down" };
+// How far (deg) the point must lie beyond the written pose along a pushed direction for it to
+// be called blocked: the server's BLOCKED_MIN_DEG (limbctl/teleop/explain.py).
+const BLOCKED_MIN_DEG = 0.2;
 // The session's keys, when the address carries them: "key" steers, "watch" only watches.
 const KEY = new URLSearchParams(location.search).get("key");
 const WATCH = new URLSearchParams(location.search).get("watch");
@@ -230,7 +235,7 @@ function draw() {
       drawTrail(P);
       drawMarker(P, live.teleop.commanded, "commanded");
       drawMarker(P, live.teleop.written, "written");
-      drawBlocked(P, live.teleop.written, live.teleop.blocked);
+      drawBlocked(P, live.teleop.written, told(live.teleop).blocked);
     }
     drawMarker(P, live.pose, "pose");
     for (const layer of layers) if (layer.draw) layer.draw(ctx, P, live);
@@ -266,6 +271,23 @@ function showScene(s) {
   byId("guide-text").textContent = s.guide_text;
 }
 
+// The gate's words as this page tells them. The server names blocked every way the point lies
+// beyond the written pose; while an arrow key of this page pushes (control.js sets
+// window.limbview.pushing), only the way it pushes may be called blocked, as in the terminal.
+function told(t) {
+  const pushing = window.limbview.pushing;
+  const said = { words: t.words || t.outcome, blocked: t.blocked || [] };
+  const parts = /^(at [^:]+): .+ (?:is|are) blocked, (.+)$/.exec(said.words);
+  if (!pushing || !parts || !t.commanded || !t.written) return said;
+  const blocked = pushing.filter((d) => {
+    const i = d.endsWith("pan") ? 0 : 1, sign = d[0] === "+" ? 1 : -1;
+    return sign * (t.commanded[i] - t.written[i]) > BLOCKED_MIN_DEG;
+  });
+  if (blocked.length === 0) return { words: `${parts[1]}: ${parts[2]}`, blocked: [] };
+  const ways = blocked.map((d) => DIRECTION_NAMES[d]).join(" and ");
+  return { words: `${parts[1]}: ${ways} ${blocked.length === 1 ? "is" : "are"} blocked, ${parts[2]}`, blocked: blocked };
+}
+
 function showLive(l) {
   // rows about teaching mean nothing in teleop (no samples, the model's edge)
   for (const id of ["sample-count", "traced-share"]) byId(id).parentElement.hidden = Boolean(l.teleop);
@@ -288,9 +310,10 @@ function showLive(l) {
       state.trail.push(t.written);
       if (state.trail.length > TRAIL_LENGTH) state.trail.shift();
     }
-    byId("words").textContent = t.words || t.outcome;
-    byId("holds").textContent = t.blocked && t.blocked.length
-      ? `the ${t.blocked.map((d) => EDGE_WORDS[d]).join(" and ")} edge` : "nothing: free to move";
+    const said = told(t);
+    byId("words").textContent = said.words;
+    byId("holds").textContent = said.blocked.length
+      ? `the ${said.blocked.map((d) => EDGE_WORDS[d]).join(" and ")} edge` : "nothing: free to move";
     byId("commanded").textContent = fmtPose(t.commanded);
     byId("written").textContent = fmtPose(t.written);
     byId("outcome").textContent = t.outcome;
