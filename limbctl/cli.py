@@ -262,8 +262,8 @@ def _add_record(sub: Subparsers) -> None:
         _record,
         help="teach by hand: torque off, sample the limb and write a dataset",
         description="Torque off; move the limb by hand through every pose it may take. "
-        "Samples both joints at --rate Hz and appends to the dataset as it goes. Stops on "
-        "Enter, Ctrl-C or after --duration; nothing recorded is lost.",
+        "Samples every joint (pan, tilt; and roll on three servos) at --rate Hz and appends to "
+        "the dataset as it goes. Stops on Enter, Ctrl-C or after --duration; nothing is lost.",
         epilog=EPILOG_HARDWARE,
     )
     _add_connection(p, hand=True)
@@ -295,7 +295,7 @@ def _add_train(sub: Subparsers) -> None:
         "train",
         _train,
         help="learn the valid region from a dataset and write a model file",
-        description="Fit an envelope model (default: the interpolated Rigid Map) to a dataset.",
+        description="Fit an envelope model (default: a Rigid Map) to a dataset (and its twist).",
     )
     p.add_argument("data", type=Path, help="dataset written by `limbctl record`")
     p.add_argument("--out", type=Path, required=True, help="model file to write (.npz)")
@@ -332,12 +332,12 @@ def _add_teleop(sub: Subparsers) -> None:
         "A limb that rests outside the region is not driven from there: see --wait and "
         "--approach. Lines that are refused are counted by reason; if every line is refused the "
         "exit status is 2.",
-        epilog="Sources: stdin (JSON lines {'pan': deg, 'tilt': deg}, {'dir': [x, y, z]} or "
-        "{'q': [w, x, y, z]}), udp://127.0.0.1:PORT (the same lines), keyboard (arrows; ? "
-        "shows the keys), page (the live view's page: drag on the plane or use the arrows; "
-        "open the address printed with the key), "
-        "leader:ID,ID (a second gimbal on the same bus; --operator moves one on the simulator), "
-        "replay:FILE. " + EPILOG_HARDWARE,
+        epilog="Sources: stdin (JSON lines {'pan': deg, 'tilt': deg}, {'dir': [x, y, z]}, {'q': "
+        "[w, x, y, z]}; three servos also {'pan', 'tilt', 'roll': deg}, {'dir', 'twist': deg}, "
+        "a q keeping its twist, no roll or twist meaning twist 0), udp://127.0.0.1:PORT (the "
+        "same lines), keyboard (arrows, [ ] roll; ? shows the keys), page (the view's page: "
+        "drag or arrows; open the address printed with the key), leader:ID,ID or leader:ID,ID,"
+        f"ID (a second limb; --operator moves a simulated one), replay:FILE. {EPILOG_HARDWARE}",
     )
     _add_connection(p)
     p.add_argument("--model", type=Path, required=True, help="model file from `limbctl train`")
@@ -462,8 +462,8 @@ SUBCOMMANDS = (
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="limbctl",
-        description="Teach a two-servo Dynamixel gimbal its allowed orientations by hand, learn "
-        "them as an interpolated Rigid Map, and gate every command through that model.",
+        description="Teach a Dynamixel limb of two servos (pan, tilt) or three (and roll) its "
+        "allowed orientations by hand, learn them as a Rigid Map, and gate every command by it.",
         epilog=EPILOG_HARDWARE,
     )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")

@@ -180,3 +180,23 @@ def test_teleop_at_57600_baud_says_the_wire_cannot_carry_200_hz(tmp_path, capsys
     teleop = ["teleop", "--model", str(model), "--source", f"replay:{commands}", "--quiet"]
     assert main([*teleop, "--baud", "57600", "--latency-timer", "16"]) == 0
     assert "warning: at 57600 baud one cycle's 80 bytes take 13.9 ms" in capsys.readouterr().err
+
+
+def _help(argv: list[str], capsys) -> str:
+    with pytest.raises(SystemExit):
+        main([*argv, "--help"])
+    return " ".join(capsys.readouterr().out.split())  # argparse wraps lines anywhere
+
+
+def test_help_speaks_of_both_rigs_and_names_every_command_form(capsys):
+    from limbctl.teleop.commands import _ALLOWED_KEYS, _TWIST_KEYS
+
+    top = _help([], capsys)
+    assert "two servos (pan, tilt) or three (and roll)" in top
+    assert "both joints" not in _help(["record"], capsys)
+    assert "pan, tilt; and roll on three servos" in _help(["record"], capsys)
+    teleop = _help(["teleop"], capsys)
+    # every key a command line may hold on either rig, and the three-servo leader and keys
+    for key in sorted((_ALLOWED_KEYS | _TWIST_KEYS) - {"t"}):
+        assert f"'{key}'" in teleop, key
+    assert "leader:ID,ID,ID" in teleop and "[ ] roll" in teleop

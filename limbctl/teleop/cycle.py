@@ -65,6 +65,9 @@ class Cycle:
         and logged. A cycle that found ``stop`` set, the duration over, or met a fault is not.
     command_deg : tuple of float or None
         The command being followed as (pan, tilt) in degrees; None before the first one.
+    command_q : ndarray (4,) or None
+        The latest command's full orientation (w, x, y, z), twist included on a three-servo
+        rig; kept while a silent source is held; None before the first one.
     result : GateResult or None
         The gate's answer; None when the cycle ended before the gate ran.
     present : tuple of float or None
@@ -93,6 +96,7 @@ class Cycle:
     state: CycleState
     complete: bool = False
     command_deg: tuple[float, float] | None = None
+    command_q: np.ndarray | None = None
     result: GateResult | None = None
     present: tuple[float, float] | None = None
     written: bool = False

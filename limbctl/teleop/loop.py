@@ -184,6 +184,7 @@ class ControlLoop:
         self._pending: deque = deque()
         self._target_q: np.ndarray | None = None
         self._target_deg: tuple[float, float] | None = None
+        self._command_q: np.ndarray | None = None  # the latest command, kept while held
         self._refused_reasons: tuple[str, ...] = ()
         self._started_at = self._last_command_at = 0.0
 
@@ -306,6 +307,7 @@ class ControlLoop:
             state=state,
             complete=True,
             command_deg=self._target_deg,
+            command_q=self._command_q,
             result=result,
             present=present,
             written=written,
@@ -360,6 +362,7 @@ class ControlLoop:
         if self._pending:
             self._target_q = self._pending.popleft().q
             self._target_deg = _command_deg(self._target_q)
+            self._command_q = self._target_q
             self._last_command_at = now
         self.summary.rejected = self.source.stats.rejected
         self._refused_reasons = tuple(self.source.stats.refusals.take_recent())
@@ -372,6 +375,7 @@ class ControlLoop:
             t=t,
             state=CycleState.FINISHED,
             command_deg=self._target_deg,
+            command_q=self._command_q,
             ended_by=ended_by,
             refused=self.summary.rejected,
         )
@@ -391,6 +395,7 @@ class ControlLoop:
             t=t,
             state=CycleState.FAULT,
             command_deg=self._target_deg,
+            command_q=self._command_q,
             result=result,
             ended_by="fault",
             fault=self.summary.fault,
