@@ -39,7 +39,7 @@ class Explanation:
     Attributes
     ----------
     words : str
-        e.g. "at the edge: up is blocked, sliding along it".
+        e.g. "at the edge: up is blocked, sliding right along it".
     blocked : tuple of str
         The blocked joint directions ("+pan", "-pan", "+tilt", "-tilt"), pan first.
     """

@@ -117,7 +117,7 @@ class TeleopStatus:
     cycles : int
         Cycles run so far.
     words : str
-        The gate's outcome in words, e.g. "at the edge: up is blocked, sliding along it".
+        The gate's outcome in words, e.g. "at the edge: up is blocked, sliding right along it".
     blocked : tuple of str
         The joint directions the edge or a limit blocks ("+pan", "-pan", "+tilt", "-tilt").
     """
