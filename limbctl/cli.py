@@ -440,8 +440,7 @@ def _add_motors(sub: Subparsers) -> None:
     scan.add_argument("--scan-baud", type=int, action="append", help=upkeep.SCAN_BAUD_HELP)
     setup = _command(motors, "setup", upkeep.motor_setup_job(_connection), help=upkeep.SETUP_HELP)
     _add_connection(setup)
-    setup.add_argument("--joint", action="append", help="only this joint (repeatable: pan, tilt)")
-    setup.add_argument("--yes", action="store_true", help="do not ask before each servo")
+    upkeep.add_setup_options(setup)
 
 
 #: The subcommands in the order ``--help`` lists them.

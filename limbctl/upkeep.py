@@ -12,11 +12,14 @@ import sys
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from limbctl.errors import ConfigError
 from limbctl.jobs import Connection, say
 from limbctl.session import open_rig
+
+if TYPE_CHECKING:
+    from limbctl.servo.motors import Claims
 
 
 @dataclass(frozen=True)
@@ -67,6 +70,17 @@ MOTORS_DESCRIPTION = (
 SCAN_HELP = "ping every servo at every baud rate (the factory's 57600 first)"
 SCAN_BAUD_HELP = "scan only this baud rate (repeatable; default: every rate the X series has)"
 SETUP_HELP = "one servo at a time: ID, baud, Return Delay Time 0, Status Return Level 2"
+RENUMBER_HELP = (
+    "make the connected servo the --joint's even if it answers as another joint's ID (a spare "
+    "servo of one joint made another's, on purpose); without it such a servo is refused"
+)
+
+
+def add_setup_options(parser: Any) -> None:
+    """The ``motors setup`` options beside the connection's."""
+    parser.add_argument("--joint", action="append", help="only this joint (repeatable: pan, tilt)")
+    parser.add_argument("--yes", action="store_true", help="do not ask before each servo")
+    parser.add_argument("--renumber", action="store_true", help=RENUMBER_HELP)
 
 
 def motor_scan_job(connection: Callable[[Any], Connection]) -> Callable[[Any], int]:
@@ -77,7 +91,7 @@ def motor_scan_job(connection: Callable[[Any], Connection]) -> Callable[[Any], i
 def motor_setup_job(connection: Callable[[Any], Connection]) -> Callable[[Any], int]:
     """The ``motors setup`` job for parsed arguments."""
     return lambda a: run_motor_setup(
-        MotorSetupOptions(connection(a), tuple(a.joint or ()), bool(a.yes))
+        MotorSetupOptions(connection(a), tuple(a.joint or ()), bool(a.yes), bool(a.renumber))
     )
 
 
@@ -114,17 +128,24 @@ def run_motor_scan(options: MotorScanOptions) -> int:
 @dataclass(frozen=True)
 class MotorSetupOptions:
     """``limbctl motors setup``: give the profile's joints' servos their IDs and baud, one
-    at a time (``joints``: all), asking to connect each unless ``yes``."""
+    at a time (``joints``: all), asking to connect each unless ``yes``; ``renumber`` (with
+    one joint) makes a servo that answers as another joint's ID that joint's on purpose."""
 
     connection: Connection = field(default_factory=Connection)
     joints: tuple[str, ...] = ()
     yes: bool = False
+    renumber: bool = False
 
 
 def run_motor_setup(options: MotorSetupOptions) -> int:
-    """Set up each joint's servo; 0 when every one succeeded, 1 when one failed (the others
-    keep what was done: the summary says which)."""
-    from limbctl.servo.motors import JointTarget, check_target, setup_joint
+    """Set up each joint's servo; 0 when every one succeeded, 1 when one failed or was skipped
+    (the others keep what was done: the summary says which).
+
+    A servo recognisably another joint's (:mod:`limbctl.servo.motors`) is never renumbered
+    unless ``renumber``: with ``yes`` that joint fails; otherwise the person is asked to
+    connect the right servo (Enter looks again) or to skip the joint.
+    """
+    from limbctl.servo.motors import Claims, JointTarget, check_target, setup_joint
     from limbctl.servo.profiles import load_rig_profile
 
     conn = options.connection
@@ -138,10 +159,18 @@ def run_motor_setup(options: MotorSetupOptions) -> int:
     unknown = [j for j in chosen if j not in joints]
     if unknown:
         raise ConfigError(f"unknown joint {unknown[0]!r}: the profile has {', '.join(joints)}")
+    if options.renumber and len(chosen) != 1:
+        raise ConfigError(
+            f"--renumber makes the connected servo one joint's on purpose: name that joint with "
+            f"--joint (e.g. --joint {tuple(joints)[1]})"
+        )
     targets = [JointTarget(j, joints[j].id, profile.model, baud) for j in chosen]
     for target in targets:
         check_target(target)  # a bad baud or model is refused before anything is asked
-    outcomes = []
+    ids = {name: joint.id for name, joint in joints.items()}
+    done: list[str] = []
+    failed: list[str] = []
+    skipped: list[str] = []
     with _bus_port(conn, setup=True) as (port, latency_ms):
         for target in targets:
             if not options.yes:
@@ -149,13 +178,39 @@ def run_motor_setup(options: MotorSetupOptions) -> int:
                     f"Connect only the {target.joint} servo (it becomes ID {target.servo_id}), "
                     f"power it, then press Enter (Ctrl-C stops): "
                 )
-            outcome = setup_joint(port, target, latency_ms)
-            say(outcome.message if outcome.ok else f"{target.joint}: FAILED: {outcome.message}")
-            outcomes.append(outcome)
-    done = [o.joint for o in outcomes if o.ok]
-    failed = [o.joint for o in outcomes if not o.ok]
-    say(f"set up: {', '.join(done) or 'none'}; failed: {', '.join(failed) or 'none'}")
-    return 1 if failed else 0
+            claims = Claims(ids, tuple(done), options.renumber)
+            outcome = setup_joint(port, target, latency_ms, claims=claims)
+            while outcome.other_joint is not None and not options.yes:
+                if not _look_again(target.joint, outcome.other_joint, claims, ids):
+                    break
+                outcome = setup_joint(port, target, latency_ms, claims=claims)
+            if outcome.ok:
+                done.append(target.joint)
+                say(outcome.message)
+            elif outcome.other_joint is not None and not options.yes:
+                skipped.append(target.joint)
+                say(f"{target.joint}: skipped: {outcome.message}")
+            else:
+                failed.append(target.joint)
+                say(f"{target.joint}: FAILED: {outcome.message}")
+    left = f"; skipped: {', '.join(skipped)}" if skipped else ""
+    say(f"set up: {', '.join(done) or 'none'}{left}; failed: {', '.join(failed) or 'none'}")
+    return 1 if failed or skipped else 0
+
+
+def _look_again(joint: str, owner: str, claims: Claims, ids: dict[str, int]) -> bool:
+    """Ask whether to look for ``joint``'s servo again (Enter) or to skip it (skip, or the
+    end of input); the connected servo is ``owner``'s."""
+    when = "set up a moment ago" if owner in claims.set_up_now else "set up before"
+    try:
+        answer = input(
+            f"The connected servo answers as ID {ids[owner]}, the {owner} joint's ({when}): "
+            f"connect only the {joint} servo and press Enter to look again, or type skip to "
+            f"leave {joint} for now: "
+        )
+    except EOFError:
+        return False
+    return answer.strip().lower() != "skip"
 
 
 @contextmanager

@@ -13,6 +13,12 @@ family's voltage limits. With torque off it then gets, in this order:
 4. Status Return Level 2 (RAM): answer every instruction. RAM is reset at power-up, so this
    lasts until then; every record, teleop and calibrate sets it again at their start.
 
+A servo that is recognisably another joint's of the profile is not renumbered: one that answers
+as that joint's ID, unless it is factory-fresh (ID 1 at 57600 baud with Return Delay Time 250:
+a profile whose pan is ID 1 meets every new servo at pan's ID). Such a servo was set up as that
+joint, in this run or before; it keeps its ID, and the outcome names the joint
+(:attr:`SetupOutcome.other_joint`), unless ``renumber`` says to make it this joint on purpose.
+
 Then it is pinged at the new ID and baud and every value written is read back. Only values that
 differ are written (EEPROM wears), so running set-up twice is harmless. Each joint's outcome is
 a value: a failed joint does not undo the others.
@@ -20,6 +26,7 @@ a value: a failed joint does not undo the others.
 
 from __future__ import annotations
 
+from collections.abc import Collection, Mapping
 from dataclasses import dataclass
 
 from limbctl.errors import BusError, ConfigError, LimbctlError
@@ -39,6 +46,10 @@ from limbctl.servo.transfers import SDK_LATENCY_TIMER_MS
 RETURN_DELAY = 0
 #: Status Return Level set-up writes: answer every instruction.
 STATUS_RETURN_ALL = 2
+#: A servo out of the box (the X series' e-Manual defaults): ID 1 at 57600 baud, Return Delay
+#: Time 250 (2 us units: 500 us). Set-up always writes Return Delay Time 0, so a servo at ID 1
+#: with 250 has never been set up: it is nobody's joint yet.
+FACTORY_ID, FACTORY_BAUD, FACTORY_RETURN_DELAY = 1, 57_600, 250
 
 
 @dataclass(frozen=True)
@@ -63,12 +74,35 @@ class SetupOutcome:
         What was done, or why it was refused.
     written : tuple of str
         The registers written (empty when the servo was already set up).
+    other_joint : str or None
+        When refused because the connected servo is recognisably another joint's servo: that
+        joint (the caller may ask for the right servo and try again).
     """
 
     joint: str
     ok: bool
     message: str
     written: tuple[str, ...] = ()
+    other_joint: str | None = None
+
+
+@dataclass(frozen=True)
+class Claims:
+    """What set-up knows of the profile's other joints, to never renumber one as another.
+
+    Attributes
+    ----------
+    ids : mapping of str to int
+        Every joint of the profile and its servo ID (the target's own may be among them).
+    set_up_now : collection of str
+        The joints set up earlier in this run.
+    renumber : bool
+        Make a servo that answers as another joint's ID this joint anyway (on purpose).
+    """
+
+    ids: Mapping[str, int]
+    set_up_now: Collection[str] = ()
+    renumber: bool = False
 
 
 def _the_one_servo(result: ScanResult, target: JointTarget) -> tuple[int, int, int]:
@@ -122,17 +156,29 @@ def check_target(target: JointTarget) -> None:
 
 
 def setup_joint(
-    port: str, target: JointTarget, latency_timer_ms: float = 16.0, scan_bauds=SCAN_BAUDS
+    port: str,
+    target: JointTarget,
+    latency_timer_ms: float = 16.0,
+    scan_bauds=SCAN_BAUDS,
+    claims: Claims | None = None,
 ) -> SetupOutcome:
     """Find the one connected servo and make it ``target`` (see module docstring).
 
-    Set-up is not time-critical: replies are awaited as the SDK would (a 16 ms latency timer)
-    even when ``latency_timer_ms`` is lower, so a busy machine is not taken for silence.
+    ``claims`` names the profile's other joints: a servo recognisably one of theirs is refused
+    (the outcome's ``other_joint``) unless ``claims.renumber``. Set-up is not time-critical:
+    replies are awaited as the SDK would (a 16 ms latency timer) even when ``latency_timer_ms``
+    is lower, so a busy machine is not taken for silence.
     """
     latency_timer_ms = max(latency_timer_ms, SDK_LATENCY_TIMER_MS)
+    claims = claims or Claims({})
     try:
         check_target(target)
         servo_id, baud, number = _the_one_servo(scan(port, scan_bauds, latency_timer_ms), target)
+        owner = _owner(port, target, servo_id, baud, claims, latency_timer_ms)
+        if owner is not None and not claims.renumber:
+            return SetupOutcome(
+                target.joint, False, _refusal(target, servo_id, owner, claims), other_joint=owner
+            )
         written = _configure(port, target, servo_id, baud, latency_timer_ms)
         _verify(port, target, latency_timer_ms)
     except LimbctlError as exc:
@@ -145,8 +191,48 @@ def setup_joint(
     if not written:
         done += "; it was set up already: nothing written"
     else:
-        done += f" (found as ID {servo_id} at {baud} baud; wrote {', '.join(written)})"
+        taken = (
+            ""
+            if owner is None
+            else f", the {owner} joint's ID: renumbered on purpose (--renumber), so no servo "
+            f"answers as {owner} until one is set up as it"
+        )
+        done += f" (found as ID {servo_id} at {baud} baud{taken}; wrote {', '.join(written)})"
     return SetupOutcome(target.joint, True, done, tuple(written))
+
+
+def _owner(
+    port: str, target: JointTarget, servo_id: int, baud: int, claims: Claims, latency_ms: float
+) -> str | None:
+    """The other joint whose servo the one found (``servo_id`` at ``baud``) recognisably is."""
+    owner = next((j for j, i in claims.ids.items() if i == servo_id and j != target.joint), None)
+    if owner is None or owner in claims.set_up_now:
+        return owner
+    if servo_id != FACTORY_ID or baud != FACTORY_BAUD:
+        return owner  # a factory-fresh servo answers only as ID 1 at 57600 baud
+    with _open(port, baud, servo_id, target.model, latency_ms) as bus:
+        delay = bus.read(Register.RETURN_DELAY_TIME, servo_id, patient=True)
+    return None if delay == FACTORY_RETURN_DELAY else owner
+
+
+def _refusal(target: JointTarget, servo_id: int, owner: str, claims: Claims) -> str:
+    joint = target.joint
+    return (
+        f"the connected servo answers as ID {servo_id}, the {owner} joint's, and is the {owner} "
+        f"servo {set_up_when(owner, claims)}: connect only the {joint} servo and run `limbctl "
+        f"motors setup --joint {joint}` again (or, to make this servo the {joint} servo on "
+        f"purpose, add --renumber)"
+    )
+
+
+def set_up_when(owner: str, claims: Claims) -> str:
+    """When ``owner``'s servo was set up, as the person saw it: in this run or before."""
+    if owner in claims.set_up_now:
+        return "set up a moment ago"
+    return (
+        f"set up before (a factory-fresh servo answers as ID {FACTORY_ID} at {FACTORY_BAUD} "
+        f"baud with Return Delay Time {FACTORY_RETURN_DELAY})"
+    )
 
 
 def _open(port: str, baud: int, servo_id: int, model: str, latency_ms: float) -> ServoBus:

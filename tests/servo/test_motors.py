@@ -1,5 +1,6 @@
 """Setting up servos out of the box, as a person does it, and every refusal's message."""
 
+import io
 from importlib import resources
 from pathlib import Path
 
@@ -113,3 +114,102 @@ def test_targets_the_family_cannot_take_are_refused():
         check_target(JointTarget("pan", 1, "xl330-m288", 4_500_000))
     with pytest.raises(ConfigError, match="servo IDs are 0..252, got 300 for tilt"):
         check_target(JointTarget("tilt", 300, "xl430-w250", 57_600))
+
+
+RIGS = Path(__file__).parents[2] / "calib" / "rigs"
+#: The two rigs set-up serves: the finding's pan 7 / tilt 9 (no ID a factory servo has), and the
+#: three-servo sim3 as shipped (pan 1: the factory ID, so only its set-up state tells it apart).
+RIG_IDS = {"sim": {"pan": 7, "tilt": 9}, "sim3": {"pan": 1, "tilt": 2, "roll": 3}}
+
+
+def rig_profile(tmp_path, rig):
+    """A copy of ``calib/rigs/RIG.yaml`` whose joints have the IDs of :data:`RIG_IDS`."""
+    text = (RIGS / f"{rig}.yaml").read_text()
+    if rig == "sim":
+        text = text.replace("  id: 1\n", "  id: 7\n").replace("  id: 2\n", "  id: 9\n")
+    path = tmp_path / f"{rig}.yaml"
+    path.write_text(text)
+    return path
+
+
+def answering_id(sim):
+    """The ID the simulator's one servo (slot 1) answers as now (its ground truth)."""
+    return sim.truth()["servos"][1]["id"]
+
+
+def motors_setup(profile, sim, *options):
+    return main(["motors", "setup", "--rig", str(profile), "--port", sim.port, *options])
+
+
+@pytest.mark.parametrize("rig", sorted(RIG_IDS))
+def test_yes_on_a_one_servo_bench_sets_up_pan_only_and_says_so(tmp_path, capsys, rig):
+    ids = RIG_IDS[rig]
+    profile = rig_profile(tmp_path, rig)
+    with SimulatedBus(factory=1, link=tmp_path / "tty") as sim:
+        status = motors_setup(profile, sim, "--yes")
+        answers_as = answering_id(sim)
+    lines = capsys.readouterr().err.splitlines()
+    others = [joint for joint in ids if joint != "pan"]
+    assert answers_as == ids["pan"], "the pan servo was renumbered as another joint's"
+    for joint in others:
+        assert (
+            f"{joint}: FAILED: the connected servo answers as ID {ids['pan']}, the pan joint's, "
+            f"and is the pan servo set up a moment ago: connect only the {joint} servo and run "
+            f"`limbctl motors setup --joint {joint}` again (or, to make this servo the {joint} "
+            f"servo on purpose, add --renumber)"
+        ) in lines
+    assert lines[-1] == f"set up: pan; failed: {', '.join(others)}"
+    assert status == 1
+
+
+@pytest.mark.parametrize("rig", sorted(RIG_IDS))
+def test_enter_with_the_pan_servo_still_connected_asks_again_and_skip_is_said(
+    tmp_path, capsys, monkeypatch, rig
+):
+    ids = RIG_IDS[rig]
+    others = [joint for joint in ids if joint != "pan"]
+    # Enter for pan; then for each other joint: Enter (pan's servo still alone), then skip
+    monkeypatch.setattr("sys.stdin", io.StringIO("\n" + "\nskip\n" * len(others)))
+    profile = rig_profile(tmp_path, rig)
+    with SimulatedBus(factory=1, link=tmp_path / "tty") as sim:
+        status = motors_setup(profile, sim)
+        answers_as = answering_id(sim)
+    err = capsys.readouterr()
+    assert answers_as == ids["pan"]
+    for joint in others:
+        assert (
+            f"The connected servo answers as ID {ids['pan']}, the pan joint's (set up a moment "
+            f"ago): connect only the {joint} servo and press Enter to look again, or type skip "
+            f"to leave {joint} for now: "
+        ) in err.out
+    assert err.err.splitlines()[-1] == f"set up: pan; skipped: {', '.join(others)}; failed: none"
+    assert status == 1
+
+
+def test_renumber_makes_another_joints_servo_this_one_on_purpose(tmp_path, capsys):
+    profile = rig_profile(tmp_path, "sim")
+    with SimulatedBus(factory=1, link=tmp_path / "tty") as sim:
+        assert motors_setup(profile, sim, "--yes", "--joint", "pan") == 0
+        assert motors_setup(profile, sim, "--yes", "--joint", "tilt") == 1
+        assert answering_id(sim) == 7
+        assert motors_setup(profile, sim, "--yes", "--joint", "tilt", "--renumber") == 0
+        assert answering_id(sim) == 9
+    lines = capsys.readouterr().err.splitlines()
+    assert (
+        "tilt: XL430-W250 (1060) now ID 9 at 4000000 baud, Return Delay Time 0, Status Return "
+        "Level 2 (RAM: set again at every start) (found as ID 7 at 4000000 baud, the pan "
+        "joint's ID: renumbered on purpose (--renumber), so no servo answers as pan until one "
+        "is set up as it; wrote ID 7 -> 9)"
+    ) in lines
+    assert lines[-1] == "set up: tilt; failed: none"
+
+
+def test_renumber_names_the_one_joint_it_is_for(tmp_path, capsys):
+    profile = rig_profile(tmp_path, "sim")
+    status = main(["motors", "setup", "--rig", str(profile), "--port", "/dev/null", "--renumber"])
+    assert status == 2
+    message = capsys.readouterr().err.strip()
+    assert message.endswith(
+        "--renumber makes the connected servo one joint's on purpose: name that joint with "
+        "--joint (e.g. --joint tilt)"
+    )
