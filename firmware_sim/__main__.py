@@ -75,7 +75,11 @@ With a roll joint each line also carries "limb_q": [w, x, y, z], that full orien
 Faults are drawn from --seed: --drop P loses a reply, --corrupt P flips one byte of a reply,
 --latency-ms X delays a reply by X ms (with probability --latency-p, default 1).
 
---event T:KIND:ID:VALUE (repeatable) applies a fault T seconds after start:
+--event T:KIND:ID:VALUE (repeatable) applies a fault T seconds after start to the servo that
+answers as ID then (its ID register, not its slot: with --factory or --eeprom, the ID set-up
+gave it). An ID no servo answers as at start, or one several share (factory-fresh servos), is
+refused; an event whose ID no single servo answers as when its time comes is not applied and
+says so on stderr:
   vanish:ID:S        servo ID neither executes nor answers for S seconds
   voltage:ID:V       servo ID measures a supply of V volts from then on (limits: XL430
                      6.0..14.0 V, XM430 9.5..16.0 V, XL330 3.5..7.0 V (it sits on 5 V);

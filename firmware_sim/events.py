@@ -12,7 +12,13 @@ a hand that leans on a joint.
   then on (signed, toward increasing raw ticks; 0 lets go). Above 100 % the motor cannot hold
   it: Present PWM saturates and, after 0.5 s, the overload shutdown trips.
 
-The same faults are available from Python as :meth:`Simulator.vanish`,
+``ID`` is the ID the servo answers as when the event applies (its ID register), not its slot:
+with ``--factory`` or ``--eeprom`` set-up renumbers servos, and an event then names the ID
+set-up gave. The IDs are checked at start (an ID no servo answers as, or one several share, is
+refused); an event whose ID no single servo answers as when its time comes (renumbered since)
+is not applied and says so on stderr.
+
+The same faults are available from Python (by slot) as :meth:`Simulator.vanish`,
 :meth:`Simulator.set_environment`, :meth:`Simulator.restart` and :meth:`Simulator.push`; a
 voltage or temperature outside the servo's limits raises its Hardware Error Status bit and the
 alert, exactly as those calls do.
@@ -21,6 +27,7 @@ alert, exactly as those calls do.
 from __future__ import annotations
 
 import math
+import sys
 from dataclasses import dataclass, field
 
 from firmware_sim.simulator import Simulator
@@ -40,18 +47,32 @@ class ScheduledEvent:
     servo_id: int
     value: float
 
-    def apply(self, sim: Simulator) -> None:
-        """Apply the fault to ``sim`` now."""
+    def apply(self, sim: Simulator, slot: int) -> None:
+        """Apply the fault to the servo in ``slot`` of ``sim`` now."""
         if self.kind == "vanish":
-            sim.vanish(self.servo_id, self.value)
+            sim.vanish(slot, self.value)
         elif self.kind == "restart":
-            sim.restart(self.servo_id, self.value)
+            sim.restart(slot, self.value)
         elif self.kind == "push":
-            sim.push(self.servo_id, self.value)
+            sim.push(slot, self.value)
         elif self.kind == "voltage":
-            sim.set_environment(self.servo_id, voltage=self.value)
+            sim.set_environment(slot, voltage=self.value)
         else:
-            sim.set_environment(self.servo_id, temperature=self.value)
+            sim.set_environment(slot, temperature=self.value)
+
+    def unmatched(self, sim: Simulator) -> str | None:
+        """Why no single servo of ``sim`` answers as this event's ID now, or None."""
+        slots = sim.slots_answering(self.servo_id)
+        if not slots:
+            ids = ", ".join(map(str, sim.answering_ids()))
+            return f"no servo answers as ID {self.servo_id}; the servos answer as {ids}"
+        if len(slots) > 1:
+            return (
+                f"servos in slots {', '.join(map(str, slots))} all answer as ID "
+                f"{self.servo_id}: an event names one servo; plug in one (--connect) or give "
+                f"each its own ID (limbctl motors setup)"
+            )
+        return None
 
 
 def parse_event(text: str) -> ScheduledEvent:
@@ -82,24 +103,41 @@ class EventSchedule:
     """Events waiting for their time, applied once each by :meth:`apply_due`."""
 
     events: list[ScheduledEvent] = field(default_factory=list)
+    #: Why each event that found no single servo when its time came was not applied.
+    skipped: list[str] = field(default_factory=list)
 
     def __post_init__(self) -> None:
         self.events = sorted(self.events, key=lambda event: event.at_s)
 
     def check(self, sim: Simulator) -> None:
-        """ValueError naming the event if one names a servo ``sim`` does not have."""
+        """ValueError naming the event if no single servo of ``sim`` answers as its ID."""
         for event in self.events:
-            if event.servo_id not in sim.ids:
-                raise ValueError(
-                    f"event at {event.at_s:g} s: no servo {event.servo_id}; "
-                    f"the bus has {', '.join(map(str, sim.ids))}"
-                )
+            problem = event.unmatched(sim)
+            if problem:
+                raise ValueError(f"event at {event.at_s:g} s: {problem}")
 
     def apply_due(self, sim: Simulator) -> int:
-        """Apply every event whose time has come (``sim.now()``); how many were applied."""
+        """Apply every event whose time has come (``sim.now()``) to the servo answering as its
+        ID then; how many were applied. One that finds no single servo is said on stderr and
+        kept in :attr:`skipped`."""
         now = sim.now()
         due = [event for event in self.events if event.at_s <= now]
+        applied = 0
         for event in due:
-            event.apply(sim)
+            slots = sim.slots_answering(event.servo_id)
+            if len(slots) == 1:
+                event.apply(sim, slots[0])
+                applied += 1
+                continue
+            ids = ", ".join(map(str, sim.answering_ids()))
+            what = f"{event.kind}:{event.servo_id}:{event.value:g}"
+            why = (
+                f"no servo answers as ID {event.servo_id} now (the servos answer as {ids})"
+                if not slots
+                else f"servos in slots {', '.join(map(str, slots))} all answer as ID "
+                f"{event.servo_id} now"
+            )
+            self.skipped.append(f"event at {event.at_s:g} s ({what}): {why}: not applied")
+            print(f"firmware-sim: {self.skipped[-1]}", file=sys.stderr, flush=True)
         self.events = self.events[len(due) :]
-        return len(due)
+        return applied

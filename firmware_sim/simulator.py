@@ -336,6 +336,15 @@ class Simulator:
                 return servo
         raise ValueError(f"no servo {servo_id} on this bus; it has {list(self.ids)}")
 
+    def slots_answering(self, servo_id: int) -> tuple[int, ...]:
+        """The slots of the servos that answer as ``servo_id`` now (their ID register: set-up
+        and ``eeprom_dir`` renumber servos, and factory-fresh ones all answer as 1)."""
+        return tuple(self._home_ids[id(s)] for s in self.servos if s.servo_id == servo_id)
+
+    def answering_ids(self) -> tuple[int, ...]:
+        """The IDs the servos answer as now, ascending, each once."""
+        return tuple(sorted({servo.servo_id for servo in self.servos}))
+
     def set_hand(self, hand: Hand | None) -> None:
         self.world.set_hand(hand)
 

@@ -13,10 +13,12 @@ import time
 import pytest
 from dynamixel_sdk import COMM_SUCCESS, PacketHandler, PortHandler
 
+from firmware_sim.simulator import Simulator
 from firmware_sim.wire import RIG_BAUD
 
 COMMAND = [sys.executable, "-m", "firmware_sim"]
 GOAL_POSITION, TORQUE_ENABLE, PRESENT_POSITION = 116, 64, 132
+ID, HARDWARE_ERROR, VOLTAGE_BIT = 7, 70, 0x01
 
 
 @contextlib.contextmanager
@@ -141,3 +143,31 @@ def test_a_leader_gimbal_moved_by_its_operator_is_served_and_logged(tmp_path):
     assert set(rows[-1]) >= {"t", "pose_deg", "hand_nm", "motor_nm", "motor_work_j"}
     assert 38.0 < rows[-1]["pose_deg"][0] < 41.0 and abs(rows[-1]["pose_deg"][1]) < 1.0
     assert all(r["motor_nm"] == [0.0, 0.0] for r in rows)  # torque off: only the hand moved it
+
+
+def test_an_event_names_a_renumbered_servo_by_its_id(tmp_path):
+    """--factory 2 --eeprom DIR after set-up made slot 2 ID 9: --event ...:9:... is that servo;
+    slot 2's number is no ID any servo answers as."""
+    eeprom = tmp_path / "eeprom"
+    sim = Simulator(factory=2, eeprom_dir=eeprom)
+    sim.servo(2).write(ID, bytes([9]))
+    sim.persist()
+    sim.close()
+    link = tmp_path / "tty"
+    base = ["--factory", "2", "--eeprom", str(eeprom), "--link", str(link)]
+    refused = subprocess.run(
+        [*COMMAND, *base, "--event", "0:voltage:2:5"], capture_output=True, timeout=60
+    )
+    assert refused.returncode == 2
+    assert b"no servo answers as ID 2; the servos answer as 1, 9" in refused.stderr
+    with served([*base, "--event", "0:voltage:9:5"]) as (process, ready):
+        assert "ID 9 at 57600" in ready
+        port = PortHandler(str(link))
+        assert port.setBaudRate(57_600)
+        packet = PacketHandler(2.0)
+        # servo 9 sees 5 V, below the XL430's 6.0 V limit: input voltage error and the alert
+        deadline = time.monotonic() + 5.0
+        while packet.read1ByteTxRx(port, 9, HARDWARE_ERROR)[0] != VOLTAGE_BIT:
+            assert time.monotonic() < deadline, "no input voltage error on servo 9"
+        assert packet.read1ByteTxRx(port, 1, HARDWARE_ERROR) == (0, COMM_SUCCESS, 0)
+        port.closePort()

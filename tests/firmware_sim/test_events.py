@@ -42,7 +42,7 @@ def served(link, *events: str):
         process.stdout.close()
 
 
-TORQUE_ENABLE, HARDWARE_ERROR, PRESENT_PWM = 64, 70, 124
+ID, TORQUE_ENABLE, HARDWARE_ERROR, PRESENT_PWM = 7, 64, 70, 124
 VOLTAGE_BIT, OVERHEATING_BIT, OVERLOAD_BIT, ALERT = 0x01, 0x04, 0x20, 0x80
 
 
@@ -94,8 +94,34 @@ def test_schedule_applies_each_event_once_when_its_time_comes():
 
 def test_schedule_refuses_an_unknown_servo():
     sim = build_simulator({"ids": (1, 2)})
-    with pytest.raises(ValueError, match="no servo 7; the bus has 1, 2"):
+    with pytest.raises(ValueError, match="no servo answers as ID 7; the servos answer as 1, 2"):
         EventSchedule([ScheduledEvent(0.0, "vanish", 7, 1.0)]).check(sim)
+    sim.close()
+
+
+def test_events_name_servos_by_the_id_they_answer_as_not_their_slot():
+    """Factory servos renumbered (as set-up does): an event names the ID, when it applies."""
+    clock = {"now": 0.0}
+    sim = Simulator(factory=2, clock=lambda: clock["now"])
+    with pytest.raises(ValueError, match=r"servos in slots 1, 2 all answer as ID 1: an event "):
+        EventSchedule([parse_event("0:voltage:1:5")]).check(sim)
+    sim.servo(2).write(ID, bytes([9]))  # slot 2 set up as ID 9
+    with pytest.raises(ValueError, match="no servo answers as ID 2; the servos answer as 1, 9"):
+        EventSchedule([parse_event("0:voltage:2:5")]).check(sim)
+    schedule = EventSchedule([parse_event("1:voltage:9:5"), parse_event("2:voltage:9:7")])
+    schedule.check(sim)
+    clock["now"] = 1.0
+    assert schedule.apply_due(sim) == 1
+    assert sim.servo(2).environment.voltage == 5.0
+    assert sim.servo(1).environment.voltage != 5.0
+    sim.servo(2).write(ID, bytes([4]))  # renumbered again before the second event
+    clock["now"] = 2.0
+    assert schedule.apply_due(sim) == 0
+    assert schedule.skipped == [
+        "event at 2 s (voltage:9:7): no servo answers as ID 9 now (the servos answer as 1, 4): "
+        "not applied"
+    ]
+    assert sim.servo(2).environment.voltage == 5.0
     sim.close()
 
 
@@ -111,7 +137,10 @@ def test_command_line_events_reach_the_servos(tmp_path):
 
 
 def test_bad_events_are_refused_before_serving(tmp_path):
-    for event, message in (("1:melt:1:2", "kind must be one of"), ("0:vanish:7:1", "no servo 7")):
+    for event, message in (
+        ("1:melt:1:2", "kind must be one of"),
+        ("0:vanish:7:1", "no servo answers as ID 7"),
+    ):
         result = subprocess.run(
             [*COMMAND, "--link", str(tmp_path / "tty"), "--event", event],
             capture_output=True,
