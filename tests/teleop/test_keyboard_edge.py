@@ -1,10 +1,11 @@
 """Keys against an edge: the commanded point never runs on past what the gate wrote.
 
 The real loop, gate and keyboard source on a terminal (a pty), the real SDK over the simulator's
-pty; the cycles the loop returns are the judge. Up is pressed step by step into a 40 deg cone
-from pan 10 deg, where its edge is slanted (presses in quick succession, as a held key repeats): the
-limb slides along it; the command never leads the written pose by more than the one step just
-pressed, and the first Down press lowers the limb a full step at once.
+pty, on the two-servo and the three-servo rig; the cycles the loop returns are the judge. Up is
+pressed step by step into a 40 deg cone from pan 10 deg, where its edge is slanted (presses in
+quick succession, as a held key repeats): the limb slides along it; the command never leads the
+written pose by more than the one step just pressed, and the first Down press lowers the limb a
+full step at once.
 """
 
 from __future__ import annotations
@@ -17,7 +18,6 @@ import time
 
 import pytest
 
-from calib.profile import default_sim_profile
 from limbctl.envelope import Cone
 from limbctl.jobs import gate_for
 from limbctl.session import open_rig
@@ -39,13 +39,10 @@ REPEAT_HZ = 30.0
 UP_PRESSES = 60
 
 
-@pytest.fixture
-def cone_model(tmp_path):
-    path = tmp_path / "cone.npz"
-    sim = default_sim_profile()
-    Cone(half_angle_deg=40.0).save(
-        path, metadata={"rig": sim.name, "calibration": sim.calibration.to_dict()}
-    )
+def cone_model(path, profile):
+    """A 40 deg cone about the rest axis, saved for ``profile``'s rig (its gate checks that)."""
+    metadata = {"rig": profile.name, "calibration": profile.calibration.to_dict()}
+    Cone(half_angle_deg=40.0).save(path, metadata=metadata)
     return path
 
 
@@ -98,19 +95,21 @@ def press(master: int, cycles: Cycles, source: KeyboardSource, key: bytes) -> Cy
     return cycles.settled_after(start)
 
 
+@pytest.mark.parametrize("rig", ["sim", "sim3"])
 def test_up_against_a_slanted_edge_slides_without_running_on_and_down_answers_at_once(
-    tmp_path, cone_model
+    tmp_path, rig
 ):
-    profile = default_sim_profile()
-    gate = gate_for(cone_model, profile, RATE, MAX_SPEED)
     cycles = Cycles()
     stop = threading.Event()
     master, slave = pty.openpty()
     try:
-        with open_rig(goal_log=tmp_path / "goals.jsonl") as session:
+        with open_rig(rig_path=rig, goal_log=tmp_path / "goals.jsonl") as session:
+            profile = session.profile
+            gate = gate_for(cone_model(tmp_path / "cone.npz", profile), profile, RATE, MAX_SPEED)
             session.rig.configure()
             session.rig.set_torque(True)
             source = KeyboardSource(step_deg=10.0, tty_path=os.ttyname(slave), gate=gate)
+            source.twist = profile.roll is not None  # as the session sets it: roll kept
             with source:
                 config = LoopConfig(rate_hz=RATE, on_cycle=cycles)
                 loop = threading.Thread(

@@ -48,11 +48,12 @@ READ_CHUNK_BYTES = 64
 #: How often (s) the source repeats its command while nothing is pressed: five times within the
 #: loop's 0.5 s silence, so only a hold (or a dead source) lets the loop hold.
 KEEPALIVE_S = WAKE_INTERVAL_S
-#: Farthest (deg, per joint) the command may run ahead of the pose the gate let through: far
-#: enough beyond an edge to slide along it, near enough that the opposite key answers at once
-#: (half a second at the default 20 deg/s) instead of first unwinding a long hold.
-MAX_LEAD_DEG = 10.0
 
+
+#: Farthest (deg, per joint) the command may run ahead of the pose the gate let through while
+#: the limb moves freely (a held key's catch-up after the terminal's repeat delay, the slew limit
+#: pacing a large step): at an edge the command never leads by more than one step.
+MAX_LEAD_DEG = 10.0
 
 #: Grid (deg) on which the region's centre is looked for: a few thousand candidates inside a
 #: hand-taught region, looked for once when the source opens (a fraction of a second),
@@ -92,8 +93,9 @@ class KeyboardSource(CommandSource):
     Up/down raise/lower the limb (tilt), left/right turn it (pan; left is +pan, toward +y).
     ``tty_path`` is the terminal to read (the controlling terminal by default). ``gate`` (the
     session's, optional) gives the pose it let through: the first move starts from it and the
-    command never leads it by more than :data:`MAX_LEAD_DEG`; its region's centre is where the
-    centre key goes. ``guide`` is where the key guide is printed (None: nowhere).
+    command never leads it by more than :data:`MAX_LEAD_DEG`, at an edge by more than one step;
+    its region's centre is where the centre key goes. ``guide`` is where the key guide is
+    printed (None: nowhere).
     """
 
     name = "keyboard"
@@ -140,6 +142,10 @@ class KeyboardSource(CommandSource):
         # stopped one short (an edge, a hard limit), that command and the (pan, tilt) deg written
         self._taken: Command | None = None
         self._stopped: tuple[Command, tuple[float, float]] | None = None
+        # the (pan, tilt) deg written when the gate's latest answer stopped what it was given
+        # short; None when it let it through (or is on its way to it)
+        self._at_edge: tuple[float, float] | None = None
+        self._snapped: Command | None = None  # the written pose sent back with no key pressed
         self._pushing: tuple[str, ...] = ()
 
     def poll(self, timeout: float = 0.0) -> list[Command]:
@@ -152,9 +158,13 @@ class KeyboardSource(CommandSource):
     def feel(self, gate: object, result: object, bus_ok: bool) -> tuple[str, ...]:
         """Learn, after each cycle, where the gate stopped the command taken (if it did)."""
         taken = self._taken
+        if taken is None or taken is self._snapped or result.outcome is Outcome.HELD:
+            return ()  # the limb's own pose sent back says nothing about the edge
         stopped = getattr(result, "corrected", False) or getattr(result, "clamped", False)
-        if taken is not None and stopped and result.outcome is not Outcome.HELD:
-            self._stopped = (taken, (math.degrees(result.pan), math.degrees(result.tilt)))
+        written = (math.degrees(result.pan), math.degrees(result.tilt))
+        self._at_edge = written if stopped else None
+        if stopped:
+            self._stopped = (taken, written)
         return ()
 
     def pushing(self) -> tuple[str, ...]:
@@ -220,7 +230,7 @@ class KeyboardSource(CommandSource):
                         stopped_at = self._stopped_at()
                         if stopped_at is not None:  # no key pushes: the point is the limb's
                             self.pan_deg, self.tilt_deg = stopped_at
-                            self._command = self._pose_command()
+                            self._command = self._snapped = self._pose_command()
                             self._pushing = ()
                         self._queue.put(self._command)  # a repeat, not a new command: not counted
                         self._offered_at = now
@@ -261,9 +271,9 @@ class KeyboardSource(CommandSource):
 
     def _move(self, action: Action, move: tuple[int, int], now: float) -> None:
         written = self._written_deg()
-        stopped_at = self._stopped_at()
-        if stopped_at is not None:  # the gate stopped the point short: go on from the limb
-            self.pan_deg, self.tilt_deg = stopped_at
+        at_edge = self._at_edge
+        if at_edge is not None:  # the gate stopped the point short: go on from the limb
+            self.pan_deg, self.tilt_deg = at_edge
         elif self._command is None and written is not None:
             self.pan_deg, self.tilt_deg = written  # the first move starts where the limb is
         self._pushing = tuple(
@@ -272,6 +282,8 @@ class KeyboardSource(CommandSource):
             if sign
         )
         distance = self._held.distance(action, now, self.step_deg)
+        if at_edge is not None:  # a held key's catch-up never carries the point past the edge
+            distance = min(distance, self.step_deg)
         pan = min(max(self.pan_deg + move[0] * distance, -180.0), 180.0)
         tilt = min(max(self.tilt_deg + move[1] * distance, -90.0), 90.0)
         if written is not None:  # never far ahead of the limb along the joint the key moves
