@@ -13,7 +13,13 @@ import pytest
 import websocket
 
 from limbctl.view import Board, Live, ViewServer
-from limbctl.view.control import FORWARD_PERIOD_S, Access, ControlDesk, is_loopback
+from limbctl.view.control import (
+    FORWARD_PERIOD_S,
+    Access,
+    ControlDesk,
+    control_request,
+    is_loopback,
+)
 
 #: Longest wait (s) for a message in these tests.
 WAIT_S = 10.0
@@ -208,6 +214,23 @@ def test_access_and_the_desk_as_values():
     page = object()
     assert desk.claim(page, "the page at here") and not desk.forward(page, "x")  # no source
     assert desk.told(page, keyed=True)[1].endswith("takes no commands from the page")
+
+
+def test_only_a_reload_of_the_holding_tab_takes_control_over_and_clicks_are_read_apart():
+    desk = ControlDesk()
+    old, reloaded, other = object(), object(), object()
+    assert desk.claim(old, "tab K7, opened 19:02:13", "tab-one")
+    assert not desk.claim(reloaded, "tab K7, opened 19:02:13", "tab-one")  # not a reload
+    assert not desk.claim(other, "tab B2, opened 19:05:00", "tab-two", reload=True)
+    assert not desk.claim(other, "a program", "", reload=True)  # no tab: nothing to match
+    assert desk.claim(reloaded, "tab K7, opened 19:02:13", "tab-one", reload=True)
+    desk.release(old)  # the old connection closing later frees nothing
+    assert desk.told(other, keyed=True)[1].startswith("refused: tab K7, opened 19:02:13 steers")
+    assert control_request('{"control":"take"}') == "take"
+    assert control_request('{"control": "release"}') == "release"
+    assert control_request('{"control":"steal"}') is None
+    assert control_request('{"control":') is None
+    assert control_request('{"pan": 1, "tilt": 2}') is None
 
 
 def test_the_keyed_page_steers_by_click_and_arrow_keys_and_resends_its_point():
