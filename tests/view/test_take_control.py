@@ -200,3 +200,31 @@ def test_a_key_pushing_up_against_a_slanted_edge_is_told_as_up_alone():
         wait_for(page, lambda d: text_of(d, "cycles") == "2", "the watching page shows nothing")
         assert text_of(page, "words") == words
         assert text_of(page, "holds") == "the left and upper edge"
+
+
+def test_a_tab_paused_past_the_loops_silence_drops_its_point_and_keeps_control():
+    """Frozen shorter than the server's heartbeat: the tab still steers when it wakes, but
+    the point it had is gone; it sends nothing until a key, and says why."""
+    with steered_board(heartbeat_s=5.0) as (board, server, sink, holder), chromium() as page:
+        publish(board, (5.0, 5.0))
+        page.get(server.control_url)
+        wait_for(page, steering, "the opened page does not steer")
+        ActionChains(page).send_keys(Keys.ARROW_UP).perform()
+        sink.wait_for('{"pan":5,"tilt":6}')
+        pids = browser_pids(page)
+        for pid in pids:
+            os.kill(pid, signal.SIGSTOP)
+        try:
+            sent = len(sink.lines)
+            # the frozen tab stays silent for 1.5 s, three times the loop's 0.5 s silence
+            with sink.changed:
+                assert not sink.changed.wait_for(lambda: len(sink.lines) > sent, 1.5)
+        finally:
+            for pid in pids:
+                os.kill(pid, signal.SIGCONT)
+        show_frames(page, board, (5.0, 6.0), 2)
+        assert sink.lines[sent:] == [], "the woken tab resent its old point"
+        told = text_of(page, "control")
+        assert "you steer the limb" in told and "its point was dropped" in told, told
+        ActionChains(page).send_keys(Keys.ARROW_LEFT).perform()
+        sink.wait_for('{"pan":6,"tilt":6}')  # from the written pose, a fresh key
