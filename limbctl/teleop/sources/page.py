@@ -7,8 +7,10 @@ command while it holds control; a page that freezes, closes or loses its network
 and the loop holds the last safe pose after its silence, exactly as for a silent stream.
 
 Who may control, and how, is the view's business (a per-session secret, the Origin, one
-controller at a time): this source only needs a ``connect`` that attaches its ``feed`` to the
-page and returns what detaches it again.
+controller at a time, taken only by a person's action: opening the address, reloading the
+steering tab or clicking "take control", never by a page reconnecting on its own; see
+:mod:`limbctl.view.control`): this source only needs a ``connect`` that attaches its ``feed`` to
+the page and returns what detaches it again.
 """
 
 from __future__ import annotations
