@@ -235,7 +235,7 @@ function draw() {
       drawTrail(P);
       drawMarker(P, live.teleop.commanded, "commanded");
       drawMarker(P, live.teleop.written, "written");
-      drawBlocked(P, live.teleop.written, told(live.teleop).blocked);
+      drawBlocked(P, live.teleop.written, gateWords(live.teleop).blocked);
     }
     drawMarker(P, live.pose, "pose");
     for (const layer of layers) if (layer.draw) layer.draw(ctx, P, live);
@@ -274,7 +274,7 @@ function showScene(s) {
 // The gate's words as this page tells them. The server names blocked every way the point lies
 // beyond the written pose; while an arrow key of this page pushes (control.js sets
 // window.limbview.pushing), only the way it pushes may be called blocked, as in the terminal.
-function told(t) {
+function gateWords(t) {
   const pushing = window.limbview.pushing;
   const said = { words: t.words || t.outcome, blocked: t.blocked || [] };
   const parts = /^(at [^:]+): .+ (?:is|are) blocked, (.+)$/.exec(said.words);
@@ -310,7 +310,7 @@ function showLive(l) {
       state.trail.push(t.written);
       if (state.trail.length > TRAIL_LENGTH) state.trail.shift();
     }
-    const said = told(t);
+    const said = gateWords(t);
     byId("words").textContent = said.words;
     byId("holds").textContent = said.blocked.length
       ? `the ${said.blocked.map((d) => EDGE_WORDS[d]).join(" and ")} edge` : "nothing: free to move";
