@@ -11,7 +11,10 @@ only when, over all its loops together:
 3. it holds the taught directions the supported region holds (at most ``MISS_FRACTION`` of
    them lie more than ``MISS_TOLERANCE_DEG`` outside);
 4. it reaches at most ``CONFIRM_DEG`` beyond each *rival*: an accepted edge later in the
-   choice's order that the caller asks it to agree with (:func:`reach_beyond`).
+   choice's order that the caller asks it to agree with (:func:`reach_beyond`);
+5. it adds no stretch beyond the supported region that the taught samples surround but do not
+   reach within ``EVIDENCE_DEG`` (:func:`limbctl.region.evidence.unsupported_stretches`): a
+   bay or notch the sampling density "explains" is still a bay the edge would bridge.
 
 The supported edge runs through the outermost taught samples: its proposal comes with its
 region and is accepted without checks (it is what the gate falls back to).
@@ -23,7 +26,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from limbctl.geometry.gimbal import pan_tilt_to_direction
 from limbctl.geometry.quat import direction_angle
+from limbctl.region.evidence import EVIDENCE_DEG, unsupported_stretches
 from limbctl.region.loops import loop_length
 from limbctl.region.mesh import DirectionMesh
 
@@ -173,6 +178,14 @@ def judge(
             f"outside (at most {allowed:.1f})",
             samples_left_out=int(far.sum()),
         )
+    added = [s for s in unsupported_stretches(learned, data) if not _held(supported, s)]
+    if added:
+        return refused(
+            name,
+            f"it bridges a stretch the taught samples surround, {added[0].line()} (at most "
+            f"{EVIDENCE_DEG:g} deg), beyond the supported edge",
+            evidence_deg=added[0].distance_deg,
+        )
     for rival in rivals:
         reach = reach_beyond(edges, rival.region)
         if reach > np.radians(CONFIRM_DEG):
@@ -185,6 +198,12 @@ def judge(
     agreed = "holds the taught samples and adds no stretch the sampling cannot explain"
     also = tuple(f"within {CONFIRM_DEG:g} deg of the {r.strategy} edge" for r in rivals)
     return Verdict(name, True, (agreed, *also), {}, learned)
+
+
+def _held(region: DirectionMesh, stretch) -> bool:
+    """Whether ``region`` holds the farthest station of ``stretch`` (a bridge it has too)."""
+    d = pan_tilt_to_direction(np.radians(stretch.pan_deg), np.radians(stretch.tilt_deg))
+    return bool(region.contains(np.asarray(d, dtype=np.float64).reshape(1, 3))[0])
 
 
 def reach_beyond(edges: list[np.ndarray], region: DirectionMesh) -> float:

@@ -427,3 +427,39 @@ def corner_limits(
     x = base + (sign * g)[:, None] * k
     limit[e] = np.maximum(np.arcsin(np.clip(np.einsum("ij,ij->i", x, pole[e]), -1.0, 1.0)), 0.0)
     return limit
+
+
+def carve(d: np.ndarray, tri: np.ndarray, kept: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Remove, for each of ``points`` (P, 3), the kept triangle whose exposed edge lies nearest.
+
+    ``tri`` (T, 3) over ``d`` (V, 3), ``kept`` (T,) bool. A triangle whose third vertex lies on
+    the boundary stays (removing it would pinch the shape, as in :func:`peel`). Returns the new
+    kept mask (a copy; unchanged when nothing could be removed).
+    """
+    kept = kept.copy()
+    rows = np.flatnonzero(kept)
+    directed = np.concatenate([tri[rows][:, [0, 1]], tri[rows][:, [1, 2]], tri[rows][:, [2, 0]]])
+    owner = np.tile(rows, 3)
+    key = np.sort(directed, axis=1)
+    _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    exposed = counts[inverse.ravel()] == 1
+    edges, owner = directed[exposed], owner[exposed]
+    a, b = d[edges[:, 0]], d[edges[:, 1]]
+    on_boundary = np.zeros(d.shape[0], dtype=bool)
+    on_boundary[edges.ravel()] = True
+    # distance from each point to each exposed arc: to its great circle where the foot falls
+    # between the ends, else to the nearer end
+    pole = np.cross(a, b)
+    pole /= np.maximum(np.linalg.norm(pole, axis=1, keepdims=True), 1e-15)
+    for p in np.atleast_2d(points):
+        foot = p - (pole @ p)[:, None] * pole
+        between = (np.einsum("ij,ij->i", np.cross(a, foot), pole) >= 0) & (
+            np.einsum("ij,ij->i", np.cross(foot, b), pole) >= 0
+        )
+        dist = np.where(between, np.abs(pole @ p), 2.0 - np.maximum(a @ p, b @ p))
+        e = int(np.argmin(dist))
+        t = int(owner[e])
+        third = next(int(x) for x in tri[t] if x != edges[e, 0] and x != edges[e, 1])
+        if kept[t] and not on_boundary[third]:
+            kept[t] = False
+    return kept

@@ -40,6 +40,7 @@ from limbctl.region import correct_kernels as ck
 from limbctl.region import shape as rs
 from limbctl.region.acceptance import Verdict
 from limbctl.region.edge_choice import choose_edge
+from limbctl.region.evidence import Stretch, unsupported_stations, unsupported_stretches
 from limbctl.region.gaps import ORDER_STATISTICS
 from limbctl.region.mesh import DirectionMesh, boundary_edges
 from limbctl.region.params import RegionParams
@@ -72,6 +73,15 @@ THIN_GROWTH = 1.05
 #: the region some data give: cached `limbctl eval` results are keyed on it. Saved models carry
 #: their mesh and keep answering as they did (their format is ``GATE_VERSION``'s business).
 FIT_VERSION = 4
+#: While the supported edge bridges a stretch the samples surround but do not reach, the
+#: triangle behind each such station is carved out, at most CARVE_ROUNDS rounds: a bay bridged
+#: by the shape is a few triangles deep (a 10 deg bay at the 1-2 deg spacing of thinned hand
+#: strokes), so 12 rounds empty the bays of the families in docs/bench_swing_families.md.
+CARVE_ROUNDS = 12
+#: Carving may leave out at most this share of the taught samples the first shape held: a
+#: bay's bridge holds no samples, so carving it loses none; a carve that starts dropping
+#: samples is eating into sparse data, not a bay.
+CARVE_LOSS = 0.002
 
 
 class TaughtRegion:
@@ -100,6 +110,7 @@ class TaughtRegion:
         self.edge = "supported"
         self.verdicts: tuple[Verdict, ...] = ()
         self.support_index: np.ndarray | None = None
+        self.unsupported: tuple[Stretch, ...] = ()
 
     # ---- building ----------------------------------------------------------------------------
     def fit(self, samples: np.ndarray, lookup: bool = True) -> TaughtRegion:
@@ -131,25 +142,68 @@ class TaughtRegion:
         thinning's spacing (rad)."""
         p = self.params
         alpha = rs.learn_alpha(d, p.alpha_factor)
+        self.edge, self.verdicts, self.unsupported = "supported", (), ()
+        tri, kept = self._shape(d, thinning, alpha)
+        if tri is None:
+            return DirectionMesh.from_loops([], 0.0)
+        built = self._supported_loops(d, d_train, thinning, tri, kept)
+        held_first = float(np.mean(built[2].contains(d_train)))
+        for _ in range(CARVE_ROUNDS):
+            stations, _, _, bad = unsupported_stations(built[2], d_train)
+            if bad.size == 0:
+                break
+            carved = rs.carve(d, tri, kept, stations[bad])
+            if np.array_equal(carved, kept):
+                break
+            trial = self._supported_loops(d, d_train, thinning, tri, carved)
+            if float(np.mean(trial[2].contains(d_train))) < held_first - CARVE_LOSS:
+                # carving ate into the taught samples: not a bay; the shape before stays, its
+                # stretches reported
+                break
+            built, kept = trial, carved
+        loops, margins, supported = built
+        self.unsupported = tuple(unsupported_stretches(supported, d_train))
+        taken, self.verdicts = choose_edge(
+            p.edge, loops, d_train, supported, np.radians(p.max_offset_deg)
+        )
+        self.edge = taken.strategy
+        return taken.region
+
+    def _shape(
+        self, d: np.ndarray, thinning: float, alpha: float
+    ) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """Steps 2-3: the triangles (T, 3) over ``d`` and which are kept after the peel, or
+        (None, None) when the alpha complex keeps none."""
+        p = self.params
         tri, _, inside = rs.alpha_complex(d, alpha, max_hole=0.0)
         area = float(rs.triangle_area(d, tri[inside]).sum())
         # gaps up to MOUTH_SPACINGS thinning spacings close a hole
         mouth = MOUTH_SPACINGS * thinning
         tri, _, inside = rs.alpha_complex(d, alpha, max_hole=p.hole_fraction * area, mouth=mouth)
-        self.edge, self.verdicts = "supported", ()
         if not inside.any():
-            return DirectionMesh.from_loops([], 0.0)
-        # peel length: peel_factor x the median spacing of the support (nearest neighbour),
-        # at least min_peel_deg: an exposed edge longer than that bridges a gap in the data
-        spacing, _ = cKDTree(d).query(d, k=2)
-        length = max(
-            np.radians(p.min_peel_deg),
-            p.peel_factor * 2.0 * np.arcsin(0.5 * float(np.median(spacing[:, 1]))),
-        )
+            return None, None
+        length = self._peel_length(d)
         protected = rs.surrounded(
             rs.tri_centroids(d, tri), d, np.radians(p.surround_deg), np.radians(SURROUND_GAP_DEG)
         )
-        kept = rs.peel(d, tri, inside, length, protected)
+        return tri, rs.peel(d, tri, inside, length, protected)
+
+    def _peel_length(self, d: np.ndarray) -> float:
+        """The peel length (rad): peel_factor x the median spacing of the support (nearest
+        neighbour), at least min_peel_deg: an exposed edge longer than that bridges a gap."""
+        spacing, _ = cKDTree(d).query(d, k=2)
+        return max(
+            np.radians(self.params.min_peel_deg),
+            self.params.peel_factor * 2.0 * np.arcsin(0.5 * float(np.median(spacing[:, 1]))),
+        )
+
+    def _supported_loops(
+        self, d: np.ndarray, d_train: np.ndarray, thinning: float, tri: np.ndarray, kept
+    ) -> tuple[list[np.ndarray], list[np.ndarray], DirectionMesh]:
+        """Step 4 on the kept triangles: the supported loops, their margins and the supported
+        region (lookup grid not built)."""
+        p = self.params
+        length = self._peel_length(d)
         loops = [d[idx] for idx in rs.trace_loops(d, boundary_edges(tri[kept]))]
         margins = rs.edge_margins(
             loops,
@@ -162,12 +216,7 @@ class TaughtRegion:
             corner_turn=np.radians(CORNER_TURN_DEG),
         )
         # the lookup grid waits until this region is taken (fit) or first asked (gate)
-        supported = DirectionMesh.from_loops(loops, margins, lookup=False)
-        taken, self.verdicts = choose_edge(
-            p.edge, loops, d_train, supported, np.radians(p.max_offset_deg)
-        )
-        self.edge = taken.strategy
-        return taken.region
+        return loops, margins, DirectionMesh.from_loops(loops, margins, lookup=False)
 
     # ---- answering ---------------------------------------------------------------------------
     def _mesh(self) -> DirectionMesh:
