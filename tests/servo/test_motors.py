@@ -213,3 +213,26 @@ def test_renumber_names_the_one_joint_it_is_for(tmp_path, capsys):
         "--renumber makes the connected servo one joint's on purpose: name that joint with "
         "--joint (e.g. --joint tilt)"
     )
+
+
+@pytest.mark.parametrize("rig", ["sim", "sim3"])
+def test_at_the_factory_id_and_baud_only_a_factory_fresh_servo_is_nobodys(tmp_path, capsys, rig):
+    """Pan is ID 1 and the profile's baud the factory's 57600: a servo set up as pan in an
+    earlier run answers exactly as a new one does but for its Return Delay Time (0, not 250)."""
+    eeprom, link = tmp_path / "eeprom", tmp_path / "tty"
+    setup = ["motors", "setup", "--rig", rig, "--baud", "57600", "--yes", "--joint"]
+    with SimulatedBus(factory=2, connect=(1,), eeprom_dir=eeprom, link=link) as sim:
+        assert main([*setup, "pan", "--port", sim.port]) == 0
+    with SimulatedBus(factory=2, connect=(1,), eeprom_dir=eeprom, link=link) as sim:
+        assert main([*setup, "tilt", "--port", sim.port]) == 1
+        assert answering_id(sim) == 1
+    assert (
+        "tilt: FAILED: the connected servo answers as ID 1, the pan joint's, and is the pan "
+        "servo set up before (a factory-fresh servo answers as ID 1 at 57600 baud with Return "
+        "Delay Time 250): connect only the tilt servo and run `limbctl motors setup --joint "
+        "tilt` again (or, to make this servo the tilt servo on purpose, add --renumber)"
+    ) in capsys.readouterr().err.splitlines()
+    with SimulatedBus(factory=2, connect=(2,), eeprom_dir=eeprom, link=link) as sim:
+        assert main([*setup, "tilt", "--port", sim.port]) == 0
+        assert sim.truth()["servos"][2]["id"] == 2
+    assert "(found as ID 1 at 57600 baud; wrote ID 1 -> 2" in capsys.readouterr().err
