@@ -24,16 +24,21 @@ def _pan_tilt_deg(directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def region_grid(
     model: Any, pan_deg: tuple[float, float], tilt_deg: tuple[float, float], n: int = 200
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Evaluate ``model.contains`` on an n x n pan/tilt grid (degrees) -> (P, T, inside).
+    """Which directions of an n x n pan/tilt grid (degrees) the model's region holds -> (P, T,
+    inside).
 
-    The default 200 x 200 draws a 360-degree pan range in 1.8-degree cells, about the width of a
-    line in the figure.
+    A three-servo region holds a direction at some twist: its whole extent is shaded, also where
+    the band excludes twist 0 (:func:`limbctl.teach.train.holds_direction`). The default
+    200 x 200 draws a 360-degree pan range in 1.8-degree cells, about the width of a line in the
+    figure.
     """
+    from limbctl.teach.train import holds_direction
+
     pans = np.linspace(*pan_deg, n)
     tilts = np.linspace(*tilt_deg, n)
     grid_pan, grid_tilt = np.meshgrid(pans, tilts)
     directions = pan_tilt_to_direction(np.radians(grid_pan), np.radians(grid_tilt)).reshape(-1, 3)
-    inside = np.asarray(model.contains(swing_from_direction(directions)), dtype=bool)
+    inside = np.asarray(holds_direction(model)(swing_from_direction(directions)), dtype=bool)
     return grid_pan, grid_tilt, inside.reshape(grid_pan.shape)
 
 

@@ -12,8 +12,9 @@ from typing import Any
 import numpy as np
 
 from limbctl.errors import ConfigError
-from limbctl.geometry.gimbal import direction_to_pan_tilt
-from limbctl.geometry.quat import direction_angle, limb_direction
+from limbctl.geometry.gimbal import direction_to_pan_tilt, pan_tilt_to_direction
+from limbctl.geometry.quat import direction_angle, limb_direction, swing_from_direction
+from limbctl.geometry.twist import decompose, wrap
 
 
 @dataclass(frozen=True)
@@ -43,6 +44,15 @@ class TrainSummary:
         carries it); teleop refuses a model without one.
     edge_refusals : tuple of str
         Why the gate refused the other edges it tried, one line each.
+    twist_range_deg : tuple of float or None
+        A three-servo region's twist over its whole extent (the band's lowest and highest
+        limit, deg); None for a region without twist; ``(-180, 180)`` where the band is free.
+    outside_direction, outside_twist : int
+        The samples the model leaves out, by why: the direction outside the region, or (three
+        servos) the direction inside but the twist past the band's limits there.
+    twist_excess_deg : tuple of float or None
+        How far past the band's limits the ``outside_twist`` samples lie: median and largest
+        (deg); None when there are none.
     """
 
     samples: int
@@ -56,6 +66,27 @@ class TrainSummary:
     edge: str = ""
     calibration_recorded: bool = True
     edge_refusals: tuple[str, ...] = ()
+    twist_range_deg: tuple[float, float] | None = None
+    outside_direction: int = 0
+    outside_twist: int = 0
+    twist_excess_deg: tuple[float, float] | None = None
+
+    def _inside_line(self) -> str:
+        line = f"samples inside     {100 * self.contained_fraction:.2f} %"
+        if self.twist_range_deg is None:
+            return line
+        # what a three-servo region counts, and why the rest are out
+        line += (
+            " (direction in the region and twist in the band there)\n  out: "
+            f"{self.outside_direction} directions past the region's edge, "
+            f"{self.outside_twist} twists past the band's limits"
+        )
+        if self.twist_excess_deg is not None:
+            line += (
+                f" by {self.twist_excess_deg[0]:.2f} deg median, {self.twist_excess_deg[1]:.2f}"
+                " at most (the limits run through the samples pressed against the twist stops)"
+            )
+        return line
 
     def lines(self) -> list[str]:
         """Human-readable summary lines."""
@@ -68,7 +99,15 @@ class TrainSummary:
             f"learned boundary   pan {self.boundary_pan_range_deg[0]:+.1f} .. "
             f"{self.boundary_pan_range_deg[1]:+.1f} deg, tilt "
             f"{self.boundary_tilt_range_deg[0]:+.1f} .. {self.boundary_tilt_range_deg[1]:+.1f} deg",
-            f"samples inside     {100 * self.contained_fraction:.2f} %",
+            *(
+                []
+                if self.twist_range_deg is None
+                else [
+                    f"learned twist      {self.twist_range_deg[0]:+.1f} .. "
+                    f"{self.twist_range_deg[1]:+.1f} deg over the whole region (the band's limits)"
+                ]
+            ),
+            *self._inside_line().split("\n"),
             f"nodes              {self.nodes}",
         ] + (
             [f"edge               {self.edge} ({EDGE_MEANING[self.edge]})"]
@@ -115,7 +154,28 @@ def summarize(model: Any, q: np.ndarray) -> TrainSummary:
     # them was ~2 s of a first train (docs/decisions/first_run.md)
     contains = getattr(model, "contains_from_arcs", model.contains)
     inside = np.asarray(contains(q), dtype=bool)
-    b_pan, b_tilt = _region_extent(model, pan, tilt)
+    holds = holds_direction(model)
+    b_pan, b_tilt = _region_extent(holds, pan, tilt)
+    band = twist_band(model)
+    twist: dict[str, Any] = {"outside_direction": int((~inside).sum())}
+    if band is not None:
+        direction_in = np.asarray(holds(swing_from_direction(directions)), dtype=bool)
+        twist_out = ~inside & direction_in
+        c, h = band.at(pan_tilt_to_direction(b_pan, b_tilt))
+        # the band's limits c -+ h over every direction of the region, its centre read within
+        # half a turn of its circular mean (the band keeps it unwrapped); a free band: any twist
+        mean = math.atan2(float(np.sin(c).mean()), float(np.cos(c).mean()))
+        c = mean + wrap(c - mean)
+        low, high = (c - h).min(), (c + h).max()
+        free = bool((h >= math.pi).any()) or high - low >= 2.0 * math.pi
+        twist["twist_range_deg"] = (-180.0, 180.0) if free else _range_deg(np.array([low, high]))
+        twist["outside_direction"] = int((~direction_in).sum())
+        twist["outside_twist"] = int(twist_out.sum())
+        if twist_out.any():
+            d_out, tau_out = decompose(q[twist_out])
+            c_out, h_out = band.at(d_out)
+            excess = np.degrees(np.abs(wrap(tau_out - c_out)) - h_out)
+            twist["twist_excess_deg"] = (float(np.median(excess)), float(excess.max()))
     return TrainSummary(
         samples=len(q),
         pan_range_deg=_range_deg(pan),
@@ -131,14 +191,40 @@ def summarize(model: Any, q: np.ndarray) -> TrainSummary:
             for v in getattr(getattr(model, "region", None), "verdicts", ())
             if not v.accepted
         ),
+        **twist,
     )
 
 
+def twist_band(model: Any) -> Any:
+    """A three-servo region's twist band (:class:`~limbctl.region.twist_band.TwistBand`), or
+    None for a model without twist."""
+    return getattr(getattr(model, "region", None), "band", None)
+
+
+def holds_direction(model: Any) -> Callable[[np.ndarray], np.ndarray]:
+    """Which limb directions the model's region holds at some twist.
+
+    Returns a function of twist-free orientations (N, 4) -> (N,) bool. For a three-servo region
+    it asks the swing region alone: a direction whose band excludes twist 0 is still in the
+    region (asking ``contains`` of the twist-free orientation would leave it out). Train never
+    gates: the region's arcs answer where the model can.
+    """
+    swing = getattr(getattr(model, "region", None), "swing", None)
+    if twist_band(model) is not None and swing is not None:
+        return getattr(swing, "contains_from_arcs", swing.contains)
+    return getattr(model, "contains_from_arcs", model.contains)
+
+
 def _region_extent(
-    model: Any, pan: np.ndarray, tilt: np.ndarray, margin_deg: float = 20.0, step_deg: float = 0.5
+    holds: Callable[[np.ndarray], np.ndarray],
+    pan: np.ndarray,
+    tilt: np.ndarray,
+    margin_deg: float = 20.0,
+    step_deg: float = 0.5,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Joint angles (rad) of the grid points the model contains, on a ``step_deg`` pan/tilt grid
-    spanning the samples' extent plus ``margin_deg`` (what the learned region really covers).
+    """Joint angles (rad) of the grid points whose direction the region holds (``holds``, of
+    :func:`holds_direction`), on a ``step_deg`` pan/tilt grid spanning the samples' extent plus
+    ``margin_deg`` (what the learned region really covers).
 
     20 degrees of margin is well past any edge a model draws beyond its samples; with 0.5-degree
     steps the extent is within half a degree of the model's.
@@ -151,8 +237,7 @@ def _region_extent(
         max(tilt.min() - margin, -math.pi / 2), min(tilt.max() + margin, math.pi / 2), step
     )
     grid_pan, grid_tilt = (a.ravel() for a in np.meshgrid(pans, tilts))
-    contains = getattr(model, "contains_from_arcs", model.contains)
-    inside = np.asarray(contains(pan_tilt_to_quat(grid_pan, grid_tilt)), dtype=bool)
+    inside = np.asarray(holds(pan_tilt_to_quat(grid_pan, grid_tilt)), dtype=bool)
     if not inside.any():
         return pan, tilt
     return grid_pan[inside], grid_tilt[inside]
@@ -164,6 +249,12 @@ MIN_SAMPLES = 10
 
 #: The stages :func:`train` reports to its ``progress`` callback, in order.
 STAGES = ("load dataset", "fit model", "save model", "summarise")
+
+
+def learns_twist(kind: str, calibration: Any) -> bool:
+    """Whether :func:`train` fits a model of ``kind`` over full orientations (swing and twist):
+    a Rigid Map of a recording whose calibration has a roll joint (a three-servo rig)."""
+    return kind == "rigidmap" and calibration is not None and calibration.roll is not None
 
 
 def train(
@@ -205,8 +296,7 @@ def train(
             "of moving the limb through its whole range)"
         )
     options = dict(options or {})
-    calibration = data.header.calibration
-    if kind == "rigidmap" and calibration is not None and calibration.roll is not None:
+    if learns_twist(kind, data.header.calibration):
         # a three-servo recording: the region over full orientations, swing and twist
         options.setdefault("twist", True)
     model = build_model(kind, **options)

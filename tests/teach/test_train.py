@@ -9,6 +9,9 @@ from calib.profile import default_sim_profile
 from limbctl.envelope import Cone, build_model, load_header, load_model
 from limbctl.errors import ConfigError
 from limbctl.file_jobs import plot_files
+from limbctl.geometry.gimbal import direction_to_pan_tilt
+from limbctl.geometry.quat import limb_direction
+from limbctl.geometry.twist import decompose
 from limbctl.teach.dataset import DatasetWriter
 from limbctl.teach.train import train
 
@@ -103,3 +106,59 @@ def test_model_kinds_come_from_one_registry():
     assert isinstance(
         eval_build_model(ModelSpec(label="c", kind="cone", options=(), answers=()), 0, 30.0), Cone
     )
+
+
+#: A shoulder whose twist band's centre turns with pan (1 deg a deg) and is 20 deg wide either
+#: side: past pan +20 deg the band excludes twist 0, though the directions are in the region.
+TURNING_BAND = {"half_low_deg": 20.0, "half_high_deg": 20.0, "centre_pan": 1.0, "centre_tilt": 0.0}
+
+
+@pytest.fixture(scope="module", params=["two servos", "three servos"])
+def rig_model(request):
+    """(rig, samples (N, 4), fitted Rigid Map) of the shoulder outline: on two servos its
+    twist-free directions, on three the shoulder with TURNING_BAND."""
+    from limbctl.envelope import RigidMap
+    from limbctl.envelope.synthetic import rounded
+    from limbctl.envelope.synthetic_twist import SHOULDER, ShoulderRegion
+    from limbctl.geometry.quat import swing_from_direction
+
+    truth = ShoulderRegion(rounded(SHOULDER), centre_deg=0.0, **TURNING_BAND)
+    q = truth.teaching(1500, 800, 1200, np.random.default_rng(0))
+    three = request.param == "three servos"
+    if not three:
+        q = swing_from_direction(limb_direction(q))
+    return request.param, q, RigidMap(nodes=500, seed=0, twist=three).fit(q)
+
+
+def test_the_summary_and_the_plot_show_the_whole_region_of_either_rig(rig_model):
+    from limbctl.plot import region_grid
+    from limbctl.teach.train import summarize
+
+    rig, q, model = rig_model
+    summary = summarize(model, q)
+    # the learned region reaches the taught edge on every side (it does not stop where a
+    # three-servo band leaves twist 0)
+    for learned, taught in (
+        (summary.boundary_pan_range_deg, summary.pan_range_deg),
+        (summary.boundary_tilt_range_deg, summary.tilt_range_deg),
+    ):
+        assert abs(learned[0] - taught[0]) < 2.0 and abs(learned[1] - taught[1]) < 2.0, rig
+    # the picture shades the region out to the taught edge on every side too (1.4 deg cells)
+    pan, tilt = (np.degrees(a) for a in direction_to_pan_tilt(limb_direction(q)))
+    grid_pan, grid_tilt, inside = region_grid(
+        model, (pan.min() - 5, pan.max() + 5), (tilt.min() - 5, tilt.max() + 5), n=120
+    )
+    for shaded, taught in ((grid_pan[inside], pan), (grid_tilt[inside], tilt)):
+        assert abs(shaded.min() - taught.min()) < 2.0 and abs(shaded.max() - taught.max()) < 2.0
+    out = round((1.0 - summary.contained_fraction) * summary.samples)
+    lines = "\n".join(summary.lines())
+    if rig == "three servos":
+        # the twist over the whole region, and every sample left out counted by why
+        taught = np.degrees(decompose(q)[1])
+        assert abs(summary.twist_range_deg[0] - taught.min()) < 2.0
+        assert abs(summary.twist_range_deg[1] - taught.max()) < 2.0
+        assert summary.outside_direction + summary.outside_twist == out
+        assert "learned twist" in lines and "twists past the band's limits" in lines
+    else:
+        assert summary.twist_range_deg is None and summary.outside_direction == out
+        assert "twist" not in lines
