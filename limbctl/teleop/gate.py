@@ -5,8 +5,10 @@ Per command (the safety model in docs/architecture.md):
 1. ``correct``: the envelope returns the target itself inside the taught region, else the
    nearest orientation on its boundary;
 2. slew limit: the limb direction moves at most ``max_step`` (rad) per cycle from the last safe
-   pose along the great circle toward the corrected target; the intermediate pose is corrected
-   again, so a non-convex region is followed along its edge, never cut across;
+   pose along the great circle toward the corrected target, or, when that great circle leaves
+   the region (a bay or notch between the two), toward a point of a route along the region
+   (:class:`~limbctl.teleop.route.Router`); the intermediate pose is corrected again, so a
+   non-convex region is followed, never cut across, and a concave wall is gone round;
 3. inverse kinematics to (pan, tilt), keeping the current pan at the singularity;
 4. hard joint limits clamp (pan, tilt); a joint step larger than ``max_joint_step`` is scaled
    down, both joints by one factor, so the largest step is ``max_joint_step`` (``SLEWED``);
@@ -28,6 +30,7 @@ import numpy as np
 from limbctl.errors import ConfigError
 from limbctl.geometry import scalar
 from limbctl.geometry.scalar import Vec3
+from limbctl.teleop.route import Router
 
 
 class RegionModel(Protocol):
@@ -160,6 +163,7 @@ class Gate:
     def __init__(self, envelope: RegionModel, limits: GateLimits) -> None:
         self.envelope = envelope
         self.limits = limits
+        self.router = Router(envelope, twist=False)
         self._pan: float | None = None
         self._tilt: float | None = None
         self._direction: Vec3 | None = None
@@ -203,6 +207,8 @@ class Gate:
             )
         self._pan, self._tilt = float(current_pan), float(current_tilt)
         self._direction = scalar.direction(self._pan, self._tilt)
+        if self.router.batched:  # a fitted region: its roadmap now, before the loop's clock
+            self.router.prepare(scalar.swing(self._direction))
 
     def hold(self, reason: str) -> GateResult:
         """Keep the last safe pose."""
@@ -231,7 +237,15 @@ class Gate:
         slewed = False
         if scalar.angle(self._direction, target_dir) > lim.max_step:
             slewed = True
-            step_dir = scalar.toward(self._direction, target_dir, lim.max_step)
+            # aim along the region: the target, or a route point when the way to it leaves it
+            aim = scalar.limb(
+                self.router.subgoal(scalar.swing(self._direction), scalar.swing(target_dir))
+            )
+            step_dir = (
+                scalar.toward(self._direction, aim, lim.max_step)
+                if scalar.angle(self._direction, aim) > lim.max_step
+                else aim
+            )
             target_dir = scalar.limb(self.envelope.correct(scalar.swing(step_dir)))
 
         pan, tilt = scalar.pan_tilt(target_dir, self._pan)

@@ -7,8 +7,10 @@ the sphere of directions, per command:
    twist), else the nearest orientation of the region by geodesic angle;
 2. slew limit as an angular speed on SO(3): the orientation turns at most ``max_step`` (rad of
    geodesic angle ``2 acos |<a, b>|``, the rotation between the two) per cycle from
-   the last safe orientation along the shortest rotation (slerp) toward the corrected target;
-   that intermediate orientation is corrected again, so a concave region is followed, not cut;
+   the last safe orientation along the shortest rotation (slerp) toward the corrected target,
+   or toward a point of a route along the region when that rotation leaves it (the two-servo
+   gate's :class:`~limbctl.teleop.route.Router`, on SO(3)); that intermediate orientation is
+   corrected again, so a concave region is followed, not cut, and a concave wall gone round;
 3. inverse kinematics to (pan, tilt, roll) (:func:`limbctl.geometry.gimbal3.pan_tilt_roll_scalar`):
    the present pan kept at tilt +-90 deg, the roll unwrapped within its hard limits nearest the
    present roll;
@@ -45,6 +47,7 @@ from limbctl.teleop.gate import (
     Outcome,
     RegionModel,
 )
+from limbctl.teleop.route import Router
 
 Pose3 = tuple[float, float, float]
 
@@ -190,6 +193,7 @@ class Gate3:
     def __init__(self, envelope: RegionModel, limits: GateLimits3) -> None:
         self.envelope = envelope
         self.limits = limits
+        self.router = Router(envelope, twist=True)
         self._pose: Pose3 | None = None
         self._q: np.ndarray | None = None
 
@@ -224,6 +228,8 @@ class Gate3:
             )
         self._pose = (float(pan), float(tilt), float(roll))
         self._q = pose_quat_scalar(*self._pose)
+        if self.router.batched:  # a fitted region: its roadmap now, before the loop's clock
+            self.router.prepare(self._q)
 
     def hold(self, reason: str) -> GateResult3:
         """Keep the last safe pose."""
@@ -252,7 +258,9 @@ class Gate3:
         slewed = False
         if geodesic(self._q, goal_q) > lim.max_step:
             slewed = True
-            goal_q = self.envelope.correct(toward(self._q, goal_q, lim.max_step))
+            # aim along the region: the target, or a route point when the way to it leaves it
+            aim = self.router.subgoal(self._q, goal_q)
+            goal_q = self.envelope.correct(toward(self._q, aim, lim.max_step))
 
         pan, tilt, roll = pan_tilt_roll_scalar(goal_q, pan0, roll0, lim.roll_min, lim.roll_max)
         clamped_pose = (

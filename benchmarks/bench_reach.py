@@ -1,0 +1,225 @@
+"""Time to reach a command inside a non-convex region, against its distance at the slew limit.
+
+Random outlines with a bay and a notch (``limbctl.envelope.synthetic_bays``), seeds the tests
+do not use, on both rigs: two servos (the outline) and three (the outline under a twist band
+whose centre and width vary linearly with pan and tilt). For each region, random start and
+target poses inside; the gate starts at one and is given the other every cycle until its
+written pose is within 1e-3 rad of it (or 3 x distance / step + 400 cycles pass: *not
+reached*). The distance is the shortest path inside the region: of limb directions on two
+servos (the outline's visibility graph), on three that plus the twist to turn (``L + |dtau|``,
+the route that turns while it swings).
+
+Part two times the gate's ``step`` (the whole cycle's gate work, routing included) on regions
+*fitted* from a traced teaching of such an outline (TaughtRegion, TwistRegion: what a model
+file holds), commands jumping across the bay, against the same gate with routing off.
+
+    python benchmarks/bench_reach.py [--seeds 12] [--pairs 10] [--no-route] [--out FILE]
+
+``--no-route`` measures the gate as it was before routing (its sub-goal is always the target).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import platform
+import time
+
+import numpy as np
+
+from limbctl.envelope.synthetic import PolygonRegion, traced_teaching
+from limbctl.envelope.synthetic_bays import (
+    InsidePaths,
+    OutlineBandRegion,
+    OutlineRegion,
+    bay_outline,
+    inside_points,
+)
+from limbctl.geometry import scalar
+from limbctl.geometry.gimbal3 import pan_tilt_roll_scalar, pose_quat_scalar
+from limbctl.geometry.twist import compose, decompose, wrap
+from limbctl.teleop.gate import Gate, GateLimits
+from limbctl.teleop.gate3 import Gate3, GateLimits3, geodesic
+
+#: The default slew step: 120 deg/s at 200 Hz (limbctl teleop's defaults).
+STEP = math.radians(120.0 / 200.0)
+#: Seeds of the regions measured start here: the tests use 0-99.
+SEED0 = 1000
+ROLL = math.radians(179.0)
+
+
+def make_gate(region, rig: int):
+    """A gate over ``region`` with the sim rigs' wide hard limits and the default step."""
+    big = (math.radians(-170), math.radians(170), math.radians(-85), math.radians(85))
+    joint = max(3.0 * STEP, math.radians(1.0))
+    if rig == 2:
+        return Gate(region, GateLimits(*big, STEP, joint))
+    return Gate3(region, GateLimits3(*big, -ROLL, ROLL, STEP, joint))
+
+
+def start_at(gate, q: np.ndarray, rig: int) -> None:
+    """Start ``gate`` at pose ``q`` (4,)."""
+    if rig == 2:
+        gate.start(*scalar.pan_tilt(scalar.limb(q), 0.0))
+    else:
+        gate.start(*pan_tilt_roll_scalar(q, 0.0, 0.0, -ROLL, ROLL))
+
+
+def error(gate, q: np.ndarray, rig: int) -> float:
+    """How far (rad) the gate's last pose is from ``q``."""
+    if rig == 2:
+        return scalar.angle(scalar.direction(*gate.safe_pose), scalar.limb(q))
+    return geodesic(pose_quat_scalar(*gate.safe_pose), q)
+
+
+def reach(gate, target: np.ndarray, rig: int, limit: int) -> int | None:
+    """Cycles until the gate's pose is within 1e-3 rad of ``target``, None past ``limit``."""
+    for n in range(1, limit + 1):
+        gate.step(target)
+        if error(gate, target, rig) < 1e-3:
+            return n
+    return None
+
+
+def distance(paths: InsidePaths, a: np.ndarray, b: np.ndarray, rig: int) -> float:
+    """The distance (rad) a reach needs: the shortest path of directions inside, plus the
+    twist to turn on three servos."""
+    (da, ta), (db, tb) = decompose(a), decompose(b)
+    length = paths.length(da, db)
+    return length if rig == 2 else length + abs(float(wrap(tb - ta)))
+
+
+def reach_table(rig: int, seeds: int, pairs: int, route: bool) -> list[dict]:
+    """One row per start/target pair: its distance, straight distance, cycles."""
+    rows = []
+    for seed in range(SEED0, SEED0 + seeds):
+        rng = np.random.default_rng(seed)
+        region = OutlineRegion(bay_outline(rng)) if rig == 2 else OutlineBandRegion.random(rng)
+        paths = InsidePaths(region)
+        pts = inside_points(region, 2 * pairs, rng)
+        for a, b in zip(pts[0::2], pts[1::2], strict=True):
+            gate = make_gate(region, rig)
+            if not route:
+                gate.router.subgoal = lambda current, target: target
+            start_at(gate, a, rig)
+            length = distance(paths, a, b, rig)
+            straight = error(gate, b, rig)
+            n = reach(gate, b, rig, int(3 * length / STEP) + 400)
+            rows.append({"seed": seed, "L": length, "straight": straight, "cycles": n})
+    return rows
+
+
+def fitted(rig: int, seed: int):
+    """A region fitted from a 60 s traced teaching of a random outline (with, on three
+    servos, twists spread over the outline's band: a third at each limit, a third between)."""
+    from limbctl.region.taught import TaughtRegion
+    from limbctl.region.twist_region import TwistRegion
+
+    rng = np.random.default_rng(seed)
+    truth = OutlineRegion(bay_outline(rng)) if rig == 2 else OutlineBandRegion.random(rng)
+    d, _ = traced_teaching(PolygonRegion(truth.polygon_deg), 60.0, rng)
+    if rig == 2:
+        return truth, TaughtRegion().fit(d)
+    centre, half = truth.band(d)
+    u = rng.choice([-0.98, 0.98, 0.0], d.shape[0]) + np.where(
+        rng.uniform(size=d.shape[0]) < 1 / 3, rng.uniform(-0.9, 0.9, d.shape[0]), 0.0
+    )
+    return truth, TwistRegion().fit(compose(d, centre + np.clip(u, -0.98, 0.98) * half))
+
+
+def timing(rig: int, seed: int, route: bool, pairs: int) -> dict:
+    """Gate ``step`` times (us) on a fitted region, commands jumping between random poses
+    inside (the first cycle of each jump included)."""
+    truth, region = fitted(rig, seed)
+    rng = np.random.default_rng(seed + 1)
+    pts = inside_points(truth, 4 * pairs, rng)
+    pts = pts[np.asarray(region.contains(pts), dtype=bool)][: 2 * pairs]
+    times, first = [], []
+    for a, b in zip(pts[0::2], pts[1::2], strict=True):
+        gate = make_gate(region, rig)
+        if not route:
+            gate.router.subgoal = lambda current, target: target
+        start_at(gate, a, rig)
+        for k in range(int(3 * error(gate, b, rig) / STEP) + 100):
+            t0 = time.perf_counter()
+            gate.step(b)
+            dt = time.perf_counter() - t0
+            (first if k == 0 else times).append(dt)
+    t, f = 1e6 * np.asarray(times), 1e6 * np.asarray(first)
+    return {
+        "p50": float(np.percentile(t, 50)),
+        "p99": float(np.percentile(t, 99)),
+        "max": float(t.max()),
+        "first_p50": float(np.percentile(f, 50)),
+        "first_max": float(f.max()),
+    }
+
+
+def summary(rows: list[dict]) -> dict:
+    """Reached count, worst ratio of time to distance / step, worst excess cycles."""
+    done = [r for r in rows if r["cycles"] is not None]
+    excess = [r["cycles"] - r["L"] / STEP for r in done]
+    ratio = [r["cycles"] * STEP / r["L"] for r in done if r["L"] > math.radians(5.0)]
+    bent = [r for r in rows if r["L"] > r["straight"] + math.radians(0.5)]
+    return {
+        "pairs": len(rows),
+        "reached": len(done),
+        "bent": len(bent),
+        "bent_reached": sum(r["cycles"] is not None for r in bent),
+        "excess_p50": float(np.percentile(excess, 50)) if excess else float("nan"),
+        "excess_max": float(max(excess)) if excess else float("nan"),
+        "ratio_max": float(max(ratio)) if ratio else float("nan"),
+    }
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seeds", type=int, default=12)
+    ap.add_argument("--pairs", type=int, default=10)
+    ap.add_argument("--no-route", action="store_true", help="the gate as before routing")
+    ap.add_argument("--timing-pairs", type=int, default=6)
+    ap.add_argument("--out", default=None, help="write the tables to this markdown file")
+    args = ap.parse_args()
+    route = not args.no_route
+    lines = [
+        f"routing {'on' if route else 'off (--no-route: the gate before routing)'}; step "
+        f"{math.degrees(STEP):.2f} deg; seeds {SEED0}-{SEED0 + args.seeds - 1}, "
+        f"{args.pairs} pairs each",
+        "",
+        "| rig | pairs | reached | bent paths | bent reached | excess cycles p50 | "
+        "excess cycles max | worst time / (distance / step) |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for rig in (2, 3):
+        s = summary(reach_table(rig, args.seeds, args.pairs, route))
+        lines.append(
+            f"| {rig} servos | {s['pairs']} | {s['reached']} | {s['bent']} | "
+            f"{s['bent_reached']} | {s['excess_p50']:.1f} | {s['excess_max']:.1f} | "
+            f"{s['ratio_max']:.3f} |"
+        )
+        print(lines[-1], flush=True)
+    lines += [
+        "",
+        "| rig (fitted region) | step p50 us | p99 us | max us | first step of a jump p50 us |"
+        " its max us |",
+        "|---|---|---|---|---|---|",
+    ]
+    for rig in (2, 3):
+        t = timing(rig, SEED0 + 500, route, args.timing_pairs)
+        lines.append(
+            f"| {rig} servos | {t['p50']:.0f} | {t['p99']:.0f} | {t['max']:.0f} | "
+            f"{t['first_p50']:.0f} | {t['first_max']:.0f} |"
+        )
+        print(lines[-1], flush=True)
+    load = " / ".join(f"{x:.1f}" for x in os.getloadavg())
+    lines += ["", f"{platform.machine()}, {os.cpu_count()} cores, load average {load} at the end"]
+    text = "\n".join(lines) + "\n"
+    print(text)
+    if args.out:
+        with open(args.out, "a", encoding="utf-8") as fh:
+            fh.write(text + "\n")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,287 @@
+"""Random non-convex regions for testing the gate's reach: swing outlines with a bay and a notch.
+
+An outline is a star-shaped polygon in (pan, tilt) degrees around a random centre, its radius
+noisy, then dented twice: a *bay* (a wide concave dent, 50-90 deg of the outline's angle, a
+third to a half of the radius deep) and a *notch* (a narrow deep cut, 14-24 deg wide, 55-75 %
+of the radius deep). Straight paths between points on either side of a dent leave the region:
+the concave walls a slew step can stick on.
+
+:class:`OutlineRegion` is the outline as an exact envelope of limb directions (``contains``,
+``correct`` to the nearest boundary direction) and :class:`OutlineBandRegion` the same outline
+with a twist band whose centre and half-width vary linearly with pan and tilt (``correct``
+clamps the direction, then the twist: inside, not always the nearest orientation). Both answer
+single quaternions (4,) and batches (N, 4), so the gate and its tests need no fitting.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from limbctl.envelope.synthetic import PolygonRegion
+from limbctl.geometry.gimbal import direction_to_pan_tilt, pan_tilt_to_direction
+from limbctl.geometry.quat import limb_direction
+from limbctl.geometry.twist import compose, decompose, decompose_one, wrap
+
+#: Vertices of a random outline: 72 puts one every 5 deg of the outline's angle, fine enough
+#: that a 14 deg notch has three vertices across it.
+OUTLINE_VERTICES = 72
+
+
+def bay_outline(rng: np.random.Generator, radius_deg: tuple[float, float] = (28.0, 40.0)):
+    """A random outline with one bay and one notch, (V, 2) vertices (pan, tilt) in degrees.
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+        The randomness (centre, radius, noise, where and how deep the dents are).
+    radius_deg : (float, float)
+        Range of the outline's mean radius (deg of pan/tilt).
+
+    Returns
+    -------
+    ndarray, shape (OUTLINE_VERTICES, 2)
+        Counter-clockwise vertices; every one within pan +-100 deg and tilt -60..75 deg.
+    """
+    radius = rng.uniform(*radius_deg)
+    centre = np.array([rng.uniform(-20.0, 20.0), rng.uniform(0.0, 20.0)])
+    theta = np.linspace(0.0, 2.0 * np.pi, OUTLINE_VERTICES, endpoint=False)
+    # r(theta) = R (1 + noise) (1 - bay dent) (1 - notch dent), each dent a raised cosine
+    r = radius * (1.0 + 0.06 * rng.standard_normal(OUTLINE_VERTICES))
+    bay_at = rng.uniform(0.0, 2.0 * np.pi)
+    notch_at = bay_at + rng.uniform(0.6, 1.4) * np.pi  # the notch well away from the bay
+    for at, half_width, depth in (
+        (bay_at, np.radians(rng.uniform(25.0, 45.0)), rng.uniform(0.35, 0.5)),
+        (notch_at, np.radians(rng.uniform(7.0, 12.0)), rng.uniform(0.55, 0.75)),
+    ):
+        off = np.abs(np.angle(np.exp(1j * (theta - at))))
+        dent = np.where(off < half_width, 0.5 * (1.0 + np.cos(np.pi * off / half_width)), 0.0)
+        r = r * (1.0 - depth * dent)
+    pan = centre[0] + r * np.cos(theta)
+    tilt = centre[1] + r * np.sin(theta)
+    return np.stack([np.clip(pan, -100.0, 100.0), np.clip(tilt, -60.0, 75.0)], axis=1)
+
+
+class OutlineRegion:
+    """An outline (pan, tilt deg polygon) as an exact envelope of limb directions.
+
+    Parameters
+    ----------
+    polygon_deg : array_like, shape (V, 2)
+        The outline's vertices (pan, tilt) in degrees.
+    """
+
+    def __init__(self, polygon_deg: np.ndarray) -> None:
+        self.polygon_deg = np.asarray(polygon_deg, dtype=np.float64)
+        self.shape = PolygonRegion(self.polygon_deg, boundary_step_deg=0.1)
+        poly = np.radians(self.polygon_deg)
+        nxt = np.roll(poly, -1, axis=0)
+        self._edges = (poly[None, :, 0], poly[None, :, 1], nxt[None, :, 0], nxt[None, :, 1])
+
+    def inside_directions(self, d: np.ndarray) -> np.ndarray:
+        """(N,) bool: each direction (N, 3) inside the outline (even-odd ray casting along +pan,
+        all edges at once)."""
+        d = np.atleast_2d(np.asarray(d, dtype=np.float64))
+        pan = np.arctan2(d[:, 1], d[:, 0])[:, None]
+        tilt = np.arctan2(d[:, 2], np.hypot(d[:, 0], d[:, 1]))[:, None]
+        x0, y0, x1, y1 = self._edges
+        crosses = (y0 > tilt) != (y1 > tilt)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            x_at = x0 + (tilt - y0) * (x1 - x0) / (y1 - y0)
+        odd = np.count_nonzero(crosses & (pan < x_at), axis=1) % 2 == 1
+        return odd & (d[:, 0] > -1.0 + 1e-12)
+
+    def nearest_directions(self, d: np.ndarray) -> np.ndarray:
+        """The nearest direction of the outline (N, 3) to each of ``d`` (N, 3)."""
+        d = np.atleast_2d(np.asarray(d, dtype=np.float64))
+        out = d.copy()
+        outside = ~self.inside_directions(d)
+        if outside.any():
+            out[outside] = self.shape._nearest_boundary(d[outside])[0]
+        return out
+
+    def contains(self, q: np.ndarray) -> np.ndarray | bool:
+        """Whether each quaternion ((4,) or (N, 4)) points the limb inside the outline."""
+        q = np.asarray(q, dtype=np.float64)
+        inside = self.inside_directions(limb_direction(q.reshape(-1, 4)))
+        return bool(inside[0]) if q.ndim == 1 else inside
+
+    def correct(self, q: np.ndarray) -> np.ndarray:
+        """``q`` itself inside; outside, the twist-free quaternion of the nearest direction."""
+        q = np.asarray(q, dtype=np.float64)
+        rows = q.reshape(-1, 4).copy()
+        d = limb_direction(rows)
+        outside = ~self.inside_directions(d)
+        if outside.any():
+            rows[outside] = compose(self.nearest_directions(d[outside]), 0.0)
+        return rows[0] if q.ndim == 1 else rows
+
+
+class OutlineBandRegion(OutlineRegion):
+    """An outline with a twist band over it: ``|wrap(tau - centre)| <= half_width`` with
+    ``centre = c0 + c_pan pan + c_tilt tilt`` and ``half_width = w0 + w_pan pan + w_tilt tilt``
+    (rad; pan, tilt in rad), the band of the tester's region.
+
+    Parameters
+    ----------
+    polygon_deg : array_like, shape (V, 2)
+        The outline's vertices (pan, tilt) in degrees.
+    centre, half_width : (float, float, float)
+        ``(c0, c_pan, c_tilt)`` and ``(w0, w_pan, w_tilt)``; the half-width must stay positive
+        over the outline.
+    """
+
+    def __init__(self, polygon_deg: np.ndarray, centre, half_width) -> None:
+        super().__init__(polygon_deg)
+        self.centre = tuple(float(c) for c in centre)
+        self.half_width = tuple(float(w) for w in half_width)
+
+    @classmethod
+    def random(cls, rng: np.random.Generator) -> OutlineBandRegion:
+        """A random outline (:func:`bay_outline`) under a random linear band: centre within
+        +-40 deg at the rest pose turning 0.3-0.8 deg per deg of pan and of tilt, half-width
+        25-40 deg changing by up to 0.25 deg per deg (at least 8 deg anywhere on the outline)."""
+        polygon = bay_outline(rng)
+        centre = (np.radians(rng.uniform(-40, 40)), *rng.uniform(-0.8, 0.8, 2))
+        slope = rng.uniform(-0.25, 0.25, 2)
+        pan, tilt = np.radians(polygon[:, 0]), np.radians(polygon[:, 1])
+        w0 = max(
+            np.radians(rng.uniform(25, 40)),
+            np.radians(8.0) - (slope[0] * pan + slope[1] * tilt).min(),
+        )
+        return cls(polygon, centre, (w0, *slope))
+
+    def band(self, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Centre and half-width (rad) of the band at each direction (N, 3)."""
+        pan, tilt = direction_to_pan_tilt(np.atleast_2d(d))
+        c0, cp, ct = self.centre
+        w0, wp, wt = self.half_width
+        return c0 + cp * pan + ct * tilt, w0 + wp * pan + wt * tilt
+
+    def contains(self, q: np.ndarray) -> np.ndarray | bool:
+        """Whether each orientation ((4,) or (N, 4)) is inside: direction and twist."""
+        q = np.asarray(q, dtype=np.float64)
+        if q.ndim == 1:  # one pose, the gate's question: scalar arithmetic
+            d, tau = decompose_one(q)
+            if not self.inside_directions(np.array([d]))[0]:
+                return False
+            pan, tilt = math.atan2(d[1], d[0]), math.atan2(d[2], math.hypot(d[0], d[1]))
+            (c0, cp, ct), (w0, wp, wt) = self.centre, self.half_width
+            off = math.remainder(tau - (c0 + cp * pan + ct * tilt), 2.0 * math.pi)
+            return abs(off) <= w0 + wp * pan + wt * tilt
+        d, tau = decompose(q.reshape(-1, 4))
+        centre, half = self.band(d)
+        inside = self.inside_directions(d) & (np.abs(wrap(tau - centre)) <= half)
+        return bool(inside[0]) if q.ndim == 1 else inside
+
+    def correct(self, q: np.ndarray) -> np.ndarray:
+        """``q`` itself inside; outside, the direction onto the outline, then the twist into the
+        band there."""
+        q = np.asarray(q, dtype=np.float64)
+        rows = q.reshape(-1, 4).copy()
+        out = ~np.asarray(self.contains(rows), dtype=bool).reshape(-1)
+        if out.any():
+            d, tau = decompose(rows[out])
+            d = self.nearest_directions(d)
+            centre, half = self.band(d)
+            tau = centre + np.clip(wrap(tau - centre), -half, half)
+            rows[out] = compose(d, tau)
+        return rows[0] if q.ndim == 1 else rows
+
+
+def inside_points(region: OutlineRegion, n: int, rng: np.random.Generator) -> np.ndarray:
+    """``n`` random poses inside ``region``: twist-free quaternions (n, 4), or for a banded
+    region orientations with a twist uniform in the band."""
+    poly = region.polygon_deg
+    out = np.empty((0, 3))
+    while out.shape[0] < n:
+        pan = np.radians(rng.uniform(poly[:, 0].min(), poly[:, 0].max(), 4 * n))
+        tilt = np.radians(rng.uniform(poly[:, 1].min(), poly[:, 1].max(), 4 * n))
+        d = pan_tilt_to_direction(pan, tilt)
+        out = np.vstack([out, d[region.inside_directions(d)]])
+    d = out[:n]
+    if not isinstance(region, OutlineBandRegion):
+        return compose(d, 0.0)
+    centre, half = region.band(d)
+    return compose(d, centre + rng.uniform(-1.0, 1.0, n) * half)
+
+
+#: Spacing (deg) of the points that judge a straight arc of the visibility graph inside, and how
+#: far outside (deg) one may lie: a shortest path runs through the outline's concave corners,
+#: touching the wall there, and the outline's edges are straight in (pan, tilt), not great
+#: circles, so a point of an arc from corner to corner may lie a little outside.
+VISIBLE_STEP_DEG, VISIBLE_SLACK_DEG = 0.1, 0.05
+
+
+class InsidePaths:
+    """Shortest paths of limb directions inside an outline: Dijkstra over the visibility graph
+    of the outline's concave corners (a shortest path among polygonal walls bends only there),
+    an arc judged inside at points ``VISIBLE_STEP_DEG`` apart, up to ``VISIBLE_SLACK_DEG``.
+
+    Parameters
+    ----------
+    region : OutlineRegion
+    """
+
+    def __init__(self, region: OutlineRegion) -> None:
+        self.region = region
+        poly = np.radians(region.polygon_deg)
+        prev, nxt = np.roll(poly, 1, axis=0), np.roll(poly, -1, axis=0)
+        e1, e2 = poly - prev, nxt - poly
+        turn = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+        area = np.sum(poly[:, 0] * nxt[:, 1] - nxt[:, 0] * poly[:, 1])
+        concave = turn * np.sign(area) < 0.0  # turning against the winding
+        self.corners = pan_tilt_to_direction(poly[concave, 0], poly[concave, 1])
+        n = self.corners.shape[0]
+        i, j = np.triu_indices(n, 1)
+        self.weight = np.zeros((n + 2, n + 2))
+        ok, length = self._visible(self.corners[i], self.corners[j])
+        self.weight[i[ok] + 2, j[ok] + 2] = self.weight[j[ok] + 2, i[ok] + 2] = length[ok]
+
+    def _visible(self, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Whether each arc from ``a`` to ``b`` (N, 3) lies inside, and its length (rad)."""
+        from limbctl.geometry.quat import direction_angle
+
+        h = np.maximum(direction_angle(a, b), 1e-12)[:, None]  # (N, 1)
+        m = max(2, int(np.ceil(h.max(initial=0.0) / np.radians(VISIBLE_STEP_DEG))) + 1)
+        t = np.linspace(0.0, 1.0, m)[None, :]  # (1, M)
+        # p(t) = sin((1 - t) h) / sin h a + sin(t h) / sin h b (0 < h < pi here)
+        pts = (
+            np.sin((1 - t) * h)[..., None] * a[:, None, :]
+            + np.sin(t * h)[..., None] * b[:, None, :]
+        ) / np.sin(h)[..., None]
+        pts = pts.reshape(-1, 3)
+        inside = self.region.inside_directions(pts)
+        out = np.flatnonzero(~inside)
+        if out.size:
+            inside[out] = self._wall_distance(pts[out]) <= np.radians(VISIBLE_SLACK_DEG)
+        return inside.reshape(a.shape[0], m).all(axis=1), h[:, 0]
+
+    def _wall_distance(self, d: np.ndarray) -> np.ndarray:
+        """Distance (rad) from each direction (N, 3) to the outline's nearest edge, in the
+        local metric ``(cos(tilt) dpan, dtilt)`` (exact to first order near the wall)."""
+        pan, tilt = direction_to_pan_tilt(d)
+        poly = np.radians(self.region.polygon_deg)
+        a, b = poly, np.roll(poly, -1, axis=0)  # (V, 2) edges a -> b
+        c = np.cos(tilt)[:, None]  # (N, 1)
+        px, py = (pan[:, None] - a[None, :, 0]) * c, tilt[:, None] - a[None, :, 1]
+        ex, ey = (b[None, :, 0] - a[None, :, 0]) * c, b[None, :, 1] - a[None, :, 1]
+        u = np.clip((px * ex + py * ey) / np.maximum(ex * ex + ey * ey, 1e-30), 0.0, 1.0)
+        return np.hypot(px - u * ex, py - u * ey).min(axis=1)
+
+    def length(self, a: np.ndarray, b: np.ndarray) -> float:
+        """Length (rad) of the shortest path inside from direction ``a`` to ``b`` ((3,)
+        each); ``inf`` when there is none."""
+        from scipy.sparse.csgraph import dijkstra
+
+        n = self.corners.shape[0]
+        w = self.weight.copy()
+        ends = np.vstack([a, b])
+        ok, length = self._visible(ends[[0, 0, 1]], np.vstack([b, ends[1:2]])[[0, 0, 0]])
+        if ok[0]:
+            return float(length[0])
+        for row, end in enumerate(ends):
+            vis, arc = self._visible(np.repeat(end[None], n, axis=0), self.corners)
+            w[row, 2:][vis] = w[2:, row][vis] = arc[vis]
+        return float(dijkstra(w, directed=False, indices=0)[1])
