@@ -206,8 +206,9 @@ def _owner(
 ) -> str | None:
     """The other joint whose servo the one found (``servo_id`` at ``baud``) recognisably is."""
     owner = next((j for j, i in claims.ids.items() if i == servo_id and j != target.joint), None)
-    if owner is None or owner in claims.set_up_now:
-        return owner
+    if owner is None:
+        return None
+    # even when the owner was set up in this run: a new servo at the factory ID is not it
     if servo_id != FACTORY_ID or baud != FACTORY_BAUD:
         return owner  # a factory-fresh servo answers only as ID 1 at 57600 baud
     with _open(port, baud, servo_id, target.model, latency_ms) as bus:

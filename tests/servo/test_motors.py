@@ -236,3 +236,49 @@ def test_at_the_factory_id_and_baud_only_a_factory_fresh_servo_is_nobodys(tmp_pa
         assert main([*setup, "tilt", "--port", sim.port]) == 0
         assert sim.truth()["servos"][2]["id"] == 2
     assert "(found as ID 1 at 57600 baud; wrote ID 1 -> 2" in capsys.readouterr().err
+
+
+class Bench:
+    """The person at the bench, as ``sys.stdin``: at each prompt a step, either a line typed or
+    a swap of the one connected servo (the simulator's slots) followed by Enter."""
+
+    def __init__(self, sim, steps):
+        self.sim, self.steps = sim, list(steps)
+
+    def readline(self):
+        step = self.steps.pop(0)
+        if isinstance(step, str):
+            return step
+        unplug, plug = step
+        self.sim.vanish(unplug, 3600.0)  # off the bus for the rest of the test
+        self.sim.vanish(plug, 0.0)  # back at once
+        return "\n"
+
+
+@pytest.mark.parametrize("rig", sorted(RIG_IDS))
+def test_asked_again_the_person_connects_the_right_servo_and_every_joint_is_set_up(
+    tmp_path, capsys, monkeypatch, rig
+):
+    ids = RIG_IDS[rig]
+    joints = list(ids)
+    with SimulatedBus(factory=len(joints), link=tmp_path / "tty") as sim:
+        for slot in range(2, len(joints) + 1):
+            sim.vanish(slot, 3600.0)  # only slot 1 (the pan servo) is connected
+        # Enter for pan; at each later joint, Enter with the last servo still connected, then
+        # (asked again) the swap to that joint's servo
+        steps = ["\n"] + [s for k in range(1, len(joints)) for s in ("\n", (k, k + 1))]
+        monkeypatch.setattr("sys.stdin", Bench(sim, steps))
+        status = main(
+            ["motors", "setup", "--rig", str(rig_profile(tmp_path, rig)), "--port", sim.port]
+        )
+        servos = sim.truth()["servos"]
+    out, err = capsys.readouterr()
+    for previous, joint in zip(joints, joints[1:]):
+        assert (
+            f"The connected servo answers as ID {ids[previous]}, the {previous} joint's (set up "
+            f"a moment ago): connect only the {joint} servo and press Enter to look again, or "
+            f"type skip to leave {joint} for now: "
+        ) in out
+    assert {joint: servos[k + 1]["id"] for k, joint in enumerate(joints)} == ids
+    assert err.splitlines()[-1] == f"set up: {', '.join(joints)}; failed: none"
+    assert status == 0
