@@ -2,7 +2,9 @@
 
 Run: ``.venv/bin/python benchmarks/bench_first_run.py --out docs/bench_first_run.md``
 (``--rev REV`` measures another revision of this repository the same way, e.g. the one before a
-change; ``--seconds`` is the teaching's length).
+change; ``--seconds`` is the teaching's length; ``--rig sim3`` runs every command on the
+simulated three-servo rig, ``--library N`` adds a first fit from Python of N orientations, 0
+leaves it out).
 
 Steps, each timed from outside (the wall time a person waits, Python's start included):
 
@@ -14,6 +16,10 @@ Steps, each timed from outside (the wall time a person waits, Python's start inc
    second run side by side.
 3. Without anything compiled before: the kernel cache emptied, ``train`` first and second; emptied
    again, ``teleop`` first and second (with no train before it).
+4. From Python (``--library N``): the cache emptied, a fresh process fits a Rigid Map to N
+   orientations of the synthetic shoulder (``RigidMap(twist=True)`` on ``--rig sim3``, the same
+   teaching's twist-free directions with ``RigidMap()`` on ``sim``), then a second process does it
+   again: what a library user waits.
 
 Each command runs under a probe that records numba's compile events (``numba:compile``): which
 dispatchers compiled, how long each took with the compiles it started (inclusive) and without
@@ -88,8 +94,28 @@ from limbctl.cli import main
 sys.exit(main())
 """
 
-#: What teleop is fed: two commands, the second far outside any taught region.
+#: What teleop is fed: two commands, the second far outside any taught region; a three-servo
+#: rig's first also turns the limb about its axis.
 COMMANDS = '{"pan": 20, "tilt": 10}\n{"pan": 120, "tilt": 80}\n'
+COMMANDS3 = '{"pan": 20, "tilt": 10, "roll": 15}\n{"pan": 120, "tilt": 80}\n'
+
+#: A library user's fit (step 4): N orientations of the synthetic shoulder (its teaching mix:
+#: half uniform, a quarter along the edge, a quarter at the twist stops), seed 0; prints the fit's
+#: seconds (the process's start and import not included).
+LIBRARY = r"""
+import sys, time
+import numpy as np
+from limbctl.envelope import RigidMap
+from limbctl.envelope.synthetic_twist import ShoulderRegion
+from limbctl.geometry.quat import limb_direction, swing_from_direction
+n, twist = int(sys.argv[1]), sys.argv[2] == "sim3"
+q = ShoulderRegion().teaching(n - n // 2, n // 4, n // 4, np.random.default_rng(0))
+if not twist:
+    q = swing_from_direction(limb_direction(q))
+start = time.perf_counter()
+RigidMap(seed=0, twist=twist).fit(q)
+print(f"{time.perf_counter() - start:.3f}")
+"""
 
 
 def _children_cpu() -> float:
@@ -189,26 +215,30 @@ def measure(clone: Path, env: dict, probe: Path, label: str, args: list[str], st
     return result
 
 
-def scenario(clone: Path, env: dict, probe: Path, seconds: float) -> dict[str, list[dict]]:
-    """Every command first and second, in the order a user runs them, then from an empty cache."""
+def scenario(
+    clone: Path, env: dict, probe: Path, seconds: float, rig: str = "sim"
+) -> dict[str, list[dict]]:
+    """Every command first and second, in the order a user runs them, then from an empty cache;
+    on the simulated rig ``rig`` (``sim``: two servos, ``sim3``: three)."""
+    commands = COMMANDS3 if rig == "sim3" else COMMANDS
 
     def record(i):
-        return ["record", "--out", f"teach-{i}.limb", "--duration", f"{seconds:g}"]
+        return ["record", "--rig", rig, "--out", f"teach-{i}.limb", "--duration", f"{seconds:g}"]
 
     def train(i):
         return ["train", "teach-1.limb", "--out", f"model-{i}.npz"]
 
     def teleop(i):
-        return ["teleop", "--model", "model-1.npz", "--source", "stdin"]
+        return ["teleop", "--rig", rig, "--model", "model-1.npz", "--source", "stdin"]
 
     found: dict[str, list[dict]] = {}
     for name, args, stdin in (("record", record, ""), ("train", train, None)):
         found[name] = [measure(clone, env, probe, f"{name}-{i}", args(i), stdin) for i in (1, 2)]
     found["teleop"] = [
-        measure(clone, env, probe, f"teleop-{i}", teleop(i), COMMANDS) for i in (1, 2)
+        measure(clone, env, probe, f"teleop-{i}", teleop(i), commands) for i in (1, 2)
     ]
     home = Path(env["HOME"])
-    for name, args, stdin in (("train", train, None), ("teleop", teleop, COMMANDS)):
+    for name, args, stdin in (("train", train, None), ("teleop", teleop, commands)):
         empty_caches(clone, home)
         found[f"{name}, cache empty"] = [
             measure(clone, env, probe, f"{name}-cold-{i}", args(f"cold-{i}"), stdin) for i in (1, 2)
@@ -216,16 +246,64 @@ def scenario(clone: Path, env: dict, probe: Path, seconds: float) -> dict[str, l
     return found
 
 
+def library(clone: Path, env: dict, n: int, rig: str) -> list[dict]:
+    """Step 4: the fit from Python in a fresh process from an empty cache, then in a second one;
+    each its fit's seconds, the process's wall and CPU seconds."""
+    empty_caches(clone, Path(env["HOME"]))
+    python = str(clone / ".venv" / "bin" / "python")
+    found = []
+    for _ in (1, 2):
+        start, cpu = time.perf_counter(), _children_cpu()
+        done = subprocess.run(
+            [python, "-c", LIBRARY, str(n), rig],
+            cwd=clone,
+            env=env,
+            capture_output=True,
+            text=True,
+            check=True,
+        )
+        wall, cpu = time.perf_counter() - start, _children_cpu() - cpu
+        found.append({"fit": float(done.stdout.split()[-1]), "wall": wall, "cpu": cpu})
+    return found
+
+
+def library_report(fits: list[dict], n: int, rig: str) -> list[str]:
+    """The step 4 table."""
+    first, second = fits
+    kind = "RigidMap(twist=True)" if rig == "sim3" else "RigidMap()"
+    return [
+        "",
+        f"From Python: `{kind}.fit` of {n} orientations (the synthetic shoulder, seed 0), a "
+        "fresh process from an empty cache, then a second process:",
+        "",
+        "| | first (cache empty) | second | first / second |",
+        "|---|---|---|---|",
+        f"| the fit | {first['fit']:.2f} s | {second['fit']:.2f} s |"
+        f" {first['fit'] / second['fit']:.1f} |",
+        f"| the process (start, import, teaching, fit), wall | {first['wall']:.2f} s |"
+        f" {second['wall']:.2f} s | {first['wall'] / second['wall']:.1f} |",
+        f"| the same, CPU | {first['cpu']:.1f} s | {second['cpu']:.1f} s |"
+        f" {first['cpu'] / second['cpu']:.1f} |",
+    ]
+
+
 def limbctl_kernel(name: str) -> bool:
     return name.startswith("limbctl.")
 
 
-def report(found: dict[str, list[dict]], rev: str, install_s: float, load: tuple) -> str:
+def report(
+    found: dict[str, list[dict]],
+    rev: str,
+    install_s: float,
+    load: tuple,
+    rig: str = "sim",
+    fits: tuple[int, list[dict]] | None = None,
+) -> str:
     lines = [
-        "# First run: record, train, teleop on a fresh clone, venv and home",
+        f"# First run: record, train, teleop on a fresh clone, venv and home (`--rig {rig}`)",
         "",
         "Reproduce: `.venv/bin/python benchmarks/bench_first_run.py --out docs/bench_first_run.md"
-        f" --rev {rev}`.",
+        f" --rev {rev} --rig {rig}" + (f" --library {fits[0]}`." if fits else " --library 0`."),
         f'Revision `{rev}`; install (`pip install -e ".[test]"` into a fresh venv) '
         f"{install_s:.0f} s; load average {load[0]} before, {load[1]} after (2 cores, shared).",
         "",
@@ -251,6 +329,8 @@ def report(found: dict[str, list[dict]], rev: str, install_s: float, load: tuple
         lines += ["", again + ", ".join(retried)]
     lines += ["", "Sampling of the recordings (the first ran beside the warm-up):", ""]
     lines += [f"- record {i}: {run_['note']}" for i, run_ in enumerate(found["record"], 1)]
+    if fits:
+        lines += library_report(fits[1], fits[0], rig)
     for name, (first, _) in found.items():
         if not first["compiles"]:
             continue
@@ -273,6 +353,16 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=30.0, help="teaching length (s)")
     parser.add_argument("--out", type=Path, help="write the Markdown report here")
     parser.add_argument("--keep", action="store_true", help="keep the temporary folder")
+    parser.add_argument(
+        "--rig", default="sim", choices=("sim", "sim3"), help="simulated rig (sim3: three servos)"
+    )
+    parser.add_argument(
+        "--library",
+        type=int,
+        default=8000,
+        help="orientations of the fit from Python, a fresh process from an empty cache and a "
+        "second one (0: leave it out)",
+    )
     options = parser.parse_args()
     rev = subprocess.run(
         ["git", "-C", str(ROOT), "rev-parse", "--short", options.rev],
@@ -288,9 +378,13 @@ def main() -> None:
         probe = work / "probe" / "probe.py"
         probe.parent.mkdir()
         probe.write_text(PROBE)
-        found = scenario(clone, env, probe, options.seconds)
+        found = scenario(clone, env, probe, options.seconds, options.rig)
+        fits = None
+        if options.library > 0:
+            fits = (options.library, library(clone, env, options.library, options.rig))
         after = os.getloadavg()
-        text = report(found, rev, install_s, (f"{before[0]:.1f}", f"{after[0]:.1f}"))
+        loads = (f"{before[0]:.1f}", f"{after[0]:.1f}")
+        text = report(found, rev, install_s, loads, options.rig, fits)
     finally:
         if options.keep:
             print(f"kept {work}", file=sys.stderr)

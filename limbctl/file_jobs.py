@@ -53,13 +53,16 @@ def run_train(options: TrainOptions) -> int:
     """Fit the model, save it, print its summary (and draw it with ``plot``)."""
     from tqdm import tqdm
 
-    from limbctl.geometry.jit import mark_prepared
-    from limbctl.teach.train import STAGES, train
+    from limbctl.geometry.jit import mark_prepared, stage
+    from limbctl.teach.dataset import load_dataset
+    from limbctl.teach.train import STAGES, learns_twist, train
 
     constructor = model_options(
         options.kind, options.seed, nodes=options.nodes, layout=options.layout
     )
-    prepare("train")
+    # a three-servo recording compiles the twist band's kernels: a stage of its own
+    twist = learns_twist(options.kind, load_dataset(options.data).header.calibration)
+    prepare(stage("train", twist))
     with tqdm(
         total=len(STAGES), desc=f"training {options.kind}", unit="stage", file=sys.stderr
     ) as bar:
@@ -70,7 +73,7 @@ def run_train(options: TrainOptions) -> int:
             bar.update(1)
 
         summary = train(options.data, options.out, options.kind, constructor, progress=advance)
-    mark_prepared("train")
+    mark_prepared(stage("train", twist))
     for line in summary.lines():
         say(line)
     say(f"wrote {options.out}")

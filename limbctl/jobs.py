@@ -129,7 +129,8 @@ def run_record(options: RecordOptions, view: LiveView | None = None) -> int:
     with (
         _viewing(options.view, view) as live,
         open_connection(conn, hand=hand) as session,
-        warming_in_background(),  # the first train and teleop then find their kernels compiled
+        # the first train and teleop then find their kernels compiled (this rig's: twist or not)
+        warming_in_background(twist=profile.roll is not None),
     ):
         with writer:
             with stop_on_signals() as stop, live.teaching(session.rig, session.profile) as taught:
@@ -224,6 +225,7 @@ def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
     limb (shown live on ``view``, or on a view as ``options.view`` asks); 0 for a clean end, 2
     when it never started (the wait ran out) or every command line was refused, 3 after a fault
     (a bus failure before the start included), 130 when stopped while waiting."""
+    from limbctl.geometry.jit import stage as jit_stage
     from limbctl.servo.control_table import MAX_TICK
     from limbctl.servo.setup import configure_servos
     from limbctl.teleop.approach import StartOptions
@@ -242,7 +244,7 @@ def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
     if spec.kind.scheme == "leader":  # before any port opens
         check_leader_fits(spec.extra_ids, profile)
     gate = gate_for(options.model, profile, options.rate, options.max_speed)
-    prepare("gate")
+    prepare(jit_stage("gate", profile.roll is not None))
     starting = StartOptions(options.wait, options.approach, options.rate)  # checked before opening
     operator = _sim_operator(options.operator, spec, conn, profile)
     sim_options = None if operator is None else {"leader": operator.leader_spec(spec.extra_ids)}
@@ -320,7 +322,7 @@ def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
                 )
     from limbctl.geometry.jit import mark_prepared
 
-    mark_prepared("gate")
+    mark_prepared(jit_stage("gate", profile.roll is not None))
     extra = opened[0].report_lines()[1:] if opened else ()
     for line in (*result.lines(), *extra):
         say(line)

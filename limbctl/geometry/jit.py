@@ -206,8 +206,18 @@ def njit(function: Callable | str | None = None, /, **options) -> Callable:
 
 # ---- first run: a warm-up compiles ahead, commands wait for it ----------------------------------
 #: What a warm-up compiles ahead and a command marks once its kernels are in the cache: the
-#: training's kernels and the gate's (teleop's start and park check).
-STAGES = ("train", "gate")
+#: training's kernels and the gate's (teleop's start and park check), of a two-servo rig and of
+#: a three-servo rig (``-twist``: the twist band's fit and the gate's kernels on SO(3), which a
+#: two-servo rig never compiles).
+STAGES = ("train", "gate", "train-twist", "gate-twist")
+
+
+def stage(name: str, twist: bool) -> str:
+    """The stage ``name`` (``train`` or ``gate``) of a rig with (``twist``) or without a roll."""
+    found = f"{name}-twist" if twist else name
+    if found not in STAGES:
+        raise ValueError(f"unknown stage {name!r}; choose from train, gate")
+    return found
 
 
 def _marker(stage: str) -> Path | None:

@@ -12,8 +12,13 @@ kernels land in the cache of :mod:`limbctl.geometry.jit` one by one as they comp
 real train and teleop load them, and compile themselves whatever a warm-up still running has not
 reached yet.
 
+A three-servo rig's recording warms its own stages (``--twist``,
+:func:`limbctl.geometry.jit.stage`): the same train and gate questions of a Rigid Map over full
+orientations, fitted to a synthetic teaching of the packaged three-servo demo region (swing
+outline and twist band), so the twist band's fit and the gate's kernels on SO(3) compile too.
+
 With no cache folder (kernels compiled in memory) a warm-up would help no other process, and
-none starts; nor does one when both stages are already prepared.
+none starts; nor does one when the rig's stages are already prepared.
 """
 
 from __future__ import annotations
@@ -45,37 +50,60 @@ SMALL_BATCH = 13
 LARGE_BATCH = 65
 
 
-def _demo_polygon() -> np.ndarray:
-    """The demo region's polygon (V, 2), (pan, tilt) degrees."""
-    text = resources.files("limbctl").joinpath("data", "demo_region.yaml").read_text()
+#: The three-servo demo region's twist band as its YAML (data/demo_region3.yaml) describes it:
+#: half-widths (deg) with the limb low and high, centred on no twist. The warm-up needs the fit's
+#: code paths (a band bounded everywhere, narrowing), not the region itself.
+TWIST_HALF_DEG = (49.0, 23.0)
+
+
+def _demo_polygon(name: str = "demo_region.yaml") -> np.ndarray:
+    """A packaged demo region's polygon (V, 2), (pan, tilt) degrees."""
+    text = resources.files("limbctl").joinpath("data", name).read_text()
     return np.asarray(yaml.safe_load(text)["region"]["polygon"], dtype=np.float64)
 
 
-def _write_teaching(path: Path) -> None:
-    """A synthetic teaching of the demo region (its edge traced, then the middle), as a dataset."""
+def _write_teaching(path: Path, twist: bool = False) -> None:
+    """A synthetic teaching of the demo region (its edge traced, then the middle), as a dataset;
+    with ``twist``, full orientations of the three-servo demo region (uniform, along the edge and
+    at the twist stops), TEACHING_S at the same rate."""
     from limbctl.envelope.synthetic import PolygonRegion, traced_teaching
+    from limbctl.envelope.synthetic_twist import ShoulderRegion
     from limbctl.geometry.gimbal import direction_to_pan_tilt
+    from limbctl.geometry.quat import limb_direction
     from limbctl.teach.dataset import DatasetWriter
 
     rate_hz = 125.0
-    directions, _ = traced_teaching(
-        PolygonRegion(_demo_polygon()), TEACHING_S, np.random.default_rng(0), rate_hz
-    )
+    rng = np.random.default_rng(0)
+    q = None
+    if twist:
+        n = int(TEACHING_S * rate_hz)
+        region = ShoulderRegion(_demo_polygon("demo_region3.yaml"), *TWIST_HALF_DEG, 0.0, 0.0, 0.0)
+        q = region.teaching(n - n // 2, n // 4, n // 4, rng)
+        directions = limb_direction(q)
+    else:
+        directions, _ = traced_teaching(PolygonRegion(_demo_polygon()), TEACHING_S, rng, rate_hz)
     pan, tilt = direction_to_pan_tilt(directions)
     with DatasetWriter(path, rig="warm-up") as writer:
         for i in range(len(pan)):
-            writer.append(i / rate_hz, float(pan[i]), float(tilt[i]))
+            writer.append(i / rate_hz, float(pan[i]), float(tilt[i]), None if q is None else q[i])
 
 
-def warm_up() -> bool:
-    """Compile (or load) the kernels of every stage not yet prepared, in this process.
+def warm_up(twist: bool = False) -> bool:
+    """Compile (or load) the kernels of the rig's stages not yet prepared, in this process.
+
+    Parameters
+    ----------
+    twist : bool
+        Warm a three-servo rig's stages (``train-twist``, ``gate-twist``) instead of a
+        two-servo rig's (``train``, ``gate``).
 
     Returns whether it ran (False: no cache folder, or another warm-up holds the lock).
     """
+    train_stage, gate_stage = jit.stage("train", twist), jit.stage("gate", twist)
     with jit.warming() as mine:
         if not mine:
             return False
-        if all(jit.prepared(stage) for stage in jit.STAGES):
+        if jit.prepared(train_stage) and jit.prepared(gate_stage):
             return True
         from limbctl.envelope import load_model
         from limbctl.teach.dataset import load_dataset
@@ -83,10 +111,10 @@ def warm_up() -> bool:
 
         with tempfile.TemporaryDirectory(prefix="limbctl-warm-") as tmp:
             data, model_path = Path(tmp) / "warm.limb", Path(tmp) / "warm.npz"
-            _write_teaching(data)
-            # the options `limbctl train` passes by default
-            train(data, model_path, "rigidmap", {"seed": 0})
-            jit.mark_prepared("train")
+            _write_teaching(data, twist)
+            # the options `limbctl train` passes by default (and sets for a three-servo dataset)
+            train(data, model_path, "rigidmap", {"seed": 0, **({"twist": True} if twist else {})})
+            jit.mark_prepared(train_stage)
             model = load_model(model_path)
             taught = load_dataset(data).quaternions
             q = np.ascontiguousarray(taught[:SMALL_BATCH])
@@ -95,23 +123,25 @@ def warm_up() -> bool:
             model.contains(q)
             model.correct(q)
             model.correct(np.ascontiguousarray(taught[:LARGE_BATCH]))
-            jit.mark_prepared("gate")
+            jit.mark_prepared(gate_stage)
     return True
 
 
 @contextlib.contextmanager
-def warming_in_background() -> Iterator[subprocess.Popen | None]:
-    """Start the warm-up in its own low-priority process, unless nothing needs it; yields it.
+def warming_in_background(twist: bool = False) -> Iterator[subprocess.Popen | None]:
+    """Start the warm-up of a rig's stages (``twist``: a three-servo rig's) in its own
+    low-priority process, unless nothing needs it; yields it.
 
     The process is left running on exit (it may still be compiling what the next train loads),
     in its own session so that a Ctrl-C ending the recording does not end it too; its output is
     discarded.
     """
-    if jit.cache_dir() is None or all(jit.prepared(stage) for stage in jit.STAGES):
+    stages = (jit.stage("train", twist), jit.stage("gate", twist))
+    if jit.cache_dir() is None or all(jit.prepared(stage) for stage in stages):
         yield None
         return
     process = subprocess.Popen(
-        [sys.executable, "-m", "limbctl.teach.warm"],
+        [sys.executable, "-m", "limbctl.teach.warm", *(["--twist"] if twist else [])],
         stdin=subprocess.DEVNULL,
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
@@ -121,10 +151,12 @@ def warming_in_background() -> Iterator[subprocess.Popen | None]:
     yield process
 
 
-def main() -> int:
-    """The background process: lowest priority, then :func:`warm_up`."""
+def main(argv: list[str] | None = None) -> int:
+    """The background process: lowest priority, then :func:`warm_up` (``--twist``: of a
+    three-servo rig's stages)."""
+    args = sys.argv[1:] if argv is None else argv
     os.nice(NICENESS)
-    warm_up()
+    warm_up(twist="--twist" in args)
     return 0
 
 
