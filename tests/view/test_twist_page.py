@@ -95,6 +95,10 @@ def test_a_three_servo_record_shows_the_twist_taught_by_place_and_the_gauge(tmp_
             assert range_shows(text, gauge.low_deg, gauge.high_deg, gauge.of), (text, gauge)
         assert not js(page, "document.getElementById('twist-panel').hidden")
         assert not js(page, "document.getElementById('twist-figure').hidden")
+        # drawn as the plane above it, and it says so
+        assert text_of(page, "twist-legend").startswith(
+            "seen from behind the limb (+pan to the left)"
+        )
         # the needle is drawn where the twist lies on the gauge
         x = js(page, f"window.limbtwist.gaugeX({gauge.twist_deg})")
         needle = js(page, f"window.limbtwist.pixel('twist-gauge', {x}, {NEEDLE_Y})")

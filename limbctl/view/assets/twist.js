@@ -208,7 +208,8 @@
       : `the learned twist band, by ${m.cell} deg place: colour = its width (twice the ` +
         `half-width) at the place's centre (numbers, where they fit: its limits there); ` +
         `free twist: ${counts.free || 0} places; the gauge gives the band at the limb`;
-    byId("twist-legend").textContent = legend;
+    // drawn as the pan/tilt plane above it: seen from behind the limb, +pan to the left
+    byId("twist-legend").textContent = `seen from behind the limb (+pan to the left): ${legend}`;
   }
 
   function draw() { t.pending = false; drawPlane(); drawGauge(); }
