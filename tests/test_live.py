@@ -202,7 +202,8 @@ def test_teleop_feed_names_the_edge_that_holds_as_the_page_draws_it():
         )
     status = board.live.teleop
     assert status.blocked == ("+pan", "+tilt")
-    assert status.words == "at the edge: right and up are blocked, holding there"
+    # the page's plane is seen from behind the limb, as the terminal names it: +pan is left
+    assert status.words == "at the edge: left and up are blocked, holding there"
 
 
 def test_teleop_feed_says_how_hard_a_felt_leader_pushes_back():
