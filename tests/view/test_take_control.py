@@ -138,10 +138,12 @@ def test_a_reload_keeps_control_and_another_tab_is_told_which_tab_steers():
         assert page.title == f"limbctl: {name} steers"
         assert name in holder()
 
-        # another tab: refused, told the steering tab by the name that tab shows itself
+        # another tab, opened from this one (so it inherits its sessionStorage, as a duplicated
+        # tab does): a name of its own; refused, told the steering tab by the name it shows
         first = page.current_window_handle
-        page.switch_to.new_window("tab")
-        page.get(server.control_url)
+        page.execute_script("window.open(arguments[0]);", server.control_url)
+        wait_for(page, lambda d: len(d.window_handles) == 2, "no second tab")
+        page.switch_to.window([h for h in page.window_handles if h != first][0])
         wait_for(page, lambda d: "refused" in text_of(d, "control"), "the second tab not refused")
         told = text_of(page, "control")
         assert name in told and 'click "take control"' in told, told

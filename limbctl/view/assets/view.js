@@ -36,12 +36,18 @@ const WATCH = new URLSearchParams(location.search).get("watch");
 // Letters of a tab's tag (no I or O, which read as 1 and 0).
 const TAG_LETTERS = "ABCDEFGHJKLMNPQRSTUVWXYZ";
 
+// How this page was opened: a reload keeps the tab's control; anything else takes it if free.
+const NAVIGATION = (performance.getEntriesByType("navigation")[0] || {}).type;
+
 // This tab, as the server and the other tabs name it: a random id and the name it shows
 // itself ("tab K7, opened 19:02:13"), kept in sessionStorage so a reload of this tab keeps
-// them (and takes control back from its own old connection) while another tab gets its own.
+// them (and takes control back from its own old connection). Any other load makes new ones:
+// a duplicated tab inherits sessionStorage, and must not share the name or take the control.
 function tabIdentity() {
   let tab = null;
-  try { tab = JSON.parse(sessionStorage.getItem("limbctl-tab")); } catch (e) { tab = null; }
+  if (NAVIGATION === "reload") {
+    try { tab = JSON.parse(sessionStorage.getItem("limbctl-tab")); } catch (e) { tab = null; }
+  }
   if (!tab || !tab.id || !tab.name) {
     const bytes = crypto.getRandomValues(new Uint8Array(16));
     const id = Array.from(bytes, (b) => b.toString(16).padStart(2, "0")).join("");
@@ -52,8 +58,6 @@ function tabIdentity() {
   return tab;
 }
 const TAB = tabIdentity();
-// How this page was opened: a reload keeps the tab's control; anything else takes it if free.
-const NAVIGATION = (performance.getEntriesByType("navigation")[0] || {}).type;
 
 const state = { scene: null, live: null, liveFrames: 0, sceneFrames: 0, trail: [], socket: null, opened: 0 };
 const canvas = document.getElementById("plane");
