@@ -208,9 +208,9 @@ def _owner(
     owner = next((j for j, i in claims.ids.items() if i == servo_id and j != target.joint), None)
     if owner is None:
         return None
-    # even when the owner was set up in this run: a new servo at the factory ID is not it
     if servo_id != FACTORY_ID or baud != FACTORY_BAUD:
         return owner  # a factory-fresh servo answers only as ID 1 at 57600 baud
+    # the owner may have been set up in this run and still a new servo be at the factory ID
     with _open(port, baud, servo_id, target.model, latency_ms) as bus:
         delay = bus.read(Register.RETURN_DELAY_TIME, servo_id, patient=True)
     return None if delay == FACTORY_RETURN_DELAY else owner
@@ -220,13 +220,13 @@ def _refusal(target: JointTarget, servo_id: int, owner: str, claims: Claims) -> 
     joint = target.joint
     return (
         f"the connected servo answers as ID {servo_id}, the {owner} joint's, and is the {owner} "
-        f"servo {set_up_when(owner, claims)}: connect only the {joint} servo and run `limbctl "
+        f"servo {_set_up_when(owner, claims)}: connect only the {joint} servo and run `limbctl "
         f"motors setup --joint {joint}` again (or, to make this servo the {joint} servo on "
         f"purpose, add --renumber)"
     )
 
 
-def set_up_when(owner: str, claims: Claims) -> str:
+def _set_up_when(owner: str, claims: Claims) -> str:
     """When ``owner``'s servo was set up, as the person saw it: in this run or before."""
     if owner in claims.set_up_now:
         return "set up a moment ago"
