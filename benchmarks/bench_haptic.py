@@ -372,13 +372,14 @@ def exact_rate_case(
                     servo.write(FEEL_DATA.address, encode_feel(0, tick))
             if step == READ_TO_WRITE_MS and instead != "late" and not cut:
                 was_pushed, pushed = pushed, push.goal_current > 0
-                for servo, tick in zip(servos, goal, strict=True):
+                shares = push.currents(len(servos))
+                for servo, tick, current in zip(servos, goal, shares, strict=True):
                     if engaging:
                         servo.write(64, bytes([0]))
                         servo.write(64, bytes([1]))
                     if push.goal_current:  # Profile Velocity: its own write in the source
                         servo.write(112, push.profile_velocity.to_bytes(4, "little"))
-                    data = encode_feel(push.goal_current, tick)
+                    data = encode_feel(current, tick)
                     servo.write(FEEL_DATA.address, data)
                 goal_on = push.goal if push.goal_current and instead != "held" else None
                 watch.wrote(pose, goal_on, velocity, torque, was_pushed, read_s)

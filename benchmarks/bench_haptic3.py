@@ -206,10 +206,13 @@ def stepped(
                         servo.write(64, bytes([0]))
                         servo.write(64, bytes([1]))
                 was_engaged, engaged = engaged, bool(push.goal_current)
-                for servo, angle, joint in zip(servos, goal, rig.joints, strict=False):
+                shares = push.currents(len(servos))
+                for servo, angle, joint, current in zip(
+                    servos, goal, rig.joints, shares, strict=False
+                ):
                     tick = int(angle_to_ticks(angle, joint.zero_tick, joint.direction))
                     servo.write(112, push.profile_velocity.to_bytes(4, "little"))
-                    servo.write(FEEL_DATA.address, encode_feel(push.goal_current, tick))
+                    servo.write(FEEL_DATA.address, encode_feel(current, tick))
                 goal_on = goal if push.goal_current and k not in held else None
                 snap.wrote(pose, goal_on, velocity, torque, was_engaged, read_s)
             if step >= 1:  # the loop's wait, from right after its write

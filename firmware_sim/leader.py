@@ -10,7 +10,10 @@ backdrive friction (joint frame, SI units)::
 ``tau_hand`` is the operator (:class:`Operator`): a bounded spring-damper toward where the
 operator means to go, a script of targets like the teaching hand's, with a let-go time::
 
-    tau_hand = clip(K_h (target - angle) - D_h v, +-tau_max * r(t))
+    tau_hand = K_h (target - angle) - D_h v,  scaled so that |tau_hand| <= tau_max * r(t)
+
+(the vector of the joints' torques: a hand pushes with at most ``tau_max`` in any direction, as
+a person's does, so a push on a diagonal is no stronger than one along a joint)
 
 where ``r`` is 1 until the let go and 0 from ``release_s`` after it, falling linearly between
 (``release_s`` 0: the hand is gone at once, the hardest let go for a wall).
@@ -111,15 +114,18 @@ class Operator:
         u = (t - t0) / (t1 - t0) if t1 > t0 else 1.0
         return p0 + u * (p1 - p0), q0 + u * (q1 - q0)
 
+    def bound_nm(self, t: float) -> float:
+        """The most the hand pushes with at ``t`` s (N m): tau_max r(t)."""
+        if self.let_go_s is None or t < self.let_go_s:
+            return self.max_torque_nm
+        # r(t) = 1 - (t - let_go) / release, down to 0
+        left = 1.0 - (t - self.let_go_s) / self.release_s if self.release_s > 0.0 else 0.0
+        return self.max_torque_nm * max(left, 0.0)
+
     def torque(self, t: float, slot: int, angle_rad: float, velocity_rad_s: float) -> float:
-        """The hand's torque (N m) on joint ``slot`` (0 pan, 1 tilt) at ``t`` s."""
-        bound = self.max_torque_nm
-        if self.let_go_s is not None and t >= self.let_go_s:
-            # r(t) = 1 - (t - let_go) / release, down to 0
-            left = 1.0 - (t - self.let_go_s) / self.release_s if self.release_s > 0.0 else 0.0
-            if left <= 0.0:
-                return 0.0
-            bound *= left
+        """The hand's torque (N m) on joint ``slot`` (0 pan, 1 tilt) at ``t`` s, were it the
+        only joint the hand pushes (:meth:`torques` bounds the vector of all of them)."""
+        bound = self.bound_nm(t)
         target = math.radians(self.target_deg(t)[slot])
         # tau = K_h (target - angle) - D_h v, K_h per rad, bounded by tau_max r(t)
         tau = (
@@ -127,6 +133,26 @@ class Operator:
             - self.damping_nm_s_rad * velocity_rad_s
         )
         return min(max(tau, -bound), bound)
+
+    def torques(
+        self, t: float, angles_rad: Sequence[float], velocities_rad_s: Sequence[float]
+    ) -> list[float]:
+        """The hand's torque on each joint (N m) at ``t`` s: the spring-damper, its vector
+        scaled down to at most tau_max r(t) in magnitude (the module docstring)."""
+        bound = self.bound_nm(t)
+        if bound <= 0.0:
+            return [0.0] * len(angles_rad)
+        targets = self.target_deg(t)
+        # tau_i = K_h (target_i - angle_i) - D_h v_i
+        raw = [
+            self.stiffness_nm_deg * (target - math.degrees(angle))
+            - self.damping_nm_s_rad * velocity
+            for target, angle, velocity in zip(targets, angles_rad, velocities_rad_s, strict=True)
+        ]
+        # |tau| <= tau_max r(t): scaled along itself
+        norm = math.sqrt(sum(v * v for v in raw))
+        scale = min(1.0, bound / norm) if norm > 0.0 else 1.0
+        return [v * scale for v in raw]
 
 
 def leader_joints(ids: Sequence[int]) -> tuple[Joint, Joint]:
@@ -244,12 +270,13 @@ class LeaderWorld:
     def _substep(self, h: float, drives: list[Drive], targets: list[float | None]) -> None:
         self.time_s += h
         self.operator_time_s += h
+        hands = [0.0] * len(self.joints)
+        if self.operator is not None:
+            hands = self.operator.torques(self.operator_time_s, self.angle, self.velocity)
         for i in range(len(self.joints)):
             angle, velocity = self.angle[i], self.velocity[i]
             motor = drives[i].torque(targets[i], angle, velocity, self._gains[i])
-            hand = 0.0
-            if self.operator is not None:
-                hand = self.operator.torque(self.operator_time_s, i, angle, velocity)
+            hand = hands[i]
             drive = motor + hand
             if velocity == 0.0 and abs(drive) <= LEADER_COULOMB_NM:
                 new_velocity = 0.0  # stiction holds it

@@ -10,7 +10,7 @@ so the chain's orientation ``q = Rz(pan) Ry(-tilt) Rx(roll)`` is what the contro
 from the three shafts (:mod:`firmware_sim.orientation`). The operator (:class:`Operator3`) is the
 two-servo leader's bounded spring-damper on each joint, its script giving (pan, tilt, roll)::
 
-    tau_hand = clip(K_h (target - angle) - D_h v, +-tau_max)      per joint (0 after let go)
+    tau_hand = K_h (target - angle) - D_h v, |tau_hand| <= tau_max    (0 after let go)
 
 Ground truth (pose, hand and motor torque, the work of each) is the two-servo leader's, with
 three entries per list: :meth:`LeaderWorld.sample`.

@@ -9,7 +9,9 @@ The law (:class:`FeelLaw`), per cycle of period T::
 
     d <= DEADBAND (inside: d = 0):  Goal Current 0                   (no torque at all)
     d > DEADBAND:                   tau = min(K (d - DEADBAND), CAP)
-                                    Goal Current = tau / kt           (rounded down)
+                                    Goal Current_j = tau |s_j| / |s| / kt  (rounded down; s:
+                                    the joint-space step toward the corrected pose, so the
+                                    push the hand feels, the joints' torques' norm, is <= tau)
                                     Goal Position = the corrected pose, reached from the
                                     leader's pose by at most LEAD (from the servo loop's
                                     stiffness KP: about 0.9 CAP / KP, two ticks on an
@@ -38,8 +40,9 @@ and at each read, frees any wall before its servo's loop would brake the leader 
 brake rules, :mod:`limbctl.teleop.brake`), and brings a freed wall back only on a still leader.
 
 The servo's own position loop (mode 5) pushes toward Goal Position with at most Goal Current,
-so the torque points toward the region and never exceeds CAP, which is also written into the
-servo's Current Limit at start so the firmware refuses more. The wall is a spring of stiffness K
+so the torque points toward the region and its magnitude never exceeds CAP (no joint's exceeds
+its share of it); CAP is also written into each servo's Current Limit at start so the firmware
+refuses more on any joint. The wall is a spring of stiffness K
 sampled at T; it is passive when the leader's own damping b exceeds K T / 2 + B (Colgate and
 Schenkel's bound for a sampled virtual wall, B = 0 here): with b = 0.05 N m s/rad (the simulated
 leader) and T = 5 ms, K < 20 N m/rad = 0.35 N m/deg. docs/haptic.md states every figure.
@@ -58,6 +61,7 @@ from limbctl.errors import ConfigError
 from limbctl.geometry.gimbal import quat_to_pan_tilt
 from limbctl.servo.leader import LeaderMotor
 from limbctl.servo.ticks import TICKS_PER_REV
+from limbctl.teleop.haptic_currents import shared_currents
 
 #: One position tick (deg).
 TICK_DEG = 360.0 / TICKS_PER_REV
@@ -244,21 +248,25 @@ class FeelLaw:
 
 @dataclass(frozen=True)
 class Push:
-    """One cycle's command to the leader's servos (both get the same current).
+    """One cycle's command to the leader's servos.
 
     Attributes
     ----------
     goal_current : int
-        Goal Current units (0: no torque).
+        Goal Current units (0: no torque): the largest of ``joint_currents``.
     profile_velocity : int
         Profile Velocity units (0 while free, where it is not written: the servo keeps the
         wall's, and the wall always comes on from the present position).
     goal_pan, goal_tilt : float
         Goal pose (rad).
     torque_nm : float
-        The torque the current allows (N m): what the report and the page show.
+        The push's magnitude the currents allow (N m; the norm of the joints' torques): what
+        the hand feels at most, what the report and the page show.
     distance_deg : float
         How far the command lies beyond the region (deg).
+    joint_currents : tuple of int
+        Goal Current units per joint (:func:`~limbctl.teleop.haptic_currents.shared_currents`);
+        empty: ``goal_current`` on every joint (a free push's 0).
     """
 
     goal_current: int
@@ -267,11 +275,16 @@ class Push:
     goal_tilt: float
     torque_nm: float
     distance_deg: float
+    joint_currents: tuple[int, ...] = ()
 
     @property
     def goal(self) -> tuple[float, ...]:
         """``(pan, tilt)`` goal (rad)."""
         return (self.goal_pan, self.goal_tilt)
+
+    def currents(self, joints: int) -> tuple[int, ...]:
+        """Goal Current units for each of ``joints`` joints."""
+        return self.joint_currents or (self.goal_current,) * joints
 
 
 def beyond_deg(q: np.ndarray, corrected: np.ndarray) -> float:
@@ -429,11 +442,14 @@ def push_for(
         return free
     walking = engaged and longest > 0.0 and walks_back(law, step, torque_nm, velocity_deg_s)
     lead = goal_lead_rad(law, motor, distance, walking)
-    scale = min(1.0, lead / longest) if longest > 0.0 else 0.0
+    # at most LEAD from the leader in joint space (|s|): a diagonal stores no more than one joint
+    scale = min(1.0, lead / math.hypot(*step)) if longest > 0.0 else 0.0
     goal = (present[0] + scale * step[0], present[1] + scale * step[1])
-    return Push(
-        units, law.profile_velocity_units(), goal[0], goal[1], motor.torque_of(units), distance
-    )
+    currents, magnitude = shared_currents(motor, tau, step) if longest > 0.0 else ((), 0.0)
+    if not any(currents):
+        return free
+    velocity = law.profile_velocity_units()
+    return Push(max(currents), velocity, goal[0], goal[1], magnitude, distance, currents)
 
 
 @dataclass

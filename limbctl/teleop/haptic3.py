@@ -10,11 +10,13 @@ The law is the two-servo leader's (:class:`~limbctl.teleop.haptic.FeelLaw`: the 
 gain, cap, return speed and lead), on three joints, per cycle::
 
     d <= DEADBAND:  Goal Current 0 on all three                        (no torque at all)
-    d >  DEADBAND:  tau = min(K (d - DEADBAND), CAP),  Goal Current = tau / kt (rounded down)
+    d >  DEADBAND:  tau = min(K (d - DEADBAND), CAP)
+                    Goal Current_j = tau |s_j| / |s| / kt (rounded down), s = target - present:
+                             the push's magnitude, what the hand feels, is at most tau
                     target = the corrected pose (pan, tilt, roll): its roll unwrapped within
                              the roll joint's limits nearest the leader's roll, as the gate does
                     Goal Position = present + s (target - present),
-                             s = min(1, LEAD / max_j |target_j - present_j|)
+                             s = min(1, LEAD / |target - present|)  (joint space)
                              (LEAD: two ticks; three beyond 2 deg or where K (d - DEADBAND) > CAP)
                     Profile Velocity = RETURN_SPEED
     but Goal Current 0 when, with m the leader's rotation toward the correction since the last
@@ -31,10 +33,10 @@ gain, cap, return speed and lead), on three joints, per cycle::
 Each servo's position loop (mode 5) drives its joint toward its Goal Position with at most Goal
 Current; every Goal Position lies from the leader's joint toward the corrected pose's, so the
 vector of joint torques points toward the correction (its dot product with
-``target - present`` is >= 0) and no joint's torque exceeds CAP. Near the edge a rotation of
-``d`` needs joint moves of about ``d`` (the chain's Jacobian is near orthonormal away from tilt
-+-90 deg), so the wall's stiffness per joint, and its passivity at 200 Hz, are the two-servo
-leader's (docs/haptic.md).
+``target - present`` is >= 0) and its norm, what the hand feels, is at most CAP. Near the edge
+a rotation of ``d`` needs joint moves of about ``d`` (the chain's Jacobian is near orthonormal
+away from tilt +-90 deg), so the wall's stiffness per joint, and its passivity at 200 Hz, are the
+two-servo leader's (docs/haptic.md).
 """
 
 from __future__ import annotations
@@ -56,13 +58,14 @@ from limbctl.teleop.haptic import (
     pulls_outward,
     walks_back,
 )
+from limbctl.teleop.haptic_currents import shared_currents
 
 Pose3 = tuple[float, float, float]
 
 
 @dataclass(frozen=True)
 class Push3(Push):
-    """One cycle's command to a three-servo leader's servos (all three get the same current):
+    """One cycle's command to a three-servo leader's servos (currents shared along the step):
     :class:`~limbctl.teleop.haptic.Push` with the roll joint's goal.
 
     Attributes
@@ -150,7 +153,7 @@ def push3_for(
     if units == 0:
         return free
     target = corrected_pose(corrected, present, roll_limits)
-    # the goal on the joint-space line toward the corrected pose, at most LEAD ahead on any joint
+    # the goal on the joint-space line toward the corrected pose, at most LEAD ahead (joint space)
     step = [t - p for t, p in zip(target, present, strict=True)]
     longest = max(abs(s) for s in step)
     if previous is not None and longest > 0.0:
@@ -163,14 +166,13 @@ def push3_for(
             return free
     walking = engaged and longest > 0.0 and walks_back(law, tuple(step), torque_nm, velocity_deg_s)
     lead = goal_lead_rad(law, motor, distance, walking)
-    scale = min(1.0, lead / longest) if longest > 0.0 else 0.0
+    scale = min(1.0, lead / math.sqrt(sum(s * s for s in step))) if longest > 0.0 else 0.0
     goal = [p + scale * s for p, s in zip(present, step, strict=True)]
+    # the push's magnitude shared along the step: the hand feels at most tau
+    currents, magnitude = shared_currents(motor, tau, tuple(step)) if longest > 0.0 else ((), 0.0)
+    if not any(currents):
+        return free
+    velocity = law.profile_velocity_units()
     return Push3(
-        units,
-        law.profile_velocity_units(),
-        goal[0],
-        goal[1],
-        motor.torque_of(units),
-        distance,
-        goal_roll=goal[2],
+        max(currents), velocity, *goal[:2], magnitude, distance, currents, goal_roll=goal[2]
     )

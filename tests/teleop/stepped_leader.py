@@ -199,10 +199,11 @@ def felt_at_200_hz(
                         servo.write(64, bytes([0]))  # torque off, then on: the setpoint is the
                         servo.write(64, bytes([1]))  # present position
                 was_engaged, engaged = engaged, bool(push.goal_current)
-                for servo, tick in zip(servos, ticks, strict=True):
+                currents = push.currents(len(servos))
+                for servo, tick, current in zip(servos, ticks, currents, strict=True):
                     if push.goal_current:  # Profile Velocity: its own write in the source
                         servo.write(112, push.profile_velocity.to_bytes(4, "little"))
-                    servo.write(FEEL_DATA.address, encode_feel(push.goal_current, tick))
+                    servo.write(FEEL_DATA.address, encode_feel(current, tick))
                 goal = push.goal if push.goal_current and instead != "held" else None
                 watch.wrote(pose, goal, velocity, torque, was_engaged, read_s)
             if step >= 1:  # the loop's wait, from right after the cycle's write

@@ -65,3 +65,46 @@ def test_a_leader_servo_dropping_off_mid_push_switches_every_push_off_and_is_rep
     length = float(line.split(f"servo {gone} ")[1].split(" s")[0])
     assert 0.25 <= length <= 0.45, line  # 0.3 s, known within a probe interval and a read
     assert felt or running.paced_out()
+
+
+#: A dead controller's last goal lies at most LEAD plus the walking lead ahead of the leader:
+#: three and two ticks on an XM430 (limbctl/teleop/haptic.py), 0.44 deg.
+LAST_GOAL_AHEAD_DEG = 5 * 360.0 / 4096
+
+
+@pytest.mark.parametrize("rig", sorted(RIGS))
+def test_a_dead_controllers_leader_holds_within_the_cap_and_pushes_no_further(tmp_path, rig):
+    # the controller dies mid-push (as kill -9: nothing it sends reaches the leader any more).
+    # Each servo's Bus Watchdog (100 ms) stops it: it holds where it is (the e-Manual's "stop";
+    # Goal Current and Goal Position read-only), with at most the last push's share of the cap.
+    # The hand presses 0.3 s more, then lets go: the leader is pushed no further in than its
+    # last goal and, once still, by nothing
+    session_of, runner, press, ids = RIGS[rig]
+    with session_of(tmp_path) as (session, source, log), source:
+        session.rig.set_torque(True)
+        with runner(session, source) as running:
+            if running.pressed_or_paced_out(press):
+                return
+            held_at = time.monotonic()
+            running.until(
+                lambda p: source.snap.armed is not None or time.monotonic() > held_at + 20.0
+            )
+            if running.paced_out():
+                return
+            assert source.snap.armed is not None, "the wall never held the leader still"
+            at = session.simulator.truth()["leader"]["t"]
+            for servo_id in ids:
+                session.simulator.vanish(servo_id, 2.0)
+            target = [list(press["script"][-1][1:])]
+            session.simulator.set_operator(
+                {**press, "script": [[0.0, *target[0]]], "let_go_s": 0.3}
+            )
+            running.until(lambda p: session.simulator.truth()["leader"]["t"] > at + 1.0)
+            cap = source.cap_nm
+    rows = [row for row in two.truth_rows(log) if at <= row["t"] <= at + 1.0]
+    assert max(sum(m * m for m in row["motor_nm"]) ** 0.5 for row in rows) <= cap + 1e-12
+    start = rows[0]["pose_deg"]
+    moved_in = max(start[0] - row["pose_deg"][0] for row in rows)  # pan toward the edge
+    assert moved_in <= LAST_GOAL_AHEAD_DEG + 0.1, moved_in
+    still = [row for row in rows if row["t"] >= at + 0.8]
+    assert still and all(sum(abs(m) for m in row["motor_nm"]) < 0.02 for row in still), still[-1]

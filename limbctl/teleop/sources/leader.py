@@ -43,8 +43,10 @@ from limbctl.teleop.sources.leader_silence import LeaderSilence
 from limbctl.teleop.sources.leader_snap import SnapWatching, cycle_velocity, snap_watch
 
 #: Bus Watchdog of a felt leader: 5 x 20 ms = 100 ms without a packet stops it (the servo holds
-#: where it is, at most at the cap). As long as the loop's own 20 failed cycles at 200 Hz, so the
-#: loop, not the watchdog, is what notices a failing bus; the watchdog covers a dead controller.
+#: where it is with its last push, at most the cap in magnitude, until the power goes or the next
+#: start: docs/haptic.md, a controller that dies). As long as the loop's own 20 failed cycles at
+#: 200 Hz, so the loop, not the watchdog, is what notices a failing bus; the watchdog covers a
+#: dead controller.
 WATCHDOG_UNITS = 5
 WATCHDOG_UNIT_S = 0.020
 #: Goal Current alone, written as raw bytes (sent even to a servo in alarm).
@@ -445,9 +447,10 @@ class LeaderSource(SnapWatching, CommandSource):
         """One sync write of Goal Current and Goal Position to the leader's servos; Torque
         Enable off and on first when the wall comes on, Profile Velocity once with it."""
         ticks = self._goal_ticks(push)
+        currents = push.currents(len(self.leader_ids))
         data = {
-            servo_id: encode_feel(push.goal_current, min(max(int(tick), 0), MAX_TICK))
-            for servo_id, tick in zip(self.leader_ids, ticks, strict=True)
+            servo_id: encode_feel(current, min(max(int(tick), 0), MAX_TICK))
+            for servo_id, tick, current in zip(self.leader_ids, ticks, currents, strict=True)
         }
         engaging = push.goal_current > 0 and (
             self.last_push is None or not self.last_push.goal_current

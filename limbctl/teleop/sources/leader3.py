@@ -49,7 +49,7 @@ class LeaderSource3(LeaderSource):
         return (
             f"leader {model} (three servos) feels the edge in swing and twist: free inside, "
             f"pushed back beyond {self.law.deadband_deg:g} deg of rotation, at most "
-            f"{self.motor.torque_of(cap):.2f} N m per joint (Current Limit {cap})"
+            f"{self.motor.torque_of(cap):.2f} N m (Current Limit {cap})"
         )
 
     def _seen(self, pose: Pose3) -> None:
