@@ -19,12 +19,14 @@ target whenever the straight path from the present pose to the target is not ins
 3. *Distances to the target* (once per target): Dijkstra from the target over the roadmap,
    joined to the nodes within ``ATTACH_SPACINGS`` lattice steps whose straight path to it is
    inside.
-4. *Sub-goal* (every cycle): the node near the present pose, reachable straight, with the least
+4. *Sub-goal*: the node near the present pose, reachable straight, with the least
    ``distance to it + its distance to the target``; the route from it along the roadmap to the
    target is walked as far as ``LOOKAHEAD_DEG``, and the farthest route point the straight path
-   from the present pose reaches inside (every one before it too) is the sub-goal. On three
-   servos the route points' twist goes linearly, by route length, from the present twist to the
-   target's (the region's own correction where that is outside the band).
+   from the present pose reaches inside is the sub-goal. The gate aims there until it is half
+   way (or leaves that straight path: a correction, a clamp), then asks again, so a route is
+   planned every few cycles, not every cycle. On three servos the route points' twist goes
+   linearly, by route length, from the present twist to the target's (the region's own
+   correction where that is outside the band).
 
 The sub-goal only aims the step: the gate still steps at most ``max_step`` toward it, corrects
 the step and checks the pose it writes, so routing never weakens what the gate promises.
@@ -43,6 +45,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
 from scipy.spatial import cKDTree
 
+from limbctl.geometry import scalar
 from limbctl.geometry.quat import limb_direction, swing_from_direction
 from limbctl.geometry.twist import compose, decompose, wrap
 
@@ -113,6 +116,7 @@ class Router:
         self._field_key: bytes | None = None
         self._field: tuple[np.ndarray, np.ndarray] | None = None
         self._straight: tuple[bytes, np.ndarray] | None = None  # (target, start) judged inside
+        self._aim: tuple | None = None  # (target, start, route point, distance at the start)
 
     # ---- the region --------------------------------------------------------------------------
     @property
@@ -150,8 +154,23 @@ class Router:
         return self._distance(q, fixed) <= math.radians(VISIBLE_SLACK_DEG)
 
     def _distance(self, a: np.ndarray, b: np.ndarray) -> float:
-        """Distance (rad) of two poses (4,): limb directions' angle, or geodesic on SO(3)."""
-        return float(self._distance_rows(a[None], b[None])[0])
+        """Distance (rad) of two poses (4,): limb directions' angle, or geodesic on SO(3)
+        (scalar arithmetic: the gate's hot path)."""
+        if not self.twist:
+            return scalar.angle(scalar.limb(a), scalar.limb(b))
+        aw, ax, ay, az = a.tolist()
+        bw, bx, by, bz = b.tolist()
+        if aw * bw + ax * bx + ay * by + az * bz < 0.0:
+            bw, bx, by, bz = -bw, -bx, -by, -bz
+        # 4 atan2(|a - b|, |a + b|) = 2 acos |<a, b>|, accurate near 0
+        return 4.0 * math.atan2(
+            math.sqrt((aw - bw) ** 2 + (ax - bx) ** 2 + (ay - by) ** 2 + (az - bz) ** 2),
+            math.sqrt((aw + bw) ** 2 + (ax + bx) ** 2 + (ay + by) ** 2 + (az + bz) ** 2),
+        )
+
+    def _on_path(self, a: np.ndarray, p: np.ndarray, b: np.ndarray) -> bool:
+        """Whether pose ``p`` lies on the straight path from ``a`` to ``b`` (all (4,))."""
+        return self._distance(a, p) + self._distance(p, b) - self._distance(a, b) <= ON_PATH
 
     def _distance_rows(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """Distances (rad) row by row of (N, 4) poses."""
@@ -195,20 +214,29 @@ class Router:
         ``current_q`` to it is inside, else a route point toward it (both (4,) quaternions)."""
         key = target_q.tobytes()
         if self._straight is not None and self._straight[0] == key:
-            start = self._straight[1]
-            dist = self._distance_rows(
-                np.stack([start, start, current_q]), np.stack([current_q, target_q, target_q])
-            )
-            if dist[0] + dist[2] - dist[1] <= ON_PATH:  # still on the path judged inside
-                return target_q
+            if self._on_path(self._straight[1], current_q, target_q):
+                return target_q  # still on the path judged inside
+        if self._aim is not None and self._aim[0] == key:
+            _, start, aim, first = self._aim
+            # still on the way to the last route point, and not yet half way: keep aiming there
+            if self._on_path(start, current_q, aim) and self._distance(current_q, aim) > first / 2:
+                return aim
+        self._straight = self._aim = None
         if self.clear(current_q, target_q):
             self._straight = (key, current_q.copy())
             return target_q
-        self._straight = None
+        aim = self._aim_along(current_q, target_q)
+        if aim is not target_q:
+            self._aim = (key, current_q.copy(), aim, self._distance(current_q, aim))
+        return aim
+
+    def _aim_along(self, current_q: np.ndarray, target_q: np.ndarray) -> np.ndarray:
+        """The farthest route point toward ``target_q`` the straight path from ``current_q``
+        reaches inside; ``target_q`` itself when the roadmap knows no way."""
         route = self._route(current_q, target_q)
         if route is None:
             return target_q  # no way round known: the plain step
-        for k in range(route.shape[0] - 1, -1, -1):  # the farthest route point in reach
+        for k in range(route.shape[0] - 1, -1, -1):
             if self.clear(current_q, route[k]):
                 if k + 1 < route.shape[0] and self._distance(current_q, route[k]) < ON_PATH:
                     # on a route point whose next one the samples judge a hair outside: aim
