@@ -180,3 +180,28 @@ def _turn_x_to(p: np.ndarray, offsets: np.ndarray) -> np.ndarray:
     """Directions (N, 3): ``offsets`` (small turns of +x) carried onto ``p`` (N, 3) by the
     shortest rotation from +x to each ``p``."""
     return rotate(swing_from_direction(p), offsets)
+
+
+class BandRegion(ShoulderRegion):
+    """A swing outline with any twist band over it: ``band_deg(pan_deg, tilt_deg)`` gives the
+    band's centre and half-width (deg, arrays like its arguments), e.g. a curved one or one
+    crossing +-180 deg; teaches, answers and samples its boundary as :class:`ShoulderRegion`.
+
+    Parameters
+    ----------
+    polygon_deg : array_like (V, 2)
+        The swing outline in (pan, tilt) degrees.
+    band_deg : callable
+        ``(pan_deg (N,), tilt_deg (N,)) -> (centre_deg (N,), half_deg (N,))``; half-widths in
+        (0, 180).
+    """
+
+    def __init__(self, polygon_deg: np.ndarray, band_deg) -> None:
+        super().__init__(polygon_deg)
+        self.band_deg = band_deg
+
+    def band(self, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Centre and half-width (rad) of the band over directions ``d`` (N, 3)."""
+        pan, tilt = direction_to_pan_tilt(np.atleast_2d(d))
+        c, h = self.band_deg(np.degrees(pan), np.degrees(tilt))
+        return np.radians(c), np.radians(h)

@@ -31,6 +31,10 @@ Fitting, per grid node, from the taught samples within ``BAND_RADIUS_DEG`` of it
    curvature bound falls with their spacing, so that the sag stays under ``ENVELOPE_SAG_DEG``
    (down to ``ENVELOPE_CURVATURE_MIN``): dense stops are followed at ``ENVELOPE_CURVATURE``,
    sparse ones bridged by a flatter, wider envelope (``_raised``).
+4. *Evidence cap*: each limit is then narrowed, never widened, to what the taught twists near
+   the node support (:mod:`limbctl.region.twist_evidence`): a reading that bridged past a stop
+   the hand never turned to is held within a degree of the truth, and where that cut is large
+   and no stop was held there the place is listed for the guide (:attr:`TwistBand.cuts`).
 """
 
 from __future__ import annotations
@@ -45,6 +49,7 @@ from limbctl.geometry.quat import tangent_frame
 from limbctl.geometry.twist import wrap
 from limbctl.region import twist_fit_kernels as fk
 from limbctl.region import twist_kernels as tk
+from limbctl.region.twist_evidence import cap_limits
 
 #: Grid spacing (deg) of the band's nodes: a band limit sloping 1 deg per deg errs by at most
 #: its curvature over 1.5 deg between nodes, and 2 sr of region take ~3000 nodes.
@@ -134,6 +139,9 @@ class TwistBand:
         self.grid = np.ascontiguousarray(grid, dtype=np.float64)
         self.centre = np.ascontiguousarray(centre, dtype=np.float64)
         self.half = np.ascontiguousarray(half, dtype=np.float64)
+        #: (nodes (M, 3), upper cut (M,), lower cut (M,)) rad of the last fit's evidence cap
+        #: (:mod:`limbctl.region.twist_evidence`); None for a loaded band.
+        self.cuts: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
 
     @classmethod
     def fit(cls, d: np.ndarray, tau: np.ndarray, axis: np.ndarray, reach: float) -> TwistBand:
@@ -216,6 +224,9 @@ class TwistBand:
         bounded = half < math.pi
         up = np.where(bounded, np.fmax(up, envelope_heights(xy, limit, node_xy) - ref), up)
         lo = np.where(bounded, np.fmin(lo, -envelope_heights(xy, -limit, node_xy) - ref), lo)
+        # step 4: never past what the taught twists support (limbctl.region.twist_evidence)
+        up, lo, cut_up, cut_lo = cap_limits(up, lo, bounded, nodes, start, members, d, limit, ref)
+        self.cuts = (nodes, cut_up, cut_lo)
         ok = up >= lo
         centre = np.where(ok, ref + 0.5 * (up + lo), ref)
         half = np.where(ok & (half < math.pi), 0.5 * (up - lo), half)
@@ -470,27 +481,3 @@ def band_reference(band: TwistBand, d: np.ndarray) -> tuple[np.ndarray, np.ndarr
         )
 
     return lerp(band.centre), lerp(band.half)
-
-
-def upper_hull_reference(px: np.ndarray, py: np.ndarray, t: np.ndarray, top: int) -> float:
-    """Numpy twin of :func:`limbctl.region.twist_fit_kernels.upper_hull` (all triangles at once)."""
-    order = np.argsort(-t, kind="stable")[:top]
-    a, b, c = np.array(
-        [
-            (i, j, k)
-            for i in range(len(order))
-            for j in range(i + 1, len(order))
-            for k in range(j + 1, len(order))
-        ]
-    ).T
-    ia, ib, ic = order[a], order[b], order[c]
-    cab = px[ia] * py[ib] - py[ia] * px[ib]
-    cbc = px[ib] * py[ic] - py[ib] * px[ic]
-    cca = px[ic] * py[ia] - py[ic] * px[ia]
-    area = cab + cbc + cca
-    ok = area != 0
-    la, lb, lc = (np.where(ok, x / np.where(ok, area, 1.0), -1.0) for x in (cbc, cca, cab))
-    held = ok & (la >= 0) & (lb >= 0) & (lc >= 0)
-    if not held.any():
-        return float("nan")
-    return float(np.max((la * t[ia] + lb * t[ib] + lc * t[ic])[held]))

@@ -3,7 +3,7 @@
 Two readings per band node, each a small free function with explicit loops: the upper hull's
 height over the node (:func:`upper_hull`, :func:`fit_nodes`), then a weighted plane through
 the samples at each stop (:func:`refine_nodes`). Numpy twins: ``upper_hull_reference`` in
-:mod:`limbctl.region.twist_band`; the tests check each. No fastmath.
+:mod:`limbctl.region.twist_references`; the tests check each. No fastmath.
 """
 
 from __future__ import annotations
@@ -185,3 +185,60 @@ def refine_nodes(nodes, start, members, d, limit, stop, ref, sigma, max_slope):
         if math.hypot(sol[1], sol[2]) <= max_slope:
             out[i] = sol[0]
     return out
+
+
+@njit(parallel=True)
+def evidence_caps(nodes, start, members, d, limit, ref, slope, near, band):
+    """The widest band limits (M,), (M,) the taught twists near each node support, relative to
+    the node's centre ``ref`` (M,) (rad), and how many samples witness each (M,), (M,).
+
+    A true limit lying on or beyond every taught sample and changing by at most ``slope`` (rad of
+    twist per rad of direction) is at node ``n`` at least the upper cap and at most the lower:
+
+        up(n) = max_j (limit_j - ref_n - slope angle(n, d_j))
+        lo(n) = min_j (limit_j - ref_n + slope angle(n, d_j))
+
+    over the samples ``members[start[n]:start[n + 1]]`` (rows of ``d`` (N, 3), twists ``limit``
+    (N,) unwrapped as :func:`refine_nodes` takes them); ``angle = 2 asin(|n - d_j| / 2)``. The
+    witnesses of a cap are the samples within ``near`` (rad) of the node whose twist lies within
+    ``band`` (rad) of it: a stop held there, not one passing sample. NaN caps where a node has no
+    samples.
+    """
+    m = nodes.shape[0]
+    up = np.full(m, np.nan)
+    lo = np.full(m, np.nan)
+    n_up = np.zeros(m, dtype=np.int64)
+    n_lo = np.zeros(m, dtype=np.int64)
+    for i in nb.prange(m):
+        if start[i + 1] == start[i]:
+            continue
+        best_up = -np.inf
+        best_lo = np.inf
+        for k in range(start[i], start[i + 1]):
+            j = members[k]
+            angle = _angle(nodes[i], d[j])
+            t = limit[j] - ref[i]
+            if t - slope * angle > best_up:
+                best_up = t - slope * angle
+            if t + slope * angle < best_lo:
+                best_lo = t + slope * angle
+        up[i] = best_up
+        lo[i] = best_lo
+        for k in range(start[i], start[i + 1]):
+            j = members[k]
+            if _angle(nodes[i], d[j]) <= near:
+                t = limit[j] - ref[i]
+                if t >= best_up - band:
+                    n_up[i] += 1
+                if t <= best_lo + band:
+                    n_lo[i] += 1
+    return up, lo, n_up, n_lo
+
+
+@njit
+def _angle(a, b) -> float:
+    """Angle (rad) between unit vectors (3,): ``2 asin(|a - b| / 2)``."""
+    dx = b[0] - a[0]
+    dy = b[1] - a[1]
+    dz = b[2] - a[2]
+    return 2.0 * math.asin(min(1.0, 0.5 * math.sqrt(dx * dx + dy * dy + dz * dz)))

@@ -246,6 +246,8 @@ def record(
     summary.elapsed_s = time.perf_counter() - start
     summary.guidance = guide.assess()
     summary.spread_deg = summary.guidance.spread_deg
+    if twist_guide.samples:  # the band's support, checked on every sample (twist_guide)
+        twist_guide.check_support()
     twist = twist_guide.assess() if twist_guide.samples else None
     if twist is not None and twist.cells:
         summary.twist = twist
@@ -277,7 +279,10 @@ def _draw(
     return, erase to the end of the line)."""
     total = f"/{duration_s:.0f}" if duration_s else ""
     failed = f"  failed reads {summary.failed_reads}" if summary.failed_reads else ""
-    line = f"{elapsed:5.1f}{total} s  {summary.samples} samples{failed}  {guidance.line()}"
+    words = guidance.line()
+    if twist is not None and not twist.complete:  # READY waits for the twist too
+        words = words.replace("READY TO TRAIN", "twist still to teach")
+    line = f"{elapsed:5.1f}{total} s  {summary.samples} samples{failed}  {words}"
     if twist is not None:  # a terminal's line is rewritten in place: the short form there
         line += f"  {twist.short() if on_terminal else twist.line()}"
     if on_terminal:

@@ -53,6 +53,9 @@ class TrainSummary:
     twist_excess_deg : tuple of float or None
         How far past the band's limits the ``outside_twist`` samples lie: median and largest
         (deg); None when there are none.
+    unsupported_twist : tuple of str
+        The stretches of the band's limits the teaching could not support, one request each
+        (:mod:`limbctl.region.twist_evidence`): the band is held short there.
     """
 
     samples: int
@@ -70,6 +73,7 @@ class TrainSummary:
     outside_direction: int = 0
     outside_twist: int = 0
     twist_excess_deg: tuple[float, float] | None = None
+    unsupported_twist: tuple[str, ...] = ()
 
     def _inside_line(self) -> str:
         line = f"samples inside     {100 * self.contained_fraction:.2f} %"
@@ -120,6 +124,13 @@ class TrainSummary:
                 "calibration        NOT RECORDED: the dataset predates recorded calibrations, "
                 "so teleop will refuse this model; record again with this limbctl"
             )
+        if self.unsupported_twist:
+            lines.append(
+                f"twist unsupported  {len(self.unsupported_twist)} stretches of the band the "
+                "teaching could not support (held short of the reading there): record again "
+                "and"
+            )
+            lines += [f"  {request}" for request in self.unsupported_twist]
         return lines
 
 
@@ -190,6 +201,9 @@ def summarize(model: Any, q: np.ndarray) -> TrainSummary:
             f"{v.strategy} refused: {v.reasons[0]}"
             for v in getattr(getattr(model, "region", None), "verdicts", ())
             if not v.accepted
+        ),
+        unsupported_twist=tuple(
+            place.words() for place in getattr(getattr(model, "region", None), "unsupported", ())
         ),
         **twist,
     )

@@ -12,17 +12,28 @@ narrows as the limb rises on a shoulder, so "both ways to its stop" is judged ag
 the person showed is possible, not against a fixed angle. The line names the cell turned least,
 with its span against the wide one, and asks for the twist there. Every cell's range is also
 handed on (:attr:`TwistGuidance.places`), for the live page's picture of the band taught so far.
+
+Turned is not yet supported: the band learned from the teaching is held to what its stops
+support (:mod:`limbctl.region.twist_evidence`), and where they lie too far apart it is held
+short of the region. Once every place is turned, the guide learns the band from the samples so
+far (in a thread, every SUPPORT_EVERY_S; :meth:`TwistGuide.check_support` at once) and names the
+place and the stop it could not support ("turn the limb to its upper twist stop near pan P, tilt
+T"); :attr:`TwistGuidance.complete` only once that check found none.
 """
 
 from __future__ import annotations
 
 import math
+import threading
+import time
 from dataclasses import dataclass
 
 import numpy as np
 
 from limbctl.geometry.gimbal import direction_to_pan_tilt
 from limbctl.geometry.twist import decompose
+from limbctl.region.twist_band import TwistBand
+from limbctl.region.twist_evidence import UnsupportedPlace, band_unsupported
 
 #: Cell size (deg of pan and of tilt): a hand-sized patch of the swing plane, fine enough that a
 #: shoulder's band (narrowing by ~0.3 deg of half width per degree of tilt) changes by under 10
@@ -35,6 +46,10 @@ WIDE_QUANTILE = 0.9
 #: A cell whose span reaches this share of the wide span was turned to both stops: the hand
 #: turns to about 1 deg inside each stop, and the band narrows across the plane by up to a half.
 TURNED_FRACTION = 0.5
+#: Seconds between two checks of the band's support while recording: a band fit of a minute's
+#: teaching takes ~0.5 s of a core (bench_twist: 0.35 s of the 2.2 s fit), run in a thread so
+#: the recorder's reads go on; a tenth of the time at most.
+SUPPORT_EVERY_S = 5.0
 
 
 @dataclass(frozen=True)
@@ -77,6 +92,10 @@ class TwistGuidance:
         (pan_deg, tilt_deg, span_deg) of the cell turned least, None when none is judged.
     places : tuple of TwistPlace
         Every cell visited, judged or not (the live page draws them).
+    unsupported : tuple of UnsupportedPlace
+        Where the last support check found a stop missing (largest first).
+    support_checked : bool
+        Whether a support check has run on the samples (once every place was turned).
     """
 
     cells: int
@@ -84,6 +103,19 @@ class TwistGuidance:
     wide_span_deg: float
     least: tuple[float, float, float] | None
     places: tuple[TwistPlace, ...] = ()
+    unsupported: tuple[UnsupportedPlace, ...] = ()
+    support_checked: bool = False
+
+    @property
+    def complete(self) -> bool:
+        """Every place turned both ways and the band's support checked with nothing missing:
+        until then the recorder does not say READY TO TRAIN."""
+        return (
+            self.cells > 0
+            and self.turned == self.cells
+            and self.support_checked
+            and not self.unsupported
+        )
 
     def line(self) -> str:
         """One line of words and figures for the progress line and the summary."""
@@ -94,8 +126,13 @@ class TwistGuidance:
             f"twist: {self.turned} of {self.cells} places turned both ways "
             f"(widest {self.wide_span_deg:.0f} deg)"
         )
+        if self.turned == self.cells and self.unsupported:
+            return f"{head}; {len(self.unsupported)} stretches unsupported: " + (
+                self.unsupported[0].words()
+            )
         if self.turned == self.cells:
-            return head + "; every place visited was turned both ways"
+            checked = "" if self.support_checked else " (checking the band's support)"
+            return head + "; every place visited was turned both ways" + checked
         return (
             f"{head}; least at pan {pan:+.0f}, tilt {tilt:+.0f}: {span:.0f} deg -> turn the "
             "limb both ways to its stop there"
@@ -107,6 +144,9 @@ class TwistGuidance:
         if self.cells == 0 or self.least is None:
             return "twist: turn both ways to the stops"
         head = f"twist {self.turned}/{self.cells} turned"
+        if self.turned == self.cells and self.unsupported:
+            place = self.unsupported[0]
+            return f"{head}, {place.side} stop at ({place.pan_deg:+.0f}, {place.tilt_deg:+.0f})"
         if self.turned == self.cells:
             return head
         pan, tilt, span = self.least
@@ -119,10 +159,15 @@ class TwistGuide:
     def __init__(self) -> None:
         self._cells: dict[tuple[int, int], list[float]] = {}
         self.samples = 0
+        self._q: list[np.ndarray] = []
+        self._support: tuple[UnsupportedPlace, ...] | None = None
+        self._checking: threading.Thread | None = None
+        self._checked_at = -math.inf
 
     def add(self, q: np.ndarray) -> None:
         """One sample's full orientation (4,)."""
         self.samples += 1
+        self._q.append(np.asarray(q, dtype=np.float64))
         d, tau = decompose(np.asarray(q, dtype=np.float64))
         pan, tilt = direction_to_pan_tilt(d)
         key = (
@@ -150,7 +195,36 @@ class TwistGuide:
         (i, j), _ = judged[k]
         centre = ((i + 0.5) * CELL_DEG, (j + 0.5) * CELL_DEG, float(spans[k]))
         places = self._places(TURNED_FRACTION * wide)
-        return TwistGuidance(len(judged), turned, wide, centre, places)
+        if turned == len(judged):
+            self._check_later()
+        support = () if self._support is None else self._support
+        return TwistGuidance(
+            len(judged), turned, wide, centre, places, support, self._support is not None
+        )
+
+    def check_support(self) -> tuple[UnsupportedPlace, ...]:
+        """Learn the band from every sample so far and return the places it could not support
+        (module docstring); the next :meth:`assess` reports them. Blocks (a fraction of a second
+        for a minute's teaching)."""
+        if self._checking is not None:
+            self._checking.join()
+        self._support = _unsupported(np.array(self._q))
+        return self._support
+
+    def _check_later(self) -> None:
+        """Start a support check in a thread, at most every SUPPORT_EVERY_S."""
+        now = time.monotonic()
+        busy = self._checking is not None and self._checking.is_alive()
+        if busy or now - self._checked_at < SUPPORT_EVERY_S:
+            return
+        self._checked_at = now
+        q = np.array(self._q)
+
+        def run() -> None:
+            self._support = _unsupported(q)
+
+        self._checking = threading.Thread(target=run, name="twist-support", daemon=True)
+        self._checking.start()
 
     def _places(self, turned_span: float) -> tuple[TwistPlace, ...]:
         """Every cell visited; judged cells whose span reaches ``turned_span`` (deg) turned."""
@@ -160,3 +234,17 @@ class TwistGuide:
             )
             for (i, j), c in self._cells.items()
         )
+
+
+def _unsupported(q: np.ndarray) -> tuple[UnsupportedPlace, ...]:
+    """The places a band learned from orientations ``q`` (N, 4) could not support; none when
+    too few samples to learn one."""
+    if q.shape[0] < 3:
+        return ()
+    d, tau = decompose(q)
+    axis = d.mean(axis=0)
+    try:
+        band = TwistBand.fit(d, tau, axis / np.linalg.norm(axis), 0.0)
+    except ValueError:
+        return ()
+    return band_unsupported(band, d)

@@ -3,12 +3,14 @@
 import math
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from limbctl.geometry.twist import wrap
-from limbctl.region.twist_band import upper_hull_reference
-from limbctl.region.twist_fit_kernels import fit_nodes, refine_nodes, upper_hull
+from limbctl.region.twist_evidence import evidence_caps_reference
+from limbctl.region.twist_fit_kernels import evidence_caps, fit_nodes, refine_nodes, upper_hull
+from limbctl.region.twist_references import upper_hull_reference
 
 
 @settings(max_examples=100, deadline=None)
@@ -87,3 +89,40 @@ def test_refine_refuses_planes_steeper_than_allowed():
     assert math.isclose(
         refine_nodes(node, start, members, d, limit, stop, ref, 0.1, 4.0)[0], 0.0, abs_tol=1e-9
     )
+
+
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 10**6), slope=st.floats(0.0, 2.0))
+def test_evidence_caps_match_their_numpy_twin(seed, slope):
+    rng = np.random.default_rng(seed)
+    d, _ = _disk_samples(rng, 50, math.radians(10))
+    nodes, _ = _disk_samples(rng, 12, math.radians(6))
+    members = rng.integers(0, 50, 80)
+    start = np.concatenate([[0], np.sort(rng.integers(0, 81, 11)), [80]]).astype(np.int64)
+    limit = rng.normal(size=50)
+    ref = rng.normal(size=12)
+    args = (nodes, start, members, d, limit, ref, slope, math.radians(4), 0.3)
+    got = evidence_caps(*args)
+    expected = evidence_caps_reference(*args)
+    for a, b in zip(got, expected, strict=True):
+        np.testing.assert_allclose(a, b, atol=1e-12)
+    for a in got[:2]:
+        assert np.array_equal(np.isnan(a), start[1:] == start[:-1])
+    # witnesses are among the node's samples
+    assert np.all(got[2] <= np.diff(start)) and np.all(got[3] <= np.diff(start))
+
+
+def test_a_stop_held_at_the_node_witnesses_the_cap_and_a_far_one_shrinks_it():
+    node = np.array([[0.0, 0.0, 1.0]])
+    a = math.radians(6.0)
+    # three samples at the node at twists 0.5, 0.49, 0.2; one 6 deg away at 0.6
+    d = np.array([[0, 0, 1], [0, 0, 1], [0, 0, 1], [math.sin(a), 0, math.cos(a)]], float)
+    limit = np.array([0.5, 0.49, 0.2, 0.6])
+    start = np.array([0, 4], dtype=np.int64)
+    members = np.arange(4, dtype=np.int64)
+    up, lo, n_up, n_lo = evidence_caps(
+        node, start, members, d, limit, np.zeros(1), 1.0, math.radians(3), 0.05
+    )
+    # the far sample's 0.6 - 1.0 * 6 deg = 0.495 < 0.5: the cap is the held 0.5
+    assert up[0] == pytest.approx(0.5) and n_up[0] == 2
+    assert lo[0] == pytest.approx(0.2) and n_lo[0] == 1

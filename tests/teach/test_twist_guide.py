@@ -53,3 +53,38 @@ def test_a_range_across_half_a_turn_stays_one_range():
     (place,) = guide.assess().places
     assert place.high_deg - place.low_deg == pytest.approx(30.0)
     assert place.low_deg == pytest.approx(170.0) and place.high_deg == pytest.approx(200.0)
+
+
+def test_every_place_turned_is_not_complete_until_the_missing_stop_is_taught():
+    from tests.region.test_twist_evidence import DIP_AT, SPARSE_DEG, dipped_teaching
+
+    truth, q = dipped_teaching()
+    guide = TwistGuide()
+    for row in q:
+        guide.add(row)
+    before = guide.assess()
+    assert before.turned == before.cells and not before.complete  # not yet checked
+    places = guide.check_support()
+    found = guide.assess()
+    assert found.support_checked and not found.complete
+    first = found.unsupported[0]
+    assert places == found.unsupported
+    # both stops near the dip were passed only mid-band: both asked for, there
+    assert {p.side for p in places} == {"upper", "lower"}
+    for place in places[:2]:
+        assert math.hypot(place.pan_deg - DIP_AT[0], place.tilt_deg - DIP_AT[1]) < SPARSE_DEG
+    assert f"twist stop near pan {first.pan_deg:+.0f}, tilt {first.tilt_deg:+.0f}" in found.line()
+    assert found.short().endswith(
+        f"{first.side} stop at ({first.pan_deg:+.0f}, {first.tilt_deg:+.0f})"
+    )
+    # both stops taught all over (a lattice 2 deg apart): complete
+    grid = np.meshgrid(np.arange(-38.0, 39.0, 2.0), np.arange(-28.0, 39.0, 2.0))
+    d = pan_tilt_to_direction(*np.radians(grid).reshape(2, -1))
+    c, h = truth.band(d)
+    for sign in (1.0, -1.0):
+        for row in compose(d, c + sign * (h - math.radians(0.2))):
+            guide.add(row)
+    guide.check_support()
+    done = guide.assess()
+    assert done.complete, done.line()
+    assert "every place visited was turned both ways" in done.line()

@@ -1,0 +1,204 @@
+"""The twist band never reaches past the taught evidence: the cap on its limits, and where it cuts.
+
+The band's readings (:mod:`limbctl.region.twist_band`) bridge between stops and extrapolate
+beside the swing edge; where the stops lie far apart a bridged limit can lie degrees past the
+true stop (a truth curving away between two stops, a notch, a corner the hand never turned at).
+Every taught sample lies inside the true region, so a true upper limit ``u`` that changes by at
+most ``s`` = CAP_SLOPE (rad of twist per rad of direction) satisfies at a direction ``x``
+
+    u(x) >= max_i (t_i - s angle(x, x_i))          (over the samples i near x)
+
+and a learned upper limit at most CAP_SLACK_DEG above the right side lies within that of the truth
+(the lower limit likewise, mirrored). :func:`cap_limits` clips both limits to it; where no sample
+lies within the band's neighbourhood the band closes to its centre. The clip is the *cut*: where
+it is large, the evidence is too sparse to keep the bound and still cover the region, and
+:func:`unsupported_places` names those places (pan, tilt and which stop) for the guide and for
+``train``: a stop taught there lifts the cap.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from limbctl.geometry.gimbal import direction_to_pan_tilt
+from limbctl.region import twist_fit_kernels as fk
+
+#: Steepest true band limit the cap assumes (rad of twist per rad of direction): a shoulder's
+#: rotation range changes by ~0.5 deg per deg of elevation, 0.7 with its centre's drift (the
+#: benchmark's shoulder, :mod:`limbctl.envelope.synthetic_twist`). A steeper truth may be
+#: exceeded by (slope - CAP_SLOPE) times the distance to the nearest stop; a flatter cap keeps
+#: more of a sparse teaching (docs/decisions/twist.md, "The evidence cap").
+CAP_SLOPE = 0.5
+#: How far (deg) a capped limit may lie beyond the cone through the taught samples: the promise is
+#: 1 deg beyond the truth, and the band's bilinear grid (BAND_STEP_DEG 1.5) reads a cone of slope
+#: CAP_SLOPE up to ~0.5 deg above its value between nodes.
+CAP_SLACK_DEG = 0.5
+#: A cut (deg) larger than this at a place inside the swing region is reported: the cap then keeps
+#: the limit more than this short of where the teaching's readings put it, i.e. short of the stop.
+#: A dense i.i.d. teaching left cuts of 1.0-1.2 deg at five unwitnessed places where the reading
+#: bridged slightly past its stops (tests/region/test_twist_evidence.py); its stops lie 0.2 deg
+#: inside the truth, so such a cut still holds the region 2 deg inside.
+REPORT_CUT_DEG = 1.5
+#: A cap is witnessed (a stop was held at it, :func:`cap_limits`) by this many samples within
+#: WITNESS_DEG of the node and WITNESS_BAND_DEG of the cap: a hand's hold at a stop leaves 4-10
+#: samples at 125 Hz; a twist sweeping past leaves ~1 deg between samples, and 20 samples drawn
+#: across a band's middle put ~0.7 near their top. A dense i.i.d. teaching (4000 stops over
+#: 1.7 sr) put only 2 upper stops within 3 deg of the bottom of a dip (tests/region/
+#: test_twist_evidence.py): at 3 its cut was asked for again.
+MIN_WITNESSES = 2
+WITNESS_DEG = 3.0
+#: Within this of the cap (deg) a sample is at it: a hand's stop scatters a few tenths of a degree.
+WITNESS_BAND_DEG = 1.5
+#: Places reported are grouped on a grid of this size (deg of pan and of tilt): the guide's cells.
+PLACE_DEG = 15.0
+
+
+@dataclass(frozen=True)
+class UnsupportedPlace:
+    """A stretch of a band limit the teaching could not support.
+
+    Attributes
+    ----------
+    pan_deg, tilt_deg : float
+        Where (the direction of the largest cut in its cell).
+    side : str
+        ``"upper"`` or ``"lower"``: which twist stop.
+    cut_deg : float
+        How far (deg) the cap keeps the limit short of the teaching's reading there.
+    """
+
+    pan_deg: float
+    tilt_deg: float
+    side: str
+    cut_deg: float
+
+    def words(self) -> str:
+        """The request, in words."""
+        way = "upper (positive)" if self.side == "upper" else "lower (negative)"
+        return (
+            f"turn the limb to its {way} twist stop near pan {self.pan_deg:+.0f}, "
+            f"tilt {self.tilt_deg:+.0f} (band held {self.cut_deg:.1f} deg short there)"
+        )
+
+
+def cap_limits(
+    up: np.ndarray,
+    lo: np.ndarray,
+    bounded: np.ndarray,
+    nodes: np.ndarray,
+    start: np.ndarray,
+    members: np.ndarray,
+    d: np.ndarray,
+    limit: np.ndarray,
+    ref: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Band limits (M,), (M,) relative to the node centres ``ref`` (M,) (rad) clipped to the
+    evidence cap (module docstring), and the cuts (M,), (M,) (rad, >= 0) of each that ask for a
+    stop: 0 where MIN_WITNESSES samples within WITNESS_DEG of the node lie within
+    WITNESS_BAND_DEG of the cap (a stop held there: the cut corrects a reading that bridged
+    past it, and teaching more would not lift it).
+
+    ``bounded`` (M,) marks the nodes whose band is not free (free twist is left as read); nodes,
+    samples and neighbourhoods as :func:`limbctl.region.twist_fit_kernels.evidence_caps` takes
+    them. Where the clipped limits cross (or no sample lies near), both go to their middle (or
+    to 0): a band of no width, which contains nothing beyond the taught twists.
+    """
+    cap_up, cap_lo, n_up, n_lo = fk.evidence_caps(
+        nodes,
+        start,
+        members,
+        d,
+        limit,
+        ref,
+        CAP_SLOPE,
+        math.radians(WITNESS_DEG),
+        math.radians(WITNESS_BAND_DEG),
+    )
+    slack = math.radians(CAP_SLACK_DEG)
+    # no sample near: nothing is supported
+    cap_up = np.where(np.isfinite(cap_up), cap_up + slack, -np.inf)
+    cap_lo = np.where(np.isfinite(cap_lo), cap_lo - slack, np.inf)
+    new_up = np.where(bounded, np.fmin(up, cap_up), up)
+    new_lo = np.where(bounded, np.fmax(lo, cap_lo), lo)
+    crossed = new_up < new_lo
+    near = np.isfinite(cap_up) & np.isfinite(cap_lo)
+    middle = np.clip(0.5 * (np.where(near, cap_up, 0.0) + np.where(near, cap_lo, 0.0)), lo, up)
+    new_up = np.where(crossed, middle, new_up)
+    new_lo = np.where(crossed, middle, new_lo)
+    # a cut where a stop was held near the node corrects the reading; elsewhere it asks for one
+    cut_up = np.where(n_up >= MIN_WITNESSES, 0.0, np.fmax(up - new_up, 0.0))
+    cut_lo = np.where(n_lo >= MIN_WITNESSES, 0.0, np.fmax(new_lo - lo, 0.0))
+    return new_up, new_lo, cut_up, cut_lo
+
+
+def evidence_caps_reference(
+    nodes: np.ndarray,
+    start: np.ndarray,
+    members: np.ndarray,
+    d: np.ndarray,
+    limit: np.ndarray,
+    ref: np.ndarray,
+    slope: float,
+    near: float,
+    band: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Numpy twin of :func:`limbctl.region.twist_fit_kernels.evidence_caps`."""
+    m = nodes.shape[0]
+    up, lo = np.full(m, np.nan), np.full(m, np.nan)
+    n_up, n_lo = np.zeros(m, dtype=np.int64), np.zeros(m, dtype=np.int64)
+    for i in range(m):
+        j = members[start[i] : start[i + 1]]
+        if j.size == 0:
+            continue
+        # angle = 2 asin(|n - d_j| / 2)
+        angle = 2.0 * np.arcsin(np.minimum(1.0, 0.5 * np.linalg.norm(d[j] - nodes[i], axis=1)))
+        t = limit[j] - ref[i]
+        up[i] = np.max(t - slope * angle)
+        lo[i] = np.min(t + slope * angle)
+        n_up[i] = np.sum((angle <= near) & (t >= up[i] - band))
+        n_lo[i] = np.sum((angle <= near) & (t <= lo[i] + band))
+    return up, lo, n_up, n_lo
+
+
+def unsupported_places(
+    directions: np.ndarray, cut_up: np.ndarray, cut_lo: np.ndarray
+) -> tuple[UnsupportedPlace, ...]:
+    """The places (largest cut first) where the cap holds a limit more than REPORT_CUT_DEG short.
+
+    ``directions`` (M, 3) are the band's nodes inside the swing region, ``cut_up``, ``cut_lo``
+    (M,) (rad) the cuts there; one place per PLACE_DEG cell of (pan, tilt) and side, at the node
+    of its largest cut.
+    """
+    if directions.shape[0] == 0:
+        return ()
+    pan, tilt = (np.degrees(a) for a in direction_to_pan_tilt(directions))
+    best: dict[tuple[int, int, str], UnsupportedPlace] = {}
+    for side, cut in (("upper", cut_up), ("lower", cut_lo)):
+        cut_deg = np.degrees(cut)
+        for k in np.flatnonzero(cut_deg > REPORT_CUT_DEG):
+            key = (int(pan[k] // PLACE_DEG), int(tilt[k] // PLACE_DEG), side)
+            if key not in best or best[key].cut_deg < cut_deg[k]:
+                best[key] = UnsupportedPlace(float(pan[k]), float(tilt[k]), side, float(cut_deg[k]))
+    return tuple(sorted(best.values(), key=lambda p: -p.cut_deg))
+
+
+def band_unsupported(
+    band, d: np.ndarray, inside=None, near_deg: float = 3.0
+) -> tuple[UnsupportedPlace, ...]:
+    """The places a freshly fitted band (its :attr:`~limbctl.region.twist_band.TwistBand.cuts`)
+    could not support, judged at nodes with a taught direction of ``d`` (N, 3) within
+    ``near_deg`` (beyond the taught directions the band closes toward the taught twists by design,
+    and a place without samples is the swing guide's hole to ask for) and, when given, where
+    ``inside`` (a function of directions (M, 3) -> (M,) bool: the swing region) holds them."""
+    if band.cuts is None:
+        return ()
+    nodes, cut_up, cut_lo = band.cuts
+    near = cKDTree(d).query(nodes, distance_upper_bound=2.0 * math.sin(math.radians(near_deg) / 2))
+    judged = np.isfinite(near[0])
+    if inside is not None:
+        judged &= inside(nodes)
+    return unsupported_places(nodes[judged], cut_up[judged], cut_lo[judged])

@@ -1,0 +1,105 @@
+"""The twist band never reaches past the taught evidence: a dip in the true band that the
+teaching passed only mid-band is held inside the truth and named as a place to teach."""
+
+import math
+
+import numpy as np
+import pytest
+
+from limbctl.envelope.synthetic_twist import BandRegion
+from limbctl.geometry.gimbal import direction_to_pan_tilt, pan_tilt_to_direction
+from limbctl.geometry.twist import compose, decompose, wrap
+from limbctl.region.twist_evidence import REPORT_CUT_DEG, UnsupportedPlace, unsupported_places
+from limbctl.region.twist_region import TwistRegion
+
+SQUARE = np.array([[-40.0, -30.0], [40.0, -30.0], [40.0, 40.0], [-40.0, 40.0]])
+#: The dip: the band's upper limit falls DIP_DEG at (pan, tilt) = DIP_AT, DIP_WIDTH_DEG wide
+#: (one sigma): it slopes at most 0.49 deg per deg, within the cap's CAP_SLOPE.
+DIP_AT = (0.0, 5.0)
+DIP_DEG = 8.0
+DIP_WIDTH_DEG = 10.0
+#: Around the dip the teaching turned only mid-band (no stop within this, deg).
+SPARSE_DEG = 16.0
+
+
+def _band_deg(pan, tilt):
+    """Centre 5 deg, half 40; the upper limit dips by DIP_DEG near DIP_AT (centre and half
+    each take half the dip)."""
+    r2 = (pan - DIP_AT[0]) ** 2 + (tilt - DIP_AT[1]) ** 2
+    dip = DIP_DEG * np.exp(-r2 / (2.0 * DIP_WIDTH_DEG**2))
+    return 5.0 - 0.5 * dip, 40.0 - 0.5 * dip
+
+
+def dipped_teaching():
+    """The true region with the dip and a teaching (N, 4) that turned only mid-band near it."""
+    truth = BandRegion(SQUARE, _band_deg)
+    q = truth.teaching(3000, 1500, 2500, np.random.default_rng(4))
+    d, tau = decompose(q)
+    pan, tilt = (np.degrees(a) for a in direction_to_pan_tilt(d))
+    near = np.hypot(pan - DIP_AT[0], tilt - DIP_AT[1]) < SPARSE_DEG
+    # near the dip the hand passed turning only through the band's middle third
+    c, h = truth.band(d[near])
+    u = np.random.default_rng(5).uniform(-0.3, 0.3, near.sum())
+    q[near] = compose(d[near], c + u * h)
+    return truth, q
+
+
+@pytest.fixture(scope="module")
+def dipped():
+    truth, q = dipped_teaching()
+    return truth, TwistRegion().fit(q)
+
+
+def _excess_deg(truth, region, d):
+    """How far (deg) the learned band's limits lie past the true ones over directions ``d``."""
+    lc, lh = region.band.at(d)
+    tc, th = truth.band(d)
+    off = wrap(lc - tc)
+    return np.degrees(np.fmax(off + lh - th, -off + lh - th))
+
+
+def test_a_dip_taught_only_mid_band_is_not_bridged_past_the_truth(dipped):
+    truth, region = dipped
+    pan, tilt = np.meshgrid(np.arange(-36.0, 37.0, 1.0), np.arange(-26.0, 37.0, 1.0))
+    d = pan_tilt_to_direction(np.radians(pan.ravel()), np.radians(tilt.ravel()))
+    d = d[region.swing.mesh.contains(d)]
+    excess = _excess_deg(truth, region, d)
+    # the promise: within 1 deg of the truth wherever the samples lie inside it
+    assert excess.max() <= 1.0, f"band {excess.max():.2f} deg past the true stop"
+
+
+def test_the_place_the_cap_held_short_is_named_with_its_stop(dipped):
+    _, region = dipped
+    assert region.unsupported, "the dip's stop was never taught, yet nothing is listed"
+    # both stops near the dip were passed only mid-band: the upper one is asked for there
+    first = next(p for p in region.unsupported if p.side == "upper")
+    assert math.hypot(first.pan_deg - DIP_AT[0], first.tilt_deg - DIP_AT[1]) < SPARSE_DEG
+    assert first.cut_deg > REPORT_CUT_DEG
+    assert f"pan {first.pan_deg:+.0f}, tilt {first.tilt_deg:+.0f}" in first.words()
+    assert "upper (positive) twist stop" in first.words()
+
+
+def test_a_dense_teaching_lists_nothing_and_keeps_the_band():
+    truth = BandRegion(SQUARE, _band_deg)
+    region = TwistRegion().fit(truth.teaching(3000, 1500, 4000, np.random.default_rng(6)))
+    assert region.unsupported == ()
+    pan, tilt = np.meshgrid(np.arange(-36.0, 37.0, 2.0), np.arange(-26.0, 37.0, 2.0))
+    d = pan_tilt_to_direction(np.radians(pan.ravel()), np.radians(tilt.ravel()))
+    # the true band 2 deg inside each stop is held
+    tc, th = truth.band(d)
+    for sign in (-1.0, 1.0):
+        q = compose(d, tc + sign * (th - math.radians(2.0)))
+        assert np.mean(region.contains(q)) >= 0.99
+
+
+def test_unsupported_places_keep_the_largest_cut_of_each_cell_and_side():
+    d = pan_tilt_to_direction(np.radians([1.0, 2.0, 40.0]), np.radians([1.0, 2.0, 1.0]))
+    up = np.radians([2.0, 3.0, 0.5])
+    lo = np.radians([0.0, 1.5, 0.0])
+    places = unsupported_places(d, up, lo)
+    assert [(round(p.pan_deg), p.side, round(p.cut_deg, 6)) for p in places] == [
+        (2, "upper", 3.0),
+        (2, "lower", 1.5),
+    ]
+    assert unsupported_places(np.zeros((0, 3)), np.zeros(0), np.zeros(0)) == ()
+    assert isinstance(places[0], UnsupportedPlace)
