@@ -65,7 +65,8 @@ MOTORS_HELP = "find the servos at any baud; set up servos out of the box (ID, ba
 MOTORS_DESCRIPTION = (
     "Servos leave the factory as ID 1 at 57600 baud. `motors scan` finds every servo at every "
     "baud rate and names IDs that two servos share; `motors setup` gives each joint's servo, "
-    "connected alone, the profile's ID and baud rate (or --baud), then reads them back."
+    "connected alone, the profile's ID and baud rate (or --baud), then reads them back; a "
+    "servo that answers as another joint's ID is never renumbered (unless --renumber)."
 )
 SCAN_HELP = "ping every servo at every baud rate (the factory's 57600 first)"
 SCAN_BAUD_HELP = "scan only this baud rate (repeatable; default: every rate the X series has)"
@@ -78,7 +79,9 @@ RENUMBER_HELP = (
 
 def add_setup_options(parser: Any) -> None:
     """The ``motors setup`` options beside the connection's."""
-    parser.add_argument("--joint", action="append", help="only this joint (repeatable: pan, tilt)")
+    parser.add_argument(
+        "--joint", action="append", help="only this joint (repeatable: pan, tilt, roll)"
+    )
     parser.add_argument("--yes", action="store_true", help="do not ask before each servo")
     parser.add_argument("--renumber", action="store_true", help=RENUMBER_HELP)
 
