@@ -162,3 +162,23 @@ def test_a_minute_of_the_hand_teaches_the_whole_band():
     q = np.array([chain_quat(*p) for p in poses])
     region = TwistRegion().fit(q)
     assert np.mean(region.contains(true_twist_probes(REGION3))) >= 0.99
+
+
+def test_a_hand_over_a_curved_band_with_bumps_keeps_to_it_and_reaches_its_stops():
+    data = {
+        "region": {"polygon": [[-40, -30], [40, -30], [40, 40], [-40, 40]]},
+        "twist": {
+            "centre_deg": {"linear": [10, 0.2, 0], "quadratic": [0.003, 0, -0.002]},
+            "half_width_deg": {"linear": [35, 0, -0.2], "bumps": [[0, 5, -10, 8]]},
+        },
+    }
+    hand = hand_from_mapping(data, seed=2)
+    _, poses, twist, limits = sample(hand, 40.0)
+    low, high = limits[:, 0], limits[:, 1]
+    # the band is curved: its width at the bump differs from a plane's by its height
+    assert hand.band.limits_deg(0, 5)[1] - hand.band.limits_deg(0, 5)[0] < 2 * (35 - 1 - 9)
+    slack = TWIST_INSET_DEG - TREMOR_SLACK_DEG
+    assert np.all(twist <= high - slack + 1e-9) and np.all(twist >= low + slack - 1e-9)
+    # and it turns to both stops (within its inset and tremor) along the way
+    assert np.sum(twist >= high - TWIST_INSET_DEG - TREMOR_SLACK_DEG) > 10
+    assert np.sum(twist <= low + TWIST_INSET_DEG + TREMOR_SLACK_DEG) > 10
