@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from limbctl.envelope.synthetic import rounded
-from limbctl.envelope.synthetic_twist import SHOULDER, STOP_SCATTER_DEG, ShoulderRegion
+from limbctl.envelope.synthetic_twist import SHOULDER, STOP_SCATTER_DEG, BandRegion, ShoulderRegion
 from limbctl.geometry.quat import geodesic_distance
 from limbctl.geometry.twist import compose, decompose, wrap
 
@@ -55,3 +55,25 @@ def test_the_engines_clamp_lands_inside_but_is_not_the_nearest(shoulder):
     assert shoulder.contains(out).all()
     # here the direction is inside, so the clamp only moves the twist: exactly 20 deg
     np.testing.assert_allclose(np.degrees(geodesic_distance(q, out)), 20.0, atol=1e-6)
+
+
+def test_a_band_region_takes_any_band_and_teaches_inside_it():
+    def band_deg(pan, tilt):
+        # a band across +-180 deg whose width curves with pan
+        return 175.0 + 0.1 * tilt, 30.0 + 0.005 * pan**2
+
+    square = np.array([[-40.0, -30.0], [40.0, -30.0], [40.0, 40.0], [-40.0, 40.0]])
+    region = BandRegion(square, band_deg)
+    q = region.teaching(300, 200, 300, np.random.default_rng(0))
+    assert region.contains(q).all()
+    d, tau = decompose(q)
+    c, h = region.band(d)
+    pan = np.degrees(np.arctan2(d[:, 1], d[:, 0]))
+    np.testing.assert_allclose(np.degrees(h), 30.0 + 0.005 * pan**2, atol=1e-9)
+    # the stops are reached: some twists within 1 deg of each limit
+    off = np.degrees(np.abs(wrap(tau - c)) - h)
+    assert np.sum(off > -1.0) > 50
+    # its boundary's stops lie on the band's limits
+    db, tb = decompose(region.boundary(2.0))
+    cb, hb = region.band(db)
+    assert np.min(np.abs(np.abs(wrap(tb - cb)) - hb)) < 1e-9
