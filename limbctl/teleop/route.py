@@ -82,6 +82,10 @@ TWIST_TRIES_DEG = (0.0, 3.0, -3.0, 8.0, -8.0, 20.0, -20.0, 45.0, -45.0)
 #: (benchmarks/bench_reach.py measures both on seeds the tests do not use).
 REACH_FACTOR = 1.05
 REACH_EXTRA_CYCLES = 40
+#: A target within this many lattice spacings of the last one routed to takes the same route
+#: lengths (a leader streaming a target behind a wall moves it every cycle: one Dijkstra, ~1 ms,
+#: per new target would be paid every cycle); the last route point is the target itself.
+REUSE_SPACINGS = 0.5
 #: Rows of the probe that times one batch of ``contains`` against single calls: whichever is
 #: cheaper for a call's number of rows is used (a fitted twist region's batch kernel runs on a
 #: thread pool that costs ~12 ms a call on a busy two-core machine, its single kernel ~2 us a
@@ -113,7 +117,7 @@ class Router:
         self._node_twist: np.ndarray | None = None  # (M,) a twist inside at each node (rad)
         self._graph = None  # (M, M) csr of edge lengths (rad)
         self._tree: cKDTree | None = None
-        self._field_key: bytes | None = None
+        self._field_key: np.ndarray | None = None  # the target the field was computed for
         self._field: tuple[np.ndarray, np.ndarray] | None = None
         self._straight: tuple[bytes, np.ndarray] | None = None  # (target, start) judged inside
         self._aim: tuple | None = None  # (target, start, route point, distance at the start)
@@ -168,6 +172,10 @@ class Router:
             math.sqrt((aw + bw) ** 2 + (ax + bx) ** 2 + (ay + by) ** 2 + (az + bz) ** 2),
         )
 
+    def _near_target(self, before: np.ndarray, target_q: np.ndarray) -> bool:
+        """Whether ``target_q`` is within REUSE_SPACINGS lattice spacings of ``before``."""
+        return self._distance(before, target_q) <= math.radians(REUSE_SPACINGS * LATTICE_STEP_DEG)
+
     def _on_path(self, a: np.ndarray, p: np.ndarray, b: np.ndarray) -> bool:
         """Whether pose ``p`` lies on the straight path from ``a`` to ``b`` (all (4,))."""
         return self._distance(a, p) + self._distance(p, b) - self._distance(a, b) <= ON_PATH
@@ -216,7 +224,7 @@ class Router:
         if self._straight is not None and self._straight[0] == key:
             if self._on_path(self._straight[1], current_q, target_q):
                 return target_q  # still on the path judged inside
-        if self._aim is not None and self._aim[0] == key:
+        if self._aim is not None and self._near_target(self._aim[0], target_q):
             _, start, aim, first = self._aim
             # still on the way to the last route point, and not yet half way: keep aiming there
             if self._on_path(start, current_q, aim) and self._distance(current_q, aim) > first / 2:
@@ -227,7 +235,7 @@ class Router:
             return target_q
         aim = self._aim_along(current_q, target_q)
         if aim is not target_q:
-            self._aim = (key, current_q.copy(), aim, self._distance(current_q, aim))
+            self._aim = (target_q.copy(), current_q.copy(), aim, self._distance(current_q, aim))
         return aim
 
     def _aim_along(self, current_q: np.ndarray, target_q: np.ndarray) -> np.ndarray:
@@ -345,9 +353,8 @@ class Router:
     def _field_for(self, target_q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Route lengths (M,) from each node to the target and each node's next node (M,)
         (M itself: the target; -9999: none)."""
-        key = target_q.tobytes()
-        if self._field_key == key and self._field is not None:
-            return self._field
+        if self._field is not None and self._near_target(self._field_key, target_q):
+            return self._field  # a target streamed a little further: the same way there
         m = self._nodes.shape[0]
         d_t, _ = _split(target_q, self.twist)
         near = self._near(d_t)
@@ -358,7 +365,7 @@ class Router:
         graph = self._graph.tocoo()
         full = coo_matrix((graph.data, (graph.row, graph.col)), shape=(m + 1, m + 1)) + extra
         dist, pred = dijkstra(full, directed=False, indices=m, return_predecessors=True)
-        self._field_key, self._field = key, (dist[:m], pred[:m])
+        self._field_key, self._field = target_q.copy(), (dist[:m], pred[:m])
         return self._field
 
 
