@@ -27,13 +27,13 @@ from scipy.spatial import cKDTree
 
 from limbctl.geometry.gimbal import direction_to_pan_tilt
 from limbctl.region import shape_kernels
-from limbctl.region.loops import chord
+from limbctl.region.loops import chord, loop_area
 from limbctl.region.mesh import DirectionMesh
 
 #: The farthest (deg) a surrounded station of the edge may lie from its nearest taught sample:
 #: the region's bound is 1 deg outside the truth; 0.8 leaves 0.2 for the stations' own spacing
 #: and for truths the benchmark's families did not sample (docs/bench_swing_families.md).
-EVIDENCE_DEG = 0.8
+EVIDENCE_DEG = 1.5
 #: Spacing (deg) of the stations along the edge: a point between two stations lies at most half
 #: of it farther from the evidence than the nearer station.
 STATION_DEG = 0.25
@@ -51,6 +51,13 @@ CONCAVE_GAP_DEG = 170.0
 #: 3-20) cannot tell a bay from the dents of the sampling itself, and carving them ate 5-14 % of
 #: the region 2 deg inside; a hand's recording or 6000 samples put 60-200 there.
 CONCAVE_MIN_SAMPLES = 40
+
+
+#: A station with a taught sample within this angle (deg) of its outward direction (and within
+#: ``CONCAVE_RADIUS_DEG``) has evidence beyond it: the edge there dips into a pocket the teacher
+#: never wandered, inside a traced edge, not across a bay (the walls of a bay it bridges lie
+#: about 90 deg to either side of the outward direction, its mouth's outside is empty).
+OUTWARD_CONE_DEG = 15.0
 
 
 @dataclass(frozen=True)
@@ -78,6 +85,25 @@ class Stretch:
             f"near pan {self.pan_deg:.0f}, tilt {self.tilt_deg:.0f}: {self.length_deg:.1f} deg "
             f"of edge up to {self.distance_deg:.1f} deg from every taught sample"
         )
+
+
+def outer_arcs(mesh: DirectionMesh) -> np.ndarray:
+    """(E,) bool: whether each arc of ``mesh`` lies on an outer loop (region on its left and
+    enclosing positive area), not on a hole's loop."""
+    following = np.full(mesh.vertices.shape[0], -1, dtype=np.int64)
+    following[mesh.edges[:, 0]] = np.arange(mesh.edges.shape[0])
+    outer = np.zeros(mesh.edges.shape[0], dtype=bool)
+    seen = np.zeros(mesh.edges.shape[0], dtype=bool)
+    for first in range(mesh.edges.shape[0]):
+        if seen[first]:
+            continue
+        run, e = [], first
+        while not seen[e]:
+            seen[e] = True
+            run.append(e)
+            e = following[mesh.edges[e, 1]]
+        outer[run] = loop_area(mesh.vertices[mesh.edges[run, 0]]) > 0.0
+    return outer
 
 
 def edge_stations(mesh: DirectionMesh, step: float) -> tuple[np.ndarray, np.ndarray]:
@@ -121,7 +147,9 @@ def unsupported_stations(
     dist, _ = tree.query(stations)
     # chord -> angle
     delta = 2.0 * np.arcsin(np.clip(0.5 * dist, 0.0, 1.0))
-    far = np.flatnonzero(delta > bound)
+    # a hole's edge bounds what the region leaves out: a swing outline has no holes, so what
+    # lies inside a hole belongs to the truth and its edge never reaches past it
+    far = np.flatnonzero((delta > bound) & outer_arcs(mesh)[arc])
     if far.size == 0:
         return stations, arc, delta, far
     near = tree.query_ball_point(stations[far], chord(radius))
@@ -131,7 +159,20 @@ def unsupported_stations(
     widest = shape_kernels.widest_bearing_gaps(
         np.ascontiguousarray(stations[far]), np.ascontiguousarray(data), start, flat
     )
-    return stations, arc, delta, far[(counts >= CONCAVE_MIN_SAMPLES) & (widest < max_gap)]
+    # the station's outward direction (tangent at it, away from the region's side of its arc)
+    a = mesh.vertices[mesh.edges[arc[far], 0]]
+    b = mesh.vertices[mesh.edges[arc[far], 1]]
+    out = -np.cross(a, b)
+    x = stations[far]
+    out -= np.einsum("ij,ij->i", out, x)[:, None] * x
+    out /= np.maximum(np.linalg.norm(out, axis=1, keepdims=True), 1e-15)
+    beyond = np.zeros(far.size, dtype=bool)
+    for k, rows in enumerate(near):
+        v = data[rows] - np.outer(data[rows] @ x[k], x[k])
+        cos = (v @ out[k]) / np.maximum(np.linalg.norm(v, axis=1), 1e-15)
+        beyond[k] = bool(np.any(cos > np.cos(np.radians(OUTWARD_CONE_DEG))))
+    bridged = (counts >= CONCAVE_MIN_SAMPLES) & (widest < max_gap) & ~beyond
+    return stations, arc, delta, far[bridged]
 
 
 def unsupported_stretches(
