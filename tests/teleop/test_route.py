@@ -183,3 +183,30 @@ def test_a_region_answering_one_pose_at_a_time_is_routed_the_same(rig):
     length = needed(InsidePaths(region), a, b, rig)
     assert drive(gate, region, rig, b, int(bound(length)) + 1) is not None
     assert isinstance(gate.router, Router) and gate.router._nodes is not None
+
+
+@pytest.mark.parametrize("rig", RIGS, ids=["two", "three"])
+def test_a_target_jittering_behind_a_wall_is_reached_and_routed_once(rig, monkeypatch):
+    """A hand holds the target behind the wall with a tremor (0.2 deg either side, turning every
+    cycle): the gate reaches it within the bound, and the route lengths are computed once (a
+    new Dijkstra every cycle would cost ~1 ms of each)."""
+    from limbctl.geometry.quat import from_axis_angle, multiply
+    from limbctl.teleop import route
+
+    seed, pair = STUCK_BEFORE[rig]
+    region, rng = region_for(rig, seed)
+    pts = inside_points(region, 20, rng)
+    a, b = pts[2 * pair], pts[2 * pair + 1]
+    length = needed(InsidePaths(region), a, b, rig)
+    gate = gate_at(region, rig, a)
+    runs = []
+    real = route.dijkstra
+    monkeypatch.setattr(route, "dijkstra", lambda *args, **kw: runs.append(1) or real(*args, **kw))
+    axis = np.array([0.0, 0.0, 1.0])
+    for n in range(int(bound(length)) + 5):
+        tremor = from_axis_angle(axis, math.radians(0.2) * (-1) ** n)
+        target = multiply(tremor, b)
+        target = -target if target[0] < 0 else target
+        gate.step(target)
+    assert apart(pose_q(gate, rig), target, rig) < 1e-3
+    assert len(runs) == 1
