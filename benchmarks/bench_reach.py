@@ -83,16 +83,18 @@ def reach(gate, target: np.ndarray, rig: int, limit: int) -> int | None:
     return None
 
 
-def distance(paths: InsidePaths, a: np.ndarray, b: np.ndarray, rig: int) -> float:
+def distance(paths: InsidePaths, a: np.ndarray, b: np.ndarray, rig: int) -> tuple[float, bool]:
     """The distance (rad) a reach needs: the shortest path of directions inside, plus the
-    twist to turn on three servos."""
+    twist to turn on three servos; and whether that path of directions is bent (0.5 deg or more
+    longer than the straight way: a wall between the two)."""
     (da, ta), (db, tb) = decompose(a), decompose(b)
     length = paths.length(da, db)
-    return length if rig == 2 else length + abs(float(wrap(tb - ta)))
+    bent = length > float(np.arccos(np.clip(da @ db, -1.0, 1.0))) + math.radians(0.5)
+    return (length if rig == 2 else length + abs(float(wrap(tb - ta)))), bent
 
 
 def reach_table(rig: int, seeds: int, pairs: int, route: bool) -> list[dict]:
-    """One row per start/target pair: its distance, straight distance, cycles."""
+    """One row per start/target pair: its distance, whether bent, cycles."""
     rows = []
     for seed in range(SEED0, SEED0 + seeds):
         rng = np.random.default_rng(seed)
@@ -104,10 +106,9 @@ def reach_table(rig: int, seeds: int, pairs: int, route: bool) -> list[dict]:
             if not route:
                 gate.router.subgoal = lambda current, target: target
             start_at(gate, a, rig)
-            length = distance(paths, a, b, rig)
-            straight = error(gate, b, rig)
+            length, bent = distance(paths, a, b, rig)
             n = reach(gate, b, rig, int(3 * length / STEP) + 400)
-            rows.append({"seed": seed, "L": length, "straight": straight, "cycles": n})
+            rows.append({"seed": seed, "L": length, "bent": bent, "cycles": n})
     return rows
 
 
@@ -170,7 +171,7 @@ def summary(rows: list[dict]) -> dict:
     done = [r for r in rows if r["cycles"] is not None]
     excess = [r["cycles"] - r["L"] / STEP for r in done]
     ratio = [r["cycles"] * STEP / r["L"] for r in done if r["L"] > math.radians(5.0)]
-    bent = [r for r in rows if r["L"] > r["straight"] + math.radians(0.5)]
+    bent = [r for r in rows if r["bent"]]
     return {
         "pairs": len(rows),
         "reached": len(done),

@@ -343,12 +343,15 @@ class Router:
         TWIST_TRIES_DEG is (two servos: twist 0, NaN where the direction is outside)."""
         if not self.twist:
             return np.where(self.inside_many(compose(d, 0.0)), 0.0, np.nan)
-        tries = np.radians(TWIST_TRIES_DEG)
-        taus = tau[:, None] + tries[None, :]  # (N, T)
-        ok = self.inside_many(compose(np.repeat(d, tries.size, axis=0), taus.ravel()))
-        ok = ok.reshape(-1, tries.size)
-        first = np.argmax(ok, axis=1)
-        return np.where(ok.any(axis=1), wrap(taus[np.arange(d.shape[0]), first]), np.nan)
+        found = np.full(d.shape[0], np.nan)
+        for offset in np.radians(TWIST_TRIES_DEG):  # nearest first, only where none fit yet
+            left = np.flatnonzero(np.isnan(found))
+            if left.size == 0:
+                break
+            taus = wrap(tau[left] + offset)
+            ok = self.inside_many(compose(d[left], taus))
+            found[left[ok]] = taus[ok]
+        return found
 
     def _field_for(self, target_q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Route lengths (M,) from each node to the target and each node's next node (M,)
