@@ -10,15 +10,16 @@ target whenever the straight path from the present pose to the target is not ins
    rotation on three) is sampled every ``SEGMENT_STEP_DEG``; when every sample is inside (up to
    ``VISIBLE_SLACK_DEG``), the sub-goal is the target itself and the gate behaves as without
    routing (commands inside pass unchanged, the output slides along the boundary).
-2. *Roadmap* (built once, at the first blocked path): a lattice of limb directions
-   ``LATTICE_STEP_DEG`` apart (a Fibonacci sphere), flooded from the present pose over the
-   region: a direction is a node when a pose pointing there is inside (on three servos with a
-   twist found from its neighbour's, within ``TWIST_TRIES_DEG``); neighbours within
-   ``NEIGHBOUR_SPACINGS`` lattice steps are joined when the pose halfway is inside. Edge length
-   is the angle between the directions.
-3. *Distances to the target* (once per target): Dijkstra from the target over the roadmap,
-   joined to the nodes within ``ATTACH_SPACINGS`` lattice steps whose straight path to it is
-   inside.
+2. *Roadmap* (built once: at the gate's start on a region that answers batches, else at the
+   first blocked path): a lattice of limb directions ``LATTICE_STEP_DEG`` apart (a Fibonacci
+   sphere), flooded from the present pose over the region: a direction is a node when a pose
+   pointing there is inside (on three servos with a twist found from its neighbour's, within
+   ``TWIST_TRIES_DEG``); neighbours within ``NEIGHBOUR_SPACINGS`` lattice steps are joined when
+   the straight path between their poses is inside at its samples. Edge length is the angle
+   between the directions.
+3. *Distances to the target* (once per target, or per move of a streamed target past
+   ``REUSE_SPACINGS``): Dijkstra from the target over the roadmap, joined to the nodes within
+   ``ATTACH_SPACINGS`` lattice steps whose straight path to it is inside.
 4. *Sub-goal*: the node near the present pose, reachable straight, with the least
    ``distance to it + its distance to the target``; the route from it along the roadmap to the
    target is walked as far as ``LOOKAHEAD_DEG``, and the farthest route point the straight path
@@ -30,9 +31,9 @@ target whenever the straight path from the present pose to the target is not ins
 
 The sub-goal only aims the step: the gate still steps at most ``max_step`` toward it, corrects
 the step and checks the pose it writes, so routing never weakens what the gate promises.
-The bound it gives (docs/safety.md): a target inside the region is reached within the route's
-length over ``max_step`` cycles plus a few; the route is at most a lattice step or so per
-corner longer than the shortest path inside (measured by ``benchmarks/bench_reach.py``).
+The bound it gives (docs/safety.md): a target inside the region is reached within
+``REACH_FACTOR * L / max_step + REACH_EXTRA_CYCLES`` cycles, L the shortest path inside (on three
+servos plus the twist to turn), measured by ``benchmarks/bench_reach.py``.
 """
 
 from __future__ import annotations
@@ -68,8 +69,9 @@ SEGMENT_STEP_DEG = 0.5
 #: wall has its samples on the wall, which rounding puts a hair outside; a step this far out
 #: is corrected back by no more than a fifth of a 120 deg/s, 200 Hz step (0.6 deg).
 VISIBLE_SLACK_DEG = 0.1
-#: How far along the route (deg) the sub-goal may lie: ten default steps (0.6 deg) and more, so
-#: the step always has somewhere to go; few enough route points to judge in one batch.
+#: How far along the route (deg) the sub-goal may lie: twenty default steps (0.6 deg), so the
+#: step always has somewhere to go; few route points (~8), so the farthest-first search for
+#: one in reach stays short.
 LOOKAHEAD_DEG = 12.0
 #: Twist offsets (deg) from a neighbour's twist tried for a new node on three servos, nearest
 #: first: a band whose centre turns 1 deg per deg of swing moves 1.5-2.4 deg between nodes.
