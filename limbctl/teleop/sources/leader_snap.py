@@ -6,6 +6,7 @@ from __future__ import annotations
 import time
 from collections.abc import Sequence
 
+from limbctl.errors import BusError
 from limbctl.servo.cycle import CycleRead
 from limbctl.servo.leader import LeaderMotor, present_current, present_velocity
 from limbctl.teleop.brake import BrakeLaw
@@ -122,8 +123,12 @@ class SnapWatching:
         (:func:`motion_of`); a failed read switches every leader servo's push off at once
         (``missed``) and gives None. One try, no diagnostic pings: a silent servo costs one
         reply timeout (6.3 ms on the simulator's pty), not a stalled loop (a plain sync read's
-        three tries and pings took 31 ms and more, the push left on meanwhile)."""
-        read = self.rig.bus.read_cycle(ids=self.leader_ids, attempts=1)
+        three tries and pings took 31 ms and more, the push left on meanwhile). A failing port
+        (:class:`~limbctl.errors.PortError`) is a failed read here; the cycle's read raises it."""
+        try:
+            read = self.rig.bus.read_cycle(ids=self.leader_ids, attempts=1)
+        except BusError as exc:
+            read = CycleRead({}, (), str(exc))
         if not read.ok:
             self.missed(read)
             return None
