@@ -22,6 +22,10 @@
    the samples beyond them; an arc cutting a traced concave corner widens no further than
    where its neighbours' widened great circles meet (``TRACED_SPACINGS``,
    ``CORNER_TURN_DEG``). This is the *supported region*.
+   Where the samples surround a stretch of that edge but lie farther than ``EVIDENCE_DEG``
+   from it (a bay or notch the shape bridged, :mod:`limbctl.region.evidence`), the triangle
+   behind it is carved away (``CARVE_ROUNDS``, ``CARVE_LOSS``); what cannot be carved is
+   listed in :attr:`TaughtRegion.unsupported_edge`.
 5. *Edge*: the edge strategy ``edge`` names (:mod:`limbctl.region.edge_choice`) replaces the
    supported loops by a learned edge where the data agree with it, or keeps them;
    :attr:`TaughtRegion.verdicts` says which strategies were refused and why.
@@ -102,6 +106,10 @@ class TaughtRegion:
         Every strategy judged by the last :meth:`fit`, in order (empty after loading).
     support_index : ndarray (K,) int or None
         The rows of the fitted samples the shape was built on (thinned), after :meth:`fit`.
+    unsupported_edge : tuple of Stretch
+        Stretches of the supported edge the taught samples surround but do not reach and the
+        fit could not carve away (:mod:`limbctl.region.evidence`), farthest first; empty after
+        loading.
     """
 
     def __init__(self, params: RegionParams | None = None) -> None:
@@ -110,7 +118,7 @@ class TaughtRegion:
         self.edge = "supported"
         self.verdicts: tuple[Verdict, ...] = ()
         self.support_index: np.ndarray | None = None
-        self.unsupported: tuple[Stretch, ...] = ()
+        self.unsupported_edge: tuple[Stretch, ...] = ()
 
     # ---- building ----------------------------------------------------------------------------
     def fit(self, samples: np.ndarray, lookup: bool = True) -> TaughtRegion:
@@ -142,7 +150,7 @@ class TaughtRegion:
         thinning's spacing (rad)."""
         p = self.params
         alpha = rs.learn_alpha(d, p.alpha_factor)
-        self.edge, self.verdicts, self.unsupported = "supported", (), ()
+        self.edge, self.verdicts, self.unsupported_edge = "supported", (), ()
         tri, kept = self._shape(d, thinning, alpha)
         if tri is None:
             return DirectionMesh.from_loops([], 0.0)
@@ -162,7 +170,7 @@ class TaughtRegion:
                 break
             built, kept = trial, carved
         loops, margins, supported = built
-        self.unsupported = tuple(unsupported_stretches(supported, d_train))
+        self.unsupported_edge = tuple(unsupported_stretches(supported, d_train))
         taken, self.verdicts = choose_edge(
             p.edge, loops, d_train, supported, np.radians(p.max_offset_deg)
         )

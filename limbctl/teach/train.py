@@ -53,6 +53,9 @@ class TrainSummary:
     twist_excess_deg : tuple of float or None
         How far past the band's limits the ``outside_twist`` samples lie: median and largest
         (deg); None when there are none.
+    unsupported_edge : tuple of str
+        Stretches of the swing region's edge the taught samples surround but do not reach
+        (a bay the region may bridge), one request to trace each.
     unsupported_twist : tuple of str
         The stretches of the band's limits the teaching could not support, one request each
         (:mod:`limbctl.region.twist_evidence`): the band is held short there.
@@ -73,6 +76,7 @@ class TrainSummary:
     outside_direction: int = 0
     outside_twist: int = 0
     twist_excess_deg: tuple[float, float] | None = None
+    unsupported_edge: tuple[str, ...] = ()
     unsupported_twist: tuple[str, ...] = ()
 
     def _inside_line(self) -> str:
@@ -124,6 +128,12 @@ class TrainSummary:
                 "calibration        NOT RECORDED: the dataset predates recorded calibrations, "
                 "so teleop will refuse this model; record again with this limbctl"
             )
+        if self.unsupported_edge:
+            lines.append(
+                f"edge unsupported   {len(self.unsupported_edge)} stretches the taught samples "
+                "surround but do not reach (the region may bridge a bay there):"
+            )
+            lines += [f"  {request}" for request in self.unsupported_edge]
         if self.unsupported_twist:
             lines.append(
                 f"twist unsupported  {len(self.unsupported_twist)} stretches of the band the "
@@ -202,11 +212,22 @@ def summarize(model: Any, q: np.ndarray) -> TrainSummary:
             for v in getattr(getattr(model, "region", None), "verdicts", ())
             if not v.accepted
         ),
+        unsupported_edge=tuple(
+            f"trace the edge {stretch.line()}"
+            for stretch in getattr(swing_region(model), "unsupported_edge", ())
+        ),
         unsupported_twist=tuple(
             place.words() for place in getattr(getattr(model, "region", None), "unsupported", ())
         ),
         **twist,
     )
+
+
+def swing_region(model: Any) -> Any:
+    """The model's swing region (:class:`~limbctl.region.taught.TaughtRegion`: a three-servo
+    region's ``swing``), or None for a model without one."""
+    region = getattr(model, "region", None)
+    return getattr(region, "swing", region)
 
 
 def twist_band(model: Any) -> Any:

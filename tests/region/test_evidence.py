@@ -14,6 +14,7 @@ from firmware_sim.hand import Hand
 from limbctl.envelope.synthetic import PolygonRegion, reach_into
 from limbctl.geometry.gimbal import pan_tilt_to_direction
 from limbctl.region import RegionParams, TaughtRegion
+from limbctl.region import taught as taught_module
 from limbctl.region.evidence import unsupported_stretches
 
 #: The region's bound outside the truth (deg), docs/region.md.
@@ -62,12 +63,20 @@ def test_a_hand_taught_notch_is_not_bridged(a, b, centre, at_deg, seed):
     assert reach <= BOUND_DEG, f"the region reaches {reach:.2f} deg outside ({region.edge} edge)"
 
 
-def test_a_bridged_notch_is_listed_as_unsupported():
-    """The evidence check itself: an edge straight across a notch the samples surround."""
+def test_a_bridged_notch_is_listed_as_unsupported(monkeypatch):
+    """The evidence check itself: an edge straight across a notch the samples surround (a
+    coarse alpha shape, not carved) is found, over the notch; carved, it is gone."""
+    monkeypatch.setattr(taught_module, "CARVE_ROUNDS", 0)
     outline, (at, half, floor) = notched_ellipse(27.2, 23.4, (-5.7, 7.2), 273.0, 9.0, 8.0)
     truth = PolygonRegion(outline)
     taught = truth.sample(8000, np.random.default_rng(0))
     bridged = TaughtRegion(RegionParams(edge="supported", alpha_factor=4.0)).fit(taught)
     found = unsupported_stretches(bridged.mesh, taught)
     assert found, "an edge across the notch must be found unsupported"
-    assert found[0].distance_deg > 0.8
+    assert found == list(bridged.unsupported_edge)
+    x = -5.7 + 27.2 * np.cos(np.radians(at))
+    y = 7.2 + 23.4 * np.sin(np.radians(at))
+    assert abs(found[0].pan_deg - x) < 8.0 and abs(found[0].tilt_deg - y) < 10.0
+    monkeypatch.setattr(taught_module, "CARVE_ROUNDS", 12)
+    carved = TaughtRegion(RegionParams(edge="supported", alpha_factor=4.0)).fit(taught)
+    assert not unsupported_stretches(carved.mesh, taught)
