@@ -38,11 +38,12 @@ servos plus the twist to turn), measured by ``benchmarks/bench_reach.py``.
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 
 import numpy as np
-from scipy.sparse import coo_matrix
+from scipy.sparse import coo_matrix, csr_matrix
 from scipy.sparse.csgraph import dijkstra
 from scipy.spatial import cKDTree
 
@@ -313,27 +314,26 @@ class Router:
 
     def _build(self, seed_q: np.ndarray) -> None:
         """Flood the lattice over the region from ``seed_q``'s direction; join neighbours."""
-        lattice = fibonacci_sphere(math.radians(LATTICE_STEP_DEG))
-        tree = cKDTree(lattice)
-        r = 2.0 * math.sin(0.5 * math.radians(NEIGHBOUR_SPACINGS * LATTICE_STEP_DEG))
+        points, tree, adjacency, pairs = lattice()
         d0, tau0 = _split(seed_q, self.twist)
-        twist = np.full(lattice.shape[0], np.nan)  # NaN: not tried, inf: tried, outside
+        twist = np.full(points.shape[0], np.nan)  # NaN: not tried, inf: tried, outside
         start = int(tree.query(d0)[1])
         twist[start] = tau0
         frontier = np.array([start])
         while frontier.size:
-            nbs = tree.query_ball_point(lattice[frontier], r)
-            cand = np.concatenate([np.asarray(nb, dtype=np.int64) for nb in nbs])
-            parent = np.repeat(frontier, [len(nb) for nb in nbs])
+            rows = adjacency[frontier]  # the frontier's lattice neighbours, row by row
+            cand = rows.indices
+            parent = np.repeat(frontier, np.diff(rows.indptr))
             fresh = np.isnan(twist[cand])
             cand, first = np.unique(cand[fresh], return_index=True)
-            found = self._node_twists(lattice[cand], twist[parent[fresh][first]])
+            found = self._node_twists(points[cand], twist[parent[fresh][first]])
             twist[cand] = np.where(np.isnan(found), np.inf, found)
             frontier = cand[np.isfinite(found)]
-        keep = np.flatnonzero(np.isfinite(twist))
-        self._nodes, self._node_twist = lattice[keep], twist[keep]
+        keep = np.isfinite(twist)
+        index = np.cumsum(keep) - 1  # lattice point -> node
+        self._nodes, self._node_twist = points[keep], twist[keep]
         self._tree = cKDTree(self._nodes)
-        pairs = self._tree.query_pairs(r, output_type="ndarray").reshape(-1, 2)
+        pairs = index[pairs[keep[pairs[:, 0]] & keep[pairs[:, 1]]]]
         ok = self.paths_inside(self._node_poses(pairs[:, 0]), self._node_poses(pairs[:, 1]))
         i, j = pairs[ok, 0], pairs[ok, 1]
         m = self._nodes.shape[0]
@@ -384,6 +384,21 @@ def _bisection_order(count: int) -> list[int]:
             order.append(mid)
             spans += [(lo, mid - 1), (mid + 1, hi)]
     return order
+
+
+@functools.cache
+def lattice() -> tuple[np.ndarray, cKDTree, csr_matrix, np.ndarray]:
+    """The roadmap's lattice, built once per process: points (N, 3) LATTICE_STEP_DEG apart, their
+    tree, the neighbour adjacency (N, N) (within NEIGHBOUR_SPACINGS spacings) and its pairs
+    (P, 2), i < j."""
+    points = fibonacci_sphere(math.radians(LATTICE_STEP_DEG))
+    tree = cKDTree(points)
+    r = 2.0 * math.sin(0.5 * math.radians(NEIGHBOUR_SPACINGS * LATTICE_STEP_DEG))
+    pairs = tree.query_pairs(r, output_type="ndarray").reshape(-1, 2)
+    n = points.shape[0]
+    both = np.concatenate([pairs, pairs[:, ::-1]])
+    adjacency = coo_matrix((np.ones(both.shape[0]), (both[:, 0], both[:, 1])), shape=(n, n))
+    return points, tree, adjacency.tocsr(), pairs
 
 
 def fibonacci_sphere(spacing: float) -> np.ndarray:
