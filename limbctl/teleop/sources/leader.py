@@ -128,6 +128,7 @@ class LeaderSource(SnapWatching, CommandSource):
         self.silence = LeaderSilence()
         self._heard_at = math.inf  # when the leader last answered (perf_counter s)
         self._follower_read_at = -math.inf  # the follower's last good read (perf_counter s)
+        self._polled_at: float | None = None  # this cycle's poll, right after the follower's read
         self._profile_velocity: int | None = 0  # what the leader's servos hold (set-up: 0)
         self._feel_block = feel_data()  # where its command goes (set at start)
         self.pace = PaceWatch(self.rate_hz)
@@ -236,6 +237,7 @@ class LeaderSource(SnapWatching, CommandSource):
 
     def poll(self, timeout: float = 0.0) -> list[Command]:
         """Read the leader's pose now and offer it as the newest command."""
+        self._polled_at = time.perf_counter()
         return self._poll_felt() if self.felt else self._poll_passive()
 
     def _poll_passive(self) -> list[Command]:
@@ -359,7 +361,9 @@ class LeaderSource(SnapWatching, CommandSource):
         cycle, self._cycle = self._cycle, None
         if not self.felt:
             return notes
-        now = time.perf_counter()
+        # the follower's reads are timed at the poll right after them, not here: a cycle whose
+        # leader read failed twice reaches this 13 ms later, and the grace would run from there
+        now, self._polled_at = self._polled_at or time.perf_counter(), None
         ran = bus_ok and result is not None and result.outcome is not Outcome.HELD
         if ran:
             self._follower_read_at = now
