@@ -9,11 +9,15 @@ view) are fed from these values; the session's totals are a :class:`TeleopSummar
 from __future__ import annotations
 
 import enum
+import math
 from collections import Counter, deque
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from limbctl.geometry.gimbal import pan_tilt_to_quat, quat_to_pan_tilt
+from limbctl.geometry.gimbal3 import pan_tilt_roll_scalar, pose_quat_scalar
+from limbctl.geometry.twist import decompose_one
 from limbctl.servo.health import Dropout
 from limbctl.teleop.gate import GateResult
 
@@ -22,6 +26,86 @@ from limbctl.teleop.gate import GateResult
 TIMING_WINDOW = 100_000
 #: Health notices kept for the summary: the latest ones; a flapping cable must not grow memory.
 NOTICE_WINDOW = 1000
+
+
+#: A command's roll is read within [-PI, PI] (rad), nearest the written roll: the joint's whole
+#: turn, without preferring either way round.
+PI = math.pi
+
+
+def _degrees(pose: tuple[float, ...]) -> list[float]:
+    return [round(math.degrees(v), 4) for v in pose]
+
+
+def _quaternion(q: np.ndarray) -> list[float]:
+    return [round(float(v), 6) for v in q]
+
+
+def _pose_quaternion(pose: tuple[float, ...]) -> np.ndarray:
+    """The orientation (4,) of joint angles (rad): (pan, tilt) or (pan, tilt, roll)."""
+    if len(pose) == 3:
+        return pose_quat_scalar(*pose)
+    return pan_tilt_to_quat(np.float64(pose[0]), np.float64(pose[1]))
+
+
+def _twist_deg(q: np.ndarray) -> float:
+    """The twist (deg) of ``q`` about the rest axis: ``q = swing(d) twist(tau)``."""
+    return round(math.degrees(decompose_one(q)[1]), 4)
+
+
+def orientation_fields(
+    command_q: np.ndarray | None, pose: tuple[float, ...] | None
+) -> dict[str, object]:
+    """The commanded and written orientation in one form for every rig.
+
+    Parameters
+    ----------
+    command_q : ndarray (4,) or None
+        The command's orientation (w, x, y, z).
+    pose : tuple of float or None
+        The gate's joint angles (rad): 2 on a two-servo rig, 3 (pan, tilt, roll) on three.
+
+    Returns
+    -------
+    dict
+        ``cmd`` and ``out``: joint angles (deg), as many as the rig has joints (the command's
+        roll is the joint's for that orientation, nearest the written roll); ``cmd_q`` and
+        ``out_q``: the orientations (w, x, y, z); on a three-servo rig also ``cmd_twist`` and
+        ``out_twist``: the twist about the limb's rest axis (deg, swing-twist; not the roll).
+        A missing value is None.
+    """
+    joints = 3 if pose is not None and len(pose) == 3 else 2
+    cmd = None
+    if command_q is not None:
+        if joints == 3:
+            current = pose if pose is not None else (0.0, 0.0, 0.0)
+            cmd = _degrees(pan_tilt_roll_scalar(command_q, current[0], current[2], -PI, PI))
+        else:
+            cmd = _degrees(tuple(float(v) for v in quat_to_pan_tilt(command_q)))
+    out_q = None if pose is None else _pose_quaternion(pose)
+    row: dict[str, object] = {
+        "cmd": cmd,
+        "cmd_q": None if command_q is None else _quaternion(command_q),
+        "out": None if pose is None else _degrees(pose),
+        "out_q": None if out_q is None else _quaternion(out_q),
+    }
+    if joints == 3:
+        row["cmd_twist"] = None if command_q is None else _twist_deg(command_q)
+        row["out_twist"] = None if out_q is None else _twist_deg(out_q)
+    return row
+
+
+def describe_orientation(
+    joints_deg: list[float] | None, twist_deg: float | None, q: list[float] | None
+) -> str:
+    """One orientation of :func:`orientation_fields` as text: its joint angles (deg), its
+    twist (deg, three servos) and its quaternion (w, x, y, z); ``none`` when there is none."""
+    if joints_deg is None:
+        return "none"
+    names = ("pan", "tilt", "roll")
+    text = " ".join(f"{name} {v:+.1f}" for name, v in zip(names, joints_deg)) + " deg"
+    text += "" if twist_deg is None else f", twist {twist_deg:+.1f} deg"
+    return text + ", q [" + ", ".join(f"{v:.4f}" for v in q) + "]"
 
 
 class CycleState(enum.Enum):
@@ -133,6 +217,9 @@ class TeleopSummary:
     dropouts: list[Dropout] = field(default_factory=list)
     # one line per refusal reason with its count and first examples (set when the loop ends)
     refusal_lines: list[str] = field(default_factory=list)
+    # the latest command's orientation (4,) and the latest pose written (rad, one per joint)
+    last_command_q: np.ndarray | None = None
+    last_written: tuple[float, ...] | None = None
 
     @property
     def all_refused(self) -> bool:
@@ -163,6 +250,17 @@ class TeleopSummary:
             f"goals written      {self.goals_written}",
             f"bus errors         {self.bus_errors} ({self.failed_cycles} cycles lost)",
             f"servo dropouts     {self._dropouts()}",
+            *self._orientation_lines(),
+        ]
+
+    def _orientation_lines(self) -> list[str]:
+        """The latest command and the latest written pose, in full (:func:`orientation_fields`)."""
+        row = orientation_fields(self.last_command_q, self.last_written)
+        return [
+            "last command       "
+            + describe_orientation(row["cmd"], row.get("cmd_twist"), row["cmd_q"]),
+            "last written       "
+            + describe_orientation(row["out"], row.get("out_twist"), row["out_q"]),
         ]
 
     def _dropouts(self) -> str:

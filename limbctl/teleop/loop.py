@@ -271,6 +271,7 @@ class ControlLoop:
                 self.limb.write_pose(*result.pose)
                 written = True
                 summary.goals_written += 1
+                summary.last_written = result.pose
             except ServoAlarm as exc:
                 return self._fault(alarm_alone(exc), t, result)
             except BusError as exc:
@@ -362,7 +363,7 @@ class ControlLoop:
         if self._pending:
             self._target_q = self._pending.popleft().q
             self._target_deg = _command_deg(self._target_q)
-            self._command_q = self._target_q
+            self._command_q = self.summary.last_command_q = self._target_q
             self._last_command_at = now
         self.summary.rejected = self.source.stats.rejected
         self._refused_reasons = tuple(self.source.stats.refusals.take_recent())

@@ -9,75 +9,9 @@ from typing import IO
 
 import numpy as np
 
-from limbctl.geometry.gimbal import pan_tilt_to_quat, quat_to_pan_tilt
-from limbctl.geometry.gimbal3 import pan_tilt_roll_scalar, pose_quat_scalar
-from limbctl.geometry.twist import decompose_one
-from limbctl.teleop.cycle import Cycle, TeleopSummary
+from limbctl.geometry.gimbal import pan_tilt_to_quat
+from limbctl.teleop.cycle import Cycle, TeleopSummary, orientation_fields
 from limbctl.teleop.gate import Outcome
-
-PI = math.pi
-
-
-def _degrees(pose: tuple[float, ...]) -> list[float]:
-    return [round(math.degrees(v), 4) for v in pose]
-
-
-def _quaternion(q: np.ndarray) -> list[float]:
-    return [round(float(v), 6) for v in q]
-
-
-def _pose_quaternion(pose: tuple[float, ...]) -> np.ndarray:
-    """The orientation (4,) of joint angles (rad): (pan, tilt) or (pan, tilt, roll)."""
-    if len(pose) == 3:
-        return pose_quat_scalar(*pose)
-    return pan_tilt_to_quat(np.float64(pose[0]), np.float64(pose[1]))
-
-
-def _twist_deg(q: np.ndarray) -> float:
-    """The twist (deg) of ``q`` about the rest axis: ``q = swing(d) twist(tau)``."""
-    return round(math.degrees(decompose_one(q)[1]), 4)
-
-
-def orientation_fields(
-    command_q: np.ndarray | None, pose: tuple[float, ...] | None
-) -> dict[str, object]:
-    """The commanded and written orientation in one form for every rig.
-
-    Parameters
-    ----------
-    command_q : ndarray (4,) or None
-        The command's orientation (w, x, y, z).
-    pose : tuple of float or None
-        The gate's joint angles (rad): 2 on a two-servo rig, 3 (pan, tilt, roll) on three.
-
-    Returns
-    -------
-    dict
-        ``cmd`` and ``out``: joint angles (deg), as many as the rig has joints (the command's
-        roll is the joint's for that orientation, nearest the written roll); ``cmd_q`` and
-        ``out_q``: the orientations (w, x, y, z); on a three-servo rig also ``cmd_twist`` and
-        ``out_twist``: the twist about the limb's rest axis (deg, swing-twist; not the roll).
-        A missing value is None.
-    """
-    joints = 3 if pose is not None and len(pose) == 3 else 2
-    cmd = None
-    if command_q is not None:
-        if joints == 3:
-            current = pose if pose is not None else (0.0, 0.0, 0.0)
-            cmd = _degrees(pan_tilt_roll_scalar(command_q, current[0], current[2], -PI, PI))
-        else:
-            cmd = _degrees(tuple(float(v) for v in quat_to_pan_tilt(command_q)))
-    out_q = None if pose is None else _pose_quaternion(pose)
-    row: dict[str, object] = {
-        "cmd": cmd,
-        "cmd_q": None if command_q is None else _quaternion(command_q),
-        "out": None if pose is None else _degrees(pose),
-        "out_q": None if out_q is None else _quaternion(out_q),
-    }
-    if joints == 3:
-        row["cmd_twist"] = None if command_q is None else _twist_deg(command_q)
-        row["out_twist"] = None if out_q is None else _twist_deg(out_q)
-    return row
 
 
 class Telemetry:

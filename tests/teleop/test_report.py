@@ -13,7 +13,7 @@ import pytest
 from limbctl.geometry.gimbal import pan_tilt_to_quat
 from limbctl.geometry.gimbal3 import pose_quat_scalar
 from limbctl.geometry.twist import compose, decompose
-from limbctl.teleop.cycle import Cycle, CycleState
+from limbctl.teleop.cycle import Cycle, CycleState, TeleopSummary
 from limbctl.teleop.gate import GateResult, Outcome
 from limbctl.teleop.gate3 import GateResult3
 from limbctl.teleop.report import Telemetry
@@ -76,3 +76,25 @@ def test_the_telemetry_carries_the_full_commanded_and_written_orientation(rig):
         )
     else:
         assert "cmd_twist" not in row and "out_twist" not in row
+
+
+@pytest.mark.parametrize("rig", list(RIGS))
+def test_the_session_summary_gives_the_last_command_and_written_pose_in_full(rig):
+    command_q, result = RIGS[rig]
+    summary = TeleopSummary(last_command_q=command_q, last_written=result.pose)
+    command, written = summary.lines()[-2:]
+    row = logged(command_q, result)
+    assert command.startswith("last command") and written.startswith("last written")
+    for text, angles, q in (
+        (command, row["cmd"], row["cmd_q"]),
+        (written, row["out"], row["out_q"]),
+    ):
+        assert [f"{v:+.1f}" for v in angles] == [
+            word for word in text.replace(",", " ").split() if word[0] in "+-"
+        ][: len(angles)]
+        assert f"{q[0]:.4f}" in text
+    if rig == "three servos":
+        assert "roll" in command and f"twist {row['cmd_twist']:+.1f} deg" in command
+        assert f"twist {row['out_twist']:+.1f} deg" in written
+    else:
+        assert "roll" not in command + written and "twist" not in command + written
