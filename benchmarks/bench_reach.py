@@ -32,17 +32,17 @@ import time
 
 import numpy as np
 
-from limbctl.envelope.synthetic import PolygonRegion, traced_teaching
 from limbctl.envelope.synthetic_bays import (
     InsidePaths,
     OutlineBandRegion,
     OutlineRegion,
     bay_outline,
     inside_points,
+    teaching,
 )
 from limbctl.geometry import scalar
 from limbctl.geometry.gimbal3 import pan_tilt_roll_scalar, pose_quat_scalar
-from limbctl.geometry.twist import compose, decompose, wrap
+from limbctl.geometry.twist import decompose, wrap
 from limbctl.teleop.gate import Gate, GateLimits
 from limbctl.teleop.gate3 import Gate3, GateLimits3, geodesic
 
@@ -116,21 +116,14 @@ def reach_table(rig: int, seeds: int, pairs: int, route: bool) -> list[dict]:
 
 
 def fitted(rig: int, seed: int):
-    """A region fitted from a 60 s traced teaching of a random outline (with, on three
-    servos, twists spread over the outline's band: a third at each limit, a third between)."""
+    """A region fitted from a 60 s traced teaching of a random outline (:func:`teaching`)."""
     from limbctl.region.taught import TaughtRegion
     from limbctl.region.twist_region import TwistRegion
 
     rng = np.random.default_rng(seed)
     truth = OutlineRegion(bay_outline(rng)) if rig == 2 else OutlineBandRegion.random(rng)
-    d, _ = traced_teaching(PolygonRegion(truth.polygon_deg), 60.0, rng)
-    if rig == 2:
-        return truth, TaughtRegion().fit(d)
-    centre, half = truth.band(d)
-    u = rng.choice([-0.98, 0.98, 0.0], d.shape[0]) + np.where(
-        rng.uniform(size=d.shape[0]) < 1 / 3, rng.uniform(-0.9, 0.9, d.shape[0]), 0.0
-    )
-    return truth, TwistRegion().fit(compose(d, centre + np.clip(u, -0.98, 0.98) * half))
+    samples = teaching(truth, 60.0, rng)
+    return truth, (TaughtRegion() if rig == 2 else TwistRegion()).fit(samples)
 
 
 def timing(rig: int, seed: int, route: bool, pairs: int) -> dict:

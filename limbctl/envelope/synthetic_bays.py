@@ -190,6 +190,21 @@ class OutlineBandRegion(OutlineRegion):
         return rows[0] if q.ndim == 1 else rows
 
 
+def teaching(region: OutlineRegion, seconds: float, rng: np.random.Generator) -> np.ndarray:
+    """A traced teaching of ``region`` (:func:`~limbctl.envelope.synthetic.traced_teaching`):
+    directions (N, 3), or for a banded region orientations (N, 4) whose twists a third of the
+    time sit at either limit of the band (within 2 %), else anywhere in it."""
+    from limbctl.envelope.synthetic import traced_teaching
+
+    d, _ = traced_teaching(PolygonRegion(region.polygon_deg), seconds, rng)
+    if not isinstance(region, OutlineBandRegion):
+        return d
+    centre, half = region.band(d)
+    u = rng.choice([-0.98, 0.98, 0.0], d.shape[0])
+    u = np.where(u == 0.0, rng.uniform(-0.98, 0.98, d.shape[0]), u)
+    return compose(d, centre + u * half)
+
+
 def inside_points(region: OutlineRegion, n: int, rng: np.random.Generator) -> np.ndarray:
     """``n`` random poses inside ``region``: twist-free quaternions (n, 4), or for a banded
     region orientations with a twist uniform in the band."""

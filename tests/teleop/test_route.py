@@ -210,3 +210,30 @@ def test_a_target_jittering_behind_a_wall_is_reached_and_routed_once(rig, monkey
         gate.step(target)
     assert apart(pose_q(gate, rig), target, rig) < 1e-3
     assert len(runs) == 1
+
+
+@pytest.mark.parametrize("rig", RIGS, ids=["two", "three"])
+def test_a_fitted_region_routes_round_its_bay(rig):
+    """The region a model file holds (TaughtRegion, TwistRegion fitted from a traced teaching of
+    a random outline): a target whose way from the start bends round a wall is reached within
+    the bound, the roadmap built at start (the fitted regions answer batches)."""
+    from limbctl.envelope.synthetic_bays import teaching
+    from limbctl.region.taught import TaughtRegion
+    from limbctl.region.twist_region import TwistRegion
+
+    truth, rng = region_for(rig, 31)
+    region = (TaughtRegion() if rig == 2 else TwistRegion()).fit(teaching(truth, 60.0, rng))
+    paths = InsidePaths(truth)
+    pts = inside_points(truth, 400, rng)
+    pts = pts[np.asarray(region.contains(pts), dtype=bool)]
+    # the first pair whose way inside bends by 3 deg or more
+    for a, b in zip(pts[0::2], pts[1::2], strict=True):
+        length = needed(paths, a, b, rig)
+        da, db = decompose(a)[0], decompose(b)[0]
+        if paths.length(da, db) > math.acos(min(1.0, float(da @ db))) + math.radians(3.0):
+            break
+    else:
+        pytest.fail("no pair with a bent way: the family lost its bays")
+    gate = gate_at(region, rig, a)
+    assert gate.router._nodes is not None  # built at start
+    assert drive(gate, region, rig, b, int(bound(length)) + 1) is not None
