@@ -151,7 +151,8 @@ class Cycle:
         The command being followed as (pan, tilt) in degrees; None before the first one.
     command_q : ndarray (4,) or None
         The latest command's full orientation (w, x, y, z), twist included on a three-servo
-        rig; kept while a silent source is held; None before the first one.
+        rig; kept while a silent source is held; set on complete cycles, None before the first
+        command.
     result : GateResult or None
         The gate's answer; None when the cycle ended before the gate ran.
     present : tuple of float or None
@@ -220,6 +221,11 @@ class TeleopSummary:
     # the latest command's orientation (4,) and the latest pose written (rad, one per joint)
     last_command_q: np.ndarray | None = None
     last_written: tuple[float, ...] | None = None
+
+    def wrote(self, pose: tuple[float, ...]) -> None:
+        """Count a goal written to the servos, ``pose`` (rad, one per joint)."""
+        self.goals_written += 1
+        self.last_written = pose
 
     @property
     def all_refused(self) -> bool:

@@ -184,7 +184,6 @@ class ControlLoop:
         self._pending: deque = deque()
         self._target_q: np.ndarray | None = None
         self._target_deg: tuple[float, float] | None = None
-        self._command_q: np.ndarray | None = None  # the latest command, kept while held
         self._refused_reasons: tuple[str, ...] = ()
         self._started_at = self._last_command_at = 0.0
 
@@ -270,8 +269,7 @@ class ControlLoop:
             try:
                 self.limb.write_pose(*result.pose)
                 written = True
-                summary.goals_written += 1
-                summary.last_written = result.pose
+                summary.wrote(result.pose)
             except ServoAlarm as exc:
                 return self._fault(alarm_alone(exc), t, result)
             except BusError as exc:
@@ -308,7 +306,7 @@ class ControlLoop:
             state=state,
             complete=True,
             command_deg=self._target_deg,
-            command_q=self._command_q,
+            command_q=summary.last_command_q,
             result=result,
             present=present,
             written=written,
@@ -361,9 +359,8 @@ class ControlLoop:
                 self._pending.popleft()
                 self.summary.skipped += 1
         if self._pending:
-            self._target_q = self._pending.popleft().q
+            self._target_q = self.summary.last_command_q = self._pending.popleft().q
             self._target_deg = _command_deg(self._target_q)
-            self._command_q = self.summary.last_command_q = self._target_q
             self._last_command_at = now
         self.summary.rejected = self.source.stats.rejected
         self._refused_reasons = tuple(self.source.stats.refusals.take_recent())
@@ -376,7 +373,6 @@ class ControlLoop:
             t=t,
             state=CycleState.FINISHED,
             command_deg=self._target_deg,
-            command_q=self._command_q,
             ended_by=ended_by,
             refused=self.summary.rejected,
         )
@@ -396,7 +392,6 @@ class ControlLoop:
             t=t,
             state=CycleState.FAULT,
             command_deg=self._target_deg,
-            command_q=self._command_q,
             result=result,
             ended_by="fault",
             fault=self.summary.fault,
