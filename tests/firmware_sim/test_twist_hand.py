@@ -149,11 +149,17 @@ def test_a_script_with_roll_turns_the_roll_linearly_and_refuses_mixed_rows():
         hand_from_mapping({"script": [[0, 0, 0, 0], [2, 10, 0, float("nan")]]}, source="s.yaml")
 
 
-def test_a_minute_of_the_hand_teaches_the_whole_band():
-    """The issue's demo: a 60 s teaching at the recorder's 125 Hz, learned, holds >= 99 % of the
-    true region's orientations 2 deg inside (the stops come often enough along the edge trace
-    and the wander for the band to be bridged between them: 65 % before)."""
+def test_a_minute_of_the_hand_teaches_a_band_within_the_truth_or_names_what_is_missing():
+    """The issue's demo: a 60 s teaching at the recorder's 125 Hz, learned. Issue 35: the band
+    never reaches more than 1 deg past the true one; it holds >= 99 % of the true region's
+    orientations 2 deg inside only where the stops support it, and otherwise lists the places
+    whose stops are missing, so the guide withholds READY TO TRAIN (containment wins over
+    coverage). Measured: 75.5 % held, 107 places, never past the truth (0.79 deg inside it at
+    the nearest); before the evidence cap 99.98 % held, and the band reached 4.66 deg past the
+    true stop."""
     from limbctl.demo import true_twist_probes
+    from limbctl.geometry.gimbal import direction_to_pan_tilt
+    from limbctl.geometry.twist import decompose, wrap
     from limbctl.region.twist_region import TwistRegion
 
     hand = hand_from_yaml(REGION3, seed=1)
@@ -161,7 +167,16 @@ def test_a_minute_of_the_hand_teaches_the_whole_band():
     poses = np.radians([hand.pose_deg(float(t)) for t in np.arange(0.0, 60.0, 1.0 / 125.0)])
     q = np.array([chain_quat(*p) for p in poses])
     region = TwistRegion().fit(q)
-    assert np.mean(region.contains(true_twist_probes(REGION3))) >= 0.99
+    probes = true_twist_probes(REGION3)
+    d = np.unique(np.round(decompose(probes)[0], 12), axis=0)
+    pan, tilt = (np.degrees(a) for a in direction_to_pan_tilt(d))
+    low, high = np.radians([hand.band.limits_deg(p, t) for p, t in zip(pan, tilt)]).T
+    c, h = region.band.at(d)
+    off = wrap(c - 0.5 * (low + high))
+    past = np.degrees(np.fmax(off + h, h - off) - 0.5 * (high - low))
+    assert past.max() <= 1.0, f"the band reaches {past.max():.2f} deg past the true stop"
+    held = np.mean(region.contains(probes))
+    assert held >= 0.99 or region.unsupported, f"{100 * held:.2f} % held, nothing asked for"
 
 
 def test_a_hand_over_a_curved_band_with_bumps_keeps_to_it_and_reaches_its_stops():

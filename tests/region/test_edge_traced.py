@@ -196,6 +196,7 @@ def test_a_two_servo_edge_trace_with_a_recorder_hole_keeps_the_true_region():
 def test_a_three_servo_edge_trace_with_a_recorder_hole_keeps_the_true_region():
     from limbctl.demo import true_twist_probes
     from limbctl.geometry.gimbal3 import pan_tilt_roll_to_quat
+    from limbctl.geometry.twist import decompose
 
     _, pose, t = _demo_teaching("demo_region3.yaml")
     probes = true_twist_probes(REPO / "limbctl" / "data" / "demo_region3.yaml")
@@ -203,4 +204,8 @@ def test_a_three_servo_edge_trace_with_a_recorder_hole_keeps_the_true_region():
         keep = _cut(t, start, length)
         m = RigidMap(twist=True).fit(pan_tilt_roll_to_quat(*pose[keep].T))
         held = np.mean(np.asarray(m.contains(probes), dtype=bool))
-        assert held >= 0.99, f"cut at {start} s: {100 * held:.2f} % held"
+        # issue 35: where the twist stops are too sparse the band is held short and the places
+        # are listed (the guide withholds READY); the swing edge must hold the probes' directions
+        swing = np.mean(m.region.swing.mesh.contains(decompose(probes)[0]))
+        assert swing >= 0.99, f"cut at {start} s: {100 * swing:.2f} % of the directions held"
+        assert held >= 0.99 or m.region.unsupported, f"cut at {start} s: {100 * held:.2f} % held"
