@@ -126,6 +126,9 @@ class LeaderSource(SnapWatching, CommandSource):
         self._notes: list[str] = []
         #: The leader's silent servos and dropouts (leader_silence.py).
         self.silence = LeaderSilence()
+        #: A wall that was on when one read missed (leader_snap.py, ``missed``): if the next
+        #: read answers, this cycle's wall goes on as engaged, without the re-arm's wait.
+        self.resume = False
         self._heard_at = math.inf  # when the leader last answered (perf_counter s)
         self._follower_read_at = -math.inf  # the follower's last good read (perf_counter s)
         self._polled_at: float | None = None  # this cycle's poll, right after the follower's read
@@ -358,6 +361,7 @@ class LeaderSource(SnapWatching, CommandSource):
         if self.felt:
             self._check_pace()
         notes, self._notes = tuple(self._notes), []
+        resume, self.resume = self.resume, False  # a wall freed by one lost reply (missed)
         cycle, self._cycle = self._cycle, None
         if not self.felt:
             return notes
@@ -374,7 +378,7 @@ class LeaderSource(SnapWatching, CommandSource):
         elif not released:
             pose, q, last, read_at, torque, speed = cycle
             previous, period = (None, 0.0) if last is None else (last[0], read_at - last[1])
-            engaged = self.last_push is not None and self.last_push.goal_current > 0
+            engaged = resume or (self.last_push is not None and self.last_push.goal_current > 0)
             push = self._law(gate, pose, q, previous, period, engaged, torque, speed)
             # a wall kept by the rules at this very read (judge_read) is not judged twice
             judged = engaged and self._cycle_judged

@@ -56,7 +56,8 @@ def read_motion(
 
 class SnapWatching:
     """The loop's idle work for a felt leader source (mixed into ``LeaderSource``, which has
-    ``felt``, ``snap``, ``rig``, ``leader_ids``, ``motor``, ``release`` and ``missed``)."""
+    ``felt``, ``snap``, ``rig``, ``leader_ids``, ``motor``, ``release``, ``last_push``,
+    ``silence`` and ``resume``)."""
 
     @property
     def idle_work(self):
@@ -113,8 +114,12 @@ class SnapWatching:
     def missed(self, read: CycleRead) -> None:
         """A failed read of the leader (``read``): every leader servo's push goes off at once
         (one that does not answer may be gone, and the others must not push the hand alone),
-        and the miss is counted toward a dropout (:class:`LeaderSilence`)."""
+        and the miss is counted toward a dropout (:class:`LeaderSilence`). A wall that was on
+        comes back in the next cycle whose read answers, as the wall it was (``resume``: one
+        lost reply costs the hand the milliseconds of the retry, not the re-arm's two still
+        reads); a second miss in a row finds it off and leaves it to the re-arm."""
         self.silence.missed(read, time.perf_counter())
+        self.resume = self.last_push is not None and self.last_push.goal_current > 0
         if self.felt:
             self.release()
 
