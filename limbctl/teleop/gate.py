@@ -237,16 +237,22 @@ class Gate:
         slewed = False
         if scalar.angle(self._direction, target_dir) > lim.max_step:
             slewed = True
-            # aim along the region: the target, or a route point when the way to it leaves it
-            aim = scalar.limb(
-                self.router.subgoal(scalar.swing(self._direction), scalar.swing(target_dir))
-            )
-            step_dir = (
-                scalar.toward(self._direction, aim, lim.max_step)
-                if scalar.angle(self._direction, aim) > lim.max_step
-                else aim
-            )
-            target_dir = scalar.limb(self.envelope.correct(scalar.swing(step_dir)))
+            step_dir = scalar.toward(self._direction, target_dir, lim.max_step)
+            plain = scalar.limb(self.envelope.correct(scalar.swing(step_dir)))
+            progress = scalar.angle(self._direction, target_dir) - scalar.angle(plain, target_dir)
+            moved = scalar.angle(self._direction, plain)
+            if self.router.wanted(scalar.swing(target_dir), progress, moved, lim.max_step):
+                # a wall holds the plain step: aim at a point of a route along the region
+                aim = scalar.limb(
+                    self.router.subgoal(scalar.swing(self._direction), scalar.swing(target_dir))
+                )
+                step_dir = (
+                    scalar.toward(self._direction, aim, lim.max_step)
+                    if scalar.angle(self._direction, aim) > lim.max_step
+                    else aim
+                )
+                plain = scalar.limb(self.envelope.correct(scalar.swing(step_dir)))
+            target_dir = plain
 
         pan, tilt = scalar.pan_tilt(target_dir, self._pan)
         clamped_pan = min(max(pan, lim.pan_min), lim.pan_max)

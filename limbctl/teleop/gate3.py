@@ -258,9 +258,14 @@ class Gate3:
         slewed = False
         if geodesic(self._q, goal_q) > lim.max_step:
             slewed = True
-            # aim along the region: the target, or a route point when the way to it leaves it
-            aim = self.router.subgoal(self._q, goal_q)
-            goal_q = self.envelope.correct(toward(self._q, aim, lim.max_step))
+            plain = self.envelope.correct(toward(self._q, goal_q, lim.max_step))
+            progress = geodesic(self._q, goal_q) - geodesic(plain, goal_q)
+            moved = geodesic(self._q, plain)
+            if self.router.wanted(goal_q, progress, moved, lim.max_step):
+                # a wall holds the plain step: aim at a point of a route along the region
+                aim = self.router.subgoal(self._q, goal_q)
+                plain = self.envelope.correct(toward(self._q, aim, lim.max_step))
+            goal_q = plain
 
         pan, tilt, roll = pan_tilt_roll_scalar(goal_q, pan0, roll0, lim.roll_min, lim.roll_max)
         clamped_pose = (

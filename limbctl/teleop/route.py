@@ -94,6 +94,12 @@ REUSE_SPACINGS = 0.5
 #: thread pool that costs ~12 ms a call on a busy two-core machine, its single kernel ~2 us a
 #: row; a numpy region is the other way round).
 PROBE_ROWS = 64
+#: The gate's plain step is kept while it comes at least this fraction of a step nearer the
+#: target: sliding along a wall up to 75 deg off the target's way still does; at a concave wall
+#: the corrected step comes back to where it was (0). Routing only when stuck keeps its cost off
+#: the cycles of a sweep along the boundary, where a corrected target lies on a curved edge and
+#: the straight way to it leaves the region by a hair every cycle (three-servo demo).
+STUCK_FRACTION = 0.25
 #: A pose this close (rad) to a path or a point is on it: far above rounding (1e-12), far below
 #: any step.
 ON_PATH = 1e-9
@@ -124,6 +130,7 @@ class Router:
         self._field: tuple[np.ndarray, np.ndarray] | None = None
         self._straight: tuple[bytes, np.ndarray] | None = None  # (target, start) judged inside
         self._aim: tuple | None = None  # (target, start, route point, distance at the start)
+        self._engaged: np.ndarray | None = None  # the target routing began for
 
     # ---- the region --------------------------------------------------------------------------
     @property
@@ -220,6 +227,19 @@ class Router:
         return all(self.inside(pts[k - 1]) for k in order)
 
     # ---- the gate's question -----------------------------------------------------------------
+    def wanted(self, target_q: np.ndarray, progress: float, moved: float, max_step: float) -> bool:
+        """Whether the gate should aim along the region this cycle: its plain step (straight
+        toward ``target_q``, corrected) came ``progress`` rad nearer the target, less than
+        ``STUCK_FRACTION`` of ``max_step`` (a wall holds it), or its correction moved it
+        ``moved`` rad from the last pose, more than ``max_step`` plus the slack (it jumped
+        across a dent), or routing already began for this target (it stays on until the target
+        moves on or the straight way is inside)."""
+        if self._engaged is not None and self._near_target(self._engaged, target_q):
+            return True
+        self._engaged = None
+        jumped = moved > max_step + math.radians(VISIBLE_SLACK_DEG)
+        return progress < STUCK_FRACTION * max_step or jumped
+
     def subgoal(self, current_q: np.ndarray, target_q: np.ndarray) -> np.ndarray:
         """Where to aim this cycle's step: ``target_q`` itself when the straight path from
         ``current_q`` to it is inside, else a route point toward it (both (4,) quaternions)."""
@@ -234,8 +254,9 @@ class Router:
                 return aim
         self._straight = self._aim = None
         if self.clear(current_q, target_q):
-            self._straight = (key, current_q.copy())
+            self._straight, self._engaged = (key, current_q.copy()), None
             return target_q
+        self._engaged = target_q.copy()
         aim = self._aim_along(current_q, target_q)
         if aim is not target_q:
             self._aim = (target_q.copy(), current_q.copy(), aim, self._distance(current_q, aim))

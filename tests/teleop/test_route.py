@@ -25,7 +25,6 @@ from limbctl.teleop.gate3 import Gate3, GateLimits3, geodesic
 from limbctl.teleop.route import (
     REACH_EXTRA_CYCLES,
     REACH_FACTOR,
-    VISIBLE_SLACK_DEG,
     Router,
     fibonacci_sphere,
 )
@@ -33,7 +32,6 @@ from limbctl.teleop.route import (
 STEP = math.radians(0.6)  # limbctl teleop's default: 120 deg/s at 200 Hz
 ROLL = math.radians(179.0)
 RIGS = (2, 3)
-SLACK = math.radians(VISIBLE_SLACK_DEG)
 
 
 def region_for(rig: int, seed: int):
@@ -75,13 +73,13 @@ def needed(paths: InsidePaths, a: np.ndarray, b: np.ndarray, rig: int) -> float:
 def drive(gate, region, rig: int, target: np.ndarray, limit: int) -> int | None:
     """Step ``gate`` toward ``target`` until its pose is within 1e-3 rad of it; the cycles
     taken (None past ``limit``). Every written pose is checked inside the region (within the
-    gate's tolerance) and within one step of the one before."""
+    gate's tolerance) and within two steps of the one before (one step, then its correction)."""
     before = pose_q(gate, rig)
     for n in range(1, limit + 1):
         gate.step(target)
         now = pose_q(gate, rig)
-        # a step aimed along a path inside up to the slack, then corrected: at most that more
-        assert apart(before, now, rig) <= STEP + SLACK, f"cycle {n} stepped past the slew limit"
+        # a step of max_step, then corrected onto the region: never a jump across it
+        assert apart(before, now, rig) <= 2.0 * STEP, f"cycle {n} jumped: not one step"
         assert bool(region.contains(now)) or apart(now, region.correct(now), rig) <= math.radians(
             0.01
         ), f"cycle {n} wrote a pose outside the region"
