@@ -88,3 +88,28 @@ def test_every_place_turned_is_not_complete_until_the_missing_stop_is_taught():
     done = guide.assess()
     assert done.complete, done.line()
     assert "every place visited was turned both ways" in done.line()
+
+
+def test_the_recorders_line_withholds_ready_while_the_twist_is_not_complete():
+    import io
+
+    from limbctl.teach.guide import assess_directions
+    from limbctl.teach.record import RecordSummary, _draw
+    from limbctl.teach.twist_guide import TwistGuidance
+    from tests.teach.test_guide import fill, times, trace
+
+    d = np.vstack([trace(0.0, 360.0), fill(-180.0, 180.0, 20000)])
+    ready = assess_directions(times(len(d)), d)
+    assert ready.ready
+
+    def drawn(twist):
+        out = io.StringIO()
+        _draw(out, ready, RecordSummary(), 1.0, None, False, twist)
+        return out.getvalue()
+
+    unchecked = TwistGuidance(4, 4, 80.0, (7.5, 7.5, 80.0))
+    assert "READY TO TRAIN" not in drawn(unchecked)
+    assert "twist still to teach" in drawn(unchecked)
+    checked = TwistGuidance(4, 4, 80.0, (7.5, 7.5, 80.0), support_checked=True)
+    assert checked.complete and "READY TO TRAIN" in drawn(checked)
+    assert "READY TO TRAIN" in drawn(None)  # two servos: the swing guide alone
