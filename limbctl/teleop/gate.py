@@ -5,10 +5,10 @@ Per command (the safety model in docs/architecture.md):
 1. ``correct``: the envelope returns the target itself inside the taught region, else the
    nearest orientation on its boundary;
 2. slew limit: the limb direction moves at most ``max_step`` (rad) per cycle from the last safe
-   pose along the great circle toward the corrected target, or, when that great circle leaves
-   the region (a bay or notch between the two), toward a point of a route along the region
-   (:class:`~limbctl.teleop.route.Router`); the intermediate pose is corrected again, so a
-   non-convex region is followed, never cut across, and a concave wall is gone round;
+   pose along the great circle toward the corrected target; the intermediate pose is corrected
+   again, so a non-convex region is followed, never cut across. When that corrected step makes
+   no way (a concave wall between the two holds it), the step aims instead at a point of a
+   route along the region (:class:`~limbctl.teleop.route.Router`), so the wall is gone round;
 3. inverse kinematics to (pan, tilt), keeping the current pan at the singularity;
 4. hard joint limits clamp (pan, tilt); a joint step larger than ``max_joint_step`` is scaled
    down, both joints by one factor, so the largest step is ``max_joint_step`` (``SLEWED``);

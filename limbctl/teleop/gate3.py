@@ -8,9 +8,10 @@ the sphere of directions, per command:
 2. slew limit as an angular speed on SO(3): the orientation turns at most ``max_step`` (rad of
    geodesic angle ``2 acos |<a, b>|``, the rotation between the two) per cycle from
    the last safe orientation along the shortest rotation (slerp) toward the corrected target,
-   or toward a point of a route along the region when that rotation leaves it (the two-servo
-   gate's :class:`~limbctl.teleop.route.Router`, on SO(3)); that intermediate orientation is
-   corrected again, so a concave region is followed, not cut, and a concave wall gone round;
+   that intermediate orientation is corrected again, so a concave region is followed, not cut;
+   when the corrected step makes no way (a concave wall holds it), it aims at a point of a
+   route along the region instead (the two-servo gate's :class:`~limbctl.teleop.route.Router`,
+   on SO(3)), so the wall is gone round;
 3. inverse kinematics to (pan, tilt, roll) (:func:`limbctl.geometry.gimbal3.pan_tilt_roll_scalar`):
    the present pan kept at tilt +-90 deg, the roll unwrapped within its hard limits nearest the
    present roll;

@@ -3,8 +3,10 @@
 The gate's slew limit steps from the last safe pose toward the corrected target and corrects the
 step again. Across a concave wall (a bay or a notch of the region between the two) that
 correction lands back on the wall: a local minimum where the limb sits, ``SLEWED`` every cycle,
-and never reaches a target inside. :class:`Router` gives the gate a *sub-goal* instead of the
-target whenever the straight path from the present pose to the target is not inside:
+and never reaches a target inside. The gate keeps its plain step while that step makes way
+(:meth:`Router.wanted`: at least ``STUCK_FRACTION`` of a step nearer the target, no jump past a
+step); when a wall holds it, :class:`Router` gives it a *sub-goal* instead of the target, for
+that target until the straight way to it is inside:
 
 1. *Straight*: the straight path (great circle of limb directions on two servos, the shortest
    rotation on three) is sampled every ``SEGMENT_STEP_DEG``; when every sample is inside (up to
