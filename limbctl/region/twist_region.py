@@ -38,10 +38,6 @@ from limbctl.region.twist_evidence import UnsupportedPlace, band_unsupported
 #: the shoulder benchmark's region (1.6 sr, a 25-75 deg half-width band) takes ~3500 of them,
 #: a scan of a few microseconds a command.
 SEED_STEP_DEG = 4.0
-#: The band's cuts are judged at directions with a taught one within this (deg, as a chord's
-#: angle): beyond the taught directions (the swing region's margins) the band closes toward
-#: the taught twists by design, and a place without samples is the swing guide's hole to ask for.
-REPORT_NEAR_DEG = 3.0
 
 
 class TwistRegion:
@@ -109,7 +105,7 @@ class TwistRegion:
         self.swing = TaughtRegion(self.swing.params).fit(d)
         mesh = self.swing.mesh
         self.band = TwistBand.fit(d, tau, mesh.axis, mesh.max_margin)
-        self.unsupported = band_unsupported(self.band, d, mesh.contains, REPORT_NEAR_DEG)
+        self.unsupported = band_unsupported(self.band, d, mesh.contains)
         self.seeds = boundary_seeds(self)
         return self
 
