@@ -81,10 +81,10 @@ LOOKAHEAD_DEG = 12.0
 TWIST_TRIES_DEG = (0.0, 3.0, -3.0, 8.0, -8.0, 20.0, -20.0, 45.0, -45.0)
 #: The stated bound: a target inside the region is reached within ``REACH_FACTOR * L /
 #: max_step + REACH_EXTRA_CYCLES`` cycles, L the shortest path inside (on three servos plus the
-#: twist to turn). The route bends at lattice nodes, up to a spacing off the wall, and its
-#: sub-goals are route points: a few per cent longer than L; the cycles of a jump's corners
-#: (a step that ends on a route point, a correction at a wall) add a handful each
-#: (benchmarks/bench_reach.py measures both on seeds the tests do not use).
+#: twist to turn). The route bends at lattice nodes, up to a spacing off the wall (a few per cent
+#: over a long route), and the plain step first slides into a bay until the wall holds it:
+#: measured up to 24 cycles over L / max_step (benchmarks/bench_reach.py, seeds the tests do
+#: not use); 40 leaves room for bays not yet measured.
 REACH_FACTOR = 1.05
 REACH_EXTRA_CYCLES = 40
 #: A target within this many lattice spacings of the last one routed to takes the same route
