@@ -30,6 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from limbctl.geometry import jit
 from limbctl.geometry.gimbal import direction_to_pan_tilt
 from limbctl.geometry.twist import decompose
 from limbctl.region.twist_band import TwistBand
@@ -218,6 +219,12 @@ class TwistGuide:
         if busy or now - self._checked_at < SUPPORT_EVERY_S:
             return
         self._checked_at = now
+        # Until the warm-up has put the three-servo training's kernels in the cache, a fit here
+        # would compile them in the recorder's own process, holding its interpreter for seconds
+        # and tearing holes in the recording; the check then waits for the end of the recording
+        # (check_support), as it does when kernels are compiled in memory.
+        if not jit.prepared(jit.stage("train", True)):
+            return
         q = np.array(self._q)
 
         def run() -> None:

@@ -113,3 +113,32 @@ def test_the_recorders_line_withholds_ready_while_the_twist_is_not_complete():
     checked = TwistGuidance(4, 4, 80.0, (7.5, 7.5, 80.0), support_checked=True)
     assert checked.complete and "READY TO TRAIN" in drawn(checked)
     assert "READY TO TRAIN" in drawn(None)  # two servos: the swing guide alone
+
+
+@pytest.mark.parametrize("warmed", [False, True])
+def test_the_support_check_while_recording_waits_for_the_warmed_kernels(monkeypatch, warmed):
+    """Before the warm-up has cached the three-servo training's kernels, a support check in the
+    recorder's process would compile them there (seconds holding the recorder's interpreter):
+    none starts; once they are cached, one starts in a thread."""
+    from limbctl.geometry import jit
+
+    asked = []
+
+    def prepared(stage):
+        asked.append(stage)
+        return warmed
+
+    monkeypatch.setattr(jit, "prepared", prepared)
+    guide = TwistGuide()
+    sweep = np.linspace(-40, 40, MIN_CELL_SAMPLES)
+    for pan, tilt in [(p, t) for p in (-30, 0, 30) for t in (-20, 10)]:
+        taught(guide, pan + 1, tilt + 1, sweep)
+    found = guide.assess()
+    assert found.turned == found.cells == 6
+    assert asked == ["train-twist"]
+    if warmed:
+        assert guide._checking is not None
+        guide._checking.join()
+        assert guide.assess().support_checked
+    else:
+        assert guide._checking is None and not found.support_checked
