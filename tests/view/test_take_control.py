@@ -73,13 +73,18 @@ def steering(page) -> bool:
     return "you steer the limb" in text_of(page, "control")
 
 
+def steer_up_once(page, server, sink) -> None:
+    """Open the steering page on a limb at (5, 5) and press Up once: (5, 6) reaches the loop."""
+    page.get(server.control_url)
+    wait_for(page, steering, "the opened page does not steer")
+    ActionChains(page).send_keys(Keys.ARROW_UP).perform()
+    sink.wait_for('{"pan":5,"tilt":6}')
+
+
 def test_a_tab_that_lost_control_comes_back_watching_and_steers_again_only_on_a_click():
     with steered_board() as (board, server, sink, holder), chromium() as page:
         publish(board, (5.0, 5.0))
-        page.get(server.control_url)
-        wait_for(page, steering, "the opened page does not steer")
-        ActionChains(page).send_keys(Keys.ARROW_UP).perform()
-        sink.wait_for('{"pan":5,"tilt":6}')
+        steer_up_once(page, server, sink)
 
         # the tab freezes; the server drops it; another page steers to (-20, 0) and leaves
         pids = browser_pids(page)
@@ -187,10 +192,7 @@ def test_a_key_pushing_up_against_a_slanted_edge_is_told_as_up_alone():
     blocked only the way its arrow key pushes, as the terminal does, and the slide as told."""
     with steered_board(heartbeat_s=5.0) as (board, server, sink, holder), chromium() as page:
         publish(board, (5.0, 5.0), "passed")
-        page.get(server.control_url)
-        wait_for(page, steering, "the opened page does not steer")
-        ActionChains(page).send_keys(Keys.ARROW_UP).perform()
-        sink.wait_for('{"pan":5,"tilt":6}')
+        steer_up_once(page, server, sink)
         # the gate slid the written pose right and a little up along a slanted edge
         words = "at the edge: left and up are blocked, sliding right along it"
         publish(board, (4.4, 5.5), "corrected", 2, (5.0, 6.0), words, ("+pan", "+tilt"))
@@ -209,10 +211,7 @@ def test_a_tab_paused_past_the_loops_silence_drops_its_point_and_keeps_control()
     the point it had is gone; it sends nothing until a key, and says why."""
     with steered_board(heartbeat_s=5.0) as (board, server, sink, holder), chromium() as page:
         publish(board, (5.0, 5.0))
-        page.get(server.control_url)
-        wait_for(page, steering, "the opened page does not steer")
-        ActionChains(page).send_keys(Keys.ARROW_UP).perform()
-        sink.wait_for('{"pan":5,"tilt":6}')
+        steer_up_once(page, server, sink)
         pids = browser_pids(page)
         for pid in pids:
             os.kill(pid, signal.SIGSTOP)
