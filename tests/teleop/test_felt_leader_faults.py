@@ -8,6 +8,8 @@ import time
 
 import pytest
 
+from limbctl.servo.leader_guard import GIVE_UP_S
+from tests.servo.test_leader_guard import end_pipe, torque_when_free
 from tests.teleop import test_felt_leader as two
 from tests.teleop import test_felt_leader3 as three
 
@@ -76,12 +78,14 @@ LAST_GOAL_AHEAD_DEG = 5 * 360.0 / 4096
 
 
 @pytest.mark.parametrize("rig", sorted(RIGS))
-def test_a_dead_controllers_leader_holds_within_the_cap_and_pushes_no_further(tmp_path, rig):
-    # the controller dies mid-push (as kill -9: nothing it sends reaches the leader any more).
-    # Each servo's Bus Watchdog (100 ms) stops it: it holds where it is (the e-Manual's "stop";
-    # Goal Current and Goal Position read-only), with at most the last push's share of the cap.
-    # The hand presses 0.3 s more, then lets go: the leader is pushed no further in than its
-    # last goal and, once still, by nothing
+def test_a_leader_cut_off_from_its_controller_holds_within_the_cap_and_pushes_no_further(
+    tmp_path, rig
+):
+    # the bus is cut mid-push (a pulled cable: nothing the controller, or its guard, sends
+    # reaches the leader any more). Each servo's Bus Watchdog (100 ms) stops it: it holds where
+    # it is (the e-Manual's "stop"; Goal Current and Goal Position read-only), with at most the
+    # last push's share of the cap. The hand presses 0.3 s more, then lets go: the leader is
+    # pushed no further in than its last goal and, once still, by nothing
     session_of, runner, press, ids = RIGS[rig]
     with session_of(tmp_path) as (session, source, log), source:
         session.rig.set_torque(True)
@@ -111,3 +115,42 @@ def test_a_dead_controllers_leader_holds_within_the_cap_and_pushes_no_further(tm
     assert moved_in <= LAST_GOAL_AHEAD_DEG + 0.1, moved_in
     still = [row for row in rows if row["t"] >= at + 0.8]
     assert still and all(sum(abs(m) for m in row["motor_nm"]) < 0.02 for row in still), still[-1]
+
+
+@pytest.mark.parametrize("rig", sorted(RIGS))
+def test_a_dead_controllers_leader_goes_limp_within_its_guards_bound(tmp_path, rig, capfd):
+    # the controller dies mid-push: the loop is frozen between two transfers (it holds nothing
+    # more to send), and what the kernel does to a dead process is done here: its end of the
+    # guard's pipe closes without "done" and its port closes (the port's lock with it). The
+    # guard then switches every leader servo's torque off, and no follower servo's. The kill -9
+    # of a real `limbctl teleop` is tests/servo/test_leader_guard.py's
+    session_of, runner, press, ids = RIGS[rig]
+    with session_of(tmp_path) as (session, source, log), source:
+        session.rig.set_torque(True)
+        bus, follower = session.rig.bus, session.profile.ids
+        with runner(session, source) as running:
+            if running.pressed_or_paced_out(press):
+                return
+            held_at = time.monotonic()
+            running.until(
+                lambda p: source.snap.armed is not None or time.monotonic() > held_at + 20.0
+            )
+            if running.paced_out():
+                return
+            with bus.exclusive():  # the loop stops at its next transfer
+                assert source.last_push is not None and source.last_push.goal_current > 0
+                died_at = time.monotonic()
+                end_pipe(source._guard)
+                bus.close()
+                deadline = died_at + GIVE_UP_S
+                while True:
+                    torque = torque_when_free(bus.port_name, (*follower, *ids), deadline, bus.baud)
+                    if not any(torque[i] for i in ids):
+                        break
+                    assert time.monotonic() < deadline, torque
+                limp_s = time.monotonic() - died_at
+                bus.open()  # the loop goes on, to its end, on a leader whose torque is off
+    assert all(torque[i] for i in follower), torque  # the follower left as it was
+    assert limp_s <= GIVE_UP_S, limp_s
+    said = f"the controller died; Torque Enable 0 on leader servos {', '.join(map(str, ids))} "
+    assert said in capfd.readouterr().err

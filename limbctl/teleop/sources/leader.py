@@ -11,9 +11,10 @@ its servos run in current-based position mode, free inside the region, pushing b
 (:mod:`limbctl.teleop.haptic`); after each cycle's gate, :meth:`LeaderSource.feel` writes that
 push in one sync write. Any doubt switches the push off at once: a leader that is silent, in
 alarm or restarted, a failed bus, a held gate, a fault (:meth:`LeaderSource.release`) or the
-session's end. Bus Watchdog is the backstop. Other models stay passive (torque off), as before.
-While the wall holds the leader still, the loop's wait between cycles reads its speed and lets
-the wall go as soon as it snaps toward the region (:mod:`limbctl.teleop.snap`).
+session's end. Bus Watchdog is the backstop; a guard process switches its torque off if this
+one dies (:mod:`limbctl.servo.leader_guard`). Other models stay passive (torque off). While the
+wall holds the leader still, the loop's wait between cycles reads its speed and lets the wall go
+as soon as it snaps toward the region (:mod:`limbctl.teleop.snap`).
 """
 
 from __future__ import annotations
@@ -32,6 +33,7 @@ from limbctl.servo.leader import (
     felt_motor,
     present_current,
 )
+from limbctl.servo.leader_guard import LeaderGuard
 from limbctl.servo.rig import Rig
 from limbctl.teleop.commands import Command, command_from_pan_tilt, command_from_pose
 from limbctl.teleop.gate import Outcome
@@ -42,11 +44,10 @@ from limbctl.teleop.sources.leader_ids import check_leader_fits
 from limbctl.teleop.sources.leader_silence import LeaderSilence
 from limbctl.teleop.sources.leader_snap import SnapWatching, cycle_velocity, snap_watch
 
-#: Bus Watchdog of a felt leader: 5 x 20 ms = 100 ms without a packet stops it (the servo holds
-#: where it is with its last push, at most the cap in magnitude, until the power goes or the next
-#: start: docs/haptic.md, a controller that dies). As long as the loop's own 20 failed cycles at
-#: 200 Hz, so the loop, not the watchdog, is what notices a failing bus; the watchdog covers a
-#: dead controller.
+#: Bus Watchdog of a felt leader: 5 x 20 ms = 100 ms without a packet stops it (it holds where it
+#: is with its last push, at most the cap, until its guard switches it off: docs/haptic.md, a
+#: controller that dies). As long as the loop's own 20 failed cycles at 200 Hz, so the loop, not
+#: the watchdog, notices a failing bus; the watchdog covers a dead controller.
 WATCHDOG_UNITS = 5
 WATCHDOG_UNIT_S = 0.020
 #: Goal Current alone, written as raw bytes (sent even to a servo in alarm).
@@ -104,6 +105,7 @@ class LeaderSource(SnapWatching, CommandSource):
         self.rate_hz = float(rate_hz)
         self.law = law or FeelLaw()
         self.motor = None  # a LeaderMotor while the leader feels the edge
+        self._guard: LeaderGuard | None = None  # while felt: limps it if this process dies
         self.notice = ""
         self.feel_stats = FeelStats()
         self.last_push: Push | None = None
@@ -176,6 +178,7 @@ class LeaderSource(SnapWatching, CommandSource):
             self._switch_off()
             raise
         self.motor = motor
+        self._guard = LeaderGuard.start(bus, self.leader_ids)
         self.cap_nm = motor.torque_of(cap)
         self.notice = self._feel_notice(model, cap)
 
@@ -212,10 +215,11 @@ class LeaderSource(SnapWatching, CommandSource):
         )
 
     def close(self) -> None:
-        """A felt leader goes limp (no current, torque off); safe to call twice."""
+        """A felt leader goes limp (no current, torque off), its guard told so; safe twice."""
         if self.felt:
             self.motor = None
             self._switch_off()
+        self._guard = self._guard and self._guard.done()
 
     def _zero_current(self) -> None:
         """Goal Current 0 on both leader servos in one sync write, alarm or not."""

@@ -1,0 +1,214 @@
+"""A felt leader's guard: a second process that makes the leader limp when its controller dies.
+
+A felt leader's servos run with torque on; if the controller dies mid-push (kill -9, a crash),
+their Bus Watchdog stops them within 100 ms, but a tripped servo *holds* where it stopped until
+the power goes (docs/haptic.md, a controller that dies). The guard bounds that hold in time.
+:meth:`LeaderGuard.start` (called by the felt leader source once the leader is configured)
+starts ``python -m limbctl.servo.leader_guard`` in a session of its own (a Ctrl-C to the
+controller's terminal does not reach it) holding only the read end of a pipe; the write end
+stays in the controller, not inheritable, so the guard reads EOF the moment the controller is
+gone, however it went (the kernel closes a dead process's files).
+
+- A clean end: the controller switches the leader off itself, then :meth:`LeaderGuard.done`
+  writes ``done`` and closes the pipe; the guard exits touching nothing.
+- EOF without ``done``: the guard waits for the port to be free (the dead controller's lock on
+  it goes with it: :mod:`limbctl.servo.port_lock`), opens it at the same baud through
+  :class:`~limbctl.servo.bus.ServoBus` (which pings the leader's servos, no one else's), writes
+  Torque Enable 0 to each leader servo and nothing else, tries again until each has answered,
+  prints one line to stderr and exits. Whatever it has not done by :data:`GIVE_UP_S` after the
+  EOF, it gives up on (its line says what), so it never outlives that bound.
+
+The follower (the limb) is never touched: the guard knows only the leader's ids.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
+from limbctl.errors import LimbctlError, PortInUse
+from limbctl.servo.bus import ServoBus
+from limbctl.servo.control_table import Register
+
+if TYPE_CHECKING:
+    from types import FrameType
+
+#: What the controller writes before closing the pipe on a clean end.
+DONE = b"done\n"
+#: The bound (s) from the controller's death (the guard's EOF) to the guard's exit: each
+#: answering leader servo has Torque Enable 0 by then, or the guard said it could not. One
+#: second: ten Bus Watchdog times, and far over the 17-24 ms measured from kill -9 to both
+#: leader servos read limp over the simulator's pty (docs/decisions/haptic.md), so a loaded
+#: scheduler or a servo missing a reply or two does not cut the guard short.
+GIVE_UP_S = 1.0
+#: How often (s) the guard tries the port while the dead controller's lock is still on it (the
+#: kernel drops it as it closes the dead process's files): a small part of the bound, and a try
+#: (one open refused) costs next to nothing.
+PORT_RETRY_S = 0.002
+#: How long (s) a clean end waits for the guard to exit after ``done``: a guard still starting
+#: reads it once started (Python and the bus's imports: 47 ms on a quiet machine, ``time
+#: python -c 'import limbctl.servo.bus'``; five seconds for a machine loaded many times over).
+EXIT_WAIT_S = 5.0
+#: The retry budget (s) of each transaction the guard makes: a servo that misses one reply is
+#: asked again soon, and the next servo is not kept waiting past a few of its replies.
+RETRY_BUDGET_S = 0.05
+
+
+class GuardBus(ServoBus):
+    """The guard's bus: no transaction waits past its retry budget (set-up's patience is for a
+    servo just powered on; the guard's servos answered the controller a moment ago, and a
+    silent one must not hold up the next past the bound)."""
+
+    def _transact(self, what, attempt, check_alert=True, attempts=None, patient=False):
+        return super()._transact(what, attempt, check_alert, attempts, patient=False)
+
+
+class GaveUp(Exception):
+    """The guard's bound ran out (raised by its alarm)."""
+
+
+class LeaderGuard:
+    """The controller's side of a running guard (see the module's docstring).
+
+    Parameters
+    ----------
+    process : subprocess.Popen
+        The guard's process.
+    write_fd : int
+        The pipe's write end, held by the controller alone.
+    """
+
+    def __init__(self, process: subprocess.Popen, write_fd: int) -> None:
+        self.process = process
+        self._write_fd: int | None = write_fd
+
+    @classmethod
+    def start(cls, bus: ServoBus, leader_ids: Sequence[int]) -> LeaderGuard:
+        """Start a guard for the leader servos ``leader_ids`` on ``bus``'s port, baud and
+        latency timer (not waited for: a death before it has started is read once it has)."""
+        read_fd, write_fd = os.pipe()  # both not inheritable (PEP 446): only pass_fds passes
+        command = [sys.executable, "-m", "limbctl.servo.leader_guard", "--fd", str(read_fd)]
+        command += ["--port", bus.port_name, "--baud", str(bus.baud)]
+        command += ["--latency-timer", f"{bus.latency_timer_ms:g}"]
+        command += ["--ids", ",".join(str(i) for i in leader_ids)]
+        try:
+            process = subprocess.Popen(
+                command,
+                pass_fds=(read_fd,),
+                close_fds=True,
+                start_new_session=True,
+                stdin=subprocess.DEVNULL,
+                stdout=subprocess.DEVNULL,
+            )
+        except BaseException:
+            os.close(write_fd)
+            raise
+        finally:
+            os.close(read_fd)
+        return cls(process, write_fd)
+
+    def done(self) -> None:
+        """A clean end: tell the guard to exit touching nothing, and wait for it; returns None
+        (so ``guard = guard and guard.done()`` forgets it). Safe to call twice."""
+        fd, self._write_fd = self._write_fd, None
+        if fd is None:
+            return None
+        try:
+            os.write(fd, DONE)
+        except OSError:
+            pass  # the guard is gone already (it exits only on EOF or a kill)
+        finally:
+            os.close(fd)
+        try:
+            self.process.wait(EXIT_WAIT_S)
+        except subprocess.TimeoutExpired:
+            self.process.kill()  # it never read its pipe: nothing it could still do matters
+            self.process.wait()
+        return None
+
+
+def wait_for_controller(fd: int) -> bool:
+    """Block until the pipe ``fd`` ends; True if the controller said ``done`` first."""
+    said = b""
+    while chunk := os.read(fd, 64):
+        said += chunk
+    return said == DONE
+
+
+def switch_off(
+    port: str, baud: int, left: list[int], latency_timer_ms: float, failures: dict
+) -> None:
+    """Torque Enable 0 on each servo of ``left`` at ``port``, each through a bus of its own (a
+    silent servo's ping does not keep the others on), trying again until each has answered
+    (the caller bounds the time). Servos switched off leave ``left``; ``failures`` keeps what
+    the last failure said, per servo id (``'port'`` for the port)."""
+    while left:
+        for servo_id in list(left):
+            bus = GuardBus(port, baud, (servo_id,), retry_budget_s=RETRY_BUDGET_S)
+            bus.fast_sync_read, bus.latency_timer_ms = False, latency_timer_ms
+            try:
+                with bus:
+                    bus.write(Register.TORQUE_ENABLE, servo_id, 0, check_alert=False)
+                left.remove(servo_id)
+            except PortInUse:
+                time.sleep(PORT_RETRY_S)  # the dead controller's lock is still being dropped
+                break
+            except LimbctlError as exc:
+                failures[servo_id] = str(exc)
+                time.sleep(PORT_RETRY_S)
+
+
+def _give_up(signum: int, frame: FrameType | None) -> None:
+    raise GaveUp
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``python -m limbctl.servo.leader_guard --fd N --port P --baud B --ids 3,4``; exit 0 on a
+    clean end or with the leader switched off, 1 when it gave up."""
+    parser = argparse.ArgumentParser(prog="limbctl.servo.leader_guard")
+    parser.add_argument("--fd", type=int, required=True)
+    parser.add_argument("--port", required=True)
+    parser.add_argument("--baud", type=int, required=True)
+    parser.add_argument("--latency-timer", type=float, required=True)
+    parser.add_argument("--ids", required=True)
+    args = parser.parse_args(argv)
+    ids = tuple(int(i) for i in args.ids.split(","))
+    if wait_for_controller(args.fd):
+        return 0
+    died_at = time.monotonic()
+    signal.signal(signal.SIGALRM, _give_up)
+    signal.setitimer(signal.ITIMER_REAL, GIVE_UP_S)
+    left, failures = list(ids), {}
+    try:
+        switch_off(args.port, args.baud, left, args.latency_timer, failures)
+    except GaveUp:
+        pass
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0.0)
+    took_ms = (time.monotonic() - died_at) * 1e3
+    if not left:
+        print(
+            f"leader guard: the controller died; Torque Enable 0 on leader servos "
+            f"{', '.join(map(str, ids))} {took_ms:.0f} ms after (the leader is limp)",
+            file=sys.stderr,
+        )
+        return 0
+    last = failures.get(left[0], "no answer")
+    print(
+        f"leader guard: the controller died; could not switch off leader servos "
+        f"{', '.join(map(str, left))} on {args.port} within {GIVE_UP_S:g} s (gave up {took_ms:.0f} "
+        f"ms after; {last}): their Bus Watchdog holds them with at most the last push until the "
+        f"power goes: switch it off",
+        file=sys.stderr,
+    )
+    return 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
