@@ -43,8 +43,8 @@ if TYPE_CHECKING:
 DONE = b"done\n"
 #: The bound (s) from the controller's death (the guard's EOF) to the guard's exit: each
 #: answering leader servo has Torque Enable 0 by then, or the guard said it could not. One
-#: second: ten Bus Watchdog times, and far over the 17-24 ms measured from kill -9 to both
-#: leader servos read limp over the simulator's pty (docs/decisions/haptic.md), so a loaded
+#: second: ten Bus Watchdog times, and far over the 22-45 ms measured from kill -9 to the
+#: guard's exit, the leader limp, over the simulator's pty (docs/decisions/haptic.md), so a loaded
 #: scheduler or a servo missing a reply or two does not cut the guard short.
 GIVE_UP_S = 1.0
 #: How often (s) the guard tries the port while the dead controller's lock is still on it (the
