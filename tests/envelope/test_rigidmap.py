@@ -155,8 +155,9 @@ def test_hand_strokes_are_contained_and_gaps_filled(which):
     # the gaps between strokes are filled: valid commands (2 deg or more inside the true
     # region) that the strokes cover pass unchanged (target 96%: the evidence check carves the
     # shape behind edge stations no sample reaches, and between strokes near the edge it cannot
-    # tell a gap from a bay; containment wins, docs/decisions/region.md, "The region is held to the taught evidence":
-    # 96.7 % on the irregular polygon with carving, 97.4 % without, 99 % before the check)
+    # tell a gap from a bay; containment wins. docs/decisions/region.md, "The region is held to
+    # the taught evidence": 96.7 % on the irregular polygon with carving, 97.4 % without, 99 %
+    # before the check)
     test = region.test_directions(20000, rng)
     qt = to_quaternions(test)
     out = m.correct(qt)
