@@ -216,7 +216,14 @@ def test_a_tab_paused_past_the_loops_silence_drops_its_point_and_keeps_control()
         for pid in pids:
             os.kill(pid, signal.SIGSTOP)
         try:
-            sent = len(sink.lines)
+            # lines the tab sent before the stop landed may still be on their way: let them in
+            # (the tab resends its point 20 times a second; on loopback one arrives in a
+            # millisecond, so 0.25 s without one means the stop has landed)
+            with sink.changed:
+                while True:
+                    sent = len(sink.lines)
+                    if not sink.changed.wait_for(lambda n=sent: len(sink.lines) > n, 0.25):
+                        break
             # the frozen tab stays silent for 1.5 s, three times the loop's 0.5 s silence
             with sink.changed:
                 assert not sink.changed.wait_for(lambda: len(sink.lines) > sent, 1.5)
