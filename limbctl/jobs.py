@@ -21,9 +21,9 @@ from limbctl.errors import ConfigError
 from limbctl.live import LiveView, ViewOptions, leader_status, open_view
 from limbctl.servo.profiles import load_rig_profile
 from limbctl.session import Session, open_rig, stop_on_signals
-from limbctl.teleop.approach import DEFAULT_WAIT_S
 from limbctl.teleop.gate import Gate
 from limbctl.teleop.loop import SafeState
+from limbctl.teleop.start import DEFAULT_WAIT_S
 
 if TYPE_CHECKING:
     from collections.abc import Iterator
@@ -228,10 +228,10 @@ def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
     from limbctl.geometry.jit import stage as jit_stage
     from limbctl.servo.control_table import MAX_TICK
     from limbctl.servo.setup import configure_servos
-    from limbctl.teleop.approach import StartOptions
     from limbctl.teleop.lifecycle import run_session
     from limbctl.teleop.loop import LoopConfig
     from limbctl.teleop.sources import SourceContext, check_leader_fits, parse_source
+    from limbctl.teleop.start import StartOptions
 
     spec = parse_source(options.source)  # a bad source is refused before anything opens
     view_options = options.view
@@ -298,28 +298,11 @@ def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
                     session.simulator.set_operator(operator.grip)
                 yield source
 
-        if profile.roll is not None:  # three servos: wait for the limb, then open the source
-            from limbctl.teleop.start3 import run_session_three
-
-            with stop_on_signals() as stop:
-                opener = lambda: introduced(spec.open(context))  # noqa: E731
-                result = run_session_three(
-                    rig, gate, opener, config, starting, **reporting, stop=stop,
-                    publish=live.start_observer(),
-                )  # fmt: skip
-        else:
-            with introduced(spec.open(context)) as source, stop_on_signals() as stop:
-                result = run_session(
-                    rig,
-                    gate,
-                    source,
-                    config,
-                    starting,
-                    **reporting,
-                    stop=stop,
-                    torque_was_on=torque_was_on,
-                    publish=live.start_observer(),
-                )
+        with stop_on_signals() as stop:  # the source opens once the limb is held inside
+            result = run_session(
+                rig, gate, lambda: introduced(spec.open(context)), config, starting, **reporting,
+                stop=stop, torque_was_on=torque_was_on, publish=live.start_observer(),
+            )  # fmt: skip
     from limbctl.geometry.jit import mark_prepared
 
     mark_prepared(jit_stage("gate", profile.roll is not None))

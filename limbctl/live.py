@@ -193,13 +193,13 @@ class LiveView:
 
     def start_observer(self, mode: str = "teleop: waiting") -> Callable[[Any], None] | None:
         """Where a limb outside the region is shown while teleop waits for it: publishes each
-        :class:`~limbctl.teleop.margin.StartStatus` (pose, how far and which way); None if off."""
+        :class:`~limbctl.teleop.start.StartStatus` (pose, how far and which way); None if off."""
         board = self.board
         if board is None:
             return None
 
         def publish(status: Any) -> None:
-            pose = PanTilt(status.pan_deg, status.tilt_deg)
+            pose = PanTilt(*status.pose_deg[:2])
             board.publish_live(Live(mode, pose, note=status.line()))
 
         return publish
