@@ -43,8 +43,12 @@ from firmware_sim.simulator import Simulator
 from limbctl.envelope import Cone
 from limbctl.envelope.synthetic_twist import ShoulderRegion
 from limbctl.errors import BusError
-from limbctl.geometry.gimbal import pan_tilt_to_quat, quat_to_pan_tilt
-from limbctl.geometry.gimbal3 import pan_tilt_roll_scalar, pose_quat_scalar
+from limbctl.geometry.gimbal import (
+    pan_tilt_roll_scalar,
+    pan_tilt_to_quat,
+    pose_quat_scalar,
+    quat_to_pan_tilt,
+)
 from limbctl.region.twist_region import TwistRegion
 from limbctl.servo.control_table import ModelNumber
 from limbctl.servo.leader import FEEL_DATA, FEEL_MAP, FELT_MODELS, encode_feel, feel_map

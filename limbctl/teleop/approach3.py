@@ -39,7 +39,7 @@ from typing import IO, Any
 import numpy as np
 
 from limbctl.errors import BusError
-from limbctl.geometry.gimbal3 import pan_tilt_roll_scalar, pose_quat_scalar
+from limbctl.geometry.gimbal import pan_tilt_roll_scalar, pose_quat_scalar
 from limbctl.geometry.quat import multiply
 from limbctl.teleop.approach import SETTLE_DEG, SETTLE_TIMEOUT_S, ParkOutcome
 from limbctl.teleop.gate import Outcome

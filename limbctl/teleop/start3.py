@@ -28,7 +28,7 @@ from pathlib import Path
 from typing import IO, Any
 
 from limbctl.errors import BusError, SafetyError
-from limbctl.geometry.gimbal3 import pose_quat_scalar
+from limbctl.geometry.gimbal import pose_quat_scalar
 from limbctl.teleop.approach import LOG_EVERY_S, StartOptions, StartOutcome, switch_torque_off
 from limbctl.teleop.approach3 import StartStatus3, assess3, drive3, park3, safe_with_margin
 from limbctl.teleop.gate3 import Gate3

@@ -22,7 +22,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from limbctl.errors import ConfigError
-from limbctl.geometry.gimbal3 import pose_quat_scalar
+from limbctl.geometry.gimbal import pose_quat_scalar
 from limbctl.geometry.twist import decompose_one
 from limbctl.live import leader_status
 from limbctl.servo.setup import configure_servos

@@ -19,7 +19,7 @@ from calib.profile import default_sim_profile
 from firmware_sim.control_table import Register as SimRegister
 from firmware_sim.leader3 import Operator3, leader_joints3
 from firmware_sim.simulator import Simulator
-from limbctl.geometry.gimbal3 import pose_quat_scalar
+from limbctl.geometry.gimbal import pose_quat_scalar
 from limbctl.servo.control_table import ModelNumber
 from limbctl.servo.leader import FEEL_DATA, FEEL_MAP, FELT_MODELS, encode_feel, feel_map
 from limbctl.servo.rig3 import RollRig

@@ -92,7 +92,7 @@ def test_leader_ids_must_be_on_the_bus_and_distinct():
 def test_a_three_servo_leader_gives_full_orientations_and_needs_a_three_servo_follower():
     import numpy as np
 
-    from limbctl.geometry.gimbal3 import pose_quat_scalar
+    from limbctl.geometry.gimbal import pose_quat_scalar
 
     with open_rig(extra_ids=(3, 4)) as session:
         refused = "needs a 3-servo follower: rig 'sim' has 2 servos; give leader:ID,ID"

@@ -142,7 +142,7 @@ def test_keyboard_source_needs_a_terminal(tmp_path):
 def test_keyboard_roll_keys_turn_the_limb_on_three_servos_and_are_refused_on_two():
     import pty
 
-    from limbctl.geometry.gimbal3 import pan_tilt_roll_to_quat
+    from limbctl.geometry.gimbal import pan_tilt_roll_to_quat
     from limbctl.teleop.sources import KeyboardSource
 
     for twist in (True, False):
