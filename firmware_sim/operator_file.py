@@ -26,7 +26,6 @@ from typing import Any
 import yaml
 
 from firmware_sim.leader import Operator
-from firmware_sim.leader3 import Operator3
 from firmware_sim.torque import MOTORS
 
 #: The keys that describe the leader, beside the grip's.
@@ -88,7 +87,7 @@ def leader_spec(data: Any, ids: Sequence[int], log: str | None = None) -> dict[s
         raise ValueError(f"let_go_s must be a time >= 0 in s (or left out), got {let_go!r}")
     grip = {key: data[key] for key in GRIP_KEYS if key in data}
     try:  # the operator's own checks: times in order, a grip of finite numbers >= 0
-        (Operator3 if joints == 3 else Operator).from_mapping(grip)
+        Operator.from_mapping(grip, joints)
     except TypeError as exc:
         raise ValueError(str(exc)) from None
     spec = {"ids": list(ids), "model": model, "start_deg": [float(a) for a in start]}
