@@ -82,7 +82,7 @@ class Operator:
         How many joints the hand holds (2 or 3): the script's angles per point.
     """
 
-    script: Sequence[tuple[float, float, float]]
+    script: Sequence[Sequence[float]]
     let_go_s: float | None = None
     release_s: float = 0.0
     stiffness_nm_deg: float = HAND_STIFFNESS_NM_DEG

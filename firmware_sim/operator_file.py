@@ -27,6 +27,7 @@ import yaml
 
 from firmware_sim.leader import Operator
 from firmware_sim.torque import MOTORS
+from firmware_sim.world import JOINT_NAMES
 
 #: The keys that describe the leader, beside the grip's.
 LEADER_KEYS = ("model", "start_deg")
@@ -69,7 +70,7 @@ def leader_spec(data: Any, ids: Sequence[int], log: str | None = None) -> dict[s
     model = data.get("model", DEFAULT_MODEL)
     if model not in MOTORS:
         raise ValueError(f"no simulated leader of model {model!r}; known: {', '.join(MOTORS)}")
-    angles = "pan, tilt" if joints == 2 else "pan, tilt, roll"
+    angles = ", ".join(JOINT_NAMES[:joints])
     start = data.get("start_deg", [0.0] * joints)
     script = data.get("script")
     for other in {2, 3} - {joints}:  # a file for the other kind of leader

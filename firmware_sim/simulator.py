@@ -353,10 +353,8 @@ class Simulator:
         if self.leader is None:
             raise ValueError("this simulator has no leader gimbal; start it with leader=...")
         self.advance()
-        joints = len(self.leader.joints)
-        self.leader.set_operator(
-            None if operator is None else Operator.from_mapping(operator, joints)
-        )
+        hand = None if operator is None else Operator.from_mapping(operator, len(self.leader.ids))
+        self.leader.set_operator(hand)
 
     def push(self, servo_id: int, torque_percent: float) -> None:
         self.servo(servo_id)
