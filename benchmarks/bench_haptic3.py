@@ -6,7 +6,7 @@ The three-servo follower is gated by a twist region fitted from a synthetic teac
 swing outline (pan within +-30 deg, tilt within +-25 deg) with a twist band of +-30 deg about 0:
 the learned edge lies near pan 30 deg in swing and near roll 30 deg in twist. The two-servo peer
 is the two-servo leader's bench set-up: a 30 deg cone, edge at pan 30 deg. Both leaders are
-XM430-W350s moved by the simulator's operator (firmware_sim/leader.py, firmware_sim/leader3.py),
+XM430-W350s moved by the simulator's operator (firmware_sim/leader.py),
 the same hand, the same law constants (limbctl/teleop/haptic.py, limbctl/teleop/haptic3.py).
 
 Cases:

@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 
 from calib.profile import default_sim_profile
 from firmware_sim.control_table import Register as SimRegister
-from firmware_sim.leader3 import Operator3, leader_joints3
+from firmware_sim.leader import Operator, leader_joints
 from firmware_sim.simulator import Simulator
 from limbctl.geometry.gimbal import pose_quat_scalar
 from limbctl.servo.control_table import ModelNumber
@@ -49,16 +49,16 @@ def q_of(pan_deg, tilt_deg, roll_deg):
 
 
 def test_the_simulated_three_servo_leader_is_built_like_the_follower():
-    pan, tilt, roll = leader_joints3(IDS)
+    pan, tilt, roll = leader_joints(IDS)
     assert [j.servo_id for j in (pan, tilt, roll)] == list(IDS)
     assert (roll.zero_tick, roll.direction) == (RIG.joints[2].zero_tick, RIG.joints[2].direction)
-    hand = Operator3([[0.0, 0.0, 0.0, 0.0], [2.0, 20.0, -10.0, 40.0]])
+    hand = Operator([[0.0, 0.0, 0.0, 0.0], [2.0, 20.0, -10.0, 40.0]], joints=3)
     assert hand.target_deg(1.0) == pytest.approx((10.0, -5.0, 20.0))
     assert hand.torque(1.0, 2, 0.0, 0.0) == pytest.approx(0.3)  # 20 deg x 0.05, bounded at 0.3
     with pytest.raises(ValueError, match="roll_deg"):
-        Operator3([[0.0, 0.0, 0.0]])
+        Operator([[0.0, 0.0, 0.0]], joints=3)
     with pytest.raises(ValueError, match="must not decrease"):
-        Operator3([[1.0, 0.0, 0.0, 0.0], [0.5, 0.0, 0.0, 0.0]])
+        Operator([[1.0, 0.0, 0.0, 0.0], [0.5, 0.0, 0.0, 0.0]], joints=3)
 
 
 def test_distance_is_the_rotation_to_the_correction_and_the_push_leads_toward_it(region):
