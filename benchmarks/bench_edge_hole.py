@@ -33,8 +33,7 @@ from firmware_sim.regions import grid_inside
 from firmware_sim.twist_hand import hand_from_yaml
 from limbctl.demo import true_outline, true_twist_probes
 from limbctl.envelope import RigidMap
-from limbctl.geometry.gimbal import pan_tilt_to_direction, pan_tilt_to_quat
-from limbctl.geometry.gimbal3 import pan_tilt_roll_to_quat
+from limbctl.geometry.gimbal import pan_tilt_roll_to_quat, pan_tilt_to_direction, pan_tilt_to_quat
 from limbctl.geometry.quat import direction_angle
 from limbctl.region import edge_traced as et
 

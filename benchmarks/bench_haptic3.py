@@ -6,7 +6,7 @@ The three-servo follower is gated by a twist region fitted from a synthetic teac
 swing outline (pan within +-30 deg, tilt within +-25 deg) with a twist band of +-30 deg about 0:
 the learned edge lies near pan 30 deg in swing and near roll 30 deg in twist. The two-servo peer
 is the two-servo leader's bench set-up: a 30 deg cone, edge at pan 30 deg. Both leaders are
-XM430-W350s moved by the simulator's operator (firmware_sim/leader.py, firmware_sim/leader3.py),
+XM430-W350s moved by the simulator's operator (firmware_sim/leader.py),
 the same hand, the same law constants (limbctl/teleop/haptic.py, limbctl/teleop/haptic3.py).
 
 Cases:
@@ -43,13 +43,16 @@ from firmware_sim.simulator import Simulator
 from limbctl.envelope import Cone
 from limbctl.envelope.synthetic_twist import ShoulderRegion
 from limbctl.errors import BusError
-from limbctl.geometry.gimbal import pan_tilt_to_quat, quat_to_pan_tilt
-from limbctl.geometry.gimbal3 import pan_tilt_roll_scalar, pose_quat_scalar
+from limbctl.geometry.gimbal import (
+    pan_tilt_roll_scalar,
+    pan_tilt_to_quat,
+    pose_quat_scalar,
+    quat_to_pan_tilt,
+)
 from limbctl.region.twist_region import TwistRegion
 from limbctl.servo.control_table import ModelNumber
 from limbctl.servo.leader import FEEL_DATA, FEEL_MAP, FELT_MODELS, encode_feel, feel_map
 from limbctl.servo.rig import Rig
-from limbctl.servo.rig3 import RollRig
 from limbctl.servo.setup import configure_servos
 from limbctl.servo.ticks import angle_to_ticks
 from limbctl.session import open_rig
@@ -143,7 +146,8 @@ def stepped(
     clock = [0.0]
     follower = {"ids": (1, 2, 3), "roll_id": 3} if three else {"ids": (1, 2)}
     sim = Simulator(**follower, leader={"ids": list(ids)}, clock=lambda: clock[0])
-    rig = RollRig(default_sim_profile("sim3")) if three else Rig(default_sim_profile())
+    rig = Rig(default_sim_profile("sim3" if three else "sim"))
+    roll_limits = (rig.joints[2].min_rad, rig.joints[2].max_rad) if three else None
     servos = [sim.servo(i) for i in ids]
     for servo in servos:
         servo.write(11, bytes([5]))  # Operating Mode 5
@@ -170,13 +174,13 @@ def stepped(
         if on and brake is not None:  # today's law reads the speed too: the walking lead
             read = (*read, velocity)
         if three:
-            pose = rig.angles_of(ticks)
+            pose = rig.ticks_to_angles(*ticks)
             q = pose_quat_scalar(*pose)
             past = (previous, 0.005, engaged, *read) if rules else ()
             corrected = region.correct(q)
-            push = push3_for(law, MOTOR, pose, q, corrected, rig.roll_limits, *past)
+            push = push3_for(law, MOTOR, pose, q, corrected, roll_limits, *past)
             if law is ROUND3 and rules:
-                target = corrected_pose(corrected, pose, rig.roll_limits)
+                target = corrected_pose(corrected, pose, roll_limits)
                 push = round3(push, pose, previous, target)
             if snap.on and push.goal_current:
                 if not snap.snap.allows(pose, push.goal, velocity, engaged, read_s, torque):
@@ -284,7 +288,8 @@ def outward_count(region, rows) -> tuple[int, int]:
         present = np.radians(r["pose_deg"])
         if len(present) == 3:
             q = pose_quat_scalar(*present)
-            roll_limits = RollRig(default_sim_profile("sim3")).roll_limits
+            roll = Rig(default_sim_profile("sim3")).joints[2]
+            roll_limits = (roll.min_rad, roll.max_rad)
             target = pan_tilt_roll_scalar(region.correct(q), present[0], present[2], *roll_limits)
         else:
             q = np.asarray(pan_tilt_to_quat(*present))

@@ -43,8 +43,7 @@ from firmware_sim.twist_hand import hand_from_mapping
 from limbctl.envelope import RigidMap
 from limbctl.envelope.synthetic import _cap_directions
 from limbctl.envelope.synthetic_twist import BandRegion
-from limbctl.geometry.gimbal import pan_tilt_to_direction
-from limbctl.geometry.gimbal3 import pose_quat_scalar
+from limbctl.geometry.gimbal import pan_tilt_to_direction, pose_quat_scalar
 from limbctl.geometry.quat import geodesic_distance
 from limbctl.geometry.twist import compose, wrap
 from limbctl.region import twist_band

@@ -217,7 +217,7 @@ def _leader_run(
     too for three) and the push, and the live page (when served) draws the leader beside the
     follower with its push. A machine too busy to keep the rate with the leader's extra write
     is said so."""
-    from limbctl.geometry.gimbal3 import pose_quat_scalar
+    from limbctl.geometry.gimbal import pose_quat_scalar
     from limbctl.geometry.twist import decompose_one
     from limbctl.jobs import gate_for
     from limbctl.operators import load_operator

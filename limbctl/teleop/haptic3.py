@@ -46,7 +46,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from limbctl.geometry.gimbal3 import pan_tilt_roll_scalar
+from limbctl.geometry.gimbal import pan_tilt_roll_scalar
 from limbctl.servo.leader import LeaderMotor
 from limbctl.teleop.gate3 import geodesic
 from limbctl.teleop.haptic import (

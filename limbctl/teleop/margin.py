@@ -27,7 +27,7 @@ from collections.abc import Callable
 import numpy as np
 
 from limbctl.geometry import scalar
-from limbctl.geometry.gimbal3 import pan_tilt_roll_scalar, pose_quat_scalar
+from limbctl.geometry.gimbal import pan_tilt_roll_scalar, pose_quat_scalar
 from limbctl.geometry.quat import limb_direction, multiply, swing_from_direction, tangent_frame
 from limbctl.teleop.gate import Gate
 from limbctl.teleop.gate3 import Gate3, geodesic, toward, turn_by
@@ -354,8 +354,5 @@ def margins_for(gate: Gate | Gate3, limb: object) -> SphereMargins:
     """The start geometry of the chain ``limb`` drives (its ``joints``): two joints point the
     limb (:class:`SphereMargins`), three orient it (:class:`RotationMargins`). ``limb`` gives
     ``held_pose``, the pose its servos hold once a pose is written."""
-    joints = len(limb.joints)  # type: ignore[attr-defined]
-    if joints == 2:
-        return SphereMargins(gate, limb.held_pose)  # type: ignore[attr-defined, arg-type]
-    held3 = limb.held_pose3  # type: ignore[attr-defined]
-    return RotationMargins(gate, lambda *pose: held3(pose))  # type: ignore[arg-type]
+    chain = SphereMargins if len(limb.joints) == 2 else RotationMargins  # type: ignore[attr-defined]
+    return chain(gate, limb.held_pose)  # type: ignore[attr-defined]

@@ -195,7 +195,7 @@ def test_a_two_servo_edge_trace_with_a_recorder_hole_keeps_the_true_region():
 
 def test_a_three_servo_edge_trace_with_a_recorder_hole_keeps_the_true_region():
     from limbctl.demo import true_twist_probes
-    from limbctl.geometry.gimbal3 import pan_tilt_roll_to_quat
+    from limbctl.geometry.gimbal import pan_tilt_roll_to_quat
     from limbctl.geometry.twist import decompose
 
     _, pose, t = _demo_teaching("demo_region3.yaml")

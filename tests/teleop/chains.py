@@ -25,7 +25,7 @@ RIGS = ("sim", "sim3")
 def chain_gate(profile) -> Gate | Gate3:
     """The gate of the profile's chain on the test region, at the rates teleop would use."""
     step = math.radians(120.0) / RATE
-    if profile.roll is None:
+    if len(profile.joints) == 2:
         limits = GateLimits(
             profile.pan.min_rad, profile.pan.max_rad, profile.tilt.min_rad,
             profile.tilt.max_rad, step, max(3.0 * step, math.radians(1.0)),

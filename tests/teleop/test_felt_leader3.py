@@ -3,7 +3,7 @@ twist, its faults, a passive model.
 
 The follower is the simulated three-servo gimbal (calib/rigs/sim3.yaml) gated by a twist region
 whose edge lies near pan 30 deg and near roll 30 deg (tests/teleop/twist_square.py). The
-simulator's three-servo leader (ids 4, 5, 6; firmware_sim/leader3.py) is held by its operator,
+simulator's three-servo leader (ids 4, 5, 6; firmware_sim/leader.py) is held by its operator,
 whose ground truth (motor torque every 0.5-1 ms) is what the assertions read, beside what the
 controller wrote.
 """
@@ -22,7 +22,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from limbctl.errors import ConfigError
-from limbctl.geometry.gimbal3 import pose_quat_scalar
+from limbctl.geometry.gimbal import pose_quat_scalar
 from limbctl.geometry.twist import decompose_one
 from limbctl.live import leader_status
 from limbctl.servo.setup import configure_servos

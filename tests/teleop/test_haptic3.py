@@ -17,12 +17,12 @@ from hypothesis import strategies as st
 
 from calib.profile import default_sim_profile
 from firmware_sim.control_table import Register as SimRegister
-from firmware_sim.leader3 import Operator3, leader_joints3
+from firmware_sim.leader import Operator, leader_joints
 from firmware_sim.simulator import Simulator
-from limbctl.geometry.gimbal3 import pose_quat_scalar
+from limbctl.geometry.gimbal import pose_quat_scalar
 from limbctl.servo.control_table import ModelNumber
 from limbctl.servo.leader import FEEL_DATA, FEEL_MAP, FELT_MODELS, encode_feel, feel_map
-from limbctl.servo.rig3 import RollRig
+from limbctl.servo.rig import Rig
 from limbctl.servo.ticks import angle_to_ticks
 from limbctl.teleop.gate3 import geodesic
 from limbctl.teleop.haptic import TICK_DEG, FeelLaw
@@ -33,7 +33,8 @@ from tests.teleop.twist_square import square_region
 LAW = FeelLaw()
 MOTOR = FELT_MODELS[ModelNumber.XM430_W350]
 CAP = MOTOR.torque_of(MOTOR.units_for(LAW.cap_nm))
-RIG = RollRig(default_sim_profile("sim3"))
+RIG = Rig(default_sim_profile("sim3"))
+ROLL_LIMITS = (RIG.joints[2].min_rad, RIG.joints[2].max_rad)
 IDS = (4, 5, 6)
 HAND = {"damping_nm_s_rad": 0.02, "max_torque_nm": 0.3}
 
@@ -48,16 +49,16 @@ def q_of(pan_deg, tilt_deg, roll_deg):
 
 
 def test_the_simulated_three_servo_leader_is_built_like_the_follower():
-    pan, tilt, roll = leader_joints3(IDS)
+    pan, tilt, roll = leader_joints(IDS)
     assert [j.servo_id for j in (pan, tilt, roll)] == list(IDS)
     assert (roll.zero_tick, roll.direction) == (RIG.joints[2].zero_tick, RIG.joints[2].direction)
-    hand = Operator3([[0.0, 0.0, 0.0, 0.0], [2.0, 20.0, -10.0, 40.0]])
+    hand = Operator([[0.0, 0.0, 0.0, 0.0], [2.0, 20.0, -10.0, 40.0]], joints=3)
     assert hand.target_deg(1.0) == pytest.approx((10.0, -5.0, 20.0))
     assert hand.torque(1.0, 2, 0.0, 0.0) == pytest.approx(0.3)  # 20 deg x 0.05, bounded at 0.3
     with pytest.raises(ValueError, match="roll_deg"):
-        Operator3([[0.0, 0.0, 0.0]])
+        Operator([[0.0, 0.0, 0.0]], joints=3)
     with pytest.raises(ValueError, match="must not decrease"):
-        Operator3([[1.0, 0.0, 0.0, 0.0], [0.5, 0.0, 0.0, 0.0]])
+        Operator([[1.0, 0.0, 0.0, 0.0], [0.5, 0.0, 0.0, 0.0]], joints=3)
 
 
 def test_distance_is_the_rotation_to_the_correction_and_the_push_leads_toward_it(region):
@@ -67,7 +68,7 @@ def test_distance_is_the_rotation_to_the_correction_and_the_push_leads_toward_it
     assert distance == pytest.approx(math.degrees(geodesic(q, corrected)))
     assert 10.0 < distance < 20.0  # the band's edge near 30 deg of roll
     present = tuple(np.radians((0.0, 0.0, 45.0)))
-    push = push3_for(LAW, MOTOR, present, q, corrected, RIG.roll_limits)
+    push = push3_for(LAW, MOTOR, present, q, corrected, ROLL_LIMITS)
     # the cap shared along the step (mostly roll): what the hand feels is at most the cap
     assert push.goal_current == push.joint_currents[2] >= MOTOR.units_for(LAW.cap_nm) - 2
     felt = math.sqrt(sum(MOTOR.torque_of(c) ** 2 for c in push.joint_currents))
@@ -107,7 +108,7 @@ def test_property_never_above_the_cap_zero_inside_toward_the_correction(
     q = q_of(pan, tilt, roll)
     corrected = region.correct(q)
     present = tuple(math.radians(a + d) for a, d in zip((pan, tilt, roll), lag, strict=True))
-    push = push3_for(LAW, MOTOR, present, q, corrected, RIG.roll_limits)
+    push = push3_for(LAW, MOTOR, present, q, corrected, ROLL_LIMITS)
     assert 0 <= push.goal_current <= MOTOR.units_for(LAW.cap_nm)
     assert push.torque_nm <= LAW.cap_nm
     if bool(region.contains(q)):
@@ -116,7 +117,7 @@ def test_property_never_above_the_cap_zero_inside_toward_the_correction(
         step = np.subtract(push.goal, present)
         lead = LAW.lead_for_deg(push.distance_deg, MOTOR)
         assert np.max(np.abs(step)) <= math.radians(lead) + 1e-12
-        target = np.subtract(corrected_pose(corrected, present, RIG.roll_limits), present)
+        target = np.subtract(corrected_pose(corrected, present, ROLL_LIMITS), present)
         assert float(step @ target) >= 0.0
 
 
@@ -131,9 +132,9 @@ def test_property_a_leader_outrunning_its_setpoints_or_still_moving_in_is_free_e
     corrected = region.correct(q)
     present = tuple(np.radians((0.0, 0.0, roll)))
     previous = tuple(np.radians((0.0, 0.0, roll + moved)))
-    push = push3_for(LAW, MOTOR, present, q, corrected, RIG.roll_limits, previous, period, engaged)
-    wall = push3_for(LAW, MOTOR, present, q, corrected, RIG.roll_limits)
-    way = np.subtract(corrected_pose(corrected, present, RIG.roll_limits), present)
+    push = push3_for(LAW, MOTOR, present, q, corrected, ROLL_LIMITS, previous, period, engaged)
+    wall = push3_for(LAW, MOTOR, present, q, corrected, ROLL_LIMITS)
+    way = np.subtract(corrected_pose(corrected, present, ROLL_LIMITS), present)
     moved_in = math.degrees(float(np.subtract(present, previous) @ way) / np.linalg.norm(way))
     outrun = moved_in > LAW.return_speed_deg_s * period + LAW.outrun_slack_deg
     near = wall.distance_deg - moved_in <= LAW.deadband_deg
@@ -193,7 +194,7 @@ def felt3_at_200_hz(
             engaged = False  # the watch let the wall go: LeaderSource.release
         for servo in servos:
             servo.refresh(sim.time_s)
-        pose = RIG.angles_of(tuple(s.value(SimRegister.PRESENT_POSITION) for s in servos))
+        pose = RIG.ticks_to_angles(*(s.value(SimRegister.PRESENT_POSITION) for s in servos))
         q = pose_quat_scalar(*pose)
         torque = read_torque(servos, RIG.joints, motor)
         velocity = read_velocity(servos, RIG.joints)
@@ -201,12 +202,12 @@ def felt3_at_200_hz(
         if rules:
             corrected = region.correct(q)
             past = (previous, 0.005, engaged, torque)
-            push = push3_for(LAW, motor, pose, q, corrected, RIG.roll_limits, *past)
+            push = push3_for(LAW, motor, pose, q, corrected, ROLL_LIMITS, *past)
             if watch.on and push.goal_current:
                 if not watch.snap.allows(pose, push.goal, velocity, engaged, sim.time_s, torque):
                     push = held3(pose)
         else:
-            push = push3_for(LAW, motor, pose, q, region.correct(q), RIG.roll_limits)
+            push = push3_for(LAW, motor, pose, q, region.correct(q), ROLL_LIMITS)
         previous = pose
         instead = (cycles or {}).get(k)
         if instead == "held":
@@ -265,7 +266,7 @@ def judge(region, rows, pushes, start_s, end_s):
             continue
         present = tuple(np.radians(r["pose_deg"]))
         q = pose_quat_scalar(*present)
-        way = np.subtract(corrected_pose(region.correct(q), present, RIG.roll_limits), present)
+        way = np.subtract(corrected_pose(region.correct(q), present, ROLL_LIMITS), present)
         if float(np.dot(r["hand_nm"], way)) < 0.0:  # the hand pushes outward
             toward.append(float(np.dot(r["motor_nm"], way)))
     assert len(toward) > 50 and min(toward) > 0.0
@@ -301,7 +302,7 @@ def outward_after(region, rows, start_s):
         q = pose_quat_scalar(*present)
         if region.contains(q):
             continue
-        way = np.subtract(corrected_pose(region.correct(q), present, RIG.roll_limits), present)
+        way = np.subtract(corrected_pose(region.correct(q), present, ROLL_LIMITS), present)
         if float(np.dot(r["motor_nm"], way)) < 0.0:
             times.append(r["t"] - start_s)
     return times
@@ -381,7 +382,7 @@ def pulled_outward(region, rows):
         if bool(region.contains(q)):
             inside.append(r)
             continue
-        way = np.subtract(corrected_pose(region.correct(q), present, RIG.roll_limits), present)
+        way = np.subtract(corrected_pose(region.correct(q), present, ROLL_LIMITS), present)
         if float(np.dot(r["motor_nm"], way)) < 0.0:
             outward.append(r)
     return outward, inside
@@ -413,7 +414,7 @@ def unit_way(region, row):
     """The unit joint-space direction from a row's pose toward its correction."""
     present = tuple(np.radians(row["pose_deg"]))
     q = pose_quat_scalar(*present)
-    way = np.subtract(corrected_pose(region.correct(q), present, RIG.roll_limits), present)
+    way = np.subtract(corrected_pose(region.correct(q), present, ROLL_LIMITS), present)
     return way / np.linalg.norm(way)
 
 

@@ -8,8 +8,7 @@ import pytest
 
 from calib import default_sim_profile
 from limbctl.envelope import Cone
-from limbctl.geometry.gimbal import pan_tilt_to_direction
-from limbctl.geometry.gimbal3 import pose_quat_scalar
+from limbctl.geometry.gimbal import pan_tilt_to_direction, pose_quat_scalar
 from limbctl.geometry.quat import direction_angle
 from limbctl.servo.rig import Rig
 from limbctl.teleop.gate import Gate, GateLimits, written_tolerance_deg

@@ -266,8 +266,6 @@ class LeaderSource(SnapWatching, CommandSource):
     def _angles(self, ticks: tuple[int, ...]) -> tuple[float, ...]:
         """The leader's joint angles (rad) at its ticks, read like the follower's: (pan, tilt),
         or (pan, tilt, roll) for three servos."""
-        if len(ticks) == 3:
-            return tuple(self.rig.angles_of(ticks))
         return self.rig.ticks_to_angles(*ticks)
 
     def _seen(self, pose: tuple[float, ...]) -> None:

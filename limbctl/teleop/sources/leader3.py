@@ -28,7 +28,7 @@ class LeaderSource3(LeaderSource):
 
     Parameters
     ----------
-    rig : RollRig
+    rig : Rig
         The three-servo follower rig; its bus also holds the leader's ids.
     leader_ids : (int, int, int)
         The leader's (pan, tilt, roll) ids.
