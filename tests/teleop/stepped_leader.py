@@ -26,7 +26,8 @@ from limbctl.servo.leader import (
 )
 from limbctl.servo.rig import Rig
 from limbctl.teleop.brake import BrakeLaw
-from limbctl.teleop.haptic import VELOCITY_UNIT_DEG_S, FeelLaw, Push, push_for
+from limbctl.teleop.haptic import VELOCITY_UNIT_DEG_S, FeelLaw
+from limbctl.teleop.haptic_push import held, push_for
 from limbctl.teleop.snap import SnapLaw, SnapWatch
 
 #: The follower's region in these runs: a 30 deg cone around +x (along pan, the edge at pan 30).
@@ -179,11 +180,11 @@ def felt_at_200_hz(
         )
         if snap_watch and push.goal_current:
             if not watch.snap.allows(pose, push.goal, velocity, engaged, sim.time_s, torque):
-                push = Push(0, 0, pose[0], pose[1], 0.0, push.distance_deg)
+                push = held(pose, push.distance_deg)
         previous = pose
         instead = (cycles or {}).get(k)
         if instead == "held":
-            push = Push(0, 0, pose[0], pose[1], 0.0, 0.0)
+            push = held(pose)
         if instead == "silent":
             engaged = False  # LeaderSource.release: the next push is the wall coming on again
             watch.snap.disarm()
@@ -193,7 +194,7 @@ def felt_at_200_hz(
             if step and watch.before_step(5 * k + step):
                 engaged = False
             if step == 1 and instead not in ("late", "silent"):
-                ticks = rig.angles_to_ticks(push.goal_pan, push.goal_tilt)
+                ticks = rig.angles_to_ticks(*push.goal)
                 if push.goal_current and not engaged:  # the wall comes on: LeaderSource._write
                     for servo in servos:
                         servo.write(64, bytes([0]))  # torque off, then on: the setpoint is the
