@@ -20,6 +20,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from limbctl.teleop.haptic3 import beyond3_deg, corrected_pose
 
 from limbctl.errors import ConfigError
 from limbctl.geometry.gimbal3 import pose_quat_scalar
@@ -28,7 +29,6 @@ from limbctl.live import leader_status
 from limbctl.servo.setup import configure_servos
 from limbctl.session import open_rig
 from limbctl.teleop.gate3 import Gate3, GateLimits3
-from limbctl.teleop.haptic3 import beyond3_deg, corrected_pose
 from limbctl.teleop.sources import LeaderSource3, SourceContext, parse_source
 from limbctl.view.leader import SWING_SHARE_DRAWN
 from tests.teleop.felt_running import Running as FeltRunning
