@@ -418,10 +418,8 @@ class LeaderSource(SnapWatching, CommandSource):
             self.law, self.motor, pose, q, corrected, previous, period, engaged, torque, speed
         )
 
-    @staticmethod
-    def _free(pose: tuple[float, ...]) -> Push:
-        """The push of a cycle that may not push: no current, the goal at the pose (rad)."""
-        return held(pose)
+    #: The push of a cycle that may not push: no current, the goal at the pose (rad).
+    _free = staticmethod(held)
 
     def _goal_ticks(self, push: Push) -> tuple[int, ...]:
         """The push's Goal Position ticks per leader servo (not clamped)."""
