@@ -63,18 +63,15 @@ TWIST_INSET_DEG = 1.0
 #: Along the edge trace, one cycle to both stops: (u target, move s, hold s) steps. 0.9 s a
 #: cycle at the trace's 18 deg/s reaches each stop about every 16 deg of edge, so a band limit
 #: bridged between stops sags well under a degree (ENVELOPE_CURVATURE in
-#: limbctl/region/twist_band.py). The earlier cycle (one stop, the other, the middle: 2.2 s, each
-#: stop every 40 deg of edge) left the demo region's inner orientations 13 deg from the nearest
-#: stop at the 90th percentile, and its 60 s teaching held 65 % of them (docs/decisions/twist.md;
-#: at six seconds a cycle half widths came out ~20 deg short, docs/decisions/hand.md).
+#: limbctl/region/twist_band.py; slower cycles: docs/decisions/hand.md, docs/decisions/twist.md).
 TRACE_TWIST_CYCLE = ((1.0, 0.4, 0.05), (-1.0, 0.4, 0.05))
 #: Wandering: every STOP_EVERY-th twist move goes to a stop, alternately the upper and the lower
 #: one; the others to a uniform draw in the band. 1: every move, so the twist keeps turning from
 #: stop to stop while the swing wanders (a place passed once still sees both stops). A move over
 #: the whole band takes WANDER_MOVE_S[1] s, a short one at least WANDER_MOVE_S[0] (a brisk
 #: wrist turns through its range in under half a second), and each ends in a hold of
-#: WANDER_HOLD_S (a touch of the stop). At (0.3, 0.8) and (0.05, 0.2) s the swing's 40 deg/s
-#: carried the limb ~70 deg between two visits of the same stop, at these ~35.
+#: WANDER_HOLD_S (a touch of the stop): the swing's 40 deg/s carries the limb ~35 deg between two
+#: visits of the same stop.
 STOP_EVERY = 1
 WANDER_MOVE_S = (0.2, 0.4)
 WANDER_HOLD_S = (0.03, 0.08)
