@@ -37,7 +37,8 @@ from limbctl.servo.leader_guard import LeaderGuard
 from limbctl.servo.rig import Rig
 from limbctl.teleop.commands import Command, command_from_pan_tilt, command_from_pose
 from limbctl.teleop.gate import Outcome
-from limbctl.teleop.haptic import FeelLaw, FeelStats, Push, push_for
+from limbctl.teleop.haptic import FeelLaw, FeelStats
+from limbctl.teleop.haptic_push import Push, held, push_for
 from limbctl.teleop.pacing import PaceWatch
 from limbctl.teleop.sources.base import CommandSource
 from limbctl.teleop.sources.leader_ids import check_leader_fits
@@ -406,7 +407,7 @@ class LeaderSource(SnapWatching, CommandSource):
         return notes
 
     def _law(self, gate, pose, q, previous, period: float, engaged: bool, torque, speed) -> Push:
-        """This cycle's push by the two-servo law (:func:`~limbctl.teleop.haptic.push_for`)
+        """This cycle's push by the two-servo law (:func:`~limbctl.teleop.haptic_push.push_for`)
         from the leader's pose (rad), its command ``q`` (4,), the pose read a cycle before (None
         at first) and the time since (s), whether the wall pushed then, and the motors' torque
         and speed as read (joint frame, N m and deg/s)."""
@@ -415,14 +416,12 @@ class LeaderSource(SnapWatching, CommandSource):
             self.law, self.motor, pose, q, corrected, previous, period, engaged, torque, speed
         )
 
-    @staticmethod
-    def _free(pose: tuple[float, ...]) -> Push:
-        """The push of a cycle that may not push: no current, the goal at the pose (rad)."""
-        return Push(0, 0, pose[0], pose[1], 0.0, 0.0)
+    #: The push of a cycle that may not push: no current, the goal at the pose (rad).
+    _free = staticmethod(held)
 
     def _goal_ticks(self, push: Push) -> tuple[int, ...]:
         """The push's Goal Position ticks per leader servo (not clamped)."""
-        return self.rig.angles_to_ticks(push.goal_pan, push.goal_tilt)
+        return self.rig.angles_to_ticks(*push.goal)
 
     def _follower_missed(self, result, bus_ok: bool, now: float) -> bool:
         """Whether the gate held only because the follower's read failed, within

@@ -4,7 +4,7 @@
 full orientation is the command, gated by :class:`limbctl.teleop.gate3.Gate3`. A leader whose
 model senses current (:data:`limbctl.servo.leader.FELT_MODELS`) runs all three servos in
 current-based position mode and pushes back beyond the region by the law of
-:mod:`limbctl.teleop.haptic3`. Everything else is the two-servo leader's
+:mod:`limbctl.teleop.haptic_push`. Everything else is the two-servo leader's
 (:class:`~limbctl.teleop.sources.leader.LeaderSource`, whose cycle this class runs): the set-up,
 the rate check at start, the pace watch, Goal Current 0 on all three at once on any doubt (a
 leader that is silent, in alarm or restarted, a failed bus, a held gate, a fault, the session's
@@ -18,8 +18,7 @@ from __future__ import annotations
 
 from limbctl.errors import ConfigError
 from limbctl.servo.ticks import angle_to_ticks
-from limbctl.teleop.haptic import Push
-from limbctl.teleop.haptic3 import Pose3, held3, push3_for
+from limbctl.teleop.haptic_push import Push, held, push_for
 from limbctl.teleop.sources.leader import LeaderSource
 
 
@@ -43,7 +42,7 @@ class LeaderSource3(LeaderSource):
             raise ConfigError(f"a three-servo leader needs three ids, got {leader_ids}")
         super().__init__(rig, leader_ids, rate_hz, law)
         #: The leader's (pan, tilt, roll) as last read (rad); None before the first read.
-        self.last_pose3: Pose3 | None = None
+        self.last_pose3: tuple[float, float, float] | None = None
 
     def _feel_notice(self, model: str, cap: int) -> str:
         return (
@@ -52,31 +51,35 @@ class LeaderSource3(LeaderSource):
             f"{self.motor.torque_of(cap):.2f} N m (Current Limit {cap})"
         )
 
-    def _seen(self, pose: Pose3) -> None:
+    def _seen(self, pose: tuple[float, float, float]) -> None:
         self.last_pose3, self.last_pose = pose, (pose[0], pose[1])
 
     def _law(self, gate, pose, q, previous, period: float, engaged: bool, torque, speed) -> Push:
-        """This cycle's push by the three-servo law (:func:`~limbctl.teleop.haptic3.push3_for`),
+        """This cycle's push by the three-servo law (:func:`~limbctl.teleop.haptic_push.push_for`),
         the correction's roll unwrapped within the gate's roll limits."""
-        limits = (gate.limits.roll_min, gate.limits.roll_max)
+        limits = (
+            (gate.limits.pan_min, gate.limits.pan_max),
+            (gate.limits.tilt_min, gate.limits.tilt_max),
+            (gate.limits.roll_min, gate.limits.roll_max),
+        )
         corrected = gate.envelope.correct(q)
-        return push3_for(
+        return push_for(
             self.law,
             self.motor,
             pose,
             q,
             corrected,
-            limits,
             previous,
             period,
             engaged,
             torque,
             speed,
+            limits,
         )
 
     @staticmethod
-    def _free(pose: Pose3) -> Push:
-        return held3(pose)
+    def _free(pose: tuple[float, float, float]) -> Push:
+        return held(pose)
 
     def _goal_ticks(self, push: Push) -> tuple[int, ...]:
         return tuple(
