@@ -403,10 +403,10 @@ def park(
         if result.outcome is Outcome.HELD:
             return ParkOutcome(False, pose, note=f"the gate held: {result.reason}")
         try:
-            limb.write_pose(result.pan, result.tilt)
+            limb.write_pose(*result.pose)
         except BusError as exc:
             return ParkOutcome(False, gate.safe_pose, note=f"could not park: {exc}")
         if not result.slewed:
-            return ParkOutcome(True, (result.pan, result.tilt), math.degrees(distance))
+            return ParkOutcome(True, result.pose, math.degrees(distance))
         stop.wait(1.0 / rate_hz)  # a period between goals, late or not: never faster
     return ParkOutcome(False, gate.safe_pose, note="the gate did not reach the park pose")

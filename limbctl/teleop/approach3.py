@@ -2,7 +2,7 @@
 
 The three-servo twin of :mod:`limbctl.teleop.approach`, on SO(3) instead of the sphere of
 directions. "Inside by the margin" is :func:`limbctl.teleop.start3.safe_with_margin`: the pose
-the servos would hold is safe for :class:`~limbctl.teleop.gate3.Gate3`, and stays safe with any
+the servos would hold is safe for :class:`~limbctl.teleop.gate.Gate`, and stays safe with any
 one joint moved by the margin either way.
 
 :func:`nearest_start_pose3` finds such a pose near the present one. Candidates, all built on
@@ -39,11 +39,11 @@ from typing import IO, Any
 import numpy as np
 
 from limbctl.errors import BusError
+from limbctl.geometry.chains import geodesic, toward, turn_by
 from limbctl.geometry.gimbal3 import pan_tilt_roll_scalar, pose_quat_scalar
 from limbctl.geometry.quat import multiply
 from limbctl.teleop.approach import SETTLE_DEG, SETTLE_TIMEOUT_S, ParkOutcome
-from limbctl.teleop.gate import Outcome
-from limbctl.teleop.gate3 import Gate3, Pose3, geodesic, toward, turn_by
+from limbctl.teleop.gate import Gate, Outcome
 from limbctl.teleop.margin import SEARCH_RADII, START_MARGIN_DEG, status_line
 
 #: Axes (world frame) the search rings turn the nearest orientation about: the six faces and
@@ -56,11 +56,12 @@ RING_AXES = np.array(
 )
 RING_AXES /= np.linalg.norm(RING_AXES, axis=1, keepdims=True)
 
+Pose3 = tuple[float, float, float]
 #: (pan, tilt, roll) rad -> the pose the servos hold once it is written (clamped, rounded).
 HeldPose3 = Callable[[Pose3], Pose3]
 
 
-def safe_with_margin(gate: Gate3, pose: Pose3, margin: float) -> bool:
+def safe_with_margin(gate: Gate, pose: Pose3, margin: float) -> bool:
     """True when ``pose`` and the six poses with one joint moved by +-``margin`` (rad) are safe."""
     if not gate.is_safe(*pose):
         return False
@@ -73,7 +74,7 @@ def safe_with_margin(gate: Gate3, pose: Pose3, margin: float) -> bool:
     return True
 
 
-def outside_by3(gate: Gate3, pose: Pose3) -> float:
+def outside_by3(gate: Gate, pose: Pose3) -> float:
     """Rotation (rad) from ``pose`` to the region's nearest orientation; 0 inside."""
     q = pose_quat_scalar(*pose)
     if bool(gate.envelope.contains(q)):
@@ -87,7 +88,7 @@ def _axis_rotation(axis: np.ndarray, angle: float) -> np.ndarray:
     return np.concatenate([[math.cos(half)], math.sin(half) * axis])
 
 
-def candidates3(gate: Gate3, q: np.ndarray, margin: float) -> list[np.ndarray]:
+def candidates3(gate: Gate, q: np.ndarray, margin: float) -> list[np.ndarray]:
     """Orientations (4,) that may be inside by ``margin``, near ``q`` (see the module docstring)."""
     nearest = gate.envelope.correct(q)
     out = [nearest]
@@ -104,7 +105,7 @@ def candidates3(gate: Gate3, q: np.ndarray, margin: float) -> list[np.ndarray]:
 
 
 def nearest_start_pose3(
-    gate: Gate3, pose: Pose3, held_pose: HeldPose3, margin: float = math.radians(START_MARGIN_DEG)
+    gate: Gate, pose: Pose3, held_pose: HeldPose3, margin: float = math.radians(START_MARGIN_DEG)
 ) -> Pose3 | None:
     """The pose nearest ``pose`` (rad) that is inside by ``margin`` once the servos hold it.
 
@@ -120,7 +121,7 @@ def nearest_start_pose3(
     q = pose_quat_scalar(*pose)
     ranked = sorted(candidates3(gate, q, margin), key=lambda c: geodesic(q, c))
     for c in ranked:
-        joints = pan_tilt_roll_scalar(c, pose[0], pose[2], lim.roll_min, lim.roll_max)
+        joints = pan_tilt_roll_scalar(c, pose[0], pose[2], lim.joint_min[2], lim.joint_max[2])
         held = held_pose(joints)
         if safe_with_margin(gate, held, margin):
             return held
@@ -198,7 +199,7 @@ class StartStatus3:
 
 
 def assess3(
-    gate: Gate3,
+    gate: Gate,
     pose: Pose3,
     held_pose: HeldPose3,
     waited_s: float = 0.0,
@@ -223,7 +224,7 @@ def assess3(
 
 def drive3(
     rig: Any,
-    gate: Gate3,
+    gate: Gate,
     start: Pose3,
     target: Pose3,
     speed_deg_s: float,
@@ -256,7 +257,7 @@ def drive3(
             new = target
         else:
             q = toward(here, goal, step)
-            new = pan_tilt_roll_scalar(q, pose[0], pose[2], lim.roll_min, lim.roll_max)
+            new = pan_tilt_roll_scalar(q, pose[0], pose[2], lim.joint_min[2], lim.joint_max[2])
         if not lim.inside(*new):
             return "the path left the hard limits"
         if max(abs(a - b) for a, b in zip(new, pose, strict=True)) > lim.max_joint_step:
@@ -285,9 +286,7 @@ def drive3(
         stop.wait(0.01)
 
 
-def park3(
-    rig: Any, gate: Gate3, rate_hz: float, stop: threading.Event | None = None
-) -> ParkOutcome:
+def park3(rig: Any, gate: Gate, rate_hz: float, stop: threading.Event | None = None) -> ParkOutcome:
     """After a clean session, move the limb inside by the margin if it rests nearer the edge.
 
     As :func:`limbctl.teleop.approach.park`: the gate drives the limb (slew-limited, corrected,

@@ -46,9 +46,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from limbctl.geometry.chains import geodesic
 from limbctl.geometry.gimbal3 import pan_tilt_roll_scalar
 from limbctl.servo.leader import LeaderMotor
-from limbctl.teleop.gate3 import geodesic
 from limbctl.teleop.haptic import (
     FeelLaw,
     Push,
@@ -86,7 +86,7 @@ def beyond3_deg(q: np.ndarray, corrected: np.ndarray) -> float:
     """Rotation (deg) between a command (4,) and its correction (4,); 0 when the same."""
     if np.array_equal(q, corrected):
         return 0.0
-    # d = 2 acos |<q, c>|, computed as gate3.geodesic does (accurate near 0)
+    # d = 2 acos |<q, c>|, computed as chains.geodesic does (accurate near 0)
     return math.degrees(geodesic(np.asarray(q, dtype=float), np.asarray(corrected, dtype=float)))
 
 
@@ -100,7 +100,7 @@ def corrected_pose(
     corrected: np.ndarray, present: Pose3, roll_limits: tuple[float, float]
 ) -> Pose3:
     """Joint angles (rad) of the correction (4,): pan kept at tilt +-90 deg, roll unwrapped
-    within ``roll_limits`` (rad) nearest the leader's present roll (as :class:`Gate3` does)."""
+    within ``roll_limits`` (rad) nearest the leader's present roll (as the gate does)."""
     return pan_tilt_roll_scalar(corrected, present[0], present[2], *roll_limits)
 
 

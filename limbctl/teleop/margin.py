@@ -64,10 +64,10 @@ def ring(directions: np.ndarray, radius: float, count: int) -> np.ndarray:
 
 def within_limits(gate: Gate, pan: float, tilt: float, margin: float = 0.0) -> bool:
     """Both joints at least ``margin`` (rad) inside the gate's hard limits (NaN is not)."""
-    lim = gate.limits
+    (pan_min, tilt_min), (pan_max, tilt_max) = gate.limits.joint_min, gate.limits.joint_max
     return (
-        lim.pan_min + margin <= pan <= lim.pan_max - margin
-        and lim.tilt_min + margin <= tilt <= lim.tilt_max - margin
+        pan_min + margin <= pan <= pan_max - margin
+        and tilt_min + margin <= tilt <= tilt_max - margin
     )
 
 
@@ -82,12 +82,12 @@ def inside_by_margin(gate: Gate, poses: np.ndarray, margin: float) -> np.ndarray
     ndarray of bool, shape (N,)
     """
     poses = np.asarray(poses, dtype=np.float64).reshape(-1, 2)
-    lim = gate.limits
+    (pan_min, tilt_min), (pan_max, tilt_max) = gate.limits.joint_min, gate.limits.joint_max
     ok = (
-        (poses[:, 0] >= lim.pan_min + margin)
-        & (poses[:, 0] <= lim.pan_max - margin)
-        & (poses[:, 1] >= lim.tilt_min + margin)
-        & (poses[:, 1] <= lim.tilt_max - margin)
+        (poses[:, 0] >= pan_min + margin)
+        & (poses[:, 0] <= pan_max - margin)
+        & (poses[:, 1] >= tilt_min + margin)
+        & (poses[:, 1] <= tilt_max - margin)
     )
     if not ok.any():
         return ok
@@ -132,9 +132,9 @@ def nearest_start_pose(
     nearest = limb_direction(gate.envelope.correct(swing_from_direction(d)))
     # the nearest point of the region, pulled into the hard limits with twice the margin
     base_pan, base_tilt = scalar.pan_tilt(tuple(nearest), pan)
-    lim = gate.limits
-    base_pan = min(max(base_pan, lim.pan_min + 2 * margin), lim.pan_max - 2 * margin)
-    base_tilt = min(max(base_tilt, lim.tilt_min + 2 * margin), lim.tilt_max - 2 * margin)
+    (pan_min, tilt_min), (pan_max, tilt_max) = gate.limits.joint_min, gate.limits.joint_max
+    base_pan = min(max(base_pan, pan_min + 2 * margin), pan_max - 2 * margin)
+    base_tilt = min(max(base_tilt, tilt_min + 2 * margin), tilt_max - 2 * margin)
     base = np.asarray(scalar.direction(base_pan, base_tilt))
 
     candidates = [base[None, :]]

@@ -4,7 +4,7 @@ As the two-servo session (:mod:`limbctl.teleop.lifecycle`), on SO(3):
 
 1. with torque off, the pose is read at ``poll_hz``; it is taken once the pose the servos would
    hold there (rounded to ticks) is inside by the margin
-   (:func:`~limbctl.teleop.approach3.safe_with_margin`: safe for :meth:`Gate3.is_safe` with
+   (:func:`~limbctl.teleop.approach3.safe_with_margin`: safe for :meth:`Gate.is_safe` with
    every joint moved by START_MARGIN_DEG either way), so the limb may still drift a little
    between that read and torque on;
 2. with ``approach_deg_s`` and the limb inside the hard limits, the servos instead drive it to
@@ -31,7 +31,7 @@ from limbctl.errors import BusError, SafetyError
 from limbctl.geometry.gimbal3 import pose_quat_scalar
 from limbctl.teleop.approach import LOG_EVERY_S, StartOptions, StartOutcome, switch_torque_off
 from limbctl.teleop.approach3 import StartStatus3, assess3, drive3, park3, safe_with_margin
-from limbctl.teleop.gate3 import Gate3
+from limbctl.teleop.gate import Gate
 from limbctl.teleop.lifecycle import SessionResult
 from limbctl.teleop.loop import LoopConfig, run
 from limbctl.teleop.margin import START_MARGIN_DEG
@@ -47,7 +47,7 @@ def _say(stream: IO[str] | None, text: str) -> None:
 
 def start_three(
     rig: Any,
-    gate: Gate3,
+    gate: Gate,
     options: StartOptions,
     stream: IO[str] | None = None,
     stop: threading.Event | None = None,
@@ -68,7 +68,7 @@ def start_three(
 
 def _start_three(
     rig: Any,
-    gate: Gate3,
+    gate: Gate,
     options: StartOptions,
     stream: IO[str] | None,
     stop: threading.Event,
@@ -158,7 +158,7 @@ def _show(stream: IO[str] | None, status: StartStatus3, lines: list[float]) -> N
 
 def run_session_three(
     rig: Any,
-    gate: Gate3,
+    gate: Gate,
     open_source: Callable[[], CommandSource],
     config: LoopConfig,
     starting: StartOptions,

@@ -9,6 +9,7 @@ import threading
 
 import numpy as np
 
+from limbctl.geometry.chains import geodesic
 from limbctl.geometry.gimbal3 import pose_quat_scalar
 from limbctl.servo.setup import configure_servos
 from limbctl.session import open_rig
@@ -20,12 +21,12 @@ from limbctl.teleop.approach3 import (
     park3,
     safe_with_margin,
 )
-from limbctl.teleop.gate3 import Gate3, GateLimits3, geodesic
+from limbctl.teleop.gate import Gate, GateLimits
 from limbctl.teleop.loop import LoopConfig, run
 from limbctl.teleop.margin import START_MARGIN_DEG
 from limbctl.teleop.start3 import start_three
 from tests.safety.support import PacedSource, wait_for
-from tests.teleop.test_gate3 import ConeBand
+from tests.teleop.test_gate import ConeBand
 
 RATE = 200.0
 MARGIN = math.radians(START_MARGIN_DEG)
@@ -33,13 +34,10 @@ MARGIN = math.radians(START_MARGIN_DEG)
 REGION = ConeBand(math.radians(40), 0.0, math.radians(30))
 
 
-def gate_for(profile) -> Gate3:
-    limits = GateLimits3(
-        profile.pan.min_rad, profile.pan.max_rad, profile.tilt.min_rad,
-        profile.tilt.max_rad, profile.roll.min_rad, profile.roll.max_rad,
-        max_step=math.radians(120) / RATE, max_joint_step=math.radians(1.8),
-    )  # fmt: skip
-    return Gate3(REGION, limits)
+def gate_for(profile) -> Gate:
+    return Gate(
+        REGION, GateLimits.for_profile(profile, math.radians(120) / RATE, math.radians(1.8))
+    )
 
 
 def settle_at3(rig, pose, timeout_s=20.0):
@@ -65,7 +63,7 @@ def goal_orientations(log, start_offset=0):
 
 
 def test_nearest_start_pose_is_inside_by_the_margin_and_near():
-    gate = Gate3(REGION, GateLimits3(-2, 2, -1, 1, -2.5, 2.5, 0.01, 0.03))
+    gate = Gate(REGION, GateLimits((-2, -1, -2.5), (2, 1, 2.5), 0.01, 0.03))
     exact = lambda pose: pose  # noqa: E731 - no tick rounding: the search's own geometry
     # outside in twist only (roll 45 deg at rest: twist 45 against the band's 30)
     twisted = (0.0, 0.0, math.radians(45))
@@ -108,7 +106,7 @@ def test_approach_drives_a_three_servo_limb_inside_along_a_slow_checked_path(tmp
     assert len(goals) >= 10
     steps = [math.degrees(geodesic(a, b)) for a, b in zip(goals[:-1], goals[1:], strict=True)]
     # slow: one cycle's share of the speed per goal, give or take both goals' rounding to ticks
-    # (sqrt(5) half ticks each: gate3.written_tolerance_deg3 without the gate's own tolerance)
+    # (sqrt(5) half ticks each: written_tolerance_deg(joints=3) without the gate's own tolerance)
     rounding = math.sqrt(5) * 360.0 / 4096 / 2
     assert max(steps) <= speed / RATE + 2 * rounding
     assert np.mean(steps) <= speed / RATE + 0.01
@@ -150,7 +148,7 @@ def test_a_three_servo_session_ending_on_the_twist_stop_parks_where_the_next_sta
 
 
 def test_the_status_of_a_waiting_limb_says_how_far_and_which_way():
-    gate = Gate3(REGION, GateLimits3(-2, 2, -1, 1, -2.5, 2.5, 0.01, 0.03))
+    gate = Gate(REGION, GateLimits((-2, -1, -2.5), (2, 1, 2.5), 0.01, 0.03))
     exact = lambda pose: pose  # noqa: E731
     twisted = assess3(gate, (0.0, 0.0, math.radians(45)), exact, waited_s=2.0)
     assert not twisted.ready and twisted.inside_limits

@@ -19,12 +19,12 @@ from calib.profile import default_sim_profile
 from firmware_sim.control_table import Register as SimRegister
 from firmware_sim.leader3 import Operator3, leader_joints3
 from firmware_sim.simulator import Simulator
+from limbctl.geometry.chains import geodesic
 from limbctl.geometry.gimbal3 import pose_quat_scalar
 from limbctl.servo.control_table import ModelNumber
 from limbctl.servo.leader import FEEL_DATA, FEEL_MAP, FELT_MODELS, encode_feel, feel_map
 from limbctl.servo.rig3 import RollRig
 from limbctl.servo.ticks import angle_to_ticks
-from limbctl.teleop.gate3 import geodesic
 from limbctl.teleop.haptic import TICK_DEG, FeelLaw
 from limbctl.teleop.haptic3 import Push3, beyond3_deg, corrected_pose, held3, push3_for
 from tests.teleop.stepped_leader import SteppedWatch, motor_of, read_torque, read_velocity

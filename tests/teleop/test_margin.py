@@ -26,10 +26,8 @@ RIG = Rig(default_sim_profile())
 
 def cone_gate():
     limits = GateLimits(
-        pan_min=math.radians(-100),
-        pan_max=math.radians(100),
-        tilt_min=math.radians(-30),
-        tilt_max=math.radians(70),
+        joint_min=(math.radians(-100), math.radians(-30)),
+        joint_max=(math.radians(100), math.radians(70)),
         max_step=math.radians(0.6),
         max_joint_step=math.radians(1.8),
     )

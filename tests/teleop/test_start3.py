@@ -1,5 +1,5 @@
-"""A whole three-servo session on the simulator: start (waiting), the loop with Gate3 at 200 Hz on
-a stream that sweeps far outside in swing and twist, judged by the simulator's own goal log."""
+"""A whole three-servo session on the simulator: start (waiting), the loop with the gate at 200 Hz
+on a stream that sweeps far outside in swing and twist, judged by the simulator's own goal log."""
 
 from __future__ import annotations
 
@@ -9,15 +9,16 @@ import threading
 
 import numpy as np
 
+from limbctl.geometry.chains import geodesic
 from limbctl.geometry.gimbal3 import pose_quat_scalar
 from limbctl.servo.setup import configure_servos
 from limbctl.session import open_rig
 from limbctl.teleop.approach import StartOptions
-from limbctl.teleop.gate3 import Gate3, GateLimits3, geodesic, written_tolerance_deg3
+from limbctl.teleop.gate import Gate, GateLimits, written_tolerance_deg
 from limbctl.teleop.loop import LoopConfig
 from limbctl.teleop.sources import SourceContext, parse_source
 from limbctl.teleop.start3 import run_session_three, safe_with_margin
-from tests.teleop.test_gate3 import ConeBand
+from tests.teleop.test_gate import ConeBand
 
 
 def sweep_lines(n=500):
@@ -37,12 +38,8 @@ def test_session_on_three_servos_keeps_every_goal_in_the_region(tmp_path):
     lines = sweep_lines()
     with open_rig(rig_path="sim3", goal_log=log) as session:
         rig, profile = session.rig, session.profile
-        limits = GateLimits3(
-            profile.pan.min_rad, profile.pan.max_rad, profile.tilt.min_rad,
-            profile.tilt.max_rad, profile.roll.min_rad, profile.roll.max_rad,
-            max_step=math.radians(120) / 200, max_joint_step=math.radians(1.8),
-        )  # fmt: skip
-        gate = Gate3(region, limits)
+        limits = GateLimits.for_profile(profile, math.radians(120) / 200, math.radians(1.8))
+        gate = Gate(region, limits)
         configure_servos(rig.bus, rig.tick_limits())
         stream = tmp_path / "commands.jsonl"
         stream.write_text(lines)
@@ -66,7 +63,7 @@ def test_session_on_three_servos_keeps_every_goal_in_the_region(tmp_path):
     for line in log.read_text().splitlines():
         row = json.loads(line)
         by_time[row["t"]] = row["limb_q"]
-    tolerance = math.radians(written_tolerance_deg3())
+    tolerance = math.radians(written_tolerance_deg(joints=3))
     outside = 0
     for q in by_time.values():
         q = np.asarray(q)
@@ -76,12 +73,12 @@ def test_session_on_three_servos_keeps_every_goal_in_the_region(tmp_path):
     twists = [math.degrees(float(np.arctan2(q[1], q[0]) * 2)) for q in by_time.values()]
     # the stream asked for roll +-150: the gate turned the twist out toward the band's +-30 deg
     assert max(twists) > 20 and min(twists) < -20
-    assert max(abs(v) for v in twists) <= 30.0 + written_tolerance_deg3()
+    assert max(abs(v) for v in twists) <= 30.0 + written_tolerance_deg(joints=3)
 
 
 def test_safe_with_margin_needs_room_on_every_joint():
     region = ConeBand(math.radians(40), 0.0, math.radians(30))
-    gate = Gate3(region, GateLimits3(-2, 2, -1, 1, -1.7, 1.7, 0.01, 0.03))
+    gate = Gate(region, GateLimits((-2, -1, -1.7), (2, 1, 1.7), 0.01, 0.03))
     margin = math.radians(0.35)
     assert safe_with_margin(gate, (0.0, 0.0, 0.0), margin)
     edge = (0.0, 0.0, math.radians(29.9))  # twist 29.9: 0.35 deg more roll leaves the band
