@@ -159,7 +159,8 @@ def gate_for(model_path: Path, profile: RigProfile, rate_hz: float, max_speed_de
     under another calibration of this one, or recording no calibration
     (:func:`limbctl.servo.profiles.check_trained_for`).
 
-    The gate's step limit is ``max_speed_deg_s / rate_hz`` (converted to rad per cycle).
+    The gate's step limit is ``max_speed_deg_s / rate_hz`` (converted to rad per cycle); its
+    chain (two or three joints) is the profile's.
     """
     from limbctl.envelope import load_header, load_model
     from limbctl.servo.profiles import check_trained_for
@@ -167,30 +168,10 @@ def gate_for(model_path: Path, profile: RigProfile, rate_hz: float, max_speed_de
 
     check_trained_for(load_header(model_path).get("metadata", {}), profile, str(model_path))
     step = math.radians(max_speed_deg_s) / rate_hz
-    limits = GateLimits(
-        pan_min=profile.pan.min_rad,
-        pan_max=profile.pan.max_rad,
-        tilt_min=profile.tilt.min_rad,
-        tilt_max=profile.tilt.max_rad,
-        max_step=step,
-        # a joint may move 3 Cartesian steps per cycle near the pole (where pan turns fast for
-        # a small direction change), and never less than 1 degree
-        max_joint_step=max(3.0 * step, math.radians(1.0)),
-    )
-    if profile.roll is not None:
-        from limbctl.teleop.gate3 import Gate3, GateLimits3
-
-        limits3 = GateLimits3(
-            pan_min=profile.pan.min_rad,
-            pan_max=profile.pan.max_rad,
-            tilt_min=profile.tilt.min_rad,
-            tilt_max=profile.tilt.max_rad,
-            roll_min=profile.roll.min_rad,
-            roll_max=profile.roll.max_rad,
-            max_step=step,  # a rotation of the limb per cycle on a three-servo rig
-            max_joint_step=limits.max_joint_step,
-        )
-        return Gate3(load_model(model_path), limits3)  # type: ignore[return-value]
+    # max_step: of direction with two servos, of rotation of the limb with three. A joint may
+    # move 3 Cartesian steps per cycle near the pole (where pan turns fast for a small change
+    # of the limb), and never less than 1 degree
+    limits = GateLimits.for_profile(profile, step, max(3.0 * step, math.radians(1.0)))
     return Gate(load_model(model_path), limits)
 
 

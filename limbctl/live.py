@@ -255,10 +255,10 @@ class TeleopFeed:
     def __call__(self, cycle: Cycle) -> None:
         previous = self.written
         if cycle.written and cycle.result is not None:
-            self.written = PanTilt(math.degrees(cycle.result.pan), math.degrees(cycle.result.tilt))
-            roll = getattr(cycle.result, "roll", None)
-            if roll is not None:
-                self.written_twist = pose_twist(cycle.result.pan, cycle.result.tilt, roll)
+            written = cycle.result.pose
+            self.written = PanTilt(math.degrees(written[0]), math.degrees(written[1]))
+            if len(written) == 3:
+                self.written_twist = pose_twist(*written)
         self._update_rate(cycle)
         if cycle.present is not None:
             self.present = PanTilt(math.degrees(cycle.present[0]), math.degrees(cycle.present[1]))

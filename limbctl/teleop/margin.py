@@ -27,10 +27,10 @@ from collections.abc import Callable
 import numpy as np
 
 from limbctl.geometry import scalar
+from limbctl.geometry.chains import geodesic, toward, turn_by
 from limbctl.geometry.gimbal import pan_tilt_roll_scalar, pose_quat_scalar
 from limbctl.geometry.quat import limb_direction, multiply, swing_from_direction, tangent_frame
 from limbctl.teleop.gate import Gate
-from limbctl.teleop.gate3 import Gate3, geodesic, toward, turn_by
 
 #: How far (deg) inside the region and the hard limits a start or park pose must be. It covers
 #: the rounding of a goal to ticks (0.072 deg, written_tolerance_deg) plus a holding servo's
@@ -72,10 +72,10 @@ def ring(directions: np.ndarray, radius: float, count: int) -> np.ndarray:
 
 def within_limits(gate: Gate, pan: float, tilt: float, margin: float = 0.0) -> bool:
     """Both joints at least ``margin`` (rad) inside the gate's hard limits (NaN is not)."""
-    lim = gate.limits
+    (pan_min, tilt_min), (pan_max, tilt_max) = gate.limits.joint_min, gate.limits.joint_max
     return (
-        lim.pan_min + margin <= pan <= lim.pan_max - margin
-        and lim.tilt_min + margin <= tilt <= lim.tilt_max - margin
+        pan_min + margin <= pan <= pan_max - margin
+        and tilt_min + margin <= tilt <= tilt_max - margin
     )
 
 
@@ -90,12 +90,12 @@ def inside_by_margin(gate: Gate, poses: np.ndarray, margin: float) -> np.ndarray
     ndarray of bool, shape (N,)
     """
     poses = np.asarray(poses, dtype=np.float64).reshape(-1, 2)
-    lim = gate.limits
+    (pan_min, tilt_min), (pan_max, tilt_max) = gate.limits.joint_min, gate.limits.joint_max
     ok = (
-        (poses[:, 0] >= lim.pan_min + margin)
-        & (poses[:, 0] <= lim.pan_max - margin)
-        & (poses[:, 1] >= lim.tilt_min + margin)
-        & (poses[:, 1] <= lim.tilt_max - margin)
+        (poses[:, 0] >= pan_min + margin)
+        & (poses[:, 0] <= pan_max - margin)
+        & (poses[:, 1] >= tilt_min + margin)
+        & (poses[:, 1] <= tilt_max - margin)
     )
     if not ok.any():
         return ok
@@ -140,9 +140,9 @@ def nearest_start_pose(
     nearest = limb_direction(gate.envelope.correct(swing_from_direction(d)))
     # the nearest point of the region, pulled into the hard limits with twice the margin
     base_pan, base_tilt = scalar.pan_tilt(tuple(nearest), pan)
-    lim = gate.limits
-    base_pan = min(max(base_pan, lim.pan_min + 2 * margin), lim.pan_max - 2 * margin)
-    base_tilt = min(max(base_tilt, lim.tilt_min + 2 * margin), lim.tilt_max - 2 * margin)
+    (pan_min, tilt_min), (pan_max, tilt_max) = gate.limits.joint_min, gate.limits.joint_max
+    base_pan = min(max(base_pan, pan_min + 2 * margin), pan_max - 2 * margin)
+    base_tilt = min(max(base_tilt, tilt_min + 2 * margin), tilt_max - 2 * margin)
     base = np.asarray(scalar.direction(base_pan, base_tilt))
 
     candidates = [base[None, :]]
@@ -189,7 +189,7 @@ RING_AXES /= np.linalg.norm(RING_AXES, axis=1, keepdims=True)
 HeldPose = Callable[..., tuple[float, ...]]
 
 
-def safe_with_margin(gate: Gate3, pose: tuple[float, ...], margin: float) -> bool:
+def safe_with_margin(gate: Gate, pose: tuple[float, ...], margin: float) -> bool:
     """True when ``pose`` and the poses with one joint moved by +-``margin`` (rad) are safe."""
     if not gate.is_safe(*pose):
         return False
@@ -202,7 +202,7 @@ def safe_with_margin(gate: Gate3, pose: tuple[float, ...], margin: float) -> boo
     return True
 
 
-def rotation_outside_by(gate: Gate3, pose: tuple[float, ...]) -> float:
+def rotation_outside_by(gate: Gate, pose: tuple[float, ...]) -> float:
     """Rotation (rad) from ``pose`` (pan, tilt, roll) to the region's nearest orientation; 0
     inside."""
     q = pose_quat_scalar(*pose)
@@ -217,7 +217,7 @@ def _axis_rotation(axis: np.ndarray, angle: float) -> np.ndarray:
     return np.concatenate([[math.cos(half)], math.sin(half) * axis])
 
 
-def rotation_candidates(gate: Gate3, q: np.ndarray, margin: float) -> list[np.ndarray]:
+def rotation_candidates(gate: Gate, q: np.ndarray, margin: float) -> list[np.ndarray]:
     """Orientations (4,) near ``q`` that may be inside by ``margin``, all built on the region's
     nearest orientation ``c = correct(q)``: on along the shortest rotation from ``q`` through
     ``c``, :data:`SEARCH_RADII` margins past it (across a smooth edge of swing or twist), and
@@ -236,7 +236,7 @@ def rotation_candidates(gate: Gate3, q: np.ndarray, margin: float) -> list[np.nd
 
 
 def nearest_rotation_start_pose(
-    gate: Gate3, pose: tuple[float, ...], held_pose: HeldPose, margin: float
+    gate: Gate, pose: tuple[float, ...], held_pose: HeldPose, margin: float
 ) -> tuple[float, ...] | None:
     """The pose nearest ``pose`` (pan, tilt, roll; rad) that is inside by ``margin``
     (:func:`safe_with_margin`) once the servos hold it (``held_pose``); the candidates of
@@ -248,7 +248,9 @@ def nearest_rotation_start_pose(
         return here
     q = pose_quat_scalar(*pose)
     for c in sorted(rotation_candidates(gate, q, margin), key=lambda c: geodesic(q, c)):
-        held = held_pose(*pan_tilt_roll_scalar(c, pose[0], pose[2], lim.roll_min, lim.roll_max))
+        held = held_pose(
+            *pan_tilt_roll_scalar(c, pose[0], pose[2], lim.joint_min[2], lim.joint_max[2])
+        )
         if safe_with_margin(gate, held, margin):
             return held
     return None
@@ -322,7 +324,7 @@ class RotationMargins(SphereMargins):
 
     def pose_of(self, point: np.ndarray, near: tuple[float, ...]) -> tuple[float, ...]:  # type: ignore[override]
         lim = self.gate.limits
-        return pan_tilt_roll_scalar(point, near[0], near[2], lim.roll_min, lim.roll_max)
+        return pan_tilt_roll_scalar(point, near[0], near[2], lim.joint_min[2], lim.joint_max[2])
 
     def orientation(self, pose: tuple[float, ...]) -> np.ndarray:
         return pose_quat_scalar(*pose)
@@ -350,7 +352,7 @@ class RotationMargins(SphereMargins):
         self.gate.envelope.correct(pose_quat_scalar(math.pi / 2, 0.0, math.pi / 2))
 
 
-def margins_for(gate: Gate | Gate3, limb: object) -> SphereMargins:
+def margins_for(gate: Gate, limb: object) -> SphereMargins:
     """The start geometry of the chain ``limb`` drives (its ``joints``): two joints point the
     limb (:class:`SphereMargins`), three orient it (:class:`RotationMargins`). ``limb`` gives
     ``held_pose``, the pose its servos hold once a pose is written."""

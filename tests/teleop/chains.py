@@ -13,30 +13,22 @@ from limbctl.envelope import Cone
 from limbctl.servo.setup import configure_servos
 from limbctl.session import Session, open_rig
 from limbctl.teleop.gate import Gate, GateLimits
-from limbctl.teleop.gate3 import Gate3, GateLimits3
 from tests.safety.support import wait_for
-from tests.teleop.test_gate3 import ConeBand
+from tests.teleop.test_gate import ConeBand
 
 RATE = 200.0
 HALF_ANGLE_DEG = 40.0
 RIGS = ("sim", "sim3")
 
 
-def chain_gate(profile) -> Gate | Gate3:
+def chain_gate(profile) -> Gate:
     """The gate of the profile's chain on the test region, at the rates teleop would use."""
     step = math.radians(120.0) / RATE
     if len(profile.joints) == 2:
-        limits = GateLimits(
-            profile.pan.min_rad, profile.pan.max_rad, profile.tilt.min_rad,
-            profile.tilt.max_rad, step, max(3.0 * step, math.radians(1.0)),
-        )  # fmt: skip
+        limits = GateLimits.for_profile(profile, step, max(3.0 * step, math.radians(1.0)))
         return Gate(Cone(math.radians(HALF_ANGLE_DEG)), limits)
-    limits3 = GateLimits3(
-        profile.pan.min_rad, profile.pan.max_rad, profile.tilt.min_rad,
-        profile.tilt.max_rad, profile.roll.min_rad, profile.roll.max_rad,
-        max_step=step, max_joint_step=math.radians(1.8),
-    )  # fmt: skip
-    return Gate3(ConeBand(math.radians(HALF_ANGLE_DEG), 0.0, math.radians(30)), limits3)
+    limits = GateLimits.for_profile(profile, step, math.radians(1.8))
+    return Gate(ConeBand(math.radians(HALF_ANGLE_DEG), 0.0, math.radians(30)), limits)
 
 
 def pose_of(rig_name: str, *degrees: float) -> tuple[float, ...]:

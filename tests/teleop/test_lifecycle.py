@@ -10,7 +10,8 @@ import threading
 
 import numpy as np
 
-from limbctl.teleop.gate3 import geodesic, written_tolerance_deg3
+from limbctl.geometry.chains import geodesic
+from limbctl.teleop.gate import written_tolerance_deg
 from limbctl.teleop.lifecycle import run_session
 from limbctl.teleop.loop import LoopConfig
 from limbctl.teleop.sources import SourceContext, parse_source
@@ -59,7 +60,7 @@ def test_session_on_three_servos_keeps_every_goal_in_the_region(tmp_path):
     for line in log.read_text().splitlines():
         row = json.loads(line)
         by_time[row["t"]] = row["limb_q"]
-    tolerance = math.radians(written_tolerance_deg3())
+    tolerance = math.radians(written_tolerance_deg(joints=3))
     for q in by_time.values():
         q = np.asarray(q)
         if not region.contains(q):
@@ -67,4 +68,4 @@ def test_session_on_three_servos_keeps_every_goal_in_the_region(tmp_path):
     twists = [math.degrees(float(np.arctan2(q[1], q[0]) * 2)) for q in by_time.values()]
     # the stream asked for roll +-150: the gate turned the twist out toward the band's +-30 deg
     assert max(twists) > 20 and min(twists) < -20
-    assert max(abs(v) for v in twists) <= 30.0 + written_tolerance_deg3()
+    assert max(abs(v) for v in twists) <= 30.0 + written_tolerance_deg(joints=3)

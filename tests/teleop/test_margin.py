@@ -8,11 +8,11 @@ import pytest
 
 from calib import default_sim_profile
 from limbctl.envelope import Cone
+from limbctl.geometry.chains import geodesic
 from limbctl.geometry.gimbal import pan_tilt_to_direction, pose_quat_scalar
 from limbctl.geometry.quat import direction_angle
 from limbctl.servo.rig import Rig
 from limbctl.teleop.gate import Gate, GateLimits, written_tolerance_deg
-from limbctl.teleop.gate3 import Gate3, GateLimits3, geodesic
 from limbctl.teleop.margin import (
     RING_PROBES,
     START_MARGIN_DEG,
@@ -23,7 +23,7 @@ from limbctl.teleop.margin import (
     safe_with_margin,
 )
 from limbctl.teleop.start import assess
-from tests.teleop.test_gate3 import ConeBand
+from tests.teleop.test_gate import ConeBand
 
 HALF_ANGLE = math.radians(40)
 MARGIN = math.radians(START_MARGIN_DEG)
@@ -38,15 +38,13 @@ def exact(*pose):
 
 
 def band_gate(roll_limit=2.5):
-    return Gate3(BAND, GateLimits3(-2, 2, -1, 1, -roll_limit, roll_limit, 0.01, 0.03))
+    return Gate(BAND, GateLimits((-2, -1, -roll_limit), (2, 1, roll_limit), 0.01, 0.03))
 
 
 def cone_gate():
     limits = GateLimits(
-        pan_min=math.radians(-100),
-        pan_max=math.radians(100),
-        tilt_min=math.radians(-30),
-        tilt_max=math.radians(70),
+        joint_min=(math.radians(-100), math.radians(-30)),
+        joint_max=(math.radians(100), math.radians(70)),
         max_step=math.radians(0.6),
         max_joint_step=math.radians(1.8),
     )

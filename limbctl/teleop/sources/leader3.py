@@ -1,7 +1,7 @@
 """A three-servo leader gimbal as a command source that feels the edge of a twist region.
 
 ``leader:ID,ID,ID`` (pan, tilt, roll ids) beside a three-servo follower: each cycle the leader's
-full orientation is the command, gated by :class:`limbctl.teleop.gate3.Gate3`. A leader whose
+full orientation is the command, gated by :class:`limbctl.teleop.gate.Gate`. A leader whose
 model senses current (:data:`limbctl.servo.leader.FELT_MODELS`) runs all three servos in
 current-based position mode and pushes back beyond the region by the law of
 :mod:`limbctl.teleop.haptic_push`. Everything else is the two-servo leader's
@@ -57,11 +57,7 @@ class LeaderSource3(LeaderSource):
     def _law(self, gate, pose, q, previous, period: float, engaged: bool, torque, speed) -> Push:
         """This cycle's push by the three-servo law (:func:`~limbctl.teleop.haptic_push.push_for`),
         the correction's roll unwrapped within the gate's roll limits."""
-        limits = (
-            (gate.limits.pan_min, gate.limits.pan_max),
-            (gate.limits.tilt_min, gate.limits.tilt_max),
-            (gate.limits.roll_min, gate.limits.roll_max),
-        )
+        limits = tuple(zip(gate.limits.joint_min, gate.limits.joint_max))
         corrected = gate.envelope.correct(q)
         return push_for(
             self.law,
