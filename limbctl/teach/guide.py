@@ -49,6 +49,7 @@ strokes have crossed the middle.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -58,6 +59,7 @@ from scipy.spatial import ConvexHull, QhullError
 
 from limbctl.geometry.gimbal import direction_to_pan_tilt, pan_tilt_to_direction
 from limbctl.geometry.quat import tangent_frame
+from limbctl.teach.edge_support import EdgeStretch, EdgeSupport
 from limbctl.teach.holes import Hole, find_holes
 
 #: Azimuth sectors for the outline: 5 deg each, fine enough to follow a kidney's lobes, coarse
@@ -162,6 +164,11 @@ class Guidance:
     holes : tuple of Hole
         Gaps of more than HOLE_MIN_S between samples: those hiding an open stretch of edge
         first, then the longest (at most MAX_HOLES).
+    unsupported : tuple of EdgeStretch
+        Stretches of edge the region learned from these samples would bridge
+        (:mod:`limbctl.teach.edge_support`), farthest first: READY is withheld while any is left.
+    checking : bool
+        Ready by coverage, but the edge's support is still being checked.
     """
 
     samples: int
@@ -174,6 +181,8 @@ class Guidance:
     centre_deg: tuple[float, float]
     spread_deg: float
     holes: tuple[Hole, ...] = ()
+    unsupported: tuple[EdgeStretch, ...] = ()
+    checking: bool = False
 
     @property
     def open_hole(self) -> Hole | None:
@@ -215,7 +224,17 @@ class Guidance:
             where = f"inside gap {100 * gap.fraction:.0f} % around ({p:+.0f}, {t:+.0f})"
         else:
             where = "no gap"
-        tail = "READY TO TRAIN" if self.ready else PHASES[self.phase]
+        if self.unsupported:
+            stretch = self.unsupported[0]
+            where = (
+                f"edge unsupported {stretch.length_deg:.1f} deg up to {stretch.distance_deg:.1f} "
+                f"deg from every sample ({len(self.unsupported)} stretches)"
+            )
+            tail = stretch.request()
+        elif self.checking:
+            tail = "checking that the samples support the edge"
+        else:
+            tail = "READY TO TRAIN" if self.ready else PHASES[self.phase]
         return f"{head}  {where} (pan, tilt deg)  -> {tail}"
 
 
@@ -435,10 +454,11 @@ class Guide:
     thousand samples (docs/teaching.md), so a 100 Hz recorder may call it once a second.
     """
 
-    def __init__(self, capacity: int = 4096) -> None:
+    def __init__(self, capacity: int = 4096, support: EdgeSupport | None = None) -> None:
         self._t = np.empty(max(int(capacity), 1))
         self._d = np.empty((len(self._t), 3))
         self.samples = 0
+        self.support = support
 
     def add(self, t_s: float, pan_rad: float, tilt_rad: float) -> None:
         """Add one sample: its time (s) and joint angles (rad)."""
@@ -454,6 +474,24 @@ class Guide:
         )
         self.samples += 1
 
-    def assess(self) -> Guidance:
-        """The guide's figures for every sample added so far."""
-        return assess_directions(self._t[: self.samples], self._d[: self.samples])
+    def assess(self, final: bool = False) -> Guidance:
+        """The guide's figures for every sample added so far.
+
+        With a ``support`` check, READY is withheld while the samples leave a stretch of the
+        learned edge unsupported, or (while recording) until a check has answered; ``final``
+        checks every sample and waits for the answer (the end of a recording).
+        """
+        d = self._d[: self.samples]
+        guidance = assess_directions(self._t[: self.samples], d)
+        if self.support is None or not guidance.ready:
+            return guidance
+        if final:
+            self.support.check_now(d)
+        else:
+            self.support.check_later(d)
+        found = self.support.stretches
+        if found:
+            return dataclasses.replace(guidance, ready=False, phase="middle", unsupported=found)
+        if found is None and self.support.possible and not final:
+            return dataclasses.replace(guidance, ready=False, phase="middle", checking=True)
+        return guidance

@@ -28,6 +28,7 @@ from typing import IO, Protocol
 from limbctl.errors import BusError, ConfigError
 from limbctl.geometry.gimbal import pose_quat_scalar
 from limbctl.teach.dataset import DatasetWriter
+from limbctl.teach.edge_support import EdgeSupport
 from limbctl.teach.guide import Guidance, Guide
 from limbctl.teach.twist_guide import TwistGuidance, TwistGuide
 
@@ -74,6 +75,7 @@ class RecordSummary:
     guidance: Guidance | None = None
     dropouts: list[str] = field(default_factory=list)
     twist: TwistGuidance | None = None  # a three-servo rig: where the twist is untaught
+    edge_checked: bool = False  # whether the learned edge's support was checked at the end
 
     @property
     def exit_code(self) -> int:
@@ -96,6 +98,16 @@ class RecordSummary:
             # gaps of more than HOLE_MIN_S between samples, and the stretch of edge each hides
             out.extend(f"hole               {hole.line()}" for hole in self.guidance.holes)
             out.append(f"guide              {self.guidance.line()}")
+            out.extend(
+                f"edge unsupported   {stretch.request()} ({stretch.length_deg:.1f} deg of edge "
+                f"up to {stretch.distance_deg:.1f} deg from every sample)"
+                for stretch in self.guidance.unsupported
+            )
+            if self.guidance.ready and not self.edge_checked:
+                out.append(
+                    "edge support       not checked (the training's kernels are still compiling "
+                    "on this first run); limbctl train lists any stretch the samples leave open"
+                )
         if self.twist:
             out.append(f"guide              {self.twist.line()}")
         if self.fault:
@@ -165,9 +177,27 @@ def record(
         with ``on_guidance``'s.
     """
     check_rate(rate_hz)
+    with EdgeSupport() as support:
+        return _record(
+            limb, writer, rate_hz, duration_s, stop, progress, on_guidance, on_twist, support
+        )
+
+
+def _record(
+    limb: Backdrivable,
+    writer: DatasetWriter,
+    rate_hz: float,
+    duration_s: float | None,
+    stop: threading.Event | None,
+    progress: IO[str] | None,
+    on_guidance: Callable[[Guidance], None] | None,
+    on_twist: Callable[[TwistGuidance], None] | None,
+    support: EdgeSupport,
+) -> RecordSummary:
+    """:func:`record`'s loop, with the guide's edge-support worker open."""
     stop = stop or threading.Event()
     period = 1.0 / rate_hz
-    guide = Guide()
+    guide = Guide(support=support)
     twist_guide = TwistGuide()
     summary = RecordSummary()
     limb.set_torque(False)
@@ -244,7 +274,8 @@ def record(
             next_tick = time.perf_counter()
 
     summary.elapsed_s = time.perf_counter() - start
-    summary.guidance = guide.assess()
+    summary.guidance = guide.assess(final=True)
+    summary.edge_checked = support.stretches is not None
     summary.spread_deg = summary.guidance.spread_deg
     if twist_guide.samples:  # the band's support, checked on every sample (twist_guide)
         twist_guide.check_support()

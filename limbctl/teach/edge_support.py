@@ -1,0 +1,152 @@
+"""Whether the taught samples support the edge the region will learn: the recorder's check.
+
+The teaching guide (:mod:`limbctl.teach.guide`) judges coverage from the samples alone: the edge
+traced, the middle crossed. The region learned from them (:class:`limbctl.region.TaughtRegion`)
+may still reach past them where the samples surround a bay or a notch but never reach into it;
+its fit names such stretches (:attr:`~limbctl.region.TaughtRegion.unsupported_edge`,
+:mod:`limbctl.region.evidence`). Containment wins over coverage, so once the guide would say
+READY TO TRAIN, :class:`EdgeSupport` fits the region to the samples so far and the guide
+withholds READY and names the stretch ("trace the edge near pan P, tilt T") while one is left.
+
+The fit takes one to two seconds of a core on a minute's teaching and would hold the recorder's
+interpreter, so it runs in a worker process of its own (one, kept for the whole recording: its
+import and kernel load are paid once), at most every CHECK_EVERY_S, and only once the warm-up
+has put the training's kernels in the cache (a compile would take the worker minutes on a first
+run; until then the guide says READY from coverage alone, and ``limbctl train`` lists what is
+left, as before). :meth:`EdgeSupport.check_now` checks every sample once more at the end.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures
+import multiprocessing
+import time
+from collections.abc import Callable
+from concurrent.futures import Future, ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
+from dataclasses import dataclass
+
+import numpy as np
+
+from limbctl.geometry import jit
+
+#: Seconds between two checks while recording: a teacher fills a stretch in a few seconds, and a
+#: check costs the worker ~1-2 s of a core (docs/decisions/region.md: 2.0-2.2 s for the demo's
+#: 60 s teaching), so the worker idles at least half the time and the recorder keeps its core.
+CHECK_EVERY_S = 5.0
+#: Fewest samples worth a check: below this the guide is still in its start phase.
+MIN_SAMPLES = 200
+
+
+@dataclass(frozen=True)
+class EdgeStretch:
+    """A stretch of edge the region would bridge: where (the gimbal's pan and tilt, deg), how far
+    (deg) from every taught sample and how long (deg)."""
+
+    pan_deg: float
+    tilt_deg: float
+    distance_deg: float
+    length_deg: float
+
+    def request(self) -> str:
+        """What to teach, in words."""
+        return f"trace the edge near pan {self.pan_deg:+.0f}, tilt {self.tilt_deg:+.0f}"
+
+
+def unsupported_stretches(d: np.ndarray) -> tuple[EdgeStretch, ...]:
+    """The stretches a region learned from directions ``d`` (N, 3) leaves unsupported, farthest
+    first; none for too few samples or samples no region can be learned from."""
+    from limbctl.errors import LimbctlError
+    from limbctl.region import TaughtRegion
+
+    if d.shape[0] < MIN_SAMPLES:
+        return ()
+    try:
+        region = TaughtRegion().fit(d, lookup=False)
+    except (LimbctlError, ValueError):
+        return ()
+    return tuple(
+        EdgeStretch(s.pan_deg, s.tilt_deg, s.distance_deg, s.length_deg)
+        for s in region.unsupported_edge
+    )
+
+
+class EdgeSupport:
+    """Checks, in a worker process, whether the samples so far support the learned edge.
+
+    Use as a context manager (the worker is stopped on exit). :attr:`stretches` is None until a
+    check has finished, then the stretches its samples left unsupported.
+
+    Parameters
+    ----------
+    check : callable
+        ``check(d) -> tuple of EdgeStretch`` for directions (N, 3), run in the worker: a
+        module-level function (the worker imports it by name); :func:`unsupported_stretches`.
+    """
+
+    def __init__(self, check: Callable[[np.ndarray], tuple[EdgeStretch, ...]] | None = None):
+        self.stretches: tuple[EdgeStretch, ...] | None = None
+        self._check = check or unsupported_stretches
+        self._pool: ProcessPoolExecutor | None = None
+        self._pending: Future | None = None
+        self._checked_at = -float("inf")
+
+    def __enter__(self) -> EdgeSupport:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """Stop the worker (a check under way is dropped)."""
+        if self._pool is not None:
+            self._pool.shutdown(wait=False, cancel_futures=True)
+            self._pool = None
+        self._pending = None
+
+    @property
+    def possible(self) -> bool:
+        """Whether a check can run now without compiling: the training's kernels are cached
+        (either rig's: a three-servo training fits the same swing region first)."""
+        return any(jit.prepared(jit.stage("train", twist)) for twist in (False, True))
+
+    def check_later(self, d: np.ndarray) -> None:
+        """Start a check of directions ``d`` (N, 3) in the worker, unless one is under way, the
+        last began under CHECK_EVERY_S ago or the kernels are not cached yet; collect a finished
+        one into :attr:`stretches`."""
+        self._collect()
+        now = time.monotonic()
+        if self._pending is not None or now - self._checked_at < CHECK_EVERY_S:
+            return
+        if not self.possible:
+            return
+        self._checked_at = now
+        self._pending = self._worker().submit(self._check, np.array(d))
+
+    def check_now(self, d: np.ndarray) -> tuple[EdgeStretch, ...] | None:
+        """Check every sample ``d`` (N, 3) and wait for the answer; None (and nothing checked)
+        while the kernels are not cached."""
+        if not self.possible:
+            return self.stretches
+        if self._pending is not None:
+            self._pending.cancel()
+            self._pending = None
+        self.stretches = self._worker().submit(self._check, np.array(d)).result()
+        return self.stretches
+
+    def _collect(self) -> None:
+        if self._pending is not None and self._pending.done():
+            try:
+                self.stretches = self._pending.result()
+            except concurrent.futures.CancelledError:
+                pass
+            except BrokenProcessPool:
+                self._pool = None  # the worker died: the next check starts another
+            self._pending = None
+
+    def _worker(self) -> ProcessPoolExecutor:
+        if self._pool is None:
+            # spawn: the recorder has threads (the dataset's fsync), which a fork would copy
+            # mid-lock; the worker imports limbctl once and loads the cached kernels
+            self._pool = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"))
+        return self._pool

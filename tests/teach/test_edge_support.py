@@ -1,0 +1,104 @@
+"""The guide withholds READY TO TRAIN while the learned edge would bridge what the samples
+surround (issue 35, finding 1: "the guide names the place and does not say READY until it is
+taught"), checking in a worker process of its own.
+
+The teaching is the simulator's hand over a notched ellipse for 60 s: by coverage alone the guide
+calls it ready. A region fitted with a coarse alpha shape and no carving bridges the notch, and
+the check names it; the default fit does not, and READY stands.
+"""
+
+import numpy as np
+import pytest
+
+from limbctl.region import RegionParams, TaughtRegion
+from limbctl.region import taught as taught_module
+from limbctl.teach import edge_support
+from limbctl.teach.edge_support import EdgeStretch, EdgeSupport, unsupported_stretches
+from limbctl.teach.guide import Guide
+from limbctl.teach.record import RecordSummary
+from tests.region.test_evidence import RATE_HZ, hand_teaching, notched_ellipse
+
+#: The notched ellipse of tests/region/test_evidence.py (its first case) and where its notch is.
+A, B, CENTRE, AT = 27.2, 23.4, (-5.7, 7.2), 273.0
+NOTCH = (CENTRE[0] + A * np.cos(np.radians(AT)), CENTRE[1] + B * np.sin(np.radians(AT)))
+
+
+def bridging_stretches(d: np.ndarray) -> tuple[EdgeStretch, ...]:
+    """The check with a region that bridges the notch (a coarse alpha shape, nothing carved):
+    run in the worker, which imports it from this module."""
+    taught_module.CARVE_ROUNDS = 0
+    region = TaughtRegion(RegionParams(edge="supported", alpha_factor=4.0)).fit(d, lookup=False)
+    return tuple(
+        EdgeStretch(s.pan_deg, s.tilt_deg, s.distance_deg, s.length_deg)
+        for s in region.unsupported_edge
+    )
+
+
+@pytest.fixture(scope="module")
+def taught():
+    outline, _ = notched_ellipse(A, B, CENTRE, AT, width=9.0, depth=8.0)
+    return hand_teaching(outline, seed=1)
+
+
+def guide_of(d: np.ndarray, support: EdgeSupport | None) -> Guide:
+    guide = Guide(support=support)
+    pan, tilt = np.arctan2(d[:, 1], d[:, 0]), np.arcsin(np.clip(d[:, 2], -1.0, 1.0))
+    for k, (p, t) in enumerate(zip(pan, tilt, strict=True)):
+        guide.add(k / RATE_HZ, float(p), float(t))
+    return guide
+
+
+@pytest.fixture
+def cached(monkeypatch):
+    """As after the warm-up: the training's kernels in the cache, so the check may run."""
+    monkeypatch.setattr(EdgeSupport, "possible", property(lambda self: True))
+
+
+def test_by_coverage_alone_the_teaching_is_ready(taught):
+    assert guide_of(taught, None).assess().ready
+
+
+def test_a_bridged_notch_withholds_ready_and_is_named(taught, cached):
+    with EdgeSupport(bridging_stretches) as support:
+        guidance = guide_of(taught, support).assess(final=True)
+    assert not guidance.ready and guidance.unsupported
+    first = guidance.unsupported[0]
+    assert abs(first.pan_deg - NOTCH[0]) < 8.0 and abs(first.tilt_deg - NOTCH[1]) < 10.0
+    assert f"trace the edge near pan {first.pan_deg:+.0f}, tilt {first.tilt_deg:+.0f}" in (
+        guidance.line()
+    )
+    summary = RecordSummary(guidance=guidance, edge_checked=True)
+    assert any(line.startswith("edge unsupported") for line in summary.lines())
+
+
+def test_the_default_fit_supports_its_edge_and_ready_stands(taught, cached):
+    assert unsupported_stretches(taught) == ()
+    with EdgeSupport() as support:
+        guidance = guide_of(taught, support).assess(final=True)
+    assert guidance.ready and guidance.unsupported == () and support.stretches == ()
+
+
+def test_while_recording_ready_waits_for_the_first_answer(taught, cached):
+    with EdgeSupport(bridging_stretches) as support:
+        guide = guide_of(taught, support)
+        first = guide.assess()  # the check has only been started
+        assert not first.ready and first.checking
+        assert "checking that the samples support the edge" in first.line()
+        support._pending.result(timeout=120)  # the worker's answer
+        later = guide.assess()
+    assert not later.ready and later.unsupported and not later.checking
+
+
+def test_without_cached_kernels_nothing_is_checked_and_the_summary_says_so(taught, monkeypatch):
+    monkeypatch.setattr(EdgeSupport, "possible", property(lambda self: False))
+    with EdgeSupport(bridging_stretches) as support:
+        guidance = guide_of(taught, support).assess(final=True)
+        assert support._pool is None  # no worker was started
+    assert guidance.ready and support.stretches is None
+    summary = RecordSummary(guidance=guidance, edge_checked=False)
+    assert any("not checked" in line for line in summary.lines())
+
+
+def test_too_few_samples_are_not_judged():
+    d = np.array([[1.0, 0.0, 0.0]] * (edge_support.MIN_SAMPLES - 1))
+    assert unsupported_stretches(d) == ()
