@@ -29,12 +29,11 @@ from pathlib import Path
 
 import numpy as np
 
+from firmware_sim.hand import Hand
 from firmware_sim.regions import grid_inside
-from firmware_sim.twist_hand import hand_from_yaml
 from limbctl.demo import true_outline, true_twist_probes
 from limbctl.envelope import RigidMap
-from limbctl.geometry.gimbal import pan_tilt_to_direction, pan_tilt_to_quat
-from limbctl.geometry.gimbal3 import pan_tilt_roll_to_quat
+from limbctl.geometry.gimbal import pan_tilt_roll_to_quat, pan_tilt_to_direction, pan_tilt_to_quat
 from limbctl.geometry.quat import direction_angle
 from limbctl.region import edge_traced as et
 
@@ -55,7 +54,7 @@ RIGS = {"two servos": ("demo_region.yaml", False), "three servos": ("demo_region
 def teaching(name: str, seed: int) -> tuple[np.ndarray, np.ndarray]:
     """Orientations (N, 4) of the demo hand's 60 s teaching from the rest pose, and their
     times (N,) s."""
-    hand = hand_from_yaml(DATA / name, seed=seed)
+    hand = Hand.from_yaml(DATA / name, seed=seed)
     hand.start_from(0.0, 0.0)
     t = np.arange(int(SECONDS * RATE_HZ)) / RATE_HZ
     pose = np.radians([(tuple(hand.pose_deg(float(x))) + (0.0,))[:3] for x in t])
@@ -66,7 +65,7 @@ def probes(name: str, twist: bool) -> np.ndarray:
     """The true region's orientations (N, 4) 2 deg or more inside (see the module docstring)."""
     if twist:
         return true_twist_probes(DATA / name)
-    hand = hand_from_yaml(DATA / name)
+    hand = Hand.from_yaml(DATA / name)
     grid = np.radians(grid_inside(hand.region, 1.0, 0.0))
     outline = np.radians(true_outline(DATA / name))
     edge = pan_tilt_to_direction(outline[:, 0], outline[:, 1])

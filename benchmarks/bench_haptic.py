@@ -53,7 +53,8 @@ from limbctl.servo.setup import configure_servos
 from limbctl.session import open_rig
 from limbctl.teleop.brake import BrakeLaw
 from limbctl.teleop.commands import command_from_pan_tilt
-from limbctl.teleop.haptic import FeelLaw, Push, push_for
+from limbctl.teleop.haptic import FeelLaw
+from limbctl.teleop.haptic_push import held, push_for
 from limbctl.teleop.loop import LoopConfig, run
 from limbctl.teleop.sources import LeaderSource
 from tests.teleop.stepped_leader import SteppedWatch, motor_of, read_velocity
@@ -355,12 +356,12 @@ def exact_rate_case(
         push = push_fn(law, motor, pose, q, cone.correct(q), *past)
         if on and push.goal_current:
             if not watch.snap.allows(pose, push.goal, velocity, pushed, read_s, torque):
-                push = Push(0, 0, pose[0], pose[1], 0.0, push.distance_deg)
+                push = held(pose, push.distance_deg)
         previous = pose
         instead = (cycles or {}).get(k)
         if instead == "held":
-            push = Push(0, 0, pose[0], pose[1], 0.0, 0.0)
-        goal = goal if cut else rig.angles_to_ticks(push.goal_pan, push.goal_tilt)
+            push = held(pose)
+        goal = goal if cut else rig.angles_to_ticks(*push.goal)
         # the wall comes on from the present position (LeaderSource._write toggles the torque)
         engaging = push.goal_current > 0 and not pushed
         for step in range(5):
@@ -586,7 +587,8 @@ def render(push, ripples, passes, rates, load, exact, transfers, end_load) -> st
         "`python benchmarks/bench_haptic.py`: the real 200 Hz loop over the simulator's pty, the "
         f"follower gated by a {EDGE_DEG:g} deg cone (edge at pan {EDGE_DEG:g} deg), a felt "
         "XM430-W350 leader on ids 3, 4 moved by the simulated operator "
-        "(`firmware_sim/leader.py`). Law (`limbctl/teleop/haptic.py`): deadband "
+        "(`firmware_sim/leader.py`). Law (`limbctl/teleop/haptic.py`, "
+        "`limbctl/teleop/haptic_push.py`): deadband "
         f"{law.deadband_deg:g} deg, K = {law.gain_nm_per_deg:g} N m/deg, cap {law.cap_nm:g} N m, "
         f"Profile Velocity {law.profile_velocity_units()} units "
         f"({law.profile_velocity_units() * 1.374:.1f} deg/s). Sampled-wall passivity margin "

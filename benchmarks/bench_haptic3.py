@@ -6,8 +6,8 @@ The three-servo follower is gated by a twist region fitted from a synthetic teac
 swing outline (pan within +-30 deg, tilt within +-25 deg) with a twist band of +-30 deg about 0:
 the learned edge lies near pan 30 deg in swing and near roll 30 deg in twist. The two-servo peer
 is the two-servo leader's bench set-up: a 30 deg cone, edge at pan 30 deg. Both leaders are
-XM430-W350s moved by the simulator's operator (firmware_sim/leader.py, firmware_sim/leader3.py),
-the same hand, the same law constants (limbctl/teleop/haptic.py, limbctl/teleop/haptic3.py).
+XM430-W350s moved by the simulator's operator (firmware_sim/leader.py),
+the same hand, the same law constants (limbctl/teleop/haptic.py, limbctl/teleop/haptic_push.py).
 
 Cases:
 
@@ -43,19 +43,23 @@ from firmware_sim.simulator import Simulator
 from limbctl.envelope import Cone
 from limbctl.envelope.synthetic_twist import ShoulderRegion
 from limbctl.errors import BusError
-from limbctl.geometry.gimbal import pan_tilt_to_quat, quat_to_pan_tilt
-from limbctl.geometry.gimbal3 import pan_tilt_roll_scalar, pose_quat_scalar
+from limbctl.geometry.gimbal import (
+    pan_tilt_roll_scalar,
+    pan_tilt_to_quat,
+    pose_quat_scalar,
+    quat_to_pan_tilt,
+)
 from limbctl.region.twist_region import TwistRegion
 from limbctl.servo.control_table import ModelNumber
 from limbctl.servo.leader import FEEL_DATA, FEEL_MAP, FELT_MODELS, encode_feel, feel_map
 from limbctl.servo.rig import Rig
-from limbctl.servo.rig3 import RollRig
 from limbctl.servo.setup import configure_servos
 from limbctl.servo.ticks import angle_to_ticks
 from limbctl.session import open_rig
+from limbctl.teleop import haptic_push
 from limbctl.teleop.brake import BrakeLaw
-from limbctl.teleop.haptic import FeelLaw, Push, beyond_deg, moved_in_deg, push_for
-from limbctl.teleop.haptic3 import beyond3_deg, corrected_pose, held3, push3_for
+from limbctl.teleop.haptic import FeelLaw, moved_in_deg
+from limbctl.teleop.haptic_push import beyond_deg, corrected_pose, push_for
 from tests.teleop.stepped_leader import SteppedWatch, read_velocity
 
 LAW = FeelLaw()
@@ -113,9 +117,8 @@ def round3(push, present, previous, target):
     moved = moved_in_deg(present, previous, step)
     # s = min(1, (LEAD + max(m, 0)) / max_j |step_j|)
     scale = min(1.0, math.radians(ROUND3.lead_deg + max(moved, 0.0)) / max(map(abs, step)))
-    goal = [p + scale * d for p, d in zip(present, step, strict=True)]
-    names = ("goal_pan", "goal_tilt", "goal_roll")[: len(goal)]
-    return dataclasses.replace(push, **dict(zip(names, goal, strict=True)))
+    goal = tuple(p + scale * d for p, d in zip(present, step, strict=True))
+    return dataclasses.replace(push, goal=goal)
 
 
 def stepped(
@@ -143,7 +146,7 @@ def stepped(
     clock = [0.0]
     follower = {"ids": (1, 2, 3), "roll_id": 3} if three else {"ids": (1, 2)}
     sim = Simulator(**follower, leader={"ids": list(ids)}, clock=lambda: clock[0])
-    rig = RollRig(default_sim_profile("sim3")) if three else Rig(default_sim_profile())
+    rig = Rig(default_sim_profile("sim3" if three else "sim"))
     servos = [sim.servo(i) for i in ids]
     for servo in servos:
         servo.write(11, bytes([5]))  # Operating Mode 5
@@ -170,18 +173,19 @@ def stepped(
         if on and brake is not None:  # today's law reads the speed too: the walking lead
             read = (*read, velocity)
         if three:
-            pose = rig.angles_of(ticks)
+            pose = rig.ticks_to_angles(*ticks)
             q = pose_quat_scalar(*pose)
             past = (previous, 0.005, engaged, *read) if rules else ()
             corrected = region.correct(q)
-            push = push3_for(law, MOTOR, pose, q, corrected, rig.roll_limits, *past)
+            limits = tuple((j.min_rad, j.max_rad) for j in rig.joints)
+            push = push_for(law, MOTOR, pose, q, corrected, *past, limits=limits)
             if law is ROUND3 and rules:
-                target = corrected_pose(corrected, pose, rig.roll_limits)
+                target = corrected_pose(corrected, pose, limits)
                 push = round3(push, pose, previous, target)
             if snap.on and push.goal_current:
                 if not snap.snap.allows(pose, push.goal, velocity, engaged, read_s, torque):
-                    push = held3(pose)
-            push = held3(pose) if k in held else push
+                    push = haptic_push.held(pose)
+            push = haptic_push.held(pose) if k in held else push
             goal = push.goal
         else:
             pose = rig.ticks_to_angles(*ticks)
@@ -194,8 +198,8 @@ def stepped(
                 push = round3(push, pose, previous, target)
             if snap.on and push.goal_current:
                 if not snap.snap.allows(pose, push.goal, velocity, engaged, sim.time_s, torque):
-                    push = Push(0, 0, pose[0], pose[1], 0.0, push.distance_deg)
-            goal = (push.goal_pan, push.goal_tilt)
+                    push = haptic_push.held(pose, push.distance_deg)
+            goal = push.goal
         previous = pose
         for step in range(5):
             if step and snap.before_step(5 * k + step):
@@ -226,9 +230,9 @@ def stepped(
 def distance(region, pose_deg, three: bool) -> float:
     if three:
         q = pose_quat_scalar(*np.radians(pose_deg))
-        return beyond3_deg(q, region.correct(q))
+        return beyond_deg(q, region.correct(q), 3)
     q = np.asarray(pan_tilt_to_quat(*np.radians(pose_deg)))
-    return beyond_deg(q, region.correct(q))
+    return beyond_deg(q, region.correct(q), 2)
 
 
 def press_case(region, script, law=LAW, watch=True) -> dict:
@@ -284,7 +288,8 @@ def outward_count(region, rows) -> tuple[int, int]:
         present = np.radians(r["pose_deg"])
         if len(present) == 3:
             q = pose_quat_scalar(*present)
-            roll_limits = RollRig(default_sim_profile("sim3")).roll_limits
+            roll_joint = Rig(default_sim_profile("sim3")).joints[2]
+            roll_limits = (roll_joint.min_rad, roll_joint.max_rad)
             target = pan_tilt_roll_scalar(region.correct(q), present[0], present[2], *roll_limits)
         else:
             q = np.asarray(pan_tilt_to_quat(*present))
@@ -366,7 +371,7 @@ def render(presses, energies, pulls, held, transfers, load, end_load, fit_s) -> 
         "# A three-servo leader feels a twist region's edge",
         "",
         "`python benchmarks/bench_haptic3.py`: the three-servo felt leader "
-        "(`limbctl/teleop/haptic3.py`, `limbctl/teleop/sources/leader_chain.py`) beside the "
+        "(`limbctl/teleop/haptic_push.py`, `limbctl/teleop/sources/leader.py`) beside the "
         "two-servo one as its peer, XM430-W350 leaders, the same hand (0.05 N m/deg, at most "
         "0.3 N m) and law (deadband 0.4 deg, K = 0.2 N m/deg, cap 0.4 N m, lead two ticks, "
         f"Profile Velocity {LAW.profile_velocity_units()} units). Three servos: a "

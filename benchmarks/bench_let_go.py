@@ -10,9 +10,9 @@ to 0 from one 0.5 ms physics step to the next, the hardest let go for the wall.
 
 Three sweeps:
 
-- *phase*: today's law (limbctl/teleop/haptic.py with the snap watch, limbctl/teleop/snap.py,
-  and its brake rules, limbctl/teleop/brake.py, a walking lead and two still reads to
-  re-arm: round 9), round 7's (the snap watch without the
+- *phase*: today's law (limbctl/teleop/haptic.py and haptic_push.py, with the snap watch,
+  limbctl/teleop/snap.py, and its brake rules, limbctl/teleop/brake.py, a walking lead and two
+  still reads to re-arm: round 9), round 7's (the snap watch without the
   brake rules) and round 6's (the law alone) in the same run, the let go falling 0-4 ms after a
   cycle's read. Without the watch the first read that can see the let go is the next one, so
   the loop's first write after it lands 6 - phase ms later; the watch reads the leader's speed
@@ -39,7 +39,8 @@ from bench_haptic import EDGE_DEG, exact_rate_case, pan_of, round4_push
 
 from limbctl.servo.ticks import TICKS_PER_REV
 from limbctl.teleop.brake import BrakeLaw
-from limbctl.teleop.haptic import FeelLaw, push_for
+from limbctl.teleop.haptic import FeelLaw
+from limbctl.teleop.haptic_push import push_for
 
 #: The presses: hand stiffness (N m/deg) and how far beyond the edge it means to go (deg),
 #: the let-go cases of docs/bench_haptic.md (the 0.2 N m/deg hand's 5 deg is the one whose

@@ -109,7 +109,7 @@ def record_once(seconds: float, seed: int, workdir: Path, latency_ms: float = 2.
     """One traced recording; its figures."""
     from limbctl.servo.bus import ServoBus
     from limbctl.servo.profiles import load_rig_profile
-    from limbctl.servo.rig3 import rig_for
+    from limbctl.servo.rig import Rig
     from limbctl.teach.dataset import DatasetWriter, load_dataset
     from limbctl.teach.record import record
 
@@ -129,7 +129,7 @@ def record_once(seconds: float, seed: int, workdir: Path, latency_ms: float = 2.
         with ServoBus(
             str(link), profile.baud, profile.ids, profile.model, latency_timer_ms=latency_ms
         ) as bus:
-            rig = rig_for(profile, bus)
+            rig = Rig(profile, bus)
             port = bus._port  # the SDK's port handler: its calls kept for the slowest read
             events: list[tuple] = []
             slowest: list = [0.0, []]

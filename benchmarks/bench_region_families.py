@@ -11,7 +11,7 @@ vary with pan and tilt, written as a simulator REGION.yaml ``twist:`` mapping
 linear about a centre near 180 deg so the band crosses +-180. Each is taught four ways:
 i.i.d. samples (uniform, along the swing edge, at the twist stops: :meth:`ShoulderRegion.
 teaching`), sparse (1500) and dense (7500), and the simulator hand's own paths
-(:class:`firmware_sim.twist_hand.TwistHand`, its poses at 125 Hz, no bus) for 30 s and 60 s;
+(:class:`firmware_sim.hand.Hand`, its poses at 125 Hz, no bus) for 30 s and 60 s;
 learned by ``RigidMap(twist=True)`` as ``limbctl train`` builds it. Per teaching:
 
 - swing excess: the farthest (deg) a direction of the learned swing region (a LATTICE_DEG
@@ -39,12 +39,11 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial import cKDTree
 
-from firmware_sim.twist_hand import hand_from_mapping
+from firmware_sim.hand import Hand
 from limbctl.envelope import RigidMap
 from limbctl.envelope.synthetic import _cap_directions
 from limbctl.envelope.synthetic_twist import BandRegion
-from limbctl.geometry.gimbal import pan_tilt_to_direction
-from limbctl.geometry.gimbal3 import pose_quat_scalar
+from limbctl.geometry.gimbal import pan_tilt_to_direction, pose_quat_scalar
 from limbctl.geometry.quat import geodesic_distance
 from limbctl.geometry.twist import compose, wrap
 from limbctl.region import twist_band
@@ -128,7 +127,7 @@ def make_truth(family: str, seed: int) -> tuple[BandRegion, dict]:
             "twist": twist_mapping(family, rng),
         }
         try:  # refused when the half width leaves 3..170 deg somewhere: draw again
-            hand = hand_from_mapping(mapping, seed=0, source="<family>")
+            hand = Hand.from_mapping(mapping, seed=0, source="<family>")
         except ValueError:
             continue
         band = np.vectorize(hand.band.limits_deg, otypes=[float, float])
@@ -145,7 +144,7 @@ def teach(truth: BandRegion, mapping: dict, how: tuple, seed: int) -> np.ndarray
     kind, size = how
     if kind == "iid":
         return truth.teaching(*size, np.random.default_rng([seed, 99]))
-    hand = hand_from_mapping(mapping, seed=seed, source="<family>")
+    hand = Hand.from_mapping(mapping, seed=seed, source="<family>")
     rows = [hand.pose_deg(t) for t in np.arange(0.0, size, 1.0 / RATE_HZ)]
     return np.array([pose_quat_scalar(*np.radians(r)) for r in rows])
 

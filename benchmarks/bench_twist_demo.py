@@ -60,7 +60,7 @@ def over_reach(model: object, region_yaml: Path, seed: int = 0) -> float:
     """Share of the learned region lying outside the true one: the directions of a 1 deg lattice
     of the learned swing region, each with a twist drawn uniformly in the learned band there,
     judged by the REGION.yaml's outline and band (pan, tilt in deg as the simulator reads them)."""
-    from firmware_sim.twist_hand import hand_from_yaml
+    from firmware_sim.hand import Hand
     from limbctl.geometry.gimbal import direction_to_pan_tilt
     from limbctl.region.twist_region import lattice
 
@@ -69,7 +69,7 @@ def over_reach(model: object, region_yaml: Path, seed: int = 0) -> float:
     d = d[region.swing.mesh.contains(d)]
     c, h = region.band.at(d)
     tau = np.degrees(c + h * np.random.default_rng(seed).uniform(-1.0, 1.0, len(d)))
-    truth = hand_from_yaml(region_yaml)
+    truth = Hand.from_yaml(region_yaml)
     pan, tilt = np.degrees(direction_to_pan_tilt(d))
     inside = truth.region.contains_many(pan, tilt) & np.array(
         [truth.band.contains(p, t, x) for p, t, x in zip(pan, tilt, tau, strict=True)]

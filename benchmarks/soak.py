@@ -128,8 +128,7 @@ def compressed_soak(cycles: int, seed: int = 0, model=None) -> CompressedResult:
     lo_pan, hi_pan = joint_tick_limits(PROFILE.pan)
     lo_tilt, hi_tilt = joint_tick_limits(PROFILE.tilt)
     out = CompressedResult(tolerance_deg=tolerance)
-    last_ticks = rig.goal_for(0.0, 0.0)
-    last_ticks = (last_ticks.pan, last_ticks.tilt)
+    last_ticks = rig.goal_for(0.0, 0.0).ticks
     warmup = max(1, cycles // 20)
     start = time.perf_counter()
     done = 0
@@ -171,11 +170,11 @@ def compressed_soak(cycles: int, seed: int = 0, model=None) -> CompressedResult:
                 # a hold writes nothing: the servos keep the last goal; the gate must agree
                 now = rig.goal_for(*gate.safe_pose)
                 out.hold_checks += 1
-                drift = max(abs(now.pan - last_ticks[0]), abs(now.tilt - last_ticks[1]))
+                drift = max(abs(now.ticks[0] - last_ticks[0]), abs(now.ticks[1] - last_ticks[1]))
                 out.held_drift_ticks = max(out.held_drift_ticks, drift)
             else:
                 goal = rig.goal_for(result.pan, result.tilt)
-                ticks = (goal.pan, goal.tilt)
+                ticks = goal.ticks
                 if goal.clamped or not (
                     lo_pan <= ticks[0] <= hi_pan and lo_tilt <= ticks[1] <= hi_tilt
                 ):

@@ -18,7 +18,14 @@ A profile is a small YAML file (see ``calib/rigs/sim.yaml``)::
 ``roll`` is optional: a third servo that turns the limb about its own axis
 (``calib/rigs/sim3.yaml``). It is validated like the other two joints; a profile without it
 is a two-servo rig and reads, saves and calibrates exactly as before (its dictionaries carry
-no ``roll`` key).
+no ``roll`` key). The joints may also be written as one ordered list, each with its name::
+
+    joints:
+      - {name: pan, id: 1, zero_tick: 2185, direction: 1, min_deg: -115.0, max_deg: 115.0}
+      - {name: tilt, id: 2, zero_tick: 1890, direction: -1, min_deg: -55.0, max_deg: 70.0}
+
+The chain is ``pan, tilt`` or ``pan, tilt, roll`` (:data:`CHAINS`), in that order, either way;
+a profile is saved in the form it was read in.
 
 ``min_deg``/``max_deg`` are the hard limits the controller enforces (and writes to the servos'
 position limits); ``stop_min_deg``/``stop_max_deg`` are the gimbal's physical end stops, where
@@ -40,6 +47,7 @@ reaches) is checked by the controller when it opens a rig. This package imports 
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import tempfile
@@ -76,8 +84,9 @@ MAX_NAME_CHARS = 64
 _JOINT_KEYS = ("id", "zero_tick", "direction", "min_deg", "max_deg")
 _JOINT_OPTIONAL_KEYS = ("stop_min_deg", "stop_max_deg")
 _CALIBRATION_KEYS = ("zero_tick", "direction", "min_deg", "max_deg")
-_TOP_KEYS = ("name", "port", "baud", "model", "protocol", "pan", "tilt", "rest_direction")
-_OPTIONAL_TOP_KEYS = ("roll",)
+#: The chains of joints a rig may have, by name, in chain order.
+CHAINS = (("pan", "tilt"), ("pan", "tilt", "roll"))
+_BUS_KEYS = ("name", "port", "baud", "model", "protocol")
 
 
 @dataclass(frozen=True)
@@ -185,10 +194,12 @@ class Calibration:
 
 @dataclass(frozen=True)
 class RigProfile:
-    """A whole rig: bus settings and the pan and tilt joints, and the roll joint if it has one.
+    """A whole rig: bus settings and its chain of joints.
 
-    ``source`` is the file the profile was loaded from (None if built in code); it is not
-    compared and not saved. ``roll`` is None on a two-servo rig.
+    ``joints`` is ``(name, joint)`` per joint in chain order, names one of :data:`CHAINS`.
+    ``source`` is the file the profile was loaded from (None if built in code) and ``listed``
+    whether its joints were written as a ``joints:`` list; neither is compared, and ``source``
+    is not saved.
     """
 
     name: str
@@ -196,17 +207,35 @@ class RigProfile:
     baud: int
     model: str
     protocol: float
-    pan: JointProfile
-    tilt: JointProfile
+    joints: tuple[tuple[str, JointProfile], ...]
     rest_direction: tuple[float, float, float] = (1.0, 0.0, 0.0)
     source: str | None = field(default=None, compare=False)
-    roll: JointProfile | None = None
+    listed: bool = field(default=False, compare=False)
+
+    def joint(self, name: str) -> JointProfile | None:
+        """The joint called ``name``, or None if the chain has none."""
+        return dict(self.joints).get(name)
 
     @property
-    def joints(self) -> tuple[tuple[str, JointProfile], ...]:
-        """``(name, joint)`` of pan, tilt and, on a three-servo rig, roll, in that order."""
-        named = (("pan", self.pan), ("tilt", self.tilt))
-        return named if self.roll is None else (*named, ("roll", self.roll))
+    def pan(self) -> JointProfile:
+        """The pan joint (every chain has one)."""
+        return self.joints[0][1]
+
+    @property
+    def tilt(self) -> JointProfile:
+        """The tilt joint (every chain has one)."""
+        return self.joints[1][1]
+
+    @property
+    def roll(self) -> JointProfile | None:
+        """The roll joint, None on a two-servo rig."""
+        return self.joint("roll")
+
+    def with_joints(self, **changed: JointProfile) -> RigProfile:
+        """This profile with the named joints replaced, or appended in chain order if new."""
+        joints = dict(self.joints) | changed
+        names = next((c for c in CHAINS if set(c) == set(joints)), tuple(joints))
+        return dataclasses.replace(self, joints=tuple((n, joints[n]) for n in names))
 
     @property
     def is_sim(self) -> bool:
@@ -229,17 +258,17 @@ class RigProfile:
         return tuple(joint.id for _, joint in self.joints)
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain-data form, the same shape as the YAML file."""
-        return {
-            "name": self.name,
-            "port": self.port,
-            "baud": self.baud,
-            "model": self.model,
-            "protocol": self.protocol,
-            "pan": _joint_dict(self.pan),
-            "tilt": _joint_dict(self.tilt),
-            "rest_direction": [float(v) for v in self.rest_direction],
-        } | ({} if self.roll is None else {"roll": _joint_dict(self.roll)})
+        """Plain-data form, the same shape as the YAML file it was read from: a ``joints`` list
+        if :attr:`listed`, else one key per joint (``pan``, ``tilt``, then ``rest_direction``
+        and, on a three-servo rig, ``roll``)."""
+        head = {key: getattr(self, key) for key in _BUS_KEYS}
+        rest = {"rest_direction": [float(v) for v in self.rest_direction]}
+        if self.listed:
+            joints = [{"name": name} | _joint_dict(joint) for name, joint in self.joints]
+            return head | {"joints": joints} | rest
+        named = {name: _joint_dict(joint) for name, joint in self.joints}
+        roll = {"roll": named.pop("roll")} if "roll" in named else {}
+        return head | named | rest | roll
 
 
 def _joint_dict(joint: JointProfile) -> dict[str, Any]:
@@ -314,12 +343,14 @@ def profile_from_dict(data: Any, source: str = "<profile>") -> RigProfile:
         Naming ``source`` and the offending field.
     """
     check = _Checker(source)
-    required = tuple(k for k in _TOP_KEYS if k != "rest_direction")
+    listed = isinstance(data, dict) and "joints" in data
+    required = (*_BUS_KEYS, *(("joints",) if listed else CHAINS[0]))
     if not isinstance(data, dict):
         raise check.fail("top level", f"must be a mapping with keys {', '.join(required)}")
     raw = dict(data)
     raw.setdefault("rest_direction", [1.0, 0.0, 0.0])
-    check.mapping(raw, "profile", _TOP_KEYS, _OPTIONAL_TOP_KEYS)
+    optional = () if listed else CHAINS[1][2:]
+    check.mapping(raw, "profile", (*required, "rest_direction"), optional)
     name = check.text(raw["name"], "name", MAX_NAME_CHARS)
     port = check.text(raw["port"], "port")
     baud = check.integer(raw["baud"], "baud", 1, 10_500_000)
@@ -327,21 +358,34 @@ def profile_from_dict(data: Any, source: str = "<profile>") -> RigProfile:
     protocol = raw["protocol"]
     if isinstance(protocol, bool) or protocol not in PROTOCOLS:
         raise check.fail("protocol", f"must be 2.0 (X series, Protocol 2.0), got {shown(protocol)}")
-    pan = check.joint(raw["pan"], "pan")
-    tilt = check.joint(raw["tilt"], "tilt")
-    if pan.id == tilt.id:
-        raise check.fail("tilt.id", f"must differ from pan.id, both are {pan.id}")
-    roll = None
-    if "roll" in raw:
-        roll = check.joint(raw["roll"], "roll")
-        if roll.id in (pan.id, tilt.id):
-            raise check.fail(
-                "roll.id",
-                f"must differ from pan.id and tilt.id ({pan.id}, {tilt.id}), got {roll.id}",
-            )
+    if listed:
+        entries = raw["joints"]
+        names = tuple(
+            e.get("name") if isinstance(e, dict) else None
+            for e in (entries if isinstance(entries, list) else ())
+        )
+        if names not in CHAINS:
+            chains = " or ".join(", ".join(c) for c in CHAINS)
+            raise check.fail("joints", f"must be a list of joints named {chains}, in that order")
+        fields = {
+            label: {k: v for k, v in e.items() if k != "name"}
+            for label, e in zip(names, entries, strict=True)
+        }
+    else:
+        names = tuple(n for n in CHAINS[1] if n in raw)
+        fields = {name: raw[name] for name in names}
+    joints: list[tuple[str, JointProfile]] = []
+    for label in names:
+        joint = check.joint(fields[label], label)
+        before = [(n, j.id) for n, j in joints]
+        if joint.id in (i for _, i in before):
+            others = " and ".join(f"{n}.id" for n, _ in before)
+            ids = ", ".join(str(i) for _, i in before)
+            raise check.fail(f"{label}.id", f"must differ from {others} ({ids}), got {joint.id}")
+        joints.append((label, joint))
     rest = check.direction3(raw["rest_direction"], "rest_direction")
     return RigProfile(
-        name, port, int(baud), model, float(protocol), pan, tilt, rest, source, roll=roll
+        name, port, int(baud), model, float(protocol), tuple(joints), rest, source, listed
     )
 
 

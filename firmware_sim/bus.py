@@ -37,7 +37,6 @@ from firmware_sim.events import EventSchedule
 from firmware_sim.faults import FaultPlan
 from firmware_sim.hand import Hand
 from firmware_sim.simulator import Simulator
-from firmware_sim.twist_hand import RollScriptHand, TwistHand, hand_from_mapping, hand_from_yaml
 from firmware_sim.wire import host_baud, wire_s
 
 # The physics keeps moving (hand, profiles) at least this often without traffic.
@@ -202,12 +201,12 @@ def build_simulator(config: Mapping[str, Any]) -> Simulator:
     )
 
 
-def _make_hand(spec: Any, seed: int) -> Hand | TwistHand | RollScriptHand | None:
+def _make_hand(spec: Any, seed: int) -> Hand | None:
     if spec is None:
         return None
     if isinstance(spec, Mapping):
-        return hand_from_mapping(dict(spec), seed=seed)
-    return hand_from_yaml(spec, seed=seed)
+        return Hand.from_mapping(dict(spec), seed=seed)
+    return Hand.from_yaml(spec, seed=seed)
 
 
 class _ControlServer:

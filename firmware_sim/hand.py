@@ -1,107 +1,83 @@
 """Scripted hands that backdrive the simulated limb while its torque is off.
 
-A :class:`Hand` answers one question, ``pose_deg(t)``: the (pan_deg, tilt_deg) it holds the limb
-at ``t`` seconds after it took hold. Two kinds, both read from a REGION.yaml::
+A :class:`Hand` answers one question, ``pose_deg(t)``: the pose it holds the limb at ``t``
+seconds after it took hold, (pan_deg, tilt_deg), or (pan_deg, tilt_deg, roll_deg) when its
+description turns the roll too (:attr:`Hand.turns_roll`). One description, a REGION.yaml::
 
     region: {polygon: [[pan_deg, tilt_deg], ...]}    # or {cone: {half_angle_deg: A}}
-    style: trace           # optional: trace (default) or wander, see below
+    twist: {centre_deg: 0, half_width_deg: 40}       # optional: turn the roll too, in this band
+    style: trace           # optional: trace (default) or wander (firmware_sim/hand_path.py)
     speed_deg_s: 40        # optional: mean speed of a move through the middle
     tremor_deg: 0.2        # optional: peak tremor amplitude, 0 switches it off
 
     script: [[t_s, pan_deg, tilt_deg], ...]          # instead of region: follow waypoints
+    script: [[t_s, pan_deg, tilt_deg, roll_deg], ...]  # the same, turning the roll too
 
-A *region* hand teaches the way range of motion is taught. With ``style: trace`` it first traces
-the whole edge once, slowly (TRACE_SPEED_DEG_S, a person's pace), about EDGE_INSET_DEG inside with
-a slight wobble, starting at the edge point nearest where it took hold, then wanders. With
-``style: wander`` it only wanders. Wandering is what a person does through the middle: gently
-curved minimum-jerk moves between waypoints drawn with a density that falls toward the edge,
-easing in and out near the edge, short pauses, and, every other move, a visit to the edge that
-traces a few degrees of it just inside (the visits work round the perimeter in laps of
-EDGE_VISITS_PER_LAP, so a minute of wandering touches the whole edge). Every move is checked to
-stay MIN_PATH_DEPTH_DEG inside the region (the tremor alone may cross the edge by a fraction of a
-degree). A *script* hand moves linearly in time between the waypoints and holds the last.
-The path is generated lazily, in a fixed order from ``seed``: the same seed gives the same path
-whatever times it is asked at.
+A *region* hand moves pan and tilt along a :class:`firmware_sim.hand_path.SwingPath` (trace the
+edge, then wander) plus a tremor. With a ``twist:`` band (:mod:`firmware_sim.twist_band`, linear,
+quadratic or with bumps in pan and tilt) it turns the limb about its own axis as the protocol
+asks: while the swing traces the edge the twist goes to both stops along the way (a cycle of
+TRACE_TWIST_CYCLE: to one stop, hold, to the other, hold); afterwards every STOP_EVERY-th twist
+move goes to a stop (alternately the upper and the lower one), the others to a uniform draw.
+The twist's place in the band is ``u`` in [-1, 1]: the twist is ``centre + u (half_width -
+TWIST_INSET_DEG)`` at the present swing pose (so it follows the band as the swing moves), plus a
+tremor, and the roll is the one that gives it (``roll = twist - chain_twist(pan, tilt)``).
+A *script* hand moves linearly in time between the waypoints (the roll too) and holds the last.
+The path is generated lazily, in a fixed order from ``seed`` and the pose the hand took hold at:
+the same seed gives the same path whatever times it is asked at.
 """
 
 from __future__ import annotations
 
-import bisect
 import math
 from pathlib import Path
 
 import numpy as np
 import yaml
 
-from firmware_sim.regions import Region, deepen, region_from_mapping
+from firmware_sim.hand_path import (
+    DEFAULT_SPEED_DEG_S,
+    DEFAULT_STYLE,
+    MIN_REGION_DEPTH_DEG,
+    PAUSE_S,
+    STYLES,
+    SwingPath,
+    Track,
+    progress,
+)
+from firmware_sim.orientation import chain_twist, roll_for_twist_deg, wrap_deg
+from firmware_sim.regions import Region, region_from_mapping
+from firmware_sim.twist_band import TwistBand
 
-#: Mean speed (deg/s) of a move through the middle: a relaxed arm sweep, about twice the careful
-#: pace of the edge trace, so strokes cross a 100 deg region in a few seconds.
-DEFAULT_SPEED_DEG_S = 40.0
 #: Peak tremor amplitude (deg): the physiological tremor of a hand steadying a light limb is a
 #: few tenths of a degree at the joint; 0 switches it off.
 DEFAULT_TREMOR_DEG = 0.2
 #: Physiological tremor band (Hz) the two tremor components per axis are drawn from.
 TREMOR_BAND_HZ = (7.0, 12.0)
-#: How far inside the edge (deg) boundary tracing runs, and the least depth any move may reach.
-EDGE_INSET_DEG = 1.0
-MIN_PATH_DEPTH_DEG = 0.5
-#: A region must reach at least this deep (deg) for the hand to have room to move.
-MIN_REGION_DEPTH_DEG = 2.0 * EDGE_INSET_DEG
-#: Within SLOW_BAND_DEG of the edge the hand eases in and out of a move more carefully: a move
-#: ending (or starting) at the edge takes up to EDGE_EASE_S longer; traces run at
-#: EDGE_SPEED_FRACTION of the speed.
-SLOW_BAND_DEG = 15.0
-EDGE_EASE_S = 0.5
-EDGE_SPEED_FRACTION = 0.4
-#: Middle waypoints are drawn with density proportional to depth ** WAYPOINT_DEPTH_POWER.
-WAYPOINT_DEPTH_POWER = 1.5
-#: Edge visits work round the perimeter in laps of EDGE_VISITS_PER_LAP evenly spaced visits
-#: (jittered by up to a sixth of a spacing), with one move through the middle in between.
-EDGE_VISITS_PER_LAP = 12
-#: Length (deg) of the stretch of edge traced at each visit.
-EDGE_TRACE_DEG = (4.0, 8.0)
-#: Shortest move (s): a person does not flick the limb.
-MIN_MOVE_S = 0.3
-#: Probability of a pause after a move, and its duration range (s).
-PAUSE_PROBABILITY = 0.1
-PAUSE_S = (0.2, 0.6)
-#: Waypoints drawn for each move through the middle; the nearest is taken. Once the edge has
-#: been traced the hand takes the first (long strokes across the middle: in the few seconds
-#: left of a half-minute teaching they close the middle fastest; edge visits are then dropped).
-WAYPOINT_CHOICES = 2
-WAYPOINT_CHOICES_AFTER_TRACE = 1
-#: Intermediate poses tried (after the centre) to get round a corner of the region.
-VIA_TRIES = 8
-#: Candidate waypoints tried before backing up along the path already walked.
-WAYPOINT_TRIES = 40
-#: Moves bow sideways by a normal fraction of their length with this standard deviation.
-ARC_BOW_FRACTION = 0.2
-#: Spacing (deg) of checks along a move and of points along a traced edge.
-PATH_CHECK_STEP_DEG = 0.5
-TRACE_STEP_DEG = 1.0
-#: Speed (deg/s) of the first full trace of the edge: a person's careful pace (10-20 deg/s),
-#: slow enough to feel the edge, fast enough that a ~400 deg perimeter takes under half a minute.
-TRACE_SPEED_DEG_S = 18.0
-#: The full trace's depth wobbles about EDGE_INSET_DEG by up to TRACE_WOBBLE_DEG (a hand does not
-#: keep an exact distance from the edge), and its speed by up to TRACE_SPEED_WOBBLE of itself.
-TRACE_WOBBLE_DEG = 0.3
-TRACE_SPEED_WOBBLE = 0.2
-#: Wavelengths (deg along the edge) of the two sines in each wobble: slow drifts, not jitter.
-TRACE_WOBBLE_WAVELENGTH_DEG = (23.0, 61.0)
-#: A trace step that would pass too close to a reflex corner is halved (midpoint deepened) up
-#: to TRACE_SPLITS times: a 1 deg step becomes 1/8 deg, finer than any corner arc needs.
-TRACE_SPLITS = 3
-#: The full trace runs this fraction of the perimeter past where it started, to close the loop.
-TRACE_OVERLAP = 0.03
-#: Teaching styles of a region hand: what a REGION.yaml's ``style:`` may name.
-STYLES = {
-    "trace": "trace the whole edge once, slowly, about a degree inside; then wander",
-    "wander": "wander through the middle from the start, visiting the edge every other move",
-}
-DEFAULT_STYLE = "trace"
+#: The twist tremor's amplitude as a fraction of the hand's tremor_deg (one sine: the wrist's
+#: tremor about the forearm is about half that of the swing).
+TWIST_TREMOR_FRACTION = 0.5
+#: How far inside each twist stop (deg) the hand turns: as the swing trace keeps EDGE_INSET_DEG
+#: (1 deg) from the swing edge, a person feels the stop and backs off about a degree.
+TWIST_INSET_DEG = 1.0
+#: Along the edge trace, one cycle to both stops: (u target, move s, hold s) steps. 0.9 s a
+#: cycle at the trace's 18 deg/s reaches each stop about every 16 deg of edge, so a band limit
+#: bridged between stops sags well under a degree (ENVELOPE_CURVATURE in
+#: limbctl/region/twist_band.py; slower cycles: docs/decisions/hand.md, docs/decisions/twist.md).
+TRACE_TWIST_CYCLE = ((1.0, 0.4, 0.05), (-1.0, 0.4, 0.05))
+#: Wandering: every STOP_EVERY-th twist move goes to a stop, alternately the upper and the lower
+#: one; the others to a uniform draw in the band. 1: every move, so the twist keeps turning from
+#: stop to stop while the swing wanders (a place passed once still sees both stops). A move over
+#: the whole band takes WANDER_MOVE_S[1] s, a short one at least WANDER_MOVE_S[0] (a brisk
+#: wrist turns through its range in under half a second), and each ends in a hold of
+#: WANDER_HOLD_S (a touch of the stop): the swing's 40 deg/s carries the limb ~35 deg between two
+#: visits of the same stop.
+STOP_EVERY = 1
+WANDER_MOVE_S = (0.2, 0.4)
+WANDER_HOLD_S = (0.03, 0.08)
 
-_TOP_LEVEL_KEYS = {"region", "script", "speed_deg_s", "tremor_deg", "style"}
+_TOP_LEVEL_KEYS = {"region", "script", "twist", "speed_deg_s", "tremor_deg", "style"}
+_COLUMNS = ("t_s", "pan_deg", "tilt_deg", "roll_deg")
 
 
 def _positive(data: dict, key: str, default: float, source: str, allow_zero: bool) -> float:
@@ -113,13 +89,17 @@ def _positive(data: dict, key: str, default: float, source: str, allow_zero: boo
     return float(value)
 
 
-def _parse_script(script: object, source: str) -> list[tuple[float, float, float]]:
+def _parse_script(script: object, source: str) -> list[tuple[float, ...]]:
+    """Rows of 3 numbers, or of 4 (with a roll) when the first row has 4; times increasing."""
     if not isinstance(script, (list, tuple)) or len(script) == 0:
         raise ValueError(f"{source}: script must be a non-empty list of [t_s, pan_deg, tilt_deg]")
-    waypoints = []
+    first = script[0]
+    width = 4 if isinstance(first, (list, tuple)) and len(first) == 4 else 3
+    columns = f"[{', '.join(_COLUMNS[:width])}]"
+    waypoints: list[tuple[float, ...]] = []
     for k, row in enumerate(script):
-        if not isinstance(row, (list, tuple)) or len(row) != 3:
-            raise ValueError(f"{source}: script[{k}] must be [t_s, pan_deg, tilt_deg], got {row!r}")
+        if not isinstance(row, (list, tuple)) or len(row) != width:
+            raise ValueError(f"{source}: script[{k}] must be {columns} like row 0, got {row!r}")
         values = []
         for v in row:
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
@@ -130,7 +110,7 @@ def _parse_script(script: object, source: str) -> list[tuple[float, float, float
                 f"{source}: script[{k}] time {values[0]} s must be >= 0 and later than the one "
                 "before it"
             )
-        waypoints.append((values[0], values[1], values[2]))
+        waypoints.append(tuple(values))
     return waypoints
 
 
@@ -140,41 +120,49 @@ class Hand:
     Attributes
     ----------
     region : PolygonRegion | ConeRegion | None
-        The region a wandering hand stays in (``contains(pan_deg, tilt_deg) -> bool``); ``None``
+        The region a region hand stays in (``contains(pan_deg, tilt_deg) -> bool``); ``None``
         for a script hand.
-    script : list of (t_s, pan_deg, tilt_deg) or None
+    script : list of (t_s, pan_deg, tilt_deg[, roll_deg]) or None
+    band : TwistBand or None
+        The twist band a region hand turns the roll in; ``None`` when it leaves the roll alone.
+    turns_roll : bool
+        Whether :meth:`pose_deg` gives a roll (a twist band, or a script with a roll column);
+        :meth:`firmware_sim.world.World.set_hand` gives such a hand the roll joint too.
     style : str
-        How a region hand teaches, one of :data:`STYLES` (ignored by a script hand).
-    trace_span_s : tuple of float or None
-        (start, end) in s of a ``trace`` hand's full trace of the edge, after it took hold;
-        ``None`` for other hands.
+        How a region hand teaches, one of :data:`firmware_sim.hand_path.STYLES`.
+    path : SwingPath
+        Where the hand takes pan and tilt, before the tremor.
     """
 
     def __init__(
         self,
         region: Region | None = None,
-        script: list[tuple[float, float, float]] | None = None,
+        script: list[tuple[float, ...]] | None = None,
         speed_deg_s: float = DEFAULT_SPEED_DEG_S,
         tremor_deg: float = DEFAULT_TREMOR_DEG,
         seed: int = 0,
         source: str = "<hand>",
         style: str = DEFAULT_STYLE,
+        band: TwistBand | None = None,
     ) -> None:
         if (region is None) == (script is None):
             raise ValueError(f"{source}: a Hand needs exactly one of region or script")
+        if band is not None and region is None:
+            raise ValueError(f"{source}: 'twist' applies to a region hand, not to a script")
         if style not in STYLES:
             choices = "; ".join(f"{name}: {meaning}" for name, meaning in STYLES.items())
             raise ValueError(f"{source}: unknown style {style!r}; choose one of ({choices})")
-        self.style = style
-        self.trace_span_s: tuple[float, float] | None = None
         if region is not None and region.depth_max_deg < MIN_REGION_DEPTH_DEG:
             raise ValueError(
                 f"{source}: the region is too small for a hand to move in: its deepest point is "
                 f"{region.depth_max_deg:.2f} deg inside; make it at least {MIN_REGION_DEPTH_DEG:g} "
                 "deg deep"
             )
+        self.style = style
         self.region = region
         self.script = script
+        self.band = band
+        self.turns_roll = band is not None or (script is not None and len(script[0]) == 4)
         self.speed_deg_s = float(speed_deg_s)
         self.tremor_deg = float(tremor_deg)
         self._seed = seed
@@ -187,46 +175,45 @@ class Hand:
             (float(a), 2.0 * math.pi * float(f), float(p))
             for a, f, p in zip(amps, freqs, phases, strict=True)
         ]
-        # the path: segment k runs from _t0[k] to _t1[k], from (p0, q0) to (p1, q1)
-        self._t0: list[float] = []
-        self._t1: list[float] = []
-        self._segments: list[tuple] = []
-        self._current = 0
-        if script is not None:
-            # hold the first waypoint from before it (a one-second constant segment)
-            first = script[0]
-            self._add(first[0] - 1.0, first[0], first[1], first[2], first[1], first[2], False)
-            for (ta, pa, qa), (tb, pb, qb) in zip(script, script[1:], strict=False):
-                self._add(ta, tb, pa, qa, pb, qb, False)
-        else:
+        self.path = SwingPath(region, script, self.speed_deg_s, seed, style)
+        if script is not None and self.turns_roll:
+            self._times = [row[0] for row in script]
+            self._rolls = [row[3] for row in script]
+        if band is not None:
+            # the twist's tremor: one sine, TWIST_TREMOR_FRACTION of tremor_deg
+            rng = np.random.default_rng([seed, 7])
+            self._twist_tremor = (
+                TWIST_TREMOR_FRACTION * self.tremor_deg,
+                2.0 * math.pi * float(rng.uniform(*TREMOR_BAND_HZ)),
+                float(rng.uniform(0.0, 2.0 * math.pi)),
+            )
+        if region is not None:
             self.start_from(*region.center_deg)
 
-    def start_from(self, pan_deg: float, tilt_deg: float) -> None:
-        """Take hold of the limb at (pan_deg, tilt_deg): a region hand (re)starts its wander there
-        (t = 0), first bringing the limb to the middle of the region; the path stays a function of
-        the seed and this pose. A script hand ignores this: its script says where the limb is."""
+    @property
+    def trace_span_s(self) -> tuple[float, float] | None:
+        """(start, end) in s of a ``trace`` hand's full trace of the edge, after it took hold;
+        ``None`` for other hands."""
+        return self.path.trace_span_s
+
+    def start_from(self, pan_deg: float, tilt_deg: float, roll_deg: float = 0.0) -> None:
+        """Take hold of the limb at (pan_deg, tilt_deg, roll_deg): a region hand (re)starts its
+        path there (t = 0), first bringing the limb to the middle of the region, its twist where
+        it is; the path stays a function of the seed and this pose. A script hand ignores this:
+        its script says where the limb is."""
         if self.script is not None:
             return
-        self._rng = np.random.default_rng([self._seed, 1])
-        self._t0.clear()
-        self._t1.clear()
-        self._segments.clear()
-        self._current = 0
-        self._edge_u = float(self._rng.uniform())
-        self._edge_step = 1.0 / EDGE_VISITS_PER_LAP
-        self._edge_due = True
-        # (pan, tilt, bulge) of each move since the last centre visit, to retrace if boxed in
-        self._trail: list[tuple[float, float, tuple[float, float]]] = []
-        pan, tilt = float(pan_deg), float(tilt_deg)
-        self._add(0.0, PAUSE_S[0], pan, tilt, pan, tilt, False)
-        self.trace_span_s = None
-        inside = float(self.region.edge_distance_deg(pan, tilt)) >= MIN_PATH_DEPTH_DEG
-        if self.style == "trace" and inside:
-            self._trace_whole_edge()
-        elif (pan, tilt) != self.region.center_deg:
-            self._move(self.region.center_deg)
-            if self.style == "trace":
-                self._trace_whole_edge()
+        self.path.start_from(pan_deg, tilt_deg)
+        if self.band is None:
+            return
+        self._twist_rng = np.random.default_rng([self._seed, 8])
+        twist = roll_deg + math.degrees(chain_twist(math.radians(pan_deg), math.radians(tilt_deg)))
+        # the twist's segments (t0, t1, u0, u1), minimum-jerk in the band position u
+        self._twist = Track()
+        self._moves = 0
+        self._cycle_step = 0
+        u = self._u_of(pan_deg, tilt_deg, twist)
+        self._twist.add(0.0, PAUSE_S[0], u, u)
 
     @classmethod
     def from_mapping(cls, data: object, seed: int = 0, source: str = "<mapping>") -> Hand:
@@ -242,25 +229,17 @@ class Hand:
             )
         if ("region" in data) == ("script" in data):
             raise ValueError(f"{source}: give exactly one of 'region' or 'script'")
-        style = data.get("style", DEFAULT_STYLE)
-        if "style" in data and "script" in data:
-            raise ValueError(f"{source}: 'style' applies to a region hand, not to a script")
+        for key in ("style", "twist"):
+            if key in data and "script" in data:
+                raise ValueError(f"{source}: '{key}' applies to a region hand, not to a script")
         speed = _positive(data, "speed_deg_s", DEFAULT_SPEED_DEG_S, source, allow_zero=False)
         tremor = _positive(data, "tremor_deg", DEFAULT_TREMOR_DEG, source, allow_zero=True)
+        common = {"speed_deg_s": speed, "tremor_deg": tremor, "seed": seed, "source": source}
         if "script" in data:
-            script = _parse_script(data["script"], source)
-            return cls(
-                script=script, speed_deg_s=speed, tremor_deg=tremor, seed=seed, source=source
-            )
+            return cls(script=_parse_script(data["script"], source), **common)
         region = region_from_mapping(data["region"], source)
-        return cls(
-            region=region,
-            speed_deg_s=speed,
-            tremor_deg=tremor,
-            seed=seed,
-            source=source,
-            style=style,
-        )
+        band = TwistBand.from_mapping(data["twist"], region, source) if "twist" in data else None
+        return cls(region=region, band=band, style=data.get("style", DEFAULT_STYLE), **common)
 
     @classmethod
     def from_yaml(cls, path: str | Path, seed: int = 0) -> Hand:
@@ -274,214 +253,57 @@ class Hand:
             raise ValueError(f"{path}: not valid YAML ({exc})") from exc
         return cls.from_mapping(data, seed=seed, source=str(path))
 
-    def pose_deg(self, t: float) -> tuple[float, float]:
-        """(pan_deg, tilt_deg) the hand holds the limb at, ``t`` >= 0 s after it took hold."""
+    def pose_deg(self, t: float) -> tuple[float, ...]:
+        """(pan_deg, tilt_deg), or (pan_deg, tilt_deg, roll_deg) for a hand that
+        :attr:`turns_roll`, the hand holds the limb at ``t`` >= 0 s after it took hold."""
         if not math.isfinite(t):
             raise ValueError(f"Hand.pose_deg: t must be a finite time in s, got {t!r}")
-        if self.script is None:
-            while self._t1[-1] <= t:
-                self._plan_next()
-        k = self._current
-        if not self._t0[k] <= t < self._t1[k]:
-            k = max(bisect.bisect_right(self._t0, t) - 1, 0)
-            self._current = k
-        t0, t1, p0, q0, p1, q1, minimum_jerk, bulge_pan, bulge_tilt = self._segments[k]
-        s = min(max((t - t0) / (t1 - t0), 0.0), 1.0)
-        if minimum_jerk:
-            # minimum-jerk profile: s' = 10 s^3 - 15 s^4 + 6 s^5
-            s = s * s * s * (10.0 + s * (-15.0 + 6.0 * s))
-        # pose = start + s (end - start) + 4 s (1 - s) bulge  (a parabolic arc, not a ruler line)
-        arc = 4.0 * s * (1.0 - s)
-        pan = p0 + s * (p1 - p0) + arc * bulge_pan
-        tilt = q0 + s * (q1 - q0) + arc * bulge_tilt
+        pan, tilt = self.path.at(t)
         (a0, w0, f0), (a1, w1, f1), (a2, w2, f2), (a3, w3, f3) = self._tremor
         pan += a0 * math.sin(w0 * t + f0) + a1 * math.sin(w1 * t + f1)
         tilt += a2 * math.sin(w2 * t + f2) + a3 * math.sin(w3 * t + f3)
-        return pan, tilt
+        if not self.turns_roll:
+            return pan, tilt
+        if self.band is None:
+            # a script's roll: linear between waypoints, held outside them, no tremor
+            return float(pan), float(tilt), float(np.interp(t, self._times, self._rolls))
+        low, high = self.band.limits_deg(pan, tilt)
+        centre, reach = (low + high) / 2.0, (high - low) / 2.0 - TWIST_INSET_DEG
+        amplitude, omega, phase = self._twist_tremor
+        twist = centre + self._band_position(t) * reach + amplitude * math.sin(omega * t + phase)
+        return float(pan), float(tilt), roll_for_twist_deg(pan, tilt, twist)
 
-    # -- path planning (region hands) ------------------------------------------------------
+    # -- the twist in its band (region hands with a twist band) ----------------------------
 
-    def _add(self, t0, t1, p0, q0, p1, q1, minimum_jerk, bulge=(0.0, 0.0)) -> None:
-        self._t0.append(t0)
-        self._t1.append(t1)
-        self._segments.append((t0, t1, p0, q0, p1, q1, minimum_jerk, bulge[0], bulge[1]))
+    def _u_of(self, pan_deg: float, tilt_deg: float, twist_deg: float) -> float:
+        low, high = self.band.limits_deg(pan_deg, tilt_deg)
+        centre, reach = (low + high) / 2.0, (high - low) / 2.0 - TWIST_INSET_DEG
+        return min(max(wrap_deg(twist_deg - centre) / reach, -1.0), 1.0)
 
-    def _end(self) -> tuple[float, float, float]:
-        segment = self._segments[-1]
-        return segment[1], segment[4], segment[5]
+    def _band_position(self, t: float) -> float:
+        """``u`` in [-1, 1]: where in the band the twist is held ``t`` s after taking hold."""
+        while self._twist.segments[-1][1] <= t:
+            self._plan_twist()
+        t0, t1, u0, u1 = self._twist.at(t)
+        s = progress(t, t0, t1)
+        return u0 + s * (u1 - u0)
 
-    def _path_ok(self, a, b, bulge=(0.0, 0.0)) -> bool:
-        """True when the move a -> b, bowed by ``bulge`` at its middle, keeps at least
-        MIN_PATH_DEPTH_DEG inside."""
-        length = math.hypot(b[0] - a[0], b[1] - a[1]) + 2.0 * math.hypot(*bulge)
-        n = int(length / PATH_CHECK_STEP_DEG) + 2
-        s = np.linspace(0.0, 1.0, n)
-        arc = 4.0 * s * (1.0 - s)
-        pan = a[0] + s * (b[0] - a[0]) + arc * bulge[0]
-        tilt = a[1] + s * (b[1] - a[1]) + arc * bulge[1]
-        return bool(np.all(self.region.edge_distance_deg(pan, tilt) >= MIN_PATH_DEPTH_DEG))
-
-    def _ease_s(self, depth_deg: float) -> float:
-        """Extra time (s) to ease into or out of a pose at a depth: EDGE_EASE_S at the edge."""
-        return EDGE_EASE_S * (1.0 - min(max(depth_deg, 0.0) / SLOW_BAND_DEG, 1.0))
-
-    def _move(self, target: tuple[float, float], bulge=(0.0, 0.0), retrace=False) -> None:
-        """A minimum-jerk move to ``target``, eased when either end is near the edge."""
-        t, pan, tilt = self._end()
-        depth = self.region.edge_distance_deg([pan, target[0]], [tilt, target[1]])
-        distance = math.hypot(target[0] - pan, target[1] - tilt)
-        # duration = distance / speed + ease at either end near the edge
-        duration = distance / self.speed_deg_s + self._ease_s(depth[0]) + self._ease_s(depth[1])
-        duration = max(duration, MIN_MOVE_S)
-        self._add(t, t + duration, pan, tilt, target[0], target[1], True, bulge)
-        if not retrace:
-            self._trail.append((pan, tilt, bulge))
-        if (target[0], target[1]) == self.region.center_deg:
-            self._trail.clear()
-
-    def _pause(self) -> None:
-        t, pan, tilt = self._end()
-        self._add(t, t + float(self._rng.uniform(*PAUSE_S)), pan, tilt, pan, tilt, False)
-
-    def _draw_waypoint(self) -> tuple[float, float]:
-        """A pose inside, drawn with a density that grows with its depth (dense in the middle)."""
-        pan_lo, pan_hi, tilt_lo, tilt_hi = self.region.bbox_deg
-        while True:
-            pan = float(self._rng.uniform(pan_lo, pan_hi))
-            tilt = float(self._rng.uniform(tilt_lo, tilt_hi))
-            depth = float(self.region.edge_distance_deg(pan, tilt))
-            # accept with probability (depth / depth_max) ** WAYPOINT_DEPTH_POWER
-            accept = (max(depth, 0.0) / self.region.depth_max_deg) ** WAYPOINT_DEPTH_POWER
-            if depth >= EDGE_INSET_DEG and self._rng.uniform() < accept:
-                return pan, tilt
-
-    def _reach(self, target: tuple[float, float]) -> bool:
-        """Move to ``target`` on a gently bowed arc, else straight, else via one intermediate
-        pose; only along a path that stays inside. False when none does."""
-        _, pan, tilt = self._end()
-        # bulge: perpendicular to the move, N(0, ARC_BOW_FRACTION) of its length
-        bow = float(self._rng.normal(0.0, ARC_BOW_FRACTION))
-        bulge = (-(target[1] - tilt) * bow, (target[0] - pan) * bow)
-        for candidate in (bulge, (0.0, 0.0)):
-            if self._path_ok((pan, tilt), target, candidate):
-                self._move(target, candidate)
-                return True
-        # around a corner: via the centre, else via a drawn waypoint both ends can see
-        for via in [self.region.center_deg] + [self._draw_waypoint() for _ in range(VIA_TRIES)]:
-            if self._path_ok((pan, tilt), via) and self._path_ok(via, target):
-                self._move(via)
-                self._move(target)
-                return True
-        return False
-
-    def _plan_next(self) -> None:
-        """Append the next stretch of wandering: a move through the middle or, unless the whole
-        edge has been traced, an edge visit."""
-        traced = self.trace_span_s is not None
-        if self._edge_due and not traced:
-            self._edge_due = False
-            # next visit: one spacing further round, jittered by up to a sixth of a spacing
-            self._edge_u = (self._edge_u + self._edge_step) % 1.0
-            jitter = float(self._rng.uniform(-1.0, 1.0)) * self._edge_step / 6.0
-            if self._visit_edge(self._edge_u + jitter):
-                return
-        self._edge_due = True
-        _, pan, tilt = self._end()
-        for _ in range(WAYPOINT_TRIES):
-            # of the drawn waypoints a person picks the nearest: no pointless tours
-            choices = WAYPOINT_CHOICES_AFTER_TRACE if traced else WAYPOINT_CHOICES
-            options = [self._draw_waypoint() for _ in range(choices)]
-            nearest = min(options, key=lambda w: math.hypot(w[0] - pan, w[1] - tilt))
-            if self._reach(nearest):
-                break
+    def _plan_twist(self) -> None:
+        """Append the twist's next move and hold: a step of the cycle while the swing traces the
+        edge, a wander move after."""
+        t0, t1, _, u_end = self._twist.segments[-1]
+        span = self.path.trace_span_s
+        if span is not None and t1 < span[1]:
+            target, move_s, hold_s = TRACE_TWIST_CYCLE[self._cycle_step % len(TRACE_TWIST_CYCLE)]
+            self._cycle_step += 1
         else:
-            # boxed in (a very irregular polygon): retrace the path walked since the centre; the
-            # arc a -> b bowed by B, walked backwards, is b -> a bowed by the same B
-            if self._trail:
-                pan, tilt, bulge = self._trail.pop()
-                self._move((pan, tilt), bulge, retrace=True)
+            self._moves += 1
+            if self._moves % STOP_EVERY == 0:
+                target = 1.0 if (self._moves // STOP_EVERY) % 2 else -1.0
             else:
-                self._move(self.region.center_deg)
-        if self._rng.uniform() < PAUSE_PROBABILITY:
-            self._pause()
-
-    def _visit_edge(self, u_start: float) -> bool:
-        """Go to the edge at perimeter fraction ``u_start`` and trace a short stretch slowly."""
-        region = self.region
-        length = float(self._rng.uniform(*EDGE_TRACE_DEG))
-        sense = 1.0 if self._rng.uniform() < 0.5 else -1.0
-        n = max(int(length / TRACE_STEP_DEG), 1) + 1
-        u = u_start + sense * (length / region.perimeter_deg) * np.linspace(0.0, 1.0, n)
-        points = [region.boundary_point(float(v), EDGE_INSET_DEG) for v in u]
-        depth = region.edge_distance_deg([p[0] for p in points], [p[1] for p in points])
-        points = [p for p, d in zip(points, depth, strict=True) if d >= MIN_PATH_DEPTH_DEG]
-        if len(points) < 2 or not self._reach(points[0]):
-            return False
-        edge_speed = self.speed_deg_s * EDGE_SPEED_FRACTION
-        for b in points[1:]:
-            t, pan, tilt = self._end()
-            duration = math.hypot(b[0] - pan, b[1] - tilt) / edge_speed
-            if duration <= 0.0 or not self._path_ok((pan, tilt), b):
-                continue  # skip a point the edge cannot be followed to; try the next
-            self._add(t, t + duration, pan, tilt, b[0], b[1], False)
-            self._trail.append((pan, tilt, (0.0, 0.0)))
-        return True
-
-    def _trace_whole_edge(self) -> None:
-        """Trace the whole edge once from its point nearest the hand: at TRACE_SPEED_DEG_S,
-        EDGE_INSET_DEG inside, both wobbling slowly; sets :attr:`trace_span_s`."""
-        region = self.region
-        _, pan, tilt = self._end()
-        n = max(int(region.perimeter_deg / TRACE_STEP_DEG), 8)
-        u = np.arange(n) / n
-        starts = np.array([region.boundary_point(float(v), EDGE_INSET_DEG) for v in u])
-        order = np.argsort(np.hypot(starts[:, 0] - pan, starts[:, 1] - tilt))
-        for k in order[:WAYPOINT_TRIES]:
-            if self._reach((float(starts[k, 0]), float(starts[k, 1]))):
-                break
-        else:
-            return  # no edge point reachable inside the region: wander only
-        t_start = self._end()[0]
-        sense = 1.0 if self._rng.uniform() < 0.5 else -1.0
-        steps = int(n * (1.0 + TRACE_OVERLAP))
-        arc_deg = np.arange(steps + 1) * (region.perimeter_deg / n)
-        # wobble(s) = amplitude (0.6 sin(2 pi s / L1 + f1) + 0.4 sin(2 pi s / L2 + f2)), s in deg
-        phases = self._rng.uniform(0.0, 2.0 * math.pi, size=4)
-        shape = [
-            0.6 * np.sin(2.0 * math.pi * arc_deg / TRACE_WOBBLE_WAVELENGTH_DEG[0] + phases[a])
-            + 0.4 * np.sin(2.0 * math.pi * arc_deg / TRACE_WOBBLE_WAVELENGTH_DEG[1] + phases[b])
-            for a, b in ((0, 1), (2, 3))
-        ]
-        inset = EDGE_INSET_DEG + TRACE_WOBBLE_DEG * shape[0]
-        speed = TRACE_SPEED_DEG_S * (1.0 + TRACE_SPEED_WOBBLE * shape[1])
-        u_trace = u[int(k)] + sense * arc_deg / region.perimeter_deg
-        points = np.array(
-            [region.boundary_point(float(v), float(d)) for v, d in zip(u_trace, inset, strict=True)]
-        )
-        points = deepen(self.region, points, inset)
-        for b, d, v in zip(points[1:], inset[1:], speed[1:], strict=True):
-            self._trace_to((float(b[0]), float(b[1])), float(d), float(v), TRACE_SPLITS)
-        self.trace_span_s = (t_start, self._end()[0])
-
-    def _trace_to(
-        self, b: tuple[float, float], depth_deg: float, speed: float, splits: int
-    ) -> bool:
-        """Trace straight to ``b`` at ``speed`` deg/s if that keeps MIN_PATH_DEPTH_DEG inside,
-        else through the midpoint set ``depth_deg`` deep (rounding a reflex corner), at most
-        ``splits`` halvings deep; False (nothing added) when even that fails."""
-        t, pan, tilt = self._end()
-        duration = math.hypot(b[0] - pan, b[1] - tilt) / speed
-        if duration <= 0.0:
-            return True
-        if self._path_ok((pan, tilt), b):
-            self._add(t, t + duration, pan, tilt, b[0], b[1], False)
-            self._trail.append((pan, tilt, (0.0, 0.0)))
-            return True
-        if splits == 0:
-            return False
-        middle = deepen(
-            self.region, np.array([[(pan + b[0]) / 2, (tilt + b[1]) / 2]]), np.array([depth_deg])
-        )[0]
-        if not self._trace_to((float(middle[0]), float(middle[1])), depth_deg, speed, splits - 1):
-            return False
-        return self._trace_to(b, depth_deg, speed, splits - 1)
+                target = float(self._twist_rng.uniform(-1.0, 1.0))
+            fraction = abs(target - u_end) / 2.0
+            move_s = WANDER_MOVE_S[0] + fraction * (WANDER_MOVE_S[1] - WANDER_MOVE_S[0])
+            hold_s = float(self._twist_rng.uniform(*WANDER_HOLD_S))
+        self._twist.add(t1, t1 + move_s, u_end, target)
+        self._twist.add(t1 + move_s, t1 + move_s + hold_s, target, target)

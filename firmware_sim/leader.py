@@ -1,14 +1,18 @@
-"""A leader gimbal: a second pan/tilt pair moved by an operator's hand and by its own motors.
+"""A leader gimbal: a second chain of two joints (pan, tilt) or three (pan, tilt, roll) moved by
+an operator's hand and by its own motors.
 
-The leader is built like the follower (the same joint geometry and ticks, at other servo ids)
-but it is a physical thing the operator holds, so each joint is a rotor with inertia and
-backdrive friction (joint frame, SI units)::
+The leader is built like the follower (the same joint geometry and ticks, the roll joint as
+:data:`firmware_sim.world.ROLL_JOINT`, at other servo ids), so the controller reads the chain's
+orientation ``q = Rz(pan) Ry(-tilt) Rx(roll)`` back from its shafts as it does the follower's
+(:mod:`firmware_sim.orientation`). It is a physical thing the operator holds, so each joint is a
+rotor with inertia and backdrive friction, on its own (joint frame, SI units)::
 
     J a = tau_motor + tau_hand - B v - C sign(v)        (sticks while |tau_motor + tau_hand| <= C)
 
 ``tau_motor`` comes from the servo by its Operating Mode (:mod:`firmware_sim.torque`).
-``tau_hand`` is the operator (:class:`Operator`): a bounded spring-damper toward where the
-operator means to go, a script of targets like the teaching hand's, with a let-go time::
+``tau_hand`` is the operator (:class:`Operator`): a bounded spring-damper on each joint toward
+where the operator means to go, a script of targets like the teaching hand's (one angle per
+joint), with a let-go time::
 
     tau_hand = K_h (target - angle) - D_h v,  scaled so that |tau_hand| <= tau_max * r(t)
 
@@ -19,7 +23,8 @@ where ``r`` is 1 until the let go and 0 from ``release_s`` after it, falling lin
 (``release_s`` 0: the hand is gone at once, the hardest let go for a wall).
 
 End stops clamp as on the follower. Ground truth (hand torque, motor torque, pose, the motor's
-work) is kept for tests: :meth:`LeaderWorld.truth`, and one JSON line per physics step in the log.
+work, one entry per joint) is kept for tests: :meth:`LeaderWorld.truth`, and one JSON line per
+physics step in the log.
 """
 
 from __future__ import annotations
@@ -28,13 +33,13 @@ import bisect
 import json
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import IO, Any
 
 from firmware_sim.servo import Servo
 from firmware_sim.torque import Drive, LoopGains, drive_of, motor_of, present_current_units
-from firmware_sim.world import DEFAULT_JOINTS, RAD_PER_TICK, Joint
+from firmware_sim.world import DEFAULT_JOINTS, JOINT_NAMES, RAD_PER_TICK, ROLL_JOINT, Joint
 
 #: Rotor inertia at the joint (kg m^2): a light printed leader link plus the reflected inertia of
 #: a small geared motor; it sets how fast a released joint accelerates.
@@ -51,6 +56,9 @@ LEADER_SUBSTEP_S = 0.0005
 HAND_STIFFNESS_NM_DEG = 0.05
 HAND_DAMPING_NM_S_RAD = 0.02
 HAND_MAX_TORQUE_NM = 0.3
+#: The longest chain a leader is built as: the follower's joints, in order; a leader of n servos
+#: has the first n (two or three).
+LEADER_CHAIN = (*DEFAULT_JOINTS, ROLL_JOINT)
 
 
 @dataclass
@@ -59,9 +67,10 @@ class Operator:
 
     Parameters
     ----------
-    script : sequence of (t_s, pan_deg, tilt_deg)
-        Where the operator means to go, linear in time between the points, holding the last.
-        Times count from when the operator takes hold.
+    script : sequence of (t_s, angle_deg, ...), shape (points, 1 + joints)
+        Where the operator means to go: the time and one angle per joint of the chain (pan,
+        tilt, then roll), linear in time between the points, holding the last. Times count
+        from when the operator takes hold.
     let_go_s : float or None
         From this time on the hand lets go; None: never.
     release_s : float
@@ -69,20 +78,27 @@ class Operator:
         0 over it. 0 (the default): no torque at all from ``let_go_s`` on.
     stiffness_nm_deg, damping_nm_s_rad, max_torque_nm : float
         The grip: K_h (N m per deg), D_h (N m s/rad) and the bound tau_max (N m).
+    joints : int
+        How many joints the hand holds (2 or 3): the script's angles per point.
     """
 
-    script: Sequence[tuple[float, float, float]]
+    script: Sequence[Sequence[float]]
     let_go_s: float | None = None
     release_s: float = 0.0
     stiffness_nm_deg: float = HAND_STIFFNESS_NM_DEG
     damping_nm_s_rad: float = HAND_DAMPING_NM_S_RAD
     max_torque_nm: float = HAND_MAX_TORQUE_NM
+    joints: int = 2
     _times: list[float] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
+        if not 2 <= self.joints <= len(LEADER_CHAIN):
+            raise ValueError(f"an operator holds two or three joints, got {self.joints!r}")
         points = [tuple(float(v) for v in p) for p in self.script]
-        if not points or any(len(p) != 3 or not all(map(math.isfinite, p)) for p in points):
-            raise ValueError("operator script must be [[t_s, pan_deg, tilt_deg], ...], finite")
+        width = 1 + self.joints
+        if not points or any(len(p) != width or not all(map(math.isfinite, p)) for p in points):
+            angles = ", ".join(f"{name}_deg" for name in JOINT_NAMES[: self.joints])
+            raise ValueError(f"operator script must be [[t_s, {angles}], ...], finite")
         times = [p[0] for p in points]
         if times != sorted(times):
             raise ValueError(f"operator script times must not decrease, got {times}")
@@ -94,25 +110,28 @@ class Operator:
         self._times = times
 
     @classmethod
-    def from_mapping(cls, data: Mapping[str, Any]) -> Operator:
-        """An operator from plain data (keys as the parameters); ValueError naming a bad key."""
+    def from_mapping(cls, data: Mapping[str, Any], joints: int = 2) -> Operator:
+        """An operator of ``joints`` joints from plain data (keys as the other parameters);
+        ValueError naming a bad key."""
         known = {"script", "let_go_s", "release_s"}
         known |= {"stiffness_nm_deg", "damping_nm_s_rad", "max_torque_nm"}
         unknown = set(data) - known
         if unknown:
             raise ValueError(f"unknown operator keys {sorted(unknown)}; known: {sorted(known)}")
-        return cls(**dict(data))
+        return cls(**dict(data), joints=joints)
 
-    def target_deg(self, t: float) -> tuple[float, float]:
-        """(pan, tilt) the operator means at ``t`` s: linear between the script's points."""
+    def target_deg(self, t: float) -> tuple[float, ...]:
+        """The joint angles (deg, shape (joints,)) the operator means at ``t`` s: linear between
+        the script's points."""
         k = bisect.bisect_right(self._times, t)
         if k == 0:
-            return self.script[0][1], self.script[0][2]
+            return self.script[0][1:]
         if k == len(self.script):
-            return self.script[-1][1], self.script[-1][2]
-        (t0, p0, q0), (t1, p1, q1) = self.script[k - 1], self.script[k]
-        u = (t - t0) / (t1 - t0) if t1 > t0 else 1.0
-        return p0 + u * (p1 - p0), q0 + u * (q1 - q0)
+            return self.script[-1][1:]
+        before, after = self.script[k - 1], self.script[k]
+        u = (t - before[0]) / (after[0] - before[0]) if after[0] > before[0] else 1.0
+        # linear in time: a + u (b - a) per joint
+        return tuple(a + u * (b - a) for a, b in zip(before[1:], after[1:], strict=True))
 
     def bound_nm(self, t: float) -> float:
         """The most the hand pushes with at ``t`` s (N m): tau_max r(t)."""
@@ -123,8 +142,8 @@ class Operator:
         return self.max_torque_nm * max(left, 0.0)
 
     def torque(self, t: float, slot: int, angle_rad: float, velocity_rad_s: float) -> float:
-        """The hand's torque (N m) on joint ``slot`` (0 pan, 1 tilt) at ``t`` s, were it the
-        only joint the hand pushes (:meth:`torques` bounds the vector of all of them)."""
+        """The hand's torque (N m) on joint ``slot`` (its index in the chain) at ``t`` s, were
+        it the only joint the hand pushes (:meth:`torques` bounds the vector of all of them)."""
         bound = self.bound_nm(t)
         target = math.radians(self.target_deg(t)[slot])
         # tau = K_h (target - angle) - D_h v, K_h per rad, bounded by tau_max r(t)
@@ -137,8 +156,9 @@ class Operator:
     def torques(
         self, t: float, angles_rad: Sequence[float], velocities_rad_s: Sequence[float]
     ) -> list[float]:
-        """The hand's torque on each joint (N m) at ``t`` s: the spring-damper, its vector
-        scaled down to at most tau_max r(t) in magnitude (the module docstring)."""
+        """The hand's torque on each joint (N m, shape (joints,)) at ``t`` s from the joints'
+        angles (rad) and velocities (rad/s): the spring-damper, its vector scaled down to at
+        most tau_max r(t) in magnitude (the module docstring)."""
         bound = self.bound_nm(t)
         if bound <= 0.0:
             return [0.0] * len(angles_rad)
@@ -155,13 +175,14 @@ class Operator:
         return [v * scale for v in raw]
 
 
-def leader_joints(ids: Sequence[int]) -> tuple[Joint, Joint]:
-    """The follower's joint geometry at the leader's (pan, tilt) ids."""
-    if len(ids) != 2 or ids[0] == ids[1]:
-        raise ValueError(f"a leader needs two distinct ids (pan, tilt), got {list(ids)}")
+def leader_joints(ids: Sequence[int]) -> tuple[Joint, ...]:
+    """The follower's joint geometry at the leader's ids: (pan, tilt) or (pan, tilt, roll)."""
+    if not 2 <= len(ids) <= len(LEADER_CHAIN) or len(set(ids)) != len(ids):
+        raise ValueError(
+            f"a leader needs two or three distinct ids (pan, tilt[, roll]), got {list(ids)}"
+        )
     return tuple(
-        Joint(int(i), j.name, j.zero_tick, j.direction, j.stop_min_deg, j.stop_max_deg)
-        for i, j in zip(ids, DEFAULT_JOINTS, strict=True)
+        replace(j, servo_id=int(i)) for i, j in zip(ids, LEADER_CHAIN[: len(ids)], strict=True)
     )
 
 
@@ -170,16 +191,17 @@ class LeaderWorld:
 
     Parameters
     ----------
-    ids : (int, int)
-        The leader's (pan, tilt) servo ids.
+    ids : sequence of int, length 2 or 3
+        The leader's servo ids: (pan, tilt) or (pan, tilt, roll).
     model : str
         The leader servos' model (a key of :data:`firmware_sim.control_table.MODELS`).
     operator : Operator or None
-        Who holds it; None: nobody (only the motors and friction act).
+        Who holds it (an operator of as many joints); None: nobody (only the motors and
+        friction act).
     log : path or None
         JSON-lines ground truth, one line per physics step.
-    start_deg : (float, float)
-        Where the leader rests at start (pan, tilt).
+    start_deg : sequence of float, shape (joints,), or None
+        Where the leader rests at start (deg, per joint); None: every joint at 0.
     """
 
     def __init__(
@@ -188,22 +210,29 @@ class LeaderWorld:
         model: str,
         operator: Operator | None = None,
         log: str | Path | None = None,
-        start_deg: tuple[float, float] = (0.0, 0.0),
+        start_deg: Sequence[float] | None = None,
     ) -> None:
         self.joints = leader_joints(ids)
         self.ids = tuple(j.servo_id for j in self.joints)
         self.model = model
+        count = len(self.joints)
+        if start_deg is None:
+            start_deg = [0.0] * count
+        if len(start_deg) != count:
+            names = ", ".join(JOINT_NAMES[:count])
+            raise ValueError(f"a {count}-servo leader starts at ({names}), got {start_deg}")
+        self._check(operator)
         self._lo = [math.radians(j.stop_min_deg) for j in self.joints]
         self._hi = [math.radians(j.stop_max_deg) for j in self.joints]
         self.angle = [math.radians(float(a)) for a in start_deg]
-        self.velocity = [0.0, 0.0]
-        self.hand_nm = [0.0, 0.0]
-        self.motor_nm = [0.0, 0.0]
+        self.velocity = [0.0] * count
+        self.hand_nm = [0.0] * count
+        self.motor_nm = [0.0] * count
         #: Work (J) each motor and the hand did on each joint since the start: integral of
         #: tau dtheta. Over a closed excursion the leader is passive at the hand when the hand's
         #: net work is >= 0 (the device gives back no more than it was given).
-        self.motor_work_j = [0.0, 0.0]
-        self.hand_work_j = [0.0, 0.0]
+        self.motor_work_j = [0.0] * count
+        self.hand_work_j = [0.0] * count
         self.time_s = 0.0
         self.operator_time_s = 0.0
         self.operator = operator
@@ -215,22 +244,33 @@ class LeaderWorld:
     @classmethod
     def from_spec(cls, spec: Mapping[str, Any]) -> LeaderWorld:
         """A leader from plain data: ``{"ids": [3, 4], "model": ..., "operator": {...},
-        "log": path, "start_deg": [pan, tilt]}``."""
+        "log": path, "start_deg": [pan, tilt]}`` (three ids and angles: a three-servo leader,
+        its operator's script points ``[t_s, pan, tilt, roll]``)."""
         known = {"ids", "model", "operator", "log", "start_deg"}
         unknown = set(spec) - known
         if unknown:
             raise ValueError(f"unknown leader keys {sorted(unknown)}; known: {sorted(known)}")
-        operator = spec.get("operator")
+        ids = spec.get("ids", (3, 4))
+        joints = len(leader_joints(ids))
+        operator, start = spec.get("operator"), spec.get("start_deg")
         return cls(
-            spec.get("ids", (3, 4)),
+            ids,
             spec.get("model", "xm430-w350"),
-            None if operator is None else Operator.from_mapping(operator),
+            None if operator is None else Operator.from_mapping(operator, joints),
             spec.get("log"),
-            tuple(spec.get("start_deg", (0.0, 0.0))),
+            None if start is None else tuple(start),
         )
+
+    def _check(self, operator: Operator | None) -> None:
+        """ValueError unless ``operator`` is None or holds as many joints as the leader has."""
+        if operator is not None and operator.joints != len(self.joints):
+            raise ValueError(
+                f"a {operator.joints}-joint operator cannot hold a {len(self.joints)}-servo leader"
+            )
 
     def set_operator(self, operator: Operator | None) -> None:
         """Hand the leader to ``operator`` (its script's clock starts now), or let it go."""
+        self._check(operator)
         self.operator = operator
         self.operator_time_s = 0.0
 

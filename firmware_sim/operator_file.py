@@ -26,8 +26,8 @@ from typing import Any
 import yaml
 
 from firmware_sim.leader import Operator
-from firmware_sim.leader3 import Operator3
 from firmware_sim.torque import MOTORS
+from firmware_sim.world import JOINT_NAMES
 
 #: The keys that describe the leader, beside the grip's.
 LEADER_KEYS = ("model", "start_deg")
@@ -70,7 +70,7 @@ def leader_spec(data: Any, ids: Sequence[int], log: str | None = None) -> dict[s
     model = data.get("model", DEFAULT_MODEL)
     if model not in MOTORS:
         raise ValueError(f"no simulated leader of model {model!r}; known: {', '.join(MOTORS)}")
-    angles = "pan, tilt" if joints == 2 else "pan, tilt, roll"
+    angles = ", ".join(JOINT_NAMES[:joints])
     start = data.get("start_deg", [0.0] * joints)
     script = data.get("script")
     for other in {2, 3} - {joints}:  # a file for the other kind of leader
@@ -88,7 +88,7 @@ def leader_spec(data: Any, ids: Sequence[int], log: str | None = None) -> dict[s
         raise ValueError(f"let_go_s must be a time >= 0 in s (or left out), got {let_go!r}")
     grip = {key: data[key] for key in GRIP_KEYS if key in data}
     try:  # the operator's own checks: times in order, a grip of finite numbers >= 0
-        (Operator3 if joints == 3 else Operator).from_mapping(grip)
+        Operator.from_mapping(grip, joints)
     except TypeError as exc:
         raise ValueError(str(exc)) from None
     spec = {"ids": list(ids), "model": model, "start_deg": [float(a) for a in start]}

@@ -30,7 +30,7 @@ from firmware_sim.dispatch import dispatch
 from firmware_sim.eeprom import EepromFile
 from firmware_sim.faults import FaultInjector, FaultPlan
 from firmware_sim.hand import Hand
-from firmware_sim.leader3 import leader_world, operator_for
+from firmware_sim.leader import LeaderWorld, Operator
 from firmware_sim.protocol import MAX_SERVO_ID, PacketParser
 from firmware_sim.servo import Environment, Servo
 from firmware_sim.wire import BAUD_BY_VALUE, collide, value_for_baud
@@ -94,8 +94,8 @@ class Simulator:
     eeprom_dir : path or None
         Keep each slot's EEPROM in a file there (:class:`firmware_sim.eeprom.EepromFile`).
     leader : mapping or None
-        A leader gimbal (:meth:`firmware_sim.leader.LeaderWorld.from_spec`) whose ids join the bus;
-        three ids give a three-servo leader (:mod:`firmware_sim.leader3`).
+        A leader gimbal (:meth:`firmware_sim.leader.LeaderWorld.from_spec`: two ids or three)
+        whose ids join the bus.
     roll_id : int or None
         The servo that turns the limb about its own axis (a three-joint gimbal); it must be in
         ``ids``. None: a two-joint gimbal.
@@ -117,7 +117,7 @@ class Simulator:
         leader: Mapping[str, Any] | None = None,
         roll_id: int | None = None,
     ) -> None:
-        self.leader = None if leader is None else leader_world(leader)
+        self.leader = None if leader is None else LeaderWorld.from_spec(leader)
         leader_ids = () if self.leader is None else self.leader.ids
         ids = tuple(ids) + tuple(i for i in leader_ids if i not in tuple(ids))
         if factory > 0 and leader_ids:
@@ -353,7 +353,8 @@ class Simulator:
         if self.leader is None:
             raise ValueError("this simulator has no leader gimbal; start it with leader=...")
         self.advance()
-        self.leader.set_operator(None if operator is None else operator_for(self.leader, operator))
+        hand = None if operator is None else Operator.from_mapping(operator, len(self.leader.ids))
+        self.leader.set_operator(hand)
 
     def push(self, servo_id: int, torque_percent: float) -> None:
         self.servo(servo_id)

@@ -11,7 +11,7 @@ The limb points along ``d = (cos t cos p, cos t sin p, sin t)`` for pan ``p`` an
 with a roll joint its full orientation is ``q = Rz(p) Ry(-t) Rx(roll)``
 (:mod:`firmware_sim.orientation`).
 Every joint follows the same physics below, each on its own; a hand that moves the roll too
-(:class:`firmware_sim.twist_hand.TwistHand`) gives its pose as (pan, tilt, roll).
+(:attr:`firmware_sim.hand.Hand.turns_roll`) gives its pose as (pan, tilt, roll).
 
 Torque on, a joint tracks its servo's setpoint like a stiff position loop: a critically damped
 second-order response (natural frequency TRACKING_OMEGA_RAD_S) limited to the motor's speed and
@@ -281,10 +281,7 @@ class World:
         self.hand_time_s = 0.0
         if hand is not None:
             angles = self.joint_angles_deg()
-            if "roll" in angles and getattr(hand, "turns_roll", False):
-                hand.start_from(angles["pan"], angles["tilt"], angles["roll"])
-            else:
-                hand.start_from(angles["pan"], angles["tilt"])
+            hand.start_from(angles["pan"], angles["tilt"], angles.get("roll", 0.0))
 
     @property
     def hand(self) -> Hand | None:

@@ -217,7 +217,7 @@ def _leader_run(
     too for three) and the push, and the live page (when served) draws the leader beside the
     follower with its push. A machine too busy to keep the rate with the leader's extra write
     is said so."""
-    from limbctl.geometry.gimbal3 import pose_quat_scalar
+    from limbctl.geometry.gimbal import pose_quat_scalar
     from limbctl.geometry.twist import decompose_one
     from limbctl.jobs import gate_for
     from limbctl.operators import load_operator
@@ -301,9 +301,9 @@ TRUE_OUTLINE_POINTS = 720
 
 def true_outline(region_yaml: Path) -> np.ndarray:
     """The region a REGION.yaml's hand teaches, as a closed outline (M, 2) in pan/tilt degrees."""
-    from firmware_sim.twist_hand import hand_from_yaml
+    from firmware_sim.hand import Hand
 
-    region = hand_from_yaml(region_yaml).region  # a twist band, if any, leaves the outline
+    region = Hand.from_yaml(region_yaml).region  # a twist band, if any, leaves the outline
     fractions = np.linspace(0.0, 1.0, TRUE_OUTLINE_POINTS, endpoint=False)
     return np.array([region.boundary_point(u, 0.0) for u in fractions])
 
@@ -440,12 +440,12 @@ def true_twist_probes(region_yaml: Path) -> np.ndarray:
     PROBE_DEPTH_DEG or more inside it: swing poses on a PROBE_STEP_DEG grid whose direction is
     that far from every point of the outline (angles on the sphere), each with twists from the
     band shrunk by that much at its pose."""
-    from firmware_sim.twist_hand import hand_from_yaml
+    from firmware_sim.hand import Hand
     from limbctl.geometry.gimbal import pan_tilt_to_direction
     from limbctl.geometry.quat import direction_angle
     from limbctl.geometry.twist import compose
 
-    hand = hand_from_yaml(region_yaml)
+    hand = Hand.from_yaml(region_yaml)
     region, band = hand.region, hand.band
     grid = _grid_inside(region, PROBE_STEP_DEG)
     outline = np.radians(true_outline(region_yaml))
@@ -471,9 +471,9 @@ def _grid_inside(region: object, step_deg: float) -> np.ndarray:
 def true_band_lines(region_yaml: Path) -> tuple[float, np.ndarray, tuple[np.ndarray, np.ndarray]]:
     """The pan (deg) of the outline's centre, and the true band's limits (deg) against tilt
     there."""
-    from firmware_sim.twist_hand import hand_from_yaml
+    from firmware_sim.hand import Hand
 
-    hand = hand_from_yaml(region_yaml)
+    hand = Hand.from_yaml(region_yaml)
     pan = hand.region.center_deg[0]
     lo_tilt, hi_tilt = hand.region.bbox_deg[2:]
     tilt = np.linspace(lo_tilt, hi_tilt, 50)

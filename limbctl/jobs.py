@@ -430,7 +430,7 @@ def _calibration_base(options: CalibrateOptions, base):
     if len(ids) == 3 and base.roll is None:
         # a roll joint to start from: the simulated three-servo rig's (its zero and direction
         # are found by the calibration; its limits are narrowed inside the end stops below)
-        base = replace(base, roll=default_sim_profile("sim3").roll)
+        base = base.with_joints(roll=default_sim_profile("sim3").roll)
     elif len(ids) == 2 and base.roll is not None:
         raise ConfigError(
             f"the rig profile {base.name!r} has a roll joint (servo {base.roll.id}): give three "
@@ -470,7 +470,7 @@ def _calibration_base(options: CalibrateOptions, base):
             stop_min_deg=float(stops[0]),
             stop_max_deg=float(stops[1]),
         )
-    chosen = replace(base, **joints, source=None)
+    chosen = replace(base.with_joints(**joints), source=None)
     try:
         profile_from_dict(chosen.to_dict(), "the chosen limits")
     except ProfileError as exc:

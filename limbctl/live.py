@@ -321,7 +321,7 @@ def leader_status(source: Any) -> Callable[[], LeaderStatus]:
         if push is None or push.torque_nm == 0.0:
             beyond = push.distance_deg if push is not None else None
             return LeaderStatus(shown, 0.0, source.cap_nm, None, beyond, "free", sensed_nm=sensed)
-        toward = PanTilt(math.degrees(push.goal_pan), math.degrees(push.goal_tilt))
+        toward = PanTilt(math.degrees(push.goal[0]), math.degrees(push.goal[1]))
         return LeaderStatus(
             shown,
             push.torque_nm,

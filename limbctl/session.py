@@ -23,7 +23,6 @@ from calib.profile import RigProfile
 from limbctl.servo.bus import ServoBus
 from limbctl.servo.profiles import check_models, load_rig_profile
 from limbctl.servo.rig import Rig
-from limbctl.servo.rig3 import rig_for
 
 
 @dataclass
@@ -110,7 +109,7 @@ def open_rig(
         stack.enter_context(bus)
         if extra_ids:
             check_models(bus, profile.ids, profile.model)
-        yield Session(rig=rig_for(profile, bus), profile=profile, simulator=simulator)
+        yield Session(rig=Rig(profile, bus), profile=profile, simulator=simulator)
 
 
 @contextmanager

@@ -128,7 +128,7 @@ def test_the_three_servo_demo_keeps_every_goal_in_the_learned_region(tmp_path, c
 
 
 def test_the_three_servo_leader_run_goes_past_the_true_edge_in_swing_then_in_twist():
-    from firmware_sim.twist_hand import hand_from_yaml
+    from firmware_sim.hand import Hand
     from limbctl.demo import LEADER_RUNS
     from limbctl.operators import load_operator
 
@@ -136,7 +136,7 @@ def test_the_three_servo_leader_run_goes_past_the_true_edge_in_swing_then_in_twi
     operator = load_operator(name, len(ids))
     script, let_go_s = operator.grip["script"], operator.grip["let_go_s"]
 
-    hand = hand_from_yaml(demo_region_path().with_name("demo_region3.yaml"))
+    hand = Hand.from_yaml(demo_region_path().with_name("demo_region3.yaml"))
     region, band = hand.region, hand.band
     points = {tuple(p[1:]) for p in script}
     middle, swing, twist = (0.0, 10.0, 0.0), (100.0, 10.0, 0.0), (0.0, 10.0, 60.0)

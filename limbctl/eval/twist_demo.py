@@ -136,7 +136,7 @@ def nearest_held_nearby_deg(model: object, q: np.ndarray, radius_deg: float, see
 def written_orientations(telemetry: Path) -> np.ndarray:
     """The orientations (M, 4) the gate wrote, from a three-servo session's telemetry (each
     written cycle's ``out``: pan, tilt, roll in deg)."""
-    from limbctl.geometry.gimbal3 import pan_tilt_roll_to_quat
+    from limbctl.geometry.gimbal import pan_tilt_roll_to_quat
 
     rows = []
     with open(telemetry, encoding="utf-8") as fh:

@@ -1,19 +1,68 @@
-"""Pan/tilt joint angles <-> limb direction <-> quaternion for the two-servo gimbal.
+"""Joint angles <-> limb direction <-> quaternion for a chain of 2 or 3 joints, exactly.
 
 The limb rests along +x. Pan rotates about +z, tilt raises the limb toward +z:
-``d = (cos(tilt) cos(pan), cos(tilt) sin(pan), sin(tilt))``. The orientation a pose stands
-for is the twist-free swing from +x to ``d`` (a 2-DOF limb has no twist to constrain).
-At the singularity (limb along +-z) inverse kinematics keeps the current pan.
+``d = (cos(tilt) cos(pan), cos(tilt) sin(pan), sin(tilt))``. A third joint, roll, turns the limb
+about its own axis and never moves ``d``.
+
+**Two joints.** The orientation a pose stands for is the twist-free swing from +x to ``d`` (a
+2-DOF limb has no twist to constrain). At the singularity (limb along +-z) inverse kinematics
+keeps the current pan.
+
+**Three joints.** The physical chain is pan about +z, then tilt (a turn by -tilt about +y), then
+roll about the limb's own axis (+x in the limb's frame)::
+
+    q = Rz(pan) Ry(-tilt) Rx(roll)
+
+With half angles ``cp = cos(pan/2)``, ``sp = sin(pan/2)`` (and ``ct, st, cr, sr`` likewise) the
+first two factors are ``A = (cp ct, sp st, -cp st, sp ct)`` and::
+
+    q = (A_w cr - A_x sr,  A_w sr + A_x cr,  A_y cr + A_z sr,  A_z cr - A_y sr)
+
+**Roll is not the twist.** The twist of ``q`` about the rest axis +x (swing-twist:
+``q = swing(d) * twist(tau)``, twist angle ``2 atan2(q_x, q_w)``) is
+``roll + chain_twist(pan, tilt)`` with ``chain_twist = 2 atan(tan(pan/2) tan(tilt/2))``: ``A``
+alone is not twist-free, its twist is ``2 atan2(sp st, cp ct)``, and a turn about +x applied last
+adds to it. At (pan, tilt) = (30, 30) deg it is 8.2 deg, at (60, 45) 26.9 deg, at (90, 60) 60 deg;
+it vanishes when either joint is 0.
+
+**Inverse kinematics.** ``d`` gives pan and tilt as for two joints; the roll is then read from
+what is left, ``Rx(roll) = A(pan, tilt)^-1 q``, so ``roll = 2 atan2(r_x, r_w)`` with
+``r = conj(A) q``. This never goes through the swing-twist split, so it holds everywhere the
+pan is defined, including d = -x.
+
+**Tilt +-90 deg (gimbal lock).** The limb then lies along +-z, the axis pan turns about: pan and
+roll share an axis and only their sum (tilt +90) or difference (tilt -90) is fixed by ``q``. The
+inverse keeps the present pan there and the roll takes up the whole turn about the limb, so the
+answer is exact and the pan never jumps.
+
+**Roll wrap-around.** Roll is an angle on a circle: ``q`` fixes it modulo 360 deg. The inverse
+returns the representative ``roll + 360 k`` that lies within the roll joint's hard limits and,
+among those, nearest the present roll (:func:`unwrap_roll`). A rig profile keeps each joint's
+limits inside (-180, 180) deg, so on today's profiles exactly one representative lies within
+them: the joint then has to travel the long way round when the short way on SO(3) crosses
++-180 deg of roll, and the gate (which limits every joint's step and checks every intermediate
+pose) moves it there step by step or holds.
+
+All angles are radians. Array functions take (...,) angles and (..., 4) quaternions; the scalar
+twins (``*_scalar``) take and return plain floats for the gate's hot path and compute the same
+formulas (``tests/geometry/test_gimbal.py`` checks each against its array version).
+:func:`pose_quat` and :func:`pose_from_quat` take one pose of either chain and pick the
+functions of its joint count.
 """
 
 from __future__ import annotations
 
+import math
+from collections.abc import Sequence
+
 import numpy as np
 
 from limbctl.geometry.quat import limb_direction, swing_from_direction
+from limbctl.geometry.scalar import SINGULAR_COS
+from limbctl.geometry.scalar import limb as limb_scalar
+from limbctl.geometry.scalar import pan_tilt as pan_tilt_scalar
 
-#: |d_z| above which the pan is undefined and the current pan is kept.
-SINGULAR_COS = 1e-9
+TWO_PI = 2.0 * math.pi
 
 
 def pan_tilt_to_direction(pan: np.ndarray, tilt: np.ndarray) -> np.ndarray:
@@ -50,3 +99,164 @@ def quat_to_pan_tilt(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Joint angles (rad) that point the limb where ``q`` points it (twist is ignored)."""
     return direction_to_pan_tilt(limb_direction(q), current_pan)
+
+
+def chain_twist(pan: np.ndarray, tilt: np.ndarray) -> np.ndarray:
+    """Twist (rad) of ``Rz(pan) Ry(-tilt)`` about +x: ``2 atan(tan(pan/2) tan(tilt/2))``.
+
+    Computed as ``2 atan2(sin(pan/2) sin(tilt/2), cos(pan/2) cos(tilt/2))``, which is the same
+    angle for |pan|, |tilt| < 180 deg and stays finite at pan = 180 deg.
+    """
+    pan = np.asarray(pan, dtype=np.float64)
+    tilt = np.asarray(tilt, dtype=np.float64)
+    # tau = 2 atan2(sp st, cp ct)
+    return 2.0 * np.arctan2(np.sin(pan / 2) * np.sin(tilt / 2), np.cos(pan / 2) * np.cos(tilt / 2))
+
+
+def _pan_tilt_half(pan: np.ndarray, tilt: np.ndarray) -> np.ndarray:
+    """``A = Rz(pan) Ry(-tilt)`` as quaternions (..., 4)."""
+    cp, sp = np.cos(pan / 2), np.sin(pan / 2)
+    ct, st = np.cos(tilt / 2), np.sin(tilt / 2)
+    # A = (cp ct, sp st, -cp st, sp ct)
+    return np.stack([cp * ct, sp * st, -cp * st, sp * ct], axis=-1)
+
+
+def pan_tilt_roll_to_quat(pan: np.ndarray, tilt: np.ndarray, roll: np.ndarray) -> np.ndarray:
+    """Orientation ``Rz(pan) Ry(-tilt) Rx(roll)`` (..., 4), scalar first, w >= 0."""
+    pan, tilt, roll = np.broadcast_arrays(
+        *(np.asarray(v, dtype=np.float64) for v in (pan, tilt, roll))
+    )
+    a = _pan_tilt_half(pan, tilt)
+    cr, sr = np.cos(roll / 2), np.sin(roll / 2)
+    # q = (A_w cr - A_x sr, A_w sr + A_x cr, A_y cr + A_z sr, A_z cr - A_y sr)
+    q = np.stack(
+        [
+            a[..., 0] * cr - a[..., 1] * sr,
+            a[..., 0] * sr + a[..., 1] * cr,
+            a[..., 2] * cr + a[..., 3] * sr,
+            a[..., 3] * cr - a[..., 2] * sr,
+        ],
+        axis=-1,
+    )
+    return np.where(q[..., :1] < 0.0, -q, q)
+
+
+def unwrap_roll(
+    roll: np.ndarray,
+    present: np.ndarray | float = 0.0,
+    lo: float = -math.pi,
+    hi: float = math.pi,
+) -> np.ndarray:
+    """The representative ``roll + 2 pi k`` (k in -1, 0, 1) within ``[lo, hi]`` nearest ``present``.
+
+    ``roll`` is taken in (-2 pi, 2 pi]. When no representative lies within the limits, the one
+    nearest the limits is returned (the caller's clamp then decides), so the result is always
+    one of the three.
+    """
+    roll = np.asarray(roll, dtype=np.float64)
+    candidates = roll[..., None] + TWO_PI * np.array([-1.0, 0.0, 1.0])
+    # outside: distance to [lo, hi] (0 inside); inside: distance to the present roll
+    outside = np.maximum(lo - candidates, 0.0) + np.maximum(candidates - hi, 0.0)
+    nearness = np.abs(candidates - np.asarray(present, dtype=np.float64)[..., None])
+    # an in-limit candidate always beats one outside: outside distances weigh 4 pi more
+    score = np.where(outside > 0.0, 4.0 * math.pi + outside, nearness)
+    pick = np.argmin(score, axis=-1)
+    return np.take_along_axis(candidates, pick[..., None], axis=-1)[..., 0]
+
+
+def quat_to_pan_tilt_roll(
+    q: np.ndarray,
+    current_pan: np.ndarray | float = 0.0,
+    current_roll: np.ndarray | float = 0.0,
+    roll_limits: tuple[float, float] = (-math.pi, math.pi),
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Joint angles (rad) with ``Rz(pan) Ry(-tilt) Rx(roll) = +-q`` for unit ``q`` (..., 4).
+
+    Pan and tilt come from the limb direction (``current_pan`` kept at tilt +-90 deg); the roll
+    is what is left, ``2 atan2(r_x, r_w)`` with ``r = conj(A(pan, tilt)) q``, unwrapped against
+    ``current_roll`` within ``roll_limits`` (:func:`unwrap_roll`).
+    """
+    q = np.asarray(q, dtype=np.float64)
+    pan, tilt = direction_to_pan_tilt(limb_direction(q), current_pan)
+    a = _pan_tilt_half(pan, tilt)
+    # r = conj(A) q; only its w and x parts are needed (y, z vanish up to rounding)
+    r_w = (a * q).sum(axis=-1)
+    r_x = (
+        a[..., 0] * q[..., 1]
+        - a[..., 1] * q[..., 0]
+        - a[..., 2] * q[..., 3]
+        + a[..., 3] * q[..., 2]
+    )
+    roll = 2.0 * np.arctan2(r_x, r_w)
+    return pan, tilt, unwrap_roll(roll, current_roll, *roll_limits)
+
+
+# ---- scalar twins ------------------------------------------------------------------------------
+def chain_twist_scalar(pan: float, tilt: float) -> float:
+    """:func:`chain_twist` of one pose."""
+    # tau = 2 atan2(sp st, cp ct)
+    return 2.0 * math.atan2(
+        math.sin(pan / 2) * math.sin(tilt / 2), math.cos(pan / 2) * math.cos(tilt / 2)
+    )
+
+
+def pose_quat_scalar(pan: float, tilt: float, roll: float) -> np.ndarray:
+    """:func:`pan_tilt_roll_to_quat` of one pose, shape (4,)."""
+    cp, sp = math.cos(pan / 2), math.sin(pan / 2)
+    ct, st = math.cos(tilt / 2), math.sin(tilt / 2)
+    cr, sr = math.cos(roll / 2), math.sin(roll / 2)
+    # A = (cp ct, sp st, -cp st, sp ct); q = A Rx(roll)
+    aw, ax, ay, az = cp * ct, sp * st, -cp * st, sp * ct
+    w, x, y, z = aw * cr - ax * sr, aw * sr + ax * cr, ay * cr + az * sr, az * cr - ay * sr
+    if w < 0.0:
+        w, x, y, z = -w, -x, -y, -z
+    return np.array([w, x, y, z])
+
+
+def unwrap_roll_scalar(roll: float, present: float, lo: float, hi: float) -> float:
+    """:func:`unwrap_roll` of one angle."""
+    best, best_score = roll, math.inf
+    for k in (-1.0, 0.0, 1.0):
+        candidate = roll + TWO_PI * k
+        outside = max(lo - candidate, 0.0) + max(candidate - hi, 0.0)
+        score = 4.0 * math.pi + outside if outside > 0.0 else abs(candidate - present)
+        if score < best_score:
+            best, best_score = candidate, score
+    return best
+
+
+def pan_tilt_roll_scalar(
+    q: np.ndarray, current_pan: float, current_roll: float, lo: float, hi: float
+) -> tuple[float, float, float]:
+    """:func:`quat_to_pan_tilt_roll` of one unit quaternion (4,), roll limits ``[lo, hi]``."""
+    pan, tilt = pan_tilt_scalar(limb_scalar(q), current_pan)
+    cp, sp = math.cos(pan / 2), math.sin(pan / 2)
+    ct, st = math.cos(tilt / 2), math.sin(tilt / 2)
+    aw, ax, ay, az = cp * ct, sp * st, -cp * st, sp * ct
+    w, x, y, z = q.tolist()
+    # r = conj(A) q: r_w = A . q, r_x = A_w q_x - A_x q_w - A_y q_z + A_z q_y
+    r_w = aw * w + ax * x + ay * y + az * z
+    r_x = aw * x - ax * w - ay * z + az * y
+    return pan, tilt, unwrap_roll_scalar(2.0 * math.atan2(r_x, r_w), current_roll, lo, hi)
+
+
+# ---- one pose of either chain ------------------------------------------------------------------
+def pose_quat(*pose: float) -> np.ndarray:
+    """Orientation (4,), w >= 0, of one pose: the twist-free swing of ``(pan, tilt)``
+    (:func:`pan_tilt_to_quat`) or ``Rz(pan) Ry(-tilt) Rx(roll)`` of ``(pan, tilt, roll)``
+    (:func:`pose_quat_scalar`)."""
+    if len(pose) == 2:
+        return pan_tilt_to_quat(*pose)
+    return pose_quat_scalar(*pose)
+
+
+def pose_from_quat(
+    q: np.ndarray, present: Sequence[float], limits: Sequence[tuple[float, float]]
+) -> tuple[float, ...]:
+    """The pose (rad) of the chain of ``present``'s length that orients the limb as unit ``q``
+    (4,): the present pan is kept at the singularity and a roll is unwrapped within its
+    ``limits`` entry ``(lo, hi)`` (rad) nearest the present roll (:func:`pan_tilt_roll_scalar`).
+    """
+    if len(present) == 2:
+        return pan_tilt_scalar(limb_scalar(q), present[0])
+    return pan_tilt_roll_scalar(q, present[0], present[2], *limits[2])

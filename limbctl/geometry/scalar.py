@@ -12,9 +12,10 @@ import math
 
 import numpy as np
 
-from limbctl.geometry.gimbal import SINGULAR_COS
-
 Vec3 = tuple[float, float, float]
+
+#: |d_z| above which the pan is undefined and the current pan is kept.
+SINGULAR_COS = 1e-9
 
 #: Below this norm a tangent or a swing's axis is taken as zero: float64 rounding of unit
 #: vectors is ~1e-16, so 1e-12 only catches true (anti)parallel cases.

@@ -201,12 +201,11 @@ def profile_from_calibration(
         min_deg=float(tilt_limits_deg[0]),
         max_deg=float(tilt_limits_deg[1]),
     )
+    joints = {"pan": pan, "tilt": tilt}
     roll = base.roll
     if roll is not None and result.roll_zero is not None and result.roll_direction is not None:
         # the roll's hard limits and end stops are the base profile's
-        roll = dataclasses.replace(
+        joints["roll"] = dataclasses.replace(
             roll, zero_tick=result.roll_zero, direction=result.roll_direction
         )
-    return dataclasses.replace(
-        base, name=name, port=port, pan=pan, tilt=tilt, roll=roll, source=None
-    )
+    return dataclasses.replace(base.with_joints(**joints), name=name, port=port, source=None)

@@ -1,10 +1,13 @@
-"""A calibrated gimbal on a servo bus: joint angles (rad) <-> ticks, hard limits, present pose.
+"""A calibrated chain of joints on a servo bus: joint angles (rad) <-> ticks, limits, present pose.
 
-:class:`Rig` is deliberately dumb and exact. It converts with the rig profile's ``zero_tick``
-and ``direction`` (``ticks = zero_tick + direction * angle * 4096 / (2 pi)``, rounded), clamps
-to the profile's hard limits and says whether it did, and reads the present pose. It never
-moves the limb on its own: the only way a goal leaves it is :meth:`Rig.write_goal_ticks`
-(and :meth:`Rig.write_pose`, which clamps, converts and calls it), used by the gate's caller.
+:class:`Rig` is deliberately dumb and exact, for a chain of any number of joints (the profile's,
+in order: ``(pan, tilt)`` or ``(pan, tilt, roll)``). It converts each joint with its profile's
+``zero_tick`` and ``direction`` (``ticks = zero_tick + direction * angle * 4096 / (2 pi)``,
+rounded), clamps to each joint's hard limits and says whether it did, and reads the present pose
+in one sync read. A pose is a tuple of one angle per joint. It never moves the limb on its own:
+the only way a goal leaves it is :meth:`Rig.write_goal_ticks` (and :meth:`Rig.write_pose`, which
+clamps, converts and calls it), used by the gate's caller. Its orientation is the chain's
+(:func:`limbctl.geometry.gimbal.pose_quat`): twist-free for two joints, ``Rz Ry Rx`` for three.
 """
 
 from __future__ import annotations
@@ -17,7 +20,7 @@ import numpy as np
 
 from calib.profile import JointProfile, RigProfile
 from limbctl.errors import InvalidInputError, SafetyError
-from limbctl.geometry.gimbal import pan_tilt_to_direction, pan_tilt_to_quat
+from limbctl.geometry.gimbal import pan_tilt_to_direction, pose_quat
 from limbctl.servo.bus import ServoBus
 from limbctl.servo.control_table import Register
 from limbctl.servo.cycle import CycleRead
@@ -32,96 +35,125 @@ class GoalTicks:
 
     Attributes
     ----------
-    pan, tilt : int
-        Goal ticks of the pan and tilt servos (inside the hard limits).
-    pan_rad, tilt_rad : float
+    ticks : tuple of int, one per joint
+        Goal ticks, in the rig's joint order (inside the hard limits).
+    angles : tuple of float, one per joint
         The joint angles after clamping (rad).
     clamped : bool
-        True if either angle had to be moved onto a hard limit.
+        True if any angle had to be moved onto a hard limit.
     """
 
-    pan: int
-    tilt: int
-    pan_rad: float
-    tilt_rad: float
+    ticks: tuple[int, ...]
+    angles: tuple[float, ...]
     clamped: bool
 
 
 class Rig:
-    """The gimbal described by ``profile``, driven through ``bus``.
+    """The chain of joints described by ``profile``, driven through ``bus``.
 
     Parameters
     ----------
     profile : RigProfile
-        Ids, zero ticks, directions and hard limits.
+        Ids, zero ticks, directions and hard limits of each joint, in chain order.
     bus : ServoBus or None
         An open bus; None gives a rig that can only convert (for planning and tests).
+
+    Attributes
+    ----------
+    joints : tuple of JointProfile
+        The joints in chain order.
+    names : tuple of str
+        Their names, e.g. ``("pan", "tilt")`` or ``("pan", "tilt", "roll")``.
     """
 
     def __init__(self, profile: RigProfile, bus: ServoBus | None = None) -> None:
         self.profile = profile
         self.bus = bus
-        self.joints: tuple[JointProfile, JointProfile] = (profile.pan, profile.tilt)
+        self.names: tuple[str, ...] = tuple(name for name, _ in profile.joints)
+        self.joints: tuple[JointProfile, ...] = tuple(joint for _, joint in profile.joints)
+
+    def __len__(self) -> int:
+        return len(self.joints)
+
+    @property
+    def count(self) -> int:
+        """The number of joints."""
+        return len(self.joints)
+
+    @property
+    def ids(self) -> tuple[int, ...]:
+        """The servo ids, in chain order."""
+        return tuple(joint.id for joint in self.joints)
+
+    def _counted(self, values: Sequence[float], what: str) -> None:
+        if len(values) != len(self.joints):
+            raise SafetyError(
+                f"a rig of {len(self.joints)} joints ({', '.join(self.names)}) takes "
+                f"{len(self.joints)} {what}, got {len(values)}: nothing was written"
+            )
 
     # ---- conversion ------------------------------------------------------------------------------
-    def angles_to_ticks(self, pan: float, tilt: float) -> tuple[int, int]:
-        """Nearest ticks ``(pan, tilt)`` for joint angles in rad (no clamping)."""
-        return tuple(  # type: ignore[return-value]
+    def angles_to_ticks(self, *angles: float) -> tuple[int, ...]:
+        """Nearest ticks for joint angles in rad, one per joint (no clamping)."""
+        return tuple(
             int(angle_to_ticks(angle, joint.zero_tick, joint.direction))
-            for angle, joint in zip((pan, tilt), self.joints, strict=True)
+            for angle, joint in zip(angles, self.joints, strict=True)
         )
 
-    def ticks_to_angles(self, pan_tick: int, tilt_tick: int) -> tuple[float, float]:
-        """Joint angles ``(pan, tilt)`` in rad at encoder positions ``(pan_tick, tilt_tick)``."""
-        return tuple(  # type: ignore[return-value]
+    def ticks_to_angles(self, *ticks: int) -> tuple[float, ...]:
+        """Joint angles in rad at encoder positions ``ticks``, one per joint."""
+        return tuple(
             float(ticks_to_angle(tick, joint.zero_tick, joint.direction))
-            for tick, joint in zip((pan_tick, tilt_tick), self.joints, strict=True)
+            for tick, joint in zip(ticks, self.joints, strict=True)
         )
 
     def tick_limits(self) -> dict[int, tuple[int, int]]:
         """Per servo id, the tick range strictly inside the hard limits (for EEPROM limits)."""
         return {joint.id: joint_tick_limits(joint) for joint in self.joints}
 
-    def clamp(self, pan: float, tilt: float) -> tuple[float, float, bool]:
+    def clamp(self, *angles: float) -> tuple[tuple[float, ...], bool]:
         """Joint angles (rad) moved onto the hard limits where beyond them.
 
         Returns
         -------
-        pan, tilt : float
+        angles : tuple of float, one per joint
             Clamped angles (rad).
         clamped : bool
-            True if either angle changed.
+            True if any angle changed.
 
         Raises
         ------
         InvalidInputError
             If an angle is NaN or infinite (never clamped into range silently).
+        SafetyError
+            If not one angle per joint is given.
         """
+        self._counted(angles, "angles")
         out = []
-        for name, angle, joint in zip(("pan", "tilt"), (pan, tilt), self.joints, strict=True):
+        for name, angle, joint in zip(self.names, angles, self.joints, strict=True):
             angle = float(angle)
             if not math.isfinite(angle):
                 raise InvalidInputError(f"{name} angle must be finite, got {angle!r}")
             # clamp: min_rad <= angle <= max_rad
             out.append(min(max(angle, joint.min_rad), joint.max_rad))
-        return out[0], out[1], (out[0], out[1]) != (float(pan), float(tilt))
+        clamped = tuple(out)
+        return clamped, clamped != tuple(float(angle) for angle in angles)
 
-    def goal_for(self, pan: float, tilt: float) -> GoalTicks:
+    def goal_for(self, *angles: float) -> GoalTicks:
         """Clamp a pose to the hard limits and convert it to goal ticks inside them."""
-        pan_c, tilt_c, clamped = self.clamp(pan, tilt)
+        clamped_angles, clamped = self.clamp(*angles)
         ticks = []
-        for angle, joint in zip((pan_c, tilt_c), self.joints, strict=True):
+        for angle, joint in zip(clamped_angles, self.joints, strict=True):
             lo, hi = joint_tick_limits(joint)
             tick = int(angle_to_ticks(angle, joint.zero_tick, joint.direction))
             # a clamped angle may round half a tick past its limit: keep the tick inside
             ticks.append(min(max(tick, lo), hi))
-        return GoalTicks(ticks[0], ticks[1], pan_c, tilt_c, clamped)
+        return GoalTicks(tuple(ticks), clamped_angles, clamped)
 
-    def held_pose(self, pan: float, tilt: float) -> tuple[float, float]:
-        """The joint angles (rad) the servos hold once ``(pan, tilt)`` is written: clamped to
-        the hard limits and rounded to whole ticks."""
-        goal = self.goal_for(pan, tilt)
-        return self.ticks_to_angles(goal.pan, goal.tilt)
+    def held_pose(self, *angles: float) -> tuple[float, ...]:
+        """The joint angles (rad) the servos hold once ``angles`` is written: clamped to the
+        hard limits and rounded to whole ticks."""
+        return self.ticks_to_angles(*self.goal_for(*angles).ticks)
 
     # ---- the bus ---------------------------------------------------------------------------------
     def _bus(self) -> ServoBus:
@@ -136,51 +168,45 @@ class Rig:
         """
         configure_servos(self._bus(), self.tick_limits(), profile_velocity, profile_acceleration)
 
-    def read_ticks(self) -> tuple[int, int]:
-        """Present ticks ``(pan, tilt)``, both from one sync read."""
+    def read_ticks(self) -> tuple[int, ...]:
+        """Present ticks, one per joint, all from one sync read."""
         positions = self._bus().read_positions()
-        return positions[self.profile.pan.id], positions[self.profile.tilt.id]
-
-    @property
-    def ids(self) -> tuple[int, int]:
-        """The servo ids ``(pan, tilt)``."""
-        return self.profile.ids
+        return tuple(positions[joint.id] for joint in self.joints)
 
     def read_cycle(self, attempts: int = 1, ids: Sequence[int] | None = None) -> CycleRead:
-        """The servos' (``ids``, default both) position, goal, torque, alarm and PWM in ONE sync
+        """The servos' (``ids``, default all) position, goal, torque, alarm and PWM in ONE sync
         read (``attempts`` tries)."""
-        return self._bus().read_cycle(self.profile.ids if ids is None else ids, attempts)
+        return self._bus().read_cycle(self.ids if ids is None else ids, attempts)
 
-    def pose_of(self, read: CycleRead) -> tuple[float, float]:
-        """Present joint angles ``(pan, tilt)`` in rad from a successful cycle read."""
-        reports = read.reports
-        return self.ticks_to_angles(
-            reports[self.profile.pan.id].present, reports[self.profile.tilt.id].present
-        )
+    def pose_of(self, read: CycleRead) -> tuple[float, ...]:
+        """Present joint angles (rad), one per joint, from a successful cycle read."""
+        return self.ticks_to_angles(*(read.reports[joint.id].present for joint in self.joints))
 
-    def read_pose(self) -> tuple[float, float]:
-        """Present joint angles ``(pan, tilt)`` in rad."""
+    def read_pose(self) -> tuple[float, ...]:
+        """Present joint angles (rad), one per joint."""
         return self.ticks_to_angles(*self.read_ticks())
 
     def read_direction(self) -> np.ndarray:
-        """Present limb direction, shape (3,), unit."""
-        return pan_tilt_to_direction(*self.read_pose())
+        """Present limb direction, shape (3,), unit (pan and tilt set it; roll does not)."""
+        pose = self.read_pose()
+        return pan_tilt_to_direction(pose[0], pose[1])
 
     def read_quaternion(self) -> np.ndarray:
-        """Present orientation as a twist-free unit quaternion (w, x, y, z), shape (4,)."""
-        return pan_tilt_to_quat(*self.read_pose())
+        """Present orientation (w, x, y, z), shape (4,), w >= 0: twist-free for two joints,
+        ``Rz(pan) Ry(-tilt) Rx(roll)`` for three."""
+        return pose_quat(*self.read_pose())
 
-    def write_goal_ticks(self, pan_tick: int, tilt_tick: int) -> None:
-        """Send goal ticks to both servos in one sync write.
+    def write_goal_ticks(self, *ticks: int) -> None:
+        """Send goal ticks, one per joint, to the servos in one sync write.
 
         Raises
         ------
         SafetyError
-            If a tick lies outside the hard limits' tick range (nothing is written).
+            If not one tick per joint is given, or a tick lies outside its joint's hard limits'
+            tick range (nothing is written).
         """
-        for name, tick, joint in zip(
-            ("pan", "tilt"), (pan_tick, tilt_tick), self.joints, strict=True
-        ):
+        self._counted(ticks, "goal ticks")
+        for name, tick, joint in zip(self.names, ticks, self.joints, strict=True):
             lo, hi = joint_tick_limits(joint)
             if isinstance(tick, bool) or int(tick) != tick or not lo <= tick <= hi:
                 raise SafetyError(
@@ -188,20 +214,20 @@ class Rig:
                     f"({joint.min_deg}..{joint.max_deg} deg): nothing was written"
                 )
         self._bus().write_goals(
-            {self.profile.pan.id: int(pan_tick), self.profile.tilt.id: int(tilt_tick)}
+            {joint.id: int(tick) for joint, tick in zip(self.joints, ticks, strict=True)}
         )
 
-    def write_pose(self, pan: float, tilt: float) -> GoalTicks:
-        """Clamp, convert and write a pose (rad); returns what was written."""
-        goal = self.goal_for(pan, tilt)
-        self.write_goal_ticks(goal.pan, goal.tilt)
+    def write_pose(self, *angles: float) -> GoalTicks:
+        """Clamp, convert and write a pose (rad, one angle per joint); returns what was written."""
+        goal = self.goal_for(*angles)
+        self.write_goal_ticks(*goal.ticks)
         return goal
 
     def set_torque(self, enabled: bool) -> None:
-        """Torque on or off on both servos."""
-        self._bus().set_torque(enabled, self.profile.ids)
+        """Torque on or off on every joint's servo."""
+        self._bus().set_torque(enabled, self.ids)
 
-    def torque_enabled(self) -> tuple[bool, bool]:
-        """Torque Enable of (pan, tilt), in one sync read; a servo in alarm does not raise."""
-        state = self._bus().sync_read(Register.TORQUE_ENABLE, self.profile.ids, check_alert=False)
-        return bool(state[self.profile.pan.id]), bool(state[self.profile.tilt.id])
+    def torque_enabled(self) -> tuple[bool, ...]:
+        """Torque Enable per joint, in one sync read; a servo in alarm does not raise."""
+        state = self._bus().sync_read(Register.TORQUE_ENABLE, self.ids, check_alert=False)
+        return tuple(bool(state[joint.id]) for joint in self.joints)

@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 from typing import IO, Protocol
 
 from limbctl.errors import BusError, ConfigError
-from limbctl.geometry.gimbal3 import pose_quat_scalar
+from limbctl.geometry.gimbal import pose_quat_scalar
 from limbctl.teach.dataset import DatasetWriter
 from limbctl.teach.guide import Guidance, Guide
 from limbctl.teach.twist_guide import TwistGuidance, TwistGuide

@@ -39,7 +39,7 @@ from typing import IO, Any
 import numpy as np
 
 from limbctl.errors import BusError
-from limbctl.geometry.gimbal3 import pan_tilt_roll_scalar, pose_quat_scalar
+from limbctl.geometry.gimbal import pan_tilt_roll_scalar, pose_quat_scalar
 from limbctl.geometry.quat import multiply
 from limbctl.teleop.approach import SETTLE_DEG, SETTLE_TIMEOUT_S, ParkOutcome
 from limbctl.teleop.gate import Outcome
@@ -300,13 +300,13 @@ def park3(
     if pose is None:
         return ParkOutcome(False, None, note="the gate never started")
     margin = math.radians(START_MARGIN_DEG)
-    if safe_with_margin(gate, rig.held_pose3(pose), margin):
+    if safe_with_margin(gate, rig.held_pose(*pose), margin):
         try:
             rig.write_pose(*pose)  # the session's last write may have failed
         except BusError as exc:
             return ParkOutcome(False, pose, note=f"could not write the last pose again: {exc}")
         return ParkOutcome(False, pose)
-    target = nearest_start_pose3(gate, pose, rig.held_pose3, margin)
+    target = nearest_start_pose3(gate, pose, lambda p: rig.held_pose(*p), margin)
     if target is None:
         return ParkOutcome(
             False, pose, note=f"no pose inside by {START_MARGIN_DEG} deg near the last one"

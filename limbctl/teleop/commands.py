@@ -34,8 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from limbctl.errors import InvalidInputError
-from limbctl.geometry.gimbal import pan_tilt_to_direction
-from limbctl.geometry.gimbal3 import pan_tilt_roll_to_quat
+from limbctl.geometry.gimbal import pan_tilt_roll_to_quat, pan_tilt_to_direction
 from limbctl.geometry.quat import canonical, limb_direction, swing_from_direction
 from limbctl.geometry.twist import compose
 

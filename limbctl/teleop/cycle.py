@@ -15,8 +15,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from limbctl.geometry.gimbal import pan_tilt_to_quat, quat_to_pan_tilt
-from limbctl.geometry.gimbal3 import pan_tilt_roll_scalar, pose_quat_scalar
+from limbctl.geometry.gimbal import (
+    pan_tilt_roll_scalar,
+    pan_tilt_to_quat,
+    pose_quat_scalar,
+    quat_to_pan_tilt,
+)
 from limbctl.geometry.twist import decompose_one
 from limbctl.servo.health import Dropout
 from limbctl.teleop.gate import GateResult

@@ -12,7 +12,7 @@ the sphere of directions, per command:
    when the corrected step makes no way (a concave wall holds it), it aims at a point of a
    route along the region instead (the two-servo gate's :class:`~limbctl.teleop.route.Router`,
    on SO(3)), so the wall is gone round;
-3. inverse kinematics to (pan, tilt, roll) (:func:`limbctl.geometry.gimbal3.pan_tilt_roll_scalar`):
+3. inverse kinematics to (pan, tilt, roll) (:func:`limbctl.geometry.gimbal.pan_tilt_roll_scalar`):
    the present pan kept at tilt +-90 deg, the roll unwrapped within its hard limits nearest the
    present roll;
 4. hard limits clamp all three joints; a joint step above ``max_joint_step`` scales all three
@@ -41,7 +41,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from limbctl.errors import ConfigError, SafetyError
-from limbctl.geometry.gimbal3 import pan_tilt_roll_scalar, pose_quat_scalar
+from limbctl.geometry.gimbal import pan_tilt_roll_scalar, pose_quat_scalar
 from limbctl.teleop.gate import (
     REGION_TOLERANCE_DEG,
     UNIT_NORM_TOLERANCE,

@@ -1,11 +1,12 @@
-"""The leader feels the edge: a haptic wall on a leader gimbal, from the taught region.
+"""The leader feels the edge: a haptic wall on a leader of two or three joints, from the region.
 
-Each cycle the leader's pose is the command. Its distance beyond the region is measured between
-the command and the region's correction of it (not the slew-limited pose the follower is sent)::
+Each cycle the leader's pose is the command. Its distance ``d`` (deg) beyond the region is
+measured between the command and the region's correction of it (not the slew-limited pose the
+follower is sent): the angle between their directions on two joints, the rotation between them on
+three (:func:`limbctl.teleop.haptic_push.beyond_deg`, which with
+:func:`~limbctl.teleop.haptic_push.push_for` applies this law each cycle).
 
-    d = angle between the command's direction and the corrected direction        (deg)
-
-The law (:class:`FeelLaw`), per cycle of period T::
+The law (:class:`FeelLaw`), per cycle of period T, on every joint of the chain::
 
     d <= DEADBAND (inside: d = 0):  Goal Current 0                   (no torque at all)
     d > DEADBAND:                   tau = min(K (d - DEADBAND), CAP)
@@ -55,13 +56,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-import numpy as np
-
 from limbctl.errors import ConfigError
-from limbctl.geometry.gimbal import quat_to_pan_tilt
 from limbctl.servo.leader import LeaderMotor
 from limbctl.servo.ticks import TICKS_PER_REV
-from limbctl.teleop.haptic_currents import shared_currents
 
 #: One position tick (deg).
 TICK_DEG = 360.0 / TICKS_PER_REV
@@ -246,63 +243,6 @@ class FeelLaw:
         return max(1, int(self.return_speed_deg_s / VELOCITY_UNIT_DEG_S))
 
 
-@dataclass(frozen=True)
-class Push:
-    """One cycle's command to the leader's servos.
-
-    Attributes
-    ----------
-    goal_current : int
-        Goal Current units (0: no torque): the largest of ``joint_currents``.
-    profile_velocity : int
-        Profile Velocity units (0 while free, where it is not written: the servo keeps the
-        wall's, and the wall always comes on from the present position).
-    goal_pan, goal_tilt : float
-        Goal pose (rad).
-    torque_nm : float
-        The push's magnitude the currents allow (N m; the norm of the joints' torques): what
-        the hand feels at most, what the report and the page show.
-    distance_deg : float
-        How far the command lies beyond the region (deg).
-    joint_currents : tuple of int
-        Goal Current units per joint (:func:`~limbctl.teleop.haptic_currents.shared_currents`);
-        empty: ``goal_current`` on every joint (a free push's 0).
-    """
-
-    goal_current: int
-    profile_velocity: int
-    goal_pan: float
-    goal_tilt: float
-    torque_nm: float
-    distance_deg: float
-    joint_currents: tuple[int, ...] = ()
-
-    @property
-    def goal(self) -> tuple[float, ...]:
-        """``(pan, tilt)`` goal (rad)."""
-        return (self.goal_pan, self.goal_tilt)
-
-    def currents(self, joints: int) -> tuple[int, ...]:
-        """Goal Current units for each of ``joints`` joints."""
-        return self.joint_currents or (self.goal_current,) * joints
-
-
-def beyond_deg(q: np.ndarray, corrected: np.ndarray) -> float:
-    """Angle (deg) between the directions of a command and its correction; 0 when the same."""
-    if np.array_equal(q, corrected):
-        return 0.0
-    a = np.asarray(quat_to_pan_tilt(q), dtype=float)
-    b = np.asarray(quat_to_pan_tilt(corrected), dtype=float)
-    # d = (cos t cos p, cos t sin p, sin t); angle = atan2(|a x b|, a . b)
-    da = np.array(
-        [math.cos(a[1]) * math.cos(a[0]), math.cos(a[1]) * math.sin(a[0]), math.sin(a[1])]
-    )
-    db = np.array(
-        [math.cos(b[1]) * math.cos(b[0]), math.cos(b[1]) * math.sin(b[0]), math.sin(b[1])]
-    )
-    return math.degrees(math.atan2(float(np.linalg.norm(np.cross(da, db))), float(da @ db)))
-
-
 def moved_in_deg(
     present: tuple[float, ...], previous: tuple[float, ...], step: tuple[float, ...]
 ) -> float:
@@ -385,71 +325,6 @@ def lets_go(
     # slower than a tick a cycle, which the read cannot tell from standing still
     near = distance_deg - law.deadband_deg <= law.rearm_band_deg
     return not engaged and (moved_in_deg > 0.0 or near)
-
-
-def push_for(
-    law: FeelLaw,
-    motor: LeaderMotor,
-    present: tuple[float, float],
-    q: np.ndarray,
-    corrected: np.ndarray,
-    previous: tuple[float, float] | None = None,
-    period_s: float = 0.0,
-    engaged: bool = True,
-    torque_nm: tuple[float, float] | None = None,
-    velocity_deg_s: tuple[float, float] | None = None,
-) -> Push:
-    """The leader's command this cycle (see the module docstring).
-
-    Parameters
-    ----------
-    law : FeelLaw
-    motor : LeaderMotor
-        The leader's model (its current unit and torque constant).
-    present : (float, float)
-        The leader's pose (pan, tilt, rad).
-    q, corrected : ndarray (4,)
-        The command (the leader's pose as a quaternion) and the region's correction of it.
-    previous : (float, float), optional
-        The leader's pose a cycle before (pan, tilt, rad); None on the first cycle.
-    period_s : float, optional
-        Time since ``previous`` was read (s).
-    engaged : bool, optional
-        Whether the wall pushed in the cycle before (with ``previous``).
-    torque_nm : (float, float), optional
-        The leader's motor torque as read with ``present`` (Present Current, joint frame,
-        N m); None: not read (the rule on it is then not applied).
-    velocity_deg_s : (float, float), optional
-        The leader's speed as read with ``present`` (Present Velocity, joint frame, deg/s):
-        with ``torque_nm``, whether an engaged wall walks the leader back (its goal then leads
-        by ``walk_lead_ticks`` more, :func:`walks_back`). None: not read, LEAD alone.
-    """
-    distance = beyond_deg(q, corrected)
-    tau = min(law.torque_nm(distance), motor.cap_nm(law.cap_nm))
-    units = motor.units_for(tau)
-    free = Push(0, 0, present[0], present[1], 0.0, distance)
-    if units == 0:
-        return free
-    pan, tilt = (float(v) for v in quat_to_pan_tilt(corrected))
-    # the goal on the joint-space line toward the corrected pose, at most LEAD ahead
-    step = (pan - present[0], tilt - present[1])
-    longest = max(abs(step[0]), abs(step[1]))
-    if previous is not None and longest > 0.0:
-        moved_in = moved_in_deg(present, previous, step)
-        if lets_go(law, distance, moved_in, period_s, engaged):
-            return free
-    if engaged and torque_nm is not None and longest > 0.0 and pulls_outward(law, torque_nm, step):
-        return free
-    walking = engaged and longest > 0.0 and walks_back(law, step, torque_nm, velocity_deg_s)
-    lead = goal_lead_rad(law, motor, distance, walking)
-    # at most LEAD from the leader in joint space (|s|): a diagonal stores no more than one joint
-    scale = min(1.0, lead / math.hypot(*step)) if longest > 0.0 else 0.0
-    goal = (present[0] + scale * step[0], present[1] + scale * step[1])
-    currents, magnitude = shared_currents(motor, tau, step) if longest > 0.0 else ((), 0.0)
-    if not any(currents):
-        return free
-    velocity = law.profile_velocity_units()
-    return Push(max(currents), velocity, goal[0], goal[1], magnitude, distance, currents)
 
 
 @dataclass

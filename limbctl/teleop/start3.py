@@ -28,7 +28,7 @@ from pathlib import Path
 from typing import IO, Any
 
 from limbctl.errors import BusError, SafetyError
-from limbctl.geometry.gimbal3 import pose_quat_scalar
+from limbctl.geometry.gimbal import pose_quat_scalar
 from limbctl.teleop.approach import LOG_EVERY_S, StartOptions, StartOutcome, switch_torque_off
 from limbctl.teleop.approach3 import StartStatus3, assess3, drive3, park3, safe_with_margin
 from limbctl.teleop.gate3 import Gate3
@@ -95,7 +95,7 @@ def _start_three(
                 2,
             )
         try:
-            held = rig.held_pose3(rig.read_pose())
+            held = rig.held_pose(*rig.read_pose())
         except BusError as exc:
             failed += 1
             if failed >= options.max_failed_reads:
@@ -110,7 +110,7 @@ def _start_three(
             if first:
                 _say(stream, "the limb is outside the taught region: waiting for it (torque off)")
             first = False
-            status = assess3(gate, held, rig.held_pose3, waited, margin)
+            status = assess3(gate, held, lambda p: rig.held_pose(*p), waited, margin)
             _show(stream, status, lines)
             if publish is not None:
                 publish(status)
@@ -118,7 +118,7 @@ def _start_three(
                 target = (
                     None
                     if status.target is None
-                    else rig.held_pose3(tuple(math.radians(a) for a in status.target))
+                    else rig.held_pose(*(math.radians(a) for a in status.target))
                 )
                 why = "no pose inside by the margin near the limb" if target is None else ""
                 if target is not None:

@@ -23,8 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from limbctl.geometry.gimbal import pan_tilt_to_direction
-from limbctl.geometry.gimbal3 import pose_quat_scalar
+from limbctl.geometry.gimbal import pan_tilt_to_direction, pose_quat_scalar
 from limbctl.geometry.twist import decompose_one
 
 #: A cell's states: taught both ways to the stops, a stop still untaught, too few samples to

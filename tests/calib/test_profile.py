@@ -73,7 +73,7 @@ def test_save_replaces_atomically_and_refuses_invalid(tmp_path):
     profile = default_sim_profile()
     save_profile(profile, path)
     before = path.read_text()
-    bad = RigProfile(**{**profile.__dict__, "pan": JointProfile(1, 2185, 3, -10.0, 10.0)})
+    bad = profile.with_joints(pan=JointProfile(1, 2185, 3, -10.0, 10.0))
     with pytest.raises(ProfileError, match="pan.direction"):
         save_profile(bad, path)
     assert path.read_text() == before
@@ -213,9 +213,7 @@ def test_end_stops_are_saved_and_in_code_profiles_meet_the_same_check(tmp_path):
     profile = default_sim_profile()
     out = save_profile(profile, tmp_path / "rig.yaml")
     assert "stop_max_deg: 75.0" in out.read_text()
-    too_wide = RigProfile(
-        **{**profile.__dict__, "tilt": JointProfile(2, 1890, -1, -55.0, 80.0, -60.0, 75.0)}
-    )
+    too_wide = profile.with_joints(tilt=JointProfile(2, 1890, -1, -55.0, 80.0, -60.0, 75.0))
     with pytest.raises(ProfileError, match="tilt.max_deg 80 is not 1 deg inside"):
         save_profile(too_wide, tmp_path / "wide.yaml")
     assert not (tmp_path / "wide.yaml").exists()
@@ -353,3 +351,26 @@ def test_calibration_with_roll_round_trips_and_differs_from_two_servos():
 def test_unknown_packaged_rig_is_refused_with_the_list():
     with pytest.raises(ProfileError, match="the packaged rigs are sim, sim3"):
         default_sim_profile("sim4")
+
+
+@pytest.mark.parametrize("rig", ["sim", "sim3"])
+def test_a_joints_list_is_the_same_profile_and_is_saved_as_a_list(rig, tmp_path):
+    named = default_sim_profile(rig)
+    data = named.to_dict()
+    joints = [{"name": name} | data.pop(name) for name, _ in named.joints]
+    listed = profile_from_dict(data | {"joints": joints}, "listed.yaml")
+    assert listed == named and listed.listed and not named.listed
+    assert [name for name, _ in listed.joints] == [name for name, _ in named.joints]
+    saved = load_profile(save_profile(listed, tmp_path / "listed.yaml"))
+    assert saved == named and saved.listed
+    assert "joints" in yaml.safe_load((tmp_path / "listed.yaml").read_text())
+    # the named form is saved as it was read: no joints list
+    assert "joints" not in yaml.safe_load(save_profile(named, tmp_path / "n.yaml").read_text())
+    for bad in (joints[::-1], joints[:1], "pan", [*joints[:2], {"name": "yaw", **joints[0]}]):
+        with pytest.raises(ProfileError, match="joints must be a list of joints named pan, tilt"):
+            profile_from_dict(data | {"joints": bad}, "listed.yaml")
+    with pytest.raises(ProfileError, match="unknown keys pan"):
+        profile_from_dict(data | {"joints": joints, "pan": joints[0]}, "listed.yaml")
+    twin = [joints[0], joints[1] | {"id": joints[0]["id"]}, *joints[2:]]
+    with pytest.raises(ProfileError, match="tilt.id must differ from pan.id"):
+        profile_from_dict(data | {"joints": twin}, "listed.yaml")

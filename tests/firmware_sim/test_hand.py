@@ -1,246 +1,74 @@
-"""The scripted hand: stays in its region, covers it like a person, follows scripts, is seeded."""
+"""The scripted hand: its description (a region with or without a twist band, a script with or
+without a roll), its tremor and seed, the twist kept in its band, and the roll joint it drives."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
 import pytest
-import yaml
 
-from firmware_sim.hand import (
-    DEFAULT_TREMOR_DEG,
-    EDGE_INSET_DEG,
-    MIN_PATH_DEPTH_DEG,
-    STYLES,
-    TRACE_SPEED_DEG_S,
-    Hand,
-)
-from firmware_sim.world import World
+from firmware_sim.hand import DEFAULT_TREMOR_DEG, TWIST_INSET_DEG, Hand
+from firmware_sim.hand_path import STYLES
+from firmware_sim.orientation import chain_quat, chain_twist, wrap_deg
+from firmware_sim.world import ROLL_JOINT, World
+from limbctl.session import demo_region_path
 
 REGIONS = Path(__file__).resolve().parents[2] / "examples" / "regions"
+REGION3 = demo_region_path().with_name("demo_region3.yaml")
+CONE = {"region": {"cone": {"half_angle_deg": 30}}}
 OFF = {1: None, 2: None}
+#: The hand's tremor (0.2 deg peak) rides on top of the band position; half of it on the twist.
+TREMOR_SLACK_DEG = 0.15
 
 
-def record(hand: Hand, seconds: float = 60.0, rate_hz: int = 100, seed: int = 0) -> np.ndarray:
-    """Joint angles (M, 2) deg sampled at ``rate_hz`` while the hand backdrives the world."""
-    world = World(hand=hand, seed=seed)
-    per_sample = 1000 // rate_hz
-    samples = []
-    for _ in range(int(seconds * rate_hz)):
-        for _ in range(per_sample):
-            world.step(0.001, OFF)
-        angles = world.joint_angles_deg()
-        samples.append((angles["pan"], angles["tilt"]))
-    return np.array(samples)
+def sample(hand: Hand, t_end: float, dt: float = 0.02):
+    """Times (N,) s, poses (N, 3) deg, twists (N,) deg and the band's limits (N, 2) deg there."""
+    times = np.arange(0.0, t_end, dt)
+    poses = np.array([hand.pose_deg(float(t)) for t in times])
+    tau = [math.degrees(chain_twist(math.radians(p), math.radians(t))) for p, t, _ in poses]
+    twist = np.array([wrap_deg(r + d) for r, d in zip(poses[:, 2], tau, strict=True)])
+    limits = np.array([hand.band.limits_deg(p, t) for p, t, _ in poses])
+    return times, poses, twist, limits
 
 
-def largest_boundary_gap(region, samples: np.ndarray, band_deg: float) -> float:
-    """Largest fraction of the perimeter with no sample within ``band_deg`` of the edge."""
-    depth = region.edge_distance_deg(samples[:, 0], samples[:, 1])
-    u = np.sort(
-        region.boundary_fraction(samples[depth < band_deg, 0], samples[depth < band_deg, 1])
-    )
-    return float(np.max(np.diff(np.concatenate([u, u[:1] + 1.0]))))
+@pytest.mark.parametrize(
+    "data, turns",
+    [
+        (CONE, False),
+        ({**CONE, "twist": {"half_width_deg": 20}}, True),
+        ({"script": [[0, 0, 0]]}, False),
+        ({"script": [[0, 0, 0, 0]]}, True),
+    ],
+    ids=["region", "region+twist", "script", "script+roll"],
+)
+def test_a_twist_band_or_a_roll_column_makes_the_hand_turn_the_roll(data, turns):
+    hand = Hand.from_mapping(data)
+    assert hand.turns_roll == turns
+    assert len(hand.pose_deg(1.0)) == 2 + turns
 
 
-def density_by_depth(region, samples: np.ndarray, lo: float, hi: float) -> float:
-    """Share of samples over share of area in a band of depth fractions [lo, hi)."""
-    p_lo, p_hi, t_lo, t_hi = region.bbox_deg
-    grid = np.stack(np.meshgrid(np.linspace(p_lo, p_hi, 150), np.linspace(t_lo, t_hi, 150)), -1)
-    grid_depth = region.edge_distance_deg(grid[..., 0], grid[..., 1]).ravel()
-    grid_fraction = grid_depth[grid_depth >= 0] / region.depth_max_deg
-    fraction = region.edge_distance_deg(samples[:, 0], samples[:, 1]) / region.depth_max_deg
-    share_samples = np.mean((fraction >= lo) & (fraction < hi))
-    share_area = np.mean((grid_fraction >= lo) & (grid_fraction < hi))
-    return float(share_samples / share_area)
-
-
-@pytest.fixture(scope="module", params=["irregular.yaml", "cone30.yaml"])
-def minute(request):
-    """A 60 s, 100 Hz recording of the limb backdriven through an example region by a hand that
-    only wanders (``style: wander``)."""
-    hand = Hand.from_mapping({**yaml.safe_load((REGIONS / request.param).read_text()),
-                              "style": "wander"}, seed=11)  # fmt: skip
-    return hand, record(hand)
-
-
-@pytest.fixture(scope="module", params=["irregular.yaml", "cone30.yaml"])
-def taught(request):
-    """A 60 s, 100 Hz recording by the default hand (trace the edge, then wander), with the
-    samples' times (s)."""
-    hand = Hand.from_yaml(REGIONS / request.param, seed=11)
-    samples = record(hand)
-    return hand, samples, np.arange(1, len(samples) + 1) / 100.0
-
-
-def test_recording_stays_in_the_region_up_to_tremor(minute):
-    hand, samples = minute
-    depth = hand.region.edge_distance_deg(samples[:, 0], samples[:, 1])
-    # the planned path keeps MIN_PATH_DEPTH_DEG inside; the tremor may eat part of that
-    assert depth.min() > -DEFAULT_TREMOR_DEG
-    assert np.mean(depth < 0.0) < 0.001
-
-
-def test_recording_covers_the_boundary_all_around(minute):
-    hand, samples = minute
-    depth = hand.region.edge_distance_deg(samples[:, 0], samples[:, 1])
-    near = samples[depth < 3.0]
-    arcs = np.floor(hand.region.boundary_fraction(near[:, 0], near[:, 1]) * 8).astype(int)
-    assert set(arcs.tolist()) == set(range(8))  # every eighth of the perimeter is visited
-    # and no stretch longer than 12 % of the perimeter is left out
-    assert largest_boundary_gap(hand.region, samples, 3.0) < 0.12
-
-
-def test_recording_covers_the_interior(minute):
-    hand, samples = minute
-    region = hand.region
-    p_lo, p_hi, t_lo, t_hi = region.bbox_deg
-    cells = np.stack(np.meshgrid(np.arange(p_lo, p_hi, 5.0), np.arange(t_lo, t_hi, 5.0)), -1)
-    cells = cells.reshape(-1, 2)
-    cells = cells[region.edge_distance_deg(cells[:, 0], cells[:, 1]) >= 5.0]
-    gap = np.min(np.hypot(*(cells[:, None, :] - samples[None, ::5, :]).transpose(2, 0, 1)), axis=1)
-    assert np.mean(gap < 8.0) > 0.9
-
-
-def test_dense_in_the_middle_sparse_and_slow_near_the_edge(minute):
-    hand, samples = minute
-    region = hand.region
-    middle = density_by_depth(region, samples, 0.5, 1.01)
-    outer = density_by_depth(region, samples, 0.05, 0.35)
-    assert middle > 1.1 * outer
-    speed = np.hypot(*np.diff(samples, axis=0).T) * 100.0  # deg/s at 100 Hz
-    depth = region.edge_distance_deg(samples[1:, 0], samples[1:, 1])
-    near_edge, middle_speed = speed[depth < 3.0], speed[depth > 0.5 * region.depth_max_deg]
-    assert np.median(near_edge) < 0.75 * np.median(middle_speed)
-
-
-def test_the_default_hand_traces_the_whole_edge_first_then_wanders(taught):
-    hand, samples, t = taught
-    region = hand.region
-    start, end = hand.trace_span_s
-    assert hand.style == "trace"
-    # it reaches the edge within a couple of seconds of taking hold ...
-    assert start < 3.0
-    tracing = (t >= start) & (t < end)
-    depth = region.edge_distance_deg(samples[:, 0], samples[:, 1])
-    assert np.all(depth[tracing] < 2.5)
-    # ... goes all the way round (no stretch of more than 2 % of the perimeter left out) ...
-    u = np.sort(region.boundary_fraction(samples[tracing, 0], samples[tracing, 1]))
-    assert np.max(np.diff(np.concatenate([u, u[:1] + 1.0]))) < 0.02
-    # ... in one lap: its duration is the perimeter at a person's pace
-    assert region.perimeter_deg / 20.0 < end - start < region.perimeter_deg / 10.0
-    # then wanders through the middle: deep poses, none of them on the edge band any more
-    after = t >= end + 1.0
-    assert np.max(depth[after]) > 0.6 * region.depth_max_deg
-    assert np.mean(depth[after] > 5.0) > 0.8
-
-
-def test_the_trace_is_at_a_persons_pace(taught):
-    hand, samples, t = taught
-    start, end = hand.trace_span_s
-    tracing = samples[(t >= start) & (t < end)]
-    # speed over half-second windows (the tremor's 7-12 Hz averages out)
-    speed = np.hypot(*(tracing[50:] - tracing[:-50]).T) / 0.5
-    assert 10.0 < np.median(speed) < 20.0
-    assert np.median(speed) == pytest.approx(TRACE_SPEED_DEG_S, rel=0.1)
-    assert np.percentile(speed, 95) < 22.0 and np.percentile(speed, 5) > 8.0
-
-
-def test_the_trace_runs_about_a_degree_inside_with_a_wobble(taught):
-    hand, samples, t = taught
-    start, end = hand.trace_span_s
-    tracing = samples[(t >= start) & (t < end)]
-    depth = hand.region.edge_distance_deg(tracing[:, 0], tracing[:, 1])
-    assert np.median(depth) == pytest.approx(EDGE_INSET_DEG, abs=0.1)
-    assert depth.min() > MIN_PATH_DEPTH_DEG - DEFAULT_TREMOR_DEG
-    # a hand does not keep an exact distance: the depth wanders by a few tenths of a degree
-    assert 0.3 < np.percentile(depth, 95) - np.percentile(depth, 5) < 1.0
-
-
-def test_the_trace_rounds_a_reflex_corner_without_cutting_across():
-    # the U's inner corners are reflex: a trace set in from one side would cut the corner
-    hand = Hand.from_mapping({"region": {"polygon": U_SHAPE}, "tremor_deg": 0}, seed=20)
-    start, end = hand.trace_span_s
-    poses = np.array([hand.pose_deg(float(s)) for s in np.arange(start, end, 0.01)])
-    depth = hand.region.edge_distance_deg(poses[:, 0], poses[:, 1])
-    assert depth.min() >= MIN_PATH_DEPTH_DEG - 1e-9
-    assert np.median(depth) == pytest.approx(EDGE_INSET_DEG, abs=0.1)
-    # both arms' tips and the floor between them are traced, not skipped
-    for corner in ([-60, 40], [60, 40], [-40, 40], [40, 40], [0, -10]):
-        assert np.min(np.hypot(*(poses - corner).T)) < 2.0
-
-
-def test_style_wander_keeps_the_wandering_hand(minute):
-    hand, samples = minute
-    assert hand.style == "wander" and hand.trace_span_s is None
-    # it reaches the deep middle within seconds instead of tracing the edge first
-    depth = hand.region.edge_distance_deg(samples[:300, 0], samples[:300, 1])
-    assert depth.max() > 0.8 * hand.region.depth_max_deg
+@pytest.mark.parametrize(
+    "script, halfway, held",
+    [
+        ([[0, 0, 0], [2, 10, 0]], (5, 0), (10, 0)),
+        ([[0, 0, 0, 0], [2, 10, 0, 40]], (5, 0, 20), (10, 0, 40)),
+    ],
+    ids=["sim", "sim3"],
+)
+def test_a_script_is_followed_linearly_and_its_last_waypoint_held(script, halfway, held):
+    hand = Hand.from_mapping({"script": script, "tremor_deg": 0})
+    assert hand.pose_deg(1.0) == pytest.approx(halfway)
+    assert hand.pose_deg(5.0) == pytest.approx(held)
 
 
 def test_unknown_styles_are_refused_with_the_choices():
     with pytest.raises(ValueError, match="unknown style 'spiral'") as caught:
-        Hand.from_mapping({"region": {"cone": {"half_angle_deg": 30}}, "style": "spiral"})
+        Hand.from_mapping({**CONE, "style": "spiral"})
     assert all(name in str(caught.value) for name in STYLES)
     with pytest.raises(ValueError, match="not to a script"):
         Hand.from_mapping({"script": [[0, 0, 0]], "style": "trace"})
-
-
-def test_hand_takes_hold_where_the_limb_is_without_a_yank():
-    hand = Hand.from_yaml(REGIONS / "irregular.yaml", seed=17)
-    world = World(hand=hand, seed=17)
-    start = world.joint_angles_deg()
-    assert hand.pose_deg(0.0) == pytest.approx(
-        (start["pan"], start["tilt"]), abs=DEFAULT_TREMOR_DEG
-    )
-    samples = record(hand, seconds=3.0, seed=17)
-    speed = np.hypot(*np.diff(samples, axis=0).T) * 100.0
-    # a minimum-jerk move peaks at 1.875 x its mean speed; the tremor adds a little
-    assert speed.max() < 2.0 * hand.speed_deg_s + 15.0
-    assert np.hypot(*(samples[-1] - samples[0])) > 10.0  # it did take the limb somewhere
-
-
-def test_planned_path_keeps_its_margin_without_tremor():
-    hand = Hand.from_mapping(
-        {
-            "region": {"polygon": [[-40, -30], [40, -30], [40, 30], [0, 0], [-40, 30]]},
-            "tremor_deg": 0,
-        },
-        seed=12,
-    )
-    t = np.arange(0.0, 120.0, 0.01)
-    poses = np.array([hand.pose_deg(float(s)) for s in t])
-    depth = hand.region.edge_distance_deg(poses[:, 0], poses[:, 1])
-    assert depth.min() >= MIN_PATH_DEPTH_DEG - 1e-9
-    assert np.mean(depth < EDGE_INSET_DEG + 0.5) > 0.01  # it does go to the edge
-
-
-U_SHAPE = [[-60, -30], [60, -30], [60, 40], [40, 40], [40, -10], [-40, -10], [-40, 40], [-60, 40]]
-
-
-def test_non_convex_region_is_walked_round_its_corners_continuously():
-    hand = Hand.from_mapping({"region": {"polygon": U_SHAPE}, "tremor_deg": 0}, seed=18)
-    poses = np.array([hand.pose_deg(float(t)) for t in np.arange(0.0, 120.0, 0.001)])
-    depth = hand.region.edge_distance_deg(poses[:, 0], poses[:, 1])
-    assert depth.min() >= MIN_PATH_DEPTH_DEG - 1e-9  # never across the gap between the arms
-    # continuous: a minimum-jerk move peaks at 1.875 x its mean speed
-    assert np.hypot(*np.diff(poses, axis=0).T).max() / 0.001 < 2.0 * hand.speed_deg_s
-    for arm in (poses[:, 0] < -40.0, poses[:, 0] > 40.0):
-        assert np.any(arm & (poses[:, 1] > 30.0))  # both arms' tips are reached
-
-
-def test_a_boxed_in_hand_retraces_its_steps():
-    hand = Hand.from_mapping({"region": {"polygon": U_SHAPE}, "tremor_deg": 0}, seed=19)
-    hand.pose_deg(20.0)
-    *_, last_move = (s for s in hand._segments if s[2:4] != s[4:6])  # moves, not pauses
-    before = len(hand._segments)
-    hand._reach = lambda target: False  # nothing reachable from here: boxed in
-    hand._plan_next()
-    (retrace,) = (s for s in hand._segments[before:] if s[6])
-    # back along the last move: its end to its start, bowed the same way
-    assert retrace[2:6] == (*last_move[4:6], *last_move[2:4])
-    assert retrace[7:9] == last_move[7:9]
 
 
 def test_tremor_is_a_few_tenths_of_a_degree():
@@ -253,23 +81,14 @@ def test_tremor_is_a_few_tenths_of_a_degree():
     assert calm.pose_deg(3.3) == (10.0, 5.0)
 
 
-def test_same_seed_same_path_whatever_order_it_is_asked_in():
-    a = Hand.from_yaml(REGIONS / "irregular.yaml", seed=14)
-    b = Hand.from_yaml(REGIONS / "irregular.yaml", seed=14)
+@pytest.mark.parametrize("path", [REGIONS / "irregular.yaml", REGION3], ids=["sim", "sim3"])
+def test_same_seed_same_path_whatever_order_it_is_asked_in(path):
+    a, b = Hand.from_yaml(path, seed=14), Hand.from_yaml(path, seed=14)
     times = np.arange(0.0, 40.0, 0.37)
     late_first = {t: b.pose_deg(t) for t in times[::-1]}
     assert [a.pose_deg(t) for t in times] == [late_first[t] for t in times]
-    c = Hand.from_yaml(REGIONS / "irregular.yaml", seed=15)
+    c = Hand.from_yaml(path, seed=15)
     assert [c.pose_deg(t) for t in times] != [a.pose_deg(t) for t in times]
-
-
-def test_calibration_script_is_followed():
-    hand = Hand.from_yaml(REGIONS / "calibration.yaml")
-    assert hand.region is None
-    expected = {1.0: (0, 0), 3.0: (22.5, 0), 5.0: (45, 0), 7.0: (22.5, 0), 8.5: (0, 0),
-                10.0: (0, 15), 12.0: (0, 30), 14.0: (0, 15), 100.0: (0, 0)}  # fmt: skip
-    for t, pose in expected.items():
-        assert hand.pose_deg(t) == pytest.approx(pose, abs=DEFAULT_TREMOR_DEG)
 
 
 def test_calibration_script_moves_the_backdriven_limb():
@@ -283,6 +102,97 @@ def test_calibration_script_moves_the_backdriven_limb():
     assert seen[5] == pytest.approx({"pan": 45.0, "tilt": 0.0}, abs=0.3)
     assert seen[12] == pytest.approx({"pan": 0.0, "tilt": 30.0}, abs=0.3)
     assert seen[16] == pytest.approx({"pan": 0.0, "tilt": 0.0}, abs=0.3)
+
+
+def test_twist_stays_in_the_band_and_reaches_both_stops_along_the_edge_then_in_the_middle():
+    hand = Hand.from_yaml(REGION3, seed=2)
+    start, end = hand.trace_span_s
+    times, poses, twist, limits = sample(hand, end + 30.0)
+    low, high = limits[:, 0], limits[:, 1]
+    assert np.all(twist >= low + TWIST_INSET_DEG - TREMOR_SLACK_DEG)
+    assert np.all(twist <= high - TWIST_INSET_DEG + TREMOR_SLACK_DEG)
+    near_high = twist >= high - TWIST_INSET_DEG - 0.5
+    near_low = twist <= low + TWIST_INSET_DEG + 0.5
+    tracing = (times >= start) & (times < end)
+    depth = hand.region.edge_distance_deg(poses[:, 0], poses[:, 1])
+    # along the edge trace: both stops, at several places round the edge (>= 3 each)
+    for near in (near_high, near_low):
+        at_edge = near & tracing & (depth < 3.0)
+        places = hand.region.boundary_fraction(poses[at_edge, 0], poses[at_edge, 1])
+        assert len(np.unique(np.round(places * 8))) >= 3
+    # after the trace, the wander still turns to both stops
+    assert np.any(near_high & (times > end)) and np.any(near_low & (times > end))
+
+
+def test_the_world_gives_the_hand_the_roll_joint():
+    hand = Hand.from_yaml(REGION3, seed=1)
+    world = World(joints=(*World().joints, ROLL_JOINT), hand=hand, seed=1)
+    for _ in range(3000):
+        world.step(0.001, {1: None, 2: None, 3: None})
+    angles = world.joint_angles_deg()
+    pan, tilt, roll = hand.pose_deg(world.hand_time_s)
+    # the grip lags the hand by ~15 ms: the roll lies among the hand's rolls of the last 30 ms
+    # (a brisk twist turns a few degrees in that time), and the roll really moved
+    recent = [hand.pose_deg(world.hand_time_s - 0.001 * k)[2] for k in range(31)]
+    assert min(recent) - 1.0 <= angles["roll"] <= max(recent) + 1.0
+    assert abs(roll) > 1.0
+    assert angles["pan"] == pytest.approx(pan, abs=3.0)
+    # a plain hand leaves the roll joint where it rests
+    plain = World(joints=(*World().joints, ROLL_JOINT), hand=Hand.from_mapping(CONE), seed=1)
+    rest = plain.joint_angles_deg()["roll"]
+    for _ in range(500):
+        plain.step(0.001, {1: None, 2: None, 3: None})
+    assert plain.joint_angles_deg()["roll"] == rest
+
+
+def test_a_minute_of_the_hand_teaches_a_band_within_the_truth_or_names_what_is_missing():
+    """The issue's demo: a 60 s teaching at the recorder's 125 Hz, learned. Issue 35: the band
+    never reaches more than 1 deg past the true one; it holds >= 99 % of the true region's
+    orientations 2 deg inside only where the stops support it, and otherwise lists the places
+    whose stops are missing, so the guide withholds READY TO TRAIN (containment wins over
+    coverage). Measured: 75.5 % held, 107 places, never past the truth (0.79 deg inside it at
+    the nearest); before the evidence cap 99.98 % held, and the band reached 4.66 deg past the
+    true stop."""
+    from limbctl.demo import true_twist_probes
+    from limbctl.geometry.gimbal import direction_to_pan_tilt
+    from limbctl.geometry.twist import decompose, wrap
+    from limbctl.region.twist_region import TwistRegion
+
+    hand = Hand.from_yaml(REGION3, seed=1)
+    hand.start_from(0.0, 0.0, 0.0)
+    poses = np.radians([hand.pose_deg(float(t)) for t in np.arange(0.0, 60.0, 1.0 / 125.0)])
+    q = np.array([chain_quat(*p) for p in poses])
+    region = TwistRegion().fit(q)
+    probes = true_twist_probes(REGION3)
+    d = np.unique(np.round(decompose(probes)[0], 12), axis=0)
+    pan, tilt = (np.degrees(a) for a in direction_to_pan_tilt(d))
+    low, high = np.radians([hand.band.limits_deg(p, t) for p, t in zip(pan, tilt)]).T
+    c, h = region.band.at(d)
+    off = wrap(c - 0.5 * (low + high))
+    past = np.degrees(np.fmax(off + h, h - off) - 0.5 * (high - low))
+    assert past.max() <= 1.0, f"the band reaches {past.max():.2f} deg past the true stop"
+    held = np.mean(region.contains(probes))
+    assert held >= 0.99 or region.unsupported, f"{100 * held:.2f} % held, nothing asked for"
+
+
+def test_a_hand_over_a_curved_band_with_bumps_keeps_to_it_and_reaches_its_stops():
+    data = {
+        "region": {"polygon": [[-40, -30], [40, -30], [40, 40], [-40, 40]]},
+        "twist": {
+            "centre_deg": {"linear": [10, 0.2, 0], "quadratic": [0.003, 0, -0.002]},
+            "half_width_deg": {"linear": [35, 0, -0.2], "bumps": [[0, 5, -10, 8]]},
+        },
+    }
+    hand = Hand.from_mapping(data, seed=2)
+    _, poses, twist, limits = sample(hand, 40.0)
+    low, high = limits[:, 0], limits[:, 1]
+    # the band is curved: its width at the bump differs from a plane's by its height
+    assert hand.band.limits_deg(0, 5)[1] - hand.band.limits_deg(0, 5)[0] < 2 * (35 - 1 - 9)
+    slack = TWIST_INSET_DEG - TREMOR_SLACK_DEG
+    assert np.all(twist <= high - slack + 1e-9) and np.all(twist >= low + slack - 1e-9)
+    # and it turns to both stops (within its inset and tremor) along the way
+    assert np.sum(twist >= high - TWIST_INSET_DEG - TREMOR_SLACK_DEG) > 10
+    assert np.sum(twist <= low + TWIST_INSET_DEG + TREMOR_SLACK_DEG) > 10
 
 
 BAD_FILES = {
@@ -305,6 +215,16 @@ BAD_FILES = {
     "tiny-cone": ("region: {cone: {half_angle_deg: 1.5}}\n", "too small"),
     "not-yaml": ("region: [unclosed\n", "not valid YAML"),
     "not-mapping": ("- 1\n- 2\n", "expected a mapping"),
+    "script-roll-row": (
+        "script: [[0, 0, 0, 0], [2, 10, 0]]\n",
+        r"script\[1\] must be \[t_s, pan_deg, tilt_deg, roll_deg\]",
+    ),
+    "script-roll-nan": ("script: [[0, 0, 0, 0], [2, 10, 0, .nan]]\n", "non-finite"),
+    "script-twist": ("script: [[0, 0, 0]]\ntwist: {half_width_deg: 20}\n", "not to a script"),
+    "twist-narrow": (
+        "region: {cone: {half_angle_deg: 20}}\ntwist: {half_width_deg: 1}\n",
+        "within 3",
+    ),
 }
 
 

@@ -1,15 +1,25 @@
-"""The leader gimbal's world: the operator's hand, friction, let go, the ground-truth log."""
+"""The leader gimbal's world, two servos (pan, tilt) or three (pan, tilt, roll): the operator's
+hand on each joint, friction, let go, the joints built like the follower's, the ground-truth log."""
 
 from __future__ import annotations
 
 import json
 import math
+import re
 
 import pytest
 
+from firmware_sim.control_table import Register
 from firmware_sim.leader import LEADER_COULOMB_NM, LeaderWorld, Operator, leader_joints
 from firmware_sim.simulator import Simulator
-from firmware_sim.world import DEFAULT_JOINTS
+from firmware_sim.world import DEFAULT_JOINTS, ROLL_JOINT
+
+#: The leader's ids by joint count, and the follower's (the three-servo one with its roll joint).
+LEADER_IDS = {2: [3, 4], 3: [4, 5, 6]}
+FOLLOWER = {2: {"ids": (1, 2)}, 3: {"ids": (1, 2, 3), "roll_id": 3}}
+JOINTS = pytest.mark.parametrize("joints", [2, 3])
+#: What an operator's script of the wrong width is told its points should be.
+POINTS = {2: "[[t_s, pan_deg, tilt_deg], ...]", 3: "[[t_s, pan_deg, tilt_deg, roll_deg], ...]"}
 
 
 class Clock:
@@ -20,78 +30,117 @@ class Clock:
         return self.t
 
 
-def sim_with(operator=None, log=None):
+def sim_with(joints, operator=None, log=None):
     clock = Clock()
-    spec = {"ids": [3, 4], "model": "xm430-w350", "operator": operator, "log": log}
-    return Simulator(ids=(1, 2), leader=spec, clock=clock), clock
+    spec = {"ids": LEADER_IDS[joints], "model": "xm430-w350", "operator": operator, "log": log}
+    return Simulator(**FOLLOWER[joints], leader=spec, clock=clock), clock
 
 
-def test_operator_interpolates_its_script_and_is_bounded():
-    hand = Operator([[0.0, 0.0, 0.0], [2.0, 20.0, -10.0]], max_torque_nm=0.1)
-    assert hand.target_deg(1.0) == pytest.approx((10.0, -5.0))
-    assert hand.target_deg(5.0) == (20.0, -10.0)
+def row(t, *angles, joints):
+    """A script point: the time and the first ``joints`` of (pan, tilt, roll)."""
+    return [t, *angles[:joints]]
+
+
+@JOINTS
+def test_operator_interpolates_its_script_and_is_bounded(joints):
+    script = [row(0.0, 0.0, 0.0, 0.0, joints=joints), row(2.0, 20.0, -10.0, 40.0, joints=joints)]
+    hand = Operator(script, max_torque_nm=0.1, joints=joints)
+    assert hand.target_deg(1.0) == pytest.approx((10.0, -5.0, 20.0)[:joints])
+    assert hand.target_deg(5.0) == (20.0, -10.0, 40.0)[:joints]
     assert hand.torque(1.0, 0, 0.0, 0.0) == pytest.approx(0.1)  # 10 deg x 0.05 N m/deg, bounded
     assert hand.torque(1.0, 1, 0.0, 0.0) == pytest.approx(-0.1)
+    # the vector of all of them is bounded: 0.1 N m along (10, -5[, 20]) deg
+    torques = hand.torques(1.0, [0.0] * joints, [0.0] * joints)
+    assert math.hypot(*torques) == pytest.approx(0.1)
+    assert torques[0] / torques[1] == pytest.approx(-2.0)
 
 
-def test_operator_refuses_bad_scripts_and_keys():
+@JOINTS
+def test_operator_refuses_bad_scripts_and_keys(joints):
+    rest = [0.0] * joints
     with pytest.raises(ValueError, match="must not decrease"):
-        Operator([[1.0, 0.0, 0.0], [0.5, 1.0, 0.0]])
+        Operator([[1.0, *rest], [0.5, *rest]], joints=joints)
     with pytest.raises(ValueError, match="finite"):
-        Operator([[0.0, math.nan, 0.0]])
+        Operator([[0.0, math.nan, *rest[1:]]], joints=joints)
+    with pytest.raises(ValueError, match=re.escape(POINTS[joints])):  # the other chain's width
+        Operator([[0.0, *[0.0] * (5 - joints)]], joints=joints)
     with pytest.raises(ValueError, match="unknown operator keys"):
-        Operator.from_mapping({"script": [[0, 0, 0]], "grip": 1})
+        Operator.from_mapping({"script": [[0, *rest]], "grip": 1}, joints)
+    with pytest.raises(ValueError, match="unknown operator keys"):
+        Operator.from_mapping({"script": [[0, *rest]], "joints": joints})
     with pytest.raises(ValueError, match="unknown leader keys"):
-        LeaderWorld.from_spec({"ids": [3, 4], "colour": "red"})
+        LeaderWorld.from_spec({"ids": LEADER_IDS[joints], "colour": "red"})
+    with pytest.raises(ValueError, match=f"a {joints}-servo leader starts at"):
+        LeaderWorld(LEADER_IDS[joints], "xm430-w350", start_deg=[0.0] * (5 - joints))
+    with pytest.raises(ValueError, match="two or three joints"):
+        Operator([[0.0, 0.0]], joints=1)
 
 
-def test_leader_is_built_like_the_follower_at_its_own_ids():
-    pan, tilt = leader_joints((3, 4))
-    assert (pan.servo_id, tilt.servo_id) == (3, 4)
-    assert (pan.zero_tick, tilt.direction) == (DEFAULT_JOINTS[0].zero_tick, -1)
+@JOINTS
+def test_leader_is_built_like_the_follower_at_its_own_ids(joints):
+    ids = LEADER_IDS[joints]
+    built = leader_joints(ids)
+    assert [j.servo_id for j in built] == ids
+    follower = (*DEFAULT_JOINTS, ROLL_JOINT)[:joints]
+    assert [(j.name, j.zero_tick, j.direction, j.stop_min_deg, j.stop_max_deg) for j in built] == [
+        (j.name, j.zero_tick, j.direction, j.stop_min_deg, j.stop_max_deg) for j in follower
+    ]
     with pytest.raises(ValueError, match="distinct"):
-        leader_joints((3, 3))
+        leader_joints([*ids[:-1], ids[0]])
+    for wrong in ([3], [3, 4, 5, 6]):
+        with pytest.raises(ValueError, match="two or three distinct ids"):
+            leader_joints(wrong)
     with pytest.raises(ValueError, match="must not be the follower's"):
-        Simulator(ids=(1, 2), leader={"ids": [2, 3]})
+        Simulator(**FOLLOWER[joints], leader={"ids": [2, *ids[1:]]})
+    sim, _ = sim_with(joints)
+    assert sim.leader.ids == tuple(ids)
+    for joint in built:  # each rests at its zero
+        assert sim.servo(joint.servo_id).raw_tick == pytest.approx(joint.zero_tick)
+    with pytest.raises(ValueError, match=re.escape(POINTS[joints])):  # the other chain's hand
+        sim.set_operator({"script": [[0.0, *[10.0] * (5 - joints)]]})
+    with pytest.raises(ValueError, match=f"cannot hold a {joints}-servo leader"):
+        sim.leader.set_operator(Operator([[0.0, *[0.0] * (5 - joints)]], joints=5 - joints))
 
 
-def test_the_hand_moves_a_free_leader_and_let_go_leaves_it_to_friction(tmp_path):
+@JOINTS
+def test_the_hand_moves_a_free_leader_and_let_go_leaves_it_to_friction(joints, tmp_path):
     log = tmp_path / "leader.jsonl"
-    sim, clock = sim_with(
-        {"script": [[0.0, 0.0, 0.0], [1.0, 20.0, 10.0]], "let_go_s": 1.5}, str(log)
-    )
+    target = [20.0, 10.0, 40.0][:joints]
+    script = [row(0.0, 0.0, 0.0, 0.0, joints=joints), [1.0, *target]]
+    sim, clock = sim_with(joints, {"script": script, "let_go_s": 1.5}, str(log))
     clock.t = 1.4
     sim.advance()
     held = sim.truth()["leader"]
-    assert held["pose_deg"] == pytest.approx([20.0, 10.0], abs=0.5)
+    # a free leader (torque off) follows the relaxed hand to within its friction
+    assert held["pose_deg"] == pytest.approx(target, abs=0.5)
+    assert held["motor_nm"] == [0.0] * joints
+    # each servo reads its joint as the follower's joint does
+    for joint, angle in zip(sim.leader.joints, held["pose_deg"], strict=True):
+        servo = sim.servo(joint.servo_id)
+        servo.refresh(sim.time_s)
+        expected = joint.zero_tick + joint.direction * angle * 4096 / 360
+        assert servo.value(Register.PRESENT_POSITION) == pytest.approx(expected, abs=1.0)
     clock.t = 3.0
     sim.advance()
     truth = sim.truth()["leader"]
-    assert truth["hand_nm"] == [0.0, 0.0] and truth["velocity_deg_s"] == [0.0, 0.0]
+    assert truth["hand_nm"] == [0.0] * joints and truth["velocity_deg_s"] == [0.0] * joints
     assert truth["pose_deg"] == pytest.approx(held["pose_deg"], abs=0.5)  # friction stopped it
     rows = [json.loads(line) for line in log.read_text().splitlines()]
     assert len(rows) == 3000  # one line per 1 ms physics step
     assert {"t", "pose_deg", "hand_nm", "motor_nm", "motor_work_j"} <= set(rows[-1])
-
-
-def test_stiction_holds_under_a_touch_below_coulomb_friction():
-    touch = LEADER_COULOMB_NM * 0.9
-    sim, clock = sim_with({"script": [[0.0, 90.0, 0.0]], "max_torque_nm": touch})
-    clock.t = 1.0
-    sim.advance()
-    assert sim.truth()["leader"]["pose_deg"][0] == 0.0
-
-
-def test_the_leader_servo_reads_where_the_hand_took_it():
-    sim, clock = sim_with({"script": [[0.0, 15.0, 0.0]]})
-    clock.t = 1.0
-    sim.advance()
-    servo = sim.servo(3)
-    servo.refresh(sim.time_s)
-    joint = sim.leader.joints[0]
-    assert servo.raw_tick == pytest.approx(joint.raw_tick(math.radians(15.0)), abs=5.0)
+    assert all(len(value) == joints for key, value in rows[-1].items() if key != "t")
     sim.set_operator(None)
     assert sim.leader.operator is None
+
+
+@JOINTS
+def test_stiction_holds_under_a_touch_below_coulomb_friction(joints):
+    touch = LEADER_COULOMB_NM * 0.9
+    hand = {"script": [[0.0, 90.0, *[0.0] * (joints - 1)]], "max_torque_nm": touch}
+    sim, clock = sim_with(joints, hand)
+    clock.t = 1.0
+    sim.advance()
+    assert sim.truth()["leader"]["pose_deg"] == [0.0] * joints
 
 
 def test_a_slow_let_go_lowers_the_hands_bound_linearly_to_zero():

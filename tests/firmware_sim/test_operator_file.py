@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-from firmware_sim.leader3 import leader_world
+from firmware_sim.leader import LeaderWorld
 from firmware_sim.operator_file import leader_spec, read_operator_file
 
 
@@ -19,7 +19,7 @@ def test_a_two_servo_file_becomes_the_simulators_leader_option(tmp_path):
         "operator": {"script": [[0, 5, 0], [1, 30, 0]], "let_go_s": 2},
         "log": str(tmp_path / "log.jsonl"),
     }
-    world = leader_world(spec)  # the simulator builds it as given
+    world = LeaderWorld.from_spec(spec)  # the simulator builds it as given
     assert world.ids == (3, 4) and world.operator.let_go_s == 2
     world.close()
 
@@ -28,7 +28,7 @@ def test_a_three_servo_file_takes_roll_too_and_defaults_the_rest():
     spec = leader_spec({"script": [[0, 0, 0, 0], [1, 0, 0, 50]]}, (4, 5, 6))
     assert spec["model"] == "xm430-w350" and spec["start_deg"] == [0.0, 0.0, 0.0]
     assert "log" not in spec
-    world = leader_world(spec)
+    world = LeaderWorld.from_spec(spec)
     assert world.operator.target_deg(1.0) == (0.0, 0.0, 50.0)
     world.close()
 

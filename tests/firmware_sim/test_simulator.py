@@ -1,12 +1,16 @@
 """The simulated bus is as strict as the wire: baud rates, ID/baud changes, collisions,
 factory-fresh servos, one slot at a time, and time on the wire."""
 
+import json
+import math
 import time
 
+import numpy as np
 import pytest
 from dynamixel_sdk import COMM_RX_TIMEOUT, COMM_SUCCESS, PacketHandler, PortHandler
 
 from firmware_sim import SimulatedBus
+from firmware_sim.orientation import chain_quat
 from firmware_sim.simulator import Simulator
 from firmware_sim.wire import FACTORY_BAUD, RIG_BAUD
 
@@ -100,3 +104,42 @@ def test_a_lerobot_style_setup_of_a_factory_fresh_servo(tmp_path):
         assert port.setBaudRate(1_000_000)
         assert packet.broadcastPing(port)[0] == {6: [XL430, 46]}
         port.closePort()
+
+
+def test_simulator_with_a_roll_joint_logs_the_full_orientation(tmp_path):
+    log = tmp_path / "goals.jsonl"
+    with SimulatedBus(ids=(1, 2, 3), roll_id=3, goal_log=log, link=tmp_path / "tty") as sim:
+        port, packet = PortHandler(sim.port), PacketHandler(2.0)
+        assert port.openPort()
+        try:
+            goals = {1: 2185 + 200, 2: 1890 - 150, 3: 1960 + 300}
+            for servo_id, tick in goals.items():
+                result, error = packet.write4ByteTxRx(port, servo_id, 116, tick)
+                assert (result, error) == (0, 0)
+        finally:
+            port.closePort()
+    rows = [json.loads(line) for line in log.read_text().splitlines()]
+    assert [r["id"] for r in rows] == [1, 2, 3]
+    last = rows[-1]
+    rad = 2 * math.pi / 4096
+    expected = chain_quat(200 * rad, 150 * rad, 300 * rad)
+    assert np.allclose(last["limb_q"], expected, atol=1e-12)
+    assert last["limb_q"][0] >= 0
+    d = np.array(last["limb_dir"])
+    assert np.allclose(
+        d,
+        [
+            math.cos(150 * rad) * math.cos(200 * rad),
+            math.cos(150 * rad) * math.sin(200 * rad),
+            math.sin(150 * rad),
+        ],
+    )
+
+
+def test_roll_id_must_be_a_listed_servo_other_than_pan_and_tilt():
+    with pytest.raises(ValueError, match="roll joint's servo 4"):
+        Simulator(ids=(1, 2, 3), roll_id=4)
+    with pytest.raises(ValueError, match="roll joint's servo 2"):
+        Simulator(ids=(1, 2, 3), roll_id=2)
+    two = Simulator(ids=(1, 2, 3))
+    assert not two.world.has_roll  # servo 3 is a free shaft unless named the roll

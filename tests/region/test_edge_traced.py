@@ -160,9 +160,9 @@ CUTS = ((6.0, 0.4), (18.0, 0.4), (9.0, 0.5))
 def _demo_teaching(name: str):
     """The hand of ``limbctl/data/NAME`` (seed 0) taking hold at the rest pose, its poses
     (N, 3) rad (pan, tilt, roll; roll 0 on two servos) at DEMO_RATE_HZ and their times (N,) s."""
-    from firmware_sim.twist_hand import hand_from_yaml
+    from firmware_sim.hand import Hand
 
-    hand = hand_from_yaml(REPO / "limbctl" / "data" / name, seed=0)
+    hand = Hand.from_yaml(REPO / "limbctl" / "data" / name, seed=0)
     hand.start_from(0.0, 0.0)
     t = np.arange(int(DEMO_SECONDS * DEMO_RATE_HZ)) / DEMO_RATE_HZ
     pose = np.array([(tuple(hand.pose_deg(float(x))) + (0.0,))[:3] for x in t])
@@ -195,7 +195,7 @@ def test_a_two_servo_edge_trace_with_a_recorder_hole_keeps_the_true_region():
 
 def test_a_three_servo_edge_trace_with_a_recorder_hole_keeps_the_true_region():
     from limbctl.demo import true_twist_probes
-    from limbctl.geometry.gimbal3 import pan_tilt_roll_to_quat
+    from limbctl.geometry.gimbal import pan_tilt_roll_to_quat
     from limbctl.geometry.twist import decompose
 
     _, pose, t = _demo_teaching("demo_region3.yaml")

@@ -90,7 +90,7 @@ class RecordingGate(Gate):
     def produced_ticks(self, rig: Rig) -> list[tuple[int, int]]:
         """Goal ticks (pan, tilt) of every pose the gate let through, in order."""
         goals = (rig.goal_for(r.pan, r.tilt) for r in self.results if r.outcome is not Outcome.HELD)
-        return [(g.pan, g.tilt) for g in goals]
+        return [g.ticks for g in goals]
 
 
 class PacedSource(CommandSource):

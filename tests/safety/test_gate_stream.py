@@ -151,9 +151,9 @@ def test_every_gated_goal_is_inside_region_and_limits(model, lines, rate_hz, spe
         for _ in range(3):
             result = gate.step(command.q)
             goal = rig.goal_for(result.pan, result.tilt)
-            assert lo_pan <= goal.pan <= hi_pan and lo_tilt <= goal.tilt <= hi_tilt
+            assert lo_pan <= goal.ticks[0] <= hi_pan and lo_tilt <= goal.ticks[1] <= hi_tilt
             assert not goal.clamped, "the gate left a pose beyond the hard limits to the rig"
-            pan, tilt = rig.ticks_to_angles(goal.pan, goal.tilt)
+            pan, tilt = rig.ticks_to_angles(*goal.ticks)
             worst = excursion_deg(model, pan_tilt_to_direction(pan, tilt))[0]
             assert worst <= written_tolerance_deg(limits)
             # a step never exceeds the joint-step limit (the singularity guard)

@@ -18,7 +18,7 @@ def trained(profile=PROFILE, **changes):
 
 def test_a_profile_built_in_code_meets_the_end_stop_check(tmp_path):
     # limbctl calibrate builds the profile in code; its limits must not pass unchecked
-    beyond = replace(PROFILE, tilt=replace(PROFILE.tilt, max_deg=80.0), source=None)
+    beyond = replace(PROFILE.with_joints(tilt=replace(PROFILE.tilt, max_deg=80.0)), source=None)
     with pytest.raises(ConfigError, match=r"^<profile>: tilt.max_deg 80 is not 1 deg inside"):
         check_profile(beyond)
     with pytest.raises(ConfigError, match="tilt.max_deg 80"):
@@ -40,7 +40,7 @@ def test_another_rig_is_refused():
 
 
 def test_a_zero_tick_off_by_200_is_refused_naming_it():
-    shifted = replace(PROFILE, pan=replace(PROFILE.pan, zero_tick=PROFILE.pan.zero_tick + 200))
+    shifted = PROFILE.with_joints(pan=replace(PROFILE.pan, zero_tick=PROFILE.pan.zero_tick + 200))
     with pytest.raises(ConfigError) as err:
         check_trained_for(trained(), shifted, "model.npz")
     message = str(err.value)
@@ -55,11 +55,11 @@ def test_every_calibration_field_is_compared():
         "max_deg": dict(max_deg=60.0),
     }
     for field, change in changes.items():
-        other = replace(PROFILE, tilt=replace(PROFILE.tilt, **change))
+        other = PROFILE.with_joints(tilt=replace(PROFILE.tilt, **change))
         with pytest.raises(ConfigError, match=f"tilt.{field} "):
             check_trained_for(trained(), other, "model.npz")
     # the servo id and the end stops are not part of what a model depends on
-    moved = replace(PROFILE, tilt=replace(PROFILE.tilt, id=7, stop_max_deg=80.0))
+    moved = PROFILE.with_joints(tilt=replace(PROFILE.tilt, id=7, stop_max_deg=80.0))
     check_trained_for(trained(), moved, "model.npz")
 
 

@@ -1,3 +1,10 @@
+"""The rig of either chain (``sim``: pan, tilt; ``sim3``: pan, tilt, roll): exact conversion per
+joint, hard limits on every joint, and poses in and out through the real dynamixel-sdk on the
+simulator, with the simulator's own orientation of each goal."""
+
+from __future__ import annotations
+
+import json
 import math
 import time
 
@@ -9,68 +16,97 @@ from hypothesis import strategies as st
 from calib import default_sim_profile
 from limbctl.errors import InvalidInputError, SafetyError
 from limbctl.geometry import gimbal
-from limbctl.servo.bus import ServoBus
 from limbctl.servo.profiles import joint_tick_limits
 from limbctl.servo.rig import Rig
+from limbctl.session import open_rig
 
-PROFILE = default_sim_profile()
+RIGS = ("sim", "sim3")
+PROFILES = {name: default_sim_profile(name) for name in RIGS}
 TICK_RAD = 2 * math.pi / 4096
+#: Poses (rad) of up to three joints; a rig takes the first of them, one per joint.
+poses = st.lists(st.floats(-4.0, 4.0), min_size=3, max_size=3)
 
 
-@pytest.fixture
-def rig():
-    return Rig(PROFILE)
+@pytest.fixture(params=RIGS)
+def rig(request):
+    return Rig(PROFILES[request.param])
+
+
+def test_the_chain_is_the_profiles_joints_in_order():
+    two, three = Rig(PROFILES["sim"]), Rig(PROFILES["sim3"])
+    assert (two.names, three.names) == (("pan", "tilt"), ("pan", "tilt", "roll"))
+    assert (len(two), three.count) == (2, 3)
+    assert three.joints == (PROFILES["sim3"].pan, PROFILES["sim3"].tilt, PROFILES["sim3"].roll)
+    assert (two.ids, three.ids) == ((1, 2), (1, 2, 3))
 
 
 def test_conversion_follows_the_profile(rig):
-    pan, tilt = PROFILE.pan, PROFILE.tilt
-    assert rig.angles_to_ticks(0.0, 0.0) == (pan.zero_tick, tilt.zero_tick)
+    joints = rig.joints
+    assert rig.angles_to_ticks(*[0.0] * len(rig)) == tuple(j.zero_tick for j in joints)
     # ticks = zero_tick + direction * angle * 4096 / (2 pi)
-    assert rig.angles_to_ticks(math.pi / 4, math.pi / 4) == (
-        pan.zero_tick + pan.direction * 512,
-        tilt.zero_tick + tilt.direction * 512,
+    assert rig.angles_to_ticks(*[math.pi / 4] * len(rig)) == tuple(
+        j.zero_tick + j.direction * 512 for j in joints
     )
-    assert rig.ticks_to_angles(pan.zero_tick + 1024, tilt.zero_tick - 1024) == pytest.approx(
-        (pan.direction * math.pi / 2, -tilt.direction * math.pi / 2)
+    assert rig.ticks_to_angles(*(j.zero_tick + 1024 for j in joints)) == pytest.approx(
+        tuple(j.direction * math.pi / 2 for j in joints)
     )
 
 
 def test_clamp(rig):
-    assert rig.clamp(0.1, -0.2) == (0.1, -0.2, False)
-    pan, tilt, clamped = rig.clamp(math.radians(170), math.radians(-80))
+    inside = (0.1, -0.2, 0.3)[: len(rig)]
+    assert rig.clamp(*inside) == (inside, False)
+    angles, clamped = rig.clamp(*[4.0 if i % 2 == 0 else -4.0 for i in range(len(rig))])
     assert clamped
-    assert pan == pytest.approx(math.radians(PROFILE.pan.max_deg))
-    assert tilt == pytest.approx(math.radians(PROFILE.tilt.min_deg))
-    for bad in (float("nan"), float("inf")):
-        with pytest.raises(InvalidInputError, match="finite"):
-            rig.clamp(bad, 0.0)
+    assert angles == tuple(j.max_rad if i % 2 == 0 else j.min_rad for i, j in enumerate(rig.joints))
+    for i, name in enumerate(rig.names):
+        for bad in (float("nan"), float("inf")):
+            with pytest.raises(InvalidInputError, match=f"{name} angle must be finite"):
+                rig.clamp(*(bad if k == i else 0.0 for k in range(len(rig))))
+    with pytest.raises(SafetyError, match=f"takes {len(rig)} angles"):
+        rig.goal_for(*[0.0] * (5 - len(rig)))
 
 
-@given(pan=st.floats(-4.0, 4.0), tilt=st.floats(-4.0, 4.0))
-def test_goal_ticks_are_always_inside_the_hard_limits(pan, tilt):
-    rig = Rig(PROFILE)
-    goal = rig.goal_for(pan, tilt)
-    for tick, joint in ((goal.pan, PROFILE.pan), (goal.tilt, PROFILE.tilt)):
+@pytest.mark.parametrize("name", RIGS)
+@given(pose=poses)
+def test_goal_ticks_are_always_inside_the_hard_limits(name, pose):
+    rig = Rig(PROFILES[name])
+    pose = tuple(pose[: len(rig)])
+    goal = rig.goal_for(*pose)
+    for tick, joint in zip(goal.ticks, rig.joints, strict=True):
         lo, hi = joint_tick_limits(joint)
         assert lo <= tick <= hi
-    inside = (
-        PROFILE.pan.min_rad <= pan <= PROFILE.pan.max_rad
-        and PROFILE.tilt.min_rad <= tilt <= PROFILE.tilt.max_rad
-    )
+    inside = all(j.min_rad <= a <= j.max_rad for a, j in zip(pose, rig.joints, strict=True))
     assert goal.clamped == (not inside)
     if inside:
         # exact inside the limits: nearest tick, within half a tick of the command
-        back = rig.ticks_to_angles(goal.pan, goal.tilt)
-        assert abs(back[0] - pan) <= TICK_RAD / 2 + 1e-12
-        assert abs(back[1] - tilt) <= TICK_RAD / 2 + 1e-12
+        back = rig.ticks_to_angles(*goal.ticks)
+        assert np.all(np.abs(np.subtract(back, pose)) <= TICK_RAD / 2 + 1e-12)
+
+
+@pytest.mark.parametrize("name", RIGS)
+@given(pose=poses)
+def test_held_pose_is_the_written_goal_back_in_radians(name, pose):
+    rig = Rig(PROFILES[name])
+    pose = tuple(pose[: len(rig)])
+    held = rig.held_pose(*pose)
+    goal = rig.goal_for(*pose)
+    assert rig.angles_to_ticks(*held) == goal.ticks
+    # half a tick of rounding per joint after the clamp; a clamped joint is kept on a tick
+    # strictly inside its limit, up to a whole tick from it
+    rounding = TICK_RAD if goal.clamped else TICK_RAD / 2
+    assert np.all(np.abs(np.subtract(held, goal.angles)) <= rounding + 1e-12)
 
 
 def test_write_goal_ticks_refuses_ticks_beyond_limits(rig):
-    lo, hi = joint_tick_limits(PROFILE.pan)
-    with pytest.raises(SafetyError, match=r"pan goal tick .* outside the hard limits"):
-        rig.write_goal_ticks(hi + 1, PROFILE.tilt.zero_tick)
-    with pytest.raises(SafetyError, match="tilt goal tick"):
-        rig.write_goal_ticks(lo, 1.5)
+    zeros = [j.zero_tick for j in rig.joints]
+    for i, (name, joint) in enumerate(zip(rig.names, rig.joints, strict=True)):
+        lo, hi = joint_tick_limits(joint)
+        for bad in (hi + 1, lo - 1, lo + 0.5):
+            ticks = [*zeros[:i], bad, *zeros[i + 1 :]]
+            with pytest.raises(SafetyError, match=rf"{name} goal tick .* outside the hard limits"):
+                rig.write_goal_ticks(*ticks)
+    with pytest.raises(SafetyError, match=f"takes {len(rig)} goal ticks"):
+        rig.write_goal_ticks(*zeros[:-1])
 
 
 def test_a_rig_without_bus_only_converts(rig):
@@ -79,59 +115,55 @@ def test_a_rig_without_bus_only_converts(rig):
 
 
 def test_tick_limits_per_servo(rig):
-    assert rig.tick_limits() == {
-        PROFILE.pan.id: joint_tick_limits(PROFILE.pan),
-        PROFILE.tilt.id: joint_tick_limits(PROFILE.tilt),
-    }
+    assert rig.tick_limits() == {j.id: joint_tick_limits(j) for j in rig.joints}
 
 
-def test_present_pose_matches_the_simulated_world(sim):
-    with ServoBus.from_profile(PROFILE, port=sim.port) as bus:
-        rig = Rig(PROFILE, bus)
-        pan, tilt = rig.read_pose()
-        truth = sim.truth()["joints_deg"]
+@pytest.mark.parametrize("name", RIGS)
+def test_present_pose_matches_the_simulated_world(name):
+    with open_rig(rig_path=name) as session:
+        rig = session.rig
+        pose = rig.read_pose()
+        truth = session.simulator.truth()["joints_deg"]
         # the sim profile is the world's true geometry: within a tick of the truth
-        assert math.degrees(pan) == pytest.approx(truth["pan"], abs=math.degrees(TICK_RAD))
-        assert math.degrees(tilt) == pytest.approx(truth["tilt"], abs=math.degrees(TICK_RAD))
-        np.testing.assert_allclose(
-            rig.read_direction(), gimbal.pan_tilt_to_direction(pan, tilt), atol=2 * TICK_RAD
+        assert len(pose) == len(rig)
+        for joint_name, angle in zip(rig.names, pose, strict=True):
+            assert math.degrees(angle) == pytest.approx(
+                truth[joint_name], abs=math.degrees(TICK_RAD)
+            )
+        assert rig.read_direction() == pytest.approx(
+            gimbal.pan_tilt_to_direction(pose[0], pose[1]), abs=2 * TICK_RAD
         )
         q = rig.read_quaternion()
         assert q.shape == (4,) and q[0] >= 0 and np.linalg.norm(q) == pytest.approx(1.0)
+        assert abs(float(np.dot(q, gimbal.pose_quat(*pose)))) == pytest.approx(1.0, abs=1e-6)
 
 
-def test_write_pose_reaches_the_pose_and_clamps(sim):
-    with ServoBus.from_profile(PROFILE, port=sim.port) as bus:
-        rig = Rig(PROFILE, bus)
+@pytest.mark.parametrize("name", RIGS)
+def test_write_pose_reaches_the_pose_clamped_and_the_simulator_logs_it(name, tmp_path):
+    log = tmp_path / "goals.jsonl"
+    with open_rig(rig_path=name, goal_log=log) as session:
+        rig, sim = session.rig, session.simulator
         rig.configure(profile_velocity=0, profile_acceleration=0)
-        rig.set_torque(True)
-        target = (math.radians(30.0), math.radians(90.0))  # tilt beyond its 70 deg limit
+        # tilt beyond its limit; the roll inside its own
+        target = (math.radians(30.0), math.radians(90.0), math.radians(-40.0))[: len(rig)]
         goal = rig.write_pose(*target)
-        assert goal.clamped and goal.tilt_rad == pytest.approx(PROFILE.tilt.max_rad)
-        expected_deg = (30.0, math.degrees(rig.ticks_to_angles(goal.pan, goal.tilt)[1]))
+        assert goal.clamped and goal.angles[1] == pytest.approx(rig.joints[1].max_rad)
+        rig.set_torque(True)
+        assert rig.torque_enabled() == (True,) * len(rig)
+        rig.write_pose(*target)
+        expected = np.degrees(rig.ticks_to_angles(*goal.ticks))
 
         def arrived():
             truth = sim.truth()["joints_deg"]
-            return (
-                abs(truth["pan"] - expected_deg[0]) < 0.5
-                and abs(truth["tilt"] - expected_deg[1]) < 0.5
-            )
+            return all(abs(truth[n] - e) < 0.5 for n, e in zip(rig.names, expected, strict=True))
 
         deadline = time.monotonic() + 10.0
         while not arrived():
             assert time.monotonic() < deadline, sim.truth()["joints_deg"]
             rig.read_pose()  # one bus round trip per wait step
-        assert math.degrees(rig.read_pose()[1]) <= PROFILE.tilt.max_deg
-
-
-@given(pan=st.floats(-4.0, 4.0), tilt=st.floats(-4.0, 4.0))
-def test_held_pose_is_the_written_goal_back_in_radians(pan, tilt):
-    rig = Rig(PROFILE)
-    held = rig.held_pose(pan, tilt)
-    goal = rig.goal_for(pan, tilt)
-    assert rig.angles_to_ticks(*held) == (goal.pan, goal.tilt)
-    # half a tick of rounding per joint after the clamp; a clamped joint is kept on a tick
-    # strictly inside its limit, up to a whole tick from it
-    rounding = TICK_RAD if goal.clamped else TICK_RAD / 2
-    assert abs(held[0] - goal.pan_rad) <= rounding + 1e-12
-    assert abs(held[1] - goal.tilt_rad) <= rounding + 1e-12
+        assert math.degrees(rig.read_pose()[1]) <= rig.joints[1].max_deg
+    last = json.loads(log.read_text().splitlines()[-1])
+    held = rig.ticks_to_angles(*goal.ticks)
+    assert np.allclose(last["limb_dir"], gimbal.pan_tilt_to_direction(*held[:2]), atol=1e-12)
+    if len(rig) == 3:  # the simulator's own full orientation of the goal
+        assert np.allclose(last["limb_q"], gimbal.pose_quat(*held), atol=1e-12)

@@ -4,7 +4,6 @@ in this process, so the law's own behaviour is measured whatever the machine's l
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -14,7 +13,7 @@ from firmware_sim.control_table import MODELS
 from firmware_sim.control_table import Register as SimRegister
 from firmware_sim.simulator import Simulator
 from limbctl.envelope import Cone
-from limbctl.geometry.gimbal import pan_tilt_to_quat
+from limbctl.geometry.gimbal import pan_tilt_to_quat, pose_quat_scalar
 from limbctl.servo.control_table import ModelNumber
 from limbctl.servo.leader import (
     FEEL_DATA,
@@ -25,8 +24,10 @@ from limbctl.servo.leader import (
     feel_map,
 )
 from limbctl.servo.rig import Rig
+from limbctl.servo.ticks import angle_to_ticks, ticks_to_angle
 from limbctl.teleop.brake import BrakeLaw
-from limbctl.teleop.haptic import VELOCITY_UNIT_DEG_S, FeelLaw, Push, push_for
+from limbctl.teleop.haptic import VELOCITY_UNIT_DEG_S, FeelLaw
+from limbctl.teleop.haptic_push import held, push_for
 from limbctl.teleop.snap import SnapLaw, SnapWatch
 
 #: The follower's region in these runs: a 30 deg cone around +x (along pan, the edge at pan 30).
@@ -115,8 +116,23 @@ def motor_of(model: str) -> LeaderMotor:
     return FELT_MODELS[ModelNumber(MODELS[model.partition("@")[0]].model_number)]
 
 
-def q_of(pan_deg: float, tilt_deg: float) -> np.ndarray:
-    return np.asarray(pan_tilt_to_quat(math.radians(pan_deg), math.radians(tilt_deg)))
+def q_of(*pose_deg: float) -> np.ndarray:
+    """The orientation (4,) of a pose of either chain (deg)."""
+    pose = np.radians(pose_deg)
+    return np.asarray(pan_tilt_to_quat(*pose)) if len(pose) == 2 else pose_quat_scalar(*pose)
+
+
+#: Each chain's stepped leader: the rig profile, the follower's ids and options, the leader's ids.
+CHAINS = {
+    2: ("sim", {"ids": (1, 2)}, (3, 4)),
+    3: ("sim3", {"ids": (1, 2, 3), "roll_id": 3}, (4, 5, 6)),
+}
+
+
+def rig_of(joints: int):
+    """The rig of a chain of ``joints`` joints on the simulated profile (its joint limits too)."""
+    profile = default_sim_profile(CHAINS[joints][0])
+    return Rig(profile)
 
 
 def felt_at_200_hz(
@@ -132,11 +148,16 @@ def felt_at_200_hz(
     snap_watch=True,
     release_s=0.0,
     brake=BrakeLaw(),
+    region=CONE,
+    rules=True,
+    pushes=None,
 ):
     """The controller's part on the simulated leader's registers every 5 ms of a stepped clock
-    (read Present Position and Present Current, push_for, the same ten bytes to Indirect Data
-    1 ms later), in this process. Returns the leader's 1 ms truth.
+    (read Present Position, Present Current and Present Velocity, push_for, the same ten bytes to
+    Indirect Data 1 ms later), in this process. Returns the leader's 1 ms truth.
 
+    The chain is the script's: rows of (t, pan, tilt) drive a two-servo leader (ids 3, 4), rows
+    of (t, pan, tilt, roll) a three-servo one (ids 4, 5, 6); ``region`` corrects its commands.
     ``cycles`` maps a cycle's index to what happens instead: "late" (the controller does
     nothing that cycle, as in a stalled loop: the servos keep their last command) or "held" (the
     push of a cycle whose gate held or whose follower read failed: Goal Current 0, Profile
@@ -145,12 +166,19 @@ def felt_at_200_hz(
     leader servos' simulator model (a 330 named with firmware 53 or later, whose Indirect Data
     is at 224); ``max_torque_nm``: the hand's bound; ``motor``: the controller's idea of the
     model's motor (None: :data:`FELT_MODELS`'s); ``snap_watch``: with the snap watch (False:
-    the law alone, as in round 6); ``release_s``: how long the hand's let go takes."""
+    the law alone, as in round 6); ``release_s``: how long the hand's let go takes; ``rules``:
+    pass the previous read, the period and whether the wall pushed (as ``LeaderSource.feel``),
+    False: the wall alone, without its let-go rules (before round 3); ``pushes``: a list each
+    cycle's (pose, push, instead) is appended to."""
     motor = motor or motor_of(model)
+    joints = len(script[0]) - 1
+    _, follower, ids = CHAINS[joints]
+    rig = rig_of(joints)
+    limits = tuple((j.min_rad, j.max_rad) for j in rig.joints)
     clock = [0.0]
-    sim = Simulator(ids=(1, 2), leader={"ids": [3, 4], "model": model}, clock=lambda: clock[0])
-    rig = Rig(default_sim_profile())
-    servos = [sim.servo(3), sim.servo(4)]
+    leader = {"ids": list(ids), "model": model}
+    sim = Simulator(**follower, leader=leader, clock=lambda: clock[0])
+    servos = [sim.servo(i) for i in ids]
     for servo in servos:
         servo.write(11, bytes([5]))  # Operating Mode 5 (EEPROM, torque off)
         limit = motor.units_for(motor.cap_nm(law.cap_nm))
@@ -161,29 +189,35 @@ def felt_at_200_hz(
     hand["release_s"] = release_s
     sim.set_operator({**hand, "damping_nm_s_rad": 0.02, "max_torque_nm": max_torque_nm})
     rows, engaged, previous = [], False, None
-    watch = SteppedWatch(servos, rig.joints, lambda: sim.time_s, snap_watch, motor, law, brake)
+    on = snap_watch and rules
+    watch = SteppedWatch(servos, rig.joints, lambda: sim.time_s, on, motor, law, brake)
     for k in range(round(seconds * 200.0)):
         if watch.before_step(5 * k):
             engaged = False  # the watch let the wall go: LeaderSource.release
         for servo in servos:
             servo.refresh(sim.time_s)
-        pose = rig.ticks_to_angles(*(s.value(SimRegister.PRESENT_POSITION) for s in servos))
-        q = q_of(*np.degrees(pose))
+        ticks = [s.value(SimRegister.PRESENT_POSITION) for s in servos]
+        pose = tuple(
+            float(ticks_to_angle(t, j.zero_tick, j.direction))
+            for t, j in zip(ticks, rig.joints, strict=True)
+        )
+        q = q_of(*np.degrees(pose)) if joints == 2 else pose_quat_scalar(*pose)
         torque = read_torque(servos, rig.joints, motor)
         velocity = read_velocity(servos, rig.joints)
         read_s = sim.time_s  # when the cycle read the leader
         # today's law (the watch with its brake rules) also reads the speed: the walking lead
-        speed = velocity if snap_watch and brake is not None else None
-        push = push_for(
-            law, motor, pose, q, CONE.correct(q), previous, 0.005, engaged, torque, speed
-        )
-        if snap_watch and push.goal_current:
+        speed = velocity if on and brake is not None else None
+        past = (previous, 0.005, engaged, torque, speed) if rules else ()
+        push = push_for(law, motor, pose, q, region.correct(q), *past, limits=limits)
+        if on and push.goal_current:
             if not watch.snap.allows(pose, push.goal, velocity, engaged, sim.time_s, torque):
-                push = Push(0, 0, pose[0], pose[1], 0.0, push.distance_deg)
+                push = held(pose, push.distance_deg)
         previous = pose
         instead = (cycles or {}).get(k)
         if instead == "held":
-            push = Push(0, 0, pose[0], pose[1], 0.0, 0.0)
+            push = held(pose)
+        if pushes is not None:
+            pushes.append((pose, push, instead))
         if instead == "silent":
             engaged = False  # LeaderSource.release: the next push is the wall coming on again
             watch.snap.disarm()
@@ -193,14 +227,17 @@ def felt_at_200_hz(
             if step and watch.before_step(5 * k + step):
                 engaged = False
             if step == 1 and instead not in ("late", "silent"):
-                ticks = rig.angles_to_ticks(push.goal_pan, push.goal_tilt)
+                goal_ticks = [
+                    int(angle_to_ticks(a, j.zero_tick, j.direction))
+                    for a, j in zip(push.goal, rig.joints, strict=True)
+                ]
                 if push.goal_current and not engaged:  # the wall comes on: LeaderSource._write
                     for servo in servos:
                         servo.write(64, bytes([0]))  # torque off, then on: the setpoint is the
                         servo.write(64, bytes([1]))  # present position
                 was_engaged, engaged = engaged, bool(push.goal_current)
                 currents = push.currents(len(servos))
-                for servo, tick, current in zip(servos, ticks, currents, strict=True):
+                for servo, tick, current in zip(servos, goal_ticks, currents, strict=True):
                     if push.goal_current:  # Profile Velocity: its own write in the source
                         servo.write(112, push.profile_velocity.to_bytes(4, "little"))
                     servo.write(FEEL_DATA.address, encode_feel(current, tick))

@@ -9,7 +9,7 @@ import threading
 
 import numpy as np
 
-from limbctl.geometry.gimbal3 import pose_quat_scalar
+from limbctl.geometry.gimbal import pose_quat_scalar
 from limbctl.servo.setup import configure_servos
 from limbctl.session import open_rig
 from limbctl.teleop.approach import MAX_APPROACH_SPEED_DEG_S, SETTLE_DEG, StartOptions
@@ -113,7 +113,7 @@ def test_approach_drives_a_three_servo_limb_inside_along_a_slow_checked_path(tmp
     assert max(steps) <= speed / RATE + 2 * rounding
     assert np.mean(steps) <= speed / RATE + 0.01
     # never further outside than where it started, and it ends inside by the margin
-    start_out = outside_by3(gate, rig.held_pose3(outside))
+    start_out = outside_by3(gate, rig.held_pose(*outside))
     assert max(geodesic(q, REGION.correct(q)) for q in goals) <= start_out + math.radians(0.11)
     settled = math.radians(0.9 * (START_MARGIN_DEG - SETTLE_DEG))
     assert safe_with_margin(gate, present, settled)
@@ -137,10 +137,10 @@ def test_a_three_servo_session_ending_on_the_twist_stop_parks_where_the_next_sta
         summary = run(rig, gate, source, config)
         assert summary.ended_by == "end of input", summary.fault
         edge = gate.safe_pose
-        assert not safe_with_margin(gate, rig.held_pose3(edge), MARGIN)
+        assert not safe_with_margin(gate, rig.held_pose(*edge), MARGIN)
         parked = park3(rig, gate, RATE)
         assert parked.moved and 0 < parked.distance_deg <= 3 * START_MARGIN_DEG, parked
-        wait_for(lambda: rig.read_pose() == rig.held_pose3(parked.pose), 5.0, "the limb to settle")
+        wait_for(lambda: rig.read_pose() == rig.held_pose(*parked.pose), 5.0, "the limb to settle")
         again = gate_for(profile)
         rig.set_torque(False)
         result = start_three(rig, again, StartOptions(wait_s=1.0), stop=threading.Event())

@@ -98,7 +98,7 @@ def test_twist_lines_are_refused_on_a_two_servo_rig_with_the_reason():
 
 
 def test_three_servo_forms_keep_their_twist():
-    from limbctl.geometry.gimbal3 import pan_tilt_roll_to_quat
+    from limbctl.geometry.gimbal import pan_tilt_roll_to_quat
     from limbctl.geometry.twist import decompose
 
     c = parse_command('{"pan": 30, "tilt": 30, "roll": 20}', twist=True)

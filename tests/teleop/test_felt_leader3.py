@@ -3,7 +3,7 @@ twist, its faults, a passive model.
 
 The follower is the simulated three-servo gimbal (calib/rigs/sim3.yaml) gated by a twist region
 whose edge lies near pan 30 deg and near roll 30 deg (tests/teleop/twist_square.py). The
-simulator's three-servo leader (ids 4, 5, 6; firmware_sim/leader3.py) is held by its operator,
+simulator's three-servo leader (ids 4, 5, 6; firmware_sim/leader.py) is held by its operator,
 whose ground truth (motor torque every 0.5-1 ms) is what the assertions read, beside what the
 controller wrote.
 """
@@ -21,14 +21,16 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from calib.profile import default_sim_profile
 from limbctl.errors import ConfigError
-from limbctl.geometry.gimbal3 import pose_quat_scalar
+from limbctl.geometry.gimbal import pose_quat_scalar
 from limbctl.geometry.twist import decompose_one
 from limbctl.live import leader_status
+from limbctl.servo.rig import Rig
 from limbctl.servo.setup import configure_servos
 from limbctl.session import open_rig
 from limbctl.teleop.gate3 import Gate3, GateLimits3
-from limbctl.teleop.haptic3 import beyond3_deg, corrected_pose
+from limbctl.teleop.haptic_push import beyond_deg, corrected_pose
 from limbctl.teleop.sources import LeaderSource, SourceContext, parse_source
 from limbctl.view.leader import SWING_SHARE_DRAWN
 from tests.teleop.felt_running import Running as FeltRunning
@@ -36,8 +38,8 @@ from tests.teleop.felt_running import check_a_forced_pace_loss, pressing, pushed
 from tests.teleop.twist_square import square_region
 
 IDS = (4, 5, 6)
-#: The roll joint's hard limits in calib/rigs/sim3.yaml (rad).
-ROLL_LIMITS = (math.radians(-100.0), math.radians(100.0))
+#: The joints' hard limits in calib/rigs/sim3.yaml (rad): the roll joint's within +-100 deg.
+LIMITS = tuple((j.min_rad, j.max_rad) for j in Rig(default_sim_profile("sim3")).joints)
 HAND = {"stiffness_nm_deg": 0.05, "damping_nm_s_rad": 0.02, "max_torque_nm": 0.3}
 #: In swing (pan 50: 20 deg beyond) from 0 to 3.5 s, back to the middle, then in twist (roll 50)
 #: from 5.5 s on.
@@ -105,7 +107,7 @@ def cap_of(source) -> float:
 
 def beyond(row) -> float:
     q = pose_quat_scalar(*np.radians(row["pose_deg"]))
-    return beyond3_deg(q, square_region().correct(q))
+    return beyond_deg(q, square_region().correct(q), 3)
 
 
 def test_the_three_servo_leader_is_held_at_the_edge_in_swing_and_in_twist(tmp_path):
@@ -132,7 +134,7 @@ def test_the_three_servo_leader_is_held_at_the_edge_in_swing_and_in_twist(tmp_pa
     region = square_region()
     # each press's last second: held beyond the edge. Under 2 deg of rotation when the loop kept
     # the rate the wall is passive at (a median period within the pace watch's 1.25 periods
-    # at 200 Hz; the law at exactly 200 Hz: tests/teleop/test_haptic3.py); a starved loop (a
+    # at 200 Hz; the law at exactly 200 Hz: tests/teleop/test_haptic.py); a starved loop (a
     # sampled wall under its passivity bound, and failed reads that release the leader) lets
     # the hand take it further, as with two servos (docs/haptic.md)
     for window, joint in (((2.5, 3.5), 0), ((7.0, 8.0), 2)):
@@ -156,7 +158,7 @@ def test_the_three_servo_leader_is_held_at_the_edge_in_swing_and_in_twist(tmp_pa
     for (_, push, _), pose in zip(running.pushes, running.poses, strict=True):
         if push is not None and push.goal_current:
             corrected = region.correct(pose_quat_scalar(*pose))
-            way = np.subtract(corrected_pose(corrected, pose, ROLL_LIMITS), pose)
+            way = np.subtract(corrected_pose(corrected, pose, LIMITS), pose)
             leads.append(float(np.dot(np.subtract(push.goal, pose), way)))
     assert len(leads) > 100 and min(leads) > 0.0
     # pressed outward beyond the edge, the joint torques point toward the corrected pose: the
@@ -170,9 +172,9 @@ def test_the_three_servo_leader_is_held_at_the_edge_in_swing_and_in_twist(tmp_pa
     for r in rows[::5]:
         present = tuple(np.radians(r["pose_deg"]))
         q = pose_quat_scalar(*present)
-        if beyond3_deg(q, region.correct(q)) < 0.5 or not any(r["motor_nm"]):
+        if beyond_deg(q, region.correct(q), 3) < 0.5 or not any(r["motor_nm"]):
             continue
-        way = np.subtract(corrected_pose(region.correct(q), present, ROLL_LIMITS), present)
+        way = np.subtract(corrected_pose(region.correct(q), present, LIMITS), present)
         if float(np.dot(r["hand_nm"], way / np.linalg.norm(way))) <= -PRESSING_NM:
             pressed += 1
             if kept(r["t"] - 0.2, r["t"]):

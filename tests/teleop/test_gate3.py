@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from limbctl.errors import ConfigError, SafetyError
-from limbctl.geometry.gimbal3 import pose_quat_scalar
+from limbctl.geometry.gimbal import pose_quat_scalar
 from limbctl.geometry.twist import compose_one, decompose_one
 from limbctl.teleop.gate import Outcome
 from limbctl.teleop.gate3 import Gate3, GateLimits3, geodesic, toward, written_tolerance_deg3

@@ -1,4 +1,11 @@
-"""The haptic law: zero inside, toward the region outside, never above the cap."""
+"""The haptic law on each chain: zero inside, toward the correction, never above the cap; and the
+law against the simulator's leader on a stepped clock at exactly 200 Hz (the controller's part in
+this process, tests/teleop/stepped_leader.py).
+
+The two-servo leader (rig ``sim``) is gated by a 30 deg cone: along pan the edge lies at pan
+30 deg. The three-servo one (``sim3``) by a twist region fitted from a synthetic teaching
+(tests/teleop/twist_square.py): its edge lies near pan 30 deg in swing and roll 30 deg in twist.
+"""
 
 from __future__ import annotations
 
@@ -10,22 +17,40 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from limbctl.envelope import Cone
+from firmware_sim.leader import Operator, leader_joints
 from limbctl.errors import ConfigError
-from limbctl.geometry.gimbal import pan_tilt_to_quat, quat_to_pan_tilt
+from limbctl.geometry.gimbal import pose_quat_scalar
 from limbctl.servo.control_table import ModelNumber
 from limbctl.servo.leader import FELT_MODELS
-from limbctl.teleop.haptic import TICK_DEG, FeelLaw, FeelStats, beyond_deg, push_for
+from limbctl.teleop.gate3 import geodesic
+from limbctl.teleop.haptic import TICK_DEG, FeelLaw, FeelStats
+from limbctl.teleop.haptic_push import Push, beyond_deg, corrected_pose, held, push_for
 from limbctl.teleop.sources.leader import PaceWatch
-from tests.teleop.stepped_leader import felt_at_200_hz
+from tests.teleop.stepped_leader import CONE, felt_at_200_hz, motor_of, q_of, rig_of
+from tests.teleop.twist_square import square_region
 
 LAW = FeelLaw()
 MOTOR = FELT_MODELS[ModelNumber.XM430_W350]
-CONE = Cone(half_angle_deg=30.0)
+CAP = MOTOR.torque_of(MOTOR.units_for(LAW.cap_nm))
+RIG = rig_of(3)
+#: Each rig's joints' hard limits (rad), as the law is given them.
+LIMITS = {
+    rig: tuple((j.min_rad, j.max_rad) for j in rig_of(n).joints)
+    for rig, n in (("sim", 2), ("sim3", 3))
+}
+RIGS = sorted(LIMITS)
+IDS = (4, 5, 6)
 
 
-def q_of(pan_deg: float, tilt_deg: float) -> np.ndarray:
-    return np.asarray(pan_tilt_to_quat(math.radians(pan_deg), math.radians(tilt_deg)))
+@functools.cache
+def region_of(rig: str):
+    """The region each rig's leader feels (module docstring)."""
+    return CONE if rig == "sim" else square_region()
+
+
+@pytest.fixture(scope="module")
+def region():
+    return region_of("sim3")
 
 
 def test_torque_is_zero_inside_and_within_the_deadband_then_grows_to_the_cap():
@@ -49,26 +74,137 @@ def test_profile_velocity_stays_under_30_deg_s():
         FeelLaw(cap_nm=-1.0)
 
 
-def test_distance_is_between_the_command_and_its_correction():
-    q = q_of(40.0, 0.0)
-    assert beyond_deg(q, CONE.correct(q)) == pytest.approx(10.0, abs=1e-6)
-    assert beyond_deg(q_of(10.0, 5.0), CONE.correct(q_of(10.0, 5.0))) == 0.0
+def test_the_simulated_three_servo_leader_is_built_like_the_follower():
+    pan, tilt, roll = leader_joints(IDS)
+    assert [j.servo_id for j in (pan, tilt, roll)] == list(IDS)
+    assert (roll.zero_tick, roll.direction) == (RIG.joints[2].zero_tick, RIG.joints[2].direction)
+    hand = Operator([[0.0, 0.0, 0.0, 0.0], [2.0, 20.0, -10.0, 40.0]], joints=3)
+    assert hand.target_deg(1.0) == pytest.approx((10.0, -5.0, 20.0))
+    assert hand.torque(1.0, 2, 0.0, 0.0) == pytest.approx(0.3)  # 20 deg x 0.05, bounded at 0.3
+    with pytest.raises(ValueError, match="roll_deg"):
+        Operator([[0.0, 0.0, 0.0]], joints=3)
+    with pytest.raises(ValueError, match="must not decrease"):
+        Operator([[1.0, 0.0, 0.0, 0.0], [0.5, 0.0, 0.0, 0.0]], joints=3)
 
 
-def test_a_push_leads_the_leader_toward_the_corrected_pose_by_at_most_the_lead():
-    q = q_of(40.0, 0.0)
-    push = push_for(LAW, MOTOR, (math.radians(40.0), 0.0), q, CONE.correct(q))
-    assert push.goal_current == MOTOR.units_for(LAW.cap_nm)
-    # 10 deg beyond, deeper than a hand within the cap holds it: three ticks, not two
-    assert math.degrees(push.goal_pan) == pytest.approx(40.0 - 3 * TICK_DEG)
-    near = push_for(
-        LAW, MOTOR, (math.radians(31.5), 0.0), q_of(31.5, 0.0), CONE.correct(q_of(31.5, 0.0))
-    )
-    assert math.degrees(near.goal_pan) == pytest.approx(31.5 - 2 * TICK_DEG)
+#: A leader 10-20 deg beyond each rig's region (along pan; in roll), and one inside.
+DEEP = {"sim": (40.0, 0.0), "sim3": (0.0, 0.0, 45.0)}
+INSIDE = {"sim": (5.7, 0.0), "sim3": (5.7, 0.0, 11.5)}
+
+
+@pytest.mark.parametrize("rig", RIGS)
+def test_distance_is_to_the_correction_and_the_push_leads_toward_it_by_the_lead(rig):
+    q = q_of(*DEEP[rig])
+    corrected = region_of(rig).correct(q)
+    distance = beyond_deg(q, corrected, len(DEEP[rig]))
+    if rig == "sim":  # the angle between the directions: pan 40 to the edge at 30
+        assert distance == pytest.approx(10.0, abs=1e-6)
+    else:  # the rotation, the band's edge near 30 deg of roll
+        assert distance == pytest.approx(math.degrees(geodesic(q, corrected)))
+        assert 10.0 < distance < 20.0
+    present = tuple(np.radians(DEEP[rig]))
+    push = push_for(LAW, MOTOR, present, q, corrected, limits=LIMITS[rig])
+    assert push.distance_deg == distance
+    # the cap shared along the step: what the hand feels is at most the cap
+    assert max(push.joint_currents) == push.goal_current >= MOTOR.units_for(LAW.cap_nm) - 2
+    felt = math.sqrt(sum(MOTOR.torque_of(c) ** 2 for c in push.joint_currents))
+    assert push.torque_nm == pytest.approx(felt) and felt <= CAP
     assert push.profile_velocity == LAW.profile_velocity_units()
-    inside = push_for(LAW, MOTOR, (0.1, 0.0), q_of(5.7, 0.0), q_of(5.7, 0.0))
+    # 10-20 deg beyond, deeper than a hand within the cap holds it: three ticks, not two, from
+    # the leader in joint space
+    lead = math.degrees(float(np.linalg.norm(np.subtract(push.goal, present))))
+    assert lead == pytest.approx(3 * TICK_DEG, abs=1e-9)
+    present = (0.1, 0.0, 0.2)[: len(present)]
+    q = q_of(*INSIDE[rig])
+    inside = push_for(LAW, MOTOR, present, q, q, limits=LIMITS[rig])
     assert (inside.goal_current, inside.profile_velocity, inside.torque_nm) == (0, 0, 0.0)
-    assert inside.goal_pan == 0.1  # free: the goal rides with the leader
+    assert inside.goal == present  # free: the goal rides with the leader
+    assert held(present, 1.5) == Push(0, 0, present, 0.0, 1.5)
+
+
+def test_the_corrected_roll_is_unwrapped_against_the_present_roll_within_the_limits():
+    # roll 190 deg is roll -170: within limits of (-200, 200) deg the one nearer the leader's
+    q = q_of(0.0, 0.0, 190.0)
+    limits = (*LIMITS["sim3"][:2], (math.radians(-200.0), math.radians(200.0)))
+    assert math.degrees(corrected_pose(q, (0.0, 0.0, math.radians(170.0)), limits)[2]) == (
+        pytest.approx(190.0)
+    )
+    assert math.degrees(corrected_pose(q, (0.0, 0.0, math.radians(-150.0)), limits)[2]) == (
+        pytest.approx(-170.0)
+    )
+    with pytest.raises(ValueError, match="joint limits"):
+        corrected_pose(q, (0.0, 0.0, 0.0))
+
+
+#: Each rig's poses drawn (deg): pan, tilt, roll bounds.
+BOUNDS = {
+    "sim": ((-100.0, 100.0), (-50.0, 65.0)),
+    "sim3": ((-60.0, 60.0), (-45.0, 45.0), (-100, 100)),
+}
+unit = st.floats(0.0, 1.0)
+
+
+@pytest.mark.parametrize("rig", RIGS)
+@settings(max_examples=150, deadline=None)
+@given(st.tuples(unit, unit, unit), st.tuples(*[st.floats(-1.0, 1.0)] * 3))
+def test_property_never_above_the_cap_zero_inside_toward_the_correction(rig, at, lag):
+    pose = tuple(lo + u * (hi - lo) for u, (lo, hi) in zip(at, BOUNDS[rig], strict=False))
+    q = q_of(*pose)
+    region = region_of(rig)
+    corrected = region.correct(q)
+    present = tuple(math.radians(a + d) for a, d in zip(pose, lag, strict=False))  # a lagging read
+    push = push_for(LAW, MOTOR, present, q, corrected, limits=LIMITS[rig])
+    assert 0 <= push.goal_current <= MOTOR.units_for(LAW.cap_nm)
+    assert push.torque_nm <= LAW.cap_nm
+    if bool(region.contains(q)):
+        assert push.goal_current == 0
+    if push.goal_current:
+        # the goal lies from the leader toward the corrected pose, no further than the lead
+        step = np.subtract(push.goal, present)
+        lead = LAW.lead_for_deg(push.distance_deg, MOTOR)
+        assert np.max(np.abs(step)) <= math.radians(lead) + 1e-12
+        target = np.subtract(corrected_pose(corrected, present, LIMITS[rig]), present)
+        assert float(step @ target) >= 0.0
+
+
+#: Beyond each rig's edge along one joint (pan at 30 deg; roll near 30 deg): the joint and the
+#: angles drawn (deg).
+ALONG = {"sim": (0, 31.0, 60.0), "sim3": (2, 35.0, 60.0)}
+
+
+@pytest.mark.parametrize("rig", RIGS)
+@settings(max_examples=150, deadline=None)
+@given(unit, st.floats(-2.0, 2.0), st.floats(0.001, 0.05), st.booleans())
+def test_property_a_leader_outrunning_its_setpoints_or_still_moving_in_is_free_else_led(
+    rig, at, moved, period, engaged
+):
+    # beyond the edge along one joint: the correction lies at a smaller angle of it, so an
+    # angle that decreased by ``moved`` moved toward it
+    assume(moved == 0.0 or abs(moved) > 1e-9)  # a motion the float subtraction keeps
+    joint, lo, hi = ALONG[rig]
+    pose = [0.0] * len(DEEP[rig])
+    pose[joint] = lo + at * (hi - lo)
+    q = q_of(*pose)
+    corrected = region_of(rig).correct(q)
+    present = tuple(np.radians(pose))
+    pose[joint] += moved
+    previous = tuple(np.radians(pose))
+    limits = LIMITS[rig]
+    push = push_for(LAW, MOTOR, present, q, corrected, previous, period, engaged, limits=limits)
+    wall = push_for(LAW, MOTOR, present, q, corrected, limits=limits)
+    way = np.subtract(corrected_pose(corrected, present, limits), present)
+    moved_in = math.degrees(float(np.subtract(present, previous) @ way) / np.linalg.norm(way))
+    outrun = moved_in > LAW.return_speed_deg_s * period + LAW.outrun_slack_deg
+    near = wall.distance_deg - moved_in <= LAW.deadband_deg
+    low = wall.distance_deg - LAW.deadband_deg <= LAW.rearm_band_deg  # comes on only past it
+    if outrun or near or (not engaged and (moved_in > 0.0 or low)):
+        assert (push.goal_current, push.goal) == (0, present)
+    else:  # the wall's current and goal, at most LEAD ahead (it no longer grows with the
+        # leader's step: decisions/haptic.md, round 4)
+        assert push.goal_current == wall.goal_current and push.goal == wall.goal
+        lead = math.radians(LAW.lead_for_deg(wall.distance_deg, MOTOR))
+        assert 0.0 <= present[joint] - push.goal[joint] <= lead + 1e-12
+        assert np.max(np.abs(np.subtract(push.goal, present))) <= lead + 1e-12
 
 
 def test_a_wall_walking_its_leader_back_with_no_hand_leads_two_ticks_more():
@@ -78,7 +214,7 @@ def test_a_wall_walking_its_leader_back_with_no_hand_leads_two_ticks_more():
     def lead_ticks(engaged: bool, torque, velocity) -> float:
         push = push_for(LAW, MOTOR, pose, q, corrected, pose, 0.005, engaged, torque, velocity)
         assert push.goal_current > 0
-        return round((31.5 - math.degrees(push.goal_pan)) / TICK_DEG, 6)
+        return round((31.5 - math.degrees(push.goal[0])) / TICK_DEG, 6)
 
     walking = (-0.02, 0.0), (-13.7, 0.0)  # 0.02 N m in, at the setpoint's 13.7 deg/s
     assert lead_ticks(True, *walking) == 4
@@ -93,58 +229,10 @@ def test_a_wall_walking_its_leader_back_with_no_hand_leads_two_ticks_more():
     near = push_for(
         LAW, MOTOR, (math.radians(30.6), 0.0), edge, CONE.correct(edge), None, 0.0, True, *walking
     )
-    assert math.degrees(near.goal_pan) >= 30.0 - 1e-9
+    assert math.degrees(near.goal[0]) >= 30.0 - 1e-9
     without = FeelLaw(walk_lead_ticks=0)
     push = push_for(without, MOTOR, pose, q, corrected, pose, 0.005, True, *walking)
-    assert math.degrees(push.goal_pan) == pytest.approx(31.5 - 2 * TICK_DEG)
-
-
-angles = st.floats(-100.0, 100.0, allow_nan=False)
-
-
-@settings(max_examples=300, deadline=None)
-@given(angles, st.floats(-50.0, 65.0), st.floats(-1.0, 1.0), st.floats(-1.0, 1.0))
-def test_property_never_above_the_cap_zero_inside_toward_the_region(pan, tilt, dp, dt):
-    q = q_of(pan, tilt)
-    corrected = CONE.correct(q)
-    present = (math.radians(pan + dp), math.radians(tilt + dt))  # the read lags a little
-    push = push_for(LAW, MOTOR, present, q, corrected)
-    assert 0 <= push.goal_current <= MOTOR.units_for(LAW.cap_nm)
-    assert push.torque_nm <= LAW.cap_nm
-    if bool(CONE.contains(q)):
-        assert push.goal_current == 0
-    if push.goal_current:
-        # the goal lies from the leader toward the corrected pose, no further than the lead
-        step = np.subtract((push.goal_pan, push.goal_tilt), present)
-        lead = LAW.lead_for_deg(push.distance_deg, MOTOR)
-        assert np.max(np.abs(step)) <= math.radians(lead) + 1e-12
-        target = np.subtract(np.asarray(quat_to_pan_tilt(corrected), dtype=float), present)
-        assert float(step @ target) >= 0.0
-
-
-@settings(max_examples=300, deadline=None)
-@given(st.floats(31.0, 60.0), st.floats(-2.0, 2.0), st.floats(0.001, 0.05), st.booleans())
-def test_property_a_leader_outrunning_its_setpoint_or_still_moving_in_is_free_else_led(
-    pan, moved, period, engaged
-):
-    # along pan beyond the edge at 30 deg: moved > 0 is toward the region
-    assume(moved == 0.0 or abs(moved) > 1e-9)  # a motion the float subtraction keeps
-    q = q_of(pan, 0.0)
-    corrected = CONE.correct(q)
-    present, previous = (math.radians(pan), 0.0), (math.radians(pan + moved), 0.0)
-    push = push_for(LAW, MOTOR, present, q, corrected, previous, period, engaged)
-    free = push_for(LAW, MOTOR, present, q, corrected)
-    outrun = moved > LAW.return_speed_deg_s * period + LAW.outrun_slack_deg
-    near = (pan - 30.0) - moved <= LAW.deadband_deg
-    low = (pan - 30.0) - LAW.deadband_deg <= LAW.rearm_band_deg  # comes on only past this
-    if outrun or near or (not engaged and (moved > 0.0 or low)):
-        assert push.goal_current == 0
-    else:  # otherwise the law's current, the goal at most LEAD ahead (it no longer grows with
-        # the leader's step: decisions/haptic.md, round 4)
-        assert push.goal_current == free.goal_current
-        assert push.goal_pan == free.goal_pan
-        lead = LAW.lead_for_deg(push.distance_deg, MOTOR)
-        assert 0.0 <= present[0] - push.goal_pan <= math.radians(lead) + 1e-12
+    assert math.degrees(push.goal[0]) == pytest.approx(31.5 - 2 * TICK_DEG)
 
 
 @settings(max_examples=300, deadline=None)
@@ -363,3 +451,223 @@ def test_a_leader_released_by_goal_current_alone_still_walks_back_after_let_go()
     after = t >= 5.0
     assert np.convolve(-velocity[after], np.ones(20) / 20.0, mode="valid").max() <= 30.0
     assert 30.0 <= pan[after].min()
+
+
+# -- the law against the simulated three-servo leader, at exactly 200 Hz -------------------------
+
+
+def felt3(region, script, seconds, let_go_s=None, **options):
+    """:func:`felt_at_200_hz` of a three-servo ``script`` in ``region``, and each cycle's
+    (pose, push, instead)."""
+    pushes: list = []
+    rows = felt_at_200_hz(
+        script, seconds, let_go_s=let_go_s, region=region, pushes=pushes, **options
+    )
+    return rows, pushes
+
+
+def beyond_of(region, row):
+    q = q_of(*row["pose_deg"])
+    return beyond_deg(q, region.correct(q), 3)
+
+
+def judge(region, rows, pushes, start_s, end_s):
+    """The checks every press must pass; the held rows' distances beyond the edge (deg)."""
+    # every cycle whose command was inside wrote no current, on all three servos
+    inside = [push for _, push, _ in pushes if push.distance_deg == 0.0]
+    assert inside and all(push.goal_current == 0 for push in inside)
+    # in the ground truth: never above the cap on any joint; no torque while inside
+    assert max(abs(m) for r in rows for m in r["motor_nm"]) <= CAP + 1e-12
+    truly_inside = [r for r in rows[::5] if region.contains(q_of(*r["pose_deg"]))]
+    assert truly_inside and all(r["motor_nm"] == [0.0, 0.0, 0.0] for r in truly_inside)
+    # outside, pressed: the joint torques point toward the corrected pose
+    toward = []
+    for r in rows[::5]:
+        if not any(r["motor_nm"]):
+            continue
+        present = tuple(np.radians(r["pose_deg"]))
+        q = pose_quat_scalar(*present)
+        way = np.subtract(corrected_pose(region.correct(q), present, LIMITS["sim3"]), present)
+        if float(np.dot(r["hand_nm"], way)) < 0.0:  # the hand pushes outward
+            toward.append(float(np.dot(r["motor_nm"], way)))
+    assert len(toward) > 50 and min(toward) > 0.0
+    return np.array([beyond_of(region, r) for r in rows if start_s <= r["t"] < end_s])
+
+
+#: Pressing 20 deg beyond the edge from the middle in 2 s: in swing (pan) and in twist (roll).
+PRESSES = {
+    "swing": [[0.0, 0.0, 0.0, 0.0], [2.0, 50.0, 0.0, 0.0]],
+    "twist": [[0.0, 0.0, 0.0, 0.0], [2.0, 0.0, 0.0, 50.0]],
+    "both": [[0.0, 0.0, 0.0, 0.0], [2.0, 40.0, 10.0, -45.0]],
+}
+
+
+_LET_GO: dict = {}
+
+
+def pressed_and_let_go(region, press):
+    """:func:`felt3` of ``PRESSES[press]`` let go at 4.5 s (computed once)."""
+    if press not in _LET_GO:
+        _LET_GO[press] = felt3(region, PRESSES[press], 6.0, let_go_s=4.5)
+    return _LET_GO[press]
+
+
+def outward_after(region, rows, start_s):
+    """Times (s from ``start_s``) of the 1 ms samples from then on outside the region whose joint
+    torques point away from the correction (dot product with ``corrected - present`` < 0)."""
+    times = []
+    for r in rows:
+        if r["t"] < start_s or not any(r["motor_nm"]):
+            continue
+        present = tuple(np.radians(r["pose_deg"]))
+        q = pose_quat_scalar(*present)
+        if region.contains(q):
+            continue
+        way = np.subtract(corrected_pose(region.correct(q), present, LIMITS["sim3"]), present)
+        if float(np.dot(r["motor_nm"], way)) < 0.0:
+            times.append(r["t"] - start_s)
+    return times
+
+
+@pytest.mark.parametrize("press", sorted(PRESSES))
+def test_at_200_hz_the_leader_stops_within_2_deg_of_the_edge_and_walks_back(region, press):
+    rows, pushes = pressed_and_let_go(region, press)
+    held = judge(region, rows, pushes, 3.0, 4.5)
+    # a 0.3 N m hand of 0.05 N m/deg held beyond the edge, within 2 deg of rotation of it
+    assert 0.4 < held.min() and held.max() < 2.0
+    assert np.ptp(held) < 0.3  # no ripple
+    # let go: walked back by the profiles (under 30 deg/s on every joint), resting beyond
+    after = [r for r in rows if r["t"] >= 4.5]
+    speeds = np.abs([r["velocity_deg_s"] for r in after])
+    smoothed = [np.convolve(speeds[:, j], np.ones(20) / 20, mode="valid").max() for j in range(3)]
+    assert max(smoothed) <= 30.0
+    assert beyond_of(region, after[-1]) < LAW.deadband_deg + 0.1
+    assert all(beyond_of(region, r) > 0.0 for r in after[::5])  # never walked inside
+    # the snap watch lets the held wall go as the snap onto the setpoints starts: no sample
+    # after the let go pulls outward, none turns faster than 30 deg/s (limbctl/teleop/snap.py)
+    assert outward_after(region, rows, 4.5) == []
+    assert speeds.max() <= 30.0
+
+
+def test_at_200_hz_the_law_alone_brakes_a_let_go_three_servo_leader_outward(region):
+    # the peer: round 6's law without the snap watch brakes each press's snap 2-6 ms after the
+    # let go, and the swing press's snap reaches 32.0 deg/s (decisions/haptic.md, round 5)
+    runs = {p: felt3(region, PRESSES[p], 6.0, 4.5, snap_watch=False) for p in PRESSES}
+    assert all(len(outward_after(region, rows, 4.5)) >= 2 for rows, _ in runs.values())
+    swing = [r for r in runs["swing"][0] if r["t"] >= 4.5]
+    assert max(max(map(abs, r["velocity_deg_s"])) for r in swing) > 30.0
+
+
+@pytest.mark.parametrize("model", ["xl330-m288@53", "xl330-m077@53"])
+@pytest.mark.parametrize("press", sorted(PRESSES))
+def test_at_200_hz_an_xl330_leader_pushes_with_its_cap_and_returns_under_30_deg_s(
+    region, model, press
+):
+    # the lead follows the soft loop (ten ticks and more on an XL330, two on the XM430), and
+    # the XL330-M288 holds at most 0.12 N m (decisions/haptic.md, round 6)
+    # (the law alone, without the snap watch: the figures do not lean on it)
+    rows, _ = felt3(region, PRESSES[press], 6.0, let_go_s=4.5, model=model, snap_watch=False)
+    motor = motor_of(model)
+    cap = motor.torque_of(motor.units_for(motor.cap_nm(LAW.cap_nm)))
+    held = [r for r in rows if 3.0 <= r["t"] < 4.5]
+    # the 0.3 N m hand overpowers an XL330's cap: the wall pushes with about all of it, never
+    # more, in magnitude (the norm of the joints' torques: at most the law's cap; a joint the
+    # hand pushes less than its share of the cap sits under it)
+    felt = max(float(np.linalg.norm(r["motor_nm"])) for r in held)
+    assert 0.9 * cap <= felt <= motor.cap_nm(LAW.cap_nm) + 1e-12
+    after = [r for r in rows if r["t"] >= 4.5]
+    assert max(max(map(abs, r["velocity_deg_s"])) for r in after) <= 30.0  # every 1 ms sample
+    assert beyond_of(region, after[-1]) < 0.5
+    assert all(beyond_of(region, r) > 0.0 for r in after[::5])  # never walked inside
+
+
+#: Pressed 20 deg beyond the edge, held, then pulled back inside in 0.2 s: in swing and twist.
+PULLS = {
+    "swing": [[0.0, 0.0, 0.0, 0.0], [2.0, 50.0, 0.0, 0.0], [4.0, 50.0, 0.0, 0.0], [4.2, 0, 0, 0]],
+    "twist": [[0.0, 0.0, 0.0, 0.0], [2.0, 0.0, 0.0, 50.0], [4.0, 0.0, 0.0, 50.0], [4.2, 0, 0, 0]],
+}
+
+
+def pulled_outward(region, rows):
+    """The 1 ms truth rows outside the region whose joint torques point away from the
+    correction (their dot product with ``corrected pose - pose`` < 0), and the rows inside
+    with any torque."""
+    outward, inside = [], []
+    for r in rows:
+        if not any(r["motor_nm"]):
+            continue
+        present = tuple(np.radians(r["pose_deg"]))
+        q = pose_quat_scalar(*present)
+        if bool(region.contains(q)):
+            inside.append(r)
+            continue
+        way = np.subtract(corrected_pose(region.correct(q), present, LIMITS["sim3"]), present)
+        if float(np.dot(r["motor_nm"], way)) < 0.0:
+            outward.append(r)
+    return outward, inside
+
+
+@pytest.mark.parametrize("stiffness", [0.05, 0.2])
+@pytest.mark.parametrize("pull", sorted(PULLS))
+def test_a_hand_carrying_the_leader_back_toward_the_region_is_pulled_outward_less(
+    region, pull, stiffness
+):
+    # as the two-servo leader's: the setpoints move at most 30 deg/s, so the loops would pull a
+    # faster leader back, away from the region; the law lets go once a read shows it outrunning
+    # the setpoints by more than a tick. Without the let-go rules (previous=None) the wall
+    # stays on until the leader is within the deadband.
+    # The first read whose Present Current pulls outward frees the wall too (round 5): the
+    # pull lasts at most a cycle and its write.
+    rows, _ = felt3(region, PULLS[pull], 5.0, stiffness=stiffness)
+    before, _ = felt3(region, PULLS[pull], 5.0, stiffness=stiffness, rules=False)
+    outward, inside = pulled_outward(region, rows)
+    assert not inside  # never any torque inside
+    assert len(outward) < len(pulled_outward(region, before)[0])
+    assert not outward or outward[-1]["t"] - outward[0]["t"] <= 0.006
+    # along the way to the correction, never more than a quarter of the cap outward
+    pulls = [-float(np.dot(r["motor_nm"], unit_way(region, r))) for r in outward]
+    assert max(pulls, default=0.0) < 0.25 * CAP
+
+
+def unit_way(region, row):
+    """The unit joint-space direction from a row's pose toward its correction."""
+    present = tuple(np.radians(row["pose_deg"]))
+    q = pose_quat_scalar(*present)
+    way = np.subtract(corrected_pose(region.correct(q), present, LIMITS["sim3"]), present)
+    return way / np.linalg.norm(way)
+
+
+def test_a_held_gate_switches_every_joint_off_within_the_cycle(region):
+    # the gate holds for 10 cycles from 3.2 s (a failed follower read): each writes Goal
+    # Current 0, so from that write (1 ms in) the motors apply nothing until the next cycle's
+    held = {k: "held" for k in range(640, 650)}
+    rows, pushes = felt3(region, PRESSES["twist"], 4.0, cycles=held)
+    released = [r for r in rows if 3.2 + 0.0015 <= r["t"] < 3.25]
+    assert released and all(r["motor_nm"] == [0.0, 0.0, 0.0] for r in released)
+    assert max(abs(r["motor_nm"][2]) for r in rows if 3.1 <= r["t"] < 3.2) > 0.25  # it pushed
+    # back on, the wall pushes the leader the hand took ~15 deg out back toward the edge, against
+    # the hand (0.27 N m there): a two-tick lead left its loop 0.27 N m and it stayed 14.9 deg out
+    # (decisions/haptic.md, round 4)
+    out = [beyond_of(region, r) for r in rows if 3.25 <= r["t"] < 3.35]
+    late = [beyond_of(region, r) for r in rows if 3.9 <= r["t"] < 4.0]
+    assert max(out) > 10.0 and max(late) < max(out) - 3.0
+    silent = {k: "silent" for k in range(700, 710)}
+    rows, _ = felt3(region, PRESSES["swing"], 4.0, cycles=silent)
+    released = [r for r in rows if 3.5 + 0.0005 <= r["t"] < 3.55]
+    assert released and all(r["motor_nm"] == [0.0, 0.0, 0.0] for r in released)
+
+
+def test_a_leader_released_by_goal_current_alone_still_walks_back_in_twist(region):
+    # the leader's read fails for 100 ms just before the hand lets go at 4.5 s: released by Goal
+    # Current alone, the hand turns it further; let go, the wall comes on again with Torque
+    # Enable off and on (its setpoints at the present pose) and walks it back at the profile's
+    # speed on every joint, resting beyond the edge
+    silent = {k: "silent" for k in range(880, 900)}
+    rows, _ = felt3(region, PRESSES["twist"], 6.5, let_go_s=4.5, cycles=silent)
+    before = [beyond_of(region, r) for r in rows if 4.45 <= r["t"] < 4.5]
+    assert max(before) > 5.0  # the hand took it far out meanwhile
+    after = [r for r in rows if r["t"] >= 4.5]
+    speeds = np.abs([r["velocity_deg_s"] for r in after])
+    smoothed = [np.convolve(speeds[:, j], np.ones(20) / 20, mode="valid").max() for j in range(3)]
+    assert max(smoothed) <= 30.0
+    assert all(beyond_of(region, r) > 0.0 for r in after[::5])

@@ -10,8 +10,7 @@ import numpy as np
 import pytest
 
 from limbctl.teleop.haptic import FeelLaw
-from tests.teleop.stepped_leader import felt_at_200_hz, motor_of
-from tests.teleop.test_haptic3 import felt3_at_200_hz
+from tests.teleop.stepped_leader import CONE, felt_at_200_hz, motor_of
 from tests.teleop.twist_square import square_region
 
 LAW = FeelLaw()
@@ -32,13 +31,9 @@ DIAGONALS = {
 def pressed(rig: str, stiffness: float, max_torque_nm: float) -> tuple:
     """The 1 ms truth rows of a diagonal press by a hand of ``stiffness`` (N m/deg) pushing with
     at most ``max_torque_nm`` (N m), let go at once at LET_GO_S."""
-    script = DIAGONALS[rig]
-    if rig == "two-servo":
-        return tuple(
-            felt_at_200_hz(script, 6.0, stiffness, let_go_s=LET_GO_S, max_torque_nm=max_torque_nm)
-        )
-    rows, _ = felt3_at_200_hz(
-        square_region(), script, 6.0, LET_GO_S, stiffness=stiffness, max_torque_nm=max_torque_nm
+    region = square_region() if rig == "three-servo" else CONE
+    rows = felt_at_200_hz(
+        DIAGONALS[rig], 6.0, stiffness, LET_GO_S, max_torque_nm=max_torque_nm, region=region
     )
     return tuple(rows)
 

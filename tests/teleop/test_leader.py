@@ -92,7 +92,7 @@ def test_leader_ids_must_be_on_the_bus_and_distinct():
 def test_a_three_servo_leader_gives_full_orientations_and_needs_a_three_servo_follower():
     import numpy as np
 
-    from limbctl.geometry.gimbal3 import pose_quat_scalar
+    from limbctl.geometry.gimbal import pose_quat_scalar
 
     with open_rig(extra_ids=(3, 4)) as session:
         refused = "needs a 3-servo follower: rig 'sim' has 2 servos; give leader:ID,ID"
@@ -116,9 +116,9 @@ def test_a_three_servo_leader_gives_full_orientations_and_needs_a_three_servo_fo
         with LeaderSource(rig, (4, 5, 6)) as source:
             ticks = rig.bus.sync_read(Register.PRESENT_POSITION, (4, 5, 6))
             [command] = source.poll()
-    expected = pose_quat_scalar(*rig.angles_of(tuple(ticks[i] for i in (4, 5, 6))))
+    expected = pose_quat_scalar(*rig.ticks_to_angles(*(ticks[i] for i in (4, 5, 6))))
     np.testing.assert_allclose(command.q, expected, atol=1e-12)
     # the shafts were waited for within 2 ticks of goals rounded from the angles: 2.33 ticks
-    assert math.degrees(rig.angles_of(tuple(ticks[i] for i in (4, 5, 6)))[2]) == pytest.approx(
+    assert math.degrees(rig.ticks_to_angles(*(ticks[i] for i in (4, 5, 6)))[2]) == pytest.approx(
         -30.0, abs=2.34 * 360 / 4096
     )

@@ -10,8 +10,7 @@ import math
 import numpy as np
 import pytest
 
-from limbctl.geometry.gimbal import pan_tilt_to_quat
-from limbctl.geometry.gimbal3 import pose_quat_scalar
+from limbctl.geometry.gimbal import pan_tilt_to_quat, pose_quat_scalar
 from limbctl.geometry.twist import compose, decompose
 from limbctl.teleop.cycle import Cycle, CycleState, TeleopSummary
 from limbctl.teleop.gate import GateResult, Outcome

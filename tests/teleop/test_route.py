@@ -18,7 +18,7 @@ from limbctl.envelope.synthetic_bays import (
     inside_points,
 )
 from limbctl.geometry import scalar
-from limbctl.geometry.gimbal3 import pan_tilt_roll_scalar, pose_quat_scalar
+from limbctl.geometry.gimbal import pan_tilt_roll_scalar, pose_quat_scalar
 from limbctl.geometry.twist import decompose, wrap
 from limbctl.teleop.gate import Gate, GateLimits
 from limbctl.teleop.gate3 import Gate3, GateLimits3, geodesic

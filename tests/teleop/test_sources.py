@@ -142,7 +142,7 @@ def test_keyboard_source_needs_a_terminal(tmp_path):
 def test_keyboard_roll_keys_turn_the_limb_on_three_servos_and_are_refused_on_two():
     import pty
 
-    from limbctl.geometry.gimbal3 import pan_tilt_roll_to_quat
+    from limbctl.geometry.gimbal import pan_tilt_roll_to_quat
     from limbctl.teleop.sources import KeyboardSource
 
     for twist in (True, False):
@@ -175,9 +175,9 @@ def test_keyboard_roll_keys_turn_the_limb_on_three_servos_and_are_refused_on_two
 
 def test_a_source_on_a_three_servo_rig_keeps_twist():
     from calib import default_sim_profile
-    from limbctl.servo.rig3 import RollRig
+    from limbctl.servo.rig import Rig
     from limbctl.teleop.sources import SourceContext, parse_source
 
-    rig = RollRig(default_sim_profile("sim3"))
+    rig = Rig(default_sim_profile("sim3"))
     assert parse_source("udp://127.0.0.1:0").open(SourceContext(rig=rig)).twist
     assert not parse_source("udp://127.0.0.1:0").open(SourceContext()).twist

@@ -9,7 +9,7 @@ import pytest
 
 from limbctl.envelope import RigidMap
 from limbctl.envelope.synthetic_twist import ShoulderRegion
-from limbctl.geometry.gimbal3 import chain_twist_scalar, quat_to_pan_tilt_roll
+from limbctl.geometry.gimbal import chain_twist_scalar, quat_to_pan_tilt_roll
 from limbctl.geometry.twist import compose, decompose
 from limbctl.live import TeleopFeed
 from limbctl.teach.twist_guide import TwistPlace

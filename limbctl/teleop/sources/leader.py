@@ -6,12 +6,12 @@ three-servo leader ``leader:4,5,6`` adds its roll id and needs a three-servo fol
 assumed to be built and calibrated like the follower: its ticks are read with the follower's
 zero ticks and directions. Each control cycle reads the leader in one sync read and offers its
 pose as the newest command (a direction for two joints, an orientation for three:
-:mod:`~limbctl.teleop.sources.leader_chain`); it goes through the gate like any other. The bus
+:func:`pose_command`); it goes through the gate like any other. The bus
 side (set-up, reads, writes, torque) is :mod:`~limbctl.teleop.sources.leader_bus`.
 
 A leader whose model senses current (:data:`limbctl.servo.leader.FELT_MODELS`) *feels the edge*:
 its servos run in current-based position mode, free inside the region, pushing back beyond it
-(the chain's law, :mod:`~limbctl.teleop.sources.leader_chain`); after each cycle's gate,
+(:func:`limbctl.teleop.haptic_push.push_for`, on any chain); after each cycle's gate,
 :meth:`LeaderSource.feel` writes that push in one sync write. Any doubt switches the push off at
 once: a leader that is silent, in alarm or restarted, a failed bus, a held gate, a fault
 (:meth:`LeaderSource.release`) or the session's end. Bus Watchdog is the backstop; a guard
@@ -31,13 +31,13 @@ from limbctl.servo.control_table import Register
 from limbctl.servo.leader import feel_data
 from limbctl.servo.leader_guard import LeaderGuard
 from limbctl.servo.rig import Rig
-from limbctl.teleop.commands import Command
+from limbctl.teleop.commands import Command, command_from_pan_tilt, command_from_pose
 from limbctl.teleop.gate import Outcome
-from limbctl.teleop.haptic import FeelLaw, FeelStats, Push
+from limbctl.teleop.haptic import FeelLaw, FeelStats
+from limbctl.teleop.haptic_push import Push, held, push_for
 from limbctl.teleop.pacing import PaceWatch
 from limbctl.teleop.sources.base import CommandSource
 from limbctl.teleop.sources.leader_bus import WATCHDOG_UNIT_S, WATCHDOG_UNITS, LeaderBus
-from limbctl.teleop.sources.leader_chain import CHAINS
 from limbctl.teleop.sources.leader_ids import check_leader_fits
 from limbctl.teleop.sources.leader_silence import LeaderSilence
 from limbctl.teleop.sources.leader_snap import SnapWatching, cycle_velocity, snap_watch
@@ -53,6 +53,20 @@ FOLLOWER_UNREAD = "the bus failed this cycle"
 #: the follower counts as faulted and the wall goes off until it is read again (the loop's own
 #: fault, 0.5 s of silence, releases it too). docs/decisions/haptic.md.
 FOLLOWER_GRACE_S = 0.055
+
+
+def pose_command(pose: tuple[float, ...]) -> Command:
+    """The command of a leader's pose (rad, one angle per joint): a direction for two joints,
+    an orientation for three.
+
+    Raises
+    ------
+    InvalidInputError
+        Outside the range every source's commands are checked against.
+    """
+    if len(pose) == 3:
+        return command_from_pose(*(math.degrees(a) for a in pose))
+    return command_from_pan_tilt(math.degrees(pose[0]), math.degrees(pose[1]))
 
 
 class LeaderSource(SnapWatching, LeaderBus, CommandSource):
@@ -87,8 +101,8 @@ class LeaderSource(SnapWatching, LeaderBus, CommandSource):
             raise ConfigError(f"leader servos {leader_ids} are not on the bus")
         self.rig = rig
         self.leader_ids = tuple(leader_ids)
-        #: What the chain's number of joints decides (its command, free push, law, notice).
-        self.chain = CHAINS[len(self.leader_ids)]
+        #: Each joint's hard limits (lo, hi; rad), within which the law unwraps a correction.
+        self.limits = tuple((joint.min_rad, joint.max_rad) for joint in rig.joints)
         self.read_failures = 0
         #: Cycles whose push the safety rules released (the leader unread, a held gate, a
         #: failed write, a follower silent past FOLLOWER_GRACE_S), whether or not it pressed.
@@ -150,10 +164,10 @@ class LeaderSource(SnapWatching, LeaderBus, CommandSource):
         except BusError:
             self.read_failures += 1
             return []
-        pose = self._angles(tuple(ticks[i] for i in self.leader_ids))
+        pose = self.rig.ticks_to_angles(*(ticks[i] for i in self.leader_ids))
         self.last_pose = pose
         try:  # the same range checks as every other source's commands
-            command = self.chain.command(pose)
+            command = pose_command(pose)
         except InvalidInputError as exc:
             self.stats.reject(f"leader pose refused: {exc}")
             return []
@@ -184,7 +198,7 @@ class LeaderSource(SnapWatching, LeaderBus, CommandSource):
         pose = self._pose(read)
         self.last_pose = pose
         try:
-            command = self.chain.command(pose)
+            command = pose_command(pose)
         except InvalidInputError as exc:
             self.stats.reject(f"leader pose refused: {exc}")
             return []
@@ -234,9 +248,9 @@ class LeaderSource(SnapWatching, LeaderBus, CommandSource):
             previous, period = (None, 0.0) if last is None else (last[0], read_at - last[1])
             engaged = resume or (self.last_push is not None and self.last_push.goal_current > 0)
             corrected = gate.envelope.correct(q)
-            push = self.chain.law(
-                self.law, self.motor, self.rig.joints, pose, q, corrected, previous, period,
-                engaged, torque, speed,
+            push = push_for(
+                self.law, self.motor, pose, q, corrected, previous, period, engaged, torque,
+                speed, self.limits,
             )  # fmt: skip
             # a wall kept by the rules at this very read (judge_read) is not judged twice
             judged = engaged and self._cycle_judged
@@ -245,11 +259,11 @@ class LeaderSource(SnapWatching, LeaderBus, CommandSource):
                 and not judged
                 and not self.snap.allows(pose, push.goal, speed, engaged, read_at, torque)
             ):
-                push = self.chain.free(pose)  # still moving in, snapping or outrunning: no wall
+                push = held(pose)  # still moving in, snapping or outrunning: no wall
             if push.goal_current and not engaged and not self.still_to_engage(pose, push.goal):
-                push = self.chain.free(pose)  # a hand took it in since the read: not yet
+                push = held(pose)  # a hand took it in since the read: not yet
         else:
-            push = self.chain.free(cycle[0])
+            push = held(cycle[0])
         if push is None:
             self.release()
             return notes

@@ -1,7 +1,7 @@
 """A leader source's bus side: its set-up, its reads turned into poses and torques, its writes.
 
 Mixed into :class:`~limbctl.teleop.sources.leader.LeaderSource`, which runs the cycle (its
-``rig``, ``leader_ids``, ``law``, ``rate_hz``, ``chain``, ``motor``, ``last_push`` and ``snap``).
+``rig``, ``leader_ids``, ``law``, ``rate_hz``, ``motor``, ``last_push`` and ``snap``).
 A leader has one servo per joint of its follower and is read like it (the follower's zero
 ticks and directions); every write goes to all its servos in one sync write.
 """
@@ -23,8 +23,7 @@ from limbctl.servo.leader import (
     present_current,
 )
 from limbctl.servo.leader_guard import LeaderGuard
-from limbctl.servo.ticks import angle_to_ticks, ticks_to_angle
-from limbctl.teleop.haptic import Push
+from limbctl.teleop.haptic_push import Push, held
 
 #: Bus Watchdog of a felt leader: 5 x 20 ms = 100 ms without a packet stops it (it holds where it
 #: is with its last push, at most the cap, until its guard switches it off: docs/haptic.md, a
@@ -39,6 +38,14 @@ GOAL_CURRENT_BLOCK = Block(Register.GOAL_CURRENT, Register.GOAL_CURRENT.size)
 #: so a moment of load on a shared machine does not refuse a bus that keeps the rate.
 RATE_CHECK_CYCLES = 50
 RATE_CHECK_TRIES = 3
+#: What the operator is told at start when the leader feels the edge, by its number of joints
+#: (its model, the law's deadband in deg, the cap in N m and as its Current Limit in units).
+FEEL_NOTICES = {
+    2: "leader {model} feels the edge: free inside, pushed back beyond {deadband:g} deg, at most "
+    "{cap_nm:.2f} N m (Current Limit {cap})",
+    3: "leader {model} (three servos) feels the edge in swing and twist: free inside, pushed back "
+    "beyond {deadband:g} deg of rotation, at most {cap_nm:.2f} N m (Current Limit {cap})",
+}
 
 
 class LeaderBus:
@@ -77,7 +84,10 @@ class LeaderBus:
         self.motor = motor
         self._guard = LeaderGuard.start(bus, self.leader_ids)
         self.cap_nm = motor.torque_of(cap)
-        self.notice = self.chain.notice(model, self.law.deadband_deg, self.cap_nm, cap)
+        feels = FEEL_NOTICES[len(self.leader_ids)]
+        self.notice = feels.format(
+            model=model, deadband=self.law.deadband_deg, cap_nm=self.cap_nm, cap=cap
+        )
 
     def _check_rate(self) -> None:
         """Time felt cycles' transfers; refuse when no batch's median fits the period (a batch
@@ -90,7 +100,7 @@ class LeaderBus:
                 self.rig.read_cycle(attempts=1)
                 read = self.rig.bus.read_cycle(ids=self.leader_ids, attempts=1)
                 if read.ok:
-                    self._write(self.chain.free(self._pose(read)))
+                    self._write(held(self._pose(read)))
                 times.append(time.perf_counter() - start)
             medians.append(float(np.median(times)))
             if medians[-1] <= 1.0 / self.rate_hz:
@@ -135,17 +145,10 @@ class LeaderBus:
         except BusError:
             self._heard_at = -math.inf  # tried again on the next good read
 
-    def _angles(self, ticks: tuple[int, ...]) -> tuple[float, ...]:
-        """The leader's joint angles (rad), one per joint, at its ticks, read like the
-        follower's (each joint's zero tick and direction)."""
-        return tuple(
-            float(ticks_to_angle(tick, joint.zero_tick, joint.direction))
-            for tick, joint in zip(ticks, self.rig.joints, strict=True)
-        )
-
     def _pose(self, read) -> tuple[float, ...]:
-        """The pose (rad, one angle per joint) of a good read of the leader."""
-        return self._angles(tuple(read.reports[i].present for i in self.leader_ids))
+        """The pose (rad, one angle per joint) of a good read of the leader, read like the
+        follower's (each joint's zero tick and direction)."""
+        return self.rig.ticks_to_angles(*(read.reports[i].present for i in self.leader_ids))
 
     def _torque(self, read) -> tuple[float, ...]:
         """The leader's motor torques (joint frame, N m) in a good read of a felt leader: its
@@ -166,10 +169,7 @@ class LeaderBus:
     def _write(self, push: Push) -> None:
         """One sync write of Goal Current and Goal Position to the leader's servos; Torque
         Enable off and on first when the wall comes on, Profile Velocity once with it."""
-        ticks = (
-            int(angle_to_ticks(angle, joint.zero_tick, joint.direction))
-            for angle, joint in zip(push.goal, self.rig.joints, strict=True)
-        )  # the push's Goal Position per servo, each clamped to one turn below
+        ticks = self.rig.angles_to_ticks(*push.goal)  # not clamped: each to one turn below
         currents = push.currents(len(self.leader_ids))
         data = {
             servo_id: encode_feel(current, min(max(int(tick), 0), MAX_TICK))

@@ -1,0 +1,201 @@
+"""A felt leader's push this cycle: the wall law of :mod:`limbctl.teleop.haptic` on its chain.
+
+The leader's pose (n joints, n = 2 or 3) is the command ``q``; the region corrects it to
+``correct(q)``. What the chain decides (:func:`beyond_deg`, :func:`corrected_pose`)::
+
+    two joints (pan, tilt):        d = angle between the directions of q and correct(q)
+                                   target = (pan, tilt) of correct(q)'s direction
+    three joints (pan, tilt, roll): d = 2 acos |<q, correct(q)>|  (the rotation between them)
+                                   target = (pan, tilt, roll) of correct(q), the pan kept at
+                                   tilt +-90 deg, the roll unwrapped within the roll joint's
+                                   limits nearest the leader's roll (as the gate does)
+
+Everything else is the law's, on the joint-space step ``s = target - present`` (n,): the torque
+shared along it (:func:`~limbctl.teleop.haptic_currents.shared_currents`, so the hand feels at
+most tau), Goal Position at most LEAD along it, and the let-go rules on the leader's motion and
+motor torque projected on it. Each servo's loop drives its joint toward its goal with at most its
+Goal Current, so the joints' torques point toward the correction. Near the edge a rotation of
+``d`` needs joint moves of about ``d`` (a three-joint chain's Jacobian is near orthonormal away
+from tilt +-90 deg), so the wall's stiffness per joint, and its passivity at 200 Hz, are the same
+on both chains (docs/haptic.md).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from limbctl.geometry.gimbal import pan_tilt_roll_scalar, quat_to_pan_tilt
+from limbctl.servo.leader import LeaderMotor
+from limbctl.teleop.gate3 import geodesic
+from limbctl.teleop.haptic import (
+    FeelLaw,
+    goal_lead_rad,
+    lets_go,
+    moved_in_deg,
+    pulls_outward,
+    walks_back,
+)
+from limbctl.teleop.haptic_currents import shared_currents
+
+
+@dataclass(frozen=True)
+class Push:
+    """One cycle's command to the leader's servos.
+
+    Attributes
+    ----------
+    goal_current : int
+        Goal Current units (0: no torque): the largest of ``joint_currents``.
+    profile_velocity : int
+        Profile Velocity units (0 while free, where it is not written: the servo keeps the
+        wall's, and the wall always comes on from the present position).
+    goal : tuple of float, (n,)
+        Goal pose, one angle per joint of the chain (rad).
+    torque_nm : float
+        The push's magnitude the currents allow (N m; the norm of the joints' torques): what
+        the hand feels at most, what the report and the page show.
+    distance_deg : float
+        How far the command lies beyond the region (deg).
+    joint_currents : tuple of int, (n,)
+        Goal Current units per joint (:func:`~limbctl.teleop.haptic_currents.shared_currents`);
+        empty: ``goal_current`` on every joint (a free push's 0).
+    """
+
+    goal_current: int
+    profile_velocity: int
+    goal: tuple[float, ...]
+    torque_nm: float
+    distance_deg: float
+    joint_currents: tuple[int, ...] = ()
+
+    def currents(self, joints: int) -> tuple[int, ...]:
+        """Goal Current units for each of ``joints`` joints."""
+        return self.joint_currents or (self.goal_current,) * joints
+
+
+def held(present: Sequence[float], distance_deg: float = 0.0) -> Push:
+    """The push of a cycle that may not push (a held gate, a failed read of the follower, a
+    wall the snap watch let go): Goal Current 0, Profile Velocity 0, the goal where the leader
+    is (``present``, rad, one per joint), ``distance_deg`` beyond the region."""
+    return Push(0, 0, tuple(present), 0.0, distance_deg)
+
+
+def beyond_deg(q: np.ndarray, corrected: np.ndarray, joints: int) -> float:
+    """How far (deg) a command (4,) lies beyond its correction (4,) on a chain of ``joints``
+    joints; 0 when the same. Two: the angle between the limb's directions (a pan-tilt chain
+    sets no twist of its own); three: the rotation between the orientations."""
+    if np.array_equal(q, corrected):
+        return 0.0
+    if joints == 3:
+        # d = 2 acos |<q, c>|, computed as gate3.geodesic does (accurate near 0)
+        return math.degrees(geodesic(np.asarray(q, dtype=float), np.asarray(corrected, float)))
+    a = np.asarray(quat_to_pan_tilt(q), dtype=float)
+    b = np.asarray(quat_to_pan_tilt(corrected), dtype=float)
+    # d = (cos t cos p, cos t sin p, sin t); angle = atan2(|a x b|, a . b)
+    da = np.array(
+        [math.cos(a[1]) * math.cos(a[0]), math.cos(a[1]) * math.sin(a[0]), math.sin(a[1])]
+    )
+    db = np.array(
+        [math.cos(b[1]) * math.cos(b[0]), math.cos(b[1]) * math.sin(b[0]), math.sin(b[1])]
+    )
+    return math.degrees(math.atan2(float(np.linalg.norm(np.cross(da, db))), float(da @ db)))
+
+
+def corrected_pose(
+    corrected: np.ndarray,
+    present: Sequence[float],
+    limits: Sequence[tuple[float, float]] | None = None,
+) -> tuple[float, ...]:
+    """Joint angles (rad) of the correction (4,) on the chain of ``present``'s length: (pan,
+    tilt) of its direction, or (pan, tilt, roll) with the pan kept at tilt +-90 deg and the
+    roll unwrapped within ``limits[2]`` (its joint's ``(lo, hi)``, rad; ``limits`` one entry per
+    joint, needed for three) nearest the leader's present roll (as the gate does)."""
+    if len(present) == 2:
+        return tuple(float(v) for v in quat_to_pan_tilt(corrected))
+    if limits is None:
+        raise ValueError("a three-joint leader's corrected pose needs its joint limits")
+    return pan_tilt_roll_scalar(corrected, present[0], present[2], *limits[2])
+
+
+def _length(step: Sequence[float]) -> float:
+    """|s| (rad): ``math.hypot`` on two joints, the root of the sum of squares on three (the
+    arithmetic each chain's law was measured with)."""
+    if len(step) == 2:
+        return math.hypot(*step)
+    return math.sqrt(sum(s * s for s in step))
+
+
+def push_for(
+    law: FeelLaw,
+    motor: LeaderMotor,
+    present: Sequence[float],
+    q: np.ndarray,
+    corrected: np.ndarray,
+    previous: Sequence[float] | None = None,
+    period_s: float = 0.0,
+    engaged: bool = True,
+    torque_nm: Sequence[float] | None = None,
+    velocity_deg_s: Sequence[float] | None = None,
+    limits: Sequence[tuple[float, float]] | None = None,
+) -> Push:
+    """The leader's command this cycle (:mod:`limbctl.teleop.haptic`'s law on its chain).
+
+    Parameters
+    ----------
+    law : FeelLaw
+    motor : LeaderMotor
+        The leader's model (its current unit and torque constant).
+    present : sequence of float, (n,)
+        The leader's pose (rad), n = 2 (pan, tilt) or 3 (pan, tilt, roll).
+    q, corrected : ndarray (4,)
+        The command (the leader's orientation) and the region's correction of it.
+    previous : sequence of float, (n,), optional
+        The leader's pose a cycle before (rad); None on the first cycle (the law is then the
+        wall alone, without the let-go rules).
+    period_s : float, optional
+        Time since ``previous`` was read (s).
+    engaged : bool, optional
+        Whether the wall pushed in the cycle before (with ``previous``).
+    torque_nm : sequence of float, (n,), optional
+        The motors' torque as read with ``present`` (Present Current, joint frame, N m); a wall
+        whose read pulls away from the region lets go (:func:`~limbctl.teleop.haptic.
+        pulls_outward`). None: not read.
+    velocity_deg_s : sequence of float, (n,), optional
+        The motors' speed as read with ``present`` (Present Velocity, joint frame, deg/s):
+        with ``torque_nm``, whether an engaged wall walks the leader back (its goal then leads
+        by ``walk_lead_ticks`` more, :func:`~limbctl.teleop.haptic.walks_back`). None: LEAD.
+    limits : sequence of (float, float), (n,), optional
+        Each joint's hard limits ``(lo, hi)`` (rad); a three-joint chain's corrected roll is
+        unwrapped within its entry (:func:`corrected_pose`). Not used on two joints.
+    """
+    distance = beyond_deg(q, corrected, len(present))
+    tau = min(law.torque_nm(distance), motor.cap_nm(law.cap_nm))
+    units = motor.units_for(tau)
+    free = held(present, distance)
+    if units == 0:
+        return free
+    target = corrected_pose(corrected, present, limits)
+    # the goal on the joint-space line toward the corrected pose, at most LEAD ahead
+    step = tuple(t - p for t, p in zip(target, present, strict=True))
+    longest = max(abs(s) for s in step)
+    if previous is not None and longest > 0.0:
+        moved_in = moved_in_deg(present, previous, step)
+        if lets_go(law, distance, moved_in, period_s, engaged):
+            return free
+    if engaged and torque_nm is not None and longest > 0.0 and pulls_outward(law, torque_nm, step):
+        return free
+    walking = engaged and longest > 0.0 and walks_back(law, step, torque_nm, velocity_deg_s)
+    lead = goal_lead_rad(law, motor, distance, walking)
+    # at most LEAD from the leader in joint space (|s|): a diagonal stores no more than one joint
+    scale = min(1.0, lead / _length(step)) if longest > 0.0 else 0.0
+    goal = tuple(p + scale * s for p, s in zip(present, step, strict=True))
+    # the push's magnitude shared along the step: the hand feels at most tau
+    currents, magnitude = shared_currents(motor, tau, step) if longest > 0.0 else ((), 0.0)
+    if not any(currents):
+        return free
+    velocity = law.profile_velocity_units()
+    return Push(max(currents), velocity, goal, magnitude, distance, currents)
