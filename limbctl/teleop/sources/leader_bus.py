@@ -169,7 +169,7 @@ class LeaderBus:
     def _write(self, push: Push) -> None:
         """One sync write of Goal Current and Goal Position to the leader's servos; Torque
         Enable off and on first when the wall comes on, Profile Velocity once with it."""
-        ticks = self.rig.angles_to_ticks(*push.goal)  # not clamped: each to one turn below
+        ticks = self.rig.angles_to_ticks(*push.goal)  # the goal's ticks, kept to one turn below
         currents = push.currents(len(self.leader_ids))
         data = {
             servo_id: encode_feel(current, min(max(int(tick), 0), MAX_TICK))
