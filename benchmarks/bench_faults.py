@@ -152,14 +152,7 @@ class Watch:
 
 def gate(max_speed_deg_s: float = 120.0) -> Gate:
     step = math.radians(max_speed_deg_s) / RATE_HZ
-    limits = GateLimits(
-        pan_min=PROFILE.pan.min_rad,
-        pan_max=PROFILE.pan.max_rad,
-        tilt_min=PROFILE.tilt.min_rad,
-        tilt_max=PROFILE.tilt.max_rad,
-        max_step=step,
-        max_joint_step=max(3.0 * step, math.radians(1.0)),
-    )
+    limits = GateLimits.for_profile(PROFILE, step, max(3.0 * step, math.radians(1.0)))
     return Gate(Cone(half_angle_deg=40.0), limits)
 
 

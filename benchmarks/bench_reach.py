@@ -41,10 +41,9 @@ from limbctl.envelope.synthetic_bays import (
     teaching,
 )
 from limbctl.geometry import scalar
-from limbctl.geometry.gimbal import pan_tilt_roll_scalar, pose_quat_scalar
+from limbctl.geometry.gimbal import pan_tilt_roll_scalar
 from limbctl.geometry.twist import decompose, wrap
 from limbctl.teleop.gate import Gate, GateLimits
-from limbctl.teleop.gate3 import Gate3, GateLimits3, geodesic
 
 #: The default slew step: 120 deg/s at 200 Hz (limbctl teleop's defaults).
 STEP = math.radians(120.0 / 200.0)
@@ -55,11 +54,9 @@ ROLL = math.radians(179.0)
 
 def make_gate(region, rig: int):
     """A gate over ``region`` with the sim rigs' wide hard limits and the default step."""
-    big = (math.radians(-170), math.radians(170), math.radians(-85), math.radians(85))
-    joint = max(3.0 * STEP, math.radians(1.0))
-    if rig == 2:
-        return Gate(region, GateLimits(*big, STEP, joint))
-    return Gate3(region, GateLimits3(*big, -ROLL, ROLL, STEP, joint))
+    lo = (math.radians(-170), math.radians(-85), -ROLL)[:rig]
+    hi = (math.radians(170), math.radians(85), ROLL)[:rig]
+    return Gate(region, GateLimits(lo, hi, STEP, max(3.0 * STEP, math.radians(1.0))))
 
 
 def start_at(gate, q: np.ndarray, rig: int) -> None:
@@ -72,9 +69,8 @@ def start_at(gate, q: np.ndarray, rig: int) -> None:
 
 def error(gate, q: np.ndarray, rig: int) -> float:
     """How far (rad) the gate's last pose is from ``q``."""
-    if rig == 2:
-        return scalar.angle(scalar.direction(*gate.safe_pose), scalar.limb(q))
-    return geodesic(pose_quat_scalar(*gate.safe_pose), q)
+    chain = gate.chain
+    return chain.distance(chain.point_at(gate.safe_pose), chain.point(q))
 
 
 def reach(gate, target: np.ndarray, rig: int, limit: int) -> int | None:

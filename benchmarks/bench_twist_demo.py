@@ -178,7 +178,7 @@ def main() -> None:
     lines += [
         "",
         "The bound a written goal may lie outside the learned region: 0.072 deg with two "
-        "servos, 0.108 deg with three (`limbctl.teleop.gate3.written_tolerance_deg3`). The "
+        "servos, 0.108 deg with three (`limbctl.teleop.gate.written_tolerance_deg`). The "
         "issue asks for at most 0.1 deg, and for the learned region to hold 99 % or more of "
         "the true region's orientations 2 deg inside, and for the three-servo fit to take at "
         "most twice the two-servo fit of a 60 s teaching (fit columns: each run's own "

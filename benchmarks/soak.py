@@ -76,14 +76,7 @@ def product_model(seed: int = 0) -> RigidMap:
 
 def limits_for(rate_hz: float = 200.0, max_speed_deg_s: float = 120.0) -> GateLimits:
     step = math.radians(max_speed_deg_s) / rate_hz
-    return GateLimits(
-        PROFILE.pan.min_rad,
-        PROFILE.pan.max_rad,
-        PROFILE.tilt.min_rad,
-        PROFILE.tilt.max_rad,
-        max_step=step,
-        max_joint_step=max(3.0 * step, math.radians(1.0)),
-    )
+    return GateLimits.for_profile(PROFILE, step, max(3.0 * step, math.radians(1.0)))
 
 
 def excursion_deg(model, d: np.ndarray) -> float:
@@ -173,7 +166,7 @@ def compressed_soak(cycles: int, seed: int = 0, model=None) -> CompressedResult:
                 drift = max(abs(now.ticks[0] - last_ticks[0]), abs(now.ticks[1] - last_ticks[1]))
                 out.held_drift_ticks = max(out.held_drift_ticks, drift)
             else:
-                goal = rig.goal_for(result.pan, result.tilt)
+                goal = rig.goal_for(*result.pose)
                 ticks = goal.ticks
                 if goal.clamped or not (
                     lo_pan <= ticks[0] <= hi_pan and lo_tilt <= ticks[1] <= hi_tilt

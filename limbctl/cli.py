@@ -22,8 +22,8 @@ from limbctl.errors import ConfigError, LimbctlError
 from limbctl.live import DEFAULT_PORT as DEFAULT_VIEW_PORT
 from limbctl.live import ViewOptions
 from limbctl.operators import OPERATORS
-from limbctl.teleop.approach import DEFAULT_WAIT_S, MAX_APPROACH_SPEED_DEG_S
 from limbctl.teleop.loop import SafeState
+from limbctl.teleop.start import DEFAULT_WAIT_S, MAX_APPROACH_SPEED_DEG_S
 
 EPILOG_HARDWARE = (
     "On real hardware: give --port (e.g. /dev/ttyUSB0 for a U2D2) and --rig (a profile written "

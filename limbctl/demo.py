@@ -269,12 +269,12 @@ def _leader_run(
                     torque = push.torque_nm if push is not None else 0.0
                     if three and source.last_pose is not None:
                         held = source.last_pose
-                        gated3 = (result.pan, result.tilt, result.roll)
+                        gated3 = result.pose
                         commanded = (*map(math.degrees, held[:2]), twist_deg(held))
                         gated = (*map(math.degrees, gated3[:2]), twist_deg(gated3))
                         rows.append((cycle.t, *commanded, *gated, torque))
                     elif not three:
-                        gated = (math.degrees(result.pan), math.degrees(result.tilt))
+                        gated = tuple(map(math.degrees, result.pose))
                         rows.append((cycle.t, *cycle.command_deg, *gated, torque))
 
             config = LoopConfig(rate_hz=DEMO_RATE_HZ, duration_s=seconds, on_cycle=record)
@@ -353,7 +353,6 @@ def _run_demo_twist(out: Path, teach_seconds: float, seed: int, live: LiveView) 
     )
     from limbctl.session import demo_region_path
     from limbctl.teach.dataset import load_dataset
-    from limbctl.teleop.gate3 import written_tolerance_deg3
 
     out.mkdir(parents=True, exist_ok=True)
     data, model_path = out / "teach.limb", out / "model.npz"
@@ -401,7 +400,7 @@ def _run_demo_twist(out: Path, teach_seconds: float, seed: int, live: LiveView) 
     model = load_model(model_path)
     excursion = twist_excursions(goals, model, written_orientations(telemetry))
     worst = float(excursion.max()) if len(excursion) else 0.0
-    bound = written_tolerance_deg3()
+    bound = written_tolerance_deg(joints=3)
     beyond = int((excursion > bound).sum())
     say(f"   goals received by the servos: {len(excursion)}")
     say(

@@ -21,9 +21,9 @@ from limbctl.errors import ConfigError
 from limbctl.live import LiveView, ViewOptions, leader_status, open_view
 from limbctl.servo.profiles import load_rig_profile
 from limbctl.session import Session, open_rig, stop_on_signals
-from limbctl.teleop.approach import DEFAULT_WAIT_S
 from limbctl.teleop.gate import Gate
 from limbctl.teleop.loop import SafeState
+from limbctl.teleop.start import DEFAULT_WAIT_S
 
 if TYPE_CHECKING:
     from collections.abc import Iterator
@@ -159,7 +159,8 @@ def gate_for(model_path: Path, profile: RigProfile, rate_hz: float, max_speed_de
     under another calibration of this one, or recording no calibration
     (:func:`limbctl.servo.profiles.check_trained_for`).
 
-    The gate's step limit is ``max_speed_deg_s / rate_hz`` (converted to rad per cycle).
+    The gate's step limit is ``max_speed_deg_s / rate_hz`` (converted to rad per cycle); its
+    chain (two or three joints) is the profile's.
     """
     from limbctl.envelope import load_header, load_model
     from limbctl.servo.profiles import check_trained_for
@@ -167,30 +168,10 @@ def gate_for(model_path: Path, profile: RigProfile, rate_hz: float, max_speed_de
 
     check_trained_for(load_header(model_path).get("metadata", {}), profile, str(model_path))
     step = math.radians(max_speed_deg_s) / rate_hz
-    limits = GateLimits(
-        pan_min=profile.pan.min_rad,
-        pan_max=profile.pan.max_rad,
-        tilt_min=profile.tilt.min_rad,
-        tilt_max=profile.tilt.max_rad,
-        max_step=step,
-        # a joint may move 3 Cartesian steps per cycle near the pole (where pan turns fast for
-        # a small direction change), and never less than 1 degree
-        max_joint_step=max(3.0 * step, math.radians(1.0)),
-    )
-    if profile.roll is not None:
-        from limbctl.teleop.gate3 import Gate3, GateLimits3
-
-        limits3 = GateLimits3(
-            pan_min=profile.pan.min_rad,
-            pan_max=profile.pan.max_rad,
-            tilt_min=profile.tilt.min_rad,
-            tilt_max=profile.tilt.max_rad,
-            roll_min=profile.roll.min_rad,
-            roll_max=profile.roll.max_rad,
-            max_step=step,  # a rotation of the limb per cycle on a three-servo rig
-            max_joint_step=limits.max_joint_step,
-        )
-        return Gate3(load_model(model_path), limits3)  # type: ignore[return-value]
+    # max_step: of direction with two servos, of rotation of the limb with three. A joint may
+    # move 3 Cartesian steps per cycle near the pole (where pan turns fast for a small change
+    # of the limb), and never less than 1 degree
+    limits = GateLimits.for_profile(profile, step, max(3.0 * step, math.radians(1.0)))
     return Gate(load_model(model_path), limits)
 
 
@@ -228,10 +209,10 @@ def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
     from limbctl.geometry.jit import stage as jit_stage
     from limbctl.servo.control_table import MAX_TICK
     from limbctl.servo.setup import configure_servos
-    from limbctl.teleop.approach import StartOptions
     from limbctl.teleop.lifecycle import run_session
     from limbctl.teleop.loop import LoopConfig
     from limbctl.teleop.sources import SourceContext, check_leader_fits, parse_source
+    from limbctl.teleop.start import StartOptions
 
     spec = parse_source(options.source)  # a bad source is refused before anything opens
     view_options = options.view
@@ -298,28 +279,11 @@ def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
                     session.simulator.set_operator(operator.grip)
                 yield source
 
-        if profile.roll is not None:  # three servos: wait for the limb, then open the source
-            from limbctl.teleop.start3 import run_session_three
-
-            with stop_on_signals() as stop:
-                opener = lambda: introduced(spec.open(context))  # noqa: E731
-                result = run_session_three(
-                    rig, gate, opener, config, starting, **reporting, stop=stop,
-                    publish=live.start_observer(),
-                )  # fmt: skip
-        else:
-            with introduced(spec.open(context)) as source, stop_on_signals() as stop:
-                result = run_session(
-                    rig,
-                    gate,
-                    source,
-                    config,
-                    starting,
-                    **reporting,
-                    stop=stop,
-                    torque_was_on=torque_was_on,
-                    publish=live.start_observer(),
-                )
+        with stop_on_signals() as stop:  # the source opens once the limb is held inside
+            result = run_session(
+                rig, gate, lambda: introduced(spec.open(context)), config, starting, **reporting,
+                stop=stop, torque_was_on=torque_was_on, publish=live.start_observer(),
+            )  # fmt: skip
     from limbctl.geometry.jit import mark_prepared
 
     mark_prepared(jit_stage("gate", profile.roll is not None))

@@ -193,13 +193,13 @@ class LiveView:
 
     def start_observer(self, mode: str = "teleop: waiting") -> Callable[[Any], None] | None:
         """Where a limb outside the region is shown while teleop waits for it: publishes each
-        :class:`~limbctl.teleop.margin.StartStatus` (pose, how far and which way); None if off."""
+        :class:`~limbctl.teleop.start.StartStatus` (pose, how far and which way); None if off."""
         board = self.board
         if board is None:
             return None
 
         def publish(status: Any) -> None:
-            pose = PanTilt(status.pan_deg, status.tilt_deg)
+            pose = PanTilt(*status.pose_deg[:2])
             board.publish_live(Live(mode, pose, note=status.line()))
 
         return publish
@@ -255,10 +255,10 @@ class TeleopFeed:
     def __call__(self, cycle: Cycle) -> None:
         previous = self.written
         if cycle.written and cycle.result is not None:
-            self.written = PanTilt(math.degrees(cycle.result.pan), math.degrees(cycle.result.tilt))
-            roll = getattr(cycle.result, "roll", None)
-            if roll is not None:
-                self.written_twist = pose_twist(cycle.result.pan, cycle.result.tilt, roll)
+            written = cycle.result.pose
+            self.written = PanTilt(math.degrees(written[0]), math.degrees(written[1]))
+            if len(written) == 3:
+                self.written_twist = pose_twist(*written)
         self._update_rate(cycle)
         if cycle.present is not None:
             self.present = PanTilt(math.degrees(cycle.present[0]), math.degrees(cycle.present[1]))

@@ -86,7 +86,7 @@ def test_the_three_servo_demo_keeps_every_goal_in_the_learned_region(tmp_path, c
         twist_excursions,
         written_orientations,
     )
-    from limbctl.teleop.gate3 import written_tolerance_deg3
+    from limbctl.teleop.gate import written_tolerance_deg
 
     out = tmp_path / "demo3"
     # 60 s, the teaching: the hand traces the edge turning the twist to its stops, then
@@ -109,7 +109,7 @@ def test_the_three_servo_demo_keeps_every_goal_in_the_learned_region(tmp_path, c
     excursion = twist_excursions(
         out / "goals.jsonl", model, written_orientations(out / "telemetry.jsonl")
     )
-    assert excursion.max() <= written_tolerance_deg3()
+    assert excursion.max() <= written_tolerance_deg(joints=3)
     # step 5, the felt three-servo leader pushed past the edge in swing, then in twist: its
     # picture and its report; or, on a machine too busy for the leader's 200 Hz, the start's
     # refusal (the leader left limp), as `limbctl teleop` would say it

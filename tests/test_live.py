@@ -163,7 +163,7 @@ def cycle(index: int, t: float, written: bool, pan: float = 0.1) -> Cycle:
         state=CycleState.RUNNING,
         complete=True,
         command_deg=(10.0, 5.0),
-        result=GateResult(pan, 0.2, Outcome.PASSED),
+        result=GateResult((pan, 0.2), Outcome.PASSED),
         present=(0.0, 0.0),
         written=written,
     )
@@ -195,7 +195,7 @@ def test_teleop_feed_names_the_edge_that_holds_as_the_page_draws_it():
                 state=CycleState.RUNNING,
                 complete=True,
                 command_deg=(20.0, 40.0),
-                result=GateResult(0.1, 0.2, Outcome.CORRECTED, corrected=True),
+                result=GateResult((0.1, 0.2), Outcome.CORRECTED, corrected=True),
                 present=(0.1, 0.2),
                 written=True,
             )

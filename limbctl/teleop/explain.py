@@ -130,7 +130,7 @@ def explain(
         return Explanation(f"holding the last safe pose: {result.reason}")
     if commanded_deg is None:
         return Explanation(result.outcome.value)
-    written = (math.degrees(result.pan), math.degrees(result.tilt))
+    written = (math.degrees(result.pose[0]), math.degrees(result.pose[1]))
     if result.outcome is Outcome.PASSED:
         return Explanation("inside: following the command")
     if not (result.corrected or result.clamped):

@@ -1,19 +1,33 @@
 """The one place every commanded pose passes before it may become a goal position.
 
-Per command (the safety model in docs/architecture.md):
+One algorithm for every chain of joints, run on the points of the chain's geometry
+(:func:`limbctl.geometry.chains.chain_geometry`): limb directions on the sphere for two joints
+(pan, tilt), full orientations on SO(3) for three (pan, tilt, roll). Per command (the safety
+model in docs/architecture.md):
 
 1. ``correct``: the envelope returns the target itself inside the taught region, else the
-   nearest orientation on its boundary;
-2. slew limit: the limb direction moves at most ``max_step`` (rad) per cycle from the last safe
-   pose along the great circle toward the corrected target; the intermediate pose is corrected
-   again, so a non-convex region is followed, never cut across. When that corrected step makes
-   no way (a concave wall between the two holds it), the step aims instead at a point of a
-   route along the region (:class:`~limbctl.teleop.route.Router`), so the wall is gone round;
-3. inverse kinematics to (pan, tilt), keeping the current pan at the singularity;
-4. hard joint limits clamp (pan, tilt); a joint step larger than ``max_joint_step`` is scaled
-   down, both joints by one factor, so the largest step is ``max_joint_step`` (``SLEWED``);
-5. final check: the pose that would be written is inside the region (``contains``) and inside
-   the hard limits; if not, the last safe pose is held.
+   nearest orientation of the region (on three joints, by geodesic angle, twist included);
+2. slew limit: the point moves at most ``max_step`` (rad: of direction along the great circle,
+   or of rotation along the shortest rotation) per cycle from the last safe pose toward the
+   corrected target; the intermediate pose is corrected again, so a non-convex region is
+   followed, never cut across. When that corrected step makes no way (a concave wall between
+   the two holds it), the step aims instead at a point of a route along the region
+   (:class:`~limbctl.teleop.route.Router`), so the wall is gone round;
+3. inverse kinematics to the joints: the present pan kept at the singularity (tilt +-90 deg),
+   on three joints the roll unwrapped within its hard limits nearest the present roll;
+4. hard joint limits clamp every joint; a joint step larger than ``max_joint_step`` is scaled
+   down, all joints by one factor, so the largest step is ``max_joint_step`` (``SLEWED``);
+5. final check: the pose that would be written is inside the hard limits and inside the region
+   (``contains``, or within ``region_tolerance`` of ``correct``); if not, the last safe pose is
+   held.
+
+**The long way round (three joints).** The profile keeps the roll's hard limits inside
+(-180, 180) deg, so a short rotation on SO(3) that crosses roll +-180 deg cannot be followed by
+the joint: IK returns the roll within its limits, i.e. the other way round, and the per-joint
+step limit walks the joints there. The poses in between then leave the slerp path; each is
+checked (step 5), and the gate holds the last safe pose rather than write one outside the
+region. With a twist band that does not cross +-180 deg (every region the region layer fits,
+which refuses d = -x), the path the joints take between two poses of the band stays in it.
 
 The outcome of a cycle is a value (:class:`Outcome`), not an exception (after ruckig).
 """
@@ -23,14 +37,15 @@ from __future__ import annotations
 import enum
 import math
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 
-from limbctl.errors import ConfigError
-from limbctl.geometry import scalar
-from limbctl.geometry.scalar import Vec3
+from limbctl.errors import ConfigError, SafetyError
+from limbctl.geometry.chains import chain_geometry
 from limbctl.teleop.route import Router
+
+Pose = tuple[float, ...]
 
 
 class RegionModel(Protocol):
@@ -75,31 +90,36 @@ class GateLimits:
 
     Attributes
     ----------
-    pan_min, pan_max, tilt_min, tilt_max : float
-        Hard joint limits (rad) from the rig profile.
+    joint_min, joint_max : tuple of float, shape (J,)
+        Hard joint limits (rad) from the rig profile, in chain order (pan, tilt[, roll]);
+        J = 2 or 3 picks the chain's geometry.
     max_step : float
-        Largest change of limb direction per cycle (rad).
+        Largest move of the limb per cycle (rad): of direction with two joints, of rotation
+        (geodesic angle on SO(3)) with three.
     max_joint_step : float
-        Largest change of either joint per cycle (rad); guards the singularity where a small
-        direction change asks for a large pan swing.
+        Largest change of any joint per cycle (rad); guards the singularity where a small
+        move of the limb asks for a large pan swing.
     region_tolerance : float
-        How far (rad, limb direction) outside the learned region a written pose may be: the
+        How far (rad, as ``max_step``) outside the learned region a written pose may be: the
         round trip through joint angles moves a boundary point by ~1e-12 rad, never more.
     """
 
-    pan_min: float
-    pan_max: float
-    tilt_min: float
-    tilt_max: float
+    joint_min: Pose
+    joint_max: Pose
     max_step: float
     max_joint_step: float
     region_tolerance: float = math.radians(REGION_TOLERANCE_DEG)
 
     def __post_init__(self) -> None:
-        values = [getattr(self, f) for f in self.__dataclass_fields__]
-        if not all(math.isfinite(v) for v in values):
+        object.__setattr__(self, "joint_min", tuple(float(v) for v in self.joint_min))
+        object.__setattr__(self, "joint_max", tuple(float(v) for v in self.joint_max))
+        if len(self.joint_min) != len(self.joint_max):
+            raise ConfigError(f"gate limits: as many minima as maxima: {self}")
+        chain_geometry(len(self.joint_min))  # 2 or 3 joints
+        rates = (self.max_step, self.max_joint_step, self.region_tolerance)
+        if not all(math.isfinite(v) for v in (*self.joint_min, *self.joint_max, *rates)):
             raise ConfigError(f"gate limits must be finite: {self}")
-        if not (self.pan_min < self.pan_max and self.tilt_min < self.tilt_max):
+        if not all(lo < hi for lo, hi in zip(self.joint_min, self.joint_max, strict=True)):
             raise ConfigError(f"gate limits: each min must be below its max: {self}")
         if not (self.max_step > 0 and self.max_joint_step > 0 and self.region_tolerance >= 0):
             raise ConfigError(
@@ -107,16 +127,38 @@ class GateLimits:
                 "region_tolerance non-negative"
             )
 
+    @classmethod
+    def for_profile(cls, profile: Any, max_step: float, max_joint_step: float) -> GateLimits:
+        """The limits of a rig profile's joints (``profile.joints``: ``(name, joint)`` pairs
+        with ``min_rad``/``max_rad``), with the given rates (rad per cycle)."""
+        joints = [joint for _, joint in profile.joints]
+        return cls(
+            tuple(j.min_rad for j in joints),
+            tuple(j.max_rad for j in joints),
+            max_step=max_step,
+            max_joint_step=max_joint_step,
+        )
 
-def written_tolerance_deg(ticks_per_turn: int = 4096) -> float:
-    """How far (deg) a goal that reached a servo may lie outside the model's region.
+    def inside(self, *pose: float) -> bool:
+        """True when every joint is within its hard limits (NaN is not)."""
+        return all(
+            lo <= v <= hi for v, lo, hi in zip(pose, self.joint_min, self.joint_max, strict=True)
+        )
 
-    The gate's tolerance (``REGION_TOLERANCE_DEG``) plus the rounding of both joints to whole
-    ticks: half a tick each moves the limb direction by at most ``sqrt(2) * half tick``
-    (``|dd|^2 = (cos(tilt) dpan)^2 + dtilt^2``). 0.072 deg for 4096-tick servos.
+
+def written_tolerance_deg(ticks_per_turn: int = 4096, joints: int = 2) -> float:
+    """How far (deg) a goal that reached the servos may lie outside the model's region.
+
+    The gate's tolerance (``REGION_TOLERANCE_DEG``) plus the rounding of every joint to whole
+    ticks: half a tick ``h`` on each joint moves the limb direction by at most ``sqrt(2) h``
+    with two joints (``|dd|^2 = (cos(tilt) dpan)^2 + dtilt^2``), and turns the limb by at most
+    ``sqrt(5) h`` with three (the rotation vector ``e_p z + e_t y' + e_r d``: pan axis +z,
+    tilt axis y' horizontal and perpendicular to the limb d, roll axis d; y' is perpendicular
+    to both others and ``z . d = sin(tilt)``, so its length squared is at most
+    ``h^2 (3 + 2 |sin tilt|) <= 5 h^2``). 0.072 deg for two 4096-tick servos, 0.108 for three.
     """
     half_tick = 360.0 / ticks_per_turn / 2.0
-    return REGION_TOLERANCE_DEG + math.sqrt(2.0) * half_tick
+    return REGION_TOLERANCE_DEG + chain_geometry(joints).rounding * half_tick
 
 
 @dataclass(frozen=True)
@@ -125,8 +167,9 @@ class GateResult:
 
     Attributes
     ----------
-    pan, tilt : float
-        The pose to write (rad); the last safe pose when ``outcome`` is HELD.
+    pose : tuple of float, shape (J,)
+        The joint angles to write (rad), in chain order; the last safe pose when ``outcome``
+        is HELD.
     outcome : Outcome
         The strongest thing that happened (HELD > CLAMPED > CORRECTED > SLEWED > PASSED).
     corrected, clamped, slewed : bool
@@ -135,18 +178,12 @@ class GateResult:
         Why the command was held, empty otherwise.
     """
 
-    pan: float
-    tilt: float
+    pose: Pose
     outcome: Outcome
     corrected: bool = False
     clamped: bool = False
     slewed: bool = False
     reason: str = ""
-
-    @property
-    def pose(self) -> tuple[float, float]:
-        """``(pan, tilt)`` (rad), what the rig writes."""
-        return (self.pan, self.tilt)
 
 
 class Gate:
@@ -155,41 +192,40 @@ class Gate:
     Parameters
     ----------
     envelope : RegionModel
-        The trained region (``contains``/``correct`` on single quaternions).
+        The trained region (``contains``/``correct`` on single quaternions (4,)): over
+        directions for two joints, over full orientations for three.
     limits : GateLimits
-        Hard limits and per-cycle step limits.
+        Hard limits (their count picks the chain) and per-cycle step limits.
     """
 
     def __init__(self, envelope: RegionModel, limits: GateLimits) -> None:
         self.envelope = envelope
         self.limits = limits
-        self.router = Router(envelope, twist=False)
-        self._pan: float | None = None
-        self._tilt: float | None = None
-        self._direction: Vec3 | None = None
+        self.chain = chain_geometry(len(limits.joint_min))
+        self.router = Router(envelope, twist=self.chain.twist)
+        self._pose: Pose | None = None
+        self._point: Any = None  # the chain's point of the last safe pose
 
     @property
-    def safe_pose(self) -> tuple[float, float] | None:
+    def safe_pose(self) -> Pose | None:
         """The last pose the gate let through (rad), or None before :meth:`start`."""
-        if self._pan is None or self._tilt is None:
-            return None
-        return self._pan, self._tilt
+        return self._pose
 
-    def is_safe(self, pan: float, tilt: float) -> bool:
+    def is_safe(self, *pose: float) -> bool:
         """True when the pose is finite, inside the hard limits and inside the region."""
-        lim = self.limits
-        if not (lim.pan_min <= pan <= lim.pan_max and lim.tilt_min <= tilt <= lim.tilt_max):
-            return False  # NaN fails every comparison above and lands here
-        direction = scalar.direction(pan, tilt)
-        q = scalar.swing(direction)
+        if not self.limits.inside(*pose):
+            return False  # NaN fails every comparison and lands here
+        chain = self.chain
+        point = chain.point_at(pose)
+        q = chain.quat(point)
         if bool(self.envelope.contains(q)):
             return True
         # inside up to the stated tolerance: the nearest region point is within region_tolerance
-        nearest = scalar.limb(self.envelope.correct(q))
-        return scalar.angle(direction, nearest) <= lim.region_tolerance
+        nearest = chain.point(self.envelope.correct(q))
+        return chain.distance(point, nearest) <= self.limits.region_tolerance
 
-    def start(self, current_pan: float, current_tilt: float) -> None:
-        """Begin from the limb's present pose, which must already be safe.
+    def start(self, *pose: float) -> None:
+        """Begin from the limb's present pose (rad, chain order), which must already be safe.
 
         Raises
         ------
@@ -197,28 +233,32 @@ class Gate:
             When the present pose is outside the region or the hard limits: the gate will not
             drive the limb from there (move it inside by hand with torque off, then start again).
         """
-        from limbctl.errors import SafetyError
-
-        if not self.is_safe(current_pan, current_tilt):
-            raise SafetyError(
-                f"the limb is at pan {math.degrees(current_pan):.1f} deg, tilt "
-                f"{math.degrees(current_tilt):.1f} deg, outside the taught region or the rig's "
-                "hard limits; move it inside by hand (torque off) before starting"
+        if not self.is_safe(*pose):
+            at = ", ".join(
+                f"{name} {math.degrees(v):.1f} deg"
+                for name, v in zip(self.chain.names, pose, strict=True)
             )
-        self._pan, self._tilt = float(current_pan), float(current_tilt)
-        self._direction = scalar.direction(self._pan, self._tilt)
+            region = (
+                "the taught region (swing and twist)" if self.chain.twist else "the taught region"
+            )
+            raise SafetyError(
+                f"the limb is at {at}, outside {region} or the rig's hard limits; move it inside "
+                "by hand (torque off) before starting"
+            )
+        self._pose = tuple(float(v) for v in pose)
+        self._point = self.chain.point_at(self._pose)
         if self.router.batched:  # a fitted region: its roadmap now, before the loop's clock
-            self.router.prepare(scalar.swing(self._direction))
+            self.router.prepare(self.chain.quat(self._point))
 
     def hold(self, reason: str) -> GateResult:
         """Keep the last safe pose."""
-        if self._pan is None or self._tilt is None:
+        if self._pose is None:
             raise RuntimeError("Gate.start() must be called before the first cycle")
-        return GateResult(self._pan, self._tilt, Outcome.HELD, reason=reason)
+        return GateResult(self._pose, Outcome.HELD, reason=reason)
 
     def step(self, target_q: np.ndarray) -> GateResult:
         """Gate one commanded orientation (4,) and return the pose to write this cycle."""
-        if self._direction is None or self._pan is None or self._tilt is None:
+        if self._pose is None:
             raise RuntimeError("Gate.start() must be called before the first cycle")
         target_q = np.asarray(target_q, dtype=np.float64)
         if target_q.shape != (4,):
@@ -227,51 +267,51 @@ class Gate:
         # | |q| - 1 | <= UNIT_NORM_TOLERANCE; NaN and inf fail the comparison and are held
         if not abs(math.sqrt(w * w + x * x + y * y + z * z) - 1.0) <= UNIT_NORM_TOLERANCE:
             return self.hold("non-finite or non-unit target")
-        lim = self.limits
+        lim, chain, here, present = self.limits, self.chain, self._point, self._pose
 
         corrected_q = self.envelope.correct(target_q)
-        target_dir = scalar.limb(corrected_q)
+        goal = chain.point(corrected_q)
         corrected = not np.array_equal(corrected_q, target_q)
 
-        # slew: at most max_step along the great circle from the last safe direction
+        # slew: at most max_step from the last safe point, then corrected onto the region
         slewed = False
-        if scalar.angle(self._direction, target_dir) > lim.max_step:
+        if chain.distance(here, goal) > lim.max_step:
             slewed = True
-            step_dir = scalar.toward(self._direction, target_dir, lim.max_step)
-            plain = scalar.limb(self.envelope.correct(scalar.swing(step_dir)))
-            progress = scalar.angle(self._direction, target_dir) - scalar.angle(plain, target_dir)
-            moved = scalar.angle(self._direction, plain)
-            if self.router.wanted(scalar.swing(target_dir), progress, moved, lim.max_step):
+            plain = self._corrected_step(here, goal)
+            progress = chain.distance(here, goal) - chain.distance(plain, goal)
+            moved = chain.distance(here, plain)
+            if self.router.wanted(chain.quat(goal), progress, moved, lim.max_step):
                 # a wall holds the plain step: aim at a point of a route along the region
-                aim = scalar.limb(
-                    self.router.subgoal(scalar.swing(self._direction), scalar.swing(target_dir))
-                )
-                step_dir = (
-                    scalar.toward(self._direction, aim, lim.max_step)
-                    if scalar.angle(self._direction, aim) > lim.max_step
-                    else aim
-                )
-                plain = scalar.limb(self.envelope.correct(scalar.swing(step_dir)))
-            target_dir = plain
+                aim = chain.point(self.router.subgoal(chain.quat(here), chain.quat(goal)))
+                plain = self._corrected_step(here, aim)
+            goal = plain
 
-        pan, tilt = scalar.pan_tilt(target_dir, self._pan)
-        clamped_pan = min(max(pan, lim.pan_min), lim.pan_max)
-        clamped_tilt = min(max(tilt, lim.tilt_min), lim.tilt_max)
-        clamped = clamped_pan != pan or clamped_tilt != tilt
-        pan, tilt = clamped_pan, clamped_tilt
+        joints = chain.joints(goal, present, lim.joint_min, lim.joint_max)
+        clamped_pose = tuple(
+            min(max(v, lo), hi) for v, lo, hi in zip(joints, lim.joint_min, lim.joint_max)
+        )
+        clamped = any(c != v for c, v in zip(clamped_pose, joints))
 
-        # near the singularity a short direction step can ask for a long pan swing: shorten it
-        # in joint space, pan' = pan0 + f (pan - pan0) with f = max_joint_step / largest step
-        largest = max(abs(pan - self._pan), abs(tilt - self._tilt))
+        # a short move of the limb can ask for a long joint move (near tilt +-90, roll the long
+        # way): joint' = joint0 + f (joint - joint0), f = max_joint_step / largest step
+        pose = clamped_pose
+        largest = max(abs(v - v0) for v, v0 in zip(pose, present))
         if largest > lim.max_joint_step:
             f = lim.max_joint_step / largest
-            pan = self._pan + f * (pan - self._pan)
-            tilt = self._tilt + f * (tilt - self._tilt)
+            pose = tuple(v0 + f * (v - v0) for v, v0 in zip(pose, present))
             slewed = True
-        if not self.is_safe(pan, tilt):
+        if not self.is_safe(*pose):
             return self.hold("corrected pose failed the final region/limit check")
 
-        self._pan, self._tilt = pan, tilt
-        self._direction = scalar.direction(pan, tilt)
+        self._pose = pose
+        self._point = chain.point_at(pose)
         outcome = Outcome.strongest(corrected, clamped, slewed)
-        return GateResult(pan, tilt, outcome, corrected=corrected, clamped=clamped, slewed=slewed)
+        return GateResult(pose, outcome, corrected=corrected, clamped=clamped, slewed=slewed)
+
+    def _corrected_step(self, here: Any, aim: Any) -> Any:
+        """The point ``max_step`` from ``here`` toward ``aim`` (``aim`` when nearer), corrected
+        onto the region."""
+        chain = self.chain
+        return chain.point(
+            self.envelope.correct(chain.quat(chain.toward(here, aim, self.limits.max_step)))
+        )

@@ -28,9 +28,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from limbctl.geometry.chains import geodesic
 from limbctl.geometry.gimbal import pan_tilt_roll_scalar, quat_to_pan_tilt
 from limbctl.servo.leader import LeaderMotor
-from limbctl.teleop.gate3 import geodesic
 from limbctl.teleop.haptic import (
     FeelLaw,
     goal_lead_rad,
@@ -91,7 +91,7 @@ def beyond_deg(q: np.ndarray, corrected: np.ndarray, joints: int) -> float:
     if np.array_equal(q, corrected):
         return 0.0
     if joints == 3:
-        # d = 2 acos |<q, c>|, computed as gate3.geodesic does (accurate near 0)
+        # d = 2 acos |<q, c>|, computed as chains.geodesic does (accurate near 0)
         return math.degrees(geodesic(np.asarray(q, dtype=float), np.asarray(corrected, float)))
     a = np.asarray(quat_to_pan_tilt(q), dtype=float)
     b = np.asarray(quat_to_pan_tilt(corrected), dtype=float)

@@ -1,10 +1,14 @@
-"""One teleop session from start to park: :func:`start_session`, the control loop, :func:`park`.
+"""One teleop session from start to park, for any chain: :func:`start_session`, the control
+loop, :func:`park`.
 
 1. start from wherever the limb is (at once when safe; else wait for the hand or approach, with
-   torque off while waiting; see :mod:`limbctl.teleop.approach`);
-2. run the control loop (:func:`limbctl.teleop.loop.run`); should the gate refuse the start
+   torque off while waiting; see :mod:`limbctl.teleop.start`);
+2. open the command source, only now that the limb is held inside: a replayed stream paced by
+   its ``"t"`` then starts with the loop instead of running on (and going stale) while the start
+   waits;
+3. run the control loop (:func:`limbctl.teleop.loop.run`); should the gate refuse the start
    pose as the loop begins (the limb was moved out in that instant), torque goes off;
-3. after a clean end, park the limb inside by the margin if it rests nearer the edge.
+4. after a clean end, park the limb inside by the margin if it rests nearer the edge.
 
 The outcome is one value, :class:`SessionResult`, with the lines a person should read.
 """
@@ -13,25 +17,20 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Callable
+from contextlib import AbstractContextManager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO
 
 from limbctl.errors import SafetyError
-from limbctl.teleop.approach import (
-    ParkOutcome,
-    StartLimb,
-    StartOptions,
-    StartOutcome,
-    park,
-    start_session,
-)
+from limbctl.teleop.approach import ParkOutcome, StartLimb, park
 from limbctl.teleop.cycle import TeleopSummary
 from limbctl.teleop.gate import Gate
 from limbctl.teleop.loop import LoopConfig, run
-from limbctl.teleop.margin import StartStatus
+from limbctl.teleop.margin import margins_for
 from limbctl.teleop.report import Telemetry, open_telemetry
 from limbctl.teleop.sources import CommandSource
+from limbctl.teleop.start import StartOptions, StartOutcome, StartStatus, start_session
 
 
 @dataclass(frozen=True)
@@ -73,7 +72,7 @@ class SessionResult:
 def run_session(
     limb: StartLimb,
     gate: Gate,
-    source: CommandSource,
+    open_source: Callable[[], AbstractContextManager[CommandSource]],
     config: LoopConfig,
     starting: StartOptions,
     telemetry_path: str | Path | None = None,
@@ -83,15 +82,18 @@ def run_session(
     torque_was_on: bool = False,
     publish: Callable[[StartStatus], None] | None = None,
 ) -> SessionResult:
-    """Start, run and park one session on a configured rig with a started ``source``.
+    """Start, open the source, run and park one session on a configured rig (any chain).
 
     Parameters
     ----------
     limb : StartLimb
         The configured rig (torque on or off).
     gate : Gate
-        Not yet started.
-    source, config, stop
+        The gate of the limb's chain, not yet started.
+    open_source : callable
+        Called once the limb is held inside; returns the command source as a context manager
+        (a :class:`~limbctl.teleop.sources.CommandSource`), entered for the loop and left after.
+    config, stop
         As for :func:`limbctl.teleop.loop.run`.
     telemetry_path : path, optional
         Where each cycle is logged (JSON lines; see :class:`limbctl.teleop.report.Telemetry`).
@@ -113,12 +115,19 @@ def run_session(
             return SessionResult(start)
         telemetry = Telemetry(telemetry_file) if telemetry_file is not None else None
         try:
-            summary = run(limb, gate, source, config, telemetry, status, stop)
+            opened = open_source()
+        except Exception:
+            limb.set_torque(False)  # no source after all: leave the limb free, as before the start
+            raise
+        try:
+            with opened as source:
+                summary = run(limb, gate, source, config, telemetry, status, stop)  # type: ignore[arg-type]
         except SafetyError:
             limb.set_torque(False)  # the limb moved out as the loop began: leave it free
             raise
     finally:
         if telemetry_file is not None:
             telemetry_file.close()
-    parked = park(limb, gate, config.rate_hz) if summary.ended_by != "fault" else None
+    margins = margins_for(gate, limb)
+    parked = park(limb, margins, config.rate_hz) if summary.ended_by != "fault" else None
     return SessionResult(start, summary, parked)

@@ -1,27 +1,35 @@
-"""Where a limb may start from: "inside by a margin", and the nearest such pose.
+"""Where a limb may start from: "inside by a margin", and the nearest such pose, for any chain.
 
 A start pose must survive what happens between sessions: the last goal is rounded to whole
 ticks (up to :func:`limbctl.teleop.gate.written_tolerance_deg` outside the region), and a
 holding servo sits a tick or two away from its goal. A limb that waits for its user, or a
-session that parks it, therefore aims at a pose *inside by* :data:`START_MARGIN_DEG`: the pose
-and a ring of :data:`RING_PROBES` directions at that angle around it all lie inside the region,
-and each joint is at least that far inside its hard limits.
+session that parks it, therefore aims at a pose *inside by* :data:`START_MARGIN_DEG`.
 
-Everything here is plain geometry on the gate's region and limits; angles in radians unless a
-name ends in ``_deg``. :func:`assess` turns a present pose into a :class:`StartStatus`, the value
-a terminal line or a live view shows while the limb waits ("how far and which way").
+The chain decides what that means, in one place (:func:`margins_for`):
+
+- two joints (pan, tilt) point the limb along a direction on the sphere
+  (:class:`SphereMargins`): the pose and a ring of :data:`RING_PROBES` directions at the margin
+  around it lie inside the region, each joint that far inside its hard limits; candidates
+  start past the region's nearest boundary point, then rings around it;
+- three joints (pan, tilt, roll) orient it on SO(3) (:class:`RotationMargins`): the pose the
+  servos hold is safe with any one joint moved by the margin either way; candidates start on
+  the rotation through the region's nearest orientation, then rings about :data:`RING_AXES`.
+
+Angles in radians unless a name ends in ``_deg``; orientations as unit quaternions (4,),
+scalar first.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
 
 import numpy as np
 
 from limbctl.geometry import scalar
-from limbctl.geometry.quat import limb_direction, swing_from_direction, tangent_frame
+from limbctl.geometry.chains import geodesic, toward, turn_by
+from limbctl.geometry.gimbal import pan_tilt_roll_scalar, pose_quat_scalar
+from limbctl.geometry.quat import limb_direction, multiply, swing_from_direction, tangent_frame
 from limbctl.teleop.gate import Gate
 
 #: How far (deg) inside the region and the hard limits a start or park pose must be. It covers
@@ -64,10 +72,10 @@ def ring(directions: np.ndarray, radius: float, count: int) -> np.ndarray:
 
 def within_limits(gate: Gate, pan: float, tilt: float, margin: float = 0.0) -> bool:
     """Both joints at least ``margin`` (rad) inside the gate's hard limits (NaN is not)."""
-    lim = gate.limits
+    (pan_min, tilt_min), (pan_max, tilt_max) = gate.limits.joint_min, gate.limits.joint_max
     return (
-        lim.pan_min + margin <= pan <= lim.pan_max - margin
-        and lim.tilt_min + margin <= tilt <= lim.tilt_max - margin
+        pan_min + margin <= pan <= pan_max - margin
+        and tilt_min + margin <= tilt <= tilt_max - margin
     )
 
 
@@ -82,12 +90,12 @@ def inside_by_margin(gate: Gate, poses: np.ndarray, margin: float) -> np.ndarray
     ndarray of bool, shape (N,)
     """
     poses = np.asarray(poses, dtype=np.float64).reshape(-1, 2)
-    lim = gate.limits
+    (pan_min, tilt_min), (pan_max, tilt_max) = gate.limits.joint_min, gate.limits.joint_max
     ok = (
-        (poses[:, 0] >= lim.pan_min + margin)
-        & (poses[:, 0] <= lim.pan_max - margin)
-        & (poses[:, 1] >= lim.tilt_min + margin)
-        & (poses[:, 1] <= lim.tilt_max - margin)
+        (poses[:, 0] >= pan_min + margin)
+        & (poses[:, 0] <= pan_max - margin)
+        & (poses[:, 1] >= tilt_min + margin)
+        & (poses[:, 1] <= tilt_max - margin)
     )
     if not ok.any():
         return ok
@@ -132,9 +140,9 @@ def nearest_start_pose(
     nearest = limb_direction(gate.envelope.correct(swing_from_direction(d)))
     # the nearest point of the region, pulled into the hard limits with twice the margin
     base_pan, base_tilt = scalar.pan_tilt(tuple(nearest), pan)
-    lim = gate.limits
-    base_pan = min(max(base_pan, lim.pan_min + 2 * margin), lim.pan_max - 2 * margin)
-    base_tilt = min(max(base_tilt, lim.tilt_min + 2 * margin), lim.tilt_max - 2 * margin)
+    (pan_min, tilt_min), (pan_max, tilt_max) = gate.limits.joint_min, gate.limits.joint_max
+    base_pan = min(max(base_pan, pan_min + 2 * margin), pan_max - 2 * margin)
+    base_tilt = min(max(base_tilt, tilt_min + 2 * margin), tilt_max - 2 * margin)
     base = np.asarray(scalar.direction(base_pan, base_tilt))
 
     candidates = [base[None, :]]
@@ -166,118 +174,187 @@ def nearest_start_pose(
     return float(best[0]), float(best[1])
 
 
-def status_line(
-    where: str, ready: bool, inside_limits: bool, outside_deg: float | None, advice: str
-) -> str:
-    """A waiting limb's status line: ``where`` it is, what is wrong (beyond the hard limits,
-    ``outside_deg`` outside the region, None inside; on the edge), then the ``advice``."""
-    problems = []
-    if not inside_limits:
-        problems.append("beyond the rig's hard limits")
-    if outside_deg is not None:
-        problems.append(f"{outside_deg:.1f} deg outside the taught region")
-    if not problems and not ready:
-        problems.append("on the region's edge")
-    state = "; ".join(problems) if problems else "ready"
-    return f"limb at {where} ({state}): {advice}"
+# ---- on SO(3): a three-servo chain (pan, tilt, roll) ------------------------------------------
+#: Axes (world frame) the search rings turn the nearest orientation about: the six faces and
+#: eight corners of a cube, so every rotation axis lies within 35 deg of one of them; +x is
+#: among them, which is the limb's own axis at rest and near it in a region about +x.
+RING_AXES = np.array(
+    [[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]]
+    + [[sx, sy, sz] for sx in (1, -1) for sy in (1, -1) for sz in (1, -1)],
+    dtype=np.float64,
+)
+RING_AXES /= np.linalg.norm(RING_AXES, axis=1, keepdims=True)
+
+#: A pose (rad, one angle a joint) -> the pose the servos hold once it is written.
+HeldPose = Callable[..., tuple[float, ...]]
 
 
-@dataclass(frozen=True)
-class StartStatus:
-    """Where a waiting limb is and where it must go before the session may start.
-
-    Angles in degrees. ``move_pan_deg`` > 0 turns the limb left (toward +y), ``move_tilt_deg``
-    > 0 raises it. The app prints :meth:`line` and may publish :meth:`as_dict` to a live view.
-
-    Attributes
-    ----------
-    pan_deg, tilt_deg : float
-        The present pose.
-    ready : bool
-        Inside the region and the hard limits by :data:`START_MARGIN_DEG`: the session starts.
-    inside_region, inside_limits : bool
-        Each check on its own (without the margin).
-    outside_deg : float
-        How far the limb direction lies outside the region (0 inside).
-    distance_deg : float
-        Angle from the present direction to the target (0 when ready).
-    target_pan_deg, target_tilt_deg : float or None
-        The nearest pose inside by the margin; None when none was found nearby.
-    move_pan_deg, move_tilt_deg : float
-        Joint changes from the present pose to the target (0 when ready or no target).
-    waited_s : float
-        Seconds spent waiting so far.
-    """
-
-    pan_deg: float
-    tilt_deg: float
-    ready: bool
-    inside_region: bool
-    inside_limits: bool
-    outside_deg: float
-    distance_deg: float
-    target_pan_deg: float | None
-    target_tilt_deg: float | None
-    move_pan_deg: float
-    move_tilt_deg: float
-    waited_s: float = 0.0
-
-    def advice(self) -> str:
-        """Which way to move the limb, in words (empty when ready)."""
-        if self.ready:
-            return "inside the taught region: starting"
-        if self.target_pan_deg is None:
-            return (
-                "no pose far enough inside the taught region is near; move the limb toward "
-                "the middle of what you taught"
-            )
-        moves = []
-        if abs(self.move_pan_deg) >= 0.05:
-            way = "left" if self.move_pan_deg > 0 else "right"
-            moves.append(f"turn it {way} {abs(self.move_pan_deg):.1f} deg")
-        if abs(self.move_tilt_deg) >= 0.05:
-            way = "raise" if self.move_tilt_deg > 0 else "lower"
-            moves.append(f"{way} it {abs(self.move_tilt_deg):.1f} deg")
-        return f"move the limb {self.distance_deg:.1f} deg: " + (" and ".join(moves) or "a hair")
-
-    def line(self) -> str:
-        """One status line: where the limb is, what is wrong, which way to move it."""
-        where = f"pan {self.pan_deg:+.1f} deg, tilt {self.tilt_deg:+.1f} deg"
-        outside = None if self.inside_region else self.outside_deg
-        return status_line(where, self.ready, self.inside_limits, outside, self.advice())
-
-    def as_dict(self) -> dict:
-        """The status as plain JSON-ready values (for a live view or a log)."""
-        return {"kind": "start", **asdict(self), "advice": self.advice()}
+def safe_with_margin(gate: Gate, pose: tuple[float, ...], margin: float) -> bool:
+    """True when ``pose`` and the poses with one joint moved by +-``margin`` (rad) are safe."""
+    if not gate.is_safe(*pose):
+        return False
+    for k in range(len(pose)):
+        for sign in (-1.0, 1.0):
+            moved = list(pose)
+            moved[k] += sign * margin
+            if not gate.is_safe(*moved):
+                return False
+    return True
 
 
-def assess(
-    gate: Gate,
-    pan: float,
-    tilt: float,
-    round_to_ticks: RoundToTicks = _exact,
-    waited_s: float = 0.0,
-) -> StartStatus:
-    """The :class:`StartStatus` of a limb at ``(pan, tilt)`` (rad, as read from the servos)."""
-    margin = math.radians(START_MARGIN_DEG)
-    ready = bool(inside_by_margin(gate, np.array([[pan, tilt]]), margin)[0])
-    outside = outside_by(gate, pan, tilt)
-    target = None if ready else nearest_start_pose(gate, pan, tilt, margin, round_to_ticks)
-    distance = move_pan = move_tilt = 0.0
-    if target is not None:
-        distance = scalar.angle(scalar.direction(pan, tilt), scalar.direction(*target))
-        move_pan, move_tilt = target[0] - pan, target[1] - tilt
-    return StartStatus(
-        pan_deg=math.degrees(pan),
-        tilt_deg=math.degrees(tilt),
-        ready=ready,
-        inside_region=outside == 0.0,
-        inside_limits=within_limits(gate, pan, tilt),
-        outside_deg=math.degrees(outside),
-        distance_deg=math.degrees(distance),
-        target_pan_deg=None if target is None else math.degrees(target[0]),
-        target_tilt_deg=None if target is None else math.degrees(target[1]),
-        move_pan_deg=math.degrees(move_pan),
-        move_tilt_deg=math.degrees(move_tilt),
-        waited_s=waited_s,
-    )
+def rotation_outside_by(gate: Gate, pose: tuple[float, ...]) -> float:
+    """Rotation (rad) from ``pose`` (pan, tilt, roll) to the region's nearest orientation; 0
+    inside."""
+    q = pose_quat_scalar(*pose)
+    if bool(gate.envelope.contains(q)):
+        return 0.0
+    return geodesic(q, gate.envelope.correct(q))
+
+
+def _axis_rotation(axis: np.ndarray, angle: float) -> np.ndarray:
+    """Quaternion (4,) of a turn by ``angle`` (rad) about unit ``axis`` (3,)."""
+    half = angle / 2.0
+    return np.concatenate([[math.cos(half)], math.sin(half) * axis])
+
+
+def rotation_candidates(gate: Gate, q: np.ndarray, margin: float) -> list[np.ndarray]:
+    """Orientations (4,) near ``q`` that may be inside by ``margin``, all built on the region's
+    nearest orientation ``c = correct(q)``: on along the shortest rotation from ``q`` through
+    ``c``, :data:`SEARCH_RADII` margins past it (across a smooth edge of swing or twist), and
+    rings ``r(a, s m) * c`` about each of :data:`RING_AXES` (corners, necks, twist stops)."""
+    nearest = gate.envelope.correct(q)
+    out = [nearest]
+    gap = geodesic(q, nearest)
+    if gap > margin * 1e-3:
+        for s in SEARCH_RADII:
+            out.append(turn_by(q, nearest, gap + s * margin))
+    for s in SEARCH_RADII:
+        for axis in RING_AXES:
+            turned = multiply(_axis_rotation(axis, s * margin), nearest)
+            out.append(-turned if turned[0] < 0.0 else turned)
+    return out
+
+
+def nearest_rotation_start_pose(
+    gate: Gate, pose: tuple[float, ...], held_pose: HeldPose, margin: float
+) -> tuple[float, ...] | None:
+    """The pose nearest ``pose`` (pan, tilt, roll; rad) that is inside by ``margin``
+    (:func:`safe_with_margin`) once the servos hold it (``held_pose``); the candidates of
+    :func:`rotation_candidates`, nearest ``pose`` by geodesic angle first. None when none
+    qualifies (a region thinner than twice the margin near the pose)."""
+    lim = gate.limits
+    here = held_pose(*pose)
+    if safe_with_margin(gate, here, margin):
+        return here
+    q = pose_quat_scalar(*pose)
+    for c in sorted(rotation_candidates(gate, q, margin), key=lambda c: geodesic(q, c)):
+        held = held_pose(
+            *pan_tilt_roll_scalar(c, pose[0], pose[2], lim.joint_min[2], lim.joint_max[2])
+        )
+        if safe_with_margin(gate, held, margin):
+            return held
+    return None
+
+
+# ---- the chain's margins: one object a gate, the only place the chain is told apart ---------
+class SphereMargins:
+    """Start geometry of a two-servo chain: poses (pan, tilt) point the limb along a direction
+    (3,) on the sphere; inside by the margin is :func:`inside_by_margin` of the pose itself."""
+
+    def __init__(self, gate: Gate, held_pose: HeldPose) -> None:
+        self.gate, self.held_pose = gate, held_pose
+        self.margin = math.radians(START_MARGIN_DEG)
+
+    def point(self, pose: tuple[float, ...]) -> tuple[float, float, float]:
+        """The limb's direction (3,) at ``pose``."""
+        return scalar.direction(*pose)
+
+    def angle(self, a: tuple[float, ...], b: tuple[float, ...]) -> float:
+        """Angle (rad) between two points."""
+        return scalar.angle(a, b)
+
+    def toward(self, a: tuple[float, ...], b: tuple[float, ...], step: float) -> object:
+        """The point ``step`` rad from ``a`` toward ``b``."""
+        return scalar.toward(a, b, step)
+
+    def pose_of(self, point: tuple[float, ...], near: tuple[float, ...]) -> tuple[float, ...]:
+        """Joint angles (rad) of ``point``, the branch nearest the pose ``near``."""
+        return scalar.pan_tilt(point, near[0])
+
+    def orientation(self, pose: tuple[float, ...]) -> np.ndarray:
+        """The orientation (4,) the gate is asked for to reach ``pose``."""
+        return scalar.swing(scalar.direction(*pose))
+
+    def within_limits(self, pose: tuple[float, ...]) -> bool:
+        """Every joint within its hard limits."""
+        return within_limits(self.gate, *pose)
+
+    def outside_by(self, pose: tuple[float, ...]) -> float:
+        """Angle (rad) by which ``pose`` lies outside the region; 0 inside."""
+        return outside_by(self.gate, *pose)
+
+    def held_inside(self, held: tuple[float, ...]) -> bool:
+        """A pose the servos hold (rounded to ticks) is inside by the margin."""
+        return bool(inside_by_margin(self.gate, np.array([held]), self.margin)[0])
+
+    def ready(self, pose: tuple[float, ...]) -> bool:
+        """A limb read at ``pose`` may start: inside by the margin as read."""
+        return bool(inside_by_margin(self.gate, np.array([pose]), self.margin)[0])
+
+    def nearest(self, pose: tuple[float, ...]) -> tuple[float, ...] | None:
+        """:func:`nearest_start_pose` of ``pose``, rounded to ticks."""
+        return nearest_start_pose(self.gate, *pose, self.margin, self.held_pose)
+
+    def warm(self) -> None:
+        """Nothing to compile ahead: the sphere's kernels run on the first read."""
+
+
+class RotationMargins(SphereMargins):
+    """Start geometry of a three-servo chain: poses (pan, tilt, roll) are orientations (4,) on
+    SO(3); inside by the margin is :func:`safe_with_margin` of the pose the servos hold."""
+
+    def point(self, pose: tuple[float, ...]) -> np.ndarray:
+        return pose_quat_scalar(*pose)
+
+    def angle(self, a: np.ndarray, b: np.ndarray) -> float:  # type: ignore[override]
+        return geodesic(a, b)
+
+    def toward(self, a: np.ndarray, b: np.ndarray, step: float) -> np.ndarray:  # type: ignore[override]
+        return toward(a, b, step)
+
+    def pose_of(self, point: np.ndarray, near: tuple[float, ...]) -> tuple[float, ...]:  # type: ignore[override]
+        lim = self.gate.limits
+        return pan_tilt_roll_scalar(point, near[0], near[2], lim.joint_min[2], lim.joint_max[2])
+
+    def orientation(self, pose: tuple[float, ...]) -> np.ndarray:
+        return pose_quat_scalar(*pose)
+
+    def within_limits(self, pose: tuple[float, ...]) -> bool:
+        return self.gate.limits.inside(*pose)
+
+    def outside_by(self, pose: tuple[float, ...]) -> float:
+        return rotation_outside_by(self.gate, pose)
+
+    def held_inside(self, held: tuple[float, ...]) -> bool:
+        return safe_with_margin(self.gate, held, self.margin)
+
+    def ready(self, pose: tuple[float, ...]) -> bool:
+        """A limb read at ``pose`` may start: the pose the servos would hold there is inside by
+        the margin."""
+        return safe_with_margin(self.gate, self.held_pose(*pose), self.margin)
+
+    def nearest(self, pose: tuple[float, ...]) -> tuple[float, ...] | None:
+        return nearest_rotation_start_pose(self.gate, pose, self.held_pose, self.margin)
+
+    def warm(self) -> None:
+        """The region's kernels compile on their first call: here, not in the loop's first
+        cycles."""
+        self.gate.envelope.correct(pose_quat_scalar(math.pi / 2, 0.0, math.pi / 2))
+
+
+def margins_for(gate: Gate, limb: object) -> SphereMargins:
+    """The start geometry of the chain ``limb`` drives (its ``joints``): two joints point the
+    limb (:class:`SphereMargins`), three orient it (:class:`RotationMargins`). ``limb`` gives
+    ``held_pose``, the pose its servos hold once a pose is written."""
+    chain = SphereMargins if len(limb.joints) == 2 else RotationMargins  # type: ignore[attr-defined]
+    return chain(gate, limb.held_pose)  # type: ignore[attr-defined]

@@ -56,7 +56,8 @@ class ExplainedStatus:
         self._cycle = cycle
         if cycle.result is not None:
             self._previous = self._written
-            self._written = (math.degrees(cycle.result.pan), math.degrees(cycle.result.tilt))
+            pan, tilt = cycle.result.pose[:2]
+            self._written = (math.degrees(pan), math.degrees(tilt))
         if self._window is None:
             self._window = (summary.cycles, cycle.t)
         if cycle.t - self._last_shown >= self._every:

@@ -49,14 +49,7 @@ def written_tolerance_deg(limits: GateLimits) -> float:
 def gate_limits(rate_hz: float = 200.0, max_speed_deg_s: float = 120.0) -> GateLimits:
     """The sim rig's hard limits and the slew limits ``limbctl teleop`` would use."""
     step = math.radians(max_speed_deg_s) / rate_hz
-    return GateLimits(
-        pan_min=PROFILE.pan.min_rad,
-        pan_max=PROFILE.pan.max_rad,
-        tilt_min=PROFILE.tilt.min_rad,
-        tilt_max=PROFILE.tilt.max_rad,
-        max_step=step,
-        max_joint_step=max(3.0 * step, math.radians(1.0)),
-    )
+    return GateLimits.for_profile(PROFILE, step, max(3.0 * step, math.radians(1.0)))
 
 
 @functools.cache
@@ -89,7 +82,7 @@ class RecordingGate(Gate):
 
     def produced_ticks(self, rig: Rig) -> list[tuple[int, int]]:
         """Goal ticks (pan, tilt) of every pose the gate let through, in order."""
-        goals = (rig.goal_for(r.pan, r.tilt) for r in self.results if r.outcome is not Outcome.HELD)
+        goals = (rig.goal_for(*r.pose) for r in self.results if r.outcome is not Outcome.HELD)
         return [g.ticks for g in goals]
 
 

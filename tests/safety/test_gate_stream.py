@@ -150,17 +150,17 @@ def test_every_gated_goal_is_inside_region_and_limits(model, lines, rate_hz, spe
         assert np.isfinite(command.q).all() and abs(np.linalg.norm(command.q) - 1) < 1e-9
         for _ in range(3):
             result = gate.step(command.q)
-            goal = rig.goal_for(result.pan, result.tilt)
+            goal = rig.goal_for(*result.pose)
             assert lo_pan <= goal.ticks[0] <= hi_pan and lo_tilt <= goal.ticks[1] <= hi_tilt
             assert not goal.clamped, "the gate left a pose beyond the hard limits to the rig"
             pan, tilt = rig.ticks_to_angles(*goal.ticks)
             worst = excursion_deg(model, pan_tilt_to_direction(pan, tilt))[0]
             assert worst <= written_tolerance_deg(limits)
             # a step never exceeds the joint-step limit (the singularity guard)
-            assert max(abs(result.pan - previous[0]), abs(result.tilt - previous[1])) <= (
+            assert max(abs(a - b) for a, b in zip(result.pose, previous, strict=True)) <= (
                 limits.max_joint_step + 1e-12
             )
-            previous = (result.pan, result.tilt)
+            previous = result.pose
 
 
 # ---- end to end: the real loop, judged by the simulator's goal log ---------------------------

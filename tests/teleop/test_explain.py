@@ -18,10 +18,8 @@ from limbctl.teleop.gate import Gate, GateLimits, GateResult, Outcome
 
 def gate(tilt_max_deg: float = 80.0) -> Gate:
     limits = GateLimits(
-        pan_min=math.radians(-100),
-        pan_max=math.radians(100),
-        tilt_min=math.radians(-30),
-        tilt_max=math.radians(tilt_max_deg),
+        joint_min=(math.radians(-100), math.radians(-30)),
+        joint_max=(math.radians(100), math.radians(tilt_max_deg)),
         max_step=math.radians(2),
         max_joint_step=math.radians(10),
     )
@@ -36,7 +34,7 @@ def follow(g: Gate, pan_deg: float, tilt_deg: float, cycles: int) -> list[GateRe
 
 
 def deg(result: GateResult) -> tuple[float, float]:
-    return math.degrees(result.pan), math.degrees(result.tilt)
+    return math.degrees(result.pose[0]), math.degrees(result.pose[1])
 
 
 def test_inside_on_the_way_and_holding():

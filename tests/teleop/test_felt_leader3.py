@@ -29,7 +29,7 @@ from limbctl.live import leader_status
 from limbctl.servo.rig import Rig
 from limbctl.servo.setup import configure_servos
 from limbctl.session import open_rig
-from limbctl.teleop.gate3 import Gate3, GateLimits3
+from limbctl.teleop.gate import Gate, GateLimits
 from limbctl.teleop.haptic_push import beyond_deg, corrected_pose
 from limbctl.teleop.sources import LeaderSource, SourceContext, parse_source
 from limbctl.view.leader import SWING_SHARE_DRAWN
@@ -73,12 +73,8 @@ def felt3_session(tmp_path, model="xm430-w350", rate_hz=25.0):
         configure_servos(rig.bus, {**rig.tick_limits(), **dict.fromkeys(IDS, (0, 4095))})
         source = parse_source("leader:4,5,6").open(SourceContext(rig=rig, rate_hz=rate_hz))
         assert isinstance(source, LeaderSource)
-        limits = GateLimits3(
-            profile.pan.min_rad, profile.pan.max_rad, profile.tilt.min_rad,
-            profile.tilt.max_rad, profile.roll.min_rad, profile.roll.max_rad,
-            max_step=math.radians(120) / 200, max_joint_step=math.radians(1.8),
-        )  # fmt: skip
-        session.gate = Gate3(region, limits)
+        limits = GateLimits.for_profile(profile, math.radians(120) / 200, math.radians(1.8))
+        session.gate = Gate(region, limits)
         yield session, source, log
 
 

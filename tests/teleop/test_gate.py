@@ -1,4 +1,12 @@
+"""The gate on both chains: two servos (limb directions, a cone) and three (full orientations, a
+cone with a twist band). Commands anywhere (on three servos: twist near +-180 deg, tilt near
++-90 deg) never give a pose outside the region or the hard limits, the slew limit holds, an
+inside command is reached exactly, and bad targets are held."""
+
+from __future__ import annotations
+
 import math
+import re
 
 import numpy as np
 import pytest
@@ -7,131 +15,252 @@ from hypothesis import strategies as st
 
 from limbctl.envelope import Cone
 from limbctl.errors import ConfigError, SafetyError
-from limbctl.geometry.gimbal import pan_tilt_to_direction, pan_tilt_to_quat
-from limbctl.geometry.quat import direction_angle, limb_direction
-from limbctl.teleop.gate import Gate, GateLimits, Outcome
+from limbctl.geometry.gimbal import chain_twist_scalar, pan_tilt_to_quat, pose_quat_scalar
+from limbctl.geometry.twist import compose_one, decompose_one
+from limbctl.teleop.gate import Gate, GateLimits, Outcome, written_tolerance_deg
 
 R = math.radians(40)
-STEP = math.radians(2)
+STEP = math.radians(2.0)
+RIGS = (2, 3)
 
 
-def make_gate(half_angle=R, max_step=STEP, tilt_max=math.radians(80), max_joint_step=10.0):
+class ConeBand:
+    """A true region over full orientations: the limb within ``half_angle`` of +x and its twist
+    within ``half_width`` of ``centre``. ``correct`` is the engines' two-step clamp (direction
+    onto the cone keeping the twist, then the twist into the band): always inside the region,
+    not always the nearest orientation, which the gate does not need for its safety."""
+
+    def __init__(self, half_angle: float, centre: float, half_width: float) -> None:
+        self.half_angle, self.centre, self.half_width = half_angle, centre, half_width
+
+    def _split(self, q):
+        d, tau = decompose_one(np.asarray(q, dtype=float))
+        angle = math.acos(max(-1.0, min(1.0, d[0])))
+        offset = math.remainder(tau - self.centre, 2 * math.pi)
+        return d, angle, offset
+
+    def contains(self, q) -> bool:
+        _, angle, offset = self._split(q)
+        return angle <= self.half_angle and abs(offset) <= self.half_width
+
+    def correct(self, q) -> np.ndarray:
+        q = np.asarray(q, dtype=float)
+        if self.contains(q):
+            return q
+        d, angle, offset = self._split(q)
+        if angle > self.half_angle:
+            side = math.hypot(d[1], d[2])
+            if side < 1e-12:
+                d = (math.cos(self.half_angle), math.sin(self.half_angle), 0.0)
+            else:
+                s = math.sin(self.half_angle) / side
+                d = (math.cos(self.half_angle), d[1] * s, d[2] * s)
+        offset = max(-self.half_width, min(self.half_width, offset))
+        return compose_one(d, self.centre + offset)
+
+
+def quat(pose) -> np.ndarray:
+    """The orientation (4,) of a pose (rad) of either chain."""
+    return pan_tilt_to_quat(*pose) if len(pose) == 2 else pose_quat_scalar(*pose)
+
+
+def make_gate(rig, half_angle=R, max_step=STEP, max_joint_step=10.0, tilt_max=None, start=True):
+    """A gate over a cone (two servos) or a cone with a +-30 deg twist band (three), started at
+    the rest pose; ``max_joint_step`` in degrees."""
+    tilt_max = math.radians(80 if rig == 2 else 70) if tilt_max is None else tilt_max
     limits = GateLimits(
-        pan_min=math.radians(-100),
-        pan_max=math.radians(100),
-        tilt_min=math.radians(-30),
-        tilt_max=tilt_max,
+        joint_min=tuple(map(math.radians, (-100, -30) if rig == 2 else (-115, -55, -100))),
+        joint_max=(math.radians(100 if rig == 2 else 115), tilt_max, math.radians(100))[:rig],
         max_step=max_step,
         max_joint_step=math.radians(max_joint_step),
     )
-    return Gate(Cone(half_angle), limits)
+    region = Cone(half_angle) if rig == 2 else ConeBand(half_angle, 0.0, math.radians(30))
+    gate = Gate(region, limits)
+    if start:
+        gate.start(*(0.0,) * rig)
+    return gate
 
 
-def angle_from_x(pan, tilt):
-    return float(direction_angle(pan_tilt_to_direction(pan, tilt), np.array([1.0, 0, 0])))
+def moved(gate, before, after) -> float:
+    """How far (rad) the limb moved between two poses, in the gate's chain's distance."""
+    chain = gate.chain
+    return chain.distance(chain.point_at(before), chain.point_at(after))
 
 
-def test_inside_command_passes_unchanged():
-    gate = make_gate()
-    gate.start(0.0, 0.0)
-    pan, tilt = math.radians(1.0), math.radians(-0.5)
-    result = gate.step(pan_tilt_to_quat(pan, tilt))
+@pytest.mark.parametrize("rig", RIGS)
+def test_an_inside_command_is_reached_exactly_at_the_slew_rate(rig):
+    gate = make_gate(rig)
+    target = tuple(map(math.radians, (20.0, 15.0, 10.0)))[:rig]
+    assert gate.envelope.contains(quat(target))
+    steps = []
+    for _ in range(40):
+        before = gate.safe_pose
+        result = gate.step(quat(target))
+        steps.append(moved(gate, before, result.pose))
+        if result.outcome is Outcome.PASSED:
+            break
     assert result.outcome is Outcome.PASSED
-    assert result.pan == pytest.approx(pan, abs=1e-12)
-    assert result.tilt == pytest.approx(tilt, abs=1e-12)
+    assert result.pose == pytest.approx(target, abs=1e-9)
+    # every slewed cycle moves the limb by exactly max_step
+    assert len(steps) > 5 and np.allclose(steps[:-1], STEP, atol=1e-9)
 
 
-def test_outside_command_slides_to_the_cone_edge_in_bounded_steps():
-    gate = make_gate()
-    gate.start(0.0, 0.0)
-    target = pan_tilt_to_quat(math.radians(90), 0.0)
-    poses = [gate.step(target) for _ in range(40)]
-    final = poses[-1]
-    assert final.outcome is Outcome.CORRECTED and not final.slewed
-    assert final.pan == pytest.approx(R, abs=1e-9)
-    assert final.tilt == pytest.approx(0.0, abs=1e-9)
-    for a, b in zip(poses, poses[1:]):
-        da = pan_tilt_to_direction(a.pan, a.tilt)
-        db = pan_tilt_to_direction(b.pan, b.tilt)
-        assert direction_angle(da, db) <= STEP + 1e-9
+@pytest.mark.parametrize("rig", RIGS)
+def test_an_outside_command_slides_onto_the_edge_in_bounded_steps(rig):
+    # two servos: pan 90 deg, past the cone; three: roll 90 deg, past the twist band
+    gate = make_gate(rig)
+    target, edge = {
+        2: ((math.radians(90), 0.0), (R, 0.0)),
+        3: ((0.0, 0.0, math.radians(90)), (0.0, 0.0, math.radians(30))),
+    }[rig]
+    results = [gate.step(quat(target)) for _ in range(40)]
+    assert results[-1].outcome is Outcome.CORRECTED and not results[-1].slewed
+    assert results[-1].pose == pytest.approx(edge, abs=1e-9)
+    for a, b in zip(results, results[1:]):
+        assert moved(gate, a.pose, b.pose) <= STEP + 1e-9
 
 
-def test_hard_limit_clamps_inside_the_region():
-    gate = make_gate(tilt_max=math.radians(10))
-    gate.start(0.0, 0.0)
+@pytest.mark.parametrize("rig", RIGS)
+def test_a_hard_limit_clamps_inside_the_region(rig):
+    gate = make_gate(rig, tilt_max=math.radians(10))
     for _ in range(30):
-        result = gate.step(pan_tilt_to_quat(0.0, math.radians(30)))
+        result = gate.step(quat((0.0, math.radians(30), 0.0)[:rig]))
     assert result.outcome is Outcome.CLAMPED
-    assert result.tilt == pytest.approx(math.radians(10))
+    assert result.pose[1] == pytest.approx(math.radians(10))
 
 
-def test_nan_target_is_held_and_start_outside_refused():
-    gate = make_gate()
-    gate.start(0.1, 0.1)
-    held = gate.step(np.array([np.nan, 0, 0, 0]))
-    assert held.outcome is Outcome.HELD and (held.pan, held.tilt) == (0.1, 0.1)
-    assert gate.step(np.zeros(4)).outcome is Outcome.HELD
+@pytest.mark.parametrize("rig", RIGS)
+def test_bad_targets_are_held_and_start_outside_is_refused(rig):
+    gate = make_gate(rig, start=False)
+    gate.start(*(0.1,) * rig)
+    for bad in (np.array([np.nan, 0, 0, 1.0]), np.array([np.inf, 1, 0, 0]), np.zeros(4)):
+        held = gate.step(bad)
+        assert held.outcome is Outcome.HELD and held.pose == (0.1,) * rig
     assert gate.step(np.array([2.0, 0, 0, 0])).outcome is Outcome.HELD
-    with pytest.raises(SafetyError, match="outside the taught region"):
-        make_gate().start(math.radians(80), 0.0)
+    assert gate.step(np.ones(3)).reason == "malformed target"
+    outside, said = (
+        ((math.radians(80), 0.0), "tilt 0.0 deg, outside the taught region or the rig's")
+        if rig == 2
+        else ((0.0, 0.0, math.radians(60)), "roll 60.0 deg, outside the taught region (swing and")
+    )
+    with pytest.raises(SafetyError, match=re.escape(said)):
+        make_gate(rig, start=False).start(*outside)
     with pytest.raises(SafetyError):
-        make_gate().start(float("nan"), 0.0)
+        make_gate(rig, start=False).start(float("nan"), *(0.0,) * (rig - 1))
+    with pytest.raises(RuntimeError, match="start"):
+        make_gate(rig, start=False).step(quat((0.0,) * rig))
 
 
 def test_limits_are_validated():
     with pytest.raises(ConfigError):
-        GateLimits(0.0, -1.0, 0.0, 1.0, 0.1, 0.1)
+        GateLimits((0.0, 0.0), (-1.0, 1.0), 0.1, 0.1)
     with pytest.raises(ConfigError):
-        GateLimits(-1.0, 1.0, -1.0, 1.0, float("nan"), 0.1)
+        GateLimits((0, 0, 1), (1, 1, 0), 0.1, 0.1)
+    with pytest.raises(ConfigError):
+        GateLimits((-1.0, -1.0), (1.0, 1.0), float("nan"), 0.1)
+    with pytest.raises(ConfigError, match="2 or 3 joints"):
+        GateLimits((-1.0,) * 4, (1.0,) * 4, 0.1, 0.1)
+    with pytest.raises(ConfigError):
+        GateLimits((-1.0, -1.0), (1.0, 1.0, 1.0), 0.1, 0.1)
+    assert GateLimits((-1, -1), (1, 1), 0.1, 0.1).inside(1.0, -1.0)
+    assert not GateLimits((-1, -1), (1, 1), 0.1, 0.1).inside(0.0, float("nan"))
 
 
-directions = st.tuples(st.floats(-math.pi, math.pi), st.floats(-math.pi / 2, math.pi / 2)).map(
-    lambda pt: pan_tilt_to_quat(*pt)
-)
+def unit(v):
+    v = np.asarray(v, dtype=float)
+    q = v / np.linalg.norm(v)
+    return -q if q[0] < 0 else q
+
+
 odd = st.sampled_from(
     [np.array([np.nan, 0, 0, 0]), np.array([np.inf, 1, 0, 0]), np.zeros(4), np.ones(3)]
 )
-
-
-@settings(max_examples=60, deadline=None)
-@given(
-    stream=st.lists(st.one_of(directions, odd), min_size=1, max_size=60),
-    half_angle_deg=st.floats(5, 120),
+directions = st.tuples(st.floats(-math.pi, math.pi), st.floats(-math.pi / 2, math.pi / 2)).map(
+    lambda pt: pan_tilt_to_quat(*pt)
 )
-def test_every_output_is_safe_and_slew_limited(stream, half_angle_deg):
-    gate = make_gate(half_angle=math.radians(half_angle_deg))
-    gate.start(0.0, 0.0)
-    lim = gate.limits
-    prev = pan_tilt_to_direction(0.0, 0.0)
-    for target in stream:
-        result = gate.step(target)
-        assert lim.pan_min <= result.pan <= lim.pan_max
-        assert lim.tilt_min <= result.tilt <= lim.tilt_max
-        assert angle_from_x(result.pan, result.tilt) <= math.radians(half_angle_deg) + 1e-9
-        d = pan_tilt_to_direction(result.pan, result.tilt)
-        assert direction_angle(prev, d) <= lim.max_step + 1e-9
-        prev = d
+quats = st.lists(st.floats(-1, 1), min_size=4, max_size=4).filter(
+    lambda v: 1e-3 < sum(x * x for x in v)
+)
+# families the issue names: twist near +-180 deg; tilt near +-90 deg (pan and roll share an axis)
+twist_edge = st.tuples(
+    st.floats(-math.pi, math.pi),
+    st.floats(-1.4, 1.4),
+    st.sampled_from([-1.0, 1.0]),
+    st.floats(0.0, 0.05),
+).map(
+    lambda a: compose_one(
+        (math.cos(a[1]) * math.cos(a[0]), math.cos(a[1]) * math.sin(a[0]), math.sin(a[1])),
+        a[2] * (math.pi - a[3]),
+    )
+)
+tilt_edge = st.tuples(
+    st.floats(-math.pi, math.pi),
+    st.sampled_from([-1.0, 1.0]),
+    st.floats(0.0, 0.05),
+    st.floats(-math.pi, math.pi),
+).map(lambda a: pose_quat_scalar(a[0], a[1] * (math.pi / 2 - a[2]), a[3]))
+TARGETS = {2: st.one_of(directions, odd), 3: st.one_of(quats.map(unit), twist_edge, tilt_edge, odd)}
 
 
+@pytest.mark.parametrize("rig", RIGS)
 @settings(max_examples=60, deadline=None)
-@given(pan=st.floats(-0.5, 0.5), tilt=st.floats(-0.4, 0.4))
-def test_valid_commands_within_one_step_pass_exactly(pan, tilt):
-    gate = make_gate(max_step=math.radians(90), max_joint_step=90.0)
-    gate.start(0.0, 0.0)
-    q = pan_tilt_to_quat(pan, tilt)
-    if angle_from_x(pan, tilt) > R - 1e-6:
+@given(data=st.data(), half_angle_deg=st.floats(5, 120))
+def test_every_output_is_safe_and_slew_limited(rig, data, half_angle_deg):
+    gate = make_gate(rig, half_angle=math.radians(half_angle_deg))
+    lim, region, chain = gate.limits, gate.envelope, gate.chain
+    # the step moves max_step, then its correction: on a cone that keeps it within max_step, on
+    # the cone with a band the twist clamp may add up to another max_step
+    bound = lim.max_step * (1 if rig == 2 else 2) + 1e-9
+    for target in data.draw(st.lists(TARGETS[rig], min_size=1, max_size=8)):
+        for _ in range(15):
+            before = gate.safe_pose
+            result = gate.step(target)
+            assert lim.inside(*result.pose)
+            q = quat(result.pose)
+            nearest = chain.point(region.correct(q))
+            assert chain.distance(chain.point(q), nearest) <= lim.region_tolerance
+            assert max(abs(a - b) for a, b in zip(result.pose, before)) <= (
+                lim.max_joint_step + 1e-12
+            )
+            assert moved(gate, before, result.pose) <= bound
+
+
+@pytest.mark.parametrize("rig", RIGS)
+@settings(max_examples=60, deadline=None)
+@given(pose=st.tuples(st.floats(-0.5, 0.5), st.floats(-0.4, 0.4), st.floats(-0.45, 0.45)))
+def test_valid_commands_within_one_step_pass_exactly(rig, pose):
+    gate = make_gate(rig, max_step=math.radians(90), max_joint_step=90.0)
+    q = quat(pose[:rig])
+    if not np.array_equal(gate.envelope.correct(q), q):  # outside, or on the edge
         return
     result = gate.step(q)
     assert result.outcome is Outcome.PASSED
-    np.testing.assert_allclose(
-        limb_direction(pan_tilt_to_quat(result.pan, result.tilt)), limb_direction(q), atol=1e-12
-    )
+    assert gate.chain.distance(gate.chain.point_at(result.pose), gate.chain.point(q)) <= 1e-12
 
 
-def test_joint_step_limit_near_the_singularity():
-    # limb almost straight up: a short direction step across the pole swings the pan far
-    gate = make_gate(half_angle=math.radians(179), max_step=math.radians(5), max_joint_step=3.0)
-    gate.start(0.0, math.radians(79))
-    result = gate.step(pan_tilt_to_quat(math.radians(90), math.radians(79)))
-    assert result.slewed
-    assert abs(result.pan) <= math.radians(3) + 1e-12
+@pytest.mark.parametrize("rig", RIGS)
+def test_joint_step_limit_near_the_singularity(rig):
+    # limb almost straight up: a short step across the pole swings the pan far
+    # (three servos: the roll keeps the twist 0, inside the band)
+    gate = make_gate(rig, math.radians(179), math.radians(5), 3.0, math.radians(85), start=False)
+    start = (0.0, math.radians(79), 0.0)[:rig]
+    gate.start(*start)
+    pan, tilt = math.radians(90), math.radians(79)
+    result = gate.step(quat((pan, tilt, -chain_twist_scalar(pan, tilt))[:rig]))
+    assert result.slewed and result.pose[0] > math.radians(1)
+    assert max(abs(v - v0) for v, v0 in zip(result.pose, start)) <= math.radians(3) + 1e-12
+
+
+@pytest.mark.parametrize(("rig", "stated"), [(2, 0.072), (3, 0.108)])
+def test_the_written_tolerance_bounds_the_rounding_to_ticks(rig, stated):
+    assert written_tolerance_deg(joints=rig) == pytest.approx(stated, abs=5e-4)
+    # rounding each joint by half a tick moves the limb by at most the bound less the gate's own
+    chain = make_gate(rig).chain
+    rng = np.random.default_rng(0)
+    half_tick = math.pi / 4096
+    worst = 0.0
+    for pose in rng.uniform([-2, -1.5, -1.7][:rig], [2, 1.5, 1.7][:rig], size=(2000, rig)):
+        shifted = pose + rng.choice([-1.0, 1.0], size=rig) * half_tick
+        worst = max(worst, chain.distance(chain.point_at(pose), chain.point_at(shifted)))
+    assert math.degrees(worst) <= written_tolerance_deg(joints=rig) - 0.01 + 1e-9
+    assert math.degrees(worst) > written_tolerance_deg(joints=rig) - 0.03  # the bound is tight

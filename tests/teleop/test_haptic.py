@@ -19,10 +19,10 @@ from hypothesis import strategies as st
 
 from firmware_sim.leader import Operator, leader_joints
 from limbctl.errors import ConfigError
+from limbctl.geometry.chains import geodesic
 from limbctl.geometry.gimbal import pose_quat_scalar
 from limbctl.servo.control_table import ModelNumber
 from limbctl.servo.leader import FELT_MODELS
-from limbctl.teleop.gate3 import geodesic
 from limbctl.teleop.haptic import TICK_DEG, FeelLaw, FeelStats
 from limbctl.teleop.haptic_push import Push, beyond_deg, corrected_pose, held, push_for
 from limbctl.teleop.sources.leader import PaceWatch

@@ -163,7 +163,7 @@ def test_keys_start_from_the_gates_pose_hold_release_and_show_the_guide():
     from limbctl.teleop.sources import KeyboardSource
     from limbctl.teleop.sources.keyboard import MAX_LEAD_DEG
 
-    gate = Gate(Cone(math.radians(40)), GateLimits(-1.7, 1.7, -0.5, 1.4, 0.01, 0.02))
+    gate = Gate(Cone(math.radians(40)), GateLimits((-1.7, -0.5), (1.7, 1.4), 0.01, 0.02))
     gate.start(math.radians(10.0), math.radians(5.0))
     guide = io.StringIO()
     master, slave = pty.openpty()

@@ -81,7 +81,7 @@ class Cycles:
 
 
 def written_deg(cycle: Cycle) -> tuple[float, float]:
-    return math.degrees(cycle.result.pan), math.degrees(cycle.result.tilt)
+    return math.degrees(cycle.result.pose[0]), math.degrees(cycle.result.pose[1])
 
 
 def press(master: int, cycles: Cycles, source: KeyboardSource, key: bytes) -> Cycle:

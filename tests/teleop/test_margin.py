@@ -1,4 +1,5 @@
-"""Inside by a margin, the nearest start pose and the waiting limb's status, on a Lee cone."""
+"""Inside by a margin, the nearest start pose and the waiting limb's status: on a Lee cone for
+the two-servo chain, on a cone with a twist band for the three-servo one."""
 
 import math
 
@@ -7,29 +8,43 @@ import pytest
 
 from calib import default_sim_profile
 from limbctl.envelope import Cone
-from limbctl.geometry.gimbal import pan_tilt_to_direction
+from limbctl.geometry.chains import geodesic
+from limbctl.geometry.gimbal import pan_tilt_to_direction, pose_quat_scalar
 from limbctl.geometry.quat import direction_angle
 from limbctl.servo.rig import Rig
 from limbctl.teleop.gate import Gate, GateLimits, written_tolerance_deg
 from limbctl.teleop.margin import (
     RING_PROBES,
     START_MARGIN_DEG,
-    assess,
+    RotationMargins,
+    SphereMargins,
     inside_by_margin,
     nearest_start_pose,
+    safe_with_margin,
 )
+from limbctl.teleop.start import assess
+from tests.teleop.test_gate import ConeBand
 
 HALF_ANGLE = math.radians(40)
 MARGIN = math.radians(START_MARGIN_DEG)
 RIG = Rig(default_sim_profile())
+#: The three-servo region: the limb within 40 deg of +x, its twist within 30 deg of 0.
+BAND = ConeBand(HALF_ANGLE, 0.0, math.radians(30))
+
+
+def exact(*pose):
+    """No tick rounding: the search's own geometry."""
+    return pose
+
+
+def band_gate(roll_limit=2.5):
+    return Gate(BAND, GateLimits((-2, -1, -roll_limit), (2, 1, roll_limit), 0.01, 0.03))
 
 
 def cone_gate():
     limits = GateLimits(
-        pan_min=math.radians(-100),
-        pan_max=math.radians(100),
-        tilt_min=math.radians(-30),
-        tilt_max=math.radians(70),
+        joint_min=(math.radians(-100), math.radians(-30)),
+        joint_max=(math.radians(100), math.radians(70)),
         max_step=math.radians(0.6),
         max_joint_step=math.radians(1.8),
     )
@@ -95,19 +110,66 @@ def test_nearest_start_pose_is_inside_by_the_margin_after_rounding(pan_deg, tilt
 
 def test_status_says_how_far_and_which_way():
     gate = cone_gate()
-    status = assess(gate, math.radians(50.0), math.radians(0.0), RIG.held_pose, waited_s=3.0)
+    margins = SphereMargins(gate, RIG.held_pose)
+    status = assess(margins, (math.radians(50.0), math.radians(0.0)), waited_s=3.0)
     assert not status.ready and not status.inside_region and status.inside_limits
     assert status.outside_deg == pytest.approx(10.0, abs=1e-6)
     assert 10.0 + START_MARGIN_DEG <= status.distance_deg <= 10.0 + 2.5 * START_MARGIN_DEG
-    assert status.move_pan_deg < -10.0 and abs(status.move_tilt_deg) < 1.0
+    assert status.move_deg[0] < -10.0 and abs(status.move_deg[1]) < 1.0
     assert "10.0 deg outside the taught region" in status.line()
     assert "turn it right" in status.advice()
     row = status.as_dict()
     assert row["kind"] == "start" and row["waited_s"] == 3.0 and row["advice"]
 
-    up = assess(gate, 0.0, math.radians(-45.0), RIG.held_pose)
+    up = assess(margins, (0.0, math.radians(-45.0)))
     assert not up.inside_limits and "beyond the rig's hard limits" in up.line()
     assert "raise it" in up.advice()
 
-    inside = assess(gate, math.radians(5.0), math.radians(5.0), RIG.held_pose)
+    inside = assess(margins, (math.radians(5.0), math.radians(5.0)))
     assert inside.ready and inside.distance_deg == 0.0 and "starting" in inside.line()
+
+
+def test_nearest_rotation_start_pose_is_inside_by_the_margin_and_near():
+    gate = band_gate()
+    margins = RotationMargins(gate, exact)
+    # outside in twist only (roll 45 deg at rest: twist 45 against the band's 30)
+    twisted = (0.0, 0.0, math.radians(45))
+    found = margins.nearest(twisted)
+    assert found is not None and safe_with_margin(gate, found, MARGIN)
+    q, f = pose_quat_scalar(*twisted), pose_quat_scalar(*found)
+    # the nearest region orientation is 15 deg away; the start pose a margin or two further
+    assert 15.0 < math.degrees(geodesic(q, f)) <= 15.0 + 3 * START_MARGIN_DEG
+    # outside in swing and twist: pan 55 deg, roll -50 deg
+    both = (math.radians(55), 0.0, math.radians(-50))
+    found = margins.nearest(both)
+    assert found is not None and safe_with_margin(gate, found, MARGIN)
+    gap = geodesic(pose_quat_scalar(*both), BAND.correct(pose_quat_scalar(*both)))
+    assert geodesic(pose_quat_scalar(*both), pose_quat_scalar(*found)) <= gap + 6 * MARGIN
+    # already inside by the margin: the pose itself
+    inside = (0.1, 0.05, 0.1)
+    assert margins.nearest(inside) == inside
+
+
+def test_safe_with_margin_needs_room_on_every_joint():
+    gate = band_gate(roll_limit=1.7)
+    assert safe_with_margin(gate, (0.0, 0.0, 0.0), MARGIN)
+    edge = (0.0, 0.0, math.radians(29.9))  # twist 29.9: 0.35 deg more roll leaves the band
+    assert gate.is_safe(*edge) and not safe_with_margin(gate, edge, MARGIN)
+
+
+def test_the_status_of_a_waiting_three_servo_limb_says_how_far_and_which_way():
+    margins = RotationMargins(band_gate(), exact)
+    twisted = assess(margins, (0.0, 0.0, math.radians(45)), waited_s=2.0)
+    assert not twisted.ready and twisted.inside_limits
+    assert abs(twisted.outside_deg - 15.0) < 1e-6
+    assert 15.0 < twisted.distance_deg <= 15.0 + 3 * START_MARGIN_DEG
+    # the way in is a roll back toward the band, about -15 deg
+    assert twisted.target_deg is not None and -16.5 < twisted.target_deg[2] - 45.0 < -15.0
+    line = twisted.line()
+    assert "roll +45.0 deg (15.0 deg outside the taught region)" in line, line
+    assert "move the limb 15." in line and "deg about its axis" in line, line
+    inside = assess(margins, (0.1, 0.05, 0.1))
+    assert inside.ready and inside.distance_deg == 0.0
+    assert inside.line().endswith("(ready): inside the taught region: starting")
+    beyond = assess(margins, (0.0, 1.2, 0.0))  # tilt past its 1 rad hard limit
+    assert not beyond.inside_limits and "beyond the rig's hard limits" in beyond.line()

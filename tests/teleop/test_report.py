@@ -14,7 +14,6 @@ from limbctl.geometry.gimbal import pan_tilt_to_quat, pose_quat_scalar
 from limbctl.geometry.twist import compose, decompose
 from limbctl.teleop.cycle import Cycle, CycleState, TeleopSummary
 from limbctl.teleop.gate import GateResult, Outcome
-from limbctl.teleop.gate3 import GateResult3
 from limbctl.teleop.report import Telemetry
 
 #: A commanded pose (deg) and the pose the gate wrote (rad) per rig: the three-servo command
@@ -22,14 +21,12 @@ from limbctl.teleop.report import Telemetry
 RIGS = {
     "two servos": (
         pan_tilt_to_quat(np.radians(30.0), np.radians(-10.0)),
-        GateResult(math.radians(25.0), math.radians(-8.0), Outcome.CORRECTED, corrected=True),
+        GateResult((math.radians(25.0), math.radians(-8.0)), Outcome.CORRECTED, corrected=True),
     ),
     "three servos": (
         compose(np.array([math.cos(math.radians(20.0)), math.sin(math.radians(20.0)), 0.0]), 0.9),
-        GateResult3(
-            math.radians(18.0),
-            math.radians(4.0),
-            math.radians(30.0),
+        GateResult(
+            (math.radians(18.0), math.radians(4.0), math.radians(30.0)),
             Outcome.CORRECTED,
             corrected=True,
         ),

@@ -18,10 +18,10 @@ from limbctl.envelope.synthetic_bays import (
     inside_points,
 )
 from limbctl.geometry import scalar
-from limbctl.geometry.gimbal import pan_tilt_roll_scalar, pose_quat_scalar
+from limbctl.geometry.chains import chain_geometry
+from limbctl.geometry.gimbal import pan_tilt_roll_scalar
 from limbctl.geometry.twist import decompose, wrap
 from limbctl.teleop.gate import Gate, GateLimits
-from limbctl.teleop.gate3 import Gate3, GateLimits3, geodesic
 from limbctl.teleop.route import (
     REACH_EXTRA_CYCLES,
     REACH_FACTOR,
@@ -41,25 +41,23 @@ def region_for(rig: int, seed: int):
 
 
 def gate_at(region, rig: int, q: np.ndarray):
-    big = (math.radians(-170), math.radians(170), math.radians(-85), math.radians(85))
-    joint = max(3.0 * STEP, math.radians(1.0))
+    lo = (math.radians(-170), math.radians(-85), -ROLL)[:rig]
+    hi = (math.radians(170), math.radians(85), ROLL)[:rig]
+    gate = Gate(region, GateLimits(lo, hi, STEP, max(3.0 * STEP, math.radians(1.0))))
     if rig == 2:
-        gate = Gate(region, GateLimits(*big, STEP, joint))
         gate.start(*scalar.pan_tilt(scalar.limb(q), 0.0))
     else:
-        gate = Gate3(region, GateLimits3(*big, -ROLL, ROLL, STEP, joint))
         gate.start(*pan_tilt_roll_scalar(q, 0.0, 0.0, -ROLL, ROLL))
     return gate
 
 
 def pose_q(gate, rig: int) -> np.ndarray:
-    if rig == 2:
-        return scalar.swing(scalar.direction(*gate.safe_pose))
-    return pose_quat_scalar(*gate.safe_pose)
+    return gate.chain.quat(gate.chain.point_at(gate.safe_pose))
 
 
 def apart(a: np.ndarray, b: np.ndarray, rig: int) -> float:
-    return scalar.angle(scalar.limb(a), scalar.limb(b)) if rig == 2 else geodesic(a, b)
+    chain = chain_geometry(rig)
+    return chain.distance(chain.point(a), chain.point(b))
 
 
 def needed(paths: InsidePaths, a: np.ndarray, b: np.ndarray, rig: int) -> float:

@@ -31,7 +31,7 @@ class Steered(StreamSource):
 
 def cycles_up_against_the_edge(count: int = 60, rate_hz: float = 200.0):
     """Real gate cycles of a command straight up beyond a 30 deg cone."""
-    limits = GateLimits(-1.7, 1.7, -0.5, 1.4, math.radians(2), math.radians(10))
+    limits = GateLimits((-1.7, -0.5), (1.7, 1.4), math.radians(2), math.radians(10))
     gate = Gate(Cone(math.radians(30)), limits)
     gate.start(0.0, 0.0)
     target = pan_tilt_to_quat(0.0, math.radians(60))

@@ -14,8 +14,7 @@ from limbctl.geometry.twist import compose, decompose
 from limbctl.live import TeleopFeed
 from limbctl.teach.twist_guide import TwistPlace
 from limbctl.teleop.cycle import Cycle, CycleState
-from limbctl.teleop.gate import Outcome
-from limbctl.teleop.gate3 import GateResult3
+from limbctl.teleop.gate import GateResult, Outcome
 from limbctl.view import Board, Live, PanTilt, Scene
 from limbctl.view.feed import PoseTap
 from limbctl.view.twist import (
@@ -120,7 +119,7 @@ def test_the_teleop_feed_shows_the_twist_of_a_three_servo_rig(shoulder_model):
     feed = TeleopFeed(board)
     feed.band = model.region.band
     present = (math.radians(20.0), math.radians(10.0), math.radians(15.0))
-    written = GateResult3(present[0], present[1], math.radians(12.0), Outcome.PASSED)
+    written = GateResult((present[0], present[1], math.radians(12.0)), Outcome.PASSED)
     feed(
         Cycle(
             index=0,

@@ -161,7 +161,7 @@ class KeyboardSource(CommandSource):
         if taken is None or taken is self._snapped or result.outcome is Outcome.HELD:
             return ()  # the limb's own pose sent back says nothing about the edge
         stopped = getattr(result, "corrected", False) or getattr(result, "clamped", False)
-        written = (math.degrees(result.pan), math.degrees(result.tilt))
+        written = (math.degrees(result.pose[0]), math.degrees(result.pose[1]))
         self._at_edge = written if stopped else None
         if stopped:
             self._stopped = (taken, written)

@@ -101,8 +101,6 @@ class LeaderSource(SnapWatching, LeaderBus, CommandSource):
             raise ConfigError(f"leader servos {leader_ids} are not on the bus")
         self.rig = rig
         self.leader_ids = tuple(leader_ids)
-        #: Each joint's hard limits (lo, hi; rad), within which the law unwraps a correction.
-        self.limits = tuple((joint.min_rad, joint.max_rad) for joint in rig.joints)
         self.read_failures = 0
         #: Cycles whose push the safety rules released (the leader unread, a held gate, a
         #: failed write, a follower silent past FOLLOWER_GRACE_S), whether or not it pressed.
@@ -247,10 +245,12 @@ class LeaderSource(SnapWatching, LeaderBus, CommandSource):
             pose, q, last, read_at, torque, speed = cycle
             previous, period = (None, 0.0) if last is None else (last[0], read_at - last[1])
             engaged = resume or (self.last_push is not None and self.last_push.goal_current > 0)
+            # the gate's joint limits: a three-joint correction's roll is unwrapped within them
+            limits = tuple(zip(gate.limits.joint_min, gate.limits.joint_max))
             corrected = gate.envelope.correct(q)
             push = push_for(
                 self.law, self.motor, pose, q, corrected, previous, period, engaged, torque,
-                speed, self.limits,
+                speed, limits,
             )  # fmt: skip
             # a wall kept by the rules at this very read (judge_read) is not judged twice
             judged = engaged and self._cycle_judged

@@ -1,0 +1,144 @@
+"""Starting a session from wherever the limb is, on both rigs (``sim``: pan, tilt; ``sim3``:
+pan, tilt, roll) on the simulator through the SDK: waiting for the hand, timing out, driving
+in, and the status a waiting limb shows."""
+
+from __future__ import annotations
+
+import io
+import math
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from limbctl.teleop.approach import SETTLE_DEG
+from limbctl.teleop.margin import START_MARGIN_DEG, margins_for
+from limbctl.teleop.start import MAX_APPROACH_SPEED_DEG_S, StartOptions, start_session
+from tests.safety.support import wait_for
+from tests.teleop.chains import RATE, RIGS, chain_gate, live_chain, pose_of, settle
+
+
+@pytest.mark.parametrize("rig_name", RIGS)
+def test_outside_waits_with_torque_off_then_starts_once_moved_inside_by_hand(rig_name):
+    statuses = []
+    lines = io.StringIO()
+    with live_chain(rig_name) as session:
+        rig, sim = session.rig, session.simulator
+        gate = chain_gate(session.profile)
+        settle(rig, pose_of(rig_name, 55.0, 5.0))  # torque on, outside the cone
+        outcome = {}
+
+        def starting():
+            outcome["start"] = start_session(
+                rig, gate, StartOptions(wait_s=30.0), stream=lines, publish=statuses.append
+            )
+
+        thread = threading.Thread(target=starting)
+        thread.start()
+        wait_for(lambda: len(statuses) >= 3, 10.0, "three waiting statuses")
+        assert not any(rig.torque_enabled())  # switched off so the hand can move it
+        first = statuses[0]
+        assert not first.ready and not first.inside_region and first.inside_limits
+        assert 14.0 < first.outside_deg < 16.0
+        assert first.move_deg[0] < -14.0  # turn it right (toward pan 0)
+        pan_id = rig.joints[0].id
+        sim.push(pan_id, -15.0)  # the hand turns the pan joint right, ~15 deg/s
+        thread.join(timeout=20.0)
+        assert not thread.is_alive()
+        sim.push(pan_id, 0.0)
+        torque = rig.torque_enabled()
+        present = rig.read_pose()
+    result = outcome["start"]
+    assert result.started and result.how == "moved by hand" and result.exit_code == 0
+    assert all(torque)
+    assert "torque switched off" in lines.getvalue()
+    assert "turn it right" in lines.getvalue()
+    # it started once inside by the margin, not before, and the gate started where it is
+    margins = margins_for(gate, rig)
+    margins.margin = math.radians(0.9 * START_MARGIN_DEG)
+    assert margins.held_inside(gate.safe_pose)
+    assert gate.is_safe(*present)
+    assert statuses[-1].ready and not any(s.ready for s in statuses[:-1])
+
+
+@pytest.mark.parametrize("rig_name", RIGS)
+def test_a_limb_left_outside_times_out_with_torque_off_and_exit_2(rig_name):
+    published = []
+    stream = io.StringIO()
+    outside = pose_of(rig_name, -50.0, -10.0, 40.0)  # swing out; on sim3 the twist too
+    with live_chain(rig_name) as session:
+        rig = session.rig
+        gate = chain_gate(session.profile)
+        settle(rig, outside)
+        result = start_session(
+            rig, gate, StartOptions(wait_s=1.0, poll_hz=20.0), stream=stream,
+            publish=published.append,
+        )  # fmt: skip
+        torque = rig.torque_enabled()
+    assert not any(torque)
+    assert not result.started and result.how == "timed out" and result.exit_code == 2
+    assert "--approach" in result.message and "torque is off" in result.message
+    assert result.status is not None and result.status.move_deg[0] > 9.0  # turn it left
+    assert gate.safe_pose is None
+    assert len(published) >= 10 and not any(s.ready for s in published)
+    last = published[-1]
+    assert all(abs(a - math.degrees(b)) < 0.5 for a, b in zip(last.pose_deg, outside))
+    assert last.outside_deg > 8.0 and last.target_deg is not None
+    # to a log (not a terminal) one line every LOG_EVERY_S s: the first, here
+    text = stream.getvalue()
+    status_lines = [ln for ln in text.splitlines() if ln.startswith("waiting ")]
+    assert len(status_lines) == 1 and last.advice().split(":")[0] in text, text
+
+
+class WriteRecorder:
+    """The real rig; it also remembers every pose written and when (an observer)."""
+
+    def __init__(self, rig):
+        self.rig = rig
+        self.writes: list[tuple[float, tuple[float, ...]]] = []  # (monotonic s, pose)
+
+    def __getattr__(self, name):
+        return getattr(self.rig, name)
+
+    def write_pose(self, *pose):
+        goal = self.rig.write_pose(*pose)
+        self.writes.append((time.monotonic(), pose))
+        return goal
+
+
+@pytest.mark.parametrize(
+    ("rig_name", "outside_deg"), [("sim", (48.0, 12.0)), ("sim3", (50.0, 10.0, -45.0))]
+)
+def test_approach_drives_the_limb_inside_along_a_slow_checked_path(rig_name, outside_deg):
+    speed = MAX_APPROACH_SPEED_DEG_S
+    with live_chain(rig_name) as session:
+        rig = session.rig
+        gate = chain_gate(session.profile)
+        settle(rig, pose_of(rig_name, *outside_deg))
+        start = rig.read_pose()
+        limb = WriteRecorder(rig)
+        result = start_session(
+            limb, gate, StartOptions(wait_s=20.0, approach_deg_s=speed, rate_hz=RATE)
+        )
+        torque = rig.torque_enabled()
+    assert result.started and result.how == "approached", result.message
+    assert all(torque)
+    m = margins_for(gate, rig)
+    times = np.array([w[0] for w in limb.writes])
+    poses = [w[1] for w in limb.writes]
+    assert len(poses) >= 10
+    # slow: one cycle's share of the speed per goal, goals at least a cycle apart
+    steps = [m.angle(m.point(a), m.point(b)) for a, b in zip(poses[:-1], poses[1:], strict=True)]
+    assert math.degrees(max(steps)) <= speed / RATE + 1e-9
+    assert np.diff(times).min() >= 0.99 / RATE
+    # never further outside than where it started (plus the gate's tolerance)
+    worst = m.outside_by(start) + gate.limits.region_tolerance
+    assert max(m.outside_by(p) for p in poses) <= worst
+    # the session starts once the limb is within SETTLE_DEG of the target (inside by the margin)
+    m.margin = math.radians(0.9 * (START_MARGIN_DEG - SETTLE_DEG))
+    assert m.held_inside(gate.safe_pose)
+    # the nearest such pose, not one far inside
+    assert m.angle(m.point(start), m.point(poses[-1])) <= m.outside_by(start) + math.radians(
+        4 * START_MARGIN_DEG
+    )
