@@ -157,38 +157,45 @@ class Calibration:
     stored in dataset and model headers; :func:`calibration_from_dict` reads it back.
     """
 
-    pan: JointCalibration
-    tilt: JointCalibration
-    roll: JointCalibration | None = None
+    joints: tuple[tuple[str, JointCalibration], ...]
 
     @property
     def joint_names(self) -> tuple[str, ...]:
-        """``("pan", "tilt")``, or ``("pan", "tilt", "roll")`` on a three-servo rig."""
-        return ("pan", "tilt") if self.roll is None else ("pan", "tilt", "roll")
+        """The chain's joint names in order, one of :data:`CHAINS`."""
+        return tuple(name for name, _ in self.joints)
+
+    @property
+    def twists(self) -> bool:
+        """True when the chain turns the limb about its own axis (it ends in a roll joint): its
+        regions carry a twist band."""
+        return self.joint_names[-1] == "roll"
+
+    def joint(self, name: str) -> JointCalibration | None:
+        """The calibration of the joint called ``name``, or None if the chain has none."""
+        return dict(self.joints).get(name)
 
     def to_dict(self) -> dict[str, dict[str, Any]]:
         """Plain data: ``{"pan": {"zero_tick": ..., ...}, "tilt": {...}}`` (and ``"roll"`` when
         the rig has one; a two-servo calibration has no ``roll`` key)."""
         return {
-            name: {key: getattr(getattr(self, name), key) for key in _CALIBRATION_KEYS}
-            for name in self.joint_names
+            name: {key: getattr(joint, key) for key in _CALIBRATION_KEYS}
+            for name, joint in self.joints
         }
 
     def differences(self, other: Calibration) -> tuple[str, ...]:
         """Each field that differs, as ``"pan.zero_tick 2185 vs 2385"`` (self's value first);
-        a roll joint on one side only is ``"roll present vs absent"``."""
+        a joint on one side only is ``"roll present vs absent"``."""
         found = []
-        if (self.roll is None) != (other.roll is None):
-            found.append(
-                "roll " + ("present vs absent" if self.roll is not None else "absent vs present")
-            )
-        for name in ("pan", "tilt", "roll"):
-            mine, theirs = getattr(self, name), getattr(other, name)
-            if mine is None or theirs is None:
+        mine, theirs = dict(self.joints), dict(other.joints)
+        for name in dict.fromkeys((*mine, *theirs)):
+            if (name in mine) != (name in theirs):
+                side = "present vs absent" if name in mine else "absent vs present"
+                found.append(f"{name} {side}")
                 continue
             for key in _CALIBRATION_KEYS:
-                if getattr(mine, key) != getattr(theirs, key):
-                    found.append(f"{name}.{key} {getattr(mine, key):g} vs {getattr(theirs, key):g}")
+                a, b = getattr(mine[name], key), getattr(theirs[name], key)
+                if a != b:
+                    found.append(f"{name}.{key} {a:g} vs {b:g}")
         return tuple(found)
 
 
@@ -238,6 +245,12 @@ class RigProfile:
         return dataclasses.replace(self, joints=tuple((n, joints[n]) for n in names))
 
     @property
+    def twists(self) -> bool:
+        """True when the chain turns the limb about its own axis (it ends in a roll joint): its
+        regions carry a twist band."""
+        return self.joints[-1][0] == "roll"
+
+    @property
     def is_sim(self) -> bool:
         """True when the profile asks for the embedded simulator."""
         return self.port == SIM_PORT
@@ -246,9 +259,14 @@ class RigProfile:
     def calibration(self) -> Calibration:
         """Zero ticks, directions and hard limits: what a model trained on this rig depends on."""
         return Calibration(
-            *(
-                JointCalibration(joint.zero_tick, joint.direction, joint.min_deg, joint.max_deg)
-                for _, joint in self.joints
+            tuple(
+                (
+                    name,
+                    JointCalibration(
+                        joint.zero_tick, joint.direction, joint.min_deg, joint.max_deg
+                    ),
+                )
+                for name, joint in self.joints
             )
         )
 
@@ -399,10 +417,9 @@ def calibration_from_dict(data: Any, source: str = "<calibration>") -> Calibrati
     """
     check = _Checker(source)
     raw = check.mapping(data, "calibration", ("pan", "tilt"), ("roll",))
+    names = next(chain for chain in reversed(CHAINS) if set(chain) <= set(raw))
     return Calibration(
-        check.joint_calibration(raw["pan"], "calibration.pan"),
-        check.joint_calibration(raw["tilt"], "calibration.tilt"),
-        check.joint_calibration(raw["roll"], "calibration.roll") if "roll" in raw else None,
+        tuple((name, check.joint_calibration(raw[name], f"calibration.{name}")) for name in names)
     )
 
 

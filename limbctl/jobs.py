@@ -114,7 +114,7 @@ def run_record(options: RecordOptions, view: LiveView | None = None) -> int:
     conn = options.connection
     profile = load_rig_profile(conn.rig)
     hand = options.hand if options.hand is not None else demo_region_path()
-    if options.hand is None and profile.roll is not None:  # the packaged region with twist
+    if options.hand is None and profile.twists:  # the packaged region with twist
         hand = hand.with_name("demo_region3.yaml")
     meta = {"rate_hz": options.rate, "simulated": conn.port is None and profile.is_sim}
     if meta["simulated"] and conn.latency_timer_ms is None:  # late replies kept: see the constant
@@ -130,7 +130,7 @@ def run_record(options: RecordOptions, view: LiveView | None = None) -> int:
         _viewing(options.view, view) as live,
         open_connection(conn, hand=hand) as session,
         # the first train and teleop then find their kernels compiled (this rig's: twist or not)
-        warming_in_background(twist=profile.roll is not None),
+        warming_in_background(twist=profile.twists),
     ):
         with writer:
             with stop_on_signals() as stop, live.teaching(session.rig, session.profile) as taught:
@@ -225,7 +225,7 @@ def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
     if spec.kind.scheme == "leader":  # before any port opens
         check_leader_fits(spec.extra_ids, profile)
     gate = gate_for(options.model, profile, options.rate, options.max_speed)
-    prepare(jit_stage("gate", profile.roll is not None))
+    prepare(jit_stage("gate", profile.twists))
     starting = StartOptions(options.wait, options.approach, options.rate)  # checked before opening
     operator = _sim_operator(options.operator, spec, conn, profile)
     sim_options = None if operator is None else {"leader": operator.leader_spec(spec.extra_ids)}
@@ -286,7 +286,7 @@ def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
             )  # fmt: skip
     from limbctl.geometry.jit import mark_prepared
 
-    mark_prepared(jit_stage("gate", profile.roll is not None))
+    mark_prepared(jit_stage("gate", profile.twists))
     extra = opened[0].report_lines()[1:] if opened else ()
     for line in (*result.lines(), *extra):
         say(line)
@@ -351,7 +351,7 @@ def run_calibrate(options: CalibrateOptions) -> int:
     conn = options.connection
     base = _calibration_base(options, load_rig_profile(conn.rig))
     # the simulator's person follows the prompts: three steps, or four with a roll joint
-    name = "calibration_hand.yaml" if base.roll is None else "calibration_hand3.yaml"
+    name = "calibration_hand3.yaml" if base.twists else "calibration_hand.yaml"
     script = Path(str(resources.files("limbctl").joinpath("data", name)))
     # the servos the person named: the chosen profile's ids, not the base profile's
     with open_connection(conn, hand=script, profile=base) as session:
@@ -391,11 +391,11 @@ def _calibration_base(options: CalibrateOptions, base):
 
     conn = options.connection
     ids = options.ids or tuple(joint.id for _, joint in base.joints)
-    if len(ids) == 3 and base.roll is None:
+    if len(ids) == 3 and not base.twists:
         # a roll joint to start from: the simulated three-servo rig's (its zero and direction
         # are found by the calibration; its limits are narrowed inside the end stops below)
         base = base.with_joints(roll=default_sim_profile("sim3").roll)
-    elif len(ids) == 2 and base.roll is not None:
+    elif len(ids) == 2 and base.twists:
         raise ConfigError(
             f"the rig profile {base.name!r} has a roll joint (servo {base.roll.id}): give three "
             "ids, --ids PAN,TILT,ROLL"

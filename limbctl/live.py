@@ -185,7 +185,7 @@ class LiveView:
             return
         tap = PoseTap(limb, self.board, mode, note="torque off: move the limb by hand")
         with SceneFeeder(self.board, tap.samples, rig_limits(profile)) as feeder:
-            if getattr(profile, "roll", None) is not None:  # three servos: the twist too
+            if getattr(profile, "twists", False):  # three servos: the twist too
                 twist = TwistTeaching(feeder, tap)
                 yield Teaching(tap, twist.on_guidance, feeder, twist.on_twist)
                 return
@@ -215,7 +215,7 @@ class LiveView:
         note = f"the {kind} model's region" if loops else f"a {kind} model: region not drawn"
         limits = rig_limits(profile)
         twist = None
-        if getattr(profile, "roll", None) is not None:  # three servos: the learned band too
+        if getattr(profile, "twists", False):  # three servos: the learned band too
             twist = model_band_map(envelope, limits.pan_deg, limits.tilt_deg)
         self.board.publish_scene(Scene(loops=loops, limits=limits, region_note=note, twist=twist))
         feed = TeleopFeed(self.board, mode)

@@ -90,7 +90,7 @@ def open_rig(
                     hand=hand,
                     goal_log=goal_log,
                     seed=seed,
-                    **({} if profile.roll is None else {"roll_id": profile.roll.id}),
+                    **({"roll_id": profile.ids[-1]} if profile.twists else {}),
                     **{"baud": baud or profile.baud, **dict(sim_options or {})},
                 )
             )

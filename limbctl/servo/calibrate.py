@@ -202,10 +202,9 @@ def profile_from_calibration(
         max_deg=float(tilt_limits_deg[1]),
     )
     joints = {"pan": pan, "tilt": tilt}
-    roll = base.roll
-    if roll is not None and result.roll_zero is not None and result.roll_direction is not None:
+    if base.twists and result.roll_zero is not None and result.roll_direction is not None:
         # the roll's hard limits and end stops are the base profile's
         joints["roll"] = dataclasses.replace(
-            roll, zero_tick=result.roll_zero, direction=result.roll_direction
+            base.joints[-1][1], zero_tick=result.roll_zero, direction=result.roll_direction
         )
     return dataclasses.replace(base.with_joints(**joints), name=name, port=port, source=None)

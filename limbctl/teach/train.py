@@ -289,7 +289,7 @@ STAGES = ("load dataset", "fit model", "save model", "summarise")
 def learns_twist(kind: str, calibration: Any) -> bool:
     """Whether :func:`train` fits a model of ``kind`` over full orientations (swing and twist):
     a Rigid Map of a recording whose calibration has a roll joint (a three-servo rig)."""
-    return kind == "rigidmap" and calibration is not None and calibration.roll is not None
+    return kind == "rigidmap" and calibration is not None and calibration.twists
 
 
 def train(

@@ -276,12 +276,19 @@ def test_calibration_of_a_profile_round_trips_and_names_differences():
     profile = default_sim_profile()
     calibration = profile.calibration
     assert calibration == Calibration(
-        JointCalibration(2185, 1, -115.0, 115.0), JointCalibration(1890, -1, -55.0, 70.0)
+        (
+            ("pan", JointCalibration(2185, 1, -115.0, 115.0)),
+            ("tilt", JointCalibration(1890, -1, -55.0, 70.0)),
+        )
     )
+    assert not calibration.twists and default_sim_profile("sim3").calibration.twists
     assert calibration_from_dict(calibration.to_dict()) == calibration
     assert calibration.differences(calibration) == ()
     moved = Calibration(
-        JointCalibration(2385, 1, -115.0, 115.0), JointCalibration(1890, 1, -55.0, 60.0)
+        (
+            ("pan", JointCalibration(2385, 1, -115.0, 115.0)),
+            ("tilt", JointCalibration(1890, 1, -55.0, 60.0)),
+        )
     )
     assert calibration.differences(moved) == (
         "pan.zero_tick 2185 vs 2385",

@@ -8,15 +8,7 @@ from limbctl.region import edge_choice as ec
 from limbctl.region.acceptance import Proposal, Refusal
 from limbctl.region.loops import loop_area
 from limbctl.region.mesh import DirectionMesh
-
-
-def circle(radius_deg: float, n: int) -> np.ndarray:
-    """A counter-clockwise loop (n, 3) at ``radius_deg`` about +x."""
-    phi = np.linspace(-np.pi, np.pi, n, endpoint=False)
-    r = np.radians(radius_deg)
-    return np.column_stack(
-        [np.full(n, np.cos(r)), np.sin(r) * np.cos(phi), np.sin(r) * np.sin(phi)]
-    )
+from tests.region.support import circle
 
 
 @pytest.fixture(scope="module")

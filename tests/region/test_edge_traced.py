@@ -9,18 +9,10 @@ from limbctl.envelope.synthetic import SMALL_KIDNEY, ConeRegion, PolygonRegion, 
 from limbctl.geometry.quat import direction_angle, limb_direction
 from limbctl.region import edge_traced as et
 from limbctl.region.loops import resample_loop, station_positions
+from tests.region.support import circle
 
 X = np.array([1.0, 0.0, 0.0])
 REPO = Path(__file__).resolve().parents[2]
-
-
-def circle(radius_deg: float, n: int) -> np.ndarray:
-    """A counter-clockwise loop (n, 3) at ``radius_deg`` about +x."""
-    phi = np.linspace(-np.pi, np.pi, n, endpoint=False)
-    r = np.radians(radius_deg)
-    return np.column_stack(
-        [np.full(n, np.cos(r)), np.sin(r) * np.cos(phi), np.sin(r) * np.sin(phi)]
-    )
 
 
 @pytest.mark.parametrize("per_depth", [30, 100])

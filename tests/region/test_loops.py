@@ -5,15 +5,7 @@ from limbctl.envelope.synthetic import PolygonRegion
 from limbctl.geometry.quat import direction_angle
 from limbctl.region import loops
 from limbctl.region.mesh import DirectionMesh
-
-
-def circle(radius_deg: float, n: int) -> np.ndarray:
-    """A counter-clockwise loop (n, 3) at ``radius_deg`` about +x."""
-    phi = np.linspace(-np.pi, np.pi, n, endpoint=False)
-    r = np.radians(radius_deg)
-    return np.column_stack(
-        [np.full(n, np.cos(r)), np.sin(r) * np.cos(phi), np.sin(r) * np.sin(phi)]
-    )
+from tests.region.support import circle
 
 
 def test_resample_puts_stations_evenly_on_the_loop():

@@ -109,7 +109,7 @@ def test_up_against_a_slanted_edge_slides_without_running_on_and_down_answers_at
             session.rig.configure()
             session.rig.set_torque(True)
             source = KeyboardSource(step_deg=10.0, tty_path=os.ttyname(slave), gate=gate)
-            source.twist = profile.roll is not None  # as the session sets it: roll kept
+            source.twist = profile.twists  # as the session sets it: roll kept
             with source:
                 config = LoopConfig(rate_hz=RATE, on_cycle=cycles)
                 loop = threading.Thread(

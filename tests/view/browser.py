@@ -7,6 +7,8 @@ system chromedriver so Selenium Manager never tries to download one.
 from __future__ import annotations
 
 import contextlib
+import os
+import signal
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
@@ -96,6 +98,21 @@ def browser_pids(driver: webdriver.Chrome) -> list[int]:
         out.append(pid)
         todo += children.get(pid, [])
     return out
+
+
+@contextlib.contextmanager
+def frozen(driver: webdriver.Chrome) -> Iterator[list[int]]:
+    """The whole browser stopped (SIGSTOP to each of :func:`browser_pids`) for the block, as a
+    frozen tab or machine is; continued (SIGCONT) after it, whatever the block raised. Yields the
+    stopped processes."""
+    pids = browser_pids(driver)
+    for pid in pids:
+        os.kill(pid, signal.SIGSTOP)
+    try:
+        yield pids
+    finally:
+        for pid in pids:
+            os.kill(pid, signal.SIGCONT)
 
 
 def drag_on_plane(driver: webdriver.Chrome, points, pause_s: float = 0.15) -> None:

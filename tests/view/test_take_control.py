@@ -12,15 +12,13 @@ from __future__ import annotations
 
 import contextlib
 import json
-import os
-import signal
 
 from selenium.webdriver.common.action_chains import ActionChains
 from selenium.webdriver.common.keys import Keys
 
 from limbctl.view import HardLimits, Live, PanTilt, Scene, TeleopStatus, ViewServer
 from limbctl.view.state import Board
-from tests.view.browser import browser_pids, chromium, text_of, wait_for
+from tests.view.browser import chromium, frozen, text_of, wait_for
 from tests.view.test_control import Sink, control_message, open_socket, wait_until
 
 #: The server's heartbeat in these tests (s): a stopped browser is dropped within two.
@@ -87,10 +85,7 @@ def test_a_tab_that_lost_control_comes_back_watching_and_steers_again_only_on_a_
         steer_up_once(page, server, sink)
 
         # the tab freezes; the server drops it; another page steers to (-20, 0) and leaves
-        pids = browser_pids(page)
-        for pid in pids:
-            os.kill(pid, signal.SIGSTOP)
-        try:
+        with frozen(page):
             wait_until(lambda: holder().startswith("nobody"), "the frozen tab was not dropped")
             with contextlib.closing(open_socket(server, server.access.secret)) as other:
                 assert control_message(other)["steer"] is True
@@ -99,9 +94,6 @@ def test_a_tab_that_lost_control_comes_back_watching_and_steers_again_only_on_a_
             wait_until(lambda: holder().startswith("nobody"), "the other page kept control")
             publish(board, (-20.0, 0.0), cycle=2)
             sent = len(sink.lines)
-        finally:
-            for pid in pids:
-                os.kill(pid, signal.SIGCONT)
 
         # it wakes, reconnects by itself, and sends nothing: nobody touched anything
         wait_for(page, lambda d: text_of(d, "cycles") == "2", "the woken tab never reconnected")
@@ -212,10 +204,7 @@ def test_a_tab_paused_past_the_loops_silence_drops_its_point_and_keeps_control()
     with steered_board(heartbeat_s=5.0) as (board, server, sink, holder), chromium() as page:
         publish(board, (5.0, 5.0))
         steer_up_once(page, server, sink)
-        pids = browser_pids(page)
-        for pid in pids:
-            os.kill(pid, signal.SIGSTOP)
-        try:
+        with frozen(page):
             # lines the tab sent before the stop landed may still be on their way: let them in
             # (the tab resends its point 20 times a second; on loopback one arrives in a
             # millisecond, so 0.25 s without one means the stop has landed)
@@ -227,9 +216,6 @@ def test_a_tab_paused_past_the_loops_silence_drops_its_point_and_keeps_control()
             # the frozen tab stays silent for 1.5 s, three times the loop's 0.5 s silence
             with sink.changed:
                 assert not sink.changed.wait_for(lambda: len(sink.lines) > sent, 1.5)
-        finally:
-            for pid in pids:
-                os.kill(pid, signal.SIGCONT)
         show_frames(page, board, (5.0, 6.0), 2)
         assert sink.lines[sent:] == [], "the woken tab resent its old point"
         told = text_of(page, "control")
