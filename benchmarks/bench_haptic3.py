@@ -371,11 +371,10 @@ def render(presses, energies, pulls, held, transfers, load, end_load, fit_s) -> 
         "# A three-servo leader feels a twist region's edge",
         "",
         "`python benchmarks/bench_haptic3.py`: the three-servo felt leader "
-        "(`limbctl/teleop/haptic_push.py`, `limbctl/teleop/sources/leader3.py`) beside the "
-        "two-servo "
-        "one as its peer, XM430-W350 leaders, the same hand (0.05 N m/deg, at most 0.3 N m) and "
-        "law (deadband 0.4 deg, K = 0.2 N m/deg, cap 0.4 N m, lead two ticks, Profile Velocity "
-        f"{LAW.profile_velocity_units()} units). Three servos: a "
+        "(`limbctl/teleop/haptic_push.py`, `limbctl/teleop/sources/leader.py`) beside the "
+        "two-servo one as its peer, XM430-W350 leaders, the same hand (0.05 N m/deg, at most "
+        "0.3 N m) and law (deadband 0.4 deg, K = 0.2 N m/deg, cap 0.4 N m, lead two ticks, "
+        f"Profile Velocity {LAW.profile_velocity_units()} units). Three servos: a "
         "twist region fitted from a square swing outline (pan +-30, tilt +-25 deg) with a twist "
         f"band of +-30 deg (fitted in {fit_s:.0f} s); two servos: a 30 deg cone. Machine load at "
         f"start: {' '.join(f'{v:.2f}' for v in load)}, at the end: "

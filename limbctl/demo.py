@@ -227,7 +227,7 @@ def _leader_run(
     from limbctl.servo.setup import configure_servos
     from limbctl.session import open_rig
     from limbctl.teleop.loop import LoopConfig, run
-    from limbctl.teleop.sources import LeaderSource, LeaderSource3
+    from limbctl.teleop.sources import LeaderSource
 
     three = rig == "sim3"
     name, ids, seconds = LEADER_RUNS["sim3" if three else "sim"]
@@ -247,7 +247,7 @@ def _leader_run(
         sim_rig = session.rig
         limits = {**sim_rig.tick_limits(), **dict.fromkeys(ids, (0, MAX_TICK))}
         configure_servos(sim_rig.bus, limits)
-        source = (LeaderSource3 if three else LeaderSource)(sim_rig, ids, rate_hz=DEMO_RATE_HZ)
+        source = LeaderSource(sim_rig, ids, rate_hz=DEMO_RATE_HZ)
         try:
             source.start()
         except ConfigError as exc:
@@ -267,8 +267,8 @@ def _leader_run(
                 push, result = source.last_push, cycle.result
                 if cycle.complete and cycle.command_deg is not None and result is not None:
                     torque = push.torque_nm if push is not None else 0.0
-                    if three and source.last_pose3 is not None:
-                        held = source.last_pose3
+                    if three and source.last_pose is not None:
+                        held = source.last_pose
                         gated3 = result.pose
                         commanded = (*map(math.degrees, held[:2]), twist_deg(held))
                         gated = (*map(math.degrees, gated3[:2]), twist_deg(gated3))

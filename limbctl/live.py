@@ -303,11 +303,11 @@ def leader_status(source: Any) -> Callable[[], LeaderStatus]:
     leader's twist too (:func:`limbctl.view.leader.with_twist`)."""
 
     def status() -> LeaderStatus:
-        pose3, push = getattr(source, "last_pose3", None), source.last_push
-        if pose3 is None:  # two servos
+        pose, push = source.last_pose, source.last_push
+        if pose is None or len(pose) == 2:  # two servos, or not read yet
             return plain()
         goal = getattr(push, "goal", None) if push is not None and push.torque_nm else None
-        return with_twist(plain(), pose3, goal if source.felt else None)
+        return with_twist(plain(), pose, goal if source.felt else None)
 
     def plain() -> LeaderStatus:
         pose = source.last_pose

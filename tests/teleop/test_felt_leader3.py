@@ -31,7 +31,7 @@ from limbctl.servo.setup import configure_servos
 from limbctl.session import open_rig
 from limbctl.teleop.gate import Gate, GateLimits
 from limbctl.teleop.haptic_push import beyond_deg, corrected_pose
-from limbctl.teleop.sources import LeaderSource3, SourceContext, parse_source
+from limbctl.teleop.sources import LeaderSource, SourceContext, parse_source
 from limbctl.view.leader import SWING_SHARE_DRAWN
 from tests.teleop.felt_running import Running as FeltRunning
 from tests.teleop.felt_running import check_a_forced_pace_loss, pressing, pushed_only_when_fit
@@ -72,7 +72,7 @@ def felt3_session(tmp_path, model="xm430-w350", rate_hz=25.0):
         rig, profile = session.rig, session.profile
         configure_servos(rig.bus, {**rig.tick_limits(), **dict.fromkeys(IDS, (0, 4095))})
         source = parse_source("leader:4,5,6").open(SourceContext(rig=rig, rate_hz=rate_hz))
-        assert isinstance(source, LeaderSource3)
+        assert isinstance(source, LeaderSource)
         limits = GateLimits.for_profile(profile, math.radians(120) / 200, math.radians(1.8))
         session.gate = Gate(region, limits)
         yield session, source, log
@@ -89,7 +89,7 @@ class Running3(FeltRunning):
         super().__init__(session, source)
 
     def kept(self, cycle) -> None:
-        self.poses.append(self.source.last_pose3)
+        self.poses.append(self.source.last_pose)
 
 
 def truth_rows(log):
@@ -281,8 +281,8 @@ def test_an_xl430_three_servo_leader_stays_passive_and_says_so(tmp_path):
     with felt3_session(tmp_path, model="xl430-w250") as (session, source, log), source:
         assert not source.felt and "stays passive" in source.notice
         [command] = source.poll()
-        assert source.last_pose3 is not None
-        np.testing.assert_allclose(command.q, pose_quat_scalar(*source.last_pose3), atol=1e-12)
+        assert source.last_pose is not None
+        np.testing.assert_allclose(command.q, pose_quat_scalar(*source.last_pose), atol=1e-12)
         shown = leader_status(source)()  # what the live page is handed
     _, twist = decompose_one(command.q)
     assert shown.twist_deg == pytest.approx(math.degrees(twist))
@@ -301,7 +301,7 @@ def test_an_xl330_three_servo_leader_feels_the_twist_edge(tmp_path, model):
             seen = []  # what the live page is handed, cycle by cycle, until it shows the push
 
             def shown_pushing(_) -> bool:
-                pushed = (source.last_push, source.last_pose3)  # what the status is made of
+                pushed = (source.last_push, source.last_pose)  # what the status is made of
                 seen.append((leader_status(source)(), *pushed))
                 return seen[-1][0].state == "pushing back" or not source.felt
 

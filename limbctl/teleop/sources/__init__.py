@@ -25,7 +25,6 @@ from limbctl.errors import ConfigError
 from limbctl.teleop.sources.base import CommandSource, SourceStats
 from limbctl.teleop.sources.keyboard import KeyboardSource, keyboard_source
 from limbctl.teleop.sources.leader import LeaderSource
-from limbctl.teleop.sources.leader3 import LeaderSource3
 from limbctl.teleop.sources.leader_ids import check_leader_fits, leader_ids
 from limbctl.teleop.sources.page import PageSource
 from limbctl.teleop.sources.replay import ReplaySource
@@ -33,7 +32,7 @@ from limbctl.teleop.sources.stdin import StreamSource
 from limbctl.teleop.sources.udp import UdpSource
 
 __all__ = ["CommandSource", "SourceStats", "KeyboardSource", "LeaderSource", "ReplaySource"]
-__all__ += ["LeaderSource3", "check_leader_fits"]
+__all__ += ["check_leader_fits"]
 __all__ += ["StreamSource", "UdpSource", "SOURCES", "SOURCE_FORMS", "SourceContext"]
 __all__ += ["SourceKind", "SourceSpec", "parse_source", "open_source", "PageSource"]
 
@@ -127,9 +126,7 @@ def _page(argument: str, context: SourceContext) -> CommandSource:
 def _leader(argument: str, context: SourceContext) -> CommandSource:
     if context.rig is None:
         raise ConfigError(f"source 'leader:{argument}' reads servos: it needs the open rig")
-    ids = leader_ids(argument)
-    kind = LeaderSource3 if len(ids) == 3 else LeaderSource  # three servos feel a twist region
-    return kind(context.rig, ids, rate_hz=context.rate_hz)
+    return LeaderSource(context.rig, leader_ids(argument), rate_hz=context.rate_hz)
 
 
 #: Every command source by scheme.

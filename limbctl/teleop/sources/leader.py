@@ -1,20 +1,24 @@
-"""A leader gimbal as a command source: a second pair of servos moved by hand.
+"""A leader as a command source: a second chain of servos, one per joint of the follower's,
+moved by hand.
 
 The leader sits on the same bus as the follower (``leader:3,4`` = pan id 3, tilt id 4; a
 three-servo leader ``leader:4,5,6`` adds its roll id and needs a three-servo follower) and is
 assumed to be built and calibrated like the follower: its ticks are read with the follower's
 zero ticks and directions. Each control cycle reads the leader in one sync read and offers its
-pose as the newest command; it goes through the gate like any other.
+pose as the newest command (a direction for two joints, an orientation for three:
+:func:`pose_command`); it goes through the gate like any other. The bus
+side (set-up, reads, writes, torque) is :mod:`~limbctl.teleop.sources.leader_bus`.
 
 A leader whose model senses current (:data:`limbctl.servo.leader.FELT_MODELS`) *feels the edge*:
 its servos run in current-based position mode, free inside the region, pushing back beyond it
-(:mod:`limbctl.teleop.haptic`); after each cycle's gate, :meth:`LeaderSource.feel` writes that
-push in one sync write. Any doubt switches the push off at once: a leader that is silent, in
-alarm or restarted, a failed bus, a held gate, a fault (:meth:`LeaderSource.release`) or the
-session's end. Bus Watchdog is the backstop; a guard process switches its torque off if this
-one dies (:mod:`limbctl.servo.leader_guard`). Other models stay passive (torque off). While the
-wall holds the leader still, the loop's wait between cycles reads its speed and lets the wall go
-as soon as it snaps toward the region (:mod:`limbctl.teleop.snap`).
+(:func:`limbctl.teleop.haptic_push.push_for`, on any chain); after each cycle's gate,
+:meth:`LeaderSource.feel` writes that push in one sync write. Any doubt switches the push off at
+once: a leader that is silent, in alarm or restarted, a failed bus, a held gate, a fault
+(:meth:`LeaderSource.release`) or the session's end. Bus Watchdog is the backstop; a guard
+process switches its torque off if this one dies (:mod:`limbctl.servo.leader_guard`). Other
+models stay passive (torque off). While the wall holds the leader still, the loop's wait
+between cycles reads its speed and lets the wall go as soon as it snaps toward the region
+(:mod:`limbctl.teleop.snap`).
 """
 
 from __future__ import annotations
@@ -22,17 +26,9 @@ from __future__ import annotations
 import math
 import time
 
-import numpy as np
-
 from limbctl.errors import BusError, ConfigError, InvalidInputError
-from limbctl.servo.control_table import MAX_TICK, Block, Register, model_name
-from limbctl.servo.leader import (
-    configure_felt_leader,
-    encode_feel,
-    feel_data,
-    felt_motor,
-    present_current,
-)
+from limbctl.servo.control_table import Register
+from limbctl.servo.leader import feel_data
 from limbctl.servo.leader_guard import LeaderGuard
 from limbctl.servo.rig import Rig
 from limbctl.teleop.commands import Command, command_from_pan_tilt, command_from_pose
@@ -41,23 +37,13 @@ from limbctl.teleop.haptic import FeelLaw, FeelStats
 from limbctl.teleop.haptic_push import Push, held, push_for
 from limbctl.teleop.pacing import PaceWatch
 from limbctl.teleop.sources.base import CommandSource
+from limbctl.teleop.sources.leader_bus import WATCHDOG_UNIT_S, WATCHDOG_UNITS, LeaderBus
 from limbctl.teleop.sources.leader_ids import check_leader_fits
 from limbctl.teleop.sources.leader_silence import LeaderSilence
 from limbctl.teleop.sources.leader_snap import SnapWatching, cycle_velocity, snap_watch
 
-#: Bus Watchdog of a felt leader: 5 x 20 ms = 100 ms without a packet stops it (it holds where it
-#: is with its last push, at most the cap, until its guard switches it off: docs/haptic.md, a
-#: controller that dies). As long as the loop's own 20 failed cycles at 200 Hz, so the loop, not
-#: the watchdog, notices a failing bus; the watchdog covers a dead controller.
-WATCHDOG_UNITS = 5
-WATCHDOG_UNIT_S = 0.020
-#: Goal Current alone, written as raw bytes (sent even to a servo in alarm).
-GOAL_CURRENT_BLOCK = Block(Register.GOAL_CURRENT, Register.GOAL_CURRENT.size)
-#: Cycles timed at start (one follower read, one leader read, one leader write each) to check the
-#: rate can be kept: a quarter of a second at 200 Hz, enough for a median; up to three batches,
-#: so a moment of load on a shared machine does not refuse a bus that keeps the rate.
-RATE_CHECK_CYCLES = 50
-RATE_CHECK_TRIES = 3
+__all__ = ["FOLLOWER_GRACE_S", "FOLLOWER_UNREAD", "LeaderSource", "PaceWatch"]
+
 #: How the loop's gate says it held because the follower's read failed this cycle.
 FOLLOWER_UNREAD = "the bus failed this cycle"
 #: How long the wall stays on while the follower's reads fail and the leader's do not (s): the
@@ -69,22 +55,38 @@ FOLLOWER_UNREAD = "the bus failed this cycle"
 FOLLOWER_GRACE_S = 0.055
 
 
-class LeaderSource(SnapWatching, CommandSource):
-    """Mirror a hand-moved leader gimbal (read synchronously in :meth:`poll`).
+def pose_command(pose: tuple[float, ...]) -> Command:
+    """The command of a leader's pose (rad, one angle per joint): a direction for two joints,
+    an orientation for three.
+
+    Raises
+    ------
+    InvalidInputError
+        Outside the range every source's commands are checked against.
+    """
+    if len(pose) == 3:
+        return command_from_pose(*(math.degrees(a) for a in pose))
+    return command_from_pan_tilt(math.degrees(pose[0]), math.degrees(pose[1]))
+
+
+class LeaderSource(SnapWatching, LeaderBus, CommandSource):
+    """Mirror a hand-moved leader (read synchronously in :meth:`poll`), one servo per joint of
+    the follower's chain; a current-sensing one feels the edge of the region.
 
     Parameters
     ----------
     rig : Rig
         The follower rig; its bus must also hold the leader's ids.
     leader_ids : tuple of int
-        (pan id, tilt id) of the leader, or (pan, tilt, roll) ids of a three-servo leader.
+        The leader's ids, one per joint of the rig: (pan, tilt) or (pan, tilt, roll).
+    rate_hz : float
+        The loop's rate (Hz), which a felt leader's cycle must keep (checked at start).
+    law : FeelLaw, optional
+        The wall's law (default :class:`~limbctl.teleop.haptic.FeelLaw`).
     """
 
     name = "leader"
     latest_only = True
-    #: How many servos this class makes feel the edge: a three-servo leader opened as a plain
-    #: LeaderSource stays passive (a felt one is a LeaderSource3, sources/leader3.py).
-    felt_joints = 2
 
     def __init__(
         self,
@@ -110,9 +112,9 @@ class LeaderSource(SnapWatching, CommandSource):
         self.notice = ""
         self.feel_stats = FeelStats()
         self.last_push: Push | None = None
-        #: The leader's (pan, tilt) as last read (rad; a three-servo leader's pan and tilt),
-        #: None before the first read: what the live page draws beside the follower.
-        self.last_pose: tuple[float, float] | None = None
+        #: The leader's pose as last read (rad, one angle per joint), None before the first
+        #: read: what the live page draws beside the follower.
+        self.last_pose: tuple[float, ...] | None = None
         #: The most a felt leader may push (N m: the law's cap as its Current Limit allows);
         #: None while passive.
         self.cap_nm: float | None = None
@@ -125,7 +127,7 @@ class LeaderSource(SnapWatching, CommandSource):
         #: None before its first read or while passive.
         self.last_torque_nm: tuple[float, ...] | None = None
         #: The leader's pose at its last good read and when (perf_counter s): how fast it moves.
-        self._last_read: tuple[tuple[float, float], float] | None = None
+        self._last_read: tuple[tuple[float, ...], float] | None = None
         self._notes: list[str] = []
         #: The leader's silent servos and dropouts (leader_silence.py).
         self.silence = LeaderSilence()
@@ -144,100 +146,6 @@ class LeaderSource(SnapWatching, CommandSource):
         """True while the leader pushes back at the edge."""
         return self.motor is not None
 
-    def start(self) -> None:
-        """Switch the leader's torque off so a hand can move it (no reader thread); a leader
-        that senses current is set up to feel the edge instead (torque on, no current yet).
-
-        Raises
-        ------
-        ConfigError
-            If a felt leader's servo refuses mode 5, or its cycle cannot keep the rate.
-        """
-        bus = self.rig.bus
-        model = model_name(bus.models[self.leader_ids[0]])
-        if len(self.leader_ids) != self.felt_joints:
-            bus.set_torque(False, self.leader_ids)
-            self.notice = "a three-servo leader stays passive: nothing is felt"
-            return
-        motor = felt_motor(bus, self.leader_ids)
-        if motor is None:
-            bus.set_torque(False, self.leader_ids)
-            self.notice = f"leader {model} senses no current: it stays passive, nothing is felt"
-            return
-        cap = motor.units_for(motor.cap_nm(self.law.cap_nm))
-        at = {bus.indirect_at.get(i, Register.INDIRECT_DATA_1.address) for i in self.leader_ids}
-        if len(at) != 1:
-            raise ConfigError(
-                f"the leader's servos keep Indirect Data at different addresses {sorted(at)}: "
-                f"give them the same firmware"
-            )
-        self._feel_block = feel_data(at.pop())
-        configure_felt_leader(bus, self.leader_ids, cap, WATCHDOG_UNITS)
-        try:
-            self._check_rate()
-        except ConfigError:
-            self._switch_off()
-            raise
-        self.motor = motor
-        self._guard = LeaderGuard.start(bus, self.leader_ids)
-        self.cap_nm = motor.torque_of(cap)
-        self.notice = self._feel_notice(model, cap)
-
-    def _feel_notice(self, model: str, cap: int) -> str:
-        """What the operator is told at start when the leader feels the edge."""
-        return (
-            f"leader {model} feels the edge: free inside, pushed back beyond "
-            f"{self.law.deadband_deg:g} deg, at most {self.motor.torque_of(cap):.2f} N m "
-            f"(Current Limit {cap})"
-        )
-
-    def _check_rate(self) -> None:
-        """Time felt cycles' transfers; refuse when no batch's median fits the period (a batch
-        taken while the machine was busy for a moment is tried again)."""
-        medians = []
-        for _ in range(RATE_CHECK_TRIES):
-            times = []
-            for _ in range(RATE_CHECK_CYCLES):
-                start = time.perf_counter()
-                self.rig.read_cycle(attempts=1)
-                read = self.rig.bus.read_cycle(ids=self.leader_ids, attempts=1)
-                if read.ok:
-                    pose = self._pose(read)
-                    self._write(self._free(pose))
-                times.append(time.perf_counter() - start)
-            medians.append(float(np.median(times)))
-            if medians[-1] <= 1.0 / self.rate_hz:
-                return
-        raise ConfigError(
-            f"a cycle with the felt leader takes {min(medians) * 1e3:.1f} ms (the best median of "
-            f"{RATE_CHECK_TRIES} x {RATE_CHECK_CYCLES}), more than the {1e3 / self.rate_hz:.1f} ms "
-            f"period at {self.rate_hz:g} Hz: lower --rate, or raise the baud rate and lower the "
-            f"adapter's latency timer (README)"
-        )
-
-    def close(self) -> None:
-        """A felt leader goes limp (no current, torque off), its guard told so; safe twice."""
-        if self.felt:
-            self.motor = None
-            self._switch_off()
-        self._guard = self._guard and self._guard.done()
-
-    def _zero_current(self) -> None:
-        """Goal Current 0 on both leader servos in one sync write, alarm or not."""
-        zero = dict.fromkeys(self.leader_ids, bytes(Register.GOAL_CURRENT.encode(0)))
-        try:
-            self.rig.bus.sync_write_block(GOAL_CURRENT_BLOCK, zero, check_alert=False)
-        except BusError:
-            pass  # the Bus Watchdog stops a leader that hears nothing
-
-    def _switch_off(self) -> None:
-        """No current, then torque off (each tried even if the other failed)."""
-        self._zero_current()
-        try:
-            self.rig.bus.set_torque(False, self.leader_ids)
-        except BusError:
-            pass  # the watchdog stops it; nothing more can be sent on a failed bus
-
     @property
     def finished(self) -> bool:
         """A leader never ends by itself."""
@@ -254,37 +162,15 @@ class LeaderSource(SnapWatching, CommandSource):
         except BusError:
             self.read_failures += 1
             return []
-        pose = self._angles(tuple(ticks[i] for i in self.leader_ids))
-        self._seen(pose)
+        pose = self.rig.ticks_to_angles(*(ticks[i] for i in self.leader_ids))
+        self.last_pose = pose
         try:  # the same range checks as every other source's commands
-            command = self._command(pose)
+            command = pose_command(pose)
         except InvalidInputError as exc:
             self.stats.reject(f"leader pose refused: {exc}")
             return []
         self.stats.accepted += 1
         return [command]
-
-    def _angles(self, ticks: tuple[int, ...]) -> tuple[float, ...]:
-        """The leader's joint angles (rad) at its ticks, read like the follower's: (pan, tilt),
-        or (pan, tilt, roll) for three servos."""
-        return self.rig.ticks_to_angles(*ticks)
-
-    def _seen(self, pose: tuple[float, ...]) -> None:
-        """Keep a read pose for the live page (:attr:`last_pose`: its pan and tilt)."""
-        self.last_pose = (pose[0], pose[1])
-
-    @staticmethod
-    def _command(pose: tuple[float, ...]) -> Command:
-        """The command of a pose (rad): a direction for two joints, an orientation for three.
-
-        Raises
-        ------
-        InvalidInputError
-            Outside the range every source's commands are checked against.
-        """
-        if len(pose) == 3:
-            return command_from_pose(*(math.degrees(a) for a in pose))
-        return command_from_pan_tilt(math.degrees(pose[0]), math.degrees(pose[1]))
 
     def _poll_felt(self) -> list[Command]:
         """The felt leader's read: its pose, and whether it is still fit to push."""
@@ -308,9 +194,9 @@ class LeaderSource(SnapWatching, CommandSource):
             if not self.felt:  # a restarted servo's indirect map is gone: read it plainly
                 return self._poll_passive()
         pose = self._pose(read)
-        self._seen(pose)
+        self.last_pose = pose
         try:
-            command = self._command(pose)
+            command = pose_command(pose)
         except InvalidInputError as exc:
             self.stats.reject(f"leader pose refused: {exc}")
             return []
@@ -323,29 +209,6 @@ class LeaderSource(SnapWatching, CommandSource):
             self._cycle_judged = judged
             self._last_read = (pose, now)
         return [command]
-
-    def _torque(self, read) -> tuple[float, ...]:
-        """The leader's motor torques (joint frame, N m) in a good read of a felt leader: its
-        Present Current (:func:`~limbctl.servo.leader.present_current`) turned into torque and
-        into the joint's frame by its direction."""
-        return tuple(
-            joint.direction * self.motor.torque_of(present_current(read.reports[servo_id]))
-            for servo_id, joint in zip(self.leader_ids, self.rig.joints, strict=True)
-        )
-
-    def _arm_watchdog(self) -> None:
-        """Clear a Bus Watchdog that may have tripped while the leader was not heard, and arm
-        it again (a tripped servo refuses every goal, Goal Current 0 included)."""
-        try:
-            for servo_id in self.leader_ids:
-                self.rig.bus.write(Register.BUS_WATCHDOG, servo_id, 0, check_alert=False)
-                self.rig.bus.write(Register.BUS_WATCHDOG, servo_id, WATCHDOG_UNITS, False)
-        except BusError:
-            self._heard_at = -math.inf  # tried again on the next good read
-
-    def _pose(self, read) -> tuple[float, ...]:
-        """The pose (rad) of a good read of the leader."""
-        return self._angles(tuple(read.reports[i].present for i in self.leader_ids))
 
     def _lose_feel(self, cause: str) -> None:
         """Switch the push off for good; the mirroring goes on and the operator is told."""
@@ -382,7 +245,13 @@ class LeaderSource(SnapWatching, CommandSource):
             pose, q, last, read_at, torque, speed = cycle
             previous, period = (None, 0.0) if last is None else (last[0], read_at - last[1])
             engaged = resume or (self.last_push is not None and self.last_push.goal_current > 0)
-            push = self._law(gate, pose, q, previous, period, engaged, torque, speed)
+            # the gate's joint limits: a three-joint correction's roll is unwrapped within them
+            limits = tuple(zip(gate.limits.joint_min, gate.limits.joint_max))
+            corrected = gate.envelope.correct(q)
+            push = push_for(
+                self.law, self.motor, pose, q, corrected, previous, period, engaged, torque,
+                speed, limits,
+            )  # fmt: skip
             # a wall kept by the rules at this very read (judge_read) is not judged twice
             judged = engaged and self._cycle_judged
             if (
@@ -390,11 +259,11 @@ class LeaderSource(SnapWatching, CommandSource):
                 and not judged
                 and not self.snap.allows(pose, push.goal, speed, engaged, read_at, torque)
             ):
-                push = self._free(pose)  # still moving in, snapping or outrunning: no wall
+                push = held(pose)  # still moving in, snapping or outrunning: no wall
             if push.goal_current and not engaged and not self.still_to_engage(pose, push.goal):
-                push = self._free(pose)  # a hand took it in since the read: not yet
+                push = held(pose)  # a hand took it in since the read: not yet
         else:
-            push = self._free(cycle[0])
+            push = held(cycle[0])
         if push is None:
             self.release()
             return notes
@@ -405,23 +274,6 @@ class LeaderSource(SnapWatching, CommandSource):
             self.snap.arm(pose, push.goal, speed, torque, engaged, read_at)
         self.feel_stats.add(push.torque_nm, 1.0 / self.rate_hz)
         return notes
-
-    def _law(self, gate, pose, q, previous, period: float, engaged: bool, torque, speed) -> Push:
-        """This cycle's push by the two-servo law (:func:`~limbctl.teleop.haptic_push.push_for`)
-        from the leader's pose (rad), its command ``q`` (4,), the pose read a cycle before (None
-        at first) and the time since (s), whether the wall pushed then, and the motors' torque
-        and speed as read (joint frame, N m and deg/s)."""
-        corrected = gate.envelope.correct(q)
-        return push_for(
-            self.law, self.motor, pose, q, corrected, previous, period, engaged, torque, speed
-        )
-
-    #: The push of a cycle that may not push: no current, the goal at the pose (rad).
-    _free = staticmethod(held)
-
-    def _goal_ticks(self, push: Push) -> tuple[int, ...]:
-        """The push's Goal Position ticks per leader servo (not clamped)."""
-        return self.rig.angles_to_ticks(*push.goal)
 
     def _follower_missed(self, result, bus_ok: bool, now: float) -> bool:
         """Whether the gate held only because the follower's read failed, within
@@ -444,47 +296,6 @@ class LeaderSource(SnapWatching, CommandSource):
                 f"the loop runs at {1.0 / median:.0f} Hz, under the {self.rate_hz:g} Hz "
                 f"the leader's wall needs to stay passive"
             )
-
-    def release(self) -> None:
-        """No current on the leader from now until the next push (one sync write)."""
-        self.snap.disarm()
-        self.last_push = None
-        if self.felt:
-            self._zero_current()
-
-    def _write(self, push: Push) -> None:
-        """One sync write of Goal Current and Goal Position to the leader's servos; Torque
-        Enable off and on first when the wall comes on, Profile Velocity once with it."""
-        ticks = self._goal_ticks(push)
-        currents = push.currents(len(self.leader_ids))
-        data = {
-            servo_id: encode_feel(current, min(max(int(tick), 0), MAX_TICK))
-            for servo_id, tick, current in zip(self.leader_ids, ticks, currents, strict=True)
-        }
-        engaging = push.goal_current > 0 and (
-            self.last_push is None or not self.last_push.goal_current
-        )
-        try:
-            if engaging:
-                # The servo's profile setpoint stays where the wall last put it while the leader
-                # is free (Goal Current 0) and the hand moves it; the wall would then pull toward
-                # that old setpoint at whatever speed the cap gives, not walk back at the profile's.
-                # Torque on puts the setpoint (and Goal Position) at the present position, so the
-                # wall starts from where the leader is.
-                off = dict.fromkeys(self.leader_ids, 0)
-                self.rig.bus.sync_write(Register.TORQUE_ENABLE, off)
-                self.rig.bus.sync_write(Register.TORQUE_ENABLE, dict.fromkeys(self.leader_ids, 1))
-            # the wall's speed, written once it first comes on; a free leader has no current,
-            # and the wall always comes on from the present position, so it is left as it is
-            if push.goal_current and push.profile_velocity != self._profile_velocity:
-                self._profile_velocity = None
-                velocity = dict.fromkeys(self.leader_ids, push.profile_velocity)
-                self.rig.bus.sync_write(Register.PROFILE_VELOCITY, velocity)
-                self._profile_velocity = push.profile_velocity
-            self.rig.bus.sync_write_block(self._feel_block, data)
-            self.last_push = push
-        except BusError:
-            self.last_push = None  # the next cycle tries again; the watchdog is the backstop
 
     def report_lines(self) -> tuple[str, ...]:
         """The start notice, how long and how hard the operator pressed, what switched it off."""

@@ -1,0 +1,201 @@
+"""A leader source's bus side: its set-up, its reads turned into poses and torques, its writes.
+
+Mixed into :class:`~limbctl.teleop.sources.leader.LeaderSource`, which runs the cycle (its
+``rig``, ``leader_ids``, ``law``, ``rate_hz``, ``motor``, ``last_push`` and ``snap``).
+A leader has one servo per joint of its follower and is read like it (the follower's zero
+ticks and directions); every write goes to all its servos in one sync write.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from limbctl.errors import BusError, ConfigError
+from limbctl.servo.control_table import MAX_TICK, Block, Register, model_name
+from limbctl.servo.leader import (
+    configure_felt_leader,
+    encode_feel,
+    feel_data,
+    felt_motor,
+    present_current,
+)
+from limbctl.servo.leader_guard import LeaderGuard
+from limbctl.teleop.haptic_push import Push, held
+
+#: Bus Watchdog of a felt leader: 5 x 20 ms = 100 ms without a packet stops it (it holds where it
+#: is with its last push, at most the cap, until its guard switches it off: docs/haptic.md, a
+#: controller that dies). As long as the loop's own 20 failed cycles at 200 Hz, so the loop, not
+#: the watchdog, notices a failing bus; the watchdog covers a dead controller.
+WATCHDOG_UNITS = 5
+WATCHDOG_UNIT_S = 0.020
+#: Goal Current alone, written as raw bytes (sent even to a servo in alarm).
+GOAL_CURRENT_BLOCK = Block(Register.GOAL_CURRENT, Register.GOAL_CURRENT.size)
+#: Cycles timed at start (one follower read, one leader read, one leader write each) to check the
+#: rate can be kept: a quarter of a second at 200 Hz, enough for a median; up to three batches,
+#: so a moment of load on a shared machine does not refuse a bus that keeps the rate.
+RATE_CHECK_CYCLES = 50
+RATE_CHECK_TRIES = 3
+#: What the operator is told at start when the leader feels the edge, by its number of joints
+#: (its model, the law's deadband in deg, the cap in N m and as its Current Limit in units).
+FEEL_NOTICES = {
+    2: "leader {model} feels the edge: free inside, pushed back beyond {deadband:g} deg, at most "
+    "{cap_nm:.2f} N m (Current Limit {cap})",
+    3: "leader {model} (three servos) feels the edge in swing and twist: free inside, pushed back "
+    "beyond {deadband:g} deg of rotation, at most {cap_nm:.2f} N m (Current Limit {cap})",
+}
+
+
+class LeaderBus:
+    """Set-up, reads, writes and torque of a leader's servos (see the module docstring)."""
+
+    def start(self) -> None:
+        """Switch the leader's torque off so a hand can move it (no reader thread); a leader
+        that senses current is set up to feel the edge instead (torque on, no current yet).
+
+        Raises
+        ------
+        ConfigError
+            If a felt leader's servo refuses mode 5, or its cycle cannot keep the rate.
+        """
+        bus = self.rig.bus
+        model = model_name(bus.models[self.leader_ids[0]])
+        motor = felt_motor(bus, self.leader_ids)
+        if motor is None:
+            bus.set_torque(False, self.leader_ids)
+            self.notice = f"leader {model} senses no current: it stays passive, nothing is felt"
+            return
+        cap = motor.units_for(motor.cap_nm(self.law.cap_nm))
+        at = {bus.indirect_at.get(i, Register.INDIRECT_DATA_1.address) for i in self.leader_ids}
+        if len(at) != 1:
+            raise ConfigError(
+                f"the leader's servos keep Indirect Data at different addresses {sorted(at)}: "
+                f"give them the same firmware"
+            )
+        self._feel_block = feel_data(at.pop())
+        configure_felt_leader(bus, self.leader_ids, cap, WATCHDOG_UNITS)
+        try:
+            self._check_rate()
+        except ConfigError:
+            self._switch_off()
+            raise
+        self.motor = motor
+        self._guard = LeaderGuard.start(bus, self.leader_ids)
+        self.cap_nm = motor.torque_of(cap)
+        feels = FEEL_NOTICES[len(self.leader_ids)]
+        self.notice = feels.format(
+            model=model, deadband=self.law.deadband_deg, cap_nm=self.cap_nm, cap=cap
+        )
+
+    def _check_rate(self) -> None:
+        """Time felt cycles' transfers; refuse when no batch's median fits the period (a batch
+        taken while the machine was busy for a moment is tried again)."""
+        medians = []
+        for _ in range(RATE_CHECK_TRIES):
+            times = []
+            for _ in range(RATE_CHECK_CYCLES):
+                start = time.perf_counter()
+                self.rig.read_cycle(attempts=1)
+                read = self.rig.bus.read_cycle(ids=self.leader_ids, attempts=1)
+                if read.ok:
+                    self._write(held(self._pose(read)))
+                times.append(time.perf_counter() - start)
+            medians.append(float(np.median(times)))
+            if medians[-1] <= 1.0 / self.rate_hz:
+                return
+        raise ConfigError(
+            f"a cycle with the felt leader takes {min(medians) * 1e3:.1f} ms (the best median of "
+            f"{RATE_CHECK_TRIES} x {RATE_CHECK_CYCLES}), more than the {1e3 / self.rate_hz:.1f} ms "
+            f"period at {self.rate_hz:g} Hz: lower --rate, or raise the baud rate and lower the "
+            f"adapter's latency timer (README)"
+        )
+
+    def close(self) -> None:
+        """A felt leader goes limp (no current, torque off), its guard told so; safe twice."""
+        if self.felt:
+            self.motor = None
+            self._switch_off()
+        self._guard = self._guard and self._guard.done()
+
+    def _zero_current(self) -> None:
+        """Goal Current 0 on every leader servo in one sync write, alarm or not."""
+        zero = dict.fromkeys(self.leader_ids, bytes(Register.GOAL_CURRENT.encode(0)))
+        try:
+            self.rig.bus.sync_write_block(GOAL_CURRENT_BLOCK, zero, check_alert=False)
+        except BusError:
+            pass  # the Bus Watchdog stops a leader that hears nothing
+
+    def _switch_off(self) -> None:
+        """No current, then torque off (each tried even if the other failed)."""
+        self._zero_current()
+        try:
+            self.rig.bus.set_torque(False, self.leader_ids)
+        except BusError:
+            pass  # the watchdog stops it; nothing more can be sent on a failed bus
+
+    def _arm_watchdog(self) -> None:
+        """Clear a Bus Watchdog that may have tripped while the leader was not heard, and arm
+        it again (a tripped servo refuses every goal, Goal Current 0 included)."""
+        try:
+            for servo_id in self.leader_ids:
+                self.rig.bus.write(Register.BUS_WATCHDOG, servo_id, 0, check_alert=False)
+                self.rig.bus.write(Register.BUS_WATCHDOG, servo_id, WATCHDOG_UNITS, False)
+        except BusError:
+            self._heard_at = -math.inf  # tried again on the next good read
+
+    def _pose(self, read) -> tuple[float, ...]:
+        """The pose (rad, one angle per joint) of a good read of the leader, read like the
+        follower's (each joint's zero tick and direction)."""
+        return self.rig.ticks_to_angles(*(read.reports[i].present for i in self.leader_ids))
+
+    def _torque(self, read) -> tuple[float, ...]:
+        """The leader's motor torques (joint frame, N m) in a good read of a felt leader: its
+        Present Current (:func:`~limbctl.servo.leader.present_current`) turned into torque and
+        into the joint's frame by its direction."""
+        return tuple(
+            joint.direction * self.motor.torque_of(present_current(read.reports[servo_id]))
+            for servo_id, joint in zip(self.leader_ids, self.rig.joints, strict=True)
+        )
+
+    def release(self) -> None:
+        """No current on the leader from now until the next push (one sync write)."""
+        self.snap.disarm()
+        self.last_push = None
+        if self.felt:
+            self._zero_current()
+
+    def _write(self, push: Push) -> None:
+        """One sync write of Goal Current and Goal Position to the leader's servos; Torque
+        Enable off and on first when the wall comes on, Profile Velocity once with it."""
+        ticks = self.rig.angles_to_ticks(*push.goal)  # the goal's ticks, kept to one turn below
+        currents = push.currents(len(self.leader_ids))
+        data = {
+            servo_id: encode_feel(current, min(max(int(tick), 0), MAX_TICK))
+            for servo_id, tick, current in zip(self.leader_ids, ticks, currents, strict=True)
+        }
+        engaging = push.goal_current > 0 and (
+            self.last_push is None or not self.last_push.goal_current
+        )
+        try:
+            if engaging:
+                # The servo's profile setpoint stays where the wall last put it while the leader
+                # is free (Goal Current 0) and the hand moves it; the wall would then pull toward
+                # that old setpoint at whatever speed the cap gives, not walk back at the profile's.
+                # Torque on puts the setpoint (and Goal Position) at the present position, so the
+                # wall starts from where the leader is.
+                off = dict.fromkeys(self.leader_ids, 0)
+                self.rig.bus.sync_write(Register.TORQUE_ENABLE, off)
+                self.rig.bus.sync_write(Register.TORQUE_ENABLE, dict.fromkeys(self.leader_ids, 1))
+            # the wall's speed, written once it first comes on; a free leader has no current,
+            # and the wall always comes on from the present position, so it is left as it is
+            if push.goal_current and push.profile_velocity != self._profile_velocity:
+                self._profile_velocity = None
+                velocity = dict.fromkeys(self.leader_ids, push.profile_velocity)
+                self.rig.bus.sync_write(Register.PROFILE_VELOCITY, velocity)
+                self._profile_velocity = push.profile_velocity
+            self.rig.bus.sync_write_block(self._feel_block, data)
+            self.last_push = push
+        except BusError:
+            self.last_push = None  # the next cycle tries again; the watchdog is the backstop
