@@ -205,14 +205,17 @@ def measure(truth: BandRegion, q_taught: np.ndarray, seed: int, quick: bool) -> 
         guide.add(row)
     told = guide.assess()
     places = region.unsupported
+    # the swing guide's check (limbctl/teach/edge_support.py): stretches the edge would bridge
+    stretches = region.swing.unsupported_edge
     return {
         "swing_excess": swing_excess,
         "twist_excess": twist_excess,
         "coverage": coverage,
         "err_mean": float(err.mean()),
         "err_p95": float(np.percentile(err, 95)),
-        "complete": told.cells > 0 and told.turned == told.cells and not places,
+        "complete": (told.cells > 0 and told.turned == told.cells and not places and not stretches),
         "places": len(places),
+        "stretches": len(stretches),
     }
 
 
@@ -239,7 +242,8 @@ def _line(r: dict) -> str:
         f"{r['family']} seed {r['seed']} {r['teaching']}: swing +{r['swing_excess']:.2f}, twist "
         f"+{r['twist_excess']:.2f} deg, coverage {100 * r['coverage']:.2f} %, error "
         f"{r['err_mean']:.3f} (p95 {r['err_p95']:.2f}), complete {r['complete']} "
-        f"({r['places']} places), taught inside {100 * r['inside']:.1f} %, {r['seconds']:.0f} s"
+        f"({r['places']} places, {r['stretches']} edge stretches), taught inside "
+        f"{100 * r['inside']:.1f} %, {r['seconds']:.0f} s"
     )
 
 
@@ -259,18 +263,20 @@ def write(rows: list[dict], path: Path, quick: bool, command: str) -> None:
         "Excess: how far the learned region reaches past the truth (target <= 1 deg); coverage: "
         "the true region 2 deg inside held; error: `correct()` to the true nearest orientation "
         "(target mean <= 0.5 deg); complete: the guide would say READY (every place turned both "
-        "ways, no unsupported stretch); places: stretches the band could not support.",
+        "ways, no unsupported stretch); places: stretches the band could not support; edge: "
+        "stretches of the swing edge the samples surround but do not reach "
+        "(limbctl/teach/edge_support.py).",
         "",
         "| family | seed | teaching | samples | swing excess (deg) | twist excess (deg) "
-        "| coverage 2 deg inside | error mean (deg) | p95 | complete | places |",
-        "|---|---|---|---|---|---|---|---|---|---|---|",
+        "| coverage 2 deg inside | error mean (deg) | p95 | complete | places | edge |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         lines.append(
             f"| {r['family']} | {r['seed']} | {r['teaching']} | {r['samples']} | "
             f"{r['swing_excess']:.2f} | **{r['twist_excess']:.2f}** | {100 * r['coverage']:.2f} % "
             f"| {r['err_mean']:.3f} | {r['err_p95']:.2f} | {'yes' if r['complete'] else 'no'} "
-            f"| {r['places']} |"
+            f"| {r['places']} | {r['stretches']} |"
         )
     lines += ["", "## Per family", ""]
     lines += [
