@@ -131,7 +131,12 @@ class EdgeSupport:
         if self._pending is not None:
             self._pending.cancel()
             self._pending = None
-        self.stretches = self._worker().submit(self._check, np.array(d)).result()
+        try:
+            self.stretches = self._worker().submit(self._check, np.array(d)).result()
+        except BrokenProcessPool:
+            # the worker could not start or died (a program read from stdin cannot be
+            # re-imported by a spawned worker): left unchecked, as without cached kernels
+            self._pool = None
         return self.stretches
 
     def _collect(self) -> None:

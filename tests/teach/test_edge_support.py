@@ -7,6 +7,8 @@ calls it ready. A region fitted with a coarse alpha shape and no carving bridges
 the check names it; the default fit does not, and READY stands.
 """
 
+import os
+
 import numpy as np
 import pytest
 
@@ -102,3 +104,14 @@ def test_without_cached_kernels_nothing_is_checked_and_the_summary_says_so(taugh
 def test_too_few_samples_are_not_judged():
     d = np.array([[1.0, 0.0, 0.0]] * (edge_support.MIN_SAMPLES - 1))
     assert unsupported_stretches(d) == ()
+
+
+def dies(d: np.ndarray) -> tuple[EdgeStretch, ...]:
+    """A check whose worker dies (as one that cannot start does)."""
+    os._exit(3)
+
+
+def test_a_worker_that_dies_leaves_the_edge_unchecked_and_the_recording_whole(taught, cached):
+    with EdgeSupport(dies) as support:
+        guidance = guide_of(taught, support).assess(final=True)
+    assert guidance.ready and support.stretches is None
