@@ -29,7 +29,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from bench_haptic import EDGE_DEG, HAND, pan_of, run_case
+from felt_harness import EDGE_DEG, HAND, pan_of, run_case
 
 from limbctl.teleop.brake import BrakeLaw
 from limbctl.teleop.haptic import VELOCITY_UNIT_DEG_S, FeelLaw

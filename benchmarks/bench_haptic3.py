@@ -7,7 +7,7 @@ swing outline (pan within +-30 deg, tilt within +-25 deg) with a twist band of +
 the learned edge lies near pan 30 deg in swing and near roll 30 deg in twist. The two-servo peer
 is the two-servo leader's bench set-up: a 30 deg cone, edge at pan 30 deg. Both leaders are
 XM430-W350s moved by the simulator's operator (firmware_sim/leader.py),
-the same hand, the same law constants (limbctl/teleop/haptic.py, limbctl/teleop/haptic_push.py).
+the same hand, the same law constants (limbctl/teleop/haptic.py, limbctl/teleop/haptic3.py).
 
 Cases:
 
@@ -31,36 +31,33 @@ import dataclasses
 import math
 import os
 import time
-from contextlib import ExitStack
 from pathlib import Path
 
 import numpy as np
-from bench_haptic import joint_torques
+from felt_harness import (
+    HAND,
+    LEADER_IDS,
+    felt_part,
+    transfers_case,
+)
 
-from calib.profile import default_sim_profile
-from firmware_sim.control_table import Register as FirmwareRegister
-from firmware_sim.simulator import Simulator
 from limbctl.envelope import Cone
 from limbctl.envelope.synthetic_twist import ShoulderRegion
-from limbctl.errors import BusError
-from limbctl.geometry.gimbal import (
-    pan_tilt_roll_scalar,
-    pan_tilt_to_quat,
-    pose_quat_scalar,
-    quat_to_pan_tilt,
-)
+from limbctl.geometry.gimbal import pan_tilt_to_quat, pose_quat_scalar
 from limbctl.region.twist_region import TwistRegion
 from limbctl.servo.control_table import ModelNumber
-from limbctl.servo.leader import FEEL_DATA, FEEL_MAP, FELT_MODELS, encode_feel, feel_map
-from limbctl.servo.rig import Rig
-from limbctl.servo.setup import configure_servos
-from limbctl.servo.ticks import angle_to_ticks
-from limbctl.session import open_rig
-from limbctl.teleop import haptic_push
+from limbctl.servo.leader import FELT_MODELS
 from limbctl.teleop.brake import BrakeLaw
 from limbctl.teleop.haptic import FeelLaw, moved_in_deg
-from limbctl.teleop.haptic_push import beyond_deg, corrected_pose, push_for
-from tests.teleop.stepped_leader import SteppedWatch, read_velocity
+from limbctl.teleop.haptic_push import beyond_deg, corrected_pose, held, push_for
+from tests.teleop.stepped_leader import (
+    CHAINS,
+    SteppedWatch,
+    q_of,
+    rig_of,
+    run_stepped,
+    stepped_leader,
+)
 
 LAW = FeelLaw()
 #: Round 3's law, the peer in the same run: the goal led the leader by 0.3 deg plus the leader's
@@ -68,7 +65,6 @@ LAW = FeelLaw()
 ROUND3 = FeelLaw(return_speed_deg_s=27.0, lead_deg=0.3, walk_lead_ticks=0)
 MOTOR = FELT_MODELS[ModelNumber.XM430_W350]
 CAP = MOTOR.torque_of(MOTOR.units_for(LAW.cap_nm))
-HAND = {"stiffness_nm_deg": 0.05, "damping_nm_s_rad": 0.02, "max_torque_nm": 0.3}
 SQUARE = np.array([[-30.0, -25.0], [30.0, -25.0], [30.0, 25.0], [-30.0, 25.0]])
 #: Presses 20 deg beyond the edge, reached in 2 s, held to 4.5 s, let go there (t, joints deg).
 PRESSES = {
@@ -117,8 +113,9 @@ def round3(push, present, previous, target):
     moved = moved_in_deg(present, previous, step)
     # s = min(1, (LEAD + max(m, 0)) / max_j |step_j|)
     scale = min(1.0, math.radians(ROUND3.lead_deg + max(moved, 0.0)) / max(map(abs, step)))
-    goal = tuple(p + scale * d for p, d in zip(present, step, strict=True))
-    return dataclasses.replace(push, goal=goal)
+    goal = [p + scale * d for p, d in zip(present, step, strict=True)]
+    names = ("goal_pan", "goal_tilt", "goal_roll")[: len(goal)]
+    return dataclasses.replace(push, **dict(zip(names, goal, strict=True)))
 
 
 def stepped(
@@ -126,113 +123,62 @@ def stepped(
     script,
     seconds,
     let_go_s=None,
-    held=(),
+    held_cycles=(),
     stiffness=0.05,
     rules=True,
     law=LAW,
     watch=True,
 ):
-    """The law at exactly 200 Hz on a stepped clock (module docstring); ``held`` lists cycles
-    whose gate held (Goal Current 0 written); ``rules``: the law is given the previous read,
-    the period and whether the wall pushed (as the sources do), False: the wall alone (before
-    round 3's let-go rules); ``law``: :data:`LAW`, or :data:`ROUND3` for round 3's law;
-    ``watch``: True, today's law with the snap watch and its brake rules (limbctl/teleop/snap.py,
-    limbctl/teleop/brake.py, a walking lead, two still reads to re-arm: round 9);
-    "snap", the snap watch alone (round 7); False: without it (round 6; round 3 never has it).
-    Returns the 1 ms truth rows and each row's distance beyond the edge (deg of rotation; of
-    direction for two servos)."""
-    three = len(script[0]) == 4
-    ids = (4, 5, 6) if three else (3, 4)
-    clock = [0.0]
-    follower = {"ids": (1, 2, 3), "roll_id": 3} if three else {"ids": (1, 2)}
-    sim = Simulator(**follower, leader={"ids": list(ids)}, clock=lambda: clock[0])
-    rig = Rig(default_sim_profile("sim3" if three else "sim"))
-    servos = [sim.servo(i) for i in ids]
-    for servo in servos:
-        servo.write(11, bytes([5]))  # Operating Mode 5
-        servo.write(38, MOTOR.units_for(LAW.cap_nm).to_bytes(2, "little"))  # Current Limit
-        servo.write(FEEL_MAP.address, feel_map())
-        servo.write(64, bytes([1]))  # torque on
-    sim.set_operator(
-        {"script": script, "let_go_s": let_go_s, **HAND, "stiffness_nm_deg": stiffness}
-    )
-    rows, engaged, previous = [], False, None
+    """The law at exactly 200 Hz on a stepped clock (module docstring; ``run_stepped``);
+    ``held_cycles`` lists cycles whose gate held (Goal Current 0 written); ``rules``: the law is
+    given the previous read, the period and whether the wall pushed (as the sources do), False:
+    the wall alone (before round 3's let-go rules); ``law``: :data:`LAW`, or :data:`ROUND3` for
+    round 3's law; ``watch``: True, today's law with the snap watch and its brake rules
+    (limbctl/teleop/snap.py, limbctl/teleop/brake.py, a walking lead, two still reads to
+    re-arm: round 9); "snap", the snap watch alone (round 7); False: without it (round 6; round 3
+    never has it). Returns the 1 ms truth rows and each row's distance beyond the edge (deg of
+    rotation; of direction for two servos)."""
+    joints = len(script[0]) - 1
+    _, follower, ids = CHAINS[joints]
+    operator = {"script": script, "let_go_s": let_go_s, **HAND, "stiffness_nm_deg": stiffness}
+    limit = MOTOR.units_for(LAW.cap_nm)
+    sim, clock, servos = stepped_leader(follower, ids, "xm430-w350", limit, operator)
+    rig = rig_of(joints)
+    limits = tuple((j.min_rad, j.max_rad) for j in rig.joints)
     on = bool(watch) and rules and law is LAW
     brake = BrakeLaw() if watch is True else None  # "snap": round 7's watch, no brake rules
     snap = SteppedWatch(servos, rig.joints, lambda: sim.time_s, on, MOTOR, LAW, brake)
-    for k in range(round(seconds * 200.0)):
-        if snap.before_step(5 * k):
-            engaged = False  # the watch let the wall go: LeaderSource.release
-        for servo in servos:
-            servo.refresh(sim.time_s)
-        ticks = tuple(s.value(FirmwareRegister.PRESENT_POSITION) for s in servos)
-        velocity, torque = read_velocity(servos, rig.joints), joint_torques(servos, rig)
-        read_s = sim.time_s  # when the cycle read the leader
+    previous = None
+
+    def decide(k, ticks, velocity, torque, engaged, read_s):
+        nonlocal previous
         # the motors' torque as Present Current reads (LeaderSource); round 3's peer did not
-        read = () if law is ROUND3 else (joint_torques(servos, rig),)
+        read = () if law is ROUND3 else (torque,)
         if on and brake is not None:  # today's law reads the speed too: the walking lead
             read = (*read, velocity)
-        if three:
-            pose = rig.ticks_to_angles(*ticks)
-            q = pose_quat_scalar(*pose)
-            past = (previous, 0.005, engaged, *read) if rules else ()
-            corrected = region.correct(q)
-            limits = tuple((j.min_rad, j.max_rad) for j in rig.joints)
-            push = push_for(law, MOTOR, pose, q, corrected, *past, limits=limits)
-            if law is ROUND3 and rules:
-                target = corrected_pose(corrected, pose, limits)
-                push = round3(push, pose, previous, target)
-            if snap.on and push.goal_current:
-                if not snap.snap.allows(pose, push.goal, velocity, engaged, read_s, torque):
-                    push = haptic_push.held(pose)
-            push = haptic_push.held(pose) if k in held else push
-            goal = push.goal
-        else:
-            pose = rig.ticks_to_angles(*ticks)
-            q = np.asarray(pan_tilt_to_quat(*pose))
-            past = (previous, 0.005, engaged, *read) if rules else ()
-            corrected = region.correct(q)
-            push = push_for(law, MOTOR, pose, q, corrected, *past)
-            if law is ROUND3 and rules:
-                target = tuple(float(v) for v in quat_to_pan_tilt(corrected))
-                push = round3(push, pose, previous, target)
-            if snap.on and push.goal_current:
-                if not snap.snap.allows(pose, push.goal, velocity, engaged, sim.time_s, torque):
-                    push = haptic_push.held(pose, push.distance_deg)
-            goal = push.goal
+        past = (previous, 0.005, engaged, *read) if rules else ()
+        pose = rig.ticks_to_angles(*ticks)
+        q = np.asarray(pan_tilt_to_quat(*pose)) if joints == 2 else pose_quat_scalar(*pose)
+        corrected = region.correct(q)
+        push = push_for(law, MOTOR, pose, q, corrected, *past, limits=limits)
+        if law is ROUND3 and rules:  # round 3's goal: toward the correction's joints
+            push = round3(push, pose, previous, corrected_pose(corrected, pose, limits))
+        if snap.on and push.goal_current:
+            if not snap.snap.allows(pose, push.goal, velocity, engaged, read_s, torque):
+                push = held(pose, push.distance_deg)
         previous = pose
-        for step in range(5):
-            if step and snap.before_step(5 * k + step):
-                engaged = False
-            if step == 1:
-                if push.goal_current and not engaged:  # the wall comes on: torque off, on
-                    for servo in servos:
-                        servo.write(64, bytes([0]))
-                        servo.write(64, bytes([1]))
-                was_engaged, engaged = engaged, bool(push.goal_current)
-                shares = push.currents(len(servos))
-                for servo, angle, joint, current in zip(
-                    servos, goal, rig.joints, shares, strict=False
-                ):
-                    tick = int(angle_to_ticks(angle, joint.zero_tick, joint.direction))
-                    servo.write(112, push.profile_velocity.to_bytes(4, "little"))
-                    servo.write(FEEL_DATA.address, encode_feel(current, tick))
-                goal_on = goal if push.goal_current and k not in held else None
-                snap.wrote(pose, goal_on, velocity, torque, was_engaged, read_s)
-            if step >= 1:  # the loop's wait, from right after its write
-                snap.after_write(5 * k + step)
-            clock[0] += 0.001
-            sim.advance()
-            rows.append(sim.leader.sample())
-    return rows, [distance(region, r["pose_deg"], three) for r in rows]
+        return pose, held(pose) if k in held_cycles else push
+
+    rows = run_stepped(
+        sim, clock, servos, rig, snap, seconds, decide, engage_at_write=True, profile_always=True
+    )
+    return rows, [distance(region, r["pose_deg"]) for r in rows]
 
 
-def distance(region, pose_deg, three: bool) -> float:
-    if three:
-        q = pose_quat_scalar(*np.radians(pose_deg))
-        return beyond_deg(q, region.correct(q), 3)
-    q = np.asarray(pan_tilt_to_quat(*np.radians(pose_deg)))
-    return beyond_deg(q, region.correct(q), 2)
+def distance(region, pose_deg) -> float:
+    """How far (deg) a pose of either chain (deg) lies beyond ``region`` (``beyond_deg``)."""
+    q = q_of(*pose_deg)
+    return beyond_deg(q, region.correct(q), len(pose_deg))
 
 
 def press_case(region, script, law=LAW, watch=True) -> dict:
@@ -286,14 +232,9 @@ def outward_count(region, rows) -> tuple[int, int]:
         if not any(r["motor_nm"]):
             continue
         present = np.radians(r["pose_deg"])
-        if len(present) == 3:
-            q = pose_quat_scalar(*present)
-            roll_joint = Rig(default_sim_profile("sim3")).joints[2]
-            roll_limits = (roll_joint.min_rad, roll_joint.max_rad)
-            target = pan_tilt_roll_scalar(region.correct(q), present[0], present[2], *roll_limits)
-        else:
-            q = np.asarray(pan_tilt_to_quat(*present))
-            target = quat_to_pan_tilt(region.correct(q))
+        q = q_of(*r["pose_deg"])
+        limits = tuple((j.min_rad, j.max_rad) for j in rig_of(len(present)).joints)
+        target = corrected_pose(region.correct(q), present, limits)
         if bool(region.contains(q)):
             inside += 1
         elif float(np.dot(r["motor_nm"], np.subtract(target, present))) < 0.0:
@@ -321,7 +262,7 @@ def held_case(region) -> dict:
     """The twist press with the gate held 50 ms at 3.2 s (cycles 640-649): how far the hand
     takes the released leader, and whether the motors were off from the first held write."""
     rows, beyond = stepped(
-        region, PRESSES["three servos, twist (roll 50)"], 4.0, held=range(640, 650)
+        region, PRESSES["three servos, twist (roll 50)"], 4.0, held_cycles=range(640, 650)
     )
     t = np.array([r["t"] for r in rows])
     released = [r for r in rows if 3.2 + 0.0015 <= r["t"] < 3.25]
@@ -333,37 +274,10 @@ def held_case(region) -> dict:
     }
 
 
-def transfers_case(rounds: int = 300) -> dict:
+def bus_work(rounds: int = 300) -> dict:
     """The felt cycle's bus work, two servos against three, interleaved A/B."""
-    kinds = {"two": ("sim", (3, 4)), "three": ("sim3", (4, 5, 6))}
-    times = {kind: [] for kind in kinds}
-    failed = dict.fromkeys(kinds, 0)
-    with ExitStack() as stack:
-        rigs = {}
-        for kind, (rig_path, ids) in kinds.items():
-            leader = {"ids": list(ids), "model": "xm430-w350"}
-            session = stack.enter_context(
-                open_rig(rig_path=rig_path, extra_ids=ids, sim_options={"leader": leader})
-            )
-            rig = session.rig
-            configure_servos(rig.bus, {**rig.tick_limits(), **dict.fromkeys(ids, (0, 4095))})
-            rigs[kind] = (rig, ids, rig.read_pose(), {i: encode_feel(0, 2048) for i in ids})
-        for _ in range(rounds):
-            for kind, (rig, ids, pose, free) in rigs.items():
-                start = time.perf_counter()
-                try:
-                    rig.read_cycle(attempts=2)
-                    rig.bus.read_cycle(ids=ids, attempts=2)
-                    rig.bus.sync_write_block(FEEL_DATA, free)
-                    rig.write_pose(*pose)
-                except BusError:
-                    failed[kind] += 1  # a starved simulator missed a reply: not timed
-                    continue
-                times[kind].append(time.perf_counter() - start)
-    return {
-        kind: (float(np.percentile(v, 50)) * 1e3, float(np.percentile(v, 99)) * 1e3, failed[kind])
-        for kind, v in times.items()
-    }
+    kinds = {"two": ("sim", LEADER_IDS, felt_part), "three": ("sim3", (4, 5, 6), felt_part)}
+    return transfers_case(kinds, rounds)
 
 
 def render(presses, energies, pulls, held, transfers, load, end_load, fit_s) -> str:
@@ -492,7 +406,7 @@ def main(argv: list[str] | None = None) -> int:
     }
     held = held_case(region3)
     print(f"exact-rate cases done in {time.monotonic() - started:.0f} s")
-    transfers = transfers_case()
+    transfers = bus_work()
     text = render(presses, energies, pulls, held, transfers, load, os.getloadavg(), fit_s)
     args.out.write_text(text)
     print(text)

@@ -30,7 +30,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from bench_haptic import EDGE_DEG, HAND, exact_rate_case, felt_motor, pan_of, run_case
+from felt_harness import EDGE_DEG, HAND, exact_rate_case, felt_motor, pan_of, run_case
 
 from limbctl.teleop.brake import BrakeLaw
 from limbctl.teleop.haptic import TICK_DEG, FeelLaw

@@ -35,7 +35,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from bench_haptic import EDGE_DEG, exact_rate_case, pan_of, round4_push
+from felt_harness import EDGE_DEG, exact_rate_case, pan_of, round4_push
 
 from limbctl.servo.ticks import TICKS_PER_REV
 from limbctl.teleop.brake import BrakeLaw

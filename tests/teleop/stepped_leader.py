@@ -4,7 +4,7 @@ in this process, so the law's own behaviour is measured whatever the machine's l
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -24,12 +24,14 @@ from limbctl.servo.leader import (
     feel_map,
 )
 from limbctl.servo.rig import Rig
-from limbctl.servo.ticks import angle_to_ticks, ticks_to_angle
 from limbctl.teleop.brake import BrakeLaw
 from limbctl.teleop.haptic import VELOCITY_UNIT_DEG_S, FeelLaw
 from limbctl.teleop.haptic_push import held, push_for
 from limbctl.teleop.snap import SnapLaw, SnapWatch
 
+#: The controller writes READ_TO_WRITE_MS after its read: the loop's read, gate and write take
+#: about 1 ms on the simulator's pty (the bus work's p50 in docs/bench_haptic.md).
+READ_TO_WRITE_MS = 1
 #: The follower's region in these runs: a 30 deg cone around +x (along pan, the edge at pan 30).
 CONE = Cone(half_angle_deg=30.0)
 
@@ -135,6 +137,144 @@ def rig_of(joints: int):
     return Rig(profile)
 
 
+def stepped_leader(follower: dict, ids: Sequence[int], model: str, limit: int, operator: dict):
+    """A simulator in this process on a stepped clock with a felt leader on ``ids`` (Operating
+    Mode 5, Current Limit ``limit`` units, the feel map, torque on) held by ``operator``.
+
+    Parameters
+    ----------
+    follower : dict
+        The simulator's follower arguments (``{"ids": (1, 2)}``, ``CHAINS``).
+    ids : sequence of int, (n,)
+        The leader's servo ids, one per joint.
+    model : str
+        The leader servos' simulator model key (``"xm430-w350"``).
+    limit : int
+        Current Limit (units).
+    operator : dict
+        The simulated operator (``Simulator.set_operator``).
+
+    Returns
+    -------
+    sim : Simulator
+    clock : list of float
+        The stepped clock, one element (s); advance it before ``sim.advance()``.
+    servos : list of SimServo, (n,)
+        The leader's servos.
+    """
+    clock = [0.0]
+    sim = Simulator(**follower, leader={"ids": list(ids), "model": model}, clock=lambda: clock[0])
+    servos = [sim.servo(i) for i in ids]
+    for servo in servos:
+        servo.write(11, bytes([5]))  # Operating Mode 5 (EEPROM, torque off)
+        servo.write(38, limit.to_bytes(2, "little"))  # Current Limit
+        servo.write(FEEL_MAP.address, feel_map())
+        servo.write(64, bytes([1]))  # torque on
+    sim.set_operator(operator)
+    return sim, clock, servos
+
+
+def run_stepped(
+    sim,
+    clock: list,
+    servos: Sequence,
+    rig,
+    watch: SteppedWatch,
+    seconds: float,
+    decide: Callable,
+    cycles: dict | None = None,
+    cut_s: float | None = None,
+    engage_at_write: bool = False,
+    profile_always: bool = False,
+) -> list[dict]:
+    """The controller's part every 5 ms of the stepped clock: read Present Position, Present
+    Velocity and Present Current, ``decide`` the push, write Goal Current, Goal Position (and
+    Profile Velocity) READ_TO_WRITE_MS later, the snap watch between the cycles (``watch``, as
+    ``LeaderSource`` runs it). One loop for every chain and every caller: ``felt_at_200_hz``,
+    the benchmarks' ``exact_rate_case`` and bench_haptic3's ``stepped``.
+
+    Parameters
+    ----------
+    sim, clock, servos
+        From :func:`stepped_leader`.
+    rig : Rig
+        The leader's chain (its joints turn ticks into angles, rad, and back).
+    watch : SteppedWatch
+        The snap watch between the cycles (its ``on`` False: none).
+    seconds : float
+        How long to run (s): ``round(seconds * 200)`` cycles of 5 ms.
+    decide : callable
+        ``decide(k, ticks, velocity, torque, engaged, read_s)`` of cycle ``k``: the Present
+        Position ticks (n,), the joints' speeds (n,, deg/s), their motor torques (n,, N m),
+        whether the wall is on and when the leader was read (s); returns the leader's pose
+        (n,, rad) and the cycle's push (whose ``goal`` is the joints' goal, rad).
+    cycles : dict, optional
+        A cycle's index to what happens instead: "late" (nothing is written, as in a stalled
+        loop: the servos keep their last command) or "silent" (the leader's read failed:
+        ``LeaderSource.release`` writes Goal Current 0 alone; the next push is the wall coming
+        on again). ("held" is ``decide``'s: it returns the held push.)
+    cut_s : float, optional
+        At this time (s) Goal Current 0 is written and nothing after (an oracle's cut).
+    engage_at_write : bool
+        The wall comes on (torque off then on: the setpoint is the present position) when a
+        push with current follows none, judged at the cycle's write (as ``LeaderSource``);
+        False: at its read.
+    profile_always : bool
+        Profile Velocity written with every push (else only with a current, as the source).
+
+    Returns
+    -------
+    list of dict
+        The leader's 1 ms truth rows (``sim.leader.sample()``).
+    """
+    rows, engaged, cut, goal = [], False, False, None
+    for k in range(round(seconds * 200.0)):
+        if watch.before_step(5 * k):
+            engaged = False  # the watch let the wall go: LeaderSource.release
+        for servo in servos:
+            servo.refresh(sim.time_s)
+        ticks = tuple(servo.value(SimRegister.PRESENT_POSITION) for servo in servos)
+        velocity = read_velocity(servos, rig.joints)
+        torque = read_torque(servos, rig.joints, watch.motor)
+        read_s = sim.time_s  # when the cycle read the leader
+        pose, push = decide(k, ticks, velocity, torque, engaged, read_s)
+        instead = (cycles or {}).get(k)
+        if instead == "silent":
+            engaged = False  # LeaderSource.release: the next push is the wall coming on again
+            watch.snap.disarm()
+            for servo in servos:
+                servo.write(102, bytes(2))  # Goal Current 0 alone
+        goal = goal if cut else rig.angles_to_ticks(*push.goal)
+        engaging = push.goal_current > 0 and not engaged
+        for step in range(5):
+            if step and watch.before_step(5 * k + step):
+                engaged = False
+            if cut_s is not None and not cut and clock[0] >= cut_s - 1e-9:
+                cut = True
+                for servo, tick in zip(servos, goal, strict=True):
+                    servo.write(FEEL_DATA.address, encode_feel(0, tick))
+            if step == READ_TO_WRITE_MS and instead not in ("late", "silent") and not cut:
+                if engage_at_write:
+                    engaging = push.goal_current > 0 and not engaged
+                was_engaged, engaged = engaged, push.goal_current > 0
+                shares = push.currents(len(servos))
+                for servo, tick, current in zip(servos, goal, shares, strict=True):
+                    if engaging:  # the wall comes on from the present position
+                        servo.write(64, bytes([0]))
+                        servo.write(64, bytes([1]))
+                    if push.goal_current or profile_always:  # its own write in the source
+                        servo.write(112, push.profile_velocity.to_bytes(4, "little"))
+                    servo.write(FEEL_DATA.address, encode_feel(current, tick))
+                goal_on = push.goal if push.goal_current else None
+                watch.wrote(pose, goal_on, velocity, torque, was_engaged, read_s)
+            if step >= READ_TO_WRITE_MS:  # the loop's wait, from right after its write
+                watch.after_write(5 * k + step)
+            clock[0] += 0.001
+            sim.advance()
+            rows.append(sim.leader.sample())
+    return rows
+
+
 def felt_at_200_hz(
     script,
     seconds,
@@ -154,7 +294,8 @@ def felt_at_200_hz(
 ):
     """The controller's part on the simulated leader's registers every 5 ms of a stepped clock
     (read Present Position, Present Current and Present Velocity, push_for, the same ten bytes to
-    Indirect Data 1 ms later), in this process. Returns the leader's 1 ms truth.
+    Indirect Data 1 ms later; :func:`run_stepped`), in this process. Returns the leader's 1 ms
+    truth.
 
     The chain is the script's: rows of (t, pan, tilt) drive a two-servo leader (ids 3, 4), rows
     of (t, pan, tilt, roll) a three-servo one (ids 4, 5, 6); ``region`` corrects its commands.
@@ -175,42 +316,25 @@ def felt_at_200_hz(
     _, follower, ids = CHAINS[joints]
     rig = rig_of(joints)
     limits = tuple((j.min_rad, j.max_rad) for j in rig.joints)
-    clock = [0.0]
-    leader = {"ids": list(ids), "model": model}
-    sim = Simulator(**follower, leader=leader, clock=lambda: clock[0])
-    servos = [sim.servo(i) for i in ids]
-    for servo in servos:
-        servo.write(11, bytes([5]))  # Operating Mode 5 (EEPROM, torque off)
-        limit = motor.units_for(motor.cap_nm(law.cap_nm))
-        servo.write(38, limit.to_bytes(2, "little"))  # Current Limit
-        servo.write(FEEL_MAP.address, feel_map())
-        servo.write(64, bytes([1]))  # torque on
+    limit = motor.units_for(motor.cap_nm(law.cap_nm))
     hand = {"script": script, "let_go_s": let_go_s, "stiffness_nm_deg": stiffness}
     hand["release_s"] = release_s
-    sim.set_operator({**hand, "damping_nm_s_rad": 0.02, "max_torque_nm": max_torque_nm})
-    rows, engaged, previous = [], False, None
+    operator = {**hand, "damping_nm_s_rad": 0.02, "max_torque_nm": max_torque_nm}
+    sim, clock, servos = stepped_leader(follower, ids, model, limit, operator)
     on = snap_watch and rules
     watch = SteppedWatch(servos, rig.joints, lambda: sim.time_s, on, motor, law, brake)
-    for k in range(round(seconds * 200.0)):
-        if watch.before_step(5 * k):
-            engaged = False  # the watch let the wall go: LeaderSource.release
-        for servo in servos:
-            servo.refresh(sim.time_s)
-        ticks = [s.value(SimRegister.PRESENT_POSITION) for s in servos]
-        pose = tuple(
-            float(ticks_to_angle(t, j.zero_tick, j.direction))
-            for t, j in zip(ticks, rig.joints, strict=True)
-        )
+    previous = None
+
+    def decide(k, ticks, velocity, torque, engaged, read_s):
+        nonlocal previous
+        pose = rig.ticks_to_angles(*ticks)
         q = q_of(*np.degrees(pose)) if joints == 2 else pose_quat_scalar(*pose)
-        torque = read_torque(servos, rig.joints, motor)
-        velocity = read_velocity(servos, rig.joints)
-        read_s = sim.time_s  # when the cycle read the leader
         # today's law (the watch with its brake rules) also reads the speed: the walking lead
         speed = velocity if on and brake is not None else None
         past = (previous, 0.005, engaged, torque, speed) if rules else ()
         push = push_for(law, motor, pose, q, region.correct(q), *past, limits=limits)
         if on and push.goal_current:
-            if not watch.snap.allows(pose, push.goal, velocity, engaged, sim.time_s, torque):
+            if not watch.snap.allows(pose, push.goal, velocity, engaged, read_s, torque):
                 push = held(pose, push.distance_deg)
         previous = pose
         instead = (cycles or {}).get(k)
@@ -218,34 +342,8 @@ def felt_at_200_hz(
             push = held(pose)
         if pushes is not None:
             pushes.append((pose, push, instead))
-        if instead == "silent":
-            engaged = False  # LeaderSource.release: the next push is the wall coming on again
-            watch.snap.disarm()
-            for servo in servos:
-                servo.write(102, bytes(2))  # Goal Current 0 alone
-        for step in range(5):
-            if step and watch.before_step(5 * k + step):
-                engaged = False
-            if step == 1 and instead not in ("late", "silent"):
-                goal_ticks = [
-                    int(angle_to_ticks(a, j.zero_tick, j.direction))
-                    for a, j in zip(push.goal, rig.joints, strict=True)
-                ]
-                if push.goal_current and not engaged:  # the wall comes on: LeaderSource._write
-                    for servo in servos:
-                        servo.write(64, bytes([0]))  # torque off, then on: the setpoint is the
-                        servo.write(64, bytes([1]))  # present position
-                was_engaged, engaged = engaged, bool(push.goal_current)
-                currents = push.currents(len(servos))
-                for servo, tick, current in zip(servos, goal_ticks, currents, strict=True):
-                    if push.goal_current:  # Profile Velocity: its own write in the source
-                        servo.write(112, push.profile_velocity.to_bytes(4, "little"))
-                    servo.write(FEEL_DATA.address, encode_feel(current, tick))
-                goal = push.goal if push.goal_current and instead != "held" else None
-                watch.wrote(pose, goal, velocity, torque, was_engaged, read_s)
-            if step >= 1:  # the loop's wait, from right after the cycle's write
-                watch.after_write(5 * k + step)
-            clock[0] += 0.001
-            sim.advance()
-            rows.append(sim.leader.sample())
-    return rows
+        return pose, push
+
+    return run_stepped(
+        sim, clock, servos, rig, watch, seconds, decide, cycles, engage_at_write=True
+    )
