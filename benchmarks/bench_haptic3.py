@@ -113,9 +113,8 @@ def round3(push, present, previous, target):
     moved = moved_in_deg(present, previous, step)
     # s = min(1, (LEAD + max(m, 0)) / max_j |step_j|)
     scale = min(1.0, math.radians(ROUND3.lead_deg + max(moved, 0.0)) / max(map(abs, step)))
-    goal = [p + scale * d for p, d in zip(present, step, strict=True)]
-    names = ("goal_pan", "goal_tilt", "goal_roll")[: len(goal)]
-    return dataclasses.replace(push, **dict(zip(names, goal, strict=True)))
+    goal = tuple(p + scale * d for p, d in zip(present, step, strict=True))
+    return dataclasses.replace(push, goal=goal)
 
 
 def stepped(
