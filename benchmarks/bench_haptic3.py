@@ -7,7 +7,7 @@ swing outline (pan within +-30 deg, tilt within +-25 deg) with a twist band of +
 the learned edge lies near pan 30 deg in swing and near roll 30 deg in twist. The two-servo peer
 is the two-servo leader's bench set-up: a 30 deg cone, edge at pan 30 deg. Both leaders are
 XM430-W350s moved by the simulator's operator (firmware_sim/leader.py),
-the same hand, the same law constants (limbctl/teleop/haptic.py, limbctl/teleop/haptic3.py).
+the same hand, the same law constants (limbctl/teleop/haptic.py, limbctl/teleop/haptic_push.py).
 
 Cases:
 
