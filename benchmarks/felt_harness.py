@@ -13,6 +13,7 @@ along pan (tilt 0) the edge lies at pan :data:`EDGE_DEG`.
 from __future__ import annotations
 
 import json
+import sys
 import threading
 import time
 from contextlib import ExitStack
@@ -34,6 +35,8 @@ from limbctl.teleop.haptic import FeelLaw
 from limbctl.teleop.haptic_push import held, push_for
 from limbctl.teleop.loop import LoopConfig, run
 from limbctl.teleop.sources import LeaderSource
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # for tests.teleop.stepped_leader
 from tests.teleop.stepped_leader import SteppedWatch, motor_of, run_stepped, stepped_leader
 
 EDGE_DEG = 30.0
