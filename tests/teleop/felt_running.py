@@ -32,15 +32,16 @@ def pressing(pushes) -> bool:
 
 
 class Running:
-    """The loop in a thread with every cycle's push kept (``pushes``: (cycle, push, felt)),
-    when each cycle ended (``clock``, monotonic s), and the cycle that switched the feel off
-    with the ground truth at its end (``off``); ``until(predicate)`` waits on the pushes."""
-
-    #: The leader's servo ids, which a lost pace must switch off (set by each test file).
-    ids: tuple[int, ...] = ()
+    """The loop in a thread with every cycle's push kept (``pushes``: (cycle, push, felt)), the
+    leader's pose each push was made from (``poses``, rad), when each cycle ended (``clock``,
+    monotonic s), and the cycle that switched the feel off with the ground truth at its end
+    (``off``); ``until(predicate)`` waits on the pushes."""
 
     def __init__(self, session, source) -> None:
         self.source, self.pushes, self.out = source, [], {}
+        self.poses: list[tuple[float, ...] | None] = []
+        #: The leader's servo ids, which a lost pace must switch off.
+        self.ids: tuple[int, ...] = source.leader_ids
         self.clock: list[float] = []
         self.simulator = session.simulator
         self.off = FeelOff(session.simulator)
@@ -65,7 +66,7 @@ class Running:
             was_felt = self.pushes[-1][2] if self.pushes else True
             self.off.observe(len(self.pushes), was_felt, self.source.felt)
             self.pushes.append((cycle, self.source.last_push, self.source.felt))
-            self.kept(cycle)
+            self.poses.append(self.source.last_pose)
             self.clock.append(time.monotonic())
             self.changed.notify_all()
 
@@ -134,9 +135,6 @@ class Running:
         self.until(lambda p: len(p) > seen + 100 or self.ended)
         return None if self.paced_out() else switched_at
 
-    def kept(self, cycle) -> None:
-        """What a subclass keeps of each cycle besides its push (under the lock)."""
-
     def __enter__(self) -> Running:
         self.thread.start()
         return self
@@ -167,13 +165,13 @@ def pushed_only_when_fit(pushes) -> None:
                 assert cycle.t - last_read <= FOLLOWER_GRACE_S + period
 
 
-def check_a_forced_pace_loss(session, source, runner: type[Running], press: dict) -> None:
+def check_a_forced_pace_loss(session, source, press: dict) -> None:
     """The pace-loss outcome the other tests assert when a busy machine loses the pace, forced:
     the source believes its wall needs 1 kHz, so the loop's 200 Hz is five periods late. The
     feel goes off for good in its cycle (asserted cycle by cycle) and mirroring goes on."""
     source.rate_hz, source.pace = 1000.0, PaceWatch(1000.0)
     session.rig.set_torque(True)
-    with runner(session, source) as running:
+    with Running(session, source) as running:
         session.simulator.set_operator(press)
         running.until(lambda p: running.off.at is not None and len(p) > running.off.at + 20)
         accepted = source.stats.accepted

@@ -1,17 +1,24 @@
-"""A felt leader over the real SDK and the simulator's pty: the wall, its faults, passive models.
+"""A felt leader over the real SDK and the simulator's pty, on two servos and on three: the wall
+(in swing and in twist), its faults, passive models.
 
-The follower is gated by a 30 deg cone; along pan the edge lies at pan 30 deg. The simulator's
-leader gimbal (ids 3, 4) is held by its operator (firmware_sim/leader.py), whose ground truth
-(motor torque every 1 ms) is what the assertions read, beside what the controller wrote.
+Each rig's follower is gated by a region whose edge lies at pan 30 deg: on two servos a 30 deg
+cone, on three the twist region of tests/teleop/twist_square.py, whose edge lies near roll
+30 deg too. The simulator's leader (firmware_sim/leader.py; ids 3, 4 or 4, 5, 6) is held by its
+operator, whose ground truth (motor torque every 0.5-1 ms) is what the assertions read, beside
+what the controller wrote.
 """
 
 from __future__ import annotations
 
 import json
+import math
 import statistics
 import time
+from collections.abc import Callable
 from contextlib import contextmanager
+from dataclasses import dataclass
 
+import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -19,73 +26,137 @@ from hypothesis import strategies as st
 from calib.profile import default_sim_profile
 from limbctl.envelope import Cone
 from limbctl.errors import ConfigError
-from limbctl.jobs import gate_for
+from limbctl.geometry.gimbal import pose_quat_scalar
+from limbctl.geometry.twist import decompose_one
+from limbctl.live import leader_status
 from limbctl.servo.control_table import Register
 from limbctl.servo.leader import encode_feel, present_current, present_velocity
+from limbctl.servo.rig import Rig
 from limbctl.servo.setup import configure_servos
 from limbctl.session import open_rig
-from limbctl.teleop.sources import LeaderSource
+from limbctl.teleop.gate import Gate, GateLimits
+from limbctl.teleop.haptic_push import beyond_deg, corrected_pose
+from limbctl.teleop.sources import LeaderSource, SourceContext, parse_source
 from limbctl.teleop.sources.leader_snap import cycle_velocity
-from tests.teleop.felt_running import Running as FeltRunning
-from tests.teleop.felt_running import check_a_forced_pace_loss, pushed_only_when_fit
-from tests.teleop.pace_loss import (
-    paced_out,
+from limbctl.view.leader import SWING_SHARE_DRAWN
+from tests.teleop.felt_running import (
+    Running,
+    check_a_forced_pace_loss,
+    pressing,
+    pushed_only_when_fit,
 )
+from tests.teleop.twist_square import square_region
 
-IDS = (3, 4)
 EDGE = 30.0
 HAND = {"stiffness_nm_deg": 0.05, "damping_nm_s_rad": 0.02, "max_torque_nm": 0.3}
+#: Two servos: the hand means the leader 20 deg beyond the edge in pan.
 PRESS = {"script": [[0.0, 0.0, 0.0], [1.5, EDGE + 20.0, 0.0]], **HAND}
-#: A hand pushing with this much (N m) presses: the HAND's spring stretched by a degree.
+#: Three servos: 20 deg beyond the edge in twist (roll 50).
+TWIST_PRESS = {"script": [[0.0, 0.0, 0.0, 0.0], [1.5, 0.0, 0.0, EDGE + 20.0]], **HAND}
+#: Three servos: in swing (pan 50) from 0 to 3.5 s, back to the middle, then in twist (roll 50)
+#: from 5.5 s on.
+SWING_THEN_TWIST = {
+    "script": [
+        [0.0, 0.0, 0.0, 0.0],
+        [1.5, 50.0, 0.0, 0.0],
+        [3.5, 50.0, 0.0, 0.0],
+        [4.5, 0.0, 0.0, 0.0],
+        [5.5, 0.0, 0.0, 50.0],
+    ],
+    **HAND,
+}
+#: A hand pushing with this much (N m, toward the outside) presses: its spring stretched by 1 deg.
 PRESSING_NM = HAND["stiffness_nm_deg"] * 1.0
+#: A release lets the pressing hand carry the leader out to 20 deg beyond, whence the wall walks
+#: it back at 7-14 deg/s (Profile Velocity 10, against the hand): a two-servo hold is judged
+#: strictly (within 10 deg) only when no cycle released the leader for this long (s) before it.
+WALKED_BACK_S = 1.5
 
 
-def press_against_pan_zero(session, source, units: int = 40) -> int:
-    """The hand presses the leader outward (PRESS) against its pan motor written straight to
-    ``units`` of Goal Current, goal pan 0; returns ``units``."""
-    session.simulator.set_operator(PRESS)
-    goal = session.rig.angles_to_ticks(0.0, 0.0)[0]
-    session.rig.bus.write_block(source._feel_block, IDS[0], encode_feel(units, goal))
-    return units
+@dataclass(frozen=True)
+class FeltRig:
+    """A follower rig and its leader as these tests run them.
+
+    ``profile`` names calib/rigs/*.yaml; ``ids`` are the leader's servo ids, one per joint;
+    ``region`` makes the follower's region; ``press`` is the hand pressing the leader 20 deg
+    beyond the edge along joint ``joint`` (whose servo's faults the shared tests inject)."""
+
+    profile: str
+    ids: tuple[int, ...]
+    region: Callable[[], object]
+    press: dict
+    joint: int
+
+    @property
+    def pusher(self) -> int:
+        """The id of the leader servo that ``press`` presses against."""
+        return self.ids[self.joint]
+
+
+SIM = FeltRig("sim", (3, 4), lambda: Cone(half_angle_deg=EDGE), PRESS, 0)
+SIM3 = FeltRig("sim3", (4, 5, 6), square_region, TWIST_PRESS, 2)
+#: The two-servo leader's ids (tests/teleop/test_felt_brake.py, benchmarks).
+IDS = SIM.ids
+#: The joints' hard limits in calib/rigs/sim3.yaml (rad): the roll joint's within +-100 deg.
+LIMITS3 = tuple((j.min_rad, j.max_rad) for j in Rig(default_sim_profile("sim3")).joints)
+
+
+@pytest.fixture(params=[SIM, SIM3], ids=["sim", "sim3"])
+def rig(request) -> FeltRig:
+    return request.param
 
 
 @contextmanager
-def felt_session(tmp_path, model="xm430-w350", rate_hz=25.0):
-    """An open rig with a leader gimbal, configured; yields (session, source, log path).
+def felt_session(tmp_path, rig: FeltRig = SIM, model="xm430-w350", rate_hz=25.0):
+    """An open ``rig`` with its leader, configured and gated; yields (session, source, log path).
 
     The source checks its start, and watches the loop's pace, against ``rate_hz``: 25 Hz, so a
     test machine busy with other work (a shared 2-core box ran the loop at 30-47 Hz) neither
     refuses the start nor loses the pace (the check is tested on its own, at 2 kHz; the pace
-    watch on a stepped clock in tests/teleop/test_haptic.py). What depends on the rate, how
-    far the wall holds the hand, is tested at exactly 200 Hz on a stepped clock there too. A
-    loop that still falls under 20 Hz switches the feel off (said in a notice):
-    :meth:`Running.paced_out` tells such a run and asserts that outcome instead."""
-    cone = tmp_path / "cone.npz"
-    sim = default_sim_profile()
-    Cone(half_angle_deg=EDGE).save(
-        cone, metadata={"rig": sim.name, "calibration": sim.calibration.to_dict()}
-    )
+    watch on a stepped clock in tests/teleop/test_haptic.py); the loop itself runs at 200 Hz.
+    What depends on the rate, how far the wall holds the hand, is tested at exactly 200 Hz on a
+    stepped clock there too. A loop that still falls under 20 Hz switches the feel off (said in
+    a notice): :meth:`Running.paced_out` tells such a run and asserts that outcome instead."""
     log = tmp_path / "leader.jsonl"
-    leader = {"ids": list(IDS), "model": model, "log": str(log)}
-    with open_rig(extra_ids=IDS, sim_options={"leader": leader}) as session:
-        rig = session.rig
-        configure_servos(rig.bus, {**rig.tick_limits(), **dict.fromkeys(IDS, (0, 4095))})
-        source = LeaderSource(rig, IDS, rate_hz=rate_hz)
-        session.gate = gate_for(cone, sim, 200.0, 120.0)
-        yield session, source, log
-
-
-class Running(FeltRunning):
-    ids = IDS
+    leader = {"ids": list(rig.ids), "model": model, "log": str(log)}
+    with open_rig(rig_path=rig.profile, extra_ids=rig.ids, sim_options={"leader": leader}) as s:
+        bus = s.rig.bus
+        configure_servos(bus, {**s.rig.tick_limits(), **dict.fromkeys(rig.ids, (0, 4095))})
+        spec = "leader:" + ",".join(map(str, rig.ids))
+        source = parse_source(spec).open(SourceContext(rig=s.rig, rate_hz=rate_hz))
+        assert isinstance(source, LeaderSource)
+        step = math.radians(120.0) / 200.0  # 120 deg/s at 200 Hz
+        s.gate = Gate(rig.region(), GateLimits.for_profile(s.profile, step, 3.0 * step))
+        yield s, source, log
 
 
 def truth_rows(log):
     return [json.loads(line) for line in log.read_text().splitlines()]
 
 
+def cap_of(source) -> float:
+    motor = source.motor
+    return motor.torque_of(motor.units_for(motor.cap_nm(source.law.cap_nm)))
+
+
+def beyond(row) -> float:
+    """How far (deg of rotation) a three-servo ground-truth row lies beyond the region's edge."""
+    q = pose_quat_scalar(*np.radians(row["pose_deg"]))
+    return beyond_deg(q, square_region().correct(q), 3)
+
+
+def press_against_pan_zero(session, source, units: int = 40) -> int:
+    """The hand presses the two-servo leader outward (PRESS) against its pan motor written
+    straight to ``units`` of Goal Current, goal pan 0; returns ``units``."""
+    session.simulator.set_operator(PRESS)
+    goal = session.rig.angles_to_ticks(0.0, 0.0)[0]
+    session.rig.bus.write_block(source._feel_block, IDS[0], encode_feel(units, goal))
+    return units
+
+
 def test_the_leader_stops_near_the_edge_free_inside_never_above_the_cap(tmp_path):
     with felt_session(tmp_path) as (session, source, log), source:
-        cap = source.motor.torque_of(source.motor.units_for(source.motor.cap_nm(source.law.cap_nm)))
+        cap = cap_of(source)
         session.rig.set_torque(True)
         with Running(session, source) as running:
             if running.pressed_or_paced_out(PRESS):  # the feel went off for good, as it must
@@ -94,10 +165,12 @@ def test_the_leader_stops_near_the_edge_free_inside_never_above_the_cap(tmp_path
 
             def a_paced_second(p) -> bool:
                 """1.5 s more pressing (300 cycles) whose last second kept the wall's rate and
-                released it in no cycle, or 15 s of pressing on a machine too busy for it
-                (judged below without those)."""
+                which released it in no cycle since WALKED_BACK_S before, or 15 s of pressing
+                on a machine too busy for it (judged below without those)."""
                 now = time.monotonic()
-                clean = running.kept_pace(now - 1.0, now) and running.unreleased(now - 1.0, now)
+                clean = running.kept_pace(now - 1.0, now) and running.unreleased(
+                    now - 1.0 - WALKED_BACK_S, now
+                )
                 return len(p) > seen + 300 and (clean or now > pressed_at + 15.0 or not p[-1][2])
 
             running.until(a_paced_second)
@@ -106,19 +179,25 @@ def test_the_leader_stops_near_the_edge_free_inside_never_above_the_cap(tmp_path
                 return
         lines = source.report_lines()
 
-    def kept(sim_from: float, sim_to: float) -> bool:  # the simulator runs on the wall clock
+    def kept(sim_from: float, sim_to: float, released_before: float = 0.0) -> bool:
+        """The loop kept the rate from ``sim_from`` to ``sim_to`` and released the leader in no
+        cycle from ``released_before`` s before ``sim_from`` on (the simulator runs on the wall
+        clock)."""
         since, until = wall + sim_from - now, wall + sim_to - now
-        return running.kept_pace(since, until) and running.unreleased(since, until)
+        return running.kept_pace(since, until) and running.unreleased(
+            since - released_before, until
+        )
 
     assert "feels the edge" in lines[0] and "pressed beyond the edge for" in lines[1]
     rows = truth_rows(log)
     # the hand means 20 deg beyond; over its last second of pressing the wall held it short:
     # within 2 deg at exactly 200 Hz (tests/teleop/test_haptic.py), within 10 deg here while the
-    # loop kept the rate the wall is passive at and released it in no cycle; a starved loop,
-    # whose failed reads release the leader, yields more (docs/decisions/haptic.md), but never
-    # lets it in
+    # loop kept the rate the wall is passive at and released it in no cycle since WALKED_BACK_S
+    # before; a starved loop, whose failed reads release the leader, yields more
+    # (docs/decisions/haptic.md), but never lets it in
     held = statistics.median(row["pose_deg"][0] for row in rows if now - 1.0 <= row["t"] <= now)
-    assert EDGE < held and (held < EDGE + 10.0 or not kept(now - 1.0, now)), held
+    paced = kept(now - 1.0, now, WALKED_BACK_S)
+    assert EDGE < held and (held < EDGE + 10.0 or not paced), held
     assert max(abs(m) for row in rows for m in row["motor_nm"]) <= cap + 1e-12
     # every cycle whose command was inside wrote no current at all
     inside = [push for _, push, _ in running.pushes if push is not None and push.distance_deg == 0]
@@ -137,57 +216,147 @@ def test_the_leader_stops_near_the_edge_free_inside_never_above_the_cap(tmp_path
     assert pressed and not outward, (len(pressed), len(paced), outward[:5])
 
 
-def test_a_leader_restart_ends_the_feel_and_mirroring_goes_on(tmp_path):
-    with felt_session(tmp_path) as (session, source, log), source:
+def test_the_three_servo_leader_is_held_at_the_edge_in_swing_and_in_twist(tmp_path):
+    with felt_session(tmp_path, SIM3) as (session, source, log), source:
+        cap = cap_of(source)
         session.rig.set_torque(True)
         with Running(session, source) as running:
-            if running.pressed_or_paced_out(PRESS):
+            session.simulator.set_operator(SWING_THEN_TWIST)
+            running.until(lambda p: session.simulator.truth()["leader"]["t"] > 0 and len(p) > 0)
+            start, wall = session.simulator.truth()["leader"]["t"], time.monotonic()
+            running.until(
+                lambda p: session.simulator.truth()["leader"]["t"] > start + 8.0 or not p[-1][2]
+            )
+            if running.paced_out():  # the feel went off for good, as it must
                 return
-            session.simulator.restart(IDS[0])
+        lines = source.report_lines()
+
+    def kept(sim_from: float, sim_to: float, unreleased_from: float | None = None) -> bool:
+        """The loop kept the rate from ``sim_from`` to ``sim_to`` and released the leader in no
+        cycle from ``unreleased_from`` (default ``sim_from``) on (the simulator's clock is the
+        wall clock)."""
+        since, until = wall + sim_from - start, wall + sim_to - start
+        first = since if unreleased_from is None else wall + unreleased_from - start
+        return running.kept_pace(since, until) and running.unreleased(first, until)
+
+    assert "three servos" in lines[0] and "pressed beyond the edge for" in lines[1]
+    rows = truth_rows(log)
+    region = square_region()
+    # each press's last second: held beyond the edge. Under 2 deg of rotation when the loop kept
+    # the rate the wall is passive at (a median period within the pace watch's 1.25 periods
+    # at 200 Hz; the law at exactly 200 Hz: tests/teleop/test_haptic.py); a starved loop (a
+    # sampled wall under its passivity bound, and failed reads that release the leader) lets
+    # the hand take it further, as with two servos (docs/haptic.md). A release at any time of
+    # the press lets the hand carry the leader out to 20 deg beyond, whence the wall walks it
+    # back at its profile's speed for over a second: held strictly only when the loop released
+    # it in no cycle since the press crossed the edge (pan at 0.9 s, roll at 5.1 s)
+    for crossed, window, joint in ((0.9, (2.5, 3.5), 0), (5.1, (7.0, 8.0), 2)):
+        held = [r for r in rows if start + window[0] <= r["t"] < start + window[1]]
+        distance = statistics.median(beyond(r) for r in held[::5])
+        paced = kept(start + window[0], start + window[1], start + crossed)
+        assert 0.4 < distance and (distance < 2.0 or not paced), (joint, distance)
+        assert statistics.median(r["pose_deg"][joint] for r in held) > 29.0
+    assert max(abs(m) for r in rows for m in r["motor_nm"]) <= cap + 1e-12
+    # every cycle whose command was inside wrote no current on any of the three servos
+    inside = [push for _, push, _ in running.pushes if push is not None and push.distance_deg == 0]
+    assert inside and all(push.goal_current == 0 for push in inside)
+    # in the ground truth, well inside (every joint 5 deg inside the taught square and band,
+    # further than a hand moves the leader in a cycle) the motors apply nothing at all
+    well_inside = [
+        r for r in rows if all(abs(a) < b for a, b in zip(r["pose_deg"], (25, 20, 25), strict=True))
+    ]
+    assert well_inside and all(r["motor_nm"] == [0.0, 0.0, 0.0] for r in well_inside)
+    # every push's goals lie from the pose it read toward that pose's correction
+    leads = []
+    for (_, push, _), pose in zip(running.pushes, running.poses, strict=True):
+        if push is not None and push.goal_current:
+            corrected = region.correct(pose_quat_scalar(*pose))
+            way = np.subtract(corrected_pose(corrected, pose, LIMITS3), pose)
+            leads.append(float(np.dot(np.subtract(push.goal, pose), way)))
+    assert len(leads) > 100 and min(leads) > 0.0
+    # pressed outward beyond the edge, the joint torques point toward the corrected pose: the
+    # wall's physics, which holds while the loop keeps the rate the wall is passive at (a
+    # slower sampled wall rings; the source's pace watch at the real rate turns it off). Judged
+    # on every such 5 ms row the run gave, however few a busy machine left; the presses
+    # themselves (the motors pushing beyond the edge against the hand) must be there. Pressed:
+    # the hand pushes outward with PRESSING_NM or more (a hand resting near where it means the
+    # leader, the wall walking it back, is the let go: docs/haptic.md, not done).
+    pressed, dots = 0, []
+    for r in rows[::5]:
+        present = tuple(np.radians(r["pose_deg"]))
+        q = pose_quat_scalar(*present)
+        if beyond_deg(q, region.correct(q), 3) < 0.5 or not any(r["motor_nm"]):
+            continue
+        way = np.subtract(corrected_pose(region.correct(q), present, LIMITS3), present)
+        if float(np.dot(r["hand_nm"], way / np.linalg.norm(way))) <= -PRESSING_NM:
+            pressed += 1
+            if kept(r["t"] - 0.2, r["t"]):
+                dots.append((float(np.dot(r["motor_nm"], way)), r["t"] - start, r))
+    assert pressed > 50
+    outward = [(round(t, 3), row) for dot, t, row in dots if dot <= 0.0]
+    assert not outward, (len(dots), outward)
+
+
+def test_a_leader_restart_ends_the_feel_on_every_servo_and_mirroring_goes_on(tmp_path, rig):
+    with felt_session(tmp_path, rig) as (session, source, log), source:
+        session.rig.set_torque(True)
+        with Running(session, source) as running:
+            if running.pressed_or_paced_out(rig.press):
+                return
+            session.simulator.restart(rig.pusher)
             running.until(lambda p: not p[-1][2])
             lost = len(running.pushes)
             running.until(lambda p: len(p) > lost + 50)
             accepted = source.stats.accepted
             running.until(lambda p: len(p) > lost + 100)
             truth = session.simulator.truth()
-    # the cycle that saw it switched the push off; the other servo's torque is off too
-    assert truth["servos"][IDS[1]]["torque_on"] is False
-    assert truth["leader"]["motor_nm"] == [0.0, 0.0]
+    # the cycle that saw it switched the push off; the other servos' torque is off too
+    assert all(truth["servos"][i]["torque_on"] is False for i in rig.ids if i != rig.pusher)
+    assert truth["leader"]["motor_nm"] == [0.0] * len(rig.ids)
     assert source.stats.accepted > accepted  # still mirrored, without feel
     notes = [n for c, _, _ in running.pushes for n in c.notices]
-    assert any("restarted" in n and "mirroring goes on without feel" in n for n in notes)
+    said = f"servo {rig.pusher} restarted"
+    assert any(said in n and "mirroring goes on without feel" in n for n in notes), notes
     assert any("without feel" in line for line in source.report_lines())
     assert running.out["s"].exit_code == 0
 
 
-def test_a_leader_alarm_switches_the_push_off_and_the_session_faults(tmp_path):
-    with felt_session(tmp_path) as (session, source, log), source:
+def test_a_leader_alarm_switches_the_push_off_and_the_session_faults(tmp_path, rig):
+    with felt_session(tmp_path, rig) as (session, source, log), source:
         session.rig.set_torque(True)
         with Running(session, source) as running:
-            if running.pressed_or_paced_out(PRESS):
+            if running.pressed_or_paced_out(rig.press):
                 return
-            session.simulator.set_temperature(IDS[0], 95.0)  # overheating shuts it down
+            session.simulator.set_temperature(rig.pusher, 95.0)  # overheating shuts it down
             running.thread.join(timeout=20.0)
             truth = session.simulator.truth()
     summary = running.out["s"]
-    assert summary.exit_code == 3 and "servo 3" in summary.fault  # as with a passive leader
+    assert summary.exit_code == 3 and f"servo {rig.pusher}" in summary.fault  # as if passive
     assert not source.felt and any("alarm" in event for event in source.feel_stats.events)
-    assert truth["leader"]["motor_nm"] == [0.0, 0.0]
-    assert truth["servos"][IDS[1]]["torque_on"] is False
+    assert truth["leader"]["motor_nm"] == [0.0] * len(rig.ids)
+    assert all(truth["servos"][i]["torque_on"] is False for i in rig.ids if i != rig.pusher)
 
 
-def test_a_failed_bus_or_a_held_gate_switches_the_push_off_in_that_cycle(tmp_path):
-    with felt_session(tmp_path) as (session, source, log), source:
+def test_a_failed_bus_or_a_held_gate_switches_the_push_off_in_that_cycle(tmp_path, rig):
+    with felt_session(tmp_path, rig) as (session, source, log), source:
         session.rig.set_torque(True)
         with Running(session, source) as running:
-            if running.pressed_or_paced_out(PRESS):
+            if running.pressed_or_paced_out(rig.press):
                 return
             session.simulator.set_faults(drop=1.0)  # every reply lost: reads fail, writes land
             running.until(lambda p: sum(1 for c, _, _ in p[-5:] if c.present is None) == 5)
             during = session.simulator.truth()["leader"]["motor_nm"]
             session.simulator.set_faults(drop=0.0)
-            running.until(lambda p: p[-1][0].present is not None and p[-1][1] is not None)
-    assert during == [0.0, 0.0]
+            # pushing again; or, on a busy machine, the loop ended by 20 failed cycles in a row
+            # (its own bus rule) or its lost pace switched the feel off
+            running.until(
+                lambda p: (
+                    (p[-1][1] is not None and p[-1][1].goal_current > 0)
+                    or running.ended
+                    or not p[-1][2]
+                )
+            )
+    assert during == [0.0] * len(rig.ids)
     # each cycle whose reads failed wrote no current (released, or a push of 0), from the first
     # on; a cycle whose follower read failed and whose leader read did not (the fault lifting
     # between the two) may keep the wall within FOLLOWER_GRACE_S, and no other
@@ -196,14 +365,14 @@ def test_a_failed_bus_or_a_held_gate_switches_the_push_off_in_that_cycle(tmp_pat
     pushed_only_when_fit(running.pushes)
 
 
-def test_a_silent_leader_is_bounded_by_its_cap_and_is_re_armed(tmp_path):
-    with felt_session(tmp_path) as (session, source, log), source:
-        cap = source.motor.torque_of(source.motor.units_for(source.motor.cap_nm(source.law.cap_nm)))
+def test_a_silent_leader_is_bounded_by_its_cap_and_is_re_armed(tmp_path, rig):
+    with felt_session(tmp_path, rig) as (session, source, log), source:
+        cap = cap_of(source)
         session.rig.set_torque(True)
         with Running(session, source) as running:
-            if running.pressed_or_paced_out(PRESS):
+            if running.pressed_or_paced_out(rig.press):
                 return
-            session.simulator.vanish(IDS[0], 0.3)  # past its 100 ms watchdog
+            session.simulator.vanish(rig.pusher, 0.3)  # past its 100 ms watchdog
             running.until(lambda p: p[-1][1] is None)
             running.until(
                 lambda p: (p[-1][1] is not None and p[-1][1].goal_current > 0) or not p[-1][2]
@@ -211,10 +380,30 @@ def test_a_silent_leader_is_bounded_by_its_cap_and_is_re_armed(tmp_path):
             truth = session.simulator.truth()
             # back, its watchdog cleared and armed again, pushing; or the pace went meanwhile
             felt = source.felt or running.paced_out()
-    assert truth["servos"][IDS[0]]["present"]
+    assert truth["servos"][rig.pusher]["present"]
     rows = truth_rows(log)
     assert max(abs(m) for row in rows for m in row["motor_nm"]) <= cap + 1e-12
     assert felt
+
+
+def test_a_leader_unheard_past_its_watchdog_still_pushes_and_the_end_leaves_it_limp(tmp_path, rig):
+    with felt_session(tmp_path, rig) as (session, source, log):
+        with source:
+            cap = cap_of(source)
+            session.rig.set_torque(True)
+            # the set-up armed each leader servo's Bus Watchdog (100 ms); a loop whose first
+            # read comes later finds it tripped (every goal refused) and must clear it
+            time.sleep(0.3)
+            with Running(session, source) as running:
+                if running.pressed_or_paced_out(rig.press):
+                    return
+            ended = session.simulator.truth()  # the loop's end released it: no current
+        closed = session.simulator.truth()  # the source's close: torque off
+    rows = truth_rows(log)
+    assert max(abs(r["motor_nm"][rig.joint]) for r in rows) > 0.5 * cap
+    assert running.out["s"].exit_code == 0
+    assert ended["leader"]["motor_nm"] == [0.0] * len(rig.ids)
+    assert all(closed["servos"][i]["torque_on"] is False for i in rig.ids)
 
 
 def test_a_felt_leaders_cycle_read_carries_its_present_current(tmp_path):
@@ -269,31 +458,50 @@ def test_a_held_leader_let_go_is_freed_by_the_snap_watch(tmp_path):
     assert all(r["motor_nm"] == [0.0, 0.0] for r in after if r["pose_deg"][0] < EDGE)
 
 
-def test_an_xl430_leader_stays_passive_and_says_so(tmp_path):
-    with felt_session(tmp_path, model="xl430-w250") as (session, source, log), source:
-        assert not source.felt
-        assert "stays passive" in source.notice
-        assert session.rig.bus.torque_enabled()[IDS[0]] is False
+def test_an_xl430_leader_stays_passive_mirrors_and_says_so(tmp_path, rig):
+    with felt_session(tmp_path, rig, model="xl430-w250") as (session, source, log), source:
+        assert not source.felt and "stays passive" in source.notice
+        assert not any(session.rig.bus.torque_enabled()[i] for i in rig.ids)
+        [command] = source.poll()
+        pose = source.last_pose
+        assert pose is not None and len(pose) == len(rig.ids)
+        # two servos: the three-servo pose with no roll
+        q = pose_quat_scalar(*pose, *[0.0] * (3 - len(pose)))
+        np.testing.assert_allclose(command.q, q, atol=1e-12)
+        shown = leader_status(source)()  # what the live page is handed
+    assert shown.toward_twist_deg is None and shown.cap_nm is None
+    if len(rig.ids) == 3:
+        assert shown.twist_deg == pytest.approx(math.degrees(decompose_one(command.q)[1]))
+    else:
+        assert shown.twist_deg is None
 
 
-def test_a_felt_leader_that_cannot_keep_the_rate_is_refused(tmp_path):
-    with felt_session(tmp_path, rate_hz=2000.0) as (session, source, log):
+def test_a_felt_leader_that_cannot_keep_the_rate_is_refused(tmp_path, rig):
+    with felt_session(tmp_path, rig, rate_hz=2000.0) as (session, source, log):
         with pytest.raises(ConfigError, match="lower --rate"), source:
             pass
-        assert session.rig.bus.torque_enabled()[IDS[0]] is False  # left limp
+        assert not any(session.rig.bus.torque_enabled()[i] for i in rig.ids)  # left limp
 
 
-def test_a_lost_pace_switches_the_feel_off_for_good_in_its_cycle_and_mirroring_goes_on(tmp_path):
-    with felt_session(tmp_path) as (session, source, log), source:
-        check_a_forced_pace_loss(session, source, Running, PRESS)
+def test_a_lost_pace_switches_the_feel_off_for_good_in_its_cycle_and_mirroring_goes_on(
+    tmp_path, rig
+):
+    with felt_session(tmp_path, rig) as (session, source, log), source:
+        check_a_forced_pace_loss(session, source, rig.press)
 
 
+#: Faults injected into a running rig (its simulator, the rig).
 FAULTS = {
-    "silence": lambda sim: sim.vanish(IDS[0], 0.2),
-    "restart": lambda sim: sim.restart(IDS[0]),
-    "alarm": lambda sim: sim.set_temperature(IDS[1], 95.0),
-    "bus": lambda sim: sim.set_faults(drop=1.0),
-    "follower": lambda sim: sim.vanish(1, 0.2),
+    "silence": lambda sim, rig: sim.vanish(rig.pusher, 0.2),
+    "restart": lambda sim, rig: sim.restart(rig.ids[0]),
+    "alarm": lambda sim, rig: sim.set_temperature(rig.ids[1], 95.0),
+    "bus": lambda sim, rig: sim.set_faults(drop=1.0),
+    "follower": lambda sim, rig: sim.vanish(1, 0.2),
+}
+#: Each rig's operator targets (deg: pan, tilt and, on three servos, roll).
+TARGETS = {
+    "sim": st.tuples(st.floats(-20.0, 70.0), st.floats(-20.0, 40.0)),
+    "sim3": st.tuples(st.floats(-20.0, 60.0), st.floats(-20.0, 35.0), st.floats(-60.0, 60.0)),
 }
 
 
@@ -303,28 +511,24 @@ FAULTS = {
     derandomize=True,
     suppress_health_check=[HealthCheck.function_scoped_fixture],
 )
-@given(
-    targets=st.lists(
-        st.tuples(st.floats(-20.0, 70.0), st.floats(-20.0, 40.0)), min_size=2, max_size=4
-    ),
-    fault=st.sampled_from(sorted(FAULTS)),
-    after=st.integers(20, 200),
-)
+@given(data=st.data(), fault=st.sampled_from(sorted(FAULTS)), after=st.integers(20, 200))
 def test_property_random_streams_and_faults_never_above_the_cap_off_at_once(
-    tmp_path_factory, targets, fault, after
+    tmp_path_factory, rig, data, fault, after
 ):
-    """Random operator streams with one injected fault: the torque is never above the cap, and
-    a cycle pushes only when the leader was read, fit to push, and the gate ran on a good read
-    (so after any fault the push is off in the cycle that saw it)."""
+    """Random operator streams over every joint with one injected fault: the torque is never
+    above the cap, and a cycle pushes only when the leader was read, fit to push, and the gate
+    ran on a good read (so after any fault the push is off in the cycle that saw it)."""
+    targets = data.draw(st.lists(TARGETS[rig.profile], min_size=2, max_size=4), label="targets")
     tmp_path = tmp_path_factory.mktemp("felt")
-    script = [[0.8 * k, pan, tilt] for k, (pan, tilt) in enumerate([(0.0, 0.0), *targets])]
-    with felt_session(tmp_path) as (session, source, log), source:
-        cap = source.motor.torque_of(source.motor.units_for(source.motor.cap_nm(source.law.cap_nm)))
+    rest = (0.0,) * len(rig.ids)
+    script = [[0.8 * k, *pose] for k, pose in enumerate([rest, *targets])]
+    with felt_session(tmp_path, rig) as (session, source, log), source:
+        cap = cap_of(source)
         session.rig.set_torque(True)
         with Running(session, source) as running:
             session.simulator.set_operator({"script": script, **HAND})
             running.until(lambda p: len(p) >= after)
-            FAULTS[fault](session.simulator)
+            FAULTS[fault](session.simulator, rig)
             seen = len(running.pushes)
             running.until(lambda p: len(p) > seen + 100 or running.ended)
             session.simulator.set_faults(drop=0.0)
@@ -333,25 +537,73 @@ def test_property_random_streams_and_faults_never_above_the_cap_off_at_once(
     pushed_only_when_fit(running.pushes)
 
 
-@pytest.mark.parametrize("model", ["xl330-m288", "xl330-m077@52"])
-def test_an_xl330_leader_feels_the_edge_with_half_its_stall_torque_at_most(tmp_path, model):
+@pytest.mark.parametrize(
+    ("rig", "model"),
+    [(SIM, "xl330-m288"), (SIM, "xl330-m077@52"), (SIM3, "xl330-m288")],
+    ids=["sim-m288", "sim-m077@52", "sim3-m288"],
+)
+def test_an_xl330_leader_feels_the_edge_with_half_its_stall_torque_at_most(tmp_path, rig, model):
     # beside an XL430 follower; the M077 with firmware 52 keeps its Indirect Data at 208
-    with felt_session(tmp_path, model=model) as (session, source, log), source:
-        cap = source.motor.torque_of(source.motor.units_for(source.motor.cap_nm(source.law.cap_nm)))
+    with felt_session(tmp_path, rig, model=model) as (session, source, log), source:
+        cap = cap_of(source)
         assert "XL330" in source.notice and "feels the edge" in source.notice
         assert cap <= 0.5 * source.motor.stall_torque_nm
         session.rig.set_torque(True)
         with Running(session, source) as running:
-            session.simulator.set_operator(PRESS)
-            running.until(
-                lambda p: (
-                    sum(1 for _, push, _ in p if push and push.goal_current) > 50
-                    or paced_out(source)
-                )
-            )
+            session.simulator.set_operator(rig.press)
+            running.until(pressing)
+            seen = []  # what the live page is handed, cycle by cycle, until it shows the push
+
+            def shown_pushing(_) -> bool:
+                pushed = (source.last_push, source.last_pose)  # what the status is made of
+                seen.append((leader_status(source)(), *pushed))
+                return seen[-1][0].state == "pushing back" or not source.felt
+
+            running.until(shown_pushing)
             if running.paced_out():
                 return
+            shown, push, pose = seen[-1]
+    assert shown.state == "pushing back"
+    # an arrow on the plane only for a push whose swing part is a tenth of it or more: the wall
+    # pushes along its normal, so pan and tilt get their share of the current, and a leader the
+    # hand let drift a few tenths of a degree in pan is pushed back in swing too
+    swing = math.hypot(push.goal[0] - pose[0], push.goal[1] - pose[1])
+    twist = abs(push.goal[2] - pose[2]) if len(pose) == 3 else 0.0
+    assert (shown.toward is not None) == (swing >= SWING_SHARE_DRAWN * max(swing, twist))
+    if len(pose) == 3:  # pushed in twist: its twist parts
+        assert shown.twist_deg > 29.0 and shown.toward_twist_deg < shown.twist_deg
     rows = truth_rows(log)
-    pushed = [abs(row["motor_nm"][0]) for row in rows if row["pose_deg"][0] > EDGE + 0.5]
+    j = rig.joint
+    pushed = [abs(r["motor_nm"][j]) for r in rows if r["pose_deg"][j] > EDGE + 1.0]
     assert pushed and max(pushed) > 0.5 * cap  # the motor pushed, at most by the cap
-    assert max(abs(m) for row in rows for m in row["motor_nm"]) <= cap + 1e-12
+    assert max(abs(m) for r in rows for m in r["motor_nm"]) <= cap + 1e-12
+
+
+def test_at_the_real_rate_the_wall_holds_or_its_feel_goes_off_for_good(tmp_path):
+    """The source watching the loop's pace at 200 Hz, as `limbctl teleop` does: either the loop
+    keeps the rate and the pressed three-servo leader is held within 2 deg of the twist edge, or
+    the start refuses (leaving the leader limp), or the pace watch switches the push off for
+    good and from then on the motors apply nothing."""
+    with felt_session(tmp_path, SIM3, rate_hz=200.0) as (session, source, log):
+        try:
+            source.start()
+        except ConfigError as exc:
+            assert "lower --rate" in str(exc)
+            assert not any(session.rig.bus.torque_enabled()[i] for i in SIM3.ids)
+            return
+        try:
+            session.rig.set_torque(True)
+            with Running(session, source) as running:
+                session.simulator.set_operator(TWIST_PRESS)
+                start = session.simulator.truth()["leader"]["t"]
+                running.until(lambda p: session.simulator.truth()["leader"]["t"] > start + 4.0)
+                truth = session.simulator.truth()
+                lost = running.paced_out()  # if so, asserts the outcome cycle by cycle
+        finally:
+            source.close()
+    if lost:
+        assert truth["leader"]["motor_nm"] == [0.0, 0.0, 0.0]
+        assert not any(truth["servos"][i]["torque_on"] for i in SIM3.ids)
+    else:
+        held = [r for r in truth_rows(log) if start + 3.0 <= r["t"] < start + 4.0]
+        assert 0.4 < statistics.median(beyond(r) for r in held[::5]) < 2.0

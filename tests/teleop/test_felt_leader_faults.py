@@ -10,15 +10,18 @@ import pytest
 
 from limbctl.servo.leader_guard import GIVE_UP_S
 from tests.servo.test_leader_guard import START_S, end_pipe, torque_when_free
-from tests.teleop import test_felt_leader as two
-from tests.teleop import test_felt_leader3 as three
+from tests.teleop.felt_running import Running
+from tests.teleop.test_felt_leader import (
+    PRESS,
+    SIM,
+    SIM3,
+    SWING_THEN_TWIST,
+    felt_session,
+    truth_rows,
+)
 
-#: Each rig: its session, its loop runner, the hand's press (along pan, the edge at pan 30 deg
-#: for both regions) and its leader ids.
-RIGS = {
-    "two-servo": (two.felt_session, two.Running, two.PRESS, two.IDS),
-    "three-servo": (three.felt3_session, three.Running3, three.PRESS, three.IDS),
-}
+#: Each rig and the hand's press (along pan first, the edge at pan 30 deg for both regions).
+RIGS = {"two-servo": (SIM, PRESS), "three-servo": (SIM3, SWING_THEN_TWIST)}
 #: The simulator's leader log has one row a millisecond: a push's end is seen within it.
 LOG_GRAIN_S = 0.001
 PERIOD_S = 1.0 / 200.0
@@ -28,11 +31,12 @@ PERIOD_S = 1.0 / 200.0
 def test_a_leader_servo_dropping_off_mid_push_switches_every_push_off_and_is_reported(
     tmp_path, rig
 ):
-    session_of, runner, press, ids = RIGS[rig]
+    spec, press = RIGS[rig]
+    ids = spec.ids
     gone, pusher = ids[-1], ids.index(ids[0])  # the last servo drops; the pan motor pushes
-    with session_of(tmp_path) as (session, source, log), source:
+    with felt_session(tmp_path, spec) as (session, source, log), source:
         session.rig.set_torque(True)
-        with runner(session, source) as running:
+        with Running(session, source) as running:
             if running.pressed_or_paced_out(press):
                 return  # the feel went off for a lost pace (its outcome asserted)
             held_at = time.monotonic()
@@ -54,7 +58,7 @@ def test_a_leader_servo_dropping_off_mid_push_switches_every_push_off_and_is_rep
         session.simulator.vanish(gone, 0.1)
         failed = session.rig.bus.read_cycle(ids=ids, attempts=1)
         assert not failed.ok
-    rows = [row for row in two.truth_rows(log) if row["t"] >= at]
+    rows = [row for row in truth_rows(log) if row["t"] >= at]
     assert rows[0]["motor_nm"][pusher] != 0.0  # it pushed when the servo dropped off
     off = next(row["t"] for row in rows if row["motor_nm"][pusher] == 0.0)
     # one period (the cycle's work between its read and the watch's next) plus one failed read
@@ -86,10 +90,11 @@ def test_a_leader_cut_off_from_its_controller_holds_within_the_cap_and_pushes_no
     # it is (the e-Manual's "stop"; Goal Current and Goal Position read-only), with at most the
     # last push's share of the cap. The hand presses 0.3 s more, then lets go: the leader is
     # pushed no further in than its last goal and, once still, by nothing
-    session_of, runner, press, ids = RIGS[rig]
-    with session_of(tmp_path) as (session, source, log), source:
+    spec, press = RIGS[rig]
+    ids = spec.ids
+    with felt_session(tmp_path, spec) as (session, source, log), source:
         session.rig.set_torque(True)
-        with runner(session, source) as running:
+        with Running(session, source) as running:
             if running.pressed_or_paced_out(press):
                 return
             held_at = time.monotonic()
@@ -108,7 +113,7 @@ def test_a_leader_cut_off_from_its_controller_holds_within_the_cap_and_pushes_no
             )
             running.until(lambda p: session.simulator.truth()["leader"]["t"] > at + 1.0)
             cap = source.cap_nm
-    rows = [row for row in two.truth_rows(log) if at <= row["t"] <= at + 1.0]
+    rows = [row for row in truth_rows(log) if at <= row["t"] <= at + 1.0]
     assert max(sum(m * m for m in row["motor_nm"]) ** 0.5 for row in rows) <= cap + 1e-12
     start = rows[0]["pose_deg"]
     moved_in = max(start[0] - row["pose_deg"][0] for row in rows)  # pan toward the edge
@@ -124,11 +129,12 @@ def test_a_dead_controllers_leader_goes_limp_within_its_guards_bound(tmp_path, r
     # guard's pipe closes without "done" and its port closes (the port's lock with it). The
     # guard then switches every leader servo's torque off, and no follower servo's. The kill -9
     # of a real `limbctl teleop` is tests/servo/test_leader_guard.py's
-    session_of, runner, press, ids = RIGS[rig]
-    with session_of(tmp_path) as (session, source, log), source:
+    spec, press = RIGS[rig]
+    ids = spec.ids
+    with felt_session(tmp_path, spec) as (session, source, log), source:
         session.rig.set_torque(True)
         bus, follower = session.rig.bus, session.profile.ids
-        with runner(session, source) as running:
+        with Running(session, source) as running:
             if running.pressed_or_paced_out(press):
                 return
             held_at = time.monotonic()
@@ -161,6 +167,6 @@ def test_a_dead_controllers_leader_goes_limp_within_its_guards_bound(tmp_path, r
 
 def test_a_passive_leader_has_no_guard(tmp_path):
     # an XL430 senses no current: torque off from the start, nothing for a guard to do
-    with two.felt_session(tmp_path, model="xl430-w250") as (session, source, log), source:
+    with felt_session(tmp_path, model="xl430-w250") as (session, source, log), source:
         source.start()
         assert not source.felt and source._guard is None

@@ -134,7 +134,10 @@ class LeaderSource(SnapWatching, LeaderBus, CommandSource):
         #: A wall that was on when one read missed (leader_snap.py, ``missed``): if the next
         #: read answers, this cycle's wall goes on as engaged, without the re-arm's wait.
         self.resume = False
-        self._heard_at = math.inf  # when the leader last answered (perf_counter s)
+        #: When the leader last answered (perf_counter s); never yet, so the first good read
+        #: clears and arms its Bus Watchdog, which set-up armed and which trips if the loop's
+        #: first read comes later than that (the gate's set-up, the page's).
+        self._heard_at = -math.inf
         self._follower_read_at = -math.inf  # the follower's last good read (perf_counter s)
         self._polled_at: float | None = None  # this cycle's poll, right after the follower's read
         self._profile_velocity: int | None = 0  # what the leader's servos hold (set-up: 0)
