@@ -67,14 +67,6 @@ def interpolation_code(name: str) -> int:
         ) from None
 
 
-def metric_code(name: str) -> int:
-    """The kernel code of a metric name; unknown names are rejected listing choices."""
-    try:
-        return METRICS[name]
-    except (KeyError, TypeError):
-        raise ConfigError(f"unknown metric {name!r}; choose one of: {', '.join(METRICS)}") from None
-
-
 def check_k(k: object) -> int:
     """Validate the number of runner-ups: an integer >= 1."""
     if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1:

@@ -121,8 +121,6 @@ def test_names_are_checked():
     assert ip.interpolation_code("geometric") == ip.GEOMETRIC
     with pytest.raises(ConfigError, match="unknown interpolation 'linear'.*none, idw"):
         ip.interpolation_code("linear")
-    with pytest.raises(ConfigError, match="unknown metric"):
-        ip.metric_code("manhattan")
     with pytest.raises(ConfigError, match="integer >= 1"):
         ip.check_k(0)
     assert ip.check_k(np.int64(3)) == 3
