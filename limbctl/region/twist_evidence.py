@@ -192,19 +192,19 @@ def unsupported_places(
     return tuple(sorted(best.values(), key=lambda p: -p.cut_deg))
 
 
-def band_unsupported(
-    band, d: np.ndarray, inside=None, near_deg: float | None = None
-) -> tuple[UnsupportedPlace, ...]:
+def band_unsupported(band, d: np.ndarray, inside=None) -> tuple[UnsupportedPlace, ...]:
     """The places a freshly fitted band (its :attr:`~limbctl.region.twist_band.TwistBand.cuts`)
     could not support, judged at nodes with a taught direction of ``d`` (N, 3) within
-    ``near_deg`` (beyond the taught directions the band closes toward the taught twists by design,
-    and a place without samples is the swing guide's hole to ask for) and, when given, where
-    ``inside`` (a function of directions (M, 3) -> (M,) bool: the swing region) holds them."""
+    REPORT_NEAR_DEG (beyond the taught directions the band closes toward the taught twists by
+    design, and a place without samples is the swing guide's hole to ask for) and, when given,
+    where ``inside`` (a function of directions (M, 3) -> (M,) bool: the swing region) holds
+    them."""
     if band.cuts is None:
         return ()
-    near_deg = REPORT_NEAR_DEG if near_deg is None else near_deg
     nodes, cut_up, cut_lo = band.cuts
-    near = cKDTree(d).query(nodes, distance_upper_bound=2.0 * math.sin(math.radians(near_deg) / 2))
+    near = cKDTree(d).query(
+        nodes, distance_upper_bound=2.0 * math.sin(math.radians(REPORT_NEAR_DEG) / 2)
+    )
     judged = np.isfinite(near[0])
     if inside is not None:
         judged &= inside(nodes)
