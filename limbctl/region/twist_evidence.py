@@ -141,35 +141,6 @@ def cap_limits(
     return new_up, new_lo, cut_up, cut_lo
 
 
-def evidence_caps_reference(
-    nodes: np.ndarray,
-    start: np.ndarray,
-    members: np.ndarray,
-    d: np.ndarray,
-    limit: np.ndarray,
-    ref: np.ndarray,
-    slope: float,
-    near: float,
-    band: float,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Numpy twin of :func:`limbctl.region.twist_fit_kernels.evidence_caps`."""
-    m = nodes.shape[0]
-    up, lo = np.full(m, np.nan), np.full(m, np.nan)
-    n_up, n_lo = np.zeros(m, dtype=np.int64), np.zeros(m, dtype=np.int64)
-    for i in range(m):
-        j = members[start[i] : start[i + 1]]
-        if j.size == 0:
-            continue
-        # angle = 2 asin(|n - d_j| / 2)
-        angle = 2.0 * np.arcsin(np.minimum(1.0, 0.5 * np.linalg.norm(d[j] - nodes[i], axis=1)))
-        t = limit[j] - ref[i]
-        up[i] = np.max(t - slope * angle)
-        lo[i] = np.min(t + slope * angle)
-        n_up[i] = np.sum((angle <= near) & (t >= up[i] - band))
-        n_lo[i] = np.sum((angle <= near) & (t <= lo[i] + band))
-    return up, lo, n_up, n_lo
-
-
 def unsupported_places(
     directions: np.ndarray, cut_up: np.ndarray, cut_lo: np.ndarray
 ) -> tuple[UnsupportedPlace, ...]:
