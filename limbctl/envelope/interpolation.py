@@ -309,12 +309,6 @@ def respond_reference(
     return out
 
 
-def nearest_distance_reference(weights: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """Plain numpy version of :func:`nearest_distance`."""
-    d2 = np.sum((q[:, None, :] - weights[None, :, :]) ** 2, axis=2)
-    return np.sqrt(d2.min(axis=1))
-
-
 def neighbours_by_position(positions: np.ndarray, k: int) -> np.ndarray:
     """Each node's ``k`` nearest other nodes by Euclidean position (M, k) int64, nearest first.
 
