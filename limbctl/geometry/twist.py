@@ -69,16 +69,6 @@ def wrap(angle: np.ndarray | float) -> np.ndarray:
     return np.where((a > -np.pi) & (a <= np.pi), a, wrapped)
 
 
-def twist_quat(tau: np.ndarray | float) -> np.ndarray:
-    """Quaternions (..., 4) of turns by ``tau`` (rad) about +x: ``(cos(tau/2), sin(tau/2), 0, 0)``.
-
-    ``tau`` is wrapped into ``(-pi, pi]`` first, so the result has w >= 0.
-    """
-    half = 0.5 * wrap(tau)
-    zero = np.zeros_like(half)
-    return np.stack([np.cos(half), np.sin(half), zero, zero], axis=-1)
-
-
 def decompose(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Split unit quaternions into limb direction and twist: ``q = swing(d) * twist(tau)``.
 
