@@ -1,6 +1,6 @@
 """Time to reach a command inside a non-convex region, against its distance at the slew limit.
 
-Random outlines with a bay and a notch (``limbctl.envelope.synthetic_bays``), seeds the tests
+Random outlines with a bay and a notch (``tests.teleop.bays``), seeds the tests
 do not use, on both rigs: two servos (the outline) and three (the outline under a twist band
 whose centre and width vary linearly with pan and tilt). For each region, random start and
 target poses inside; the gate starts at one and is given the other every cycle until its
@@ -28,11 +28,20 @@ import argparse
 import math
 import os
 import platform
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
-from limbctl.envelope.synthetic_bays import (
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))  # for tests.teleop.bays (the random outlines, a test helper)
+
+from limbctl.geometry import scalar  # noqa: E402
+from limbctl.geometry.gimbal import pan_tilt_roll_scalar  # noqa: E402
+from limbctl.geometry.twist import decompose, wrap  # noqa: E402
+from limbctl.teleop.gate import Gate, GateLimits  # noqa: E402
+from tests.teleop.bays import (  # noqa: E402
     InsidePaths,
     OutlineBandRegion,
     OutlineRegion,
@@ -40,10 +49,6 @@ from limbctl.envelope.synthetic_bays import (
     inside_points,
     teaching,
 )
-from limbctl.geometry import scalar
-from limbctl.geometry.gimbal import pan_tilt_roll_scalar
-from limbctl.geometry.twist import decompose, wrap
-from limbctl.teleop.gate import Gate, GateLimits
 
 #: The default slew step: 120 deg/s at 200 Hz (limbctl teleop's defaults).
 STEP = math.radians(120.0 / 200.0)

@@ -51,11 +51,3 @@ def chain_quat(pan: float, tilt: float, roll: float) -> tuple[float, float, floa
     if w < 0.0:
         w, x, y, z = -w, -x, -y, -z
     return (w, x, y, z)
-
-
-def twist_of(q: tuple[float, float, float, float]) -> float:
-    """Twist (rad, in (-pi, pi]) of ``q`` about +x: ``2 atan2(q_x, q_w)`` (q with w >= 0)."""
-    w, x = q[0], q[1]
-    if w < 0.0:
-        w, x = -w, -x
-    return 2.0 * math.atan2(x, w)

@@ -124,7 +124,6 @@ class PolygonRegion:
         self._inward /= self._lengths[:, None]
         self._arc_start = np.concatenate([[0.0], np.cumsum(self._lengths)[:-1]])
         self.perimeter_deg = float(np.sum(self._lengths))
-        self._vertex_list = [tuple(v) for v in vertices.tolist()]
         lo, hi = vertices.min(axis=0), vertices.max(axis=0)
         self.bbox_deg = (float(lo[0]), float(hi[0]), float(lo[1]), float(hi[1]))
         pan_grid, tilt_grid = np.meshgrid(

@@ -84,7 +84,7 @@ def run_train(options: TrainOptions) -> int:
 
 
 # ---- plot / info ----------------------------------------------------------------------------
-def plot_files(paths: list[Path], out: Path, extra: dict | None = None) -> Path:
+def plot_files(paths: list[Path], out: Path) -> Path:
     """Draw the models and datasets among ``paths`` (told apart by content) to PNG ``out``."""
     from limbctl.envelope import load_model
     from limbctl.plot import plot
@@ -105,7 +105,7 @@ def plot_files(paths: list[Path], out: Path, extra: dict | None = None) -> Path:
                     f"{path} is neither a model ({model_error.problem}) nor a dataset "
                     f"({data_error.problem})"
                 ) from None
-    return plot(out, samples=samples, model=model, title=", ".join(names), extra=extra)
+    return plot(out, samples=samples, model=model, title=", ".join(names))
 
 
 @dataclass(frozen=True)

@@ -67,14 +67,6 @@ def interpolation_code(name: str) -> int:
         ) from None
 
 
-def metric_code(name: str) -> int:
-    """The kernel code of a metric name; unknown names are rejected listing choices."""
-    try:
-        return METRICS[name]
-    except (KeyError, TypeError):
-        raise ConfigError(f"unknown metric {name!r}; choose one of: {', '.join(METRICS)}") from None
-
-
 def check_k(k: object) -> int:
     """Validate the number of runner-ups: an integer >= 1."""
     if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1:
@@ -315,12 +307,6 @@ def respond_reference(
         y = y / np.linalg.norm(y)
         out[j] = -y if y[0] < 0.0 else y
     return out
-
-
-def nearest_distance_reference(weights: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """Plain numpy version of :func:`nearest_distance`."""
-    d2 = np.sum((q[:, None, :] - weights[None, :, :]) ** 2, axis=2)
-    return np.sqrt(d2.min(axis=1))
 
 
 def neighbours_by_position(positions: np.ndarray, k: int) -> np.ndarray:

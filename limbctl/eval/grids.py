@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import hashlib
 from collections.abc import Iterable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 from limbctl.errors import ConfigError
@@ -151,7 +151,6 @@ class Scale:
     uniform_nodes: int
     k_polytope: int
     k_uniform: int
-    extra: dict[str, Any] = field(default_factory=dict)
 
 
 SCALE_SIZES = {

@@ -235,23 +235,6 @@ def direction_angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.arctan2(np.linalg.norm(np.cross(a, b), axis=-1), np.sum(a * b, axis=-1))
 
 
-def slerp(a: np.ndarray, b: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """Spherical linear interpolation from ``a`` (t=0) to ``b`` (t=1) on the short arc."""
-    a = np.asarray(a, dtype=np.float64)
-    b = np.asarray(b, dtype=np.float64)
-    t = np.asarray(t, dtype=np.float64)[..., None]
-    dot = np.sum(a * b, axis=-1, keepdims=True)
-    b = np.where(dot < 0, -b, b)
-    dot = np.abs(dot)
-    theta = np.arccos(np.clip(dot, -1.0, 1.0))
-    s = np.sin(theta)
-    small = s < 1e-9
-    s_safe = np.where(small, 1.0, s)
-    wa = np.where(small, 1.0 - t, np.sin((1.0 - t) * theta) / s_safe)
-    wb = np.where(small, t, np.sin(t * theta) / s_safe)
-    return normalize(wa * a + wb * b)
-
-
 def tangent_frame(axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Unit vectors u, v (3,) completing unit ``axis`` (3,) to a right-handed frame (u x v = axis).
 

@@ -69,16 +69,6 @@ def wrap(angle: np.ndarray | float) -> np.ndarray:
     return np.where((a > -np.pi) & (a <= np.pi), a, wrapped)
 
 
-def twist_quat(tau: np.ndarray | float) -> np.ndarray:
-    """Quaternions (..., 4) of turns by ``tau`` (rad) about +x: ``(cos(tau/2), sin(tau/2), 0, 0)``.
-
-    ``tau`` is wrapped into ``(-pi, pi]`` first, so the result has w >= 0.
-    """
-    half = 0.5 * wrap(tau)
-    zero = np.zeros_like(half)
-    return np.stack([np.cos(half), np.sin(half), zero, zero], axis=-1)
-
-
 def decompose(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Split unit quaternions into limb direction and twist: ``q = swing(d) * twist(tau)``.
 
@@ -129,49 +119,6 @@ def compose(d: np.ndarray, tau: np.ndarray | float) -> np.ndarray:
     # q = swing(d) * twist(tau) = (s_w c, s_w s, s_y c + s_z s, s_z c - s_y s)
     q = np.stack([s_w * c, s_w * s, s_y * c + s_z * s, s_z * c - s_y * s], axis=-1)
     return canonical(q)
-
-
-def transported_twist(q: np.ndarray, d: np.ndarray) -> np.ndarray:
-    """Twist (rad, ``(-pi, pi]``) that ``q`` carries to direction ``d`` along the shortest arc.
-
-    With ``r`` the shortest rotation from ``q``'s direction ``d_q`` onto ``d``, ``r * q`` is the
-    orientation over ``d`` nearest to ``q`` with angle ``theta = angle(d_q, d)``; its twist is
-    returned. Every orientation ``swing(d) * twist(tau)`` lies at geodesic angle ``g`` from ``q``
-    with ``cos(g/2) = cos(theta/2) |cos((tau - transported)/2)|`` (:func:`geodesic_over`).
-
-    Parameters
-    ----------
-    q : ndarray, shape (..., 4)
-    d : ndarray, shape (..., 3)
-        Unit directions not opposite to ``q``'s (there the shortest arc is not unique).
-
-    Returns
-    -------
-    ndarray, shape (...,)
-    """
-    q = np.asarray(q, dtype=np.float64)
-    d = np.asarray(d, dtype=np.float64)
-    dq = limb_direction(q)
-    # r = normalize(1 + d_q . d, d_q x d), the shortest arc from d_q onto d
-    r = np.concatenate([1.0 + np.sum(dq * d, axis=-1)[..., None], np.cross(dq, d)], axis=-1)
-    r = r / np.linalg.norm(r, axis=-1, keepdims=True)
-    rw, rv = r[..., 0], r[..., 1:]
-    qw, qv = q[..., 0], q[..., 1:]
-    # only the w and x parts of p = r * q are needed: tau = 2 atan2(p_x, p_w)
-    pw = rw * qw - np.sum(rv * qv, axis=-1)
-    px = rw * qv[..., 0] + qw * rv[..., 0] + rv[..., 1] * qv[..., 2] - rv[..., 2] * qv[..., 1]
-    return wrap(2.0 * np.arctan2(px, pw))
-
-
-def geodesic_over(theta: np.ndarray, delta: np.ndarray) -> np.ndarray:
-    """Geodesic angle (rad) from ``q`` to an orientation ``theta`` away in direction and ``delta``
-    away in twist from ``q``'s transported twist: ``g = 2 acos(cos(theta/2) |cos(delta/2)|)``.
-
-    Shapes broadcast; ``theta`` in [0, pi], ``delta`` any real (rad).
-    """
-    # cos(g/2) = cos(theta/2) |cos(delta/2)|
-    c = np.cos(0.5 * np.asarray(theta)) * np.abs(np.cos(0.5 * np.asarray(delta)))
-    return 2.0 * np.arccos(np.clip(c, 0.0, 1.0))
 
 
 def decompose_one(q: np.ndarray) -> tuple[Vec3, float]:

@@ -159,8 +159,6 @@ def choose_window(
 def edge_offsets(
     stations: np.ndarray,
     pole: np.ndarray,
-    rho: np.ndarray,
-    s: np.ndarray,
     total: float,
     data: np.ndarray,
     window: float,
@@ -199,7 +197,7 @@ def fit_edge(loop: np.ndarray, data: np.ndarray, max_offset: float) -> tuple[np.
     window = choose_window(loop, at_vertex, s, total, outward)
     pole, rho, resid = circle_fits(loop, at_vertex, s, total, outward, window)
     base = on_circle(stations, pole, rho)
-    offset = smooth_along(edge_offsets(base, pole, rho, s, total, data, window), s, total, window)
+    offset = smooth_along(edge_offsets(base, pole, total, data, window), s, total, window)
     offset += lift(sample_need(base, pole, rho, data) - offset, s, total, 0.5 * window)
     # stations out by the sagitta of a chord: the chords between them then lie on or outside
     # the curve, not inside it; sagitta = step^2 / (8 tan rho) for a circle of angular

@@ -175,20 +175,6 @@ def station_estimates(
     return station_moves(s, total, owner, depth, buckets.order, buckets.bounds, reach, TOP_READINGS)
 
 
-def station_estimates_reference(
-    s: np.ndarray, total: float, owner: np.ndarray, depth: np.ndarray, reach: int
-) -> np.ndarray:
-    """:func:`station_estimates` in numpy, station by station."""
-    buckets = StationBuckets(owner, s.shape[0])
-    move = np.zeros(s.shape[0])
-    for i in range(s.shape[0]):
-        rows = buckets.around(i, reach)
-        if rows.size:
-            u = signed_offset(s[owner[rows]], s[i], total)
-            move[i] = edge_estimate(u, depth[rows])
-    return move
-
-
 def over_hole(owner: np.ndarray, depth: np.ndarray, stations: int, limit: float) -> np.ndarray:
     """Which of the stations (K,) bool lie over a hole in the taught edge.
 

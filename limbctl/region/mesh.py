@@ -27,7 +27,6 @@ from scipy.spatial import ConvexHull, QhullError
 from limbctl.errors import InvalidInputError
 from limbctl.region import direct_kernels, grid_kernels
 from limbctl.region import mesh_kernels as bk
-from limbctl.region.mesh_kernels import CONTAIN_TOLERANCE
 
 
 @dataclass
@@ -334,17 +333,6 @@ def boundary_edges(tri: np.ndarray) -> np.ndarray:
 
 
 # ---- brute-force references --------------------------------------------------------------------
-def in_triangles_reference(d: np.ndarray, vertices: np.ndarray, tri: np.ndarray) -> np.ndarray:
-    """(N,) bool: each direction in at least one spherical triangle (edges included)."""
-    a, b, c = vertices[tri[:, 0]], vertices[tri[:, 1]], vertices[tri[:, 2]]
-    # inside iff on the left of (or on) all three edge planes: det(a, b, p) >= 0, ...
-    s1 = d @ np.cross(a, b).T >= 0
-    s2 = d @ np.cross(b, c).T >= 0
-    s3 = d @ np.cross(c, a).T >= 0
-    front = d @ (a + b + c).T > 0
-    return (s1 & s2 & s3 & front).any(axis=1)
-
-
 def nearest_on_edges_reference(
     d: np.ndarray, vertices: np.ndarray, edges: np.ndarray, margins: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -373,19 +361,3 @@ def nearest_on_edges_reference(
         best_key[better] = ang[better] - margins[k]
         best_edge[better] = k
     return best_edge, best, best_angle
-
-
-def project_reference(mesh: DirectionMesh, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Brute-force ``(contains, project)`` for directions ``d`` (N, 3)."""
-    inside_mesh = inside_reference(d, mesh.vertices, mesh.edges)
-    edge, point, angle = nearest_on_edges_reference(d, mesh.vertices, mesh.edges, mesh.margins)
-    margin = mesh.margins[edge]
-    inside = inside_mesh | (angle - margin <= CONTAIN_TOLERANCE)
-    # outside: from the nearest boundary point, go that arc's margin along the path toward d
-    out = np.empty_like(d)
-    for i in range(d.shape[0]):
-        if inside[i]:
-            out[i] = d[i]
-        else:
-            out[i] = bk.slerp_dir(point[i], d[i], angle[i], margin[i])
-    return inside, out

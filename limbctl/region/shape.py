@@ -33,7 +33,6 @@ from limbctl.region import shape_kernels
 from limbctl.region.gaps import line_gap
 from limbctl.region.loops import StationBuckets, chord, loops_to_edges, vertex_turns
 from limbctl.region.mesh import (
-    boundary_edges,
     circumradius,
     inside_reference,
     spherical_delaunay,
@@ -101,14 +100,6 @@ def tri_centroids(d: np.ndarray, tri: np.ndarray) -> np.ndarray:
     """Unit centroid directions (T, 3) of triangles ``tri`` over vertices ``d``."""
     c = d[tri[:, 0]] + d[tri[:, 1]] + d[tri[:, 2]]
     return c / np.linalg.norm(c, axis=1, keepdims=True)
-
-
-def enclosed(p: np.ndarray, loops: list[np.ndarray]) -> np.ndarray:
-    """(N,) bool: directions ``p`` (N, 3) inside the closed loops (region on their left)."""
-    if not loops:
-        return np.zeros(p.shape[0], dtype=bool)
-    vertices, edges = loops_to_edges(loops)
-    return inside_reference(p, vertices, edges)
 
 
 def trace_loops(d: np.ndarray, edges: np.ndarray) -> list[np.ndarray]:
@@ -220,18 +211,6 @@ def alpha_complex(
     area = np.bincount(label, weights=triangle_area(d, tri) * ~kept, minlength=t)
     hole = ~kept & ~outside[label] & (area[label] < max_hole)
     return tri, radius, kept | hole
-
-
-def alpha_loops(d: np.ndarray, alpha: float, max_hole: float) -> list[np.ndarray]:
-    """Boundary loops (each (M, 3) directions, region on the left) of the alpha shape of ``d``.
-
-    Holes with an area below ``max_hole`` (sr) are filled (see :func:`alpha_complex`). Returns
-    an empty list when no triangle has circumradius <= ``alpha``.
-    """
-    tri, _, inside = alpha_complex(d, alpha, max_hole)
-    if not inside.any():
-        return []
-    return [d[idx] for idx in trace_loops(d, boundary_edges(tri[inside]))]
 
 
 def edge_lengths(d: np.ndarray, pairs: np.ndarray) -> np.ndarray:

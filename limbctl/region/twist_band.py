@@ -6,7 +6,7 @@ as centre and half-width, never as two limits that could straddle +-pi. Both are
 square grid in the azimuthal equidistant plane about the band's axis (the swing region's axis):
 ``(x, y) = theta (d.u, d.v) / |(d.u, d.v)|`` with ``theta`` the angle from the axis, so the
 grid has no pole inside the region, and read bilinearly
-(:func:`limbctl.region.twist_kernels.band_at`; :func:`band_reference` is its numpy twin).
+(:func:`limbctl.region.twist_kernels.band_at`; its numpy twin is in the tests).
 
 Fitting, per grid node, from the taught samples within ``BAND_RADIUS_DEG`` of it
 (:mod:`limbctl.region.twist_fit_kernels`):
@@ -457,27 +457,3 @@ def unwrap_grid(centre: np.ndarray) -> np.ndarray:
     out = np.array(centre, dtype=np.float64)
     out[:, 0] = np.unwrap(out[:, 0])
     return np.unwrap(out, axis=1)
-
-
-def band_reference(band: TwistBand, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Numpy twin of :func:`limbctl.region.twist_kernels.band_at` over directions (N, 3)."""
-    xy = plane_xy(d, band.frame)
-    x0, y0, step = band.grid
-    nx, ny = band.centre.shape
-    fx = (xy[:, 0] - x0) / step
-    fy = (xy[:, 1] - y0) / step
-    i = np.clip(np.floor(fx).astype(int), 0, nx - 2)
-    j = np.clip(np.floor(fy).astype(int), 0, ny - 2)
-    tx = np.clip(fx - i, 0.0, 1.0)
-    ty = np.clip(fy - j, 0.0, 1.0)
-
-    def lerp(f: np.ndarray) -> np.ndarray:
-        # (1-tx)(1-ty) f00 + tx(1-ty) f10 + (1-tx) ty f01 + tx ty f11
-        return (
-            (1 - tx) * (1 - ty) * f[i, j]
-            + tx * (1 - ty) * f[i + 1, j]
-            + (1 - tx) * ty * f[i, j + 1]
-            + tx * ty * f[i + 1, j + 1]
-        )
-
-    return lerp(band.centre), lerp(band.half)

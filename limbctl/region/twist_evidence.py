@@ -141,35 +141,6 @@ def cap_limits(
     return new_up, new_lo, cut_up, cut_lo
 
 
-def evidence_caps_reference(
-    nodes: np.ndarray,
-    start: np.ndarray,
-    members: np.ndarray,
-    d: np.ndarray,
-    limit: np.ndarray,
-    ref: np.ndarray,
-    slope: float,
-    near: float,
-    band: float,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Numpy twin of :func:`limbctl.region.twist_fit_kernels.evidence_caps`."""
-    m = nodes.shape[0]
-    up, lo = np.full(m, np.nan), np.full(m, np.nan)
-    n_up, n_lo = np.zeros(m, dtype=np.int64), np.zeros(m, dtype=np.int64)
-    for i in range(m):
-        j = members[start[i] : start[i + 1]]
-        if j.size == 0:
-            continue
-        # angle = 2 asin(|n - d_j| / 2)
-        angle = 2.0 * np.arcsin(np.minimum(1.0, 0.5 * np.linalg.norm(d[j] - nodes[i], axis=1)))
-        t = limit[j] - ref[i]
-        up[i] = np.max(t - slope * angle)
-        lo[i] = np.min(t + slope * angle)
-        n_up[i] = np.sum((angle <= near) & (t >= up[i] - band))
-        n_lo[i] = np.sum((angle <= near) & (t <= lo[i] + band))
-    return up, lo, n_up, n_lo
-
-
 def unsupported_places(
     directions: np.ndarray, cut_up: np.ndarray, cut_lo: np.ndarray
 ) -> tuple[UnsupportedPlace, ...]:
@@ -192,19 +163,19 @@ def unsupported_places(
     return tuple(sorted(best.values(), key=lambda p: -p.cut_deg))
 
 
-def band_unsupported(
-    band, d: np.ndarray, inside=None, near_deg: float | None = None
-) -> tuple[UnsupportedPlace, ...]:
+def band_unsupported(band, d: np.ndarray, inside=None) -> tuple[UnsupportedPlace, ...]:
     """The places a freshly fitted band (its :attr:`~limbctl.region.twist_band.TwistBand.cuts`)
     could not support, judged at nodes with a taught direction of ``d`` (N, 3) within
-    ``near_deg`` (beyond the taught directions the band closes toward the taught twists by design,
-    and a place without samples is the swing guide's hole to ask for) and, when given, where
-    ``inside`` (a function of directions (M, 3) -> (M,) bool: the swing region) holds them."""
+    REPORT_NEAR_DEG (beyond the taught directions the band closes toward the taught twists by
+    design, and a place without samples is the swing guide's hole to ask for) and, when given,
+    where ``inside`` (a function of directions (M, 3) -> (M,) bool: the swing region) holds
+    them."""
     if band.cuts is None:
         return ()
-    near_deg = REPORT_NEAR_DEG if near_deg is None else near_deg
     nodes, cut_up, cut_lo = band.cuts
-    near = cKDTree(d).query(nodes, distance_upper_bound=2.0 * math.sin(math.radians(near_deg) / 2))
+    near = cKDTree(d).query(
+        nodes, distance_upper_bound=2.0 * math.sin(math.radians(REPORT_NEAR_DEG) / 2)
+    )
     judged = np.isfinite(near[0])
     if inside is not None:
         judged &= inside(nodes)

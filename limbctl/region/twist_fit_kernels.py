@@ -2,8 +2,8 @@
 
 Two readings per band node, each a small free function with explicit loops: the upper hull's
 height over the node (:func:`upper_hull`, :func:`fit_nodes`), then a weighted plane through
-the samples at each stop (:func:`refine_nodes`). Numpy twins: ``upper_hull_reference`` in
-:mod:`limbctl.region.twist_references`; the tests check each. No fastmath.
+the samples at each stop (:func:`refine_nodes`). Numpy twins of :func:`upper_hull` and
+:func:`evidence_caps` live in ``tests/region/test_twist_fit_kernels.py``. No fastmath.
 """
 
 from __future__ import annotations

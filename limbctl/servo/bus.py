@@ -81,7 +81,6 @@ class BusStats:
     retries: int = 0
     timeouts: int = 0
     corrupt: int = 0
-    alarms: int = 0
 
 
 class ServoBus(CycleReads):
@@ -310,7 +309,6 @@ class ServoBus(CycleReads):
         found = {i: bits for i, bits in errors.items() if bits}
         if not found:
             return
-        self.stats.alarms += 1
         torque: dict[int, bool] = {}
         for i in found:
             try:

@@ -49,17 +49,14 @@ class TickReader(Protocol):
 
 @dataclass(frozen=True)
 class CalibrationResult:
-    """Zero ticks and directions found, with the readings they came from."""
+    """Zero ticks and directions found."""
 
     pan_zero: int
     tilt_zero: int
     pan_direction: int
     tilt_direction: int
-    pan_move_ticks: int
-    tilt_move_ticks: int
     roll_zero: int | None = None  # None: a two-servo rig
     roll_direction: int | None = None
-    roll_move_ticks: int | None = None
 
 
 def wait_still(
@@ -161,15 +158,12 @@ def find_zero_and_directions(
         roll = {
             "roll_zero": rest[2],
             "roll_direction": 1 if turned_roll[2] > rest[2] else -1,
-            "roll_move_ticks": turned_roll[2] - rest[2],
         }
     return CalibrationResult(
         pan_zero=rest[0],
         tilt_zero=rest[1],
         pan_direction=1 if turned[0] > rest[0] else -1,
         tilt_direction=1 if raised[1] > rest[1] else -1,
-        pan_move_ticks=turned[0] - rest[0],
-        tilt_move_ticks=raised[1] - rest[1],
         **roll,
     )
 

@@ -76,11 +76,6 @@ class Family:
     indirect_slots: int = 28
     indirect_data: tuple[int, ...] = (224,)
 
-    @property
-    def has_current(self) -> bool:
-        """Present Current (and Current Limit, Goal Current) rather than Present Load."""
-        return self.current_unit_ma is not None
-
     def voltage_problem(self, model: ModelNumber, tenths_v: int) -> str:
         """Why a measured Present Input Voltage (0.1 V) must not meet torque ('' if fine)."""
         lo, hi = self.voltage_limits

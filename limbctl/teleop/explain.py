@@ -20,8 +20,6 @@ from limbctl.teleop.gate import GateResult, Outcome
 #: the left; +tilt raises it. The terminal's keys and the page (its plane is drawn from there
 #: too) both speak these words.
 DIRECTION_NAMES = {"+pan": "left", "-pan": "right", "+tilt": "up", "-tilt": "down"}
-#: The names the terminal uses (the same: one key means one motion everywhere).
-KEYBOARD_NAMES = DIRECTION_NAMES
 #: The names the page uses (the same: its plane is seen from behind the limb).
 PLANE_NAMES = DIRECTION_NAMES
 #: How far (deg) the command must lie beyond the written pose along a joint for that way to be

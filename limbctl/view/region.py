@@ -65,13 +65,11 @@ class RegionFit:
         return f"fitted on {self.samples} samples in {self.seconds:.1f} s ({self.edge} edge)"
 
 
-def mesh_loops(vertices: np.ndarray, edges: np.ndarray) -> list[np.ndarray]:
+def mesh_loops(edges: np.ndarray) -> list[np.ndarray]:
     """The closed loops of a region's boundary arcs, as index arrays in walking order.
 
     Parameters
     ----------
-    vertices : ndarray, shape (V, 3)
-        Boundary directions (only their count is used).
     edges : ndarray, shape (E, 2), int
         Directed arcs ``a -> b``; each vertex starts at most one arc.
     """
@@ -133,7 +131,7 @@ def region_loops(
     """
     tree = cKDTree(sample_directions) if sample_directions is not None else None
     out = []
-    for index in mesh_loops(vertices, edges):
+    for index in mesh_loops(edges):
         loop = subdivide(vertices[index], math.radians(STRETCH_DEG))
         if tree is None:
             traced = np.ones(len(loop), dtype=bool)

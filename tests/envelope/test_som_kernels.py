@@ -1,8 +1,38 @@
 import numpy as np
 
 from limbctl.envelope.som import SOM, table_i_schedule
-from limbctl.envelope.som_kernels import train_som, train_som_reference
+from limbctl.envelope.som_kernels import train_som
 from limbctl.geometry import quat
+
+
+def train_som_reference(
+    weights: np.ndarray,
+    patterns: np.ndarray,
+    grid_distance: np.ndarray,
+    learning_rates: np.ndarray,
+    radii: np.ndarray,
+    winners: np.ndarray,
+) -> tuple[int, bool]:
+    """Plain numpy version of :func:`train_som` (same arguments, same result)."""
+    steps = 0
+    for t in range(len(learning_rates)):
+        lr = learning_rates[t]
+        changed = 0
+        for j, x in enumerate(patterns):
+            # D_i = |x - w_i|^2 ; winner = first argmin
+            diff = x - weights
+            d = diff[:, 0] ** 2 + diff[:, 1] ** 2 + diff[:, 2] ** 2 + diff[:, 3] ** 2
+            win = int(np.argmin(d))
+            if winners[j] != win:
+                changed += 1
+                winners[j] = win
+            near = grid_distance[win] <= radii[t]
+            # w_i += lr (x - w_i) for the winner's grid neighbourhood
+            weights[near] += lr * (x - weights[near])
+        steps = t + 1
+        if changed == 0:
+            return steps, True
+    return steps, False
 
 
 def cone_patterns(n, half_angle, seed):

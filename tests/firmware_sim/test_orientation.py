@@ -11,9 +11,16 @@ from firmware_sim.orientation import (
     chain_quat,
     chain_twist,
     roll_for_twist_deg,
-    twist_of,
     wrap_deg,
 )
+
+
+def twist_of(q: tuple[float, float, float, float]) -> float:
+    """Twist (rad, in (-pi, pi]) of ``q`` about +x: ``2 atan2(q_x, q_w)`` (q with w >= 0)."""
+    w, x = q[0], q[1]
+    if w < 0.0:
+        w, x = -w, -x
+    return 2.0 * math.atan2(x, w)
 
 
 def product(a, b):

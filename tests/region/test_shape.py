@@ -4,7 +4,29 @@ import pytest
 from limbctl.envelope.synthetic import ConeRegion, trajectory_samples
 from limbctl.geometry.quat import direction_angle
 from limbctl.region import shape as rs
-from limbctl.region.mesh import DirectionMesh, boundary_edges
+from limbctl.region.loops import loops_to_edges
+from limbctl.region.mesh import DirectionMesh, boundary_edges, inside_reference
+from limbctl.region.shape import alpha_complex, trace_loops
+
+
+def enclosed(p: np.ndarray, loops: list[np.ndarray]) -> np.ndarray:
+    """(N,) bool: directions ``p`` (N, 3) inside the closed loops (region on their left)."""
+    if not loops:
+        return np.zeros(p.shape[0], dtype=bool)
+    vertices, edges = loops_to_edges(loops)
+    return inside_reference(p, vertices, edges)
+
+
+def alpha_loops(d: np.ndarray, alpha: float, max_hole: float) -> list[np.ndarray]:
+    """Boundary loops (each (M, 3) directions, region on the left) of the alpha shape of ``d``.
+
+    Holes with an area below ``max_hole`` (sr) are filled (see :func:`alpha_complex`). Returns
+    an empty list when no triangle has circumradius <= ``alpha``.
+    """
+    tri, _, inside = alpha_complex(d, alpha, max_hole)
+    if not inside.any():
+        return []
+    return [d[idx] for idx in trace_loops(d, boundary_edges(tri[inside]))]
 
 
 def test_thin_keeps_spacing_and_covers_every_point():
@@ -29,10 +51,10 @@ def test_holes_below_the_limit_are_filled_larger_ones_kept():
     d = _ring(8.0, 25.0, 3000, np.random.default_rng(1))
     alpha = np.radians(3.0)
     probe = np.array([[1.0, 0.0, 0.0]])
-    filled = rs.alpha_loops(d, alpha, max_hole=0.1)
-    kept = rs.alpha_loops(d, alpha, max_hole=1e-4)
-    assert rs.enclosed(probe, filled)[0]
-    assert not rs.enclosed(probe, kept)[0]
+    filled = alpha_loops(d, alpha, max_hole=0.1)
+    kept = alpha_loops(d, alpha, max_hole=1e-4)
+    assert enclosed(probe, filled)[0]
+    assert not enclosed(probe, kept)[0]
     assert len(kept) == len(filled) + 1
 
 
@@ -52,7 +74,7 @@ def test_edge_margins_reach_the_circle_and_cover_every_sample():
     rng = np.random.default_rng(3)
     cone = ConeRegion(np.radians(25.0))
     data = cone.sample(4000, rng)
-    loops = rs.alpha_loops(data, np.radians(4.0), max_hole=0.1)
+    loops = alpha_loops(data, np.radians(4.0), max_hole=0.1)
     assert len(loops) == 1
     cap = np.radians(0.75)
     margins = rs.edge_margins(loops, data, np.radians(6.0), 12, cap)[0]
@@ -77,15 +99,15 @@ def test_peel_takes_back_a_bridged_concavity_and_keeps_every_vertex():
     tri, _, inside = rs.alpha_complex(d, np.radians(20.0), max_hole=0.0)
     probe = np.array([[np.cos(np.radians(15.0)), np.sin(np.radians(15.0)), 0.0]])
     bridged = [d[i] for i in rs.trace_loops(d, boundary_edges(tri[inside]))]
-    assert rs.enclosed(probe, bridged)[0]
+    assert enclosed(probe, bridged)[0]
     protected = rs.surrounded(rs.tri_centroids(d, tri), d, np.radians(4.0), np.radians(150.0))
     kept = rs.peel(d, tri, inside, np.radians(4.0), protected)
     peeled = [d[i] for i in rs.trace_loops(d, boundary_edges(tri[kept]))]
-    assert not rs.enclosed(probe, peeled)[0]
+    assert not enclosed(probe, peeled)[0]
     # no vertex of the shape is dropped; the middle of the disc stays
     assert np.isin(np.unique(tri[inside]), np.unique(tri[kept])).all()
     below = np.array([[np.cos(np.radians(12.0)), 0.0, -np.sin(np.radians(12.0))]])
-    assert rs.enclosed(below, peeled)[0]
+    assert enclosed(below, peeled)[0]
 
 
 def test_surrounded_tells_middle_from_edge():
@@ -123,7 +145,7 @@ def _holds_pond(d, mouth_deg):
     )
     loops = [d[i] for i in rs.trace_loops(d, boundary_edges(tri[inside]))]
     probe = np.array([[1.0, 0.0, np.tan(np.radians(6.5))]])
-    return bool(rs.enclosed(probe / np.linalg.norm(probe), loops)[0])
+    return bool(enclosed(probe / np.linalg.norm(probe), loops)[0])
 
 
 def test_a_hole_open_only_through_a_gap_narrower_than_the_mouth_is_filled():

@@ -2,12 +2,22 @@ import numpy as np
 import pytest
 
 from limbctl.envelope.synthetic import ConeRegion
-from limbctl.region.edge_traced import (
-    readings,
-    station_estimates,
-    station_estimates_reference,
-)
-from limbctl.region.loops import resample_loop, station_positions
+from limbctl.region.edge_traced import edge_estimate, readings, station_estimates
+from limbctl.region.loops import StationBuckets, resample_loop, signed_offset, station_positions
+
+
+def station_estimates_reference(
+    s: np.ndarray, total: float, owner: np.ndarray, depth: np.ndarray, reach: int
+) -> np.ndarray:
+    """:func:`station_estimates` in numpy, station by station."""
+    buckets = StationBuckets(owner, s.shape[0])
+    move = np.zeros(s.shape[0])
+    for i in range(s.shape[0]):
+        rows = buckets.around(i, reach)
+        if rows.size:
+            u = signed_offset(s[owner[rows]], s[i], total)
+            move[i] = edge_estimate(u, depth[rows])
+    return move
 
 
 def _circle(radius_deg: float, points: int) -> np.ndarray:

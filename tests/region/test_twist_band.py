@@ -13,12 +13,35 @@ from limbctl.geometry.twist import compose, decompose, wrap
 from limbctl.region import twist_band as tb
 from limbctl.region.twist_band import (
     TwistBand,
-    band_reference,
     envelope_heights,
     plane_to_direction,
     plane_xy,
     unwrap_grid,
 )
+
+
+def band_reference(band: TwistBand, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Numpy twin of :func:`limbctl.region.twist_kernels.band_at` over directions (N, 3)."""
+    xy = plane_xy(d, band.frame)
+    x0, y0, step = band.grid
+    nx, ny = band.centre.shape
+    fx = (xy[:, 0] - x0) / step
+    fy = (xy[:, 1] - y0) / step
+    i = np.clip(np.floor(fx).astype(int), 0, nx - 2)
+    j = np.clip(np.floor(fy).astype(int), 0, ny - 2)
+    tx = np.clip(fx - i, 0.0, 1.0)
+    ty = np.clip(fy - j, 0.0, 1.0)
+
+    def lerp(f: np.ndarray) -> np.ndarray:
+        # (1-tx)(1-ty) f00 + tx(1-ty) f10 + (1-tx) ty f01 + tx ty f11
+        return (
+            (1 - tx) * (1 - ty) * f[i, j]
+            + tx * (1 - ty) * f[i + 1, j]
+            + (1 - tx) * ty * f[i, j + 1]
+            + tx * ty * f[i + 1, j + 1]
+        )
+
+    return lerp(band.centre), lerp(band.half)
 
 
 @pytest.fixture(scope="module")

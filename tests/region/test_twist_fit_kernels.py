@@ -8,9 +8,60 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from limbctl.geometry.twist import wrap
-from limbctl.region.twist_evidence import evidence_caps_reference
 from limbctl.region.twist_fit_kernels import evidence_caps, fit_nodes, refine_nodes, upper_hull
-from limbctl.region.twist_references import upper_hull_reference
+
+
+def upper_hull_reference(px: np.ndarray, py: np.ndarray, t: np.ndarray, top: int) -> float:
+    """Numpy twin of :func:`limbctl.region.twist_fit_kernels.upper_hull` (all triangles at once)."""
+    order = np.argsort(-t, kind="stable")[:top]
+    a, b, c = np.array(
+        [
+            (i, j, k)
+            for i in range(len(order))
+            for j in range(i + 1, len(order))
+            for k in range(j + 1, len(order))
+        ]
+    ).T
+    ia, ib, ic = order[a], order[b], order[c]
+    cab = px[ia] * py[ib] - py[ia] * px[ib]
+    cbc = px[ib] * py[ic] - py[ib] * px[ic]
+    cca = px[ic] * py[ia] - py[ic] * px[ia]
+    area = cab + cbc + cca
+    ok = area != 0
+    la, lb, lc = (np.where(ok, x / np.where(ok, area, 1.0), -1.0) for x in (cbc, cca, cab))
+    held = ok & (la >= 0) & (lb >= 0) & (lc >= 0)
+    if not held.any():
+        return float("nan")
+    return float(np.max((la * t[ia] + lb * t[ib] + lc * t[ic])[held]))
+
+
+def evidence_caps_reference(
+    nodes: np.ndarray,
+    start: np.ndarray,
+    members: np.ndarray,
+    d: np.ndarray,
+    limit: np.ndarray,
+    ref: np.ndarray,
+    slope: float,
+    near: float,
+    band: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Numpy twin of :func:`limbctl.region.twist_fit_kernels.evidence_caps`."""
+    m = nodes.shape[0]
+    up, lo = np.full(m, np.nan), np.full(m, np.nan)
+    n_up, n_lo = np.zeros(m, dtype=np.int64), np.zeros(m, dtype=np.int64)
+    for i in range(m):
+        j = members[start[i] : start[i + 1]]
+        if j.size == 0:
+            continue
+        # angle = 2 asin(|n - d_j| / 2)
+        angle = 2.0 * np.arcsin(np.minimum(1.0, 0.5 * np.linalg.norm(d[j] - nodes[i], axis=1)))
+        t = limit[j] - ref[i]
+        up[i] = np.max(t - slope * angle)
+        lo[i] = np.min(t + slope * angle)
+        n_up[i] = np.sum((angle <= near) & (t >= up[i] - band))
+        n_lo[i] = np.sum((angle <= near) & (t <= lo[i] + band))
+    return up, lo, n_up, n_lo
 
 
 @settings(max_examples=100, deadline=None)

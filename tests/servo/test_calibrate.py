@@ -71,7 +71,7 @@ def test_limits_past_the_end_stops_are_refused_before_calibrating(tmp_path):
 
 
 def test_limits_must_contain_the_rest_pose():
-    result = CalibrationResult(2000, 2000, 1, -1, 500, -300)
+    result = CalibrationResult(2000, 2000, 1, -1)
     with pytest.raises(SafetyError, match="rest pose"):
         profile_from_calibration(default_sim_profile(), result, "x", "sim", (10, 90), (-10, 10))
 

@@ -28,7 +28,9 @@ def test_every_supported_model_is_in_exactly_one_family():
 def test_families_differ_where_the_e_manual_says(model, family, unit, top_baud):
     found = family_of(model)
     assert (found.name, found.current_unit_ma, max(found.bauds)) == (family, unit, top_baud)
-    assert (OperatingMode.CURRENT_BASED_POSITION in found.modes) == found.has_current
+    assert (OperatingMode.CURRENT_BASED_POSITION in found.modes) == (
+        found.current_unit_ma is not None
+    )
     assert found.indirect_slots == (20 if "330" in family else 28)
 
 

@@ -8,7 +8,6 @@ from limbctl.envelope import Cone
 from limbctl.geometry.gimbal import pan_tilt_to_quat
 from limbctl.teleop.explain import (
     DIRECTION_NAMES,
-    KEYBOARD_NAMES,
     PLANE_NAMES,
     blocked_directions,
     explain,
@@ -54,12 +53,12 @@ def test_at_the_edge_the_blocked_way_is_named_and_sliding_told_from_standing():
         "on the way to the edge: the command lies beyond"
     )
     results = follow(g, 0.0, 60.0, 40)
-    told = explain(results[-1], (0.0, 60.0), deg(results[-2]), KEYBOARD_NAMES)
+    told = explain(results[-1], (0.0, 60.0), deg(results[-2]), DIRECTION_NAMES)
     assert told.words == "at the edge: up is blocked, holding there"
     assert told.blocked == ("+tilt",)
     # up and to the left (+pan): the gate slides the limb along the edge toward the command
     results = follow(g, 50.0, 60.0, 3)
-    told = explain(results[-1], (50.0, 60.0), deg(results[-2]), KEYBOARD_NAMES)
+    told = explain(results[-1], (50.0, 60.0), deg(results[-2]), DIRECTION_NAMES)
     assert told.blocked == ("+tilt",)
     assert told.words == "at the edge: up is blocked, sliding left along it"
     # pushed into the edge with nothing to slide toward, both ways are blocked; the page
@@ -89,7 +88,7 @@ def test_blocked_needs_more_than_the_gates_rounding_and_no_move_that_way():
 
 
 def test_one_key_one_motion_the_terminal_and_the_page_name_directions_alike():
-    assert KEYBOARD_NAMES == PLANE_NAMES == DIRECTION_NAMES
+    assert PLANE_NAMES == DIRECTION_NAMES
     assert DIRECTION_NAMES["+pan"] == "left" and DIRECTION_NAMES["+tilt"] == "up"
 
 

@@ -10,13 +10,6 @@ import math
 import numpy as np
 import pytest
 
-from limbctl.envelope.synthetic_bays import (
-    InsidePaths,
-    OutlineBandRegion,
-    OutlineRegion,
-    bay_outline,
-    inside_points,
-)
 from limbctl.geometry import scalar
 from limbctl.geometry.chains import chain_geometry
 from limbctl.geometry.gimbal import pan_tilt_roll_scalar
@@ -27,6 +20,13 @@ from limbctl.teleop.route import (
     REACH_FACTOR,
     Router,
     fibonacci_sphere,
+)
+from tests.teleop.bays import (
+    InsidePaths,
+    OutlineBandRegion,
+    OutlineRegion,
+    bay_outline,
+    inside_points,
 )
 
 STEP = math.radians(0.6)  # limbctl teleop's default: 120 deg/s at 200 Hz
@@ -213,9 +213,9 @@ def test_a_fitted_region_routes_round_its_bay(rig):
     """The region a model file holds (TaughtRegion, TwistRegion fitted from a traced teaching of
     a random outline): a target whose way from the start bends round a wall is reached within
     the bound, the roadmap built at start (the fitted regions answer batches)."""
-    from limbctl.envelope.synthetic_bays import teaching
     from limbctl.region.taught import TaughtRegion
     from limbctl.region.twist_region import TwistRegion
+    from tests.teleop.bays import teaching
 
     truth, rng = region_for(rig, 31)
     region = (TaughtRegion() if rig == 2 else TwistRegion()).fit(teaching(truth, 60.0, rng))

@@ -34,13 +34,11 @@ class SourceStats:
 
     accepted: int = 0
     rejected: int = 0
-    last_rejection: str = ""
     refusals: Refusals = field(default_factory=Refusals)
 
     def reject(self, reason: str, line: bytes | str = b"", line_no: int = 0) -> None:
         """Count one refused input: the parser's ``reason``, the ``line`` and its number."""
         self.rejected += 1
-        self.last_rejection = reason
         self.refusals.add(reason, line, line_no)
 
 
