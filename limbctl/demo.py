@@ -11,21 +11,36 @@
    follower mirrors it through the gate, the leader pushes back (leader.png). On the
    three-servo rig (``--rig sim3``) the leader has three servos and is pushed past the edge
    in swing, then in twist.
+
+One flow (:func:`_run_flow`) runs every rig; what differs per rig (region, stream, judge,
+report, leader run, printed lines) is a :class:`DemoRig` in :data:`RIGS`.
 """
 
 from __future__ import annotations
 
 import json
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from limbctl.errors import ConfigError
+from limbctl.eval.twist_demo import (
+    coverage,
+    logged_orientations,
+    twist_excursions,
+    twist_picture,
+    write_twist_stream,
+    written_orientations,
+)
 from limbctl.file_jobs import TrainOptions, run_train
+from limbctl.geometry.gimbal import pose_quat_scalar
+from limbctl.geometry.twist import decompose_one
 from limbctl.jobs import Connection, RecordOptions, TeleopOptions, run_record, run_teleop, say
 from limbctl.live import LiveView, ViewOptions, leader_status, open_view
+from limbctl.session import demo_region_path
 from limbctl.teleop.gate import REGION_TOLERANCE_DEG, written_tolerance_deg
 
 #: Loop rate of the demo's teleop (Hz): the controller's default rate.
@@ -39,8 +54,42 @@ DEMO_RECORD_HZ = 125.0
 DEMO_APPROACH_DEG_S = 10.0
 #: Slew limit of the demo's teleop (deg/s): the CLI's default.
 DEMO_MAX_SPEED_DEG_S = 120.0
-#: The simulated rigs the demo runs on: two servos, or three with a roll joint (twist).
-DEMO_RIGS = ("sim", "sim3")
+
+
+@dataclass(frozen=True)
+class DemoRig:
+    """What the demo does differently on one simulated rig; :func:`_run_flow` is the same.
+
+    ``profile``: rig profile (None: the two-servo simulated rig); ``joints``: the follower's
+    servos (the ticks' rounding in the written bound); ``region_file``: the hand's REGION.yaml in
+    ``limbctl/data``; ``write_stream(path) -> valid lines``: the replayed commands;
+    ``judge(goals, model, telemetry) -> (N,)``: how far (deg) each goal the simulator logged lies
+    outside the learned region; ``report(out, model, region_yaml, beyond)``: step 4's lines after
+    the excursion, and its pictures; ``approach``: teleop's approach (deg/s; None waits);
+    ``train_plot``: train's picture in ``out`` (None: none); ``leader``: operator name, leader
+    ids, length (s) of the leader run; ``leader_row(cycle, source)``: leader then follower pose
+    (deg) of a complete cycle for leader.png (None: skipped). The rest are the printed lines:
+    step headers (``teach`` formats ``seconds``, ``push`` is step 5's), the stream's (``valid``,
+    ``path``) and the excursion's (``worst``, ``bound``, ``tolerance``).
+    """
+
+    profile: Path | None
+    joints: int
+    region_file: str
+    write_stream: Callable[[Path], int]
+    judge: Callable[[Path, object, Path], np.ndarray]
+    report: Callable[[Path, object, Path, int], None]
+    approach: float | None
+    train_plot: str | None
+    leader: tuple[str, tuple[int, ...], float]
+    leader_row: Callable[[object, object], tuple[float, ...] | None]
+    teach: str
+    train: str
+    teleop: str
+    stream: str
+    check: str
+    excursion: str
+    push: str
 
 
 @dataclass(frozen=True)
@@ -58,6 +107,168 @@ class DemoOptions:
 def run_demo_job(options: DemoOptions) -> int:
     """The ``demo`` job: :func:`run_demo` with the command line's options."""
     return run_demo(options.out, options.duration, options.seed, options.view, options.rig)
+
+
+def run_demo(
+    out: Path,
+    teach_seconds: float = 45.0,
+    seed: int = 0,
+    view: ViewOptions | None = None,
+    rig: str = "sim",
+) -> int:
+    """Run the whole flow into folder ``out``; returns the exit status. ``view``: whether and
+    where to serve the live view (one page for the teaching and the teleop); ``rig`` one of
+    :data:`DEMO_RIGS` (``sim3``: three servos, the region with its twist band)."""
+    if rig not in RIGS:
+        raise ConfigError(f"unknown demo rig {rig!r}; choose one of {', '.join(DEMO_RIGS)}")
+    with open_view(view or ViewOptions(), say) as live:
+        return _run_flow(Path(out), teach_seconds, seed, live, RIGS[rig])
+
+
+def _run_flow(out: Path, teach_seconds: float, seed: int, live: LiveView, spec: DemoRig) -> int:
+    from limbctl.envelope import load_model
+
+    out.mkdir(parents=True, exist_ok=True)
+    data, model_path = out / "teach.limb", out / "model.npz"
+    commands, goals, telemetry = (out / f"{n}.jsonl" for n in ("commands", "goals", "telemetry"))
+    for stale in (data, goals):
+        if stale.exists():
+            raise ConfigError(f"{stale} exists from an earlier run; use another --out or remove it")
+    region_yaml = demo_region_path().with_name(spec.region_file)
+    sim = Connection(seed=seed, rig=spec.profile)
+
+    say(spec.teach.format(seconds=teach_seconds))
+    teach = RecordOptions(
+        out=data, duration=teach_seconds, rate=DEMO_RECORD_HZ, hand=region_yaml, connection=sim
+    )
+    run_record(teach, view=live)
+
+    say(spec.train)
+    plot = out / spec.train_plot if spec.train_plot else None
+    run_train(TrainOptions(data=data, out=model_path, kind="rigidmap", seed=seed, plot=plot))
+
+    say(spec.teleop)
+    valid = spec.write_stream(commands)
+    say(spec.stream.format(valid=valid, path=commands))
+    status = run_teleop(
+        TeleopOptions(
+            model=model_path,
+            source=f"replay:{commands}",
+            rate=DEMO_RATE_HZ,
+            max_speed=DEMO_MAX_SPEED_DEG_S,
+            telemetry=telemetry,
+            goal_log=goals,
+            quiet=True,
+            approach=spec.approach,
+            connection=sim,
+        ),
+        view=live,
+    )
+
+    say(spec.check)
+    model = load_model(model_path)
+    excursion = spec.judge(goals, model, telemetry)
+    worst = float(excursion.max()) if len(excursion) else 0.0
+    bound = written_tolerance_deg(joints=spec.joints)
+    beyond = int((excursion > bound).sum())
+    say(f"   goals received by the servos: {len(excursion)}")
+    say(spec.excursion.format(worst=worst, bound=bound, tolerance=REGION_TOLERANCE_DEG))
+    spec.report(out, model, region_yaml, beyond)
+    if beyond:
+        say(f"FAILED: {beyond} goals reached the servos beyond the gate's bound; see {goals}")
+        return 1
+    say(spec.push)
+    status = max(status, _leader_run(out, model_path, seed, live, spec))
+    say(f"done: everything is in {out}/")
+    return status
+
+
+def _leader_run(out: Path, model: Path, seed: int, live: LiveView | None, spec: DemoRig) -> int:
+    """Step 5: the felt leader of ``spec`` on the simulator (``model``: the model file), pushed
+    past the learned edge and let go; leader.png shows leader vs follower (``spec.leader_row``)
+    and the push, and the live page (when served) draws the leader beside the follower with its
+    push. A machine too busy to keep the rate with the leader's extra write is said so."""
+    from limbctl.jobs import gate_for
+    from limbctl.operators import load_operator
+    from limbctl.plot import plot_leader
+    from limbctl.servo.control_table import MAX_TICK
+    from limbctl.servo.profiles import load_rig_profile
+    from limbctl.servo.setup import configure_servos
+    from limbctl.session import open_rig
+    from limbctl.teleop.loop import LoopConfig, run
+    from limbctl.teleop.sources import LeaderSource
+
+    name, ids, seconds = spec.leader
+    operator = load_operator(name, len(ids))
+    profile = load_rig_profile(spec.profile)
+    gate = gate_for(model, profile, DEMO_RATE_HZ, DEMO_MAX_SPEED_DEG_S)
+    leader = operator.leader_spec(ids)
+    rows: list[tuple[float, ...]] = []
+
+    with open_rig(
+        rig_path=spec.profile, seed=seed, extra_ids=ids, sim_options={"leader": leader}
+    ) as session:
+        sim_rig = session.rig
+        limits = {**sim_rig.tick_limits(), **dict.fromkeys(ids, (0, MAX_TICK))}
+        configure_servos(sim_rig.bus, limits)
+        source = LeaderSource(sim_rig, ids, rate_hz=DEMO_RATE_HZ)
+        try:
+            source.start()
+        except ConfigError as exc:
+            say(f"   skipped: {exc}")
+            return 0
+        try:
+            say(f"   {source.notice}")
+            sim_rig.set_torque(True)
+            observe = None if live is None else live.teleop_observer
+            feed = observe and observe(gate.envelope, profile, "demo: leader")
+            if feed is not None:
+                feed.leader = leader_status(source)
+
+            def record(cycle) -> None:
+                if feed is not None:
+                    feed(cycle)
+                push = source.last_push
+                if cycle.complete and cycle.command_deg is not None and cycle.result is not None:
+                    row = spec.leader_row(cycle, source)
+                    if row is not None:
+                        rows.append((cycle.t, *row, push.torque_nm if push is not None else 0.0))
+
+            config = LoopConfig(rate_hz=DEMO_RATE_HZ, duration_s=seconds, on_cycle=record)
+            session.simulator.set_operator(operator.grip)
+            summary = run(sim_rig, gate, source, config)
+        finally:
+            source.close()
+        for line in source.report_lines()[1:]:
+            say(f"   {line}")
+    k = len(ids)
+    table = np.asarray(rows, dtype=np.float64).reshape(-1, 2 + 2 * k)
+    leader_deg, follower_deg = table[:, 1 : 1 + k], table[:, 1 + k : 1 + 2 * k]
+    plot_leader(out / "leader.png", table[:, 0], leader_deg, follower_deg, table[:, -1])
+    say(f"   picture: {out / 'leader.png'}")
+    if summary.fault:
+        say(f"   the leader run ended by a fault: {summary.fault}")
+    return summary.exit_code
+
+
+def _gimbal_row(cycle, source) -> tuple[float, ...]:
+    """Two servos: the command and the gated pose (pan, tilt deg) of a cycle."""
+    return (*cycle.command_deg, *map(math.degrees, cycle.result.pose))
+
+
+def _swing_twist_deg(pose: tuple[float, ...]) -> tuple[float, float, float]:
+    """Pan, tilt (deg) of a three-joint pose and its twist (deg) about the rest axis, as the
+    band's."""
+    return (*map(math.degrees, pose[:2]), math.degrees(decompose_one(pose_quat_scalar(*pose))[1]))
+
+
+def _twist_row(cycle, source) -> tuple[float, ...] | None:
+    """Three servos: the leader's held pose and the gated pose (pan, tilt, twist deg) of a
+    cycle; None before the leader holds one."""
+    held = source.last_pose
+    if held is None:
+        return None
+    return (*_swing_twist_deg(held), *_swing_twist_deg(cycle.result.pose))
 
 
 def write_command_stream(path: Path, seconds: float = 12.0, rate_hz: float = 50.0) -> int:
@@ -109,191 +320,6 @@ def goal_log_excursions(goal_log: Path, model: object) -> np.ndarray:
     return np.where(outside, np.degrees(direction_angle(d, nearest)), 0.0)
 
 
-def run_demo(
-    out: Path,
-    teach_seconds: float = 45.0,
-    seed: int = 0,
-    view: ViewOptions | None = None,
-    rig: str = "sim",
-) -> int:
-    """Run the whole flow into folder ``out``; returns the exit status. ``view``: whether and
-    where to serve the live view (one page for the teaching and the teleop); ``rig`` one of
-    :data:`DEMO_RIGS` (``sim3``: three servos, the region with its twist band)."""
-    if rig not in DEMO_RIGS:
-        raise ConfigError(f"unknown demo rig {rig!r}; choose one of {', '.join(DEMO_RIGS)}")
-    with open_view(view or ViewOptions(), say) as live:
-        if rig == "sim3":
-            return _run_demo_twist(Path(out), teach_seconds, seed, live)
-        return _run_demo(Path(out), teach_seconds, seed, live)
-
-
-def _run_demo(out: Path, teach_seconds: float, seed: int, live: LiveView) -> int:
-    from limbctl.envelope import load_model
-    from limbctl.session import demo_region_path
-
-    out.mkdir(parents=True, exist_ok=True)
-    data, model_path = out / "teach.limb", out / "model.npz"
-    commands, goals, telemetry = (
-        out / "commands.jsonl",
-        out / "goals.jsonl",
-        out / "telemetry.jsonl",
-    )
-    for stale in (data, goals):
-        if stale.exists():
-            raise ConfigError(f"{stale} exists from an earlier run; use another --out or remove it")
-
-    say(f"== 1/5 teach: the simulator's hand moves the limb for {teach_seconds:.0f} s")
-    simulator = Connection(seed=seed)
-    run_record(
-        RecordOptions(
-            out=data,
-            duration=teach_seconds,
-            rate=DEMO_RECORD_HZ,
-            hand=demo_region_path(),
-            connection=simulator,
-        ),
-        view=live,
-    )
-
-    say("== 2/5 train: an interpolated Rigid Map learns the region from the samples alone")
-    run_train(
-        TrainOptions(data=data, out=model_path, kind="rigidmap", seed=seed, plot=out / "model.png")
-    )
-
-    say("== 3/5 teleop: a sweep far outside the region, replayed through the gate at 200 Hz")
-    valid = write_command_stream(commands)
-    say(f"   {valid} commands (+ a few NaN/malformed lines) in {commands}")
-    status = run_teleop(
-        TeleopOptions(
-            model=model_path,
-            source=f"replay:{commands}",
-            rate=DEMO_RATE_HZ,
-            max_speed=DEMO_MAX_SPEED_DEG_S,
-            telemetry=telemetry,
-            goal_log=goals,
-            quiet=True,
-            approach=DEMO_APPROACH_DEG_S,
-            connection=simulator,
-        ),
-        view=live,
-    )
-
-    say("== 4/5 check: every goal the simulator received, against the model's region")
-    model = load_model(model_path)
-    excursion = goal_log_excursions(goals, model)
-    worst = float(excursion.max()) if len(excursion) else 0.0
-    bound = written_tolerance_deg()
-    beyond = int((excursion > bound).sum())
-    say(f"   goals received by the servos: {len(excursion)}")
-    say(
-        f"   largest excursion outside the learned region: {worst:.3f} deg "
-        f"(bound {bound:.3f} deg: the gate's {REGION_TOLERANCE_DEG} deg + rounding to ticks)"
-    )
-    say(f"   goals beyond the bound: {beyond}")
-    _plot_teleop(out / "teleop.png", model, data, telemetry, demo_region_path())
-    say(f"   pictures: {out / 'model.png'}, {out / 'teleop.png'}")
-    if beyond:
-        say(f"FAILED: {beyond} goals reached the servos beyond the gate's bound; see {goals}")
-        return 1
-    say("== 5/5 leader: an operator pushes a felt leader past the learned edge and lets go")
-    status = max(status, _leader_run(out, model_path, seed, live))
-    say(f"done: everything is in {out}/")
-    return status
-
-
-#: The demo's leader runs are the packaged operators (limbctl/operators.py): "push" takes a
-#: two-servo leader (ids 3, 4) 20 deg past the learned edge, holds it and lets go at 6 s;
-#: "push3" takes a three-servo leader (ids 4-6; the follower's roll is id 3) past the swing edge,
-#: back, past the twist band, and lets go at 9 s. Each run lasts 2 s (1.5 s for three) past the
-#: let go, time enough to see the leader walk back to the edge.
-LEADER_RUNS = {"sim": ("push", (3, 4), 8.0), "sim3": ("push3", (4, 5, 6), 10.5)}
-
-
-def _leader_run(
-    out: Path, model_path: Path, seed: int, live: LiveView | None = None, rig: str = "sim"
-) -> int:
-    """Step 5: the felt leader on the simulator (three servos on ``rig`` ``sim3``, pushed past
-    the edge in swing and in twist); leader.png shows leader vs follower (pan, tilt; the twist
-    too for three) and the push, and the live page (when served) draws the leader beside the
-    follower with its push. A machine too busy to keep the rate with the leader's extra write
-    is said so."""
-    from limbctl.geometry.gimbal import pose_quat_scalar
-    from limbctl.geometry.twist import decompose_one
-    from limbctl.jobs import gate_for
-    from limbctl.operators import load_operator
-    from limbctl.plot import plot_leader
-    from limbctl.servo.control_table import MAX_TICK
-    from limbctl.servo.profiles import load_rig_profile
-    from limbctl.servo.setup import configure_servos
-    from limbctl.session import open_rig
-    from limbctl.teleop.loop import LoopConfig, run
-    from limbctl.teleop.sources import LeaderSource
-
-    three = rig == "sim3"
-    name, ids, seconds = LEADER_RUNS["sim3" if three else "sim"]
-    operator = load_operator(name, len(ids))
-    rig_path = Path(rig) if three else None
-    profile = load_rig_profile(rig_path)
-    gate = gate_for(model_path, profile, DEMO_RATE_HZ, DEMO_MAX_SPEED_DEG_S)
-    leader = operator.leader_spec(ids)
-    rows: list[tuple[float, ...]] = []
-
-    def twist_deg(pose: tuple[float, ...]) -> float:  # about the rest axis, as the band is
-        return math.degrees(decompose_one(pose_quat_scalar(*pose))[1])
-
-    with open_rig(
-        rig_path=rig_path, seed=seed, extra_ids=ids, sim_options={"leader": leader}
-    ) as session:
-        sim_rig = session.rig
-        limits = {**sim_rig.tick_limits(), **dict.fromkeys(ids, (0, MAX_TICK))}
-        configure_servos(sim_rig.bus, limits)
-        source = LeaderSource(sim_rig, ids, rate_hz=DEMO_RATE_HZ)
-        try:
-            source.start()
-        except ConfigError as exc:
-            say(f"   skipped: {exc}")
-            return 0
-        try:
-            say(f"   {source.notice}")
-            sim_rig.set_torque(True)
-            observe = None if live is None else live.teleop_observer
-            feed = observe and observe(gate.envelope, profile, "demo: leader")
-            if feed is not None:
-                feed.leader = leader_status(source)
-
-            def record(cycle) -> None:
-                if feed is not None:
-                    feed(cycle)
-                push, result = source.last_push, cycle.result
-                if cycle.complete and cycle.command_deg is not None and result is not None:
-                    torque = push.torque_nm if push is not None else 0.0
-                    if three and source.last_pose is not None:
-                        held = source.last_pose
-                        gated3 = result.pose
-                        commanded = (*map(math.degrees, held[:2]), twist_deg(held))
-                        gated = (*map(math.degrees, gated3[:2]), twist_deg(gated3))
-                        rows.append((cycle.t, *commanded, *gated, torque))
-                    elif not three:
-                        gated = tuple(map(math.degrees, result.pose))
-                        rows.append((cycle.t, *cycle.command_deg, *gated, torque))
-
-            config = LoopConfig(rate_hz=DEMO_RATE_HZ, duration_s=seconds, on_cycle=record)
-            session.simulator.set_operator(operator.grip)
-            summary = run(sim_rig, gate, source, config)
-        finally:
-            source.close()
-        for line in source.report_lines()[1:]:
-            say(f"   {line}")
-    k = len(ids)
-    table = np.asarray(rows, dtype=np.float64).reshape(-1, 2 + 2 * k)
-    leader_deg, follower_deg = table[:, 1 : 1 + k], table[:, 1 + k : 1 + 2 * k]
-    plot_leader(out / "leader.png", table[:, 0], leader_deg, follower_deg, table[:, -1])
-    say(f"   picture: {out / 'leader.png'}")
-    if summary.fault:
-        say(f"   the leader run ended by a fault: {summary.fault}")
-    return summary.exit_code
-
-
 #: Points along the hand's true outline in the teleop picture: one per half degree of a
 #: region's perimeter of a few hundred degrees, finer than the picture's pixels.
 TRUE_OUTLINE_POINTS = 720
@@ -308,13 +334,16 @@ def true_outline(region_yaml: Path) -> np.ndarray:
     return np.array([region.boundary_point(u, 0.0) for u in fractions])
 
 
-def _plot_teleop(path: Path, model: object, data: Path, telemetry: Path, region_yaml: Path) -> None:
+def _report_gimbal(out: Path, model: object, region_yaml: Path, beyond: int) -> None:
+    """Two servos: the goals past the bound, and teleop.png: the commanded sweep and what the
+    gate wrote over the model, with the hand's true outline."""
     from limbctl.geometry.gimbal import pan_tilt_to_direction
     from limbctl.plot import plot
     from limbctl.teach.dataset import load_dataset
 
+    say(f"   goals beyond the bound: {beyond}")
     commanded, written = [], []
-    with open(telemetry, encoding="utf-8") as fh:
+    with open(out / "telemetry.jsonl", encoding="utf-8") as fh:
         for line in fh:
             row = json.loads(line)
             if row["cmd"] is not None:
@@ -327,86 +356,21 @@ def _plot_teleop(path: Path, model: object, data: Path, telemetry: Path, region_
         return pan_tilt_to_direction(a[:, 0], a[:, 1])
 
     plot(
-        path,
-        samples=load_dataset(data).quaternions,
+        out / "teleop.png",
+        samples=load_dataset(out / "teach.limb").quaternions,
         model=model,
         title="teleop: commanded sweep vs. what the gate wrote; the hand's true region dashed",
         extra={"commanded": directions(commanded), "written (gated)": directions(written)},
         outlines={"taught by the hand (true region)": true_outline(region_yaml)},
     )
+    say(f"   pictures: {out / 'model.png'}, {out / 'teleop.png'}")
 
 
-def _run_demo_twist(out: Path, teach_seconds: float, seed: int, live: LiveView) -> int:
-    """The whole flow on the three-servo rig (``calib/rigs/sim3.yaml``): the hand teaches a swing
-    outline with a twist band over it (``limbctl/data/demo_region3.yaml``), a Rigid Map learns
-    both (``RigidMap(twist=True)``), a stream sweeping far outside in swing and twist is gated,
-    and the simulator's goal log (its full orientation ``limb_q``) is judged against the learned
-    region; the learned region's hold of the true region is reported."""
-    from limbctl.envelope import load_model
-    from limbctl.eval.twist_demo import (
-        coverage,
-        logged_orientations,
-        twist_excursions,
-        twist_picture,
-        write_twist_stream,
-        written_orientations,
-    )
-    from limbctl.session import demo_region_path
+def _report_twist(out: Path, model: object, region_yaml: Path, beyond: int) -> None:
+    """Three servos: the learned region's hold of the true region (swing and twist), and
+    twist.png: the samples, the goals, the true and the learned band."""
     from limbctl.teach.dataset import load_dataset
 
-    out.mkdir(parents=True, exist_ok=True)
-    data, model_path = out / "teach.limb", out / "model.npz"
-    commands, goals, telemetry = (
-        out / "commands.jsonl",
-        out / "goals.jsonl",
-        out / "telemetry.jsonl",
-    )
-    for stale in (data, goals):
-        if stale.exists():
-            raise ConfigError(f"{stale} exists from an earlier run; use another --out or remove it")
-    region_yaml = demo_region_path().with_name("demo_region3.yaml")
-    simulator = Connection(seed=seed, rig=Path("sim3"))
-
-    say(f"== 1/5 teach (three servos): the hand teaches swing and twist for {teach_seconds:.0f} s")
-    run_record(
-        RecordOptions(
-            out=data,
-            duration=teach_seconds,
-            rate=DEMO_RECORD_HZ,
-            hand=region_yaml,
-            connection=simulator,
-        ),  # fmt: skip
-        view=live,
-    )
-    say("== 2/5 train: a Rigid Map learns the swing outline and the twist band over it")
-    run_train(TrainOptions(data=data, out=model_path, kind="rigidmap", seed=seed))
-    say("== 3/5 teleop: a sweep far outside in swing and twist, through the gate at 200 Hz")
-    valid = write_twist_stream(commands)
-    say(f"   {valid} commands (+ a few malformed lines) in {commands}")
-    status = run_teleop(
-        TeleopOptions(
-            model=model_path,
-            source=f"replay:{commands}",
-            rate=DEMO_RATE_HZ,
-            max_speed=DEMO_MAX_SPEED_DEG_S,
-            telemetry=telemetry,
-            goal_log=goals,
-            quiet=True,
-            connection=simulator,
-        ),  # fmt: skip
-        view=live,
-    )
-    say("== 4/5 check: every goal the simulator received, against the learned region")
-    model = load_model(model_path)
-    excursion = twist_excursions(goals, model, written_orientations(telemetry))
-    worst = float(excursion.max()) if len(excursion) else 0.0
-    bound = written_tolerance_deg(joints=3)
-    beyond = int((excursion > bound).sum())
-    say(f"   goals received by the servos: {len(excursion)}")
-    say(
-        f"   largest excursion outside the learned region: {worst:.3f} deg of rotation "
-        f"(bound {bound:.3f} deg: the gate's {REGION_TOLERANCE_DEG} deg + three joints' rounding)"
-    )
     probes = true_twist_probes(region_yaml)
     held = coverage(model, probes)
     say(
@@ -414,17 +378,10 @@ def _run_demo_twist(out: Path, teach_seconds: float, seed: int, live: LiveView) 
         f"true region lying {PROBE_DEPTH_DEG:g} deg or more inside (swing and twist)"
     )
     pan, tilt, band = true_band_lines(region_yaml)
-    samples, goals_q = load_dataset(data).quaternions, logged_orientations(goals)
+    samples = load_dataset(out / "teach.limb").quaternions
+    goals_q = logged_orientations(out / "goals.jsonl")
     twist_picture(out / "twist.png", samples, goals_q, tilt, band, model=model, band_pan_deg=pan)
     say(f"   picture: {out / 'twist.png'}")
-    if beyond:
-        say(f"FAILED: {beyond} goals reached the servos beyond the gate's bound; see {goals}")
-        return 1
-    say("== 5/5 leader: an operator pushes a felt three-servo leader past the edge in swing, then")
-    say("   in twist, and lets go")
-    status = max(status, _leader_run(out, model_path, seed, live, rig="sim3"))
-    say(f"done: everything is in {out}/")
-    return status
 
 
 #: How deep inside the true region (deg, in swing and in twist) the probes of the learned
@@ -478,3 +435,56 @@ def true_band_lines(region_yaml: Path) -> tuple[float, np.ndarray, tuple[np.ndar
     tilt = np.linspace(lo_tilt, hi_tilt, 50)
     limits = np.array([hand.band.limits_deg(pan, t) for t in tilt])
     return pan, tilt, (limits[:, 0], limits[:, 1])
+
+
+#: The demo's rigs by name, everything that differs between them. The leader runs are the
+#: packaged operators (limbctl/operators.py): "push" takes a two-servo leader (ids 3, 4) 20 deg
+#: past the learned edge, holds it and lets go at 6 s; "push3" takes a three-servo leader (ids
+#: 4-6; the follower's roll is id 3) past the swing edge, back, past the twist band, and lets go
+#: at 9 s. Each run lasts 2 s (1.5 s for three) past the let go, time enough to see the leader
+#: walk back to the edge.
+RIGS = {
+    "sim": DemoRig(
+        profile=None,
+        joints=2,
+        region_file="demo_region.yaml",
+        write_stream=write_command_stream,
+        judge=lambda goals, model, telemetry: goal_log_excursions(goals, model),
+        report=_report_gimbal,
+        approach=DEMO_APPROACH_DEG_S,
+        train_plot="model.png",
+        leader=("push", (3, 4), 8.0),
+        leader_row=_gimbal_row,
+        teach="== 1/5 teach: the simulator's hand moves the limb for {seconds:.0f} s",
+        train="== 2/5 train: an interpolated Rigid Map learns the region from the samples alone",
+        teleop="== 3/5 teleop: a sweep far outside the region, replayed through the gate at 200 Hz",
+        stream="   {valid} commands (+ a few NaN/malformed lines) in {path}",
+        check="== 4/5 check: every goal the simulator received, against the model's region",
+        excursion="   largest excursion outside the learned region: {worst:.3f} deg "
+        "(bound {bound:.3f} deg: the gate's {tolerance} deg + rounding to ticks)",
+        push="== 5/5 leader: an operator pushes a felt leader past the learned edge and lets go",
+    ),
+    "sim3": DemoRig(
+        profile=Path("sim3"),
+        joints=3,
+        region_file="demo_region3.yaml",
+        write_stream=write_twist_stream,
+        judge=lambda goals, model, tel: twist_excursions(goals, model, written_orientations(tel)),
+        report=_report_twist,
+        approach=None,
+        train_plot=None,
+        leader=("push3", (4, 5, 6), 10.5),
+        leader_row=_twist_row,
+        teach="== 1/5 teach (three servos): the hand teaches swing and twist for {seconds:.0f} s",
+        train="== 2/5 train: a Rigid Map learns the swing outline and the twist band over it",
+        teleop="== 3/5 teleop: a sweep far outside in swing and twist, through the gate at 200 Hz",
+        stream="   {valid} commands (+ a few malformed lines) in {path}",
+        check="== 4/5 check: every goal the simulator received, against the learned region",
+        excursion="   largest excursion outside the learned region: {worst:.3f} deg of rotation "
+        "(bound {bound:.3f} deg: the gate's {tolerance} deg + three joints' rounding)",
+        push="== 5/5 leader: an operator pushes a felt three-servo leader past the edge in swing, "
+        "then\n   in twist, and lets go",
+    ),
+}
+#: The simulated rigs the demo runs on: two servos, or three with a roll joint (twist).
+DEMO_RIGS = tuple(RIGS)

@@ -129,10 +129,10 @@ def test_the_three_servo_demo_keeps_every_goal_in_the_learned_region(tmp_path, c
 
 def test_the_three_servo_leader_run_goes_past_the_true_edge_in_swing_then_in_twist():
     from firmware_sim.hand import Hand
-    from limbctl.demo import LEADER_RUNS
+    from limbctl.demo import RIGS
     from limbctl.operators import load_operator
 
-    name, ids, seconds = LEADER_RUNS["sim3"]
+    name, ids, seconds = RIGS["sim3"].leader
     operator = load_operator(name, len(ids))
     script, let_go_s = operator.grip["script"], operator.grip["let_go_s"]
 
