@@ -251,24 +251,18 @@ def _leader_run(out: Path, model: Path, seed: int, live: LiveView | None, spec: 
     return summary.exit_code
 
 
-def _gimbal_row(cycle, source) -> tuple[float, ...]:
-    """Two servos: the command and the gated pose (pan, tilt deg) of a cycle."""
-    return (*cycle.command_deg, *map(math.degrees, cycle.result.pose))
-
-
-def _swing_twist_deg(pose: tuple[float, ...]) -> tuple[float, float, float]:
-    """Pan, tilt (deg) of a three-joint pose and its twist (deg) about the rest axis, as the
-    band's."""
-    return (*map(math.degrees, pose[:2]), math.degrees(decompose_one(pose_quat_scalar(*pose))[1]))
-
-
 def _twist_row(cycle, source) -> tuple[float, ...] | None:
-    """Three servos: the leader's held pose and the gated pose (pan, tilt, twist deg) of a
-    cycle; None before the leader holds one."""
+    """Three servos: the leader's held pose and the gated pose (pan, tilt deg and the twist
+    about the rest axis, as the band's) of a cycle; None before the leader holds one."""
+
+    def deg(pose: tuple[float, ...]) -> tuple[float, ...]:
+        return (
+            *map(math.degrees, pose[:2]),
+            math.degrees(decompose_one(pose_quat_scalar(*pose))[1]),
+        )
+
     held = source.last_pose
-    if held is None:
-        return None
-    return (*_swing_twist_deg(held), *_swing_twist_deg(cycle.result.pose))
+    return None if held is None else (*deg(held), *deg(cycle.result.pose))
 
 
 def write_command_stream(path: Path, seconds: float = 12.0, rate_hz: float = 50.0) -> int:
@@ -397,13 +391,14 @@ def true_twist_probes(region_yaml: Path) -> np.ndarray:
     that far from every point of the outline (angles on the sphere), each with twists from the
     band shrunk by that much at its pose."""
     from firmware_sim.hand import Hand
+    from firmware_sim.regions import grid_inside
     from limbctl.geometry.gimbal import pan_tilt_to_direction
     from limbctl.geometry.quat import direction_angle
     from limbctl.geometry.twist import compose
 
     hand = Hand.from_yaml(region_yaml)
     region, band = hand.region, hand.band
-    grid = _grid_inside(region, PROBE_STEP_DEG)
+    grid = grid_inside(region, PROBE_STEP_DEG, 0.0)
     outline = np.radians(true_outline(region_yaml))
     edge = pan_tilt_to_direction(outline[:, 0], outline[:, 1])
     d = pan_tilt_to_direction(np.radians(grid[:, 0]), np.radians(grid[:, 1]))
@@ -416,12 +411,6 @@ def true_twist_probes(region_yaml: Path) -> np.ndarray:
         twists = np.arange(low + PROBE_DEPTH_DEG, high - PROBE_DEPTH_DEG + 1e-9, PROBE_STEP_DEG)
         probes.append(compose(np.broadcast_to(direction, (len(twists), 3)), np.radians(twists)))
     return np.concatenate(probes) if probes else np.zeros((0, 4))
-
-
-def _grid_inside(region: object, step_deg: float) -> np.ndarray:
-    from firmware_sim.regions import grid_inside
-
-    return grid_inside(region, step_deg, 0.0)
 
 
 def true_band_lines(region_yaml: Path) -> tuple[float, np.ndarray, tuple[np.ndarray, np.ndarray]]:
@@ -454,7 +443,10 @@ RIGS = {
         approach=DEMO_APPROACH_DEG_S,
         train_plot="model.png",
         leader=("push", (3, 4), 8.0),
-        leader_row=_gimbal_row,
+        leader_row=lambda cycle, source: (
+            *cycle.command_deg,
+            *map(math.degrees, cycle.result.pose),
+        ),
         teach="== 1/5 teach: the simulator's hand moves the limb for {seconds:.0f} s",
         train="== 2/5 train: an interpolated Rigid Map learns the region from the samples alone",
         teleop="== 3/5 teleop: a sweep far outside the region, replayed through the gate at 200 Hz",
