@@ -30,6 +30,7 @@ from limbctl.errors import ConfigError
 from limbctl.eval.twist_demo import (
     coverage,
     logged_orientations,
+    logged_packets,
     twist_excursions,
     twist_picture,
     write_twist_stream,
@@ -298,15 +299,9 @@ def goal_log_excursions(goal_log: Path, model: object) -> np.ndarray:
     """
     from limbctl.geometry.quat import direction_angle, limb_direction, swing_from_direction
 
-    by_time: dict[float, list[float]] = {}
-    with open(goal_log, encoding="utf-8") as fh:
-        for line in fh:
-            if line.strip():
-                row = json.loads(line)
-                by_time[row["t"]] = row["limb_dir"]
-    if not by_time:
+    d = logged_packets(goal_log, "limb_dir", 3)
+    if not len(d):
         return np.zeros(0)
-    d = np.asarray(list(by_time.values()), dtype=np.float64)
     d /= np.linalg.norm(d, axis=1, keepdims=True)
     q = swing_from_direction(d)
     nearest = limb_direction(model.correct(q))

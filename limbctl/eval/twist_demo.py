@@ -54,16 +54,22 @@ def write_twist_stream(path: Path, seconds: float = 12.0, rate_hz: float = 50.0)
     return n
 
 
-def logged_orientations(goal_log: Path) -> np.ndarray:
-    """The full orientation (M, 4) each goal packet commanded: the last ``limb_q`` of each
-    ``t`` (a sync write's lines share it; earlier ones mix old and new goals)."""
+def logged_packets(goal_log: Path, key: str, width: int) -> np.ndarray:
+    """What each goal packet of the simulator's goal log commanded, (M, ``width``): the last
+    ``key`` of each ``t`` (a sync write's lines, one per servo, share it; earlier ones mix the
+    new goal of one servo with the old goal of another)."""
     by_time: dict[float, list[float]] = {}
     with open(goal_log, encoding="utf-8") as fh:
         for line in fh:
             if line.strip():
                 row = json.loads(line)
-                by_time[row["t"]] = row["limb_q"]
-    return np.asarray(list(by_time.values()), dtype=np.float64).reshape(-1, 4)
+                by_time[row["t"]] = row[key]
+    return np.asarray(list(by_time.values()), dtype=np.float64).reshape(-1, width)
+
+
+def logged_orientations(goal_log: Path) -> np.ndarray:
+    """The full orientation (M, 4) each goal packet commanded (its ``limb_q``)."""
+    return logged_packets(goal_log, "limb_q", 4)
 
 
 def rotation_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:

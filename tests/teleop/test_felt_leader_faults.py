@@ -81,6 +81,16 @@ def test_a_leader_servo_dropping_off_mid_push_switches_every_push_off_and_is_rep
 LAST_GOAL_AHEAD_DEG = 5 * 360.0 / 4096
 
 
+def held_still(running, source, press) -> bool:
+    """Press past the edge and wait (20 s at most) for the wall to hold the leader still; False
+    when the loop lost its pace first (the feel then goes off for good, as it must)."""
+    if running.pressed_or_paced_out(press):
+        return False
+    held_at = time.monotonic()
+    running.until(lambda p: source.snap.armed is not None or time.monotonic() > held_at + 20.0)
+    return not running.paced_out()
+
+
 @pytest.mark.parametrize("rig", sorted(RIGS))
 def test_a_leader_cut_off_from_its_controller_holds_within_the_cap_and_pushes_no_further(
     tmp_path, rig
@@ -95,13 +105,7 @@ def test_a_leader_cut_off_from_its_controller_holds_within_the_cap_and_pushes_no
     with felt_session(tmp_path, spec) as (session, source, log), source:
         session.rig.set_torque(True)
         with Running(session, source) as running:
-            if running.pressed_or_paced_out(press):
-                return
-            held_at = time.monotonic()
-            running.until(
-                lambda p: source.snap.armed is not None or time.monotonic() > held_at + 20.0
-            )
-            if running.paced_out():
+            if not held_still(running, source, press):
                 return
             assert source.snap.armed is not None, "the wall never held the leader still"
             at = session.simulator.truth()["leader"]["t"]
@@ -135,13 +139,7 @@ def test_a_dead_controllers_leader_goes_limp_within_its_guards_bound(tmp_path, r
         session.rig.set_torque(True)
         bus, follower = session.rig.bus, session.profile.ids
         with Running(session, source) as running:
-            if running.pressed_or_paced_out(press):
-                return
-            held_at = time.monotonic()
-            running.until(
-                lambda p: source.snap.armed is not None or time.monotonic() > held_at + 20.0
-            )
-            if running.paced_out():
+            if not held_still(running, source, press):
                 return
             with bus.exclusive():  # the loop stops at its next transfer
                 assert source.last_push is not None and source.last_push.goal_current > 0
