@@ -47,11 +47,14 @@ corners come out rounded.
 from __future__ import annotations
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from limbctl.region.gaps import ORDER_STATISTICS, majorant_gap, spacing_gap
 from limbctl.region.loops import (
     StationBuckets,
+    chord,
     lift,
+    loop_area,
     loop_length,
     nearest_station,
     resample_loop,
@@ -90,6 +93,25 @@ BAND_BEYOND_DEG = 0.05
 #: After the lift every taught direction lies at least this far (deg) inside, not on the edge
 #: where rounding decides: far below a servo tick (0.088 deg).
 LIFT_MARGIN_DEG = 0.01
+#: The farthest (deg) a station of the traced curve may lie from every taught sample where the
+#: samples surround it (a bay or notch the curve would bridge, :func:`held_to_evidence`):
+#: a taught sample lies inside the truth, so the curve there lies at most this far outside it.
+HOLD_DEG = 0.75
+#: Spacing (deg) of an outer loop's final stations, each held to the evidence: a chord of
+#: this length across a right-angled concave corner passes a quarter of it beyond the
+#: corner, small beside the 1 deg bound, and the lift's chords cut convex corners as little.
+HELD_STEP_DEG = 0.5
+#: Resample-and-hold passes at HELD_STEP_DEG: each pass puts stations on the chords the last
+#: one stretched; on the families' dense teachings the longest chord left is (measured below).
+HOLD_PASSES = 3
+#: The farthest (deg) a station walks in along its normal to reach the evidence: one round's
+#: move (``max_offset_deg``, 3 deg) past where the round before held it.
+WALK_DEG = 3.0
+#: Step (deg) of a station's walk: it ends at most this much deeper than the bound asks.
+WALK_STEP_DEG = 0.05
+#: Stations (HELD_STEP_DEG apart) a fold of held stations may span: stations moved in by up to
+#: a round's move (3 deg) toward samples on a bay's two walls fold over about twice that.
+FOLD_WINDOW = 20
 #: Outermost readings per window the majorant is built from: the majorant and its
 #: ORDER_STATISTICS smallest residuals lie among them, and the pair search stays 40 x 40.
 TOP_READINGS = 40
@@ -257,6 +279,10 @@ def trace_edge(loop: np.ndarray, data: np.ndarray, max_offset: float) -> np.ndar
     if h > np.radians(TRACE_MAX_WINDOW_DEG):
         return None
     cap = np.radians(TRACE_SMOOTH_CAP_DEG)
+    # an outer loop's curve stays within reach of the evidence (a hole's loop bounds what the
+    # region leaves out: it bridges nothing)
+    held = loop_area(loop) > 0.0
+    tree, bound = cKDTree(data), np.radians(HOLD_DEG)
     for _ in range(TRACE_ITERATIONS):
         k = curve.shape[0]
         s, total = station_positions(curve)
@@ -273,11 +299,18 @@ def trace_edge(loop: np.ndarray, data: np.ndarray, max_offset: float) -> np.ndar
         far = out > cap
         smooth[far] = _moved(curve[far], normal[far], np.full(int(far.sum()), cap))
         curve, _, _ = resample_loop(smooth, step)
+        if held:
+            curve = held_in(curve, data, tree, bound)
     # lift: no taught direction left beyond the chords next to the station it belongs to
     s, total = station_positions(curve)
     for _ in range(2):
         need = chord_need(curve, data) + np.radians(LIFT_MARGIN_DEG)
         curve = _moved(curve, station_normals(curve), lift(need, s, total, step))
+    if held:
+        # finer stations, each held: a chord between two of them cuts far less past a corner
+        for _ in range(HOLD_PASSES):
+            # a hold may stretch a chord between stations moved toward different samples
+            curve = held_in(resample_loop(curve, np.radians(HELD_STEP_DEG))[0], data, tree, bound)
     return curve
 
 
@@ -312,3 +345,79 @@ def _moved(curve: np.ndarray, normal: np.ndarray, by: np.ndarray) -> np.ndarray:
     """Stations (K, 3) moved ``by`` (K,) rad along their unit normals (K, 3), on the sphere."""
     out = np.cos(by)[:, None] * curve + np.sin(by)[:, None] * normal
     return out / np.linalg.norm(out, axis=1, keepdims=True)
+
+
+def held_in(curve: np.ndarray, data: np.ndarray, tree: cKDTree, bound: float) -> np.ndarray:
+    """The stations of ``curve`` (K, 3) held to the taught evidence ``data`` (N, 3).
+
+    A station farther than ``bound`` (rad) from every taught direction (``tree``, a
+    :class:`scipy.spatial.cKDTree` over ``data``) walks in along its inward normal,
+    ``WALK_STEP_DEG`` at a time, to the first place within ``bound`` of one; one that gets
+    nowhere within ``WALK_DEG`` (the normal runs between strokes) moves straight toward its
+    nearest taught direction, to ``bound`` from it. The others stay. A taught direction lies
+    inside the truth, so a held station lies at most ``bound`` outside it. Folds the moves
+    leave are cut out (:func:`unfolded`).
+    """
+    dist, nearest = tree.query(curve)
+    far = np.flatnonzero(dist > chord(bound))
+    if far.size == 0:
+        return curve
+    x, normal = curve[far], station_normals(curve)[far]
+    depth = np.radians(np.arange(1, int(WALK_DEG / WALK_STEP_DEG) + 1) * WALK_STEP_DEG)
+    # (F, D, 3): each far station moved in by each depth
+    moved = (
+        np.cos(depth)[None, :, None] * x[:, None, :]
+        - np.sin(depth)[None, :, None] * (normal[:, None, :])
+    )
+    near, _ = tree.query(moved.reshape(-1, 3))
+    reached = near.reshape(moved.shape[:2]) <= chord(bound)
+    got = reached.any(axis=1)
+    out = curve.copy()
+    out[far[got]] = moved[np.flatnonzero(got), np.argmax(reached[got], axis=1)]
+    # along the great circle from the nearest sample y toward the station, ``bound`` from y
+    rest = far[~got]
+    y = data[nearest[rest]]
+    t = curve[rest] - np.einsum("ij,ij->i", curve[rest], y)[:, None] * y
+    t /= np.maximum(np.linalg.norm(t, axis=1, keepdims=True), 1e-15)
+    out[rest] = np.cos(bound) * y + np.sin(bound) * t
+    return unfolded(out / np.linalg.norm(out, axis=1, keepdims=True))
+
+
+def unfolded(curve: np.ndarray, window: int = FOLD_WINDOW) -> np.ndarray:
+    """``curve`` (K, 3), closed, with its local folds cut out.
+
+    Stations moved in toward samples across a bay tighter than their move cross over each
+    other: where the chord ``i -> i+1`` crosses a chord ``j -> j+1`` at most ``window``
+    stations on, the stations ``i+1 .. j`` (the fold's loop) are replaced by the crossing
+    point, until no such pair is left.
+    """
+    while True:
+        k = curve.shape[0]
+        if k < 2 * window + 4:
+            return curve
+        a, b = curve, np.roll(curve, -1, axis=0)
+        pole = np.cross(a, b)
+        hit = None
+        for j in range(2, window + 1):
+            c, d = np.roll(a, -j, axis=0), np.roll(b, -j, axis=0)
+            pole2 = np.roll(pole, -j, axis=0)
+            # the chords cross when each one's ends lie on opposite sides of the other's circle
+            cross = (np.einsum("ij,ij->i", pole, c) * np.einsum("ij,ij->i", pole, d) < 0.0) & (
+                np.einsum("ij,ij->i", pole2, a) * np.einsum("ij,ij->i", pole2, b) < 0.0
+            )
+            if cross.any():
+                i = int(np.flatnonzero(cross)[0])
+                hit = (i, j) if hit is None or i < hit[0] else hit
+        if hit is None:
+            return curve
+        i, j = hit
+        x = np.cross(pole[i], pole[(i + j) % k])
+        x /= np.linalg.norm(x)
+        x = x if x @ curve[i] > 0.0 else -x
+        drop = (i + 1 + np.arange(j)) % k
+        keep = np.ones(k, dtype=bool)
+        keep[drop] = False
+        curve = curve.copy()
+        curve[drop[0]] = x
+        keep[drop[0]] = True
+        curve = curve[keep]

@@ -153,27 +153,47 @@ def unsupported_stations(
     far = np.flatnonzero((delta > bound) & outer_arcs(mesh)[arc])
     if far.size == 0:
         return stations, arc, delta, far
-    near = tree.query_ball_point(stations[far], chord(radius))
+    # the station's outward direction (tangent at it, away from the region's side of its arc)
+    a = mesh.vertices[mesh.edges[arc[far], 0]]
+    b = mesh.vertices[mesh.edges[arc[far], 1]]
+    bridged = surrounded_bare(stations[far], -np.cross(a, b), data, tree, radius, max_gap)
+    return stations, arc, delta, far[bridged]
+
+
+def surrounded_bare(
+    points: np.ndarray,
+    outward: np.ndarray,
+    data: np.ndarray,
+    tree: cKDTree,
+    radius: float = np.radians(CONCAVE_RADIUS_DEG),
+    max_gap: float = np.radians(CONCAVE_GAP_DEG),
+) -> np.ndarray:
+    """(P,) bool: whether the taught ``data`` (N, 3) surround each edge point (P, 3) and leave
+    its outward side bare.
+
+    True where at least ``CONCAVE_MIN_SAMPLES`` of ``data`` lie within ``radius`` (rad), their
+    bearings leave no empty sector wider than ``max_gap`` (rad) and none of them lies within
+    ``OUTWARD_CONE_DEG`` of the point's ``outward`` direction (P, 3; any vector whose part
+    tangent to the sphere at the point points away from the region). ``tree`` is a
+    :class:`scipy.spatial.cKDTree` over ``data``.
+    """
+    if points.shape[0] == 0:
+        return np.zeros(0, dtype=bool)
+    near = tree.query_ball_point(points, chord(radius))
     counts = np.array([len(rows) for rows in near], dtype=np.int64)
     start = np.concatenate([[0], np.cumsum(counts)])
     flat = np.fromiter((j for rows in near for j in rows), dtype=np.int64, count=int(start[-1]))
     widest = shape_kernels.widest_bearing_gaps(
-        np.ascontiguousarray(stations[far]), np.ascontiguousarray(data), start, flat
+        np.ascontiguousarray(points), np.ascontiguousarray(data), start, flat
     )
-    # the station's outward direction (tangent at it, away from the region's side of its arc)
-    a = mesh.vertices[mesh.edges[arc[far], 0]]
-    b = mesh.vertices[mesh.edges[arc[far], 1]]
-    out = -np.cross(a, b)
-    x = stations[far]
-    out -= np.einsum("ij,ij->i", out, x)[:, None] * x
+    out = outward - np.einsum("ij,ij->i", outward, points)[:, None] * points
     out /= np.maximum(np.linalg.norm(out, axis=1, keepdims=True), 1e-15)
-    beyond = np.zeros(far.size, dtype=bool)
+    beyond = np.zeros(points.shape[0], dtype=bool)
     for k, rows in enumerate(near):
-        v = data[rows] - np.outer(data[rows] @ x[k], x[k])
+        v = data[rows] - np.outer(data[rows] @ points[k], points[k])
         cos = (v @ out[k]) / np.maximum(np.linalg.norm(v, axis=1), 1e-15)
         beyond[k] = bool(np.any(cos > np.cos(np.radians(OUTWARD_CONE_DEG))))
-    bridged = (counts >= CONCAVE_MIN_SAMPLES) & (widest < max_gap) & ~beyond
-    return stations, arc, delta, far[bridged]
+    return (counts >= CONCAVE_MIN_SAMPLES) & (widest < max_gap) & ~beyond
 
 
 def unsupported_stretches(
