@@ -150,10 +150,11 @@ def correction_error(truth: PolygonRegion, region: TaughtRegion, seed: int) -> t
     return float(err.mean()), float(np.percentile(err, 95))
 
 
-def run(outlines: int, teachings=TEACHINGS, verbose: bool = True) -> list[dict]:
-    """One row per (outline, teaching): the figures of the module docstring."""
+def run(outlines: int, teachings=TEACHINGS, verbose: bool = True, first: int = 0) -> list[dict]:
+    """One row per (outline, teaching): the figures of the module docstring, for the outlines
+    of seeds ``first`` .. ``first + outlines - 1``."""
     rows = []
-    for seed in range(outlines):
+    for seed in range(first, first + outlines):
         outline, names = random_outline(np.random.default_rng(seed))
         scan = Scan(outline)
         for kind in teachings:
@@ -217,13 +218,14 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="3 outlines, print only")
     parser.add_argument("--outlines", type=int, default=8, help="random outlines (seeds 0..)")
+    parser.add_argument("--first", type=int, default=0, help="the first outline's seed")
     parser.add_argument(
         "--out", type=Path, default=ROOT / "docs" / "bench_swing_families.md", help="report"
     )
     args = parser.parse_args()
     outlines = 3 if args.quick else args.outlines
     t0 = time.perf_counter()
-    rows = run(outlines)
+    rows = run(outlines, first=args.first)
     lines = summary(rows)
     print("\n".join(lines))
     print(f"({time.perf_counter() - t0:.0f} s)")
@@ -235,8 +237,9 @@ def main() -> None:
             "# Swing outlines with bays and notches: does the region stay within the evidence?",
             "",
             "Written by `nice -n 10 .venv/bin/python benchmarks/bench_swing_families.py "
-            f"--outlines {outlines}` "
-            f"({outlines} random outlines, seeds 0-{outlines - 1}; see its docstring for the "
+            f"--outlines {outlines}" + (f" --first {args.first}" if args.first else "") + "` "
+            f"({outlines} random outlines, seeds {args.first}-{args.first + outlines - 1}; see "
+            "its docstring for the "
             "families, the teachings and the figures). Bound: excess at most 1 deg.",
             "",
             *lines,
