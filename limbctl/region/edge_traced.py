@@ -35,6 +35,15 @@ Starting from a data-supported loop, resampled to stations ``TRACE_STEP_DEG`` ap
 
 A final lift moves stations out where a taught direction next to them still lies beyond.
 
+*Held to the evidence* (an outer loop's curve; a hole's loop bounds what the region leaves out
+and bridges nothing): after every round, and on the final curve resampled ``HELD_STEP_DEG``
+apart (``HOLD_PASSES`` times), a station farther than ``HOLD_DEG`` from every taught direction
+moves in to ``HOLD_DEG`` from one (:func:`held_in`). A taught direction lies inside the truth,
+so the curve lies at most ``HOLD_DEG`` outside it, up to its chords: across a bay or notch
+the estimates would bridge (the bay's walls lie beyond the stations' tangents) the curve
+follows the taught samples round the bay instead; where the hand traced the edge about 1 deg
+inside, the curve stays within ``HOLD_DEG`` of that trace.
+
 Measured (``benchmarks/bench_envelope.py``: 1000 i.i.d. samples, dense middle, sparse edge, 5
 teaching seeds): on the 39 x 23 deg small kidney the gate's mean angle to the ideal correction
 is 0.36-0.48 deg (the supported edge: 1.0-1.1 deg), on the 48 x 26 deg egg 0.37-0.56 deg
@@ -93,16 +102,19 @@ BAND_BEYOND_DEG = 0.05
 #: After the lift every taught direction lies at least this far (deg) inside, not on the edge
 #: where rounding decides: far below a servo tick (0.088 deg).
 LIFT_MARGIN_DEG = 0.01
-#: The farthest (deg) a station of the traced curve may lie from every taught sample where the
-#: samples surround it (a bay or notch the curve would bridge, :func:`held_to_evidence`):
-#: a taught sample lies inside the truth, so the curve there lies at most this far outside it.
+#: The farthest (deg) a station of an outer loop's traced curve may lie from every taught
+#: sample (:func:`held_in`): a taught sample lies inside the truth, so the curve lies at most
+#: this far outside it; 0.75 leaves a quarter of the 1 deg bound to the chords between
+#: stations. At 1.0 a hand's trace 1-1.4 deg inside would be followed more closely, but the
+#: dense i.i.d. teachings' samples lie at the edge and the bound itself would be the slack.
 HOLD_DEG = 0.75
 #: Spacing (deg) of an outer loop's final stations, each held to the evidence: a chord of
 #: this length across a right-angled concave corner passes a quarter of it beyond the
 #: corner, small beside the 1 deg bound, and the lift's chords cut convex corners as little.
 HELD_STEP_DEG = 0.5
 #: Resample-and-hold passes at HELD_STEP_DEG: each pass puts stations on the chords the last
-#: one stretched; on the families' dense teachings the longest chord left is (measured below).
+#: one stretched (dense teachings of the families' outlines 0-3: chords left 0.55-0.73 deg
+#: long, the curve within 0.87-1.01 deg of a taught sample everywhere along them).
 HOLD_PASSES = 3
 #: The farthest (deg) a station walks in along its normal to reach the evidence: one round's
 #: move (``max_offset_deg``, 3 deg) past where the round before held it.
@@ -301,16 +313,18 @@ def trace_edge(loop: np.ndarray, data: np.ndarray, max_offset: float) -> np.ndar
         curve, _, _ = resample_loop(smooth, step)
         if held:
             curve = held_in(curve, data, tree, bound)
-    # lift: no taught direction left beyond the chords next to the station it belongs to
+    if held:
+        # finer stations, each held: a chord between two of them cuts far less past a corner
+        step = np.radians(HELD_STEP_DEG)
+        for _ in range(HOLD_PASSES):
+            # a hold may stretch a chord between stations moved toward different samples
+            curve = held_in(resample_loop(curve, step)[0], data, tree, bound)
+    # lift: no taught direction left beyond the chords next to the station it belongs to (a
+    # lifted station moves out only as far as a taught direction beyond its chords)
     s, total = station_positions(curve)
     for _ in range(2):
         need = chord_need(curve, data) + np.radians(LIFT_MARGIN_DEG)
         curve = _moved(curve, station_normals(curve), lift(need, s, total, step))
-    if held:
-        # finer stations, each held: a chord between two of them cuts far less past a corner
-        for _ in range(HOLD_PASSES):
-            # a hold may stretch a chord between stations moved toward different samples
-            curve = held_in(resample_loop(curve, np.radians(HELD_STEP_DEG))[0], data, tree, bound)
     return curve
 
 
