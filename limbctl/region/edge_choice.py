@@ -19,7 +19,9 @@ gives every answer its :class:`~limbctl.region.acceptance.Verdict`. The strategi
   accepted without checks.
 
 :func:`choose_edge` takes a choice by name (:data:`EDGE_CHOICES`). ``"auto"`` judges the
-strategies of :data:`AUTO_ORDER` (smooth, traced, supported) and takes the first accepted,
+strategies of :data:`AUTO_ORDER` (smooth, traced, supported) and takes the first accepted
+(a traced edge refused for bridging a stretch the samples surround is judged again held to
+the evidence, :func:`limbctl.region.edge_traced.held_in`),
 where an edge must also stay within ``CONFIRM_DEG`` of every learned edge accepted later in
 the order (the smooth edge, fewer free parameters and the better fit when it is right, must
 agree with the traced edge where both pass). A single strategy's name judges it alone and
@@ -124,10 +126,18 @@ class SmoothEdge:
 
 
 class TracedEdge:
-    """A curve walked out to where the samples put the edge, station by station."""
+    """A curve walked out to where the samples put the edge, station by station.
+
+    ``hold``: each outer loop's curve is held within ``HOLD_DEG`` of the taught samples
+    (:mod:`limbctl.region.edge_traced`); :func:`choose_edge` asks for it when the free curve
+    bridges a stretch the samples surround.
+    """
 
     name: ClassVar[str] = "traced"
     safe: ClassVar[bool] = False
+
+    def __init__(self, hold: bool = False) -> None:
+        self.hold = hold
 
     def propose(
         self,
@@ -139,7 +149,7 @@ class TracedEdge:
         """The traced edge of every loop, or the first loop taught too sparsely."""
         edges = []
         for number, loop in enumerate(loops):
-            edge = et.trace_edge(loop, data, max_offset)
+            edge = et.trace_edge(loop, data, max_offset, self.hold)
             if edge is None:
                 curve, _, _ = resample_loop(loop, np.radians(et.TRACE_STEP_DEG))
                 window = np.degrees(et.trace_window(curve, data))
@@ -209,6 +219,10 @@ def choose_edge(
         strategy = EDGE_STRATEGIES[name]
         answer = strategy.propose(loops, data, supported, max_offset)
         verdict = judge(answer, data, supported, tuple(rivals) if choice == "auto" else ())
+        if name == "traced" and "evidence_deg" in verdict.figures:
+            # the free curve bridges a bay or notch: the curve held to the evidence instead
+            answer = TracedEdge(hold=True).propose(loops, data, supported, max_offset)
+            verdict = judge(answer, data, supported, tuple(rivals) if choice == "auto" else ())
         judged[name] = verdict
         if verdict.accepted and not strategy.safe:
             rivals.append(verdict)

@@ -35,9 +35,10 @@ Starting from a data-supported loop, resampled to stations ``TRACE_STEP_DEG`` ap
 
 A final lift moves stations out where a taught direction next to them still lies beyond.
 
-*Held to the evidence* (an outer loop's curve; a hole's loop bounds what the region leaves out
-and bridges nothing): after every round, and on the final curve resampled ``HELD_STEP_DEG``
-apart (``HOLD_PASSES`` times), a station farther than ``HOLD_DEG`` from every taught direction
+*Held to the evidence* (asked for by :class:`limbctl.region.edge_choice.TracedEdge` when the
+free curve bridged a stretch the samples surround; an outer loop's curve only, a hole's loop
+bounds what the region leaves out and bridges nothing): after every round, and on the final
+curve resampled ``HELD_STEP_DEG`` apart (``HOLD_PASSES`` times), a station farther than ``HOLD_DEG`` from every taught direction
 moves in to ``HOLD_DEG`` from one (:func:`held_in`). A taught direction lies inside the truth,
 so the curve lies at most ``HOLD_DEG`` outside it, up to its chords: across a bay or notch
 the estimates would bridge (the bay's walls lie beyond the stations' tangents) the curve
@@ -279,11 +280,14 @@ def local_quadratic(curve: np.ndarray, sigma: float) -> np.ndarray:
     return out / np.linalg.norm(out, axis=1, keepdims=True)
 
 
-def trace_edge(loop: np.ndarray, data: np.ndarray, max_offset: float) -> np.ndarray | None:
+def trace_edge(
+    loop: np.ndarray, data: np.ndarray, max_offset: float, hold: bool = False
+) -> np.ndarray | None:
     """The traced edge (K, 3) of one counter-clockwise data-supported ``loop`` (M, 3).
 
-    ``data`` (N, 3) are the taught directions; ``max_offset`` (rad) caps one round's move.
-    None when the edge is taught too sparsely (:func:`trace_window`).
+    ``data`` (N, 3) are the taught directions; ``max_offset`` (rad) caps one round's move;
+    ``hold``: an outer loop's curve is held to the evidence (module docstring). None when the
+    edge is taught too sparsely (:func:`trace_window`).
     """
     step = np.radians(TRACE_STEP_DEG)
     curve, _, _ = resample_loop(loop, step)
@@ -293,7 +297,7 @@ def trace_edge(loop: np.ndarray, data: np.ndarray, max_offset: float) -> np.ndar
     cap = np.radians(TRACE_SMOOTH_CAP_DEG)
     # an outer loop's curve stays within reach of the evidence (a hole's loop bounds what the
     # region leaves out: it bridges nothing)
-    held = loop_area(loop) > 0.0
+    held = hold and loop_area(loop) > 0.0
     tree, bound = cKDTree(data), np.radians(HOLD_DEG)
     for _ in range(TRACE_ITERATIONS):
         k = curve.shape[0]
