@@ -38,12 +38,13 @@ A final lift moves stations out where a taught direction next to them still lies
 *Held to the evidence* (asked for by :class:`limbctl.region.edge_choice.TracedEdge` when the
 free curve bridged a stretch the samples surround; an outer loop's curve only, a hole's loop
 bounds what the region leaves out and bridges nothing): after every round, and on the final
-curve resampled ``HELD_STEP_DEG`` apart (``HOLD_PASSES`` times), a station farther than ``HOLD_DEG`` from every taught direction
-moves in to ``HOLD_DEG`` from one (:func:`held_in`). A taught direction lies inside the truth,
-so the curve lies at most ``HOLD_DEG`` outside it, up to its chords: across a bay or notch
-the estimates would bridge (the bay's walls lie beyond the stations' tangents) the curve
-follows the taught samples round the bay instead; where the hand traced the edge about 1 deg
-inside, the curve stays within ``HOLD_DEG`` of that trace.
+curve resampled ``HELD_STEP_DEG`` apart (``HOLD_PASSES`` times), a station farther than
+``HOLD_DEG`` from every taught direction moves in to ``HOLD_DEG`` from one
+(:func:`held_in`). A taught direction lies inside the truth, so the curve lies at most
+``HOLD_DEG`` outside it, up to its chords: across a bay or notch the estimates would bridge
+(the bay's walls lie beyond the stations' tangents) the curve follows the taught samples
+round the bay instead; where the hand traced the edge about 1 deg inside, the curve stays
+within ``HOLD_DEG`` of that trace.
 
 Measured (``benchmarks/bench_envelope.py``: 1000 i.i.d. samples, dense middle, sparse edge, 5
 teaching seeds): on the 39 x 23 deg small kidney the gate's mean angle to the ideal correction
