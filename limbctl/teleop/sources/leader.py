@@ -1,24 +1,19 @@
 """A leader as a command source: a second chain of servos, one per joint of the follower's,
 moved by hand.
 
-The leader sits on the same bus as the follower (``leader:3,4`` = pan id 3, tilt id 4; a
-three-servo leader ``leader:4,5,6`` adds its roll id and needs a three-servo follower) and is
-assumed to be built and calibrated like the follower: its ticks are read with the follower's
-zero ticks and directions. Each control cycle reads the leader in one sync read and offers its
-pose as the newest command (a direction for two joints, an orientation for three:
-:func:`pose_command`); it goes through the gate like any other. The bus
-side (set-up, reads, writes, torque) is :mod:`~limbctl.teleop.sources.leader_bus`.
+The leader sits on the follower's bus (``leader:3,4``; ``leader:4,5,6`` for a three-servo
+follower), built and calibrated like the follower, whose zero ticks and directions read its
+ticks. Each cycle reads it in one sync read and offers its pose as the newest command
+(:func:`pose_command`), gated like any other; the bus side is
+:mod:`~limbctl.teleop.sources.leader_bus`.
 
 A leader whose model senses current (:data:`limbctl.servo.leader.FELT_MODELS`) *feels the edge*:
-its servos run in current-based position mode, free inside the region, pushing back beyond it
-(:func:`limbctl.teleop.haptic_push.push_for`, on any chain); after each cycle's gate,
-:meth:`LeaderSource.feel` writes that push in one sync write. Any doubt switches the push off at
-once: a leader that is silent, in alarm or restarted, a failed bus, a held gate, a fault
-(:meth:`LeaderSource.release`) or the session's end. Bus Watchdog is the backstop; a guard
-process switches its torque off if this one dies (:mod:`limbctl.servo.leader_guard`). Other
-models stay passive (torque off). While the wall holds the leader still, the loop's wait
-between cycles reads its speed and lets the wall go as soon as it snaps toward the region
-(:mod:`limbctl.teleop.snap`).
+free inside the region, pushing back beyond it (:func:`limbctl.teleop.haptic_push.push_for`),
+written by :meth:`LeaderSource.feel` after each cycle's gate. Any doubt (silence, alarm,
+restart, a failed bus, a held gate, a fault, the session's end) switches the push off at once
+(:meth:`LeaderSource.release`); Bus Watchdog and :mod:`limbctl.servo.leader_guard` are the
+backstops, and the snap watch (:mod:`limbctl.teleop.snap`) frees a wall between the cycles.
+Other models stay passive (torque off).
 """
 
 from __future__ import annotations
