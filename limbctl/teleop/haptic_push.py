@@ -29,7 +29,6 @@ from limbctl.teleop.haptic import (
     pulls_outward,
     walks_back,
 )
-from limbctl.teleop.haptic_currents import shared_currents
 
 
 @dataclass(frozen=True)
@@ -51,7 +50,7 @@ class Push:
     distance_deg : float
         How far the command lies beyond the region (deg).
     joint_currents : tuple of int, (n,)
-        Goal Current units per joint (:func:`~limbctl.teleop.haptic_currents.shared_currents`);
+        Goal Current units per joint (:func:`shared_currents`);
         empty: ``goal_current`` on every joint (a free push's 0).
     """
 
@@ -65,6 +64,33 @@ class Push:
     def currents(self, joints: int) -> tuple[int, ...]:
         """Goal Current units for each of ``joints`` joints."""
         return self.joint_currents or (self.goal_current,) * joints
+
+
+def shared_currents(
+    motor: LeaderMotor, torque_nm: float, step: tuple[float, ...]
+) -> tuple[tuple[int, ...], float]:
+    """Goal Current per joint for a push of magnitude ``torque_nm`` (N m) along ``step`` (joint
+    space, toward the corrected pose; not all zero), and the magnitude those currents allow::
+
+        I_j = tau |s_j| / |s| / kt        (rounded down; |I| = tau / kt: the hand feels tau)
+
+    Each servo's loop pushes its joint toward its goal with at most its I_j, so the torque the
+    hand feels, the norm of the joints' torques, is at most ``torque_nm`` in any direction (the
+    same current on every joint would let a diagonal push reach sqrt(2) CAP). A joint the step
+    does not move gets none: the wall pushes along its normal and a hand slides along it freely.
+
+    Returns
+    -------
+    currents : tuple of int, (n,)
+        Goal Current units per joint.
+    magnitude_nm : float
+        sqrt(sum_j torque_of(I_j)^2) (N m).
+    """
+    # |s| = sqrt(sum_j s_j^2)
+    norm = math.sqrt(sum(s * s for s in step))
+    currents = tuple(motor.units_for(torque_nm * abs(s) / norm) for s in step)
+    magnitude = math.sqrt(sum(motor.torque_of(c) ** 2 for c in currents))
+    return currents, magnitude
 
 
 def held(present: Sequence[float], distance_deg: float = 0.0) -> Push:
