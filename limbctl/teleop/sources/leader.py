@@ -96,7 +96,6 @@ class LeaderSource(SnapWatching, LeaderBus, CommandSource):
             raise ConfigError(f"leader servos {leader_ids} are not on the bus")
         self.rig = rig
         self.leader_ids = tuple(leader_ids)
-        self.read_failures = 0
         #: Cycles whose push the safety rules released (the leader unread, a held gate, a
         #: failed write, a follower silent past FOLLOWER_GRACE_S), whether or not it pressed.
         self.released_cycles = 0
@@ -158,17 +157,20 @@ class LeaderSource(SnapWatching, LeaderBus, CommandSource):
         try:
             ticks = self.rig.bus.sync_read(Register.PRESENT_POSITION, self.leader_ids)
         except BusError:
-            self.read_failures += 1
             return []
-        pose = self.rig.ticks_to_angles(*(ticks[i] for i in self.leader_ids))
+        command = self._command(self.rig.ticks_to_angles(*(ticks[i] for i in self.leader_ids)))
+        return [] if command is None else [command]
+
+    def _command(self, pose: tuple[float, ...]) -> Command | None:
+        """The leader's pose read now as a counted command; None (refused) out of range."""
         self.last_pose = pose
         try:  # the same range checks as every other source's commands
             command = pose_command(pose)
         except InvalidInputError as exc:
             self.stats.reject(f"leader pose refused: {exc}")
-            return []
+            return None
         self.stats.accepted += 1
-        return [command]
+        return command
 
     def _poll_felt(self) -> list[Command]:
         """The felt leader's read: its pose, and whether it is still fit to push."""
@@ -176,7 +178,6 @@ class LeaderSource(SnapWatching, LeaderBus, CommandSource):
         read = self.read_leader()  # a miss switches the push off at once (leader_snap.py)
         now = time.perf_counter()
         if read is None or not read.ok:
-            self.read_failures += read is not None
             return []
         self._notes.extend(self.silence.heard(now))
         unheard_s, self._heard_at = now - self._heard_at, now
@@ -192,13 +193,9 @@ class LeaderSource(SnapWatching, LeaderBus, CommandSource):
             if not self.felt:  # a restarted servo's indirect map is gone: read it plainly
                 return self._poll_passive()
         pose = self._pose(read)
-        self.last_pose = pose
-        try:
-            command = pose_command(pose)
-        except InvalidInputError as exc:
-            self.stats.reject(f"leader pose refused: {exc}")
+        command = self._command(pose)
+        if command is None:
             return []
-        self.stats.accepted += 1
         if self.felt:
             self.last_torque_nm = self._torque(read)
             speed = cycle_velocity(read, self.leader_ids, self.rig.joints)
