@@ -209,6 +209,19 @@ def _make_hand(spec: Any, seed: int) -> Hand | None:
     return Hand.from_yaml(spec, seed=seed)
 
 
+#: What a :class:`SimulatedBus` request does to the simulator, by the request's name.
+_REQUESTS: dict[str, Callable[..., Any]] = {
+    "truth": Simulator.truth,
+    "set_hand": lambda sim, spec: sim.set_hand(_make_hand(spec, sim.seed)),
+    "set_operator": Simulator.set_operator,
+    "push": Simulator.push,
+    "vanish": Simulator.vanish,
+    "restart": Simulator.restart,
+    "set_environment": Simulator.set_environment,
+    "set_faults": lambda sim, options: sim.faults.replan(FaultPlan(**options)),
+}
+
+
 class _ControlServer:
     """Executes :class:`SimulatedBus` requests inside the simulator process."""
 
@@ -224,36 +237,12 @@ class _ControlServer:
         if name == "stop":
             return False
         try:
-            result = getattr(self, f"do_{name}")(*args)
+            result = _REQUESTS[name](self.sim, *args)
         except Exception as error:  # reported to the caller, who re-raises it
             conn.send(("error", type(error).__name__, str(error)))
         else:
             conn.send(("ok", result))
         return True
-
-    def do_truth(self) -> dict:
-        return self.sim.truth()
-
-    def do_set_hand(self, spec: Any) -> None:
-        self.sim.set_hand(_make_hand(spec, self.sim.seed))
-
-    def do_set_operator(self, spec: Any) -> None:
-        self.sim.set_operator(spec)
-
-    def do_push(self, servo_id: int, torque_percent: float) -> None:
-        self.sim.push(servo_id, torque_percent)
-
-    def do_vanish(self, servo_id: int, duration_s: float) -> None:
-        self.sim.vanish(servo_id, duration_s)
-
-    def do_restart(self, servo_id: int, off_s: float) -> None:
-        self.sim.restart(servo_id, off_s)
-
-    def do_set_environment(self, servo_id: int, voltage: float | None, temperature: float | None):
-        self.sim.set_environment(servo_id, voltage, temperature)
-
-    def do_set_faults(self, options: dict) -> None:
-        self.sim.faults.replan(FaultPlan(**options))
 
 
 def child_main(conn: Any, config: dict) -> None:
