@@ -117,7 +117,6 @@ def test_half_turn_twist_is_plus_pi_both_ways():
 def test_singular_direction_minus_x_round_trips_with_the_half_turn_about_z():
     for tau in np.linspace(-math.pi, math.pi, 13):
         q = tw.compose(np.array([-1.0, 0.0, 0.0]), tau)
-        np.testing.assert_allclose(q, tw.compose_one((-1.0, 0.0, 0.0), tau), atol=1e-15)
         assert abs(q[0]) < 1e-15 and abs(q[1]) < 1e-15
         d, back = tw.decompose(q)
         np.testing.assert_array_equal(d, [-1.0, 0.0, 0.0])
@@ -138,4 +137,3 @@ def test_scalar_twins_match_arrays(v):
     d1, tau1 = tw.decompose_one(q)
     np.testing.assert_allclose(d1, d, atol=1e-12)
     assert abs(tw.wrap(tau1 - tau)) < 1e-12
-    np.testing.assert_allclose(tw.compose_one(d1, tau1), tw.compose(d, tau), atol=1e-12)
