@@ -284,31 +284,16 @@ class SimulatedBus:
 
     Parameters
     ----------
-    ids : sequence of int
-        Servo IDs (1 = pan, 2 = tilt of the simulated gimbal; others are free shafts).
-    model : str
-        A key of :data:`firmware_sim.control_table.MODELS` (default ``"xl430-w250"``), or one
-        per servo separated by commas.
+    ids, model, goal_log, seed, baud, factory, connect, eeprom_dir, leader, roll_id
+        As :class:`firmware_sim.simulator.Simulator`'s, as plain data.
     hand : mapping, path or None
         REGION.yaml content or path (firmware_sim.regions); moves the limb while torque is off.
-    goal_log : path or None
-        JSON-lines goal log.
-    seed : int
-        Seeds the world and the faults.
     drop, corrupt, latency_ms, latency_p : float
         Fault options (:class:`firmware_sim.faults.FaultPlan`).
     link : path or None
         Also make this path a symlink to the pty.
-    leader : mapping or None
-        A leader gimbal (:meth:`firmware_sim.leader.LeaderWorld.from_spec`), plain data.
-    roll_id : int or None
-        The servo (one of ``ids``) that turns the limb about its own axis; None: no roll joint.
     start_timeout_s : float
-        How long to wait for the process to come up.
-    baud, factory, connect, eeprom_dir
-        The wire and the bench: see :class:`firmware_sim.simulator.Simulator` (no baud: the
-        servos answer at any rate until their Baud Rate is written; ``factory=N``: N
-        factory-fresh servos at 57600).
+        How long to wait (s) for the process to come up.
     """
 
     def __init__(
