@@ -13,7 +13,6 @@ from limbctl.geometry.quat import (
     limb_direction,
     multiply,
     swing_from_direction,
-    swing_twist,
 )
 
 
@@ -94,17 +93,6 @@ def test_compose_then_decompose_gives_back_direction_and_wrapped_twist(pan, tilt
     np.testing.assert_allclose(d2, d, atol=1e-12)
     assert abs(tw.wrap(tau2 - tau)) < 1e-9
     assert -math.pi < tau2 <= math.pi
-
-
-def test_twist_agrees_with_quats_swing_twist():
-    rng = np.random.default_rng(3)
-    q = rng.normal(size=(500, 4))
-    q /= np.linalg.norm(q, axis=1, keepdims=True)
-    _, tau = tw.decompose(q)
-    _, t = swing_twist(q)
-    # quat.swing_twist returns the twist as a quaternion about +x: the same rotation
-    for a, b in zip(twist_quat(tau), t):
-        _same_rotation(a, b, 1e-9)
 
 
 def test_half_turn_twist_is_plus_pi_both_ways():
