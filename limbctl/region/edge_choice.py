@@ -159,6 +159,14 @@ class TracedEdge:
                     f"{window:.1f} deg, at most {et.TRACE_MAX_WINDOW_DEG:g})",
                     {"window_deg": float(window)},
                 )
+            reach = np.degrees(et.evidence_reach(edge, data)) if self.hold else 0.0
+            if reach > et.HELD_REACH_DEG:
+                return Refusal(
+                    self.name,
+                    f"held to the evidence, loop {number} still lies {reach:.2f} deg from every "
+                    f"taught sample (at most {et.HELD_REACH_DEG:g})",
+                    {"held_reach_deg": float(reach)},
+                )
             edges.append(edge)
         return Proposal(self.name, edges)
 

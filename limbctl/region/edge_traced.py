@@ -123,6 +123,11 @@ HOLD_PASSES = 3
 WALK_DEG = 3.0
 #: Step (deg) of a station's walk: it ends at most this much deeper than the bound asks.
 WALK_STEP_DEG = 0.05
+#: The farthest (deg) a held curve may lie from every taught sample anywhere along it (its
+#: chords and folds cut included), or it is refused: the 1 deg bound of docs/region.md.
+HELD_REACH_DEG = 1.0
+#: Spacing (deg) of the points :func:`evidence_reach` checks: small beside the bound.
+REACH_STEP_DEG = 0.1
 #: Stations (HELD_STEP_DEG apart) a fold of held stations may span: stations moved in by up to
 #: a round's move (3 deg) toward samples on a bay's two walls fold over about twice that.
 FOLD_WINDOW = 20
@@ -440,3 +445,11 @@ def unfolded(curve: np.ndarray, window: int = FOLD_WINDOW) -> np.ndarray:
         curve[drop[0]] = x
         keep[drop[0]] = True
         curve = curve[keep]
+
+
+def evidence_reach(curve: np.ndarray, data: np.ndarray) -> float:
+    """The farthest (rad) any point of the closed ``curve`` (K, 3), resampled
+    ``REACH_STEP_DEG`` apart, lies from every taught direction (N, 3)."""
+    points, _, _ = resample_loop(curve, np.radians(REACH_STEP_DEG))
+    dist, _ = cKDTree(data).query(points)
+    return float(2.0 * np.arcsin(min(0.5 * float(dist.max()), 1.0)))
