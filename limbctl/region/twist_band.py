@@ -209,8 +209,10 @@ class TwistBand:
         half = self.half.ravel()
         sigma = math.radians(REFINE_SIGMA_DEG)
         limits = []
+        stops = []
         for sign in (1.0, -1.0):
             stop = (sign * (limit - c1) >= h1 - near) & (h1 < math.pi)
+            stops.append(stop)
             first_read = sign * half
             rel = fk.refine_nodes(nodes, start, members, d, limit, stop, ref, sigma, MAX_SLOPE)
             limits.append(np.where(np.isfinite(rel), rel, first_read))
@@ -225,7 +227,9 @@ class TwistBand:
         up = np.where(bounded, np.fmax(up, envelope_heights(xy, limit, node_xy) - ref), up)
         lo = np.where(bounded, np.fmin(lo, -envelope_heights(xy, -limit, node_xy) - ref), lo)
         # step 4: never past what the taught twists support (limbctl.region.twist_evidence)
-        up, lo, cut_up, cut_lo = cap_limits(up, lo, bounded, nodes, start, members, d, limit, ref)
+        up, lo, cut_up, cut_lo = cap_limits(
+            up, lo, bounded, nodes, start, members, d, limit, ref, tuple(stops)
+        )
         self.cuts = (nodes, cut_up, cut_lo)
         ok = up >= lo
         centre = np.where(ok, ref + 0.5 * (up + lo), ref)

@@ -39,6 +39,17 @@ CAP_SLOPE = 0.5
 #: bench_twist's error back to 0.399 / 0.392 deg (seeds 0, 2; 0.415 / 0.420 at 0.5, 0.388 /
 #: 0.380 without the cap) but leaves ~1.1 deg to the promise.
 CAP_SLACK_DEG = 0.5
+#: The local slope's reading (:func:`limbctl.region.twist_fit_kernels.gradient_caps`): weight
+#: width (deg, one sigma) of the plane through the stops around a node.
+SLOPE_SIGMA_DEG = 3.0
+#: The stops' least spread (deg, one sigma) about their weighted mean for the slope to be read.
+SLOPE_SPREAD_DEG = 0.75
+#: Standard errors of the plane's slope added to SLOPE_SLACK.
+SLOPE_CONFIDENCE = 2.0
+#: How far (rad/rad) the true slope at a node may differ from the plane's.
+SLOPE_SLACK = 0.25
+#: How fast (deg of slope per deg, i.e. deg^-1) the true limit's slope may change.
+CURVATURE_PER_DEG = 0.15
 #: A cut (deg) larger than this at a place inside the swing region is reported: the cap then keeps
 #: the limit more than this short of where the teaching's readings put it, i.e. short of the stop.
 #: A dense i.i.d. teaching left cuts of 1.0-1.2 deg at five unwitnessed places where the reading
@@ -101,6 +112,7 @@ def cap_limits(
     d: np.ndarray,
     limit: np.ndarray,
     ref: np.ndarray,
+    stops: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Band limits (M,), (M,) relative to the node centres ``ref`` (M,) (rad) clipped to the
     evidence cap (module docstring), and the cuts (M,), (M,) (rad, >= 0) of each that ask for a
@@ -124,6 +136,10 @@ def cap_limits(
         math.radians(WITNESS_DEG),
         math.radians(WITNESS_BAND_DEG),
     )
+    if stops is not None:
+        cap_up, cap_lo, n_up, n_lo = _along_slope(
+            (cap_up, cap_lo, n_up, n_lo), nodes, start, members, d, limit, ref, stops
+        )
     slack = math.radians(CAP_SLACK_DEG)
     # no sample near: nothing is supported
     cap_up = np.where(np.isfinite(cap_up), cap_up + slack, -np.inf)
@@ -139,6 +155,33 @@ def cap_limits(
     cut_up = np.where(n_up >= MIN_WITNESSES, 0.0, np.fmax(up - new_up, 0.0))
     cut_lo = np.where(n_lo >= MIN_WITNESSES, 0.0, np.fmax(new_lo - lo, 0.0))
     return new_up, new_lo, cut_up, cut_lo
+
+
+def _along_slope(cone, nodes, start, members, d, limit, ref, stops):
+    """The cone's caps and witnesses ``cone`` lowered to the caps read along the local slope
+    (:func:`limbctl.region.twist_fit_kernels.gradient_caps`) where the stops ``stops`` (upper,
+    lower; (N,) bool each) around a node spread enough to read it."""
+    cap_up, cap_lo, n_up, n_lo = cone
+    args = (
+        math.radians(SLOPE_SIGMA_DEG),
+        math.radians(SLOPE_SPREAD_DEG),
+        SLOPE_SLACK,
+        SLOPE_CONFIDENCE,
+        math.degrees(CURVATURE_PER_DEG),
+        math.radians(WITNESS_DEG),
+        math.radians(WITNESS_BAND_DEG),
+    )
+    g_up, w_up = fk.gradient_caps(nodes, start, members, d, limit, stops[0], ref, *args)
+    g_lo, w_lo = fk.gradient_caps(nodes, start, members, d, -limit, stops[1], -ref, *args)
+    g_lo = -g_lo
+    lower_up = g_up < cap_up  # NaN (slope unknown) compares False: the cone stays
+    higher_lo = g_lo > cap_lo
+    return (
+        np.where(lower_up, g_up, cap_up),
+        np.where(higher_lo, g_lo, cap_lo),
+        np.where(lower_up, w_up, n_up),
+        np.where(higher_lo, w_lo, n_lo),
+    )
 
 
 def unsupported_places(
