@@ -111,6 +111,8 @@ ENVELOPE_CURVATURE_MIN = 0.35
 #: directions (as without the cap); 16: 0.3 %; 64: 1.2-1.9 %; no bound: 2.4-3.5 %. At 1 the
 #: demo's region held 99.27 % (seed 1) against 99.98 % at 4.
 ENVELOPE_STOP_SPAN = 4.0
+#: Times the evidence cap's stops are re-read against the capped band (step 4).
+STOP_REREADS = 1
 #: Nodes per block when all the envelope's facets are evaluated (memory: block x facets floats).
 ENVELOPE_BLOCK = 512
 #: Facets (nearest by centre) tried for each node before all: the facet over a node is among
@@ -227,15 +229,32 @@ class TwistBand:
         up = np.where(bounded, np.fmax(up, envelope_heights(xy, limit, node_xy) - ref), up)
         lo = np.where(bounded, np.fmin(lo, -envelope_heights(xy, -limit, node_xy) - ref), lo)
         # step 4: never past what the taught twists support (limbctl.region.twist_evidence)
-        up, lo, cut_up, cut_lo = cap_limits(
-            up, lo, bounded, nodes, start, members, d, limit, ref, tuple(stops)
-        )
+        args = (bounded, nodes, start, members, d, limit, ref)
+        capped = cap_limits(up, lo, *args, tuple(stops))
+        for _ in range(STOP_REREADS):
+            # the stops re-read against the capped band: where the readings bridged a dip, the
+            # samples at its bottom were below the first reading's limit, not its stops
+            c2, h2 = self._with_limits(ref, half, *capped[:2]).at(d)
+            off = wrap(limit - c2)
+            stops = [(off >= h2 - near) & (h2 < math.pi), (-off >= h2 - near) & (h2 < math.pi)]
+            capped = cap_limits(up, lo, *args, tuple(stops))
+        up, lo, cut_up, cut_lo = capped
         self.cuts = (nodes, cut_up, cut_lo)
+        new = self._with_limits(ref, half, up, lo)
+        self.centre, self.half = new.centre, new.half
+
+    def _with_limits(self, ref, half, up, lo) -> TwistBand:
+        """This band's grid with limits ``up``, ``lo`` (M,) about the node centres ``ref`` (M,)
+        (rad); nodes whose ``half`` (M,) is pi stay free, crossed limits keep the centre."""
         ok = up >= lo
         centre = np.where(ok, ref + 0.5 * (up + lo), ref)
         half = np.where(ok & (half < math.pi), 0.5 * (up - lo), half)
-        self.centre = np.ascontiguousarray(centre.reshape(self.centre.shape))
-        self.half = np.ascontiguousarray(np.clip(half, 0.0, math.pi).reshape(self.half.shape))
+        return TwistBand(
+            self.frame,
+            self.grid,
+            centre.reshape(self.centre.shape),
+            np.clip(half, 0.0, math.pi).reshape(self.half.shape),
+        )
 
     def at(self, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Centre and half-width (N,), (N,) (rad) over directions ``d`` (N, 3) (the kernel)."""

@@ -47,9 +47,9 @@ SLOPE_SPREAD_DEG = 0.75
 #: Standard errors of the plane's slope added to SLOPE_SLACK.
 SLOPE_CONFIDENCE = 2.0
 #: How far (rad/rad) the true slope at a node may differ from the plane's.
-SLOPE_SLACK = 0.25
+SLOPE_SLACK = 0.15
 #: How fast (deg of slope per deg, i.e. deg^-1) the true limit's slope may change.
-CURVATURE_PER_DEG = 0.15
+CURVATURE_PER_DEG = 0.06
 #: A cut (deg) larger than this at a place inside the swing region is reported: the cap then keeps
 #: the limit more than this short of where the teaching's readings put it, i.e. short of the stop.
 #: A dense i.i.d. teaching left cuts of 1.0-1.2 deg at five unwitnessed places where the reading
