@@ -32,9 +32,11 @@ Fitting, per grid node, from the taught samples within ``BAND_RADIUS_DEG`` of it
    (down to ``ENVELOPE_CURVATURE_MIN``): dense stops are followed at ``ENVELOPE_CURVATURE``,
    sparse ones bridged by a flatter, wider envelope (``_raised``).
 4. *Evidence cap*: each limit is then narrowed, never widened, to what the taught twists near
-   the node support (:mod:`limbctl.region.twist_evidence`): a reading that bridged past a stop
-   the hand never turned to is held within a degree of the truth, and where that cut is large
-   and no stop was held there the place is listed for the guide (:attr:`TwistBand.cuts`).
+   the node support (:mod:`limbctl.region.twist_evidence`: a cone about every sample, and a
+   cap along the local slope of the stops around, read again once the stops are re-read
+   against the capped band): a reading that bridged past a stop the hand never turned to is
+   held within a degree of the truth, and where that cut is large and no stop was held there
+   the place is listed for the guide (:attr:`TwistBand.cuts`).
 """
 
 from __future__ import annotations
@@ -111,7 +113,10 @@ ENVELOPE_CURVATURE_MIN = 0.35
 #: directions (as without the cap); 16: 0.3 %; 64: 1.2-1.9 %; no bound: 2.4-3.5 %. At 1 the
 #: demo's region held 99.27 % (seed 1) against 99.98 % at 4.
 ENVELOPE_STOP_SPAN = 4.0
-#: Times the evidence cap's stops are re-read against the capped band (step 4).
+#: Times the evidence cap's stops are re-read against the capped band (step 4): on the curved
+#: family's seed 1, dense teaching (docs/bench_region_families.md) the band lay 2.10 deg past
+#: the truth with the stops read against the readings only (a bridged dip's bottom held none),
+#: 0.64 after one re-read. More not tried.
 STOP_REREADS = 1
 #: Nodes per block when all the envelope's facets are evaluated (memory: block x facets floats).
 ENVELOPE_BLOCK = 512

@@ -2,7 +2,9 @@
 
 Two readings per band node, each a small free function with explicit loops: the upper hull's
 height over the node (:func:`upper_hull`, :func:`fit_nodes`), then a weighted plane through
-the samples at each stop (:func:`refine_nodes`). Numpy twins of :func:`upper_hull` and
+the samples at each stop (:func:`refine_nodes`); then the evidence caps, a cone about every
+sample (:func:`evidence_caps`) and one along the stops' local slope (:func:`gradient_caps`).
+Numpy twins of :func:`upper_hull` and
 :func:`evidence_caps` live in ``tests/region/test_twist_fit_kernels.py``. No fastmath.
 """
 
