@@ -25,6 +25,7 @@ from limbctl.errors import ConfigError, FileFormatError
 from limbctl.servo.profiles import joint_tick_limits, load_rig_profile
 
 SIM_YAML = Path(__file__).resolve().parents[2] / "calib" / "rigs" / "sim.yaml"
+SIM3_YAML = SIM_YAML.with_name("sim3.yaml")
 
 
 @pytest.fixture
@@ -117,7 +118,25 @@ def test_save_replaces_atomically_and_refuses_invalid(tmp_path):
     ],
 )
 def test_invalid_fields_name_file_and_field(tmp_path, sim_data, edit, field, fragment):
-    data = copy.deepcopy(sim_data)
+    assert_refused(tmp_path, sim_data, edit, field, fragment)
+
+
+@pytest.mark.parametrize(
+    ("edit", "field", "fragment"),
+    [
+        (lambda d: d["roll"].update(direction=0), "roll.direction", "must be +1 or -1"),
+        (lambda d: d["roll"].update(id=2), "roll.id", "must differ"),
+        (lambda d: d["roll"].update(max_deg=104.5), "roll.max_deg", "104.5 is not 1 deg inside"),
+        (lambda d: d["roll"].pop("zero_tick"), "roll", "is missing zero_tick"),
+    ],
+)
+def test_the_roll_joint_is_validated_like_the_others(tmp_path, edit, field, fragment):
+    assert_refused(tmp_path, yaml.safe_load(SIM3_YAML.read_text()), edit, field, fragment)
+
+
+def assert_refused(tmp_path, data, edit, field, fragment):
+    """The profile ``data`` after ``edit`` is refused naming the file and ``field``."""
+    data = copy.deepcopy(data)
     edit(data)
     path = write(tmp_path, data)
     with pytest.raises(ConfigError) as info:
@@ -307,32 +326,12 @@ def test_malformed_calibration_names_the_field():
 
 
 # ---- the optional roll joint (three-servo rigs) -----------------------------------------------
-SIM3_YAML = SIM_YAML.with_name("sim3.yaml")
-
-
-def test_sim3_profile_has_a_roll_joint_validated_like_the_others(tmp_path):
+def test_sim3_profile_has_a_roll_joint(tmp_path):
     profile = default_sim_profile("sim3")
-    data = yaml.safe_load(SIM3_YAML.read_text())
-    assert profile.roll == JointProfile(**data["roll"])
+    assert profile.roll == JointProfile(**yaml.safe_load(SIM3_YAML.read_text())["roll"])
     assert profile.ids == (1, 2, 3)
     assert [name for name, _ in profile.joints] == ["pan", "tilt", "roll"]
     assert load_profile(save_profile(profile, tmp_path / "r.yaml")) == profile
-    bad = copy.deepcopy(data)
-    bad["roll"]["direction"] = 0
-    with pytest.raises(ProfileError, match="roll.direction must be"):
-        load_profile(write(tmp_path, bad))
-    bad = copy.deepcopy(data)
-    bad["roll"]["id"] = 2
-    with pytest.raises(ProfileError, match="roll.id must differ"):
-        load_profile(write(tmp_path, bad))
-    bad = copy.deepcopy(data)
-    bad["roll"]["max_deg"] = 104.5
-    with pytest.raises(ProfileError, match="roll.max_deg 104.5 is not 1 deg inside"):
-        load_profile(write(tmp_path, bad))
-    bad = copy.deepcopy(data)
-    del bad["roll"]["zero_tick"]
-    with pytest.raises(ProfileError, match="roll is missing zero_tick"):
-        load_profile(write(tmp_path, bad))
 
 
 def test_two_servo_profile_and_calibration_carry_no_roll(sim_data):
