@@ -20,7 +20,7 @@ from calib import (
     save_profile,
 )
 from calib.profile import DEFAULT_END_STOP_DEG, END_STOP_MARGIN_DEG
-from firmware_sim.world import DEFAULT_JOINTS
+from firmware_sim.world import DEFAULT_JOINTS, ROLL_JOINT
 from limbctl.errors import ConfigError, FileFormatError
 from limbctl.servo.profiles import joint_tick_limits, load_rig_profile
 
@@ -195,17 +195,23 @@ def test_save_into_current_directory(tmp_path, monkeypatch):
 
 
 # ---- end stops --------------------------------------------------------------------------------
-def test_sim_end_stops_are_the_simulated_worlds():
-    profile = default_sim_profile()
-    world = {joint.name: joint for joint in DEFAULT_JOINTS}
-    for name in ("pan", "tilt"):
-        joint = getattr(profile, name)
-        assert (joint.stop_min_deg, joint.stop_max_deg) == (
-            world[name].stop_min_deg,
-            world[name].stop_max_deg,
+@pytest.mark.parametrize("rig", ["sim", "sim3"])
+def test_the_packaged_sim_profiles_are_the_simulated_worlds_joints(rig):
+    profile = default_sim_profile(rig)
+    world = {joint.name: joint for joint in (*DEFAULT_JOINTS, ROLL_JOINT)}
+    for name, joint in profile.joints:
+        truth = world[name]
+        assert (joint.id, joint.zero_tick, joint.direction) == (
+            truth.servo_id,
+            truth.zero_tick,
+            truth.direction,
         )
+        assert (joint.stop_min_deg, joint.stop_max_deg) == (truth.stop_min_deg, truth.stop_max_deg)
+        # the hard limits lie inside the physical end stops, by the margin
         assert joint.stop_min_deg + END_STOP_MARGIN_DEG <= joint.min_deg
         assert joint.max_deg <= joint.stop_max_deg - END_STOP_MARGIN_DEG
+    # the three-servo rig's pan and tilt are the two-servo rig's
+    assert (profile.pan, profile.tilt) == (default_sim_profile().pan, default_sim_profile().tilt)
 
 
 def test_unstated_end_stops_default_to_a_quarter_turn(tmp_path, sim_data):
