@@ -62,14 +62,11 @@ def test_missing_port_says_what_to_check(tmp_path):
     assert not bus.is_open
 
 
-def test_wrong_model_is_refused(sim):
+def test_a_wrong_model_or_an_absent_servo_is_refused_at_open(sim):
     bus = ServoBus(sim.port, PROFILE.baud, PROFILE.ids, model="xm430-w350")
     with pytest.raises(ConfigError, match=r"servo 1 is XL430-W250 \(1060\).*XM430-W350 \(1020\)"):
         bus.open()
     assert not bus.is_open
-
-
-def test_absent_servo_times_out_naming_it(sim):
     bus = ServoBus(sim.port, PROFILE.baud, (1, 7), retry_budget_s=0.05, max_attempts=2)
     with pytest.raises(BusTimeout, match=r"ping servo 7: servo 7 did not answer after 2 attempts"):
         bus.open()
@@ -86,7 +83,7 @@ def test_read_positions_match_the_world(sim, fast):
         assert bus.stats.transactions > 0 and bus.stats.timeouts == 0
 
 
-def test_configure_writes_eeprom_limits_and_position_mode(sim):
+def test_configure_writes_eeprom_limits_and_position_mode_and_refuses_bad_limits(sim):
     with open_bus(sim) as bus:
         bus.set_torque(True)
         configure_servos(bus, LIMITS, profile_velocity=120, profile_acceleration=40)
@@ -98,10 +95,6 @@ def test_configure_writes_eeprom_limits_and_position_mode(sim):
             assert bus.read(Register.RETURN_DELAY_TIME, servo_id) == 0
             assert bus.read(Register.PROFILE_VELOCITY, servo_id) == 120
             assert bus.read(Register.PROFILE_ACCELERATION, servo_id) == 40
-
-
-def test_configure_rejects_bad_limits(sim):
-    with open_bus(sim) as bus:
         with pytest.raises(ConfigError, match="exactly the servos"):
             configure_servos(bus, {1: (0, 10)})
         with pytest.raises(ConfigError, match=r"servo 2 must satisfy 0 <= min <= max"):
@@ -124,7 +117,7 @@ def test_write_goals_moves_both_servos(sim):
         wait_for(arrived, 10.0, "both servos to reach their goals")
 
 
-def test_goal_outside_one_turn_is_refused_before_the_wire(sim):
+def test_a_goal_outside_one_turn_is_refused_before_the_wire_and_eeprom_by_the_servo(sim):
     with open_bus(sim) as bus:
         before = sim.truth()["servos"][1]["goal_position"]
         with pytest.raises(InvalidInputError, match=r"servo 1 must be an integer tick in 0..4095"):
@@ -134,10 +127,7 @@ def test_goal_outside_one_turn_is_refused_before_the_wire(sim):
         with pytest.raises(ConfigError, match="not on this bus"):
             bus.write_goals({9: 2000})
         assert sim.truth()["servos"][1]["goal_position"] == before
-
-
-def test_eeprom_write_with_torque_on_is_refused_by_the_servo(sim):
-    with open_bus(sim) as bus:
+        # an EEPROM write with torque on is refused by the servo
         bus.set_torque(True)
         with pytest.raises(BusError, match=r"servo 1 refused it \(error 7: .*torque on"):
             bus.write(Register.MAX_POSITION_LIMIT, 1, 3000)
