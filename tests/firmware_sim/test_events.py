@@ -5,8 +5,6 @@ Kinds: vanish, voltage, temperature, restart and push (a steady torque on a join
 
 from __future__ import annotations
 
-import subprocess
-import sys
 import time
 
 import pytest
@@ -17,10 +15,7 @@ from firmware_sim.control_table import Register
 from firmware_sim.events import EventSchedule, ScheduledEvent, parse_event
 from firmware_sim.simulator import Simulator
 from firmware_sim.wire import RIG_BAUD
-from tests.firmware_sim.test_cli import served
-
-COMMAND = [sys.executable, "-m", "firmware_sim"]
-
+from tests.firmware_sim.test_cli import run_main, served
 
 ID, TORQUE_ENABLE, HARDWARE_ERROR, PRESENT_PWM = 7, 64, 70, 124
 VOLTAGE_BIT, OVERHEATING_BIT, OVERLOAD_BIT, ALERT = 0x01, 0x04, 0x20, 0x80
@@ -128,17 +123,13 @@ def test_command_line_events_reach_the_servos(tmp_path):
         assert process.wait(timeout=10) == 0
 
 
-def test_bad_events_are_refused_before_serving(tmp_path):
+def test_bad_events_are_refused_before_serving(tmp_path, capsys):
     for event, message in (
         ("1:melt:1:2", "kind must be one of"),
         ("0:vanish:7:1", "no servo answers as ID 7"),
     ):
-        result = subprocess.run(
-            [*COMMAND, "--link", str(tmp_path / "tty"), "--event", event],
-            capture_output=True,
-            text=True,
-        )
-        assert result.returncode == 2 and message in result.stderr
+        assert run_main(["--link", str(tmp_path / "tty"), "--event", event]) == 2
+        assert message in capsys.readouterr().err
         assert not (tmp_path / "tty").exists()
 
 
