@@ -1,7 +1,5 @@
 """ServoBus through the real dynamixel-sdk over the simulator's pty (no mocks)."""
 
-import time
-
 import pytest
 
 from calib import default_sim_profile
@@ -19,6 +17,7 @@ from limbctl.servo.bus import ServoBus
 from limbctl.servo.control_table import ModelNumber, OperatingMode, Register
 from limbctl.servo.profiles import joint_tick_limits
 from limbctl.servo.setup import configure_servos
+from tests.firmware_sim.test_servo import wait_for
 
 PROFILE = default_sim_profile()
 LIMITS = {
@@ -29,16 +28,6 @@ LIMITS = {
 
 def open_bus(sim, **options):
     return ServoBus.from_profile(PROFILE, port=sim.port, **options)
-
-
-def wait_for(condition, timeout_s, what):
-    """Poll ``condition`` (each call is a bus round trip) until true or the deadline."""
-    deadline = time.monotonic() + timeout_s
-    while True:
-        value = condition()
-        if value:
-            return value
-        assert time.monotonic() < deadline, f"timed out after {timeout_s} s waiting for {what}"
 
 
 def test_open_identifies_the_servos_and_close_twice(sim):
