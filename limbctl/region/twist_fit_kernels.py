@@ -10,10 +10,10 @@ from __future__ import annotations
 
 import math
 
-import numba as nb
 import numpy as np
 
 from limbctl.geometry.jit import njit
+from limbctl.region.linalg_kernels import det, solve
 from limbctl.region.twist_kernels import wrap
 
 
@@ -50,7 +50,7 @@ def upper_hull(px, py, t, top) -> float:
     return best if best > -np.inf else np.nan
 
 
-@njit(parallel=True)
+@njit
 def fit_nodes(nodes, start, members, d, tau, top, free_gap, slope):
     """Band centre and half-width (rad) at each node direction (M, 3) from the samples near it.
 
@@ -67,7 +67,7 @@ def fit_nodes(nodes, start, members, d, tau, top, free_gap, slope):
     m = nodes.shape[0]
     centre = np.full(m, np.nan)
     half = np.full(m, np.nan)
-    for i in nb.prange(m):
+    for i in range(m):
         idx = members[start[i] : start[i + 1]]
         k = idx.shape[0]
         if k < 3:
@@ -126,7 +126,7 @@ def fit_nodes(nodes, start, members, d, tau, top, free_gap, slope):
     return centre, half
 
 
-@njit(parallel=True)
+@njit
 def refine_nodes(nodes, start, members, d, limit, stop, ref, sigma, max_slope):
     """Band limits at nodes (M,) re-read as a weighted local plane through the stop samples.
 
@@ -142,7 +142,7 @@ def refine_nodes(nodes, start, members, d, limit, stop, ref, sigma, max_slope):
     """
     m = nodes.shape[0]
     out = np.full(m, np.nan)
-    for i in nb.prange(m):
+    for i in range(m):
         node = nodes[i]
         if abs(node[2]) < 0.9:
             e1 = np.array([-node[1], node[0], 0.0])
@@ -179,15 +179,15 @@ def refine_nodes(nodes, start, members, d, limit, stop, ref, sigma, max_slope):
         if count < 3:
             continue
         # well conditioned: the stops spread in both directions around the node
-        if np.linalg.det(a) <= 1e-12 * a[0, 0] ** 3:
+        if det(a) <= 1e-12 * a[0, 0] ** 3:
             continue
-        sol = np.linalg.solve(a, b)
+        sol = solve(a, b)
         if math.hypot(sol[1], sol[2]) <= max_slope:
             out[i] = sol[0]
     return out
 
 
-@njit(parallel=True)
+@njit
 def evidence_caps(nodes, start, members, d, limit, ref, slope, near, band):
     """The widest band limits (M,), (M,) the taught twists near each node support, relative to
     the node's centre ``ref`` (M,) (rad), and how many samples witness each (M,), (M,).
@@ -209,7 +209,7 @@ def evidence_caps(nodes, start, members, d, limit, ref, slope, near, band):
     lo = np.full(m, np.nan)
     n_up = np.zeros(m, dtype=np.int64)
     n_lo = np.zeros(m, dtype=np.int64)
-    for i in nb.prange(m):
+    for i in range(m):
         if start[i + 1] == start[i]:
             continue
         best_up = -np.inf
