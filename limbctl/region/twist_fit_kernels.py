@@ -14,6 +14,7 @@ import numpy as np
 
 from limbctl.geometry.jit import njit
 from limbctl.region.linalg_kernels import det, solve
+from limbctl.region.sort_kernels import sort_values
 from limbctl.region.twist_kernels import wrap
 
 
@@ -75,7 +76,7 @@ def fit_nodes(nodes, start, members, d, tau, top, free_gap, slope):
         ts = np.empty(k)
         for a in range(k):
             ts[a] = wrap(tau[idx[a]])
-        ts.sort()
+        sort_values(ts)
         gap = ts[0] + 2.0 * math.pi - ts[k - 1]
         gap_start = ts[k - 1]
         for a in range(k - 1):
