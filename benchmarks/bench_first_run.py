@@ -314,12 +314,18 @@ def report(
         + (" --library-only`." if fits and not found else "`."),
         f'Revision `{rev}`; install (`pip install -e ".[test]"` into a fresh venv) '
         f"{install_s:.0f} s; load average {load[0]} before, {load[1]} after (2 cores, shared).",
-        "",
-        "| command | first run | second run | first / second | CPU first, second (s) |"
-        " compiled first: limbctl kernels + numba's helpers | compile s (top level) |"
-        " loaded from cache first |",
-        "|---|---|---|---|---|---|---|---|",
     ]
+    lines += (
+        []
+        if not found
+        else [
+            "",
+            "| command | first run | second run | first / second | CPU first, second (s) |"
+            " compiled first: limbctl kernels + numba's helpers | compile s (top level) |"
+            " loaded from cache first |",
+            "|---|---|---|---|---|---|---|---|",
+        ]
+    )
     for name, (first, second) in found.items():
         ours = sum(limbctl_kernel(c["name"]) for c in first["compiles"])
         helpers = len(first["compiles"]) - ours
