@@ -123,3 +123,60 @@ def test_a_teleop_start_compiles_at_most_the_documented_count(model, tmp_path):
     # the park check's small batch goes through the gate's own single-command kernel
     assert "limbctl.region.correct_kernels.correct_single" in found[0]
     assert not {"limbctl.region.correct_kernels.correct_batch"} & set(found[0])
+
+
+#: Dispatchers a first ``RigidMap(twist=True).fit`` from Python compiles from an empty cache:
+#: limbctl's kernels and numba's helpers (47 + 168 before its twist kernels went serial and
+#: solved with linalg_kernels, 8,000 orientations; docs/bench_first_run.md; 45 + 40 before main
+#: added gradient_caps: its own kernel and 14 helpers more, not looked into).
+TWIST_FIT_COMPILES = (46, 54)
+#: Compiles of such a fit that repeat a (dispatcher, signature) already compiled: 5 small ones of
+#: numba's own (``np.empty``, ``max``, ``int`` overloads made once per overload instance), and 14
+#: since gradient_caps (``error_model="numpy"``, unlike the other kernels) came: its 14 helper
+#: compiles all repeat a signature compiled before. 89 of the 221 compiles of a cold three-servo
+#: train repeated one before, most of them prange bodies compiling helpers again.
+TWIST_FIT_REPEATS = 19
+
+TWIST_FIT = r"""
+import json, sys
+import numba.core.event as ev
+import numpy as np
+from limbctl.envelope import RigidMap
+from limbctl.envelope.synthetic_twist import ShoulderRegion
+
+compiled = []
+
+class Count(ev.Listener):
+    def on_start(self, event):
+        pass
+
+    def on_end(self, event):
+        f = event.data["dispatcher"].py_func
+        compiled.append([f"{f.__module__}.{f.__qualname__}", str(event.data["args"])])
+
+q = ShoulderRegion().teaching(1000, 500, 500, np.random.default_rng(0))
+ev.register("numba:compile", Count())
+RigidMap(seed=0, twist=True).fit(q)
+with open(sys.argv[1], "w") as out:
+    json.dump(compiled, out)
+"""
+
+
+def test_a_first_twist_fit_compiles_no_helper_per_prange_body_and_no_gate_kernel(tmp_path):
+    """A parallel kernel's prange body compiled numba's helpers again (89 of 221 compiles of a
+    cold three-servo train repeated a signature); numba's np.linalg compiled shape checks and
+    message formatting; the fit asked the gate's grid containment it never needs."""
+    log = tmp_path / "compiled.json"
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba-cache"), "PYTHONPATH": str(ROOT)}
+    done = subprocess.run(
+        [sys.executable, "-c", TWIST_FIT, str(log)], env=env, capture_output=True, text=True
+    )
+    assert done.returncode == 0, done.stderr
+    compiled = [tuple(c) for c in json.loads(log.read_text())]
+    ours = [n for n, _ in compiled if n.startswith("limbctl.")]
+    helpers = [n for n, _ in compiled if not n.startswith("limbctl.")]
+    _within("a twist fit", (ours, helpers), TWIST_FIT_COMPILES)
+    assert len(compiled) - len(set(compiled)) <= TWIST_FIT_REPEATS, sorted(compiled)
+    assert len(set(ours)) == len(ours), sorted(ours)
+    assert not [n for n in helpers if n.startswith("numba.np.linalg")]
+    assert "limbctl.region.mesh_kernels.contains_batch" not in ours

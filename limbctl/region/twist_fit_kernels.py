@@ -12,10 +12,11 @@ from __future__ import annotations
 
 import math
 
-import numba as nb
 import numpy as np
 
 from limbctl.geometry.jit import njit
+from limbctl.region.linalg_kernels import det, solve
+from limbctl.region.sort_kernels import sort_values
 from limbctl.region.twist_kernels import wrap
 
 
@@ -52,7 +53,7 @@ def upper_hull(px, py, t, top) -> float:
     return best if best > -np.inf else np.nan
 
 
-@njit(parallel=True)
+@njit
 def fit_nodes(nodes, start, members, d, tau, top, free_gap, slope):
     """Band centre and half-width (rad) at each node direction (M, 3) from the samples near it.
 
@@ -69,7 +70,7 @@ def fit_nodes(nodes, start, members, d, tau, top, free_gap, slope):
     m = nodes.shape[0]
     centre = np.full(m, np.nan)
     half = np.full(m, np.nan)
-    for i in nb.prange(m):
+    for i in range(m):
         idx = members[start[i] : start[i + 1]]
         k = idx.shape[0]
         if k < 3:
@@ -77,7 +78,7 @@ def fit_nodes(nodes, start, members, d, tau, top, free_gap, slope):
         ts = np.empty(k)
         for a in range(k):
             ts[a] = wrap(tau[idx[a]])
-        ts.sort()
+        sort_values(ts)
         gap = ts[0] + 2.0 * math.pi - ts[k - 1]
         gap_start = ts[k - 1]
         for a in range(k - 1):
@@ -128,7 +129,7 @@ def fit_nodes(nodes, start, members, d, tau, top, free_gap, slope):
     return centre, half
 
 
-@njit(parallel=True)
+@njit
 def refine_nodes(nodes, start, members, d, limit, stop, ref, sigma, max_slope):
     """Band limits at nodes (M,) re-read as a weighted local plane through the stop samples.
 
@@ -144,7 +145,7 @@ def refine_nodes(nodes, start, members, d, limit, stop, ref, sigma, max_slope):
     """
     m = nodes.shape[0]
     out = np.full(m, np.nan)
-    for i in nb.prange(m):
+    for i in range(m):
         node = nodes[i]
         if abs(node[2]) < 0.9:
             e1 = np.array([-node[1], node[0], 0.0])
@@ -181,15 +182,15 @@ def refine_nodes(nodes, start, members, d, limit, stop, ref, sigma, max_slope):
         if count < 3:
             continue
         # well conditioned: the stops spread in both directions around the node
-        if np.linalg.det(a) <= 1e-12 * a[0, 0] ** 3:
+        if det(a) <= 1e-12 * a[0, 0] ** 3:
             continue
-        sol = np.linalg.solve(a, b)
+        sol = solve(a, b)
         if math.hypot(sol[1], sol[2]) <= max_slope:
             out[i] = sol[0]
     return out
 
 
-@njit(parallel=True)
+@njit
 def evidence_caps(nodes, start, members, d, limit, ref, slope, near, band):
     """The widest band limits (M,), (M,) the taught twists near each node support, relative to
     the node's centre ``ref`` (M,) (rad), and how many samples witness each (M,), (M,).
@@ -211,7 +212,7 @@ def evidence_caps(nodes, start, members, d, limit, ref, slope, near, band):
     lo = np.full(m, np.nan)
     n_up = np.zeros(m, dtype=np.int64)
     n_lo = np.zeros(m, dtype=np.int64)
-    for i in nb.prange(m):
+    for i in range(m):
         if start[i + 1] == start[i]:
             continue
         best_up = -np.inf
@@ -246,7 +247,7 @@ def _angle(a, b) -> float:
     return 2.0 * math.asin(min(1.0, 0.5 * math.sqrt(dx * dx + dy * dy + dz * dz)))
 
 
-@njit(parallel=True)
+@njit(error_model="numpy")  # as its former prange body: a zero weight sum gives NaN, not an error
 def gradient_caps(
     nodes,
     start,
@@ -285,7 +286,7 @@ def gradient_caps(
     m = nodes.shape[0]
     cap = np.full(m, np.nan)
     wit = np.zeros(m, dtype=np.int64)
-    for i in nb.prange(m):
+    for i in range(m):
         node = nodes[i]
         if abs(node[2]) < 0.9:
             e1 = np.array([-node[1], node[0], 0.0])
@@ -328,7 +329,7 @@ def gradient_caps(
         least = 0.5 * (cxx + cyy) - math.sqrt(0.25 * (cxx - cyy) ** 2 + cxy * cxy)
         if least < spread * spread:
             continue
-        sol = np.linalg.solve(a, b)
+        sol = solve(a, b)
         # the slope's standard error: the stops' weighted scatter about the plane over the
         # square root of their effective count and their least spread
         rss = 0.0

@@ -105,7 +105,7 @@ class TwistRegion:
         self.swing = TaughtRegion(self.swing.params).fit(d)
         mesh = self.swing.mesh
         self.band = TwistBand.fit(d, tau, mesh.axis, mesh.max_margin)
-        self.unsupported = band_unsupported(self.band, d, mesh.contains)
+        self.unsupported = band_unsupported(self.band, d, mesh.contains_from_arcs)
         self.seeds = boundary_seeds(self)
         return self
 
@@ -179,7 +179,7 @@ def boundary_seeds(region: TwistRegion) -> np.ndarray:
     band, mesh = region.band, region.swing.mesh
     step = math.radians(SEED_STEP_DEG)
     inside = lattice(band, step)
-    inside = inside[mesh.contains(inside)]
+    inside = inside[mesh.contains_from_arcs(inside)]
     c, h = band.at(inside)
     bounded = h < math.pi
     stops = [compose(inside[bounded], c[bounded] + sign * h[bounded]) for sign in (-1.0, 1.0)]
