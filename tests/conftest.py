@@ -49,6 +49,16 @@ def trained_for(rig: str = "sim") -> dict:
     return {"rig": profile.name, "calibration": profile.calibration.to_dict()}
 
 
+@pytest.fixture(scope="module")
+def browser():
+    """Debian's headless Chromium through chromedriver (tests/view/browser.py), shared by a
+    module's tests: each loads its own server's page."""
+    from tests.view.browser import chromium
+
+    with chromium() as driver:
+        yield driver
+
+
 @pytest.fixture(scope="session")
 def hand_model_path(tmp_path_factory):
     """A Rigid Map trained on :data:`HAND_RECORDING` for the ``sim`` rig, fitted once a run."""

@@ -77,10 +77,10 @@ class Watcher(threading.Thread):
             raise self.error
 
 
-def test_record_job_shows_its_samples_on_the_page(tmp_path):
+def test_record_job_shows_its_samples_on_the_page(tmp_path, browser):
     out = tmp_path / "teach.limb"
     said: list[str] = []
-    with open_view(ViewOptions(enabled=True, port=0), said.append) as live, chromium() as browser:
+    with open_view(ViewOptions(enabled=True, port=0), said.append) as live:
         assert said == [f"live view: {live.url}"]
         browser.get(live.url)
 
@@ -115,7 +115,7 @@ def free_udp_port() -> int:
         return probe.getsockname()[1]
 
 
-def test_teleop_job_shows_commanded_and_written_poses(tmp_path, hand_model_path):
+def test_teleop_job_shows_commanded_and_written_poses(tmp_path, hand_model_path, browser):
     """Commands go in over UDP as the page shows their effect; Ctrl-C (SIGINT) ends the job."""
     port = free_udp_port()
     telemetry = tmp_path / "telemetry.jsonl"
@@ -135,7 +135,8 @@ def test_teleop_job_shows_commanded_and_written_poses(tmp_path, hand_model_path)
 
         return send_and_look
 
-    with open_view(ViewOptions(enabled=True, port=0), lambda _: None) as live, chromium() as page:
+    page = browser
+    with open_view(ViewOptions(enabled=True, port=0), lambda _: None) as live:
         page.get(live.url)
 
         def look() -> None:
@@ -319,14 +320,16 @@ class Recording(TeleopFeed):
         self.published.append(live.to_json())
 
 
-def test_the_page_shows_the_felt_leader_beside_the_follower_and_how_hard_it_pushes(cone_file):
+def test_the_page_shows_the_felt_leader_beside_the_follower_and_how_hard_it_pushes(
+    cone_file, browser
+):
     cone, sim = cone_file(EDGE), default_sim_profile()
     board = Board()
     feed = Recording(board)
     leader = {"ids": list(IDS), "model": "xm430-w350"}
-    # Chromium starts, and loads the page, before the simulator: its start-up takes the CPU the
-    # simulator needs to answer the servos' set-up in time
-    with ViewServer(board, port=0) as server, chromium() as browser:
+    # the page loads before the simulator starts: loading takes the CPU the simulator needs to
+    # answer the servos' set-up in time
+    with ViewServer(board, port=0) as server:
         browser.get(server.url)
         wait_for(browser, lambda d: text_of(d, "connection") == "live", "the page did not connect")
         with open_rig(extra_ids=IDS, sim_options={"leader": leader}) as session:
@@ -386,13 +389,13 @@ def test_the_page_shows_the_felt_leader_beside_the_follower_and_how_hard_it_push
 
 
 def test_a_teleop_job_with_a_passive_leader_shows_it_and_says_it_cannot_push(
-    tmp_path,
-    hand_model_path,
+    tmp_path, hand_model_path, browser
 ):
     """``limbctl teleop --source leader:3,4`` on the embedded simulator: its leader ids are free
     shafts of the rig's model (an XL430, no current sensing): drawn, passive, said so."""
     options = TeleopOptions(model=hand_model_path, source="leader:3,4", quiet=True, duration=3.0)
-    with open_view(ViewOptions(enabled=True, port=0), lambda _: None) as live, chromium() as page:
+    page = browser
+    with open_view(ViewOptions(enabled=True, port=0), lambda _: None) as live:
         page.get(live.url)
         assert run_teleop(options, view=live) == 0
         wait_for(page, lambda d: "ended by duration" in text_of(d, "note"), "the end not shown")

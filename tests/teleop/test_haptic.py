@@ -319,10 +319,8 @@ def let_go(
     the pressed rows' pan torques (N m); the rows inside and those of them with any torque; the
     largest torque on any joint (N m)."""
     script = [[0.0, 0.0, 0.0], [2.0, EDGE + beyond_deg, 0.0]]
-    rows = felt_at_200_hz(
-        script, 7.0, stiffness, let_go_s=let_go_s, model=model, law=law, motor=motor,
-        snap_watch=watch,
-    )
+    options = {"model": model, "law": law, "motor": motor, "snap_watch": watch}
+    rows = felt_at_200_hz(script, 7.0, stiffness, let_go_s=let_go_s, **options)
     t = np.array([r["t"] for r in rows])
     pan = np.array([r["pose_deg"][0] for r in rows])
     torque = np.array([r["motor_nm"] for r in rows])

@@ -1,5 +1,6 @@
-"""The keyboard source: the session as a person has it, `limbctl teleop --source keyboard` in a
-tmux pane; and keys against an edge, the real loop, gate and source on a pty on both rigs.
+"""The keyboard source: keys typed into a pseudo-terminal; the session as a person has it,
+`limbctl teleop --source keyboard` in a tmux pane; and keys against an edge, the real loop, gate
+and source on a pty on both rigs.
 
 The pane is a real pseudo-terminal (160 x 40); keys go in as tmux sends them and everything
 asserted is read from the pane's text, as the person would read it. A held key is sent the way
@@ -8,6 +9,7 @@ a terminal repeats one: a press, a repeat delay, then a steady repeat rate.
 
 from __future__ import annotations
 
+import contextlib
 import io
 import math
 import os
@@ -16,13 +18,15 @@ import re
 import sys
 import threading
 import time
+from collections.abc import Callable, Iterator
 
 import numpy as np
 import pytest
 
 from limbctl.demo import goal_log_excursions
 from limbctl.envelope import Cone, load_model
-from limbctl.geometry.gimbal import pan_tilt_to_direction, pan_tilt_to_quat
+from limbctl.errors import ConfigError
+from limbctl.geometry.gimbal import pan_tilt_roll_to_quat, pan_tilt_to_direction, pan_tilt_to_quat
 from limbctl.jobs import gate_for
 from limbctl.session import open_rig
 from limbctl.teleop.cycle import Cycle
@@ -152,35 +156,84 @@ def test_keyboard_session_explains_itself_in_a_terminal(tmp_path, hand_model_pat
     assert len(excursions) > 100 and excursions.max() <= written_tolerance_deg()
 
 
+@contextlib.contextmanager
+def keyboard_on_pty(**options) -> Iterator[tuple[KeyboardSource, Callable[[bytes], int]]]:
+    """A :class:`KeyboardSource` (``options``) reading a new pseudo-terminal: yields the source and
+    the function that types bytes into the terminal."""
+    master, slave = pty.openpty()
+    try:
+        with KeyboardSource(tty_path=os.ttyname(slave), **options) as source:
+            yield source, lambda keys: os.write(master, keys)
+    finally:
+        os.close(master)
+        os.close(slave)
+
+
+def typed(source: KeyboardSource, type_, keys: bytes, count: int) -> list:
+    """Type ``keys``, poll until ``count`` commands came, then quit: the commands."""
+    type_(keys)
+    got = []
+    while len(got) < count:
+        batch = source.poll(timeout=5.0)
+        assert batch, "no key arrived"
+        got += batch
+    type_(b"q")
+    assert source.wait_finished(5.0)
+    return got
+
+
+def test_keyboard_source_on_a_pseudo_terminal():
+    with keyboard_on_pty(step_deg=5.0) as (src, type_):
+        # up, left, a stray key, up (w), left (a) in one burst: each a press of its own key
+        typed(src, type_, b"\x1b[A\x1b[Dx" + b"wa", 4)
+    assert src.stats.accepted == 4
+    assert (src.pan_deg, src.tilt_deg) == (10.0, 10.0)
+
+
+def test_keyboard_source_needs_a_terminal(tmp_path):
+    with pytest.raises(ConfigError, match="needs a terminal"):
+        KeyboardSource(tty_path=str(tmp_path / "no-such-tty"))
+    plain = tmp_path / "plain-file"
+    plain.write_text("")
+    with pytest.raises(ConfigError, match="not a terminal"):
+        KeyboardSource(tty_path=str(plain))
+
+
+@pytest.mark.parametrize("twist", [True, False])
+def test_keyboard_roll_keys_turn_the_limb_on_three_servos_and_are_refused_on_two(twist):
+    with keyboard_on_pty(step_deg=5.0) as (src, type_):
+        src.twist = twist
+        # roll +2 steps, one up, roll -1 step
+        got = typed(src, type_, b"]]\x1b[A[", 4 if twist else 1)
+    if twist:
+        assert (src.pan_deg, src.tilt_deg, src.roll_deg) == (0.0, 5.0, 5.0)
+        np.testing.assert_allclose(
+            got[-1].q, pan_tilt_roll_to_quat(0.0, math.radians(5), math.radians(5))
+        )
+    else:
+        assert src.stats.rejected == 3
+        assert "roll keys need a three-servo rig" in src.stats.refusals.lines()[0]
+
+
 def test_keys_start_from_the_gates_pose_hold_release_and_show_the_guide():
     gate = Gate(Cone(math.radians(40)), GateLimits((-1.7, -0.5), (1.7, 1.4), 0.01, 0.02))
     gate.start(math.radians(10.0), math.radians(5.0))
     guide = io.StringIO()
-    master, slave = pty.openpty()
-    try:
-        with KeyboardSource(tty_path=os.ttyname(slave), gate=gate, guide=guide) as source:
-            # up from where the gate holds the limb (not from 0, 0); space holds: up is ignored;
-            # space releases from the limb's pose; a larger step; up; the guide again; quit
-            os.write(master, b"w w +\x1b[A?q")
-            assert source.wait_finished(10.0)
-        assert source.stats.accepted == 4  # up, the hold's own pose, the release's, up
-        assert (source.pan_deg, source.tilt_deg) == pytest.approx((10.0, 10.0))
-        assert not source.holding and source.step_deg == 5.0
-        assert guide.getvalue().count("q          quit") == 2
-        # a burst of held-down ups runs no further ahead of the limb than MAX_LEAD_DEG
-        master2, slave2 = pty.openpty()
-        try:
-            with KeyboardSource(step_deg=10.0, tty_path=os.ttyname(slave2), gate=gate) as ahead:
-                os.write(master2, b"wawawawawawaq")  # alternating: each one a press
-                assert ahead.wait_finished(10.0)
-            assert ahead.tilt_deg == pytest.approx(5.0 + MAX_LEAD_DEG)
-            assert ahead.pan_deg == pytest.approx(10.0 + MAX_LEAD_DEG)
-        finally:
-            os.close(master2)
-            os.close(slave2)
-    finally:
-        os.close(master)
-        os.close(slave)
+    with keyboard_on_pty(gate=gate, guide=guide) as (source, type_):
+        # up from where the gate holds the limb (not from 0, 0); space holds: up is ignored;
+        # space releases from the limb's pose; a larger step; up; the guide again; quit
+        type_(b"w w +\x1b[A?q")
+        assert source.wait_finished(10.0)
+    assert source.stats.accepted == 4  # up, the hold's own pose, the release's, up
+    assert (source.pan_deg, source.tilt_deg) == pytest.approx((10.0, 10.0))
+    assert not source.holding and source.step_deg == 5.0
+    assert guide.getvalue().count("q          quit") == 2
+    # a burst of held-down ups runs no further ahead of the limb than MAX_LEAD_DEG
+    with keyboard_on_pty(step_deg=10.0, gate=gate) as (ahead, type_):
+        type_(b"wawawawawawaq")  # alternating: each one a press
+        assert ahead.wait_finished(10.0)
+    assert ahead.tilt_deg == pytest.approx(5.0 + MAX_LEAD_DEG)
+    assert ahead.pan_deg == pytest.approx(10.0 + MAX_LEAD_DEG)
 
 
 def test_the_centre_is_the_point_deepest_inside_the_region(hand_model_path):
