@@ -12,8 +12,6 @@ from dynamixel_sdk import PacketHandler, PortHandler
 from calib.profile import default_sim_profile
 from firmware_sim import SimulatedBus
 from firmware_sim.wire import RIG_BAUD
-from limbctl.envelope import Cone, RigidMap
-from limbctl.teach.dataset import load_dataset
 from tests import system_tools
 
 #: A 20 s recording of a hand teaching the simulated rig an irregular region.
@@ -62,6 +60,9 @@ def browser():
 @pytest.fixture(scope="session")
 def hand_model_path(tmp_path_factory):
     """A Rigid Map trained on :data:`HAND_RECORDING` for the ``sim`` rig, fitted once a run."""
+    from limbctl.envelope import RigidMap
+    from limbctl.teach.dataset import load_dataset
+
     path = tmp_path_factory.mktemp("hand-model") / "model.npz"
     return RigidMap().fit(load_dataset(HAND_RECORDING).quaternions).save(path, trained_for())
 
@@ -70,6 +71,8 @@ def hand_model_path(tmp_path_factory):
 def cone_file(tmp_path):
     """Saves a cone about the rest axis as trained for a simulated rig: ``cone_file(40.0)``
     (half-angle, deg; ``rig="sim3"``) returns its path."""
+
+    from limbctl.envelope import Cone
 
     def save(half_angle_deg: float, rig: str = "sim") -> Path:
         path = tmp_path / f"cone-{rig}-{half_angle_deg:g}.npz"
