@@ -23,8 +23,8 @@ from limbctl.servo.rig import Rig
 from limbctl.teleop.approach import SETTLE_DEG
 from limbctl.teleop.margin import START_MARGIN_DEG, margins_for
 from limbctl.teleop.start import MAX_APPROACH_SPEED_DEG_S, StartOptions, start_session
-from tests.safety.support import settle_at, wait_for
-from tests.teleop.chains import RATE, RIGS, chain_gate, live_chain, pose_of, settle
+from tests.safety.support import settle, wait_for
+from tests.teleop.chains import RATE, RIGS, chain_gate, live_chain, pose_of
 
 
 @pytest.mark.parametrize("rig_name", RIGS)
@@ -181,7 +181,7 @@ def put_limb(sim, pan_deg, tilt_deg):
         rig = Rig(PROFILE, bus)
         rig.configure()
         rig.set_torque(True)
-        settle_at(rig, math.radians(pan_deg), math.radians(tilt_deg))
+        settle(rig, (math.radians(pan_deg), math.radians(tilt_deg)))
 
 
 def present_pose(sim):

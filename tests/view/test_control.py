@@ -14,7 +14,6 @@ from __future__ import annotations
 import contextlib
 import json
 import threading
-import time
 import urllib.error
 import urllib.request
 
@@ -31,6 +30,7 @@ from limbctl.view.control import (
     control_request,
     is_loopback,
 )
+from tests.safety.support import wait_for as wait_until
 from tests.view.browser import chromium, drag_on_plane, frozen, text_of, wait_for
 
 #: Longest wait (s) for a message in these tests.
@@ -91,14 +91,6 @@ def control_message(client: websocket.WebSocket) -> dict:
             return message
 
 
-def wait_until(condition, message: str) -> None:
-    """Wait for a condition of the server's counters (they change on its own thread)."""
-    deadline = time.monotonic() + WAIT_S
-    while not condition():
-        assert time.monotonic() < deadline, message
-        time.sleep(0.01)
-
-
 def refused_status(call) -> int:
     with pytest.raises(websocket.WebSocketBadStatusException) as refused:
         call()
@@ -115,7 +107,9 @@ def test_the_key_is_needed_to_steer_and_only_the_right_one():
             told = control_message(watcher)
             assert told["steer"] is False and "steering needs the key" in told["told"]
             watcher.send(json.dumps({"pan": 1.0, "tilt": 2.0}))
-            wait_until(lambda: server.desk.ignored == 1, "the watcher's line was not ignored")
+            wait_until(
+                lambda: server.desk.ignored == 1, WAIT_S, "the watcher's line was not ignored"
+            )
         # a wrong key, or the right one in another case: refused outright
         assert refused_status(lambda: open_socket(server, "not-the-key")) == 403
         assert refused_status(lambda: open_socket(server, secret.swapcase())) == 403
@@ -342,12 +336,14 @@ def test_a_tab_that_lost_control_comes_back_watching_and_steers_again_only_on_a_
 
         # the tab freezes; the server drops it; another page steers to (-20, 0) and leaves
         with frozen(page):
-            wait_until(lambda: holder().startswith("nobody"), "the frozen tab was not dropped")
+            wait_until(
+                lambda: holder().startswith("nobody"), WAIT_S, "the frozen tab was not dropped"
+            )
             with contextlib.closing(open_socket(server, server.access.secret)) as other:
                 assert control_message(other)["steer"] is True
                 other.send(json.dumps({"pan": -20.0, "tilt": 0.0}))
                 sink.wait_for('{"pan": -20.0, "tilt": 0.0}')
-            wait_until(lambda: holder().startswith("nobody"), "the other page kept control")
+            wait_until(lambda: holder().startswith("nobody"), WAIT_S, "the other page kept control")
             publish(board, (-20.0, 0.0), cycle=2)
             sent = len(sink.lines)
 
@@ -406,7 +402,7 @@ def test_a_reload_keeps_control_and_another_tab_is_told_which_tab_steers():
         page.switch_to.window(first)
         page.find_element("id", "let-go").click()
         wait_for(page, lambda d: "you let go" in text_of(d, "control"), "let go not told")
-        wait_until(lambda: holder().startswith("nobody"), "letting go kept control")
+        wait_until(lambda: holder().startswith("nobody"), WAIT_S, "letting go kept control")
         page.switch_to.window(page.window_handles[-1])
         page.find_element("id", "take").click()
         wait_for(page, steering, "the second tab's click did not take control")
