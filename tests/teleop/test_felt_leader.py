@@ -12,6 +12,7 @@ what the controller wrote.
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 import statistics
@@ -187,15 +188,7 @@ def test_the_leader_stops_near_the_edge_free_inside_never_above_the_cap(tmp_path
                 return
         lines = source.report_lines()
 
-    def kept(sim_from: float, sim_to: float, released_before: float = 0.0) -> bool:
-        """The loop kept the rate from ``sim_from`` to ``sim_to`` and released the leader in no
-        cycle from ``released_before`` s before ``sim_from`` on (the simulator runs on the wall
-        clock)."""
-        since, until = wall + sim_from - now, wall + sim_to - now
-        return running.kept_pace(since, until) and running.unreleased(
-            since - released_before, until
-        )
-
+    kept = functools.partial(running.kept_sim, now, wall)
     assert "feels the edge" in lines[0] and "pressed beyond the edge for" in lines[1]
     rows = truth_rows(log)
     # the hand means 20 deg beyond; over its last second of pressing the wall held it short:
@@ -204,7 +197,7 @@ def test_the_leader_stops_near_the_edge_free_inside_never_above_the_cap(tmp_path
     # before; a starved loop, whose failed reads release the leader, yields more
     # (docs/decisions/haptic.md), but never lets it in
     held = statistics.median(row["pose_deg"][0] for row in rows if now - 1.0 <= row["t"] <= now)
-    paced = kept(now - 1.0, now, WALKED_BACK_S)
+    paced = kept(now - 1.0, now, now - 1.0 - WALKED_BACK_S)
     assert EDGE < held and (held < EDGE + 10.0 or not paced), held
     assert max(abs(m) for row in rows for m in row["motor_nm"]) <= cap + 1e-12
     # every cycle whose command was inside wrote no current at all
@@ -239,14 +232,7 @@ def test_the_three_servo_leader_is_held_at_the_edge_in_swing_and_in_twist(tmp_pa
                 return
         lines = source.report_lines()
 
-    def kept(sim_from: float, sim_to: float, unreleased_from: float | None = None) -> bool:
-        """The loop kept the rate from ``sim_from`` to ``sim_to`` and released the leader in no
-        cycle from ``unreleased_from`` (default ``sim_from``) on (the simulator's clock is the
-        wall clock)."""
-        since, until = wall + sim_from - start, wall + sim_to - start
-        first = since if unreleased_from is None else wall + unreleased_from - start
-        return running.kept_pace(since, until) and running.unreleased(first, until)
-
+    kept = functools.partial(running.kept_sim, start, wall)
     assert "three servos" in lines[0] and "pressed beyond the edge for" in lines[1]
     rows = truth_rows(log)
     region = square_region()
