@@ -209,6 +209,19 @@ def _make_hand(spec: Any, seed: int) -> Hand | None:
     return Hand.from_yaml(spec, seed=seed)
 
 
+#: What a :class:`SimulatedBus` request does to the simulator, by the request's name.
+_REQUESTS: dict[str, Callable[..., Any]] = {
+    "truth": Simulator.truth,
+    "set_hand": lambda sim, spec: sim.set_hand(_make_hand(spec, sim.seed)),
+    "set_operator": Simulator.set_operator,
+    "push": Simulator.push,
+    "vanish": Simulator.vanish,
+    "restart": Simulator.restart,
+    "set_environment": Simulator.set_environment,
+    "set_faults": lambda sim, options: sim.faults.replan(FaultPlan(**options)),
+}
+
+
 class _ControlServer:
     """Executes :class:`SimulatedBus` requests inside the simulator process."""
 
@@ -224,36 +237,12 @@ class _ControlServer:
         if name == "stop":
             return False
         try:
-            result = getattr(self, f"do_{name}")(*args)
+            result = _REQUESTS[name](self.sim, *args)
         except Exception as error:  # reported to the caller, who re-raises it
             conn.send(("error", type(error).__name__, str(error)))
         else:
             conn.send(("ok", result))
         return True
-
-    def do_truth(self) -> dict:
-        return self.sim.truth()
-
-    def do_set_hand(self, spec: Any) -> None:
-        self.sim.set_hand(_make_hand(spec, self.sim.seed))
-
-    def do_set_operator(self, spec: Any) -> None:
-        self.sim.set_operator(spec)
-
-    def do_push(self, servo_id: int, torque_percent: float) -> None:
-        self.sim.push(servo_id, torque_percent)
-
-    def do_vanish(self, servo_id: int, duration_s: float) -> None:
-        self.sim.vanish(servo_id, duration_s)
-
-    def do_restart(self, servo_id: int, off_s: float) -> None:
-        self.sim.restart(servo_id, off_s)
-
-    def do_set_environment(self, servo_id: int, voltage: float | None, temperature: float | None):
-        self.sim.set_environment(servo_id, voltage, temperature)
-
-    def do_set_faults(self, options: dict) -> None:
-        self.sim.faults.replan(FaultPlan(**options))
 
 
 def child_main(conn: Any, config: dict) -> None:
@@ -295,31 +284,16 @@ class SimulatedBus:
 
     Parameters
     ----------
-    ids : sequence of int
-        Servo IDs (1 = pan, 2 = tilt of the simulated gimbal; others are free shafts).
-    model : str
-        A key of :data:`firmware_sim.control_table.MODELS` (default ``"xl430-w250"``), or one
-        per servo separated by commas.
+    ids, model, goal_log, seed, baud, factory, connect, eeprom_dir, leader, roll_id
+        As :class:`firmware_sim.simulator.Simulator`'s, as plain data.
     hand : mapping, path or None
         REGION.yaml content or path (firmware_sim.regions); moves the limb while torque is off.
-    goal_log : path or None
-        JSON-lines goal log.
-    seed : int
-        Seeds the world and the faults.
     drop, corrupt, latency_ms, latency_p : float
         Fault options (:class:`firmware_sim.faults.FaultPlan`).
     link : path or None
         Also make this path a symlink to the pty.
-    leader : mapping or None
-        A leader gimbal (:meth:`firmware_sim.leader.LeaderWorld.from_spec`), plain data.
-    roll_id : int or None
-        The servo (one of ``ids``) that turns the limb about its own axis; None: no roll joint.
     start_timeout_s : float
-        How long to wait for the process to come up.
-    baud, factory, connect, eeprom_dir
-        The wire and the bench: see :class:`firmware_sim.simulator.Simulator` (no baud: the
-        servos answer at any rate until their Baud Rate is written; ``factory=N``: N
-        factory-fresh servos at 57600).
+        How long to wait (s) for the process to come up.
     """
 
     def __init__(

@@ -242,6 +242,26 @@ def _header_items(model_number: int, firmware_version: int) -> list[Item]:
     ]
 
 
+def _current_items(limit: int) -> list[Item]:
+    """Current Limit, Goal Current and Present Current of a model that measures current."""
+    reg = Register
+    return [
+        _item(reg.CURRENT_LIMIT, 38, 2, RW, limit, 0, limit),
+        _item(
+            reg.GOAL_CURRENT,
+            102,
+            2,
+            RW,
+            0,
+            -limit,
+            limit,
+            signed=True,
+            bound=(None, reg.CURRENT_LIMIT),
+        ),
+        _item(reg.PRESENT_CURRENT, 126, 2, R, 0, -32768, 32767, signed=True),
+    ]
+
+
 def _indirect_items(blocks=INDIRECT_BLOCKS, address_range=INDIRECT_ADDRESS_RANGE) -> list[Item]:
     """Indirect Address n (2 bytes, default = address of Indirect Data n) and Indirect Data n."""
     items = []
@@ -295,23 +315,11 @@ def _xm430_w350() -> Model:
         gains=(1920, 100, 0, 0, 800),
     )
     items += [
-        _item(reg.CURRENT_LIMIT, 38, 2, RW, 1193, 0, 1193),
         _item(reg.EXTERNAL_PORT_MODE_1, 56, 1, RW, 3, 0, 3),
         _item(reg.EXTERNAL_PORT_MODE_2, 57, 1, RW, 3, 0, 3),
         _item(reg.EXTERNAL_PORT_MODE_3, 58, 1, RW, 3, 0, 3),
-        _item(
-            reg.GOAL_CURRENT,
-            102,
-            2,
-            RW,
-            0,
-            -1193,
-            1193,
-            signed=True,
-            bound=(None, reg.CURRENT_LIMIT),
-        ),
-        _item(reg.PRESENT_CURRENT, 126, 2, R, 0, -32768, 32767, signed=True),
     ]
+    items += _current_items(1193)
     items += _indirect_items()
     return Model(
         "xm430-w350",
@@ -348,23 +356,11 @@ def _xl330(key: str, title: str, number: int, velocity_limit: int, gains, stall_
             shutdown=53,
         )
         items += [
-            _item(reg.CURRENT_LIMIT, 38, 2, RW, 1750, 0, 1750),
             _item(reg.STARTUP_CONFIGURATION, 60, 1, RW, 0, 0, 3),
             _item(reg.PWM_SLOPE, 62, 1, RW, 140, 1, 255),
-            _item(
-                reg.GOAL_CURRENT,
-                102,
-                2,
-                RW,
-                0,
-                -1750,
-                1750,
-                signed=True,
-                bound=(None, reg.CURRENT_LIMIT),
-            ),
-            _item(reg.PRESENT_CURRENT, 126, 2, R, 0, -32768, 32767, signed=True),
             _item(reg.BACKUP_READY, 147, 1, R, 0, 0, 1),
         ]
+        items += _current_items(1750)
         items += _indirect_items(blocks, (64, end - 1))
         return Model(
             key,

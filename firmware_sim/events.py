@@ -18,10 +18,7 @@ set-up gave. The IDs are checked at start (an ID no servo answers as, or one sev
 refused); an event whose ID no single servo answers as when its time comes (renumbered since)
 is not applied and says so on stderr.
 
-The same faults are available from Python (by slot) as :meth:`Simulator.vanish`,
-:meth:`Simulator.set_environment`, :meth:`Simulator.restart` and :meth:`Simulator.push`; a
-voltage or temperature outside the servo's limits raises its Hardware Error Status bit and the
-alert, exactly as those calls do.
+From Python (by slot): :meth:`Simulator.vanish`, ``set_environment``, ``restart``, ``push``.
 """
 
 from __future__ import annotations

@@ -12,7 +12,9 @@ import math
 import os
 import sys
 from collections.abc import Callable
+from dataclasses import fields
 from pathlib import Path
+from typing import TypeVar
 
 from calib.yaml_guard import shown
 from limbctl import file_jobs, jobs, upkeep
@@ -32,6 +34,7 @@ EPILOG_HARDWARE = (
 
 Subparsers = argparse._SubParsersAction
 Job = Callable[[argparse.Namespace], int]
+Options = TypeVar("Options")
 
 
 # ---- shared option helpers ------------------------------------------------------------------
@@ -141,6 +144,12 @@ def _joint_ids(text: str | None, option: str) -> tuple[int, ...] | None:
     return ids
 
 
+def _options(kind: type[Options], args: argparse.Namespace, **given: object) -> Options:
+    """Options dataclass ``kind`` with the fields not ``given`` taken from the parsed ``args``."""
+    taken = {f.name: getattr(args, f.name) for f in fields(kind) if f.name not in given}
+    return kind(**taken, **given)
+
+
 def _command(
     sub: Subparsers, name: str, job: Job, **parser_options: str
 ) -> argparse.ArgumentParser:
@@ -178,20 +187,14 @@ def _add_demo(sub: Subparsers) -> None:
 
 
 def _calibrate(a: argparse.Namespace) -> int:
-    return jobs.run_calibrate(
-        jobs.CalibrateOptions(
-            out=a.out,
-            name=a.name,
-            ids=_joint_ids(a.ids, "--ids"),
-            pan_limits=_limits(a.pan_limits, "--pan-limits"),
-            tilt_limits=_limits(a.tilt_limits, "--tilt-limits"),
-            roll_limits=_limits(a.roll_limits, "--roll-limits"),
-            pan_stops=_limits(a.pan_stops, "--pan-stops"),
-            tilt_stops=_limits(a.tilt_stops, "--tilt-stops"),
-            roll_stops=_limits(a.roll_stops, "--roll-stops"),
-            connection=_connection(a),
-        )
-    )
+    ids = _joint_ids(a.ids, "--ids")
+    ranges = {
+        f"{joint}_{kind}": _limits(getattr(a, f"{joint}_{kind}"), f"--{joint}-{kind}")
+        for kind in ("limits", "stops")
+        for joint in ("pan", "tilt", "roll")
+    }
+    options = _options(jobs.CalibrateOptions, a, ids=ids, connection=_connection(a), **ranges)
+    return jobs.run_calibrate(options)
 
 
 def _add_calibrate(sub: Subparsers) -> None:
@@ -243,16 +246,8 @@ def _add_calibrate(sub: Subparsers) -> None:
 
 
 def _record(a: argparse.Namespace) -> int:
-    return jobs.run_record(
-        jobs.RecordOptions(
-            out=a.out,
-            duration=a.duration,
-            rate=a.rate,
-            hand=a.hand,
-            connection=_connection(a),
-            view=_view(a),
-        )
-    )
+    options = _options(jobs.RecordOptions, a, connection=_connection(a), view=_view(a))
+    return jobs.run_record(options)
 
 
 def _add_record(sub: Subparsers) -> None:
@@ -276,17 +271,7 @@ def _add_record(sub: Subparsers) -> None:
 
 
 def _train(a: argparse.Namespace) -> int:
-    return file_jobs.run_train(
-        file_jobs.TrainOptions(
-            data=a.data,
-            out=a.out,
-            kind=a.kind,
-            nodes=a.nodes,
-            layout=a.layout,
-            seed=a.seed,
-            plot=a.plot,
-        )
-    )
+    return file_jobs.run_train(_options(file_jobs.TrainOptions, a))
 
 
 def _add_train(sub: Subparsers) -> None:
@@ -306,17 +291,10 @@ def _add_train(sub: Subparsers) -> None:
     p.add_argument("--plot", type=Path, help="also draw the model and data to this PNG")
 
 
-#: teleop's options taken from the command line as they are.
-TELEOP_AS_GIVEN = ("model", "source", "rate", "max_speed", "duration", "telemetry", "goal_log")
-TELEOP_AS_GIVEN += ("quiet", "wait", "approach", "operator")
-
-
 def _teleop(a: argparse.Namespace) -> int:
-    given = {name: getattr(a, name) for name in TELEOP_AS_GIVEN}
     on_fault, connection, view = SafeState(a.on_fault), _connection(a), _view(a)
-    return jobs.run_teleop(
-        jobs.TeleopOptions(**given, on_fault=on_fault, connection=connection, view=view)
-    )
+    options = _options(jobs.TeleopOptions, a, on_fault=on_fault, connection=connection, view=view)
+    return jobs.run_teleop(options)
 
 
 def _add_teleop(sub: Subparsers) -> None:

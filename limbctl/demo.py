@@ -33,6 +33,7 @@ from limbctl.eval.twist_demo import (
     logged_packets,
     twist_excursions,
     twist_picture,
+    write_stream,
     write_twist_stream,
     written_orientations,
 )
@@ -279,13 +280,8 @@ def write_command_stream(path: Path, seconds: float = 12.0, rate_hz: float = 50.
     pan = 110.0 * np.sin(2 * math.pi * t / seconds)
     tilt = 10.0 + 65.0 * np.sin(4 * math.pi * t / seconds + 0.6)
     bad = ['{"pan": NaN, "tilt": 0}', '{"pan": 10, "tilt": "up"}', "not json at all", "{}"]
-    with open(path, "w", encoding="utf-8") as fh:
-        for i in range(n):
-            fh.write(json.dumps({"t": round(float(t[i]), 4), "pan": pan[i], "tilt": tilt[i]}))
-            fh.write("\n")
-            if i % (n // len(bad)) == n // (2 * len(bad)):
-                fh.write(bad[(i * len(bad)) // n] + "\n")
-    return n
+    rows = [{"t": round(float(t[i]), 4), "pan": pan[i], "tilt": tilt[i]} for i in range(n)]
+    return write_stream(path, rows, bad)
 
 
 def goal_log_excursions(goal_log: Path, model: object) -> np.ndarray:

@@ -1,13 +1,9 @@
 """The jobs' side of the live view: open it, feed it from a recording and from the teleop loop.
 
-The view layer (:mod:`limbctl.view`) knows nothing of teaching or teleop; this module, in the
-app, turns their values into the view's: the recorder reads the limb through a
-:class:`~limbctl.view.feed.PoseTap`, a :class:`~limbctl.view.feed.SceneFeeder` refits the region
-from the samples so far, and each teleop :class:`~limbctl.teleop.cycle.Cycle` is published by a
-:class:`TeleopFeed` (O(1), from the loop's own thread).
-
-The view is on by default when standard error is a terminal (a person is there to open the
-page); ``--view`` / ``--no-view`` decide otherwise.
+The view layer knows nothing of teaching or teleop; this module turns their values into the
+view's (:class:`~limbctl.view.feed.PoseTap`, :class:`~limbctl.view.feed.SceneFeeder`, and
+:class:`TeleopFeed` publishing each teleop cycle in O(1) from the loop's thread). The view is on
+by default when standard error is a terminal; ``--view`` / ``--no-view`` decide otherwise.
 """
 
 from __future__ import annotations

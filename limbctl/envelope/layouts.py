@@ -19,21 +19,9 @@ every layout lives on w >= 0 only:
 ``hemisphere=False`` gives the papers' full-sphere node sets (24, 120, 600, 720, or ``n``
 points over all of S^3) for reproducing their node counts.
 
-Layouts
--------
-``24-cell``, ``600-cell``, ``120-cell``
-    Regular polytope vertices.
-``polytope-720``
-    The papers' union with the 600-cell *dual* to the 120-cell (odd permutations of
-    (phi, 1, 1/phi, 0)/2): its vertices sit at the 120-cell's cell centres, the deepest holes,
-    so the union covers S^3 better.
-``polytope-720-even``
-    The same union with the even-permutation 600-cell, whose vertices lie in the 120-cell's
-    own symmetry directions; it covers worse (kept for comparison with the papers).
-``uniform``
-    ``n`` normalised Gaussian 4-vectors (uniform on S^3), seeded.
-``super-fibonacci``
-    Alexa's super-Fibonacci spiral (CVPR 2022): ``n`` deterministic near-uniform points.
+The polytope layouts (``24-cell``, ``600-cell``, ``120-cell``, the papers' 720-node union with the
+600-cell dual to the 120-cell, ``polytope-720``, or its even twin ``polytope-720-even``, kept for
+comparison) and the sized ones (``uniform``, ``super-fibonacci``) are described at their builders.
 """
 
 from __future__ import annotations

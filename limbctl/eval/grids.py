@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import hashlib
 from collections.abc import Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 from limbctl.errors import ConfigError
@@ -153,40 +153,36 @@ class Scale:
     k_uniform: int
 
 
+_FULL = Scale(
+    seeds=10,
+    test_patterns=1000,
+    som_ranges=(30.0, 45.0, 60.0, 90.0, 120.0, 150.0),
+    som_range_sides=(10, 20, 30),
+    som_patterns=(500, 1000, 2000, 3000, 4000, 5000),
+    som_pattern_sides=(10, 30),
+    som_sides=(10, 15, 20, 25, 30),
+    som_ratios=(0.25, 0.5, 1.0, 2.0, 4.0, 8.0),
+    som_default_patterns=500,
+    rm_ranges=(10.0, 20.0, 30.0, 45.0, 60.0, 90.0),
+    rm_ks=(1, 2, 3, 4, 6, 8, 12, 16),
+    rm_patterns=1000,
+    uniform_nodes=2000,
+    k_polytope=2,
+    k_uniform=8,
+)
 SCALE_SIZES = {
-    "full": Scale(
-        seeds=10,
-        test_patterns=1000,
-        som_ranges=(30.0, 45.0, 60.0, 90.0, 120.0, 150.0),
-        som_range_sides=(10, 20, 30),
-        som_patterns=(500, 1000, 2000, 3000, 4000, 5000),
-        som_pattern_sides=(10, 30),
-        som_sides=(10, 15, 20, 25, 30),
-        som_ratios=(0.25, 0.5, 1.0, 2.0, 4.0, 8.0),
-        som_default_patterns=500,
-        rm_ranges=(10.0, 20.0, 30.0, 45.0, 60.0, 90.0),
-        rm_ks=(1, 2, 3, 4, 6, 8, 12, 16),
-        rm_patterns=1000,
-        uniform_nodes=2000,
-        k_polytope=2,
-        k_uniform=8,
-    ),
-    "quick": Scale(
+    "full": _FULL,
+    # the full grid's sizes at fewer points, 2 seeds
+    "quick": replace(
+        _FULL,
         seeds=2,
-        test_patterns=1000,
         som_ranges=(45.0, 90.0, 150.0),
         som_range_sides=(10, 30),
         som_patterns=(500, 5000),
-        som_pattern_sides=(10, 30),
         som_sides=(10, 20, 30),
         som_ratios=(0.5, 1.0, 4.0),
-        som_default_patterns=500,
         rm_ranges=(10.0, 20.0, 45.0),
         rm_ks=(1, 2, 4, 8, 16),
-        rm_patterns=1000,
-        uniform_nodes=2000,
-        k_polytope=2,
-        k_uniform=8,
     ),
     "smoke": Scale(
         seeds=1,

@@ -1,24 +1,11 @@
 """Error metrics of a constraint model's answers against Lee's ideal corrections.
 
-Every function takes the model's answers, the ideal answers and (where needed) the inputs as
-(N, 4) unit quaternions (w, x, y, z) and returns per-row values; :func:`score` reduces them to
-the numbers the evaluation tables report, split by valid and invalid inputs.
-
-The papers' metrics
-    ``mse``: mean over test patterns of the squared R^4 distance between answer and ideal,
-    ``|y - y*|^2`` summed over the four components (sign-aware: q and -q are one rotation,
-    so the smaller of ``|y - y*|`` and ``|y + y*|`` is used).
-    ``err3d_rms``: root-mean-square distance between the end points of a unit limb (resting
-    along +x) turned by the answer and by the ideal, ``sqrt(mean |d(y) - d(y*)|^2)``.
-
-Our additions
-    ``angle_mean_deg``, ``angle_p95_deg``: mean and 95th percentile of the angle (degrees)
-    between those two limb directions.
-    ``unchanged_share``: share of inputs the model returns unchanged (rotation angle between
-    input and answer at most :data:`UNCHANGED_TOLERANCE`); on valid inputs this should be 1.
-    ``inside_share``: share of answers inside the true region (``truth.contains``).
-    ``outside_p95_deg``: 95th percentile of how far (degrees) answers lie outside the true
-    region (0 for an answer inside): how much an answer outside actually matters.
+Every function takes (N, 4) unit quaternions (w, x, y, z) and returns per-row values;
+:func:`score` reduces them to the numbers the evaluation tables report, split by valid and invalid
+inputs. ``mse`` and ``err3d_rms`` are the papers' metrics (:func:`quaternion_sq_error`,
+:func:`endpoint_error`); ours say how far the limb direction moves (``angle_*_deg``), whether valid
+inputs come back unchanged (``unchanged_share``) and whether answers land in the true region
+(``inside_share``, and ``outside_p95_deg``: how far those outside lie).
 """
 
 from __future__ import annotations

@@ -45,9 +45,19 @@ def write_twist_stream(path: Path, seconds: float = 12.0, rate_hz: float = 50.0)
         '{"q": [1, 0, 0, 0], "twist": 5}',
         "not json at all",
     ]
+    rows = [
+        {"t": round(float(t[i]), 4), "pan": pan[i], "tilt": tilt[i], "roll": roll[i]}
+        for i in range(n)
+    ]
+    return write_stream(path, rows, bad)
+
+
+def write_stream(path: Path, rows: list[dict], bad: list[str]) -> int:
+    """Write ``rows`` as JSON lines with the ``bad`` lines spread evenly among them (one after
+    every ``len(rows) / len(bad)``-th row, the first half such a stretch in); returns the rows."""
+    n = len(rows)
     with open(path, "w", encoding="utf-8") as fh:
-        for i in range(n):
-            row = {"t": round(float(t[i]), 4), "pan": pan[i], "tilt": tilt[i], "roll": roll[i]}
+        for i, row in enumerate(rows):
             fh.write(json.dumps(row) + "\n")
             if i % (n // len(bad)) == n // (2 * len(bad)):
                 fh.write(bad[(i * len(bad)) // n] + "\n")

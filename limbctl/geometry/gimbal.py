@@ -37,15 +37,14 @@ answer is exact and the pan never jumps.
 
 **Roll wrap-around.** Roll is an angle on a circle: ``q`` fixes it modulo 360 deg. The inverse
 returns the representative ``roll + 360 k`` that lies within the roll joint's hard limits and,
-among those, nearest the present roll (:func:`unwrap_roll`). A rig profile keeps each joint's
+among those, nearest the present roll (:func:`unwrap_roll_scalar`). A rig profile keeps each joint's
 limits inside (-180, 180) deg, so on today's profiles exactly one representative lies within
 them: the joint then has to travel the long way round when the short way on SO(3) crosses
 +-180 deg of roll, and the gate (which limits every joint's step and checks every intermediate
 pose) moves it there step by step or holds.
 
-All angles are radians. Array functions take (...,) angles and (..., 4) quaternions; the scalar
-twins (``*_scalar``) take and return plain floats for the gate's hot path and compute the same
-formulas (``tests/geometry/test_gimbal.py`` checks each against its array version).
+All angles are radians. Array functions take (...,) angles and (..., 4) quaternions; the
+``*_scalar`` functions take one pose as plain floats for the gate's hot path.
 :func:`pose_quat` and :func:`pose_from_quat` take one pose of either chain and pick the
 functions of its joint count.
 """
@@ -141,65 +140,7 @@ def pan_tilt_roll_to_quat(pan: np.ndarray, tilt: np.ndarray, roll: np.ndarray) -
     return np.where(q[..., :1] < 0.0, -q, q)
 
 
-def unwrap_roll(
-    roll: np.ndarray,
-    present: np.ndarray | float = 0.0,
-    lo: float = -math.pi,
-    hi: float = math.pi,
-) -> np.ndarray:
-    """The representative ``roll + 2 pi k`` (k in -1, 0, 1) within ``[lo, hi]`` nearest ``present``.
-
-    ``roll`` is taken in (-2 pi, 2 pi]. When no representative lies within the limits, the one
-    nearest the limits is returned (the caller's clamp then decides), so the result is always
-    one of the three.
-    """
-    roll = np.asarray(roll, dtype=np.float64)
-    candidates = roll[..., None] + TWO_PI * np.array([-1.0, 0.0, 1.0])
-    # outside: distance to [lo, hi] (0 inside); inside: distance to the present roll
-    outside = np.maximum(lo - candidates, 0.0) + np.maximum(candidates - hi, 0.0)
-    nearness = np.abs(candidates - np.asarray(present, dtype=np.float64)[..., None])
-    # an in-limit candidate always beats one outside: outside distances weigh 4 pi more
-    score = np.where(outside > 0.0, 4.0 * math.pi + outside, nearness)
-    pick = np.argmin(score, axis=-1)
-    return np.take_along_axis(candidates, pick[..., None], axis=-1)[..., 0]
-
-
-def quat_to_pan_tilt_roll(
-    q: np.ndarray,
-    current_pan: np.ndarray | float = 0.0,
-    current_roll: np.ndarray | float = 0.0,
-    roll_limits: tuple[float, float] = (-math.pi, math.pi),
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Joint angles (rad) with ``Rz(pan) Ry(-tilt) Rx(roll) = +-q`` for unit ``q`` (..., 4).
-
-    Pan and tilt come from the limb direction (``current_pan`` kept at tilt +-90 deg); the roll
-    is what is left, ``2 atan2(r_x, r_w)`` with ``r = conj(A(pan, tilt)) q``, unwrapped against
-    ``current_roll`` within ``roll_limits`` (:func:`unwrap_roll`).
-    """
-    q = np.asarray(q, dtype=np.float64)
-    pan, tilt = direction_to_pan_tilt(limb_direction(q), current_pan)
-    a = _pan_tilt_half(pan, tilt)
-    # r = conj(A) q; only its w and x parts are needed (y, z vanish up to rounding)
-    r_w = (a * q).sum(axis=-1)
-    r_x = (
-        a[..., 0] * q[..., 1]
-        - a[..., 1] * q[..., 0]
-        - a[..., 2] * q[..., 3]
-        + a[..., 3] * q[..., 2]
-    )
-    roll = 2.0 * np.arctan2(r_x, r_w)
-    return pan, tilt, unwrap_roll(roll, current_roll, *roll_limits)
-
-
-# ---- scalar twins ------------------------------------------------------------------------------
-def chain_twist_scalar(pan: float, tilt: float) -> float:
-    """:func:`chain_twist` of one pose."""
-    # tau = 2 atan2(sp st, cp ct)
-    return 2.0 * math.atan2(
-        math.sin(pan / 2) * math.sin(tilt / 2), math.cos(pan / 2) * math.cos(tilt / 2)
-    )
-
-
+# ---- one pose, plain floats ----------------------------------------------------------------------
 def pose_quat_scalar(pan: float, tilt: float, roll: float) -> np.ndarray:
     """:func:`pan_tilt_roll_to_quat` of one pose, shape (4,)."""
     cp, sp = math.cos(pan / 2), math.sin(pan / 2)
@@ -214,7 +155,11 @@ def pose_quat_scalar(pan: float, tilt: float, roll: float) -> np.ndarray:
 
 
 def unwrap_roll_scalar(roll: float, present: float, lo: float, hi: float) -> float:
-    """:func:`unwrap_roll` of one angle."""
+    """The representative ``roll + 2 pi k`` (k in -1, 0, 1) within ``[lo, hi]`` nearest ``present``.
+
+    ``roll`` is taken in (-2 pi, 2 pi] (rad). When no representative lies within the limits, the
+    one nearest the limits is returned (the caller's clamp then decides).
+    """
     best, best_score = roll, math.inf
     for k in (-1.0, 0.0, 1.0):
         candidate = roll + TWO_PI * k
@@ -228,7 +173,12 @@ def unwrap_roll_scalar(roll: float, present: float, lo: float, hi: float) -> flo
 def pan_tilt_roll_scalar(
     q: np.ndarray, current_pan: float, current_roll: float, lo: float, hi: float
 ) -> tuple[float, float, float]:
-    """:func:`quat_to_pan_tilt_roll` of one unit quaternion (4,), roll limits ``[lo, hi]``."""
+    """Joint angles (rad) with ``Rz(pan) Ry(-tilt) Rx(roll) = +-q`` for unit ``q`` (4,).
+
+    Pan and tilt come from the limb direction (``current_pan`` kept at tilt +-90 deg); the roll
+    is what is left, ``2 atan2(r_x, r_w)`` with ``r = conj(A(pan, tilt)) q``, unwrapped against
+    ``current_roll`` within ``[lo, hi]`` (:func:`unwrap_roll_scalar`).
+    """
     pan, tilt = pan_tilt_scalar(limb_scalar(q), current_pan)
     cp, sp = math.cos(pan / 2), math.sin(pan / 2)
     ct, st = math.cos(tilt / 2), math.sin(tilt / 2)

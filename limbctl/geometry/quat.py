@@ -14,8 +14,6 @@ from limbctl.errors import InvalidInputError
 #: Tolerance on | |q| - 1 | for input quaternions.
 UNIT_TOLERANCE = 1e-6
 
-REST_DIRECTION = np.array([1.0, 0.0, 0.0])
-
 
 def as_quaternions(
     q: object, name: str = "q", tol: float = UNIT_TOLERANCE
@@ -108,12 +106,6 @@ def multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     )
 
 
-def conjugate(q: np.ndarray) -> np.ndarray:
-    """Conjugate (the inverse of a unit quaternion). Shape (..., 4)."""
-    q = np.asarray(q, dtype=np.float64)
-    return q * np.array([1.0, -1.0, -1.0, -1.0])
-
-
 def from_axis_angle(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
     """Quaternion of a rotation by ``angle`` (rad) about unit ``axis`` (..., 3)."""
     axis = np.asarray(axis, dtype=np.float64)
@@ -174,34 +166,6 @@ def swing_from_direction(d: np.ndarray) -> np.ndarray:
     antipodal = n[..., 0] < 1e-12
     q = np.where(antipodal[..., None], np.array([0.0, 0.0, 0.0, 1.0]), q / np.where(n > 0, n, 1.0))
     return q
-
-
-def swing_twist(q: np.ndarray, axis: np.ndarray = REST_DIRECTION) -> tuple[np.ndarray, np.ndarray]:
-    """Split ``q = swing * twist`` with the twist about ``axis`` (default +x, Lee's split).
-
-    Parameters
-    ----------
-    q : ndarray, shape (..., 4)
-    axis : ndarray, shape (3,)
-
-    Returns
-    -------
-    swing, twist : ndarray, shape (..., 4)
-        Both unit, w >= 0. For q = swing * twist about x, the swing angle is
-        ``2 acos(sqrt(w^2 + x^2))``.
-    """
-    q = canonical(np.asarray(q, dtype=np.float64))
-    axis = np.asarray(axis, dtype=np.float64)
-    # twist = normalize(w, (v . a) a); degenerate when the rotation is a half-turn about an axis
-    # perpendicular to a: then the twist is the identity.
-    proj = (q[..., 1:] @ axis)[..., None] * axis
-    twist = np.concatenate([q[..., :1], proj], axis=-1)
-    n = np.linalg.norm(twist, axis=-1, keepdims=True)
-    ident = np.array([1.0, 0.0, 0.0, 0.0])
-    twist = np.where(n > 1e-12, twist / np.where(n > 0, n, 1.0), ident)
-    twist = canonical(twist)
-    swing = canonical(multiply(q, conjugate(twist)))
-    return swing, twist
 
 
 def swing_angle(q: np.ndarray) -> np.ndarray:

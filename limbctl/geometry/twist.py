@@ -30,7 +30,7 @@ each side), and near it ``tau`` loses precision like ``1e-16 / s_w`` rad. Region
 orientations therefore must stay away from -x (:data:`SINGULAR_MARGIN`); the region layer refuses
 data that come closer.
 
-Scalar twins (:func:`decompose_one`, :func:`compose_one`) compute the same formulas on one pose
+The scalar twin :func:`decompose_one` computes the same formulas on one pose
 with plain floats for the gate's hot path (numpy's per-call overhead dwarfs four products).
 """
 
@@ -133,23 +133,6 @@ def decompose_one(q: np.ndarray) -> tuple[Vec3, float]:
     d0, d1, d2 = w * w + x * x - y * y - z * z, 2.0 * (x * y + w * z), 2.0 * (x * z - w * y)
     n = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
     return (d0 / n, d1 / n, d2 / n), _wrap_one(2.0 * math.atan2(x, w))
-
-
-def compose_one(d: Vec3, tau: float) -> np.ndarray:
-    """Scalar twin of :func:`compose`: ``swing(d) * twist(tau)`` as a (4,) array, w >= 0."""
-    n = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
-    # swing(d) = normalize(1 + d_x, 0, -d_z, d_y); the half-turn about +z at d = -x
-    s_w, s_y, s_z = 1.0 + d[0] / n, -d[2] / n, d[1] / n
-    m = math.sqrt(s_w * s_w + s_y * s_y + s_z * s_z)
-    if m < SINGULAR_SW:
-        s_w, s_y, s_z = 0.0, 0.0, 1.0
-    else:
-        s_w, s_y, s_z = s_w / m, s_y / m, s_z / m
-    half = 0.5 * _wrap_one(tau)
-    c, s = math.cos(half), math.sin(half)
-    # q = (s_w c, s_w s, s_y c + s_z s, s_z c - s_y s)
-    q = np.array([s_w * c, s_w * s, s_y * c + s_z * s, s_z * c - s_y * s])
-    return -q if q[0] < 0.0 else q
 
 
 def _wrap_one(a: float) -> float:

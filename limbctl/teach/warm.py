@@ -1,24 +1,14 @@
 """Compile the training's and the gate's kernels ahead, in a low-priority background process.
 
-``limbctl record`` starts :func:`warming_in_background` as it begins. The recorder waits on the
-bus most of the time, and a teaching lasts tens of seconds: enough to compile every kernel the
-first ``limbctl train`` and ``limbctl teleop`` would otherwise compile while the person waits.
-The process runs at the lowest priority (:data:`NICENESS`) on one numba thread, so the recorder
-keeps its rate. It trains a Rigid Map on a synthetic teaching of the demo region through
-:func:`limbctl.teach.train.train`, the function ``limbctl train`` runs (so the same kernels
-compile, for the same argument types), then asks the model what the gate asks: one command,
-a small batch as the park check does and a larger one as a start outside the region does. The
-kernels land in the cache of :mod:`limbctl.geometry.jit` one by one as they compile; the first
-real train and teleop load them, and compile themselves whatever a warm-up still running has not
-reached yet.
-
-A three-servo rig's recording warms its own stages (``--twist``,
-:func:`limbctl.geometry.jit.stage`): the same train and gate questions of a Rigid Map over full
-orientations, fitted to a synthetic teaching of the packaged three-servo demo region (swing
-outline and twist band), so the twist band's fit and the gate's kernels on SO(3) compile too.
-
-With no cache folder (kernels compiled in memory) a warm-up would help no other process, and
-none starts; nor does one when the rig's stages are already prepared.
+``limbctl record`` starts :func:`warming_in_background` as it begins: a teaching lasts tens of
+seconds, enough to compile every kernel the first ``limbctl train`` and ``limbctl teleop`` would
+otherwise compile while the person waits. At the lowest priority (:data:`NICENESS`) on one numba
+thread, it trains a Rigid Map on a synthetic teaching of the demo region (the three-servo one,
+with its twist band, for a three-servo rig) through :func:`limbctl.teach.train.train`, then asks
+the model what the gate asks: one command, a small batch (the park check) and a larger one (a
+start outside the region). The kernels land in the cache of :mod:`limbctl.geometry.jit` one by
+one; the first real train and teleop load them and compile whatever is not there yet. With no
+cache folder, or the rig's stages already prepared, no warm-up starts.
 """
 
 from __future__ import annotations

@@ -1,19 +1,10 @@
 """Feeding the board while teaching: a pose tap on the limb and a scene feeder thread.
 
-- :class:`PoseTap` stands in for the limb the recorder reads: each ``read_pose`` is passed
-  through, kept in memory and published as the live pose (a list append and a board swap, a few
-  microseconds on the recorder's own thread; nothing there ever waits on the view). A
-  three-servo limb's pose ``(pan, tilt, roll)`` is shown with its twist gauge
-  (:mod:`limbctl.view.twist`) against the taught range of the twist map last handed over.
-- :class:`SceneFeeder` runs on its own thread: every :data:`SCENE_PERIOD_S`, at once when a
-  fit finishes, and when the next fit is due, it thins the samples so far and publishes a scene
-  with the guide's latest figures (handed over with :meth:`SceneFeeder.set_guide`, a reference
-  swap), the twist taught so far on a three-servo limb (:meth:`SceneFeeder.set_twist`) and the
-  newest region fitted by a :class:`~limbctl.view.region.FitProcess`. Fits run
-  back to back: the next starts as soon as the last one is collected (when there are new
-  samples), at most every :data:`REFIT_PERIOD_S`, so the region is redrawn as often as the
-  fit's own time allows; the fit process only takes CPU time nothing else wants, so this never
-  slows the recorder.
+:class:`PoseTap` publishes each pose the recorder reads (a list append and a board swap on the
+recorder's own thread, never waiting on the view). :class:`SceneFeeder` publishes, from its own
+thread, the thinned samples, the guide's figures and the region a
+:class:`~limbctl.view.region.FitProcess` fitted last; fits run back to back, at most every
+:data:`REFIT_PERIOD_S`, on CPU time nothing else wants, so they never slow the recorder.
 """
 
 from __future__ import annotations

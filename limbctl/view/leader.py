@@ -1,17 +1,8 @@
 """The leader gimbal on the live page: its pose beside the follower's, and the force it applies.
 
-With ``--source leader:ID,ID`` the page draws the leader's pose as its own marker on the
-pan/tilt plane, beside the follower's, and for a leader that feels the edge
-(:mod:`limbctl.teleop.haptic`) the torque it pushes back with: an arrow from the leader's marker
-toward where the wall pushes it, its length the share of the cap, and a bar with the figure in
-newton metres and the cap in the side panel (``assets/leader.js``). A three-servo leader
-(``leader:ID,ID,ID``) adds its twist and, while it pushes, the twist it is pushed toward
-(:func:`with_twist`), shown on a twist gauge of its own in the panel.
-
-The app hands the view plain values: a :class:`LeaderStatus` per cycle, carried by
-:class:`LeaderLive`, a :class:`~limbctl.view.state.Live` with one more part. A page without a
-leader is sent a plain :class:`~limbctl.view.state.Live`, whose JSON has no ``leader`` key, so it
-looks and behaves as before.
+With ``--source leader:ID,ID`` the app hands the view a :class:`LeaderStatus` per cycle inside a
+:class:`LeaderLive` (``assets/leader.js`` draws it); a page without a leader gets a plain
+:class:`~limbctl.view.state.Live`, whose JSON has no ``leader`` key.
 """
 
 from __future__ import annotations

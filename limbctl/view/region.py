@@ -1,17 +1,11 @@
 """The region ``train`` would learn from the samples so far, as edge loops the page draws.
 
-:func:`fit_outline` fits the region the gate of ``limbctl train``'s default model (a
-:class:`~limbctl.envelope.RigidMap` with its default options) would enforce: a
-:class:`~limbctl.region.TaughtRegion` with the default :class:`~limbctl.region.RegionParams`,
-built from the samples' directions alone (the map's trained weights play no part in it, so they
-are not trained here), and turns it into :class:`~limbctl.view.state.EdgeLoop` values on the
-pan/tilt plane. Each loop is cut into
-stretches of at most :data:`STRETCH_DEG`; a stretch counts as traced when a taught sample lies
-within :data:`TRACED_WITHIN_DEG` of its middle.
-
-:class:`FitProcess` runs :func:`fit_outline` in a separate process: the fit's numba kernels hold
-the GIL for seconds, and a thread would stall the 100 Hz recorder for that long; the process
-runs at the lowest CPU priority (niceness 19 and Linux's SCHED_IDLE) on one thread.
+:func:`fit_outline` builds the :class:`~limbctl.region.TaughtRegion` the gate of ``limbctl
+train``'s default model would enforce (from the samples' directions alone: the map's weights play
+no part, so they are not trained) as :class:`~limbctl.view.state.EdgeLoop` values.
+:class:`FitProcess` runs it in a separate process at the lowest CPU priority (niceness 19,
+SCHED_IDLE) on one thread: the fit's numba kernels hold the GIL for seconds, which in a thread
+would stall the 100 Hz recorder.
 """
 
 from __future__ import annotations

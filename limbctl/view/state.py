@@ -1,20 +1,8 @@
 """What the live view shows, as plain values, and the board the producers publish it on.
 
-The view knows nothing of the recorder, the gate or the region: the app hands it these
-dataclasses. A view is two parts that change at different paces:
-
-- :class:`Live`: the limb's present pose, the sample count, the teleop cycle (commanded and
-  written poses, the gate's outcome, the loop's rate) and any fault; published as often as the
-  producer likes (every recorder sample or loop cycle).
-- :class:`Scene`: the samples so far (thinned for drawing), the region's edge loops with which
-  stretches are traced, the rig's hard limits and the guide's figures; published about once a
-  second.
-
-:class:`Board` keeps the latest of each under a lock. Publishing only swaps a reference and bumps
-a counter, so it costs the producer O(1) whatever the clients do; the server reads the newest
-value at its own pace and never sends a stale one.
-
-Every angle is in degrees, on the pan/tilt plane (pan = atan2(dy, dx), tilt = asin(dz)).
+The view knows nothing of the recorder, the gate or the region: the app hands it a fast
+:class:`Live` and a slow :class:`Scene`, which :class:`Board` keeps the latest of. Every angle is
+in degrees, on the pan/tilt plane (pan = atan2(dy, dx), tilt = asin(dz)).
 """
 
 from __future__ import annotations

@@ -13,7 +13,6 @@ from limbctl.geometry.quat import (
     limb_direction,
     multiply,
     swing_from_direction,
-    swing_twist,
 )
 
 
@@ -96,17 +95,6 @@ def test_compose_then_decompose_gives_back_direction_and_wrapped_twist(pan, tilt
     assert -math.pi < tau2 <= math.pi
 
 
-def test_twist_agrees_with_quats_swing_twist():
-    rng = np.random.default_rng(3)
-    q = rng.normal(size=(500, 4))
-    q /= np.linalg.norm(q, axis=1, keepdims=True)
-    _, tau = tw.decompose(q)
-    _, t = swing_twist(q)
-    # quat.swing_twist returns the twist as a quaternion about +x: the same rotation
-    for a, b in zip(twist_quat(tau), t):
-        _same_rotation(a, b, 1e-9)
-
-
 def test_half_turn_twist_is_plus_pi_both_ways():
     d = np.array([0.0, 0.6, 0.8])
     for tau in (math.pi, -math.pi, 3 * math.pi):
@@ -117,7 +105,6 @@ def test_half_turn_twist_is_plus_pi_both_ways():
 def test_singular_direction_minus_x_round_trips_with_the_half_turn_about_z():
     for tau in np.linspace(-math.pi, math.pi, 13):
         q = tw.compose(np.array([-1.0, 0.0, 0.0]), tau)
-        np.testing.assert_allclose(q, tw.compose_one((-1.0, 0.0, 0.0), tau), atol=1e-15)
         assert abs(q[0]) < 1e-15 and abs(q[1]) < 1e-15
         d, back = tw.decompose(q)
         np.testing.assert_array_equal(d, [-1.0, 0.0, 0.0])
@@ -138,4 +125,3 @@ def test_scalar_twins_match_arrays(v):
     d1, tau1 = tw.decompose_one(q)
     np.testing.assert_allclose(d1, d, atol=1e-12)
     assert abs(tw.wrap(tau1 - tau)) < 1e-12
-    np.testing.assert_allclose(tw.compose_one(d1, tau1), tw.compose(d, tau), atol=1e-12)

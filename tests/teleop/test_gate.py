@@ -15,8 +15,8 @@ from hypothesis import strategies as st
 
 from limbctl.envelope import Cone
 from limbctl.errors import ConfigError, SafetyError
-from limbctl.geometry.gimbal import chain_twist_scalar, pan_tilt_to_quat, pose_quat_scalar
-from limbctl.geometry.twist import compose_one, decompose_one
+from limbctl.geometry.gimbal import chain_twist, pan_tilt_to_quat, pose_quat_scalar
+from limbctl.geometry.twist import compose, decompose_one
 from limbctl.teleop.gate import Gate, GateLimits, Outcome, written_tolerance_deg
 
 R = math.radians(40)
@@ -56,7 +56,7 @@ class ConeBand:
                 s = math.sin(self.half_angle) / side
                 d = (math.cos(self.half_angle), d[1] * s, d[2] * s)
         offset = max(-self.half_width, min(self.half_width, offset))
-        return compose_one(d, self.centre + offset)
+        return compose(np.array(d), self.centre + offset)
 
 
 def quat(pose) -> np.ndarray:
@@ -188,8 +188,10 @@ twist_edge = st.tuples(
     st.sampled_from([-1.0, 1.0]),
     st.floats(0.0, 0.05),
 ).map(
-    lambda a: compose_one(
-        (math.cos(a[1]) * math.cos(a[0]), math.cos(a[1]) * math.sin(a[0]), math.sin(a[1])),
+    lambda a: compose(
+        np.array(
+            [math.cos(a[1]) * math.cos(a[0]), math.cos(a[1]) * math.sin(a[0]), math.sin(a[1])]
+        ),
         a[2] * (math.pi - a[3]),
     )
 )
@@ -246,7 +248,7 @@ def test_joint_step_limit_near_the_singularity(rig):
     start = (0.0, math.radians(79), 0.0)[:rig]
     gate.start(*start)
     pan, tilt = math.radians(90), math.radians(79)
-    result = gate.step(quat((pan, tilt, -chain_twist_scalar(pan, tilt))[:rig]))
+    result = gate.step(quat((pan, tilt, -float(chain_twist(pan, tilt)))[:rig]))
     assert result.slewed and result.pose[0] > math.radians(1)
     assert max(abs(v - v0) for v, v0 in zip(result.pose, start)) <= math.radians(3) + 1e-12
 

@@ -14,7 +14,7 @@ import pytest
 
 from limbctl.envelope import RigidMap
 from limbctl.envelope.synthetic_twist import ShoulderRegion
-from limbctl.geometry.gimbal import chain_twist_scalar, quat_to_pan_tilt_roll
+from limbctl.geometry.gimbal import chain_twist, pan_tilt_roll_scalar
 from limbctl.geometry.twist import compose, decompose
 from limbctl.jobs import Connection, RecordOptions, TeleopOptions, run_record, run_teleop
 from limbctl.live import TeleopFeed, ViewOptions, open_view
@@ -86,7 +86,7 @@ def test_the_taught_map_says_which_places_lack_a_stop():
     gauge = taught_gauge(shown, pan, tilt, roll)
     assert (gauge.low_deg, gauge.high_deg, gauge.of) == (-2.0, 3.0, "taught here")
     # the chain's twist is roll + 2 atan(tan(pan/2) tan(tilt/2))
-    assert gauge.twist_deg == pytest.approx(10.0 + math.degrees(chain_twist_scalar(pan, tilt)))
+    assert gauge.twist_deg == pytest.approx(10.0 + math.degrees(chain_twist(pan, tilt)))
     assert taught_gauge(None, pan, tilt, roll).low_deg is None
 
 
@@ -102,7 +102,7 @@ def test_the_band_gauge_and_map_agree_with_the_region(shoulder_model):
             continue
         for offset in (-100.0, -30.0, 0.0, 30.0, 100.0):
             p = compose(d, math.radians(tau_deg + offset))
-            pose = tuple(float(a) for a in quat_to_pan_tilt_roll(p))
+            pose = tuple(float(a) for a in pan_tilt_roll_scalar(p, 0.0, 0.0, -math.pi, math.pi))
             gauge = band_gauge(band, pose, None)
             assert gauge.twist_deg == pytest.approx(math.degrees(decompose(p)[1]), abs=1e-9)
             twist = gauge.twist_deg
