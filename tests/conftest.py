@@ -3,14 +3,19 @@
 from __future__ import annotations
 
 import os
+from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
 from dynamixel_sdk import PacketHandler, PortHandler
 
+from calib.profile import default_sim_profile
 from firmware_sim import SimulatedBus
 from firmware_sim.wire import RIG_BAUD
 from tests import system_tools
+
+#: A 20 s recording of a hand teaching the simulated rig an irregular region.
+HAND_RECORDING = Path(__file__).parent / "data" / "hand_irregular_seed0_20s.limb"
 
 
 @pytest.fixture
@@ -33,6 +38,47 @@ def sdk(sim):
     yield SimpleNamespace(port=port, packet=PacketHandler(2.0))
     port.closePort()
     assert not port.is_open
+
+
+def trained_for(rig: str = "sim") -> dict:
+    """The metadata of a model trained for the simulated ``rig``: its name and calibration, which
+    a gate for that rig checks."""
+    profile = default_sim_profile(rig)
+    return {"rig": profile.name, "calibration": profile.calibration.to_dict()}
+
+
+@pytest.fixture(scope="module")
+def browser():
+    """Debian's headless Chromium through chromedriver (tests/view/browser.py), shared by a
+    module's tests: each loads its own server's page."""
+    from tests.view.browser import chromium
+
+    with chromium() as driver:
+        yield driver
+
+
+@pytest.fixture(scope="session")
+def hand_model_path(tmp_path_factory):
+    """A Rigid Map trained on :data:`HAND_RECORDING` for the ``sim`` rig, fitted once a run."""
+    from limbctl.envelope import RigidMap
+    from limbctl.teach.dataset import load_dataset
+
+    path = tmp_path_factory.mktemp("hand-model") / "model.npz"
+    return RigidMap().fit(load_dataset(HAND_RECORDING).quaternions).save(path, trained_for())
+
+
+@pytest.fixture
+def cone_file(tmp_path):
+    """Saves a cone about the rest axis as trained for a simulated rig: ``cone_file(40.0)``
+    (half-angle, deg; ``rig="sim3"``) returns its path."""
+
+    from limbctl.envelope import Cone
+
+    def save(half_angle_deg: float, rig: str = "sim") -> Path:
+        path = tmp_path / f"cone-{rig}-{half_angle_deg:g}.npz"
+        return Cone(half_angle_deg=half_angle_deg).save(path, trained_for(rig))
+
+    return save
 
 
 def pytest_sessionstart(session):

@@ -167,14 +167,8 @@ def test_motors_setup_needs_a_port_and_a_known_joint(capsys):
     )
 
 
-def test_teleop_at_57600_baud_says_the_wire_cannot_carry_200_hz(tmp_path, capsys):
-    from calib.profile import default_sim_profile
-    from limbctl.envelope import Cone
-
-    sim = default_sim_profile()
-    model = tmp_path / "all.npz"
-    metadata = {"rig": sim.name, "calibration": sim.calibration.to_dict()}
-    Cone(half_angle_deg=180.0).save(model, metadata=metadata)
+def test_teleop_at_57600_baud_says_the_wire_cannot_carry_200_hz(tmp_path, capsys, cone_file):
+    model = cone_file(180.0)
     commands = tmp_path / "commands.jsonl"
     commands.write_text("".join(f'{{"pan": {i * 0.2}, "tilt": 0.0}}\n' for i in range(20)))
     teleop = ["teleop", "--model", str(model), "--source", f"replay:{commands}", "--quiet"]

@@ -13,7 +13,6 @@ import pytest
 import calib
 from calib.profile import default_sim_profile
 from limbctl.cli import main
-from limbctl.envelope import Cone
 from limbctl.errors import ConfigError
 from limbctl.jobs import Connection, TeleopOptions, run_teleop
 from limbctl.live import ViewOptions
@@ -81,14 +80,10 @@ def test_unknown_names_and_missing_files_are_refused_with_the_known_names(tmp_pa
         load_operator("push3", 2)
 
 
-@pytest.fixture(scope="module")
-def cone_model(tmp_path_factory):
+@pytest.fixture
+def cone_model(cone_file):
     """A 30 deg cone about the rest direction, for the simulated rig."""
-    path = tmp_path_factory.mktemp("cone") / "cone.npz"
-    sim = default_sim_profile()
-    metadata = {"rig": sim.name, "calibration": sim.calibration.to_dict()}
-    Cone(half_angle_deg=EDGE).save(path, metadata=metadata)
-    return path
+    return cone_file(EDGE)
 
 
 def test_operator_is_refused_before_anything_opens_without_a_leader_or_on_real_servos(

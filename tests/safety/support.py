@@ -213,16 +213,16 @@ def wait_for(condition, timeout_s: float, what: str):
         time.sleep(0.01)
 
 
-def settle_at(rig: Rig, pan: float, tilt: float, timeout_s: float = 20.0) -> None:
-    """Drive the limb (outside any gate: test set-up only) to a pose and wait until it is there."""
-    rig.write_pose(pan, tilt)
+def settle(rig: Rig, pose: tuple[float, ...], timeout_s: float = 20.0) -> None:
+    """Drive the limb (no gate: test set-up only) to ``pose`` (rad, one angle per joint) and wait
+    until it is there."""
+    rig.write_pose(*pose)
     tol = math.radians(0.5)
-
-    def arrived() -> bool:
-        p, t = rig.read_pose()
-        return abs(p - pan) < tol and abs(t - tilt) < tol
-
-    wait_for(arrived, timeout_s, f"the limb to reach pan {pan:.3f}, tilt {tilt:.3f} rad")
+    wait_for(
+        lambda: all(abs(a - b) < tol for a, b in zip(rig.read_pose(), pose, strict=True)),
+        timeout_s,
+        f"the limb to reach {pose}",
+    )
 
 
 class CycleCounter:

@@ -36,7 +36,7 @@ from tests.safety.support import (
     gate_limits,
     goal_log_poses,
     live_rig,
-    settle_at,
+    settle,
     written_tolerance_deg,
 )
 
@@ -191,7 +191,7 @@ def test_loop_writes_only_gated_goals_inside_the_region(
     sim, rig, log = live
     model = _model(model)
     sim.set_faults()
-    settle_at(rig, 0.0, 0.0)
+    settle(rig, (0.0, 0.0))
     offset = log.stat().st_size
     limits = gate_limits(rate_hz, speed)
     gate = RecordingGate(model, limits)

@@ -8,7 +8,7 @@ import socket
 import threading
 
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from limbctl.errors import ConfigError, InvalidInputError
@@ -86,6 +86,7 @@ def udp():
 
 @settings(max_examples=150, deadline=None)
 @given(batch=st.lists(datagrams, min_size=1, max_size=8))
+@example(batch=[b"y" * (MAX_LINE_BYTES + 1), b'{"pan": 1, "tilt": "a"}', b'{"pan": 3, "tilt": 4}'])
 def test_any_datagram_is_parsed_or_counted_and_the_reader_survives(udp, batch):
     src, tx = udp
     src.poll()

@@ -13,7 +13,6 @@ from limbctl.envelope import Cone
 from limbctl.servo.setup import configure_servos
 from limbctl.session import Session, open_rig
 from limbctl.teleop.gate import Gate, GateLimits
-from tests.safety.support import wait_for
 from tests.teleop.test_gate import ConeBand
 
 RATE = 200.0
@@ -44,14 +43,3 @@ def live_chain(rig_name: str, goal_log: Path | None = None) -> Iterator[Session]
         configure_servos(session.rig.bus, session.rig.tick_limits())
         session.rig.set_torque(True)
         yield session
-
-
-def settle(rig, pose: tuple[float, ...], timeout_s: float = 20.0) -> None:
-    """Drive the limb (no gate: test set-up only) to ``pose`` (rad) and wait until it is there."""
-    rig.write_pose(*pose)
-    tol = math.radians(0.5)
-    wait_for(
-        lambda: all(abs(a - b) < tol for a, b in zip(rig.read_pose(), pose, strict=True)),
-        timeout_s,
-        f"the limb to reach {pose}",
-    )

@@ -82,6 +82,16 @@ class Running:
                 f"fault: {getattr(summary, 'fault', None)!r}, feel: {self.source.feel_stats.events}"
             )
 
+    def kept_sim(
+        self, sim_at: float, wall_at: float, sim_from: float, sim_to: float, unreleased_from=None
+    ) -> bool:
+        """:meth:`kept_pace` from simulator time ``sim_from`` to ``sim_to`` (s) and
+        :meth:`unreleased` from ``unreleased_from`` (default ``sim_from``) on: the simulator runs
+        on the wall clock, its time ``sim_at`` being monotonic ``wall_at``."""
+        since, until = wall_at + sim_from - sim_at, wall_at + sim_to - sim_at
+        first = since if unreleased_from is None else wall_at + unreleased_from - sim_at
+        return self.kept_pace(since, until) and self.unreleased(first, until)
+
     def kept_pace(self, since: float, until: float) -> bool:
         """Whether the loop kept the wall's rate between two monotonic times: the median period
         of its cycles within 1.25 periods at 200 Hz (the pace watch's rule, PaceWatch)."""

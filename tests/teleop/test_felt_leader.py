@@ -1,5 +1,7 @@
-"""A felt leader over the real SDK and the simulator's pty, on two servos and on three: the wall
-(in swing and in twist), its faults, passive models.
+"""A leader over the real SDK and the simulator's pty, on two servos and on three: a passive one
+mirrored through the gate; a felt one's wall (in swing and in twist), its brake rules over the
+pty (limbctl/teleop/brake.py), its faults (a servo dropping off mid-push, the bus cut, the
+controller dead), passive models.
 
 Each rig's follower is gated by a region whose edge lies at pan 30 deg: on two servos a 30 deg
 cone, on three the twist region of tests/teleop/twist_square.py, whose edge lies near roll
@@ -10,9 +12,11 @@ what the controller wrote.
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 import statistics
+import threading
 import time
 from collections.abc import Callable
 from contextlib import contextmanager
@@ -28,17 +32,22 @@ from limbctl.envelope import Cone
 from limbctl.errors import ConfigError
 from limbctl.geometry.gimbal import pose_quat_scalar
 from limbctl.geometry.twist import decompose_one
+from limbctl.jobs import gate_for
 from limbctl.live import leader_status
 from limbctl.servo.control_table import Register
 from limbctl.servo.leader import encode_feel, present_current, present_velocity
+from limbctl.servo.leader_guard import GIVE_UP_S
 from limbctl.servo.rig import Rig
 from limbctl.servo.setup import configure_servos
 from limbctl.session import open_rig
 from limbctl.teleop.gate import Gate, GateLimits
+from limbctl.teleop.haptic import VELOCITY_UNIT_DEG_S
 from limbctl.teleop.haptic_push import beyond_deg, corrected_pose
+from limbctl.teleop.loop import LoopConfig, run
 from limbctl.teleop.sources import LeaderSource, SourceContext, parse_source
-from limbctl.teleop.sources.leader_snap import cycle_velocity
+from limbctl.teleop.sources.leader_snap import cycle_velocity, read_motion
 from limbctl.view.leader import SWING_SHARE_DRAWN
+from tests.servo.test_leader_guard import START_S, end_pipe, torque_when_free
 from tests.teleop.felt_running import (
     Running,
     check_a_forced_pace_loss,
@@ -95,7 +104,7 @@ class FeltRig:
 
 SIM = FeltRig("sim", (3, 4), lambda: Cone(half_angle_deg=EDGE), PRESS, 0)
 SIM3 = FeltRig("sim3", (4, 5, 6), square_region, TWIST_PRESS, 2)
-#: The two-servo leader's ids (tests/teleop/test_felt_brake.py, benchmarks).
+#: The two-servo leader's ids (benchmarks).
 IDS = SIM.ids
 #: The joints' hard limits in calib/rigs/sim3.yaml (rad): the roll joint's within +-100 deg.
 LIMITS3 = tuple((j.min_rad, j.max_rad) for j in Rig(default_sim_profile("sim3")).joints)
@@ -179,15 +188,7 @@ def test_the_leader_stops_near_the_edge_free_inside_never_above_the_cap(tmp_path
                 return
         lines = source.report_lines()
 
-    def kept(sim_from: float, sim_to: float, released_before: float = 0.0) -> bool:
-        """The loop kept the rate from ``sim_from`` to ``sim_to`` and released the leader in no
-        cycle from ``released_before`` s before ``sim_from`` on (the simulator runs on the wall
-        clock)."""
-        since, until = wall + sim_from - now, wall + sim_to - now
-        return running.kept_pace(since, until) and running.unreleased(
-            since - released_before, until
-        )
-
+    kept = functools.partial(running.kept_sim, now, wall)
     assert "feels the edge" in lines[0] and "pressed beyond the edge for" in lines[1]
     rows = truth_rows(log)
     # the hand means 20 deg beyond; over its last second of pressing the wall held it short:
@@ -196,7 +197,7 @@ def test_the_leader_stops_near_the_edge_free_inside_never_above_the_cap(tmp_path
     # before; a starved loop, whose failed reads release the leader, yields more
     # (docs/decisions/haptic.md), but never lets it in
     held = statistics.median(row["pose_deg"][0] for row in rows if now - 1.0 <= row["t"] <= now)
-    paced = kept(now - 1.0, now, WALKED_BACK_S)
+    paced = kept(now - 1.0, now, now - 1.0 - WALKED_BACK_S)
     assert EDGE < held and (held < EDGE + 10.0 or not paced), held
     assert max(abs(m) for row in rows for m in row["motor_nm"]) <= cap + 1e-12
     # every cycle whose command was inside wrote no current at all
@@ -231,14 +232,7 @@ def test_the_three_servo_leader_is_held_at_the_edge_in_swing_and_in_twist(tmp_pa
                 return
         lines = source.report_lines()
 
-    def kept(sim_from: float, sim_to: float, unreleased_from: float | None = None) -> bool:
-        """The loop kept the rate from ``sim_from`` to ``sim_to`` and released the leader in no
-        cycle from ``unreleased_from`` (default ``sim_from``) on (the simulator's clock is the
-        wall clock)."""
-        since, until = wall + sim_from - start, wall + sim_to - start
-        first = since if unreleased_from is None else wall + unreleased_from - start
-        return running.kept_pace(since, until) and running.unreleased(first, until)
-
+    kept = functools.partial(running.kept_sim, start, wall)
     assert "three servos" in lines[0] and "pressed beyond the edge for" in lines[1]
     rows = truth_rows(log)
     region = square_region()
@@ -406,10 +400,11 @@ def test_a_leader_unheard_past_its_watchdog_still_pushes_and_the_end_leaves_it_l
     assert all(closed["servos"][i]["torque_on"] is False for i in rig.ids)
 
 
-def test_a_felt_leaders_cycle_read_carries_its_present_current(tmp_path):
+def test_the_cycles_read_and_the_watchs_read_carry_the_leaders_present_current(tmp_path):
     # the felt leader's map puts Present Current where a follower's read has Present PWM: the
-    # law reads its motor's torque in the cycle's one read (round 5). A hand pressing outward
-    # against a motor of 40 units whose goal is pan 0: it pulls back at its Goal Current.
+    # law reads its motor's torque in the cycle's one read (round 5); the snap watch's one sync
+    # read carries Present Current (126) and Present Velocity (128) side by side. A hand presses
+    # outward against a motor of 40 units whose goal is pan 0: it pulls back at its Goal Current.
     with felt_session(tmp_path) as (session, source, log), source:
         bus, units = session.rig.bus, press_against_pan_zero(session, source)
         deadline = time.monotonic() + 5.0
@@ -421,6 +416,19 @@ def test_a_felt_leaders_cycle_read_carries_its_present_current(tmp_path):
         assert abs(present_current(read.reports[IDS[0]])) == units == abs(plain)
         # toward pan 0 (pan decreasing) in the joint's frame
         assert read.ok and source._torque(read)[0] == pytest.approx(-source.motor.torque_of(units))
+        deadline, motion = time.monotonic() + 5.0, None
+        while time.monotonic() < deadline:
+            motion = read_motion(bus, IDS, session.rig.joints, source.motor)
+            if motion is not None and abs(motion[1][0]) == source.motor.torque_of(units):
+                break
+        assert motion is not None
+        speeds, torques = motion
+        # toward pan 0 in the joint's frame, at the Goal Current's clip
+        assert torques[0] == pytest.approx(-source.motor.torque_of(units))
+        assert torques[1] == 0.0  # the tilt servo has no current
+        plain = bus.read(Register.PRESENT_VELOCITY, IDS[0])
+        unit = VELOCITY_UNIT_DEG_S  # the reads a millisecond apart: within a few units
+        assert abs(speeds[0] * session.rig.joints[0].direction - plain * unit) <= 3 * unit
 
 
 def test_a_felt_leaders_cycle_read_carries_its_present_velocity(tmp_path):
@@ -461,6 +469,7 @@ def test_a_held_leader_let_go_is_freed_by_the_snap_watch(tmp_path):
 def test_an_xl430_leader_stays_passive_mirrors_and_says_so(tmp_path, rig):
     with felt_session(tmp_path, rig, model="xl430-w250") as (session, source, log), source:
         assert not source.felt and "stays passive" in source.notice
+        assert source._guard is None  # torque off from the start: nothing for a guard to do
         assert not any(session.rig.bus.torque_enabled()[i] for i in rig.ids)
         [command] = source.poll()
         pose = source.last_pose
@@ -607,3 +616,264 @@ def test_at_the_real_rate_the_wall_holds_or_its_feel_goes_off_for_good(tmp_path)
     else:
         held = [r for r in truth_rows(log) if start + 3.0 <= r["t"] < start + 4.0]
         assert 0.4 < statistics.median(beyond(r) for r in held[::5]) < 2.0
+
+
+# -- the brake rules over the pty ------------------------------------------------------------
+
+
+def test_a_hand_pulling_a_held_leader_back_inside_is_let_go_before_it_is_braked(tmp_path):
+    # pressed and held 20 deg beyond, then the hand heads back inside (pan 50 -> 0 in 0.2 s),
+    # faster than the wall's setpoint walks: the watch frees the wall as the leader gains on
+    # it (or the snap rule as the hand's push fades). Never any torque inside
+    with felt_session(tmp_path) as (session, source, log), source:
+        session.rig.set_torque(True)
+        with Running(session, source) as running:
+            pull = [[0.0, EDGE + 20.0, 0.0], [0.2, 0.0, 0.0]]  # from the switch on
+            now = running.held_then(PRESS, {"script": pull, **HAND})
+    if now is None:
+        return  # the feel went off for a lost pace (its outcome asserted)
+    after = [r for r in truth_rows(log) if r["t"] >= now]
+    assert after and min(r["pose_deg"][0] for r in after) < EDGE  # the hand took it inside
+    assert all(r["motor_nm"] == [0.0, 0.0] for r in after if r["pose_deg"][0] < EDGE)
+    assert source.snap.brakes + source.snap.cuts >= 1  # the watch let the wall go
+    # outside, pulling outward: about a cycle and its write (the cycle's own read of the
+    # motor's torque is the backstop when the watch's reads, 1-3 ms apart over the pty, miss
+    # it), and small beside the 0.28 N m the loop pulls a dragged leader with
+    outward = [r for r in after if r["pose_deg"][0] > EDGE and r["motor_nm"][0] > 0.0]
+    assert not outward or outward[-1]["t"] - outward[0]["t"] <= 0.012  # two cycles at most
+    assert max((r["motor_nm"][0] for r in outward), default=0.0) < 0.25 * source.law.cap_nm
+
+
+# -- a leader servo, the bus or the controller failing mid-push -------------------------------
+#: Each rig and the hand's press (along pan first, the edge at pan 30 deg for both regions).
+RIGS = {"two-servo": (SIM, PRESS), "three-servo": (SIM3, SWING_THEN_TWIST)}
+#: The simulator's leader log has one row a millisecond: a push's end is seen within it.
+LOG_GRAIN_S = 0.001
+PERIOD_S = 1.0 / 200.0
+
+
+#: A dead controller's last goal lies at most LEAD plus the walking lead ahead of the leader:
+#: three and two ticks on an XM430 (limbctl/teleop/haptic.py), 0.44 deg.
+LAST_GOAL_AHEAD_DEG = 5 * 360.0 / 4096
+
+
+def held_still(running, source, press) -> bool:
+    """Press past the edge and wait (20 s at most) for the wall to hold the leader still; False
+    when the loop lost its pace first (the feel then goes off for good, as it must)."""
+    if running.pressed_or_paced_out(press):
+        return False
+    held_at = time.monotonic()
+    running.until(lambda p: source.snap.armed is not None or time.monotonic() > held_at + 20.0)
+    if running.paced_out():
+        return False
+    assert source.snap.armed is not None, "the wall never held the leader still"
+    return True
+
+
+@pytest.mark.parametrize("rig", sorted(RIGS))
+def test_a_leader_servo_dropping_off_mid_push_switches_every_push_off_and_is_reported(
+    tmp_path, rig
+):
+    spec, press = RIGS[rig]
+    ids = spec.ids
+    gone, pusher = ids[-1], ids.index(ids[0])  # the last servo drops; the pan motor pushes
+    with felt_session(tmp_path, spec) as (session, source, log), source:
+        session.rig.set_torque(True)
+        with Running(session, source) as running:
+            if not held_still(running, source, press):
+                return  # the feel went off for a lost pace (its outcome asserted)
+            at = session.simulator.truth()["leader"]["t"]
+            session.simulator.vanish(gone, 0.3)
+            # the vanish lands between the two reads of the simulator's clock (each a call to
+            # its process: up to 12 ms apart on a loaded machine)
+            landed = session.simulator.truth()["leader"]["t"]
+            running.until(lambda p: session.simulator.truth()["leader"]["t"] > at + 0.5)
+            felt = source.felt
+        lines = source.report_lines()
+        # one failed read, timed on this bus with the loop stopped (the servo gone again)
+        session.simulator.vanish(gone, 0.1)
+        failed = session.rig.bus.read_cycle(ids=ids, attempts=1)
+        assert not failed.ok
+    rows = [row for row in truth_rows(log) if row["t"] >= at]
+    assert rows[0]["motor_nm"][pusher] != 0.0  # it pushed when the servo dropped off
+    off = next(row["t"] for row in rows if row["motor_nm"][pusher] == 0.0)
+    # one period (the cycle's work between its read and the watch's next) plus one failed read
+    seen = getattr(getattr(source, "silence", None), "longest_failed_read_s", 0.0)
+    bound = PERIOD_S + max(failed.duration_s, seen) + LOG_GRAIN_S
+    assert off - landed <= bound, (off - landed, off - at, bound)
+    # nothing pushed the hand while the servo was gone (the silent one's own push ends at its
+    # Bus Watchdog, 100 ms: it hears nothing)
+    during = [row for row in rows if off <= row["t"] <= at + 0.3]
+    assert during and all(row["motor_nm"][pusher] == 0.0 for row in during)
+    line = next(line for line in lines if line.startswith("leader dropouts"))
+    assert f"servo {gone} " in line, lines
+    length = float(line.split(f"servo {gone} ")[1].split(" s")[0])
+    assert 0.25 <= length <= 0.45, line  # 0.3 s, known within a probe interval and a read
+    assert felt or running.paced_out()
+
+
+@pytest.mark.parametrize("rig", sorted(RIGS))
+def test_a_leader_cut_off_from_its_controller_holds_within_the_cap_and_pushes_no_further(
+    tmp_path, rig
+):
+    # the bus is cut mid-push (a pulled cable: nothing the controller, or its guard, sends
+    # reaches the leader any more). Each servo's Bus Watchdog (100 ms) stops it: it holds where
+    # it is (the e-Manual's "stop"; Goal Current and Goal Position read-only), with at most the
+    # last push's share of the cap. The hand presses 0.3 s more, then lets go: the leader is
+    # pushed no further in than its last goal and, once still, by nothing
+    spec, press = RIGS[rig]
+    ids = spec.ids
+    with felt_session(tmp_path, spec) as (session, source, log), source:
+        session.rig.set_torque(True)
+        with Running(session, source) as running:
+            if not held_still(running, source, press):
+                return
+            at = session.simulator.truth()["leader"]["t"]
+            for servo_id in ids:
+                session.simulator.vanish(servo_id, 2.0)
+            target = [list(press["script"][-1][1:])]
+            session.simulator.set_operator(
+                {**press, "script": [[0.0, *target[0]]], "let_go_s": 0.3}
+            )
+            running.until(lambda p: session.simulator.truth()["leader"]["t"] > at + 1.0)
+            cap = source.cap_nm
+    rows = [row for row in truth_rows(log) if at <= row["t"] <= at + 1.0]
+    assert max(sum(m * m for m in row["motor_nm"]) ** 0.5 for row in rows) <= cap + 1e-12
+    start = rows[0]["pose_deg"]
+    moved_in = max(start[0] - row["pose_deg"][0] for row in rows)  # pan toward the edge
+    assert moved_in <= LAST_GOAL_AHEAD_DEG + 0.1, moved_in
+    still = [row for row in rows if row["t"] >= at + 0.8]
+    assert still and all(sum(abs(m) for m in row["motor_nm"]) < 0.02 for row in still), still[-1]
+
+
+@pytest.mark.parametrize("rig", sorted(RIGS))
+def test_a_dead_controllers_leader_goes_limp_within_its_guards_bound(tmp_path, rig, capfd):
+    # the controller dies mid-push: the loop is frozen between two transfers (it holds nothing
+    # more to send), and what the kernel does to a dead process is done here: its end of the
+    # guard's pipe closes without "done" and its port closes (the port's lock with it). The
+    # guard then switches every leader servo's torque off, and no follower servo's. The kill -9
+    # of a real `limbctl teleop` is tests/servo/test_leader_guard.py's
+    spec, press = RIGS[rig]
+    ids = spec.ids
+    with felt_session(tmp_path, spec) as (session, source, log), source:
+        session.rig.set_torque(True)
+        bus, follower = session.rig.bus, session.profile.ids
+        with Running(session, source) as running:
+            if not held_still(running, source, press):
+                return
+            with bus.exclusive():  # the loop stops at its next transfer
+                assert source.last_push is not None and source.last_push.goal_current > 0
+                died_at, guard = time.monotonic(), source._guard
+                end_pipe(guard)
+                bus.close()
+                guard.process.wait(START_S + GIVE_UP_S)
+                limp_s = time.monotonic() - died_at  # the guard's exit: it did what it could
+                torque = torque_when_free(
+                    bus.port_name, (*follower, *ids), time.monotonic() + START_S, bus.baud
+                )
+                bus.open()  # the loop goes on, to its end, on a leader whose torque is off
+    assert guard.process.returncode == 0
+    assert not any(torque[i] for i in ids), torque
+    assert all(torque[i] for i in follower), torque  # the follower left as it was
+    assert limp_s <= GIVE_UP_S, limp_s
+    said = f"the controller died; Torque Enable 0 on leader servos {', '.join(map(str, ids))} "
+    err = capfd.readouterr().err
+    assert said in err
+    line = next(line for line in err.splitlines() if said in line)
+    print(f"{rig}: the controller's end to the guard's exit: {limp_s * 1e3:.1f} ms; {line}")
+
+
+# -- a passive leader mirrored through the gate ---------------------------------------------
+
+
+def test_follower_mirrors_a_pushed_leader_within_the_region(cone_file):
+    gate = gate_for(cone_file(30.0), default_sim_profile(), 200.0, 120.0)
+    with open_rig(extra_ids=(3, 4)) as session:
+        rig = session.rig
+        limits = rig.tick_limits()
+        limits.update({3: (0, 4095), 4: (0, 4095)})
+        configure_servos(rig.bus, limits)
+        pan_joint = rig.profile.pan
+        target = pan_joint.zero_tick + pan_joint.direction * round(60 * 4096 / 360)
+        tilt_target = rig.profile.tilt.zero_tick
+        rig.bus.set_torque(True, (3, 4))
+        rig.bus.sync_write(Register.GOAL_POSITION, {3: target, 4: tilt_target})
+        deadline = time.monotonic() + 20
+        while abs(rig.bus.sync_read(Register.PRESENT_POSITION, (3,))[3] - target) > 2:
+            assert time.monotonic() < deadline, "the leader shaft did not reach its goal"
+        source = LeaderSource(rig, (3, 4))
+        stop = threading.Event()
+        out = {}
+        seen = {"written": 0, "angle": 0.0}
+        changed = threading.Condition()
+
+        def observe(cycle) -> None:  # wait on what the assertions need, however slow the loop
+            with changed:
+                seen["written"] += cycle.written
+                if cycle.present is not None:
+                    pan, tilt = cycle.present
+                    seen["angle"] = math.degrees(math.acos(math.cos(pan) * math.cos(tilt)))
+                changed.notify_all()
+
+        def at_the_edge() -> bool:
+            return seen["written"] > 100 and seen["angle"] > 29.0
+
+        with source:
+            assert rig.bus.torque_enabled()[3] is False
+            rig.set_torque(True)
+            thread = threading.Thread(
+                target=lambda: out.update(
+                    s=run(rig, gate, source, LoopConfig(on_cycle=observe), stop=stop)
+                )
+            )
+            thread.start()
+            with changed:  # 100 goals written and the follower at the cone's edge
+                changed.wait_for(lambda: at_the_edge() or not thread.is_alive(), timeout=60.0)
+            stop.set()
+            thread.join(timeout=10)
+        pan, tilt = rig.read_pose()
+    summary = out["s"]
+    assert summary.exit_code == 0 and summary.commands > 100
+    assert summary.goals_written > 100
+    # the follower turned toward the leader (pan 60) and stopped at the cone's edge
+    angle = math.degrees(math.acos(math.cos(pan) * math.cos(tilt)))
+    assert pan > 0 and 29.0 < angle <= 30.2
+
+
+def test_leader_ids_must_be_on_the_bus_and_distinct():
+    with open_rig() as session:
+        with pytest.raises(ConfigError, match="not on the bus"):
+            LeaderSource(session.rig, (3, 4))
+        with pytest.raises(ConfigError):
+            LeaderSource(session.rig, (1, 2))
+
+
+def test_a_three_servo_leader_gives_full_orientations_and_needs_a_three_servo_follower():
+    with open_rig(extra_ids=(3, 4)) as session:
+        refused = "needs a 3-servo follower: rig 'sim' has 2 servos; give leader:ID,ID"
+        with pytest.raises(ConfigError, match=refused):
+            LeaderSource(session.rig, (3, 4, 5))
+    with open_rig(rig_path="sim3", extra_ids=(4, 5, 6)) as session:
+        rig = session.rig
+        configure_servos(rig.bus, {**rig.tick_limits(), 4: (0, 4095), 5: (0, 4095), 6: (0, 4095)})
+        # play the person: put the leader's shafts at pan 20, tilt 10, roll -30 deg
+        goals = {
+            i: joint.zero_tick + joint.direction * round(deg * 4096 / 360)
+            for i, joint, deg in zip((4, 5, 6), rig.joints, (20, 10, -30), strict=True)
+        }
+        rig.bus.set_torque(True, (4, 5, 6))
+        rig.bus.sync_write(Register.GOAL_POSITION, goals)
+        deadline = time.monotonic() + 20
+        while any(
+            abs(rig.bus.sync_read(Register.PRESENT_POSITION, (i,))[i] - goals[i]) > 2 for i in goals
+        ):
+            assert time.monotonic() < deadline, "the leader shafts did not reach their goals"
+        with LeaderSource(rig, (4, 5, 6)) as source:
+            ticks = rig.bus.sync_read(Register.PRESENT_POSITION, (4, 5, 6))
+            [command] = source.poll()
+    expected = pose_quat_scalar(*rig.ticks_to_angles(*(ticks[i] for i in (4, 5, 6))))
+    np.testing.assert_allclose(command.q, expected, atol=1e-12)
+    # the shafts were waited for within 2 ticks of goals rounded from the angles: 2.33 ticks
+    assert math.degrees(rig.ticks_to_angles(*(ticks[i] for i in (4, 5, 6)))[2]) == pytest.approx(
+        -30.0, abs=2.34 * 360 / 4096
+    )

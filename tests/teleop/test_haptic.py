@@ -1,6 +1,7 @@
-"""The haptic law on each chain: zero inside, toward the correction, never above the cap; and the
-law against the simulator's leader on a stepped clock at exactly 200 Hz (the controller's part in
-this process, tests/teleop/stepped_leader.py).
+"""The haptic law on each chain: zero inside, toward the correction, never above the cap; by leader
+model, its lead following the servo loop's stiffness (decisions/haptic.md, round 6); and the law
+against the simulator's leader on a stepped clock at exactly 200 Hz (the controller's part in
+this process, tests/teleop/stepped_leader.py), along a joint and on a diagonal.
 
 The two-servo leader (rig ``sim``) is gated by a 30 deg cone: along pan the edge lies at pan
 30 deg. The three-servo one (``sim3``) by a twist region fitted from a synthetic teaching
@@ -11,6 +12,7 @@ from __future__ import annotations
 
 import functools
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -22,7 +24,7 @@ from limbctl.errors import ConfigError
 from limbctl.geometry.chains import geodesic
 from limbctl.geometry.gimbal import pose_quat_scalar
 from limbctl.servo.control_table import ModelNumber
-from limbctl.servo.leader import FELT_MODELS
+from limbctl.servo.leader import CAP_STALL_FRACTION, FELT_MODELS
 from limbctl.teleop.haptic import TICK_DEG, FeelLaw, FeelStats
 from limbctl.teleop.haptic_push import Push, beyond_deg, corrected_pose, held, push_for
 from limbctl.teleop.sources.leader import PaceWatch
@@ -31,7 +33,12 @@ from tests.teleop.twist_square import square_region
 
 LAW = FeelLaw()
 MOTOR = FELT_MODELS[ModelNumber.XM430_W350]
+#: The most the wall may push the hand with, in any direction (N m): the cap the current allows.
 CAP = MOTOR.torque_of(MOTOR.units_for(LAW.cap_nm))
+#: Round 5's lead: two ticks (three deeper) on every model, the peer of the law by model.
+TWO_TICKS = FeelLaw(lead_deg=2 * TICK_DEG, walk_lead_ticks=0)  # round 5: no walking lead
+#: The two-servo leader's edge along pan (deg): the 30 deg cone's.
+EDGE = 30.0
 RIG = rig_of(3)
 #: Each rig's joints' hard limits (rad), as the law is given them.
 LIMITS = {
@@ -260,51 +267,101 @@ def test_stats_say_how_long_and_how_hard():
     assert "0.01 s" in stats.describe() and "0.30 N m on average" in stats.describe()
 
 
+@pytest.mark.parametrize(
+    ("model", "cap_nm", "normal", "deeper"),
+    [
+        (ModelNumber.XM430_W350, 0.4, 2, 3),
+        (ModelNumber.XL330_M288, 0.12, 5, 6),
+        (ModelNumber.XL330_M077, 0.1075, 10, 12),
+    ],
+)
+def test_the_lead_follows_the_loops_error_at_the_cap(model, cap_nm, normal, deeper):
+    motor = FELT_MODELS[model]
+    assert motor.cap_nm(LAW.cap_nm) == pytest.approx(cap_nm)
+    # 0.5 deg beyond: K (d - DEADBAND) = 0.02 N m, within every cap
+    assert LAW.lead_for_deg(0.5, motor) == pytest.approx(normal * TICK_DEG)
+    assert LAW.lead_for_deg(LAW.held_within_deg + 0.1, motor) == pytest.approx(deeper * TICK_DEG)
+    # a fixed lead overrides the loop's (benchmarks sweep it), half as much again deeper
+    assert FeelLaw(lead_deg=0.3).lead_for_deg(10.0, motor) == pytest.approx(0.45)
+
+
+@pytest.mark.parametrize("model", list(FELT_MODELS))
+def test_the_deeper_lead_gives_the_cap_wherever_the_leader_sits_within_its_tick(model):
+    motor = FELT_MODELS[model]
+    cap = motor.cap_nm(LAW.cap_nm)
+    assert cap <= CAP_STALL_FRACTION * motor.stall_torque_nm
+    least = LAW.lead_for_deg(10.0, motor) - TICK_DEG / 2  # the read rounds the pose to a tick
+    assert least * motor.loop_nm_per_deg >= cap
+    # and no more than a tick over that: the loop stores no more than it needs to
+    assert (least - TICK_DEG) * motor.loop_nm_per_deg < cap
+
+
 # -- the law against the simulated leader, at exactly 200 Hz --------------------------------------
 
 
-def test_at_200_hz_the_leader_stops_within_2_deg_and_a_release_walks_back_to_the_edge():
-    script = [[0.0, 0.0, 0.0], [2.0, 50.0, 0.0]]  # 20 deg beyond the 30 deg edge
-    rows = felt_at_200_hz(script, 7.0, let_go_s=5.0)
+@functools.cache
+def let_go(
+    stiffness: float,
+    beyond_deg: float,
+    let_go_s: float = 5.0,
+    watch: bool = True,
+    model: str = "xm430-w350",
+    law: FeelLaw = LAW,
+    motor=None,
+) -> dict:
+    """A relaxed hand's bound (0.3 N m) of ``stiffness`` (N m/deg) pressing the two-servo leader
+    ``beyond_deg`` past the edge at pan 30 deg, let go at ``let_go_s`` (7 s on the stepped clock;
+    ``watch``: the snap watch on; ``model``: the leader's simulator model; ``law``; ``motor``:
+    the controller's idea of the model's motor, None: the table's). Returns, after the let go,
+    the times (s from it) of the 1 ms samples outside whose motor pulls outward, the 1 ms and
+    20 ms peak return speeds (deg/s), the pans (deg), how far beyond it rests and the deepest
+    inside it went (deg); pressed from 3 s to the let go, the pans (deg), the torque held (N m),
+    the pressed rows' pan torques (N m); the rows inside and those of them with any torque; the
+    largest torque on any joint (N m)."""
+    script = [[0.0, 0.0, 0.0], [2.0, EDGE + beyond_deg, 0.0]]
+    options = {"model": model, "law": law, "motor": motor, "snap_watch": watch}
+    rows = felt_at_200_hz(script, 7.0, stiffness, let_go_s=let_go_s, **options)
     t = np.array([r["t"] for r in rows])
     pan = np.array([r["pose_deg"][0] for r in rows])
-    velocity = np.array([r["velocity_deg_s"][0] for r in rows])
-    held = pan[(t >= 3.0) & (t < 5.0)]
-    assert 30.0 < held.min() and held.max() < 32.0  # a 0.3 N m hand, stiffness 0.05 N m/deg
-    assert np.ptp(held) < 0.2  # no ripple
-    after = t >= 5.0
-    # walked back by the profile: the speed averaged over 20 ms stays under 30 deg/s
-    assert np.convolve(-velocity[after], np.ones(20) / 20.0, mode="valid").max() <= 30.0
-    assert 30.0 <= pan[after].min() and pan[-1] < 30.5  # rests within 0.5 deg, never inside
-    inside = [r for r in rows if r["pose_deg"][0] < 30.0]
-    assert inside and all(r["motor_nm"] == [0.0, 0.0] for r in inside)
-    # never above the cap; pressed beyond the edge, the motor pulls pan back, never outward
-    assert max(abs(m) for r in rows for m in r["motor_nm"]) <= MOTOR.torque_of(
-        MOTOR.units_for(LAW.cap_nm)
-    )
-    pressed = [r for r in rows if r["pose_deg"][0] > 30.5 and r["hand_nm"][0] > 0.0]
-    assert pressed and all(r["motor_nm"][0] <= 0.0 for r in pressed)
-    assert min(r["motor_nm"][0] for r in pressed) < -0.25  # it did push: 0.3 N m hand held
-
-
-@functools.cache
-def let_go(stiffness: float, beyond_deg: float, let_go_s: float = 5.0, watch: bool = True) -> dict:
-    """A hand of ``stiffness`` pressing ``beyond_deg`` past the edge, let go at ``let_go_s``
-    (stepped clock; ``watch``: the snap watch on): after the let go, the 1 ms samples outside
-    whose motor torque points outward (their times from the let go, s, and torques), the 1 ms
-    and 20 ms peak return speeds, the rest."""
-    script = [[0.0, 0.0, 0.0], [2.0, 30.0 + beyond_deg, 0.0]]
-    rows = felt_at_200_hz(script, 7.0, stiffness, let_go_s=let_go_s, snap_watch=watch)
-    after = [r for r in rows if r["t"] >= let_go_s]
-    speed = -np.array([r["velocity_deg_s"][0] for r in after])
-    outward = [r for r in after if r["pose_deg"][0] > 30.0 and r["motor_nm"][0] > 0.0]
+    torque = np.array([r["motor_nm"] for r in rows])
+    after = t >= let_go_s
+    speed = -np.array([r["velocity_deg_s"][0] for r in rows])[after]
+    inside = pan < EDGE
+    pressed = (pan > EDGE + 0.5) & (np.array([r["hand_nm"][0] for r in rows]) > 0.0)
     return {
-        "outward_s": [r["t"] - let_go_s for r in outward],
-        "outward_nm": [r["motor_nm"][0] for r in outward],
+        "outward_s": [
+            r["t"] - let_go_s
+            for r in rows
+            if r["t"] >= let_go_s and r["pose_deg"][0] > EDGE and r["motor_nm"][0] > 0.0
+        ],
         "peak": float(speed.max()),
         "mean_20ms": float(np.convolve(speed, np.ones(20) / 20.0, mode="valid").max()),
-        "pan": np.array([r["pose_deg"][0] for r in after]),
+        "pan": pan[after],
+        "rest": float(pan[-1] - EDGE),
+        "deepest": float(EDGE - pan[after].min()),
+        "held": pan[(t >= 3.0) & (t < let_go_s)],
+        "held_nm": float(-torque[(t >= let_go_s - 1.0) & (t < let_go_s), 0].mean()),
+        "pressed_nm": torque[pressed, 0],
+        "inside": int(np.count_nonzero(inside)),
+        "torque_inside": int(np.count_nonzero(np.any(torque[inside] != 0.0, axis=1))),
+        "max_nm": float(np.abs(torque).max()),
     }
+
+
+def test_at_200_hz_the_leader_stops_within_2_deg_and_a_release_walks_back_to_the_edge():
+    out = let_go(0.05, 20.0)  # 20 deg beyond the 30 deg edge, let go at 5 s
+    held = out["held"]
+    assert 30.0 < held.min() and held.max() < 32.0  # a 0.3 N m hand, stiffness 0.05 N m/deg
+    assert np.ptp(held) < 0.2  # no ripple
+    # walked back by the profile: the speed averaged over 20 ms stays under 30 deg/s
+    assert out["mean_20ms"] <= 30.0
+    assert 30.0 <= out["pan"].min() and out["pan"][-1] < 30.5  # rests within 0.5 deg, never inside
+    assert out["inside"] and out["torque_inside"] == 0
+    # never above the cap; pressed beyond the edge, the motor pulls pan back, never outward
+    assert out["max_nm"] <= CAP
+    pressed = out["pressed_nm"]
+    assert len(pressed) and pressed.max() <= 0.0
+    assert pressed.min() < -0.25  # it did push: 0.3 N m hand held
 
 
 #: Hands and depths, each let go at 5 s (a cycle's read) and 1-4 ms after it.
@@ -317,7 +374,7 @@ LET_GO_CASES = [
 
 
 @pytest.mark.parametrize(("stiffness", "beyond_deg", "let_go_s"), LET_GO_CASES)
-def test_at_200_hz_a_let_go_leader_walks_back_under_30_deg_s_and_rests_at_the_edge(
+def test_at_200_hz_a_let_go_leader_walks_back_under_30_deg_s_never_pulled_outward(
     stiffness, beyond_deg, let_go_s
 ):
     out = let_go(stiffness, beyond_deg, let_go_s)
@@ -326,15 +383,11 @@ def test_at_200_hz_a_let_go_leader_walks_back_under_30_deg_s_and_rests_at_the_ed
     # the snap onto the setpoint passes 30 deg/s (the law alone: up to 31.1, below)
     assert out["peak"] <= 30.0
     assert 30.0 <= out["pan"].min() and out["pan"][-1] < 30.5  # within 0.5 deg, never inside
-
-
-@pytest.mark.parametrize(("stiffness", "beyond_deg", "let_go_s"), LET_GO_CASES)
-def test_at_200_hz_after_let_go_no_sample_outside_pulls_outward(stiffness, beyond_deg, let_go_s):
     # the held setpoint lies LEAD ahead; let go, the leader snaps onto it and the simulated
     # loop's damping would brake it there (outward) 2-10 ms after the let go. The snap watch
     # reads the leader's speed every millisecond between the cycles and lets the held wall go
     # as the snap starts; the wall comes back only on a still leader (limbctl/teleop/snap.py)
-    assert let_go(stiffness, beyond_deg, let_go_s)["outward_s"] == []
+    assert out["outward_s"] == []
 
 
 def test_at_200_hz_the_law_alone_brakes_a_let_go_leader_outward_and_snaps_over_30_deg_s():
@@ -342,6 +395,49 @@ def test_at_200_hz_the_law_alone_brakes_a_let_go_leader_outward_and_snaps_over_3
     alone = [let_go(k, beyond, t, watch=False) for k, beyond, t in LET_GO_CASES]
     assert sum(len(out["outward_s"]) for out in alone) >= 20
     assert max(out["peak"] for out in alone) > 30.0
+
+
+XL330 = ["xl330-m288@53", "xl330-m077@53"]
+HANDS = [(0.02, 5.0), (0.05, 20.0), (0.2, 5.0)]
+
+
+@pytest.mark.parametrize("model", XL330)
+def test_an_xl330_wall_pushes_with_its_cap_where_two_ticks_gave_a_fraction(model):
+    motor = FELT_MODELS[ModelNumber.XL330_M288 if "m288" in model else ModelNumber.XL330_M077]
+    cap_nm = motor.torque_of(motor.units_for(motor.cap_nm(LAW.cap_nm)))
+    # a 0.3 N m hand overpowers an XL330's cap: the wall holds it with all of the cap
+    held = let_go(0.05, 20.0, model=model)["held_nm"]
+    assert held == pytest.approx(cap_nm, rel=0.02)
+    # two ticks (three deeper) gave its soft loop 0.03 (M077) and 0.08 (M288) N m
+    assert let_go(0.05, 20.0, model=model, law=TWO_TICKS)["held_nm"] < held / 1.4
+
+
+@pytest.mark.parametrize("model", XL330)
+@pytest.mark.parametrize(("stiffness", "beyond_deg"), HANDS)
+def test_a_let_go_xl330_leader_returns_under_30_deg_s_to_within_0_5_deg_never_inside(
+    model, stiffness, beyond_deg
+):
+    out = let_go(stiffness, beyond_deg, model=model)
+    assert out["peak"] <= 30.0  # every 1 ms sample
+    assert out["deepest"] <= 0.0 and out["rest"] < 0.5
+    assert out["torque_inside"] == 0
+
+
+def test_two_ticks_left_a_let_go_xl330_m077_leader_resting_far_beyond_the_edge():
+    # the peer: its loop gave two ticks 0.02 N m, about its friction, so the walk back stalled
+    assert let_go(0.05, 20.0, model="xl330-m077@53", law=TWO_TICKS)["rest"] > 5.0
+    assert let_go(0.05, 20.0, model="xl330-m077@53")["rest"] < 0.5
+
+
+def test_an_xl330_m288_held_at_half_its_stall_torque_snaps_back_over_30_deg_s():
+    # why its cap is 0.12 N m: at half its stall torque (0.26 N m) its soft loop stores enough
+    # for a faster snap than the return may have
+    table = FELT_MODELS[ModelNumber.XL330_M288]
+    half = replace(table, let_go_cap_nm=None)
+    assert half.cap_nm(LAW.cap_nm) == pytest.approx(0.5 * table.stall_torque_nm)
+    # (the law alone: the snap watch shortens any snap, but runs only in the loop's idle time)
+    assert let_go(0.05, 20.0, watch=False, model="xl330-m288@53", motor=half)["peak"] > 40.0
+    assert let_go(0.05, 20.0, watch=False, model="xl330-m288@53")["peak"] <= 30.0
 
 
 @pytest.mark.parametrize("release_s", [0.05, 0.1])
@@ -671,3 +767,44 @@ def test_a_leader_released_by_goal_current_alone_still_walks_back_in_twist(regio
     smoothed = [np.convolve(speeds[:, j], np.ones(20) / 20, mode="valid").max() for j in range(3)]
     assert max(smoothed) <= 30.0
     assert all(beyond_of(region, r) > 0.0 for r in after[::5])
+
+
+# -- on a diagonal, both chains ----------------------------------------------------------------
+LET_GO_S = 4.5
+#: Pressing on a diagonal, both joints beyond the edge: toward pan = tilt = 30 deg on the 30 deg
+#: cone (11 deg beyond it), toward the corner pan 38, tilt 33 of the square region (its edges at
+#: pan 30 and tilt 25).
+DIAGONALS = {
+    "sim": [[0.0, 0.0, 0.0], [2.0, 30.0, 30.0]],
+    "sim3": [[0.0, 0.0, 0.0, 0.0], [2.0, 38.0, 33.0, 0.0]],
+}
+
+
+@functools.cache
+def pressed(rig: str, stiffness: float, max_torque_nm: float) -> tuple:
+    """The 1 ms truth rows of a diagonal press by a hand of ``stiffness`` (N m/deg) pushing with
+    at most ``max_torque_nm`` (N m), let go at once at LET_GO_S."""
+    rows = felt_at_200_hz(
+        DIAGONALS[rig], 6.0, stiffness, LET_GO_S, max_torque_nm=max_torque_nm, region=region_of(rig)
+    )
+    return tuple(rows)
+
+
+@pytest.mark.parametrize("rig", sorted(DIAGONALS))
+@pytest.mark.parametrize("max_torque_nm", [0.3, 0.6])
+def test_on_a_diagonal_the_hand_feels_at_most_the_cap(rig, max_torque_nm):
+    # a relaxed hand (0.3 N m) and one that overpowers the wall (0.6 N m): each motor sat at its
+    # own cap and the hand felt sqrt(2) of it (0.56 N m of a 0.40 cap)
+    rows = pressed(rig, 0.2, max_torque_nm)
+    felt = [float(np.linalg.norm(r["motor_nm"])) for r in rows if r["t"] < LET_GO_S]
+    assert max(felt) <= CAP + 1e-12, max(felt)
+    assert max(felt) > 0.25  # it pushed
+
+
+@pytest.mark.parametrize("rig", sorted(DIAGONALS))
+@pytest.mark.parametrize("stiffness", [0.05, 0.2])
+def test_on_a_diagonal_a_let_go_returns_under_30_deg_s_on_every_sample(rig, stiffness):
+    rows = pressed(rig, stiffness, 0.3)
+    speeds = [float(np.linalg.norm(r["velocity_deg_s"])) for r in rows if r["t"] >= LET_GO_S]
+    assert max(speeds) <= 30.0, max(speeds)
+    assert max(speeds) > 1.0  # it returned

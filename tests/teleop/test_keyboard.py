@@ -1,4 +1,6 @@
-"""The keyboard session as a person has it: `limbctl teleop --source keyboard` in a tmux pane.
+"""The keyboard source: keys typed into a pseudo-terminal; the session as a person has it,
+`limbctl teleop --source keyboard` in a tmux pane; and keys against an edge, the real loop, gate
+and source on a pty on both rigs.
 
 The pane is a real pseudo-terminal (160 x 40); keys go in as tmux sends them and everything
 asserted is read from the pane's text, as the person would read it. A held key is sent the way
@@ -7,16 +9,32 @@ a terminal repeats one: a press, a repeat delay, then a steady repeat rate.
 
 from __future__ import annotations
 
+import contextlib
+import io
+import math
+import os
+import pty
 import re
 import sys
+import threading
 import time
+from collections.abc import Callable, Iterator
 
+import numpy as np
 import pytest
 
 from limbctl.demo import goal_log_excursions
-from limbctl.envelope import load_model
-from limbctl.teleop.gate import written_tolerance_deg
+from limbctl.envelope import Cone, load_model
+from limbctl.errors import ConfigError
+from limbctl.geometry.gimbal import pan_tilt_roll_to_quat, pan_tilt_to_direction, pan_tilt_to_quat
+from limbctl.jobs import gate_for
+from limbctl.session import open_rig
+from limbctl.teleop.cycle import Cycle
+from limbctl.teleop.gate import Gate, GateLimits, Outcome, written_tolerance_deg
 from limbctl.teleop.keys import KEY_RATE_HZ
+from limbctl.teleop.loop import LoopConfig, run
+from limbctl.teleop.sources import KeyboardSource
+from limbctl.teleop.sources.keyboard import MAX_LEAD_DEG, region_centre
 from tests.teleop.tmux import ROOT, tmux_pane
 
 #: A terminal's key repeat: the delay before the first repeat and the rate after it (the X
@@ -71,24 +89,10 @@ def settled(pane) -> dict[str, tuple[float, float]]:
     return poses(seen[-1])
 
 
-@pytest.fixture(scope="module")
-def model_path(tmp_path_factory):
-    from calib.profile import default_sim_profile
-    from limbctl.envelope import RigidMap
-    from limbctl.teach.dataset import load_dataset
-
-    path = tmp_path_factory.mktemp("model") / "model.npz"
-    sim = default_sim_profile()
-    metadata = {"rig": sim.name, "calibration": sim.calibration.to_dict()}
-    data = load_dataset(ROOT / "tests" / "data" / "hand_irregular_seed0_20s.limb")
-    RigidMap().fit(data.quaternions).save(path, metadata=metadata)
-    return path
-
-
-def test_keyboard_session_explains_itself_in_a_terminal(tmp_path, model_path):
+def test_keyboard_session_explains_itself_in_a_terminal(tmp_path, hand_model_path):
     goal_log = tmp_path / "goals.jsonl"
     command = (
-        f"{sys.executable} -m limbctl teleop --model {model_path} --source keyboard --no-view "
+        f"{sys.executable} -m limbctl teleop --model {hand_model_path} --source keyboard --no-view "
         f"--goal-log {goal_log}"
     )
     with tmux_pane(command, env={"PYTHONPATH": str(ROOT)}) as pane:
@@ -147,62 +151,93 @@ def test_keyboard_session_explains_itself_in_a_terminal(tmp_path, model_path):
         text = pane.text(history=True)
         assert "EXIT 0" in text and "ended by           end of input" in text
 
-    excursions = goal_log_excursions(goal_log, load_model(model_path))
+    excursions = goal_log_excursions(goal_log, load_model(hand_model_path))
     print(f"{len(excursions)} goal packets, at most {excursions.max():.4f} deg outside")
     assert len(excursions) > 100 and excursions.max() <= written_tolerance_deg()
 
 
-def test_keys_start_from_the_gates_pose_hold_release_and_show_the_guide():
-    import io
-    import math
-    import os
-    import pty
-
-    from limbctl.envelope import Cone
-    from limbctl.teleop.gate import Gate, GateLimits
-    from limbctl.teleop.sources import KeyboardSource
-    from limbctl.teleop.sources.keyboard import MAX_LEAD_DEG
-
-    gate = Gate(Cone(math.radians(40)), GateLimits((-1.7, -0.5), (1.7, 1.4), 0.01, 0.02))
-    gate.start(math.radians(10.0), math.radians(5.0))
-    guide = io.StringIO()
+@contextlib.contextmanager
+def keyboard_on_pty(**options) -> Iterator[tuple[KeyboardSource, Callable[[bytes], int]]]:
+    """A :class:`KeyboardSource` (``options``) reading a new pseudo-terminal: yields the source and
+    the function that types bytes into the terminal."""
     master, slave = pty.openpty()
     try:
-        with KeyboardSource(tty_path=os.ttyname(slave), gate=gate, guide=guide) as source:
-            # up from where the gate holds the limb (not from 0, 0); space holds: up is ignored;
-            # space releases from the limb's pose; a larger step; up; the guide again; quit
-            os.write(master, b"w w +\x1b[A?q")
-            assert source.wait_finished(10.0)
-        assert source.stats.accepted == 4  # up, the hold's own pose, the release's, up
-        assert (source.pan_deg, source.tilt_deg) == pytest.approx((10.0, 10.0))
-        assert not source.holding and source.step_deg == 5.0
-        assert guide.getvalue().count("q          quit") == 2
-        # a burst of held-down ups runs no further ahead of the limb than MAX_LEAD_DEG
-        master2, slave2 = pty.openpty()
-        try:
-            with KeyboardSource(step_deg=10.0, tty_path=os.ttyname(slave2), gate=gate) as ahead:
-                os.write(master2, b"wawawawawawaq")  # alternating: each one a press
-                assert ahead.wait_finished(10.0)
-            assert ahead.tilt_deg == pytest.approx(5.0 + MAX_LEAD_DEG)
-            assert ahead.pan_deg == pytest.approx(10.0 + MAX_LEAD_DEG)
-        finally:
-            os.close(master2)
-            os.close(slave2)
+        with KeyboardSource(tty_path=os.ttyname(slave), **options) as source:
+            yield source, lambda keys: os.write(master, keys)
     finally:
         os.close(master)
         os.close(slave)
 
 
-def test_the_centre_is_the_point_deepest_inside_the_region(model_path):
-    import math
+def typed(source: KeyboardSource, type_, keys: bytes, count: int) -> list:
+    """Type ``keys``, poll until ``count`` commands came, then quit: the commands."""
+    type_(keys)
+    got = []
+    while len(got) < count:
+        batch = source.poll(timeout=5.0)
+        assert batch, "no key arrived"
+        got += batch
+    type_(b"q")
+    assert source.wait_finished(5.0)
+    return got
 
-    import numpy as np
 
-    from limbctl.envelope import Cone
-    from limbctl.geometry.gimbal import pan_tilt_to_direction, pan_tilt_to_quat
-    from limbctl.teleop.sources.keyboard import region_centre
+def test_keyboard_source_on_a_pseudo_terminal():
+    with keyboard_on_pty(step_deg=5.0) as (src, type_):
+        # up, left, a stray key, up (w), left (a) in one burst: each a press of its own key
+        typed(src, type_, b"\x1b[A\x1b[Dx" + b"wa", 4)
+    assert src.stats.accepted == 4
+    assert (src.pan_deg, src.tilt_deg) == (10.0, 10.0)
 
-    model = load_model(model_path)
+
+def test_keyboard_source_needs_a_terminal(tmp_path):
+    with pytest.raises(ConfigError, match="needs a terminal"):
+        KeyboardSource(tty_path=str(tmp_path / "no-such-tty"))
+    plain = tmp_path / "plain-file"
+    plain.write_text("")
+    with pytest.raises(ConfigError, match="not a terminal"):
+        KeyboardSource(tty_path=str(plain))
+
+
+@pytest.mark.parametrize("twist", [True, False])
+def test_keyboard_roll_keys_turn_the_limb_on_three_servos_and_are_refused_on_two(twist):
+    with keyboard_on_pty(step_deg=5.0) as (src, type_):
+        src.twist = twist
+        # roll +2 steps, one up, roll -1 step
+        got = typed(src, type_, b"]]\x1b[A[", 4 if twist else 1)
+    if twist:
+        assert (src.pan_deg, src.tilt_deg, src.roll_deg) == (0.0, 5.0, 5.0)
+        np.testing.assert_allclose(
+            got[-1].q, pan_tilt_roll_to_quat(0.0, math.radians(5), math.radians(5))
+        )
+    else:
+        assert src.stats.rejected == 3
+        assert "roll keys need a three-servo rig" in src.stats.refusals.lines()[0]
+
+
+def test_keys_start_from_the_gates_pose_hold_release_and_show_the_guide():
+    gate = Gate(Cone(math.radians(40)), GateLimits((-1.7, -0.5), (1.7, 1.4), 0.01, 0.02))
+    gate.start(math.radians(10.0), math.radians(5.0))
+    guide = io.StringIO()
+    with keyboard_on_pty(gate=gate, guide=guide) as (source, type_):
+        # up from where the gate holds the limb (not from 0, 0); space holds: up is ignored;
+        # space releases from the limb's pose; a larger step; up; the guide again; quit
+        type_(b"w w +\x1b[A?q")
+        assert source.wait_finished(10.0)
+    assert source.stats.accepted == 4  # up, the hold's own pose, the release's, up
+    assert (source.pan_deg, source.tilt_deg) == pytest.approx((10.0, 10.0))
+    assert not source.holding and source.step_deg == 5.0
+    assert guide.getvalue().count("q          quit") == 2
+    # a burst of held-down ups runs no further ahead of the limb than MAX_LEAD_DEG
+    with keyboard_on_pty(step_deg=10.0, gate=gate) as (ahead, type_):
+        type_(b"wawawawawawaq")  # alternating: each one a press
+        assert ahead.wait_finished(10.0)
+    assert ahead.tilt_deg == pytest.approx(5.0 + MAX_LEAD_DEG)
+    assert ahead.pan_deg == pytest.approx(10.0 + MAX_LEAD_DEG)
+
+
+def test_the_centre_is_the_point_deepest_inside_the_region(hand_model_path):
+    model = load_model(hand_model_path)
     pan, tilt = region_centre(model)
     assert bool(model.contains(pan_tilt_to_quat(math.radians(pan), math.radians(tilt))))
     edge = model.mesh.vertices
@@ -219,3 +254,135 @@ def test_the_centre_is_the_point_deepest_inside_the_region(model_path):
     for dp, dt in ((2, 0), (-2, 0), (0, 2), (0, -2)):
         assert clearance(pan, tilt) >= clearance(pan + dp, tilt + dt) - 1e-9
     assert region_centre(Cone(math.radians(30))) is None  # no mesh: the centre key does nothing
+
+
+# -- keys against an edge: the commanded point never runs on past what the gate wrote ----------
+#
+# The real loop, gate and keyboard source on a terminal (a pty), the real SDK over the simulator's
+# pty, on the two-servo and the three-servo rig; the cycles the loop returns are the judge. Up is
+# pressed step by step into a 40 deg cone from pan 10 deg, where its edge is slanted (presses in
+# quick succession, as a held key repeats): the limb slides along it; the command never leads the
+# written pose by more than the one step just pressed, and the first Down press lowers the limb a
+# full step at once.
+
+RATE = 200.0
+MAX_SPEED = 120.0
+#: The step of the up and down presses (deg): large, so a point run on past the edge is plain
+#: to see (one "-" from the 10 deg step the session starts with).
+STEP_DEG = 5.0
+#: Longest wait (s) for the loop to take a press and settle: generous for a loaded machine.
+WAIT_S = 30.0
+#: How many repeats of Up (at REPEAT_HZ) a held key sends: it moves 10 steps a second (50 deg/s
+#: at 5 deg), so 60 repeats at 30 Hz carry it far beyond the cone.
+UP_PRESSES = 60
+
+
+class Cycles:
+    """The loop's cycles as they come (its ``on_cycle``), and waits on them."""
+
+    def __init__(self) -> None:
+        self.all: list[Cycle] = []
+        self.changed = threading.Condition()
+
+    def __call__(self, cycle: Cycle) -> None:
+        with self.changed:
+            self.all.append(cycle)
+            self.changed.notify_all()
+
+    def settled_after(self, start: int) -> Cycle:
+        """The first cycle from index ``start`` on that has reached what the gate allows of its
+        command (written, not paced by the speed limit)."""
+
+        def found() -> Cycle | None:
+            for cycle in self.all[start:]:
+                result = cycle.result
+                if result is not None and result.outcome is not Outcome.HELD:
+                    if not result.slewed and cycle.written:
+                        return cycle
+            return None
+
+        with self.changed:
+            settled = self.changed.wait_for(found, WAIT_S)
+            last = self.all[-1] if self.all else None
+            assert settled, (
+                f"the press was never gated and settled: {len(self.all)} cycles, from {start}; "
+                f"the last {last}"
+            )
+            return found()
+
+
+def written_deg(cycle: Cycle) -> tuple[float, float]:
+    return math.degrees(cycle.result.pose[0]), math.degrees(cycle.result.pose[1])
+
+
+def press(master: int, cycles: Cycles, source: KeyboardSource, key: bytes) -> Cycle:
+    """Press ``key`` once; the cycle where the limb has settled after it: the source has read
+    the key (its count grew), the loop took the command in a later cycle and reached it."""
+    accepted = source.stats.accepted
+    os.write(master, key)
+    with cycles.changed:
+        assert cycles.changed.wait_for(lambda: source.stats.accepted > accepted, WAIT_S)
+        start = len(cycles.all) + 1  # the next cycle polls what was queued before it began
+    return cycles.settled_after(start)
+
+
+@pytest.mark.parametrize("rig", ["sim", "sim3"])
+def test_up_against_a_slanted_edge_slides_without_running_on_and_down_answers_at_once(
+    tmp_path, rig, cone_file
+):
+    cycles = Cycles()
+    stop = threading.Event()
+    master, slave = pty.openpty()
+    try:
+        with open_rig(rig_path=rig, goal_log=tmp_path / "goals.jsonl") as session:
+            profile = session.profile
+            gate = gate_for(cone_file(40.0, rig), profile, RATE, MAX_SPEED)
+            session.rig.configure()
+            session.rig.set_torque(True)
+            source = KeyboardSource(step_deg=10.0, tty_path=os.ttyname(slave), gate=gate)
+            source.twist = profile.twists  # as the session sets it: roll kept
+            with source:
+                config = LoopConfig(rate_hz=RATE, on_cycle=cycles)
+                loop = threading.Thread(
+                    target=run, args=(session.rig, gate, source, config), kwargs={"stop": stop}
+                )
+                loop.start()
+                try:
+                    with cycles.changed:
+                        assert cycles.changed.wait_for(lambda: cycles.all, WAIT_S), "no cycle"
+                    # left one 10 deg step: +pan, where the cone's edge slants; then 5 deg steps
+                    start = press(master, cycles, source, b"a")
+                    os.write(master, b"-")
+                    first = len(cycles.all)
+                    at_edge = []
+                    for _ in range(UP_PRESSES):  # Up held: the terminal repeats it
+                        at_edge.append(press(master, cycles, source, b"w"))
+                        time.sleep(1.0 / REPEAT_HZ)  # the terminal's repeat rate, the input
+                    pressed = cycles.all[first:]
+                    down = press(master, cycles, source, b"s")
+                finally:
+                    stop.set()
+                    loop.join(WAIT_S)
+    finally:
+        os.close(master)
+        os.close(slave)
+
+    assert written_deg(start) == pytest.approx((10.0, 0.0), abs=0.5)  # the start was read
+    stopped = [c for c in at_edge if c.result.corrected]
+    assert len(stopped) >= 4, "the presses never reached the edge"
+    # how far the command ran ahead of the written pose once the limb had settled
+    leads = [
+        max(abs(a - b) for a, b in zip(c.command_deg, written_deg(c), strict=True))
+        for c in pressed
+        if c.result is not None and not c.result.slewed and c.command_deg is not None
+    ]
+    top = written_deg(at_edge[-1])
+    lowered = top[1] - written_deg(down)[1]
+    print(
+        f"at the edge: written {top}, slid {written_deg(start)[0] - top[0]:.2f} deg in pan; the "
+        "command led the "
+        f"settled limb by at most {max(leads):.2f} deg; one Down press lowered it {lowered:.2f} deg"
+    )
+    assert top[0] < written_deg(start)[0] - 1.0  # it slid along the slanted edge (toward pan 0)
+    assert max(leads) <= STEP_DEG + 0.2  # never more than the step just pressed
+    assert lowered == pytest.approx(STEP_DEG, abs=0.2)  # a full step at once

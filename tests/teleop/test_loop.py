@@ -13,7 +13,7 @@ import pytest
 
 from calib.profile import default_sim_profile
 from limbctl.demo import goal_log_excursions
-from limbctl.envelope import Cone, load_model
+from limbctl.envelope import load_model
 from limbctl.geometry.gimbal import pan_tilt_to_direction
 from limbctl.geometry.quat import direction_angle
 from limbctl.jobs import gate_for
@@ -30,13 +30,8 @@ HALF_TICK_DEG = 360.0 / 4096 / 2
 
 
 @pytest.fixture
-def cone_model(tmp_path):
-    path = tmp_path / "cone.npz"
-    sim = default_sim_profile()
-    Cone(half_angle_deg=40.0).save(
-        path, metadata={"rig": sim.name, "calibration": sim.calibration.to_dict()}
-    )
-    return path
+def cone_model(cone_file):
+    return cone_file(40.0)
 
 
 def write_lines(path, rows):

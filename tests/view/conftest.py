@@ -1,18 +1,10 @@
-"""Fixtures of the page's browser tests: one headless Chromium per module, a served board."""
+"""Fixtures of the page's browser tests: a served board (the browser: tests/conftest.py)."""
 
 from __future__ import annotations
 
 import pytest
 
 from limbctl.view import Board, ViewServer
-from tests.view.browser import chromium
-
-
-@pytest.fixture(scope="module")
-def browser():
-    """Debian's headless Chromium through chromedriver, shared by a module's tests."""
-    with chromium() as driver:
-        yield driver
 
 
 @pytest.fixture

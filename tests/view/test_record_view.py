@@ -16,18 +16,17 @@ from limbctl.teach.record import record
 from limbctl.view import Board, HardLimits, ViewServer
 from limbctl.view.feed import PoseTap, SceneFeeder
 from limbctl.view.region import TRACED_WITHIN_DEG, fit_outline, model_loops, region_loops
-from tests.view.browser import assert_pose_shown, chromium, text_of, wait_for
+from tests.view.browser import assert_pose_shown, text_of, wait_for
 
 #: The first region needs the fit process to start and numba's cached kernels to load.
 FIRST_REGION_S = 120.0
 
 
-def test_page_shows_the_recording_as_it_happens(tmp_path):
+def test_page_shows_the_recording_as_it_happens(tmp_path, browser):
     board = Board()
     out = tmp_path / "teach.limb"
     with (
         ViewServer(board, port=0) as server,
-        chromium() as browser,
         open_rig(hand=demo_region_path(), seed=1) as session,
         DatasetWriter(out, rig=session.profile.name) as writer,
     ):
