@@ -47,6 +47,7 @@ from bench_region_families import FAMILIES, RATE_HZ, make_truth, measure  # noqa
 
 from firmware_sim.hand import Hand  # noqa: E402
 from limbctl.envelope import RigidMap  # noqa: E402
+from limbctl.envelope.synthetic_twist import BandRegion  # noqa: E402
 from limbctl.geometry.gimbal import pose_quat_scalar  # noqa: E402
 from limbctl.geometry.twist import decompose  # noqa: E402
 from limbctl.teach.guide import READY_INSIDE_COVERED, assess_directions  # noqa: E402
@@ -70,6 +71,19 @@ PLACE_DEG = CELL_DEG
 #: Seconds the hand keeps wandering after its last visit before the samples are read (its move
 #: under way when a request comes is finished first; this lets the last visit's twist settle).
 SETTLE_S = 0.5
+
+
+def truth_of(mapping: dict) -> BandRegion:
+    """The true region of a hand's REGION.yaml mapping with a polygon and a twist band (as
+    :func:`bench_region_families.make_truth` builds its families')."""
+    hand = Hand.from_mapping(mapping, source="<truth>")
+    band = np.vectorize(hand.band.limits_deg, otypes=[float, float])
+
+    def band_deg(pan, tilt):
+        low, high = band(pan, tilt)
+        return 0.5 * (low + high), 0.5 * (high - low)
+
+    return BandRegion(np.array(mapping["region"]["polygon"], dtype=float), band_deg)
 
 
 def poses(hand: Hand, t_end: float) -> tuple[np.ndarray, np.ndarray]:
@@ -130,10 +144,11 @@ def requests(t: np.ndarray, q: np.ndarray, seed: int) -> tuple[list[dict], bool]
     return wanted, complete
 
 
-def guided(mapping: dict, seed: int) -> dict:
-    """Teach for TEACH_S, then answer the guide's requests round by round (module docstring)."""
+def guided(mapping: dict, seed: int, teach_s: float = TEACH_S) -> dict:
+    """Teach for ``teach_s`` s, then answer the guide's requests round by round (module
+    docstring); the taught orientations before (M, 4) and after (N, 4) and the rounds' figures."""
     visits: list[dict] = []
-    t_end = TEACH_S
+    t_end = teach_s
     hand = Hand.from_mapping(mapping, seed=seed, source="<family>")
     t, q = poses(hand, t_end)
     first_q = q
@@ -142,7 +157,7 @@ def guided(mapping: dict, seed: int) -> dict:
     while True:
         wanted, complete = requests(t, q, seed)
         asked.append(len(wanted))
-        if complete or rounds == MAX_ROUNDS or t_end - TEACH_S >= MAX_EXTRA_S or not wanted:
+        if complete or rounds == MAX_ROUNDS or t_end - teach_s >= MAX_EXTRA_S or not wanted:
             break
         rounds += 1
         visits += [dict(v, after_s=t_end) for v in wanted]
@@ -156,7 +171,7 @@ def guided(mapping: dict, seed: int) -> dict:
         "q_before": first_q,
         "q": q,
         "rounds": rounds,
-        "extra_s": t_end - TEACH_S,
+        "extra_s": t_end - teach_s,
         "complete": complete,
         "asked": asked,
         "visits": len(visits),
