@@ -157,6 +157,7 @@ def guided(mapping: dict, seed: int, teach_s: float = TEACH_S) -> dict:
     while True:
         wanted, complete = requests(t, q, seed)
         asked.append(len(wanted))
+        left = sorted({v["do"] for v in wanted})
         if complete or rounds == MAX_ROUNDS or t_end - teach_s >= MAX_EXTRA_S or not wanted:
             break
         rounds += 1
@@ -175,6 +176,8 @@ def guided(mapping: dict, seed: int, teach_s: float = TEACH_S) -> dict:
         "complete": complete,
         "asked": asked,
         "visits": len(visits),
+        "left": left,
+        "edge_closed": assess_directions(t, decompose(q)[0]).edge_closed,
     }
 
 
@@ -190,7 +193,8 @@ def run(quick: bool, seeds: tuple[int, ...], families: tuple[str, ...]) -> list[
             after = measure(truth, g["q"], seed, quick)
             inside = float(np.mean(truth.contains(g["q"])))
             row = {"family": family, "seed": seed, "inside": inside}
-            row.update({k: g[k] for k in ("rounds", "extra_s", "complete", "asked", "visits")})
+            keys = ("rounds", "extra_s", "complete", "asked", "visits", "left", "edge_closed")
+            row.update({k: g[k] for k in keys})
             row.update(samples=len(g["q"]), before=before, after=after)
             row["seconds"] = time.perf_counter() - start
             print(_line(row), flush=True)
