@@ -43,12 +43,18 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from bench_region_families import FAMILIES, RATE_HZ, make_truth, measure  # noqa: E402
+from bench_region_families import (  # noqa: E402
+    FAMILIES,
+    RATE_HZ,
+    lattice_inside,
+    make_truth,
+    measure,
+)
 
 from firmware_sim.hand import Hand  # noqa: E402
 from limbctl.envelope import RigidMap  # noqa: E402
 from limbctl.envelope.synthetic_twist import BandRegion  # noqa: E402
-from limbctl.geometry.gimbal import pose_quat_scalar  # noqa: E402
+from limbctl.geometry.gimbal import direction_to_pan_tilt, pose_quat_scalar  # noqa: E402
 from limbctl.geometry.twist import decompose  # noqa: E402
 from limbctl.teach.guide import READY_INSIDE_COVERED, assess_directions  # noqa: E402
 from limbctl.teach.twist_guide import CELL_DEG, MIN_CELL_SAMPLES, TwistGuide  # noqa: E402
@@ -181,7 +187,22 @@ def guided(mapping: dict, seed: int, teach_s: float = TEACH_S) -> dict:
     }
 
 
-def run(quick: bool, seeds: tuple[int, ...], families: tuple[str, ...]) -> list[dict]:
+def worst_swing_place(truth: BandRegion, q: np.ndarray, seed: int) -> tuple[float, float, int]:
+    """Where (pan_deg, tilt_deg) the region learned from ``q`` (N, 4) reaches farthest past the
+    true outline (on :func:`bench_region_families.measure`'s lattice), and how many lattice
+    directions lie more than 1 deg outside."""
+    model = RigidMap(twist=True, seed=seed).fit(q)
+    d = lattice_inside(truth, 15.0)
+    depth = truth.swing.depth(d)
+    mine = np.flatnonzero(model.region.swing.mesh.contains(d))
+    k = mine[np.argmin(depth[mine])]
+    pan, tilt = direction_to_pan_tilt(d[k])
+    return math.degrees(pan), math.degrees(tilt), int(np.sum(depth[mine] < -math.radians(1.0)))
+
+
+def run(
+    quick: bool, seeds: tuple[int, ...], families: tuple[str, ...], where: bool = False
+) -> list[dict]:
     """Every family and seed; one row each."""
     rows = []
     for family in families:
@@ -192,6 +213,13 @@ def run(quick: bool, seeds: tuple[int, ...], families: tuple[str, ...]) -> list[
             before = measure(truth, g["q_before"], seed, quick)
             after = measure(truth, g["q"], seed, quick)
             inside = float(np.mean(truth.contains(g["q"])))
+            if where:
+                row_where = worst_swing_place(truth, g["q"], seed)
+                print(
+                    f"worst swing excess at pan {row_where[0]:+.1f}, tilt {row_where[1]:+.1f}; "
+                    f"{row_where[2]} directions more than 1 deg outside",
+                    flush=True,
+                )
             row = {"family": family, "seed": seed, "inside": inside}
             keys = ("rounds", "extra_s", "complete", "asked", "visits", "left", "edge_closed")
             row.update({k: g[k] for k in keys})
@@ -276,10 +304,13 @@ def main(argv: list[str] | None = None) -> int:
         "--families", type=int, nargs="+", default=list(range(len(FAMILIES))), help="indices"
     )
     parser.add_argument("--seeds", type=int, nargs="+", default=list(SEEDS), help="region seeds")
+    parser.add_argument(
+        "--where", action="store_true", help="print where the swing reaches farthest past"
+    )
     parser.add_argument("--out", type=Path, default=ROOT / "docs" / "bench_guided_teaching.md")
     args = parser.parse_args(argv)
     families = tuple(FAMILIES[k] for k in args.families)
-    rows = run(args.quick, tuple(args.seeds), families)
+    rows = run(args.quick, tuple(args.seeds), families, args.where)
     flags = " --quick" * args.quick
     if families != FAMILIES:
         flags += " --families " + " ".join(map(str, args.families))
