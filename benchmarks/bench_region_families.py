@@ -46,7 +46,7 @@ from limbctl.envelope.synthetic_twist import BandRegion
 from limbctl.geometry.gimbal import pan_tilt_to_direction, pose_quat_scalar
 from limbctl.geometry.quat import geodesic_distance
 from limbctl.geometry.twist import compose, wrap
-from limbctl.region import twist_band
+from limbctl.region import twist_band, twist_evidence
 from limbctl.teach.twist_guide import TwistGuide
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -219,11 +219,11 @@ def measure(truth: BandRegion, q_taught: np.ndarray, seed: int, quick: bool) -> 
     }
 
 
-def run(quick: bool) -> list[dict]:
-    """Every family, seed and teaching; one row each."""
+def run(quick: bool, seeds: tuple[int, ...] | None = None) -> list[dict]:
+    """Every family, seed (``seeds``, else SEEDS, the first with ``quick``) and teaching."""
     rows = []
     for family in FAMILIES:
-        for seed in SEEDS[:1] if quick else SEEDS:
+        for seed in seeds or (SEEDS[:1] if quick else SEEDS):
             truth, mapping = make_truth(family, seed)
             for name, how in TEACHINGS.items():
                 start = time.perf_counter()
@@ -305,11 +305,26 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--no-cap", action="store_true", help="the band without its evidence cap (as before)"
     )
+    parser.add_argument(
+        "--cone-only",
+        dest="cone_only",
+        action="store_true",
+        help="the evidence cap as a fixed cone only (before it read the local slope)",
+    )
+    parser.add_argument(
+        "--seeds",
+        type=lambda text: tuple(int(v) for v in text.split(",")),
+        help="region seeds, e.g. 3,4,5 (default 0,1,2; --quick: 0); 0-2 tuned the cap",
+    )
     args = parser.parse_args(argv)
     if args.no_cap:  # the band as read before the cap: limits kept, nothing cut
         twist_band.cap_limits = lambda up, lo, *_: (up, lo, 0.0 * up, 0.0 * lo)
-    rows = run(args.quick)
-    flags = " --quick" * args.quick + " --no-cap" * args.no_cap
+    if args.cone_only:  # the fixed cone alone, as before the cap read the local slope
+        twist_evidence._along_slope = lambda cone, *_: cone
+    rows = run(args.quick, args.seeds)
+    flags = " --quick" * args.quick + " --no-cap" * args.no_cap + " --cone-only" * args.cone_only
+    if args.seeds:
+        flags += " --seeds " + ",".join(str(v) for v in args.seeds)
     command = f".venv/bin/python benchmarks/bench_region_families.py{flags}"
     write(rows, args.out, args.quick, command)
     return 0

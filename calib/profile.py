@@ -16,9 +16,8 @@ A profile is a small YAML file (see ``calib/rigs/sim.yaml``)::
            stop_min_deg: -105.0, stop_max_deg: 105.0}   # optional: a three-servo rig
 
 ``roll`` is optional: a third servo that turns the limb about its own axis
-(``calib/rigs/sim3.yaml``). It is validated like the other two joints; a profile without it
-is a two-servo rig and reads, saves and calibrates exactly as before (its dictionaries carry
-no ``roll`` key). The joints may also be written as one ordered list, each with its name::
+(``calib/rigs/sim3.yaml``); without it the rig has two servos and its dictionaries carry no
+``roll`` key. The joints may also be written as one ordered list, each with its name::
 
     joints:
       - {name: pan, id: 1, zero_tick: 2185, direction: 1, min_deg: -115.0, max_deg: 115.0}
@@ -28,21 +27,15 @@ The chain is ``pan, tilt`` or ``pan, tilt, roll`` (:data:`CHAINS`), in that orde
 a profile is saved in the form it was read in.
 
 ``min_deg``/``max_deg`` are the hard limits the controller enforces (and writes to the servos'
-position limits); ``stop_min_deg``/``stop_max_deg`` are the gimbal's physical end stops, where
-the joint's travel ends mechanically. The hard limits must lie at least END_STOP_MARGIN_DEG
-inside the end stops. The end stops are optional: a joint that does not state them is taken to
-stop at +-DEFAULT_END_STOP_DEG (90 deg), the safe guess, so a profile whose limits reach further
-must say where its end stops really are.
+position limits), at least END_STOP_MARGIN_DEG inside the physical end stops
+``stop_min_deg``/``stop_max_deg``; unstated end stops are taken at +-DEFAULT_END_STOP_DEG, so a
+profile whose limits reach further must say where its end stops really are.
 
-It is validated on load as data (types, ranges, required keys); every error names the file and
-the field, e.g.
-``calib/rigs/x.yaml: pan.direction must be +1 or -1, got 2``, on one line, and quotes values
-only in bounded form. The file itself is read through :mod:`calib.yaml_guard` (no aliases, no
-duplicate keys, bounded size). The result is an immutable :class:`RigProfile`; its
-:attr:`RigProfile.calibration` is what a model trained on the rig depends on.
-:func:`save_profile` writes atomically (``limbctl calibrate`` uses it).
-What only the servos know (which baud rates and models exist, how far one turn of ticks
-reaches) is checked by the controller when it opens a rig. This package imports nothing of it.
+The file is read through :mod:`calib.yaml_guard` and validated as data; every error is one line
+naming the file and the field (``calib/rigs/x.yaml: pan.direction must be +1 or -1, got 2``).
+The result is an immutable :class:`RigProfile`, whose :attr:`RigProfile.calibration` is what a
+model trained on the rig depends on. What only the servos know (bauds, models, ticks per turn)
+is checked by the controller when it opens a rig; this package imports nothing of it.
 """
 
 from __future__ import annotations

@@ -274,12 +274,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         stop["requested"] = True
 
     schedule = EventSchedule(args.event)
+    sim = None
     try:
         config["leader"] = _leader(args)
         sim = build_simulator(config)
         schedule.check(sim)
         endpoint = PtyEndpoint(args.link)
     except (ValueError, OSError) as error:
+        if sim is not None:  # its goal and leader logs are open: close them before leaving
+            sim.close()
         print(f"firmware-sim: error: {error}", file=sys.stderr)
         return 2
     signal.signal(signal.SIGINT, request_stop)

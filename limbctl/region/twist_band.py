@@ -32,9 +32,11 @@ Fitting, per grid node, from the taught samples within ``BAND_RADIUS_DEG`` of it
    (down to ``ENVELOPE_CURVATURE_MIN``): dense stops are followed at ``ENVELOPE_CURVATURE``,
    sparse ones bridged by a flatter, wider envelope (``_raised``).
 4. *Evidence cap*: each limit is then narrowed, never widened, to what the taught twists near
-   the node support (:mod:`limbctl.region.twist_evidence`): a reading that bridged past a stop
-   the hand never turned to is held within a degree of the truth, and where that cut is large
-   and no stop was held there the place is listed for the guide (:attr:`TwistBand.cuts`).
+   the node support (:mod:`limbctl.region.twist_evidence`: a cone about every sample, and a
+   cap along the local slope of the stops around, read again once the stops are re-read
+   against the capped band): a reading that bridged past a stop the hand never turned to is
+   held within a degree of the truth, and where that cut is large and no stop was held there
+   the place is listed for the guide (:attr:`TwistBand.cuts`).
 """
 
 from __future__ import annotations
@@ -111,6 +113,11 @@ ENVELOPE_CURVATURE_MIN = 0.35
 #: directions (as without the cap); 16: 0.3 %; 64: 1.2-1.9 %; no bound: 2.4-3.5 %. At 1 the
 #: demo's region held 99.27 % (seed 1) against 99.98 % at 4.
 ENVELOPE_STOP_SPAN = 4.0
+#: Times the evidence cap's stops are re-read against the capped band (step 4): on the curved
+#: family's seed 1, dense teaching (docs/bench_region_families.md) the band lay 2.10 deg past
+#: the truth with the stops read against the readings only (a bridged dip's bottom held none),
+#: 0.64 after one re-read. More not tried.
+STOP_REREADS = 1
 #: Nodes per block when all the envelope's facets are evaluated (memory: block x facets floats).
 ENVELOPE_BLOCK = 512
 #: Facets (nearest by centre) tried for each node before all: the facet over a node is among
@@ -209,8 +216,10 @@ class TwistBand:
         half = self.half.ravel()
         sigma = math.radians(REFINE_SIGMA_DEG)
         limits = []
+        stops = []
         for sign in (1.0, -1.0):
             stop = (sign * (limit - c1) >= h1 - near) & (h1 < math.pi)
+            stops.append(stop)
             first_read = sign * half
             rel = fk.refine_nodes(nodes, start, members, d, limit, stop, ref, sigma, MAX_SLOPE)
             limits.append(np.where(np.isfinite(rel), rel, first_read))
@@ -225,13 +234,32 @@ class TwistBand:
         up = np.where(bounded, np.fmax(up, envelope_heights(xy, limit, node_xy) - ref), up)
         lo = np.where(bounded, np.fmin(lo, -envelope_heights(xy, -limit, node_xy) - ref), lo)
         # step 4: never past what the taught twists support (limbctl.region.twist_evidence)
-        up, lo, cut_up, cut_lo = cap_limits(up, lo, bounded, nodes, start, members, d, limit, ref)
+        args = (bounded, nodes, start, members, d, limit, ref)
+        capped = cap_limits(up, lo, *args, tuple(stops))
+        for _ in range(STOP_REREADS):
+            # the stops re-read against the capped band: where the readings bridged a dip, the
+            # samples at its bottom were below the first reading's limit, not its stops
+            c2, h2 = self._with_limits(ref, half, *capped[:2]).at(d)
+            off = wrap(limit - c2)
+            stops = [(off >= h2 - near) & (h2 < math.pi), (-off >= h2 - near) & (h2 < math.pi)]
+            capped = cap_limits(up, lo, *args, tuple(stops))
+        up, lo, cut_up, cut_lo = capped
         self.cuts = (nodes, cut_up, cut_lo)
+        new = self._with_limits(ref, half, up, lo)
+        self.centre, self.half = new.centre, new.half
+
+    def _with_limits(self, ref, half, up, lo) -> TwistBand:
+        """This band's grid with limits ``up``, ``lo`` (M,) about the node centres ``ref`` (M,)
+        (rad); nodes whose ``half`` (M,) is pi stay free, crossed limits keep the centre."""
         ok = up >= lo
         centre = np.where(ok, ref + 0.5 * (up + lo), ref)
         half = np.where(ok & (half < math.pi), 0.5 * (up - lo), half)
-        self.centre = np.ascontiguousarray(centre.reshape(self.centre.shape))
-        self.half = np.ascontiguousarray(np.clip(half, 0.0, math.pi).reshape(self.half.shape))
+        return TwistBand(
+            self.frame,
+            self.grid,
+            centre.reshape(self.centre.shape),
+            np.clip(half, 0.0, math.pi).reshape(self.half.shape),
+        )
 
     def at(self, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Centre and half-width (N,), (N,) (rad) over directions ``d`` (N, 3) (the kernel)."""

@@ -9,9 +9,22 @@ most ``s`` = CAP_SLOPE (rad of twist per rad of direction) satisfies at a direct
     u(x) >= max_i (t_i - s angle(x, x_i))          (over the samples i near x)
 
 and a learned upper limit at most CAP_SLACK_DEG above the right side lies within that of the truth
-(the lower limit likewise, mirrored). :func:`cap_limits` clips both limits to it; where no sample
-lies within the band's neighbourhood the band closes to its centre. The clip is the *cut*: where
-it is large, the evidence is too sparse to keep the bound and still cover the region, and
+(the lower limit likewise, mirrored). That cone holds only for truths no steeper than ``s``: a
+stop high on a steep bump 8 deg away vouches for a limit ``(slope - s) 8 deg`` past the truth at
+the bump's foot. So where the stops around a node spread enough to read their slope ``g`` (a
+weighted plane through them), the cap is also read along it:
+
+    u(x) >= max_i (t_i - g . (x_i - x) - (SLOPE_SLACK + 2 se) r_i - CURVATURE r_i^2 / 2)
+
+(``r_i = angle(x, x_i)``, ``se`` the plane's slope error), which holds for a truth whose slope at
+``x`` lies within the margin of ``g`` and bends at most CURVATURE, whatever its steepness; the
+lower of the two caps is kept (:func:`limbctl.region.twist_fit_kernels.gradient_caps`). Its
+stops are read twice: against the band's readings, then against the capped band, since a
+reading that bridged a dip leaves the dip's own stops below its limit.
+
+:func:`cap_limits` clips both limits to the caps; where no sample lies within the band's
+neighbourhood the band closes to its centre. The clip is the *cut*: where it is large, the
+evidence is too sparse to keep the bound and still cover the region, and
 :func:`unsupported_places` names those places (pan, tilt and which stop) for the guide and for
 ``train``: a stop taught there lifts the cap.
 """
@@ -39,6 +52,29 @@ CAP_SLOPE = 0.5
 #: bench_twist's error back to 0.399 / 0.392 deg (seeds 0, 2; 0.415 / 0.420 at 0.5, 0.388 /
 #: 0.380 without the cap) but leaves ~1.1 deg to the promise.
 CAP_SLACK_DEG = 0.5
+#: The local slope's reading (:func:`limbctl.region.twist_fit_kernels.gradient_caps`): weight
+#: width (deg, one sigma) of the plane through the stops around a node. The region families'
+#: narrowest bumps (8 deg, one sigma) turn their slope by ~0.2 per 3 deg; the second reading's
+#: REFINE_SIGMA_DEG (5) averages over more. Not tuned: 3 and 5 gave the same cap (38.05 deg) at
+#: the worst node of the curved family's seed 2, dense teaching.
+SLOPE_SIGMA_DEG = 3.0
+#: The stops' least spread (deg, one sigma) about their weighted mean for the slope to be read:
+#: beside the swing edge the stops lie along it. At 1.5 the worst node of the curved family's
+#: seed 2, dense teaching (0.4 deg inside the outline) read no slope and the band stayed 3.07 deg
+#: past the truth; at 0.75, with the slope's error in the margin (SLOPE_CONFIDENCE), 0.40.
+SLOPE_SPREAD_DEG = 0.75
+#: Standard errors of the plane's slope added to SLOPE_SLACK: two, a ~95 % bound. Not tuned.
+SLOPE_CONFIDENCE = 2.0
+#: How far (rad/rad) the true slope at a node may differ from the plane's, beyond its error, and
+#: how fast (deg of slope per deg, i.e. deg^-1) the true limit's slope may change. The families'
+#: bumps bend up to 0.19 deg^-1, a shoulder's limits ~0.02. At 0.25 and 0.15 the dense i.i.d.
+#: teachings listed places wherever the nearest stop lay 3-4 deg away (the linear family's
+#: seed 2: 5 places, the curved seed 0: 20; the fixed cone alone 0 and 9); at 0.15 and 0.06:
+#: 0 and 9, the curved seed 1 band 2.10 deg past the truth before the stops were re-read, 0.64
+#: after (5.31 with the cone alone). Beyond the nearest stops, where a bump bends more, the cap is
+#: the max over all stops: the nearest ones (within ~1-2 deg in a dense teaching) set it.
+SLOPE_SLACK = 0.15
+CURVATURE_PER_DEG = 0.06
 #: A cut (deg) larger than this at a place inside the swing region is reported: the cap then keeps
 #: the limit more than this short of where the teaching's readings put it, i.e. short of the stop.
 #: A dense i.i.d. teaching left cuts of 1.0-1.2 deg at five unwitnessed places where the reading
@@ -101,6 +137,7 @@ def cap_limits(
     d: np.ndarray,
     limit: np.ndarray,
     ref: np.ndarray,
+    stops: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Band limits (M,), (M,) relative to the node centres ``ref`` (M,) (rad) clipped to the
     evidence cap (module docstring), and the cuts (M,), (M,) (rad, >= 0) of each that ask for a
@@ -124,6 +161,10 @@ def cap_limits(
         math.radians(WITNESS_DEG),
         math.radians(WITNESS_BAND_DEG),
     )
+    if stops is not None:
+        cap_up, cap_lo, n_up, n_lo = _along_slope(
+            (cap_up, cap_lo, n_up, n_lo), nodes, start, members, d, limit, ref, stops
+        )
     slack = math.radians(CAP_SLACK_DEG)
     # no sample near: nothing is supported
     cap_up = np.where(np.isfinite(cap_up), cap_up + slack, -np.inf)
@@ -139,6 +180,33 @@ def cap_limits(
     cut_up = np.where(n_up >= MIN_WITNESSES, 0.0, np.fmax(up - new_up, 0.0))
     cut_lo = np.where(n_lo >= MIN_WITNESSES, 0.0, np.fmax(new_lo - lo, 0.0))
     return new_up, new_lo, cut_up, cut_lo
+
+
+def _along_slope(cone, nodes, start, members, d, limit, ref, stops):
+    """The cone's caps and witnesses ``cone`` lowered to the caps read along the local slope
+    (:func:`limbctl.region.twist_fit_kernels.gradient_caps`) where the stops ``stops`` (upper,
+    lower; (N,) bool each) around a node spread enough to read it."""
+    cap_up, cap_lo, n_up, n_lo = cone
+    args = (
+        math.radians(SLOPE_SIGMA_DEG),
+        math.radians(SLOPE_SPREAD_DEG),
+        SLOPE_SLACK,
+        SLOPE_CONFIDENCE,
+        math.degrees(CURVATURE_PER_DEG),
+        math.radians(WITNESS_DEG),
+        math.radians(WITNESS_BAND_DEG),
+    )
+    g_up, w_up = fk.gradient_caps(nodes, start, members, d, limit, stops[0], ref, *args)
+    g_lo, w_lo = fk.gradient_caps(nodes, start, members, d, -limit, stops[1], -ref, *args)
+    g_lo = -g_lo
+    lower_up = g_up < cap_up  # NaN (slope unknown) compares False: the cone stays
+    higher_lo = g_lo > cap_lo
+    return (
+        np.where(lower_up, g_up, cap_up),
+        np.where(higher_lo, g_lo, cap_lo),
+        np.where(lower_up, w_up, n_up),
+        np.where(higher_lo, w_lo, n_lo),
+    )
 
 
 def unsupported_places(

@@ -2,7 +2,9 @@
 
 Two readings per band node, each a small free function with explicit loops: the upper hull's
 height over the node (:func:`upper_hull`, :func:`fit_nodes`), then a weighted plane through
-the samples at each stop (:func:`refine_nodes`). Numpy twins of :func:`upper_hull` and
+the samples at each stop (:func:`refine_nodes`); then the evidence caps, a cone about every
+sample (:func:`evidence_caps`) and one along the stops' local slope (:func:`gradient_caps`).
+Numpy twins of :func:`upper_hull` and
 :func:`evidence_caps` live in ``tests/region/test_twist_fit_kernels.py``. No fastmath.
 """
 
@@ -242,3 +244,122 @@ def _angle(a, b) -> float:
     dy = b[1] - a[1]
     dz = b[2] - a[2]
     return 2.0 * math.asin(min(1.0, 0.5 * math.sqrt(dx * dx + dy * dy + dz * dz)))
+
+
+@njit(parallel=True)
+def gradient_caps(
+    nodes,
+    start,
+    members,
+    d,
+    limit,
+    stop,
+    ref,
+    sigma,
+    spread,
+    slack,
+    confidence,
+    curvature,
+    near,
+    band,
+):
+    """One limit's cap (M,) read along its local slope, relative to the node's centre ``ref``
+    (M,) (rad), and how many samples witness it (M,); the upper limit (for the lower, pass the
+    twists negated and negate the cap).
+
+    The slope ``g`` at node ``n`` is that of the weighted least-squares plane
+    ``limit - ref = a + g . x`` through the stop samples (``stop`` (N,) bool) among the node's
+    neighbours ``members[start[n]:start[n + 1]]`` (tangent position ``x`` in the node's frame,
+    weights ``exp(-angle^2 / (2 sigma^2))``). A true limit ``u`` whose slope at the node lies
+    within ``slack`` (rad/rad) of ``g`` and whose slope changes by at most ``curvature``
+    (rad^-1) per rad lies at the node at or above every sample's
+
+        cap(n) = max_j (limit_j - ref_n - g . x_j - slack angle(n, d_j)
+                        - curvature angle(n, d_j)^2 / 2)
+
+    over all the neighbours ``j``. NaN where fewer than 3 stops lie around the node or their
+    weighted positions spread less than ``spread`` (rad, one sigma) in some direction: the
+    slope is not known there. Witnesses as :func:`evidence_caps` counts them (within ``near``
+    of the node, within ``band`` of the cap).
+    """
+    m = nodes.shape[0]
+    cap = np.full(m, np.nan)
+    wit = np.zeros(m, dtype=np.int64)
+    for i in nb.prange(m):
+        node = nodes[i]
+        if abs(node[2]) < 0.9:
+            e1 = np.array([-node[1], node[0], 0.0])
+        else:
+            e1 = np.array([node[2], 0.0, -node[0]])
+        e1 /= math.sqrt(e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2])
+        e2 = np.array(
+            [
+                node[1] * e1[2] - node[2] * e1[1],
+                node[2] * e1[0] - node[0] * e1[2],
+                node[0] * e1[1] - node[1] * e1[0],
+            ]
+        )
+        a = np.zeros((3, 3))
+        b = np.zeros(3)
+        count = 0
+        for k in range(start[i], start[i + 1]):
+            j = members[k]
+            if not stop[j]:
+                continue
+            x = d[j, 0] * e1[0] + d[j, 1] * e1[1] + d[j, 2] * e1[2]
+            y = d[j, 0] * e2[0] + d[j, 1] * e2[1] + d[j, 2] * e2[2]
+            angle = _angle(node, d[j])
+            w = math.exp(-angle * angle / (2.0 * sigma * sigma))
+            t = limit[j] - ref[i]
+            row = (1.0, x, y)
+            for r in range(3):
+                b[r] += w * row[r] * t
+                for s in range(3):
+                    a[r, s] += w * row[r] * row[s]
+            count += 1
+        if count < 3:
+            continue
+        # the stops' weighted spread about their mean, least direction (2 x 2 covariance)
+        mx = a[0, 1] / a[0, 0]
+        my = a[0, 2] / a[0, 0]
+        cxx = a[1, 1] / a[0, 0] - mx * mx
+        cyy = a[2, 2] / a[0, 0] - my * my
+        cxy = a[1, 2] / a[0, 0] - mx * my
+        least = 0.5 * (cxx + cyy) - math.sqrt(0.25 * (cxx - cyy) ** 2 + cxy * cxy)
+        if least < spread * spread:
+            continue
+        sol = np.linalg.solve(a, b)
+        # the slope's standard error: the stops' weighted scatter about the plane over the
+        # square root of their effective count and their least spread
+        rss = 0.0
+        w2 = 0.0
+        for k in range(start[i], start[i + 1]):
+            j = members[k]
+            if not stop[j]:
+                continue
+            x = d[j, 0] * e1[0] + d[j, 1] * e1[1] + d[j, 2] * e1[2]
+            y = d[j, 0] * e2[0] + d[j, 1] * e2[1] + d[j, 2] * e2[2]
+            angle = _angle(node, d[j])
+            w = math.exp(-angle * angle / (2.0 * sigma * sigma))
+            e = limit[j] - ref[i] - sol[0] - sol[1] * x - sol[2] * y
+            rss += w * e * e
+            w2 += w * w
+        n_eff = a[0, 0] * a[0, 0] / w2
+        slope_err = math.sqrt(rss / a[0, 0] / max(n_eff - 3.0, 1.0)) / math.sqrt(least)
+        margin = slack + confidence * slope_err
+        best = -np.inf
+        for k in range(start[i], start[i + 1]):
+            j = members[k]
+            x = d[j, 0] * e1[0] + d[j, 1] * e1[1] + d[j, 2] * e1[2]
+            y = d[j, 0] * e2[0] + d[j, 1] * e2[1] + d[j, 2] * e2[2]
+            angle = _angle(node, d[j])
+            t = limit[j] - ref[i] - sol[1] * x - sol[2] * y
+            t -= margin * angle + 0.5 * curvature * angle * angle
+            if t > best:
+                best = t
+        cap[i] = best
+        for k in range(start[i], start[i + 1]):
+            j = members[k]
+            if _angle(node, d[j]) <= near and limit[j] - ref[i] >= best - band:
+                wit[i] += 1
+    return cap, wit

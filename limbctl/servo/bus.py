@@ -1,25 +1,16 @@
 """The servo bus: the real dynamixel-sdk (Protocol 2.0) with retries, typed errors and alarms.
 
-:class:`ServoBus` opens a serial port (a U2D2's device, or the simulator's pty), pings every
-servo and checks its model, and then offers exactly what the controller needs: register reads
-and writes (set-up for position control is :mod:`limbctl.servo.setup`, which uses them),
-torque on/off, both present positions in ONE sync read (Fast Sync Read where
-the firmware has it), both goals in ONE sync write, hardware-error status, reboot, and the
-control cycle's read of position, goal, torque and alarm through indirect addresses
-(:meth:`read_cycle`, :mod:`limbctl.servo.cycle`). The port is held exclusively (a second
-controller gets :class:`limbctl.errors.PortInUse` naming the holder). Registers are named only
-through :class:`limbctl.servo.control_table.Register`.
+:class:`ServoBus` opens a serial port (a U2D2's device, or the simulator's pty), held
+exclusively (:class:`limbctl.errors.PortInUse` names the holder), pings every servo and checks
+its model, then offers register reads and writes (named by
+:class:`limbctl.servo.control_table.Register`), torque, positions in ONE (Fast) Sync Read,
+goals in ONE sync write, reboot, and the control cycle's indirect read (:meth:`read_cycle`).
 
-Every transaction is retried a bounded number of times within a time budget; what still fails
-raises :class:`~limbctl.errors.BusError` (a refused instruction) or one of its subclasses
-(:mod:`limbctl.errors` draws the tree): ``PortError``/``PortInUse`` (the port),
-``BusTimeout`` (no answer: names the id, says what to check), ``CorruptReply`` (CRC/framing
-kept failing), ``ServoAlarm`` (the alert bit with Hardware Error Status set).
-
-A status packet with the alert bit set does not stop the transaction that carried it (its data
-are valid); when the transaction is complete the bus reads Hardware Error Status of the servos
-that raised the alert and raises :class:`ServoAlarm` with the decoded bits. ``reboot(id)`` is
-the way out (X-series shutdowns keep torque off until a reboot).
+Every transaction is retried within a bounded budget; what still fails raises
+:class:`~limbctl.errors.BusError` or a subclass (``PortError``, ``BusTimeout``,
+``CorruptReply``, ``ServoAlarm``). A status packet's alert bit does not stop its transaction;
+once complete the bus reads Hardware Error Status of the alerting servos and raises
+:class:`ServoAlarm` with the decoded bits (``reboot(id)`` clears an X-series shutdown).
 """
 
 from __future__ import annotations

@@ -181,21 +181,19 @@ def profile_from_calibration(
     for label, (lo, hi) in (("pan", pan_limits_deg), ("tilt", tilt_limits_deg)):
         if not lo < 0.0 < hi:
             raise SafetyError(f"{label} limits must contain the rest pose 0: got {lo}..{hi}")
-    pan = dataclasses.replace(
-        base.pan,
-        zero_tick=result.pan_zero,
-        direction=result.pan_direction,
-        min_deg=float(pan_limits_deg[0]),
-        max_deg=float(pan_limits_deg[1]),
-    )
-    tilt = dataclasses.replace(
-        base.tilt,
-        zero_tick=result.tilt_zero,
-        direction=result.tilt_direction,
-        min_deg=float(tilt_limits_deg[0]),
-        max_deg=float(tilt_limits_deg[1]),
-    )
-    joints = {"pan": pan, "tilt": tilt}
+    joints = {
+        label: dataclasses.replace(
+            joint,
+            zero_tick=zero,
+            direction=direction,
+            min_deg=float(limits[0]),
+            max_deg=float(limits[1]),
+        )
+        for label, joint, zero, direction, limits in (
+            ("pan", base.pan, result.pan_zero, result.pan_direction, pan_limits_deg),
+            ("tilt", base.tilt, result.tilt_zero, result.tilt_direction, tilt_limits_deg),
+        )
+    }
     if base.twists and result.roll_zero is not None and result.roll_direction is not None:
         # the roll's hard limits and end stops are the base profile's
         joints["roll"] = dataclasses.replace(

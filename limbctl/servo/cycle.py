@@ -1,20 +1,13 @@
 """What each servo reports in the control cycle's ONE sync read, through indirect addresses.
 
-Present Position, Goal Position, Torque Enable, Hardware Error Status and Present PWM live far
-apart in the control table (132, 116, 64, 70, 124). The X series' Indirect Address n
-(168 + 2 (n - 1)) names the RAM address that Indirect Data n (224 + (n - 1); on a 330 with
-firmware up to 52, 208 + (n - 1)) stands for, so mapping those registers' bytes onto Indirect
-Data 1..12 lets one (Fast) Sync Read of 12 bytes per servo carry all five. Set-up probes where
-each servo's Indirect Data 1 is (:func:`limbctl.servo.setup.probe_indirect_data`); one sync
-read needs it at the same address on every servo, so a bus of mixed layouts takes one read per
-address. Set-up
-(:func:`limbctl.servo.setup.configure_servos`) writes the map and reads each servo's PWM Limit
-(EEPROM, which no indirect address can reach); a servo that restarts (brown-out, reboot) loses
-the map with the rest of its RAM: its Indirect Data then read 0, so Torque Enable reads 0 and
-the restart is noticed as torque loss.
-
-While a servo is silent, :func:`read_around_silent` reads the others and probes the silent ones
-with one try each, so a missing servo costs the loop a reply timeout per probe, not per cycle.
+Present Position, Goal Position, Torque Enable, Hardware Error Status and Present PWM lie far
+apart in the control table; mapped by the Indirect Addresses onto Indirect Data 1..12 (224, or
+208 on a 330 with firmware up to 52: probed by :func:`limbctl.servo.setup.probe_indirect_data`)
+one (Fast) Sync Read of 12 bytes per servo carries all five; a bus of mixed layouts takes one
+read per address. Set-up (:func:`limbctl.servo.setup.configure_servos`) writes the map and reads
+each PWM Limit (EEPROM, beyond any indirect address). A servo that restarts loses the map with
+its RAM: its Indirect Data then read 0, so the restart shows as torque loss. While a servo is
+silent, :func:`read_around_silent` reads the others and probes it alone with one try.
 """
 
 from __future__ import annotations
@@ -92,11 +85,10 @@ def wire_budget(rate_hz: float, baud: int, n_servos: int, fast: bool = True) -> 
     )
 
 
-def indirect_map() -> bytes:
-    """The bytes of Indirect Address 1..N: each mapped register's addresses, little-endian."""
-    addresses = [
-        register.address + offset for register in CYCLE_REGISTERS for offset in range(register.size)
-    ]
+def indirect_map(registers: Sequence[Register] = CYCLE_REGISTERS) -> bytes:
+    """The bytes of Indirect Addresses that map each byte of ``registers`` (the cycle's read by
+    default) in order, little-endian."""
+    addresses = [register.address + k for register in registers for k in range(register.size)]
     return b"".join(address.to_bytes(2, "little") for address in addresses)
 
 

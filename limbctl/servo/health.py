@@ -1,29 +1,18 @@
 """Per-cycle health of the servos, judged from each :class:`limbctl.servo.cycle.CycleRead`.
 
 :class:`HealthMonitor` is fed one cycle read per control cycle and answers, as a value, what to
-say and whether to stop:
+say and whether to stop (docs/safety.md's fault table gives the figures):
 
-- a servo that misses ``named_after_misses`` reads in a row is named (a notice), and again with
-  how long it was gone when it answers (a dropout, timed from its first miss); misses below
-  that count are counted by the loop as lost cycles only. While it is silent the loop reads the
-  other servos and probes it once every ``probe_interval_s`` (:meth:`HealthMonitor.probes_due`,
-  :func:`limbctl.servo.cycle.read_around_silent`); a probe that finds it silent for
-  ``lost_after_s``: lost (a fault). A dropout still going on when the session ends is reported
-  with its length so far (:meth:`HealthMonitor.ongoing`);
-- Torque Enable reading 0 on a servo the loop drives (switched off, or the servo restarted after
-  a brown-out, which also clears the indirect map so every mapped byte reads 0): a fault;
-- a hardware error (alarm) in Hardware Error Status: a fault naming every servo in alarm (the
-  loop's safe state then says each servo's torque);
-- a servo that does not follow, found two ways:
-
-  - blocked: its drive saturated (``|Present PWM| >= pwm_saturation x PWM Limit``) in every read
-    for ``blocked_window_s`` while more than ``blocked_error_deg`` from its goal and not closing
-    in on it by ``min_progress_deg``: pushed or jammed beyond what the motor can move;
-  - the backstop, for a servo that fails without saturating (a limp or slipping horn): its
-    present position further than ``max_tracking_error_deg`` from the goal it holds for longer
-    than ``tracking_grace_s`` in which no ``progress_window_s`` saw it move ``min_progress_deg``
-    toward that goal (a servo chasing a goal that moves faster than its profile allows, or
-    turning round to follow one that reversed, is following).
+- a servo missing ``named_after_misses`` reads in a row is named, and named again with its
+  dropout's length when it answers; while silent it is probed every ``probe_interval_s``
+  (:meth:`HealthMonitor.probes_due`) and lost (a fault) once silent for ``lost_after_s``;
+- Torque Enable reading 0 on a driven servo (switched off, or restarted after a brown-out): a
+  fault; so is a hardware error (alarm), naming every servo in alarm;
+- a servo that does not follow: *blocked* (drive saturated for ``blocked_window_s`` while
+  more than ``blocked_error_deg`` off its goal and not closing in by ``min_progress_deg``),
+  or the backstop for one that fails without saturating (further than
+  ``max_tracking_error_deg`` for ``tracking_grace_s`` with no ``progress_window_s`` of
+  progress toward its goal).
 """
 
 from __future__ import annotations

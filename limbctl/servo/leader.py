@@ -1,23 +1,14 @@
 """A leader gimbal's servos in current-based position mode: which models can, and their set-up.
 
-A leader that pushes back needs Operating Mode 5 (current-based position): the position loop
-drives toward Goal Position, but never with more current than Goal Current (and Current Limit,
-in EEPROM, bounds that). Models without current sensing (the XL430-W250) cannot; their leader
-stays passive, torque off, as before.
-
-Each cycle's command to a felt leader is one sync write of two registers mapped onto Indirect
-Data after the cycle's read block (:data:`FEEL_DATA`; 12 + 6 bytes fit the 20 slots every
-family has)::
-
-    Goal Current (2 bytes) | Goal Position (4 bytes)
-
-Profile Velocity changes only when the wall comes on or goes off: a sync write of its own.
-
-A felt leader's read is the cycle's read block, but its two bytes of Present PWM are mapped to
-Present Current instead (:data:`CURRENT_MAP`): the law needs the motor's torque, and only the
-current gives its sign while the loop brakes (the PWM also carries the back-EMF). Its four bytes
-of Goal Position carry Present Velocity (:data:`VELOCITY_MAP`): the law needs the leader's speed
-(a let go is seen by it long before the tick-quantized pose shows it).
+A leader that pushes back needs Operating Mode 5 (current-based position): the loop drives
+toward Goal Position with at most Goal Current (bounded by the EEPROM Current Limit). Models
+without current sensing (the XL430-W250) stay passive, torque off. Each cycle's command is one
+sync write of Goal Current (2 bytes) and Goal Position (4) mapped onto Indirect Data after the
+cycle's read block (:data:`FEEL_DATA`; 12 + 6 bytes fit every family's 20 slots); Profile
+Velocity has a sync write of its own when the wall comes on or goes off. A felt leader's read
+maps Present Current over the cycle read's Present PWM (:data:`CURRENT_MAP`: only the current
+gives the motor torque's sign while the loop brakes) and Present Velocity over its Goal Position
+(:data:`VELOCITY_MAP`: a let go shows in the speed long before in the tick-quantized pose).
 """
 
 from __future__ import annotations
@@ -35,7 +26,7 @@ from limbctl.servo.control_table import (
     Register,
     model_name,
 )
-from limbctl.servo.cycle import CYCLE_BYTES, CYCLE_REGISTERS, ServoReport
+from limbctl.servo.cycle import CYCLE_BYTES, CYCLE_REGISTERS, ServoReport, indirect_map
 
 if TYPE_CHECKING:
     from limbctl.servo.bus import ServoBus
@@ -139,8 +130,7 @@ FEEL_MAP = Block(
 
 def feel_map() -> bytes:
     """The bytes of the Indirect Addresses that map :data:`FEEL_REGISTERS`, little-endian."""
-    addresses = [r.address + k for r in FEEL_REGISTERS for k in range(r.size)]
-    return b"".join(address.to_bytes(2, "little") for address in addresses)
+    return indirect_map(FEEL_REGISTERS)
 
 
 def _slot(register: Register) -> int:
@@ -159,29 +149,12 @@ def _slot_map(mapped: Register, slot_register: Register) -> Block:
     )
 
 
-def _addresses(register: Register) -> bytes:
-    """The bytes of Indirect Addresses that point at each byte of ``register``."""
-    return b"".join((register.address + k).to_bytes(2, "little") for k in range(register.size))
-
-
 #: A felt leader maps Present Current where the cycle's read block holds Present PWM (the same
-#: size), so its one read each cycle carries its current.
-CURRENT_SLOT = _slot(Register.PRESENT_PWM)
-#: The Indirect Addresses of that slot.
+#: size), so its one read each cycle carries its current: the Indirect Addresses of that slot.
 CURRENT_MAP = _slot_map(Register.PRESENT_CURRENT, Register.PRESENT_PWM)
 #: And Present Velocity where the block holds Goal Position (a leader's goal is the law's, not
 #: read back), so the read carries its speed.
 VELOCITY_MAP = _slot_map(Register.PRESENT_VELOCITY, Register.GOAL_POSITION)
-
-
-def current_map() -> bytes:
-    """The bytes of the Indirect Addresses that put Present Current in :data:`CURRENT_SLOT`."""
-    return _addresses(Register.PRESENT_CURRENT)
-
-
-def velocity_map() -> bytes:
-    """The bytes of the Indirect Addresses that put Present Velocity in the Goal Position slot."""
-    return _addresses(Register.PRESENT_VELOCITY)
 
 
 def present_current(report: ServoReport) -> int:
@@ -255,8 +228,12 @@ def configure_felt_leader(
                         ) from None
                 if bus.read(register, servo_id, patient=True) != value:
                     raise BusError(f"servo {servo_id} did not keep {register.name}", servo_id)
-            maps = ((FEEL_MAP, feel_map()), (CURRENT_MAP, current_map()))
-            for block, data in (*maps, (VELOCITY_MAP, velocity_map())):
+            maps = (
+                (FEEL_MAP, feel_map()),
+                (CURRENT_MAP, indirect_map((Register.PRESENT_CURRENT,))),
+                (VELOCITY_MAP, indirect_map((Register.PRESENT_VELOCITY,))),
+            )
+            for block, data in maps:
                 bus.write_block(block, servo_id, data)
                 if bus.read_block(block, servo_id) != data:
                     raise BusError(f"servo {servo_id} did not keep the feel map", servo_id)

@@ -1,24 +1,14 @@
 """A felt leader's guard: a second process that makes the leader limp when its controller dies.
 
-A felt leader's servos run with torque on; if the controller dies mid-push (kill -9, a crash),
-their Bus Watchdog stops them within 100 ms, but a tripped servo *holds* where it stopped until
-the power goes (docs/haptic.md, a controller that dies). The guard bounds that hold in time.
-:meth:`LeaderGuard.start` (called by the felt leader source once the leader is configured)
-starts ``python -m limbctl.servo.leader_guard`` in a session of its own (a Ctrl-C to the
-controller's terminal does not reach it) holding only the read end of a pipe; the write end
-stays in the controller, not inheritable, so the guard reads EOF the moment the controller is
-gone, however it went (the kernel closes a dead process's files).
-
-- A clean end: the controller switches the leader off itself, then :meth:`LeaderGuard.done`
-  writes ``done`` and closes the pipe; the guard exits touching nothing.
-- EOF without ``done``: the guard waits for the port to be free (the dead controller's lock on
-  it goes with it: :mod:`limbctl.servo.port_lock`), opens it at the same baud through
-  :class:`~limbctl.servo.bus.ServoBus` (which pings the leader's servos, no one else's), writes
-  Torque Enable 0 to each leader servo and nothing else, tries again until each has answered,
-  prints one line to stderr and exits. Whatever it has not done by :data:`GIVE_UP_S` after the
-  EOF, it gives up on (its line says what), so it never outlives that bound.
-
-The follower (the limb) is never touched: the guard knows only the leader's ids.
+A tripped Bus Watchdog stops a felt leader's servos within 100 ms but leaves them *holding*
+until the power goes (docs/haptic.md, a controller that dies). :meth:`LeaderGuard.start` starts
+``python -m limbctl.servo.leader_guard`` in a session of its own, holding only the read end of a
+pipe whose write end stays in the controller, so the guard reads EOF the moment the controller
+is gone, however it went. After :meth:`LeaderGuard.done` (a clean end) it exits touching
+nothing; on EOF without ``done`` it waits for the port to be free, opens it through
+:class:`~limbctl.servo.bus.ServoBus`, writes Torque Enable 0 to each leader servo (never the
+follower's) until each has answered, prints one line and exits, giving up after
+:data:`GIVE_UP_S`.
 """
 
 from __future__ import annotations

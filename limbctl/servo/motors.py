@@ -1,27 +1,16 @@
-"""Set up servos out of the box for a rig profile's joints, one servo at a time.
+"""Set up servos out of the box for a rig profile's joints, one servo at a time (README).
 
-Factory servos all answer as ID 1 at 57600 baud, so they are set up one at a time, as a person
-does it: only the joint's servo connected, it is found at any baud rate and ID
-(:func:`limbctl.servo.scan.scan`), and refused when more than one servo answers, when two
-collide on one ID, when its model is not the profile's, or when its supply is outside its
-family's voltage limits. With torque off it then gets, in this order:
+Factory servos all answer as ID 1 at 57600 baud, so only the joint's servo is connected, found
+at any baud and ID (:func:`limbctl.servo.scan.scan`), and refused when more than one servo
+answers, two collide on one ID, its model is not the profile's, or its supply is outside its
+family's limits. With torque off it gets, in this order, the joint's ID and the profile's baud
+(EEPROM; the baud write is answered at the old rate), Return Delay Time 0 (EEPROM) and Status
+Return Level 2 (RAM: every record, teleop and calibrate sets it again at their start).
 
-1. ID (EEPROM) - the joint's ID in the profile;
-2. Baud Rate (EEPROM) - the profile's baud: the servo answers this write at the old rate and
-   listens at the new one from then on;
-3. Return Delay Time 0 (EEPROM): a reply comes at once instead of 500 us late;
-4. Status Return Level 2 (RAM): answer every instruction. RAM is reset at power-up, so this
-   lasts until then; every record, teleop and calibrate sets it again at their start.
-
-A servo that is recognisably another joint's of the profile is not renumbered: one that answers
-as that joint's ID, unless it is factory-fresh (ID 1 at 57600 baud with Return Delay Time 250:
-a profile whose pan is ID 1 meets every new servo at pan's ID). Such a servo was set up as that
-joint, in this run or before; it keeps its ID, and the outcome names the joint
-(:attr:`SetupOutcome.other_joint`), unless ``renumber`` says to make it this joint on purpose.
-
-Then it is pinged at the new ID and baud and every value written is read back. Only values that
-differ are written (EEPROM wears), so running set-up twice is harmless. Each joint's outcome is
-a value: a failed joint does not undo the others.
+A servo answering as another joint's ID is that joint's (set up before) and keeps its ID
+(:attr:`SetupOutcome.other_joint`), unless it is factory-fresh (ID 1 at 57600 baud, Return
+Delay Time 250) or ``renumber`` says so. Only values that differ are written (EEPROM wears) and
+all are read back, so running set-up twice is harmless; a failed joint does not undo others.
 """
 
 from __future__ import annotations

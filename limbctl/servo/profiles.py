@@ -1,15 +1,11 @@
 """Rig profiles as the controller uses them: loaded through calib, checked against the servos.
 
-:mod:`calib` validates a profile as data and knows nothing of the controller. What only the
-servo layer knows is checked here before a profile is used: the baud rate is one the servos
-offer, the model is one the controller drives, and each joint's hard limits map to ticks inside
-one turn of the encoder. A profile built in code (``limbctl calibrate``) is validated as data
-too, so its hard limits meet the same end-stop check as a file's before they reach a servo.
-Errors from :mod:`calib` come out as the controller's own
+:mod:`calib` validates a profile as data; here, before a profile (from a file or built by
+``limbctl calibrate``) is used, the servo layer checks what only it knows: the baud is one the
+servos offer, the model one the controller drives, each joint's hard limits map to ticks inside
+one turn. :mod:`calib`'s errors come out as the controller's own
 (:class:`~limbctl.errors.ConfigError`, :class:`~limbctl.errors.FileFormatError`).
-
-:func:`check_trained_for` refuses a model (or anything else trained on a recording) whose
-recorded rig name or calibration differs from the profile's.
+:func:`check_trained_for` refuses a model trained on another rig or another calibration.
 """
 
 from __future__ import annotations

@@ -1,13 +1,10 @@
 """A calibrated chain of joints on a servo bus: joint angles (rad) <-> ticks, limits, present pose.
 
-:class:`Rig` is deliberately dumb and exact, for a chain of any number of joints (the profile's,
-in order: ``(pan, tilt)`` or ``(pan, tilt, roll)``). It converts each joint with its profile's
-``zero_tick`` and ``direction`` (``ticks = zero_tick + direction * angle * 4096 / (2 pi)``,
-rounded), clamps to each joint's hard limits and says whether it did, and reads the present pose
-in one sync read. A pose is a tuple of one angle per joint. It never moves the limb on its own:
-the only way a goal leaves it is :meth:`Rig.write_goal_ticks` (and :meth:`Rig.write_pose`, which
-clamps, converts and calls it), used by the gate's caller. Its orientation is the chain's
-(:func:`limbctl.geometry.gimbal.pose_quat`): twist-free for two joints, ``Rz Ry Rx`` for three.
+:class:`Rig` converts each joint of the profile's chain (``(pan, tilt)`` or ``(pan, tilt,
+roll)``) with its ``zero_tick`` and ``direction`` (``ticks = zero_tick + direction * angle *
+4096 / (2 pi)``, rounded), clamps to the hard limits and reads the present pose in one sync
+read. It never moves the limb on its own: a goal leaves only through
+:meth:`Rig.write_goal_ticks` (and :meth:`Rig.write_pose`, which clamps, converts and calls it).
 """
 
 from __future__ import annotations
@@ -16,11 +13,8 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-import numpy as np
-
 from calib.profile import JointProfile, RigProfile
 from limbctl.errors import InvalidInputError, SafetyError
-from limbctl.geometry.gimbal import pan_tilt_to_direction, pose_quat
 from limbctl.servo.bus import ServoBus
 from limbctl.servo.control_table import Register
 from limbctl.servo.cycle import CycleRead
@@ -185,16 +179,6 @@ class Rig:
     def read_pose(self) -> tuple[float, ...]:
         """Present joint angles (rad), one per joint."""
         return self.ticks_to_angles(*self.read_ticks())
-
-    def read_direction(self) -> np.ndarray:
-        """Present limb direction, shape (3,), unit (pan and tilt set it; roll does not)."""
-        pose = self.read_pose()
-        return pan_tilt_to_direction(pose[0], pose[1])
-
-    def read_quaternion(self) -> np.ndarray:
-        """Present orientation (w, x, y, z), shape (4,), w >= 0: twist-free for two joints,
-        ``Rz(pan) Ry(-tilt) Rx(roll)`` for three."""
-        return pose_quat(*self.read_pose())
 
     def write_goal_ticks(self, *ticks: int) -> None:
         """Send goal ticks, one per joint, to the servos in one sync write.

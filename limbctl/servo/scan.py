@@ -1,17 +1,12 @@
 """Find the servos on a port at every baud rate, and name the IDs that two servos share.
 
-At each baud rate one broadcast PING is sent and every byte that comes back is kept: clean
-status packets name a servo (ID, model, firmware); bytes that form no clean packet are replies
-that collided, two servos answering as one ID at once. Servos answer a broadcast PING in
-ascending ID order, so the collided bytes sit between the clean replies of IDs ``a`` and ``b``
-and the shared ID lies strictly between them: those IDs are then pinged one at a time, and an
-ID whose reply is garbled is named as a collision. The factory-fresh case (every servo ID 1)
-costs two pings.
-
-Reading stops when the line has been quiet for :data:`QUIET_PACKETS` reply times after the
-last reply, and listening for the first one stops after :data:`BROADCAST_CAP_S` (the SDK waits
-253 reply slots of up to 3 ms each: 4.5 s at 9600 baud); a servo that answers that late (an ID
-far above 80 at 9600 baud) is missed, so keep IDs low.
+At each baud one broadcast PING is sent and every byte back is kept: clean status packets name
+a servo; bytes forming no clean packet are two replies that collided. Servos answer in ascending
+ID order, so a shared ID lies strictly between the clean replies around the garbled bytes;
+those IDs are pinged one at a time (the factory-fresh case, every servo ID 1, costs two pings).
+Reading stops after :data:`QUIET_PACKETS` quiet reply times, and waiting for the first reply
+after :data:`BROADCAST_CAP_S`: a servo answering later (an ID far above 80 at 9600 baud) is
+missed, so keep IDs low.
 """
 
 from __future__ import annotations

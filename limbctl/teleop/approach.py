@@ -1,16 +1,10 @@
 """Drive a limb in from outside the region, and park it after a session, for any chain.
 
-:func:`drive` moves the limb from where the hand left it to a start pose inside by the margin
-(:mod:`limbctl.teleop.margin`) at a speed the user chose, along the shortest path on the
-chain's own space (a great circle of directions for two joints, the shortest rotation for
-three); every goal is checked: inside the hard limits, no joint step above the gate's, never
-further outside the region than where the limb started (plus the gate's tolerance).
-
-:func:`park` runs after a session: when the last gated pose, rounded to ticks, is not inside by
-the margin (a session that ended on the region's edge), the gate drives it that far inside, so
-the next start accepts the pose the servos hold.
-
-Angles in radians unless a name ends in ``_deg``.
+:func:`drive` moves the limb at the user's speed along the shortest path on the chain's space
+to a start pose inside by the margin (:mod:`limbctl.teleop.margin`), every goal inside the hard
+limits, no joint step above the gate's, never further outside the region than where it began.
+:func:`park` drives a limb that ended a session on the region's edge that far inside, so the
+next start accepts the pose the servos hold. Angles in radians unless a name ends in ``_deg``.
 """
 
 from __future__ import annotations

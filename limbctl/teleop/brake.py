@@ -1,23 +1,12 @@
 """The brake rules: a wall lets its leader go before the servo's loop would brake it outward.
 
-The servo's position loop pulls toward its profile setpoint, which walks toward the region at
-RETURN_SPEED (:mod:`limbctl.teleop.haptic`). A leader that gains on that setpoint (a hand
-pulling it back inside, a grip fading while the wall walks the leader back, a setpoint that
-stopped at its goal because a cycle came late) is braked by the loop: its torque turns away
-from the region while the leader is still outside it. The snap watch (:mod:`limbctl.teleop.
-snap`) reads the leader's speed and torque about every millisecond while a wall is on, and
-these rules free the wall (Goal Current 0) before the braking starts::
-
-    outrun   the leader moves toward the region faster than the setpoint walks, by more than
-             OUTRUN, while the motor's read torque toward the region is under LOOSE (no hand
-             held against the wall, which a cut would let throw the leader out)
-    braking  the leader moves toward the region (faster than STILL), and the motor's torque
-             toward the region, carried on at its rate since the last read (within SPAN),
-             falls under zero within HORIZON, or within the gap since the last read plus
-             LAND if that is longer (the next read comes about as late)
-
-A freed wall comes back only on a leader read as not moving in (the snap watch's re-arm
-rule), from where the leader then is. The rules only ever take torque away.
+The loop pulls toward its profile setpoint, which walks toward the region at RETURN_SPEED; a
+leader that gains on it is braked (torque away from the region while still outside). The snap
+watch (:mod:`limbctl.teleop.snap`) reads speed and torque about every millisecond while a wall
+is on and frees it (Goal Current 0) when the leader *outruns* the setpoint with no hand held
+(:func:`outruns`) or its torque toward the region is about to fall under zero
+(:func:`brakes_soon`). The rules only ever take torque away; docs/haptic.md ("The brake
+rules") gives the figures.
 """
 
 from __future__ import annotations
@@ -34,27 +23,20 @@ class BrakeLaw:
     ----------
     outrun_deg_s : float
         1.0 deg/s, under one Present Velocity unit (1.37 deg/s): the first reading above the
-        setpoint's own units (10 units, 13.7 deg/s; the next reads 15.1) is an outrun. A leader
-        the wall walks back itself (its speed ripples up to 14.0 deg/s) keeps its wall; a hand
-        pulling it in, or a fading grip's last push, takes it past the setpoint's pace a few
-        milliseconds before the loop brakes. At 1.5 deg/s a 100 ms fade read at 15.1 deg/s
-        kept its wall and was braked (decisions/haptic.md, round 8).
+        setpoint's own units (10 units, 13.7 deg/s; the next reads 15.1) is an outrun, while a
+        leader the wall walks back itself (rippling up to 14.0 deg/s) keeps its wall.
     loose_nm : float
         0.06 N m, the snap watch's HOLD: under it no hand is held against the wall, so freeing
-        the wall cannot let a hand throw the leader outward (a fading grip cut while the hand
-        still pushed 0.25 N m threw the leader 0.3 deg out: decisions/haptic.md, round 7).
+        the wall cannot let a hand throw the leader outward.
     horizon_s : float
         2 ms: a cut decided at a read lands within a millisecond over the bus, and the stepped
         clock's grain is another; the torque must still point toward the region then.
     land_s : float
-        1 ms: a cut's write lands within it of the read that decided it. Over the pty the
-        watch's reads come 2-3 ms apart (a sync read and the cycle's own work between them),
-        so the torque must stay toward the region until the read after next could act: the gap
-        since the last read plus this.
+        1 ms: a cut's write lands within it of its read; reads come 2-3 ms apart over the pty,
+        so the torque must stay toward the region for the gap since the last read plus this.
     span_s : float
-        4 ms: the torque's rate is taken only from two reads this close (the watch reads about
-        every millisecond, the cycle's own work leaves 2-3 ms between two of its reads); an
-        older read says nothing of the loop's braking now.
+        4 ms: the torque's rate is taken only from two reads this close (the watch's 1 ms, or
+        2-3 ms across a cycle's own work); an older read says nothing of the braking now.
     """
 
     outrun_deg_s: float = 1.0

@@ -1,25 +1,14 @@
 """Parse one command (a JSON line or datagram) into a target orientation.
 
-Accepted forms, one JSON object per line (an optional numeric ``"t"`` in seconds is kept for
-replay timing; any other key is refused so that a typo never silently becomes a default):
+One JSON object per line (README's input formats), with an optional numeric ``"t"`` (s) kept
+for replay; any other key is refused, so a typo never silently becomes a default:
 
-- ``{"pan": deg, "tilt": deg}``: joint angles in degrees, pan in [-180, 180], tilt in [-90, 90];
-- ``{"dir": [x, y, z]}``: a limb direction (any positive length, normalised here);
-- ``{"q": [w, x, y, z]}``: a unit quaternion; the gimbal has no twist, so only the direction it
-  points the limb along is used.
-
-On a three-servo rig (``twist=True``: a roll joint turns the limb about its own axis) the target
-is a full orientation and three more forms carry twist:
-
-- ``{"q": [w, x, y, z]}`` keeps its twist;
-- ``{"pan": deg, "tilt": deg, "roll": deg}``: joint angles, roll in [-180, 180]
-  (``q = Rz(pan) Ry(-tilt) Rx(roll)``; the roll joint's angle is not the twist);
-- ``{"dir": [x, y, z], "twist": deg}``: a direction and the twist about it,
-  ``q = swing(d) * twist(tau)`` (twist in [-180, 180]).
-
-Without ``roll`` or ``twist``, ``pan``/``tilt`` and ``dir`` mean the twist-free orientation (twist
-0), as on two servos. On a two-servo rig a line with ``roll`` or ``twist`` is refused with the
-reason (the rig cannot turn the limb about its axis); a ``q`` keeps today's meaning there.
+- ``{"pan": deg, "tilt": deg}`` (pan in [-180, 180], tilt in [-90, 90]), ``{"dir": [x, y, z]}``
+  (any positive length) or ``{"q": [w, x, y, z]}`` (unit; on two servos only its direction);
+- on a three-servo rig (``twist=True``) also ``"roll": deg`` with pan/tilt
+  (``q = Rz(pan) Ry(-tilt) Rx(roll)``) or ``"twist": deg`` with ``dir``
+  (``q = swing(d) * twist(tau)``), both in [-180, 180]; ``q`` keeps its twist; without them
+  the twist is 0. A two-servo rig refuses ``roll`` and ``twist`` with the reason.
 
 Anything else (NaN, inf, out of range, wrong type, malformed JSON, oversize line) raises
 :class:`~limbctl.errors.InvalidInputError` with the reason; callers count and drop it.

@@ -1,33 +1,20 @@
 """The one place every commanded pose passes before it may become a goal position.
 
-One algorithm for every chain of joints, run on the points of the chain's geometry
-(:func:`limbctl.geometry.chains.chain_geometry`): limb directions on the sphere for two joints
-(pan, tilt), full orientations on SO(3) for three (pan, tilt, roll). Per command (the safety
-model in docs/architecture.md):
+One algorithm for every chain (:func:`limbctl.geometry.chains.chain_geometry`): limb directions
+on the sphere for two joints, orientations on SO(3) for three. Per command (the safety model,
+docs/architecture.md, states each step): ``correct`` onto the taught region; a slew limit of
+``max_step`` per cycle toward it, corrected again so a non-convex region is followed, never
+cut across (aimed along a route, :class:`~limbctl.teleop.route.Router`, where a concave wall
+holds the step); inverse kinematics (the pan kept at tilt +-90 deg, the roll unwrapped within
+its limits nearest the present roll); hard limits clamped and joint steps over
+``max_joint_step`` scaled down together (``SLEWED``); a final check that the pose is inside the
+limits and the region (within ``region_tolerance``), else the last safe pose is held.
 
-1. ``correct``: the envelope returns the target itself inside the taught region, else the
-   nearest orientation of the region (on three joints, by geodesic angle, twist included);
-2. slew limit: the point moves at most ``max_step`` (rad: of direction along the great circle,
-   or of rotation along the shortest rotation) per cycle from the last safe pose toward the
-   corrected target; the intermediate pose is corrected again, so a non-convex region is
-   followed, never cut across. When that corrected step makes no way (a concave wall between
-   the two holds it), the step aims instead at a point of a route along the region
-   (:class:`~limbctl.teleop.route.Router`), so the wall is gone round;
-3. inverse kinematics to the joints: the present pan kept at the singularity (tilt +-90 deg),
-   on three joints the roll unwrapped within its hard limits nearest the present roll;
-4. hard joint limits clamp every joint; a joint step larger than ``max_joint_step`` is scaled
-   down, all joints by one factor, so the largest step is ``max_joint_step`` (``SLEWED``);
-5. final check: the pose that would be written is inside the hard limits and inside the region
-   (``contains``, or within ``region_tolerance`` of ``correct``); if not, the last safe pose is
-   held.
-
-**The long way round (three joints).** The profile keeps the roll's hard limits inside
-(-180, 180) deg, so a short rotation on SO(3) that crosses roll +-180 deg cannot be followed by
-the joint: IK returns the roll within its limits, i.e. the other way round, and the per-joint
-step limit walks the joints there. The poses in between then leave the slerp path; each is
-checked (step 5), and the gate holds the last safe pose rather than write one outside the
-region. With a twist band that does not cross +-180 deg (every region the region layer fits,
-which refuses d = -x), the path the joints take between two poses of the band stays in it.
+**The long way round (three joints).** The roll's hard limits lie inside (-180, 180) deg, so a
+short rotation crossing roll +-180 deg makes IK return the roll the other way round; the poses
+in between leave the slerp path, each is checked, and the gate holds rather than write one
+outside the region. With a twist band that does not cross +-180 deg (every region the region
+layer fits), the joints' path between two poses of the band stays in it.
 
 The outcome of a cycle is a value (:class:`Outcome`), not an exception (after ruckig).
 """

@@ -1,23 +1,13 @@
 """A felt leader's push this cycle: the wall law of :mod:`limbctl.teleop.haptic` on its chain.
 
-The leader's pose (n joints, n = 2 or 3) is the command ``q``; the region corrects it to
-``correct(q)``. What the chain decides (:func:`beyond_deg`, :func:`corrected_pose`)::
-
-    two joints (pan, tilt):        d = angle between the directions of q and correct(q)
-                                   target = (pan, tilt) of correct(q)'s direction
-    three joints (pan, tilt, roll): d = 2 acos |<q, correct(q)>|  (the rotation between them)
-                                   target = (pan, tilt, roll) of correct(q), the pan kept at
-                                   tilt +-90 deg, the roll unwrapped within the roll joint's
-                                   limits nearest the leader's roll (as the gate does)
-
-Everything else is the law's, on the joint-space step ``s = target - present`` (n,): the torque
-shared along it (:func:`~limbctl.teleop.haptic_currents.shared_currents`, so the hand feels at
-most tau), Goal Position at most LEAD along it, and the let-go rules on the leader's motion and
-motor torque projected on it. Each servo's loop drives its joint toward its goal with at most its
-Goal Current, so the joints' torques point toward the correction. Near the edge a rotation of
-``d`` needs joint moves of about ``d`` (a three-joint chain's Jacobian is near orthonormal away
-from tilt +-90 deg), so the wall's stiffness per joint, and its passivity at 200 Hz, are the same
-on both chains (docs/haptic.md).
+The leader's pose (n = 2 or 3 joints) is the command ``q``, corrected to ``correct(q)``. On two
+joints ``d`` is the angle between their directions and the target the (pan, tilt) of
+``correct(q)``'s; on three, ``d`` is the rotation between them and the target ``correct(q)``'s
+(pan, tilt, roll), unwrapped as the gate does (:func:`beyond_deg`, :func:`corrected_pose`). The
+rest is the law's, on the joint-space step ``s = target - present`` (n,): the torque shared along
+it, Goal Position at most LEAD along it, the let-go rules on the motion and torque projected on
+it. Near the edge a rotation of ``d`` needs joint moves of about ``d``, so the wall's stiffness
+and passivity are the same on both chains (docs/haptic.md).
 """
 
 from __future__ import annotations
@@ -39,7 +29,6 @@ from limbctl.teleop.haptic import (
     pulls_outward,
     walks_back,
 )
-from limbctl.teleop.haptic_currents import shared_currents
 
 
 @dataclass(frozen=True)
@@ -61,7 +50,7 @@ class Push:
     distance_deg : float
         How far the command lies beyond the region (deg).
     joint_currents : tuple of int, (n,)
-        Goal Current units per joint (:func:`~limbctl.teleop.haptic_currents.shared_currents`);
+        Goal Current units per joint (:func:`shared_currents`);
         empty: ``goal_current`` on every joint (a free push's 0).
     """
 
@@ -75,6 +64,33 @@ class Push:
     def currents(self, joints: int) -> tuple[int, ...]:
         """Goal Current units for each of ``joints`` joints."""
         return self.joint_currents or (self.goal_current,) * joints
+
+
+def shared_currents(
+    motor: LeaderMotor, torque_nm: float, step: tuple[float, ...]
+) -> tuple[tuple[int, ...], float]:
+    """Goal Current per joint for a push of magnitude ``torque_nm`` (N m) along ``step`` (joint
+    space, toward the corrected pose; not all zero), and the magnitude those currents allow::
+
+        I_j = tau |s_j| / |s| / kt        (rounded down; |I| = tau / kt: the hand feels tau)
+
+    Each servo's loop pushes its joint toward its goal with at most its I_j, so the torque the
+    hand feels, the norm of the joints' torques, is at most ``torque_nm`` in any direction (the
+    same current on every joint would let a diagonal push reach sqrt(2) CAP). A joint the step
+    does not move gets none: the wall pushes along its normal and a hand slides along it freely.
+
+    Returns
+    -------
+    currents : tuple of int, (n,)
+        Goal Current units per joint.
+    magnitude_nm : float
+        sqrt(sum_j torque_of(I_j)^2) (N m).
+    """
+    # |s| = sqrt(sum_j s_j^2)
+    norm = math.sqrt(sum(s * s for s in step))
+    currents = tuple(motor.units_for(torque_nm * abs(s) / norm) for s in step)
+    magnitude = math.sqrt(sum(motor.torque_of(c) ** 2 for c in currents))
+    return currents, magnitude
 
 
 def held(present: Sequence[float], distance_deg: float = 0.0) -> Push:

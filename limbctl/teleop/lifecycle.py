@@ -1,15 +1,9 @@
-"""One teleop session from start to park, for any chain: :func:`start_session`, the control
-loop, :func:`park`.
+"""One teleop session from start to park, for any chain (:func:`run_session`).
 
-1. start from wherever the limb is (at once when safe; else wait for the hand or approach, with
-   torque off while waiting; see :mod:`limbctl.teleop.start`);
-2. open the command source, only now that the limb is held inside: a replayed stream paced by
-   its ``"t"`` then starts with the loop instead of running on (and going stale) while the start
-   waits;
-3. run the control loop (:func:`limbctl.teleop.loop.run`); should the gate refuse the start
-   pose as the loop begins (the limb was moved out in that instant), torque goes off;
-4. after a clean end, park the limb inside by the margin if it rests nearer the edge.
-
+It starts from wherever the limb is (:mod:`limbctl.teleop.start`), opens the command source
+only once the limb is held inside (so a replayed stream paced by its ``"t"`` starts with the
+loop), runs the control loop (:func:`limbctl.teleop.loop.run`; torque goes off should the gate
+refuse the start pose as it begins), and after a clean end parks the limb inside by the margin.
 The outcome is one value, :class:`SessionResult`, with the lines a person should read.
 """
 

@@ -1,30 +1,16 @@
 """The teleoperation control loop: fixed rate, one read and one gated write per cycle.
 
-Each cycle (default 200 Hz):
+Each cycle (default 200 Hz) reads every servo in ONE sync read and judges it
+(:class:`limbctl.servo.health.HealthMonitor`), takes the newest valid command, gates it
+(:class:`limbctl.teleop.gate.Gate`), writes only the gate's pose in ONE sync write, reports the
+cycle and paces to the next period. A silent source holds the last safe pose; a cycle whose
+read fails writes nothing. A silent servo is named, the others still read while it is probed,
+and its dropout reported with its length. The loop ends in the configured safe state (hold or
+torque-off) with a message naming the servo and cause on a lost servo, torque off, an alarm, a
+servo not following, or ``max_failed_cycles`` failed reads in a row (docs/safety.md).
 
-1. read every servo's position, goal, torque and alarm (ONE sync read, at most
-   ``read_attempts`` tries, no pings) and judge them (:class:`limbctl.servo.health.HealthMonitor`);
-2. take the newest valid command from the source (bad lines were already refused and counted);
-3. the gate turns it into a safe pose (correct, slew limit, IK, hard limits, final check);
-4. write the goals (one sync write) — only ever a pose the gate returned;
-5. report the cycle's value (telemetry, status, ``on_cycle``) and pace to the next period.
-
-A silent source holds the last safe pose. A cycle whose read fails writes nothing (a servo that is
-not answering would miss the sync write and leave a pose the gate never produced). A servo that
-stops answering is named on the first cycle it misses; while it is silent each cycle reads the
-others (their torque and alarms are still judged) and probes it with one try every
-``health.probe_interval_s``, so the loop keeps its rate, and its dropout is reported with its
-length when a probe finds it back (or, still silent at a clean end, with its length so far). The
-loop ends in the configured safe state (hold: torque stays on at the last goal; torque-off) with a
-message naming the servo and the cause when a servo is silent for ``health.lost_after_s``, reports
-torque off or an alarm, or does not follow its goal, and after ``max_failed_cycles`` consecutive
-cycles whose read failed without naming a servo (corrupt or late replies). The message states each
-servo's torque once, as the safe state left it.
-
-After ruckig, every cycle is a value: :meth:`ControlLoop.step` returns a
-:class:`~limbctl.teleop.cycle.Cycle` (running, finished or fault, with the gate's result, the
-command, the written pose and the timings) and :func:`run` is a short loop over it; the session's
-outcome is a :class:`~limbctl.teleop.cycle.TeleopSummary`.
+:meth:`ControlLoop.step` returns each cycle as a value (:class:`~limbctl.teleop.cycle.Cycle`);
+:func:`run` is a short loop over it, its outcome a :class:`~limbctl.teleop.cycle.TeleopSummary`.
 """
 
 from __future__ import annotations

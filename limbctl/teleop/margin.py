@@ -1,22 +1,12 @@
 """Where a limb may start from: "inside by a margin", and the nearest such pose, for any chain.
 
-A start pose must survive what happens between sessions: the last goal is rounded to whole
-ticks (up to :func:`limbctl.teleop.gate.written_tolerance_deg` outside the region), and a
-holding servo sits a tick or two away from its goal. A limb that waits for its user, or a
-session that parks it, therefore aims at a pose *inside by* :data:`START_MARGIN_DEG`.
-
-The chain decides what that means, in one place (:func:`margins_for`):
-
-- two joints (pan, tilt) point the limb along a direction on the sphere
-  (:class:`SphereMargins`): the pose and a ring of :data:`RING_PROBES` directions at the margin
-  around it lie inside the region, each joint that far inside its hard limits; candidates
-  start past the region's nearest boundary point, then rings around it;
-- three joints (pan, tilt, roll) orient it on SO(3) (:class:`RotationMargins`): the pose the
-  servos hold is safe with any one joint moved by the margin either way; candidates start on
-  the rotation through the region's nearest orientation, then rings about :data:`RING_AXES`.
-
-Angles in radians unless a name ends in ``_deg``; orientations as unit quaternions (4,),
-scalar first.
+A start pose must survive the rounding of the last goal to ticks and a holding servo's tick or
+two of compliance, so a waiting or parked limb aims at a pose *inside by*
+:data:`START_MARGIN_DEG`. The chain decides what that means (:func:`margins_for`): on two joints
+(:class:`SphereMargins`) the direction and a ring of :data:`RING_PROBES` directions around it
+lie inside; on three (:class:`RotationMargins`) the held pose stays safe with any one joint
+moved by the margin either way. Angles in radians unless a name ends in ``_deg``;
+orientations as unit quaternions (4,), scalar first.
 """
 
 from __future__ import annotations

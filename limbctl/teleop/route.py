@@ -1,41 +1,24 @@
 """Routing along the region: where the gate's slew step aims when the straight way leaves it.
 
-The gate's slew limit steps from the last safe pose toward the corrected target and corrects the
-step again. Across a concave wall (a bay or a notch of the region between the two) that
-correction lands back on the wall: a local minimum where the limb sits, ``SLEWED`` every cycle,
-and never reaches a target inside. The gate keeps its plain step while that step makes way
-(:meth:`Router.wanted`: at least ``STUCK_FRACTION`` of a step nearer the target, no jump past a
-step); when a wall holds it, :class:`Router` gives it a *sub-goal* instead of the target, for
-that target until the straight way to it is inside:
+Across a concave wall the gate's corrected step lands back on the wall every cycle (``SLEWED``,
+never arriving). The gate keeps its plain step while it makes way (:meth:`Router.wanted`);
+when a wall holds it, :class:`Router` gives it a *sub-goal* for that target:
 
-1. *Straight*: the straight path (great circle of limb directions on two servos, the shortest
-   rotation on three) is sampled every ``SEGMENT_STEP_DEG``; when every sample is inside (up to
-   ``VISIBLE_SLACK_DEG``), the sub-goal is the target itself and the gate behaves as without
-   routing (commands inside pass unchanged, the output slides along the boundary).
-2. *Roadmap* (built once: at the gate's start on a region that answers batches, else at the
-   first blocked path): a lattice of limb directions ``LATTICE_STEP_DEG`` apart (a Fibonacci
-   sphere), flooded from the present pose over the region: a direction is a node when a pose
-   pointing there is inside (on three servos with a twist found from its neighbour's, within
-   ``TWIST_TRIES_DEG``); neighbours within ``NEIGHBOUR_SPACINGS`` lattice steps are joined when
-   the straight path between their poses is inside at its samples. Edge length is the angle
-   between the directions.
-3. *Distances to the target* (once per target, or per move of a streamed target past
-   ``REUSE_SPACINGS``): Dijkstra from the target over the roadmap, joined to the nodes within
-   ``ATTACH_SPACINGS`` lattice steps whose straight path to it is inside.
-4. *Sub-goal*: the node near the present pose, reachable straight, with the least
-   ``distance to it + its distance to the target``; the route from it along the roadmap to the
-   target is walked as far as ``LOOKAHEAD_DEG``, and the farthest route point the straight path
-   from the present pose reaches inside is the sub-goal. The gate aims there until it is half
-   way (or leaves that straight path: a correction, a clamp), then asks again, so a route is
-   planned every few cycles, not every cycle. On three servos the route points' twist goes
-   linearly, by route length, from the present twist to the target's (the region's own
-   correction where that is outside the band).
+1. *Straight*: the straight path (great circle on two servos, shortest rotation on three),
+   sampled every ``SEGMENT_STEP_DEG``, is inside: the sub-goal is the target itself.
+2. *Roadmap* (built once): a Fibonacci lattice of limb directions ``LATTICE_STEP_DEG`` apart,
+   flooded from the present pose over the region (on three servos a twist found from a
+   neighbour's, within ``TWIST_TRIES_DEG``); neighbours joined where the path between is inside.
+3. *Distances to the target*: Dijkstra from the target over the roadmap (reused while a
+   streamed target moves less than ``REUSE_SPACINGS``).
+4. *Sub-goal*: the farthest point, within ``LOOKAHEAD_DEG`` along the best route, that the
+   straight path from the present pose reaches inside; the gate aims there until half way,
+   then asks again. On three servos the route's twist goes linearly from the present to the
+   target's.
 
-The sub-goal only aims the step: the gate still steps at most ``max_step`` toward it, corrects
-the step and checks the pose it writes, so routing never weakens what the gate promises.
-The bound it gives (docs/safety.md): a target inside the region is reached within
-``REACH_FACTOR * L / max_step + REACH_EXTRA_CYCLES`` cycles, L the shortest path inside (on three
-servos plus the twist to turn), measured by ``benchmarks/bench_reach.py``.
+The sub-goal only aims the step: the gate still limits, corrects and checks what it writes, so
+routing never weakens what the gate promises. Its reach bound (docs/safety.md) is
+``REACH_FACTOR * L / max_step + REACH_EXTRA_CYCLES`` cycles, L the shortest path inside.
 """
 
 from __future__ import annotations

@@ -1,34 +1,13 @@
 """The snap watch: a held wall lets go the moment its leader starts snapping toward the region.
 
-A hand pressing a felt leader against the wall leaves the servo's setpoint a lead ahead of the
-leader (:mod:`limbctl.teleop.haptic`). Let go, the leader snaps onto it, and the servo's loop
-brakes it there: an outward pull, 2-10 ms after the let go, which a 200 Hz read sees too late
-(docs/bench_let_go.md: cut within 3 ms of the let go, no outward sample; within 2 ms, the snap
-also stays under 30 deg/s). So the leader's speed is read between the cycles, about every
-millisecond while the wall holds a still leader, and the wall goes off (Goal Current 0) as soon
-as the leader moves toward the region::
-
-    armed    the wall pushed in this cycle and the one before, the read motor torque pushes
-             toward the region by at least HOLD, and the leader's speed toward it was at most
-             STILL at this read and the one before (a hand held still against the wall); it
-             stays armed while the wall pushes with HOLD or more, the leader creeping or not
-    cut      armed, and the leader's speed toward the region (Present Velocity, along the unit
-             step u toward the correction, joint space) exceeds SNAP, having risen since the
-             last read by what RELEASED of the held torque would give it alone in RISE
-             (dv >= RELEASED tau_hold / J min(dt, RISE): the hand is gone, not relaxing):
-             Goal Current 0, at once
-    re-arm   a free wall comes on only when the read speed toward the region is at most REARM
-             (the leader read as not moving in at all)
-
-A wall pushing a deep leader back (the hand weaker than the cap) or walking a released one
-back is never armed: the leader moves, so the watch leaves those pushes alone. The same speed
-rules run on each cycle's own read (its Present Velocity is in the felt leader's cycle read,
-:data:`limbctl.servo.leader.VELOCITY_MAP`).
-
-While any wall is on (held, walking a leader back, or pushing one back), the watch also reads
-the motor's torque and applies the brake rules (:mod:`limbctl.teleop.brake`): a leader that
-gains on the setpoint, or whose loop's torque is about to turn outward, is let go before the
-loop brakes it. The watch only ever takes torque away.
+Let go, a leader pressed against the wall snaps onto the servo's setpoint, which leads it, and
+the servo's loop brakes it there (an outward pull 2-10 ms later, too soon for a 200 Hz read).
+So while a wall holds a still leader its speed is read about every millisecond between the
+cycles: the watch *arms* on a still leader held with at least HOLD, *cuts* (Goal Current 0) when
+the speed toward the region passes SNAP having risen as a let go makes it, and a free wall
+*re-arms* only on a leader read as not moving in. While any wall is on, the brake rules
+(:mod:`limbctl.teleop.brake`) also apply. The watch only ever takes torque away; docs/haptic.md
+("The snap watch") states the rules and figures.
 """
 
 from __future__ import annotations
@@ -55,10 +34,8 @@ class SnapLaw:
         leader read so, and the brake rules watch only a leader moving in faster.
     rearm_speed_deg_s : float
         0.5 deg/s, under one velocity unit: a free wall comes on only on a leader read as not
-        moving in at all. The wall starts with its setpoint at the leader, so the servo's loop
-        brakes any leader still moving in (outward); over the pty a wall that came on at one
-        unit (1.37 deg/s) met a leader a hand had started pulling back inside, and braked it
-        for 2-4 ms, up to 0.03 N m (decisions/haptic.md, round 8).
+        moving in at all, since the wall starts with its setpoint at the leader and the loop
+        brakes any leader still moving in (outward).
     rearm_span_s : float
         12 ms: with the watch's ``rearm_twice``, the cycle read before must be this recent to
         count (two cycles at 200 Hz, one of them up to 2 ms late); an older one says nothing of
@@ -68,23 +45,18 @@ class SnapLaw:
         0.02 N m/deg hand pressing 5 deg beyond is held with 0.09 N m); the loop walking a
         released leader back needs 0.02-0.03 N m.
     released : float
-        0.5: a let go frees the motor's whole hold at once, so the leader speeds up at about
-        tau_hold / J; a hand whose grip fades over 50 ms lets it speed up at about a seventh of
-        that when it passes SNAP. Cut then, the wall would leave the leader to a hand still
-        pushing outward: it threw the leader 0.3 deg out at 60 deg/s, and the wall coming back
-        pushed it in at 30 deg/s (decisions/haptic.md, round 7). Half: between the two.
+        0.5: a let go frees the whole hold at once (the leader speeds up at about tau_hold /
+        J); a grip fading over 50 ms gives about a seventh of that, and a cut then leaves the
+        leader to a hand still pushing out. Half: between the two.
     rise_s : float
-        1 ms: the speed a let go gives within a millisecond, whatever the gap between two
-        reads (the cycle's own work lies between the watch's last read and the cycle's: 2-3 ms
-        over the pty). A snap keeps speeding up for 2-3 ms (bench_let_go.md), so if the read
-        after a let go comes too soon to see that much, the next one does; a grip fading over
-        50 ms adds about 2 deg/s a millisecond, 5 over a 2.5 ms gap, under the 8.6 deg/s of a
-        0.3 N m hold.
+        1 ms: the rise is judged over at most a millisecond whatever the gap between two reads
+        (2-3 ms over the pty): a snap keeps speeding up for 2-3 ms, so a read too soon leaves
+        it to the next, while a fading grip gains about 5 deg/s over 2.5 ms, under the
+        8.6 deg/s of a 0.3 N m hold.
     inertia_kg_m2 : float
         1e-3 kg m^2, the simulated leader's inertia at each joint (``firmware_sim/leader.py``);
         a real leader's is to be measured (the coast-down that gives its damping gives it too).
-        Set too high, the watch would take a relaxing hand for a let go; too low, it leaves
-        more let goes to the law alone (as before the watch).
+        Too high, a relaxing hand reads as a let go; too low, let goes are missed.
     """
 
     snap_speed_deg_s: float = 4.0
@@ -111,13 +83,13 @@ def along(values: Sequence[float], unit: Sequence[float]) -> float:
 
 @dataclass
 class SnapWatch:
-    """One leader's watch state (see the module docstring).
+    """One leader's watch state.
 
     Attributes
     ----------
     law : SnapLaw
     brake : BrakeLaw or None
-        The brake rules (:mod:`limbctl.teleop.brake`); None: the snap rule alone (round 7).
+        The brake rules (:mod:`limbctl.teleop.brake`); None: the snap rule alone.
     walk_deg_s : float
         How fast the wall's setpoint walks toward the region (deg/s): its Profile Velocity.
     armed : tuple of float or None
@@ -131,23 +103,15 @@ class SnapWatch:
     reads : int
         How many reads the watch was handed between the cycles.
     at_read : bool
-        Whether the source judges each cycle's read by these rules as soon as it is read
-        (:meth:`judge`), before the cycle's gate work and the follower's write, and writes a
-        cut at once: over the pty that work takes 1-2 ms, and a cut decided at the read but
-        written with the cycle's own push landed after the loop had begun braking (docs/
-        haptic.md, round 9). False (the rounds before): the cycle's read is judged when its
-        push is decided (:meth:`allows`).
+        Whether the source judges each cycle's read as soon as it is read (:meth:`judge`) and
+        writes a cut at once, before the cycle's gate work (1-2 ms over the pty, by which the
+        loop had begun braking). False: judged when its push is decided (:meth:`allows`).
     rearm_twice : bool
-        Whether a free wall comes back only when the cycle's read *and* the cycle read before
-        (within ``rearm_span_s``) show the leader not moving in, or at once on a leader read
-        moving outward faster than STILL (a hand pushing it out, as after a held gate: one
-        cycle more of release let a 0.2 N m/deg hand push it 1.4 deg further). A hand
-        reversing, from pushing out to pulling in, leaves the leader still for a millisecond
-        or two (the backdrive friction holds it while the hand's torque passes through zero);
-        a wall that came back then met the hand's pull at once, and the servo's loop braked
-        the leader outward before a read could free it again (over the pty, up to 0.065 N m
-        for 3 ms: docs/haptic.md, round 9). A leader let go outside waits one cycle more
-        before its wall walks it back. False (the rounds before): one still read.
+        Whether a free wall comes back only when the cycle's read *and* the one before (within
+        ``rearm_span_s``) show the leader not moving in, or at once on a leader pushed outward
+        faster than STILL: a hand reversing from pushing out to pulling in leaves the leader
+        still for a millisecond or two, and a wall back then met its pull at once. False: one
+        still read.
     """
 
     law: SnapLaw

@@ -20,11 +20,12 @@ from calib import (
     save_profile,
 )
 from calib.profile import DEFAULT_END_STOP_DEG, END_STOP_MARGIN_DEG
-from firmware_sim.world import DEFAULT_JOINTS
+from firmware_sim.world import DEFAULT_JOINTS, ROLL_JOINT
 from limbctl.errors import ConfigError, FileFormatError
 from limbctl.servo.profiles import joint_tick_limits, load_rig_profile
 
 SIM_YAML = Path(__file__).resolve().parents[2] / "calib" / "rigs" / "sim.yaml"
+SIM3_YAML = SIM_YAML.with_name("sim3.yaml")
 
 
 @pytest.fixture
@@ -117,7 +118,25 @@ def test_save_replaces_atomically_and_refuses_invalid(tmp_path):
     ],
 )
 def test_invalid_fields_name_file_and_field(tmp_path, sim_data, edit, field, fragment):
-    data = copy.deepcopy(sim_data)
+    assert_refused(tmp_path, sim_data, edit, field, fragment)
+
+
+@pytest.mark.parametrize(
+    ("edit", "field", "fragment"),
+    [
+        (lambda d: d["roll"].update(direction=0), "roll.direction", "must be +1 or -1"),
+        (lambda d: d["roll"].update(id=2), "roll.id", "must differ"),
+        (lambda d: d["roll"].update(max_deg=104.5), "roll.max_deg", "104.5 is not 1 deg inside"),
+        (lambda d: d["roll"].pop("zero_tick"), "roll", "is missing zero_tick"),
+    ],
+)
+def test_the_roll_joint_is_validated_like_the_others(tmp_path, edit, field, fragment):
+    assert_refused(tmp_path, yaml.safe_load(SIM3_YAML.read_text()), edit, field, fragment)
+
+
+def assert_refused(tmp_path, data, edit, field, fragment):
+    """The profile ``data`` after ``edit`` is refused naming the file and ``field``."""
+    data = copy.deepcopy(data)
     edit(data)
     path = write(tmp_path, data)
     with pytest.raises(ConfigError) as info:
@@ -176,17 +195,23 @@ def test_save_into_current_directory(tmp_path, monkeypatch):
 
 
 # ---- end stops --------------------------------------------------------------------------------
-def test_sim_end_stops_are_the_simulated_worlds():
-    profile = default_sim_profile()
-    world = {joint.name: joint for joint in DEFAULT_JOINTS}
-    for name in ("pan", "tilt"):
-        joint = getattr(profile, name)
-        assert (joint.stop_min_deg, joint.stop_max_deg) == (
-            world[name].stop_min_deg,
-            world[name].stop_max_deg,
+@pytest.mark.parametrize("rig", ["sim", "sim3"])
+def test_the_packaged_sim_profiles_are_the_simulated_worlds_joints(rig):
+    profile = default_sim_profile(rig)
+    world = {joint.name: joint for joint in (*DEFAULT_JOINTS, ROLL_JOINT)}
+    for name, joint in profile.joints:
+        truth = world[name]
+        assert (joint.id, joint.zero_tick, joint.direction) == (
+            truth.servo_id,
+            truth.zero_tick,
+            truth.direction,
         )
+        assert (joint.stop_min_deg, joint.stop_max_deg) == (truth.stop_min_deg, truth.stop_max_deg)
+        # the hard limits lie inside the physical end stops, by the margin
         assert joint.stop_min_deg + END_STOP_MARGIN_DEG <= joint.min_deg
         assert joint.max_deg <= joint.stop_max_deg - END_STOP_MARGIN_DEG
+    # the three-servo rig's pan and tilt are the two-servo rig's
+    assert (profile.pan, profile.tilt) == (default_sim_profile().pan, default_sim_profile().tilt)
 
 
 def test_unstated_end_stops_default_to_a_quarter_turn(tmp_path, sim_data):
@@ -307,32 +332,12 @@ def test_malformed_calibration_names_the_field():
 
 
 # ---- the optional roll joint (three-servo rigs) -----------------------------------------------
-SIM3_YAML = SIM_YAML.with_name("sim3.yaml")
-
-
-def test_sim3_profile_has_a_roll_joint_validated_like_the_others(tmp_path):
+def test_sim3_profile_has_a_roll_joint(tmp_path):
     profile = default_sim_profile("sim3")
-    data = yaml.safe_load(SIM3_YAML.read_text())
-    assert profile.roll == JointProfile(**data["roll"])
+    assert profile.roll == JointProfile(**yaml.safe_load(SIM3_YAML.read_text())["roll"])
     assert profile.ids == (1, 2, 3)
     assert [name for name, _ in profile.joints] == ["pan", "tilt", "roll"]
     assert load_profile(save_profile(profile, tmp_path / "r.yaml")) == profile
-    bad = copy.deepcopy(data)
-    bad["roll"]["direction"] = 0
-    with pytest.raises(ProfileError, match="roll.direction must be"):
-        load_profile(write(tmp_path, bad))
-    bad = copy.deepcopy(data)
-    bad["roll"]["id"] = 2
-    with pytest.raises(ProfileError, match="roll.id must differ"):
-        load_profile(write(tmp_path, bad))
-    bad = copy.deepcopy(data)
-    bad["roll"]["max_deg"] = 104.5
-    with pytest.raises(ProfileError, match="roll.max_deg 104.5 is not 1 deg inside"):
-        load_profile(write(tmp_path, bad))
-    bad = copy.deepcopy(data)
-    del bad["roll"]["zero_tick"]
-    with pytest.raises(ProfileError, match="roll is missing zero_tick"):
-        load_profile(write(tmp_path, bad))
 
 
 def test_two_servo_profile_and_calibration_carry_no_roll(sim_data):

@@ -8,14 +8,10 @@ from limbctl.envelope.cone import Cone
 from limbctl.errors import ConfigError, FileFormatError, InvalidInputError
 from limbctl.geometry import quat
 from limbctl.geometry.twist import decompose
+from tests.geometry.test_quat import random_unit
 
 Z = np.array([0.0, 0.0, 1.0])
 X = np.array([1.0, 0.0, 0.0])
-
-
-def random_unit(n, seed=0):
-    rng = np.random.default_rng(seed)
-    return quat.canonical(quat.normalize(rng.normal(size=(n, 4))))
 
 
 def test_90_deg_about_z_with_45_deg_cone_becomes_45_deg_about_z():

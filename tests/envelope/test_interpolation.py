@@ -4,17 +4,13 @@ import pytest
 from limbctl.envelope import interpolation as ip
 from limbctl.errors import ConfigError
 from limbctl.geometry import quat
+from tests.geometry.test_quat import random_unit
 
 
 def nearest_distance_reference(weights: np.ndarray, q: np.ndarray) -> np.ndarray:
     """Plain numpy version of :func:`nearest_distance`."""
     d2 = np.sum((q[:, None, :] - weights[None, :, :]) ** 2, axis=2)
     return np.sqrt(d2.min(axis=1))
-
-
-def random_unit(n, seed=0):
-    rng = np.random.default_rng(seed)
-    return quat.canonical(quat.normalize(rng.normal(size=(n, 4))))
 
 
 @pytest.mark.parametrize("mode", list(ip.INTERPOLATIONS))

@@ -2,7 +2,7 @@ import numpy as np
 
 from limbctl.envelope.som import SOM, table_i_schedule
 from limbctl.envelope.som_kernels import train_som
-from limbctl.geometry import quat
+from tests.envelope.test_som import cone_patterns
 
 
 def train_som_reference(
@@ -33,13 +33,6 @@ def train_som_reference(
         if changed == 0:
             return steps, True
     return steps, False
-
-
-def cone_patterns(n, half_angle, seed):
-    rng = np.random.default_rng(seed)
-    d = quat.normalize(rng.normal(size=(8 * n, 3)))
-    d = d[quat.direction_angle(d, [1.0, 0.0, 0.0]) <= half_angle][:n]
-    return quat.swing_from_direction(d)
 
 
 def run_both(weights, patterns, grid_distance, lr, radii):

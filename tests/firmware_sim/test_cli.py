@@ -13,6 +13,7 @@ import time
 import pytest
 from dynamixel_sdk import COMM_SUCCESS, PacketHandler, PortHandler
 
+from firmware_sim.__main__ import main
 from firmware_sim.simulator import Simulator
 from firmware_sim.wire import RIG_BAUD
 
@@ -35,8 +36,18 @@ def served(arguments: list[str]):
         process.stdout.close()
 
 
-def test_help_documents_every_option():
-    result = subprocess.run([*COMMAND, "--help"], capture_output=True, text=True, check=True)
+def run_main(arguments: list[str]) -> int:
+    """``firmware-sim ARGUMENTS`` in this process (its exit status): the command's own entry
+    point, without a python start per call (the served tests below run it as a program)."""
+    try:
+        return main(arguments)
+    except SystemExit as done:  # argparse's exit on --help and on a malformed option
+        return done.code
+
+
+def test_help_documents_every_option(capsys):
+    assert run_main(["--help"]) == 0
+    out = capsys.readouterr().out
     for option in (
         "--ids",
         "--link",
@@ -57,7 +68,7 @@ def test_help_documents_every_option():
         "--leader-log",
         "let_go_s",
     ):
-        assert option in result.stdout
+        assert option in out
 
 
 @pytest.mark.parametrize(
@@ -75,14 +86,14 @@ def test_help_documents_every_option():
         (["--factory", "2", "--leader", "3,4"], "not served with --factory"),
     ],
 )
-def test_bad_options_are_named(tmp_path, arguments, message):
+def test_bad_options_are_named(tmp_path, capsys, arguments, message):
     operator = tmp_path / "operator.yaml"
     operator.write_text("script: [[0, 0, 0], [1, 40, 0]]\n")
     arguments = [str(operator) if a == "OPERATOR" else a for a in arguments]
     if arguments:
         arguments = [*arguments, "--link", str(tmp_path / "tty")]
-    result = subprocess.run([*COMMAND, *arguments], capture_output=True, text=True)
-    assert result.returncode == 2 and message in result.stderr
+    assert run_main(arguments) == 2 and message in capsys.readouterr().err
+    assert not (tmp_path / "tty").exists()  # refused before serving
 
 
 @pytest.mark.parametrize("stop_signal", [signal.SIGINT, signal.SIGTERM])
@@ -145,7 +156,7 @@ def test_a_leader_gimbal_moved_by_its_operator_is_served_and_logged(tmp_path):
     assert all(r["motor_nm"] == [0.0, 0.0] for r in rows)  # torque off: only the hand moved it
 
 
-def test_an_event_names_a_renumbered_servo_by_its_id(tmp_path):
+def test_an_event_names_a_renumbered_servo_by_its_id(tmp_path, capsys):
     """--factory 2 --eeprom DIR after set-up made slot 2 ID 9: --event ...:9:... is that servo;
     slot 2's number is no ID any servo answers as."""
     eeprom = tmp_path / "eeprom"
@@ -155,11 +166,8 @@ def test_an_event_names_a_renumbered_servo_by_its_id(tmp_path):
     sim.close()
     link = tmp_path / "tty"
     base = ["--factory", "2", "--eeprom", str(eeprom), "--link", str(link)]
-    refused = subprocess.run(
-        [*COMMAND, *base, "--event", "0:voltage:2:5"], capture_output=True, timeout=60
-    )
-    assert refused.returncode == 2
-    assert b"no servo answers as ID 2; the servos answer as 1, 9" in refused.stderr
+    assert run_main([*base, "--event", "0:voltage:2:5"]) == 2
+    assert "no servo answers as ID 2; the servos answer as 1, 9" in capsys.readouterr().err
     with served([*base, "--event", "0:voltage:9:5"]) as (process, ready):
         assert "ID 9 at 57600" in ready
         port = PortHandler(str(link))

@@ -5,10 +5,7 @@ Kinds: vanish, voltage, temperature, restart and push (a steady torque on a join
 
 from __future__ import annotations
 
-import subprocess
-import sys
 import time
-from contextlib import contextmanager
 
 import pytest
 from dynamixel_sdk import COMM_RX_TIMEOUT, COMM_SUCCESS, PacketHandler, PortHandler
@@ -18,29 +15,7 @@ from firmware_sim.control_table import Register
 from firmware_sim.events import EventSchedule, ScheduledEvent, parse_event
 from firmware_sim.simulator import Simulator
 from firmware_sim.wire import RIG_BAUD
-
-COMMAND = [sys.executable, "-m", "firmware_sim"]
-
-
-@contextmanager
-def served(link, *events: str):
-    """``firmware-sim --ids 1,2`` with ``--event`` for each of ``events`` on ``link``, started in
-    its own process; yields an open SDK port and packet handler, then stops it cleanly."""
-    args = [arg for event in events for arg in ("--event", event)]
-    process = subprocess.Popen(
-        [*COMMAND, "--ids", "1,2", "--link", str(link), *args], stdout=subprocess.PIPE, text=True
-    )
-    try:
-        assert "ready" in process.stdout.readline()
-        port = PortHandler(str(link))
-        assert port.setBaudRate(RIG_BAUD)
-        yield port, PacketHandler(2.0)
-        port.closePort()
-    finally:
-        process.terminate()
-        assert process.wait(timeout=10) == 0
-        process.stdout.close()
-
+from tests.firmware_sim.test_cli import run_main, served
 
 ID, TORQUE_ENABLE, HARDWARE_ERROR, PRESENT_PWM = 7, 64, 70, 124
 VOLTAGE_BIT, OVERHEATING_BIT, OVERLOAD_BIT, ALERT = 0x01, 0x04, 0x20, 0x80
@@ -126,27 +101,35 @@ def test_events_name_servos_by_the_id_they_answer_as_not_their_slot():
 
 
 def test_command_line_events_reach_the_servos(tmp_path):
-    with served(tmp_path / "ttyDXL", "0:vanish:2:60", "0:voltage:1:5") as (port, packet):
+    link, events = tmp_path / "ttyDXL", ("0:vanish:3:60", "0:voltage:1:5", "0:push:2:-250")
+    options = [arg for event in events for arg in ("--event", event)]
+    with served(["--ids", "1,2,3", "--link", str(link), *options]) as (process, ready):
+        assert "ready" in ready
+        port, packet = PortHandler(str(link)), PacketHandler(2.0)
+        assert port.setBaudRate(RIG_BAUD)
         # servo 1 sees 5 V, below its 6.0 V limit: input voltage error and the alert
         deadline = time.monotonic() + 5.0
         while packet.read1ByteTxRx(port, 1, HARDWARE_ERROR)[0] != VOLTAGE_BIT:
             assert time.monotonic() < deadline, "no input voltage error on servo 1"
         assert packet.read1ByteTxRx(port, 1, TORQUE_ENABLE) == (0, COMM_SUCCESS, ALERT)
-        # servo 2 has vanished for the whole test
-        assert packet.ping(port, 2)[1] == COMM_RX_TIMEOUT
+        # servo 2, pushed toward fewer ticks: its drive saturates positive (two's complement 885)
+        assert packet.write1ByteTxRx(port, 2, TORQUE_ENABLE, 1)[:1] == (COMM_SUCCESS,)
+        while packet.read2ByteTxRx(port, 2, PRESENT_PWM)[0] != 885:
+            assert time.monotonic() < deadline, "servo 2's Present PWM did not saturate"
+        # servo 3 has vanished for the whole test
+        assert packet.ping(port, 3)[1] == COMM_RX_TIMEOUT
+        port.closePort()
+        process.terminate()
+        assert process.wait(timeout=10) == 0
 
 
-def test_bad_events_are_refused_before_serving(tmp_path):
+def test_bad_events_are_refused_before_serving(tmp_path, capsys):
     for event, message in (
         ("1:melt:1:2", "kind must be one of"),
         ("0:vanish:7:1", "no servo answers as ID 7"),
     ):
-        result = subprocess.run(
-            [*COMMAND, "--link", str(tmp_path / "tty"), "--event", event],
-            capture_output=True,
-            text=True,
-        )
-        assert result.returncode == 2 and message in result.stderr
+        assert run_main(["--link", str(tmp_path / "tty"), "--event", event]) == 2
+        assert message in capsys.readouterr().err
         assert not (tmp_path / "tty").exists()
 
 
@@ -191,15 +174,6 @@ def test_push_event_leans_on_the_joint_until_the_servo_saturates_and_trips():
     assert schedule.apply_due(sim) == 1
     assert sim.truth()["servos"][1]["load_percent"] == 0.0  # torque off, let go
     sim.close()
-
-
-def test_push_event_from_the_command_line_saturates_present_pwm(tmp_path):
-    with served(tmp_path / "ttyDXL", "0:push:2:-250") as (port, packet):
-        assert packet.write1ByteTxRx(port, 2, TORQUE_ENABLE, 1)[:1] == (COMM_SUCCESS,)
-        # pushed the other way: the drive saturates positive (two's complement 885)
-        deadline = time.monotonic() + 5.0
-        while packet.read2ByteTxRx(port, 2, PRESENT_PWM)[0] != 885:
-            assert time.monotonic() < deadline, "servo 2's Present PWM did not saturate"
 
 
 def test_restart_over_the_pty_reads_torque_off(sim, sdk):

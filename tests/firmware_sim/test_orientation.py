@@ -13,31 +13,7 @@ from firmware_sim.orientation import (
     roll_for_twist_deg,
     wrap_deg,
 )
-
-
-def twist_of(q: tuple[float, float, float, float]) -> float:
-    """Twist (rad, in (-pi, pi]) of ``q`` about +x: ``2 atan2(q_x, q_w)`` (q with w >= 0)."""
-    w, x = q[0], q[1]
-    if w < 0.0:
-        w, x = -w, -x
-    return 2.0 * math.atan2(x, w)
-
-
-def product(a, b):
-    aw, ax, ay, az = a
-    bw, bx, by, bz = b
-    return (
-        aw * bw - ax * bx - ay * by - az * bz,
-        aw * bx + ax * bw + ay * bz - az * by,
-        aw * by - ax * bz + ay * bw + az * bx,
-        aw * bz + ax * by - ay * bx + az * bw,
-    )
-
-
-def axis(k, theta):
-    q = [math.cos(theta / 2), 0.0, 0.0, 0.0]
-    q[1 + k] = math.sin(theta / 2)
-    return tuple(q)
+from tests.geometry.test_gimbal import chain_by_products, twist_about_x
 
 
 @pytest.mark.parametrize(("pan", "tilt", "tau"), [(30, 30, 8.2), (60, 45, 26.9), (90, 60, 60.0)])
@@ -50,11 +26,10 @@ def test_chain_twist_figures(pan, tilt, tau):
 def test_chain_quat_is_the_product_and_its_twist_is_roll_plus_chain_twist():
     rng = np.random.default_rng(3)
     for pan, tilt, roll in rng.uniform([-3, -1.5, -3], [3, 1.5, 3], size=(200, 3)):
-        q = product(product(axis(2, pan), axis(1, -tilt)), axis(0, roll))
-        if q[0] < 0:
-            q = tuple(-v for v in q)
-        assert np.allclose(chain_quat(pan, tilt, roll), q, atol=1e-12)
-        twist = math.degrees(twist_of(chain_quat(pan, tilt, roll)))
+        assert np.allclose(
+            chain_quat(pan, tilt, roll), chain_by_products(pan, tilt, roll), atol=1e-12
+        )
+        twist = math.degrees(twist_about_x(np.array(chain_quat(pan, tilt, roll))))
         expected = math.degrees(roll + chain_twist(pan, tilt))
         assert wrap_deg(twist - expected) == pytest.approx(0.0, abs=1e-9)
         # the roll that gives a twist undoes the chain's own twist

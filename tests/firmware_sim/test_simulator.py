@@ -12,7 +12,7 @@ from dynamixel_sdk import COMM_RX_TIMEOUT, COMM_SUCCESS, PacketHandler, PortHand
 from firmware_sim import SimulatedBus
 from firmware_sim.orientation import chain_quat
 from firmware_sim.simulator import Simulator
-from firmware_sim.wire import FACTORY_BAUD, RIG_BAUD
+from firmware_sim.wire import FACTORY_BAUD
 
 ID, BAUD_RATE, TORQUE_ENABLE = 7, 8, 64
 XL430 = 1060
@@ -24,31 +24,30 @@ def sdk_at(port_name: str, baud: int) -> PortHandler:
     return port
 
 
-def test_a_servo_answers_only_at_its_own_baud(tmp_path):
-    with SimulatedBus(ids=(1, 2), baud=RIG_BAUD, link=tmp_path / "tty") as sim:
-        packet = PacketHandler(2.0)
-        slow = sdk_at(sim.port, FACTORY_BAUD)
-        assert packet.ping(slow, 1)[1] == COMM_RX_TIMEOUT
-        slow.closePort()
-        fast = sdk_at(sim.port, RIG_BAUD)
-        assert packet.ping(fast, 1) == (XL430, COMM_SUCCESS, 0)
-        fast.closePort()
-
-
-def test_id_and_baud_change_as_on_real_servos(tmp_path):
+def test_id_and_baud_change_as_on_real_servos_found_as_lerobot_finds_them(tmp_path):
+    """LeRobot's setup_motors flow through the SDK alone: broadcast ping per baud until one
+    servo answers (none at another baud), write its ID, then its baud, and find it again at the
+    new ID and baud; EEPROM writes are refused while torque is on."""
     with SimulatedBus(factory=1, link=tmp_path / "tty") as sim:
-        packet = PacketHandler(2.0)
-        port = sdk_at(sim.port, FACTORY_BAUD)
+        packet, port = PacketHandler(2.0), PortHandler(sim.port)
+        found = {}
+        for baud in (1_000_000, FACTORY_BAUD):
+            assert port.setBaudRate(baud)
+            found, _ = packet.broadcastPing(port)
+            if found:
+                break
+        assert (baud, found) == (FACTORY_BAUD, {1: [XL430, 46]})
         assert packet.write1ByteTxRx(port, 1, TORQUE_ENABLE, 1) == (COMM_SUCCESS, 0)
         assert packet.write1ByteTxRx(port, 1, ID, 5) == (COMM_SUCCESS, 7)  # EEPROM, torque on
         assert packet.write1ByteTxRx(port, 1, TORQUE_ENABLE, 0) == (COMM_SUCCESS, 0)
         assert packet.write1ByteTxRx(port, 1, ID, 5) == (COMM_SUCCESS, 0)
         assert packet.ping(port, 1)[1] == COMM_RX_TIMEOUT
-        # the servo answers this write at the old rate, then listens at the new one
+        # the servo answers this write at the old rate, then listens at the new one only
         assert packet.write1ByteTxRx(port, 5, BAUD_RATE, 3) == (COMM_SUCCESS, 0)
         assert packet.ping(port, 5)[1] == COMM_RX_TIMEOUT
         assert port.setBaudRate(1_000_000)
         assert packet.ping(port, 5) == (XL430, COMM_SUCCESS, 0)
+        assert packet.broadcastPing(port)[0] == {5: [XL430, 46]}
         port.closePort()
 
 
@@ -83,26 +82,6 @@ def test_a_reply_takes_its_bytes_wire_time(tmp_path):
         start = time.monotonic()
         assert PacketHandler(2.0).ping(port, 1)[1] == COMM_SUCCESS
         assert time.monotonic() - start >= (10 + 14) * 10 / 9600 + 500e-6
-        port.closePort()
-
-
-def test_a_lerobot_style_setup_of_a_factory_fresh_servo(tmp_path):
-    """LeRobot's setup_motors flow through the SDK alone: broadcast ping per baud until one
-    servo answers, write its ID, then its baud, and find it again at the new ID and baud."""
-    with SimulatedBus(factory=1, link=tmp_path / "tty") as sim:
-        packet = PacketHandler(2.0)
-        port = PortHandler(sim.port)
-        found = {}
-        for baud in (1_000_000, 57_600):
-            assert port.setBaudRate(baud)
-            found, result = packet.broadcastPing(port)
-            if found:
-                break
-        assert (baud, found) == (57_600, {1: [XL430, 46]})
-        assert packet.write1ByteTxRx(port, 1, ID, 6) == (COMM_SUCCESS, 0)
-        assert packet.write1ByteTxRx(port, 6, BAUD_RATE, 3) == (COMM_SUCCESS, 0)
-        assert port.setBaudRate(1_000_000)
-        assert packet.broadcastPing(port)[0] == {6: [XL430, 46]}
         port.closePort()
 
 

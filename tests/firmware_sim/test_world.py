@@ -7,7 +7,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import yaml
 
 from firmware_sim.hand import Hand
 from firmware_sim.world import (
@@ -33,17 +32,6 @@ def tick_at(joint: Joint, angle_deg: float) -> float:
 
 
 # -- geometry ---------------------------------------------------------------------------------
-
-
-def test_default_joints_match_the_sim_rig_profile():
-    profile = yaml.safe_load((REPO / "calib" / "rigs" / "sim.yaml").read_text())
-    for joint in DEFAULT_JOINTS:
-        entry = profile[joint.name]
-        assert entry["id"] == joint.servo_id
-        assert entry["zero_tick"] == joint.zero_tick
-        assert entry["direction"] == joint.direction
-        # the profile's hard limits lie inside the physical end stops
-        assert joint.stop_min_deg < entry["min_deg"] < entry["max_deg"] < joint.stop_max_deg
 
 
 def test_ticks_angles_direction_round_trip():
@@ -267,26 +255,10 @@ def test_bad_calls_raise_clear_errors():
 # -- the roll joint (three-joint gimbal) --------------------------------------------------------
 
 
-def test_roll_joint_matches_the_sim3_rig_profile_and_tracks_like_the_others():
+def test_the_roll_joint_tracks_like_the_others():
     from firmware_sim.orientation import chain_quat
     from firmware_sim.world import ROLL_JOINT
 
-    profile = yaml.safe_load((REPO / "calib" / "rigs" / "sim3.yaml").read_text())
-    entry = profile["roll"]
-    assert (entry["id"], entry["zero_tick"], entry["direction"]) == (
-        ROLL_JOINT.servo_id,
-        ROLL_JOINT.zero_tick,
-        ROLL_JOINT.direction,
-    )
-    assert (entry["stop_min_deg"], entry["stop_max_deg"]) == (
-        ROLL_JOINT.stop_min_deg,
-        ROLL_JOINT.stop_max_deg,
-    )
-    for name in ("pan", "tilt"):
-        assert (
-            profile[name]
-            == yaml.safe_load((REPO / "calib" / "rigs" / "sim.yaml").read_text())[name]
-        )
     three = World(joints=(PAN, TILT, ROLL_JOINT), seed=2)
     two = World(seed=2)
     drive = {1: tick_at(PAN, 20.0), 2: tick_at(TILT, 10.0), 3: tick_at(ROLL_JOINT, 130.0)}

@@ -21,6 +21,7 @@ import pytest
 from limbctl.geometry import jit
 from limbctl.region import correct_kernels as ck
 from limbctl.region.mesh import DirectionMesh
+from tests.region.support import circle
 
 ROOT = Path(__file__).resolve().parents[2]
 #: A command 10 degrees of pan from rest: inside the 20 degree cap of :func:`_cap_args`.
@@ -57,12 +58,7 @@ def _env(home: Path, path: Path) -> dict[str, str]:
 
 def _cap_args(path: Path) -> None:
     """The kernel arrays of a 20 degree cap about +x, saved to ``path`` (npz)."""
-    phi = np.linspace(-np.pi, np.pi, 120, endpoint=False)
-    r = np.radians(20.0)
-    loop = np.column_stack(
-        [np.full(120, np.cos(r)), np.sin(r) * np.cos(phi), np.sin(r) * np.sin(phi)]
-    )
-    args = DirectionMesh.from_loops([loop], 0.0).kernel_args()
+    args = DirectionMesh.from_loops([circle(20.0, 120)], 0.0).kernel_args()
     np.savez(path, **{f"a{i}": a for i, a in enumerate(args)})
 
 

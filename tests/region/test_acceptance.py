@@ -5,17 +5,7 @@ from limbctl.envelope.synthetic import ConeRegion
 from limbctl.region import acceptance
 from limbctl.region.acceptance import Proposal, Refusal, Verdict, judge
 from limbctl.region.mesh import DirectionMesh
-
-
-def circle(radius_deg: float, n: int, shift_deg: float = 0.0) -> np.ndarray:
-    """A counter-clockwise loop (n, 3) at ``radius_deg`` about +x, tilted ``shift_deg`` about z."""
-    phi = np.linspace(-np.pi, np.pi, n, endpoint=False)
-    r = np.radians(radius_deg)
-    ring = np.column_stack([np.cos(phi), np.sin(phi)])
-    loop = np.column_stack([np.full(n, np.cos(r)), np.sin(r) * ring])
-    a = np.radians(shift_deg)
-    turn = np.array([[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0], [0.0, 0.0, 1.0]])
-    return loop @ turn.T
+from tests.region.support import circle
 
 
 @pytest.fixture(scope="module")

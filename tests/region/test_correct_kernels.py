@@ -3,16 +3,12 @@ import numpy as np
 from limbctl.geometry.quat import limb_direction, multiply
 from limbctl.region import correct_kernels as ck
 from limbctl.region.mesh import DirectionMesh
+from tests.region.support import circle
 
 
 def cap(radius_deg: float, n: int = 120) -> DirectionMesh:
     """The region within ``radius_deg`` of +x, as a mesh."""
-    phi = np.linspace(-np.pi, np.pi, n, endpoint=False)
-    r = np.radians(radius_deg)
-    loop = np.column_stack(
-        [np.full(n, np.cos(r)), np.sin(r) * np.cos(phi), np.sin(r) * np.sin(phi)]
-    )
-    return DirectionMesh.from_loops([loop], 0.0)
+    return DirectionMesh.from_loops([circle(radius_deg, n)], 0.0)
 
 
 def about(axis, angle_deg):

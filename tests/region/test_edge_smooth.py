@@ -11,17 +11,9 @@ from limbctl.region import acceptance
 from limbctl.region import edge_smooth as ef
 from limbctl.region.loops import loop_length, resample_loop
 from limbctl.teach.dataset import load_dataset
+from tests.region.support import circle
 
 X = np.array([1.0, 0.0, 0.0])
-
-
-def circle(radius_deg: float, n: int, wobble_deg: float = 0.0, seed: int = 0) -> np.ndarray:
-    """A counter-clockwise loop (n, 3) at ``radius_deg`` (+- wobble) about +x."""
-    rng = np.random.default_rng(seed)
-    phi = np.linspace(-np.pi, np.pi, n, endpoint=False)
-    r = np.radians(radius_deg + wobble_deg * rng.uniform(-1.0, 1.0, n))
-    # region on the left seen from outside: counter-clockwise about +x
-    return np.column_stack([np.cos(r), np.sin(r) * np.cos(phi), np.sin(r) * np.sin(phi)])
 
 
 @pytest.mark.parametrize("window_deg", [4.5, 13.0, 60.0])

@@ -190,19 +190,6 @@ def test_band_from_a_trajectory_holds_its_own_samples_and_the_band_between_its_s
     assert over_read < 0.01 and over <= over_read
 
 
-def _held_on_path(truth, q, d):
-    """Share of the path's inner directions where the learned band holds the true one shrunk by
-    2 deg, and where it reaches beyond the true one by more than 1 deg."""
-    _, tau = decompose(q)
-    band = TwistBand.fit(d, tau, truth.swing.axis, math.radians(2.0))
-    inner = d[truth.swing.depth(d) > math.radians(3.0)]
-    c, h = band.at(inner)
-    tc, th = truth.band(inner)
-    upper = np.degrees(wrap(c + h - tc - th))
-    lower = np.degrees(wrap(c - h - tc + th))
-    return np.mean((upper >= -2.0) & (lower <= 2.0)), np.mean((upper > 1.0) | (lower < -1.0))
-
-
 def test_sparse_stops_are_bridged_by_a_flatter_envelope(monkeypatch):
     """Stops once a second (~40 deg apart along the path): the curvature bound falling with the
     stops' spacing holds the true band at 81 % of the path's directions; at a fixed
@@ -210,9 +197,9 @@ def test_sparse_stops_are_bridged_by_a_flatter_envelope(monkeypatch):
     truth = ShoulderRegion(rounded(SHOULDER))
     q, d = _trajectory(truth, 30.0, seed=3, stop_period_s=1.0)
     _uncapped(monkeypatch)  # the envelope's own reading (step 3)
-    held, over = _held_on_path(truth, q, d)
+    _, held, over = _path_figures(truth, q, d)
     monkeypatch.setattr(tb, "ENVELOPE_CURVATURE_MIN", tb.ENVELOPE_CURVATURE)
-    held_fixed, over_fixed = _held_on_path(truth, q, d)
+    _, held_fixed, over_fixed = _path_figures(truth, q, d)
     assert held >= 0.78 and held_fixed < 0.72
     assert over < 0.01 and over <= over_fixed + 0.001
 

@@ -1,5 +1,6 @@
 """The twist band never reaches past the taught evidence: a dip in the true band that the
-teaching passed only mid-band is held inside the truth and named as a place to teach."""
+teaching passed only mid-band is held inside the truth and named as a place to teach, and a
+bump steeper than the fixed cone is followed along its local slope."""
 
 import math
 
@@ -90,6 +91,35 @@ def test_a_dense_teaching_lists_nothing_and_keeps_the_band():
     for sign in (-1.0, 1.0):
         q = compose(d, tc + sign * (th - math.radians(2.0)))
         assert np.mean(region.contains(q)) >= 0.99
+
+
+#: A bump in the band (both limits rise BUMP_DEG / 2 at DIP_AT, BUMP_WIDTH_DEG one sigma): its
+#: sides slope up to 0.38 deg per deg in the centre plus as much in the half-width, 0.76 at the
+#: upper limit, steeper than the fixed cone's CAP_SLOPE (0.5).
+BUMP_DEG = 10.0
+BUMP_WIDTH_DEG = 8.0
+
+
+def _bumped_band_deg(pan, tilt):
+    r2 = (pan - DIP_AT[0]) ** 2 + (tilt - DIP_AT[1]) ** 2
+    bump = BUMP_DEG * np.exp(-r2 / (2.0 * BUMP_WIDTH_DEG**2))
+    return 5.0 + 0.5 * bump, 40.0 + 0.5 * bump
+
+
+def test_a_densely_taught_bump_steeper_than_the_cone_is_not_exceeded():
+    # the fixed cone alone let the upper limit 1.86 deg past the truth on the bump's sides
+    # (stops high on the bump 8 deg away vouched for the limit at 0.5 deg per deg)
+    truth = BandRegion(SQUARE, _bumped_band_deg)
+    region = TwistRegion().fit(truth.teaching(3000, 1500, 4000, np.random.default_rng(6)))
+    pan, tilt = np.meshgrid(np.arange(-36.0, 37.0, 1.0), np.arange(-26.0, 37.0, 1.0))
+    d = pan_tilt_to_direction(np.radians(pan.ravel()), np.radians(tilt.ravel()))
+    d = d[region.swing.mesh.contains(d)]
+    excess = _excess_deg(truth, region, d)
+    assert excess.max() <= 1.0, f"band {excess.max():.2f} deg past the true stop"
+    # and the band still holds the truth 2 deg inside each stop
+    tc, th = truth.band(d)
+    for sign in (-1.0, 1.0):
+        assert np.mean(region.contains(compose(d, tc + sign * (th - math.radians(2.0))))) >= 0.99
 
 
 def test_unsupported_places_keep_the_largest_cut_of_each_cell_and_side():

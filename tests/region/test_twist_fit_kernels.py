@@ -8,7 +8,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from limbctl.geometry.twist import wrap
-from limbctl.region.twist_fit_kernels import evidence_caps, fit_nodes, refine_nodes, upper_hull
+from limbctl.region.twist_fit_kernels import (
+    evidence_caps,
+    fit_nodes,
+    gradient_caps,
+    refine_nodes,
+    upper_hull,
+)
 
 
 def upper_hull_reference(px: np.ndarray, py: np.ndarray, t: np.ndarray, top: int) -> float:
@@ -177,3 +183,26 @@ def test_a_stop_held_at_the_node_witnesses_the_cap_and_a_far_one_shrinks_it():
     # the far sample's 0.6 - 1.0 * 6 deg = 0.495 < 0.5: the cap is the held 0.5
     assert up[0] == pytest.approx(0.5) and n_up[0] == 2
     assert lo[0] == pytest.approx(0.2) and n_lo[0] == 1
+
+
+def test_the_cap_along_the_local_slope_follows_a_steep_plane_the_cone_overshoots():
+    rng = np.random.default_rng(7)
+    d, node = _disk_samples(rng, 200, math.radians(8))
+    d[0] = node[0]  # one stop at the node itself
+    # an upper limit sloping 1.5 rad/rad, steeper than any fixed cone the cap assumes
+    limit = 0.4 + 1.5 * d[:, 0]
+    start = np.array([0, d.shape[0]], dtype=np.int64)
+    members = np.arange(d.shape[0], dtype=np.int64)
+    stop = np.ones(d.shape[0], dtype=bool)
+    ref = np.zeros(1)
+    args = (math.radians(3), math.radians(0.75), 0.25, 2.0, 8.6, math.radians(3), 0.02)
+    cap, wit = gradient_caps(node, start, members, d, limit, stop, ref, *args)
+    # on a plane the slope is read exactly: no sample lifts the cap above the limit at the node
+    assert math.isclose(cap[0], 0.4, abs_tol=1e-9)
+    assert wit[0] >= 1
+    cone, *_ = evidence_caps(node, start, members, d, limit, ref, 0.5, math.radians(3), 0.02)
+    assert cone[0] > 0.4 + math.radians(3.0)
+    # stops all on one line: the slope across it is unknown, no cap
+    on_line = stop & (np.abs(d[:, 1]) < math.radians(0.2))
+    cap, wit = gradient_caps(node, start, members, d, limit, on_line, ref, *args)
+    assert np.isnan(cap[0]) and wit[0] == 0

@@ -43,30 +43,46 @@ def alarm_of(rig) -> ServoAlarm:
     raise AssertionError("no alarm was raised")
 
 
-def test_voltage_alarm_message_says_torque_stays_on(sim, rig):
-    sim.set_voltage(1, 5.0)
+@pytest.mark.parametrize(
+    ("torque", "servo", "cause", "said", "unsaid"),
+    [
+        # a voltage alarm is not in the factory Shutdown mask: the servo keeps its torque on
+        (True, 1, "voltage", ["servo 1: input voltage", "servo 1 keeps torque on"], ["torque off"]),
+        (
+            True,
+            2,
+            "temperature",
+            [
+                "servo 2: overheating",
+                "servo 2 has torque off, and it cannot be switched on until it is rebooted",
+                "`limbctl reboot`",
+            ],
+            ["keeps torque on", "ServoBus"],
+        ),
+        # the servo itself switches nothing off: its torque was never on
+        (
+            False,
+            1,
+            "voltage",
+            ["servo 1 has torque off"],
+            ["switched torque off", "keeps torque on"],
+        ),
+    ],
+    ids=["voltage-keeps-torque", "overheating-torque-off", "torque-never-on"],
+)
+def test_an_alarm_message_says_the_servos_torque_as_it_is(
+    sim, rig, torque, servo, cause, said, unsaid
+):
+    rig.set_torque(torque)
+    if cause == "voltage":
+        sim.set_voltage(servo, 5.0)
+    else:
+        sim.set_temperature(servo, 90.0)
     message = str(alarm_of(rig))
-    assert "servo 1: input voltage" in message
-    assert "servo 1 keeps torque on" in message
-    assert "torque off" not in message
-    assert rig.torque_enabled() == (True, True)
-
-
-def test_overheating_message_says_torque_is_off(sim, rig):
-    sim.set_temperature(2, 90.0)
-    message = str(alarm_of(rig))
-    assert "servo 2: overheating" in message
-    assert "servo 2 has torque off, and it cannot be switched on until it is rebooted" in message
-    assert "keeps torque on" not in message
-    assert "`limbctl reboot`" in message and "ServoBus" not in message
-
-
-def test_an_alarm_on_a_servo_whose_torque_was_never_on_does_not_say_switched_off(sim, rig):
-    rig.set_torque(False)
-    sim.set_voltage(1, 5.0)  # not in the Shutdown mask: the servo itself switches nothing off
-    message = str(alarm_of(rig))
-    assert "servo 1 has torque off" in message
-    assert "switched torque off" not in message and "keeps torque on" not in message
+    assert all(words in message for words in said), message
+    assert not any(words in message for words in unsaid), message
+    if cause == "voltage" and torque:
+        assert rig.torque_enabled() == (True, True)
 
 
 def test_the_alarm_alone_says_nothing_about_torque():

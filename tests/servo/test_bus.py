@@ -1,7 +1,5 @@
 """ServoBus through the real dynamixel-sdk over the simulator's pty (no mocks)."""
 
-import time
-
 import pytest
 
 from calib import default_sim_profile
@@ -19,6 +17,7 @@ from limbctl.servo.bus import ServoBus
 from limbctl.servo.control_table import ModelNumber, OperatingMode, Register
 from limbctl.servo.profiles import joint_tick_limits
 from limbctl.servo.setup import configure_servos
+from tests.firmware_sim.test_servo import wait_for
 
 PROFILE = default_sim_profile()
 LIMITS = {
@@ -31,23 +30,13 @@ def open_bus(sim, **options):
     return ServoBus.from_profile(PROFILE, port=sim.port, **options)
 
 
-def wait_for(condition, timeout_s, what):
-    """Poll ``condition`` (each call is a bus round trip) until true or the deadline."""
-    deadline = time.monotonic() + timeout_s
-    while True:
-        value = condition()
-        if value:
-            return value
-        assert time.monotonic() < deadline, f"timed out after {timeout_s} s waiting for {what}"
-
-
 def test_open_identifies_the_servos_and_close_twice(sim):
     bus = open_bus(sim)
     with bus:
         assert bus.is_open
         assert bus.models == {1: ModelNumber.XL430_W250, 2: ModelNumber.XL430_W250}
         assert all(version > 0 for version in bus.firmware.values())
-        assert bus.fast_sync_read in (True, False)
+        assert bus.fast_sync_read is True  # the simulator's firmware has Fast Sync Read
     assert not bus.is_open
     bus.close()
     bus.close()
@@ -62,14 +51,11 @@ def test_missing_port_says_what_to_check(tmp_path):
     assert not bus.is_open
 
 
-def test_wrong_model_is_refused(sim):
+def test_a_wrong_model_or_an_absent_servo_is_refused_at_open(sim):
     bus = ServoBus(sim.port, PROFILE.baud, PROFILE.ids, model="xm430-w350")
     with pytest.raises(ConfigError, match=r"servo 1 is XL430-W250 \(1060\).*XM430-W350 \(1020\)"):
         bus.open()
     assert not bus.is_open
-
-
-def test_absent_servo_times_out_naming_it(sim):
     bus = ServoBus(sim.port, PROFILE.baud, (1, 7), retry_budget_s=0.05, max_attempts=2)
     with pytest.raises(BusTimeout, match=r"ping servo 7: servo 7 did not answer after 2 attempts"):
         bus.open()
@@ -86,12 +72,7 @@ def test_read_positions_match_the_world(sim, fast):
         assert bus.stats.transactions > 0 and bus.stats.timeouts == 0
 
 
-def test_firmware_with_fast_sync_read_gets_it(sim):
-    with open_bus(sim) as bus:
-        assert bus.fast_sync_read is True
-
-
-def test_configure_writes_eeprom_limits_and_position_mode(sim):
+def test_configure_writes_eeprom_limits_and_position_mode_and_refuses_bad_limits(sim):
     with open_bus(sim) as bus:
         bus.set_torque(True)
         configure_servos(bus, LIMITS, profile_velocity=120, profile_acceleration=40)
@@ -103,10 +84,6 @@ def test_configure_writes_eeprom_limits_and_position_mode(sim):
             assert bus.read(Register.RETURN_DELAY_TIME, servo_id) == 0
             assert bus.read(Register.PROFILE_VELOCITY, servo_id) == 120
             assert bus.read(Register.PROFILE_ACCELERATION, servo_id) == 40
-
-
-def test_configure_rejects_bad_limits(sim):
-    with open_bus(sim) as bus:
         with pytest.raises(ConfigError, match="exactly the servos"):
             configure_servos(bus, {1: (0, 10)})
         with pytest.raises(ConfigError, match=r"servo 2 must satisfy 0 <= min <= max"):
@@ -129,7 +106,7 @@ def test_write_goals_moves_both_servos(sim):
         wait_for(arrived, 10.0, "both servos to reach their goals")
 
 
-def test_goal_outside_one_turn_is_refused_before_the_wire(sim):
+def test_a_goal_outside_one_turn_is_refused_before_the_wire_and_eeprom_by_the_servo(sim):
     with open_bus(sim) as bus:
         before = sim.truth()["servos"][1]["goal_position"]
         with pytest.raises(InvalidInputError, match=r"servo 1 must be an integer tick in 0..4095"):
@@ -139,10 +116,7 @@ def test_goal_outside_one_turn_is_refused_before_the_wire(sim):
         with pytest.raises(ConfigError, match="not on this bus"):
             bus.write_goals({9: 2000})
         assert sim.truth()["servos"][1]["goal_position"] == before
-
-
-def test_eeprom_write_with_torque_on_is_refused_by_the_servo(sim):
-    with open_bus(sim) as bus:
+        # an EEPROM write with torque on is refused by the servo
         bus.set_torque(True)
         with pytest.raises(BusError, match=r"servo 1 refused it \(error 7: .*torque on"):
             bus.write(Register.MAX_POSITION_LIMIT, 1, 3000)
@@ -165,15 +139,10 @@ def test_hardware_error_surfaces_as_alarm_and_reboot_clears_it(sim, fast):
         assert torque == {1: 1, 2: 0}
         with pytest.raises(ServoAlarm):
             bus.torque_enabled()  # the alarm persists until a reboot
-
-
-def test_reboot_clears_the_alarm(sim):
-    with open_bus(sim) as bus:
-        sim.set_temperature(1, 95.0)
-        with pytest.raises(ServoAlarm, match="servo 1: overheating"):
+        with pytest.raises(ServoAlarm, match="servo 2: overheating"):
             bus.check_alarms()
-        sim.set_temperature(1, 30.0)
-        bus.reboot(1)
+        sim.set_temperature(2, 30.0)
+        bus.reboot(2)
         bus.check_alarms()
         assert bus.read_hardware_errors() == {1: (), 2: ()}
         assert len(bus.read_positions()) == 2
@@ -248,40 +217,31 @@ def test_one_instruction_packet_per_pose_read_and_per_goal_write(sim, fast):
         assert (after_read - before, after_write - after_read) == (1, 1)
 
 
-@pytest.mark.parametrize("model", ["xl330-m077", "xl330-m288"])
-def test_an_xl330_bus_finds_its_indirect_data_at_208_and_reads_the_cycle(tmp_path, model):
+@pytest.mark.parametrize(
+    ("model", "named", "numbers", "firmware", "indirect_at"),
+    [
+        ("xl330-m077", "xl330-m077", (1190, 1190), 52, (208, 208)),
+        ("xl330-m288", "xl330-m288", (1200, 1200), 52, (208, 208)),
+        # a follower and a leader of two layouts on one bus: an XL430 (Indirect Data at 224) and
+        # an XL330 with firmware 52 (at 208)
+        ("xl430-w250,xl330-m288", None, (1060, 1200), None, (224, 208)),
+        # a 330 with later firmware is found at 224
+        ("xl330-m288@53", "xl330-m288", (1200, 1200), 53, (224, 224)),
+    ],
+)
+def test_a_bus_finds_each_servos_indirect_data_and_reads_the_cycle(
+    tmp_path, model, named, numbers, firmware, indirect_at
+):
     with SimulatedBus(ids=(1, 2), model=model, link=tmp_path / "ttyDXL") as sim:
-        with ServoBus(sim.port, PROFILE.baud, (1, 2), model) as bus:
-            assert bus.models == {1: 1190 if model.endswith("077") else 1200} | {
-                2: 1190 if model.endswith("077") else 1200
-            }
+        with ServoBus(sim.port, PROFILE.baud, (1, 2), named) as bus:
+            assert bus.models == dict(zip((1, 2), numbers))
+            if firmware is not None:
+                assert bus.firmware == {1: firmware, 2: firmware}
             configure_servos(bus, LIMITS)
-            assert bus.indirect_at == {1: 208, 2: 208}
-            read = bus.read_cycle(attempts=5)
-            assert read.ok, read.problem
-            goals = bus.sync_read(Register.GOAL_POSITION)
-            assert {i: r.goal for i, r in read.reports.items()} == goals
-            assert not any(r.torque_on for r in read.reports.values())
-
-
-def test_a_follower_and_a_leader_of_two_layouts_share_the_bus(tmp_path):
-    # an XL430 (Indirect Data at 224) and an XL330 with firmware 52 (at 208) on one bus
-    with SimulatedBus(ids=(1, 2), model="xl430-w250,xl330-m288", link=tmp_path / "tty") as sim:
-        with ServoBus(sim.port, PROFILE.baud, (1, 2)) as bus:
-            assert bus.models == {1: 1060, 2: 1200}
-            configure_servos(bus, LIMITS)
-            assert bus.indirect_at == {1: 224, 2: 208}
+            assert bus.indirect_at == dict(zip((1, 2), indirect_at))
             read = bus.read_cycle(attempts=5)
             assert read.ok, read.problem
             assert {i: r.goal for i, r in read.reports.items()} == bus.sync_read(
                 Register.GOAL_POSITION
             )
-
-
-def test_a_330_with_later_firmware_is_found_at_224(tmp_path):
-    with SimulatedBus(ids=(1, 2), model="xl330-m288@53", link=tmp_path / "ttyDXL") as sim:
-        with ServoBus(sim.port, PROFILE.baud, (1, 2), "xl330-m288") as bus:
-            assert bus.firmware == {1: 53, 2: 53}
-            configure_servos(bus, LIMITS)
-            assert bus.indirect_at == {1: 224, 2: 224}
-            assert bus.read_cycle(attempts=5).ok
+            assert not any(r.torque_on for r in read.reports.values())

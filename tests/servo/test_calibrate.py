@@ -92,23 +92,6 @@ def test_a_servo_that_stays_silent_ends_the_calibration_naming_it():
     assert "nothing was written" in str(err.value)
 
 
-def test_without_limits_a_real_port_gets_limits_inside_the_assumed_end_stops(sim, tmp_path, capsys):
-    """On a port (not the embedded simulator) with no profile, the end stops are unknown and
-    taken to be +-90 deg: the default limits are narrowed to 1 deg inside them, and said so."""
-    sim.set_hand(Path(str(resources.files("limbctl").joinpath("data", "calibration_hand.yaml"))))
-    out = tmp_path / "rig.yaml"
-    assert main(["calibrate", "--port", sim.port, "--out", str(out)]) == 0
-    found = load_profile(out)
-    base = default_sim_profile()
-    assert (found.pan.min_deg, found.pan.max_deg) == (-89.0, 89.0)  # base -115..115 narrowed
-    assert (found.pan.stop_min_deg, found.pan.stop_max_deg) == (-90.0, 90.0)
-    assert (found.tilt.min_deg, found.tilt.max_deg) == (base.tilt.min_deg, base.tilt.max_deg)
-    assert (
-        "pan hard limits -89..89 deg (1 deg inside the end stops -90..90)"
-        in capsys.readouterr().err
-    )
-
-
 def test_calibration_of_a_three_servo_rig_finds_the_roll_too(tmp_path):
     out = tmp_path / "rig3.yaml"
     args = build_parser().parse_args(["calibrate", "--out", str(out), "--rig", "sim3"])
@@ -123,9 +106,13 @@ def test_calibration_of_a_three_servo_rig_finds_the_roll_too(tmp_path):
     assert found.roll.stop_max_deg == truth.roll.stop_max_deg
 
 
-def test_the_servos_named_by_ids_are_the_ones_calibrated(tmp_path):
+def test_on_a_port_the_servos_named_by_ids_are_calibrated_inside_the_assumed_end_stops(
+    tmp_path, capsys
+):
     """--ids names the servos that are read, not only the ids written to the profile: the
-    simulated gimbal's servos renumbered 5 (pan) and 6 (tilt) are calibrated through them."""
+    simulated gimbal's servos renumbered 5 (pan) and 6 (tilt) are calibrated through them. On a
+    port (not the embedded simulator) with no profile the end stops are unknown and taken to be
+    +-90 deg: the default limits are narrowed to 1 deg inside them, and said so."""
     from dynamixel_sdk import PacketHandler, PortHandler
 
     from firmware_sim import SimulatedBus
@@ -147,6 +134,13 @@ def test_the_servos_named_by_ids_are_the_ones_calibrated(tmp_path):
     assert abs(found.pan.zero_tick - truth.pan.zero_tick) <= 3
     assert abs(found.tilt.zero_tick - truth.tilt.zero_tick) <= 3
     assert found.tilt.direction == truth.tilt.direction
+    assert (found.pan.min_deg, found.pan.max_deg) == (-89.0, 89.0)  # base -115..115 narrowed
+    assert (found.pan.stop_min_deg, found.pan.stop_max_deg) == (-90.0, 90.0)
+    assert (found.tilt.min_deg, found.tilt.max_deg) == (truth.tilt.min_deg, truth.tilt.max_deg)
+    assert (
+        "pan hard limits -89..89 deg (1 deg inside the end stops -90..90)"
+        in capsys.readouterr().err
+    )
 
 
 def test_three_ids_calibrate_a_roll_joint_from_the_sim3_rigs_template(tmp_path):

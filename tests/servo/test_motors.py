@@ -69,27 +69,27 @@ def run_the_flow_on(sim, tmp_path):
     assert main([*teleop, "--quiet", "--approach", "20"]) == 0
 
 
-def test_a_collision_is_refused(tmp_path):
-    with SimulatedBus(factory=2, link=tmp_path / "tty") as sim:
+@pytest.mark.parametrize(
+    ("servos", "message"),
+    [
+        (
+            {"factory": 2},
+            "two or more servos answer as ID 1 at 57600 baud: connect only the pan servo and run "
+            "again",
+        ),
+        (
+            {"factory": 1, "model": "xl330-m288"},
+            "the connected servo is XL330-M288 (1200) but the profile's pan is XL430-W250 (1060): "
+            "connect the pan servo, or fix `model:` in the profile",
+        ),
+        ({"factory": 2, "connect": ()}, "no servo answers for the pan joint: no servo answered"),
+    ],
+    ids=["collision", "another-model", "nothing-connected"],
+)
+def test_a_bus_set_up_cannot_serve_is_refused_saying_why(tmp_path, servos, message):
+    with SimulatedBus(**servos, link=tmp_path / "tty") as sim:
         outcome = setup(sim, PAN)
-    assert outcome.message == (
-        "two or more servos answer as ID 1 at 57600 baud: connect only the pan servo and run again"
-    )
-
-
-def test_another_model_is_refused(tmp_path):
-    with SimulatedBus(factory=1, model="xl330-m288", link=tmp_path / "tty") as sim:
-        outcome = setup(sim, PAN)
-    assert outcome.message == (
-        "the connected servo is XL330-M288 (1200) but the profile's pan is XL430-W250 (1060): "
-        "connect the pan servo, or fix `model:` in the profile"
-    )
-
-
-def test_nothing_connected_is_refused(tmp_path):
-    with SimulatedBus(factory=2, connect=(), link=tmp_path / "tty") as sim:
-        outcome = setup(sim, PAN)
-    assert outcome.message.startswith("no servo answers for the pan joint: no servo answered")
+    assert not outcome.ok and outcome.message.startswith(message)
 
 
 def test_a_5_v_servo_on_12_v_is_refused_by_setup_and_before_torque(tmp_path):

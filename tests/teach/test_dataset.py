@@ -99,47 +99,36 @@ def rewrite(path, lines):
     path.write_bytes(b"\n".join(lines) + b"\n")
 
 
-def test_edited_record_is_refused_with_line_number(tmp_path):
-    path = tmp_path / "edit.limb"
-    record(path)
-    lines = lines_of(path)
+def edit_pan(lines):
+    """A hand edit of line 5's pan_deg, its old checksum kept."""
     payload, crc = lines[4].split(b"|")
     fields = payload.split(b",")
-    fields[1] = b"10.0"  # a hand edit of pan_deg, old checksum kept
+    fields[1] = b"10.0"
     lines[4] = b",".join(fields) + b"|" + crc
-    rewrite(path, lines)
-    with pytest.raises(FileFormatError, match=r"edit\.limb: line 5: checksum mismatch"):
-        load_dataset(path)
 
 
-def test_deleted_middle_record_breaks_the_chain(tmp_path):
-    path = tmp_path / "del.limb"
+def corrupt_byte(lines):
+    """A non-UTF-8 byte in line 4."""
+    lines[3] = lines[3][:3] + b"\xff" + lines[3][4:]
+
+
+@pytest.mark.parametrize(
+    ("damage", "problem"),
+    [
+        (edit_pan, "line 5: checksum mismatch"),
+        (lambda lines: lines.pop(6), "line 7: checksum mismatch"),  # the chain is broken
+        (corrupt_byte, "line 4: not UTF-8"),
+        (lambda lines: lines.__setitem__(2, lines[2].split(b"|")[0]), "line 3: no checksum field"),
+    ],
+    ids=["edited", "deleted", "binary", "no-checksum"],
+)
+def test_a_damaged_record_is_refused_with_its_line_number(tmp_path, damage, problem):
+    path = tmp_path / "damaged.limb"
     record(path)
     lines = lines_of(path)
-    del lines[6]
+    damage(lines)
     rewrite(path, lines)
-    with pytest.raises(FileFormatError, match="line 7: checksum mismatch"):
-        load_dataset(path)
-
-
-def test_binary_corruption_in_the_middle(tmp_path):
-    path = tmp_path / "bin.limb"
-    record(path)
-    blob = bytearray(path.read_bytes())
-    third_line = blob.index(b"\n", blob.index(b"\n", blob.index(b"\n") + 1) + 1) + 1
-    blob[third_line + 3] = 0xFF
-    path.write_bytes(bytes(blob))
-    with pytest.raises(FileFormatError, match="line 4: not UTF-8"):
-        load_dataset(path)
-
-
-def test_missing_checksum_field(tmp_path):
-    path = tmp_path / "nocrc.limb"
-    record(path)
-    lines = lines_of(path)
-    lines[2] = lines[2].split(b"|")[0]
-    rewrite(path, lines)
-    with pytest.raises(FileFormatError, match="line 3: no checksum field"):
+    with pytest.raises(FileFormatError, match=rf"damaged\.limb: {problem}"):
         load_dataset(path)
 
 
@@ -156,17 +145,17 @@ def header_line(**changes):
     return _seal(json.dumps(header), 0)[0]
 
 
-def test_wrong_version_is_refused(tmp_path):
-    path = tmp_path / "v2.limb"
-    path.write_bytes(header_line(version=2))
-    with pytest.raises(FileFormatError, match="line 1: dataset format version 2.*reads version 1"):
-        load_dataset(path)
-
-
-def test_wrong_columns_are_refused(tmp_path):
-    path = tmp_path / "cols.limb"
-    path.write_bytes(header_line(columns=["t", "q"]))
-    with pytest.raises(FileFormatError, match="line 1: columns"):
+@pytest.mark.parametrize(
+    ("header", "problem"),
+    [
+        ({"version": 2}, "line 1: dataset format version 2.*reads version 1"),
+        ({"columns": ["t", "q"]}, "line 1: columns"),
+    ],
+)
+def test_a_header_of_another_version_or_columns_is_refused(tmp_path, header, problem):
+    path = tmp_path / "header.limb"
+    path.write_bytes(header_line(**header))
+    with pytest.raises(FileFormatError, match=problem):
         load_dataset(path)
 
 

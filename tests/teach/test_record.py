@@ -61,12 +61,19 @@ class Terminal(io.StringIO):
 
 
 def test_the_recorder_shows_the_guide_on_one_updating_line(tmp_path):
-    progress, seen = Terminal(), []
+    progress, seen, twists = Terminal(), [], []
     with open_rig(hand=demo_region_path(), seed=2) as session:
         with DatasetWriter(tmp_path / "teach.limb", rig="sim") as writer:
             summary = record(
-                session.rig, writer, 100.0, 3.5, progress=progress, on_guidance=seen.append
+                session.rig,
+                writer,
+                100.0,
+                3.5,
+                progress=progress,
+                on_guidance=seen.append,
+                on_twist=twists.append,
             )
+    assert twists == [] and summary.twist is None  # a two-servo recording hands no twist on
     assert len(seen) >= 3 and all(isinstance(g, Guidance) for g in seen)
     assert seen[-1] is summary.guidance and summary.guidance.samples == summary.samples
     head, updates = progress.getvalue().split("\n", 1)
@@ -104,14 +111,6 @@ def test_a_three_servo_recording_says_where_the_twist_is_untaught(tmp_path):
     assert summary.twist is not None and f"guide              {summary.twist.line()}" in (
         summary.lines()
     )
-
-
-def test_a_two_servo_recording_hands_no_twist_on(tmp_path):
-    seen = []
-    with open_rig(hand=demo_region_path(), seed=2) as session:
-        with DatasetWriter(tmp_path / "teach.limb", rig="sim") as writer:
-            summary = record(session.rig, writer, 100.0, 1.5, on_twist=seen.append)
-    assert seen == [] and summary.twist is None
 
 
 def test_without_a_terminal_the_progress_is_logged_every_few_seconds(tmp_path):

@@ -6,14 +6,18 @@ import numpy as np
 import pytest
 
 from calib.profile import default_sim_profile
-from limbctl.envelope import Cone, build_model, load_header, load_model
+from limbctl.envelope import Cone, RigidMap, build_model, load_header, load_model
+from limbctl.envelope.synthetic import NOTCH, PolygonRegion, to_quaternions
 from limbctl.errors import ConfigError
 from limbctl.file_jobs import plot_files
 from limbctl.geometry.gimbal import direction_to_pan_tilt
 from limbctl.geometry.quat import limb_direction
 from limbctl.geometry.twist import decompose
+from limbctl.region import RegionParams
+from limbctl.region import taught as taught_region
 from limbctl.teach.dataset import DatasetWriter
-from limbctl.teach.train import train
+from limbctl.teach.train import summarize, train
+from tests.region.test_twist_evidence import DIP_AT, dipped_teaching
 
 
 def write_cone_dataset(path, n=400, half_angle_deg=30.0, seed=0, calibration=None):
@@ -83,7 +87,7 @@ def test_too_few_samples_and_unknown_kinds_are_refused(tmp_path):
 
 def test_model_kinds_come_from_one_registry():
     from limbctl.cli import build_parser
-    from limbctl.envelope import MODEL_KINDS, RigidMap, model_class
+    from limbctl.envelope import MODEL_KINDS, model_class
     from limbctl.eval.experiments import build_model as eval_build_model
     from limbctl.eval.grids import ModelSpec
     from limbctl.file_jobs import model_options
@@ -117,7 +121,6 @@ TURNING_BAND = {"half_low_deg": 20.0, "half_high_deg": 20.0, "centre_pan": 1.0, 
 def rig_model(request):
     """(rig, samples (N, 4), fitted Rigid Map) of the shoulder outline: on two servos its
     twist-free directions, on three the shoulder with TURNING_BAND."""
-    from limbctl.envelope import RigidMap
     from limbctl.envelope.synthetic import rounded
     from limbctl.envelope.synthetic_twist import SHOULDER, ShoulderRegion
     from limbctl.geometry.quat import swing_from_direction
@@ -132,7 +135,6 @@ def rig_model(request):
 
 def test_the_summary_and_the_plot_show_the_whole_region_of_either_rig(rig_model):
     from limbctl.plot import region_grid
-    from limbctl.teach.train import summarize
 
     rig, q, model = rig_model
     summary = summarize(model, q)
@@ -162,3 +164,37 @@ def test_the_summary_and_the_plot_show_the_whole_region_of_either_rig(rig_model)
     else:
         assert summary.twist_range_deg is None and summary.outside_direction == out
         assert "twist" not in lines
+
+
+# ---- what the teaching did not support, named (issue 35) ----------------------------------
+
+
+def test_train_names_where_the_edge_bridges_what_the_samples_surround(monkeypatch):
+    truth = PolygonRegion(NOTCH)  # a 12 x 12 deg notch in the top edge
+    q = to_quaternions(truth.sample(8000, np.random.default_rng(0)))
+    # a coarse alpha shape bridges the notch; with no carving round the bridge stays, as where
+    # carving would drop taught samples, and train must say where
+    monkeypatch.setattr(taught_region, "CARVE_ROUNDS", 0)
+    model = RigidMap(nodes=200, seed=0, region=RegionParams(edge="supported", alpha_factor=8.0))
+    model.fit(q)
+    stretches = model.region.unsupported_edge
+    lines = summarize(model, q).lines()
+    assert stretches, "the bridged notch must be found"
+    assert any(line.startswith("edge unsupported") for line in lines), lines
+    named = [line for line in lines if line.strip().startswith("trace the edge near pan")]
+    assert len(named) == len(stretches)
+    # the farthest stretch lies over the notch (pan -6..6, tilt 3..15)
+    assert -8 <= stretches[0].pan_deg <= 8 and 1 <= stretches[0].tilt_deg <= 17
+
+
+def test_train_names_the_twist_stop_the_teaching_never_reached():
+    _, q = dipped_teaching()
+    summary = summarize(RigidMap(twist=True, seed=0).fit(q), q)
+    assert summary.unsupported_twist, "the dip's stop was never taught, yet nothing is listed"
+    text = "\n".join(summary.lines())
+    assert "twist unsupported" in text
+    first = next(w for w in summary.unsupported_twist if "upper (positive) twist stop" in w)
+    pan = float(first.split("near pan ")[1].split(",")[0])
+    tilt = float(first.split("tilt ")[1].split(" ")[0])
+    assert abs(pan - DIP_AT[0]) < 16 and abs(tilt - DIP_AT[1]) < 16
+    assert f"  {first}" in summary.lines()

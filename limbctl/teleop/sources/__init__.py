@@ -93,11 +93,11 @@ class SourceKind:
     extra_ids: Callable[[str], tuple[int, ...]] = lambda argument: ()
 
 
-def _no_argument(scheme: str, make: Callable[[], CommandSource]) -> Callable:
+def _no_argument(scheme: str, make: Callable[[SourceContext], CommandSource]) -> Callable:
     def build(argument: str, context: SourceContext) -> CommandSource:
         if argument:
             raise ConfigError(f"source {scheme!r} takes no argument, got {scheme}:{argument}")
-        return make()
+        return make(context)
 
     return build
 
@@ -109,15 +109,7 @@ def _udp(argument: str, context: SourceContext) -> CommandSource:
     return UdpSource(host, int(port))
 
 
-def _keyboard(argument: str, context: SourceContext) -> CommandSource:
-    if argument:
-        raise ConfigError(f"source 'keyboard' takes no argument, got keyboard:{argument}")
-    return keyboard_source(context.gate)
-
-
-def _page(argument: str, context: SourceContext) -> CommandSource:
-    if argument:
-        raise ConfigError(f"source 'page' takes no argument, got page:{argument}")
+def _page(context: SourceContext) -> CommandSource:
     if context.page is None:
         raise ConfigError("source 'page' steers from the live view: do not pass --no-view")
     return PageSource(context.page)
@@ -133,12 +125,14 @@ def _leader(argument: str, context: SourceContext) -> CommandSource:
 SOURCES: dict[str, SourceKind] = {
     kind.scheme: kind
     for kind in (
-        SourceKind("stdin", "stdin", _no_argument("stdin", StreamSource)),
+        SourceKind("stdin", "stdin", _no_argument("stdin", lambda context: StreamSource())),
         SourceKind("udp", "udp://HOST:PORT", _udp),
         SourceKind("replay", "replay:FILE", lambda argument, context: ReplaySource(argument)),
-        SourceKind("keyboard", "keyboard", _keyboard),
+        SourceKind(
+            "keyboard", "keyboard", _no_argument("keyboard", lambda c: keyboard_source(c.gate))
+        ),
         SourceKind("leader", "leader:ID,ID", _leader, extra_ids=leader_ids),
-        SourceKind("page", "page", _page),
+        SourceKind("page", "page", _no_argument("page", _page)),
     )
 }
 #: How each source is written, in the order of :data:`SOURCES`.

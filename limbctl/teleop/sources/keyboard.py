@@ -1,18 +1,12 @@
 """Command source ``keyboard``: the keys of a terminal steer pan and tilt, and say how.
 
-The keys are the table in :mod:`limbctl.teleop.keys`; the guide is printed when the source
-starts and again on ``?``. One press moves one step, a key held moves at the steady speed the
-step sets (:class:`~limbctl.teleop.keys.HeldKey`). The source repeats its command every
-:data:`KEEPALIVE_S`; the hold key stops the repeats and the loop holds the pose, as for any
-silent source.
-
-The commanded point never runs on past what the gate wrote: the loop hands each cycle's result
-back (:meth:`KeyboardSource.feel`), and once an edge or a hard limit stopped the command short,
-the next key steps from the written pose, and a repeat with no key pressed sends the written
-pose itself. A key held against an edge therefore slides the limb along it, each step going
-where the gate puts one step from the limb (the nearest pose inside), and the first opposite
-key moves a full step at once. The status line names as blocked only the way the key pushes
-(:meth:`KeyboardSource.pushing`), and says which way the limb slides.
+The keys are the table in :mod:`limbctl.teleop.keys` (guide printed at the start and on ``?``);
+a press moves one step, a held key moves steadily (:class:`~limbctl.teleop.keys.HeldKey`), and
+the command is repeated every :data:`KEEPALIVE_S` until the hold key. The command never runs on
+past what the gate wrote (:meth:`KeyboardSource.feel`): stopped short at an edge or limit, the
+next key steps from the written pose, so a key held against an edge slides the limb along it
+and the first opposite key moves at once. The status line names as blocked only the way the
+key pushes (:meth:`KeyboardSource.pushing`).
 """
 
 from __future__ import annotations

@@ -1,24 +1,19 @@
 """A leader as a command source: a second chain of servos, one per joint of the follower's,
 moved by hand.
 
-The leader sits on the same bus as the follower (``leader:3,4`` = pan id 3, tilt id 4; a
-three-servo leader ``leader:4,5,6`` adds its roll id and needs a three-servo follower) and is
-assumed to be built and calibrated like the follower: its ticks are read with the follower's
-zero ticks and directions. Each control cycle reads the leader in one sync read and offers its
-pose as the newest command (a direction for two joints, an orientation for three:
-:func:`pose_command`); it goes through the gate like any other. The bus
-side (set-up, reads, writes, torque) is :mod:`~limbctl.teleop.sources.leader_bus`.
+The leader sits on the follower's bus (``leader:3,4``; ``leader:4,5,6`` for a three-servo
+follower), built and calibrated like the follower, whose zero ticks and directions read its
+ticks. Each cycle reads it in one sync read and offers its pose as the newest command
+(:func:`pose_command`), gated like any other; the bus side is
+:mod:`~limbctl.teleop.sources.leader_bus`.
 
 A leader whose model senses current (:data:`limbctl.servo.leader.FELT_MODELS`) *feels the edge*:
-its servos run in current-based position mode, free inside the region, pushing back beyond it
-(:func:`limbctl.teleop.haptic_push.push_for`, on any chain); after each cycle's gate,
-:meth:`LeaderSource.feel` writes that push in one sync write. Any doubt switches the push off at
-once: a leader that is silent, in alarm or restarted, a failed bus, a held gate, a fault
-(:meth:`LeaderSource.release`) or the session's end. Bus Watchdog is the backstop; a guard
-process switches its torque off if this one dies (:mod:`limbctl.servo.leader_guard`). Other
-models stay passive (torque off). While the wall holds the leader still, the loop's wait
-between cycles reads its speed and lets the wall go as soon as it snaps toward the region
-(:mod:`limbctl.teleop.snap`).
+free inside the region, pushing back beyond it (:func:`limbctl.teleop.haptic_push.push_for`),
+written by :meth:`LeaderSource.feel` after each cycle's gate. Any doubt (silence, alarm,
+restart, a failed bus, a held gate, a fault, the session's end) switches the push off at once
+(:meth:`LeaderSource.release`); Bus Watchdog and :mod:`limbctl.servo.leader_guard` are the
+backstops, and the snap watch (:mod:`limbctl.teleop.snap`) frees a wall between the cycles.
+Other models stay passive (torque off).
 """
 
 from __future__ import annotations
@@ -101,7 +96,6 @@ class LeaderSource(SnapWatching, LeaderBus, CommandSource):
             raise ConfigError(f"leader servos {leader_ids} are not on the bus")
         self.rig = rig
         self.leader_ids = tuple(leader_ids)
-        self.read_failures = 0
         #: Cycles whose push the safety rules released (the leader unread, a held gate, a
         #: failed write, a follower silent past FOLLOWER_GRACE_S), whether or not it pressed.
         self.released_cycles = 0
@@ -163,17 +157,20 @@ class LeaderSource(SnapWatching, LeaderBus, CommandSource):
         try:
             ticks = self.rig.bus.sync_read(Register.PRESENT_POSITION, self.leader_ids)
         except BusError:
-            self.read_failures += 1
             return []
-        pose = self.rig.ticks_to_angles(*(ticks[i] for i in self.leader_ids))
+        command = self._command(self.rig.ticks_to_angles(*(ticks[i] for i in self.leader_ids)))
+        return [] if command is None else [command]
+
+    def _command(self, pose: tuple[float, ...]) -> Command | None:
+        """The leader's pose read now as a counted command; None (refused) out of range."""
         self.last_pose = pose
         try:  # the same range checks as every other source's commands
             command = pose_command(pose)
         except InvalidInputError as exc:
             self.stats.reject(f"leader pose refused: {exc}")
-            return []
+            return None
         self.stats.accepted += 1
-        return [command]
+        return command
 
     def _poll_felt(self) -> list[Command]:
         """The felt leader's read: its pose, and whether it is still fit to push."""
@@ -181,7 +178,6 @@ class LeaderSource(SnapWatching, LeaderBus, CommandSource):
         read = self.read_leader()  # a miss switches the push off at once (leader_snap.py)
         now = time.perf_counter()
         if read is None or not read.ok:
-            self.read_failures += read is not None
             return []
         self._notes.extend(self.silence.heard(now))
         unheard_s, self._heard_at = now - self._heard_at, now
@@ -197,13 +193,9 @@ class LeaderSource(SnapWatching, LeaderBus, CommandSource):
             if not self.felt:  # a restarted servo's indirect map is gone: read it plainly
                 return self._poll_passive()
         pose = self._pose(read)
-        self.last_pose = pose
-        try:
-            command = pose_command(pose)
-        except InvalidInputError as exc:
-            self.stats.reject(f"leader pose refused: {exc}")
+        command = self._command(pose)
+        if command is None:
             return []
-        self.stats.accepted += 1
         if self.felt:
             self.last_torque_nm = self._torque(read)
             speed = cycle_velocity(read, self.leader_ids, self.rig.joints)

@@ -1,18 +1,10 @@
 """A felt leader's silent servos: when each stopped answering, for how long, and when to ask.
 
-Any failed read of the leader (the cycle's or the snap watch's between the cycles) switches
-every leader servo's push off at once (:meth:`LeaderSource.release`: Goal Current 0 in one
-sync write, which the servos that still listen obey): a servo that does not answer may be gone,
-and the others must not go on pushing the hand alone. This module keeps the account::
-
-    a miss          a failed read that names the servo its reply stopped at (one lost reply
-                    costs one miss; the read is tried once more in the same cycle)
-    a dropout       a servo missed by MISSES_FOR_DROPOUT reads in a row, timed from its first
-                    miss until it answers again (or the session ends: "so far")
-    while silent    the leader is read once per PROBE_INTERVAL_S only, one try: the loop keeps
-                    its rate (two failed tries every cycle cost 12 ms of the 5 ms period on the
-                    simulator's pty, and the pace watch would switch the feel off for good)
-
+Any failed read of the leader switches every leader servo's push off at once
+(:meth:`LeaderSource.release`): the others must not push the hand alone. This module keeps the
+account: a *miss* is a failed read naming the servo its reply stopped at; MISSES_FOR_DROPOUT in
+a row make a *dropout*, timed until it answers again (or "so far" at the session's end); while
+silent the leader is read once per PROBE_INTERVAL_S only, one try, so the loop keeps its rate.
 The dropouts are the session's summary lines for the leader (:meth:`LeaderSilence.lines`).
 """
 

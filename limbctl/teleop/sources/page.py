@@ -1,16 +1,10 @@
 """Command source ``page``: the live view's page steers the limb (drag, click, arrow keys).
 
-The page sends the same JSON lines as every other source (``{"pan": deg, "tilt": deg}``) over
-its WebSocket; the view's server hands the controlling page's text to :meth:`CommandSource.feed`,
-so it meets the same parser, the same refusal accounting and the same gate. The page repeats its
-command while it holds control; a page that freezes, closes or loses its network stops sending,
-and the loop holds the last safe pose after its silence, exactly as for a silent stream.
-
-Who may control, and how, is the view's business (a per-session secret, the Origin, one
-controller at a time, taken only by a person's action: opening the address, reloading the
-steering tab or clicking "take control", never by a page reconnecting on its own; see
-:mod:`limbctl.view.control`): this source only needs a ``connect`` that attaches its ``feed`` to
-the page and returns what detaches it again.
+The page sends the same JSON lines as every other source over its WebSocket; the view's server
+hands the controlling page's text to :meth:`CommandSource.feed` (same parser, refusals and
+gate). A page that stops sending leaves the loop holding the last safe pose, as any silent
+stream. Who may control is the view's business (:mod:`limbctl.view.control`): this source only
+needs a ``connect`` that attaches its ``feed`` and returns what detaches it.
 """
 
 from __future__ import annotations
