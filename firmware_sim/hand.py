@@ -10,6 +10,10 @@ description turns the roll too (:attr:`Hand.turns_roll`). One description, a REG
     speed_deg_s: 40        # optional: mean speed of a move through the middle
     tremor_deg: 0.2        # optional: peak tremor amplitude, 0 switches it off
 
+    visits:                # optional: answer a teaching guide's requests (region hands)
+      - {after_s: 60, at: [pan_deg, tilt_deg], do: edge, length_deg: 8}
+      - {after_s: 60, at: [pan_deg, tilt_deg], do: twist}
+
     script: [[t_s, pan_deg, tilt_deg], ...]          # instead of region: follow waypoints
     script: [[t_s, pan_deg, tilt_deg, roll_deg], ...]  # the same, turning the roll too
 
@@ -22,6 +26,9 @@ move goes to a stop (alternately the upper and the lower one), the others to a u
 The twist's place in the band is ``u`` in [-1, 1]: the twist is ``centre + u (half_width -
 TWIST_INSET_DEG)`` at the present swing pose (so it follows the band as the swing moves), plus a
 tremor, and the roll is the one that gives it (``roll = twist - chain_twist(pan, tilt)``).
+A region hand's *visits* (:class:`firmware_sim.hand_path.Visit`) break off its wandering from
+``after_s`` to trace the edge (``edge``) or circle the place (``twist``) there; during a visit the
+twist turns to both stops as along the full trace (TRACE_TWIST_CYCLE).
 A *script* hand moves linearly in time between the waypoints (the roll too) and holds the last.
 The path is generated lazily, in a fixed order from ``seed`` and the pose the hand took hold at:
 the same seed gives the same path whatever times it is asked at.
@@ -41,8 +48,11 @@ from firmware_sim.hand_path import (
     MIN_REGION_DEPTH_DEG,
     PAUSE_S,
     STYLES,
+    VISIT_EDGE_DEG,
+    VISIT_KINDS,
     SwingPath,
     Track,
+    Visit,
     progress,
 )
 from firmware_sim.orientation import chain_twist, roll_for_twist_deg, wrap_deg
@@ -76,7 +86,8 @@ STOP_EVERY = 1
 WANDER_MOVE_S = (0.2, 0.4)
 WANDER_HOLD_S = (0.03, 0.08)
 
-_TOP_LEVEL_KEYS = {"region", "script", "twist", "speed_deg_s", "tremor_deg", "style"}
+_TOP_LEVEL_KEYS = {"region", "script", "twist", "speed_deg_s", "tremor_deg", "style", "visits"}
+_VISIT_KEYS = {"after_s", "at", "do", "length_deg"}
 _COLUMNS = ("t_s", "pan_deg", "tilt_deg", "roll_deg")
 
 
@@ -114,6 +125,35 @@ def _parse_script(script: object, source: str) -> list[tuple[float, ...]]:
     return waypoints
 
 
+def _parse_visits(visits: object, source: str) -> list[Visit]:
+    """``visits:`` entries as :class:`Visit`; ValueError names the entry and the problem."""
+    if not isinstance(visits, (list, tuple)):
+        raise ValueError(f"{source}: visits must be a list of {{after_s, at, do}} mappings")
+    parsed = []
+    for k, entry in enumerate(visits):
+        where = f"{source}: visits[{k}]"
+        if not isinstance(entry, dict) or not {"after_s", "at", "do"} <= set(entry):
+            raise ValueError(f"{where} must be a mapping with after_s, at and do, got {entry!r}")
+        unknown = sorted(set(entry) - _VISIT_KEYS, key=str)
+        if unknown:
+            raise ValueError(f"{where}: unknown key(s) {unknown}; allowed: {sorted(_VISIT_KEYS)}")
+        if entry["do"] not in VISIT_KINDS:
+            kinds = "; ".join(f"{name}: {meaning}" for name, meaning in VISIT_KINDS.items())
+            raise ValueError(f"{where}: unknown do {entry['do']!r}; choose one of ({kinds})")
+        at = entry["at"]
+        if not isinstance(at, (list, tuple)) or len(at) != 2:
+            raise ValueError(f"{where}: at must be [pan_deg, tilt_deg], got {at!r}")
+        if not all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in at
+        ):
+            raise ValueError(f"{where}: at must hold two finite numbers, got {at!r}")
+        pan, tilt = at
+        after = _positive(entry, "after_s", 0.0, where, allow_zero=True)
+        length = _positive(entry, "length_deg", VISIT_EDGE_DEG, where, allow_zero=True)
+        parsed.append(Visit(after, float(pan), float(tilt), entry["do"], length))
+    return parsed
+
+
 class Hand:
     """A scripted hand; build it with :meth:`from_yaml` or :meth:`from_mapping`.
 
@@ -131,7 +171,8 @@ class Hand:
     style : str
         How a region hand teaches, one of :data:`firmware_sim.hand_path.STYLES`.
     path : SwingPath
-        Where the hand takes pan and tilt, before the tremor.
+        Where the hand takes pan and tilt, before the tremor (its ``visits`` and
+        ``visit_spans``: the requests it answers, :class:`firmware_sim.hand_path.Visit`).
     """
 
     def __init__(
@@ -144,6 +185,7 @@ class Hand:
         source: str = "<hand>",
         style: str = DEFAULT_STYLE,
         band: TwistBand | None = None,
+        visits=(),
     ) -> None:
         if (region is None) == (script is None):
             raise ValueError(f"{source}: a Hand needs exactly one of region or script")
@@ -175,7 +217,9 @@ class Hand:
             (float(a), 2.0 * math.pi * float(f), float(p))
             for a, f, p in zip(amps, freqs, phases, strict=True)
         ]
-        self.path = SwingPath(region, script, self.speed_deg_s, seed, style)
+        if visits and region is None:
+            raise ValueError(f"{source}: 'visits' apply to a region hand, not to a script")
+        self.path = SwingPath(region, script, self.speed_deg_s, seed, style, visits)
         if script is not None and self.turns_roll:
             self._times = [row[0] for row in script]
             self._rolls = [row[3] for row in script]
@@ -229,7 +273,7 @@ class Hand:
             )
         if ("region" in data) == ("script" in data):
             raise ValueError(f"{source}: give exactly one of 'region' or 'script'")
-        for key in ("style", "twist"):
+        for key in ("style", "twist", "visits"):
             if key in data and "script" in data:
                 raise ValueError(f"{source}: '{key}' applies to a region hand, not to a script")
         speed = _positive(data, "speed_deg_s", DEFAULT_SPEED_DEG_S, source, allow_zero=False)
@@ -239,7 +283,9 @@ class Hand:
             return cls(script=_parse_script(data["script"], source), **common)
         region = region_from_mapping(data["region"], source)
         band = TwistBand.from_mapping(data["twist"], region, source) if "twist" in data else None
-        return cls(region=region, band=band, style=data.get("style", DEFAULT_STYLE), **common)
+        visits = _parse_visits(data.get("visits", []), source)
+        style = data.get("style", DEFAULT_STYLE)
+        return cls(region=region, band=band, style=style, visits=visits, **common)
 
     @classmethod
     def from_yaml(cls, path: str | Path, seed: int = 0) -> Hand:
@@ -293,7 +339,7 @@ class Hand:
         edge, a wander move after."""
         t0, t1, _, u_end = self._twist.segments[-1]
         span = self.path.trace_span_s
-        if span is not None and t1 < span[1]:
+        if (span is not None and t1 < span[1]) or self.path.in_visit(t1):
             target, move_s, hold_s = TRACE_TWIST_CYCLE[self._cycle_step % len(TRACE_TWIST_CYCLE)]
             self._cycle_step += 1
         else:

@@ -11,12 +11,20 @@ it just inside (the visits work round the perimeter in laps of EDGE_VISITS_PER_L
 of wandering touches the whole edge). Every move is checked to stay MIN_PATH_DEPTH_DEG inside
 the region. The path is planned lazily, in a fixed order from the seed: the same seed gives the
 same path whatever times it is asked at. :class:`Track` holds any such path's segments in time.
+
+*Visits* (:class:`Visit`, a hand description's ``visits:``) answer a teaching guide's requests:
+from a given time the path breaks off its wandering (after the move under way) to go to named
+places one after the other and do what each asks, then wanders on. ``edge``: trace the edge
+near the place (the stretch round its nearest edge point, EDGE_INSET_DEG inside, at the full
+trace's pace); ``twist``: circle the place slowly (VISIT_TWIST_RADIUS_DEG, VISIT_TWIST_S) while
+the hand turns the twist to both stops (:mod:`firmware_sim.hand`).
 """
 
 from __future__ import annotations
 
 import bisect
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -82,6 +90,34 @@ STYLES = {
     "wander": "wander through the middle from the start, visiting the edge every other move",
 }
 DEFAULT_STYLE = "trace"
+#: What a visit may ask: a hand description's ``visits: [{do: ...}]``.
+VISIT_KINDS = {
+    "edge": "trace the edge near the place",
+    "twist": "turn the twist to both stops near the place",
+}
+#: Least length (deg) of edge an ``edge`` visit traces, centred on the place's nearest edge point:
+#: a guide names a stretch by its farthest station; 5 deg either side reach past its ends.
+VISIT_EDGE_DEG = 10.0
+#: A ``twist`` visit circles the place at this radius (deg) for VISIT_TWIST_S: the stops are then
+#: taught over a patch a few degrees wide (one evidence station is not a stretch), and 3 s hold
+#: three of the trace's twist cycles (firmware_sim/hand.py, TRACE_TWIST_CYCLE: 0.9 s each).
+VISIT_TWIST_RADIUS_DEG = 3.0
+VISIT_TWIST_S = 3.0
+#: Points on a ``twist`` visit's circle (every 30 deg).
+VISIT_TWIST_POINTS = 12
+
+
+@dataclass(frozen=True)
+class Visit:
+    """A guide's request the hand answers: from ``after_s`` s (after its move under way) go to
+    (``pan_deg``, ``tilt_deg``) and ``do`` one of :data:`VISIT_KINDS`; an ``edge`` visit traces
+    at least ``length_deg`` deg of edge there (VISIT_EDGE_DEG when shorter)."""
+
+    after_s: float
+    pan_deg: float
+    tilt_deg: float
+    do: str
+    length_deg: float = VISIT_EDGE_DEG
 
 
 def progress(t: float, t0: float, t1: float, minimum_jerk: bool = True) -> float:
@@ -136,6 +172,8 @@ class SwingPath:
         Draws the path through a region.
     style : str
         One of :data:`STYLES`.
+    visits : sequence of Visit
+        Requests answered once their time comes, in order of ``after_s`` (region paths only).
 
     Attributes
     ----------
@@ -143,6 +181,8 @@ class SwingPath:
         The segments ``(t0, t1, pan0, tilt0, pan1, tilt1, minimum_jerk, bulge_pan, bulge_tilt)``.
     trace_span_s : tuple of float or None
         (start, end) in s of a ``trace`` path's full trace of the edge, after it took hold.
+    visit_spans : list of (float, float, Visit)
+        (start, end) in s of each visit answered so far, from its arrival at the place.
     """
 
     def __init__(
@@ -152,8 +192,11 @@ class SwingPath:
         speed_deg_s: float = DEFAULT_SPEED_DEG_S,
         seed: int = 0,
         style: str = DEFAULT_STYLE,
+        visits=(),
     ) -> None:
         self.region = region
+        self.visits = sorted(visits, key=lambda v: v.after_s)
+        self.visit_spans: list[tuple[float, float, Visit]] = []
         self.speed_deg_s = speed_deg_s
         self.style = style
         self.trace_span_s: tuple[float, float] | None = None
@@ -174,6 +217,8 @@ class SwingPath:
             return
         self._rng = np.random.default_rng([self._seed, 1])
         self.track = Track()
+        self.visit_spans = []
+        self._visits_done = 0
         self._edge_u = float(self._rng.uniform())
         self._edge_step = 1.0 / EDGE_VISITS_PER_LAP
         self._edge_due = True
@@ -274,7 +319,13 @@ class SwingPath:
 
     def _plan_next(self) -> None:
         """Append the next stretch of wandering: a move through the middle or, unless the whole
-        edge has been traced, an edge visit."""
+        edge has been traced, an edge visit; a request's visit once its time has come."""
+        if self._visits_done < len(self.visits):
+            visit = self.visits[self._visits_done]
+            if self._end()[0] >= visit.after_s:
+                self._visits_done += 1
+                self._answer(visit)
+                return
         traced = self.trace_span_s is not None
         if self._edge_due and not traced:
             self._edge_due = False
@@ -383,3 +434,45 @@ class SwingPath:
         if not self._trace_to((float(middle[0]), float(middle[1])), depth_deg, speed, splits - 1):
             return False
         return self._trace_to(b, depth_deg, speed, splits - 1)
+
+    def in_visit(self, t: float) -> bool:
+        """Whether ``t`` (s) falls in a visit's span (planned so far)."""
+        return any(t0 <= t < t1 for t0, t1, _ in self.visit_spans)
+
+    def _answer(self, visit: Visit) -> None:
+        """Go to the visit's place and do what it asks; records its span (module docstring)."""
+        region = self.region
+        if visit.do == "edge":
+            # the stretch of edge round the place's nearest edge point, EDGE_INSET_DEG inside
+            u0 = float(region.boundary_fraction(visit.pan_deg, visit.tilt_deg))
+            length = max(visit.length_deg, VISIT_EDGE_DEG)
+            n = max(int(length / TRACE_STEP_DEG), 1) + 1
+            u = u0 + (length / region.perimeter_deg) * np.linspace(-0.5, 0.5, n)
+            points = np.array([region.boundary_point(float(v), EDGE_INSET_DEG) for v in u])
+            points = deepen(region, points, np.full(n, EDGE_INSET_DEG))
+        else:
+            # a circle round the place, the place first set at least EDGE_INSET_DEG deep
+            middle = deepen(
+                region,
+                np.array([[visit.pan_deg, visit.tilt_deg]]),
+                np.array([EDGE_INSET_DEG + VISIT_TWIST_RADIUS_DEG]),
+            )[0]
+            angle = np.linspace(0.0, 2.0 * math.pi, VISIT_TWIST_POINTS + 1)
+            points = middle + VISIT_TWIST_RADIUS_DEG * np.stack(
+                [np.cos(angle), np.sin(angle)], axis=1
+            )
+            points = deepen(region, points, np.full(len(points), EDGE_INSET_DEG))
+        start = (float(points[0, 0]), float(points[0, 1]))
+        if not self._reach(start):
+            return  # no path inside to the place: the request stays unanswered
+        t_start = self._end()[0]
+        if visit.do == "edge":
+            for b in points[1:]:
+                self._trace_to(
+                    (float(b[0]), float(b[1])), EDGE_INSET_DEG, TRACE_SPEED_DEG_S, TRACE_SPLITS
+                )
+        else:
+            speed = 2.0 * math.pi * VISIT_TWIST_RADIUS_DEG / VISIT_TWIST_S
+            for b in points[1:]:
+                self._trace_to((float(b[0]), float(b[1])), EDGE_INSET_DEG, speed, TRACE_SPLITS)
+        self.visit_spans.append((t_start, self._end()[0], visit))

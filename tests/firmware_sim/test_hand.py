@@ -3,7 +3,9 @@ without a roll), its tremor and seed, the twist kept in its band, and the roll j
 
 from __future__ import annotations
 
+import importlib.util
 import math
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -16,6 +18,7 @@ from firmware_sim.world import ROLL_JOINT, World
 from limbctl.session import demo_region_path
 
 REGIONS = Path(__file__).resolve().parents[2] / "examples" / "regions"
+GUIDED = Path(__file__).resolve().parents[2] / "benchmarks" / "bench_guided_teaching.py"
 REGION3 = demo_region_path().with_name("demo_region3.yaml")
 CONE = {"region": {"cone": {"half_angle_deg": 30}}}
 OFF = {1: None, 2: None}
@@ -241,3 +244,81 @@ def test_malformed_region_files_name_the_file_and_the_problem(tmp_path, name):
 def test_missing_region_file_is_a_clear_error(tmp_path):
     with pytest.raises(ValueError, match="cannot read the region file"):
         Hand.from_yaml(tmp_path / "nowhere.yaml")
+
+
+#: A region hand with a twist band and two requests to answer from VISIT_AT_S.
+VISIT_AT_S = 4.0
+VISITING = {
+    "region": {"polygon": [[-30, -20], [30, -20], [30, 25], [-30, 25]]},
+    "twist": {"centre_deg": 10, "half_width_deg": 35},
+    "visits": [
+        {"after_s": VISIT_AT_S, "at": [29, 10], "do": "edge", "length_deg": 12},
+        {"after_s": VISIT_AT_S, "at": [-15, 0], "do": "twist"},
+    ],
+}
+
+
+def test_visits_answer_the_requests_in_order_and_leave_the_path_before_them_alone():
+    plain = Hand.from_mapping({k: v for k, v in VISITING.items() if k != "visits"}, seed=5)
+    hand = Hand.from_mapping(VISITING, seed=5)
+    times, poses, twist, limits = sample(hand, 60.0, dt=0.01)
+    _, before, _, _ = sample(plain, VISIT_AT_S, dt=0.01)
+    assert np.array_equal(poses[: len(before)], before)
+    (e0, e1, edge), (w0, w1, turn) = hand.path.visit_spans
+    assert VISIT_AT_S <= e0 < e1 <= w0 < w1 and (edge.do, turn.do) == ("edge", "twist")
+    # the edge visit: along the edge, about a degree inside, over the stretch asked for
+    at = (times >= e0) & (times < e1)
+    depth = hand.region.edge_distance_deg(poses[at, 0], poses[at, 1])
+    assert np.all((depth > 0.3) & (depth < 1.8))
+    assert np.ptp(poses[at, 1]) >= 12.0 - 1.0 and np.all(np.abs(poses[at, 0] - 29.0) < 1.8)
+    # the twist visit: round the place, the twist at both stops
+    at = (times >= w0) & (times < w1)
+    assert np.all(np.hypot(poses[at, 0] + 15.0, poses[at, 1]) < 3.0 + 0.5)
+    for k, side in ((1, 1.0), (0, -1.0)):
+        stop = limits[at, k] - side * TWIST_INSET_DEG
+        assert np.any(np.abs(twist[at] - stop) < TREMOR_SLACK_DEG + 0.1)
+    assert np.all(twist[at] >= limits[at, 0] + TWIST_INSET_DEG - TREMOR_SLACK_DEG)
+    assert np.all(twist[at] <= limits[at, 1] - TWIST_INSET_DEG + TREMOR_SLACK_DEG)
+
+
+@pytest.mark.parametrize(
+    "visits, words",
+    [
+        ([{"after_s": 1, "at": [0, 0], "do": "dance"}], "unknown do"),
+        ([{"after_s": 1, "at": [0], "do": "edge"}], "at must be"),
+        ([{"at": [0, 0], "do": "edge"}], "after_s, at and do"),
+        ([{"after_s": -1, "at": [0, 0], "do": "edge"}], "after_s must be >= 0"),
+        ([{"after_s": 1, "at": [0, 0], "do": "edge", "when": 2}], "unknown key"),
+    ],
+)
+def test_a_bad_visit_is_refused_with_its_entry_named(visits, words):
+    with pytest.raises(ValueError, match=words) as err:
+        Hand.from_mapping({**CONE, "visits": visits}, source="r.yaml")
+    assert "visits[0]" in str(err.value)
+
+
+def test_visits_apply_to_a_region_hand_only():
+    with pytest.raises(ValueError, match="'visits' applies to a region hand"):
+        Hand.from_mapping({"script": [[0, 0, 0]], "visits": []})
+
+
+def test_a_guided_teaching_of_a_small_region_ends_ready_and_within_a_degree_of_the_truth():
+    spec = importlib.util.spec_from_file_location("bench_guided_teaching", GUIDED)
+    bench = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = bench
+    spec.loader.exec_module(bench)
+    # an oval 36 x 28 deg, its band sloping with pan and narrowing with tilt
+    phi = np.radians(np.arange(0.0, 360.0, 30.0))
+    polygon = [[5.0 + 18.0 * math.cos(a), 5.0 + 14.0 * math.sin(a)] for a in phi]
+    region = {
+        "region": {"polygon": polygon},
+        "twist": {"centre_deg": [10, 0.2, 0.0], "half_width_deg": [30, 0.0, -0.1]},
+    }
+    # 12 s of scripted teaching leave requests; the hand's visits answer them
+    taught = bench.guided(region, seed=1, teach_s=12.0)
+    assert taught["asked"][0] > 0 and taught["rounds"] >= 1
+    assert taught["complete"] and taught["asked"][-1] == 0
+    figures = bench.measure(bench.truth_of(region), taught["q"], 1, True)
+    assert figures["complete"]
+    assert figures["swing_excess"] <= 1.0 and figures["twist_excess"] <= 1.0
+    assert figures["coverage"] >= 0.95
