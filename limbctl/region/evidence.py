@@ -35,6 +35,16 @@ from limbctl.region.mesh import DirectionMesh
 #: 1.1-1.4 deg from its own samples and an edge reaching it is not outside the truth (at 0.8 the
 #: demo's traced edge was refused, docs/decisions/region.md); bridged bays lie 2-4 deg away.
 EVIDENCE_DEG = 1.5
+#: The farthest (deg) any station of the learned edge may lie from its nearest taught sample
+#: before its stretch is reported unsupported (:attr:`limbctl.region.TaughtRegion.unsupported_edge`:
+#: the guide withholds READY and ``train`` lists it). The samples lie inside the truth, so an edge
+#: point within r of one lies at most r outside the truth (between stations, at most
+#: ``STATION_DEG / 2`` more). Unlike ``EVIDENCE_DEG`` it asks no surround: an edge that far from
+#: every sample may be past an unknown truth anywhere. 1.25, not the 1 deg bound: a traced edge
+#: stands 1.0-1.1 deg beyond a hand that traces about 1 deg inside the stops (the simulator's
+#: hand on irregular.yaml, tests/teach/test_record.py), and at 1.0 no such teaching is ever ready;
+#: bridged bays and notches stand 1.5-4 deg from the samples (docs/decisions/region.md).
+REACH_DEG = 1.25
 #: Spacing (deg) of the stations along the edge: a point between two stations lies at most half
 #: of it farther from the evidence than the nearer station.
 STATION_DEG = 0.25
@@ -139,10 +149,11 @@ def unsupported_stations(
     bound: float = np.radians(EVIDENCE_DEG),
     radius: float = np.radians(CONCAVE_RADIUS_DEG),
     max_gap: float = np.radians(CONCAVE_GAP_DEG),
+    surrounded: bool = True,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The edge's stations (S, 3), the arc (S,) each lies on, its distance (S,) rad to the
     nearest of ``data`` (N, 3), and the indices (B,) of the unsupported ones (farther than
-    ``bound`` and surrounded: see :func:`unsupported_stretches`)."""
+    ``bound`` and, if ``surrounded``, surrounded: see :func:`unsupported_stretches`)."""
     stations, arc = edge_stations(mesh, np.radians(STATION_DEG))
     tree = cKDTree(data)
     dist, _ = tree.query(stations)
@@ -151,7 +162,7 @@ def unsupported_stations(
     # a hole's edge bounds what the region leaves out: a swing outline has no holes, so what
     # lies inside a hole belongs to the truth and its edge never reaches past it
     far = np.flatnonzero((delta > bound) & outer_arcs(mesh)[arc])
-    if far.size == 0:
+    if far.size == 0 or not surrounded:
         return stations, arc, delta, far
     # the station's outward direction (tangent at it, away from the region's side of its arc)
     a = mesh.vertices[mesh.edges[arc[far], 0]]
@@ -202,8 +213,10 @@ def unsupported_stretches(
     bound: float = np.radians(EVIDENCE_DEG),
     radius: float = np.radians(CONCAVE_RADIUS_DEG),
     max_gap: float = np.radians(CONCAVE_GAP_DEG),
+    surrounded: bool = True,
 ) -> list[Stretch]:
-    """The stretches of ``mesh``'s edge the taught ``data`` (N, 3) surround but do not reach.
+    """The stretches of ``mesh``'s edge the taught ``data`` (N, 3) surround but do not reach
+    (or, with ``surrounded`` False, do not reach at all).
 
     Parameters
     ----------
@@ -215,6 +228,9 @@ def unsupported_stretches(
         How far (rad) a surrounded station may lie from its nearest sample.
     radius, max_gap : float
         The surround test's neighbourhood and widest empty sector (rad).
+    surrounded : bool
+        Whether a station counts only where the samples surround it (the carving's test), or
+        wherever it lies farther than ``bound`` (the report's, ``REACH_DEG``).
 
     Returns
     -------
@@ -222,7 +238,7 @@ def unsupported_stretches(
         Runs of consecutive stations (along one arc or its neighbours) farther than ``bound``
         from every sample and surrounded by the samples within ``radius``; farthest first.
     """
-    stations, arc, delta, bad = unsupported_stations(mesh, data, bound, radius, max_gap)
+    stations, arc, delta, bad = unsupported_stations(mesh, data, bound, radius, max_gap, surrounded)
     if bad.size == 0:
         return []
     # runs: consecutive station indices on arcs that follow each other in the mesh

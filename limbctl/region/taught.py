@@ -44,7 +44,12 @@ from limbctl.region import correct_kernels as ck
 from limbctl.region import shape as rs
 from limbctl.region.acceptance import Verdict
 from limbctl.region.edge_choice import choose_edge
-from limbctl.region.evidence import Stretch, unsupported_stations, unsupported_stretches
+from limbctl.region.evidence import (
+    REACH_DEG,
+    Stretch,
+    unsupported_stations,
+    unsupported_stretches,
+)
 from limbctl.region.gaps import ORDER_STATISTICS
 from limbctl.region.mesh import DirectionMesh, boundary_edges
 from limbctl.region.params import RegionParams
@@ -170,11 +175,15 @@ class TaughtRegion:
                 break
             built, kept = trial, carved
         loops, margins, supported = built
-        self.unsupported_edge = tuple(unsupported_stretches(supported, d_train))
         taken, self.verdicts = choose_edge(
             p.edge, loops, d_train, supported, np.radians(p.max_offset_deg)
         )
         self.edge = taken.strategy
+        # judged on the edge the region keeps: wherever it lies farther than REACH_DEG from
+        # every taught sample it may lie that far past the truth
+        self.unsupported_edge = tuple(
+            unsupported_stretches(taken.region, d_train, np.radians(REACH_DEG), surrounded=False)
+        )
         return taken.region
 
     def _shape(
