@@ -83,19 +83,27 @@ class Stretch:
         That station's distance to its nearest taught sample (deg).
     length_deg : float
         Its length along the edge (deg).
+    held : bool
+        Whether the region was held there to ``REACH_DEG`` of the taught samples
+        (:mod:`limbctl.region.edge_hold`): it then stands short of where the learned edge put
+        it, ``distance_deg`` being how far that edge stood from the samples.
     """
 
     pan_deg: float
     tilt_deg: float
     distance_deg: float
     length_deg: float
+    held: bool = False
 
     def line(self) -> str:
-        """One line for a person: where, how far from the samples, how long."""
-        return (
+        """One line for a person: where, how far from the samples, how long, whether held."""
+        text = (
             f"near pan {self.pan_deg:.0f}, tilt {self.tilt_deg:.0f}: {self.length_deg:.1f} deg "
             f"of edge up to {self.distance_deg:.1f} deg from every taught sample"
         )
+        if self.held:
+            text += f" (held at the evidence: the region stops {REACH_DEG:g} deg from it there)"
+        return text
 
 
 def outer_arcs(mesh: DirectionMesh) -> np.ndarray:

@@ -35,6 +35,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 from scipy.spatial import cKDTree
 
@@ -44,6 +46,7 @@ from limbctl.region import correct_kernels as ck
 from limbctl.region import shape as rs
 from limbctl.region.acceptance import Verdict
 from limbctl.region.edge_choice import choose_edge
+from limbctl.region.edge_hold import hold_to_evidence
 from limbctl.region.evidence import (
     REACH_DEG,
     Stretch,
@@ -124,6 +127,7 @@ class TaughtRegion:
         self.verdicts: tuple[Verdict, ...] = ()
         self.support_index: np.ndarray | None = None
         self.unsupported_edge: tuple[Stretch, ...] = ()
+        self.held_edge = False
 
     # ---- building ----------------------------------------------------------------------------
     def fit(self, samples: np.ndarray, lookup: bool = True) -> TaughtRegion:
@@ -156,6 +160,7 @@ class TaughtRegion:
         p = self.params
         alpha = rs.learn_alpha(d, p.alpha_factor)
         self.edge, self.verdicts, self.unsupported_edge = "supported", (), ()
+        self.held_edge = False
         tri, kept = self._shape(d, thinning, alpha)
         if tri is None:
             return DirectionMesh.from_loops([], 0.0)
@@ -184,7 +189,13 @@ class TaughtRegion:
         self.unsupported_edge = tuple(
             unsupported_stretches(taken.region, d_train, np.radians(REACH_DEG), surrounded=False)
         )
-        return taken.region
+        if not self.unsupported_edge:
+            return taken.region
+        # containment over coverage: those stretches are held to REACH_DEG of the evidence
+        region, self.held_edge = hold_to_evidence(taken.region, d_train)
+        if self.held_edge:
+            self.unsupported_edge = tuple(replace(s, held=True) for s in self.unsupported_edge)
+        return region
 
     def _shape(
         self, d: np.ndarray, thinning: float, alpha: float

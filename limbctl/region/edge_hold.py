@@ -1,0 +1,390 @@
+"""Holding the kept edge to the taught evidence where it stands past it: containment first.
+
+A taught sample lies inside the true region, so a point of the learned region within ``r`` of a
+taught sample lies at most ``r`` outside the truth. Wherever the kept edge (whichever strategy
+:func:`limbctl.region.edge_choice.choose_edge` took) stands farther than ``REACH_DEG``
+(:mod:`limbctl.region.evidence`) from every taught sample, nothing bounds how far past the truth
+it may be: a bay or notch the sampling never entered, a sparse stretch the margins pushed out.
+:func:`hold_to_evidence` holds every such stretch to ``REACH_DEG`` of the evidence:
+
+1. The edge's stations (``STATION_DEG`` apart, :func:`limbctl.region.evidence.edge_stations`)
+   farther than ``REACH_DEG`` from every taught sample are *far*; every arc of an outer loop
+   holding one is *held*.
+2. A held arc is rebuilt as the chain of its stations (its widening moved onto them: the
+   stations lie on the widened edge, and the chain's arcs have no margin). A far station walks
+   in along the edge's inward normal, ``WALK_STEP_DEG`` at a time, up to ``WALK_DEG``, to the
+   first place within ``REACH_DEG`` of a taught sample; one that gets nowhere moves along the
+   great circle toward its nearest taught sample, to ``REACH_DEG`` from it. Every other station
+   stays exactly where it is, and arcs with no far station are kept as they were (margins and
+   all): a region with no far station is returned unchanged, bit for bit.
+3. Where two neighbouring held stations moved ``SPREAD_STATIONS`` station spacings or more
+   apart, the edge between their places is sampled once more and held
+   (``REFINE_PASSES`` times); folds the walks leave in a bay (walks toward its two walls cross)
+   are cut out (:func:`limbctl.region.edge_traced.unfolded`'s rule, on the held chain only);
+   a chord of the chain whose middle or quarters still lie farther than ``REACH_DEG`` from every
+   taught sample (a walk's jump from a bay's floor to its wall, a fold's cut) gets its middle held
+   too (``CHORD_PASSES`` times), the chord's pole giving the inward normal.
+4. The held region must not leave out a taught sample the unheld one held: each such sample is
+   pinned (put into the nearest chord of the chain, ``PIN_DEG`` outside it: a point of the
+   evidence, so no farther from it than the reach; ``PIN_ROUNDS``); one still left out gives
+   the held arc nearest it back its unheld edge, and the hold is retried (``UNHOLD_ROUNDS``).
+   A held edge whose arcs cross is not taken (the unheld region stays).
+
+The stretches stay reported (:attr:`limbctl.region.TaughtRegion.unsupported_edge`, now *held*):
+the region stands short of where the evidence might put the edge there until the person
+teaches it, and the guide withholds READY TO TRAIN meanwhile.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from limbctl.region.acceptance import arcs_cross
+from limbctl.region.evidence import REACH_DEG, STATION_DEG, edge_stations, outer_arcs
+from limbctl.region.loops import chord
+from limbctl.region.mesh import DirectionMesh
+
+#: Step (deg) of a far station's walk inward: it ends at most this much deeper than the reach
+#: asks (the traced edge's hold walks as finely, :mod:`limbctl.region.edge_traced`).
+WALK_STEP_DEG = 0.05
+#: The farthest (deg) a station walks in along its normal: the deepest bay or notch the
+#: families cut (11 deg, benchmarks/bench_swing_families.py) plus the reach; a walk that gets
+#: nowhere (the normal runs along a wall) moves toward the nearest sample instead.
+WALK_DEG = 12.5
+#: Neighbouring held stations that moved this many station spacings apart or more get the edge
+#: between them sampled again: a chord twice the spacing passes at most one spacing (0.25 deg)
+#: farther from the evidence than its ends.
+SPREAD_STATIONS = 2.0
+#: Passes of that refinement: each halves the original spacing between the two stations, so 4
+#: passes resolve 1/16 of a station spacing (0.016 deg) of the unheld edge.
+REFINE_PASSES = 4
+#: Passes of holding the middles of chain chords still farther than the reach from every taught
+#: sample: each halves such a chord, so 5 passes take a 3 deg jump down to 0.1 deg chords.
+CHORD_PASSES = 5
+#: Rounds of giving a held arc back its unheld edge where pinning could not keep a taught sample
+#: the unheld region held; after them (a hold that keeps losing samples) none is held.
+UNHOLD_ROUNDS = 4
+#: Rounds of pinning the taught samples a hold would leave out: each lost sample becomes a point
+#: of the chain chord nearest to it; a sample still lost after them gives its arc back.
+PIN_ROUNDS = 3
+#: How far (deg) outside the chain a pinned sample lies: far below a servo tick (0.088 deg),
+#: the traced edge's lift margin (:data:`limbctl.region.edge_traced.LIFT_MARGIN_DEG`).
+PIN_DEG = 0.01
+#: Stations a fold of held stations may span before its cut: walks toward a bay's two walls
+#: cross over about the bay's width (up to 14 deg, 56 station spacings).
+FOLD_WINDOW = 60
+
+
+def hold_to_evidence(
+    mesh: DirectionMesh, data: np.ndarray, reach: float = np.radians(REACH_DEG)
+) -> tuple[DirectionMesh, bool]:
+    """``mesh`` held to within ``reach`` (rad) of the taught directions ``data`` (N, 3).
+
+    Returns
+    -------
+    region : DirectionMesh
+        The held region (lookup grid not built), or ``mesh`` itself when no station of its outer
+        loops lies farther than ``reach`` from every taught direction, or no hold keeps the
+        taught samples it held and its arcs apart (module docstring).
+    held : bool
+        Whether the region was held (``region`` is not ``mesh``).
+    """
+    tree = cKDTree(data)
+    stations, arc = edge_stations(mesh, np.radians(STATION_DEG))
+    far = (tree.query(stations)[0] > chord(reach)) & outer_arcs(mesh)[arc]
+    held = np.zeros(mesh.edges.shape[0], dtype=bool)
+    held[arc[far]] = True
+    if not held.any():
+        return mesh, False
+    before = mesh.contains(data)
+    lost = np.zeros(data.shape[0], dtype=bool)
+    for _ in range(UNHOLD_ROUNDS):
+        loops = _held_loops(mesh, held, tree, reach)
+        for _ in range(PIN_ROUNDS):
+            if arcs_cross([p for p, _, _ in loops]):
+                break
+            trial = DirectionMesh.from_loops(
+                [p for p, _, _ in loops], [w for _, w, _ in loops], lookup=False
+            )
+            lost = before & ~trial.contains(data)
+            if not lost.any():
+                return trial, True
+            loops = _pinned(loops, data[lost])
+        if not lost.any():
+            # the first held loops cross: no sample to tell which arc to give back
+            return mesh, False
+        # the held arc nearest each sample still lost (or whose pin crossed) keeps its edge
+        rows = np.flatnonzero(held[arc])
+        _, k = cKDTree(stations[rows]).query(data[lost])
+        held[arc[rows[k]]] = False
+        if not held.any():
+            break
+    return mesh, False
+
+
+def _pinned(
+    loops: list[tuple[np.ndarray, np.ndarray, np.ndarray]], samples: np.ndarray
+) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """``loops`` (points (K, 3), margins (K,), on a chain (K,) bool each) with every one of
+    ``samples`` (S, 3) pinned: put into the chain chord nearest to it, ``PIN_DEG`` outside."""
+    loops = list(loops)
+    lift = np.radians(PIN_DEG)
+    for x in samples:
+        best = None
+        for number, (p, _, chain) in enumerate(loops):
+            k = p.shape[0]
+            nxt = np.roll(np.arange(k), -1)
+            on = np.flatnonzero(chain & chain[nxt])
+            if on.size == 0:
+                continue
+            pole = np.cross(p[on], p[nxt[on]])
+            pole /= np.maximum(np.linalg.norm(pole, axis=1, keepdims=True), 1e-15)
+            # the chord's nearest point to x: its foot on the great circle, or an end
+            foot = x - (pole @ x)[:, None] * pole
+            foot /= np.maximum(np.linalg.norm(foot, axis=1, keepdims=True), 1e-15)
+            between = (np.einsum("ij,ij->i", np.cross(p[on], foot), pole) >= 0.0) & (
+                np.einsum("ij,ij->i", np.cross(foot, p[nxt[on]]), pole) >= 0.0
+            )
+            near = np.where(between, foot @ x, np.maximum(p[on] @ x, p[nxt[on]] @ x))
+            j = int(np.argmax(near))
+            if best is None or near[j] > best[0]:
+                best = (near[j], number, int(on[j]), pole[j])
+        if best is None:
+            break
+        _, number, i, pole = best
+        p, w, chain = loops[number]
+        pin = np.cos(lift) * x - np.sin(lift) * pole
+        loops[number] = (
+            np.insert(p, i + 1, pin / np.linalg.norm(pin), axis=0),
+            np.insert(w, i + 1, 0.0),
+            np.insert(chain, i + 1, True),
+        )
+    return loops
+
+
+def loop_arcs(mesh: DirectionMesh) -> list[np.ndarray]:
+    """The arcs (indices into ``mesh.edges``) of each of its closed loops, in order."""
+    following = np.full(mesh.vertices.shape[0], -1, dtype=np.int64)
+    following[mesh.edges[:, 0]] = np.arange(mesh.edges.shape[0])
+    seen = np.zeros(mesh.edges.shape[0], dtype=bool)
+    out = []
+    for first in range(mesh.edges.shape[0]):
+        if seen[first]:
+            continue
+        run, e = [], first
+        while not seen[e]:
+            seen[e] = True
+            run.append(e)
+            e = following[mesh.edges[e, 1]]
+        out.append(np.array(run, dtype=np.int64))
+    return out
+
+
+def _tangent(normal: np.ndarray, at: np.ndarray) -> np.ndarray:
+    """``normal`` (K, 3) made tangent to the sphere at ``at`` (K, 3), unit length."""
+    t = normal - np.einsum("ij,ij->i", normal, at)[:, None] * at
+    return t / np.maximum(np.linalg.norm(t, axis=1, keepdims=True), 1e-15)
+
+
+def _offset(p: np.ndarray, pole: np.ndarray, margin: float) -> np.ndarray:
+    """Point ``p`` (3,) moved ``margin`` (rad) outward, away from the arc's ``pole`` (3,)."""
+    out = np.cos(margin) * p - np.sin(margin) * pole
+    return out / np.linalg.norm(out)
+
+
+def _held_loops(
+    mesh: DirectionMesh, held: np.ndarray, tree: cKDTree, reach: float
+) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """The region's loops with its ``held`` arcs (E,) bool rebuilt as held chains (module
+    docstring, steps 2-3): per loop its points (K, 3), the margins (K,) of the arcs leaving them
+    and whether each lies on a chain (K,) bool."""
+    a_all = mesh.vertices[mesh.edges[:, 0]]
+    b_all = mesh.vertices[mesh.edges[:, 1]]
+    poles = np.cross(a_all, b_all)
+    poles /= np.maximum(np.linalg.norm(poles, axis=1, keepdims=True), 1e-15)
+    step = np.radians(STATION_DEG)
+    loops = []
+    for arcs in loop_arcs(mesh):
+        # per point: position, margin of the arc leaving it, inward normal, whether on a chain
+        points, widen, normals, chain = [], [], [], []
+        for i, e in enumerate(arcs):
+            m = float(mesh.margins[e])
+            if not held[e]:
+                points.append(a_all[e])
+                widen.append(m)
+                normals.append(poles[e])
+                chain.append(False)
+                continue
+            prev = arcs[i - 1]
+            # the arc's start: a vertex both chains share may move; next to a kept arc it stays
+            points.append(a_all[e])
+            widen.append(0.0)
+            normals.append(poles[e] + poles[prev] if held[prev] else poles[e])
+            chain.append(bool(held[prev]))
+            # its stations on the widened edge (the first, at the vertex, only when widened)
+            count = max(1, int(np.ceil(_angle(a_all[e], b_all[e]) / step)))
+            for t in np.arange(0 if m > 0.0 else 1, count) / count:
+                points.append(_offset(_slerp(a_all[e], b_all[e], t), poles[e], m))
+                widen.append(0.0)
+                normals.append(poles[e])
+                chain.append(True)
+            if m > 0.0:
+                points.append(_offset(b_all[e], poles[e], m))
+                widen.append(0.0)
+                normals.append(poles[e])
+                chain.append(True)
+        p = np.array(points)
+        n = _tangent(np.array(normals), p)
+        loops.append(_hold_chain(p, np.array(widen), n, np.array(chain), tree, reach))
+    return loops
+
+
+def _angle(a: np.ndarray, b: np.ndarray) -> float:
+    return float(np.arctan2(np.linalg.norm(np.cross(a, b)), a @ b))
+
+
+def _slerp(a: np.ndarray, b: np.ndarray, t: float) -> np.ndarray:
+    om = _angle(a, b)
+    if np.sin(om) < 1e-12:
+        return a.copy()
+    x = (np.sin((1.0 - t) * om) * a + np.sin(t * om) * b) / np.sin(om)
+    return x / np.linalg.norm(x)
+
+
+def _hold_chain(
+    p: np.ndarray, w: np.ndarray, n: np.ndarray, chain: np.ndarray, tree: cKDTree, reach: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """One closed loop's points (K, 3) with their margins (K,), inward normals (K, 3) and
+    whether each lies on a held chain (K,) bool: the chain's far points held, refined where
+    they spread apart, folds cut (module docstring)."""
+    original = p.copy()
+    far = chain & (tree.query(p)[0] > chord(reach))
+    p = p.copy()
+    p[far] = _walk(p[far], n[far], tree, reach)
+    spread = np.radians(SPREAD_STATIONS * STATION_DEG)
+    for _ in range(REFINE_PASSES):
+        nxt = np.roll(np.arange(p.shape[0]), -1)
+        moved_apart = np.einsum("ij,ij->i", p, p[nxt]) < np.cos(spread)
+        gap = chain & chain[nxt] & (far | far[nxt]) & moved_apart
+        if not gap.any():
+            break
+        mid = original[gap] + original[nxt[gap]]
+        mid /= np.linalg.norm(mid, axis=1, keepdims=True)
+        mid_n = _tangent(n[gap] + n[nxt[gap]], mid)
+        mid_far = tree.query(mid)[0] > chord(reach)
+        held = mid.copy()
+        held[mid_far] = _walk(mid[mid_far], mid_n[mid_far], tree, reach)
+        at = np.flatnonzero(gap) + 1
+        p = np.insert(p, at, held, axis=0)
+        original = np.insert(original, at, mid, axis=0)
+        n = np.insert(n, at, mid_n, axis=0)
+        w = np.insert(w, at, 0.0)
+        chain = np.insert(chain, at, True)
+        far = np.insert(far, at, mid_far)
+    p, w, chain = _unfolded(p, w, chain)
+    return _held_chords(p, w, chain, tree, reach)
+
+
+def _held_chords(
+    p: np.ndarray, w: np.ndarray, chain: np.ndarray, tree: cKDTree, reach: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """One closed loop's points (K, 3), margins (K,) and chain flags (K,) with every chain point
+    and chord held within ``reach`` (rad) of the evidence (``CHORD_PASSES`` passes): a far chain
+    point (a fold's cut) walks in; a chord whose middle or quarters lie farther (a walk's jump
+    from a bay's floor to its wall) gets its middle, walked in along the chord's pole."""
+    bound = chord(reach)
+    for _ in range(CHORD_PASSES):
+        k = p.shape[0]
+        nxt, prev = np.roll(np.arange(k), -1), np.roll(np.arange(k), 1)
+        pole = np.cross(p, p[nxt])
+        pole /= np.maximum(np.linalg.norm(pole, axis=1, keepdims=True), 1e-15)
+        lone = chain & (tree.query(p)[0] > bound)
+        if lone.any():
+            p = p.copy()
+            p[lone] = _walk(p[lone], _tangent(pole[lone] + pole[prev[lone]], p[lone]), tree, reach)
+        mid = p + p[nxt]
+        mid /= np.linalg.norm(mid, axis=1, keepdims=True)
+        worst = np.zeros(k)
+        for t in (0.25, 0.5, 0.75):
+            q = (1.0 - t) * p + t * p[nxt]
+            q /= np.linalg.norm(q, axis=1, keepdims=True)
+            worst = np.maximum(worst, tree.query(q)[0])
+        gap = chain & chain[nxt] & (worst > bound)
+        if not gap.any() and not lone.any():
+            break
+        at = np.flatnonzero(gap)
+        held = _walk(mid[at], _tangent(np.cross(p[at], p[nxt[at]]), mid[at]), tree, reach)
+        p = np.insert(p, at + 1, held, axis=0)
+        w = np.insert(w, at + 1, 0.0)
+        chain = np.insert(chain, at + 1, True)
+        p, w, chain = _unfolded(p, w, chain)
+    # a point the walk put on its neighbour (both met the same sample's reach) is dropped
+    nxt = np.roll(np.arange(p.shape[0]), -1)
+    keep = ~(chain & (np.einsum("ij,ij->i", p, p[nxt]) >= 1.0 - 1e-15))
+    return p[keep], w[keep], chain[keep]
+
+
+def _walk(p: np.ndarray, n: np.ndarray, tree: cKDTree, reach: float) -> np.ndarray:
+    """Points (F, 3) walked in along their inward normals (F, 3) to the first place within
+    ``reach`` (rad) of a taught direction, or toward the nearest one to ``reach`` from it."""
+    out = p.copy()
+    left = np.arange(p.shape[0])
+    bound = chord(reach)
+    for k in range(1, int(round(WALK_DEG / WALK_STEP_DEG)) + 1):
+        if left.size == 0:
+            return out
+        d = np.radians(k * WALK_STEP_DEG)
+        q = np.cos(d) * p[left] + np.sin(d) * n[left]
+        q /= np.linalg.norm(q, axis=1, keepdims=True)
+        got = tree.query(q)[0] <= bound
+        out[left[got]] = q[got]
+        left = left[~got]
+    if left.size:
+        # along the great circle from the nearest sample y toward the point, ``reach`` from y
+        _, nearest = tree.query(p[left])
+        y = tree.data[nearest]
+        t = _tangent(p[left] - y, y)
+        out[left] = np.cos(reach) * y + np.sin(reach) * t
+        out[left] /= np.linalg.norm(out[left], axis=1, keepdims=True)
+    return out
+
+
+def _unfolded(
+    p: np.ndarray, w: np.ndarray, chain: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The closed loop ``p`` (K, 3), margins ``w`` (K,), with the folds of its held chains cut:
+    where the chain chord ``i -> i+1`` crosses the chain chord ``j -> j+1`` (``j - i`` at most
+    ``FOLD_WINDOW``, read circularly), the points ``i+1 .. j`` are replaced by the crossing
+    point (a kept arc between them is cut off with the fold: the region only shrinks there)."""
+    while True:
+        k = p.shape[0]
+        a, b = p, np.roll(p, -1, axis=0)
+        pole = np.cross(a, b)
+        on = chain & np.roll(chain, -1)
+        hit = None
+        for j in range(2, min(FOLD_WINDOW, k - 3) + 1):
+            c, d = np.roll(a, -j, axis=0), np.roll(b, -j, axis=0)
+            pole2 = np.roll(pole, -j, axis=0)
+            cross = (
+                on
+                & np.roll(on, -j)
+                & (np.einsum("ij,ij->i", pole, c) * np.einsum("ij,ij->i", pole, d) < 0.0)
+                & (np.einsum("ij,ij->i", pole2, a) * np.einsum("ij,ij->i", pole2, b) < 0.0)
+                & (np.einsum("ij,ij->i", a + b, c + d) > 0.0)
+            )
+            if cross.any():
+                hit = (int(np.flatnonzero(cross)[0]), j)
+                break
+        if hit is None:
+            return p, w, chain
+        i, j = hit
+        x = np.cross(pole[i], pole[(i + j) % k])
+        x /= np.linalg.norm(x)
+        x = x if x @ p[i] > 0.0 else -x
+        at = (i + 1) % k
+        p, w, chain = p.copy(), w.copy(), chain.copy()
+        p[at], w[at], chain[at] = x, 0.0, True
+        keep = np.ones(k, dtype=bool)
+        keep[(i + 2 + np.arange(j - 1)) % k] = False
+        p, w, chain = p[keep], w[keep], chain[keep]
