@@ -23,12 +23,13 @@ it may be: a bay or notch the sampling never entered, a sparse stretch the margi
    are cut out (:func:`limbctl.region.edge_traced.unfolded`'s rule, on the held chain only);
    a chord of the chain whose middle or quarters still lie farther than ``REACH_DEG`` from every
    taught sample (a walk's jump from a bay's floor to its wall, a fold's cut) gets its middle held
-   too (``CHORD_PASSES`` times), the chord's pole giving the inward normal.
+   too, moved straight toward its nearest taught sample (``CHORD_PASSES`` times).
 4. The held region must not leave out a taught sample the unheld one held: each such sample is
    pinned (put into the nearest chord of the chain, ``PIN_DEG`` outside it: a point of the
    evidence, so no farther from it than the reach; ``PIN_ROUNDS``); one still left out gives
    the held arc nearest it back its unheld edge, and the hold is retried (``UNHOLD_ROUNDS``).
-   A held edge whose arcs cross is not taken (the unheld region stays).
+   Where the held arcs cross (a walk across a hole's loop), the held arcs nearest the crossings
+   are given back their unheld edges the same way.
 
 The stretches stay reported (:attr:`limbctl.region.TaughtRegion.unsupported_edge`, now *held*):
 the region stands short of where the evidence might put the edge there until the person
@@ -60,8 +61,11 @@ SPREAD_STATIONS = 2.0
 #: passes resolve 1/16 of a station spacing (0.016 deg) of the unheld edge.
 REFINE_PASSES = 4
 #: Passes of holding the middles of chain chords still farther than the reach from every taught
-#: sample: each halves such a chord, so 5 passes take a 3 deg jump down to 0.1 deg chords.
-CHORD_PASSES = 5
+#: sample: each halves such a chord, so 8 passes take a 3 deg jump down to 0.012 deg chords.
+CHORD_PASSES = 8
+#: A chord's middle or quarters may lie this much (deg) past the reach before it is held: a
+#: quarter of the station spacing, half what the report's own stations leave between them.
+CHORD_SLACK_DEG = 0.25 * STATION_DEG
 #: Rounds of giving a held arc back its unheld edge where pinning could not keep a taught sample
 #: the unheld region held; after them (a hold that keeps losing samples) none is held.
 UNHOLD_ROUNDS = 4
@@ -98,11 +102,11 @@ def hold_to_evidence(
     if not held.any():
         return mesh, False
     before = mesh.contains(data)
-    lost = np.zeros(data.shape[0], dtype=bool)
     for _ in range(UNHOLD_ROUNDS):
         loops = _held_loops(mesh, held, tree, reach)
         for _ in range(PIN_ROUNDS):
-            if arcs_cross([p for p, _, _ in loops]):
+            trouble = crossings([p for p, _, _ in loops])
+            if trouble.shape[0]:
                 break
             trial = DirectionMesh.from_loops(
                 [p for p, _, _ in loops], [w for _, w, _ in loops], lookup=False
@@ -110,17 +114,41 @@ def hold_to_evidence(
             lost = before & ~trial.contains(data)
             if not lost.any():
                 return trial, True
-            loops = _pinned(loops, data[lost])
-        if not lost.any():
-            # the first held loops cross: no sample to tell which arc to give back
-            return mesh, False
-        # the held arc nearest each sample still lost (or whose pin crossed) keeps its edge
+            trouble = data[lost]
+            loops = _pinned(loops, trouble)
+        # the held arc nearest each sample still lost, or each crossing, keeps its unheld edge
         rows = np.flatnonzero(held[arc])
-        _, k = cKDTree(stations[rows]).query(data[lost])
+        _, k = cKDTree(stations[rows]).query(trouble)
         held[arc[rows[k]]] = False
         if not held.any():
             break
     return mesh, False
+
+
+def crossings(loops: list[np.ndarray]) -> np.ndarray:
+    """Middles (C, 3) of the arcs of the closed ``loops`` (each (M, 3)) that cross a
+    non-adjacent arc (the test of :func:`limbctl.region.acceptance.arcs_cross`)."""
+    if not arcs_cross(loops):
+        return np.zeros((0, 3))
+    a = np.vstack(loops)
+    b = np.vstack([np.roll(lp, -1, axis=0) for lp in loops])
+    owner = np.concatenate([np.full(lp.shape[0], i) for i, lp in enumerate(loops)])
+    index = np.concatenate([np.arange(lp.shape[0]) for lp in loops])
+    size = np.array([lp.shape[0] for lp in loops])[owner]
+    pole, mid = np.cross(a, b), a + b
+    hit_any = np.zeros(a.shape[0], dtype=bool)
+    for start in range(0, a.shape[0], 256):
+        sl = slice(start, start + 256)
+        j_split = np.sign(a @ pole[sl].T) * np.sign(b @ pole[sl].T) < 0
+        i_split = (np.sign(a[sl] @ pole.T) * np.sign(b[sl] @ pole.T)).T < 0
+        hit = j_split & i_split & (mid @ mid[sl].T > 0.0)
+        apart = np.abs(index[:, None] - index[sl][None, :])
+        adjacent = (owner[:, None] == owner[sl][None, :]) & (
+            (apart <= 1) | (apart == size[:, None] - 1)
+        )
+        hit_any |= np.any(hit & ~adjacent, axis=1)
+    out = mid[hit_any]
+    return out / np.linalg.norm(out, axis=1, keepdims=True)
 
 
 def _pinned(
@@ -291,9 +319,10 @@ def _held_chords(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """One closed loop's points (K, 3), margins (K,) and chain flags (K,) with every chain point
     and chord held within ``reach`` (rad) of the evidence (``CHORD_PASSES`` passes): a far chain
-    point (a fold's cut) walks in; a chord whose middle or quarters lie farther (a walk's jump
-    from a bay's floor to its wall) gets its middle, walked in along the chord's pole."""
-    bound = chord(reach)
+    point (a fold's cut) walks in; a chord whose middle or quarters lie ``CHORD_SLACK_DEG``
+    farther (a walk's jump from a bay's floor to its wall) gets its middle, moved straight
+    toward its nearest taught sample to ``reach`` from it."""
+    bound, slack = chord(reach), chord(reach + np.radians(CHORD_SLACK_DEG))
     for _ in range(CHORD_PASSES):
         k = p.shape[0]
         nxt, prev = np.roll(np.arange(k), -1), np.roll(np.arange(k), 1)
@@ -310,10 +339,12 @@ def _held_chords(
             q = (1.0 - t) * p + t * p[nxt]
             q /= np.linalg.norm(q, axis=1, keepdims=True)
             worst = np.maximum(worst, tree.query(q)[0])
-        gap = chain & chain[nxt] & (worst > bound)
+        # a chain chord, or the first or last chord of a chain (from the vertex a kept arc ends at)
+        gap = (chain | chain[nxt]) & (w == 0.0) & (worst > slack)
         if not gap.any() and not lone.any():
             break
         at = np.flatnonzero(gap)
+        # straight toward the nearest sample: the least move, no jump across a bay to fold back
         held = _walk(mid[at], _tangent(np.cross(p[at], p[nxt[at]]), mid[at]), tree, reach)
         p = np.insert(p, at + 1, held, axis=0)
         w = np.insert(w, at + 1, 0.0)
@@ -325,13 +356,16 @@ def _held_chords(
     return p[keep], w[keep], chain[keep]
 
 
-def _walk(p: np.ndarray, n: np.ndarray, tree: cKDTree, reach: float) -> np.ndarray:
+def _walk(
+    p: np.ndarray, n: np.ndarray, tree: cKDTree, reach: float, walk: float = WALK_DEG
+) -> np.ndarray:
     """Points (F, 3) walked in along their inward normals (F, 3) to the first place within
-    ``reach`` (rad) of a taught direction, or toward the nearest one to ``reach`` from it."""
+    ``reach`` (rad) of a taught direction, at most ``walk`` (deg), or toward the nearest one to
+    ``reach`` from it."""
     out = p.copy()
     left = np.arange(p.shape[0])
     bound = chord(reach)
-    for k in range(1, int(round(WALK_DEG / WALK_STEP_DEG)) + 1):
+    for k in range(1, int(round(walk / WALK_STEP_DEG)) + 1):
         if left.size == 0:
             return out
         d = np.radians(k * WALK_STEP_DEG)
@@ -354,22 +388,22 @@ def _unfolded(
     p: np.ndarray, w: np.ndarray, chain: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The closed loop ``p`` (K, 3), margins ``w`` (K,), with the folds of its held chains cut:
-    where the chain chord ``i -> i+1`` crosses the chain chord ``j -> j+1`` (``j - i`` at most
+    where the chord ``i -> i+1`` crosses the chord ``j -> j+1`` (``j - i`` at most
     ``FOLD_WINDOW``, read circularly), the points ``i+1 .. j`` are replaced by the crossing
-    point (a kept arc between them is cut off with the fold: the region only shrinks there)."""
+    point. The two chords keep their margins on what is left of them (a widened part of an arc
+    lies within the arc's widened band) and what lay between is cut off: the region only
+    shrinks there."""
     while True:
         k = p.shape[0]
         a, b = p, np.roll(p, -1, axis=0)
         pole = np.cross(a, b)
-        on = chain & np.roll(chain, -1)
         hit = None
         for j in range(2, min(FOLD_WINDOW, k - 3) + 1):
             c, d = np.roll(a, -j, axis=0), np.roll(b, -j, axis=0)
             pole2 = np.roll(pole, -j, axis=0)
+            # the unheld loop has no crossing: every one is a held chain's
             cross = (
-                on
-                & np.roll(on, -j)
-                & (np.einsum("ij,ij->i", pole, c) * np.einsum("ij,ij->i", pole, d) < 0.0)
+                (np.einsum("ij,ij->i", pole, c) * np.einsum("ij,ij->i", pole, d) < 0.0)
                 & (np.einsum("ij,ij->i", pole2, a) * np.einsum("ij,ij->i", pole2, b) < 0.0)
                 & (np.einsum("ij,ij->i", a + b, c + d) > 0.0)
             )
@@ -384,7 +418,8 @@ def _unfolded(
         x = x if x @ p[i] > 0.0 else -x
         at = (i + 1) % k
         p, w, chain = p.copy(), w.copy(), chain.copy()
-        p[at], w[at], chain[at] = x, 0.0, True
+        # x -> the point after j runs along the chord j: its widening stays
+        p[at], w[at], chain[at] = x, w[(i + j) % k], True
         keep = np.ones(k, dtype=bool)
         keep[(i + 2 + np.arange(j - 1)) % k] = False
         p, w, chain = p[keep], w[keep], chain[keep]

@@ -14,7 +14,7 @@ from limbctl.envelope.synthetic import PolygonRegion, reach_into
 from limbctl.region import TaughtRegion
 from limbctl.region import taught as taught_module
 from limbctl.region.edge_hold import hold_to_evidence
-from limbctl.region.evidence import REACH_DEG, STATION_DEG, edge_stations, outer_arcs
+from limbctl.region.evidence import REACH_DEG, STATION_DEG, edge_stations
 from tests.region.test_evidence import notched_ellipse
 
 #: The scan's own step (deg): a direction of the region lies within half a diagonal of it.
@@ -49,22 +49,24 @@ def test_a_sparse_teaching_is_held_to_the_evidence(sparse_notch, monkeypatch):
     assert not np.any(unheld.mesh.contains(d) & ~region.mesh.contains(d))
 
 
-def test_held_stations_lie_within_reach_of_a_sample(sparse_notch):
+def test_a_region_with_no_far_station_is_returned_as_it_is(sparse_notch):
+    """Every station within reach of a sample (the edge's own stations added to the teaching):
+    the very same mesh comes back, so a teaching with no unsupported stretch fits as before."""
     _, taught, _ = sparse_notch
     region = TaughtRegion().fit(taught)
     d = taught_module.taught_directions(taught)
-    stations, arc = edge_stations(region.mesh, np.radians(STATION_DEG))
-    outer = outer_arcs(region.mesh)[arc]
-    nearest = np.degrees(np.arccos(np.clip(stations[outer] @ d.T, -1.0, 1.0)).min(axis=1))
-    # between the held chain's own points a chord adds at most half a station spacing
-    assert nearest.max() <= REACH_DEG + 0.5 * STATION_DEG
-
-
-def test_a_region_with_no_far_station_is_returned_as_it_is(sparse_notch):
-    truth, _, _ = sparse_notch
-    dense = truth.sample(8000, np.random.default_rng(0))
-    region = TaughtRegion().fit(dense)
-    d = taught_module.taught_directions(dense)
-    assert not region.unsupported_edge, "a dense teaching: no stretch past REACH_DEG"
-    same, held = hold_to_evidence(region.mesh, d)
+    stations, _ = edge_stations(region.mesh, np.radians(STATION_DEG))
+    same, held = hold_to_evidence(region.mesh, np.vstack([d, stations]))
     assert same is region.mesh and not held
+    # while the teaching alone leaves stations to hold
+    _, held = hold_to_evidence(unheld_mesh(taught), d)
+    assert held
+
+
+def unheld_mesh(taught):
+    saved = taught_module.hold_to_evidence
+    taught_module.hold_to_evidence = lambda mesh, data: (mesh, False)
+    try:
+        return TaughtRegion().fit(taught).mesh
+    finally:
+        taught_module.hold_to_evidence = saved
