@@ -1,12 +1,14 @@
 """Whether the taught samples support the edge the region will learn: the recorder's check.
 
 The teaching guide (:mod:`limbctl.teach.guide`) judges coverage from the samples alone: the edge
-traced, the middle crossed. The region learned from them (:class:`limbctl.region.TaughtRegion`)
-may still reach past them where the samples surround a bay or a notch but never reach into it;
-its fit names such stretches (:attr:`~limbctl.region.TaughtRegion.unsupported_edge`,
-:mod:`limbctl.region.evidence`). Containment wins over coverage, so once the guide would say
+traced, the middle crossed. The edge learned from them (:class:`limbctl.region.TaughtRegion`)
+may still stand past them where the samples never reach (a bay or notch they surround, a sparse
+stretch); its fit holds the region there to the evidence (:mod:`limbctl.region.edge_hold`:
+containment over coverage, so the region stops short of where the edge may run) and names such
+stretches (:attr:`~limbctl.region.TaughtRegion.unsupported_edge`). Once the guide would say
 READY TO TRAIN, :class:`EdgeSupport` fits the region to the samples so far and the guide
-withholds READY and names the stretch ("trace the edge near pan P, tilt T") while one is left.
+withholds READY and names the stretch ("held at the evidence; trace the edge near pan P,
+tilt T") while one is left.
 
 The fit takes one to two seconds of a core on a minute's teaching and would hold the recorder's
 interpreter, so it runs in a worker process of its own (one, kept for the whole recording: its
@@ -40,17 +42,20 @@ MIN_SAMPLES = 200
 
 @dataclass(frozen=True)
 class EdgeStretch:
-    """A stretch of edge the region would bridge: where (the gimbal's pan and tilt, deg), how far
-    (deg) from every taught sample and how long (deg)."""
+    """A stretch of edge the taught samples do not reach: where (the gimbal's pan and tilt, deg),
+    how far (deg) the learned edge stood from every taught sample, how long (deg), and whether
+    the region is held there to the evidence (short of that edge, ``held``)."""
 
     pan_deg: float
     tilt_deg: float
     distance_deg: float
     length_deg: float
+    held: bool = False
 
     def request(self) -> str:
         """What to teach, in words."""
-        return f"trace the edge near pan {self.pan_deg:+.0f}, tilt {self.tilt_deg:+.0f}"
+        where = f"trace the edge near pan {self.pan_deg:+.0f}, tilt {self.tilt_deg:+.0f}"
+        return f"held at the evidence; {where}" if self.held else where
 
 
 def unsupported_stretches(d: np.ndarray) -> tuple[EdgeStretch, ...]:
@@ -66,7 +71,7 @@ def unsupported_stretches(d: np.ndarray) -> tuple[EdgeStretch, ...]:
     except (LimbctlError, ValueError):
         return ()
     return tuple(
-        EdgeStretch(s.pan_deg, s.tilt_deg, s.distance_deg, s.length_deg)
+        EdgeStretch(s.pan_deg, s.tilt_deg, s.distance_deg, s.length_deg, s.held)
         for s in region.unsupported_edge
     )
 

@@ -54,8 +54,9 @@ class TrainSummary:
         How far past the band's limits the ``outside_twist`` samples lie: median and largest
         (deg); None when there are none.
     unsupported_edge : tuple of str
-        Stretches of the swing region's edge the taught samples surround but do not reach
-        (a bay the region may bridge), one request to trace each.
+        Stretches of the swing region's learned edge the taught samples do not reach, one
+        request to trace each, saying where the region is held at the evidence
+        (:mod:`limbctl.region.edge_hold`).
     unsupported_twist : tuple of str
         The stretches of the band's limits the teaching could not support, one request each
         (:mod:`limbctl.region.twist_evidence`): the band is held short there.
@@ -130,8 +131,9 @@ class TrainSummary:
             )
         if self.unsupported_edge:
             lines.append(
-                f"edge unsupported   {len(self.unsupported_edge)} stretches the taught samples "
-                "surround but do not reach (the region may bridge a bay there):"
+                f"edge unsupported   {len(self.unsupported_edge)} stretches of the learned edge "
+                "the taught samples do not reach (where held, the region stops at the evidence, "
+                "short of where the edge may run, until they are taught):"
             )
             lines += [f"  {request}" for request in self.unsupported_edge]
         if self.unsupported_twist:

@@ -7,6 +7,8 @@ hand (it traces the edge about 1 deg inside, then wanders): the learned region m
 (teaching seed 1; the supported edge alone by 3.33 deg) and the second outline's by 2.72 deg.
 """
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -70,7 +72,12 @@ def test_a_bridged_notch_is_listed_as_unsupported(monkeypatch):
     outline, (at, half, floor) = notched_ellipse(27.2, 23.4, (-5.7, 7.2), 273.0, 9.0, 8.0)
     truth = PolygonRegion(outline)
     taught = truth.sample(8000, np.random.default_rng(0))
+    held = TaughtRegion(RegionParams(edge="supported", alpha_factor=4.0)).fit(taught)
+    # the edge as kept, before the hold (limbctl.region.edge_hold) takes it in to the evidence
+    monkeypatch.setattr(taught_module, "hold_to_evidence", lambda mesh, data: (mesh, False))
     bridged = TaughtRegion(RegionParams(edge="supported", alpha_factor=4.0)).fit(taught)
+    assert held.held_edge and not unsupported_stretches(held.mesh, taught)
+    assert held.unsupported_edge == tuple(replace(s, held=True) for s in bridged.unsupported_edge)
     found = unsupported_stretches(bridged.mesh, taught)
     assert found, "an edge across the notch must be found unsupported"
     # the region's report (every stretch past REACH_DEG, surrounded or not) names it first

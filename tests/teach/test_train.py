@@ -185,6 +185,8 @@ def test_train_names_where_the_edge_bridges_what_the_samples_surround(monkeypatc
     assert len(named) == len(stretches)
     # the farthest stretch lies over the notch (pan -6..6, tilt 3..15)
     assert -8 <= stretches[0].pan_deg <= 8 and 1 <= stretches[0].tilt_deg <= 17
+    # the region is held at the evidence there, and train says so
+    assert model.region.held_edge and stretches[0].held and "held at the evidence" in named[0]
 
 
 def test_train_names_the_twist_stop_the_teaching_never_reached():
