@@ -41,7 +41,6 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from limbctl.region.acceptance import arcs_cross
 from limbctl.region.evidence import REACH_DEG, STATION_DEG, edge_stations, outer_arcs
 from limbctl.region.loops import chord
 from limbctl.region.mesh import DirectionMesh
@@ -75,6 +74,14 @@ PIN_ROUNDS = 3
 #: How far (deg) outside the chain a pinned sample lies: far below a servo tick (0.088 deg),
 #: the traced edge's lift margin (:data:`limbctl.region.edge_traced.LIFT_MARGIN_DEG`).
 PIN_DEG = 0.01
+#: How far (rad) inside the reach a station moved toward its nearest sample is put: the later
+#: tests against the reach would otherwise sit on it, where the rounding of the taught
+#: directions (a quaternion's limb direction differs from the direction by ~1e-16) decides.
+INSIDE_RAD = 1e-9
+#: A chord's end closer than this (rad) to another chord's great circle lies on it, not across:
+#: the stations a held arc leaves on its own great circle are that close only by rounding
+#: (1e-16), a real crossing's ends lie a station's move (> 1e-6) off.
+ON_CIRCLE_RAD = 1e-12
 #: Stations a fold of held stations may span before its cut: walks toward a bay's two walls
 #: cross over about the bay's width (up to 14 deg, 56 station spacings).
 FOLD_WINDOW = 60
@@ -127,21 +134,24 @@ def hold_to_evidence(
 
 def crossings(loops: list[np.ndarray]) -> np.ndarray:
     """Middles (C, 3) of the arcs of the closed ``loops`` (each (M, 3)) that cross a
-    non-adjacent arc (the test of :func:`limbctl.region.acceptance.arcs_cross`)."""
-    if not arcs_cross(loops):
-        return np.zeros((0, 3))
+    non-adjacent arc: the ends of each lie more than ``ON_CIRCLE_RAD`` to either side of the
+    other's great circle (the test of :func:`limbctl.region.acceptance.arcs_cross`, where the
+    stations a held arc leaves on its own great circle do not cross by rounding)."""
     a = np.vstack(loops)
     b = np.vstack([np.roll(lp, -1, axis=0) for lp in loops])
     owner = np.concatenate([np.full(lp.shape[0], i) for i, lp in enumerate(loops)])
     index = np.concatenate([np.arange(lp.shape[0]) for lp in loops])
     size = np.array([lp.shape[0] for lp in loops])[owner]
     pole, mid = np.cross(a, b), a + b
+    pole /= np.maximum(np.linalg.norm(pole, axis=1, keepdims=True), 1e-300)
     hit_any = np.zeros(a.shape[0], dtype=bool)
     for start in range(0, a.shape[0], 256):
         sl = slice(start, start + 256)
-        j_split = np.sign(a @ pole[sl].T) * np.sign(b @ pole[sl].T) < 0
-        i_split = (np.sign(a[sl] @ pole.T) * np.sign(b[sl] @ pole.T)).T < 0
-        hit = j_split & i_split & (mid @ mid[sl].T > 0.0)
+        hit = (
+            _split(a @ pole[sl].T, b @ pole[sl].T)
+            & _split(a[sl] @ pole.T, b[sl] @ pole.T).T
+            & (mid @ mid[sl].T > 0.0)
+        )
         apart = np.abs(index[:, None] - index[sl][None, :])
         adjacent = (owner[:, None] == owner[sl][None, :]) & (
             (apart <= 1) | (apart == size[:, None] - 1)
@@ -149,6 +159,12 @@ def crossings(loops: list[np.ndarray]) -> np.ndarray:
         hit_any |= np.any(hit & ~adjacent, axis=1)
     out = mid[hit_any]
     return out / np.linalg.norm(out, axis=1, keepdims=True)
+
+
+def _split(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Whether two ends at (sine) distances ``u`` and ``v`` from a great circle lie clearly on
+    its two sides (each more than ``ON_CIRCLE_RAD`` off it)."""
+    return (u * v < 0.0) & (np.abs(u) > ON_CIRCLE_RAD) & (np.abs(v) > ON_CIRCLE_RAD)
 
 
 def _pinned(
@@ -379,7 +395,9 @@ def _walk(
         _, nearest = tree.query(p[left])
         y = tree.data[nearest]
         t = _tangent(p[left] - y, y)
-        out[left] = np.cos(reach) * y + np.sin(reach) * t
+        # a hair inside the reach: a later test against it must not sit where rounding decides
+        inside = reach - INSIDE_RAD
+        out[left] = np.cos(inside) * y + np.sin(inside) * t
         out[left] /= np.linalg.norm(out[left], axis=1, keepdims=True)
     return out
 
@@ -397,14 +415,15 @@ def _unfolded(
         k = p.shape[0]
         a, b = p, np.roll(p, -1, axis=0)
         pole = np.cross(a, b)
+        unit = pole / np.maximum(np.linalg.norm(pole, axis=1, keepdims=True), 1e-300)
         hit = None
         for j in range(2, min(FOLD_WINDOW, k - 3) + 1):
             c, d = np.roll(a, -j, axis=0), np.roll(b, -j, axis=0)
-            pole2 = np.roll(pole, -j, axis=0)
+            unit2 = np.roll(unit, -j, axis=0)
             # the unheld loop has no crossing: every one is a held chain's
             cross = (
-                (np.einsum("ij,ij->i", pole, c) * np.einsum("ij,ij->i", pole, d) < 0.0)
-                & (np.einsum("ij,ij->i", pole2, a) * np.einsum("ij,ij->i", pole2, b) < 0.0)
+                _split(np.einsum("ij,ij->i", unit, c), np.einsum("ij,ij->i", unit, d))
+                & _split(np.einsum("ij,ij->i", unit2, a), np.einsum("ij,ij->i", unit2, b))
                 & (np.einsum("ij,ij->i", a + b, c + d) > 0.0)
             )
             if cross.any():
