@@ -28,7 +28,11 @@
    listed in :attr:`TaughtRegion.unsupported_edge`.
 5. *Edge*: the edge strategy ``edge`` names (:mod:`limbctl.region.edge_choice`) replaces the
    supported loops by a learned edge where the data agree with it, or keeps them;
-   :attr:`TaughtRegion.verdicts` says which strategies were refused and why.
+   :attr:`TaughtRegion.verdicts` says which strategies were refused and why. Every stretch of
+   the kept edge farther than ``REACH_DEG`` from every taught sample is listed in
+   :attr:`TaughtRegion.unsupported_edge` and held to within ``REACH_DEG`` of the samples
+   (:func:`limbctl.region.edge_hold.hold_to_evidence`: containment over coverage;
+   :attr:`TaughtRegion.held_edge`). A teaching with no such stretch keeps the edge as chosen.
 6. *Mesh*: a :class:`~limbctl.region.mesh.DirectionMesh` over the chosen edge answers
    :meth:`TaughtRegion.contains` and :meth:`TaughtRegion.correct` in O(1) per command.
 """
@@ -84,7 +88,7 @@ THIN_GROWTH = 1.05
 #: Version of what a fit builds from given samples, raised whenever the construction changes
 #: the region some data give: cached `limbctl eval` results are keyed on it. Saved models carry
 #: their mesh and keep answering as they did (their format is ``GATE_VERSION``'s business).
-FIT_VERSION = 6
+FIT_VERSION = 7
 #: While the supported edge bridges a stretch the samples surround but do not reach, the
 #: triangle behind each such station is carved out, at most CARVE_ROUNDS rounds: a bay bridged
 #: by the shape is a few triangles deep (a 10 deg bay at the 1-2 deg spacing of thinned hand
@@ -115,9 +119,12 @@ class TaughtRegion:
     support_index : ndarray (K,) int or None
         The rows of the fitted samples the shape was built on (thinned), after :meth:`fit`.
     unsupported_edge : tuple of Stretch
-        Stretches of the supported edge the taught samples surround but do not reach and the
-        fit could not carve away (:mod:`limbctl.region.evidence`), farthest first; empty after
-        loading.
+        Stretches of the kept edge farther than ``REACH_DEG`` from every taught sample
+        (:mod:`limbctl.region.evidence`), farthest first, each marked ``held`` when the region
+        was held there; empty after loading.
+    held_edge : bool
+        Whether the region was held to the evidence (:mod:`limbctl.region.edge_hold`); False
+        after loading.
     """
 
     def __init__(self, params: RegionParams | None = None) -> None:
