@@ -51,7 +51,12 @@ WALK_STEP_DEG = 0.05
 #: The farthest (deg) a station walks in along its normal: the deepest bay or notch the
 #: families cut (11 deg, benchmarks/bench_swing_families.py) plus the reach; a walk that gets
 #: nowhere (the normal runs along a wall) moves toward the nearest sample instead.
-WALK_DEG = 12.5
+WALK_DEG = 3.0
+#: The farthest (deg) the middle of a chord still far from the evidence walks in: across a bay
+#: the stations moved toward its two walls leave a chord over the mouth, and its middle must walk
+#: into the bay (the deepest the families cut, 11 deg, benchmarks/bench_swing_families.py, plus
+#: the reach) to come within reach of the samples beyond it.
+CHORD_WALK_DEG = 12.5
 #: Neighbouring held stations that moved this many station spacings apart or more get the edge
 #: between them sampled again: a chord twice the spacing passes at most one spacing (0.25 deg)
 #: farther from the evidence than its ends.
@@ -361,7 +366,9 @@ def _held_chords(
             break
         at = np.flatnonzero(gap)
         # straight toward the nearest sample: the least move, no jump across a bay to fold back
-        held = _walk(mid[at], _tangent(np.cross(p[at], p[nxt[at]]), mid[at]), tree, reach)
+        held = _walk(
+            mid[at], _tangent(np.cross(p[at], p[nxt[at]]), mid[at]), tree, reach, CHORD_WALK_DEG
+        )
         p = np.insert(p, at + 1, held, axis=0)
         w = np.insert(w, at + 1, 0.0)
         chain = np.insert(chain, at + 1, True)
