@@ -4,8 +4,7 @@ Run: ``.venv/bin/python benchmarks/bench_first_run.py --out docs/bench_first_run
 (``--rev REV`` measures another revision of this repository the same way, e.g. the one before a
 change; ``--seconds`` is the teaching's length; ``--rig sim3`` runs every command on the
 simulated three-servo rig, ``--library N`` adds a first fit from Python of N orientations, 0
-leaves it out; ``--after-prepare`` measures that fit on both rigs from an empty cache and then
-after ``limbctl prepare``, the compiling moved to install).
+leaves it out; ``--after-prepare``: that fit on both rigs, cold, then after ``limbctl prepare``).
 
 Steps, each timed from outside (the wall time a person waits, Python's start included):
 
@@ -307,54 +306,59 @@ def library_report(fits: list[dict], n: int, rig: str) -> list[str]:
     ]
 
 
-def after_prepare(clone: Path, env: dict, n: int) -> dict:
-    """``--after-prepare``: each rig's library fit from an empty cache, first and second, then
-    the cache emptied, ``limbctl prepare`` (both rigs, timed: the compiling moved to install)
-    and each rig's first fit in a fresh process and its second."""
-    found: dict = {"cold": {}, "prepared": {}}
-    for rig in RIGS:
-        found["cold"][rig] = library(clone, env, n, rig)
+def after_prepare(clone: Path, env: dict, n: int, probe: Path) -> dict:
+    """``--after-prepare``: each rig's library fit from an empty cache (first, second); the
+    cache emptied, ``limbctl prepare`` (timed), each rig's fit again; a three-servo ``record``
+    (no warm-up: all is prepared), its ``train`` first and second."""
+    found: dict = {"cold": {rig: library(clone, env, n, rig) for rig in RIGS}}
     empty_caches(clone, Path(env["HOME"]))
-    wall, cpu, _ = run([str(clone / ".venv" / "bin" / "limbctl"), "prepare"], clone, env)
-    found["prepare"] = {"wall": wall, "cpu": cpu}
-    for rig in RIGS:
-        found["prepared"][rig] = library(clone, env, n, rig, empty=False)
+    found["prepare"] = run([str(clone / ".venv" / "bin" / "limbctl"), "prepare"], clone, env)
+    found["prepared"] = {rig: library(clone, env, n, rig, empty=False) for rig in RIGS}
+    record = ["record", "--rig", "sim3", "--out", "teach3.limb", "--duration", "30"]
+    found["record"] = measure(clone, env, probe, "record3", record, "")
+    train = ["train", "teach3.limb", "--out"]
+    found["train"] = [measure(clone, env, probe, f"t3-{i}", [*train, f"{i}.npz"]) for i in (1, 2)]
     return found
 
 
 def after_prepare_report(found: dict, rev: str, install_s: float, load: tuple, n: int) -> str:
     """The ``--after-prepare`` tables."""
-    prepare = found["prepare"]
+    prepare, record, (first, second) = found["prepare"], found["record"], found["train"]
+    ours = [sum(limbctl_kernel(c["name"]) for c in r["compiles"]) for r in (record, first)]
+    helpers = [len(r["compiles"]) - k for r, k in zip((record, first), ours, strict=True)]
     lines = [
         "# The first fit from Python after `limbctl prepare`",
         "",
         "Reproduce: `.venv/bin/python benchmarks/bench_first_run.py --out docs/bench_first_run.md"
-        f" --rev {rev} --after-prepare --library {n}`.",
-        f'Revision `{rev}`; install (`pip install -e ".[test]"` into a fresh venv, fresh HOME) '
-        f"{install_s:.0f} s; load average {load[0]} before, {load[1]} after (2 cores, shared).",
-        "",
-        f"`limbctl prepare` (both rigs, from an empty cache): {prepare['wall']:.1f} s wall, "
-        f"{prepare['cpu']:.1f} s CPU: what the first fits below no longer compile.",
+        f" --rev {rev} --after-prepare --library {n}`. Revision `{rev}`; install (`pip install -e"
+        f' ".[test]"` into a fresh venv, fresh HOME) {install_s:.0f} s; load average {load[0]}'
+        f" before, {load[1]} after (2 cores, shared). `limbctl prepare` (both rigs, from an empty"
+        f" cache): {prepare[0]:.1f} s wall, {prepare[1]:.1f} s CPU.",
         "",
         f"A library fit of {n} orientations (the synthetic shoulder, seed 0; the two-servo fit its"
-        ' directions) in a fresh process, then a second process; "compiles" counts numba\'s'
-        " compile events during the first fit:",
+        " directions) in a fresh process, then a second; compiles: numba's, in the first fit.",
         "",
         "| rig, fit | cache before the first | the fit, wall: first / second (ratio) |"
         " the fit, CPU | the process, CPU | compiles first |",
         "|---|---|---|---|---|---|",
     ]
+    times = ("fit", "fit_cpu", "cpu")  # the table's columns
     for rig in RIGS:
         kind = "RigidMap(twist=True)" if rig == "sim3" else "RigidMap()"
         for key, cache in (("cold", "empty"), ("prepared", "after `limbctl prepare`")):
-            first, second = found[key][rig]
-            cells = [
-                f"{first[k]:.2f} / {second[k]:.2f} s ({first[k] / second[k]:.1f})"
-                for k in ("fit", "fit_cpu", "cpu")
-            ]
+            one, two = found[key][rig]
+            cells = [f"{one[k]:.2f} / {two[k]:.2f} s ({one[k] / two[k]:.1f})" for k in times]
             lines.append(
-                f"| {rig} `{kind}.fit` | {cache} | {' | '.join(cells)} | {first['compiles']} |"
+                f"| {rig} `{kind}.fit` | {cache} | {' | '.join(cells)} | {one['compiles']} |"
             )
+    lines += [
+        "",
+        "Then `limbctl record --rig sim3 --duration 30` (no warm-up starts: all is prepared) "
+        f"compiled {ours[0]} limbctl kernels + {helpers[0]} helpers ({record['note']}); its "
+        f"`limbctl train`, first / second: {first['wall']:.2f} / {second['wall']:.2f} s wall "
+        f"({first['wall'] / second['wall']:.1f}), {first['cpu']:.1f} / {second['cpu']:.1f} s CPU "
+        f"({first['cpu'] / second['cpu']:.1f}); the first compiled {ours[1]} + {helpers[1]}.",
+    ]
     return "\n".join(lines) + "\n"
 
 
@@ -451,8 +455,7 @@ def main() -> None:
     parser.add_argument(
         "--after-prepare",
         action="store_true",
-        help="measure only the fit from Python of both rigs: from an empty cache, then after "
-        "`limbctl prepare` (timed)",
+        help="both rigs' fit from Python, from an empty cache, then after `limbctl prepare`",
     )
     options = parser.parse_args()
     rev = subprocess.run(
@@ -470,7 +473,7 @@ def main() -> None:
         probe.parent.mkdir()
         probe.write_text(PROBE)
         if options.after_prepare:
-            done = after_prepare(clone, env, options.library)
+            done = after_prepare(clone, env, options.library, probe)
             loads = tuple(f"{x[0]:.1f}" for x in (before, os.getloadavg()))
             text = after_prepare_report(done, rev, install_s, loads, options.library)
         else:

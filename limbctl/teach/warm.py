@@ -191,7 +191,11 @@ class _Progress:
         self.count += 1
         if self.live and self.label:
             seconds = time.perf_counter() - self.start
-            print(f"\r{self.label} {self.count} compiled, {seconds:.0f} s", end="", file=self.out)
+            print(
+                f"\r{self.label} {self.count} numba compiles, {seconds:.0f} s",
+                end="",
+                file=self.out,
+            )
             self.out.flush()
 
     def __call__(self, rig: str, stage: str, event: str) -> None:
@@ -203,7 +207,9 @@ class _Progress:
         elif event == DONE:
             seconds = time.perf_counter() - self.start
             prefix = "\r" + self.label if self.live else self.label
-            print(f"{prefix} {self.count} compiled, {seconds:.1f} s", file=self.out, flush=True)
+            print(
+                f"{prefix} {self.count} numba compiles, {seconds:.1f} s", file=self.out, flush=True
+            )
             self.label = ""
         else:
             self.index += 1
