@@ -9,6 +9,10 @@ the model what the gate asks: one command, a small batch (the park check) and a 
 start outside the region). The kernels land in the cache of :mod:`limbctl.geometry.jit` one by
 one; the first real train and teleop load them and compile whatever is not there yet. With no
 cache folder, or the rig's stages already prepared, no warm-up starts.
+
+``limbctl prepare`` (:func:`run_prepare`) runs the same :func:`warm_up` in the foreground for
+both rigs, a line per stage, at set-up: the README's install runs it, so the first train,
+teleop and library fit (``RigidMap().fit``, ``contains``, ``correct``) compile nothing.
 """
 
 from __future__ import annotations
@@ -82,8 +86,9 @@ def _write_teaching(path: Path, twist: bool = False) -> None:
 
 
 #: What :func:`warm_up` tells its ``report`` callable of each stage: it begins compiling
-#: (``START``), its kernels are all in the cache now (``DONE``), or they already were (``READY``).
-START, DONE, READY = "start", "done", "ready"
+#: (``START``), its kernels are all in the cache now (``DONE``), or they already were (``READY``);
+#: and, of the rig's first stage, that another warm-up holds the lock and it waits (``WAIT``).
+START, DONE, READY, WAIT = "start", "done", "ready", "wait"
 
 
 def warm_up(
@@ -101,7 +106,7 @@ def warm_up(
         (``limbctl prepare``), instead of standing aside (the background warm-up).
     report : callable, optional
         Called as ``report(stage, event)`` with ``event`` one of :data:`START`, :data:`DONE`,
-        :data:`READY` as each stage begins and ends.
+        :data:`READY` as each stage begins and ends (:data:`WAIT` when ``wait`` waits).
 
     Returns whether it ran (False: no cache folder, or another warm-up holds the lock and
     ``wait`` is False).
@@ -112,7 +117,7 @@ def warm_up(
     """
     tell = report or (lambda stage, event: None)
     train_stage, gate_stage = jit.stage("train", twist), jit.stage("gate", twist)
-    with jit.warming(wait=wait) as mine:
+    with jit.warming(wait=(lambda: tell(train_stage, WAIT)) if wait else None) as mine:
         if not mine:
             return False
         if jit.prepared(train_stage) and jit.prepared(gate_stage):
@@ -211,6 +216,9 @@ class _Progress:
                 f"{prefix} {self.count} numba compiles, {seconds:.1f} s", file=self.out, flush=True
             )
             self.label = ""
+        elif event == WAIT:
+            line = f"{rig}: waiting for a warm-up already running (`limbctl record` starts one)"
+            print(line, file=self.out, flush=True)
         else:
             self.index += 1
             line = f"[{self.index}/{self.stages}] {rig}: {stage} ... already in the cache"

@@ -7,6 +7,7 @@ import json
 import os
 import subprocess
 import sys
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -140,8 +141,8 @@ def test_no_warm_up_starts_when_everything_is_prepared_or_nothing_can_be_cached(
         assert process is None
 
 
-def test_a_second_warm_up_stands_aside_while_one_holds_the_lock(tmp_path, monkeypatch):
-    monkeypatch.setattr(jit, "cache_dir", lambda: Path(tmp_path))
+def _holding(lock: Path) -> subprocess.Popen:
+    """Another process holding the warm-up lock until a line on its stdin."""
     holder = subprocess.Popen(
         [
             sys.executable,
@@ -149,19 +150,49 @@ def test_a_second_warm_up_stands_aside_while_one_holds_the_lock(tmp_path, monkey
             "import sys, fcntl\n"
             "lock = open(sys.argv[1], 'a+b'); fcntl.flock(lock, fcntl.LOCK_EX)\n"
             "print('locked', flush=True); sys.stdin.readline()\n",
-            str(tmp_path / "warming.lock"),
+            str(lock),
         ],
         stdin=subprocess.PIPE,
         stdout=subprocess.PIPE,
         text=True,
     )
+    assert holder.stdout.readline().strip() == "locked"
+    return holder
+
+
+def _let_go(holder: subprocess.Popen) -> None:
+    holder.stdin.write("\n")  # the holder lets go and ends
+    holder.stdin.close()
+    holder.wait()
+
+
+def test_a_second_warm_up_stands_aside_while_one_holds_the_lock(tmp_path, monkeypatch):
+    monkeypatch.setattr(jit, "cache_dir", lambda: Path(tmp_path))
+    holder = _holding(tmp_path / "warming.lock")
     try:
-        assert holder.stdout.readline().strip() == "locked"
         with jit.warming() as mine:
             assert not mine
     finally:
-        holder.stdin.write("\n")  # the holder lets go and ends
-        holder.stdin.close()
-        holder.wait()
+        _let_go(holder)
     with jit.warming() as mine:
         assert mine
+
+
+def test_prepare_says_it_waits_for_a_warm_up_holding_the_lock_then_takes_it(tmp_path, monkeypatch):
+    monkeypatch.setattr(jit, "cache_dir", lambda: Path(tmp_path))
+    holder = _holding(tmp_path / "warming.lock")
+    told, got = threading.Event(), []
+
+    def take() -> None:
+        with jit.warming(wait=told.set) as mine:
+            got.append(mine)
+
+    taker = threading.Thread(target=take)
+    try:
+        taker.start()
+        assert told.wait(timeout=60)
+        assert got == []  # still waiting: the holder has not let go
+    finally:
+        _let_go(holder)
+    taker.join(timeout=60)
+    assert got == [True]
