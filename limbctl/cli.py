@@ -430,6 +430,7 @@ def _add_motors(sub: Subparsers) -> None:
 #: The subcommands in the order ``--help`` lists them.
 SUBCOMMANDS = (
     _add_demo,
+    _add_prepare,
     _add_calibrate,
     _add_record,
     _add_train,
@@ -439,7 +440,6 @@ SUBCOMMANDS = (
     _add_plot,
     _add_eval,
     _add_info,
-    _add_prepare,
 )
 
 
