@@ -170,6 +170,8 @@ def test_hand_strokes_are_contained_and_gaps_filled(which):
         # evidence there (containment over coverage, limbctl/region/edge_hold.py; 93.7 % and 91.1 %
         # pass on these strokes) and says so; the coverage target is for complete teachings
         assert m.region.held_edge and all(s.held for s in m.region.unsupported_edge)
+        # the hold gives up only what lies beyond the reach of the strokes: most still passes
+        assert passed >= 0.85
     else:
         assert passed >= 0.96
     # nothing learned far outside the true region, concavities included
