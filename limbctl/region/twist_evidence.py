@@ -97,6 +97,20 @@ WITNESS_BAND_DEG = 1.5
 REPORT_NEAR_DEG = 3.0
 #: Places reported are grouped on a grid of this size (deg of pan and of tilt): the guide's cells.
 PLACE_DEG = 15.0
+#: The hold (:func:`cap_limits`): where no stop witnesses a cap (fewer than MIN_WITNESSES), the
+#: cap is an extrapolation from stops up to BAND_RADIUS_DEG away, and its assumptions (a truth no
+#: steeper than CAP_SLOPE, or within SLOPE_SLACK of the slope read) can fail by (slope error) x
+#: distance: 3.9 deg on the curved family, the cap set by a stop 7.8 deg away. There the limit is
+#: also kept within a cone of HOLD_SLOPE about every sample, which promises HOLD_SLACK_DEG for
+#: any truth no steeper than HOLD_SLOPE: MAX_SLOPE of the band's readings (the steepest limit
+#: either reading believes).
+HOLD_SLOPE = 1.0
+#: How far (deg) a held limit may lie beyond the steep cone: the promise is 1 deg past the truth,
+#: and the bilinear grid reads a cone of slope HOLD_SLOPE up to HOLD_SLOPE x 1.5 / 2 ~ 0.75 deg
+#: above its value between nodes, not all of it at once (docs/decisions/twist.md, "The hold").
+HOLD_SLACK_DEG = 0.5
+HOLD_WITNESSES = 1
+HOLD_BAND_DEG = 1.0
 
 
 @dataclass(frozen=True)
@@ -161,8 +175,10 @@ def cap_limits(
         math.radians(WITNESS_DEG),
         math.radians(WITNESS_BAND_DEG),
     )
+    # where the local slope was read, the cap promises for any truth within its margin of it
+    read_up = read_lo = np.zeros(nodes.shape[0], dtype=bool)
     if stops is not None:
-        cap_up, cap_lo, n_up, n_lo = _along_slope(
+        cap_up, cap_lo, n_up, n_lo, read_up, read_lo = _along_slope(
             (cap_up, cap_lo, n_up, n_lo), nodes, start, members, d, limit, ref, stops
         )
     slack = math.radians(CAP_SLACK_DEG)
@@ -171,15 +187,43 @@ def cap_limits(
     cap_lo = np.where(np.isfinite(cap_lo), cap_lo - slack, np.inf)
     new_up = np.where(bounded, np.fmin(up, cap_up), up)
     new_lo = np.where(bounded, np.fmax(lo, cap_lo), lo)
+    held_up, held_lo = _held(
+        new_up, new_lo, bounded & ~read_up, bounded & ~read_lo, nodes, start, members, d, limit, ref
+    )
+    new_up = np.fmin(new_up, held_up)
+    new_lo = np.fmax(new_lo, held_lo)
     crossed = new_up < new_lo
     near = np.isfinite(cap_up) & np.isfinite(cap_lo)
-    middle = np.clip(0.5 * (np.where(near, cap_up, 0.0) + np.where(near, cap_lo, 0.0)), lo, up)
+    top, bottom = np.fmin(cap_up, held_up), np.fmax(cap_lo, held_lo)
+    middle = np.clip(0.5 * (np.where(near, top, 0.0) + np.where(near, bottom, 0.0)), lo, up)
     new_up = np.where(crossed, middle, new_up)
     new_lo = np.where(crossed, middle, new_lo)
-    # a cut where a stop was held near the node corrects the reading; elsewhere it asks for one
-    cut_up = np.where(n_up >= MIN_WITNESSES, 0.0, np.fmax(up - new_up, 0.0))
-    cut_lo = np.where(n_lo >= MIN_WITNESSES, 0.0, np.fmax(new_lo - lo, 0.0))
+    # a cut where a stop was held near the node corrects the reading; elsewhere (and wherever
+    # the hold binds) it asks for one
+    ask_up = (n_up < MIN_WITNESSES) | np.isfinite(held_up)
+    ask_lo = (n_lo < MIN_WITNESSES) | np.isfinite(held_lo)
+    cut_up = np.where(ask_up, np.fmax(up - new_up, 0.0), 0.0)
+    cut_lo = np.where(ask_lo, np.fmax(new_lo - lo, 0.0), 0.0)
     return new_up, new_lo, cut_up, cut_lo
+
+
+def _held(up, lo, open_up, open_lo, nodes, start, members, d, limit, ref):
+    """The hold (HOLD_SLOPE): upper and lower limits (M,), (M,) (rad, relative to ``ref``) where
+    it binds on the capped limits ``up``, ``lo`` (M,), +-inf elsewhere. It binds where fewer
+    than MIN_WITNESSES samples within WITNESS_DEG of a bounded node lie within
+    WITNESS_BAND_DEG of its limit (the limit is an extrapolation from stops farther away) and
+    the cone of HOLD_SLOPE about the samples, plus HOLD_SLACK_DEG, lies inside the limit."""
+    near, band = math.radians(WITNESS_DEG), math.radians(HOLD_BAND_DEG)
+    args = (nodes, start, members, d)
+    cone_up, cone_lo, _, _ = fk.evidence_caps(*args, limit, ref, HOLD_SLOPE, 0.0, 0.0)
+    slack = math.radians(HOLD_SLACK_DEG)
+    cone_up, cone_lo = cone_up + slack, cone_lo - slack
+    free_up = fk.witnesses(*args, limit, ref, up, near, band) < HOLD_WITNESSES
+    free_lo = fk.witnesses(*args, -limit, -ref, -lo, near, band) < HOLD_WITNESSES
+    # NaN (no sample near) compares False: the cap has closed the band there already
+    binds_up = open_up & free_up & (cone_up < up)
+    binds_lo = open_lo & free_lo & (cone_lo > lo)
+    return np.where(binds_up, cone_up, np.inf), np.where(binds_lo, cone_lo, -np.inf)
 
 
 def _along_slope(cone, nodes, start, members, d, limit, ref, stops):
@@ -206,6 +250,8 @@ def _along_slope(cone, nodes, start, members, d, limit, ref, stops):
         np.where(higher_lo, g_lo, cap_lo),
         np.where(lower_up, w_up, n_up),
         np.where(higher_lo, w_lo, n_lo),
+        np.isfinite(g_up),
+        np.isfinite(g_lo),
     )
 
 
