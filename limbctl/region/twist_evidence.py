@@ -109,8 +109,6 @@ HOLD_SLOPE = 1.0
 #: and the bilinear grid reads a cone of slope HOLD_SLOPE up to HOLD_SLOPE x 1.5 / 2 ~ 0.75 deg
 #: above its value between nodes, not all of it at once (docs/decisions/twist.md, "The hold").
 HOLD_SLACK_DEG = 0.5
-HOLD_WITNESSES = 1
-HOLD_BAND_DEG = 1.0
 
 
 @dataclass(frozen=True)
@@ -209,20 +207,17 @@ def cap_limits(
 
 def _held(up, lo, open_up, open_lo, nodes, start, members, d, limit, ref):
     """The hold (HOLD_SLOPE): upper and lower limits (M,), (M,) (rad, relative to ``ref``) where
-    it binds on the capped limits ``up``, ``lo`` (M,), +-inf elsewhere. It binds where fewer
-    than MIN_WITNESSES samples within WITNESS_DEG of a bounded node lie within
-    WITNESS_BAND_DEG of its limit (the limit is an extrapolation from stops farther away) and
-    the cone of HOLD_SLOPE about the samples, plus HOLD_SLACK_DEG, lies inside the limit."""
-    near, band = math.radians(WITNESS_DEG), math.radians(HOLD_BAND_DEG)
-    args = (nodes, start, members, d)
-    cone_up, cone_lo, _, _ = fk.evidence_caps(*args, limit, ref, HOLD_SLOPE, 0.0, 0.0)
+    it binds on the capped limits ``up``, ``lo`` (M,), +-inf elsewhere. It binds at the nodes
+    ``open_up``, ``open_lo`` (M,) bool (bounded, no local slope read) where the cone of
+    HOLD_SLOPE about the samples, plus HOLD_SLACK_DEG, lies inside the limit."""
+    cone_up, cone_lo, _, _ = fk.evidence_caps(
+        nodes, start, members, d, limit, ref, HOLD_SLOPE, 0.0, 0.0
+    )
     slack = math.radians(HOLD_SLACK_DEG)
     cone_up, cone_lo = cone_up + slack, cone_lo - slack
-    free_up = fk.witnesses(*args, limit, ref, up, near, band) < HOLD_WITNESSES
-    free_lo = fk.witnesses(*args, -limit, -ref, -lo, near, band) < HOLD_WITNESSES
     # NaN (no sample near) compares False: the cap has closed the band there already
-    binds_up = open_up & free_up & (cone_up < up)
-    binds_lo = open_lo & free_lo & (cone_lo > lo)
+    binds_up = open_up & (cone_up < up)
+    binds_lo = open_lo & (cone_lo > lo)
     return np.where(binds_up, cone_up, np.inf), np.where(binds_lo, cone_lo, -np.inf)
 
 

@@ -364,20 +364,3 @@ def gradient_caps(
             if _angle(node, d[j]) <= near and limit[j] - ref[i] >= best - band:
                 wit[i] += 1
     return cap, wit
-
-
-@njit
-def witnesses(nodes, start, members, d, limit, ref, level, near, band):
-    """How many samples (M,) witness one limit ``level`` (M,) (rad, relative to the node's
-    centre ``ref`` (M,); the upper limit, for the lower pass both negated): those among the
-    node's neighbours ``members[start[n]:start[n + 1]]`` (rows of ``d`` (N, 3), twists
-    ``limit`` (N,)) within ``near`` (rad) of the node whose twist lies within ``band`` (rad)
-    below the level or above it, as :func:`evidence_caps` counts a cap's."""
-    m = nodes.shape[0]
-    count = np.zeros(m, dtype=np.int64)
-    for i in range(m):
-        for k in range(start[i], start[i + 1]):
-            j = members[k]
-            if _angle(nodes[i], d[j]) <= near and limit[j] - ref[i] >= level[i] - band:
-                count[i] += 1
-    return count
