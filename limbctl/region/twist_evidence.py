@@ -194,6 +194,11 @@ def cap_limits(
     near = np.isfinite(cap_up) & np.isfinite(cap_lo)
     top, bottom = np.fmin(cap_up, held_up), np.fmax(cap_lo, held_lo)
     middle = np.clip(0.5 * (np.where(near, top, 0.0) + np.where(near, bottom, 0.0)), lo, up)
+    # caps that cross each other (only far samples around): any twist between them breaks one
+    # side's promise by as much; the one nearest the reading's centre, which bridged from the
+    # stops of both sides, keeps the side toward the band's middle
+    gap = near & (top < bottom)
+    middle = np.where(gap, np.clip(0.5 * (up + lo), top, bottom), middle)
     new_up = np.where(crossed, middle, new_up)
     new_lo = np.where(crossed, middle, new_lo)
     # a cut where a stop was held near the node corrects the reading; elsewhere (and wherever
