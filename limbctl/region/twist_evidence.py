@@ -22,6 +22,12 @@ lower of the two caps is kept (:func:`limbctl.region.twist_fit_kernels.gradient_
 stops are read twice: against the band's readings, then against the capped band, since a
 reading that bridged a dip leaves the dip's own stops below its limit.
 
+Where no slope is read (too few stops around, or along a line) the cone alone would cap, and
+its promise fails on truths steeper than ``s`` by up to ``(slope - s) r``. There the limit is
+*held* (:func:`_held`) also within the steep cone ``max_i (t_i - HOLD_SLOPE r_i) +
+HOLD_SLACK_DEG``: what the samples near the node themselves show, within 0.5 deg of any truth
+no steeper than the band's readings believe; the cut it makes asks for a stop.
+
 :func:`cap_limits` clips both limits to the caps; where no sample lies within the band's
 neighbourhood the band closes to its centre. The clip is the *cut*: where it is large, the
 evidence is too sparse to keep the bound and still cover the region, and
@@ -97,17 +103,19 @@ WITNESS_BAND_DEG = 1.5
 REPORT_NEAR_DEG = 3.0
 #: Places reported are grouped on a grid of this size (deg of pan and of tilt): the guide's cells.
 PLACE_DEG = 15.0
-#: The hold (:func:`cap_limits`): where no stop witnesses a cap (fewer than MIN_WITNESSES), the
-#: cap is an extrapolation from stops up to BAND_RADIUS_DEG away, and its assumptions (a truth no
-#: steeper than CAP_SLOPE, or within SLOPE_SLACK of the slope read) can fail by (slope error) x
-#: distance: 3.9 deg on the curved family, the cap set by a stop 7.8 deg away. There the limit is
-#: also kept within a cone of HOLD_SLOPE about every sample, which promises HOLD_SLACK_DEG for
-#: any truth no steeper than HOLD_SLOPE: MAX_SLOPE of the band's readings (the steepest limit
-#: either reading believes).
+#: The hold (:func:`_held`): where no local slope was read for a limit, the cone alone caps it,
+#: and a truth steeper than CAP_SLOPE is exceeded by (slope - CAP_SLOPE) x the distance of the
+#: stop that set the cap: 3.9 deg on the region families' curved bands (bumps up to ~1 deg per
+#: deg), the cap set by a stop 7.8 deg away. There the limit is also kept within a cone of
+#: HOLD_SLOPE about every sample, which promises HOLD_SLACK_DEG at a node for any truth no
+#: steeper than HOLD_SLOPE: MAX_SLOPE of the band's readings (the steepest limit either reading
+#: believes). Not tuned; where a slope is read (dense stops) it never binds.
 HOLD_SLOPE = 1.0
-#: How far (deg) a held limit may lie beyond the steep cone: the promise is 1 deg past the truth,
-#: and the bilinear grid reads a cone of slope HOLD_SLOPE up to HOLD_SLOPE x 1.5 / 2 ~ 0.75 deg
-#: above its value between nodes, not all of it at once (docs/decisions/twist.md, "The hold").
+#: How far (deg) a held limit may lie beyond the steep cone, as CAP_SLACK_DEG beyond the cone: the
+#: promise is 1 deg past the truth, and the bilinear grid reads a cone of slope HOLD_SLOPE up to
+#: HOLD_SLOPE x 1.5 / 2 ~ 0.75 deg above its value between nodes, 0.5 at a cell's middle. Not
+#: tuned: the families' sparse and hand teachings then lie at most 0.64 deg past the truth
+#: (seeds 0-2, docs/decisions/twist.md, "The hold").
 HOLD_SLACK_DEG = 0.5
 
 
@@ -159,8 +167,9 @@ def cap_limits(
 
     ``bounded`` (M,) marks the nodes whose band is not free (free twist is left as read); nodes,
     samples and neighbourhoods as :func:`limbctl.region.twist_fit_kernels.evidence_caps` takes
-    them. Where the clipped limits cross (or no sample lies near), both go to their middle (or
-    to 0): a band of no width, which contains nothing beyond the taught twists.
+    them, held (:func:`_held`) where no local slope was read. Where the clipped limits cross
+    (or no sample lies near), both go to their middle (or to 0; where the caps themselves cross,
+    to the twist between them nearest the reading's centre): a band of no width.
     """
     cap_up, cap_lo, n_up, n_lo = fk.evidence_caps(
         nodes,
