@@ -35,8 +35,9 @@ Fitting, per grid node, from the taught samples within ``BAND_RADIUS_DEG`` of it
    the node support (:mod:`limbctl.region.twist_evidence`: a cone about every sample, and a
    cap along the local slope of the stops around, read again once the stops are re-read
    against the capped band, and a steeper cone where no slope could be read): a reading that
-   bridged past a stop the hand never turned to is held within a degree of the truth, and where that cut is large and no stop was held there
-   the place is listed for the guide (:attr:`TwistBand.cuts`).
+   bridged past a stop the hand never turned to is held within a degree of the truth, and
+   where that cut is large and no stop was held there the place is listed for the guide
+   (:attr:`TwistBand.cuts`).
 """
 
 from __future__ import annotations
