@@ -41,7 +41,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import cKDTree
+from scipy.spatial import ConvexHull, QhullError, cKDTree
 
 from limbctl.geometry.gimbal import direction_to_pan_tilt
 from limbctl.region import twist_fit_kernels as fk
@@ -158,6 +158,7 @@ def cap_limits(
     limit: np.ndarray,
     ref: np.ndarray,
     stops: tuple[np.ndarray, np.ndarray] | None = None,
+    within: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Band limits (M,), (M,) relative to the node centres ``ref`` (M,) (rad) clipped to the
     evidence cap (module docstring), and the cuts (M,), (M,) (rad, >= 0) of each that ask for a
@@ -167,7 +168,8 @@ def cap_limits(
 
     ``bounded`` (M,) marks the nodes whose band is not free (free twist is left as read); nodes,
     samples and neighbourhoods as :func:`limbctl.region.twist_fit_kernels.evidence_caps` takes
-    them, held (:func:`_held`) where no local slope was read. Where the clipped limits cross
+    them, held (:func:`_held`) where no local slope was read (among the nodes ``within`` (M,)
+    bool, when given). Where the clipped limits cross
     (or no sample lies near), both go to their middle (or to 0; where the caps themselves cross,
     to the twist between them nearest the reading's centre): a band of no width.
     """
@@ -194,8 +196,20 @@ def cap_limits(
     cap_lo = np.where(np.isfinite(cap_lo), cap_lo - slack, np.inf)
     new_up = np.where(bounded, np.fmin(up, cap_up), up)
     new_lo = np.where(bounded, np.fmax(lo, cap_lo), lo)
+    # held only among the taught directions (``within``): beyond them, the swing region's margins,
+    # the band closes toward the taught twists by design and the gate's answers run along it
+    holdable = bounded if within is None else bounded & within
     held_up, held_lo = _held(
-        new_up, new_lo, bounded & ~read_up, bounded & ~read_lo, nodes, start, members, d, limit, ref
+        new_up,
+        new_lo,
+        holdable & ~read_up,
+        holdable & ~read_lo,
+        nodes,
+        start,
+        members,
+        d,
+        limit,
+        ref,
     )
     new_up = np.fmin(new_up, held_up)
     new_lo = np.fmax(new_lo, held_lo)
@@ -303,3 +317,14 @@ def band_unsupported(band, d: np.ndarray, inside=None) -> tuple[UnsupportedPlace
     if inside is not None:
         judged &= inside(nodes)
     return unsupported_places(nodes[judged], cut_up[judged], cut_lo[judged])
+
+
+def inside_hull(xy: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """Whether each plane point ``p`` (M, 2) lies inside the convex hull of ``xy`` (N, 2) (rad):
+    among the taught directions, where the hold may bind; all of them when the samples span no
+    area."""
+    try:
+        rim = ConvexHull(xy).equations
+    except (QhullError, ValueError):
+        return np.ones(p.shape[0], dtype=bool)
+    return np.all(p @ rim[:, :2].T + rim[:, 2] <= 1e-12, axis=1)
