@@ -4,7 +4,7 @@ Run: ``.venv/bin/python benchmarks/bench_first_run.py --out docs/bench_first_run
 (``--rev REV`` measures another revision of this repository the same way, e.g. the one before a
 change; ``--seconds`` is the teaching's length; ``--rig sim3`` runs every command on the
 simulated three-servo rig, ``--library N`` adds a first fit from Python of N orientations, 0
-leaves it out).
+leaves it out; ``--after-prepare``: that fit on both rigs, cold, then after ``limbctl prepare``).
 
 Steps, each timed from outside (the wall time a person waits, Python's start included):
 
@@ -98,12 +98,15 @@ sys.exit(main())
 #: rig's first also turns the limb about its axis.
 COMMANDS = '{"pan": 20, "tilt": 10}\n{"pan": 120, "tilt": 80}\n'
 COMMANDS3 = '{"pan": 20, "tilt": 10, "roll": 15}\n{"pan": 120, "tilt": 80}\n'
+#: The simulated rigs: two servos, three.
+RIGS = ("sim", "sim3")
 
 #: A library user's fit (step 4): N orientations of the synthetic shoulder (its teaching mix:
 #: half uniform, a quarter along the edge, a quarter at the twist stops), seed 0; prints the fit's
 #: wall and CPU seconds (the process's start and import not included).
 LIBRARY = r"""
 import sys, time
+import numba.core.event as ev
 import numpy as np
 from limbctl.envelope import RigidMap
 from limbctl.envelope.synthetic_twist import ShoulderRegion
@@ -112,9 +115,16 @@ n, twist = int(sys.argv[1]), sys.argv[2] == "sim3"
 q = ShoulderRegion().teaching(n - n // 2, n // 4, n // 4, np.random.default_rng(0))
 if not twist:
     q = swing_from_direction(limb_direction(q))
+compiled = []
+class Count(ev.Listener):
+    def on_start(self, event):
+        pass
+    def on_end(self, event):
+        compiled.append(event.data["dispatcher"].py_func.__module__)
+ev.register("numba:compile", Count())
 start, cpu = time.perf_counter(), time.process_time()
 RigidMap(seed=0, twist=twist).fit(q)
-print(f"{time.perf_counter() - start:.3f} {time.process_time() - cpu:.3f}")
+print(f"{time.perf_counter() - start:.3f} {time.process_time() - cpu:.3f} {len(compiled)}")
 """
 
 
@@ -249,10 +259,12 @@ def scenario(
     return found
 
 
-def library(clone: Path, env: dict, n: int, rig: str) -> list[dict]:
-    """Step 4: the fit from Python in a fresh process from an empty cache, then in a second one;
-    each its fit's seconds, the process's wall and CPU seconds."""
-    empty_caches(clone, Path(env["HOME"]))
+def library(clone: Path, env: dict, n: int, rig: str, empty: bool = True) -> list[dict]:
+    """Step 4: the fit from Python in a fresh process from an empty cache (``empty``; else from
+    the cache as it is), then in a second one; each its fit's seconds, its numba compiles, the
+    process's wall and CPU seconds."""
+    if empty:
+        empty_caches(clone, Path(env["HOME"]))
     python = str(clone / ".venv" / "bin" / "python")
     found = []
     for _ in (1, 2):
@@ -266,8 +278,9 @@ def library(clone: Path, env: dict, n: int, rig: str) -> list[dict]:
             check=True,
         )
         wall, cpu = time.perf_counter() - start, _children_cpu() - cpu
-        fit, fit_cpu = map(float, done.stdout.split()[-2:])
-        found.append({"fit": fit, "fit_cpu": fit_cpu, "wall": wall, "cpu": cpu})
+        fit, fit_cpu, compiles = done.stdout.split()[-3:]
+        fits = {"fit": float(fit), "fit_cpu": float(fit_cpu), "compiles": int(compiles)}
+        found.append({**fits, "wall": wall, "cpu": cpu})
     return found
 
 
@@ -291,6 +304,62 @@ def library_report(fits: list[dict], n: int, rig: str) -> list[str]:
         f"| the same, CPU | {first['cpu']:.1f} s | {second['cpu']:.1f} s |"
         f" {first['cpu'] / second['cpu']:.1f} |",
     ]
+
+
+def after_prepare(clone: Path, env: dict, n: int, probe: Path) -> dict:
+    """``--after-prepare``: each rig's library fit from an empty cache (first, second); the
+    cache emptied, ``limbctl prepare`` (timed), each rig's fit again; a three-servo ``record``
+    (no warm-up: all is prepared), its ``train`` first and second."""
+    found: dict = {"cold": {rig: library(clone, env, n, rig) for rig in RIGS}}
+    empty_caches(clone, Path(env["HOME"]))
+    found["prepare"] = run([str(clone / ".venv" / "bin" / "limbctl"), "prepare"], clone, env)
+    found["prepared"] = {rig: library(clone, env, n, rig, empty=False) for rig in RIGS}
+    record = ["record", "--rig", "sim3", "--out", "teach3.limb", "--duration", "30"]
+    found["record"] = measure(clone, env, probe, "record3", record, "")
+    train = ["train", "teach3.limb", "--out"]
+    found["train"] = [measure(clone, env, probe, f"t3-{i}", [*train, f"{i}.npz"]) for i in (1, 2)]
+    return found
+
+
+def after_prepare_report(found: dict, rev: str, install_s: float, load: tuple, n: int) -> str:
+    """The ``--after-prepare`` tables."""
+    prepare, record, (first, second) = found["prepare"], found["record"], found["train"]
+    ours = [sum(limbctl_kernel(c["name"]) for c in r["compiles"]) for r in (record, first)]
+    helpers = [len(r["compiles"]) - k for r, k in zip((record, first), ours, strict=True)]
+    lines = [
+        "# The first fit from Python after `limbctl prepare`",
+        "",
+        "Reproduce: `.venv/bin/python benchmarks/bench_first_run.py --out docs/bench_first_run.md"
+        f" --rev {rev} --after-prepare --library {n}`. Revision `{rev}`; install (`pip install -e"
+        f' ".[test]"` into a fresh venv, fresh HOME) {install_s:.0f} s; load average {load[0]}'
+        f" before, {load[1]} after (2 cores, shared). `limbctl prepare` (both rigs, from an empty"
+        f" cache): {prepare[0]:.1f} s wall, {prepare[1]:.1f} s CPU.",
+        "",
+        f"A library fit of {n} orientations (the synthetic shoulder, seed 0; the two-servo fit its"
+        " directions) in a fresh process, then a second; compiles: numba's, in the first fit.",
+        "",
+        "| rig, fit | cache before the first | the fit, wall: first / second (ratio) |"
+        " the fit, CPU | the process, CPU | compiles first |",
+        "|---|---|---|---|---|---|",
+    ]
+    times = ("fit", "fit_cpu", "cpu")  # the table's columns
+    for rig in RIGS:
+        kind = "RigidMap(twist=True)" if rig == "sim3" else "RigidMap()"
+        for key, cache in (("cold", "empty"), ("prepared", "after `limbctl prepare`")):
+            one, two = found[key][rig]
+            cells = [f"{one[k]:.2f} / {two[k]:.2f} s ({one[k] / two[k]:.1f})" for k in times]
+            lines.append(
+                f"| {rig} `{kind}.fit` | {cache} | {' | '.join(cells)} | {one['compiles']} |"
+            )
+    lines += [
+        "",
+        "Then `limbctl record --rig sim3 --duration 30` (no warm-up starts: all is prepared) "
+        f"compiled {ours[0]} limbctl kernels + {helpers[0]} helpers ({record['note']}); its "
+        f"`limbctl train`, first / second: {first['wall']:.2f} / {second['wall']:.2f} s wall "
+        f"({first['wall'] / second['wall']:.1f}), {first['cpu']:.1f} / {second['cpu']:.1f} s CPU "
+        f"({first['cpu'] / second['cpu']:.1f}); the first compiled {ours[1]} + {helpers[1]}.",
+    ]
+    return "\n".join(lines) + "\n"
 
 
 def limbctl_kernel(name: str) -> bool:
@@ -383,6 +452,11 @@ def main() -> None:
         action="store_true",
         help="measure only the fit from Python (step 4), not record, train and teleop",
     )
+    parser.add_argument(
+        "--after-prepare",
+        action="store_true",
+        help="both rigs' fit from Python, from an empty cache, then after `limbctl prepare`",
+    )
     options = parser.parse_args()
     rev = subprocess.run(
         ["git", "-C", str(ROOT), "rev-parse", "--short", options.rev],
@@ -398,15 +472,20 @@ def main() -> None:
         probe = work / "probe" / "probe.py"
         probe.parent.mkdir()
         probe.write_text(PROBE)
-        found = {}
-        if not options.library_only:
-            found = scenario(clone, env, probe, options.seconds, options.rig)
-        fits = None
-        if options.library > 0:
-            fits = (options.library, library(clone, env, options.library, options.rig))
-        after = os.getloadavg()
-        loads = (f"{before[0]:.1f}", f"{after[0]:.1f}")
-        text = report(found, rev, install_s, loads, options.rig, fits)
+        if options.after_prepare:
+            done = after_prepare(clone, env, options.library, probe)
+            loads = tuple(f"{x[0]:.1f}" for x in (before, os.getloadavg()))
+            text = after_prepare_report(done, rev, install_s, loads, options.library)
+        else:
+            found = {}
+            if not options.library_only:
+                found = scenario(clone, env, probe, options.seconds, options.rig)
+            fits = None
+            if options.library > 0:
+                fits = (options.library, library(clone, env, options.library, options.rig))
+            after = os.getloadavg()
+            loads = (f"{before[0]:.1f}", f"{after[0]:.1f}")
+            text = report(found, rev, install_s, loads, options.rig, fits)
     finally:
         if options.keep:
             print(f"kept {work}", file=sys.stderr)

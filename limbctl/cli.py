@@ -24,6 +24,7 @@ from limbctl.errors import ConfigError, LimbctlError
 from limbctl.live import DEFAULT_PORT as DEFAULT_VIEW_PORT
 from limbctl.live import ViewOptions
 from limbctl.operators import OPERATORS
+from limbctl.teach import warm
 from limbctl.teleop.loop import SafeState
 from limbctl.teleop.start import DEFAULT_WAIT_S, MAX_APPROACH_SPEED_DEG_S
 
@@ -399,6 +400,11 @@ def _add_eval(sub: Subparsers) -> None:
     p.add_argument("--jobs", type=int, default=0, help="worker processes (0: all cores)")
 
 
+def _add_prepare(sub: Subparsers) -> None:
+    p = _command(sub, "prepare", warm.prepare_job, help=warm.HELP, description=warm.DESCRIPTION)
+    p.add_argument("--rig", default="all", help=warm.RIG_HELP)
+
+
 def _add_info(sub: Subparsers) -> None:
     p = _command(
         sub,
@@ -424,6 +430,7 @@ def _add_motors(sub: Subparsers) -> None:
 #: The subcommands in the order ``--help`` lists them.
 SUBCOMMANDS = (
     _add_demo,
+    _add_prepare,
     _add_calibrate,
     _add_record,
     _add_train,

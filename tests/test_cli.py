@@ -20,6 +20,7 @@ COMMANDS = [
     "plot",
     "eval",
     "info",
+    "prepare",
 ]
 
 

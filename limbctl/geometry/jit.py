@@ -247,9 +247,11 @@ def mark_prepared(stage: str) -> None:
 
 
 @contextlib.contextmanager
-def warming():
+def warming(wait: Callable[[], None] | None = None):
     """Hold the cache's warm-up lock (exclusive) while the body compiles; yields whether it
-    got it (False: no cache, or another warm-up holds it, so there is nothing to do here)."""
+    got it (False: no cache, or another warm-up holds it, so there is nothing to do here).
+    With ``wait``, when another warm-up holds it, call ``wait()`` (to say so) and wait for it to
+    let go."""
     folder = cache_dir()
     if folder is None:
         yield False
@@ -258,8 +260,11 @@ def warming():
         try:
             fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:
-            yield False
-            return
+            if wait is None:
+                yield False
+                return
+            wait()
+            fcntl.flock(lock, fcntl.LOCK_EX)
         try:
             yield True
         finally:

@@ -9,18 +9,25 @@ the model what the gate asks: one command, a small batch (the park check) and a 
 start outside the region). The kernels land in the cache of :mod:`limbctl.geometry.jit` one by
 one; the first real train and teleop load them and compile whatever is not there yet. With no
 cache folder, or the rig's stages already prepared, no warm-up starts.
+
+``limbctl prepare`` (:func:`run_prepare`) runs the same :func:`warm_up` in the foreground for
+both rigs, a line per stage, at set-up: the README's install runs it, so the first train,
+teleop and library fit (``RigidMap().fit``, ``contains``, ``correct``) compile nothing.
 """
 
 from __future__ import annotations
 
+import argparse
 import contextlib
 import os
 import subprocess
 import sys
 import tempfile
-from collections.abc import Iterator
+import time
+from collections.abc import Callable, Iterator, Sequence
 from importlib import resources
 from pathlib import Path
+from typing import TextIO
 
 import numpy as np
 import yaml
@@ -78,7 +85,15 @@ def _write_teaching(path: Path, twist: bool = False) -> None:
             writer.append(i / rate_hz, float(pan[i]), float(tilt[i]), None if q is None else q[i])
 
 
-def warm_up(twist: bool = False) -> bool:
+#: What :func:`warm_up` tells its ``report`` callable of each stage: it begins compiling
+#: (``START``), its kernels are all in the cache now (``DONE``), or they already were (``READY``);
+#: and, of the rig's first stage, that another warm-up holds the lock and it waits (``WAIT``).
+START, DONE, READY, WAIT = "start", "done", "ready", "wait"
+
+
+def warm_up(
+    twist: bool = False, wait: bool = False, report: Callable[[str, str], None] | None = None
+) -> bool:
     """Compile (or load) the kernels of the rig's stages not yet prepared, in this process.
 
     Parameters
@@ -86,34 +101,55 @@ def warm_up(twist: bool = False) -> bool:
     twist : bool
         Warm a three-servo rig's stages (``train-twist``, ``gate-twist``) instead of a
         two-servo rig's (``train``, ``gate``).
+    wait : bool
+        When another warm-up holds the lock, wait for it to end and then do what it left
+        (``limbctl prepare``), instead of standing aside (the background warm-up).
+    report : callable, optional
+        Called as ``report(stage, event)`` with ``event`` one of :data:`START`, :data:`DONE`,
+        :data:`READY` as each stage begins and ends (:data:`WAIT` when ``wait`` waits).
 
-    Returns whether it ran (False: no cache folder, or another warm-up holds the lock).
+    Returns whether it ran (False: no cache folder, or another warm-up holds the lock and
+    ``wait`` is False).
+
+    The train stage trains as ``limbctl train`` does and fits the model as a library user does
+    (``RigidMap(twist=...).fit`` of bare orientations); the gate stage asks the model what the
+    gate and a library user ask: ``contains`` and ``correct`` of one orientation and of batches.
     """
+    tell = report or (lambda stage, event: None)
     train_stage, gate_stage = jit.stage("train", twist), jit.stage("gate", twist)
-    with jit.warming() as mine:
+    with jit.warming(wait=(lambda: tell(train_stage, WAIT)) if wait else None) as mine:
         if not mine:
             return False
         if jit.prepared(train_stage) and jit.prepared(gate_stage):
+            tell(train_stage, READY)
+            tell(gate_stage, READY)
             return True
-        from limbctl.envelope import load_model
+        from limbctl.envelope import RigidMap, load_model
         from limbctl.teach.dataset import load_dataset
         from limbctl.teach.train import train
 
         with tempfile.TemporaryDirectory(prefix="limbctl-warm-") as tmp:
             data, model_path = Path(tmp) / "warm.limb", Path(tmp) / "warm.npz"
+            tell(train_stage, START)
             _write_teaching(data, twist)
             # the options `limbctl train` passes by default (and sets for a three-servo dataset)
             train(data, model_path, "rigidmap", {"seed": 0, **({"twist": True} if twist else {})})
-            jit.mark_prepared(train_stage)
-            model = load_model(model_path)
             taught = load_dataset(data).quaternions
-            q = np.ascontiguousarray(taught[:SMALL_BATCH])
-            model.contains(q[0])
-            model.correct(q[0])
-            model.contains(q)
-            model.correct(q)
-            model.correct(np.ascontiguousarray(taught[:LARGE_BATCH]))
+            # a library user's fit: bare (N, 4) orientations, the model's default options
+            library = RigidMap(twist=twist).fit(np.ascontiguousarray(taught))
+            jit.mark_prepared(train_stage)
+            tell(train_stage, DONE)
+            tell(gate_stage, START)
+            for model in (load_model(model_path), library):
+                q = np.ascontiguousarray(taught[:SMALL_BATCH])
+                model.contains(q[0])
+                model.correct(q[0])
+                model.contains(q)
+                model.correct(q)
+                model.contains(np.ascontiguousarray(taught[:LARGE_BATCH]))
+                model.correct(np.ascontiguousarray(taught[:LARGE_BATCH]))
             jit.mark_prepared(gate_stage)
+            tell(gate_stage, DONE)
     return True
 
 
@@ -139,6 +175,123 @@ def warming_in_background(twist: bool = False) -> Iterator[subprocess.Popen | No
         env={**os.environ, "NUMBA_NUM_THREADS": "1"},
     )
     yield process
+
+
+#: ``limbctl prepare --rig all``: every kind of rig, by the packaged simulated rig of its kind
+#: (the kernels depend on the joint count only, not on a rig's calibration).
+ALL_RIGS = ("sim", "sim3")
+
+
+class _Progress:
+    """``limbctl prepare``'s line per stage: what compiles, how many of numba's compiles so far
+    (rewritten in place on a terminal), and how long it took."""
+
+    def __init__(self, out: TextIO, stages: int) -> None:
+        self.out, self.stages, self.index = out, stages, 0
+        self.live = out.isatty()
+        self.label, self.count, self.start = "", 0, 0.0
+
+    def compiled(self) -> None:
+        """One of numba's compiles ended (a kernel or one of numba's helpers)."""
+        self.count += 1
+        if self.live and self.label:
+            seconds = time.perf_counter() - self.start
+            print(
+                f"\r{self.label} {self.count} numba compiles, {seconds:.0f} s",
+                end="",
+                file=self.out,
+            )
+            self.out.flush()
+
+    def __call__(self, rig: str, stage: str, event: str) -> None:
+        if event == START:
+            self.index += 1
+            self.label = f"[{self.index}/{self.stages}] {rig}: {stage} ..."
+            self.count, self.start = 0, time.perf_counter()
+            print(self.label, end="" if self.live else "\n", file=self.out, flush=True)
+        elif event == DONE:
+            seconds = time.perf_counter() - self.start
+            prefix = "\r" + self.label if self.live else self.label
+            print(
+                f"{prefix} {self.count} numba compiles, {seconds:.1f} s", file=self.out, flush=True
+            )
+            self.label = ""
+        elif event == WAIT:
+            line = f"{rig}: waiting for a warm-up already running (`limbctl record` starts one)"
+            print(line, file=self.out, flush=True)
+        else:
+            self.index += 1
+            line = f"[{self.index}/{self.stages}] {rig}: {stage} ... already in the cache"
+            print(line, file=self.out, flush=True)
+
+
+def run_prepare(rigs: Sequence[str], out: TextIO = sys.stdout) -> int:
+    """``limbctl prepare``: compile and cache the kernels of ``rigs`` (rig profiles or packaged
+    simulated rigs) in the foreground, a line per stage, then where the cache is.
+
+    Returns the exit status (0). Raises :class:`~limbctl.errors.ConfigError` when no cache
+    folder is writable (nothing could be kept: the message says what to set).
+    """
+    import numba.core.event as numba_event
+
+    from limbctl.errors import ConfigError
+    from limbctl.servo.profiles import load_rig_profile
+
+    twists = {rig: load_rig_profile(rig).twists for rig in rigs}
+    folder = jit.cache_dir()
+    if folder is None:
+        raise ConfigError(
+            "no writable folder for the compiled kernels (tried "
+            + ", ".join(str(f) for f in jit.cache_candidates())
+            + "): set NUMBA_CACHE_DIR to a writable folder and run `limbctl prepare` again"
+        )
+    print(f"limbctl prepare: compiling the numba kernels into {folder}", file=out, flush=True)
+    progress = _Progress(out, 2 * len(twists))
+
+    class Listener(numba_event.Listener):
+        def on_start(self, event: numba_event.Event) -> None:
+            pass
+
+        def on_end(self, event: numba_event.Event) -> None:
+            progress.compiled()
+
+    start = time.perf_counter()
+    with numba_event.install_listener("numba:compile", Listener()):
+        for rig, twist in twists.items():
+            warm_up(
+                twist, wait=True, report=lambda stage, event, rig=rig: progress(rig, stage, event)
+            )
+    seconds = time.perf_counter() - start
+    print(
+        f"limbctl prepare: done in {seconds:.1f} s; the compiled kernels are in {folder} (a "
+        "changed kernel source or numba version starts a new folder: run it again then)",
+        file=out,
+        flush=True,
+    )
+    return 0
+
+
+#: ``limbctl prepare``'s help, description and ``--rig`` option (limbctl.cli's parser).
+HELP = (
+    "compile and cache the numba kernels for both rigs so the first train, teleop and library "
+    "fit after install do not compile"
+)
+DESCRIPTION = (
+    "Compile the kernels of training, of the gate and of a library fit (RigidMap().fit, "
+    "contains, correct) once, in the foreground, and keep them in the kernel cache (printed at "
+    "the end; NUMBA_CACHE_DIR sets it). Run it once after install and after an upgrade: "
+    "minutes, then no command compiles. Without it, `limbctl record` compiles them in the "
+    "background while you teach, and a library fit compiles on first use."
+)
+RIG_HELP = (
+    "all (default: two and three servos), sim (two servos: pan, tilt), sim3 (three: and "
+    "roll), or a rig profile (its number of servos)"
+)
+
+
+def prepare_job(args: argparse.Namespace) -> int:
+    """``limbctl prepare``: :func:`run_prepare` of ``args.rig`` (``all``: :data:`ALL_RIGS`)."""
+    return run_prepare(ALL_RIGS if args.rig == "all" else (args.rig,))
 
 
 def main(argv: list[str] | None = None) -> int:

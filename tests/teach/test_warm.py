@@ -1,15 +1,19 @@
-"""limbctl.teach.warm: after a warm-up, the first train and teleop start compile no kernel."""
+"""limbctl.teach.warm: after ``limbctl prepare`` (the warm-up in the foreground), the first
+train, teleop start and library fit compile no kernel."""
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
+import threading
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from limbctl.cli import main
 from limbctl.geometry import jit
 from limbctl.region.correct_kernels import SINGLE_ROWS
 from limbctl.teach.warm import LARGE_BATCH, warming_in_background
@@ -41,15 +45,66 @@ def teaching3(path: Path) -> Path:
     return path
 
 
+#: A library user's first use in a fresh process: a fit of bare orientations (another seed and
+#: size than the warm-up's teaching), then ``contains`` and ``correct`` of one orientation and of
+#: batches up to a thousand; writes the dispatchers numba compiled meanwhile as JSON.
+LIBRARY = r"""
+import json, sys
+import numba.core.event as ev
+import numpy as np
+from limbctl.envelope import RigidMap
+from limbctl.envelope.synthetic_twist import ShoulderRegion
+from limbctl.geometry.quat import limb_direction, swing_from_direction
+
+compiled = []
+
+class Count(ev.Listener):
+    def on_start(self, event):
+        pass
+
+    def on_end(self, event):
+        f = event.data["dispatcher"].py_func
+        compiled.append(f"{f.__module__}.{f.__qualname__}")
+
+twist = sys.argv[2] == "sim3"
+q = ShoulderRegion().teaching(1000, 500, 500, np.random.default_rng(1))
+if not twist:
+    q = swing_from_direction(limb_direction(q))
+ev.register("numba:compile", Count())
+model = RigidMap(twist=twist).fit(q)
+for rows in (q[0], q[:13], q[:65], q[:1000]):
+    model.contains(rows)
+    model.correct(rows)
+with open(sys.argv[1], "w") as out:
+    json.dump(compiled, out)
+"""
+
+
 @pytest.mark.parametrize("rig", ["sim", "sim3"])
-def test_after_a_warm_up_train_and_teleop_compile_no_kernel_and_say_nothing(rig, tmp_path):
+def test_after_prepare_train_teleop_and_a_library_fit_compile_no_kernel(rig, tmp_path):
     twist = rig == "sim3"
     cache = tmp_path / "numba-cache"
     env = {**os.environ, "NUMBA_CACHE_DIR": str(cache), "PYTHONPATH": str(ROOT)}
-    warm = [sys.executable, "-m", "limbctl.teach.warm", *(["--twist"] if twist else [])]
-    subprocess.run(warm, env=env, check=True, cwd=tmp_path)
+    prepare = [sys.executable, "-m", "limbctl.cli", "prepare", "--rig", rig]
+    done = subprocess.run(prepare, env=env, cwd=tmp_path, capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
     markers = sorted(p.name for p in cache.rglob("prepared-*"))
-    assert markers == sorted(f"prepared-{jit.stage(s, twist)}" for s in ("train", "gate"))
+    stages = [jit.stage(s, twist) for s in ("train", "gate")]
+    assert markers == sorted(f"prepared-{stage}" for stage in stages)
+    folder = next(cache.rglob("prepared-*")).parent
+    lines = done.stdout.splitlines()
+    # away from a terminal, a line as each stage begins and one as it ends, with its compiles
+    ended = [line.split(" ...")[0] for line in lines[1:-1] if line.endswith(" s")]
+    assert ended == [f"[{i}/2] {rig}: {stage}" for i, stage in enumerate(stages, 1)], done.stdout
+    assert len(lines) == 2 + 2 * len(stages), done.stdout
+    assert str(folder) in lines[0] and str(folder) in lines[-1], done.stdout
+    # the library's first use in a fresh process
+    log = tmp_path / "library.json"
+    library = [sys.executable, "-c", LIBRARY, str(log), rig]
+    done = subprocess.run(library, env=env, cwd=tmp_path, capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert json.loads(log.read_text()) == []
+    # a teaching recorded with no warm-up since (prepare only): train, then a teleop start
     data = (teaching3 if twist else teaching)(tmp_path / "teach.limb")
     model = tmp_path / "model.npz"
     ours, _ = compiled_by(["train", str(data), "--out", str(model)], tmp_path, prepared=True)
@@ -62,6 +117,18 @@ def test_after_a_warm_up_train_and_teleop_compile_no_kernel_and_say_nothing(rig,
         prepared=True,
     )
     assert ours == []
+    # run again, it finds every stage in the cache
+    again = subprocess.run(prepare, env=env, cwd=tmp_path, capture_output=True, text=True)
+    assert again.returncode == 0, again.stderr
+    assert again.stdout.count("already in the cache") == 2, again.stdout
+
+
+def test_prepare_without_a_writable_cache_says_what_to_set(monkeypatch, capsys):
+    monkeypatch.setattr(jit, "cache_dir", lambda: None)
+    assert main(["prepare", "--rig", "sim"]) == 2
+    err = capsys.readouterr().err
+    assert "limbctl prepare: error: no writable folder" in err
+    assert "NUMBA_CACHE_DIR" in err
 
 
 def test_no_warm_up_starts_when_everything_is_prepared_or_nothing_can_be_cached(monkeypatch):
@@ -74,8 +141,8 @@ def test_no_warm_up_starts_when_everything_is_prepared_or_nothing_can_be_cached(
         assert process is None
 
 
-def test_a_second_warm_up_stands_aside_while_one_holds_the_lock(tmp_path, monkeypatch):
-    monkeypatch.setattr(jit, "cache_dir", lambda: Path(tmp_path))
+def _holding(lock: Path) -> subprocess.Popen:
+    """Another process holding the warm-up lock until a line on its stdin."""
     holder = subprocess.Popen(
         [
             sys.executable,
@@ -83,19 +150,49 @@ def test_a_second_warm_up_stands_aside_while_one_holds_the_lock(tmp_path, monkey
             "import sys, fcntl\n"
             "lock = open(sys.argv[1], 'a+b'); fcntl.flock(lock, fcntl.LOCK_EX)\n"
             "print('locked', flush=True); sys.stdin.readline()\n",
-            str(tmp_path / "warming.lock"),
+            str(lock),
         ],
         stdin=subprocess.PIPE,
         stdout=subprocess.PIPE,
         text=True,
     )
+    assert holder.stdout.readline().strip() == "locked"
+    return holder
+
+
+def _let_go(holder: subprocess.Popen) -> None:
+    holder.stdin.write("\n")  # the holder lets go and ends
+    holder.stdin.close()
+    holder.wait()
+
+
+def test_a_second_warm_up_stands_aside_while_one_holds_the_lock(tmp_path, monkeypatch):
+    monkeypatch.setattr(jit, "cache_dir", lambda: Path(tmp_path))
+    holder = _holding(tmp_path / "warming.lock")
     try:
-        assert holder.stdout.readline().strip() == "locked"
         with jit.warming() as mine:
             assert not mine
     finally:
-        holder.stdin.write("\n")  # the holder lets go and ends
-        holder.stdin.close()
-        holder.wait()
+        _let_go(holder)
     with jit.warming() as mine:
         assert mine
+
+
+def test_prepare_says_it_waits_for_a_warm_up_holding_the_lock_then_takes_it(tmp_path, monkeypatch):
+    monkeypatch.setattr(jit, "cache_dir", lambda: Path(tmp_path))
+    holder = _holding(tmp_path / "warming.lock")
+    told, got = threading.Event(), []
+
+    def take() -> None:
+        with jit.warming(wait=told.set) as mine:
+            got.append(mine)
+
+    taker = threading.Thread(target=take)
+    try:
+        taker.start()
+        assert told.wait(timeout=60)
+        assert got == []  # still waiting: the holder has not let go
+    finally:
+        _let_go(holder)
+    taker.join(timeout=60)
+    assert got == [True]
