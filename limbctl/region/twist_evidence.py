@@ -113,9 +113,9 @@ PLACE_DEG = 15.0
 HOLD_SLOPE = 1.0
 #: How far (deg) a held limit may lie beyond the steep cone, as CAP_SLACK_DEG beyond the cone: the
 #: promise is 1 deg past the truth, and the bilinear grid reads a cone of slope HOLD_SLOPE up to
-#: HOLD_SLOPE x 1.5 / 2 ~ 0.75 deg above its value between nodes, 0.5 at a cell's middle. Not
-#: tuned: the families' sparse and hand teachings then lie at most 0.64 deg past the truth
-#: (seeds 0-2, docs/decisions/twist.md, "The hold").
+#: HOLD_SLOPE x 1.5 / 2 ~ 0.75 deg above its value between nodes. Not tuned: the families'
+#: teachings (seeds 0-2, quick) then lie at most 0.74 deg past the truth, the worst where a slope
+#: was read (docs/decisions/twist.md, "The hold").
 HOLD_SLACK_DEG = 0.5
 
 
@@ -169,9 +169,9 @@ def cap_limits(
     ``bounded`` (M,) marks the nodes whose band is not free (free twist is left as read); nodes,
     samples and neighbourhoods as :func:`limbctl.region.twist_fit_kernels.evidence_caps` takes
     them, held (:func:`_held`) where no local slope was read (among the nodes ``within`` (M,)
-    bool, when given). Where the clipped limits cross
-    (or no sample lies near), both go to their middle (or to 0; where the caps themselves cross,
-    to the twist between them nearest the reading's centre): a band of no width.
+    bool, when given). Where the clipped limits cross (or no sample lies near), both go to their
+    middle (or to 0; where the caps themselves cross, to the twist between them nearest the
+    reading's centre): a band of no width.
     """
     cap_up, cap_lo, n_up, n_lo = fk.evidence_caps(
         nodes,
