@@ -320,7 +320,11 @@ def main(argv: list[str] | None = None) -> int:
     if args.no_cap:  # the band as read before the cap: limits kept, nothing cut
         twist_band.cap_limits = lambda up, lo, *_: (up, lo, 0.0 * up, 0.0 * lo)
     if args.cone_only:  # the fixed cone alone, as before the cap read the local slope
-        twist_evidence._along_slope = lambda cone, *_: cone
+        twist_evidence._along_slope = lambda cone, nodes, *_: (
+            *cone,
+            np.zeros(len(nodes), dtype=bool),
+            np.zeros(len(nodes), dtype=bool),
+        )
     rows = run(args.quick, args.seeds)
     flags = " --quick" * args.quick + " --no-cap" * args.no_cap + " --cone-only" * args.cone_only
     if args.seeds:

@@ -34,9 +34,10 @@ Fitting, per grid node, from the taught samples within ``BAND_RADIUS_DEG`` of it
 4. *Evidence cap*: each limit is then narrowed, never widened, to what the taught twists near
    the node support (:mod:`limbctl.region.twist_evidence`: a cone about every sample, and a
    cap along the local slope of the stops around, read again once the stops are re-read
-   against the capped band): a reading that bridged past a stop the hand never turned to is
-   held within a degree of the truth, and where that cut is large and no stop was held there
-   the place is listed for the guide (:attr:`TwistBand.cuts`).
+   against the capped band, and a steeper cone where no slope could be read): a reading that
+   bridged past a stop the hand never turned to is held within a degree of the truth, and
+   where that cut is large and no stop was held there the place is listed for the guide
+   (:attr:`TwistBand.cuts`).
 """
 
 from __future__ import annotations
@@ -51,7 +52,7 @@ from limbctl.geometry.quat import tangent_frame
 from limbctl.geometry.twist import wrap
 from limbctl.region import twist_fit_kernels as fk
 from limbctl.region import twist_kernels as tk
-from limbctl.region.twist_evidence import cap_limits
+from limbctl.region.twist_evidence import cap_limits, inside_hull
 
 #: Grid spacing (deg) of the band's nodes: a band limit sloping 1 deg per deg errs by at most
 #: its curvature over 1.5 deg between nodes, and 2 sr of region take ~3000 nodes.
@@ -233,16 +234,19 @@ class TwistBand:
         bounded = half < math.pi
         up = np.where(bounded, np.fmax(up, envelope_heights(xy, limit, node_xy) - ref), up)
         lo = np.where(bounded, np.fmin(lo, -envelope_heights(xy, -limit, node_xy) - ref), lo)
-        # step 4: never past what the taught twists support (limbctl.region.twist_evidence)
+        # step 4: never past what the taught twists support (limbctl.region.twist_evidence),
+        # held to a steeper cone where no slope is read among the taught directions (the nodes
+        # inside the samples' convex hull on the plane)
         args = (bounded, nodes, start, members, d, limit, ref)
-        capped = cap_limits(up, lo, *args, tuple(stops))
+        within = inside_hull(xy, node_xy)
+        capped = cap_limits(up, lo, *args, tuple(stops), within)
         for _ in range(STOP_REREADS):
             # the stops re-read against the capped band: where the readings bridged a dip, the
             # samples at its bottom were below the first reading's limit, not its stops
             c2, h2 = self._with_limits(ref, half, *capped[:2]).at(d)
             off = wrap(limit - c2)
             stops = [(off >= h2 - near) & (h2 < math.pi), (-off >= h2 - near) & (h2 < math.pi)]
-            capped = cap_limits(up, lo, *args, tuple(stops))
+            capped = cap_limits(up, lo, *args, tuple(stops), within)
         up, lo, cut_up, cut_lo = capped
         self.cuts = (nodes, cut_up, cut_lo)
         new = self._with_limits(ref, half, up, lo)

@@ -22,6 +22,12 @@ lower of the two caps is kept (:func:`limbctl.region.twist_fit_kernels.gradient_
 stops are read twice: against the band's readings, then against the capped band, since a
 reading that bridged a dip leaves the dip's own stops below its limit.
 
+Where no slope is read (too few stops around, or along a line) the cone alone would cap, and
+its promise fails on truths steeper than ``s`` by up to ``(slope - s) r``. There the limit is
+*held* (:func:`_held`) also within the steep cone ``max_i (t_i - HOLD_SLOPE r_i) +
+HOLD_SLACK_DEG``: what the samples near the node themselves show, within 0.5 deg of any truth
+no steeper than the band's readings believe; the cut it makes asks for a stop.
+
 :func:`cap_limits` clips both limits to the caps; where no sample lies within the band's
 neighbourhood the band closes to its centre. The clip is the *cut*: where it is large, the
 evidence is too sparse to keep the bound and still cover the region, and
@@ -35,7 +41,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import cKDTree
+from scipy.spatial import ConvexHull, QhullError, cKDTree
 
 from limbctl.geometry.gimbal import direction_to_pan_tilt
 from limbctl.region import twist_fit_kernels as fk
@@ -97,6 +103,20 @@ WITNESS_BAND_DEG = 1.5
 REPORT_NEAR_DEG = 3.0
 #: Places reported are grouped on a grid of this size (deg of pan and of tilt): the guide's cells.
 PLACE_DEG = 15.0
+#: The hold (:func:`_held`): where no local slope was read for a limit, the cone alone caps it,
+#: and a truth steeper than CAP_SLOPE is exceeded by (slope - CAP_SLOPE) x the distance of the
+#: stop that set the cap: 3.9 deg on the region families' curved bands (bumps up to ~1 deg per
+#: deg), the cap set by a stop 7.8 deg away. There the limit is also kept within a cone of
+#: HOLD_SLOPE about every sample, which promises HOLD_SLACK_DEG at a node for any truth no
+#: steeper than HOLD_SLOPE: MAX_SLOPE of the band's readings (the steepest limit either reading
+#: believes). Not tuned; where a slope is read (dense stops) it never binds.
+HOLD_SLOPE = 1.0
+#: How far (deg) a held limit may lie beyond the steep cone, as CAP_SLACK_DEG beyond the cone: the
+#: promise is 1 deg past the truth, and the bilinear grid reads a cone of slope HOLD_SLOPE up to
+#: HOLD_SLOPE x 1.5 / 2 ~ 0.75 deg above its value between nodes. Not tuned: the families'
+#: teachings (seeds 0-2, quick) then lie at most 0.74 deg past the truth, the worst where a slope
+#: was read (docs/decisions/twist.md, "The hold").
+HOLD_SLACK_DEG = 0.5
 
 
 @dataclass(frozen=True)
@@ -138,6 +158,7 @@ def cap_limits(
     limit: np.ndarray,
     ref: np.ndarray,
     stops: tuple[np.ndarray, np.ndarray] | None = None,
+    within: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Band limits (M,), (M,) relative to the node centres ``ref`` (M,) (rad) clipped to the
     evidence cap (module docstring), and the cuts (M,), (M,) (rad, >= 0) of each that ask for a
@@ -147,8 +168,10 @@ def cap_limits(
 
     ``bounded`` (M,) marks the nodes whose band is not free (free twist is left as read); nodes,
     samples and neighbourhoods as :func:`limbctl.region.twist_fit_kernels.evidence_caps` takes
-    them. Where the clipped limits cross (or no sample lies near), both go to their middle (or
-    to 0): a band of no width, which contains nothing beyond the taught twists.
+    them, held (:func:`_held`) where no local slope was read (among the nodes ``within`` (M,)
+    bool, when given). Where the clipped limits cross (or no sample lies near), both go to their
+    middle (or to 0; where the caps themselves cross, to the twist between them nearest the
+    reading's centre): a band of no width.
     """
     cap_up, cap_lo, n_up, n_lo = fk.evidence_caps(
         nodes,
@@ -161,8 +184,10 @@ def cap_limits(
         math.radians(WITNESS_DEG),
         math.radians(WITNESS_BAND_DEG),
     )
+    # where the local slope was read, the cap promises for any truth within its margin of it
+    read_up = read_lo = np.zeros(nodes.shape[0], dtype=bool)
     if stops is not None:
-        cap_up, cap_lo, n_up, n_lo = _along_slope(
+        cap_up, cap_lo, n_up, n_lo, read_up, read_lo = _along_slope(
             (cap_up, cap_lo, n_up, n_lo), nodes, start, members, d, limit, ref, stops
         )
     slack = math.radians(CAP_SLACK_DEG)
@@ -171,15 +196,57 @@ def cap_limits(
     cap_lo = np.where(np.isfinite(cap_lo), cap_lo - slack, np.inf)
     new_up = np.where(bounded, np.fmin(up, cap_up), up)
     new_lo = np.where(bounded, np.fmax(lo, cap_lo), lo)
+    # held only among the taught directions (``within``): beyond them, the swing region's margins,
+    # the band closes toward the taught twists by design and the gate's answers run along it
+    holdable = bounded if within is None else bounded & within
+    held_up, held_lo = _held(
+        new_up,
+        new_lo,
+        holdable & ~read_up,
+        holdable & ~read_lo,
+        nodes,
+        start,
+        members,
+        d,
+        limit,
+        ref,
+    )
+    new_up = np.fmin(new_up, held_up)
+    new_lo = np.fmax(new_lo, held_lo)
     crossed = new_up < new_lo
     near = np.isfinite(cap_up) & np.isfinite(cap_lo)
-    middle = np.clip(0.5 * (np.where(near, cap_up, 0.0) + np.where(near, cap_lo, 0.0)), lo, up)
+    top, bottom = np.fmin(cap_up, held_up), np.fmax(cap_lo, held_lo)
+    middle = np.clip(0.5 * (np.where(near, top, 0.0) + np.where(near, bottom, 0.0)), lo, up)
+    # caps that cross each other (only far samples around): any twist between them breaks one
+    # side's promise by as much; the one nearest the reading's centre, which bridged from the
+    # stops of both sides, keeps the side toward the band's middle
+    gap = near & (top < bottom)
+    middle = np.where(gap, np.clip(0.5 * (up + lo), top, bottom), middle)
     new_up = np.where(crossed, middle, new_up)
     new_lo = np.where(crossed, middle, new_lo)
-    # a cut where a stop was held near the node corrects the reading; elsewhere it asks for one
-    cut_up = np.where(n_up >= MIN_WITNESSES, 0.0, np.fmax(up - new_up, 0.0))
-    cut_lo = np.where(n_lo >= MIN_WITNESSES, 0.0, np.fmax(new_lo - lo, 0.0))
+    # a cut where a stop was held near the node corrects the reading; elsewhere (and wherever
+    # the hold binds) it asks for one
+    ask_up = (n_up < MIN_WITNESSES) | np.isfinite(held_up)
+    ask_lo = (n_lo < MIN_WITNESSES) | np.isfinite(held_lo)
+    cut_up = np.where(ask_up, np.fmax(up - new_up, 0.0), 0.0)
+    cut_lo = np.where(ask_lo, np.fmax(new_lo - lo, 0.0), 0.0)
     return new_up, new_lo, cut_up, cut_lo
+
+
+def _held(up, lo, open_up, open_lo, nodes, start, members, d, limit, ref):
+    """The hold (HOLD_SLOPE): upper and lower limits (M,), (M,) (rad, relative to ``ref``) where
+    it binds on the capped limits ``up``, ``lo`` (M,), +-inf elsewhere. It binds at the nodes
+    ``open_up``, ``open_lo`` (M,) bool (bounded, no local slope read) where the cone of
+    HOLD_SLOPE about the samples, plus HOLD_SLACK_DEG, lies inside the limit."""
+    cone_up, cone_lo, _, _ = fk.evidence_caps(
+        nodes, start, members, d, limit, ref, HOLD_SLOPE, 0.0, 0.0
+    )
+    slack = math.radians(HOLD_SLACK_DEG)
+    cone_up, cone_lo = cone_up + slack, cone_lo - slack
+    # NaN (no sample near) compares False: the cap has closed the band there already
+    binds_up = open_up & (cone_up < up)
+    binds_lo = open_lo & (cone_lo > lo)
+    return np.where(binds_up, cone_up, np.inf), np.where(binds_lo, cone_lo, -np.inf)
 
 
 def _along_slope(cone, nodes, start, members, d, limit, ref, stops):
@@ -206,6 +273,8 @@ def _along_slope(cone, nodes, start, members, d, limit, ref, stops):
         np.where(higher_lo, g_lo, cap_lo),
         np.where(lower_up, w_up, n_up),
         np.where(higher_lo, w_lo, n_lo),
+        np.isfinite(g_up),
+        np.isfinite(g_lo),
     )
 
 
@@ -248,3 +317,14 @@ def band_unsupported(band, d: np.ndarray, inside=None) -> tuple[UnsupportedPlace
     if inside is not None:
         judged &= inside(nodes)
     return unsupported_places(nodes[judged], cut_up[judged], cut_lo[judged])
+
+
+def inside_hull(xy: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """Whether each plane point ``p`` (M, 2) lies inside the convex hull of ``xy`` (N, 2) (rad):
+    among the taught directions, where the hold may bind; all of them when the samples span no
+    area."""
+    try:
+        rim = ConvexHull(xy).equations
+    except (QhullError, ValueError):
+        return np.ones(p.shape[0], dtype=bool)
+    return np.all(p @ rim[:, :2].T + rim[:, 2] <= 1e-12, axis=1)
