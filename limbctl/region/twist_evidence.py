@@ -105,18 +105,34 @@ REPORT_NEAR_DEG = 3.0
 PLACE_DEG = 15.0
 #: The hold (:func:`_held`): where no local slope was read for a limit, the cone alone caps it,
 #: and a truth steeper than CAP_SLOPE is exceeded by (slope - CAP_SLOPE) x the distance of the
-#: stop that set the cap: 3.9 deg on the region families' curved bands (bumps up to ~1 deg per
-#: deg), the cap set by a stop 7.8 deg away. There the limit is also kept within a cone of
-#: HOLD_SLOPE about every sample, which promises HOLD_SLACK_DEG at a node for any truth no
-#: steeper than HOLD_SLOPE: MAX_SLOPE of the band's readings (the steepest limit either reading
-#: believes). Not tuned; where a slope is read (dense stops) it never binds.
-HOLD_SLOPE = 1.0
+#: stop that set the cap: 3.9 deg on the region families' curved bands, the cap set by a stop
+#: 7.8 deg away. There the limit is also kept within a cone of HOLD_SLOPE about every sample,
+#: which promises HOLD_SLACK_DEG at a node for any truth no steeper than HOLD_SLOPE. 1.4: the
+#: curved families' bumps on their linear terms reach 1.2-1.3 deg per deg (curved seed 5, hand
+#: 30 s: 1.21 where the cap was held 1.6 deg past the truth at 1.0; sparse i.i.d.: 1.34); a
+#: sparse teaching pays in coverage (docs/decisions/twist.md, "The hold").
+HOLD_SLOPE = 1.4
 #: How far (deg) a held limit may lie beyond the steep cone, as CAP_SLACK_DEG beyond the cone: the
 #: promise is 1 deg past the truth, and the bilinear grid reads a cone of slope HOLD_SLOPE up to
 #: HOLD_SLOPE x 1.5 / 2 ~ 0.75 deg above its value between nodes. Not tuned: the families'
 #: teachings (seeds 0-2, quick) then lie at most 0.74 deg past the truth, the worst where a slope
 #: was read (docs/decisions/twist.md, "The hold").
 HOLD_SLACK_DEG = 0.5
+#: The slope cap's reach (deg): among the taught directions, a sample farther than this from a
+#: node vouches along the read slope only as far as the steep cone (HOLD_SLOPE) lets it, so the
+#: bound holds if either the slope's assumptions or the steep cone's do. Within it the truth's
+#: bending beyond CURVATURE_PER_DEG costs at most HOLD_SLACK_DEG: sqrt(2 x 0.5 / 0.06) = 4.08
+#: deg. The curved families' dense teachings had their caps set by samples 7.5-8 deg away along a
+#: slope read 0.3 off the truth's on a bump (curved seed 5: 3.2 deg past the truth); 3 deg also
+#: cut the dipped band's dense test teaching where its nearest stop lay 3.1-3.6 deg away (9
+#: places, flat truth), 4 listed none.
+REACH_DEG = math.sqrt(2.0 * HOLD_SLACK_DEG / CURVATURE_PER_DEG)
+#: Least effective count of stops (weighted, as the plane's) for a slope to be read among the
+#: taught directions: through 3 stops the plane fits exactly, its scatter (the slope's error)
+#: reads 0 and the margin is SLOPE_SLACK alone (curved seed 5, sparse i.i.d.: a plane through 3
+#: stops read (-0.03, -0.70) where the truth's slope was (0.47, -0.37), 2.1 deg past the truth).
+#: Below it the hold applies.
+SLOPE_LEAST_STOPS = 4.0
 
 
 @dataclass(frozen=True)
@@ -186,9 +202,12 @@ def cap_limits(
     )
     # where the local slope was read, the cap promises for any truth within its margin of it
     read_up = read_lo = np.zeros(nodes.shape[0], dtype=bool)
+    # held only among the taught directions (``within``): beyond them, the swing region's margins,
+    # the band closes toward the taught twists by design and the gate's answers run along it
+    holdable = bounded if within is None else bounded & within
     if stops is not None:
         cap_up, cap_lo, n_up, n_lo, read_up, read_lo = _along_slope(
-            (cap_up, cap_lo, n_up, n_lo), nodes, start, members, d, limit, ref, stops
+            (cap_up, cap_lo, n_up, n_lo), nodes, start, members, d, limit, ref, stops, holdable
         )
     slack = math.radians(CAP_SLACK_DEG)
     # no sample near: nothing is supported
@@ -196,9 +215,6 @@ def cap_limits(
     cap_lo = np.where(np.isfinite(cap_lo), cap_lo - slack, np.inf)
     new_up = np.where(bounded, np.fmin(up, cap_up), up)
     new_lo = np.where(bounded, np.fmax(lo, cap_lo), lo)
-    # held only among the taught directions (``within``): beyond them, the swing region's margins,
-    # the band closes toward the taught twists by design and the gate's answers run along it
-    holdable = bounded if within is None else bounded & within
     held_up, held_lo = _held(
         new_up,
         new_lo,
@@ -249,7 +265,7 @@ def _held(up, lo, open_up, open_lo, nodes, start, members, d, limit, ref):
     return np.where(binds_up, cone_up, np.inf), np.where(binds_lo, cone_lo, -np.inf)
 
 
-def _along_slope(cone, nodes, start, members, d, limit, ref, stops):
+def _along_slope(cone, nodes, start, members, d, limit, ref, stops, limited):
     """The cone's caps and witnesses ``cone`` lowered to the caps read along the local slope
     (:func:`limbctl.region.twist_fit_kernels.gradient_caps`) where the stops ``stops`` (upper,
     lower; (N,) bool each) around a node spread enough to read it."""
@@ -262,6 +278,10 @@ def _along_slope(cone, nodes, start, members, d, limit, ref, stops):
         math.degrees(CURVATURE_PER_DEG),
         math.radians(WITNESS_DEG),
         math.radians(WITNESS_BAND_DEG),
+        math.radians(REACH_DEG),
+        HOLD_SLOPE,
+        limited,
+        SLOPE_LEAST_STOPS,
     )
     g_up, w_up = fk.gradient_caps(nodes, start, members, d, limit, stops[0], ref, *args)
     g_lo, w_lo = fk.gradient_caps(nodes, start, members, d, -limit, stops[1], -ref, *args)

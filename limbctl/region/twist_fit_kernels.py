@@ -263,6 +263,10 @@ def gradient_caps(
     curvature,
     near,
     band,
+    reach,
+    steep,
+    limited,
+    least_count,
 ):
     """One limit's cap (M,) read along its local slope, relative to the node's centre ``ref``
     (M,) (rad), and how many samples witness it (M,); the upper limit (for the lower, pass the
@@ -346,6 +350,9 @@ def gradient_caps(
             rss += w * e * e
             w2 += w * w
         n_eff = a[0, 0] * a[0, 0] / w2
+        if limited[i] and n_eff < least_count:
+            # too few stops to see the plane's own error: the slope is not known
+            continue
         slope_err = math.sqrt(rss / a[0, 0] / max(n_eff - 3.0, 1.0)) / math.sqrt(least)
         margin = slack + confidence * slope_err
         best = -np.inf
@@ -356,6 +363,10 @@ def gradient_caps(
             angle = _angle(node, d[j])
             t = limit[j] - ref[i] - sol[1] * x - sol[2] * y
             t -= margin * angle + 0.5 * curvature * angle * angle
+            if limited[i] and angle > reach:
+                # beyond the reach the slope's extrapolation is trusted only as far as the
+                # steep cone's: the bound holds if either assumption does
+                t = min(t, limit[j] - ref[i] - steep * angle)
             if t > best:
                 best = t
         cap[i] = best

@@ -155,6 +155,34 @@ def test_a_sparsely_taught_steep_dip_is_held_to_the_samples_near_it():
     assert near, "the dip's upper stop was held short, yet not listed"
 
 
+#: A bump on a sloping band (the centre rises RIDGE_CENTRE_DEG and the half-width falls
+#: RIDGE_HALF_DEG at DIP_AT, RIDGE_WIDTH_DEG one sigma, on a centre sloping RIDGE_SLOPE deg per
+#: deg of pan): the upper limit bends ~0.2 deg^-1 on its sides, past the slope cap's
+#: CURVATURE_PER_DEG, as the region families' curved bands do.
+RIDGE_CENTRE_DEG = 8.0
+RIDGE_HALF_DEG = -6.0
+RIDGE_WIDTH_DEG = 8.0
+RIDGE_SLOPE = 0.3
+
+
+def _ridge_deg(pan, tilt):
+    r2 = (pan - DIP_AT[0]) ** 2 + (tilt - DIP_AT[1]) ** 2
+    bump = np.exp(-r2 / (2.0 * RIDGE_WIDTH_DEG**2))
+    return 5.0 + RIDGE_SLOPE * pan + RIDGE_CENTRE_DEG * bump, 40.0 + RIDGE_HALF_DEG * bump
+
+
+def test_a_densely_taught_bending_bump_is_not_exceeded_from_far_samples():
+    # before the slope cap's reach, samples 7-8 deg away vouched along a slope read off the
+    # bump's side and let the upper limit 2.37 deg past the truth
+    truth = BandRegion(SQUARE, _ridge_deg)
+    region = TwistRegion().fit(truth.teaching(3000, 1500, 4000, np.random.default_rng(6)))
+    pan, tilt = np.meshgrid(np.arange(-36.0, 37.0, 1.0), np.arange(-26.0, 37.0, 1.0))
+    d = pan_tilt_to_direction(np.radians(pan.ravel()), np.radians(tilt.ravel()))
+    d = d[region.swing.mesh.contains(d)]
+    excess = _excess_deg(truth, region, d)
+    assert excess.max() <= 1.0, f"band {excess.max():.2f} deg past the true stop"
+
+
 def test_unsupported_places_keep_the_largest_cut_of_each_cell_and_side():
     d = pan_tilt_to_direction(np.radians([1.0, 2.0, 40.0]), np.radians([1.0, 2.0, 1.0]))
     up = np.radians([2.0, 3.0, 0.5])
