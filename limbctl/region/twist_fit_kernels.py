@@ -266,7 +266,6 @@ def gradient_caps(
     reach,
     steep,
     limited,
-    least_count,
 ):
     """One limit's cap (M,) read along its local slope, relative to the node's centre ``ref``
     (M,) (rad), and how many samples witness it (M,); the upper limit (for the lower, pass the
@@ -285,7 +284,9 @@ def gradient_caps(
     over all the neighbours ``j``. NaN where fewer than 3 stops lie around the node or their
     weighted positions spread less than ``spread`` (rad, one sigma) in some direction: the
     slope is not known there. Witnesses as :func:`evidence_caps` counts them (within ``near``
-    of the node, within ``band`` of the cap).
+    of the node, within ``band`` of the cap). At the nodes ``limited`` (M,) bool a sample
+    farther than ``reach`` (rad) bounds the limit by the lower of its term above and the steep
+    cone's ``limit_j - ref_n - steep angle(n, d_j)`` (``steep`` rad/rad).
     """
     m = nodes.shape[0]
     cap = np.full(m, np.nan)
@@ -350,9 +351,6 @@ def gradient_caps(
             rss += w * e * e
             w2 += w * w
         n_eff = a[0, 0] * a[0, 0] / w2
-        if limited[i] and n_eff < least_count:
-            # too few stops to see the plane's own error: the slope is not known
-            continue
         slope_err = math.sqrt(rss / a[0, 0] / max(n_eff - 3.0, 1.0)) / math.sqrt(least)
         margin = slack + confidence * slope_err
         best = -np.inf

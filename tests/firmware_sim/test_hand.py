@@ -153,7 +153,7 @@ def test_a_minute_of_the_hand_teaches_a_band_within_the_truth_or_names_what_is_m
     never reaches more than 1 deg past the true one; it holds >= 99 % of the true region's
     orientations 2 deg inside only where the stops support it, and otherwise lists the places
     whose stops are missing, so the guide withholds READY TO TRAIN (containment wins over
-    coverage). Measured: 75.5 % held, 107 places, never past the truth (0.79 deg inside it at
+    coverage). Measured: 69.9 % held, 129 places, never past the truth (0.93 deg inside it at
     the nearest); before the evidence cap 99.98 % held, and the band reached 4.66 deg past the
     true stop."""
     from limbctl.demo import true_twist_probes
