@@ -15,8 +15,8 @@ same path whatever times it is asked at. :class:`Track` holds any such path's se
 *Visits* (:class:`Visit`, a hand description's ``visits:``) answer a teaching guide's requests:
 from a given time the path breaks off its wandering (after the move under way) to go to named
 places one after the other and do what each asks, then wanders on. ``edge``: trace the edge
-near the place (the stretch round its nearest edge point, VISIT_EDGE_INSET_DEG inside, at the
-full trace's pace); ``twist``: circle the place slowly (VISIT_TWIST_RADIUS_DEG, VISIT_TWIST_S) while
+near the place (the stretch round its nearest edge point, EDGE_INSET_DEG inside, at the full
+trace's pace); ``twist``: circle the place slowly (VISIT_TWIST_RADIUS_DEG, VISIT_TWIST_S) while
 the hand turns the twist to both stops (:mod:`firmware_sim.hand`).
 """
 
@@ -98,14 +98,6 @@ VISIT_KINDS = {
 #: Least length (deg) of edge an ``edge`` visit traces, centred on the place's nearest edge point:
 #: a guide names a stretch by its farthest station; 5 deg either side reach past its ends.
 VISIT_EDGE_DEG = 10.0
-#: Depth (deg) an ``edge`` visit traces at: a person asked to trace the edge at a named place
-#: presses the limb against it, nearer than the scripted trace's EDGE_INSET_DEG. The least depth
-#: any move keeps (MIN_PATH_DEPTH_DEG, 0.5) less the peak tremor (firmware_sim/hand.py, 0.2)
-#: keeps the samples at least 0.3 deg inside; and they come within 0.7 deg of the edge, so an
-#: edge learned at the truth stands within the region's reach report (REACH_DEG, 1.25 deg) of
-#: them. At EDGE_INSET_DEG, 1.0 plus wobble and tremor, guided teachings kept held stretches
-#: 1.26-1.42 deg from every sample after three rounds (docs/bench_guided_teaching.md).
-VISIT_EDGE_INSET_DEG = MIN_PATH_DEPTH_DEG
 #: A ``twist`` visit circles the place at this radius (deg) for VISIT_TWIST_S: the stops are then
 #: taught over a patch a few degrees wide (one evidence station is not a stretch), and 3 s hold
 #: three of the trace's twist cycles (firmware_sim/hand.py, TRACE_TWIST_CYCLE: 0.9 s each).
@@ -451,13 +443,13 @@ class SwingPath:
         """Go to the visit's place and do what it asks; records its span (module docstring)."""
         region = self.region
         if visit.do == "edge":
-            # the stretch of edge round the place's nearest edge point, VISIT_EDGE_INSET_DEG in
+            # the stretch of edge round the place's nearest edge point, EDGE_INSET_DEG inside
             u0 = float(region.boundary_fraction(visit.pan_deg, visit.tilt_deg))
             length = max(visit.length_deg, VISIT_EDGE_DEG)
             n = max(int(length / TRACE_STEP_DEG), 1) + 1
             u = u0 + (length / region.perimeter_deg) * np.linspace(-0.5, 0.5, n)
-            points = np.array([region.boundary_point(float(v), VISIT_EDGE_INSET_DEG) for v in u])
-            points = deepen(region, points, np.full(n, VISIT_EDGE_INSET_DEG))
+            points = np.array([region.boundary_point(float(v), EDGE_INSET_DEG) for v in u])
+            points = deepen(region, points, np.full(n, EDGE_INSET_DEG))
         else:
             # a circle round the place, the place first set at least EDGE_INSET_DEG deep
             middle = deepen(
@@ -477,10 +469,7 @@ class SwingPath:
         if visit.do == "edge":
             for b in points[1:]:
                 self._trace_to(
-                    (float(b[0]), float(b[1])),
-                    VISIT_EDGE_INSET_DEG,
-                    TRACE_SPEED_DEG_S,
-                    TRACE_SPLITS,
+                    (float(b[0]), float(b[1])), EDGE_INSET_DEG, TRACE_SPEED_DEG_S, TRACE_SPLITS
                 )
         else:
             speed = 2.0 * math.pi * VISIT_TWIST_RADIUS_DEG / VISIT_TWIST_S
