@@ -2,7 +2,8 @@
 
 Run: ``.venv/bin/python benchmarks/bench_guided_teaching.py`` (writes
 docs/bench_guided_teaching.md; ``--quick``: fewer commands and a coarser truth, as
-bench_region_families.py's; ``--seeds``, ``--families`` (indices of its FAMILIES) to choose).
+bench_region_families.py's; ``--seeds``, ``--families`` (indices of its FAMILIES) to choose;
+``--requests``: print where each round's requests come from).
 
 The true regions are benchmarks/bench_region_families.py's (its families, truth, hand teaching
 and figures are imported, not restated). Each is first taught by the simulator hand's scripted
