@@ -2,7 +2,8 @@
 
 Run: ``.venv/bin/python benchmarks/bench_guided_teaching.py`` (writes
 docs/bench_guided_teaching.md; ``--quick``: fewer commands and a coarser truth, as
-bench_region_families.py's; ``--seeds``, ``--families`` (indices of its FAMILIES) to choose).
+bench_region_families.py's; ``--seeds``, ``--families`` (indices of its FAMILIES) to choose;
+``--requests``: print where each round's requests come from).
 
 The true regions are benchmarks/bench_region_families.py's (its families, truth, hand teaching
 and figures are imported, not restated). Each is first taught by the simulator hand's scripted
@@ -99,9 +100,10 @@ def poses(hand: Hand, t_end: float) -> tuple[np.ndarray, np.ndarray]:
     return t, np.array([pose_quat_scalar(*r) for r in rows])
 
 
-def requests(t: np.ndarray, q: np.ndarray, seed: int) -> tuple[list[dict], bool]:
+def requests(t: np.ndarray, q: np.ndarray, seed: int) -> tuple[list[dict], bool, str]:
     """The guide's requests for a teaching (times (N,) s, orientations (N, 4)) as visit
-    mappings without a time, and whether the guide calls it complete (module docstring)."""
+    mappings without a time, whether the guide calls it complete (module docstring), and where
+    the requests come from, in words (``--requests`` prints it each round)."""
     d, _ = decompose(q)
     coverage = assess_directions(t, d)
     twist = TwistGuide()
@@ -140,6 +142,23 @@ def requests(t: np.ndarray, q: np.ndarray, seed: int) -> tuple[list[dict], bool]
         if coverage.inside_covered < READY_INSIDE_COVERED:
             for gap in coverage.inside_gaps:
                 wanted.append({"at": list(gap.middle_deg), "do": "twist"})
+    unturned = sum(p.samples >= MIN_CELL_SAMPLES and not p.turned for p in told.places)
+    stretches = ", ".join(
+        f"({s.pan_deg:+.1f}, {s.tilt_deg:+.1f}) {s.distance_deg:.2f} deg"
+        + (" held" if s.held else "")
+        for s in region.swing.unsupported_edge
+    )
+    gaps = ", ".join(
+        f"({g.middle_deg[0]:+.1f}, {g.middle_deg[1]:+.1f})" for g in coverage.edge_gaps
+    )
+    why = (
+        f"twist places not turned {unturned}, band places unsupported {len(region.unsupported)}; "
+        f"swing stretches {len(region.swing.unsupported_edge)} [{stretches}]; coverage "
+        f"{'READY' if coverage.ready else 'not ready'}: edge closed "
+        f"{100 * coverage.edge_closed:.1f} %, edge gaps [{gaps}], open holes "
+        f"{sum(h.open for h in coverage.holes)}, inside covered "
+        f"{100 * coverage.inside_covered:.1f} %"
+    )
     complete = (
         coverage.ready
         and told.cells > 0
@@ -147,12 +166,13 @@ def requests(t: np.ndarray, q: np.ndarray, seed: int) -> tuple[list[dict], bool]
         and not region.unsupported
         and not region.swing.unsupported_edge
     )
-    return wanted, complete
+    return wanted, complete, why
 
 
-def guided(mapping: dict, seed: int, teach_s: float = TEACH_S) -> dict:
+def guided(mapping: dict, seed: int, teach_s: float = TEACH_S, say: bool = False) -> dict:
     """Teach for ``teach_s`` s, then answer the guide's requests round by round (module
-    docstring); the taught orientations before (M, 4) and after (N, 4) and the rounds' figures."""
+    docstring); the taught orientations before (M, 4) and after (N, 4) and the rounds' figures.
+    ``say``: print where each round's requests come from."""
     visits: list[dict] = []
     t_end = teach_s
     hand = Hand.from_mapping(mapping, seed=seed, source="<family>")
@@ -161,7 +181,9 @@ def guided(mapping: dict, seed: int, teach_s: float = TEACH_S) -> dict:
     asked = []
     rounds = 0
     while True:
-        wanted, complete = requests(t, q, seed)
+        wanted, complete, why = requests(t, q, seed)
+        if say:
+            print(f"  at {t_end:.0f} s, {len(wanted)} requests: {why}", flush=True)
         asked.append(len(wanted))
         left = sorted({v["do"] for v in wanted})
         if complete or rounds == MAX_ROUNDS or t_end - teach_s >= MAX_EXTRA_S or not wanted:
@@ -201,7 +223,11 @@ def worst_swing_place(truth: BandRegion, q: np.ndarray, seed: int) -> tuple[floa
 
 
 def run(
-    quick: bool, seeds: tuple[int, ...], families: tuple[str, ...], where: bool = False
+    quick: bool,
+    seeds: tuple[int, ...],
+    families: tuple[str, ...],
+    where: bool = False,
+    say: bool = False,
 ) -> list[dict]:
     """Every family and seed; one row each."""
     rows = []
@@ -209,7 +235,7 @@ def run(
         for seed in seeds:
             start = time.perf_counter()
             truth, mapping = make_truth(family, seed)
-            g = guided(mapping, seed)
+            g = guided(mapping, seed, say=say)
             before = measure(truth, g["q_before"], seed, quick)
             after = measure(truth, g["q"], seed, quick)
             inside = float(np.mean(truth.contains(g["q"])))
@@ -307,10 +333,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--where", action="store_true", help="print where the swing reaches farthest past"
     )
+    parser.add_argument(
+        "--requests", action="store_true", help="print where each round's requests come from"
+    )
     parser.add_argument("--out", type=Path, default=ROOT / "docs" / "bench_guided_teaching.md")
     args = parser.parse_args(argv)
     families = tuple(FAMILIES[k] for k in args.families)
-    rows = run(args.quick, tuple(args.seeds), families, args.where)
+    rows = run(args.quick, tuple(args.seeds), families, args.where, args.requests)
     flags = " --quick" * args.quick
     if families != FAMILIES:
         flags += " --families " + " ".join(map(str, args.families))

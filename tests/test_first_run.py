@@ -21,6 +21,7 @@ import pytest
 
 from limbctl.servo.profiles import load_rig_profile
 from limbctl.teach.dataset import DatasetWriter, load_dataset
+from tests.compile_probe import COUNTER
 
 ROOT = Path(__file__).resolve().parents[1]
 TEACHING = ROOT / "tests" / "data" / "hand_irregular_seed0_20s.limb"
@@ -34,20 +35,9 @@ TRAIN_COMPILES = (36, 23)
 #: a helper or two) as well (seen in a full test run).
 TELEOP_COMPILES = (11, 9)
 
-PROBE = r"""
-import json, sys
-import numba.core.event as ev
-
-compiled = []
-
-class Count(ev.Listener):
-    def on_start(self, event):
-        pass
-
-    def on_end(self, event):
-        f = event.data["dispatcher"].py_func
-        compiled.append(f"{f.__module__}.{f.__qualname__}")
-
+PROBE = (
+    COUNTER
+    + r"""
 ev.register("numba:compile", Count())
 from limbctl.cli import main
 status = main(sys.argv[2:])
@@ -55,6 +45,7 @@ with open(sys.argv[1], "w") as out:
     json.dump(compiled, out)
 sys.exit(status)
 """
+)
 
 
 def compiled_by(
@@ -137,29 +128,20 @@ TWIST_FIT_COMPILES = (46, 54)
 #: train repeated one before, most of them prange bodies compiling helpers again.
 TWIST_FIT_REPEATS = 19
 
-TWIST_FIT = r"""
-import json, sys
-import numba.core.event as ev
+TWIST_FIT = (
+    COUNTER
+    + r"""
 import numpy as np
 from limbctl.envelope import RigidMap
 from limbctl.envelope.synthetic_twist import ShoulderRegion
-
-compiled = []
-
-class Count(ev.Listener):
-    def on_start(self, event):
-        pass
-
-    def on_end(self, event):
-        f = event.data["dispatcher"].py_func
-        compiled.append([f"{f.__module__}.{f.__qualname__}", str(event.data["args"])])
 
 q = ShoulderRegion().teaching(1000, 500, 500, np.random.default_rng(0))
 ev.register("numba:compile", Count())
 RigidMap(seed=0, twist=True).fit(q)
 with open(sys.argv[1], "w") as out:
-    json.dump(compiled, out)
+    json.dump(signatures, out)
 """
+)
 
 
 def test_a_first_twist_fit_compiles_no_helper_per_prange_body_and_no_gate_kernel(tmp_path):

@@ -41,7 +41,13 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from limbctl.region.evidence import REACH_DEG, STATION_DEG, edge_stations, outer_arcs
+from limbctl.region.evidence import (
+    REACH_DEG,
+    STATION_DEG,
+    edge_stations,
+    loop_arcs,
+    outer_arcs,
+)
 from limbctl.region.loops import chord
 from limbctl.region.mesh import DirectionMesh
 
@@ -210,24 +216,6 @@ def _pinned(
             np.insert(chain, i + 1, True),
         )
     return loops
-
-
-def loop_arcs(mesh: DirectionMesh) -> list[np.ndarray]:
-    """The arcs (indices into ``mesh.edges``) of each of its closed loops, in order."""
-    following = np.full(mesh.vertices.shape[0], -1, dtype=np.int64)
-    following[mesh.edges[:, 0]] = np.arange(mesh.edges.shape[0])
-    seen = np.zeros(mesh.edges.shape[0], dtype=bool)
-    out = []
-    for first in range(mesh.edges.shape[0]):
-        if seen[first]:
-            continue
-        run, e = [], first
-        while not seen[e]:
-            seen[e] = True
-            run.append(e)
-            e = following[mesh.edges[e, 1]]
-        out.append(np.array(run, dtype=np.int64))
-    return out
 
 
 def _tangent(normal: np.ndarray, at: np.ndarray) -> np.ndarray:

@@ -109,10 +109,18 @@ class Stretch:
 def outer_arcs(mesh: DirectionMesh) -> np.ndarray:
     """(E,) bool: whether each arc of ``mesh`` lies on an outer loop (region on its left and
     enclosing positive area), not on a hole's loop."""
+    outer = np.zeros(mesh.edges.shape[0], dtype=bool)
+    for run in loop_arcs(mesh):
+        outer[run] = loop_area(mesh.vertices[mesh.edges[run, 0]]) > 0.0
+    return outer
+
+
+def loop_arcs(mesh: DirectionMesh) -> list[np.ndarray]:
+    """The arcs (indices into ``mesh.edges``) of each of its closed loops, in order."""
     following = np.full(mesh.vertices.shape[0], -1, dtype=np.int64)
     following[mesh.edges[:, 0]] = np.arange(mesh.edges.shape[0])
-    outer = np.zeros(mesh.edges.shape[0], dtype=bool)
     seen = np.zeros(mesh.edges.shape[0], dtype=bool)
+    out = []
     for first in range(mesh.edges.shape[0]):
         if seen[first]:
             continue
@@ -121,8 +129,8 @@ def outer_arcs(mesh: DirectionMesh) -> np.ndarray:
             seen[e] = True
             run.append(e)
             e = following[mesh.edges[e, 1]]
-        outer[run] = loop_area(mesh.vertices[mesh.edges[run, 0]]) > 0.0
-    return outer
+        out.append(np.array(run, dtype=np.int64))
+    return out
 
 
 def edge_stations(mesh: DirectionMesh, step: float) -> tuple[np.ndarray, np.ndarray]:

@@ -17,6 +17,7 @@ from limbctl.cli import main
 from limbctl.geometry import jit
 from limbctl.region.correct_kernels import SINGLE_ROWS
 from limbctl.teach.warm import LARGE_BATCH, warming_in_background
+from tests.compile_probe import COUNTER
 from tests.test_first_run import ROOT, compiled_by, teaching
 
 
@@ -48,23 +49,13 @@ def teaching3(path: Path) -> Path:
 #: A library user's first use in a fresh process: a fit of bare orientations (another seed and
 #: size than the warm-up's teaching), then ``contains`` and ``correct`` of one orientation and of
 #: batches up to a thousand; writes the dispatchers numba compiled meanwhile as JSON.
-LIBRARY = r"""
-import json, sys
-import numba.core.event as ev
+LIBRARY = (
+    COUNTER
+    + r"""
 import numpy as np
 from limbctl.envelope import RigidMap
 from limbctl.envelope.synthetic_twist import ShoulderRegion
 from limbctl.geometry.quat import limb_direction, swing_from_direction
-
-compiled = []
-
-class Count(ev.Listener):
-    def on_start(self, event):
-        pass
-
-    def on_end(self, event):
-        f = event.data["dispatcher"].py_func
-        compiled.append(f"{f.__module__}.{f.__qualname__}")
 
 twist = sys.argv[2] == "sim3"
 q = ShoulderRegion().teaching(1000, 500, 500, np.random.default_rng(1))
@@ -78,6 +69,7 @@ for rows in (q[0], q[:13], q[:65], q[:1000]):
 with open(sys.argv[1], "w") as out:
     json.dump(compiled, out)
 """
+)
 
 
 @pytest.mark.parametrize("rig", ["sim", "sim3"])

@@ -1,0 +1,25 @@
+"""The numba compile counter the first-run tests run in a fresh process.
+
+:data:`COUNTER` is the head of a ``python -c`` script: it lists, in ``compiled``, every kernel
+numba compiles after ``ev.register("numba:compile", Count())`` as ``"module.qualname"``, and in
+``signatures`` the same with the argument types (``[name, args]``), for the script's tail to
+write out.
+"""
+
+COUNTER = r"""
+import json, sys
+import numba.core.event as ev
+
+compiled = []
+signatures = []
+
+class Count(ev.Listener):
+    def on_start(self, event):
+        pass
+
+    def on_end(self, event):
+        f = event.data["dispatcher"].py_func
+        name = f"{f.__module__}.{f.__qualname__}"
+        compiled.append(name)
+        signatures.append([name, str(event.data["args"])])
+"""
