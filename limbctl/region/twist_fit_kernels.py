@@ -364,7 +364,9 @@ def gradient_caps(
             if limited[i] and angle > reach:
                 # beyond the reach the slope's extrapolation is trusted only as far as the
                 # steep cone's: the bound holds if either assumption does
-                t = min(t, limit[j] - ref[i] - steep * angle)
+                cone = limit[j] - ref[i] - steep * angle
+                if cone < t:
+                    t = cone
             if t > best:
                 best = t
         cap[i] = best
