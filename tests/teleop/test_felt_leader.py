@@ -30,7 +30,7 @@ from hypothesis import strategies as st
 from calib.profile import default_sim_profile
 from limbctl.envelope import Cone
 from limbctl.errors import ConfigError
-from limbctl.geometry.gimbal import pose_quat_scalar
+from limbctl.geometry.gimbal import pose_quat, pose_quat_scalar
 from limbctl.geometry.twist import decompose_one
 from limbctl.jobs import gate_for
 from limbctl.live import leader_status
@@ -135,7 +135,15 @@ def felt_session(tmp_path, rig: FeltRig = SIM, model="xm430-w350", rate_hz=25.0)
         source = parse_source(spec).open(SourceContext(rig=s.rig, rate_hz=rate_hz))
         assert isinstance(source, LeaderSource)
         step = math.radians(120.0) / 200.0  # 120 deg/s at 200 Hz
-        s.gate = Gate(rig.region(), GateLimits.for_profile(s.profile, step, 3.0 * step))
+        region = rig.region()
+        s.gate = Gate(region, GateLimits.for_profile(s.profile, step, 3.0 * step))
+        # the region's kernels compiled (or loaded) before the hand moves, as `limbctl teleop`
+        # has them prepared before its start: a compile inside the first pressed cycles stalls
+        # the loop for seconds on a cold cache while the hand carries the leader on
+        for pose in ((0.0,) * len(rig.ids), (60.0,) + (0.0,) * (len(rig.ids) - 1)):
+            q = pose_quat(*pose)
+            region.contains(q), region.correct(q)
+            region.contains(q[None]), region.correct(q[None])
         yield s, source, log
 
 
