@@ -106,14 +106,20 @@ def _bumped_band_deg(pan, tilt):
     return 5.0 + 0.5 * bump, 40.0 + 0.5 * bump
 
 
+def _learned_grid(region) -> np.ndarray:
+    """Directions (K, 3) of a 1 deg pan and tilt grid over the square and the dip, inside the
+    region's learned swing outline."""
+    pan, tilt = np.meshgrid(np.arange(-36.0, 37.0, 1.0), np.arange(-26.0, 37.0, 1.0))
+    d = pan_tilt_to_direction(np.radians(pan.ravel()), np.radians(tilt.ravel()))
+    return d[region.swing.mesh.contains(d)]
+
+
 def test_a_densely_taught_bump_steeper_than_the_cone_is_not_exceeded():
     # the fixed cone alone let the upper limit 1.86 deg past the truth on the bump's sides
     # (stops high on the bump 8 deg away vouched for the limit at 0.5 deg per deg)
     truth = BandRegion(SQUARE, _bumped_band_deg)
     region = TwistRegion().fit(truth.teaching(3000, 1500, 4000, np.random.default_rng(6)))
-    pan, tilt = np.meshgrid(np.arange(-36.0, 37.0, 1.0), np.arange(-26.0, 37.0, 1.0))
-    d = pan_tilt_to_direction(np.radians(pan.ravel()), np.radians(tilt.ravel()))
-    d = d[region.swing.mesh.contains(d)]
+    d = _learned_grid(region)
     excess = _excess_deg(truth, region, d)
     assert excess.max() <= 1.0, f"band {excess.max():.2f} deg past the true stop"
     # and the band still holds the truth 2 deg inside each stop
@@ -140,9 +146,7 @@ def test_a_sparsely_taught_steep_dip_is_held_to_the_samples_near_it():
     # 2.92 deg past the truth (the truth falls faster than CAP_SLOPE there)
     truth = BandRegion(SQUARE, _steep_dip_deg)
     region = TwistRegion().fit(truth.teaching(500, 400, 600, np.random.default_rng(3)))
-    pan, tilt = np.meshgrid(np.arange(-36.0, 37.0, 1.0), np.arange(-26.0, 37.0, 1.0))
-    d = pan_tilt_to_direction(np.radians(pan.ravel()), np.radians(tilt.ravel()))
-    d = d[region.swing.mesh.contains(d)]
+    d = _learned_grid(region)
     excess = _excess_deg(truth, region, d)
     assert excess.max() <= 1.0, f"band {excess.max():.2f} deg past the true stop"
     # the held stretch is asked for: an upper stop within the dip
@@ -176,9 +180,7 @@ def test_a_densely_taught_bending_bump_is_not_exceeded_from_far_samples():
     # bump's side and let the upper limit 1.76 deg past the truth
     truth = BandRegion(SQUARE, _ridge_deg)
     region = TwistRegion().fit(truth.teaching(3000, 1500, 4000, np.random.default_rng(6)))
-    pan, tilt = np.meshgrid(np.arange(-36.0, 37.0, 1.0), np.arange(-26.0, 37.0, 1.0))
-    d = pan_tilt_to_direction(np.radians(pan.ravel()), np.radians(tilt.ravel()))
-    d = d[region.swing.mesh.contains(d)]
+    d = _learned_grid(region)
     excess = _excess_deg(truth, region, d)
     assert excess.max() <= 1.0, f"band {excess.max():.2f} deg past the true stop"
 
