@@ -93,10 +93,11 @@ def test_a_limb_left_outside_times_out_with_torque_off_and_exit_2(rig_name):
     last = published[-1]
     assert all(abs(a - math.degrees(b)) < 0.5 for a, b in zip(last.pose_deg, outside))
     assert last.outside_deg > 8.0 and last.target_deg is not None
-    # to a log (not a terminal) one line every LOG_EVERY_S s: the first, here
+    # to a log (not a terminal) one line every LOG_EVERY_S s: the first status's, here (the
+    # limb, torque off, may drift a tenth of a degree by the last one)
     text = stream.getvalue()
     status_lines = [ln for ln in text.splitlines() if ln.startswith("waiting ")]
-    assert len(status_lines) == 1 and last.advice().split(":")[0] in text, text
+    assert len(status_lines) == 1 and published[0].advice().split(":")[0] in text, text
 
 
 class WriteRecorder:
