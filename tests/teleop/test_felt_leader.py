@@ -794,6 +794,23 @@ def test_a_dead_controllers_leader_goes_limp_within_its_guards_bound(tmp_path, r
 # -- a passive leader mirrored through the gate ---------------------------------------------
 
 
+def turn_shafts(rig, ids: tuple[int, ...], degrees: tuple[float, ...]) -> None:
+    """Play the person: turn the passive leader's shafts ``ids`` to the follower's joint angles
+    ``degrees`` (deg, one per joint, rounded to ticks) and wait, 20 s at most, until each is
+    within 2 ticks of its goal."""
+    goals = {
+        i: joint.zero_tick + joint.direction * round(deg * 4096 / 360)
+        for i, joint, deg in zip(ids, rig.joints, degrees, strict=True)
+    }
+    rig.bus.set_torque(True, ids)
+    rig.bus.sync_write(Register.GOAL_POSITION, goals)
+    deadline = time.monotonic() + 20
+    while any(
+        abs(rig.bus.sync_read(Register.PRESENT_POSITION, (i,))[i] - goals[i]) > 2 for i in goals
+    ):
+        assert time.monotonic() < deadline, "the leader shafts did not reach their goals"
+
+
 def test_follower_mirrors_a_pushed_leader_within_the_region(cone_file):
     gate = gate_for(cone_file(30.0), default_sim_profile(), 200.0, 120.0)
     with open_rig(extra_ids=(3, 4)) as session:
@@ -801,14 +818,7 @@ def test_follower_mirrors_a_pushed_leader_within_the_region(cone_file):
         limits = rig.tick_limits()
         limits.update({3: (0, 4095), 4: (0, 4095)})
         configure_servos(rig.bus, limits)
-        pan_joint = rig.profile.pan
-        target = pan_joint.zero_tick + pan_joint.direction * round(60 * 4096 / 360)
-        tilt_target = rig.profile.tilt.zero_tick
-        rig.bus.set_torque(True, (3, 4))
-        rig.bus.sync_write(Register.GOAL_POSITION, {3: target, 4: tilt_target})
-        deadline = time.monotonic() + 20
-        while abs(rig.bus.sync_read(Register.PRESENT_POSITION, (3,))[3] - target) > 2:
-            assert time.monotonic() < deadline, "the leader shaft did not reach its goal"
+        turn_shafts(rig, (3, 4), (60, 0))
         source = LeaderSource(rig, (3, 4))
         stop = threading.Event()
         out = {}
@@ -864,18 +874,7 @@ def test_a_three_servo_leader_gives_full_orientations_and_needs_a_three_servo_fo
     with open_rig(rig_path="sim3", extra_ids=(4, 5, 6)) as session:
         rig = session.rig
         configure_servos(rig.bus, {**rig.tick_limits(), 4: (0, 4095), 5: (0, 4095), 6: (0, 4095)})
-        # play the person: put the leader's shafts at pan 20, tilt 10, roll -30 deg
-        goals = {
-            i: joint.zero_tick + joint.direction * round(deg * 4096 / 360)
-            for i, joint, deg in zip((4, 5, 6), rig.joints, (20, 10, -30), strict=True)
-        }
-        rig.bus.set_torque(True, (4, 5, 6))
-        rig.bus.sync_write(Register.GOAL_POSITION, goals)
-        deadline = time.monotonic() + 20
-        while any(
-            abs(rig.bus.sync_read(Register.PRESENT_POSITION, (i,))[i] - goals[i]) > 2 for i in goals
-        ):
-            assert time.monotonic() < deadline, "the leader shafts did not reach their goals"
+        turn_shafts(rig, (4, 5, 6), (20, 10, -30))
         with LeaderSource(rig, (4, 5, 6)) as source:
             ticks = rig.bus.sync_read(Register.PRESENT_POSITION, (4, 5, 6))
             [command] = source.poll()
