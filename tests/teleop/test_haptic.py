@@ -659,18 +659,19 @@ def test_at_200_hz_an_xl330_leader_pushes_with_its_cap_and_returns_under_30_deg_
     assert all(beyond_of(region, r) > 0.0 for r in after[::5])  # never walked inside
 
 
-#: Pressed 20 deg beyond the edge, held, then pulled back inside in 0.2 s: the two-servo leader
-#: in pan, the three-servo one in swing and in twist.
+#: Pressed 20 deg beyond the edge, held, then pulled back inside in 0.2 s: in swing and twist.
+#: (The two-servo leader's pull in pan: tests/teleop/test_brake.py, never pulled outward.)
 PULLS = {
-    "sim": [[0.0, 0.0, 0.0], [2.0, 50.0, 0.0], [4.0, 50.0, 0.0], [4.2, 0.0, 0.0]],
-    "sim3-swing": [[0, 0, 0, 0], [2.0, 50.0, 0.0, 0.0], [4.0, 50.0, 0.0, 0.0], [4.2, 0, 0, 0]],
-    "sim3-twist": [[0, 0, 0, 0], [2.0, 0.0, 0.0, 50.0], [4.0, 0.0, 0.0, 50.0], [4.2, 0, 0, 0]],
+    "swing": [[0.0, 0.0, 0.0, 0.0], [2.0, 50.0, 0.0, 0.0], [4.0, 50.0, 0.0, 0.0], [4.2, 0, 0, 0]],
+    "twist": [[0.0, 0.0, 0.0, 0.0], [2.0, 0.0, 0.0, 50.0], [4.0, 0.0, 0.0, 50.0], [4.2, 0, 0, 0]],
 }
 
 
 @pytest.mark.parametrize("stiffness", [0.05, 0.2])
 @pytest.mark.parametrize("pull", sorted(PULLS))
-def test_a_hand_carrying_the_leader_back_toward_the_region_is_pulled_outward_less(pull, stiffness):
+def test_a_hand_carrying_the_leader_back_toward_the_region_is_pulled_outward_less(
+    region, pull, stiffness
+):
     # pressed 20 deg beyond, then the hand heads back inside: the servos' setpoints move at most
     # RETURN_SPEED (30 deg/s), so their loops brake a faster leader, pulling it away from the
     # region; the law lets go once a read shows it outrunning the setpoints by more than a tick.
@@ -679,7 +680,6 @@ def test_a_hand_carrying_the_leader_back_toward_the_region_is_pulled_outward_les
     # 5): the pull lasts at most a cycle and its write (6 ms); round 4, which waited for the
     # leader to outrun the setpoint by a tick, let a two-servo hand at about the setpoint's pace
     # (0.05 N m/deg) be pulled 25 ms, up to 0.19 N m (docs/bench_haptic.md).
-    region = region_of(pull.partition("-")[0])
     rows, _ = felt3(region, PULLS[pull], 5.0, stiffness=stiffness)
     before, _ = felt3(region, PULLS[pull], 5.0, stiffness=stiffness, rules=False)
     outward, inside = pulled_outward(region, rows)
