@@ -41,6 +41,7 @@ from limbctl.servo.bus import ServoBus
 from limbctl.servo.control_table import HardwareError, Register
 from limbctl.servo.health import HealthLimits
 from limbctl.servo.rig import Rig
+from limbctl.teleop.cycle import CycleState
 from limbctl.teleop.loop import LoopConfig, SafeState, run
 from tests.safety.support import (
     PROFILE,
@@ -436,10 +437,12 @@ def test_a_dropout_still_going_on_at_a_clean_end_is_reported_with_its_length_so_
 @pytest.mark.parametrize("safe_state", [SafeState.HOLD, SafeState.TORQUE_OFF])
 def test_a_servo_pushed_hard_is_reported_blocked_before_the_firmware_trips(tmp_path, safe_state):
     log = tmp_path / "goals.jsonl"
+    seen = []  # every cycle's value, as an observer sees it
     with sim_rig(goal_log=log) as (sim, rig):
         # three times stall torque: the motor cannot hold it
         push = lambda sim: sim.push(1, 300.0)  # noqa: E731
-        loop = faulted(sim, rig, push, still_lines(20000), 200, safe_state=safe_state)
+        lines = still_lines(20000)
+        loop = faulted(sim, rig, push, lines, 200, safe_state=safe_state, on_cycle=seen.append)
         summary = loop.summary
         truth = sim.truth()
         if safe_state is SafeState.HOLD:
@@ -462,6 +465,8 @@ def test_a_servo_pushed_hard_is_reported_blocked_before_the_firmware_trips(tmp_p
     else:
         assert summary.fault.endswith("— torque switched off")
         assert not any(servo["torque_on"] for servo in truth["servos"].values())
+    # the last cycle's value carries the fault the summary reports
+    assert seen[-1].state is CycleState.FAULT and seen[-1].fault == summary.fault
     assert_gated(log, loop.gate, rig)
 
 
