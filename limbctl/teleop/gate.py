@@ -69,6 +69,10 @@ REGION_TOLERANCE_DEG = 0.01
 #: Largest | |q| - 1 | of a target the gate follows: the parser's quaternions are normalised to
 #: ~1e-16, so anything further off was damaged on the way and is held.
 UNIT_NORM_TOLERANCE = 1e-6
+#: Rounds of scaling a clamped joint move back within the slew limit: each takes the distance
+#: to within a second-order term of ``max_step`` (about 1e-6 of it for a 2 deg step), so the
+#: second round ends it; four leave room, and a move still over after them is held.
+CLAMP_SHRINK_ROUNDS = 4
 
 
 @dataclass(frozen=True)
@@ -278,6 +282,10 @@ class Gate:
             min(max(v, lo), hi) for v, lo, hi in zip(joints, lim.joint_min, lim.joint_max)
         )
         clamped = any(c != v for c, v in zip(clamped_pose, joints))
+        if clamped:
+            clamped_pose = self._within_step(clamped_pose, present, here)
+            if clamped_pose is None:
+                return self.hold("a joint limit carried the step past the slew limit")
 
         # a short move of the limb can ask for a long joint move (near tilt +-90, roll the long
         # way): joint' = joint0 + f (joint - joint0), f = max_joint_step / largest step
@@ -294,6 +302,27 @@ class Gate:
         self._point = chain.point_at(pose)
         outcome = Outcome.strongest(corrected, clamped, slewed)
         return GateResult(pose, outcome, corrected=corrected, clamped=clamped, slewed=slewed)
+
+    def _within_step(
+        self, pose: tuple[float, ...], present: tuple[float, ...], here: Any
+    ) -> tuple[float, ...] | None:
+        """``pose`` (rad, one per joint) brought back within ``max_step`` of ``here`` (the
+        chain's point of ``present``), or None when it cannot be.
+
+        A clamp moves the point along a joint limit, which can carry it farther from the last
+        safe point than the slew allows (a step that crosses tilt's limit on a slant). The joint
+        move is scaled back, joint' = joint0 + f (joint - joint0) with f = max_step / d, until
+        the distance d is within max_step: inside the joint box (both ends are), and over so
+        short a move d is near linear in f, so a round or two does it.
+        """
+        chain, step = self.chain, self.limits.max_step
+        for _ in range(CLAMP_SHRINK_ROUNDS):
+            d = chain.distance(here, chain.point_at(pose))
+            if d <= step:
+                return pose
+            f = step / d
+            pose = tuple(v0 + f * (v - v0) for v, v0 in zip(pose, present))
+        return pose if chain.distance(here, chain.point_at(pose)) <= step else None
 
     def _corrected_step(self, here: Any, aim: Any) -> Any:
         """The point ``max_step`` from ``here`` toward ``aim`` (``aim`` when nearer), corrected

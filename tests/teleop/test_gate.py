@@ -227,6 +227,23 @@ def test_every_output_is_safe_and_slew_limited(rig, data, half_angle_deg):
             assert moved(gate, before, result.pose) <= bound
 
 
+def test_a_step_clamped_at_a_joint_limit_stays_within_the_slew_limit():
+    # hypothesis's example: along tilt's -30 deg limit on a 75 deg cone, the corrected step
+    # asked for tilt below it, and clamping it carried the pose 0.0349073 rad from the last
+    # one (max_step 0.0349066) before the gate scaled clamped moves back
+    gate = make_gate(2, half_angle=math.radians(75.0))
+    clamped = []
+    for target in ((1.0, 0.0), (0.0, -1.5), (-2.0, 0.0)):
+        for _ in range(15):
+            before = gate.safe_pose
+            result = gate.step(pan_tilt_to_quat(*target))
+            if result.clamped:  # it ran along the limit
+                clamped.append(moved(gate, before, result.pose))
+                assert result.pose[1] == pytest.approx(math.radians(-30.0))
+    assert clamped and 0.9 * gate.limits.max_step < max(clamped)
+    assert max(clamped) <= gate.limits.max_step + 1e-12
+
+
 @pytest.mark.parametrize("rig", RIGS)
 @settings(max_examples=60, deadline=None)
 @given(pose=st.tuples(st.floats(-0.5, 0.5), st.floats(-0.4, 0.4), st.floats(-0.45, 0.45)))
