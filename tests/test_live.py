@@ -13,6 +13,7 @@ import signal
 import socket
 import threading
 import time
+from dataclasses import replace
 from decimal import ROUND_HALF_UP, Decimal
 from pathlib import Path
 
@@ -219,19 +220,10 @@ def test_teleop_feed_names_the_edge_that_holds_as_the_page_draws_it():
     board = Board()
     feed = TeleopFeed(board)
     # the command lies up and to the +pan side of where the gate keeps writing the same pose
+    result = GateResult((0.1, 0.2), Outcome.CORRECTED, corrected=True)
     for index in range(3):
-        feed(
-            Cycle(
-                index=index,
-                t=index / 200.0,
-                state=CycleState.RUNNING,
-                complete=True,
-                command_deg=(20.0, 40.0),
-                result=GateResult((0.1, 0.2), Outcome.CORRECTED, corrected=True),
-                present=(0.1, 0.2),
-                written=True,
-            )
-        )
+        at_edge = replace(cycle(index, index / 200.0, written=True), result=result)
+        feed(replace(at_edge, command_deg=(20.0, 40.0), present=(0.1, 0.2)))
     status = board.live.teleop
     assert status.blocked == ("+pan", "+tilt")
     # the page's plane is seen from behind the limb, as the terminal names it: +pan is left

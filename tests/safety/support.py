@@ -31,6 +31,7 @@ from limbctl.servo.profiles import joint_tick_limits
 from limbctl.servo.rig import Rig
 from limbctl.teleop import gate
 from limbctl.teleop.gate import Gate, GateLimits, GateResult, Outcome
+from limbctl.teleop.loop import LoopConfig, Telemetry, run
 from limbctl.teleop.sources import CommandSource
 
 PROFILE = default_sim_profile()
@@ -246,3 +247,44 @@ class CycleCounter:
         with self._cond:
             ok = self._cond.wait_for(lambda: len(self.rows) >= count, timeout_s)
         assert ok, f"the loop did not run {count} cycles within {timeout_s} s"
+
+
+class LoopThread:
+    """The real loop in a thread (``gate`` and ``source`` on ``rig``), so a test can inject faults
+    or send commands while it runs; its telemetry rows are counted in ``cycles``."""
+
+    def __init__(self, rig: Rig, gate: RecordingGate, source, config: LoopConfig) -> None:
+        self.gate = gate
+        self.cycles = CycleCounter()
+        self.stop = threading.Event()
+        self.summary = None
+        self.error: BaseException | None = None
+        self._thread = threading.Thread(
+            target=self._run, args=(rig, config, source), name="teleop-loop"
+        )
+
+    def _run(self, rig, config, source) -> None:
+        try:
+            self.summary = run(
+                rig, self.gate, source, config, telemetry=Telemetry(self.cycles), stop=self.stop
+            )
+        except BaseException as exc:  # handed to the test thread by join/__exit__
+            self.error = exc
+            raise
+
+    def __enter__(self) -> LoopThread:
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.stop.set()
+        self._thread.join(timeout=60)
+        assert not self._thread.is_alive(), "the control loop did not stop"
+        if self.error is not None:
+            raise self.error
+
+    def join(self, timeout_s: float = 60.0) -> None:
+        self._thread.join(timeout=timeout_s)
+        assert not self._thread.is_alive(), f"the loop did not end within {timeout_s} s"
+        if self.error is not None:
+            raise self.error

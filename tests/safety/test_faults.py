@@ -28,7 +28,6 @@ bounds here are generous, for a loaded machine.
 from __future__ import annotations
 
 import math
-import threading
 import time
 from contextlib import contextmanager
 
@@ -42,10 +41,11 @@ from limbctl.servo.bus import ServoBus
 from limbctl.servo.control_table import HardwareError, Register
 from limbctl.servo.health import HealthLimits
 from limbctl.servo.rig import Rig
-from limbctl.teleop.loop import LoopConfig, SafeState, Telemetry, run
+from limbctl.teleop.cycle import CycleState
+from limbctl.teleop.loop import LoopConfig, SafeState, run
 from tests.safety.support import (
     PROFILE,
-    CycleCounter,
+    LoopThread,
     PacedSource,
     RecordingGate,
     assert_goals_safe,
@@ -72,44 +72,15 @@ def sweep_lines(n: int) -> list[str]:
     return [f'{{"pan": {p:.4f}, "tilt": {q:.4f}}}' for p, q in zip(pan, tilt, strict=True)]
 
 
-class LoopThread:
-    """The real loop in a thread, so a test can inject faults while it runs."""
+def sweeping(rig, config: LoopConfig, lines: list[str] | None = None) -> LoopThread:
+    """The loop on a live rig, its gate recording, sweeping the BEAN region (or ``lines``)."""
+    source = PacedSource(lines or sweep_lines(20000))
+    return LoopThread(rig, RecordingGate(bean_model(), LIMITS), source, config)
 
-    def __init__(self, rig, config: LoopConfig, lines: list[str]) -> None:
-        self.gate = RecordingGate(bean_model(), LIMITS)
-        self.cycles = CycleCounter()
-        self.stop = threading.Event()
-        self.summary = None
-        self.error: BaseException | None = None
-        self._thread = threading.Thread(
-            target=self._run, args=(rig, config, PacedSource(lines)), name="teleop-loop"
-        )
 
-    def _run(self, rig, config, source) -> None:
-        try:
-            self.summary = run(
-                rig, self.gate, source, config, telemetry=Telemetry(self.cycles), stop=self.stop
-            )
-        except BaseException as exc:  # handed to the test thread by join/__exit__
-            self.error = exc
-            raise
-
-    def __enter__(self) -> LoopThread:
-        self._thread.start()
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.stop.set()
-        self._thread.join(timeout=60)
-        assert not self._thread.is_alive(), "the control loop did not stop"
-        if self.error is not None:
-            raise self.error
-
-    def join(self, timeout_s: float = 60.0) -> None:
-        self._thread.join(timeout=timeout_s)
-        assert not self._thread.is_alive(), f"the loop did not end within {timeout_s} s"
-        if self.error is not None:
-            raise self.error
+def assert_gated(log, gate: RecordingGate, rig) -> None:
+    """Every goal in the simulator's goal ``log`` is one ``gate`` made, inside the region."""
+    assert_goals_safe(goal_log_poses(log), gate.envelope, LIMITS, gate.produced_ticks(rig))
 
 
 def faulted(sim, rig, inject, lines=None, after: int = 20, **options) -> LoopThread:
@@ -117,11 +88,19 @@ def faulted(sim, rig, inject, lines=None, after: int = 20, **options) -> LoopThr
     (or ``lines``) on a live rig; ``inject(sim)`` once it ran ``after`` cycles; run to its end.
     Returns the loop: its summary, gate and cycles."""
     config = LoopConfig(rate_hz=RATE, duration_s=60.0, **options)
-    with LoopThread(rig, config, lines or sweep_lines(20000)) as loop:
+    with sweeping(rig, config, lines) as loop:
         loop.cycles.wait_cycles(after)
         inject(sim)
         loop.join()
     return loop
+
+
+def assert_told_unreachable(fault: str, safe_state: SafeState) -> None:
+    """A fault that left a servo unreachable says what the safe state could not make sure of."""
+    if safe_state is SafeState.TORQUE_OFF:
+        assert "could not switch torque off" in fault and "cut the servo power" in fault, fault
+    else:
+        assert "torque state unknown" in fault, fault
 
 
 def last_goals(log) -> dict[int, int]:
@@ -163,7 +142,7 @@ def test_reply_faults_are_ridden_through(tmp_path, faults):
     assert 0 <= summary.failed_cycles <= summary.cycles
     assert f"({summary.failed_cycles} cycles lost)" in "\n".join(summary.lines())
     assert summary.goals_written >= len(lines) * 0.9
-    assert_goals_safe(goal_log_poses(log), gate.envelope, LIMITS, gate.produced_ticks(rig))
+    assert_gated(log, gate, rig)
 
 
 # ---- a servo disappears ----------------------------------------------------------------------
@@ -171,7 +150,7 @@ def test_servo_that_vanishes_briefly_is_ridden_through(tmp_path):
     log = tmp_path / "goals.jsonl"
     with live_rig(goal_log=log) as (sim, rig):
         config = LoopConfig(rate_hz=RATE, duration_s=60.0, max_failed_cycles=50)
-        with LoopThread(rig, config, sweep_lines(20000)) as loop:
+        with sweeping(rig, config) as loop:
             loop.cycles.wait_cycles(20)
             sim.vanish(2, 0.3)
             # wait until the loop has lost a cycle to it and read the pose again since
@@ -187,9 +166,7 @@ def test_servo_that_vanishes_briefly_is_ridden_through(tmp_path):
         rig.read_pose()
     assert summary.ended_by == "stopped" and summary.exit_code == 0, summary.fault
     assert summary.failed_cycles >= 1
-    assert_goals_safe(
-        goal_log_poses(log), loop.gate.envelope, LIMITS, loop.gate.produced_ticks(rig)
-    )
+    assert_gated(log, loop.gate, rig)
 
 
 @pytest.mark.parametrize("safe_state", [SafeState.HOLD, SafeState.TORQUE_OFF])
@@ -209,14 +186,11 @@ def test_servo_that_stays_away_ends_in_the_safe_state(tmp_path, safe_state):
     servos = truth["servos"]
     # the servo that answers does what the message says; the lost one keeps its last goal
     assert servos[2]["goal_position"] == goals[2]
+    assert_told_unreachable(summary.fault, safe_state)
     if safe_state is SafeState.TORQUE_OFF:
         assert not servos[1]["torque_on"]
-        assert "could not switch torque off" in summary.fault and "cut the servo power" in (
-            summary.fault
-        )
     else:
         assert servos[1]["torque_on"] and servos[1]["goal_position"] == goals[1]
-        assert "torque state unknown" in summary.fault
 
 
 # ---- servo alarms -----------------------------------------------------------------------------
@@ -285,15 +259,9 @@ def test_port_that_vanishes_ends_with_a_message_naming_it(tmp_path, safe_state):
         summary = loop.summary
     assert summary.exit_code == 3 and summary.ended_by == "fault"
     assert "unplugged" in summary.fault and sim.port in summary.fault, summary.fault
-    if safe_state is SafeState.TORQUE_OFF:
-        assert "could not switch torque off" in summary.fault
-        assert "cut the servo power" in summary.fault
-    else:
-        assert "torque state unknown" in summary.fault
+    assert_told_unreachable(summary.fault, safe_state)
     # whatever reached the servos before the port went was gated
-    assert_goals_safe(
-        goal_log_poses(log), loop.gate.envelope, LIMITS, loop.gate.produced_ticks(rig)
-    )
+    assert_gated(log, loop.gate, rig)
 
 
 # ---- faults the servos themselves show -----------------------------------------------------
@@ -307,7 +275,7 @@ def broadcast_torque_off(port_name: str) -> None:
         port.closePort()
 
 
-def fault_time(loop: LoopThread) -> float:
+def fault_time(loop) -> float:
     """Seconds from the last logged cycle before the fault to the end (the loop's own clock)."""
     return loop.summary.elapsed_s - loop.cycles.rows[-1]["t"]
 
@@ -369,9 +337,7 @@ def test_torque_switched_off_under_teleop_is_noticed(tmp_path, safe_state):
         assert summary.fault.endswith(
             "— pan and tilt torque was already off (as the servos reported it); it stays off"
         )
-    assert_goals_safe(
-        goal_log_poses(log), loop.gate.envelope, LIMITS, loop.gate.produced_ticks(rig)
-    )
+    assert_gated(log, loop.gate, rig)
 
 
 def test_a_servo_that_browns_out_and_restarts_is_noticed(tmp_path):
@@ -396,7 +362,7 @@ def test_a_dropout_keeps_the_loop_cycling_probes_the_servo_and_reports_its_lengt
     vanish_s = 0.3
     with sim_rig(goal_log=log) as (sim, rig):
         config = LoopConfig(rate_hz=RATE, duration_s=60.0, on_cycle=observe)
-        with LoopThread(rig, config, sweep_lines(20000)) as loop:
+        with sweeping(rig, config) as loop:
             loop.cycles.wait_cycles(200)
             injected = loop.cycles.rows[-1]["t"]
             sim.vanish(2, vanish_s)
@@ -441,9 +407,7 @@ def test_a_dropout_keeps_the_loop_cycling_probes_the_servo_and_reports_its_lengt
     # takes longer when one of its replies is late)
     assert min(gaps, default=1.0) >= 0.03, gaps
     assert len(probes) <= dropout.duration_s / 0.05 + 2
-    assert_goals_safe(
-        goal_log_poses(log), loop.gate.envelope, LIMITS, loop.gate.produced_ticks(rig)
-    )
+    assert_gated(log, loop.gate, rig)
 
 
 def test_a_dropout_still_going_on_at_a_clean_end_is_reported_with_its_length_so_far():
@@ -456,7 +420,7 @@ def test_a_dropout_still_going_on_at_a_clean_end_is_reported_with_its_length_so_
             health=HealthLimits(lost_after_s=30.0),
             on_cycle=lambda cycle: seen.extend(cycle.notices),
         )
-        with LoopThread(rig, config, sweep_lines(20000)) as loop:
+        with sweeping(rig, config) as loop:
             loop.cycles.wait_cycles(20)
             sim.vanish(2, 60.0)
             wait_for(lambda: "servo 2 stopped answering; holding its last goal" in seen, 30.0, "")
@@ -473,10 +437,12 @@ def test_a_dropout_still_going_on_at_a_clean_end_is_reported_with_its_length_so_
 @pytest.mark.parametrize("safe_state", [SafeState.HOLD, SafeState.TORQUE_OFF])
 def test_a_servo_pushed_hard_is_reported_blocked_before_the_firmware_trips(tmp_path, safe_state):
     log = tmp_path / "goals.jsonl"
+    seen = []  # every cycle's value, as an observer sees it
     with sim_rig(goal_log=log) as (sim, rig):
         # three times stall torque: the motor cannot hold it
         push = lambda sim: sim.push(1, 300.0)  # noqa: E731
-        loop = faulted(sim, rig, push, still_lines(20000), 200, safe_state=safe_state)
+        lines = still_lines(20000)
+        loop = faulted(sim, rig, push, lines, 200, safe_state=safe_state, on_cycle=seen.append)
         summary = loop.summary
         truth = sim.truth()
         if safe_state is SafeState.HOLD:
@@ -499,9 +465,9 @@ def test_a_servo_pushed_hard_is_reported_blocked_before_the_firmware_trips(tmp_p
     else:
         assert summary.fault.endswith("— torque switched off")
         assert not any(servo["torque_on"] for servo in truth["servos"].values())
-    assert_goals_safe(
-        goal_log_poses(log), loop.gate.envelope, LIMITS, loop.gate.produced_ticks(rig)
-    )
+    # the last cycle's value carries the fault the summary reports
+    assert seen[-1].state is CycleState.FAULT and seen[-1].fault == summary.fault
+    assert_gated(log, loop.gate, rig)
 
 
 def test_a_push_the_motor_holds_only_overloaded_ends_in_the_firmwares_alarm():

@@ -5,7 +5,6 @@ malformed datagrams (counted), survives any bytes, and cannot be made to skip th
 from __future__ import annotations
 
 import socket
-import threading
 
 import pytest
 from hypothesis import example, given, settings
@@ -13,10 +12,10 @@ from hypothesis import strategies as st
 
 from limbctl.errors import ConfigError, InvalidInputError
 from limbctl.teleop.commands import MAX_LINE_BYTES, parse_command
-from limbctl.teleop.loop import LoopConfig, Telemetry, run
+from limbctl.teleop.loop import LoopConfig
 from limbctl.teleop.sources import UdpSource, open_source
 from tests.safety.support import (
-    CycleCounter,
+    LoopThread,
     RecordingGate,
     assert_goals_safe,
     bean_model,
@@ -125,36 +124,18 @@ def test_hostile_udp_stream_cannot_skip_the_gate(tmp_path):
     ]
     with live_rig(goal_log=log) as (sim, rig):
         gate = RecordingGate(bean_model(), limits)
-        cycles = CycleCounter()
-        stop = threading.Event()
         with UdpSource() as src, socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as tx:
-            box = {}
-            loop = threading.Thread(
-                target=lambda: box.update(
-                    summary=run(
-                        rig,
-                        gate,
-                        src,
-                        LoopConfig(rate_hz=200.0, duration_s=120.0),
-                        telemetry=Telemetry(cycles),
-                        stop=stop,
-                    )
-                )
-            )
-            loop.start()
-            try:
+            config = LoopConfig(rate_hz=200.0, duration_s=120.0)
+            with LoopThread(rig, gate, src, config) as loop:
                 for _ in range(3):
                     for data in hostile:
                         seen = processed(src)
                         tx.sendto(data, src.address)
                         wait_for(lambda s=seen: processed(src) > s, 10.0, "the datagram")
                         # let the loop chase it for a while (40 cycles = 0.2 s at 200 Hz)
-                        cycles.wait_cycles(len(cycles.rows) + 40)
-            finally:
-                stop.set()
-                loop.join(timeout=30)
+                        loop.cycles.wait_cycles(len(loop.cycles.rows) + 40)
         rig.read_pose()
-    summary = box["summary"]
+    summary, cycles = loop.summary, loop.cycles
     assert summary.exit_code == 0, summary.fault
     assert summary.rejected == 3 * 2  # extra key and the huge number, three times
     logged = goal_log_poses(log)

@@ -147,6 +147,16 @@ def felt_session(tmp_path, rig: FeltRig = SIM, model="xm430-w350", rate_hz=25.0)
         yield s, source, log
 
 
+@contextmanager
+def running_felt(tmp_path, rig: FeltRig = SIM, **options):
+    """:func:`felt_session` (``options``) with the follower's torque on and the loop running in
+    :class:`Running`: yields (session, source, log path, running)."""
+    with felt_session(tmp_path, rig, **options) as (session, source, log), source:
+        session.rig.set_torque(True)
+        with Running(session, source) as running:
+            yield session, source, log, running
+
+
 def truth_rows(log):
     return [json.loads(line) for line in log.read_text().splitlines()]
 
@@ -300,18 +310,16 @@ def test_the_three_servo_leader_is_held_at_the_edge_in_swing_and_in_twist(tmp_pa
 
 
 def test_a_leader_restart_ends_the_feel_on_every_servo_and_mirroring_goes_on(tmp_path, rig):
-    with felt_session(tmp_path, rig) as (session, source, log), source:
-        session.rig.set_torque(True)
-        with Running(session, source) as running:
-            if running.pressed_or_paced_out(rig.press):
-                return
-            session.simulator.restart(rig.pusher)
-            running.until(lambda p: not p[-1][2])
-            lost = len(running.pushes)
-            running.until(lambda p: len(p) > lost + 50)
-            accepted = source.stats.accepted
-            running.until(lambda p: len(p) > lost + 100)
-            truth = session.simulator.truth()
+    with running_felt(tmp_path, rig) as (session, source, log, running):
+        if running.pressed_or_paced_out(rig.press):
+            return
+        session.simulator.restart(rig.pusher)
+        running.until(lambda p: not p[-1][2])
+        lost = len(running.pushes)
+        running.until(lambda p: len(p) > lost + 50)
+        accepted = source.stats.accepted
+        running.until(lambda p: len(p) > lost + 100)
+        truth = session.simulator.truth()
     # the cycle that saw it switched the push off; the other servos' torque is off too
     assert all(truth["servos"][i]["torque_on"] is False for i in rig.ids if i != rig.pusher)
     assert truth["leader"]["motor_nm"] == [0.0] * len(rig.ids)
@@ -324,14 +332,12 @@ def test_a_leader_restart_ends_the_feel_on_every_servo_and_mirroring_goes_on(tmp
 
 
 def test_a_leader_alarm_switches_the_push_off_and_the_session_faults(tmp_path, rig):
-    with felt_session(tmp_path, rig) as (session, source, log), source:
-        session.rig.set_torque(True)
-        with Running(session, source) as running:
-            if running.pressed_or_paced_out(rig.press):
-                return
-            session.simulator.set_temperature(rig.pusher, 95.0)  # overheating shuts it down
-            running.thread.join(timeout=20.0)
-            truth = session.simulator.truth()
+    with running_felt(tmp_path, rig) as (session, source, log, running):
+        if running.pressed_or_paced_out(rig.press):
+            return
+        session.simulator.set_temperature(rig.pusher, 95.0)  # overheating shuts it down
+        running.thread.join(timeout=20.0)
+        truth = session.simulator.truth()
     summary = running.out["s"]
     assert summary.exit_code == 3 and f"servo {rig.pusher}" in summary.fault  # as if passive
     assert not source.felt and any("alarm" in event for event in source.feel_stats.events)
@@ -340,24 +346,22 @@ def test_a_leader_alarm_switches_the_push_off_and_the_session_faults(tmp_path, r
 
 
 def test_a_failed_bus_or_a_held_gate_switches_the_push_off_in_that_cycle(tmp_path, rig):
-    with felt_session(tmp_path, rig) as (session, source, log), source:
-        session.rig.set_torque(True)
-        with Running(session, source) as running:
-            if running.pressed_or_paced_out(rig.press):
-                return
-            session.simulator.set_faults(drop=1.0)  # every reply lost: reads fail, writes land
-            running.until(lambda p: sum(1 for c, _, _ in p[-5:] if c.present is None) == 5)
-            during = session.simulator.truth()["leader"]["motor_nm"]
-            session.simulator.set_faults(drop=0.0)
-            # pushing again; or, on a busy machine, the loop ended by 20 failed cycles in a row
-            # (its own bus rule) or its lost pace switched the feel off
-            running.until(
-                lambda p: (
-                    (p[-1][1] is not None and p[-1][1].goal_current > 0)
-                    or running.ended
-                    or not p[-1][2]
-                )
+    with running_felt(tmp_path, rig) as (session, source, log, running):
+        if running.pressed_or_paced_out(rig.press):
+            return
+        session.simulator.set_faults(drop=1.0)  # every reply lost: reads fail, writes land
+        running.until(lambda p: sum(1 for c, _, _ in p[-5:] if c.present is None) == 5)
+        during = session.simulator.truth()["leader"]["motor_nm"]
+        session.simulator.set_faults(drop=0.0)
+        # pushing again; or, on a busy machine, the loop ended by 20 failed cycles in a row
+        # (its own bus rule) or its lost pace switched the feel off
+        running.until(
+            lambda p: (
+                (p[-1][1] is not None and p[-1][1].goal_current > 0)
+                or running.ended
+                or not p[-1][2]
             )
+        )
     assert during == [0.0] * len(rig.ids)
     # each cycle whose reads failed wrote no current (released, or a push of 0), from the first
     # on; a cycle whose follower read failed and whose leader read did not (the fault lifting
@@ -368,20 +372,18 @@ def test_a_failed_bus_or_a_held_gate_switches_the_push_off_in_that_cycle(tmp_pat
 
 
 def test_a_silent_leader_is_bounded_by_its_cap_and_is_re_armed(tmp_path, rig):
-    with felt_session(tmp_path, rig) as (session, source, log), source:
+    with running_felt(tmp_path, rig) as (session, source, log, running):
         cap = cap_of(source)
-        session.rig.set_torque(True)
-        with Running(session, source) as running:
-            if running.pressed_or_paced_out(rig.press):
-                return
-            session.simulator.vanish(rig.pusher, 0.3)  # past its 100 ms watchdog
-            running.until(lambda p: p[-1][1] is None)
-            running.until(
-                lambda p: (p[-1][1] is not None and p[-1][1].goal_current > 0) or not p[-1][2]
-            )
-            truth = session.simulator.truth()
-            # back, its watchdog cleared and armed again, pushing; or the pace went meanwhile
-            felt = source.felt or running.paced_out()
+        if running.pressed_or_paced_out(rig.press):
+            return
+        session.simulator.vanish(rig.pusher, 0.3)  # past its 100 ms watchdog
+        running.until(lambda p: p[-1][1] is None)
+        running.until(
+            lambda p: (p[-1][1] is not None and p[-1][1].goal_current > 0) or not p[-1][2]
+        )
+        truth = session.simulator.truth()
+        # back, its watchdog cleared and armed again, pushing; or the pace went meanwhile
+        felt = source.felt or running.paced_out()
     assert truth["servos"][rig.pusher]["present"]
     rows = truth_rows(log)
     assert max(abs(m) for row in rows for m in row["motor_nm"]) <= cap + 1e-12
@@ -461,11 +463,9 @@ def test_a_felt_leaders_cycle_read_carries_its_present_velocity(tmp_path):
 def test_a_held_leader_let_go_is_freed_by_the_snap_watch(tmp_path):
     # pressed and held still, then the hand is gone at once: the watch (or the next cycle's
     # read) sees the leader snap toward the region and writes Goal Current 0 at once
-    with felt_session(tmp_path) as (session, source, log), source:
-        session.rig.set_torque(True)
-        with Running(session, source) as running:
-            gone = {"script": [[0.0, EDGE + 20.0, 0.0]], "let_go_s": 0.0}
-            let_go_at = running.held_then(PRESS, gone)
+    with running_felt(tmp_path) as (session, source, log, running):
+        gone = {"script": [[0.0, EDGE + 20.0, 0.0]], "let_go_s": 0.0}
+        let_go_at = running.held_then(PRESS, gone)
     if let_go_at is None:
         return  # the feel went off for a lost pace (its outcome asserted)
     assert source.snap.cuts >= 1
@@ -539,16 +539,14 @@ def test_property_random_streams_and_faults_never_above_the_cap_off_at_once(
     tmp_path = tmp_path_factory.mktemp("felt")
     rest = (0.0,) * len(rig.ids)
     script = [[0.8 * k, *pose] for k, pose in enumerate([rest, *targets])]
-    with felt_session(tmp_path, rig) as (session, source, log), source:
+    with running_felt(tmp_path, rig) as (session, source, log, running):
         cap = cap_of(source)
-        session.rig.set_torque(True)
-        with Running(session, source) as running:
-            session.simulator.set_operator({"script": script, **HAND})
-            running.until(lambda p: len(p) >= after)
-            FAULTS[fault](session.simulator, rig)
-            seen = len(running.pushes)
-            running.until(lambda p: len(p) > seen + 100 or running.ended)
-            session.simulator.set_faults(drop=0.0)
+        session.simulator.set_operator({"script": script, **HAND})
+        running.until(lambda p: len(p) >= after)
+        FAULTS[fault](session.simulator, rig)
+        seen = len(running.pushes)
+        running.until(lambda p: len(p) > seen + 100 or running.ended)
+        session.simulator.set_faults(drop=0.0)
     rows = truth_rows(log)
     assert max(abs(m) for row in rows for m in row["motor_nm"]) <= cap + 1e-12
     pushed_only_when_fit(running.pushes)
@@ -561,25 +559,23 @@ def test_property_random_streams_and_faults_never_above_the_cap_off_at_once(
 )
 def test_an_xl330_leader_feels_the_edge_with_half_its_stall_torque_at_most(tmp_path, rig, model):
     # beside an XL430 follower; the M077 with firmware 52 keeps its Indirect Data at 208
-    with felt_session(tmp_path, rig, model=model) as (session, source, log), source:
+    with running_felt(tmp_path, rig, model=model) as (session, source, log, running):
         cap = cap_of(source)
         assert "XL330" in source.notice and "feels the edge" in source.notice
         assert cap <= 0.5 * source.motor.stall_torque_nm
-        session.rig.set_torque(True)
-        with Running(session, source) as running:
-            session.simulator.set_operator(rig.press)
-            running.until(pressing)
-            seen = []  # what the live page is handed, cycle by cycle, until it shows the push
+        session.simulator.set_operator(rig.press)
+        running.until(pressing)
+        seen = []  # what the live page is handed, cycle by cycle, until it shows the push
 
-            def shown_pushing(_) -> bool:
-                pushed = (source.last_push, source.last_pose)  # what the status is made of
-                seen.append((leader_status(source)(), *pushed))
-                return seen[-1][0].state == "pushing back" or not source.felt
+        def shown_pushing(_) -> bool:
+            pushed = (source.last_push, source.last_pose)  # what the status is made of
+            seen.append((leader_status(source)(), *pushed))
+            return seen[-1][0].state == "pushing back" or not source.felt
 
-            running.until(shown_pushing)
-            if running.paced_out():
-                return
-            shown, push, pose = seen[-1]
+        running.until(shown_pushing)
+        if running.paced_out():
+            return
+        shown, push, pose = seen[-1]
     assert shown.state == "pushing back"
     # an arrow on the plane only for a push whose swing part is a tenth of it or more: the wall
     # pushes along its normal, so pan and tilt get their share of the current, and a leader the
@@ -633,11 +629,9 @@ def test_a_hand_pulling_a_held_leader_back_inside_is_let_go_before_it_is_braked(
     # pressed and held 20 deg beyond, then the hand heads back inside (pan 50 -> 0 in 0.2 s),
     # faster than the wall's setpoint walks: the watch frees the wall as the leader gains on
     # it (or the snap rule as the hand's push fades). Never any torque inside
-    with felt_session(tmp_path) as (session, source, log), source:
-        session.rig.set_torque(True)
-        with Running(session, source) as running:
-            pull = [[0.0, EDGE + 20.0, 0.0], [0.2, 0.0, 0.0]]  # from the switch on
-            now = running.held_then(PRESS, {"script": pull, **HAND})
+    with running_felt(tmp_path) as (session, source, log, running):
+        pull = [[0.0, EDGE + 20.0, 0.0], [0.2, 0.0, 0.0]]  # from the switch on
+        now = running.held_then(PRESS, {"script": pull, **HAND})
     if now is None:
         return  # the feel went off for a lost pace (its outcome asserted)
     after = [r for r in truth_rows(log) if r["t"] >= now]
@@ -731,20 +725,16 @@ def test_a_leader_cut_off_from_its_controller_holds_within_the_cap_and_pushes_no
     # pushed no further in than its last goal and, once still, by nothing
     spec, press = RIGS[rig]
     ids = spec.ids
-    with felt_session(tmp_path, spec) as (session, source, log), source:
-        session.rig.set_torque(True)
-        with Running(session, source) as running:
-            if not held_still(running, source, press):
-                return
-            at = session.simulator.truth()["leader"]["t"]
-            for servo_id in ids:
-                session.simulator.vanish(servo_id, 2.0)
-            target = [list(press["script"][-1][1:])]
-            session.simulator.set_operator(
-                {**press, "script": [[0.0, *target[0]]], "let_go_s": 0.3}
-            )
-            running.until(lambda p: session.simulator.truth()["leader"]["t"] > at + 1.0)
-            cap = source.cap_nm
+    with running_felt(tmp_path, spec) as (session, source, log, running):
+        if not held_still(running, source, press):
+            return
+        at = session.simulator.truth()["leader"]["t"]
+        for servo_id in ids:
+            session.simulator.vanish(servo_id, 2.0)
+        target = [list(press["script"][-1][1:])]
+        session.simulator.set_operator({**press, "script": [[0.0, *target[0]]], "let_go_s": 0.3})
+        running.until(lambda p: session.simulator.truth()["leader"]["t"] > at + 1.0)
+        cap = source.cap_nm
     rows = [row for row in truth_rows(log) if at <= row["t"] <= at + 1.0]
     assert max(sum(m * m for m in row["motor_nm"]) ** 0.5 for row in rows) <= cap + 1e-12
     start = rows[0]["pose_deg"]
@@ -763,23 +753,21 @@ def test_a_dead_controllers_leader_goes_limp_within_its_guards_bound(tmp_path, r
     # of a real `limbctl teleop` is tests/servo/test_leader_guard.py's
     spec, press = RIGS[rig]
     ids = spec.ids
-    with felt_session(tmp_path, spec) as (session, source, log), source:
-        session.rig.set_torque(True)
+    with running_felt(tmp_path, spec) as (session, source, log, running):
         bus, follower = session.rig.bus, session.profile.ids
-        with Running(session, source) as running:
-            if not held_still(running, source, press):
-                return
-            with bus.exclusive():  # the loop stops at its next transfer
-                assert source.last_push is not None and source.last_push.goal_current > 0
-                died_at, guard = time.monotonic(), source._guard
-                end_pipe(guard)
-                bus.close()
-                guard.process.wait(START_S + GIVE_UP_S)
-                limp_s = time.monotonic() - died_at  # the guard's exit: it did what it could
-                torque = torque_when_free(
-                    bus.port_name, (*follower, *ids), time.monotonic() + START_S, bus.baud
-                )
-                bus.open()  # the loop goes on, to its end, on a leader whose torque is off
+        if not held_still(running, source, press):
+            return
+        with bus.exclusive():  # the loop stops at its next transfer
+            assert source.last_push is not None and source.last_push.goal_current > 0
+            died_at, guard = time.monotonic(), source._guard
+            end_pipe(guard)
+            bus.close()
+            guard.process.wait(START_S + GIVE_UP_S)
+            limp_s = time.monotonic() - died_at  # the guard's exit: it did what it could
+            torque = torque_when_free(
+                bus.port_name, (*follower, *ids), time.monotonic() + START_S, bus.baud
+            )
+            bus.open()  # the loop goes on, to its end, on a leader whose torque is off
     assert guard.process.returncode == 0
     assert not any(torque[i] for i in ids), torque
     assert all(torque[i] for i in follower), torque  # the follower left as it was
@@ -794,6 +782,23 @@ def test_a_dead_controllers_leader_goes_limp_within_its_guards_bound(tmp_path, r
 # -- a passive leader mirrored through the gate ---------------------------------------------
 
 
+def turn_shafts(rig, ids: tuple[int, ...], degrees: tuple[float, ...]) -> None:
+    """Play the person: turn the passive leader's shafts ``ids`` to the follower's joint angles
+    ``degrees`` (deg, one per joint, rounded to ticks) and wait, 20 s at most, until each is
+    within 2 ticks of its goal."""
+    goals = {
+        i: joint.zero_tick + joint.direction * round(deg * 4096 / 360)
+        for i, joint, deg in zip(ids, rig.joints, degrees, strict=True)
+    }
+    rig.bus.set_torque(True, ids)
+    rig.bus.sync_write(Register.GOAL_POSITION, goals)
+    deadline = time.monotonic() + 20
+    while any(
+        abs(rig.bus.sync_read(Register.PRESENT_POSITION, (i,))[i] - goals[i]) > 2 for i in goals
+    ):
+        assert time.monotonic() < deadline, "the leader shafts did not reach their goals"
+
+
 def test_follower_mirrors_a_pushed_leader_within_the_region(cone_file):
     gate = gate_for(cone_file(30.0), default_sim_profile(), 200.0, 120.0)
     with open_rig(extra_ids=(3, 4)) as session:
@@ -801,14 +806,7 @@ def test_follower_mirrors_a_pushed_leader_within_the_region(cone_file):
         limits = rig.tick_limits()
         limits.update({3: (0, 4095), 4: (0, 4095)})
         configure_servos(rig.bus, limits)
-        pan_joint = rig.profile.pan
-        target = pan_joint.zero_tick + pan_joint.direction * round(60 * 4096 / 360)
-        tilt_target = rig.profile.tilt.zero_tick
-        rig.bus.set_torque(True, (3, 4))
-        rig.bus.sync_write(Register.GOAL_POSITION, {3: target, 4: tilt_target})
-        deadline = time.monotonic() + 20
-        while abs(rig.bus.sync_read(Register.PRESENT_POSITION, (3,))[3] - target) > 2:
-            assert time.monotonic() < deadline, "the leader shaft did not reach its goal"
+        turn_shafts(rig, (3, 4), (60, 0))
         source = LeaderSource(rig, (3, 4))
         stop = threading.Event()
         out = {}
@@ -864,18 +862,7 @@ def test_a_three_servo_leader_gives_full_orientations_and_needs_a_three_servo_fo
     with open_rig(rig_path="sim3", extra_ids=(4, 5, 6)) as session:
         rig = session.rig
         configure_servos(rig.bus, {**rig.tick_limits(), 4: (0, 4095), 5: (0, 4095), 6: (0, 4095)})
-        # play the person: put the leader's shafts at pan 20, tilt 10, roll -30 deg
-        goals = {
-            i: joint.zero_tick + joint.direction * round(deg * 4096 / 360)
-            for i, joint, deg in zip((4, 5, 6), rig.joints, (20, 10, -30), strict=True)
-        }
-        rig.bus.set_torque(True, (4, 5, 6))
-        rig.bus.sync_write(Register.GOAL_POSITION, goals)
-        deadline = time.monotonic() + 20
-        while any(
-            abs(rig.bus.sync_read(Register.PRESENT_POSITION, (i,))[i] - goals[i]) > 2 for i in goals
-        ):
-            assert time.monotonic() < deadline, "the leader shafts did not reach their goals"
+        turn_shafts(rig, (4, 5, 6), (20, 10, -30))
         with LeaderSource(rig, (4, 5, 6)) as source:
             ticks = rig.bus.sync_read(Register.PRESENT_POSITION, (4, 5, 6))
             [command] = source.poll()

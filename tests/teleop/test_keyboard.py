@@ -315,11 +315,12 @@ def written_deg(cycle: Cycle) -> tuple[float, float]:
     return math.degrees(cycle.result.pose[0]), math.degrees(cycle.result.pose[1])
 
 
-def press(master: int, cycles: Cycles, source: KeyboardSource, key: bytes) -> Cycle:
-    """Press ``key`` once; the cycle where the limb has settled after it: the source has read
-    the key (its count grew), the loop took the command in a later cycle and reached it."""
+def press(type_, cycles: Cycles, source: KeyboardSource, key: bytes) -> Cycle:
+    """Press ``key`` once (``type_``: :func:`keyboard_on_pty`'s); the cycle where the limb has
+    settled after it: the source has read the key (its count grew), the loop took the command in
+    a later cycle and reached it."""
     accepted = source.stats.accepted
-    os.write(master, key)
+    type_(key)
     with cycles.changed:
         assert cycles.changed.wait_for(lambda: source.stats.accepted > accepted, WAIT_S)
         start = len(cycles.all) + 1  # the next cycle polls what was queued before it began
@@ -332,40 +333,34 @@ def test_up_against_a_slanted_edge_slides_without_running_on_and_down_answers_at
 ):
     cycles = Cycles()
     stop = threading.Event()
-    master, slave = pty.openpty()
-    try:
-        with open_rig(rig_path=rig, goal_log=tmp_path / "goals.jsonl") as session:
-            profile = session.profile
-            gate = gate_for(cone_file(40.0, rig), profile, RATE, MAX_SPEED)
-            session.rig.configure()
-            session.rig.set_torque(True)
-            source = KeyboardSource(step_deg=10.0, tty_path=os.ttyname(slave), gate=gate)
+    with open_rig(rig_path=rig, goal_log=tmp_path / "goals.jsonl") as session:
+        profile = session.profile
+        gate = gate_for(cone_file(40.0, rig), profile, RATE, MAX_SPEED)
+        session.rig.configure()
+        session.rig.set_torque(True)
+        with keyboard_on_pty(step_deg=10.0, gate=gate) as (source, type_):
             source.twist = profile.twists  # as the session sets it: roll kept
-            with source:
-                config = LoopConfig(rate_hz=RATE, on_cycle=cycles)
-                loop = threading.Thread(
-                    target=run, args=(session.rig, gate, source, config), kwargs={"stop": stop}
-                )
-                loop.start()
-                try:
-                    with cycles.changed:
-                        assert cycles.changed.wait_for(lambda: cycles.all, WAIT_S), "no cycle"
-                    # left one 10 deg step: +pan, where the cone's edge slants; then 5 deg steps
-                    start = press(master, cycles, source, b"a")
-                    os.write(master, b"-")
-                    first = len(cycles.all)
-                    at_edge = []
-                    for _ in range(UP_PRESSES):  # Up held: the terminal repeats it
-                        at_edge.append(press(master, cycles, source, b"w"))
-                        time.sleep(1.0 / REPEAT_HZ)  # the terminal's repeat rate, the input
-                    pressed = cycles.all[first:]
-                    down = press(master, cycles, source, b"s")
-                finally:
-                    stop.set()
-                    loop.join(WAIT_S)
-    finally:
-        os.close(master)
-        os.close(slave)
+            config = LoopConfig(rate_hz=RATE, on_cycle=cycles)
+            loop = threading.Thread(
+                target=run, args=(session.rig, gate, source, config), kwargs={"stop": stop}
+            )
+            loop.start()
+            try:
+                with cycles.changed:
+                    assert cycles.changed.wait_for(lambda: cycles.all, WAIT_S), "no cycle"
+                # left one 10 deg step: +pan, where the cone's edge slants; then 5 deg steps
+                start = press(type_, cycles, source, b"a")
+                type_(b"-")
+                first = len(cycles.all)
+                at_edge = []
+                for _ in range(UP_PRESSES):  # Up held: the terminal repeats it
+                    at_edge.append(press(type_, cycles, source, b"w"))
+                    time.sleep(1.0 / REPEAT_HZ)  # the terminal's repeat rate, the input
+                pressed = cycles.all[first:]
+                down = press(type_, cycles, source, b"s")
+            finally:
+                stop.set()
+                loop.join(WAIT_S)
 
     assert written_deg(start) == pytest.approx((10.0, 0.0), abs=0.5)  # the start was read
     stopped = [c for c in at_edge if c.result.corrected]

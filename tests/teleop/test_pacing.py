@@ -68,21 +68,29 @@ def test_a_long_stall_gives_up_its_slots_and_starts_afresh():
     assert pacer.overruns == 1
 
 
-def test_idle_work_runs_about_every_period_while_waiting_and_the_slot_is_kept():
+def run_with_idle(cycles: int, idle_s: float) -> tuple[Pacer, list[float], list[float]]:
+    """``cycles`` cycles of 1.5 ms work each on the stepped clock, each waiting for its slot
+    with idle work of ``idle_s`` (s) asked for every millisecond; returns the pacer, the
+    cycles' starts and the idle work's calls (clock s)."""
     clock = SteppedClock()
     pacer, stop = Pacer(PERIOD, clock), SteppedStop(clock)
     pacer.start(clock.now)
+    starts: list[float] = []
     calls: list[float] = []
 
-    def watch() -> None:
+    def idle() -> None:
         calls.append(clock.now)
-        clock.now += 0.0003  # a read of the leader's speed
+        clock.now += idle_s
 
-    starts = []
-    for _ in range(20):
+    for _ in range(cycles):
         starts.append(clock.now)
         clock.now += 0.0015  # the cycle's own work
-        pacer.wait(stop, watch, 0.001)
+        pacer.wait(stop, idle, 0.001)
+    return pacer, starts, calls
+
+
+def test_idle_work_runs_about_every_period_while_waiting_and_the_slot_is_kept():
+    pacer, starts, calls = run_with_idle(20, 0.0003)  # a read of the leader's speed
     # each cycle's start stays on its slot; in the 3.5 ms left after the work, the watch runs
     # from right after the cycle, a millisecond apart, and ends a millisecond before the slot
     assert all(abs(start - k * PERIOD) < 1e-9 for k, start in enumerate(starts))
@@ -116,19 +124,6 @@ def test_without_idle_work_the_wait_is_one_wait():
 def test_idle_work_slower_than_the_room_left_does_not_delay_the_cycle():
     # a slow bus: each call takes 2.5 ms. After the 1.5 ms cycle it runs once (3.5 ms left), not
     # again with 1 ms left: the cycle starts on its slot
-    clock = SteppedClock()
-    pacer, stop = Pacer(PERIOD, clock), SteppedStop(clock)
-    pacer.start(clock.now)
-    calls: list[float] = []
-
-    def slow() -> None:
-        calls.append(clock.now)
-        clock.now += 0.0025
-
-    starts = []
-    for _ in range(10):
-        starts.append(clock.now)
-        clock.now += 0.0015
-        pacer.wait(stop, slow, 0.001)
+    pacer, starts, calls = run_with_idle(10, 0.0025)
     assert all(abs(start - k * PERIOD) < 1e-9 for k, start in enumerate(starts))
     assert len(calls) == 10 and pacer.overruns == 0

@@ -69,6 +69,16 @@ def text_of(driver: webdriver.Chrome, element_id: str) -> str:
 SHOWN_HALF_DIGIT_DEG = 0.05
 
 
+def canvas_rgb(driver: webdriver.Chrome, x: float, y: float) -> tuple[int, int, int]:
+    """The RGB of the plane canvas's pixel at (``x``, ``y``) (canvas px, rounded)."""
+    return tuple(
+        driver.execute_script(
+            "return Array.from(document.getElementById('plane').getContext('2d')"
+            f".getImageData({round(x)}, {round(y)}, 1, 1).data);"
+        )[:3]
+    )
+
+
 def assert_pose_shown(text: str, pose_deg, logged_digits: int | None = None) -> None:
     """The page's "pan, tilt" ``text`` shows ``pose_deg`` (deg), within its rounding.
 

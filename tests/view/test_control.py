@@ -55,14 +55,17 @@ class Sink:
 
 
 @contextlib.contextmanager
-def served(host: str = "127.0.0.1"):
+def served(host: str = "127.0.0.1", **server_options):
+    """A served teleop board (hard limits pan -90..90, tilt -40..60) with a sink attached as its
+    source: ``(board, server, sink, holder)``; ``server_options`` go to the ViewServer."""
     board = Board()
+    board.publish_scene(Scene(limits=HardLimits((-90.0, 90.0), (-40.0, 60.0))))
     board.publish_live(Live(mode="teleop"))
     sink = Sink()
-    with ViewServer(board, host=host, port=0) as server:
+    with ViewServer(board, host=host, port=0, **server_options) as server:
         detach, holder = server.desk.attach(sink)
         try:
-            yield server, sink, holder
+            yield board, server, sink, holder
         finally:
             detach()
 
@@ -98,7 +101,7 @@ def refused_status(call) -> int:
 
 
 def test_the_key_is_needed_to_steer_and_only_the_right_one():
-    with served() as (server, sink, holder):
+    with served() as (_, server, sink, holder):
         secret = server.access.secret
         assert len(secret) >= 22 and f"?key={secret}" in server.control_url
         assert "key" not in server.url  # watching 127.0.0.1 stays open
@@ -128,7 +131,7 @@ def test_the_key_is_needed_to_steer_and_only_the_right_one():
 
 
 def test_another_sites_page_is_refused_even_with_the_key():
-    with served() as (server, sink, holder):
+    with served() as (_, server, sink, holder):
         secret = server.access.secret
         for forged in ("http://evil.example", "http://127.0.0.1:1", "null"):
             assert refused_status(lambda o=forged: open_socket(server, secret, origin=o)) == 403
@@ -147,7 +150,7 @@ def test_another_sites_page_is_refused_even_with_the_key():
 
 
 def test_one_controller_at_a_time_and_the_second_is_told_who():
-    with served() as (server, sink, holder):
+    with served() as (_, server, sink, holder):
         secret = server.access.secret
         with contextlib.closing(open_socket(server, secret)) as first:
             assert control_message(first)["steer"] is True
@@ -167,7 +170,7 @@ def test_one_controller_at_a_time_and_the_second_is_told_who():
 
 
 def test_a_flood_reaches_the_source_as_its_newest_message_at_a_bounded_rate():
-    with served() as (server, sink, holder):
+    with served() as (_, server, sink, holder):
         with contextlib.closing(open_socket(server, server.access.secret)) as flooder:
             assert control_message(flooder)["steer"] is True
             sent = 10_000
@@ -185,7 +188,7 @@ def test_a_flood_reaches_the_source_as_its_newest_message_at_a_bounded_rate():
 
 
 def test_beyond_this_machine_watching_needs_a_key_and_only_the_steering_key_steers():
-    with served(host="0.0.0.0") as (server, sink, holder):
+    with served(host="0.0.0.0") as (_, server, sink, holder):
         access = server.access
         assert access.watch_needs_key and f"watch={access.watch_secret}" in server.url
         assert access.secret not in server.url  # the people watching cannot steer
@@ -241,13 +244,9 @@ def test_only_a_reload_of_the_holding_tab_takes_control_over_and_clicks_are_read
 
 def test_the_keyed_page_steers_by_click_and_arrow_keys_and_resends_its_point(browser):
     page = browser
-    with served() as (server, sink, holder):
-        server.board.publish_scene(Scene(limits=HardLimits((-90.0, 90.0), (-40.0, 60.0))))
-        written = PanTilt(5.0, 5.0)
-        status = TeleopStatus(commanded=None, written=written, outcome="held", rate_hz=200.0)
-        server.board.publish_live(Live(mode="teleop", pose=written, teleop=status))
-        page.get(server.control_url)
-        wait_for(page, lambda d: "you steer the limb" in text_of(d, "control"), "no control")
+    with served() as (board, server, sink, holder):
+        publish(board, (5.0, 5.0))
+        open_steering(page, server)
         # an arrow key moves the point one degree from the written pose
         ActionChains(page).send_keys(Keys.ARROW_UP).perform()
         sink.wait_for('{"pan":5,"tilt":6}')
@@ -278,20 +277,6 @@ HEARTBEAT_S = 0.5
 QUIET_FRAMES = 10
 
 
-@contextlib.contextmanager
-def steered_board(heartbeat_s: float = HEARTBEAT_S):
-    """A served teleop board with a sink attached: ``(board, server, sink, holder)``."""
-    board = Board()
-    board.publish_scene(Scene(limits=HardLimits((-90.0, 90.0), (-40.0, 60.0))))
-    sink = Sink()
-    with ViewServer(board, port=0, heartbeat_s=heartbeat_s) as server:
-        detach, holder = server.desk.attach(sink)
-        try:
-            yield board, server, sink, holder
-        finally:
-            detach()
-
-
 def publish(
     board: Board,
     written,
@@ -320,17 +305,22 @@ def steering(page) -> bool:
     return "you steer the limb" in text_of(page, "control")
 
 
-def steer_up_once(page, server, sink) -> None:
-    """Open the steering page on a limb at (5, 5) and press Up once: (5, 6) reaches the loop."""
+def open_steering(page, server) -> None:
+    """Open the keyed page and wait until it says it steers."""
     page.get(server.control_url)
     wait_for(page, steering, "the opened page does not steer")
+
+
+def steer_up_once(page, server, sink) -> None:
+    """Open the steering page on a limb at (5, 5) and press Up once: (5, 6) reaches the loop."""
+    open_steering(page, server)
     ActionChains(page).send_keys(Keys.ARROW_UP).perform()
     sink.wait_for('{"pan":5,"tilt":6}')
 
 
 def test_a_tab_that_lost_control_comes_back_watching_and_steers_again_only_on_a_click(browser):
     page = browser
-    with steered_board() as (board, server, sink, holder):
+    with served(heartbeat_s=HEARTBEAT_S) as (board, server, sink, holder):
         publish(board, (5.0, 5.0))
         steer_up_once(page, server, sink)
 
@@ -369,10 +359,9 @@ def test_a_tab_that_lost_control_comes_back_watching_and_steers_again_only_on_a_
 
 
 def test_a_reload_keeps_control_and_another_tab_is_told_which_tab_steers():
-    with steered_board(heartbeat_s=5.0) as (board, server, sink, holder), chromium() as page:
+    with served(heartbeat_s=5.0) as (board, server, sink, holder), chromium() as page:
         publish(board, (5.0, 5.0))
-        page.get(server.control_url)
-        wait_for(page, steering, "the opened page does not steer")
+        open_steering(page, server)
         reloads = 10
         kept = 0
         for _ in range(reloads):
@@ -411,10 +400,9 @@ def test_a_reload_keeps_control_and_another_tab_is_told_which_tab_steers():
 
 def test_arrow_keys_step_from_the_written_pose_once_the_gate_stopped_the_point(browser):
     page = browser
-    with steered_board(heartbeat_s=5.0) as (board, server, sink, holder):
+    with served(heartbeat_s=5.0) as (board, server, sink, holder):
         publish(board, (5.0, 5.0), "passed")
-        page.get(server.control_url)
-        wait_for(page, steering, "the opened page does not steer")
+        open_steering(page, server)
         keys = ActionChains(page)
         # Left turns the limb to +pan, as in the terminal (seen from behind the limb)
         keys.send_keys(Keys.ARROW_LEFT).perform()
@@ -436,7 +424,7 @@ def test_a_key_pushing_up_against_a_slanted_edge_is_told_as_up_alone(browser):
     """The server names every way the point lies beyond the written pose; the page names as
     blocked only the way its arrow key pushes, as the terminal does, and the slide as told."""
     page = browser
-    with steered_board(heartbeat_s=5.0) as (board, server, sink, holder):
+    with served(heartbeat_s=5.0) as (board, server, sink, holder):
         publish(board, (5.0, 5.0), "passed")
         steer_up_once(page, server, sink)
         # the gate slid the written pose right and a little up along a slanted edge
@@ -456,7 +444,7 @@ def test_a_tab_paused_past_the_loops_silence_drops_its_point_and_keeps_control(b
     """Frozen shorter than the server's heartbeat: the tab still steers when it wakes, but
     the point it had is gone; it sends nothing until a key, and says why."""
     page = browser
-    with steered_board(heartbeat_s=5.0) as (board, server, sink, holder):
+    with served(heartbeat_s=5.0) as (board, server, sink, holder):
         publish(board, (5.0, 5.0))
         steer_up_once(page, server, sink)
         with frozen(page):

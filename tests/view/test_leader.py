@@ -10,7 +10,7 @@ import pytest
 
 from limbctl.view import HardLimits, Live, PanTilt, Scene, TeleopStatus
 from limbctl.view.leader import LeaderLive, LeaderStatus, with_twist
-from tests.view.browser import text_of, wait_for
+from tests.view.browser import canvas_rgb, text_of, wait_for
 
 LIMITS = HardLimits(pan_deg=(-90.0, 90.0), tilt_deg=(-40.0, 60.0))
 #: RGB of the leader's diamond and of its push (leader.js COLORS).
@@ -91,15 +91,6 @@ def made(driver, element_id: str) -> bool:
 def near(rgb, target, tolerance: int = 8) -> bool:
     """The same colour but for the canvas's antialiasing."""
     return all(abs(a - b) <= tolerance for a, b in zip(rgb, target, strict=True))
-
-
-def canvas_rgb(driver, x: float, y: float) -> tuple[int, int, int]:
-    return tuple(
-        driver.execute_script(
-            "return Array.from(document.getElementById('plane').getContext('2d')"
-            f".getImageData({round(x)}, {round(y)}, 1, 1).data);"
-        )[:3]
-    )
 
 
 def test_the_page_draws_the_leader_and_its_push_then_forgets_them_without_a_leader(browser, served):

@@ -13,7 +13,7 @@ from limbctl.view import (
     Scene,
     TeleopStatus,
 )
-from tests.view.browser import chromium, text_of, wait_for
+from tests.view.browser import canvas_rgb, chromium, text_of, wait_for
 
 #: A 40 x 20 deg rectangle, its top edge traced, the rest not yet.
 SQUARE = EdgeLoop(
@@ -160,10 +160,6 @@ def test_the_teleop_page_tells_the_teleop_story(browser, served):
 
     def red_above(driver) -> bool:
         x, y = driver.execute_script("return window.limbview.toCanvas(10.0, 10.0);")
-        rgb = driver.execute_script(
-            "return Array.from(document.getElementById('plane').getContext('2d')"
-            f".getImageData({round(x)}, {round(y) - 16}, 1, 1).data);"
-        )
-        return tuple(rgb[:3]) == (208, 16, 16)
+        return canvas_rgb(driver, x, y - 16) == (208, 16, 16)
 
     wait_for(browser, red_above, "no bar on the blocked side")

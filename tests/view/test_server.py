@@ -17,7 +17,6 @@ import urllib.request
 import pytest
 import websocket
 
-from limbctl.errors import ConfigError
 from limbctl.view import Board, Live, PanTilt, Scene, ViewServer
 
 #: Longest wait (s) for a message in these tests.
@@ -157,15 +156,6 @@ def test_stop_closes_connected_browsers_and_frees_the_port():
         probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         probe.bind(("127.0.0.1", port))
         probe.listen()
-
-
-def test_a_port_in_use_is_refused_with_what_to_do():
-    with socket.socket() as taken:
-        taken.bind(("127.0.0.1", 0))
-        taken.listen()
-        port = taken.getsockname()[1]
-        with pytest.raises(ConfigError, match="--view-port"):
-            ViewServer(Board(), port=port).start()
 
 
 def test_state_json_is_the_newest_snapshot():
