@@ -20,6 +20,11 @@ so a pattern search converges; points it tries outside the swing region are repl
 exact projection onto it, so it slides along the swing edge. It starts from the better of the
 command's own swing projection and the direction of the nearest *seed* (orientations sampled on
 the region's boundary, a few degrees apart), and stops once its step is below ``STEP_MIN``.
+``F`` has several local optima where the learned band's limits are uneven, so further searches
+(``MAX_STARTS`` in all) start from the best-scoring of the other candidates (the swing
+projection and the ``NEAREST_SEEDS`` nearest seeds' directions, ``START_APART`` from every start
+before); each stops at ``STEP_COARSE`` unless it has already beaten the best optimum, and the
+best optimum found is the answer (docs/decisions/twist.md).
 No fastmath: NaN must fail every comparison.
 """
 
@@ -43,14 +48,28 @@ STEP_START = math.radians(3.0)
 #: the geodesic angle is flat to first order there (a smooth optimum) or moves along the exact
 #: swing edge, so its error is far below this.
 STEP_MIN = math.radians(0.03)
+#: Step (rad) at which a further start's search stops unless it has already beaten the best
+#: optimum found (only then is it refined to STEP_MIN): 0.25 deg, three halvings of STEP_START,
+#: where a basin's score is within ~0.1 deg of its optimum.
+STEP_COARSE = STEP_START / 8.0
 #: Cap on the pattern search's polls, a bound on its time: the 7 halvings from STEP_START to
 #: STEP_MIN poll 42 times without a move, leaving ~350 polls for moves.
 MAX_POLLS = 400
 #: Poll directions per step: six at 60 deg, the smallest positive spanning set that keeps the
 #: pattern isotropic enough for the search to follow a curved swing edge.
 POLL_DIRECTIONS = 6
+#: Seeds nearest the command (by ``|<q, s>|``) the starts are chosen from.
+NEAREST_SEEDS = 24
+#: Pattern searches at most per command: the first from the better of the swing projection and
+#: the nearest seed, the others from the next candidates START_APART from every start before.
+MAX_STARTS = 2
+#: Least angle (rad) between two starts' directions: two pattern-search steps, so a second
+#: start near the first does not retrace its basin.
+START_APART = STEP_START
+#: ``cos(START_APART)``: candidates whose direction's cosine to a start exceeds it are skipped.
+COS_APART = math.cos(START_APART)
 #: Rows of scratch the search needs beyond the direction mesh's (see ``_correct_one``).
-WORK_EXTRA = 8
+WORK_EXTRA = 8 + MAX_STARTS
 
 
 @njit(inline="always")
@@ -150,75 +169,23 @@ def _compose_into(d, tau, out) -> None:
 
 
 @njit(inline="always")
-def _correct_one(q, mesh, band, seeds, seed_dirs, out, work) -> int:
-    """Correct one quaternion into ``out``: 1 inside (``out = q``), 0 corrected, -1 bad input.
-
-    ``mesh`` is the direction mesh's kernel arguments, ``band = (frame, grid, centre, half)``;
-    ``work`` (WORK_ROWS + WORK_EXTRA, 3) holds the mesh frame in rows 0, 1.
-    """
+def _search(qc, dq, cur, best, best_tau, mesh, band, work, step, step_min):
+    """Pattern search over swing-region directions from ``cur`` (its score ``best``, twist
+    ``best_tau``) for the largest ``F`` (:func:`_score`), its step halving from ``step`` until
+    below ``step_min`` (rad): ``cur`` moves to the optimum found; returns its ``(F, tau)``.
+    Polls outside the swing region are replaced by their projection. ``work`` rows
+    ``WORK_ROWS + 2 .. + 5`` are its scratch."""
     vertices, edges, margins, axis, grid_shape, inside, deep, start, cell_edges, keys = mesh
     frame, grid, centre, half = band
-    norm2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]
-    if not abs(math.sqrt(norm2) - 1.0) <= 1e-6:
-        return -1
-    sign = -1.0 if q[0] < 0.0 else 1.0
     base = bk.WORK_ROWS
-    qc = np.empty(4)
-    for k in range(4):
-        qc[k] = sign * q[k]
-    w, x, y, z = qc[0], qc[1], qc[2], qc[3]
-    dq = work[base]
-    dq[0] = w * w + x * x - y * y - z * z
-    dq[1] = 2.0 * (x * y + w * z)
-    dq[2] = 2.0 * (x * z - w * y)
-    dn = math.sqrt(dq[0] * dq[0] + dq[1] * dq[1] + dq[2] * dq[2])
-    for k in range(3):
-        dq[k] /= dn
-    cur = work[base + 1]
-    if bk.query(
-        dq,
-        vertices,
-        edges,
-        margins,
-        axis,
-        grid_shape,
-        inside,
-        deep,
-        start,
-        cell_edges,
-        keys,
-        cur,
-        work,
-    ):
-        c, h = band_at(dq, frame, grid, centre, half)
-        if abs(wrap(2.0 * math.atan2(x, w) - c)) <= h + TWIST_TOLERANCE:
-            for k in range(4):
-                out[k] = qc[k]
-            return 1
-    best, best_tau = _score(qc, dq, cur, frame, grid, centre, half)
-    # the seed nearest q on SO(3): max |<q, s>|
-    top = -1.0
-    pick = 0
-    for s in range(seeds.shape[0]):
-        dot = abs(w * seeds[s, 0] + x * seeds[s, 1] + y * seeds[s, 2] + z * seeds[s, 3])
-        if dot > top:
-            top = dot
-            pick = s
-    if seeds.shape[0] > 0:
-        f, t = _score(qc, dq, seed_dirs[pick], frame, grid, centre, half)
-        if f > best:
-            best, best_tau = f, t
-            for k in range(3):
-                cur[k] = seed_dirs[pick, k]
     trial = work[base + 2]
     proj = work[base + 3]
     e1 = work[base + 4]
     e2 = work[base + 5]
-    step = STEP_START
     turn = 0.0
     last = 0
     polls = 0
-    while step > STEP_MIN and polls < MAX_POLLS:
+    while step > step_min and polls < MAX_POLLS:
         # tangent frame at cur as quat.tangent_frame: e1 = normalise(h x cur), helper h = +z
         # (+y near the z axis), e2 = cur x e1; the polls turn a little each halving
         hx = 0.0 if abs(cur[2]) < 0.9 else 1.0
@@ -270,6 +237,127 @@ def _correct_one(q, mesh, band, seeds, seed_dirs, out, work) -> int:
         if not moved:
             step *= 0.5
             turn += 0.5 * math.pi / POLL_DIRECTIONS
+    return best, best_tau
+
+
+@njit(inline="always")
+def _correct_one(q, mesh, band, seeds, seed_dirs, out, work) -> int:
+    """Correct one quaternion into ``out``: 1 inside (``out = q``), 0 corrected, -1 bad input.
+
+    ``mesh`` is the direction mesh's kernel arguments, ``band = (frame, grid, centre, half)``;
+    ``work`` (WORK_ROWS + WORK_EXTRA, 3) holds the mesh frame in rows 0, 1.
+    """
+    vertices, edges, margins, axis, grid_shape, inside, deep, start, cell_edges, keys = mesh
+    frame, grid, centre, half = band
+    norm2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]
+    if not abs(math.sqrt(norm2) - 1.0) <= 1e-6:
+        return -1
+    sign = -1.0 if q[0] < 0.0 else 1.0
+    base = bk.WORK_ROWS
+    qc = np.empty(4)
+    for k in range(4):
+        qc[k] = sign * q[k]
+    w, x, y, z = qc[0], qc[1], qc[2], qc[3]
+    dq = work[base]
+    dq[0] = w * w + x * x - y * y - z * z
+    dq[1] = 2.0 * (x * y + w * z)
+    dq[2] = 2.0 * (x * z - w * y)
+    dn = math.sqrt(dq[0] * dq[0] + dq[1] * dq[1] + dq[2] * dq[2])
+    for k in range(3):
+        dq[k] /= dn
+    cur = work[base + 1]
+    if bk.query(
+        dq,
+        vertices,
+        edges,
+        margins,
+        axis,
+        grid_shape,
+        inside,
+        deep,
+        start,
+        cell_edges,
+        keys,
+        cur,
+        work,
+    ):
+        c, h = band_at(dq, frame, grid, centre, half)
+        if abs(wrap(2.0 * math.atan2(x, w) - c)) <= h + TWIST_TOLERANCE:
+            for k in range(4):
+                out[k] = qc[k]
+            return 1
+    best, best_tau = _score(qc, dq, cur, frame, grid, centre, half)
+    # the NEAREST_SEEDS seeds nearest q on SO(3) (max |<q, s>|), best first
+    top = np.empty(NEAREST_SEEDS)
+    pick = np.empty(NEAREST_SEEDS, dtype=np.int64)
+    for m in range(NEAREST_SEEDS):
+        top[m] = -1.0
+        pick[m] = -1
+    for s in range(seeds.shape[0]):
+        dot = abs(w * seeds[s, 0] + x * seeds[s, 1] + y * seeds[s, 2] + z * seeds[s, 3])
+        if dot > top[NEAREST_SEEDS - 1]:
+            m = NEAREST_SEEDS - 1
+            while m > 0 and dot > top[m - 1]:
+                top[m] = top[m - 1]
+                pick[m] = pick[m - 1]
+                m -= 1
+            top[m] = dot
+            pick[m] = s
+    # first start: the better of the swing projection and the nearest seed's direction
+    held = work[base + 6]
+    for k in range(3):
+        held[k] = cur[k]
+    if pick[0] >= 0:
+        f, t = _score(qc, dq, seed_dirs[pick[0]], frame, grid, centre, half)
+        if f > best:
+            best, best_tau = f, t
+            for k in range(3):
+                cur[k] = seed_dirs[pick[0], k]
+    # further starts: the swing projection and the nearest seeds' directions, best score first,
+    # each at least START_APART from every start before it; the best optimum found is kept
+    alt = work[base + 7]
+    starts = work[base + 8 : base + 8 + MAX_STARTS]
+    for k in range(3):
+        starts[0, k] = cur[k]
+    best, best_tau = _search(qc, dq, cur, best, best_tau, mesh, band, work, STEP_START, STEP_MIN)
+    # candidate scores: rank NEAREST_SEEDS is the swing projection
+    score = np.empty(NEAREST_SEEDS + 1)
+    for m in range(NEAREST_SEEDS):
+        score[m] = (
+            _score(qc, dq, seed_dirs[pick[m]], frame, grid, centre, half)[0]
+            if pick[m] >= 0
+            else -2.0
+        )
+    score[NEAREST_SEEDS] = _score(qc, dq, held, frame, grid, centre, half)[0]
+    n_starts = 1
+    while n_starts < MAX_STARTS:
+        m = 0
+        for r in range(1, NEAREST_SEEDS + 1):
+            if score[r] > score[m]:
+                m = r
+        if score[m] < -1.0:
+            break
+        score[m] = -2.0
+        src = held if m == NEAREST_SEEDS else seed_dirs[pick[m]]
+        near = False
+        for r in range(n_starts):
+            if src[0] * starts[r, 0] + src[1] * starts[r, 1] + src[2] * starts[r, 2] > COS_APART:
+                near = True
+        if near:
+            continue
+        for k in range(3):
+            starts[n_starts, k] = src[k]
+            alt[k] = src[k]
+        n_starts += 1
+        f, t = _score(qc, dq, alt, frame, grid, centre, half)
+        f, t = _search(qc, dq, alt, f, t, mesh, band, work, STEP_START, STEP_COARSE)
+        if f <= best:
+            continue
+        f, t = _search(qc, dq, alt, f, t, mesh, band, work, STEP_COARSE, STEP_MIN)
+        if f > best:
+            best, best_tau = f, t
+            for k in range(3):
+                cur[k] = alt[k]
     _compose_into(cur, best_tau, out)
     return 0
 
