@@ -88,7 +88,7 @@ THIN_GROWTH = 1.05
 #: Version of what a fit builds from given samples, raised whenever the construction changes
 #: the region some data give: cached `limbctl eval` results are keyed on it. Saved models carry
 #: their mesh and keep answering as they did (their format is ``GATE_VERSION``'s business).
-FIT_VERSION = 7
+FIT_VERSION = 8
 #: While the supported edge bridges a stretch the samples surround but do not reach, the
 #: triangle behind each such station is carved out, at most CARVE_ROUNDS rounds: a bay bridged
 #: by the shape is a few triangles deep (a 10 deg bay at the 1-2 deg spacing of thinned hand

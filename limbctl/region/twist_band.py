@@ -34,7 +34,8 @@ Fitting, per grid node, from the taught samples within ``BAND_RADIUS_DEG`` of it
 4. *Evidence cap*: each limit is then narrowed, never widened, to what the taught twists near
    the node support (:mod:`limbctl.region.twist_evidence`: a cone about every sample, and a
    cap along the local slope of the stops around, read again once the stops are re-read
-   against the capped band, and a steeper cone where no slope could be read): a reading that
+   against the capped band, and a steeper cone and a bound of stated slope and bending where
+   no slope could be read): a reading that
    bridged past a stop the hand never turned to is held within a degree of the truth, and
    where that cut is large and no stop was held there the place is listed for the guide
    (:attr:`TwistBand.cuts`).
@@ -52,7 +53,7 @@ from limbctl.geometry.quat import tangent_frame
 from limbctl.geometry.twist import wrap
 from limbctl.region import twist_fit_kernels as fk
 from limbctl.region import twist_kernels as tk
-from limbctl.region.twist_evidence import cap_limits, inside_hull
+from limbctl.region.twist_evidence import cap_limits, curvature_floors, inside_hull
 
 #: Grid spacing (deg) of the band's nodes: a band limit sloping 1 deg per deg errs by at most
 #: its curvature over 1.5 deg between nodes, and 2 sr of region take ~3000 nodes.
@@ -239,14 +240,15 @@ class TwistBand:
         # inside the samples' convex hull on the plane)
         args = (bounded, nodes, start, members, d, limit, ref)
         within = inside_hull(xy, node_xy)
-        capped = cap_limits(up, lo, *args, tuple(stops), within)
+        floors = curvature_floors(xy, limit, node_xy, ref)
+        capped = cap_limits(up, lo, *args, tuple(stops), within, floors)
         for _ in range(STOP_REREADS):
             # the stops re-read against the capped band: where the readings bridged a dip, the
             # samples at its bottom were below the first reading's limit, not its stops
             c2, h2 = self._with_limits(ref, half, *capped[:2]).at(d)
             off = wrap(limit - c2)
             stops = [(off >= h2 - near) & (h2 < math.pi), (-off >= h2 - near) & (h2 < math.pi)]
-            capped = cap_limits(up, lo, *args, tuple(stops), within)
+            capped = cap_limits(up, lo, *args, tuple(stops), within, floors)
         up, lo, cut_up, cut_lo = capped
         self.cuts = (nodes, cut_up, cut_lo)
         new = self._with_limits(ref, half, up, lo)

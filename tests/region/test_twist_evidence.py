@@ -7,8 +7,9 @@ import math
 import numpy as np
 import pytest
 
+from firmware_sim.hand import Hand
 from limbctl.envelope.synthetic_twist import BandRegion
-from limbctl.geometry.gimbal import direction_to_pan_tilt, pan_tilt_to_direction
+from limbctl.geometry.gimbal import direction_to_pan_tilt, pan_tilt_to_direction, pose_quat_scalar
 from limbctl.geometry.twist import compose, decompose, wrap
 from limbctl.region.twist_evidence import REPORT_CUT_DEG, UnsupportedPlace, unsupported_places
 from limbctl.region.twist_region import TwistRegion
@@ -196,3 +197,38 @@ def test_unsupported_places_keep_the_largest_cut_of_each_cell_and_side():
     ]
     assert unsupported_places(np.zeros((0, 3)), np.zeros(0), np.zeros(0)) == ()
     assert isinstance(places[0], UnsupportedPlace)
+
+
+#: A curved band the simulator's hand teaches (the region families' kind: a centre and a
+#: half-width curving with pan and tilt, each with a bump): in places its limits fall faster
+#: than the hold's cone (HOLD_SLOPE 1 deg per deg) lets them.
+HAND_TWIST = {
+    "centre_deg": {
+        "linear": [-14.0, 0.2, 0.2],
+        "quadratic": [0.003, 0.001, 0.0],
+        "bumps": [[-6.0, 10.6, -8.1, 9.3]],
+    },
+    "half_width_deg": {"linear": [37.0, 0.1, -0.33], "bumps": [[-18.5, 9.1, 10.9, 11.9]]},
+}
+
+
+def test_a_hand_taught_steep_curved_band_stays_within_a_degree_of_the_truth():
+    # before the bound the hold's cone (1 deg per deg) let the lower limit 4.59 deg past the
+    # truth where the band falls faster than that, far from the hand's stops
+    mapping = {"region": {"polygon": SQUARE.tolist()}, "speed_deg_s": 40, "twist": HAND_TWIST}
+    hand = Hand.from_mapping(mapping, seed=1, source="<test>")
+    rows = [hand.pose_deg(t) for t in np.arange(0.0, 30.0, 1.0 / 125.0)]
+    q = np.array([pose_quat_scalar(*np.radians(r)) for r in rows])
+    limits = np.vectorize(hand.band.limits_deg, otypes=[float, float])
+
+    def band_deg(pan, tilt):
+        low, high = limits(pan, tilt)
+        return 0.5 * (low + high), 0.5 * (high - low)
+
+    truth = BandRegion(SQUARE, band_deg)
+    assert truth.contains(q).all()
+    region = TwistRegion().fit(q)
+    excess = _excess_deg(truth, region, _learned_grid(region))
+    assert excess.max() <= 1.0, f"band {excess.max():.2f} deg past the true stop"
+    # what the bound holds short is asked for
+    assert region.unsupported
