@@ -266,7 +266,6 @@ def gradient_caps(
     reach,
     steep,
     limited,
-    min_stops,
 ):
     """One limit's cap (M,) read along its local slope, relative to the node's centre ``ref``
     (M,) (rad), and how many samples witness it (M,); the upper limit (for the lower, pass the
@@ -282,10 +281,9 @@ def gradient_caps(
         cap(n) = max_j (limit_j - ref_n - g . x_j - slack angle(n, d_j)
                         - curvature angle(n, d_j)^2 / 2)
 
-    over all the neighbours ``j``. NaN where fewer than 3 stops lie around the node, their
-    effective count ``(sum w)^2 / sum w^2`` is under ``min_stops``, or their weighted
-    positions spread less than ``spread`` (rad, one sigma) in some direction: the slope is not
-    known there. Witnesses as :func:`evidence_caps` counts them (within ``near``
+    over all the neighbours ``j``. NaN where fewer than 3 stops lie around the node or their
+    weighted positions spread less than ``spread`` (rad, one sigma) in some direction: the
+    slope is not known there. Witnesses as :func:`evidence_caps` counts them (within ``near``
     of the node, within ``band`` of the cap). At the nodes ``limited`` (M,) bool a sample
     farther than ``reach`` (rad) bounds the limit by the lower of its term above and the steep
     cone's ``limit_j - ref_n - steep angle(n, d_j)`` (``steep`` rad/rad).
@@ -310,7 +308,6 @@ def gradient_caps(
         a = np.zeros((3, 3))
         b = np.zeros(3)
         count = 0
-        weight_sq = 0.0
         for k in range(start[i], start[i + 1]):
             j = members[k]
             if not stop[j]:
@@ -326,10 +323,7 @@ def gradient_caps(
                 for s in range(3):
                     a[r, s] += w * row[r] * row[s]
             count += 1
-            weight_sq += w * w
-        # the stops' effective count (sum w)^2 / sum w^2: through 3 the plane fits exactly and
-        # its error reads 0, so fewer than ``min_stops`` leave the slope unknown
-        if count < 3 or a[0, 0] * a[0, 0] < min_stops * weight_sq:
+        if count < 3:
             continue
         # the stops' weighted spread about their mean, least direction (2 x 2 covariance)
         mx = a[0, 1] / a[0, 0]
