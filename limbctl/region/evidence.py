@@ -84,7 +84,7 @@ class Stretch:
     length_deg : float
         Its length along the edge (deg).
     held : bool
-        Whether the region was held there to ``REACH_DEG`` of the taught samples
+        Whether the region was held there within ``REACH_DEG`` of the taught samples
         (:mod:`limbctl.region.edge_hold`): it then stands short of where the learned edge put
         it, ``distance_deg`` being how far that edge stood from the samples.
     """
@@ -102,7 +102,9 @@ class Stretch:
             f"of edge up to {self.distance_deg:.1f} deg from every taught sample"
         )
         if self.held:
-            text += f" (held at the evidence: the region stops {REACH_DEG:g} deg from it there)"
+            text += (
+                f" (held at the evidence: the region stops within {REACH_DEG:g} deg of it there)"
+            )
         return text
 
 

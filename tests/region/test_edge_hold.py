@@ -46,11 +46,24 @@ def test_a_sparse_teaching_is_held_to_the_evidence(sparse_notch, monkeypatch):
     assert "held at the evidence" in region.unsupported_edge[0].line()
     # unheld (as before the hold), the same teaching's region reached farther than the bound
     # and held every taught sample the held region holds
-    monkeypatch.setattr(taught_module, "hold_to_evidence", lambda mesh, data: (mesh, False))
+    monkeypatch.setattr(taught_module, "hold_to_evidence", lambda mesh, *_: (mesh, False))
     unheld = TaughtRegion().fit(taught)
     assert reach_into(unheld.contains, truth, box, step_deg=SCAN_DEG) > bound
     d = taught_module.taught_directions(taught)
     assert not np.any(unheld.mesh.contains(d) & ~region.mesh.contains(d))
+
+
+def test_a_dense_teaching_stays_within_a_degree_of_the_truth(sparse_notch, monkeypatch):
+    """6000 samples of the notched ellipse (seed 7): held only where the edge stood past
+    REACH_DEG, the region reached 1.15 deg past the truth (its stations up to REACH_DEG from
+    the samples, the hold's chords farther); held to HOLD_REACH_DEG it stays within 1 deg."""
+    truth, _, box = sparse_notch
+    taught = truth.sample(6000, np.random.default_rng(7))
+    region = TaughtRegion().fit(taught)
+    assert region.held_edge
+    assert reach_into(region.contains, truth, box, step_deg=SCAN_DEG) < 1.0
+    monkeypatch.setattr(taught_module, "HOLD_REACH_DEG", REACH_DEG)
+    assert reach_into(TaughtRegion().fit(taught).contains, truth, box, step_deg=SCAN_DEG) > 1.0
 
 
 def test_a_region_with_no_far_station_is_returned_as_it_is(sparse_notch):
