@@ -100,31 +100,6 @@ class Cone(Envelope):
         ip.check_k(k)
         return self.correct(q)
 
-    def contains(self, q: np.ndarray) -> np.ndarray | bool:
-        """Inside the cone: w^2 + x^2 >= cos^2(R/2) - CONTAINS_TOLERANCE. (N,) bool or bool."""
-        arr, single = self._input(q)
-        inside = self._inside(arr)
-        return bool(inside[0]) if single else inside
-
-    def correct(self, q: np.ndarray) -> np.ndarray:
-        """q (canonical, bit-for-bit) inside; Lee's correction to swing angle R outside.
-
-        Parameters
-        ----------
-        q : array_like, shape (4,) or (N, 4)
-
-        Returns
-        -------
-        ndarray, shape like ``q``
-            Unit quaternions, w >= 0.
-        """
-        arr, single = self._input(q)
-        out = arr.copy()
-        outside = ~self._inside(arr)
-        if outside.any():
-            out[outside] = self._to_boundary(arr[outside])
-        return out[0] if single else out
-
     @property
     def weights(self) -> np.ndarray:
         """No nodes: an empty (0, 4) array."""
@@ -132,11 +107,13 @@ class Cone(Envelope):
 
     # ---- internals -------------------------------------------------------------------------
     def _inside(self, q: np.ndarray) -> np.ndarray:
+        """Inside the cone: w^2 + x^2 >= cos^2(R/2) - CONTAINS_TOLERANCE."""
         limit = np.cos(0.5 * self.half_angle) ** 2
         # valid iff w^2 + x^2 >= cos^2(R/2)   (tolerance: see CONTAINS_TOLERANCE)
         return q[:, 0] ** 2 + q[:, 1] ** 2 >= limit - CONTAINS_TOLERANCE
 
     def _to_boundary(self, q: np.ndarray) -> np.ndarray:
+        """Lee's correction to swing angle R."""
         c = np.cos(0.5 * self.half_angle)
         s = np.sin(0.5 * self.half_angle)
         out = np.empty_like(q)
@@ -168,11 +145,8 @@ class Cone(Envelope):
 
 
 def _unit_pair(u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(u, v) / hypot(u, v), accurate for subnormal pairs; also where both are zero.
-
-    Scales by max(|u|, |v|) first so the ratio keeps full precision. Returns the two unit
-    components (0 where both are zero) and the (N,) mask of zero pairs.
-    """
+    """(u, v) / hypot(u, v) (N,) each, scaled by max(|u|, |v|) first so subnormal pairs keep
+    full precision; 0 where both are zero, and the (N,) mask of those."""
     big = np.maximum(np.abs(u), np.abs(v))
     zero = big == 0.0
     big = np.where(zero, 1.0, big)
