@@ -98,11 +98,8 @@ class Envelope(ABC):
         """Rebuild a trained model from what ``_params`` and ``_arrays`` returned."""
 
     def save(self, path: str | Path, metadata: dict[str, Any] | None = None) -> Path:
-        """Write the model to ``path`` (one .npz file) atomically; returns the path.
-
-        ``metadata`` (JSON-serialisable, e.g. the rig name a model was trained for) is stored
-        in the header and read back by :func:`load_header`.
-        """
+        """Write the model to ``path`` (one .npz file) atomically, with JSON ``metadata`` in its
+        header (:func:`load_header`); returns the path."""
         path = Path(path)
         arrays = {name: np.ascontiguousarray(a) for name, a in self._arrays().items()}
         header = {

@@ -119,7 +119,7 @@ def check_writable(path: str | os.PathLike[str], min_free_bytes: int = MIN_FREE_
     Raises
     ------
     ConfigError
-        If the file exists, its directory is missing or not writable, or the disk has fewer
+        If the file exists, its directory is missing or not writable, or the disk has less
         than ``min_free_bytes`` free.
     """
     path = Path(path)
@@ -162,10 +162,6 @@ class DatasetWriter:
     min_free_bytes : int
         Free disk space required up front.
 
-    Examples
-    --------
-    >>> with DatasetWriter("teach.limb", rig="sim") as out:          # doctest: +SKIP
-    ...     out.append(t_s, pan, tilt)
     """
 
     def __init__(
@@ -366,12 +362,7 @@ def is_dataset_file(path: str | os.PathLike[str]) -> bool:
 
 
 def load_dataset(path: str | os.PathLike[str]) -> Dataset:
-    """Read a dataset, verifying every line.
-
-    Returns
-    -------
-    Dataset
-        With ``dropped_tail`` set if a torn last line was dropped.
+    """Read a dataset, verifying every line (``dropped_tail`` set if a torn last line was dropped).
 
     Raises
     ------

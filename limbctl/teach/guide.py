@@ -83,16 +83,8 @@ PHASES = {
 
 @dataclass(frozen=True)
 class EdgeGap:
-    """A stretch of the outline no sample has traced.
-
-    Attributes
-    ----------
-    fraction : float
-        Its share of the turn about the centre, in (0, 1].
-    start_deg, middle_deg, end_deg : tuple of float
-        (pan_deg, tilt_deg) of its two ends and its middle on the outline, counter-clockwise
-        about the centre.
-    """
+    """A stretch of the outline no sample has traced: its share of the turn about the centre
+    (``fraction``) and the (pan_deg, tilt_deg) of its ends and middle, counter-clockwise."""
 
     fraction: float
     start_deg: tuple[float, float]
@@ -102,15 +94,8 @@ class EdgeGap:
 
 @dataclass(frozen=True)
 class InsideGap:
-    """Uncovered inside cells joined by their sides.
-
-    Attributes
-    ----------
-    fraction : float
-        Its share of the inside cells, in (0, 1].
-    middle_deg : tuple of float
-        (pan_deg, tilt_deg) of its cells' mean picture position.
-    """
+    """Uncovered inside cells joined by their sides: their share of the inside cells
+    (``fraction``) and the (pan_deg, tilt_deg) of their mean picture position."""
 
     fraction: float
     middle_deg: tuple[float, float]
@@ -139,11 +124,10 @@ class Guidance:
     spread_deg : float
         Largest angle between a sample and the samples' mean direction.
     holes : tuple of Hole
-        Gaps of more than HOLE_MIN_S between samples: those hiding an open stretch of edge
-        first, then the longest (at most MAX_HOLES).
+        The recording's holes (:func:`limbctl.teach.holes.find_holes`).
     unsupported : tuple of EdgeStretch
-        Stretches of edge the region learned from these samples would bridge
-        (:mod:`limbctl.teach.edge_support`), farthest first: READY is withheld while any is left.
+        Stretches of edge the learned region would bridge (:mod:`limbctl.teach.edge_support`),
+        farthest first: READY is withheld while any is left.
     checking : bool
         Ready by coverage, but the edge's support is still being checked.
     """
@@ -225,8 +209,7 @@ def _project(d: np.ndarray, centre: np.ndarray) -> tuple[np.ndarray, np.ndarray]
 
 
 def _unproject(x: np.ndarray, y: np.ndarray, centre: np.ndarray) -> np.ndarray:
-    """Directions (M, 3) of picture points x, y (M,) deg:
-    d = cos(rho) c + sin(rho) (cos(phi) u + sin(phi) v)."""
+    """Directions (M, 3) of picture points x, y (M,) deg."""
     u, v = tangent_frame(centre)
     rho = np.radians(np.hypot(x, y))
     phi = np.arctan2(y, x)
@@ -410,11 +393,8 @@ def assess(t_s: np.ndarray, pan_rad: np.ndarray, tilt_rad: np.ndarray) -> Guidan
 
 
 class Guide:
-    """Collects samples as they are recorded and assesses them on demand.
-
-    ``add`` is O(1) (growing buffers, doubled when full); ``assess`` costs milliseconds on ten
-    thousand samples (docs/teaching.md), so a 100 Hz recorder may call it once a second.
-    """
+    """Collects samples as they are recorded (O(1) each) and assesses them on demand
+    (milliseconds for ten thousand samples)."""
 
     def __init__(self, capacity: int = 4096, support: EdgeSupport | None = None) -> None:
         self._t = np.empty(max(int(capacity), 1))
