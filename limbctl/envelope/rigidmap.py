@@ -37,16 +37,9 @@ _SCHEDULE = (
     "learning_rate learning_rate_decay radius radius_decay neighbourhood max_epochs tol".split()
 )
 #: The region settings that models saved before RegionParams kept among the map's parameters.
-_FLAT_REGION_KEYS = (
-    "support_nodes",
-    "thin_deg",
-    "alpha_factor",
-    "hole_fraction",
-    "peel_factor",
-    "min_peel_deg",
-    "surround_deg",
-    "max_margin_deg",
-    "max_offset_deg",
+_FLAT_REGION_KEYS = tuple(
+    "support_nodes thin_deg alpha_factor hole_fraction peel_factor min_peel_deg surround_deg "
+    "max_margin_deg max_offset_deg".split()
 )
 
 

@@ -43,16 +43,9 @@ SCALES = {
     "quick": TwistScale((2500, 1900, 3100), 2000, (0,), 0.4, 2000),
     "smoke": TwistScale((700, 500, 800), 400, (0,), 0.6, 200),
 }
-FIELDS = (
-    "seed",
-    "outside",
-    "learned_mean_deg",
-    "learned_p95_deg",
-    "clamp_mean_deg",
-    "clamp_p95_deg",
-    "deep",
-    "deep_unchanged",
-    "within_1deg",
+FIELDS = tuple(
+    "seed outside learned_mean_deg learned_p95_deg clamp_mean_deg clamp_p95_deg deep "
+    "deep_unchanged within_1deg".split()
 )
 
 
