@@ -61,21 +61,8 @@ def _normalise_rows(p: np.ndarray) -> np.ndarray:
 
 
 def fold_to_hemisphere(points: np.ndarray, decimals: int = 9) -> np.ndarray:
-    """Fold points to the canonical hemisphere and drop antipodal duplicates.
-
-    Parameters
-    ----------
-    points : ndarray, shape (n, 4)
-        Unit quaternions.
-    decimals : int
-        Rounding used to recognise duplicates.
-
-    Returns
-    -------
-    ndarray, shape (m, 4)
-        Each point's representative with w > 0, or on w = 0 the one whose first non-zero
-        component is positive; duplicates removed, input order kept.
-    """
+    """Unit quaternions (n, 4) folded to the canonical hemisphere (module docstring), duplicates
+    (rounded to ``decimals``) dropped, input order kept: (m, 4)."""
     points = np.asarray(points, dtype=np.float64)
     rounded = np.round(points, decimals) + 0.0  # + 0.0 turns -0.0 into 0.0
     nonzero = rounded != 0.0

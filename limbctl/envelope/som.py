@@ -59,8 +59,8 @@ def table_i_schedule(
     Returns
     -------
     learning_rates, radii : ndarray, shape (max_steps,)
-        ``lr(t) = max(lr0 lr_factor^p, lr_min)`` and ``radius(t) = max(radius0
-        radius_factor^p, radius_min)`` with period index ``p = min(t // period, periods - 1)``.
+        ``max(lr0 lr_factor^p, lr_min)`` and ``max(radius0 radius_factor^p, radius_min)``,
+        ``p = min(t // period, periods - 1)``.
     """
     t = np.arange(max_steps)
     p = np.minimum(t // period, periods - 1)
@@ -182,21 +182,9 @@ class SOM(Envelope):
         return self
 
     def respond(self, q: np.ndarray, interpolation: str = "none", k: int = 8) -> np.ndarray:
-        """The SOM's answer: the winner's weight (normalised, w >= 0), optionally interpolated.
-
-        Parameters
-        ----------
-        q : array_like, shape (4,) or (N, 4)
-        interpolation : str
-            ``none`` (the paper), ``idw``, ``geometric``, ``geometric-winner``, ``topological``.
-        k : int
-            Runner-ups combined with the winner (nearest by weight, or grid neighbours for
-            ``topological``).
-
-        Returns
-        -------
-        ndarray, shape like ``q``
-        """
+        """The SOM's answer to ``q`` (4,) or (N, 4), shaped like it: the winner's weight
+        (normalised, w >= 0), or by ``interpolation`` with ``k`` runner-ups (by weight, or grid
+        neighbours for ``topological``)."""
         mode = ip.interpolation_code(interpolation)
         k = ip.check_k(k)
         arr, single = self._input(q)

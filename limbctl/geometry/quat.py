@@ -128,19 +128,8 @@ def limb_direction(q: np.ndarray) -> np.ndarray:
 
 
 def swing_from_direction(d: np.ndarray) -> np.ndarray:
-    """The twist-free quaternion that turns +x onto direction ``d`` by the shortest arc.
-
-    Parameters
-    ----------
-    d : ndarray, shape (..., 3)
-        Limb directions (normalised here).
-
-    Returns
-    -------
-    ndarray, shape (..., 4)
-        ``normalize((1 + d_x, 0, -d_z, d_y))``, i.e. (1 + x.d, x cross d). For d = -x
-        (no unique shortest arc) the rotation about +z by pi is returned.
-    """
+    """The twist-free quaternion (..., 4) turning +x onto direction ``d`` (..., 3) by the shortest
+    arc: ``normalize((1 + d_x, 0, -d_z, d_y))``; for d = -x the half-turn about +z."""
     d = np.asarray(d, dtype=np.float64)
     d = d / np.linalg.norm(d, axis=-1, keepdims=True)
     q = np.stack([1.0 + d[..., 0], np.zeros_like(d[..., 0]), -d[..., 2], d[..., 1]], axis=-1)

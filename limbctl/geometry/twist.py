@@ -86,8 +86,7 @@ def compose(d: np.ndarray, tau: np.ndarray | float) -> np.ndarray:
     Returns
     -------
     ndarray, shape (..., 4)
-        ``(s_w c, s_w s, s_y c + s_z s, s_z c - s_y s)`` with ``swing(d) = (s_w, 0, s_y, s_z)``,
-        ``c = cos(tau/2)``, ``s = sin(tau/2)``.
+        ``(s_w c, s_w s, s_y c + s_z s, s_z c - s_y s)`` (module docstring).
     """
     sw = swing_from_direction(d)
     half = 0.5 * wrap(tau)
