@@ -67,10 +67,8 @@ class RigidMap(Envelope):
     region : RegionParams, optional
         Settings of the taught region the gate enforces (defaults when None).
     twist : bool
-        Three-servo limbs: learn swing and twist from full orientations
-        (:class:`~limbctl.region.twist_region.TwistRegion`); ``correct`` then gives the nearest
-        orientation of the region on SO(3). False (default): the swing-only region of a
-        two-servo gimbal, twist kept.
+        Learn swing and twist (:class:`~limbctl.region.twist_region.TwistRegion`, ``correct``
+        nearest on SO(3)) for three servos; False: the swing-only region, twist kept.
     """
 
     kind: ClassVar[str] = "rigidmap"

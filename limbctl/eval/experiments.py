@@ -217,9 +217,9 @@ def run_eval(
     Parameters
     ----------
     out : Path
-        Output folder (created). A rerun into the same folder resumes: finished tasks are kept.
+        Output folder (created); a rerun into it resumes.
     quick : bool
-        The reduced grid (under two minutes on two cores) instead of the full one.
+        The reduced grid instead of the full one.
     jobs : int
         Worker processes (0: one per core).
     progress : bool

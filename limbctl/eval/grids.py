@@ -36,11 +36,10 @@ class DataSpec:
     test_patterns : int
         Test patterns, valid and invalid.
     test_spread : str
-        ``"sphere"``: test directions uniform over the whole sphere; ``"around"``: uniform
-        within ``R + min(R, 45 deg)`` of +x (:meth:`ConeRegion.test_directions`).
+        Test directions uniform over the sphere (``"sphere"``) or within ``R + min(R, 45 deg)``
+        of +x (``"around"``).
     boundary_ratio : float
-        Density of training patterns in the boundary band (swing in (R/2, R]) relative to the
-        central cap (swing <= R/2); 1 is uniform over the cap.
+        Training density in the band (swing in (R/2, R]) over the central cap's; 1 is uniform.
     """
 
     range_deg: float

@@ -38,8 +38,7 @@ class Hole:
     at_edge : bool
         The sample before or after it lies in the outline's band (module docstring).
     edge_deg : tuple of float or None
-        (pan_deg, tilt_deg) of the middle of the stretch of edge it may hide, on the outline;
-        None when it hides none (not at the edge, or its samples' azimuths share a bin).
+        (pan_deg, tilt_deg) of the middle of the stretch of edge it may hide; None for none.
     fraction : float
         That stretch's share of the turn about the centre.
     open_fraction : float

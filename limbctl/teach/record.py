@@ -156,14 +156,11 @@ def record(
     stop : threading.Event, optional
         Set by Ctrl-C/SIGTERM handlers or the Enter key to end the recording.
     progress : text stream, optional
-        Where the live progress line (time, samples, the guide's figures) is drawn: updated in
-        place on a terminal, a line every LOG_EVERY_S otherwise.
-    on_guidance : callable, optional
-        Called with each :class:`~limbctl.teach.guide.Guidance` (every GUIDE_EVERY_S and at the
-        end), in the recording thread: keep it quick.
-    on_twist : callable, optional
-        Called with each :class:`~limbctl.teach.twist_guide.TwistGuidance` of a three-servo rig,
-        with ``on_guidance``'s.
+        Where the progress line is drawn: in place on a terminal, every LOG_EVERY_S otherwise.
+    on_guidance, on_twist : callable, optional
+        Called in the recording thread (keep them quick) with each
+        :class:`~limbctl.teach.guide.Guidance` and (three servos)
+        :class:`~limbctl.teach.twist_guide.TwistGuidance`, every GUIDE_EVERY_S and at the end.
     """
     check_rate(rate_hz)
     with EdgeSupport() as support:

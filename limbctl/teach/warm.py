@@ -89,11 +89,10 @@ def warm_up(
     Parameters
     ----------
     twist : bool
-        Warm a three-servo rig's stages (``train-twist``, ``gate-twist``) instead of a
-        two-servo rig's (``train``, ``gate``).
+        Warm a three-servo rig's stages (``train-twist``, ``gate-twist``), not ``train``, ``gate``.
     wait : bool
-        When another warm-up holds the lock, wait for it to end and then do what it left
-        (``limbctl prepare``), instead of standing aside (the background warm-up).
+        When another warm-up holds the lock, wait for it and do what it left (``limbctl
+        prepare``) instead of standing aside.
     report : callable, optional
         Called as ``report(stage, event)`` with ``event`` one of :data:`START`, :data:`DONE`,
         :data:`READY` as each stage begins and ends (:data:`WAIT` when ``wait`` waits).
