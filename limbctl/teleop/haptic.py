@@ -8,7 +8,7 @@ joint-space step toward the corrected pose, d (deg) how far the leader is beyond
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 from limbctl.errors import ConfigError
 from limbctl.servo.leader import LeaderMotor
@@ -76,20 +76,8 @@ class FeelLaw:
     walk_hold_nm: float = 0.06
 
     def __post_init__(self) -> None:
-        names = (
-            "deadband_deg",
-            "gain_nm_per_deg",
-            "cap_nm",
-            "lead_fraction",
-            "outrun_slack_deg",
-            "held_within_deg",
-            "outward_noise_nm",
-            "rearm_band_deg",
-            "walk_lead_ticks",
-            "walk_speed_deg_s",
-            "walk_hold_nm",
-        )
-        for name in names:
+        checked_apart = ("return_speed_deg_s", "lead_deg")
+        for name in (f.name for f in fields(self) if f.name not in checked_apart):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0.0):
                 raise ConfigError(f"feel law {name} must be finite and >= 0, got {value!r}")
