@@ -2,8 +2,10 @@
 
 One algorithm for every chain (:func:`limbctl.geometry.chains.chain_geometry`); its stages
 (correct, slew, route, inverse kinematics, clamp, joint step, final check) are described in
-docs/architecture.md. A roll crossing +-180 deg goes the long way round; each pose between is
-checked, so the gate holds rather than leave the region. Outcomes are values (:class:`Outcome`).
+docs/architecture.md. The roll's limits lie inside (-180, 180) deg, so a rotation crossing roll
++-180 deg goes the long way round; each pose between is checked and the gate holds rather than
+leave the region (a fitted twist band never crosses +-180 deg, so its poses are joined inside
+it). Outcomes are values (:class:`Outcome`).
 """
 
 from __future__ import annotations
