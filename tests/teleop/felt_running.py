@@ -1,9 +1,5 @@
-"""The felt-leader pty tests' loop runner, for two and three servos.
-
-:class:`Running` runs :func:`limbctl.teleop.loop.run` in a thread on an open simulated rig and
-keeps every cycle's push, so a test can wait on what the loop did (no sleeps) and judge the
-wall only on stretches that kept its pace.
-"""
+"""The felt-leader pty tests' loop runner (:class:`Running`), for two and three servos: waits on
+what the loop did (no sleeps) and judges the wall only where it kept its pace."""
 
 from __future__ import annotations
 
