@@ -18,7 +18,7 @@ from typing import TypeVar
 
 from calib.yaml_guard import shown
 from limbctl import file_jobs, jobs, upkeep
-from limbctl.demo import DEMO_RIGS, DemoOptions, run_demo_job
+from limbctl.demo import DEMO_RIGS, run_demo
 from limbctl.envelope import MODEL_KINDS
 from limbctl.errors import ConfigError, LimbctlError
 from limbctl.live import DEFAULT_PORT as DEFAULT_VIEW_PORT
@@ -165,9 +165,7 @@ def _add_demo(sub: Subparsers) -> None:
     p = _command(
         sub,
         "demo",
-        lambda a: run_demo_job(
-            DemoOptions(out=a.out, duration=a.duration, seed=a.seed, view=_view(a), rig=a.rig)
-        ),
+        lambda a: run_demo(a.out, a.duration, a.seed, _view(a), a.rig),
         help="the whole flow on the simulator: teach, train, teleop, plot",
         description="Run teach-by-hand, training, a teleop session that tries to leave the "
         "region, and plots, all on the embedded simulator, writing everything to --out.",
@@ -217,33 +215,19 @@ def _add_calibrate(sub: Subparsers) -> None:
         help="servo ids, comma separated: PAN,TILT, or PAN,TILT,ROLL for a limb that also turns "
         "about its own axis (default: the --rig profile's, else 1,2)",
     )
-    p.add_argument(
-        "--pan-limits",
-        help="hard pan limits MIN,MAX in degrees, e.g. --pan-limits=-90,90 (default: the base "
-        "rig profile's, narrowed to 1 deg inside the end stops)",
-    )
-    p.add_argument(
-        "--tilt-limits",
-        help="hard tilt limits MIN,MAX in degrees, e.g. --tilt-limits=-40,60 (default: the base "
-        "rig profile's, narrowed to 1 deg inside the end stops)",
-    )
-    p.add_argument(
-        "--pan-stops",
-        help="where the pan joint's travel ends mechanically, MIN,MAX in degrees, e.g. "
-        "--pan-stops=-120,120; the hard limits must lie 1 deg inside (default: the --rig "
-        "profile's, else +-90)",
-    )
-    p.add_argument(
-        "--tilt-stops",
-        help="where the tilt joint's travel ends mechanically, MIN,MAX in degrees, e.g. "
-        "--tilt-stops=-60,75 (default: the --rig profile's, else +-90)",
-    )
-    for flag, what, fallback in (
-        ("--roll-limits", "hard roll limits", "1 deg inside the end stops"),
-        ("--roll-stops", "the roll joint's end stops", "+-90"),
-    ):
-        p.add_argument(flag, help=f"{what}, MIN,MAX in degrees, three --ids only (default: the "
-                       f"--rig profile's, else {fallback})")  # fmt: skip
+    examples = {"pan": ("-90,90", "-120,120"), "tilt": ("-40,60", "-60,75"), "roll": (None, None)}
+    for k, (kind, what, tail) in enumerate(
+        (
+            ("limits", "hard {} limits", " (default: the base rig profile's, narrowed to 1 deg "
+             "inside the end stops)"),
+            ("stops", "where the {} joint's travel ends mechanically", "; the hard limits must lie "
+             "1 deg inside (default: the --rig profile's, else +-90)"),
+        )
+    ):  # fmt: skip
+        for joint, example in examples.items():
+            flag = f"--{joint}-{kind}"
+            given = f"e.g. {flag}={example[k]}" if example[k] else "three --ids only"
+            p.add_argument(flag, help=f"{what.format(joint)}, MIN,MAX in degrees, {given}{tail}")
 
 
 def _record(a: argparse.Namespace) -> int:

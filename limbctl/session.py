@@ -1,12 +1,5 @@
-"""Open a rig for a job: the embedded simulator when no port is given, else real servos.
-
-``open_rig`` is the one place that decides where the servos are:
-
-- ``--port PATH`` given: that serial device (a U2D2, or a ``firmware-sim --link`` path);
-- no ``--port`` and a rig profile whose ``port`` is a device: that device;
-- otherwise (the default, ``port: sim``): start :class:`firmware_sim.SimulatedBus` in its own
-  process and connect to its pty through the real dynamixel-sdk.
-"""
+"""Open a rig for a job: ``--port`` given, that device; else a profile's device; else (``port:
+sim``) :class:`firmware_sim.SimulatedBus` in its own process, through the real dynamixel-sdk."""
 
 from __future__ import annotations
 
@@ -67,14 +60,13 @@ def open_rig(
     baud : int, optional
         Overrides the profile's baud rate.
     hand, goal_log, seed, sim_options
-        Passed to the simulator when one is started (ignored on real hardware).
+        Passed to the simulator when one is started.
     extra_ids : tuple of int
         More servos on the same bus (e.g. a leader gimbal).
     latency_timer_ms : float, optional
-        The USB adapter's latency timer; default 16 ms on a real port (the FTDI default), 2 ms
-        on the simulator's pty (a reply is then awaited ~6 ms).
+        The USB adapter's latency timer (ms); default 16 on a real port, 2 on the simulator's pty.
     profile : RigProfile, optional
-        The rig itself, in place of ``rig_path`` (a calibration's chosen ids and joints).
+        The rig itself, in place of ``rig_path``.
     """
     profile = profile if profile is not None else load_rig_profile(rig_path)
     device = port if port is not None else (None if profile.is_sim else profile.port)

@@ -84,19 +84,13 @@ class PoseTap:
         self._board.publish_live(
             Live(
                 self.mode,
-                self._last_pose(),
+                PanTilt.of_rad(self._poses[-1]) if self._poses else None,
                 len(self._poses),
                 fault=self._fault,
                 note=self.note,
                 twist=self._gauge,
             )
         )
-
-    def _last_pose(self) -> PanTilt | None:
-        if not self._poses:
-            return None
-        pan, tilt = self._poses[-1]
-        return PanTilt(math.degrees(pan), math.degrees(tilt))
 
     @property
     def count(self) -> int:

@@ -110,10 +110,7 @@ def with_twist(status: LeaderStatus, pose: Pose3, goal: Pose3 | None) -> LeaderS
     largest = max(swing, abs(goal[2] - pose[2]))
     drawn = status.toward if largest > 0.0 and swing >= SWING_SHARE_DRAWN * largest else None
     return replace(
-        status,
-        toward=drawn,
-        twist_deg=math.degrees(twist),
-        toward_twist_deg=math.degrees(toward),
+        status, toward=drawn, twist_deg=math.degrees(twist), toward_twist_deg=math.degrees(toward)
     )
 
 

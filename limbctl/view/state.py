@@ -3,6 +3,7 @@ the :class:`Board` keeping the latest of each. Angles: degrees on the pan/tilt p
 
 from __future__ import annotations
 
+import math
 import threading
 from dataclasses import dataclass, field
 
@@ -22,6 +23,11 @@ class PanTilt:
 
     pan_deg: float
     tilt_deg: float
+
+    @classmethod
+    def of_rad(cls, pose) -> PanTilt:
+        """The pan and tilt of a joint pose (rad; a roll is left out)."""
+        return cls(math.degrees(pose[0]), math.degrees(pose[1]))
 
     def to_json(self) -> list[float]:
         return [round(float(self.pan_deg), 3), round(float(self.tilt_deg), 3)]
