@@ -151,6 +151,12 @@ def _options(kind: type[Options], args: argparse.Namespace, **given: object) -> 
     return kind(**taken, **given)
 
 
+def _job(run: Callable[[Options], int], kind: type[Options], **derived: Callable) -> Job:
+    """A job running ``run`` on ``kind`` built from the parsed arguments, the fields ``derived``
+    computed from them by the given functions."""
+    return lambda a: run(_options(kind, a, **{name: f(a) for name, f in derived.items()}))
+
+
 def _command(
     sub: Subparsers, name: str, job: Job, **parser_options: str
 ) -> argparse.ArgumentParser:
@@ -230,16 +236,11 @@ def _add_calibrate(sub: Subparsers) -> None:
             p.add_argument(flag, help=f"{what.format(joint)}, MIN,MAX in degrees, {given}{tail}")
 
 
-def _record(a: argparse.Namespace) -> int:
-    options = _options(jobs.RecordOptions, a, connection=_connection(a), view=_view(a))
-    return jobs.run_record(options)
-
-
 def _add_record(sub: Subparsers) -> None:
     p = _command(
         sub,
         "record",
-        _record,
+        _job(jobs.run_record, jobs.RecordOptions, connection=_connection, view=_view),
         help="teach by hand: torque off, sample the limb and write a dataset",
         description="Torque off; move the limb by hand through every pose it may take. "
         "Samples every joint (pan, tilt; and roll on three servos) at --rate Hz and appends to "
@@ -255,15 +256,11 @@ def _add_record(sub: Subparsers) -> None:
     _add_view(p)
 
 
-def _train(a: argparse.Namespace) -> int:
-    return file_jobs.run_train(_options(file_jobs.TrainOptions, a))
-
-
 def _add_train(sub: Subparsers) -> None:
     p = _command(
         sub,
         "train",
-        _train,
+        _job(file_jobs.run_train, file_jobs.TrainOptions),
         help="learn the valid region from a dataset and write a model file",
         description="Fit an envelope model (default: a Rigid Map) to a dataset (and its twist).",
     )
@@ -276,17 +273,17 @@ def _add_train(sub: Subparsers) -> None:
     p.add_argument("--plot", type=Path, help="also draw the model and data to this PNG")
 
 
-def _teleop(a: argparse.Namespace) -> int:
-    on_fault, connection, view = SafeState(a.on_fault), _connection(a), _view(a)
-    options = _options(jobs.TeleopOptions, a, on_fault=on_fault, connection=connection, view=view)
-    return jobs.run_teleop(options)
-
-
 def _add_teleop(sub: Subparsers) -> None:
     p = _command(
         sub,
         "teleop",
-        _teleop,
+        _job(
+            jobs.run_teleop,
+            jobs.TeleopOptions,
+            on_fault=lambda a: SafeState(a.on_fault),
+            connection=_connection,
+            view=_view,
+        ),
         help="drive the limb from a command source, every command through the gate",
         description="Read commands from --source at --rate Hz; each is corrected by the model, "
         "slew-limited to --max-speed along the region, converted to joint angles, clamped to "

@@ -359,33 +359,24 @@ def _calibration_base(options: CalibrateOptions, base):
 
     conn = options.connection
     ids = options.ids or tuple(joint.id for _, joint in base.joints)
-    if len(ids) == 3 and not base.twists:
-        # a roll joint to start from: the simulated three-servo rig's (its zero and direction
-        # are found by the calibration; its limits are narrowed inside the end stops below)
+    if len(ids) == 3 and not base.twists:  # a roll joint to start from: the sim3 rig's
         base = base.with_joints(roll=default_sim_profile("sim3").roll)
     elif len(ids) == 2 and base.twists:
         raise ConfigError(
             f"the rig profile {base.name!r} has a roll joint (servo {base.roll.id}): give three "
             "ids, --ids PAN,TILT,ROLL"
         )
-    # the base profile's end stops describe this gimbal only if the person named its profile
-    # or the simulator (whose profile it is) is what will be calibrated
+    # the base profile's end stops describe this gimbal if it was named, or is the simulator's
     describes_gimbal = conn.rig is not None or (conn.port is None and base.is_sim)
     unknown = (-DEFAULT_END_STOP_DEG, DEFAULT_END_STOP_DEG)
     joints = {}
-    chosen_limits = (
-        ("pan", options.pan_limits, options.pan_stops),
-        ("tilt", options.tilt_limits, options.tilt_stops),
-        ("roll", options.roll_limits, options.roll_stops),
-    )
     if len(ids) == 2 and (options.roll_limits or options.roll_stops):
         raise ConfigError("--roll-limits and --roll-stops need a roll joint: --ids PAN,TILT,ROLL")
-    for servo_id, (name, limits, stops) in zip(ids, chosen_limits, strict=False):
+    for servo_id, name in zip(ids, ("pan", "tilt", "roll"), strict=False):
+        limits, stops = getattr(options, f"{name}_limits"), getattr(options, f"{name}_stops")
         joint = getattr(base, name)
         stops = stops or ((joint.stop_min_deg, joint.stop_max_deg) if describes_gimbal else unknown)
-        if limits is None:
-            # the base profile's limits, narrowed to lie inside these end stops by the margin
-            # every profile keeps: a default never asks for travel the gimbal may not have
+        if limits is None:  # the base profile's, narrowed inside these end stops by the margin
             low = max(joint.min_deg, stops[0] + END_STOP_MARGIN_DEG)
             high = min(joint.max_deg, stops[1] - END_STOP_MARGIN_DEG)
             if (low, high) != (joint.min_deg, joint.max_deg):

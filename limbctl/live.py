@@ -29,10 +29,9 @@ from limbctl.view import (
 from limbctl.view.feed import PoseTap, SceneFeeder
 from limbctl.view.leader import LeaderLive, LeaderStatus, with_twist
 from limbctl.view.region import model_loops
+from limbctl.view.server import DEFAULT_PORT
 from limbctl.view.twist import band_gauge, model_band_map, pose_twist, taught_map
 
-#: The view's usual port; when it is taken and no port was asked for, any free port is used.
-DEFAULT_PORT = 8765
 #: How often the teleop loop's shown rate is recomputed (s): steady to read, recent enough.
 RATE_WINDOW_S = 1.0
 

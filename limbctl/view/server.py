@@ -46,7 +46,7 @@ ASSETS = {
     "view.css": "text/css",
 }
 DEFAULT_HOST = "127.0.0.1"
-#: The view's default port (0 lets the system choose a free one).
+#: The view's usual port; when it is taken and no port was asked for, any free port is used.
 DEFAULT_PORT = 8765
 
 

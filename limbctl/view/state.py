@@ -292,11 +292,9 @@ class Board:
     @property
     def live(self) -> Live | None:
         """The newest fast part (None before the first publish)."""
-        with self._lock:
-            return self._live
+        return self.snapshot().live
 
     @property
     def scene(self) -> Scene | None:
         """The newest slow part (None before the first publish)."""
-        with self._lock:
-            return self._scene
+        return self.snapshot().scene
