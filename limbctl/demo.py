@@ -37,12 +37,10 @@ from limbctl.teleop.gate import REGION_TOLERANCE_DEG, written_tolerance_deg
 
 #: Loop rate of the demo's teleop (Hz): the controller's default rate.
 DEMO_RATE_HZ = 200.0
-#: Sampling rate of the demo's recording (samples/s): the recorder's default, above its 100 Hz
-#: minimum.
+#: Sampling rate of the demo's recording (samples/s): the recorder's default.
 DEMO_RECORD_HZ = 125.0
-#: Nobody is at the demo to move a limb that rests outside the learned region by hand (as it may
-#: after teaching, wherever the hand let go): the servos drive it in, at a third of the fastest
-#: approach allowed.
+#: Nobody is at the demo to move a limb resting outside the region by hand: the servos drive it
+#: in, at a third of the fastest approach allowed.
 DEMO_APPROACH_DEG_S = 10.0
 #: Slew limit of the demo's teleop (deg/s): the CLI's default.
 DEMO_MAX_SPEED_DEG_S = 120.0
@@ -373,12 +371,9 @@ def true_band_lines(region_yaml: Path) -> tuple[float, np.ndarray, tuple[np.ndar
     return pan, tilt, (limits[:, 0], limits[:, 1])
 
 
-#: The demo's rigs by name, everything that differs between them. The leader runs are the
-#: packaged operators (limbctl/operators.py): "push" takes a two-servo leader (ids 3, 4) 20 deg
-#: past the learned edge, holds it and lets go at 6 s; "push3" takes a three-servo leader (ids
-#: 4-6; the follower's roll is id 3) past the swing edge, back, past the twist band, and lets go
-#: at 9 s. Each run lasts 2 s (1.5 s for three) past the let go, time enough to see the leader
-#: walk back to the edge.
+#: The demo's rigs by name. The leader runs (limbctl/operators.py: "push" lets go at 6 s, "push3"
+#: at 9 s; the three-servo leader is ids 4-6, the follower's roll id 3) last 2 s (1.5 s for three)
+#: past the let go, time enough to see the leader walk back to the edge.
 RIGS = {
     "sim": DemoRig(
         profile=None,
@@ -425,5 +420,5 @@ RIGS = {
         "then\n   in twist, and lets go",
     ),
 }
-#: The simulated rigs the demo runs on: two servos, or three with a roll joint (twist).
+#: The simulated rigs the demo runs on.
 DEMO_RIGS = tuple(RIGS)
