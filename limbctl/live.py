@@ -100,8 +100,8 @@ def twist_figures(twist: TwistGuidance) -> tuple[GuideFigure, ...]:
 
 
 class TwistTeaching:
-    """Hands a three-servo teaching's twist to the view: the twist guide's cells as the scene's
-    map and the gauge's range, its figures and words beside the guide's."""
+    """Hands the guide's assessments to the view, and a three-servo teaching's twist: the twist
+    guide's cells as the scene's map and the gauge's range, its figures and words beside."""
 
     def __init__(self, feeder: SceneFeeder, tap: PoseTap) -> None:
         self.feeder = feeder
@@ -171,11 +171,9 @@ class LiveView:
             return
         tap = PoseTap(limb, self.board, mode, note="torque off: move the limb by hand")
         with SceneFeeder(self.board, tap.samples, rig_limits(profile)) as feeder:
-            if getattr(profile, "twists", False):  # three servos: the twist too
-                twist = TwistTeaching(feeder, tap)
-                yield Teaching(tap, twist.on_guidance, feeder, twist.on_twist)
-                return
-            yield Teaching(tap, lambda guidance: feeder.set_guide(*guide_figures(guidance)), feeder)
+            shown = TwistTeaching(feeder, tap)
+            on_twist = shown.on_twist if getattr(profile, "twists", False) else None
+            yield Teaching(tap, shown.on_guidance, feeder, on_twist)
 
     def start_observer(self, mode: str = "teleop: waiting") -> Callable[[Any], None] | None:
         """Publishes each :class:`~limbctl.teleop.start.StartStatus` while teleop waits for a limb
@@ -196,7 +194,7 @@ class LiveView:
         """Show the model's region and the rig's limits; the loop's ``on_cycle`` (None if off)."""
         if self.board is None:
             return None
-        loops = model_loops(envelope) if getattr(envelope, "mesh", None) is not None else ()
+        loops = model_loops(envelope)
         kind = getattr(envelope, "kind", type(envelope).__name__)
         note = f"the {kind} model's region" if loops else f"a {kind} model: region not drawn"
         limits = rig_limits(profile)
