@@ -157,10 +157,8 @@ def _leader_run(out: Path, model: Path, seed: int, live: LiveView | None, spec: 
     from limbctl.jobs import gate_for
     from limbctl.operators import load_operator
     from limbctl.plot import plot_leader
-    from limbctl.servo.control_table import MAX_TICK
     from limbctl.servo.profiles import load_rig_profile
-    from limbctl.servo.setup import configure_servos
-    from limbctl.session import open_rig
+    from limbctl.session import configure, open_rig
     from limbctl.teleop.loop import LoopConfig, run
     from limbctl.teleop.sources import LeaderSource
 
@@ -175,8 +173,7 @@ def _leader_run(out: Path, model: Path, seed: int, live: LiveView | None, spec: 
         rig_path=spec.profile, seed=seed, extra_ids=ids, sim_options={"leader": leader}
     ) as session:
         sim_rig = session.rig
-        limits = {**sim_rig.tick_limits(), **dict.fromkeys(ids, (0, MAX_TICK))}
-        configure_servos(sim_rig.bus, limits)
+        configure(sim_rig, ids)
         source = LeaderSource(sim_rig, ids, rate_hz=DEMO_RATE_HZ)
         try:
             source.start()

@@ -16,7 +16,7 @@ from calib.profile import RigProfile
 from limbctl.errors import ConfigError
 from limbctl.live import LiveView, ViewOptions, leader_status, open_view
 from limbctl.servo.profiles import load_rig_profile
-from limbctl.session import Session, open_rig, stop_on_signals
+from limbctl.session import Session, configure, open_rig, stop_on_signals
 from limbctl.teleop.gate import Gate
 from limbctl.teleop.loop import SafeState
 from limbctl.teleop.start import DEFAULT_WAIT_S
@@ -186,8 +186,6 @@ def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
     for a clean end, 2 when it never started or every line was refused, 3 after a fault, 130 when
     stopped while waiting."""
     from limbctl.geometry.jit import stage as jit_stage
-    from limbctl.servo.control_table import MAX_TICK
-    from limbctl.servo.setup import configure_servos
     from limbctl.teleop.lifecycle import run_session
     from limbctl.teleop.loop import LoopConfig
     from limbctl.teleop.sources import SourceContext, check_leader_fits, parse_source
@@ -223,9 +221,7 @@ def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
         rig = session.rig
         # read before configuring switches it off: a limb outside is then told why it went limp
         torque_was_on = any(rig.torque_enabled())
-        # the rig's servos get its hard limits; servos of the source (a leader) their full range
-        limits = {**rig.tick_limits(), **{servo_id: (0, MAX_TICK) for servo_id in spec.extra_ids}}
-        configure_servos(rig.bus, limits)
+        configure(rig, spec.extra_ids)
         _say_wire_budget(options.rate, rig.bus)
         context = SourceContext(rig=rig, rate_hz=options.rate, gate=gate, page=live.page_connect)
         reporting = {

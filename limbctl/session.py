@@ -14,8 +14,10 @@ from typing import Any
 
 from calib.profile import RigProfile
 from limbctl.servo.bus import ServoBus
+from limbctl.servo.control_table import MAX_TICK
 from limbctl.servo.profiles import check_models, load_rig_profile
 from limbctl.servo.rig import Rig
+from limbctl.servo.setup import configure_servos
 
 
 @dataclass
@@ -102,6 +104,12 @@ def open_rig(
         if extra_ids:
             check_models(bus, profile.ids, profile.model)
         yield Session(rig=Rig(profile, bus), profile=profile, simulator=simulator)
+
+
+def configure(rig: Rig, extra_ids: tuple[int, ...] = ()) -> None:
+    """Set up the rig's servos with its hard limits, and those of ``extra_ids`` (a leader on the
+    same bus) with their full range."""
+    configure_servos(rig.bus, {**rig.tick_limits(), **dict.fromkeys(extra_ids, (0, MAX_TICK))})
 
 
 @contextmanager
