@@ -1,14 +1,7 @@
 """Simulated operators for ``limbctl teleop --operator``: a scripted hand moving the embedded
 simulator's leader, named from :data:`OPERATORS` (packaged in ``limbctl/data/``) or a YAML file
-of the simulator's operator form (:mod:`firmware_sim.operator_file`)::
-
-    model: xm430-w350          # the leader's servos (a felt leader needs current sensing)
-    start_deg: [0.0, 10.0]     # where the leader rests at the start (pan, tilt[, roll])
-    script:                    # [t_s, pan_deg, tilt_deg(, roll_deg)], linear between points,
-      - [0.0, 0.0, 10.0]       # the last held
-      - [3.5, 100.0, 10.0]
-    let_go_s: 6.0              # the hand lets go (omit: it never does)
-    # release_s, stiffness_nm_deg, damping_nm_s_rad, max_torque_nm: the grip (default relaxed)"""
+of the simulator's operator form (:mod:`firmware_sim.operator_file` shows it; the same file
+serves ``firmware-sim --leader IDS --operator FILE``)."""
 
 from __future__ import annotations
 

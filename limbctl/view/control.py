@@ -1,18 +1,6 @@
-"""Who may watch the live view and who may steer from it: the secret, the Origin, one controller.
-
-A page that can move motors is a network input: any web site in the person's browser can open
-a WebSocket to 127.0.0.1. So:
-
-- :class:`Access`: a per-session secret (``?key=...``, printed once) is needed to steer; served
-  beyond this machine, watching needs a second one (``?watch=...``).
-- :func:`check_request` refuses another site's Origin and, on 127.0.0.1, a Host that is not a
-  loopback name (DNS rebinding); steering needs an Origin (a browser's page).
-- :class:`ControlDesk` is the one controller slot: a keyed page takes it when a person opens the
-  address or clicks "take control" (never by itself: a page whose connection dropped comes back
-  watching) and holds it until it lets go or goes away; another is refused and told which tab
-  holds it. A reload of the holding tab (same tab id) takes the slot over. Only the holder's
-  text reaches the sink, at most one message per :data:`FORWARD_PERIOD_S`, the newest: a flood
-  never queues work for the control loop.
+"""Who may watch the live view and who may steer from it: the secret (:class:`Access`), the
+Origin and Host (:func:`check_request`), one controller at a time (:class:`ControlDesk`), as
+docs/architecture.md ("Steering from the page") and docs/decisions/view.md tell.
 
 A page's WebSocket query carries ``tab`` (its id, kept over a reload), ``name`` (e.g. "tab K7,
 opened 19:02:13") and ``want``: ``take`` (a person opened the address; the default), ``reload``

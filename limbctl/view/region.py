@@ -57,8 +57,13 @@ class RegionFit:
 
 
 def mesh_loops(edges: np.ndarray) -> list[np.ndarray]:
-    """The closed loops of directed boundary arcs ``edges`` (E, 2), int (each vertex starts at
-    most one), as index arrays in walking order."""
+    """The closed loops of a region's boundary arcs, as index arrays in walking order.
+
+    Parameters
+    ----------
+    edges : ndarray, shape (E, 2), int
+        Directed arcs ``a -> b``; each vertex starts at most one arc.
+    """
     following = {int(a): int(b) for a, b in np.asarray(edges)}
     loops, seen = [], set()
     for start in following:
