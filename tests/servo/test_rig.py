@@ -35,7 +35,7 @@ def rig(request):
 def test_the_chain_is_the_profiles_joints_in_order():
     two, three = Rig(PROFILES["sim"]), Rig(PROFILES["sim3"])
     assert (two.names, three.names) == (("pan", "tilt"), ("pan", "tilt", "roll"))
-    assert (len(two), three.count) == (2, 3)
+    assert (len(two), len(three)) == (2, 3)
     assert three.joints == (PROFILES["sim3"].pan, PROFILES["sim3"].tilt, PROFILES["sim3"].roll)
     assert (two.ids, three.ids) == ((1, 2), (1, 2, 3))
 
