@@ -1,6 +1,6 @@
-"""The rig of either chain (``sim``: pan, tilt; ``sim3``: pan, tilt, roll): exact conversion per
-joint, hard limits on every joint, and poses in and out through the real dynamixel-sdk on the
-simulator, with the simulator's own orientation of each goal."""
+"""The rig of either chain: conversion and hard limits per joint, and poses through the real SDK
+on the simulator.
+"""
 
 from __future__ import annotations
 
