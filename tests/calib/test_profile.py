@@ -115,28 +115,15 @@ def test_save_replaces_atomically_and_refuses_invalid(tmp_path):
         (lambda d: d.update(port="p" * 300), "port", "at most 256 characters"),
         (lambda d: d.update(baud=10**1000), "baud", "<an integer of about 1001 digits>"),
         (lambda d: d["pan"].update(max_deg=10**400), "pan.max_deg", "must be finite"),
-    ],
-)
-def test_invalid_fields_name_file_and_field(tmp_path, sim_data, edit, field, fragment):
-    assert_refused(tmp_path, sim_data, edit, field, fragment)
-
-
-@pytest.mark.parametrize(
-    ("edit", "field", "fragment"),
-    [
+        # the roll joint (sim3.yaml) is validated like the others
         (lambda d: d["roll"].update(direction=0), "roll.direction", "must be +1 or -1"),
         (lambda d: d["roll"].update(id=2), "roll.id", "must differ"),
         (lambda d: d["roll"].update(max_deg=104.5), "roll.max_deg", "104.5 is not 1 deg inside"),
         (lambda d: d["roll"].pop("zero_tick"), "roll", "is missing zero_tick"),
     ],
 )
-def test_the_roll_joint_is_validated_like_the_others(tmp_path, edit, field, fragment):
-    assert_refused(tmp_path, yaml.safe_load(SIM3_YAML.read_text()), edit, field, fragment)
-
-
-def assert_refused(tmp_path, data, edit, field, fragment):
-    """The profile ``data`` after ``edit`` is refused naming the file and ``field``."""
-    data = copy.deepcopy(data)
+def test_invalid_fields_name_file_and_field(tmp_path, edit, field, fragment):
+    data = yaml.safe_load((SIM3_YAML if field.startswith("roll") else SIM_YAML).read_text())
     edit(data)
     path = write(tmp_path, data)
     with pytest.raises(ConfigError) as info:
@@ -153,22 +140,19 @@ def test_the_brief_example_message(tmp_path, sim_data):
         load_rig_profile(path)
 
 
-def test_unreadable_yaml_is_a_file_format_error(tmp_path):
-    path = tmp_path / "broken.yaml"
-    path.write_text("name: [unclosed\n")
-    with pytest.raises(FileFormatError, match="broken.yaml: not valid YAML"):
-        load_rig_profile(path)
-
-
-def test_missing_file_says_what_to_do(tmp_path):
-    with pytest.raises(ConfigError, match="no such rig profile.*limbctl calibrate"):
-        load_rig_profile(tmp_path / "nope.yaml")
-
-
-def test_top_level_must_be_a_mapping(tmp_path):
-    path = tmp_path / "list.yaml"
-    path.write_text("- 1\n- 2\n")
-    with pytest.raises(ConfigError, match="list.yaml: top level must be a mapping"):
+@pytest.mark.parametrize(
+    ("text", "error", "match"),
+    [
+        ("name: [unclosed\n", FileFormatError, "x.yaml: not valid YAML"),
+        (None, ConfigError, "no such rig profile.*limbctl calibrate"),
+        ("- 1\n- 2\n", ConfigError, "x.yaml: top level must be a mapping"),
+    ],
+)
+def test_unreadable_missing_or_non_mapping_files_are_named(tmp_path, text, error, match):
+    path = tmp_path / "x.yaml"
+    if text is not None:
+        path.write_text(text)
+    with pytest.raises(error, match=match):
         load_rig_profile(path)
 
 
