@@ -39,16 +39,17 @@ def write(tmp_path, data, name="x.yaml"):
     return path
 
 
-def test_default_sim_profile_matches_the_packaged_file(sim_data):
-    profile = default_sim_profile()
-    assert isinstance(profile, RigProfile)
-    assert profile.name == sim_data["name"]
-    assert profile.is_sim
-    assert profile.baud == sim_data["baud"]
-    assert profile.pan == JointProfile(**sim_data["pan"])
-    assert profile.tilt == JointProfile(**sim_data["tilt"])
-    assert profile.ids == (sim_data["pan"]["id"], sim_data["tilt"]["id"])
-    assert profile.source is not None and profile.source.endswith("sim.yaml")
+@pytest.mark.parametrize("rig", ["sim", "sim3"])
+def test_a_packaged_profile_matches_its_file_and_round_trips(rig, tmp_path):
+    data = yaml.safe_load(SIM_YAML.with_name(f"{rig}.yaml").read_text())
+    profile = default_sim_profile(rig)
+    assert isinstance(profile, RigProfile) and profile.is_sim
+    assert (profile.name, profile.baud) == (data["name"], data["baud"])
+    names = [name for name in ("pan", "tilt", "roll") if name in data]
+    assert profile.joints == tuple((name, JointProfile(**data[name])) for name in names)
+    assert profile.ids == tuple(data[name]["id"] for name in names)
+    assert profile.source is not None and profile.source.endswith(f"{rig}.yaml")
+    assert load_profile(save_profile(profile, tmp_path / "r.yaml")) == profile
 
 
 def test_profile_is_frozen():
@@ -316,14 +317,6 @@ def test_malformed_calibration_names_the_field():
 
 
 # ---- the optional roll joint (three-servo rigs) -----------------------------------------------
-def test_sim3_profile_has_a_roll_joint(tmp_path):
-    profile = default_sim_profile("sim3")
-    assert profile.roll == JointProfile(**yaml.safe_load(SIM3_YAML.read_text())["roll"])
-    assert profile.ids == (1, 2, 3)
-    assert [name for name, _ in profile.joints] == ["pan", "tilt", "roll"]
-    assert load_profile(save_profile(profile, tmp_path / "r.yaml")) == profile
-
-
 def test_two_servo_profile_and_calibration_carry_no_roll(sim_data):
     profile = default_sim_profile()
     assert profile.roll is None
