@@ -271,11 +271,11 @@ class _Checker(Checker):
                 f"{field}.min_deg/max_deg",
                 f"must satisfy -180 < min_deg < max_deg < 180, got {min_deg} and {max_deg}",
             )
-        stop_min, stop_max = (
-            self.number(
-                raw.get(f"stop_{k}_deg", sign * DEFAULT_END_STOP_DEG), f"{field}.stop_{k}_deg"
-            )
-            for k, sign in (("min", -1.0), ("max", 1.0))
+        stop_min = self.number(
+            raw.get("stop_min_deg", -DEFAULT_END_STOP_DEG), f"{field}.stop_min_deg"
+        )
+        stop_max = self.number(
+            raw.get("stop_max_deg", DEFAULT_END_STOP_DEG), f"{field}.stop_max_deg"
         )
         if not -180.0 <= stop_min < stop_max <= 180.0:
             raise self.fail(
