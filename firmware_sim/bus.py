@@ -174,31 +174,28 @@ def serve(
 
 
 # ---------------------------------------------------------------------- child process side
+#: Plain options passed to :class:`FaultPlan` and, as they are, to :class:`Simulator`.
+_FAULT_KEYS = ("drop", "corrupt", "latency_ms", "latency_p")
+_SIM_KEYS = (
+    "ids",
+    "model",
+    "goal_log",
+    "baud",
+    "factory",
+    "connect",
+    "eeprom_dir",
+    "leader",
+    "roll_id",
+)
+
+
 def build_simulator(config: Mapping[str, Any]) -> Simulator:
     """A :class:`Simulator` from plain options (the CLI's and :class:`SimulatedBus`'s)."""
     seed = int(config.get("seed", 0))
     hand = _make_hand(config.get("hand"), seed)
-    plan = FaultPlan(
-        drop=config.get("drop", 0.0),
-        corrupt=config.get("corrupt", 0.0),
-        latency_ms=config.get("latency_ms", 0.0),
-        latency_p=config.get("latency_p", 1.0),
-        seed=seed,
-    )
-    return Simulator(
-        ids=config.get("ids", (1, 2)),
-        model=config.get("model", "xl430-w250"),
-        hand=hand,
-        goal_log=config.get("goal_log"),
-        seed=seed,
-        faults=plan,
-        baud=config.get("baud"),
-        factory=int(config.get("factory", 0)),
-        connect=config.get("connect"),
-        eeprom_dir=config.get("eeprom_dir"),
-        leader=config.get("leader"),
-        roll_id=config.get("roll_id"),
-    )
+    plan = FaultPlan(**{k: config[k] for k in _FAULT_KEYS if k in config}, seed=seed)
+    options = {k: config[k] for k in _SIM_KEYS if config.get(k) is not None}
+    return Simulator(**options, hand=hand, seed=seed, faults=plan)
 
 
 def _make_hand(spec: Any, seed: int) -> Hand | None:
@@ -317,26 +314,13 @@ class SimulatedBus:
         roll_id: int | None = None,
     ) -> None:
         FaultPlan(drop=drop, corrupt=corrupt, latency_ms=latency_ms, latency_p=latency_p)
-        self.config = {
-            "ids": tuple(ids),
-            "model": model,
-            "hand": dict(hand)
-            if isinstance(hand, Mapping)
-            else (None if hand is None else str(hand)),
-            "goal_log": None if goal_log is None else str(goal_log),
-            "seed": int(seed),
-            "drop": drop,
-            "corrupt": corrupt,
-            "latency_ms": latency_ms,
-            "latency_p": latency_p,
-            "link": None if link is None else str(link),
-            "baud": None if baud is None else int(baud),
-            "factory": int(factory),
-            "connect": None if connect is None else list(connect),
-            "eeprom_dir": None if eeprom_dir is None else str(eeprom_dir),
-            "leader": None if leader is None else dict(leader),
-            "roll_id": None if roll_id is None else int(roll_id),
-        }
+        given = {"goal_log": (goal_log, str), "link": (link, str), "baud": (baud, int)}
+        given |= {"connect": (connect, list), "eeprom_dir": (eeprom_dir, str)}
+        given |= {"leader": (leader, dict), "roll_id": (roll_id, int)}
+        self.config = {key: None if v is None else kind(v) for key, (v, kind) in given.items()}
+        self.config |= {"ids": tuple(ids), "model": model, "hand": _hand_spec(hand)}
+        self.config |= {"seed": int(seed), "factory": int(factory), "drop": drop}
+        self.config |= {"corrupt": corrupt, "latency_ms": latency_ms, "latency_p": latency_p}
         self._start_timeout_s = start_timeout_s
         self._process: subprocess.Popen | None = None
         self._conn: Connection | None = None
