@@ -1,13 +1,9 @@
 """The simulator on a pseudo-terminal, and :class:`SimulatedBus` to run it from Python.
 
-:class:`PtyEndpoint` opens a pty, keeps its slave side open in raw mode (so the controller may
-open and close it freely) and optionally points a symlink at it. :func:`serve` is the firmware's
-main loop: wait for bytes (or a control command, or the physics tick), hand them to the
-:class:`~firmware_sim.simulator.Simulator` with the speed the host set on the pty, and write the
-answers when they would have crossed the wire: the instruction's bytes, each servo's Return
-Delay Time, then the reply's bytes, at that speed (:mod:`firmware_sim.wire`).
-:class:`SimulatedBus` runs that loop in a separate process (so a controller's busy polling in
-the test process cannot starve it) and talks to it over a pipe::
+:func:`serve` is the firmware's main loop on a :class:`PtyEndpoint`: bytes (or a control
+command, or the physics tick) in, the answers out when they would have crossed the wire at the
+speed the host set (:mod:`firmware_sim.wire`). :class:`SimulatedBus` runs it in its own process
+(so a controller's busy polling cannot starve it) and talks to it over a pipe::
 
     with SimulatedBus(ids=(1, 2)) as sim:
         port = PortHandler(sim.port)        # the real dynamixel-sdk, on the pty

@@ -1,16 +1,10 @@
 """X-series control tables (XL430-W250, XM430-W350, XL330-M077/M288) from the e-Manual.
 
-Each :class:`Item` says where a register lives, how wide it is, who may write it, its
-factory default and the range a write must respect. Two kinds of bounds are kept apart because
-the firmware reports them with different error numbers:
-
-- ``minimum``/``maximum``: the item's own range (violations answer Data Range Error, 4);
-- ``bound``: a limit set by *other* items (e.g. Goal Position within Min/Max Position Limit,
-  Goal Velocity within +-Velocity Limit); violations answer Data Limit Error, 6.
-
-Addresses 168-223/224-251 and 578-633/634-661 are the 430s' indirect address/data blocks. The
-330s have one block of 20: Indirect Address 1-20 at 168-206, and Indirect Data 1-20 at 208-227 up
-to firmware 52 but at 224-243 in later firmware (ROBOTIS moved it), so a client has to probe.
+An :class:`Item`'s own ``minimum``/``maximum`` answer Data Range Error (4); its ``bound``, a
+limit set by other items (Goal Position within the Position Limits, ...), Data Limit Error (6).
+The 430s' indirect address/data blocks are 168-223/224-251 and 578-633/634-661; the 330s have
+one block of 20, Indirect Address 1-20 at 168-206 and Indirect Data 1-20 at 208-227 up to
+firmware 52, at 224-243 after (ROBOTIS moved it), so a client has to probe.
 """
 
 from __future__ import annotations

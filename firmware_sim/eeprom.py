@@ -1,9 +1,7 @@
 """A servo's EEPROM kept in a file between simulator runs, as a real servo keeps it unpowered.
 
-Set-up is done as a person does it: one servo connected, then the next, then both. Each run of
-the simulator is one power-up; with ``--eeprom DIR`` the EEPROM area (addresses 0-63: model,
-ID, baud rate, limits, ...) of the servo in slot ``n`` is loaded from ``DIR/servo-n.eeprom`` at
-start and written back whenever it changes, so the next run finds what the last one set.
+With ``--eeprom DIR`` each run is one power-up: the EEPROM area (addresses 0-63) of the servo in
+slot ``n`` is loaded from ``DIR/servo-n.eeprom`` at start and written back when it changes.
 """
 
 from __future__ import annotations

@@ -1,23 +1,18 @@
 """The swing path of a scripted hand: where it takes the limb's pan and tilt, before its tremor.
 
-A :class:`SwingPath` follows a script (linear in time between waypoints, holding the last) or
-teaches a region the way range of motion is taught. With style ``trace`` it first traces the whole
-edge once, slowly (TRACE_SPEED_DEG_S, a person's pace), about EDGE_INSET_DEG inside with a slight
-wobble, starting at the edge point nearest where it took hold, then wanders; with ``wander`` it
-only wanders. Wandering is what a person does through the middle: gently curved minimum-jerk
-moves between waypoints drawn with a density that falls toward the edge, easing in and out near
-the edge, short pauses, and, every other move, a visit to the edge that traces a few degrees of
-it just inside (the visits work round the perimeter in laps of EDGE_VISITS_PER_LAP, so a minute
-of wandering touches the whole edge). Every move is checked to stay MIN_PATH_DEPTH_DEG inside
-the region. The path is planned lazily, in a fixed order from the seed: the same seed gives the
-same path whatever times it is asked at. :class:`Track` holds any such path's segments in time.
+A :class:`SwingPath` follows a script (linear between waypoints, holding the last) or teaches a
+region. Style ``trace`` first traces the whole edge once, slowly, about EDGE_INSET_DEG inside
+with a slight wobble, from the edge point nearest where it took hold, then wanders; ``wander``
+only wanders: minimum-jerk moves, gently curved, between waypoints drawn denser in the middle,
+eased near the edge, with short pauses and, every other move, a visit tracing a few degrees of
+edge (the visits work round the perimeter in laps of EDGE_VISITS_PER_LAP). Every move stays
+MIN_PATH_DEPTH_DEG inside. The path is planned lazily in a fixed order from the seed.
+:class:`Track` holds any such path's segments in time.
 
-*Visits* (:class:`Visit`, a hand description's ``visits:``) answer a teaching guide's requests:
-from a given time the path breaks off its wandering (after the move under way) to go to named
-places one after the other and do what each asks, then wanders on. ``edge``: trace the edge
-near the place (the stretch round its nearest edge point, EDGE_INSET_DEG inside, at the full
-trace's pace); ``twist``: circle the place slowly (VISIT_TWIST_RADIUS_DEG, VISIT_TWIST_S) while
-the hand turns the twist to both stops (:mod:`firmware_sim.hand`).
+*Visits* (:class:`Visit`, a hand's ``visits:``) answer a teaching guide: from ``after_s`` the
+path breaks off (after the move under way) to trace the edge near a place (``edge``) or circle it
+slowly (``twist``, VISIT_TWIST_RADIUS_DEG for VISIT_TWIST_S) while the hand turns the twist to
+both stops (:mod:`firmware_sim.hand`), then wanders on.
 """
 
 from __future__ import annotations

@@ -1,30 +1,20 @@
 """A leader gimbal: a second chain of two joints (pan, tilt) or three (pan, tilt, roll) moved by
 an operator's hand and by its own motors.
 
-The leader is built like the follower (the same joint geometry and ticks, the roll joint as
-:data:`firmware_sim.world.ROLL_JOINT`, at other servo ids), so the controller reads the chain's
-orientation ``q = Rz(pan) Ry(-tilt) Rx(roll)`` back from its shafts as it does the follower's
-(:mod:`firmware_sim.orientation`). It is a physical thing the operator holds, so each joint is a
-rotor with inertia and backdrive friction, on its own (joint frame, SI units)::
+It is built like the follower (the same joint geometry, at other servo ids), so the controller
+reads its orientation back as it does the follower's. Each joint is a rotor with inertia and
+backdrive friction (joint frame, SI units)::
 
     J a = tau_motor + tau_hand - B v - C sign(v)        (sticks while |tau_motor + tau_hand| <= C)
 
-``tau_motor`` comes from the servo by its Operating Mode (:mod:`firmware_sim.torque`).
-``tau_hand`` is the operator (:class:`Operator`): a bounded spring-damper on each joint toward
-where the operator means to go, a script of targets like the teaching hand's (one angle per
-joint), with a let-go time::
+``tau_motor`` comes from the servo by its Operating Mode (:mod:`firmware_sim.torque`);
+``tau_hand`` from the :class:`Operator`, a spring-damper per joint toward scripted targets::
 
     tau_hand = K_h (target - angle) - D_h v,  scaled so that |tau_hand| <= tau_max * r(t)
 
-(the vector of the joints' torques: a hand pushes with at most ``tau_max`` in any direction, as
-a person's does, so a push on a diagonal is no stronger than one along a joint)
-
-where ``r`` is 1 until the let go and 0 from ``release_s`` after it, falling linearly between
-(``release_s`` 0: the hand is gone at once, the hardest let go for a wall).
-
-End stops clamp as on the follower. Ground truth (hand torque, motor torque, pose, the motor's
-work, one entry per joint) is kept for tests: :meth:`LeaderWorld.truth`, and one JSON line per
-physics step in the log.
+(the joints' torques as one vector: a hand pushes no harder on a diagonal than along a joint),
+``r`` 1 until the let go, falling linearly to 0 over ``release_s`` (0: gone at once). End stops
+clamp. Ground truth per joint (torques, pose, work): :meth:`LeaderWorld.truth` and the log.
 """
 
 from __future__ import annotations

@@ -1,14 +1,9 @@
 """The servo's trajectory generator: where its position controller points the shaft each instant.
 
-Everything here is in *raw ticks* (motor shaft, before Homing Offset / reverse) and seconds. The
-profile follows the e-Manual's description of the X-series profile:
-
-- velocity-based (Drive Mode bit 2 clear): Profile Velocity caps the speed (0 = no cap but the
-  Velocity Limit), Profile Acceleration caps the acceleration (0 = unlimited, a step in
-  velocity); the result is a trapezoid, a triangle, a rectangle or a step;
-- time-based (bit 2 set): Profile Velocity is the whole move's duration in ms and Profile
-  Acceleration the ramp time in ms (at most half the duration); the peak velocity and
-  acceleration are derived from the distance when the goal is written.
+In raw ticks (motor shaft, before Homing Offset / reverse) and seconds, after the e-Manual's
+X-series profile: velocity-based (Drive Mode bit 2 clear), Profile Velocity and Acceleration cap
+speed and acceleration (0: no cap but the Velocity Limit / a velocity step); time-based (bit 2
+set), they are the move's duration and ramp time in ms, the peaks derived from the distance.
 """
 
 from __future__ import annotations

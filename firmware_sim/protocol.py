@@ -1,22 +1,11 @@
 """Dynamixel Protocol 2.0 framing, written from the e-Manual (not from the SDK's code).
 
-A packet on the wire::
-
-    FF FF FD 00 | ID | LEN_L LEN_H | INST | PARAM ... | CRC_L CRC_H
-
-``LEN`` counts everything after itself (instruction, stuffed parameters, CRC). The CRC is
-CRC-16/BUYPASS (polynomial 0x8005, initial value 0, no reflection) over every byte from the
-first header byte up to the last parameter, *after* byte stuffing. Byte stuffing: whenever the
-instruction+parameter field would contain ``FF FF FD``, an extra ``FD`` is inserted after it so
-that a header can never appear inside a packet; the receiver removes it again.
-
-Status packets carry instruction 0x55 and an error byte: bits 0-6 an error number
-(:class:`ErrorNumber`), bit 7 the alert flag (a hardware error is latched, see Hardware Error
-Status).
-
-:class:`PacketParser` turns an arbitrary byte stream (junk, partial and corrupt packets
-included) into :class:`InstructionPacket` and :class:`CorruptPacket` events and resynchronises
-on the next header after anything it cannot use.
+A packet: ``FF FF FD 00 | ID | LEN_L LEN_H | INST | PARAM ... | CRC_L CRC_H``. ``LEN`` counts
+everything after itself; the CRC (CRC-16/BUYPASS: polynomial 0x8005, init 0, no reflection)
+covers every byte before it, after byte stuffing: an ``FD`` is inserted after each ``FF FF FD``
+in the instruction+parameter field, so no header appears inside a packet. Status packets carry
+instruction 0x55 and an error byte: an :class:`ErrorNumber` plus the alert bit 7.
+:class:`PacketParser` turns any byte stream into packets and resynchronises after junk.
 """
 
 from __future__ import annotations

@@ -1,14 +1,11 @@
-"""Regions of (pan, tilt) a scripted hand may move the simulated limb through.
-
-A REGION.yaml names one of two shapes (degrees everywhere)::
+"""Regions of (pan, tilt) a scripted hand may move the simulated limb through (degrees)::
 
     region: {polygon: [[pan_deg, tilt_deg], ...]}   # a simple polygon in the (pan, tilt) plane
     region: {cone: {half_angle_deg: A}}             # directions within A of +x, 0 < A < 180
 
-Both shapes answer the same questions the hand asks: is a pose inside (:meth:`contains`), how far
-inside is it (:meth:`edge_distance_deg`, positive inside), where is the boundary a fraction ``u`` of
-the way round it (:meth:`boundary_point`), and where is the comfortable middle (``center_deg``).
-Bad input raises ``ValueError`` naming the source file and what is wrong.
+Both answer :meth:`contains`, :meth:`edge_distance_deg` (positive inside),
+:meth:`boundary_point` (a fraction ``u`` round the edge) and ``center_deg``. Bad input raises
+``ValueError`` naming the source file and what is wrong.
 """
 
 from __future__ import annotations

@@ -1,17 +1,11 @@
 """One simulated X-series servo: control-table memory, instruction semantics, errors, motion.
 
-The servo never touches the wire; :mod:`firmware_sim.dispatch` hands it decoded instructions and
-frames its answers. It never touches the physics either: each physics substep the bus asks
-:meth:`Servo.drive_setpoint` where the position controller points the shaft (``None`` with
-torque off) and reports back with :meth:`Servo.observe` where the shaft actually went.
-
-Position mapping (raw ticks = motor shaft, 4096 per turn)::
-
-    present = (4096 - raw if Drive Mode reverse else raw) + Homing Offset
-
-Hardware errors: a condition whose bit is set in Shutdown (63) latches into Hardware Error Status
-(70), turns torque off and raises the alert bit of every status packet until REBOOT. An input
-voltage error is latched and alerted even when its Shutdown bit is clear (torque stays on).
+It touches neither the wire (:mod:`firmware_sim.dispatch` frames its answers) nor the physics:
+each substep the bus asks :meth:`Servo.drive_setpoint` and reports with :meth:`Servo.observe`.
+``present = (4096 - raw if Drive Mode reverse else raw) + Homing Offset`` (raw: motor ticks).
+A hardware error whose bit is set in Shutdown latches in Hardware Error Status, turns torque off
+and raises every status packet's alert bit until REBOOT; an input voltage error is latched and
+alerted even with its Shutdown bit clear (torque stays on).
 """
 
 from __future__ import annotations

@@ -1,18 +1,11 @@
 """The simulated bus without its transport: servos + world + faults + goal log on one clock.
 
-:class:`Simulator` is fed raw bytes with the time they arrived and returns the bytes to send
-back (with delays). Physics is stepped lazily on the wall clock: every time bytes arrive, and
-from a periodic tick of the serving loop, the world is advanced to "now" in substeps of at most
-1 ms, each servo's profile advancing with it.
-
-Servos with IDs 1 and 2 drive the gimbal of :mod:`firmware_sim.world` (pan, tilt), and the
-servo named by ``roll_id`` (if any) its roll joint; a servo with any other ID drives a free,
-unloaded shaft that follows its setpoint exactly. What a servo drives is fixed by its *slot*
-(its ID at start; with ``factory=N`` the slots are 1..N and every servo starts as ID 1), so a
-servo keeps its joint when set-up changes its ID.
-
-The wire is strict (:mod:`firmware_sim.wire`): a servo hears the host only at the baud rate its
-Baud Rate register names, and two servos answering at once garble each other's replies.
+:class:`Simulator` takes raw bytes with their arrival time and returns the replies with their
+delays. Physics is stepped lazily to "now" (on every arrival and on the serving loop's tick) in
+substeps of at most 1 ms. Servos 1 and 2 drive the gimbal's pan and tilt, ``roll_id`` its roll;
+any other servo a free, unloaded shaft that follows its setpoint exactly. What a servo drives is
+fixed by its *slot* (its ID at start; with ``factory=N`` slots 1..N, all starting as ID 1), so it
+keeps its joint when set-up changes its ID. The wire is strict (:mod:`firmware_sim.wire`).
 """
 
 from __future__ import annotations

@@ -1,9 +1,7 @@
 """What a servo's motor does to its shaft, by Operating Mode: the torque model of a leader gimbal.
 
-The follower's world (:mod:`firmware_sim.world`) tracks setpoints kinematically; a leader gimbal
-(:mod:`firmware_sim.leader`) is moved by a hand and by its motors, so it needs their torque. The
-firmware's position loop is modelled as a stiff PD loop toward the profile's setpoint, its output
-clipped by the current the mode allows (joint frame, N m)::
+The firmware's position loop is a stiff PD loop toward the profile's setpoint, clipped by the
+current the mode allows (joint frame, N m; ``kt`` = stall torque / stall current)::
 
     tau_loop = KP * (setpoint - angle) - KD * velocity
     mode 5 (current-based position): tau = clip(tau_loop, +-kt * min(|Goal Current|, Current Limit))
@@ -11,10 +9,8 @@ clipped by the current the mode allows (joint frame, N m)::
     mode 0 (current):                tau = kt * clip(Goal Current, +-Current Limit)
     torque off:                      tau = 0
 
-so Goal Current 0 in mode 5 gives exactly zero torque, whatever the setpoint. ``kt`` is the
-model's stall torque over its stall current. Present Current follows from the torque:
-``I = tau / kt`` (in the model's current unit). A tripped Bus Watchdog stops the servo (its
-profile holds where the shaft is) and, in mode 0, zeroes the current.
+Present Current is ``tau / kt``. A tripped Bus Watchdog holds the profile and, in mode 0,
+zeroes the current.
 """
 
 from __future__ import annotations

@@ -1,33 +1,23 @@
 """The simulated gimbal's physical world: true geometry, end stops, tracking, load, the hand.
 
-Two joints, pan (servo ID 1) and tilt (servo ID 2), and optionally a third, roll (ROLL_JOINT,
-servo ID 3), that turns the limb about its own axis. A joint's angle relates to its servo's raw
-shaft ticks (4096 per turn, before Homing Offset or Drive Mode apply) by its true zero and
-direction, which a calibration has to find::
+Pan (servo ID 1), tilt (2) and optionally roll (ROLL_JOINT, 3: about the limb's own axis). A
+joint's angle relates to its servo's raw shaft ticks (4096 a turn, before Homing Offset or Drive
+Mode) by its true zero and direction, which a calibration has to find::
 
     angle_rad = direction * (raw_tick - zero_tick) * 2 pi / 4096
 
-The limb points along ``d = (cos t cos p, cos t sin p, sin t)`` for pan ``p`` and tilt ``t``;
-with a roll joint its full orientation is ``q = Rz(p) Ry(-t) Rx(roll)``
-(:mod:`firmware_sim.orientation`).
-Every joint follows the same physics below, each on its own; a hand that moves the roll too
-(:attr:`firmware_sim.hand.Hand.turns_roll`) gives its pose as (pan, tilt, roll).
-
-Torque on, a joint tracks its servo's setpoint like a stiff position loop: a critically damped
-second-order response (natural frequency TRACKING_OMEGA_RAD_S) limited to the motor's speed and
-acceleration. The tracked angle is the *free* angle; the joint sits at the free angle deflected
-by an external push through the loop's stiffness, clamped to the end stops::
+The limb points along ``d = (cos t cos p, cos t sin p, sin t)``; its orientation is
+``q = Rz(p) Ry(-t) Rx(roll)`` (:mod:`firmware_sim.orientation`). Every joint follows the same
+physics, each on its own. Torque on, it tracks its servo's setpoint like a stiff position loop
+(critically damped, TRACKING_OMEGA_RAD_S, limited to the motor's speed and acceleration); a
+push deflects it from that *free* angle through the loop's stiffness::
 
     angle = clamp(free + push / STIFFNESS, stop_min, stop_max)
     load  = STIFFNESS * (free - angle) + INERTIA * accel + VISCOUS * velocity
 
-so a setpoint driven past a stop (free beyond the stop by x) loads the motor with STIFFNESS * x,
-a push P is held with load -P, and a free move shows a small load from acceleration and speed.
-Torque off, the joint is backdrivable: it follows the hand's grip (a short lag, a top speed),
-or drifts under a push, or stays put; it reads no load. End stops always clamp.
-
-Units: loads and pushes are percent of stall torque, signed in the shaft frame (positive = toward
-increasing raw ticks); velocities are raw ticks per second.
+Torque off, it follows the hand's grip (a short lag, a top speed), or drifts under a push, or
+stays put, reading no load. End stops always clamp. Loads and pushes are % of stall torque in
+the shaft frame (positive toward increasing raw ticks); velocities are raw ticks per second.
 """
 
 from __future__ import annotations
