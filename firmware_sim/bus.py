@@ -169,7 +169,6 @@ def serve(
         sim.advance()
 
 
-# ---------------------------------------------------------------------- child process side
 #: Plain options passed to :class:`FaultPlan` and, as they are, to :class:`Simulator`.
 _FAULT_KEYS = ("drop", "corrupt", "latency_ms", "latency_p")
 _SIM_KEYS = (
@@ -261,7 +260,6 @@ def child_main(conn: Any, config: dict) -> None:
         conn.close()
 
 
-# ---------------------------------------------------------------------- parent side
 def _hand_spec(hand: Mapping | str | os.PathLike | None) -> dict | str | None:
     """A hand option as plain data for the simulator process."""
     if hand is None:
@@ -324,7 +322,6 @@ class SimulatedBus:
         self.device: str | None = None
         self.port: str | None = None
 
-    # -- lifecycle
     def start(self) -> SimulatedBus:
         """Start the simulator process and wait until its pty is ready."""
         parent, child = socket.socketpair()
@@ -379,7 +376,6 @@ class SimulatedBus:
     def running(self) -> bool:
         return self._process is not None and self._process.poll() is None
 
-    # -- handles
     def _call(self, name: str, *args: Any, timeout_s: float = 10.0) -> Any:
         if self._conn is None:
             raise RuntimeError("the simulator is not running: use `with SimulatedBus(...)`")

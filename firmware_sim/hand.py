@@ -307,8 +307,6 @@ class Hand:
         twist = centre + self._band_position(t) * reach + amplitude * math.sin(omega * t + phase)
         return float(pan), float(tilt), roll_for_twist_deg(pan, tilt, twist)
 
-    # -- the twist in its band (region hands with a twist band) ----------------------------
-
     def _u_of(self, pan_deg: float, tilt_deg: float, twist_deg: float) -> float:
         low, high = self.band.limits_deg(pan_deg, tilt_deg)
         centre, reach = (low + high) / 2.0, (high - low) / 2.0 - TWIST_INSET_DEG

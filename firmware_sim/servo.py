@@ -111,7 +111,6 @@ class Servo:
         self._set(Register.ID, servo_id)
         self._after_restart()
 
-    # ------------------------------------------------------------------ registers
     def value(self, register: Register) -> int:
         """Current value of ``register`` (signed items decoded)."""
         item = self.model.item(register)
@@ -157,7 +156,6 @@ class Servo:
         """The error byte of a status packet: error number plus the alert bit."""
         return int(number) | (ALERT_BIT if self.alert else 0)
 
-    # ------------------------------------------------------------------ position mapping
     def present_from_raw(self, raw: float) -> float:
         """Present Position units for a raw shaft tick (see module docstring)."""
         turned = raw - self.turn_offset * TICKS_PER_TURN
@@ -178,7 +176,6 @@ class Servo:
         """Raw tick the current Goal Position corresponds to."""
         return self.raw_from_present(self.value(Register.GOAL_POSITION))
 
-    # ------------------------------------------------------------------ memory access
     def _resolve(self, address: int) -> int:
         """Address actually touched by ``address`` (indirect data redirects)."""
         for first_address, first_data, count in self.model.indirect_blocks:
@@ -302,7 +299,6 @@ class Servo:
         self._set(Register.REGISTERED_INSTRUCTION, 0)
         self.write(address, data)
 
-    # ------------------------------------------------------------------ instructions
     def factory_reset(self, option: int) -> None:
         """FACTORY_RESET: 0xFF all, 0x01 all but ID, 0x02 all but ID and baud rate."""
         keep = {
@@ -339,7 +335,6 @@ class Servo:
         self.turn_offset += int(unshifted // TICKS_PER_TURN)
         self.trajectory.hold(self.raw_tick)
 
-    # ------------------------------------------------------------------ motion
     def _mode(self) -> OperatingMode:
         return OperatingMode(self.value(Register.OPERATING_MODE))
 
@@ -435,7 +430,6 @@ class Servo:
             self.trajectory.hold(self.raw_tick)
             self._overload_seconds = 0.0
 
-    # ------------------------------------------------------------------ present values
     def refresh(self, now_s: float) -> None:
         """Write the measured state into the RAM items a READ returns."""
         present = self.present_from_raw(self.raw_tick)

@@ -197,18 +197,13 @@ class Simulator:
         return [get_model(key) for key in keys]
 
     def hears(self, servo: Servo, baud: int | None) -> bool:
-        """Whether ``servo`` decodes a host talking at ``baud`` (None: no wire, always).
-
-        A simulator started without a baud serves clients at whatever rate they open the port
-        with (as before the wire was strict), until the host writes a servo's Baud Rate: from
-        then on that servo hears only its own rate, as a real one does.
-        """
+        """Whether ``servo`` decodes a host talking at ``baud`` (None: always); without a
+        ``baud`` option, any rate until the host writes the servo's Baud Rate."""
         register = servo.value(Register.BAUD_RATE)
         if self._any_baud.get(id(servo)) == register:
             return True
         return baud is None or BAUD_BY_VALUE.get(register) == baud
 
-    # ------------------------------------------------------------------ time
     def now(self) -> float:
         """Seconds since the simulator started."""
         return self._clock() - self._start
@@ -248,7 +243,6 @@ class Simulator:
                 shaft[0], shaft[1] = new, velocity
             servo.observe(raw, velocity, load, dt)
 
-    # ------------------------------------------------------------------ traffic
     def receive(
         self, data: bytes, arrived_s: float | None = None, baud: int | None = None
     ) -> list[tuple[bytes, float]]:
@@ -284,11 +278,8 @@ class Simulator:
         return out
 
     def persist(self) -> None:
-        """Write each changed EEPROM to its file (``eeprom_dir``); call once replies are out.
-
-        Kept off the reply path: the file's write and rename took up to 4.3 ms at load 8 (p50
-        0.18 ms), time a real servo does not add to its status packet.
-        """
+        """Write each changed EEPROM to its file; called once replies are out (a file write
+        took up to 4.3 ms under load, time a real servo does not add to its reply)."""
         for servo in self.servos:
             eeprom = self._eeproms.get(self._home_ids[id(servo)])
             if eeprom is not None:
@@ -321,7 +312,6 @@ class Simulator:
         if self.leader is not None:
             self.leader.close()
 
-    # ------------------------------------------------------------------ test handles
     def servo(self, servo_id: int) -> Servo:
         """The servo started with ``servo_id``; ValueError listing the IDs otherwise."""
         for servo in self.servos:
@@ -358,11 +348,7 @@ class Simulator:
         self.faults.vanish(servo_id, self.now(), duration_s)
 
     def restart(self, servo_id: int, off_s: float = 0.0) -> None:
-        """Brown-out: the servo is off the bus for ``off_s`` s and restarts as after power-up.
-
-        Its RAM is back at the defaults (torque off, Goal Position = where the shaft is,
-        indirect addresses unmapped, hardware errors cleared); EEPROM is kept.
-        """
+        """Brown-out: off the bus for ``off_s`` s, then RAM at its defaults, EEPROM kept."""
         servo = self.servo(servo_id)
         self.advance()
         servo.reboot()

@@ -153,8 +153,6 @@ class World:
         self.time_s = 0.0
         self.set_hand(hand)
 
-    # -- stepping ---------------------------------------------------------------------------
-
     def step(self, dt: float, drive: dict[int, float | None]) -> None:
         """Advance the physics by ``dt`` seconds (split into substeps of at most 1 ms).
 
@@ -230,8 +228,6 @@ class World:
                 self._load[i] = min(max(load, -LOAD_LIMIT_PCT), LOAD_LIMIT_PCT)
             self._velocity[i] = (new_angle - angle) / h
             self._angle[i] = new_angle
-
-    # -- reading ----------------------------------------------------------------------------
 
     def _slot(self, servo_id: int) -> int:
         try:
