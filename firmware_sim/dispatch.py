@@ -27,13 +27,8 @@ from firmware_sim.servo import FACTORY_RESET_ALL, Servo, ServoError
 # Return Delay Time unit: 2 microseconds
 RETURN_DELAY_UNIT_S = 2e-6
 READ_INSTRUCTIONS = frozenset(
-    {
-        Instruction.READ,
-        Instruction.SYNC_READ,
-        Instruction.FAST_SYNC_READ,
-        Instruction.BULK_READ,
-        Instruction.FAST_BULK_READ,
-    }
+    Instruction[name]
+    for name in ("READ", "SYNC_READ", "FAST_SYNC_READ", "BULK_READ", "FAST_BULK_READ")
 )
 
 

@@ -32,16 +32,10 @@ class ScheduledEvent:
 
     def apply(self, sim: Simulator, slot: int) -> None:
         """Apply the fault to the servo in ``slot`` of ``sim`` now."""
-        if self.kind == "vanish":
-            sim.vanish(slot, self.value)
-        elif self.kind == "restart":
-            sim.restart(slot, self.value)
-        elif self.kind == "push":
-            sim.push(slot, self.value)
-        elif self.kind == "voltage":
-            sim.set_environment(slot, voltage=self.value)
+        if self.kind in ("voltage", "temperature"):
+            sim.set_environment(slot, **{self.kind: self.value})
         else:
-            sim.set_environment(slot, temperature=self.value)
+            getattr(sim, self.kind)(slot, self.value)
 
     def unmatched(self, sim: Simulator) -> str | None:
         """Why no single servo of ``sim`` answers as this event's ID now, or None."""

@@ -125,13 +125,8 @@ def progress(t: float, t0: float, t1: float, minimum_jerk: bool = True) -> float
 
 
 class Track:
-    """Segments of a path in time, ``(t0, t1, ...)`` in s, appended in time order.
-
-    Attributes
-    ----------
-    segments : list of tuple
-        Segment k runs from ``segments[k][0]`` to ``segments[k][1]``; the rest is the caller's.
-    """
+    """Segments of a path in time, ``segments[k] = (t0, t1, ...)`` in s, appended in time
+    order; what follows ``t1`` is the caller's."""
 
     def __init__(self) -> None:
         self.segments: list[tuple] = []
@@ -139,7 +134,6 @@ class Track:
         self._current = 0
 
     def add(self, *segment) -> None:
-        """Append ``(t0, t1, ...)``."""
         self._t0.append(segment[0])
         self.segments.append(segment)
 
@@ -205,9 +199,8 @@ class SwingPath:
                 self._add(a[0], b[0], a[1], a[2], b[1], b[2], False)
 
     def start_from(self, pan_deg: float, tilt_deg: float) -> None:
-        """Take hold of the limb at (pan_deg, tilt_deg): a region path (re)starts there (t = 0),
-        first bringing the limb to the middle of the region; the path stays a function of the
-        seed and this pose. A script path ignores this."""
+        """Take hold of the limb at (pan_deg, tilt_deg): a region path (re)starts there at t = 0
+        (a script path ignores this)."""
         if self.region is None:
             return
         self._rng = np.random.default_rng([self._seed, 1])
@@ -249,8 +242,7 @@ class SwingPath:
         return segment[1], segment[4], segment[5]
 
     def _path_ok(self, a, b, bulge=(0.0, 0.0)) -> bool:
-        """True when the move a -> b, bowed by ``bulge`` at its middle, keeps at least
-        MIN_PATH_DEPTH_DEG inside."""
+        """Whether the move a -> b, bowed by ``bulge``, keeps MIN_PATH_DEPTH_DEG inside."""
         length = math.hypot(b[0] - a[0], b[1] - a[1]) + 2.0 * math.hypot(*bulge)
         n = int(length / PATH_CHECK_STEP_DEG) + 2
         s = np.linspace(0.0, 1.0, n)
@@ -461,13 +453,9 @@ class SwingPath:
         if not self._reach(start):
             return  # no path inside to the place: the request stays unanswered
         t_start = self._end()[0]
-        if visit.do == "edge":
-            for b in points[1:]:
-                self._trace_to(
-                    (float(b[0]), float(b[1])), EDGE_INSET_DEG, TRACE_SPEED_DEG_S, TRACE_SPLITS
-                )
-        else:
+        speed = TRACE_SPEED_DEG_S
+        if visit.do != "edge":
             speed = 2.0 * math.pi * VISIT_TWIST_RADIUS_DEG / VISIT_TWIST_S
-            for b in points[1:]:
-                self._trace_to((float(b[0]), float(b[1])), EDGE_INSET_DEG, speed, TRACE_SPLITS)
+        for b in points[1:]:
+            self._trace_to((float(b[0]), float(b[1])), EDGE_INSET_DEG, speed, TRACE_SPLITS)
         self.visit_spans.append((t_start, self._end()[0], visit))

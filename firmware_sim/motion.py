@@ -21,15 +21,7 @@ ACCELERATION_UNIT_TICKS_S2 = 214.577 * TICKS_PER_TURN / 3600.0
 
 @dataclass
 class ProfileLimits:
-    """Peak speed and acceleration of the current move.
-
-    Attributes
-    ----------
-    max_velocity : float
-        ticks/s, > 0.
-    max_acceleration : float
-        ticks/s^2, ``math.inf`` for a velocity step.
-    """
+    """Peak speed (ticks/s, > 0) and acceleration (ticks/s^2, inf: a velocity step) of a move."""
 
     max_velocity: float
     max_acceleration: float
@@ -53,11 +45,8 @@ def velocity_based_limits(
 def time_based_limits(
     distance_ticks: float, duration_ms: int, ramp_ms: int, velocity_limit: int
 ) -> ProfileLimits:
-    """Limits of a time-based profile that covers ``distance_ticks`` in ``duration_ms``.
-
-    A zero duration falls back to the velocity-based behaviour with no profile (limited by the
-    Velocity Limit only).
-    """
+    """Limits of a time-based profile covering ``distance_ticks`` in ``duration_ms`` (0: only
+    the Velocity Limit)."""
     if duration_ms <= 0:
         return velocity_based_limits(0, 0, velocity_limit)
     total_s = duration_ms / 1000.0
