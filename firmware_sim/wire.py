@@ -14,16 +14,9 @@ import struct
 from collections.abc import Sequence
 
 #: Baud Rate register value -> bit/s (X series; 7 = 4.5 Mbps exists on the 430s and 540s only).
-BAUD_BY_VALUE = {
-    0: 9600,
-    1: 57_600,
-    2: 115_200,
-    3: 1_000_000,
-    4: 2_000_000,
-    5: 3_000_000,
-    6: 4_000_000,
-    7: 4_500_000,
-}
+BAUD_BY_VALUE = dict(
+    enumerate((9600, 57_600, 115_200, 1_000_000, 2_000_000, 3_000_000, 4_000_000, 4_500_000))
+)
 #: The factory baud rate (register value 1).
 FACTORY_BAUD = 57_600
 #: The simulated rig's servos (not --factory): 4 Mbps, the fastest every family runs at. One
