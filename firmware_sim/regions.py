@@ -241,12 +241,8 @@ Region = PolygonRegion | ConeRegion
 
 
 def deepen(region: Region, points_deg: np.ndarray, depth_deg: np.ndarray) -> np.ndarray:
-    """Points moved inward until each is as deep as asked.
-
-    Each point shallower than its depth is moved along the gradient of
-    :meth:`edge_distance_deg` (the direction away from the nearest edge) by what it lacks, in up
-    to DEEPEN_ROUNDS rounds. Near a reflex corner a point set in from one side lies too close to
-    the other; deepened, the points round the corner on an arc.
+    """Points moved inward, along the edge distance's gradient, until each is as deep as asked
+    (near a reflex corner the points then round the corner on an arc).
 
     Parameters
     ----------
@@ -284,22 +280,8 @@ def deepen(region: Region, points_deg: np.ndarray, depth_deg: np.ndarray) -> np.
 
 
 def grid_inside(region: Region, step_deg: float, min_depth_deg: float) -> np.ndarray:
-    """Poses on a pan/tilt grid over the region's bounding box that lie at least
-    ``min_depth_deg`` inside it: what a taught model should hold.
-
-    Parameters
-    ----------
-    region : PolygonRegion | ConeRegion
-    step_deg : float
-        Grid spacing (deg) in pan and in tilt, from the box's low corner.
-    min_depth_deg : float
-        Least depth (deg) of a kept pose, :meth:`edge_distance_deg` >= it.
-
-    Returns
-    -------
-    ndarray, shape (M, 2)
-        (pan_deg, tilt_deg) of the kept grid poses.
-    """
+    """The (pan_deg, tilt_deg) poses, shape (M, 2), of a ``step_deg`` grid over the region's
+    bounding box (from its low corner) that lie at least ``min_depth_deg`` deg inside it."""
     pan_lo, pan_hi, tilt_lo, tilt_hi = region.bbox_deg
     pan, tilt = (
         a.ravel()

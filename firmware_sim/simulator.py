@@ -27,10 +27,8 @@ from firmware_sim.leader import LeaderWorld, Operator
 from firmware_sim.protocol import MAX_SERVO_ID, PacketParser
 from firmware_sim.servo import Environment, Servo
 from firmware_sim.wire import BAUD_BY_VALUE, collide, value_for_baud
-from firmware_sim.world import DEFAULT_JOINTS, ROLL_JOINT, World
+from firmware_sim.world import DEFAULT_JOINTS, MAX_SUBSTEP_S, ROLL_JOINT, World
 
-#: Longest physics step (s): 1 ms keeps the 80 rad/s tracking loop stable (omega * dt = 0.08).
-MAX_SUBSTEP_S = 0.001
 # A free shaft (no joint in the world) starts at the middle of the turn.
 FREE_SHAFT_START_TICK = 2048.0
 

@@ -28,10 +28,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from firmware_sim.hand import Hand
+from firmware_sim.motion import TICKS_PER_TURN
 from firmware_sim.orientation import chain_quat
 
-#: Encoder resolution of the X series (e-Manual: 0..4095 per turn).
-TICKS_PER_TURN = 4096
 RAD_PER_TICK = 2.0 * math.pi / TICKS_PER_TURN
 #: Position loop: natural frequency (rad/s) of the critically damped tracking response.
 TRACKING_OMEGA_RAD_S = 80.0
@@ -52,7 +51,7 @@ GRIP_MAX_SPEED_RAD_S = math.radians(300.0)
 BACKDRIVE_RAD_S_PER_PCT = math.radians(1.0)
 #: The limb rests within this many degrees of its zero pose at start (drawn from the seed).
 REST_SCATTER_DEG = 0.5
-#: Longest physics substep (s); longer steps are split.
+#: Longest physics step (s): 1 ms keeps the 80 rad/s tracking loop stable (omega * dt = 0.08).
 MAX_SUBSTEP_S = 0.001
 
 _STIFFNESS_PCT_PER_RAD = STIFFNESS_PCT_PER_DEG * 180.0 / math.pi
