@@ -57,27 +57,10 @@ X330_FIRMWARE = 52
 
 @dataclass(frozen=True)
 class Item:
-    """One control-table item.
-
-    Attributes
-    ----------
-    register : Register | None
-        Typed name (None for indirect address/data entries).
-    address, size : int
-        First byte and width in bytes (1, 2 or 4), little-endian.
-    access : Access
-    default : int
-        Factory value.
-    minimum, maximum : int
-        The item's own range (Data Range Error outside).
-    signed : bool
-        Two's-complement value.
-    bound : tuple[Register | None, Register | None]
-        Items whose values bound this one (Data Limit Error outside); ``(None, R)`` means
-        ``-R .. R``.
-    name : str
-        The e-Manual's name, for messages.
-    """
+    """One control-table item: its ``register`` (None for indirect entries), first byte and
+    width in bytes (little-endian), factory ``default``, own range (Data Range Error outside),
+    two's complement or not, the items that ``bound`` it (Data Limit Error outside; ``(None, R)``
+    means ``-R .. R``) and the e-Manual's ``name`` for messages."""
 
     register: Register | None
     address: int

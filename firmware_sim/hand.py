@@ -148,19 +148,16 @@ class Hand:
     Attributes
     ----------
     region : PolygonRegion | ConeRegion | None
-        The region a region hand stays in (``contains(pan_deg, tilt_deg) -> bool``); ``None``
-        for a script hand.
+        The region a region hand stays in; ``None`` for a script hand.
     script : list of (t_s, pan_deg, tilt_deg[, roll_deg]) or None
     band : TwistBand or None
         The twist band a region hand turns the roll in; ``None`` when it leaves the roll alone.
     turns_roll : bool
-        Whether :meth:`pose_deg` gives a roll (a twist band, or a script with a roll column);
-        :meth:`firmware_sim.world.World.set_hand` gives such a hand the roll joint too.
+        Whether :meth:`pose_deg` gives a roll (a twist band, or a script with a roll column).
     style : str
         How a region hand teaches, one of :data:`firmware_sim.hand_path.STYLES`.
     path : SwingPath
-        Where the hand takes pan and tilt, before the tremor (its ``visits`` and
-        ``visit_spans``: the requests it answers, :class:`firmware_sim.hand_path.Visit`).
+        Where the hand takes pan and tilt before the tremor, and the visits it answers.
     """
 
     def __init__(

@@ -62,8 +62,7 @@ class Simulator:
     ids : sequence of int
         Servo IDs (their slots).
     model : str
-        A key of :data:`firmware_sim.control_table.MODELS`, or one per servo separated by
-        commas (mixed models on one bus), e.g. ``"xl430-w250,xl330-m288"``.
+        A key of :data:`firmware_sim.control_table.MODELS`, or one per servo: ``"a,b"``.
     hand : Hand or None
         Scripted hand moving the limb while torque is off.
     goal_log : path or None
@@ -74,22 +73,17 @@ class Simulator:
     clock : callable
         Monotonic seconds.
     baud : int or None
-        The servos' baud rate (their Baud Rate register); factory servos are at 57600. None
-        (the default): the servos answer a host at any baud until their Baud Rate register is
-        written (:meth:`hears`); limbctl passes its rig profile's baud, so it is strict.
+        The servos' baud rate (bit/s); None: any until their Baud Rate is written (:meth:`hears`).
     factory : int
-        If > 0, serve this many factory-fresh servos in slots 1..N instead of ``ids``: all ID 1,
-        57600 baud, Return Delay Time 250 (2 us units: 500 us).
+        If > 0, this many factory-fresh servos (all ID 1, 57600 baud) in slots 1..N instead.
     connect : sequence of int or None
         The slots on the bus (default: all); the others are unplugged.
     eeprom_dir : path or None
         Keep each slot's EEPROM in a file there (:class:`firmware_sim.eeprom.EepromFile`).
     leader : mapping or None
-        A leader gimbal (:meth:`firmware_sim.leader.LeaderWorld.from_spec`: two ids or three)
-        whose ids join the bus.
+        A leader gimbal (:meth:`firmware_sim.leader.LeaderWorld.from_spec`) whose ids join.
     roll_id : int or None
-        The servo that turns the limb about its own axis (a three-joint gimbal); it must be in
-        ``ids``. None: a two-joint gimbal.
+        The servo in ``ids`` that turns the limb about its own axis; None: two joints.
     """
 
     def __init__(
