@@ -149,13 +149,9 @@ def test_the_world_gives_the_hand_the_roll_joint():
 
 
 def test_a_minute_of_the_hand_teaches_a_band_within_the_truth_or_names_what_is_missing():
-    """The issue's demo: a 60 s teaching at the recorder's 125 Hz, learned. Issue 35: the band
-    never reaches more than 1 deg past the true one; it holds >= 99 % of the true region's
-    orientations 2 deg inside only where the stops support it, and otherwise lists the places
-    whose stops are missing, so the guide withholds READY TO TRAIN (containment wins over
-    coverage). Measured: 69.9 % held, 129 places, never past the truth (0.93 deg inside it at
-    the nearest); before the evidence cap 99.98 % held, and the band reached 4.66 deg past the
-    true stop."""
+    """Issue 35: a 60 s teaching at the recorder's 125 Hz, learned, never reaches more than 1 deg
+    past the true band; it holds >= 99 % of the true region or lists the places whose stops are
+    missing (containment wins over coverage; figures in docs/decisions/twist.md)."""
     from limbctl.demo import true_twist_probes
     from limbctl.geometry.gimbal import direction_to_pan_tilt
     from limbctl.geometry.twist import decompose, wrap
