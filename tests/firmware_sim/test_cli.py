@@ -68,7 +68,7 @@ def test_help_documents_every_option(capsys):
         (["--leader", "3,4", "--operator", "missing.yaml"], "cannot read the operator file"),
         (["--factory", "2", "--leader", "3,4"], "not served with --factory"),
         (["--event", "1:melt:1:2"], "kind must be one of"),
-        (["--event", "0:vanish:7:1"], "no servo answers as ID 7"),
+        (["--event", "0:vanish:7:1"], "no servo answers as ID 7; the servos answer as 1, 2"),
     ],
 )
 def test_bad_options_are_named(tmp_path, capsys, arguments, message):
