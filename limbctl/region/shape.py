@@ -203,14 +203,20 @@ def surrounded(p: np.ndarray, data: np.ndarray, radius: float, max_gap: float) -
     At least three data within ``radius`` (rad) whose bearings from ``p`` leave no empty sector
     wider than ``max_gap`` (rad).
     """
-    near = cKDTree(data).query_ball_point(p, chord(radius))
+    counts, widest = bearing_gaps(p, data, cKDTree(data).query_ball_point(p, chord(radius)))
+    return (counts >= 3) & (widest < max_gap)
+
+
+def bearing_gaps(p: np.ndarray, data: np.ndarray, near: list) -> tuple[np.ndarray, np.ndarray]:
+    """Counts (N,) of the rows ``near`` (N lists) of ``data`` (K, 3) about each ``p`` (N, 3), and
+    their widest empty sector (N,) rad of bearings seen from it."""
     counts = np.array([len(rows) for rows in near], dtype=np.int64)
     start = np.concatenate([[0], np.cumsum(counts)])
     flat = np.fromiter((j for rows in near for j in rows), dtype=np.int64, count=int(start[-1]))
     widest = shape_kernels.widest_bearing_gaps(
         np.ascontiguousarray(p, dtype=np.float64), np.ascontiguousarray(data), start, flat
     )
-    return (counts >= 3) & (widest < max_gap)
+    return counts, widest
 
 
 def peel(
