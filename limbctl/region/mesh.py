@@ -20,6 +20,7 @@ from scipy.spatial import ConvexHull, QhullError
 from limbctl.errors import InvalidInputError
 from limbctl.region import direct_kernels, grid_kernels
 from limbctl.region import mesh_kernels as bk
+from limbctl.region.loops import loops_to_edges
 
 
 @dataclass
@@ -79,15 +80,9 @@ class DirectionMesh:
             widen = np.concatenate([np.asarray(margins[i], dtype=np.float64) for i in keep])
         if widen.shape[0] != sum(lp.shape[0] for lp in loops) or not np.all(widen >= 0.0):
             raise InvalidInputError("margins: need one finite value >= 0 per boundary arc")
-        d = np.vstack(loops)
+        d, edges = loops_to_edges(loops)
         d = np.ascontiguousarray(d / np.linalg.norm(d, axis=1, keepdims=True))
-        edges = []
-        start = 0
-        for lp in loops:
-            idx = np.arange(start, start + lp.shape[0])
-            edges.append(np.column_stack([idx, np.roll(idx, -1)]))
-            start += lp.shape[0]
-        edges = np.ascontiguousarray(np.vstack(edges), dtype=np.int64)
+        edges = np.ascontiguousarray(edges, dtype=np.int64)
         widen = np.ascontiguousarray(widen)
         axis = d.mean(axis=0)
         axis /= np.linalg.norm(axis)
