@@ -38,33 +38,24 @@ import numpy as np
 from limbctl.geometry.jit import njit
 from limbctl.region import mesh_kernels as bk
 
-#: contains() accepts twists this far (rad) outside the band: rounding of compose/decompose of
-#: an answer on the band's limit (~1e-15), far below a servo tick (0.088 deg).
+#: Twists this far (rad) outside the band pass: compose/decompose rounding (~1e-15).
 TWIST_TOLERANCE = 1e-9
-#: First step (rad) of the pattern search: about the seeds' spacing, so the search starts
-#: within one step of the seed's basin.
+#: First search step (rad): about the seeds' spacing, within one step of a seed's basin.
 STEP_START = math.radians(3.0)
-#: Last step (rad): 0.03 deg. The answer's direction is within one step of a local optimum, and
-#: the geodesic angle is flat to first order there (a smooth optimum) or moves along the exact
-#: swing edge, so its error is far below this.
+#: Last step (rad): 0.03 deg; the score is flat to first order at an optimum.
 STEP_MIN = math.radians(0.03)
-#: Step (rad) at which a further start's search stops unless it has already beaten the best
-#: optimum found (only then is it refined to STEP_MIN): 0.25 deg, three halvings of STEP_START,
-#: where a basin's score is within ~0.1 deg of its optimum.
+#: Step (rad) where a further start stops unless it beat the best (three halvings, 0.25
+#: deg: a basin's score within ~0.1 deg of its optimum).
 STEP_COARSE = STEP_START / 8.0
-#: Cap on the pattern search's polls, a bound on its time: the 7 halvings from STEP_START to
-#: STEP_MIN poll 42 times without a move, leaving ~350 polls for moves.
+#: Cap on polls: 7 halvings poll 42 times without a move, ~350 left for moves.
 MAX_POLLS = 400
-#: Poll directions per step: six at 60 deg, the smallest positive spanning set that keeps the
-#: pattern isotropic enough for the search to follow a curved swing edge.
+#: Polls per step: six at 60 deg, isotropic enough to follow a curved swing edge.
 POLL_DIRECTIONS = 6
 #: Seeds nearest the command (by ``|<q, s>|``) the starts are chosen from.
 NEAREST_SEEDS = 24
-#: Pattern searches at most per command: the first from the better of the swing projection and
-#: the nearest seed, the others from the next candidates START_APART from every start before.
+#: Pattern searches per command at most (uneven bands give two local optima).
 MAX_STARTS = 2
-#: Least angle (rad) between two starts' directions: two pattern-search steps, so a second
-#: start near the first does not retrace its basin.
+#: Least angle (rad) between starts: two steps, so a second start does not retrace.
 START_APART = STEP_START
 #: ``cos(START_APART)``: candidates whose direction's cosine to a start exceeds it are skipped.
 COS_APART = math.cos(START_APART)
@@ -94,10 +85,8 @@ def plane_xy(d, frame):
 
 @njit(inline="always")
 def band_at(d, frame, grid, centre, half):
-    """Band centre and half-width (rad) over direction ``d``: bilinear in the plane grid.
-
-    ``grid = (x0, y0, step)``: node (i, j) sits at ``(x0 + i step, y0 + j step)``; points beyond
-    the grid take its edge values (clamped).
+    """Band centre and half-width (rad) over direction ``d``: bilinear in the plane grid
+    ``grid = (x0, y0, step)``, clamped at its edge.
     """
     x, y = plane_xy(d, frame)
     nx = centre.shape[0]
@@ -121,11 +110,8 @@ def band_at(d, frame, grid, centre, half):
 
 @njit(inline="always")
 def _score(q, dq, d, frame, grid, centre, half):
-    """``F = cos(theta/2) cos(delta/2)`` for candidate direction ``d`` and the best twist there.
-
-    ``q`` canonical (4,), ``dq`` its unit direction. Returns ``(F, tau)``. The transported twist
-    is ``2 atan2(p_x, p_w)`` of ``p = r q``, ``r = (1 + dq.d, dq x d)`` the (unnormalised)
-    shortest arc; ``cos(theta/2) = sqrt((1 + dq.d) / 2)``.
+    """``(F, tau)``: ``F = cos(theta/2) cos(delta/2)`` for candidate direction ``d`` and the best
+    twist there; ``q`` canonical (4,), ``dq`` its unit direction.
     """
     rw = 1.0 + dq[0] * d[0] + dq[1] * d[1] + dq[2] * d[2]
     rx = dq[1] * d[2] - dq[2] * d[1]
