@@ -81,19 +81,7 @@ def fit_nodes(nodes, start, members, d, tau, top, free_gap, slope):
         # the occupied arc runs from gap_start + gap over 2 pi - gap: its middle
         ref = gap_start + gap + 0.5 * (2.0 * math.pi - gap)
         node = nodes[i]
-        # tangent frame at the node (helper +z, or +y near the z axis)
-        if abs(node[2]) < 0.9:
-            e1 = np.array([-node[1], node[0], 0.0])
-        else:
-            e1 = np.array([node[2], 0.0, -node[0]])
-        e1 /= math.sqrt(e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2])
-        e2 = np.array(
-            [
-                node[1] * e1[2] - node[2] * e1[1],
-                node[2] * e1[0] - node[0] * e1[2],
-                node[0] * e1[1] - node[1] * e1[0],
-            ]
-        )
+        e1, e2 = _node_frame(node)
         px = np.empty(k)
         py = np.empty(k)
         t = np.empty(k)
@@ -130,18 +118,7 @@ def refine_nodes(nodes, start, members, d, limit, stop, ref, sigma, max_slope):
     out = np.full(m, np.nan)
     for i in range(m):
         node = nodes[i]
-        if abs(node[2]) < 0.9:
-            e1 = np.array([-node[1], node[0], 0.0])
-        else:
-            e1 = np.array([node[2], 0.0, -node[0]])
-        e1 /= math.sqrt(e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2])
-        e2 = np.array(
-            [
-                node[1] * e1[2] - node[2] * e1[1],
-                node[2] * e1[0] - node[0] * e1[2],
-                node[0] * e1[1] - node[1] * e1[0],
-            ]
-        )
+        e1, e2 = _node_frame(node)
         a = np.zeros((3, 3))
         b = np.zeros(3)
         count = 0
@@ -213,6 +190,24 @@ def evidence_caps(nodes, start, members, d, limit, ref, slope, near, band):
     return up, lo, n_up, n_lo
 
 
+@njit(inline="always")
+def _node_frame(node):
+    """Tangent frame (3,), (3,) at unit ``node`` (3,): helper +z, or +y near the z axis."""
+    if abs(node[2]) < 0.9:
+        e1 = np.array([-node[1], node[0], 0.0])
+    else:
+        e1 = np.array([node[2], 0.0, -node[0]])
+    e1 /= math.sqrt(e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2])
+    e2 = np.array(
+        [
+            node[1] * e1[2] - node[2] * e1[1],
+            node[2] * e1[0] - node[0] * e1[2],
+            node[0] * e1[1] - node[1] * e1[0],
+        ]
+    )
+    return e1, e2
+
+
 @njit
 def _angle(a, b) -> float:
     """Angle (rad) between unit vectors (3,): ``2 asin(|a - b| / 2)``."""
@@ -255,18 +250,7 @@ def gradient_caps(
     wit = np.zeros(m, dtype=np.int64)
     for i in range(m):
         node = nodes[i]
-        if abs(node[2]) < 0.9:
-            e1 = np.array([-node[1], node[0], 0.0])
-        else:
-            e1 = np.array([node[2], 0.0, -node[0]])
-        e1 /= math.sqrt(e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2])
-        e2 = np.array(
-            [
-                node[1] * e1[2] - node[2] * e1[1],
-                node[2] * e1[0] - node[0] * e1[2],
-                node[0] * e1[1] - node[1] * e1[0],
-            ]
-        )
+        e1, e2 = _node_frame(node)
         a = np.zeros((3, 3))
         b = np.zeros(3)
         count = 0
