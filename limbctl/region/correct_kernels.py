@@ -25,7 +25,6 @@ def _correct_one(q, mesh, out, work) -> int:
     region direction. ``mesh`` is the mesh's kernel arguments; ``work`` (WORK_ROWS + 2, 3) scratch
     with the grid frame in rows 0, 1 (``bk.frame_into``).
     """
-    vertices, edges, margins, axis, grid_shape, inside, deep, start, cell_edges, keys = mesh
     norm2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]
     # NaN fails every comparison, so it is refused here
     if not abs(math.sqrt(norm2) - 1.0) <= 1e-6:
@@ -35,46 +34,16 @@ def _correct_one(q, mesh, out, work) -> int:
     x = sign * q[1]
     y = sign * q[2]
     z = sign * q[3]
-    # limb direction: (w^2 + x^2 - y^2 - z^2, 2(xy + wz), 2(xz - wy)), normalised
     d = work[bk.WORK_ROWS]
-    d[0] = w * w + x * x - y * y - z * z
-    d[1] = 2.0 * (x * y + w * z)
-    d[2] = 2.0 * (x * z - w * y)
-    dn = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
-    d[0] /= dn
-    d[1] /= dn
-    d[2] /= dn
+    bk.limb_into(w, x, y, z, d)
     p = work[bk.WORK_ROWS + 1]
-    if bk.query(
-        d,
-        vertices,
-        edges,
-        margins,
-        axis,
-        grid_shape,
-        inside,
-        deep,
-        start,
-        cell_edges,
-        keys,
-        p,
-        work,
-    ):
+    if bk.query_mesh(d, mesh, p, work):
         out[0] = w
         out[1] = x
         out[2] = y
         out[3] = z
         return 1
-    # swing from +x to p: normalise(1 + p_x, 0, -p_z, p_y)
-    sw = 1.0 + p[0]
-    sy = -p[2]
-    sz = p[1]
-    sn = math.sqrt(sw * sw + sy * sy + sz * sz)
-    if sn < 1e-12:
-        sw, sy, sz, sn = 0.0, 0.0, 1.0, 1.0
-    sw /= sn
-    sy /= sn
-    sz /= sn
+    sw, sy, sz = bk.swing_of(p)
     tn = math.sqrt(w * w + x * x)
     tw, tx = (w / tn, x / tn) if tn > 1e-12 else (1.0, 0.0)
     # (sw, 0, sy, sz) * (tw, tx, 0, 0)

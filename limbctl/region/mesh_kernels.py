@@ -306,6 +306,40 @@ def query(
     return False
 
 
+@njit(inline="always")
+def query_mesh(p, mesh, out, work):
+    """:func:`query` with the mesh's kernel arguments (``DirectionMesh.kernel_args``) as a tuple."""
+    # vertices, edges, margins, axis, grid_shape, inside, deep, start, cell_edges, keys
+    ve, ed, ma, ax, gs, ins, dp, st, ce, ke = mesh
+    return query(p, ve, ed, ma, ax, gs, ins, dp, st, ce, ke, out, work)
+
+
+@njit(inline="always")
+def limb_into(w, x, y, z, d) -> None:
+    """Write into ``d`` (3,) the unit limb direction of canonical quaternion ``(w, x, y, z)``."""
+    d[0] = w * w + x * x - y * y - z * z
+    d[1] = 2.0 * (x * y + w * z)
+    d[2] = 2.0 * (x * z - w * y)
+    dn = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+    for k in range(3):
+        d[k] /= dn
+
+
+@njit(inline="always")
+def swing_of(p):
+    """The swing from +x to unit ``p`` (3,): ``normalise(1 + p_x, 0, -p_z, p_y)`` as (w, y, z)."""
+    sw = 1.0 + p[0]
+    sy = -p[2]
+    sz = p[1]
+    sn = math.sqrt(sw * sw + sy * sy + sz * sz)
+    if sn < 1e-12:
+        sw, sy, sz, sn = 0.0, 0.0, 1.0, 1.0
+    sw /= sn
+    sy /= sn
+    sz /= sn
+    return sw, sy, sz
+
+
 #: Rows per chunk of a batch: scratch is allocated once per chunk, not per row.
 CHUNK = 512
 
@@ -313,6 +347,7 @@ CHUNK = 512
 @njit(parallel=True)
 def contains_batch(vertices, edges, margins, axis, grid_shape, inside, deep, start, arcs, keys, d):
     """(N,) bool for directions ``d`` (N, 3)."""
+    mesh = (vertices, edges, margins, axis, grid_shape, inside, deep, start, arcs, keys)
     n = d.shape[0]
     res = np.empty(n, dtype=np.bool_)
     for chunk in nb.prange((n + CHUNK - 1) // CHUNK):
@@ -320,46 +355,19 @@ def contains_batch(vertices, edges, margins, axis, grid_shape, inside, deep, sta
         frame_into(axis, work)
         out = np.empty(3)
         for j in range(chunk * CHUNK, min(n, (chunk + 1) * CHUNK)):
-            res[j] = query(
-                d[j],
-                vertices,
-                edges,
-                margins,
-                axis,
-                grid_shape,
-                inside,
-                deep,
-                start,
-                arcs,
-                keys,
-                out,
-                work,
-            )
+            res[j] = query_mesh(d[j], mesh, out, work)
     return res
 
 
 @njit(parallel=True)
 def project_batch(vertices, edges, margins, axis, grid_shape, inside, deep, start, arcs, keys, d):
     """Projection (N, 3) of directions ``d`` (N, 3): themselves inside, nearest region point out."""
+    mesh = (vertices, edges, margins, axis, grid_shape, inside, deep, start, arcs, keys)
     n = d.shape[0]
     res = np.empty((n, 3))
     for chunk in nb.prange((n + CHUNK - 1) // CHUNK):
         work = np.empty((WORK_ROWS, 3))
         frame_into(axis, work)
         for j in range(chunk * CHUNK, min(n, (chunk + 1) * CHUNK)):
-            query(
-                d[j],
-                vertices,
-                edges,
-                margins,
-                axis,
-                grid_shape,
-                inside,
-                deep,
-                start,
-                arcs,
-                keys,
-                res[j],
-                work,
-            )
+            query_mesh(d[j], mesh, res[j], work)
     return res

@@ -134,15 +134,7 @@ def _score(q, dq, d, frame, grid, centre, half):
 @njit(inline="always")
 def _compose_into(d, tau, out) -> None:
     """``out = swing(d) * twist(tau)`` (w >= 0), as :func:`limbctl.geometry.twist.compose`."""
-    sw = 1.0 + d[0]
-    sy = -d[2]
-    sz = d[1]
-    sn = math.sqrt(sw * sw + sy * sy + sz * sz)
-    if sn < 1e-12:
-        sw, sy, sz, sn = 0.0, 0.0, 1.0, 1.0
-    sw /= sn
-    sy /= sn
-    sz /= sn
+    sw, sy, sz = bk.swing_of(d)
     half = 0.5 * wrap(tau)
     c = math.cos(half)
     s = math.sin(half)
@@ -161,7 +153,6 @@ def _search(qc, dq, cur, best, best_tau, mesh, band, work, step, step_min):
     below ``step_min`` (rad): ``cur`` moves to the optimum found; returns its ``(F, tau)``.
     Polls outside the swing region are replaced by their projection. ``work`` rows
     ``WORK_ROWS + 2 .. + 5`` are its scratch."""
-    vertices, edges, margins, axis, grid_shape, inside, deep, start, cell_edges, keys = mesh
     frame, grid, centre, half = band
     base = bk.WORK_ROWS
     trial = work[base + 2]
@@ -195,21 +186,7 @@ def _search(qc, dq, cur, best, best_tau, mesh, band, work, step, step_min):
             for k in range(3):
                 trial[k] = cs * cur[k] + sn * (ca * e1[k] + sa * e2[k])
             polls += 1
-            if not bk.query(
-                trial,
-                vertices,
-                edges,
-                margins,
-                axis,
-                grid_shape,
-                inside,
-                deep,
-                start,
-                cell_edges,
-                keys,
-                proj,
-                work,
-            ):
+            if not bk.query_mesh(trial, mesh, proj, work):
                 for k in range(3):
                     trial[k] = proj[k]
             f, t = _score(qc, dq, trial, frame, grid, centre, half)
@@ -233,7 +210,6 @@ def _correct_one(q, mesh, band, seeds, seed_dirs, out, work) -> int:
     ``mesh`` is the direction mesh's kernel arguments, ``band = (frame, grid, centre, half)``;
     ``work`` (WORK_ROWS + WORK_EXTRA, 3) holds the mesh frame in rows 0, 1.
     """
-    vertices, edges, margins, axis, grid_shape, inside, deep, start, cell_edges, keys = mesh
     frame, grid, centre, half = band
     norm2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]
     if not abs(math.sqrt(norm2) - 1.0) <= 1e-6:
@@ -245,28 +221,9 @@ def _correct_one(q, mesh, band, seeds, seed_dirs, out, work) -> int:
         qc[k] = sign * q[k]
     w, x, y, z = qc[0], qc[1], qc[2], qc[3]
     dq = work[base]
-    dq[0] = w * w + x * x - y * y - z * z
-    dq[1] = 2.0 * (x * y + w * z)
-    dq[2] = 2.0 * (x * z - w * y)
-    dn = math.sqrt(dq[0] * dq[0] + dq[1] * dq[1] + dq[2] * dq[2])
-    for k in range(3):
-        dq[k] /= dn
+    bk.limb_into(w, x, y, z, dq)
     cur = work[base + 1]
-    if bk.query(
-        dq,
-        vertices,
-        edges,
-        margins,
-        axis,
-        grid_shape,
-        inside,
-        deep,
-        start,
-        cell_edges,
-        keys,
-        cur,
-        work,
-    ):
+    if bk.query_mesh(dq, mesh, cur, work):
         c, h = band_at(dq, frame, grid, centre, half)
         if abs(wrap(2.0 * math.atan2(x, w) - c)) <= h + TWIST_TOLERANCE:
             for k in range(4):
@@ -394,29 +351,9 @@ def _contains_one(q, mesh, frame, grid, centre, half, work) -> int:
     sign = -1.0 if q[0] < 0.0 else 1.0
     w, x, y, z = sign * q[0], sign * q[1], sign * q[2], sign * q[3]
     d = work[bk.WORK_ROWS]
-    d[0] = w * w + x * x - y * y - z * z
-    d[1] = 2.0 * (x * y + w * z)
-    d[2] = 2.0 * (x * z - w * y)
-    dn = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
-    for k in range(3):
-        d[k] /= dn
+    bk.limb_into(w, x, y, z, d)
     out = np.empty(3)
-    vertices, edges, margins, axis, grid_shape, inside, deep, start, cell_edges, keys = mesh
-    if not bk.query(
-        d,
-        vertices,
-        edges,
-        margins,
-        axis,
-        grid_shape,
-        inside,
-        deep,
-        start,
-        cell_edges,
-        keys,
-        out,
-        work,
-    ):
+    if not bk.query_mesh(d, mesh, out, work):
         return 0
     c, h = band_at(d, frame, grid, centre, half)
     return 1 if abs(wrap(2.0 * math.atan2(x, w) - c)) <= h + TWIST_TOLERANCE else 0
