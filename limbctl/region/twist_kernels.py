@@ -1,31 +1,17 @@
 """Numba kernels of the three-dimensional region: the twist band, containment and the nearest
 orientation on SO(3).
 
-An orientation ``q = swing(d) * twist(tau)`` (:mod:`limbctl.geometry.twist`) is in the region when
-its direction ``d`` is in the swing region (the direction mesh, :mod:`limbctl.region.mesh_kernels`)
-and its twist lies in the band over ``d``: ``|wrap(tau - c(d))| <= h(d)``, with centre ``c`` and
-half-width ``h`` interpolated bilinearly from a grid in the azimuthal equidistant plane about the
-band's axis (:func:`band_at`).
+``q = swing(d) * twist(tau)`` (:mod:`limbctl.geometry.twist`) is in the region when ``d`` is in
+the swing region (:mod:`limbctl.region.mesh_kernels`) and ``|wrap(tau - c(d))| <= h(d)``, the
+band's centre and half-width bilinear in a plane grid about its axis (:func:`band_at`).
 
-Nearest orientation. For a command ``q`` with direction ``d_q`` and a candidate direction ``d`` at
-angle ``theta`` from it, the orientations over ``d`` nearest to ``q`` have the transported twist
-``t(d)`` (``q`` carried along the shortest arc), and the best one in the band lies
-``delta(d) = max(0, |wrap(t - c)| - h)`` from it in twist, at geodesic angle ``g`` with ::
-
-    cos(g/2) = cos(theta/2) cos(delta/2)          (F(d), maximised)
-
-so the nearest orientation of the region is a search over the swing region's directions
-(:func:`_score`). ``F`` is smooth inside the swing region (``cos(max(0, e)/2)`` has no kink at 0),
-so a pattern search converges; points it tries outside the swing region are replaced by their
-exact projection onto it, so it slides along the swing edge. It starts from the better of the
-command's own swing projection and the direction of the nearest *seed* (orientations sampled on
-the region's boundary, a few degrees apart), and stops once its step is below ``STEP_MIN``.
-``F`` has several local optima where the learned band's limits are uneven, so further searches
-(``MAX_STARTS`` in all) start from the best-scoring of the other candidates (the swing
-projection and the ``NEAREST_SEEDS`` nearest seeds' directions, ``START_APART`` from every start
-before); each stops at ``STEP_COARSE`` unless it has already beaten the best optimum, and the
-best optimum found is the answer (docs/decisions/twist.md).
-No fastmath: NaN must fail every comparison.
+Nearest orientation: over a candidate direction ``d`` at angle ``theta`` from ``q``'s, the best
+orientation in the band lies ``delta(d)`` in twist from the transported twist, at geodesic
+angle ``g`` with ``cos(g/2) = cos(theta/2) cos(delta/2)`` (:func:`_score`, maximised). A pattern
+search over the swing region's directions (polls outside replaced by their projection) starts
+from the better of the swing projection and the nearest *seed*; further searches (``MAX_STARTS``
+in all) start from the next best candidates, and the best optimum found is the answer
+(docs/decisions/twist.md). No fastmath: NaN must fail every comparison.
 """
 
 from __future__ import annotations
