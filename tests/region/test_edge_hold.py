@@ -77,9 +77,8 @@ def test_a_region_with_no_far_station_is_returned_as_it_is(sparse_notch):
 )
 def test_every_point_of_the_held_edge_lies_within_reach_of_a_sample(sparse_notch):
     """The goal: every point of the held region's outer edge (checked ``CHECK_DEG`` apart) lies
-    within ``REACH_DEG`` plus a quarter station spacing (the chord passes' own slack) plus half
-    the check step of a taught sample. On main the edge of this teaching stands 0.21 deg past
-    that (measured with this check)."""
+    within ``REACH_DEG`` plus a quarter station spacing plus half the check step of a taught
+    sample (docs/decisions/region.md)."""
     _, taught, _, region, _ = sparse_notch
     d = taught_module.taught_directions(taught)
     stations, arc = edge_stations(region.mesh, np.radians(CHECK_DEG))
