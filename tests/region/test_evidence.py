@@ -109,9 +109,7 @@ def bayed_ellipse(a, b, centre, bays):
 
 def test_a_hand_taught_bay_is_not_bridged(seconds=30.0):
     """Two bays (the families' outline 2), taught by the simulator's hand: the region reaches at
-    most 1 deg outside. Before the traced edge was held to the evidence, the fit refused it
-    (it bridged a bay) and the supported edge taken instead bridged the 6 deg bay at its
-    mouth by 2.21 deg."""
+    most 1 deg outside (docs/decisions/region.md)."""
     outline = bayed_ellipse(22.7, 15.6, (5.0, -6.5), [(242.2, 17.9, 6.8), (11.0, 11.8, 6.2)])
     truth = PolygonRegion(outline)
     region = TaughtRegion().fit(hand_teaching(outline, 2, seconds))
