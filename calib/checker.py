@@ -1,10 +1,4 @@
-"""Validation of rig profile data: the errors and the checks every field goes through.
-
-:class:`Checker` holds the file name so every error names the file and the field, e.g.
-``calib/rigs/x.yaml: pan.direction must be +1 or -1, got 2``, on one line, quoting values only
-in bounded form (:func:`calib.yaml_guard.shown`). :mod:`calib.profile` builds joints and whole
-profiles on these checks.
-"""
+"""Validation of rig profile data: one-line errors naming file and field, and the checks."""
 
 from __future__ import annotations
 
@@ -22,13 +16,7 @@ class ProfileError(ValueError):
 
 
 class ProfileFileError(ProfileError):
-    """A rig profile file cannot be read or is not YAML.
-
-    Attributes
-    ----------
-    path : pathlib.Path
-        The file.
-    """
+    """A rig profile file (``path``, a :class:`~pathlib.Path`) cannot be read or is not YAML."""
 
     def __init__(self, path: str | os.PathLike[str], problem: str) -> None:
         self.path = Path(path)
@@ -43,7 +31,7 @@ MAX_LISTED_KEYS = 5
 
 
 def _key_name(key: Any) -> str:
-    """A mapping key as a message names it: bare if a short printable string, else bounded."""
+    """A key bare if a short printable string, else bounded."""
     if isinstance(key, str) and key.isprintable() and len(key) <= 40:
         return key
     return shown(key)

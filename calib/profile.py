@@ -1,6 +1,7 @@
-"""The rig profile: which port and servos a gimbal uses and how its joints are calibrated.
+"""The rig profile: which port and servos a rig uses and how its joints are calibrated.
 
-A profile is a small YAML file (see ``calib/rigs/sim.yaml``)::
+A profile is a small YAML file (``calib/rigs/sim.yaml``; ``sim3.yaml`` adds the optional
+``roll``)::
 
     name: sim
     port: sim              # "sim" = the embedded simulator, else a device such as /dev/ttyUSB0
@@ -9,33 +10,14 @@ A profile is a small YAML file (see ``calib/rigs/sim.yaml``)::
     protocol: 2.0
     pan:  {id: 1, zero_tick: 2185, direction: 1,  min_deg: -115.0, max_deg: 115.0,
            stop_min_deg: -120.0, stop_max_deg: 120.0}
-    tilt: {id: 2, zero_tick: 1890, direction: -1, min_deg: -55.0,  max_deg: 70.0,
-           stop_min_deg: -60.0, stop_max_deg: 75.0}
+    tilt: {id: 2, zero_tick: 1890, direction: -1, min_deg: -55.0,  max_deg: 70.0}
     rest_direction: [1.0, 0.0, 0.0]
-    roll: {id: 3, zero_tick: 1960, direction: 1, min_deg: -100.0, max_deg: 100.0,
-           stop_min_deg: -105.0, stop_max_deg: 105.0}   # optional: a three-servo rig
 
-``roll`` is optional: a third servo that turns the limb about its own axis
-(``calib/rigs/sim3.yaml``); without it the rig has two servos and its dictionaries carry no
-``roll`` key. The joints may also be written as one ordered list, each with its name::
-
-    joints:
-      - {name: pan, id: 1, zero_tick: 2185, direction: 1, min_deg: -115.0, max_deg: 115.0}
-      - {name: tilt, id: 2, zero_tick: 1890, direction: -1, min_deg: -55.0, max_deg: 70.0}
-
-The chain is ``pan, tilt`` or ``pan, tilt, roll`` (:data:`CHAINS`), in that order, either way;
-a profile is saved in the form it was read in.
-
-``min_deg``/``max_deg`` are the hard limits the controller enforces (and writes to the servos'
-position limits), at least END_STOP_MARGIN_DEG inside the physical end stops
-``stop_min_deg``/``stop_max_deg``; unstated end stops are taken at +-DEFAULT_END_STOP_DEG, so a
-profile whose limits reach further must say where its end stops really are.
-
-The file is read through :mod:`calib.yaml_guard` and validated as data; every error is one line
-naming the file and the field (``calib/rigs/x.yaml: pan.direction must be +1 or -1, got 2``).
-The result is an immutable :class:`RigProfile`, whose :attr:`RigProfile.calibration` is what a
-model trained on the rig depends on. What only the servos know (bauds, models, ticks per turn)
-is checked by the controller when it opens a rig; this package imports nothing of it.
+or with the joints as one ordered list (``joints: [{name: pan, id: 1, ...}, ...]``); either
+way the chain is one of :data:`CHAINS` and a profile is saved in the form it was read in.
+``min_deg``/``max_deg`` are the hard limits, at least END_STOP_MARGIN_DEG inside the end stops
+``stop_min_deg``/``stop_max_deg`` (unstated: +-DEFAULT_END_STOP_DEG). Every error is one line
+naming file and field; what only the servos know is checked when the controller opens a rig.
 """
 
 from __future__ import annotations
@@ -65,9 +47,8 @@ SIM_RIGS = ("sim", "sim3")
 PROTOCOLS = (2.0,)
 #: Largest id a servo can have (253 and up are reserved / broadcast).
 MAX_SERVO_ID = 252
-#: End stops assumed for a joint whose profile does not state them (deg, either side of zero):
-#: a quarter turn, where the tilt of a pan-tilt gimbal points straight up or down; a rig that
-#: travels further has to write its end stops down before its limits may reach past this.
+#: End stops assumed where a profile states none (deg, either side of zero): a quarter turn,
+#: where a gimbal's tilt points straight up or down; a rig that travels further must say so.
 DEFAULT_END_STOP_DEG = 90.0
 #: Least distance (deg) between a hard limit and its end stop: a goal at the limit, rounded to
 #: ticks and held by the servo's position loop, must leave the horn clear of the stop.
@@ -91,14 +72,13 @@ class JointProfile:
     id : int
         Servo id on the bus (0..252).
     zero_tick : int
-        Encoder tick (0..4095) at which the joint angle is 0.
+        Encoder tick (0..4095) at joint angle 0.
     direction : int
         +1 if ticks grow with the joint angle, -1 if they shrink.
     min_deg, max_deg : float
-        Hard joint limits in degrees, ``min_deg < max_deg``.
+        Hard joint limits (deg).
     stop_min_deg, stop_max_deg : float
-        The physical end stops in degrees (joint angle), at least END_STOP_MARGIN_DEG outside
-        the hard limits; +-DEFAULT_END_STOP_DEG when the profile does not state them.
+        The physical end stops (deg), at least END_STOP_MARGIN_DEG outside the hard limits.
     """
 
     id: int
@@ -122,17 +102,7 @@ class JointProfile:
 
 @dataclass(frozen=True)
 class JointCalibration:
-    """What a model depends on in one joint: where its zero is, which way it turns, its limits.
-
-    Attributes
-    ----------
-    zero_tick : int
-        Encoder tick (0..4095) at joint angle 0.
-    direction : int
-        +1 or -1.
-    min_deg, max_deg : float
-        Hard joint limits in degrees.
-    """
+    """What a model depends on in one joint (fields as in :class:`JointProfile`)."""
 
     zero_tick: int
     direction: int
@@ -142,12 +112,9 @@ class JointCalibration:
 
 @dataclass(frozen=True)
 class Calibration:
-    """The calibration a recording was made under and a model was trained under.
+    """The calibration a recording was made and a model trained under (valid only on it).
 
-    Orientations are computed from ticks through each joint's zero tick and direction, so the
-    same ticks read through another calibration are other orientations: a model is only valid
-    on a rig whose calibration is the one it was trained under. :meth:`to_dict` is the form
-    stored in dataset and model headers; :func:`calibration_from_dict` reads it back.
+    :meth:`to_dict` is the form stored in headers; :func:`calibration_from_dict` reads it back.
     """
 
     joints: tuple[tuple[str, JointCalibration], ...]
@@ -159,8 +126,7 @@ class Calibration:
 
     @property
     def twists(self) -> bool:
-        """True when the chain turns the limb about its own axis (it ends in a roll joint): its
-        regions carry a twist band."""
+        """True when the chain ends in a roll joint: its regions carry a twist band."""
         return self.joint_names[-1] == "roll"
 
     def joint(self, name: str) -> JointCalibration | None:
@@ -168,8 +134,7 @@ class Calibration:
         return dict(self.joints).get(name)
 
     def to_dict(self) -> dict[str, dict[str, Any]]:
-        """Plain data: ``{"pan": {"zero_tick": ..., ...}, "tilt": {...}}`` (and ``"roll"`` when
-        the rig has one; a two-servo calibration has no ``roll`` key)."""
+        """Plain data: ``{"pan": {"zero_tick": ..., ...}, "tilt": {...}[, "roll": {...}]}``."""
         return {
             name: {key: getattr(joint, key) for key in _CALIBRATION_KEYS}
             for name, joint in self.joints
@@ -194,12 +159,10 @@ class Calibration:
 
 @dataclass(frozen=True)
 class RigProfile:
-    """A whole rig: bus settings and its chain of joints.
+    """A whole rig: bus settings and ``joints``, ``(name, joint)`` in chain order.
 
-    ``joints`` is ``(name, joint)`` per joint in chain order, names one of :data:`CHAINS`.
-    ``source`` is the file the profile was loaded from (None if built in code) and ``listed``
-    whether its joints were written as a ``joints:`` list; neither is compared, and ``source``
-    is not saved.
+    ``source`` (the file read, not saved) and ``listed`` (joints written as a list) are not
+    compared.
     """
 
     name: str
@@ -239,8 +202,7 @@ class RigProfile:
 
     @property
     def twists(self) -> bool:
-        """True when the chain turns the limb about its own axis (it ends in a roll joint): its
-        regions carry a twist band."""
+        """True when the chain ends in a roll joint: its regions carry a twist band."""
         return self.joints[-1][0] == "roll"
 
     @property
@@ -269,9 +231,7 @@ class RigProfile:
         return tuple(joint.id for _, joint in self.joints)
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain-data form, the same shape as the YAML file it was read from: a ``joints`` list
-        if :attr:`listed`, else one key per joint (``pan``, ``tilt``, then ``rest_direction``
-        and, on a three-servo rig, ``roll``)."""
+        """Plain data in the shape of the YAML file it was read from (see :attr:`listed`)."""
         head = {key: getattr(self, key) for key in _BUS_KEYS}
         rest = {"rest_direction": [float(v) for v in self.rest_direction]}
         if self.listed:
@@ -443,11 +403,7 @@ def load_profile(path: str | os.PathLike[str]) -> RigProfile:
 
 
 def save_profile(profile: RigProfile, path: str | os.PathLike[str]) -> Path:
-    """Write ``profile`` to ``path`` atomically (temp file, fsync, rename); returns the path.
-
-    A reader sees either the old file or the complete new one, never a torn write. The
-    profile is re-validated first so an invalid profile is never written.
-    """
+    """Validate ``profile`` and write it to ``path`` atomically (temp file, fsync, rename)."""
     path = Path(path)
     profile_from_dict(profile.to_dict(), str(path))
     text = "# limbctl rig profile\n" + yaml.safe_dump(
@@ -473,8 +429,7 @@ def save_profile(profile: RigProfile, path: str | os.PathLike[str]) -> Path:
 
 
 def default_sim_profile(name: str = "sim") -> RigProfile:
-    """A packaged profile of a simulated rig: ``calib/rigs/sim.yaml`` (pan, tilt) by default,
-    ``"sim3"`` for ``calib/rigs/sim3.yaml`` (pan, tilt, roll)."""
+    """The packaged profile ``calib/rigs/NAME.yaml`` of a simulated rig (one of SIM_RIGS)."""
     if name not in SIM_RIGS:
         raise ProfileError(f"no packaged rig {name!r}; the packaged rigs are {', '.join(SIM_RIGS)}")
     resource = resources.files("calib").joinpath("rigs").joinpath(f"{name}.yaml")

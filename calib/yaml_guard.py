@@ -1,20 +1,8 @@
 """Reading a small hand-written YAML file so that no file can hurt the reader.
 
-A rig profile is a few hundred bytes typed by a person. PyYAML's safe loader still accepts what
-such a file never needs and what makes a hostile or botched file expensive or ambiguous:
-
-- anchors and aliases (``&a``, ``*a``): nine lines of nested aliases stand for 9^9 strings, and
-  anything that walks the result (a message that prints the value) runs out of memory;
-- duplicate keys: the later one silently wins, so ``max_deg: 70`` followed further down by
-  ``max_deg: 170`` reads as 170;
-- merge keys (``<<``): the same silent override;
-- deep nesting: PyYAML composes nodes recursively, so a file of ``[[[[...`` ends in a
-  RecursionError;
-- huge files and huge values (an integer of 60,000 digits fails inside PyYAML's own constructor).
-
-:func:`read_yaml` refuses each with a :class:`YamlRefused` whose message is one line naming the
-line of the file; :func:`shown` is how any message quotes a value from such a file (bounded, so a
-message never echoes an unbounded value).
+:func:`read_yaml` refuses anchors and aliases, duplicate and merge keys, deep nesting and huge
+files or values (why: docs/decisions/files.md) with a one-line :class:`YamlRefused` naming the
+line; :func:`shown` quotes a value from such a file in bounded form.
 """
 
 from __future__ import annotations
@@ -49,11 +37,7 @@ class YamlRefused(ValueError):
 
 
 def shown(value: Any) -> str:
-    """A bounded ``repr`` of ``value`` for messages: at most :data:`MAX_SHOWN_CHARS` characters.
-
-    Large integers are described by their size instead of printed (printing one of 5,000 digits
-    raises in Python 3.11+), long strings and collections are cut with ``...``.
-    """
+    """A ``repr`` of ``value`` of at most :data:`MAX_SHOWN_CHARS` characters (huge ints by size)."""
     if isinstance(value, int) and not isinstance(value, bool) and value.bit_length() > 128:
         # digits of |n| = floor(bit_length * log10(2)) + 1, up to one
         digits = int(value.bit_length() * math.log10(2)) + 1
@@ -69,8 +53,7 @@ def _where(mark: yaml.Mark | None) -> str:
 
 
 class _GuardedLoader(yaml.SafeLoader):
-    """PyYAML's safe loader without aliases, merge keys, duplicate keys, deep nesting or huge
-    scalars."""
+    """PyYAML's safe loader (plain data only) with the refusals above."""
 
     def __init__(self, stream: str) -> None:
         super().__init__(stream)
@@ -143,7 +126,6 @@ def parse_yaml(text: str) -> Any:
         One line naming the line of the text and the problem.
     """
     try:
-        # _GuardedLoader is a SafeLoader: it builds plain data only, never Python objects
         return yaml.load(text, Loader=_GuardedLoader)
     except YamlRefused:
         raise

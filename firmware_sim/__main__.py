@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import signal
 import sys
 from collections.abc import Sequence
@@ -99,26 +100,26 @@ Example:
 """
 
 
-def _probability(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"expected a probability like 0.05, got {text!r}"
-        ) from None
-    if not 0.0 <= value <= 1.0:
-        raise argparse.ArgumentTypeError(f"a probability must be within 0..1, got {value}")
-    return value
+def _number(what: str, example: str, low: float, high: float):
+    """An argparse type: a float within ``low..high``, else an error naming ``what``."""
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f"expected {what} like {example}, got {text!r}"
+            ) from None
+        if not low <= value <= high:
+            bound = f"within {low:g}..{high:g}" if high < math.inf else f">= {low:g}"
+            raise argparse.ArgumentTypeError(f"{what} must be {bound}, got {value}")
+        return value
+
+    return parse
 
 
-def _milliseconds(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected milliseconds like 20, got {text!r}") from None
-    if not value >= 0.0:
-        raise argparse.ArgumentTypeError(f"milliseconds must be >= 0, got {value}")
-    return value
+_probability = _number("a probability", "0.05", 0.0, 1.0)
+_milliseconds = _number("milliseconds", "20", 0.0, math.inf)
 
 
 def _ids(text: str) -> tuple[int, ...]:
@@ -135,73 +136,44 @@ def build_parser() -> argparse.ArgumentParser:
         epilog=EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    parser.add_argument("--ids", type=_ids, default=(1, 2), help="servo IDs, e.g. 1,2 (default)")
-    parser.add_argument(
-        "--link", metavar="PATH", required=True, help="symlink to create to the pty device"
+    models = ", ".join(sorted(MODELS))
+    model_help = f"servo model, or one per servo comma-separated (default xl430-w250): {models}"
+    baud_help = (
+        f"the servos' baud rate: they then answer only a host at that rate (limbctl's simulated "
+        f"rig: {RIG_BAUD}); without it they answer at any rate until their Baud Rate register is "
+        f"written. Not with --factory"
     )
-    parser.add_argument(
-        "--model",
-        default="xl430-w250",
-        type=_models,
-        help=f"servo model, or one per servo comma-separated (default xl430-w250): "
-        f"{', '.join(sorted(MODELS))}",
+    factory_help = "serve N factory-fresh servos (ID 1, 57600 baud, Return Delay Time 250)"
+    eeprom_help = "keep each servo's EEPROM in DIR/servo-SLOT.eeprom across runs"
+    leader_help = "a leader gimbal on the same bus at these IDs (pan, tilt[, roll]; see below)"
+    latency_p_help = "probability that a reply gets the latency spike (default 1)"
+    # (option, metavar, type, default, help); a None field is left to argparse
+    options = (
+        ("--ids", None, _ids, (1, 2), "servo IDs, e.g. 1,2 (default)"),
+        ("--link", "PATH", None, None, "symlink to create to the pty device"),
+        ("--model", None, _models, "xl430-w250", model_help),
+        ("--baud", "BPS", int, None, baud_help),
+        ("--factory", "N", int, 0, factory_help),
+        ("--connect", "SLOTS", _ids, None, "only these slots are plugged in, e.g. 2"),
+        ("--eeprom", "DIR", None, None, eeprom_help),
+        ("--hand", "REGION.yaml", None, None, "scripted hand (see below)"),
+        ("--leader", "IDS", _ids, None, leader_help),
+        ("--operator", "OPERATOR.yaml", None, None, "the hand that holds the leader (see below)"),
+        ("--leader-log", "FILE.jsonl", None, None, "the leader's ground truth every 1 ms"),
+        ("--goal-log", "FILE.jsonl", None, None, "log every goal position write"),
+        ("--seed", None, int, 0, "seed of world and faults (0)"),
+        ("--drop", "P", _probability, 0.0, "reply loss probability"),
+        ("--corrupt", "P", _probability, 0.0, "reply corruption prob."),
+        ("--latency-ms", "X", _milliseconds, 0.0, "latency spike (ms)"),
+        ("--latency-p", "P", _probability, 1.0, latency_p_help),
     )
-    parser.add_argument(
-        "--baud",
-        type=int,
-        choices=sorted(BAUD_BY_VALUE.values()),
-        default=None,
-        metavar="BPS",
-        help=f"the servos' baud rate: they then answer only a host at that rate (limbctl's "
-        f"simulated rig: {RIG_BAUD}); without it they answer at any rate until their Baud Rate "
-        f"register is written. Not with --factory",
-    )
-    parser.add_argument(
-        "--factory",
-        type=int,
-        default=0,
-        metavar="N",
-        help="serve N factory-fresh servos (ID 1, 57600 baud, Return Delay Time 250)",
-    )
-    parser.add_argument(
-        "--connect", type=_ids, metavar="SLOTS", help="only these slots are plugged in, e.g. 2"
-    )
-    parser.add_argument(
-        "--eeprom",
-        metavar="DIR",
-        help="keep each servo's EEPROM in DIR/servo-SLOT.eeprom across runs",
-    )
-    parser.add_argument("--hand", metavar="REGION.yaml", help="scripted hand (see below)")
-    parser.add_argument(
-        "--leader",
-        type=_ids,
-        metavar="IDS",
-        help="a leader gimbal on the same bus at these IDs (pan, tilt[, roll]; see below)",
-    )
-    parser.add_argument(
-        "--operator", metavar="OPERATOR.yaml", help="the hand that holds the leader (see below)"
-    )
-    parser.add_argument(
-        "--leader-log", metavar="FILE.jsonl", help="the leader's ground truth every 1 ms"
-    )
-    parser.add_argument("--goal-log", metavar="FILE.jsonl", help="log every goal position write")
-    parser.add_argument("--seed", type=int, default=0, help="seed of world and faults (0)")
-    parser.add_argument(
-        "--drop", type=_probability, default=0.0, metavar="P", help="reply loss probability"
-    )
-    parser.add_argument(
-        "--corrupt", type=_probability, default=0.0, metavar="P", help="reply corruption prob."
-    )
-    parser.add_argument(
-        "--latency-ms", type=_milliseconds, default=0.0, metavar="X", help="latency spike (ms)"
-    )
-    parser.add_argument(
-        "--latency-p",
-        type=_probability,
-        default=1.0,
-        metavar="P",
-        help="probability that a reply gets the latency spike (default 1)",
-    )
+    for flag, metavar, kind, default, text in options:
+        given = {"metavar": metavar, "type": kind, "default": default}
+        extra = {"choices": sorted(BAUD_BY_VALUE.values())} if flag == "--baud" else {}
+        extra |= {"required": True} if flag == "--link" else {}
+        parser.add_argument(
+            flag, help=text, **{k: v for k, v in given.items() if v is not None}, **extra
+        )
     parser.add_argument(
         "--event",
         type=_event,
@@ -252,22 +224,10 @@ def _leader(args: argparse.Namespace) -> dict | None:
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``firmware-sim``; returns the exit status."""
     args = build_parser().parse_args(argv)
-    config = {
-        "ids": args.ids,
-        "roll_id": ROLL_ID if ROLL_ID in args.ids else None,
-        "model": args.model,
-        "hand": args.hand,
-        "goal_log": args.goal_log,
-        "seed": args.seed,
-        "drop": args.drop,
-        "corrupt": args.corrupt,
-        "latency_ms": args.latency_ms,
-        "latency_p": args.latency_p,
-        "baud": args.baud,
-        "factory": args.factory,
-        "connect": args.connect,
-        "eeprom_dir": args.eeprom,
-    }
+    keys = ("ids", "model", "hand", "goal_log", "seed", "drop", "corrupt", "latency_ms")
+    keys += ("latency_p", "baud", "factory", "connect")
+    config = {key: getattr(args, key) for key in keys}
+    config |= {"roll_id": ROLL_ID if ROLL_ID in args.ids else None, "eeprom_dir": args.eeprom}
     stop = {"requested": False}
 
     def request_stop(signum, frame) -> None:

@@ -1,13 +1,9 @@
 """The simulator on a pseudo-terminal, and :class:`SimulatedBus` to run it from Python.
 
-:class:`PtyEndpoint` opens a pty, keeps its slave side open in raw mode (so the controller may
-open and close it freely) and optionally points a symlink at it. :func:`serve` is the firmware's
-main loop: wait for bytes (or a control command, or the physics tick), hand them to the
-:class:`~firmware_sim.simulator.Simulator` with the speed the host set on the pty, and write the
-answers when they would have crossed the wire: the instruction's bytes, each servo's Return
-Delay Time, then the reply's bytes, at that speed (:mod:`firmware_sim.wire`).
-:class:`SimulatedBus` runs that loop in a separate process (so a controller's busy polling in
-the test process cannot starve it) and talks to it over a pipe::
+:func:`serve` is the firmware's main loop on a :class:`PtyEndpoint`: bytes (or a control
+command, or the physics tick) in, the answers out when they would have crossed the wire at the
+speed the host set (:mod:`firmware_sim.wire`). :class:`SimulatedBus` runs it in its own process
+(so a controller's busy polling cannot starve it) and talks to it over a pipe::
 
     with SimulatedBus(ids=(1, 2)) as sim:
         port = PortHandler(sim.port)        # the real dynamixel-sdk, on the pty
@@ -173,32 +169,28 @@ def serve(
         sim.advance()
 
 
-# ---------------------------------------------------------------------- child process side
+#: Plain options passed to :class:`FaultPlan` and, as they are, to :class:`Simulator`.
+_FAULT_KEYS = ("drop", "corrupt", "latency_ms", "latency_p")
+_SIM_KEYS = (
+    "ids",
+    "model",
+    "goal_log",
+    "baud",
+    "factory",
+    "connect",
+    "eeprom_dir",
+    "leader",
+    "roll_id",
+)
+
+
 def build_simulator(config: Mapping[str, Any]) -> Simulator:
     """A :class:`Simulator` from plain options (the CLI's and :class:`SimulatedBus`'s)."""
     seed = int(config.get("seed", 0))
     hand = _make_hand(config.get("hand"), seed)
-    plan = FaultPlan(
-        drop=config.get("drop", 0.0),
-        corrupt=config.get("corrupt", 0.0),
-        latency_ms=config.get("latency_ms", 0.0),
-        latency_p=config.get("latency_p", 1.0),
-        seed=seed,
-    )
-    return Simulator(
-        ids=config.get("ids", (1, 2)),
-        model=config.get("model", "xl430-w250"),
-        hand=hand,
-        goal_log=config.get("goal_log"),
-        seed=seed,
-        faults=plan,
-        baud=config.get("baud"),
-        factory=int(config.get("factory", 0)),
-        connect=config.get("connect"),
-        eeprom_dir=config.get("eeprom_dir"),
-        leader=config.get("leader"),
-        roll_id=config.get("roll_id"),
-    )
+    plan = FaultPlan(**{k: config[k] for k in _FAULT_KEYS if k in config}, seed=seed)
+    options = {k: config[k] for k in _SIM_KEYS if config.get(k) is not None}
+    return Simulator(**options, hand=hand, seed=seed, faults=plan)
 
 
 def _make_hand(spec: Any, seed: int) -> Hand | None:
@@ -268,7 +260,6 @@ def child_main(conn: Any, config: dict) -> None:
         conn.close()
 
 
-# ---------------------------------------------------------------------- parent side
 def _hand_spec(hand: Mapping | str | os.PathLike | None) -> dict | str | None:
     """A hand option as plain data for the simulator process."""
     if hand is None:
@@ -317,26 +308,13 @@ class SimulatedBus:
         roll_id: int | None = None,
     ) -> None:
         FaultPlan(drop=drop, corrupt=corrupt, latency_ms=latency_ms, latency_p=latency_p)
-        self.config = {
-            "ids": tuple(ids),
-            "model": model,
-            "hand": dict(hand)
-            if isinstance(hand, Mapping)
-            else (None if hand is None else str(hand)),
-            "goal_log": None if goal_log is None else str(goal_log),
-            "seed": int(seed),
-            "drop": drop,
-            "corrupt": corrupt,
-            "latency_ms": latency_ms,
-            "latency_p": latency_p,
-            "link": None if link is None else str(link),
-            "baud": None if baud is None else int(baud),
-            "factory": int(factory),
-            "connect": None if connect is None else list(connect),
-            "eeprom_dir": None if eeprom_dir is None else str(eeprom_dir),
-            "leader": None if leader is None else dict(leader),
-            "roll_id": None if roll_id is None else int(roll_id),
-        }
+        given = {"goal_log": (goal_log, str), "link": (link, str), "baud": (baud, int)}
+        given |= {"connect": (connect, list), "eeprom_dir": (eeprom_dir, str)}
+        given |= {"leader": (leader, dict), "roll_id": (roll_id, int)}
+        self.config = {key: None if v is None else kind(v) for key, (v, kind) in given.items()}
+        self.config |= {"ids": tuple(ids), "model": model, "hand": _hand_spec(hand)}
+        self.config |= {"seed": int(seed), "factory": int(factory), "drop": drop}
+        self.config |= {"corrupt": corrupt, "latency_ms": latency_ms, "latency_p": latency_p}
         self._start_timeout_s = start_timeout_s
         self._process: subprocess.Popen | None = None
         self._conn: Connection | None = None
@@ -344,7 +322,6 @@ class SimulatedBus:
         self.device: str | None = None
         self.port: str | None = None
 
-    # -- lifecycle
     def start(self) -> SimulatedBus:
         """Start the simulator process and wait until its pty is ready."""
         parent, child = socket.socketpair()
@@ -399,7 +376,6 @@ class SimulatedBus:
     def running(self) -> bool:
         return self._process is not None and self._process.poll() is None
 
-    # -- handles
     def _call(self, name: str, *args: Any, timeout_s: float = 10.0) -> Any:
         if self._conn is None:
             raise RuntimeError("the simulator is not running: use `with SimulatedBus(...)`")

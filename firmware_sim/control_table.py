@@ -1,16 +1,10 @@
 """X-series control tables (XL430-W250, XM430-W350, XL330-M077/M288) from the e-Manual.
 
-Each :class:`Item` says where a register lives, how wide it is, who may write it, its
-factory default and the range a write must respect. Two kinds of bounds are kept apart because
-the firmware reports them with different error numbers:
-
-- ``minimum``/``maximum``: the item's own range (violations answer Data Range Error, 4);
-- ``bound``: a limit set by *other* items (e.g. Goal Position within Min/Max Position Limit,
-  Goal Velocity within +-Velocity Limit); violations answer Data Limit Error, 6.
-
-Addresses 168-223/224-251 and 578-633/634-661 are the 430s' indirect address/data blocks. The
-330s have one block of 20: Indirect Address 1-20 at 168-206, and Indirect Data 1-20 at 208-227 up
-to firmware 52 but at 224-243 in later firmware (ROBOTIS moved it), so a client has to probe.
+An :class:`Item`'s own ``minimum``/``maximum`` answer Data Range Error (4); its ``bound``, a
+limit set by other items (Goal Position within the Position Limits, ...), Data Limit Error (6).
+The 430s' indirect address/data blocks are 168-223/224-251 and 578-633/634-661; the 330s have
+one block of 20, Indirect Address 1-20 at 168-206 and Indirect Data 1-20 at 208-227 up to
+firmware 52, at 224-243 after (ROBOTIS moved it), so a client has to probe.
 """
 
 from __future__ import annotations
@@ -63,27 +57,10 @@ X330_FIRMWARE = 52
 
 @dataclass(frozen=True)
 class Item:
-    """One control-table item.
-
-    Attributes
-    ----------
-    register : Register | None
-        Typed name (None for indirect address/data entries).
-    address, size : int
-        First byte and width in bytes (1, 2 or 4), little-endian.
-    access : Access
-    default : int
-        Factory value.
-    minimum, maximum : int
-        The item's own range (Data Range Error outside).
-    signed : bool
-        Two's-complement value.
-    bound : tuple[Register | None, Register | None]
-        Items whose values bound this one (Data Limit Error outside); ``(None, R)`` means
-        ``-R .. R``.
-    name : str
-        The e-Manual's name, for messages.
-    """
+    """One control-table item: its ``register`` (None for indirect entries), first byte and
+    width in bytes (little-endian), factory ``default``, own range (Data Range Error outside),
+    two's complement or not, the items that ``bound`` it (Data Limit Error outside; ``(None, R)``
+    means ``-R .. R``) and the e-Manual's ``name`` for messages."""
 
     register: Register | None
     address: int
@@ -139,9 +116,12 @@ R, RW = Access.R, Access.RW
 I32_MIN, I32_MAX = -(2**31), 2**31 - 1
 
 
-def _item(register, address, size, access, default, minimum, maximum, **kw) -> Item:
-    name = kw.pop("name", register.name.replace("_", " ").title())
-    return Item(register, address, size, access, default, minimum, maximum, name=name, **kw)
+def _item(register, address, size, access, default, minimum, maximum, bound=None) -> Item:
+    """An item named after its register, signed when its range goes below 0."""
+    name = register.name.replace("_", " ").title()
+    return Item(
+        register, address, size, access, default, minimum, maximum, minimum < 0, bound, name
+    )
 
 
 def _common_items(
@@ -152,17 +132,18 @@ def _common_items(
     *,
     baud_max=7,
     protocols=(1, 2),
-    velocity_max=1023,
+    vmax=1023,
     shutdown=52,
 ) -> list[Item]:
     """Items every supported model has (defaults and ranges that differ are arguments).
 
     ``baud_max`` is the largest Baud Rate value (7 = 4.5 Mbps on the 430s, 6 = 4 Mbps on the
-    330s); ``protocols`` the Protocol Type range; ``velocity_max`` Velocity Limit's range.
+    330s); ``protocols`` the Protocol Type range; ``vmax`` Velocity Limit's range.
     """
     (v_min, v_max, v_default_max, v_default_min) = voltage
     (vel_i, vel_p, pos_d, pos_i, pos_p) = gains
     reg = Register
+    position_limits = (reg.MIN_POSITION_LIMIT, reg.MAX_POSITION_LIMIT)
     return [
         _item(reg.ID, 7, 1, RW, 1, 0, 252),
         _item(reg.BAUD_RATE, 8, 1, RW, 1, 0, baud_max),
@@ -171,13 +152,13 @@ def _common_items(
         _item(reg.OPERATING_MODE, 11, 1, RW, 3, 0, 16),
         _item(reg.SECONDARY_ID, 12, 1, RW, 255, 0, 255),
         _item(reg.PROTOCOL_TYPE, 13, 1, RW, 2, *protocols),
-        _item(reg.HOMING_OFFSET, 20, 4, RW, 0, -1_044_479, 1_044_479, signed=True),
+        _item(reg.HOMING_OFFSET, 20, 4, RW, 0, -1_044_479, 1_044_479),
         _item(reg.MOVING_THRESHOLD, 24, 4, RW, 10, 0, 1023),
         _item(reg.TEMPERATURE_LIMIT, 31, 1, RW, temperature_limit, 0, 100),
         _item(reg.MAX_VOLTAGE_LIMIT, 32, 2, RW, v_default_max, v_min, v_max),
         _item(reg.MIN_VOLTAGE_LIMIT, 34, 2, RW, v_default_min, v_min, v_max),
         _item(reg.PWM_LIMIT, 36, 2, RW, 885, 0, 885),
-        _item(reg.VELOCITY_LIMIT, 44, 4, RW, velocity_limit, 0, velocity_max),
+        _item(reg.VELOCITY_LIMIT, 44, 4, RW, velocity_limit, 0, vmax),
         _item(reg.MAX_POSITION_LIMIT, 48, 4, RW, 4095, 0, 4095),
         _item(reg.MIN_POSITION_LIMIT, 52, 4, RW, 0, 0, 4095),
         _item(reg.SHUTDOWN, 63, 1, RW, shutdown, 0, 255),
@@ -195,39 +176,19 @@ def _common_items(
         _item(reg.FEEDFORWARD_1ST_GAIN, 90, 2, RW, 0, 0, 16383),
         # -1 is written by the firmware itself when the watchdog trips (see servo.py)
         _item(reg.BUS_WATCHDOG, 98, 1, RW, 0, 0, 127),
-        _item(reg.GOAL_PWM, 100, 2, RW, 0, -885, 885, signed=True, bound=(None, reg.PWM_LIMIT)),
-        _item(
-            reg.GOAL_VELOCITY,
-            104,
-            4,
-            RW,
-            0,
-            -velocity_max,
-            velocity_max,
-            signed=True,
-            bound=(None, reg.VELOCITY_LIMIT),
-        ),
+        _item(reg.GOAL_PWM, 100, 2, RW, 0, -885, 885, (None, reg.PWM_LIMIT)),
+        _item(reg.GOAL_VELOCITY, 104, 4, RW, 0, -vmax, vmax, (None, reg.VELOCITY_LIMIT)),
         _item(reg.PROFILE_ACCELERATION, 108, 4, RW, 0, 0, 32767),
         _item(reg.PROFILE_VELOCITY, 112, 4, RW, 0, 0, 32767),
-        _item(
-            reg.GOAL_POSITION,
-            116,
-            4,
-            RW,
-            0,
-            -1_048_575,
-            1_048_575,
-            signed=True,
-            bound=(reg.MIN_POSITION_LIMIT, reg.MAX_POSITION_LIMIT),
-        ),
+        _item(reg.GOAL_POSITION, 116, 4, RW, 0, -(2**20 - 1), 2**20 - 1, position_limits),
         _item(reg.REALTIME_TICK, 120, 2, R, 0, 0, 32767),
         _item(reg.MOVING, 122, 1, R, 0, 0, 1),
         _item(reg.MOVING_STATUS, 123, 1, R, 0, 0, 255),
-        _item(reg.PRESENT_PWM, 124, 2, R, 0, -885, 885, signed=True),
-        _item(reg.PRESENT_VELOCITY, 128, 4, R, 0, I32_MIN, I32_MAX, signed=True),
-        _item(reg.PRESENT_POSITION, 132, 4, R, 0, I32_MIN, I32_MAX, signed=True),
-        _item(reg.VELOCITY_TRAJECTORY, 136, 4, R, 0, I32_MIN, I32_MAX, signed=True),
-        _item(reg.POSITION_TRAJECTORY, 140, 4, R, 0, I32_MIN, I32_MAX, signed=True),
+        _item(reg.PRESENT_PWM, 124, 2, R, 0, -885, 885),
+        _item(reg.PRESENT_VELOCITY, 128, 4, R, 0, I32_MIN, I32_MAX),
+        _item(reg.PRESENT_POSITION, 132, 4, R, 0, I32_MIN, I32_MAX),
+        _item(reg.VELOCITY_TRAJECTORY, 136, 4, R, 0, I32_MIN, I32_MAX),
+        _item(reg.POSITION_TRAJECTORY, 140, 4, R, 0, I32_MIN, I32_MAX),
         _item(reg.PRESENT_INPUT_VOLTAGE, 144, 2, R, 0, 0, 65535),
         _item(reg.PRESENT_TEMPERATURE, 146, 1, R, 0, 0, 255),
     ]
@@ -247,18 +208,8 @@ def _current_items(limit: int) -> list[Item]:
     reg = Register
     return [
         _item(reg.CURRENT_LIMIT, 38, 2, RW, limit, 0, limit),
-        _item(
-            reg.GOAL_CURRENT,
-            102,
-            2,
-            RW,
-            0,
-            -limit,
-            limit,
-            signed=True,
-            bound=(None, reg.CURRENT_LIMIT),
-        ),
-        _item(reg.PRESENT_CURRENT, 126, 2, R, 0, -32768, 32767, signed=True),
+        _item(reg.GOAL_CURRENT, 102, 2, RW, 0, -limit, limit, (None, reg.CURRENT_LIMIT)),
+        _item(reg.PRESENT_CURRENT, 126, 2, R, 0, -32768, 32767),
     ]
 
 
@@ -268,67 +219,36 @@ def _indirect_items(blocks=INDIRECT_BLOCKS, address_range=INDIRECT_ADDRESS_RANGE
     for first_address, first_data, count in blocks:
         base = 1 if first_address == blocks[0][0] else 1 + blocks[0][2]
         for k in range(count):
+            low, high = address_range
+            address, data = first_address + 2 * k, first_data + k
             items.append(
-                Item(
-                    None,
-                    first_address + 2 * k,
-                    2,
-                    RW,
-                    first_data + k,
-                    *address_range,
-                    name=f"Indirect Address {base + k}",
-                )
+                Item(None, address, 2, RW, data, low, high, name=f"Indirect Address {base + k}")
             )
-            items.append(
-                Item(None, first_data + k, 1, RW, 0, 0, 255, name=f"Indirect Data {base + k}")
-            )
+            items.append(Item(None, data, 1, RW, 0, 0, 255, name=f"Indirect Data {base + k}"))
     return items
+
+
+def _model(key: str, title: str, number: int, modes, items: list[Item], **kw) -> Model:
+    """A model at firmware 46 (the 330s pass theirs) with its items in address order."""
+    firmware = kw.pop("firmware_version", 46)
+    ordered = tuple(sorted(items, key=lambda i: i.address))
+    return Model(key, title, number, firmware, frozenset(modes), ordered, **kw)
 
 
 def _xl430_w250() -> Model:
     items = _header_items(1060, 46)
-    items += _common_items(
-        temperature_limit=72,
-        voltage=(60, 140, 140, 60),
-        velocity_limit=265,
-        gains=(1000, 100, 4000, 0, 640),
-    )
-    items.append(_item(Register.PRESENT_LOAD, 126, 2, R, 0, -1000, 1000, signed=True))
-    items += _indirect_items()
-    return Model(
-        "xl430-w250",
-        "XL430-W250",
-        1060,
-        46,
-        frozenset({1, 3, 4, 16}),
-        tuple(sorted(items, key=lambda i: i.address)),
-    )
+    items += _common_items(72, (60, 140, 140, 60), 265, (1000, 100, 4000, 0, 640))
+    items.append(_item(Register.PRESENT_LOAD, 126, 2, R, 0, -1000, 1000))
+    return _model("xl430-w250", "XL430-W250", 1060, {1, 3, 4, 16}, items + _indirect_items())
 
 
 def _xm430_w350() -> Model:
-    reg = Register
     items = _header_items(1020, 46)
-    items += _common_items(
-        temperature_limit=80,
-        voltage=(95, 160, 160, 95),
-        velocity_limit=200,
-        gains=(1920, 100, 0, 0, 800),
-    )
-    items += [
-        _item(reg.EXTERNAL_PORT_MODE_1, 56, 1, RW, 3, 0, 3),
-        _item(reg.EXTERNAL_PORT_MODE_2, 57, 1, RW, 3, 0, 3),
-        _item(reg.EXTERNAL_PORT_MODE_3, 58, 1, RW, 3, 0, 3),
-    ]
-    items += _current_items(1193)
-    items += _indirect_items()
-    return Model(
-        "xm430-w350",
-        "XM430-W350",
-        1020,
-        46,
-        frozenset({0, 1, 3, 4, 5, 16}),
-        tuple(sorted(items, key=lambda i: i.address)),
-    )
+    items += _common_items(80, (95, 160, 160, 95), 200, (1920, 100, 0, 0, 800))
+    ports = [Register[f"EXTERNAL_PORT_MODE_{k}"] for k in (1, 2, 3)]
+    items += [_item(port, 56 + k, 1, RW, 3, 0, 3) for k, port in enumerate(ports)]
+    items += _current_items(1193) + _indirect_items()
+    return _model("xm430-w350", "XM430-W350", 1020, {0, 1, 3, 4, 5, 16}, items)
 
 
 def x330_indirect_blocks(firmware_version: int) -> tuple[tuple[int, int, int], ...]:
@@ -345,36 +265,17 @@ def _xl330(key: str, title: str, number: int, velocity_limit: int, gains, stall_
         blocks = x330_indirect_blocks(firmware_version)
         end = blocks[0][1] + blocks[0][2]  # one past the last Indirect Data
         items = _header_items(number, firmware_version)
-        items += _common_items(
-            temperature_limit=70,
-            voltage=(31, 70, 70, 35),
-            velocity_limit=velocity_limit,
-            gains=gains,
-            baud_max=6,
-            protocols=(2, 22),
-            velocity_max=2047,
-            shutdown=53,
-        )
+        common = dict(baud_max=6, protocols=(2, 22), vmax=2047, shutdown=53)
+        items += _common_items(70, (31, 70, 70, 35), velocity_limit, gains, **common)
         items += [
             _item(reg.STARTUP_CONFIGURATION, 60, 1, RW, 0, 0, 3),
             _item(reg.PWM_SLOPE, 62, 1, RW, 140, 1, 255),
             _item(reg.BACKUP_READY, 147, 1, R, 0, 0, 1),
         ]
-        items += _current_items(1750)
-        items += _indirect_items(blocks, (64, end - 1))
-        return Model(
-            key,
-            title,
-            number,
-            firmware_version,
-            frozenset({0, 1, 3, 4, 5, 16}),
-            tuple(sorted(items, key=lambda i: i.address)),
-            indirect_blocks=blocks,
-            memory_size=end,
-            current_unit_ma=1.0,
-            stall_current_ma=stall_ma,
-            supply_v=5.0,
-        )
+        items += _current_items(1750) + _indirect_items(blocks, (64, end - 1))
+        memory = dict(indirect_blocks=blocks, memory_size=end, firmware_version=firmware_version)
+        power = dict(current_unit_ma=1.0, stall_current_ma=stall_ma, supply_v=5.0)
+        return _model(key, title, number, {0, 1, 3, 4, 5, 16}, items, **memory, **power)
 
     return build
 

@@ -1,16 +1,10 @@
-"""What the servos on one bus answer to each instruction packet.
+"""What the servos on one bus answer to each instruction packet (e-Manual, Protocol 2.0).
 
-:func:`dispatch` executes a decoded packet on every servo it concerns and returns the status
-packets they send back, in wire order, each with the Return Delay Time its servo waits before
-talking. Rules (e-Manual, Protocol 2.0):
-
-- Status Return Level 0: only PING is answered; 1: PING and reads; 2: everything unicast.
-- Broadcast (ID 254) is never answered except PING (every servo, ascending ID) and the
-  sync/bulk reads (every listed servo, in list order).
-- FAST_SYNC_READ / FAST_BULK_READ answer with one combined packet (see
-  :func:`firmware_sim.protocol.build_fast_status`); a listed servo that stays silent cuts the
-  packet short where its part would have been, as on a real bus.
-- A packet whose CRC fails is answered with CRC error by the servo it names (unicast only).
+:func:`dispatch` runs a packet on every servo it concerns and returns their status packets in
+wire order, each with its Return Delay Time. Status Return Level 0 answers only PING, 1 PING and
+reads, 2 everything unicast. Broadcast is answered only by PING (ascending ID) and sync/bulk
+reads (list order); the FAST reads answer with one combined packet, cut short where a silent
+servo's part would have been. A packet whose CRC fails gets a CRC error from the servo it names.
 """
 
 from __future__ import annotations
@@ -33,13 +27,8 @@ from firmware_sim.servo import FACTORY_RESET_ALL, Servo, ServoError
 # Return Delay Time unit: 2 microseconds
 RETURN_DELAY_UNIT_S = 2e-6
 READ_INSTRUCTIONS = frozenset(
-    {
-        Instruction.READ,
-        Instruction.SYNC_READ,
-        Instruction.FAST_SYNC_READ,
-        Instruction.BULK_READ,
-        Instruction.FAST_BULK_READ,
-    }
+    Instruction[name]
+    for name in ("READ", "SYNC_READ", "FAST_SYNC_READ", "BULK_READ", "FAST_BULK_READ")
 )
 
 

@@ -1,9 +1,7 @@
 """A servo's EEPROM kept in a file between simulator runs, as a real servo keeps it unpowered.
 
-Set-up is done as a person does it: one servo connected, then the next, then both. Each run of
-the simulator is one power-up; with ``--eeprom DIR`` the EEPROM area (addresses 0-63: model,
-ID, baud rate, limits, ...) of the servo in slot ``n`` is loaded from ``DIR/servo-n.eeprom`` at
-start and written back whenever it changes, so the next run finds what the last one set.
+With ``--eeprom DIR`` each run is one power-up: the EEPROM area (addresses 0-63) of the servo in
+slot ``n`` is loaded from ``DIR/servo-n.eeprom`` at start and written back when it changes.
 """
 
 from __future__ import annotations
@@ -16,16 +14,8 @@ from firmware_sim.servo import Servo
 
 
 class EepromFile:
-    """The EEPROM file of the servo in one slot.
-
-    Parameters
-    ----------
-    directory : path
-        Where the servos' files live (created if missing).
-    slot : int
-        The servo's slot on the simulated bench (1 = pan, 2 = tilt, ...), not its ID, which
-        the file itself holds and which set-up changes.
-    """
+    """The EEPROM file (in ``directory``, created if missing) of the servo in ``slot`` (1 =
+    pan, 2 = tilt, ...: not its ID, which the file holds and set-up changes)."""
 
     def __init__(self, directory: str | os.PathLike, slot: int) -> None:
         self.path = Path(directory) / f"servo-{slot}.eeprom"
@@ -37,7 +27,7 @@ class EepromFile:
         Raises
         ------
         ValueError
-            If the file is not an EEPROM of this servo's model (another model, wrong size).
+            If the file is not an EEPROM of this servo's model.
         """
         if not self.path.exists():
             return False

@@ -1,24 +1,10 @@
-"""Faults scheduled from the command line: a servo that vanishes, a sagging supply, a hot motor,
-a hand that leans on a joint.
+"""Faults scheduled from the command line: ``firmware-sim --event T:KIND:ID:VALUE`` (repeatable).
 
-``firmware-sim --event T:KIND:ID:VALUE`` (repeatable) applies, ``T`` seconds after start:
-
-- ``vanish``: servo ``ID`` neither executes nor answers for ``VALUE`` seconds;
-- ``voltage``: servo ``ID`` measures a supply of ``VALUE`` volts from then on;
-- ``temperature``: servo ``ID`` measures a motor temperature of ``VALUE`` deg C from then on;
-- ``restart``: servo ``ID`` browns out: it is off the bus for ``VALUE`` seconds and comes back
-  as after power-up (RAM at its defaults: torque off, indirect addresses unmapped);
-- ``push``: servo ``ID``'s joint is pushed with a steady ``VALUE`` percent of stall torque from
-  then on (signed, toward increasing raw ticks; 0 lets go). Above 100 % the motor cannot hold
-  it: Present PWM saturates and, after 0.5 s, the overload shutdown trips.
-
-``ID`` is the ID the servo answers as when the event applies (its ID register), not its slot:
-with ``--factory`` or ``--eeprom`` set-up renumbers servos, and an event then names the ID
-set-up gave. The IDs are checked at start (an ID no servo answers as, or one several share, is
-refused); an event whose ID no single servo answers as when its time comes (renumbered since)
-is not applied and says so on stderr.
-
-From Python (by slot): :meth:`Simulator.vanish`, ``set_environment``, ``restart``, ``push``.
+The kinds (vanish, voltage, temperature, restart, push) and their values are described in
+``firmware-sim --help``. ``ID`` is the ID the servo answers as when the event applies (its ID
+register, not its slot); it is checked at start, and an event whose ID no single servo answers
+as when its time comes is not applied and says so on stderr. From Python (by slot):
+:meth:`Simulator.vanish`, ``set_environment``, ``restart``, ``push``.
 """
 
 from __future__ import annotations
@@ -46,16 +32,10 @@ class ScheduledEvent:
 
     def apply(self, sim: Simulator, slot: int) -> None:
         """Apply the fault to the servo in ``slot`` of ``sim`` now."""
-        if self.kind == "vanish":
-            sim.vanish(slot, self.value)
-        elif self.kind == "restart":
-            sim.restart(slot, self.value)
-        elif self.kind == "push":
-            sim.push(slot, self.value)
-        elif self.kind == "voltage":
-            sim.set_environment(slot, voltage=self.value)
+        if self.kind in ("voltage", "temperature"):
+            sim.set_environment(slot, **{self.kind: self.value})
         else:
-            sim.set_environment(slot, temperature=self.value)
+            getattr(sim, self.kind)(slot, self.value)
 
     def unmatched(self, sim: Simulator) -> str | None:
         """Why no single servo of ``sim`` answers as this event's ID now, or None."""

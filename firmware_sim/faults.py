@@ -1,15 +1,7 @@
-"""Seeded fault injection on the simulator's replies.
-
-Every random decision comes from one ``numpy.random.Generator`` seeded at construction, so a
-run with the same seed and the same traffic fails the same way.
-
-- ``drop``: probability that a status packet is never sent;
-- ``corrupt``: probability that one byte of a status packet is flipped (the controller sees a
-  CRC or framing error);
-- ``latency_ms`` / ``latency_p``: with probability ``latency_p`` a status packet is delayed by an
-  extra ``latency_ms`` (a latency spike, e.g. a USB scheduling hiccup);
-- vanished servos: a servo that is "gone" until a given time neither executes nor answers
-  anything (a loose cable), then comes back with its state intact.
+"""Seeded fault injection on the simulator's replies (one generator: same seed and traffic, same
+faults): ``drop`` loses a status packet, ``corrupt`` flips one of its bytes, ``latency_ms`` delays
+it with probability ``latency_p``; a *vanished* servo neither executes nor answers until a given
+time, then comes back with its state intact.
 """
 
 from __future__ import annotations

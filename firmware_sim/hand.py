@@ -1,36 +1,24 @@
 """Scripted hands that backdrive the simulated limb while its torque is off.
 
-A :class:`Hand` answers one question, ``pose_deg(t)``: the pose it holds the limb at ``t``
-seconds after it took hold, (pan_deg, tilt_deg), or (pan_deg, tilt_deg, roll_deg) when its
-description turns the roll too (:attr:`Hand.turns_roll`). One description, a REGION.yaml::
+A :class:`Hand` answers ``pose_deg(t)``: the pose it holds the limb at ``t`` s after it took
+hold, (pan_deg, tilt_deg), plus roll_deg when it :attr:`Hand.turns_roll`. A REGION.yaml::
 
     region: {polygon: [[pan_deg, tilt_deg], ...]}    # or {cone: {half_angle_deg: A}}
     twist: {centre_deg: 0, half_width_deg: 40}       # optional: turn the roll too, in this band
     style: trace           # optional: trace (default) or wander (firmware_sim/hand_path.py)
     speed_deg_s: 40        # optional: mean speed of a move through the middle
     tremor_deg: 0.2        # optional: peak tremor amplitude, 0 switches it off
+    visits: [{after_s: 60, at: [pan_deg, tilt_deg], do: edge, length_deg: 8}]  # or do: twist
+    script: [[t_s, pan_deg, tilt_deg(, roll_deg)], ...]  # instead of region: follow waypoints
 
-    visits:                # optional: answer a teaching guide's requests (region hands)
-      - {after_s: 60, at: [pan_deg, tilt_deg], do: edge, length_deg: 8}
-      - {after_s: 60, at: [pan_deg, tilt_deg], do: twist}
-
-    script: [[t_s, pan_deg, tilt_deg], ...]          # instead of region: follow waypoints
-    script: [[t_s, pan_deg, tilt_deg, roll_deg], ...]  # the same, turning the roll too
-
-A *region* hand moves pan and tilt along a :class:`firmware_sim.hand_path.SwingPath` (trace the
-edge, then wander) plus a tremor. With a ``twist:`` band (:mod:`firmware_sim.twist_band`, linear,
-quadratic or with bumps in pan and tilt) it turns the limb about its own axis as the protocol
-asks: while the swing traces the edge the twist goes to both stops along the way (a cycle of
-TRACE_TWIST_CYCLE: to one stop, hold, to the other, hold); afterwards every STOP_EVERY-th twist
-move goes to a stop (alternately the upper and the lower one), the others to a uniform draw.
-The twist's place in the band is ``u`` in [-1, 1]: the twist is ``centre + u (half_width -
-TWIST_INSET_DEG)`` at the present swing pose (so it follows the band as the swing moves), plus a
-tremor, and the roll is the one that gives it (``roll = twist - chain_twist(pan, tilt)``).
-A region hand's *visits* (:class:`firmware_sim.hand_path.Visit`) break off its wandering from
-``after_s`` to trace the edge (``edge``) or circle the place (``twist``) there; during a visit the
-twist turns to both stops as along the full trace (TRACE_TWIST_CYCLE).
-A *script* hand moves linearly in time between the waypoints (the roll too) and holds the last.
-The path is generated lazily, in a fixed order from ``seed`` and the pose the hand took hold at:
+A *region* hand moves pan and tilt along a :class:`firmware_sim.hand_path.SwingPath` plus a
+tremor. With a ``twist:`` band (:mod:`firmware_sim.twist_band`) the twist is ``centre + u
+(half_width - TWIST_INSET_DEG)`` at the present swing pose, ``u`` in [-1, 1], plus a tremor, and
+the roll is the one that gives it (``roll = twist - chain_twist(pan, tilt)``). While the swing
+traces the edge or answers a visit, ``u`` cycles to both stops (TRACE_TWIST_CYCLE); afterwards
+every STOP_EVERY-th move goes to a stop (alternately upper and lower), the others to a uniform
+draw. A *script* hand moves linearly between its waypoints (the roll too) and holds the last.
+The path is planned lazily, in a fixed order from ``seed`` and the pose the hand took hold at:
 the same seed gives the same path whatever times it is asked at.
 """
 
@@ -160,19 +148,16 @@ class Hand:
     Attributes
     ----------
     region : PolygonRegion | ConeRegion | None
-        The region a region hand stays in (``contains(pan_deg, tilt_deg) -> bool``); ``None``
-        for a script hand.
+        The region a region hand stays in; ``None`` for a script hand.
     script : list of (t_s, pan_deg, tilt_deg[, roll_deg]) or None
     band : TwistBand or None
         The twist band a region hand turns the roll in; ``None`` when it leaves the roll alone.
     turns_roll : bool
-        Whether :meth:`pose_deg` gives a roll (a twist band, or a script with a roll column);
-        :meth:`firmware_sim.world.World.set_hand` gives such a hand the roll joint too.
+        Whether :meth:`pose_deg` gives a roll (a twist band, or a script with a roll column).
     style : str
         How a region hand teaches, one of :data:`firmware_sim.hand_path.STYLES`.
     path : SwingPath
-        Where the hand takes pan and tilt, before the tremor (its ``visits`` and
-        ``visit_spans``: the requests it answers, :class:`firmware_sim.hand_path.Visit`).
+        Where the hand takes pan and tilt before the tremor, and the visits it answers.
     """
 
     def __init__(
@@ -318,8 +303,6 @@ class Hand:
         amplitude, omega, phase = self._twist_tremor
         twist = centre + self._band_position(t) * reach + amplitude * math.sin(omega * t + phase)
         return float(pan), float(tilt), roll_for_twist_deg(pan, tilt, twist)
-
-    # -- the twist in its band (region hands with a twist band) ----------------------------
 
     def _u_of(self, pan_deg: float, tilt_deg: float, twist_deg: float) -> float:
         low, high = self.band.limits_deg(pan_deg, tilt_deg)

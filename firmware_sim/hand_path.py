@@ -1,23 +1,18 @@
 """The swing path of a scripted hand: where it takes the limb's pan and tilt, before its tremor.
 
-A :class:`SwingPath` follows a script (linear in time between waypoints, holding the last) or
-teaches a region the way range of motion is taught. With style ``trace`` it first traces the whole
-edge once, slowly (TRACE_SPEED_DEG_S, a person's pace), about EDGE_INSET_DEG inside with a slight
-wobble, starting at the edge point nearest where it took hold, then wanders; with ``wander`` it
-only wanders. Wandering is what a person does through the middle: gently curved minimum-jerk
-moves between waypoints drawn with a density that falls toward the edge, easing in and out near
-the edge, short pauses, and, every other move, a visit to the edge that traces a few degrees of
-it just inside (the visits work round the perimeter in laps of EDGE_VISITS_PER_LAP, so a minute
-of wandering touches the whole edge). Every move is checked to stay MIN_PATH_DEPTH_DEG inside
-the region. The path is planned lazily, in a fixed order from the seed: the same seed gives the
-same path whatever times it is asked at. :class:`Track` holds any such path's segments in time.
+A :class:`SwingPath` follows a script (linear between waypoints, holding the last) or teaches a
+region. Style ``trace`` first traces the whole edge once, slowly, about EDGE_INSET_DEG inside
+with a slight wobble, from the edge point nearest where it took hold, then wanders; ``wander``
+only wanders: minimum-jerk moves, gently curved, between waypoints drawn denser in the middle,
+eased near the edge, with short pauses and, every other move, a visit tracing a few degrees of
+edge (the visits work round the perimeter in laps of EDGE_VISITS_PER_LAP). Every move stays
+MIN_PATH_DEPTH_DEG inside. The path is planned lazily in a fixed order from the seed.
+:class:`Track` holds any such path's segments in time.
 
-*Visits* (:class:`Visit`, a hand description's ``visits:``) answer a teaching guide's requests:
-from a given time the path breaks off its wandering (after the move under way) to go to named
-places one after the other and do what each asks, then wanders on. ``edge``: trace the edge
-near the place (the stretch round its nearest edge point, EDGE_INSET_DEG inside, at the full
-trace's pace); ``twist``: circle the place slowly (VISIT_TWIST_RADIUS_DEG, VISIT_TWIST_S) while
-the hand turns the twist to both stops (:mod:`firmware_sim.hand`).
+*Visits* (:class:`Visit`, a hand's ``visits:``) answer a teaching guide: from ``after_s`` the
+path breaks off (after the move under way) to trace the edge near a place (``edge``) or circle it
+slowly (``twist``, VISIT_TWIST_RADIUS_DEG for VISIT_TWIST_S) while the hand turns the twist to
+both stops (:mod:`firmware_sim.hand`), then wanders on.
 """
 
 from __future__ import annotations
@@ -130,13 +125,8 @@ def progress(t: float, t0: float, t1: float, minimum_jerk: bool = True) -> float
 
 
 class Track:
-    """Segments of a path in time, ``(t0, t1, ...)`` in s, appended in time order.
-
-    Attributes
-    ----------
-    segments : list of tuple
-        Segment k runs from ``segments[k][0]`` to ``segments[k][1]``; the rest is the caller's.
-    """
+    """Segments of a path in time, ``segments[k] = (t0, t1, ...)`` in s, appended in time
+    order; what follows ``t1`` is the caller's."""
 
     def __init__(self) -> None:
         self.segments: list[tuple] = []
@@ -144,7 +134,6 @@ class Track:
         self._current = 0
 
     def add(self, *segment) -> None:
-        """Append ``(t0, t1, ...)``."""
         self._t0.append(segment[0])
         self.segments.append(segment)
 
@@ -210,9 +199,8 @@ class SwingPath:
                 self._add(a[0], b[0], a[1], a[2], b[1], b[2], False)
 
     def start_from(self, pan_deg: float, tilt_deg: float) -> None:
-        """Take hold of the limb at (pan_deg, tilt_deg): a region path (re)starts there (t = 0),
-        first bringing the limb to the middle of the region; the path stays a function of the
-        seed and this pose. A script path ignores this."""
+        """Take hold of the limb at (pan_deg, tilt_deg): a region path (re)starts there at t = 0
+        (a script path ignores this)."""
         if self.region is None:
             return
         self._rng = np.random.default_rng([self._seed, 1])
@@ -254,8 +242,7 @@ class SwingPath:
         return segment[1], segment[4], segment[5]
 
     def _path_ok(self, a, b, bulge=(0.0, 0.0)) -> bool:
-        """True when the move a -> b, bowed by ``bulge`` at its middle, keeps at least
-        MIN_PATH_DEPTH_DEG inside."""
+        """Whether the move a -> b, bowed by ``bulge``, keeps MIN_PATH_DEPTH_DEG inside."""
         length = math.hypot(b[0] - a[0], b[1] - a[1]) + 2.0 * math.hypot(*bulge)
         n = int(length / PATH_CHECK_STEP_DEG) + 2
         s = np.linspace(0.0, 1.0, n)
@@ -466,13 +453,9 @@ class SwingPath:
         if not self._reach(start):
             return  # no path inside to the place: the request stays unanswered
         t_start = self._end()[0]
-        if visit.do == "edge":
-            for b in points[1:]:
-                self._trace_to(
-                    (float(b[0]), float(b[1])), EDGE_INSET_DEG, TRACE_SPEED_DEG_S, TRACE_SPLITS
-                )
-        else:
+        speed = TRACE_SPEED_DEG_S
+        if visit.do != "edge":
             speed = 2.0 * math.pi * VISIT_TWIST_RADIUS_DEG / VISIT_TWIST_S
-            for b in points[1:]:
-                self._trace_to((float(b[0]), float(b[1])), EDGE_INSET_DEG, speed, TRACE_SPLITS)
+        for b in points[1:]:
+            self._trace_to((float(b[0]), float(b[1])), EDGE_INSET_DEG, speed, TRACE_SPLITS)
         self.visit_spans.append((t_start, self._end()[0], visit))

@@ -1,30 +1,20 @@
 """A leader gimbal: a second chain of two joints (pan, tilt) or three (pan, tilt, roll) moved by
 an operator's hand and by its own motors.
 
-The leader is built like the follower (the same joint geometry and ticks, the roll joint as
-:data:`firmware_sim.world.ROLL_JOINT`, at other servo ids), so the controller reads the chain's
-orientation ``q = Rz(pan) Ry(-tilt) Rx(roll)`` back from its shafts as it does the follower's
-(:mod:`firmware_sim.orientation`). It is a physical thing the operator holds, so each joint is a
-rotor with inertia and backdrive friction, on its own (joint frame, SI units)::
+It is built like the follower (the same joint geometry, at other servo ids), so the controller
+reads its orientation back as it does the follower's. Each joint is a rotor with inertia and
+backdrive friction (joint frame, SI units)::
 
     J a = tau_motor + tau_hand - B v - C sign(v)        (sticks while |tau_motor + tau_hand| <= C)
 
-``tau_motor`` comes from the servo by its Operating Mode (:mod:`firmware_sim.torque`).
-``tau_hand`` is the operator (:class:`Operator`): a bounded spring-damper on each joint toward
-where the operator means to go, a script of targets like the teaching hand's (one angle per
-joint), with a let-go time::
+``tau_motor`` comes from the servo by its Operating Mode (:mod:`firmware_sim.torque`);
+``tau_hand`` from the :class:`Operator`, a spring-damper per joint toward scripted targets::
 
     tau_hand = K_h (target - angle) - D_h v,  scaled so that |tau_hand| <= tau_max * r(t)
 
-(the vector of the joints' torques: a hand pushes with at most ``tau_max`` in any direction, as
-a person's does, so a push on a diagonal is no stronger than one along a joint)
-
-where ``r`` is 1 until the let go and 0 from ``release_s`` after it, falling linearly between
-(``release_s`` 0: the hand is gone at once, the hardest let go for a wall).
-
-End stops clamp as on the follower. Ground truth (hand torque, motor torque, pose, the motor's
-work, one entry per joint) is kept for tests: :meth:`LeaderWorld.truth`, and one JSON line per
-physics step in the log.
+(the joints' torques as one vector: a hand pushes no harder on a diagonal than along a joint),
+``r`` 1 until the let go, falling linearly to 0 over ``release_s`` (0: gone at once). End stops
+clamp. Ground truth per joint (torques, pose, work): :meth:`LeaderWorld.truth` and the log.
 """
 
 from __future__ import annotations
@@ -68,14 +58,12 @@ class Operator:
     Parameters
     ----------
     script : sequence of (t_s, angle_deg, ...), shape (points, 1 + joints)
-        Where the operator means to go: the time and one angle per joint of the chain (pan,
-        tilt, then roll), linear in time between the points, holding the last. Times count
-        from when the operator takes hold.
+        Where the operator means to go (pan, tilt[, roll] in deg), linear in time between the
+        points, holding the last; times count from when the operator takes hold.
     let_go_s : float or None
-        From this time on the hand lets go; None: never.
+        From this time (s) on the hand lets go; None: never.
     release_s : float
-        How long the let go takes (s): the hand's bound falls linearly from ``max_torque_nm`` to
-        0 over it. 0 (the default): no torque at all from ``let_go_s`` on.
+        How long (s) its bound takes to fall linearly to 0; 0: none at all from ``let_go_s``.
     stiffness_nm_deg, damping_nm_s_rad, max_torque_nm : float
         The grip: K_h (N m per deg), D_h (N m s/rad) and the bound tau_max (N m).
     joints : int
@@ -111,18 +99,16 @@ class Operator:
 
     @classmethod
     def from_mapping(cls, data: Mapping[str, Any], joints: int = 2) -> Operator:
-        """An operator of ``joints`` joints from plain data (keys as the other parameters);
-        ValueError naming a bad key."""
-        known = {"script", "let_go_s", "release_s"}
-        known |= {"stiffness_nm_deg", "damping_nm_s_rad", "max_torque_nm"}
+        """An operator of ``joints`` joints from plain data; ValueError naming a bad key."""
+        known = {"script", "let_go_s", "release_s", "stiffness_nm_deg"}
+        known |= {"damping_nm_s_rad", "max_torque_nm"}
         unknown = set(data) - known
         if unknown:
             raise ValueError(f"unknown operator keys {sorted(unknown)}; known: {sorted(known)}")
         return cls(**dict(data), joints=joints)
 
     def target_deg(self, t: float) -> tuple[float, ...]:
-        """The joint angles (deg, shape (joints,)) the operator means at ``t`` s: linear between
-        the script's points."""
+        """The joint angles (deg, shape (joints,)) the operator means at ``t`` s."""
         k = bisect.bisect_right(self._times, t)
         if k == 0:
             return self.script[0][1:]
@@ -142,8 +128,7 @@ class Operator:
         return self.max_torque_nm * max(left, 0.0)
 
     def torque(self, t: float, slot: int, angle_rad: float, velocity_rad_s: float) -> float:
-        """The hand's torque (N m) on joint ``slot`` (its index in the chain) at ``t`` s, were
-        it the only joint the hand pushes (:meth:`torques` bounds the vector of all of them)."""
+        """The hand's torque (N m) on joint ``slot`` at ``t`` s were it the only one it pushes."""
         bound = self.bound_nm(t)
         target = math.radians(self.target_deg(t)[slot])
         # tau = K_h (target - angle) - D_h v, K_h per rad, bounded by tau_max r(t)
@@ -157,8 +142,7 @@ class Operator:
         self, t: float, angles_rad: Sequence[float], velocities_rad_s: Sequence[float]
     ) -> list[float]:
         """The hand's torque on each joint (N m, shape (joints,)) at ``t`` s from the joints'
-        angles (rad) and velocities (rad/s): the spring-damper, its vector scaled down to at
-        most tau_max r(t) in magnitude (the module docstring)."""
+        angles (rad) and velocities (rad/s), bounded as a vector (the module docstring)."""
         bound = self.bound_nm(t)
         if bound <= 0.0:
             return [0.0] * len(angles_rad)
@@ -196,12 +180,11 @@ class LeaderWorld:
     model : str
         The leader servos' model (a key of :data:`firmware_sim.control_table.MODELS`).
     operator : Operator or None
-        Who holds it (an operator of as many joints); None: nobody (only the motors and
-        friction act).
+        Who holds it (as many joints); None: only the motors and friction act.
     log : path or None
         JSON-lines ground truth, one line per physics step.
     start_deg : sequence of float, shape (joints,), or None
-        Where the leader rests at start (deg, per joint); None: every joint at 0.
+        Where the leader rests at start (deg); None: every joint at 0.
     """
 
     def __init__(
@@ -243,9 +226,8 @@ class LeaderWorld:
 
     @classmethod
     def from_spec(cls, spec: Mapping[str, Any]) -> LeaderWorld:
-        """A leader from plain data: ``{"ids": [3, 4], "model": ..., "operator": {...},
-        "log": path, "start_deg": [pan, tilt]}`` (three ids and angles: a three-servo leader,
-        its operator's script points ``[t_s, pan, tilt, roll]``)."""
+        """A leader from plain data: ``{"ids": [3, 4(, 5)], "model": ..., "operator": {...},
+        "log": path, "start_deg": [pan, tilt(, roll)]}``."""
         known = {"ids", "model", "operator", "log", "start_deg"}
         unknown = set(spec) - known
         if unknown:
@@ -262,7 +244,6 @@ class LeaderWorld:
         )
 
     def _check(self, operator: Operator | None) -> None:
-        """ValueError unless ``operator`` is None or holds as many joints as the leader has."""
         if operator is not None and operator.joints != len(self.joints):
             raise ValueError(
                 f"a {operator.joints}-joint operator cannot hold a {len(self.joints)}-servo leader"

@@ -1,14 +1,9 @@
 """The servo's trajectory generator: where its position controller points the shaft each instant.
 
-Everything here is in *raw ticks* (motor shaft, before Homing Offset / reverse) and seconds. The
-profile follows the e-Manual's description of the X-series profile:
-
-- velocity-based (Drive Mode bit 2 clear): Profile Velocity caps the speed (0 = no cap but the
-  Velocity Limit), Profile Acceleration caps the acceleration (0 = unlimited, a step in
-  velocity); the result is a trapezoid, a triangle, a rectangle or a step;
-- time-based (bit 2 set): Profile Velocity is the whole move's duration in ms and Profile
-  Acceleration the ramp time in ms (at most half the duration); the peak velocity and
-  acceleration are derived from the distance when the goal is written.
+In raw ticks (motor shaft, before Homing Offset / reverse) and seconds, after the e-Manual's
+X-series profile: velocity-based (Drive Mode bit 2 clear), Profile Velocity and Acceleration cap
+speed and acceleration (0: no cap but the Velocity Limit / a velocity step); time-based (bit 2
+set), they are the move's duration and ramp time in ms, the peaks derived from the distance.
 """
 
 from __future__ import annotations
@@ -26,15 +21,7 @@ ACCELERATION_UNIT_TICKS_S2 = 214.577 * TICKS_PER_TURN / 3600.0
 
 @dataclass
 class ProfileLimits:
-    """Peak speed and acceleration of the current move.
-
-    Attributes
-    ----------
-    max_velocity : float
-        ticks/s, > 0.
-    max_acceleration : float
-        ticks/s^2, ``math.inf`` for a velocity step.
-    """
+    """Peak speed (ticks/s, > 0) and acceleration (ticks/s^2, inf: a velocity step) of a move."""
 
     max_velocity: float
     max_acceleration: float
@@ -58,11 +45,8 @@ def velocity_based_limits(
 def time_based_limits(
     distance_ticks: float, duration_ms: int, ramp_ms: int, velocity_limit: int
 ) -> ProfileLimits:
-    """Limits of a time-based profile that covers ``distance_ticks`` in ``duration_ms``.
-
-    A zero duration falls back to the velocity-based behaviour with no profile (limited by the
-    Velocity Limit only).
-    """
+    """Limits of a time-based profile covering ``distance_ticks`` in ``duration_ms`` (0: only
+    the Velocity Limit)."""
     if duration_ms <= 0:
         return velocity_based_limits(0, 0, velocity_limit)
     total_s = duration_ms / 1000.0

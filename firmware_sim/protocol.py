@@ -1,22 +1,11 @@
 """Dynamixel Protocol 2.0 framing, written from the e-Manual (not from the SDK's code).
 
-A packet on the wire::
-
-    FF FF FD 00 | ID | LEN_L LEN_H | INST | PARAM ... | CRC_L CRC_H
-
-``LEN`` counts everything after itself (instruction, stuffed parameters, CRC). The CRC is
-CRC-16/BUYPASS (polynomial 0x8005, initial value 0, no reflection) over every byte from the
-first header byte up to the last parameter, *after* byte stuffing. Byte stuffing: whenever the
-instruction+parameter field would contain ``FF FF FD``, an extra ``FD`` is inserted after it so
-that a header can never appear inside a packet; the receiver removes it again.
-
-Status packets carry instruction 0x55 and an error byte: bits 0-6 an error number
-(:class:`ErrorNumber`), bit 7 the alert flag (a hardware error is latched, see Hardware Error
-Status).
-
-:class:`PacketParser` turns an arbitrary byte stream (junk, partial and corrupt packets
-included) into :class:`InstructionPacket` and :class:`CorruptPacket` events and resynchronises
-on the next header after anything it cannot use.
+A packet: ``FF FF FD 00 | ID | LEN_L LEN_H | INST | PARAM ... | CRC_L CRC_H``. ``LEN`` counts
+everything after itself; the CRC (CRC-16/BUYPASS: polynomial 0x8005, init 0, no reflection)
+covers every byte before it, after byte stuffing: an ``FD`` is inserted after each ``FF FF FD``
+in the instruction+parameter field, so no header appears inside a packet. Status packets carry
+instruction 0x55 and an error byte: an :class:`ErrorNumber` plus the alert bit 7.
+:class:`PacketParser` turns any byte stream into packets and resynchronises after junk.
 """
 
 from __future__ import annotations
@@ -87,20 +76,7 @@ _CRC_TABLE = _make_crc_table()
 
 
 def crc16(data: bytes | bytearray | memoryview, crc: int = 0) -> int:
-    """CRC-16 (poly 0x8005, init 0, MSB first) of ``data``, continuing from ``crc``.
-
-    Parameters
-    ----------
-    data : bytes-like
-        Bytes to fold in.
-    crc : int
-        Running CRC to continue from (0 to start).
-
-    Returns
-    -------
-    int
-        The 16-bit CRC.
-    """
+    """The 16-bit CRC (poly 0x8005, init 0, MSB first) of ``data``, continuing from ``crc``."""
     table = _CRC_TABLE
     for byte in data:
         # crc' = (crc << 8) ^ T[(crc >> 8) ^ byte]
@@ -136,17 +112,7 @@ def unstuff(body: bytes | bytearray) -> bytes:
 
 
 def build_packet(servo_id: int, instruction: int, params: bytes | bytearray = b"") -> bytes:
-    """A complete, stuffed packet with its CRC.
-
-    Parameters
-    ----------
-    servo_id : int
-        0..252, or 254 (broadcast).
-    instruction : int
-        Instruction code (0x55 for a status packet).
-    params : bytes-like
-        Unstuffed parameters (for a status packet: error byte first).
-    """
+    """A complete, stuffed packet with its CRC from unstuffed ``params`` (status: error first)."""
     body = stuff(bytes([instruction]) + bytes(params))
     # LEN = stuffed body + 2 CRC bytes
     length = len(body) + 2
@@ -164,17 +130,9 @@ def build_status(servo_id: int, error: int, data: bytes | bytearray = b"") -> by
 
 
 def build_fast_status(segments: Iterable[tuple[int, int, bytes]]) -> bytes:
-    """The one combined status packet of FAST_SYNC_READ / FAST_BULK_READ.
-
-    Each servo contributes ``error, id, data, crc`` where ``crc`` is the running CRC of the
-    packet from its first header byte up to and including that servo's data; the last servo's
-    CRC is therefore the packet's own CRC. The packet's ID is the broadcast ID.
-
-    Parameters
-    ----------
-    segments : iterable of (servo_id, error, data)
-        In reply order.
-    """
+    """The one broadcast status packet of FAST_SYNC_READ / FAST_BULK_READ from ``(servo_id,
+    error, data)`` in reply order: each adds ``error, id, data, crc``, ``crc`` running over the
+    packet so far (the last one is the packet's own CRC)."""
     segments = list(segments)
     if not segments:
         raise ValueError("a fast read reply needs at least one servo segment")
@@ -210,12 +168,11 @@ class CorruptPacket:
 
 
 class PacketParser:
-    """Incremental Protocol 2.0 parser with resynchronisation.
+    """Incremental parser: yields every complete packet of the bytes fed to it.
 
-    Feed it bytes as they arrive; it yields every complete packet. Junk before a header is
-    skipped; a header with an impossible length, or a packet with a bad CRC, costs only its
-    first byte, so a valid packet that starts inside the junk is still found. A partial packet
-    older than ``stale_after_s`` is dropped (the firmware's inter-byte timeout).
+    Junk before a header is skipped; an impossible length or a bad CRC costs only the header's
+    first byte, so a packet starting inside junk is still found. A partial packet older than
+    ``stale_after_s`` is dropped (the firmware's inter-byte timeout).
     """
 
     def __init__(self, stale_after_s: float = 0.05) -> None:

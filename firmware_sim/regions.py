@@ -1,14 +1,11 @@
-"""Regions of (pan, tilt) a scripted hand may move the simulated limb through.
-
-A REGION.yaml names one of two shapes (degrees everywhere)::
+"""Regions of (pan, tilt) a scripted hand may move the simulated limb through (degrees)::
 
     region: {polygon: [[pan_deg, tilt_deg], ...]}   # a simple polygon in the (pan, tilt) plane
     region: {cone: {half_angle_deg: A}}             # directions within A of +x, 0 < A < 180
 
-Both shapes answer the same questions the hand asks: is a pose inside (:meth:`contains`), how far
-inside is it (:meth:`edge_distance_deg`, positive inside), where is the boundary a fraction ``u`` of
-the way round it (:meth:`boundary_point`), and where is the comfortable middle (``center_deg``).
-Bad input raises ``ValueError`` naming the source file and what is wrong.
+Both answer :meth:`contains`, :meth:`edge_distance_deg` (positive inside),
+:meth:`boundary_point` (a fraction ``u`` round the edge) and ``center_deg``. Bad input raises
+``ValueError`` naming the source file and what is wrong.
 """
 
 from __future__ import annotations
@@ -61,7 +58,19 @@ def _segments_cross(p1, p2, p3, p4) -> bool:
     )
 
 
-class PolygonRegion:
+class _Shape:
+    """What both shapes answer alike from their ``edge_distance_deg``."""
+
+    def contains(self, pan_deg: float, tilt_deg: float) -> bool:
+        """True when the pose lies inside the region or on its boundary."""
+        return bool(self.edge_distance_deg(pan_deg, tilt_deg) >= 0.0)
+
+    def contains_many(self, pan_deg: np.ndarray, tilt_deg: np.ndarray) -> np.ndarray:
+        """Vectorised :meth:`contains` for arrays (M,) -> (M,) bool."""
+        return self.edge_distance_deg(pan_deg, tilt_deg) >= 0.0
+
+
+class PolygonRegion(_Shape):
     """A simple polygon in the (pan_deg, tilt_deg) plane.
 
     Parameters
@@ -135,23 +144,20 @@ class PolygonRegion:
         self.center_deg = (float(pan_grid.ravel()[deepest]), float(tilt_grid.ravel()[deepest]))
         self.depth_max_deg = float(depth[deepest])
 
-    def contains(self, pan_deg: float, tilt_deg: float) -> bool:
-        """True when the pose lies inside the polygon or on its boundary (even-odd rule)."""
-        return bool(self.contains_many(np.array([pan_deg]), np.array([tilt_deg]))[0])
-
-    def contains_many(self, pan_deg: np.ndarray, tilt_deg: np.ndarray) -> np.ndarray:
-        """Vectorised :meth:`contains` for arrays (M,) -> (M,) bool; boundary counts as inside."""
-        return self.edge_distance_deg(pan_deg, tilt_deg) >= 0.0
-
-    def edge_distance_deg(self, pan_deg, tilt_deg) -> np.ndarray:
-        """Signed distance (deg, shape of the inputs) to the boundary: > 0 inside, < 0 outside."""
+    def _nearest(self, pan_deg, tilt_deg):
+        """The inputs' shape, points (M, 1, 2), the fraction (M, N) along each edge of its
+        point nearest each, and the gaps (M, N, 2) to them."""
         pan = np.asarray(pan_deg, dtype=np.float64)
         tilt = np.asarray(tilt_deg, dtype=np.float64)
-        points = np.stack([pan.ravel(), tilt.ravel()], axis=1)[:, None, :]  # (M, 1, 2)
+        points = np.stack([pan.ravel(), tilt.ravel()], axis=1)[:, None, :]
         offset = points - self._starts[None]  # (M, N, 2)
         # closest point on edge k: a_k + s d_k, s = clip((p - a_k).d_k / |d_k|^2, 0, 1)
         s = np.clip(np.sum(offset * self._deltas, axis=2) / self._lengths**2, 0.0, 1.0)
-        gap = offset - s[:, :, None] * self._deltas
+        return pan.shape, points, s, offset - s[:, :, None] * self._deltas
+
+    def edge_distance_deg(self, pan_deg, tilt_deg) -> np.ndarray:
+        """Signed distance (deg, shape of the inputs) to the boundary: > 0 inside, < 0 outside."""
+        shape, points, _, gap = self._nearest(pan_deg, tilt_deg)
         distance = np.sqrt(np.min(np.sum(gap * gap, axis=2), axis=1))
         # even-odd rule: count edges whose tilt span straddles the point and lie right of it
         y0 = self._starts[:, 1][None]
@@ -161,21 +167,16 @@ class PolygonRegion:
         with np.errstate(divide="ignore", invalid="ignore"):
             x_cross = self._starts[:, 0][None] + (py - y0) * self._deltas[:, 0][None] / (y1 - y0)
         inside = (np.sum(straddles & (px < x_cross), axis=1) % 2) == 1
-        return np.where(inside | (distance == 0.0), distance, -distance).reshape(pan.shape)
+        return np.where(inside | (distance == 0.0), distance, -distance).reshape(shape)
 
     def boundary_fraction(self, pan_deg, tilt_deg) -> np.ndarray:
         """Where round the perimeter (fraction in [0, 1), shape of the inputs) the boundary point
         nearest each pose lies; the inverse of :meth:`boundary_point` for points near the edge."""
-        pan = np.asarray(pan_deg, dtype=np.float64)
-        tilt = np.asarray(tilt_deg, dtype=np.float64)
-        points = np.stack([pan.ravel(), tilt.ravel()], axis=1)[:, None, :]
-        offset = points - self._starts[None]
-        s = np.clip(np.sum(offset * self._deltas, axis=2) / self._lengths**2, 0.0, 1.0)
-        gap = offset - s[:, :, None] * self._deltas
+        shape, points, s, gap = self._nearest(pan_deg, tilt_deg)
         nearest = np.argmin(np.sum(gap * gap, axis=2), axis=1)
         rows = np.arange(points.shape[0])
         arc = self._arc_start[nearest] + s[rows, nearest] * self._lengths[nearest]
-        return (arc / self.perimeter_deg % 1.0).reshape(pan.shape)
+        return (arc / self.perimeter_deg % 1.0).reshape(shape)
 
     def boundary_point(self, u: float, inset_deg: float) -> tuple[float, float]:
         """The boundary point a fraction ``u`` (wraps) of the perimeter round, moved ``inset_deg``
@@ -187,7 +188,7 @@ class PolygonRegion:
         return float(point[0]), float(point[1])
 
 
-class ConeRegion:
+class ConeRegion(_Shape):
     """Directions within ``half_angle_deg`` of +x, addressed by (pan_deg, tilt_deg).
 
     With ``d = (cos t cos p, cos t sin p, sin t)``, a pose is inside when
@@ -208,14 +209,6 @@ class ConeRegion:
         # the boundary circle on the unit sphere has radius sin(A): perimeter 360 sin(A) deg
         self.perimeter_deg = 360.0 * math.sin(math.radians(half_angle))
         self.bbox_deg = (-half_angle, half_angle, -min(half_angle, 90.0), min(half_angle, 90.0))
-
-    def contains(self, pan_deg: float, tilt_deg: float) -> bool:
-        """True when the limb direction lies within the half angle of +x."""
-        return bool(self.edge_distance_deg(pan_deg, tilt_deg) >= 0.0)
-
-    def contains_many(self, pan_deg: np.ndarray, tilt_deg: np.ndarray) -> np.ndarray:
-        """Vectorised :meth:`contains` for arrays (M,) -> (M,) bool."""
-        return self.edge_distance_deg(pan_deg, tilt_deg) >= 0.0
 
     def edge_distance_deg(self, pan_deg, tilt_deg) -> np.ndarray:
         """Angular margin (deg, shape of the inputs) to the cone: A - angle(d, +x), > 0 inside."""
@@ -248,12 +241,8 @@ Region = PolygonRegion | ConeRegion
 
 
 def deepen(region: Region, points_deg: np.ndarray, depth_deg: np.ndarray) -> np.ndarray:
-    """Points moved inward until each is as deep as asked.
-
-    Each point shallower than its depth is moved along the gradient of
-    :meth:`edge_distance_deg` (the direction away from the nearest edge) by what it lacks, in up
-    to DEEPEN_ROUNDS rounds. Near a reflex corner a point set in from one side lies too close to
-    the other; deepened, the points round the corner on an arc.
+    """Points moved inward, along the edge distance's gradient, until each is as deep as asked
+    (near a reflex corner the points then round the corner on an arc).
 
     Parameters
     ----------
@@ -291,22 +280,8 @@ def deepen(region: Region, points_deg: np.ndarray, depth_deg: np.ndarray) -> np.
 
 
 def grid_inside(region: Region, step_deg: float, min_depth_deg: float) -> np.ndarray:
-    """Poses on a pan/tilt grid over the region's bounding box that lie at least
-    ``min_depth_deg`` inside it: what a taught model should hold.
-
-    Parameters
-    ----------
-    region : PolygonRegion | ConeRegion
-    step_deg : float
-        Grid spacing (deg) in pan and in tilt, from the box's low corner.
-    min_depth_deg : float
-        Least depth (deg) of a kept pose, :meth:`edge_distance_deg` >= it.
-
-    Returns
-    -------
-    ndarray, shape (M, 2)
-        (pan_deg, tilt_deg) of the kept grid poses.
-    """
+    """The (pan_deg, tilt_deg) poses, shape (M, 2), of a ``step_deg`` grid over the region's
+    bounding box (from its low corner) that lie at least ``min_depth_deg`` deg inside it."""
     pan_lo, pan_hi, tilt_lo, tilt_hi = region.bbox_deg
     pan, tilt = (
         a.ravel()

@@ -1,17 +1,11 @@
 """One simulated X-series servo: control-table memory, instruction semantics, errors, motion.
 
-The servo never touches the wire; :mod:`firmware_sim.dispatch` hands it decoded instructions and
-frames its answers. It never touches the physics either: each physics substep the bus asks
-:meth:`Servo.drive_setpoint` where the position controller points the shaft (``None`` with
-torque off) and reports back with :meth:`Servo.observe` where the shaft actually went.
-
-Position mapping (raw ticks = motor shaft, 4096 per turn)::
-
-    present = (4096 - raw if Drive Mode reverse else raw) + Homing Offset
-
-Hardware errors: a condition whose bit is set in Shutdown (63) latches into Hardware Error Status
-(70), turns torque off and raises the alert bit of every status packet until REBOOT. An input
-voltage error is latched and alerted even when its Shutdown bit is clear (torque stays on).
+It touches neither the wire (:mod:`firmware_sim.dispatch` frames its answers) nor the physics:
+each substep the bus asks :meth:`Servo.drive_setpoint` and reports with :meth:`Servo.observe`.
+``present = (4096 - raw if Drive Mode reverse else raw) + Homing Offset`` (raw: motor ticks).
+A hardware error whose bit is set in Shutdown latches in Hardware Error Status, turns torque off
+and raises every status packet's alert bit until REBOOT; an input voltage error is latched and
+alerted even with its Shutdown bit clear (torque stays on).
 """
 
 from __future__ import annotations
@@ -117,7 +111,6 @@ class Servo:
         self._set(Register.ID, servo_id)
         self._after_restart()
 
-    # ------------------------------------------------------------------ registers
     def value(self, register: Register) -> int:
         """Current value of ``register`` (signed items decoded)."""
         item = self.model.item(register)
@@ -163,7 +156,6 @@ class Servo:
         """The error byte of a status packet: error number plus the alert bit."""
         return int(number) | (ALERT_BIT if self.alert else 0)
 
-    # ------------------------------------------------------------------ position mapping
     def present_from_raw(self, raw: float) -> float:
         """Present Position units for a raw shaft tick (see module docstring)."""
         turned = raw - self.turn_offset * TICKS_PER_TURN
@@ -184,7 +176,6 @@ class Servo:
         """Raw tick the current Goal Position corresponds to."""
         return self.raw_from_present(self.value(Register.GOAL_POSITION))
 
-    # ------------------------------------------------------------------ memory access
     def _resolve(self, address: int) -> int:
         """Address actually touched by ``address`` (indirect data redirects)."""
         for first_address, first_data, count in self.model.indirect_blocks:
@@ -308,7 +299,6 @@ class Servo:
         self._set(Register.REGISTERED_INSTRUCTION, 0)
         self.write(address, data)
 
-    # ------------------------------------------------------------------ instructions
     def factory_reset(self, option: int) -> None:
         """FACTORY_RESET: 0xFF all, 0x01 all but ID, 0x02 all but ID and baud rate."""
         keep = {
@@ -345,7 +335,6 @@ class Servo:
         self.turn_offset += int(unshifted // TICKS_PER_TURN)
         self.trajectory.hold(self.raw_tick)
 
-    # ------------------------------------------------------------------ motion
     def _mode(self) -> OperatingMode:
         return OperatingMode(self.value(Register.OPERATING_MODE))
 
@@ -441,7 +430,6 @@ class Servo:
             self.trajectory.hold(self.raw_tick)
             self._overload_seconds = 0.0
 
-    # ------------------------------------------------------------------ present values
     def refresh(self, now_s: float) -> None:
         """Write the measured state into the RAM items a READ returns."""
         present = self.present_from_raw(self.raw_tick)

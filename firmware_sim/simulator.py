@@ -1,18 +1,11 @@
 """The simulated bus without its transport: servos + world + faults + goal log on one clock.
 
-:class:`Simulator` is fed raw bytes with the time they arrived and returns the bytes to send
-back (with delays). Physics is stepped lazily on the wall clock: every time bytes arrive, and
-from a periodic tick of the serving loop, the world is advanced to "now" in substeps of at most
-1 ms, each servo's profile advancing with it.
-
-Servos with IDs 1 and 2 drive the gimbal of :mod:`firmware_sim.world` (pan, tilt), and the
-servo named by ``roll_id`` (if any) its roll joint; a servo with any other ID drives a free,
-unloaded shaft that follows its setpoint exactly. What a servo drives is fixed by its *slot*
-(its ID at start; with ``factory=N`` the slots are 1..N and every servo starts as ID 1), so a
-servo keeps its joint when set-up changes its ID.
-
-The wire is strict (:mod:`firmware_sim.wire`): a servo hears the host only at the baud rate its
-Baud Rate register names, and two servos answering at once garble each other's replies.
+:class:`Simulator` takes raw bytes with their arrival time and returns the replies with their
+delays. Physics is stepped lazily to "now" (on every arrival and on the serving loop's tick) in
+substeps of at most 1 ms. Servos 1 and 2 drive the gimbal's pan and tilt, ``roll_id`` its roll;
+any other servo a free, unloaded shaft that follows its setpoint exactly. What a servo drives is
+fixed by its *slot* (its ID at start; with ``factory=N`` slots 1..N, all starting as ID 1), so it
+keeps its joint when set-up changes its ID. The wire is strict (:mod:`firmware_sim.wire`).
 """
 
 from __future__ import annotations
@@ -34,10 +27,8 @@ from firmware_sim.leader import LeaderWorld, Operator
 from firmware_sim.protocol import MAX_SERVO_ID, PacketParser
 from firmware_sim.servo import Environment, Servo
 from firmware_sim.wire import BAUD_BY_VALUE, collide, value_for_baud
-from firmware_sim.world import DEFAULT_JOINTS, ROLL_JOINT, World
+from firmware_sim.world import DEFAULT_JOINTS, MAX_SUBSTEP_S, ROLL_JOINT, World
 
-#: Longest physics step (s): 1 ms keeps the 80 rad/s tracking loop stable (omega * dt = 0.08).
-MAX_SUBSTEP_S = 0.001
 # A free shaft (no joint in the world) starts at the middle of the turn.
 FREE_SHAFT_START_TICK = 2048.0
 
@@ -71,8 +62,7 @@ class Simulator:
     ids : sequence of int
         Servo IDs (their slots).
     model : str
-        A key of :data:`firmware_sim.control_table.MODELS`, or one per servo separated by
-        commas (mixed models on one bus), e.g. ``"xl430-w250,xl330-m288"``.
+        A key of :data:`firmware_sim.control_table.MODELS`, or one per servo: ``"a,b"``.
     hand : Hand or None
         Scripted hand moving the limb while torque is off.
     goal_log : path or None
@@ -83,22 +73,17 @@ class Simulator:
     clock : callable
         Monotonic seconds.
     baud : int or None
-        The servos' baud rate (their Baud Rate register); factory servos are at 57600. None
-        (the default): the servos answer a host at any baud until their Baud Rate register is
-        written (:meth:`hears`); limbctl passes its rig profile's baud, so it is strict.
+        The servos' baud rate (bit/s); None: any until their Baud Rate is written (:meth:`hears`).
     factory : int
-        If > 0, serve this many factory-fresh servos in slots 1..N instead of ``ids``: all ID 1,
-        57600 baud, Return Delay Time 250 (2 us units: 500 us).
+        If > 0, this many factory-fresh servos (all ID 1, 57600 baud) in slots 1..N instead.
     connect : sequence of int or None
         The slots on the bus (default: all); the others are unplugged.
     eeprom_dir : path or None
         Keep each slot's EEPROM in a file there (:class:`firmware_sim.eeprom.EepromFile`).
     leader : mapping or None
-        A leader gimbal (:meth:`firmware_sim.leader.LeaderWorld.from_spec`: two ids or three)
-        whose ids join the bus.
+        A leader gimbal (:meth:`firmware_sim.leader.LeaderWorld.from_spec`) whose ids join.
     roll_id : int or None
-        The servo that turns the limb about its own axis (a three-joint gimbal); it must be in
-        ``ids``. None: a two-joint gimbal.
+        The servo in ``ids`` that turns the limb about its own axis; None: two joints.
     """
 
     def __init__(
@@ -204,18 +189,13 @@ class Simulator:
         return [get_model(key) for key in keys]
 
     def hears(self, servo: Servo, baud: int | None) -> bool:
-        """Whether ``servo`` decodes a host talking at ``baud`` (None: no wire, always).
-
-        A simulator started without a baud serves clients at whatever rate they open the port
-        with (as before the wire was strict), until the host writes a servo's Baud Rate: from
-        then on that servo hears only its own rate, as a real one does.
-        """
+        """Whether ``servo`` decodes a host talking at ``baud`` (None: always); without a
+        ``baud`` option, any rate until the host writes the servo's Baud Rate."""
         register = servo.value(Register.BAUD_RATE)
         if self._any_baud.get(id(servo)) == register:
             return True
         return baud is None or BAUD_BY_VALUE.get(register) == baud
 
-    # ------------------------------------------------------------------ time
     def now(self) -> float:
         """Seconds since the simulator started."""
         return self._clock() - self._start
@@ -255,7 +235,6 @@ class Simulator:
                 shaft[0], shaft[1] = new, velocity
             servo.observe(raw, velocity, load, dt)
 
-    # ------------------------------------------------------------------ traffic
     def receive(
         self, data: bytes, arrived_s: float | None = None, baud: int | None = None
     ) -> list[tuple[bytes, float]]:
@@ -291,11 +270,8 @@ class Simulator:
         return out
 
     def persist(self) -> None:
-        """Write each changed EEPROM to its file (``eeprom_dir``); call once replies are out.
-
-        Kept off the reply path: the file's write and rename took up to 4.3 ms at load 8 (p50
-        0.18 ms), time a real servo does not add to its status packet.
-        """
+        """Write each changed EEPROM to its file; called once replies are out (a file write
+        took up to 4.3 ms under load, time a real servo does not add to its reply)."""
         for servo in self.servos:
             eeprom = self._eeproms.get(self._home_ids[id(servo)])
             if eeprom is not None:
@@ -328,7 +304,6 @@ class Simulator:
         if self.leader is not None:
             self.leader.close()
 
-    # ------------------------------------------------------------------ test handles
     def servo(self, servo_id: int) -> Servo:
         """The servo started with ``servo_id``; ValueError listing the IDs otherwise."""
         for servo in self.servos:
@@ -365,11 +340,7 @@ class Simulator:
         self.faults.vanish(servo_id, self.now(), duration_s)
 
     def restart(self, servo_id: int, off_s: float = 0.0) -> None:
-        """Brown-out: the servo is off the bus for ``off_s`` s and restarts as after power-up.
-
-        Its RAM is back at the defaults (torque off, Goal Position = where the shaft is,
-        indirect addresses unmapped, hardware errors cleared); EEPROM is kept.
-        """
+        """Brown-out: off the bus for ``off_s`` s, then RAM at its defaults, EEPROM kept."""
         servo = self.servo(servo_id)
         self.advance()
         servo.reboot()

@@ -1,9 +1,7 @@
 """What a servo's motor does to its shaft, by Operating Mode: the torque model of a leader gimbal.
 
-The follower's world (:mod:`firmware_sim.world`) tracks setpoints kinematically; a leader gimbal
-(:mod:`firmware_sim.leader`) is moved by a hand and by its motors, so it needs their torque. The
-firmware's position loop is modelled as a stiff PD loop toward the profile's setpoint, its output
-clipped by the current the mode allows (joint frame, N m)::
+The firmware's position loop is a stiff PD loop toward the profile's setpoint, clipped by the
+current the mode allows (joint frame, N m; ``kt`` = stall torque / stall current)::
 
     tau_loop = KP * (setpoint - angle) - KD * velocity
     mode 5 (current-based position): tau = clip(tau_loop, +-kt * min(|Goal Current|, Current Limit))
@@ -11,10 +9,8 @@ clipped by the current the mode allows (joint frame, N m)::
     mode 0 (current):                tau = kt * clip(Goal Current, +-Current Limit)
     torque off:                      tau = 0
 
-so Goal Current 0 in mode 5 gives exactly zero torque, whatever the setpoint. ``kt`` is the
-model's stall torque over its stall current. Present Current follows from the torque:
-``I = tau / kt`` (in the model's current unit). A tripped Bus Watchdog stops the servo (its
-profile holds where the shaft is) and, in mode 0, zeroes the current.
+Present Current is ``tau / kt``. A tripped Bus Watchdog holds the profile and, in mode 0,
+zeroes the current.
 """
 
 from __future__ import annotations
@@ -28,15 +24,8 @@ from firmware_sim.servo import WATCHDOG_TRIPPED, Servo
 
 @dataclass(frozen=True)
 class Motor:
-    """A model's motor: stall torque (N m) at its stall current (mA), and its current unit (mA).
-
-    Attributes
-    ----------
-    stall_torque_nm : float
-    stall_current_ma : float
-    current_unit_ma : float
-        One unit of Goal/Present Current and Current Limit (mA).
-    """
+    """A model's motor: stall torque (N m) at its stall current (mA), and the unit (mA) of its
+    Goal/Present Current and Current Limit."""
 
     stall_torque_nm: float
     stall_current_ma: float
@@ -98,15 +87,9 @@ class LoopGains:
 
 @dataclass(frozen=True)
 class Drive:
-    """What a servo's registers let its motor do this instant (read once per physics step).
-
-    Attributes
-    ----------
-    cap_nm : float
-        Largest torque the position loop may apply (N m); 0 with torque off or no current.
-    current_nm : float or None
-        Mode 0: the torque the current asks for (N m, joint frame); None in position modes.
-    """
+    """What a servo's registers let its motor do this instant (read once per physics step):
+    ``cap_nm``, the most the position loop may apply (N m; 0 with torque off or no current), or
+    in mode 0 ``current_nm``, the torque its current asks for (N m, joint frame)."""
 
     cap_nm: float
     current_nm: float | None = None
@@ -125,11 +108,8 @@ class Drive:
 
 
 def drive_of(servo: Servo, joint_direction: int) -> Drive:
-    """The :class:`Drive` of ``servo`` now, by its Operating Mode (module docstring).
-
-    ``joint_direction`` (+1 or -1) turns the shaft-frame Goal Current of mode 0 into the joint
-    frame.
-    """
+    """The :class:`Drive` of ``servo`` now; ``joint_direction`` (+1 or -1) turns mode 0's
+    shaft-frame Goal Current into the joint frame."""
     if not servo.torque_on:
         return Drive(0.0)
     motor = motor_of(servo)

@@ -1,25 +1,22 @@
 """A twist band over a swing outline: how far the limb may turn about its own axis, by pose.
 
-A REGION.yaml for a three-joint gimbal adds a ``twist:`` section beside its ``region:``::
+A REGION.yaml for a three-joint gimbal adds beside its ``region:``::
 
     twist:
       centre_deg: 0                  # or [c0, c_pan, c_tilt]
-      half_width_deg: [40, 0, -0.3]  # or one number
+      half_width_deg: [40, 0, -0.3]  # or one number, or a mapping (below)
 
-Each value is either a number (the same everywhere) or ``[a, b, c]``, meaning
-``a + b * pan_deg + c * tilt_deg`` at the swing pose (pan_deg, tilt_deg): the band's limits may vary
-with pan and tilt (``[40, 0, -0.3]`` narrows as the limb rises, as a shoulder's rotation does).
-A value may also be a mapping for a curved band (every key optional)::
+``[a, b, c]`` means ``a + b * pan_deg + c * tilt_deg`` at the swing pose. A mapping curves it
+(every key optional)::
 
     half_width_deg:
       linear: [40, 0, -0.3]           # a + b pan + c tilt, as above
       quadratic: [0.002, 0, -0.004]   # + p pan^2 + m pan tilt + t tilt^2 (deg^-1)
       bumps: [[20, 10, -8, 12]]       # + sum of h exp(-((pan - p0)^2 + (tilt - t0)^2) / (2 w^2))
-At a pose the allowed twist is ``centre - half_width .. centre + half_width`` (deg), where twist is
-the swing-twist angle about the limb's rest axis (:mod:`firmware_sim.orientation`), not the roll
-joint's angle. Over the whole swing outline the half width must stay within
-MIN_HALF_WIDTH_DEG..MAX_HALF_WIDTH_DEG; the check runs on a CHECK_GRID_STEP_DEG grid of the outline
-and at its vertices.
+
+The allowed twist is ``centre +- half_width`` (deg), twist being the swing-twist angle about the
+rest axis (:mod:`firmware_sim.orientation`), not the roll joint's angle. The half width must stay
+within MIN_HALF_WIDTH_DEG..MAX_HALF_WIDTH_DEG on a CHECK_GRID_STEP_DEG grid and the vertices.
 """
 
 from __future__ import annotations

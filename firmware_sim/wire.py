@@ -1,15 +1,10 @@
 """The wire between the host and the servos: its speed, its time, and what collisions do to it.
 
-A pty carries bytes instantly and at any speed, so the strictness of a real bus is added here:
-
-- :func:`host_baud` reads the speed the host set on the pty (its termios, ``TCGETS2``, which
-  holds any rate the SDK opens, custom ones too); a servo answers only when that speed equals
-  its Baud Rate register (:data:`BAUD_BY_VALUE`), as a UART at another rate sees only noise.
-- :func:`wire_s` is how long bytes take on the wire: 10 bit times each (start, 8 data, stop).
-- :func:`collide` is what the host receives when two servos talk at once (two with one ID):
-  the TTL bus is open-drain, so a 0 from either wins, and the second servo's bits arrive
-  :data:`COLLISION_SKEW_BITS` bit times late (their clocks and Return Delay Times never agree
-  exactly). The result fails its header or its CRC: the host sees a garbled reply.
+A pty carries bytes instantly at any speed, so the bus's strictness is added here:
+:func:`host_baud` reads the speed the host set on the pty (``TCGETS2``: any rate); a servo
+answers only at its Baud Rate register's (:data:`BAUD_BY_VALUE`). :func:`wire_s` is the bytes'
+time on the wire (10 bits each). :func:`collide` is what two servos talking at once give: the
+open-drain bus lets a 0 win, the second's bits :data:`COLLISION_SKEW_BITS` late: a garbled reply.
 """
 
 from __future__ import annotations
@@ -19,16 +14,9 @@ import struct
 from collections.abc import Sequence
 
 #: Baud Rate register value -> bit/s (X series; 7 = 4.5 Mbps exists on the 430s and 540s only).
-BAUD_BY_VALUE = {
-    0: 9600,
-    1: 57_600,
-    2: 115_200,
-    3: 1_000_000,
-    4: 2_000_000,
-    5: 3_000_000,
-    6: 4_000_000,
-    7: 4_500_000,
-}
+BAUD_BY_VALUE = dict(
+    enumerate((9600, 57_600, 115_200, 1_000_000, 2_000_000, 3_000_000, 4_000_000, 4_500_000))
+)
 #: The factory baud rate (register value 1).
 FACTORY_BAUD = 57_600
 #: The simulated rig's servos (not --factory): 4 Mbps, the fastest every family runs at. One

@@ -1,33 +1,23 @@
 """The simulated gimbal's physical world: true geometry, end stops, tracking, load, the hand.
 
-Two joints, pan (servo ID 1) and tilt (servo ID 2), and optionally a third, roll (ROLL_JOINT,
-servo ID 3), that turns the limb about its own axis. A joint's angle relates to its servo's raw
-shaft ticks (4096 per turn, before Homing Offset or Drive Mode apply) by its true zero and
-direction, which a calibration has to find::
+Pan (servo ID 1), tilt (2) and optionally roll (ROLL_JOINT, 3: about the limb's own axis). A
+joint's angle relates to its servo's raw shaft ticks (4096 a turn, before Homing Offset or Drive
+Mode) by its true zero and direction, which a calibration has to find::
 
     angle_rad = direction * (raw_tick - zero_tick) * 2 pi / 4096
 
-The limb points along ``d = (cos t cos p, cos t sin p, sin t)`` for pan ``p`` and tilt ``t``;
-with a roll joint its full orientation is ``q = Rz(p) Ry(-t) Rx(roll)``
-(:mod:`firmware_sim.orientation`).
-Every joint follows the same physics below, each on its own; a hand that moves the roll too
-(:attr:`firmware_sim.hand.Hand.turns_roll`) gives its pose as (pan, tilt, roll).
-
-Torque on, a joint tracks its servo's setpoint like a stiff position loop: a critically damped
-second-order response (natural frequency TRACKING_OMEGA_RAD_S) limited to the motor's speed and
-acceleration. The tracked angle is the *free* angle; the joint sits at the free angle deflected
-by an external push through the loop's stiffness, clamped to the end stops::
+The limb points along ``d = (cos t cos p, cos t sin p, sin t)``; its orientation is
+``q = Rz(p) Ry(-t) Rx(roll)`` (:mod:`firmware_sim.orientation`). Every joint follows the same
+physics, each on its own. Torque on, it tracks its servo's setpoint like a stiff position loop
+(critically damped, TRACKING_OMEGA_RAD_S, limited to the motor's speed and acceleration); a
+push deflects it from that *free* angle through the loop's stiffness::
 
     angle = clamp(free + push / STIFFNESS, stop_min, stop_max)
     load  = STIFFNESS * (free - angle) + INERTIA * accel + VISCOUS * velocity
 
-so a setpoint driven past a stop (free beyond the stop by x) loads the motor with STIFFNESS * x,
-a push P is held with load -P, and a free move shows a small load from acceleration and speed.
-Torque off, the joint is backdrivable: it follows the hand's grip (a short lag, a top speed),
-or drifts under a push, or stays put; it reads no load. End stops always clamp.
-
-Units: loads and pushes are percent of stall torque, signed in the shaft frame (positive = toward
-increasing raw ticks); velocities are raw ticks per second.
+Torque off, it follows the hand's grip (a short lag, a top speed), or drifts under a push, or
+stays put, reading no load. End stops always clamp. Loads and pushes are % of stall torque in
+the shaft frame (positive toward increasing raw ticks); velocities are raw ticks per second.
 """
 
 from __future__ import annotations
@@ -38,10 +28,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from firmware_sim.hand import Hand
+from firmware_sim.motion import TICKS_PER_TURN
 from firmware_sim.orientation import chain_quat
 
-#: Encoder resolution of the X series (e-Manual: 0..4095 per turn).
-TICKS_PER_TURN = 4096
 RAD_PER_TICK = 2.0 * math.pi / TICKS_PER_TURN
 #: Position loop: natural frequency (rad/s) of the critically damped tracking response.
 TRACKING_OMEGA_RAD_S = 80.0
@@ -62,7 +51,7 @@ GRIP_MAX_SPEED_RAD_S = math.radians(300.0)
 BACKDRIVE_RAD_S_PER_PCT = math.radians(1.0)
 #: The limb rests within this many degrees of its zero pose at start (drawn from the seed).
 REST_SCATTER_DEG = 0.5
-#: Longest physics substep (s); longer steps are split.
+#: Longest physics step (s): 1 ms keeps the 80 rad/s tracking loop stable (omega * dt = 0.08).
 MAX_SUBSTEP_S = 0.001
 
 _STIFFNESS_PCT_PER_RAD = STIFFNESS_PCT_PER_DEG * 180.0 / math.pi
@@ -163,8 +152,6 @@ class World:
         self.time_s = 0.0
         self.set_hand(hand)
 
-    # -- stepping ---------------------------------------------------------------------------
-
     def step(self, dt: float, drive: dict[int, float | None]) -> None:
         """Advance the physics by ``dt`` seconds (split into substeps of at most 1 ms).
 
@@ -240,8 +227,6 @@ class World:
                 self._load[i] = min(max(load, -LOAD_LIMIT_PCT), LOAD_LIMIT_PCT)
             self._velocity[i] = (new_angle - angle) / h
             self._angle[i] = new_angle
-
-    # -- reading ----------------------------------------------------------------------------
 
     def _slot(self, servo_id: int) -> int:
         try:

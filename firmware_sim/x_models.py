@@ -1,11 +1,8 @@
-"""The rest of the X series for the simulator, registered into ``control_table.MODELS``
-(:func:`register_into`, called by that module).
+"""The rest of the X series, registered into ``control_table.MODELS`` (:func:`register_into`).
 
-Each model shares a sibling's control table (XL430-W250, XM430-W350 or XL330-M288: the same
-addresses) and carries its own model number and what its family changes, from the e-Manual:
-voltage limits, temperature limit, Shutdown, Current Limit and the current's unit, and the
-supply it sits on. ``stall_ma`` only scales the simulated load into Present Current (the
-stall current at that supply, rounded from the e-Manual's specifications).
+Each model shares a sibling's table (XL430-W250, XM430-W350 or XL330-M288) with its own model
+number and its family's changes from the e-Manual; ``stall_ma`` only scales the simulated load
+into Present Current (the stall current at that supply, rounded from the specifications).
 """
 
 from __future__ import annotations

@@ -18,7 +18,7 @@ from typing import TypeVar
 
 from calib.yaml_guard import shown
 from limbctl import file_jobs, jobs, upkeep
-from limbctl.demo import DEMO_RIGS, DemoOptions, run_demo_job
+from limbctl.demo import DEMO_RIGS, run_demo
 from limbctl.envelope import MODEL_KINDS
 from limbctl.errors import ConfigError, LimbctlError
 from limbctl.live import DEFAULT_PORT as DEFAULT_VIEW_PORT
@@ -151,6 +151,12 @@ def _options(kind: type[Options], args: argparse.Namespace, **given: object) -> 
     return kind(**taken, **given)
 
 
+def _job(run: Callable[[Options], int], kind: type[Options], **derived: Callable) -> Job:
+    """A job running ``run`` on ``kind`` built from the parsed arguments, the fields ``derived``
+    computed from them by the given functions."""
+    return lambda a: run(_options(kind, a, **{name: f(a) for name, f in derived.items()}))
+
+
 def _command(
     sub: Subparsers, name: str, job: Job, **parser_options: str
 ) -> argparse.ArgumentParser:
@@ -165,9 +171,7 @@ def _add_demo(sub: Subparsers) -> None:
     p = _command(
         sub,
         "demo",
-        lambda a: run_demo_job(
-            DemoOptions(out=a.out, duration=a.duration, seed=a.seed, view=_view(a), rig=a.rig)
-        ),
+        lambda a: run_demo(a.out, a.duration, a.seed, _view(a), a.rig),
         help="the whole flow on the simulator: teach, train, teleop, plot",
         description="Run teach-by-hand, training, a teleop session that tries to leave the "
         "region, and plots, all on the embedded simulator, writing everything to --out.",
@@ -217,45 +221,26 @@ def _add_calibrate(sub: Subparsers) -> None:
         help="servo ids, comma separated: PAN,TILT, or PAN,TILT,ROLL for a limb that also turns "
         "about its own axis (default: the --rig profile's, else 1,2)",
     )
-    p.add_argument(
-        "--pan-limits",
-        help="hard pan limits MIN,MAX in degrees, e.g. --pan-limits=-90,90 (default: the base "
-        "rig profile's, narrowed to 1 deg inside the end stops)",
-    )
-    p.add_argument(
-        "--tilt-limits",
-        help="hard tilt limits MIN,MAX in degrees, e.g. --tilt-limits=-40,60 (default: the base "
-        "rig profile's, narrowed to 1 deg inside the end stops)",
-    )
-    p.add_argument(
-        "--pan-stops",
-        help="where the pan joint's travel ends mechanically, MIN,MAX in degrees, e.g. "
-        "--pan-stops=-120,120; the hard limits must lie 1 deg inside (default: the --rig "
-        "profile's, else +-90)",
-    )
-    p.add_argument(
-        "--tilt-stops",
-        help="where the tilt joint's travel ends mechanically, MIN,MAX in degrees, e.g. "
-        "--tilt-stops=-60,75 (default: the --rig profile's, else +-90)",
-    )
-    for flag, what, fallback in (
-        ("--roll-limits", "hard roll limits", "1 deg inside the end stops"),
-        ("--roll-stops", "the roll joint's end stops", "+-90"),
-    ):
-        p.add_argument(flag, help=f"{what}, MIN,MAX in degrees, three --ids only (default: the "
-                       f"--rig profile's, else {fallback})")  # fmt: skip
-
-
-def _record(a: argparse.Namespace) -> int:
-    options = _options(jobs.RecordOptions, a, connection=_connection(a), view=_view(a))
-    return jobs.run_record(options)
+    examples = {"pan": ("-90,90", "-120,120"), "tilt": ("-40,60", "-60,75"), "roll": (None, None)}
+    for k, (kind, what, tail) in enumerate(
+        (
+            ("limits", "hard {} limits", " (default: the base rig profile's, narrowed to 1 deg "
+             "inside the end stops)"),
+            ("stops", "where the {} joint's travel ends mechanically", "; the hard limits must lie "
+             "1 deg inside (default: the --rig profile's, else +-90)"),
+        )
+    ):  # fmt: skip
+        for joint, example in examples.items():
+            flag = f"--{joint}-{kind}"
+            given = f"e.g. {flag}={example[k]}" if example[k] else "three --ids only"
+            p.add_argument(flag, help=f"{what.format(joint)}, MIN,MAX in degrees, {given}{tail}")
 
 
 def _add_record(sub: Subparsers) -> None:
     p = _command(
         sub,
         "record",
-        _record,
+        _job(jobs.run_record, jobs.RecordOptions, connection=_connection, view=_view),
         help="teach by hand: torque off, sample the limb and write a dataset",
         description="Torque off; move the limb by hand through every pose it may take. "
         "Samples every joint (pan, tilt; and roll on three servos) at --rate Hz and appends to "
@@ -271,15 +256,11 @@ def _add_record(sub: Subparsers) -> None:
     _add_view(p)
 
 
-def _train(a: argparse.Namespace) -> int:
-    return file_jobs.run_train(_options(file_jobs.TrainOptions, a))
-
-
 def _add_train(sub: Subparsers) -> None:
     p = _command(
         sub,
         "train",
-        _train,
+        _job(file_jobs.run_train, file_jobs.TrainOptions),
         help="learn the valid region from a dataset and write a model file",
         description="Fit an envelope model (default: a Rigid Map) to a dataset (and its twist).",
     )
@@ -292,17 +273,17 @@ def _add_train(sub: Subparsers) -> None:
     p.add_argument("--plot", type=Path, help="also draw the model and data to this PNG")
 
 
-def _teleop(a: argparse.Namespace) -> int:
-    on_fault, connection, view = SafeState(a.on_fault), _connection(a), _view(a)
-    options = _options(jobs.TeleopOptions, a, on_fault=on_fault, connection=connection, view=view)
-    return jobs.run_teleop(options)
-
-
 def _add_teleop(sub: Subparsers) -> None:
     p = _command(
         sub,
         "teleop",
-        _teleop,
+        _job(
+            jobs.run_teleop,
+            jobs.TeleopOptions,
+            on_fault=lambda a: SafeState(a.on_fault),
+            connection=_connection,
+            view=_view,
+        ),
         help="drive the limb from a command source, every command through the gate",
         description="Read commands from --source at --rate Hz; each is corrected by the model, "
         "slew-limited to --max-speed along the region, converted to joint angles, clamped to "

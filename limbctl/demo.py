@@ -1,27 +1,17 @@
-"""The whole flow on the embedded simulator, for a newcomer: teach, train, teleop, look.
+"""The whole flow on the embedded simulator, for a newcomer: teach, train, teleop, check, leader.
 
-1. teach: a scripted hand moves the simulated limb (torque off) through an irregular region
-   while ``record`` samples it;
-2. train: an interpolated Rigid Map learns the region from those samples alone;
-3. teleop: a command stream that sweeps far outside the region (with a few NaN and malformed
-   lines mixed in) is replayed through the gate at 200 Hz;
-4. check: the simulator's own goal log (what reached the servos) is compared with the model's
-   region, and pictures are drawn;
-5. leader: a simulated operator pushes a felt leader gimbal past the learned edge; the
-   follower mirrors it through the gate, the leader pushes back (leader.png). On the
-   three-servo rig (``--rig sim3``) the leader has three servos and is pushed past the edge
-   in swing, then in twist.
-
-One flow (:func:`_run_flow`) runs every rig; what differs per rig (region, stream, judge,
-report, leader run, printed lines) is a :class:`DemoRig` in :data:`RIGS`.
-"""
+A scripted hand teaches an irregular region; a Rigid Map learns it; a sweep far outside (with
+bad lines mixed in) is replayed through the gate at 200 Hz; the simulator's own goal log is
+checked against the learned region and pictures are drawn; a simulated operator pushes a felt
+leader past the edge (on ``--rig sim3`` in swing, then in twist). One flow
+(:func:`_run_flow`) runs every rig; what differs is a :class:`DemoRig` in :data:`RIGS`."""
 
 from __future__ import annotations
 
 import json
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -47,12 +37,10 @@ from limbctl.teleop.gate import REGION_TOLERANCE_DEG, written_tolerance_deg
 
 #: Loop rate of the demo's teleop (Hz): the controller's default rate.
 DEMO_RATE_HZ = 200.0
-#: Sampling rate of the demo's recording (samples/s): the recorder's default, above its 100 Hz
-#: minimum.
+#: Sampling rate of the demo's recording (samples/s): the recorder's default.
 DEMO_RECORD_HZ = 125.0
-#: Nobody is at the demo to move a limb that rests outside the learned region by hand (as it may
-#: after teaching, wherever the hand let go): the servos drive it in, at a third of the fastest
-#: approach allowed.
+#: Nobody is at the demo to move a limb resting outside the region by hand: the servos drive it
+#: in, at a third of the fastest approach allowed.
 DEMO_APPROACH_DEG_S = 10.0
 #: Slew limit of the demo's teleop (deg/s): the CLI's default.
 DEMO_MAX_SPEED_DEG_S = 120.0
@@ -60,20 +48,16 @@ DEMO_MAX_SPEED_DEG_S = 120.0
 
 @dataclass(frozen=True)
 class DemoRig:
-    """What the demo does differently on one simulated rig; :func:`_run_flow` is the same.
+    """What the demo does differently on one simulated rig.
 
-    ``profile``: rig profile (None: the two-servo simulated rig); ``joints``: the follower's
-    servos (the ticks' rounding in the written bound); ``region_file``: the hand's REGION.yaml in
-    ``limbctl/data``; ``write_stream(path) -> valid lines``: the replayed commands;
-    ``judge(goals, model, telemetry) -> (N,)``: how far (deg) each goal the simulator logged lies
-    outside the learned region; ``report(out, model, region_yaml, beyond)``: step 4's lines after
-    the excursion, and its pictures; ``approach``: teleop's approach (deg/s; None waits);
-    ``train_plot``: train's picture in ``out`` (None: none); ``leader``: operator name, leader
-    ids, length (s) of the leader run; ``leader_row(cycle, source)``: leader then follower pose
-    (deg) of a complete cycle for leader.png (None: skipped). The rest are the printed lines:
-    step headers (``teach`` formats ``seconds``, ``push`` is step 5's), the stream's (``valid``,
-    ``path``) and the excursion's (``worst``, ``bound``, ``tolerance``).
-    """
+    ``profile``: rig profile (None: two servos); ``joints``: the follower's servo count;
+    ``region_file``: the hand's REGION.yaml in ``limbctl/data``; ``write_stream(path) -> valid
+    lines``; ``judge(goals, model, telemetry) -> (N,)`` deg outside the learned region per logged
+    goal; ``report(out, model, region_yaml, beyond)``: step 4's lines and pictures; ``approach``
+    (deg/s; None waits); ``train_plot`` (None: none); ``leader``: operator, ids, seconds;
+    ``leader_row(cycle, source)``: leader then follower pose (deg) for leader.png (None: skipped).
+    The rest are printed lines (``teach`` formats ``seconds``, ``stream`` ``valid`` and ``path``,
+    ``excursion`` ``worst``, ``bound`` and ``tolerance``)."""
 
     profile: Path | None
     joints: int
@@ -94,23 +78,6 @@ class DemoRig:
     push: str
 
 
-@dataclass(frozen=True)
-class DemoOptions:
-    """``limbctl demo``: everything goes to folder ``out``; ``duration`` s of teaching;
-    ``seed`` for the simulator and the model."""
-
-    out: Path = Path("limbctl-demo")
-    duration: float = 60.0  # ample: tests/test_demo.py keeps every goal inside after 20 s
-    seed: int = 0
-    view: ViewOptions = field(default_factory=ViewOptions)
-    rig: str = "sim"
-
-
-def run_demo_job(options: DemoOptions) -> int:
-    """The ``demo`` job: :func:`run_demo` with the command line's options."""
-    return run_demo(options.out, options.duration, options.seed, options.view, options.rig)
-
-
 def run_demo(
     out: Path,
     teach_seconds: float = 45.0,
@@ -118,9 +85,8 @@ def run_demo(
     view: ViewOptions | None = None,
     rig: str = "sim",
 ) -> int:
-    """Run the whole flow into folder ``out``; returns the exit status. ``view``: whether and
-    where to serve the live view (one page for the teaching and the teleop); ``rig`` one of
-    :data:`DEMO_RIGS` (``sim3``: three servos, the region with its twist band)."""
+    """Run the whole flow into folder ``out``; returns the exit status. ``view``: the live view's
+    options (one page throughout); ``rig`` one of :data:`DEMO_RIGS`."""
     if rig not in RIGS:
         raise ConfigError(f"unknown demo rig {rig!r}; choose one of {', '.join(DEMO_RIGS)}")
     with open_view(view or ViewOptions(), say) as live:
@@ -186,17 +152,13 @@ def _run_flow(out: Path, teach_seconds: float, seed: int, live: LiveView, spec: 
 
 
 def _leader_run(out: Path, model: Path, seed: int, live: LiveView | None, spec: DemoRig) -> int:
-    """Step 5: the felt leader of ``spec`` on the simulator (``model``: the model file), pushed
-    past the learned edge and let go; leader.png shows leader vs follower (``spec.leader_row``)
-    and the push, and the live page (when served) draws the leader beside the follower with its
-    push. A machine too busy to keep the rate with the leader's extra write is said so."""
+    """Step 5: the felt leader of ``spec`` pushed past the learned edge and let go, drawn to
+    leader.png (and on the live page when served)."""
     from limbctl.jobs import gate_for
     from limbctl.operators import load_operator
     from limbctl.plot import plot_leader
-    from limbctl.servo.control_table import MAX_TICK
     from limbctl.servo.profiles import load_rig_profile
-    from limbctl.servo.setup import configure_servos
-    from limbctl.session import open_rig
+    from limbctl.session import configure, open_rig
     from limbctl.teleop.loop import LoopConfig, run
     from limbctl.teleop.sources import LeaderSource
 
@@ -211,8 +173,7 @@ def _leader_run(out: Path, model: Path, seed: int, live: LiveView | None, spec: 
         rig_path=spec.profile, seed=seed, extra_ids=ids, sim_options={"leader": leader}
     ) as session:
         sim_rig = session.rig
-        limits = {**sim_rig.tick_limits(), **dict.fromkeys(ids, (0, MAX_TICK))}
-        configure_servos(sim_rig.bus, limits)
+        configure(sim_rig, ids)
         source = LeaderSource(sim_rig, ids, rate_hz=DEMO_RATE_HZ)
         try:
             source.start()
@@ -254,8 +215,8 @@ def _leader_run(out: Path, model: Path, seed: int, live: LiveView | None, spec: 
 
 
 def _twist_row(cycle, source) -> tuple[float, ...] | None:
-    """Three servos: the leader's held pose and the gated pose (pan, tilt deg and the twist
-    about the rest axis, as the band's) of a cycle; None before the leader holds one."""
+    """Three servos: the leader's held pose and the gated pose (pan, tilt deg and the twist) of a
+    cycle; None before the leader holds one."""
 
     def deg(pose: tuple[float, ...]) -> tuple[float, ...]:
         return (
@@ -268,11 +229,9 @@ def _twist_row(cycle, source) -> tuple[float, ...] | None:
 
 
 def write_command_stream(path: Path, seconds: float = 12.0, rate_hz: float = 50.0) -> int:
-    """A replay file: a wide Lissajous sweep (pan +-110, tilt -55..75 deg) with bad lines mixed in.
-
-    12 s at 50 lines/s: one full figure, slow enough (a quarter of the loop's rate) that the
-    gate's slew limit, not the stream, shapes the motion. Returns the number of valid lines.
-    """
+    """A replay file: a Lissajous sweep (pan +-110, tilt -55..75 deg) with bad lines mixed in;
+    returns the number of valid lines. 12 s at 50 lines/s: one figure, slow enough that the gate's
+    slew limit, not the stream, shapes the motion."""
     n = int(seconds * rate_hz)
     t = np.arange(n) / rate_hz
     # a Lissajous figure that crosses the taught region and leaves it on every side (the taught
@@ -285,14 +244,9 @@ def write_command_stream(path: Path, seconds: float = 12.0, rate_hz: float = 50.
 
 
 def goal_log_excursions(goal_log: Path, model: object) -> np.ndarray:
-    """Angle (deg) by which each logged goal's limb direction lies outside the model's region.
-
-    0 for goals inside. Uses the simulator's ``limb_dir`` (its true geometry), not the
-    controller's own idea of where it sent the limb. A sync write carries both goals in one
-    packet; the simulator logs one line per servo with the same ``t``, so the pose a packet
-    commands is the last line of each ``t`` (earlier lines mix the new goal of one servo with
-    the old goal of the other, a state that lasts no longer than the packet).
-    """
+    """Angle (deg) by which each logged goal's limb direction lies outside the model's region
+    (0 inside), from the simulator's ``limb_dir`` (its true geometry). A sync write logs one line
+    per servo with the same ``t``; the pose a packet commands is the last line of each ``t``."""
     from limbctl.geometry.quat import direction_angle, limb_direction, swing_from_direction
 
     d = logged_packets(goal_log, "limb_dir", 3)
@@ -311,7 +265,7 @@ TRUE_OUTLINE_POINTS = 720
 
 
 def true_outline(region_yaml: Path) -> np.ndarray:
-    """The region a REGION.yaml's hand teaches, as a closed outline (M, 2) in pan/tilt degrees."""
+    """The region a REGION.yaml's hand teaches, as a closed outline (M, 2), pan/tilt deg."""
     from firmware_sim.hand import Hand
 
     region = Hand.from_yaml(region_yaml).region  # a twist band, if any, leaves the outline
@@ -320,8 +274,8 @@ def true_outline(region_yaml: Path) -> np.ndarray:
 
 
 def _report_gimbal(out: Path, model: object, region_yaml: Path, beyond: int) -> None:
-    """Two servos: the goals past the bound, and teleop.png: the commanded sweep and what the
-    gate wrote over the model, with the hand's true outline."""
+    """Two servos: the goals past the bound, and teleop.png (the commanded sweep and the written
+    goals over the model, with the hand's true outline)."""
     from limbctl.geometry.gimbal import pan_tilt_to_direction
     from limbctl.plot import plot
     from limbctl.teach.dataset import load_dataset
@@ -352,8 +306,8 @@ def _report_gimbal(out: Path, model: object, region_yaml: Path, beyond: int) -> 
 
 
 def _report_twist(out: Path, model: object, region_yaml: Path, beyond: int) -> None:
-    """Three servos: the learned region's hold of the true region (swing and twist), and
-    twist.png: the samples, the goals, the true and the learned band."""
+    """Three servos: how much of the true region (swing and twist) the learned one holds, and
+    twist.png."""
     from limbctl.teach.dataset import load_dataset
 
     probes = true_twist_probes(region_yaml)
@@ -377,10 +331,8 @@ PROBE_STEP_DEG = 2.0
 
 
 def true_twist_probes(region_yaml: Path) -> np.ndarray:
-    """Orientations (N, 4) of a REGION.yaml's true region (swing outline and twist band) lying
-    PROBE_DEPTH_DEG or more inside it: swing poses on a PROBE_STEP_DEG grid whose direction is
-    that far from every point of the outline (angles on the sphere), each with twists from the
-    band shrunk by that much at its pose."""
+    """Orientations (N, 4) of a REGION.yaml's true region lying PROBE_DEPTH_DEG or more inside it
+    (swing on a PROBE_STEP_DEG grid, twists from the band shrunk by that much)."""
     from firmware_sim.hand import Hand
     from firmware_sim.regions import grid_inside
     from limbctl.geometry.gimbal import pan_tilt_to_direction
@@ -405,8 +357,7 @@ def true_twist_probes(region_yaml: Path) -> np.ndarray:
 
 
 def true_band_lines(region_yaml: Path) -> tuple[float, np.ndarray, tuple[np.ndarray, np.ndarray]]:
-    """The pan (deg) of the outline's centre, and the true band's limits (deg) against tilt
-    there."""
+    """The outline centre's pan (deg), and the true band's limits (deg) against tilt there."""
     from firmware_sim.hand import Hand
 
     hand = Hand.from_yaml(region_yaml)
@@ -417,12 +368,9 @@ def true_band_lines(region_yaml: Path) -> tuple[float, np.ndarray, tuple[np.ndar
     return pan, tilt, (limits[:, 0], limits[:, 1])
 
 
-#: The demo's rigs by name, everything that differs between them. The leader runs are the
-#: packaged operators (limbctl/operators.py): "push" takes a two-servo leader (ids 3, 4) 20 deg
-#: past the learned edge, holds it and lets go at 6 s; "push3" takes a three-servo leader (ids
-#: 4-6; the follower's roll is id 3) past the swing edge, back, past the twist band, and lets go
-#: at 9 s. Each run lasts 2 s (1.5 s for three) past the let go, time enough to see the leader
-#: walk back to the edge.
+#: The demo's rigs by name. The leader runs (limbctl/operators.py: "push" lets go at 6 s, "push3"
+#: at 9 s; the three-servo leader is ids 4-6, the follower's roll id 3) last 2 s (1.5 s for three)
+#: past the let go, time enough to see the leader walk back to the edge.
 RIGS = {
     "sim": DemoRig(
         profile=None,
@@ -469,5 +417,5 @@ RIGS = {
         "then\n   in twist, and lets go",
     ),
 }
-#: The simulated rigs the demo runs on: two servos, or three with a roll joint (twist).
+#: The simulated rigs the demo runs on.
 DEMO_RIGS = tuple(RIGS)

@@ -1,22 +1,5 @@
-"""The one small exception tree of limbctl.
-
-::
-
-    LimbctlError
-    ├── ConfigError            a rig profile, option or CLI argument is wrong (names the field)
-    ├── FileFormatError        a model, dataset or rig file is corrupt, truncated or foreign
-    ├── InvalidInputError      a command or quaternion is non-finite, non-unit or malformed
-    │                          (also a ValueError, so numeric callers can catch that)
-    ├── BusError               anything on the servo bus
-    │   ├── PortError          the port cannot be opened or vanished
-    │   │   └── PortInUse      another process holds the port (the message names it)
-    │   ├── BusTimeout         a servo did not answer in time
-    │   ├── CorruptReply       a reply failed its CRC or framing
-    │   └── ServoAlarm         a servo reported a hardware error (carries the decoded bits)
-    └── SafetyError            the gate refused to produce a goal (never silently bypassed)
-
-Every message says what went wrong and, where it can, what to do about it.
-"""
+"""The one small exception tree of limbctl (drawn in docs/architecture.md); every message says
+what went wrong and, where it can, what to do about it."""
 
 from __future__ import annotations
 

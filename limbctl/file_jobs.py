@@ -1,6 +1,5 @@
-"""The jobs on files (train, plot, info, eval) as typed functions: one options value in, a
-status out. ``info`` without a file describes the bus instead (through :mod:`limbctl.jobs`).
-"""
+"""The jobs on files (train, plot, info, eval), typed like :mod:`limbctl.jobs`; ``info``
+without a file describes the bus."""
 
 from __future__ import annotations
 
@@ -17,8 +16,7 @@ from limbctl.jobs import Connection, open_connection, prepare, say
 @dataclass(frozen=True)
 class TrainOptions:
     """``limbctl train``: fit a model of ``kind`` to dataset ``data``, write it to ``out``;
-    ``nodes``/``layout`` only for kinds that take them (None: the model's default); ``plot``
-    also draws the model and data to that PNG."""
+    ``nodes``/``layout`` for kinds that take them (None: the default); ``plot``: also draw to it."""
 
     data: Path
     out: Path
@@ -36,7 +34,7 @@ def model_options(kind: str, seed: int, **chosen: object) -> dict[str, object]:
     Raises
     ------
     ConfigError
-        For an unknown kind, or an option given that the kind does not take.
+        For an unknown kind, or an option the kind does not take.
     """
     from limbctl.envelope import model_class, model_kinds
 
@@ -131,11 +129,8 @@ class InfoOptions:
 
 
 def run_info(options: InfoOptions) -> int:
-    """Print what a file holds, or every servo on the bus and the limb's pose.
-
-    A servo in alarm is described like the others (its alert bit does not end the listing);
-    the listing then ends with the way out (``limbctl reboot``) and the exit status is 3.
-    """
+    """Print what a file holds, or every servo on the bus and the limb's pose; a servo in alarm
+    is listed too, then the way out (``limbctl reboot``), and the status is 3."""
     if options.file is not None:
         return _info_file(options.file)
     from limbctl.servo.control_table import Register, model_name
@@ -168,8 +163,8 @@ def run_info(options: InfoOptions) -> int:
 
 
 def _info_file(path: Path) -> int:
-    """Describe a model or dataset file; which one it is is read from its first bytes, so a
-    damaged file's error is its own loader's (the line and the problem), not the other's."""
+    """Describe a model or dataset file, told apart by its first bytes (so a damaged file's error
+    is its own loader's)."""
     from limbctl.envelope import load_header
     from limbctl.envelope.base import is_model_file
     from limbctl.teach.dataset import is_dataset_file, load_dataset
@@ -217,8 +212,7 @@ def _neither(path: Path) -> None:
 # ---- eval -----------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class EvalOptions:
-    """``limbctl eval``: the papers' grid (``quick``: reduced) into ``out`` with ``jobs``
-    worker processes (0: all cores)."""
+    """``limbctl eval``: the papers' grid (``quick``: reduced) into ``out``, ``jobs`` workers."""
 
     out: Path = Path("eval-results")
     quick: bool = False

@@ -1,10 +1,6 @@
-"""The jobs that drive servos (record, teleop, calibrate) as typed functions: one options value
-in, a status out (the jobs on files are in :mod:`limbctl.file_jobs`).
-
-:mod:`limbctl.cli` parses the command line into these options; :mod:`limbctl.demo` builds them
-directly. Each job prints what a person reads to stderr and returns the exit status; failures
-are :class:`~limbctl.errors.LimbctlError` raised to the caller.
-"""
+"""The jobs that drive servos (record, teleop, calibrate): one options value in, an exit status
+out; what a person reads goes to stderr, failures are raised as
+:class:`~limbctl.errors.LimbctlError` (the jobs on files: :mod:`limbctl.file_jobs`)."""
 
 from __future__ import annotations
 
@@ -20,7 +16,7 @@ from calib.profile import RigProfile
 from limbctl.errors import ConfigError
 from limbctl.live import LiveView, ViewOptions, leader_status, open_view
 from limbctl.servo.profiles import load_rig_profile
-from limbctl.session import Session, open_rig, stop_on_signals
+from limbctl.session import Session, configure, open_rig, stop_on_signals
 from limbctl.teleop.gate import Gate
 from limbctl.teleop.loop import SafeState
 from limbctl.teleop.start import DEFAULT_WAIT_S
@@ -38,9 +34,8 @@ def say(text: str) -> None:
 
 
 def prepare(stage: str) -> None:
-    """Say why a first run waits: the kernels of ``stage`` (``train``, ``gate``) are not all in
-    the cache yet. It loads those a warm-up (:mod:`limbctl.teach.warm`) has cached and compiles
-    the rest itself rather than wait for a warm-up still running at the lowest priority."""
+    """Say why a first run waits: the kernels of ``stage`` (``train``, ``gate``) are not all cached
+    yet (it loads what a warm-up cached and compiles the rest itself)."""
     from limbctl.geometry import jit
 
     if jit.cache_dir() is None or jit.prepared(stage):
@@ -49,7 +44,7 @@ def prepare(stage: str) -> None:
 
 
 def _say_wire_budget(rate_hz: float, bus: Any) -> None:
-    """Tell the person when the bus's baud cannot carry ``rate_hz`` (limbctl.servo.cycle)."""
+    """Warn when the bus's baud cannot carry ``rate_hz``."""
     from limbctl.servo.cycle import wire_budget
 
     problem = wire_budget(rate_hz, bus.baud, len(bus.ids), bool(bus.fast_sync_read))
@@ -70,7 +65,7 @@ class Connection:
     baud : int or None
         Overrides the profile's baud rate.
     latency_timer_ms : float or None
-        The USB adapter's latency timer (ms); None is the default of :func:`open_rig`.
+        The USB adapter's latency timer (ms); None: :func:`open_rig`'s default.
     seed : int
         Simulator seed.
     """
@@ -97,14 +92,13 @@ class RecordOptions:
 
 
 def _viewing(options: ViewOptions, view: LiveView | None):
-    """The live view to publish on: ``view`` when the caller has one open, else as asked."""
+    """``view`` when the caller has one open, else a view opened as ``options`` ask."""
     return contextlib.nullcontext(view) if view is not None else open_view(options, say)
 
 
 def run_record(options: RecordOptions, view: LiveView | None = None) -> int:
-    """Torque off, sample the limb moved by hand, write the dataset as it goes (shown live on
-    ``view``, or on a view opened as ``options.view`` asks); 0 for an end asked for (Enter,
-    Ctrl-C, duration), 3 when a bus failure ended it."""
+    """Torque off, sample the limb moved by hand, write the dataset as it goes (shown live);
+    0 for an end asked for (Enter, Ctrl-C, duration), 3 when a bus failure ended it."""
     from limbctl.session import demo_region_path
     from limbctl.teach.dataset import DatasetWriter
     from limbctl.teach.record import SIM_LATENCY_TIMER_MS, check_rate, record, stop_on_enter
@@ -119,10 +113,8 @@ def run_record(options: RecordOptions, view: LiveView | None = None) -> int:
     meta = {"rate_hz": options.rate, "simulated": conn.port is None and profile.is_sim}
     if meta["simulated"] and conn.latency_timer_ms is None:  # late replies kept: see the constant
         conn = replace(conn, latency_timer_ms=SIM_LATENCY_TIMER_MS)
-    # the writer checks the path and free space before any servo is touched, and creates the
-    # file only once the port is ours: a refused start (port in use, no servo) leaves no empty
-    # dataset behind to block the next `--out`. The calibration the joint angles are read under
-    # goes into the header, and from there into every model trained on the recording.
+    # checks the path and free space now, creates the file once the port is ours (a refused start
+    # leaves no empty dataset); the calibration goes into the header and every model trained on it
     writer = DatasetWriter(
         options.out, rig=profile.name, meta=meta, calibration=profile.calibration
     )
@@ -155,35 +147,23 @@ def run_record(options: RecordOptions, view: LiveView | None = None) -> int:
 
 # ---- teleop ---------------------------------------------------------------------------------
 def gate_for(model_path: Path, profile: RigProfile, rate_hz: float, max_speed_deg_s: float) -> Gate:
-    """Load a model and build the gate around it, refusing a model trained for another rig,
-    under another calibration of this one, or recording no calibration
-    (:func:`limbctl.servo.profiles.check_trained_for`).
-
-    The gate's step limit is ``max_speed_deg_s / rate_hz`` (converted to rad per cycle); its
-    chain (two or three joints) is the profile's.
-    """
+    """The gate around a model file, refusing a model trained for another rig or calibration
+    (:func:`limbctl.servo.profiles.check_trained_for`); step limit ``max_speed_deg_s / rate_hz``."""
     from limbctl.envelope import load_header, load_model
     from limbctl.servo.profiles import check_trained_for
     from limbctl.teleop.gate import GateLimits
 
     check_trained_for(load_header(model_path).get("metadata", {}), profile, str(model_path))
     step = math.radians(max_speed_deg_s) / rate_hz
-    # max_step: of direction with two servos, of rotation of the limb with three. A joint may
-    # move 3 Cartesian steps per cycle near the pole (where pan turns fast for a small change
-    # of the limb), and never less than 1 degree
+    # a joint may move 3 Cartesian steps per cycle (pan turns fast near the pole), never under 1 deg
     limits = GateLimits.for_profile(profile, step, max(3.0 * step, math.radians(1.0)))
     return Gate(load_model(model_path), limits)
 
 
 @dataclass(frozen=True)
 class TeleopOptions:
-    """``limbctl teleop``: drive the limb from ``source`` through the gate of ``model``.
-
-    ``rate`` Hz, ``max_speed`` deg/s, ``on_fault`` the safe state, ``duration`` s (None: until
-    the source ends or Ctrl-C), ``telemetry`` a JSON-lines log, ``goal_log`` the simulator's,
-    ``quiet`` no status line. A limb outside the region is waited for ``wait`` s (torque off),
-    or with ``approach`` (deg/s) driven inside by the servos.
-    """
+    """``limbctl teleop``: drive the limb from ``source`` through the gate of ``model`` (the
+    fields are the command line's options)."""
 
     model: Path
     source: str = "stdin"
@@ -202,13 +182,10 @@ class TeleopOptions:
 
 
 def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
-    """Start from the limb's pose (waiting or approaching when outside), run the loop, park the
-    limb (shown live on ``view``, or on a view as ``options.view`` asks); 0 for a clean end, 2
-    when it never started (the wait ran out) or every command line was refused, 3 after a fault
-    (a bus failure before the start included), 130 when stopped while waiting."""
+    """Start (waiting or approaching when outside), run the loop, park the limb (shown live); 0
+    for a clean end, 2 when it never started or every line was refused, 3 after a fault, 130 when
+    stopped while waiting."""
     from limbctl.geometry.jit import stage as jit_stage
-    from limbctl.servo.control_table import MAX_TICK
-    from limbctl.servo.setup import configure_servos
     from limbctl.teleop.lifecycle import run_session
     from limbctl.teleop.loop import LoopConfig
     from limbctl.teleop.sources import SourceContext, check_leader_fits, parse_source
@@ -244,9 +221,7 @@ def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
         rig = session.rig
         # read before configuring switches it off: a limb outside is then told why it went limp
         torque_was_on = any(rig.torque_enabled())
-        # the rig's servos get its hard limits; servos of the source (a leader) their full range
-        limits = {**rig.tick_limits(), **{servo_id: (0, MAX_TICK) for servo_id in spec.extra_ids}}
-        configure_servos(rig.bus, limits)
+        configure(rig, spec.extra_ids)
         _say_wire_budget(options.rate, rig.bus)
         context = SourceContext(rig=rig, rate_hz=options.rate, gate=gate, page=live.page_connect)
         reporting = {
@@ -259,8 +234,7 @@ def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
 
         @contextlib.contextmanager
         def introduced(built: CommandSource) -> Iterator[CommandSource]:
-            """Start the source; say what it will do, hook it to the page, and hand a simulated
-            leader to its operator (whose script starts then)."""
+            """Start the source, say what it does, hook it to the page and the operator."""
             with built as source:
                 opened.append(source)
                 if spec.kind.scheme == "page":  # printed once: whoever has it can steer
@@ -296,15 +270,12 @@ def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
 def _sim_operator(
     name: str | None, spec: SourceSpec, conn: Connection, profile: RigProfile
 ) -> SimOperator | None:
-    """The simulated operator ``--operator`` names (:func:`limbctl.operators.load_operator`),
-    checked against the source ``spec`` and where the servos are (``conn``, the rig
-    ``profile``); None without one.
+    """The simulated operator ``--operator`` names for the source ``spec``; None without one.
 
     Raises
     ------
     ConfigError
-        On real servos (a port given, or a rig profile that names one: a real leader is moved
-        by a real hand), or with a source that is not a leader.
+        On real servos, or with a source that is not a leader.
     """
     if name is None:
         return None
@@ -324,10 +295,8 @@ def _sim_operator(
 @dataclass(frozen=True)
 class CalibrateOptions:
     """``limbctl calibrate``: write rig profile ``out`` named ``name`` for servos ``ids`` (pan,
-    tilt and, for a three-servo rig, roll; None: the base profile's); ``*_limits`` (MIN, MAX) in
-    degrees, None: the base profile's; ``*_stops`` the gimbal's end stops (MIN, MAX) in degrees,
-    None: the base profile's when it describes this gimbal (``--rig`` given, or the simulator),
-    else unknown (+-90 deg, :data:`calib.profile.DEFAULT_END_STOP_DEG`)."""
+    tilt[, roll]); ``*_limits`` and ``*_stops`` (MIN, MAX) deg; None: the base profile's (stops:
+    only when it describes this gimbal, else +-90 deg)."""
 
     out: Path
     name: str = "my-rig"
@@ -364,23 +333,18 @@ def run_calibrate(options: CalibrateOptions) -> int:
     tilt_limits = (base.tilt.min_deg, base.tilt.max_deg)
     profile = profile_from_calibration(base, result, options.name, port, pan_limits, tilt_limits)
     save_rig_profile(profile, options.out)
-    say(
-        f"pan: zero tick {result.pan_zero}, direction {result.pan_direction:+d}; "
-        f"tilt: zero tick {result.tilt_zero}, direction {result.tilt_direction:+d}"
-        + (
-            ""
-            if result.roll_zero is None
-            else f"; roll: zero tick {result.roll_zero}, direction {result.roll_direction:+d}"
-        )
-    )
+    found = [("pan", result.pan_zero, result.pan_direction)]
+    found.append(("tilt", result.tilt_zero, result.tilt_direction))
+    if result.roll_zero is not None:
+        found.append(("roll", result.roll_zero, result.roll_direction))
+    say("; ".join(f"{j}: zero tick {zero}, direction {sign:+d}" for j, zero, sign in found))
     say(f"wrote {options.out} (check the hard limits in it before teleoperating)")
     return 0
 
 
 def _calibration_base(options: CalibrateOptions, base):
     """The profile a calibration starts from: ``base`` with the chosen ids, hard limits and end
-    stops, checked before any servo moves (limits past the end stops are refused up front, not
-    after the person has gone through the prompts)."""
+    stops, checked before any servo moves."""
     from calib.profile import (
         DEFAULT_END_STOP_DEG,
         END_STOP_MARGIN_DEG,
@@ -391,33 +355,24 @@ def _calibration_base(options: CalibrateOptions, base):
 
     conn = options.connection
     ids = options.ids or tuple(joint.id for _, joint in base.joints)
-    if len(ids) == 3 and not base.twists:
-        # a roll joint to start from: the simulated three-servo rig's (its zero and direction
-        # are found by the calibration; its limits are narrowed inside the end stops below)
+    if len(ids) == 3 and not base.twists:  # a roll joint to start from: the sim3 rig's
         base = base.with_joints(roll=default_sim_profile("sim3").roll)
     elif len(ids) == 2 and base.twists:
         raise ConfigError(
             f"the rig profile {base.name!r} has a roll joint (servo {base.roll.id}): give three "
             "ids, --ids PAN,TILT,ROLL"
         )
-    # the base profile's end stops describe this gimbal only if the person named its profile
-    # or the simulator (whose profile it is) is what will be calibrated
+    # the base profile's end stops describe this gimbal if it was named, or is the simulator's
     describes_gimbal = conn.rig is not None or (conn.port is None and base.is_sim)
     unknown = (-DEFAULT_END_STOP_DEG, DEFAULT_END_STOP_DEG)
     joints = {}
-    chosen_limits = (
-        ("pan", options.pan_limits, options.pan_stops),
-        ("tilt", options.tilt_limits, options.tilt_stops),
-        ("roll", options.roll_limits, options.roll_stops),
-    )
     if len(ids) == 2 and (options.roll_limits or options.roll_stops):
         raise ConfigError("--roll-limits and --roll-stops need a roll joint: --ids PAN,TILT,ROLL")
-    for servo_id, (name, limits, stops) in zip(ids, chosen_limits, strict=False):
+    for servo_id, name in zip(ids, ("pan", "tilt", "roll"), strict=False):
+        limits, stops = getattr(options, f"{name}_limits"), getattr(options, f"{name}_stops")
         joint = getattr(base, name)
         stops = stops or ((joint.stop_min_deg, joint.stop_max_deg) if describes_gimbal else unknown)
-        if limits is None:
-            # the base profile's limits, narrowed to lie inside these end stops by the margin
-            # every profile keeps: a default never asks for travel the gimbal may not have
+        if limits is None:  # the base profile's, narrowed inside these end stops by the margin
             low = max(joint.min_deg, stops[0] + END_STOP_MARGIN_DEG)
             high = min(joint.max_deg, stops[1] - END_STOP_MARGIN_DEG)
             if (low, high) != (joint.min_deg, joint.max_deg):

@@ -1,10 +1,6 @@
-"""The jobs' side of the live view: open it, feed it from a recording and from the teleop loop.
-
-The view layer knows nothing of teaching or teleop; this module turns their values into the
-view's (:class:`~limbctl.view.feed.PoseTap`, :class:`~limbctl.view.feed.SceneFeeder`, and
-:class:`TeleopFeed` publishing each teleop cycle in O(1) from the loop's thread). The view is on
-by default when standard error is a terminal; ``--view`` / ``--no-view`` decide otherwise.
-"""
+"""The jobs' side of the live view: open it, feed it from a recording and from the teleop loop
+(:class:`~limbctl.view.feed.PoseTap`, :class:`~limbctl.view.feed.SceneFeeder`,
+:class:`TeleopFeed`). On by default when standard error is a terminal."""
 
 from __future__ import annotations
 
@@ -33,10 +29,9 @@ from limbctl.view import (
 from limbctl.view.feed import PoseTap, SceneFeeder
 from limbctl.view.leader import LeaderLive, LeaderStatus, with_twist
 from limbctl.view.region import model_loops
+from limbctl.view.server import DEFAULT_PORT
 from limbctl.view.twist import band_gauge, model_band_map, pose_twist, taught_map
 
-#: The view's usual port; when it is taken and no port was asked for, any free port is used.
-DEFAULT_PORT = 8765
 #: How often the teleop loop's shown rate is recomputed (s): steady to read, recent enough.
 RATE_WINDOW_S = 1.0
 
@@ -75,9 +70,8 @@ def rig_limits(profile: Any) -> HardLimits:
 
 @dataclass(frozen=True)
 class Teaching:
-    """The recorder's side of a live teaching: ``limb`` to read, ``on_guidance`` for the guide's
-    assessments and ``on_twist`` for the twist guide's (None: nobody shows them), and the
-    ``feeder`` publishing the scene."""
+    """The recorder's side of a live teaching: the ``limb`` to read, hooks for the guide's and the
+    twist guide's assessments (None: not shown) and the scene ``feeder``."""
 
     limb: Any
     on_guidance: Callable[[Guidance], None] | None
@@ -106,8 +100,8 @@ def twist_figures(twist: TwistGuidance) -> tuple[GuideFigure, ...]:
 
 
 class TwistTeaching:
-    """Hands a three-servo teaching's twist to the view: the twist guide's cells as the scene's
-    twist map and the pose tap's gauge range, its figures and words beside the guide's."""
+    """Hands the guide's assessments to the view, and a three-servo teaching's twist: the twist
+    guide's cells as the scene's map and the gauge's range, its figures and words beside."""
 
     def __init__(self, feeder: SceneFeeder, tap: PoseTap) -> None:
         self.feeder = feeder
@@ -135,7 +129,7 @@ class TwistTeaching:
 
 
 class LiveView:
-    """An open live view (or none: every method then does nothing and costs nothing).
+    """An open live view, or none (``board`` None: every method does nothing).
 
     Parameters
     ----------
@@ -144,7 +138,7 @@ class LiveView:
     url : str
         The page's address ("" when off).
     server : ViewServer or None
-        The server, whose controller slot a page source attaches to (None when off).
+        The server, whose controller slot a page source attaches to.
     """
 
     def __init__(
@@ -156,12 +150,12 @@ class LiveView:
 
     @property
     def control_url(self) -> str:
-        """The address that steers (it carries the session's secret); "" when off."""
+        """The address that steers (with the session's secret); "" when off."""
         return self.server.control_url if self.server is not None else ""
 
     @property
     def page_connect(self):
-        """How a page source attaches to the controller slot (None when the view is off)."""
+        """How a page source attaches to the controller slot (None when off)."""
         return self.server.desk.attach if self.server is not None else None
 
     @property
@@ -170,26 +164,20 @@ class LiveView:
 
     @contextlib.contextmanager
     def teaching(self, limb: Any, profile: Any, mode: str = "record") -> Iterator[Teaching]:
-        """What the recorder should read and tell while the view shows the teaching.
-
-        Yields the limb itself and no guidance hook when the view is off; otherwise a pose tap
-        on the limb and the guide's hook, while a scene feeder refits the region from the
-        samples so far (in its own process).
-        """
+        """What the recorder reads and tells while the view shows the teaching: a pose tap and the
+        guide's hooks while a scene feeder refits the region (the limb itself when off)."""
         if self.board is None:
             yield Teaching(limb, None)
             return
         tap = PoseTap(limb, self.board, mode, note="torque off: move the limb by hand")
         with SceneFeeder(self.board, tap.samples, rig_limits(profile)) as feeder:
-            if getattr(profile, "twists", False):  # three servos: the twist too
-                twist = TwistTeaching(feeder, tap)
-                yield Teaching(tap, twist.on_guidance, feeder, twist.on_twist)
-                return
-            yield Teaching(tap, lambda guidance: feeder.set_guide(*guide_figures(guidance)), feeder)
+            shown = TwistTeaching(feeder, tap)
+            on_twist = shown.on_twist if getattr(profile, "twists", False) else None
+            yield Teaching(tap, shown.on_guidance, feeder, on_twist)
 
     def start_observer(self, mode: str = "teleop: waiting") -> Callable[[Any], None] | None:
-        """Where a limb outside the region is shown while teleop waits for it: publishes each
-        :class:`~limbctl.teleop.start.StartStatus` (pose, how far and which way); None if off."""
+        """Publishes each :class:`~limbctl.teleop.start.StartStatus` while teleop waits for a limb
+        outside the region; None if off."""
         board = self.board
         if board is None:
             return None
@@ -206,7 +194,7 @@ class LiveView:
         """Show the model's region and the rig's limits; the loop's ``on_cycle`` (None if off)."""
         if self.board is None:
             return None
-        loops = model_loops(envelope) if getattr(envelope, "mesh", None) is not None else ()
+        loops = model_loops(envelope)
         kind = getattr(envelope, "kind", type(envelope).__name__)
         note = f"the {kind} model's region" if loops else f"a {kind} model: region not drawn"
         limits = rig_limits(profile)
@@ -221,14 +209,8 @@ class LiveView:
 
 
 class TeleopFeed:
-    """The teleop loop's ``on_cycle``: publishes each cycle's poses, outcome and rate.
-
-    The pose shown is the last one read and the written pose the last one written (a cycle
-    whose read failed, or that held, keeps them).
-
-    Called in the loop's thread; each call builds a few small values and swaps them onto the
-    board (a few microseconds), whatever the browsers do.
-    """
+    """The teleop loop's ``on_cycle``: publishes each cycle's poses (the last read and the last
+    written), outcome and rate, in a few microseconds on the loop's thread."""
 
     def __init__(self, board: Board, mode: str = "teleop") -> None:
         self.board = board
@@ -237,27 +219,25 @@ class TeleopFeed:
         self.present: PanTilt | None = None
         self.rate_hz = 0.0
         self._window_start: tuple[int, float] | None = None
-        #: A felt leader's push now (N m), read each cycle and said in the page's note; None:
-        #: the source does not push back.
+        #: A felt leader's push now (N m), said in the note each cycle; None: it does not push.
         self.push_nm: Callable[[], float] | None = None
         #: The model's twist band (a three-servo rig; None on two servos): the gauge's range.
         self.band: Any = None
         self.written_twist: float | None = None
         self.gauge = None
-        #: A leader source's part of the page (its pose and push, :func:`leader_status`), read
-        #: each cycle; None: no leader, the page is as before.
+        #: A leader source's part of the page (:func:`leader_status`); None: no leader.
         self.leader: Callable[[], LeaderStatus] | None = None
 
     def __call__(self, cycle: Cycle) -> None:
         previous = self.written
         if cycle.written and cycle.result is not None:
             written = cycle.result.pose
-            self.written = PanTilt(math.degrees(written[0]), math.degrees(written[1]))
+            self.written = PanTilt.of_rad(written)
             if len(written) == 3:
                 self.written_twist = pose_twist(*written)
         self._update_rate(cycle)
         if cycle.present is not None:
-            self.present = PanTilt(math.degrees(cycle.present[0]), math.degrees(cycle.present[1]))
+            self.present = PanTilt.of_rad(cycle.present)
         commanded = PanTilt(*cycle.command_deg) if cycle.command_deg is not None else None
         outcome = cycle.result.outcome.value if cycle.result is not None else cycle.state.value
         if cycle.result is not None and cycle.result.reason:
@@ -292,11 +272,9 @@ class TeleopFeed:
 
 
 def leader_status(source: Any) -> Callable[[], LeaderStatus]:
-    """What the page shows of a leader source (:class:`~limbctl.teleop.sources.LeaderSource`)
-    in each cycle: its pose as last read, and a felt leader's push (its torque, cap, where it
-    points and how far beyond the edge), from the push it was last sent, with the torque its
-    motors applied as last read; a three-servo
-    leader's twist too (:func:`limbctl.view.leader.with_twist`)."""
+    """What the page shows of a leader source each cycle: its pose as last read and a felt
+    leader's push (torque, cap, goal, distance beyond the edge; the torque its motors applied as
+    last read); a three-servo leader's twist too."""
 
     def status() -> LeaderStatus:
         pose, push = source.last_pose, source.last_push
@@ -307,7 +285,7 @@ def leader_status(source: Any) -> Callable[[], LeaderStatus]:
 
     def plain() -> LeaderStatus:
         pose = source.last_pose
-        shown = PanTilt(math.degrees(pose[0]), math.degrees(pose[1])) if pose else None
+        shown = PanTilt.of_rad(pose) if pose else None
         if not source.felt:
             events = source.feel_stats.events
             return LeaderStatus(shown, state=events[-1] if events else source.notice)
@@ -317,7 +295,7 @@ def leader_status(source: Any) -> Callable[[], LeaderStatus]:
         if push is None or push.torque_nm == 0.0:
             beyond = push.distance_deg if push is not None else None
             return LeaderStatus(shown, 0.0, source.cap_nm, None, beyond, "free", sensed_nm=sensed)
-        toward = PanTilt(math.degrees(push.goal[0]), math.degrees(push.goal[1]))
+        toward = PanTilt.of_rad(push.goal)
         return LeaderStatus(
             shown,
             push.torque_nm,

@@ -1,20 +1,7 @@
-"""Simulated operators for ``limbctl teleop --operator``: a scripted hand that moves the embedded
-simulator's leader gimbal, so a felt leader can be tried without hardware.
-
-An operator is named from :data:`OPERATORS` (files packaged in ``limbctl/data/``) or given as a
-YAML file of the simulator's operator-file form (:mod:`firmware_sim.operator_file`; the same file
-serves ``firmware-sim --leader IDS --operator FILE``)::
-
-    model: xm430-w350          # the leader's servos (a felt leader needs current sensing)
-    start_deg: [0.0, 10.0]     # where the leader rests when the simulator starts (pan, tilt)
-    script:                    # where the hand means to go: [t_s, pan_deg, tilt_deg], linear
-      - [0.0, 0.0, 10.0]       # between points, the last held; a three-servo leader adds
-      - [3.5, 100.0, 10.0]     # roll_deg (and start_deg its roll)
-    let_go_s: 6.0              # the hand lets go (omit: it never does)
-    # release_s, stiffness_nm_deg, damping_nm_s_rad, max_torque_nm: the grip
-
-The grip's defaults are a relaxed hand (0.3 N m at most).
-"""
+"""Simulated operators for ``limbctl teleop --operator``: a scripted hand moving the embedded
+simulator's leader, named from :data:`OPERATORS` (packaged in ``limbctl/data/``) or a YAML file
+of the simulator's operator form (:mod:`firmware_sim.operator_file` shows it; the same file
+serves ``firmware-sim --leader IDS --operator FILE``)."""
 
 from __future__ import annotations
 
@@ -44,11 +31,11 @@ class SimOperator:
     Attributes
     ----------
     name : str
-        The registry name or the file it came from (for messages).
+        The registry name or the file it came from.
     model : str
-        The leader servos' model, a rig-profile model name (``"xm430-w350"``).
+        The leader servos' model (``"xm430-w350"``).
     start_deg : tuple of float, shape (J,)
-        Where the leader rests when the simulator starts, pan, tilt (and roll) in degrees.
+        Where the leader rests at the start (deg).
     grip : dict
         The simulator's operator as data (``script`` rows of J + 1 numbers, ``let_go_s``, ...).
     """
@@ -86,10 +73,8 @@ def load_operator(spec: str, joints: int) -> SimOperator:
     Raises
     ------
     ConfigError
-        An unknown name (the known ones listed), a missing or unreadable file, or a file the
-        simulator refuses (:func:`firmware_sim.operator_file.leader_spec`: an unknown key, a
-        model it has no motor for, a start or script that is not ``joints`` angles); the
-        message names the file.
+        An unknown name, a missing or unreadable file, or one the simulator refuses
+        (:func:`firmware_sim.operator_file.leader_spec`); the message names the file.
     """
     from firmware_sim.operator_file import leader_spec
 

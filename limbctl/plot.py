@@ -1,8 +1,5 @@
-"""Pictures of a dataset or a model: samples, node weights and the learned region.
-
-Two panels: the pan/tilt plane (degrees), where the region is shaded by what the model's
-``contains`` says on a grid, and the unit sphere of limb directions seen from the front.
-"""
+"""Pictures of a dataset or a model: the pan/tilt plane (deg), the region shaded by the model's
+``contains`` on a grid, and the unit sphere of limb directions."""
 
 from __future__ import annotations
 
@@ -24,14 +21,9 @@ def _pan_tilt_deg(directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def region_grid(
     model: Any, pan_deg: tuple[float, float], tilt_deg: tuple[float, float], n: int = 200
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Which directions of an n x n pan/tilt grid (degrees) the model's region holds -> (P, T,
-    inside).
-
-    A three-servo region holds a direction at some twist: its whole extent is shaded, also where
-    the band excludes twist 0 (:func:`limbctl.teach.train.holds_direction`). The default
-    200 x 200 draws a 360-degree pan range in 1.8-degree cells, about the width of a line in the
-    figure.
-    """
+    """Which directions of an n x n pan/tilt grid (deg) the model's region holds -> (P, T, inside),
+    each (n, n); a three-servo region holds a direction at some twist (its whole extent is shaded).
+    The default 200 draws 360 deg of pan in 1.8 deg cells, about a line's width in the figure."""
     from limbctl.teach.train import holds_direction
 
     pans = np.linspace(*pan_deg, n)
@@ -50,7 +42,7 @@ def plot(
     extra: dict[str, np.ndarray] | None = None,
     outlines: dict[str, np.ndarray] | None = None,
 ) -> Path:
-    """Draw samples (N, 4) and/or a model to a PNG file and return its path.
+    """Draw samples and/or a model to a PNG file and return its path.
 
     Parameters
     ----------
@@ -65,8 +57,7 @@ def plot(
     extra : dict of name -> (M, 3) directions, optional
         More point sets to draw (e.g. commanded and corrected poses).
     outlines : dict of name -> (M, 2) pan/tilt in degrees, optional
-        Closed outlines to draw as lines on the plane and the sphere (e.g. the region the
-        simulator's hand taught, beside the region learned from it).
+        Closed outlines drawn on the plane and the sphere (e.g. the hand's true region).
     """
     import matplotlib
 
@@ -152,8 +143,7 @@ def plot(
 
 
 def plot_leader(path: Path, t: np.ndarray, leader: np.ndarray, follower: np.ndarray, torque):
-    """The demo's leader run: leader versus follower pan and tilt (and, for a three-servo
-    leader, twist) over time, and the leader's push.
+    """The demo's leader run: leader versus follower pose over time, and the leader's push.
 
     Parameters
     ----------
@@ -162,10 +152,10 @@ def plot_leader(path: Path, t: np.ndarray, leader: np.ndarray, follower: np.ndar
     t : ndarray (N,)
         Cycle times (s).
     leader, follower : ndarray (N, 2) or (N, 3)
-        Pan and tilt (deg) of the leader (the command) and of the follower (what was written);
-        a third column is the twist about the rest axis (deg), drawn on a panel of its own.
+        Pan, tilt (deg) of the leader and the follower; a third column, the twist (deg), gets a
+        panel of its own.
     torque : ndarray (N,)
-        The torque the leader pushed back with (N m; 0 inside the region).
+        The leader's push (N m; 0 inside the region).
     """
     import matplotlib
 

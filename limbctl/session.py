@@ -1,12 +1,5 @@
-"""Open a rig for a job: the embedded simulator when no port is given, else real servos.
-
-``open_rig`` is the one place that decides where the servos are:
-
-- ``--port PATH`` given: that serial device (a U2D2, or a ``firmware-sim --link`` path);
-- no ``--port`` and a rig profile whose ``port`` is a device: that device;
-- otherwise (the default, ``port: sim``): start :class:`firmware_sim.SimulatedBus` in its own
-  process and connect to its pty through the real dynamixel-sdk.
-"""
+"""Open a rig for a job: ``--port`` given, that device; else a profile's device; else (``port:
+sim``) :class:`firmware_sim.SimulatedBus` in its own process, through the real dynamixel-sdk."""
 
 from __future__ import annotations
 
@@ -21,8 +14,10 @@ from typing import Any
 
 from calib.profile import RigProfile
 from limbctl.servo.bus import ServoBus
+from limbctl.servo.control_table import MAX_TICK
 from limbctl.servo.profiles import check_models, load_rig_profile
 from limbctl.servo.rig import Rig
+from limbctl.servo.setup import configure_servos
 
 
 @dataclass
@@ -67,14 +62,13 @@ def open_rig(
     baud : int, optional
         Overrides the profile's baud rate.
     hand, goal_log, seed, sim_options
-        Passed to the simulator when one is started (ignored on real hardware).
+        Passed to the simulator when one is started.
     extra_ids : tuple of int
         More servos on the same bus (e.g. a leader gimbal).
     latency_timer_ms : float, optional
-        The USB adapter's latency timer; default 16 ms on a real port (the FTDI default), 2 ms
-        on the simulator's pty (a reply is then awaited ~6 ms).
+        The USB adapter's latency timer (ms); default 16 on a real port, 2 on the simulator's pty.
     profile : RigProfile, optional
-        The rig itself, in place of ``rig_path`` (a calibration's chosen ids and joints).
+        The rig itself, in place of ``rig_path``.
     """
     profile = profile if profile is not None else load_rig_profile(rig_path)
     device = port if port is not None else (None if profile.is_sim else profile.port)
@@ -110,6 +104,12 @@ def open_rig(
         if extra_ids:
             check_models(bus, profile.ids, profile.model)
         yield Session(rig=Rig(profile, bus), profile=profile, simulator=simulator)
+
+
+def configure(rig: Rig, extra_ids: tuple[int, ...] = ()) -> None:
+    """Set up the rig's servos with its hard limits, and those of ``extra_ids`` (a leader on the
+    same bus) with their full range."""
+    configure_servos(rig.bus, {**rig.tick_limits(), **dict.fromkeys(extra_ids, (0, MAX_TICK))})
 
 
 @contextmanager

@@ -1,10 +1,6 @@
 """Jobs that look after the servos rather than drive them: ``limbctl reboot`` and ``limbctl
-motors scan`` / ``limbctl motors setup`` (the logic of those is in :mod:`limbctl.servo.scan` and
-:mod:`limbctl.servo.motors`).
-
-Typed like :mod:`limbctl.jobs` (one options value in, an exit status out); kept apart so the
-jobs that drive the limb stay in one module of readable size.
-"""
+motors scan`` / ``setup`` (their logic: :mod:`limbctl.servo.scan`, :mod:`limbctl.servo.motors`),
+typed like :mod:`limbctl.jobs`."""
 
 from __future__ import annotations
 
@@ -15,8 +11,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from limbctl.errors import ConfigError
-from limbctl.jobs import Connection, say
-from limbctl.session import open_rig
+from limbctl.jobs import Connection, open_connection, say
 
 if TYPE_CHECKING:
     from limbctl.servo.motors import Claims
@@ -30,14 +25,11 @@ class RebootOptions:
 
 
 def run_reboot(options: RebootOptions) -> int:
-    """Reboot every servo in alarm and read their alarms again; 0 when every servo is clear
-    (also when none was in alarm), 3 when one is in alarm again at once (its cause remains)."""
+    """Reboot every servo in alarm and read their alarms again; 0 when every servo is clear, 3 when
+    one is in alarm again at once (its cause remains)."""
     from limbctl.servo.alarms import reboot_servos_in_alarm
 
-    conn = options.connection
-    with open_rig(
-        conn.port, conn.rig, conn.baud, seed=conn.seed, latency_timer_ms=conn.latency_timer_ms
-    ) as session:
+    with open_connection(options.connection) as session:
         bus = session.rig.bus
         rebooted = reboot_servos_in_alarm(bus)
         ids = ", ".join(str(i) for i in bus.ids)
@@ -114,8 +106,8 @@ def _progress(index: int, count: int, baud: int) -> None:
 
 
 def run_motor_scan(options: MotorScanOptions) -> int:
-    """Scan and print what answered; 0 when servos were found without collisions, 1 when
-    nothing answered, 3 when servos share an ID."""
+    """Scan and print what answered; 0 when servos were found without collisions, 1 when nothing
+    answered, 3 when servos share an ID."""
     from limbctl.servo.scan import SCAN_BAUDS, scan
 
     conn = options.connection
@@ -130,9 +122,9 @@ def run_motor_scan(options: MotorScanOptions) -> int:
 
 @dataclass(frozen=True)
 class MotorSetupOptions:
-    """``limbctl motors setup``: give the profile's joints' servos their IDs and baud, one
-    at a time (``joints``: all), asking to connect each unless ``yes``; ``renumber`` (with
-    one joint) makes a servo that answers as another joint's ID that joint's on purpose."""
+    """``limbctl motors setup``: give the profile's ``joints``' servos (all: ``()``) their IDs and
+    baud one at a time, asking first unless ``yes``; ``renumber``: take a servo that answers as
+    another joint's ID on purpose."""
 
     connection: Connection = field(default_factory=Connection)
     joints: tuple[str, ...] = ()
@@ -141,23 +133,17 @@ class MotorSetupOptions:
 
 
 def run_motor_setup(options: MotorSetupOptions) -> int:
-    """Set up each joint's servo; 0 when every one succeeded, 1 when one failed or was skipped
-    (the others keep what was done: the summary says which).
+    """Set up each joint's servo; 0 when every one succeeded, 1 when one failed or was skipped.
 
-    A servo recognisably another joint's (:mod:`limbctl.servo.motors`) is never renumbered
-    unless ``renumber``: with ``yes`` that joint fails; otherwise the person is asked to
-    connect the right servo (Enter looks again) or to skip the joint.
-    """
+    A servo recognisably another joint's is never renumbered unless ``renumber``: with ``yes`` that
+    joint fails; otherwise the person connects the right one (Enter looks again) or skips it."""
     from limbctl.servo.motors import Claims, JointTarget, check_target, setup_joint
     from limbctl.servo.profiles import load_rig_profile
 
     conn = options.connection
     profile = load_rig_profile(conn.rig)
     baud = conn.baud or profile.baud
-    joints = {"pan": profile.pan, "tilt": profile.tilt}
-    for name in ("roll",):  # a third joint, once a profile has one
-        if getattr(profile, name, None) is not None:
-            joints[name] = getattr(profile, name)
+    joints = dict(profile.joints)
     chosen = options.joints or tuple(joints)
     unknown = [j for j in chosen if j not in joints]
     if unknown:
@@ -202,8 +188,8 @@ def run_motor_setup(options: MotorSetupOptions) -> int:
 
 
 def _look_again(joint: str, owner: str, claims: Claims, ids: dict[str, int]) -> bool:
-    """Ask whether to look for ``joint``'s servo again (Enter) or to skip it (skip, or the
-    end of input); the connected servo is ``owner``'s."""
+    """Ask whether to look for ``joint``'s servo again (Enter) or to skip it (skip, or end of
+    input); the connected servo is ``owner``'s."""
     when = "set up a moment ago" if owner in claims.set_up_now else "set up before"
     try:
         answer = input(
@@ -219,7 +205,7 @@ def _look_again(joint: str, owner: str, claims: Claims, ids: dict[str, int]) -> 
 @contextmanager
 def _bus_port(conn: Connection, setup: bool = False) -> Iterator[tuple[str, float]]:
     """(port, latency timer ms) of the bus: --port, the profile's device, or (scan only) the
-    embedded simulator's rig."""
+    embedded simulator's."""
     from limbctl.servo.profiles import load_rig_profile
 
     profile = load_rig_profile(conn.rig)

@@ -1,18 +1,9 @@
-"""The machine's programs some tests drive, set up by the test run itself.
+"""The machine's programs some tests drive (Chromium, its driver, tmux), set up by the test run.
 
-The live view's browser tests drive a headless Chromium through its driver (tests/view/browser.py)
-and the keyboard tests type into a real terminal (tmux, tests/teleop/tmux.py). ``python -m pytest
--q`` on a fresh machine finds them missing; :func:`ensure`, run once at the start of the session
-(tests/conftest.py), then:
-
-- as root with ``apt-get`` available: installs the missing packages (:data:`TOOLS`), saying so on
-  one progress line first; a later run finds them and installs nothing (once per machine);
-- else: says in ONE line what to install, and every test that needs a missing program skips
-  with that same line (:func:`require`), so the rest of the suite still runs and passes.
-
-Concurrent test runs on one machine install one at a time (:data:`LOCK`), and a run that waited
-finds the programs the other installed.
-"""
+:func:`ensure`, run once at the session's start (tests/conftest.py): as root with ``apt-get``,
+installs the missing packages (one progress line; once per machine, one run at a time under
+:data:`LOCK`); else says in ONE line what to install, and each test needing a missing program
+skips with that line (:func:`require`)."""
 
 from __future__ import annotations
 
@@ -69,22 +60,13 @@ def what_to_install(names: Sequence[str], why: str = "") -> str:
 def apt_get_install(names: Sequence[str]) -> subprocess.CompletedProcess:
     """Run ``apt-get update`` and ``apt-get install -y`` of the packages of ``names``."""
     env = {**os.environ, "DEBIAN_FRONTEND": "noninteractive"}
-    done = subprocess.run(
-        ["apt-get", "update", "-qq"],
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=INSTALL_TIMEOUT_S,
-    )
-    if done.returncode != 0:
-        return done
-    return subprocess.run(
-        ["apt-get", "install", "-y", "-qq", *packages(names)],
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=INSTALL_TIMEOUT_S,
-    )
+    for args in (["update", "-qq"], ["install", "-y", "-qq", *packages(names)]):
+        done = subprocess.run(
+            ["apt-get", *args], env=env, capture_output=True, text=True, timeout=INSTALL_TIMEOUT_S
+        )
+        if done.returncode != 0:
+            break
+    return done
 
 
 @contextlib.contextmanager
@@ -103,26 +85,9 @@ def ensure(
     install: Callable[[Sequence[str]], subprocess.CompletedProcess] = apt_get_install,
     say: Callable[[str], None] = print,
 ) -> str | None:
-    """Install the missing programs where this process may; returns the line tests skip with.
-
-    Parameters
-    ----------
-    path : str, optional
-        Where programs are looked for (default ``$PATH``).
-    root : bool, optional
-        Whether this process may install (default: running as root with ``apt-get`` on ``path``).
-    install : callable
-        Installs the packages of the programs it is given (default :func:`apt_get_install`).
-    say : callable
-        Writes a progress line.
-
-    Returns
-    -------
-    str or None
-        None when every program is found (installed now if it had to be); else the one line
-        saying what to install (and why installing failed, when it did), also kept for
-        :func:`require`.
-    """
+    """Install the missing programs where this process may (``root``; default: root with
+    ``apt-get`` on ``path``) with ``install``; returns None when all are found, else the one line
+    saying what to install (and why installing failed), kept for :func:`require`."""
     global _missing_line
     absent = missing(path)
     if root is None:

@@ -81,11 +81,7 @@ def test_the_teleop_picture_outlines_the_hands_true_region():
 
 
 def test_the_three_servo_demo_keeps_every_goal_in_the_learned_region(tmp_path, capsys):
-    from limbctl.eval.twist_demo import (
-        logged_orientations,
-        twist_excursions,
-        written_orientations,
-    )
+    from limbctl.eval.twist_demo import logged_orientations, twist_excursions, written_orientations
     from limbctl.teleop.gate import written_tolerance_deg
 
     out = tmp_path / "demo3"

@@ -48,14 +48,12 @@ sys.exit(status)
 )
 
 
-def compiled_by(
-    args: list[str], tmp: Path, stdin: str = "", prepared: bool = False
-) -> tuple[list[str], list[str]]:
-    """Run ``limbctl ARGS`` from an empty cache: (limbctl kernels, numba helpers) compiled."""
+def probed(script: str, tmp: Path, args=(), stdin: str = "") -> tuple[str, list]:
+    """Run a probe ``script`` with ``args`` from an empty cache: its stderr, and what it logged."""
     log = tmp / "compiled.json"
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp / "numba-cache"), "PYTHONPATH": str(ROOT)}
     done = subprocess.run(
-        [sys.executable, "-c", PROBE, str(log), *args],
+        [sys.executable, "-c", script, str(log), *args],
         cwd=tmp,
         env=env,
         input=stdin,
@@ -63,9 +61,16 @@ def compiled_by(
         text=True,
     )
     assert done.returncode == 0, done.stderr
+    return done.stderr, json.loads(log.read_text())
+
+
+def compiled_by(
+    args: list[str], tmp: Path, stdin: str = "", prepared: bool = False
+) -> tuple[list[str], list[str]]:
+    """Run ``limbctl ARGS`` from an empty cache: (limbctl kernels, numba helpers) compiled."""
+    said, names = probed(PROBE, tmp, args, stdin)
     # a first run says why it waits; a run that finds everything compiled does not
-    assert ("preparing (first run only)" in done.stderr) != prepared, done.stderr
-    names = json.loads(log.read_text())
+    assert ("preparing (first run only)" in said) != prepared, said
     ours = [n for n in names if n.startswith("limbctl.")]
     return ours, [n for n in names if not n.startswith("limbctl.")]
 
@@ -148,13 +153,7 @@ def test_a_first_twist_fit_compiles_no_helper_per_prange_body_and_no_gate_kernel
     """A parallel kernel's prange body compiled numba's helpers again (89 of 221 compiles of a
     cold three-servo train repeated a signature); numba's np.linalg compiled shape checks and
     message formatting; the fit asked the gate's grid containment it never needs."""
-    log = tmp_path / "compiled.json"
-    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba-cache"), "PYTHONPATH": str(ROOT)}
-    done = subprocess.run(
-        [sys.executable, "-c", TWIST_FIT, str(log)], env=env, capture_output=True, text=True
-    )
-    assert done.returncode == 0, done.stderr
-    compiled = [tuple(c) for c in json.loads(log.read_text())]
+    compiled = [tuple(c) for c in probed(TWIST_FIT, tmp_path)[1]]
     ours = [n for n, _ in compiled if n.startswith("limbctl.")]
     helpers = [n for n, _ in compiled if not n.startswith("limbctl.")]
     _within("a twist fit", (ours, helpers), TWIST_FIT_COMPILES)

@@ -1,8 +1,7 @@
-"""The jobs feed the live view: a record and a teleop on the simulator, watched in Chromium; a felt
-leader's teleop on the page (the simulator's leader pushed past the edge by its operator); and
-steering from the page (`teleop --source page`, driven from Chromium): a drag that leaves the
-region moves the simulated limb along its edge, judged by the simulator's own goal log; a frozen
-browser (SIGSTOP) holds the limb; a killed one leaves it held and the session ends normally."""
+"""The jobs feed the live view, watched in Chromium: a record and a teleop; a felt leader's teleop
+(the simulator's leader pushed past the edge by its operator); steering from the page (a drag
+out of the region moves the limb along its edge, per the simulator's goal log; a frozen browser
+holds the limb; a killed one leaves it held and the session ends normally)."""
 
 from __future__ import annotations
 
@@ -119,10 +118,8 @@ def free_udp_port() -> int:
 
 @contextlib.contextmanager
 def ctrl_c_for_the_job_only():
-    """Around a job a test ends with Ctrl-C (SIGINT to this process): a SIGINT that arrives while
-    the job's own handler is not installed (before it starts or after it ends) is kept in the
-    yielded list instead of interrupting the whole test run; the test then fails on its own. Join
-    the watcher that sends the signal inside it."""
+    """Around a job a test ends with Ctrl-C: a SIGINT arriving while the job's own handler is not
+    installed is kept in the yielded list instead of interrupting the test run."""
     stray: list[int] = []
     previous = signal.signal(signal.SIGINT, lambda signum, frame: stray.append(signum))
     try:
@@ -456,9 +453,7 @@ def held_since(rows: list[dict], start: int) -> int:
 
 
 def test_a_page_steers_along_the_edge_a_frozen_page_holds_a_killed_one_ends_well(
-    tmp_path,
-    capsys,
-    hand_model_path,
+    tmp_path, capsys, hand_model_path
 ):
     goal_log, telemetry = tmp_path / "goals.jsonl", tmp_path / "telemetry.jsonl"
     options = TeleopOptions(

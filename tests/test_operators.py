@@ -8,15 +8,18 @@ import re
 from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 import calib
-from calib.profile import default_sim_profile
 from limbctl.cli import main
+from limbctl.envelope import RigidMap
+from limbctl.envelope.synthetic_twist import ShoulderRegion
 from limbctl.errors import ConfigError
 from limbctl.jobs import Connection, TeleopOptions, run_teleop
 from limbctl.live import ViewOptions
 from limbctl.operators import OPERATORS, load_operator
+from tests.conftest import trained_for
 
 EDGE = 30.0
 
@@ -190,18 +193,9 @@ def test_a_three_servo_leader_pressed_past_the_twist_band_is_reported_on_teleop(
     """The three-servo session opens its source only once the limb is held inside; the leader's
     notice and its press are still said (they were not before the sources were introduced in
     one place)."""
-    from pathlib import Path
-
-    import numpy as np
-
-    from limbctl.envelope import RigidMap
-    from limbctl.envelope.synthetic_twist import ShoulderRegion
-
     model = tmp_path / "shoulder.npz"
-    sim3 = default_sim_profile("sim3")
-    metadata = {"rig": sim3.name, "calibration": sim3.calibration.to_dict()}
     taught = ShoulderRegion().teaching(2500, 1200, 1200, np.random.default_rng(0))
-    RigidMap(twist=True).fit(taught).save(model, metadata=metadata)
+    RigidMap(twist=True).fit(taught).save(model, metadata=trained_for("sim3"))
     said, pressed = teleop_with_operator(  # roll 150 deg at pan 0, tilt 10: far past the band
         capsys,
         tmp_path / "roll.yaml",

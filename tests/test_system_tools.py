@@ -96,17 +96,7 @@ def run_hidden(tree: Path, tmp_path: Path) -> subprocess.CompletedProcess:
     may not install: a PATH without the programs (and without apt-get)."""
     (tmp_path / "test_tools_needed.py").write_text(BROWSER_TEST)
     return subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "pytest",
-            "-q",
-            "-p",
-            "tests.conftest",
-            "-p",
-            "no:cacheprovider",
-            "-ra",
-        ]
+        [sys.executable, *"-m pytest -q -p tests.conftest -p no:cacheprovider -ra".split()]
         + ["--rootdir", str(tmp_path), str(tmp_path / "test_tools_needed.py")],
         cwd=tree,
         env={

@@ -30,9 +30,9 @@ class Envelope(ABC):
     """A region of valid orientations on S^3 behind one interface.
 
     Subclasses set ``kind`` (the name written to files) and implement ``fit``, ``respond``,
-    ``contains``, ``correct``, ``_params`` / ``_arrays`` (what to save) and ``_restore`` (how to
-    rebuild from them). Every method accepts one quaternion (4,) or a batch (N, 4) and returns
-    the same leading shape.
+    ``_inside`` and ``_to_boundary`` (or ``contains`` and ``correct``), ``_params`` / ``_arrays``
+    (what to save) and ``_restore`` (how to rebuild from them). Every method accepts one
+    quaternion (4,) or a batch (N, 4) and returns the same leading shape.
     """
 
     kind: ClassVar[str] = ""
@@ -54,13 +54,29 @@ class Envelope(ABC):
     def respond(self, q: np.ndarray, interpolation: str = "none", k: int = 8) -> np.ndarray:
         """The network's answer as in the papers, shape like ``q``."""
 
-    @abstractmethod
     def contains(self, q: np.ndarray) -> np.ndarray | bool:
         """Whether each orientation is inside the learned region: (N,) bool, or bool for (4,)."""
+        arr, single = self._input(q)
+        inside = self._inside(arr)
+        return bool(inside[0]) if single else inside
 
-    @abstractmethod
     def correct(self, q: np.ndarray) -> np.ndarray:
-        """``q`` itself inside the region, the nearest boundary orientation outside."""
+        """``q`` itself (canonical, bit for bit) inside the region, the model's boundary
+        orientation (unit, w >= 0) outside; shape like ``q``."""
+        arr, single = self._input(q)
+        out = arr.copy()
+        outside = ~self._inside(arr)
+        if outside.any():
+            out[outside] = self._to_boundary(arr[outside])
+        return out[0] if single else out
+
+    def _inside(self, q: np.ndarray) -> np.ndarray:
+        """Whether each of canonical ``q`` (N, 4) is inside: (N,) bool."""
+        raise NotImplementedError
+
+    def _to_boundary(self, q: np.ndarray) -> np.ndarray:
+        """The answers (N, 4) to canonical ``q`` (N, 4) outside the region."""
+        raise NotImplementedError
 
     @property
     @abstractmethod
@@ -82,11 +98,8 @@ class Envelope(ABC):
         """Rebuild a trained model from what ``_params`` and ``_arrays`` returned."""
 
     def save(self, path: str | Path, metadata: dict[str, Any] | None = None) -> Path:
-        """Write the model to ``path`` (one .npz file) atomically; returns the path.
-
-        ``metadata`` (JSON-serialisable, e.g. the rig name a model was trained for) is stored
-        in the header and read back by :func:`load_header`.
-        """
+        """Write the model to ``path`` (one .npz file) atomically, with JSON ``metadata`` in its
+        header (:func:`load_header`); returns the path."""
         path = Path(path)
         arrays = {name: np.ascontiguousarray(a) for name, a in self._arrays().items()}
         header = {

@@ -1,19 +1,11 @@
 """Lee's analytic swing cone: the ground truth of the papers' experiments and a hand-written limit.
 
-The limb rests along +x. Lee splits q = swing * twist with the twist about +x; the swing angle
-(angle between the limb and +x) is ``theta = 2 acos(sqrt(w^2 + x^2))``. A cone of half-angle R
-allows any twist and every swing up to R:
-
-    valid  <=>  theta <= R  <=>  w^2 + x^2 >= cos^2(R / 2)
-
-The ideal correction (the papers' 'ideal' answers) keeps the twist and the swing axis and sets
-the swing angle to R. With n = sqrt(w^2 + x^2) and m = sqrt(y^2 + z^2) it has the closed form
-
-    correct(q) = (c w / n, c x / n, s y / m, s z / m),   c = cos(R / 2), s = sin(R / 2),
-
-(the swing (n, 0, (wy - xz)/n, (xy + wz)/n) rescaled to angle R, times the twist (w, x, 0, 0)/n),
-which is also the nearest point of the boundary in R^4. When n = 0 (the limb points along -x,
-twist undefined) the twist is taken as the identity: (c, 0, s y / m, s z / m).
+The swing angle (between the limb and its rest axis +x) is ``theta = 2 acos(sqrt(w^2 + x^2))``;
+a cone of half-angle R allows any twist and ``theta <= R``, i.e. ``w^2 + x^2 >= cos^2(R / 2)``.
+The ideal correction keeps twist and swing axis and sets the swing angle to R: with
+``n = sqrt(w^2 + x^2)``, ``m = sqrt(y^2 + z^2)``, ``c = cos(R / 2)``, ``s = sin(R / 2)``,
+``correct(q) = (c w / n, c x / n, s y / m, s z / m)``, also the nearest boundary point in R^4
+(at n = 0, the limb along -x, the twist is taken as the identity: ``(c, 0, s y / m, s z / m)``).
 """
 
 from __future__ import annotations
@@ -71,18 +63,8 @@ class Cone(Envelope):
 
     # ---- learning and answering ------------------------------------------------------------
     def fit(self, q_train: np.ndarray) -> Cone:
-        """Check the training data; learn R = max swing angle if no half angle was given.
-
-        Parameters
-        ----------
-        q_train : array_like, shape (N, 4)
-            Valid orientations (unit quaternions); N >= 1.
-
-        Returns
-        -------
-        Cone
-            self. With a fixed half angle there is nothing to learn.
-        """
+        """Check valid orientations ``q_train`` (N, 4), N >= 1; without a half angle learn R as
+        their largest swing angle. Returns self."""
         q, _ = self._input(q_train)
         if len(q) == 0:
             raise ConfigError("Cone.fit: q_train is empty; give at least one orientation")
@@ -91,39 +73,10 @@ class Cone(Envelope):
         return self
 
     def respond(self, q: np.ndarray, interpolation: str = "none", k: int = 8) -> np.ndarray:
-        """Lee's ideal answer, identical to :meth:`correct`.
-
-        An analytic model has no nodes to interpolate between: ``interpolation`` and ``k`` are
-        checked (same choices as the networks) and otherwise ignored.
-        """
+        """Lee's ideal answer, :meth:`correct` (``interpolation`` and ``k`` checked, not used)."""
         ip.interpolation_code(interpolation)
         ip.check_k(k)
         return self.correct(q)
-
-    def contains(self, q: np.ndarray) -> np.ndarray | bool:
-        """Inside the cone: w^2 + x^2 >= cos^2(R/2) - CONTAINS_TOLERANCE. (N,) bool or bool."""
-        arr, single = self._input(q)
-        inside = self._inside(arr)
-        return bool(inside[0]) if single else inside
-
-    def correct(self, q: np.ndarray) -> np.ndarray:
-        """q (canonical, bit-for-bit) inside; Lee's correction to swing angle R outside.
-
-        Parameters
-        ----------
-        q : array_like, shape (4,) or (N, 4)
-
-        Returns
-        -------
-        ndarray, shape like ``q``
-            Unit quaternions, w >= 0.
-        """
-        arr, single = self._input(q)
-        out = arr.copy()
-        outside = ~self._inside(arr)
-        if outside.any():
-            out[outside] = self._to_boundary(arr[outside])
-        return out[0] if single else out
 
     @property
     def weights(self) -> np.ndarray:
@@ -132,11 +85,13 @@ class Cone(Envelope):
 
     # ---- internals -------------------------------------------------------------------------
     def _inside(self, q: np.ndarray) -> np.ndarray:
+        """Inside the cone: w^2 + x^2 >= cos^2(R/2) - CONTAINS_TOLERANCE."""
         limit = np.cos(0.5 * self.half_angle) ** 2
         # valid iff w^2 + x^2 >= cos^2(R/2)   (tolerance: see CONTAINS_TOLERANCE)
         return q[:, 0] ** 2 + q[:, 1] ** 2 >= limit - CONTAINS_TOLERANCE
 
     def _to_boundary(self, q: np.ndarray) -> np.ndarray:
+        """Lee's correction to swing angle R."""
         c = np.cos(0.5 * self.half_angle)
         s = np.sin(0.5 * self.half_angle)
         out = np.empty_like(q)
@@ -168,11 +123,8 @@ class Cone(Envelope):
 
 
 def _unit_pair(u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(u, v) / hypot(u, v), accurate for subnormal pairs; also where both are zero.
-
-    Scales by max(|u|, |v|) first so the ratio keeps full precision. Returns the two unit
-    components (0 where both are zero) and the (N,) mask of zero pairs.
-    """
+    """(u, v) / hypot(u, v) (N,) each, scaled by max(|u|, |v|) first so subnormal pairs keep
+    full precision; 0 where both are zero, and the (N,) mask of those."""
     big = np.maximum(np.abs(u), np.abs(v))
     zero = big == 0.0
     big = np.where(zero, 1.0, big)

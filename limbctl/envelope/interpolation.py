@@ -20,11 +20,9 @@ A trained network answers an input ``x`` (unit quaternion) with the weight of it
     The geometric rule over the winner's ``k`` nearest nodes in the *output topology* (grid
     neighbours of a SOM, position neighbours of a Rigid Map) instead of nearest by weight.
 
-Every answer is normalised to unit length and flipped to w >= 0.
-
-Distances: ``euclidean`` ``E = |x - w|^2`` (the papers' answering metric) or ``cosine``
-``D = acos(x . w / |w|)^2``. :func:`respond_batch` is the numba kernel (no fastmath, cached);
-:func:`respond_reference` is the plain numpy version the tests compare it with.
+Every answer is normalised to unit length and flipped to w >= 0. Distances: ``euclidean``
+``|x - w|^2`` (the papers') or ``cosine`` ``acos(x . w / |w|)^2``. :func:`respond_reference` is
+the plain numpy twin of the :func:`respond_batch` kernel.
 """
 
 from __future__ import annotations
@@ -96,11 +94,8 @@ def _distance(x: np.ndarray, w: np.ndarray, metric: int) -> float:
 
 @njit
 def _nearest(weights, x, count, metric, idx, dist) -> None:
-    """Fill ``idx``, ``dist`` (count,) with the ``count`` nearest weights, nearest first.
-
-    Insertion into a sorted list; a later node displaces an earlier one only when strictly
-    nearer, so ties keep the lower index (as a stable argsort does).
-    """
+    """Fill ``idx``, ``dist`` (count,) with the ``count`` nearest weights, nearest first; ties
+    keep the lower index (as a stable argsort does)."""
     for r in range(count):
         idx[r] = -1
         dist[r] = np.inf
@@ -256,10 +251,7 @@ def respond_rows(
 
 @njit(parallel=True)
 def nearest_distance(weights: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """Euclidean distance ``min_i |q_j - w_i|`` from each row of ``q`` (N, 4) to ``weights``.
-
-    Returns (N,) float64.
-    """
+    """Euclidean distance ``min_i |q_j - w_i|`` (N,) from each row of ``q`` (N, 4) to weights."""
     n = q.shape[0]
     out = np.empty(n)
     for j in nb.prange(n):
@@ -310,11 +302,8 @@ def respond_reference(
 
 
 def neighbours_by_position(positions: np.ndarray, k: int) -> np.ndarray:
-    """Each node's ``k`` nearest other nodes by Euclidean position (M, k) int64, nearest first.
-
-    Ties keep the lower index. ``positions`` may be S^3 positions (Rigid Map, (M, 4)) or grid
-    coordinates (SOM, (M, 2)).
-    """
+    """Each node's ``k`` nearest other nodes by Euclidean position (M, k) int64, nearest first,
+    ties by index; ``positions`` (M, 4) on S^3 (Rigid Map) or (M, 2) grid coordinates (SOM)."""
     positions = np.asarray(positions, dtype=np.float64)
     sq = np.sum(positions**2, axis=1)
     # |a - b|^2 = |a|^2 + |b|^2 - 2 a.b   (exact for integer grid coordinates)

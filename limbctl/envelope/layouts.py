@@ -1,27 +1,11 @@
-"""Node positions on S^3 (unit quaternions) for Rigid Map output layers.
+"""Node positions on S^3 (unit quaternions) for Rigid Map output layers, by name
+(:data:`LAYOUTS`, :func:`make_layout`).
 
-Every layout returns an (n, 4) float64 array of unit quaternions (w, x, y, z), chosen by name
-from :data:`LAYOUTS` through :func:`make_layout`; an unknown name is rejected with the list of
-choices.
-
-Hemisphere choice
------------------
-The papers place nodes on the whole of S^3 (the 720-node union is the 600-cell's 120 vertices
-plus the 120-cell's 600). A quaternion and its antipode are one rotation, and the valid set lives
-on the canonical side w >= 0 (the project's convention), so by default (``hemisphere=True``)
-every layout lives on w >= 0 only:
-
-- polytopes (centrally symmetric) are *folded*: each antipodal pair keeps its member with
-  w > 0 (on w = 0, the member whose first non-zero component is positive). The counts halve:
-  24-cell 12, 600-cell 60, 120-cell 300, the union 360. Folding loses no rotation;
-- random and spiral layouts put all ``n`` points on the hemisphere with uniform density.
-
-``hemisphere=False`` gives the papers' full-sphere node sets (24, 120, 600, 720, or ``n``
-points over all of S^3) for reproducing their node counts.
-
-The polytope layouts (``24-cell``, ``600-cell``, ``120-cell``, the papers' 720-node union with the
-600-cell dual to the 120-cell, ``polytope-720``, or its even twin ``polytope-720-even``, kept for
-comparison) and the sized ones (``uniform``, ``super-fibonacci``) are described at their builders.
+The papers place nodes on all of S^3. A quaternion and its antipode are one rotation, so by
+default (``hemisphere=True``) every layout lives on w >= 0: polytopes are *folded* (each antipodal
+pair keeps its member with w > 0, on w = 0 the one whose first non-zero component is positive;
+the counts halve, 24-cell 12, 600-cell 60, 120-cell 300, the 720-node union 360) and the random
+and spiral layouts put all ``n`` points there. ``hemisphere=False`` gives the papers' node sets.
 """
 
 from __future__ import annotations
@@ -77,21 +61,8 @@ def _normalise_rows(p: np.ndarray) -> np.ndarray:
 
 
 def fold_to_hemisphere(points: np.ndarray, decimals: int = 9) -> np.ndarray:
-    """Fold points to the canonical hemisphere and drop antipodal duplicates.
-
-    Parameters
-    ----------
-    points : ndarray, shape (n, 4)
-        Unit quaternions.
-    decimals : int
-        Rounding used to recognise duplicates.
-
-    Returns
-    -------
-    ndarray, shape (m, 4)
-        Each point's representative with w > 0, or on w = 0 the one whose first non-zero
-        component is positive; duplicates removed, input order kept.
-    """
+    """Unit quaternions (n, 4) folded to the canonical hemisphere (module docstring), duplicates
+    (rounded to ``decimals``) dropped, input order kept: (m, 4)."""
     points = np.asarray(points, dtype=np.float64)
     rounded = np.round(points, decimals) + 0.0  # + 0.0 turns -0.0 into 0.0
     nonzero = rounded != 0.0
@@ -150,11 +121,7 @@ def union_720(parity: str = "odd") -> np.ndarray:
 
 
 def uniform(n: int, rng: np.random.Generator, hemisphere: bool) -> np.ndarray:
-    """``n`` points uniform on S^3 (or on w >= 0): normalised Gaussian 4-vectors.
-
-    A standard normal 4-vector is rotation invariant, so its direction is uniform on S^3;
-    flipping to w >= 0 keeps the density uniform on the hemisphere.
-    """
+    """``n`` points (n, 4) uniform on S^3 (or on w >= 0): normalised Gaussian 4-vectors."""
     g = rng.standard_normal((n, 4))
     p = _normalise_rows(g)
     if hemisphere:
@@ -167,11 +134,8 @@ def super_fibonacci(n: int, hemisphere: bool) -> np.ndarray:
 
     For i = 0..n-1: s = i + 1/2, t = s / n, r = sqrt(t), R = sqrt(1 - t),
     alpha = 2 pi s / sqrt 2, beta = 2 pi s / psi (psi^4 = psi + 4),
-    q_i = (r sin alpha, r cos alpha, R sin beta, R cos beta).
-
-    The map (t, alpha / 2pi, beta / 2pi) -> q is measure preserving from the unit cube onto
-    S^3; on the hemisphere alpha is scaled to [0, pi) (then w = r sin alpha >= 0), which keeps
-    the same low-discrepancy sequence and puts all ``n`` points on w >= 0.
+    q_i = (r sin alpha, r cos alpha, R sin beta, R cos beta); on the hemisphere alpha is
+    scaled to [0, pi), so w = r sin alpha >= 0.
     """
     s = np.arange(n, dtype=np.float64) + 0.5
     t = s / n
@@ -242,8 +206,7 @@ def make_layout(
     seed : int or numpy.random.Generator
         Randomness for ``uniform`` (ignored by the deterministic layouts).
     hemisphere : bool
-        True (default): nodes on the canonical hemisphere w >= 0, polytopes folded (see the
-        module docstring). False: the papers' full-sphere node sets.
+        Nodes on w >= 0, polytopes folded (module docstring); False: the papers' node sets.
 
     Returns
     -------

@@ -1,22 +1,12 @@
 """The interpolated Rigid Map (Jenkins & Angel), and the exact gate built on it.
 
-``respond`` is the papers' network, faithfully: node positions fixed on S^3 by a layout, weights
-trained from valid orientations only (winner by position while training, Table I's exponential
-schedules, see :mod:`limbctl.envelope.rigidmap_kernels`), winner by weight when answering,
-optionally interpolated with the runner-ups.
-
-``contains``/``correct`` are the gate: they ask the taught region
-(:class:`limbctl.region.taught.TaughtRegion`, settings in one
-:class:`~limbctl.region.params.RegionParams`), which is built from the *positions* of taught
-samples (thinned, outermost kept), not from any weight: a trained weight is the mean of the
-samples it wins, so the outermost weights sit inside the outermost samples and a region on them
-refuses taught poses. ``docs/region.md`` describes the region, its edge strategies and what the
-weights are used for.
-
-*Support refinement*: a second layer of nodes sits on the region's thinned samples
-(``support_positions``), its weights initialised with the trained map's geometric-interpolated
-answer there and trained by the same rule and schedule on all the data (``support_weights``:
-the papers' answering rule on nodes where the data lie, which ``limbctl eval`` scores).
+``respond`` is the papers' network: node positions fixed on S^3 by a layout, weights trained from
+valid orientations (:mod:`limbctl.envelope.rigidmap_kernels`), winner by weight when answering,
+optionally interpolated with the runner-ups. ``contains``/``correct`` ask the taught region
+(:class:`limbctl.region.taught.TaughtRegion`), built from the *positions* of taught samples, not
+from weights (docs/region.md says why). *Support refinement*: a second layer of nodes on the
+region's thinned samples (``support_positions``), started from the map's geometric answer there
+and trained by the same rule on all the data (``support_weights``, which ``limbctl eval`` scores).
 """
 
 from __future__ import annotations
@@ -42,17 +32,14 @@ GATE_VERSION = 6
 TOPOLOGY_NEIGHBOURS = 16
 #: Runner-ups of the geometric answer the support weights start from: the papers' 8.
 SUPPORT_START_K = 8
+#: The attributes that are :func:`rigidmap_kernels.train_rigid_map`'s schedule, in its order.
+_SCHEDULE = (
+    "learning_rate learning_rate_decay radius radius_decay neighbourhood max_epochs tol".split()
+)
 #: The region settings that models saved before RegionParams kept among the map's parameters.
-_FLAT_REGION_KEYS = (
-    "support_nodes",
-    "thin_deg",
-    "alpha_factor",
-    "hole_fraction",
-    "peel_factor",
-    "min_peel_deg",
-    "surround_deg",
-    "max_margin_deg",
-    "max_offset_deg",
+_FLAT_REGION_KEYS = tuple(
+    "support_nodes thin_deg alpha_factor hole_fraction peel_factor min_peel_deg surround_deg "
+    "max_margin_deg max_offset_deg".split()
 )
 
 
@@ -80,10 +67,8 @@ class RigidMap(Envelope):
     region : RegionParams, optional
         Settings of the taught region the gate enforces (defaults when None).
     twist : bool
-        Three-servo limbs: learn swing and twist from full orientations
-        (:class:`~limbctl.region.twist_region.TwistRegion`); ``correct`` then gives the nearest
-        orientation of the region on SO(3). False (default): the swing-only region of a
-        two-servo gimbal, twist kept.
+        Learn swing and twist (:class:`~limbctl.region.twist_region.TwistRegion`, ``correct``
+        nearest on SO(3)) for three servos; False: the swing-only region, twist kept.
     """
 
     kind: ClassVar[str] = "rigidmap"
@@ -138,18 +123,8 @@ class RigidMap(Envelope):
 
     # ---- learning ----------------------------------------------------------------------------
     def _train(self, positions: np.ndarray, weights: np.ndarray, patterns: np.ndarray) -> int:
-        return rk.train_rigid_map(
-            positions,
-            weights,
-            patterns,
-            self.learning_rate,
-            self.learning_rate_decay,
-            self.radius,
-            self.radius_decay,
-            self.neighbourhood,
-            self.max_epochs,
-            self.tol,
-        )
+        schedule = (getattr(self, name) for name in _SCHEDULE)
+        return rk.train_rigid_map(positions, weights, patterns, *schedule)
 
     def fit(self, q_train: np.ndarray) -> RigidMap:
         """Train the map, then its support refinement and the gate, from valid ``q_train``."""
@@ -187,12 +162,8 @@ class RigidMap(Envelope):
             raise ConfigError("this RigidMap is not trained: call fit(q_train) or load a model")
 
     def respond(self, q: np.ndarray, interpolation: str = "none", k: int = 8) -> np.ndarray:
-        """The papers' answer: winner by weight, interpolated with ``k`` runner-ups.
-
-        ``interpolation``: ``none``, ``idw``, ``geometric`` (d = w_k - y),
-        ``geometric-winner`` (d = w_k - w_c) or ``topological`` (runner-ups are the winner's
-        nearest nodes by position). Returns unit quaternions shaped like ``q``.
-        """
+        """The papers' answer (unit, shaped like ``q``): winner by weight, interpolated with ``k``
+        runner-ups (:mod:`limbctl.envelope.interpolation`; topological: nearest by position)."""
         if self._weights is None:
             raise ConfigError("this RigidMap is not trained: call fit(q_train) or load a model")
         if interpolation not in rk.INTERPOLATIONS:
@@ -247,13 +218,7 @@ class RigidMap(Envelope):
             "nodes": self.nodes,
             "layout": self.layout,
             "seed": self.seed,
-            "learning_rate": self.learning_rate,
-            "learning_rate_decay": self.learning_rate_decay,
-            "radius": self.radius,
-            "radius_decay": self.radius_decay,
-            "neighbourhood": self.neighbourhood,
-            "max_epochs": self.max_epochs,
-            "tol": self.tol,
+            **{name: getattr(self, name) for name in _SCHEDULE},
             "metric": self.metric,
             "region": self.region.params.as_dict(),
             "edge": self.region.edge,

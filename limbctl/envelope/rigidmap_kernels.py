@@ -1,10 +1,8 @@
 """Numba kernels of the Rigid Map: training, winner search and answering.
 
-Each kernel is a small free function with explicit loops; each has a plain numpy reference
-(``*_reference``) that the tests compare it with. No ``fastmath`` anywhere: NaN must never pass
-a comparison. Kernels are compiled once and cached on disk (``cache=True``).
-
-The training rule (Jenkins & Angel, Table I), for epoch ``t = 0, 1, ...``:
+Each kernel has a plain numpy reference (``*_reference``) the tests compare it with; no
+``fastmath``: NaN must never pass a comparison. The training rule (Jenkins & Angel, Table I),
+for epoch ``t = 0, 1, ...``:
 
 - learning rate ``lr(t) = lr0 exp(-k_lr t)``, neighbourhood radius
   ``sigma(t) = sigma0 exp(-k_sigma t)`` (radians);
@@ -49,11 +47,8 @@ from limbctl.geometry.jit import njit
 # ---- training ----------------------------------------------------------------------------------
 @njit
 def position_winners(positions: np.ndarray, patterns: np.ndarray) -> np.ndarray:
-    """Index of the node position nearest each pattern: ``argmax_i <x, p_i>`` (first on ties).
-
-    On unit positions this is the argmin of both ``|x - p|^2 = 2 - 2 x.p`` and ``acos(x.p)^2``.
-    ``positions`` (M, 4), ``patterns`` (N, 4) -> (N,) int64.
-    """
+    """Index (N,) int64 of the node position (M, 4) nearest each pattern (N, 4): ``argmax_i
+    <x, p_i>`` (first on ties), the argmin of ``|x - p|^2`` and ``acos(x.p)^2`` alike."""
     n = patterns.shape[0]
     m = positions.shape[0]
     out = np.empty(n, dtype=np.int64)
@@ -87,11 +82,7 @@ def _min_neighbour_angle(positions: np.ndarray) -> float:
 
 
 def _winner_slots(winners: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray]:
-    """The distinct winners (U,) in order of first appearance, and each pattern's slot (N,).
-
-    numpy, not a kernel: integers only, so the same arrays, and a compile saved
-    (docs/decisions/first_run.md).
-    """
+    """The distinct winners (U,) in order of first appearance, and each pattern's slot (N,)."""
     values, first = np.unique(winners, return_index=True)
     distinct = np.ascontiguousarray(values[np.argsort(first)], dtype=np.int64)
     slot = np.full(m, -1, dtype=np.int64)
@@ -101,10 +92,8 @@ def _winner_slots(winners: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray]:
 
 @njit
 def _winner_angles(positions: np.ndarray, distinct: np.ndarray) -> np.ndarray:
-    """``theta[i, s]``: angle (rad) between node ``i`` and distinct winner ``s`` (M, U).
-
-    ``acos(p_c . p_i)`` summed in the rule's order, and exactly 0 for the winner itself.
-    """
+    """``theta[i, s]`` (M, U): ``acos(p_c . p_i)`` (rad) between node ``i`` and distinct winner
+    ``s``, exactly 0 for the winner itself."""
     m = positions.shape[0]
     theta = np.empty((m, distinct.shape[0]))
     for i in range(m):
@@ -118,11 +107,7 @@ def _winner_angles(positions: np.ndarray, distinct: np.ndarray) -> np.ndarray:
 
 
 def _slot_patterns(pattern_slot: np.ndarray, u: int) -> tuple[np.ndarray, np.ndarray]:
-    """Patterns grouped by their winner's slot, in order: (start (U + 1,), patterns (N,)).
-
-    numpy, not a kernel (integers only: the same arrays): a stable sort keeps each slot's
-    patterns in order.
-    """
+    """Patterns grouped by their winner's slot, in order: (start (U + 1,), patterns (N,))."""
     start = np.zeros(u + 1, dtype=np.int64)
     np.cumsum(np.bincount(pattern_slot, minlength=u), out=start[1:])
     return start, np.argsort(pattern_slot, kind="stable").astype(np.int64)
@@ -136,13 +121,10 @@ def _patterns_near(
     buffer: np.ndarray,
     mark: np.ndarray,
 ) -> int:
-    """The patterns whose winner has ``h > 0``, in order, into ``buffer``: their count.
-
-    -1 when they are more than a quarter of all patterns: scanning all of them in order is then
-    cheaper than gathering them. Gathered by marking them in ``mark`` (N,) bool, all False
-    (and left so), then reading the marks between the lowest and the highest in order: no sort
-    (numba's quicksort of int64 compiled for ~1 s; docs/decisions/first_run.md).
-    """
+    """The patterns whose winner has ``h > 0``, in order, into ``buffer``: their count, or -1
+    when they are over a quarter of all (scanning all in order is then cheaper). Marked in
+    ``mark`` (N,) bool (all False, and left so) and read in order: no sort (numba's int64
+    quicksort compiled for ~1 s; docs/decisions/first_run.md)."""
     total = 0
     for s in range(h.shape[0]):
         if h[s] > 0.0:
@@ -179,40 +161,20 @@ def train_rigid_map(
     max_epochs: int,
     tol: float,
 ) -> int:
-    """Train ``weights`` (M, 4) in place by the Rigid Map rule (module docstring).
+    """Train ``weights`` (M, 4) in place by the Rigid Map rule (module docstring); epochs run.
 
-    Winners by position never change between epochs, so they are found once, and so are the
-    angles between every node and the distinct winners. A node's weight depends only on the
-    patterns whose winner is near it, in their order, never on another node's weight: an epoch
-    runs node by node, each through all patterns in order, the same arithmetic in the same
-    order as pattern by pattern (the same weights to the last bit), with its neighbourhood
-    values computed once per distinct winner instead of once per pattern. An epoch whose
-    neighbourhood radius ``sigma sqrt(2 ln(1/phi))`` is below the closest node spacing updates
-    the winner only. Returns the number of epochs run.
-
-    The winners' slots are grouped in numpy (:func:`_winner_slots`, :func:`_slot_patterns`),
-    the epochs run in :func:`_train_epochs`.
+    Winners by position never change, so they and the angles between every node and the
+    distinct winners are found once. A node's weight depends only on the patterns whose winner
+    is near it, in order: an epoch runs node by node, each through all patterns in order (the
+    same arithmetic in the same order as pattern by pattern, the same weights to the bit), with
+    neighbourhood values once per distinct winner. An epoch whose radius ``sigma sqrt(2
+    ln(1/phi))`` is below the closest node spacing updates the winner only.
     """
     winners = position_winners(positions, patterns)
     distinct, pattern_slot = _winner_slots(winners, positions.shape[0])
-    slot_start, slot_patterns = _slot_patterns(pattern_slot, distinct.shape[0])
-    return _train_epochs(
-        positions,
-        weights,
-        patterns,
-        winners,
-        distinct,
-        pattern_slot,
-        slot_start,
-        slot_patterns,
-        lr0,
-        lr_decay,
-        sigma0,
-        sigma_decay,
-        phi,
-        max_epochs,
-        tol,
-    )
+    grouped = (winners, distinct, pattern_slot, *_slot_patterns(pattern_slot, distinct.shape[0]))
+    schedule = (lr0, lr_decay, sigma0, sigma_decay, phi, max_epochs, tol)
+    return _train_epochs(positions, weights, patterns, *grouped, *schedule)
 
 
 @njit
@@ -318,11 +280,7 @@ def train_rigid_map_reference(
     tol: float,
     metric: int = EUCLIDEAN,
 ) -> int:
-    """Straightforward numpy version of :func:`train_rigid_map` (same rule, same result).
-
-    Finds the winner for every pattern presentation with the named metric and updates the
-    neighbourhood with whole-array operations. Trains ``weights`` in place; returns epochs run.
-    """
+    """Plain numpy :func:`train_rigid_map` (same rule, same result; winners by ``metric``)."""
     epochs = 0
     for t in range(max_epochs):
         epochs = t + 1
@@ -352,10 +310,8 @@ def train_rigid_map_reference(
 
 # ---- answering: shared with the SOM (limbctl.envelope.interpolation) ----------------------
 def position_topology(positions: np.ndarray, k: int) -> np.ndarray:
-    """For each node, its ``k`` nearest other nodes by position (M, k) int64, nearest first.
-
-    Nearest: the largest ``p_i . p_j``; equal dots in index order (a stable sort's order).
-    """
+    """Each node's ``k`` nearest other nodes (largest ``p_i . p_j``; ties in index order), (M, k)
+    int64, nearest first."""
     dots = positions @ positions.T
     np.fill_diagonal(dots, -np.inf)
     return _largest_per_row(dots, min(k, positions.shape[0] - 1))

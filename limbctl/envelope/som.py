@@ -1,39 +1,20 @@
 """The self-organising map of Jenkins & Dacey (UKSim 2011): the project's baseline envelope.
 
 Network: 4 input nodes (w, x, y, z), ``rows x cols`` output nodes on a grid (default 30 x 30 =
-900, the paper's largest), each with a weight vector in R^4.
+900, the paper's largest), each with a weight vector in R^4. Training (kernel in
+:mod:`som_kernels`): weights start uniform in [-init_scale, init_scale], seeded (with Table I's
+lr(0) = 1 the first time step overwrites them, so the seed then changes nothing); one time step
+presents the whole training set in order; each pattern's winner (least squared Euclidean
+distance) and the nodes within grid distance ``radius(t)`` move ``w += lr(t) (x - w)``, on Table
+I's stepwise schedule (:func:`table_i_schedule`); training stops when no winner changes in a time
+step, or at the cap of 10,000.
 
-Training (the paper, after Mehrotra, Mohan & Ranka; kernel in :mod:`som_kernels`):
-
-- weights start as small random numbers: uniform in [-init_scale, init_scale] (0.1), seeded.
-  With Table I's lr(0) = 1 each presentation copies the pattern onto the winner's neighbourhood,
-  so once the first time step has reached every node the initial weights no longer matter: the
-  seed then changes nothing, and runs differ only through their training data;
-- one **time step** is one presentation of the whole training set, pattern by pattern in the
-  given order (the paper: "for each time step the input set ... is presented"; it also calls
-  time steps epochs). The cap is 10,000 time steps;
-- each pattern's winner minimises the squared Euclidean distance D; the winner and the nodes
-  within grid distance ``radius(t)`` of it move ``w += lr(t) (x - w)``;
-- Table I's stepwise schedule (:func:`table_i_schedule`): the learning rate starts at 1.0 and
-  the neighbourhood radius at 4.0 (grid units, Euclidean on the grid); after every period of
-  10 time steps both are multiplied by 0.5, floored at their minimums (0.02 and 0.0), through
-  the table's five periods [0, 10), [10, 20), [20, 30), [30, 40), [40, ...): the last period's
-  values (lr 0.0625, radius 0.25, i.e. the winner alone) hold until training ends;
-- training stops when no pattern's winner changes during a time step (the paper's convergence)
-  or at the cap. Only valid orientations are given (no invalid examples).
-
-Answering: ``respond(q, "none")`` is the paper's answer, the winning node's weight (winner by D
-on the raw weights), normalised to unit length and canonical (w >= 0). The interpolated
-variants (``idw``, ``geometric``, ``geometric-winner``, ``topological``) reuse the Rigid Map
-paper's definitions (:mod:`limbctl.envelope.interpolation`); topological interpolation takes
-the winner's ``k`` nearest grid neighbours.
-
-Gate (an honest, simple rule; the accurate gate is the Rigid Map's): the paper's discussion
-suggests a threshold on the largest distance between the training patterns and the network's
-output. ``contains(q)`` is true when q's Euclidean distance to the nearest normalised node is at
-most ``threshold``, the largest such distance over the training set. ``correct(q)`` returns q
-inside and the paper's answer (``respond(q, "none")``, itself a node, hence inside) outside: it
-is not the nearest boundary point.
+``respond(q, "none")`` is the paper's answer, the winner's weight normalised and canonical; the
+interpolated variants are the Rigid Map paper's (:mod:`limbctl.envelope.interpolation`,
+``topological`` taking the winner's nearest grid neighbours). The gate is a simple rule after
+the paper's discussion: ``contains(q)`` when q's Euclidean distance to the nearest normalised
+node is at most ``threshold``, the largest such distance over the training set; ``correct(q)``
+returns the paper's answer outside (a node, hence inside; not the nearest boundary point).
 """
 
 from __future__ import annotations
@@ -78,8 +59,8 @@ def table_i_schedule(
     Returns
     -------
     learning_rates, radii : ndarray, shape (max_steps,)
-        ``lr(t) = max(lr0 lr_factor^p, lr_min)`` and ``radius(t) = max(radius0
-        radius_factor^p, radius_min)`` with period index ``p = min(t // period, periods - 1)``.
+        ``max(lr0 lr_factor^p, lr_min)`` and ``max(radius0 radius_factor^p, radius_min)``,
+        ``p = min(t // period, periods - 1)``.
     """
     t = np.arange(max_steps)
     p = np.minimum(t // period, periods - 1)
@@ -168,17 +149,7 @@ class SOM(Envelope):
 
     def schedule(self) -> tuple[np.ndarray, np.ndarray]:
         """This SOM's (learning_rates, radii) per time step, (max_steps,) each."""
-        return table_i_schedule(
-            self.max_steps,
-            self.lr0,
-            self.lr_min,
-            self.lr_factor,
-            self.radius0,
-            self.radius_min,
-            self.radius_factor,
-            self.period,
-            self.periods,
-        )
+        return table_i_schedule(*(getattr(self, name) for name in _SCHEDULE))
 
     def initial_weights(self) -> np.ndarray:
         """Small random initial weights, uniform in [-init_scale, init_scale]: (nodes, 4)."""
@@ -211,44 +182,15 @@ class SOM(Envelope):
         return self
 
     def respond(self, q: np.ndarray, interpolation: str = "none", k: int = 8) -> np.ndarray:
-        """The SOM's answer: the winner's weight (normalised, w >= 0), optionally interpolated.
-
-        Parameters
-        ----------
-        q : array_like, shape (4,) or (N, 4)
-        interpolation : str
-            ``none`` (the paper), ``idw``, ``geometric``, ``geometric-winner``, ``topological``.
-        k : int
-            Runner-ups combined with the winner (nearest by weight, or grid neighbours for
-            ``topological``).
-
-        Returns
-        -------
-        ndarray, shape like ``q``
-        """
+        """The SOM's answer to ``q`` (4,) or (N, 4), shaped like it: the winner's weight
+        (normalised, w >= 0), or by ``interpolation`` with ``k`` runner-ups (by weight, or grid
+        neighbours for ``topological``)."""
         mode = ip.interpolation_code(interpolation)
         k = ip.check_k(k)
         arr, single = self._input(q)
         weights = self.weights
         topology = self._grid_topology(k) if mode == ip.TOPOLOGICAL else _NO_TOPOLOGY
         out = ip.respond_batch(weights, arr, k, ip.EUCLIDEAN, mode, topology)
-        return out[0] if single else out
-
-    def contains(self, q: np.ndarray) -> np.ndarray | bool:
-        """Distance to the nearest normalised node <= ``threshold``: (N,) bool or bool."""
-        arr, single = self._input(q)
-        inside = self._inside(arr)
-        return bool(inside[0]) if single else inside
-
-    def correct(self, q: np.ndarray) -> np.ndarray:
-        """q itself (canonical) inside; the paper's answer ``respond(q, "none")`` outside."""
-        arr, single = self._input(q)
-        out = arr.copy()
-        outside = ~self._inside(arr)
-        if outside.any():
-            out[outside] = ip.respond_batch(
-                self.weights, arr[outside], 1, ip.EUCLIDEAN, ip.NONE, _NO_TOPOLOGY
-            )
         return out[0] if single else out
 
     @property
@@ -265,11 +207,16 @@ class SOM(Envelope):
         return np.ascontiguousarray(canonical(w / np.linalg.norm(w, axis=1, keepdims=True)))
 
     def _inside(self, q: np.ndarray) -> np.ndarray:
+        """Distance to the nearest normalised node <= ``threshold``."""
         if self.threshold is None:
             raise ConfigError("SOM is not trained yet: call fit(q_train) or SOM.load(path)")
         distance = ip.nearest_distance(self._answer_nodes(), q)
         # NaN-safe: a NaN distance is never inside
         return distance <= self.threshold
+
+    def _to_boundary(self, q: np.ndarray) -> np.ndarray:
+        """The paper's answer ``respond(q, "none")``."""
+        return ip.respond_batch(self.weights, q, 1, ip.EUCLIDEAN, ip.NONE, _NO_TOPOLOGY)
 
     def _grid_topology(self, k: int) -> np.ndarray:
         if k not in self._topology:
@@ -283,15 +230,7 @@ class SOM(Envelope):
             "rows": self.rows,
             "cols": self.cols,
             "seed": None if isinstance(self.seed, np.random.Generator) else self.seed,
-            "max_steps": self.max_steps,
-            "lr0": self.lr0,
-            "lr_min": self.lr_min,
-            "lr_factor": self.lr_factor,
-            "radius0": self.radius0,
-            "radius_min": self.radius_min,
-            "radius_factor": self.radius_factor,
-            "period": self.period,
-            "periods": self.periods,
+            **{name: getattr(self, name) for name in _SCHEDULE},
             "init_scale": self.init_scale,
             "threshold": self.threshold,
             "steps": self.steps,
@@ -325,6 +264,8 @@ class SOM(Envelope):
 
 
 _NO_TOPOLOGY = np.empty((0, 0), dtype=np.int64)
+#: The attributes that are :func:`table_i_schedule`'s arguments, in its order.
+_SCHEDULE = "max_steps lr0 lr_min lr_factor radius0 radius_min radius_factor period periods".split()
 
 
 def _positive_int(value: object, name: str) -> int:

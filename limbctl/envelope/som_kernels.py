@@ -1,18 +1,9 @@
 """Numba training kernel of the SOM (Jenkins & Dacey 2011); its plain numpy twin is in the tests.
 
-The rule (Mehrotra, Mohan & Ranka's Kohonen SOM, as the paper uses it), for time step
-``t = 0, 1, ...`` (one time step = one presentation of every training pattern, in order):
-
-- for each pattern ``x``: the winner ``c`` minimises the squared Euclidean distance
-  ``D_i = sum_k (x_k - w_ik)^2`` (first index on ties);
-- every node ``i`` within the neighbourhood, grid distance ``g_ci <= radius(t)``, moves toward
-  the pattern: ``w_i += lr(t) (x - w_i)``;
-- training stops when no pattern's winner changed during a whole time step (convergence), or
-  after the last scheduled time step.
-
-The schedules ``lr(t)`` and ``radius(t)`` are given as arrays (one entry per time step, their
-length is the step cap); :func:`limbctl.envelope.som.table_i_schedule` builds the paper's.
-No fastmath: comparisons stay NaN-safe. Compiled once and cached on disk (``cache=True``).
+For each time step ``t`` (every pattern presented, in order): each pattern's winner ``c``
+minimises ``D_i = sum_k (x_k - w_ik)^2`` (first index on ties), and every node within grid
+distance ``g_ci <= radius(t)`` moves ``w_i += lr(t) (x - w_i)``; training stops after a time step
+that changed no winner, or after the last scheduled one. No fastmath: comparisons stay NaN-safe.
 """
 
 from __future__ import annotations
@@ -44,8 +35,7 @@ def train_som(
     learning_rates, radii : ndarray, shape (T,)
         ``lr(t)`` and neighbourhood ``radius(t)`` per time step; T caps the training.
     winners : ndarray, shape (N,) int64
-        Filled with each pattern's winner in the last time step run. Entries that are not a
-        node index (e.g. -1) count as changed in the first step.
+        Filled with each pattern's winner in the last time step run (-1: changed at first).
 
     Returns
     -------

@@ -1,21 +1,10 @@
 """Synthetic regions of limb directions with exact ideal corrections, for tests and benchmarks.
 
-Two kinds of region, one small API (:class:`Region`):
-
-- :class:`ConeRegion`: Lee's swing cone of half-angle ``R`` about the rest direction +x. Samples
-  are uniform over the cap; the ideal correction of an outside direction turns it toward the
-  axis until its angle is ``R`` (keeping the swing axis).
-- :class:`PolygonRegion`: a polygon in (pan, tilt) degrees, the shape a person teaches by hand
-  (e.g. :data:`BEAN`, sharp corners, or :data:`KIDNEY`, the same shape rounded). Samples are
-  dense in the middle and sparse near the edge; the ideal
-  correction is the geodesically nearest direction on the boundary, found by dense boundary
-  sampling (spacing ``boundary_step_deg``) and refined on the nearest boundary segment.
-
-Every region gives ``sample(n, rng)`` (teaching data, (n, 3) directions), ``contains(d)``,
-``ideal(d)`` (the nearest valid direction; ``d`` itself inside), ``depth(d)`` (signed angle to
-the boundary, rad, positive inside) and ``test_directions(n, rng)`` (uniform over the directions
-within ``R + min(R, 45 deg)`` of the region's axis, ``R`` its largest angle from the axis).
-:func:`to_quaternions` turns directions into the twist-free quaternions a 2-DOF gimbal produces.
+:class:`ConeRegion` is Lee's swing cone about +x (samples uniform over the cap);
+:class:`PolygonRegion` a polygon in (pan, tilt) degrees, the shape a person teaches by hand
+(:data:`BEAN`, or :data:`KIDNEY` rounded), sampled densest in the middle, its ideal correction the
+geodesically nearest boundary direction (dense boundary samples refined on the nearest segment).
+Both speak :class:`Region`.
 """
 
 from __future__ import annotations
@@ -29,32 +18,15 @@ from limbctl.geometry.quat import direction_angle, swing_from_direction, tangent
 
 #: A kidney-shaped region in (pan, tilt) degrees, concave on top: the shape of a hand-taught limit.
 BEAN = np.array(
-    [
-        [-55.0, -10.0],
-        [-50.0, -28.0],
-        [-30.0, -38.0],
-        [0.0, -40.0],
-        [30.0, -36.0],
-        [50.0, -25.0],
-        [58.0, -5.0],
-        [52.0, 15.0],
-        [38.0, 28.0],
-        [20.0, 25.0],
-        [5.0, 14.0],
-        [-10.0, 14.0],
-        [-25.0, 25.0],
-        [-42.0, 24.0],
-        [-53.0, 10.0],
-    ]
-)
+    [[-55.0, -10.0], [-50.0, -28.0], [-30.0, -38.0], [0.0, -40.0], [30.0, -36.0], [50.0, -25.0],
+     [58.0, -5.0], [52.0, 15.0], [38.0, 28.0], [20.0, 25.0], [5.0, 14.0], [-10.0, 14.0],
+     [-25.0, 25.0], [-42.0, 24.0], [-53.0, 10.0]]
+)  # fmt: skip
 
 
 def rounded(polygon_deg: np.ndarray, iterations: int = 4) -> np.ndarray:
-    """Chaikin's corner cutting of a closed (pan, tilt) polygon (M, 2), ``iterations`` times.
-
-    Each edge p -> q gives the points ``3/4 p + 1/4 q`` and ``1/4 p + 3/4 q``: the limit is the
-    quadratic B-spline of the polygon, a smooth curve inside it.
-    """
+    """Chaikin's corner cutting of a closed (pan, tilt) polygon (M, 2), ``iterations`` times:
+    each edge p -> q gives ``3/4 p + 1/4 q`` and ``1/4 p + 3/4 q`` (a quadratic B-spline)."""
     p = np.asarray(polygon_deg, dtype=np.float64)
     for _ in range(iterations):
         q = np.roll(p, -1, axis=0)
@@ -67,12 +39,8 @@ KIDNEY = rounded(BEAN)
 
 
 def egg(length_deg: float = 48.0, width_deg: float = 26.4, n: int = 240) -> np.ndarray:
-    """A convex egg (n, 2) in (pan, tilt) degrees, ``length_deg`` long and about ``width_deg`` wide.
-
-    ``pan = a cos t + a / 8``, ``tilt = b sin t (1 + cos t / 4)`` (``a``, ``b`` the half
-    length and half width): blunt towards +pan, tight towards -pan (there the radius of
-    curvature is about ``b^2 / a``, 7 deg for the defaults).
-    """
+    """A convex egg (n, 2) in (pan, tilt) degrees, ``length_deg`` long and about ``width_deg`` wide:
+    ``pan = a cos t + a / 8``, ``tilt = b sin t (1 + cos t / 4)``, blunt towards +pan."""
     t = np.linspace(0.0, 2.0 * np.pi, n, endpoint=False)
     a, b = 0.5 * length_deg, 0.5 * width_deg
     return np.column_stack([a * np.cos(t) + a / 8.0, b * np.sin(t) * (1.0 + 0.25 * np.cos(t))])
@@ -115,7 +83,7 @@ def _cap_directions(n: int, axis: np.ndarray, radius: float, rng: np.random.Gene
 
 
 class Region(ABC):
-    """A region of valid limb directions with its exact nearest-valid-direction."""
+    """A region of valid limb directions with its exact nearest valid direction (``ideal``)."""
 
     #: Unit axis (3,) the test commands are spread around; ``radius`` its largest angle (rad).
     axis: np.ndarray
@@ -138,7 +106,7 @@ class Region(ABC):
         return self.depth(d) >= 0.0
 
     def test_directions(self, n: int, rng: np.random.Generator) -> np.ndarray:
-        """``n`` directions uniform within ``R + min(R, 45 deg)`` of the axis (n, 3)."""
+        """``n`` directions (n, 3) uniform within ``R + min(R, 45 deg)`` of the axis."""
         spread = self.radius + min(self.radius, np.radians(45.0))
         return _cap_directions(n, self.axis, min(spread, np.pi), rng)
 
@@ -274,11 +242,9 @@ def trajectory_samples(
 ) -> np.ndarray:
     """``n`` directions (n, 3) recorded the way a hand teaches: continuous strokes, in order.
 
-    Strokes run along great circles between waypoints drawn with the region's own (middle
-    heavy) density, ``step_deg`` apart (a 100 Hz recording at ~30 deg/s), only where the whole
-    stroke stays inside; with probability ``edge_share`` the next stroke instead creeps along
-    the boundary, ``edge_inset_deg`` inside it, at a third of the step (slow edge strokes over
-    10 to 40 deg). Consecutive samples are close and strokes leave gaps between them.
+    Great-circle strokes ``step_deg`` apart (100 Hz at ~30 deg/s) between waypoints of the
+    region's own density, only where wholly inside; with probability ``edge_share`` a stroke
+    instead creeps 10 to 40 deg along the boundary, ``edge_inset_deg`` inside, at a third of it.
     """
     step = np.radians(step_deg)
     edge = _edge_track(region, np.radians(edge_inset_deg))
@@ -315,13 +281,8 @@ def trajectory_samples(
 def covered(
     d: np.ndarray, samples: np.ndarray, radius_deg: float = 6.0, max_gap_deg: float = 150.0
 ) -> np.ndarray:
-    """(N,) bool: directions ``d`` (N, 3) the taught ``samples`` (K, 3) cover.
-
-    Covered: the samples within ``radius_deg`` surround the direction, leaving no empty sector
-    wider than ``max_gap_deg`` (among crossing strokes, or a sample spacing inside the data's
-    edge); a direction beyond the data's edge, or in a wide bay the hand never entered, is not.
-    The benchmarks count valid commands "where the recording covered it" with this.
-    """
+    """(N,) bool: directions ``d`` (N, 3) the taught ``samples`` (K, 3) cover: those within
+    ``radius_deg`` surround it with no empty sector wider than ``max_gap_deg``."""
     from limbctl.region.shape import surrounded
 
     return surrounded(
@@ -378,12 +339,9 @@ def _nearest_on_arc(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[np.nda
 def inset_track(polygon_deg: np.ndarray, inset_deg: float, step_deg: float) -> np.ndarray:
     """Points (K, 2) ``step_deg`` apart along the curve ``inset_deg`` inside a (pan, tilt) polygon.
 
-    The inner parallel curve of a polygon (M, 2) in degrees, either winding, in loop order from
-    its first vertex: each edge moved inward by ``inset_deg``; at a convex corner the moved
-    edges meet in a corner, at a reflex corner they are joined by an arc of radius
-    ``inset_deg`` about it (what a hand tracing the edge at that distance does). Planar in
-    (pan, tilt): near the equator a degree of pan is about a degree of angle. Each edge must be
-    longer than the insets of its corners take away.
+    The planar inner parallel curve of a polygon (M, 2) in degrees, either winding, in loop order
+    from its first vertex: edges moved inward, meeting at convex corners and joined by an arc of
+    radius ``inset_deg`` at reflex ones. Each edge must be longer than its corners' insets.
     """
     p = np.asarray(polygon_deg, dtype=np.float64)
     x, y = p[:, 0], p[:, 1]
@@ -434,10 +392,8 @@ def traced_teaching(
 ) -> tuple[np.ndarray, int]:
     """A teaching that traces the edge first, then wanders inside: directions (n, 3), trace length.
 
-    The hand goes once round the curve ``inset_deg`` inside the polygon (:func:`inset_track`)
-    at ``trace_deg_s``, then strokes through the middle (:func:`trajectory_samples`, no edge
-    strokes) at ``wander_deg_s``, all sampled at ``rate_hz`` for ``seconds`` in total
-    (``n = seconds * rate_hz``). Returns the directions and how many of the first ones trace.
+    Once round :func:`inset_track` at ``trace_deg_s``, then :func:`trajectory_samples` strokes
+    (no edge strokes) at ``wander_deg_s``, sampled at ``rate_hz`` (``n = seconds * rate_hz``).
     """
     n = int(round(seconds * rate_hz))
     track = inset_track(np.degrees(region.polygon), inset_deg, trace_deg_s / rate_hz)
@@ -452,13 +408,9 @@ def traced_teaching(
 def reach_into(
     contains, region: PolygonRegion, box_deg=NOTCH_HOLE, step_deg: float = 0.05
 ) -> float:
-    """How far (deg) a learned region reaches into a (pan, tilt) box outside ``region``, at most.
-
-    ``contains`` answers quaternions (N, 4) -> (N,) bool (a model's ``contains``); the box
-    ``((pan_min, pan_max), (tilt_min, tilt_max))`` in degrees is scanned on a grid
-    ``step_deg`` apart, and the deepest direction it holds counts, its depth measured to
-    ``region``'s boundary (0 when it holds none).
-    """
+    """How far (deg) ``contains`` (quaternions (N, 4) -> (N,) bool) reaches into the box
+    ``((pan_min, pan_max), (tilt_min, tilt_max))`` deg outside ``region``: the deepest held point
+    of a ``step_deg`` grid, measured to ``region``'s boundary (0 when it holds none)."""
     (p0, p1), (t0, t1) = box_deg
     pan, tilt = np.meshgrid(
         np.arange(p0, p1 + 0.5 * step_deg, step_deg), np.arange(t0, t1 + 0.5 * step_deg, step_deg)

@@ -8,12 +8,8 @@ external rotation does::
     h(tilt) = clip(h_low + (h_high - h_low) (tilt - tilt_low) / (tilt_high - tilt_low), 5, 175) deg
     c(pan, tilt) = c0 + c_pan pan + c_tilt tilt                                              (deg)
 
-It teaches (:meth:`ShoulderRegion.teaching`: uniform over the region, along the swing edge, and
-at the twist stops, each with the twist drawn as a person would), answers ``contains`` exactly,
-and samples its own boundary densely (:meth:`ShoulderRegion.boundary`) so a benchmark can find
-the true nearest orientation of any command by brute force. It also gives the engines' answer
-(:meth:`ShoulderRegion.clamp`): swing first onto the outline, twist kept, then clamped into the
-band there.
+It teaches, answers ``contains`` exactly, samples its own boundary densely (for a brute-force
+true nearest orientation) and gives the engines' swing-then-twist answer (:meth:`clamp`).
 """
 
 from __future__ import annotations
@@ -31,20 +27,9 @@ from limbctl.region.twist_kernels import TWIST_TOLERANCE
 #: A shoulder's swing outline in (pan, tilt) degrees: wide below, a dent between two raised
 #: lobes on top (concave), well away from pointing backwards (-x).
 SHOULDER = np.array(
-    [
-        [-30.0, -35.0],
-        [20.0, -40.0],
-        [70.0, -35.0],
-        [100.0, -15.0],
-        [105.0, 20.0],
-        [85.0, 50.0],
-        [50.0, 70.0],
-        [25.0, 45.0],
-        [0.0, 68.0],
-        [-25.0, 55.0],
-        [-35.0, 20.0],
-    ]
-)
+    [[-30.0, -35.0], [20.0, -40.0], [70.0, -35.0], [100.0, -15.0], [105.0, 20.0], [85.0, 50.0],
+     [50.0, 70.0], [25.0, 45.0], [0.0, 68.0], [-25.0, 55.0], [-35.0, 20.0]]
+)  # fmt: skip
 #: Twist stops are reached with this scatter (deg, one sigma) short of the true stop: a hand
 #: pressing against a stop stays on the inside of it.
 STOP_SCATTER_DEG = 0.2
@@ -111,7 +96,7 @@ class ShoulderRegion:
             p = b[rng.integers(0, b.shape[0], 4 * n)]
             # a small random step off the edge, kept when it lands inside within inset_deg
             step = _cap_directions(4 * n, np.array([1.0, 0.0, 0.0]), math.radians(inset_deg), rng)
-            cand = _turn_x_to(p, step)
+            cand = rotate(swing_from_direction(p), step)  # the step carried from +x onto p
             depth = self.swing.depth(cand)
             out = np.vstack([out, cand[(depth >= 0.0) & (depth <= math.radians(inset_deg))]])
         return out[:n]
@@ -176,16 +161,9 @@ class ShoulderRegion:
         return compose(d2, c + np.clip(e, -h, h))
 
 
-def _turn_x_to(p: np.ndarray, offsets: np.ndarray) -> np.ndarray:
-    """Directions (N, 3): ``offsets`` (small turns of +x) carried onto ``p`` (N, 3) by the
-    shortest rotation from +x to each ``p``."""
-    return rotate(swing_from_direction(p), offsets)
-
-
 class BandRegion(ShoulderRegion):
-    """A swing outline with any twist band over it: ``band_deg(pan_deg, tilt_deg)`` gives the
-    band's centre and half-width (deg, arrays like its arguments), e.g. a curved one or one
-    crossing +-180 deg; teaches, answers and samples its boundary as :class:`ShoulderRegion`.
+    """A swing outline with any twist band over it (e.g. curved, or crossing +-180 deg), else
+    as :class:`ShoulderRegion`.
 
     Parameters
     ----------

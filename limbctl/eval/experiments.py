@@ -1,23 +1,11 @@
 """`limbctl eval`: the seed papers' experiments, side by side with the gate, as CSV, tables, plots.
 
-What runs (see :func:`build_tasks`; docs/results.md explains every choice):
-
-- the SOM paper (Jenkins & Dacey): error against the constraint range (10x10, 20x20 and 30x30
-  grids), the number of training patterns (10x10 and 30x30), the output-layer size and the
-  central/boundary pattern ratio; Table I defaults (100 nodes, 500 patterns, 90 degrees) where a
-  factor is not varied; test directions uniform over the whole sphere;
-- the Rigid Map paper (Jenkins & Angel): error against the range for 720 polytope nodes and
-  2000 uniform nodes, discrete and interpolated (idw, geometric, geometric-winner,
-  topological), and against the number of interpolating nodes; 1000 training and 1000 test
-  patterns, range 20 degrees by default; test directions within ``R + min(R, 45 deg)`` of +x;
-- beside each paper network, the gate (``correct``) of Rigid Maps trained on the same data,
-  on the paper's layout and on alternatives (super-Fibonacci; nodes placed on the data).
-
-One *task* is one data set (one experiment, one x value, one seed) and every model of that
-experiment trained on it; each answer is scored on all, valid and invalid test inputs
-(:func:`limbctl.eval.metrics.score`). Tasks run in worker processes (numba limited to one thread
-each); every finished task appends its rows to ``runs.csv`` at once, and a rerun with the same
-``--out`` skips tasks already there (the task id is a hash of its full definition).
+What runs is :func:`build_tasks`'s grid (docs/results.md explains every choice): the SOM and
+Rigid Map papers' experiments, and beside each paper network the gate (``correct``) of Rigid Maps
+trained on the same data. One *task* is one data set (experiment, x value, seed) and every model
+of that experiment trained on it, each answer scored on all, valid and invalid test inputs
+(:func:`limbctl.eval.metrics.score`). Tasks run in worker processes; each appends its rows to
+``runs.csv`` as it finishes, and a rerun into the same ``--out`` skips tasks already there.
 """
 
 from __future__ import annotations
@@ -41,20 +29,8 @@ from limbctl.eval.metrics import METRIC_NAMES, score
 from limbctl.geometry.quat import swing_angle
 
 #: Columns of runs.csv, in order.
-CSV_FIELDS = (
-    "task",
-    "grid",
-    "experiment",
-    "x_name",
-    "x",
-    "seed",
-    "model",
-    "answer",
-    "k",
-    "subset",
-    *METRIC_NAMES,
-    "fit_seconds",
-)
+CSV_FIELDS = (*"task grid experiment x_name x seed model answer k subset".split(), *METRIC_NAMES)
+CSV_FIELDS += ("fit_seconds",)
 
 
 _NO_TOPOLOGY = np.empty((0, 0), dtype=np.int64)
@@ -112,18 +88,8 @@ def build_model(spec: ModelSpec, seed: int, range_deg: float) -> Any:
 
 
 def respond_on_data_nodes(model: Any, q: np.ndarray, interpolation: str, k: int) -> np.ndarray:
-    """The papers' answering rule over a fitted Rigid Map's support layer (nodes on the data).
-
-    Parameters
-    ----------
-    model : RigidMap
-        Fitted; its ``support_weights`` (S, 4) are the trained weights of the nodes it placed
-        on the training orientations.
-    q : ndarray, shape (N, 4)
-    interpolation : str
-        ``none`` or an interpolation by weight (``idw``, ``geometric``, ``geometric-winner``).
-    k : int
-        Runner-ups.
+    """The papers' answers (N, 4) to ``q`` (N, 4) over a fitted Rigid Map's ``support_weights``
+    (S, 4, nodes on the data), by ``interpolation`` (``none`` or by weight) with ``k`` runner-ups.
     """
     weights = np.ascontiguousarray(model.support_weights, dtype=np.float64)
     mode = ip.interpolation_code(interpolation)
@@ -154,23 +120,10 @@ def run_task(task: Task) -> list[dict[str, Any]]:
             outside = np.degrees(np.maximum(swing_angle(out) - truth.half_angle, 0.0))
             scores = score(test, out, ideal, valid, truth.contains(out), outside)
             x = answer.k if task.x_from_k else task.x
+            head = (task.key, task.grid, task.experiment, task.x_name, x, task.seed, spec.label)
             for subset, values in scores.items():
-                rows.append(
-                    {
-                        "task": task.key,
-                        "grid": task.grid,
-                        "experiment": task.experiment,
-                        "x_name": task.x_name,
-                        "x": x,
-                        "seed": task.seed,
-                        "model": spec.label,
-                        "answer": answer.label,
-                        "k": answer.k,
-                        "subset": subset,
-                        **values,
-                        "fit_seconds": round(fit_seconds, 4),
-                    }
-                )
+                row = dict(zip(CSV_FIELDS, (*head, answer.label, answer.k, subset), strict=False))
+                rows.append({**row, **values, "fit_seconds": round(fit_seconds, 4)})
     return rows
 
 
@@ -202,6 +155,7 @@ def run_tasks(
     Parameters
     ----------
     tasks : list of Task
+        The grid's tasks.
     csv_path : Path
         runs.csv; created with a header when missing, appended to otherwise.
     jobs : int
@@ -263,9 +217,9 @@ def run_eval(
     Parameters
     ----------
     out : Path
-        Output folder (created). A rerun into the same folder resumes: finished tasks are kept.
+        Output folder (created); a rerun into it resumes.
     quick : bool
-        The reduced grid (under two minutes on two cores) instead of the full one.
+        The reduced grid instead of the full one.
     jobs : int
         Worker processes (0: one per core).
     progress : bool

@@ -1,22 +1,10 @@
 """The experiment grids of `limbctl eval`: which data sets, models and answers each point runs.
 
-Three scales share one shape (every experiment, every model family):
-
-``full``
-    The papers' grids with 10 seeds per point (docs/results.md).
-``quick``
-    Fewer points, 2 seeds: the same figures in under two minutes on two cores.
-``smoke``
-    Two points per experiment, 1 seed, small data and models: an end-to-end test of the code.
-
-Models per experiment (labels are what tables and plots show):
-
-- SOM paper: ``SOM RxC`` answers with ``respond none`` (the paper) and ``correct`` (the SOM's
-  threshold gate); ``gate`` is a Rigid Map trained on the same data answering with ``correct``;
-- Rigid Map paper: ``RigidMap polytope-720`` and ``RigidMap uniform-2000`` (the papers'
-  layouts, at the papers' density on the hemisphere w >= 0) with every interpolation and
-  ``correct``; ``RigidMap super-fibonacci-2000`` as an alternative layout, also answering the
-  paper's way from its support layer (``data nodes``: nodes placed on the training data).
+Three scales share one shape: ``full`` (the papers' grids, 10 seeds per point; docs/results.md),
+``quick`` (fewer points, 2 seeds, under two minutes on two cores) and ``smoke`` (two points per
+experiment, 1 seed, small: an end-to-end test). The SOM paper's experiments run ``SOM RxC`` (its
+answer and its threshold gate) beside ``gate``, a Rigid Map on the same data; the Rigid Map
+paper's run the papers' two layouts and super-Fibonacci (:func:`paper_rigid_maps`).
 """
 
 from __future__ import annotations
@@ -48,11 +36,10 @@ class DataSpec:
     test_patterns : int
         Test patterns, valid and invalid.
     test_spread : str
-        ``"sphere"``: test directions uniform over the whole sphere; ``"around"``: uniform
-        within ``R + min(R, 45 deg)`` of +x (:meth:`ConeRegion.test_directions`).
+        Test directions uniform over the sphere (``"sphere"``) or within ``R + min(R, 45 deg)``
+        of +x (``"around"``).
     boundary_ratio : float
-        Density of training patterns in the boundary band (swing in (R/2, R]) relative to the
-        central cap (swing <= R/2); 1 is uniform over the cap.
+        Training density in the band (swing in (R/2, R]) over the central cap's; 1 is uniform.
     """
 
     range_deg: float
@@ -64,11 +51,8 @@ class DataSpec:
 
 @dataclass(frozen=True)
 class Answer:
-    """One way of answering.
-
-    ``how``: ``respond`` (the paper's network, with an interpolation), ``correct`` (the gate),
-    or ``data-nodes`` (the paper's answering rule over a Rigid Map's support layer, the nodes
-    it placed on the training data).
+    """One way of answering: ``how`` is ``respond`` (the paper's network, with an interpolation),
+    ``correct`` (the gate) or ``data-nodes`` (the paper's rule over a Rigid Map's support layer).
     """
 
     how: str
@@ -86,11 +70,8 @@ class Answer:
 
 @dataclass(frozen=True)
 class ModelSpec:
-    """A model to train on each task's data and the answers to score.
-
-    ``kind`` is ``som``, ``rigidmap`` or ``cone``; ``options`` are constructor keywords (a
-    ``seed`` option is added per task); ``label`` names the model in tables and plots.
-    """
+    """A model to train on each task's data (``kind``, constructor ``options``, a ``seed`` added
+    per task) and the answers to score; ``label`` names it in tables and plots."""
 
     label: str
     kind: str
@@ -207,11 +188,9 @@ SCALE_SIZES = {
 # ---- models ------------------------------------------------------------------------------------
 def som_spec(side: int, label: str | None = None) -> ModelSpec:
     """The SOM paper's network, ``side x side`` nodes: its answer and its threshold gate."""
+    answers = (Answer("respond"), Answer("correct"))
     return ModelSpec(
-        label or f"SOM {side}x{side}",
-        "som",
-        (("rows", side), ("cols", side)),
-        (Answer("respond"), Answer("correct")),
+        label or f"SOM {side}x{side}", "som", (("rows", side), ("cols", side)), answers
     )
 
 
@@ -223,35 +202,20 @@ def gate_spec() -> ModelSpec:
 def paper_rigid_maps(scale: Scale, answers_720, answers_uniform) -> tuple[ModelSpec, ...]:
     """The Rigid Map paper's two layouts plus super-Fibonacci, each also as a gate.
 
-    Nodes live on the canonical hemisphere w >= 0 (the valid set's side): the papers' 720
-    polytope nodes over S^3 fold to 360, and the papers' 2000 uniform nodes over S^3 are
-    matched in density by ``uniform_nodes / 2`` on the hemisphere.
+    Nodes live on w >= 0: the papers' 720 polytope nodes over S^3 fold to 360, and their 2000
+    uniform nodes over S^3 are matched in density by ``uniform_nodes / 2`` on the hemisphere.
     """
-    n = scale.uniform_nodes
-    return (
-        ModelSpec(
-            "RigidMap polytope-720",
-            "rigidmap",
-            (("nodes", None), ("layout", "polytope-720")),
-            answers_720,
-        ),
-        ModelSpec(
-            f"RigidMap uniform-{n} (S^3 density)",
-            "rigidmap",
-            (("nodes", n // 2), ("layout", "uniform")),
-            answers_uniform,
-        ),
-        ModelSpec(
-            f"RigidMap super-fibonacci-{n}",
-            "rigidmap",
-            (("nodes", n), ("layout", "super-fibonacci")),
-            (
-                Answer("respond", "geometric", scale.k_uniform),
-                Answer("correct"),
-                Answer("data-nodes"),
-                Answer("data-nodes", "geometric", scale.k_uniform),
-            ),
-        ),
+    n, k = scale.uniform_nodes, scale.k_uniform
+    fibonacci = (Answer("respond", "geometric", k), Answer("correct"), Answer("data-nodes"))
+    fibonacci += (Answer("data-nodes", "geometric", k),)
+    layouts = (
+        ("RigidMap polytope-720", None, "polytope-720", answers_720),
+        (f"RigidMap uniform-{n} (S^3 density)", n // 2, "uniform", answers_uniform),
+        (f"RigidMap super-fibonacci-{n}", n, "super-fibonacci", fibonacci),
+    )
+    return tuple(
+        ModelSpec(label, "rigidmap", (("nodes", nodes), ("layout", layout)), answers)
+        for label, nodes, layout, answers in layouts
     )
 
 
@@ -272,22 +236,11 @@ def build_tasks(scale_name: str) -> list[Task]:
     som_data = DataSpec(90.0, s.som_default_patterns, s.test_patterns, "sphere")
     for r in s.som_ranges:
         data = DataSpec(r, s.som_default_patterns, s.test_patterns, "sphere")
-        add(
-            "som-range",
-            "range_deg",
-            r,
-            data,
-            [*map(som_spec, s.som_range_sides), gate_spec()],
-        )
+        add("som-range", "range_deg", r, data, [*map(som_spec, s.som_range_sides), gate_spec()])
     for p in s.som_patterns:
         data = DataSpec(90.0, p, s.test_patterns, "sphere")
-        add(
-            "som-patterns",
-            "patterns",
-            p,
-            data,
-            [*map(som_spec, s.som_pattern_sides), gate_spec()],
-        )
+        models = [*map(som_spec, s.som_pattern_sides), gate_spec()]
+        add("som-patterns", "patterns", p, data, models)
     for side in s.som_sides:
         # the data does not change with the node count: the gate runs once, drawn as a line
         gate = [gate_spec()] if side == s.som_sides[0] else []

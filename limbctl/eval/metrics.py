@@ -23,15 +23,9 @@ from limbctl.geometry.quat import direction_angle, geodesic_distance, limb_direc
 UNCHANGED_TOLERANCE = 1e-6
 
 #: Names of the per-subset numbers :func:`score` returns, in table order.
-METRIC_NAMES = (
-    "n",
-    "mse",
-    "err3d_rms",
-    "angle_mean_deg",
-    "angle_p95_deg",
-    "unchanged_share",
-    "inside_share",
-    "outside_p95_deg",
+METRIC_NAMES = tuple(
+    "n mse err3d_rms angle_mean_deg angle_p95_deg unchanged_share inside_share "
+    "outside_p95_deg".split()
 )
 
 #: The input subsets :func:`score` reports.
@@ -50,11 +44,7 @@ def _pair(answer: np.ndarray, ideal: np.ndarray) -> tuple[np.ndarray, np.ndarray
 
 
 def quaternion_sq_error(answer: np.ndarray, ideal: np.ndarray) -> np.ndarray:
-    """Sign-aware squared R^4 distance per row, shape (N,).
-
-    ``min(|y - y*|^2, |y + y*|^2)``: q and -q are one rotation, so a hemisphere flip costs
-    nothing.
-    """
+    """Sign-aware squared R^4 distance per row (N,): ``min(|y - y*|^2, |y + y*|^2)``."""
     answer, ideal = _pair(answer, ideal)
     minus = np.sum((answer - ideal) ** 2, axis=1)
     plus = np.sum((answer + ideal) ** 2, axis=1)
@@ -62,10 +52,8 @@ def quaternion_sq_error(answer: np.ndarray, ideal: np.ndarray) -> np.ndarray:
 
 
 def endpoint_error(answer: np.ndarray, ideal: np.ndarray) -> np.ndarray:
-    """Distance between the end points of a unit limb turned by answer and ideal, (N,).
-
-    ``|d(y) - d(y*)|`` with ``d(q)`` the limb direction (rest along +x).
-    """
+    """Distance (N,) between the end points of a unit limb turned by answer and ideal,
+    ``|d(y) - d(y*)|``."""
     answer, ideal = _pair(answer, ideal)
     return np.linalg.norm(limb_direction(answer) - limb_direction(ideal), axis=1)
 

@@ -131,17 +131,21 @@ def draw_som_figure(points: list[Point], path: Path) -> Path:
         _panel(axes[1, col], pts, "err3d_rms", title, xlabel, "3D error of a unit limb (RMS)")
         if experiment == "som-patterns":
             axes[1, col].axhline(PAPER_SOM_ERR3D, color="k", linewidth=0.8, linestyle=":")
-            axes[1, col].annotate(
-                "paper: 900 nodes, 5000 patterns",
-                (0.02, 0.02),
-                xycoords="axes fraction",
-                fontsize=6,
-            )
-    fig.suptitle(
+            note = "paper: 900 nodes, 5000 patterns"
+            axes[1, col].annotate(note, (0.02, 0.02), xycoords="axes fraction", fontsize=6)
+    return _save(
+        fig,
+        path,
         "SOM (Jenkins & Dacey 2011) beside the gate; test directions over the whole sphere; "
         "mean +- sd over seeds",
-        fontsize=10,
     )
+
+
+def _save(fig, path: Path, title: str) -> Path:
+    """Title ``fig``, write it to ``path`` (110 dpi) and close it; returns ``path``."""
+    import matplotlib.pyplot as plt
+
+    fig.suptitle(title, fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -160,14 +164,8 @@ def draw_rigidmap_figure(points: list[Point], path: Path) -> Path:
         ranged = [
             p for p in select(points, "rm-range") if p.model == model or "correct" in p.answer
         ]
-        _panel(
-            axes[0, col],
-            ranged,
-            "mse",
-            f"Rigid Map paper Fig. 2({letter_range}): {model}",
-            "range R (deg)",
-            "quaternion MSE",
-        )
+        title = f"Rigid Map paper Fig. 2({letter_range}): {model}"
+        _panel(axes[0, col], ranged, "mse", title, "range R (deg)", "quaternion MSE")
         by_k = select(points, "rm-k", model=model)
         flat = [p for p in by_k if p.answer in ("respond none", "correct (gate)")]
         curves = [p for p in by_k if p not in flat]
@@ -177,19 +175,10 @@ def draw_rigidmap_figure(points: list[Point], path: Path) -> Path:
                 Point(p.experiment, p.x_name, k, p.model, p.answer, p.subset, p.seeds, p.values)
                 for k in [0.0, *ks]
             ]
-        _panel(
-            axes[1, col],
-            curves,
-            "mse",
-            f"Fig. 2({letter_k}): interpolating nodes, {model}",
-            "interpolating nodes k (0 = discrete)",
-            "quaternion MSE",
-        )
-    fig.suptitle("Rigid Map (Jenkins & Angel) beside the gate; mean +- sd over seeds", fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+        title = f"Fig. 2({letter_k}): interpolating nodes, {model}"
+        xlabel = "interpolating nodes k (0 = discrete)"
+        _panel(axes[1, col], curves, "mse", title, xlabel, "quaternion MSE")
+    return _save(fig, path, "Rigid Map (Jenkins & Angel) beside the gate; mean +- sd over seeds")
 
 
 def draw_gate_figure(points: list[Point], path: Path) -> Path:
@@ -215,11 +204,7 @@ def draw_gate_figure(points: list[Point], path: Path) -> Path:
         if metric.endswith("share") or metric.startswith("outside"):
             ax.set_yscale("linear")
             ax.set_ylim(-0.02, 1.02)
-    fig.suptitle("Rigid Map experiments: paper answers (solid) vs the gate (dashed)", fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(fig, path, "Rigid Map experiments: paper answers (solid) vs the gate (dashed)")
 
 
 def draw_all(points: list[Point], out: Path) -> list[Path]:
@@ -295,12 +280,9 @@ def _mse(points: list[Point], experiment: str, x: float, model: str, answer: str
 def rigidmap_checks(points: list[Point], x: float = 20.0) -> list[str]:
     """The Rigid Map paper's qualitative claims, checked on the rm-range points at ``x``."""
     lines = []
+    paper = ("polytope", "uniform")
     models = sorted(
-        {
-            p.model
-            for p in select(points, "rm-range")
-            if "polytope" in p.model or "uniform" in p.model
-        }
+        {p.model for p in select(points, "rm-range") if any(s in p.model for s in paper)}
     )
     gains = {}
     for model in models:
@@ -355,12 +337,9 @@ def summary_markdown(points: list[Point], scale: str) -> Summary:
         headline.append(line)
     else:
         text += ["(not in this grid)", ""]
+    som_title = "SOM paper defaults (Table I: 500 patterns, R = 90 deg; 10x10 = 100 nodes and up)"
     sections = (
-        (
-            "som-range",
-            90.0,
-            "SOM paper defaults (Table I: 500 patterns, R = 90 deg; 10x10 = 100 nodes and up)",
-        ),
+        ("som-range", 90.0, som_title),
         ("rm-range", 20.0, "Rigid Map paper defaults (1000 patterns, R = 20 deg)"),
     )
     key_answers = ("respond none", "respond geometric", "data nodes geometric", "correct (gate)")

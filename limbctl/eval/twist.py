@@ -1,14 +1,11 @@
 """`limbctl eval`'s twist experiment: the learned region's exact correction against the engines'
 swing-then-twist clamp on the true region.
 
-A shoulder-like true region (:class:`limbctl.envelope.synthetic_twist.ShoulderRegion`: a concave
-swing outline, a twist band narrowing as the limb rises) is taught (uniform, along the swing
-edge, at the twist stops) and learned by ``RigidMap(twist=True)``. For commands whose direction
-lies up to 30 deg beyond the outline and whose twist up to 40 deg past the band, both answers
-are compared with the true nearest orientation (brute force over the true boundary sampled
-``truth_step_deg`` apart): the learned ``correct()`` (nearest on SO(3) of what it learned) and
-what physics engines do on the exact true region (direction onto the outline, twist kept, then
-clamped into the band there). Written to ``twist.csv`` and ``twist.md`` in the eval folder.
+A :class:`~limbctl.envelope.synthetic_twist.ShoulderRegion` is taught and learned by
+``RigidMap(twist=True)``. For commands up to 30 deg beyond the outline and 40 deg past the band,
+the learned ``correct()`` and the engines' clamp on the true region are compared with the true
+nearest orientation (brute force over the true boundary). Written to ``twist.csv`` and
+``twist.md`` in the eval folder.
 """
 
 from __future__ import annotations
@@ -46,16 +43,9 @@ SCALES = {
     "quick": TwistScale((2500, 1900, 3100), 2000, (0,), 0.4, 2000),
     "smoke": TwistScale((700, 500, 800), 400, (0,), 0.6, 200),
 }
-FIELDS = (
-    "seed",
-    "outside",
-    "learned_mean_deg",
-    "learned_p95_deg",
-    "clamp_mean_deg",
-    "clamp_p95_deg",
-    "deep",
-    "deep_unchanged",
-    "within_1deg",
+FIELDS = tuple(
+    "seed outside learned_mean_deg learned_p95_deg clamp_mean_deg clamp_p95_deg deep "
+    "deep_unchanged within_1deg".split()
 )
 
 

@@ -2,17 +2,10 @@
 
 - :func:`write_twist_stream`: a replay file sweeping far outside the taught region in swing and
   in twist (joint angles with roll), with malformed lines mixed in;
-- :func:`twist_excursions`: how far (deg of rotation, ``2 acos |<q1, q2>|``) each goal the
-  simulator logged (its true full orientation ``limb_q``) lies outside the learned region, at
-  most: the distance to the region is bounded by the distance to any orientation the region
-  contains, so the least of two such distances is taken, to ``correct(q)`` and to the nearest
-  region orientation the gate wrote or corrected its pose onto (the search of ``correct`` may
-  stop short of the nearest orientation by some tenths of a degree), and for a goal still
-  above 0.05 deg, to the nearest held orientation sampled around it;
+- :func:`twist_excursions`: how far (deg of rotation) each goal the simulator logged lies
+  outside the learned region, at most (the least distance to orientations the region holds);
 - :func:`coverage`: the share of a true region's orientations the learned region holds;
-- :func:`twist_picture`: the taught samples over the swing plane coloured by twist, twist
-  against tilt with the true band's limits, the learned band's and the goals the gate wrote,
-  and the learned band's width over the swing region.
+- :func:`twist_picture`: the taught samples and the goals the gate wrote against the bands.
 """
 
 from __future__ import annotations
@@ -30,9 +23,7 @@ from limbctl.geometry.twist import decompose
 def write_twist_stream(path: Path, seconds: float = 12.0, rate_hz: float = 50.0) -> int:
     """A replay file: a Lissajous sweep (pan +-110, tilt -50..70 deg) with the roll swinging
     +-150 deg, far outside the taught twist band, and a few bad lines. Returns the valid lines.
-
-    12 s at 50 lines/s, slow enough that the gate's slew limit, not the stream, shapes the
-    motion (as the two-servo demo's stream).
+    12 s at 50 lines/s lets the gate's slew limit, not the stream, shape the motion.
     """
     n = int(seconds * rate_hz)
     t = np.arange(n) / rate_hz

@@ -1,52 +1,22 @@
 """Joint angles <-> limb direction <-> quaternion for a chain of 2 or 3 joints, exactly.
 
-The limb rests along +x. Pan rotates about +z, tilt raises the limb toward +z:
-``d = (cos(tilt) cos(pan), cos(tilt) sin(pan), sin(tilt))``. A third joint, roll, turns the limb
-about its own axis and never moves ``d``.
+The limb rests along +x; pan turns about +z, tilt raises it toward +z:
+``d = (cos(tilt) cos(pan), cos(tilt) sin(pan), sin(tilt))``. Two joints stand for the twist-free
+swing from +x to ``d``. Three joints are ``q = Rz(pan) Ry(-tilt) Rx(roll)``; with half-angle
+cosines/sines ``cp, sp, ct, st, cr, sr``, ``A = Rz(pan) Ry(-tilt) = (cp ct, sp st, -cp st, sp ct)``
+and ``q = (A_w cr - A_x sr, A_w sr + A_x cr, A_y cr + A_z sr, A_z cr - A_y sr)``.
 
-**Two joints.** The orientation a pose stands for is the twist-free swing from +x to ``d`` (a
-2-DOF limb has no twist to constrain). At the singularity (limb along +-z) inverse kinematics
-keeps the current pan.
-
-**Three joints.** The physical chain is pan about +z, then tilt (a turn by -tilt about +y), then
-roll about the limb's own axis (+x in the limb's frame)::
-
-    q = Rz(pan) Ry(-tilt) Rx(roll)
-
-With half angles ``cp = cos(pan/2)``, ``sp = sin(pan/2)`` (and ``ct, st, cr, sr`` likewise) the
-first two factors are ``A = (cp ct, sp st, -cp st, sp ct)`` and::
-
-    q = (A_w cr - A_x sr,  A_w sr + A_x cr,  A_y cr + A_z sr,  A_z cr - A_y sr)
-
-**Roll is not the twist.** The twist of ``q`` about the rest axis +x (swing-twist:
-``q = swing(d) * twist(tau)``, twist angle ``2 atan2(q_x, q_w)``) is
-``roll + chain_twist(pan, tilt)`` with ``chain_twist = 2 atan(tan(pan/2) tan(tilt/2))``: ``A``
-alone is not twist-free, its twist is ``2 atan2(sp st, cp ct)``, and a turn about +x applied last
-adds to it. At (pan, tilt) = (30, 30) deg it is 8.2 deg, at (60, 45) 26.9 deg, at (90, 60) 60 deg;
-it vanishes when either joint is 0.
-
-**Inverse kinematics.** ``d`` gives pan and tilt as for two joints; the roll is then read from
-what is left, ``Rx(roll) = A(pan, tilt)^-1 q``, so ``roll = 2 atan2(r_x, r_w)`` with
-``r = conj(A) q``. This never goes through the swing-twist split, so it holds everywhere the
-pan is defined, including d = -x.
-
-**Tilt +-90 deg (gimbal lock).** The limb then lies along +-z, the axis pan turns about: pan and
-roll share an axis and only their sum (tilt +90) or difference (tilt -90) is fixed by ``q``. The
-inverse keeps the present pan there and the roll takes up the whole turn about the limb, so the
-answer is exact and the pan never jumps.
-
-**Roll wrap-around.** Roll is an angle on a circle: ``q`` fixes it modulo 360 deg. The inverse
-returns the representative ``roll + 360 k`` that lies within the roll joint's hard limits and,
-among those, nearest the present roll (:func:`unwrap_roll_scalar`). A rig profile keeps each joint's
-limits inside (-180, 180) deg, so on today's profiles exactly one representative lies within
-them: the joint then has to travel the long way round when the short way on SO(3) crosses
-+-180 deg of roll, and the gate (which limits every joint's step and checks every intermediate
-pose) moves it there step by step or holds.
+Roll is not the twist: the twist of ``q`` about +x is ``roll + chain_twist(pan, tilt)`` with
+``chain_twist = 2 atan(tan(pan/2) tan(tilt/2))`` (8.2 deg at (30, 30) deg, 60 deg at (90, 60)).
+Inverse kinematics takes pan and tilt from ``d`` (the present pan kept where the limb lies along
++-z, the gimbal lock, where roll takes up the whole turn) and roll from ``r = conj(A) q``,
+``roll = 2 atan2(r_x, r_w)``, so it holds at d = -x too. ``q`` fixes roll modulo 360 deg: the
+inverse returns the representative within the roll joint's limits nearest the present roll
+(:func:`unwrap_roll_scalar`); on profiles whose limits lie inside (-180, 180) deg exactly one does.
 
 All angles are radians. Array functions take (...,) angles and (..., 4) quaternions; the
-``*_scalar`` functions take one pose as plain floats for the gate's hot path.
-:func:`pose_quat` and :func:`pose_from_quat` take one pose of either chain and pick the
-functions of its joint count.
+``*_scalar`` functions take one pose as plain floats for the gate's hot path; :func:`pose_quat`
+and :func:`pose_from_quat` take one pose of either chain.
 """
 
 from __future__ import annotations

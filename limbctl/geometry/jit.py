@@ -1,39 +1,19 @@
 """The one way limbctl compiles a numba kernel: :func:`njit`, cached soundly or not at all.
 
-Every kernel in the project is decorated with :func:`njit` instead of ``numba.njit(cache=True)``::
+``@njit``, ``@njit(parallel=True)`` or ``@njit("f8(f8[:])")`` takes numba's own options
+(``cache=`` is ignored: caching is decided here) and returns numba's dispatcher. It fixes two
+faults of numba's own cache:
 
-    from limbctl.geometry.jit import njit
+- **Stale code.** numba checks only the file defining a kernel, so a kernel that calls one of
+  another file keeps old machine code. Here the cache folder is named after :func:`source_key`, a
+  hash of every source under :data:`KERNEL_PACKAGES` and numba's version.
+- **No writable place.** numba raises "no locator available" at import on a read-only install.
+  Here the kernels then compile in memory and one line on stderr says so.
 
-    @njit  # or @njit(parallel=True), @njit(inline="always"), @njit("f8(f8[:])")
-    def kernel(x): ...
-
-It takes numba's own options (``cache=`` is accepted and ignored: caching is decided here) and
-returns numba's dispatcher, so it is a drop-in for ``numba.njit(cache=True, ...)``.
-
-Two things numba's own cache gets wrong for us, and what this module does instead:
-
-- **Stale code.** numba checks only the file that defines a kernel. A kernel that calls or inlines a
-  kernel of another file keeps its old machine code after that other file changes. Here the
-  cache directory is named after a hash of every source file of the layers that hold kernels
-  (:data:`KERNEL_PACKAGES`) and of numba's version, so a changed kernel source anywhere starts a
-  fresh, empty cache: nothing compiled from an older source is ever loaded.
-- **No writable place.** numba raises ``RuntimeError: cannot cache function ...: no
-  locator available`` at import when neither the package's folder nor the home folder is writable
-  (a read-only install run by a service account). Here the kernels then compile in memory, and one
-  line on stderr says where a cache would make the next start faster.
-
-Where the cache lives (the first writable one of :func:`cache_candidates`):
-
-1. ``$NUMBA_CACHE_DIR/limbctl-<key>`` when ``NUMBA_CACHE_DIR`` is set;
-2. ``<package>/__pycache__/numba-<key>`` beside the installed ``limbctl`` package: the checkout
-   for an editable install, site-packages for a normal install into a writable environment;
-3. ``$XDG_CACHE_HOME/limbctl/numba-<key>`` (``~/.cache/limbctl/numba-<key>`` without that variable),
-   for a read-only install run by a user with a home;
-4. nowhere: compile in memory, every process anew.
-
-``<key>`` is :func:`source_key`. Folders of other keys beside the package are removed when a new
-one is made (they can never be used again); those under 1. and 3. may serve other installs and
-stay.
+The cache lives in the first writable of :func:`cache_candidates`:
+``$NUMBA_CACHE_DIR/limbctl-<key>``, ``<package>/__pycache__/numba-<key>``,
+``$XDG_CACHE_HOME/limbctl/numba-<key>`` (default ``~/.cache``), else nowhere. Folders of other
+keys beside the package are removed when a new one is made; the others may serve other installs.
 """
 
 from __future__ import annotations
@@ -66,14 +46,8 @@ _PACKAGE = Path(__file__).resolve().parents[1]
 
 @functools.cache
 def source_key() -> str:
-    """Hash of every kernel-bearing source file and of numba's version.
-
-    Returns
-    -------
-    str
-        :data:`KEY_DIGITS` hex digits of the sha256 over (relative path, contents) of each
-        ``.py`` file under :data:`KERNEL_PACKAGES`, sorted by path, then ``numba.__version__``.
-    """
+    """:data:`KEY_DIGITS` hex digits of the sha256 over (relative path, contents) of each ``.py``
+    file under :data:`KERNEL_PACKAGES`, sorted by path, then ``numba.__version__``."""
     digest = hashlib.sha256()
     for package in KERNEL_PACKAGES:
         for path in sorted((_PACKAGE / package).rglob("*.py")):
@@ -118,11 +92,7 @@ def _drop_other_keys(folder: Path) -> None:
 
 @functools.cache
 def cache_dir() -> Path | None:
-    """The folder this process caches kernels in, or None to compile in memory.
-
-    Decided once per process. When no candidate is writable it writes one line to stderr saying
-    where a cache would help.
-    """
+    """The folder this process caches kernels in (decided once), or None to compile in memory."""
     tried = cache_candidates()
     for folder in tried:
         if _writable(folder):
@@ -228,10 +198,7 @@ def _marker(stage: str) -> Path | None:
 
 
 def prepared(stage: str) -> bool:
-    """Whether the kernels of ``stage`` (one of :data:`STAGES`) are already in the cache.
-
-    Always False when compiling in memory: then every process compiles them anew.
-    """
+    """Whether the kernels of ``stage`` (of :data:`STAGES`) are in the cache (never in memory)."""
     marker = _marker(stage)
     return marker is not None and marker.exists()
 

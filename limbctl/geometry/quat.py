@@ -18,7 +18,7 @@ UNIT_TOLERANCE = 1e-6
 def as_quaternions(
     q: object, name: str = "q", tol: float = UNIT_TOLERANCE
 ) -> tuple[np.ndarray, bool]:
-    """Validate quaternion input and return it as an (N, 4) float64 array.
+    """Validate quaternion input as an (N, 4) float64 array.
 
     Parameters
     ----------
@@ -39,8 +39,7 @@ def as_quaternions(
     Raises
     ------
     InvalidInputError
-        (a ValueError) naming the first offending row when a value is non-finite,
-        the shape is wrong, or a row is not unit length.
+        Naming the first row that is non-finite or not unit length, or the wrong shape.
     """
     try:
         arr = np.array(q, dtype=np.float64)
@@ -67,16 +66,7 @@ def as_quaternions(
 
 
 def canonical(q: np.ndarray) -> np.ndarray:
-    """Flip quaternions into the w >= 0 hemisphere (q and -q are one rotation).
-
-    Parameters
-    ----------
-    q : ndarray, shape (..., 4)
-
-    Returns
-    -------
-    ndarray, shape (..., 4)
-    """
+    """Flip quaternions (..., 4) into the w >= 0 hemisphere (q and -q are one rotation)."""
     q = np.asarray(q, dtype=np.float64)
     sign = np.where(q[..., :1] < 0.0, -1.0, 1.0)
     return q * sign
@@ -126,17 +116,9 @@ def rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 
 def limb_direction(q: np.ndarray) -> np.ndarray:
-    """Direction of a unit limb resting along +x after rotation by ``q``.
+    """Unit direction (..., 3) of a limb resting along +x after rotation by ``q`` (..., 4).
 
-    Parameters
-    ----------
-    q : ndarray, shape (..., 4)
-
-    Returns
-    -------
-    ndarray, shape (..., 3)
-        Unit vectors. Closed form of ``rotate(q, [1, 0, 0])``:
-        ``(w^2 + x^2 - y^2 - z^2, 2(xy + wz), 2(xz - wy))``.
+    Closed form of ``rotate(q, [1, 0, 0])``: ``(w^2 + x^2 - y^2 - z^2, 2(xy + wz), 2(xz - wy))``.
     """
     q = np.asarray(q, dtype=np.float64)
     w, x, y, z = np.moveaxis(q, -1, 0)
@@ -146,19 +128,8 @@ def limb_direction(q: np.ndarray) -> np.ndarray:
 
 
 def swing_from_direction(d: np.ndarray) -> np.ndarray:
-    """The twist-free quaternion that turns +x onto direction ``d`` by the shortest arc.
-
-    Parameters
-    ----------
-    d : ndarray, shape (..., 3)
-        Limb directions (normalised here).
-
-    Returns
-    -------
-    ndarray, shape (..., 4)
-        ``normalize((1 + d_x, 0, -d_z, d_y))``, i.e. (1 + x.d, x cross d). For d = -x
-        (no unique shortest arc) the rotation about +z by pi is returned.
-    """
+    """The twist-free quaternion (..., 4) turning +x onto direction ``d`` (..., 3) by the shortest
+    arc: ``normalize((1 + d_x, 0, -d_z, d_y))``; for d = -x the half-turn about +z."""
     d = np.asarray(d, dtype=np.float64)
     d = d / np.linalg.norm(d, axis=-1, keepdims=True)
     q = np.stack([1.0 + d[..., 0], np.zeros_like(d[..., 0]), -d[..., 2], d[..., 1]], axis=-1)

@@ -1,37 +1,17 @@
-"""Twist: the one place that defines how a full orientation splits into direction and twist.
+"""Twist: how a full orientation splits into direction and twist, ``q = swing(d) * twist(tau)``.
 
-Every orientation of the limb is written ::
+``swing(d) = normalize(1 + d_x, 0, -d_z, d_y)`` is the shortest rotation from the rest axis +x
+onto the limb direction ``d`` (``quat.swing_from_direction``); ``twist(tau) = (cos(tau/2),
+sin(tau/2), 0, 0)`` turns the limb by ``tau`` (rad) about +x, applied first. With
+``swing(d) = (s_w, 0, s_y, s_z)``::
 
-    q = swing(d) * twist(tau)
+    q = (s_w c, s_w s, s_y c + s_z s, s_z c - s_y s),  c = cos(tau/2), s = sin(tau/2)
 
-- ``swing(d)`` is the shortest rotation from the rest axis +x onto the limb direction ``d``:
-  ``swing(d) = normalize(1 + d_x, 0, -d_z, d_y)`` (``quat.swing_from_direction``).
-  It has no x part, so it never turns the limb about its own axis.
-- ``twist(tau) = (cos(tau/2), sin(tau/2), 0, 0)`` turns the limb by ``tau`` (rad) about +x,
-  applied first (in the limb's rest frame), so it leaves the direction unchanged.
-
-Multiplying out, with ``swing(d) = (s_w, 0, s_y, s_z)``, ``c = cos(tau/2)``, ``s = sin(tau/2)``::
-
-    q = (s_w c, s_w s, s_y c + s_z s, s_z c - s_y s)
-
-so ``w^2 + x^2 = s_w^2`` and the twist is read back as ``tau = 2 atan2(x, w)``; the direction is
-``d = limb_direction(q)`` (+x rotated by q; the twist does not move it).
-
-Wrap-around. ``tau`` and ``tau + 2 pi`` are one rotation (``twist(tau + 2 pi) = -twist(tau)``),
-so twist is circular: :func:`decompose` returns ``tau`` in ``(-pi, pi]`` (a half-turn is ``+pi``)
-and :func:`compose` accepts any real ``tau``. Differences of twists go through :func:`wrap`.
-
-The singular direction ``d = -x``. There the shortest rotation from +x is not unique (every
-half-turn about an axis in the y-z plane is one), ``s_w = 0`` and ``atan2(x, w)`` says nothing.
-This module keeps the convention of ``swing_from_direction``: ``swing(-x)`` is the half-turn about
-+z, ``(0, 0, 0, 1)``, so ``q = (0, 0, sin(tau/2), cos(tau/2))`` and ``tau = 2 atan2(y, z)``.
-Round trips hold there too, but twist jumps as ``d`` crosses -x (a different swing is chosen on
-each side), and near it ``tau`` loses precision like ``1e-16 / s_w`` rad. Regions of the limb's
-orientations therefore must stay away from -x (:data:`SINGULAR_MARGIN`); the region layer refuses
-data that come closer.
-
-The scalar twin :func:`decompose_one` computes the same formulas on one pose
-with plain floats for the gate's hot path (numpy's per-call overhead dwarfs four products).
+so ``tau = 2 atan2(x, w)``, in ``(-pi, pi]`` (twist is circular: differences go through
+:func:`wrap`). At the singular direction ``d = -x`` the swing is the half-turn about +z, ``q = (0,
+0, sin(tau/2), cos(tau/2))`` and ``tau = 2 atan2(y, z)``; twist jumps as ``d`` crosses -x and loses
+precision like ``1e-16 / s_w`` near it, so regions stay :data:`SINGULAR_MARGIN` away from -x.
+:func:`decompose_one` is the scalar twin for the gate's hot path.
 """
 
 from __future__ import annotations
@@ -55,10 +35,7 @@ SINGULAR_MARGIN = math.radians(20.0)
 
 
 def wrap(angle: np.ndarray | float) -> np.ndarray:
-    """Angles (rad) wrapped into ``(-pi, pi]`` (the twist's range). Shape as given.
-
-    ``wrap(a) = a - 2 pi ceil((a - pi) / (2 pi))``.
-    """
+    """Angles (rad) wrapped into ``(-pi, pi]`` (the twist's range). Shape as given."""
     a = np.asarray(angle, dtype=np.float64)
     # a - 2 pi ceil((a - pi) / 2 pi) lies in (-pi, pi]
     wrapped = a - 2.0 * np.pi * np.ceil((a - np.pi) / (2.0 * np.pi))
@@ -109,8 +86,7 @@ def compose(d: np.ndarray, tau: np.ndarray | float) -> np.ndarray:
     Returns
     -------
     ndarray, shape (..., 4)
-        ``(s_w c, s_w s, s_y c + s_z s, s_z c - s_y s)`` with ``swing(d) = (s_w, 0, s_y, s_z)``,
-        ``c = cos(tau/2)``, ``s = sin(tau/2)``.
+        ``(s_w c, s_w s, s_y c + s_z s, s_z c - s_y s)`` (module docstring).
     """
     sw = swing_from_direction(d)
     half = 0.5 * wrap(tau)

@@ -1,23 +1,9 @@
 """Whether a proposed edge agrees with the taught samples: one acceptance for every strategy.
 
-An edge strategy (:mod:`limbctl.region.edge_choice`) answers with a :class:`Proposal` (closed
-loops (K, 3) for the region's edge) or a :class:`Refusal` (why it cannot propose one, in words
-and numbers). :func:`judge` turns either into a :class:`Verdict`. A learned edge is accepted
-only when, over all its loops together:
-
-1. no two arcs cross (:func:`arcs_cross`);
-2. every stretch it adds beyond the supported region is one the local sampling density could
-   leave empty by chance (:func:`unexplained_gap` at most ``GAP_EXPECTED`` samples);
-3. it holds the taught directions the supported region holds (at most ``MISS_FRACTION`` of
-   them lie more than ``MISS_TOLERANCE_DEG`` outside);
-4. it reaches at most ``CONFIRM_DEG`` beyond each *rival*: an accepted edge later in the
-   choice's order that the caller asks it to agree with (:func:`reach_beyond`);
-5. it adds no stretch beyond the supported region that the taught samples surround but do not
-   reach within ``EVIDENCE_DEG`` (:func:`limbctl.region.evidence.unsupported_stretches`): a
-   bay or notch the sampling density "explains" is still a bay the edge would bridge.
-
-The supported edge runs through the outermost taught samples: its proposal comes with its
-region and is accepted without checks (it is what the gate falls back to).
+A strategy (:mod:`limbctl.region.edge_choice`) answers with a :class:`Proposal` or a
+:class:`Refusal`; :func:`judge` turns either into a :class:`Verdict` by the checks
+docs/region.md lists (arcs cross, unexplained gaps, samples left out, reach beyond a rival,
+bridged stretches). The supported edge comes with its region and is accepted as it is.
 """
 
 from __future__ import annotations
@@ -32,21 +18,15 @@ from limbctl.region.evidence import EVIDENCE_DEG, unsupported_stretches
 from limbctl.region.loops import loop_length
 from limbctl.region.mesh import DirectionMesh
 
-#: A learned edge may leave out at most this fraction of the taught directions the supported
-#: region holds: one in a thousand, the samples a hair outside at a sharp turn of the edge.
+#: Share of the supported region's samples a learned edge may leave out: sharp turns.
 MISS_FRACTION = 0.001
-#: A taught direction at most this far (deg) outside a learned edge does not count as left out:
-#: the edge estimate's own noise, about a servo tick.
+#: Samples this close (deg) outside do not count: the estimate's noise, about a tick.
 MISS_TOLERANCE_DEG = 0.1
-#: A stretch added beyond the supported region may be worth at most this many samples: sparse
-#: i.i.d. teaching leaves gaps worth a few, a bay the hand went around tens to hundreds.
+#: Most samples an added stretch may be worth: sparse teaching a few, a bay tens or more.
 GAP_EXPECTED = 40.0
-#: Radius (deg) of the neighbourhood the local sample density is counted in: its half cap
-#: (56 deg^2) holds a few samples even at a sparse edge (0.08 per deg^2: about 5).
+#: Density neighbourhood (deg): its half cap holds about 5 samples at a sparse edge.
 DENSITY_RADIUS_DEG = 6.0
-#: A learned edge may reach at most this far (deg) beyond a rival's region: the gate's accuracy
-#: bound for outputs outside the true region (cones of 20 deg reach 0.4-0.6 deg beyond the
-#: traced edge with their smooth edge).
+#: Farthest (deg) past a rival: the gate's 1 deg bound (cones' smooth edges: 0.4-0.6).
 CONFIRM_DEG = 1.0
 
 
@@ -61,9 +41,8 @@ class Proposal:
     edges : list of ndarray, each (K, 3)
         Closed counter-clockwise loops of unit directions, the region on their left.
     region : DirectionMesh or None
-        Given only by a strategy whose edge holds the taught samples by construction (the
-        supported edge): :func:`judge` accepts it as it is. Otherwise None, and the region is
-        built from ``edges`` once they pass the checks.
+        Given only where the edge holds the taught samples by construction (the supported
+        edge): accepted as it is.
     note : str
         Why a proposal with a region needs no checks.
     """
@@ -76,7 +55,7 @@ class Proposal:
 
 @dataclass(frozen=True, eq=False)
 class Refusal:
-    """A strategy's answer when the data refuse it an edge: why, in words and numbers.
+    """A strategy's answer when the data refuse it an edge.
 
     Attributes
     ----------
@@ -133,7 +112,7 @@ def judge(
     supported: DirectionMesh,
     rivals: tuple[Verdict, ...] = (),
 ) -> Verdict:
-    """The verdict on a strategy's answer (the checks of the module docstring).
+    """The verdict on a strategy's answer.
 
     Parameters
     ----------
@@ -142,7 +121,7 @@ def judge(
     data : ndarray, shape (N, 3)
         The taught directions.
     supported : DirectionMesh
-        The supported region: the supported loops widened by their learned margins.
+        The supported region.
     rivals : tuple of Verdict
         Accepted verdicts of other edges the candidate must stay within ``CONFIRM_DEG`` of.
     """
@@ -215,9 +194,8 @@ def reach_beyond(edges: list[np.ndarray], region: DirectionMesh) -> float:
 def arcs_cross(loops: list[np.ndarray]) -> bool:
     """Whether any two non-adjacent arcs of the closed ``loops`` (each (M, 3)) cross.
 
-    Arcs ``i`` and ``j`` cross when the ends of each lie on both sides of the other's great
-    circle (``sign(a_j . p_i) != sign(b_j . p_i)``, ``p_i = a_i x b_i``, and the converse) and
-    their midpoints face the same way.
+    The ends of each lie on both sides of the other's great circle and their midpoints face the
+    same way.
     """
     a = np.vstack(loops)
     b = np.vstack([np.roll(lp, -1, axis=0) for lp in loops])
@@ -244,13 +222,9 @@ def arcs_cross(loops: list[np.ndarray]) -> bool:
 def unexplained_gap(edge: np.ndarray, data: np.ndarray, supported: DirectionMesh) -> float:
     """The most samples (expected) any stretch the ``edge`` (K, 3) adds would hold.
 
-    Each station lies ``b_k`` (rad) beyond the supported region (0 inside). Over a run of
-    consecutive stations with ``b_k > 0`` the added area is ``A = sum_k b_k ds`` (``ds`` the
-    station spacing), and a teacher sampling at the local density ``rho`` (taught directions
-    within ``DENSITY_RADIUS_DEG`` of the stations' nearest supported points, per area of half
-    that cap: those points sit on the supported edge) would have put ``rho A`` samples
-    there; the chance of finding none is ``exp(-rho A)``. Sparse i.i.d. teaching leaves
-    gaps worth a few samples; a bay the hand went around is worth tens to hundreds.
+    Over a run of stations beyond the supported region by ``b_k`` (rad), ``sum_k rho_k b_k ds``:
+    ``rho`` the density of taught directions within ``DENSITY_RADIUS_DEG`` of the nearest supported
+    point (per half cap), ``ds`` the station spacing.
     """
     foot = supported.project(edge)
     beyond = np.arccos(np.clip(np.einsum("ij,ij->i", foot, edge), -1.0, 1.0))

@@ -18,15 +18,12 @@ from limbctl.region import mesh_kernels as bk
 
 
 @njit(inline="always")
-def _correct_one(
-    q, vertices, edges, margins, axis, grid_shape, inside, deep, start, cell_edges, keys, out, work
-) -> int:
+def _correct_one(q, mesh, out, work) -> int:
     """Correct one quaternion into ``out``; returns 1 inside, 0 corrected, -1 bad input.
 
-    Inside (limb direction in the region): ``out = q`` (canonical). Outside: the limb direction
-    moves to the nearest region direction and the twist about the limb is kept:
-    ``out = swing(d') * twist(q)`` with ``twist = normalise(w, x, 0, 0)``. ``work``
-    (WORK_ROWS + 2, 3) is scratch with the grid frame in rows 0, 1 (``bk.frame_into``).
+    Inside: ``out = q`` (canonical). Outside: ``out = swing(d') * twist(q)``, ``d'`` the nearest
+    region direction. ``mesh`` is the mesh's kernel arguments; ``work`` (WORK_ROWS + 2, 3) scratch
+    with the grid frame in rows 0, 1 (``bk.frame_into``).
     """
     norm2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]
     # NaN fails every comparison, so it is refused here
@@ -37,46 +34,16 @@ def _correct_one(
     x = sign * q[1]
     y = sign * q[2]
     z = sign * q[3]
-    # limb direction: (w^2 + x^2 - y^2 - z^2, 2(xy + wz), 2(xz - wy)), normalised
     d = work[bk.WORK_ROWS]
-    d[0] = w * w + x * x - y * y - z * z
-    d[1] = 2.0 * (x * y + w * z)
-    d[2] = 2.0 * (x * z - w * y)
-    dn = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
-    d[0] /= dn
-    d[1] /= dn
-    d[2] /= dn
+    bk.limb_into(w, x, y, z, d)
     p = work[bk.WORK_ROWS + 1]
-    if bk.query(
-        d,
-        vertices,
-        edges,
-        margins,
-        axis,
-        grid_shape,
-        inside,
-        deep,
-        start,
-        cell_edges,
-        keys,
-        p,
-        work,
-    ):
+    if bk.query_mesh(d, mesh, p, work):
         out[0] = w
         out[1] = x
         out[2] = y
         out[3] = z
         return 1
-    # swing from +x to p: normalise(1 + p_x, 0, -p_z, p_y)
-    sw = 1.0 + p[0]
-    sy = -p[2]
-    sz = p[1]
-    sn = math.sqrt(sw * sw + sy * sy + sz * sz)
-    if sn < 1e-12:
-        sw, sy, sz, sn = 0.0, 0.0, 1.0, 1.0
-    sw /= sn
-    sy /= sn
-    sz /= sn
+    sw, sy, sz = bk.swing_of(p)
     tn = math.sqrt(w * w + x * x)
     tw, tx = (w / tn, x / tn) if tn > 1e-12 else (1.0, 0.0)
     # (sw, 0, sy, sz) * (tw, tx, 0, 0)
@@ -97,6 +64,7 @@ def correct_batch(
     q, vertices, edges, margins, axis, grid_shape, inside, deep, start, cell_edges, keys
 ):
     """Correct each row of ``q`` (N, 4) -> (out (N, 4), status (N,) int8: 1 in, 0 fixed, -1 bad)."""
+    mesh = (vertices, edges, margins, axis, grid_shape, inside, deep, start, cell_edges, keys)
     n = q.shape[0]
     out = np.empty((n, 4))
     status = np.empty(n, dtype=np.int8)
@@ -104,21 +72,7 @@ def correct_batch(
         work = np.empty((bk.WORK_ROWS + 2, 3))
         bk.frame_into(axis, work)
         for j in range(chunk * bk.CHUNK, min(n, (chunk + 1) * bk.CHUNK)):
-            status[j] = _correct_one(
-                q[j],
-                vertices,
-                edges,
-                margins,
-                axis,
-                grid_shape,
-                inside,
-                deep,
-                start,
-                cell_edges,
-                keys,
-                out[j],
-                work,
-            )
+            status[j] = _correct_one(q[j], mesh, out[j], work)
     return out, status
 
 
@@ -127,24 +81,11 @@ def correct_single(
     q, vertices, edges, margins, axis, grid_shape, inside, deep, start, cell_edges, keys
 ):
     """:func:`correct_batch` for one (4,) quaternion, without the thread pool: (out, status)."""
+    mesh = (vertices, edges, margins, axis, grid_shape, inside, deep, start, cell_edges, keys)
     out = np.empty(4)
     work = np.empty((bk.WORK_ROWS + 2, 3))
     bk.frame_into(axis, work)
-    status = _correct_one(
-        q,
-        vertices,
-        edges,
-        margins,
-        axis,
-        grid_shape,
-        inside,
-        deep,
-        start,
-        cell_edges,
-        keys,
-        out,
-        work,
-    )
+    status = _correct_one(q, mesh, out, work)
     return out, status
 
 
@@ -153,46 +94,29 @@ def correct_serial(
     q, vertices, edges, margins, axis, grid_shape, inside, deep, start, cell_edges, keys
 ):
     """:func:`correct_batch` on one thread: the same answers, row for row."""
+    mesh = (vertices, edges, margins, axis, grid_shape, inside, deep, start, cell_edges, keys)
     n = q.shape[0]
     out = np.empty((n, 4))
     status = np.empty(n, dtype=np.int8)
     work = np.empty((bk.WORK_ROWS + 2, 3))
     bk.frame_into(axis, work)
     for j in range(n):
-        status[j] = _correct_one(
-            q[j],
-            vertices,
-            edges,
-            margins,
-            axis,
-            grid_shape,
-            inside,
-            deep,
-            start,
-            cell_edges,
-            keys,
-            out[j],
-            work,
-        )
+        status[j] = _correct_one(q[j], mesh, out[j], work)
     return out, status
 
 
-#: Rows up to which a batch goes command by command through :func:`correct_single`, the kernel
-#: the gate compiles anyway: teleop's few small batches (the park check's 13 probes) then compile
-#: nothing more. 64 rows cost ~0.2 ms this way (~3 us each from Python).
+#: Rows up to which a batch goes row by row through :func:`correct_single`, the gate's
+#: kernel: teleop's small batches compile nothing more (64 rows: ~0.2 ms).
 SINGLE_ROWS = 64
-#: Rows up to which a batch runs on one thread (:func:`correct_serial`); larger ones take the
-#: thread pool (:func:`correct_batch`). At ~1-2 us a row, train's largest batch (the extent grid
-#: of its summary, ~50,000 rows) takes ~0.1 s on one thread: two cores save at most half of
-#: that, and the parallel kernel's compile (seconds) is then paid only by the larger batches of
-#: evaluations and benchmarks, never by train or teleop.
+#: Rows up to which a batch runs on one thread (train's largest, ~50,000 rows, ~0.1 s); only
+#: larger ones pay the thread pool's compile (seconds).
 PARALLEL_ROWS = 100_000
 
 
 def correct_rows(q, *args):
     """Correct each row of ``q`` (N, 4) C-contiguous -> (out (N, 4), status (N,) int8), through
-    the kernel that suits N (:data:`SINGLE_ROWS`, :data:`PARALLEL_ROWS`): the same answers,
-    row for row, from every one of them. ``args``: the mesh's kernel arguments."""
+    the kernel that suits N: the same answers row for row. ``args``: the mesh's kernel arguments.
+    """
     n = q.shape[0]
     if n > PARALLEL_ROWS:
         return correct_batch(q, *args)

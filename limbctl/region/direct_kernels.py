@@ -1,23 +1,10 @@
-"""Numba kernels that answer the region's queries without its lookup grid.
+"""Numba kernels that answer the region's queries from its arcs alone, without the lookup grid.
 
-The grid (:mod:`limbctl.region.grid_kernels`) costs a tenth of a second to build and then
-answers one direction in about a microsecond: right for the gate, which asks every cycle of a
-model that is built once. While a region is fitted, the fit asks a few thousand questions of
-meshes it may then throw away (the acceptance checks of each candidate edge,
-:mod:`limbctl.region.acceptance`); these kernels answer them from the arcs alone, with the
-same rule as the grid's queries (:func:`limbctl.region.mesh_kernels.query`):
-
-- *in the loops*: by the parity of the boundary arcs crossing the half-meridian from the
-  direction to ``-axis`` (as :func:`limbctl.region.mesh.cell_centres_inside` decides a cell's
-  centre), given whether ``-axis`` is inside;
-- *the nearest widened arc*: the arc minimising ``angle(p, e) - margin_e`` (the first of equal
-  ones, in arc order), measured only where the midpoint bound (below) cannot rule it out;
-- inside when in the loops or ``min key <= CONTAIN_TOLERANCE``; outside, the projection goes
-  ``margin`` from the nearest point of that arc toward the direction.
-
-Both answer alike except within rounding of the loops, where the tolerance makes both say
-inside (``tests/region/test_direct_kernels.py`` compares them). Angles in radians. No
-fastmath: every comparison sees NaN as failing.
+The grid costs a tenth of a second to build; a fit asks a few thousand questions of candidate
+meshes it may throw away (:mod:`limbctl.region.acceptance`). The rule is the grid queries'
+(:func:`limbctl.region.mesh_kernels.query`): in the loops by the parity of crossings of the
+half-meridian to ``-axis``; the nearest widened arc (the first of equal ones); inside when in
+the loops or ``min key <= CONTAIN_TOLERANCE``. Angles in radians. No fastmath.
 """
 
 from __future__ import annotations
@@ -78,14 +65,11 @@ def nearest_midpoint(p, mids) -> int:
 
 @njit
 def nearest_widened(p, vertices, edges, margins, mids, half, reach, tie, best_point):
-    """The nearest widened arc of ``p`` (3,): its index, ``angle - margin`` and angle (rad);
-    its nearest point goes into ``best_point`` (3,). Arcs are visited in order, and a later
-    arc replaces the best only when nearer by more than ``tie`` (rad; 0: any nearer).
+    """The nearest widened arc of ``p`` (3,): its index, ``angle - margin`` and angle (rad).
 
-    Every point of an arc lies within its half length of its midpoint, so the arc whose
-    midpoint is nearest gives an upper bound ``top`` on the smallest key; an arc whose
-    midpoint lies farther than ``top + reach`` (``reach``: the longest half length plus the
-    largest margin) cannot do better and is not measured.
+    Its nearest point goes into ``best_point`` (3,). A later arc wins only when nearer by more
+    than ``tie`` (rad). Arcs whose midpoint lies farther than the best midpoint's bound plus
+    ``reach`` (longest half length plus largest margin) are not measured.
     """
     closest = nearest_midpoint(p, mids)
     best_arc = -1
@@ -109,19 +93,15 @@ def nearest_widened(p, vertices, edges, margins, mids, half, reach, tie, best_po
     return best_arc, best_key, best_angle
 
 
-#: Slack (rad) of the midpoint bound of :func:`within_widening`: far above the rounding of a
-#: dot product's cosine (1e-16) even for an arc of length and margin zero (cos(1e-6) = 1 - 5e-13),
-#: and a few arcs measured too many cost nothing.
+#: Slack (rad) of the midpoint bound: far above a cosine's rounding (1e-16), costing nothing.
 SLACK = 1e-6
 
 
 @njit
 def within_widening(p, vertices, edges, margins, mids, reach_cos) -> bool:
-    """Whether some arc's widening holds ``p`` (3,): ``angle(p, e) - margin_e <=
-    CONTAIN_TOLERANCE`` for an arc ``e``, which is what :func:`nearest_widened`'s smallest key
-    says. Every point of an arc lies within its half length of its midpoint, so an arc whose
-    midpoint lies farther than its half length, margin and the tolerance (``reach_cos[e]``, the
-    cosine of that, :data:`SLACK` wider) cannot hold ``p`` and is not measured."""
+    """Whether some arc's widening holds ``p`` (3,) (within CONTAIN_TOLERANCE); arcs whose
+    midpoint lies beyond ``reach_cos[e]`` (:data:`SLACK` wider) are not measured.
+    """
     for e in range(edges.shape[0]):
         if p[0] * mids[e, 0] + p[1] * mids[e, 1] + p[2] * mids[e, 2] < reach_cos[e]:
             continue
@@ -132,9 +112,9 @@ def within_widening(p, vertices, edges, margins, mids, reach_cos) -> bool:
 
 @njit
 def in_loops(p, vertices, edges, axis, u, v, far_inside) -> bool:
-    """Whether ``p`` (3,) lies inside the loops: the arcs crossing the half-meridian from the
-    axis through ``p`` to ``-axis`` beyond ``p`` are counted; ``p`` is inside when ``-axis``
-    is (``far_inside``) and the count is even, or when it is not and the count is odd."""
+    """Whether ``p`` (3,) lies inside the loops: the parity of crossings of the half-meridian
+    beyond ``p`` to ``-axis``, against whether ``-axis`` is inside (``far_inside``).
+    """
     phi = math.atan2(_dot(p, v), _dot(p, u))
     cp = math.cos(phi)
     sp = math.sin(phi)
@@ -185,11 +165,8 @@ def in_loops(p, vertices, edges, axis, u, v, far_inside) -> bool:
 
 @njit
 def query_batch(vertices, edges, margins, axis, far_inside, d, project):
-    """Whether each direction of ``d`` (N, 3) is in the region (N,) bool, and, when
-    ``project``, its projection (N, 3) (the direction itself inside); else a (0, 3) array.
-
-    One thread: the fit asks a few thousand directions at a time (~10 ms), where a thread pool
-    saves little and its parallel compile costs seconds on a first run.
+    """Whether each direction of ``d`` (N, 3) is in the region (N,) bool, and when ``project``
+    its projection (N, 3) (else (0, 3)). One thread: a pool's compile costs seconds.
     """
     n = d.shape[0]
     inside = np.empty(n, dtype=np.bool_)

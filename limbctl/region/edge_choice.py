@@ -1,35 +1,13 @@
 """Which edge the gate uses: interchangeable edge strategies, chosen by name.
 
-The shape (:mod:`limbctl.region.shape`) gives the *supported loops*: they run through the
-outermost taught samples, widened by learned margins, and are always safe, but sit inside a
-sparsely taught edge and have corners wherever a sample fell. An edge strategy proposes an
-edge from those loops and the taught directions; :func:`limbctl.region.acceptance.judge`
-gives every answer its :class:`~limbctl.region.acceptance.Verdict`. The strategies
-(:data:`EDGE_STRATEGIES`):
-
-- ``"smooth"`` (:class:`SmoothEdge`, :func:`limbctl.region.edge_smooth.fit_edge`): local small
-  circles over one window for the whole loop, moved out by the outermost samples. Refused
-  where the data hold a bay (:func:`limbctl.region.edge_smooth.protected`) or the window cannot
-  follow the loop's shape at some station (``residual_ratio`` above ``RESOLVED_RATIO``). Best
-  on round regions (a cone's edge is one circle).
-- ``"traced"`` (:class:`TracedEdge`, :func:`limbctl.region.edge_traced.trace_edge`): a curve
-  walked out to the edge station by station; follows eggs, kidneys and bays, refused where
-  the edge is taught too sparsely (estimate window above ``TRACE_MAX_WINDOW_DEG``).
-- ``"supported"`` (:class:`SupportedEdge`): the supported loops themselves; the fallback,
-  accepted without checks.
-
-:func:`choose_edge` takes a choice by name (:data:`EDGE_CHOICES`). ``"auto"`` judges the
-strategies of :data:`AUTO_ORDER` (smooth, traced, supported) and takes the first accepted
-(a traced edge refused for bridging a stretch the samples surround is judged again held to
-the evidence, :func:`limbctl.region.edge_traced.held_in`),
-where an edge must also stay within ``CONFIRM_DEG`` of every learned edge accepted later in
-the order (the smooth edge, fewer free parameters and the better fit when it is right, must
-agree with the traced edge where both pass). A single strategy's name judges it alone and
-falls back to the supported loops if it is refused.
-
-A strategy is a class with a ``name``, a ``safe`` flag (True only for an edge that holds the
-taught samples by construction) and ``propose(loops, data, supported, max_offset)``; adding
-one to :data:`EDGE_STRATEGIES` makes it a choice (``docs/region.md``).
+An edge strategy (:data:`EDGE_STRATEGIES`: :class:`SmoothEdge`, :class:`TracedEdge`,
+:class:`SupportedEdge`) proposes an edge from the supported loops and the taught directions;
+:func:`limbctl.region.acceptance.judge` gives every answer its verdict. :func:`choose_edge`
+takes a choice by name (:data:`EDGE_CHOICES`): ``"auto"`` judges :data:`AUTO_ORDER` and takes
+the first accepted, each within ``CONFIRM_DEG`` of the learned edges accepted after it; a
+traced edge refused for bridging a stretch the samples surround is judged again held to the
+evidence. A single name judges that strategy alone, the supported loops its fallback.
+docs/region.md describes the strategies and how to add one.
 """
 
 from __future__ import annotations
@@ -61,9 +39,8 @@ class EdgeStrategy(Protocol):
     ) -> Proposal | Refusal:
         """An edge for all ``loops`` (each (M, 3), counter-clockwise), or why not.
 
-        ``data`` (N, 3) are the taught directions, ``supported`` the supported region (the
-        loops widened by their margins), ``max_offset`` (rad) caps how far the edge moves
-        past a loop in one step.
+        ``data`` (N, 3) are the taught directions, ``supported`` the supported region,
+        ``max_offset`` (rad) caps how far the edge moves past a loop in one step.
         """
         ...
 
@@ -128,9 +105,7 @@ class SmoothEdge:
 class TracedEdge:
     """A curve walked out to where the samples put the edge, station by station.
 
-    ``hold``: each outer loop's curve is held within ``HOLD_DEG`` of the taught samples
-    (:mod:`limbctl.region.edge_traced`); :func:`choose_edge` asks for it when the free curve
-    bridges a stretch the samples surround.
+    ``hold``: each outer loop's curve is held within ``HOLD_DEG`` of the taught samples.
     """
 
     name: ClassVar[str] = "traced"
@@ -202,7 +177,7 @@ def choose_edge(
     Parameters
     ----------
     choice : str
-        One of :data:`EDGE_CHOICES` (module docstring).
+        One of :data:`EDGE_CHOICES`.
     loops : list of ndarray, each (M, 3)
         The supported loops (counter-clockwise, region on the left).
     data : ndarray, shape (N, 3)
@@ -226,11 +201,12 @@ def choose_edge(
     for name in reversed(order):
         strategy = EDGE_STRATEGIES[name]
         answer = strategy.propose(loops, data, supported, max_offset)
-        verdict = judge(answer, data, supported, tuple(rivals) if choice == "auto" else ())
+        against = tuple(rivals) if choice == "auto" else ()
+        verdict = judge(answer, data, supported, against)
         if name == "traced" and "evidence_deg" in verdict.figures:
             # the free curve bridges a bay or notch: the curve held to the evidence instead
             answer = TracedEdge(hold=True).propose(loops, data, supported, max_offset)
-            verdict = judge(answer, data, supported, tuple(rivals) if choice == "auto" else ())
+            verdict = judge(answer, data, supported, against)
         judged[name] = verdict
         if verdict.accepted and not strategy.safe:
             rivals.append(verdict)

@@ -1,39 +1,21 @@
 """Holding the kept edge to the taught evidence where it stands past it: containment first.
 
-A taught sample lies inside the true region, so a point of the learned region within ``r`` of a
-taught sample lies at most ``r`` outside the truth. Wherever the kept edge (whichever strategy
-:func:`limbctl.region.edge_choice.choose_edge` took) stands farther than ``REACH_DEG``
-(:mod:`limbctl.region.evidence`) from every taught sample, nothing bounds how far past the truth
-it may be: a bay or notch the sampling never entered, a sparse stretch the margins pushed out.
-:func:`hold_to_evidence` holds every such stretch to ``REACH_DEG`` of the evidence:
+A point of the learned region within ``r`` of a taught sample lies at most ``r`` outside the
+truth. Wherever the kept edge stands farther than ``REACH_DEG`` (:mod:`limbctl.region.evidence`)
+from every taught sample, :func:`hold_to_evidence` holds it to ``REACH_DEG`` of the evidence
+(docs/decisions/region.md):
 
-1. The edge's stations (``STATION_DEG`` apart, :func:`limbctl.region.evidence.edge_stations`)
-   farther than ``REACH_DEG`` from every taught sample are *far*; every arc of an outer loop
-   holding one is *held*.
-2. A held arc is rebuilt as the chain of its stations (its widening moved onto them: the
-   stations lie on the widened edge, and the chain's arcs have no margin). A far station walks
-   in along the edge's inward normal, ``WALK_STEP_DEG`` at a time, up to ``WALK_DEG``, to the
-   first place within ``REACH_DEG`` of a taught sample; one that gets nowhere moves along the
-   great circle toward its nearest taught sample, to ``REACH_DEG`` from it. Every other station
-   stays exactly where it is, and arcs with no far station are kept as they were (margins and
-   all): a region with no far station is returned unchanged, bit for bit.
-3. Where two neighbouring held stations moved ``SPREAD_STATIONS`` station spacings or more
-   apart, the edge between their places is sampled once more and held
-   (``REFINE_PASSES`` times); folds the walks leave in a bay (walks toward its two walls cross)
-   are cut out (:func:`limbctl.region.edge_traced.unfolded`'s rule, on the held chain only);
-   a chord of the chain whose middle or quarters still lie farther than ``REACH_DEG`` from every
-   taught sample (a walk's jump from a bay's floor to its wall, a fold's cut) gets its middle held
-   too, moved straight toward its nearest taught sample (``CHORD_PASSES`` times).
-4. The held region must not leave out a taught sample the unheld one held: each such sample is
-   pinned (put into the nearest chord of the chain, ``PIN_DEG`` outside it: a point of the
-   evidence, so no farther from it than the reach; ``PIN_ROUNDS``); one still left out gives
-   the held arc nearest it back its unheld edge, and the hold is retried (``UNHOLD_ROUNDS``).
-   Where the held arcs cross (a walk across a hole's loop), the held arcs nearest the crossings
-   are given back their unheld edges the same way.
+1. Every arc of an outer loop with a station (``STATION_DEG`` apart) farther than
+   ``REACH_DEG`` from every taught sample is *held*: rebuilt as the chain of its stations on
+   the widened edge. Its far stations walk in (:func:`_walk`); all else stays bit for bit.
+2. Where neighbouring held stations moved apart the edge between them is sampled again and
+   held (``REFINE_PASSES``); folds are cut (:func:`_unfolded`); chords whose middle still lies
+   far get their middle held (``CHORD_PASSES``).
+3. A taught sample the unheld region held and the held one leaves out is pinned into the
+   chain (``PIN_ROUNDS``); one still lost, or a crossing of held arcs, gives the nearest held
+   arc back its unheld edge and the hold is retried (``UNHOLD_ROUNDS``).
 
-The stretches stay reported (:attr:`limbctl.region.TaughtRegion.unsupported_edge`, now *held*):
-the region stands short of where the evidence might put the edge there until the person
-teaches it, and the guide withholds READY TO TRAIN meanwhile.
+The stretches stay reported (:attr:`limbctl.region.TaughtRegion.unsupported_edge`, *held*).
 """
 
 from __future__ import annotations
@@ -51,50 +33,32 @@ from limbctl.region.evidence import (
 from limbctl.region.loops import chord
 from limbctl.region.mesh import DirectionMesh
 
-#: Step (deg) of a far station's walk inward: it ends at most this much deeper than the reach
-#: asks (the traced edge's hold walks as finely, :mod:`limbctl.region.edge_traced`).
+#: Step (deg) of a walk inward: it ends at most this much deeper than asked.
 WALK_STEP_DEG = 0.05
-#: The farthest (deg) a station walks in along its normal: the deepest bay or notch the
-#: families cut (11 deg, benchmarks/bench_swing_families.py) plus the reach; a walk that gets
-#: nowhere (the normal runs along a wall) moves toward the nearest sample instead.
+#: Farthest (deg) a station walks in along its normal; then toward the nearest sample.
 WALK_DEG = 3.0
-#: The farthest (deg) the middle of a chord still far from the evidence walks in: across a bay
-#: the stations moved toward its two walls leave a chord over the mouth, and its middle must walk
-#: into the bay (the deepest the families cut, 11 deg, benchmarks/bench_swing_families.py, plus
-#: the reach) to come within reach of the samples beyond it.
+#: Farthest (deg) a far chord's middle walks in: into the deepest bay the families cut
+#: (11 deg, benchmarks/bench_swing_families.py) plus the reach.
 CHORD_WALK_DEG = 12.5
-#: Neighbouring held stations that moved this many station spacings apart or more get the edge
-#: between them sampled again: a chord twice the spacing passes at most one spacing (0.25 deg)
-#: farther from the evidence than its ends.
+#: Held stations this many spacings apart get the edge between them sampled again.
 SPREAD_STATIONS = 2.0
-#: Passes of that refinement: each halves the original spacing between the two stations, so 4
-#: passes resolve 1/16 of a station spacing (0.016 deg) of the unheld edge.
+#: Refinement passes: 4 halvings resolve 1/16 of a station spacing.
 REFINE_PASSES = 4
-#: Passes of holding the middles of chain chords still farther than the reach from every taught
-#: sample: each halves such a chord, so 8 passes take a 3 deg jump down to 0.012 deg chords.
+#: Chord-holding passes: 8 halvings take a 3 deg jump down to 0.012 deg chords.
 CHORD_PASSES = 8
-#: A chord's middle or quarters may lie this much (deg) past the reach before it is held: a
-#: quarter of the station spacing, half what the report's own stations leave between them.
+#: A chord may lie this much (deg) past the reach: half the report's station gap.
 CHORD_SLACK_DEG = 0.25 * STATION_DEG
-#: Rounds of giving a held arc back its unheld edge where pinning could not keep a taught sample
-#: the unheld region held; after them (a hold that keeps losing samples) none is held.
+#: Rounds of giving held arcs back; after them none is held.
 UNHOLD_ROUNDS = 4
-#: Rounds of pinning the taught samples a hold would leave out: each lost sample becomes a point
-#: of the chain chord nearest to it; a sample still lost after them gives its arc back.
+#: Rounds of pinning samples a hold would leave out.
 PIN_ROUNDS = 3
-#: How far (deg) outside the chain a pinned sample lies: far below a servo tick (0.088 deg),
-#: the traced edge's lift margin (:data:`limbctl.region.edge_traced.LIFT_MARGIN_DEG`).
+#: A pinned sample lies this far (deg) outside the chain: far below a tick (0.088).
 PIN_DEG = 0.01
-#: How far (rad) inside the reach a station moved toward its nearest sample is put: the later
-#: tests against the reach would otherwise sit on it, where the rounding of the taught
-#: directions (a quaternion's limb direction differs from the direction by ~1e-16) decides.
+#: A station moved toward a sample lands this far (rad) inside the reach: not on rounding.
 INSIDE_RAD = 1e-9
-#: A chord's end closer than this (rad) to another chord's great circle lies on it, not across:
-#: the stations a held arc leaves on its own great circle are that close only by rounding
-#: (1e-16), a real crossing's ends lie a station's move (> 1e-6) off.
+#: Ends this close (rad) to a great circle lie on it: held arcs' rounding is 1e-16.
 ON_CIRCLE_RAD = 1e-12
-#: Stations a fold of held stations may span before its cut: walks toward a bay's two walls
-#: cross over about the bay's width (up to 14 deg, 56 station spacings).
+#: Stations a fold may span: a bay's width, up to 14 deg (56 spacings).
 FOLD_WINDOW = 60
 
 
@@ -106,9 +70,8 @@ def hold_to_evidence(
     Returns
     -------
     region : DirectionMesh
-        The held region (lookup grid not built), or ``mesh`` itself when no station of its outer
-        loops lies farther than ``reach`` from every taught direction, or no hold keeps the
-        taught samples it held and its arcs apart (module docstring).
+        The held region (lookup grid not built), or ``mesh`` itself when nothing is far or no
+        hold keeps the taught samples it held and its arcs apart.
     held : bool
         Whether the region was held (``region`` is not ``mesh``).
     """
@@ -144,10 +107,10 @@ def hold_to_evidence(
 
 
 def crossings(loops: list[np.ndarray]) -> np.ndarray:
-    """Middles (C, 3) of the arcs of the closed ``loops`` (each (M, 3)) that cross a
-    non-adjacent arc: the ends of each lie more than ``ON_CIRCLE_RAD`` to either side of the
-    other's great circle (the test of :func:`limbctl.region.acceptance.arcs_cross`, where the
-    stations a held arc leaves on its own great circle do not cross by rounding)."""
+    """Middles (C, 3) of the arcs of the closed ``loops`` (each (M, 3)) that cross a non-adjacent
+    arc (:func:`limbctl.region.acceptance.arcs_cross`'s test, ends within ``ON_CIRCLE_RAD`` of a
+    great circle not across it).
+    """
     a = np.vstack(loops)
     b = np.vstack([np.roll(lp, -1, axis=0) for lp in loops])
     owner = np.concatenate([np.full(lp.shape[0], i) for i, lp in enumerate(loops)])
@@ -173,16 +136,16 @@ def crossings(loops: list[np.ndarray]) -> np.ndarray:
 
 
 def _split(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Whether two ends at (sine) distances ``u`` and ``v`` from a great circle lie clearly on
-    its two sides (each more than ``ON_CIRCLE_RAD`` off it)."""
+    """Whether ends at sine distances ``u``, ``v`` lie clearly on two sides of a great circle."""
     return (u * v < 0.0) & (np.abs(u) > ON_CIRCLE_RAD) & (np.abs(v) > ON_CIRCLE_RAD)
 
 
 def _pinned(
     loops: list[tuple[np.ndarray, np.ndarray, np.ndarray]], samples: np.ndarray
 ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    """``loops`` (points (K, 3), margins (K,), on a chain (K,) bool each) with every one of
-    ``samples`` (S, 3) pinned: put into the chain chord nearest to it, ``PIN_DEG`` outside."""
+    """``loops`` (points (K, 3), margins (K,), chain flags (K,) each) with each of ``samples``
+    (S, 3) put into its nearest chain chord, ``PIN_DEG`` outside.
+    """
     loops = list(loops)
     lift = np.radians(PIN_DEG)
     for x in samples:
@@ -233,9 +196,7 @@ def _offset(p: np.ndarray, pole: np.ndarray, margin: float) -> np.ndarray:
 def _held_loops(
     mesh: DirectionMesh, held: np.ndarray, tree: cKDTree, reach: float
 ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    """The region's loops with its ``held`` arcs (E,) bool rebuilt as held chains (module
-    docstring, steps 2-3): per loop its points (K, 3), the margins (K,) of the arcs leaving them
-    and whether each lies on a chain (K,) bool."""
+    """Per loop its points (K, 3), margins (K,) and chain flags (K,), ``held`` (E,) arcs held."""
     a_all = mesh.vertices[mesh.edges[:, 0]]
     b_all = mesh.vertices[mesh.edges[:, 1]]
     poles = np.cross(a_all, b_all)
@@ -244,36 +205,26 @@ def _held_loops(
     loops = []
     for arcs in loop_arcs(mesh):
         # per point: position, margin of the arc leaving it, inward normal, whether on a chain
-        points, widen, normals, chain = [], [], [], []
+        rows = []
         for i, e in enumerate(arcs):
             m = float(mesh.margins[e])
             if not held[e]:
-                points.append(a_all[e])
-                widen.append(m)
-                normals.append(poles[e])
-                chain.append(False)
+                rows.append((a_all[e], m, poles[e], False))
                 continue
             prev = arcs[i - 1]
             # the arc's start: a vertex both chains share may move; next to a kept arc it stays
-            points.append(a_all[e])
-            widen.append(0.0)
-            normals.append(poles[e] + poles[prev] if held[prev] else poles[e])
-            chain.append(bool(held[prev]))
+            both = poles[e] + poles[prev] if held[prev] else poles[e]
+            rows.append((a_all[e], 0.0, both, bool(held[prev])))
             # its stations on the widened edge (the first, at the vertex, only when widened)
             count = max(1, int(np.ceil(_angle(a_all[e], b_all[e]) / step)))
             for t in np.arange(0 if m > 0.0 else 1, count) / count:
-                points.append(_offset(_slerp(a_all[e], b_all[e], t), poles[e], m))
-                widen.append(0.0)
-                normals.append(poles[e])
-                chain.append(True)
+                rows.append(
+                    (_offset(_slerp(a_all[e], b_all[e], t), poles[e], m), 0.0, poles[e], True)
+                )
             if m > 0.0:
-                points.append(_offset(b_all[e], poles[e], m))
-                widen.append(0.0)
-                normals.append(poles[e])
-                chain.append(True)
-        p = np.array(points)
-        n = _tangent(np.array(normals), p)
-        loops.append(_hold_chain(p, np.array(widen), n, np.array(chain), tree, reach))
+                rows.append((_offset(b_all[e], poles[e], m), 0.0, poles[e], True))
+        p, widen, normals, chain = (np.array(c) for c in zip(*rows, strict=True))
+        loops.append(_hold_chain(p, widen, _tangent(normals, p), chain, tree, reach))
     return loops
 
 
@@ -292,9 +243,9 @@ def _slerp(a: np.ndarray, b: np.ndarray, t: float) -> np.ndarray:
 def _hold_chain(
     p: np.ndarray, w: np.ndarray, n: np.ndarray, chain: np.ndarray, tree: cKDTree, reach: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """One closed loop's points (K, 3) with their margins (K,), inward normals (K, 3) and
-    whether each lies on a held chain (K,) bool: the chain's far points held, refined where
-    they spread apart, folds cut (module docstring)."""
+    """One loop's points (K, 3), margins (K,), inward normals (K, 3), chain flags (K,): held,
+    refined, unfolded.
+    """
     original = p.copy()
     far = chain & (tree.query(p)[0] > chord(reach))
     p = p.copy()
@@ -326,11 +277,10 @@ def _hold_chain(
 def _held_chords(
     p: np.ndarray, w: np.ndarray, chain: np.ndarray, tree: cKDTree, reach: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """One closed loop's points (K, 3), margins (K,) and chain flags (K,) with every chain point
-    and chord held within ``reach`` (rad) of the evidence (``CHORD_PASSES`` passes): a far chain
-    point (a fold's cut) walks in; a chord whose middle or quarters lie ``CHORD_SLACK_DEG``
-    farther (a walk's jump from a bay's floor to its wall) gets its middle, moved straight
-    toward its nearest taught sample to ``reach`` from it."""
+    """Points (K, 3), margins (K,), chain flags (K,) with chain points and chords held within
+    ``reach`` (rad): a chord whose middle or quarters lie ``CHORD_SLACK_DEG`` farther gets its
+    middle held.
+    """
     bound, slack = chord(reach), chord(reach + np.radians(CHORD_SLACK_DEG))
     for _ in range(CHORD_PASSES):
         k = p.shape[0]
@@ -371,8 +321,8 @@ def _walk(
     p: np.ndarray, n: np.ndarray, tree: cKDTree, reach: float, walk: float = WALK_DEG
 ) -> np.ndarray:
     """Points (F, 3) walked in along their inward normals (F, 3) to the first place within
-    ``reach`` (rad) of a taught direction, at most ``walk`` (deg), or toward the nearest one to
-    ``reach`` from it."""
+    ``reach`` (rad) of a taught direction, at most ``walk`` (deg), or toward the nearest one.
+    """
     out = p.copy()
     left = np.arange(p.shape[0])
     bound = chord(reach)
@@ -400,12 +350,11 @@ def _walk(
 def _unfolded(
     p: np.ndarray, w: np.ndarray, chain: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The closed loop ``p`` (K, 3), margins ``w`` (K,), with the folds of its held chains cut:
-    where the chord ``i -> i+1`` crosses the chord ``j -> j+1`` (``j - i`` at most
-    ``FOLD_WINDOW``, read circularly), the points ``i+1 .. j`` are replaced by the crossing
-    point. The two chords keep their margins on what is left of them (a widened part of an arc
-    lies within the arc's widened band) and what lay between is cut off: the region only
-    shrinks there."""
+    """The closed loop ``p`` (K, 3), margins ``w`` (K,), chain flags, with held folds cut.
+
+    Where chord ``i -> i+1`` crosses chord ``j -> j+1`` (``j - i`` at most ``FOLD_WINDOW``), points
+    ``i+1 .. j`` become the crossing point; the region only shrinks there.
+    """
     while True:
         k = p.shape[0]
         a, b = p, np.roll(p, -1, axis=0)

@@ -1,42 +1,21 @@
-"""The learned edge: a smooth boundary fitted to the data-supported loops and the outermost data.
+"""The smooth edge: a boundary of local small circles fitted to the data-supported loops.
 
-The loops the region shape traces (:mod:`limbctl.region.shape`) run through taught
-samples, so their corners are wherever a sample happened to lie: a command far outside snaps to
-one of them, and sparse edges leave the loop inside the true edge. This module replaces each
-loop by a smooth curve sampled every ``STEP_DEG`` (all angles below in radians):
+The loops of :mod:`limbctl.region.shape` run through taught samples, corners wherever a sample
+fell. Each loop becomes a smooth curve sampled every ``STEP_DEG`` (angles in radians):
 
-1. *Local small circles*. At each station ``k`` of the loop (arc-length position ``s_k``), a
-   small circle ``{x : angle(x, n_k) = rho_k}`` is fitted to the loop's vertices ``x_i`` with
-   Gaussian weights ``w_ki = exp(-(s_i - s_k)^2 / (2 W^2))``: ``n_k`` is the normal of the
-   weighted least-squares plane (the smallest eigenvector of the weighted covariance) on the
-   region's side, ``rho_k`` the weighted mean of ``angle(x_i, n_k)``. A boundary that is a
-   circle (a cone's) is fitted by one circle whatever ``W``; straight edges by great circles.
-2. *Window*. The weighted residual ``r(W)`` of those fits, averaged over the loop, grows with
-   ``W`` while the windows still resolve the sampling noise, levels off once they average it,
-   and grows again when they span real shape (a corner, a bay). ``W`` is the largest window of
-   the ladder ``WINDOWS_DEG`` (from ``START_WINDOW_DEG`` up) before a step grows the residual
-   by more than ``GROWTH``.
-3. *Edge offset*. The depth of the taught directions nearest to the stations within ``W`` of
-   station ``k`` beyond the great circle tangent to its circle there, ``o = asin(d . t_k)``
-   (``t_k`` the outward normal; on a convex stretch far samples read shallower than they are,
-   never deeper, where the circle's own depth would read a mis-fitted curvature as room to
-   grow); the outermost
-   ``o_(1) >= ... >= o_(K)`` give the endpoint estimate ``o_(1) + gap`` with ``gap`` their
-   mean spacing (:func:`limbctl.region.gaps.spacing_gap`): where the edge lies, not where
-   the outermost sample happened to fall. Offsets are smoothed along the loop with the same
-   ``W``, raised by smooth bumps (:func:`limbctl.region.loops.lift`) wherever a station would
-   leave a taught direction next to it outside, moved out by the sagitta of the chords
-   between stations (the polygon of stations circumscribes the curve), and capped at
+1. *Local small circles* (:func:`circle_fits`): at each station, a small circle fitted to the
+   loop's vertices with Gaussian weights of width ``W`` along the loop (a cone's boundary is
+   one circle whatever ``W``; straight edges are great circles).
+2. *Window* (:func:`choose_window`): the largest ``W`` of ``WINDOWS_DEG`` before a step grows
+   the mean fit residual by more than ``GROWTH`` (real shape entered the window).
+3. *Edge offset* (:func:`edge_offsets`): the outermost depths of the nearby taught directions
+   beyond the circle's tangent plus their mean spacing (where the edge lies, not where the
+   outermost sample fell), smoothed along the loop, lifted where a taught direction would
+   lie outside (:func:`limbctl.region.loops.lift`), out by the chords' sagitta, capped at
    ``max_offset``.
-4. *Refusal* (:class:`limbctl.region.edge_choice.SmoothEdge`). The strategy refuses where
-   the data hold a bay (:func:`protected`: a hole, or a pocket between a loop and its convex
-   hull worth more than ``POCKET_SAMPLES`` samples at the data's density) or where the window
-   cannot follow the loop's shape at some station (a fit residual above ``RESOLVED_RATIO``
-   times the median, :func:`residual_ratio`). What it proposes is then judged like every
-   edge (:mod:`limbctl.region.acceptance`). A round, convex taught region (a cone) gets the
-   smooth edge; an egg whose tip is tighter than the window, a kidney with a dent and a
-   polygon with corners do not (docs/bench_envelope.md lists which edge every benchmark row
-   took).
+4. *Refusal* (:class:`limbctl.region.edge_choice.SmoothEdge`) where the data hold a bay
+   (:func:`protected`) or the window cannot follow the loop's shape (:func:`residual_ratio`
+   above ``RESOLVED_RATIO``). docs/bench_envelope.md lists which edge every benchmark row took.
 """
 
 from __future__ import annotations
@@ -57,32 +36,23 @@ from limbctl.region.loops import (
     smooth_along,
 )
 
-#: No station's fit residual may exceed this multiple of the loop's median residual: cones
-#: measure 1.01-1.25, eggs and hulls whose tip a window spans 1.5-2.1 (:func:`residual_ratio`).
+#: Largest station/median fit residual: cones measure 1.01-1.25, eggs' tips 1.5-2.1.
 RESOLVED_RATIO = 1.4
-#: Spacing (deg) of the stations of the fitted edge: well inside the smallest window (4.5 deg),
-#: and the chords between stations cut at most 0.06 deg into a 20 deg cone (added back).
+#: Station spacing (deg): well inside the smallest window (4.5 deg).
 STEP_DEG = 3.0
-#: Window ladder (deg, Gaussian sigma along the loop) the fit chooses its window from: about
-#: x1.45 a step, fine enough to stop near where the residual turns up, 4.5 to 60 deg in 8 fits.
+#: Window ladder (deg, Gaussian sigma): x1.45 a step, 4.5 to 60 deg in 8 fits.
 WINDOWS_DEG = (4.5, 6.5, 9.0, 13.0, 19.0, 27.0, 40.0, 60.0)
-#: The smallest window the choice starts from (deg): narrower windows follow where single
-#: samples fell on the supported loop (its vertices) and take that for shape.
+#: Smallest window chosen (deg): narrower ones take where samples fell for shape.
 START_WINDOW_DEG = 13.0
-#: A window (Gaussian sigma) spans at least this many mean vertex spacings of the loop: a
-#: circle through fewer vertices takes their noise for curvature.
+#: A window spans at least this many vertex spacings: fewer fit noise as curvature.
 MIN_VERTICES_PER_WINDOW = 3.0
-#: A ladder step may grow the mean fit residual by at most this factor: more than 20 % for a
-#: x1.45 wider window means real shape (a corner, a bay) entered it, not more noise averaged.
+#: Most a ladder step may grow the residual: more than 20 % means shape, not noise.
 GROWTH = 1.2
-#: Fitted circles are at least this large (deg of angular radius), either side: a few noisy
-#: vertices must not fit a circle tighter than any taught edge bends.
+#: Smallest fitted circle (deg): a few noisy vertices must not fit a tighter one.
 MIN_RADIUS_DEG = 5.0
-#: A pocket between a loop and its convex hull worth more samples than this is a taught bay:
-#: the same bound as a stretch the acceptance lets an edge add (``GAP_EXPECTED``).
+#: A pocket worth more samples is a taught bay: the acceptance's ``GAP_EXPECTED``.
 POCKET_SAMPLES = 40.0
-#: Loop vertices farther (deg) than this from the data's mean are clipped for the hull: the
-#: gnomonic projection sends 90 deg to infinity.
+#: Vertices are clipped to this angle (deg) for the hull: gnomonic sends 90 to infinity.
 HULL_REACH_DEG = 89.0
 
 
@@ -103,11 +73,10 @@ def circle_fits(
     outward: np.ndarray,
     window: float,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Weighted small-circle fit at every station: poles (K, 3), radii (K,), residuals (K,).
+    """Weighted small-circle fit at every station: poles (K, 3), radii (K,) rad, residuals (K,) rad.
 
-    Weights ``w_ki = exp(-(s_i - s_k)^2 / (2 window^2))`` over the loop's vertices (circular
-    distance along the loop); the pole is taken on the region's side (``n . outward <= 0``)
-    and the radius kept within ``[MIN_RADIUS_DEG, 180 - MIN_RADIUS_DEG]``.
+    Weights ``exp(-(s_i - s_k)^2 / (2 window^2))`` over the loop's vertices; the pole on the
+    region's side, the radius within ``[MIN_RADIUS_DEG, 180 - MIN_RADIUS_DEG]``.
     """
     gap = loop_gaps(s, at_vertex, total)
     w = np.exp(-0.5 * (gap / window) ** 2)
@@ -138,11 +107,8 @@ def on_circle(x: np.ndarray, pole: np.ndarray, rho: np.ndarray) -> np.ndarray:
 def choose_window(
     loop: np.ndarray, at_vertex: np.ndarray, s: np.ndarray, total: float, outward: np.ndarray
 ) -> float:
-    """The window (rad) by the residual-growth rule of the module docstring.
-
-    The ladder starts at ``START_WINDOW_DEG`` or at ``MIN_VERTICES_PER_WINDOW`` mean vertex
-    spacings of the loop, whichever is larger: a circle through a handful of sparse vertices
-    takes their noise for curvature.
+    """The window (rad) by the residual-growth rule, from at least ``START_WINDOW_DEG`` or
+    ``MIN_VERTICES_PER_WINDOW`` mean vertex spacings.
     """
     floor = max(START_WINDOW_DEG, np.degrees(MIN_VERTICES_PER_WINDOW * total / loop.shape[0]))
     ladder = [np.radians(w) for w in WINDOWS_DEG if w >= floor] or [np.radians(WINDOWS_DEG[-1])]
@@ -186,10 +152,9 @@ def edge_offsets(
 
 
 def fit_edge(loop: np.ndarray, data: np.ndarray, max_offset: float) -> tuple[np.ndarray, float]:
-    """The smooth edge (K, 3) of one data-supported ``loop`` (M, 3), steps 1-3.
+    """The smooth edge (K, 3) of one data-supported ``loop`` (M, 3), and its :func:`residual_ratio`.
 
     ``data`` (N, 3) are the taught directions; ``max_offset`` (rad) caps the edge offset.
-    Also returns how well the window resolves the loop's shape (:func:`residual_ratio`).
     """
     stations, s, at_vertex = resample_loop(loop, np.radians(STEP_DEG))
     total = loop_length(loop)
@@ -210,19 +175,14 @@ def fit_edge(loop: np.ndarray, data: np.ndarray, max_offset: float) -> tuple[np.
 def residual_ratio(resid: np.ndarray) -> float:
     """The largest station fit residual over the median one, of ``resid`` (K,) rad.
 
-    Where one window fits the whole loop, every station's residual is the sampling noise
-    (ratio near 1: 1.01-1.25 on cones). Where the window spans real shape it cannot follow, a
-    tip of an egg or a corner, the residual there is the misfit (1.5-2.1 measured on egg
-    and hull shapes), the circle there cuts inside the tip, and the offsets that make up for
-    it push the neighbouring flanks 1-2 deg past the true edge.
+    Near 1 where one window fits the whole loop; above where it spans a tip or corner it cannot
+    follow, and the offsets that make up for it push the flanks past the true edge.
     """
     return float(np.max(resid) / max(float(np.median(resid)), 1e-12))
 
 
 def sample_need(base: np.ndarray, pole: np.ndarray, rho: np.ndarray, data: np.ndarray):
-    """Offset (K,) rad each station needs to hold the taught directions around it.
-
-    The largest depth ``angle(d, n_k) - rho_k`` of the data nearest to station ``k`` or to
+    """Offset (K,) rad each station needs to hold the taught directions (N, 3) nearest it or
     its two neighbours (-inf where there are none).
     """
     k = base.shape[0]
@@ -238,11 +198,9 @@ def sample_need(base: np.ndarray, pole: np.ndarray, rho: np.ndarray, data: np.nd
 def pockets(loop: np.ndarray, data: np.ndarray) -> list[tuple[int, int, float]]:
     """The bays of a loop (M, 3): stretches between consecutive vertices of its convex hull.
 
-    Returns ``(a, b, worth)`` per hull edge whose stretch ``a -> b`` of the loop leaves a
-    pocket, ``worth = rho * area`` the samples a teacher at the data's mean density ``rho``
-    (``N / area of the loop``) would have put into it. The hull is taken in the gnomonic
-    projection about the data's mean direction (great circles map to lines), vertices
-    farther than ``HULL_REACH_DEG`` from it clipped to that angle.
+    Returns ``(a, b, worth)`` per hull edge whose stretch ``a -> b`` leaves a pocket, ``worth``
+    the samples the data's mean density would put into it. The hull is taken in the gnomonic
+    projection about the data's mean direction.
     """
     centre = data.mean(axis=0)
     centre /= np.linalg.norm(centre)
@@ -266,9 +224,8 @@ def pockets(loop: np.ndarray, data: np.ndarray) -> list[tuple[int, int, float]]:
 def protected(
     loop: np.ndarray, data: np.ndarray, s: np.ndarray, at_vertex: np.ndarray
 ) -> np.ndarray:
-    """(K,) bool: stations on a bay the data hold (a pocket worth > ``POCKET_SAMPLES``).
-
-    A hole (a loop running clockwise) is protected whole: its edge is concave throughout.
+    """(K,) bool: stations on a bay the data hold (a pocket worth > ``POCKET_SAMPLES``); all of
+    a hole (a clockwise loop).
     """
     if loop_area(loop) < 0.0:
         return np.ones(s.shape[0], dtype=bool)

@@ -1,58 +1,25 @@
 """The traced edge: a curve walked out to where the taught samples put the edge, station by station.
 
-The smooth edge of :mod:`limbctl.region.edge_smooth` fits small circles over one window for the
-whole loop: exact on a round region, but a window wide enough to average sparse samples spans an
-egg's tight end or a kidney's dent, and the gate then refuses it. The traced edge follows any
-shape the data resolve, bays included; it needs the edge to be taught densely enough that a
-short window holds enough samples (:func:`trace_window`). All angles below are in radians.
+Unlike :mod:`limbctl.region.edge_smooth` (one window of small circles for the whole loop) it
+follows any shape the data resolve, bays included, if the edge is taught densely enough that a
+short window holds enough samples (:func:`trace_window`). Angles are in radians. From a
+data-supported loop resampled ``TRACE_STEP_DEG`` apart, each of ``TRACE_ITERATIONS`` rounds:
 
-Starting from a data-supported loop, resampled to stations ``TRACE_STEP_DEG`` apart, each of
-``TRACE_ITERATIONS`` rounds does:
+1. *Read*: each taught direction belongs to its nearest station ``k`` and reads its depth
+   ``asin(d . t_k)`` beyond the tangent great circle there (``t_k`` the outward normal).
+2. *Estimate* the edge at every station (:func:`edge_estimate`) from the readings within
+   ``+- h`` along the curve: their upper concave majorant plus the expected gap
+   (:func:`limbctl.region.gaps.majorant_gap`). Stations over a hole in the taught edge
+   (:func:`over_hole`) take estimates bridged between the hole's ends (:func:`bridged_estimates`).
+3. *Move* each station by its estimate, smoothed along the curve (Gaussian, ``h/2``).
+4. *Smooth* by local quadratic regression (:func:`local_quadratic`), outward by at most
+   ``TRACE_SMOOTH_CAP_DEG`` a round so that it does not bridge a narrow bay.
 
-1. *Read the samples against the curve*. Each taught direction ``d`` belongs to its nearest
-   station ``k`` and reads its depth beyond the great circle tangent there,
-   ``o = asin(d . t_k)`` (``t_k`` the outward normal), at the station's arc-length position.
-   Stations are close, so the tangent stands for the curve: the readings are the samples'
-   depths relative to the curve, whatever its shape.
-2. *Estimate the edge at every station* (:func:`edge_estimate`) from the readings within
-   ``+- h`` along the curve: the upper concave majorant of the (position, depth) points,
-   evaluated at the station (the line through two of them that passes over all the others and
-   is lowest there; a lone deep point lifts a station only as far as the line from it does),
-   plus the expected gap between that line and the edge
-   (:func:`limbctl.region.gaps.majorant_gap`). A station whose own readings all lie deeper
-   than ``h`` lies over a hole in the taught edge (:func:`over_hole`: a recorder that missed
-   part of the edge trace leaves only interior samples there); its readings are left out and
-   the stations left without readings take the estimates interpolated between the hole's
-   ends (:func:`bridged_estimates`), so the curve bridges the hole instead of digging a notch
-   to the interior samples.
-3. *Move* each station out (or in) by its estimate, smoothed along the curve (Gaussian, ``h/2``).
-4. *Smooth* the curve by local quadratic regression of its positions (:func:`local_quadratic`,
-   Gaussian weights of width ``TRACE_SMOOTH_DEG``): circles and other quadratic stretches come
-   through unchanged, sample noise is averaged away. Smoothing may move a station outward by
-   at most ``TRACE_SMOOTH_CAP_DEG`` per round: across a bay narrower than the smoothing width it
-   would otherwise bridge the bay, and the next round's estimate pulls the curve back only by
-   what the samples say.
-
-A final lift moves stations out where a taught direction next to them still lies beyond.
-
-*Held to the evidence* (asked for by :class:`limbctl.region.edge_choice.TracedEdge` when the
-free curve bridged a stretch the samples surround; an outer loop's curve only, a hole's loop
-bounds what the region leaves out and bridges nothing): after every round, and on the final
-curve resampled ``HELD_STEP_DEG`` apart (``HOLD_PASSES`` times), a station farther than
-``HOLD_DEG`` from every taught direction moves in to ``HOLD_DEG`` from one
-(:func:`held_in`). A taught direction lies inside the truth, so the curve lies at most
-``HOLD_DEG`` outside it, up to its chords: across a bay or notch the estimates would bridge
-(the bay's walls lie beyond the stations' tangents) the curve follows the taught samples
-round the bay instead; where the hand traced the edge about 1 deg inside, the curve stays
-within ``HOLD_DEG`` of that trace.
-
-Measured (``benchmarks/bench_envelope.py``: 1000 i.i.d. samples, dense middle, sparse edge, 5
-teaching seeds): on the 39 x 23 deg small kidney the gate's mean angle to the ideal correction
-is 0.36-0.48 deg (the supported edge: 1.0-1.1 deg), on the 48 x 26 deg egg 0.37-0.56 deg
-(supported: 1.1-1.2 deg), with every output inside or within 1 deg of the true region. Regions
-taught too sparsely (windows wider than ``TRACE_MAX_WINDOW_DEG``: the 113 x 78 deg BEAN and
-KIDNEY at 1000 samples) are refused (:class:`limbctl.region.edge_choice.TracedEdge`). Sharp
-corners come out rounded.
+A final lift moves stations out where a taught direction next to them still lies beyond. Held
+to the evidence (an outer loop's curve, when :class:`limbctl.region.edge_choice.TracedEdge`
+asks), every station is kept within ``HOLD_DEG`` of a taught direction (:func:`held_in`), so
+the curve follows the samples round a bay instead of bridging it. Figures and history:
+docs/decisions/region.md.
 """
 
 from __future__ import annotations
@@ -75,72 +42,51 @@ from limbctl.region.loops import (
 )
 from limbctl.region.trace_kernels import station_moves
 
-#: Spacing (deg) of the traced curve's stations: half the smooth edge's, to follow an egg's
-#: tip, and at least two stations either side of the smallest half window.
+#: Station spacing (deg): half the smooth edge's, to follow an egg's tip.
 TRACE_STEP_DEG = 1.5
-#: Rounds of read, estimate, move, smooth: each round's smoothing moves out at most
-#: TRACE_SMOOTH_CAP_DEG, so the curve can settle a few degrees from where it started.
+#: Rounds of read, estimate, move, smooth: enough to settle a few degrees from the start.
 TRACE_ITERATIONS = 10
-#: Width (deg, Gaussian sigma along the curve) of the local quadratic smoothing: averages
-#: the estimates of several windows while a 10 deg circle shrinks only 0.14 deg a round.
+#: Smoothing width (deg, Gaussian sigma): a 10 deg circle shrinks only 0.14 deg a round.
 TRACE_SMOOTH_DEG = 6.0
-#: The most (deg) one round's smoothing may move a station outward: smoothing across a bay
-#: narrower than its width would bridge it; the next estimate pulls a station back this much.
+#: Most (deg) one round's smoothing moves a station out: more would bridge narrow bays.
 TRACE_SMOOTH_CAP_DEG = 0.25
-#: The estimate window is chosen so the outermost samples are about this far apart (deg):
-#: an estimate's noise is about one spacing, well under the 0.5 deg accuracy target.
+#: Spacing (deg) of a window's outermost samples: its noise, under the 0.5 deg target.
 TRACE_SPACING_DEG = 0.2
 #: Smallest half window (deg) along the curve: two stations either side, however dense.
 TRACE_MIN_WINDOW_DEG = 3.0
-#: Largest half window (deg): wider windows span corners and dents and average them away;
-#: sparser edges are refused (see the module docstring).
+#: Largest half window (deg): wider ones average corners and dents away; refused.
 TRACE_MAX_WINDOW_DEG = 10.0
-#: Depth (deg) of the band inside the loop the edge's sample density is counted in: near the
-#: edge, where a region taught densely in the middle is sparser.
+#: Depth (deg) inside the loop where the edge's sample density is counted.
 DENSITY_BAND_DEG = 3.0
-#: Samples up to this far (deg) beyond the curve still count in the band: the supported loop's
-#: own samples sit on it, up to rounding and the resampled chords.
+#: Samples this far (deg) beyond the curve still count: the loop's own, up to rounding.
 BAND_BEYOND_DEG = 0.05
-#: After the lift every taught direction lies at least this far (deg) inside, not on the edge
-#: where rounding decides: far below a servo tick (0.088 deg).
+#: After the lift taught directions lie this far (deg) inside: far below a tick (0.088).
 LIFT_MARGIN_DEG = 0.01
-#: The farthest (deg) a station of an outer loop's traced curve may lie from every taught
-#: sample (:func:`held_in`): a taught sample lies inside the truth, so the curve lies at most
-#: this far outside it; 0.75 leaves a quarter of the 1 deg bound to the chords between
-#: stations. At 1.0 a hand's trace 1-1.4 deg inside would be followed more closely, but the
-#: dense i.i.d. teachings' samples lie at the edge and the bound itself would be the slack.
+#: Farthest (deg) a held station lies from every taught sample: 0.75 leaves a quarter of the
+#: 1 deg bound to the chords between stations.
 HOLD_DEG = 0.75
-#: Spacing (deg) of an outer loop's final stations, each held to the evidence: a chord of
-#: this length across a right-angled concave corner passes a quarter of it beyond the
-#: corner, small beside the 1 deg bound, and the lift's chords cut convex corners as little.
+#: Held stations' spacing (deg): a chord cuts a quarter of it past a right-angled corner.
 HELD_STEP_DEG = 0.5
-#: Resample-and-hold passes at HELD_STEP_DEG: each pass puts stations on the chords the last
-#: one stretched (dense teachings of the families' outlines 0-3: chords left 0.55-0.73 deg
-#: long, the curve within 0.87-1.01 deg of a taught sample everywhere along them).
+#: Resample-and-hold passes: dense teachings' chords left 0.55-0.73 deg long after 3.
 HOLD_PASSES = 3
-#: The farthest (deg) a station walks in along its normal to reach the evidence: one round's
-#: move (``max_offset_deg``, 3 deg) past where the round before held it.
+#: Farthest (deg) a station walks in: one round's move (3 deg).
 WALK_DEG = 3.0
 #: Step (deg) of a station's walk: it ends at most this much deeper than the bound asks.
 WALK_STEP_DEG = 0.05
-#: The farthest (deg) a held curve may lie from every taught sample anywhere along it (its
-#: chords and folds cut included), or it is refused: the 1 deg bound of docs/region.md.
+#: Farthest (deg) a held curve may lie from every sample: the 1 deg bound of docs/region.md.
 HELD_REACH_DEG = 1.0
 #: Spacing (deg) of the points :func:`evidence_reach` checks: small beside the bound.
 REACH_STEP_DEG = 0.1
-#: Stations (HELD_STEP_DEG apart) a fold of held stations may span: stations moved in by up to
-#: a round's move (3 deg) toward samples on a bay's two walls fold over about twice that.
+#: Stations a fold may span: moves of up to 3 deg from a bay's two walls fold about 6 deg.
 FOLD_WINDOW = 20
-#: Outermost readings per window the majorant is built from: the majorant and its
-#: ORDER_STATISTICS smallest residuals lie among them, and the pair search stays 40 x 40.
+#: Outermost readings a window's majorant is built from: its pair search stays 40 x 40.
 TOP_READINGS = 40
 
 
 def station_normals(curve: np.ndarray) -> np.ndarray:
     """Outward unit normals (K, 3) of a closed counter-clockwise curve (K, 3) at its stations.
 
-    The pole of the chord through the two neighbours, ``-(c_{k-1} x c_{k+1})``, projected onto
-    the tangent plane at ``c_k``.
+    The pole of the chord through the two neighbours projected onto the tangent plane.
     """
     pole = -np.cross(np.roll(curve, 1, axis=0), np.roll(curve, -1, axis=0))
     t = pole - np.einsum("ij,ij->i", pole, curve)[:, None] * curve
@@ -158,11 +104,9 @@ def readings(curve: np.ndarray, data: np.ndarray) -> tuple[np.ndarray, np.ndarra
 def trace_window(curve: np.ndarray, data: np.ndarray) -> float:
     """Half window (rad) for the edge estimates (inf when no sample lies near the curve).
 
-    The samples within ``DENSITY_BAND_DEG`` inside the curve (or up to ``BAND_BEYOND_DEG``
-    beyond it) give the edge's density ``rho`` (per sr); a window of ``2 h`` then holds
-    ``rho 2h`` samples per radian of depth, and the outermost ones lie ``1 / (rho 2h)`` apart.
-    ``h`` makes that ``TRACE_SPACING_DEG``, at least ``TRACE_MIN_WINDOW_DEG``; above
-    ``TRACE_MAX_WINDOW_DEG`` the edge is taught too sparsely and :func:`trace_edge` refuses it.
+    The samples within ``DENSITY_BAND_DEG`` inside the curve give the edge's density ``rho``
+    (per sr); ``h`` puts the outermost samples of a ``2 h`` window ``TRACE_SPACING_DEG`` apart
+    (``1 / (rho 2h)``), at least ``TRACE_MIN_WINDOW_DEG``.
     """
     _, depth = readings(curve, data)
     band = np.radians(DENSITY_BAND_DEG)
@@ -179,11 +123,9 @@ def edge_estimate(u: np.ndarray, o: np.ndarray) -> float:
     """Where the edge lies (rad, relative to the curve) at a station, from nearby readings.
 
     ``u`` (M,) are the readings' positions along the curve relative to the station, ``o`` (M,)
-    their depths. The upper concave majorant at ``u = 0`` is the highest chord value
-    ``o_i + (o_j - o_i) (0 - u_i) / (u_j - u_i)`` over pairs with ``u_i < 0 <= u_j``; the edge
-    lies :func:`limbctl.region.gaps.majorant_gap` beyond it (from the residuals below the
-    chord). With readings on one side only (or fewer than ``ORDER_STATISTICS``), the outermost
-    depth plus their mean spacing (:func:`limbctl.region.gaps.spacing_gap`).
+    their depths. The upper concave majorant at ``u = 0`` plus
+    :func:`limbctl.region.gaps.majorant_gap`; with readings on one side only (or fewer than
+    ``ORDER_STATISTICS``), the outermost depth plus :func:`limbctl.region.gaps.spacing_gap`.
     """
     top = np.argsort(-o, kind="stable")[:TOP_READINGS]
     u, o = u[top], o[top]
@@ -205,24 +147,19 @@ def edge_estimate(u: np.ndarray, o: np.ndarray) -> float:
 def station_estimates(
     s: np.ndarray, total: float, owner: np.ndarray, depth: np.ndarray, reach: int
 ) -> np.ndarray:
-    """:func:`edge_estimate` (K,) rad at every station, from the readings of the stations
-    ``i - reach .. i + reach`` (0 where they hold none): the numba kernel
-    :func:`limbctl.region.trace_kernels.station_moves`.
+    """:func:`edge_estimate` (K,) rad per station (numba: :func:`.trace_kernels.station_moves`).
 
-    ``s`` (K,) are the stations' positions along the curve of length ``total`` (rad),
-    ``owner`` (N,) and ``depth`` (N,) each reading's station and depth (:func:`readings`).
+    ``s`` (K,) station positions along the curve of length ``total`` (rad); ``owner`` (N,),
+    ``depth`` (N,) the readings (:func:`readings`); ``reach`` stations either side form a window.
     """
     buckets = StationBuckets(owner, s.shape[0])
     return station_moves(s, total, owner, depth, buckets.order, buckets.bounds, reach, TOP_READINGS)
 
 
 def over_hole(owner: np.ndarray, depth: np.ndarray, stations: int, limit: float) -> np.ndarray:
-    """Which of the stations (K,) bool lie over a hole in the taught edge.
+    """Which stations (K,) bool own readings but none within ``limit`` rad of the curve.
 
-    A station lies over a hole when it owns readings (``owner`` (N,), ``depth`` (N,) rad,
-    :func:`readings`) but none of them within ``limit`` (rad) of the curve: its nearest taught
-    directions are interior samples, deeper than its window reaches along the curve, and say
-    nothing of where the edge lies there (a recorder that missed part of the edge trace).
+    Their nearest taught directions are interior samples: a recorder missed the edge there.
     """
     outermost = np.full(stations, -np.inf)
     np.maximum.at(outermost, owner, depth)
@@ -232,15 +169,10 @@ def over_hole(owner: np.ndarray, depth: np.ndarray, stations: int, limit: float)
 def bridged_estimates(
     s: np.ndarray, total: float, owner: np.ndarray, depth: np.ndarray, reach: int, h: float
 ) -> np.ndarray:
-    """:func:`station_estimates` (K,) rad, bridging the stations over a hole (:func:`over_hole`,
-    deeper than the half window ``h`` rad).
+    """The :func:`station_estimates` (K,) rad, bridged over a hole (:func:`over_hole`).
 
-    Without such stations the estimates are :func:`station_estimates` itself. Otherwise the
-    readings of those stations are left out of every window, and each station whose window
-    then holds no reading takes the estimate interpolated linearly along the curve between the
-    nearest stations either side whose windows hold readings: the curve keeps its course over
-    the hole (the supported loop's bridge), moved as the stations at the hole's two ends are:
-    a station over a hole moves neither further in nor further out than those two.
+    The readings of stations over a hole are left out; a station whose window then holds none takes
+    the estimate interpolated along the curve between the nearest stations either side that do.
     """
     k = s.shape[0]
     hole = over_hole(owner, depth, k, h)
@@ -263,13 +195,11 @@ def bridged_estimates(
 
 
 def local_quadratic(curve: np.ndarray, sigma: float) -> np.ndarray:
-    """Local quadratic regression (K, 3) of a closed curve's stations (K, 3), evenly spaced.
+    """Local quadratic regression (K, 3) of a closed curve's evenly spaced stations (K, 3).
 
-    At station ``k`` the positions ``c_j`` are fitted by ``a + b u + c u^2`` (``u`` the
-    circular arc-length offset, weights ``exp(-u^2 / (2 sigma^2))``) and replaced by ``a``,
-    renormalised: exact on quadratic stretches. A circle of angular radius ``r`` is quadratic
-    only to second order and shrinks by about ``sigma^4 / (8 r^3)`` (measured for sigma 6 deg:
-    0.02 deg at r = 20 deg, 0.14 deg at 10 deg); the next round's estimate moves it back out.
+    Each station is replaced by ``a`` of ``a + b u + c u^2`` fitted over arc-length offsets ``u``
+    (weights ``exp(-u^2 / (2 sigma^2))``), renormalised: exact on quadratic stretches; a circle of
+    radius ``r`` shrinks by about ``sigma^4 / (8 r^3)``.
     """
     s, total = station_positions(curve)
     u = signed_offset(s[None, :], s[:, None], total)
@@ -292,8 +222,8 @@ def trace_edge(
     """The traced edge (K, 3) of one counter-clockwise data-supported ``loop`` (M, 3).
 
     ``data`` (N, 3) are the taught directions; ``max_offset`` (rad) caps one round's move;
-    ``hold``: an outer loop's curve is held to the evidence (module docstring). None when the
-    edge is taught too sparsely (:func:`trace_window`).
+    ``hold``: an outer loop's curve is held to the evidence. None when the edge is taught too
+    sparsely (:func:`trace_window` above ``TRACE_MAX_WINDOW_DEG``).
     """
     step = np.radians(TRACE_STEP_DEG)
     curve, _, _ = resample_loop(loop, step)
@@ -341,11 +271,9 @@ def trace_edge(
 def chord_need(curve: np.ndarray, data: np.ndarray) -> np.ndarray:
     """How far (K,) rad each station must move out to hold the taught directions (N, 3).
 
-    A direction owned by station ``k`` reads its depth beyond the great circles of the two
-    chords at ``k`` (``(k-1, k)`` and ``(k, k+1)``, outward poles ``-(a x b)``): outside the
-    polygon when beyond either at a convex station, beyond both at a reflex one. Moving the
-    three stations ``k-1, k, k+1`` out that far moves both chords past it. -inf where no
-    direction needs it.
+    A direction owned by station ``k`` reads its depth beyond the chords ``(k-1, k)`` and
+    ``(k, k+1)`` (beyond either at a convex station, both at a reflex one); stations ``k-1 .. k+1``
+    need that much. -inf where no direction needs it.
     """
     k = curve.shape[0]
     nxt = np.roll(curve, -1, axis=0)
@@ -372,15 +300,12 @@ def _moved(curve: np.ndarray, normal: np.ndarray, by: np.ndarray) -> np.ndarray:
 
 
 def held_in(curve: np.ndarray, data: np.ndarray, tree: cKDTree, bound: float) -> np.ndarray:
-    """The stations of ``curve`` (K, 3) held to the taught evidence ``data`` (N, 3).
+    """The stations of ``curve`` (K, 3) held within ``bound`` (rad) of the taught ``data`` (N, 3).
 
-    A station farther than ``bound`` (rad) from every taught direction (``tree``, a
-    :class:`scipy.spatial.cKDTree` over ``data``) walks in along its inward normal,
-    ``WALK_STEP_DEG`` at a time, to the first place within ``bound`` of one; one that gets
-    nowhere within ``WALK_DEG`` (the normal runs between strokes) moves straight toward its
-    nearest taught direction, to ``bound`` from it. The others stay. A taught direction lies
-    inside the truth, so a held station lies at most ``bound`` outside it. Folds the moves
-    leave are cut out (:func:`unfolded`).
+    A station farther than ``bound`` from every taught direction (``tree`` over ``data``) walks in
+    along its normal, ``WALK_STEP_DEG`` at a time, to the first place within ``bound``; one that
+    gets nowhere within ``WALK_DEG`` moves straight to ``bound`` from its nearest taught direction.
+    Folds the moves leave are cut out (:func:`unfolded`).
     """
     dist, nearest = tree.query(curve)
     far = np.flatnonzero(dist > chord(bound))
@@ -410,10 +335,8 @@ def held_in(curve: np.ndarray, data: np.ndarray, tree: cKDTree, bound: float) ->
 def unfolded(curve: np.ndarray, window: int = FOLD_WINDOW) -> np.ndarray:
     """``curve`` (K, 3), closed, with its local folds cut out.
 
-    Stations moved in toward samples across a bay tighter than their move cross over each
-    other: where the chord ``i -> i+1`` crosses a chord ``j -> j+1`` at most ``window``
-    stations on, the stations ``i+1 .. j`` (the fold's loop) are replaced by the crossing
-    point, until no such pair is left.
+    Where chord ``i -> i+1`` crosses chord ``j -> j+1`` at most ``window`` stations on, stations
+    ``i+1 .. j`` are replaced by the crossing point, until no such pair is left.
     """
     while True:
         k = curve.shape[0]
@@ -448,8 +371,7 @@ def unfolded(curve: np.ndarray, window: int = FOLD_WINDOW) -> np.ndarray:
 
 
 def evidence_reach(curve: np.ndarray, data: np.ndarray) -> float:
-    """The farthest (rad) any point of the closed ``curve`` (K, 3), resampled
-    ``REACH_STEP_DEG`` apart, lies from every taught direction (N, 3)."""
+    """The farthest (rad) any point of ``curve`` (K, 3) lies from every taught direction (N, 3)."""
     points, _, _ = resample_loop(curve, np.radians(REACH_STEP_DEG))
     dist, _ = cKDTree(data).query(points)
     return float(2.0 * np.arcsin(min(0.5 * float(dist.max()), 1.0)))

@@ -1,11 +1,8 @@
-"""Numba kernels that build the direction-space region's lookup grid (see
-:mod:`limbctl.region.mesh_kernels` for the grid and the queries that read it).
+"""Numba kernels that build the region's lookup grid (:mod:`limbctl.region.mesh_kernels`).
 
-:func:`build_grid` decides, per cell, whether it lies deep inside and which boundary arcs can be
-nearest to a point in it. Cells are handled in blocks of ``BLOCK x BLOCK``: a block first finds
-the few arcs any of its cells can need, and each cell then tests only those, with the same
-arithmetic on the same arcs in the same order as testing all of them (the same grid).
-No fastmath: every comparison sees NaN as failing.
+Cells are handled in ``BLOCK x BLOCK`` blocks: a block finds the few arcs any of its cells can
+need, and each cell tests only those, the same arithmetic on the same arcs in the same order
+as testing all of them. No fastmath: every comparison sees NaN as failing.
 """
 
 from __future__ import annotations
@@ -22,8 +19,8 @@ from limbctl.region.mesh_kernels import _angle, _dot, _frame, _polar_point, edge
 @njit
 def _polar_into(theta, phi, axis, u, v, out) -> None:
     """Write into ``out`` (3,) the direction at polar angles ``theta``, ``phi`` (rad) about
-    ``axis`` in the frame ``u``, ``v``: :func:`limbctl.region.mesh_kernels._polar_point`,
-    component by component with the same arithmetic, without allocating."""
+    ``axis`` (frame ``u``, ``v``), as :func:`limbctl.region.mesh_kernels._polar_point` computes it.
+    """
     st = math.sin(theta)
     ct = math.cos(theta)
     cp = math.cos(phi)
@@ -52,8 +49,7 @@ def _cell_geometry(cell, n_theta, n_phi, axis, u, v, centre, corner):
     return r * 1.01 + 1e-12
 
 
-#: Cells per side of the grid's blocks (theta and phi): a block finds the arcs its cells can need
-#: once, so each cell tests those few instead of all; 8 x 8 cells of ~1 deg keep that list short.
+#: Cells per block side: 8 x 8 cells of ~1 deg keep a block's arc list short.
 BLOCK = 8
 
 
@@ -92,17 +88,12 @@ def _block_arcs(
     arc_dist,
     from_block,
 ):
-    """The arcs in order that any cell of one block can need, into ``arcs`` (E,), and their
-    angles (rad) from the block's centre into ``arc_dist`` (E,); returns their number. The
-    cells' geometry must be in ``centres``/``radius``; each cell's angle from the block's
-    centre goes into ``from_block`` (cells,); ``dist`` (E,) is scratch.
+    """The arcs one block's cells can need into ``arcs`` (E,), their angles (rad) from the block's
+    centre into ``arc_dist`` (E,); returns their number.
 
-    With ``C`` the block's centre, ``D`` its cells' centres' largest angle from ``C`` and
-    ``r`` their largest radius: a cell's candidates and both its minimisers (key and plain)
-    have ``key_e(C) <= min key(C) + 2 D + 2 r + max margin`` or ``angle(C, e) <= D + r``
-    (each angle moves by at most ``D`` from ``C`` to a cell's centre). Only arcs whose
-    midpoint lies close enough to ``C`` to meet either bound are measured (the bound of
-    :func:`_cell`): the same arcs as measuring all of them.
+    Each cell's angle from the block's centre goes into ``from_block``; ``dist`` (E,) is scratch.
+    A cell's candidates and minimisers lie within the bounds of the block's centre widened by its
+    cells' spread and radius; arcs whose midpoint cannot meet them are not measured.
     """
     n_theta, n_phi = grid_shape[0], grid_shape[1]
     bi, bj = block // blocks_phi, block % blocks_phi
@@ -150,8 +141,7 @@ def _block_arcs(
     return n
 
 
-#: Candidate arcs a cell keeps from its first pass (most cells have about a dozen); a cell with
-#: more finds them again once the grid's arrays are sized.
+#: Candidates a cell keeps in its first pass (most have a dozen); more are found again.
 FIRST_PASS_ARCS = 32
 
 
@@ -175,13 +165,10 @@ def _cell(
     out_edges,
     out_keys,
 ):
-    """One cell: (deep, number of candidates); the first ``len(out_edges)`` candidates
-    (in arc order) and their keys into ``out_edges``/``out_keys``.
+    """One cell: (deep, candidate count); its candidates and keys into ``out_edges``, ``out_keys``.
 
-    ``arcs`` (A,) must hold the cell's candidates and both minimisers (:func:`_block_arcs`),
-    ``arc_dist`` (A,) their angles (rad) from the block's centre, ``from_block`` the angle of
-    the cell's centre from it, ``reach`` the longest half arc plus the largest margin,
-    ``dist`` (A,) scratch.
+    ``arcs`` (A,) hold the block's arcs, ``arc_dist`` (A,) their angles (rad) from its centre,
+    ``from_block`` the cell's, ``reach`` the longest half arc plus the largest margin.
     """
     centre, r = centres[cell], radius[cell]
     if inside[cell]:
@@ -254,18 +241,13 @@ def _sort_by_key(cell_edges, cell_keys) -> None:
 
 @njit
 def build_grid(vertices, edges, margins, axis, grid_shape, inside):
-    """Cell depth status and sorted candidate arcs (module docstring) -> deep, start, arcs, keys.
+    """Per cell: deep (bool), and its candidate arcs sorted by key -> deep, start, arcs, keys.
 
-    ``inside`` (cells,) says whether each cell's centre lies in the mesh; ``margins`` (E,) is
-    each arc's widening (rad). A cell is deep when all of it lies in the mesh (centre inside,
-    the boundary at least the cell radius ``r`` away) or in one arc's widening
-    (``min_e (angle(centre, e) - m_e) <= -r``). Otherwise its candidates are the arcs with
-    ``key_e = angle(centre, e) - m_e <= min_key + 2 r`` (the nearest widened arc of any point
-    of the cell is among them: pruned by the smallest upper bound ``min_key + r``) and the arcs
-    within ``r`` of the centre (every arc crossing the path centre -> point), sorted by key.
-
-    One thread, block by block: on two shared cores the thread pool left the fit's time as it
-    was, and its parallel compile cost seconds (far more on a loaded machine) on a first run.
+    ``inside`` (cells,) says whether each cell's centre lies in the loops; ``margins`` (E,) widen
+    the arcs (rad). A cell of radius ``r`` is deep when all of it lies in the loops or in one
+    arc's widening; otherwise its candidates are the arcs with ``key <= min_key + 2 r`` and those
+    within ``r`` of its centre. One thread: on two shared cores a pool saved nothing and its
+    compile cost seconds on a first run.
     """
     n_theta, n_phi = grid_shape[0], grid_shape[1]
     n_cells = n_theta * n_phi

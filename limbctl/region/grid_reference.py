@@ -1,8 +1,4 @@
-"""The brute-force reference of :func:`limbctl.region.grid_kernels.build_grid`: every arc measured
-from every cell's centre, to check the fast kernel against (``tests/region/test_mesh.py``).
-
-No fastmath: every comparison sees NaN as failing.
-"""
+"""Brute-force :func:`limbctl.region.grid_kernels.build_grid`: every arc from every cell centre."""
 
 from __future__ import annotations
 

@@ -1,11 +1,8 @@
 """``np.linalg.det`` and ``np.linalg.solve`` of small float64 systems, for kernels.
 
-The same LAPACK calls numba's own ``np.linalg.det`` and ``np.linalg.solve`` make (``dgetrf`` and
-``dgesv`` through numba's bindings), with the same arithmetic around them in the same order, so
-the answers are theirs bit for bit (tests/region/test_linalg_kernels.py). What they leave out is
-what made numba's versions cost seconds to compile per calling kernel: shape checks for every
-layout, error messages formatted at run time, and the walk over an ``nditer``
-(docs/decisions/first_run.md, "The first twist fit from Python").
+The LAPACK calls numba's own make (``dgetrf``, ``dgesv``) with the same arithmetic around them,
+so the same answers bit for bit, without what cost seconds to compile per calling kernel
+(docs/decisions/first_run.md).
 """
 
 from __future__ import annotations

@@ -1,12 +1,8 @@
 """Closed loops of directions on S^2: lengths, areas, stations along them, and what is near each.
 
-Every edge of the region (the supported loops of :mod:`limbctl.region.shape`, the smooth and
-traced edges) is a closed loop of unit directions (M, 3), counter-clockwise seen from outside
-the sphere when the region lies on its left. The helpers here are the ones those edges share:
-arc-length positions and circular distances along a loop, evenly spaced stations, smoothing
-along the loop, which taught direction belongs to which station (:class:`StationBuckets`), and
-the bumps that lift an edge over the samples it would leave out (:func:`lift`). All angles are
-in radians.
+Every edge of the region is a closed loop of unit directions (M, 3), counter-clockwise seen
+from outside when the region lies on its left; these are the helpers those edges share. All
+angles are in radians.
 """
 
 from __future__ import annotations
@@ -33,11 +29,7 @@ def loops_to_edges(loops: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
 
 
 def loop_area(loop: np.ndarray) -> float:
-    """Signed area (sr) enclosed by a loop (M, 3): positive when the region is on its left.
-
-    Sum of the signed spherical triangles (c, a, b) from the loop's mean direction ``c``:
-    ``2 atan2(det(c, a, b), 1 + c.a + a.b + b.c)``.
-    """
+    """Signed area (sr) enclosed by a loop (M, 3): positive when the region is on its left."""
     c = loop.mean(axis=0)
     c /= np.linalg.norm(c)
     a = loop
@@ -48,12 +40,7 @@ def loop_area(loop: np.ndarray) -> float:
 
 
 def vertex_turns(loop: np.ndarray) -> np.ndarray:
-    """Signed turn (M,) rad of a closed loop (M, 3) at each vertex, positive to the left.
-
-    At vertex ``v`` (from ``a`` before it to ``b`` after it) the heading
-    ``h = -(a - (a.v) v)`` turns to ``t = b - (b.v) v`` by ``atan2(v . (h x t), h . t)``. With
-    the region on the left, a positive turn is a convex corner, a negative one a concave corner.
-    """
+    """Signed turn (M,) rad of a closed loop (M, 3) per vertex, positive (convex) to the left."""
     prev = np.roll(loop, 1, axis=0)
     nxt = np.roll(loop, -1, axis=0)
     heading = -(prev - np.einsum("ij,ij->i", prev, loop)[:, None] * loop)
@@ -71,9 +58,8 @@ def loop_length(loop: np.ndarray) -> float:
 def resample_loop(loop: np.ndarray, step: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Stations every ~``step`` (rad) along a closed loop (M, 3), at least 8.
 
-    Returns the stations (K, 3), their arc-length positions (K,) and the positions of the
-    loop's own vertices (M,), both measured from vertex 0 (the loop's length is the last
-    vertex position plus its closing arc: :func:`loop_length`).
+    Returns the stations (K, 3), their arc-length positions (K,) and those of the loop's own
+    vertices (M,), both from vertex 0.
     """
     nxt = np.roll(loop, -1, axis=0)
     seg = np.arccos(np.clip(np.einsum("ij,ij->i", loop, nxt), -1.0, 1.0))
@@ -121,8 +107,7 @@ def smooth_along(values: np.ndarray, s: np.ndarray, total: float, width: float) 
 def lift(deficit: np.ndarray, s: np.ndarray, total: float, width: float) -> np.ndarray:
     """Smooth bumps (K,) that make up every positive ``deficit`` (K,) at its station.
 
-    ``max_j deficit_j exp(-(s_k - s_j)^2 / (2 width^2))`` over stations with a deficit: each
-    bump is exactly as high as its station needs and fades along the loop.
+    ``max_j deficit_j exp(-(s_k - s_j)^2 / (2 width^2))`` over stations with a deficit.
     """
     short = np.flatnonzero(deficit > 0.0)
     if short.size == 0:
@@ -132,10 +117,7 @@ def lift(deficit: np.ndarray, s: np.ndarray, total: float, width: float) -> np.n
 
 
 def nearest_station(data: np.ndarray, stations: np.ndarray) -> np.ndarray:
-    """Index (N,) of the station (K, 3) nearest to each direction of ``data`` (N, 3).
-
-    On unit directions the nearest by chord ``|x - s|^2 = 2 - 2 x.s`` is the nearest by angle.
-    """
+    """Index (N,) of the station (K, 3) nearest to each direction of ``data`` (N, 3)."""
     return cKDTree(stations).query(data)[1]
 
 
@@ -145,8 +127,7 @@ class StationBuckets:
     Parameters
     ----------
     owner : ndarray, shape (N,) int
-        The station of each item; items with an owner outside ``0 .. stations - 1`` belong to
-        none.
+        The station of each item (none outside ``0 .. stations - 1``).
     stations : int
         Number of stations K.
     """
@@ -157,8 +138,7 @@ class StationBuckets:
         self.bounds = np.searchsorted(owner[self.order], np.arange(self.stations + 1))
 
     def rows(self, stations: np.ndarray) -> np.ndarray:
-        """Items (int) of the given stations, station by station in the order given, each
-        station's items in their original order."""
+        """Items (int) of the given stations, in the order given, each in its original order."""
         return np.concatenate([self.order[self.bounds[j] : self.bounds[j + 1]] for j in stations])
 
     def around(self, i: int, reach: int) -> np.ndarray:

@@ -1,25 +1,18 @@
 """A region of limb directions on S^2 as a spherical mesh: build it, test it, project onto it.
 
-The region is bounded by closed loops of great-circle arcs (for the Rigid Map: the chi-peeled
-alpha shape of its support, see :mod:`limbctl.region.shape`, or a learned edge of
-:mod:`limbctl.region.edge_choice`), each arc ``e`` widened by its own ``margin_e`` (rad): a
-direction is inside when it lies inside the loops or within ``margin_e`` of some arc ``e``. The
-nearest region direction of a point outside is exact (the arc minimising
-``angle(p, e) - margin_e``, then ``margin_e`` back toward p); the region never reaches farther
-than ``max(margin)`` beyond the loops. It moves continuously with the point near the edge, and
-everywhere when the region is convex; far outside a concave stretch two boundary points can be
-equally near (the medial axis), and the answer switches from one to the other there, as any
-exact nearest-point map does.
-
-:class:`DirectionMesh` holds the arrays; the queries run in the numba kernels of
-:mod:`limbctl.region.mesh_kernels` over a grid of cells about the region's axis, each
-knowing whether it lies deep inside and which arcs can be nearest to a point in it. Plain
-numpy references (``*_reference`` here) answer the same questions by brute force.
+The region is bounded by closed loops of great-circle arcs, each arc ``e`` widened by its own
+``margin_e`` (rad): a direction is inside when it lies inside the loops or within ``margin_e``
+of some arc. The nearest region direction of a point outside is exact (the arc minimising
+``angle(p, e) - margin_e``); far outside a concave stretch it switches at the medial axis, as
+any exact nearest-point map does. :class:`DirectionMesh` holds the arrays; the queries run in
+the numba kernels of :mod:`limbctl.region.mesh_kernels` over a grid of cells about the
+region's axis. Plain numpy references (``*_reference``) answer by brute force.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from operator import attrgetter
 
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError
@@ -27,6 +20,7 @@ from scipy.spatial import ConvexHull, QhullError
 from limbctl.errors import InvalidInputError
 from limbctl.region import direct_kernels, grid_kernels
 from limbctl.region import mesh_kernels as bk
+from limbctl.region.loops import loops_to_edges
 
 
 @dataclass
@@ -41,12 +35,10 @@ class DirectionMesh:
     margins : (E,) float64, each arc's widening (rad), >= 0.
     axis : (3,) unit axis of the lookup grid; grid_shape : its (n_theta, n_phi) cells.
     cell_* : the lookup grid (see :mod:`limbctl.region.mesh_kernels`), None until built
-        (:meth:`build_lookup`; a mesh built with ``lookup=False`` builds it when the gate's
-        kernels or saving first need it).
+        (:meth:`build_lookup`).
 
-    Queries (:meth:`contains`, :meth:`project`) read the grid once it is built, and the arcs
-    alone before (:mod:`limbctl.region.direct_kernels`): the same answers, the grid's costing
-    a tenth of a second to build and the arcs' a few microseconds a direction more.
+    Before the grid is built, queries are answered from the arcs alone
+    (:mod:`limbctl.region.direct_kernels`): the same answers.
     """
 
     vertices: np.ndarray
@@ -71,10 +63,9 @@ class DirectionMesh:
     ) -> DirectionMesh:
         """Region bounded by closed ``loops`` (each (M, 3) directions, region on the left).
 
-        ``margins``: one widening (rad) for every arc, or per loop an (M,) array whose entry
-        ``i`` widens the arc from point ``i`` to point ``i + 1``. The lookup grid has
-        ``cells_per_radian`` cells per radian of polar angle; it is built now when ``lookup``,
-        else when first needed (:meth:`build_lookup`).
+        ``margins``: one widening (rad) for every arc, or per loop an (M,) array whose entry ``i``
+        widens the arc from point ``i`` to ``i + 1``. The lookup grid has ``cells_per_radian`` cells
+        per radian of polar angle, built now when ``lookup``.
         """
         keep = [i for i, lp in enumerate(loops) if len(lp) >= 3]
         if not keep:
@@ -89,15 +80,9 @@ class DirectionMesh:
             widen = np.concatenate([np.asarray(margins[i], dtype=np.float64) for i in keep])
         if widen.shape[0] != sum(lp.shape[0] for lp in loops) or not np.all(widen >= 0.0):
             raise InvalidInputError("margins: need one finite value >= 0 per boundary arc")
-        d = np.vstack(loops)
+        d, edges = loops_to_edges(loops)
         d = np.ascontiguousarray(d / np.linalg.norm(d, axis=1, keepdims=True))
-        edges = []
-        start = 0
-        for lp in loops:
-            idx = np.arange(start, start + lp.shape[0])
-            edges.append(np.column_stack([idx, np.roll(idx, -1)]))
-            start += lp.shape[0]
-        edges = np.ascontiguousarray(np.vstack(edges), dtype=np.int64)
+        edges = np.ascontiguousarray(edges, dtype=np.int64)
         widen = np.ascontiguousarray(widen)
         axis = d.mean(axis=0)
         axis /= np.linalg.norm(axis)
@@ -162,13 +147,11 @@ class DirectionMesh:
         return bk.project_batch(*self.kernel_args(), d)
 
     def contains_from_arcs(self, d: np.ndarray) -> np.ndarray:
-        """:meth:`contains` answered from the arcs alone, grid built or not: the same answers
-        (tests/region/test_direct_kernels.py), through the kernel a fit compiles anyway."""
+        """:meth:`contains` from the arcs alone, grid built or not: the same answers."""
         return self._direct(np.ascontiguousarray(d, dtype=np.float64), project=False)[0]
 
     def _direct(self, d: np.ndarray, project: bool) -> tuple[np.ndarray, np.ndarray]:
-        """Containment (N,) and projection (N, 3) (if ``project``) of ``d`` (N, 3) from the
-        arcs alone (:func:`limbctl.region.direct_kernels.query_batch`)."""
+        """Containment (N,) and projection (N, 3) (if ``project``) of ``d`` (N, 3) from the arcs."""
         if self._far_inside is None:
             self._far_inside = bool(
                 inside_reference(-self.axis[None, :], self.vertices, self.edges)[0]
@@ -179,51 +162,31 @@ class DirectionMesh:
 
     def kernel_args(self) -> tuple:
         """The arrays the query kernels take, in their order (the grid built if need be)."""
-        self.build_lookup()
-        return (
-            self.vertices,
-            self.edges,
-            self.margins,
-            self.axis,
-            self.grid_shape,
-            self.cell_inside,
-            self.cell_deep,
-            self.cell_start,
-            self.cell_edges,
-            self.cell_keys,
-        )
+        return _ARRAYS(self.build_lookup())
 
     def arrays(self) -> dict[str, np.ndarray]:
         """Everything needed to rebuild the mesh without recomputation (for saving)."""
-        self.build_lookup()
         return {
-            "mesh_vertices": self.vertices,
-            "mesh_edges": self.edges,
-            "mesh_margins": self.margins,
-            "mesh_axis": self.axis,
-            "mesh_grid_shape": self.grid_shape,
-            "mesh_cell_inside": self.cell_inside,
-            "mesh_cell_deep": self.cell_deep,
-            "mesh_cell_start": self.cell_start,
-            "mesh_cell_edges": self.cell_edges,
-            "mesh_cell_keys": self.cell_keys,
+            f"mesh_{name}": value for name, value in zip(_NAMES, self.kernel_args(), strict=True)
         }
 
     @classmethod
     def from_arrays(cls, arrays: dict[str, np.ndarray]) -> DirectionMesh:
         """Inverse of :meth:`arrays`."""
         return cls(
-            np.ascontiguousarray(arrays["mesh_vertices"], dtype=np.float64),
-            np.ascontiguousarray(arrays["mesh_edges"], dtype=np.int64),
-            np.ascontiguousarray(arrays["mesh_margins"], dtype=np.float64),
-            np.ascontiguousarray(arrays["mesh_axis"], dtype=np.float64),
-            np.ascontiguousarray(arrays["mesh_grid_shape"], dtype=np.int64),
-            np.ascontiguousarray(arrays["mesh_cell_inside"], dtype=np.bool_),
-            np.ascontiguousarray(arrays["mesh_cell_deep"], dtype=np.bool_),
-            np.ascontiguousarray(arrays["mesh_cell_start"], dtype=np.int64),
-            np.ascontiguousarray(arrays["mesh_cell_edges"], dtype=np.int64),
-            np.ascontiguousarray(arrays["mesh_cell_keys"], dtype=np.float64),
+            *(
+                np.ascontiguousarray(arrays[f"mesh_{name}"], dtype=dtype)
+                for name, dtype in zip(_NAMES, _DTYPES, strict=True)
+            )
         )
+
+
+#: The saved arrays (``mesh_<name>``) and the kernels' arguments, in the kernels' order.
+_NAMES = ("vertices", "edges", "margins", "axis", "grid_shape", "cell_inside", "cell_deep")
+_NAMES += ("cell_start", "cell_edges", "cell_keys")
+_DTYPES = (np.float64, np.int64, np.float64, np.float64, np.int64, np.bool_, np.bool_)
+_DTYPES += (np.int64, np.int64, np.float64)
+_ARRAYS = attrgetter(*_NAMES)
 
 
 def cell_centres_inside(
@@ -231,10 +194,8 @@ def cell_centres_inside(
 ) -> np.ndarray:
     """Whether each grid cell's centre lies inside the loops (n_theta * n_phi,) bool.
 
-    All cells of one column share the half-meridian from the axis through their centres to
-    ``-axis``; the crossings of the boundary arcs with it are found once per column, and a
-    centre is inside when ``-axis`` is and the number of crossings beyond it is even, or when
-    ``-axis`` is outside and that number is odd.
+    Per column, the boundary's crossings of the half-meridian to ``-axis`` beyond each centre,
+    odd or even, against whether ``-axis`` is inside.
     """
     n_theta, n_phi = int(grid_shape[0]), int(grid_shape[1])
     u, v = bk._frame(axis)
@@ -263,9 +224,7 @@ def cell_centres_inside(
 def fan_area(p: np.ndarray, vertices: np.ndarray, edges: np.ndarray) -> np.ndarray:
     """Sum (N,) over boundary arcs a -> b of the signed area of the spherical triangle (p, a, b).
 
-    ``2 atan2(det(p, a, b), 1 + p.a + a.b + b.p)`` per arc. For a region R of area A bounded
-    by the arcs (R on their left) it equals ``A`` when ``-p`` is outside R and ``A - 4 pi``
-    when ``-p`` is inside: its sign says where the antipode of p lies.
+    For a region of area ``A`` it equals ``A`` when ``-p`` is outside and ``A - 4 pi`` inside.
     """
     a = vertices[edges[:, 0]]
     b = vertices[edges[:, 1]]
@@ -280,19 +239,15 @@ def fan_area(p: np.ndarray, vertices: np.ndarray, edges: np.ndarray) -> np.ndarr
 
 
 def inside_reference(p: np.ndarray, vertices: np.ndarray, edges: np.ndarray) -> np.ndarray:
-    """(N,) bool: directions ``p`` (N, 3) inside the region bounded by ``edges``.
-
-    By :func:`fan_area`: p is inside exactly when the fan area from ``-p`` is negative.
-    """
+    """(N,) bool: directions ``p`` (N, 3) inside the region of ``edges`` (:func:`fan_area`)."""
     return fan_area(-p, vertices, edges) < 0.0
 
 
 def spherical_delaunay(d: np.ndarray) -> np.ndarray:
     """Delaunay triangles (T, 3) of unit directions ``d`` (V, 3), counter-clockwise from outside.
 
-    The convex hull of points on the sphere is their spherical Delaunay triangulation; the
-    antipode of their mean is added so that points inside one hemisphere still close a hull,
-    and every face touching it is dropped.
+    The convex hull with the antipode of the mean added (so one hemisphere still closes a hull),
+    faces touching it dropped.
     """
     mean = d.mean(axis=0)
     pole = -mean / np.linalg.norm(mean) if np.linalg.norm(mean) > 1e-9 else -d[0]
@@ -337,7 +292,8 @@ def nearest_on_edges_reference(
     d: np.ndarray, vertices: np.ndarray, edges: np.ndarray, margins: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """By brute force, for directions ``d`` (N, 3): the arc minimising ``angle - margin`` (N,)
-    int, the nearest point on it (N, 3) and its angle (N,) rad (``margins`` default zero)."""
+    int, the nearest point on it (N, 3) and its angle (N,) rad (``margins`` default zero).
+    """
     margins = np.zeros(edges.shape[0]) if margins is None else margins
     best = np.empty_like(d)
     best_angle = np.full(d.shape[0], np.inf)

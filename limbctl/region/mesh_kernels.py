@@ -1,28 +1,13 @@
 """Numba kernels of the direction-space region: lookup grid, containment and nearest projection.
 
-The grid divides the sphere into ``n_theta x n_phi`` cells in polar coordinates about ``axis``
-(``theta = angle to axis``, ``phi = atan2(p.v, p.u)``). For each cell, built once:
-
-- ``cell_inside``: whether its centre lies in the region (computed in numpy, see
-  :func:`limbctl.region.mesh.cell_centres_inside`);
-- ``cell_deep``: every point of the cell is inside the region (centre inside the mesh and at
-  least the cell radius ``r`` from the boundary, or all of it within one arc's widening);
-- candidate boundary arcs (CSR ``cell_start``/``cell_edges``, sorted by ``cell_keys``; built by
-  :func:`limbctl.region.grid_kernels.build_grid`): the arcs whose widened distance from the
-  centre, ``key = angle(centre, arc) - margin_arc``, is at most ``min key + 2 r`` (any other
-  arc is farther from every point of the cell than the best one), and every arc within ``r``
-  of the centre (those can cross the path from the centre to a point).
-
-Each boundary arc ``e`` has its own widening ``margin_e`` (rad): the region is the mesh united
-with every direction within ``margin_e`` of some arc ``e``, so its distance from a point outside
-is ``min_e (angle(p, e) - margin_e)``, exact, and the widening never reaches farther out than the
-largest margin.
-
-A query finds its cell; if deep it is inside; otherwise it takes the nearest widened arc over
-the candidates (stopping once the sorted keys bound the rest away), and whether it lies in the
-mesh from the centre's status and the parity of boundary crossings on the arc centre -> point.
-No fastmath: every comparison sees NaN as failing. The numpy references live in
-:mod:`limbctl.region.mesh`.
+The grid divides the sphere into ``n_theta x n_phi`` cells in polar coordinates about
+``axis``. Per cell, built once (:func:`limbctl.region.grid_kernels.build_grid`):
+``cell_inside`` (its centre in the loops), ``cell_deep`` (all of it in the region) and its
+candidate arcs (CSR ``cell_start``/``cell_edges``, sorted by ``cell_keys``: the arcs that can
+be nearest to a point of the cell or cross the path from its centre to one). The distance of a
+point outside is ``min_e (angle(p, e) - margin_e)``, exact. A query finds its cell; deep is
+inside; otherwise it takes the nearest widened arc over the candidates and the loops' parity
+along the path centre -> point. No fastmath: every comparison sees NaN as failing.
 """
 
 from __future__ import annotations
@@ -34,8 +19,7 @@ import numpy as np
 
 from limbctl.geometry.jit import njit
 
-#: contains() accepts directions up to this far (rad) beyond the region and correct() lands
-#: within it: rounding of the projection's last step, far below a servo tick (0.088 deg).
+#: Slack (rad) of contains(): the projection's rounding, far below a tick (0.088 deg).
 CONTAIN_TOLERANCE = 1e-9
 
 
@@ -121,12 +105,9 @@ def _angle3(ax, ay, az, bx, by, bz) -> float:
 
 @njit
 def edge_foot(p, vertices, edges, e):
-    """:func:`nearest_on_arc` of ``p`` (3,) and arc ``e`` of ``vertices``/``edges``, the same
-    arithmetic on scalars: (angle (rad), x, y, z of the nearest point).
+    """:func:`nearest_on_arc` of ``p`` (3,) and arc ``e`` on scalars: (angle (rad), x, y, z).
 
-    For the batch kernels' loops over arcs: every array, or row of one, handed to a kernel costs
-    two atomic reference counts (numba's runtime), which were a third of the serial lookup
-    grid's time; a thread pool's kernels never pay them (docs/decisions/first_run.md).
+    Handing a kernel no array rows saves numba's reference counting (docs/decisions/first_run.md).
     """
     i = edges[e, 0]
     j = edges[e, 1]
@@ -167,8 +148,7 @@ def edge_foot(p, vertices, edges, e):
 def slerp_into(p, d, angle, margin, out) -> None:
     """Write into ``out`` (3,) the direction ``margin`` (rad) from ``p`` toward ``d``.
 
-    ``cos(m) p + sin(m) u`` with ``u = (d - (d.p) p) / |d - (d.p) p|``; ``angle`` is the angle
-    between ``p`` and ``d``; ``p`` itself when ``margin`` or ``angle`` is zero.
+    ``angle`` is the angle between ``p`` and ``d``; ``p`` itself when ``margin`` or ``angle`` is 0.
     """
     c = _dot(d, p)
     ux = d[0] - c * p[0]
@@ -250,8 +230,7 @@ def _polar_point(theta, phi, axis, u, v):
     return math.cos(theta) * axis + st * (math.cos(phi) * u + math.sin(phi) * v)
 
 
-#: Rows of the scratch array the query kernels take: u, v of the frame, the cell centre, a
-#: temporary point and the best point (callers may use rows beyond these).
+#: Scratch rows of the query kernels: frame u, v, cell centre, a temporary and the best point.
 WORK_ROWS = 5
 
 
@@ -261,11 +240,8 @@ def query(
 ):
     """Whether direction ``p`` is in the region; ``out`` gets its projection (p itself inside).
 
-    ``work`` (>= WORK_ROWS, 3) is scratch whose rows 0, 1 hold the frame (:func:`frame_into`):
-    nothing is allocated per query. The candidates are visited by increasing key; once
-    ``key - angle(centre, p)`` exceeds the best widened distance found (a lower bound of every
-    later arc's) and ``key`` exceeds ``angle(centre, p)`` (no later arc can cross the path
-    centre -> p), the rest are skipped.
+    ``work`` (>= WORK_ROWS, 3) is scratch, the frame in rows 0, 1 (:func:`frame_into`). The
+    candidates are visited by increasing key until the keys bound the rest away.
     """
     n_theta = grid_shape[0]
     n_phi = grid_shape[1]
@@ -330,6 +306,40 @@ def query(
     return False
 
 
+@njit(inline="always")
+def query_mesh(p, mesh, out, work):
+    """:func:`query` with the mesh's kernel arguments (``DirectionMesh.kernel_args``) as a tuple."""
+    # vertices, edges, margins, axis, grid_shape, inside, deep, start, cell_edges, keys
+    ve, ed, ma, ax, gs, ins, dp, st, ce, ke = mesh
+    return query(p, ve, ed, ma, ax, gs, ins, dp, st, ce, ke, out, work)
+
+
+@njit(inline="always")
+def limb_into(w, x, y, z, d) -> None:
+    """Write into ``d`` (3,) the unit limb direction of canonical quaternion ``(w, x, y, z)``."""
+    d[0] = w * w + x * x - y * y - z * z
+    d[1] = 2.0 * (x * y + w * z)
+    d[2] = 2.0 * (x * z - w * y)
+    dn = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+    for k in range(3):
+        d[k] /= dn
+
+
+@njit(inline="always")
+def swing_of(p):
+    """The swing from +x to unit ``p`` (3,): ``normalise(1 + p_x, 0, -p_z, p_y)`` as (w, y, z)."""
+    sw = 1.0 + p[0]
+    sy = -p[2]
+    sz = p[1]
+    sn = math.sqrt(sw * sw + sy * sy + sz * sz)
+    if sn < 1e-12:
+        sw, sy, sz, sn = 0.0, 0.0, 1.0, 1.0
+    sw /= sn
+    sy /= sn
+    sz /= sn
+    return sw, sy, sz
+
+
 #: Rows per chunk of a batch: scratch is allocated once per chunk, not per row.
 CHUNK = 512
 
@@ -337,6 +347,7 @@ CHUNK = 512
 @njit(parallel=True)
 def contains_batch(vertices, edges, margins, axis, grid_shape, inside, deep, start, arcs, keys, d):
     """(N,) bool for directions ``d`` (N, 3)."""
+    mesh = (vertices, edges, margins, axis, grid_shape, inside, deep, start, arcs, keys)
     n = d.shape[0]
     res = np.empty(n, dtype=np.bool_)
     for chunk in nb.prange((n + CHUNK - 1) // CHUNK):
@@ -344,46 +355,19 @@ def contains_batch(vertices, edges, margins, axis, grid_shape, inside, deep, sta
         frame_into(axis, work)
         out = np.empty(3)
         for j in range(chunk * CHUNK, min(n, (chunk + 1) * CHUNK)):
-            res[j] = query(
-                d[j],
-                vertices,
-                edges,
-                margins,
-                axis,
-                grid_shape,
-                inside,
-                deep,
-                start,
-                arcs,
-                keys,
-                out,
-                work,
-            )
+            res[j] = query_mesh(d[j], mesh, out, work)
     return res
 
 
 @njit(parallel=True)
 def project_batch(vertices, edges, margins, axis, grid_shape, inside, deep, start, arcs, keys, d):
     """Projection (N, 3) of directions ``d`` (N, 3): themselves inside, nearest region point out."""
+    mesh = (vertices, edges, margins, axis, grid_shape, inside, deep, start, arcs, keys)
     n = d.shape[0]
     res = np.empty((n, 3))
     for chunk in nb.prange((n + CHUNK - 1) // CHUNK):
         work = np.empty((WORK_ROWS, 3))
         frame_into(axis, work)
         for j in range(chunk * CHUNK, min(n, (chunk + 1) * CHUNK)):
-            query(
-                d[j],
-                vertices,
-                edges,
-                margins,
-                axis,
-                grid_shape,
-                inside,
-                deep,
-                start,
-                arcs,
-                keys,
-                res[j],
-                work,
-            )
+            query_mesh(d[j], mesh, res[j], work)
     return res

@@ -19,41 +19,28 @@ class RegionParams:
     Attributes
     ----------
     support_nodes : int
-        Most thinned samples the shape is built on; the spacing grows until they fit. 3000
-        bounds the time of the triangulation and peel, while a 1 deg spacing still covers a
-        region of about 3000 deg^2 (55 x 55 deg) in full.
+        Most thinned samples the shape is built on: 3000 bounds the triangulation's time and
+        still covers 55 x 55 deg at 1 deg.
     thin_deg : float
-        Smallest spacing (deg) of the thinned samples. 1 deg makes a 125 Hz hand recording
-        (samples a fraction of a degree apart along a stroke) look like scattered samples; the
-        outermost samples are kept, so the edge loses nothing.
+        Smallest spacing (deg) of the thinned samples: 1 deg makes a 125 Hz recording look like
+        scattered samples.
     alpha_factor : float
-        The alpha shape's radius in units of the 90th percentile empty-circle radius of the
-        gaps the samples enclose. 2 closes the gaps between a hand's strokes while concavities
-        wider than those gaps stay open.
+        Alpha radius in 90th-percentile enclosed-gap radii: 2 closes gaps between strokes.
     hole_fraction : float
-        Holes smaller than this fraction of the region's area are filled: 0.2 fills the
-        spaces between strokes, a hole a fifth of the region is taught as a hole.
+        Holes smaller than this share of the area are filled: 0.2, the spaces between strokes.
     peel_factor : float
-        An exposed edge longer than this many median sample spacings bridges a gap in the data
-        and is peeled away (unless the samples surround it). 8 spacings is far longer than any
-        edge between neighbouring samples.
+        Exposed edges longer than this many median spacings are peeled: 8, far past neighbours.
     min_peel_deg : float
-        The peel length (deg) is at least this, however dense the samples: a gap narrower than
-        4 deg (a few thinned spacings) is never taken for a bridge.
+        Least peel length (deg): 4, a few thinned spacings, never taken for a bridge.
     surround_deg : float
-        Radius (deg) of the neighbourhood whose samples must surround a triangle for the peel
-        to keep it: 6 deg, several thinned spacings, holds enough samples to tell the middle of
-        the data (samples all around) from its edge (samples on one side).
+        Surround neighbourhood (deg) for the peel: 6, several spacings, tells middle from edge.
     max_margin_deg : float
-        The most (deg) the supported loops are widened beyond the outermost samples: 0.75 deg,
-        about the gap the outermost samples leave at a sparsely taught edge.
+        Most (deg) the supported loops widen: 0.75, the outermost samples' gap at a sparse edge.
     max_offset_deg : float
-        The most (deg) a learned edge moves out in one step (past the smooth edge's fitted
-        curve; past the traced curve in one round): 3 deg, a few sample gaps at a sparse edge.
+        Most (deg) a learned edge moves out in one step: 3, a few gaps at a sparse edge.
     edge : str
-        Which edge: ``"auto"`` (smooth, else traced, else supported), or one strategy by name
-        (:data:`limbctl.region.edge_choice.EDGE_CHOICES`); ``"supported"`` keeps the loops
-        through the outermost samples.
+        ``"auto"`` (smooth, else traced, else supported) or one strategy by name
+        (:data:`limbctl.region.edge_choice.EDGE_CHOICES`).
     """
 
     support_nodes: int = 3000

@@ -1,25 +1,11 @@
 """From scattered limb directions to the closed boundary loops of the region they fill.
 
-The steps the Rigid Map's gate runs on its support (all angles radians):
-
-1. :func:`thin` keeps a subset of directions at least ``spacing`` apart (greedy Poisson-disk,
-   outermost first), so that a 100 Hz hand recording and i.i.d. samples look alike.
-2. :func:`learn_alpha` picks the alpha-shape radius from the data's own scale: the gaps the
-   points leave inside the region they enclose (strokes of a hand recording cross and enclose
-   the empty space between them; that space's empty-circle radii set the scale).
-3. :func:`alpha_complex` triangulates, keeps triangles with circumradius <= alpha and fills
-   holes smaller than ``max_hole``: the gaps between strokes close. A hole open to the outside
-   only through gaps no wider than ``mouth`` (between neighbouring samples of one stroke or
-   traced edge) is closed too.
-4. :func:`peel` (a chi-shape) then removes, longest first, the outside triangles whose exposed
-   edge is longer than ``max_length`` and whose middle the data do not surround
-   (:func:`surrounded`): a large alpha may bridge a concavity or a bay of the taught region,
-   the peel takes the bridge away again, down to where the data are; the boundary loops
-   (:func:`trace_loops`) run through taught directions.
-5. :func:`edge_margins` widens each boundary arc by how far beyond it the data say the true edge
-   lies (an endpoint estimate on the outermost samples' depths), at least as far as the samples
-   that lie beyond it, and never more than a cap: the region never reaches more than the cap
-   beyond the data-supported shape, and concavities are not smoothed away.
+The steps the Rigid Map's gate runs on its support (angles in radians): :func:`thin` (hand
+recordings and i.i.d. samples alike), :func:`learn_alpha` (the scale of the gaps the data
+enclose), :func:`alpha_complex` (holes smaller than ``max_hole`` or closed by a narrow mouth
+filled), :func:`peel` (a chi-shape: bridges over bays the data do not surround removed, so
+the loops of :func:`trace_loops` run through taught directions), and :func:`edge_margins`
+(each arc widened to where the data put the true edge, never past a cap).
 """
 
 from __future__ import annotations
@@ -39,17 +25,15 @@ from limbctl.region.mesh import (
 )
 from limbctl.region.union_find import UnionFind
 
-#: The alpha complex's scale is set where it joins this share of the points into one piece: the
-#: rest (1 %) are strays whose isolating gaps must not set the scale of the whole region.
+#: Share of points the alpha scale joins into one piece: strays (1 %) must not set it.
 JOINED_FRACTION = 0.99
 
 
 def thin(d: np.ndarray, spacing: float) -> np.ndarray:
     """Indices of directions ``d`` (N, 3) kept at least ``spacing`` (rad) apart.
 
-    Greedy Poisson-disk thinning, outermost first (largest angle from the mean direction): every
-    direction of ``d`` lies within ``spacing`` of a kept one, and the points that reach farthest
-    out are the ones kept.
+    Greedy Poisson-disk thinning, outermost first: every direction lies within ``spacing`` of a
+    kept one, and the points that reach farthest out are kept.
     """
     mean = d.mean(axis=0)
     norm = np.linalg.norm(mean)
@@ -69,12 +53,9 @@ def thin(d: np.ndarray, spacing: float) -> np.ndarray:
 def learn_alpha(d: np.ndarray, factor: float, quantile: float = 0.9) -> float:
     """The alpha-shape radius (rad) from the scale of the gaps inside the data ``d`` (V, 3).
 
-    ``alpha0`` is the smallest circumradius at which the alpha complex joins ``JOINED_FRACTION``
-    of the points
-    into one piece; the gaps are the Delaunay triangles enclosed by that piece (inside its outer
-    loop), and ``alpha = factor * quantile(circumradius of enclosed triangles)``, at least
-    ``alpha0``. On i.i.d. samples this is a few times the sample spacing; on hand strokes it is
-    the size of the holes between strokes, so they fill while concavities larger than that stay.
+    ``alpha0`` is the smallest circumradius joining ``JOINED_FRACTION`` of the points into one
+    piece; ``alpha = factor * quantile(circumradius of the triangles that piece encloses)``, at
+    least ``alpha0``: a few sample spacings on i.i.d. samples, the holes between hand strokes.
     """
     tri = spherical_delaunay(d)
     radius = circumradius(d, tri)
@@ -105,8 +86,7 @@ def tri_centroids(d: np.ndarray, tri: np.ndarray) -> np.ndarray:
 def trace_loops(d: np.ndarray, edges: np.ndarray) -> list[np.ndarray]:
     """Chain directed boundary edges (E, 2) into closed loops of vertex indices.
 
-    At a vertex with several outgoing edges (two pieces touching at a point) the loop takes the
-    one turning most to the left, which keeps each piece's boundary separate.
+    Where pieces touch at a vertex the loop turns most to the left, keeping each piece separate.
     """
     outgoing: dict[int, list[int]] = {}
     for e, (a, _) in enumerate(edges):
@@ -157,12 +137,9 @@ def alpha_complex(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Delaunay triangles (T, 3) of ``d``, their circumradii (T,) and which are in the region.
 
-    A triangle is in the region when its circumradius is at most ``alpha``, or when it belongs
-    to a hole: a piece of the other triangles that does not reach the outside of the
-    triangulation, with a total area below ``max_hole`` (sr). Pieces join across shared edges,
-    and reach the outside across hull edges, only where the edge is longer than ``mouth``
-    (rad): a gap no wider than ``mouth`` between two samples (two neighbours along a traced
-    edge) closes what lies behind it.
+    A triangle is in the region when its circumradius is at most ``alpha``, or it belongs to a
+    hole: a piece of the other triangles (joined across edges longer than ``mouth``) that does not
+    reach the outside across a hull edge longer than ``mouth`` and has an area below ``max_hole``.
 
     Parameters
     ----------
@@ -223,18 +200,23 @@ def edge_lengths(d: np.ndarray, pairs: np.ndarray) -> np.ndarray:
 def surrounded(p: np.ndarray, data: np.ndarray, radius: float, max_gap: float) -> np.ndarray:
     """(N,) bool: whether the ``data`` (K, 3) within ``radius`` of each ``p`` (N, 3) surround it.
 
-    Surrounded: at least three data lie within ``radius`` (rad) and, seen from ``p``, their
-    bearings leave no empty sector wider than ``max_gap`` (rad). A point among crossing strokes
-    is surrounded; a point beyond the data's edge (all data on one side) is not.
+    At least three data within ``radius`` (rad) whose bearings from ``p`` leave no empty sector
+    wider than ``max_gap`` (rad).
     """
-    near = cKDTree(data).query_ball_point(p, chord(radius))
+    counts, widest = bearing_gaps(p, data, cKDTree(data).query_ball_point(p, chord(radius)))
+    return (counts >= 3) & (widest < max_gap)
+
+
+def bearing_gaps(p: np.ndarray, data: np.ndarray, near: list) -> tuple[np.ndarray, np.ndarray]:
+    """Counts (N,) of the rows ``near`` (N lists) of ``data`` (K, 3) about each ``p`` (N, 3), and
+    their widest empty sector (N,) rad of bearings seen from it."""
     counts = np.array([len(rows) for rows in near], dtype=np.int64)
     start = np.concatenate([[0], np.cumsum(counts)])
     flat = np.fromiter((j for rows in near for j in rows), dtype=np.int64, count=int(start[-1]))
     widest = shape_kernels.widest_bearing_gaps(
         np.ascontiguousarray(p, dtype=np.float64), np.ascontiguousarray(data), start, flat
     )
-    return (counts >= 3) & (widest < max_gap)
+    return counts, widest
 
 
 def peel(
@@ -244,12 +226,10 @@ def peel(
     max_length: float,
     protected: np.ndarray,
 ) -> np.ndarray:
-    """Chi-shape peel: which of the triangles ``tri`` (T, 3) stay after peeling ``kept`` (T,).
+    """Chi-shape peel: the kept mask (T,) of triangles ``tri`` (T, 3) after peeling ``kept`` (T,).
 
-    Repeatedly, longest first, a kept triangle with an exposed edge (its neighbour across it
-    not kept) longer than ``max_length`` (rad) is removed, unless it is ``protected`` (T,) or
-    its third vertex already lies on the boundary (removing it would pinch the shape or drop a
-    vertex: every vertex of the shape stays in it). Returns the new kept mask.
+    Longest first, a kept triangle with an exposed edge longer than ``max_length`` (rad) is
+    removed, unless ``protected`` (T,) or its third vertex lies on the boundary (no pinching).
     """
     kept = kept.copy()
     key = np.sort(np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]), axis=1)
@@ -302,20 +282,13 @@ def edge_margins(
 ) -> list[np.ndarray]:
     """How far (rad) to widen each arc of the loops so the region reaches the true edge.
 
-    Each data direction (N, 3) is assigned to its nearest arc. For an arc ``a -> b`` with
-    outward pole ``n = -(a x b) / |a x b|``, the data assigned to arcs within +- ``window``
-    (rad, along the loop) are measured beyond its great circle, ``o = asin(x . n)``; their
-    outermost ``o_(1) >= ... >= o_(top)`` give the endpoint estimate ``o_(1) + gap``
-    (:func:`limbctl.region.gaps.line_gap`): a notch between outer samples fills up to them,
-    a straight or convex stretch reaches one sample spacing beyond its outermost samples.
-    The margin is that estimate, at least the distance of every sample outside the loops
-    assigned to the arc, and at most ``max_margin`` (one value, or per loop an (M,) array of
-    caps per arc). An arc longer than ``max_bridge`` (rad) bridges a gap without samples
-    along it: the data say nothing of an edge beyond it, so it widens only to cover the
-    samples beyond it. An arc that cuts a concave corner of a traced edge is widened no further
-    than where its neighbours' widened great circles meet (:func:`corner_limits`: across the
-    corner the other side's samples lie beyond the arc without the edge doing so). Returns one
-    (M,) array per loop, entry ``i`` for the arc from point ``i`` to ``i + 1``.
+    Each direction of ``data`` (N, 3) belongs to its nearest arc. An arc's margin is the endpoint
+    estimate (:func:`limbctl.region.gaps.line_gap`) of the ``top`` outermost depths beyond its
+    great circle of the data of the arcs within ``window`` (rad) along the loop, at least the
+    depth of every sample outside it, at most ``max_margin`` (one value, or per loop (M,) caps).
+    An arc longer than ``max_bridge`` only covers the samples beyond it; an arc cutting a traced
+    concave corner is held by :func:`corner_limits`. Returns one (M,) array per loop, entry
+    ``i`` for the arc from point ``i`` to ``i + 1``.
     """
     vertices, edges = loops_to_edges(loops)
     nearest, angle = shape_kernels.nearest_arcs(data, vertices, edges)
@@ -365,14 +338,10 @@ def corner_limits(
 ) -> np.ndarray:
     """Largest margin (M,) rad each arc of a loop (M, 3) may take at a traced concave corner.
 
-    A *corner arc* ``e`` (from vertex ``e`` to ``e + 1``) turns concavely at both its ends, by
-    at least ``corner_turn`` (rad) together, one of its neighbouring arcs ``e - 1``, ``e + 1``
-    is traced (at most ``traced_arc`` long) and none of the three is a bridge (longer than
-    ``max_bridge``). Its neighbours widened by their ``margin`` (M,) lie on the small circles
-    ``n_p . x = sin(m_p)`` and ``n_q . x = sin(m_q)`` (outward poles ``n``); they meet at the
-    corner ``x`` nearer the arc, and the arc may widen up to ``asin(x . n_e)`` (at least 0):
-    the widened arc does not cut beyond both widened neighbours. Other arcs: ``inf``. ``seg``
-    (M,) are the arcs' lengths.
+    A corner arc turns concavely at both ends by at least ``corner_turn`` (rad) together, a
+    neighbour is traced (at most ``traced_arc`` long) and none of the three is longer than
+    ``max_bridge``; it may widen only to where its neighbours, widened by ``margin`` (M,), meet.
+    Other arcs: ``inf``. ``seg`` (M,) are the arcs' lengths (rad).
     """
     m = loop.shape[0]
     limit = np.full(m, np.inf)
@@ -411,9 +380,8 @@ def corner_limits(
 def carve(d: np.ndarray, tri: np.ndarray, kept: np.ndarray, points: np.ndarray) -> np.ndarray:
     """Remove, for each of ``points`` (P, 3), the kept triangle whose exposed edge lies nearest.
 
-    ``tri`` (T, 3) over ``d`` (V, 3), ``kept`` (T,) bool. A triangle whose third vertex lies on
-    the boundary stays (removing it would pinch the shape, as in :func:`peel`). Returns the new
-    kept mask (a copy; unchanged when nothing could be removed).
+    ``tri`` (T, 3) over ``d`` (V, 3), ``kept`` (T,) bool; as in :func:`peel` no pinching.
+    Returns the new kept mask (a copy).
     """
     kept = kept.copy()
     rows = np.flatnonzero(kept)

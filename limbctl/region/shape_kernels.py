@@ -1,7 +1,4 @@
-"""Numba kernels of the region's shape (:mod:`limbctl.region.shape`).
-
-No fastmath: every comparison sees NaN as failing.
-"""
+"""Numba kernels of the region's shape (:mod:`limbctl.region.shape`). No fastmath."""
 
 from __future__ import annotations
 
@@ -20,12 +17,8 @@ TIE = 1e-12
 
 @njit
 def widest_bearing_gaps(p: np.ndarray, data: np.ndarray, start: np.ndarray, near: np.ndarray):
-    """The widest empty sector (rad) about each ``p`` (N, 3) of its neighbours among ``data``.
-
-    The neighbours of point ``i`` are ``data[near[start[i]:start[i + 1]]]``; seen from ``p``
-    in the tangent frame ``u = (h x p) / |h x p|``, ``v = p x u`` (``h = +z``, ``+y`` when
-    ``p`` is near z: :func:`limbctl.geometry.quat.tangent_frame`), their bearings
-    ``atan2(s.v, s.u)`` sorted leave gaps; the widest, the wrap-around included, is returned
+    """The widest empty sector (rad) about each ``p`` (N, 3) of its neighbours
+    ``data[near[start[i]:start[i + 1]]]``, bearings in :func:`limbctl.geometry.quat.tangent_frame`
     (2 pi for fewer than one neighbour).
     """
     n = p.shape[0]
@@ -62,11 +55,8 @@ def widest_bearing_gaps(p: np.ndarray, data: np.ndarray, start: np.ndarray, near
 def nearest_arcs(data: np.ndarray, vertices: np.ndarray, edges: np.ndarray):
     """The nearest boundary arc (N,) of each direction of ``data`` (N, 3) and its angle (N,) rad.
 
-    ``edges`` (E, 2) index great-circle arcs between ``vertices`` (V, 3); only arcs that can
-    be nearest are measured (:func:`limbctl.region.direct_kernels.nearest_widened` with no
-    widening). Of arcs within :data:`TIE` of each other the first wins: a direction on a
-    vertex lies ~1e-16 rad from both its arcs, and rounding would otherwise pick one. The
-    brute-force reference is :func:`limbctl.region.mesh.nearest_on_edges_reference`.
+    ``edges`` (E, 2) index arcs between ``vertices`` (V, 3); of arcs within :data:`TIE` the first
+    wins. Reference: :func:`limbctl.region.mesh.nearest_on_edges_reference`.
     """
     mids, half, longest = arc_bounds(vertices, edges)
     no_margins = np.zeros(edges.shape[0])

@@ -1,9 +1,7 @@
 """Sorts for the region's kernels, written out: numba's own sorts compile for seconds each.
 
-Both compare with ``<`` only. For keys without NaN, :func:`largest_stable` gives the first ``k``
-of ``np.argsort(-values, kind="stable")`` and :func:`sort_values` the values of ``np.sort`` (any
-correct sort gives the same values). ``tests/region/test_sort_kernels.py`` compares them with
-numpy. Neither allocates for the few dozen values the fit's kernels sort at a time.
+Both compare with ``<`` only: :func:`largest_stable` gives ``np.argsort(-values,
+kind="stable")[:k]``, :func:`sort_values` the values of ``np.sort`` (without NaN).
 """
 
 from __future__ import annotations
@@ -12,19 +10,14 @@ import numpy as np
 
 from limbctl.geometry.jit import njit
 
-#: Values :func:`sort_values` sorts by insertion before merging runs: the bearings and residuals
-#: it sorts are 10-50 values, where insertion is fastest and needs no buffer; longer runs would
-#: make a long input's insertion passes quadratic.
+#: Run length sorted by insertion before merging: the 10-50 values sorted need no buffer.
 RUN = 16
 
 
 @njit
 def largest_stable(values, k):
-    """Indices (min(k, N),) int64 of the ``k`` largest of ``values`` (N,), largest first, equal
-    values in index order: ``np.argsort(-values, kind="stable")[:k]``.
-
-    One pass keeping the ``k`` best in order (insertion): O(N k) at worst, O(N) when most
-    values fall below the ``k``-th, as the fit's windows of a few hundred readings do.
+    """Indices (min(k, N),) int64 of the ``k`` largest of ``values`` (N,), largest first, ties in
+    index order; insertion, O(N) when most values fall below the ``k``-th.
     """
     n = values.shape[0]
     k = min(k, n)

@@ -1,40 +1,10 @@
 """The taught region the gate enforces, built from the positions of taught samples.
 
-:class:`TaughtRegion` runs every step from taught samples to the grid that answers commands
-(all angles radians below; the settings are a :class:`~limbctl.region.params.RegionParams`):
-
-1. *Thin*: samples at least ``thin_deg`` apart, outermost kept (:func:`limbctl.region.shape.thin`),
-   at most ``support_nodes`` (the spacing grows until they fit).
-2. *Shape*: the thinned directions are triangulated (spherical Delaunay); triangles with
-   circumradius at most ``alpha`` are kept, ``alpha`` learned from the data's scale
-   (``alpha_factor`` times the 90th percentile of the empty-circle radii of the gaps the
-   samples enclose), and holes smaller than ``hole_fraction`` of the region are filled; a
-   hole open to the outside only through gaps of at most ``MOUTH_SPACINGS`` thinning
-   spacings (between neighbouring samples of a traced edge) counts as closed.
-3. *Peel*: outside triangles whose exposed edge is longer than the peel length (``peel_factor``
-   median nearest-neighbour spacings, at least ``min_peel_deg``) and whose middle the samples
-   do not surround (samples within ``surround_deg`` leave an empty sector wider than
-   ``SURROUND_GAP_DEG``) are peeled away, longest first: the *supported loops* run through
-   taught samples, corners and concavities as taught.
-4. *Margins*: each arc of the supported loops is widened to where the outermost samples put the
-   edge (:func:`limbctl.region.shape.edge_margins`; windows of ``EDGE_WINDOW`` peel lengths,
-   at most ``max_margin_deg``); arcs longer than ``BRIDGE_FRACTION`` peel lengths only cover
-   the samples beyond them; an arc cutting a traced concave corner widens no further than
-   where its neighbours' widened great circles meet (``TRACED_SPACINGS``,
-   ``CORNER_TURN_DEG``). This is the *supported region*.
-   Where the samples surround a stretch of that edge but lie farther than ``EVIDENCE_DEG``
-   from it (a bay or notch the shape bridged, :mod:`limbctl.region.evidence`), the triangle
-   behind it is carved away (``CARVE_ROUNDS``, ``CARVE_LOSS``); what cannot be carved is
-   listed in :attr:`TaughtRegion.unsupported_edge`.
-5. *Edge*: the edge strategy ``edge`` names (:mod:`limbctl.region.edge_choice`) replaces the
-   supported loops by a learned edge where the data agree with it, or keeps them;
-   :attr:`TaughtRegion.verdicts` says which strategies were refused and why. Every stretch of
-   the kept edge farther than ``REACH_DEG`` from every taught sample is listed in
-   :attr:`TaughtRegion.unsupported_edge` and held to within ``REACH_DEG`` of the samples
-   (:func:`limbctl.region.edge_hold.hold_to_evidence`: containment over coverage;
-   :attr:`TaughtRegion.held_edge`). A teaching with no such stretch keeps the edge as chosen.
-6. *Mesh*: a :class:`~limbctl.region.mesh.DirectionMesh` over the chosen edge answers
-   :meth:`TaughtRegion.contains` and :meth:`TaughtRegion.correct` in O(1) per command.
+:class:`TaughtRegion` runs thin, shape, peel, margins (carving bays the shape bridged,
+:mod:`limbctl.region.evidence`), edge (:mod:`limbctl.region.edge_choice`; stretches farther than
+``REACH_DEG`` from every taught sample held to the evidence, :mod:`limbctl.region.edge_hold`)
+and mesh, as docs/region.md describes, with the settings of a
+:class:`~limbctl.region.params.RegionParams`. Angles are in radians.
 """
 
 from __future__ import annotations
@@ -64,42 +34,27 @@ from limbctl.region.gaps import ORDER_STATISTICS
 from limbctl.region.mesh import DirectionMesh, boundary_edges
 from limbctl.region.params import RegionParams
 
-#: Half width of the windows (along the loop) the margins read, in peel lengths: wide enough to
-#: hold ORDER_STATISTICS outermost samples along a sparse edge, narrow enough to stay local.
+#: Margin windows' half width (peel lengths): holds ORDER_STATISTICS samples, stays local.
 EDGE_WINDOW = 1.5
-#: A point is surrounded when no empty sector about it is wider than this (deg): a point on a
-#: straight edge sees every sample on one side (an empty half, 180 deg); 15 deg less leaves
-#: room for the scatter of samples along the edge.
+#: Widest empty sector (deg) about a surrounded point: an edge's is 180, less scatter.
 SURROUND_GAP_DEG = 165.0
-#: Arcs longer than this fraction of the peel length are bridges over a gap with no sample
-#: along them: the data say nothing of an edge beyond them, so they get no learned widening.
+#: Arcs longer than this share of the peel length bridge a gap: no learned widening.
 BRIDGE_FRACTION = 0.75
-#: Gaps in the alpha complex up to this many thinning spacings wide close what lies behind
-#: them (a hole, filled): neighbouring thinned samples of one stroke or traced edge lie 1 to 2
-#: spacings apart, so a stroke encloses what it passes, not opens it to the outside.
+#: Gaps up to this many thinning spacings close a hole: a stroke's samples lie 1-2 apart.
 MOUTH_SPACINGS = 2.0
-#: Arcs up to this many thinning spacings long are traced (consecutive samples of a slow
-#: stroke along the edge, 1 to 1.25 spacings apart); sparse data leave arcs of 2 and more.
+#: Arcs up to this many spacings are traced (a slow stroke: 1-1.25); sparse data's 2+.
 TRACED_SPACINGS = 1.25
-#: A concave corner turns the loop by at least this much (deg) over one arc: a traced corner
-#: is bridged by one or two arcs turning 60-100 deg together, dents of sparse loops less
-#: where their neighbours are traced.
+#: Least turn (deg) of a concave corner: traced corners turn 60-100 deg over one arc.
 CORNER_TURN_DEG = 60.0
-#: Growth factor floor of the thinning spacing while the thinned samples exceed the cap: at
-#: least 5 % a step, so the loop ends within a few steps.
+#: Least growth of the thinning spacing a step while over the cap: ends in a few steps.
 THIN_GROWTH = 1.05
-#: Version of what a fit builds from given samples, raised whenever the construction changes
-#: the region some data give: cached `limbctl eval` results are keyed on it. Saved models carry
-#: their mesh and keep answering as they did (their format is ``GATE_VERSION``'s business).
+#: Version of the construction, raised whenever it changes the region some data give: cached
+#: `limbctl eval` results are keyed on it (saved models carry their mesh).
 FIT_VERSION = 9
-#: While the supported edge bridges a stretch the samples surround but do not reach, the
-#: triangle behind each such station is carved out, at most CARVE_ROUNDS rounds: a bay bridged
-#: by the shape is a few triangles deep (a 10 deg bay at the 1-2 deg spacing of thinned hand
-#: strokes), so 12 rounds empty the bays of the families in docs/bench_swing_families.md.
+#: Carving rounds at most: a bridged bay is a few triangles deep; 12 empty the bays of the
+#: families in docs/bench_swing_families.md.
 CARVE_ROUNDS = 12
-#: Carving may leave out at most this share of the taught samples the first shape held: a
-#: bay's bridge holds no samples, so carving it loses none; a carve that starts dropping
-#: samples is eating into sparse data, not a bay.
+#: Most share of taught samples carving may leave out: a bay's bridge holds none.
 CARVE_LOSS = 0.002
 
 
@@ -154,8 +109,7 @@ class TaughtRegion:
     def fit(self, samples: np.ndarray, lookup: bool = True) -> TaughtRegion:
         """Build the region from taught ``samples``: directions (N, 3) or quaternions (N, 4).
 
-        With ``lookup`` the region's lookup grid is built too, ready for the gate; without,
-        it is built when first needed (a live view that only draws the loops never needs it).
+        With ``lookup`` the lookup grid is built too; without, when first needed.
         """
         d = taught_directions(samples)
         self.support_index, spacing = self._thinned(d)
@@ -165,8 +119,7 @@ class TaughtRegion:
         return self
 
     def _thinned(self, d: np.ndarray) -> tuple[np.ndarray, float]:
-        """Rows of ``d`` (N, 3) kept by thinning, at most ``support_nodes`` of them, and the
-        spacing (rad) that kept them."""
+        """Rows of ``d`` (N, 3) thinned to at most ``support_nodes``, and the spacing (rad)."""
         spacing = np.radians(self.params.thin_deg)
         while True:
             keep = rs.thin(d, spacing)
@@ -176,8 +129,7 @@ class TaughtRegion:
             spacing *= max(THIN_GROWTH, np.sqrt(keep.size / self.params.support_nodes))
 
     def _build(self, d: np.ndarray, d_train: np.ndarray, thinning: float) -> DirectionMesh:
-        """The mesh from the thinned directions (K, 3), all taught directions (N, 3) and the
-        thinning's spacing (rad)."""
+        """The mesh from the thinned (K, 3) and all taught (N, 3) directions, spacing (rad)."""
         p = self.params
         alpha = rs.learn_alpha(d, p.alpha_factor)
         self.edge, self.verdicts, self.unsupported_edge = "supported", (), ()
@@ -224,8 +176,7 @@ class TaughtRegion:
     def _shape(
         self, d: np.ndarray, thinning: float, alpha: float
     ) -> tuple[np.ndarray | None, np.ndarray | None]:
-        """Steps 2-3: the triangles (T, 3) over ``d`` and which are kept after the peel, or
-        (None, None) when the alpha complex keeps none."""
+        """Triangles (T, 3) over ``d`` and the kept mask after the peel; (None, None) if none."""
         p = self.params
         tri, _, inside = rs.alpha_complex(d, alpha, max_hole=0.0)
         area = float(rs.triangle_area(d, tri[inside]).sum())
@@ -241,8 +192,9 @@ class TaughtRegion:
         return tri, rs.peel(d, tri, inside, length, protected)
 
     def _peel_length(self, d: np.ndarray) -> float:
-        """The peel length (rad): peel_factor x the median spacing of the support (nearest
-        neighbour), at least min_peel_deg: an exposed edge longer than that bridges a gap."""
+        """Peel length (rad): ``peel_factor`` median nearest-neighbour spacings, at least
+        ``min_peel_deg``.
+        """
         spacing, _ = cKDTree(d).query(d, k=2)
         return max(
             np.radians(self.params.min_peel_deg),
@@ -252,8 +204,7 @@ class TaughtRegion:
     def _supported_loops(
         self, d: np.ndarray, d_train: np.ndarray, thinning: float, tri: np.ndarray, kept
     ) -> tuple[list[np.ndarray], list[np.ndarray], DirectionMesh]:
-        """Step 4 on the kept triangles: the supported loops, their margins and the supported
-        region (lookup grid not built)."""
+        """The supported loops, their margins and region (lookup grid not built)."""
         p = self.params
         length = self._peel_length(d)
         loops = [d[idx] for idx in rs.trace_loops(d, boundary_edges(tri[kept]))]
@@ -276,27 +227,31 @@ class TaughtRegion:
             raise ConfigError("this region is not built: call fit(samples) or load a model")
         return self.mesh
 
-    def contains(self, q: np.ndarray) -> np.ndarray | bool:
-        """Whether each limb direction of ``q`` ((N, 4) or (4,)) lies in the region."""
+    def _answer(self, q: np.ndarray):
+        """The gate's kernel on ``q`` ((N, 4) or (4,)): corrected orientations and status codes."""
         args = self._mesh().kernel_args()
         arr = np.asarray(q, dtype=np.float64) if isinstance(q, np.ndarray) else None
         if arr is not None and arr.shape == (4,):
-            # fast path for one command (the gate's final check, every cycle): no thread pool
-            _, one = ck.correct_single(arr, *args)
-            if one < 0:
+            # fast path for one command (every cycle): no thread pool; the kernel checks the input
+            out, status = ck.correct_single(arr, *args)
+            if status < 0:
                 as_quaternions(q)
-            return bool(one == 1)
+            return out, status
         arr, single = as_quaternions(q)
-        _, status = ck.correct_rows(np.ascontiguousarray(arr), *args)
-        inside = status == 1
-        return bool(inside[0]) if single else inside
+        out, status = ck.correct_rows(np.ascontiguousarray(arr), *args)
+        return (out[0], status[0]) if single else (out, status)
+
+    def contains(self, q: np.ndarray) -> np.ndarray | bool:
+        """Whether each limb direction of ``q`` ((N, 4) or (4,)) lies in the region."""
+        inside = self._answer(q)[1] == 1
+        return inside if isinstance(inside, np.ndarray) else bool(inside)
 
     def contains_from_arcs(self, q: np.ndarray) -> np.ndarray:
-        """:meth:`contains` of a batch ``q`` (N, 4) -> (N,) bool, answered from the region's arcs
-        (:meth:`DirectionMesh.contains_from_arcs`): the same answers, without compiling the
-        gate's kernels in a process that never gates (train's summary;
-        docs/decisions/first_run.md). The limb directions are those the gate's kernel computes,
-        operation for operation."""
+        """:meth:`contains` of a batch ``q`` (N, 4) -> (N,) bool from the region's arcs.
+
+        The same answers without compiling the gate's kernels (docs/decisions/first_run.md): the
+        limb directions are computed as the gate's kernel does, operation for operation.
+        """
         arr, _ = as_quaternions(q)
         w, x, y, z = arr[:, 0], arr[:, 1], arr[:, 2], arr[:, 3]
         # d = (w^2 + x^2 - y^2 - z^2, 2(xy + wz), 2(xz - wy)) / |d|, as correct_kernels does
@@ -308,17 +263,7 @@ class TaughtRegion:
 
     def correct(self, q: np.ndarray) -> np.ndarray:
         """``q`` itself inside the region; outside, the nearest region orientation (twist kept)."""
-        args = self._mesh().kernel_args()
-        arr = np.asarray(q, dtype=np.float64) if isinstance(q, np.ndarray) else None
-        if arr is not None and arr.shape == (4,):
-            # fast path for one command: the kernel checks finiteness and norm itself
-            out, status = ck.correct_single(arr, *args)
-            if status < 0:
-                as_quaternions(q)
-            return out
-        arr, single = as_quaternions(q)
-        out, _ = ck.correct_rows(np.ascontiguousarray(arr), *args)
-        return out[0] if single else out
+        return self._answer(q)[0]
 
     # ---- persistence -------------------------------------------------------------------------
     def arrays(self) -> dict[str, np.ndarray]:

@@ -1,9 +1,5 @@
-"""Numba kernel of the traced edge's estimates (:mod:`limbctl.region.edge_traced`).
-
-:func:`station_moves` runs :func:`limbctl.region.edge_traced.edge_estimate` at every station
-of the curve, reading the same windows: the same arithmetic in the same order, so the same
-numbers (``tests/region/test_trace_kernels.py`` compares them with the numpy loop). Angles in
-radians. No fastmath: every comparison sees NaN as failing.
+"""Numba kernel of the traced edge's estimates (:mod:`limbctl.region.edge_traced`): the same
+arithmetic in the same order as its numpy loop (tests/region/test_trace_kernels.py). No fastmath.
 """
 
 from __future__ import annotations

@@ -1,11 +1,9 @@
 """Numba kernels that learn the twist band (:mod:`limbctl.region.twist_band`) from samples.
 
-Two readings per band node, each a small free function with explicit loops: the upper hull's
-height over the node (:func:`upper_hull`, :func:`fit_nodes`), then a weighted plane through
-the samples at each stop (:func:`refine_nodes`); then the evidence caps, a cone about every
-sample (:func:`evidence_caps`) and one along the stops' local slope (:func:`gradient_caps`).
-Numpy twins of :func:`upper_hull` and
-:func:`evidence_caps` live in ``tests/region/test_twist_fit_kernels.py``. No fastmath.
+Per band node: the upper hull's height (:func:`upper_hull`, :func:`fit_nodes`), a weighted
+plane through the stop samples (:func:`refine_nodes`), and the evidence caps (a cone,
+:func:`evidence_caps`; the local slope, :func:`gradient_caps`). Numpy twins live in
+``tests/region/test_twist_fit_kernels.py``. No fastmath.
 """
 
 from __future__ import annotations
@@ -22,12 +20,8 @@ from limbctl.region.twist_kernels import wrap
 
 @njit
 def upper_hull(px, py, t, top) -> float:
-    """Height at the origin of the upper concave hull of points ``(px, py, t)`` (K,), over
-    the ``top`` highest ``t``: ``max sum(l_k t_k)`` over triangles whose barycentric weights
-    ``l`` of the origin are all >= 0. NaN when no triangle holds the origin.
-
-    For points on a plane this is the plane's height at the origin however they lie around it,
-    so a band limit sloping across a neighbourhood is not biased by the slope.
+    """Height at the origin of the upper concave hull of points ``(px, py, t)`` (K,), over the
+    ``top`` highest ``t``; NaN when no triangle holds the origin. Exact for points on a plane.
     """
     order = np.argsort(-t)[: min(top, t.shape[0])]
     best = -np.inf
@@ -57,15 +51,10 @@ def upper_hull(px, py, t, top) -> float:
 def fit_nodes(nodes, start, members, d, tau, top, free_gap, slope):
     """Band centre and half-width (rad) at each node direction (M, 3) from the samples near it.
 
-    ``members[start[i]:start[i + 1]]`` are the rows of ``d`` (N, 3), ``tau`` (N,) within the
-    neighbourhood of node ``i``. Twist is circular: the samples' twists are unwrapped about the
-    middle of the arc they occupy (the complement of their largest gap); a largest gap below
-    ``free_gap`` leaves the twist free there (half-width pi). The limits are the upper hull's
-    height over the node of (tangent coordinates, twist), and of its negative for the lower
-    limit (:func:`upper_hull`, ``top`` highest), and never below what one sample bounds it to
-    if the limit slopes at most ``slope`` (rad/rad): ``max_i (t_i - slope |x_i|)`` (where no
-    triangle of the highest holds the node, as beside the swing edge, this alone reads it).
-    NaN where fewer than 3 samples.
+    ``members[start[i]:start[i + 1]]`` are the rows of ``d`` (N, 3), ``tau`` (N,) near node ``i``.
+    Twists are unwrapped about the middle of the arc they occupy; a largest gap below
+    ``free_gap`` leaves the twist free (half-width pi). Each limit is the upper hull's height
+    (:func:`upper_hull`), at least ``max_i (t_i - slope |x_i|)``. NaN where fewer than 3 samples.
     """
     m = nodes.shape[0]
     centre = np.full(m, np.nan)
@@ -92,19 +81,7 @@ def fit_nodes(nodes, start, members, d, tau, top, free_gap, slope):
         # the occupied arc runs from gap_start + gap over 2 pi - gap: its middle
         ref = gap_start + gap + 0.5 * (2.0 * math.pi - gap)
         node = nodes[i]
-        # tangent frame at the node (helper +z, or +y near the z axis)
-        if abs(node[2]) < 0.9:
-            e1 = np.array([-node[1], node[0], 0.0])
-        else:
-            e1 = np.array([node[2], 0.0, -node[0]])
-        e1 /= math.sqrt(e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2])
-        e2 = np.array(
-            [
-                node[1] * e1[2] - node[2] * e1[1],
-                node[2] * e1[0] - node[0] * e1[2],
-                node[0] * e1[1] - node[1] * e1[0],
-            ]
-        )
+        e1, e2 = _node_frame(node)
         px = np.empty(k)
         py = np.empty(k)
         t = np.empty(k)
@@ -131,34 +108,17 @@ def fit_nodes(nodes, start, members, d, tau, top, free_gap, slope):
 
 @njit
 def refine_nodes(nodes, start, members, d, limit, stop, ref, sigma, max_slope):
-    """Band limits at nodes (M,) re-read as a weighted local plane through the stop samples.
+    """Band limits at nodes (M,), relative to ``ref`` (M,), from a weighted plane through the stops.
 
-    ``limit`` (N,) are the samples' twists unwrapped against the first estimate's (continuous)
-    centre over each sample, ``stop`` (N,) bool marks the samples at one stop, ``ref`` (M,) the
-    first estimate's centre at each node. The limit, relative to ``ref``, is ``a`` of the
-    least-squares plane ``limit - ref = a + g . x`` over the stop samples near the node
-    (tangent position ``x``, weights
-    ``exp(-angle^2 / (2 sigma^2))``): the mean of the stops, so without the hull's pull toward
-    the highest one, and unbiased by a slope. NaN where fewer than 3 stop samples or they lie on
-    a line, and where the plane slopes more than ``max_slope`` (rad/rad), as one through stops
-    bunched on one side of the node can.
+    ``limit`` (N,) are the unwrapped twists, ``stop`` (N,) bool the samples at the stop; weights
+    ``exp(-angle^2 / (2 sigma^2))``. NaN where fewer than 3 stops, they lie on a line, or the
+    plane slopes more than ``max_slope`` (rad/rad).
     """
     m = nodes.shape[0]
     out = np.full(m, np.nan)
     for i in range(m):
         node = nodes[i]
-        if abs(node[2]) < 0.9:
-            e1 = np.array([-node[1], node[0], 0.0])
-        else:
-            e1 = np.array([node[2], 0.0, -node[0]])
-        e1 /= math.sqrt(e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2])
-        e2 = np.array(
-            [
-                node[1] * e1[2] - node[2] * e1[1],
-                node[2] * e1[0] - node[0] * e1[2],
-                node[0] * e1[1] - node[1] * e1[0],
-            ]
-        )
+        e1, e2 = _node_frame(node)
         a = np.zeros((3, 3))
         b = np.zeros(3)
         count = 0
@@ -192,20 +152,12 @@ def refine_nodes(nodes, start, members, d, limit, stop, ref, sigma, max_slope):
 
 @njit
 def evidence_caps(nodes, start, members, d, limit, ref, slope, near, band):
-    """The widest band limits (M,), (M,) the taught twists near each node support, relative to
-    the node's centre ``ref`` (M,) (rad), and how many samples witness each (M,), (M,).
+    """The widest band limits (M,), (M,) the taught twists near each node support, relative
+    to ``ref`` (M,) (rad), and how many samples witness each (M,), (M,).
 
-    A true limit lying on or beyond every taught sample and changing by at most ``slope`` (rad of
-    twist per rad of direction) is at node ``n`` at least the upper cap and at most the lower:
-
-        up(n) = max_j (limit_j - ref_n - slope angle(n, d_j))
-        lo(n) = min_j (limit_j - ref_n + slope angle(n, d_j))
-
-    over the samples ``members[start[n]:start[n + 1]]`` (rows of ``d`` (N, 3), twists ``limit``
-    (N,) unwrapped as :func:`refine_nodes` takes them); ``angle = 2 asin(|n - d_j| / 2)``. The
-    witnesses of a cap are the samples within ``near`` (rad) of the node whose twist lies within
-    ``band`` (rad) of it: a stop held there, not one passing sample. NaN caps where a node has no
-    samples.
+    ``up(n) = max_j (limit_j - ref_n - slope angle(n, d_j))``, ``lo`` likewise with ``min`` and
+    ``+``, over ``members[start[n]:start[n + 1]]``; witnesses lie within ``near`` (rad) of the node
+    and ``band`` (rad) of the cap. NaN caps where a node has no samples.
     """
     m = nodes.shape[0]
     up = np.full(m, np.nan)
@@ -238,6 +190,24 @@ def evidence_caps(nodes, start, members, d, limit, ref, slope, near, band):
     return up, lo, n_up, n_lo
 
 
+@njit(inline="always")
+def _node_frame(node):
+    """Tangent frame (3,), (3,) at unit ``node`` (3,): helper +z, or +y near the z axis."""
+    if abs(node[2]) < 0.9:
+        e1 = np.array([-node[1], node[0], 0.0])
+    else:
+        e1 = np.array([node[2], 0.0, -node[0]])
+    e1 /= math.sqrt(e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2])
+    e2 = np.array(
+        [
+            node[1] * e1[2] - node[2] * e1[1],
+            node[2] * e1[0] - node[0] * e1[2],
+            node[0] * e1[1] - node[1] * e1[0],
+        ]
+    )
+    return e1, e2
+
+
 @njit
 def _angle(a, b) -> float:
     """Angle (rad) between unit vectors (3,): ``2 asin(|a - b| / 2)``."""
@@ -267,44 +237,20 @@ def gradient_caps(
     steep,
     limited,
 ):
-    """One limit's cap (M,) read along its local slope, relative to the node's centre ``ref``
-    (M,) (rad), and how many samples witness it (M,); the upper limit (for the lower, pass the
-    twists negated and negate the cap).
+    """One limit's cap (M,) read along its local slope, relative to ``ref`` (M,) (rad), and its
+    witnesses (M,); the upper limit (for the lower pass the twists negated and negate the cap).
 
-    The slope ``g`` at node ``n`` is that of the weighted least-squares plane
-    ``limit - ref = a + g . x`` through the stop samples (``stop`` (N,) bool) among the node's
-    neighbours ``members[start[n]:start[n + 1]]`` (tangent position ``x`` in the node's frame,
-    weights ``exp(-angle^2 / (2 sigma^2))``). A true limit ``u`` whose slope at the node lies
-    within ``slack`` (rad/rad) of ``g`` and whose slope changes by at most ``curvature``
-    (rad^-1) per rad lies at the node at or above every sample's
-
-        cap(n) = max_j (limit_j - ref_n - g . x_j - slack angle(n, d_j)
-                        - curvature angle(n, d_j)^2 / 2)
-
-    over all the neighbours ``j``. NaN where fewer than 3 stops lie around the node or their
-    weighted positions spread less than ``spread`` (rad, one sigma) in some direction: the
-    slope is not known there. Witnesses as :func:`evidence_caps` counts them (within ``near``
-    of the node, within ``band`` of the cap). At the nodes ``limited`` (M,) bool a sample
-    farther than ``reach`` (rad) bounds the limit by the lower of its term above and the steep
-    cone's ``limit_j - ref_n - steep angle(n, d_j)`` (``steep`` rad/rad).
+    The slope ``g`` is the weighted plane's through the stops (as :func:`refine_nodes`);
+    ``cap(n) = max_j (limit_j - ref_n - g . x_j - slack angle - curvature angle^2 / 2)``. NaN
+    where the stops spread less than ``spread`` (rad) in some direction. At ``limited`` (M,)
+    nodes a sample beyond ``reach`` (rad) bounds the cap by the ``steep`` (rad/rad) cone too.
     """
     m = nodes.shape[0]
     cap = np.full(m, np.nan)
     wit = np.zeros(m, dtype=np.int64)
     for i in range(m):
         node = nodes[i]
-        if abs(node[2]) < 0.9:
-            e1 = np.array([-node[1], node[0], 0.0])
-        else:
-            e1 = np.array([node[2], 0.0, -node[0]])
-        e1 /= math.sqrt(e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2])
-        e2 = np.array(
-            [
-                node[1] * e1[2] - node[2] * e1[1],
-                node[2] * e1[0] - node[0] * e1[2],
-                node[0] * e1[1] - node[1] * e1[0],
-            ]
-        )
+        e1, e2 = _node_frame(node)
         a = np.zeros((3, 3))
         b = np.zeros(3)
         count = 0

@@ -1,31 +1,17 @@
 """Numba kernels of the three-dimensional region: the twist band, containment and the nearest
 orientation on SO(3).
 
-An orientation ``q = swing(d) * twist(tau)`` (:mod:`limbctl.geometry.twist`) is in the region when
-its direction ``d`` is in the swing region (the direction mesh, :mod:`limbctl.region.mesh_kernels`)
-and its twist lies in the band over ``d``: ``|wrap(tau - c(d))| <= h(d)``, with centre ``c`` and
-half-width ``h`` interpolated bilinearly from a grid in the azimuthal equidistant plane about the
-band's axis (:func:`band_at`).
+``q = swing(d) * twist(tau)`` (:mod:`limbctl.geometry.twist`) is in the region when ``d`` is in
+the swing region (:mod:`limbctl.region.mesh_kernels`) and ``|wrap(tau - c(d))| <= h(d)``, the
+band's centre and half-width bilinear in a plane grid about its axis (:func:`band_at`).
 
-Nearest orientation. For a command ``q`` with direction ``d_q`` and a candidate direction ``d`` at
-angle ``theta`` from it, the orientations over ``d`` nearest to ``q`` have the transported twist
-``t(d)`` (``q`` carried along the shortest arc), and the best one in the band lies
-``delta(d) = max(0, |wrap(t - c)| - h)`` from it in twist, at geodesic angle ``g`` with ::
-
-    cos(g/2) = cos(theta/2) cos(delta/2)          (F(d), maximised)
-
-so the nearest orientation of the region is a search over the swing region's directions
-(:func:`_score`). ``F`` is smooth inside the swing region (``cos(max(0, e)/2)`` has no kink at 0),
-so a pattern search converges; points it tries outside the swing region are replaced by their
-exact projection onto it, so it slides along the swing edge. It starts from the better of the
-command's own swing projection and the direction of the nearest *seed* (orientations sampled on
-the region's boundary, a few degrees apart), and stops once its step is below ``STEP_MIN``.
-``F`` has several local optima where the learned band's limits are uneven, so further searches
-(``MAX_STARTS`` in all) start from the best-scoring of the other candidates (the swing
-projection and the ``NEAREST_SEEDS`` nearest seeds' directions, ``START_APART`` from every start
-before); each stops at ``STEP_COARSE`` unless it has already beaten the best optimum, and the
-best optimum found is the answer (docs/decisions/twist.md).
-No fastmath: NaN must fail every comparison.
+Nearest orientation: over a candidate direction ``d`` at angle ``theta`` from ``q``'s, the best
+orientation in the band lies ``delta(d)`` in twist from the transported twist, at geodesic
+angle ``g`` with ``cos(g/2) = cos(theta/2) cos(delta/2)`` (:func:`_score`, maximised). A pattern
+search over the swing region's directions (polls outside replaced by their projection) starts
+from the better of the swing projection and the nearest *seed*; further searches (``MAX_STARTS``
+in all) start from the next best candidates, and the best optimum found is the answer
+(docs/decisions/twist.md). No fastmath: NaN must fail every comparison.
 """
 
 from __future__ import annotations
@@ -38,33 +24,24 @@ import numpy as np
 from limbctl.geometry.jit import njit
 from limbctl.region import mesh_kernels as bk
 
-#: contains() accepts twists this far (rad) outside the band: rounding of compose/decompose of
-#: an answer on the band's limit (~1e-15), far below a servo tick (0.088 deg).
+#: Twists this far (rad) outside the band pass: compose/decompose rounding (~1e-15).
 TWIST_TOLERANCE = 1e-9
-#: First step (rad) of the pattern search: about the seeds' spacing, so the search starts
-#: within one step of the seed's basin.
+#: First search step (rad): about the seeds' spacing, within one step of a seed's basin.
 STEP_START = math.radians(3.0)
-#: Last step (rad): 0.03 deg. The answer's direction is within one step of a local optimum, and
-#: the geodesic angle is flat to first order there (a smooth optimum) or moves along the exact
-#: swing edge, so its error is far below this.
+#: Last step (rad): 0.03 deg; the score is flat to first order at an optimum.
 STEP_MIN = math.radians(0.03)
-#: Step (rad) at which a further start's search stops unless it has already beaten the best
-#: optimum found (only then is it refined to STEP_MIN): 0.25 deg, three halvings of STEP_START,
-#: where a basin's score is within ~0.1 deg of its optimum.
+#: Step (rad) where a further start stops unless it beat the best (three halvings, 0.25
+#: deg: a basin's score within ~0.1 deg of its optimum).
 STEP_COARSE = STEP_START / 8.0
-#: Cap on the pattern search's polls, a bound on its time: the 7 halvings from STEP_START to
-#: STEP_MIN poll 42 times without a move, leaving ~350 polls for moves.
+#: Cap on polls: 7 halvings poll 42 times without a move, ~350 left for moves.
 MAX_POLLS = 400
-#: Poll directions per step: six at 60 deg, the smallest positive spanning set that keeps the
-#: pattern isotropic enough for the search to follow a curved swing edge.
+#: Polls per step: six at 60 deg, isotropic enough to follow a curved swing edge.
 POLL_DIRECTIONS = 6
 #: Seeds nearest the command (by ``|<q, s>|``) the starts are chosen from.
 NEAREST_SEEDS = 24
-#: Pattern searches at most per command: the first from the better of the swing projection and
-#: the nearest seed, the others from the next candidates START_APART from every start before.
+#: Pattern searches per command at most (uneven bands give two local optima).
 MAX_STARTS = 2
-#: Least angle (rad) between two starts' directions: two pattern-search steps, so a second
-#: start near the first does not retrace its basin.
+#: Least angle (rad) between starts: two steps, so a second start does not retrace.
 START_APART = STEP_START
 #: ``cos(START_APART)``: candidates whose direction's cosine to a start exceeds it are skipped.
 COS_APART = math.cos(START_APART)
@@ -94,10 +71,8 @@ def plane_xy(d, frame):
 
 @njit(inline="always")
 def band_at(d, frame, grid, centre, half):
-    """Band centre and half-width (rad) over direction ``d``: bilinear in the plane grid.
-
-    ``grid = (x0, y0, step)``: node (i, j) sits at ``(x0 + i step, y0 + j step)``; points beyond
-    the grid take its edge values (clamped).
+    """Band centre and half-width (rad) over direction ``d``: bilinear in the plane grid
+    ``grid = (x0, y0, step)``, clamped at its edge.
     """
     x, y = plane_xy(d, frame)
     nx = centre.shape[0]
@@ -121,11 +96,8 @@ def band_at(d, frame, grid, centre, half):
 
 @njit(inline="always")
 def _score(q, dq, d, frame, grid, centre, half):
-    """``F = cos(theta/2) cos(delta/2)`` for candidate direction ``d`` and the best twist there.
-
-    ``q`` canonical (4,), ``dq`` its unit direction. Returns ``(F, tau)``. The transported twist
-    is ``2 atan2(p_x, p_w)`` of ``p = r q``, ``r = (1 + dq.d, dq x d)`` the (unnormalised)
-    shortest arc; ``cos(theta/2) = sqrt((1 + dq.d) / 2)``.
+    """``(F, tau)``: ``F = cos(theta/2) cos(delta/2)`` for candidate direction ``d`` and the best
+    twist there; ``q`` canonical (4,), ``dq`` its unit direction.
     """
     rw = 1.0 + dq[0] * d[0] + dq[1] * d[1] + dq[2] * d[2]
     rx = dq[1] * d[2] - dq[2] * d[1]
@@ -148,15 +120,7 @@ def _score(q, dq, d, frame, grid, centre, half):
 @njit(inline="always")
 def _compose_into(d, tau, out) -> None:
     """``out = swing(d) * twist(tau)`` (w >= 0), as :func:`limbctl.geometry.twist.compose`."""
-    sw = 1.0 + d[0]
-    sy = -d[2]
-    sz = d[1]
-    sn = math.sqrt(sw * sw + sy * sy + sz * sz)
-    if sn < 1e-12:
-        sw, sy, sz, sn = 0.0, 0.0, 1.0, 1.0
-    sw /= sn
-    sy /= sn
-    sz /= sn
+    sw, sy, sz = bk.swing_of(d)
     half = 0.5 * wrap(tau)
     c = math.cos(half)
     s = math.sin(half)
@@ -175,7 +139,6 @@ def _search(qc, dq, cur, best, best_tau, mesh, band, work, step, step_min):
     below ``step_min`` (rad): ``cur`` moves to the optimum found; returns its ``(F, tau)``.
     Polls outside the swing region are replaced by their projection. ``work`` rows
     ``WORK_ROWS + 2 .. + 5`` are its scratch."""
-    vertices, edges, margins, axis, grid_shape, inside, deep, start, cell_edges, keys = mesh
     frame, grid, centre, half = band
     base = bk.WORK_ROWS
     trial = work[base + 2]
@@ -209,21 +172,7 @@ def _search(qc, dq, cur, best, best_tau, mesh, band, work, step, step_min):
             for k in range(3):
                 trial[k] = cs * cur[k] + sn * (ca * e1[k] + sa * e2[k])
             polls += 1
-            if not bk.query(
-                trial,
-                vertices,
-                edges,
-                margins,
-                axis,
-                grid_shape,
-                inside,
-                deep,
-                start,
-                cell_edges,
-                keys,
-                proj,
-                work,
-            ):
+            if not bk.query_mesh(trial, mesh, proj, work):
                 for k in range(3):
                     trial[k] = proj[k]
             f, t = _score(qc, dq, trial, frame, grid, centre, half)
@@ -247,7 +196,6 @@ def _correct_one(q, mesh, band, seeds, seed_dirs, out, work) -> int:
     ``mesh`` is the direction mesh's kernel arguments, ``band = (frame, grid, centre, half)``;
     ``work`` (WORK_ROWS + WORK_EXTRA, 3) holds the mesh frame in rows 0, 1.
     """
-    vertices, edges, margins, axis, grid_shape, inside, deep, start, cell_edges, keys = mesh
     frame, grid, centre, half = band
     norm2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]
     if not abs(math.sqrt(norm2) - 1.0) <= 1e-6:
@@ -259,28 +207,9 @@ def _correct_one(q, mesh, band, seeds, seed_dirs, out, work) -> int:
         qc[k] = sign * q[k]
     w, x, y, z = qc[0], qc[1], qc[2], qc[3]
     dq = work[base]
-    dq[0] = w * w + x * x - y * y - z * z
-    dq[1] = 2.0 * (x * y + w * z)
-    dq[2] = 2.0 * (x * z - w * y)
-    dn = math.sqrt(dq[0] * dq[0] + dq[1] * dq[1] + dq[2] * dq[2])
-    for k in range(3):
-        dq[k] /= dn
+    bk.limb_into(w, x, y, z, dq)
     cur = work[base + 1]
-    if bk.query(
-        dq,
-        vertices,
-        edges,
-        margins,
-        axis,
-        grid_shape,
-        inside,
-        deep,
-        start,
-        cell_edges,
-        keys,
-        cur,
-        work,
-    ):
+    if bk.query_mesh(dq, mesh, cur, work):
         c, h = band_at(dq, frame, grid, centre, half)
         if abs(wrap(2.0 * math.atan2(x, w) - c)) <= h + TWIST_TOLERANCE:
             for k in range(4):
@@ -408,29 +337,9 @@ def _contains_one(q, mesh, frame, grid, centre, half, work) -> int:
     sign = -1.0 if q[0] < 0.0 else 1.0
     w, x, y, z = sign * q[0], sign * q[1], sign * q[2], sign * q[3]
     d = work[bk.WORK_ROWS]
-    d[0] = w * w + x * x - y * y - z * z
-    d[1] = 2.0 * (x * y + w * z)
-    d[2] = 2.0 * (x * z - w * y)
-    dn = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
-    for k in range(3):
-        d[k] /= dn
+    bk.limb_into(w, x, y, z, d)
     out = np.empty(3)
-    vertices, edges, margins, axis, grid_shape, inside, deep, start, cell_edges, keys = mesh
-    if not bk.query(
-        d,
-        vertices,
-        edges,
-        margins,
-        axis,
-        grid_shape,
-        inside,
-        deep,
-        start,
-        cell_edges,
-        keys,
-        out,
-        work,
-    ):
+    if not bk.query_mesh(d, mesh, out, work):
         return 0
     c, h = band_at(d, frame, grid, centre, half)
     return 1 if abs(wrap(2.0 * math.atan2(x, w) - c)) <= h + TWIST_TOLERANCE else 0

@@ -1,21 +1,12 @@
 """The taught region in three dimensions: a swing outline and a twist band over it.
 
-:class:`TwistRegion` learns, from taught full orientations ``Q`` (N, 4), the set of allowed
-``(d, tau)`` with ``q = swing(d) * twist(tau)`` (:mod:`limbctl.geometry.twist`):
-
-1. *Swing*: the directions go to a :class:`~limbctl.region.taught.TaughtRegion`, the same
-   region a two-servo rig learns (concave outlines, margins, edge strategies).
-2. *Band*: a :class:`~limbctl.region.twist_band.TwistBand` over it, learned from the twists.
-3. *Seeds*: orientations on the region's boundary a few degrees apart (the band's limits over
-   the swing region, and the band across the swing edge), where the nearest-orientation search
-   starts (:mod:`limbctl.region.twist_kernels`).
-
-``contains(q)``: the direction in the swing region and the twist in the band over it.
-``correct(q)``: ``q`` itself inside; outside, the nearest orientation of the region by geodesic
-angle ``2 acos |<q, p>|`` on SO(3), not swing first and twist second.
-
-Directions within :data:`limbctl.geometry.twist.SINGULAR_MARGIN` of -x are refused when fitting:
-the split is singular there.
+:class:`TwistRegion` learns, from taught orientations ``Q`` (N, 4), the allowed ``(d, tau)``
+with ``q = swing(d) * twist(tau)`` (:mod:`limbctl.geometry.twist`): the swing region a
+two-servo rig learns (:class:`~limbctl.region.taught.TaughtRegion`), a
+:class:`~limbctl.region.twist_band.TwistBand` over it, and boundary seeds where the
+nearest-orientation search starts (:mod:`limbctl.region.twist_kernels`). ``correct(q)`` is the
+nearest orientation by geodesic angle on SO(3), not swing first and twist second. Directions
+within :data:`limbctl.geometry.twist.SINGULAR_MARGIN` of -x are refused: the split is singular.
 """
 
 from __future__ import annotations
@@ -34,9 +25,8 @@ from limbctl.region.taught import TaughtRegion
 from limbctl.region.twist_band import TwistBand, plane_to_direction
 from limbctl.region.twist_evidence import UnsupportedPlace, band_unsupported
 
-#: Spacing (deg) of the seeds: the pattern search's first step is about it (``STEP_START``);
-#: the shoulder benchmark's region (1.6 sr, a 25-75 deg half-width band) takes ~3500 of them,
-#: a scan of a few microseconds a command.
+#: Seed spacing (deg): about the search's first step (``STEP_START``); the shoulder
+#: benchmark's region takes ~3500 seeds, a scan of a few microseconds.
 SEED_STEP_DEG = 4.0
 
 
@@ -171,10 +161,8 @@ class TwistRegion:
 
 
 def boundary_seeds(region: TwistRegion) -> np.ndarray:
-    """Orientations (M, 4) on the region's boundary about SEED_STEP_DEG apart.
-
-    The band's two limits over swing-region directions on a SEED_STEP_DEG lattice of the band's
-    plane, and, at points of the swing edge SEED_STEP_DEG apart, twists across the band.
+    """Orientations (M, 4) on the region's boundary about SEED_STEP_DEG apart: both band limits
+    over a lattice of the swing region, and twists across the band along the swing edge.
     """
     band, mesh = region.band, region.swing.mesh
     step = math.radians(SEED_STEP_DEG)
@@ -191,9 +179,7 @@ def boundary_samples(region: TwistRegion, step_deg: float) -> np.ndarray:
     """A dense sampling (M, 4) of the learned region's boundary, ``step_deg`` apart: the brute
     force the tests and benchmarks check :meth:`TwistRegion.correct` against.
 
-    Both band limits over the swing region's directions on a ``step_deg`` lattice, and twists
-    across the band along the swing edge (its mesh arcs; an arc's widening is not sampled, so
-    these points lie up to the largest margin inside the edge).
+    As :func:`boundary_seeds`, the edge sampled on the mesh arcs (up to the largest margin inside).
     """
     step = math.radians(step_deg)
     inside = lattice(region.band, step)
@@ -227,8 +213,9 @@ def edge_points(mesh, step: float) -> np.ndarray:
 
 
 def across_band(band: TwistBand, d: np.ndarray, step: float) -> np.ndarray:
-    """Orientations over directions ``d`` (K, 3) with twists across the band at most ``step``
-    (rad) apart, both limits included."""
+    """Orientations over directions ``d`` (K, 3), twists across the band at most ``step`` (rad)
+    apart, both limits included.
+    """
     c, h = band.at(d)
     k = np.ceil(2.0 * h / step).astype(int) + 1
     rows = np.repeat(np.arange(d.shape[0]), k)

@@ -1,11 +1,7 @@
 """Servo alarms: what a hardware error means for torque, and the way out (a reboot).
 
-An X-series servo latches a hardware error into Hardware Error Status (70) and raises the alert
-bit of every status packet until it is rebooted. Whether it also switched torque off depends on
-its Shutdown (63) mask: the factory mask leaves an input-voltage error out, so after a voltage
-alarm torque is still on. Messages therefore state the torque each servo REPORTS, and state it
-once: the control loop describes the alarm alone (:func:`alarm_message` without torque) and
-then the torque its safe state left (:func:`held_torque`, :func:`switched_off`).
+Whether an alarm switched torque off depends on the servo's Shutdown mask (the factory one
+leaves voltage errors out), so messages state the torque each servo REPORTS, once.
 """
 
 from __future__ import annotations
@@ -42,7 +38,6 @@ def _torque_clause(servo_id: int, torque_on: bool | None) -> str:
             f"servo {servo_id} keeps torque on (this error is not in its Shutdown mask) and "
             f"the alert stays until it is rebooted"
         )
-    # off: shut down by this error, or never switched on; either way it stays off until a reboot
     return f"servo {servo_id} has torque off, and it cannot be switched on until it is rebooted"
 
 
@@ -56,9 +51,7 @@ def alarm_message(
     found : mapping id -> decoded hardware error bits
         Only servos with bits set.
     torque_on : mapping id -> bool, optional
-        Torque Enable as each servo reports it (a missing id: could not be read). None: the
-        message describes the alarm alone (the control loop then says the torque its safe
-        state left).
+        Torque Enable as each servo reports it (a missing id: unread); None: the alarm alone.
     """
     detail = "; ".join(f"servo {i}: {', '.join(bits)}" for i, bits in found.items())
     advice = "; ".join(_advice(bits) for bits in found.values())
@@ -72,8 +65,7 @@ def alarm_message(
 
 
 def alarm_alone(alarm: ServoAlarm) -> ServoAlarm:
-    """An alarm the bus raised (its message says the torque before any safe state), told as the
-    alarm alone (of the first servo in alarm), for a caller that then says the torque."""
+    """The bus's alarm told without its torque, for a caller that then says the torque."""
     if alarm.servo_id is None or not alarm.bits:
         return alarm
     return ServoAlarm(alarm_message({alarm.servo_id: alarm.bits}), alarm.servo_id, alarm.bits)
@@ -89,7 +81,7 @@ def held_torque(torque: Mapping[str, bool], after_alarm: bool = False) -> str:
     Parameters
     ----------
     torque : mapping joint name -> bool
-        Torque Enable per joint (``pan``, ``tilt``), read after the fault.
+        Torque Enable per joint, read after the fault.
     after_alarm : bool
         The fault was an alarm, whose message already says how to clear it.
     """
@@ -133,11 +125,7 @@ class Rebooted:
 
 
 def reboot_servos_in_alarm(bus: RebootableBus) -> list[Rebooted]:
-    """Reboot every servo whose Hardware Error Status is set; the ones rebooted, with the alarm.
-
-    A reboot clears the error, switches torque off and resets RAM (profile velocity, the cycle's
-    indirect map): configure the servos again before driving them. Healthy servos are left alone.
-    """
+    """Reboot every servo in alarm (torque off, RAM reset: configure again before driving)."""
     rebooted = []
     for servo_id, bits in bus.read_hardware_errors().items():
         if bits:

@@ -1,16 +1,8 @@
 """The servo bus: the real dynamixel-sdk (Protocol 2.0) with retries, typed errors and alarms.
 
-:class:`ServoBus` opens a serial port (a U2D2's device, or the simulator's pty), held
-exclusively (:class:`limbctl.errors.PortInUse` names the holder), pings every servo and checks
-its model, then offers register reads and writes (named by
-:class:`limbctl.servo.control_table.Register`), torque, positions in ONE (Fast) Sync Read,
-goals in ONE sync write, reboot, and the control cycle's indirect read (:meth:`read_cycle`).
-
-Every transaction is retried within a bounded budget; what still fails raises
-:class:`~limbctl.errors.BusError` or a subclass (``PortError``, ``BusTimeout``,
-``CorruptReply``, ``ServoAlarm``). A status packet's alert bit does not stop its transaction;
-once complete the bus reads Hardware Error Status of the alerting servos and raises
-:class:`ServoAlarm` with the decoded bits (``reboot(id)`` clears an X-series shutdown).
+Every transaction is retried within a bounded budget; what still fails raises a
+:class:`~limbctl.errors.BusError`. A status packet's alert bit does not stop its transaction;
+then the bus reads the alerting servos' Hardware Error Status and raises :class:`ServoAlarm`.
 """
 
 from __future__ import annotations
@@ -94,8 +86,7 @@ class ServoBus(CycleReads):
     fast_sync_read : bool or None
         Force Fast Sync Read on/off; None decides from firmware version and a probe.
     latency_timer_ms : float
-        The USB adapter's latency timer (ms); sets how long a reply is waited for. 16 is the
-        FTDI default; use 1 after lowering it (README), or for the simulator's pty.
+        The USB adapter's latency timer (ms): 16 is the FTDI default; 1 once lowered (README).
     """
 
     def __init__(
@@ -144,8 +135,7 @@ class ServoBus(CycleReads):
                 return self
             self._port = port = self._open_port()
             try:
-                # identification is not time-critical: wait as long as the SDK would (16 ms
-                # latency timer) so a busy machine or a slow adapter is not taken for silence
+                # not time-critical: wait as the SDK would, lest a busy machine seem silent
                 port.latency_timer_ms = max(self.latency_timer_ms, SDK_LATENCY_TIMER_MS)
                 for servo_id in self.ids:
                     self._identify(servo_id)
@@ -238,12 +228,8 @@ class ServoBus(CycleReads):
         attempts: int | None = None,
         patient: bool = False,
     ) -> Any:
-        """Run ``attempt`` until it succeeds, the attempts or the time budget run out.
-
-        ``attempts`` overrides ``max_attempts`` (the control cycle's read keeps its budget);
-        ``patient`` (set-up's reads and writes, torque switching) retries until
-        ``transfers.PATIENT_BUDGET_S`` has passed.
-        """
+        """Run ``attempt`` until it succeeds or ``attempts`` (default ``max_attempts``) or the
+        budget (``transfers.PATIENT_BUDGET_S`` if ``patient``) run out."""
         with self._lock:
             port = self._require_port()
             self.stats.transactions += 1
@@ -341,11 +327,8 @@ class ServoBus(CycleReads):
     def write(
         self, register: Register, servo_id: int, value: int, check_alert: bool = True
     ) -> None:
-        """Write ``value`` to ``register`` of one servo and wait for its status.
-
-        EEPROM registers (``register.is_eeprom``) need torque off; the servo refuses otherwise.
-        With ``check_alert=False`` a servo in alarm does not raise :class:`ServoAlarm`.
-        """
+        """Write ``value`` to ``register`` of one servo and wait for its status (EEPROM needs
+        torque off; ``check_alert=False``: a servo in alarm does not raise)."""
         data = register.encode(value)
         self._transact(
             f"write {register.name}={value} to servo {servo_id}",
@@ -358,11 +341,7 @@ class ServoBus(CycleReads):
     def sync_read(
         self, register: Register, ids: Sequence[int] | None = None, check_alert: bool = True
     ) -> dict[int, int]:
-        """``register`` of every servo in ``ids`` (default all) in ONE sync read.
-
-        With ``check_alert=False`` a servo's alert bit does not raise :class:`ServoAlarm`
-        (to inspect a servo that is in alarm).
-        """
+        """``register`` of every servo in ``ids`` (default all) in ONE sync read."""
         ids = self._known(ids)
         flavour = "fast sync read" if self.fast_sync_read else "sync read"
         read = transfers.fast_sync_read if self.fast_sync_read else transfers.sync_read
@@ -399,7 +378,6 @@ class ServoBus(CycleReads):
         """Write one value per servo to ``register`` in ONE sync write (no reply)."""
         self._known(values)
         params = {servo_id: register.encode(value) for servo_id, value in values.items()}
-
         self._transact(
             f"sync write {register.name}",
             lambda: transfers.sync_write(self._packets, self._port, register, params),
@@ -430,11 +408,8 @@ class ServoBus(CycleReads):
         self.sync_write(Register.GOAL_POSITION, {i: int(t) for i, t in goals.items()})
 
     def set_torque(self, enabled: bool, ids: Sequence[int] | None = None) -> None:
-        """Torque on or off, servo by servo, each write confirmed by its status packet.
-
-        Switching torque off is the safe state: it ignores alarms and tries every servo even
-        when one fails, then raises the first failure.
-        """
+        """Torque on or off, servo by servo; off ignores alarms and tries every servo before
+        raising the first failure."""
         if enabled:
             for servo_id in self._known(ids):
                 self.write(Register.TORQUE_ENABLE, servo_id, 1)
@@ -453,19 +428,13 @@ class ServoBus(CycleReads):
         return {i: bool(v) for i, v in self.sync_read(Register.TORQUE_ENABLE).items()}
 
     def exclusive(self) -> AbstractContextManager[object]:
-        """Hold the bus for a sequence of transfers that no other thread may interleave.
-
-        Re-entrant: the bus's own methods may be called inside. Used as ``with bus.exclusive():``.
-        """
+        """``with bus.exclusive():`` holds the bus (re-entrant) against other threads."""
         return self._lock
 
     def reboot(self, servo_id: int, timeout_s: float = 3.0) -> None:
-        """Reboot one servo (clears a hardware-error shutdown) and wait until it answers again.
-
-        Torque is off after a reboot; RAM settings (profile velocity, ...) are back to defaults.
-        """
+        """Reboot one servo (clears an alarm shutdown; torque off, RAM at defaults) and wait
+        until it answers again."""
         self._known([servo_id])
-
         with self._lock:
             self._transact(
                 f"reboot servo {servo_id}",

@@ -1,17 +1,9 @@
 """Guided, hand-held calibration: find each joint's zero tick and direction, write a profile.
 
-With torque off a person (or the simulator's scripted hand) does three things, holding still
-for a moment after each:
-
-1. rest: the limb straight ahead along +x, level -> the zero tick of both joints;
-2. pan: turn the limb to the left (toward +y) by 30-60 deg, keep it level -> the pan direction
-   (+1 if its ticks grew);
-3. tilt: back to straight ahead, then raise the limb by 20-45 deg -> the tilt direction;
-4. on a three-servo rig, roll: back to straight ahead and level, then turn the limb about its own
-   axis, right-handed (thumb along the limb, pointing out), by 30-60 deg -> the roll direction
-   (its zero tick is read at rest, step 1, with the others).
-
-"Still" means every joint stayed within ``STILL_TICKS`` for ``STILL_S`` seconds.
+With torque off a person (or the simulator's hand) holds the limb still at rest (every zero
+tick), turned left (pan direction), raised (tilt direction) and, with a roll joint, turned about
+its own axis right-handed (roll direction). Still: every joint within ``STILL_TICKS`` for
+``STILL_S`` seconds.
 """
 
 from __future__ import annotations
@@ -35,9 +27,8 @@ STILL_S = 0.75
 MOVE_TICKS = 150
 #: Sampling period while waiting (s).
 PERIOD_S = 0.01
-#: Consecutive unanswered or garbled reads after which calibration gives up: a dropped reply
-#: now and then is normal on a busy bus (each read already retries), and 50 in a row (at least
-#: half a second at ``PERIOD_S``) is a servo or cable that is gone, as for the recorder.
+#: Failed reads in a row after which calibration gives up: a dropped reply now and then is
+#: normal; 50 in a row (half a second at ``PERIOD_S``) is a servo or cable gone.
 MAX_FAILED_READS = 50
 
 
@@ -65,10 +56,9 @@ def wait_still(
     timeout_s: float,
     stop: threading.Event,
 ) -> tuple[int, int]:
-    """Read until the limb is still for ``STILL_S`` at a pose ``accept`` likes; return it.
+    """Read until the limb is still for ``STILL_S`` at a pose ``accept`` likes; its mean ticks.
 
-    A read that fails (no reply, a garbled reply) is skipped; ``MAX_FAILED_READS`` in a row end
-    the calibration with the last error. A port that vanished or a servo alarm ends it at once.
+    Failed reads are skipped, up to ``MAX_FAILED_READS`` in a row.
     """
     window: deque[tuple[float, tuple[int, int]]] = deque()
     deadline = time.monotonic() + timeout_s
@@ -93,7 +83,6 @@ def wait_still(
             window.popleft()
         span_ok = now - window[0][0] >= STILL_S * 0.95
         if span_ok and accept(ticks):
-            # every joint (pan, tilt, and roll on a three-servo rig) still; the mean pose
             joints = list(zip(*(t[1] for t in window), strict=True))
             if all(max(j) - min(j) <= STILL_TICKS for j in joints):
                 return tuple(round(sum(j) / len(j)) for j in joints)  # type: ignore[return-value]
@@ -112,11 +101,9 @@ def find_zero_and_directions(
     timeout_s: float = 60.0,
     stop: threading.Event | None = None,
 ) -> CalibrationResult:
-    """Run the guided steps (torque off; three, or four with a roll joint) and return what they
-    found."""
+    """Run the guided steps (torque off; four with a roll joint) and return what they found."""
     stop = stop or threading.Event()
     reader.set_torque(False)
-    # a rig with a roll joint (three joints) has one step more
     steps = 4 if len(getattr(reader, "joints", ())) == 3 else 3
     say(
         f"Torque is off. 1/{steps}: hold the limb straight ahead (along +x), level, and keep still."
@@ -176,8 +163,7 @@ def profile_from_calibration(
     pan_limits_deg: tuple[float, float],
     tilt_limits_deg: tuple[float, float],
 ) -> RigProfile:
-    """A new rig profile: ``base``'s bus settings and end stops with the calibrated joints and
-    the given hard limits (which must lie inside those end stops when the profile is saved)."""
+    """``base`` (bus, end stops, roll limits) with the calibrated joints and limits (deg)."""
     for label, (lo, hi) in (("pan", pan_limits_deg), ("tilt", tilt_limits_deg)):
         if not lo < 0.0 < hi:
             raise SafetyError(f"{label} limits must contain the rest pose 0: got {lo}..{hi}")
@@ -195,7 +181,6 @@ def profile_from_calibration(
         )
     }
     if base.twists and result.roll_zero is not None and result.roll_direction is not None:
-        # the roll's hard limits and end stops are the base profile's
         joints["roll"] = dataclasses.replace(
             base.joints[-1][1], zero_tick=result.roll_zero, direction=result.roll_direction
         )

@@ -1,14 +1,9 @@
 """The X-series (Protocol 2.0) registers, model numbers and error codes limbctl uses.
 
-Every register access in limbctl goes through :class:`Register` (address, size in bytes,
-signedness), never through a bare number or a string. Addresses follow the ROBOTIS e-Manual
-control tables of the X series (430, 540 and 330 families: identical at every address used
-here; where they differ the member's comment says so, and :mod:`limbctl.servo.families` holds
-what differs per family). Addresses below 64 are EEPROM: they can only be written while Torque
-Enable is 0.
-
-Status packets carry an error byte: bit 7 is the *alert* bit (the servo has a hardware error,
-read :attr:`Register.HARDWARE_ERROR_STATUS`), bits 0-6 hold a :class:`StatusError` number.
+Every register access goes through :class:`Register`. Addresses are the e-Manual's, shared by
+the 430, 540 and 330 families (:mod:`limbctl.servo.families` holds what differs). A status
+packet's error byte: bit 7 the *alert* bit (a hardware error is set), bits 0-6 a
+:class:`StatusError`.
 """
 
 from __future__ import annotations
@@ -78,9 +73,8 @@ class Register(Enum):
     POSITION_TRAJECTORY = (140, 4, True)
     PRESENT_INPUT_VOLTAGE = (144, 2, False)  # unit 0.1 V
     PRESENT_TEMPERATURE = (146, 1, False)  # unit 1 degC
-    # Indirect Address n (n = 1..28) at 168 + 2 (n - 1) names the RAM address (64..661) that
-    # Indirect Data n at 224 + (n - 1) reads and writes; both are RAM (reset at power-up/reboot).
-    # The 330s have 20 slots, and their Indirect Data 1 is at 208 or 224 by firmware: probed
+    # Indirect Address n at 168 + 2 (n - 1) names the RAM address that Indirect Data n at
+    # 224 + (n - 1) (208 on older 330 firmware: probed) reads and writes; both RAM
     INDIRECT_ADDRESS_1 = (168, 2, False)
     INDIRECT_DATA_1 = (224, 1, False)
 
@@ -117,7 +111,6 @@ class Register(Enum):
         value = int(value)
         if not self.min_value <= value <= self.max_value:
             raise ValueError(f"{self.name} holds {self.min_value}..{self.max_value}, got {value}")
-        # two's complement: negative v is stored as v + 2**(8 * size)
         raw = value & ((1 << (8 * self.size)) - 1)
         return [(raw >> (8 * i)) & 0xFF for i in range(self.size)]
 
@@ -126,14 +119,12 @@ class Register(Enum):
         if len(data) != self.size:
             raise ValueError(f"{self.name} is {self.size} bytes wide, got {len(data)} bytes")
         raw = int.from_bytes(bytes(data), "little", signed=False)
-        # two's complement: raw >= 2**(8 * size - 1) stands for raw - 2**(8 * size)
         if self.signed and raw >= 1 << (8 * self.size - 1):
             raw -= 1 << (8 * self.size)
         return raw
 
 
-#: Indirect Address / Indirect Data pairs every family has at 168.. (the 330s have 20, the
-#: 430s and 540s 28 in the first block).
+#: Indirect Address / Data pairs every family has (the 330s 20, the others 28).
 INDIRECT_SLOTS = 20
 #: Where Indirect Data 1 may be: 224 on the 430s and 540s; 208 (330 firmware <= 52) or 224.
 INDIRECT_DATA_1_CANDIDATES = (224, 208)
@@ -141,12 +132,7 @@ INDIRECT_DATA_1_CANDIDATES = (224, 208)
 
 @dataclass(frozen=True)
 class Block:
-    """``size`` consecutive bytes from ``start``'s address, read or written as raw bytes.
-
-    Quacks like a :class:`Register` for the transfers (``name``, ``address``, ``size``,
-    ``decode``), so one sync read can carry several registers mapped through indirect addresses.
-    ``at`` moves the block to another address (a 330's Indirect Data 1 at 208, say).
-    """
+    """``size`` raw bytes from ``start``'s address (or ``at``), a :class:`Register` to transfers."""
 
     start: Register
     size: int
@@ -187,8 +173,7 @@ class DriveModeBit(IntFlag):
 
 
 class ModelNumber(IntEnum):
-    """What :attr:`Register.MODEL_NUMBER` (and a ping) reports for the supported servos
-    (the X series; :mod:`limbctl.servo.families` says what differs by family)."""
+    """What :attr:`Register.MODEL_NUMBER` (and a ping) reports for the supported servos."""
 
     XH430_W350 = 1000
     XH430_W210 = 1010
@@ -233,8 +218,7 @@ def model_name(model_number: int) -> str:
         return f"unknown model ({model_number})"
 
 
-#: Baud rate in bit/s -> value of :attr:`Register.BAUD_RATE` (X series; 4.5 Mbps on the 430s and
-#: 540s only).
+#: Baud rate in bit/s -> value of :attr:`Register.BAUD_RATE`.
 BAUD_RATE_VALUES: dict[int, int] = {
     9600: 0,
     57600: 1,
@@ -273,11 +257,7 @@ HARDWARE_ERROR_ADVICE: dict[HardwareError, str] = {
 
 
 def decode_hardware_error(status: int) -> tuple[str, ...]:
-    """Names of the bits set in a Hardware Error Status byte, lowest bit first.
-
-    ``decode_hardware_error(0x24) == ('overheating', 'overload')``; bits the e-Manual marks
-    unused come out as ``'unknown bit N'`` rather than being hidden.
-    """
+    """Names of the bits set in a Hardware Error Status byte, lowest first (``'unknown bit N'``)."""
     known = {int(flag): flag for flag in HardwareError}
     names: list[str] = []
     for bit in range(8):

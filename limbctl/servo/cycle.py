@@ -1,13 +1,8 @@
-"""What each servo reports in the control cycle's ONE sync read, through indirect addresses.
+"""The control cycle's ONE sync read: :data:`CYCLE_REGISTERS` mapped onto Indirect Data.
 
-Present Position, Goal Position, Torque Enable, Hardware Error Status and Present PWM lie far
-apart in the control table; mapped by the Indirect Addresses onto Indirect Data 1..12 (224, or
-208 on a 330 with firmware up to 52: probed by :func:`limbctl.servo.setup.probe_indirect_data`)
-one (Fast) Sync Read of 12 bytes per servo carries all five; a bus of mixed layouts takes one
-read per address. Set-up (:func:`limbctl.servo.setup.configure_servos`) writes the map and reads
-each PWM Limit (EEPROM, beyond any indirect address). A servo that restarts loses the map with
-its RAM: its Indirect Data then read 0, so the restart shows as torque loss. While a servo is
-silent, :func:`read_around_silent` reads the others and probes it alone with one try.
+Set-up (:func:`limbctl.servo.setup.configure_servos`) writes the map (lost with RAM on a
+restart, which then reads as torque loss) and reads each PWM Limit; a bus whose servos keep
+Indirect Data at different addresses takes one read per address.
 """
 
 from __future__ import annotations
@@ -55,24 +50,18 @@ ADVISED_BAUD = 1_000_000
 
 
 def cycle_wire_bytes(n_servos: int, fast: bool = True) -> int:
-    """Bytes one control cycle puts on the wire: the cycle's read and the goals' sync write.
+    """Bytes of one cycle's read and goals' sync write (Protocol 2.0 packet sizes).
 
-    Protocol 2.0 packets: an instruction is 10 bytes plus parameters; a status packet 11 plus
-    data. Fast Sync Read: ``14 + n`` out, ``8 + n (CYCLE_BYTES + 4)`` back (one packet); Sync
-    Read: ``14 + n`` out, ``n (11 + CYCLE_BYTES)`` back; Sync Write of 4-byte goals: ``14 + 5 n``.
+    Fast Sync Read: ``14 + n`` out, ``8 + n (CYCLE_BYTES + 4)`` back; Sync Read: ``14 + n`` out,
+    ``n (11 + CYCLE_BYTES)`` back; Sync Write of 4-byte goals: ``14 + 5 n``.
     """
     back = 8 + n_servos * (CYCLE_BYTES + 4) if fast else n_servos * (11 + CYCLE_BYTES)
     return (14 + n_servos) + back + (14 + 5 * n_servos)
 
 
 def wire_budget(rate_hz: float, baud: int, n_servos: int, fast: bool = True) -> str:
-    """What to tell a person whose loop rate the wire cannot carry ('' when it can).
-
-    The cycle's bytes take ``bytes * 10 / baud`` seconds; a loop cannot run faster than one
-    cycle in that time.
-    """
+    """What to tell a person whose loop rate (Hz) the wire cannot carry ('' when it can)."""
     count = cycle_wire_bytes(n_servos, fast)
-    # t = bytes * 10 bits / baud
     wire_s = count * BITS_PER_BYTE / baud
     most_hz = 1.0 / wire_s
     if most_hz >= rate_hz:
@@ -86,8 +75,7 @@ def wire_budget(rate_hz: float, baud: int, n_servos: int, fast: bool = True) -> 
 
 
 def indirect_map(registers: Sequence[Register] = CYCLE_REGISTERS) -> bytes:
-    """The bytes of Indirect Addresses that map each byte of ``registers`` (the cycle's read by
-    default) in order, little-endian."""
+    """The Indirect Address bytes (little-endian) that map each byte of ``registers``."""
     addresses = [register.address + k for register in registers for k in range(register.size)]
     return b"".join(address.to_bytes(2, "little") for address in addresses)
 
@@ -105,10 +93,9 @@ class ServoReport:
     hardware_error : tuple of str
         Decoded Hardware Error Status (empty = healthy).
     pwm : int
-        Present PWM: the drive the position controller applies, signed, in units of the PWM
-        Limit's scale (at most ``pwm_limit`` in magnitude).
+        Present PWM, signed, at most ``pwm_limit`` in magnitude.
     pwm_limit : int
-        The servo's PWM Limit (read at set-up): where its drive saturates.
+        The servo's PWM Limit (read at set-up), where its drive saturates.
     """
 
     present: int
@@ -137,11 +124,9 @@ class CycleRead:
     Attributes
     ----------
     reports : dict
-        Servo id -> :class:`ServoReport` of each servo that answered (every servo when the read
-        succeeded; none when one sync read failed).
+        Servo id -> :class:`ServoReport` of each servo that answered.
     silent : tuple of int
-        Servos that did not answer (a failed sync read names the first one its reply stops at;
-        more may be silent).
+        Servos that did not answer (a failed sync read names the one its reply stops at).
     problem : str
         Why the read is incomplete ('' when every servo answered).
     duration_s : float
@@ -173,17 +158,10 @@ def read_around_silent(
     probe: Sequence[int],
     attempts: int,
 ) -> CycleRead:
-    """One cycle's read while servos are silent: the others, and a probe of some silent ones.
+    """One cycle's read of the servos not ``silent``, and of each in ``probe`` alone, one try.
 
-    The servos in ``ids`` that are not ``silent`` are read as usual (``attempts`` tries); each
-    servo in ``probe`` (a subset of ``silent``) is asked once, alone, with ONE try, so a servo
-    that is still gone costs one reply timeout and does not cut the others' reply short. The
-    silent servos not probed are ``unread``. A probed servo that gives no good answer is silent.
-
-    Returns
-    -------
-    CycleRead
-        Every report that came back; ``ok`` only if every servo answered.
+    A gone servo then costs one reply timeout and does not cut the others' reply short; silent
+    servos not probed are ``unread``.
     """
     parts = []
     answering = [i for i in ids if i not in silent]
@@ -212,11 +190,7 @@ def read_around_silent(
 
 
 class CycleReads:
-    """The block transfers and the cycle read of :class:`limbctl.servo.bus.ServoBus`.
-
-    A mixin kept beside the layout it reads; it uses the bus's retry engine (``_transact``),
-    lock and port, and nothing else of it.
-    """
+    """The block transfers and cycle read of :class:`limbctl.servo.bus.ServoBus` (a mixin)."""
 
     #: Each servo's PWM Limit as set-up read it (until then, the factory value).
     pwm_limits: Mapping[int, int] = MappingProxyType({})
@@ -224,9 +198,7 @@ class CycleReads:
     indirect_at: Mapping[int, int] = MappingProxyType({})
 
     def note_indirect_data(self, addresses: Mapping[int, int]) -> None:
-        """Remember where each servo's Indirect Data 1 is (set-up's probe). Servos that keep
-        it at different addresses (a 330 with firmware up to 52 beside a 430) are read in one
-        sync read per address."""
+        """Remember where each servo's Indirect Data 1 is (set-up's probe)."""
         self.indirect_at = MappingProxyType(dict(addresses))
 
     def note_pwm_limits(self, limits: Mapping[int, int]) -> None:
@@ -254,9 +226,8 @@ class CycleReads:
     def sync_write_block(
         self, block: Block, data: Mapping[int, bytes], check_alert: bool = True
     ) -> None:
-        """Write ``block.size`` raw bytes per servo from ``block``'s address in ONE sync write
-        (no reply; e.g. registers mapped onto Indirect Data). ``check_alert=False`` sends it
-        even to a servo known to be in alarm (to switch something off)."""
+        """Write ``block.size`` raw bytes per servo in ONE sync write (``check_alert=False``:
+        even to a servo in alarm)."""
         for values in data.values():
             if len(values) != block.size:
                 raise ConfigError(f"{block.name} takes {block.size} bytes, got {len(values)}")
@@ -269,14 +240,9 @@ class CycleReads:
         )
 
     def read_cycle(self, ids: Sequence[int] | None = None, attempts: int = 1) -> CycleRead:
-        """Each servo's (``ids``, default all) :class:`ServoReport` in ONE (fast) sync read,
-        tried at most ``attempts`` times (one read per Indirect Data address on a bus of
-        mixed layouts).
+        """Each servo's :class:`ServoReport` in ONE (fast) sync read of ``attempts`` tries.
 
-        For the control loop: no diagnostic ping, and a silent servo costs ``attempts`` reply
-        timeouts, not seconds. A failed read is a value (``silent`` names the servo the
-        reply stopped at); only a failing port raises (:class:`PortError`). The indirect map
-        must have been written (:func:`limbctl.servo.setup.configure_servos`).
+        A failed read is a value, not an error; only a failing port raises (:class:`PortError`).
         """
         groups: dict[int, list[int]] = {}
         for servo_id in self._known(ids):
@@ -294,7 +260,6 @@ class CycleReads:
         )
 
     def _read_cycle_at(self, at: int, ids: Sequence[int], attempts: int) -> CycleRead:
-        """The cycle's read of ``ids``, whose Indirect Data 1 is at address ``at``."""
         block = (
             CYCLE_BLOCK if at == CYCLE_BLOCK.address else Block(CYCLE_BLOCK.start, CYCLE_BYTES, at)
         )

@@ -1,17 +1,7 @@
 """The X series by family: what differs between the servos limbctl drives, one row a family.
 
-The control-table addresses are shared (:mod:`limbctl.servo.control_table`); what is not:
-
-- address 126 is Present Load (0.1 %) on the XL430/XC430 and Present Current on the others,
-  in 1 mA (330s), 2.69 mA (XM430, XH430-W, 540s) or 1.34 mA (XH430-V) units;
-- Current Limit (38) and the current modes (0 and 5) exist only where Present Current does;
-- the input voltage (a 5 V XL330 on a 12 V bus burns), the factory voltage and temperature
-  limits and the Shutdown default;
-- the baud table: 4.5 Mbps only on the 430s and 540s (the 330s stop at 4 Mbps);
-- the indirect block: 20 slots on the 330s, with Indirect Data 1 at 208 or 224 by firmware
-  (probed, :func:`limbctl.servo.setup.probe_indirect_data`), 28 at 168/224 elsewhere.
-
-Values are the ROBOTIS e-Manual's factory defaults.
+Addresses are shared (:mod:`limbctl.servo.control_table`); units of address 126, the current
+modes, voltages, limits, bauds and the indirect block are not. Values: the e-Manual's defaults.
 """
 
 from __future__ import annotations
@@ -21,19 +11,6 @@ from dataclasses import dataclass
 from limbctl.errors import ConfigError
 from limbctl.servo.control_table import ModelNumber, OperatingMode
 
-_ALL_MODES = frozenset(OperatingMode)
-_NO_CURRENT_MODES = frozenset(
-    {
-        OperatingMode.VELOCITY,
-        OperatingMode.POSITION,
-        OperatingMode.EXTENDED_POSITION,
-        OperatingMode.PWM,
-    }
-)
-#: Bauds (bit/s) up to 4 Mbps, by Baud Rate register value: every family has them.
-_BAUDS_4M = (9600, 57_600, 115_200, 1_000_000, 2_000_000, 3_000_000, 4_000_000)
-_BAUDS_4M5 = (*_BAUDS_4M, 4_500_000)
-
 
 @dataclass(frozen=True)
 class Family:
@@ -41,8 +18,6 @@ class Family:
 
     Attributes
     ----------
-    name : str
-        e.g. ``"XL330"``.
     models : dict
         :class:`ModelNumber` -> profile name (``"xl330-m288"``).
     rated_v : tuple of float
@@ -55,7 +30,6 @@ class Family:
         Factory Shutdown (63) bits.
     current_unit_ma : float or None
         Unit of Present Current (126), mA; None where 126 is Present Load (0.1 %).
-    modes : frozenset of OperatingMode
     bauds : tuple of int
         Baud rates (bit/s) it runs at, by Baud Rate register value.
     indirect_slots : int
@@ -90,8 +64,11 @@ class Family:
 
 
 _M = ModelNumber
-_CURRENT, _LOAD = _ALL_MODES, _NO_CURRENT_MODES
-_4M, _4M5 = _BAUDS_4M, _BAUDS_4M5
+_CURRENT = frozenset(OperatingMode)
+_LOAD = _CURRENT - {OperatingMode.CURRENT, OperatingMode.CURRENT_BASED_POSITION}
+#: Bauds (bit/s) by Baud Rate register value: every family has up to 4 Mbps.
+_4M = (9600, 57_600, 115_200, 1_000_000, 2_000_000, 3_000_000, 4_000_000)
+_4M5 = (*_4M, 4_500_000)
 #: The 330s' 20 indirect slots, Indirect Data 1 at 224 or (older firmware) 208.
 _X330_INDIRECT = (20, (224, 208))
 _X430_INDIRECT = (28, (224,))

@@ -1,24 +1,14 @@
 """Per-cycle health of the servos, judged from each :class:`limbctl.servo.cycle.CycleRead`.
 
-:class:`HealthMonitor` is fed one cycle read per control cycle and answers, as a value, what to
-say and whether to stop (docs/safety.md's fault table gives the figures):
-
-- a servo missing ``named_after_misses`` reads in a row is named, and named again with its
-  dropout's length when it answers; while silent it is probed every ``probe_interval_s``
-  (:meth:`HealthMonitor.probes_due`) and lost (a fault) once silent for ``lost_after_s``;
-- Torque Enable reading 0 on a driven servo (switched off, or restarted after a brown-out): a
-  fault; so is a hardware error (alarm), naming every servo in alarm;
-- a servo that does not follow: *blocked* (drive saturated for ``blocked_window_s`` while
-  more than ``blocked_error_deg`` off its goal and not closing in by ``min_progress_deg``),
-  or the backstop for one that fails without saturating (further than
-  ``max_tracking_error_deg`` for ``tracking_grace_s`` with no ``progress_window_s`` of
-  progress toward its goal).
+:class:`HealthMonitor` names a silent servo (and its dropout's length when it answers), probes it
+and calls it lost after ``lost_after_s``; torque off, an alarm, or a servo that does not follow
+(*blocked* while saturated, or lagging without) are faults. Figures: docs/safety.md.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 from limbctl.errors import ConfigError
 from limbctl.servo.alarms import alarm_message
@@ -36,71 +26,48 @@ class HealthLimits:
     Attributes
     ----------
     lost_after_s : float
-        A servo silent this long is lost (s); the loop holds meanwhile.
+        A servo silent this long is lost (s): the budget for noticing a fault (issue 13).
     named_after_misses : int
-        Reads in a row a servo must miss to be named as silent.
+        Missed reads in a row before a servo is named silent: the loop's read already had two
+        tries, so naming at the first keeps it within 100 ms at the FTDI default latency.
     probe_interval_s : float
-        How often a silent servo is asked (one try) whether it is back (s).
+        How often a silent servo is probed (s): one reply timeout per interval (~12 ms of 50
+        on the simulator's pty), and the dropout's length is known to within it.
     max_tracking_error_deg : float
-        Largest |present - goal| of a servo that follows (deg).
+        Largest |present - goal| of a following servo (deg): a healthy one lags at most 3.6
+        deg at the 120 deg/s slew limit (docs/bench_faults.md).
     tracking_grace_s : float
-        How long the error may exceed the bound before the servo is said not to follow (s).
+        How long the error may exceed that (s): a servo reversing at full speed moves away
+        from its goal for 0.26 s; 0.4 s stays within the 0.5 s budget.
     progress_window_s : float
-        The span over which a lagging servo's progress toward its goal is measured (s).
+        Span over which a lagging servo's progress is measured (s): several ticks of motion.
     min_progress_deg : float
-        How far toward its goal a lagging servo must move in one window to be following, and
-        how much closer a saturated one must get in ``blocked_window_s`` not to be blocked.
+        Progress per window (or closing in per ``blocked_window_s``) that counts as following
+        (deg): 10 deg/s, a twentieth of the profile velocity.
     pwm_saturation : float
-        The fraction of its PWM Limit at which a servo's drive counts as saturated.
+        Fraction of PWM Limit at which the drive is saturated: healthy moves stay at <= 31 %
+        on the simulator; 10 % is left for a noisy reading.
     blocked_error_deg : float
-        How far from its goal a saturated servo must be to count as blocked (deg).
+        Distance from its goal (deg) at which a saturated servo counts as blocked: above the
+        3.6 deg a healthy servo lags by.
     blocked_window_s : float
-        How long a servo must stay saturated and off its goal without closing in (s).
+        How long (s) saturated and off its goal without closing in: 30 reads at 200 Hz, 0.3 s
+        of the 0.5 s budget left.
     """
 
-    # the limb may be held blind this long: the time budget for noticing a fault (issue 13)
     lost_after_s: float = 0.5
-    # the loop's read already had two tries: naming at the first failed read keeps naming within
-    # 100 ms even at the FTDI default latency timer (2 tries x ~35 ms)
     named_after_misses: int = 1
-    # a dropout's length is known to within this, and a probe costs one reply timeout per
-    # interval (~12 ms of every 50 on the simulator's pty, ~4 ms on a U2D2 at a 1 ms latency timer)
     probe_interval_s: float = 0.05
-    # a healthy servo lags its goal by at most 3.6 deg at the 120 deg/s slew limit (measured,
-    # docs/bench_faults.md); a torque-less or blocked limb is off by tens of degrees
     max_tracking_error_deg: float = 15.0
-    # a servo reversing at full speed decelerates away from its goal for 0.26 s (275 deg/s at
-    # 1073 deg/s^2, the set-up's profile) before it can make way toward it; 0.4 s stays under
-    # the 0.5 s budget for noticing a fault
     tracking_grace_s: float = 0.4
-    # short enough to see the turn within the grace, long enough for several ticks of motion
     progress_window_s: float = 0.1
-    # 10 deg/s toward the goal: a servo at a twentieth of its profile velocity is following;
-    # a blocked or limp one makes no way toward its goal, or moves away from it
     min_progress_deg: float = 1.0
-    # the position controller's drive is clipped at PWM Limit: a servo that cannot reach its
-    # goal winds up to it; healthy moves stay far below (simulator <= 31 %, docs/bench_faults.md;
-    # 120 deg/s is a third of an XL430's no-load speed), 10 % is left for a noisy reading
     pwm_saturation: float = 0.9
-    # above the 3.6 deg a healthy servo lags by, so a saturated but following servo is not blocked
     blocked_error_deg: float = 5.0
-    # 30 reads at 200 Hz: a saturated start toward a far goal closes in within it; with the
-    # read and the safe state it leaves 0.3 s of the 0.5 s budget
     blocked_window_s: float = 0.15
 
     def __post_init__(self) -> None:
-        for name in (
-            "lost_after_s",
-            "named_after_misses",
-            "probe_interval_s",
-            "max_tracking_error_deg",
-            "tracking_grace_s",
-            "progress_window_s",
-            "min_progress_deg",
-            "pwm_saturation",
-            "blocked_error_deg",
-            "blocked_window_s",
-        ):
+        for name in (f.name for f in fields(self)):
             if not getattr(self, name) > 0:
                 raise ConfigError(f"{name} must be > 0, got {getattr(self, name)!r}")
         if self.pwm_saturation > 1.0:
@@ -166,8 +133,8 @@ class HealthMonitor:
         return tuple(self.silent_since)
 
     def probes_due(self, now: float) -> tuple[int, ...]:
-        """The silent servos to probe this cycle: each once every ``probe_interval_s``, and any
-        whose silence reached ``lost_after_s`` (it is lost only if that probe fails too)."""
+        """The silent servos to probe this cycle: every ``probe_interval_s``, and at
+        ``lost_after_s`` (lost only if that probe fails too)."""
         due = tuple(
             servo_id
             for servo_id, since in self.silent_since.items()
@@ -178,15 +145,14 @@ class HealthMonitor:
         return due
 
     def read(self, read: ReadCycle, ids: Sequence[int], now: float, attempts: int) -> CycleRead:
-        """This cycle's read through ``read`` (``Rig.read_cycle``) of the servos ``ids``: all of
-        them, or, while some are silent, the others and the silent ones whose probe is due."""
+        """This cycle's read of ``ids`` through ``read`` (``Rig.read_cycle``), around the silent."""
         silent = self.silent()
         if not silent:
             return read(attempts, ids)
         return read_around_silent(read, ids, silent, self.probes_due(now), attempts)
 
     def ongoing(self, now: float) -> list[Dropout]:
-        """The dropouts still going on at ``now``: each named silent servo, its length so far."""
+        """The dropouts of named silent servos still going on at ``now``."""
         return [
             Dropout(servo_id, since, now - since, ongoing=True)
             for servo_id, since in self.silent_since.items()
@@ -254,7 +220,6 @@ class HealthMonitor:
     ) -> ServoFault | None:
         """Saturated and off its goal for ``blocked_window_s`` without closing in: blocked."""
         limits = self.limits
-        # saturated: |Present PWM| >= pwm_saturation x PWM Limit
         saturated = abs(report.pwm) >= limits.pwm_saturation * report.pwm_limit
         if not (saturated and error_deg > limits.blocked_error_deg):
             self.saturated_since.pop(servo_id, None)
@@ -263,7 +228,6 @@ class HealthMonitor:
         since, error_then = state
         if now - since < limits.blocked_window_s:
             return None
-        # closing in = how much nearer its goal it got over the window
         if error_then - error_deg >= limits.min_progress_deg:
             state[:] = [now, error_deg]  # it is getting there: judged anew
             return None
@@ -285,7 +249,6 @@ class HealthMonitor:
         lag = self.lagging_since.setdefault(servo_id, [now, now, report.present])
         since, window_start, present_then = lag
         if now - window_start >= self.limits.progress_window_s:
-            # progress = how far it moved over the window, signed toward its goal now
             toward = 1 if report.goal > report.present else -1
             progress_deg = (report.present - present_then) * toward * DEG_PER_TICK
             if progress_deg >= self.limits.min_progress_deg:

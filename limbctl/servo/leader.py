@@ -1,14 +1,9 @@
-"""A leader gimbal's servos in current-based position mode: which models can, and their set-up.
+"""A leader's servos in current-based position mode (5): which models can, and their set-up.
 
-A leader that pushes back needs Operating Mode 5 (current-based position): the loop drives
-toward Goal Position with at most Goal Current (bounded by the EEPROM Current Limit). Models
-without current sensing (the XL430-W250) stay passive, torque off. Each cycle's command is one
-sync write of Goal Current (2 bytes) and Goal Position (4) mapped onto Indirect Data after the
-cycle's read block (:data:`FEEL_DATA`; 12 + 6 bytes fit every family's 20 slots); Profile
-Velocity has a sync write of its own when the wall comes on or goes off. A felt leader's read
-maps Present Current over the cycle read's Present PWM (:data:`CURRENT_MAP`: only the current
-gives the motor torque's sign while the loop brakes) and Present Velocity over its Goal Position
-(:data:`VELOCITY_MAP`: a let go shows in the speed long before in the tick-quantized pose).
+Models without current sensing (the XL430-W250) stay passive, torque off. Each cycle's command
+is one sync write of :data:`FEEL_DATA`; the cycle read carries Present Current (only it gives the
+torque's sign while the loop brakes) and Present Velocity (a let go shows in the speed long before
+the tick-quantized pose) in the slots a follower uses for Present PWM and Goal Position.
 """
 
 from __future__ import annotations
@@ -45,17 +40,12 @@ class LeaderMotor:
     max_current_units : int
         The Current Limit's factory maximum (units).
     loop_stall_error_deg : float
-        The position error (deg) at which the servo's position loop, at its factory gains,
-        asks for its stall torque: its stiffness is stall torque over this. 2 deg is the
-        simulator's loop (``firmware_sim/torque.py``); the e-Manual gives no such figure, so on
-        real servos it is to be measured (hold the leader, step Goal Position, read Present
-        Current) and set here. The haptic law's lead follows from it (``FeelLaw.lead_for_deg``).
+        Position error (deg) at which the factory-gain loop asks for stall torque (stiffness =
+        stall torque / this). 2 deg is the simulator's loop; the e-Manual gives none, so on
+        real servos it is to be measured and set here.
     let_go_cap_nm : float or None
-        A cap below half the stall torque, where the loop is so soft that holding half its stall
-        torque stores more energy than a let go may spend: a released leader snaps back onto
-        its setpoint at about ``0.46 tau / sqrt(KP J)`` (KP the loop's stiffness, J the
-        leader's inertia, damping ratio 0.7), and it must return at 30 deg/s at most. None: half
-        the stall torque is within that (docs/haptic.md, "Which leaders feel it").
+        A cap (N m) below half the stall torque for a loop so soft that a released leader would
+        snap back faster than 30 deg/s (docs/haptic.md, "Which leaders feel it"); None: none.
     """
 
     stall_torque_nm: float
@@ -72,7 +62,6 @@ class LeaderMotor:
 
     def units_for(self, torque_nm: float) -> int:
         """Goal Current units for a torque (N m), rounded down: never more than asked."""
-        # I = tau * stall current / stall torque, in the model's unit
         units = abs(torque_nm) * self.stall_current_ma / self.stall_torque_nm / self.current_unit_ma
         return min(int(units), self.max_current_units)
 
@@ -81,25 +70,19 @@ class LeaderMotor:
         return units * self.current_unit_ma * self.stall_torque_nm / self.stall_current_ma
 
     def cap_nm(self, asked_nm: float) -> float:
-        """The most this motor may push a hand with: ``asked_nm``, but at most
-        :data:`CAP_STALL_FRACTION` of its stall torque and its ``let_go_cap_nm``."""
+        """``asked_nm`` (N m) capped at CAP_STALL_FRACTION of stall and ``let_go_cap_nm``."""
         cap = min(asked_nm, CAP_STALL_FRACTION * self.stall_torque_nm)
         return cap if self.let_go_cap_nm is None else min(cap, self.let_go_cap_nm)
 
 
-#: A felt leader pushes with at most half its motor's stall torque: a push is held for
-#: seconds while the operator presses, and half of stall keeps the motor out of the overload
-#: region (the firmware's Overload error) and cool.
+#: A felt leader pushes with at most half its stall torque: a push is held for seconds, and half
+#: of stall keeps the motor cool and out of the firmware's Overload error.
 CAP_STALL_FRACTION = 0.5
 
 
-#: Models whose leader can push back (they have Operating Mode 5 and sense current), with the
-#: e-Manual's stall figures: XM430-W350 4.1 N m at 2.3 A (12 V), 2.69 mA units, Current Limit up
-#: to 1193; XL330-M077 0.215 N m and XL330-M288 0.52 N m at 1.47 A (5 V), 1 mA units, up to 1750.
-#: The XL330-M288 holds at most 0.12 N m: on the simulated loop (stall torque at 2 deg, 1e-3
-#: kg m^2) holding its half stall torque (0.26 N m) snapped a released leader back at up to
-#: 51.6 deg/s on a 1 ms sample, 0.14 N m at 30.6, 0.13 at 29.9 (30.1 with another hand), 0.12
-#: at 25.6: the margin is for what the simulation does not know (docs/bench_haptic_models.md).
+#: Models whose leader can push back, with the e-Manual's stall figures (N m, mA), current unit
+#: (mA) and Current Limit maximum. The XL330-M288's 0.12 N m cap: the largest that returned a
+#: released simulated leader under 30 deg/s with margin (docs/bench_haptic_models.md).
 FELT_MODELS: dict[ModelNumber, LeaderMotor] = {
     ModelNumber.XM430_W350: LeaderMotor(4.1, 2300.0, 2.69, 1193),
     ModelNumber.XL330_M077: LeaderMotor(0.215, 1470.0, 1.0, 1750),
@@ -113,12 +96,11 @@ assert CYCLE_BYTES + FEEL_BYTES <= INDIRECT_SLOTS
 
 
 def feel_data(indirect_data_1: int = Register.INDIRECT_DATA_1.address) -> Block:
-    """Where a felt leader's command is written: Indirect Data after the cycle's read block,
-    counted from the servo's Indirect Data 1 (224; 208 on a 330 with firmware up to 52)."""
+    """Where a felt leader's command goes: after the cycle's block from ``indirect_data_1``."""
     return Block(Register.INDIRECT_DATA_1, FEEL_BYTES, indirect_data_1 + CYCLE_BYTES)
 
 
-#: :func:`feel_data` where Indirect Data 1 is at 224 (the 430s, a 330 with firmware 53 on).
+#: :func:`feel_data` where Indirect Data 1 is at 224.
 FEEL_DATA = feel_data()
 #: The Indirect Addresses that map it (two bytes per data byte; at 168 + 2 n on every family).
 FEEL_MAP = Block(
@@ -139,8 +121,7 @@ def _slot(register: Register) -> int:
 
 
 def _slot_map(mapped: Register, slot_register: Register) -> Block:
-    """The Indirect Addresses of ``slot_register``'s slot in the cycle block, to hold
-    ``mapped`` instead (the same size)."""
+    """The Indirect Addresses of ``slot_register``'s slot, to hold ``mapped`` (same size)."""
     assert mapped.size == slot_register.size
     return Block(
         Register.INDIRECT_ADDRESS_1,
@@ -149,33 +130,26 @@ def _slot_map(mapped: Register, slot_register: Register) -> Block:
     )
 
 
-#: A felt leader maps Present Current where the cycle's read block holds Present PWM (the same
-#: size), so its one read each cycle carries its current: the Indirect Addresses of that slot.
+#: A felt leader's cycle read carries Present Current in Present PWM's slot.
 CURRENT_MAP = _slot_map(Register.PRESENT_CURRENT, Register.PRESENT_PWM)
-#: And Present Velocity where the block holds Goal Position (a leader's goal is the law's, not
-#: read back), so the read carries its speed.
+#: And Present Velocity in Goal Position's (a leader's goal is the law's, not read back).
 VELOCITY_MAP = _slot_map(Register.PRESENT_VELOCITY, Register.GOAL_POSITION)
 
 
 def present_current(report: ServoReport) -> int:
-    """A felt leader's Present Current (the model's units, signed, shaft frame) from its cycle
-    read: :func:`configure_felt_leader` mapped it where a follower's read has Present PWM."""
+    """A felt leader's Present Current (the model's units, signed) from its cycle read."""
     return report.pwm
 
 
 def present_velocity(report: ServoReport) -> int:
-    """A felt leader's Present Velocity (0.229 rev/min units, signed, shaft frame) from its cycle
-    read: :func:`configure_felt_leader` mapped it where a follower's read has Goal Position."""
+    """A felt leader's Present Velocity (0.229 rev/min units, signed) from its cycle read."""
     return report.goal
 
 
 def encode_feel(goal_current: int, goal_position: int) -> bytes:
     """One servo's :data:`FEEL_DATA` bytes."""
     values = (goal_current, goal_position)
-    return b"".join(
-        bytes(register.encode(value))
-        for register, value in zip(FEEL_REGISTERS, values, strict=True)
-    )
+    return b"".join(bytes(r.encode(v)) for r, v in zip(FEEL_REGISTERS, values, strict=True))
 
 
 def felt_motor(bus: ServoBus, ids: Sequence[int]) -> LeaderMotor | None:
@@ -198,10 +172,7 @@ def configure_felt_leader(
 ) -> None:
     """Set the leader's servos up for feel; torque ends ON with Goal Current 0 (no torque).
 
-    Operating Mode 5 and Current Limit = ``cap_units`` (EEPROM, torque off first), Bus Watchdog
-    ``watchdog_units`` x 20 ms, the indirect map of :data:`FEEL_DATA`, and Present Current and
-    Present Velocity in the cycle read's Present PWM and Goal Position slots
-    (:data:`CURRENT_MAP`, :data:`VELOCITY_MAP`).
+    Mode 5, Current Limit ``cap_units``, Bus Watchdog ``watchdog_units`` x 20 ms and the maps.
 
     Raises
     ------

@@ -1,14 +1,9 @@
 """A felt leader's guard: a second process that makes the leader limp when its controller dies.
 
-A tripped Bus Watchdog stops a felt leader's servos within 100 ms but leaves them *holding*
-until the power goes (docs/haptic.md, a controller that dies). :meth:`LeaderGuard.start` starts
-``python -m limbctl.servo.leader_guard`` in a session of its own, holding only the read end of a
-pipe whose write end stays in the controller, so the guard reads EOF the moment the controller
-is gone, however it went. After :meth:`LeaderGuard.done` (a clean end) it exits touching
-nothing; on EOF without ``done`` it waits for the port to be free, opens it through
-:class:`~limbctl.servo.bus.ServoBus`, writes Torque Enable 0 to each leader servo (never the
-follower's) until each has answered, prints one line and exits, giving up after
-:data:`GIVE_UP_S`.
+A tripped Bus Watchdog leaves the leader *holding* (docs/haptic.md). The guard holds the read
+end of a pipe whose write end stays in the controller, so it reads EOF the moment the controller
+is gone; without ``done`` first it writes Torque Enable 0 to each leader servo (never the
+follower's), giving up after :data:`GIVE_UP_S`.
 """
 
 from __future__ import annotations
@@ -31,29 +26,22 @@ if TYPE_CHECKING:
 
 #: What the controller writes before closing the pipe on a clean end.
 DONE = b"done\n"
-#: The bound (s) from the controller's death (the guard's EOF) to the guard's exit: each
-#: answering leader servo has Torque Enable 0 by then, or the guard said it could not. One
-#: second: ten Bus Watchdog times, and far over the 22-45 ms measured from kill -9 to the
-#: guard's exit, the leader limp, over the simulator's pty (docs/decisions/haptic.md), so a loaded
-#: scheduler or a servo missing a reply or two does not cut the guard short.
+#: The bound (s) from the controller's death to the guard's exit, the leader limp: ten Bus
+#: Watchdog times, far over the 22-45 ms measured (docs/decisions/haptic.md), for a loaded machine.
 GIVE_UP_S = 1.0
-#: How often (s) the guard tries the port while the dead controller's lock is still on it (the
-#: kernel drops it as it closes the dead process's files): a small part of the bound, and a try
-#: (one open refused) costs next to nothing.
+#: How often (s) the guard tries the port while the dead controller's lock is still on it: a
+#: small part of the bound, and a refused open costs next to nothing.
 PORT_RETRY_S = 0.002
-#: How long (s) a clean end waits for the guard to exit after ``done``: a guard still starting
-#: reads it once started (Python and the bus's imports: 47 ms on a quiet machine, ``time
-#: python -c 'import limbctl.servo.bus'``; five seconds for a machine loaded many times over).
+#: How long (s) a clean end waits for the guard to exit after ``done``: its start takes 47 ms
+#: on a quiet machine (``time python -c 'import limbctl.servo.bus'``); 5 s for a loaded one.
 EXIT_WAIT_S = 5.0
-#: The retry budget (s) of each transaction the guard makes: a servo that misses one reply is
-#: asked again soon, and the next servo is not kept waiting past a few of its replies.
+#: The retry budget (s) of each guard transaction: a few replies, so the next servo is not kept.
 RETRY_BUDGET_S = 0.05
 
 
 class GuardBus(ServoBus):
-    """The guard's bus: no transaction waits past its retry budget (set-up's patience is for a
-    servo just powered on; the guard's servos answered the controller a moment ago, and a
-    silent one must not hold up the next past the bound)."""
+    """The guard's bus: never patient (its servos answered a moment ago; a silent one must not
+    hold up the next past the bound)."""
 
     def _transact(self, what, attempt, check_alert=True, attempts=None, patient=False):
         return super()._transact(what, attempt, check_alert, attempts, patient=False)
@@ -64,15 +52,7 @@ class GaveUp(Exception):
 
 
 class LeaderGuard:
-    """The controller's side of a running guard (see the module's docstring).
-
-    Parameters
-    ----------
-    process : subprocess.Popen
-        The guard's process.
-    write_fd : int
-        The pipe's write end, held by the controller alone.
-    """
+    """The controller's side of a running guard: its ``process`` and the pipe's ``write_fd``."""
 
     def __init__(self, process: subprocess.Popen, write_fd: int) -> None:
         self.process = process
@@ -80,8 +60,7 @@ class LeaderGuard:
 
     @classmethod
     def start(cls, bus: ServoBus, leader_ids: Sequence[int]) -> LeaderGuard:
-        """Start a guard for the leader servos ``leader_ids`` on ``bus``'s port, baud and
-        latency timer (not waited for: a death before it has started is read once it has)."""
+        """Start a guard for ``leader_ids`` on ``bus``'s port (not waited for)."""
         read_fd, write_fd = os.pipe()  # both not inheritable (PEP 446): only pass_fds passes
         command = [sys.executable, "-m", "limbctl.servo.leader_guard", "--fd", str(read_fd)]
         command += ["--port", bus.port_name, "--baud", str(bus.baud)]
@@ -134,10 +113,8 @@ def wait_for_controller(fd: int) -> bool:
 def switch_off(
     port: str, baud: int, left: list[int], latency_timer_ms: float, failures: dict
 ) -> None:
-    """Torque Enable 0 on each servo of ``left`` at ``port``, each through a bus of its own (a
-    silent servo's ping does not keep the others on), trying again until each has answered
-    (the caller bounds the time). Servos switched off leave ``left``; ``failures`` keeps what
-    the last failure said, per servo id (``'port'`` for the port)."""
+    """Torque Enable 0 on each servo of ``left``, each through its own bus, until each answered
+    (removed from ``left``); ``failures`` keeps each servo's last failure."""
     while left:
         for servo_id in list(left):
             bus = GuardBus(port, baud, (servo_id,), retry_budget_s=RETRY_BUDGET_S)

@@ -1,16 +1,10 @@
 """Set up servos out of the box for a rig profile's joints, one servo at a time (README).
 
-Factory servos all answer as ID 1 at 57600 baud, so only the joint's servo is connected, found
-at any baud and ID (:func:`limbctl.servo.scan.scan`), and refused when more than one servo
-answers, two collide on one ID, its model is not the profile's, or its supply is outside its
-family's limits. With torque off it gets, in this order, the joint's ID and the profile's baud
-(EEPROM; the baud write is answered at the old rate), Return Delay Time 0 (EEPROM) and Status
-Return Level 2 (RAM: every record, teleop and calibrate sets it again at their start).
-
-A servo answering as another joint's ID is that joint's (set up before) and keeps its ID
-(:attr:`SetupOutcome.other_joint`), unless it is factory-fresh (ID 1 at 57600 baud, Return
-Delay Time 250) or ``renumber`` says so. Only values that differ are written (EEPROM wears) and
-all are read back, so running set-up twice is harmless; a failed joint does not undo others.
+Only the joint's servo is connected (factory servos all answer as ID 1), found at any baud, and
+refused if not alone, not the profile's model, or outside its family's supply; it then gets its
+ID, baud, Return Delay Time 0 and Status Return Level 2. A servo answering as another joint's ID
+keeps it unless factory-fresh or ``renumber``. Only differing values are written (EEPROM wears)
+and all are read back, so running set-up twice is harmless.
 """
 
 from __future__ import annotations
@@ -35,9 +29,8 @@ from limbctl.servo.transfers import SDK_LATENCY_TIMER_MS
 RETURN_DELAY = 0
 #: Status Return Level set-up writes: answer every instruction.
 STATUS_RETURN_ALL = 2
-#: A servo out of the box (the X series' e-Manual defaults): ID 1 at 57600 baud, Return Delay
-#: Time 250 (2 us units: 500 us). Set-up always writes Return Delay Time 0, so a servo at ID 1
-#: with 250 has never been set up: it is nobody's joint yet.
+#: A servo out of the box (e-Manual defaults); set-up always writes Return Delay Time 0, so a
+#: servo at ID 1 with 250 has never been set up.
 FACTORY_ID, FACTORY_BAUD, FACTORY_RETURN_DELAY = 1, 57_600, 250
 
 
@@ -55,17 +48,8 @@ class JointTarget:
 class SetupOutcome:
     """One joint's set-up, as a value.
 
-    Attributes
-    ----------
-    joint : str
-    ok : bool
-    message : str
-        What was done, or why it was refused.
-    written : tuple of str
-        The registers written (empty when the servo was already set up).
-    other_joint : str or None
-        When refused because the connected servo is recognisably another joint's servo: that
-        joint (the caller may ask for the right servo and try again).
+    ``message`` says what was done or why refused; ``written`` the registers written;
+    ``other_joint`` the joint whose servo the connected one recognisably is (refused).
     """
 
     joint: str
@@ -77,17 +61,8 @@ class SetupOutcome:
 
 @dataclass(frozen=True)
 class Claims:
-    """What set-up knows of the profile's other joints, to never renumber one as another.
-
-    Attributes
-    ----------
-    ids : mapping of str to int
-        Every joint of the profile and its servo ID (the target's own may be among them).
-    set_up_now : collection of str
-        The joints set up earlier in this run.
-    renumber : bool
-        Make a servo that answers as another joint's ID this joint anyway (on purpose).
-    """
+    """The profile's joint ``ids``, those ``set_up_now`` in this run, and whether to ``renumber``
+    a servo answering as another joint's ID (on purpose)."""
 
     ids: Mapping[str, int]
     set_up_now: Collection[str] = ()
@@ -153,10 +128,8 @@ def setup_joint(
 ) -> SetupOutcome:
     """Find the one connected servo and make it ``target`` (see module docstring).
 
-    ``claims`` names the profile's other joints: a servo recognisably one of theirs is refused
-    (the outcome's ``other_joint``) unless ``claims.renumber``. Set-up is not time-critical:
-    replies are awaited as the SDK would (a 16 ms latency timer) even when ``latency_timer_ms``
-    is lower, so a busy machine is not taken for silence.
+    Replies are awaited at least as the SDK would (16 ms latency timer): set-up is not
+    time-critical, and a busy machine must not be taken for silence.
     """
     latency_timer_ms = max(latency_timer_ms, SDK_LATENCY_TIMER_MS)
     claims = claims or Claims({})
@@ -225,7 +198,8 @@ def _set_up_when(owner: str, claims: Claims) -> str:
     )
 
 
-def _open(port: str, baud: int, servo_id: int, model: str, latency_ms: float) -> ServoBus:
+def _open(port: str, baud: int, servo_id: int, model: str | None, latency_ms: float) -> ServoBus:
+    """A bus on one servo (``model`` None: unchecked, as just after an ID change)."""
     return ServoBus(port, baud, (servo_id,), model, latency_timer_ms=latency_ms).open()
 
 
@@ -247,7 +221,7 @@ def _configure(port: str, target: JointTarget, servo_id: int, baud: int, latency
         if baud != target.baud:
             # the servo answers at the old rate, then listens at the new one
             bus.close()
-            bus = _open_unchecked(port, baud, target.servo_id, latency_ms)
+            bus = _open(port, baud, target.servo_id, None, latency_ms)
             bus.write(Register.BAUD_RATE, target.servo_id, value, check_alert=False)
             written.append(f"baud {baud} -> {target.baud}")
     finally:
@@ -258,11 +232,6 @@ def _configure(port: str, target: JointTarget, servo_id: int, baud: int, latency
             written.append(f"Return Delay Time {RETURN_DELAY}")
         bus.write(Register.STATUS_RETURN_LEVEL, target.servo_id, STATUS_RETURN_ALL)
     return written
-
-
-def _open_unchecked(port: str, baud: int, servo_id: int, latency_ms: float) -> ServoBus:
-    """A bus on ``servo_id`` that checks no model (the ID just changed: the same servo)."""
-    return ServoBus(port, baud, (servo_id,), None, latency_timer_ms=latency_ms).open()
 
 
 def _verify(port: str, target: JointTarget, latency_ms: float) -> None:

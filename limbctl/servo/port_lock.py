@@ -1,12 +1,7 @@
-"""One controller per serial port: who holds a port that limbctl could not lock.
+"""One controller per serial port: who holds a port that limbctl could not ``flock``.
 
-:class:`limbctl.servo.transfers.TunedPortHandler` opens every port with pyserial's
-``exclusive=True``, an advisory ``flock(LOCK_EX | LOCK_NB)`` on the device itself (a U2D2's
-``/dev/ttyUSB0`` and the simulator's pty alike). The kernel drops the lock when its holder closes
-the port or dies, so a crashed controller never leaves a stale lock behind. When the lock is
-refused, :func:`port_holders` finds the holder for the message: first from ``/proc/locks``
-(the pid that took the ``FLOCK`` on the device's inode), else from the processes that have the
-device open (``/proc/PID/fd``).
+The kernel drops the lock with its holder, so a crashed controller leaves none behind. The
+holder is named from ``/proc/locks``, else from the processes that have the device open.
 """
 
 from __future__ import annotations
@@ -21,15 +16,7 @@ PROC_LOCKS = Path("/proc/locks")
 
 @dataclass(frozen=True)
 class PortHolder:
-    """A process that holds a serial port.
-
-    Attributes
-    ----------
-    pid : int
-        Its process id.
-    command : str
-        Its command line (``"?"`` when it cannot be read).
-    """
+    """A process (``pid``, ``command`` line or ``"?"``) that holds a serial port."""
 
     pid: int
     command: str
@@ -96,11 +83,7 @@ def _opener_pids(device: os.stat_result) -> list[int]:
 
 
 def port_holders(port: str | os.PathLike) -> list[PortHolder]:
-    """The processes holding the serial device ``port`` (a symlink is followed); may be empty.
-
-    Holders of its lock come first; without any (a program that opened the port without
-    locking it), every process that has it open.
-    """
+    """The processes holding the lock of ``port`` (followed), else those having it open."""
     try:
         device = os.stat(os.path.realpath(port))
     except OSError:

@@ -1,11 +1,7 @@
 """Rig profiles as the controller uses them: loaded through calib, checked against the servos.
 
-:mod:`calib` validates a profile as data; here, before a profile (from a file or built by
-``limbctl calibrate``) is used, the servo layer checks what only it knows: the baud is one the
-servos offer, the model one the controller drives, each joint's hard limits map to ticks inside
-one turn. :mod:`calib`'s errors come out as the controller's own
-(:class:`~limbctl.errors.ConfigError`, :class:`~limbctl.errors.FileFormatError`).
-:func:`check_trained_for` refuses a model trained on another rig or another calibration.
+Here the servo layer checks what only it knows (baud, model, limits within one turn of ticks)
+and :mod:`calib`'s errors come out as the controller's own.
 """
 
 from __future__ import annotations
@@ -113,10 +109,8 @@ def _controller_error(exc: ProfileError) -> ConfigError | FileFormatError:
 
 
 def load_rig_profile(path: str | os.PathLike[str] | None = None) -> RigProfile:
-    """The checked rig profile at ``path``, or the packaged simulated rig when ``path`` is None.
-
-    A ``path`` that names a packaged simulated rig (``sim``, ``sim3``: :data:`calib.SIM_RIGS`)
-    and is not a file loads that rig.
+    """The checked rig profile at ``path``, or a packaged simulated rig (None: ``sim``; a name in
+    :data:`calib.SIM_RIGS` that is not a file: that one).
 
     Raises
     ------
@@ -151,8 +145,7 @@ def check_trained_for(metadata: Mapping[str, Any], profile: RigProfile, what: st
     Parameters
     ----------
     metadata : mapping
-        What the trained thing recorded: ``rig`` (the profile name) and ``calibration``
-        (:meth:`calib.profile.Calibration.to_dict`).
+        What the trained thing recorded: ``rig`` (profile name) and ``calibration``.
     profile : RigProfile
         The rig it is about to drive.
     what : str
@@ -161,9 +154,7 @@ def check_trained_for(metadata: Mapping[str, Any], profile: RigProfile, what: st
     Raises
     ------
     ConfigError
-        Another rig's name; no recorded calibration (trained before limbctl recorded one:
-        refused, as nothing shows it fits); a recorded calibration that is malformed or differs
-        from the profile's, naming each field that differs.
+        Another rig's name; no, a malformed or a differing calibration (naming each field).
     """
     source = profile.source or "the rig profile"
     if not isinstance(metadata, Mapping):  # a hand-made header: it records nothing

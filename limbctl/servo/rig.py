@@ -1,10 +1,7 @@
 """A calibrated chain of joints on a servo bus: joint angles (rad) <-> ticks, limits, present pose.
 
-:class:`Rig` converts each joint of the profile's chain (``(pan, tilt)`` or ``(pan, tilt,
-roll)``) with its ``zero_tick`` and ``direction`` (``ticks = zero_tick + direction * angle *
-4096 / (2 pi)``, rounded), clamps to the hard limits and reads the present pose in one sync
-read. It never moves the limb on its own: a goal leaves only through
-:meth:`Rig.write_goal_ticks` (and :meth:`Rig.write_pose`, which clamps, converts and calls it).
+A goal leaves only through :meth:`Rig.write_goal_ticks` (:meth:`Rig.write_pose` clamps, converts
+and calls it).
 """
 
 from __future__ import annotations
@@ -25,17 +22,8 @@ from limbctl.servo.ticks import angle_to_ticks, ticks_to_angle
 
 @dataclass(frozen=True)
 class GoalTicks:
-    """A pose ready for the bus.
-
-    Attributes
-    ----------
-    ticks : tuple of int, one per joint
-        Goal ticks, in the rig's joint order (inside the hard limits).
-    angles : tuple of float, one per joint
-        The joint angles after clamping (rad).
-    clamped : bool
-        True if any angle had to be moved onto a hard limit.
-    """
+    """A pose ready for the bus: ``ticks`` (one per joint, inside the hard limits), the clamped
+    ``angles`` (rad, one per joint), and whether any angle was ``clamped`` onto a limit."""
 
     ticks: tuple[int, ...]
     angles: tuple[float, ...]
@@ -43,22 +31,8 @@ class GoalTicks:
 
 
 class Rig:
-    """The chain of joints described by ``profile``, driven through ``bus``.
-
-    Parameters
-    ----------
-    profile : RigProfile
-        Ids, zero ticks, directions and hard limits of each joint, in chain order.
-    bus : ServoBus or None
-        An open bus; None gives a rig that can only convert (for planning and tests).
-
-    Attributes
-    ----------
-    joints : tuple of JointProfile
-        The joints in chain order.
-    names : tuple of str
-        Their names, e.g. ``("pan", "tilt")`` or ``("pan", "tilt", "roll")``.
-    """
+    """The chain of joints described by ``profile``, driven through ``bus`` (an open bus, or None
+    for a rig that only converts); ``joints`` and their ``names`` in chain order."""
 
     def __init__(self, profile: RigProfile, bus: ServoBus | None = None) -> None:
         self.profile = profile
@@ -67,11 +41,6 @@ class Rig:
         self.joints: tuple[JointProfile, ...] = tuple(joint for _, joint in profile.joints)
 
     def __len__(self) -> int:
-        return len(self.joints)
-
-    @property
-    def count(self) -> int:
-        """The number of joints."""
         return len(self.joints)
 
     @property
@@ -118,7 +87,7 @@ class Rig:
         Raises
         ------
         InvalidInputError
-            If an angle is NaN or infinite (never clamped into range silently).
+            If an angle is NaN or infinite.
         SafetyError
             If not one angle per joint is given.
         """
@@ -128,7 +97,6 @@ class Rig:
             angle = float(angle)
             if not math.isfinite(angle):
                 raise InvalidInputError(f"{name} angle must be finite, got {angle!r}")
-            # clamp: min_rad <= angle <= max_rad
             out.append(min(max(angle, joint.min_rad), joint.max_rad))
         clamped = tuple(out)
         return clamped, clamped != tuple(float(angle) for angle in angles)
@@ -145,8 +113,7 @@ class Rig:
         return GoalTicks(tuple(ticks), clamped_angles, clamped)
 
     def held_pose(self, *angles: float) -> tuple[float, ...]:
-        """The joint angles (rad) the servos hold once ``angles`` is written: clamped to the
-        hard limits and rounded to whole ticks."""
+        """The joint angles (rad) the servos hold once ``angles`` is written (clamped, in ticks)."""
         return self.ticks_to_angles(*self.goal_for(*angles).ticks)
 
     # ---- the bus ---------------------------------------------------------------------------------
@@ -156,10 +123,7 @@ class Rig:
         return self.bus
 
     def configure(self, profile_velocity: int = 200, profile_acceleration: int = 50) -> None:
-        """Configure the servos for position control with the hard limits in EEPROM.
-
-        Turns torque OFF (see :func:`limbctl.servo.setup.configure_servos`).
-        """
+        """Configure the servos for position control, hard limits in EEPROM; torque ends OFF."""
         configure_servos(self._bus(), self.tick_limits(), profile_velocity, profile_acceleration)
 
     def read_ticks(self) -> tuple[int, ...]:
@@ -168,8 +132,7 @@ class Rig:
         return tuple(positions[joint.id] for joint in self.joints)
 
     def read_cycle(self, attempts: int = 1, ids: Sequence[int] | None = None) -> CycleRead:
-        """The servos' (``ids``, default all) position, goal, torque, alarm and PWM in ONE sync
-        read (``attempts`` tries)."""
+        """The servos' (``ids``, default all) :class:`CycleRead` in ONE sync read."""
         return self._bus().read_cycle(self.ids if ids is None else ids, attempts)
 
     def pose_of(self, read: CycleRead) -> tuple[float, ...]:
@@ -186,8 +149,7 @@ class Rig:
         Raises
         ------
         SafetyError
-            If not one tick per joint is given, or a tick lies outside its joint's hard limits'
-            tick range (nothing is written).
+            If not one tick per joint is given, or one lies outside its hard limits.
         """
         self._counted(ticks, "goal ticks")
         for name, tick, joint in zip(self.names, ticks, self.joints, strict=True):

@@ -1,12 +1,9 @@
 """Find the servos on a port at every baud rate, and name the IDs that two servos share.
 
-At each baud one broadcast PING is sent and every byte back is kept: clean status packets name
-a servo; bytes forming no clean packet are two replies that collided. Servos answer in ascending
-ID order, so a shared ID lies strictly between the clean replies around the garbled bytes;
-those IDs are pinged one at a time (the factory-fresh case, every servo ID 1, costs two pings).
-Reading stops after :data:`QUIET_PACKETS` quiet reply times, and waiting for the first reply
-after :data:`BROADCAST_CAP_S`: a servo answering later (an ID far above 80 at 9600 baud) is
-missed, so keep IDs low.
+At each baud one broadcast PING: clean status packets name servos; garbled bytes are collided
+replies, whose shared ID lies between the clean replies around them (servos answer in ID order)
+and is found by pinging those IDs one at a time. A servo answering after :data:`BROADCAST_CAP_S`
+(an ID far above 80 at 9600 baud) is missed, so keep IDs low.
 """
 
 from __future__ import annotations
@@ -87,16 +84,8 @@ class Collision:
 class ScanResult:
     """What a scan found, as values.
 
-    Attributes
-    ----------
-    found : list of Found
-    collisions : list of Collision
-    unreadable : list of int
-        Bauds with garbled replies whose shared ID could not be named.
-    skipped : dict
-        Baud -> why it was not tried (the serial driver cannot open it).
-    seconds : dict
-        Baud -> time spent on it (s).
+    ``unreadable``: bauds with garbled replies whose shared ID could not be named;
+    ``skipped``: baud -> why not tried; ``seconds``: baud -> time spent on it (s).
     """
 
     found: list[Found] = field(default_factory=list)
@@ -131,7 +120,7 @@ class RawLink:
         self._packets = Protocol2PacketHandler()
 
     def byte_s(self) -> float:
-        # one byte = 10 bit times
+        """One byte's time on the wire (s): 10 bit times."""
         return 10.0 / self.port.baudrate
 
     def ping(self, servo_id: int, window_s: float, quiet_s: float) -> bytes:
@@ -242,8 +231,7 @@ def scan(
     Parameters
     ----------
     latency_timer_ms : float
-        The USB adapter's latency timer (ms): how late bytes may arrive; at least the SDK's
-        16 ms is allowed (the scan is not time-critical).
+        The USB adapter's latency timer (ms); at least the SDK's 16 ms is allowed.
     on_baud : callable(index, count, baud) or None
         Called before each baud rate (a progress bar).
     budget_per_baud_s : float
@@ -255,7 +243,6 @@ def scan(
         If the port cannot be opened.
     """
     bauds = list(bauds)
-    # not time-critical: wait as the SDK would, so a busy machine is not taken for silence
     latency_timer_ms = max(latency_timer_ms, SDK_LATENCY_TIMER_MS)
     total = ScanResult()
     port = TunedPortHandler(port_name, latency_timer_ms)

@@ -1,8 +1,4 @@
-"""One-time servo set-up for position control, with the rig's hard limits in EEPROM.
-
-It uses only the bus's public reads and writes, inside :meth:`ServoBus.exclusive` so that no
-other thread's transfer falls between them.
-"""
+"""One-time servo set-up for position control, with the rig's hard limits in EEPROM."""
 
 from __future__ import annotations
 
@@ -34,17 +30,12 @@ def configure_servos(
     profile_velocity: int = 200,
     profile_acceleration: int = 50,
 ) -> None:
-    """Prepare every servo for position control. Turns torque OFF (EEPROM needs it).
-
-    Also maps the control cycle's registers onto Indirect Data 1.. (see
-    :mod:`limbctl.servo.cycle`), so :meth:`ServoBus.read_cycle` works from here on, and reads
-    each servo's PWM Limit, the full scale of the Present PWM the cycle reports.
+    """Prepare every servo for position control and the cycle read; torque ends OFF.
 
     Parameters
     ----------
     position_limits : mapping id -> (min_tick, max_tick)
-        Written to Min/Max Position Limit (EEPROM), so the servo itself refuses goals
-        beyond the rig's hard limits: the last line of defence.
+        Written to Min/Max Position Limit: the servo itself refuses goals beyond them.
     profile_velocity : int
         Profile Velocity in units of 0.229 rev/min (0 = no limit).
     profile_acceleration : int
@@ -95,7 +86,6 @@ def configure_servos(
                         )
             bus.write(Register.PROFILE_ACCELERATION, servo_id, profile_acceleration)
             bus.write(Register.PROFILE_VELOCITY, servo_id, profile_velocity)
-            # the control cycle reads position, goal, torque, alarm and PWM through one block
             bus.write_block(INDIRECT_MAP_BLOCK, servo_id, indirect_map())
             if bus.read_block(INDIRECT_MAP_BLOCK, servo_id) != indirect_map():
                 raise BusError(
@@ -116,8 +106,7 @@ def check_supply(bus: ServoBus) -> None:
     Raises
     ------
     ConfigError
-        Naming the servo, the voltage it measures and what its model expects (a 5 V XL330 on
-        a 12 V bus, say).
+        Naming the servo, the voltage it measures and what its model expects.
     """
     for servo_id in bus.ids:
         model = bus.models[servo_id]
@@ -128,12 +117,8 @@ def check_supply(bus: ServoBus) -> None:
 
 
 def probe_indirect_data(bus: ServoBus, servo_id: int) -> int:
-    """Where ``servo_id`` keeps Indirect Data 1: 224, or 208 on a 330 with firmware up to 52.
-
-    The indirect map (:func:`limbctl.servo.cycle.indirect_map`) must be written. Each candidate
-    address is read as the cycle's block; the one whose Goal Position, Torque Enable and
-    Hardware Error Status bytes equal those registers read directly is it. The firmware version
-    is not trusted: ROBOTIS moved the 330s' block, and a servo may run either firmware.
+    """Where ``servo_id`` keeps Indirect Data 1: the candidate whose cycle block mirrors its
+    registers (the indirect map written). The firmware version is not trusted for it.
 
     Raises
     ------

@@ -1,8 +1,7 @@
 """Joint angle (rad) <-> servo encoder tick conversion for one calibrated joint.
 
-A joint is described by ``zero_tick`` (the tick at angle 0) and ``direction`` (+1 if ticks grow
-with the angle, -1 if they shrink). Ticks are integers in 0..4095 (one turn, Position Control
-Mode); angles are radians. Rounding is to the nearest tick, ties to even (``numpy.rint``).
+``ticks = zero_tick + direction * angle * 4096 / (2 pi)``, rounded to the nearest tick, ties to
+even (``numpy.rint``).
 """
 
 from __future__ import annotations
@@ -21,7 +20,6 @@ _LIMIT_SLACK = 1e-9
 
 def angle_to_ticks_float(angle: np.ndarray | float, zero_tick: int, direction: int) -> np.ndarray:
     """Unrounded tick position of joint angle ``angle`` (rad); any shape."""
-    # ticks = zero_tick + direction * angle * 4096 / (2 pi)
     return zero_tick + direction * np.asarray(angle, dtype=np.float64) * TICKS_PER_RAD
 
 
@@ -37,11 +35,7 @@ def ticks_to_angle(ticks: np.ndarray | int, zero_tick: int, direction: int) -> n
 
 
 def tick_limits(min_deg: float, max_deg: float, zero_tick: int, direction: int) -> tuple[int, int]:
-    """The integer tick range ``(lo, hi)`` whose every tick lies inside [min_deg, max_deg].
-
-    ``lo <= hi`` whatever the direction. The range is rounded inward so a tick inside it can
-    never stand for an angle beyond a hard limit.
-    """
+    """The integer tick range ``(lo, hi)``, ``lo <= hi``, rounded inward from [min_deg, max_deg]."""
     ends = angle_to_ticks_float(np.radians([min_deg, max_deg]), zero_tick, direction)
     lo = math.ceil(float(ends.min()) - _LIMIT_SLACK)
     hi = math.floor(float(ends.max()) + _LIMIT_SLACK)

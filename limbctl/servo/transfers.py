@@ -1,12 +1,7 @@
-"""One try of each dynamixel-sdk transfer that :class:`ServoBus` uses, as plain functions.
+"""One try of each dynamixel-sdk transfer that :class:`ServoBus` uses, as an :class:`Attempt`.
 
-Each function sends one instruction with the real SDK (Protocol 2.0) and returns an
-:class:`Attempt`: the decoded value, the SDK's communication result, the error byte each servo
-put in its status packet, and which servo to blame if it failed. Retrying, alarms and locking
-live in :mod:`limbctl.servo.bus`; :func:`failure` turns a final failed attempt into the typed error.
-
-The SDK's group sync read drops the status error bytes, so sync reads are assembled here from
-its packet-level calls (``syncReadTx`` + ``readRx`` / ``rxPacket``) to keep the alert bit.
+Sync reads are assembled from the SDK's packet-level calls: its group sync read drops the status
+error bytes, and with them the alert bit. :func:`failure` turns a failed attempt into the error.
 """
 
 from __future__ import annotations
@@ -40,38 +35,29 @@ _PKT_ID, _PKT_LENGTH_L, _PKT_LENGTH_H, _PKT_INSTRUCTION, _PKT_PARAMETER0 = 4, 5,
 
 #: The SDK's assumption for the USB adapter's latency timer (ms): an FTDI chip's default.
 SDK_LATENCY_TIMER_MS = 16.0
-#: How long a patient transaction (a set-up or torque write to one servo) keeps trying (s): a busy
-#: machine can stall the simulator's process longer than three reply timeouts; a servo silent
-#: for a second is gone all the same.
+#: How long a patient transaction (set-up, torque) keeps trying (s): a busy machine can stall the
+#: simulator longer than three reply timeouts; a servo silent for a second is gone all the same.
 PATIENT_BUDGET_S = 1.0
 #: Most attempts of a patient transaction (the budget ends it first: >= 6 ms each on a pty).
 PATIENT_MAX_ATTEMPTS = 200
 
 
-#: Longest single wait for a reply's bytes in :meth:`TunedPortHandler.readPort` (s): the SDK's
-#: loop then checks its timeout again; a wait on the port's descriptor ends at the first byte,
-#: so this bounds only how late a timeout is noticed (1 ms, a fifth of a 200 Hz cycle).
+#: Longest single wait for a reply's bytes in :meth:`TunedPortHandler.readPort` (s): it bounds
+#: only how late a timeout is noticed (a fifth of a 200 Hz cycle); a byte ends it at once.
 READ_WAIT_S = 0.001
 
 
 class TunedPortHandler(PortHandler):
-    """The SDK's PortHandler with the reply timeout computed for the adapter's real latency.
-
-    The SDK waits ``bytes * byte time + 2 * 16 ms + 2 ms`` for a reply, assuming an FTDI latency
-    timer of 16 ms; with the timer lowered to 1 ms (README) or on the simulator's pty, a dropped
-    reply then costs one control cycle instead of seven.
-    """
+    """The SDK's PortHandler with the reply timeout for the adapter's real latency timer (ms), not
+    an assumed 16 ms: a dropped reply costs one control cycle instead of seven."""
 
     def __init__(self, port_name: str, latency_timer_ms: float) -> None:
         super().__init__(port_name)
         self.latency_timer_ms = float(latency_timer_ms)
 
     def setupPort(self, cflag_baud: int) -> bool:  # noqa: N802 (SDK's name)
-        """Open the port as the SDK does, but exclusively (an advisory ``flock`` on the device).
-
-        A second controller on the same port then fails to open it (``SerialException`` with
-        ``errno`` EAGAIN) instead of writing goals under the first one.
-        """
+        """Open the port as the SDK does, but exclusively (``flock``: a second controller gets
+        EAGAIN instead of writing goals under the first)."""
         if self.is_open:
             self.closePort()
         self.ser = serial.Serial(
@@ -87,8 +73,7 @@ class TunedPortHandler(PortHandler):
         self.tx_time_per_byte = (1000.0 / self.baudrate) * 10.0
         return True
 
-    #: Bytes of the last instruction written: still on the wire when the wait for the reply
-    #: starts (the adapter sends them after writePort returns).
+    #: Bytes of the last instruction written: still on the wire when the reply's wait starts.
     sent_bytes = 0
 
     def writePort(self, packet: Any) -> int:  # noqa: N802 (SDK's name)
@@ -96,15 +81,9 @@ class TunedPortHandler(PortHandler):
         return super().writePort(packet)
 
     def readPort(self, length: int) -> bytes:  # noqa: N802 (SDK's name)
-        """What has arrived, up to ``length`` bytes; with nothing there yet, wait for bytes
-        (at most the reply's remaining timeout, and at most ``READ_WAIT_S``) instead of returning.
-
-        The SDK polls this in a loop until the reply is whole or its timeout passes; the
-        port's own ``read`` never waits (``timeout=0``), so that loop spun a core at 100 % for
-        every reply. On a shared machine the spinning controller took the CPU the servo (the
-        simulator's process) needed to answer, and replies came after their timeout
-        (docs/decisions/haptic.md). ``select`` wakes on the first byte, so nothing is late.
-        """
+        """Up to ``length`` bytes; with none there yet, wait for one (at most ``READ_WAIT_S``
+        and the reply's remaining timeout) instead of spinning the SDK's polling loop
+        (docs/decisions/haptic.md)."""
         data = self.ser.read(length)
         if data or not self.is_open:
             return data
@@ -116,9 +95,8 @@ class TunedPortHandler(PortHandler):
 
     def setPacketTimeout(self, packet_length: int) -> None:  # noqa: N802 (SDK's name)
         self.packet_start_time = self.getCurrentTime()
-        # timeout = (instruction + reply bytes) * byte time + 2 * latency timer + 2 ms: the
-        # SDK's rule plus the instruction's own bytes, which take 2.8 ms at 57600 baud (more
-        # than the 2 ms allowance once the latency timer is lowered to 1 ms)
+        # the SDK's rule plus the instruction's own bytes (2.8 ms at 57600 baud: more than the
+        # 2 ms allowance once the latency timer is lowered to 1 ms)
         self.packet_timeout = (
             self.tx_time_per_byte * (packet_length + self.sent_bytes)
             + 2.0 * self.latency_timer_ms
@@ -128,19 +106,8 @@ class TunedPortHandler(PortHandler):
 
 @dataclass
 class Attempt:
-    """One try of a transaction.
-
-    Attributes
-    ----------
-    value : Any
-        What was read (None for writes or failures).
-    result : int
-        The SDK's ``COMM_*`` result.
-    errors : dict
-        Servo id -> error byte of its status packet (alert bit and error number).
-    culprit : int or None
-        The servo that did not answer or answered badly.
-    """
+    """One try of a transaction: the ``value`` read (None for writes or failures), the SDK's
+    ``COMM_*`` ``result``, ``errors`` (servo id -> status error byte) and the ``culprit`` servo."""
 
     value: Any
     result: int
@@ -159,14 +126,12 @@ def ping(packets: Any, port: PortHandler, servo_id: int) -> Attempt:
 
 
 def _parameters(packet: list[int]) -> int:
-    """Parameter bytes of a status packet: its LENGTH counts instruction, error, parameters and
-    the two CRC bytes, so parameters = LENGTH - 4."""
+    """Parameter bytes of a status packet: LENGTH - instruction, error and CRC(2)."""
     return (packet[_PKT_LENGTH_L] | packet[_PKT_LENGTH_H] << 8) - 4
 
 
 def _instruction(servo_id: int, instruction: int, parameters: Sequence[int]) -> list[int]:
-    """A Protocol 2.0 instruction packet as the SDK's ``txRxPacket`` takes it (header and CRC
-    are filled in there): LENGTH = parameters + instruction + CRC(2)."""
+    """An instruction packet for the SDK's ``txRxPacket`` (which fills in header and CRC)."""
     packet = [0] * (_PKT_PARAMETER0 + len(parameters) + 2)
     packet[_PKT_ID] = servo_id
     packet[_PKT_LENGTH_L] = (len(parameters) + 3) & 0xFF
@@ -177,13 +142,8 @@ def _instruction(servo_id: int, instruction: int, parameters: Sequence[int]) -> 
 
 
 def read(packets: Any, port: PortHandler, register: Register | Block, servo_id: int) -> Attempt:
-    """READ ``register`` of one servo.
-
-    As the SDK's ``readTxRx``, but a status packet whose parameters are not exactly the
-    register's size is corrupt: the SDK takes any packet from the servo's id, so a reply that
-    arrived late for an earlier instruction (a slow host, a servo answering after the timeout)
-    would otherwise be read as this register's value.
-    """
+    """READ ``register`` of one servo; a reply not of the register's size is corrupt (a late
+    reply to an earlier instruction, which the SDK's ``readTxRx`` would take as this one's)."""
     address = [register.address & 0xFF, register.address >> 8]
     size = [register.size & 0xFF, register.size >> 8]
     packet = _instruction(servo_id, INST_READ, address + size)
@@ -201,11 +161,8 @@ def read(packets: Any, port: PortHandler, register: Register | Block, servo_id: 
 def write(
     packets: Any, port: PortHandler, register: Register | Block, servo_id: int, data: list[int]
 ) -> Attempt:
-    """WRITE encoded ``data`` to ``register`` of one servo and take its status packet.
-
-    A status packet with parameters is a late reply to an earlier read, not this write's: it is
-    corrupt (see :func:`read`), and the write is tried again (writing twice is harmless).
-    """
+    """WRITE encoded ``data`` to ``register`` of one servo; a reply with parameters is a late
+    one to a read, so corrupt (the write is retried: writing twice is harmless)."""
     address = [register.address & 0xFF, register.address >> 8]
     packet = _instruction(servo_id, INST_WRITE, address + list(data[: register.size]))
     reply, result, error = packets.txRxPacket(port, packet)
@@ -244,11 +201,7 @@ def sync_read(
 def fast_sync_read(
     packets: Any, port: PortHandler, register: Register | Block, ids: Sequence[int]
 ) -> Attempt:
-    """FAST SYNC READ: one instruction, ONE combined status packet; value is id -> int.
-
-    The reply carries, per servo in request order, ``error, id, data, crc``; the packet's
-    own CRC (checked by the SDK) covers all of it.
-    """
+    """FAST SYNC READ: ONE status packet of ``error, id, data, crc`` per servo; id -> int."""
     result = packets.syncReadTx(port, register.address, register.size, list(ids), len(ids), True)
     if result != COMM_SUCCESS:
         return Attempt(None, result, {})
@@ -274,12 +227,7 @@ def fast_sync_read(
 
 
 def _first_silent(partial: list[int], size: int, ids: Sequence[int]) -> int | None:
-    """The servo whose part is missing from a Fast Sync Read reply cut short (None: not cut).
-
-    Each servo appends ``error, id, data, crc`` in turn; a silent servo sends nothing and the
-    ones after it have nothing to follow, so the reply stops where the silent one's part begins.
-    """
-    # complete parts = (bytes received - header, id, length, instruction) // part size
+    """The servo whose part is missing from a Fast Sync Read reply cut short (None: not cut)."""
     complete = max(0, len(partial) - _PKT_PARAMETER0) // (size + 4)
     return ids[complete] if complete < len(ids) else None
 

@@ -4,23 +4,18 @@ Format (UTF-8 text, one line each, ``version`` 1)::
 
     {"format": "limbctl-orientations", "version": 1, "rig": ..., "created": ..., ...}|5e0c81a2
     0.01,12.5,-3.25,0.99,0.0,0.02,0.1|c3a0f1d4
-    ...
 
-Every line is ``payload|crc`` where ``crc`` is the CRC-32 (8 hex digits) of the payload,
-*chained*: ``crc_i = crc32(payload_i, crc_{i-1})`` with ``crc_0 = crc32(header)``. An edited,
-deleted or reordered record therefore breaks the chain at that line. Records are the columns
-``t_s, pan_deg, tilt_deg, w, x, y, z`` written with ``repr`` (floats round-trip exactly).
-The header may hold ``calibration`` (:meth:`calib.profile.Calibration.to_dict`: the zero ticks,
-directions and hard limits the joint angles were read under); a model trained on the recording
-carries it on, and teleop refuses a rig whose calibration differs. Files written before this
-field existed have none (still version 1: the field is optional).
+Every line is ``payload|crc``, ``crc`` the *chained* CRC-32 (8 hex digits)
+``crc_i = crc32(payload_i, crc_{i-1})``, ``crc_0 = crc32(header)``, so an edited, deleted or
+reordered record breaks the chain at that line. Records are the :data:`COLUMNS` written with
+``repr`` (exact round trip). The header may hold ``calibration``
+(:meth:`calib.profile.Calibration.to_dict`), which a trained model carries on and teleop checks;
+older files have none.
 
-Crash safety: each record reaches the operating system in one ``write`` as soon as it is
-appended (a killed process loses nothing already appended), and the file is ``fsync``-ed at
-least every ``sync_interval_s`` (0.25 s) by a background thread, so a power cut loses at most
-the last half second. The loader drops a torn last line (no newline: the writer died
-mid-line) and says so in :attr:`Dataset.dropped_tail`; anything wrong before the last line
-is refused with a :class:`~limbctl.errors.FileFormatError` naming file and line.
+Each record reaches the OS in one ``write`` when appended and a background thread fsyncs at least
+every :data:`SYNC_INTERVAL_S`. The loader drops a torn last line (:attr:`Dataset.dropped_tail`)
+and refuses anything wrong before it with a :class:`~limbctl.errors.FileFormatError` naming file
+and line.
 """
 
 from __future__ import annotations
@@ -57,11 +52,7 @@ MAGIC = ('{"format": "' + FORMAT_NAME + '"').encode()
 
 @dataclass(frozen=True)
 class DatasetHeader:
-    """The first line of a dataset file.
-
-    ``calibration`` is the rig's calibration the samples were read under, or None in a file
-    written before datasets recorded it.
-    """
+    """The first line of a dataset file (``calibration`` None in files from before it)."""
 
     rig: str
     created: str
@@ -78,6 +69,7 @@ class Dataset:
     Attributes
     ----------
     header : DatasetHeader
+        The first line.
     t : ndarray, shape (N,)
         Sample times in seconds from the start of the recording.
     pan_deg, tilt_deg : ndarray, shape (N,)
@@ -87,6 +79,7 @@ class Dataset:
     dropped_tail : str or None
         Why the last line was dropped (a torn write), or None if the file ended cleanly.
     path : str
+        Where it was read from.
     """
 
     header: DatasetHeader
@@ -126,7 +119,7 @@ def check_writable(path: str | os.PathLike[str], min_free_bytes: int = MIN_FREE_
     Raises
     ------
     ConfigError
-        If the file exists, its directory is missing or not writable, or the disk has fewer
+        If the file exists, its directory is missing or not writable, or the disk has less
         than ``min_free_bytes`` free.
     """
     path = Path(path)
@@ -162,17 +155,13 @@ class DatasetWriter:
     meta : dict, optional
         Extra JSON-serialisable header fields (e.g. sample rate, region name).
     calibration : Calibration, optional
-        The rig's calibration (``profile.calibration``); recorded so a model trained on the
-        file can be checked against the rig it drives. ``limbctl record`` always gives it.
+        The rig's calibration (``profile.calibration``), so a model trained on the file can
+        be checked against the rig it drives.
     sync_interval_s : float
         Longest time an appended record waits for ``fsync``.
     min_free_bytes : int
         Free disk space required up front.
 
-    Examples
-    --------
-    >>> with DatasetWriter("teach.limb", rig="sim") as out:          # doctest: +SKIP
-    ...     out.append(t_s, pan, tilt)
     """
 
     def __init__(
@@ -358,23 +347,13 @@ def _parse_header(path: Path, raw: bytes) -> tuple[DatasetHeader, int]:
             calibration = calibration_from_dict(data["calibration"], "header")
         except ProfileError as exc:
             raise FileFormatError(path, f"line 1: {str(exc).removeprefix('header: ')}") from None
-    header = DatasetHeader(
-        rig=str(data.get("rig")),
-        created=str(data.get("created")),
-        columns=columns,
-        version=version,
-        meta=dict(data.get("meta") or {}),
-        calibration=calibration,
-    )
-    return header, crc
+    meta = dict(data.get("meta") or {})
+    rig, created = str(data.get("rig")), str(data.get("created"))
+    return DatasetHeader(rig, created, columns, version, meta, calibration), crc
 
 
 def is_dataset_file(path: str | os.PathLike[str]) -> bool:
-    """Whether the file at ``path`` begins as a dataset does (its first bytes only).
-
-    A damaged dataset whose header survived still answers True, so its loader can name the
-    real problem; False for a missing or unreadable file.
-    """
+    """Whether the file at ``path`` begins as a dataset does (False if missing or unreadable)."""
     try:
         with open(path, "rb") as handle:
             return handle.read(len(MAGIC)) == MAGIC
@@ -383,12 +362,7 @@ def is_dataset_file(path: str | os.PathLike[str]) -> bool:
 
 
 def load_dataset(path: str | os.PathLike[str]) -> Dataset:
-    """Read a dataset, verifying every line.
-
-    Returns
-    -------
-    Dataset
-        With ``dropped_tail`` set if a torn last line was dropped.
+    """Read a dataset, verifying every line (``dropped_tail`` set if a torn last line was dropped).
 
     Raises
     ------

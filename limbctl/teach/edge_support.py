@@ -1,21 +1,12 @@
 """Whether the taught samples support the edge the region will learn: the recorder's check.
 
-The teaching guide (:mod:`limbctl.teach.guide`) judges coverage from the samples alone: the edge
-traced, the middle crossed. The edge learned from them (:class:`limbctl.region.TaughtRegion`)
-may still stand past them where the samples never reach (a bay or notch they surround, a sparse
-stretch); its fit holds the region there to the evidence (:mod:`limbctl.region.edge_hold`:
-containment over coverage, so the region stops short of where the edge may run) and names such
-stretches (:attr:`~limbctl.region.TaughtRegion.unsupported_edge`). Once the guide would say
-READY TO TRAIN, :class:`EdgeSupport` fits the region to the samples so far and the guide
-withholds READY and names the stretch ("held at the evidence; trace the edge near pan P,
-tilt T") while one is left.
-
-The fit takes one to two seconds of a core on a minute's teaching and would hold the recorder's
-interpreter, so it runs in a worker process of its own (one, kept for the whole recording: its
-import and kernel load are paid once), at most every CHECK_EVERY_S, and only once the warm-up
-has put the training's kernels in the cache (a compile would take the worker minutes on a first
-run; until then the guide says READY from coverage alone, and ``limbctl train`` lists what is
-left, as before). :meth:`EdgeSupport.check_now` checks every sample once more at the end.
+The edge learned from the samples (:class:`limbctl.region.TaughtRegion`) may stand past them
+where they never reach (a bay they surround, a sparse stretch); its fit names such stretches
+(:attr:`~limbctl.region.TaughtRegion.unsupported_edge`). Once the guide would say READY TO TRAIN,
+:class:`EdgeSupport` fits the region to the samples so far and the guide withholds READY while a
+stretch is left. The fit (1-2 s of a core) runs in one worker process kept for the recording, at
+most every CHECK_EVERY_S and only once the warm-up has cached the training's kernels;
+:meth:`EdgeSupport.check_now` checks every sample once more at the end.
 """
 
 from __future__ import annotations
@@ -77,10 +68,8 @@ def unsupported_stretches(d: np.ndarray) -> tuple[EdgeStretch, ...]:
 
 
 class EdgeSupport:
-    """Checks, in a worker process, whether the samples so far support the learned edge.
-
-    Use as a context manager (the worker is stopped on exit). :attr:`stretches` is None until a
-    check has finished, then the stretches its samples left unsupported.
+    """Checks, in a worker process, whether the samples so far support the learned edge; a
+    context manager. :attr:`stretches` is None until a check has finished.
 
     Parameters
     ----------

@@ -1,50 +1,26 @@
 """Guided teaching: from the samples so far, how closed the edge is, how covered the inside is,
 where the gaps are, and when the region is complete enough to train.
 
-The protocol a teacher follows (and the simulator's hand, ``style: trace``): trace the whole edge
-once, slowly, then wander through the middle. The guide measures both from the samples alone (it
-does not know the region), in a flat picture of the taught directions:
+The teacher traces the whole edge once, slowly, then wanders through the middle. The guide
+measures both from the samples alone, in a flat picture: each limb direction ``d`` is drawn at
+``rho (cos phi, sin phi)`` (deg), the azimuthal equidistant projection about a centre ``c``
+(``rho`` the angle to ``c``, ``phi`` the azimuth in :func:`~limbctl.geometry.quat.tangent_frame`);
+the region is assumed star-shaped about ``c``.
 
-*Picture.* Every sample's limb direction ``d`` is drawn at ``x = rho (cos phi, sin phi)`` (deg):
-the azimuthal equidistant projection about a centre direction ``c`` (``rho`` = angle between
-``d`` and ``c``, ``phi`` = azimuth about ``c`` in the tangent frame of
-:func:`limbctl.geometry.quat.tangent_frame`). Distances from ``c`` are true angles; the taught
-region is assumed star-shaped about ``c`` (every ray from the centre leaves it once).
-
-*Outline.* The turn about ``c`` is cut into :data:`SECTORS` equal sectors; the outermost sample of
-each non-empty sector is an outline point. ``r_out(phi)``, the outline, is the periodic linear
-interpolation of the outline points' ``rho`` against their ``phi``. The centre is found by
-fitting a circle to the outline points (Kasa's algebraic fit: minimise
-``sum (|x_k|^2 + D x_k + E y_k + F)^2``, centre ``-(D, E) / 2``) and recomputing,
-:data:`CENTRE_ROUNDS` times from the samples' mean direction: a circle traced in part gives its
-own centre whatever part is missing.
-
-*Edge closed.* A sample is *on the edge* when it lies in the outline's band, ``rho >= r_out(phi)
-- EDGE_BAND_DEG``, and the limb moved slowly there (at most EDGE_MAX_SPEED_DEG_S over
-SPEED_WINDOW_S: an edge is traced slowly, strokes through the middle are fast). The turn is cut
-into :data:`EDGE_BINS` fine bins; a bin is *closed* when it holds an on-edge sample and the outline
-at its middle reaches at least NOTCH_RATIO of the way to the samples' convex hull (between strokes
-the samples' outline is a deep notch, not an edge). ``edge_closed`` = closed bins / EDGE_BINS. A
-traced edge closes every bin (1.0); strokes that poke out to the edge close a few; a circle traced
-but for a 90 deg stretch gives 0.75. Runs of open bins are the *edge gaps*, located by their ends
-and middle on the outline (pan/tilt deg) and sized as a share of the turn.
-
-*Inside covered.* The inside is the set of picture points with ``rho <= r_out(phi) -
-EDGE_BAND_DEG`` (the region less its edge band), on a grid of :data:`CELL_DEG` cells (a cell is
-inside when its centre is); a cell is covered when a sample lies in it. ``inside_covered`` =
-covered inside cells / inside cells. Uncovered inside cells joined by their sides are the *inside
-gaps*, sized as a share of the inside cells and located by their middle (pan/tilt deg).
-
-*Holes.* A gap of more than HOLE_MIN_S between two samples (the recorder missed them) next to
-the edge may hide a stretch of it: its bins count as open until a later sample traces them
-(:mod:`limbctl.teach.holes`); the line then asks to re-trace the edge there.
-
-*Ready to train* when ``edge_closed >= READY_EDGE_CLOSED``, ``inside_covered >=
-READY_INSIDE_COVERED`` and no hole's stretch of edge is open: the whole edge is traced and
-strokes have crossed the middle.
-
-*Phase*: ``start`` (too few samples to say), ``edge`` (the edge is not closed yet: trace it),
-``middle`` (closed; wander through the middle), ``ready``.
+- *Outline* ``r_out(phi)``: the outermost sample of each of :data:`SECTORS` sectors, interpolated
+  periodically. The centre is refit :data:`CENTRE_ROUNDS` times, from the mean direction, as the
+  centre of Kasa's algebraic circle fit to the outline points (a part-traced circle gives its own
+  centre).
+- *Edge closed*: the share of :data:`EDGE_BINS` bins holding an on-edge sample (``rho >= r_out -
+  EDGE_BAND_DEG``, moving at most EDGE_MAX_SPEED_DEG_S) where the outline reaches NOTCH_RATIO of
+  the way to the samples' convex hull. Runs of open bins are the edge gaps (ends and middle in
+  pan/tilt deg). Bins a hole of the recording hides stay open until re-traced
+  (:mod:`limbctl.teach.holes`).
+- *Inside covered*: the share of :data:`CELL_DEG` grid cells inside ``r_out - EDGE_BAND_DEG``
+  holding a sample; uncovered cells joined by their sides are the inside gaps.
+- *Ready* when ``edge_closed >= READY_EDGE_CLOSED``, ``inside_covered >= READY_INSIDE_COVERED``
+  and no hole's stretch of edge is open. *Phase*: ``start`` (too few samples), ``edge`` (trace
+  it), ``middle`` (wander through the middle), ``ready``.
 """
 
 from __future__ import annotations
@@ -107,16 +83,8 @@ PHASES = {
 
 @dataclass(frozen=True)
 class EdgeGap:
-    """A stretch of the outline no sample has traced.
-
-    Attributes
-    ----------
-    fraction : float
-        Its share of the turn about the centre, in (0, 1].
-    start_deg, middle_deg, end_deg : tuple of float
-        (pan_deg, tilt_deg) of its two ends and its middle on the outline, counter-clockwise
-        about the centre.
-    """
+    """A stretch of the outline no sample has traced: its share of the turn about the centre
+    (``fraction``) and the (pan_deg, tilt_deg) of its ends and middle, counter-clockwise."""
 
     fraction: float
     start_deg: tuple[float, float]
@@ -126,15 +94,8 @@ class EdgeGap:
 
 @dataclass(frozen=True)
 class InsideGap:
-    """Uncovered inside cells joined by their sides.
-
-    Attributes
-    ----------
-    fraction : float
-        Its share of the inside cells, in (0, 1].
-    middle_deg : tuple of float
-        (pan_deg, tilt_deg) of its cells' mean picture position.
-    """
+    """Uncovered inside cells joined by their sides: their share of the inside cells
+    (``fraction``) and the (pan_deg, tilt_deg) of their mean picture position."""
 
     fraction: float
     middle_deg: tuple[float, float]
@@ -147,6 +108,7 @@ class Guidance:
     Attributes
     ----------
     samples : int
+        Samples assessed.
     phase : str
         One of :data:`PHASES`.
     edge_closed : float
@@ -162,11 +124,10 @@ class Guidance:
     spread_deg : float
         Largest angle between a sample and the samples' mean direction.
     holes : tuple of Hole
-        Gaps of more than HOLE_MIN_S between samples: those hiding an open stretch of edge
-        first, then the longest (at most MAX_HOLES).
+        The recording's holes (:func:`limbctl.teach.holes.find_holes`).
     unsupported : tuple of EdgeStretch
-        Stretches of edge the region learned from these samples would bridge
-        (:mod:`limbctl.teach.edge_support`), farthest first: READY is withheld while any is left.
+        Stretches of edge the learned region would bridge (:mod:`limbctl.teach.edge_support`),
+        farthest first: READY is withheld while any is left.
     checking : bool
         Ready by coverage, but the edge's support is still being checked.
     """
@@ -248,8 +209,7 @@ def _project(d: np.ndarray, centre: np.ndarray) -> tuple[np.ndarray, np.ndarray]
 
 
 def _unproject(x: np.ndarray, y: np.ndarray, centre: np.ndarray) -> np.ndarray:
-    """Directions (M, 3) of picture points x, y (M,) deg:
-    d = cos(rho) c + sin(rho) (cos(phi) u + sin(phi) v)."""
+    """Directions (M, 3) of picture points x, y (M,) deg."""
     u, v = tangent_frame(centre)
     rho = np.radians(np.hypot(x, y))
     phi = np.arctan2(y, x)
@@ -412,12 +372,7 @@ def assess_directions(t_s: np.ndarray, d: np.ndarray) -> Guidance:
     in_band = rho >= _outline_at(phi, outline_phi, outline_rho) - EDGE_BAND_DEG
     on_edge = slow & in_band
     holes, unseen = find_holes(
-        t_s,
-        rho,
-        phi,
-        in_band,
-        on_edge,
-        EDGE_BINS,
+        *(t_s, rho, phi, in_band, on_edge, EDGE_BINS),
         outline_at=lambda p: _outline_at(p, outline_phi, outline_rho),
         pan_tilt_deg=lambda x, y: _pan_tilt_deg(x, y, centre),
     )
@@ -426,18 +381,8 @@ def assess_directions(t_s: np.ndarray, d: np.ndarray) -> Guidance:
     edge_done = edge_closed >= READY_EDGE_CLOSED and not any(h.open for h in holes)
     ready = edge_done and inside_covered >= READY_INSIDE_COVERED
     phase = "ready" if ready else ("middle" if edge_done else "edge")
-    return Guidance(
-        n,
-        phase,
-        edge_closed,
-        inside_covered,
-        edge_gaps,
-        inside_gaps,
-        ready,
-        centre_deg,
-        spread,
-        holes,
-    )
+    fields = (edge_closed, inside_covered, edge_gaps, inside_gaps, ready, centre_deg, spread)
+    return Guidance(n, phase, *fields, holes)
 
 
 def assess(t_s: np.ndarray, pan_rad: np.ndarray, tilt_rad: np.ndarray) -> Guidance:
@@ -448,11 +393,8 @@ def assess(t_s: np.ndarray, pan_rad: np.ndarray, tilt_rad: np.ndarray) -> Guidan
 
 
 class Guide:
-    """Collects samples as they are recorded and assesses them on demand.
-
-    ``add`` is O(1) (growing buffers, doubled when full); ``assess`` costs milliseconds on ten
-    thousand samples (docs/teaching.md), so a 100 Hz recorder may call it once a second.
-    """
+    """Collects samples as they are recorded (O(1) each) and assesses them on demand
+    (milliseconds for ten thousand samples)."""
 
     def __init__(self, capacity: int = 4096, support: EdgeSupport | None = None) -> None:
         self._t = np.empty(max(int(capacity), 1))
@@ -477,9 +419,8 @@ class Guide:
     def assess(self, final: bool = False) -> Guidance:
         """The guide's figures for every sample added so far.
 
-        With a ``support`` check, READY is withheld while the samples leave a stretch of the
-        learned edge unsupported, or (while recording) until a check has answered; ``final``
-        checks every sample and waits for the answer (the end of a recording).
+        With a ``support`` check, READY is withheld while a stretch of the learned edge is
+        unsupported or (unless ``final``, which checks and waits) no check has answered yet.
         """
         d = self._d[: self.samples]
         guidance = assess_directions(self._t[: self.samples], d)

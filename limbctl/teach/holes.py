@@ -1,23 +1,12 @@
 """Holes in a teaching: stretches of time with no sample, and the stretch of edge one may hide.
 
-A recorder can miss a few tenths of a second of samples (a busy machine stalls the process that
-answers for the servos, or the recorder itself; docs/decisions/twist.md, "The recorder's holes")
-and catch up at once, so the sample count looks normal. A hole while the person traces the edge
-leaves a stretch of edge that was never seen; a fit digs a notch there. The guide
-(:mod:`limbctl.teach.guide`) finds such holes from the samples' times alone:
-
-*Hole.* Two consecutive samples more than :data:`HOLE_MIN_S` apart.
-
-*At the edge.* In the guide's picture (azimuth ``phi`` about the centre, distance ``rho``), a
-hole is at the edge when the sample before it or the one after it lies in the outline's band
-(``rho >= r_out(phi) - EDGE_BAND_DEG``, as for edge closure). The stretch of edge it may hide
-runs between the two samples' azimuths, the shorter way round: the guide's fine edge bins
-strictly between the bins of the two samples (the samples' own bins were seen).
-
-*Re-traced.* A bin of that stretch is taught again when a sample taken after the hole lies on
-the edge in it (slow and in the band, as for edge closure). Until every bin of the stretch is,
-the hole is *open*: the guide counts those bins as open edge, asks to re-trace the edge at the
-stretch's middle and does not say ready to train.
+A busy machine can stall the recorder for a few tenths of a second (docs/decisions/twist.md,
+"The recorder's holes"); a hole while the edge is traced leaves a stretch never seen, where a fit
+digs a notch. A *hole* is two consecutive samples more than :data:`HOLE_MIN_S` apart. It is *at
+the edge* when either sample lies in the guide's outline band; the stretch it may hide is the
+guide's edge bins strictly between the two samples' azimuths, the shorter way round. It stays
+*open* until an on-edge sample after it lies in every bin of that stretch: until then the guide
+counts those bins open and asks to re-trace the edge there.
 """
 
 from __future__ import annotations
@@ -28,11 +17,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-#: A gap between two samples longer than this (s) is a hole. The guide counts a sample toward the
-#: edge when the limb moved at most 25 deg/s (guide.EDGE_MAX_SPEED_DEG_S); in 0.2 s a trace at
-#: that pace passes 5 deg of edge, about the shortest stretch whose loss cost the fit share of the
-#: region (cuts of 0.1-0.2 s, 2-4 deg of a traced edge, cost nothing; 0.3 s, ~5 deg, cost 4-7 %;
-#: docs/decisions/twist.md). A recorder at 100-125 Hz on an idle machine leaves gaps under 0.1 s.
+#: A gap between two samples longer than this (s) is a hole: at the edge pace of 25 deg/s
+#: (guide.EDGE_MAX_SPEED_DEG_S) 0.2 s pass 5 deg of edge, about the shortest lost stretch that
+#: cost the fit share of the region (docs/decisions/twist.md); an idle recorder's gaps are < 0.1 s.
 HOLE_MIN_S = 0.2
 #: Holes listed in a result, longest first.
 MAX_HOLES = 5
@@ -51,8 +38,7 @@ class Hole:
     at_edge : bool
         The sample before or after it lies in the outline's band (module docstring).
     edge_deg : tuple of float or None
-        (pan_deg, tilt_deg) of the middle of the stretch of edge it may hide, on the outline;
-        None when it hides none (not at the edge, or its samples' azimuths share a bin).
+        (pan_deg, tilt_deg) of the middle of the stretch of edge it may hide; None for none.
     fraction : float
         That stretch's share of the turn about the centre.
     open_fraction : float
@@ -100,9 +86,8 @@ def sample_gaps(t_s: np.ndarray, min_s: float = HOLE_MIN_S) -> np.ndarray:
 
 
 def hole_bins(phi_before: float, phi_after: float, bins: int) -> np.ndarray:
-    """The fine edge bins (indices into ``bins`` equal bins of the turn, bin b covering
-    ``[-pi + b w, -pi + (b + 1) w)``) strictly between the bins of two azimuths (rad), the
-    shorter way round; empty when they share a bin or are neighbours."""
+    """The edge bins (of ``bins``, bin b covering ``[-pi + b w, -pi + (b + 1) w)``) strictly
+    between the bins of two azimuths (rad), the shorter way round."""
     width = 2.0 * math.pi / bins
     b0 = int((phi_before + math.pi) // width) % bins
     b1 = int((phi_after + math.pi) // width) % bins
@@ -121,10 +106,8 @@ def open_bins(
     stretch: np.ndarray,
     bins: int,
 ) -> np.ndarray:
-    """The bins of ``stretch`` (S,) that no on-edge sample taken after ``after_s`` lies in.
-
-    ``t_s``, ``phi`` (rad) and ``on_edge`` (bool) are the samples' (N,), as the guide has them.
-    """
+    """The bins of ``stretch`` (S,) that no on-edge sample taken after ``after_s`` lies in;
+    ``t_s``, ``phi`` (rad) and ``on_edge`` (bool) are the samples' (N,)."""
     later = on_edge & (t_s > after_s)
     width = 2.0 * math.pi / bins
     seen = np.zeros(bins, dtype=bool)

@@ -1,18 +1,10 @@
-"""Teach by hand: torque off, sample both joints at a fixed rate, append every sample to disk.
+"""Teach by hand: torque off, sample every joint at a fixed rate, append every sample to disk.
 
-The recorder never buffers: each sample is handed to :class:`limbctl.teach.dataset.DatasetWriter`
-as it is read (one ``write`` per record, fsync at least every 0.25 s), so Ctrl-C, SIGTERM or
-a kill -9 lose nothing already read, and a power cut at most the last half second.
-
-While recording, the teaching guide (:mod:`limbctl.teach.guide`) assesses the samples once every
-GUIDE_EVERY_S: one updating line says the phase (trace the edge, then wander the middle), how much
-of the edge is closed and of the inside covered, the largest gap (pan/tilt deg) and when the
-region is ready to train. Each assessment is also handed to ``on_guidance`` (a live view).
-On a three-servo rig the twist guide (:mod:`limbctl.teach.twist_guide`) says, on the same line
-and at the same pace, where the twist is still untaught; its assessments go to ``on_twist``.
-A hole in the recording (no sample for more than HOLE_MIN_S, :mod:`limbctl.teach.holes`) next
-to the edge keeps that stretch of edge open in the guide until it is traced again; the summary
-lists each hole with where the limb was before and after it.
+Each sample goes to :class:`limbctl.teach.dataset.DatasetWriter` as it is read (no buffering).
+Every GUIDE_EVERY_S the teaching guide (:mod:`limbctl.teach.guide`) and, on a three-servo rig,
+the twist guide (:mod:`limbctl.teach.twist_guide`) assess the samples for one updating line and
+for ``on_guidance`` / ``on_twist`` (a live view); the summary lists the recording's holes
+(:mod:`limbctl.teach.holes`).
 """
 
 from __future__ import annotations
@@ -45,12 +37,9 @@ LOG_EVERY_S = 5.0
 #: its length: ten samples at 100 Hz; shorter runs are a dropped reply or two, only counted.
 DROPOUT_REPORT_S = 0.1
 #: The latency timer (ms) a recording on the embedded simulator assumes, so a reply is awaited
-#: 2 * 25 + 2 ms + bytes ~ 52 ms instead of ~6 ms (``open_rig``'s 2 ms for a pty). On a loaded
-#: machine the simulator's process runs in bursts 50-100 ms apart; a 6 ms wait let each late
-#: reply go and asked again, so a read failed until a burst happened to fall inside a wait, for
-#: 0.3-0.7 s (docs/decisions/twist.md, "The recorder's holes"). A recorder is no control loop:
-#: a late sample costs nothing, a missed one a stretch of edge. A servo truly off the bus then
-#: costs ~0.3 s a read (three tries and a ping of each servo); real servos keep the 16 ms default.
+#: ~52 ms instead of ~6 ms: a loaded machine runs the simulator in bursts 50-100 ms apart, and a
+#: recorder is no control loop (a late sample costs nothing, a missed one a stretch of edge;
+#: docs/decisions/twist.md, "The recorder's holes"). Real servos keep the 16 ms default.
 SIM_LATENCY_TIMER_MS = 25.0
 
 
@@ -167,133 +156,119 @@ def record(
     stop : threading.Event, optional
         Set by Ctrl-C/SIGTERM handlers or the Enter key to end the recording.
     progress : text stream, optional
-        Where the live progress line (time, samples, the guide's figures) is drawn: updated in
-        place on a terminal, a line every LOG_EVERY_S otherwise.
-    on_guidance : callable, optional
-        Called with each :class:`~limbctl.teach.guide.Guidance` (every GUIDE_EVERY_S and at the
-        end), in the recording thread: keep it quick.
-    on_twist : callable, optional
-        Called with each :class:`~limbctl.teach.twist_guide.TwistGuidance` of a three-servo rig,
-        with ``on_guidance``'s.
+        Where the progress line is drawn: in place on a terminal, every LOG_EVERY_S otherwise.
+    on_guidance, on_twist : callable, optional
+        Called in the recording thread (keep them quick) with each
+        :class:`~limbctl.teach.guide.Guidance` and (three servos)
+        :class:`~limbctl.teach.twist_guide.TwistGuidance`, every GUIDE_EVERY_S and at the end.
     """
     check_rate(rate_hz)
     with EdgeSupport() as support:
-        return _record(
-            limb, writer, rate_hz, duration_s, stop, progress, on_guidance, on_twist, support
-        )
+        stop = stop or threading.Event()
+        period = 1.0 / rate_hz
+        guide = Guide(support=support)
+        twist_guide = TwistGuide()
+        summary = RecordSummary()
+        limb.set_torque(False)
 
-
-def _record(
-    limb: Backdrivable,
-    writer: DatasetWriter,
-    rate_hz: float,
-    duration_s: float | None,
-    stop: threading.Event | None,
-    progress: IO[str] | None,
-    on_guidance: Callable[[Guidance], None] | None,
-    on_twist: Callable[[TwistGuidance], None] | None,
-    support: EdgeSupport,
-) -> RecordSummary:
-    """:func:`record`'s loop, with the guide's edge-support worker open."""
-    stop = stop or threading.Event()
-    period = 1.0 / rate_hz
-    guide = Guide(support=support)
-    twist_guide = TwistGuide()
-    summary = RecordSummary()
-    limb.set_torque(False)
-
-    on_terminal = progress is not None and progress.isatty()
-    draw_every = GUIDE_EVERY_S if on_terminal else LOG_EVERY_S
-    start = time.perf_counter()
-    next_tick = start
-    last_guide = last_draw = start
-    guidance = guide.assess()
-    twist: TwistGuidance | None = None
-    if progress is not None:
-        progress.write("torque off: move the limb by hand (Enter or Ctrl-C stops)\n")
-    failed_in_a_row = 0
-    silent_since, silent_servo = 0.0, None
-    while True:
-        now = time.perf_counter()
-        elapsed = now - start
-        if stop.is_set():
-            summary.ended_by = "stopped"
-            break
-        if duration_s is not None and elapsed >= duration_s:
-            summary.ended_by = "duration"
-            break
-        try:
-            pose = limb.read_pose()
-        except BusError as exc:
-            summary.failed_reads += 1
-            failed_in_a_row += 1
-            if failed_in_a_row == 1:
-                silent_since, silent_servo = elapsed, exc.servo_id
-            if failed_in_a_row >= MAX_FAILED_READS:
-                summary.ended_by = "bus failure"
-                summary.fault = f"{MAX_FAILED_READS} reads in a row failed, the last: {exc}"
+        on_terminal = progress is not None and progress.isatty()
+        draw_every = GUIDE_EVERY_S if on_terminal else LOG_EVERY_S
+        start = time.perf_counter()
+        next_tick = start
+        last_guide = last_draw = start
+        guidance = guide.assess()
+        twist: TwistGuidance | None = None
+        if progress is not None:
+            progress.write("torque off: move the limb by hand (Enter or Ctrl-C stops)\n")
+        failed_in_a_row = 0
+        silent_since, silent_servo = 0.0, None
+        while True:
+            now = time.perf_counter()
+            elapsed = now - start
+            if stop.is_set():
+                summary.ended_by = "stopped"
                 break
-        else:
-            if failed_in_a_row and elapsed - silent_since >= DROPOUT_REPORT_S:
-                who = f"servo {silent_servo}" if silent_servo is not None else "the bus"
-                dropout = (
-                    f"{who} silent {elapsed - silent_since:.3f} s from {silent_since:.1f} s "
-                    f"({failed_in_a_row} reads failed)"
-                )
-                summary.dropouts.append(dropout)
-                if progress is not None:
-                    progress.write(f"\n{dropout}; recording on\n")
-            failed_in_a_row = 0
-            pan, tilt = pose[0], pose[1]
-            # a three-servo rig's sample is its full orientation, twist included
-            full = None if len(pose) == 2 else pose_quat_scalar(*pose)
-            writer.append(elapsed, pan, tilt, full)
-            if full is not None:
-                twist_guide.add(full)
-            guide.add(elapsed, pan, tilt)
-            summary.samples += 1
-        if now - last_guide >= GUIDE_EVERY_S and (progress is not None or on_guidance):
-            last_guide = now
-            guidance = guide.assess()
-            if on_guidance is not None:
-                on_guidance(guidance)
-            if twist_guide.samples:
-                twist = twist_guide.assess()
-                if on_twist is not None:
-                    on_twist(twist)
-        if progress is not None and now - last_draw >= draw_every:
-            last_draw = now
-            _draw(progress, guidance, summary, elapsed, duration_s, on_terminal, twist)
-        # pace: a late sample is followed at once by the next, so the average rate holds;
-        # only after a long stall (a second behind) does the schedule restart from now
-        next_tick += period
-        delay = next_tick - time.perf_counter()
-        if delay > 0:
-            stop.wait(delay)
-        elif delay < -1.0:
-            next_tick = time.perf_counter()
+            if duration_s is not None and elapsed >= duration_s:
+                summary.ended_by = "duration"
+                break
+            try:
+                pose = limb.read_pose()
+            except BusError as exc:
+                summary.failed_reads += 1
+                failed_in_a_row += 1
+                if failed_in_a_row == 1:
+                    silent_since, silent_servo = elapsed, exc.servo_id
+                if failed_in_a_row >= MAX_FAILED_READS:
+                    summary.ended_by = "bus failure"
+                    summary.fault = f"{MAX_FAILED_READS} reads in a row failed, the last: {exc}"
+                    break
+            else:
+                if failed_in_a_row and elapsed - silent_since >= DROPOUT_REPORT_S:
+                    who = f"servo {silent_servo}" if silent_servo is not None else "the bus"
+                    dropout = (
+                        f"{who} silent {elapsed - silent_since:.3f} s from {silent_since:.1f} s "
+                        f"({failed_in_a_row} reads failed)"
+                    )
+                    summary.dropouts.append(dropout)
+                    if progress is not None:
+                        progress.write(f"\n{dropout}; recording on\n")
+                failed_in_a_row = 0
+                pan, tilt = pose[0], pose[1]
+                # a three-servo rig's sample is its full orientation, twist included
+                full = None if len(pose) == 2 else pose_quat_scalar(*pose)
+                writer.append(elapsed, pan, tilt, full)
+                if full is not None:
+                    twist_guide.add(full)
+                guide.add(elapsed, pan, tilt)
+                summary.samples += 1
+            if now - last_guide >= GUIDE_EVERY_S and (progress is not None or on_guidance):
+                last_guide = now
+                guidance = guide.assess()
+                if on_guidance is not None:
+                    on_guidance(guidance)
+                if twist_guide.samples:
+                    twist = twist_guide.assess()
+                    if on_twist is not None:
+                        on_twist(twist)
+            if progress is not None and now - last_draw >= draw_every:
+                last_draw = now
+                _draw(progress, guidance, summary, elapsed, duration_s, on_terminal, twist)
+            # pace: a late sample is followed at once by the next, so the average rate holds;
+            # only after a long stall (a second behind) does the schedule restart from now
+            next_tick += period
+            delay = next_tick - time.perf_counter()
+            if delay > 0:
+                stop.wait(delay)
+            elif delay < -1.0:
+                next_tick = time.perf_counter()
 
-    summary.elapsed_s = time.perf_counter() - start
-    summary.guidance = guide.assess(final=True)
-    summary.edge_checked = support.stretches is not None
-    summary.spread_deg = summary.guidance.spread_deg
-    if twist_guide.samples:  # the band's support, checked on every sample (twist_guide)
-        twist_guide.check_support()
-    twist = twist_guide.assess() if twist_guide.samples else None
-    if twist is not None and twist.cells:
-        summary.twist = twist
-    if on_guidance is not None:
-        on_guidance(summary.guidance)
-    if on_twist is not None and twist is not None:
-        on_twist(twist)
-    if progress is not None:
-        _draw(
-            progress, summary.guidance, summary, summary.elapsed_s, duration_s, on_terminal, twist
-        )
-        if on_terminal:
-            progress.write("\n")
-            progress.flush()
-    return summary
+        summary.elapsed_s = time.perf_counter() - start
+        summary.guidance = guide.assess(final=True)
+        summary.edge_checked = support.stretches is not None
+        summary.spread_deg = summary.guidance.spread_deg
+        if twist_guide.samples:  # the band's support, checked on every sample (twist_guide)
+            twist_guide.check_support()
+        twist = twist_guide.assess() if twist_guide.samples else None
+        if twist is not None and twist.cells:
+            summary.twist = twist
+        if on_guidance is not None:
+            on_guidance(summary.guidance)
+        if on_twist is not None and twist is not None:
+            on_twist(twist)
+        if progress is not None:
+            _draw(
+                progress,
+                summary.guidance,
+                summary,
+                summary.elapsed_s,
+                duration_s,
+                on_terminal,
+                twist,
+            )
+            if on_terminal:
+                progress.write("\n")
+                progress.flush()
+        return summary
 
 
 def _draw(
@@ -305,9 +280,8 @@ def _draw(
     on_terminal: bool,
     twist: TwistGuidance | None = None,
 ) -> None:
-    """One progress line: time, samples, failed reads and the guide's line, then on a
-    three-servo rig the twist guide's; on a terminal it replaces the previous one (carriage
-    return, erase to the end of the line)."""
+    """One progress line (time, samples, failed reads, the guides' lines); on a terminal it
+    replaces the previous one."""
     total = f"/{duration_s:.0f}" if duration_s else ""
     failed = f"  failed reads {summary.failed_reads}" if summary.failed_reads else ""
     words = guidance.line()

@@ -30,36 +30,29 @@ class TrainSummary:
     spread_deg : float
         Largest angle between a sample's limb direction and the samples' mean direction.
     boundary_pan_range_deg, boundary_tilt_range_deg : tuple of float
-        Extent of the learned region's boundary (from the model's own boundary points, where it
-        exposes them; otherwise of the samples the model contains).
+        Extent of the learned region (:func:`_region_extent`).
     contained_fraction : float
         Share of the training samples the trained model says are inside (should be ~1).
     nodes : int
         Number of node weights in the model.
     edge : str
-        Which edge a Rigid Map gate uses: ``smooth``, ``traced`` (learned, the data agreed with
-        it) or ``supported`` (through the taught samples); empty for other models.
+        Which edge a Rigid Map gate uses (:data:`EDGE_MEANING`); empty for other models.
     calibration_recorded : bool
-        Whether the dataset recorded the rig calibration it was made under (and the model now
-        carries it); teleop refuses a model without one.
+        Whether the dataset (and so the model) carries the rig calibration teleop requires.
     edge_refusals : tuple of str
         Why the gate refused the other edges it tried, one line each.
     twist_range_deg : tuple of float or None
-        A three-servo region's twist over its whole extent (the band's lowest and highest
-        limit, deg); None for a region without twist; ``(-180, 180)`` where the band is free.
+        A three-servo band's lowest and highest limit over the whole region (deg),
+        ``(-180, 180)`` where free; None without twist.
     outside_direction, outside_twist : int
-        The samples the model leaves out, by why: the direction outside the region, or (three
-        servos) the direction inside but the twist past the band's limits there.
+        Samples left out with the direction outside the region, or (three servos) inside but
+        the twist past the band's limits there.
     twist_excess_deg : tuple of float or None
-        How far past the band's limits the ``outside_twist`` samples lie: median and largest
-        (deg); None when there are none.
-    unsupported_edge : tuple of str
-        Stretches of the swing region's learned edge the taught samples do not reach, one
-        request to trace each, saying where the region is held at the evidence
-        (:mod:`limbctl.region.edge_hold`).
-    unsupported_twist : tuple of str
-        The stretches of the band's limits the teaching could not support, one request each
-        (:mod:`limbctl.region.twist_evidence`): the band is held short there.
+        Median and largest excess (deg) of the ``outside_twist`` samples; None when none.
+    unsupported_edge, unsupported_twist : tuple of str
+        One request each for the stretches of the learned edge
+        (:mod:`limbctl.region.edge_hold`) and of the band's limits
+        (:mod:`limbctl.region.twist_evidence`) the teaching does not support.
     """
 
     samples: int
@@ -159,15 +152,7 @@ def _range_deg(values: np.ndarray) -> tuple[float, float]:
 
 
 def summarize(model: Any, q: np.ndarray) -> TrainSummary:
-    """Describe a trained model and the samples it learned from.
-
-    Parameters
-    ----------
-    model : Envelope
-        A fitted model.
-    q : ndarray, shape (N, 4)
-        The training orientations.
-    """
+    """Describe a fitted model (an Envelope) and the training orientations ``q`` (N, 4)."""
     directions = limb_direction(q)
     pan, tilt = direction_to_pan_tilt(directions)
     mean = directions.mean(axis=0)
@@ -239,12 +224,9 @@ def twist_band(model: Any) -> Any:
 
 
 def holds_direction(model: Any) -> Callable[[np.ndarray], np.ndarray]:
-    """Which limb directions the model's region holds at some twist.
-
-    Returns a function of twist-free orientations (N, 4) -> (N,) bool. For a three-servo region
-    it asks the swing region alone: a direction whose band excludes twist 0 is still in the
-    region (asking ``contains`` of the twist-free orientation would leave it out). Train never
-    gates: the region's arcs answer where the model can.
+    """Which limb directions the model's region holds at some twist: twist-free orientations
+    (N, 4) -> (N,) bool. A three-servo region asks its swing region alone (a band excluding
+    twist 0 would leave a twist-free orientation out); the region's arcs answer where they can.
     """
     swing = getattr(getattr(model, "region", None), "swing", None)
     if twist_band(model) is not None and swing is not None:
@@ -259,12 +241,11 @@ def _region_extent(
     margin_deg: float = 20.0,
     step_deg: float = 0.5,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Joint angles (rad) of the grid points whose direction the region holds (``holds``, of
-    :func:`holds_direction`), on a ``step_deg`` pan/tilt grid spanning the samples' extent plus
-    ``margin_deg`` (what the learned region really covers).
+    """Joint angles (rad) of the points of a ``step_deg`` pan/tilt grid over the samples' extent
+    plus ``margin_deg`` whose direction the region ``holds`` (:func:`holds_direction`).
 
-    20 degrees of margin is well past any edge a model draws beyond its samples; with 0.5-degree
-    steps the extent is within half a degree of the model's.
+    20 deg of margin is well past any edge a model draws beyond its samples; 0.5 deg steps put
+    the extent within half a degree of the model's.
     """
     from limbctl.geometry.gimbal import pan_tilt_to_quat
 
@@ -301,7 +282,7 @@ def train(
     options: dict[str, Any] | None = None,
     progress: Callable[[str], None] | None = None,
 ) -> TrainSummary:
-    """Fit a model to a recorded dataset and save it next to nothing else (one file).
+    """Fit a model to a recorded dataset and save it (one file).
 
     Parameters
     ----------

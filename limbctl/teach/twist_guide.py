@@ -1,24 +1,15 @@
 """Where the twist range is still untaught, on a three-servo rig: in words and figures.
 
-The teaching protocol asks, along the edge and in the middle, to turn the limb both ways to its
-stop. The guide does not know where the stops are; it sees how far the twist has been turned at
-each place. The swing plane is cut into cells of CELL_DEG in pan and tilt; each cell keeps the
-least and the greatest twist taught there (twist from :func:`limbctl.geometry.twist.decompose`),
-each twist taken on the turn nearest the cell's first one, so a range across +-180 deg stays one
-range (170..190, not -180..180).
-A cell visited with at least MIN_CELL_SAMPLES samples counts as *turned* once its twist span
-reaches TURNED_FRACTION of the widest spans taught anywhere (their WIDE_QUANTILE): the band
-narrows as the limb rises on a shoulder, so "both ways to its stop" is judged against what
-the person showed is possible, not against a fixed angle. The line names the cell turned least,
-with its span against the wide one, and asks for the twist there. Every cell's range is also
-handed on (:attr:`TwistGuidance.places`), for the live page's picture of the band taught so far.
-
-Turned is not yet supported: the band learned from the teaching is held to what its stops
-support (:mod:`limbctl.region.twist_evidence`), and where they lie too far apart it is held
-short of the region. Once every place is turned, the guide learns the band from the samples so
-far (in a thread, every SUPPORT_EVERY_S; :meth:`TwistGuide.check_support` at once) and names the
-place and the stop it could not support ("turn the limb to its upper twist stop near pan P, tilt
-T"); :attr:`TwistGuidance.complete` only once that check found none.
+The teacher turns the limb both ways to its stop, along the edge and in the middle. The swing
+plane is cut into CELL_DEG cells of pan and tilt, each keeping the least and greatest twist taught
+there (each on the turn nearest the cell's first, so a range across +-180 deg stays one range). A
+cell with MIN_CELL_SAMPLES samples is *turned* once its span reaches TURNED_FRACTION of the
+widest spans anywhere (their WIDE_QUANTILE): the band narrows as the limb rises, so the stops are
+judged against what the person showed possible. The line asks for the twist at the cell turned
+least. Once every place is turned, the guide learns the band from the samples (in a thread every
+SUPPORT_EVERY_S, or :meth:`TwistGuide.check_support`) and names the stops its evidence
+(:mod:`limbctl.region.twist_evidence`) could not support; :attr:`TwistGuidance.complete` only
+once none is left.
 """
 
 from __future__ import annotations
@@ -140,8 +131,8 @@ class TwistGuidance:
         )
 
     def short(self) -> str:
-        """The line's figures and place in a few words, for the recorder's updating terminal
-        line (which must stay one screen line wide to be rewritten in place)."""
+        """The line's figures and place in a few words (the recorder's terminal line stays one
+        screen line wide to be rewritten in place)."""
         if self.cells == 0 or self.least is None:
             return "twist: turn both ways to the stops"
         head = f"twist {self.turned}/{self.cells} turned"
@@ -204,9 +195,8 @@ class TwistGuide:
         )
 
     def check_support(self) -> tuple[UnsupportedPlace, ...]:
-        """Learn the band from every sample so far and return the places it could not support
-        (module docstring); the next :meth:`assess` reports them. Blocks (a fraction of a second
-        for a minute's teaching)."""
+        """Learn the band from every sample so far and return the places it could not support;
+        the next :meth:`assess` reports them. Blocks (a fraction of a second)."""
         if self._checking is not None:
             self._checking.join()
         self._support = _unsupported(np.array(self._q))
@@ -219,10 +209,8 @@ class TwistGuide:
         if busy or now - self._checked_at < SUPPORT_EVERY_S:
             return
         self._checked_at = now
-        # Until the warm-up has put the three-servo training's kernels in the cache, a fit here
-        # would compile them in the recorder's own process, holding its interpreter for seconds
-        # and tearing holes in the recording; the check then waits for the end of the recording
-        # (check_support), as it does when kernels are compiled in memory.
+        # a fit here before the warm-up cached the three-servo kernels would compile them in the
+        # recorder's process for seconds, tearing holes in the recording: wait for its end
         if not jit.prepared(jit.stage("train", True)):
             return
         q = np.array(self._q)

@@ -1,18 +1,10 @@
 """Compile the training's and the gate's kernels ahead, in a low-priority background process.
 
-``limbctl record`` starts :func:`warming_in_background` as it begins: a teaching lasts tens of
-seconds, enough to compile every kernel the first ``limbctl train`` and ``limbctl teleop`` would
-otherwise compile while the person waits. At the lowest priority (:data:`NICENESS`) on one numba
-thread, it trains a Rigid Map on a synthetic teaching of the demo region (the three-servo one,
-with its twist band, for a three-servo rig) through :func:`limbctl.teach.train.train`, then asks
-the model what the gate asks: one command, a small batch (the park check) and a larger one (a
-start outside the region). The kernels land in the cache of :mod:`limbctl.geometry.jit` one by
-one; the first real train and teleop load them and compile whatever is not there yet. With no
-cache folder, or the rig's stages already prepared, no warm-up starts.
-
-``limbctl prepare`` (:func:`run_prepare`) runs the same :func:`warm_up` in the foreground for
-both rigs, a line per stage, at set-up: the README's install runs it, so the first train,
-teleop and library fit (``RigidMap().fit``, ``contains``, ``correct``) compile nothing.
+``limbctl record`` starts :func:`warming_in_background` as it begins (a teaching lasts tens of
+seconds): at the lowest priority on one numba thread, :func:`warm_up` trains a Rigid Map on a
+synthetic teaching of the rig's demo region and asks it what the gate asks, so the kernels land
+in the cache of :mod:`limbctl.geometry.jit` before the first train and teleop.
+``limbctl prepare`` (:func:`run_prepare`) runs the same in the foreground for both rigs.
 """
 
 from __future__ import annotations
@@ -42,8 +34,7 @@ TEACHING_S = 30.0
 #: Commands of the small batch asked of the model: the park check's 13 probes.
 SMALL_BATCH = 13
 #: Commands of the larger batch asked of the model: one more than a batch served command by
-#: command (``correct_kernels.SINGLE_ROWS``), as a start outside the region asks the approach's
-#: candidate poses; train itself no longer compiles that kernel (its summary asks the arcs).
+#: command (``correct_kernels.SINGLE_ROWS``), as a start outside the region asks.
 LARGE_BATCH = 65
 
 
@@ -60,9 +51,8 @@ def _demo_polygon(name: str = "demo_region.yaml") -> np.ndarray:
 
 
 def _write_teaching(path: Path, twist: bool = False) -> None:
-    """A synthetic teaching of the demo region (its edge traced, then the middle), as a dataset;
-    with ``twist``, full orientations of the three-servo demo region (uniform, along the edge and
-    at the twist stops), TEACHING_S at the same rate."""
+    """A synthetic teaching (TEACHING_S) of the demo region as a dataset: its edge traced, then
+    the middle; with ``twist``, full orientations of the three-servo demo region."""
     from limbctl.envelope.synthetic import PolygonRegion, traced_teaching
     from limbctl.envelope.synthetic_twist import ShoulderRegion
     from limbctl.geometry.gimbal import direction_to_pan_tilt
@@ -99,21 +89,21 @@ def warm_up(
     Parameters
     ----------
     twist : bool
-        Warm a three-servo rig's stages (``train-twist``, ``gate-twist``) instead of a
-        two-servo rig's (``train``, ``gate``).
+        Warm a three-servo rig's stages (``train-twist``, ``gate-twist``), not ``train``, ``gate``.
     wait : bool
-        When another warm-up holds the lock, wait for it to end and then do what it left
-        (``limbctl prepare``), instead of standing aside (the background warm-up).
+        When another warm-up holds the lock, wait for it and do what it left (``limbctl
+        prepare``) instead of standing aside.
     report : callable, optional
         Called as ``report(stage, event)`` with ``event`` one of :data:`START`, :data:`DONE`,
         :data:`READY` as each stage begins and ends (:data:`WAIT` when ``wait`` waits).
 
-    Returns whether it ran (False: no cache folder, or another warm-up holds the lock and
-    ``wait`` is False).
-
-    The train stage trains as ``limbctl train`` does and fits the model as a library user does
-    (``RigidMap(twist=...).fit`` of bare orientations); the gate stage asks the model what the
-    gate and a library user ask: ``contains`` and ``correct`` of one orientation and of batches.
+    Returns
+    -------
+    bool
+        Whether it ran (False: no cache folder, or another warm-up holds the lock and ``wait``
+        is False). The train stage trains as ``limbctl train`` and as a library user
+        (``RigidMap(twist=...).fit``); the gate stage asks ``contains`` and ``correct`` of one
+        orientation and of batches.
     """
     tell = report or (lambda stage, event: None)
     train_stage, gate_stage = jit.stage("train", twist), jit.stage("gate", twist)
@@ -140,14 +130,11 @@ def warm_up(
             jit.mark_prepared(train_stage)
             tell(train_stage, DONE)
             tell(gate_stage, START)
+            small, large = (np.ascontiguousarray(taught[:n]) for n in (SMALL_BATCH, LARGE_BATCH))
             for model in (load_model(model_path), library):
-                q = np.ascontiguousarray(taught[:SMALL_BATCH])
-                model.contains(q[0])
-                model.correct(q[0])
-                model.contains(q)
-                model.correct(q)
-                model.contains(np.ascontiguousarray(taught[:LARGE_BATCH]))
-                model.correct(np.ascontiguousarray(taught[:LARGE_BATCH]))
+                for q in (small[0], small, large):
+                    model.contains(q)
+                    model.correct(q)
             jit.mark_prepared(gate_stage)
             tell(gate_stage, DONE)
     return True
@@ -156,11 +143,8 @@ def warm_up(
 @contextlib.contextmanager
 def warming_in_background(twist: bool = False) -> Iterator[subprocess.Popen | None]:
     """Start the warm-up of a rig's stages (``twist``: a three-servo rig's) in its own
-    low-priority process, unless nothing needs it; yields it.
-
-    The process is left running on exit (it may still be compiling what the next train loads),
-    in its own session so that a Ctrl-C ending the recording does not end it too; its output is
-    discarded.
+    low-priority process, unless nothing needs it; yields it. It is left running on exit, in its
+    own session (a Ctrl-C ending the recording does not end it), its output discarded.
     """
     stages = (jit.stage("train", twist), jit.stage("gate", twist))
     if jit.cache_dir() is None or all(jit.prepared(stage) for stage in stages):

@@ -1,10 +1,6 @@
 """Drive a limb in from outside the region, and park it after a session, for any chain.
 
-:func:`drive` moves the limb at the user's speed along the shortest path on the chain's space
-to a start pose inside by the margin (:mod:`limbctl.teleop.margin`), every goal inside the hard
-limits, no joint step above the gate's, never further outside the region than where it began.
-:func:`park` drives a limb that ended a session on the region's edge that far inside, so the
-next start accepts the pose the servos hold. Angles in radians unless a name ends in ``_deg``.
+Angles in radians unless a name ends in ``_deg``.
 """
 
 from __future__ import annotations
@@ -20,20 +16,17 @@ from limbctl.errors import BusError
 from limbctl.teleop.gate import Outcome
 from limbctl.teleop.margin import START_MARGIN_DEG, SphereMargins
 
-#: How close (deg) the present pose must come to the approach's target before it starts: a
-#: holding servo sits within a couple of ticks (0.18 deg) of its goal; the start pose is then
-#: still inside by START_MARGIN_DEG - SETTLE_DEG = 0.15 deg.
+#: How close (deg) the limb must settle to the approach's target: a holding servo sits within
+#: two ticks (0.18 deg), leaving the start pose 0.15 deg inside.
 SETTLE_DEG = 0.2
-#: Longest wait (s) for the limb to reach the approach's target once the last goal is written:
-#: the servos' position loop settles in well under 0.5 s.
+#: Longest wait (s) to settle after the last goal: the position loop settles in under 0.5 s.
 SETTLE_TIMEOUT_S = 3.0
 #: Joint names, in chain order, as status and approach lines print them.
 JOINT_NAMES = ("pan", "tilt", "roll")
 
 
 class StartLimb(Protocol):
-    """What starting and parking need of a rig (see :class:`limbctl.servo.rig.Rig`); poses
-    are tuples of joint angles (rad), one a joint of the chain."""
+    """What starting and parking need of a rig; poses are joint angles (rad)."""
 
     joints: tuple[Any, ...]
 
@@ -48,8 +41,7 @@ class StartLimb(Protocol):
 
 @dataclass(frozen=True)
 class ParkOutcome:
-    """What :func:`park` did: ``moved`` by ``distance_deg`` to ``pose`` (rad, one angle a
-    joint), or why not."""
+    """What :func:`park` did: ``moved`` by ``distance_deg`` to ``pose`` (rad), or why not."""
 
     moved: bool
     pose: tuple[float, ...] | None
@@ -76,18 +68,14 @@ def drive(
     stream: IO[str] | None = None,
     poll_hz: float = 10.0,
 ) -> str:
-    """Drive the limb from ``start`` to ``target`` (rad) along a checked shortest path.
-
-    One goal each ``1 / rate_hz`` s, ``speed_deg_s / rate_hz`` of angle apart (great circle
-    or rotation, as ``margins`` measure it), then the limb is read with ``read`` at
-    ``poll_hz``, each read handed to ``settling``, until it is within :data:`SETTLE_DEG` of the
-    target and safe.
+    """Drive the limb from ``start`` to ``target`` (rad) at ``speed_deg_s`` along a checked
+    shortest path (inside the limits, joint steps within the gate's, never further outside),
+    then read it at ``poll_hz`` until within :data:`SETTLE_DEG` of the target.
 
     Returns
     -------
     str
-        Empty once the limb settled at the target, else why it stopped (torque is then still
-        on; the caller switches it off).
+        Empty once settled, else why it stopped (torque still on).
     """
     gate, m = margins.gate, margins
     step = math.radians(speed_deg_s) / rate_hz
@@ -121,8 +109,7 @@ def drive(
         here = m.point(pose)
         if pose == target:
             break
-        # a late cycle is not caught up: goals stay a period apart, so the limb never moves
-        # faster than the approach speed (a loaded machine makes it slower, never faster)
+        # a late cycle is not caught up: never faster than the approach speed
         stop.wait(1.0 / rate_hz)
     deadline = time.monotonic() + SETTLE_TIMEOUT_S
     while True:
@@ -142,13 +129,8 @@ def drive(
 def park(
     limb: StartLimb, margins: SphereMargins, rate_hz: float, stop: threading.Event | None = None
 ) -> ParkOutcome:
-    """After a clean session, move the limb inside by the margin if it rests nearer the edge.
-
-    The last pose the gate let through is rounded to ticks as the servos hold it; when that is
-    not inside the region and the hard limits by :data:`START_MARGIN_DEG`, the gate itself
-    drives the limb (slew-limited, corrected, checked) to the nearest pose that is, one goal
-    per ``1 / rate_hz`` s; when it is, it is written once more (the session's last write may
-    have failed). Bus errors end the park (reported in ``note``), never raise.
+    """After a clean session, drive the limb through the gate inside by the margin if the pose
+    the servos hold is nearer the edge (else write it once more); bus errors end it in ``note``.
     """
     stop = stop or threading.Event()
     gate, m = margins.gate, margins

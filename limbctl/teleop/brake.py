@@ -1,12 +1,8 @@
 """The brake rules: a wall lets its leader go before the servo's loop would brake it outward.
 
-The loop pulls toward its profile setpoint, which walks toward the region at RETURN_SPEED; a
-leader that gains on it is braked (torque away from the region while still outside). The snap
-watch (:mod:`limbctl.teleop.snap`) reads speed and torque about every millisecond while a wall
-is on and frees it (Goal Current 0) when the leader *outruns* the setpoint with no hand held
+The snap watch frees a wall when its leader *outruns* the walking setpoint with no hand held
 (:func:`outruns`) or its torque toward the region is about to fall under zero
-(:func:`brakes_soon`). The rules only ever take torque away; docs/haptic.md ("The brake
-rules") gives the figures.
+(:func:`brakes_soon`); docs/haptic.md ("The brake rules") gives the figures.
 """
 
 from __future__ import annotations
@@ -22,21 +18,16 @@ class BrakeLaw:
     Attributes
     ----------
     outrun_deg_s : float
-        1.0 deg/s, under one Present Velocity unit (1.37 deg/s): the first reading above the
-        setpoint's own units (10 units, 13.7 deg/s; the next reads 15.1) is an outrun, while a
-        leader the wall walks back itself (rippling up to 14.0 deg/s) keeps its wall.
+        1.0 deg/s, under one velocity unit: the first reading above the setpoint's speed is an
+        outrun, while a leader the wall walks back (ripple to 14.0 deg/s) keeps its wall.
     loose_nm : float
-        0.06 N m, the snap watch's HOLD: under it no hand is held against the wall, so freeing
-        the wall cannot let a hand throw the leader outward.
+        0.06 N m, the snap watch's HOLD: under it no hand is held against the wall.
     horizon_s : float
-        2 ms: a cut decided at a read lands within a millisecond over the bus, and the stepped
-        clock's grain is another; the torque must still point toward the region then.
+        2 ms: a cut lands within a millisecond, plus the stepped clock's grain.
     land_s : float
-        1 ms: a cut's write lands within it of its read; reads come 2-3 ms apart over the pty,
-        so the torque must stay toward the region for the gap since the last read plus this.
+        1 ms: a cut's write lands within it of its read (added to the gap since the last read).
     span_s : float
-        4 ms: the torque's rate is taken only from two reads this close (the watch's 1 ms, or
-        2-3 ms across a cycle's own work); an older read says nothing of the braking now.
+        4 ms: the torque's rate only from two reads this close.
     """
 
     outrun_deg_s: float = 1.0
@@ -47,9 +38,8 @@ class BrakeLaw:
 
 
 def outruns(toward_deg_s: float, walk_deg_s: float, torque_nm: float, law: BrakeLaw) -> bool:
-    """Whether a leader moving toward the region at ``toward_deg_s`` outruns a setpoint walking
-    at ``walk_deg_s`` (deg/s) with no hand held against the wall (``torque_nm``: the motor's
-    read torque toward the region, N m)."""
+    """Whether a leader moving in at ``toward_deg_s`` outruns a setpoint at ``walk_deg_s``
+    (deg/s) with no hand held (``torque_nm``: read torque toward the region, N m)."""
     return toward_deg_s > walk_deg_s + law.outrun_deg_s and torque_nm < law.loose_nm
 
 
@@ -61,11 +51,9 @@ def brakes_soon(
     seen: tuple[float, float] | None,
     law: BrakeLaw,
 ) -> bool:
-    """Whether the loop is about to brake a leader moving toward the region at
-    ``toward_deg_s`` (deg/s; over ``still_deg_s``): its torque toward the region ``torque_nm``
-    (N m, read at ``now_s``, s), carried on at its rate since ``seen`` (the torque and time of
-    the last read, None if none), falls under zero within HORIZON (or the gap since that read
-    plus LAND)."""
+    """Whether a leader moving in faster than ``still_deg_s`` (deg/s) has its torque toward the
+    region (``torque_nm``, N m at ``now_s``, s), extrapolated from ``seen`` (torque, time) of the
+    last read, under zero within HORIZON or the gap plus LAND."""
     if toward_deg_s <= still_deg_s:
         return False
     if torque_nm < 0.0:

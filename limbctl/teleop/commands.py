@@ -1,17 +1,8 @@
 """Parse one command (a JSON line or datagram) into a target orientation.
 
-One JSON object per line (README's input formats), with an optional numeric ``"t"`` (s) kept
-for replay; any other key is refused, so a typo never silently becomes a default:
-
-- ``{"pan": deg, "tilt": deg}`` (pan in [-180, 180], tilt in [-90, 90]), ``{"dir": [x, y, z]}``
-  (any positive length) or ``{"q": [w, x, y, z]}`` (unit; on two servos only its direction);
-- on a three-servo rig (``twist=True``) also ``"roll": deg`` with pan/tilt
-  (``q = Rz(pan) Ry(-tilt) Rx(roll)``) or ``"twist": deg`` with ``dir``
-  (``q = swing(d) * twist(tau)``), both in [-180, 180]; ``q`` keeps its twist; without them
-  the twist is 0. A two-servo rig refuses ``roll`` and ``twist`` with the reason.
-
-Anything else (NaN, inf, out of range, wrong type, malformed JSON, oversize line) raises
-:class:`~limbctl.errors.InvalidInputError` with the reason; callers count and drop it.
+Forms (README): ``{"pan": deg, "tilt": deg}``, ``{"dir": [x, y, z]}`` or ``{"q": [w, x, y, z]}``,
+an optional ``"t"`` (s); on a three-servo rig also ``"roll"`` with pan/tilt or ``"twist"`` with
+``dir`` (deg). Anything else raises :class:`~limbctl.errors.InvalidInputError` with the reason.
 """
 
 from __future__ import annotations
@@ -27,17 +18,13 @@ from limbctl.geometry.gimbal import pan_tilt_roll_to_quat, pan_tilt_to_direction
 from limbctl.geometry.quat import canonical, limb_direction, swing_from_direction
 from limbctl.geometry.twist import compose
 
-#: Longest accepted line or datagram, in bytes: a valid command with full float precision and a
-#: timestamp is under 200 bytes; the rest is room for whitespace, and longer input is refused.
+#: Longest accepted line or datagram (bytes): a full-precision command is under 200.
 MAX_LINE_BYTES = 1024
-#: Allowed deviation of a commanded quaternion's norm from 1: a unit quaternion written with 3
-#: decimals per component is off by at most sqrt(4) * 5e-4 = 1e-3.
+#: Allowed | |q| - 1 |: 3 decimals a component are off by at most sqrt(4) * 5e-4 = 1e-3.
 QUAT_NORM_TOLERANCE = 1e-3
-#: Shortest accepted ``dir`` vector: shorter ones are zero up to a sender's rounding and carry
-#: no direction.
+#: Shortest accepted ``dir``: shorter is zero up to rounding.
 MIN_DIRECTION_NORM = 1e-6
-#: Largest accepted component magnitude: far beyond any valid value (degrees <= 180, unit
-#: vectors), yet its square cannot overflow a float.
+#: Largest accepted component: far beyond any valid value, its square no overflow.
 MAX_COMPONENT = 1e6
 
 _FORMS = ("pan/tilt", "dir", "q")
@@ -53,8 +40,7 @@ class Command:
     Attributes
     ----------
     q : ndarray, shape (4,)
-        Target orientation (w >= 0): twist-free on a two-servo rig, the full orientation on a
-        three-servo rig.
+        Target orientation (w >= 0), twist-free on a two-servo rig.
     direction : ndarray, shape (3,)
         Unit limb direction of the target.
     t : float or None
@@ -95,8 +81,7 @@ def parse_command(line: str | bytes, twist: bool = False) -> Command:
     line : str or bytes
         One JSON object (trailing newline allowed).
     twist : bool
-        True on a three-servo rig: the target keeps its twist and ``roll``/``twist`` are
-        accepted (see the module docstring).
+        True on a three-servo rig: the target keeps its twist; ``roll``/``twist`` accepted.
 
     Raises
     ------
@@ -172,8 +157,7 @@ def _angle_deg(value: object, name: str, bound: float) -> float:
 def command_from_pose(
     pan_deg: object, tilt_deg: object, roll_deg: object, t: float | None = None
 ) -> Command:
-    """A full-orientation :class:`Command` of a three-servo rig from joint angles in degrees
-    (pan in [-180, 180], tilt in [-90, 90], roll in [-180, 180]), checked as a JSON line is.
+    """A three-servo :class:`Command` from joint angles (deg), checked as a JSON line is.
 
     Raises
     ------
@@ -202,12 +186,8 @@ def command_from_pan_tilt(pan_deg: object, tilt_deg: object, t: float | None = N
     InvalidInputError
         For a value that is not a finite number or lies outside its range.
     """
-    pan = _finite_number(pan_deg, "pan")
-    tilt = _finite_number(tilt_deg, "tilt")
-    if not -180.0 <= pan <= 180.0:
-        raise InvalidInputError(f"pan {pan} deg is outside [-180, 180]")
-    if not -90.0 <= tilt <= 90.0:
-        raise InvalidInputError(f"tilt {tilt} deg is outside [-90, 90]")
+    pan, tilt = _finite_number(pan_deg, "pan"), _finite_number(tilt_deg, "tilt")
+    pan, tilt = _angle_deg(pan, "pan", 180.0), _angle_deg(tilt, "tilt", 90.0)
     direction = pan_tilt_to_direction(math.radians(pan), math.radians(tilt))
     return Command(q=swing_from_direction(direction), direction=direction, t=t)
 

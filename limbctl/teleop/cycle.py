@@ -1,10 +1,4 @@
-"""What the control loop returns: one value per cycle and one summary per session (after ruckig).
-
-Each cycle of :class:`limbctl.teleop.loop.ControlLoop` returns a :class:`Cycle`: its state
-(running, finished, fault), the command it followed, the gate's result, the pose it read and
-whether it wrote one, and its timings. Telemetry, the status line and any observer (e.g. a live
-view) are fed from these values; the session's totals are a :class:`TeleopSummary`.
-"""
+"""What the control loop returns: a :class:`Cycle` a cycle, a :class:`TeleopSummary` a session."""
 
 from __future__ import annotations
 
@@ -25,15 +19,13 @@ from limbctl.geometry.twist import decompose_one
 from limbctl.servo.health import Dropout
 from limbctl.teleop.gate import GateResult
 
-#: Cycle and gate times kept for the summary's percentiles (the most recent ones): a session of
-#: hours must not grow without bound, and 100,000 cycles are over 8 minutes at 200 Hz.
+#: Latest cycle and gate times kept for the percentiles: over 8 minutes at 200 Hz, bounded.
 TIMING_WINDOW = 100_000
 #: Health notices kept for the summary: the latest ones; a flapping cable must not grow memory.
 NOTICE_WINDOW = 1000
 
 
-#: A command's roll is read within [-PI, PI] (rad), nearest the written roll: the joint's whole
-#: turn, without preferring either way round.
+#: A command's roll is read within [-PI, PI] (rad), nearest the written roll: a whole turn.
 PI = math.pi
 
 
@@ -72,11 +64,9 @@ def orientation_fields(
     Returns
     -------
     dict
-        ``cmd`` and ``out``: joint angles (deg), as many as the rig has joints (the command's
-        roll is the joint's for that orientation, nearest the written roll); ``cmd_q`` and
-        ``out_q``: the orientations (w, x, y, z); on a three-servo rig also ``cmd_twist`` and
-        ``out_twist``: the twist about the limb's rest axis (deg, swing-twist; not the roll).
-        A missing value is None.
+        ``cmd``/``out``: joint angles (deg); ``cmd_q``/``out_q``: orientations (w, x, y, z);
+        on three servos ``cmd_twist``/``out_twist``: twist about the rest axis (deg). None
+        where missing.
     """
     joints = 3 if pose is not None and len(pose) == 3 else 2
     cmd = None
@@ -102,8 +92,7 @@ def orientation_fields(
 def describe_orientation(
     joints_deg: list[float] | None, twist_deg: float | None, q: list[float] | None
 ) -> str:
-    """One orientation of :func:`orientation_fields` as text: its joint angles (deg), its
-    twist (deg, three servos) and its quaternion (w, x, y, z); ``none`` when there is none."""
+    """One orientation of :func:`orientation_fields` as text (``none`` when there is none)."""
     if joints_deg is None:
         return "none"
     names = ("pan", "tilt", "roll")
@@ -149,14 +138,11 @@ class Cycle:
     state : CycleState
         Whether the loop goes on after this cycle.
     complete : bool
-        The cycle read, gated and wrote (or held) to its end; only complete cycles are counted
-        and logged. A cycle that found ``stop`` set, the duration over, or met a fault is not.
+        The cycle ran to its end (only complete cycles are counted and logged).
     command_deg : tuple of float or None
-        The command being followed as (pan, tilt) in degrees; None before the first one.
+        The command being followed, (pan, tilt) in degrees.
     command_q : ndarray (4,) or None
-        The latest command's full orientation (w, x, y, z), twist included on a three-servo
-        rig; kept while a silent source is held; set on complete cycles, None before the first
-        command.
+        The latest command's full orientation (w, x, y, z), on complete cycles.
     result : GateResult or None
         The gate's answer; None when the cycle ended before the gate ran.
     present : tuple of float or None
@@ -166,18 +152,15 @@ class Cycle:
     timings : CycleTimings or None
         Set for complete cycles.
     ended_by : str
-        Why the loop ended (``end of input``, ``duration``, ``stopped``, ``fault``); empty while
-        running.
+        Why the loop ended; empty while running.
     fault : str
         The fault and the safe state it left, for a ``FAULT`` cycle.
     refused : int
         Input lines the source refused so far.
     notices : tuple of str
-        What the servos' health monitor said this cycle (a servo stopped answering, answered
-        again after a dropout of so long).
+        What the servos' health monitor said this cycle.
     refused_reasons : tuple of str
-        Why each line refused since the previous cycle was refused (at most
-        :data:`limbctl.teleop.refusals.MAX_RECENT`), oldest first.
+        Why each line refused since the previous cycle was refused, oldest first.
     """
 
     index: int

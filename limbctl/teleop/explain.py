@@ -1,12 +1,7 @@
 """The gate's outcome in words: what it did with the command and which way is blocked.
 
-:func:`explain` compares the pose the command asked for with the pose the gate let through and
-says, e.g., "at the edge: up is blocked, sliding left along it". A joint direction is *blocked*
-when the command lies beyond the written pose that way by more than :data:`BLOCKED_MIN_DEG`;
-given the directions a person pushes (a held key), only those are ever called blocked, and the
-way the limb slides is named apart. Every steering surface names directions alike, as seen from
-behind the limb (:data:`DIRECTION_NAMES`: left is +pan, toward +y), the terminal's keys and the
-page's plane and arrow keys.
+E.g. "at the edge: up is blocked, sliding left along it"; directions as seen from behind the
+limb (:data:`DIRECTION_NAMES`), alike on every steering surface.
 """
 
 from __future__ import annotations
@@ -16,17 +11,14 @@ from dataclasses import dataclass
 
 from limbctl.teleop.gate import GateResult, Outcome
 
-#: Directions as seen from behind the limb, which rests along +x: +pan turns it toward +y, to
-#: the left; +tilt raises it. The terminal's keys and the page (its plane is drawn from there
-#: too) both speak these words.
+#: Directions seen from behind the limb (at rest along +x): +pan turns it left (+y).
 DIRECTION_NAMES = {"+pan": "left", "-pan": "right", "+tilt": "up", "-tilt": "down"}
 #: The names the page uses (the same: its plane is seen from behind the limb).
 PLANE_NAMES = DIRECTION_NAMES
-#: How far (deg) the command must lie beyond the written pose along a joint for that way to be
-#: called blocked: well above the 0.01 deg the gate's correction may leave, well below one step.
+#: How far (deg) beyond the written pose a joint's command is blocked: above the gate's
+#: 0.01 deg tolerance, below one step.
 BLOCKED_MIN_DEG = 0.2
-#: Smallest move (deg) of the written pose between two cycles that counts as sliding: above the
-#: ~1e-12 rad round trip through joint angles, below one tick (0.088 deg).
+#: Smallest move (deg) between two cycles that counts as sliding: above rounding, below a tick.
 MOVING_MIN_DEG = 1e-3
 
 
@@ -51,14 +43,8 @@ def blocked_directions(
     written_deg: tuple[float, float],
     previous_deg: tuple[float, float] | None = None,
 ) -> tuple[str, ...]:
-    """Joint directions the command asks for but the limb does not go (pan first).
-
-    The gap ``c = commanded - written`` asks for a joint direction when it exceeds
-    :data:`BLOCKED_MIN_DEG` there. The last move ``m = written - previous`` (none without
-    ``previous``) goes that way in its share ``m_j sign(c_j) / |m|``. The direction is blocked
-    when that share is under half the command's share ``|c_j| / |c|``: a limb travelling toward
-    the command has equal shares, one sliding along an edge has none toward it.
-    """
+    """Joint directions the command asks for (gap over :data:`BLOCKED_MIN_DEG`) that the last
+    move goes under half as much as the command does (pan first)."""
     gap = [wanted - got for wanted, got in zip(commanded_deg, written_deg, strict=True)]
     move = [0.0, 0.0]
     if previous_deg is not None:
@@ -80,8 +66,7 @@ def pushed_short(
     written_deg: tuple[float, float],
     pushing: tuple[str, ...],
 ) -> tuple[str, ...]:
-    """Of the directions pushed (``"+tilt"``, ...), those the command lies beyond the written
-    pose by more than :data:`BLOCKED_MIN_DEG` (pan first)."""
+    """The ``pushing`` directions the command lies beyond by over :data:`BLOCKED_MIN_DEG`."""
     out = []
     for index, joint in enumerate(("pan", "tilt")):
         for sign in ("+", "-"):
@@ -119,8 +104,7 @@ def explain(
     names : dict
         Words for "+pan", "-pan", "+tilt", "-tilt".
     pushing : tuple of str or None
-        The directions a person pushes (a key held, e.g. ``("+tilt",)``): only those may be
-        called blocked. None: the command itself is what is asked (a point set by hand).
+        The directions a person pushes (e.g. ``("+tilt",)``): only those may be blocked.
     """
     if result is None:
         return Explanation("not running")

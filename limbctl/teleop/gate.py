@@ -1,22 +1,11 @@
 """The one place every commanded pose passes before it may become a goal position.
 
-One algorithm for every chain (:func:`limbctl.geometry.chains.chain_geometry`): limb directions
-on the sphere for two joints, orientations on SO(3) for three. Per command (the safety model,
-docs/architecture.md, states each step): ``correct`` onto the taught region; a slew limit of
-``max_step`` per cycle toward it, corrected again so a non-convex region is followed, never
-cut across (aimed along a route, :class:`~limbctl.teleop.route.Router`, where a concave wall
-holds the step); inverse kinematics (the pan kept at tilt +-90 deg, the roll unwrapped within
-its limits nearest the present roll); hard limits clamped and joint steps over
-``max_joint_step`` scaled down together (``SLEWED``); a final check that the pose is inside the
-limits and the region (within ``region_tolerance``), else the last safe pose is held.
-
-**The long way round (three joints).** The roll's hard limits lie inside (-180, 180) deg, so a
-short rotation crossing roll +-180 deg makes IK return the roll the other way round; the poses
-in between leave the slerp path, each is checked, and the gate holds rather than write one
-outside the region. With a twist band that does not cross +-180 deg (every region the region
-layer fits), the joints' path between two poses of the band stays in it.
-
-The outcome of a cycle is a value (:class:`Outcome`), not an exception (after ruckig).
+One algorithm for every chain (:func:`limbctl.geometry.chains.chain_geometry`); its stages
+(correct, slew, route, inverse kinematics, clamp, joint step, final check) are described in
+docs/architecture.md. The roll's limits lie inside (-180, 180) deg, so a rotation crossing roll
++-180 deg goes the long way round; each pose between is checked and the gate holds rather than
+leave the region (a fitted twist band never crosses +-180 deg, so its poses are joined inside
+it). Outcomes are values (:class:`Outcome`).
 """
 
 from __future__ import annotations
@@ -54,8 +43,7 @@ class Outcome(enum.Enum):
 
     @classmethod
     def strongest(cls, corrected: bool, clamped: bool, slewed: bool) -> Outcome:
-        """The outcome a cycle reports for what its stages did: CLAMPED > CORRECTED > SLEWED >
-        PASSED (HELD is decided before, by the final check)."""
+        """The strongest of what the stages did: CLAMPED > CORRECTED > SLEWED > PASSED."""
         if clamped:
             return cls.CLAMPED
         if corrected:
@@ -82,17 +70,13 @@ class GateLimits:
     Attributes
     ----------
     joint_min, joint_max : tuple of float, shape (J,)
-        Hard joint limits (rad) from the rig profile, in chain order (pan, tilt[, roll]);
-        J = 2 or 3 picks the chain's geometry.
+        Hard joint limits (rad) in chain order; J = 2 or 3 picks the chain.
     max_step : float
-        Largest move of the limb per cycle (rad): of direction with two joints, of rotation
-        (geodesic angle on SO(3)) with three.
+        Largest move of the limb per cycle (rad; direction or SO(3) geodesic).
     max_joint_step : float
-        Largest change of any joint per cycle (rad); guards the singularity where a small
-        move of the limb asks for a large pan swing.
+        Largest change of any joint per cycle (rad), for the singularity at tilt +-90 deg.
     region_tolerance : float
-        How far (rad, as ``max_step``) outside the learned region a written pose may be: the
-        round trip through joint angles moves a boundary point by ~1e-12 rad, never more.
+        How far (rad) outside the learned region a written pose may be.
     """
 
     joint_min: Pose
@@ -120,8 +104,7 @@ class GateLimits:
 
     @classmethod
     def for_profile(cls, profile: Any, max_step: float, max_joint_step: float) -> GateLimits:
-        """The limits of a rig profile's joints (``profile.joints``: ``(name, joint)`` pairs
-        with ``min_rad``/``max_rad``), with the given rates (rad per cycle)."""
+        """The limits of ``profile.joints`` with the given rates (rad per cycle)."""
         joints = [joint for _, joint in profile.joints]
         return cls(
             tuple(j.min_rad for j in joints),
@@ -138,16 +121,8 @@ class GateLimits:
 
 
 def written_tolerance_deg(ticks_per_turn: int = 4096, joints: int = 2) -> float:
-    """How far (deg) a goal that reached the servos may lie outside the model's region.
-
-    The gate's tolerance (``REGION_TOLERANCE_DEG``) plus the rounding of every joint to whole
-    ticks: half a tick ``h`` on each joint moves the limb direction by at most ``sqrt(2) h``
-    with two joints (``|dd|^2 = (cos(tilt) dpan)^2 + dtilt^2``), and turns the limb by at most
-    ``sqrt(5) h`` with three (the rotation vector ``e_p z + e_t y' + e_r d``: pan axis +z,
-    tilt axis y' horizontal and perpendicular to the limb d, roll axis d; y' is perpendicular
-    to both others and ``z . d = sin(tilt)``, so its length squared is at most
-    ``h^2 (3 + 2 |sin tilt|) <= 5 h^2``). 0.072 deg for two 4096-tick servos, 0.108 for three.
-    """
+    """How far (deg) a written goal may lie outside the region: the gate's tolerance plus
+    half a tick on each joint (``sqrt(2)`` or ``sqrt(5)`` half ticks, docs/safety.md)."""
     half_tick = 360.0 / ticks_per_turn / 2.0
     return REGION_TOLERANCE_DEG + chain_geometry(joints).rounding * half_tick
 
@@ -159,10 +134,9 @@ class GateResult:
     Attributes
     ----------
     pose : tuple of float, shape (J,)
-        The joint angles to write (rad), in chain order; the last safe pose when ``outcome``
-        is HELD.
+        The joint angles to write (rad); the last safe pose when HELD.
     outcome : Outcome
-        The strongest thing that happened (HELD > CLAMPED > CORRECTED > SLEWED > PASSED).
+        The strongest thing that happened.
     corrected, clamped, slewed : bool
         Each stage that changed the command.
     reason : str
@@ -183,10 +157,9 @@ class Gate:
     Parameters
     ----------
     envelope : RegionModel
-        The trained region (``contains``/``correct`` on single quaternions (4,)): over
-        directions for two joints, over full orientations for three.
+        The trained region (``contains``/``correct`` on quaternions (4,)).
     limits : GateLimits
-        Hard limits (their count picks the chain) and per-cycle step limits.
+        Hard and per-cycle limits.
     """
 
     def __init__(self, envelope: RegionModel, limits: GateLimits) -> None:
@@ -221,8 +194,7 @@ class Gate:
         Raises
         ------
         SafetyError
-            When the present pose is outside the region or the hard limits: the gate will not
-            drive the limb from there (move it inside by hand with torque off, then start again).
+            When the pose is outside the region or the hard limits.
         """
         if not self.is_safe(*pose):
             at = ", ".join(
@@ -306,15 +278,8 @@ class Gate:
     def _within_step(
         self, pose: tuple[float, ...], present: tuple[float, ...], here: Any
     ) -> tuple[float, ...] | None:
-        """``pose`` (rad, one per joint) brought back within ``max_step`` of ``here`` (the
-        chain's point of ``present``), or None when it cannot be.
-
-        A clamp moves the point along a joint limit, which can carry it farther from the last
-        safe point than the slew allows (a step that crosses tilt's limit on a slant). The joint
-        move is scaled back, joint' = joint0 + f (joint - joint0) with f = max_step / d, until
-        the distance d is within max_step: inside the joint box (both ends are), and over so
-        short a move d is near linear in f, so a round or two does it.
-        """
+        """A clamped ``pose`` (J,) (rad) scaled back toward ``present`` until within ``max_step``
+        of ``here`` (a clamp slides along a limit), or None."""
         chain, step = self.chain, self.limits.max_step
         for _ in range(CLAMP_SHRINK_ROUNDS):
             d = chain.distance(here, chain.point_at(pose))
@@ -325,8 +290,7 @@ class Gate:
         return pose if chain.distance(here, chain.point_at(pose)) <= step else None
 
     def _corrected_step(self, here: Any, aim: Any) -> Any:
-        """The point ``max_step`` from ``here`` toward ``aim`` (``aim`` when nearer), corrected
-        onto the region."""
+        """The point ``max_step`` from ``here`` toward ``aim``, corrected onto the region."""
         chain = self.chain
         return chain.point(
             self.envelope.correct(chain.quat(chain.toward(here, aim, self.limits.max_step)))

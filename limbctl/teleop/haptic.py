@@ -1,19 +1,14 @@
 """The leader feels the edge: a haptic wall on a leader of two or three joints, from the region.
 
-Each cycle the leader's pose is the command; ``d`` (deg) is how far it lies beyond the region
-(:func:`limbctl.teleop.haptic_push.beyond_deg`). Beyond DEADBAND the law (:class:`FeelLaw`) asks
-for tau = min(K (d - DEADBAND), CAP), shared over the joints along the joint-space step toward
-the corrected pose, with Goal Position LEAD (plus WALK_LEAD while the wall walks a released leader
-back) ahead of the leader and Profile Velocity RETURN_SPEED; :func:`lets_go` says when the wall
-is left off instead. The servo's position loop (mode 5) pushes toward Goal Position with at most
-Goal Current, and CAP is also each servo's Current Limit. docs/haptic.md gives the law in full,
-every figure and its passivity bound (b > K T / 2).
+Beyond DEADBAND the law (:class:`FeelLaw`) asks for tau = min(K (d - DEADBAND), CAP) along the
+joint-space step toward the corrected pose, d (deg) how far the leader is beyond the region;
+:func:`lets_go` says when the wall is left off. docs/haptic.md gives the law and every figure.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 from limbctl.errors import ConfigError
 from limbctl.servo.leader import LeaderMotor
@@ -32,54 +27,38 @@ class FeelLaw:
     Attributes
     ----------
     deadband_deg : float
-        0.4 deg: beyond the leader's tick (0.088 deg) and a hand's tremor, so a hand resting at
-        the edge is not buzzed; a released leader rests within it.
+        0.4 deg: past a tick and a hand's tremor, so a hand resting at the edge is not buzzed.
     gain_nm_per_deg : float
-        K = 0.2 N m/deg: K T / 2 = 0.029 N m s/rad at 200 Hz, under the simulated leader's
-        damping b = 0.05 (passive with margin 1.75); a 0.3 N m hand stops 1.9 deg past the edge.
+        K = 0.2 N m/deg: passive with margin 1.75 at 200 Hz on the simulated leader's damping.
     cap_nm : float
-        0.4 N m: stops a relaxed hand (0.3 N m) with room, a tenth of an XM430-W350's stall
-        torque, and a person overpowers it at once.
+        0.4 N m: stops a relaxed hand (0.3 N m); a person overpowers it at once.
     return_speed_deg_s : float
-        14 deg/s (10 Profile Velocity units, 13.7 deg/s): a released leader walks back under
-        30 deg/s, and the setpoint never reaches the goal within a cycle of the walk back (a
-        setpoint that stops brakes the leader outward; at 12 units it did).
+        14 deg/s (10 Profile Velocity units): the setpoint never stops within a cycle of the
+        walk back (at 12 units it braked the leader outward).
     lead_fraction : float
-        0.9: Goal Position leads the leader by the whole ticks nearest 0.9 of the loop's error
-        at the cap (``CAP / loop stiffness``, :attr:`LeaderMotor.loop_nm_per_deg`; two ticks on
-        the XM430-W350): the least lead that holds a hand, so a let go snaps the leader the
-        least. Deeper (beyond ``held_within_deg`` or K (d - DEADBAND) > CAP) the least whole
-        ticks of at least CAP / KP plus half a tick (three on the XM430), so the cap is given
-        wherever the leader sits in its tick.
+        0.9: Goal Position leads by the whole ticks nearest 0.9 of the loop's error at the cap,
+        the least lead that holds a hand; deeper, the least whole ticks giving the cap anywhere
+        in a tick.
     lead_deg : float or None
-        A fixed lead (deg) instead of the one from the loop's stiffness, half as much again
-        deeper (benchmarks sweep it); None (the default): from ``lead_fraction``.
+        A fixed lead (deg), half as much again deeper (benchmarks sweep it); None: from
+        ``lead_fraction``.
     held_within_deg : float
-        2 deg: the figure the wall must keep (issue 21: a hand stops within 2 deg of the edge);
-        beyond it the goal leads as a deeper leader's does and pushes it back within.
+        2 deg: a hand stops within 2 deg of the edge (issue 21); beyond, the deeper lead.
     outrun_slack_deg : float
-        0.1 deg: one reading tick (0.088 deg) rounded up. A leader that moved in since the last
-        read by more than RETURN_SPEED times the period plus this outran its setpoint, whose
-        loop would pull it back outward: the wall lets go.
+        0.1 deg: a reading tick rounded up; a leader moving in faster than RETURN_SPEED plus
+        this outran its setpoint: the wall lets go.
     outward_noise_nm : float
-        0.01 N m: two XM430-W350 current units (one is the reading's own rounding); a read
-        torque pulling away from the region by more lets the wall go. On real servos set it
-        above the measured current noise.
+        0.01 N m: two XM430-W350 current units; a torque pulling outward by more lets go.
     rearm_band_deg : float
-        0.05 deg: after a free cycle the wall comes on only beyond DEADBAND + this, so a leader
-        coasting in slower than a tick a cycle is not braked; with half a reading tick it stays
-        under the 0.5 deg rest the wall must keep.
+        0.05 deg: after a free cycle the wall comes on only beyond DEADBAND + this, so a
+        leader coasting in is not braked.
     walk_lead_ticks : int
-        2: extra lead while the wall walks its leader back (read moving in faster than
-        ``walk_speed_deg_s``, torque under ``walk_hold_nm``), covering a read tick, 2.5 ms of
-        write latency and a cycle 5 ms late at 13.7 deg/s, so the setpoint never stops ahead
-        of the next write. 0: never.
+        2: extra lead while the wall walks its leader back, covering a read tick, write latency
+        and a late cycle. 0: never.
     walk_speed_deg_s : float
-        1.5 deg/s, the snap watch's STILL (one Present Velocity unit, 1.37 deg/s, is still):
-        faster, the leader is walking in.
+        1.5 deg/s, the snap watch's STILL: faster, the leader is walking in.
     walk_hold_nm : float
-        0.06 N m, the snap watch's HOLD: a wall holding a hand pushes with more; walking a
-        released leader back takes 0.02-0.03 N m.
+        0.06 N m, the snap watch's HOLD: walking a released leader back takes 0.02-0.03 N m.
     """
 
     deadband_deg: float = 0.4
@@ -97,20 +76,8 @@ class FeelLaw:
     walk_hold_nm: float = 0.06
 
     def __post_init__(self) -> None:
-        names = (
-            "deadband_deg",
-            "gain_nm_per_deg",
-            "cap_nm",
-            "lead_fraction",
-            "outrun_slack_deg",
-            "held_within_deg",
-            "outward_noise_nm",
-            "rearm_band_deg",
-            "walk_lead_ticks",
-            "walk_speed_deg_s",
-            "walk_hold_nm",
-        )
-        for name in names:
+        checked_apart = ("return_speed_deg_s", "lead_deg")
+        for name in (f.name for f in fields(self) if f.name not in checked_apart):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0.0):
                 raise ConfigError(f"feel law {name} must be finite and >= 0, got {value!r}")
@@ -129,10 +96,7 @@ class FeelLaw:
         return min(self.gain_nm_per_deg * (distance_deg - self.deadband_deg), self.cap_nm)
 
     def lead_for_deg(self, distance_deg: float, motor: LeaderMotor) -> float:
-        """Goal Position's lead (deg) for a leader ``distance_deg`` beyond the edge, of
-        ``motor``'s model: ``lead_fraction`` of its loop's error at the cap, or, beyond
-        ``held_within_deg`` or where the wall's spring asks for more than the cap, the least
-        that gives the cap wherever the leader sits within its tick (see ``lead_fraction``)."""
+        """Goal Position's lead (deg) for a leader ``distance_deg`` beyond the edge."""
         cap_nm = motor.cap_nm(self.cap_nm)
         # beyond HELD_WITHIN, or K (d - DEADBAND) > CAP: deeper than a hand within the cap holds it
         deeper = self.gain_nm_per_deg * (distance_deg - self.deadband_deg) > cap_nm
@@ -160,8 +124,7 @@ class FeelLaw:
 def moved_in_deg(
     present: tuple[float, ...], previous: tuple[float, ...], step: tuple[float, ...]
 ) -> float:
-    """How far (deg) a leader moved toward its correction since the last read: its joint motion
-    projected on the joint-space line toward the corrected pose.
+    """How far (deg) a leader moved toward its correction since the last read.
 
     Parameters
     ----------
@@ -178,9 +141,7 @@ def moved_in_deg(
 
 
 def pulls_outward(law: FeelLaw, torque_nm: tuple[float, ...], step: tuple[float, ...]) -> bool:
-    """Whether the leader's motor, read at ``torque_nm`` (joint frame, N m per joint), pulls
-    away from the region by more than ``law.outward_noise_nm``: its torque's component along
-    ``step`` (toward the corrected pose, joint space; not all zero) below -NOISE."""
+    """Whether the read ``torque_nm`` (N m per joint) along ``step`` is below -NOISE."""
     return along_step(torque_nm, step) < -law.outward_noise_nm
 
 
@@ -197,10 +158,8 @@ def walks_back(
     torque_nm: tuple[float, ...] | None,
     velocity_deg_s: tuple[float, ...] | None,
 ) -> bool:
-    """Whether a wall that is on walks its leader back with no hand held against it: the
-    leader's read speed along ``step`` (toward the corrected pose, joint space; not all zero)
-    over ``law.walk_speed_deg_s``, its motors' torque along it under ``law.walk_hold_nm``
-    (joint frame, N m and deg/s; either None: not read, not walking)."""
+    """Whether the wall walks its leader back, no hand against it: speed (deg/s) along ``step``
+    over ``walk_speed_deg_s``, torque (N m) under ``walk_hold_nm`` (None: not read)."""
     if torque_nm is None or velocity_deg_s is None:
         return False
     return (
@@ -215,8 +174,7 @@ def goal_lead_rad(
     distance_deg: float,
     walking: bool,
 ) -> float:
-    """Goal Position's lead (rad) ahead of the leader: LEAD (:meth:`FeelLaw.lead_for_deg`),
-    and ``walk_lead_ticks`` more while the wall walks the leader back (``walking``)."""
+    """Goal Position's lead (rad), ``walk_lead_ticks`` more while ``walking``."""
     extra = law.walk_lead_ticks * TICK_DEG if walking else 0.0
     return math.radians(law.lead_for_deg(distance_deg, motor) + extra)
 
@@ -224,19 +182,13 @@ def goal_lead_rad(
 def lets_go(
     law: FeelLaw, distance_deg: float, moved_in_deg: float, period_s: float, engaged: bool
 ) -> bool:
-    """Whether a leader ``distance_deg`` beyond the edge, that moved ``moved_in_deg`` toward the
-    region in the ``period_s`` since the last read, is left free (docs/haptic.md, the law's
-    "but"). ``engaged``: the wall pushed in the cycle before."""
-    # faster toward the region than the setpoint (at most RETURN_SPEED): the loop would pull
-    # it back outward; at this pace within the deadband by the next read, its current
-    # still on inside: let go in both cases
+    """Whether a leader ``distance_deg`` beyond the edge, moved ``moved_in_deg`` inward in
+    ``period_s``, is left free (``engaged``: the wall pushed the cycle before)."""
+    # outran the setpoint (its loop would pull it outward), or inside the deadband next read
     outrun = moved_in_deg > law.return_speed_deg_s * period_s + law.outrun_slack_deg
     if outrun or distance_deg - moved_in_deg <= law.deadband_deg:
         return True
-    # the wall comes on with the setpoint where the leader is (LeaderSource._write): while
-    # the leader still moves toward the region the loop's damping would brake it outward; and
-    # it comes on only more than REARM beyond the deadband: a leader let go there coasts in
-    # slower than a tick a cycle, which the read cannot tell from standing still
+    # re-armed only still and beyond REARM: the loop's damping would brake a leader moving in
     near = distance_deg - law.deadband_deg <= law.rearm_band_deg
     return not engaged and (moved_in_deg > 0.0 or near)
 

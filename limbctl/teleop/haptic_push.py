@@ -1,13 +1,7 @@
 """A felt leader's push this cycle: the wall law of :mod:`limbctl.teleop.haptic` on its chain.
 
-The leader's pose (n = 2 or 3 joints) is the command ``q``, corrected to ``correct(q)``. On two
-joints ``d`` is the angle between their directions and the target the (pan, tilt) of
-``correct(q)``'s; on three, ``d`` is the rotation between them and the target ``correct(q)``'s
-(pan, tilt, roll), unwrapped as the gate does (:func:`beyond_deg`, :func:`corrected_pose`). The
-rest is the law's, on the joint-space step ``s = target - present`` (n,): the torque shared along
-it, Goal Position at most LEAD along it, the let-go rules on the motion and torque projected on
-it. Near the edge a rotation of ``d`` needs joint moves of about ``d``, so the wall's stiffness
-and passivity are the same on both chains (docs/haptic.md).
+``d`` is the angle (two joints) or rotation (three) from the leader's pose to its correction;
+the law acts on the joint-space step ``s = target - present`` (n,) (docs/haptic.md).
 """
 
 from __future__ import annotations
@@ -40,18 +34,15 @@ class Push:
     goal_current : int
         Goal Current units (0: no torque): the largest of ``joint_currents``.
     profile_velocity : int
-        Profile Velocity units (0 while free, where it is not written: the servo keeps the
-        wall's, and the wall always comes on from the present position).
+        Profile Velocity units (0 while free: not written).
     goal : tuple of float, (n,)
         Goal pose, one angle per joint of the chain (rad).
     torque_nm : float
-        The push's magnitude the currents allow (N m; the norm of the joints' torques): what
-        the hand feels at most, what the report and the page show.
+        The push's magnitude the currents allow (N m; the norm of the joints' torques).
     distance_deg : float
         How far the command lies beyond the region (deg).
     joint_currents : tuple of int, (n,)
-        Goal Current units per joint (:func:`shared_currents`);
-        empty: ``goal_current`` on every joint (a free push's 0).
+        Goal Current units per joint; empty: ``goal_current`` on every joint.
     """
 
     goal_current: int
@@ -69,15 +60,9 @@ class Push:
 def shared_currents(
     motor: LeaderMotor, torque_nm: float, step: tuple[float, ...]
 ) -> tuple[tuple[int, ...], float]:
-    """Goal Current per joint for a push of magnitude ``torque_nm`` (N m) along ``step`` (joint
-    space, toward the corrected pose; not all zero), and the magnitude those currents allow::
-
-        I_j = tau |s_j| / |s| / kt        (rounded down; |I| = tau / kt: the hand feels tau)
-
-    Each servo's loop pushes its joint toward its goal with at most its I_j, so the torque the
-    hand feels, the norm of the joints' torques, is at most ``torque_nm`` in any direction (the
-    same current on every joint would let a diagonal push reach sqrt(2) CAP). A joint the step
-    does not move gets none: the wall pushes along its normal and a hand slides along it freely.
+    """Goal Current per joint, ``I_j = tau |s_j| / |s| / kt`` rounded down, for a push of
+    ``torque_nm`` (N m) along ``step`` (rad; not all zero): the norm the hand feels is at most
+    tau in any direction.
 
     Returns
     -------
@@ -86,7 +71,6 @@ def shared_currents(
     magnitude_nm : float
         sqrt(sum_j torque_of(I_j)^2) (N m).
     """
-    # |s| = sqrt(sum_j s_j^2)
     norm = math.sqrt(sum(s * s for s in step))
     currents = tuple(motor.units_for(torque_nm * abs(s) / norm) for s in step)
     magnitude = math.sqrt(sum(motor.torque_of(c) ** 2 for c in currents))
@@ -94,16 +78,13 @@ def shared_currents(
 
 
 def held(present: Sequence[float], distance_deg: float = 0.0) -> Push:
-    """The push of a cycle that may not push (a held gate, a failed read of the follower, a
-    wall the snap watch let go): Goal Current 0, Profile Velocity 0, the goal where the leader
-    is (``present``, rad, one per joint), ``distance_deg`` beyond the region."""
+    """No push: currents 0, the goal at ``present`` (rad), ``distance_deg`` beyond the region."""
     return Push(0, 0, tuple(present), 0.0, distance_deg)
 
 
 def beyond_deg(q: np.ndarray, corrected: np.ndarray, joints: int) -> float:
-    """How far (deg) a command (4,) lies beyond its correction (4,) on a chain of ``joints``
-    joints; 0 when the same. Two: the angle between the limb's directions (a pan-tilt chain
-    sets no twist of its own); three: the rotation between the orientations."""
+    """How far (deg) a command (4,) lies beyond its correction (4,): the directions' angle on
+    two joints, the rotation on three."""
     if np.array_equal(q, corrected):
         return 0.0
     if joints == 3:
@@ -126,10 +107,8 @@ def corrected_pose(
     present: Sequence[float],
     limits: Sequence[tuple[float, float]] | None = None,
 ) -> tuple[float, ...]:
-    """Joint angles (rad) of the correction (4,) on the chain of ``present``'s length: (pan,
-    tilt) of its direction, or (pan, tilt, roll) with the pan kept at tilt +-90 deg and the
-    roll unwrapped within ``limits[2]`` (its joint's ``(lo, hi)``, rad; ``limits`` one entry per
-    joint, needed for three) nearest the leader's present roll (as the gate does)."""
+    """Joint angles (rad) of the correction (4,) on ``present``'s chain, unwrapped as the gate
+    does (three joints need ``limits``, one ``(lo, hi)`` (rad) per joint)."""
     if len(present) == 2:
         return tuple(float(v) for v in quat_to_pan_tilt(corrected))
     if limits is None:
@@ -138,8 +117,7 @@ def corrected_pose(
 
 
 def _length(step: Sequence[float]) -> float:
-    """|s| (rad): ``math.hypot`` on two joints, the root of the sum of squares on three (the
-    arithmetic each chain's law was measured with)."""
+    """|s| (rad), with the arithmetic each chain's law was measured with."""
     if len(step) == 2:
         return math.hypot(*step)
     return math.sqrt(sum(s * s for s in step))
@@ -164,29 +142,22 @@ def push_for(
     ----------
     law : FeelLaw
     motor : LeaderMotor
-        The leader's model (its current unit and torque constant).
     present : sequence of float, (n,)
-        The leader's pose (rad), n = 2 (pan, tilt) or 3 (pan, tilt, roll).
+        The leader's pose (rad).
     q, corrected : ndarray (4,)
-        The command (the leader's orientation) and the region's correction of it.
+        The command and the region's correction of it.
     previous : sequence of float, (n,), optional
-        The leader's pose a cycle before (rad); None on the first cycle (the law is then the
-        wall alone, without the let-go rules).
+        The pose a cycle before (rad); None: the wall alone, no let-go rules.
     period_s : float, optional
         Time since ``previous`` was read (s).
     engaged : bool, optional
-        Whether the wall pushed in the cycle before (with ``previous``).
+        Whether the wall pushed the cycle before.
     torque_nm : sequence of float, (n,), optional
-        The motors' torque as read with ``present`` (Present Current, joint frame, N m); a wall
-        whose read pulls away from the region lets go (:func:`~limbctl.teleop.haptic.
-        pulls_outward`). None: not read.
+        The motors' read torque (N m); None: not read.
     velocity_deg_s : sequence of float, (n,), optional
-        The motors' speed as read with ``present`` (Present Velocity, joint frame, deg/s):
-        with ``torque_nm``, whether an engaged wall walks the leader back (its goal then leads
-        by ``walk_lead_ticks`` more, :func:`~limbctl.teleop.haptic.walks_back`). None: LEAD.
+        The motors' read speed (deg/s); None: not read.
     limits : sequence of (float, float), (n,), optional
-        Each joint's hard limits ``(lo, hi)`` (rad); a three-joint chain's corrected roll is
-        unwrapped within its entry (:func:`corrected_pose`). Not used on two joints.
+        Each joint's hard limits (rad), for :func:`corrected_pose` on three joints.
     """
     distance = beyond_deg(q, corrected, len(present))
     tau = min(law.torque_nm(distance), motor.cap_nm(law.cap_nm))

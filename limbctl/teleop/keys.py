@@ -1,13 +1,8 @@
 """The keyboard's keys as a table, the guide printed from it, and steady motion while one is held.
 
-Every key the keyboard source knows is one :class:`KeyBinding` in :data:`KEYS`, by
-:class:`Action`: what it does, the bytes a terminal sends for it and the words of the guide. A
-new action (a roll key, say) is one more entry; the guide and the source's dispatch follow.
-
-A terminal reports no key releases, only a press and then, after its repeat delay, the same key
-again at its repeat rate. :class:`HeldKey` turns those events into a steady speed that the step
-sets, whatever the terminal's rates: one press moves one step, and a key held moves
-``step_deg * KEY_RATE_HZ`` degrees per second from its first press on.
+A new action is one more :class:`KeyBinding` in :data:`KEYS`; the guide and the source's
+dispatch follow. :class:`HeldKey` turns a terminal's presses and repeats into one step per press
+and ``step_deg * KEY_RATE_HZ`` deg/s while held, whatever the terminal's repeat rates.
 """
 
 from __future__ import annotations
@@ -47,10 +42,9 @@ class KeyBinding:
     does : str
         What the action does, in the guide's words.
     move : tuple of int
-        (pan, tilt) signs of a move, in steps; (0, 0) for actions that do not move. Left is
-        +pan: seen from behind the limb (which rests along +x), +y is to the left.
+        (pan, tilt) signs of a move, in steps (left is +pan, seen from behind the limb).
     roll : int
-        Sign of a roll step (a three-servo rig's turn about the limb's own axis); 0 otherwise.
+        Sign of a roll step (three-servo rigs); 0 otherwise.
     """
 
     action: Action
@@ -61,8 +55,7 @@ class KeyBinding:
     roll: int = 0
 
 
-#: Every key of the keyboard source, in the guide's order. Arrows come as ESC [ X, or ESC O X
-#: when the terminal is in application-cursor mode.
+#: Every key, in the guide's order (arrows as ESC [ X, or ESC O X in application-cursor mode).
 KEYS: dict[Action, KeyBinding] = {
     binding.action: binding
     for binding in (
@@ -89,25 +82,20 @@ SEQUENCES: dict[bytes, Action] = {seq: b.action for b in KEYS.values() for seq i
 
 #: The steps (deg) that +/- walk through: from creeping along an edge to crossing the region.
 STEPS_DEG = (0.5, 1.0, 2.0, 5.0, 10.0)
-#: The step a session starts with (deg): fine enough to creep up to an edge, coarse enough to
-#: cross 90 degrees in 45 presses.
+#: The first step (deg): creeps up to an edge, crosses 90 deg in 45 presses.
 DEFAULT_STEP_DEG = 2.0
-#: Steps per second while a key is held: 20 deg/s at the default step, a sixth of the gate's
-#: default 120 deg/s slew limit, so the limb keeps up and the speed is the one the step sets.
+#: Steps per second while a key is held: 20 deg/s at the default step, well under the gate's
+#: 120 deg/s slew limit, so the limb keeps up.
 KEY_RATE_HZ = 10.0
-#: Longest gap (s) between two events of one key that still counts as the key held down: above
-#: the slowest common auto-repeat interval (25 Hz X default: 40 ms; 12 Hz on some desktops: 83 ms).
+#: Longest gap (s) between events of a key held down: above the slowest common auto-repeat
+#: interval (83 ms).
 REPEAT_GAP_S = 0.15
-#: Longest gap (s) after which the same key still continues the same hold: above the longest
-#: common auto-repeat delay (660 ms, the X server's default), so the first repeat joins the press.
+#: Longest gap (s) still continuing a hold: above the X server's 660 ms auto-repeat delay.
 HOLD_GAP_S = 0.75
 
 
 def split_keys(pending: bytes) -> tuple[list[bytes], bytes]:
-    """Split terminal bytes into keys: ESC [ X and ESC O X are one key, other bytes one each.
-
-    Returns the keys and the bytes of an escape sequence not yet complete.
-    """
+    """Split terminal bytes into keys and the bytes of an escape sequence not yet complete."""
     keys: list[bytes] = []
     while pending:
         size = 3 if pending[:1] == b"\x1b" and pending[1:2] in (b"[", b"O", b"") else 1
@@ -138,13 +126,8 @@ def key_guide(step_deg: float) -> list[str]:
 
 
 class HeldKey:
-    """How far each key event moves: one step per press, a steady speed while a key is held.
-
-    A run is a series of events of one key, each within :data:`HOLD_GAP_S` of the one before.
-    An event more than :data:`REPEAT_GAP_S` after the previous one is a press (one step); a
-    closer one is the key held, and the run then owes ``speed * (t - run start)`` in all, with
-    ``speed = step * KEY_RATE_HZ``. A hold of T seconds therefore moves ``speed * T`` (at least
-    one step), at the terminal's repeat rate or any other.
+    """How far each key event moves: a step per press (a gap over :data:`REPEAT_GAP_S`); held,
+    ``step * KEY_RATE_HZ * (t - run start)`` in all over a run of events within ``HOLD_GAP_S``.
     """
 
     def __init__(self) -> None:

@@ -1,10 +1,7 @@
 """One teleop session from start to park, for any chain (:func:`run_session`).
 
-It starts from wherever the limb is (:mod:`limbctl.teleop.start`), opens the command source
-only once the limb is held inside (so a replayed stream paced by its ``"t"`` starts with the
-loop), runs the control loop (:func:`limbctl.teleop.loop.run`; torque goes off should the gate
-refuse the start pose as it begins), and after a clean end parks the limb inside by the margin.
-The outcome is one value, :class:`SessionResult`, with the lines a person should read.
+The command source opens only once the limb is held inside (a replay's ``"t"`` starts with the
+loop); a clean end parks the limb inside by the margin.
 """
 
 from __future__ import annotations
@@ -85,16 +82,14 @@ def run_session(
     gate : Gate
         The gate of the limb's chain, not yet started.
     open_source : callable
-        Called once the limb is held inside; returns the command source as a context manager
-        (a :class:`~limbctl.teleop.sources.CommandSource`), entered for the loop and left after.
+        Returns the command source as a context manager, once the limb is held inside.
     config, stop
         As for :func:`limbctl.teleop.loop.run`.
     telemetry_path : path, optional
-        Where each cycle is logged (JSON lines; see :class:`limbctl.teleop.report.Telemetry`).
+        Where each cycle is logged (JSON lines).
     starting : StartOptions
-        How to start from a limb outside (wait, approach).
     stream : text stream, optional
-        Where the start's messages and live "how far and which way" line go (e.g. stderr).
+        Where the start's messages go.
     status : text stream, optional
         The loop's status line (None: quiet).
     torque_was_on, publish

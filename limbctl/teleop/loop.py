@@ -1,16 +1,9 @@
 """The teleoperation control loop: fixed rate, one read and one gated write per cycle.
 
-Each cycle (default 200 Hz) reads every servo in ONE sync read and judges it
-(:class:`limbctl.servo.health.HealthMonitor`), takes the newest valid command, gates it
-(:class:`limbctl.teleop.gate.Gate`), writes only the gate's pose in ONE sync write, reports the
-cycle and paces to the next period. A silent source holds the last safe pose; a cycle whose
-read fails writes nothing. A silent servo is named, the others still read while it is probed,
-and its dropout reported with its length. The loop ends in the configured safe state (hold or
-torque-off) with a message naming the servo and cause on a lost servo, torque off, an alarm, a
-servo not following, or ``max_failed_cycles`` failed reads in a row (docs/safety.md).
-
-:meth:`ControlLoop.step` returns each cycle as a value (:class:`~limbctl.teleop.cycle.Cycle`);
-:func:`run` is a short loop over it, its outcome a :class:`~limbctl.teleop.cycle.TeleopSummary`.
+Each cycle reads every servo in one sync read (judged by
+:class:`limbctl.servo.health.HealthMonitor`), gates the newest valid command and writes only the
+gate's pose in one sync write; faults end in the configured safe state (docs/safety.md).
+:meth:`ControlLoop.step` returns each cycle as a :class:`~limbctl.teleop.cycle.Cycle`.
 """
 
 from __future__ import annotations
@@ -78,11 +71,9 @@ class LoopConfig:
     rate_hz : float
         Cycle rate (Hz).
     silence_s : float
-        After this long without a valid command the last one is dropped and the gate holds the
-        pose it reached (until then it keeps moving toward the last command).
+        After this long (s) without a valid command the gate holds the pose it reached.
     max_failed_cycles : int
-        Consecutive cycles whose read failed without naming a silent servo (corrupt or late
-        replies) before the safe state is entered.
+        Failed reads in a row, no silent servo named, before the safe state.
     read_attempts : int
         Tries of the cycle's read before the cycle holds.
     health : HealthLimits
@@ -94,21 +85,17 @@ class LoopConfig:
     max_backlog : int
         Most commands of a scripted stream waiting to be gated; older ones are skipped.
     on_cycle : callable (Cycle) -> None, optional
-        Called in the loop's thread with every cycle's value (e.g. to publish it to a live
-        view). It must return at once: hand the value on (a queue, a latest-value slot) rather
-        than doing work. An exception from it propagates out of :func:`run`, the rig left as
-        the last cycle wrote it.
+        Called in the loop's thread with every cycle; must return at once. Its exceptions
+        propagate out of :func:`run`.
     """
 
-    # 0.6 deg per cycle at the default 120 deg/s slew (smooth); reachable on real servos with
-    # the latency timer at 1 ms (README)
+    # 0.6 deg a cycle at 120 deg/s; real servos keep up with a 1 ms latency timer (README)
     rate_hz: float = 200.0
     # a person notices a stalled command stream after about half a second
     silence_s: float = 0.5
     # 100 ms at 200 Hz: a dropped reply or two is normal, 20 in a row is a broken bus
     max_failed_cycles: int = 20
-    # a second try rides through one lost reply (one in five lost becomes one in 25) for one
-    # more reply timeout (~6 ms on the simulator's pty, ~4 ms on a U2D2 at a 1 ms latency timer)
+    # a second try rides through one lost reply for one more reply timeout (~4-6 ms)
     read_attempts: int = 2
     health: HealthLimits = HealthLimits()
     safe_state: SafeState = SafeState.HOLD
@@ -174,11 +161,7 @@ class ControlLoop:
         self._started_at = self._last_command_at = 0.0
 
     def start(self) -> Cycle:
-        """Read the start pose and start the gate from it; the value is RUNNING or FAULT.
-
-        The start pose is read with the same patience as a running loop (a dropped reply is
-        normal): up to ``max_failed_cycles`` attempts.
-        """
+        """Read the start pose (``max_failed_cycles`` tries), start the gate: RUNNING or FAULT."""
         present: tuple[float, float] | None = None
         for _ in range(self.config.max_failed_cycles):
             try:
@@ -208,9 +191,8 @@ class ControlLoop:
         if config.duration_s is not None and t >= config.duration_s:
             return self._end("duration", t)
 
-        # 1. present pose and the servos' health; a failed read means a servo may not be
-        # listening: this cycle holds (a sync write that one servo misses would leave a pose the
-        # gate never produced); a silent servo is probed now and then, not waited for each cycle
+        # 1. present pose and health; a failed read holds this cycle (a sync write one servo
+        # misses would leave a pose the gate never produced)
         present: tuple[float, float] | None = None
         silent = False
         try:
@@ -304,15 +286,12 @@ class ControlLoop:
         )
 
     def pace(self) -> None:
-        """Wait for the next slot (a felt leader watches its snap meanwhile); a late loop
-        catches up (``limbctl.teleop.pacing``)."""
+        """Wait for the next slot (a felt leader watches its snap meanwhile)."""
         self.pacer.wait(self.stop, getattr(self.source, "idle_work", None))
         self.summary.overruns = self.pacer.overruns
 
     def finish(self) -> TeleopSummary:
-        """The session's summary: its elapsed time, dropouts (one still going on with its
-        length so far) and refusal reasons set; a session whose every line was refused ends with
-        exit code 2 (unless a fault set 3)."""
+        """The session's summary; exit code 2 when every line was refused (unless a fault)."""
         summary = self.summary
         if self._started_at:
             summary.elapsed_s = time.perf_counter() - self._started_at
@@ -333,9 +312,7 @@ class ControlLoop:
         self.summary.notices.extend(f"{t:.3f} s: {dropout.describe()}" for dropout in ongoing)
 
     def _take_command(self, now: float) -> None:
-        """Realtime sources (UDP, keyboard, leader) keep only the newest command; scripted
-        streams (stdin, replay) are gated in order, one per cycle, with a bounded backlog so a
-        fast producer cannot build up latency."""
+        """Take the newest command (realtime sources) or the next of a bounded backlog."""
         commands = self.source.poll()
         if commands:
             self.summary.commands += len(commands)
@@ -354,13 +331,17 @@ class ControlLoop:
     def _end(self, ended_by: str, t: float) -> Cycle:
         self.source.release()  # a felt leader stops pushing when the session ends
         self.summary.ended_by = ended_by
+        return self._last_cycle(CycleState.FINISHED, t, ended_by)
+
+    def _last_cycle(self, state: CycleState, t: float, ended_by: str, **more) -> Cycle:
         return Cycle(
             index=self.summary.cycles,
             t=t,
-            state=CycleState.FINISHED,
+            state=state,
             command_deg=self._target_deg,
             ended_by=ended_by,
             refused=self.summary.rejected,
+            **more,
         )
 
     def _fault(
@@ -373,16 +354,8 @@ class ControlLoop:
         self.source.release()  # a felt leader stops pushing before anything else
         _enter_safe_state(self.limb, self.config, self.summary, cause, self._torque_seen)
         self._note_dropouts(t)
-        return Cycle(
-            index=self.summary.cycles,
-            t=t,
-            state=CycleState.FAULT,
-            command_deg=self._target_deg,
-            result=result,
-            ended_by="fault",
-            fault=self.summary.fault,
-            refused=self.summary.rejected,
-            notices=notices,
+        return self._last_cycle(
+            CycleState.FAULT, t, "fault", result=result, fault=self.summary.fault, notices=notices
         )
 
 
@@ -454,8 +427,7 @@ def _enter_safe_state(
     cause: BusError,
     torque_seen: dict[int, bool],
 ) -> None:
-    """Apply ``config.safe_state`` and say what it left; ``torque_seen``: each servo's Torque
-    Enable as last read (to tell torque switched off from torque already off)."""
+    """Apply ``config.safe_state`` and say what it left (``torque_seen``: last read per id)."""
     named = cause.servo_id is not None and not str(cause).startswith(f"servo {cause.servo_id}")
     where = f"servo {cause.servo_id}: " if named else ""
     summary.fault = f"{where}{cause}"

@@ -1,12 +1,8 @@
 """Where a limb may start from: "inside by a margin", and the nearest such pose, for any chain.
 
-A start pose must survive the rounding of the last goal to ticks and a holding servo's tick or
-two of compliance, so a waiting or parked limb aims at a pose *inside by*
-:data:`START_MARGIN_DEG`. The chain decides what that means (:func:`margins_for`): on two joints
-(:class:`SphereMargins`) the direction and a ring of :data:`RING_PROBES` directions around it
-lie inside; on three (:class:`RotationMargins`) the held pose stays safe with any one joint
-moved by the margin either way. Angles in radians unless a name ends in ``_deg``;
-orientations as unit quaternions (4,), scalar first.
+Two joints (:class:`SphereMargins`): the direction and a ring of :data:`RING_PROBES` around it
+lie inside. Three (:class:`RotationMargins`): the held pose stays safe with any one joint moved by
+the margin either way. Angles in radians; orientations unit quaternions (4,), scalar first.
 """
 
 from __future__ import annotations
@@ -22,25 +18,16 @@ from limbctl.geometry.gimbal import pan_tilt_roll_scalar, pose_quat_scalar
 from limbctl.geometry.quat import limb_direction, multiply, swing_from_direction, tangent_frame
 from limbctl.teleop.gate import Gate
 
-#: How far (deg) inside the region and the hard limits a start or park pose must be. It covers
-#: the rounding of a goal to ticks (0.072 deg, written_tolerance_deg) plus a holding servo's
-#: compliance of up to 2 ticks per joint (sqrt(2) * 2 * 0.088 = 0.25 deg), with room to spare.
+#: How far (deg) inside the region and limits a start or park pose must be: rounding to ticks
+#: (0.072 deg) plus a holding servo's 2 ticks of compliance (0.25 deg), with room to spare.
 START_MARGIN_DEG = 0.35
-#: Directions probed on the ring around a pose: with 12, a straight edge that passes between two
-#: probes is still at least cos(15 deg) = 97 % of the margin away.
+#: Ring probes around a pose: an edge passing between two is still 97 % of the margin away.
 RING_PROBES = 12
-#: Ring radii (multiples of the margin) searched for the nearest start pose: fine near the
-#: edge, up to 24 margins (8.4 deg) for narrow necks and corners.
+#: Search ring radii (margins) for the nearest start pose: fine near the edge, up to 8.4 deg
+#: for necks and corners.
 SEARCH_RADII = (1.0, 1.25, 1.5, 2.0, 3.0, 4.0, 6.0, 9.0, 13.0, 18.0, 24.0)
 #: Directions tried on each search ring (22.5 deg apart).
 SEARCH_DIRECTIONS = 16
-
-#: A pose's rounding to what the servos hold: (pan, tilt) rad -> (pan, tilt) rad.
-RoundToTicks = Callable[[float, float], tuple[float, float]]
-
-
-def _exact(pan: float, tilt: float) -> tuple[float, float]:
-    return pan, tilt
 
 
 def ring(directions: np.ndarray, radius: float, count: int) -> np.ndarray:
@@ -60,20 +47,14 @@ def ring(directions: np.ndarray, radius: float, count: int) -> np.ndarray:
     return out
 
 
-def within_limits(gate: Gate, pan: float, tilt: float, margin: float = 0.0) -> bool:
-    """Both joints at least ``margin`` (rad) inside the gate's hard limits (NaN is not)."""
-    (pan_min, tilt_min), (pan_max, tilt_max) = gate.limits.joint_min, gate.limits.joint_max
-    return (
-        pan_min + margin <= pan <= pan_max - margin
-        and tilt_min + margin <= tilt <= tilt_max - margin
-    )
+def _directions(poses: np.ndarray) -> np.ndarray:
+    """Limb directions (N, 3) of poses (N, 2) (pan, tilt; rad)."""
+    pan, tilt = poses[:, 0], poses[:, 1]
+    return np.stack([np.cos(tilt) * np.cos(pan), np.cos(tilt) * np.sin(pan), np.sin(tilt)], axis=1)
 
 
 def inside_by_margin(gate: Gate, poses: np.ndarray, margin: float) -> np.ndarray:
     """Which poses (N, 2) (pan, tilt, rad) are inside the region and the limits by ``margin``.
-
-    Inside the region by ``margin`` means the pose's direction and :data:`RING_PROBES`
-    directions at angle ``margin`` around it are all inside (one batched ``contains``).
 
     Returns
     -------
@@ -89,38 +70,22 @@ def inside_by_margin(gate: Gate, poses: np.ndarray, margin: float) -> np.ndarray
     )
     if not ok.any():
         return ok
-    pan, tilt = poses[ok, 0], poses[ok, 1]
-    # d = (cos t cos p, cos t sin p, sin t)
-    d = np.stack([np.cos(tilt) * np.cos(pan), np.cos(tilt) * np.sin(pan), np.sin(tilt)], axis=1)
+    d = _directions(poses[ok])
     probes = np.concatenate([d[:, None, :], ring(d, margin, RING_PROBES)], axis=1)
     inside = np.asarray(gate.envelope.contains(swing_from_direction(probes.reshape(-1, 3))))
     ok[np.flatnonzero(ok)] = inside.reshape(len(d), RING_PROBES + 1).all(axis=1)
     return ok
 
 
-def outside_by(gate: Gate, pan: float, tilt: float) -> float:
-    """Angle (rad) by which the pose's direction lies outside the region; 0 inside."""
-    d = scalar.direction(pan, tilt)
-    q = scalar.swing(d)
-    if bool(gate.envelope.contains(q)):
-        return 0.0
-    return scalar.angle(d, scalar.limb(gate.envelope.correct(q)))
-
-
 def nearest_start_pose(
     gate: Gate,
     pan: float,
     tilt: float,
-    margin: float = math.radians(START_MARGIN_DEG),
-    round_to_ticks: RoundToTicks = _exact,
+    margin: float,
+    round_to_ticks: Callable[[float, float], tuple[float, float]],
 ) -> tuple[float, float] | None:
-    """The pose nearest ``(pan, tilt)`` (rad) that is inside by ``margin`` once rounded to ticks.
-
-    Candidates: past the region's nearest boundary point along the line from the pose (the
-    inward way across a smooth edge), then rings of :data:`SEARCH_RADII` around that point
-    (corners, necks). Among those whose rounded pose is inside by ``margin``, the one nearest
-    the present direction wins. None when no candidate qualifies (a region thinner than twice
-    the margin near the pose).
+    """The pose nearest ``(pan, tilt)`` (rad) inside by ``margin`` once rounded to ticks: past
+    the nearest boundary point along the way there, or on rings around it.
 
     Returns
     -------
@@ -150,24 +115,15 @@ def nearest_start_pose(
     ok = inside_by_margin(gate, rounded, margin)
     if not ok.any():
         return None
-    rounded_dirs = np.stack(
-        [
-            np.cos(rounded[:, 1]) * np.cos(rounded[:, 0]),
-            np.cos(rounded[:, 1]) * np.sin(rounded[:, 0]),
-            np.sin(rounded[:, 1]),
-        ],
-        axis=1,
-    )
-    # angle to the present direction, acos(clip(d . c)): only the order matters here
-    closeness = np.where(ok, rounded_dirs @ d, -np.inf)
+    # the cosine of the angle to the present direction: only the order matters
+    closeness = np.where(ok, _directions(rounded) @ d, -np.inf)
     best = rounded[int(np.argmax(closeness))]
     return float(best[0]), float(best[1])
 
 
 # ---- on SO(3): a three-servo chain (pan, tilt, roll) ------------------------------------------
-#: Axes (world frame) the search rings turn the nearest orientation about: the six faces and
-#: eight corners of a cube, so every rotation axis lies within 35 deg of one of them; +x is
-#: among them, which is the limb's own axis at rest and near it in a region about +x.
+#: Axes (world frame) the search rings turn about: a cube's faces and corners, so every axis is
+#: within 35 deg of one; +x, the limb's axis at rest, among them.
 RING_AXES = np.array(
     [[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]]
     + [[sx, sy, sz] for sx in (1, -1) for sy in (1, -1) for sz in (1, -1)],
@@ -192,15 +148,6 @@ def safe_with_margin(gate: Gate, pose: tuple[float, ...], margin: float) -> bool
     return True
 
 
-def rotation_outside_by(gate: Gate, pose: tuple[float, ...]) -> float:
-    """Rotation (rad) from ``pose`` (pan, tilt, roll) to the region's nearest orientation; 0
-    inside."""
-    q = pose_quat_scalar(*pose)
-    if bool(gate.envelope.contains(q)):
-        return 0.0
-    return geodesic(q, gate.envelope.correct(q))
-
-
 def _axis_rotation(axis: np.ndarray, angle: float) -> np.ndarray:
     """Quaternion (4,) of a turn by ``angle`` (rad) about unit ``axis`` (3,)."""
     half = angle / 2.0
@@ -208,10 +155,8 @@ def _axis_rotation(axis: np.ndarray, angle: float) -> np.ndarray:
 
 
 def rotation_candidates(gate: Gate, q: np.ndarray, margin: float) -> list[np.ndarray]:
-    """Orientations (4,) near ``q`` that may be inside by ``margin``, all built on the region's
-    nearest orientation ``c = correct(q)``: on along the shortest rotation from ``q`` through
-    ``c``, :data:`SEARCH_RADII` margins past it (across a smooth edge of swing or twist), and
-    rings ``r(a, s m) * c`` about each of :data:`RING_AXES` (corners, necks, twist stops)."""
+    """Orientations (4,) near ``q`` that may be inside by ``margin``: past ``correct(q)`` on the
+    way there, and rings about :data:`RING_AXES` around it."""
     nearest = gate.envelope.correct(q)
     out = [nearest]
     gap = geodesic(q, nearest)
@@ -228,10 +173,8 @@ def rotation_candidates(gate: Gate, q: np.ndarray, margin: float) -> list[np.nda
 def nearest_rotation_start_pose(
     gate: Gate, pose: tuple[float, ...], held_pose: HeldPose, margin: float
 ) -> tuple[float, ...] | None:
-    """The pose nearest ``pose`` (pan, tilt, roll; rad) that is inside by ``margin``
-    (:func:`safe_with_margin`) once the servos hold it (``held_pose``); the candidates of
-    :func:`rotation_candidates`, nearest ``pose`` by geodesic angle first. None when none
-    qualifies (a region thinner than twice the margin near the pose)."""
+    """The pose nearest ``pose`` (pan, tilt, roll; rad) inside by ``margin`` once the servos hold
+    it (``held_pose``), or None."""
     lim = gate.limits
     here = held_pose(*pose)
     if safe_with_margin(gate, here, margin):
@@ -248,8 +191,7 @@ def nearest_rotation_start_pose(
 
 # ---- the chain's margins: one object a gate, the only place the chain is told apart ---------
 class SphereMargins:
-    """Start geometry of a two-servo chain: poses (pan, tilt) point the limb along a direction
-    (3,) on the sphere; inside by the margin is :func:`inside_by_margin` of the pose itself."""
+    """Start geometry of a two-servo chain: points are limb directions (3,)."""
 
     def __init__(self, gate: Gate, held_pose: HeldPose) -> None:
         self.gate, self.held_pose = gate, held_pose
@@ -277,11 +219,15 @@ class SphereMargins:
 
     def within_limits(self, pose: tuple[float, ...]) -> bool:
         """Every joint within its hard limits."""
-        return within_limits(self.gate, *pose)
+        return self.gate.limits.inside(*pose)
 
     def outside_by(self, pose: tuple[float, ...]) -> float:
         """Angle (rad) by which ``pose`` lies outside the region; 0 inside."""
-        return outside_by(self.gate, *pose)
+        d = scalar.direction(*pose)
+        q = scalar.swing(d)
+        if bool(self.gate.envelope.contains(q)):
+            return 0.0
+        return scalar.angle(d, scalar.limb(self.gate.envelope.correct(q)))
 
     def held_inside(self, held: tuple[float, ...]) -> bool:
         """A pose the servos hold (rounded to ticks) is inside by the margin."""
@@ -300,8 +246,7 @@ class SphereMargins:
 
 
 class RotationMargins(SphereMargins):
-    """Start geometry of a three-servo chain: poses (pan, tilt, roll) are orientations (4,) on
-    SO(3); inside by the margin is :func:`safe_with_margin` of the pose the servos hold."""
+    """Start geometry of a three-servo chain: points are orientations (4,)."""
 
     def point(self, pose: tuple[float, ...]) -> np.ndarray:
         return pose_quat_scalar(*pose)
@@ -319,32 +264,28 @@ class RotationMargins(SphereMargins):
     def orientation(self, pose: tuple[float, ...]) -> np.ndarray:
         return pose_quat_scalar(*pose)
 
-    def within_limits(self, pose: tuple[float, ...]) -> bool:
-        return self.gate.limits.inside(*pose)
-
     def outside_by(self, pose: tuple[float, ...]) -> float:
-        return rotation_outside_by(self.gate, pose)
+        q = pose_quat_scalar(*pose)
+        if bool(self.gate.envelope.contains(q)):
+            return 0.0
+        return geodesic(q, self.gate.envelope.correct(q))
 
     def held_inside(self, held: tuple[float, ...]) -> bool:
         return safe_with_margin(self.gate, held, self.margin)
 
     def ready(self, pose: tuple[float, ...]) -> bool:
-        """A limb read at ``pose`` may start: the pose the servos would hold there is inside by
-        the margin."""
+        """The pose the servos would hold at ``pose`` is inside by the margin."""
         return safe_with_margin(self.gate, self.held_pose(*pose), self.margin)
 
     def nearest(self, pose: tuple[float, ...]) -> tuple[float, ...] | None:
         return nearest_rotation_start_pose(self.gate, pose, self.held_pose, self.margin)
 
     def warm(self) -> None:
-        """The region's kernels compile on their first call: here, not in the loop's first
-        cycles."""
+        """Compile the region's kernels here, not in the loop's first cycles."""
         self.gate.envelope.correct(pose_quat_scalar(math.pi / 2, 0.0, math.pi / 2))
 
 
 def margins_for(gate: Gate, limb: object) -> SphereMargins:
-    """The start geometry of the chain ``limb`` drives (its ``joints``): two joints point the
-    limb (:class:`SphereMargins`), three orient it (:class:`RotationMargins`). ``limb`` gives
-    ``held_pose``, the pose its servos hold once a pose is written."""
+    """The start geometry of ``limb``'s chain (its ``joints`` and ``held_pose``)."""
     chain = SphereMargins if len(limb.joints) == 2 else RotationMargins  # type: ignore[attr-defined]
     return chain(gate, limb.held_pose)  # type: ignore[attr-defined]

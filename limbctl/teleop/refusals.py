@@ -1,12 +1,7 @@
 """Why command lines were refused: counts by reason, the first examples, and the latest ones.
 
-A command source's reader thread calls :meth:`Refusals.add` for each line the parser refuses;
-the control loop takes :meth:`Refusals.take_recent` once per cycle (for the telemetry) and the
-summary prints :meth:`Refusals.lines` (each reason with its count and first examples).
-
-A reason is the parser's message with what varies from line to line taken out (numbers, the
-value after ``got``, the detail after a colon), so ``pan 500.0 deg is outside [-180, 180]`` and
-``pan 720 deg is outside [-180, 180]`` count as one reason.
+A reason is the parser's message with numbers and details taken out, so ``pan 500.0 deg is
+outside [-180, 180]`` and ``pan 720 deg ...`` count as one.
 """
 
 from __future__ import annotations

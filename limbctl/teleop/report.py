@@ -15,13 +15,8 @@ from limbctl.teleop.gate import Outcome
 
 
 class Telemetry:
-    """One JSON line per complete cycle: command, gated pose, written goal, present pose (deg),
-    and the reasons of the lines refused since the previous cycle.
-
-    Every rig writes one form (:func:`orientation_fields`): ``cmd`` and ``out`` hold one angle
-    per joint (pan, tilt and, on three servos, roll), ``cmd_q`` and ``out_q`` the full
-    orientations, and a three-servo rig adds ``cmd_twist`` and ``out_twist``.
-    """
+    """One JSON line per complete cycle, in :func:`orientation_fields`' form for every rig,
+    with the outcome, present pose (deg) and the lines refused since the previous cycle."""
 
     def __init__(self, stream: IO[str]) -> None:
         self._stream = stream

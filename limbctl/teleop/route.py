@@ -1,24 +1,11 @@
 """Routing along the region: where the gate's slew step aims when the straight way leaves it.
 
-Across a concave wall the gate's corrected step lands back on the wall every cycle (``SLEWED``,
-never arriving). The gate keeps its plain step while it makes way (:meth:`Router.wanted`);
-when a wall holds it, :class:`Router` gives it a *sub-goal* for that target:
-
-1. *Straight*: the straight path (great circle on two servos, shortest rotation on three),
-   sampled every ``SEGMENT_STEP_DEG``, is inside: the sub-goal is the target itself.
-2. *Roadmap* (built once): a Fibonacci lattice of limb directions ``LATTICE_STEP_DEG`` apart,
-   flooded from the present pose over the region (on three servos a twist found from a
-   neighbour's, within ``TWIST_TRIES_DEG``); neighbours joined where the path between is inside.
-3. *Distances to the target*: Dijkstra from the target over the roadmap (reused while a
-   streamed target moves less than ``REUSE_SPACINGS``).
-4. *Sub-goal*: the farthest point, within ``LOOKAHEAD_DEG`` along the best route, that the
-   straight path from the present pose reaches inside; the gate aims there until half way,
-   then asks again. On three servos the route's twist goes linearly from the present to the
-   target's.
-
-The sub-goal only aims the step: the gate still limits, corrects and checks what it writes, so
-routing never weakens what the gate promises. Its reach bound (docs/safety.md) is
-``REACH_FACTOR * L / max_step + REACH_EXTRA_CYCLES`` cycles, L the shortest path inside.
+When a concave wall holds the gate's plain step (:meth:`Router.wanted`), :class:`Router` aims it
+at a *sub-goal*: the target itself when the straight path (great circle on two servos, shortest
+rotation on three) is inside, else the farthest point within ``LOOKAHEAD_DEG`` along a Dijkstra
+route over a Fibonacci-lattice roadmap flooded over the region. The gate still limits, corrects
+and checks what it writes. Reach bound: ``REACH_FACTOR * L / max_step + REACH_EXTRA_CYCLES``
+cycles, L the shortest path inside (docs/safety.md).
 """
 
 from __future__ import annotations
@@ -36,57 +23,41 @@ from limbctl.geometry import scalar
 from limbctl.geometry.quat import limb_direction, swing_from_direction
 from limbctl.geometry.twist import compose, decompose, wrap
 
-#: Spacing (deg) of the roadmap's lattice: a passage of the region narrower than about two of
-#: them may have no node in it (the route then goes round, or the gate steps straight as
-#: before); 1.5 deg keeps a 60 x 60 deg region to ~1600 nodes, built in tens of milliseconds.
+#: Lattice spacing (deg): keeps a 60 x 60 deg region to ~1600 nodes, built in tens of ms; a
+#: passage narrower than about two spacings may have no node (the gate then steps straight).
 LATTICE_STEP_DEG = 1.5
-#: Neighbours within this many lattice spacings are joined: on a Fibonacci lattice 1.6 gives
-#: each node 6-8 neighbours, so a route turns in steps of about 45 deg, not 60 or 90.
+#: Neighbours within this many spacings are joined: 6-8 per node, so a route turns ~45 deg.
 NEIGHBOUR_SPACINGS = 1.6
-#: The target and the present pose join the roadmap's nodes within this many spacings: at least
-#: one node of the lattice lies within one spacing of any direction, and two more let a pose in a
-#: corner reach one past the corner.
+#: The target and present pose join nodes within this many spacings: one reaches the nearest
+#: node, two more reach one past a corner.
 ATTACH_SPACINGS = 3.0
-#: Spacing (deg) of the samples that judge a straight path inside: a dent narrower than this
-#: can slip between two samples, which costs nothing of safety (the gate corrects the step and
-#: checks what it writes), only a step that slides on the wall.
+#: Sample spacing (deg) judging a straight path inside: a narrower dent costs only a sliding
+#: step (the gate corrects and checks what it writes).
 SEGMENT_STEP_DEG = 0.5
-#: A sample this far (deg) outside the region still counts as inside: a path along a straight
-#: wall has its samples on the wall, which rounding puts a hair outside; a step this far out
-#: is corrected back by no more than a fifth of a 120 deg/s, 200 Hz step (0.6 deg).
+#: A sample this far (deg) outside still counts inside: rounding puts samples along a wall a
+#: hair out; under a fifth of a 120 deg/s, 200 Hz step.
 VISIBLE_SLACK_DEG = 0.1
-#: How far along the route (deg) the sub-goal may lie: twenty default steps (0.6 deg), so the
-#: step always has somewhere to go; few route points (~8), so the farthest-first search for
-#: one in reach stays short.
+#: How far along the route (deg) the sub-goal may lie: twenty default steps, ~8 route points.
 LOOKAHEAD_DEG = 12.0
-#: Twist offsets (deg) from a neighbour's twist tried for a new node on three servos, nearest
-#: first: a band whose centre turns 1 deg per deg of swing moves 1.5-2.4 deg between nodes.
+#: Twist offsets (deg) tried from a neighbour's for a new node on three servos, nearest first:
+#: a band turning 1 deg per deg of swing moves 1.5-2.4 deg between nodes.
 TWIST_TRIES_DEG = (0.0, 3.0, -3.0, 8.0, -8.0, 20.0, -20.0, 45.0, -45.0)
-#: The stated bound: a target inside the region is reached within ``REACH_FACTOR * L /
-#: max_step + REACH_EXTRA_CYCLES`` cycles, L the shortest path inside (on three servos plus the
-#: twist to turn). The route bends at lattice nodes, up to a spacing off the wall (a few per cent
-#: over a long route), and the plain step first slides into a bay until the wall holds it:
-#: measured up to 24 cycles over L / max_step (benchmarks/bench_reach.py, seeds the tests do
-#: not use); 40 leaves room for bays not yet measured.
+#: The reach bound's terms: the route bends at nodes (a few per cent over L) and the plain step
+#: first slides into a bay: measured up to 24 cycles over L / max_step
+#: (benchmarks/bench_reach.py); 40 leaves room for bays not yet measured.
 REACH_FACTOR = 1.05
 REACH_EXTRA_CYCLES = 40
-#: A target within this many lattice spacings of the last one routed to takes the same route
-#: lengths (a leader streaming a target behind a wall moves it every cycle: one Dijkstra, ~1 ms,
-#: per new target would be paid every cycle); the last route point is the target itself.
+#: A target within this many spacings of the last reuses its route lengths: a streamed target
+#: moves every cycle, and one Dijkstra (~1 ms) per cycle is too dear.
 REUSE_SPACINGS = 0.5
-#: Rows of the probe that times one batch of ``contains`` against single calls: whichever is
-#: cheaper for a call's number of rows is used (a fitted twist region's batch kernel runs on a
-#: thread pool that costs ~12 ms a call on a busy two-core machine, its single kernel ~2 us a
-#: row; a numpy region is the other way round).
+#: Rows of the probe timing one batch ``contains`` against single calls (a fitted twist
+#: region's batch costs ~12 ms a call on a busy two-core machine, a single ~2 us a row).
 PROBE_ROWS = 64
-#: The gate's plain step is kept while it comes at least this fraction of a step nearer the
-#: target: sliding along a wall up to 75 deg off the target's way still does; at a concave wall
-#: the corrected step comes back to where it was (0). Routing only when stuck keeps its cost off
-#: the cycles of a sweep along the boundary, where a corrected target lies on a curved edge and
-#: the straight way to it leaves the region by a hair every cycle (three-servo demo).
+#: The plain step is kept while it comes this fraction of a step nearer the target (sliding up
+#: to 75 deg off the way still does; a concave wall gives 0), so sweeps along an edge do not
+#: pay for routing.
 STUCK_FRACTION = 0.25
-#: A pose this close (rad) to a path or a point is on it: far above rounding (1e-12), far below
-#: any step.
+#: A pose this close (rad) to a path or point is on it: far above rounding, far below a step.
 ON_PATH = 1e-9
 
 
@@ -120,8 +91,7 @@ class Router:
     # ---- the region --------------------------------------------------------------------------
     @property
     def batched(self) -> bool:
-        """Whether the envelope answers ``contains`` for (N, 4) at once (the fitted regions and
-        the papers' models do; a test's scalar region may not)."""
+        """Whether the envelope answers ``contains`` for (N, 4) at once."""
         if self._batch is None:
             probe = np.tile([1.0, 0.0, 0.0, 0.0], (PROBE_ROWS, 1))
             try:
@@ -153,8 +123,7 @@ class Router:
         return self._distance(q, fixed) <= math.radians(VISIBLE_SLACK_DEG)
 
     def _distance(self, a: np.ndarray, b: np.ndarray) -> float:
-        """Distance (rad) of two poses (4,): limb directions' angle, or geodesic on SO(3)
-        (scalar arithmetic: the gate's hot path)."""
+        """Distance (rad) of two poses (4,): limb directions' angle, or geodesic on SO(3)."""
         if not self.twist:
             return scalar.angle(scalar.limb(a), scalar.limb(b))
         aw, ax, ay, az = a.tolist()
@@ -183,9 +152,8 @@ class Router:
 
     # ---- straight paths ----------------------------------------------------------------------
     def _samples(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        """Quaternions (n_i - 1, 4) along the straight paths from each pose of ``a`` to the same
-        row of ``b`` (N, 4), ``1/n_i`` of it apart with ``n_i = ceil(length_i /
-        SEGMENT_STEP_DEG)``, the ends left out; (N, S, 4), short paths padded with their start."""
+        """Samples (N, S, 4) SEGMENT_STEP_DEG apart along the paths from rows of ``a`` to ``b``
+        (N, 4), ends left out, short paths padded with their start."""
         va, vb = (a, b) if self.twist else (limb_direction(a), limb_direction(b))
         n = np.ceil(self._distance_rows(a, b) / math.radians(SEGMENT_STEP_DEG))
         n = np.maximum(n, 1.0)[:, None]  # (N, 1)
@@ -195,15 +163,13 @@ class Router:
         return pts if self.twist else swing_from_direction(pts)
 
     def paths_inside(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        """(N,) bool: the straight path from each pose of ``a`` to the same row of ``b`` (both
-        (N, 4)) strictly inside at its samples (building the roadmap)."""
+        """(N,) bool: the path from each row of ``a`` to ``b`` (N, 4) strictly inside."""
         pts = self._samples(a, b)
         return self.inside_many(pts.reshape(-1, 4)).reshape(pts.shape[:2]).all(axis=1)
 
     def clear(self, a: np.ndarray, b: np.ndarray) -> bool:
-        """Whether the straight path from pose ``a`` to ``b`` (4,) is inside, up to
-        ``VISIBLE_SLACK_DEG``, at the samples of :meth:`_samples`; judged in bisection order
-        (middle, quarters, ...), so a blocked path is found out in a few calls."""
+        """Whether the path from ``a`` to ``b`` (4,) is inside up to VISIBLE_SLACK_DEG (bisection
+        order: a blocked path is found in a few calls)."""
         pts = self._samples(a[None], b[None])[0]
         count = pts.shape[0] + 1
         if count < 2:
@@ -213,12 +179,9 @@ class Router:
 
     # ---- the gate's question -----------------------------------------------------------------
     def wanted(self, target_q: np.ndarray, progress: float, moved: float, max_step: float) -> bool:
-        """Whether the gate should aim along the region this cycle: its plain step (straight
-        toward ``target_q``, corrected) came ``progress`` rad nearer the target, less than
-        ``STUCK_FRACTION`` of ``max_step`` (a wall holds it), or its correction moved it
-        ``moved`` rad from the last pose, more than ``max_step`` plus the slack (it jumped
-        across a dent), or routing already began for this target (it stays on until the target
-        moves on or the straight way is inside)."""
+        """Whether to route this cycle: the plain step came ``progress`` rad nearer, under
+        STUCK_FRACTION of ``max_step``; or its correction ``moved`` it over a step (across a
+        dent); or routing already began for ``target_q``."""
         if self._engaged is not None and self._near_target(self._engaged, target_q):
             return True
         self._engaged = None
@@ -226,8 +189,8 @@ class Router:
         return progress < STUCK_FRACTION * max_step or jumped
 
     def subgoal(self, current_q: np.ndarray, target_q: np.ndarray) -> np.ndarray:
-        """Where to aim this cycle's step: ``target_q`` itself when the straight path from
-        ``current_q`` to it is inside, else a route point toward it (both (4,) quaternions)."""
+        """Where to aim (4,): ``target_q`` when the path from ``current_q`` is inside, else a
+        route point."""
         key = target_q.tobytes()
         if self._straight is not None and self._straight[0] == key:
             if self._on_path(self._straight[1], current_q, target_q):
@@ -248,8 +211,7 @@ class Router:
         return aim
 
     def _aim_along(self, current_q: np.ndarray, target_q: np.ndarray) -> np.ndarray:
-        """The farthest route point toward ``target_q`` the straight path from ``current_q``
-        reaches inside; ``target_q`` itself when the roadmap knows no way."""
+        """The farthest route point reachable straight from ``current_q`` (else ``target_q``)."""
         route = self._route(current_q, target_q)
         if route is None:
             return target_q  # no way round known: the plain step
@@ -263,8 +225,7 @@ class Router:
         return route[0]
 
     def _route(self, current_q: np.ndarray, target_q: np.ndarray) -> np.ndarray | None:
-        """Route points (K, 4) from near ``current_q`` toward ``target_q``, at most
-        LOOKAHEAD_DEG along, or None when the roadmap knows no way."""
+        """Route points (K, 4) toward ``target_q``, LOOKAHEAD_DEG at most, or None."""
         self.prepare(current_q)
         dist, pred = self._field_for(target_q)
         d_cur, tau_cur = _split(current_q, self.twist)
@@ -290,9 +251,8 @@ class Router:
         return points
 
     def _waypoints(self, d_cur, tau_cur, dirs: np.ndarray, target_q: np.ndarray) -> np.ndarray:
-        """Poses (K, 4) at the route's directions ``dirs`` (K, 3); on three servos the twist
-        goes linearly by route length from ``tau_cur`` to the target's (the region's own
-        correction where that is outside)."""
+        """Poses (K, 4) at directions ``dirs`` (K, 3), the twist linear from ``tau_cur`` to the
+        target's (corrected where outside)."""
         if not self.twist:
             return swing_from_direction(dirs)
         d_t, tau_t = _split(target_q, True)
@@ -306,8 +266,7 @@ class Router:
 
     # ---- the roadmap -------------------------------------------------------------------------
     def prepare(self, seed_q: np.ndarray) -> None:
-        """Build the roadmap now (once) by flooding the region from pose ``seed_q`` (4,): the
-        gate does it at start on regions that answer batches, so no cycle pays for it."""
+        """Build the roadmap once, flooding the region from ``seed_q`` (4,)."""
         if self._nodes is None:
             self._build(np.asarray(seed_q, dtype=np.float64))
 
@@ -347,8 +306,7 @@ class Router:
         self._graph = coo_matrix((w, (i, j)), shape=(m, m)).tocsr()
 
     def _node_twists(self, d: np.ndarray, tau: np.ndarray) -> np.ndarray:
-        """A twist (rad) inside at each direction (N, 3) near ``tau`` (N,), NaN where none of
-        TWIST_TRIES_DEG is (two servos: twist 0, NaN where the direction is outside)."""
+        """A twist (N,) (rad) inside at each direction (N, 3) near ``tau``, else NaN."""
         if not self.twist:
             return np.where(self.inside_many(compose(d, 0.0)), 0.0, np.nan)
         found = np.full(d.shape[0], np.nan)
@@ -362,8 +320,7 @@ class Router:
         return found
 
     def _field_for(self, target_q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Route lengths (M,) from each node to the target and each node's next node (M,)
-        (M itself: the target; -9999: none)."""
+        """Route lengths (M,) to the target and each node's next (M,) (M: target; <0: none)."""
         if self._field is not None and self._near_target(self._field_key, target_q):
             return self._field  # a target streamed a little further: the same way there
         m = self._nodes.shape[0]
@@ -394,9 +351,7 @@ def _bisection_order(count: int) -> list[int]:
 
 @functools.cache
 def lattice() -> tuple[np.ndarray, cKDTree, csr_matrix, np.ndarray]:
-    """The roadmap's lattice, built once per process: points (N, 3) LATTICE_STEP_DEG apart, their
-    tree, the neighbour adjacency (N, N) (within NEIGHBOUR_SPACINGS spacings) and its pairs
-    (P, 2), i < j."""
+    """Lattice points (N, 3), their tree, adjacency (N, N) and pairs (P, 2), i < j (cached)."""
     points = fibonacci_sphere(math.radians(LATTICE_STEP_DEG))
     tree = cKDTree(points)
     r = 2.0 * math.sin(0.5 * math.radians(NEIGHBOUR_SPACINGS * LATTICE_STEP_DEG))
@@ -408,9 +363,7 @@ def lattice() -> tuple[np.ndarray, cKDTree, csr_matrix, np.ndarray]:
 
 
 def fibonacci_sphere(spacing: float) -> np.ndarray:
-    """Directions (N, 3) spread evenly over the sphere, about ``spacing`` rad apart:
-    ``N = 4 pi / spacing^2``, point k at height ``1 - (2k + 1) / N`` and longitude
-    ``k pi (3 - sqrt 5)`` (the golden angle)."""
+    """Directions (N, 3) about ``spacing`` rad apart (Fibonacci lattice, golden angle)."""
     n = int(math.ceil(4.0 * math.pi / spacing**2))
     k = np.arange(n)
     z = 1.0 - (2.0 * k + 1.0) / n
@@ -426,8 +379,7 @@ def _split(q: np.ndarray, twist: bool) -> tuple[np.ndarray, float]:
 
 
 def _arc(a: np.ndarray, b: np.ndarray, signed: bool = False) -> np.ndarray:
-    """Angle (rad) between unit vectors row by row, ``2 atan2(|a - s b|, |a + s b|)``, with
-    ``s = sign(a . b)`` when ``signed`` (q and -q one rotation), else 1."""
+    """Angle (rad) between unit vectors row by row; ``signed``: q and -q one rotation."""
     a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
     if signed:
         b = np.where(np.sum(a * b, axis=-1, keepdims=True) < 0.0, -b, b)
@@ -435,9 +387,7 @@ def _arc(a: np.ndarray, b: np.ndarray, signed: bool = False) -> np.ndarray:
 
 
 def _slerp_rows(a: np.ndarray, b: np.ndarray, f: np.ndarray, signed: bool) -> np.ndarray:
-    """Points (N, S, dim) at fractions ``f`` (N, S) along the short arcs from each unit ``a``
-    (N, dim) to the same row of ``b`` (N, dim): ``sin((1 - f) h) / sin h a + sin(f h) / sin h
-    b``, h the arc."""
+    """Points (N, S, dim) at fractions ``f`` (N, S) along the arcs from rows of ``a`` to ``b``."""
     a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
     if signed:
         b = np.where(np.sum(a * b, axis=1, keepdims=True) < 0.0, -b, b)

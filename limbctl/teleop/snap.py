@@ -1,13 +1,9 @@
 """The snap watch: a held wall lets go the moment its leader starts snapping toward the region.
 
-Let go, a leader pressed against the wall snaps onto the servo's setpoint, which leads it, and
-the servo's loop brakes it there (an outward pull 2-10 ms later, too soon for a 200 Hz read).
-So while a wall holds a still leader its speed is read about every millisecond between the
-cycles: the watch *arms* on a still leader held with at least HOLD, *cuts* (Goal Current 0) when
-the speed toward the region passes SNAP having risen as a let go makes it, and a free wall
-*re-arms* only on a leader read as not moving in. While any wall is on, the brake rules
-(:mod:`limbctl.teleop.brake`) also apply. The watch only ever takes torque away; docs/haptic.md
-("The snap watch") states the rules and figures.
+Between cycles the watch *arms* on a still leader held with at least HOLD, *cuts* (Goal Current
+0) when its speed inward passes SNAP having risen as a let go makes it, and *re-arms* a free wall
+only on a leader not moving in; the brake rules (:mod:`limbctl.teleop.brake`) also apply. It only
+ever takes torque away; docs/haptic.md ("The snap watch") gives the rules and figures.
 """
 
 from __future__ import annotations
@@ -26,37 +22,24 @@ class SnapLaw:
     Attributes
     ----------
     snap_speed_deg_s : float
-        4 deg/s (3 velocity units): over a held leader's reading (0, a unit of noise) and
-        under what a let go reaches within a millisecond (about 17 deg/s from a 0.3 N m hold
-        on the simulated 1e-3 kg m^2 leader: it accelerates at tau / J).
+        4 deg/s (3 velocity units): over a held leader's noise, under the ~17 deg/s a let go
+        reaches within a millisecond.
     still_speed_deg_s : float
-        1.5 deg/s: one velocity unit (1.37 deg/s) read as still: the watch arms on a held
-        leader read so, and the brake rules watch only a leader moving in faster.
+        1.5 deg/s: one velocity unit (1.37 deg/s) reads as still.
     rearm_speed_deg_s : float
-        0.5 deg/s, under one velocity unit: a free wall comes on only on a leader read as not
-        moving in at all, since the wall starts with its setpoint at the leader and the loop
-        brakes any leader still moving in (outward).
+        0.5 deg/s, under one unit: a free wall re-arms only on a leader not moving in, which
+        the loop would brake outward.
     rearm_span_s : float
-        12 ms: with the watch's ``rearm_twice``, the cycle read before must be this recent to
-        count (two cycles at 200 Hz, one of them up to 2 ms late); an older one says nothing of
-        the leader now.
+        12 ms: two cycles at 200 Hz, one up to 2 ms late (``rearm_twice``'s earlier read).
     hold_nm : float
-        0.06 N m: the watch arms only while the motor pushes a hand at least this hard (the
-        0.02 N m/deg hand pressing 5 deg beyond is held with 0.09 N m); the loop walking a
-        released leader back needs 0.02-0.03 N m.
+        0.06 N m: a held hand takes more; walking a released leader back 0.02-0.03 N m.
     released : float
-        0.5: a let go frees the whole hold at once (the leader speeds up at about tau_hold /
-        J); a grip fading over 50 ms gives about a seventh of that, and a cut then leaves the
-        leader to a hand still pushing out. Half: between the two.
+        0.5: a let go frees the whole hold, a fading grip about a seventh: between the two.
     rise_s : float
-        1 ms: the rise is judged over at most a millisecond whatever the gap between two reads
-        (2-3 ms over the pty): a snap keeps speeding up for 2-3 ms, so a read too soon leaves
-        it to the next, while a fading grip gains about 5 deg/s over 2.5 ms, under the
-        8.6 deg/s of a 0.3 N m hold.
+        1 ms: the rise is judged over at most this, whatever the gap between reads; a snap
+        speeds up for 2-3 ms.
     inertia_kg_m2 : float
-        1e-3 kg m^2, the simulated leader's inertia at each joint (``firmware_sim/leader.py``);
-        a real leader's is to be measured (the coast-down that gives its damping gives it too).
-        Too high, a relaxing hand reads as a let go; too low, let goes are missed.
+        1e-3 kg m^2, the simulated leader's (``firmware_sim/leader.py``); measure a real one's.
     """
 
     snap_speed_deg_s: float = 4.0
@@ -103,15 +86,11 @@ class SnapWatch:
     reads : int
         How many reads the watch was handed between the cycles.
     at_read : bool
-        Whether the source judges each cycle's read as soon as it is read (:meth:`judge`) and
-        writes a cut at once, before the cycle's gate work (1-2 ms over the pty, by which the
-        loop had begun braking). False: judged when its push is decided (:meth:`allows`).
+        Judge each cycle's read at once (:meth:`judge`), before the gate work; False: when its
+        push is decided (:meth:`allows`).
     rearm_twice : bool
-        Whether a free wall comes back only when the cycle's read *and* the one before (within
-        ``rearm_span_s``) show the leader not moving in, or at once on a leader pushed outward
-        faster than STILL: a hand reversing from pushing out to pulling in leaves the leader
-        still for a millisecond or two, and a wall back then met its pull at once. False: one
-        still read.
+        Re-arm only on two still reads within ``rearm_span_s`` (or one pushed outward): a hand
+        reversing leaves the leader still for a millisecond. False: one still read.
     """
 
     law: SnapLaw
@@ -132,8 +111,7 @@ class SnapWatch:
 
     @property
     def watching(self) -> bool:
-        """Whether the loop should read the leader between the cycles: a wall is on and some
-        rule watches it."""
+        """Whether the loop should read the leader between the cycles."""
         return self.armed is not None or (self.brake is not None and self.walking is not None)
 
     def disarm(self) -> None:
@@ -142,8 +120,7 @@ class SnapWatch:
         self.walking, self._torque_seen = None, None
 
     def _snapping(self, velocity_deg_s: Sequence[float], now_s: float) -> bool:
-        """Whether the armed leader, read at ``now_s``, snaps: past SNAP, risen since the last
-        read by what RELEASED of the hold would give it; a cut disarms the watch."""
+        """Whether the armed leader snaps at ``now_s`` (s); a cut disarms the watch."""
         if self.armed is None:
             return False
         toward = along(velocity_deg_s, self.armed)
@@ -161,8 +138,7 @@ class SnapWatch:
     def _braking(
         self, velocity_deg_s: Sequence[float], torque_nm: Sequence[float] | None, now_s: float
     ) -> bool:
-        """Whether a wall that is on must go by the brake rules at this read (``torque_nm``:
-        the motors' read torque, joint frame, N m; None: not read); a cut disarms the watch."""
+        """Whether the brake rules free the wall (``torque_nm``, N m; None: not read)."""
         if self.brake is None or self.walking is None or torque_nm is None:
             return False
         toward = along(velocity_deg_s, self.walking)
@@ -187,9 +163,8 @@ class SnapWatch:
         now_s: float,
         torque_nm: Sequence[float] | None = None,
     ) -> bool:
-        """Whether a wall the law would push with (goal ``goal``, rad) may push at this read
-        (at ``now_s``, s): not if it is free and the leader still moves in (re-arm), nor if it
-        is armed and the leader snaps (cut), nor if the brake rules free it."""
+        """Whether a wall toward ``goal`` (rad) may push at ``now_s`` (s): not re-arming on a
+        leader moving in, nor on a snap, nor when the brake rules free it."""
         unit = unit_step(present, goal)
         if unit is None:
             return True
@@ -209,9 +184,8 @@ class SnapWatch:
     def still(
         self, present: Sequence[float], goal: Sequence[float], velocity_deg_s: Sequence[float]
     ) -> bool:
-        """Whether a leader at ``present`` (rad) moving at ``velocity_deg_s`` (joint frame,
-        deg/s) is read as not moving in toward ``goal`` (the re-arm speed); a read that leaves
-        the watch's state as it is (the source's read just before a wall comes on)."""
+        """Whether a leader at ``present`` (rad) at ``velocity_deg_s`` (deg/s) is not moving in
+        toward ``goal``; the state is left as it is."""
         unit = unit_step(present, goal)
         return unit is None or along(velocity_deg_s, unit) <= self.law.rearm_speed_deg_s
 
@@ -224,9 +198,8 @@ class SnapWatch:
         engaged: bool,
         now_s: float,
     ) -> None:
-        """After a cycle's write: arm when the wall (goal ``goal``, None if free) holds a still
-        leader against a hand (read at ``now_s``, s), else disarm; the brake rules watch any
-        wall that is on."""
+        """After a cycle's write: arm when the wall (``goal``, None if free) holds a still leader
+        against a hand, else disarm."""
         unit = None if goal is None else unit_step(present, goal)
         if unit is None:
             self.disarm()
@@ -239,8 +212,7 @@ class SnapWatch:
         if not holding:
             self.armed, self._seen = None, None
         elif self.armed is not None or (still and self._was_still):
-            # armed on a still hold; it stays while the wall holds, the leader creeping or not,
-            # judged against the hold as read now
+            # armed on a still hold; stays while the wall holds, judged against this hold
             self.armed, self._seen = unit, (toward, now_s)
             self._hold_nm = along(torque_nm, unit)
         self._was_still = still
@@ -251,9 +223,7 @@ class SnapWatch:
         now_s: float,
         torque_nm: Sequence[float] | None = None,
     ) -> bool:
-        """At a cycle's read (``at_read``): whether a wall that is on must go at once, by the
-        rules :meth:`snaps` applies between the cycles. A wall kept here is not judged again on
-        the same read (:meth:`allows` with ``judged``)."""
+        """At a cycle's read (``at_read``): whether the wall must go, by :meth:`snaps`' rules."""
         snapped = self._snapping(velocity_deg_s, now_s)
         return snapped or self._braking(velocity_deg_s, torque_nm, now_s)
 
@@ -263,9 +233,7 @@ class SnapWatch:
         now_s: float,
         torque_nm: Sequence[float] | None = None,
     ) -> bool:
-        """Between cycles: whether a wall that is on must go at this read of the leader's speed
-        (``velocity_deg_s``, joint frame, deg/s) and torque (``torque_nm``, N m; None: not
-        read) at ``now_s`` (s): an armed leader snaps, or the brake rules free it (then the
-        caller writes Goal Current 0)."""
+        """Between cycles: whether the wall must go at this read of speed (deg/s) and torque
+        (N m; None: not read) at ``now_s`` (s)."""
         self.reads += 1
         return self.judge(velocity_deg_s, now_s, torque_nm)

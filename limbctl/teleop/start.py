@@ -1,19 +1,8 @@
 """Start a session from wherever the limb is, for any chain (two or three joints).
 
-:func:`start_session` begins from the limb's present pose:
-
-- inside the region and the hard limits (as :meth:`Gate.is_safe` judges): torque on, the gate
-  starts there, at once;
-- outside: torque stays off (switched off, saying so, if it was on) so the limb can be moved by
-  hand. A :class:`StartStatus` ("how far and which way") is published and printed at
-  ``poll_hz``; the session starts by itself once the limb is inside by
-  :data:`~limbctl.teleop.margin.START_MARGIN_DEG`, or gives up after ``wait_s`` with torque off;
-- with ``approach_deg_s``: once the limb is inside the hard limits, the servos drive it to the
-  nearest pose inside by the margin (:func:`limbctl.teleop.approach.drive`), then the session
-  starts there.
-
-What "inside by the margin" and "nearest" mean is the chain's (:func:`margins_for`). Every
-outcome is a value (:class:`StartOutcome`); no path leaves torque on after refusing to start.
+Inside: torque on, start at once. Outside: torque off, a :class:`StartStatus` published at
+``poll_hz`` until the limb is inside by the margin (by hand, or driven with ``approach_deg_s``)
+or ``wait_s`` passes. No path leaves torque on after refusing to start.
 """
 
 from __future__ import annotations
@@ -32,8 +21,7 @@ from limbctl.teleop.margin import SphereMargins, margins_for
 
 #: Default seconds a limb outside the region is waited for before the session gives up.
 DEFAULT_WAIT_S = 60.0
-#: Fastest approach (deg/s): the servos move a limb a person may still be holding; at 30 deg/s
-#: a full 90 deg swing takes 3 s, time enough to see it coming and let go or grab it.
+#: Fastest approach (deg/s): a person may still hold the limb; 90 deg take 3 s to see coming.
 MAX_APPROACH_SPEED_DEG_S = 30.0
 #: Terminal refreshes: on a terminal every poll; to a log or pipe one line per this many s.
 LOG_EVERY_S = 2.0
@@ -52,9 +40,9 @@ class StartOptions:
     rate_hz : float
         Goals per second along an approach path (the control loop's rate).
     poll_hz : float
-        How often a waiting limb is read and its status published.
+        How often a waiting limb is read and its status published (Hz).
     max_failed_reads : int
-        Consecutive failed reads of a waiting limb before the start gives up (bus failure).
+        Failed reads in a row before the start gives up.
     """
 
     wait_s: float = DEFAULT_WAIT_S
@@ -79,8 +67,7 @@ class StartOptions:
 def status_line(
     where: str, ready: bool, inside_limits: bool, outside_deg: float | None, advice: str
 ) -> str:
-    """A waiting limb's status line: ``where`` it is, what is wrong (beyond the hard limits,
-    ``outside_deg`` outside the region, None inside; on the edge), then the ``advice``."""
+    """A waiting limb's status line (``outside_deg`` None: inside the region)."""
     problems = []
     if not inside_limits:
         problems.append("beyond the rig's hard limits")
@@ -105,26 +92,24 @@ def _move_words(joint: int, change: float) -> str:
 class StartStatus:
     """Where a waiting limb is and where it must go before the session may start.
 
-    Angles in degrees, tuples of one angle a joint in chain order (pan, tilt[, roll]). A joint
-    change > 0 turns pan left (toward +y), raises tilt, rolls the limb right-handed about its
-    own axis. The app prints :meth:`line` and may publish :meth:`as_dict` to a live view.
+    Angles in degrees, one a joint in chain order (pan, tilt[, roll]).
 
     Attributes
     ----------
     pose_deg : tuple of float
         The present pose.
     ready : bool
-        Inside the region and the hard limits by the margin: the session starts.
+        Inside the region and the hard limits by the margin.
     inside_region, inside_limits : bool
-        Each check on its own (without the margin).
+        Each check without the margin.
     outside_deg : float
-        How far the limb lies outside the region (angle or rotation; 0 inside).
+        How far outside the region (0 inside).
     distance_deg : float
-        Angle from the present pose to the target (0 when ready or no target).
+        Angle to the target (0 without one).
     target_deg : tuple of float or None
-        The nearest pose inside by the margin; None when ready or none was found nearby.
+        The nearest pose inside by the margin; None when ready or none nearby.
     move_deg : tuple of float
-        Joint changes from the present pose to the target (0 when ready or no target).
+        Joint changes to the target (0 without one).
     waited_s : float
         Seconds spent waiting so far.
     """
@@ -188,11 +173,8 @@ def assess(margins: SphereMargins, pose: tuple[float, ...], waited_s: float = 0.
 
 @dataclass(frozen=True)
 class StartOutcome:
-    """How the start went; ``exit_code`` is what the command returns when it did not start.
-
-    ``how`` is one of "inside", "moved by hand", "approached" (started), "timed out",
-    "stopped", "bus failure" (not started; torque off).
-    """
+    """How the start went (``how``: "inside", "moved by hand", "approached", "timed out",
+    "stopped" or "bus failure")."""
 
     started: bool
     how: str
@@ -275,26 +257,23 @@ def start_session(
     Parameters
     ----------
     limb : StartLimb
-        The configured rig (position mode, hard limits in EEPROM); torque on or off.
+        The configured rig; torque on or off.
     gate : Gate
-        The gate of the limb's chain, not yet started; on success it has started from the
-        limb's present pose.
+        Not yet started; on success started from the present pose.
     options : StartOptions, optional
     stream : text stream, optional
-        Where what happens and the live status line are written (e.g. stderr).
+        Where messages and the live status line go.
     publish : callable, optional
-        Called with each :class:`StartStatus` while the limb is outside (e.g. a live view).
+        Called with each :class:`StartStatus` while the limb is outside.
     stop : threading.Event, optional
         Set (Ctrl-C) to give up waiting.
     torque_was_on : bool
-        Torque was on before the caller switched it off (e.g. to configure the servos): a limb
-        outside is then told that torque went off, as if it had been found on.
+        The caller switched torque off: say so to a limb found outside.
 
     Returns
     -------
     StartOutcome
-        On success torque is on and the gate started; otherwise torque is off (or the message
-        says it could not be switched off) and ``exit_code`` is 2 (timed out), 130 (stopped)
+        Started with torque on, or torque off and ``exit_code`` 2 (timed out), 130 (stopped)
         or 3 (bus failure).
     """
     options = options or StartOptions()

@@ -1,13 +1,6 @@
 """The status line of a source a person steers (keyboard, page): poses, step and the gate in words.
 
-One line, refreshed in place on a terminal (cut to its width, so the refresh stays on one row;
-the words come before the poses, as they matter most)::
-
-    12.5 s  199.8 Hz  step 2 deg  ? keys  at the edge: up is blocked, sliding left along it
-        commanded pan 10.0 tilt 34.0  written pan 10.0 tilt 27.4
-
-(on one line). Sources that say nothing about themselves keep the counts of
-:class:`~limbctl.teleop.report.StatusLine`; :func:`status_line_for` picks one by the source.
+One line, refreshed in place on a terminal and cut to its width, the words before the poses.
 """
 
 from __future__ import annotations
@@ -34,9 +27,9 @@ class ExplainedStatus:
     Parameters
     ----------
     stream : text stream
-        Where the line goes (a terminal refreshes it in place; a log gets one line now and then).
+        Where the line goes (refreshed in place on a terminal).
     source : CommandSource
-        Its ``describe()`` adds what the source knows (the keyboard's step, the page's holder).
+        Its ``describe()`` adds what the source knows.
     """
 
     def __init__(self, stream: IO[str], source: Any) -> None:

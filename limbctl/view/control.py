@@ -1,29 +1,11 @@
-"""Who may watch the live view and who may steer from it: the secret, the Origin, one controller.
+"""Who may watch the live view and who may steer from it: the secret (:class:`Access`), the
+Origin and Host (:func:`check_request`), one controller at a time (:class:`ControlDesk`), as
+docs/architecture.md ("Steering from the page") and docs/decisions/view.md tell.
 
-A page that can move motors is a network input, and any web site open in the person's browser
-can open a WebSocket to 127.0.0.1. So:
-
-- :class:`Access` holds a per-session secret (``?key=...`` in the URL printed once). Steering
-  needs it. When the view is served beyond this machine, watching needs a second one
-  (``?watch=...``), so the people watching cannot take the controls.
-- :func:`check_request` refuses a WebSocket whose Origin is not the page's own (another site's
-  script) and, on 127.0.0.1, a Host that is not a loopback name (DNS rebinding); steering needs
-  an Origin at all (a browser's page, not any program that learned the port).
-- :class:`ControlDesk` is the one controller slot: a page with the key takes it when a person
-  opens the address or clicks "take control" (never by itself: a page whose connection dropped
-  comes back watching), and holds it until it lets go or goes away; another is refused and told
-  which tab holds it, by the name that tab shows itself. A reload of the holding tab hands the
-  slot to the reloaded page (the tab's id survives a reload), so the new connection never races
-  the old one's release. Only the holder's text reaches the sink (the page source's ``feed``),
-  at most one message per :data:`FORWARD_PERIOD_S`, the newest: a flood only replaces the
-  waiting message, it never queues work for the control loop.
-
-A page says what it wants in its WebSocket's query: ``tab`` (its id, random, kept for a reload),
-``name`` (the words it shows itself, e.g. "tab K7, opened 19:02:13") and ``want``: ``take`` (a
-person opened the address; the default, for programs), ``reload`` (a person reloaded the tab:
-take it back from the same tab's old connection) or ``watch`` (the page reconnected by itself).
-Over the socket, ``{"control": "take"}`` and ``{"control": "release"}`` are a person's clicks.
-"""
+A page's WebSocket query carries ``tab`` (its id, kept over a reload), ``name`` (e.g. "tab K7,
+opened 19:02:13") and ``want``: ``take`` (a person opened the address; the default), ``reload``
+or ``watch`` (it reconnected by itself). ``{"control": "take"}`` / ``{"control": "release"}``
+over the socket are a person's clicks."""
 
 from __future__ import annotations
 
@@ -41,16 +23,15 @@ from aiohttp import WSMsgType, web
 
 #: Secret length in bytes (URL-safe base64 makes 22 characters): 128 bits, beyond guessing.
 SECRET_BYTES = 16
-#: Most messages (per second, 1 / this) handed from the controlling page to the source: half the
-#: loop's default 200 Hz (the loop follows only the newest command anyway), far above the page's
-#: 20 Hz, and each costs the loop's process one parse (tens of microseconds).
+#: Least time (s) between messages handed to the source: half the loop's 200 Hz (it follows only
+#: the newest), far above the page's 20 Hz; each costs the loop one parse.
 FORWARD_PERIOD_S = 0.01
 #: Largest message a page may send (bytes): a command is under 100; more is refused by closing.
 MAX_MESSAGE_BYTES = 4096
 #: Host names that mean this machine, accepted in the Host header of a loopback server.
 LOOPBACK_NAMES = frozenset({"localhost", "127.0.0.1", "::1", "[::1]"})
-#: Longest tab id and tab name (characters) taken from a page: the page's own are 32 and about
-#: 25; the name is shown to every other page, so it is cut, never trusted to be short.
+#: Longest tab id and name (characters) taken from a page: its own are 32 and ~25; cut, as the
+#: name is shown to every other page.
 MAX_TAB_ID_CHARS = 64
 MAX_TAB_NAME_CHARS = 40
 #: What a keyed page may ask for when it connects (see the module's docstring).
@@ -69,18 +50,18 @@ def is_loopback(host: str) -> bool:
 
 @dataclass(frozen=True)
 class Access:
-    """The session's secret and whether watching needs it.
+    """The session's secrets and whether watching needs one.
 
     Attributes
     ----------
     secret : str
-        The key a page must carry (``?key=``) to steer; it lets it watch too.
+        The key (``?key=``) that steers, and watches too.
     watch_secret : str
-        The key that lets a page watch (``?watch=``) when ``watch_needs_key``.
+        The key (``?watch=``) that watches when ``watch_needs_key``.
     watch_needs_key : bool
         True when the server is reachable beyond this machine.
     loopback : bool
-        The server listens on 127.0.0.1 only (the Host header is then checked too).
+        The server listens on a loopback address (the Host header is then checked).
     """
 
     secret: str
@@ -96,11 +77,11 @@ class Access:
         return cls(new(SECRET_BYTES), new(SECRET_BYTES), not local, local)
 
     def key_ok(self, given: str | None) -> bool:
-        """Whether ``given`` is the steering secret (compared in constant time)."""
+        """Whether ``given`` is the steering secret (constant-time compare)."""
         return given is not None and hmac.compare_digest(given.encode(), self.secret.encode())
 
     def watch_ok(self, given: str | None) -> bool:
-        """Whether ``given`` is the watching secret (compared in constant time)."""
+        """Whether ``given`` is the watching secret (constant-time compare)."""
         return given is not None and hmac.compare_digest(given.encode(), self.watch_secret.encode())
 
 
@@ -114,7 +95,7 @@ class Verdict:
 
 
 def check_request(request: web.Request, access: Access, websocket: bool) -> Verdict:
-    """Judge a request for the page, its state or its WebSocket (see the module's rules)."""
+    """Judge a request for the page, its state or its WebSocket (module docstring)."""
     key, watch = request.query.get("key"), request.query.get("watch")
     if key is not None and not access.key_ok(key):
         return Verdict(False, problem="wrong key: use the address printed when the view started")
@@ -137,12 +118,8 @@ def check_request(request: web.Request, access: Access, websocket: bool) -> Verd
 
 
 class ControlDesk:
-    """The one controller slot, and the sink its text goes to (thread-safe).
-
-    The app attaches the page source's ``feed`` (:meth:`attach`); the server claims the slot
-    for a keyed page (:meth:`claim`), hands on its text (:meth:`forward`) and frees the slot when
-    the page goes (:meth:`release`).
-    """
+    """The one controller slot and the sink its text goes to (thread-safe): the app attaches the
+    page source's ``feed``; the server claims, forwards and releases for each page."""
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
@@ -176,11 +153,8 @@ class ControlDesk:
             return self._holder_text or "nobody yet: open the address with the key"
 
     def claim(self, token: object, who: str, tab: str = "", reload: bool = False) -> bool:
-        """Give the slot to ``token`` if it is free; whether it holds it now.
-
-        ``tab`` is the page's tab id; with ``reload`` the slot also passes from an older
-        connection of the same tab (a reload: that page is going away).
-        """
+        """Give the slot to ``token`` if it is free, or with ``reload`` held by the same ``tab``;
+        whether it holds it now."""
         with self._lock:
             taken = self._holder is not None and self._holder is not token
             same_tab = reload and bool(tab) and tab == self._holder_tab
@@ -228,8 +202,7 @@ class ControlDesk:
 
 
 def describe_peer(request: web.Request, name: str = "") -> str:
-    """The page in words: the name its tab shows, its address and when it connected, e.g.
-    "tab K7, opened 19:02:13 (127.0.0.1:51512, connected 19:03:07)"."""
+    """The page in words, e.g. "tab K7, opened 19:02:13 (127.0.0.1:51512, connected 19:03:07)"."""
     peer = request.transport.get_extra_info("peername") if request.transport else None
     where = f"{peer[0]}:{peer[1]}" if peer else (request.remote or "?")
     since = time.strftime("%H:%M:%S")
@@ -239,8 +212,8 @@ def describe_peer(request: web.Request, name: str = "") -> str:
 
 
 def tab_of(request: web.Request) -> tuple[str, str, str]:
-    """The page's ``(tab id, tab name, want)`` from its WebSocket's query (cut to size; a name
-    keeps printable characters only; an unknown ``want`` is ``take``, a program's default)."""
+    """The page's ``(tab id, tab name, want)`` from its query, cut to size (an unknown ``want`` is
+    ``take``)."""
     query = request.query
     tab = query.get("tab", "")[:MAX_TAB_ID_CHARS]
     name = "".join(c for c in query.get("name", "") if c.isprintable())[:MAX_TAB_NAME_CHARS]
@@ -265,9 +238,8 @@ async def read_commands(
     token: object,
     clicked: Callable[[str], None] | None = None,
 ) -> None:
-    """Read what a page sends; the controller's newest text goes to the desk at most once per
-    :data:`FORWARD_PERIOD_S`; the rest is counted as superseded or ignored. A person's click
-    (:func:`control_request`) goes to ``clicked`` at once (a page without the key has none)."""
+    """Read what a page sends: the controller's newest text goes to the desk at most once per
+    :data:`FORWARD_PERIOD_S` (the rest counted); a click goes to ``clicked`` (None: no key)."""
     newest: list[str] = []
     arrived = asyncio.Event()
 

@@ -1,11 +1,9 @@
 """Feeding the board while teaching: a pose tap on the limb and a scene feeder thread.
 
-:class:`PoseTap` publishes each pose the recorder reads (a list append and a board swap on the
-recorder's own thread, never waiting on the view). :class:`SceneFeeder` publishes, from its own
-thread, the thinned samples, the guide's figures and the region a
-:class:`~limbctl.view.region.FitProcess` fitted last; fits run back to back, at most every
-:data:`REFIT_PERIOD_S`, on CPU time nothing else wants, so they never slow the recorder.
-"""
+:class:`PoseTap` publishes each pose the recorder reads, on the recorder's thread, never waiting
+on the view. :class:`SceneFeeder` publishes from its own thread the thinned samples, the guide's
+figures and the region a :class:`~limbctl.view.region.FitProcess` fitted last (fits back to
+back, at most every :data:`REFIT_PERIOD_S`, on CPU time nothing else wants)."""
 
 from __future__ import annotations
 
@@ -22,12 +20,10 @@ from limbctl.view.region import MIN_FIT_SAMPLES, FitProcess, RegionFit
 from limbctl.view.state import Board, GuideFigure, HardLimits, Live, PanTilt, Scene, thin_samples
 from limbctl.view.twist import TwistGauge, TwistMap, taught_gauge
 
-#: How often the scene is republished (s) when no fit finishes: the samples and the guide's
-#: figures twice a second, twice the page's promise of once a second.
+#: How often the scene is republished (s) when no fit finishes: twice the page's promised 1 Hz.
 SCENE_PERIOD_S = 0.5
 #: Least time between the starts of two fits (s): a fit of a 30-60 s teaching takes 0.1-0.25 s
-#: (docs/bench_fit.md); more than four redraws a second would show much the same region again,
-#: and each costs the browser a repaint at normal priority, beside the recorder.
+#: (docs/bench_fit.md); more redraws would show much the same region, each a browser repaint.
 REFIT_PERIOD_S = 0.25
 #: Longest wait (s) for the feeder thread to finish when stopped.
 JOIN_TIMEOUT_S = 10.0
@@ -39,14 +35,11 @@ class PoseTap:
     Parameters
     ----------
     limb : object
-        The rig (anything with ``read_pose() -> (pan, tilt)`` or ``(pan, tilt, roll)`` in
-        radians); every other attribute is passed through.
+        The rig (``read_pose() -> (pan, tilt[, roll])``, rad); other attributes pass through.
     board : Board
         Where the live pose and sample count go.
-    mode : str
-        The mode the page shows ("record", "demo: teach").
-    note : str
-        The line shown to the person.
+    mode, note : str
+        The mode the page shows ("record", "demo: teach"); the line shown to the person.
     """
 
     def __init__(self, limb: Any, board: Board, mode: str, note: str = "") -> None:
@@ -63,7 +56,7 @@ class PoseTap:
         self._fault = ""
 
     def read_pose(self) -> tuple[float, ...]:
-        """Read the limb's pose (rad), keep it and publish it; a failed read shows as a fault."""
+        """Read, keep and publish the limb's pose (rad); a failed read shows as a fault."""
         try:
             pose = self._limb.read_pose()
         except LimbctlError as exc:
@@ -77,34 +70,27 @@ class PoseTap:
         return pose
 
     def set_twist_map(self, twist: TwistMap) -> None:
-        """The twist taught so far (a three-servo limb): the gauge's range from now on, shown at
-        once with the last pose read (call from the thread that reads the limb)."""
+        """The twist taught so far: the gauge's range from now on, shown at once (call from the
+        thread that reads the limb)."""
         self.twist_map = twist
         if self._last is not None:
             self._publish()
 
     def _publish(self) -> None:
-        """The last pose read (with its twist gauge on a three-servo limb), the count and the
-        fault of the last read, as the live part."""
+        """Publish the last pose (with a three-servo twist gauge), the count and the fault."""
         pose = self._last
         if pose is not None and len(pose) == 3:
             self._gauge = taught_gauge(self.twist_map, *pose)
         self._board.publish_live(
             Live(
                 self.mode,
-                self._last_pose(),
+                PanTilt.of_rad(self._poses[-1]) if self._poses else None,
                 len(self._poses),
                 fault=self._fault,
                 note=self.note,
                 twist=self._gauge,
             )
         )
-
-    def _last_pose(self) -> PanTilt | None:
-        if not self._poses:
-            return None
-        pan, tilt = self._poses[-1]
-        return PanTilt(math.degrees(pan), math.degrees(tilt))
 
     @property
     def count(self) -> int:
@@ -178,11 +164,11 @@ class SceneFeeder:
         self.publish_once()
 
     def set_guide(self, figures: tuple[GuideFigure, ...], advice: str) -> None:
-        """The guide's newest figures and advice, shown with the next scene (from any thread)."""
+        """The guide's newest figures and advice, shown with the next scene (any thread)."""
         self._guide = (tuple(figures), advice)
 
     def set_twist(self, twist: TwistMap) -> None:
-        """The twist taught so far, shown with the next scene (from any thread)."""
+        """The twist taught so far, shown with the next scene (any thread)."""
         self._twist = twist
 
     def _run(self) -> None:
@@ -199,10 +185,8 @@ class SceneFeeder:
                 self._stop.wait(remaining)
 
     def wake_time(self, scene_due: float) -> float:
-        """When the feeder, idle with no fit running, wakes next (monotonic s):
-        when the next scene is due, or sooner when the last :meth:`publish_once` left a fit
-        waiting only for :data:`REFIT_PERIOD_S` since the last start to pass (that moment,
-        even if it has passed since: the next fit then starts at once)."""
+        """When the idle feeder wakes next (monotonic s): ``scene_due``, or sooner when a fit waits
+        only for :data:`REFIT_PERIOD_S` since the last start (even if that moment has passed)."""
         if self._refit_waiting:
             return min(scene_due, self._last_start + REFIT_PERIOD_S)
         return scene_due

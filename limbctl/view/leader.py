@@ -1,9 +1,5 @@
-"""The leader gimbal on the live page: its pose beside the follower's, and the force it applies.
-
-With ``--source leader:ID,ID`` the app hands the view a :class:`LeaderStatus` per cycle inside a
-:class:`LeaderLive` (``assets/leader.js`` draws it); a page without a leader gets a plain
-:class:`~limbctl.view.state.Live`, whose JSON has no ``leader`` key.
-"""
+"""The leader gimbal on the live page: its pose beside the follower's, and the force it applies
+(a :class:`LeaderStatus` per cycle inside a :class:`LeaderLive`; ``assets/leader.js`` draws it)."""
 
 from __future__ import annotations
 
@@ -26,28 +22,21 @@ class LeaderStatus:
     pose : PanTilt or None
         The leader's pose as last read (deg); None before its first read.
     torque_nm : float
-        The torque it pushes back with this cycle (N m, >= 0; 0 while free or passive).
+        The torque it pushes back with (N m, >= 0; 0 while free or passive).
     cap_nm : float or None
-        The most it may push (N m: the law's cap, also its Current Limit); None for a passive
-        leader, which cannot push at all.
+        The most it may push (N m, also its Current Limit); None for a passive leader.
     toward : PanTilt or None
-        Where the push points, as a pose on the plane (deg): the leader's Goal Position, which
-        lies from the leader toward the region's correction of its pose. None while free.
+        Where the push points (deg): the leader's Goal Position. None while free.
     beyond_deg : float or None
-        How far the leader's pose lies beyond the region's edge (deg; 0 inside); None when not
-        measured (a passive leader).
+        How far the leader lies beyond the region's edge (deg; 0 inside); None when not measured.
     state : str
         In words: "free", "pushing back", "passive: ..." or why the feel went off.
-    twist_deg : float or None
-        A three-servo leader's twist about the rest axis (deg, in (-180, 180]); None for two
-        servos, whose page part is as before.
-    toward_twist_deg : float or None
-        The twist of a felt three-servo leader's Goal Position while it pushes (deg): the push's
-        twist part points from ``twist_deg`` toward it. None while free.
+    twist_deg, toward_twist_deg : float or None
+        A three-servo leader's twist and its Goal Position's twist while pushing (deg); None for
+        two servos (and the latter while free).
     sensed_nm : float or None
-        The torque its motors apply as last read (N m, >= 0: the norm over its joints of their
-        Present Current as torque), beside ``torque_nm``, the most the push allows. None for a
-        passive leader or before a felt one's first read (and then not in the JSON).
+        The torque its motors apply as last read (N m, >= 0: the norm of their Present Current as
+        torque); None for a passive leader or before the first read (then not in the JSON).
     """
 
     pose: PanTilt | None
@@ -75,32 +64,23 @@ class LeaderStatus:
                 raise ValueError(f"leader {name} must be finite (or None), got {value!r}")
 
     def to_json(self) -> dict[str, object]:
-        return (
-            {
-                "pose": self.pose.to_json() if self.pose else None,
-                "torque_nm": round(float(self.torque_nm), 3),
-                "cap_nm": None if self.cap_nm is None else round(float(self.cap_nm), 3),
-                "toward": self.toward.to_json() if self.toward else None,
-                "beyond_deg": None if self.beyond_deg is None else round(float(self.beyond_deg), 2),
-                "state": self.state,
-            }
-            | self._sensed_json()
-            | self._twist_json()
-        )
+        def rounded(value: float | None, digits: int) -> float | None:
+            return None if value is None else round(float(value), digits)
 
-    def _sensed_json(self) -> dict[str, object]:
-        """A felt leader's read torque; nothing before its first read or for a passive one."""
-        return {} if self.sensed_nm is None else {"sensed_nm": round(float(self.sensed_nm), 3)}
-
-    def _twist_json(self) -> dict[str, object]:
-        """A three-servo leader's twist part; nothing for two servos (their JSON as before)."""
-        if self.twist_deg is None:
-            return {}
-        toward = self.toward_twist_deg
-        return {
-            "twist_deg": round(float(self.twist_deg), 2),
-            "toward_twist_deg": None if toward is None else round(float(toward), 2),
+        out = {
+            "pose": self.pose.to_json() if self.pose else None,
+            "torque_nm": round(float(self.torque_nm), 3),
+            "cap_nm": rounded(self.cap_nm, 3),
+            "toward": self.toward.to_json() if self.toward else None,
+            "beyond_deg": rounded(self.beyond_deg, 2),
+            "state": self.state,
         }
+        if self.sensed_nm is not None:
+            out["sensed_nm"] = rounded(self.sensed_nm, 3)
+        if self.twist_deg is not None:
+            out["twist_deg"] = rounded(self.twist_deg, 2)
+            out["toward_twist_deg"] = rounded(self.toward_twist_deg, 2)
+        return out
 
 
 #: A three-servo leader's push is drawn as an arrow on the pan/tilt plane only when its swing
@@ -115,11 +95,11 @@ def with_twist(status: LeaderStatus, pose: Pose3, goal: Pose3 | None) -> LeaderS
     Parameters
     ----------
     status : LeaderStatus
-        What :func:`limbctl.live.leader_status` made of its pan and tilt.
+        Its pan and tilt part (:func:`limbctl.live.leader_status`).
     pose : (float, float, float)
         The leader's (pan, tilt, roll) as read (rad).
     goal : (float, float, float) or None
-        Its Goal Position while pushing (rad), made from ``pose``; None while free or passive.
+        Its Goal Position while pushing (rad); None while free or passive.
     """
     _, twist = decompose_one(pose_quat_scalar(*pose))
     if goal is None:
@@ -130,10 +110,7 @@ def with_twist(status: LeaderStatus, pose: Pose3, goal: Pose3 | None) -> LeaderS
     largest = max(swing, abs(goal[2] - pose[2]))
     drawn = status.toward if largest > 0.0 and swing >= SWING_SHARE_DRAWN * largest else None
     return replace(
-        status,
-        toward=drawn,
-        twist_deg=math.degrees(twist),
-        toward_twist_deg=math.degrees(toward),
+        status, toward=drawn, twist_deg=math.degrees(twist), toward_twist_deg=math.degrees(toward)
     )
 
 

@@ -1,12 +1,9 @@
 """The region ``train`` would learn from the samples so far, as edge loops the page draws.
 
-:func:`fit_outline` builds the :class:`~limbctl.region.TaughtRegion` the gate of ``limbctl
-train``'s default model would enforce (from the samples' directions alone: the map's weights play
-no part, so they are not trained) as :class:`~limbctl.view.state.EdgeLoop` values.
-:class:`FitProcess` runs it in a separate process at the lowest CPU priority (niceness 19,
-SCHED_IDLE) on one thread: the fit's numba kernels hold the GIL for seconds, which in a thread
-would stall the 100 Hz recorder.
-"""
+:func:`fit_outline` fits the default model's :class:`~limbctl.region.TaughtRegion` (from the
+samples' directions alone) and outlines it; :class:`FitProcess` runs it in a separate process at
+the lowest CPU priority on one thread: the fit's numba kernels hold the GIL for seconds, which in
+a thread would stall the 100 Hz recorder."""
 
 from __future__ import annotations
 
@@ -84,10 +81,8 @@ def mesh_loops(edges: np.ndarray) -> list[np.ndarray]:
 
 
 def subdivide(loop: np.ndarray, step_rad: float) -> np.ndarray:
-    """A closed loop of directions (M, 3) with each arc cut into pieces of at most ``step_rad``.
-
-    Points between two vertices are the normalised chord points (they lie on the great circle).
-    """
+    """A closed loop of directions (M, 3) with each arc cut into pieces of at most ``step_rad``
+    (normalised chord points, on the great circle)."""
     following = np.roll(loop, -1, axis=0)
     angles = np.arccos(np.clip(np.sum(loop * following, axis=1), -1.0, 1.0))
     pieces = np.maximum(1, np.ceil(angles / step_rad).astype(np.int64))
@@ -112,7 +107,7 @@ def traced_stretches(loop: np.ndarray, sample_tree: cKDTree, within_rad: float) 
 def region_loops(
     vertices: np.ndarray, edges: np.ndarray, sample_directions: np.ndarray | None
 ) -> tuple[EdgeLoop, ...]:
-    """A region's boundary (directions and arcs) as pan/tilt edge loops with traced flags.
+    """A region's boundary as pan/tilt edge loops with traced flags.
 
     Parameters
     ----------
@@ -121,7 +116,7 @@ def region_loops(
     edges : ndarray, shape (E, 2), int
         Directed boundary arcs.
     sample_directions : ndarray, shape (N, 3), or None
-        Taught directions; None marks every stretch traced (a loaded model, no samples at hand).
+        Taught directions; None marks every stretch traced (a loaded model).
     """
     tree = cKDTree(sample_directions) if sample_directions is not None else None
     out = []
@@ -165,11 +160,8 @@ def fit_outline(pan_tilt_rad: np.ndarray) -> RegionFit:
 
 
 def serve_fits(connection) -> None:
-    """The fit process: answer each array of samples received with its :class:`RegionFit`.
-
-    The fit runs on one numba thread (the process already runs at :data:`FIT_NICENESS`), so
-    that on a small machine the recorder, the servos' bus and the teleop loop come first.
-    """
+    """The fit process: answer each array of samples with its :class:`RegionFit`, on one numba
+    thread (the recorder, the bus and the loop come first)."""
     numba.set_num_threads(1)
     while True:
         samples = connection.recv()
@@ -179,11 +171,8 @@ def serve_fits(connection) -> None:
 
 
 class FitProcess:
-    """:func:`fit_outline` in its own process, one fit at a time; a context manager.
-
-    ``submit`` hands over samples and returns at once; ``result`` returns the fit once it is
-    done (None before). Stopping ends a fit in progress.
-    """
+    """:func:`fit_outline` in its own process, one fit at a time: ``submit`` returns at once,
+    ``result`` is the fit once done (None before)."""
 
     def __init__(self) -> None:
         context = multiprocessing.get_context("spawn")
@@ -199,12 +188,6 @@ class FitProcess:
         child.close()
         self.busy = False
 
-    def __enter__(self) -> FitProcess:
-        return self
-
-    def __exit__(self, *exc_info) -> None:
-        self.close()
-
     def submit(self, pan_tilt_rad: np.ndarray) -> None:
         """Start fitting samples (N, 2) of joint angles (rad); one fit at a time."""
         if self.busy:
@@ -213,8 +196,7 @@ class FitProcess:
         self.busy = True
 
     def wait(self, timeout_s: float) -> bool:
-        """Wait up to ``timeout_s`` for the running fit to finish; whether it has (False when
-        none is running)."""
+        """Wait up to ``timeout_s`` for the running fit; whether it finished (False: none runs)."""
         return self.busy and self._connection.poll(timeout_s)
 
     def result(self, timeout_s: float = 0.0) -> RegionFit | None:

@@ -1,19 +1,10 @@
 """The live view's web server: the page, its assets and a WebSocket that pushes the board.
 
-aiohttp serves the page (HTML, JS and CSS shipped as package data, nothing fetched from the
-internet) and one WebSocket per browser at ``/ws``. Each browser has its own coroutine that looks
-at the :class:`~limbctl.view.state.Board` every :data:`PUSH_PERIOD_S` and sends the newest scene
-and live state it has not sent yet; older ones are never queued, so a slow browser only gets
-fewer frames and a vanished one is dropped, while the producers never wait for any of them.
-Each version is turned into JSON once, whatever the number of browsers.
-
-:class:`ViewServer` runs the server on its own event loop in a background thread::
-
-    board = Board()
-    with ViewServer(board, port=0) as server:   # port 0: any free port
-        print(server.url)                         # http://127.0.0.1:PORT/
-        board.publish_live(Live(mode="record"))
-"""
+aiohttp serves the page (package data, nothing fetched from the internet) and one WebSocket per
+browser at ``/ws``, whose coroutine sends the newest scene and live state every
+:data:`PUSH_PERIOD_S`; older ones are never queued, so a slow browser only gets fewer frames and
+the producers never wait. Each version is turned into JSON once. :class:`ViewServer` runs it on
+its own event loop in a background thread."""
 
 from __future__ import annotations
 
@@ -55,7 +46,7 @@ ASSETS = {
     "view.css": "text/css",
 }
 DEFAULT_HOST = "127.0.0.1"
-#: The view's default port (0 lets the system choose a free one).
+#: The view's usual port; when it is taken and no port was asked for, any free port is used.
 DEFAULT_PORT = 8765
 
 
@@ -83,12 +74,9 @@ def build_app(
     desk: ControlDesk | None = None,
     heartbeat_s: float = HEARTBEAT_S,
 ) -> web.Application:
-    """The aiohttp application serving ``board``: ``/``, the assets, ``/ws`` and ``/state.json``.
-
-    ``access`` decides who may watch and steer (default: a new secret, watching open);
-    ``desk`` is the controller slot (default: one nobody can steer through); a browser that
-    stops answering is dropped within two ``heartbeat_s`` (s).
-    """
+    """The aiohttp application serving ``board``: ``/``, the assets, ``/ws`` and ``/state.json``;
+    ``access`` decides who watches and steers, ``desk`` is the controller slot, ``heartbeat_s`` (s)
+    the WebSocket ping interval."""
     access = access or Access.for_host(DEFAULT_HOST)
     desk = desk or ControlDesk()
     app = web.Application()
@@ -96,12 +84,16 @@ def build_app(
     sockets: weakref.WeakSet[web.WebSocketResponse] = weakref.WeakSet()
     assets = resources.files("limbctl.view") / "assets"
 
+    def allowed(request: web.Request, websocket: bool = False):
+        verdict = check_request(request, access, websocket)
+        if not verdict.watch:
+            raise web.HTTPForbidden(text=verdict.problem)
+        return verdict
+
     async def page(request: web.Request) -> web.Response:
         name = request.match_info.get("name") or "index.html"
         if name == "index.html":
-            verdict = check_request(request, access, websocket=False)
-            if not verdict.watch:
-                raise web.HTTPForbidden(text=verdict.problem)
+            allowed(request)
         if name not in ASSETS:
             raise web.HTTPNotFound(text=f"no such file: {name}; the page has {sorted(ASSETS)}")
         body = (assets / name).read_bytes()
@@ -110,9 +102,7 @@ def build_app(
         )
 
     async def state(request: web.Request) -> web.Response:
-        verdict = check_request(request, access, websocket=False)
-        if not verdict.watch:
-            raise web.HTTPForbidden(text=verdict.problem)
+        allowed(request)
         snap = board.snapshot()
         parts = {}
         if snap.scene is not None:
@@ -122,9 +112,7 @@ def build_app(
         return web.json_response(parts)
 
     async def stream(request: web.Request) -> web.WebSocketResponse:
-        verdict = check_request(request, access, websocket=True)
-        if not verdict.watch:
-            raise web.HTTPForbidden(text=verdict.problem)
+        verdict = allowed(request, websocket=True)
         socket = web.WebSocketResponse(heartbeat=heartbeat_s, max_msg_size=MAX_MESSAGE_BYTES)
         await socket.prepare(request)
         sockets.add(socket)
@@ -192,14 +180,13 @@ class ViewServer:
     host : str
         Address to bind (127.0.0.1 keeps the view on this machine).
     port : int
-        Port to bind; 0 lets the system choose a free one (see :attr:`url`).
+        Port to bind; 0 lets the system choose.
     desk : ControlDesk, optional
-        The controller slot a page with the key may hold (a new one by default).
+        The controller slot (a new one by default).
     heartbeat_s : float
         WebSocket ping interval (s): a browser that stops answering is dropped within two.
 
-    :attr:`url` is the address to watch (with the watching key when the host is not a loopback
-    one) and :attr:`control_url` the address that steers: it carries the steering key.
+    :attr:`url` is the address to watch, :attr:`control_url` the one that steers (with the key).
     """
 
     def __init__(
@@ -231,7 +218,7 @@ class ViewServer:
         self.stop()
 
     def start(self) -> None:
-        """Bind and serve; returns once :attr:`url` is known, raises ConfigError if it cannot."""
+        """Bind and serve; returns once :attr:`url` is known (ConfigError if it cannot)."""
         self._thread = threading.Thread(target=self._run, name="limbctl-view", daemon=True)
         self._thread.start()
         if not self._ready.wait(START_STOP_TIMEOUT_S):

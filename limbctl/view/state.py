@@ -1,12 +1,9 @@
-"""What the live view shows, as plain values, and the board the producers publish it on.
-
-The view knows nothing of the recorder, the gate or the region: the app hands it a fast
-:class:`Live` and a slow :class:`Scene`, which :class:`Board` keeps the latest of. Every angle is
-in degrees, on the pan/tilt plane (pan = atan2(dy, dx), tilt = asin(dz)).
-"""
+"""What the live view shows, as plain values (a fast :class:`Live`, a slow :class:`Scene`), and
+the :class:`Board` keeping the latest of each. Angles: degrees on the pan/tilt plane."""
 
 from __future__ import annotations
 
+import math
 import threading
 from dataclasses import dataclass, field
 
@@ -26,6 +23,11 @@ class PanTilt:
 
     pan_deg: float
     tilt_deg: float
+
+    @classmethod
+    def of_rad(cls, pose) -> PanTilt:
+        """The pan and tilt of a joint pose (rad; a roll is left out)."""
+        return cls(math.degrees(pose[0]), math.degrees(pose[1]))
 
     def to_json(self) -> list[float]:
         return [round(float(self.pan_deg), 3), round(float(self.tilt_deg), 3)]
@@ -49,10 +51,9 @@ class EdgeLoop:
     Parameters
     ----------
     pan_tilt_deg : ndarray, shape (N, 2)
-        The loop's vertices in order, degrees; the last joins back to the first.
+        The loop's vertices in order, degrees.
     traced : ndarray, shape (N,), bool
-        ``traced[i]`` says whether the stretch from vertex ``i`` to vertex ``i + 1`` (mod N) has
-        been traced by the teacher.
+        Whether the stretch from vertex ``i`` to ``i + 1`` (mod N) was traced by the teacher.
     """
 
     pan_tilt_deg: np.ndarray
@@ -94,20 +95,18 @@ class TeleopStatus:
 
     Parameters
     ----------
-    commanded : PanTilt or None
-        What the command source asked for (None while it has said nothing).
-    written : PanTilt or None
-        The goal the gate let through to the servos (None before the first write).
+    commanded, written : PanTilt or None
+        The source's command and the goal the gate wrote (None before there is one).
     outcome : str
-        The gate's outcome for this cycle, by name (e.g. "inside", "corrected", "held").
+        The gate's outcome by name (e.g. "corrected", "held").
     rate_hz : float
-        The loop's measured rate.
+        The loop's measured rate (Hz).
     cycles : int
         Cycles run so far.
     words : str
-        The gate's outcome in words, e.g. "at the edge: up is blocked, sliding right along it".
+        The outcome in words, e.g. "at the edge: up is blocked, sliding right along it".
     blocked : tuple of str
-        The joint directions the edge or a limit blocks ("+pan", "-pan", "+tilt", "-tilt").
+        The joint directions blocked ("+pan", "-pan", "+tilt", "-tilt").
     """
 
     commanded: PanTilt | None
@@ -132,25 +131,22 @@ class TeleopStatus:
 
 @dataclass(frozen=True)
 class Live:
-    """The fast part of the view: published as often as the producer likes.
+    """The fast part of the view, published as often as the producer likes.
 
     Parameters
     ----------
     mode : str
-        What is running: "record", "teleop" or "demo: <phase>".
+        "record", "teleop" or "demo: <phase>".
     pose : PanTilt or None
-        The limb's present pose as last read.
+        The limb's pose as last read.
     sample_count : int
-        Samples recorded so far (all of them, not the thinned drawing).
+        Samples recorded so far.
     teleop : TeleopStatus or None
-        The teleop cycle, None outside teleop.
-    fault : str
-        The present fault in words, "" when there is none.
-    note : str
-        One line for the person, e.g. "torque off: move the limb by hand".
+        The teleop cycle (None outside teleop).
+    fault, note : str
+        The present fault in words ("" for none); one line for the person.
     twist : TwistGauge or None
-        A three-servo limb's twist gauge (:mod:`limbctl.view.twist`); None on two servos, whose
-        JSON then has no ``twist`` key.
+        A three-servo limb's twist gauge; None (no ``twist`` JSON key) on two servos.
     """
 
     mode: str
@@ -178,26 +174,22 @@ class Live:
 
 @dataclass(frozen=True)
 class Scene:
-    """The slow part of the view: published at least twice a second and when a fit is done.
+    """The slow part of the view, published at least twice a second and when a fit is done.
 
     Parameters
     ----------
     samples_deg : ndarray, shape (M, 2)
-        Samples to draw, pan/tilt degrees (already thinned, see :func:`thin_samples`).
+        Samples to draw, pan/tilt degrees (thinned by :func:`thin_samples`).
     loops : tuple of EdgeLoop
-        The edge of the region ``train`` would learn from the samples so far (empty until one
-        can be fitted).
+        The edge of the region learned so far (empty until one can be fitted).
     limits : HardLimits or None
         The rig's hard joint limits.
-    region_note : str
-        How the region was obtained, e.g. "fitted on 1200 samples" or why there is none yet.
+    region_note, guide_text : str
+        How the region was obtained (or why there is none); the guide's advice.
     guide : tuple of GuideFigure
-        The guide's figures (edge closed %, inside covered %, gaps); empty when there are none.
-    guide_text : str
-        The guide's advice in words, "" when there is none.
+        The guide's figures (edge closed %, inside covered %, gaps).
     twist : TwistMap or None
-        A three-servo limb's twist over the swing plane (:mod:`limbctl.view.twist`); None on two
-        servos, whose JSON then has no ``twist`` key.
+        A three-servo limb's twist map; None (no ``twist`` JSON key) on two servos.
     """
 
     samples_deg: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
@@ -241,7 +233,7 @@ def thin_samples(
     cell_deg : float
         Grid cell size, degrees.
     limit : int
-        Most samples returned; beyond it every k-th kept cell is taken.
+        Most samples returned (every k-th kept cell beyond it).
 
     Returns
     -------
@@ -270,12 +262,8 @@ class Snapshot:
 
 
 class Board:
-    """The latest :class:`Live` and :class:`Scene`, swapped under a lock.
-
-    Producers call :meth:`publish_live` / :meth:`publish_scene` from any thread; each is a
-    reference swap and a counter increment (O(1), never waits on a client). The server reads
-    :meth:`snapshot` at its own pace.
-    """
+    """The latest :class:`Live` and :class:`Scene`, swapped under a lock (O(1), from any thread,
+    never waiting on a client); the server reads :meth:`snapshot` at its own pace."""
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
@@ -285,13 +273,13 @@ class Board:
         self._scene_version = 0
 
     def publish_live(self, live: Live) -> None:
-        """Make ``live`` the newest fast part (replaces the previous one)."""
+        """Make ``live`` the newest fast part."""
         with self._lock:
             self._live = live
             self._live_version += 1
 
     def publish_scene(self, scene: Scene) -> None:
-        """Make ``scene`` the newest slow part (replaces the previous one)."""
+        """Make ``scene`` the newest slow part."""
         with self._lock:
             self._scene = scene
             self._scene_version += 1
@@ -304,11 +292,9 @@ class Board:
     @property
     def live(self) -> Live | None:
         """The newest fast part (None before the first publish)."""
-        with self._lock:
-            return self._live
+        return self.snapshot().live
 
     @property
     def scene(self) -> Scene | None:
         """The newest slow part (None before the first publish)."""
-        with self._lock:
-            return self._scene
+        return self.snapshot().scene

@@ -1,20 +1,12 @@
 """The twist of a three-servo limb on the live page: its band over the swing plane and a gauge.
 
-A roll joint turns the limb about its own axis; its twist is the swing-twist split about +x,
-``q = swing(d) * twist(tau)`` (:mod:`limbctl.geometry.twist`). The page shows it two ways:
-
-- :class:`TwistMap`, in the :class:`~limbctl.view.state.Scene`: the swing plane cut into square
-  cells of ``cell_deg`` of pan and tilt, each with a twist range ``low..high`` (deg) and a state.
-  While recording, the least and the greatest twist taught in the cell so far (the twist
-  guide's cells): ``turned`` when it was turned both ways to its stop, ``short`` when a stop is
-  still untaught, ``few`` when too few samples passed to judge. In teleop, the learned band at
-  the cell's centre, ``centre -+ half-width``: ``band``, or ``free`` where any twist is allowed.
-- :class:`TwistGauge`, in the :class:`~limbctl.view.state.Live`: the present pose's twist against
-  the range at its place (the cell's taught range while recording, the learned band at the
-  present direction in teleop), and in teleop the twist last written.
-
-A two-servo page carries neither, and its JSON is what it was before twist.
-"""
+The twist is the swing-twist split about +x, ``q = swing(d) * twist(tau)``
+(:mod:`limbctl.geometry.twist`). :class:`TwistMap` (in the Scene) cuts the swing plane into
+square cells of ``cell_deg``, each with a twist range ``low..high`` (deg) and a state: while
+recording the twist taught there (``turned``: both ways to the stops, ``short``: a stop untaught,
+``few``: too few samples); in teleop the learned band at the cell's centre (``band``, or
+``free``). :class:`TwistGauge` (in the Live) is the present twist against the range at its
+place. A two-servo page carries neither."""
 
 from __future__ import annotations
 
@@ -26,12 +18,10 @@ import numpy as np
 from limbctl.geometry.gimbal import pan_tilt_to_direction, pose_quat_scalar
 from limbctl.geometry.twist import decompose_one
 
-#: A cell's states: taught both ways to the stops, a stop still untaught, too few samples to
-#: judge (recording); the learned band there, a free twist there (teleop).
+#: A cell's states (module docstring).
 CELL_STATES = ("turned", "short", "few", "band", "free")
-#: Cell size (deg) of the learned band's picture: the band's nodes are 1.5 deg apart, but a
-#: shoulder's band changes by under 3 deg across 5 deg of swing, and a 230 x 125 deg rig then
-#: takes at most ~1200 cells (a scene of ~30 kB).
+#: Cell size (deg) of the learned band's picture: a shoulder's band changes by under 3 deg across
+#: 5 deg of swing, and a 230 x 125 deg rig then takes ~1200 cells (a scene of ~30 kB).
 BAND_CELL_DEG = 5.0
 #: A half-width this close to 180 deg (rad) is a free twist: the band's fit stores pi there.
 FREE_HALF = math.pi - 1e-9
@@ -39,19 +29,18 @@ FREE_HALF = math.pi - 1e-9
 
 @dataclass(frozen=True)
 class TwistMap:
-    """Twist ranges over the swing plane, cell by cell (module docstring).
+    """Twist ranges over the swing plane, cell by cell.
 
     Parameters
     ----------
     cell_deg : float
-        Cell size, deg of pan and of tilt; cell ``(i, j)`` covers pan ``[i, i + 1) * cell_deg``
-        and tilt ``[j, j + 1) * cell_deg``.
+        Cell size, deg; cell ``(i, j)`` covers pan ``[i, i + 1) * cell_deg``, tilt likewise.
     cells : ndarray, shape (M, 4)
         ``(i, j, low_deg, high_deg)`` per cell.
     states : tuple of str
         One of :data:`CELL_STATES` per cell.
     of : str
-        What the ranges are: ``"taught"`` (recording) or ``"band"`` (the learned band).
+        ``"taught"`` (recording) or ``"band"`` (the learned band).
     """
 
     cell_deg: float
@@ -97,13 +86,12 @@ class TwistGauge:
     twist_deg : float
         The present twist (deg, in (-180, 180]).
     low_deg, high_deg : float or None
-        The range at the present place (deg; ``low <= twist_deg + 360 k <= high`` is inside
-        for some k, the range's centre lying within 180 deg of ``twist_deg``); None where nothing
-        is known there yet.
+        The range there (deg; inside when ``low <= twist_deg + 360 k <= high`` for some k); None
+        where nothing is known.
     of : str
         What the range is, in words ("taught here", "the learned band here").
     written_deg : float or None
-        The twist last written (teleop), None otherwise.
+        The twist last written (teleop), else None.
     """
 
     twist_deg: float
@@ -141,8 +129,8 @@ def taught_gauge(twist: TwistMap | None, pan: float, tilt: float, roll: float) -
 
 
 def band_gauge(band, pose: tuple[float, float, float], written: float | None) -> TwistGauge:
-    """The gauge in teleop: the pose's (rad) twist against the learned ``band``
-    (:class:`~limbctl.region.twist_band.TwistBand`) at its direction; ``written`` twist (rad)."""
+    """The teleop gauge: the pose's (rad) twist against the learned ``band`` at its direction;
+    ``written`` twist (rad) or None."""
     d, tau = decompose_one(pose_quat_scalar(*pose))
     c, h = band.at(np.asarray(d, dtype=np.float64))
     centre, half = float(c[0]), float(h[0])
@@ -156,8 +144,8 @@ def band_gauge(band, pose: tuple[float, float, float], written: float | None) ->
 
 
 def taught_map(places, cell_deg: float, min_samples: int) -> TwistMap:
-    """The twist guide's cells (``TwistPlace`` values: indices, low, high, samples, turned) as
-    a :class:`TwistMap` of ``cell_deg`` cells; cells under ``min_samples`` samples are ``few``."""
+    """The twist guide's ``TwistPlace`` cells as a :class:`TwistMap` of ``cell_deg`` cells; cells
+    under ``min_samples`` samples are ``few``."""
     cells = [(p.pan_index, p.tilt_index, p.low_deg, p.high_deg) for p in places]
     states = [
         "few" if p.samples < min_samples else "turned" if p.turned else "short" for p in places
@@ -168,9 +156,8 @@ def taught_map(places, cell_deg: float, min_samples: int) -> TwistMap:
 def band_map(
     band, mesh, pan_deg: tuple[float, float], tilt_deg: tuple[float, float], cell_deg: float
 ) -> TwistMap:
-    """The learned ``band`` over the cells of ``cell_deg`` whose centre the swing region
-    (``mesh``, a :class:`~limbctl.region.mesh.DirectionMesh`) holds, within the pan and tilt
-    ranges (deg): each cell's ``centre -+ half-width`` at its centre (``free`` for a free twist)."""
+    """The learned ``band`` over the ``cell_deg`` cells within the pan and tilt ranges (deg) whose
+    centre the swing region ``mesh`` holds: each cell's ``centre -+ half-width`` (``free``: any)."""
     i = np.arange(math.floor(pan_deg[0] / cell_deg), math.ceil(pan_deg[1] / cell_deg))
     j = np.arange(math.floor(tilt_deg[0] / cell_deg), math.ceil(tilt_deg[1] / cell_deg))
     ij = np.stack(np.meshgrid(i, j, indexing="ij"), axis=-1).reshape(-1, 2).astype(np.float64)
@@ -190,8 +177,7 @@ def band_map(
 
 
 def model_band_map(envelope, pan_deg, tilt_deg, cell_deg: float = BAND_CELL_DEG):
-    """:func:`band_map` of a model learned with twist (``RigidMap(twist=True)``); None for a
-    model without a twist band."""
+    """:func:`band_map` of a model learned with twist; None for a model without a twist band."""
     region = getattr(envelope, "region", None)
     band = getattr(region, "band", None)
     mesh = getattr(region, "mesh", None)

@@ -39,16 +39,17 @@ def write(tmp_path, data, name="x.yaml"):
     return path
 
 
-def test_default_sim_profile_matches_the_packaged_file(sim_data):
-    profile = default_sim_profile()
-    assert isinstance(profile, RigProfile)
-    assert profile.name == sim_data["name"]
-    assert profile.is_sim
-    assert profile.baud == sim_data["baud"]
-    assert profile.pan == JointProfile(**sim_data["pan"])
-    assert profile.tilt == JointProfile(**sim_data["tilt"])
-    assert profile.ids == (sim_data["pan"]["id"], sim_data["tilt"]["id"])
-    assert profile.source is not None and profile.source.endswith("sim.yaml")
+@pytest.mark.parametrize("rig", ["sim", "sim3"])
+def test_a_packaged_profile_matches_its_file_and_round_trips(rig, tmp_path):
+    data = yaml.safe_load(SIM_YAML.with_name(f"{rig}.yaml").read_text())
+    profile = default_sim_profile(rig)
+    assert isinstance(profile, RigProfile) and profile.is_sim
+    assert (profile.name, profile.baud) == (data["name"], data["baud"])
+    names = [name for name in ("pan", "tilt", "roll") if name in data]
+    assert profile.joints == tuple((name, JointProfile(**data[name])) for name in names)
+    assert profile.ids == tuple(data[name]["id"] for name in names)
+    assert profile.source is not None and profile.source.endswith(f"{rig}.yaml")
+    assert load_profile(save_profile(profile, tmp_path / "r.yaml")) == profile
 
 
 def test_profile_is_frozen():
@@ -115,28 +116,15 @@ def test_save_replaces_atomically_and_refuses_invalid(tmp_path):
         (lambda d: d.update(port="p" * 300), "port", "at most 256 characters"),
         (lambda d: d.update(baud=10**1000), "baud", "<an integer of about 1001 digits>"),
         (lambda d: d["pan"].update(max_deg=10**400), "pan.max_deg", "must be finite"),
-    ],
-)
-def test_invalid_fields_name_file_and_field(tmp_path, sim_data, edit, field, fragment):
-    assert_refused(tmp_path, sim_data, edit, field, fragment)
-
-
-@pytest.mark.parametrize(
-    ("edit", "field", "fragment"),
-    [
+        # the roll joint (sim3.yaml) is validated like the others
         (lambda d: d["roll"].update(direction=0), "roll.direction", "must be +1 or -1"),
         (lambda d: d["roll"].update(id=2), "roll.id", "must differ"),
         (lambda d: d["roll"].update(max_deg=104.5), "roll.max_deg", "104.5 is not 1 deg inside"),
         (lambda d: d["roll"].pop("zero_tick"), "roll", "is missing zero_tick"),
     ],
 )
-def test_the_roll_joint_is_validated_like_the_others(tmp_path, edit, field, fragment):
-    assert_refused(tmp_path, yaml.safe_load(SIM3_YAML.read_text()), edit, field, fragment)
-
-
-def assert_refused(tmp_path, data, edit, field, fragment):
-    """The profile ``data`` after ``edit`` is refused naming the file and ``field``."""
-    data = copy.deepcopy(data)
+def test_invalid_fields_name_file_and_field(tmp_path, edit, field, fragment):
+    data = yaml.safe_load((SIM3_YAML if field.startswith("roll") else SIM_YAML).read_text())
     edit(data)
     path = write(tmp_path, data)
     with pytest.raises(ConfigError) as info:
@@ -153,22 +141,19 @@ def test_the_brief_example_message(tmp_path, sim_data):
         load_rig_profile(path)
 
 
-def test_unreadable_yaml_is_a_file_format_error(tmp_path):
-    path = tmp_path / "broken.yaml"
-    path.write_text("name: [unclosed\n")
-    with pytest.raises(FileFormatError, match="broken.yaml: not valid YAML"):
-        load_rig_profile(path)
-
-
-def test_missing_file_says_what_to_do(tmp_path):
-    with pytest.raises(ConfigError, match="no such rig profile.*limbctl calibrate"):
-        load_rig_profile(tmp_path / "nope.yaml")
-
-
-def test_top_level_must_be_a_mapping(tmp_path):
-    path = tmp_path / "list.yaml"
-    path.write_text("- 1\n- 2\n")
-    with pytest.raises(ConfigError, match="list.yaml: top level must be a mapping"):
+@pytest.mark.parametrize(
+    ("text", "error", "match"),
+    [
+        ("name: [unclosed\n", FileFormatError, "x.yaml: not valid YAML"),
+        (None, ConfigError, "no such rig profile.*limbctl calibrate"),
+        ("- 1\n- 2\n", ConfigError, "x.yaml: top level must be a mapping"),
+    ],
+)
+def test_unreadable_missing_or_non_mapping_files_are_named(tmp_path, text, error, match):
+    path = tmp_path / "x.yaml"
+    if text is not None:
+        path.write_text(text)
+    with pytest.raises(error, match=match):
         load_rig_profile(path)
 
 
@@ -332,14 +317,6 @@ def test_malformed_calibration_names_the_field():
 
 
 # ---- the optional roll joint (three-servo rigs) -----------------------------------------------
-def test_sim3_profile_has_a_roll_joint(tmp_path):
-    profile = default_sim_profile("sim3")
-    assert profile.roll == JointProfile(**yaml.safe_load(SIM3_YAML.read_text())["roll"])
-    assert profile.ids == (1, 2, 3)
-    assert [name for name, _ in profile.joints] == ["pan", "tilt", "roll"]
-    assert load_profile(save_profile(profile, tmp_path / "r.yaml")) == profile
-
-
 def test_two_servo_profile_and_calibration_carry_no_roll(sim_data):
     profile = default_sim_profile()
     assert profile.roll is None

@@ -6,13 +6,8 @@ from limbctl.envelope.layouts import make_layout
 from limbctl.errors import ConfigError
 
 
-# (name, full-sphere count, nearest-neighbour angle between unit 4-vectors in degrees;
-#  the rotation angle between neighbours is twice this)
 def nearest_neighbour_angles(points: np.ndarray) -> np.ndarray:
-    """Angle (rad) between each unit 4-vector and its nearest other point: acos(max <p_i, p_j>).
-
-    This is the angle between 4-vectors on S^3 (half the rotation angle). Shape (n,).
-    """
+    """Angle (rad, (n,)) on S^3 between each unit 4-vector and its nearest other point."""
     points = np.asarray(points, dtype=np.float64)
     gram = points @ points.T
     np.fill_diagonal(gram, -np.inf)
@@ -22,24 +17,8 @@ def nearest_neighbour_angles(points: np.ndarray) -> np.ndarray:
 def covering_angle(
     points: np.ndarray, probes: np.ndarray, sign_aware: bool = False, chunk: int = 4096
 ) -> float:
-    """Covering radius estimate: the largest angle from a probe to its nearest point (rad).
-
-    Parameters
-    ----------
-    points : ndarray, shape (n, 4)
-    probes : ndarray, shape (m, 4)
-        Unit quaternions spread over the region to cover (e.g. :func:`uniform` samples).
-    sign_aware : bool
-        Treat q and -q as one point (use |<p, q>|), for hemisphere layouts.
-    chunk : int
-        Probes per block (memory bound).
-
-    Returns
-    -------
-    float
-        max over probes of acos(max over points of <p, q>) — a lower bound of the true
-        covering radius that tightens with more probes.
-    """
+    """Covering radius estimate (rad): the largest angle from a probe (m, 4) to its nearest point
+    (n, 4), q and -q one point when ``sign_aware``; a lower bound of the true radius."""
     points = np.asarray(points, dtype=np.float64)
     best_dots = []
     for start in range(0, len(probes), chunk):
@@ -51,6 +30,7 @@ def covering_angle(
     return float(np.arccos(np.clip(worst, -1.0, 1.0)))
 
 
+#: (name, full-sphere count, nearest-neighbour angle between unit 4-vectors in degrees)
 POLYTOPES = [
     ("24-cell", 24, 60.0),
     ("600-cell", 120, 36.0),
@@ -60,7 +40,7 @@ POLYTOPES = [
 
 
 @pytest.mark.parametrize("name,count,nn_deg", POLYTOPES)
-def test_polytope_counts_unit_length_and_edge_angle(name, count, nn_deg):
+def test_polytopes_on_s3_and_folded_keep_one_of_each_antipodal_pair(name, count, nn_deg):
     full = make_layout(name, hemisphere=False)
     assert full.shape == (count, 4)
     np.testing.assert_allclose(np.linalg.norm(full, axis=1), 1.0, atol=1e-14)
@@ -68,15 +48,6 @@ def test_polytope_counts_unit_length_and_edge_angle(name, count, nn_deg):
     np.testing.assert_allclose(nn, nn_deg, atol=1e-9)
     # centrally symmetric: the antipode of every vertex is a vertex
     assert np.allclose(np.max(full @ (-full).T, axis=1), 1.0)
-
-
-def test_120_cell_edge_angle_is_about_15_5_degrees():
-    assert POLYTOPES[2][2] == pytest.approx(15.52, abs=0.01)
-
-
-@pytest.mark.parametrize("name,count,nn_deg", POLYTOPES)
-def test_hemisphere_fold_keeps_one_of_each_antipodal_pair(name, count, nn_deg):
-    full = make_layout(name, hemisphere=False)
     half = make_layout(name)
     assert half.shape == (count // 2, 4)
     assert (half[:, 0] >= 0).all()
@@ -85,6 +56,10 @@ def test_hemisphere_fold_keeps_one_of_each_antipodal_pair(name, count, nn_deg):
     np.testing.assert_allclose(best, 1.0, atol=1e-12)
     assert np.max(np.abs(half @ half.T) - np.eye(len(half))) < 1 - 1e-9
     np.testing.assert_allclose(np.degrees(nearest_neighbour_angles(half)).min(), nn_deg, atol=1e-9)
+
+
+def test_120_cell_edge_angle_is_about_15_5_degrees():
+    assert POLYTOPES[2][2] == pytest.approx(15.52, abs=0.01)
 
 
 def test_union_720_counts_and_alignment():
@@ -158,15 +133,10 @@ def test_super_fibonacci_first_point_matches_the_formula():
     t = s / n
     alpha = 2 * np.pi * s / np.sqrt(2)
     beta = 2 * np.pi * s / layouts.PSI
-    expected = [
-        np.sqrt(t) * np.sin(alpha),
-        np.sqrt(t) * np.cos(alpha),
-        np.sqrt(1 - t) * np.sin(beta),
-        np.sqrt(1 - t) * np.cos(beta),
-    ]
-    np.testing.assert_allclose(
-        make_layout("super-fibonacci", n=n, hemisphere=False)[0], expected, atol=1e-15
-    )
+    r, big_r = np.sqrt(t), np.sqrt(1 - t)
+    expected = [r * np.sin(alpha), r * np.cos(alpha), big_r * np.sin(beta), big_r * np.cos(beta)]
+    first = make_layout("super-fibonacci", n=n, hemisphere=False)[0]
+    np.testing.assert_allclose(first, expected, atol=1e-15)
     assert layouts.PSI**4 == pytest.approx(layouts.PSI + 4, abs=1e-12)
 
 

@@ -48,26 +48,9 @@ def run_main(arguments: list[str]) -> int:
 def test_help_documents_every_option(capsys):
     assert run_main(["--help"]) == 0
     out = capsys.readouterr().out
-    for option in (
-        "--ids",
-        "--link",
-        "--model",
-        "--hand",
-        "--goal-log",
-        "--seed",
-        "--drop",
-        "--corrupt",
-        "--latency-ms",
-        "--event",
-        "vanish:ID:S",
-        "xm430-w350",
-        "limb_dir",
-        "polygon",
-        "--leader",
-        "--operator",
-        "--leader-log",
-        "let_go_s",
-    ):
+    options = "--ids --link --model --hand --goal-log --seed --drop --corrupt --latency-ms --event"
+    words = "vanish:ID:S xm430-w350 limb_dir polygon --leader --operator --leader-log let_go_s"
+    for option in f"{options} {words}".split():
         assert option in out
 
 
@@ -84,6 +67,8 @@ def test_help_documents_every_option(capsys):
         (["--leader", "3,4,5", "--operator", "OPERATOR"], "it holds a 2-servo leader"),
         (["--leader", "3,4", "--operator", "missing.yaml"], "cannot read the operator file"),
         (["--factory", "2", "--leader", "3,4"], "not served with --factory"),
+        (["--event", "1:melt:1:2"], "kind must be one of"),
+        (["--event", "0:vanish:7:1"], "no servo answers as ID 7; the servos answer as 1, 2"),
     ],
 )
 def test_bad_options_are_named(tmp_path, capsys, arguments, message):

@@ -13,6 +13,7 @@ from firmware_sim.control_table import Register
 from firmware_sim.leader import LEADER_COULOMB_NM, LeaderWorld, Operator, leader_joints
 from firmware_sim.simulator import Simulator
 from firmware_sim.world import DEFAULT_JOINTS, ROLL_JOINT
+from tests.firmware_sim.test_torque import Clock
 
 #: The leader's ids by joint count, and the follower's (the three-servo one with its roll joint).
 LEADER_IDS = {2: [3, 4], 3: [4, 5, 6]}
@@ -20,14 +21,6 @@ FOLLOWER = {2: {"ids": (1, 2)}, 3: {"ids": (1, 2, 3), "roll_id": 3}}
 JOINTS = pytest.mark.parametrize("joints", [2, 3])
 #: What an operator's script of the wrong width is told its points should be.
 POINTS = {2: "[[t_s, pan_deg, tilt_deg], ...]", 3: "[[t_s, pan_deg, tilt_deg, roll_deg], ...]"}
-
-
-class Clock:
-    def __init__(self) -> None:
-        self.t = 0.0
-
-    def __call__(self) -> float:
-        return self.t
 
 
 def sim_with(joints, operator=None, log=None):

@@ -20,14 +20,6 @@ MOVING, PRESENT_LOAD, PRESENT_POSITION, VELOCITY_TRAJECTORY = 122, 126, 132, 136
 OVERLOAD_BIT, ALERT = 0x20, 0x80
 
 
-def signed32(value: int) -> int:
-    return value - (1 << 32) if value & 0x80000000 else value
-
-
-def signed16(value: int) -> int:
-    return value - (1 << 16) if value & 0x8000 else value
-
-
 def wait_for(condition, timeout_s: float, what: str):
     """Poll ``condition`` until it returns a truthy value; fail naming ``what`` on timeout."""
     deadline = time.monotonic() + timeout_s
@@ -39,22 +31,20 @@ def wait_for(condition, timeout_s: float, what: str):
 
 
 def write(sdk, servo_id, address, size, value):
-    writer = {1: sdk.packet.write1ByteTxRx, 2: sdk.packet.write2ByteTxRx}.get(
-        size, sdk.packet.write4ByteTxRx
-    )
+    p = sdk.packet
+    writer = {1: p.write1ByteTxRx, 2: p.write2ByteTxRx, 4: p.write4ByteTxRx}[size]
     comm, error = writer(sdk.port, servo_id, address, value & ((1 << (8 * size)) - 1))
     assert (comm, error) == (COMM_SUCCESS, 0), f"write {address}={value}: {comm}, {error}"
 
 
 def read(sdk, servo_id, address, size, signed=True):
-    reader = {1: sdk.packet.read1ByteTxRx, 2: sdk.packet.read2ByteTxRx}.get(
-        size, sdk.packet.read4ByteTxRx
-    )
+    """The item's value; 2- and 4-byte items as two's complement unless ``signed`` is False."""
+    p = sdk.packet
+    reader = {1: p.read1ByteTxRx, 2: p.read2ByteTxRx, 4: p.read4ByteTxRx}[size]
     value, comm, error = reader(sdk.port, servo_id, address)
     assert comm == COMM_SUCCESS
-    if signed and size == 4:
-        return signed32(value)
-    return signed16(value) if signed and size == 2 else value
+    bits = 8 * size
+    return value - (1 << bits) if signed and size > 1 and value >> (bits - 1) else value
 
 
 def test_trajectory_respects_velocity_and_acceleration_caps():

@@ -15,6 +15,8 @@ CAP_UNITS = 100  # 269 mA
 
 
 class Clock:
+    """A clock the test sets: ``t`` seconds (test_leader's too)."""
+
     def __init__(self) -> None:
         self.t = 0.0
 

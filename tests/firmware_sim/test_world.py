@@ -9,9 +9,11 @@ import numpy as np
 import pytest
 
 from firmware_sim.hand import Hand
+from firmware_sim.orientation import chain_quat
 from firmware_sim.world import (
     DEFAULT_JOINTS,
     LOAD_LIMIT_PCT,
+    ROLL_JOINT,
     STIFFNESS_PCT_PER_DEG,
     Joint,
     World,
@@ -29,9 +31,6 @@ def run(world: World, seconds: float, drive: dict, dt: float = 0.001) -> None:
 
 def tick_at(joint: Joint, angle_deg: float) -> float:
     return joint.raw_tick(math.radians(angle_deg))
-
-
-# -- geometry ---------------------------------------------------------------------------------
 
 
 def test_ticks_angles_direction_round_trip():
@@ -67,9 +66,6 @@ def test_direction_for_ticks_past_a_stop_is_where_the_limb_ends_up():
     beyond = world.direction_for_ticks({1: tick_at(PAN, 170.0), 2: tick_at(TILT, 0.0)})
     at_stop = world.direction_for_ticks({1: tick_at(PAN, 120.0), 2: tick_at(TILT, 0.0)})
     assert beyond == pytest.approx(at_stop)
-
-
-# -- torque on --------------------------------------------------------------------------------
 
 
 def test_tracks_a_setpoint_with_small_lag_and_small_load():
@@ -154,9 +150,6 @@ def test_push_into_a_stop_is_carried_by_the_stop():
     assert abs(world.load_percent(1)) < 1.0
 
 
-# -- torque off -------------------------------------------------------------------------------
-
-
 def test_torque_off_without_hand_stays_put_and_reads_no_load():
     world = World(seed=4)
     before = world.joint_angles_deg()
@@ -186,9 +179,6 @@ def test_hand_moves_only_the_free_joint():
     assert world.joint_angles_deg()["pan"] == pytest.approx(20.0, abs=0.01)
     assert np.ptp(tilts) > 10.0
     assert world.hand_time_s == pytest.approx(5.0)
-
-
-# -- stepping ---------------------------------------------------------------------------------
 
 
 def test_long_steps_split_into_millisecond_substeps():
@@ -234,31 +224,26 @@ def test_same_seed_same_world():
     assert trajectory(8) != trajectory(9)
 
 
-def test_bad_calls_raise_clear_errors():
-    world = World()
-    with pytest.raises(ValueError, match="finite raw tick"):
-        world.step(0.001, {1: float("nan"), 2: None})
-    with pytest.raises(ValueError, match="dt"):
-        world.step(-0.001, OFF)
-    with pytest.raises(ValueError, match="no joint on servo ID 3"):
-        world.raw_tick(3)
-    with pytest.raises(ValueError, match="finite"):
-        world.push(1, float("inf"))
-    with pytest.raises(ValueError, match="direction"):
-        Joint(1, "pan", 2048.0, 2, -90.0, 90.0)
-    with pytest.raises(ValueError, match="below"):
-        Joint(1, "pan", 2048.0, 1, 90.0, -90.0)
-    with pytest.raises(ValueError, match="distinct servo IDs"):
-        World(joints=(PAN, Joint(1, "tilt", 2048.0, 1, -60.0, 60.0)))
-
-
-# -- the roll joint (three-joint gimbal) --------------------------------------------------------
+@pytest.mark.parametrize(
+    "call, message",
+    [
+        (lambda world: world.step(0.001, {1: float("nan"), 2: None}), "finite raw tick"),
+        (lambda world: world.step(-0.001, OFF), "dt"),
+        (lambda world: world.raw_tick(3), "no joint on servo ID 3"),
+        (lambda world: world.push(1, float("inf")), "finite"),
+        (lambda _: Joint(1, "pan", 2048.0, 2, -90.0, 90.0), "direction"),
+        (lambda _: Joint(1, "pan", 2048.0, 1, 90.0, -90.0), "below"),
+        (lambda _: World(joints=(PAN, Joint(1, "tilt", 2048.0, 1, -60.0, 60.0))), "distinct"),
+        (lambda _: World(joints=(PAN, TILT, ROLL_JOINT, ROLL_JOINT)), "at most one 'roll'"),
+        (lambda _: World(joints=(PAN, TILT, Joint(2, "roll", 0.0, 1, -90.0, 90.0))), "distinct"),
+    ],
+)
+def test_bad_calls_raise_clear_errors(call, message):
+    with pytest.raises(ValueError, match=message):
+        call(World())
 
 
 def test_the_roll_joint_tracks_like_the_others():
-    from firmware_sim.orientation import chain_quat
-    from firmware_sim.world import ROLL_JOINT
-
     three = World(joints=(PAN, TILT, ROLL_JOINT), seed=2)
     two = World(seed=2)
     drive = {1: tick_at(PAN, 20.0), 2: tick_at(TILT, 10.0), 3: tick_at(ROLL_JOINT, 130.0)}
@@ -272,12 +257,3 @@ def test_the_roll_joint_tracks_like_the_others():
     assert angles["tilt"] == two.joint_angles_deg()["tilt"]
     q = three.orientation_for_ticks({})
     assert np.allclose(q, chain_quat(*(math.radians(angles[k]) for k in ("pan", "tilt", "roll"))))
-
-
-def test_world_refuses_two_roll_joints_or_shared_ids():
-    from firmware_sim.world import ROLL_JOINT
-
-    with pytest.raises(ValueError, match="at most one 'roll'"):
-        World(joints=(PAN, TILT, ROLL_JOINT, ROLL_JOINT))
-    with pytest.raises(ValueError, match="distinct servo IDs"):
-        World(joints=(PAN, TILT, Joint(2, "roll", 0.0, 1, -90.0, 90.0)))

@@ -26,10 +26,12 @@ from limbctl.geometry.scalar import pan_tilt as pan_tilt_scalar
 from limbctl.geometry.twist import decompose
 
 
-def test_forward_kinematics_hand_cases():
-    np.testing.assert_allclose(gimbal.pan_tilt_to_direction(0.0, 0.0), [1, 0, 0], atol=1e-15)
-    np.testing.assert_allclose(gimbal.pan_tilt_to_direction(np.pi / 2, 0.0), [0, 1, 0], atol=1e-15)
-    np.testing.assert_allclose(gimbal.pan_tilt_to_direction(0.3, np.pi / 2), [0, 0, 1], atol=1e-15)
+@pytest.mark.parametrize(
+    ("pan", "tilt", "d"),
+    [(0.0, 0.0, [1, 0, 0]), (np.pi / 2, 0.0, [0, 1, 0]), (0.3, np.pi / 2, [0, 0, 1])],
+)
+def test_forward_kinematics_hand_cases(pan, tilt, d):
+    np.testing.assert_allclose(gimbal.pan_tilt_to_direction(pan, tilt), d, atol=1e-15)
 
 
 def test_round_trip_through_quaternion():
@@ -132,11 +134,8 @@ def test_gimbal_lock_keeps_the_present_pan_and_roll_takes_the_turn(tilt_deg):
         again = pose_quat_scalar(pan, t2, roll)
         assert abs(float(np.dot(again, q))) == pytest.approx(1.0, abs=1e-12)
         # only pan + roll (tilt +90) or roll - pan (tilt -90) is fixed
-        fixed = 40 + 10 if tilt_deg > 0 else 10 - 40
-        if tilt_deg > 0:
-            both = math.degrees(pan + roll)
-        else:
-            both = math.degrees(roll - pan)
+        sign = 1.0 if tilt_deg > 0 else -1.0
+        both, fixed = math.degrees(roll + sign * pan), 10 + sign * 40
         assert math.remainder(both - fixed, 360) == pytest.approx(0.0, abs=1e-5)
 
 

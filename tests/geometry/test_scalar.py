@@ -18,17 +18,13 @@ unit_quats = st.lists(st.floats(-1, 1, allow_nan=False), min_size=4, max_size=4)
 
 
 @settings(max_examples=200, deadline=None)
-@given(pan=angles, tilt=tilts)
-def test_direction_matches_gimbal(pan, tilt):
-    expected = pan_tilt_to_direction(np.array(pan), np.array(tilt))
-    np.testing.assert_allclose(scalar.direction(pan, tilt), expected, atol=1e-15)
-
-
-@settings(max_examples=200, deadline=None)
-@given(pan=angles, tilt=tilts)
-def test_swing_matches_quat(pan, tilt):
+@given(pan=angles, tilt=tilts, current=angles)
+def test_direction_swing_and_pan_tilt_match_gimbal_and_quat(pan, tilt, current):
     d = scalar.direction(pan, tilt)
+    np.testing.assert_allclose(d, pan_tilt_to_direction(np.array(pan), np.array(tilt)), atol=1e-15)
     np.testing.assert_allclose(scalar.swing(d), swing_from_direction(np.array(d)), atol=1e-12)
+    expected = direction_to_pan_tilt(np.array(d), current_pan=np.array(current))
+    np.testing.assert_allclose(scalar.pan_tilt(d, current), np.array(expected), atol=1e-12)
 
 
 def test_swing_of_minus_x_is_the_half_turn_about_z():
@@ -67,14 +63,6 @@ def test_toward_walks_the_great_circle(p1, t1, p2, t2, fraction):
     assert abs(float(got @ normal)) < 1e-9
     assert math.isclose(float(direction_angle(np.array(a), got)), step, abs_tol=1e-9)
     assert math.isclose(float(direction_angle(got, np.array(b))), total - step, abs_tol=1e-9)
-
-
-@settings(max_examples=200, deadline=None)
-@given(pan=angles, tilt=tilts, current=angles)
-def test_pan_tilt_matches_gimbal(pan, tilt, current):
-    d = scalar.direction(pan, tilt)
-    expected = direction_to_pan_tilt(np.array(d), current_pan=np.array(current))
-    np.testing.assert_allclose(scalar.pan_tilt(d, current), np.array(expected), atol=1e-12)
 
 
 def test_pan_tilt_keeps_the_current_pan_at_the_singularity():

@@ -18,12 +18,14 @@ def supported():
     return DirectionMesh.from_loops([circle(19.5, 120)], np.radians(0.5))
 
 
-def test_crossing_arcs_are_found():
+def test_crossing_arcs_are_found_and_refused(cone_data, supported):
     assert not acceptance.arcs_cross([circle(20.0, 30)])
     # two vertices swapped: the loop crosses itself
     bad = circle(20.0, 30)
     bad[[3, 4]] = bad[[4, 3]]
     assert acceptance.arcs_cross([bad])
+    verdict = judge(Proposal("smooth", [bad]), cone_data, supported)
+    assert not verdict.accepted and verdict.reasons == ("two of its arcs cross",)
     # two loops that overlap: the same circle turned 0.3 rad away about z
     turn = np.array([[np.cos(0.3), -np.sin(0.3), 0], [np.sin(0.3), np.cos(0.3), 0], [0, 0, 1]])
     near = circle(20.0, 30) @ turn
@@ -70,13 +72,6 @@ def test_a_stretch_no_sample_ever_reached_is_refused(cone_data, supported):
     assert not verdict.accepted
     assert verdict.figures["unexplained_samples"] > acceptance.GAP_EXPECTED
     assert verdict.reasons[0].startswith("loop 0 adds a stretch")
-
-
-def test_crossing_arcs_are_refused(cone_data, supported):
-    bad = circle(20.0, 30)
-    bad[[3, 4]] = bad[[4, 3]]
-    verdict = judge(Proposal("smooth", [bad]), cone_data, supported)
-    assert not verdict.accepted and verdict.reasons == ("two of its arcs cross",)
 
 
 def test_a_rival_edge_bounds_how_far_an_edge_may_reach(cone_data, supported):

@@ -27,16 +27,23 @@ CHECK_DEG = 0.02
 
 @pytest.fixture(scope="module")
 def sparse_notch():
+    """Truth, teaching, the scan's box, and the region fitted with and without the hold."""
     outline, _ = notched_ellipse(27.2, 23.4, (-5.7, 7.2), 273.0, 9.0, 8.0)
     truth = PolygonRegion(outline)
     taught = truth.sample(1500, np.random.default_rng(1))
     lo, hi = outline.min(axis=0) - 4.0, outline.max(axis=0) + 4.0
-    return truth, taught, ((lo[0], hi[0]), (lo[1], hi[1]))
-
-
-def test_a_sparse_teaching_is_held_to_the_evidence(sparse_notch, monkeypatch):
-    truth, taught, box = sparse_notch
     region = TaughtRegion().fit(taught)
+    saved = taught_module.hold_to_evidence
+    taught_module.hold_to_evidence = lambda mesh, *_: (mesh, False)
+    try:
+        unheld = TaughtRegion().fit(taught)
+    finally:
+        taught_module.hold_to_evidence = saved
+    return truth, taught, ((lo[0], hi[0]), (lo[1], hi[1])), region, unheld
+
+
+def test_a_sparse_teaching_is_held_to_the_evidence(sparse_notch):
+    truth, taught, box, region, unheld = sparse_notch
     reach = reach_into(region.contains, truth, box, step_deg=SCAN_DEG)
     bound = REACH_DEG + 0.5 * STATION_DEG + np.hypot(SCAN_DEG, SCAN_DEG)
     assert region.held_edge and region.unsupported_edge
@@ -46,8 +53,6 @@ def test_a_sparse_teaching_is_held_to_the_evidence(sparse_notch, monkeypatch):
     assert "held at the evidence" in region.unsupported_edge[0].line()
     # unheld (as before the hold), the same teaching's region reached farther than the bound
     # and held every taught sample the held region holds
-    monkeypatch.setattr(taught_module, "hold_to_evidence", lambda mesh, *_: (mesh, False))
-    unheld = TaughtRegion().fit(taught)
     assert reach_into(unheld.contains, truth, box, step_deg=SCAN_DEG) > bound
     d = taught_module.taught_directions(taught)
     assert not np.any(unheld.mesh.contains(d) & ~region.mesh.contains(d))
@@ -57,7 +62,7 @@ def test_a_dense_teaching_stays_within_a_degree_of_the_truth(sparse_notch, monke
     """6000 samples of the notched ellipse (seed 7): held only where the edge stood past
     REACH_DEG, the region reached 1.15 deg past the truth (its stations up to REACH_DEG from
     the samples, the hold's chords farther); held to HOLD_REACH_DEG it stays within 1 deg."""
-    truth, _, box = sparse_notch
+    truth, _, box, _, _ = sparse_notch
     taught = truth.sample(6000, np.random.default_rng(7))
     region = TaughtRegion().fit(taught)
     assert region.held_edge
@@ -69,24 +74,13 @@ def test_a_dense_teaching_stays_within_a_degree_of_the_truth(sparse_notch, monke
 def test_a_region_with_no_far_station_is_returned_as_it_is(sparse_notch):
     """Every station within reach of a sample (the edge's own stations added to the teaching):
     the very same mesh comes back, so a teaching with no unsupported stretch fits as before."""
-    _, taught, _ = sparse_notch
-    region = TaughtRegion().fit(taught)
+    _, taught, _, region, unheld = sparse_notch
     d = taught_module.taught_directions(taught)
     stations, _ = edge_stations(region.mesh, np.radians(STATION_DEG))
     same, held = hold_to_evidence(region.mesh, np.vstack([d, stations]))
     assert same is region.mesh and not held
     # while the teaching alone leaves stations to hold
-    _, held = hold_to_evidence(unheld_mesh(taught), d)
-    assert held
-
-
-def unheld_mesh(taught):
-    saved = taught_module.hold_to_evidence
-    taught_module.hold_to_evidence = lambda mesh, data: (mesh, False)
-    try:
-        return TaughtRegion().fit(taught).mesh
-    finally:
-        taught_module.hold_to_evidence = saved
+    assert hold_to_evidence(unheld.mesh, d)[1]
 
 
 @pytest.mark.xfail(
@@ -96,11 +90,9 @@ def unheld_mesh(taught):
 )
 def test_every_point_of_the_held_edge_lies_within_reach_of_a_sample(sparse_notch):
     """The goal: every point of the held region's outer edge (checked ``CHECK_DEG`` apart) lies
-    within ``REACH_DEG`` plus a quarter station spacing (the chord passes' own slack) plus half
-    the check step of a taught sample. On main the edge of this teaching stands 0.21 deg past
-    that (measured with this check)."""
-    _, taught, _ = sparse_notch
-    region = TaughtRegion().fit(taught)
+    within ``REACH_DEG`` plus a quarter station spacing plus half the check step of a taught
+    sample (docs/decisions/region.md)."""
+    _, taught, _, region, _ = sparse_notch
     d = taught_module.taught_directions(taught)
     stations, arc = edge_stations(region.mesh, np.radians(CHECK_DEG))
     stations = stations[outer_arcs(region.mesh)[arc]]

@@ -117,18 +117,13 @@ def _hole_readings():
     return s, total, owner, depth
 
 
-def test_without_a_hole_the_bridged_estimates_are_the_estimates_to_the_bit():
+def test_a_hole_is_bridged_and_without_one_the_estimates_stay_to_the_bit():
     s, total, owner, depth = _hole_readings()
-    edge = depth == 0.0
     h = np.radians(3.0)
+    edge = depth == 0.0
     plain = et.station_estimates(s, total, owner[edge], depth[edge], 2)
     assert np.array_equal(et.bridged_estimates(s, total, owner[edge], depth[edge], 2, h), plain)
     assert not et.over_hole(owner[edge], depth[edge], s.size, h).any()
-
-
-def test_a_hole_is_bridged_between_the_stations_that_read_the_edge():
-    s, total, owner, depth = _hole_readings()
-    h = np.radians(3.0)
     hole = et.over_hole(owner, depth, s.size, h)
     assert np.array_equal(np.flatnonzero(hole), np.arange(31, 35))
     # without the bridge the interior readings pull the stations over the hole 15 deg in

@@ -74,7 +74,7 @@ def test_a_bridged_notch_is_listed_as_unsupported(monkeypatch):
     taught = truth.sample(8000, np.random.default_rng(0))
     held = TaughtRegion(RegionParams(edge="supported", alpha_factor=4.0)).fit(taught)
     # the edge as kept, before the hold (limbctl.region.edge_hold) takes it in to the evidence
-    monkeypatch.setattr(taught_module, "hold_to_evidence", lambda mesh, data: (mesh, False))
+    monkeypatch.setattr(taught_module, "hold_to_evidence", lambda mesh, *_: (mesh, False))
     bridged = TaughtRegion(RegionParams(edge="supported", alpha_factor=4.0)).fit(taught)
     assert held.held_edge and not unsupported_stretches(held.mesh, taught)
     assert held.unsupported_edge == tuple(replace(s, held=True) for s in bridged.unsupported_edge)
@@ -109,9 +109,7 @@ def bayed_ellipse(a, b, centre, bays):
 
 def test_a_hand_taught_bay_is_not_bridged(seconds=30.0):
     """Two bays (the families' outline 2), taught by the simulator's hand: the region reaches at
-    most 1 deg outside. Before the traced edge was held to the evidence, the fit refused it
-    (it bridged a bay) and the supported edge taken instead bridged the 6 deg bay at its
-    mouth by 2.21 deg."""
+    most 1 deg outside (docs/decisions/region.md)."""
     outline = bayed_ellipse(22.7, 15.6, (5.0, -6.5), [(242.2, 17.9, 6.8), (11.0, 11.8, 6.2)])
     truth = PolygonRegion(outline)
     region = TaughtRegion().fit(hand_teaching(outline, 2, seconds))

@@ -6,6 +6,7 @@ from limbctl.errors import InvalidInputError
 from limbctl.geometry.quat import direction_angle
 from limbctl.region import grid_kernels, grid_reference
 from limbctl.region import mesh_kernels as bk
+from limbctl.region.evidence import loop_arcs
 from limbctl.region.mesh import (
     DirectionMesh,
     alpha_triangles,
@@ -52,20 +53,15 @@ def mesh_and_region(request):
     return DirectionMesh.alpha_shape(d, np.radians(12.0), np.radians(0.3)), region
 
 
-def test_grid_kernels_match_brute_force_reference(mesh_and_region):
+def test_grid_kernels_match_brute_force_and_project_into_the_region(mesh_and_region):
     mesh, region = mesh_and_region
     test = region.test_directions(3000, np.random.default_rng(1))
     inside_ref, out_ref = project_reference(mesh, test)
-    np.testing.assert_array_equal(mesh.contains(test), inside_ref)
-    np.testing.assert_allclose(mesh.project(test), out_ref, atol=1e-12)
-
-
-def test_projection_lands_in_region_at_margin(mesh_and_region):
-    mesh, region = mesh_and_region
-    test = region.test_directions(3000, np.random.default_rng(2))
-    out = mesh.project(test)
-    assert mesh.contains(out).all()
     inside = mesh.contains(test)
+    out = mesh.project(test)
+    np.testing.assert_array_equal(inside, inside_ref)
+    np.testing.assert_allclose(out, out_ref, atol=1e-12)
+    assert mesh.contains(out).all()
     np.testing.assert_array_equal(out[inside], test[inside])
     # an outside direction moves, and never by more than to the nearest mesh vertex
     moved = direction_angle(out[~inside], test[~inside])
@@ -147,19 +143,9 @@ def test_per_arc_margins_match_reference_and_bound_the_region():
     base = DirectionMesh.alpha_shape(d, np.radians(10.0), 0.0)
     margins = rng.uniform(0.0, np.radians(1.5), base.edges.shape[0])
     # rebuild through the public constructor: one loop per closed chain of arcs
-    nxt = {int(a): (int(b), k) for k, (a, b) in enumerate(base.edges)}
-    loops, widen, seen = [], [], set()
-    for a in nxt:
-        if a in seen:
-            continue
-        idx, wid = [], []
-        while a not in seen:
-            seen.add(a)
-            idx.append(a)
-            wid.append(margins[nxt[a][1]])
-            a = nxt[a][0]
-        loops.append(base.vertices[idx])
-        widen.append(np.array(wid))
+    runs = loop_arcs(base)
+    loops = [base.vertices[base.edges[run, 0]] for run in runs]
+    widen = [margins[run] for run in runs]
     mesh = DirectionMesh.from_loops(loops, widen)
     test = region.test_directions(3000, np.random.default_rng(8))
     inside_ref, out_ref = project_reference(mesh, test)
@@ -182,26 +168,19 @@ def test_bad_margins_are_refused():
         DirectionMesh.from_loops([loop], [np.array([0.1, 0.1])])
 
 
-def test_the_pruned_grid_is_the_brute_force_grid(mesh_and_region):
+@pytest.mark.parametrize("widest_deg", [None, 3.0])
+def test_the_pruned_grid_is_the_brute_force_grid(mesh_and_region, widest_deg):
     # build_grid measures only the arcs its bounds cannot rule out; measuring every arc from
-    # every cell's centre must give the same cells, arcs and keys, to the bit
+    # every cell's centre must give the same cells, arcs and keys, to the bit; per-arc margins
+    # up to 3 deg make the keys and both minimisers differ from the plain angles
     mesh, _ = mesh_and_region
-    args = (mesh.vertices, mesh.edges, mesh.margins, mesh.axis, mesh.grid_shape, mesh.cell_inside)
+    margins = mesh.margins
+    if widest_deg:
+        rng = np.random.default_rng(7)
+        margins = rng.uniform(0.0, np.radians(widest_deg), mesh.edges.shape[0])
+    args = (mesh.vertices, mesh.edges, margins, mesh.axis, mesh.grid_shape, mesh.cell_inside)
     fast = grid_kernels.build_grid(*args)
     slow = grid_reference.build_grid_reference(*args)
     for got, want in zip(fast, slow, strict=True):
         assert got.dtype == want.dtype and np.array_equal(got, want)
     assert fast[0].any() and (~fast[0]).any() and fast[2].size > 0
-
-
-def test_the_pruned_grid_is_the_brute_force_grid_with_widened_arcs():
-    # per-arc margins up to 3 deg: the keys and both minimisers differ from the plain angles
-    rng = np.random.default_rng(7)
-    loop = PolygonRegion().sample(400, rng)
-    mesh = DirectionMesh.alpha_shape(loop, np.radians(12.0), 0.0)
-    margins = rng.uniform(0.0, np.radians(3.0), mesh.edges.shape[0])
-    args = (mesh.vertices, mesh.edges, margins, mesh.axis, mesh.grid_shape, mesh.cell_inside)
-    for got, want in zip(
-        grid_kernels.build_grid(*args), grid_reference.build_grid_reference(*args), strict=True
-    ):
-        assert np.array_equal(got, want)

@@ -2,17 +2,10 @@
 (issue 12 item 6).
 
 ``synthetic.NOTCH`` (a 40 x 30 deg rectangle with a 12 x 12 deg notch in its top edge) taught
-for 60 s the way ``benchmarks/bench_fit.py`` teaches it (``traced_teaching``: the edge traced
-1 deg inside, then wandering), one fit per teaching seed: the taught samples stay inside, at
-least 99 % of the valid test commands (2 deg or more inside) pass unchanged, and the learned
-region reaches at most 1 deg into the notch (0.65 / 0.75 / 0.60 / 0.15 / 0.69 deg, seeds 0-4).
-
-Before the corner limit (``shape.corner_limits``) seeds 0-2 reached 1.20 / 1.30 / 1.10 deg into
-the notch, at the floor's reflex corners: an arc bridging the corner was widened by the cap,
-because across a concave corner the other wall's samples lie beyond the arc. Before the mouth
-rule (``alpha_complex``'s ``mouth``) seeds 1, 2 and 4 changed 1.9-2.8 % of the valid commands
-(holes behind the traced edge left open through the 1 deg gaps between its samples), and the
-simulator hand's 60 s teaching (seed 0) had holes too.
+for 60 s as ``benchmarks/bench_fit.py`` teaches it, one fit per teaching seed: the taught
+samples stay inside, at least 99 % of the valid test commands pass unchanged, and the region
+reaches at most 1 deg into the notch. The corner limit and the mouth rule that made it so:
+docs/decisions/region.md.
 """
 
 from pathlib import Path
@@ -64,9 +57,7 @@ def test_a_traced_notch_stays_a_notch(notch, seed):
 
 def test_the_simulator_hands_60_s_teaching_leaves_no_holes():
     """What ``limbctl demo`` teaches by default: the simulator's hand over
-    examples/regions/irregular.yaml for 60 s, seed 0, at 125 Hz (as
-    ``bench_envelope.hand_samples`` records it). Before the mouth rule the region kept holes
-    behind the traced edge and held 89.9 % of the directions 2 deg or more inside."""
+    examples/regions/irregular.yaml for 60 s, seed 0, at 125 Hz (docs/teaching.md)."""
     path = REPO / "examples" / "regions" / "irregular.yaml"
     hand = Hand.from_yaml(path, seed=0)
     hand.start_from(0.0, 0.0)

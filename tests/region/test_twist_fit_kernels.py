@@ -98,6 +98,11 @@ def _disk_samples(rng, n, radius):
     return d, np.array([[0.0, 0.0, 1.0]])
 
 
+def _one_node(d):
+    """``start``, ``members`` of one node holding every row of ``d``."""
+    return np.array([0, d.shape[0]], dtype=np.int64), np.arange(d.shape[0], dtype=np.int64)
+
+
 def test_both_readings_find_planar_limits_at_the_node():
     rng = np.random.default_rng(2)
     # few enough that the 24 highest twists are the upper stops all round the node
@@ -108,8 +113,7 @@ def test_both_readings_find_planar_limits_at_the_node():
     lower = -0.4 + 0.2 * x + 0.1 * y
     side = rng.choice([-1, 0, 1], d.shape[0])
     tau = np.where(side > 0, upper, np.where(side < 0, lower, rng.uniform(lower, upper)))
-    start = np.array([0, d.shape[0]], dtype=np.int64)
-    members = np.arange(d.shape[0], dtype=np.int64)
+    start, members = _one_node(d)
     centre, half = fit_nodes(node, start, members, d, tau, 24, math.radians(10), 1.0)
     # the centre is the middle of the occupied arc, any turn of the circle
     assert math.isclose(wrap(centre[0] + half[0] - 0.5), 0.0, abs_tol=1e-9)
@@ -125,8 +129,7 @@ def test_free_twist_and_too_few_samples():
     rng = np.random.default_rng(3)
     d, node = _disk_samples(rng, 300, math.radians(8))
     tau = rng.uniform(-math.pi, math.pi, d.shape[0])
-    start = np.array([0, d.shape[0]], dtype=np.int64)
-    members = np.arange(d.shape[0], dtype=np.int64)
+    start, members = _one_node(d)
     _, half = fit_nodes(node, start, members, d, tau, 24, math.radians(10), 1.0)
     assert half[0] == math.pi
     few = np.array([0, 2], dtype=np.int64)
@@ -138,8 +141,7 @@ def test_refine_refuses_planes_steeper_than_allowed():
     rng = np.random.default_rng(4)
     d, node = _disk_samples(rng, 300, math.radians(8))
     limit = 3.0 * d[:, 0]  # slope 3 rad/rad
-    start = np.array([0, d.shape[0]], dtype=np.int64)
-    members = np.arange(d.shape[0], dtype=np.int64)
+    start, members = _one_node(d)
     stop = np.ones(d.shape[0], dtype=bool)
     ref = np.zeros(1)
     assert np.isnan(refine_nodes(node, start, members, d, limit, stop, ref, 0.1, 1.0)[0])
@@ -175,8 +177,7 @@ def test_a_stop_held_at_the_node_witnesses_the_cap_and_a_far_one_shrinks_it():
     # three samples at the node at twists 0.5, 0.49, 0.2; one 6 deg away at 0.6
     d = np.array([[0, 0, 1], [0, 0, 1], [0, 0, 1], [math.sin(a), 0, math.cos(a)]], float)
     limit = np.array([0.5, 0.49, 0.2, 0.6])
-    start = np.array([0, 4], dtype=np.int64)
-    members = np.arange(4, dtype=np.int64)
+    start, members = _one_node(d)
     up, lo, n_up, n_lo = evidence_caps(
         node, start, members, d, limit, np.zeros(1), 1.0, math.radians(3), 0.05
     )
@@ -191,8 +192,7 @@ def test_the_cap_along_the_local_slope_follows_a_steep_plane_the_cone_overshoots
     d[0] = node[0]  # one stop at the node itself
     # an upper limit sloping 1.5 rad/rad, steeper than any fixed cone the cap assumes
     limit = 0.4 + 1.5 * d[:, 0]
-    start = np.array([0, d.shape[0]], dtype=np.int64)
-    members = np.arange(d.shape[0], dtype=np.int64)
+    start, members = _one_node(d)
     stop = np.ones(d.shape[0], dtype=bool)
     ref = np.zeros(1)
     free = (math.radians(4), 1.4, np.zeros(1, dtype=bool))  # no reach

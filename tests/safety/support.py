@@ -1,10 +1,5 @@
-"""Shared pieces of the safety campaign (tests/safety/, benchmarks/soak.py).
-
-Everything here is real: the simulator process, the dynamixel-sdk on its pty, the Rig, the Gate
-and the control loop. The only additions are observers: :class:`RecordingGate` remembers what
-the gate returned, :class:`PacedSource` hands the loop one line per cycle (so every command of
-a generated stream meets the gate), and :func:`goal_log_poses` reads what reached the servos
-from the simulator's own goal log.
+"""Shared pieces of the safety campaign (tests/safety/, benchmarks/soak.py): all real parts,
+plus observers (:class:`RecordingGate`, :class:`PacedSource`, :func:`goal_log_poses`).
 """
 
 from __future__ import annotations

@@ -1,28 +1,8 @@
-"""Promise 2: faults never leave the rig in an unknown state.
+"""Promise 2: faults never leave the rig in an unknown state (docs/safety.md, issue 13).
 
-A matrix over the simulator's fault options, each on the real loop, SDK and simulator:
-dropped replies (1-20 %), corrupted bytes, latency spikes past the cycle budget (and past the
-SDK's own reply timeout), a servo that disappears and returns (or stays away), overload,
-voltage and temperature alarms, and the port vanishing. For each, the loop either recovers
-(clean end, cycles lost counted) or ends in the configured safe state with a message naming
-the cause; the simulator's truth (torque, goals) is checked against what the message says,
-and every goal that reached a servo is checked against the model (promise 1).
-
-Then the faults around the gate that the servos themselves show (issue 13):
-
-- torque switched off under a running teleop (one broadcast Torque Enable = 0, what a brown-out
-  reset leaves) and a servo that browns out and restarts: noticed, named, safe state, exit 3;
-- a servo that drops out: named while it is away, the loop keeps cycling (the other servo read
-  every cycle, the silent one probed with one try at most every ``probe_interval_s``), the
-  dropout reported with its length when it answers, or with its length so far when the session
-  ends first;
-- a servo pushed beyond what its motor holds: its drive saturates and it is reported as blocked
-  before the firmware's own overload shutdown; a push the motor holds only with an overload
-  still ends in the firmware's alarm;
-- an alarm message says each servo's torque once, as the safe state left it.
-
-Detection times are measured by ``benchmarks/bench_faults.py`` (docs/bench_faults.md); the
-bounds here are generous, for a loaded machine.
+Each fault of the simulator on the real loop: the loop recovers or ends in the configured safe
+state with a message the simulator's truth bears out, and every goal written was gated. Bounds
+are generous; ``benchmarks/bench_faults.py`` measures the real figures.
 """
 
 from __future__ import annotations

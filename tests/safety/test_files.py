@@ -1,11 +1,6 @@
-"""Promise 4: truncated, corrupted, wrong-version or hand-edited model, dataset and rig files
-are refused with an error naming the file and the problem; a model trained for another rig is
-refused for this one.
-
-Line-level dataset damage (an edited record, a deleted line, a torn tail, a wrong version) is
-covered case by case in tests/teach/test_dataset.py; here every kind of file meets random damage
-(hypothesis: truncation, byte flips, inserted and deleted bytes), and the CLI is checked to
-refuse bad files before it touches a servo.
+"""Promise 4: damaged, wrong-version or hand-edited model, dataset and rig files, and models for
+another rig, are refused naming the file and the problem (random damage by hypothesis; the CLI
+before it touches a servo). Line-level dataset cases: tests/teach/test_dataset.py.
 """
 
 from __future__ import annotations

@@ -1,17 +1,7 @@
 """Promise 3: recordings survive, through the real ``limbctl record`` in a subprocess.
 
-- SIGINT and SIGTERM: the recorder stops cleanly; every sample it took is in the file (the
-  count it reports equals the count that loads) and nothing seen on disk before the signal is
-  lost;
-- SIGKILL: the file still loads and keeps every sample that had reached the disk; the
-  power-cut bound (fsync at least every 0.25 s, so at most the last half second) is measured by
-  tests/teach/test_dataset.py::test_kill_9_loses_at_most_half_a_second and not repeated here;
-- a path that cannot be written is refused before the simulator (or a servo) is touched; the
-  free-space preflight is tested in tests/teach/test_dataset.py::test_preflight_checks;
-- the disk filling up mid-recording (a file-size limit on the recorder) ends the recording
-  with a message naming the file, and every sample before it still loads;
-- a servo lost mid-recording ends it as a fault (exit 3, "bus failure", the servo named), and
-  every sample before it still loads.
+SIGINT/SIGTERM/SIGKILL, an unwritable path, a full disk and a lost servo: every sample on disk
+before still loads (the power-cut bound and preflight: tests/teach/test_dataset.py).
 """
 
 from __future__ import annotations

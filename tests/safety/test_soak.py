@@ -1,8 +1,4 @@
-"""Promise 5, reduced: the soak of benchmarks/soak.py at CI size.
-
-The full run (1,000,000 compressed-time cycles and a minute on the simulator) is the documented
-command ``.venv/bin/python benchmarks/soak.py``; its figures are in docs/soak.md.
-"""
+"""Promise 5, reduced: the soak of benchmarks/soak.py at CI size (full run: docs/soak.md)."""
 
 from __future__ import annotations
 

@@ -1,10 +1,4 @@
-"""Alarm messages say one thing about torque; servos in alarm are rebooted and say what it was.
-
-Through the real SDK on the simulator: a voltage alarm (not in the factory Shutdown mask: torque
-stays on; on a servo whose torque was never on it stays off), an overheating shutdown (torque
-off). The words the loop's safe states use (the alarm alone, then each joint's torque) are
-values in, values out.
-"""
+"""Alarm messages say one thing about torque; servos in alarm are rebooted and say what it was."""
 
 from __future__ import annotations
 

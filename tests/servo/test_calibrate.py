@@ -33,24 +33,36 @@ class FlakyStillLimb:
         pass
 
 
-def test_calibration_on_the_simulator_finds_the_truth(tmp_path):
+@pytest.mark.parametrize(
+    ("options", "limits"),
+    [
+        (
+            ["--name", "bench", "--pan-limits=-100,100", "--tilt-limits=-40,60"],
+            {"pan": (-100.0, 100.0), "tilt": (-40.0, 60.0)},
+        ),
+        (["--rig", "sim3"], {"roll": None}),
+        (["--ids", "1,2,3", "--roll-limits=-80,80"], {"roll": (-80.0, 80.0)}),  # sim3's template
+    ],
+    ids=["sim", "sim3", "three-ids"],
+)
+def test_calibration_on_the_simulator_finds_the_truth(tmp_path, options, limits):
     out = tmp_path / "rig.yaml"
-    args = build_parser().parse_args(
-        ["calibrate", "--out", str(out), "--name", "bench"]
-        + ["--pan-limits=-100,100", "--tilt-limits=-40,60"]
-    )
+    args = build_parser().parse_args(["calibrate", "--out", str(out), *options])
     assert args.job(args) == 0  # the typed calibrate job the parser chose
     found = load_profile(out)
-    truth = default_sim_profile()  # the simulated world's true geometry
-    assert abs(found.pan.zero_tick - truth.pan.zero_tick) <= 3
-    assert abs(found.tilt.zero_tick - truth.tilt.zero_tick) <= 3
-    assert found.pan.direction == truth.pan.direction
-    assert found.tilt.direction == truth.tilt.direction
-    assert (found.pan.min_deg, found.pan.max_deg) == (-100.0, 100.0)
-    assert (found.tilt.min_deg, found.tilt.max_deg) == (-40.0, 60.0)
-    assert found.name == "bench" and found.port == "sim"
-    # the simulator's profile describes the calibrated gimbal: its end stops carry over
-    assert (found.tilt.stop_min_deg, found.tilt.stop_max_deg) == (-60.0, 75.0)
+    truth = default_sim_profile("sim3" if len(found.joints) == 3 else "sim")  # the true geometry
+    assert [n for n, _ in found.joints] == [n for n, _ in truth.joints]
+    for name, true in truth.joints:
+        joint = found.joint(name)
+        assert abs(joint.zero_tick - true.zero_tick) <= 3, name
+        assert (joint.id, joint.direction) == (true.id, true.direction), name
+        if name in limits:  # hard limits as asked, or (None) the base profile's
+            assert (joint.min_deg, joint.max_deg) == (limits[name] or (true.min_deg, true.max_deg))
+        # the simulator's profile describes the calibrated limb: its end stops carry over
+        assert (joint.stop_min_deg, joint.stop_max_deg) == (true.stop_min_deg, true.stop_max_deg)
+    assert found.port == "sim"
+    if "--name" in options:
+        assert found.name == "bench"
 
 
 def test_limits_past_the_end_stops_are_refused_before_calibrating(tmp_path):
@@ -92,20 +104,6 @@ def test_a_servo_that_stays_silent_ends_the_calibration_naming_it():
     assert "nothing was written" in str(err.value)
 
 
-def test_calibration_of_a_three_servo_rig_finds_the_roll_too(tmp_path):
-    out = tmp_path / "rig3.yaml"
-    args = build_parser().parse_args(["calibrate", "--out", str(out), "--rig", "sim3"])
-    assert args.job(args) == 0
-    found = load_profile(out)
-    truth = default_sim_profile("sim3")
-    for name in ("pan", "tilt", "roll"):
-        assert abs(getattr(found, name).zero_tick - getattr(truth, name).zero_tick) <= 3, name
-        assert getattr(found, name).direction == getattr(truth, name).direction, name
-    # the roll's hard limits and end stops carry over from the base profile
-    assert (found.roll.min_deg, found.roll.max_deg) == (truth.roll.min_deg, truth.roll.max_deg)
-    assert found.roll.stop_max_deg == truth.roll.stop_max_deg
-
-
 def test_on_a_port_the_servos_named_by_ids_are_calibrated_inside_the_assumed_end_stops(
     tmp_path, capsys
 ):
@@ -141,20 +139,6 @@ def test_on_a_port_the_servos_named_by_ids_are_calibrated_inside_the_assumed_end
         "pan hard limits -89..89 deg (1 deg inside the end stops -90..90)"
         in capsys.readouterr().err
     )
-
-
-def test_three_ids_calibrate_a_roll_joint_from_the_sim3_rigs_template(tmp_path):
-    out = tmp_path / "rig3.yaml"
-    args = build_parser().parse_args(
-        ["calibrate", "--out", str(out), "--ids", "1,2,3", "--roll-limits=-80,80"]
-    )
-    assert args.job(args) == 0
-    found = load_profile(out)
-    truth = default_sim_profile("sim3")
-    assert found.roll is not None and found.roll.id == 3
-    assert abs(found.roll.zero_tick - truth.roll.zero_tick) <= 3
-    assert found.roll.direction == truth.roll.direction
-    assert (found.roll.min_deg, found.roll.max_deg) == (-80.0, 80.0)
 
 
 @pytest.mark.parametrize(

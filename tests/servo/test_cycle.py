@@ -1,10 +1,5 @@
-"""The control cycle's one read through indirect addresses: the real SDK on the simulator.
-
-Set-up maps Present/Goal Position, Torque Enable, Hardware Error Status and Present PWM onto
-Indirect Data; one (fast) sync read then shows each fault the loop must notice: a silent servo
-(named, one try, no retries), torque switched off (one broadcast write), an alarm, a restart
-(map lost), a pushed servo (its drive saturated). While a servo is silent the others are read on
-their own and it is probed with one try.
+"""The control cycle's one read through indirect addresses, on the simulator: each fault the loop
+must notice shows in it, and a silent servo is probed alone with one try.
 """
 
 from __future__ import annotations

@@ -1,7 +1,5 @@
-"""One controller per port: a second ServoBus on a held port is refused at once, naming the
-holder (pid and command), and the first runs on undisturbed; the lock dies with its holder.
-
-Real parts: the simulator's pty, the real dynamixel-sdk, real processes.
+"""One controller per port: a second ServoBus on a held port is refused at once naming the holder;
+the first runs on undisturbed; the lock dies with its holder.
 """
 
 from __future__ import annotations

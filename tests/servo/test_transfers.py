@@ -25,18 +25,13 @@ def test_ping_read_write(sdk):
 
 
 @pytest.mark.parametrize("read", [transfers.sync_read, transfers.fast_sync_read])
-def test_sync_reads_agree_with_single_reads(sdk, read):
+def test_sync_reads_agree_with_single_reads_and_name_an_absent_servo(sdk, read):
     outcome = read(sdk.packet, sdk.port, Register.MODEL_NUMBER, (1, 2))
     assert outcome.result == COMM_SUCCESS
     assert outcome.value == {1: 1060, 2: 1060}
     assert outcome.errors == {1: 0, 2: 0}
-
-
-@pytest.mark.parametrize("read", [transfers.sync_read, transfers.fast_sync_read])
-def test_sync_read_of_an_absent_servo_names_it(sdk, read):
-    outcome = read(sdk.packet, sdk.port, Register.PRESENT_POSITION, (5, 1))
-    assert outcome.result != COMM_SUCCESS
-    assert outcome.culprit == 5
+    absent = read(sdk.packet, sdk.port, Register.PRESENT_POSITION, (5, 1))
+    assert absent.result != COMM_SUCCESS and absent.culprit == 5
 
 
 def test_refused_write_keeps_the_error_number(sdk):

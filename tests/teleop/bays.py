@@ -1,16 +1,8 @@
 """Random non-convex regions for testing the gate's reach: swing outlines with a bay and a notch.
 
-An outline is a star-shaped polygon in (pan, tilt) degrees around a random centre, its radius
-noisy, then dented twice: a *bay* (a wide concave dent, 50-90 deg of the outline's angle, a
-third to a half of the radius deep) and a *notch* (a narrow deep cut, 14-24 deg wide, 55-75 %
-of the radius deep). Straight paths between points on either side of a dent leave the region:
-the concave walls a slew step can stick on.
-
-:class:`OutlineRegion` is the outline as an exact envelope of limb directions (``contains``,
-``correct`` to the nearest boundary direction) and :class:`OutlineBandRegion` the same outline
-with a twist band whose centre and half-width vary linearly with pan and tilt (``correct``
-clamps the direction, then the twist: inside, not always the nearest orientation). Both answer
-single quaternions (4,) and batches (N, 4), so the gate and its tests need no fitting.
+:class:`OutlineRegion` is the outline as an exact envelope of limb directions and
+:class:`OutlineBandRegion` the same with a twist band varying linearly with pan and tilt; both
+answer (4,) and (N, 4), so the gate's tests need no fitting.
 """
 
 from __future__ import annotations
@@ -35,7 +27,6 @@ def bay_outline(rng: np.random.Generator, radius_deg: tuple[float, float] = (28.
     Parameters
     ----------
     rng : numpy.random.Generator
-        The randomness (centre, radius, noise, where and how deep the dents are).
     radius_deg : (float, float)
         Range of the outline's mean radius (deg of pan/tilt).
 

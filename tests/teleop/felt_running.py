@@ -1,9 +1,5 @@
-"""The felt-leader pty tests' loop runner, for two and three servos.
-
-:class:`Running` runs :func:`limbctl.teleop.loop.run` in a thread on an open simulated rig and
-keeps every cycle's push, so a test can wait on what the loop did (no sleeps) and judge the
-wall only on stretches that kept its pace.
-"""
+"""The felt-leader pty tests' loop runner (:class:`Running`), for two and three servos: waits on
+what the loop did (no sleeps) and judges the wall only where it kept its pace."""
 
 from __future__ import annotations
 
@@ -32,10 +28,8 @@ def pressing(pushes) -> bool:
 
 
 class Running:
-    """The loop in a thread with every cycle's push kept (``pushes``: (cycle, push, felt)), the
-    leader's pose each push was made from (``poses``, rad), when each cycle ended (``clock``,
-    monotonic s), and the cycle that switched the feel off with the ground truth at its end
-    (``off``); ``until(predicate)`` waits on the pushes."""
+    """The loop in a thread keeping each cycle's ``pushes`` ((cycle, push, felt)), ``poses``
+    (rad), end times (``clock``, monotonic s) and the feel's switch-off (``off``)."""
 
     def __init__(self, session, source) -> None:
         self.source, self.pushes, self.out = source, [], {}
@@ -85,23 +79,19 @@ class Running:
     def kept_sim(
         self, sim_at: float, wall_at: float, sim_from: float, sim_to: float, unreleased_from=None
     ) -> bool:
-        """:meth:`kept_pace` from simulator time ``sim_from`` to ``sim_to`` (s) and
-        :meth:`unreleased` from ``unreleased_from`` (default ``sim_from``) on: the simulator runs
-        on the wall clock, its time ``sim_at`` being monotonic ``wall_at``."""
+        """:meth:`kept_pace` and :meth:`unreleased` in simulator time (``sim_at`` is monotonic
+        ``wall_at``)."""
         since, until = wall_at + sim_from - sim_at, wall_at + sim_to - sim_at
         first = since if unreleased_from is None else wall_at + unreleased_from - sim_at
         return self.kept_pace(since, until) and self.unreleased(first, until)
 
     def kept_pace(self, since: float, until: float) -> bool:
-        """Whether the loop kept the wall's rate between two monotonic times: the median period
-        of its cycles within 1.25 periods at 200 Hz (the pace watch's rule, PaceWatch)."""
+        """Whether the median period between two monotonic times was within 1.25 at 200 Hz."""
         times = [t for t in self.clock if since <= t <= until]
         return len(times) > 2 and float(np.median(np.diff(times))) <= 1.25 / 200.0
 
     def unreleased(self, since: float, until: float) -> bool:
-        """Whether every cycle between two monotonic times read both gimbals, ran the gate and
-        wrote the law's push: none released the leader for a failed read or a held gate, after
-        which the hand may carry it past (docs/decisions/haptic.md)."""
+        """Whether every cycle between two monotonic times read, gated and wrote the law's push."""
         cycles = [p for p, t in zip(self.pushes, self.clock, strict=True) if since <= t <= until]
         return bool(cycles) and all(
             push is not None
@@ -120,17 +110,14 @@ class Running:
         return True
 
     def pressed_or_paced_out(self, press: dict) -> bool:
-        """Start the operator's ``press`` and wait until the wall pushes (:func:`pressing`);
-        True when the feel went off for a lost pace instead (its outcome asserted)."""
+        """Press until the wall pushes; True when the feel went off for a lost pace instead."""
         self.simulator.set_operator(press)
         self.until(pressing)
         return self.paced_out()
 
     def held_then(self, press: dict, then: dict) -> float | None:
-        """Press with ``press`` until the snap watch holds the leader still (armed), then hand
-        the leader to the operator ``then`` (its script's clock starting there) and run 100
-        cycles more. Returns the simulator's leader time at the switch; None when the feel went
-        off for a lost pace instead (its outcome asserted)."""
+        """Press until the watch is armed, then hand over to ``then`` for 100 cycles: the leader's
+        time at the switch, or None for a lost pace."""
         if self.pressed_or_paced_out(press):
             return None
         held_at = time.monotonic()
@@ -155,9 +142,8 @@ class Running:
 
 
 def pushed_only_when_fit(pushes) -> None:
-    """A cycle pushes only when the leader was read and fit to push, and the gate ran on a good
-    read, or held only because the follower's read failed within FOLLOWER_GRACE_S (one cycle of
-    slack: the grace is timed when the push is written) of the follower's last good read."""
+    """A cycle pushes only when fit and the gate ran on a good read, or held on a follower read
+    failed within FOLLOWER_GRACE_S (plus a cycle) of its last good one."""
     period = 1.0 / LoopConfig().rate_hz
     last_read = None
     for cycle, push, felt in pushes:
@@ -176,9 +162,7 @@ def pushed_only_when_fit(pushes) -> None:
 
 
 def check_a_forced_pace_loss(session, source, press: dict) -> None:
-    """The pace-loss outcome the other tests assert when a busy machine loses the pace, forced:
-    the source believes its wall needs 1 kHz, so the loop's 200 Hz is five periods late. The
-    feel goes off for good in its cycle (asserted cycle by cycle) and mirroring goes on."""
+    """The pace-loss outcome, forced: the source believes its wall needs 1 kHz."""
     source.rate_hz, source.pace = 1000.0, PaceWatch(1000.0)
     session.rig.set_torque(True)
     with Running(session, source) as running:

@@ -1,11 +1,8 @@
 """What a felt leader's pty tests assert when the loop could not keep the wall's pace.
 
-The wall is passive only at its rate (docs/haptic.md). A loop whose median period passes 1.25
-periods of the rate the source was opened for switches the push off for good
-(:meth:`limbctl.teleop.sources.leader.LeaderSource._check_pace`): in the cycle that saw it the
-leader gets Goal Current 0 and its torque goes off, the operator is told why, and the mirroring
-goes on without feel. A test whose run lost the pace asserts that outcome, not its own property
-(which is asserted at exactly 200 Hz on a stepped clock in tests/teleop/test_haptic*.py).
+A lost pace switches the push off for good in the cycle that saw it, says why, and mirrors on
+(``LeaderSource._check_pace``); a run that lost it asserts that outcome instead of its own
+property (asserted at exactly 200 Hz in tests/teleop/test_haptic.py).
 """
 
 from __future__ import annotations
@@ -21,12 +18,9 @@ PACE_LOST = re.compile(
 )
 
 
-#: The loop's health limits for these tests: a follower is lost after 5 s of silence, not 0.5 s.
-#: On the shared 2-core machine at load 4-12 the simulator's own process fell silent for
-#: 0.51-0.59 s now and then (with main's tests too), and the loop's fault then ended a test of
-#: the leader within its first cycles, before it judged anything. The leader's rules for a
-#: silent follower (its wall off after FOLLOWER_GRACE_S) are unchanged; the loop's own rule is
-#: tested in tests/servo/test_health.py and tests/safety/.
+#: The loop's health limits for these tests: a follower is lost after 5 s of silence, not 0.5 s:
+#: a loaded machine's simulator fell silent for 0.51-0.59 s now and then (the loop's own rule is
+#: tested in tests/servo/test_health.py and tests/safety/).
 SIM_STARVED_HEALTH = HealthLimits(lost_after_s=5.0)
 
 

@@ -37,9 +37,7 @@ CONE = Cone(half_angle_deg=30.0)
 
 
 def read_torque(servos: Sequence, joints: Sequence, motor: LeaderMotor) -> tuple[float, ...]:
-    """The leader's motor torques (joint frame, N m) as their Present Current reads, as
-    ``LeaderSource`` reads them through the current map (the joint's direction turns the
-    shaft's current into its frame)."""
+    """The leader's motor torques (joint frame, N m) from Present Current, as ``LeaderSource``."""
     return tuple(
         joint.direction * motor.torque_of(servo.value(SimRegister.PRESENT_CURRENT))
         for servo, joint in zip(servos, joints, strict=True)
@@ -55,15 +53,10 @@ def read_velocity(servos: Sequence, joints: Sequence) -> tuple[float, ...]:
 
 
 class SteppedWatch:
-    """The snap watch between the cycles on the stepped clock, as ``LeaderSource.watch_snap``
-    runs it in the loop's wait: after the cycle's write, the leader's Present Velocity and
-    Present Current are read every 1 ms while a wall is on; a cut's Goal Current 0 lands 1 ms
-    after the read that saw it (the loop writes it at once; a millisecond is the stepped clock's
-    grain). ``brake``: the brake rules (None: the snap rule alone, round 7); ``law``: the
-    feel law whose Profile Velocity the wall walks at; ``motor``: the controller's motor.
-    A wall comes on here on the cycle's read, 1 ms before its write; the source also reads the
-    leader again just before that write (``LeaderSource.still_to_engage``), which only ever
-    keeps a wall off."""
+    """The snap watch between the cycles on the stepped clock, as ``LeaderSource.watch_snap``:
+    reads every 1 ms while a wall is on, a cut landing 1 ms after the read that saw it.
+    ``brake``: the brake rules (None: the snap rule alone, round 7); ``law``: whose Profile
+    Velocity the wall walks at; ``motor``: the controller's motor."""
 
     def __init__(
         self,
@@ -133,8 +126,7 @@ CHAINS = {
 
 def rig_of(joints: int):
     """The rig of a chain of ``joints`` joints on the simulated profile (its joint limits too)."""
-    profile = default_sim_profile(CHAINS[joints][0])
-    return Rig(profile)
+    return Rig(default_sim_profile(CHAINS[joints][0]))
 
 
 def stepped_leader(follower: dict, ids: Sequence[int], model: str, limit: int, operator: dict):
@@ -187,11 +179,8 @@ def run_stepped(
     engage_at_write: bool = False,
     profile_always: bool = False,
 ) -> list[dict]:
-    """The controller's part every 5 ms of the stepped clock: read Present Position, Present
-    Velocity and Present Current, ``decide`` the push, write Goal Current, Goal Position (and
-    Profile Velocity) READ_TO_WRITE_MS later, the snap watch between the cycles (``watch``, as
-    ``LeaderSource`` runs it). One loop for every chain and every caller: ``felt_at_200_hz``,
-    the benchmarks' ``exact_rate_case`` and bench_haptic3's ``stepped``.
+    """The controller's part every 5 ms of the stepped clock: read, ``decide`` the push, write it
+    READ_TO_WRITE_MS later, the snap watch between the cycles; for every chain and caller.
 
     Parameters
     ----------
@@ -204,21 +193,14 @@ def run_stepped(
     seconds : float
         How long to run (s): ``round(seconds * 200)`` cycles of 5 ms.
     decide : callable
-        ``decide(k, ticks, velocity, torque, engaged, read_s)`` of cycle ``k``: the Present
-        Position ticks (n,), the joints' speeds (n,, deg/s), their motor torques (n,, N m),
-        whether the wall is on and when the leader was read (s); returns the leader's pose
-        (n,, rad) and the cycle's push (whose ``goal`` is the joints' goal, rad).
+        ``decide(k, ticks, velocity, torque, engaged, read_s)`` of cycle ``k``, with ticks (n,),
+        speeds (n,, deg/s), torques (n,, N m): returns the pose (n,, rad) and the push.
     cycles : dict, optional
-        A cycle's index to what happens instead: "late" (nothing is written, as in a stalled
-        loop: the servos keep their last command) or "silent" (the leader's read failed:
-        ``LeaderSource.release`` writes Goal Current 0 alone; the next push is the wall coming
-        on again). ("held" is ``decide``'s: it returns the held push.)
+        A cycle's index to "late" (nothing written) or "silent" (Goal Current 0 alone).
     cut_s : float, optional
         At this time (s) Goal Current 0 is written and nothing after (an oracle's cut).
     engage_at_write : bool
-        The wall comes on (torque off then on: the setpoint is the present position) when a
-        push with current follows none, judged at the cycle's write (as ``LeaderSource``);
-        False: at its read.
+        The wall comes on judged at the cycle's write (as ``LeaderSource``); False: at its read.
     profile_always : bool
         Profile Velocity written with every push (else only with a current, as the source).
 
@@ -292,25 +274,14 @@ def felt_at_200_hz(
     rules=True,
     pushes=None,
 ):
-    """The controller's part on the simulated leader's registers every 5 ms of a stepped clock
-    (read Present Position, Present Current and Present Velocity, push_for, the same ten bytes to
-    Indirect Data 1 ms later; :func:`run_stepped`), in this process. Returns the leader's 1 ms
-    truth.
+    """:func:`run_stepped` with ``push_for`` on the script's chain (rows (t, pan, tilt[, roll])),
+    ``region`` correcting its commands; returns the leader's 1 ms truth.
 
-    The chain is the script's: rows of (t, pan, tilt) drive a two-servo leader (ids 3, 4), rows
-    of (t, pan, tilt, roll) a three-servo one (ids 4, 5, 6); ``region`` corrects its commands.
-    ``cycles`` maps a cycle's index to what happens instead: "late" (the controller does
-    nothing that cycle, as in a stalled loop: the servos keep their last command) or "held" (the
-    push of a cycle whose gate held or whose follower read failed: Goal Current 0, Profile
-    Velocity 0, Goal Position at the leader, as ``LeaderSource.feel`` writes) or "silent" (the
-    leader's read failed: ``LeaderSource.release`` writes Goal Current 0 alone). ``model``: the
-    leader servos' simulator model (a 330 named with firmware 53 or later, whose Indirect Data
-    is at 224); ``max_torque_nm``: the hand's bound; ``motor``: the controller's idea of the
-    model's motor (None: :data:`FELT_MODELS`'s); ``snap_watch``: with the snap watch (False:
-    the law alone, as in round 6); ``release_s``: how long the hand's let go takes; ``rules``:
-    pass the previous read, the period and whether the wall pushed (as ``LeaderSource.feel``),
-    False: the wall alone, without its let-go rules (before round 3); ``pushes``: a list each
-    cycle's (pose, push, instead) is appended to."""
+    ``cycles``: as :func:`run_stepped`'s, or "held" (the held push); ``model``: the simulator
+    model (``"xl330-m288@53"``: firmware 53); ``max_torque_nm``: the hand's bound; ``motor``: the
+    controller's motor (None: :data:`FELT_MODELS`'s); ``snap_watch`` False: the law alone
+    (round 6); ``release_s``: how long the let go takes; ``rules`` False: no let-go rules
+    (before round 3); ``pushes``: gets each cycle's (pose, push, instead)."""
     motor = motor or motor_of(model)
     joints = len(script[0]) - 1
     _, follower, ids = CHAINS[joints]

@@ -1,13 +1,8 @@
-"""A leader over the real SDK and the simulator's pty, on two servos and on three: a passive one
-mirrored through the gate; a felt one's wall (in swing and in twist), its brake rules over the
-pty (limbctl/teleop/brake.py), its faults (a servo dropping off mid-push, the bus cut, the
-controller dead), passive models.
+"""A leader over the real SDK and the simulator's pty, on two servos and on three: passive and
+mirrored, felt (the wall in swing and twist, the brake rules, faults), passive models.
 
-Each rig's follower is gated by a region whose edge lies at pan 30 deg: on two servos a 30 deg
-cone, on three the twist region of tests/teleop/twist_square.py, whose edge lies near roll
-30 deg too. The simulator's leader (firmware_sim/leader.py; ids 3, 4 or 4, 5, 6) is held by its
-operator, whose ground truth (motor torque every 0.5-1 ms) is what the assertions read, beside
-what the controller wrote.
+The follower's edge lies at pan 30 deg (a cone; on three servos tests/teleop/twist_square.py's
+region, near roll 30 too); assertions read the simulated operator's 1 ms ground truth.
 """
 
 from __future__ import annotations
@@ -76,19 +71,15 @@ SWING_THEN_TWIST = {
 }
 #: A hand pushing with this much (N m, toward the outside) presses: its spring stretched by 1 deg.
 PRESSING_NM = HAND["stiffness_nm_deg"] * 1.0
-#: A release lets the pressing hand carry the leader out to 20 deg beyond, whence the wall walks
-#: it back at 7-14 deg/s (Profile Velocity 10, against the hand): a two-servo hold is judged
-#: strictly (within 10 deg) only when no cycle released the leader for this long (s) before it.
+#: A release lets the hand carry the leader 20 deg beyond, walked back at 7-14 deg/s: a hold is
+#: judged strictly only when no cycle released the leader for this long (s) before it.
 WALKED_BACK_S = 1.5
 
 
 @dataclass(frozen=True)
 class FeltRig:
-    """A follower rig and its leader as these tests run them.
-
-    ``profile`` names calib/rigs/*.yaml; ``ids`` are the leader's servo ids, one per joint;
-    ``region`` makes the follower's region; ``press`` is the hand pressing the leader 20 deg
-    beyond the edge along joint ``joint`` (whose servo's faults the shared tests inject)."""
+    """A follower rig (calib/rigs/``profile``.yaml), its leader's ``ids``, its ``region`` and the
+    hand's ``press`` 20 deg beyond the edge along joint ``joint``."""
 
     profile: str
     ids: tuple[int, ...]
@@ -119,13 +110,10 @@ def rig(request) -> FeltRig:
 def felt_session(tmp_path, rig: FeltRig = SIM, model="xm430-w350", rate_hz=25.0):
     """An open ``rig`` with its leader, configured and gated; yields (session, source, log path).
 
-    The source checks its start, and watches the loop's pace, against ``rate_hz``: 25 Hz, so a
-    test machine busy with other work (a shared 2-core box ran the loop at 30-47 Hz) neither
-    refuses the start nor loses the pace (the check is tested on its own, at 2 kHz; the pace
-    watch on a stepped clock in tests/teleop/test_haptic.py); the loop itself runs at 200 Hz.
-    What depends on the rate, how far the wall holds the hand, is tested at exactly 200 Hz on a
-    stepped clock there too. A loop that still falls under 20 Hz switches the feel off (said in
-    a notice): :meth:`Running.paced_out` tells such a run and asserts that outcome instead."""
+    The source's rate checks run against ``rate_hz``, 25 Hz, so a busy shared machine neither
+    refuses the start nor loses the pace (the loop runs at 200 Hz; the rate itself is tested on
+    a stepped clock in tests/teleop/test_haptic.py); :meth:`Running.paced_out` tells a run that
+    still lost it."""
     log = tmp_path / "leader.jsonl"
     leader = {"ids": list(rig.ids), "model": model, "log": str(log)}
     with open_rig(rig_path=rig.profile, extra_ids=rig.ids, sim_options={"leader": leader}) as s:
@@ -137,9 +125,7 @@ def felt_session(tmp_path, rig: FeltRig = SIM, model="xm430-w350", rate_hz=25.0)
         step = math.radians(120.0) / 200.0  # 120 deg/s at 200 Hz
         region = rig.region()
         s.gate = Gate(region, GateLimits.for_profile(s.profile, step, 3.0 * step))
-        # the region's kernels compiled (or loaded) before the hand moves, as `limbctl teleop`
-        # has them prepared before its start: a compile inside the first pressed cycles stalls
-        # the loop for seconds on a cold cache while the hand carries the leader on
+        # the region's kernels compiled before the hand moves, as `limbctl teleop` does
         for pose in ((0.0,) * len(rig.ids), (60.0,) + (0.0,) * (len(rig.ids) - 1)):
             q = pose_quat(*pose)
             region.contains(q), region.correct(q)
@@ -191,9 +177,7 @@ def test_the_leader_stops_near_the_edge_free_inside_never_above_the_cap(tmp_path
             seen, pressed_at = len(running.pushes), time.monotonic()
 
             def a_paced_second(p) -> bool:
-                """1.5 s more pressing (300 cycles) whose last second kept the wall's rate and
-                which released it in no cycle since WALKED_BACK_S before, or 15 s of pressing
-                on a machine too busy for it (judged below without those)."""
+                """300 more pressed cycles whose last second kept the rate unreleased, or 15 s."""
                 now = time.monotonic()
                 clean = running.kept_pace(now - 1.0, now) and running.unreleased(
                     now - 1.0 - WALKED_BACK_S, now
@@ -209,11 +193,8 @@ def test_the_leader_stops_near_the_edge_free_inside_never_above_the_cap(tmp_path
     kept = functools.partial(running.kept_sim, now, wall)
     assert "feels the edge" in lines[0] and "pressed beyond the edge for" in lines[1]
     rows = truth_rows(log)
-    # the hand means 20 deg beyond; over its last second of pressing the wall held it short:
-    # within 2 deg at exactly 200 Hz (tests/teleop/test_haptic.py), within 10 deg here while the
-    # loop kept the rate the wall is passive at and released it in no cycle since WALKED_BACK_S
-    # before; a starved loop, whose failed reads release the leader, yields more
-    # (docs/decisions/haptic.md), but never lets it in
+    # the hand means 20 deg beyond: held within 10 deg while the loop kept the rate unreleased
+    # (2 deg at exactly 200 Hz: test_haptic.py); a starved loop yields more, never lets it in
     held = statistics.median(row["pose_deg"][0] for row in rows if now - 1.0 <= row["t"] <= now)
     paced = kept(now - 1.0, now, now - 1.0 - WALKED_BACK_S)
     assert EDGE < held and (held < EDGE + 10.0 or not paced), held
@@ -221,12 +202,8 @@ def test_the_leader_stops_near_the_edge_free_inside_never_above_the_cap(tmp_path
     # every cycle whose command was inside wrote no current at all
     inside = [push for _, push, _ in running.pushes if push is not None and push.distance_deg == 0]
     assert inside and all(push.goal_current == 0 for push in inside)
-    # outside, pressed, the motor pulls the pan joint back toward the edge (negative), never
-    # outward: the wall's physics while the loop keeps its rate (a slower sampled wall rings),
-    # judged on every pressed 1 ms row of such stretches. Pressed: the hand pushes outward with
-    # PRESSING_NM or more; a hand resting within a degree of where it means the leader (a loaded
-    # run whose stalls let it carry the leader far past, the wall then walking it back) is the
-    # let go, whose 1 ms samples may brake outward (docs/haptic.md, not done)
+    # outside, pressed with PRESSING_NM or more, the motor never pulls pan outward while the
+    # loop keeps its rate (a slower sampled wall rings)
     pressed = [
         row for row in rows if row["pose_deg"][0] > EDGE + 0.5 and row["hand_nm"][0] >= PRESSING_NM
     ]
@@ -254,14 +231,9 @@ def test_the_three_servo_leader_is_held_at_the_edge_in_swing_and_in_twist(tmp_pa
     assert "three servos" in lines[0] and "pressed beyond the edge for" in lines[1]
     rows = truth_rows(log)
     region = square_region()
-    # each press's last second: held beyond the edge. Under 2 deg of rotation when the loop kept
-    # the rate the wall is passive at (a median period within the pace watch's 1.25 periods
-    # at 200 Hz; the law at exactly 200 Hz: tests/teleop/test_haptic.py); a starved loop (a
-    # sampled wall under its passivity bound, and failed reads that release the leader) lets
-    # the hand take it further, as with two servos (docs/haptic.md). A release at any time of
-    # the press lets the hand carry the leader out to 20 deg beyond, whence the wall walks it
-    # back at its profile's speed for over a second: held strictly only when the loop released
-    # it in no cycle since the press crossed the edge (pan at 0.9 s, roll at 5.1 s)
+    # each press's last second: held beyond the edge, under 2 deg of rotation when the loop
+    # kept the rate and released it in no cycle since the press crossed the edge (pan at 0.9 s,
+    # roll at 5.1 s); a starved loop lets the hand take it further
     for crossed, window, joint in ((0.9, (2.5, 3.5), 0), (5.1, (7.0, 8.0), 2)):
         held = [r for r in rows if start + window[0] <= r["t"] < start + window[1]]
         distance = statistics.median(beyond(r) for r in held[::5])
@@ -272,8 +244,7 @@ def test_the_three_servo_leader_is_held_at_the_edge_in_swing_and_in_twist(tmp_pa
     # every cycle whose command was inside wrote no current on any of the three servos
     inside = [push for _, push, _ in running.pushes if push is not None and push.distance_deg == 0]
     assert inside and all(push.goal_current == 0 for push in inside)
-    # in the ground truth, well inside (every joint 5 deg inside the taught square and band,
-    # further than a hand moves the leader in a cycle) the motors apply nothing at all
+    # well inside (every joint 5 deg in) the motors apply nothing at all
     well_inside = [
         r for r in rows if all(abs(a) < b for a, b in zip(r["pose_deg"], (25, 20, 25), strict=True))
     ]
@@ -286,13 +257,8 @@ def test_the_three_servo_leader_is_held_at_the_edge_in_swing_and_in_twist(tmp_pa
             way = np.subtract(corrected_pose(corrected, pose, LIMITS3), pose)
             leads.append(float(np.dot(np.subtract(push.goal, pose), way)))
     assert len(leads) > 100 and min(leads) > 0.0
-    # pressed outward beyond the edge, the joint torques point toward the corrected pose: the
-    # wall's physics, which holds while the loop keeps the rate the wall is passive at (a
-    # slower sampled wall rings; the source's pace watch at the real rate turns it off). Judged
-    # on every such 5 ms row the run gave, however few a busy machine left; the presses
-    # themselves (the motors pushing beyond the edge against the hand) must be there. Pressed:
-    # the hand pushes outward with PRESSING_NM or more (a hand resting near where it means the
-    # leader, the wall walking it back, is the let go: docs/haptic.md, not done).
+    # pressed outward (PRESSING_NM or more) beyond the edge, the joint torques point toward the
+    # corrected pose while the loop keeps its rate; the presses themselves must be there
     pressed, dots = 0, []
     for r in rows[::5]:
         present = tuple(np.radians(r["pose_deg"]))
@@ -353,8 +319,7 @@ def test_a_failed_bus_or_a_held_gate_switches_the_push_off_in_that_cycle(tmp_pat
         running.until(lambda p: sum(1 for c, _, _ in p[-5:] if c.present is None) == 5)
         during = session.simulator.truth()["leader"]["motor_nm"]
         session.simulator.set_faults(drop=0.0)
-        # pushing again; or, on a busy machine, the loop ended by 20 failed cycles in a row
-        # (its own bus rule) or its lost pace switched the feel off
+        # pushing again, or the loop ended (20 failed cycles) or lost its pace
         running.until(
             lambda p: (
                 (p[-1][1] is not None and p[-1][1].goal_current > 0)
@@ -363,9 +328,8 @@ def test_a_failed_bus_or_a_held_gate_switches_the_push_off_in_that_cycle(tmp_pat
             )
         )
     assert during == [0.0] * len(rig.ids)
-    # each cycle whose reads failed wrote no current (released, or a push of 0), from the first
-    # on; a cycle whose follower read failed and whose leader read did not (the fault lifting
-    # between the two) may keep the wall within FOLLOWER_GRACE_S, and no other
+    # each cycle whose reads failed wrote no current, but one within FOLLOWER_GRACE_S whose
+    # leader read did not fail
     failed = [push for cycle, push, _ in running.pushes if cycle.complete and cycle.present is None]
     assert failed and sum(1 for push in failed if push is None or push.goal_current == 0) >= 5
     pushed_only_when_fit(running.pushes)
@@ -395,8 +359,7 @@ def test_a_leader_unheard_past_its_watchdog_still_pushes_and_the_end_leaves_it_l
         with source:
             cap = cap_of(source)
             session.rig.set_torque(True)
-            # the set-up armed each leader servo's Bus Watchdog (100 ms); a loop whose first
-            # read comes later finds it tripped (every goal refused) and must clear it
+            # past the Bus Watchdog (100 ms) armed at set-up: the loop must clear it
             time.sleep(0.3)
             with Running(session, source) as running:
                 if running.pressed_or_paced_out(rig.press):
@@ -411,10 +374,8 @@ def test_a_leader_unheard_past_its_watchdog_still_pushes_and_the_end_leaves_it_l
 
 
 def test_the_cycles_read_and_the_watchs_read_carry_the_leaders_present_current(tmp_path):
-    # the felt leader's map puts Present Current where a follower's read has Present PWM: the
-    # law reads its motor's torque in the cycle's one read (round 5); the snap watch's one sync
-    # read carries Present Current (126) and Present Velocity (128) side by side. A hand presses
-    # outward against a motor of 40 units whose goal is pan 0: it pulls back at its Goal Current.
+    # the cycle's read (round 5) and the watch's carry Present Current; a hand presses outward
+    # against a 40 unit motor whose goal is pan 0: it pulls back at its Goal Current
     with felt_session(tmp_path) as (session, source, log), source:
         bus, units = session.rig.bus, press_against_pan_zero(session, source)
         deadline = time.monotonic() + 5.0
@@ -442,8 +403,7 @@ def test_the_cycles_read_and_the_watchs_read_carry_the_leaders_present_current(t
 
 
 def test_a_felt_leaders_cycle_read_carries_its_present_velocity(tmp_path):
-    # the felt leader's map puts Present Velocity where a follower's read has Goal Position:
-    # the snap watch's rules run on each cycle's own read too (limbctl/teleop/snap.py)
+    # the felt leader's cycle read carries Present Velocity in Goal Position's slot
     with felt_session(tmp_path) as (session, source, log), source:
         bus = session.rig.bus
         session.simulator.set_operator(PRESS)  # the hand carries the free leader out
@@ -461,8 +421,7 @@ def test_a_felt_leaders_cycle_read_carries_its_present_velocity(tmp_path):
 
 
 def test_a_held_leader_let_go_is_freed_by_the_snap_watch(tmp_path):
-    # pressed and held still, then the hand is gone at once: the watch (or the next cycle's
-    # read) sees the leader snap toward the region and writes Goal Current 0 at once
+    # pressed and held still, then the hand is gone: the watch cuts the snap at once
     with running_felt(tmp_path) as (session, source, log, running):
         gone = {"script": [[0.0, EDGE + 20.0, 0.0]], "let_go_s": 0.0}
         let_go_at = running.held_then(PRESS, gone)
@@ -532,9 +491,7 @@ TARGETS = {
 def test_property_random_streams_and_faults_never_above_the_cap_off_at_once(
     tmp_path_factory, rig, data, fault, after
 ):
-    """Random operator streams over every joint with one injected fault: the torque is never
-    above the cap, and a cycle pushes only when the leader was read, fit to push, and the gate
-    ran on a good read (so after any fault the push is off in the cycle that saw it)."""
+    """Random streams with one injected fault: never above the cap, a push only when fit."""
     targets = data.draw(st.lists(TARGETS[rig.profile], min_size=2, max_size=4), label="targets")
     tmp_path = tmp_path_factory.mktemp("felt")
     rest = (0.0,) * len(rig.ids)
@@ -577,9 +534,7 @@ def test_an_xl330_leader_feels_the_edge_with_half_its_stall_torque_at_most(tmp_p
             return
         shown, push, pose = seen[-1]
     assert shown.state == "pushing back"
-    # an arrow on the plane only for a push whose swing part is a tenth of it or more: the wall
-    # pushes along its normal, so pan and tilt get their share of the current, and a leader the
-    # hand let drift a few tenths of a degree in pan is pushed back in swing too
+    # an arrow on the plane only for a push whose swing part is SWING_SHARE_DRAWN of it or more
     swing = math.hypot(push.goal[0] - pose[0], push.goal[1] - pose[1])
     twist = abs(push.goal[2] - pose[2]) if len(pose) == 3 else 0.0
     assert (shown.toward is not None) == (swing >= SWING_SHARE_DRAWN * max(swing, twist))
@@ -593,10 +548,8 @@ def test_an_xl330_leader_feels_the_edge_with_half_its_stall_torque_at_most(tmp_p
 
 
 def test_at_the_real_rate_the_wall_holds_or_its_feel_goes_off_for_good(tmp_path):
-    """The source watching the loop's pace at 200 Hz, as `limbctl teleop` does: either the loop
-    keeps the rate and the pressed three-servo leader is held within 2 deg of the twist edge, or
-    the start refuses (leaving the leader limp), or the pace watch switches the push off for
-    good and from then on the motors apply nothing."""
+    """At 200 Hz as `limbctl teleop`: held within 2 deg of the twist edge, or refused at start
+    (limp), or the pace watch switched the push off for good."""
     with felt_session(tmp_path, SIM3, rate_hz=200.0) as (session, source, log):
         try:
             source.start()
@@ -626,9 +579,8 @@ def test_at_the_real_rate_the_wall_holds_or_its_feel_goes_off_for_good(tmp_path)
 
 
 def test_a_hand_pulling_a_held_leader_back_inside_is_let_go_before_it_is_braked(tmp_path):
-    # pressed and held 20 deg beyond, then the hand heads back inside (pan 50 -> 0 in 0.2 s),
-    # faster than the wall's setpoint walks: the watch frees the wall as the leader gains on
-    # it (or the snap rule as the hand's push fades). Never any torque inside
+    # held 20 deg beyond, the hand heads back inside faster than the setpoint walks: the watch
+    # frees the wall; never any torque inside
     with running_felt(tmp_path) as (session, source, log, running):
         pull = [[0.0, EDGE + 20.0, 0.0], [0.2, 0.0, 0.0]]  # from the switch on
         now = running.held_then(PRESS, {"script": pull, **HAND})
@@ -638,9 +590,7 @@ def test_a_hand_pulling_a_held_leader_back_inside_is_let_go_before_it_is_braked(
     assert after and min(r["pose_deg"][0] for r in after) < EDGE  # the hand took it inside
     assert all(r["motor_nm"] == [0.0, 0.0] for r in after if r["pose_deg"][0] < EDGE)
     assert source.snap.brakes + source.snap.cuts >= 1  # the watch let the wall go
-    # outside, pulling outward: about a cycle and its write (the cycle's own read of the
-    # motor's torque is the backstop when the watch's reads, 1-3 ms apart over the pty, miss
-    # it), and small beside the 0.28 N m the loop pulls a dragged leader with
+    # outside, pulling outward: two cycles at most, small beside a dragged leader's 0.28 N m
     outward = [r for r in after if r["pose_deg"][0] > EDGE and r["motor_nm"][0] > 0.0]
     assert not outward or outward[-1]["t"] - outward[0]["t"] <= 0.012  # two cycles at most
     assert max((r["motor_nm"][0] for r in outward), default=0.0) < 0.25 * source.law.cap_nm
@@ -686,8 +636,7 @@ def test_a_leader_servo_dropping_off_mid_push_switches_every_push_off_and_is_rep
                 return  # the feel went off for a lost pace (its outcome asserted)
             at = session.simulator.truth()["leader"]["t"]
             session.simulator.vanish(gone, 0.3)
-            # the vanish lands between the two reads of the simulator's clock (each a call to
-            # its process: up to 12 ms apart on a loaded machine)
+            # the vanish lands between the two reads of the simulator's clock
             landed = session.simulator.truth()["leader"]["t"]
             running.until(lambda p: session.simulator.truth()["leader"]["t"] > at + 0.5)
             felt = source.felt
@@ -703,8 +652,7 @@ def test_a_leader_servo_dropping_off_mid_push_switches_every_push_off_and_is_rep
     seen = getattr(getattr(source, "silence", None), "longest_failed_read_s", 0.0)
     bound = PERIOD_S + max(failed.duration_s, seen) + LOG_GRAIN_S
     assert off - landed <= bound, (off - landed, off - at, bound)
-    # nothing pushed the hand while the servo was gone (the silent one's own push ends at its
-    # Bus Watchdog, 100 ms: it hears nothing)
+    # nothing pushed the hand while the servo was gone
     during = [row for row in rows if off <= row["t"] <= at + 0.3]
     assert during and all(row["motor_nm"][pusher] == 0.0 for row in during)
     line = next(line for line in lines if line.startswith("leader dropouts"))
@@ -718,11 +666,8 @@ def test_a_leader_servo_dropping_off_mid_push_switches_every_push_off_and_is_rep
 def test_a_leader_cut_off_from_its_controller_holds_within_the_cap_and_pushes_no_further(
     tmp_path, rig
 ):
-    # the bus is cut mid-push (a pulled cable: nothing the controller, or its guard, sends
-    # reaches the leader any more). Each servo's Bus Watchdog (100 ms) stops it: it holds where
-    # it is (the e-Manual's "stop"; Goal Current and Goal Position read-only), with at most the
-    # last push's share of the cap. The hand presses 0.3 s more, then lets go: the leader is
-    # pushed no further in than its last goal and, once still, by nothing
+    # the bus cut mid-push: each Bus Watchdog holds its servo with at most the last push; the
+    # hand lets go after 0.3 s: pushed no further in than the last goal, then by nothing
     spec, press = RIGS[rig]
     ids = spec.ids
     with running_felt(tmp_path, spec) as (session, source, log, running):
@@ -746,11 +691,8 @@ def test_a_leader_cut_off_from_its_controller_holds_within_the_cap_and_pushes_no
 
 @pytest.mark.parametrize("rig", sorted(RIGS))
 def test_a_dead_controllers_leader_goes_limp_within_its_guards_bound(tmp_path, rig, capfd):
-    # the controller dies mid-push: the loop is frozen between two transfers (it holds nothing
-    # more to send), and what the kernel does to a dead process is done here: its end of the
-    # guard's pipe closes without "done" and its port closes (the port's lock with it). The
-    # guard then switches every leader servo's torque off, and no follower servo's. The kill -9
-    # of a real `limbctl teleop` is tests/servo/test_leader_guard.py's
+    # the controller dies mid-push (its guard pipe and port closed as the kernel would): the
+    # guard switches every leader servo's torque off, no follower's (kill -9: test_leader_guard)
     spec, press = RIGS[rig]
     ids = spec.ids
     with running_felt(tmp_path, spec) as (session, source, log, running):
@@ -783,9 +725,7 @@ def test_a_dead_controllers_leader_goes_limp_within_its_guards_bound(tmp_path, r
 
 
 def turn_shafts(rig, ids: tuple[int, ...], degrees: tuple[float, ...]) -> None:
-    """Play the person: turn the passive leader's shafts ``ids`` to the follower's joint angles
-    ``degrees`` (deg, one per joint, rounded to ticks) and wait, 20 s at most, until each is
-    within 2 ticks of its goal."""
+    """Turn the passive leader's shafts ``ids`` to joint angles ``degrees`` (deg), to 2 ticks."""
     goals = {
         i: joint.zero_tick + joint.direction * round(deg * 4096 / 360)
         for i, joint, deg in zip(ids, rig.joints, degrees, strict=True)

@@ -25,10 +25,8 @@ RIGS = (2, 3)
 
 
 class ConeBand:
-    """A true region over full orientations: the limb within ``half_angle`` of +x and its twist
-    within ``half_width`` of ``centre``. ``correct`` is the engines' two-step clamp (direction
-    onto the cone keeping the twist, then the twist into the band): always inside the region,
-    not always the nearest orientation, which the gate does not need for its safety."""
+    """The limb within ``half_angle`` of +x, its twist within ``half_width`` of ``centre``;
+    ``correct`` clamps the direction, then the twist (inside, not always the nearest)."""
 
     def __init__(self, half_angle: float, centre: float, half_width: float) -> None:
         self.half_angle, self.centre, self.half_width = half_angle, centre, half_width

@@ -1,11 +1,7 @@
-"""The haptic law on each chain: zero inside, toward the correction, never above the cap; by leader
-model, its lead following the servo loop's stiffness (decisions/haptic.md, round 6); and the law
-against the simulator's leader on a stepped clock at exactly 200 Hz (the controller's part in
-this process, tests/teleop/stepped_leader.py), along a joint and on a diagonal.
+"""The haptic law on each chain: zero inside, toward the correction, never above the cap, its
+lead by leader model; and against the simulated leader at exactly 200 Hz (stepped_leader.py).
 
-The two-servo leader (rig ``sim``) is gated by a 30 deg cone: along pan the edge lies at pan
-30 deg. The three-servo one (``sim3``) by a twist region fitted from a synthetic teaching
-(tests/teleop/twist_square.py): its edge lies near pan 30 deg in swing and roll 30 deg in twist.
+Edges: ``sim``'s 30 deg cone at pan 30; ``sim3``'s twist_square.py region near pan and roll 30.
 """
 
 from __future__ import annotations
@@ -372,14 +368,11 @@ def test_at_200_hz_a_let_go_leader_walks_back_under_30_deg_s_never_pulled_outwar
 ):
     out = let_go(stiffness, beyond_deg, let_go_s)
     assert out["mean_20ms"] <= 30.0
-    # every 1 ms sample: the snap watch lets the wall go within 2 ms of the let go, before
-    # the snap onto the setpoint passes 30 deg/s (the law alone: up to 31.1, below)
+    # every 1 ms sample: the snap watch frees the wall before the snap passes 30 deg/s
     assert out["peak"] <= 30.0
     assert 30.0 <= out["pan"].min() and out["pan"][-1] < 30.5  # within 0.5 deg, never inside
-    # the held setpoint lies LEAD ahead; let go, the leader snaps onto it and the simulated
-    # loop's damping would brake it there (outward) 2-10 ms after the let go. The snap watch
-    # reads the leader's speed every millisecond between the cycles and lets the held wall go
-    # as the snap starts; the wall comes back only on a still leader (limbctl/teleop/snap.py)
+    # let go, the leader snaps onto the setpoint LEAD ahead, where the loop would brake it
+    # outward: the watch frees the wall as the snap starts
     assert out["outward_s"] == []
 
 
@@ -435,9 +428,7 @@ def test_an_xl330_m288_held_at_half_its_stall_torque_snaps_back_over_30_deg_s():
 
 @pytest.mark.parametrize("release_s", [0.05, 0.1])
 def test_at_200_hz_a_fading_grip_is_not_cut_like_a_let_go(release_s):
-    # a grip fading over 50-100 ms frees the hold gradually: the snap watch leaves the wall on.
-    # Cut on speed alone, the hand still pushing 0.25 N m threw the leader 0.3 deg out at
-    # 60 deg/s and the wall's return pushed it in at 30 deg/s (decisions/haptic.md, round 7)
+    # a grip fading over 50-100 ms: the snap watch leaves the wall on (round 7)
     script = [[0.0, 0.0, 0.0], [2.0, 35.0, 0.0]]
     rows = felt_at_200_hz(script, 5.4, 0.2, let_go_s=5.002, release_s=release_s)
     held = max(r["pose_deg"][0] for r in rows if 4.9 <= r["t"] < 5.002)
@@ -482,9 +473,7 @@ def test_late_cycles_keep_the_wall_a_stalled_loop_does_not_release_it(stiffness)
 
 
 def test_a_held_gate_releases_the_leader_at_once_and_the_hand_pushes_through():
-    # a gate that held (or a follower silent past FOLLOWER_GRACE_S): each held cycle releases
-    # the leader (the safety rule): the hand pushes it toward where it means to go, and the
-    # wall takes it back afterwards (docs/decisions/haptic.md).
+    # each held cycle releases the leader; the wall takes it back afterwards
     rows = felt_at_200_hz(PRESS_5, 4.5, 0.05, cycles={k: "held" for k in range(640, 650)})
     # from the held cycle's write (1 ms in) to the next cycle's, the motor applies nothing
     released = [r for r in rows if 3.2 + 0.0015 <= r["t"] < 3.25]
@@ -641,16 +630,12 @@ def test_at_200_hz_the_law_alone_brakes_a_let_go_three_servo_leader_outward(regi
 def test_at_200_hz_an_xl330_leader_pushes_with_its_cap_and_returns_under_30_deg_s(
     region, model, press
 ):
-    # the lead follows the soft loop (ten ticks and more on an XL330, two on the XM430), and
-    # the XL330-M288 holds at most 0.12 N m (decisions/haptic.md, round 6)
-    # (the law alone, without the snap watch: the figures do not lean on it)
+    # the lead follows the soft loop; the law alone (round 6)
     rows, _ = felt3(region, PRESSES[press], 6.0, let_go_s=4.5, model=model, snap_watch=False)
     motor = motor_of(model)
     cap = motor.torque_of(motor.units_for(motor.cap_nm(LAW.cap_nm)))
     held = [r for r in rows if 3.0 <= r["t"] < 4.5]
-    # the 0.3 N m hand overpowers an XL330's cap: the wall pushes with about all of it, never
-    # more, in magnitude (the norm of the joints' torques: at most the law's cap; a joint the
-    # hand pushes less than its share of the cap sits under it)
+    # the 0.3 N m hand overpowers an XL330's cap: the norm of the torques about all of it
     felt = max(float(np.linalg.norm(r["motor_nm"])) for r in held)
     assert 0.9 * cap <= felt <= motor.cap_nm(LAW.cap_nm) + 1e-12
     after = [r for r in rows if r["t"] >= 4.5]
@@ -672,14 +657,8 @@ PULLS = {
 def test_a_hand_carrying_the_leader_back_toward_the_region_is_pulled_outward_less(
     region, pull, stiffness
 ):
-    # pressed 20 deg beyond, then the hand heads back inside: the servos' setpoints move at most
-    # RETURN_SPEED (30 deg/s), so their loops brake a faster leader, pulling it away from the
-    # region; the law lets go once a read shows it outrunning the setpoints by more than a tick.
-    # Without the let-go rules (previous=None) the wall stays on until the leader is within the
-    # deadband. The first read whose Present Current pulls outward frees the wall too (round
-    # 5): the pull lasts at most a cycle and its write (6 ms); round 4, which waited for the
-    # leader to outrun the setpoint by a tick, let a two-servo hand at about the setpoint's pace
-    # (0.05 N m/deg) be pulled 25 ms, up to 0.19 N m (docs/bench_haptic.md).
+    # the hand heads back inside faster than the setpoints walk: the let-go rules free the wall
+    # within a cycle and its write, where the wall alone (rules=False) stays on
     rows, _ = felt3(region, PULLS[pull], 5.0, stiffness=stiffness)
     before, _ = felt3(region, PULLS[pull], 5.0, stiffness=stiffness, rules=False)
     outward, inside = pulled_outward(region, rows)
@@ -700,9 +679,7 @@ def test_a_held_gate_switches_every_joint_off_within_the_cycle(region):
     released = [r for r in rows if 3.2 + 0.0015 <= r["t"] < 3.25]
     assert released and all(r["motor_nm"] == [0.0, 0.0, 0.0] for r in released)
     assert max(abs(r["motor_nm"][2]) for r in rows if 3.1 <= r["t"] < 3.2) > 0.25  # it pushed
-    # back on, the wall pushes the leader the hand took ~15 deg out back toward the edge, against
-    # the hand (0.27 N m there): a two-tick lead left its loop 0.27 N m and it stayed 14.9 deg out
-    # (decisions/haptic.md, round 4)
+    # back on, the wall pushes the leader the hand took ~15 deg out back toward the edge (round 4)
     out = [beyond_of(region, r) for r in rows if 3.25 <= r["t"] < 3.35]
     late = [beyond_of(region, r) for r in rows if 3.9 <= r["t"] < 4.0]
     assert max(out) > 10.0 and max(late) < max(out) - 3.0
@@ -723,9 +700,8 @@ SILENT_LET_GO = {
 
 @pytest.mark.parametrize("rig", sorted(SILENT_LET_GO))
 def test_a_leader_released_by_goal_current_alone_still_walks_back_after_let_go(rig):
-    # released by Goal Current alone, the hand takes the leader further; let go, the wall comes
-    # on again with Torque Enable off and on (its setpoints at the present pose) and walks it
-    # back at the profile's speed on every joint, resting beyond the edge
+    # released by Goal Current alone; let go, the wall comes back on from the present pose and
+    # walks the leader back, resting beyond the edge
     script, seconds, let_go_s, far_deg = SILENT_LET_GO[rig]
     region, last = region_of(rig), round(let_go_s * 200)
     silent = {k: "silent" for k in range(last - 20, last)}

@@ -1,10 +1,5 @@
-"""The keyboard source: keys typed into a pseudo-terminal; the session as a person has it,
-`limbctl teleop --source keyboard` in a tmux pane; and keys against an edge, the real loop, gate
-and source on a pty on both rigs.
-
-The pane is a real pseudo-terminal (160 x 40); keys go in as tmux sends them and everything
-asserted is read from the pane's text, as the person would read it. A held key is sent the way
-a terminal repeats one: a press, a repeat delay, then a steady repeat rate.
+"""The keyboard source: keys typed into a pseudo-terminal; `limbctl teleop --source keyboard` in a
+tmux pane, asserted from the pane's text; keys against an edge on both rigs.
 """
 
 from __future__ import annotations
@@ -37,8 +32,8 @@ from limbctl.teleop.sources import KeyboardSource
 from limbctl.teleop.sources.keyboard import MAX_LEAD_DEG, region_centre
 from tests.teleop.tmux import ROOT, tmux_pane
 
-#: A terminal's key repeat: the delay before the first repeat and the rate after it (the X
-#: server's 660 ms / 25 Hz default is near; these are the common desktop settings).
+#: A terminal's key repeat: the delay before the first repeat and the rate after it (common
+#: desktop settings).
 REPEAT_DELAY_S = 0.5
 REPEAT_HZ = 30.0
 POSE = re.compile(r"(commanded|written) pan +(-?[\d.]+) tilt +(-?[\d.]+)")
@@ -66,9 +61,7 @@ def hold_key(pane, key: str, seconds: float, watch=None) -> float:
 
 
 def settled(pane) -> dict[str, tuple[float, float]]:
-    """The poses once the limb has reached the command and stays: written = commanded, inside,
-    the same on two successive refreshes of the status line (a limb following a held key at
-    10 deg/s is within a cycle of its command while it moves)."""
+    """The poses once written = commanded, inside, on two successive status refreshes."""
     seen: list[str] = []
 
     def still(_text: str) -> bool:
@@ -118,9 +111,8 @@ def test_keyboard_session_explains_itself_in_a_terminal(tmp_path, hand_model_pat
         assert moved == pytest.approx(predicted, rel=0.10), (moved, predicted, held_s)
         assert after["written"][1] == pytest.approx(before["written"][1], abs=0.15)
 
-        # up until the edge holds it: while the key is held the status line names up as
-        # blocked, and only up (nobody pressed left or right); the point never runs on more
-        # than a step past the limb; let go, the point is the limb's own pose again
+        # up until the edge holds it: only up is named blocked, the point never a step past
+        # the limb; let go, the point is the limb's pose again
         pane.keys("+", "+")  # 5 deg steps: 50 deg/s held, more than the region is high
         seen: list[str] = []
         hold_key(pane, "Up", 2.0, watch=lambda: seen.append(pane.status()))
@@ -220,8 +212,7 @@ def test_keys_start_from_the_gates_pose_hold_release_and_show_the_guide():
     gate.start(math.radians(10.0), math.radians(5.0))
     guide = io.StringIO()
     with keyboard_on_pty(gate=gate, guide=guide) as (source, type_):
-        # up from where the gate holds the limb (not from 0, 0); space holds: up is ignored;
-        # space releases from the limb's pose; a larger step; up; the guide again; quit
+        # up from the gate's pose; space holds (up ignored), releases; +; up; ?; quit
         type_(b"w w +\x1b[A?q")
         assert source.wait_finished(10.0)
     assert source.stats.accepted == 4  # up, the hold's own pose, the release's, up
@@ -256,24 +247,15 @@ def test_the_centre_is_the_point_deepest_inside_the_region(hand_model_path):
     assert region_centre(Cone(math.radians(30))) is None  # no mesh: the centre key does nothing
 
 
-# -- keys against an edge: the commanded point never runs on past what the gate wrote ----------
-#
-# The real loop, gate and keyboard source on a terminal (a pty), the real SDK over the simulator's
-# pty, on the two-servo and the three-servo rig; the cycles the loop returns are the judge. Up is
-# pressed step by step into a 40 deg cone from pan 10 deg, where its edge is slanted (presses in
-# quick succession, as a held key repeats): the limb slides along it; the command never leads the
-# written pose by more than the one step just pressed, and the first Down press lowers the limb a
-# full step at once.
+# -- keys against an edge (the real loop over the simulator's pty): the point never runs on ----
 
 RATE = 200.0
 MAX_SPEED = 120.0
-#: The step of the up and down presses (deg): large, so a point run on past the edge is plain
-#: to see (one "-" from the 10 deg step the session starts with).
+#: The step of the up and down presses (deg): large, so a point run on is plain to see.
 STEP_DEG = 5.0
 #: Longest wait (s) for the loop to take a press and settle: generous for a loaded machine.
 WAIT_S = 30.0
-#: How many repeats of Up (at REPEAT_HZ) a held key sends: it moves 10 steps a second (50 deg/s
-#: at 5 deg), so 60 repeats at 30 Hz carry it far beyond the cone.
+#: Repeats of Up a held key sends: 60 at 30 Hz carry it far beyond the cone.
 UP_PRESSES = 60
 
 
@@ -290,8 +272,7 @@ class Cycles:
             self.changed.notify_all()
 
     def settled_after(self, start: int) -> Cycle:
-        """The first cycle from index ``start`` on that has reached what the gate allows of its
-        command (written, not paced by the speed limit)."""
+        """The first cycle from ``start`` on written and not slewed."""
 
         def found() -> Cycle | None:
             for cycle in self.all[start:]:
@@ -316,9 +297,7 @@ def written_deg(cycle: Cycle) -> tuple[float, float]:
 
 
 def press(type_, cycles: Cycles, source: KeyboardSource, key: bytes) -> Cycle:
-    """Press ``key`` once (``type_``: :func:`keyboard_on_pty`'s); the cycle where the limb has
-    settled after it: the source has read the key (its count grew), the loop took the command in
-    a later cycle and reached it."""
+    """Press ``key`` once; the cycle where the limb has settled after it."""
     accepted = source.stats.accepted
     type_(key)
     with cycles.changed:

@@ -64,24 +64,16 @@ def test_the_margin_exceeds_the_rounding_to_ticks():
 def test_inside_by_margin_on_a_cone():
     gate = cone_gate()
     edge = 40.0 - START_MARGIN_DEG
-    poses = np.radians(
-        [
-            [0.0, 0.0],  # the axis
-            [edge - 0.02, 0.0],  # just inside by the margin
-            [edge + 0.02, 0.0],  # inside, but not by the margin
-            [40.5, 0.0],  # outside
-            [0.0, -30.0 + START_MARGIN_DEG / 2],  # inside the cone, too near the tilt limit
-            [np.nan, 0.0],
-        ]
-    )
-    assert inside_by_margin(gate, poses, MARGIN).tolist() == [
-        True,
-        True,
-        False,
-        False,
-        False,
-        False,
+    cases = [
+        ([0.0, 0.0], True),  # the axis
+        ([edge - 0.02, 0.0], True),  # just inside by the margin
+        ([edge + 0.02, 0.0], False),  # inside, but not by the margin
+        ([40.5, 0.0], False),  # outside
+        ([0.0, -30.0 + START_MARGIN_DEG / 2], False),  # inside the cone, too near the tilt limit
+        ([np.nan, 0.0], False),
     ]
+    poses = np.radians([pose for pose, _ in cases])
+    assert inside_by_margin(gate, poses, MARGIN).tolist() == [ok for _, ok in cases]
 
 
 @pytest.mark.parametrize(

@@ -1,7 +1,5 @@
-"""Routing along the region (limbctl/teleop/route.py), through both gates: a command inside a
-non-convex region is reached within its distance at the slew limit plus the stated bound, on
-random outlines with a bay and a notch (never the shipped regions), on two and three servos;
-a command whose straight way stays inside is followed exactly as without routing."""
+"""Routing (limbctl/teleop/route.py) through both gates on random outlines with a bay and a notch:
+a command inside is reached within the stated bound; a straight way inside is followed exactly."""
 
 from __future__ import annotations
 

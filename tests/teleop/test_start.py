@@ -1,8 +1,6 @@
-"""Starting a session from wherever the limb is, on both rigs (``sim``: pan, tilt; ``sim3``:
-pan, tilt, roll) on the simulator through the SDK: waiting for the hand, timing out, driving
-in, and the status a waiting limb shows; then ``limbctl teleop`` itself from a limb outside the
-region, parking at the end, and refused lines (the real job on the simulator's pty through the real
-SDK, the simulator outliving each session)."""
+"""Starting a session from wherever the limb is, on both rigs through the SDK: waiting for the
+hand, timing out, driving in, the waiting status; then ``limbctl teleop`` itself from outside,
+parking at the end, and refused lines."""
 
 from __future__ import annotations
 

@@ -1,8 +1,7 @@
 """A command in a real terminal: a detached tmux pane, its keys sent and its text read.
 
-Used by the keyboard's tests and by ``benchmarks/view_figures.py`` (the terminal capture in
-docs). The pane is a real pseudo-terminal: the program sees a tty, cbreak mode, arrow-key escape
-sequences and a 160 x 40 window, as a person's terminal would give it.
+Used by the keyboard's tests and ``benchmarks/view_figures.py``; the program sees a real
+160 x 40 pseudo-terminal.
 """
 
 from __future__ import annotations

@@ -1,8 +1,6 @@
-"""Headless Chromium through Selenium, started the way this machine needs (root, no network).
-
-Used by the view's tests and by ``benchmarks/view_figures.py``. ``Service`` is given the
-system chromedriver so Selenium Manager never tries to download one.
-"""
+"""Headless Chromium through Selenium, started the way this machine needs (root, no network), with
+the system chromedriver (Selenium Manager never downloads one). Also used by
+``benchmarks/view_figures.py``."""
 
 from __future__ import annotations
 
@@ -80,11 +78,8 @@ def canvas_rgb(driver: webdriver.Chrome, x: float, y: float) -> tuple[int, int, 
 
 
 def assert_pose_shown(text: str, pose_deg, logged_digits: int | None = None) -> None:
-    """The page's "pan, tilt" ``text`` shows ``pose_deg`` (deg), within its rounding.
-
-    ``logged_digits``: the decimals ``pose_deg`` was itself rounded to (a telemetry's 4), whose
-    half a digit is allowed too.
-    """
+    """The page's "pan, tilt" ``text`` shows ``pose_deg`` (deg) within its rounding, and half a
+    digit of ``logged_digits`` (the decimals ``pose_deg`` was rounded to) when given."""
     shown = [float(part) for part in text.split(",")]
     slack = SHOWN_HALF_DIGIT_DEG + (0.5 * 10.0**-logged_digits if logged_digits else 0.0)
     assert len(shown) == len(pose_deg) == 2, f"not a pose: {text!r}"
@@ -112,9 +107,8 @@ def browser_pids(driver: webdriver.Chrome) -> list[int]:
 
 @contextlib.contextmanager
 def frozen(driver: webdriver.Chrome) -> Iterator[list[int]]:
-    """The whole browser stopped (SIGSTOP to each of :func:`browser_pids`) for the block, as a
-    frozen tab or machine is; continued (SIGCONT) after it, whatever the block raised. Yields the
-    stopped processes."""
+    """The whole browser stopped (SIGSTOP to each of :func:`browser_pids`) for the block, continued
+    (SIGCONT) after it whatever the block raised; yields the stopped processes."""
     pids = browser_pids(driver)
     for pid in pids:
         os.kill(pid, signal.SIGSTOP)

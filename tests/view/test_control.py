@@ -1,13 +1,7 @@
-"""Who may watch and who may steer: the key, the Origin, the Host, one controller, a flood; and no
-motion without a fresh action, on the page: a tab that lost control comes back watching and steers
-again only on a click; a reload keeps control; the tab that steers is named as it names itself;
-the arrow keys step from the written pose once the gate stopped the point short, and turn the limb
-the way the terminal's keys do (seen from behind it).
-
-The page's tests are real headless Chromium against the real server; a frozen tab is the browser
-stopped with SIGSTOP, dropped by the server's own heartbeat (shortened here so the test waits
-seconds, not tens of them).
-"""
+"""Who may watch and who may steer: the key, the Origin, the Host, one controller, a flood; and,
+in headless Chromium against the real server, no motion without a fresh action: a tab that lost
+control comes back watching, a reload keeps control, the steering tab is named, the arrow keys
+step from the written pose (a frozen tab: the browser stopped with SIGSTOP)."""
 
 from __future__ import annotations
 
@@ -23,13 +17,7 @@ from selenium.webdriver.common.action_chains import ActionChains
 from selenium.webdriver.common.keys import Keys
 
 from limbctl.view import Board, HardLimits, Live, PanTilt, Scene, TeleopStatus, ViewServer
-from limbctl.view.control import (
-    FORWARD_PERIOD_S,
-    Access,
-    ControlDesk,
-    control_request,
-    is_loopback,
-)
+from limbctl.view.control import FORWARD_PERIOD_S, Access, ControlDesk, control_request, is_loopback
 from tests.safety.support import wait_for as wait_until
 from tests.view.browser import chromium, drag_on_plane, frozen, text_of, wait_for
 
@@ -56,7 +44,7 @@ class Sink:
 
 @contextlib.contextmanager
 def served(host: str = "127.0.0.1", **server_options):
-    """A served teleop board (hard limits pan -90..90, tilt -40..60) with a sink attached as its
+    """A served teleop board (limits pan -90..90, tilt -40..60) with a sink attached as its
     source: ``(board, server, sink, holder)``; ``server_options`` go to the ViewServer."""
     board = Board()
     board.publish_scene(Scene(limits=HardLimits((-90.0, 90.0), (-40.0, 60.0))))

@@ -4,15 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from limbctl.view import (
-    EdgeLoop,
-    GuideFigure,
-    HardLimits,
-    Live,
-    PanTilt,
-    Scene,
-    TeleopStatus,
-)
+from limbctl.view import EdgeLoop, GuideFigure, HardLimits, Live, PanTilt, Scene, TeleopStatus
 from tests.view.browser import canvas_rgb, chromium, text_of, wait_for
 
 #: A 40 x 20 deg rectangle, its top edge traced, the rest not yet.

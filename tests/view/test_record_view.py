@@ -10,10 +10,11 @@ import numpy as np
 from limbctl.envelope import RigidMap
 from limbctl.geometry.gimbal import pan_tilt_to_direction
 from limbctl.geometry.quat import limb_direction, swing_from_direction
+from limbctl.live import rig_limits
 from limbctl.session import demo_region_path, open_rig
 from limbctl.teach.dataset import DatasetWriter, load_dataset
 from limbctl.teach.record import record
-from limbctl.view import Board, HardLimits, ViewServer
+from limbctl.view import Board, ViewServer
 from limbctl.view.feed import PoseTap, SceneFeeder
 from limbctl.view.region import TRACED_WITHIN_DEG, fit_outline, model_loops, region_loops
 from tests.view.browser import assert_pose_shown, text_of, wait_for
@@ -30,10 +31,7 @@ def test_page_shows_the_recording_as_it_happens(tmp_path, browser):
         open_rig(hand=demo_region_path(), seed=1) as session,
         DatasetWriter(out, rig=session.profile.name) as writer,
     ):
-        profile = session.profile
-        limits = HardLimits(
-            (profile.pan.min_deg, profile.pan.max_deg), (profile.tilt.min_deg, profile.tilt.max_deg)
-        )
+        limits = rig_limits(session.profile)
         tap = PoseTap(session.rig, board, "record", note="torque off: move the limb by hand")
         browser.get(server.url)
         stop = threading.Event()

@@ -7,7 +7,7 @@ import threading
 import numpy as np
 import pytest
 
-from limbctl.view import Board, EdgeLoop, Live, PanTilt, Scene, thin_samples
+from limbctl.view import Board, EdgeLoop, Live, PanTilt, Scene, TeleopStatus, thin_samples
 
 
 def test_thinning_keeps_one_sample_per_cell_in_order_and_caps_the_count():
@@ -63,8 +63,6 @@ def test_board_versions_count_publishes_and_snapshot_reads_both_parts_together()
 
 
 def test_teleop_json_carries_the_gates_words_and_the_blocked_sides():
-    from limbctl.view import Live, PanTilt, TeleopStatus
-
     status = TeleopStatus(
         PanTilt(0.0, 60.0),
         PanTilt(0.0, 30.0),

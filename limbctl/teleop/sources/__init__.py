@@ -1,18 +1,7 @@
-"""Command sources for teleoperation, chosen by the scheme of their spec.
+"""Command sources for teleoperation, one module and one :data:`SOURCES` entry per scheme.
 
-Each scheme has its own module and one entry in :data:`SOURCES`::
-
-    stdin                  JSON lines on standard input
-    udp://127.0.0.1:PORT   the same lines as UDP datagrams (loopback unless told otherwise)
-    replay:FILE            JSON lines from a file, paced by their "t" (seconds) when present
-    keyboard               arrow keys in the terminal (q quits)
-    page                   the live view's page (drag, click, arrows), opened with its secret
-    leader:ID,ID           a second gimbal on the same bus, moved by hand with torque off
-                           (leader:ID,ID,ID: a three-servo leader, for a three-servo rig)
-
-:func:`parse_source` checks a spec before anything is opened (and says which extra servos the
-bus must hold); :meth:`SourceSpec.open` builds the source from a :class:`SourceContext`, which
-carries what a source may need of the job (the open rig, for the leader).
+:func:`parse_source` checks a spec before anything is opened; :meth:`SourceSpec.open` builds the
+source from a :class:`SourceContext`.
 """
 
 from __future__ import annotations
@@ -44,17 +33,13 @@ class SourceContext:
     Attributes
     ----------
     rig : limbctl.servo.rig.Rig or None
-        The open, configured rig (its bus also holds the spec's ``extra_ids``); None where no
-        rig is open (sources that need one refuse to be built then).
+        The open rig (its bus also holds the spec's ``extra_ids``).
     gate : limbctl.teleop.gate.Gate or None
-        The session's gate: the keyboard starts from the pose it let through and knows its
-        region's centre.
+        The session's gate (the keyboard starts from its pose).
     page : callable or None
-        Attaches the page source to the live view's controller (see
-        :data:`limbctl.teleop.sources.page.Connect`); None when no view is served.
+        Attaches the page source to the live view (:data:`limbctl.teleop.sources.page.Connect`).
     twist : bool
-        True when commands keep their twist (a three-servo rig); a rig with a roll joint sets
-        it whatever is given here.
+        Commands keep their twist (set anyway by a rig with a roll joint).
     """
 
     rig: Any = None
@@ -82,9 +67,9 @@ class SourceKind:
     form : str
         How a spec of this scheme is written, for help and error messages.
     build : callable (argument, context) -> CommandSource
-        Builds an unstarted source from the spec's argument (the text after the scheme).
+        Builds an unstarted source from the text after the scheme.
     extra_ids : callable (argument) -> tuple of int
-        Servo ids the bus must hold besides the rig's (none for most sources).
+        Servo ids the bus must hold besides the rig's.
     """
 
     scheme: str

@@ -1,10 +1,7 @@
 """What every command source shares: counts of refused input and a queue drained by ``poll``.
 
-Each source is a context manager. A reader thread turns input into commands as it arrives (text
-from outside through :func:`limbctl.teleop.commands.parse_command`; sources that produce numbers
-build :class:`~limbctl.teleop.commands.Command` values directly) and the control loop calls
-:meth:`CommandSource.poll` once per cycle, which never blocks. Malformed input is counted and its
-reason kept, never forwarded.
+A reader thread queues commands as input arrives; the loop's :meth:`CommandSource.poll` never
+blocks. Malformed input is counted with its reason, never forwarded.
 """
 
 from __future__ import annotations
@@ -17,20 +14,15 @@ from limbctl.errors import InvalidInputError
 from limbctl.teleop.commands import Command, parse_command
 from limbctl.teleop.refusals import Refusals
 
-#: How often (s) a reader thread that waits for input checks whether its source was closed: a
-#: close then takes at most this long, and an idle reader wakes only 10 times a second.
+#: How often (s) a waiting reader checks for close: a prompt close, 10 wake-ups a second.
 WAKE_INTERVAL_S = 0.1
-#: Longest wait (s) for a reader thread to end on close: many wake intervals, so only a reader
-#: stuck in a system call is left behind (it is a daemon thread).
+#: Longest wait (s) for a reader to end on close: many wake intervals (a daemon thread).
 CLOSE_WAIT_S = 2.0
 
 
 @dataclass
 class SourceStats:
-    """Counts kept by every source; read by the loop's status line, telemetry and summary.
-
-    ``refusals`` keeps why lines were refused (by reason, with the first examples).
-    """
+    """Counts kept by every source; ``refusals`` keeps why lines were refused."""
 
     accepted: int = 0
     rejected: int = 0
@@ -43,12 +35,8 @@ class SourceStats:
 
 
 class CommandSource:
-    """Base: a queue filled by a reader thread; ``poll`` drains it without blocking.
-
-    ``latest_only`` tells the control loop how to use what arrives: a realtime source (UDP,
-    keyboard, leader) is followed by its newest command only; a scripted stream (stdin,
-    replay) is gated command by command.
-    """
+    """Base: a queue filled by a reader thread; ``latest_only``: follow the newest command only
+    (realtime sources), else gate each in order."""
 
     name = "source"
     latest_only = False
@@ -98,7 +86,7 @@ class CommandSource:
     def feed(self, line: bytes | str) -> None:
         """Parse one line and queue it, or count the rejection."""
         self._lines_fed += 1
-        text = line.strip() if isinstance(line, str) else line.strip()
+        text = line.strip()
         if not text:
             return
         try:
@@ -139,11 +127,8 @@ class CommandSource:
         return self._ended.wait(timeout)
 
     def poll(self, timeout: float = 0.0) -> list[Command]:
-        """Every command parsed since the last call, oldest first.
-
-        With ``timeout`` 0 (the control loop's use) it never blocks; otherwise it waits up to
-        ``timeout`` seconds for the first command to arrive.
-        """
+        """Every command parsed since the last call, oldest first; waits up to ``timeout`` s for
+        the first (0: never blocks)."""
         out: list[Command] = []
         if timeout > 0:
             try:

@@ -1,12 +1,8 @@
 """Command source ``keyboard``: the keys of a terminal steer pan and tilt, and say how.
 
-The keys are the table in :mod:`limbctl.teleop.keys` (guide printed at the start and on ``?``);
-a press moves one step, a held key moves steadily (:class:`~limbctl.teleop.keys.HeldKey`), and
-the command is repeated every :data:`KEEPALIVE_S` until the hold key. The command never runs on
-past what the gate wrote (:meth:`KeyboardSource.feel`): stopped short at an edge or limit, the
-next key steps from the written pose, so a key held against an edge slides the limb along it
-and the first opposite key moves at once. The status line names as blocked only the way the
-key pushes (:meth:`KeyboardSource.pushing`).
+Keys are :mod:`limbctl.teleop.keys`' table. Stopped short at an edge (:meth:`KeyboardSource.feel`),
+the next key steps from the written pose, so a held key slides along the edge and the opposite
+key moves at once.
 """
 
 from __future__ import annotations
@@ -39,28 +35,20 @@ from limbctl.teleop.sources.base import WAKE_INTERVAL_S, CommandSource
 KEY_STEP_DEG = DEFAULT_STEP_DEG
 #: Most bytes taken per read: a burst of held-down arrow keys (3 bytes each).
 READ_CHUNK_BYTES = 64
-#: How often (s) the source repeats its command while nothing is pressed: five times within the
-#: loop's 0.5 s silence, so only a hold (or a dead source) lets the loop hold.
+#: How often (s) the command is repeated: five times within the loop's 0.5 s silence.
 KEEPALIVE_S = WAKE_INTERVAL_S
 
 
-#: Farthest (deg, per joint) the command may run ahead of the pose the gate let through while
-#: the limb moves freely (a held key's catch-up after the terminal's repeat delay, the slew limit
-#: pacing a large step): at an edge the command never leads by more than one step.
+#: Farthest (deg, per joint) the command may lead the written pose while the limb moves freely
+#: (a held key's catch-up, a large step); at an edge, one step.
 MAX_LEAD_DEG = 10.0
 
-#: Grid (deg) on which the region's centre is looked for: a few thousand candidates inside a
-#: hand-taught region, looked for once when the source opens (a fraction of a second),
-#: finer than the default step.
+#: Grid (deg) for the region's centre: a few thousand candidates, a fraction of a second once.
 CENTRE_GRID_DEG = 2.0
 
 
 def region_centre(envelope: Any) -> tuple[float, float] | None:
-    """(pan, tilt) deg of the point deepest inside a region: of the grid points inside, the one
-    whose nearest edge vertex is farthest (a mean of the edge could lie in a hole or a bay).
-
-    None for a model without a mesh (the centre key then does nothing).
-    """
+    """(pan, tilt) deg of the grid point inside farthest from the edge; None without a mesh."""
     from limbctl.geometry.gimbal import pan_tilt_to_direction, pan_tilt_to_quat
 
     mesh = getattr(envelope, "mesh", None)
@@ -82,14 +70,10 @@ def region_centre(envelope: Any) -> tuple[float, float] | None:
 
 
 class KeyboardSource(CommandSource):
-    """Keys in the terminal steer pan/tilt by ``step_deg``; ``q`` ends the session.
+    """Keys in the terminal ``tty_path`` steer pan/tilt by ``step_deg``; ``q`` ends the session.
 
-    Up/down raise/lower the limb (tilt), left/right turn it (pan; left is +pan, toward +y).
-    ``tty_path`` is the terminal to read (the controlling terminal by default). ``gate`` (the
-    session's, optional) gives the pose it let through: the first move starts from it and the
-    command never leads it by more than :data:`MAX_LEAD_DEG`, at an edge by more than one step;
-    its region's centre is where the centre key goes. ``guide`` is where the key guide is
-    printed (None: nowhere).
+    ``gate`` (optional) gives the written pose the command starts from and never leads by more
+    than :data:`MAX_LEAD_DEG`, and the region's centre; ``guide``: where the key guide goes.
     """
 
     name = "keyboard"
@@ -114,8 +98,7 @@ class KeyboardSource(CommandSource):
         except OSError as exc:
             raise ConfigError("keyboard source needs a terminal; use --source stdin") from exc
         try:
-            # key by key from now on (no line buffering): keys pressed before the reader thread
-            # runs are kept, not held back in a half-typed line
+            # key by key from now on (no line buffering)
             self._saved = termios.tcgetattr(fd)
             tty.setcbreak(fd)
         except termios.error as exc:
@@ -132,12 +115,10 @@ class KeyboardSource(CommandSource):
         self._held = HeldKey()
         self._command: Command | None = None
         self._offered_at = 0.0
-        # the newest command the loop took (it follows only the newest) and, once the gate
-        # stopped one short (an edge, a hard limit), that command and the (pan, tilt) deg written
+        # the newest command the loop took and, once the gate stopped one short, (it, written deg)
         self._taken: Command | None = None
         self._stopped: tuple[Command, tuple[float, float]] | None = None
-        # the (pan, tilt) deg written when the gate's latest answer stopped what it was given
-        # short; None when it let it through (or is on its way to it)
+        # the (pan, tilt) deg written when the gate's latest answer stopped the command short
         self._at_edge: tuple[float, float] | None = None
         self._snapped: Command | None = None  # the written pose sent back with no key pressed
         self._pushing: tuple[str, ...] = ()
@@ -162,8 +143,7 @@ class KeyboardSource(CommandSource):
         return ()
 
     def pushing(self) -> tuple[str, ...]:
-        """The joint directions the last move key pushes ("+pan", "-tilt", ...), none after
-        another action: the only ways the status line may call blocked."""
+        """The joint directions the last move key pushes ("+pan", ...); none after another key."""
         return self._pushing
 
     def _stopped_at(self) -> tuple[float, float] | None:
@@ -250,8 +230,7 @@ class KeyboardSource(CommandSource):
         elif action in (Action.COARSER, Action.FINER):
             self.step_deg = next_step(self.step_deg, action is Action.COARSER)
         elif action is Action.HOLD:
-            # holding: the limb is told to stay where it is, then the source goes quiet and the
-            # loop holds; releasing goes on from there
+            # holding: stay where the limb is, then go quiet so the loop holds
             self.holding = not self.holding
             written = self._written_deg()
             if written is not None:

@@ -1,19 +1,8 @@
-"""A leader as a command source: a second chain of servos, one per joint of the follower's,
-moved by hand.
+"""A leader as a command source: a second chain of servos on the follower's bus, moved by hand.
 
-The leader sits on the follower's bus (``leader:3,4``; ``leader:4,5,6`` for a three-servo
-follower), built and calibrated like the follower, whose zero ticks and directions read its
-ticks. Each cycle reads it in one sync read and offers its pose as the newest command
-(:func:`pose_command`), gated like any other; the bus side is
-:mod:`~limbctl.teleop.sources.leader_bus`.
-
-A leader whose model senses current (:data:`limbctl.servo.leader.FELT_MODELS`) *feels the edge*:
-free inside the region, pushing back beyond it (:func:`limbctl.teleop.haptic_push.push_for`),
-written by :meth:`LeaderSource.feel` after each cycle's gate. Any doubt (silence, alarm,
-restart, a failed bus, a held gate, a fault, the session's end) switches the push off at once
-(:meth:`LeaderSource.release`); Bus Watchdog and :mod:`limbctl.servo.leader_guard` are the
-backstops, and the snap watch (:mod:`limbctl.teleop.snap`) frees a wall between the cycles.
-Other models stay passive (torque off).
+Each cycle's read of it is the newest command (:func:`pose_command`). A current-sensing model
+(:data:`limbctl.servo.leader.FELT_MODELS`) *feels the edge* (:meth:`LeaderSource.feel`); any
+doubt switches the push off at once (:meth:`LeaderSource.release`). Other models stay passive.
 """
 
 from __future__ import annotations
@@ -41,18 +30,14 @@ __all__ = ["FOLLOWER_GRACE_S", "FOLLOWER_UNREAD", "LeaderSource", "PaceWatch"]
 
 #: How the loop's gate says it held because the follower's read failed this cycle.
 FOLLOWER_UNREAD = "the bus failed this cycle"
-#: How long the wall stays on while the follower's reads fail and the leader's do not (s): the
-#: wall is computed from the leader's own pose and the region, not from the follower, so a
-#: follower that missed a reply (the loop holds it until its silent servo's probe, every 50 ms)
-#: need not drop the wall in the operator's hand. One probe interval and a cycle; after that
-#: the follower counts as faulted and the wall goes off until it is read again (the loop's own
-#: fault, 0.5 s of silence, releases it too). docs/decisions/haptic.md.
+#: How long (s) the wall stays on while only the follower's reads fail: one silent-servo probe
+#: interval (50 ms) and a cycle; the wall needs only the leader's pose
+#: (docs/decisions/haptic.md).
 FOLLOWER_GRACE_S = 0.055
 
 
 def pose_command(pose: tuple[float, ...]) -> Command:
-    """The command of a leader's pose (rad, one angle per joint): a direction for two joints,
-    an orientation for three.
+    """The command of a leader's pose (rad, one angle per joint).
 
     Raises
     ------
@@ -65,19 +50,17 @@ def pose_command(pose: tuple[float, ...]) -> Command:
 
 
 class LeaderSource(SnapWatching, LeaderBus, CommandSource):
-    """Mirror a hand-moved leader (read synchronously in :meth:`poll`), one servo per joint of
-    the follower's chain; a current-sensing one feels the edge of the region.
+    """Mirror a hand-moved leader, read in :meth:`poll`; a current-sensing one feels the edge.
 
     Parameters
     ----------
     rig : Rig
         The follower rig; its bus must also hold the leader's ids.
     leader_ids : tuple of int
-        The leader's ids, one per joint of the rig: (pan, tilt) or (pan, tilt, roll).
+        The leader's ids, one per joint of the rig.
     rate_hz : float
-        The loop's rate (Hz), which a felt leader's cycle must keep (checked at start).
+        The loop's rate (Hz), which a felt leader must keep.
     law : FeelLaw, optional
-        The wall's law (default :class:`~limbctl.teleop.haptic.FeelLaw`).
     """
 
     name = "leader"
@@ -96,8 +79,7 @@ class LeaderSource(SnapWatching, LeaderBus, CommandSource):
             raise ConfigError(f"leader servos {leader_ids} are not on the bus")
         self.rig = rig
         self.leader_ids = tuple(leader_ids)
-        #: Cycles whose push the safety rules released (the leader unread, a held gate, a
-        #: failed write, a follower silent past FOLLOWER_GRACE_S), whether or not it pressed.
+        #: Cycles whose push the safety rules released, whether or not it pressed.
         self.released_cycles = 0
         self.rate_hz = float(rate_hz)
         self.law = law or FeelLaw()
@@ -106,31 +88,23 @@ class LeaderSource(SnapWatching, LeaderBus, CommandSource):
         self.notice = ""
         self.feel_stats = FeelStats()
         self.last_push: Push | None = None
-        #: The leader's pose as last read (rad, one angle per joint), None before the first
-        #: read: what the live page draws beside the follower.
+        #: The leader's pose as last read (rad), None before the first read.
         self.last_pose: tuple[float, ...] | None = None
-        #: The most a felt leader may push (N m: the law's cap as its Current Limit allows);
-        #: None while passive.
+        #: The most a felt leader may push (N m); None while passive.
         self.cap_nm: float | None = None
         self._cycle: tuple | None = None  # pose, command, last read, read time, torque, speed
         self._cycle_judged = False  # the snap and brake rules ran on the cycle's read
-        #: Lets a wall go the moment its leader snaps, or before its loop brakes the leader
-        #: outward (limbctl.teleop.snap, limbctl.teleop.brake).
         self.snap = snap_watch(self.law)
-        #: A felt leader's motor torques as last read (joint frame, N m; Present Current);
-        #: None before its first read or while passive.
+        #: A felt leader's motor torques as last read (N m); None before or while passive.
         self.last_torque_nm: tuple[float, ...] | None = None
-        #: The leader's pose at its last good read and when (perf_counter s): how fast it moves.
+        #: The leader's pose at its last good read and when (perf_counter s).
         self._last_read: tuple[tuple[float, ...], float] | None = None
         self._notes: list[str] = []
-        #: The leader's silent servos and dropouts (leader_silence.py).
         self.silence = LeaderSilence()
-        #: A wall that was on when one read missed (leader_snap.py, ``missed``): if the next
-        #: read answers, this cycle's wall goes on as engaged, without the re-arm's wait.
+        #: A wall on when one read missed goes on as engaged if the next read answers.
         self.resume = False
         #: When the leader last answered (perf_counter s); never yet, so the first good read
-        #: clears and arms its Bus Watchdog, which set-up armed and which trips if the loop's
-        #: first read comes later than that (the gate's set-up, the page's).
+        #: re-arms its Bus Watchdog.
         self._heard_at = -math.inf
         self._follower_read_at = -math.inf  # the follower's last good read (perf_counter s)
         self._polled_at: float | None = None  # this cycle's poll, right after the follower's read
@@ -215,10 +189,8 @@ class LeaderSource(SnapWatching, LeaderBus, CommandSource):
         self._notes.append(note)
 
     def feel(self, gate, result, bus_ok: bool) -> tuple[str, ...]:
-        """Write this cycle's push: none unless the leader was read and is fit to push, and the
-        gate ran on a good read of the follower, or held only because the follower's read failed
-        within FOLLOWER_GRACE_S of its last good one; a loop that no longer keeps the rate
-        switches the push off for good."""
+        """Write this cycle's push: none unless the leader was read and fit and the gate ran (or
+        held only on a follower read failed within FOLLOWER_GRACE_S); a lost pace ends it."""
         if self.felt:
             self._check_pace()
         notes, self._notes = tuple(self._notes), []
@@ -226,8 +198,7 @@ class LeaderSource(SnapWatching, LeaderBus, CommandSource):
         cycle, self._cycle = self._cycle, None
         if not self.felt:
             return notes
-        # the follower's reads are timed at the poll right after them, not here: a cycle whose
-        # leader read failed twice reaches this 13 ms later, and the grace would run from there
+        # the follower's read is timed at the poll right after it (a failed leader read is slow)
         now, self._polled_at = self._polled_at or time.perf_counter(), None
         ran = bus_ok and result is not None and result.outcome is not Outcome.HELD
         if ran:
@@ -271,9 +242,7 @@ class LeaderSource(SnapWatching, LeaderBus, CommandSource):
         return notes
 
     def _follower_missed(self, result, bus_ok: bool, now: float) -> bool:
-        """Whether the gate held only because the follower's read failed, within
-        FOLLOWER_GRACE_S of its last good read: the wall (the leader's pose against the region)
-        then stays on. Any other hold, a failed write, a longer silence: off."""
+        """Whether the gate held only on a follower read failed within FOLLOWER_GRACE_S."""
         return (
             not bus_ok
             and result is not None
@@ -283,8 +252,7 @@ class LeaderSource(SnapWatching, LeaderBus, CommandSource):
         )
 
     def _check_pace(self) -> None:
-        """The wall is passive only at its rate (docs/haptic.md): a lost pace switches the push
-        off for good (:class:`PaceWatch`)."""
+        """The wall is passive only at its rate: a lost pace switches the push off for good."""
         median = self.pace.lost()
         if median is not None:
             self._lose_feel(

@@ -1,9 +1,7 @@
 """A leader source's bus side: its set-up, its reads turned into poses and torques, its writes.
 
-Mixed into :class:`~limbctl.teleop.sources.leader.LeaderSource`, which runs the cycle (its
-``rig``, ``leader_ids``, ``law``, ``rate_hz``, ``motor``, ``last_push`` and ``snap``).
-A leader has one servo per joint of its follower and is read like it (the follower's zero
-ticks and directions); every write goes to all its servos in one sync write.
+Mixed into :class:`~limbctl.teleop.sources.leader.LeaderSource`; every write goes to all its
+servos in one sync write.
 """
 
 from __future__ import annotations
@@ -25,21 +23,17 @@ from limbctl.servo.leader import (
 from limbctl.servo.leader_guard import LeaderGuard
 from limbctl.teleop.haptic_push import Push, held
 
-#: Bus Watchdog of a felt leader: 5 x 20 ms = 100 ms without a packet stops it (it holds where it
-#: is with its last push, at most the cap, until its guard switches it off: docs/haptic.md, a
-#: controller that dies). As long as the loop's own 20 failed cycles at 200 Hz, so the loop, not
-#: the watchdog, notices a failing bus; the watchdog covers a dead controller.
+#: Bus Watchdog of a felt leader: 5 x 20 ms = 100 ms, as long as the loop's own 20 failed cycles
+#: at 200 Hz, so the loop notices a failing bus and the watchdog a dead controller.
 WATCHDOG_UNITS = 5
 WATCHDOG_UNIT_S = 0.020
 #: Goal Current alone, written as raw bytes (sent even to a servo in alarm).
 GOAL_CURRENT_BLOCK = Block(Register.GOAL_CURRENT, Register.GOAL_CURRENT.size)
-#: Cycles timed at start (one follower read, one leader read, one leader write each) to check the
-#: rate can be kept: a quarter of a second at 200 Hz, enough for a median; up to three batches,
-#: so a moment of load on a shared machine does not refuse a bus that keeps the rate.
+#: Cycles timed at start to check the rate: a quarter second at 200 Hz for a median; three
+#: batches, so a moment of load does not refuse a bus that keeps the rate.
 RATE_CHECK_CYCLES = 50
 RATE_CHECK_TRIES = 3
-#: What the operator is told at start when the leader feels the edge, by its number of joints
-#: (its model, the law's deadband in deg, the cap in N m and as its Current Limit in units).
+#: What the operator is told when the leader feels the edge, by its number of joints.
 FEEL_NOTICES = {
     2: "leader {model} feels the edge: free inside, pushed back beyond {deadband:g} deg, at most "
     "{cap_nm:.2f} N m (Current Limit {cap})",
@@ -52,8 +46,8 @@ class LeaderBus:
     """Set-up, reads, writes and torque of a leader's servos (see the module docstring)."""
 
     def start(self) -> None:
-        """Switch the leader's torque off so a hand can move it (no reader thread); a leader
-        that senses current is set up to feel the edge instead (torque on, no current yet).
+        """Switch the leader's torque off for the hand, or set a current-sensing one up to feel
+        the edge (torque on, no current yet).
 
         Raises
         ------
@@ -90,8 +84,7 @@ class LeaderBus:
         )
 
     def _check_rate(self) -> None:
-        """Time felt cycles' transfers; refuse when no batch's median fits the period (a batch
-        taken while the machine was busy for a moment is tried again)."""
+        """Refuse when no batch of timed felt cycles has its median within the period."""
         medians = []
         for _ in range(RATE_CHECK_TRIES):
             times = []
@@ -136,8 +129,7 @@ class LeaderBus:
             pass  # the watchdog stops it; nothing more can be sent on a failed bus
 
     def _arm_watchdog(self) -> None:
-        """Clear a Bus Watchdog that may have tripped while the leader was not heard, and arm
-        it again (a tripped servo refuses every goal, Goal Current 0 included)."""
+        """Clear a Bus Watchdog that may have tripped (it refuses every goal) and arm it again."""
         try:
             for servo_id in self.leader_ids:
                 self.rig.bus.write(Register.BUS_WATCHDOG, servo_id, 0, check_alert=False)
@@ -146,14 +138,11 @@ class LeaderBus:
             self._heard_at = -math.inf  # tried again on the next good read
 
     def _pose(self, read) -> tuple[float, ...]:
-        """The pose (rad, one angle per joint) of a good read of the leader, read like the
-        follower's (each joint's zero tick and direction)."""
+        """The pose (rad, one angle per joint) of a good read, with the follower's calibration."""
         return self.rig.ticks_to_angles(*(read.reports[i].present for i in self.leader_ids))
 
     def _torque(self, read) -> tuple[float, ...]:
-        """The leader's motor torques (joint frame, N m) in a good read of a felt leader: its
-        Present Current (:func:`~limbctl.servo.leader.present_current`) turned into torque and
-        into the joint's frame by its direction."""
+        """The felt leader's motor torques (joint frame, N m) from a good read's Present Current."""
         return tuple(
             joint.direction * self.motor.torque_of(present_current(read.reports[servo_id]))
             for servo_id, joint in zip(self.leader_ids, self.rig.joints, strict=True)
@@ -167,8 +156,8 @@ class LeaderBus:
             self._zero_current()
 
     def _write(self, push: Push) -> None:
-        """One sync write of Goal Current and Goal Position to the leader's servos; Torque
-        Enable off and on first when the wall comes on, Profile Velocity once with it."""
+        """One sync write of Goal Current and Goal Position; Torque Enable off and on first when
+        the wall comes on, Profile Velocity once with it."""
         ticks = self.rig.angles_to_ticks(*push.goal)  # the goal's ticks, kept to one turn below
         currents = push.currents(len(self.leader_ids))
         data = {
@@ -180,16 +169,12 @@ class LeaderBus:
         )
         try:
             if engaging:
-                # The servo's profile setpoint stays where the wall last put it while the leader
-                # is free (Goal Current 0) and the hand moves it; the wall would then pull toward
-                # that old setpoint at whatever speed the cap gives, not walk back at the profile's.
-                # Torque on puts the setpoint (and Goal Position) at the present position, so the
-                # wall starts from where the leader is.
+                # torque on puts the profile's setpoint at the present position: the wall starts
+                # from the leader, not from where it last left the setpoint
                 off = dict.fromkeys(self.leader_ids, 0)
                 self.rig.bus.sync_write(Register.TORQUE_ENABLE, off)
                 self.rig.bus.sync_write(Register.TORQUE_ENABLE, dict.fromkeys(self.leader_ids, 1))
-            # the wall's speed, written once it first comes on; a free leader has no current,
-            # and the wall always comes on from the present position, so it is left as it is
+            # the wall's speed, written once it first comes on
             if push.goal_current and push.profile_velocity != self._profile_velocity:
                 self._profile_velocity = None
                 velocity = dict.fromkeys(self.leader_ids, push.profile_velocity)

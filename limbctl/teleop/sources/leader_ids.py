@@ -1,9 +1,4 @@
-"""Which servos a leader is: the ids a ``leader:`` source names, checked against the rig.
-
-A leader is a second gimbal on the follower's bus with one servo per joint of the follower:
-``leader:ID,ID`` (pan, tilt) for a two-servo rig, ``leader:ID,ID,ID`` (pan, tilt, roll) for a
-three-servo one, each id once and none of the rig's.
-"""
+"""Which servos a leader is: the ids a ``leader:`` source names, checked against the rig."""
 
 from __future__ import annotations
 
@@ -35,8 +30,7 @@ def leader_ids(argument: str) -> tuple[int, ...]:
 
 
 def check_leader_fits(ids: tuple[int, ...], profile: RigProfile) -> None:
-    """Refuse a leader ``ids`` that cannot drive the rig ``profile``: another number of joints,
-    or a servo of the rig's own (checked before any port opens, and again by the source).
+    """Refuse a leader ``ids`` with another number of joints than ``profile`` or a rig's servo.
 
     Raises
     ------

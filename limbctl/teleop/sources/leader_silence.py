@@ -1,11 +1,7 @@
 """A felt leader's silent servos: when each stopped answering, for how long, and when to ask.
 
-Any failed read of the leader switches every leader servo's push off at once
-(:meth:`LeaderSource.release`): the others must not push the hand alone. This module keeps the
-account: a *miss* is a failed read naming the servo its reply stopped at; MISSES_FOR_DROPOUT in
-a row make a *dropout*, timed until it answers again (or "so far" at the session's end); while
-silent the leader is read once per PROBE_INTERVAL_S only, one try, so the loop keeps its rate.
-The dropouts are the session's summary lines for the leader (:meth:`LeaderSilence.lines`).
+MISSES_FOR_DROPOUT failed reads in a row make a *dropout*, timed until the servo answers; while
+silent the leader is read once per PROBE_INTERVAL_S only, so the loop keeps its rate.
 """
 
 from __future__ import annotations
@@ -16,18 +12,16 @@ from dataclasses import dataclass, field
 from limbctl.servo.cycle import CycleRead
 from limbctl.servo.health import Dropout
 
-#: Two reads in a row: one lost reply (a corrupt or late packet) is not a dropout; the cycle's
-#: read and its second try, or the watch's read and the cycle's, both missing the servo are.
+#: Two reads in a row: one lost reply is not a dropout.
 MISSES_FOR_DROPOUT = 2
-#: How often a silent leader is asked whether it is back (s): as the follower's silent servos
-#: (limbctl.servo.health.HealthLimits.probe_interval_s), a dropout's length known within it,
-#: and one failed read (6.3 ms on the simulator's pty) in ten cycles keeps the loop's rate.
+#: How often (s) a silent leader is probed: as the follower's, one failed read (6.3 ms) in ten
+#: cycles keeps the loop's rate.
 PROBE_INTERVAL_S = 0.05
 
 
 @dataclass
 class LeaderSilence:
-    """The leader's silent servos (see the module docstring). Times are perf_counter s.
+    """The leader's silent servos; times are perf_counter s.
 
     Attributes
     ----------
@@ -51,8 +45,7 @@ class LeaderSilence:
         return tuple(i for i, (_, n) in self._first_miss.items() if n >= MISSES_FOR_DROPOUT)
 
     def missed(self, read: CycleRead, now_s: float) -> None:
-        """A failed read at ``now_s``: each servo it names missed once more (a read that names
-        none, a garbled reply, is counted only)."""
+        """A failed read at ``now_s``: each servo it names missed once more."""
         self.misses += 1
         self.longest_failed_read_s = max(self.longest_failed_read_s, read.duration_s)
         for servo_id in read.silent:
@@ -71,16 +64,14 @@ class LeaderSilence:
         return notes
 
     def read_now(self, now_s: float) -> bool:
-        """Whether the cycle reads the leader now: always while no servo is silent, else once
-        per PROBE_INTERVAL_S (the read then is the probe)."""
+        """Whether the cycle reads the leader now (while silent, once per PROBE_INTERVAL_S)."""
         if not self.silent or now_s - self._probed_at >= PROBE_INTERVAL_S:
             self._probed_at = now_s
             return True
         return False
 
     def lines(self, now_s: float) -> list[str]:
-        """The summary's line on the leader's dropouts: each with its servo and length (one
-        still going on at ``now_s`` with its length so far), and the failed reads."""
+        """The summary's line on the leader's dropouts and failed reads."""
         ongoing = [
             Dropout(i, at, now_s - at, ongoing=True)
             for i, (at, n) in self._first_miss.items()

@@ -15,16 +15,13 @@ from limbctl.teleop.snap import SnapLaw, SnapWatch
 
 
 def snap_watch(law: FeelLaw) -> SnapWatch:
-    """A felt leader's watch: the snap rule and the brake rules, the wall's setpoint walking at
-    ``law``'s Profile Velocity."""
+    """A felt leader's watch: the snap and brake rules at ``law``'s Profile Velocity."""
     walk = law.profile_velocity_units() * VELOCITY_UNIT_DEG_S
     return SnapWatch(SnapLaw(), brake=BrakeLaw(), walk_deg_s=walk, at_read=True, rearm_twice=True)
 
 
 def cycle_velocity(read: CycleRead, ids: Sequence[int], joints: Sequence) -> tuple[float, ...]:
-    """The leader's joint speeds (deg/s, joint frame) in a good cycle read of a felt leader
-    (Present Velocity rides in its Goal Position slot: :data:`~limbctl.servo.leader.
-    VELOCITY_MAP`), each turned into its joint's frame by its direction."""
+    """A felt leader's joint speeds (deg/s, joint frame) in a good cycle read."""
     return tuple(
         joint.direction * present_velocity(read.reports[servo_id]) * VELOCITY_UNIT_DEG_S
         for servo_id, joint in zip(ids, joints, strict=True)
@@ -34,9 +31,7 @@ def cycle_velocity(read: CycleRead, ids: Sequence[int], joints: Sequence) -> tup
 def motion_of(
     read: CycleRead, ids: Sequence[int], joints: Sequence, motor: LeaderMotor
 ) -> tuple[tuple[float, ...], tuple[float, ...]]:
-    """The leader's joint speeds (deg/s) and motor torques (N m), joint frame, in a good cycle
-    read of a felt leader (Present Velocity and Present Current ride in its cycle read:
-    :data:`~limbctl.servo.leader.VELOCITY_MAP`)."""
+    """A felt leader's joint speeds (deg/s) and torques (N m), joint frame, in a good read."""
     speeds = cycle_velocity(read, ids, joints)
     torques = tuple(
         joint.direction * motor.torque_of(present_current(read.reports[servo_id]))
@@ -48,37 +43,30 @@ def motion_of(
 def read_motion(
     bus, ids: Sequence[int], joints: Sequence, motor: LeaderMotor
 ) -> tuple[tuple[float, ...], tuple[float, ...]] | None:
-    """The leader's joint speeds (deg/s) and motor torques (N m), joint frame, in one try of
-    the cycle read (:func:`motion_of`); None if it failed."""
+    """:func:`motion_of` one try of the cycle read; None if it failed."""
     read = bus.read_cycle(ids=ids, attempts=1)
     return motion_of(read, ids, joints, motor) if read.ok else None
 
 
 class SnapWatching:
-    """The loop's idle work for a felt leader source (mixed into ``LeaderSource``, which has
-    ``felt``, ``snap``, ``rig``, ``leader_ids``, ``motor``, ``release``, ``last_push``,
-    ``silence`` and ``resume``)."""
+    """The loop's idle work for a felt leader (mixed into ``LeaderSource``)."""
 
     @property
     def idle_work(self):
-        """What the loop runs while it waits for the next cycle: the snap watch while a wall is
-        on (:meth:`watch_snap`), else None (the loop just waits, as for any source)."""
+        """What the loop runs while it waits: :meth:`watch_snap` while a wall is on, else None."""
         return self.watch_snap if self.felt and self.snap.watching else None
 
     def still_to_engage(self, pose: Sequence[float], goal: Sequence[float]) -> bool:
-        """Whether a wall about to come on (from ``pose`` toward ``goal``, rad) finds its leader
-        still, read again just before the write: the wall starts with its setpoint at the
-        leader, and the servo's loop would brake one a hand has started to take in since the
-        cycle's read (2-3 ms earlier over the bus), outward. A failed read: not now."""
+        """Whether a wall about to come on (``pose`` toward ``goal``, rad) finds its leader still
+        on a fresh read (the loop would brake one moving in outward); a failed read: no."""
         motion = self.read_motion()
         if motion is None:
             return False
         return self.snap.still(pose, goal, motion[0])
 
     def judge_read(self, speed: Sequence[float], torque: Sequence[float], now: float) -> bool:
-        """At the cycle's own read of a wall that is on (the watch's ``at_read``): let it go at
-        once if the snap or brake rules say so, before the cycle's gate work and the
-        follower's write. True if the rules ran on this read (and kept or freed the wall)."""
+        """At the cycle's read (``at_read``): let the wall go at once if the rules say so; True
+        if the rules ran on this read."""
         if not (self.snap.at_read and self.snap.watching):
             return False
         if self.snap.judge(speed, now, torque):
@@ -86,20 +74,15 @@ class SnapWatching:
         return True
 
     def watch_snap(self) -> None:
-        """Between cycles: read the leader's speed and torque; a held leader that snaps toward
-        the region, or one its loop is about to brake outward, is let go at once
-        (:mod:`limbctl.teleop.snap`, :mod:`limbctl.teleop.brake`)."""
+        """Between cycles: let the wall go at once on a snap or a coming brake."""
         motion = self.read_motion()
         now = time.perf_counter()
         if self.snap.watching and motion is not None and self.snap.snaps(motion[0], now, motion[1]):
             self.release()
 
     def read_leader(self) -> CycleRead | None:
-        """The cycle's read of the felt leader, one try and, after a miss, one more (a lost
-        reply need not drop the mirroring); every miss switches the push off at once
-        (:meth:`missed`). While a leader servo is silent, the leader is read only once per
-        probe interval (:class:`~limbctl.teleop.sources.leader_silence.LeaderSilence`): None
-        on the cycles between."""
+        """The cycle's read of the felt leader, retried once after a miss; None between probes
+        while a servo is silent (:class:`~limbctl.teleop.sources.leader_silence.LeaderSilence`)."""
         if not self.silence.read_now(time.perf_counter()):
             return None
         read = self.rig.bus.read_cycle(ids=self.leader_ids, attempts=1)
@@ -112,24 +95,16 @@ class SnapWatching:
         return read
 
     def missed(self, read: CycleRead) -> None:
-        """A failed read of the leader (``read``): every leader servo's push goes off at once
-        (one that does not answer may be gone, and the others must not push the hand alone),
-        and the miss is counted toward a dropout (:class:`LeaderSilence`). A wall that was on
-        comes back in the next cycle whose read answers, as the wall it was (``resume``: one
-        lost reply costs the hand the milliseconds of the retry, not the re-arm's two still
-        reads); a second miss in a row finds it off and leaves it to the re-arm."""
+        """A failed read: every leader servo's push off at once, the miss counted; a wall that
+        was on comes back as it was on the next good read (``resume``)."""
         self.silence.missed(read, time.perf_counter())
         self.resume = self.last_push is not None and self.last_push.goal_current > 0
         if self.felt:
             self.release()
 
     def read_motion(self) -> tuple[tuple[float, ...], tuple[float, ...]] | None:
-        """The leader's joint speeds (deg/s) and torques (N m) in one try of the cycle read
-        (:func:`motion_of`); a failed read switches every leader servo's push off at once
-        (``missed``) and gives None. One try, no diagnostic pings: a silent servo costs one
-        reply timeout (6.3 ms on the simulator's pty), not a stalled loop (a plain sync read's
-        three tries and pings took 31 ms and more, the push left on meanwhile). A failing port
-        (:class:`~limbctl.errors.PortError`) is a failed read here; the cycle's read raises it."""
+        """:func:`motion_of` one try of the cycle read, no pings (a silent servo costs one reply
+        timeout); a failed read (a failing port too) is ``missed`` and gives None."""
         try:
             read = self.rig.bus.read_cycle(ids=self.leader_ids, attempts=1)
         except BusError as exc:

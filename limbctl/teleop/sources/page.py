@@ -1,10 +1,7 @@
 """Command source ``page``: the live view's page steers the limb (drag, click, arrow keys).
 
-The page sends the same JSON lines as every other source over its WebSocket; the view's server
-hands the controlling page's text to :meth:`CommandSource.feed` (same parser, refusals and
-gate). A page that stops sending leaves the loop holding the last safe pose, as any silent
-stream. Who may control is the view's business (:mod:`limbctl.view.control`): this source only
-needs a ``connect`` that attaches its ``feed`` and returns what detaches it.
+The view's server hands the controlling page's JSON lines to :meth:`CommandSource.feed`; who
+may control is :mod:`limbctl.view.control`'s business.
 """
 
 from __future__ import annotations
