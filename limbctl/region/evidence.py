@@ -56,7 +56,7 @@ class Stretch:
     length_deg : float
         Its length along the edge (deg).
     held : bool
-        Whether the region was held there within ``REACH_DEG`` of the taught samples
+        Whether the region was held there to ``REACH_DEG`` of the taught samples
         (:mod:`limbctl.region.edge_hold`); ``distance_deg`` is then where the learned edge stood.
     """
 
@@ -73,9 +73,7 @@ class Stretch:
             f"of edge up to {self.distance_deg:.1f} deg from every taught sample"
         )
         if self.held:
-            text += (
-                f" (held at the evidence: the region stops within {REACH_DEG:g} deg of it there)"
-            )
+            text += f" (held at the evidence: the region stops {REACH_DEG:g} deg from it there)"
         return text
 
 

@@ -23,10 +23,7 @@ from limbctl.region.edge_choice import choose_edge
 from limbctl.region.edge_hold import hold_to_evidence
 from limbctl.region.evidence import (
     REACH_DEG,
-    STATION_DEG,
     Stretch,
-    edge_stations,
-    outer_arcs,
     unsupported_stations,
     unsupported_stretches,
 )
@@ -50,23 +47,12 @@ CORNER_TURN_DEG = 60.0
 THIN_GROWTH = 1.05
 #: Version of the construction, raised whenever it changes the region some data give: cached
 #: `limbctl eval` results are keyed on it (saved models carry their mesh).
-FIT_VERSION = 9
+FIT_VERSION = 8
 #: Carving rounds at most: a bridged bay is a few triangles deep; 12 empty the bays of the
 #: families in docs/bench_swing_families.md.
 CARVE_ROUNDS = 12
 #: Most share of taught samples carving may leave out: a bay's bridge holds none.
 CARVE_LOSS = 0.002
-
-
-#: How near (deg) the edge is held to the taught samples wherever a station of it stands
-#: farther (:func:`limbctl.region.edge_hold.hold_to_evidence`), so that it lies within 1 deg of
-#: any truth holding the samples: the hold's chords stand up to ~0.25 deg past its reach
-#: (tests/region/test_edge_hold.py's strict xfail). At REACH_DEG (1.25) the swing families'
-#: dense and hand teachings lay up to 1.14 deg past the truth; at 0.8, 0.77 (outlines 8-15 of
-#: benchmarks/bench_swing_families.py, not tuned on), coverage 2 deg inside at least 99.94 %.
-#: Where the hold at this reach leaves a station farther than REACH_DEG (sparse teachings,
-#: whose hold then cuts across the samples' dents), the hold at REACH_DEG is kept.
-HOLD_REACH_DEG = 0.8
 
 
 class TaughtRegion:
@@ -162,13 +148,10 @@ class TaughtRegion:
         self.unsupported_edge = tuple(
             unsupported_stretches(taken.region, d_train, np.radians(REACH_DEG), surrounded=False)
         )
-        # containment over coverage: the edge is held to HOLD_REACH_DEG of the evidence, or,
-        # where that hold still leaves a station beyond REACH_DEG, to REACH_DEG
-        region, self.held_edge = hold_to_evidence(taken.region, d_train, np.radians(HOLD_REACH_DEG))
-        if self.held_edge and _farthest_station(region, d_train) > np.radians(REACH_DEG):
-            region, self.held_edge = taken.region, False
-        if not self.held_edge and self.unsupported_edge:
-            region, self.held_edge = hold_to_evidence(taken.region, d_train)
+        if not self.unsupported_edge:
+            return taken.region
+        # containment over coverage: those stretches are held to REACH_DEG of the evidence
+        region, self.held_edge = hold_to_evidence(taken.region, d_train)
         if self.held_edge:
             self.unsupported_edge = tuple(replace(s, held=True) for s in self.unsupported_edge)
         return region
@@ -303,14 +286,3 @@ def taught_directions(samples: np.ndarray) -> np.ndarray:
     if not (np.all(np.isfinite(arr)) and np.all(np.abs(norm - 1.0) <= UNIT_TOLERANCE)):
         raise InvalidInputError("samples: directions must be finite unit vectors")
     return arr
-
-
-def _farthest_station(mesh: DirectionMesh, data: np.ndarray) -> float:
-    """The largest angle (rad) from a station of ``mesh``'s outer loops to its nearest taught
-    direction of ``data`` (N, 3)."""
-    stations, arc = edge_stations(mesh, np.radians(STATION_DEG))
-    outer = stations[outer_arcs(mesh)[arc]]
-    if outer.shape[0] == 0:
-        return 0.0
-    gap = cKDTree(data).query(outer)[0]
-    return float(2.0 * np.arcsin(min(1.0, gap.max() / 2.0)))
