@@ -42,6 +42,15 @@ class Envelope(ABC):
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
+        # a model answers through the two hooks ``_inside(q)`` ((N, 4) canonical -> (N,) bool)
+        # and ``_to_boundary(q)`` ((N, 4) outside -> (N, 4)), or overrides ``contains`` and
+        # ``correct`` itself: refused when the class is defined, not when first asked
+        hooks = all(hasattr(cls, name) for name in ("_inside", "_to_boundary"))
+        own = cls.contains is not Envelope.contains and cls.correct is not Envelope.correct
+        if cls.kind and not (hooks or own):
+            raise TypeError(
+                f"{cls.__name__}: define _inside and _to_boundary, or contains and correct"
+            )
         if cls.kind:
             Envelope._registry[cls.kind] = cls
 
@@ -69,14 +78,6 @@ class Envelope(ABC):
         if outside.any():
             out[outside] = self._to_boundary(arr[outside])
         return out[0] if single else out
-
-    def _inside(self, q: np.ndarray) -> np.ndarray:
-        """Whether each of canonical ``q`` (N, 4) is inside: (N,) bool."""
-        raise NotImplementedError
-
-    def _to_boundary(self, q: np.ndarray) -> np.ndarray:
-        """The answers (N, 4) to canonical ``q`` (N, 4) outside the region."""
-        raise NotImplementedError
 
     @property
     @abstractmethod
