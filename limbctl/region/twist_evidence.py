@@ -78,6 +78,12 @@ SLOPE_SIGMA_DEG = 3.0
 #: seed 2, dense teaching (0.4 deg inside the outline) read no slope and the band stayed 3.07 deg
 #: past the truth; at 0.75, with the slope's error in the margin (SLOPE_CONFIDENCE), 0.40.
 SLOPE_SPREAD_DEG = 0.75
+#: The stops' least effective count (``(sum w)^2 / sum w^2``) for the slope to be read:
+#: through 3 stops the plane fits exactly and its error reads 0 (the curved family's seed 5,
+#: sparse teaching read a slope 0.6 rad/rad off the truth's and lay 1.41 deg past it; at 4,
+#: 0.69 deg; 6 did no better, 0.84). Where none is read the hold and its bound act, and what
+#: they cut asks for a stop (docs/decisions/twist.md, "A slope from too few stops").
+MIN_SLOPE_STOPS = 4.0
 #: Standard errors of the plane's slope added to SLOPE_SLACK: two, a ~95 % bound. Not tuned.
 SLOPE_CONFIDENCE = 2.0
 #: How far (rad/rad) the true slope at a node may differ from the plane's, beyond its error, and
@@ -348,6 +354,7 @@ def _along_slope(cone, nodes, start, members, d, limit, ref, stops, limited):
         math.radians(REACH_DEG),
         HOLD_SLOPE,
         limited,
+        MIN_SLOPE_STOPS,
     )
     g_up, w_up = fk.gradient_caps(nodes, start, members, d, limit, stops[0], ref, *args)
     g_lo, w_lo = fk.gradient_caps(nodes, start, members, d, -limit, stops[1], -ref, *args)

@@ -236,13 +236,15 @@ def gradient_caps(
     reach,
     steep,
     limited,
+    min_stops,
 ):
     """One limit's cap (M,) read along its local slope, relative to ``ref`` (M,) (rad), and its
     witnesses (M,); the upper limit (for the lower pass the twists negated and negate the cap).
 
     The slope ``g`` is the weighted plane's through the stops (as :func:`refine_nodes`);
     ``cap(n) = max_j (limit_j - ref_n - g . x_j - slack angle - curvature angle^2 / 2)``. NaN
-    where the stops spread less than ``spread`` (rad) in some direction. At ``limited`` (M,)
+    where the stops' effective count ``(sum w)^2 / sum w^2`` is under ``min_stops`` or they
+    spread less than ``spread`` (rad) in some direction. At ``limited`` (M,)
     nodes a sample beyond ``reach`` (rad) bounds the cap by the ``steep`` (rad/rad) cone too.
     """
     m = nodes.shape[0]
@@ -254,6 +256,7 @@ def gradient_caps(
         a = np.zeros((3, 3))
         b = np.zeros(3)
         count = 0
+        weight_sq = 0.0
         for k in range(start[i], start[i + 1]):
             j = members[k]
             if not stop[j]:
@@ -269,7 +272,10 @@ def gradient_caps(
                 for s in range(3):
                     a[r, s] += w * row[r] * row[s]
             count += 1
-        if count < 3:
+            weight_sq += w * w
+        # the stops' effective count (sum w)^2 / sum w^2: through 3 the plane fits exactly and
+        # its error reads 0, so fewer than ``min_stops`` leave the slope unknown
+        if count < 3 or a[0, 0] * a[0, 0] < min_stops * weight_sq:
             continue
         # the stops' weighted spread about their mean, least direction (2 x 2 covariance)
         mx = a[0, 1] / a[0, 0]

@@ -195,7 +195,7 @@ def test_the_cap_along_the_local_slope_follows_a_steep_plane_the_cone_overshoots
     start, members = _one_node(d)
     stop = np.ones(d.shape[0], dtype=bool)
     ref = np.zeros(1)
-    free = (math.radians(4), 1.4, np.zeros(1, dtype=bool))  # no reach
+    free = (math.radians(4), 1.4, np.zeros(1, dtype=bool), 4.0)  # no reach
     args = (math.radians(3), math.radians(0.75), 0.25, 2.0, 8.6, math.radians(3), 0.02, *free)
     cap, wit = gradient_caps(node, start, members, d, limit, stop, ref, *args)
     # on a plane the slope is read exactly: no sample lifts the cap above the limit at the node
@@ -209,6 +209,29 @@ def test_the_cap_along_the_local_slope_follows_a_steep_plane_the_cone_overshoots
     assert np.isnan(cap[0]) and wit[0] == 0
     # among the taught directions: samples beyond the reach vouch only by the steep cone, which
     # on this plane (steeper than 1.4) lies below the slope's reading: the node's own stop sets it
-    held = (*args[:7], math.radians(4), 1.4, np.ones(1, dtype=bool))
+    held = (*args[:7], math.radians(4), 1.4, np.ones(1, dtype=bool), 4.0)
     cap, _ = gradient_caps(node, start, members, d, limit, stop, ref, *held)
+    assert math.isclose(cap[0], 0.4, abs_tol=1e-9)
+
+
+def test_a_slope_through_three_stops_is_not_read():
+    """Three stops fit a plane exactly (its error reads 0): under an effective count of
+    ``min_stops`` the slope stays unknown (NaN), however well the three spread."""
+    node = np.array([[0.0, 0.0, 1.0]])
+    a = math.radians(2.0)
+    d = np.array([[math.sin(a), 0, math.cos(a)], [0, math.sin(a), math.cos(a)], [0, 0, 1.0]])
+    d = np.vstack([d, [-math.sin(a), -math.sin(a), 1.0]])
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    limit = 0.4 + 1.5 * d[:, 0]
+    start = np.array([0, 4], dtype=np.int64)
+    members = np.arange(4, dtype=np.int64)
+    ref = np.zeros(1)
+    args = (math.radians(3), math.radians(0.5), 0.25, 2.0, 8.6, math.radians(3), 0.02)
+    free = (math.radians(4), 1.4, np.zeros(1, dtype=bool))
+    three = np.array([True, True, True, False])
+    for stop, min_stops, known in ((three, 0.0, True), (three, 4.0, False)):
+        cap, _ = gradient_caps(node, start, members, d, limit, stop, ref, *args, *free, min_stops)
+        assert np.isfinite(cap[0]) == known
+    # a fourth stop, spread as well, lets the slope be read again
+    cap, _ = gradient_caps(node, start, members, d, limit, np.ones(4, bool), ref, *args, *free, 3.5)
     assert math.isclose(cap[0], 0.4, abs_tol=1e-9)
