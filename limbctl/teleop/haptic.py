@@ -1,9 +1,5 @@
-"""The leader feels the edge: a haptic wall on a leader of two or three joints, from the region.
-
-Beyond DEADBAND the law (:class:`FeelLaw`) asks for tau = min(K (d - DEADBAND), CAP) along the
-joint-space step toward the corrected pose, d (deg) how far the leader is beyond the region;
-:func:`lets_go` says when the wall is left off. docs/haptic.md gives the law and every figure.
-"""
+"""The leader feels the edge: the haptic wall's law, tau = min(K (d - DEADBAND), CAP) toward the
+corrected pose, and when it lets go (docs/haptic.md gives the law and every figure)."""
 
 from __future__ import annotations
 
@@ -124,15 +120,8 @@ class FeelLaw:
 def moved_in_deg(
     present: tuple[float, ...], previous: tuple[float, ...], step: tuple[float, ...]
 ) -> float:
-    """How far (deg) a leader moved toward its correction since the last read.
-
-    Parameters
-    ----------
-    present, previous : tuple of float, (n,)
-        The leader's joints now and at the last read (rad).
-    step : tuple of float, (n,)
-        The corrected pose's joints minus ``present`` (rad); not all zero.
-    """
+    """How far (deg) a leader moved toward its correction since the last read: joints (n,)
+    ``present`` and ``previous`` (rad), ``step`` (n,) the correction minus ``present`` (rad)."""
     # moved in = (present - previous) . step / |step|
     dot = 0.0
     for now, before, toward in zip(present, previous, step, strict=True):
@@ -168,12 +157,7 @@ def walks_back(
     )
 
 
-def goal_lead_rad(
-    law: FeelLaw,
-    motor: LeaderMotor,
-    distance_deg: float,
-    walking: bool,
-) -> float:
+def goal_lead_rad(law: FeelLaw, motor: LeaderMotor, distance_deg: float, walking: bool) -> float:
     """Goal Position's lead (rad), ``walk_lead_ticks`` more while ``walking``."""
     extra = law.walk_lead_ticks * TICK_DEG if walking else 0.0
     return math.radians(law.lead_for_deg(distance_deg, motor) + extra)
@@ -195,19 +179,8 @@ def lets_go(
 
 @dataclass
 class FeelStats:
-    """How long and how hard the operator pressed beyond the edge (for the teleop report).
-
-    Attributes
-    ----------
-    engaged_s : float
-        Time the wall was on (s).
-    impulse_nm_s : float
-        Integral of the leader's torque over that time (N m s).
-    peak_nm : float
-        The largest torque commanded (N m).
-    events : list of str
-        What switched the feel off (a leader restart, an alarm), with the time.
-    """
+    """How long (``engaged_s``, s) and how hard (``impulse_nm_s``, N m s; ``peak_nm``, N m) the
+    operator pressed beyond the edge; ``events``: what switched the feel off, with the time."""
 
     engaged_s: float = 0.0
     impulse_nm_s: float = 0.0

@@ -1,10 +1,5 @@
-"""The teleoperation control loop: fixed rate, one read and one gated write per cycle.
-
-Each cycle reads every servo in one sync read (judged by
-:class:`limbctl.servo.health.HealthMonitor`), gates the newest valid command and writes only the
-gate's pose in one sync write; faults end in the configured safe state (docs/safety.md).
-:meth:`ControlLoop.step` returns each cycle as a :class:`~limbctl.teleop.cycle.Cycle`.
-"""
+"""The teleoperation control loop: fixed rate, one sync read and one gated sync write per cycle;
+faults end in the configured safe state (docs/safety.md)."""
 
 from __future__ import annotations
 
@@ -191,8 +186,7 @@ class ControlLoop:
         if config.duration_s is not None and t >= config.duration_s:
             return self._end("duration", t)
 
-        # 1. present pose and health; a failed read holds this cycle (a sync write one servo
-        # misses would leave a pose the gate never produced)
+        # 1. present pose and health; a failed read holds (a write one servo misses is no gate pose)
         present: tuple[float, float] | None = None
         silent = False
         try:
@@ -247,8 +241,7 @@ class ControlLoop:
         felt = self.source.feel(self.gate, result, present is not None)  # a felt leader's push
         summary.notices.extend(f"{t:.3f} s: {notice}" for notice in felt)
         if present is None:
-            summary.failed_cycles += 1
-            # a named silent servo is judged by the health monitor (lost_after_s)
+            summary.failed_cycles += 1  # a named silent servo: the health monitor judges it
             self._failed_in_a_row = 0 if silent else self._failed_in_a_row + 1
             if self._failed_in_a_row >= config.max_failed_cycles:
                 cause = BusError(
@@ -264,8 +257,7 @@ class ControlLoop:
         summary.cycle_times_s.append(cycle_s)
         summary.cycles += 1
         state, ended_by = CycleState.RUNNING, ""
-        if self.source.finished and not self._pending and not result.slewed:
-            # end of input: every command was gated and the last one reached (or held)
+        if self.source.finished and not self._pending and not result.slewed:  # end of input
             state, ended_by = CycleState.FINISHED, "end of input"
             summary.ended_by = ended_by
         return Cycle(
@@ -377,12 +369,12 @@ def run(
     telemetry : Telemetry, optional
         Logs every complete cycle.
     status : text stream, optional
-        Where a one-line status is refreshed (twice a second on a terminal, e.g. stderr).
+        Where a one-line status is refreshed (e.g. stderr).
 
     Returns
     -------
     TeleopSummary
-        ``exit_code`` 0 for a clean end (source ended, duration, stop), 3 for a fault.
+        ``exit_code`` 0 for a clean end, 3 for a fault.
     """
     loop = ControlLoop(limb, gate, source, config, stop)
     cycle = loop.start()

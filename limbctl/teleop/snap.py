@@ -1,9 +1,5 @@
 """The snap watch: a held wall lets go the moment its leader starts snapping toward the region.
-
-Between cycles the watch *arms* on a still leader held with at least HOLD, *cuts* (Goal Current
-0) when its speed inward passes SNAP having risen as a let go makes it, and *re-arms* a free wall
-only on a leader not moving in; the brake rules (:mod:`limbctl.teleop.brake`) also apply. It only
-ever takes torque away; docs/haptic.md ("The snap watch") gives the rules and figures.
+It only ever takes torque away; docs/haptic.md ("The snap watch") gives the rules and figures.
 """
 
 from __future__ import annotations
@@ -75,16 +71,10 @@ class SnapWatch:
         The brake rules (:mod:`limbctl.teleop.brake`); None: the snap rule alone.
     walk_deg_s : float
         How fast the wall's setpoint walks toward the region (deg/s): its Profile Velocity.
-    armed : tuple of float or None
-        The unit step toward the correction (joint space) while armed.
-    walking : tuple of float or None
-        The unit step toward the correction while a wall is on (the brake rules watch it).
-    cuts : int
-        How many times the watch (or a cycle's read) let a held wall go at a snap.
-    brakes : int
-        How many times the brake rules let a wall go.
-    reads : int
-        How many reads the watch was handed between the cycles.
+    armed, walking : tuple of float, (n,), or None
+        The unit joint-space step toward the correction while armed; while a wall is on.
+    cuts, brakes, reads : int
+        Walls let go at a snap, walls let go by the brake rules; reads between the cycles.
     at_read : bool
         Judge each cycle's read at once (:meth:`judge`), before the gate work; False: when its
         push is decided (:meth:`allows`).
