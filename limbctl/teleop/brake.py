@@ -1,9 +1,5 @@
-"""The brake rules: a wall lets its leader go before the servo's loop would brake it outward.
-
-The snap watch frees a wall when its leader *outruns* the walking setpoint with no hand held
-(:func:`outruns`) or its torque toward the region is about to fall under zero
-(:func:`brakes_soon`); docs/haptic.md ("The brake rules") gives the figures.
-"""
+"""The brake rules: a wall lets its leader go before the servo's loop would brake it outward
+(docs/haptic.md, "The brake rules")."""
 
 from __future__ import annotations
 

@@ -1,8 +1,4 @@
-"""Command sources for teleoperation, one module and one :data:`SOURCES` entry per scheme.
-
-:func:`parse_source` checks a spec before anything is opened; :meth:`SourceSpec.open` builds the
-source from a :class:`SourceContext`.
-"""
+"""Command sources for teleoperation, one module and one :data:`SOURCES` entry per scheme."""
 
 from __future__ import annotations
 
@@ -62,10 +58,8 @@ class SourceKind:
 
     Attributes
     ----------
-    scheme : str
-        The spec's prefix (``udp`` for ``udp://...``).
-    form : str
-        How a spec of this scheme is written, for help and error messages.
+    scheme, form : str
+        The spec's prefix (``udp`` for ``udp://...``); how a spec of it is written.
     build : callable (argument, context) -> CommandSource
         Builds an unstarted source from the text after the scheme.
     extra_ids : callable (argument) -> tuple of int

@@ -1,8 +1,5 @@
-"""What every command source shares: counts of refused input and a queue drained by ``poll``.
-
-A reader thread queues commands as input arrives; the loop's :meth:`CommandSource.poll` never
-blocks. Malformed input is counted with its reason, never forwarded.
-"""
+"""What every command source shares: a reader thread's queue drained by ``poll`` (never
+blocking), and counts of refused input with their reasons."""
 
 from __future__ import annotations
 
