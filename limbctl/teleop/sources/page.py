@@ -1,8 +1,4 @@
-"""Command source ``page``: the live view's page steers the limb (drag, click, arrow keys).
-
-The view's server hands the controlling page's JSON lines to :meth:`CommandSource.feed`; who
-may control is :mod:`limbctl.view.control`'s business.
-"""
+"""Command source ``page``: the live view's page steers the limb (drag, click, arrow keys)."""
 
 from __future__ import annotations
 
@@ -15,14 +11,8 @@ Connect = Callable[[Callable[[str], None]], tuple[Callable[[], None], Callable[[
 
 
 class PageSource(CommandSource):
-    """Commands from the page that holds control of the live view.
-
-    Parameters
-    ----------
-    connect : callable
-        ``connect(feed)`` attaches ``feed`` to the view's controller and returns
-        ``(detach, holder)``: ``detach()`` stops the text, ``holder()`` says who controls.
-    """
+    """Commands from the page that holds control of the live view; ``connect(feed)`` attaches
+    ``feed`` to its controller and returns ``(detach, holder)`` (see :data:`Connect`)."""
 
     name = "page"
     latest_only = True

@@ -17,8 +17,7 @@ UNSTAMPED_RATE_HZ = 100.0
 
 class ReplaySource(CommandSource):
     """JSON lines from a file, paced: a line with ``"t"`` (s) is released at that time after the
-    first stamped line; lines without it follow the previous one after ``1 / rate_hz``.
-    """
+    first stamped line; lines without it follow the previous one after ``1 / rate_hz``."""
 
     name = "replay"
 

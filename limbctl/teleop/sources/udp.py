@@ -10,10 +10,7 @@ from limbctl.teleop.sources.base import WAKE_INTERVAL_S, CommandSource
 
 
 class UdpSource(CommandSource):
-    """JSON datagrams on a UDP port; binds to loopback unless a host is given.
-
-    Oversize datagrams (more than ``MAX_LINE_BYTES``) are dropped and counted.
-    """
+    """JSON datagrams on a UDP port (loopback unless a host is given); oversize ones counted."""
 
     name = "udp"
     latest_only = True
