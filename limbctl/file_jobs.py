@@ -29,7 +29,7 @@ class TrainOptions:
 
 def model_options(kind: str, seed: int, **chosen: object) -> dict[str, object]:
     """Constructor keywords for a model of ``kind``: the seed where it takes one, and each
-    ``chosen`` option given (not None).
+    ``chosen`` option not None.
 
     Raises
     ------
@@ -163,8 +163,7 @@ def run_info(options: InfoOptions) -> int:
 
 
 def _info_file(path: Path) -> int:
-    """Describe a model or dataset file, told apart by its first bytes (so a damaged file's error
-    is its own loader's)."""
+    """Describe a model or dataset file, told apart by its first bytes."""
     from limbctl.envelope import load_header
     from limbctl.envelope.base import is_model_file
     from limbctl.teach.dataset import is_dataset_file, load_dataset

@@ -34,8 +34,8 @@ def say(text: str) -> None:
 
 
 def prepare(stage: str) -> None:
-    """Say why a first run waits: the kernels of ``stage`` (``train``, ``gate``) are not all cached
-    yet (it loads what a warm-up cached and compiles the rest itself)."""
+    """Say why a first run waits: the kernels of ``stage`` (``train``, ``gate``) are not all
+    cached yet."""
     from limbctl.geometry import jit
 
     if jit.cache_dir() is None or jit.prepared(stage):
@@ -54,21 +54,7 @@ def _say_wire_budget(rate_hz: float, bus: Any) -> None:
 
 @dataclass(frozen=True)
 class Connection:
-    """Where the servos are, shared by every job that talks to them.
-
-    Attributes
-    ----------
-    port : str or None
-        Serial device; None starts the embedded simulator (or uses the profile's device).
-    rig : path or None
-        Rig profile YAML; None is the simulated rig.
-    baud : int or None
-        Overrides the profile's baud rate.
-    latency_timer_ms : float or None
-        The USB adapter's latency timer (ms); None: :func:`open_rig`'s default.
-    seed : int
-        Simulator seed.
-    """
+    """Where the servos are (the CLI's connection options; see :func:`open_rig`)."""
 
     port: str | None = None
     rig: Path | None = None
