@@ -83,15 +83,13 @@ class TwistGauge:
 
     Parameters
     ----------
-    twist_deg : float
-        The present twist (deg, in (-180, 180]).
+    twist_deg, written_deg : float
+        The present twist (deg, in (-180, 180]); the twist last written (teleop; else None).
     low_deg, high_deg : float or None
         The range there (deg; inside when ``low <= twist_deg + 360 k <= high`` for some k); None
         where nothing is known.
     of : str
         What the range is, in words ("taught here", "the learned band here").
-    written_deg : float or None
-        The twist last written (teleop), else None.
     """
 
     twist_deg: float
