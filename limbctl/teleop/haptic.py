@@ -29,28 +29,21 @@ class FeelLaw:
     cap_nm : float
         0.4 N m: stops a relaxed hand (0.3 N m); a person overpowers it at once.
     return_speed_deg_s : float
-        14 deg/s (10 Profile Velocity units): the setpoint never stops within a cycle of the
-        walk back (at 12 units it braked the leader outward).
+        14 deg/s (10 Profile Velocity units): the setpoint never stops within a cycle's walk back.
     lead_fraction : float
-        0.9: Goal Position leads by the whole ticks nearest 0.9 of the loop's error at the cap,
-        the least lead that holds a hand; deeper, the least whole ticks giving the cap anywhere
-        in a tick.
+        0.9 of the loop's error at the cap, in whole ticks: the least lead that holds a hand.
     lead_deg : float or None
-        A fixed lead (deg), half as much again deeper (benchmarks sweep it); None: from
-        ``lead_fraction``.
+        A fixed lead (deg), half as much again deeper (benchmarks); None: ``lead_fraction``'s.
     held_within_deg : float
         2 deg: a hand stops within 2 deg of the edge (issue 21); beyond, the deeper lead.
     outrun_slack_deg : float
-        0.1 deg: a reading tick rounded up; a leader moving in faster than RETURN_SPEED plus
-        this outran its setpoint: the wall lets go.
+        0.1 deg, a reading tick rounded up: moving in faster than RETURN_SPEED + this lets go.
     outward_noise_nm : float
-        0.01 N m: two XM430-W350 current units; a torque pulling outward by more lets go.
+        0.01 N m, two XM430-W350 current units: a torque pulling outward by more lets go.
     rearm_band_deg : float
-        0.05 deg: after a free cycle the wall comes on only beyond DEADBAND + this, so a
-        leader coasting in is not braked.
+        0.05 deg beyond DEADBAND before a free wall comes on: a leader coasting in is not braked.
     walk_lead_ticks : int
-        2: extra lead while the wall walks its leader back, covering a read tick, write latency
-        and a late cycle. 0: never.
+        2: extra lead while walking the leader back (a read tick, write latency, a late cycle).
     walk_speed_deg_s : float
         1.5 deg/s, the snap watch's STILL: faster, the leader is walking in.
     walk_hold_nm : float

@@ -18,13 +18,11 @@ class SnapLaw:
     Attributes
     ----------
     snap_speed_deg_s : float
-        4 deg/s (3 velocity units): over a held leader's noise, under the ~17 deg/s a let go
-        reaches within a millisecond.
+        4 deg/s: over a held leader's noise, under the ~17 deg/s a let go reaches in 1 ms.
     still_speed_deg_s : float
         1.5 deg/s: one velocity unit (1.37 deg/s) reads as still.
     rearm_speed_deg_s : float
-        0.5 deg/s, under one unit: a free wall re-arms only on a leader not moving in, which
-        the loop would brake outward.
+        0.5 deg/s, under one unit: a free wall re-arms only on a leader not moving in.
     rearm_span_s : float
         12 ms: two cycles at 200 Hz, one up to 2 ms late (``rearm_twice``'s earlier read).
     hold_nm : float
@@ -32,8 +30,7 @@ class SnapLaw:
     released : float
         0.5: a let go frees the whole hold, a fading grip about a seventh: between the two.
     rise_s : float
-        1 ms: the rise is judged over at most this, whatever the gap between reads; a snap
-        speeds up for 2-3 ms.
+        1 ms, the longest the rise is judged over: a snap speeds up for 2-3 ms.
     inertia_kg_m2 : float
         1e-3 kg m^2, the simulated leader's (``firmware_sim/leader.py``); measure a real one's.
     """
@@ -76,11 +73,9 @@ class SnapWatch:
     cuts, brakes, reads : int
         Walls let go at a snap, walls let go by the brake rules; reads between the cycles.
     at_read : bool
-        Judge each cycle's read at once (:meth:`judge`), before the gate work; False: when its
-        push is decided (:meth:`allows`).
+        Judge each cycle's read at once (:meth:`judge`); False: when its push is decided.
     rearm_twice : bool
-        Re-arm only on two still reads within ``rearm_span_s`` (or one pushed outward): a hand
-        reversing leaves the leader still for a millisecond. False: one still read.
+        Re-arm only on two still reads within ``rearm_span_s`` (or one pushed outward).
     """
 
     law: SnapLaw

@@ -33,10 +33,8 @@ class StartOptions:
         Give up after this many seconds outside (s).
     approach_deg_s : float or None
         Drive the limb inside with the servos at this speed (deg/s); None: wait for the hand.
-    rate_hz : float
-        Goals per second along an approach path (the control loop's rate).
-    poll_hz : float
-        How often a waiting limb is read and its status published (Hz).
+    rate_hz, poll_hz : float
+        Goals per second along an approach path; reads of a waiting limb per second (Hz).
     max_failed_reads : int
         Failed reads in a row before the start gives up.
     """
