@@ -12,7 +12,6 @@ from limbctl.errors import ConfigError, FileFormatError
 from limbctl.jobs import Connection, open_connection, prepare, say
 
 
-# ---- train ----------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class TrainOptions:
     """``limbctl train``: fit a model of ``kind`` to dataset ``data``, write it to ``out``;
@@ -81,7 +80,6 @@ def run_train(options: TrainOptions) -> int:
     return 0
 
 
-# ---- plot / info ----------------------------------------------------------------------------
 def plot_files(paths: list[Path], out: Path) -> Path:
     """Draw the models and datasets among ``paths`` (told apart by content) to PNG ``out``."""
     from limbctl.envelope import load_model
@@ -208,7 +206,6 @@ def _neither(path: Path) -> None:
     raise FileFormatError(path, f"neither a limbctl model nor a dataset ({'; '.join(problems)})")
 
 
-# ---- eval -----------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class EvalOptions:
     """``limbctl eval``: the papers' grid (``quick``: reduced) into ``out``, ``jobs`` workers."""

@@ -19,6 +19,7 @@ from limbctl.geometry.gimbal import quat_to_pan_tilt
 from limbctl.servo.alarms import alarm_alone, held_torque, switched_off
 from limbctl.servo.cycle import CycleRead
 from limbctl.servo.health import HealthLimits, HealthMonitor, ServoFault
+from limbctl.teleop.approach import JOINT_NAMES
 from limbctl.teleop.cycle import Cycle, CycleState, CycleTimings, TeleopSummary
 from limbctl.teleop.gate import Gate, GateResult, Outcome
 from limbctl.teleop.pacing import Pacer
@@ -28,7 +29,6 @@ from limbctl.teleop.status import status_line_for
 
 __all__ = ["Cycle", "CycleState", "TeleopSummary", "Telemetry", "open_telemetry", "SafeState"]
 __all__ += ["Limb", "LoopConfig", "ControlLoop", "run"]
-JOINT_NAMES = ("pan", "tilt", "roll")  #: in the order a rig lists its ids (roll: three servos)
 
 
 class SafeState(enum.Enum):

@@ -82,7 +82,6 @@ class Router:
         self._aim: tuple | None = None  # (target, start, route point, distance at the start)
         self._engaged: np.ndarray | None = None  # the target routing began for
 
-    # ---- the region --------------------------------------------------------------------------
     @property
     def batched(self) -> bool:
         """Whether the envelope answers ``contains`` for (N, 4) at once."""
@@ -144,7 +143,6 @@ class Router:
             return _arc(limb_direction(a), limb_direction(b))
         return 2.0 * _arc(a, b, signed=True)
 
-    # ---- straight paths ----------------------------------------------------------------------
     def _samples(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """Samples (N, S, 4) SEGMENT_STEP_DEG apart along the paths from rows of ``a`` to ``b``
         (N, 4), ends left out, short paths padded."""
@@ -170,7 +168,6 @@ class Router:
         order = _bisection_order(count)
         return all(self.inside(pts[k - 1]) for k in order)
 
-    # ---- the gate's question -----------------------------------------------------------------
     def wanted(self, target_q: np.ndarray, progress: float, moved: float, max_step: float) -> bool:
         """Whether to route this cycle: the plain step came ``progress`` rad nearer, under
         STUCK_FRACTION of ``max_step``, or ``moved`` over a step, or routing began for it."""
@@ -253,7 +250,6 @@ class Router:
                 q[k] = self.envelope.correct(q[k])
         return q
 
-    # ---- the roadmap -------------------------------------------------------------------------
     def prepare(self, seed_q: np.ndarray) -> None:
         """Build the roadmap once, flooding the region from ``seed_q`` (4,)."""
         if self._nodes is None:

@@ -50,7 +50,6 @@ class CommandSource:
         self._ended = threading.Event()
         self._thread: threading.Thread | None = None
 
-    # -- lifecycle --------------------------------------------------------------------------
     def __enter__(self) -> CommandSource:
         self.start()
         return self
@@ -79,7 +78,6 @@ class CommandSource:
     def _run(self) -> None:  # pragma: no cover - every subclass overrides it
         raise RuntimeError("subclasses implement _run")
 
-    # -- input ------------------------------------------------------------------------------
     def feed(self, line: bytes | str) -> None:
         """Parse one line and queue it, or count the rejection."""
         self._lines_fed += 1
@@ -98,7 +96,6 @@ class CommandSource:
         self.stats.accepted += 1
         self._queue.put(command)
 
-    # -- what a source that pushes back on the operator adds (a felt leader); nothing here ----
     def feel(self, gate: object, result: object, bus_ok: bool) -> tuple[str, ...]:
         """Called by the loop after each cycle's gate and write; notices for the operator."""
         return ()
