@@ -64,13 +64,13 @@ class LoopConfig:
     Attributes
     ----------
     rate_hz : float
-        Cycle rate (Hz).
+        Cycle rate (Hz); 200: 0.6 deg a cycle at 120 deg/s, real servos keep up (README).
     silence_s : float
-        After this long (s) without a valid command the gate holds the pose it reached.
+        After this long (s) without a valid command the gate holds; 0.5: a person sees a stall.
     max_failed_cycles : int
-        Failed reads in a row, no silent servo named, before the safe state.
+        Failed reads in a row, no silent servo named, before the safe state; 20: 100 ms.
     read_attempts : int
-        Tries of the cycle's read before the cycle holds.
+        Tries of the cycle's read before the cycle holds; 2 rides through one lost reply.
     health : HealthLimits
         When a silent servo is lost, and how far and how long a servo may lag its goal.
     safe_state : SafeState
@@ -78,24 +78,19 @@ class LoopConfig:
     duration_s : float or None
         Stop after this long (None: until the source ends or Ctrl-C).
     max_backlog : int
-        Most commands of a scripted stream waiting to be gated; older ones are skipped.
+        Most commands of a scripted stream waiting to be gated (older skipped); 20: 100 ms.
     on_cycle : callable (Cycle) -> None, optional
         Called in the loop's thread with every cycle; must return at once. Its exceptions
         propagate out of :func:`run`.
     """
 
-    # 0.6 deg a cycle at 120 deg/s; real servos keep up with a 1 ms latency timer (README)
     rate_hz: float = 200.0
-    # a person notices a stalled command stream after about half a second
     silence_s: float = 0.5
-    # 100 ms at 200 Hz: a dropped reply or two is normal, 20 in a row is a broken bus
     max_failed_cycles: int = 20
-    # a second try rides through one lost reply for one more reply timeout (~4-6 ms)
     read_attempts: int = 2
     health: HealthLimits = HealthLimits()
     safe_state: SafeState = SafeState.HOLD
     duration_s: float | None = None
-    # 100 ms of a scripted stream at 200 Hz: more waiting commands would only add latency
     max_backlog: int = 20
     on_cycle: Callable[[Cycle], None] | None = None
 
