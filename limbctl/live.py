@@ -1,6 +1,4 @@
-"""The jobs' side of the live view: open it, feed it from a recording and from the teleop loop
-(:class:`~limbctl.view.feed.PoseTap`, :class:`~limbctl.view.feed.SceneFeeder`,
-:class:`TeleopFeed`). On by default when standard error is a terminal."""
+"""The jobs' side of the live view: open it, feed it from a recording and from the teleop loop."""
 
 from __future__ import annotations
 
