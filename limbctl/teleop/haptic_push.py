@@ -28,10 +28,9 @@ class Push:
 
     Attributes
     ----------
-    goal_current : int
-        Goal Current units (0: no torque): the largest of ``joint_currents``.
-    profile_velocity : int
-        Profile Velocity units (0 while free: not written).
+    goal_current, profile_velocity : int
+        Goal Current units (0: no torque; the largest of ``joint_currents``); Profile Velocity
+        units (0 while free: not written).
     goal : tuple of float, (n,)
         Goal pose, one angle per joint of the chain (rad).
     torque_nm : float

@@ -184,7 +184,6 @@ class Scene:
     region_note, guide_text : str
         How the region was obtained (or why there is none); the guide's advice.
     guide : tuple of GuideFigure
-        The guide's figures (edge closed %, inside covered %, gaps).
     twist : TwistMap or None
         A three-servo limb's twist map; None (no ``twist`` JSON key) on two servos.
     """
