@@ -132,7 +132,9 @@ class GateResult:
     pose : tuple of float, shape (J,)
         The joint angles to write (rad); the last safe pose when HELD.
     outcome : Outcome
-        The strongest of ``corrected``, ``clamped``, ``slewed`` (each stage that changed it).
+        The strongest thing that happened.
+    corrected, clamped, slewed : bool
+        Each stage that changed the command.
     reason : str
         Why the command was held, empty otherwise.
     """
