@@ -236,7 +236,8 @@ class ControlLoop:
         felt = self.source.feel(self.gate, result, present is not None)  # a felt leader's push
         summary.notices.extend(f"{t:.3f} s: {notice}" for notice in felt)
         if present is None:
-            summary.failed_cycles += 1  # a named silent servo: the health monitor judges it
+            summary.failed_cycles += 1
+            # a named silent servo is judged by the health monitor (lost_after_s)
             self._failed_in_a_row = 0 if silent else self._failed_in_a_row + 1
             if self._failed_in_a_row >= config.max_failed_cycles:
                 cause = BusError(
@@ -252,7 +253,8 @@ class ControlLoop:
         summary.cycle_times_s.append(cycle_s)
         summary.cycles += 1
         state, ended_by = CycleState.RUNNING, ""
-        if self.source.finished and not self._pending and not result.slewed:  # end of input
+        if self.source.finished and not self._pending and not result.slewed:
+            # end of input: every command was gated and the last one reached (or held)
             state, ended_by = CycleState.FINISHED, "end of input"
             summary.ended_by = ended_by
         return Cycle(

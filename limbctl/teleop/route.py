@@ -206,7 +206,8 @@ class Router:
         for k in range(route.shape[0] - 1, -1, -1):
             if self.clear(current_q, route[k]):
                 if k + 1 < route.shape[0] and self._distance(current_q, route[k]) < ON_PATH:
-                    return route[k + 1]  # on a point whose next is a hair out: the gate corrects
+                    # on a route point whose next one is judged a hair outside: the gate corrects
+                    return route[k + 1]
                 return route[k]
         return route[0]
 

@@ -106,8 +106,9 @@ class KeyboardSource(CommandSource):
         self._held = HeldKey()
         self._command: Command | None = None
         self._offered_at = 0.0
-        self._taken: Command | None = None  # the newest command the loop took
-        self._stopped: tuple[Command, tuple[float, float]] | None = None  # one stopped, written
+        # the newest command the loop took and, once the gate stopped one short, (it, written deg)
+        self._taken: Command | None = None
+        self._stopped: tuple[Command, tuple[float, float]] | None = None
         # the (pan, tilt) deg written when the gate's latest answer stopped the command short
         self._at_edge: tuple[float, float] | None = None
         self._snapped: Command | None = None  # the written pose sent back with no key pressed
