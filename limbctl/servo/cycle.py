@@ -1,9 +1,5 @@
-"""The control cycle's ONE sync read: :data:`CYCLE_REGISTERS` mapped onto Indirect Data.
-
-Set-up (:func:`limbctl.servo.setup.configure_servos`) writes the map (lost with RAM on a
-restart, which then reads as torque loss) and reads each PWM Limit; a bus whose servos keep
-Indirect Data at different addresses takes one read per address.
-"""
+"""The control cycle's ONE sync read: :data:`CYCLE_REGISTERS` mapped onto Indirect Data by
+set-up (:func:`limbctl.servo.setup.configure_servos`); one read per Indirect Data address."""
 
 from __future__ import annotations
 

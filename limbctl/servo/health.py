@@ -1,9 +1,5 @@
-"""Per-cycle health of the servos, judged from each :class:`limbctl.servo.cycle.CycleRead`.
-
-:class:`HealthMonitor` names a silent servo (and its dropout's length when it answers), probes it
-and calls it lost after ``lost_after_s``; torque off, an alarm, or a servo that does not follow
-(*blocked* while saturated, or lagging without) are faults. Figures: docs/safety.md.
-"""
+"""Per-cycle health of the servos, judged from each :class:`limbctl.servo.cycle.CycleRead`:
+silent, lost, torque off, alarm, or not following (docs/safety.md)."""
 
 from __future__ import annotations
 

@@ -1,9 +1,7 @@
 """Find the servos on a port at every baud rate, and name the IDs that two servos share.
 
-At each baud one broadcast PING: clean status packets name servos; garbled bytes are collided
-replies, whose shared ID lies between the clean replies around them (servos answer in ID order)
-and is found by pinging those IDs one at a time. A servo answering after :data:`BROADCAST_CAP_S`
-(an ID far above 80 at 9600 baud) is missed, so keep IDs low.
+At each baud one broadcast PING; a garbled reply's shared ID lies between the clean replies
+around it (servos answer in ID order) and is found by pinging those IDs one at a time.
 """
 
 from __future__ import annotations
@@ -30,7 +28,8 @@ MAX_ID = 252
 QUIET_PACKETS = 3
 #: Longest Return Delay Time a servo may wait (254 x 2 us), s.
 MAX_RETURN_DELAY_S = 254 * 2e-6
-#: Longest wait for a broadcast PING's replies (s): with collisions' pings, at most 2 s a baud.
+#: Longest wait for a broadcast PING's replies (s): with collisions' pings, at most 2 s a baud;
+#: a servo answering later (an ID far above 80 at 9600 baud) is missed, so keep IDs low.
 BROADCAST_CAP_S = 1.5
 #: The SDK's allowance per ID slot of a broadcast PING (ms): servos answer one after another.
 SLOT_MS = 3.0
