@@ -223,6 +223,13 @@ def _correct_one(q, mesh, band, seeds, seed_dirs, out, work) -> int:
                 out[k] = qc[k]
             return 1
     best, best_tau = _score(qc, dq, cur, frame, grid, centre, half)
+    # F = cos(theta/2) at the swing projection (its transported twist in the band there): no
+    # direction scores more (F <= cos(theta/2), theta least at the projection), so it is the
+    # nearest orientation
+    rw = 1.0 + dq[0] * cur[0] + dq[1] * cur[1] + dq[2] * cur[2]
+    if best >= math.sqrt(max(0.5 * rw, 0.0)):
+        _compose_into(cur, best_tau, out)
+        return 0
     # the NEAREST_SEEDS seeds nearest q on SO(3) (max |<q, s>|), best first
     top = np.empty(NEAREST_SEEDS)
     pick = np.empty(NEAREST_SEEDS, dtype=np.int64)
