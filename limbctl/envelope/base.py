@@ -1,9 +1,7 @@
 """The Envelope interface: every constraint model (RigidMap, SOM, Cone) speaks it.
 
-An envelope is a region of valid orientations (unit quaternions, w >= 0). It is learned from
-valid samples (``fit``), answers as the papers' network does (``respond``), and serves the gate
-(``contains`` and ``correct``). Models are saved to one ``.npz`` file holding a JSON header (kind,
-format version, parameters, a SHA-256 over the header and arrays) and the model's arrays.
+Models are saved to one ``.npz`` file: a JSON header (kind, format version, parameters, a
+SHA-256 over the header and arrays) and the model's arrays.
 """
 
 from __future__ import annotations
@@ -126,8 +124,7 @@ class Envelope(ABC):
         Raises
         ------
         FileFormatError
-            Naming the file and the problem (missing, truncated, corrupt, wrong version, or a
-            model of another kind than the class it is loaded through).
+            Naming the file and the problem (missing, corrupt, wrong version or kind).
         """
         header, arrays = _read(Path(path))
         kind = header.get("kind")
