@@ -19,9 +19,8 @@ from limbctl.envelope.base import Envelope
 from limbctl.errors import ConfigError
 from limbctl.geometry.quat import swing_angle
 
-#: ``contains`` accepts w^2 + x^2 >= cos^2(R/2) - CONTAINS_TOLERANCE, so that ``correct``'s
-#: boundary points (exact up to rounding, a few 1e-16) count as inside. In angle this is
-#: 2e-12 / sin(R) rad at most: far below any servo resolution.
+#: Slack of ``contains`` (w^2 + x^2 >= cos^2(R/2) - tol) so ``correct``'s rounded boundary points
+#: count as inside: 2e-12 / sin(R) rad at most, far below a servo step.
 CONTAINS_TOLERANCE = 1e-12
 
 

@@ -24,14 +24,12 @@ from limbctl.geometry.quat import rotate, swing_from_direction
 from limbctl.geometry.twist import compose, decompose, wrap
 from limbctl.region.twist_kernels import TWIST_TOLERANCE
 
-#: A shoulder's swing outline in (pan, tilt) degrees: wide below, a dent between two raised
-#: lobes on top (concave), well away from pointing backwards (-x).
+#: A shoulder's swing outline in (pan, tilt) degrees: a dent between two raised lobes, away from -x.
 SHOULDER = np.array(
     [[-30.0, -35.0], [20.0, -40.0], [70.0, -35.0], [100.0, -15.0], [105.0, 20.0], [85.0, 50.0],
      [50.0, 70.0], [25.0, 45.0], [0.0, 68.0], [-25.0, 55.0], [-35.0, 20.0]]
 )  # fmt: skip
-#: Twist stops are reached with this scatter (deg, one sigma) short of the true stop: a hand
-#: pressing against a stop stays on the inside of it.
+#: Scatter (deg, one sigma) short of the true stop with which a hand reaches a twist stop.
 STOP_SCATTER_DEG = 0.2
 
 
@@ -104,9 +102,8 @@ class ShoulderRegion:
     def teaching(
         self, n_uniform: int, n_edge: int, n_stops: int, rng: np.random.Generator
     ) -> np.ndarray:
-        """Taught orientations (N, 4): ``n_uniform`` uniform over the region, ``n_edge`` along
-        the swing edge (within 1 deg, twist uniform in the band), ``n_stops`` at the twist
-        stops (half along the edge, half anywhere; each stop reached STOP_SCATTER_DEG short)."""
+        """Taught orientations (N, 4): ``n_uniform`` uniform, ``n_edge`` within 1 deg of the swing
+        edge, ``n_stops`` at the twist stops (half along the edge)."""
         d_u = self._inside_directions(n_uniform, rng)
         d_e = self._edge_directions(n_edge, rng, 1.0)
         d_s = np.vstack(
@@ -162,8 +159,7 @@ class ShoulderRegion:
 
 
 class BandRegion(ShoulderRegion):
-    """A swing outline with any twist band over it (e.g. curved, or crossing +-180 deg), else
-    as :class:`ShoulderRegion`.
+    """A swing outline with any twist band (curved, across +-180 deg), else a ShoulderRegion.
 
     Parameters
     ----------
