@@ -1,11 +1,8 @@
 """`limbctl eval`: the seed papers' experiments, side by side with the gate, as CSV, tables, plots.
 
-What runs is :func:`build_tasks`'s grid (docs/results.md explains every choice): the SOM and
-Rigid Map papers' experiments, and beside each paper network the gate (``correct``) of Rigid Maps
-trained on the same data. One *task* is one data set (experiment, x value, seed) and every model
-of that experiment trained on it, each answer scored on all, valid and invalid test inputs
-(:func:`limbctl.eval.metrics.score`). Tasks run in worker processes; each appends its rows to
-``runs.csv`` as it finishes, and a rerun into the same ``--out`` skips tasks already there.
+One *task* (:func:`build_tasks`; docs/results.md) is one data set and every model trained on it,
+each answer scored. Tasks run in worker processes, each appending its rows to ``runs.csv``; a
+rerun into the same ``--out`` skips tasks already there.
 """
 
 from __future__ import annotations
@@ -38,11 +35,8 @@ _NO_TOPOLOGY = np.empty((0, 0), dtype=np.int64)
 
 # ---- data --------------------------------------------------------------------------------------
 def draw_training(data: DataSpec, rng: np.random.Generator) -> np.ndarray:
-    """Valid training orientations (patterns, 4), twist-free, inside the cone of ``range_deg``.
-
-    Uniform over the cap, or with the boundary band (swing in (R/2, R]) ``boundary_ratio``
-    times as dense as the central cap (swing <= R/2).
-    """
+    """Valid training orientations (patterns, 4), twist-free, inside the cone of ``range_deg``,
+    the band (swing in (R/2, R]) ``boundary_ratio`` times as dense as the central cap."""
     radius = np.radians(data.range_deg)
     cone = ConeRegion(radius)
     if data.boundary_ratio == 1.0:
@@ -89,8 +83,7 @@ def build_model(spec: ModelSpec, seed: int, range_deg: float) -> Any:
 
 def respond_on_data_nodes(model: Any, q: np.ndarray, interpolation: str, k: int) -> np.ndarray:
     """The papers' answers (N, 4) to ``q`` (N, 4) over a fitted Rigid Map's ``support_weights``
-    (S, 4, nodes on the data), by ``interpolation`` (``none`` or by weight) with ``k`` runner-ups.
-    """
+    (S, 4), by ``interpolation`` with ``k`` runner-ups."""
     weights = np.ascontiguousarray(model.support_weights, dtype=np.float64)
     mode = ip.interpolation_code(interpolation)
     return ip.respond_batch(weights, q, max(k, 1), ip.EUCLIDEAN, mode, _NO_TOPOLOGY)
@@ -230,8 +223,7 @@ def run_eval(
     Returns
     -------
     int
-        0 when the run finished and the reproduction check passed (or was not in the grid),
-        1 when the SOM reproduction number fell outside its expected band.
+        0, or 1 when the SOM reproduction number fell outside its expected band.
     """
     from limbctl.eval import plots as eval_plots
     from limbctl.eval.twist import run_twist
