@@ -1,11 +1,9 @@
 """Lee's analytic swing cone: the ground truth of the papers' experiments and a hand-written limit.
 
-The swing angle (between the limb and its rest axis +x) is ``theta = 2 acos(sqrt(w^2 + x^2))``;
-a cone of half-angle R allows any twist and ``theta <= R``, i.e. ``w^2 + x^2 >= cos^2(R / 2)``.
-The ideal correction keeps twist and swing axis and sets the swing angle to R: with
-``n = sqrt(w^2 + x^2)``, ``m = sqrt(y^2 + z^2)``, ``c = cos(R / 2)``, ``s = sin(R / 2)``,
-``correct(q) = (c w / n, c x / n, s y / m, s z / m)``, also the nearest boundary point in R^4
-(at n = 0, the limb along -x, the twist is taken as the identity: ``(c, 0, s y / m, s z / m)``).
+Inside: swing ``2 acos(sqrt(w^2 + x^2)) <= R``, any twist. The ideal correction keeps twist and
+swing axis: ``(c w / n, c x / n, s y / m, s z / m)`` with ``n = sqrt(w^2 + x^2)``, ``m = sqrt(y^2 +
+z^2)``, ``c = cos(R / 2)``, ``s = sin(R / 2)`` (at n = 0, identity twist: ``(c, 0, s y / m, s z /
+m)``), also the nearest boundary point in R^4.
 """
 
 from __future__ import annotations

@@ -1,15 +1,12 @@
 """Synthetic shoulder-like regions of full orientations, for tests and benchmarks of twist.
 
-A :class:`ShoulderRegion` is a swing outline (a :class:`~limbctl.envelope.synthetic.PolygonRegion`
-in (pan, tilt) degrees, concave like a shoulder's) with a twist band over it whose half-width
-narrows as the limb rises and whose centre drifts with pan and tilt, as a shoulder's internal and
-external rotation does::
+A :class:`ShoulderRegion` is a swing outline in (pan, tilt) degrees with a twist band narrowing
+as the limb rises and drifting with pan and tilt::
 
     h(tilt) = clip(h_low + (h_high - h_low) (tilt - tilt_low) / (tilt_high - tilt_low), 5, 175) deg
     c(pan, tilt) = c0 + c_pan pan + c_tilt tilt                                              (deg)
 
-It teaches, answers ``contains`` exactly, samples its own boundary densely (for a brute-force
-true nearest orientation) and gives the engines' swing-then-twist answer (:meth:`clamp`).
+It teaches, answers ``contains`` exactly, samples its boundary and clamps as the engines do.
 """
 
 from __future__ import annotations
@@ -123,9 +120,7 @@ class ShoulderRegion:
         return np.vstack(parts)
 
     def boundary(self, step_deg: float) -> np.ndarray:
-        """Orientations (M, 4) on the region's boundary about ``step_deg`` apart: both stops over
-        a (pan, tilt) lattice inside the outline, and twists across the band along the outline.
-        """
+        """Orientations (M, 4) on the region's boundary about ``step_deg`` apart."""
         (p0, p1), (t0, t1) = (
             (np.degrees(self.swing.polygon[:, k].min()), np.degrees(self.swing.polygon[:, k].max()))
             for k in (0, 1)
