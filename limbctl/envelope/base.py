@@ -27,10 +27,9 @@ _ZIP_MAGIC = b"PK\x03\x04"
 class Envelope(ABC):
     """A region of valid orientations on S^3 behind one interface.
 
-    Subclasses set ``kind`` (the name written to files) and implement ``fit``, ``respond``,
-    ``_inside`` and ``_to_boundary`` (or ``contains`` and ``correct``), ``_params`` / ``_arrays``
-    (what to save) and ``_restore`` (how to rebuild from them). Every method accepts one
-    quaternion (4,) or a batch (N, 4) and returns the same leading shape.
+    Subclasses set ``kind`` and implement ``fit``, ``respond``, ``_inside`` and ``_to_boundary``
+    (or ``contains`` and ``correct``), ``_params``, ``_arrays`` and ``_restore``. Every method
+    takes one quaternion (4,) or a batch (N, 4) and returns the same leading shape.
     """
 
     kind: ClassVar[str] = ""
@@ -40,9 +39,8 @@ class Envelope(ABC):
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
-        # a model answers through the two hooks ``_inside(q)`` ((N, 4) canonical -> (N,) bool)
-        # and ``_to_boundary(q)`` ((N, 4) outside -> (N, 4)), or overrides ``contains`` and
-        # ``correct`` itself: refused when the class is defined, not when first asked
+        # the hooks ``_inside`` ((N, 4) -> (N,) bool) and ``_to_boundary`` ((N, 4) -> (N, 4)), or
+        # ``contains`` and ``correct`` overridden: refused when the class is defined
         hooks = all(hasattr(cls, name) for name in ("_inside", "_to_boundary"))
         own = cls.contains is not Envelope.contains and cls.correct is not Envelope.correct
         if cls.kind and not (hooks or own):

@@ -166,7 +166,7 @@ def respond_batch(
     k : int
         Runner-ups to combine with the winner (ignored for NONE).
     metric, mode : int
-        Codes from :data:`METRICS` and :data:`INTERPOLATIONS`.
+        Codes of :data:`METRICS` and :data:`INTERPOLATIONS`.
     topology : ndarray, shape (M, K) int64
         For TOPOLOGICAL, each node's neighbours, nearest first; else any (M, 0) array.
 

@@ -79,12 +79,8 @@ def cell_24() -> np.ndarray:
 
 
 def cell_600(parity: str = "odd") -> np.ndarray:
-    """The 600-cell's 120 vertices (unit length).
-
-    The 24-cell's vertices plus the 96 ``parity`` permutations of (+-phi, +-1, +-1/phi, 0) / 2.
-    ``parity="odd"`` is the 600-cell dual to :func:`cell_120`'s 120-cell; ``"even"`` is the
-    textbook orientation (which shares the 120-cell's symmetry directions).
-    """
+    """The 600-cell's 120 unit vertices: the 24-cell's plus the 96 ``parity`` permutations of
+    (+-phi, +-1, +-1/phi, 0) / 2 (``"odd"``: dual to :func:`cell_120`; ``"even"``: textbook)."""
     if parity not in ("odd", "even"):
         raise ConfigError(f"600-cell parity must be 'odd' or 'even', got {parity!r}")
     snub = _permuted((PHI / 2.0, 0.5, 0.5 / PHI, 0.0), parity)
