@@ -181,10 +181,7 @@ LAYOUTS: dict[str, Callable[[int | None, np.random.Generator, bool], np.ndarray]
 
 
 def make_layout(
-    name: str,
-    n: int | None = None,
-    seed: int | np.random.Generator = 0,
-    hemisphere: bool = True,
+    name: str, n: int | None = None, seed: int | np.random.Generator = 0, hemisphere: bool = True
 ) -> np.ndarray:
     """Node positions on S^3 by layout name.
 

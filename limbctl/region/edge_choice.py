@@ -23,11 +23,7 @@ class EdgeStrategy(Protocol):
     safe: ClassVar[bool]
 
     def propose(
-        self,
-        loops: list[np.ndarray],
-        data: np.ndarray,
-        supported: DirectionMesh,
-        max_offset: float,
+        self, loops: list[np.ndarray], data: np.ndarray, supported: DirectionMesh, max_offset: float
     ) -> Proposal | Refusal:
         """An edge for all ``loops`` (each (M, 3)) from taught ``data`` (N, 3), or why not
         (``max_offset``: most rad it moves past a loop in one step)."""
@@ -41,11 +37,7 @@ class SupportedEdge:
     safe: ClassVar[bool] = True
 
     def propose(
-        self,
-        loops: list[np.ndarray],
-        data: np.ndarray,
-        supported: DirectionMesh,
-        max_offset: float,
+        self, loops: list[np.ndarray], data: np.ndarray, supported: DirectionMesh, max_offset: float
     ) -> Proposal:
         """The ``supported`` region itself (see :class:`EdgeStrategy`)."""
         note = "runs through the outermost taught samples, holding them by construction"
@@ -59,11 +51,7 @@ class SmoothEdge:
     safe: ClassVar[bool] = False
 
     def propose(
-        self,
-        loops: list[np.ndarray],
-        data: np.ndarray,
-        supported: DirectionMesh,
-        max_offset: float,
+        self, loops: list[np.ndarray], data: np.ndarray, supported: DirectionMesh, max_offset: float
     ) -> Proposal | Refusal:
         """The smooth edge of every loop, or the first loop's reason to refuse it."""
         edges = []
@@ -101,11 +89,7 @@ class TracedEdge:
         self.hold = hold
 
     def propose(
-        self,
-        loops: list[np.ndarray],
-        data: np.ndarray,
-        supported: DirectionMesh,
-        max_offset: float,
+        self, loops: list[np.ndarray], data: np.ndarray, supported: DirectionMesh, max_offset: float
     ) -> Proposal | Refusal:
         """The traced edge of every loop, or the first loop taught too sparsely."""
         edges = []

@@ -12,11 +12,7 @@ from scipy.spatial import cKDTree
 from limbctl.region import shape_kernels
 from limbctl.region.gaps import line_gap
 from limbctl.region.loops import StationBuckets, chord, loops_to_edges, vertex_turns
-from limbctl.region.mesh import (
-    circumradius,
-    inside_reference,
-    spherical_delaunay,
-)
+from limbctl.region.mesh import circumradius, inside_reference, spherical_delaunay
 from limbctl.region.union_find import UnionFind
 
 #: Share of points the alpha scale joins into one piece: strays (1 %) must not set it.
@@ -206,11 +202,7 @@ def bearing_gaps(p: np.ndarray, data: np.ndarray, near: list) -> tuple[np.ndarra
 
 
 def peel(
-    d: np.ndarray,
-    tri: np.ndarray,
-    kept: np.ndarray,
-    max_length: float,
-    protected: np.ndarray,
+    d: np.ndarray, tri: np.ndarray, kept: np.ndarray, max_length: float, protected: np.ndarray
 ) -> np.ndarray:
     """Chi-shape peel: the kept mask (T,) of triangles ``tri`` (T, 3) after peeling ``kept`` (T,).
 
