@@ -17,7 +17,7 @@ from limbctl.region.mesh import DirectionMesh
 
 
 class EdgeStrategy(Protocol):
-    """What every edge strategy provides (see the module docstring)."""
+    """What every edge strategy provides (docs/region.md, "Adding an edge strategy")."""
 
     name: ClassVar[str]
     safe: ClassVar[bool]

@@ -89,16 +89,15 @@ class Guidance:
     edge_gaps, inside_gaps : tuple
         :class:`EdgeGap` and :class:`InsideGap`, largest first (at most :data:`MAX_GAPS`).
     ready : bool
-        Complete enough to train (module docstring).
+        Complete enough to train (docs/teaching.md).
     centre_deg : tuple of float
         (pan_deg, tilt_deg) of the centre the picture is drawn about.
     spread_deg : float
         Largest angle between a sample and the samples' mean direction.
     holes : tuple of Hole
-        The recording's holes (:func:`limbctl.teach.holes.find_holes`).
+        The recording's holes.
     unsupported : tuple of EdgeStretch
-        Stretches of edge the learned region would bridge (:mod:`limbctl.teach.edge_support`),
-        farthest first: READY is withheld while any is left.
+        Stretches of edge the learned region would bridge, farthest first (READY withheld).
     checking : bool
         Ready by coverage, but the edge's support is still being checked.
     """
