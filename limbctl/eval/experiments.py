@@ -143,24 +143,8 @@ def read_rows(csv_path: Path) -> list[dict[str, Any]]:
 def run_tasks(
     tasks: list[Task], csv_path: Path, jobs: int = 0, progress: bool = True
 ) -> list[dict[str, Any]]:
-    """Run the tasks not yet in ``csv_path``, appending each one's rows as it finishes.
-
-    Parameters
-    ----------
-    tasks : list of Task
-        The grid's tasks.
-    csv_path : Path
-        runs.csv; created with a header when missing, appended to otherwise.
-    jobs : int
-        Worker processes; 0 means one per core, 1 runs everything in this process.
-    progress : bool
-        Show a tqdm progress bar.
-
-    Returns
-    -------
-    list of dict
-        The rows of every task in ``tasks`` (earlier runs' included), in CSV order.
-    """
+    """Run the tasks not yet in ``csv_path`` in ``jobs`` workers (0: one per core, 1: this
+    process), appending each one's rows as it finishes; returns every task's rows in CSV order."""
     from tqdm import tqdm
 
     wanted = {t.key for t in tasks}
@@ -205,25 +189,8 @@ def run_tasks(
 def run_eval(
     out: Path, quick: bool = False, jobs: int = 0, progress: bool = True, smoke: bool = False
 ) -> int:
-    """`limbctl eval`: run the grid, write runs.csv, summary.md and the figures into ``out``.
-
-    Parameters
-    ----------
-    out : Path
-        Output folder (created); a rerun into it resumes.
-    quick : bool
-        The reduced grid instead of the full one.
-    jobs : int
-        Worker processes (0: one per core).
-    progress : bool
-        Show a progress bar.
-    smoke : bool
-        The tiny test grid (overrides ``quick``); for the test suite.
-
-    Returns
-    -------
-    int
-        0, or 1 when the SOM reproduction number fell outside its expected band.
+    """`limbctl eval`: run the full, ``quick`` or ``smoke`` grid into ``out`` (a rerun resumes):
+    runs.csv, summary.md, figures. Returns 0, or 1 when the SOM reproduction fell outside its band.
     """
     from limbctl.eval import plots as eval_plots
     from limbctl.eval.twist import run_twist

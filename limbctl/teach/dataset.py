@@ -137,22 +137,10 @@ def check_writable(path: str | os.PathLike[str], min_free_bytes: int = MIN_FREE_
 
 
 class DatasetWriter:
-    """Append orientation samples to a new dataset file; use as a context manager.
+    """Append orientation samples to a new dataset file at ``path``; a context manager.
 
-    Parameters
-    ----------
-    path : path-like
-        The new file (must not exist).
-    rig : str
-        Name of the rig profile the samples come from.
-    meta : dict, optional
-        Extra JSON-serialisable header fields (e.g. sample rate, region name).
-    calibration : Calibration, optional
-        The rig's calibration, checked against the rig a model trained on the file drives.
-    sync_interval_s : float
-        Longest time an appended record waits for ``fsync``.
-    min_free_bytes : int
-        Free disk space required up front.
+    The header names the ``rig``, extra JSON ``meta`` and the rig's ``calibration``; a record waits
+    at most ``sync_interval_s`` (s) for fsync; ``min_free_bytes`` must be free up front.
     """
 
     def __init__(

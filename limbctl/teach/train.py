@@ -270,24 +270,13 @@ def train(
     options: dict[str, Any] | None = None,
     progress: Callable[[str], None] | None = None,
 ) -> TrainSummary:
-    """Fit a model to a recorded dataset and save it (one file).
+    """Fit a model of ``kind`` (constructor ``options``) to a recorded dataset, save it to
+    ``out_path`` and summarise it; ``progress`` is called with each of :data:`STAGES` as it ends.
 
-    Parameters
-    ----------
-    data_path : path
-        A dataset written by ``limbctl record``.
-    out_path : path
-        The model file to write (replaced atomically).
-    kind : str
-        A model kind of :data:`limbctl.envelope.MODEL_KINDS`.
-    options : dict
-        Keyword options of the model's constructor (nodes, layout, seed, ...).
-    progress : callable, optional
-        Called with the name of each stage of :data:`STAGES` as it finishes.
-
-    Returns
-    -------
-    TrainSummary
+    Raises
+    ------
+    ConfigError
+        When the dataset holds fewer than :data:`MIN_SAMPLES` samples.
     """
     from limbctl.envelope import build_model
     from limbctl.teach.dataset import load_dataset

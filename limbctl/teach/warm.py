@@ -72,22 +72,9 @@ START, DONE, READY, WAIT = "start", "done", "ready", "wait"
 def warm_up(
     twist: bool = False, wait: bool = False, report: Callable[[str, str], None] | None = None
 ) -> bool:
-    """Compile (or load) the kernels of the rig's stages not yet prepared, in this process.
-
-    Parameters
-    ----------
-    twist : bool
-        Warm a three-servo rig's stages (``train-twist``, ``gate-twist``), not ``train``, ``gate``.
-    wait : bool
-        When another warm-up holds the lock, wait for it, then do what it left.
-    report : callable, optional
-        Called as ``report(stage, event)``, ``event`` one of START, DONE, READY, WAIT.
-
-    Returns
-    -------
-    bool
-        Whether it ran (False: no cache folder, or the lock held and ``wait`` False).
-    """
+    """Compile (or load) the kernels of a (``twist``: three-servo) rig's stages not yet prepared,
+    calling ``report(stage, event)``; with ``wait``, wait for another warm-up's lock. Returns
+    whether it ran (False: no cache folder, or the lock held and no ``wait``)."""
     tell = report or (lambda stage, event: None)
     train_stage, gate_stage = jit.stage("train", twist), jit.stage("gate", twist)
     with jit.warming(wait=(lambda: tell(train_stage, WAIT)) if wait else None) as mine:
