@@ -50,7 +50,6 @@ class Envelope(ABC):
         if cls.kind:
             Envelope._registry[cls.kind] = cls
 
-    # ---- learning and answering ------------------------------------------------------------
     @abstractmethod
     def fit(self, q_train: np.ndarray) -> Envelope:
         """Learn the region from valid orientations ``q_train`` (N, 4). Returns self."""
@@ -80,7 +79,6 @@ class Envelope(ABC):
     def weights(self) -> np.ndarray:
         """Trained node weights (nodes, 4); empty (0, 4) for analytic models."""
 
-    # ---- persistence -----------------------------------------------------------------------
     @abstractmethod
     def _params(self) -> dict[str, Any]:
         """JSON-serialisable constructor parameters and scalar state."""
@@ -136,7 +134,6 @@ class Envelope(ABC):
         except (KeyError, ValueError, TypeError) as exc:
             raise FileFormatError(path, f"model parameters do not fit a {kind}: {exc}") from exc
 
-    # ---- shared helpers --------------------------------------------------------------------
     @staticmethod
     def _input(q: object) -> tuple[np.ndarray, bool]:
         """Validate input: (N, 4) canonical float64, and whether a single (4,) came in."""

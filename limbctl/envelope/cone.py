@@ -58,7 +58,6 @@ class Cone(Envelope):
         """R in degrees."""
         return float(np.degrees(self.half_angle))
 
-    # ---- learning and answering ------------------------------------------------------------
     def fit(self, q_train: np.ndarray) -> Cone:
         """Check valid orientations ``q_train`` (N, 4), N >= 1; without a half angle learn R as
         their largest swing angle. Returns self."""
@@ -80,7 +79,6 @@ class Cone(Envelope):
         """No nodes: an empty (0, 4) array."""
         return np.empty((0, 4), dtype=np.float64)
 
-    # ---- internals -------------------------------------------------------------------------
     def _inside(self, q: np.ndarray) -> np.ndarray:
         """Inside the cone: w^2 + x^2 >= cos^2(R/2) - CONTAINS_TOLERANCE."""
         limit = np.cos(0.5 * self.half_angle) ** 2
@@ -102,7 +100,6 @@ class Cone(Envelope):
         out[:, 3] = s * sz
         return out
 
-    # ---- persistence -----------------------------------------------------------------------
     def _params(self) -> dict[str, Any]:
         return {"half_angle": self._half_angle}
 

@@ -64,7 +64,6 @@ def check_k(k: object) -> int:
     return int(k)
 
 
-# ---- numba kernels -----------------------------------------------------------------------------
 @njit
 def _distance(x: np.ndarray, w: np.ndarray, metric: int) -> float:
     """``|x - w|^2`` (EUCLIDEAN) or ``acos(x . w / |w|)^2`` (COSINE)."""
@@ -252,7 +251,6 @@ def nearest_distance(weights: np.ndarray, q: np.ndarray) -> np.ndarray:
     return out
 
 
-# ---- numpy references --------------------------------------------------------------------------
 def respond_reference(
     weights: np.ndarray, q: np.ndarray, k: int, metric: int, mode: int, topology: np.ndarray
 ) -> np.ndarray:

@@ -116,7 +116,6 @@ class RigidMap(Envelope):
         self.epochs = 0
         self._topology = rk.position_topology(self.positions, TOPOLOGY_NEIGHBOURS)
 
-    # ---- learning ----------------------------------------------------------------------------
     def _train(self, positions: np.ndarray, weights: np.ndarray, patterns: np.ndarray) -> int:
         schedule = (getattr(self, name) for name in _SCHEDULE)
         return rk.train_rigid_map(positions, weights, patterns, *schedule)
@@ -150,7 +149,6 @@ class RigidMap(Envelope):
         """The gate's region as a mesh (None until fitted or loaded)."""
         return self.region.mesh
 
-    # ---- answering ---------------------------------------------------------------------------
     def _trained(self) -> None:
         if self._weights is None or self.region.mesh is None:
             raise ConfigError("this RigidMap is not trained: call fit(q_train) or load a model")
@@ -201,7 +199,6 @@ class RigidMap(Envelope):
         self._trained()
         return self._weights
 
-    # ---- persistence -------------------------------------------------------------------------
     def _params(self) -> dict[str, Any]:
         # a swing-only model's header stays as it was before twist (no "twist" key)
         kind = {"twist": True} if self.twist else {}

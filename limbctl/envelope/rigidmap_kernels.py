@@ -31,7 +31,6 @@ from limbctl.envelope.interpolation import (  # noqa: F401
 from limbctl.geometry.jit import njit
 
 
-# ---- training ----------------------------------------------------------------------------------
 @njit
 def position_winners(positions: np.ndarray, patterns: np.ndarray) -> np.ndarray:
     """Index (N,) int64 of the node position (M, 4) nearest each pattern (N, 4): ``argmax_i
@@ -290,7 +289,6 @@ def train_rigid_map_reference(
     return epochs
 
 
-# ---- answering: shared with the SOM (limbctl.envelope.interpolation) ----------------------
 def position_topology(positions: np.ndarray, k: int) -> np.ndarray:
     """Each node's ``k`` nearest other nodes (largest ``p_i . p_j``; ties in index order), (M, k)
     int64, nearest first."""

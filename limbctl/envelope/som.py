@@ -149,7 +149,6 @@ class SOM(Envelope):
         )
         return rng.uniform(-self.init_scale, self.init_scale, size=(self.nodes, 4))
 
-    # ---- learning and answering ------------------------------------------------------------
     def fit(self, q_train: np.ndarray) -> SOM:
         """Train on valid orientations ``q_train`` (N, 4), N >= 1; sets ``weights``, ``steps``,
         ``converged`` and ``threshold``. Returns self."""
@@ -185,7 +184,6 @@ class SOM(Envelope):
             raise ConfigError("SOM is not trained yet: call fit(q_train) or SOM.load(path)")
         return self._weights
 
-    # ---- internals -------------------------------------------------------------------------
     def _answer_nodes(self) -> np.ndarray:
         """The answers the nodes give: normalised, canonical weights (nodes, 4)."""
         w = self.weights
@@ -208,7 +206,6 @@ class SOM(Envelope):
             self._topology[k] = ip.neighbours_by_position(self.grid(), k)
         return self._topology[k]
 
-    # ---- persistence -----------------------------------------------------------------------
     def _params(self) -> dict[str, Any]:
         self.weights  # noqa: B018 -- refuse to save an untrained SOM
         return {

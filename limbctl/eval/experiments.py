@@ -33,7 +33,6 @@ CSV_FIELDS += ("fit_seconds",)
 _NO_TOPOLOGY = np.empty((0, 0), dtype=np.int64)
 
 
-# ---- data --------------------------------------------------------------------------------------
 def draw_training(data: DataSpec, rng: np.random.Generator) -> np.ndarray:
     """Valid training orientations (patterns, 4), twist-free, inside the cone of ``range_deg``,
     the band (swing in (R/2, R]) ``boundary_ratio`` times as dense as the central cap."""
@@ -69,7 +68,6 @@ def draw_test(data: DataSpec, rng: np.random.Generator) -> np.ndarray:
     return to_quaternions(d)
 
 
-# ---- one task ----------------------------------------------------------------------------------
 def build_model(spec: ModelSpec, seed: int, range_deg: float) -> Any:
     """A fresh, untrained model for ``spec`` (the cone is the exact truth of ``range_deg``)."""
     kind = model_class(spec.kind)  # an unknown kind is refused with the list of choices
@@ -120,7 +118,6 @@ def run_task(task: Task) -> list[dict[str, Any]]:
     return rows
 
 
-# ---- running many tasks ------------------------------------------------------------------------
 def _worker_init() -> None:
     """One numba thread per worker process: the pool already fills the cores."""
     import numba

@@ -19,7 +19,6 @@ INTERPOLATIONS = ("idw", "geometric", "geometric-winner", "topological")
 SCALES = ("full", "quick", "smoke")
 
 
-# ---- definitions -------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class DataSpec:
     """How one data set is drawn (twist-free orientations of a limb resting along +x).
@@ -104,7 +103,6 @@ def respond_all(methods: Iterable[str], k: int) -> tuple[Answer, ...]:
     return (Answer("respond"),) + tuple(Answer("respond", m, k) for m in methods)
 
 
-# ---- scales ------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class Scale:
     """Sizes of one grid scale (see the module docstring)."""
@@ -177,7 +175,6 @@ SCALE_SIZES = {
 }
 
 
-# ---- models ------------------------------------------------------------------------------------
 def som_spec(side: int, label: str | None = None) -> ModelSpec:
     """The SOM paper's network, ``side x side`` nodes: its answer and its threshold gate."""
     answers = (Answer("respond"), Answer("correct"))
@@ -208,7 +205,6 @@ def paper_rigid_maps(scale: Scale, answers_720, answers_uniform) -> tuple[ModelS
     )
 
 
-# ---- grids -------------------------------------------------------------------------------------
 def build_tasks(scale_name: str) -> list[Task]:
     """Every task of one scale (``full``, ``quick`` or ``smoke``), SOM paper first."""
     if scale_name not in SCALE_SIZES:

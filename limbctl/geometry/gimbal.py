@@ -100,7 +100,6 @@ def pan_tilt_roll_to_quat(pan: np.ndarray, tilt: np.ndarray, roll: np.ndarray) -
     return np.where(q[..., :1] < 0.0, -q, q)
 
 
-# ---- one pose, plain floats ----------------------------------------------------------------------
 def pose_quat_scalar(pan: float, tilt: float, roll: float) -> np.ndarray:
     """:func:`pan_tilt_roll_to_quat` of one pose, shape (4,)."""
     cp, sp = math.cos(pan / 2), math.sin(pan / 2)
@@ -143,7 +142,6 @@ def pan_tilt_roll_scalar(
     return pan, tilt, unwrap_roll_scalar(2.0 * math.atan2(r_x, r_w), current_roll, lo, hi)
 
 
-# ---- one pose of either chain ------------------------------------------------------------------
 def pose_quat(*pose: float) -> np.ndarray:
     """Orientation (4,), w >= 0, of one pose of either chain: ``(pan, tilt)`` twist-free or
     ``Rz(pan) Ry(-tilt) Rx(roll)``."""

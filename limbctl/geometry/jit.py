@@ -125,20 +125,9 @@ class _KeyedCache(caching.FunctionCache):
 
 
 def njit(function: Callable | str | None = None, /, **options) -> Callable:
-    """Compile ``function`` with numba in nopython mode, cached under :func:`cache_dir`.
-
-    Parameters
-    ----------
-    function : callable or signature, optional
-        The kernel (bare ``@njit``), or an eager signature (``@njit("f8(f8[:])")``), or nothing
-        (``@njit(parallel=True)``).
-    **options
-        numba's ``njit`` options. ``cache`` is ignored.
-
-    Returns
-    -------
-    numba dispatcher, or a decorator making one.
-    """
+    """Compile ``function`` with numba in nopython mode, cached under :func:`cache_dir`; as
+    ``@njit``, ``@njit("f8(f8[:])")`` (eager) or ``@njit(**options)`` (numba's, ``cache`` ignored).
+    Returns numba's dispatcher, or a decorator making one."""
     options.pop("cache", None)
     signatures = None
     if function is not None and not callable(function):
@@ -159,7 +148,6 @@ def njit(function: Callable | str | None = None, /, **options) -> Callable:
     return decorate(function) if function is not None else decorate
 
 
-# ---- first run: a warm-up compiles ahead, commands wait for it ----------------------------------
 #: What a warm-up compiles ahead and a command marks once in the cache: training and the gate,
 #: of a two-servo rig and (``-twist``) of a three-servo rig.
 STAGES = ("train", "gate", "train-twist", "gate-twist")

@@ -281,7 +281,6 @@ def boundary_edges(tri: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(directed[counts[inverse.ravel()] == 1], dtype=np.int64)
 
 
-# ---- brute-force references --------------------------------------------------------------------
 def nearest_on_edges_reference(
     d: np.ndarray, vertices: np.ndarray, edges: np.ndarray, margins: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -277,7 +277,6 @@ class DatasetWriter:
                     return
 
 
-# ---- loading -----------------------------------------------------------------------------------
 def _split(path: Path, number: int, raw: bytes, previous_crc: int) -> tuple[str, int]:
     """Payload of line ``number`` after checking its chained CRC."""
     try:

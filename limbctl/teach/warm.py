@@ -228,11 +228,9 @@ HELP = (
     "fit after install do not compile"
 )
 DESCRIPTION = (
-    "Compile the kernels of training, of the gate and of a library fit (RigidMap().fit, "
-    "contains, correct) once, in the foreground, and keep them in the kernel cache (printed at "
-    "the end; NUMBA_CACHE_DIR sets it). Run it once after install and after an upgrade: "
-    "minutes, then no command compiles. Without it, `limbctl record` compiles them in the "
-    "background while you teach, and a library fit compiles on first use."
+    "Compile the kernels of training, the gate and a library fit once into the kernel cache "
+    "(NUMBA_CACHE_DIR sets it). Run it after install and after an upgrade; without it, "
+    "`limbctl record` compiles them in the background while you teach."
 )
 RIG_HELP = (
     "all (default: two and three servos), sim (two servos: pan, tilt), sim3 (three: and "
