@@ -35,13 +35,6 @@ def test_square_depth_contains_and_centre(vertices):
     assert square.area_deg2 == pytest.approx(400.0)
 
 
-def test_non_convex_polygon_excludes_its_notch():
-    notched = PolygonRegion([[-10, -10], [10, -10], [10, 10], [0, 0], [-10, 10]])
-    assert notched.contains(0.0, -5.0)
-    assert not notched.contains(0.0, 5.0)  # inside the notch
-    assert notched.contains(8.0, 5.0) and notched.contains(-8.0, 5.0)
-
-
 @pytest.mark.parametrize(
     "region", [PolygonRegion(SQUARE), ConeRegion(30.0), PolygonRegion([[0, 0], [50, 10], [5, 40]])]
 )
@@ -74,13 +67,25 @@ def test_cone_contains_by_angle_from_plus_x():
     assert cone.perimeter_deg == pytest.approx(360.0 * math.sin(math.radians(30.0)))
 
 
-def test_region_from_mapping_picks_the_shape():
+def test_shapes_from_mappings_a_notch_excluded_and_a_grid_deep_enough_inside():
     assert region_from_mapping({"cone": {"half_angle_deg": 45}}).half_angle_deg == 45.0
     assert region_from_mapping({"polygon": SQUARE}).kind == "polygon"
     with pytest.raises(ValueError, match="source.yaml: unknown key"):
         region_from_mapping({"circle": 3}, "source.yaml")
     with pytest.raises(ValueError, match="repeats the next vertex"):
         PolygonRegion([[0, 0], [0, 0], [1, 0], [0, 1]])
+    notched = PolygonRegion([[-10, -10], [10, -10], [10, 10], [0, 0], [-10, 10]])
+    assert notched.contains(0.0, -5.0)
+    assert not notched.contains(0.0, 5.0)  # inside the notch
+    assert notched.contains(8.0, 5.0) and notched.contains(-8.0, 5.0)
+    square = PolygonRegion([[0, 0], [10, 0], [10, 10], [0, 10]])
+    poses = grid_inside(square, step_deg=1.0, min_depth_deg=2.0)
+    assert len(poses) == 7 * 7  # 2..8 on both axes
+    assert poses.min(axis=0) == pytest.approx([2.0, 2.0])
+    assert poses.max(axis=0) == pytest.approx([8.0, 8.0])
+    cone = grid_inside(ConeRegion(30.0), step_deg=2.0, min_depth_deg=5.0)
+    assert np.all(ConeRegion(30.0).edge_distance_deg(cone[:, 0], cone[:, 1]) >= 5.0)
+    assert len(cone) > 100
 
 
 def test_deepen_moves_shallow_points_inward_and_rounds_a_reflex_corner():
@@ -94,14 +99,3 @@ def test_deepen_moves_shallow_points_inward_and_rounds_a_reflex_corner():
     # by the reflex corner (10, 10): moved away from the corner itself, onto the 1 deg arc
     assert np.hypot(*(deep[3] - [10.0, 10.0])) == pytest.approx(1.0, abs=DEEPEN_TOLERANCE_DEG)
     assert np.all(points[1] == [15.0, 9.5])  # the input is not changed
-
-
-def test_grid_inside_keeps_the_poses_deep_enough():
-    square = PolygonRegion([[0, 0], [10, 0], [10, 10], [0, 10]])
-    poses = grid_inside(square, step_deg=1.0, min_depth_deg=2.0)
-    assert len(poses) == 7 * 7  # 2..8 on both axes
-    assert poses.min(axis=0) == pytest.approx([2.0, 2.0])
-    assert poses.max(axis=0) == pytest.approx([8.0, 8.0])
-    cone = grid_inside(ConeRegion(30.0), step_deg=2.0, min_depth_deg=5.0)
-    assert np.all(ConeRegion(30.0).edge_distance_deg(cone[:, 0], cone[:, 1]) >= 5.0)
-    assert len(cone) > 100
