@@ -15,29 +15,23 @@ from limbctl.servo import transfers
 from limbctl.servo.control_table import ModelNumber, Register
 
 
-def test_ping_read_write(sdk):
+@pytest.mark.parametrize("read", [transfers.sync_read, transfers.fast_sync_read])
+def test_transfers_ping_read_write_keep_error_numbers_and_sync_reads_name_the_absent(sdk, read):
     outcome = transfers.ping(sdk.packet, sdk.port, 1)
     assert outcome.result == COMM_SUCCESS and outcome.value == ModelNumber.XL430_W250
     outcome = transfers.write(sdk.packet, sdk.port, Register.LED, 2, Register.LED.encode(1))
     assert outcome.result == COMM_SUCCESS and outcome.errors == {2: 0}
     outcome = transfers.read(sdk.packet, sdk.port, Register.LED, 2)
     assert (outcome.result, outcome.value) == (COMM_SUCCESS, 1)
-
-
-@pytest.mark.parametrize("read", [transfers.sync_read, transfers.fast_sync_read])
-def test_sync_reads_agree_with_single_reads_and_name_an_absent_servo(sdk, read):
+    transfers.write(sdk.packet, sdk.port, Register.TORQUE_ENABLE, 1, [1])
+    outcome = transfers.write(sdk.packet, sdk.port, Register.OPERATING_MODE, 1, [3])
+    assert outcome.result == COMM_SUCCESS and outcome.errors[1] & 0x7F == 7  # access error
     outcome = read(sdk.packet, sdk.port, Register.MODEL_NUMBER, (1, 2))
     assert outcome.result == COMM_SUCCESS
     assert outcome.value == {1: 1060, 2: 1060}
     assert outcome.errors == {1: 0, 2: 0}
     absent = read(sdk.packet, sdk.port, Register.PRESENT_POSITION, (5, 1))
     assert absent.result != COMM_SUCCESS and absent.culprit == 5
-
-
-def test_refused_write_keeps_the_error_number(sdk):
-    transfers.write(sdk.packet, sdk.port, Register.TORQUE_ENABLE, 1, [1])
-    outcome = transfers.write(sdk.packet, sdk.port, Register.OPERATING_MODE, 1, [3])
-    assert outcome.result == COMM_SUCCESS and outcome.errors[1] & 0x7F == 7  # access error
 
 
 @pytest.mark.parametrize(
