@@ -1,4 +1,4 @@
-"""The simulated gimbal's physics: geometry, tracking, end stops, load, backdriving, stepping."""
+"""The simulated gimbal: its chain's geometry, tracking, end stops, load, backdriving, stepping."""
 
 from __future__ import annotations
 
@@ -9,7 +9,12 @@ import numpy as np
 import pytest
 
 from firmware_sim.hand import Hand
-from firmware_sim.orientation import chain_quat
+from firmware_sim.orientation import (
+    chain_quat,
+    chain_twist,
+    roll_for_twist_deg,
+    wrap_deg,
+)
 from firmware_sim.world import (
     DEFAULT_JOINTS,
     LOAD_LIMIT_PCT,
@@ -18,6 +23,7 @@ from firmware_sim.world import (
     Joint,
     World,
 )
+from tests.geometry.test_gimbal import chain_by_products, twist_about_x
 
 REGIONS = Path(__file__).resolve().parents[2] / "examples" / "regions"
 PAN, TILT = DEFAULT_JOINTS
@@ -231,3 +237,28 @@ def test_the_roll_joint_tracks_like_the_others():
     assert angles["tilt"] == two.joint_angles_deg()["tilt"]
     q = three.orientation_for_ticks({})
     assert np.allclose(q, chain_quat(*(math.radians(angles[k]) for k in ("pan", "tilt", "roll"))))
+
+
+@pytest.mark.parametrize(("pan", "tilt", "tau"), [(30, 30, 8.2), (60, 45, 26.9), (90, 60, 60.0)])
+def test_chain_twist_figures(pan, tilt, tau):
+    assert math.degrees(chain_twist(math.radians(pan), math.radians(tilt))) == pytest.approx(
+        tau, abs=0.05
+    )
+
+
+def test_chain_quat_is_the_product_its_twist_roll_plus_chain_twist_and_wrap_deg():
+    rng = np.random.default_rng(3)
+    for pan, tilt, roll in rng.uniform([-3, -1.5, -3], [3, 1.5, 3], size=(200, 3)):
+        assert np.allclose(
+            chain_quat(pan, tilt, roll), chain_by_products(pan, tilt, roll), atol=1e-12
+        )
+        twist = math.degrees(twist_about_x(np.array(chain_quat(pan, tilt, roll))))
+        expected = math.degrees(roll + chain_twist(pan, tilt))
+        assert wrap_deg(twist - expected) == pytest.approx(0.0, abs=1e-9)
+        # the roll that gives a twist undoes the chain's own twist
+        back = roll_for_twist_deg(math.degrees(pan), math.degrees(tilt), twist)
+        assert wrap_deg(back - math.degrees(roll)) == pytest.approx(0.0, abs=1e-9)
+    assert wrap_deg(180.0) == 180.0
+    assert wrap_deg(-180.0) == 180.0
+    assert wrap_deg(190.0) == pytest.approx(-170.0)
+    assert wrap_deg(-540.0) == 180.0
