@@ -69,12 +69,14 @@ def test_a_script_is_followed_linearly_and_its_last_waypoint_held(script, halfwa
     assert hand.pose_deg(5.0) == pytest.approx(held)
 
 
-def test_unknown_styles_are_refused_with_the_choices():
+def test_unknown_styles_and_visits_to_a_script_are_refused_with_the_choices():
     with pytest.raises(ValueError, match="unknown style 'spiral'") as caught:
         Hand.from_mapping({**CONE, "style": "spiral"})
     assert all(name in str(caught.value) for name in STYLES)
     with pytest.raises(ValueError, match="not to a script"):
         Hand.from_mapping({"script": [[0, 0, 0]], "style": "trace"})
+    with pytest.raises(ValueError, match="'visits' applies to a region hand"):
+        Hand.from_mapping({"script": [[0, 0, 0]], "visits": []})
 
 
 def test_tremor_is_a_few_tenths_of_a_degree():
@@ -97,7 +99,7 @@ def test_same_seed_same_path_whatever_order_it_is_asked_in(path):
     assert [c.pose_deg(t) for t in times] != [a.pose_deg(t) for t in times]
 
 
-def test_calibration_script_moves_the_backdriven_limb():
+def test_the_calibration_script_moves_the_backdriven_limb_and_a_hand_turns_the_roll_joint():
     world = World(hand=Hand.from_yaml(REGIONS / "calibration.yaml"), seed=16)
     seen = {}
     for k in range(1, 16001):
@@ -108,29 +110,6 @@ def test_calibration_script_moves_the_backdriven_limb():
     assert seen[5] == pytest.approx({"pan": 45.0, "tilt": 0.0}, abs=0.3)
     assert seen[12] == pytest.approx({"pan": 0.0, "tilt": 30.0}, abs=0.3)
     assert seen[16] == pytest.approx({"pan": 0.0, "tilt": 0.0}, abs=0.3)
-
-
-def test_twist_stays_in_the_band_and_reaches_both_stops_along_the_edge_then_in_the_middle():
-    hand = Hand.from_yaml(REGION3, seed=2)
-    start, end = hand.trace_span_s
-    times, poses, twist, limits = sample(hand, end + 30.0)
-    low, high = limits[:, 0], limits[:, 1]
-    assert np.all(twist >= low + TWIST_INSET_DEG - TREMOR_SLACK_DEG)
-    assert np.all(twist <= high - TWIST_INSET_DEG + TREMOR_SLACK_DEG)
-    near_high = twist >= high - TWIST_INSET_DEG - 0.5
-    near_low = twist <= low + TWIST_INSET_DEG + 0.5
-    tracing = (times >= start) & (times < end)
-    depth = hand.region.edge_distance_deg(poses[:, 0], poses[:, 1])
-    # along the edge trace: both stops, at several places round the edge (>= 3 each)
-    for near in (near_high, near_low):
-        at_edge = near & tracing & (depth < 3.0)
-        places = hand.region.boundary_fraction(poses[at_edge, 0], poses[at_edge, 1])
-        assert len(np.unique(np.round(places * 8))) >= 3
-    # after the trace, the wander still turns to both stops
-    assert np.any(near_high & (times > end)) and np.any(near_low & (times > end))
-
-
-def test_the_world_gives_the_hand_the_roll_joint():
     hand = Hand.from_yaml(REGION3, seed=1)
     world = World(joints=(*World().joints, ROLL_JOINT), hand=hand, seed=1)
     for _ in range(3000):
@@ -149,6 +128,43 @@ def test_the_world_gives_the_hand_the_roll_joint():
     for _ in range(500):
         plain.step(0.001, {1: None, 2: None, 3: None})
     assert plain.joint_angles_deg()["roll"] == rest
+
+
+def test_the_twist_keeps_to_a_plane_or_curved_band_and_reaches_both_its_stops():
+    hand = Hand.from_yaml(REGION3, seed=2)
+    start, end = hand.trace_span_s
+    times, poses, twist, limits = sample(hand, end + 30.0)
+    low, high = limits[:, 0], limits[:, 1]
+    assert np.all(twist >= low + TWIST_INSET_DEG - TREMOR_SLACK_DEG)
+    assert np.all(twist <= high - TWIST_INSET_DEG + TREMOR_SLACK_DEG)
+    near_high = twist >= high - TWIST_INSET_DEG - 0.5
+    near_low = twist <= low + TWIST_INSET_DEG + 0.5
+    tracing = (times >= start) & (times < end)
+    depth = hand.region.edge_distance_deg(poses[:, 0], poses[:, 1])
+    # along the edge trace: both stops, at several places round the edge (>= 3 each)
+    for near in (near_high, near_low):
+        at_edge = near & tracing & (depth < 3.0)
+        places = hand.region.boundary_fraction(poses[at_edge, 0], poses[at_edge, 1])
+        assert len(np.unique(np.round(places * 8))) >= 3
+    # after the trace, the wander still turns to both stops
+    assert np.any(near_high & (times > end)) and np.any(near_low & (times > end))
+    data = {
+        "region": {"polygon": [[-40, -30], [40, -30], [40, 40], [-40, 40]]},
+        "twist": {
+            "centre_deg": {"linear": [10, 0.2, 0], "quadratic": [0.003, 0, -0.002]},
+            "half_width_deg": {"linear": [35, 0, -0.2], "bumps": [[0, 5, -10, 8]]},
+        },
+    }
+    hand = Hand.from_mapping(data, seed=2)
+    _, poses, twist, limits = sample(hand, 40.0)
+    low, high = limits[:, 0], limits[:, 1]
+    # the band is curved: its width at the bump differs from a plane's by its height
+    assert hand.band.limits_deg(0, 5)[1] - hand.band.limits_deg(0, 5)[0] < 2 * (35 - 1 - 9)
+    slack = TWIST_INSET_DEG - TREMOR_SLACK_DEG
+    assert np.all(twist <= high - slack + 1e-9) and np.all(twist >= low + slack - 1e-9)
+    # and it turns to both stops (within its inset and tremor) along the way
+    assert np.sum(twist >= high - TWIST_INSET_DEG - TREMOR_SLACK_DEG) > 10
+    assert np.sum(twist <= low + TWIST_INSET_DEG + TREMOR_SLACK_DEG) > 10
 
 
 def test_a_minute_of_the_hand_teaches_a_band_within_the_truth_or_names_what_is_missing():
@@ -175,26 +191,6 @@ def test_a_minute_of_the_hand_teaches_a_band_within_the_truth_or_names_what_is_m
     assert past.max() <= 1.0, f"the band reaches {past.max():.2f} deg past the true stop"
     held = np.mean(region.contains(probes))
     assert held >= 0.99 or region.unsupported, f"{100 * held:.2f} % held, nothing asked for"
-
-
-def test_a_hand_over_a_curved_band_with_bumps_keeps_to_it_and_reaches_its_stops():
-    data = {
-        "region": {"polygon": [[-40, -30], [40, -30], [40, 40], [-40, 40]]},
-        "twist": {
-            "centre_deg": {"linear": [10, 0.2, 0], "quadratic": [0.003, 0, -0.002]},
-            "half_width_deg": {"linear": [35, 0, -0.2], "bumps": [[0, 5, -10, 8]]},
-        },
-    }
-    hand = Hand.from_mapping(data, seed=2)
-    _, poses, twist, limits = sample(hand, 40.0)
-    low, high = limits[:, 0], limits[:, 1]
-    # the band is curved: its width at the bump differs from a plane's by its height
-    assert hand.band.limits_deg(0, 5)[1] - hand.band.limits_deg(0, 5)[0] < 2 * (35 - 1 - 9)
-    slack = TWIST_INSET_DEG - TREMOR_SLACK_DEG
-    assert np.all(twist <= high - slack + 1e-9) and np.all(twist >= low + slack - 1e-9)
-    # and it turns to both stops (within its inset and tremor) along the way
-    assert np.sum(twist >= high - TWIST_INSET_DEG - TREMOR_SLACK_DEG) > 10
-    assert np.sum(twist <= low + TWIST_INSET_DEG + TREMOR_SLACK_DEG) > 10
 
 
 BAD_FILES = {
@@ -291,11 +287,6 @@ def test_a_bad_visit_is_refused_with_its_entry_named(visits, words):
     with pytest.raises(ValueError, match=words) as err:
         Hand.from_mapping({**CONE, "visits": visits}, source="r.yaml")
     assert "visits[0]" in str(err.value)
-
-
-def test_visits_apply_to_a_region_hand_only():
-    with pytest.raises(ValueError, match="'visits' applies to a region hand"):
-        Hand.from_mapping({"script": [[0, 0, 0]], "visits": []})
 
 
 def test_a_guided_teaching_of_a_small_region_ends_ready_and_within_a_degree_of_the_truth():

@@ -37,7 +37,7 @@ def row(t, *angles, joints):
 
 
 @JOINTS
-def test_operator_interpolates_its_script_and_is_bounded(joints):
+def test_operator_interpolates_its_script_is_bounded_and_refuses_bad_scripts_and_keys(joints):
     script = [row(0.0, 0.0, 0.0, 0.0, joints=joints), row(2.0, 20.0, -10.0, 40.0, joints=joints)]
     hand = Operator(script, max_torque_nm=0.1, joints=joints)
     assert hand.target_deg(1.0) == pytest.approx((10.0, -5.0, 20.0)[:joints])
@@ -48,10 +48,6 @@ def test_operator_interpolates_its_script_and_is_bounded(joints):
     torques = hand.torques(1.0, [0.0] * joints, [0.0] * joints)
     assert math.hypot(*torques) == pytest.approx(0.1)
     assert torques[0] / torques[1] == pytest.approx(-2.0)
-
-
-@JOINTS
-def test_operator_refuses_bad_scripts_and_keys(joints):
     rest = [0.0] * joints
     with pytest.raises(ValueError, match="must not decrease"):
         Operator([[1.0, *rest], [0.5, *rest]], joints=joints)
@@ -72,7 +68,7 @@ def test_operator_refuses_bad_scripts_and_keys(joints):
 
 
 @JOINTS
-def test_leader_is_built_like_the_follower_at_its_own_ids(joints):
+def test_leader_is_built_like_the_follower_at_its_own_ids_and_stiction_holds_a_touch(joints):
     ids = LEADER_IDS[joints]
     built = leader_joints(ids)
     assert [j.servo_id for j in built] == ids
@@ -95,6 +91,12 @@ def test_leader_is_built_like_the_follower_at_its_own_ids(joints):
         sim.set_operator({"script": [[0.0, *[10.0] * (5 - joints)]]})
     with pytest.raises(ValueError, match=f"cannot hold a {joints}-servo leader"):
         sim.leader.set_operator(Operator([[0.0, *[0.0] * (5 - joints)]], joints=5 - joints))
+    touch = LEADER_COULOMB_NM * 0.9
+    hand = {"script": [[0.0, 90.0, *[0.0] * (joints - 1)]], "max_torque_nm": touch}
+    sim, clock = sim_with(joints, hand)
+    clock.t = 1.0
+    sim.advance()
+    assert sim.truth()["leader"]["pose_deg"] == [0.0] * joints
 
 
 @JOINTS
@@ -126,16 +128,6 @@ def test_the_hand_moves_a_free_leader_and_let_go_leaves_it_to_friction(joints, t
     assert all(len(value) == joints for key, value in rows[-1].items() if key != "t")
     sim.set_operator(None)
     assert sim.leader.operator is None
-
-
-@JOINTS
-def test_stiction_holds_under_a_touch_below_coulomb_friction(joints):
-    touch = LEADER_COULOMB_NM * 0.9
-    hand = {"script": [[0.0, 90.0, *[0.0] * (joints - 1)]], "max_torque_nm": touch}
-    sim, clock = sim_with(joints, hand)
-    clock.t = 1.0
-    sim.advance()
-    assert sim.truth()["leader"]["pose_deg"] == [0.0] * joints
 
 
 def test_a_slow_let_go_lowers_the_hands_bound_linearly_to_zero():

@@ -139,14 +139,16 @@ def motors_setup(profile, sim, *options):
 
 
 @pytest.mark.parametrize("rig", sorted(RIG_IDS))
-def test_yes_on_a_one_servo_bench_sets_up_pan_only_and_says_so(tmp_path, capsys, rig):
+def test_a_one_servo_bench_sets_up_pan_only_with_yes_and_asked_again_skip_is_said(
+    tmp_path, capsys, monkeypatch, rig
+):
     ids = RIG_IDS[rig]
+    others = [joint for joint in ids if joint != "pan"]
     profile = rig_profile(tmp_path, rig)
     with SimulatedBus(factory=1, link=tmp_path / "tty") as sim:
         status = motors_setup(profile, sim, "--yes")
         answers_as = answering_id(sim)
     lines = capsys.readouterr().err.splitlines()
-    others = [joint for joint in ids if joint != "pan"]
     assert answers_as == ids["pan"], "the pan servo was renumbered as another joint's"
     for joint in others:
         assert (
@@ -157,17 +159,8 @@ def test_yes_on_a_one_servo_bench_sets_up_pan_only_and_says_so(tmp_path, capsys,
         ) in lines
     assert lines[-1] == f"set up: pan; failed: {', '.join(others)}"
     assert status == 1
-
-
-@pytest.mark.parametrize("rig", sorted(RIG_IDS))
-def test_enter_with_the_pan_servo_still_connected_asks_again_and_skip_is_said(
-    tmp_path, capsys, monkeypatch, rig
-):
-    ids = RIG_IDS[rig]
-    others = [joint for joint in ids if joint != "pan"]
-    # Enter for pan; then for each other joint: Enter (pan's servo still alone), then skip
+    # asked: Enter for pan; then for each other joint: Enter (pan's servo still alone), then skip
     monkeypatch.setattr("sys.stdin", io.StringIO("\n" + "\nskip\n" * len(others)))
-    profile = rig_profile(tmp_path, rig)
     with SimulatedBus(factory=1, link=tmp_path / "tty") as sim:
         status = motors_setup(profile, sim)
         answers_as = answering_id(sim)

@@ -32,15 +32,12 @@ def rig(request):
     return Rig(PROFILES[request.param])
 
 
-def test_the_chain_is_the_profiles_joints_in_order():
+def test_the_chain_is_the_profiles_joints_in_order_and_a_rig_converts_clamps_and_limits(rig):
     two, three = Rig(PROFILES["sim"]), Rig(PROFILES["sim3"])
     assert (two.names, three.names) == (("pan", "tilt"), ("pan", "tilt", "roll"))
     assert (len(two), len(three)) == (2, 3)
     assert three.joints == (PROFILES["sim3"].pan, PROFILES["sim3"].tilt, PROFILES["sim3"].roll)
     assert (two.ids, three.ids) == ((1, 2), (1, 2, 3))
-
-
-def test_a_rig_converts_clamps_and_refuses_ticks_beyond_its_limits_without_a_bus(rig):
     joints = rig.joints
     assert rig.angles_to_ticks(*[0.0] * len(rig)) == tuple(j.zero_tick for j in joints)
     # ticks = zero_tick + direction * angle * 4096 / (2 pi)
