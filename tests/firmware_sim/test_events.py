@@ -1,7 +1,4 @@
-"""Scheduled faults (``firmware-sim --event``): parsing, timing, and their effect over the pty.
-
-Kinds: vanish, voltage, temperature, restart and push (a steady torque on a joint).
-"""
+"""Scheduled faults (``firmware-sim --event``): parsing, timing, and their effect over the pty."""
 
 from __future__ import annotations
 

@@ -168,9 +168,7 @@ def test_the_twist_keeps_to_a_plane_or_curved_band_and_reaches_both_its_stops():
 
 
 def test_a_minute_of_the_hand_teaches_a_band_within_the_truth_or_names_what_is_missing():
-    """Issue 35: a 60 s teaching at the recorder's 125 Hz, learned, never reaches more than 1 deg
-    past the true band; it holds >= 99 % of the true region or lists the places whose stops are
-    missing (containment wins over coverage; figures in docs/decisions/twist.md)."""
+    """Issue 35: a learned 60 s teaching stays within 1 deg of the true band; holds 99 % or asks."""
     from limbctl.demo import true_twist_probes
     from limbctl.geometry.gimbal import direction_to_pan_tilt
     from limbctl.geometry.twist import decompose, wrap

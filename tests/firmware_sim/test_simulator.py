@@ -39,9 +39,7 @@ def sdk_at(port_name: str, baud: int) -> PortHandler:
 
 
 def test_id_and_baud_change_as_on_real_servos_found_as_lerobot_finds_them(tmp_path):
-    """LeRobot's setup_motors flow through the SDK alone: broadcast ping per baud until one
-    servo answers (none at another baud), write its ID, then its baud, and find it again at the
-    new ID and baud; EEPROM writes are refused while torque is on."""
+    """LeRobot's setup_motors flow through the SDK alone: find by baud, write ID, then baud."""
     with SimulatedBus(factory=1, link=tmp_path / "tty") as sim:
         packet, port = PacketHandler(2.0), PortHandler(sim.port)
         found = {}

@@ -101,10 +101,7 @@ def test_limits_must_contain_the_rest_pose_and_reads_may_drop_now_and_then_not_a
 def test_on_a_port_the_servos_named_by_ids_are_calibrated_inside_the_assumed_end_stops(
     tmp_path, capsys
 ):
-    """--ids names the servos that are read, not only the ids written to the profile: the
-    simulated gimbal's servos renumbered 5 (pan) and 6 (tilt) are calibrated through them. On a
-    port (not the embedded simulator) with no profile the end stops are unknown and taken to be
-    +-90 deg: the default limits are narrowed to 1 deg inside them, and said so."""
+    """--ids are the servos read; on a port without a profile the stops are taken as +-90 deg."""
     from dynamixel_sdk import PacketHandler, PortHandler
 
     from firmware_sim import SimulatedBus

@@ -1,6 +1,5 @@
 """The control cycle's one read through indirect addresses, on the simulator: each fault the loop
-must notice shows in it, and a silent servo is probed alone with one try.
-"""
+must notice shows in it, and a silent servo is probed alone with one try."""
 
 from __future__ import annotations
 
@@ -87,7 +86,7 @@ def test_cycle_read_agrees_with_direct_reads_a_reboot_and_torque_off_show_in_it(
     assert [r.torque_on for r in read.reports.values()] == [False, False]
 
 
-def test_an_alarm_is_in_the_report_with_its_torque(sim, rig):
+def test_an_alarm_is_in_the_report_with_its_torque_and_a_pushed_servos_drive_saturates(sim, rig):
     sim.set_voltage(1, 5.0)  # below the voltage limit; the factory Shutdown mask keeps torque on
     sim.set_temperature(2, 90.0)  # over the limit: shuts down, torque off
     read = read_ok(rig)
@@ -95,9 +94,6 @@ def test_an_alarm_is_in_the_report_with_its_torque(sim, rig):
         read = read_ok(rig)
     assert read.reports[1].hardware_error == ("input voltage",) and read.reports[1].torque_on
     assert read.reports[2].hardware_error == ("overheating",) and not read.reports[2].torque_on
-
-
-def test_a_pushed_servo_reports_its_drive_saturated(sim, rig):
     sim.push(1, 300.0)  # beyond stall: the position controller's drive winds up to its limit
     for _ in range(200):  # the simulator applies the push on its next physics step
         read = read_ok(rig)

@@ -1,7 +1,5 @@
-"""A felt leader's guard over the real SDK and the simulator's pty: told ``done`` it touches
-nothing; its controller gone it switches the leader's torque off (and nothing else) once the
-port is free, or gives up within its bound; and ``limbctl teleop`` killed with SIGKILL mid-push
-leaves its leader limp within that bound, the follower untouched."""
+"""A felt leader's guard over the real SDK and the simulator's pty, and ``limbctl teleop`` killed
+with SIGKILL mid-push leaving its leader limp within the guard's bound, the follower untouched."""
 
 from __future__ import annotations
 

@@ -204,8 +204,7 @@ def test_renumber_makes_another_joints_servo_this_one_on_purpose_named_by_joint(
 
 @pytest.mark.parametrize("rig", ["sim", "sim3"])
 def test_at_the_factory_id_and_baud_only_a_factory_fresh_servo_is_nobodys(tmp_path, capsys, rig):
-    """Pan is ID 1 and the profile's baud the factory's 57600: a servo set up as pan in an
-    earlier run answers exactly as a new one does but for its Return Delay Time (0, not 250)."""
+    """At pan's ID 1 and 57600 baud only the Return Delay Time (0, not 250) tells pan apart."""
     eeprom, link = tmp_path / "eeprom", tmp_path / "tty"
     setup = ["motors", "setup", "--rig", rig, "--baud", "57600", "--yes", "--joint"]
     with SimulatedBus(factory=2, connect=(1,), eeprom_dir=eeprom, link=link) as sim:

@@ -1,6 +1,5 @@
 """One controller per port: a second ServoBus on a held port is refused at once naming the holder;
-the first runs on undisturbed; the lock dies with its holder.
-"""
+the first runs on undisturbed; the lock dies with its holder."""
 
 from __future__ import annotations
 

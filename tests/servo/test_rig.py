@@ -1,6 +1,4 @@
-"""The rig of either chain: conversion and hard limits per joint, and poses through the real SDK
-on the simulator.
-"""
+"""The rig of either chain: conversion, hard limits, and poses through the SDK on the simulator."""
 
 from __future__ import annotations
 

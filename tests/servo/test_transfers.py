@@ -53,10 +53,7 @@ def test_failure_maps_results_to_typed_errors(result, error_type, fragment):
 
 
 def test_a_late_reply_is_never_read_as_the_next_registers_value():
-    """Replies delayed past the host's timeout (the simulator's latency fault, 6 ms against a
-    ~4 ms timeout) arrive while the host waits for its next instruction's reply. The SDK takes
-    any packet from the servo's id; read() and write() refuse one of the wrong size instead, so
-    every value read is the register's own or the read failed."""
+    """A reply delayed past the timeout is refused by its size, never taken for the next one's."""
     from dynamixel_sdk import PacketHandler
 
     from firmware_sim.bus import SimulatedBus
