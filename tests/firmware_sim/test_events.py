@@ -17,13 +17,6 @@ ID, TORQUE_ENABLE, HARDWARE_ERROR, PRESENT_PWM = 7, 64, 70, 124
 VOLTAGE_BIT, OVERHEATING_BIT, OVERLOAD_BIT, ALERT = 0x01, 0x04, 0x20, 0x80
 
 
-def test_parse_event_reads_every_kind():
-    assert parse_event("2.5:vanish:1:0.5") == ScheduledEvent(2.5, "vanish", 1, 0.5)
-    assert parse_event("0:voltage:2:5") == ScheduledEvent(0.0, "voltage", 2, 5.0)
-    assert parse_event(" 1 : temperature : 2 : -5 ") == ScheduledEvent(1.0, "temperature", 2, -5.0)
-    assert parse_event("3:push:1:-300") == ScheduledEvent(3.0, "push", 1, -300.0)
-
-
 @pytest.mark.parametrize(
     "text, message",
     [
@@ -120,6 +113,10 @@ def test_a_schedule_applies_each_event_once_by_the_id_it_names_restart_and_push_
     assert schedule.apply_due(sim) == 1
     assert sim.truth()["servos"][1]["load_percent"] == 0.0  # torque off, let go
     sim.close()
+    assert parse_event("2.5:vanish:1:0.5") == ScheduledEvent(2.5, "vanish", 1, 0.5)
+    assert parse_event("0:voltage:2:5") == ScheduledEvent(0.0, "voltage", 2, 5.0)
+    assert parse_event(" 1 : temperature : 2 : -5 ") == ScheduledEvent(1.0, "temperature", 2, -5.0)
+    assert parse_event("3:push:1:-300") == ScheduledEvent(3.0, "push", 1, -300.0)
 
 
 def test_command_line_events_reach_the_servos(tmp_path):

@@ -69,17 +69,7 @@ def test_a_script_is_followed_linearly_and_its_last_waypoint_held(script, halfwa
     assert hand.pose_deg(5.0) == pytest.approx(held)
 
 
-def test_unknown_styles_and_visits_to_a_script_are_refused_with_the_choices():
-    with pytest.raises(ValueError, match="unknown style 'spiral'") as caught:
-        Hand.from_mapping({**CONE, "style": "spiral"})
-    assert all(name in str(caught.value) for name in STYLES)
-    with pytest.raises(ValueError, match="not to a script"):
-        Hand.from_mapping({"script": [[0, 0, 0]], "style": "trace"})
-    with pytest.raises(ValueError, match="'visits' applies to a region hand"):
-        Hand.from_mapping({"script": [[0, 0, 0]], "visits": []})
-
-
-def test_tremor_is_a_few_tenths_of_a_degree():
+def test_tremor_is_a_few_tenths_of_a_degree_and_unknown_styles_and_visits_are_refused():
     still = {"script": [[0.0, 10.0, 5.0]]}
     hand = Hand.from_mapping(still, seed=13)
     poses = np.array([hand.pose_deg(t) for t in np.arange(0.0, 10.0, 0.001)])
@@ -87,6 +77,13 @@ def test_tremor_is_a_few_tenths_of_a_degree():
     assert np.all(amplitude > 0.1) and np.all(amplitude <= DEFAULT_TREMOR_DEG + 1e-12)
     calm = Hand.from_mapping({**still, "tremor_deg": 0}, seed=13)
     assert calm.pose_deg(3.3) == (10.0, 5.0)
+    with pytest.raises(ValueError, match="unknown style 'spiral'") as caught:
+        Hand.from_mapping({**CONE, "style": "spiral"})
+    assert all(name in str(caught.value) for name in STYLES)
+    with pytest.raises(ValueError, match="not to a script"):
+        Hand.from_mapping({"script": [[0, 0, 0]], "style": "trace"})
+    with pytest.raises(ValueError, match="'visits' applies to a region hand"):
+        Hand.from_mapping({"script": [[0, 0, 0]], "visits": []})
 
 
 @pytest.mark.parametrize("path", [REGIONS / "irregular.yaml", REGION3], ids=["sim", "sim3"])

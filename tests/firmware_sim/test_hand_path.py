@@ -131,7 +131,7 @@ def test_the_default_hand_traces_the_whole_edge_first_at_a_persons_pace_then_wan
     assert 0.3 < np.percentile(depth, 95) - np.percentile(depth, 5) < 1.0
 
 
-def test_hand_takes_hold_where_the_limb_is_without_a_yank():
+def test_a_hand_takes_hold_without_a_yank_and_boxed_in_retraces_its_steps():
     hand = Hand.from_yaml(REGIONS / "irregular.yaml", seed=17)
     world = World(hand=hand, seed=17)
     start = world.joint_angles_deg()
@@ -143,6 +143,17 @@ def test_hand_takes_hold_where_the_limb_is_without_a_yank():
     # a minimum-jerk move peaks at 1.875 x its mean speed; the tremor adds a little
     assert speed.max() < 2.0 * hand.speed_deg_s + 15.0
     assert np.hypot(*(samples[-1] - samples[0])) > 10.0  # it did take the limb somewhere
+    hand = Hand.from_mapping({"region": {"polygon": U_SHAPE}, "tremor_deg": 0}, seed=19)
+    hand.pose_deg(20.0)
+    path = hand.path
+    *_, last_move = (s for s in path.track.segments if s[2:4] != s[4:6])  # moves, not pauses
+    before = len(path.track.segments)
+    path._reach = lambda target: False  # nothing reachable from here: boxed in
+    path._plan_next()
+    (retrace,) = (s for s in path.track.segments[before:] if s[6])
+    # back along the last move: its end to its start, bowed the same way
+    assert retrace[2:6] == (*last_move[4:6], *last_move[2:4])
+    assert retrace[7:9] == last_move[7:9]
 
 
 def test_a_u_is_traced_round_its_reflex_corners_and_walked_round_them_continuously():
@@ -171,17 +182,3 @@ def test_a_u_is_traced_round_its_reflex_corners_and_walked_round_them_continuous
     depth = hand.region.edge_distance_deg(poses[:, 0], poses[:, 1])
     assert depth.min() >= MIN_PATH_DEPTH_DEG - 1e-9
     assert np.mean(depth < EDGE_INSET_DEG + 0.5) > 0.01
-
-
-def test_a_boxed_in_hand_retraces_its_steps():
-    hand = Hand.from_mapping({"region": {"polygon": U_SHAPE}, "tremor_deg": 0}, seed=19)
-    hand.pose_deg(20.0)
-    path = hand.path
-    *_, last_move = (s for s in path.track.segments if s[2:4] != s[4:6])  # moves, not pauses
-    before = len(path.track.segments)
-    path._reach = lambda target: False  # nothing reachable from here: boxed in
-    path._plan_next()
-    (retrace,) = (s for s in path.track.segments[before:] if s[6])
-    # back along the last move: its end to its start, bowed the same way
-    assert retrace[2:6] == (*last_move[4:6], *last_move[2:4])
-    assert retrace[7:9] == last_move[7:9]

@@ -39,7 +39,7 @@ def bitwise_crc(data: bytes) -> int:
     return crc
 
 
-def test_golden_packets_are_built_byte_for_byte_with_their_crcs():
+def test_golden_packets_are_built_byte_for_byte_with_their_crcs_fast_status_too():
     assert build_packet(1, Instruction.PING) == PING_ID1
     assert build_status(1, 0, bytes([0x06, 0x04, 0x26])) == PING_REPLY_ID1
     assert build_packet(1, Instruction.READ, bytes([0x84, 0, 4, 0])) == READ_PRESENT_POSITION_ID1
@@ -47,6 +47,15 @@ def test_golden_packets_are_built_byte_for_byte_with_their_crcs():
     assert crc16(b"123456789") == 0xFEE8
     for packet in (PING_ID1, PING_REPLY_ID1, READ_PRESENT_POSITION_ID1, WRITE_GOAL_512_ID1):
         assert crc16(packet[:-2]) == packet[-2] | (packet[-1] << 8)
+    packet = build_fast_status([(1, 0, bytes([1, 2, 3, 4])), (2, 0x80, bytes([5, 6, 7, 8]))])
+    length = packet[5] | (packet[6] << 8)
+    assert packet[4] == 0xFE and packet[7] == 0x55
+    # LEN = instruction + 2 * (error + id + 4 data + crc)
+    assert length == 1 + 2 * 8 == len(packet) - 7
+    first_crc = packet[14] | (packet[15] << 8)
+    assert first_crc == crc16(packet[:14])
+    assert crc16(packet[:-2]) == packet[-2] | (packet[-1] << 8)
+    assert packet[16:18] == bytes([0x80, 2])
 
 
 @given(st.binary(max_size=64))
@@ -100,15 +109,3 @@ def test_parser_resynchronises_after_junk_partial_corrupt_stale_and_impossible_p
     assert list(parser.feed(b"\xff\xff\xfd\x00\x01\xff\xff" + good, 2.0)) == [
         InstructionPacket(1, Instruction.PING, b"")
     ]
-
-
-def test_fast_status_running_crc_layout():
-    packet = build_fast_status([(1, 0, bytes([1, 2, 3, 4])), (2, 0x80, bytes([5, 6, 7, 8]))])
-    length = packet[5] | (packet[6] << 8)
-    assert packet[4] == 0xFE and packet[7] == 0x55
-    # LEN = instruction + 2 * (error + id + 4 data + crc)
-    assert length == 1 + 2 * 8 == len(packet) - 7
-    first_crc = packet[14] | (packet[15] << 8)
-    assert first_crc == crc16(packet[:14])
-    assert crc16(packet[:-2]) == packet[-2] | (packet[-1] << 8)
-    assert packet[16:18] == bytes([0x80, 2])

@@ -67,7 +67,7 @@ def test_cone_contains_by_angle_from_plus_x():
     assert cone.perimeter_deg == pytest.approx(360.0 * math.sin(math.radians(30.0)))
 
 
-def test_shapes_from_mappings_a_notch_excluded_and_a_grid_deep_enough_inside():
+def test_shapes_from_mappings_a_notch_a_grid_and_deepening_round_a_reflex_corner():
     assert region_from_mapping({"cone": {"half_angle_deg": 45}}).half_angle_deg == 45.0
     assert region_from_mapping({"polygon": SQUARE}).kind == "polygon"
     with pytest.raises(ValueError, match="source.yaml: unknown key"):
@@ -86,9 +86,6 @@ def test_shapes_from_mappings_a_notch_excluded_and_a_grid_deep_enough_inside():
     cone = grid_inside(ConeRegion(30.0), step_deg=2.0, min_depth_deg=5.0)
     assert np.all(ConeRegion(30.0).edge_distance_deg(cone[:, 0], cone[:, 1]) >= 5.0)
     assert len(cone) > 100
-
-
-def test_deepen_moves_shallow_points_inward_and_rounds_a_reflex_corner():
     ell = PolygonRegion([[0, 0], [20, 0], [20, 10], [10, 10], [10, 20], [0, 20]])
     points = np.array([[5.0, 0.0], [15.0, 9.5], [5.0, 5.0], [9.6, 9.6]])
     deep = deepen(ell, points, np.array([1.0, 1.0, 1.0, 1.0]))
