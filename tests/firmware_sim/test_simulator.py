@@ -78,13 +78,19 @@ def test_factory_fresh_servos_all_answer_as_id_1_and_collide(tmp_path):
         port.closePort()
 
 
-def test_mixed_models_share_a_bus():
+def test_mixed_models_share_a_bus_and_the_roll_id_must_be_a_listed_servo_not_pan_or_tilt():
     sim = Simulator(ids=(1, 2, 3), model="xl430-w250,xl330-m288,xm430-w350")
     assert [s.model.model_number for s in sim.servos] == [1060, 1200, 1020]
     with pytest.raises(ValueError, match="names 2 models for 3 servos; give 1 or 3"):
         Simulator(ids=(1, 2, 3), model="xl430-w250,xl330-m288")
     with pytest.raises(ValueError, match="--connect \\[3\\] names slots beyond \\[1, 2\\]"):
         Simulator(factory=2, connect=(3,))
+    with pytest.raises(ValueError, match="roll joint's servo 4"):
+        Simulator(ids=(1, 2, 3), roll_id=4)
+    with pytest.raises(ValueError, match="roll joint's servo 2"):
+        Simulator(ids=(1, 2, 3), roll_id=2)
+    two = Simulator(ids=(1, 2, 3))
+    assert not two.world.has_roll  # servo 3 is a free shaft unless named the roll
 
 
 def test_a_reply_takes_its_bytes_wire_time(tmp_path):
@@ -119,15 +125,6 @@ def test_simulator_with_a_roll_joint_logs_the_full_orientation(tmp_path):
     pan, tilt = 200 * rad, 150 * rad
     d = [math.cos(tilt) * math.cos(pan), math.cos(tilt) * math.sin(pan), math.sin(tilt)]
     assert np.allclose(last["limb_dir"], d)
-
-
-def test_roll_id_must_be_a_listed_servo_other_than_pan_and_tilt():
-    with pytest.raises(ValueError, match="roll joint's servo 4"):
-        Simulator(ids=(1, 2, 3), roll_id=4)
-    with pytest.raises(ValueError, match="roll joint's servo 2"):
-        Simulator(ids=(1, 2, 3), roll_id=2)
-    two = Simulator(ids=(1, 2, 3))
-    assert not two.world.has_roll  # servo 3 is a free shaft unless named the roll
 
 
 def test_an_eeprom_survives_a_power_cycle_ram_does_not_and_another_models_is_refused(tmp_path):
