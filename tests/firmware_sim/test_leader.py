@@ -130,7 +130,7 @@ def test_the_hand_moves_a_free_leader_and_let_go_leaves_it_to_friction(joints, t
     assert sim.leader.operator is None
 
 
-def test_a_slow_let_go_lowers_the_hands_bound_linearly_to_zero():
+def test_a_slow_let_go_lowers_the_bound_and_two_and_three_servo_files_become_the_leader(tmp_path):
     hand = Operator([[0.0, 90.0, 0.0]], let_go_s=1.0, release_s=0.1, max_torque_nm=0.3)
     # far from its target the hand pushes with its whole bound, which falls over 100 ms
     assert hand.torque(0.99, 0, 0.0, 0.0) == pytest.approx(0.3)
@@ -140,9 +140,6 @@ def test_a_slow_let_go_lowers_the_hands_bound_linearly_to_zero():
     assert Operator([[0.0, 90.0, 0.0]], let_go_s=1.0).torque(1.0, 0, 0.0, 0.0) == 0.0
     with pytest.raises(ValueError, match="release_s"):
         Operator([[0.0, 0.0, 0.0]], release_s=-1.0)
-
-
-def test_two_and_three_servo_files_become_the_leader_option_and_bad_ones_are_named(tmp_path):
     data = {"model": "xl330-m077", "start_deg": [5, 0], "script": [[0, 5, 0], [1, 30, 0]]}
     spec = leader_spec({**data, "let_go_s": 2}, (3, 4), log=str(tmp_path / "log.jsonl"))
     assert spec == {

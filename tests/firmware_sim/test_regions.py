@@ -54,20 +54,7 @@ def test_boundary_point_and_fraction_are_inverse(region):
             assert depth <= 1.5 + 1e-9
 
 
-def test_cone_contains_by_angle_from_plus_x():
-    cone = ConeRegion(30.0)
-    rng = np.random.default_rng(0)
-    pan, tilt = rng.uniform(-60, 60, 500), rng.uniform(-60, 60, 500)
-    d = np.stack([np.cos(np.radians(tilt)) * np.cos(np.radians(pan)),
-                  np.cos(np.radians(tilt)) * np.sin(np.radians(pan)),
-                  np.sin(np.radians(tilt))], axis=1)  # fmt: skip
-    angle = np.degrees(np.arccos(np.clip(d[:, 0], -1, 1)))
-    assert cone.contains_many(pan, tilt).tolist() == (angle <= 30.0).tolist()
-    assert cone.edge_distance_deg(pan, tilt) == pytest.approx(30.0 - angle)
-    assert cone.perimeter_deg == pytest.approx(360.0 * math.sin(math.radians(30.0)))
-
-
-def test_shapes_from_mappings_a_notch_a_grid_and_deepening_round_a_reflex_corner():
+def test_shapes_a_cone_by_angle_a_notch_a_grid_and_deepening_round_a_reflex_corner():
     assert region_from_mapping({"cone": {"half_angle_deg": 45}}).half_angle_deg == 45.0
     assert region_from_mapping({"polygon": SQUARE}).kind == "polygon"
     with pytest.raises(ValueError, match="source.yaml: unknown key"):
@@ -96,3 +83,13 @@ def test_shapes_from_mappings_a_notch_a_grid_and_deepening_round_a_reflex_corner
     # by the reflex corner (10, 10): moved away from the corner itself, onto the 1 deg arc
     assert np.hypot(*(deep[3] - [10.0, 10.0])) == pytest.approx(1.0, abs=DEEPEN_TOLERANCE_DEG)
     assert np.all(points[1] == [15.0, 9.5])  # the input is not changed
+    cone = ConeRegion(30.0)
+    rng = np.random.default_rng(0)
+    pan, tilt = rng.uniform(-60, 60, 500), rng.uniform(-60, 60, 500)
+    d = np.stack([np.cos(np.radians(tilt)) * np.cos(np.radians(pan)),
+                  np.cos(np.radians(tilt)) * np.sin(np.radians(pan)),
+                  np.sin(np.radians(tilt))], axis=1)  # fmt: skip
+    angle = np.degrees(np.arccos(np.clip(d[:, 0], -1, 1)))
+    assert cone.contains_many(pan, tilt).tolist() == (angle <= 30.0).tolist()
+    assert cone.edge_distance_deg(pan, tilt) == pytest.approx(30.0 - angle)
+    assert cone.perimeter_deg == pytest.approx(360.0 * math.sin(math.radians(30.0)))

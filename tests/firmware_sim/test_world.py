@@ -105,7 +105,7 @@ def test_end_stop_holds_and_load_rises_past_100(joint, beyond_deg):
     assert np.sign(load) == np.sign(drive[joint.servo_id] - world.raw_tick(joint.servo_id))
 
 
-def test_blocked_load_grows_with_the_blocked_error():
+def test_blocked_load_grows_with_the_blocked_error_a_push_loads_a_held_joint_a_stop_carries_it():
     loads = []
     for past_stop_deg in (0.5, 1.0, 1.5, 3.0, 6.0):
         world = World()
@@ -116,9 +116,6 @@ def test_blocked_load_grows_with_the_blocked_error():
     assert loads[:4] == pytest.approx(expected, rel=0.01)
     assert loads[3] > 100.0  # blocked by a few degrees overloads
     assert loads[4] == pytest.approx(LOAD_LIMIT_PCT)
-
-
-def test_a_push_loads_a_held_joint_the_hand_cannot_move_and_a_stop_carries_it():
     world = World(hand=Hand.from_yaml(REGIONS / "cone30.yaml", seed=2))
     drive = {1: tick_at(PAN, 10.0), 2: tick_at(TILT, 5.0)}
     run(world, 1.0, drive)
@@ -223,7 +220,7 @@ def test_bad_calls_raise_clear_errors(call, message):
         call(World())
 
 
-def test_the_roll_joint_tracks_like_the_others():
+def test_the_roll_joint_tracks_like_the_others_and_the_chain_quat_is_the_product():
     three = World(joints=(PAN, TILT, ROLL_JOINT), seed=2)
     two = World(seed=2)
     drive = {1: tick_at(PAN, 20.0), 2: tick_at(TILT, 10.0), 3: tick_at(ROLL_JOINT, 130.0)}
@@ -237,16 +234,6 @@ def test_the_roll_joint_tracks_like_the_others():
     assert angles["tilt"] == two.joint_angles_deg()["tilt"]
     q = three.orientation_for_ticks({})
     assert np.allclose(q, chain_quat(*(math.radians(angles[k]) for k in ("pan", "tilt", "roll"))))
-
-
-@pytest.mark.parametrize(("pan", "tilt", "tau"), [(30, 30, 8.2), (60, 45, 26.9), (90, 60, 60.0)])
-def test_chain_twist_figures(pan, tilt, tau):
-    assert math.degrees(chain_twist(math.radians(pan), math.radians(tilt))) == pytest.approx(
-        tau, abs=0.05
-    )
-
-
-def test_chain_quat_is_the_product_its_twist_roll_plus_chain_twist_and_wrap_deg():
     rng = np.random.default_rng(3)
     for pan, tilt, roll in rng.uniform([-3, -1.5, -3], [3, 1.5, 3], size=(200, 3)):
         assert np.allclose(
@@ -262,3 +249,10 @@ def test_chain_quat_is_the_product_its_twist_roll_plus_chain_twist_and_wrap_deg(
     assert wrap_deg(-180.0) == 180.0
     assert wrap_deg(190.0) == pytest.approx(-170.0)
     assert wrap_deg(-540.0) == 180.0
+
+
+@pytest.mark.parametrize(("pan", "tilt", "tau"), [(30, 30, 8.2), (60, 45, 26.9), (90, 60, 60.0)])
+def test_chain_twist_figures(pan, tilt, tau):
+    assert math.degrees(chain_twist(math.radians(pan), math.radians(tilt))) == pytest.approx(
+        tau, abs=0.05
+    )

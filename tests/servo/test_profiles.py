@@ -16,7 +16,9 @@ def trained(profile=PROFILE, **changes):
     return {"rig": profile.name, "calibration": profile.calibration.to_dict(), **changes}
 
 
-def test_a_profile_built_in_code_meets_the_end_stop_and_driver_baud_checks(tmp_path):
+def test_a_profile_meets_the_end_stop_and_baud_checks_and_models_of_another_rig_are_refused(
+    tmp_path,
+):
     beyond = replace(PROFILE.with_joints(tilt=replace(PROFILE.tilt, max_deg=80.0)), source=None)
     with pytest.raises(ConfigError, match=r"^<profile>: tilt.max_deg 80 is not 1 deg inside"):
         check_profile(beyond)
@@ -33,9 +35,6 @@ def test_a_profile_built_in_code_meets_the_end_stop_and_driver_baud_checks(tmp_p
             "(dynamixel-sdk) cannot open it; choose one of 9600, 57600, 115200, 1000000, "
             "2000000, 3000000, 4000000"
         )
-
-
-def test_a_model_of_another_rig_calibration_or_none_recorded_is_refused_naming_it():
     with pytest.raises(ConfigError, match="model.npz was trained for rig 'bench-2', not 'sim'"):
         check_trained_for(trained(rig="bench-2"), PROFILE, "model.npz")
     with pytest.raises(ConfigError) as err:
