@@ -199,43 +199,32 @@ def cycle(index: int, t: float, written: bool, pan: float = 0.1) -> Cycle:
     )
 
 
-def test_teleop_feed_keeps_the_last_written_pose_and_measures_the_rate():
-    board = Board()
-    feed = TeleopFeed(board)
-    feed(cycle(0, 0.0, written=True, pan=0.1))
-    for index in range(1, 201):
-        feed(cycle(index, index / 200.0, written=False, pan=0.3))
-    status = board.live.teleop
-    assert status.written.pan_deg == pytest.approx(np.degrees(0.1))
-    assert status.commanded.pan_deg == 10.0
-    assert status.rate_hz == pytest.approx(200.0)
-    assert status.cycles == 200 and status.outcome == "passed"
-    assert status.words == "inside: following the command" and status.blocked == ()
-
-
-def test_teleop_feed_names_the_edge_that_holds_as_the_page_draws_it():
-    board = Board()
-    feed = TeleopFeed(board)
-    # the command lies up and to the +pan side of where the gate keeps writing the same pose
-    result = GateResult((0.1, 0.2), Outcome.CORRECTED, corrected=True)
-    for index in range(3):
-        at_edge = replace(cycle(index, index / 200.0, written=True), result=result)
-        feed(replace(at_edge, command_deg=(20.0, 40.0), present=(0.1, 0.2)))
-    status = board.live.teleop
-    assert status.blocked == ("+pan", "+tilt")
-    # the page's plane is seen from behind the limb, as the terminal names it: +pan is left
-    assert status.words == "at the edge: left and up are blocked, holding there"
-
-
-def test_teleop_feed_says_how_hard_a_felt_leader_pushes_back():
+def test_teleop_feed_keeps_the_last_written_pose_names_the_edge_and_the_leaders_push():
     board = Board()
     feed = TeleopFeed(board)
     pushes = iter([0.0, 0.31])
-    feed.push_nm = lambda: next(pushes)
+    feed.push_nm = lambda: next(pushes, 0.0)
     feed(cycle(0, 0.0, written=True, pan=0.1))
-    assert board.live.note == "the leader is free"
-    feed(cycle(1, 0.005, written=True, pan=0.1))
-    assert board.live.note == "the leader pushes back with 0.31 N m"
+    assert board.live.note == "the leader is free", "a free leader not said"
+    feed(cycle(1, 0.005, written=False, pan=0.3))
+    assert board.live.note == "the leader pushes back with 0.31 N m", "the push not said"
+    for index in range(2, 201):
+        feed(cycle(index, index / 200.0, written=False, pan=0.3))
+    status = board.live.teleop
+    assert status.written.pan_deg == pytest.approx(np.degrees(0.1)), "not the last written pose"
+    assert status.commanded.pan_deg == 10.0
+    assert status.rate_hz == pytest.approx(200.0), "the rate over a second of cycles"
+    assert status.cycles == 200 and status.outcome == "passed"
+    assert status.words == "inside: following the command" and status.blocked == ()
+    # the command lies up and to the +pan side of where the gate keeps writing the same pose
+    result = GateResult((0.1, 0.2), Outcome.CORRECTED, corrected=True)
+    for index in range(201, 204):
+        at_edge = replace(cycle(index, index / 200.0, written=True), result=result)
+        feed(replace(at_edge, command_deg=(20.0, 40.0), present=(0.1, 0.2)))
+    status = board.live.teleop
+    assert status.blocked == ("+pan", "+tilt"), "the edge that holds not named"
+    # the page's plane is seen from behind the limb, as the terminal names it: +pan is left
+    assert status.words == "at the edge: left and up are blocked, holding there"
 
 
 def test_guide_figures_say_what_the_guidance_says():
