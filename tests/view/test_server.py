@@ -35,8 +35,9 @@ def receive(client: websocket.WebSocket, timeout: float = WAIT_S) -> dict:
     return json.loads(client.recv())
 
 
-def test_serves_the_page_and_its_assets_and_refuses_others():
-    with ViewServer(Board(), port=0) as server:
+def test_serves_the_page_its_assets_and_the_newest_state_and_refuses_others():
+    board = Board()
+    with ViewServer(board, port=0) as server:
         page = urllib.request.urlopen(server.url, timeout=WAIT_S).read().decode()
         assert "<canvas" in page and "view.js" in page
         script = urllib.request.urlopen(server.url + "view.js", timeout=WAIT_S).read().decode()
@@ -45,6 +46,10 @@ def test_serves_the_page_and_its_assets_and_refuses_others():
         with pytest.raises(urllib.error.HTTPError) as refused:
             urllib.request.urlopen(server.url + "secrets.txt", timeout=WAIT_S)
         assert refused.value.code == 404
+        assert json.loads(urllib.request.urlopen(server.url + "state.json").read()) == {}
+        board.publish_live(Live(mode="demo: teach", sample_count=42))
+        state = json.loads(urllib.request.urlopen(server.url + "state.json").read())
+        assert state["live"]["sample_count"] == 42 and "scene" not in state, "not the newest state"
 
 
 def test_pushes_scene_then_live_and_only_newer_versions():
@@ -156,12 +161,3 @@ def test_stop_closes_connected_browsers_and_frees_the_port():
         probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         probe.bind(("127.0.0.1", port))
         probe.listen()
-
-
-def test_state_json_is_the_newest_snapshot():
-    board = Board()
-    with ViewServer(board, port=0) as server:
-        assert json.loads(urllib.request.urlopen(server.url + "state.json").read()) == {}
-        board.publish_live(Live(mode="demo: teach", sample_count=42))
-        state = json.loads(urllib.request.urlopen(server.url + "state.json").read())
-        assert state["live"]["sample_count"] == 42 and "scene" not in state
