@@ -52,7 +52,7 @@ def test_teach_train_teleop_keeps_every_goal_in_the_taught_region(tmp_path):
     assert np.degrees(np.abs(commanded[:, 0])).max() > 100  # the commands did leave the region
 
 
-def test_command_stream_has_bad_lines_and_leaves_the_region(tmp_path):
+def test_command_stream_has_bad_lines_and_the_demo_refuses_what_it_cannot_run(tmp_path):
     path = tmp_path / "c.jsonl"
     n = write_command_stream(path, seconds=4.0, rate_hz=50.0)
     lines = path.read_text().splitlines()
@@ -60,13 +60,13 @@ def test_command_stream_has_bad_lines_and_leaves_the_region(tmp_path):
     pans = [json.loads(x)["pan"] for x in lines if x.startswith('{"t"')]
     assert max(pans) > 100 and min(pans) < -100
     assert math.isclose(len(lines) - n, 4)
-
-
-def test_demo_refuses_to_overwrite_an_earlier_run(tmp_path):
+    # the demo refuses to overwrite an earlier run, or an unknown rig
     (tmp_path / "teach.limb").write_text("old data")
     with pytest.raises(ConfigError, match="exists"):
         run_demo(tmp_path, teach_seconds=5.0)
     assert (tmp_path / "teach.limb").read_text() == "old data"
+    with pytest.raises(ConfigError, match="choose one of sim, sim3"):
+        run_demo(tmp_path / "x", rig="sim4")
 
 
 def test_the_teleop_picture_outlines_the_hands_true_region():
@@ -157,8 +157,3 @@ def test_the_leader_picture_draws_the_twist_of_a_three_servo_leader(tmp_path):
     from PIL import Image
 
     assert Image.open(tmp_path / "l3.png").size[1] > Image.open(tmp_path / "l2.png").size[1]
-
-
-def test_the_demo_refuses_an_unknown_rig(tmp_path):
-    with pytest.raises(ConfigError, match="choose one of sim, sim3"):
-        run_demo(tmp_path / "x", rig="sim4")

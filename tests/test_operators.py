@@ -24,7 +24,7 @@ from tests.conftest import trained_for
 EDGE = 30.0
 
 
-def test_the_packaged_operators_load_for_their_leaders():
+def test_the_packaged_operators_and_an_operator_file_load_with_their_grips(tmp_path):
     push, push3 = load_operator("push", 2), load_operator("push3", 3)
     assert (push.joints, push3.joints) == (2, 3)
     assert push.model == push3.model == "xm430-w350"
@@ -32,9 +32,7 @@ def test_the_packaged_operators_load_for_their_leaders():
     assert push.leader_spec((3, 4)) == {"ids": [3, 4], "model": "xm430-w350", "start_deg": [0, 10]}
     assert "(100, 10) deg by 3.5 s and lets go at 6.0 s" in push.describe()
     assert set(OPERATORS) == {"push", "push3"}
-
-
-def test_an_operator_file_is_read_with_its_grip(tmp_path):
+    # an operator file is read with its grip
     path = tmp_path / "hand.yaml"
     path.write_text(
         "model: xl330-m288\nstart_deg: [5, 0]\nscript: [[0, 5, 0], [2, 60, 0]]\n"
@@ -89,8 +87,8 @@ def cone_model(cone_file):
     return cone_file(EDGE)
 
 
-def test_operator_is_refused_before_anything_opens_without_a_leader_or_on_real_servos(
-    cone_model, tmp_path
+def test_an_operator_or_a_leader_that_cannot_run_is_refused_before_anything_opens(
+    cone_model, tmp_path, capsys
 ):
     stdin = TeleopOptions(model=cone_model, source="stdin", operator="push")
     with pytest.raises(ConfigError, match="use it with --source leader:ID,ID"):
@@ -111,11 +109,7 @@ def test_operator_is_refused_before_anything_opens_without_a_leader_or_on_real_s
     on_rig = replace(real, connection=Connection(rig=profile))
     with pytest.raises(ConfigError, match="with --port, move the leader by hand"):
         run_teleop(on_rig)
-
-
-def test_a_leader_naming_the_rigs_servos_is_refused_before_anything_opens(cone_model, capsys):
-    # the embedded simulator used to refuse the repeated ids with a traceback; now it is said
-    # in one line before any port opens, a real one too
+    # a leader naming the rig's servos: one line before any port opens (it was a traceback)
     argv = ["teleop", "--model", str(cone_model), "--no-view", "--quiet"]
     assert main([*argv, "--source", "leader:2,3", "--operator", "push"]) == 2
     err = capsys.readouterr().err
@@ -130,11 +124,8 @@ def test_a_leader_naming_the_rigs_servos_is_refused_before_anything_opens(cone_m
     real = Connection(port="/dev/nonexistent-limbctl-port")
     with pytest.raises(ConfigError, match="names the rig's servos 1, 2"):
         run_teleop(TeleopOptions(model=cone_model, source="leader:1,2", connection=real))
-
-
-def test_the_cli_refuses_an_unknown_operator_in_one_line(cone_model, capsys):
-    argv = ["teleop", "--model", str(cone_model), "--source", "leader:3,4", "--operator", "shove"]
-    assert main([*argv, "--no-view", "--quiet"]) == 2
+    # an unknown operator, in one line
+    assert main([*argv, "--source", "leader:3,4", "--operator", "shove"]) == 2
     err = capsys.readouterr().err
     assert "limbctl teleop: error: unknown operator 'shove'; known: push, push3" in err
 

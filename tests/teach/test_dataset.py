@@ -36,7 +36,7 @@ def record(path, n=20, rig="sim", meta=None):
     return pan, tilt
 
 
-def test_round_trip_is_exact(tmp_path):
+def test_round_trip_is_exact_and_records_are_visible_before_close(tmp_path):
     path = tmp_path / "a.limb"
     pan, tilt = record(path, meta={"rate_hz": 100})
     data = load_dataset(path)
@@ -48,6 +48,15 @@ def test_round_trip_is_exact(tmp_path):
     np.testing.assert_allclose(data.tilt, tilt, rtol=0, atol=1e-15)
     assert data.quaternions.shape == (20, 4)
     np.testing.assert_array_equal(data.quaternions, gimbal.pan_tilt_to_quat(pan, tilt))
+    # records are visible to a second reader before close: they reached the OS
+    live = DatasetWriter(tmp_path / "live.limb", rig="sim", min_free_bytes=SMALL).open()
+    for i in range(5):
+        live.append(0.01 * i, 0.0, 0.0)
+    assert len(load_dataset(tmp_path / "live.limb")) == 5, "records not visible before close"
+    live.close()
+    live.close()  # a second close is harmless; an append after it is refused
+    with pytest.raises(RuntimeError, match="not open"):
+        live.append(0.0, 0.0, 0.0)
 
 
 def test_explicit_quaternion_is_stored_and_validated(tmp_path):
@@ -63,22 +72,6 @@ def test_explicit_quaternion_is_stored_and_validated(tmp_path):
     assert len(data) == 1
     # stored canonical (w >= 0; here w == 0 so the sign is kept) and exact
     np.testing.assert_array_equal(data.quaternions[0], q)
-
-
-def test_records_are_visible_before_close(tmp_path):
-    path = tmp_path / "live.limb"
-    with DatasetWriter(path, rig="sim", min_free_bytes=SMALL) as out:
-        for i in range(5):
-            out.append(0.01 * i, 0.0, 0.0)
-        assert len(load_dataset(path)) == 5  # a second reader sees them: they reached the OS
-
-
-def test_close_twice_and_append_after_close(tmp_path):
-    out = DatasetWriter(tmp_path / "c.limb", rig="sim", min_free_bytes=SMALL).open()
-    out.close()
-    out.close()
-    with pytest.raises(RuntimeError, match="not open"):
-        out.append(0.0, 0.0, 0.0)
 
 
 def test_torn_last_line_is_dropped_and_reported(tmp_path):
@@ -145,48 +138,31 @@ def header_line(**changes):
     return _seal(json.dumps(header), 0)[0]
 
 
-@pytest.mark.parametrize(
-    ("header", "problem"),
-    [
-        ({"version": 2}, "line 1: dataset format version 2.*reads version 1"),
-        ({"columns": ["t", "q"]}, "line 1: columns"),
-    ],
-)
-def test_a_header_of_another_version_or_columns_is_refused(tmp_path, header, problem):
-    path = tmp_path / "header.limb"
-    path.write_bytes(header_line(**header))
-    with pytest.raises(FileFormatError, match=problem):
-        load_dataset(path)
-
-
-@pytest.mark.parametrize(
-    "content",
-    [b"t,pan,tilt\n0,1,2\n", b'{"format": "other"}|00000000\n', b"\x89PNG\r\n\x1a\n\x00\x00"],
-)
-def test_foreign_files_are_refused(tmp_path, content):
-    path = tmp_path / "foreign.limb"
-    path.write_bytes(content)
-    with pytest.raises(FileFormatError, match="not a limbctl orientation dataset"):
-        load_dataset(path)
-
-
-def test_empty_or_header_torn_file(tmp_path):
-    path = tmp_path / "empty.limb"
-    path.write_bytes(b"")
-    with pytest.raises(FileFormatError, match="no complete header"):
-        load_dataset(path)
-    path.write_bytes(header_line()[:20])
-    with pytest.raises(FileFormatError, match="no complete header"):
-        load_dataset(path)
-
-
-def test_non_unit_quaternion_with_valid_checksum_is_refused(tmp_path):
-    path = tmp_path / "unit.limb"
+def non_unit_quaternion_file() -> bytes:
+    """A header and one record of a non-unit quaternion, its checksum valid."""
     head = header_line()
     crc = int(head.rstrip(b"\n").split(b"|")[1], 16)
-    line, _ = _seal("0.0,1.0,2.0,1.0,1.0,0.0,0.0", crc)
-    path.write_bytes(head + line)
-    with pytest.raises(FileFormatError, match="line 2: quaternion is not unit length"):
+    return head + _seal("0.0,1.0,2.0,1.0,1.0,0.0,0.0", crc)[0]
+
+
+@pytest.mark.parametrize(
+    ("content", "problem"),
+    [
+        (header_line(version=2), "line 1: dataset format version 2.*reads version 1"),
+        (header_line(columns=["t", "q"]), "line 1: columns"),
+        (b"t,pan,tilt\n0,1,2\n", "not a limbctl orientation dataset"),
+        (b'{"format": "other"}|00000000\n', "not a limbctl orientation dataset"),
+        (b"\x89PNG\r\n\x1a\n\x00\x00", "not a limbctl orientation dataset"),
+        (b"", "no complete header"),
+        (header_line()[:20], "no complete header"),
+        (non_unit_quaternion_file(), "line 2: quaternion is not unit length"),
+    ],
+    ids=["version", "columns", "csv", "other-format", "png", "empty", "torn-header", "non-unit"],
+)
+def test_another_version_a_foreign_torn_or_non_unit_file_is_refused(tmp_path, content, problem):
+    path = tmp_path / "refused.limb"
+    path.write_bytes(content)
+    with pytest.raises(FileFormatError, match=problem):
         load_dataset(path)
 
 

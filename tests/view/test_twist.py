@@ -45,7 +45,8 @@ def shoulder_model():
     return region, RigidMap(twist=True).fit(taught)
 
 
-def test_two_servo_json_has_no_twist_keys():
+def test_twist_values_json_maps_and_the_taught_gauge():
+    # two servos: no twist keys
     live = Live("record", PanTilt(1.0, 2.0), 3).to_json()
     scene = Scene().to_json()
     assert "twist" not in live and "twist" not in scene
@@ -58,9 +59,7 @@ def test_two_servo_json_has_no_twist_keys():
         "of": "taught here",
         "written": None,
     }
-
-
-def test_a_twist_map_finds_the_cell_of_a_pose_and_refuses_unknown_states():
+    # a twist map finds the cell of a pose and refuses unknown states
     cells = np.array([[0, 0, -30.0, 40.0], [-1, 2, 5.0, 8.0]])
     shown = TwistMap(15.0, cells, ("turned", "short"), "taught")
     assert shown.at(7.0, 14.9) == (-30.0, 40.0, "turned")
@@ -71,9 +70,7 @@ def test_a_twist_map_finds_the_cell_of_a_pose_and_refuses_unknown_states():
         TwistMap(15.0, cells, ("turned", "maybe"), "taught")
     with pytest.raises(ValueError, match="2 cells but 1 states"):
         TwistMap(15.0, cells, ("turned",), "taught")
-
-
-def test_the_taught_map_says_which_places_lack_a_stop():
+    # the taught map says which places lack a stop
     places = (
         TwistPlace(0, 0, -40.0, 40.0, 100, True),
         TwistPlace(1, 0, -2.0, 3.0, 100, False),
@@ -88,6 +85,16 @@ def test_the_taught_map_says_which_places_lack_a_stop():
     # the chain's twist is roll + 2 atan(tan(pan/2) tan(tilt/2))
     assert gauge.twist_deg == pytest.approx(10.0 + math.degrees(chain_twist(pan, tilt)))
     assert taught_gauge(None, pan, tilt, roll).low_deg is None
+
+
+class StillLimb:
+    """A three-servo limb held still by a hand at one pose (rad)."""
+
+    def __init__(self, pose: tuple[float, float, float]) -> None:
+        self.pose = pose
+
+    def read_pose(self) -> tuple[float, float, float]:
+        return self.pose
 
 
 def test_the_band_gauge_and_map_agree_with_the_region(shoulder_model):
@@ -122,7 +129,7 @@ def test_the_band_gauge_and_map_agree_with_the_region(shoulder_model):
     assert model_band_map(RigidMap(), (-1.0, 1.0), (-1.0, 1.0)) is None
 
 
-def test_the_teleop_feed_shows_the_twist_of_a_three_servo_rig(shoulder_model):
+def test_the_teleop_feed_and_the_pose_tap_show_the_twist(shoulder_model):
     _, model = shoulder_model
     board = Board()
     feed = TeleopFeed(board)
@@ -150,19 +157,7 @@ def test_the_teleop_feed_shows_the_twist_of_a_three_servo_rig(shoulder_model):
     two = TeleopFeed(plain)
     two(Cycle(index=0, t=0.0, state=CycleState.RUNNING, present=(0.1, 0.2)))
     assert plain.live.twist is None and "twist" not in plain.live.to_json()
-
-
-class StillLimb:
-    """A three-servo limb held still by a hand at one pose (rad)."""
-
-    def __init__(self, pose: tuple[float, float, float]) -> None:
-        self.pose = pose
-
-    def read_pose(self) -> tuple[float, float, float]:
-        return self.pose
-
-
-def test_the_pose_tap_shows_a_new_taught_range_at_once_with_the_last_pose():
+    # the pose tap shows a new taught range at once, with the last pose
     board = Board()
     pose = (math.radians(20.0), math.radians(5.0), math.radians(10.0))
     tap = PoseTap(StillLimb(pose), board, "record")
