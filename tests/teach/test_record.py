@@ -125,13 +125,10 @@ def test_without_a_terminal_the_progress_is_logged_every_few_seconds(tmp_path):
     assert all("edge closed" in line for line in lines[1:])
 
 
-def test_slow_rates_are_refused(tmp_path):
+def test_a_slow_rate_is_refused_before_a_file_or_a_port_is_opened(tmp_path, sim):
     with DatasetWriter(tmp_path / "x.limb", rig="sim") as writer:
         with pytest.raises(ConfigError, match="100 Hz"):
             record(None, writer, rate_hz=50.0)
-
-
-def test_a_slow_rate_is_refused_before_a_file_or_a_port_is_opened(tmp_path, sim):
     out = tmp_path / "slow.limb"
     with ServoBus(sim.port, 4_000_000, (1, 2)) as bus:
         bus.set_torque(True)  # as a finished teleop leaves it

@@ -41,13 +41,11 @@ def test_every_place_turned_both_ways_and_one_left_untaught():
     assert found.short() == "twist 6/7 turned, least 6 deg at (+52, +38)"
 
 
-def test_cells_with_few_samples_are_not_judged():
+def test_cells_with_few_samples_are_not_judged_and_a_range_across_half_a_turn_is_one():
     guide = TwistGuide()
     taught(guide, 0, 0, np.zeros(MIN_CELL_SAMPLES - 1))
-    assert guide.assess().cells == 0
-
-
-def test_a_range_across_half_a_turn_stays_one_range():
+    assert guide.assess().cells == 0, "a cell with too few samples was judged"
+    # a range across half a turn stays one range
     guide = TwistGuide()
     taught(guide, 1, 1, np.linspace(170.0, 200.0, MIN_CELL_SAMPLES))  # 170..180, -180..-160
     (place,) = guide.assess().places
