@@ -11,7 +11,6 @@ import os
 import signal
 import socket
 import threading
-import time
 from dataclasses import replace
 from decimal import ROUND_HALF_UP, Decimal
 from pathlib import Path
@@ -43,6 +42,7 @@ from limbctl.teleop.gate import GateResult, Outcome, written_tolerance_deg
 from limbctl.teleop.loop import LoopConfig, run
 from limbctl.teleop.sources import LeaderSource
 from limbctl.view import Board, ViewServer
+from tests.safety.support import wait_for as poll
 from tests.view.browser import (
     assert_pose_shown,
     browser_pids,
@@ -246,7 +246,7 @@ def test_guide_figures_say_what_the_guidance_says():
     assert advice == guidance.line()
 
 
-def test_view_options_and_ports():
+def test_view_options_and_ports_and_the_page_source_needs_the_view(hand_model_path):
     assert ViewOptions(enabled=False).wanted() is False
     with open_view(ViewOptions(enabled=False), lambda _: None) as off:
         assert not off.active and off.teleop_observer(None, None) is None
@@ -267,6 +267,10 @@ def test_view_options_and_ports():
             pass  # already taken by someone else: the same case
         with open_view(ViewOptions(enabled=True), lambda _: None) as live:
             assert live.active and not live.url.endswith(f":{DEFAULT_PORT}/")
+    # the page source refuses --no-view before anything opens
+    options = TeleopOptions(model=hand_model_path, source="page", view=ViewOptions(enabled=False))
+    with pytest.raises(ConfigError, match="drop --no-view"):
+        run_teleop(options)
 
 
 # -- a felt leader on the page ------------------------------------------------------------------
@@ -423,14 +427,6 @@ def goals_logged(path: Path) -> int:
     return len(path.read_text().splitlines()) if path.exists() else 0
 
 
-def wait_until(condition, message: str, timeout: float = 60.0) -> None:
-    """Wait for a condition of the files the session writes (the browser may be frozen)."""
-    deadline = time.monotonic() + timeout
-    while not condition():
-        assert time.monotonic() < deadline, message
-        time.sleep(0.05)
-
-
 def held_since(rows: list[dict], start: int) -> int:
     """How many of the last rows after ``start`` held without writing, in a row."""
     count = 0
@@ -482,13 +478,14 @@ def test_a_page_steers_along_the_edge_a_frozen_page_holds_a_killed_one_ends_well
                 )
                 wait_for(page, lambda d: "upper edge" in text_of(d, "holds"), "no holding edge")
                 seen["words"], seen["holds"] = text_of(page, "words"), text_of(page, "holds")
-                wait_until(
+                poll(
                     lambda: (
                         (rows := telemetry_rows(telemetry))
                         and rows[-1]["out"] is not None
                         and abs(rows[-1]["out"][0] - edge_pan) < 1.0
                         and abs(rows[-1]["out"][1] - edge_tilt) < 1.0
                     ),
+                    60.0,
                     "the limb did not reach the edge's nearest point",
                 )
                 seen["at_edge"] = telemetry_rows(telemetry)[-1]["out"]
@@ -500,14 +497,16 @@ def test_a_page_steers_along_the_edge_a_frozen_page_holds_a_killed_one_ends_well
                 frozen_at = len(telemetry_rows(telemetry))
                 for pid in pids:
                     os.kill(pid, signal.SIGSTOP)
-                wait_until(
+                poll(
                     lambda: held_since(telemetry_rows(telemetry), frozen_at) >= HELD_CYCLES,
+                    60.0,
                     "a frozen page did not hold the limb",
                 )
                 goals = goals_logged(goal_log)
                 held_rows = len(telemetry_rows(telemetry))
-                wait_until(
+                poll(
                     lambda: len(telemetry_rows(telemetry)) >= held_rows + HELD_CYCLES,
+                    60.0,
                     "the loop stopped",
                 )
                 seen["goals_while_frozen"] = goals_logged(goal_log) - goals
@@ -517,8 +516,9 @@ def test_a_page_steers_along_the_edge_a_frozen_page_holds_a_killed_one_ends_well
                 for pid in pids:
                     os.kill(pid, signal.SIGKILL)
                 killed_at = len(telemetry_rows(telemetry))
-                wait_until(
+                poll(
                     lambda: held_since(telemetry_rows(telemetry), killed_at) >= HELD_CYCLES,
+                    60.0,
                     "a killed page did not leave the limb held",
                 )
             finally:
@@ -547,9 +547,3 @@ def test_a_page_steers_along_the_edge_a_frozen_page_holds_a_killed_one_ends_well
     corrected = [row for row in rows if row["outcome"] == "corrected" and row["written"]]
     assert len(corrected) > 50  # the limb slid along the edge, written pose by pose
     assert seen["at_edge"] == pytest.approx([edge_pan, edge_tilt], abs=1.0)
-
-
-def test_the_page_source_refuses_no_view_before_anything_opens(hand_model_path):
-    options = TeleopOptions(model=hand_model_path, source="page", view=ViewOptions(enabled=False))
-    with pytest.raises(ConfigError, match="drop --no-view"):
-        run_teleop(options)
