@@ -1,6 +1,5 @@
-"""The whole flow on the simulator, as the README's main job runs it: teach with the scripted
-hand over an irregular region, train a Rigid Map, teleop a sweep that leaves the region, and
-judge by the simulator's own goal log against the region the hand really taught."""
+"""The README's main job on the simulator: teach an irregular region by hand, train, teleop a
+sweep out of it, judged by the simulator's goal log against the region really taught."""
 
 import json
 import math

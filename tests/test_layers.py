@@ -1,17 +1,6 @@
-"""The layers import only downward, with no loops, counting imports inside functions.
-
-Order, bottom to top (a module may import its own layer and any layer below)::
-
-    errors, calib                 (calib imports nothing of limbctl)
-    geometry, servo               (servo may use geometry)
-    region                        (the taught region)
-    envelope                      (the papers' networks; RigidMap delegates to region)
-    teach, teleop, view           (never each other)
-    eval                          (used only by the app)
-    app: cli, jobs, file_jobs, upkeep, demo, live, session, plot, __init__, __main__
-
-``firmware_sim`` imports nothing of the project.
-"""
+"""The layers import only downward, with no loops, counting imports inside functions: the
+ranks are :data:`RANK` (docs/architecture.md's table); ``firmware_sim`` imports nothing of the
+project."""
 
 from __future__ import annotations
 

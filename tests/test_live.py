@@ -1,7 +1,5 @@
-"""The jobs feed the live view, watched in Chromium: a record and a teleop; a felt leader's teleop
-(the simulator's leader pushed past the edge by its operator); steering from the page (a drag
-out of the region moves the limb along its edge, per the simulator's goal log; a frozen browser
-holds the limb; a killed one leaves it held and the session ends normally)."""
+"""The jobs feed the live view, watched in Chromium: a record, a teleop, a felt leader, and steering
+from the page (along the edge; a frozen browser holds the limb, a killed one ends well)."""
 
 from __future__ import annotations
 

@@ -156,9 +156,7 @@ def teleop_with_operator(capsys, hand, text: str, **options) -> tuple[str, re.Ma
 def test_a_simulated_operator_presses_a_felt_leader_past_the_edge_on_teleop(
     cone_model, tmp_path, capsys
 ):
-    """The real loop over the simulator's pty, the leader pressed 25 deg past a 30 deg cone for
-    2.5 s, then let go: the run reports the press, and the telemetry has the follower held at
-    the edge."""
+    """A leader pressed 25 deg past a 30 deg cone: the press said, the follower held at the edge."""
     telemetry = tmp_path / "run.jsonl"
     said, pressed = teleop_with_operator(
         capsys,
@@ -181,9 +179,7 @@ def test_a_simulated_operator_presses_a_felt_leader_past_the_edge_on_teleop(
 
 
 def test_a_three_servo_leader_pressed_past_the_twist_band_is_reported_on_teleop(tmp_path, capsys):
-    """The three-servo session opens its source only once the limb is held inside; the leader's
-    notice and its press are still said (they were not before the sources were introduced in
-    one place)."""
+    """A three-servo session, which opens its source late, still says the leader and its press."""
     model = tmp_path / "shoulder.npz"
     taught = ShoulderRegion().teaching(2500, 1200, 1200, np.random.default_rng(0))
     RigidMap(twist=True).fit(taught).save(model, metadata=trained_for("sim3"))

@@ -1,8 +1,5 @@
 """tests/system_tools.py: a test run installs the programs its browser and terminal tests drive,
-or says in one line what to install and those tests skip with it.
-
-The programs are hidden by giving a ``PATH`` without them (never by uninstalling them).
-"""
+or says in one line what to install and those tests skip (programs hidden by a bare ``PATH``)."""
 
 from __future__ import annotations
 

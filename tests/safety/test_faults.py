@@ -1,9 +1,6 @@
-"""Promise 2: faults never leave the rig in an unknown state (docs/safety.md, issue 13).
-
-Each fault of the simulator on the real loop: the loop recovers or ends in the configured safe
-state with a message the simulator's truth bears out, and every goal written was gated. Bounds
-are generous; ``benchmarks/bench_faults.py`` measures the real figures.
-"""
+"""Promise 2 (docs/safety.md, issue 13): each simulator fault on the real loop is recovered or
+ends in the configured safe state with a true message, and every goal written was gated
+(generous bounds; ``benchmarks/bench_faults.py`` measures the real figures)."""
 
 from __future__ import annotations
 

@@ -1,7 +1,5 @@
 """Promise 4: damaged, wrong-version or hand-edited model, dataset and rig files, and models for
-another rig, are refused naming the file and the problem (random damage by hypothesis; the CLI
-before it touches a servo). Line-level dataset cases: tests/teach/test_dataset.py.
-"""
+another rig, are refused naming the file and the problem (the CLI before it touches a servo)."""
 
 from __future__ import annotations
 

@@ -1,8 +1,5 @@
-"""Promise 3: recordings survive, through the real ``limbctl record`` in a subprocess.
-
-SIGINT/SIGTERM/SIGKILL, an unwritable path, a full disk and a lost servo: every sample on disk
-before still loads (the power-cut bound and preflight: tests/teach/test_dataset.py).
-"""
+"""Promise 3: recordings through the real ``limbctl record`` survive signals, an unwritable
+path, a full disk and a lost servo (power cut, preflight: tests/teach/test_dataset.py)."""
 
 from __future__ import annotations
 

@@ -228,9 +228,7 @@ def test_thirty_seconds_of_the_simulators_hand_teach_a_model_that_holds_the_regi
 def test_a_hole_in_the_recording_over_the_edge_trace_is_listed_and_asks_for_a_retrace(
     tmp_path, rig
 ):
-    """The pan servo drops off the bus for half a second while the hand traces the edge (as a
-    busy machine stalls the simulator, docs/decisions/twist.md): the summary lists the hole with
-    where the limb was, and the guide asks to re-trace the edge there instead of saying ready."""
+    """A servo lost while the edge is traced: the hole listed, a re-trace asked, not ready."""
     hand = demo_region_path()
     if rig == "sim3":
         hand = hand.with_name("demo_region3.yaml")

@@ -115,9 +115,7 @@ def test_the_recorders_line_withholds_ready_while_the_twist_is_not_complete():
 
 @pytest.mark.parametrize("warmed", [False, True])
 def test_the_support_check_while_recording_waits_for_the_warmed_kernels(monkeypatch, warmed):
-    """Before the warm-up has cached the three-servo training's kernels, a support check in the
-    recorder's process would compile them there (seconds holding the recorder's interpreter):
-    none starts; once they are cached, one starts in a thread."""
+    """No support check (it compiles in the recorder's process) until the kernels are cached."""
     from limbctl.geometry import jit
 
     asked = []

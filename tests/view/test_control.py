@@ -1,7 +1,5 @@
-"""Who may watch and who may steer: the key, the Origin, the Host, one controller, a flood; and,
-in headless Chromium against the real server, no motion without a fresh action: a tab that lost
-control comes back watching, a reload keeps control, the steering tab is named, the arrow keys
-step from the written pose (a frozen tab: the browser stopped with SIGSTOP)."""
+"""Who may watch and who may steer (the key, the Origin, the Host, one controller, a flood), and
+in headless Chromium no motion without a fresh action (a frozen tab: the browser under SIGSTOP)."""
 
 from __future__ import annotations
 

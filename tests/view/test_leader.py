@@ -1,6 +1,5 @@
-"""The leader on the page, in headless Chromium: its marker beside the follower's, its push as an
-arrow and a bar against the cap; a three-servo leader's twist beside its pose, a push in twist on
-its own twist gauge and no arrow on the pan/tilt plane; a page without a leader is as before."""
+"""The leader on the page, in headless Chromium: its marker, its push against the cap, a
+three-servo leader's twist on its own gauge; a page without a leader is as before."""
 
 from __future__ import annotations
 

@@ -1,6 +1,5 @@
-"""The twist values the page draws: cells over the swing plane and the gauge of the present pose;
-and a three-servo record and teleop watched in headless Chromium, the twist band over the swing
-plane and the twist gauge drawing what the feed says."""
+"""The twist the page draws: cells over the swing plane and the present pose's gauge, and a
+three-servo record and teleop watched in headless Chromium."""
 
 from __future__ import annotations
 
