@@ -8,11 +8,13 @@ import re
 import numpy as np
 import pytest
 import yaml
+from PIL import Image
 
 from firmware_sim.regions import PolygonRegion as SimPolygon
 from limbctl.demo import TRUE_OUTLINE_POINTS, run_demo, true_outline, write_command_stream
 from limbctl.envelope.synthetic import PolygonRegion
 from limbctl.errors import ConfigError
+from limbctl.plot import plot_leader
 from limbctl.session import demo_region_path
 from limbctl.teach.dataset import load_dataset
 
@@ -68,7 +70,7 @@ def test_command_stream_has_bad_lines_and_the_demo_refuses_what_it_cannot_run(tm
         run_demo(tmp_path / "x", rig="sim4")
 
 
-def test_the_teleop_picture_outlines_the_hands_true_region():
+def test_the_teleop_picture_outlines_the_true_region_and_the_leaders_shows_its_twist(tmp_path):
     outline = true_outline(demo_region_path())
     vertices = np.asarray(yaml.safe_load(demo_region_path().read_text())["region"]["polygon"])
     truth = SimPolygon(vertices.tolist())
@@ -77,6 +79,12 @@ def test_the_teleop_picture_outlines_the_hands_true_region():
     assert np.abs(truth.edge_distance_deg(outline[:, 0], outline[:, 1])).max() < 1e-9
     assert np.ptp(outline[:, 0]) == pytest.approx(np.ptp(vertices[:, 0]), abs=1.0)
     assert np.ptp(outline[:, 1]) == pytest.approx(np.ptp(vertices[:, 1]), abs=1.0)
+    # the leader picture draws the twist of a three-servo leader
+    t = np.linspace(0.0, 1.0, 50)
+    poses = np.column_stack([t * 90, t * 0 + 10, t * 60])
+    plot_leader(tmp_path / "l3.png", t, poses, np.minimum(poses, 37.0), 0.3 * t)
+    plot_leader(tmp_path / "l2.png", t, poses[:, :2], np.minimum(poses[:, :2], 79.0), 0.3 * t)
+    assert Image.open(tmp_path / "l3.png").size[1] > Image.open(tmp_path / "l2.png").size[1]
 
 
 def test_the_three_servo_demo_keeps_every_goal_in_the_learned_region(tmp_path, capsys):
@@ -144,15 +152,3 @@ def test_the_three_servo_leader_run_goes_past_the_true_edge_in_swing_then_in_twi
     assert region.contains(*twist[:2]) and twist[2] > band.limits_deg(*twist[:2])[1] + 15.0
     # held at the twist edge before the let go, which leaves time to walk back
     assert script[-1][0] < let_go_s < seconds - 1.0
-
-
-def test_the_leader_picture_draws_the_twist_of_a_three_servo_leader(tmp_path):
-    from limbctl.plot import plot_leader
-
-    t = np.linspace(0.0, 1.0, 50)
-    poses = np.column_stack([t * 90, t * 0 + 10, t * 60])
-    plot_leader(tmp_path / "l3.png", t, poses, np.minimum(poses, 37.0), 0.3 * t)
-    plot_leader(tmp_path / "l2.png", t, poses[:, :2], np.minimum(poses[:, :2], 79.0), 0.3 * t)
-    from PIL import Image
-
-    assert Image.open(tmp_path / "l3.png").size[1] > Image.open(tmp_path / "l2.png").size[1]
