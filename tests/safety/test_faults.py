@@ -122,30 +122,7 @@ def test_reply_faults_are_ridden_through(tmp_path, faults):
     assert_gated(log, gate, rig)
 
 
-# ---- a servo disappears ----------------------------------------------------------------------
-def test_servo_that_vanishes_briefly_is_ridden_through(tmp_path):
-    log = tmp_path / "goals.jsonl"
-    with live_rig(goal_log=log) as (sim, rig):
-        config = LoopConfig(rate_hz=RATE, duration_s=60.0, max_failed_cycles=50)
-        with sweeping(rig, config) as loop:
-            loop.cycles.wait_cycles(20)
-            sim.vanish(2, 0.3)
-            # wait until the loop has lost a cycle to it and read the pose again since
-            wait_for(
-                lambda: (
-                    any(r["present"] is None for r in loop.cycles.rows)
-                    and loop.cycles.rows[-1]["present"] is not None
-                ),
-                30.0,
-                "a lost cycle followed by a good one",
-            )
-        summary = loop.summary
-        rig.read_pose()
-    assert summary.ended_by == "stopped" and summary.exit_code == 0, summary.fault
-    assert summary.failed_cycles >= 1
-    assert_gated(log, loop.gate, rig)
-
-
+# ---- a servo disappears (a brief dropout: test_a_dropout_keeps_the_loop_cycling_...) ----------
 @pytest.mark.parametrize("safe_state", [SafeState.HOLD, SafeState.TORQUE_OFF])
 def test_servo_that_stays_away_ends_in_the_safe_state(tmp_path, safe_state):
     log = tmp_path / "goals.jsonl"
@@ -352,6 +329,7 @@ def test_a_dropout_keeps_the_loop_cycling_probes_the_servo_and_reports_its_lengt
         summary = loop.summary
         reads = list(rig.reads)
     assert summary.exit_code == 0 and summary.ended_by == "stopped", summary.fault
+    assert summary.failed_cycles >= 1, "the dropout cost no cycle: nothing was ridden through"
     # (on a loaded machine a late reply may name a servo for a moment too: this is the dropout
     # that began after the injection)
     dropout = next(d for d in summary.dropouts if d.servo_id == 2 and d.started_s > injected)
