@@ -61,16 +61,14 @@ def times(n: int, start_s: float = 0.0) -> np.ndarray:
     return start_s + np.arange(n) / RATE_HZ
 
 
-def test_a_full_trace_closes_the_edge_and_finds_the_centre():
+def test_a_full_trace_closes_the_edge_and_one_with_a_90_degree_gap_locates_the_gap():
     d = trace(0.0, 360.0)
     g = assess_directions(times(len(d)), d)
     assert g.edge_closed == 1.0 and g.edge_gaps == ()
     assert g.centre_deg == pytest.approx(CENTRE_DEG, abs=0.1)
     assert g.phase == "middle" and not g.ready  # the middle is still to be wandered
     assert g.spread_deg == pytest.approx(RADIUS_DEG, abs=0.5)
-
-
-def test_a_trace_with_a_90_degree_gap_is_three_quarters_closed_and_the_gap_is_located():
+    # a trace with a 90 degree gap is three quarters closed, and the gap is located
     d = trace(45.0, 315.0)  # the stretch from -45 to +45 deg azimuth is never traced
     g = assess_directions(times(len(d)), d)
     # 270 of 360 deg; the two bins the gap's ends fall in hold samples

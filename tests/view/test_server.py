@@ -52,7 +52,7 @@ def test_serves_the_page_its_assets_and_the_newest_state_and_refuses_others():
         assert state["live"]["sample_count"] == 42 and "scene" not in state, "not the newest state"
 
 
-def test_pushes_scene_then_live_and_only_newer_versions():
+def test_pushes_scene_then_live_only_newer_versions_and_stop_closes_and_frees_the_port():
     board = Board()
     board.publish_scene(Scene(samples_deg=[[1.0, 2.0]], region_note="n"))
     board.publish_live(Live(mode="record", pose=PanTilt(1.0, 2.0), sample_count=1))
@@ -80,6 +80,29 @@ def test_pushes_scene_then_live_and_only_newer_versions():
             counts.append(receive(client)["sample_count"])
         assert len(counts) < 100, "stale frames were queued instead of dropped"
         assert counts == sorted(counts)
+        # stop closes the connected browsers and frees the port
+        closed = threading.Event()
+
+        def read_until_closed():
+            try:
+                while True:
+                    receive(client)
+            except Exception:
+                closed.set()
+
+        reader = threading.Thread(target=read_until_closed)
+        reader.start()
+        server.stop()
+        assert closed.wait(WAIT_S), "the browser's connection stayed open after stop"
+        reader.join(WAIT_S)
+    assert not server.running
+    port = int(server.url.rstrip("/").rsplit(":", 1)[1])
+    with socket.socket() as probe:
+        # free again: nobody listens (closed connections may linger in TIME_WAIT, as for any
+        # server, hence SO_REUSEADDR, which a listener still there would make bind refuse)
+        probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        probe.bind(("127.0.0.1", port))
+        probe.listen()
 
 
 def test_a_stalled_browser_does_not_slow_the_producer_nor_the_others():
@@ -131,33 +154,3 @@ def test_a_stalled_browser_does_not_slow_the_producer_nor_the_others():
         mean = sum(durations) / len(durations)
         assert mean < 1e-3, f"a publish took {mean * 1e6:.0f} us on average"
         assert scenes_seen >= 10, f"the healthy browser got only {scenes_seen} scenes in 2 s"
-
-
-def test_stop_closes_connected_browsers_and_frees_the_port():
-    board = Board()
-    board.publish_live(Live(mode="teleop"))
-    server = ViewServer(board, port=0)
-    with server, contextlib.closing(connect(server)) as client:
-        receive(client)
-        closed = threading.Event()
-
-        def read_until_closed():
-            try:
-                while True:
-                    receive(client)
-            except Exception:
-                closed.set()
-
-        reader = threading.Thread(target=read_until_closed)
-        reader.start()
-        server.stop()
-        assert closed.wait(WAIT_S), "the browser's connection stayed open after stop"
-        reader.join(WAIT_S)
-    assert not server.running
-    port = int(server.url.rstrip("/").rsplit(":", 1)[1])
-    with socket.socket() as probe:
-        # free again: nobody listens (closed connections may linger in TIME_WAIT, as for any
-        # server, hence SO_REUSEADDR, which a listener still there would make bind refuse)
-        probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        probe.bind(("127.0.0.1", port))
-        probe.listen()

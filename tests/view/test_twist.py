@@ -96,7 +96,7 @@ class StillLimb:
         return self.pose
 
 
-def test_the_band_gauge_and_map_agree_with_the_region(shoulder_model):
+def test_the_band_gauge_map_feed_and_pose_tap_agree_with_the_region(shoulder_model):
     region, model = shoulder_model
     band = model.region.band
     rng = np.random.default_rng(1)
@@ -126,10 +126,7 @@ def test_the_band_gauge_and_map_agree_with_the_region(shoulder_model):
     # the shoulder's band narrows as the limb rises (75 deg half-width low, 25 high)
     assert np.corrcoef(tilt, widths)[0, 1] < -0.8
     assert model_band_map(RigidMap(), (-1.0, 1.0), (-1.0, 1.0)) is None
-
-
-def test_the_teleop_feed_and_the_pose_tap_show_the_twist(shoulder_model):
-    _, model = shoulder_model
+    # the teleop feed and the pose tap show the twist
     board = Board()
     feed = TeleopFeed(board)
     feed.band = model.region.band
