@@ -169,7 +169,7 @@ def non_unit_quaternion_file() -> bytes:
         ),
         (header_line(calibration="x" * 100_000), "line 1: calibration must be a mapping"),
     ],
-    ids="version columns csv other png empty torn-header non-unit no-tilt zero-tick not-a-map".split(),
+    ids="version columns csv other png empty torn non-unit no-tilt zero-tick not-a-map".split(),
 )
 def test_another_version_a_foreign_torn_or_non_unit_file_or_a_bad_calibration_is_refused(
     tmp_path, content, problem
