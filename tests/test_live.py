@@ -243,9 +243,7 @@ def test_teleop_feed_keeps_the_last_written_pose_names_the_edge_and_the_leaders_
     assert status.blocked == ("+pan", "+tilt"), "the edge that holds not named"
     # the page's plane is seen from behind the limb, as the terminal names it: +pan is left
     assert status.words == "at the edge: left and up are blocked, holding there"
-
-
-def test_guide_figures_say_what_the_guidance_says():
+    # the guide's figures say what the guidance says
     guidance = Guidance(
         samples=500,
         phase="edge",

@@ -42,6 +42,13 @@ def test_the_packaged_operators_and_an_operator_file_load_with_their_grips(tmp_p
     assert operator.model == "xl330-m288" and operator.start_deg == (5.0, 0.0)
     assert operator.grip == {"script": [[0, 5, 0], [2, 60, 0]], "max_torque_nm": 0.1}
     assert "never lets go" in operator.describe()
+    # unknown names and missing files are refused with the known names
+    with pytest.raises(ConfigError, match=r"unknown operator 'shove'; known: push, push3"):
+        load_operator("shove", 2)
+    with pytest.raises(ConfigError, match="no such file"):
+        load_operator(str(tmp_path / "gone.yaml"), 2)
+    with pytest.raises(ConfigError, match="'push3': it holds a 3-servo leader; this leader has 2"):
+        load_operator("push3", 2)
 
 
 @pytest.mark.parametrize(
@@ -70,15 +77,6 @@ def test_a_bad_operator_file_is_refused_naming_the_file_and_the_fault(tmp_path, 
         load_operator(str(path), 2)
     assert str(caught.value).startswith(f"operator file {path}: ")
     assert says in str(caught.value)
-
-
-def test_unknown_names_and_missing_files_are_refused_with_the_known_names(tmp_path):
-    with pytest.raises(ConfigError, match=r"unknown operator 'shove'; known: push, push3"):
-        load_operator("shove", 2)
-    with pytest.raises(ConfigError, match="no such file"):
-        load_operator(str(tmp_path / "gone.yaml"), 2)
-    with pytest.raises(ConfigError, match="'push3': it holds a 3-servo leader; this leader has 2"):
-        load_operator("push3", 2)
 
 
 @pytest.fixture

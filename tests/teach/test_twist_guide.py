@@ -18,7 +18,7 @@ def taught(guide, pan_deg, tilt_deg, twists_deg):
         guide.add(compose(d, math.radians(tau)))
 
 
-def test_every_place_turned_both_ways_and_one_left_untaught():
+def test_places_turned_both_ways_one_left_untaught_and_one_across_half_a_turn():
     guide = TwistGuide()
     assert "not yet taught" in guide.assess().line()
     sweep = np.linspace(-40, 40, MIN_CELL_SAMPLES)
@@ -39,9 +39,6 @@ def test_every_place_turned_both_ways_and_one_left_untaught():
     assert span == pytest.approx(6.0)
     assert "least at pan +52, tilt +38: 6 deg -> turn the limb both ways" in found.line()
     assert found.short() == "twist 6/7 turned, least 6 deg at (+52, +38)"
-
-
-def test_cells_with_few_samples_are_not_judged_and_a_range_across_half_a_turn_is_one():
     guide = TwistGuide()
     taught(guide, 0, 0, np.zeros(MIN_CELL_SAMPLES - 1))
     assert guide.assess().cells == 0, "a cell with too few samples was judged"
