@@ -41,10 +41,6 @@ _LINK = re.compile(r"\]\(([^)\s]+)\)")
 _RANK_ROW = re.compile(r"^\|\s*(\d+)\s*\|\s*`(\w+)`\s*\|", re.M)
 
 
-def doc_text() -> str:
-    return DOC.read_text(encoding="utf-8")
-
-
 def code_spans(text: str) -> list[str]:
     """Every inline code span outside fenced blocks, in order (a line break inside a span, as
     Markdown renders it, is one space)."""
@@ -206,7 +202,7 @@ def _anchors(markdown: str) -> set[str]:
 
 # ---- the document against the code ------------------------------------------------------------
 def test_the_document_matches_the_code():
-    text = doc_text()
+    text = DOC.read_text(encoding="utf-8")
     assert cited_paths(text), "the document cites no paths: the checks see nothing"
     assert missing_paths(text) == [], "cited paths that do not exist"
     assert unmentioned_parts(text) == [], "limbctl parts the document never names"

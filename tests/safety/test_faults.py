@@ -229,11 +229,6 @@ def broadcast_torque_off(port_name: str) -> None:
         port.closePort()
 
 
-def fault_time(loop) -> float:
-    """Seconds from the last logged cycle before the fault to the end (the loop's own clock)."""
-    return loop.summary.elapsed_s - loop.cycles.rows[-1]["t"]
-
-
 class ReadLog(Rig):
     """The real rig; it also remembers each cycle read it was asked for (an observer):
     (perf_counter s, ids, attempts)."""
@@ -282,7 +277,8 @@ def test_torque_switched_off_under_teleop_is_noticed(tmp_path, safe_state):
     assert summary.exit_code == 3 and summary.ended_by == "fault", summary.fault
     assert "reports torque off while it is being driven" in summary.fault
     assert "servo 1" in summary.fault or "servo 2" in summary.fault
-    assert fault_time(loop) < NOTICE_BOUND_S
+    # from the last logged cycle before the fault to the end (the loop's own clock)
+    assert loop.summary.elapsed_s - loop.cycles.rows[-1]["t"] < NOTICE_BOUND_S
     assert not any(servo["torque_on"] for servo in truth["servos"].values())
     if safe_state is SafeState.HOLD:
         assert "pan and tilt torque off as the servo reports it" in summary.fault

@@ -85,14 +85,6 @@ def test_torn_last_line_is_dropped_and_reported(tmp_path):
     assert data.dropped_tail is not None and "line 12" in data.dropped_tail
 
 
-def lines_of(path):
-    return path.read_bytes().split(b"\n")[:-1]
-
-
-def rewrite(path, lines):
-    path.write_bytes(b"\n".join(lines) + b"\n")
-
-
 def edit_pan(lines):
     """A hand edit of line 5's pan_deg, its old checksum kept."""
     payload, crc = lines[4].split(b"|")
@@ -119,9 +111,9 @@ def corrupt_byte(lines):
 def test_a_damaged_record_is_refused_with_its_line_number(tmp_path, damage, problem):
     path = tmp_path / "damaged.limb"
     record(path)
-    lines = lines_of(path)
+    lines = path.read_bytes().split(b"\n")[:-1]
     damage(lines)
-    rewrite(path, lines)
+    path.write_bytes(b"\n".join(lines) + b"\n")
     with pytest.raises(FileFormatError, match=rf"damaged\.limb: {problem}"):
         load_dataset(path)
 

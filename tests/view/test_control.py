@@ -61,13 +61,9 @@ def ws_url(server: ViewServer, key: str | None) -> str:
     return base if key is None else f"{base}?key={key}"
 
 
-def origin_of(server: ViewServer) -> str:
-    return server.control_url.split("/?")[0]
-
-
 def open_socket(server: ViewServer, key: str | None, origin: str | None = "same", **kw):
     """A WebSocket as a browser opens it (Origin: the page's own unless told otherwise)."""
-    origin = origin_of(server) if origin == "same" else origin
+    origin = server.control_url.split("/?")[0] if origin == "same" else origin
     options = {"origin": origin} if origin is not None else {"suppress_origin": True}
     return websocket.create_connection(ws_url(server, key), timeout=WAIT_S, **options, **kw)
 

@@ -182,15 +182,10 @@ def js(browser, script: str):
     return browser.execute_script(f"return {script};")
 
 
-def deg_of(text: str) -> float:
-    """``"-12.3 deg"`` -> -12.3."""
-    return float(text.split()[0])
-
-
 def shows(text: str, value: float) -> bool:
     """Whether ``text`` (``"-12.3 deg"``, or its first number) is ``value`` (deg) to the page's
     rounding (0.05 deg, of a value the feed rounded to 0.01 deg)."""
-    return abs(deg_of(text) - value) <= 0.05 + 0.005 + 1e-9
+    return abs(float(text.split()[0]) - value) <= 0.05 + 0.005 + 1e-9
 
 
 def range_shows(text: str, low: float, high: float, of: str) -> bool:
