@@ -308,7 +308,9 @@ def test_cli_refuses_a_harmful_profile_fast_on_one_line(tmp_path, model_files, c
 
 
 # ---- info names a damaged file's real problem ---------------------------------------------------
-def test_info_names_a_damaged_datasets_problem(tmp_path, dataset_file):
+def test_info_names_a_damaged_datasets_problem_and_survives_a_closed_pipe(
+    tmp_path, dataset_file, model_files
+):
     path, _ = dataset_file
     lines = path.read_bytes().split(b"\n")
     lines[10] = lines[10].replace(b"0.", b"1.", 1)  # an edited record, line 11
@@ -331,9 +333,7 @@ def test_info_names_a_damaged_datasets_problem(tmp_path, dataset_file):
     assert "neither a limbctl model nor a dataset (as a model: " in done.stderr, done.stderr
     assert "as a dataset: line 1: not a limbctl orientation dataset" in done.stderr
     assert "pickle" not in done.stderr
-
-
-def test_info_into_a_closed_pipe_prints_no_traceback(tmp_path, model_files):
+    # info into a closed pipe prints no traceback
     _, model = model_files["rigidmap"]
     read_end, write_end = os.pipe()
     os.close(read_end)  # the reader is gone before limbctl writes a byte, as after `| head`
