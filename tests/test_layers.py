@@ -176,21 +176,11 @@ def _is_real_edge(source: str, target: str) -> bool:
     return not source.startswith(target + ".")
 
 
-def test_no_module_over_500_lines():
-    long = {
-        name: n
-        for name, path in all_modules().items()
-        if (n := len(path.read_text(encoding="utf-8").splitlines())) > 500
-    }
+def test_modules_are_short_few_at_the_top_and_cite_nothing_outside_the_repository():
+    texts = {name: path.read_text(encoding="utf-8") for name, path in all_modules().items()}
+    long = {name: n for name, text in texts.items() if (n := len(text.splitlines())) > 500}
     assert not long, f"modules over 500 lines: {long}"
-
-
-def test_at_most_a_dozen_modules_directly_in_limbctl():
     flat = sorted(p.name for p in (ROOT / "limbctl").glob("*.py"))
-    assert len(flat) <= 12, flat
-
-
-def test_no_reference_outside_the_repository():
-    for name, path in all_modules().items():
-        text = path.read_text(encoding="utf-8")
-        assert "DESIGN.md" not in text and "../shared" not in text, name
+    assert len(flat) <= 12, f"more than a dozen modules directly in limbctl: {flat}"
+    for name, text in texts.items():
+        assert "DESIGN.md" not in text and "../shared" not in text, f"{name} cites outside"
