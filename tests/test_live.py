@@ -76,43 +76,23 @@ class Watcher(threading.Thread):
             raise self.error
 
 
-#: The first region needs the fit process to start and numba's cached kernels to load.
-FIRST_REGION_S = 120.0
-
-
-def test_record_job_shows_its_samples_and_region_on_the_page_as_it_records(tmp_path, browser):
-    """The page counts up, draws the region train would learn, and ends at the file's samples."""
+def test_record_job_shows_its_samples_on_the_page(tmp_path, browser):
     out = tmp_path / "teach.limb"
     said: list[str] = []
-    # a backstop only: the watcher ends the job with SIGINT once the page drew the region
-    options = RecordOptions(out=out, duration=600.0, connection=Connection(seed=2))
     with open_view(ViewOptions(enabled=True, port=0), said.append) as live:
         assert said == [f"live view: {live.url}"]
         browser.get(live.url)
 
         def look() -> None:
-            try:
-                wait_for(browser, lambda d: int(text_of(d, "sample-count")) > 50, "no samples")
-                assert text_of(browser, "mode") == "record"
-                first = int(text_of(browser, "sample-count"))
-                wait_for(
-                    browser, lambda d: int(text_of(d, "sample-count")) > first + 100, "count stuck"
-                )
-                wait_for(
-                    browser,
-                    lambda d: text_of(d, "loop-count") not in ("", "0"),
-                    "no region drawn",
-                    timeout=FIRST_REGION_S,
-                )
-                assert "fitted on" in text_of(browser, "region-note")
-            finally:
-                os.kill(os.getpid(), signal.SIGINT)  # Ctrl-C ends the job
+            wait_for(browser, lambda d: int(text_of(d, "sample-count")) > 50, "no samples shown")
+            assert text_of(browser, "mode") == "record"
 
         watcher = Watcher(look)
         watcher.start()
-        with ctrl_c_for_the_job_only():
-            status = run_record(options, view=live)
-            watcher.result()
+        status = run_record(
+            RecordOptions(out=out, duration=6.0, connection=Connection(seed=2)), view=live
+        )
+        watcher.result()
         assert status == 0
         data = load_dataset(out)
         wait_for(
