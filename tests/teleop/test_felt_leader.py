@@ -158,15 +158,6 @@ def beyond(row) -> float:
     return beyond_deg(q, square_region().correct(q), 3)
 
 
-def press_against_pan_zero(session, source, units: int = 40) -> int:
-    """The hand presses the two-servo leader outward (PRESS) against its pan motor written
-    straight to ``units`` of Goal Current, goal pan 0; returns ``units``."""
-    session.simulator.set_operator(PRESS)
-    goal = session.rig.angles_to_ticks(0.0, 0.0)[0]
-    session.rig.bus.write_block(source._feel_block, IDS[0], encode_feel(units, goal))
-    return units
-
-
 def test_the_leader_stops_near_the_edge_free_inside_never_above_the_cap(tmp_path):
     with felt_session(tmp_path) as (session, source, log), source:
         cap = cap_of(source)
@@ -373,11 +364,27 @@ def test_a_leader_unheard_past_its_watchdog_still_pushes_and_the_end_leaves_it_l
     assert all(closed["servos"][i]["torque_on"] is False for i in rig.ids)
 
 
-def test_the_cycles_read_and_the_watchs_read_carry_the_leaders_present_current(tmp_path):
-    # the cycle's read (round 5) and the watch's carry Present Current; a hand presses outward
-    # against a 40 unit motor whose goal is pan 0: it pulls back at its Goal Current
+def test_a_felt_leaders_cycle_read_carries_its_present_velocity_and_current(tmp_path):
+    """The cycle's read carries Present Velocity and Current (round 5), the watch's read too."""
     with felt_session(tmp_path) as (session, source, log), source:
-        bus, units = session.rig.bus, press_against_pan_zero(session, source)
+        bus = session.rig.bus
+        # Present Velocity in Goal Position's slot: the hand carries the free leader out
+        session.simulator.set_operator(PRESS)
+        deadline, pairs = time.monotonic() + 5.0, []
+        while time.monotonic() < deadline and len(pairs) < 5:
+            read = bus.read_cycle(ids=IDS, attempts=2)
+            plain = bus.read(Register.PRESENT_VELOCITY, IDS[0])
+            if read.ok and plain > 3:  # moving: a few units or more
+                pairs.append((present_velocity(read.reports[IDS[0]]), plain))
+        assert len(pairs) == 5
+        # the two reads are a millisecond apart on an accelerating leader: close, same sign
+        assert all(cycle > 0 and abs(cycle - plain) <= 3 for cycle, plain in pairs)
+        speed = cycle_velocity(read, IDS, session.rig.joints)[0]
+        assert speed * session.rig.joints[0].direction > 0.0
+        # Present Current: the hand presses outward against a 40 unit motor whose goal is pan 0,
+        # which pulls back at its Goal Current
+        units, goal = 40, session.rig.angles_to_ticks(0.0, 0.0)[0]
+        bus.write_block(source._feel_block, IDS[0], encode_feel(units, goal))
         deadline = time.monotonic() + 5.0
         while time.monotonic() < deadline:
             read = bus.read_cycle(ids=IDS, attempts=2)
@@ -400,24 +407,6 @@ def test_the_cycles_read_and_the_watchs_read_carry_the_leaders_present_current(t
         plain = bus.read(Register.PRESENT_VELOCITY, IDS[0])
         unit = VELOCITY_UNIT_DEG_S  # the reads a millisecond apart: within a few units
         assert abs(speeds[0] * session.rig.joints[0].direction - plain * unit) <= 3 * unit
-
-
-def test_a_felt_leaders_cycle_read_carries_its_present_velocity(tmp_path):
-    # the felt leader's cycle read carries Present Velocity in Goal Position's slot
-    with felt_session(tmp_path) as (session, source, log), source:
-        bus = session.rig.bus
-        session.simulator.set_operator(PRESS)  # the hand carries the free leader out
-        deadline, pairs = time.monotonic() + 5.0, []
-        while time.monotonic() < deadline and len(pairs) < 5:
-            read = bus.read_cycle(ids=IDS, attempts=2)
-            plain = bus.read(Register.PRESENT_VELOCITY, IDS[0])
-            if read.ok and plain > 3:  # moving: a few units or more
-                pairs.append((present_velocity(read.reports[IDS[0]]), plain))
-        assert len(pairs) == 5
-        # the two reads are a millisecond apart on an accelerating leader: close, same sign
-        assert all(cycle > 0 and abs(cycle - plain) <= 3 for cycle, plain in pairs)
-        speed = cycle_velocity(read, IDS, session.rig.joints)[0]
-        assert speed * session.rig.joints[0].direction > 0.0
 
 
 def test_a_held_leader_let_go_is_freed_by_the_snap_watch(tmp_path):
@@ -786,16 +775,13 @@ def test_follower_mirrors_a_pushed_leader_within_the_region(cone_file):
     assert pan > 0 and 29.0 < angle <= 30.2
 
 
-def test_leader_ids_must_be_on_the_bus_and_distinct():
-    with open_rig() as session:
+def test_a_three_servo_leader_gives_full_orientations_and_needs_a_three_servo_follower():
+    """Leader ids must be on the bus, not the follower's; three need a three-servo follower."""
+    with open_rig(extra_ids=(3, 4)) as session:
         with pytest.raises(ConfigError, match="not on the bus"):
-            LeaderSource(session.rig, (3, 4))
+            LeaderSource(session.rig, (5, 6))
         with pytest.raises(ConfigError):
             LeaderSource(session.rig, (1, 2))
-
-
-def test_a_three_servo_leader_gives_full_orientations_and_needs_a_three_servo_follower():
-    with open_rig(extra_ids=(3, 4)) as session:
         refused = "needs a 3-servo follower: rig 'sim' has 2 servos; give leader:ID,ID"
         with pytest.raises(ConfigError, match=refused):
             LeaderSource(session.rig, (3, 4, 5))
