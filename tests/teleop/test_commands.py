@@ -12,15 +12,12 @@ from limbctl.geometry.quat import limb_direction
 from limbctl.teleop.commands import MAX_LINE_BYTES, command_from_pan_tilt, parse_command
 
 
-def test_pan_tilt_line():
+def test_pan_tilt_dir_and_q_lines_and_time():
     c = parse_command('{"pan": 30, "tilt": -10}\n')
     expected = pan_tilt_to_direction(math.radians(30), math.radians(-10))
     np.testing.assert_allclose(c.direction, expected, atol=1e-12)
     np.testing.assert_allclose(limb_direction(c.q), expected, atol=1e-12)
     assert c.q[1] == 0.0 and c.q[0] >= 0
-
-
-def test_dir_and_q_lines_and_time():
     c = parse_command(b'{"dir": [0, 2, 0], "t": 1.5}')
     np.testing.assert_allclose(c.direction, [0, 1, 0], atol=1e-15)
     assert c.t == 1.5

@@ -1,9 +1,5 @@
-"""A leader over the real SDK and the simulator's pty, on two servos and on three: passive and
-mirrored, felt (the wall in swing and twist, the brake rules, faults), passive models.
-
-The follower's edge lies at pan 30 deg (a cone; on three servos tests/teleop/twist_square.py's
-region, near roll 30 too); assertions read the simulated operator's 1 ms ground truth.
-"""
+"""A passive or felt leader over the real SDK and the simulator's pty, on two servos and three:
+the edge at pan 30 deg (on three also roll 30, twist_square.py), judged on the 1 ms ground truth."""
 
 from __future__ import annotations
 
@@ -57,8 +53,7 @@ HAND = {"stiffness_nm_deg": 0.05, "damping_nm_s_rad": 0.02, "max_torque_nm": 0.3
 PRESS = {"script": [[0.0, 0.0, 0.0], [1.5, EDGE + 20.0, 0.0]], **HAND}
 #: Three servos: 20 deg beyond the edge in twist (roll 50).
 TWIST_PRESS = {"script": [[0.0, 0.0, 0.0, 0.0], [1.5, 0.0, 0.0, EDGE + 20.0]], **HAND}
-#: Three servos: in swing (pan 50) from 0 to 3.5 s, back to the middle, then in twist (roll 50)
-#: from 5.5 s on.
+#: Three servos: in swing (pan 50) to 3.5 s, back to the middle, in twist (roll 50) from 5.5 s.
 SWING_THEN_TWIST = {
     "script": [
         [0.0, 0.0, 0.0, 0.0],
@@ -71,15 +66,14 @@ SWING_THEN_TWIST = {
 }
 #: A hand pushing with this much (N m, toward the outside) presses: its spring stretched by 1 deg.
 PRESSING_NM = HAND["stiffness_nm_deg"] * 1.0
-#: A release lets the hand carry the leader 20 deg beyond, walked back at 7-14 deg/s: a hold is
-#: judged strictly only when no cycle released the leader for this long (s) before it.
+#: A hold is judged strictly only when no cycle released the leader for this long (s) before:
+#: a release lets the hand carry it 20 deg beyond, walked back at 7-14 deg/s.
 WALKED_BACK_S = 1.5
 
 
 @dataclass(frozen=True)
 class FeltRig:
-    """A follower rig (calib/rigs/``profile``.yaml), its leader's ``ids``, its ``region`` and the
-    hand's ``press`` 20 deg beyond the edge along joint ``joint``."""
+    """A follower rig, its leader's ``ids``, ``region``, ``press`` 20 deg beyond along ``joint``."""
 
     profile: str
     ids: tuple[int, ...]
@@ -110,10 +104,8 @@ def rig(request) -> FeltRig:
 def felt_session(tmp_path, rig: FeltRig = SIM, model="xm430-w350", rate_hz=25.0):
     """An open ``rig`` with its leader, configured and gated; yields (session, source, log path).
 
-    The source's rate checks run against ``rate_hz``, 25 Hz, so a busy shared machine neither
-    refuses the start nor loses the pace (the loop runs at 200 Hz; the rate itself is tested on
-    a stepped clock in tests/teleop/test_haptic.py); :meth:`Running.paced_out` tells a run that
-    still lost it."""
+    Rate checks against ``rate_hz`` (25 Hz) so a busy machine neither refuses the start nor loses
+    the pace (the 200 Hz wall: test_haptic.py's stepped clock)."""
     log = tmp_path / "leader.jsonl"
     leader = {"ids": list(rig.ids), "model": model, "log": str(log)}
     with open_rig(rig_path=rig.profile, extra_ids=rig.ids, sim_options={"leader": leader}) as s:
@@ -135,8 +127,7 @@ def felt_session(tmp_path, rig: FeltRig = SIM, model="xm430-w350", rate_hz=25.0)
 
 @contextmanager
 def running_felt(tmp_path, rig: FeltRig = SIM, **options):
-    """:func:`felt_session` (``options``) with the follower's torque on and the loop running in
-    :class:`Running`: yields (session, source, log path, running)."""
+    """:func:`felt_session`, torque on, the loop in :class:`Running`: yields those and it."""
     with felt_session(tmp_path, rig, **options) as (session, source, log), source:
         session.rig.set_torque(True)
         with Running(session, source) as running:
@@ -326,26 +317,8 @@ def test_a_failed_bus_or_a_held_gate_switches_the_push_off_in_that_cycle(tmp_pat
     pushed_only_when_fit(running.pushes)
 
 
-def test_a_silent_leader_is_bounded_by_its_cap_and_is_re_armed(tmp_path, rig):
-    with running_felt(tmp_path, rig) as (session, source, log, running):
-        cap = cap_of(source)
-        if running.pressed_or_paced_out(rig.press):
-            return
-        session.simulator.vanish(rig.pusher, 0.3)  # past its 100 ms watchdog
-        running.until(lambda p: p[-1][1] is None)
-        running.until(
-            lambda p: (p[-1][1] is not None and p[-1][1].goal_current > 0) or not p[-1][2]
-        )
-        truth = session.simulator.truth()
-        # back, its watchdog cleared and armed again, pushing; or the pace went meanwhile
-        felt = source.felt or running.paced_out()
-    assert truth["servos"][rig.pusher]["present"]
-    rows = truth_rows(log)
-    assert max(abs(m) for row in rows for m in row["motor_nm"]) <= cap + 1e-12
-    assert felt
-
-
 def test_a_leader_unheard_past_its_watchdog_still_pushes_and_the_end_leaves_it_limp(tmp_path, rig):
+    """Unheard past its watchdog at set-up or silent mid-push, it pushes again within the cap."""
     with felt_session(tmp_path, rig) as (session, source, log):
         with source:
             cap = cap_of(source)
@@ -355,10 +328,20 @@ def test_a_leader_unheard_past_its_watchdog_still_pushes_and_the_end_leaves_it_l
             with Running(session, source) as running:
                 if running.pressed_or_paced_out(rig.press):
                     return
+                session.simulator.vanish(rig.pusher, 0.3)  # silent past its 100 ms watchdog
+                running.until(lambda p: p[-1][1] is None)
+                running.until(
+                    lambda p: (p[-1][1] is not None and p[-1][1].goal_current > 0) or not p[-1][2]
+                )
+                back = session.simulator.truth()
+                # back, its watchdog cleared and armed again, pushing; or the pace went meanwhile
+                felt = source.felt or running.paced_out()
             ended = session.simulator.truth()  # the loop's end released it: no current
         closed = session.simulator.truth()  # the source's close: torque off
     rows = truth_rows(log)
     assert max(abs(r["motor_nm"][rig.joint]) for r in rows) > 0.5 * cap
+    assert back["servos"][rig.pusher]["present"] and felt
+    assert max(abs(m) for row in rows for m in row["motor_nm"]) <= cap + 1e-12
     assert running.out["s"].exit_code == 0
     assert ended["leader"]["motor_nm"] == [0.0] * len(rig.ids)
     assert all(closed["servos"][i]["torque_on"] is False for i in rig.ids)

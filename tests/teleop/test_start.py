@@ -198,18 +198,6 @@ def off_axis_deg(pan, tilt):
     return math.degrees(math.acos(math.cos(tilt) * math.cos(pan)))
 
 
-def test_refusing_to_start_leaves_torque_off_and_says_why(tmp_path, sim, cone_model, capsys):
-    put_limb(sim, 52.0, -8.0)
-    assert torque(sim) == [True, True]
-    code = run_teleop(options(cone_model, sim, replay(tmp_path, [{"pan": 0, "tilt": 0}]), wait=1.0))
-    err = capsys.readouterr().err
-    assert code == 2
-    assert torque(sim) == [False, False]
-    assert "torque switched off so it can be moved by hand" in err
-    assert "not started: the limb stayed outside for 1 s" in err
-    assert "turn it right" in err and "--approach" in err
-
-
 def test_approach_starts_the_session_from_outside(tmp_path, sim, cone_model, capsys):
     put_limb(sim, -50.0, 10.0)
     source = replay(tmp_path, [{"pan": -20.0, "tilt": 5.0}] * 40)
@@ -242,6 +230,8 @@ def test_a_session_ending_on_the_edge_is_parked_and_the_next_starts_at_once(
 
 
 def test_every_line_refused_exits_2_with_the_reasons(tmp_path, sim, cone_model, capsys):
+    """Exit 2 when every line is refused (the reasons counted) and when the limb stays outside
+    (torque off, saying why)."""
     rows = ["garbage", '{"pan": 500, "tilt": 0}', "not json", '{"pan": NaN, "tilt": 0}']
     rows += ['{"pan": -720, "tilt": 0}']
     telemetry = tmp_path / "telemetry.jsonl"
@@ -258,6 +248,15 @@ def test_every_line_refused_exits_2_with_the_reasons(tmp_path, sim, cone_model, 
     assert sorted(reasons) == sorted(
         ["malformed JSON"] * 2 + ["pan N deg is outside [N, N]"] * 2 + ["NaN is not a valid number"]
     )
+    put_limb(sim, 52.0, -8.0)
+    assert torque(sim) == [True, True]
+    code = run_teleop(options(cone_model, sim, replay(tmp_path, [{"pan": 0, "tilt": 0}]), wait=1.0))
+    err = capsys.readouterr().err
+    assert code == 2
+    assert torque(sim) == [False, False]
+    assert "torque switched off so it can be moved by hand" in err
+    assert "not started: the limb stayed outside for 1 s" in err
+    assert "turn it right" in err and "--approach" in err
 
 
 def test_an_approach_faster_than_allowed_is_refused_before_the_port_opens(tmp_path, cone_model):
