@@ -35,13 +35,13 @@ from limbctl.teleop.gate import Gate, GateLimits
 from limbctl.teleop.haptic import VELOCITY_UNIT_DEG_S
 from limbctl.teleop.haptic_push import beyond_deg, corrected_pose
 from limbctl.teleop.loop import LoopConfig, run
+from limbctl.teleop.pacing import PaceWatch
 from limbctl.teleop.sources import LeaderSource, SourceContext, parse_source
 from limbctl.teleop.sources.leader_snap import cycle_velocity, read_motion
 from limbctl.view.leader import SWING_SHARE_DRAWN
 from tests.servo.test_leader_guard import START_S, end_pipe, torque_when_free
 from tests.teleop.felt_running import (
     Running,
-    check_a_forced_pace_loss,
     pressing,
     pushed_only_when_fit,
 )
@@ -435,7 +435,17 @@ def test_a_lost_pace_switches_the_feel_off_for_good_in_its_cycle_and_mirroring_g
     tmp_path, rig
 ):
     with felt_session(tmp_path, rig) as (session, source, log), source:
-        check_a_forced_pace_loss(session, source, rig.press)
+        # forced: the source believes its wall needs 1 kHz
+        source.rate_hz, source.pace = 1000.0, PaceWatch(1000.0)
+        session.rig.set_torque(True)
+        with Running(session, source) as running:
+            session.simulator.set_operator(rig.press)
+            running.until(lambda p: running.off.at is not None and len(p) > running.off.at + 20)
+            accepted = source.stats.accepted
+            running.until(lambda p: len(p) > running.off.at + 40)
+            assert running.paced_out()
+        assert source.stats.accepted > accepted  # still mirrored, without feel
+        assert not source.felt
 
 
 #: Faults injected into a running rig (its simulator, the rig).

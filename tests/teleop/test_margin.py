@@ -57,11 +57,9 @@ def off_axis(pan_deg, tilt_deg):
     return math.degrees(float(direction_angle(d, np.array([1.0, 0.0, 0.0]))))
 
 
-def test_the_margin_exceeds_the_rounding_to_ticks():
-    assert START_MARGIN_DEG > written_tolerance_deg()
-
-
 def test_inside_by_margin_on_a_cone():
+    """Inside by the margin (more than the rounding to ticks) of the cone and the hard limits."""
+    assert START_MARGIN_DEG > written_tolerance_deg()
     gate = cone_gate()
     edge = 40.0 - START_MARGIN_DEG
     cases = [
@@ -121,7 +119,7 @@ def test_status_says_how_far_and_which_way():
     assert inside.ready and inside.distance_deg == 0.0 and "starting" in inside.line()
 
 
-def test_nearest_rotation_start_pose_is_inside_by_the_margin_and_near():
+def test_nearest_rotation_start_pose_is_inside_by_the_margin_on_every_joint_and_near():
     gate = band_gate()
     margins = RotationMargins(gate, exact)
     # outside in twist only (roll 45 deg at rest: twist 45 against the band's 30)
@@ -140,9 +138,7 @@ def test_nearest_rotation_start_pose_is_inside_by_the_margin_and_near():
     # already inside by the margin: the pose itself
     inside = (0.1, 0.05, 0.1)
     assert margins.nearest(inside) == inside
-
-
-def test_safe_with_margin_needs_room_on_every_joint():
+    # safe with the margin needs room on every joint
     gate = band_gate(roll_limit=1.7)
     assert safe_with_margin(gate, (0.0, 0.0, 0.0), MARGIN)
     edge = (0.0, 0.0, math.radians(29.9))  # twist 29.9: 0.35 deg more roll leaves the band
