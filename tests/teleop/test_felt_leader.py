@@ -257,40 +257,37 @@ def test_the_three_servo_leader_is_held_at_the_edge_in_swing_and_in_twist(tmp_pa
     assert not outward, (len(dots), outward)
 
 
-def test_a_leader_restart_ends_the_feel_on_every_servo_and_mirroring_goes_on(tmp_path, rig):
+@pytest.mark.parametrize("fault", ["restart", "alarm"])
+def test_a_leader_restart_or_alarm_switches_the_push_off_on_every_servo(tmp_path, rig, fault):
+    """A restart ends the feel and mirroring goes on; an alarm faults the session, as if passive."""
     with running_felt(tmp_path, rig) as (session, source, log, running):
         if running.pressed_or_paced_out(rig.press):
             return
-        session.simulator.restart(rig.pusher)
-        running.until(lambda p: not p[-1][2])
-        lost = len(running.pushes)
-        running.until(lambda p: len(p) > lost + 50)
-        accepted = source.stats.accepted
-        running.until(lambda p: len(p) > lost + 100)
+        if fault == "alarm":
+            session.simulator.set_temperature(rig.pusher, 95.0)  # overheating shuts it down
+            running.thread.join(timeout=20.0)
+        else:
+            session.simulator.restart(rig.pusher)
+            running.until(lambda p: not p[-1][2])
+            lost = len(running.pushes)
+            running.until(lambda p: len(p) > lost + 50)
+            accepted = source.stats.accepted
+            running.until(lambda p: len(p) > lost + 100)
         truth = session.simulator.truth()
     # the cycle that saw it switched the push off; the other servos' torque is off too
     assert all(truth["servos"][i]["torque_on"] is False for i in rig.ids if i != rig.pusher)
     assert truth["leader"]["motor_nm"] == [0.0] * len(rig.ids)
+    summary = running.out["s"]
+    if fault == "alarm":
+        assert summary.exit_code == 3 and f"servo {rig.pusher}" in summary.fault
+        assert not source.felt and any("alarm" in event for event in source.feel_stats.events)
+        return
+    assert summary.exit_code == 0
     assert source.stats.accepted > accepted  # still mirrored, without feel
     notes = [n for c, _, _ in running.pushes for n in c.notices]
     said = f"servo {rig.pusher} restarted"
     assert any(said in n and "mirroring goes on without feel" in n for n in notes), notes
     assert any("without feel" in line for line in source.report_lines())
-    assert running.out["s"].exit_code == 0
-
-
-def test_a_leader_alarm_switches_the_push_off_and_the_session_faults(tmp_path, rig):
-    with running_felt(tmp_path, rig) as (session, source, log, running):
-        if running.pressed_or_paced_out(rig.press):
-            return
-        session.simulator.set_temperature(rig.pusher, 95.0)  # overheating shuts it down
-        running.thread.join(timeout=20.0)
-        truth = session.simulator.truth()
-    summary = running.out["s"]
-    assert summary.exit_code == 3 and f"servo {rig.pusher}" in summary.fault  # as if passive
-    assert not source.felt and any("alarm" in event for event in source.feel_stats.events)
-    assert truth["leader"]["motor_nm"] == [0.0] * len(rig.ids)
-    assert all(truth["servos"][i]["torque_on"] is False for i in rig.ids if i != rig.pusher)
 
 
 def test_a_failed_bus_or_a_held_gate_switches_the_push_off_in_that_cycle(tmp_path, rig):
