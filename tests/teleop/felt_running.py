@@ -38,14 +38,8 @@ def paced_out(source) -> bool:
 
 
 class FeelOff:
-    """Which cycle switched the feel off, and the simulator's ground truth at that cycle's end
-    (taken in the loop's thread, before the next cycle's bus traffic).
-
-    Parameters
-    ----------
-    simulator
-        The session's simulator (``truth()``).
-    """
+    """Which cycle switched the feel off, and the ``simulator``'s ground truth at that cycle's end
+    (taken in the loop's thread, before the next cycle's bus traffic)."""
 
     def __init__(self, simulator) -> None:
         self.simulator = simulator

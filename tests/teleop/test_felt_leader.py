@@ -7,7 +7,6 @@ import functools
 import json
 import math
 import statistics
-import threading
 import time
 from collections.abc import Callable
 from contextlib import contextmanager
@@ -34,7 +33,6 @@ from limbctl.session import open_rig
 from limbctl.teleop.gate import Gate, GateLimits
 from limbctl.teleop.haptic import VELOCITY_UNIT_DEG_S
 from limbctl.teleop.haptic_push import beyond_deg, corrected_pose
-from limbctl.teleop.loop import LoopConfig, run
 from limbctl.teleop.pacing import PaceWatch
 from limbctl.teleop.sources import LeaderSource, SourceContext, parse_source
 from limbctl.teleop.sources.leader_snap import cycle_velocity, read_motion
@@ -718,63 +716,47 @@ def turn_shafts(rig, ids: tuple[int, ...], degrees: tuple[float, ...]) -> None:
         assert time.monotonic() < deadline, "the leader shafts did not reach their goals"
 
 
+def off_axis_deg(pan: float, tilt: float) -> float:
+    """The angle (deg) of a two-servo pose (rad) from the cone's axis, +x."""
+    return math.degrees(math.acos(math.cos(pan) * math.cos(tilt)))
+
+
 def test_follower_mirrors_a_pushed_leader_within_the_region(cone_file):
-    gate = gate_for(cone_file(30.0), default_sim_profile(), 200.0, 120.0)
+    """The follower turns toward a passive leader and stops at the cone's edge; leader ids must be
+    on the bus, not the follower's; three need a three-servo follower."""
     with open_rig(extra_ids=(3, 4)) as session:
         rig = session.rig
-        limits = rig.tick_limits()
-        limits.update({3: (0, 4095), 4: (0, 4095)})
-        configure_servos(rig.bus, limits)
+        with pytest.raises(ConfigError, match="not on the bus"):
+            LeaderSource(rig, (5, 6))
+        with pytest.raises(ConfigError):
+            LeaderSource(rig, (1, 2))
+        refused = "needs a 3-servo follower: rig 'sim' has 2 servos; give leader:ID,ID"
+        with pytest.raises(ConfigError, match=refused):
+            LeaderSource(rig, (3, 4, 5))
+        session.gate = gate_for(cone_file(30.0), default_sim_profile(), 200.0, 120.0)
+        configure_servos(rig.bus, {**rig.tick_limits(), 3: (0, 4095), 4: (0, 4095)})
         turn_shafts(rig, (3, 4), (60, 0))
-        source = LeaderSource(rig, (3, 4))
-        stop = threading.Event()
-        out = {}
-        seen = {"written": 0, "angle": 0.0}
-        changed = threading.Condition()
-
-        def observe(cycle) -> None:  # wait on what the assertions need, however slow the loop
-            with changed:
-                seen["written"] += cycle.written
-                if cycle.present is not None:
-                    pan, tilt = cycle.present
-                    seen["angle"] = math.degrees(math.acos(math.cos(pan) * math.cos(tilt)))
-                changed.notify_all()
-
-        def at_the_edge() -> bool:
-            return seen["written"] > 100 and seen["angle"] > 29.0
-
-        with source:
+        with LeaderSource(rig, (3, 4)) as source:
             assert rig.bus.torque_enabled()[3] is False
             rig.set_torque(True)
-            thread = threading.Thread(
-                target=lambda: out.update(
-                    s=run(rig, gate, source, LoopConfig(on_cycle=observe), stop=stop)
+            with Running(session, source) as running:  # 100 goals written, at the cone's edge
+                running.until(
+                    lambda p: (
+                        sum(c.written for c, _, _ in p) > 100
+                        and off_axis_deg(*next(c.present for c, _, _ in p[::-1] if c.present))
+                        > 29.0
+                    )
                 )
-            )
-            thread.start()
-            with changed:  # 100 goals written and the follower at the cone's edge
-                changed.wait_for(lambda: at_the_edge() or not thread.is_alive(), timeout=60.0)
-            stop.set()
-            thread.join(timeout=10)
         pan, tilt = rig.read_pose()
-    summary = out["s"]
+    summary = running.out["s"]
     assert summary.exit_code == 0 and summary.commands > 100
     assert summary.goals_written > 100
     # the follower turned toward the leader (pan 60) and stopped at the cone's edge
-    angle = math.degrees(math.acos(math.cos(pan) * math.cos(tilt)))
-    assert pan > 0 and 29.0 < angle <= 30.2
+    assert pan > 0 and 29.0 < off_axis_deg(pan, tilt) <= 30.2
 
 
-def test_a_three_servo_leader_gives_full_orientations_and_needs_a_three_servo_follower():
-    """Leader ids must be on the bus, not the follower's; three need a three-servo follower."""
-    with open_rig(extra_ids=(3, 4)) as session:
-        with pytest.raises(ConfigError, match="not on the bus"):
-            LeaderSource(session.rig, (5, 6))
-        with pytest.raises(ConfigError):
-            LeaderSource(session.rig, (1, 2))
-        refused = "needs a 3-servo follower: rig 'sim' has 2 servos; give leader:ID,ID"
-        with pytest.raises(ConfigError, match=refused):
-            LeaderSource(session.rig, (3, 4, 5))
+def test_a_three_servo_leader_gives_full_orientations():
+    """A three-servo leader's command is its shafts' full orientation, roll included."""
     with open_rig(rig_path="sim3", extra_ids=(4, 5, 6)) as session:
         rig = session.rig
         configure_servos(rig.bus, {**rig.tick_limits(), 4: (0, 4095), 5: (0, 4095), 6: (0, 4095)})

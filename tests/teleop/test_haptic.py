@@ -537,16 +537,6 @@ PRESSES = {
 }
 
 
-_LET_GO: dict = {}
-
-
-def pressed_and_let_go(region, press):
-    """:func:`felt3` of ``PRESSES[press]`` let go at 4.5 s (computed once)."""
-    if press not in _LET_GO:
-        _LET_GO[press] = felt3(region, PRESSES[press], 6.0, let_go_s=4.5)
-    return _LET_GO[press]
-
-
 def pulled_outward(region, rows):
     """The 1 ms truth rows outside the region whose joint torques point away from the
     correction (their dot product with ``corrected pose - pose`` < 0), and the rows inside
@@ -571,7 +561,7 @@ def outward_after(region, rows, start_s):
 
 @pytest.mark.parametrize("press", sorted(PRESSES))
 def test_at_200_hz_the_leader_stops_within_2_deg_of_the_edge_and_walks_back(region, press):
-    rows, pushes = pressed_and_let_go(region, press)
+    rows, pushes = felt3(region, PRESSES[press], 6.0, let_go_s=4.5)
     held = judge(region, rows, pushes, 3.0, 4.5)
     # a 0.3 N m hand of 0.05 N m/deg held beyond the edge, within 2 deg of rotation of it
     assert 0.4 < held.min() and held.max() < 2.0
