@@ -356,7 +356,7 @@ def test_a_felt_leaders_cycle_read_carries_its_present_velocity_and_current(tmp_
                 pairs.append((present_velocity(read.reports[IDS[0]]), plain))
         assert len(pairs) == 5
         # the two reads are a millisecond apart on an accelerating leader: close, same sign
-        assert all(cycle > 0 and abs(cycle - plain) <= 3 for cycle, plain in pairs)
+        assert all(cycle > 0 and abs(cycle - plain) <= 3 for cycle, plain in pairs), pairs
         speed = cycle_velocity(read, IDS, session.rig.joints)[0]
         assert speed * session.rig.joints[0].direction > 0.0
         # Present Current: the hand presses outward against a 40 unit motor whose goal is pan 0,
