@@ -1,7 +1,5 @@
-"""The gate on both chains: two servos (limb directions, a cone) and three (full orientations, a
-cone with a twist band). Commands anywhere (on three servos: twist near +-180 deg, tilt near
-+-90 deg) never give a pose outside the region or the hard limits, the slew limit holds, an
-inside command is reached exactly, and bad targets are held."""
+"""The gate on two servos (a cone) and three (a cone with a twist band): commands anywhere never
+give a pose outside the region or the hard limits, slew-limited; bad targets are held."""
 
 from __future__ import annotations
 
@@ -217,9 +215,8 @@ def test_every_output_is_safe_and_slew_limited(rig, data, half_angle_deg):
 
 
 def test_a_step_clamped_at_a_joint_limit_stays_within_the_slew_limit():
-    # hypothesis's example: along tilt's -30 deg limit on a 75 deg cone, the corrected step
-    # asked for tilt below it, and clamping it carried the pose 0.0349073 rad from the last
-    # one (max_step 0.0349066) before the gate scaled clamped moves back
+    # hypothesis's example: along tilt's -30 deg limit on a 75 deg cone, clamping the corrected
+    # step carried the pose 0.0349073 rad (max_step 0.0349066) before clamped moves were scaled
     gate = make_gate(2, half_angle=math.radians(75.0))
     clamped = []
     for target in ((1.0, 0.0), (0.0, -1.5), (-2.0, 0.0)):

@@ -108,8 +108,7 @@ def test_distance_is_to_the_correction_and_the_push_leads_toward_it_by_the_lead(
     felt = math.sqrt(sum(MOTOR.torque_of(c) ** 2 for c in push.joint_currents))
     assert push.torque_nm == pytest.approx(felt) and felt <= CAP
     assert push.profile_velocity == LAW.profile_velocity_units()
-    # 10-20 deg beyond, deeper than a hand within the cap holds it: three ticks, not two, from
-    # the leader in joint space
+    # deeper than a hand within the cap holds it: three ticks from the leader in joint space
     lead = math.degrees(float(np.linalg.norm(np.subtract(push.goal, present))))
     assert lead == pytest.approx(3 * TICK_DEG, abs=1e-9)
     present = (0.1, 0.0, 0.2)[: len(present)]
@@ -176,8 +175,7 @@ ALONG = {"sim": (0, 31.0, 60.0), "sim3": (2, 35.0, 60.0)}
 def test_property_a_leader_outrunning_its_setpoints_or_still_moving_in_is_free_else_led(
     rig, at, moved, period, engaged
 ):
-    # beyond the edge along one joint: the correction lies at a smaller angle of it, so an
-    # angle that decreased by ``moved`` moved toward it
+    # the correction lies at a smaller angle: an angle decreased by ``moved`` moved toward it
     assume(moved == 0.0 or abs(moved) > 1e-9)  # a motion the float subtraction keeps
     joint, lo, hi = ALONG[rig]
     pose = [0.0] * len(DEEP[rig])
@@ -236,8 +234,7 @@ def test_a_wall_walking_its_leader_back_with_no_hand_leads_two_ticks_more():
 @settings(max_examples=300, deadline=None)
 @given(st.floats(31.0, 60.0), st.floats(-0.4, 0.4), st.floats(-0.4, 0.4), st.booleans())
 def test_property_a_wall_whose_read_torque_pulls_outward_lets_go(pan, pan_nm, tilt_nm, engaged):
-    # along pan beyond the edge at 30 deg: the correction lies at pan decreasing, so a read
-    # torque with pan_nm > NOISE pulls away from the region (round 5)
+    # the correction lies at pan decreasing: pan_nm > NOISE pulls away from it (round 5)
     q = q_of(pan, 0.0)
     corrected = CONE.correct(q)
     present = (math.radians(pan), 0.0)
@@ -326,8 +323,7 @@ def test_at_200_hz_the_leader_stops_within_2_deg_and_a_release_walks_back_to_the
     held = out["held"]
     assert 30.0 < held.min() and held.max() < 32.0  # a 0.3 N m hand, stiffness 0.05 N m/deg
     assert np.ptp(held) < 0.2  # no ripple
-    # (the walk back after the release, under 30 deg/s to rest within 0.5 deg, never inside:
-    # LET_GO_CASES' (0.05, 20.0, 5.0) below, the same cached run)
+    # (the walk back after the release: LET_GO_CASES' (0.05, 20.0, 5.0), the same cached run)
     assert out["inside"] and out["torque_inside"] == 0
     # never above the cap; pressed beyond the edge, the motor pulls pan back, never outward
     assert out["max_nm"] <= CAP
@@ -354,8 +350,7 @@ def test_at_200_hz_a_let_go_leader_walks_back_under_30_deg_s_never_pulled_outwar
     # every 1 ms sample: the snap watch frees the wall before the snap passes 30 deg/s
     assert out["peak"] <= 30.0
     assert 30.0 <= out["pan"].min() and out["pan"][-1] < 30.5  # within 0.5 deg, never inside
-    # let go, the leader snaps onto the setpoint LEAD ahead, where the loop would brake it
-    # outward: the watch frees the wall as the snap starts
+    # the watch frees the wall as the snap onto the setpoint starts, before the loop brakes it
     assert out["outward_s"] == []
 
 
@@ -383,9 +378,8 @@ def test_an_xl330_wall_pushes_with_its_cap_where_two_ticks_gave_a_fraction(model
     if "m077" in model:  # two ticks gave 0.02 N m, about its friction: the walk back stalled
         assert two_ticks["rest"] > 5.0 and let_go(0.05, 20.0, model=model)["rest"] < 0.5
         return
-    # why the M288's cap is 0.12 N m: at half its stall torque (0.26 N m) its soft loop stores
-    # enough for a faster snap than the return may have (the law alone: the watch runs only in
-    # the loop's idle time)
+    # why the M288's cap is 0.12 N m: at half its stall torque (0.26 N m) the law alone snaps
+    # it back faster than the return may go (the watch runs only in the loop's idle time)
     half = replace(motor, let_go_cap_nm=None)
     assert half.cap_nm(LAW.cap_nm) == pytest.approx(0.5 * motor.stall_torque_nm)
     assert let_go(0.05, 20.0, watch=False, model=model, motor=half)["peak"] > 40.0
@@ -421,8 +415,7 @@ def test_at_200_hz_a_closed_excursion_gives_the_hand_back_less_than_it_put_in(st
     beyond = np.array([r["pose_deg"][0] for r in rows])[1:] > 30.0
     hand = np.diff([r["hand_work_j"][0] for r in rows])[beyond].sum()
     motor = np.diff([r["motor_work_j"][0] for r in rows])[beyond].sum()
-    # the sampled wall leaks a little (motor > 0), the leader's friction takes more: the hand's
-    # net work stays positive, the motor does no net work on the hand
+    # the sampled wall leaks a little (motor > 0), the leader's friction takes more
     assert hand > 0.0 and motor < hand
 
 
@@ -618,8 +611,7 @@ PULLS = {
 def test_a_hand_carrying_the_leader_back_toward_the_region_is_pulled_outward_less(
     region, pull, stiffness
 ):
-    # the hand heads back inside faster than the setpoints walk: the let-go rules free the wall
-    # within a cycle and its write, where the wall alone (rules=False) stays on
+    # faster in than the setpoints walk: the let-go rules free the wall, the wall alone stays on
     rows, _ = felt3(region, PULLS[pull], 5.0, stiffness=stiffness)
     before, _ = felt3(region, PULLS[pull], 5.0, stiffness=stiffness, rules=False)
     outward, inside = pulled_outward(region, rows)
@@ -662,8 +654,7 @@ SILENT_LET_GO = {
 
 @pytest.mark.parametrize("rig", sorted(SILENT_LET_GO))
 def test_a_leader_released_by_goal_current_alone_still_walks_back_after_let_go(rig):
-    # released by Goal Current alone; let go, the wall comes back on from the present pose and
-    # walks the leader back, resting beyond the edge
+    # let go, the wall comes back on from the present pose and walks the leader back
     script, seconds, let_go_s, far_deg = SILENT_LET_GO[rig]
     region, last = region_of(rig), round(let_go_s * 200)
     silent = {k: "silent" for k in range(last - 20, last)}
