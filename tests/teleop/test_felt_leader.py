@@ -147,6 +147,15 @@ def beyond(row) -> float:
     return beyond_deg(q, square_region().correct(q), 3)
 
 
+def press_against_pan_zero(session, source, units: int = 40) -> int:
+    """The hand presses the two-servo leader outward (PRESS) against its pan motor written
+    straight to ``units`` of Goal Current, goal pan 0; returns ``units``."""
+    session.simulator.set_operator(PRESS)
+    goal = session.rig.angles_to_ticks(0.0, 0.0)[0]
+    session.rig.bus.write_block(source._feel_block, IDS[0], encode_feel(units, goal))
+    return units
+
+
 def test_the_leader_stops_near_the_edge_free_inside_never_above_the_cap(tmp_path):
     with felt_session(tmp_path) as (session, source, log), source:
         cap = cap_of(source)
@@ -342,27 +351,11 @@ def test_a_leader_unheard_past_its_watchdog_still_pushes_and_the_end_leaves_it_l
     assert all(closed["servos"][i]["torque_on"] is False for i in rig.ids)
 
 
-def test_a_felt_leaders_cycle_read_carries_its_present_velocity_and_current(tmp_path):
-    """The cycle's read carries Present Velocity and Current (round 5), the watch's read too."""
+def test_the_cycles_read_and_the_watchs_read_carry_the_leaders_present_current(tmp_path):
+    # the cycle's read (round 5) and the watch's carry Present Current; a hand presses outward
+    # against a 40 unit motor whose goal is pan 0: it pulls back at its Goal Current
     with felt_session(tmp_path) as (session, source, log), source:
-        bus = session.rig.bus
-        # Present Velocity in Goal Position's slot: the hand carries the free leader out
-        session.simulator.set_operator(PRESS)
-        deadline, pairs = time.monotonic() + 5.0, []
-        while time.monotonic() < deadline and len(pairs) < 5:
-            read = bus.read_cycle(ids=IDS, attempts=2)
-            plain = bus.read(Register.PRESENT_VELOCITY, IDS[0])
-            if read.ok and plain > 3:  # moving: a few units or more
-                pairs.append((present_velocity(read.reports[IDS[0]]), plain))
-        assert len(pairs) == 5
-        # the two reads are a millisecond apart on an accelerating leader: close, same sign
-        assert all(cycle > 0 and abs(cycle - plain) <= 3 for cycle, plain in pairs), pairs
-        speed = cycle_velocity(read, IDS, session.rig.joints)[0]
-        assert speed * session.rig.joints[0].direction > 0.0
-        # Present Current: the hand presses outward against a 40 unit motor whose goal is pan 0,
-        # which pulls back at its Goal Current
-        units, goal = 40, session.rig.angles_to_ticks(0.0, 0.0)[0]
-        bus.write_block(source._feel_block, IDS[0], encode_feel(units, goal))
+        bus, units = session.rig.bus, press_against_pan_zero(session, source)
         deadline = time.monotonic() + 5.0
         while time.monotonic() < deadline:
             read = bus.read_cycle(ids=IDS, attempts=2)
@@ -385,6 +378,24 @@ def test_a_felt_leaders_cycle_read_carries_its_present_velocity_and_current(tmp_
         plain = bus.read(Register.PRESENT_VELOCITY, IDS[0])
         unit = VELOCITY_UNIT_DEG_S  # the reads a millisecond apart: within a few units
         assert abs(speeds[0] * session.rig.joints[0].direction - plain * unit) <= 3 * unit
+
+
+def test_a_felt_leaders_cycle_read_carries_its_present_velocity(tmp_path):
+    # the felt leader's cycle read carries Present Velocity in Goal Position's slot
+    with felt_session(tmp_path) as (session, source, log), source:
+        bus = session.rig.bus
+        session.simulator.set_operator(PRESS)  # the hand carries the free leader out
+        deadline, pairs = time.monotonic() + 5.0, []
+        while time.monotonic() < deadline and len(pairs) < 5:
+            read = bus.read_cycle(ids=IDS, attempts=2)
+            plain = bus.read(Register.PRESENT_VELOCITY, IDS[0])
+            if read.ok and plain > 3:  # moving: a few units or more
+                pairs.append((present_velocity(read.reports[IDS[0]]), plain))
+        assert len(pairs) == 5
+        # the two reads are a millisecond apart on an accelerating leader: close, same sign
+        assert all(cycle > 0 and abs(cycle - plain) <= 3 for cycle, plain in pairs)
+        speed = cycle_velocity(read, IDS, session.rig.joints)[0]
+        assert speed * session.rig.joints[0].direction > 0.0
 
 
 def test_a_held_leader_let_go_is_freed_by_the_snap_watch(tmp_path):
