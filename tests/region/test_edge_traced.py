@@ -3,10 +3,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from firmware_sim.hand import Hand
 from firmware_sim.regions import grid_inside
+from limbctl.demo import true_outline, true_twist_probes
 from limbctl.envelope import RigidMap
 from limbctl.envelope.synthetic import SMALL_KIDNEY, ConeRegion, PolygonRegion, to_quaternions
+from limbctl.geometry.gimbal import pan_tilt_roll_to_quat, pan_tilt_to_direction, pan_tilt_to_quat
 from limbctl.geometry.quat import direction_angle, limb_direction
+from limbctl.geometry.twist import decompose
 from limbctl.region import edge_traced as et
 from limbctl.region.loops import resample_loop, station_positions
 from tests.region.support import circle
@@ -134,63 +138,37 @@ def test_a_hole_is_bridged_and_without_one_the_estimates_stay_to_the_bit():
     assert np.abs(bridged).max() < 0.5
 
 
-#: The demo's teaching hand (both rigs: the same swing outline) from the rest pose, sampled at
-#: 125 Hz for 60 s as the recorder would without a stall (``bench_envelope.hand_samples``).
-DEMO_RATE_HZ = 125.0
-DEMO_SECONDS = 60.0
-#: Stretches cut out of the edge trace (start s, length s): the recorder's stall of issue 19.
-#: Without the bridge the traced edge held 91.75 % (two servos) and 91.60 % (three) of the
-#: true region 2 deg inside at the first; docs/bench_edge_hole.md has every place.
+#: The recorder's stalls of issue 19 (start s, length s), cut out of the demo's 60 s teaching at
+#: 125 Hz (docs/bench_edge_hole.md).
 CUTS = ((6.0, 0.4), (18.0, 0.4), (9.0, 0.5))
 
 
-def _demo_teaching(name: str):
-    """The hand of ``limbctl/data/NAME`` (seed 0) taking hold at the rest pose, its poses
-    (N, 3) rad (pan, tilt, roll; roll 0 on two servos) at DEMO_RATE_HZ and their times (N,) s."""
-    from firmware_sim.hand import Hand
-
-    hand = Hand.from_yaml(REPO / "limbctl" / "data" / name, seed=0)
-    hand.start_from(0.0, 0.0)
-    t = np.arange(int(DEMO_SECONDS * DEMO_RATE_HZ)) / DEMO_RATE_HZ
-    pose = np.array([(tuple(hand.pose_deg(float(x))) + (0.0,))[:3] for x in t])
-    return hand, np.radians(pose), t
-
-
-def _cut(t: np.ndarray, start: float, length: float) -> np.ndarray:
-    """The rows (bool, (N,)) a recorder stalled from ``start`` for ``length`` s still holds."""
-    return ~((t >= start) & (t < start + length))
-
-
-def test_a_two_servo_edge_trace_with_a_recorder_hole_keeps_the_true_region():
-    from limbctl.demo import true_outline
-    from limbctl.geometry.gimbal import pan_tilt_to_direction, pan_tilt_to_quat
-
-    hand, pose, t = _demo_teaching("demo_region.yaml")
+def _inner_probes(path, hand):
+    """Two-servo orientations (M, 4) on a 1 deg grid at least 2 deg inside the true outline."""
     grid = np.radians(grid_inside(hand.region, 1.0, 0.0))
-    outline = np.radians(true_outline(REPO / "limbctl" / "data" / "demo_region.yaml"))
+    outline = np.radians(true_outline(path))
     edge = pan_tilt_to_direction(outline[:, 0], outline[:, 1])
-    inner = direction_angle(
-        pan_tilt_to_direction(grid[:, 0], grid[:, 1])[:, None, :], edge[None, :, :]
-    ).min(axis=1) >= np.radians(2.0)
-    probes = pan_tilt_to_quat(grid[inner, 0], grid[inner, 1])
-    for start, length in CUTS:
-        keep = _cut(t, start, length)
-        m = RigidMap().fit(pan_tilt_to_quat(pose[keep, 0], pose[keep, 1]))
-        held = np.mean(m.contains(probes))
-        assert held >= 0.99, f"cut at {start} s: {100 * held:.2f} % held"
+    d = pan_tilt_to_direction(grid[:, 0], grid[:, 1])
+    inner = direction_angle(d[:, None, :], edge[None, :, :]).min(axis=1) >= np.radians(2.0)
+    return pan_tilt_to_quat(grid[inner, 0], grid[inner, 1])
 
 
-def test_a_three_servo_edge_trace_with_a_recorder_hole_keeps_the_true_region():
-    from limbctl.demo import true_twist_probes
-    from limbctl.geometry.gimbal import pan_tilt_roll_to_quat
-    from limbctl.geometry.twist import decompose
-
-    _, pose, t = _demo_teaching("demo_region3.yaml")
-    probes = true_twist_probes(REPO / "limbctl" / "data" / "demo_region3.yaml")
-    for start, length in CUTS[:2]:
-        keep = _cut(t, start, length)
-        m = RigidMap(twist=True).fit(pan_tilt_roll_to_quat(*pose[keep].T))
+@pytest.mark.parametrize("twist", [False, True], ids=["two servos", "three servos"])
+def test_an_edge_trace_with_a_recorder_hole_keeps_the_true_region(twist):
+    path = REPO / "limbctl" / "data" / ("demo_region3.yaml" if twist else "demo_region.yaml")
+    hand = Hand.from_yaml(path, seed=0)
+    hand.start_from(0.0, 0.0)
+    t = np.arange(int(60.0 * 125.0)) / 125.0
+    pose = np.radians([(tuple(hand.pose_deg(float(x))) + (0.0,))[:3] for x in t])
+    probes = true_twist_probes(path) if twist else _inner_probes(path, hand)
+    for start, length in CUTS[:2] if twist else CUTS:
+        keep = ~((t >= start) & (t < start + length))
+        q = pan_tilt_roll_to_quat(*pose[keep].T) if twist else pan_tilt_to_quat(*pose[keep, :2].T)
+        m = RigidMap(twist=twist).fit(q)
         held = np.mean(np.asarray(m.contains(probes), dtype=bool))
+        if not twist:
+            assert held >= 0.99, f"cut at {start} s: {100 * held:.2f} % held"
+            continue
         # issue 35: where the twist stops are too sparse the band is held short and the places
         # are listed (the guide withholds READY); the swing edge must hold the probes' directions
         swing = np.mean(m.region.swing.mesh.contains(decompose(probes)[0]))
