@@ -4,7 +4,7 @@ from limbctl.envelope.synthetic import ConeRegion, PolygonRegion, to_quaternions
 from limbctl.geometry.quat import direction_angle, limb_direction
 
 
-def test_cone_samples_inside_and_ideal_is_lee():
+def test_cone_samples_inside_ideal_is_lee_and_quaternions_point_the_limb():
     rng = np.random.default_rng(0)
     cone = ConeRegion(np.radians(30.0))
     assert cone.contains(cone.sample(500, rng)).all()
@@ -16,6 +16,8 @@ def test_cone_samples_inside_and_ideal_is_lee():
         direction_angle(ideal[outside], cone.axis), np.radians(30), atol=1e-12
     )
     np.testing.assert_array_equal(ideal[~outside], test[~outside])
+    d = ConeRegion(1.0).sample(10, np.random.default_rng(2))
+    np.testing.assert_allclose(limb_direction(to_quaternions(d)), d, atol=1e-12)
 
 
 def test_polygon_ideal_is_nearest_boundary_point():
@@ -33,11 +35,6 @@ def test_polygon_ideal_is_nearest_boundary_point():
     # the sampling is dense in the middle, sparse at the edge
     depth = bean.depth(s)
     assert (depth < np.radians(3)).mean() < 0.2
-
-
-def test_to_quaternions_points_the_limb():
-    d = ConeRegion(1.0).sample(10, np.random.default_rng(2))
-    np.testing.assert_allclose(limb_direction(to_quaternions(d)), d, atol=1e-12)
 
 
 def test_trajectory_samples_are_continuous_strokes_inside():

@@ -1,11 +1,4 @@
-"""The learned region does not bridge a notch the taught samples surround (issue 35, finding 1).
-
-An ellipse with a notch of radial walls cut into its edge, taught for 60 s by the simulator's
-hand (it traces the edge about 1 deg inside, then wanders): the learned region may reach at most
-1 deg into the notch (the bound of docs/region.md). Before the evidence check
-(``limbctl.region.evidence``) the traced edge the fit took bridged the notch by 1.78 deg
-(teaching seed 1; the supported edge alone by 3.33 deg) and the second outline's by 2.72 deg.
-"""
+"""Hand-taught notches and bays are not bridged by more than 1 deg (issue 35, finding 1)."""
 
 from dataclasses import replace
 
@@ -25,8 +18,7 @@ RATE_HZ = 125.0
 
 
 def notched_ellipse(a, b, centre, at_deg, width, depth):
-    """An ellipse (semi-axes ``a``, ``b`` deg about ``centre``) with a notch ``width`` x
-    ``depth`` deg of radial walls at parametric angle ``at_deg``: vertices (V, 2) pan, tilt."""
+    """An ellipse with a ``width`` x ``depth`` deg notch at ``at_deg``: vertices (V, 2) deg."""
     r_here = np.hypot(a * np.cos(np.radians(at_deg)), b * np.sin(np.radians(at_deg)))
     half = np.degrees(0.5 * width / r_here)
     floor = 1.0 - depth / r_here
@@ -66,8 +58,7 @@ def test_a_hand_taught_notch_is_not_bridged(a, b, centre, at_deg, seed):
 
 
 def test_a_bridged_notch_is_listed_as_unsupported(monkeypatch):
-    """The evidence check itself: an edge straight across a notch the samples surround (a
-    coarse alpha shape, not carved) is found, over the notch; carved, it is gone."""
+    """An uncarved edge across a notch the samples surround is found over it; carved, gone."""
     monkeypatch.setattr(taught_module, "CARVE_ROUNDS", 0)
     outline, (at, half, floor) = notched_ellipse(27.2, 23.4, (-5.7, 7.2), 273.0, 9.0, 8.0)
     truth = PolygonRegion(outline)
@@ -92,9 +83,7 @@ def test_a_bridged_notch_is_listed_as_unsupported(monkeypatch):
 
 
 def bayed_ellipse(a, b, centre, bays):
-    """An ellipse (semi-axes ``a``, ``b`` deg about ``centre``) with smooth bays, each
-    ``(at_deg, width, depth)`` deg (a raised-cosine dent, as benchmarks/bench_swing_families.py
-    cuts them): vertices (V, 2) pan, tilt every 2 deg of parametric angle."""
+    """An ellipse with raised-cosine bays ``(at_deg, width, depth)`` deg: vertices (V, 2) deg."""
     theta = np.arange(0.0, 360.0, 2.0)
     radius = np.ones_like(theta)
     for at, width, depth in bays:
@@ -108,8 +97,7 @@ def bayed_ellipse(a, b, centre, bays):
 
 
 def test_a_hand_taught_bay_is_not_bridged(seconds=30.0):
-    """Two bays (the families' outline 2), taught by the simulator's hand: the region reaches at
-    most 1 deg outside (docs/decisions/region.md)."""
+    """Two bays (the families' outline 2) taught by the simulator's hand: at most 1 deg out."""
     outline = bayed_ellipse(22.7, 15.6, (5.0, -6.5), [(242.2, 17.9, 6.8), (11.0, 11.8, 6.2)])
     truth = PolygonRegion(outline)
     region = TaughtRegion().fit(hand_teaching(outline, 2, seconds))

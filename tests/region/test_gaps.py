@@ -10,14 +10,12 @@ def outermost_depths(rate: float, rng: np.random.Generator) -> np.ndarray:
     return -np.cumsum(rng.exponential(1.0 / rate, gaps.ORDER_STATISTICS))
 
 
-def test_line_gap_extrapolates_an_exact_line_to_rank_zero():
+def test_line_gap_extrapolates_an_exact_line_and_spacing_gap_is_the_mean_spacing():
     assert gaps.line_gap(np.array([1.0, 0.9, 0.8, 0.7, 0.6])) == pytest.approx(0.1, abs=1e-12)
     # equal depths: no spacing, no gap; too few depths: none
     assert gaps.line_gap(np.array([1.0, 1.0, 1.0, 1.0])) == 0.0
     assert gaps.line_gap(np.array([1.0, 0.5])) == 0.0
-
-
-def test_spacing_gap_is_the_mean_spacing():
+    # the spacing gap is the mean spacing
     assert gaps.spacing_gap(np.array([1.0, 0.8, 0.6, 0.4])) == pytest.approx(0.2, abs=1e-12)
     assert gaps.spacing_gap(np.array([1.0, 0.5])) == 0.0
 

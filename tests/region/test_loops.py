@@ -8,13 +8,16 @@ from limbctl.region.mesh import DirectionMesh
 from tests.region.support import circle
 
 
-def test_resample_puts_stations_evenly_on_the_loop():
+def test_resample_puts_stations_evenly_on_the_loop_and_loops_to_edges_closes_it():
     loop = circle(20.0, 17)
     stations, s, at_vertex = loops.resample_loop(loop, np.radians(0.5))
     total = loops.loop_length(loop)
     assert at_vertex[0] == 0.0 and np.all(np.diff(at_vertex) > 0)
     np.testing.assert_allclose(np.diff(s), total / s.size, rtol=1e-12)
     assert total / s.size <= np.radians(0.5)
+    vertices, edges = loops.loops_to_edges([circle(10.0, 4), circle(20.0, 3)])
+    assert vertices.shape == (7, 3)
+    np.testing.assert_array_equal(edges, [[0, 1], [1, 2], [2, 3], [3, 0], [4, 5], [5, 6], [6, 4]])
     np.testing.assert_allclose(np.linalg.norm(stations, axis=1), 1.0, atol=1e-12)
     # every station lies on an arc of the loop: within the arc's great circle
     mesh = DirectionMesh.from_loops([loop], 0.0)
@@ -47,21 +50,12 @@ def test_loop_area_is_signed_by_orientation():
     )
 
 
-def test_loops_to_edges_closes_each_loop():
-    vertices, edges = loops.loops_to_edges([circle(10.0, 4), circle(20.0, 3)])
-    assert vertices.shape == (7, 3)
-    np.testing.assert_array_equal(edges, [[0, 1], [1, 2], [2, 3], [3, 0], [4, 5], [5, 6], [6, 4]])
-
-
-def test_signed_offset_and_gaps_wrap_around_the_loop():
+def test_signed_offset_gaps_and_station_buckets_wrap_around_the_loop():
     total = 10.0
     np.testing.assert_allclose(loops.signed_offset(np.array([9.0, 1.0]), 0.0, total), [-1.0, 1.0])
     np.testing.assert_allclose(
         loops.loop_gaps(np.array([9.5]), np.array([0.5, 5.0]), total), [[1.0, 4.5]]
     )
-
-
-def test_station_buckets_read_windows_of_stations_circularly():
     owner = np.array([2, 0, 2, 4, 1, -1, 0, 5])
     buckets = loops.StationBuckets(owner, 5)
     # station by station in the order asked, each station's items in their original order
