@@ -87,7 +87,7 @@ def test_correct_lands_on_boundary_and_is_idempotent(q, r_deg):
         assert quat.swing_angle(out) == pytest.approx(np.radians(r_deg), abs=1e-7)
 
 
-def test_correction_is_the_nearest_boundary_point_in_r4():
+def test_correction_is_the_nearest_boundary_point_in_r4_and_contains_the_swing_angle():
     cone = Cone(np.radians(40))
     q = random_unit(300, seed=5)
     out = cone.correct(q[~cone.contains(q)])
@@ -99,9 +99,7 @@ def test_correction_is_the_nearest_boundary_point_in_r4():
     for qi, oi in zip(q[~cone.contains(q)][:20], out[:20], strict=True):
         best = np.min(np.linalg.norm(boundary - qi, axis=1))
         assert np.linalg.norm(oi - qi) <= best + 1e-9
-
-
-def test_contains_matches_swing_angle():
+    # contains is the swing angle's test
     q = random_unit(2000, seed=6)
     for r_deg in (10, 90, 170):
         cone = Cone(half_angle_deg=r_deg)
@@ -133,7 +131,7 @@ def test_bad_input_options_and_half_angles_are_refused():
     assert Cone(half_angle_deg=90).half_angle == pytest.approx(np.pi / 2)
 
 
-def test_fit_without_half_angle_learns_the_max_swing():
+def test_fit_without_half_angle_learns_the_max_swing_and_saved_weights_are_empty(tmp_path):
     rng = np.random.default_rng(8)
     d = quat.normalize(rng.normal(size=(400, 3)))
     d = d[quat.direction_angle(d, X) < np.radians(70)]
@@ -147,9 +145,7 @@ def test_fit_without_half_angle_learns_the_max_swing():
     assert fixed.fit(q) is fixed and fixed.half_angle == 0.3
     with pytest.raises(ConfigError, match="empty"):
         Cone().fit(np.empty((0, 4)))
-
-
-def test_weights_empty_and_save_load_round_trip(tmp_path):
+    # no weights; the half angle saved and loaded
     cone = Cone(half_angle_deg=42.5)
     assert cone.weights.shape == (0, 4)
     path = cone.save(tmp_path / "cone.npz")

@@ -85,14 +85,12 @@ def test_topological_uses_the_topology_not_the_nearest_weights():
     assert geo[0, 1] > 0 and abs(geo[0, 2]) < 1e-15
 
 
-def test_nearest_distance_matches_reference():
+def test_nearest_distance_neighbours_and_names_are_checked():
     w = random_unit(50, seed=6) * 0.95
     q = random_unit(300, seed=7)
     reference = np.sqrt(np.sum((q[:, None, :] - w[None, :, :]) ** 2, axis=2).min(axis=1))
     np.testing.assert_allclose(ip.nearest_distance(w, q), reference, atol=1e-14)
-
-
-def test_neighbours_by_position_on_a_grid():
+    # neighbours by position on a grid
     rows, cols = 4, 5
     grid = np.array([(r, c) for r in range(rows) for c in range(cols)], dtype=np.float64)
     nb = ip.neighbours_by_position(grid, 8)
@@ -100,9 +98,7 @@ def test_neighbours_by_position_on_a_grid():
     assert list(nb[6, :4]) == [1, 5, 7, 11]
     assert sorted(nb[6, 4:]) == [0, 2, 10, 12]
     assert nb.shape == (20, 8) and nb.dtype == np.int64
-
-
-def test_names_are_checked():
+    # names are checked
     assert ip.interpolation_code("geometric") == ip.GEOMETRIC
     with pytest.raises(ConfigError, match="unknown interpolation 'linear'.*none, idw"):
         ip.interpolation_code("linear")

@@ -96,7 +96,7 @@ def test_uniform_is_seeded_unit_and_on_the_hemisphere():
 
 
 @pytest.mark.parametrize("hemisphere", [True, False])
-def test_super_fibonacci_is_near_uniform(hemisphere):
+def test_super_fibonacci_is_near_uniform_and_starts_on_the_formula(hemisphere):
     n = 2000
     sf = make_layout("super-fibonacci", n=n, hemisphere=hemisphere)
     rnd = make_layout("uniform", n=n, seed=0, hemisphere=hemisphere)
@@ -112,9 +112,7 @@ def test_super_fibonacci_is_near_uniform(hemisphere):
     assert covering_angle(sf, probes) < covering_angle(rnd, probes)
     # deterministic
     np.testing.assert_array_equal(sf, make_layout("super-fibonacci", n=n, hemisphere=hemisphere))
-
-
-def test_super_fibonacci_first_point_matches_the_formula():
+    # the first point of the full spiral by the formula
     n = 10
     s = 0.5
     t = s / n

@@ -38,6 +38,11 @@ def cone_model():
     return region, RigidMap(nodes=500, seed=0).fit(q)
 
 
+@pytest.fixture(scope="module")
+def hand_model():
+    return RigidMap(nodes=300, seed=0).fit(load_dataset(HAND_RECORDING).quaternions)
+
+
 def test_a_fitted_map_responds_and_answers_one_command_as_many(cone_model):
     region, m = cone_model
     assert m.weights.shape == (500, 4)
@@ -100,22 +105,6 @@ def _with_twist(d, twist):
     """swing(d) * (rotation by ``twist`` about +x), quat.canonical w >= 0."""
     tw = np.array([np.cos(twist / 2), np.sin(twist / 2), 0.0, 0.0])
     return quat.canonical(quat.multiply(to_quaternions(d), tw))
-
-
-@given(theta=st.floats(0.0, 179.0), phi=st.floats(-180.0, 180.0), twist=st.floats(-3.1, 3.1))
-def test_correct_promises(cone_model, theta, phi, twist):
-    region, m = cone_model
-    d = _direction(theta, phi)
-    q = _with_twist(d, twist)
-    out = m.correct(q)
-    if m.contains(q):
-        np.testing.assert_array_equal(out, q, "inside: unchanged, exactly")
-    else:
-        # outside: the output is in the region, no farther than the ideal target
-        assert m.contains(out)
-        moved = quat.direction_angle(quat.limb_direction(out), d)
-        assert moved <= quat.direction_angle(region.ideal(d[None])[0], d) + np.radians(3.0)
-        assert abs(wrap(decompose(out)[1] - decompose(q)[1])) < 1e-6, "the twist is kept"
 
 
 @settings(max_examples=60, deadline=None)
@@ -226,23 +215,31 @@ def test_models_saved_with_the_region_settings_among_the_maps_still_load(cone_mo
     np.testing.assert_array_equal(back.correct(q), m.correct(q))
 
 
-@pytest.fixture(scope="module")
-def hand_model():
-    return RigidMap(nodes=300, seed=0).fit(load_dataset(HAND_RECORDING).quaternions)
-
-
 @settings(max_examples=300, deadline=None)
-@given(pan=st.floats(-120.0, 120.0), tilt=st.floats(-80.0, 80.0), twist=st.floats(-3.1, 3.1))
-def test_hand_taught_gate_promises(hand_model, pan, tilt, twist):
-    # a concave, hand-taught region with holes between strokes: the same promises hold
-    q = _with_twist(pan_tilt_to_direction(np.radians(pan), np.radians(tilt)), twist)
-    out = hand_model.correct(q)
-    if hand_model.contains(q):
-        np.testing.assert_array_equal(out, q)
-    else:
-        assert hand_model.contains(out)
-        np.testing.assert_array_equal(hand_model.correct(out), out)
-        assert abs(wrap(decompose(out)[1] - decompose(q)[1])) < 1e-6
+@given(
+    theta=st.floats(0.0, 179.0),
+    phi=st.floats(-180.0, 180.0),
+    pan=st.floats(-120.0, 120.0),
+    tilt=st.floats(-80.0, 80.0),
+    twist=st.floats(-3.1, 3.1),
+)
+def test_correct_promises(cone_model, hand_model, theta, phi, pan, tilt, twist):
+    """Inside unchanged; outside moved in, for good, twist kept, on a cone and a hand-taught region
+    (concave, holes between strokes); on the cone no farther than the ideal target."""
+    region, cone = cone_model
+    hand = pan_tilt_to_direction(np.radians(pan), np.radians(tilt))
+    for m, d in ((cone, _direction(theta, phi)), (hand_model, hand)):
+        q = _with_twist(d, twist)
+        out = m.correct(q)
+        if m.contains(q):
+            np.testing.assert_array_equal(out, q, "inside: unchanged, exactly")
+            continue
+        assert m.contains(out), "outside: moved into the region"
+        np.testing.assert_array_equal(m.correct(out), out, "outside: moved for good")
+        assert abs(wrap(decompose(out)[1] - decompose(q)[1])) < 1e-6, "the twist is kept"
+        if m is cone:
+            moved = quat.direction_angle(quat.limb_direction(out), d)
+            assert moved <= quat.direction_angle(region.ideal(d[None])[0], d) + np.radians(3.0)
 
 
 @pytest.fixture(scope="module")

@@ -87,22 +87,6 @@ def test_fit_converges_and_the_map_responds_contains_and_corrects(small_som):
     assert isinstance(som.contains(q[0]), bool)
 
 
-def test_900_node_som_matches_the_paper_figure():
-    # the paper: 900 nodes, 5000 patterns, 90 deg cone -> 3D error 5.63e-2 on a unit limb;
-    # here the RMS end-point error against Lee's ideal over directions uniform on the sphere
-    som = SOM(seed=0).fit(cone_patterns(5000, np.pi / 2, seed=5))
-    q = quat.swing_from_direction(sphere_directions(4000, seed=6))
-    ideal = quat.limb_direction(Cone(np.pi / 2).correct(q))
-
-    def rms(answer):
-        return np.sqrt(np.mean(np.sum((quat.limb_direction(answer) - ideal) ** 2, axis=1)))
-
-    err_none = rms(som.respond(q))
-    assert 0.03 < err_none < 0.08
-    # interpolation between the winner and its runner-ups helps (Rigid Map paper's finding)
-    assert rms(som.respond(q, interpolation="geometric", k=8)) < 0.85 * err_none
-
-
 @pytest.mark.parametrize("mode", ["idw", "geometric", "geometric-winner", "topological"])
 def test_interpolated_answers_are_unit_canonical_and_exact_on_a_node(small_som, mode):
     som, _ = small_som

@@ -20,7 +20,7 @@ def test_cone_samples_inside_ideal_is_lee_and_quaternions_point_the_limb():
     np.testing.assert_allclose(limb_direction(to_quaternions(d)), d, atol=1e-12)
 
 
-def test_polygon_ideal_is_nearest_boundary_point():
+def test_polygon_ideal_is_nearest_boundary_point_and_strokes_stay_inside():
     rng = np.random.default_rng(1)
     bean = PolygonRegion()
     s = bean.sample(1000, rng)
@@ -35,9 +35,7 @@ def test_polygon_ideal_is_nearest_boundary_point():
     # the sampling is dense in the middle, sparse at the edge
     depth = bean.depth(s)
     assert (depth < np.radians(3)).mean() < 0.2
-
-
-def test_trajectory_samples_are_continuous_strokes_inside():
+    # trajectory samples are continuous strokes inside
     from limbctl.envelope.synthetic import trajectory_samples
 
     rng = np.random.default_rng(3)
@@ -52,7 +50,7 @@ def test_trajectory_samples_are_continuous_strokes_inside():
     assert (bean.depth(d) < np.radians(1.0)).mean() > 0.05
 
 
-def test_inset_track_runs_the_inset_distance_inside_round_reflex_corners():
+def test_the_inset_track_rounds_reflex_corners_and_the_teaching_traces_it_then_wanders():
     from limbctl.envelope.synthetic import NOTCH, inset_track
     from limbctl.geometry.gimbal import pan_tilt_to_direction
 
@@ -72,9 +70,7 @@ def test_inset_track_runs_the_inset_distance_inside_round_reflex_corners():
         np.sort(track[:, 0])[::50],
         atol=0.2,
     )
-
-
-def test_traced_teaching_traces_the_edge_then_wanders_inside():
+    # the traced teaching traces the edge, then wanders inside
     from limbctl.envelope.synthetic import NOTCH, traced_teaching
 
     notch = PolygonRegion(NOTCH)

@@ -15,7 +15,7 @@ IDENTITY = np.array([1.0, 0.0, 0.0, 0.0])
 QUARTER_Z = np.array([math.cos(math.pi / 4), 0.0, 0.0, math.sin(math.pi / 4)])
 
 
-def test_quaternion_endpoint_and_angle_errors_by_hand():
+def test_quaternion_endpoint_angle_and_unchanged_by_hand():
     answer = np.array([IDENTITY, [0.0, 0.0, 0.0, 1.0]])
     ideal = np.array([[0.6, 0.8, 0.0, 0.0], [0.0, 0.0, 0.0, -1.0]])
     # |(1,0,0,0) - (0.6,0.8,0,0)|^2 = 0.16 + 0.64; the second pair is q and -q: no error
@@ -28,8 +28,7 @@ def test_quaternion_endpoint_and_angle_errors_by_hand():
     )
     np.testing.assert_allclose(metrics.direction_error_deg(answer, ideal), [90.0, 0.0], atol=1e-9)
 
-
-def test_unchanged_uses_the_rotation_angle_tolerance():
+    # unchanged uses the rotation angle's tolerance
     def about_x(angle):
         return [math.cos(angle / 2), math.sin(angle / 2), 0.0, 0.0]
 
@@ -73,7 +72,7 @@ def test_score_splits_valid_and_invalid_by_hand():
     assert s["invalid"]["outside_p95_deg"] == pytest.approx(0.95 * 2.0)
 
 
-def test_score_reports_an_empty_subset_as_nan_and_refuses_mismatched_shapes():
+def test_an_empty_subset_is_nan_mismatched_shapes_are_refused_and_mean_and_spread():
     q = np.array([IDENTITY])
     s = metrics.score(q, q, q, np.array([True]), np.array([True]))
     assert s["invalid"]["n"] == 0
@@ -86,9 +85,7 @@ def test_score_reports_an_empty_subset_as_nan_and_refuses_mismatched_shapes():
         metrics.score(q, q, q, np.array([True, False]), np.array([True]))
     with pytest.raises(ConfigError, match="outside_deg"):
         metrics.score(q, q, q, np.array([True]), np.array([True]), np.zeros(3))
-
-
-def test_mean_and_spread():
+    # mean and spread, nan skipped
     assert metrics.mean_and_spread([1.0, 2.0, 3.0]) == pytest.approx((2.0, 1.0))
     assert metrics.mean_and_spread([5.0]) == (5.0, 0.0)
     assert metrics.mean_and_spread([math.nan, 1.0, 3.0]) == pytest.approx((2.0, math.sqrt(2.0)))

@@ -13,7 +13,7 @@ from limbctl.geometry.chains import Directions, Rotations, chain_geometry, geode
 from limbctl.geometry.gimbal import pose_quat_scalar
 
 
-def test_toward_turns_by_the_step_along_the_shortest_rotation_and_geodesic_measures_it():
+def test_the_steps_turn_along_the_shortest_rotation_and_geodesic_measures_it():
     a = pose_quat_scalar(0.0, 0.0, 0.0)
     b = pose_quat_scalar(0.0, 0.0, math.radians(90))
     half = toward(a, b, math.radians(30))
@@ -28,9 +28,7 @@ def test_toward_turns_by_the_step_along_the_shortest_rotation_and_geodesic_measu
     b = pose_quat_scalar(0.3, -0.2, 0.1 + 1e-9)
     assert geodesic(a, b) == pytest.approx(1e-9, rel=1e-6)  # accurate near 0
     assert geodesic(a, -b) == geodesic(a, b)
-
-
-def test_the_directions_step_is_the_great_circle_or_the_target_when_nearer():
+    # the directions' step: the great circle, or the target when nearer
     a, b = scalar.direction(0.0, 0.0), scalar.direction(math.radians(50), 0.0)
     assert Directions.toward(a, b, math.radians(60)) is b
     step = Directions.toward(a, b, math.radians(20))

@@ -113,7 +113,7 @@ def test_gimbal_lock_keeps_the_present_pan_and_roll_takes_the_turn(tilt_deg):
         assert math.remainder(both - fixed, 360) == pytest.approx(0.0, abs=1e-5)
 
 
-def test_unwrap_roll_prefers_limits_then_the_present_roll():
+def test_unwrap_roll_prefers_limits_then_the_present_roll_and_a_pose_uses_its_chain():
     lo, hi = math.radians(-100), math.radians(100)
     # only one representative within +-100: chosen whatever the present roll
     r = math.radians(-170)
@@ -125,9 +125,7 @@ def test_unwrap_roll_prefers_limits_then_the_present_roll():
     # beyond every limit: the nearest to the limits (the clamp then decides)
     got = gimbal.unwrap_roll_scalar(math.radians(150), 0.0, lo, hi)
     assert math.degrees(got) == pytest.approx(150.0)
-
-
-def test_one_pose_of_either_chain_uses_its_count_functions():
+    # one pose of either chain uses its count's functions
     pan, tilt, roll = 0.4, -0.3, 1.1
     assert np.array_equal(gimbal.pose_quat(pan, tilt), gimbal.pan_tilt_to_quat(pan, tilt))
     assert np.array_equal(

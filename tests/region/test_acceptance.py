@@ -58,7 +58,7 @@ def test_judge_accepts_the_true_edge_and_refuses_one_that_cuts_or_overreaches(co
     assert verdict.reasons[0].startswith("loop 0 adds a stretch")
 
 
-def test_a_rival_edge_bounds_how_far_an_edge_may_reach(cone):
+def test_a_rival_edge_bounds_an_edge_and_refusals_and_safe_proposals_pass_through(cone):
     def rival(radius_deg):
         region = DirectionMesh.from_loops([circle(radius_deg, 240)], 0.0)
         return Verdict("traced", True, ("accepted",), {}, region)
@@ -70,9 +70,7 @@ def test_a_rival_edge_bounds_how_far_an_edge_may_reach(cone):
     assert not far.accepted
     assert 1.4 < far.figures["reach_beyond_deg"] < 1.6
     assert "beyond the traced edge" in far.reasons[0]
-
-
-def test_refusals_and_safe_proposals_pass_through(cone):
+    # refusals and safe proposals pass through
     verdict = judge(Refusal("traced", "too sparse", {"window_deg": 12.0}), *cone)
     assert not verdict.accepted and verdict.figures == {"window_deg": 12.0}
     assert verdict.line() == "refused: too sparse"

@@ -25,20 +25,6 @@ def test_resample_puts_stations_evenly_on_the_loop_and_loops_to_edges_closes_it(
     assert np.all(mesh.contains(stations) | (direction_angle(foot, stations) < 1e-9))
 
 
-def test_lift_makes_up_each_deficit_and_nothing_more():
-    s = np.radians(np.arange(0.0, 360.0, 2.0))
-    total = np.radians(360.0)
-    none = loops.lift(np.full(s.size, -1.0), s, total, np.radians(5.0))
-    np.testing.assert_array_equal(none, 0.0)
-    deficit = np.full(s.size, -0.01)
-    deficit[[10, 100]] = [0.02, 0.005]
-    up = loops.lift(deficit, s, total, np.radians(5.0))
-    assert up[10] == pytest.approx(0.02) and up[100] >= 0.005
-    assert np.all(up <= 0.02) and np.all(up >= 0.0)
-    # bumps fade: 30 deg (6 widths) away nothing is left
-    assert up[25] < 1e-6
-
-
 def test_loop_area_is_signed_by_orientation():
     bean = PolygonRegion()
     loop = bean.boundary[::-1] if loops.loop_area(bean.boundary) < 0 else bean.boundary
@@ -65,7 +51,7 @@ def test_signed_offset_gaps_and_station_buckets_wrap_around_the_loop():
     assert buckets.rows(np.array([3])).size == 0
 
 
-def test_nearest_station_and_smoothing_along_the_loop():
+def test_nearest_station_smoothing_and_lift_along_the_loop():
     stations = circle(20.0, 36)
     data = circle(19.0, 36)
     np.testing.assert_array_equal(loops.nearest_station(data, stations), np.arange(36))
@@ -76,6 +62,18 @@ def test_nearest_station_and_smoothing_along_the_loop():
     # symmetric about station 0 across the wrap, and a constant stays constant
     assert smooth[1] == pytest.approx(smooth[-1]) and smooth[0] > smooth[1]
     np.testing.assert_allclose(loops.smooth_along(np.ones(36), s, total, 0.1), 1.0)
+    # lift makes up each deficit and nothing more
+    s = np.radians(np.arange(0.0, 360.0, 2.0))
+    total = np.radians(360.0)
+    none = loops.lift(np.full(s.size, -1.0), s, total, np.radians(5.0))
+    np.testing.assert_array_equal(none, 0.0)
+    deficit = np.full(s.size, -0.01)
+    deficit[[10, 100]] = [0.02, 0.005]
+    up = loops.lift(deficit, s, total, np.radians(5.0))
+    assert up[10] == pytest.approx(0.02) and up[100] >= 0.005
+    assert np.all(up <= 0.02) and np.all(up >= 0.0)
+    # bumps fade: 30 deg (6 widths) away nothing is left
+    assert up[25] < 1e-6
 
 
 def test_vertex_turns_are_left_positive_and_close_the_loop():

@@ -191,7 +191,7 @@ def _triangle(side_deg):
     return xy, np.array([0.0, 0.0, 0.0, -0.5]), r
 
 
-def test_envelope_sag_between_far_stops_is_capped():
+def test_envelope_sag_is_capped_between_far_stops_and_not_raised_over_dense_ones(monkeypatch):
     # at the centre of a facet of circumradius R the sag factor is S = R^2 / 2: k S at the fixed
     # curvature, capped at max(ENVELOPE_SAG_DEG, k_min S)
     xy, t, r = _triangle(40.0)
@@ -205,10 +205,7 @@ def test_envelope_sag_between_far_stops_is_capped():
     # 1 deg from the stop at (0, r): the fixed curvature's sag k (R^2 - |x|^2) / 2
     fixed = -tb.ENVELOPE_CURVATURE * 0.5 * (r * r - near[0] @ near[0])
     assert tb.envelope_heights(xy, t, near)[0] == pytest.approx(fixed, abs=1e-12)
-
-
-def test_envelope_over_dense_stops_on_a_curved_truth_is_not_raised(monkeypatch):
-    """Stops 1 deg apart on a limit curving 1 rad^-1 (above ENVELOPE_CURVATURE): none raised."""
+    # stops 1 deg apart on a limit curving by 1 rad^-1 (above ENVELOPE_CURVATURE): none raised
     g = np.radians(np.arange(-10.0, 10.5, 1.0))
     xy = np.stack(np.meshgrid(g, g, indexing="ij"), axis=-1).reshape(-1, 2)
     t = 0.5 * np.sum(xy * xy, axis=1)

@@ -65,15 +65,6 @@ def test_upper_hull_matches_its_numpy_twin(seed, n, top):
     assert (np.isnan(got) and np.isnan(expected)) or math.isclose(got, expected, abs_tol=1e-12)
 
 
-def test_upper_hull_reads_a_sloping_plane_exactly_and_fails_outside_the_points():
-    rng = np.random.default_rng(1)
-    px, py = rng.uniform(-1, 1, (2, 40))
-    t = 0.3 + 0.7 * px - 0.4 * py
-    assert math.isclose(fk.upper_hull(px, py, t, 24), 0.3, abs_tol=1e-12)
-    # points on one side only: no triangle holds the origin
-    assert np.isnan(fk.upper_hull(np.abs(px) + 0.1, py, t, 24))
-
-
 def _disk_samples(rng, n, radius):
     """Unit directions within ``radius`` of +z, and the node +z itself."""
     r = radius * np.sqrt(rng.uniform(0, 1, n))
@@ -87,7 +78,7 @@ def _one_node(d):
     return np.array([0, d.shape[0]], dtype=np.int64), np.arange(d.shape[0], dtype=np.int64)
 
 
-def test_both_readings_find_planar_limits_at_the_node():
+def test_the_hull_and_both_readings_read_planes_exactly():
     rng = np.random.default_rng(2)
     # few enough that the 24 highest twists are the upper stops all round the node
     d, node = _disk_samples(rng, 60, math.radians(8))
@@ -107,6 +98,13 @@ def test_both_readings_find_planar_limits_at_the_node():
         rel = fk.refine_nodes(node, start, members, d, limit, stop, ref, math.radians(5), 1.0)
         expected = 0.5 if limit is upper else -0.4
         assert math.isclose(wrap(ref[0] + rel[0] - expected), 0.0, abs_tol=1e-9)
+    # upper_hull reads a sloping plane exactly and fails outside the points
+    rng = np.random.default_rng(1)
+    px, py = rng.uniform(-1, 1, (2, 40))
+    t = 0.3 + 0.7 * px - 0.4 * py
+    assert math.isclose(fk.upper_hull(px, py, t, 24), 0.3, abs_tol=1e-12)
+    # points on one side only: no triangle holds the origin
+    assert np.isnan(fk.upper_hull(np.abs(px) + 0.1, py, t, 24))
 
 
 def test_free_twist_too_few_samples_and_too_steep_a_plane():
