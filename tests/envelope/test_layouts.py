@@ -14,9 +14,7 @@ def nearest_neighbour_angles(points: np.ndarray) -> np.ndarray:
     return np.arccos(np.clip(gram.max(axis=1), -1.0, 1.0))
 
 
-def covering_angle(
-    points: np.ndarray, probes: np.ndarray, sign_aware: bool = False, chunk: int = 4096
-) -> float:
+def covering_angle(points, probes, sign_aware=False, chunk=4096):
     """Covering radius estimate (rad): the largest angle from a probe (m, 4) to its nearest point
     (n, 4), q and -q one point when ``sign_aware``; a lower bound of the true radius."""
     points = np.asarray(points, dtype=np.float64)

@@ -2,6 +2,7 @@ import numpy as np
 import pytest
 
 from limbctl.envelope import rigidmap_kernels as rk
+from limbctl.envelope.layouts import make_layout
 from limbctl.envelope.synthetic import ConeRegion, to_quaternions
 
 
@@ -13,9 +14,8 @@ def _gaussian_layout(n, seed):
 
 def _patterns(n, seed, half_angle_deg=30.0):
     rng = np.random.default_rng(seed)
-    return np.ascontiguousarray(
-        to_quaternions(ConeRegion(np.radians(half_angle_deg)).sample(n, rng))
-    )
+    cone = ConeRegion(np.radians(half_angle_deg))
+    return np.ascontiguousarray(to_quaternions(cone.sample(n, rng)))
 
 
 def _nodes_at_the_data():
@@ -74,7 +74,7 @@ def test_patterns_near_gathers_few_in_pattern_order_and_scans_many():
     assert not mark.any()
 
 
-def test_position_winners_and_topology_are_the_nearest_positions():
+def test_position_winners_and_topology_are_the_nearest_positions_ties_in_index_order():
     positions = _gaussian_layout(200, 3)
     patterns = _patterns(50, 4)
     got = rk.position_winners(positions, patterns)
@@ -87,16 +87,11 @@ def test_position_winners_and_topology_are_the_nearest_positions():
         dots = p @ p[i]
         dots[i] = -np.inf
         np.testing.assert_array_equal(np.sort(topo[i]), np.sort(np.argsort(-dots)[:3]))
-
-
-@pytest.mark.parametrize("layout", ["600-cell", "24-cell"])
-def test_position_topology_breaks_ties_in_index_order(layout):
     # polytope layouts hold many equal dots: the order is a stable sort's, nearest first
-    from limbctl.envelope.layouts import make_layout
-
-    p = make_layout(layout, None, seed=0)
-    dots = p @ p.T
-    np.fill_diagonal(dots, -np.inf)
-    for k in (1, 5, 12):
-        want = np.argsort(-dots, axis=1, kind="stable")[:, : min(k, len(p) - 1)]
-        np.testing.assert_array_equal(rk.position_topology(p, k), want)
+    for layout in ("600-cell", "24-cell"):
+        p = make_layout(layout, None, seed=0)
+        dots = p @ p.T
+        np.fill_diagonal(dots, -np.inf)
+        for k in (1, 5, 12):
+            want = np.argsort(-dots, axis=1, kind="stable")[:, : min(k, len(p) - 1)]
+            np.testing.assert_array_equal(rk.position_topology(p, k), want, f"{layout}, k={k}")

@@ -6,14 +6,7 @@ from limbctl.envelope.som_kernels import train_som
 from tests.envelope.test_som import cone_patterns
 
 
-def train_som_reference(
-    weights: np.ndarray,
-    patterns: np.ndarray,
-    grid_distance: np.ndarray,
-    learning_rates: np.ndarray,
-    radii: np.ndarray,
-    winners: np.ndarray,
-) -> tuple[int, bool]:
+def train_som_reference(weights, patterns, grid_distance, learning_rates, radii, winners):
     """Plain numpy version of :func:`train_som` (same arguments, same result)."""
     steps = 0
     for t in range(len(learning_rates)):

@@ -74,9 +74,7 @@ def test_som_reproduces_the_papers_number():
     assert rows["correct (gate)", "valid"]["unchanged_share"] > 0.9
 
 
-def test_run_tasks_appends_as_it_goes_and_resumes_unless_the_gate_version_changed(
-    tmp_path, monkeypatch
-):
+def test_run_tasks_appends_and_resumes_unless_the_gate_version_changed(tmp_path, monkeypatch):
     data = DataSpec(45.0, 100, 100, "around")
     tasks = [Task("test", "t", "seed", s, s, data, (CONE_SPEC, som_spec(4))) for s in range(3)]
     csv_path = tmp_path / "runs.csv"

@@ -20,7 +20,7 @@ REPO = Path(__file__).resolve().parents[2]
 
 
 @pytest.mark.parametrize("per_depth", [30, 100])
-def test_edge_estimate_is_unbiased_below_a_straight_edge(per_depth):
+def test_edge_estimate_is_unbiased_below_a_straight_edge_and_local(per_depth):
     # Poisson points of density rho under a straight edge at depth 0 over u in [-1, 1]:
     # per_depth = rho * 2 points per unit of depth; HULL_GAP makes the estimate centred on 0
     rng = np.random.default_rng(0)
@@ -32,10 +32,7 @@ def test_edge_estimate_is_unbiased_below_a_straight_edge(per_depth):
     # in units of 1 / (rho 2h): mean 0 within 3 standard errors (sd about 1.5)
     assert abs(est.mean()) < 3 * 1.5 / np.sqrt(len(est))
     assert 1.0 < est.std() < 2.0
-
-
-def test_edge_estimate_is_local():
-    # flat readings 1 unit deep across the window, and one reading 1 unit out at its end: the
+    # local: flat readings 1 unit deep across the window, and one reading 1 unit out at its end: the
     # outermost reading would put the station 1 unit out; the majorant's chord from the far
     # left to that reading passes the station at 0 (plus the small gap estimate)
     u = np.concatenate([np.linspace(-1.0, 1.0, 41), [1.0]])
@@ -59,7 +56,7 @@ def test_local_quadratic_keeps_a_circle_and_removes_wiggles():
     assert np.abs(radius - 20.0).max() < 0.04
 
 
-def test_trace_window_follows_the_density_and_refuses_a_sparse_edge():
+def test_trace_window_follows_the_density_refuses_a_sparse_edge_and_chords_are_lifted():
     rng = np.random.default_rng(0)
     loop = circle(19.5, 80)
     dense = ConeRegion(np.radians(20.0)).sample(1000, rng)
@@ -69,15 +66,13 @@ def test_trace_window_follows_the_density_and_refuses_a_sparse_edge():
     assert np.degrees(et.trace_window(loop, dense[:100])) > et.TRACE_MAX_WINDOW_DEG
     assert et.trace_edge(loop, dense[:100], np.radians(3.0)) is None
     assert et.trace_window(loop, -dense) == np.inf
-
-
-def test_chord_need_lifts_a_sample_past_the_chord():
+    # chord_need lifts a sample past the chord
     loop = circle(20.0, 60)
     # a direction at the middle of the chord between stations 0 and 1, 0.01 deg outside the
     # circle: inside the circle but outside the polygon of stations (sagitta 0.06 deg)
     mid = loop[0] + loop[1]
     mid /= np.linalg.norm(mid)
-    outward = mid - X * np.cos(np.radians(20.0)) / 1.0
+    outward = mid - X * np.cos(np.radians(20.0))
     outward -= (outward @ mid) * mid
     outward /= np.linalg.norm(outward)
     sample = np.cos(np.radians(0.01)) * mid + np.sin(np.radians(0.01)) * outward
@@ -109,20 +104,14 @@ def test_a_small_kidney_gets_a_traced_edge_near_its_true_edge(seed):
     assert m.contains(to_quaternions(train)).mean() >= 0.999
 
 
-def _hole_readings():
-    """Stations of a 20 deg circle; readings on the curve at every station but 30..35 (a hole
-    in the edge trace), and interior readings 15 deg inside over the hole."""
+def test_a_hole_is_bridged_and_without_one_the_estimates_stay_to_the_bit():
+    # a 20 deg circle's stations read on the curve but at 30..35 (a hole in the edge trace), and
+    # interior readings 15 deg inside over the hole
     curve, _, _ = resample_loop(circle(20.0, 400), np.radians(et.TRACE_STEP_DEG))
     s, total = station_positions(curve)
-    k = curve.shape[0]
-    edge = np.setdiff1d(np.arange(k), np.arange(30, 36))
+    edge = np.setdiff1d(np.arange(curve.shape[0]), np.arange(30, 36))
     owner = np.concatenate([np.repeat(edge, 3), np.arange(31, 35)])
     depth = np.concatenate([np.zeros(3 * edge.size), np.full(4, -np.radians(15.0))])
-    return s, total, owner, depth
-
-
-def test_a_hole_is_bridged_and_without_one_the_estimates_stay_to_the_bit():
-    s, total, owner, depth = _hole_readings()
     h = np.radians(3.0)
     edge = depth == 0.0
     plain = et.station_estimates(s, total, owner[edge], depth[edge], 2)

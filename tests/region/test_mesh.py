@@ -10,6 +10,7 @@ from limbctl.region import mesh_kernels as bk
 from limbctl.region.evidence import loop_arcs
 from limbctl.region.mesh import DirectionMesh
 from limbctl.region.mesh_kernels import CONTAIN_TOLERANCE
+from tests.region.support import circle
 
 
 def in_triangles_reference(d: np.ndarray, vertices: np.ndarray, tri: np.ndarray) -> np.ndarray:
@@ -95,22 +96,10 @@ def test_boundary_edges_keep_the_region_on_their_left():
     assert not in_triangles_reference(probe_out, d, tri).any()
 
 
-def test_slerp_dir_moves_margin_toward_target():
-    p = np.array([1.0, 0, 0])
-    d = np.array([0.0, 1.0, 0])
-    out = bk.slerp_dir(p, d, np.pi / 2, 0.1)
-    assert direction_angle(out, p) == pytest.approx(0.1, abs=1e-12)
-    np.testing.assert_array_equal(bk.slerp_dir(p, d, np.pi / 2, 0.0), p)
-
-
 def test_inside_reference_beyond_a_hemisphere():
     # a cap of 100 deg: points and their antipodes can both be inside
-    t = np.linspace(-np.pi, np.pi, 400, endpoint=False)
     r = np.radians(100.0)
-    loop = np.column_stack(
-        [np.full(t.size, np.cos(r)), np.sin(r) * np.cos(t), np.sin(r) * np.sin(t)]
-    )
-    mesh = DirectionMesh.from_loops([loop], 0.0)
+    mesh = DirectionMesh.from_loops([circle(100.0, 400)], 0.0)
     test = ConeRegion(np.radians(150.0)).test_directions(4000, np.random.default_rng(5))
     truth = direction_angle(test, np.array([1.0, 0, 0])) < r
     far = np.abs(direction_angle(test, np.array([1.0, 0, 0])) - r) > 1e-3
@@ -174,7 +163,7 @@ def test_the_pruned_grid_is_the_brute_force_grid(mesh_and_region, widest_deg):
     assert fast[0].any() and (~fast[0]).any() and fast[2].size > 0
 
 
-def test_edge_foot_is_nearest_on_arc_bit_for_bit():
+def test_edge_foot_is_nearest_on_arc_bit_for_bit_and_slerp_dir_moves_by_the_margin():
     def unit(rows):
         return rows / np.linalg.norm(rows, axis=-1, keepdims=True)
 
@@ -195,3 +184,9 @@ def test_edge_foot_is_nearest_on_arc_bit_for_bit():
             angle = bk.nearest_on_arc(p, vertices[edges[e, 0]], vertices[edges[e, 1]], out)
             got = bk.edge_foot(p, vertices, edges, e)
             assert np.array_equal([angle, *out], list(got), equal_nan=True), (p, e)
+    # slerp_dir moves the margin toward the target
+    p = np.array([1.0, 0, 0])
+    d = np.array([0.0, 1.0, 0])
+    out = bk.slerp_dir(p, d, np.pi / 2, 0.1)
+    assert direction_angle(out, p) == pytest.approx(0.1, abs=1e-12)
+    np.testing.assert_array_equal(bk.slerp_dir(p, d, np.pi / 2, 0.0), p)

@@ -6,9 +6,7 @@ from limbctl.region.edge_traced import edge_estimate, readings, station_estimate
 from limbctl.region.loops import StationBuckets, resample_loop, signed_offset, station_positions
 
 
-def station_estimates_reference(
-    s: np.ndarray, total: float, owner: np.ndarray, depth: np.ndarray, reach: int
-) -> np.ndarray:
+def station_estimates_reference(s, total, owner, depth, reach):
     """:func:`station_estimates` in numpy, station by station."""
     buckets = StationBuckets(owner, s.shape[0])
     move = np.zeros(s.shape[0])

@@ -70,10 +70,23 @@ def test_plane_round_trip_and_unwrap():
     np.testing.assert_allclose(out, smooth, atol=1e-12)
 
 
-def test_reading_matches_the_numpy_twin_and_reads_the_nodes_back(learned):
-    _, band = learned
-    rng = np.random.default_rng(2)
-    d = rng.normal(size=(2000, 3))
+def test_learned_band_is_the_true_band_within_a_degree(learned):
+    truth, band = learned
+    d = truth._inside_directions(5000, np.random.default_rng(4))
+    c, h = truth.band(d)
+    cl, hl = band.at(d)
+    upper = np.degrees(wrap(cl + hl - c - h))
+    lower = np.degrees(wrap(cl - hl - c + h))
+    # wider than the truth (unsafe) almost nowhere, and never by much
+    assert np.mean(upper > 0.5) < 0.01 and upper.max() < 1.5
+    assert np.mean(lower < -0.5) < 0.01 and lower.min() > -1.5
+    # narrower (conservative) by under 2 deg for 98 %
+    assert np.mean(upper > -2.0) > 0.98 and np.mean(lower < 2.0) > 0.98
+    # and it narrows as the limb rises, as the truth does
+    low, high = d[:, 2] < math.sin(math.radians(-20)), d[:, 2] > math.sin(math.radians(50))
+    assert hl[low].mean() > hl[high].mean() + math.radians(20)
+    # the reading matches the numpy twin and reads the nodes back
+    d = np.random.default_rng(2).normal(size=(2000, 3))
     d /= np.linalg.norm(d, axis=1, keepdims=True)
     c, h = band.at(d)
     c_ref, h_ref = band_reference(band, d)
@@ -90,23 +103,6 @@ def test_reading_matches_the_numpy_twin_and_reads_the_nodes_back(learned):
     c, h = band.at(tb.plane_to_direction(xy, frame))
     np.testing.assert_allclose(c, centre.ravel(), atol=1e-12)
     np.testing.assert_allclose(h, half.ravel(), atol=1e-12)
-
-
-def test_learned_band_is_the_true_band_within_a_degree(learned):
-    truth, band = learned
-    d = truth._inside_directions(5000, np.random.default_rng(4))
-    c, h = truth.band(d)
-    cl, hl = band.at(d)
-    upper = np.degrees(wrap(cl + hl - c - h))
-    lower = np.degrees(wrap(cl - hl - c + h))
-    # wider than the truth (unsafe) almost nowhere, and never by much
-    assert np.mean(upper > 0.5) < 0.01 and upper.max() < 1.5
-    assert np.mean(lower < -0.5) < 0.01 and lower.min() > -1.5
-    # narrower (conservative) by under 2 deg for 98 %
-    assert np.mean(upper > -2.0) > 0.98 and np.mean(lower < 2.0) > 0.98
-    # and it narrows as the limb rises, as the truth does
-    low, high = d[:, 2] < math.sin(math.radians(-20)), d[:, 2] > math.sin(math.radians(50))
-    assert hl[low].mean() > hl[high].mean() + math.radians(20)
 
 
 def _trajectory(truth, seconds, seed, rate_hz=125.0, speed_deg_s=40.0, stop_period_s=1.0):
@@ -153,9 +149,7 @@ def _path_figures(truth, q, d):
     )
 
 
-def test_band_from_a_trajectory_holds_its_own_samples_and_the_band_between_its_stops(
-    monkeypatch,
-):
+def test_a_trajectorys_band_holds_its_samples_and_the_band_between_its_stops(monkeypatch):
     """The envelope (step 3) does not close on samples passing mid-band; the cap keeps them."""
     truth = ShoulderRegion(rounded(SHOULDER))
     q, d = _trajectory(truth, 30.0, seed=3, stop_period_s=0.5)
@@ -183,18 +177,14 @@ def test_sparse_stops_are_bridged_by_a_flatter_envelope(monkeypatch):
     assert over < 0.01 and over <= over_fixed + 0.001
 
 
-def _triangle(side_deg):
-    """Three stops at twist 0 on a triangle of side ``side_deg``, a sample at -0.5 rad inside."""
-    r = math.radians(side_deg) / math.sqrt(3.0)
-    a = np.radians([90.0, 210.0, 330.0])
-    xy = np.vstack([np.column_stack([r * np.cos(a), r * np.sin(a)]), [[0.0, 0.0]]])
-    return xy, np.array([0.0, 0.0, 0.0, -0.5]), r
-
-
 def test_envelope_sag_is_capped_between_far_stops_and_not_raised_over_dense_ones(monkeypatch):
     # at the centre of a facet of circumradius R the sag factor is S = R^2 / 2: k S at the fixed
     # curvature, capped at max(ENVELOPE_SAG_DEG, k_min S)
-    xy, t, r = _triangle(40.0)
+    # three stops at twist 0 on a triangle of side 40 deg, a sample at -0.5 rad at its centre
+    r = math.radians(40.0) / math.sqrt(3.0)
+    a = np.radians([90.0, 210.0, 330.0])
+    xy = np.vstack([np.column_stack([r * np.cos(a), r * np.sin(a)]), [[0.0, 0.0]]])
+    t = np.array([0.0, 0.0, 0.0, -0.5])
     s = 0.5 * r * r
     centre = tb.envelope_heights(xy, t, np.zeros((1, 2)))[0]
     cap = max(math.radians(tb.ENVELOPE_SAG_DEG), tb.ENVELOPE_CURVATURE_MIN * s)

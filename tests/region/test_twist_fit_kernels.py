@@ -1,5 +1,6 @@
 """The band's fitting kernels against their numpy twins and on planes they must read exactly."""
 
+import itertools
 import math
 
 import numpy as np
@@ -14,14 +15,7 @@ from limbctl.region import twist_fit_kernels as fk
 def upper_hull_reference(px: np.ndarray, py: np.ndarray, t: np.ndarray, top: int) -> float:
     """Numpy twin of :func:`limbctl.region.twist_fit_kernels.upper_hull` (all triangles at once)."""
     order = np.argsort(-t, kind="stable")[:top]
-    a, b, c = np.array(
-        [
-            (i, j, k)
-            for i in range(len(order))
-            for j in range(i + 1, len(order))
-            for k in range(j + 1, len(order))
-        ]
-    ).T
+    a, b, c = np.array(list(itertools.combinations(range(len(order)), 3))).T
     ia, ib, ic = order[a], order[b], order[c]
     cab = px[ia] * py[ib] - py[ia] * px[ib]
     cbc = px[ib] * py[ic] - py[ib] * px[ic]
@@ -149,22 +143,7 @@ def test_evidence_caps_match_their_numpy_twin(seed, slope):
     assert np.all(got[2] <= np.diff(start)) and np.all(got[3] <= np.diff(start))
 
 
-def test_a_stop_held_at_the_node_witnesses_the_cap_and_a_far_one_shrinks_it():
-    node = np.array([[0.0, 0.0, 1.0]])
-    a = math.radians(6.0)
-    # three samples at the node at twists 0.5, 0.49, 0.2; one 6 deg away at 0.6
-    d = np.array([[0, 0, 1], [0, 0, 1], [0, 0, 1], [math.sin(a), 0, math.cos(a)]], float)
-    limit = np.array([0.5, 0.49, 0.2, 0.6])
-    start, members = _one_node(d)
-    up, lo, n_up, n_lo = fk.evidence_caps(
-        node, start, members, d, limit, np.zeros(1), 1.0, math.radians(3), 0.05
-    )
-    # the far sample's 0.6 - 1.0 * 6 deg = 0.495 < 0.5: the cap is the held 0.5
-    assert up[0] == pytest.approx(0.5) and n_up[0] == 2
-    assert lo[0] == pytest.approx(0.2) and n_lo[0] == 1
-
-
-def test_the_cap_along_the_local_slope_follows_a_steep_plane_the_cone_overshoots():
+def test_the_caps_a_held_stop_witnesses_and_along_the_local_slope_on_a_steep_plane():
     rng = np.random.default_rng(7)
     d, node = _disk_samples(rng, 200, math.radians(8))
     d[0] = node[0]  # one stop at the node itself
@@ -190,3 +169,16 @@ def test_the_cap_along_the_local_slope_follows_a_steep_plane_the_cone_overshoots
     held = (*args[:7], math.radians(4), 1.4, np.ones(1, dtype=bool))
     cap, _ = fk.gradient_caps(node, start, members, d, limit, stop, ref, *held)
     assert math.isclose(cap[0], 0.4, abs_tol=1e-9)
+    # evidence_caps: a stop held at the node witnesses the cap and a far one shrinks it
+    node = np.array([[0.0, 0.0, 1.0]])
+    a = math.radians(6.0)
+    # three samples at the node at twists 0.5, 0.49, 0.2; one 6 deg away at 0.6
+    d = np.array([[0, 0, 1], [0, 0, 1], [0, 0, 1], [math.sin(a), 0, math.cos(a)]], float)
+    limit = np.array([0.5, 0.49, 0.2, 0.6])
+    start, members = _one_node(d)
+    up, lo, n_up, n_lo = fk.evidence_caps(
+        node, start, members, d, limit, np.zeros(1), 1.0, math.radians(3), 0.05
+    )
+    # the far sample's 0.6 - 1.0 * 6 deg = 0.495 < 0.5: the cap is the held 0.5
+    assert up[0] == pytest.approx(0.5) and n_up[0] == 2
+    assert lo[0] == pytest.approx(0.2) and n_lo[0] == 1
