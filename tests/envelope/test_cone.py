@@ -9,6 +9,7 @@ from limbctl.errors import ConfigError, FileFormatError, InvalidInputError
 from limbctl.geometry import quat
 from limbctl.geometry.twist import decompose
 from tests.geometry.test_quat import random_unit
+from tests.region.support import circle
 
 Z = np.array([0.0, 0.0, 1.0])
 X = np.array([1.0, 0.0, 0.0])
@@ -55,12 +56,9 @@ def test_twist_free_input_goes_to_the_nearest_direction_on_the_circle():
     # on the circle of angle R about +x ...
     np.testing.assert_allclose(quat.direction_angle(d_out[outside], X), R, atol=1e-12)
     # ... at the point nearest the input (same azimuth about +x): dense search over the circle
-    phi = np.linspace(0, 2 * np.pi, 20001)
-    circle = np.stack(
-        [np.full_like(phi, np.cos(R)), np.sin(R) * np.cos(phi), np.sin(R) * np.sin(phi)], 1
-    )
+    ring = circle(50.0, 20000)
     for di, do in zip(d[outside][:50], d_out[outside][:50], strict=True):
-        best = quat.direction_angle(circle, di).min()
+        best = quat.direction_angle(ring, di).min()
         assert quat.direction_angle(do, di) == pytest.approx(best, abs=1e-6)
     # twist-free in, twist-free out
     np.testing.assert_allclose(out[:, 1], 0.0, atol=1e-15)

@@ -43,7 +43,7 @@ def hand_model():
     return RigidMap(nodes=300, seed=0).fit(load_dataset(HAND_RECORDING).quaternions)
 
 
-def test_a_fitted_map_responds_and_answers_one_command_as_many(cone_model):
+def test_a_fitted_map_responds_answers_one_command_as_many_and_refuses_bad_input(cone_model):
     region, m = cone_model
     assert m.weights.shape == (500, 4)
     assert 1 <= m.epochs < 1000
@@ -52,20 +52,15 @@ def test_a_fitted_map_responds_and_answers_one_command_as_many(cone_model):
         r = m.respond(q, interpolation=mode, k=8)
         assert r.shape == (50, 4)
         np.testing.assert_allclose(np.linalg.norm(r, axis=1), 1.0, atol=1e-12)
-        # the papers' answer lies near the taught region
-        assert np.all(np.degrees(quat.direction_angle(quat.limb_direction(r), [1, 0, 0])) < 45.0), (
-            mode
-        )
+        angle = np.degrees(quat.direction_angle(quat.limb_direction(r), [1, 0, 0]))
+        assert np.all(angle < 45.0), f"{mode}: the papers' answer lies near the taught region"
     assert m.respond(q[0]).shape == (4,)
     q = to_quaternions(region.test_directions(30, np.random.default_rng(2)))
     batch = m.correct(q)
     for i in range(30):
         np.testing.assert_array_equal(m.correct(q[i]), batch[i], "one command as in a batch")
         assert m.contains(q[i]) == m.contains(q)[i]
-
-
-def test_bad_input_and_an_untrained_map_are_refused_saying_why(cone_model):
-    _, m = cone_model
+    # bad input and an untrained map are refused, saying why
     bad = np.array([[1.0, 0, 0, 0], [np.nan, 0, 0, 1]])
     for call in (m.contains, m.correct, m.respond):
         with pytest.raises(ValueError, match="row 1"):
@@ -102,7 +97,7 @@ def _direction(theta_deg, phi_deg):
 
 
 def _with_twist(d, twist):
-    """swing(d) * (rotation by ``twist`` about +x), quat.canonical w >= 0."""
+    """swing(d) * (rotation by ``twist`` about +x), canonical w >= 0."""
     tw = np.array([np.cos(twist / 2), np.sin(twist / 2), 0.0, 0.0])
     return quat.canonical(quat.multiply(to_quaternions(d), tw))
 

@@ -30,16 +30,9 @@ def small_som():
 
 def test_table_i_schedule():
     lr, radii = table_i_schedule(60)
-    for t, want_lr, want_radius in [
-        (0, 1.0, 4.0),
-        (9, 1.0, 4.0),
-        (10, 0.5, 2.0),
-        (20, 0.25, 1.0),
-        (30, 0.125, 0.5),
-        (40, 0.0625, 0.25),
-        (59, 0.0625, 0.25),
-    ]:
-        assert lr[t] == want_lr and radii[t] == want_radius
+    steps = [0, 9, 10, 20, 30, 40, 59]
+    np.testing.assert_array_equal(lr[steps], [1.0, 1.0, 0.5, 0.25, 0.125, 0.0625, 0.0625])
+    np.testing.assert_array_equal(radii[steps], [4.0, 4.0, 2.0, 1.0, 0.5, 0.25, 0.25])
     assert len(lr) == len(radii) == 60
     assert SOM().schedule()[0].shape == (10_000,)
     # floors hold when the periods run on

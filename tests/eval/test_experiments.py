@@ -11,6 +11,7 @@ from limbctl.envelope import rigidmap
 from limbctl.errors import ConfigError
 from limbctl.eval import experiments as ex
 from limbctl.eval.grids import SCALES, Answer, DataSpec, ModelSpec, Task, build_tasks, som_spec
+from limbctl.eval.twist import FIELDS, run_twist
 from limbctl.geometry.quat import limb_direction, swing_angle
 
 EXPERIMENTS = {"som-range", "som-patterns", "som-nodes", "som-ratio", "rm-range", "rm-k"}
@@ -127,7 +128,21 @@ def test_run_eval_smoke_grid_end_to_end(tmp_path, capsys):
     assert min(r["unchanged_share"] for r in gates if r["model"].startswith("RigidMap")) > 0.9
     summary = (out / "summary.md").read_text()
     assert "Rigid Map paper defaults" in summary and "| SOM 5x5 |" in summary
-    assert "limbctl eval (smoke)" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "limbctl eval (smoke)" in printed
+    # the twist experiment (limbctl.eval.twist): the learned exact correction beats the engines'
+    # clamp on the true region
+    assert "learned correct()" in (out / "twist.md").read_text()
+    with open(out / "twist.csv", newline="") as fh:
+        (row,) = [{k: float(v) for k, v in r.items()} for r in csv.DictReader(fh)]
+    assert tuple(row) == FIELDS and row["seed"] == 0 and row["outside"] > 100
+    # a 2000-sample teaching: coarser than the benchmark's 7500, still far nearer than the clamp
+    assert row["learned_mean_deg"] < 1.5 and row["clamp_mean_deg"] > 4 * row["learned_mean_deg"]
+    # an incomplete teaching: the evidence cap holds the band in and a deep command may move
+    # (docs/bench_region_families.md)
+    assert row["deep_unchanged"] >= 0.97 and row["within_1deg"] >= 0.97
     size = (out / "runs.csv").stat().st_size
     assert ex.run_eval(out, jobs=1, progress=False, smoke=True) == 0  # resumed: nothing reruns
     assert (out / "runs.csv").stat().st_size == size
+    headline = run_twist(out, "smoke")  # resumed from the written table, as printed the first time
+    assert "engines' clamp" in headline[0] and all(f"  {line}\n" in printed for line in headline)

@@ -58,15 +58,14 @@ def _cap_args(path: Path) -> None:
     np.savez(path, **{f"a{i}": a for i, a in enumerate(args)})
 
 
+def _python(argv, env, cwd, prefix=(), check=False):
+    """``python -c *argv`` (after ``prefix``) in ``cwd``, which ``-c`` puts first on sys.path."""
+    command = [*prefix, sys.executable, "-c", *argv]
+    return subprocess.run(command, env=env, cwd=cwd, capture_output=True, text=True, check=check)
+
+
 def _run(tree: Path, home: Path, args: Path) -> tuple[list[float], int, int, int]:
-    done = subprocess.run(
-        [sys.executable, "-c", CHILD, str(args)],
-        env=_env(home, tree),
-        cwd=tree,  # python -c puts the working folder first on sys.path
-        capture_output=True,
-        text=True,
-        check=True,
-    )
+    done = _python([CHILD, str(args)], _env(home, tree), tree, check=True)
     out, status, hits, misses = done.stdout.strip().rsplit(" ", 3)
     return eval(out), int(status), int(hits), int(misses)  # noqa: S307 - our own child's repr
 
@@ -101,13 +100,26 @@ def test_editing_an_inlined_kernel_in_another_file_changes_the_answer(tmp_path):
     assert first[0] == here[0].tolist() and first[1] == here[1]
 
 
-def test_the_key_names_the_folders_and_numba_cache_dir_comes_first(monkeypatch):
+def test_the_key_names_the_folders_and_every_kernel_is_under_it(monkeypatch):
     key = jit.source_key()
     assert re.fullmatch(rf"[0-9a-f]{{{jit.KEY_DIGITS}}}", key)
     assert all(key in folder.name for folder in jit.cache_candidates())
     assert jit.cache_dir() in jit.cache_candidates()
     monkeypatch.setenv("NUMBA_CACHE_DIR", "/somewhere")
     assert jit.cache_candidates()[0] == Path("/somewhere") / f"limbctl-{jit.source_key()}"
+    # numba.njit elsewhere, or a kernel outside KERNEL_PACKAGES, would escape the key
+    offenders = []
+    for path in (ROOT / "limbctl").rglob("*.py"):
+        text = path.read_text(encoding="utf-8")
+        if path == Path(jit.__file__):
+            continue
+        if re.search(r"\b(?:nb|numba)\.(?:njit|jit|vectorize|guvectorize|cfunc)\b", text):
+            offenders.append(f"{path.relative_to(ROOT)}: calls numba's decorator itself")
+        uses = "from limbctl.geometry.jit import njit" in text
+        package = path.relative_to(ROOT / "limbctl").parts[0]
+        if uses and package not in jit.KERNEL_PACKAGES:
+            offenders.append(f"{path.relative_to(ROOT)}: a kernel outside {jit.KERNEL_PACKAGES}")
+    assert not offenders, offenders
 
 
 def _unprivileged() -> list[str]:
@@ -138,13 +150,7 @@ def test_a_read_only_install_with_an_unwritable_home_compiles_in_memory_and_says
             "print(m._angle(np.array([1.0, 0, 0]), np.array([0.0, 0, 1])))\n"
         )
         try:
-            done = subprocess.run(
-                [*_unprivileged(), sys.executable, "-c", child],
-                env=_env(home, tree),
-                cwd=tree,
-                capture_output=True,
-                text=True,
-            )
+            done = _python([child], _env(home, tree), tree, _unprivileged())
         finally:
             for folder in [Path(tmp), home, tree, *(p for p in tree.rglob("*") if p.is_dir())]:
                 folder.chmod(0o755)
@@ -154,22 +160,6 @@ def test_a_read_only_install_with_an_unwritable_home_compiles_in_memory_and_says
         assert len(lines) == 1 and "no writable folder" in lines[0], done.stderr
         assert "NUMBA_CACHE_DIR" in lines[0] and str(home) in lines[0]
         assert not list(tree.rglob("*.nbi")) and not list(home.rglob("*"))
-
-
-def test_every_kernel_uses_this_decorator_and_lives_where_the_key_looks():
-    """numba.njit elsewhere, or a kernel outside KERNEL_PACKAGES, would escape the key."""
-    offenders = []
-    for path in (ROOT / "limbctl").rglob("*.py"):
-        text = path.read_text(encoding="utf-8")
-        if path == Path(jit.__file__):
-            continue
-        if re.search(r"\b(?:nb|numba)\.(?:njit|jit|vectorize|guvectorize|cfunc)\b", text):
-            offenders.append(f"{path.relative_to(ROOT)}: calls numba's decorator itself")
-        uses = "from limbctl.geometry.jit import njit" in text
-        package = path.relative_to(ROOT / "limbctl").parts[0]
-        if uses and package not in jit.KERNEL_PACKAGES:
-            offenders.append(f"{path.relative_to(ROOT)}: a kernel outside {jit.KERNEL_PACKAGES}")
-    assert not offenders, offenders
 
 
 def test_a_drop_in_for_numbas_njit_in_every_form(tmp_path):
@@ -192,9 +182,7 @@ def test_a_drop_in_for_numbas_njit_in_every_form(tmp_path):
     )
     env = {**_env(tmp_path, ROOT), "NUMBA_CACHE_DIR": str(tmp_path / "cache")}
     env["PYTHONPATH"] = f"{ROOT}{os.pathsep}{tmp_path}"
-    done = subprocess.run(
-        [sys.executable, "-c", child], env=env, cwd=tmp_path, capture_output=True, text=True
-    )
+    done = _python([child], env, tmp_path)
     assert done.returncode == 0, done.stderr
     assert done.stdout.split("\n")[:3] == ["4.0 2 2 1", "eager only", "6"]
     assert list((tmp_path / "cache").rglob("kernels_here.bare-*.nbi"))
