@@ -51,18 +51,6 @@ def test_thin_keeps_spacing_covers_every_point_and_alpha_follows_the_data_scale(
     assert rs.learn_alpha(thin, 2.0) > np.radians(3.0)
 
 
-def test_holes_below_the_limit_are_filled_larger_ones_kept():
-    d = ConeRegion(np.radians(25.0)).sample(3000, np.random.default_rng(1))
-    d = d[direction_angle(d, np.array([1.0, 0, 0])) >= np.radians(8.0)]  # a ring
-    alpha = np.radians(3.0)
-    probe = np.array([[1.0, 0.0, 0.0]])
-    filled = alpha_loops(d, alpha, max_hole=0.1)
-    kept = alpha_loops(d, alpha, max_hole=1e-4)
-    assert enclosed(probe, filled)[0]
-    assert not enclosed(probe, kept)[0]
-    assert len(kept) == len(filled) + 1
-
-
 def test_edge_margins_reach_the_circle_and_cover_every_sample():
     rng = np.random.default_rng(3)
     cone = ConeRegion(np.radians(25.0))
@@ -143,6 +131,16 @@ def test_a_hole_open_only_through_a_gap_narrower_than_the_mouth_is_filled():
     assert not _holds_pond(_pond(8.0 / 3.0), mouth_deg=2.0)
     # without a mouth (the rule off) every gap lets the outside in
     assert not _holds_pond(_pond(1.6), mouth_deg=0.0)
+    # holes below max_hole are filled, larger ones kept
+    d = ConeRegion(np.radians(25.0)).sample(3000, np.random.default_rng(1))
+    d = d[direction_angle(d, np.array([1.0, 0, 0])) >= np.radians(8.0)]  # a ring
+    alpha = np.radians(3.0)
+    probe = np.array([[1.0, 0.0, 0.0]])
+    filled = alpha_loops(d, alpha, max_hole=0.1)
+    kept = alpha_loops(d, alpha, max_hole=1e-4)
+    assert enclosed(probe, filled)[0]
+    assert not enclosed(probe, kept)[0]
+    assert len(kept) == len(filled) + 1
 
 
 def _plane(uv_deg):
