@@ -98,8 +98,7 @@ def test_nearest_distance_neighbours_and_names_are_checked():
     assert list(nb[6, :4]) == [1, 5, 7, 11]
     assert sorted(nb[6, 4:]) == [0, 2, 10, 12]
     assert nb.shape == (20, 8) and nb.dtype == np.int64
-    # names are checked
-    assert ip.interpolation_code("geometric") == ip.GEOMETRIC
+    assert ip.interpolation_code("geometric") == ip.GEOMETRIC, "names are checked"
     with pytest.raises(ConfigError, match="unknown interpolation 'linear'.*none, idw"):
         ip.interpolation_code("linear")
     with pytest.raises(ConfigError, match="integer >= 1"):

@@ -46,8 +46,7 @@ def test_polygon_ideal_is_nearest_boundary_point_and_strokes_stay_inside():
     steps = np.degrees(direction_angle(d[1:], d[:-1]))
     # consecutive samples are close (a 100 Hz recording), except where a stroke ends
     assert np.quantile(steps, 0.98) <= 0.31
-    # some strokes creep along the edge
-    assert (bean.depth(d) < np.radians(1.0)).mean() > 0.05
+    assert (bean.depth(d) < np.radians(1.0)).mean() > 0.05, "some strokes creep along the edge"
 
 
 def test_the_inset_track_rounds_reflex_corners_and_the_teaching_traces_it_then_wanders():
@@ -81,5 +80,4 @@ def test_the_inset_track_rounds_reflex_corners_and_the_teaching_traces_it_then_w
     assert np.all(np.abs(depth[:traced] - 1.0) < 0.05)
     assert np.median(depth[traced:]) > 3.0
     steps = np.degrees(direction_angle(d[1:traced], d[: traced - 1]))
-    # 15 deg/s at 125 Hz
-    np.testing.assert_allclose(np.median(steps), 0.12, atol=0.005)
+    np.testing.assert_allclose(np.median(steps), 0.12, atol=0.005, err_msg="15 deg/s at 125 Hz")

@@ -52,8 +52,7 @@ def test_queries_from_the_arcs_answer_as_the_grid_does(name, margins):
     assert 0 < inside.sum() < len(d)
     np.testing.assert_array_equal(without.contains(d), inside)
     np.testing.assert_allclose(without.project(d), with_grid.project(d), rtol=0.0, atol=1e-12)
-    # answered from the arcs alone: the grid was never built
-    assert without.cell_inside is None
+    assert without.cell_inside is None, "answered from the arcs alone: the grid was never built"
 
 
 @pytest.mark.parametrize("name", ["bean", "notch"])

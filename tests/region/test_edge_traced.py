@@ -94,8 +94,7 @@ def test_a_small_kidney_gets_a_traced_edge_near_its_true_edge(seed):
     out = m.correct(q)
     d_out = limb_direction(out)
     err = np.degrees(direction_angle(d_out, region.ideal(test)))
-    # the supported loops give about 1.0 deg here
-    assert err.mean() < 0.6
+    assert err.mean() < 0.6, "the supported loops give about 1.0 deg here"
     depth = region.depth(d_out)
     assert (depth >= -np.radians(1.0)).mean() >= 0.995
     valid = region.depth(test) >= np.radians(2.0)

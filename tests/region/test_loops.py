@@ -72,8 +72,7 @@ def test_nearest_station_smoothing_and_lift_along_the_loop():
     up = loops.lift(deficit, s, total, np.radians(5.0))
     assert up[10] == pytest.approx(0.02) and up[100] >= 0.005
     assert np.all(up <= 0.02) and np.all(up >= 0.0)
-    # bumps fade: 30 deg (6 widths) away nothing is left
-    assert up[25] < 1e-6
+    assert up[25] < 1e-6, "bumps fade: 30 deg (6 widths) away nothing is left"
 
 
 def test_vertex_turns_are_left_positive_and_close_the_loop():

@@ -161,8 +161,7 @@ def test_a_trajectorys_band_holds_its_samples_and_the_band_between_its_stops(mon
     assert own >= 0.99
     # the true band shrunk by 2 deg, at the path's directions (stops ~40 deg apart along it)
     assert held >= 0.9
-    # and wider than the truth almost nowhere
-    assert over_read < 0.01 and over <= over_read
+    assert over_read < 0.01 and over <= over_read, "and wider than the truth almost nowhere"
 
 
 def test_sparse_stops_are_bridged_by_a_flatter_envelope(monkeypatch):
