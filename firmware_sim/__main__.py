@@ -21,82 +21,59 @@ ROLL_ID = ROLL_JOINT.servo_id
 
 DESCRIPTION = """\
 Simulated Dynamixel X-series servos (Protocol 2.0) on a pseudo-terminal, byte for byte like real
-servos behind a U2D2 adapter. Open PATH with the dynamixel-sdk at the servos' baud rate (with
---baud, or --factory at 57600; without either they answer at any rate until their Baud Rate
-register is written), protocol 2.0: as on a real bus a servo hears only its own baud rate, bytes
-take their time on the wire, and servos sharing an ID garble each other's replies. Servo 1 is the
-pan joint and servo 2 the tilt joint of a simulated gimbal (true geometry in calib/rigs/sim.yaml);
-servo 3, when listed (--ids 1,2,3), is its roll joint, which turns the limb about its own axis
-(calib/rigs/sim3.yaml); other IDs drive free shafts. With --factory N, N factory-fresh servos (all
-ID 1, 57600 baud) sit in slots 1..N (slot 1 drives pan, 2 tilt). Runs until SIGINT or SIGTERM, then
-removes PATH."""
+servos behind a U2D2 adapter: open PATH with the dynamixel-sdk at the servos' baud rate (--baud,
+or 57600 with --factory; without either any rate until their Baud Rate register is written). A
+servo hears only its own baud rate, bytes take their wire time, and servos sharing an ID garble
+each other's replies. Servos 1 and 2 are the pan and tilt joints of a simulated gimbal
+(calib/rigs/sim.yaml); servo 3, when listed (--ids 1,2,3), its roll joint (calib/rigs/sim3.yaml);
+other IDs drive free shafts. --factory N: N factory-fresh servos (all ID 1) in slots 1..N. Runs
+until SIGINT or SIGTERM, then removes PATH."""
 
 EPILOG = """\
-REGION.yaml (--hand), degrees:
+REGION.yaml (--hand), degrees; while a servo's torque is off the hand moves the limb:
   region: {polygon: [[pan, tilt], ...]}     or   region: {cone: {half_angle_deg: A}}
-  style: trace                                   (optional: trace or wander, see below)
+  style: trace        (optional: trace the edge once slowly, then wander; or wander only)
   speed_deg_s: 40                                (optional)
   script: [[t_s, pan, tilt], ...]                (instead of region: waypoints to follow)
   twist: {centre_deg: C, half_width_deg: H}      (optional, with region; for the roll joint)
-While a servo's torque is off, the hand moves the limb through the region. style: trace (the
-default) teaches as a person does: it traces the whole edge once, slowly (18 deg/s, about 1 deg
-inside), then wanders through the middle; style: wander only wanders, visiting the edge every
-other move (12 visits a lap round it).
-twist: gives a band of allowed twist over the swing outline; the hand then moves the roll joint
-too. Twist is the turn about the limb's own axis from the swing-twist split about the rest axis
-+x (twist = roll + 2 atan(tan(pan/2) tan(tilt/2)) on this gimbal), not the roll joint's angle.
-At a pose (pan, tilt) the band is C - H .. C + H deg; C and H are each a number or [a, b, c],
-meaning a + b*pan + c*tilt (deg), so the limits may vary with pan and tilt, e.g.
+twist: a band of allowed twist (the turn about the limb's own axis, twist = roll + 2
+atan(tan(pan/2) tan(tilt/2)), not the roll joint's angle), C - H .. C + H deg at a pose; C and
+H are each a number or [a, b, c] meaning a + b*pan + c*tilt, H within 3..170 deg everywhere, e.g.
   twist: {centre_deg: 0, half_width_deg: [40, 0, -0.3]}   (narrows as the limb rises)
-H must stay within 3..170 deg over the whole outline. While the swing traces the edge the twist
-goes to both stops (about 1 deg inside) every two seconds; while it wanders, it keeps turning
-from one stop to the other.
+The hand then turns the twist to both stops along the edge and while it wanders.
 
---leader IDS adds a leader gimbal on the same bus (a second gimbal an operator moves by hand, as
-a teleoperation leader): two IDs (pan, tilt) or three (pan, tilt, roll), none of the limb's. Its
-joints have inertia and backdrive friction, and its servos' torque follows their Operating Mode
-(mode 5: the position loop clipped at Goal Current; 3: today's position control; 0: current
-control), with Present Current following from it. --operator OPERATOR.yaml gives it a hand, a
-bounded spring-damper toward scripted targets that takes hold at start, degrees and seconds:
+--leader IDS adds a leader gimbal on the same bus (two IDs pan, tilt or three with roll, none of
+the limb's): joints with inertia and backdrive friction, torque by Operating Mode (5 current-
+based position, 3 position, 0 current). --operator OPERATOR.yaml gives it a hand, a bounded
+spring-damper toward scripted targets, degrees and seconds:
   model: xm430-w350                  (optional: xm430-w350, xl430-w250, xl330-m077, xl330-m288)
   start_deg: [pan, tilt]             (optional: where the leader rests at start; [.., roll])
   script: [[t_s, pan, tilt], ...]    (where the hand means to go; [t_s, pan, tilt, roll])
   let_go_s: T                        (optional: the hand lets go at T s)
   release_s, stiffness_nm_deg, damping_nm_s_rad, max_torque_nm   (optional: the grip)
-Without --operator nobody holds it (an XM430-W350 leader at rest). --leader-log FILE.jsonl gets
-its ground truth every 1 ms: {"t", "pose_deg", "velocity_deg_s", "hand_nm", "motor_nm",
-"hand_work_j", "motor_work_j"}, a list entry per joint.
+Without --operator nobody holds it. --leader-log FILE.jsonl gets its ground truth every 1 ms:
+{"t", "pose_deg", "velocity_deg_s", "hand_nm", "motor_nm", "hand_work_j", "motor_work_j"}.
 
---goal-log FILE.jsonl gets one line per Goal Position write that reaches a servo:
+--goal-log FILE.jsonl: one line per Goal Position write that reaches a servo,
   {"t": s, "id": n, "goal": ticks, "limb_dir": [x, y, z]}
-limb_dir is where the limb points once every servo reaches its current goal (true geometry).
-With a roll joint each line also carries "limb_q": [w, x, y, z], that full orientation
-(q = Rz(pan) Ry(-tilt) Rx(roll), scalar first, w >= 0).
+where the limb points once every servo reaches its goal; with a roll joint also "limb_q":
+[w, x, y, z] (q = Rz(pan) Ry(-tilt) Rx(roll), w >= 0).
 
-Faults are drawn from --seed: --drop P loses a reply, --corrupt P flips one byte of a reply,
---latency-ms X delays a reply by X ms (with probability --latency-p, default 1).
+Faults drawn from --seed: --drop P loses a reply, --corrupt P flips one of its bytes,
+--latency-ms X delays it (with probability --latency-p, default 1).
 
---event T:KIND:ID:VALUE (repeatable) applies a fault T seconds after start to the servo that
-answers as ID then (its ID register, not its slot: with --factory or --eeprom, the ID set-up
-gave it). An ID no servo answers as at start, or one several share (factory-fresh servos), is
-refused; an event whose ID no single servo answers as when its time comes is not applied and
-says so on stderr:
+--event T:KIND:ID:VALUE (repeatable) applies a fault T s after start to the servo answering as
+ID then (its ID register); an ID no single servo answers as is refused at start, and skipped
+with a note on stderr when its time comes:
   vanish:ID:S        servo ID neither executes nor answers for S seconds
-  voltage:ID:V       servo ID measures a supply of V volts from then on (limits: XL430
-                     6.0..14.0 V, XM430 9.5..16.0 V, XL330 3.5..7.0 V (it sits on 5 V);
-                     outside them: input voltage error, alert)
-  temperature:ID:C   servo ID measures C deg C from then on (limit 72 XL430, 80 XM430; above:
-                     overheating error, torque off)
-  restart:ID:S       servo ID browns out: off the bus for S seconds, then back as after
-                     power-up (RAM at defaults: torque off, indirect addresses unmapped)
-  push:ID:P          servo ID's joint is pushed with P % of stall torque from then on
-                     (signed; 0 lets go; above 100 %: PWM saturates, overload after 0.5 s)
+  voltage:ID:V       supply of V volts from then on (outside its limits: input voltage alert)
+  temperature:ID:C   C deg C from then on (above its limit: overheating error, torque off)
+  restart:ID:S       brown-out: off the bus for S seconds, then back as after power-up
+  push:ID:P          the joint is pushed with P % of stall torque (signed; 0 lets go;
+                     above 100 %: overload after 0.5 s)
   e.g. --event 5:vanish:2:1.5 --event 10:voltage:1:5
 
-Example:
-  firmware-sim --ids 1,2 --link /tmp/ttyDXL &
-  python -c "from dynamixel_sdk import *; p = PortHandler('/tmp/ttyDXL'); p.openPort();
-             print(PacketHandler(2.0).ping(p, 1))"
+Example: firmware-sim --ids 1,2 --link /tmp/ttyDXL &
 """
 
 

@@ -1,15 +1,8 @@
 """The simulator on a pseudo-terminal, and :class:`SimulatedBus` to run it from Python.
 
-:func:`serve` is the firmware's main loop on a :class:`PtyEndpoint`: bytes (or a control
-command, or the physics tick) in, the answers out when they would have crossed the wire at the
-speed the host set (:mod:`firmware_sim.wire`). :class:`SimulatedBus` runs it in its own process
-(so a controller's busy polling cannot starve it) and talks to it over a pipe::
-
-    with SimulatedBus(ids=(1, 2)) as sim:
-        port = PortHandler(sim.port)        # the real dynamixel-sdk, on the pty
-        port.setBaudRate(4_000_000)         # the servos' speed (factory-fresh: 57600)
-        sim.push(1, 150.0)                  # push the pan joint with 150 % of stall torque
-        sim.truth()["joints_deg"]           # where the limb really is
+:func:`serve` is the firmware's main loop on a :class:`PtyEndpoint`, answering when the bytes
+would have crossed the wire. :class:`SimulatedBus` runs it in its own process (so a controller's
+busy polling cannot starve it) over a pipe; README.md shows its use.
 """
 
 from __future__ import annotations
@@ -25,6 +18,7 @@ import sys
 import time
 import tty
 from collections.abc import Callable, Mapping
+from functools import partial
 from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import Any
@@ -37,8 +31,7 @@ from firmware_sim.wire import host_baud, wire_s
 
 # The physics keeps moving (hand, profiles) at least this often without traffic.
 TICK_S = 0.005
-# Bytes read from the pty at once: larger than any packet the SDK sends (a sync write of
-# 253 servos is ~1.3 kB), so one read takes a whole burst.
+# Bytes read at once: above any SDK packet (a 253-servo sync write is ~1.3 kB).
 READ_CHUNK = 4096
 # Waits shorter than this are spun rather than slept (a sleep can overshoot by ~1 ms).
 SPIN_BELOW_S = 0.0015
@@ -136,9 +129,8 @@ def serve(
 ) -> None:
     """Run the firmware until ``should_stop()`` (or ``on_control`` returns False).
 
-    ``control`` is a readable object with ``fileno()`` (a pipe end) whose readiness makes the
-    loop call ``on_control(control)``; ``schedule`` holds faults applied when their time comes
-    (checked on every pass of the loop, at most ``TICK_S`` plus one packet's handling apart).
+    ``control`` (with ``fileno()``) ready makes the loop call ``on_control(control)``;
+    ``schedule``'s faults are applied on each pass once due.
     """
     sources = [endpoint.master] + ([control] if control is not None else [])
     free_at = 0.0  # when the wire is quiet again (a write without reply still occupies it)
@@ -150,13 +142,11 @@ def serve(
             data = endpoint.read_available()
             if data:
                 baud = endpoint.baud()
-                # the pty delivers at once; on the wire the last byte lands this much later,
-                # behind whatever the wire still carries
+                # the pty delivers at once; on the wire the last byte lands this much later
                 quiet = max(time.monotonic(), free_at) + wire_s(len(data), baud)
                 replies = sim.receive(data, sim.now(), baud)
                 for packet, delay in replies:
-                    # each servo waits its Return Delay Time after the bus goes quiet, then
-                    # its reply takes its bytes' wire time; the host reads it whole
+                    # Return Delay Time after the bus goes quiet, then the reply's wire time
                     quiet += delay + wire_s(len(packet), baud)
                     _wait_until(quiet)
                     endpoint.write_all(packet)
@@ -214,27 +204,21 @@ _REQUESTS: dict[str, Callable[..., Any]] = {
 }
 
 
-class _ControlServer:
-    """Executes :class:`SimulatedBus` requests inside the simulator process."""
-
-    def __init__(self, sim: Simulator) -> None:
-        self.sim = sim
-
-    def __call__(self, conn: Any) -> bool:
-        try:
-            request = conn.recv()
-        except (EOFError, OSError):
-            return False  # the parent went away: stop serving
-        name, args = request
-        if name == "stop":
-            return False
-        try:
-            result = _REQUESTS[name](self.sim, *args)
-        except Exception as error:  # reported to the caller, who re-raises it
-            conn.send(("error", type(error).__name__, str(error)))
-        else:
-            conn.send(("ok", result))
-        return True
+def _control(sim: Simulator, conn: Any) -> bool:
+    """Execute one :class:`SimulatedBus` request inside the simulator process."""
+    try:
+        name, args = conn.recv()
+    except (EOFError, OSError):
+        return False  # the parent went away: stop serving
+    if name == "stop":
+        return False
+    try:
+        result = _REQUESTS[name](sim, *args)
+    except Exception as error:  # reported to the caller, who re-raises it
+        conn.send(("error", type(error).__name__, str(error)))
+    else:
+        conn.send(("ok", result))
+    return True
 
 
 def child_main(conn: Any, config: dict) -> None:
@@ -249,7 +233,7 @@ def child_main(conn: Any, config: dict) -> None:
         return
     try:
         conn.send(("ready", endpoint.device, endpoint.port))
-        serve(sim, endpoint, lambda: False, control=conn, on_control=_ControlServer(sim))
+        serve(sim, endpoint, lambda: False, control=conn, on_control=partial(_control, sim))
     finally:
         endpoint.close()
         sim.close()

@@ -1,10 +1,6 @@
 """X-series control tables (XL430-W250, XM430-W350, XL330-M077/M288) from the e-Manual.
 
-An :class:`Item`'s own ``minimum``/``maximum`` answer Data Range Error (4); its ``bound``, a
-limit set by other items (Goal Position within the Position Limits, ...), Data Limit Error (6).
-The 430s' indirect address/data blocks are 168-223/224-251 and 578-633/634-661; the 330s have
-one block of 20, Indirect Address 1-20 at 168-206 and Indirect Data 1-20 at 208-227 up to
-firmware 52, at 224-243 after (ROBOTIS moved it), so a client has to probe.
+The 330s' Indirect Data 1 is at 208 up to firmware 52 and at 224 after, so a client has to probe.
 """
 
 from __future__ import annotations
@@ -57,10 +53,9 @@ X330_FIRMWARE = 52
 
 @dataclass(frozen=True)
 class Item:
-    """One control-table item: its ``register`` (None for indirect entries), first byte and
-    width in bytes (little-endian), factory ``default``, own range (Data Range Error outside),
-    two's complement or not, the items that ``bound`` it (Data Limit Error outside; ``(None, R)``
-    means ``-R .. R``) and the e-Manual's ``name`` for messages."""
+    """One control-table item: ``register`` (None: indirect), address, size, factory default,
+    own range (Data Range Error outside), the items that ``bound`` it (Data Limit Error outside;
+    ``(None, R)``: ``-R .. R``) and the e-Manual's ``name``."""
 
     register: Register | None
     address: int
@@ -90,8 +85,7 @@ class Model:
     items: tuple[Item, ...]
     indirect_blocks: tuple[tuple[int, int, int], ...] = INDIRECT_BLOCKS
     memory_size: int = MEMORY_SIZE
-    #: Present Current's unit (mA) and the stall current (mA) at the nominal voltage, which
-    #: the simulated load (percent of stall) is scaled by; models with Present Load ignore them
+    #: Present Current's unit (mA) and the stall current (mA) the load (% of stall) scales by
     current_unit_ma: float = 2.69
     stall_current_ma: float = 2300.0
     #: The supply the simulated servo sits on (V): the 330s are 5 V servos (3.7..6.0 V)
@@ -135,11 +129,7 @@ def _common_items(
     vmax=1023,
     shutdown=52,
 ) -> list[Item]:
-    """Items every supported model has (defaults and ranges that differ are arguments).
-
-    ``baud_max`` is the largest Baud Rate value (7 = 4.5 Mbps on the 430s, 6 = 4 Mbps on the
-    330s); ``protocols`` the Protocol Type range; ``vmax`` Velocity Limit's range.
-    """
+    """Items every supported model has (defaults and ranges that differ are arguments)."""
     (v_min, v_max, v_default_max, v_default_min) = voltage
     (vel_i, vel_p, pos_d, pos_i, pos_p) = gains
     reg = Register

@@ -1,10 +1,8 @@
 """What the servos on one bus answer to each instruction packet (e-Manual, Protocol 2.0).
 
 :func:`dispatch` runs a packet on every servo it concerns and returns their status packets in
-wire order, each with its Return Delay Time. Status Return Level 0 answers only PING, 1 PING and
-reads, 2 everything unicast. Broadcast is answered only by PING (ascending ID) and sync/bulk
-reads (list order); the FAST reads answer with one combined packet, cut short where a silent
-servo's part would have been. A packet whose CRC fails gets a CRC error from the servo it names.
+wire order, each with its Return Delay Time; a FAST read's combined packet is cut short where a
+silent servo's part would have been.
 """
 
 from __future__ import annotations

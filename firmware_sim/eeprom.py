@@ -1,8 +1,4 @@
-"""A servo's EEPROM kept in a file between simulator runs, as a real servo keeps it unpowered.
-
-With ``--eeprom DIR`` each run is one power-up: the EEPROM area (addresses 0-63) of the servo in
-slot ``n`` is loaded from ``DIR/servo-n.eeprom`` at start and written back when it changes.
-"""
+"""A servo's EEPROM kept in a file between simulator runs, as a real servo keeps it unpowered."""
 
 from __future__ import annotations
 
@@ -14,8 +10,7 @@ from firmware_sim.servo import Servo
 
 
 class EepromFile:
-    """The EEPROM file (in ``directory``, created if missing) of the servo in ``slot`` (1 =
-    pan, 2 = tilt, ...: not its ID, which the file holds and set-up changes)."""
+    """The EEPROM file ``directory/servo-SLOT.eeprom`` of the servo in ``slot`` (not its ID)."""
 
     def __init__(self, directory: str | os.PathLike, slot: int) -> None:
         self.path = Path(directory) / f"servo-{slot}.eeprom"

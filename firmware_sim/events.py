@@ -1,10 +1,7 @@
 """Faults scheduled from the command line: ``firmware-sim --event T:KIND:ID:VALUE`` (repeatable).
 
-The kinds (vanish, voltage, temperature, restart, push) and their values are described in
-``firmware-sim --help``. ``ID`` is the ID the servo answers as when the event applies (its ID
-register, not its slot); it is checked at start, and an event whose ID no single servo answers
-as when its time comes is not applied and says so on stderr. From Python (by slot):
-:meth:`Simulator.vanish`, ``set_environment``, ``restart``, ``push``.
+The kinds are described in ``firmware-sim --help``; ``ID`` is the ID the servo answers as when
+the event applies (its ID register, not its slot).
 """
 
 from __future__ import annotations
@@ -94,9 +91,8 @@ class EventSchedule:
                 raise ValueError(f"event at {event.at_s:g} s: {problem}")
 
     def apply_due(self, sim: Simulator) -> int:
-        """Apply every event whose time has come (``sim.now()``) to the servo answering as its
-        ID then; how many were applied. One that finds no single servo is said on stderr and
-        kept in :attr:`skipped`."""
+        """Apply every due event to the servo answering as its ID then; how many were applied
+        (one that finds no single servo goes to stderr and :attr:`skipped`)."""
         now = sim.now()
         due = [event for event in self.events if event.at_s <= now]
         applied = 0

@@ -1,8 +1,5 @@
-"""Seeded fault injection on the simulator's replies (one generator: same seed and traffic, same
-faults): ``drop`` loses a status packet, ``corrupt`` flips one of its bytes, ``latency_ms`` delays
-it with probability ``latency_p``; a *vanished* servo neither executes nor answers until a given
-time, then comes back with its state intact.
-"""
+"""Seeded fault injection on the simulator's replies (same seed and traffic, same faults), and
+*vanished* servos that neither execute nor answer for a while, then come back intact."""
 
 from __future__ import annotations
 

@@ -1,7 +1,6 @@
 """Scripted hands that backdrive the simulated limb while its torque is off.
 
-A :class:`Hand` answers ``pose_deg(t)``: the pose it holds the limb at ``t`` s after it took
-hold, (pan_deg, tilt_deg), plus roll_deg when it :attr:`Hand.turns_roll`. A REGION.yaml::
+:meth:`Hand.pose_deg` is the pose at ``t`` s after it took hold. A REGION.yaml::
 
     region: {polygon: [[pan_deg, tilt_deg], ...]}    # or {cone: {half_angle_deg: A}}
     twist: {centre_deg: 0, half_width_deg: 40}       # optional: turn the roll too, in this band
@@ -12,14 +11,9 @@ hold, (pan_deg, tilt_deg), plus roll_deg when it :attr:`Hand.turns_roll`. A REGI
     script: [[t_s, pan_deg, tilt_deg(, roll_deg)], ...]  # instead of region: follow waypoints
 
 A *region* hand moves pan and tilt along a :class:`firmware_sim.hand_path.SwingPath` plus a
-tremor. With a ``twist:`` band (:mod:`firmware_sim.twist_band`) the twist is ``centre + u
-(half_width - TWIST_INSET_DEG)`` at the present swing pose, ``u`` in [-1, 1], plus a tremor, and
-the roll is the one that gives it (``roll = twist - chain_twist(pan, tilt)``). While the swing
-traces the edge or answers a visit, ``u`` cycles to both stops (TRACE_TWIST_CYCLE); afterwards
-every STOP_EVERY-th move goes to a stop (alternately upper and lower), the others to a uniform
-draw. A *script* hand moves linearly between its waypoints (the roll too) and holds the last.
-The path is planned lazily, in a fixed order from ``seed`` and the pose the hand took hold at:
-the same seed gives the same path whatever times it is asked at.
+tremor; with a ``twist:`` band the twist is ``centre + u (half_width - TWIST_INSET_DEG)``, ``u``
+in [-1, 1] moving stop to stop, plus a tremor. A *script* hand moves linearly between waypoints.
+The path is a function of ``seed`` and the pose the hand took hold at.
 """
 
 from __future__ import annotations
@@ -47,30 +41,20 @@ from firmware_sim.orientation import chain_twist, roll_for_twist_deg, wrap_deg
 from firmware_sim.regions import Region, region_from_mapping
 from firmware_sim.twist_band import TwistBand
 
-#: Peak tremor amplitude (deg): the physiological tremor of a hand steadying a light limb is a
-#: few tenths of a degree at the joint; 0 switches it off.
+#: Peak tremor amplitude (deg): a hand steadying a light limb trembles a few tenths of a degree.
 DEFAULT_TREMOR_DEG = 0.2
 #: Physiological tremor band (Hz) the two tremor components per axis are drawn from.
 TREMOR_BAND_HZ = (7.0, 12.0)
-#: The twist tremor's amplitude as a fraction of the hand's tremor_deg (one sine: the wrist's
-#: tremor about the forearm is about half that of the swing).
+#: The twist tremor (one sine) as a fraction of tremor_deg: a wrist trembles half as much.
 TWIST_TREMOR_FRACTION = 0.5
-#: How far inside each twist stop (deg) the hand turns: as the swing trace keeps EDGE_INSET_DEG
-#: (1 deg) from the swing edge, a person feels the stop and backs off about a degree.
+#: How far inside each twist stop (deg) the hand turns: it feels the stop and backs off.
 TWIST_INSET_DEG = 1.0
-#: Along the edge trace, one cycle to both stops: (u target, move s, hold s) steps. 0.9 s a
-#: cycle at the trace's 18 deg/s reaches each stop about every 16 deg of edge, so a band limit
-#: bridged between stops sags well under a degree (ENVELOPE_CURVATURE in
-#: limbctl/region/twist_band.py; slower cycles: docs/decisions/hand.md, docs/decisions/twist.md).
+#: Along the edge trace, one cycle to both stops, (u target, move s, hold s): 0.9 s, each stop
+#: every ~16 deg of edge at 18 deg/s, so a bridged band limit sags under a degree
+#: (docs/decisions/hand.md, docs/decisions/twist.md).
 TRACE_TWIST_CYCLE = ((1.0, 0.4, 0.05), (-1.0, 0.4, 0.05))
-#: Wandering: every STOP_EVERY-th twist move goes to a stop, alternately the upper and the lower
-#: one; the others to a uniform draw in the band. 1: every move, so the twist keeps turning from
-#: stop to stop while the swing wanders (a place passed once still sees both stops). A move over
-#: the whole band takes WANDER_MOVE_S[1] s, a short one at least WANDER_MOVE_S[0] (a brisk
-#: wrist turns through its range in under half a second), and each ends in a hold of
-#: WANDER_HOLD_S (a touch of the stop): the swing's 40 deg/s carries the limb ~35 deg between two
-#: visits of the same stop.
-STOP_EVERY = 1
+#: Wandering, every twist move goes to a stop, alternately upper and lower (a place passed once
+#: sees both), over WANDER_MOVE_S s by its length (a brisk wrist turn), then holds WANDER_HOLD_S.
 WANDER_MOVE_S = (0.2, 0.4)
 WANDER_HOLD_S = (0.03, 0.08)
 
@@ -221,15 +205,11 @@ class Hand:
 
     @property
     def trace_span_s(self) -> tuple[float, float] | None:
-        """(start, end) in s of a ``trace`` hand's full trace of the edge, after it took hold;
-        ``None`` for other hands."""
+        """(start, end) in s of a ``trace`` hand's full trace of the edge, else ``None``."""
         return self.path.trace_span_s
 
     def start_from(self, pan_deg: float, tilt_deg: float, roll_deg: float = 0.0) -> None:
-        """Take hold of the limb at (pan_deg, tilt_deg, roll_deg): a region hand (re)starts its
-        path there (t = 0), first bringing the limb to the middle of the region, its twist where
-        it is; the path stays a function of the seed and this pose. A script hand ignores this:
-        its script says where the limb is."""
+        """Take hold at (pan_deg, tilt_deg, roll_deg): a region hand (re)starts its path there."""
         if self.script is not None:
             return
         self.path.start_from(pan_deg, tilt_deg)
@@ -285,8 +265,7 @@ class Hand:
         return cls.from_mapping(data, seed=seed, source=str(path))
 
     def pose_deg(self, t: float) -> tuple[float, ...]:
-        """(pan_deg, tilt_deg), or (pan_deg, tilt_deg, roll_deg) for a hand that
-        :attr:`turns_roll`, the hand holds the limb at ``t`` >= 0 s after it took hold."""
+        """(pan_deg, tilt_deg[, roll_deg if :attr:`turns_roll`]) at ``t`` >= 0 s after hold."""
         if not math.isfinite(t):
             raise ValueError(f"Hand.pose_deg: t must be a finite time in s, got {t!r}")
         pan, tilt = self.path.at(t)
@@ -318,8 +297,7 @@ class Hand:
         return u0 + s * (u1 - u0)
 
     def _plan_twist(self) -> None:
-        """Append the twist's next move and hold: a step of the cycle while the swing traces the
-        edge, a wander move after."""
+        """Append the twist's next move and hold: the trace's cycle, else a wander move."""
         t0, t1, _, u_end = self._twist.segments[-1]
         span = self.path.trace_span_s
         if (span is not None and t1 < span[1]) or self.path.in_visit(t1):
@@ -327,10 +305,7 @@ class Hand:
             self._cycle_step += 1
         else:
             self._moves += 1
-            if self._moves % STOP_EVERY == 0:
-                target = 1.0 if (self._moves // STOP_EVERY) % 2 else -1.0
-            else:
-                target = float(self._twist_rng.uniform(-1.0, 1.0))
+            target = 1.0 if self._moves % 2 else -1.0
             fraction = abs(target - u_end) / 2.0
             move_s = WANDER_MOVE_S[0] + fraction * (WANDER_MOVE_S[1] - WANDER_MOVE_S[0])
             hold_s = float(self._twist_rng.uniform(*WANDER_HOLD_S))

@@ -1,18 +1,9 @@
 """The swing path of a scripted hand: where it takes the limb's pan and tilt, before its tremor.
 
 A :class:`SwingPath` follows a script (linear between waypoints, holding the last) or teaches a
-region. Style ``trace`` first traces the whole edge once, slowly, about EDGE_INSET_DEG inside
-with a slight wobble, from the edge point nearest where it took hold, then wanders; ``wander``
-only wanders: minimum-jerk moves, gently curved, between waypoints drawn denser in the middle,
-eased near the edge, with short pauses and, every other move, a visit tracing a few degrees of
-edge (the visits work round the perimeter in laps of EDGE_VISITS_PER_LAP). Every move stays
-MIN_PATH_DEPTH_DEG inside. The path is planned lazily in a fixed order from the seed.
-:class:`Track` holds any such path's segments in time.
-
-*Visits* (:class:`Visit`, a hand's ``visits:``) answer a teaching guide: from ``after_s`` the
-path breaks off (after the move under way) to trace the edge near a place (``edge``) or circle it
-slowly (``twist``, VISIT_TWIST_RADIUS_DEG for VISIT_TWIST_S) while the hand turns the twist to
-both stops (:mod:`firmware_sim.hand`), then wanders on.
+region in one of :data:`STYLES` with minimum-jerk moves that stay MIN_PATH_DEPTH_DEG inside,
+planned lazily from the seed; :class:`Visit` requests (a guide's) break off to trace or circle a
+place. :class:`Track` holds a path's segments in time.
 """
 
 from __future__ import annotations
@@ -25,24 +16,21 @@ import numpy as np
 
 from firmware_sim.regions import Region, deepen
 
-#: Mean speed (deg/s) of a move through the middle: a relaxed arm sweep, about twice the careful
-#: pace of the edge trace, so strokes cross a 100 deg region in a few seconds.
+#: Mean speed (deg/s) through the middle: a relaxed sweep crossing 100 deg in a few seconds.
 DEFAULT_SPEED_DEG_S = 40.0
 #: How far inside the edge (deg) boundary tracing runs, and the least depth any move may reach.
 EDGE_INSET_DEG = 1.0
 MIN_PATH_DEPTH_DEG = 0.5
 #: A region must reach at least this deep (deg) for the hand to have room to move.
 MIN_REGION_DEPTH_DEG = 2.0 * EDGE_INSET_DEG
-#: Within SLOW_BAND_DEG of the edge the hand eases in and out of a move more carefully: a move
-#: ending (or starting) at the edge takes up to EDGE_EASE_S longer; traces run at
+#: Within SLOW_BAND_DEG of the edge a move eases in/out up to EDGE_EASE_S longer; traces run at
 #: EDGE_SPEED_FRACTION of the speed.
 SLOW_BAND_DEG = 15.0
 EDGE_EASE_S = 0.5
 EDGE_SPEED_FRACTION = 0.4
 #: Middle waypoints are drawn with density proportional to depth ** WAYPOINT_DEPTH_POWER.
 WAYPOINT_DEPTH_POWER = 1.5
-#: Edge visits work round the perimeter in laps of EDGE_VISITS_PER_LAP evenly spaced visits
-#: (jittered by up to a sixth of a spacing), with one move through the middle in between.
+#: Edge visits work round the perimeter in laps of this many, one move through the middle between.
 EDGE_VISITS_PER_LAP = 12
 #: Length (deg) of the stretch of edge traced at each visit.
 EDGE_TRACE_DEG = (4.0, 8.0)
@@ -51,9 +39,8 @@ MIN_MOVE_S = 0.3
 #: Probability of a pause after a move, and its duration range (s).
 PAUSE_PROBABILITY = 0.1
 PAUSE_S = (0.2, 0.6)
-#: Waypoints drawn for each move through the middle; the nearest is taken. Once the edge has
-#: been traced the hand takes the first (long strokes across the middle: in the few seconds
-#: left of a half-minute teaching they close the middle fastest; edge visits are then dropped).
+#: Waypoints drawn per move through the middle, the nearest taken; after the full trace one
+#: (long strokes close the middle fastest in the seconds left of a half-minute teaching).
 WAYPOINT_CHOICES = 2
 WAYPOINT_CHOICES_AFTER_TRACE = 1
 #: Intermediate poses tried (after the centre) to get round a corner of the region.
@@ -65,17 +52,14 @@ ARC_BOW_FRACTION = 0.2
 #: Spacing (deg) of checks along a move and of points along a traced edge.
 PATH_CHECK_STEP_DEG = 0.5
 TRACE_STEP_DEG = 1.0
-#: Speed (deg/s) of the first full trace of the edge: a person's careful pace (10-20 deg/s),
-#: slow enough to feel the edge, fast enough that a ~400 deg perimeter takes under half a minute.
+#: Speed (deg/s) of the full edge trace: a careful 10-20 deg/s; 400 deg of edge in under 30 s.
 TRACE_SPEED_DEG_S = 18.0
-#: The full trace's depth wobbles about EDGE_INSET_DEG by up to TRACE_WOBBLE_DEG (a hand does not
-#: keep an exact distance from the edge), and its speed by up to TRACE_SPEED_WOBBLE of itself.
+#: The full trace's depth wobbles by up to TRACE_WOBBLE_DEG, its speed by TRACE_SPEED_WOBBLE.
 TRACE_WOBBLE_DEG = 0.3
 TRACE_SPEED_WOBBLE = 0.2
 #: Wavelengths (deg along the edge) of the two sines in each wobble: slow drifts, not jitter.
 TRACE_WOBBLE_WAVELENGTH_DEG = (23.0, 61.0)
-#: A trace step that would pass too close to a reflex corner is halved (midpoint deepened) up
-#: to TRACE_SPLITS times: a 1 deg step becomes 1/8 deg, finer than any corner arc needs.
+#: Halvings of a trace step round a reflex corner: 1 deg becomes 1/8 deg, fine for any corner.
 TRACE_SPLITS = 3
 #: The full trace runs this fraction of the perimeter past where it started, to close the loop.
 TRACE_OVERLAP = 0.03
@@ -90,12 +74,10 @@ VISIT_KINDS = {
     "edge": "trace the edge near the place",
     "twist": "turn the twist to both stops near the place",
 }
-#: Least length (deg) of edge an ``edge`` visit traces, centred on the place's nearest edge point:
-#: a guide names a stretch by its farthest station; 5 deg either side reach past its ends.
+#: Least edge (deg) an ``edge`` visit traces: 5 deg either side reach past a guide's stretch.
 VISIT_EDGE_DEG = 10.0
-#: A ``twist`` visit circles the place at this radius (deg) for VISIT_TWIST_S: the stops are then
-#: taught over a patch a few degrees wide (one evidence station is not a stretch), and 3 s hold
-#: three of the trace's twist cycles (firmware_sim/hand.py, TRACE_TWIST_CYCLE: 0.9 s each).
+#: A ``twist`` visit circles the place at this radius (deg), teaching a patch (not one station),
+#: for VISIT_TWIST_S: three of hand.py's 0.9 s twist cycles.
 VISIT_TWIST_RADIUS_DEG = 3.0
 VISIT_TWIST_S = 3.0
 #: Points on a ``twist`` visit's circle (every 30 deg).
@@ -104,9 +86,8 @@ VISIT_TWIST_POINTS = 12
 
 @dataclass(frozen=True)
 class Visit:
-    """A guide's request the hand answers: from ``after_s`` s (after its move under way) go to
-    (``pan_deg``, ``tilt_deg``) and ``do`` one of :data:`VISIT_KINDS`; an ``edge`` visit traces
-    at least ``length_deg`` deg of edge there (VISIT_EDGE_DEG when shorter)."""
+    """A guide's request: from ``after_s`` s go to (``pan_deg``, ``tilt_deg``) and ``do`` one of
+    :data:`VISIT_KINDS`, tracing at least ``length_deg`` deg of edge."""
 
     after_s: float
     pan_deg: float
@@ -125,8 +106,7 @@ def progress(t: float, t0: float, t1: float, minimum_jerk: bool = True) -> float
 
 
 class Track:
-    """Segments of a path in time, ``segments[k] = (t0, t1, ...)`` in s, appended in time
-    order; what follows ``t1`` is the caller's."""
+    """Segments of a path in time, ``segments[k] = (t0, t1, ...)`` in s, appended in order."""
 
     def __init__(self) -> None:
         self.segments: list[tuple] = []
@@ -199,8 +179,7 @@ class SwingPath:
                 self._add(a[0], b[0], a[1], a[2], b[1], b[2], False)
 
     def start_from(self, pan_deg: float, tilt_deg: float) -> None:
-        """Take hold of the limb at (pan_deg, tilt_deg): a region path (re)starts there at t = 0
-        (a script path ignores this)."""
+        """Take hold at (pan_deg, tilt_deg): a region path (re)starts there at t = 0."""
         if self.region is None:
             return
         self._rng = np.random.default_rng([self._seed, 1])
@@ -286,8 +265,7 @@ class SwingPath:
                 return pan, tilt
 
     def _reach(self, target: tuple[float, float]) -> bool:
-        """Move to ``target`` on a gently bowed arc, else straight, else via one intermediate
-        pose; only along a path that stays inside. False when none does."""
+        """Move to ``target`` bowed, straight or via one pose, staying inside; False if none."""
         _, pan, tilt = self._end()
         # bulge: perpendicular to the move, N(0, ARC_BOW_FRACTION) of its length
         bow = float(self._rng.normal(0.0, ARC_BOW_FRACTION))
@@ -305,8 +283,7 @@ class SwingPath:
         return False
 
     def _plan_next(self) -> None:
-        """Append the next stretch of wandering: a move through the middle or, unless the whole
-        edge has been traced, an edge visit; a request's visit once its time has come."""
+        """Append the next stretch: a due request, an edge visit, or a move through the middle."""
         if self._visits_done < len(self.visits):
             visit = self.visits[self._visits_done]
             if self._end()[0] >= visit.after_s:
@@ -364,8 +341,7 @@ class SwingPath:
         return True
 
     def _trace_whole_edge(self) -> None:
-        """Trace the whole edge once from its point nearest the hand: at TRACE_SPEED_DEG_S,
-        EDGE_INSET_DEG inside, both wobbling slowly; sets :attr:`trace_span_s`."""
+        """Trace the whole edge once from its point nearest the hand; sets trace_span_s."""
         region = self.region
         _, pan, tilt = self._end()
         n = max(int(region.perimeter_deg / TRACE_STEP_DEG), 8)
@@ -402,9 +378,8 @@ class SwingPath:
     def _trace_to(
         self, b: tuple[float, float], depth_deg: float, speed: float, splits: int
     ) -> bool:
-        """Trace straight to ``b`` at ``speed`` deg/s if that keeps MIN_PATH_DEPTH_DEG inside,
-        else through the midpoint set ``depth_deg`` deep (rounding a reflex corner), at most
-        ``splits`` halvings deep; False (nothing added) when even that fails."""
+        """Trace to ``b`` at ``speed`` deg/s, straight or via midpoints ``depth_deg`` deep (up to
+        ``splits`` halvings); False when that fails."""
         t, pan, tilt = self._end()
         duration = math.hypot(b[0] - pan, b[1] - tilt) / speed
         if duration <= 0.0:
@@ -427,7 +402,7 @@ class SwingPath:
         return any(t0 <= t < t1 for t0, t1, _ in self.visit_spans)
 
     def _answer(self, visit: Visit) -> None:
-        """Go to the visit's place and do what it asks; records its span (module docstring)."""
+        """Go to the visit's place, do what it asks and record its span."""
         region = self.region
         if visit.do == "edge":
             # the stretch of edge round the place's nearest edge point, EDGE_INSET_DEG inside

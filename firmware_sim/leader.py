@@ -1,20 +1,11 @@
-"""A leader gimbal: a second chain of two joints (pan, tilt) or three (pan, tilt, roll) moved by
-an operator's hand and by its own motors.
-
-It is built like the follower (the same joint geometry, at other servo ids), so the controller
-reads its orientation back as it does the follower's. Each joint is a rotor with inertia and
-backdrive friction (joint frame, SI units)::
+"""A leader gimbal of two or three joints (the follower's geometry at other servo ids), moved by
+an operator's hand and its own motors. Each joint is a rotor with friction (SI units)::
 
     J a = tau_motor + tau_hand - B v - C sign(v)        (sticks while |tau_motor + tau_hand| <= C)
+    tau_hand = K_h (target - angle) - D_h v,  scaled as a vector to |tau_hand| <= tau_max * r(t)
 
-``tau_motor`` comes from the servo by its Operating Mode (:mod:`firmware_sim.torque`);
-``tau_hand`` from the :class:`Operator`, a spring-damper per joint toward scripted targets::
-
-    tau_hand = K_h (target - angle) - D_h v,  scaled so that |tau_hand| <= tau_max * r(t)
-
-(the joints' torques as one vector: a hand pushes no harder on a diagonal than along a joint),
-``r`` 1 until the let go, falling linearly to 0 over ``release_s`` (0: gone at once). End stops
-clamp. Ground truth per joint (torques, pose, work): :meth:`LeaderWorld.truth` and the log.
+``tau_motor`` by Operating Mode (:mod:`firmware_sim.torque`); ``r`` 1 until the let go, then
+falling linearly to 0 over ``release_s``. End stops clamp.
 """
 
 from __future__ import annotations
@@ -31,23 +22,19 @@ from firmware_sim.servo import Servo
 from firmware_sim.torque import Drive, LoopGains, drive_of, motor_of, present_current_units
 from firmware_sim.world import DEFAULT_JOINTS, JOINT_NAMES, RAD_PER_TICK, ROLL_JOINT, Joint
 
-#: Rotor inertia at the joint (kg m^2): a light printed leader link plus the reflected inertia of
-#: a small geared motor; it sets how fast a released joint accelerates.
+#: Rotor inertia at the joint (kg m^2): a light printed link plus a small geared motor's.
 LEADER_INERTIA_KG_M2 = 1.0e-3
-#: Viscous backdrive friction (N m s/rad): what the operator feels moving the leader free. It is
-#: the device damping ``b`` of the sampled-wall passivity bound (docs/haptic.md).
+#: Viscous backdrive friction (N m s/rad): the device damping ``b`` of docs/haptic.md's bound.
 LEADER_DAMPING_NM_S_RAD = 0.05
 #: Coulomb backdrive friction (N m): a geared servo does not move under a small touch.
 LEADER_COULOMB_NM = 0.01
-#: Physics step of the leader (s): the stiff position loop (stall at 2 deg) with 1e-3 kg m^2
-#: rings at ~340 rad/s; 0.5 ms keeps omega dt under 0.2 (semi-implicit: stable below 2).
+#: Physics step (s): the position loop rings at ~340 rad/s; 0.5 ms keeps omega dt under 0.2.
 LEADER_SUBSTEP_S = 0.0005
 #: The operator's defaults: a relaxed grip (N m/deg, N m s/rad) pushing with at most TAU_MAX.
 HAND_STIFFNESS_NM_DEG = 0.05
 HAND_DAMPING_NM_S_RAD = 0.02
 HAND_MAX_TORQUE_NM = 0.3
-#: The longest chain a leader is built as: the follower's joints, in order; a leader of n servos
-#: has the first n (two or three).
+#: The follower's joints, in order: a leader of n servos has the first n.
 LEADER_CHAIN = (*DEFAULT_JOINTS, ROLL_JOINT)
 
 
@@ -58,12 +45,11 @@ class Operator:
     Parameters
     ----------
     script : sequence of (t_s, angle_deg, ...), shape (points, 1 + joints)
-        Where the operator means to go (pan, tilt[, roll] in deg), linear in time between the
-        points, holding the last; times count from when the operator takes hold.
+        Targets (deg), linear in time, holding the last; times from when it takes hold.
     let_go_s : float or None
         From this time (s) on the hand lets go; None: never.
     release_s : float
-        How long (s) its bound takes to fall linearly to 0; 0: none at all from ``let_go_s``.
+        How long (s) its bound takes to fall linearly to 0.
     stiffness_nm_deg, damping_nm_s_rad, max_torque_nm : float
         The grip: K_h (N m per deg), D_h (N m s/rad) and the bound tau_max (N m).
     joints : int
@@ -141,8 +127,8 @@ class Operator:
     def torques(
         self, t: float, angles_rad: Sequence[float], velocities_rad_s: Sequence[float]
     ) -> list[float]:
-        """The hand's torque on each joint (N m, shape (joints,)) at ``t`` s from the joints'
-        angles (rad) and velocities (rad/s), bounded as a vector (the module docstring)."""
+        """The hand's torque on each joint (N m, shape (joints,)) from angles (rad) and
+        velocities (rad/s), bounded as a vector."""
         bound = self.bound_nm(t)
         if bound <= 0.0:
             return [0.0] * len(angles_rad)
@@ -211,9 +197,7 @@ class LeaderWorld:
         self.velocity = [0.0] * count
         self.hand_nm = [0.0] * count
         self.motor_nm = [0.0] * count
-        #: Work (J) each motor and the hand did on each joint since the start: integral of
-        #: tau dtheta. Over a closed excursion the leader is passive at the hand when the hand's
-        #: net work is >= 0 (the device gives back no more than it was given).
+        #: Work (J) each motor and the hand did on each joint since the start: sum of tau dtheta.
         self.motor_work_j = [0.0] * count
         self.hand_work_j = [0.0] * count
         self.time_s = 0.0
@@ -226,8 +210,7 @@ class LeaderWorld:
 
     @classmethod
     def from_spec(cls, spec: Mapping[str, Any]) -> LeaderWorld:
-        """A leader from plain data: ``{"ids": [3, 4(, 5)], "model": ..., "operator": {...},
-        "log": path, "start_deg": [pan, tilt(, roll)]}``."""
+        """A leader from plain data: keys ids, model, operator, log, start_deg."""
         known = {"ids", "model", "operator", "log", "start_deg"}
         unknown = set(spec) - known
         if unknown:

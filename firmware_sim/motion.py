@@ -1,10 +1,5 @@
-"""The servo's trajectory generator: where its position controller points the shaft each instant.
-
-In raw ticks (motor shaft, before Homing Offset / reverse) and seconds, after the e-Manual's
-X-series profile: velocity-based (Drive Mode bit 2 clear), Profile Velocity and Acceleration cap
-speed and acceleration (0: no cap but the Velocity Limit / a velocity step); time-based (bit 2
-set), they are the move's duration and ramp time in ms, the peaks derived from the distance.
-"""
+"""The servo's trajectory generator: where its position controller points the shaft each instant,
+in raw ticks and seconds, after the e-Manual's velocity-based and time-based profiles."""
 
 from __future__ import annotations
 
@@ -30,7 +25,7 @@ class ProfileLimits:
 def velocity_based_limits(
     profile_velocity: int, profile_acceleration: int, velocity_limit: int
 ) -> ProfileLimits:
-    """Limits of a velocity-based profile from the register values (units of the e-Manual)."""
+    """Limits of a velocity-based profile from the register values (0: no cap but the limit)."""
     cap = velocity_limit if velocity_limit > 0 else 1023
     speed_units = profile_velocity if 0 < profile_velocity <= cap else cap
     # v_max [ticks/s] = units * 0.229 rpm * 4096 / 60
@@ -45,8 +40,8 @@ def velocity_based_limits(
 def time_based_limits(
     distance_ticks: float, duration_ms: int, ramp_ms: int, velocity_limit: int
 ) -> ProfileLimits:
-    """Limits of a time-based profile covering ``distance_ticks`` in ``duration_ms`` (0: only
-    the Velocity Limit)."""
+    """Limits of a time-based profile covering ``distance_ticks`` in ``duration_ms`` with ramps of
+    ``ramp_ms`` (duration 0: only the Velocity Limit)."""
     if duration_ms <= 0:
         return velocity_based_limits(0, 0, velocity_limit)
     total_s = duration_ms / 1000.0

@@ -12,8 +12,7 @@ read the same form (degrees, seconds, N m)::
     release_s: 0.0             # how long the let go takes (the grip's bound falls to 0)
     stiffness_nm_deg: 0.05     # the grip, K_h; damping_nm_s_rad D_h; max_torque_nm tau_max
 
-Every key but ``script`` may be left out (:class:`firmware_sim.leader.Operator`'s defaults: a
-relaxed hand of at most 0.3 N m).
+Every key but ``script`` may be left out (:class:`firmware_sim.leader.Operator`'s defaults).
 """
 
 from __future__ import annotations
@@ -50,16 +49,13 @@ def read_operator_file(path: str | Path) -> Any:
 
 
 def leader_spec(data: Any, ids: Sequence[int], log: str | None = None) -> dict[str, Any]:
-    """The simulator's ``leader`` option (:meth:`firmware_sim.leader.LeaderWorld.from_spec`)
-    for a leader at ``ids`` (two or three) held by the operator an operator file's ``data``
-    describes; ``log``: its ground-truth log.
+    """The simulator's ``leader`` option for a leader at ``ids`` held as an operator file's
+    ``data`` says; ``log``: its ground-truth log.
 
     Raises
     ------
     ValueError
-        Not a mapping, an unknown key, a model without motor data, a start or script rows that
-        are not one angle per joint (plus the time) of finite numbers, or a grip the operator
-        refuses (times that decrease, negative bounds).
+        Naming the key that is unknown or malformed, or what the operator refuses.
     """
     joints = len(ids)
     if not isinstance(data, Mapping):

@@ -5,14 +5,8 @@ The chain of the three-joint gimbal is pan about +z, tilt raising the limb towar
 
     q = Rz(pan) Ry(-tilt) Rx(roll)        (unit quaternion, scalar first, w >= 0)
 
-The limb points along ``d = (cos t cos p, cos t sin p, sin t)``; roll does not move it.
-
-Twist is the swing-twist split about the rest axis +x, ``q = swing(d) * twist(tau)`` with
-``swing(d)`` the shortest rotation from +x onto ``d``; it reads back as ``tau = 2 atan2(q_x, q_w)``.
-The chain's twist is ``roll + chain_twist(pan, tilt)`` with
-``chain_twist = 2 atan2(sin(p/2) sin(t/2), cos(p/2) cos(t/2))`` (= 2 atan(tan(p/2) tan(t/2))),
-so the roll that gives the limb the twist ``tau`` at (pan, tilt) is ``tau - chain_twist``.
-All angles are radians unless a name ends in ``_deg``.
+Twist is the swing-twist split about the rest axis +x, ``q = swing(d) * twist(tau)``; the
+chain's twist is ``roll + chain_twist(pan, tilt)``. Angles in radians unless named ``_deg``.
 """
 
 from __future__ import annotations

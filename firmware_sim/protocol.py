@@ -1,11 +1,7 @@
 """Dynamixel Protocol 2.0 framing, written from the e-Manual (not from the SDK's code).
 
-A packet: ``FF FF FD 00 | ID | LEN_L LEN_H | INST | PARAM ... | CRC_L CRC_H``. ``LEN`` counts
-everything after itself; the CRC (CRC-16/BUYPASS: polynomial 0x8005, init 0, no reflection)
-covers every byte before it, after byte stuffing: an ``FD`` is inserted after each ``FF FF FD``
-in the instruction+parameter field, so no header appears inside a packet. Status packets carry
-instruction 0x55 and an error byte: an :class:`ErrorNumber` plus the alert bit 7.
-:class:`PacketParser` turns any byte stream into packets and resynchronises after junk.
+A packet: ``FF FF FD 00 | ID | LEN_L LEN_H | INST | PARAM ... | CRC_L CRC_H``, byte-stuffed,
+``LEN`` counting everything after itself. :class:`PacketParser` resynchronises after junk.
 """
 
 from __future__ import annotations
@@ -130,9 +126,8 @@ def build_status(servo_id: int, error: int, data: bytes | bytearray = b"") -> by
 
 
 def build_fast_status(segments: Iterable[tuple[int, int, bytes]]) -> bytes:
-    """The one broadcast status packet of FAST_SYNC_READ / FAST_BULK_READ from ``(servo_id,
-    error, data)`` in reply order: each adds ``error, id, data, crc``, ``crc`` running over the
-    packet so far (the last one is the packet's own CRC)."""
+    """The one status packet of a FAST read from ``(servo_id, error, data)`` in reply order,
+    each adding ``error, id, data, crc`` with ``crc`` over the packet so far."""
     segments = list(segments)
     if not segments:
         raise ValueError("a fast read reply needs at least one servo segment")
@@ -168,12 +163,8 @@ class CorruptPacket:
 
 
 class PacketParser:
-    """Incremental parser: yields every complete packet of the bytes fed to it.
-
-    Junk before a header is skipped; an impossible length or a bad CRC costs only the header's
-    first byte, so a packet starting inside junk is still found. A partial packet older than
-    ``stale_after_s`` is dropped (the firmware's inter-byte timeout).
-    """
+    """Incremental parser: yields every complete packet of the bytes fed to it; a bad length or
+    CRC costs one byte, a partial packet older than ``stale_after_s`` is dropped."""
 
     def __init__(self, stale_after_s: float = 0.05) -> None:
         self._buffer = bytearray()

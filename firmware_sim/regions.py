@@ -16,9 +16,8 @@ import numpy as np
 
 #: Grid step (deg) of the search for a polygon's deepest point.
 CENTER_GRID_STEP_DEG = 1.0
-#: :func:`deepen` moves a point inward in up to DEEPEN_ROUNDS steps along the edge distance's
-#: gradient (central differences of DEEPEN_STEP_DEG) until within DEEPEN_TOLERANCE_DEG of its
-#: depth: the distance is piecewise linear or smooth, so a few rounds settle even a corner.
+#: :func:`deepen`'s gradient steps, difference step (deg) and tolerance (deg): the distance is
+#: piecewise linear or smooth, so a few rounds settle even a corner.
 DEEPEN_ROUNDS = 4
 DEEPEN_STEP_DEG = 0.05
 DEEPEN_TOLERANCE_DEG = 0.02
@@ -145,8 +144,7 @@ class PolygonRegion(_Shape):
         self.depth_max_deg = float(depth[deepest])
 
     def _nearest(self, pan_deg, tilt_deg):
-        """The inputs' shape, points (M, 1, 2), the fraction (M, N) along each edge of its
-        point nearest each, and the gaps (M, N, 2) to them."""
+        """Input shape, points (M, 1, 2), nearest fractions (M, N) along edges, gaps (M, N, 2)."""
         pan = np.asarray(pan_deg, dtype=np.float64)
         tilt = np.asarray(tilt_deg, dtype=np.float64)
         points = np.stack([pan.ravel(), tilt.ravel()], axis=1)[:, None, :]
@@ -170,8 +168,7 @@ class PolygonRegion(_Shape):
         return np.where(inside | (distance == 0.0), distance, -distance).reshape(shape)
 
     def boundary_fraction(self, pan_deg, tilt_deg) -> np.ndarray:
-        """Where round the perimeter (fraction in [0, 1), shape of the inputs) the boundary point
-        nearest each pose lies; the inverse of :meth:`boundary_point` for points near the edge."""
+        """Perimeter fraction in [0, 1) (inputs' shape) of the edge point nearest each pose."""
         shape, points, s, gap = self._nearest(pan_deg, tilt_deg)
         nearest = np.argmin(np.sum(gap * gap, axis=2), axis=1)
         rows = np.arange(points.shape[0])
@@ -179,8 +176,7 @@ class PolygonRegion(_Shape):
         return (arc / self.perimeter_deg % 1.0).reshape(shape)
 
     def boundary_point(self, u: float, inset_deg: float) -> tuple[float, float]:
-        """The boundary point a fraction ``u`` (wraps) of the perimeter round, moved ``inset_deg``
-        inward along its edge's normal."""
+        """The edge point a fraction ``u`` (wraps) round, moved ``inset_deg`` inward."""
         arc = (u % 1.0) * self.perimeter_deg
         k = int(np.searchsorted(self._arc_start, arc, side="right")) - 1
         s = (arc - self._arc_start[k]) / self._lengths[k]
@@ -189,11 +185,7 @@ class PolygonRegion(_Shape):
 
 
 class ConeRegion(_Shape):
-    """Directions within ``half_angle_deg`` of +x, addressed by (pan_deg, tilt_deg).
-
-    With ``d = (cos t cos p, cos t sin p, sin t)``, a pose is inside when
-    ``acos(cos t cos p) <= half_angle``.
-    """
+    """Directions within ``half_angle_deg`` of +x: ``acos(cos t cos p) <= half_angle``."""
 
     kind = "cone"
 
@@ -219,8 +211,7 @@ class ConeRegion(_Shape):
         return self.half_angle_deg - angle
 
     def boundary_fraction(self, pan_deg, tilt_deg) -> np.ndarray:
-        """Azimuth about +x of each pose as a fraction of a turn in [0, 1) (shape of the inputs);
-        the inverse of :meth:`boundary_point`."""
+        """Azimuth about +x of each pose as a fraction of a turn in [0, 1) (inputs' shape)."""
         pan = np.radians(np.asarray(pan_deg, dtype=np.float64))
         tilt = np.radians(np.asarray(tilt_deg, dtype=np.float64))
         # phi = atan2(d_z, d_y) with d_y = cos t sin p, d_z = sin t
@@ -241,8 +232,7 @@ Region = PolygonRegion | ConeRegion
 
 
 def deepen(region: Region, points_deg: np.ndarray, depth_deg: np.ndarray) -> np.ndarray:
-    """Points moved inward, along the edge distance's gradient, until each is as deep as asked
-    (near a reflex corner the points then round the corner on an arc).
+    """Points moved inward along the edge distance's gradient until each is as deep as asked.
 
     Parameters
     ----------
@@ -280,8 +270,7 @@ def deepen(region: Region, points_deg: np.ndarray, depth_deg: np.ndarray) -> np.
 
 
 def grid_inside(region: Region, step_deg: float, min_depth_deg: float) -> np.ndarray:
-    """The (pan_deg, tilt_deg) poses, shape (M, 2), of a ``step_deg`` grid over the region's
-    bounding box (from its low corner) that lie at least ``min_depth_deg`` deg inside it."""
+    """(pan_deg, tilt_deg), shape (M, 2), of a ``step_deg`` grid at least ``min_depth_deg`` in."""
     pan_lo, pan_hi, tilt_lo, tilt_hi = region.bbox_deg
     pan, tilt = (
         a.ravel()
@@ -300,8 +289,7 @@ def region_from_mapping(spec: object, source: str = "<region>") -> Region:
     Raises
     ------
     ValueError
-        Naming ``source`` and the problem: not a mapping, neither or both shapes, bad numbers,
-        fewer than 3 vertices, a self-crossing polygon, a half angle outside (0, 180).
+        Naming ``source`` and what is wrong with the shape or its numbers.
     """
     if not isinstance(spec, dict):
         raise ValueError(

@@ -1,11 +1,8 @@
 """One simulated X-series servo: control-table memory, instruction semantics, errors, motion.
 
-It touches neither the wire (:mod:`firmware_sim.dispatch` frames its answers) nor the physics:
-each substep the bus asks :meth:`Servo.drive_setpoint` and reports with :meth:`Servo.observe`.
-``present = (4096 - raw if Drive Mode reverse else raw) + Homing Offset`` (raw: motor ticks).
-A hardware error whose bit is set in Shutdown latches in Hardware Error Status, turns torque off
-and raises every status packet's alert bit until REBOOT; an input voltage error is latched and
-alerted even with its Shutdown bit clear (torque stays on).
+Each substep the bus asks :meth:`Servo.drive_setpoint` and reports with :meth:`Servo.observe`.
+A hardware error in Shutdown latches, turns torque off and alerts until REBOOT; an input voltage
+error latches and alerts even outside Shutdown (torque stays on).
 """
 
 from __future__ import annotations
@@ -157,7 +154,7 @@ class Servo:
         return int(number) | (ALERT_BIT if self.alert else 0)
 
     def present_from_raw(self, raw: float) -> float:
-        """Present Position units for a raw shaft tick (see module docstring)."""
+        """Present Position units for a raw shaft tick (reverse: 4096 - raw; + Homing Offset)."""
         turned = raw - self.turn_offset * TICKS_PER_TURN
         oriented = TICKS_PER_TURN - turned if self._reverse else turned
         return oriented + self.value(Register.HOMING_OFFSET)
@@ -202,8 +199,7 @@ class Servo:
         Raises
         ------
         ServoError
-            Access (undefined/read-only/EEPROM locked), Data Length (partial item),
-            Data Range (outside the item's range) or Data Limit (outside a limit item).
+            Access, Data Length, Data Range or Data Limit, as the e-Manual's firmware.
         """
         if not data:
             raise ServoError(ErrorNumber.DATA_LENGTH, "WRITE without data")

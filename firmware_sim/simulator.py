@@ -1,11 +1,8 @@
 """The simulated bus without its transport: servos + world + faults + goal log on one clock.
 
-:class:`Simulator` takes raw bytes with their arrival time and returns the replies with their
-delays. Physics is stepped lazily to "now" (on every arrival and on the serving loop's tick) in
-substeps of at most 1 ms. Servos 1 and 2 drive the gimbal's pan and tilt, ``roll_id`` its roll;
-any other servo a free, unloaded shaft that follows its setpoint exactly. What a servo drives is
-fixed by its *slot* (its ID at start; with ``factory=N`` slots 1..N, all starting as ID 1), so it
-keeps its joint when set-up changes its ID. The wire is strict (:mod:`firmware_sim.wire`).
+:class:`Simulator` takes bytes with their arrival time and returns replies with their delays,
+stepping physics lazily in substeps of at most 1 ms. A servo's joint is fixed by its *slot* (its
+ID at start; ``factory=N``: slots 1..N), so it keeps its joint when set-up changes its ID.
 """
 
 from __future__ import annotations
@@ -55,7 +52,7 @@ def parse_ids(ids: Sequence[int] | str) -> tuple[int, ...]:
 
 
 class Simulator:
-    """Servos on one bus with their world (see module docstring).
+    """Servos on one bus with their world; servos beyond the joints drive free shafts.
 
     Parameters
     ----------
@@ -189,8 +186,8 @@ class Simulator:
         return [get_model(key) for key in keys]
 
     def hears(self, servo: Servo, baud: int | None) -> bool:
-        """Whether ``servo`` decodes a host talking at ``baud`` (None: always); without a
-        ``baud`` option, any rate until the host writes the servo's Baud Rate."""
+        """Whether ``servo`` decodes a host at ``baud`` (None: always; no ``baud`` option: any
+        rate until its Baud Rate is written)."""
         register = servo.value(Register.BAUD_RATE)
         if self._any_baud.get(id(servo)) == register:
             return True
@@ -270,8 +267,7 @@ class Simulator:
         return out
 
     def persist(self) -> None:
-        """Write each changed EEPROM to its file; called once replies are out (a file write
-        took up to 4.3 ms under load, time a real servo does not add to its reply)."""
+        """Write each changed EEPROM to its file, once replies are out (a write takes ms)."""
         for servo in self.servos:
             eeprom = self._eeproms.get(self._home_ids[id(servo)])
             if eeprom is not None:
@@ -312,8 +308,7 @@ class Simulator:
         raise ValueError(f"no servo {servo_id} on this bus; it has {list(self.ids)}")
 
     def slots_answering(self, servo_id: int) -> tuple[int, ...]:
-        """The slots of the servos that answer as ``servo_id`` now (their ID register: set-up
-        and ``eeprom_dir`` renumber servos, and factory-fresh ones all answer as 1)."""
+        """The slots of the servos whose ID register answers as ``servo_id`` now."""
         return tuple(self._home_ids[id(s)] for s in self.servos if s.servo_id == servo_id)
 
     def answering_ids(self) -> tuple[int, ...]:

@@ -24,8 +24,7 @@ from firmware_sim.servo import WATCHDOG_TRIPPED, Servo
 
 @dataclass(frozen=True)
 class Motor:
-    """A model's motor: stall torque (N m) at its stall current (mA), and the unit (mA) of its
-    Goal/Present Current and Current Limit."""
+    """A model's motor: stall torque (N m) at stall current (mA), and its current unit (mA)."""
 
     stall_torque_nm: float
     stall_current_ma: float
@@ -37,9 +36,7 @@ class Motor:
         return self.stall_torque_nm / self.stall_current_ma
 
 
-#: e-Manual specifications: XM430-W350 4.1 N m at 2.3 A (12 V), current unit 2.69 mA;
-#: XL330-M077 0.215 N m and XL330-M288 0.52 N m at 1.47 A (5 V), 1 mA; the XL430-W250 has no
-#: current sensing (1.5 N m at 1.4 A, 12 V; its unit is only used internally).
+#: e-Manual stall figures and current units (the XL430-W250 senses no current: unit internal).
 MOTORS: dict[str, Motor] = {
     "xm430-w350": Motor(4.1, 2300.0, 2.69),
     "xl430-w250": Motor(1.5, 1400.0, 1.0),
@@ -47,8 +44,7 @@ MOTORS: dict[str, Motor] = {
     "xl330-m288": Motor(0.52, 1470.0, 1.0),
 }
 
-#: The position loop reaches stall torque at this error (deg): a stiff loop, as the firmware's
-#: default P gain is; stiffer would only shorten the simulated time step the loop needs.
+#: The position loop reaches stall torque at this error (deg): stiff, as the default P gain.
 LOOP_STALL_ERROR_DEG = 2.0
 #: Damping ratio of the position loop with the leader's inertia: well damped, no ringing.
 LOOP_DAMPING_RATIO = 0.7
@@ -87,9 +83,8 @@ class LoopGains:
 
 @dataclass(frozen=True)
 class Drive:
-    """What a servo's registers let its motor do this instant (read once per physics step):
-    ``cap_nm``, the most the position loop may apply (N m; 0 with torque off or no current), or
-    in mode 0 ``current_nm``, the torque its current asks for (N m, joint frame)."""
+    """What a servo's registers let its motor do this instant: ``cap_nm``, the most its loop may
+    apply (N m), or in mode 0 ``current_nm``, the torque its current asks for (N m, joint)."""
 
     cap_nm: float
     current_nm: float | None = None
@@ -108,8 +103,7 @@ class Drive:
 
 
 def drive_of(servo: Servo, joint_direction: int) -> Drive:
-    """The :class:`Drive` of ``servo`` now; ``joint_direction`` (+1 or -1) turns mode 0's
-    shaft-frame Goal Current into the joint frame."""
+    """The :class:`Drive` of ``servo`` now, in the joint frame of ``joint_direction`` (+-1)."""
     if not servo.torque_on:
         return Drive(0.0)
     motor = motor_of(servo)

@@ -14,9 +14,7 @@ A REGION.yaml for a three-joint gimbal adds beside its ``region:``::
       quadratic: [0.002, 0, -0.004]   # + p pan^2 + m pan tilt + t tilt^2 (deg^-1)
       bumps: [[20, 10, -8, 12]]       # + sum of h exp(-((pan - p0)^2 + (tilt - t0)^2) / (2 w^2))
 
-The allowed twist is ``centre +- half_width`` (deg), twist being the swing-twist angle about the
-rest axis (:mod:`firmware_sim.orientation`), not the roll joint's angle. The half width must stay
-within MIN_HALF_WIDTH_DEG..MAX_HALF_WIDTH_DEG on a CHECK_GRID_STEP_DEG grid and the vertices.
+The allowed twist (:mod:`firmware_sim.orientation`) is ``centre +- half_width`` (deg).
 """
 
 from __future__ import annotations
@@ -25,12 +23,12 @@ import math
 
 import numpy as np
 
+from firmware_sim.orientation import wrap_deg
 from firmware_sim.regions import Region, grid_inside
 
 #: Narrowest half width (deg): the hand keeps TWIST_INSET_DEG from each stop and needs room between.
 MIN_HALF_WIDTH_DEG = 3.0
-#: Widest half width (deg): a band of 360 deg or more would be no limit; 170 keeps a gap so the
-#: band's two stops stay distinct on the circle.
+#: Widest half width (deg): 170 keeps the band's two stops distinct on the circle.
 MAX_HALF_WIDTH_DEG = 170.0
 #: Spacing (deg) of the grid on which the half width is checked over the outline.
 CHECK_GRID_STEP_DEG = 2.0
@@ -67,8 +65,7 @@ class Curved:
 
 
 def _value(value: object, source: str, key: str) -> tuple[float, float, float] | Curved:
-    """A band value: ``(a, b, c)`` from a number or ``[a, b, c]``, or a :class:`Curved` from the
-    mapping form (the module docstring)."""
+    """A band value: ``(a, b, c)`` from a number or ``[a, b, c]``, or a :class:`Curved`."""
     if not isinstance(value, dict):
         return _linear(value, source, key)
     unknown = sorted(set(value) - set(_CURVED), key=str)
@@ -139,8 +136,7 @@ class TwistBand:
 
     @classmethod
     def from_mapping(cls, data: object, region: Region, source: str = "<twist>") -> TwistBand:
-        """A band from a REGION.yaml's ``twist:`` mapping, checked over ``region``; ValueError
-        names ``source`` and the problem."""
+        """A band from a ``twist:`` mapping checked over ``region``; ValueError names ``source``."""
         if not isinstance(data, dict):
             raise ValueError(f"{source}: twist must be a mapping with keys {', '.join(_KEYS)}")
         unknown = sorted(set(data) - set(_KEYS), key=str)
@@ -175,7 +171,4 @@ class TwistBand:
         """True if ``twist_deg`` lies in the band at the pose (compared on the circle)."""
         low, high = self.limits_deg(pan_deg, tilt_deg)
         centre, half = (low + high) / 2.0, (high - low) / 2.0
-        # |wrap(twist - centre)| <= half
-        offset = twist_deg - centre
-        offset -= 360.0 * math.ceil((offset - 180.0) / 360.0)
-        return abs(offset) <= half
+        return abs(wrap_deg(twist_deg - centre)) <= half

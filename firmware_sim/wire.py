@@ -1,10 +1,8 @@
 """The wire between the host and the servos: its speed, its time, and what collisions do to it.
 
-A pty carries bytes instantly at any speed, so the bus's strictness is added here:
-:func:`host_baud` reads the speed the host set on the pty (``TCGETS2``: any rate); a servo
-answers only at its Baud Rate register's (:data:`BAUD_BY_VALUE`). :func:`wire_s` is the bytes'
-time on the wire (10 bits each). :func:`collide` is what two servos talking at once give: the
-open-drain bus lets a 0 win, the second's bits :data:`COLLISION_SKEW_BITS` late: a garbled reply.
+A pty carries bytes instantly at any speed: :func:`host_baud` reads the speed the host set,
+:func:`wire_s` the bytes' time, and :func:`collide` what two servos talking at once give (the
+open-drain bus lets a 0 win, the second's bits :data:`COLLISION_SKEW_BITS` late).
 """
 
 from __future__ import annotations
@@ -19,10 +17,8 @@ BAUD_BY_VALUE = dict(
 )
 #: The factory baud rate (register value 1).
 FACTORY_BAUD = 57_600
-#: The simulated rig's servos (not --factory): 4 Mbps, the fastest every family runs at. One
-#: 200 Hz cycle's ~60 bytes then take 0.15 ms of the 5 ms period, so a dropped reply's timeout
-#: still fits the period as it did before wire time was modelled (at 1 Mbps it took 0.6 ms and
-#: tipped such cycles over; at 57600 the bytes alone take 10 ms).
+#: The simulated rig's baud: the fastest every family runs at, so a 200 Hz cycle's bytes take
+#: 0.15 ms and a dropped reply's timeout still fits the 5 ms period (1 Mbps tipped it over).
 RIG_BAUD = 4_000_000
 #: Bits per byte on the wire: start bit, 8 data bits, stop bit (8N1).
 BITS_PER_BYTE = 10

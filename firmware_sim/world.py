@@ -1,23 +1,15 @@
 """The simulated gimbal's physical world: true geometry, end stops, tracking, load, the hand.
 
-Pan (servo ID 1), tilt (2) and optionally roll (ROLL_JOINT, 3: about the limb's own axis). A
-joint's angle relates to its servo's raw shaft ticks (4096 a turn, before Homing Offset or Drive
-Mode) by its true zero and direction, which a calibration has to find::
-
-    angle_rad = direction * (raw_tick - zero_tick) * 2 pi / 4096
-
-The limb points along ``d = (cos t cos p, cos t sin p, sin t)``; its orientation is
-``q = Rz(p) Ry(-t) Rx(roll)`` (:mod:`firmware_sim.orientation`). Every joint follows the same
-physics, each on its own. Torque on, it tracks its servo's setpoint like a stiff position loop
-(critically damped, TRACKING_OMEGA_RAD_S, limited to the motor's speed and acceleration); a
-push deflects it from that *free* angle through the loop's stiffness::
+Pan (servo 1), tilt (2) and optionally roll (3); each :class:`Joint` maps raw shaft ticks to its
+angle by a true zero and direction a calibration has to find. Torque on, a joint tracks its
+servo's setpoint like a stiff, critically damped position loop, and a push deflects it from that
+*free* angle::
 
     angle = clamp(free + push / STIFFNESS, stop_min, stop_max)
     load  = STIFFNESS * (free - angle) + INERTIA * accel + VISCOUS * velocity
 
-Torque off, it follows the hand's grip (a short lag, a top speed), or drifts under a push, or
-stays put, reading no load. End stops always clamp. Loads and pushes are % of stall torque in
-the shaft frame (positive toward increasing raw ticks); velocities are raw ticks per second.
+Torque off, it follows the hand's grip, or drifts under a push, reading no load. Loads and
+pushes are % of stall in the shaft frame; velocities raw ticks per second.
 """
 
 from __future__ import annotations
@@ -63,10 +55,8 @@ JOINT_NAMES = ("pan", "tilt", "roll")
 
 @dataclass(frozen=True)
 class Joint:
-    """One joint's true geometry: ``angle_rad = direction * (raw - zero_tick) * 2 pi / 4096``.
-
-    ``stop_min_deg`` < ``stop_max_deg`` are the physical end stops (joint angle, deg).
-    """
+    """One joint's true geometry (``angle_rad = direction * (raw - zero_tick) * 2 pi / 4096``)
+    and its end stops (deg)."""
 
     servo_id: int
     name: str
@@ -109,7 +99,7 @@ ROLL_JOINT = Joint(3, "roll", 1960.0, +1, -105.0, 105.0)
 
 
 class World:
-    """The gimbal's physics, stepped by the servos; see the module docstring for the model.
+    """The gimbal's physics, stepped by the servos.
 
     Parameters
     ----------
@@ -153,11 +143,8 @@ class World:
         self.set_hand(hand)
 
     def step(self, dt: float, drive: dict[int, float | None]) -> None:
-        """Advance the physics by ``dt`` seconds (split into substeps of at most 1 ms).
-
-        ``drive[servo_id]`` is the raw tick the servo's position loop commands this instant when
-        its torque is on, ``None`` (or absent) when its torque is off.
-        """
+        """Advance ``dt`` s in substeps of at most 1 ms; ``drive[servo_id]`` is the commanded raw
+        tick, ``None`` (or absent) with torque off."""
         if not dt >= 0.0 or not math.isfinite(dt):
             raise ValueError(f"World.step: dt must be a finite number >= 0 s, got {dt!r}")
         setpoints = [drive.get(j.servo_id) for j in self.joints]
@@ -259,8 +246,7 @@ class World:
         self._push[i] = self.joints[i].direction * float(torque_percent)
 
     def set_hand(self, hand: Hand | None) -> None:
-        """Give the limb to ``hand``, which takes hold where the limb is and whose clock restarts
-        (``hand_time_s`` runs only while some joint's torque is off), or take it away (``None``)."""
+        """Give the limb to ``hand`` (it takes hold where the limb is), or take it away."""
         self._hand = hand
         #: Seconds the hand has held the limb.
         self.hand_time_s = 0.0
@@ -277,11 +263,7 @@ class World:
         return {j.name: math.degrees(a) for j, a in zip(self.joints, self._angle, strict=True)}
 
     def direction_for_ticks(self, raw: dict[int, float]) -> np.ndarray:
-        """Unit limb direction (3,) where the limb points with its shafts at ``raw`` ticks.
-
-        Uses the true zero and direction of each joint; a position past an end stop counts as the
-        stop (where the limb really ends up); a servo missing from ``raw`` counts where it is.
-        """
+        """Unit limb direction (3,) with the shafts at ``raw`` ticks (true geometry, stops)."""
         pan, tilt = self._angles_for_ticks(raw)[:2]
         # d = (cos t cos p, cos t sin p, sin t)
         return np.array(
@@ -294,8 +276,7 @@ class World:
         return len(self.joints) == 3
 
     def _angles_for_ticks(self, raw: dict[int, float]) -> list[float]:
-        """Joint angles (rad) in JOINT_NAMES order (roll 0 without a roll joint) at ``raw``,
-        each clamped to its stops; a servo missing from ``raw`` counts where it is."""
+        """Joint angles (rad) in JOINT_NAMES order at ``raw``, clamped; a missing servo as is."""
         angles = [0.0, 0.0, 0.0]
         for i, joint in enumerate(self.joints):
             tick = raw.get(joint.servo_id)
@@ -304,6 +285,5 @@ class World:
         return angles
 
     def orientation_for_ticks(self, raw: dict[int, float]) -> tuple[float, float, float, float]:
-        """Full orientation ``(w, x, y, z)``, w >= 0, with the shafts at ``raw`` ticks (true
-        geometry, stops and missing servos as in :meth:`direction_for_ticks`)."""
+        """Full orientation ``(w, x, y, z)``, w >= 0, with the shafts at ``raw`` ticks."""
         return chain_quat(*self._angles_for_ticks(raw))

@@ -1,9 +1,5 @@
-"""The rest of the X series, registered into ``control_table.MODELS`` (:func:`register_into`).
-
-Each model shares a sibling's table (XL430-W250, XM430-W350 or XL330-M288) with its own model
-number and its family's changes from the e-Manual; ``stall_ma`` only scales the simulated load
-into Present Current (the stall current at that supply, rounded from the specifications).
-"""
+"""The rest of the X series, registered into ``control_table.MODELS`` (:func:`register_into`):
+each shares a sibling's table with its own model number and its family's changes."""
 
 from __future__ import annotations
 
@@ -16,11 +12,8 @@ from firmware_sim.registers import Register
 
 @dataclass(frozen=True)
 class Family:
-    """What a family changes in its sibling's table.
-
-    ``voltage`` is ``(range min, range max, default max, default min)`` in 0.1 V; None fields
-    keep the sibling's value.
-    """
+    """What a family changes in its sibling's table (None: the sibling's); ``voltage`` is
+    ``(range min, range max, default max, default min)`` in 0.1 V; ``stall_ma`` scales load."""
 
     base: str
     voltage: tuple[int, int, int, int] | None = None
@@ -108,8 +101,7 @@ def derive(base: Any, key: str, title: str, number: int, family: Family) -> Any:
 
 
 def register_into(models: dict[str, Any], x330_builders: dict[str, Callable[[int], Any]]) -> None:
-    """Add every model of :data:`X_MODELS` to ``models`` (key -> Model), and the 330s' builders
-    by firmware version to ``x330_builders``."""
+    """Add every model of :data:`X_MODELS` to ``models``, and the 330s' to ``x330_builders``."""
     for key, title, number, name in X_MODELS:
         family = FAMILIES[name]
         if family.base in x330_builders:

@@ -38,7 +38,6 @@ Job = Callable[[argparse.Namespace], int]
 Options = TypeVar("Options")
 
 
-# ---- shared option helpers ------------------------------------------------------------------
 def _positive(text: str) -> float:
     try:
         value = float(text)
@@ -166,7 +165,6 @@ def _command(
     return p
 
 
-# ---- one parser per subcommand --------------------------------------------------------------
 def _add_demo(sub: Subparsers) -> None:
     p = _command(
         sub,
@@ -371,9 +369,7 @@ def _add_eval(sub: Subparsers) -> None:
     p = _command(
         sub,
         "eval",
-        lambda a: file_jobs.run_evaluation(
-            file_jobs.EvalOptions(out=a.out, quick=a.quick, jobs=a.jobs)
-        ),
+        _job(file_jobs.run_evaluation, file_jobs.EvalOptions),
         help="reproduce the papers' experiments beside the gate; tables and plots",
     )
     p.add_argument("--quick", action="store_true", help="a reduced grid (under two minutes)")

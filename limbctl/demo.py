@@ -1,10 +1,5 @@
 """The whole flow on the embedded simulator, for a newcomer: teach, train, teleop, check, leader.
-
-A scripted hand teaches an irregular region; a Rigid Map learns it; a sweep far outside (with
-bad lines mixed in) is replayed through the gate at 200 Hz; the simulator's own goal log is
-checked against the learned region and pictures are drawn; a simulated operator pushes a felt
-leader past the edge (on ``--rig sim3`` in swing, then in twist). One flow
-(:func:`_run_flow`) runs every rig; what differs is a :class:`DemoRig` in :data:`RIGS`."""
+One flow (:func:`_run_flow`) runs every rig; what differs is a :class:`DemoRig` in :data:`RIGS`."""
 
 from __future__ import annotations
 
@@ -230,12 +225,10 @@ def _twist_row(cycle, source) -> tuple[float, ...] | None:
 
 def write_command_stream(path: Path, seconds: float = 12.0, rate_hz: float = 50.0) -> int:
     """A replay file: a Lissajous sweep (pan +-110, tilt -55..75 deg) with bad lines mixed in;
-    returns the number of valid lines. 12 s at 50 lines/s: one figure, slow enough that the gate's
-    slew limit, not the stream, shapes the motion."""
+    returns the number of valid lines. 12 s at 50 lines/s: the gate's slew limit shapes it."""
     n = int(seconds * rate_hz)
     t = np.arange(n) / rate_hz
-    # a Lissajous figure that crosses the taught region and leaves it on every side (the taught
-    # region spans about pan -70..80, tilt -35..60 deg)
+    # crosses the taught region (about pan -70..80, tilt -35..60 deg) and leaves it on every side
     pan = 110.0 * np.sin(2 * math.pi * t / seconds)
     tilt = 10.0 + 65.0 * np.sin(4 * math.pi * t / seconds + 0.6)
     bad = ['{"pan": NaN, "tilt": 0}', '{"pan": 10, "tilt": "up"}', "not json at all", "{}"]
@@ -244,9 +237,8 @@ def write_command_stream(path: Path, seconds: float = 12.0, rate_hz: float = 50.
 
 
 def goal_log_excursions(goal_log: Path, model: object) -> np.ndarray:
-    """Angle (deg) by which each logged goal's limb direction lies outside the model's region
-    (0 inside), from the simulator's ``limb_dir`` (its true geometry). A sync write logs one line
-    per servo with the same ``t``; the pose a packet commands is the last line of each ``t``."""
+    """Angle (deg) by which each logged goal's limb direction (the simulator's ``limb_dir``, the
+    last line of each packet) lies outside the model's region (0 inside)."""
     from limbctl.geometry.quat import direction_angle, limb_direction, swing_from_direction
 
     d = logged_packets(goal_log, "limb_dir", 3)

@@ -1,5 +1,4 @@
-"""The one small exception tree of limbctl (drawn in docs/architecture.md); every message says
-what went wrong and, where it can, what to do about it."""
+"""The one small exception tree of limbctl (drawn in docs/architecture.md)."""
 
 from __future__ import annotations
 

@@ -12,7 +12,6 @@ from limbctl.errors import ConfigError, FileFormatError
 from limbctl.jobs import Connection, open_connection, prepare, say
 
 
-# ---- train ----------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class TrainOptions:
     """``limbctl train``: fit a model of ``kind`` to dataset ``data``, write it to ``out``;
@@ -29,7 +28,7 @@ class TrainOptions:
 
 def model_options(kind: str, seed: int, **chosen: object) -> dict[str, object]:
     """Constructor keywords for a model of ``kind``: the seed where it takes one, and each
-    ``chosen`` option given (not None).
+    ``chosen`` option not None.
 
     Raises
     ------
@@ -81,7 +80,6 @@ def run_train(options: TrainOptions) -> int:
     return 0
 
 
-# ---- plot / info ----------------------------------------------------------------------------
 def plot_files(paths: list[Path], out: Path) -> Path:
     """Draw the models and datasets among ``paths`` (told apart by content) to PNG ``out``."""
     from limbctl.envelope import load_model
@@ -163,8 +161,7 @@ def run_info(options: InfoOptions) -> int:
 
 
 def _info_file(path: Path) -> int:
-    """Describe a model or dataset file, told apart by its first bytes (so a damaged file's error
-    is its own loader's)."""
+    """Describe a model or dataset file, told apart by its first bytes."""
     from limbctl.envelope import load_header
     from limbctl.envelope.base import is_model_file
     from limbctl.teach.dataset import is_dataset_file, load_dataset
@@ -209,7 +206,6 @@ def _neither(path: Path) -> None:
     raise FileFormatError(path, f"neither a limbctl model nor a dataset ({'; '.join(problems)})")
 
 
-# ---- eval -----------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class EvalOptions:
     """``limbctl eval``: the papers' grid (``quick``: reduced) into ``out``, ``jobs`` workers."""

@@ -1,6 +1,5 @@
 """The jobs that drive servos (record, teleop, calibrate): one options value in, an exit status
-out; what a person reads goes to stderr, failures are raised as
-:class:`~limbctl.errors.LimbctlError` (the jobs on files: :mod:`limbctl.file_jobs`)."""
+out; what a person reads goes to stderr, failures are raised as LimbctlError."""
 
 from __future__ import annotations
 
@@ -34,8 +33,8 @@ def say(text: str) -> None:
 
 
 def prepare(stage: str) -> None:
-    """Say why a first run waits: the kernels of ``stage`` (``train``, ``gate``) are not all cached
-    yet (it loads what a warm-up cached and compiles the rest itself)."""
+    """Say why a first run waits: the kernels of ``stage`` (``train``, ``gate``) are not all
+    cached yet."""
     from limbctl.geometry import jit
 
     if jit.cache_dir() is None or jit.prepared(stage):
@@ -54,21 +53,7 @@ def _say_wire_budget(rate_hz: float, bus: Any) -> None:
 
 @dataclass(frozen=True)
 class Connection:
-    """Where the servos are, shared by every job that talks to them.
-
-    Attributes
-    ----------
-    port : str or None
-        Serial device; None starts the embedded simulator (or uses the profile's device).
-    rig : path or None
-        Rig profile YAML; None is the simulated rig.
-    baud : int or None
-        Overrides the profile's baud rate.
-    latency_timer_ms : float or None
-        The USB adapter's latency timer (ms); None: :func:`open_rig`'s default.
-    seed : int
-        Simulator seed.
-    """
+    """Where the servos are (the CLI's connection options; see :func:`open_rig`)."""
 
     port: str | None = None
     rig: Path | None = None
@@ -77,7 +62,6 @@ class Connection:
     seed: int = 0
 
 
-# ---- record ---------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class RecordOptions:
     """``limbctl record``: ``out`` dataset, ``rate`` samples/s, ``duration`` s (None: until
@@ -113,8 +97,7 @@ def run_record(options: RecordOptions, view: LiveView | None = None) -> int:
     meta = {"rate_hz": options.rate, "simulated": conn.port is None and profile.is_sim}
     if meta["simulated"] and conn.latency_timer_ms is None:  # late replies kept: see the constant
         conn = replace(conn, latency_timer_ms=SIM_LATENCY_TIMER_MS)
-    # checks the path and free space now, creates the file once the port is ours (a refused start
-    # leaves no empty dataset); the calibration goes into the header and every model trained on it
+    # checks the path now, creates the file once the port is ours (a refused start leaves none)
     writer = DatasetWriter(
         options.out, rig=profile.name, meta=meta, calibration=profile.calibration
     )
@@ -145,7 +128,6 @@ def run_record(options: RecordOptions, view: LiveView | None = None) -> int:
     return summary.exit_code
 
 
-# ---- teleop ---------------------------------------------------------------------------------
 def gate_for(model_path: Path, profile: RigProfile, rate_hz: float, max_speed_deg_s: float) -> Gate:
     """The gate around a model file, refusing a model trained for another rig or calibration
     (:func:`limbctl.servo.profiles.check_trained_for`); step limit ``max_speed_deg_s / rate_hz``."""
@@ -291,7 +273,6 @@ def _sim_operator(
     return load_operator(name, len(spec.extra_ids))
 
 
-# ---- calibrate ------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class CalibrateOptions:
     """``limbctl calibrate``: write rig profile ``out`` named ``name`` for servos ``ids`` (pan,

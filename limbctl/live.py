@@ -1,6 +1,4 @@
-"""The jobs' side of the live view: open it, feed it from a recording and from the teleop loop
-(:class:`~limbctl.view.feed.PoseTap`, :class:`~limbctl.view.feed.SceneFeeder`,
-:class:`TeleopFeed`). On by default when standard error is a terminal."""
+"""The jobs' side of the live view: open it, feed it from a recording and from the teleop loop."""
 
 from __future__ import annotations
 
@@ -38,17 +36,8 @@ RATE_WINDOW_S = 1.0
 
 @dataclass(frozen=True)
 class ViewOptions:
-    """Whether and where to serve the live view.
-
-    Attributes
-    ----------
-    enabled : bool or None
-        True serves it, False not; None serves it when standard error is a terminal.
-    host : str
-        Address to serve on (127.0.0.1: this machine only).
-    port : int or None
-        Port; None is :data:`DEFAULT_PORT`, or any free port when that one is taken.
-    """
+    """Whether (``enabled``; None: when standard error is a terminal) and where (``host``,
+    ``port``; None: :data:`DEFAULT_PORT`, or any free port when taken) to serve the live view."""
 
     enabled: bool | None = None
     host: str = "127.0.0.1"
@@ -129,17 +118,8 @@ class TwistTeaching:
 
 
 class LiveView:
-    """An open live view, or none (``board`` None: every method does nothing).
-
-    Parameters
-    ----------
-    board : Board or None
-        Where to publish; None when the view is off.
-    url : str
-        The page's address ("" when off).
-    server : ViewServer or None
-        The server, whose controller slot a page source attaches to.
-    """
+    """An open live view publishing on ``board`` at ``url`` from ``server``, or none (``board``
+    None, ``url`` "": every method does nothing)."""
 
     def __init__(
         self, board: Board | None = None, url: str = "", server: ViewServer | None = None
@@ -272,9 +252,8 @@ class TeleopFeed:
 
 
 def leader_status(source: Any) -> Callable[[], LeaderStatus]:
-    """What the page shows of a leader source each cycle: its pose as last read and a felt
-    leader's push (torque, cap, goal, distance beyond the edge; the torque its motors applied as
-    last read); a three-servo leader's twist too."""
+    """What the page shows of a leader source each cycle: its pose as last read, a felt leader's
+    push and sensed torque, a three-servo leader's twist."""
 
     def status() -> LeaderStatus:
         pose, push = source.last_pose, source.last_push

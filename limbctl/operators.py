@@ -1,7 +1,6 @@
 """Simulated operators for ``limbctl teleop --operator``: a scripted hand moving the embedded
-simulator's leader, named from :data:`OPERATORS` (packaged in ``limbctl/data/``) or a YAML file
-of the simulator's operator form (:mod:`firmware_sim.operator_file` shows it; the same file
-serves ``firmware-sim --leader IDS --operator FILE``)."""
+simulator's leader, named from :data:`OPERATORS` or a YAML file of
+:mod:`firmware_sim.operator_file`'s form."""
 
 from __future__ import annotations
 
@@ -30,10 +29,8 @@ class SimOperator:
 
     Attributes
     ----------
-    name : str
-        The registry name or the file it came from.
-    model : str
-        The leader servos' model (``"xm430-w350"``).
+    name, model : str
+        The registry name or the file it came from; the leader servos' model.
     start_deg : tuple of float, shape (J,)
         Where the leader rests at the start (deg).
     grip : dict

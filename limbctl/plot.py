@@ -21,9 +21,8 @@ def _pan_tilt_deg(directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def region_grid(
     model: Any, pan_deg: tuple[float, float], tilt_deg: tuple[float, float], n: int = 200
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Which directions of an n x n pan/tilt grid (deg) the model's region holds -> (P, T, inside),
-    each (n, n); a three-servo region holds a direction at some twist (its whole extent is shaded).
-    The default 200 draws 360 deg of pan in 1.8 deg cells, about a line's width in the figure."""
+    """Which directions of an n x n pan/tilt grid (deg) the model's region holds (at some twist,
+    on three servos) -> (P, T, inside), each (n, n). n = 200: 1.8 deg cells, a line's width."""
     from limbctl.teach.train import holds_direction
 
     pans = np.linspace(*pan_deg, n)
@@ -53,7 +52,6 @@ def plot(
     model : Envelope, optional
         A fitted model; its region is shaded and its node weights near the data drawn.
     title : str
-        Figure title.
     extra : dict of name -> (M, 3) directions, optional
         More point sets to draw (e.g. commanded and corrected poses).
     outlines : dict of name -> (M, 2) pan/tilt in degrees, optional
@@ -149,13 +147,10 @@ def plot_leader(path: Path, t: np.ndarray, leader: np.ndarray, follower: np.ndar
     ----------
     path : Path
         The PNG to write.
-    t : ndarray (N,)
-        Cycle times (s).
+    t, torque : ndarray (N,)
+        Cycle times (s); the leader's push (N m; 0 inside the region).
     leader, follower : ndarray (N, 2) or (N, 3)
-        Pan, tilt (deg) of the leader and the follower; a third column, the twist (deg), gets a
-        panel of its own.
-    torque : ndarray (N,)
-        The leader's push (N m; 0 inside the region).
+        Pan, tilt (deg) of the leader and the follower; a third column, the twist (deg).
     """
     import matplotlib
 

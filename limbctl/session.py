@@ -55,12 +55,10 @@ def open_rig(
 
     Parameters
     ----------
-    port : str, optional
-        Serial device; overrides the profile's.
+    port, baud : optional
+        Serial device and baud rate; override the profile's.
     rig_path : path, optional
         Rig profile YAML (default: the packaged simulated rig).
-    baud : int, optional
-        Overrides the profile's baud rate.
     hand, goal_log, seed, sim_options
         Passed to the simulator when one is started.
     extra_ids : tuple of int

@@ -1,6 +1,5 @@
 """Jobs that look after the servos rather than drive them: ``limbctl reboot`` and ``limbctl
-motors scan`` / ``setup`` (their logic: :mod:`limbctl.servo.scan`, :mod:`limbctl.servo.motors`),
-typed like :mod:`limbctl.jobs`."""
+motors scan`` / ``setup``, typed like :mod:`limbctl.jobs`."""
 
 from __future__ import annotations
 
@@ -99,7 +98,6 @@ class MotorScanOptions:
 
 
 def _progress(index: int, count: int, baud: int) -> None:
-    # a bar over the baud rates: one mark a rate
     bar = "#" * (index + 1) + "-" * (count - index - 1)
     end = "\r" if sys.stderr.isatty() else "\n"
     print(f"scanning [{bar}] {index + 1}/{count}: {baud} baud", end=end, file=sys.stderr)
@@ -133,10 +131,8 @@ class MotorSetupOptions:
 
 
 def run_motor_setup(options: MotorSetupOptions) -> int:
-    """Set up each joint's servo; 0 when every one succeeded, 1 when one failed or was skipped.
-
-    A servo recognisably another joint's is never renumbered unless ``renumber``: with ``yes`` that
-    joint fails; otherwise the person connects the right one (Enter looks again) or skips it."""
+    """Set up each joint's servo; 0 when every one succeeded, 1 when one failed or was skipped
+    (another joint's servo is not renumbered without ``renumber``)."""
     from limbctl.servo.motors import Claims, JointTarget, check_target, setup_joint
     from limbctl.servo.profiles import load_rig_profile
 

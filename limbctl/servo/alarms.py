@@ -1,8 +1,5 @@
-"""Servo alarms: what a hardware error means for torque, and the way out (a reboot).
-
-Whether an alarm switched torque off depends on the servo's Shutdown mask (the factory one
-leaves voltage errors out), so messages state the torque each servo REPORTS, once.
-"""
+"""Servo alarms: what a hardware error means for torque (as each servo REPORTS it, since the
+Shutdown mask decides), and the way out (a reboot)."""
 
 from __future__ import annotations
 

@@ -1,9 +1,6 @@
 """Guided, hand-held calibration: find each joint's zero tick and direction, write a profile.
 
-With torque off a person (or the simulator's hand) holds the limb still at rest (every zero
-tick), turned left (pan direction), raised (tilt direction) and, with a roll joint, turned about
-its own axis right-handed (roll direction). Still: every joint within ``STILL_TICKS`` for
-``STILL_S`` seconds.
+With torque off a person holds the limb still at rest, turned left, raised and (roll) turned.
 """
 
 from __future__ import annotations
@@ -27,8 +24,7 @@ STILL_S = 0.75
 MOVE_TICKS = 150
 #: Sampling period while waiting (s).
 PERIOD_S = 0.01
-#: Failed reads in a row after which calibration gives up: a dropped reply now and then is
-#: normal; 50 in a row (half a second at ``PERIOD_S``) is a servo or cable gone.
+#: Failed reads in a row (half a second at ``PERIOD_S``) that mean a servo or cable is gone.
 MAX_FAILED_READS = 50
 
 
@@ -56,10 +52,8 @@ def wait_still(
     timeout_s: float,
     stop: threading.Event,
 ) -> tuple[int, int]:
-    """Read until the limb is still for ``STILL_S`` at a pose ``accept`` likes; its mean ticks.
-
-    Failed reads are skipped, up to ``MAX_FAILED_READS`` in a row.
-    """
+    """Read until the limb is still for ``STILL_S`` at a pose ``accept`` likes; its mean ticks
+    (failed reads are skipped, up to ``MAX_FAILED_READS`` in a row)."""
     window: deque[tuple[float, tuple[int, int]]] = deque()
     deadline = time.monotonic() + timeout_s
     failed_in_a_row = 0

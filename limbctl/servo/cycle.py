@@ -1,9 +1,5 @@
-"""The control cycle's ONE sync read: :data:`CYCLE_REGISTERS` mapped onto Indirect Data.
-
-Set-up (:func:`limbctl.servo.setup.configure_servos`) writes the map (lost with RAM on a
-restart, which then reads as torque loss) and reads each PWM Limit; a bus whose servos keep
-Indirect Data at different addresses takes one read per address.
-"""
+"""The control cycle's ONE sync read: :data:`CYCLE_REGISTERS` mapped onto Indirect Data by
+set-up (:func:`limbctl.servo.setup.configure_servos`); one read per Indirect Data address."""
 
 from __future__ import annotations
 
@@ -44,17 +40,12 @@ FACTORY_PWM_LIMIT = 885
 
 #: Bits per byte on the wire: start, 8 data, stop.
 BITS_PER_BYTE = 10
-#: The baud rate :func:`wire_budget` advises: every family runs at it and a 200 Hz loop of a
-#: few servos spends under a fifth of its period on the wire there.
+#: The baud :func:`wire_budget` advises: every family runs at it, a 200 Hz loop fits easily.
 ADVISED_BAUD = 1_000_000
 
 
 def cycle_wire_bytes(n_servos: int, fast: bool = True) -> int:
-    """Bytes of one cycle's read and goals' sync write (Protocol 2.0 packet sizes).
-
-    Fast Sync Read: ``14 + n`` out, ``8 + n (CYCLE_BYTES + 4)`` back; Sync Read: ``14 + n`` out,
-    ``n (11 + CYCLE_BYTES)`` back; Sync Write of 4-byte goals: ``14 + 5 n``.
-    """
+    """Bytes of one cycle's read and goals' sync write (Protocol 2.0 packet sizes)."""
     back = 8 + n_servos * (CYCLE_BYTES + 4) if fast else n_servos * (11 + CYCLE_BYTES)
     return (14 + n_servos) + back + (14 + 5 * n_servos)
 
@@ -158,11 +149,8 @@ def read_around_silent(
     probe: Sequence[int],
     attempts: int,
 ) -> CycleRead:
-    """One cycle's read of the servos not ``silent``, and of each in ``probe`` alone, one try.
-
-    A gone servo then costs one reply timeout and does not cut the others' reply short; silent
-    servos not probed are ``unread``.
-    """
+    """One cycle's read of the servos not ``silent``, and of each in ``probe`` alone, one try
+    (a gone servo costs one timeout, not the others' reply); the rest are ``unread``."""
     parts = []
     answering = [i for i in ids if i not in silent]
     if answering:
@@ -226,8 +214,7 @@ class CycleReads:
     def sync_write_block(
         self, block: Block, data: Mapping[int, bytes], check_alert: bool = True
     ) -> None:
-        """Write ``block.size`` raw bytes per servo in ONE sync write (``check_alert=False``:
-        even to a servo in alarm)."""
+        """Write ``block.size`` raw bytes per servo in ONE sync write."""
         for values in data.values():
             if len(values) != block.size:
                 raise ConfigError(f"{block.name} takes {block.size} bytes, got {len(values)}")
@@ -240,10 +227,8 @@ class CycleReads:
         )
 
     def read_cycle(self, ids: Sequence[int] | None = None, attempts: int = 1) -> CycleRead:
-        """Each servo's :class:`ServoReport` in ONE (fast) sync read of ``attempts`` tries.
-
-        A failed read is a value, not an error; only a failing port raises (:class:`PortError`).
-        """
+        """Each servo's :class:`ServoReport` in ONE (fast) sync read of ``attempts`` tries; a
+        failed read is a value, only a failing port raises (:class:`PortError`)."""
         groups: dict[int, list[int]] = {}
         for servo_id in self._known(ids):
             groups.setdefault(self.indirect_at.get(servo_id, CYCLE_BLOCK.address), []).append(

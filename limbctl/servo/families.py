@@ -1,8 +1,4 @@
-"""The X series by family: what differs between the servos limbctl drives, one row a family.
-
-Addresses are shared (:mod:`limbctl.servo.control_table`); units of address 126, the current
-modes, voltages, limits, bauds and the indirect block are not. Values: the e-Manual's defaults.
-"""
+"""The X series by family: what differs between the servos limbctl drives (e-Manual defaults)."""
 
 from __future__ import annotations
 

@@ -1,9 +1,5 @@
-"""Per-cycle health of the servos, judged from each :class:`limbctl.servo.cycle.CycleRead`.
-
-:class:`HealthMonitor` names a silent servo (and its dropout's length when it answers), probes it
-and calls it lost after ``lost_after_s``; torque off, an alarm, or a servo that does not follow
-(*blocked* while saturated, or lagging without) are faults. Figures: docs/safety.md.
-"""
+"""Per-cycle health of the servos, judged from each :class:`limbctl.servo.cycle.CycleRead`:
+silent, lost, torque off, alarm, or not following (docs/safety.md)."""
 
 from __future__ import annotations
 
@@ -28,31 +24,23 @@ class HealthLimits:
     lost_after_s : float
         A servo silent this long is lost (s): the budget for noticing a fault (issue 13).
     named_after_misses : int
-        Missed reads in a row before a servo is named silent: the loop's read already had two
-        tries, so naming at the first keeps it within 100 ms at the FTDI default latency.
+        Missed reads in a row before a servo is named silent (the read already had two tries).
     probe_interval_s : float
-        How often a silent servo is probed (s): one reply timeout per interval (~12 ms of 50
-        on the simulator's pty), and the dropout's length is known to within it.
+        How often a silent servo is probed (s): one reply timeout (~12 ms) per interval.
     max_tracking_error_deg : float
-        Largest |present - goal| of a following servo (deg): a healthy one lags at most 3.6
-        deg at the 120 deg/s slew limit (docs/bench_faults.md).
+        Largest |present - goal| of a following servo (deg): a healthy one lags <= 3.6 deg.
     tracking_grace_s : float
-        How long the error may exceed that (s): a servo reversing at full speed moves away
-        from its goal for 0.26 s; 0.4 s stays within the 0.5 s budget.
+        How long the error may exceed that (s): a full-speed reversal takes 0.26 s.
     progress_window_s : float
         Span over which a lagging servo's progress is measured (s): several ticks of motion.
     min_progress_deg : float
-        Progress per window (or closing in per ``blocked_window_s``) that counts as following
-        (deg): 10 deg/s, a twentieth of the profile velocity.
+        Progress per window (or per ``blocked_window_s``) that counts as following (deg).
     pwm_saturation : float
-        Fraction of PWM Limit at which the drive is saturated: healthy moves stay at <= 31 %
-        on the simulator; 10 % is left for a noisy reading.
+        Fraction of PWM Limit at which the drive is saturated (healthy moves: <= 31 %).
     blocked_error_deg : float
-        Distance from its goal (deg) at which a saturated servo counts as blocked: above the
-        3.6 deg a healthy servo lags by.
+        Distance from its goal (deg) at which a saturated servo counts as blocked (> 3.6 deg).
     blocked_window_s : float
-        How long (s) saturated and off its goal without closing in: 30 reads at 200 Hz, 0.3 s
-        of the 0.5 s budget left.
+        How long (s) saturated and off its goal without closing in: 30 reads at 200 Hz.
     """
 
     lost_after_s: float = 0.5
@@ -133,8 +121,7 @@ class HealthMonitor:
         return tuple(self.silent_since)
 
     def probes_due(self, now: float) -> tuple[int, ...]:
-        """The silent servos to probe this cycle: every ``probe_interval_s``, and at
-        ``lost_after_s`` (lost only if that probe fails too)."""
+        """The silent servos to probe this cycle: every ``probe_interval_s``, and at lost."""
         due = tuple(
             servo_id
             for servo_id, since in self.silent_since.items()

@@ -1,9 +1,8 @@
 """A leader's servos in current-based position mode (5): which models can, and their set-up.
 
-Models without current sensing (the XL430-W250) stay passive, torque off. Each cycle's command
-is one sync write of :data:`FEEL_DATA`; the cycle read carries Present Current (only it gives the
-torque's sign while the loop brakes) and Present Velocity (a let go shows in the speed long before
-the tick-quantized pose) in the slots a follower uses for Present PWM and Goal Position.
+Each cycle's command is one sync write of :data:`FEEL_DATA`; the cycle read carries Present
+Current (the torque's sign while braking) and Present Velocity (a let go shows there first) in
+the slots a follower uses for Present PWM and Goal Position.
 """
 
 from __future__ import annotations
@@ -40,12 +39,11 @@ class LeaderMotor:
     max_current_units : int
         The Current Limit's factory maximum (units).
     loop_stall_error_deg : float
-        Position error (deg) at which the factory-gain loop asks for stall torque (stiffness =
-        stall torque / this). 2 deg is the simulator's loop; the e-Manual gives none, so on
-        real servos it is to be measured and set here.
+        Position error (deg) at which the factory-gain loop asks for stall torque: 2 deg is the
+        simulator's (the e-Manual gives none; measure it on real servos).
     let_go_cap_nm : float or None
-        A cap (N m) below half the stall torque for a loop so soft that a released leader would
-        snap back faster than 30 deg/s (docs/haptic.md, "Which leaders feel it"); None: none.
+        A cap (N m) for a loop so soft that a released leader would snap back faster than
+        30 deg/s (docs/haptic.md); None: none.
     """
 
     stall_torque_nm: float
@@ -75,14 +73,12 @@ class LeaderMotor:
         return cap if self.let_go_cap_nm is None else min(cap, self.let_go_cap_nm)
 
 
-#: A felt leader pushes with at most half its stall torque: a push is held for seconds, and half
-#: of stall keeps the motor cool and out of the firmware's Overload error.
+#: A felt leader pushes with at most half its stall torque: cool and out of Overload for seconds.
 CAP_STALL_FRACTION = 0.5
 
 
-#: Models whose leader can push back, with the e-Manual's stall figures (N m, mA), current unit
-#: (mA) and Current Limit maximum. The XL330-M288's 0.12 N m cap: the largest that returned a
-#: released simulated leader under 30 deg/s with margin (docs/bench_haptic_models.md).
+#: Models whose leader can push back, by the e-Manual; the XL330-M288's 0.12 N m cap is the
+#: largest that returned a released leader under 30 deg/s (docs/bench_haptic_models.md).
 FELT_MODELS: dict[ModelNumber, LeaderMotor] = {
     ModelNumber.XM430_W350: LeaderMotor(4.1, 2300.0, 2.69, 1193),
     ModelNumber.XL330_M077: LeaderMotor(0.215, 1470.0, 1.0, 1750),
@@ -170,9 +166,8 @@ def felt_motor(bus: ServoBus, ids: Sequence[int]) -> LeaderMotor | None:
 def configure_felt_leader(
     bus: ServoBus, ids: Sequence[int], cap_units: int, watchdog_units: int
 ) -> None:
-    """Set the leader's servos up for feel; torque ends ON with Goal Current 0 (no torque).
-
-    Mode 5, Current Limit ``cap_units``, Bus Watchdog ``watchdog_units`` x 20 ms and the maps.
+    """Set the leader's servos up for feel (mode 5, Current Limit ``cap_units``, Bus Watchdog
+    ``watchdog_units`` x 20 ms, the maps); torque ends ON with Goal Current 0.
 
     Raises
     ------

@@ -1,9 +1,7 @@
 """A felt leader's guard: a second process that makes the leader limp when its controller dies.
 
-A tripped Bus Watchdog leaves the leader *holding* (docs/haptic.md). The guard holds the read
-end of a pipe whose write end stays in the controller, so it reads EOF the moment the controller
-is gone; without ``done`` first it writes Torque Enable 0 to each leader servo (never the
-follower's), giving up after :data:`GIVE_UP_S`.
+It reads EOF on a pipe the moment the controller is gone; without ``done`` first it writes Torque
+Enable 0 to each leader servo (a tripped Bus Watchdog would leave it holding: docs/haptic.md).
 """
 
 from __future__ import annotations
@@ -29,19 +27,16 @@ DONE = b"done\n"
 #: The bound (s) from the controller's death to the guard's exit, the leader limp: ten Bus
 #: Watchdog times, far over the 22-45 ms measured (docs/decisions/haptic.md), for a loaded machine.
 GIVE_UP_S = 1.0
-#: How often (s) the guard tries the port while the dead controller's lock is still on it: a
-#: small part of the bound, and a refused open costs next to nothing.
+#: How often (s) the guard tries the port while the dead controller's lock is still on it.
 PORT_RETRY_S = 0.002
-#: How long (s) a clean end waits for the guard to exit after ``done``: its start takes 47 ms
-#: on a quiet machine (``time python -c 'import limbctl.servo.bus'``); 5 s for a loaded one.
+#: How long (s) a clean end waits for the guard to exit: its start takes 47 ms, quiet.
 EXIT_WAIT_S = 5.0
 #: The retry budget (s) of each guard transaction: a few replies, so the next servo is not kept.
 RETRY_BUDGET_S = 0.05
 
 
 class GuardBus(ServoBus):
-    """The guard's bus: never patient (its servos answered a moment ago; a silent one must not
-    hold up the next past the bound)."""
+    """The guard's bus: never patient (a silent servo must not hold up the next)."""
 
     def _transact(self, what, attempt, check_alert=True, attempts=None, patient=False):
         return super()._transact(what, attempt, check_alert, attempts, patient=False)
@@ -83,8 +78,7 @@ class LeaderGuard:
         return cls(process, write_fd)
 
     def done(self) -> None:
-        """A clean end: tell the guard to exit touching nothing, and wait for it; returns None
-        (so ``guard = guard and guard.done()`` forgets it). Safe to call twice."""
+        """A clean end: tell the guard to exit touching nothing and wait; None. Safe twice."""
         fd, self._write_fd = self._write_fd, None
         if fd is None:
             return None
@@ -113,8 +107,8 @@ def wait_for_controller(fd: int) -> bool:
 def switch_off(
     port: str, baud: int, left: list[int], latency_timer_ms: float, failures: dict
 ) -> None:
-    """Torque Enable 0 on each servo of ``left``, each through its own bus, until each answered
-    (removed from ``left``); ``failures`` keeps each servo's last failure."""
+    """Torque Enable 0 on each servo of ``left`` (removed once it answered), each on its own
+    bus; ``failures`` keeps each servo's last failure."""
     while left:
         for servo_id in list(left):
             bus = GuardBus(port, baud, (servo_id,), retry_budget_s=RETRY_BUDGET_S)

@@ -1,10 +1,7 @@
 """Set up servos out of the box for a rig profile's joints, one servo at a time (README).
 
-Only the joint's servo is connected (factory servos all answer as ID 1), found at any baud, and
-refused if not alone, not the profile's model, or outside its family's supply; it then gets its
-ID, baud, Return Delay Time 0 and Status Return Level 2. A servo answering as another joint's ID
-keeps it unless factory-fresh or ``renumber``. Only differing values are written (EEPROM wears)
-and all are read back, so running set-up twice is harmless.
+The one connected servo, found at any baud, gets its ID, baud, Return Delay Time 0 and Status
+Return Level 2; only differing values are written and all are read back, so a rerun is harmless.
 """
 
 from __future__ import annotations
@@ -23,14 +20,12 @@ from limbctl.servo.control_table import (
 )
 from limbctl.servo.families import family_of
 from limbctl.servo.scan import NOTHING_ANSWERS, SCAN_BAUDS, ScanResult, scan
+from limbctl.servo.setup import STATUS_RETURN_ALL
 from limbctl.servo.transfers import SDK_LATENCY_TIMER_MS
 
 #: Return Delay Time set-up writes (2 us units): reply at once.
 RETURN_DELAY = 0
-#: Status Return Level set-up writes: answer every instruction.
-STATUS_RETURN_ALL = 2
-#: A servo out of the box (e-Manual defaults); set-up always writes Return Delay Time 0, so a
-#: servo at ID 1 with 250 has never been set up.
+#: A servo out of the box (e-Manual defaults): one at ID 1 with delay 250 was never set up.
 FACTORY_ID, FACTORY_BAUD, FACTORY_RETURN_DELAY = 1, 57_600, 250
 
 
@@ -46,11 +41,8 @@ class JointTarget:
 
 @dataclass(frozen=True)
 class SetupOutcome:
-    """One joint's set-up, as a value.
-
-    ``message`` says what was done or why refused; ``written`` the registers written;
-    ``other_joint`` the joint whose servo the connected one recognisably is (refused).
-    """
+    """One joint's set-up: ``message`` (done or why refused), the registers ``written``, and
+    ``other_joint`` whose servo the connected one recognisably is (refused)."""
 
     joint: str
     ok: bool
@@ -126,11 +118,8 @@ def setup_joint(
     scan_bauds=SCAN_BAUDS,
     claims: Claims | None = None,
 ) -> SetupOutcome:
-    """Find the one connected servo and make it ``target`` (see module docstring).
-
-    Replies are awaited at least as the SDK would (16 ms latency timer): set-up is not
-    time-critical, and a busy machine must not be taken for silence.
-    """
+    """Find the one connected servo and make it ``target``; replies are awaited at least as the
+    SDK would (16 ms latency timer), lest a busy machine seem silent."""
     latency_timer_ms = max(latency_timer_ms, SDK_LATENCY_TIMER_MS)
     claims = claims or Claims({})
     try:

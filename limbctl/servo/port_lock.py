@@ -1,8 +1,5 @@
-"""One controller per serial port: who holds a port that limbctl could not ``flock``.
-
-The kernel drops the lock with its holder, so a crashed controller leaves none behind. The
-holder is named from ``/proc/locks``, else from the processes that have the device open.
-"""
+"""One controller per serial port: who holds a port that limbctl could not ``flock`` (from
+``/proc/locks``, else from the processes that have the device open)."""
 
 from __future__ import annotations
 

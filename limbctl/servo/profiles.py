@@ -1,8 +1,5 @@
-"""Rig profiles as the controller uses them: loaded through calib, checked against the servos.
-
-Here the servo layer checks what only it knows (baud, model, limits within one turn of ticks)
-and :mod:`calib`'s errors come out as the controller's own.
-"""
+"""Rig profiles loaded through calib and checked for what only the servo layer knows (baud,
+model, limits within one turn); calib's errors come out as the controller's own."""
 
 from __future__ import annotations
 
@@ -109,8 +106,8 @@ def _controller_error(exc: ProfileError) -> ConfigError | FileFormatError:
 
 
 def load_rig_profile(path: str | os.PathLike[str] | None = None) -> RigProfile:
-    """The checked rig profile at ``path``, or a packaged simulated rig (None: ``sim``; a name in
-    :data:`calib.SIM_RIGS` that is not a file: that one).
+    """The checked rig profile at ``path``, or a packaged one (None: ``sim``; a non-file name in
+    :data:`calib.SIM_RIGS`: that one).
 
     Raises
     ------

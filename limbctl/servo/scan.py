@@ -1,9 +1,7 @@
 """Find the servos on a port at every baud rate, and name the IDs that two servos share.
 
-At each baud one broadcast PING: clean status packets name servos; garbled bytes are collided
-replies, whose shared ID lies between the clean replies around them (servos answer in ID order)
-and is found by pinging those IDs one at a time. A servo answering after :data:`BROADCAST_CAP_S`
-(an ID far above 80 at 9600 baud) is missed, so keep IDs low.
+At each baud one broadcast PING; a garbled reply's shared ID lies between the clean replies
+around it (servos answer in ID order) and is found by pinging those IDs one at a time.
 """
 
 from __future__ import annotations
@@ -26,18 +24,16 @@ STATUS = 0x55
 PING_REPLY_BYTES = 14
 BROADCAST_ID = 0xFE
 MAX_ID = 252
-#: Quiet time that ends a broadcast ping's replies, in reply times: servos answer back to back
-#: (each after its Return Delay Time, at most 508 us), so three reply times of silence is over.
+#: Reply times of silence that end a broadcast ping's back-to-back replies.
 QUIET_PACKETS = 3
 #: Longest Return Delay Time a servo may wait (254 x 2 us), s.
 MAX_RETURN_DELAY_S = 254 * 2e-6
-#: Longest wait for a broadcast PING's replies (s): with a collision's unicast pings, a baud
-#: rate then costs at most 2 s.
+#: Longest wait for a broadcast PING's replies (s): with collisions' pings, at most 2 s a baud;
+#: a servo answering later (an ID far above 80 at 9600 baud) is missed, so keep IDs low.
 BROADCAST_CAP_S = 1.5
 #: The SDK's allowance per ID slot of a broadcast PING (ms): servos answer one after another.
 SLOT_MS = 3.0
-#: Time for the OS and the USB adapter to hand bytes over (s), on top of the latency timer:
-#: the SDK allows 2 ms.
+#: Time (s) for the OS and USB adapter to hand bytes over beyond the latency timer (SDK: 2 ms).
 HANDOVER_S = 0.002
 #: Advice when nothing answers.
 NOTHING_ANSWERS = (
@@ -82,11 +78,8 @@ class Collision:
 
 @dataclass
 class ScanResult:
-    """What a scan found, as values.
-
-    ``unreadable``: bauds with garbled replies whose shared ID could not be named;
-    ``skipped``: baud -> why not tried; ``seconds``: baud -> time spent on it (s).
-    """
+    """What a scan found: servos, collisions, ``unreadable`` bauds (garbled, ID not named),
+    ``skipped`` (baud -> why) and ``seconds`` (baud -> time spent, s)."""
 
     found: list[Found] = field(default_factory=list)
     collisions: list[Collision] = field(default_factory=list)

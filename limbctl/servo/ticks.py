@@ -1,8 +1,4 @@
-"""Joint angle (rad) <-> servo encoder tick conversion for one calibrated joint.
-
-``ticks = zero_tick + direction * angle * 4096 / (2 pi)``, rounded to the nearest tick, ties to
-even (``numpy.rint``).
-"""
+"""Joint angle (rad) <-> servo encoder tick, ``zero_tick + direction * angle * 4096 / (2 pi)``."""
 
 from __future__ import annotations
 

@@ -35,29 +35,25 @@ _PKT_ID, _PKT_LENGTH_L, _PKT_LENGTH_H, _PKT_INSTRUCTION, _PKT_PARAMETER0 = 4, 5,
 
 #: The SDK's assumption for the USB adapter's latency timer (ms): an FTDI chip's default.
 SDK_LATENCY_TIMER_MS = 16.0
-#: How long a patient transaction (set-up, torque) keeps trying (s): a busy machine can stall the
-#: simulator longer than three reply timeouts; a servo silent for a second is gone all the same.
+#: How long a patient transaction (set-up, torque) keeps trying (s): past a busy machine's stalls.
 PATIENT_BUDGET_S = 1.0
 #: Most attempts of a patient transaction (the budget ends it first: >= 6 ms each on a pty).
 PATIENT_MAX_ATTEMPTS = 200
 
 
-#: Longest single wait for a reply's bytes in :meth:`TunedPortHandler.readPort` (s): it bounds
-#: only how late a timeout is noticed (a fifth of a 200 Hz cycle); a byte ends it at once.
+#: Longest single wait (s) in :meth:`TunedPortHandler.readPort`: a fifth of a 200 Hz cycle.
 READ_WAIT_S = 0.001
 
 
 class TunedPortHandler(PortHandler):
-    """The SDK's PortHandler with the reply timeout for the adapter's real latency timer (ms), not
-    an assumed 16 ms: a dropped reply costs one control cycle instead of seven."""
+    """The SDK's PortHandler, timing replies by the adapter's real latency timer (ms)."""
 
     def __init__(self, port_name: str, latency_timer_ms: float) -> None:
         super().__init__(port_name)
         self.latency_timer_ms = float(latency_timer_ms)
 
     def setupPort(self, cflag_baud: int) -> bool:  # noqa: N802 (SDK's name)
-        """Open the port as the SDK does, but exclusively (``flock``: a second controller gets
-        EAGAIN instead of writing goals under the first)."""
+        """Open the port as the SDK does, but exclusively (a second controller gets EAGAIN)."""
         if self.is_open:
             self.closePort()
         self.ser = serial.Serial(
@@ -81,9 +77,8 @@ class TunedPortHandler(PortHandler):
         return super().writePort(packet)
 
     def readPort(self, length: int) -> bytes:  # noqa: N802 (SDK's name)
-        """Up to ``length`` bytes; with none there yet, wait for one (at most ``READ_WAIT_S``
-        and the reply's remaining timeout) instead of spinning the SDK's polling loop
-        (docs/decisions/haptic.md)."""
+        """Up to ``length`` bytes; with none yet, wait for one (at most ``READ_WAIT_S``) instead
+        of spinning the SDK's polling loop."""
         data = self.ser.read(length)
         if data or not self.is_open:
             return data
@@ -95,8 +90,7 @@ class TunedPortHandler(PortHandler):
 
     def setPacketTimeout(self, packet_length: int) -> None:  # noqa: N802 (SDK's name)
         self.packet_start_time = self.getCurrentTime()
-        # the SDK's rule plus the instruction's own bytes (2.8 ms at 57600 baud: more than the
-        # 2 ms allowance once the latency timer is lowered to 1 ms)
+        # the SDK's rule plus the instruction's own bytes (2.8 ms at 57600 baud)
         self.packet_timeout = (
             self.tx_time_per_byte * (packet_length + self.sent_bytes)
             + 2.0 * self.latency_timer_ms
@@ -106,8 +100,8 @@ class TunedPortHandler(PortHandler):
 
 @dataclass
 class Attempt:
-    """One try of a transaction: the ``value`` read (None for writes or failures), the SDK's
-    ``COMM_*`` ``result``, ``errors`` (servo id -> status error byte) and the ``culprit`` servo."""
+    """One try of a transaction: ``value`` read, SDK ``result``, ``errors`` (id -> status error
+    byte) and the ``culprit`` servo."""
 
     value: Any
     result: int
@@ -142,8 +136,7 @@ def _instruction(servo_id: int, instruction: int, parameters: Sequence[int]) -> 
 
 
 def read(packets: Any, port: PortHandler, register: Register | Block, servo_id: int) -> Attempt:
-    """READ ``register`` of one servo; a reply not of the register's size is corrupt (a late
-    reply to an earlier instruction, which the SDK's ``readTxRx`` would take as this one's)."""
+    """READ ``register`` of one servo; a reply not of its size is corrupt (a late reply)."""
     address = [register.address & 0xFF, register.address >> 8]
     size = [register.size & 0xFF, register.size >> 8]
     packet = _instruction(servo_id, INST_READ, address + size)
@@ -161,8 +154,7 @@ def read(packets: Any, port: PortHandler, register: Register | Block, servo_id: 
 def write(
     packets: Any, port: PortHandler, register: Register | Block, servo_id: int, data: list[int]
 ) -> Attempt:
-    """WRITE encoded ``data`` to ``register`` of one servo; a reply with parameters is a late
-    one to a read, so corrupt (the write is retried: writing twice is harmless)."""
+    """WRITE encoded ``data`` to ``register`` of one servo; a reply with parameters is corrupt."""
     address = [register.address & 0xFF, register.address >> 8]
     packet = _instruction(servo_id, INST_WRITE, address + list(data[: register.size]))
     reply, result, error = packets.txRxPacket(port, packet)

@@ -1,7 +1,5 @@
 """Drive a limb in from outside the region, and park it after a session, for any chain.
-
-Angles in radians unless a name ends in ``_deg``.
-"""
+Angles in radians unless a name ends in ``_deg``."""
 
 from __future__ import annotations
 
@@ -69,14 +67,8 @@ def drive(
     poll_hz: float = 10.0,
 ) -> str:
     """Drive the limb from ``start`` to ``target`` (rad) at ``speed_deg_s`` along a checked
-    shortest path (inside the limits, joint steps within the gate's, never further outside),
-    then read it at ``poll_hz`` until within :data:`SETTLE_DEG` of the target.
-
-    Returns
-    -------
-    str
-        Empty once settled, else why it stopped (torque still on).
-    """
+    shortest path, then read it at ``poll_hz`` until within :data:`SETTLE_DEG` of the target;
+    returns "" once settled, else why it stopped (torque still on)."""
     gate, m = margins.gate, margins
     step = math.radians(speed_deg_s) / rate_hz
     here, goal = m.point(start), m.point(target)

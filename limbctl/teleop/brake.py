@@ -1,9 +1,5 @@
-"""The brake rules: a wall lets its leader go before the servo's loop would brake it outward.
-
-The snap watch frees a wall when its leader *outruns* the walking setpoint with no hand held
-(:func:`outruns`) or its torque toward the region is about to fall under zero
-(:func:`brakes_soon`); docs/haptic.md ("The brake rules") gives the figures.
-"""
+"""The brake rules: a wall lets its leader go before the servo's loop would brake it outward
+(docs/haptic.md, "The brake rules")."""
 
 from __future__ import annotations
 
@@ -18,14 +14,13 @@ class BrakeLaw:
     Attributes
     ----------
     outrun_deg_s : float
-        1.0 deg/s, under one velocity unit: the first reading above the setpoint's speed is an
-        outrun, while a leader the wall walks back (ripple to 14.0 deg/s) keeps its wall.
+        1.0 deg/s, under one velocity unit over the setpoint's speed: the first such reading.
     loose_nm : float
         0.06 N m, the snap watch's HOLD: under it no hand is held against the wall.
     horizon_s : float
         2 ms: a cut lands within a millisecond, plus the stepped clock's grain.
     land_s : float
-        1 ms: a cut's write lands within it of its read (added to the gap since the last read).
+        1 ms: a cut's write lands within it of its read.
     span_s : float
         4 ms: the torque's rate only from two reads this close.
     """

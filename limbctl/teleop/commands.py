@@ -1,9 +1,4 @@
-"""Parse one command (a JSON line or datagram) into a target orientation.
-
-Forms (README): ``{"pan": deg, "tilt": deg}``, ``{"dir": [x, y, z]}`` or ``{"q": [w, x, y, z]}``,
-an optional ``"t"`` (s); on a three-servo rig also ``"roll"`` with pan/tilt or ``"twist"`` with
-``dir`` (deg). Anything else raises :class:`~limbctl.errors.InvalidInputError` with the reason.
-"""
+"""Parse one command (a JSON line or datagram, the README's forms) into a target orientation."""
 
 from __future__ import annotations
 
@@ -39,10 +34,8 @@ class Command:
 
     Attributes
     ----------
-    q : ndarray, shape (4,)
-        Target orientation (w >= 0), twist-free on a two-servo rig.
-    direction : ndarray, shape (3,)
-        Unit limb direction of the target.
+    q, direction : ndarray, shapes (4,) and (3,)
+        Target orientation (w >= 0; twist-free on two servos) and its unit limb direction.
     t : float or None
         Timestamp in seconds from the line, if it had one.
     """
@@ -172,14 +165,7 @@ def command_from_pose(
 
 
 def command_from_pan_tilt(pan_deg: object, tilt_deg: object, t: float | None = None) -> Command:
-    """A :class:`Command` from joint angles in degrees, with the same checks as a JSON line.
-
-    Parameters
-    ----------
-    pan_deg, tilt_deg : float
-        Pan in [-180, 180] deg, tilt in [-90, 90] deg.
-    t : float, optional
-        Timestamp (s) to keep with the command.
+    """A :class:`Command` from pan in [-180, 180] and tilt in [-90, 90] deg, ``t`` (s) kept.
 
     Raises
     ------

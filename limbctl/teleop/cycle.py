@@ -23,8 +23,6 @@ from limbctl.teleop.gate import GateResult
 TIMING_WINDOW = 100_000
 #: Health notices kept for the summary: the latest ones; a flapping cable must not grow memory.
 NOTICE_WINDOW = 1000
-
-
 #: A command's roll is read within [-PI, PI] (rad), nearest the written roll: a whole turn.
 PI = math.pi
 
@@ -58,15 +56,14 @@ def orientation_fields(
     ----------
     command_q : ndarray (4,) or None
         The command's orientation (w, x, y, z).
-    pose : tuple of float or None
-        The gate's joint angles (rad): 2 on a two-servo rig, 3 (pan, tilt, roll) on three.
+    pose : tuple of float, (2,) or (3,), or None
+        The gate's joint angles (rad).
 
     Returns
     -------
     dict
         ``cmd``/``out``: joint angles (deg); ``cmd_q``/``out_q``: orientations (w, x, y, z);
-        on three servos ``cmd_twist``/``out_twist``: twist about the rest axis (deg). None
-        where missing.
+        on three servos ``cmd_twist``/``out_twist`` (deg). None where missing.
     """
     joints = 3 if pose is not None and len(pose) == 3 else 2
     cmd = None
@@ -111,15 +108,7 @@ class CycleState(enum.Enum):
 
 @dataclass(frozen=True)
 class CycleTimings:
-    """How long a cycle's work took (the wait for the next period not included).
-
-    Attributes
-    ----------
-    cycle_s : float
-        Read, gate and write (s).
-    gate_s : float
-        The gate alone (s).
-    """
+    """How long a cycle's work took (s): ``cycle_s`` read, gate and write; ``gate_s`` the gate."""
 
     cycle_s: float
     gate_s: float
@@ -136,7 +125,6 @@ class Cycle:
     t : float
         Start of the cycle, in seconds after the loop started.
     state : CycleState
-        Whether the loop goes on after this cycle.
     complete : bool
         The cycle ran to its end (only complete cycles are counted and logged).
     command_deg : tuple of float or None
@@ -146,21 +134,17 @@ class Cycle:
     result : GateResult or None
         The gate's answer; None when the cycle ended before the gate ran.
     present : tuple of float or None
-        The pose read this cycle, (pan, tilt) in rad; None when the read failed.
+        The pose read this cycle (rad, one per joint); None when the read failed.
     written : bool
         Whether the gate's pose was written to the servos.
     timings : CycleTimings or None
         Set for complete cycles.
-    ended_by : str
-        Why the loop ended; empty while running.
-    fault : str
-        The fault and the safe state it left, for a ``FAULT`` cycle.
+    ended_by, fault : str
+        Why the loop ended (empty while running); the fault and the safe state it left.
     refused : int
         Input lines the source refused so far.
-    notices : tuple of str
-        What the servos' health monitor said this cycle.
-    refused_reasons : tuple of str
-        Why each line refused since the previous cycle was refused, oldest first.
+    notices, refused_reasons : tuple of str
+        The health monitor's words this cycle; why each line since the last cycle was refused.
     """
 
     index: int
@@ -193,14 +177,12 @@ class TeleopSummary:
     bus_errors: int = 0
     failed_cycles: int = 0
     overruns: int = 0
-    # the latest TIMING_WINDOW cycles only
     cycle_times_s: deque = field(default_factory=lambda: deque(maxlen=TIMING_WINDOW))
     gate_times_s: deque = field(default_factory=lambda: deque(maxlen=TIMING_WINDOW))
     ended_by: str = ""
     fault: str = ""
     exit_code: int = 0
     elapsed_s: float = 0.0
-    # what the health monitor said, with the time (a servo stopped answering, came back)
     notices: deque = field(default_factory=lambda: deque(maxlen=NOTICE_WINDOW))
     dropouts: list[Dropout] = field(default_factory=list)
     # one line per refusal reason with its count and first examples (set when the loop ends)

@@ -1,8 +1,4 @@
-"""The gate's outcome in words: what it did with the command and which way is blocked.
-
-E.g. "at the edge: up is blocked, sliding left along it"; directions as seen from behind the
-limb (:data:`DIRECTION_NAMES`), alike on every steering surface.
-"""
+"""The gate's outcome in words, e.g. "at the edge: up is blocked, sliding left along it"."""
 
 from __future__ import annotations
 
@@ -24,15 +20,8 @@ MOVING_MIN_DEG = 1e-3
 
 @dataclass(frozen=True)
 class Explanation:
-    """The gate's outcome for a reader.
-
-    Attributes
-    ----------
-    words : str
-        e.g. "at the edge: up is blocked, sliding right along it".
-    blocked : tuple of str
-        The blocked joint directions ("+pan", "-pan", "+tilt", "-tilt"), pan first.
-    """
+    """The gate's outcome for a reader: ``words``, and the ``blocked`` joint directions
+    ("+pan", "-pan", "+tilt", "-tilt"), pan first."""
 
     words: str
     blocked: tuple[str, ...] = ()
@@ -97,10 +86,8 @@ def explain(
     ----------
     result : GateResult or None
         The gate's answer (None: the cycle ended before the gate ran).
-    commanded_deg : (pan, tilt) deg or None
-        The command being followed.
-    previous_deg : (pan, tilt) deg or None
-        The pose the gate gave one cycle earlier, to tell sliding from standing.
+    commanded_deg, previous_deg : (pan, tilt) deg or None
+        The command followed; the pose the gate gave one cycle earlier (sliding or standing).
     names : dict
         Words for "+pan", "-pan", "+tilt", "-tilt".
     pushing : tuple of str or None

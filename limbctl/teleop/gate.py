@@ -1,11 +1,7 @@
 """The one place every commanded pose passes before it may become a goal position.
 
-One algorithm for every chain (:func:`limbctl.geometry.chains.chain_geometry`); its stages
-(correct, slew, route, inverse kinematics, clamp, joint step, final check) are described in
-docs/architecture.md. The roll's limits lie inside (-180, 180) deg, so a rotation crossing roll
-+-180 deg goes the long way round; each pose between is checked and the gate holds rather than
-leave the region (a fitted twist band never crosses +-180 deg, so its poses are joined inside
-it). Outcomes are values (:class:`Outcome`).
+One algorithm for every chain; its stages (correct, slew, route, inverse kinematics, clamp,
+joint step, final check) are described in docs/architecture.md.
 """
 
 from __future__ import annotations

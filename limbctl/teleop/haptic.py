@@ -1,9 +1,5 @@
-"""The leader feels the edge: a haptic wall on a leader of two or three joints, from the region.
-
-Beyond DEADBAND the law (:class:`FeelLaw`) asks for tau = min(K (d - DEADBAND), CAP) along the
-joint-space step toward the corrected pose, d (deg) how far the leader is beyond the region;
-:func:`lets_go` says when the wall is left off. docs/haptic.md gives the law and every figure.
-"""
+"""The leader feels the edge: the haptic wall's law, tau = min(K (d - DEADBAND), CAP) toward the
+corrected pose, and when it lets go (docs/haptic.md gives the law and every figure)."""
 
 from __future__ import annotations
 
@@ -33,28 +29,21 @@ class FeelLaw:
     cap_nm : float
         0.4 N m: stops a relaxed hand (0.3 N m); a person overpowers it at once.
     return_speed_deg_s : float
-        14 deg/s (10 Profile Velocity units): the setpoint never stops within a cycle of the
-        walk back (at 12 units it braked the leader outward).
+        14 deg/s (10 Profile Velocity units): the setpoint never stops within a cycle's walk back.
     lead_fraction : float
-        0.9: Goal Position leads by the whole ticks nearest 0.9 of the loop's error at the cap,
-        the least lead that holds a hand; deeper, the least whole ticks giving the cap anywhere
-        in a tick.
+        0.9 of the loop's error at the cap, in whole ticks: the least lead that holds a hand.
     lead_deg : float or None
-        A fixed lead (deg), half as much again deeper (benchmarks sweep it); None: from
-        ``lead_fraction``.
+        A fixed lead (deg), half as much again deeper (benchmarks); None: ``lead_fraction``'s.
     held_within_deg : float
         2 deg: a hand stops within 2 deg of the edge (issue 21); beyond, the deeper lead.
     outrun_slack_deg : float
-        0.1 deg: a reading tick rounded up; a leader moving in faster than RETURN_SPEED plus
-        this outran its setpoint: the wall lets go.
+        0.1 deg, a reading tick rounded up: moving in faster than RETURN_SPEED + this lets go.
     outward_noise_nm : float
-        0.01 N m: two XM430-W350 current units; a torque pulling outward by more lets go.
+        0.01 N m, two XM430-W350 current units: a torque pulling outward by more lets go.
     rearm_band_deg : float
-        0.05 deg: after a free cycle the wall comes on only beyond DEADBAND + this, so a
-        leader coasting in is not braked.
+        0.05 deg beyond DEADBAND before a free wall comes on: a leader coasting in is not braked.
     walk_lead_ticks : int
-        2: extra lead while the wall walks its leader back, covering a read tick, write latency
-        and a late cycle. 0: never.
+        2: extra lead while walking the leader back (a read tick, write latency, a late cycle).
     walk_speed_deg_s : float
         1.5 deg/s, the snap watch's STILL: faster, the leader is walking in.
     walk_hold_nm : float
@@ -124,15 +113,8 @@ class FeelLaw:
 def moved_in_deg(
     present: tuple[float, ...], previous: tuple[float, ...], step: tuple[float, ...]
 ) -> float:
-    """How far (deg) a leader moved toward its correction since the last read.
-
-    Parameters
-    ----------
-    present, previous : tuple of float, (n,)
-        The leader's joints now and at the last read (rad).
-    step : tuple of float, (n,)
-        The corrected pose's joints minus ``present`` (rad); not all zero.
-    """
+    """How far (deg) a leader moved toward its correction since the last read: joints (n,)
+    ``present`` and ``previous`` (rad), ``step`` (n,) the correction minus ``present`` (rad)."""
     # moved in = (present - previous) . step / |step|
     dot = 0.0
     for now, before, toward in zip(present, previous, step, strict=True):
@@ -168,12 +150,7 @@ def walks_back(
     )
 
 
-def goal_lead_rad(
-    law: FeelLaw,
-    motor: LeaderMotor,
-    distance_deg: float,
-    walking: bool,
-) -> float:
+def goal_lead_rad(law: FeelLaw, motor: LeaderMotor, distance_deg: float, walking: bool) -> float:
     """Goal Position's lead (rad), ``walk_lead_ticks`` more while ``walking``."""
     extra = law.walk_lead_ticks * TICK_DEG if walking else 0.0
     return math.radians(law.lead_for_deg(distance_deg, motor) + extra)
@@ -195,19 +172,8 @@ def lets_go(
 
 @dataclass
 class FeelStats:
-    """How long and how hard the operator pressed beyond the edge (for the teleop report).
-
-    Attributes
-    ----------
-    engaged_s : float
-        Time the wall was on (s).
-    impulse_nm_s : float
-        Integral of the leader's torque over that time (N m s).
-    peak_nm : float
-        The largest torque commanded (N m).
-    events : list of str
-        What switched the feel off (a leader restart, an alarm), with the time.
-    """
+    """How long (``engaged_s``, s) and how hard (``impulse_nm_s``, N m s; ``peak_nm``, N m) the
+    operator pressed beyond the edge; ``events``: what switched the feel off, with the time."""
 
     engaged_s: float = 0.0
     impulse_nm_s: float = 0.0

@@ -1,8 +1,5 @@
-"""A felt leader's push this cycle: the wall law of :mod:`limbctl.teleop.haptic` on its chain.
-
-``d`` is the angle (two joints) or rotation (three) from the leader's pose to its correction;
-the law acts on the joint-space step ``s = target - present`` (n,) (docs/haptic.md).
-"""
+"""A felt leader's push this cycle: the wall law of :mod:`limbctl.teleop.haptic` on its chain
+(docs/haptic.md)."""
 
 from __future__ import annotations
 
@@ -31,10 +28,9 @@ class Push:
 
     Attributes
     ----------
-    goal_current : int
-        Goal Current units (0: no torque): the largest of ``joint_currents``.
-    profile_velocity : int
-        Profile Velocity units (0 while free: not written).
+    goal_current, profile_velocity : int
+        Goal Current units (0: no torque; the largest of ``joint_currents``); Profile Velocity
+        units (0 while free: not written).
     goal : tuple of float, (n,)
         Goal pose, one angle per joint of the chain (rad).
     torque_nm : float
@@ -61,8 +57,7 @@ def shared_currents(
     motor: LeaderMotor, torque_nm: float, step: tuple[float, ...]
 ) -> tuple[tuple[int, ...], float]:
     """Goal Current per joint, ``I_j = tau |s_j| / |s| / kt`` rounded down, for a push of
-    ``torque_nm`` (N m) along ``step`` (rad; not all zero): the norm the hand feels is at most
-    tau in any direction.
+    ``torque_nm`` (N m) along ``step`` (n,) (rad; not all zero).
 
     Returns
     -------
@@ -142,20 +137,16 @@ def push_for(
     ----------
     law : FeelLaw
     motor : LeaderMotor
-    present : sequence of float, (n,)
-        The leader's pose (rad).
+    present, previous : sequence of float, (n,)
+        The leader's pose now and a cycle before (rad); ``previous`` None: no let-go rules.
     q, corrected : ndarray (4,)
         The command and the region's correction of it.
-    previous : sequence of float, (n,), optional
-        The pose a cycle before (rad); None: the wall alone, no let-go rules.
     period_s : float, optional
         Time since ``previous`` was read (s).
     engaged : bool, optional
         Whether the wall pushed the cycle before.
-    torque_nm : sequence of float, (n,), optional
-        The motors' read torque (N m); None: not read.
-    velocity_deg_s : sequence of float, (n,), optional
-        The motors' read speed (deg/s); None: not read.
+    torque_nm, velocity_deg_s : sequence of float, (n,), optional
+        The motors' read torque (N m) and speed (deg/s); None: not read.
     limits : sequence of (float, float), (n,), optional
         Each joint's hard limits (rad), for :func:`corrected_pose` on three joints.
     """

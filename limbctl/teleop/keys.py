@@ -1,9 +1,5 @@
-"""The keyboard's keys as a table, the guide printed from it, and steady motion while one is held.
-
-A new action is one more :class:`KeyBinding` in :data:`KEYS`; the guide and the source's
-dispatch follow. :class:`HeldKey` turns a terminal's presses and repeats into one step per press
-and ``step_deg * KEY_RATE_HZ`` deg/s while held, whatever the terminal's repeat rates.
-"""
+"""The keyboard's keys as a table (:data:`KEYS`), the guide printed from it, and steady motion
+while one is held (:class:`HeldKey`)."""
 
 from __future__ import annotations
 
@@ -37,10 +33,8 @@ class KeyBinding:
     action : Action
     sequences : tuple of bytes
         What a terminal sends for each key of the action.
-    label : str
-        The keys as the guide names them.
-    does : str
-        What the action does, in the guide's words.
+    label, does : str
+        The keys as the guide names them; what the action does.
     move : tuple of int
         (pan, tilt) signs of a move, in steps (left is +pan, seen from behind the limb).
     roll : int

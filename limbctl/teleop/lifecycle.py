@@ -1,8 +1,4 @@
-"""One teleop session from start to park, for any chain (:func:`run_session`).
-
-The command source opens only once the limb is held inside (a replay's ``"t"`` starts with the
-loop); a clean end parks the limb inside by the margin.
-"""
+"""One teleop session from start to park, for any chain (:func:`run_session`)."""
 
 from __future__ import annotations
 
@@ -73,27 +69,20 @@ def run_session(
     torque_was_on: bool = False,
     publish: Callable[[StartStatus], None] | None = None,
 ) -> SessionResult:
-    """Start, open the source, run and park one session on a configured rig (any chain).
+    """Start, open the source (once the limb is held inside), run and park one session.
 
     Parameters
     ----------
-    limb : StartLimb
-        The configured rig (torque on or off).
-    gate : Gate
-        The gate of the limb's chain, not yet started.
+    limb, gate, starting, stream, torque_was_on, publish
+        As for :func:`limbctl.teleop.start.start_session`.
     open_source : callable
-        Returns the command source as a context manager, once the limb is held inside.
+        Returns the command source as a context manager.
     config, stop
         As for :func:`limbctl.teleop.loop.run`.
     telemetry_path : path, optional
         Where each cycle is logged (JSON lines).
-    starting : StartOptions
-    stream : text stream, optional
-        Where the start's messages go.
     status : text stream, optional
         The loop's status line (None: quiet).
-    torque_was_on, publish
-        As for :func:`start_session`.
     """
     stop = stop or threading.Event()
     # opened first: a path that cannot be written is refused before torque may come on

@@ -1,10 +1,5 @@
-"""The teleoperation control loop: fixed rate, one read and one gated write per cycle.
-
-Each cycle reads every servo in one sync read (judged by
-:class:`limbctl.servo.health.HealthMonitor`), gates the newest valid command and writes only the
-gate's pose in one sync write; faults end in the configured safe state (docs/safety.md).
-:meth:`ControlLoop.step` returns each cycle as a :class:`~limbctl.teleop.cycle.Cycle`.
-"""
+"""The teleoperation control loop: fixed rate, one sync read and one gated sync write per cycle;
+faults end in the configured safe state (docs/safety.md)."""
 
 from __future__ import annotations
 
@@ -24,6 +19,7 @@ from limbctl.geometry.gimbal import quat_to_pan_tilt
 from limbctl.servo.alarms import alarm_alone, held_torque, switched_off
 from limbctl.servo.cycle import CycleRead
 from limbctl.servo.health import HealthLimits, HealthMonitor, ServoFault
+from limbctl.teleop.approach import JOINT_NAMES
 from limbctl.teleop.cycle import Cycle, CycleState, CycleTimings, TeleopSummary
 from limbctl.teleop.gate import Gate, GateResult, Outcome
 from limbctl.teleop.pacing import Pacer
@@ -33,7 +29,6 @@ from limbctl.teleop.status import status_line_for
 
 __all__ = ["Cycle", "CycleState", "TeleopSummary", "Telemetry", "open_telemetry", "SafeState"]
 __all__ += ["Limb", "LoopConfig", "ControlLoop", "run"]
-JOINT_NAMES = ("pan", "tilt", "roll")  #: in the order a rig lists its ids (roll: three servos)
 
 
 class SafeState(enum.Enum):
@@ -69,13 +64,13 @@ class LoopConfig:
     Attributes
     ----------
     rate_hz : float
-        Cycle rate (Hz).
+        Cycle rate (Hz); 200: 0.6 deg a cycle at 120 deg/s, real servos keep up (README).
     silence_s : float
-        After this long (s) without a valid command the gate holds the pose it reached.
+        After this long (s) without a valid command the gate holds; 0.5: a person sees a stall.
     max_failed_cycles : int
-        Failed reads in a row, no silent servo named, before the safe state.
+        Failed reads in a row, no silent servo named, before the safe state; 20: 100 ms.
     read_attempts : int
-        Tries of the cycle's read before the cycle holds.
+        Tries of the cycle's read before the cycle holds; 2 rides through one lost reply.
     health : HealthLimits
         When a silent servo is lost, and how far and how long a servo may lag its goal.
     safe_state : SafeState
@@ -83,24 +78,19 @@ class LoopConfig:
     duration_s : float or None
         Stop after this long (None: until the source ends or Ctrl-C).
     max_backlog : int
-        Most commands of a scripted stream waiting to be gated; older ones are skipped.
+        Most commands of a scripted stream waiting to be gated (older skipped); 20: 100 ms.
     on_cycle : callable (Cycle) -> None, optional
         Called in the loop's thread with every cycle; must return at once. Its exceptions
         propagate out of :func:`run`.
     """
 
-    # 0.6 deg a cycle at 120 deg/s; real servos keep up with a 1 ms latency timer (README)
     rate_hz: float = 200.0
-    # a person notices a stalled command stream after about half a second
     silence_s: float = 0.5
-    # 100 ms at 200 Hz: a dropped reply or two is normal, 20 in a row is a broken bus
     max_failed_cycles: int = 20
-    # a second try rides through one lost reply for one more reply timeout (~4-6 ms)
     read_attempts: int = 2
     health: HealthLimits = HealthLimits()
     safe_state: SafeState = SafeState.HOLD
     duration_s: float | None = None
-    # 100 ms of a scripted stream at 200 Hz: more waiting commands would only add latency
     max_backlog: int = 20
     on_cycle: Callable[[Cycle], None] | None = None
 
@@ -191,8 +181,7 @@ class ControlLoop:
         if config.duration_s is not None and t >= config.duration_s:
             return self._end("duration", t)
 
-        # 1. present pose and health; a failed read holds this cycle (a sync write one servo
-        # misses would leave a pose the gate never produced)
+        # 1. present pose and health; a failed read holds (a write one servo misses is no gate pose)
         present: tuple[float, float] | None = None
         silent = False
         try:
@@ -377,12 +366,12 @@ def run(
     telemetry : Telemetry, optional
         Logs every complete cycle.
     status : text stream, optional
-        Where a one-line status is refreshed (twice a second on a terminal, e.g. stderr).
+        Where a one-line status is refreshed (e.g. stderr).
 
     Returns
     -------
     TeleopSummary
-        ``exit_code`` 0 for a clean end (source ended, duration, stop), 3 for a fault.
+        ``exit_code`` 0 for a clean end, 3 for a fault.
     """
     loop = ControlLoop(limb, gate, source, config, stop)
     cycle = loop.start()

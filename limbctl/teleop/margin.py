@@ -1,9 +1,5 @@
 """Where a limb may start from: "inside by a margin", and the nearest such pose, for any chain.
-
-Two joints (:class:`SphereMargins`): the direction and a ring of :data:`RING_PROBES` around it
-lie inside. Three (:class:`RotationMargins`): the held pose stays safe with any one joint moved by
-the margin either way. Angles in radians; orientations unit quaternions (4,), scalar first.
-"""
+Angles in radians; orientations unit quaternions (4,), scalar first."""
 
 from __future__ import annotations
 
@@ -31,12 +27,8 @@ SEARCH_DIRECTIONS = 16
 
 
 def ring(directions: np.ndarray, radius: float, count: int) -> np.ndarray:
-    """``count`` unit directions at angle ``radius`` (rad) around each of ``directions`` (N, 3).
-
-    Returns
-    -------
-    ndarray, shape (N, count, 3)
-    """
+    """(N, count, 3): ``count`` unit directions ``radius`` (rad) around each of ``directions``
+    (N, 3)."""
     out = np.empty((len(directions), count, 3))
     theta = 2.0 * math.pi * np.arange(count) / count
     for i, d in enumerate(directions):
@@ -54,12 +46,8 @@ def _directions(poses: np.ndarray) -> np.ndarray:
 
 
 def inside_by_margin(gate: Gate, poses: np.ndarray, margin: float) -> np.ndarray:
-    """Which poses (N, 2) (pan, tilt, rad) are inside the region and the limits by ``margin``.
-
-    Returns
-    -------
-    ndarray of bool, shape (N,)
-    """
+    """(N,) bool: which poses (N, 2) (pan, tilt, rad) are inside region and limits by
+    ``margin``."""
     poses = np.asarray(poses, dtype=np.float64).reshape(-1, 2)
     (pan_min, tilt_min), (pan_max, tilt_max) = gate.limits.joint_min, gate.limits.joint_max
     ok = (
@@ -84,13 +72,8 @@ def nearest_start_pose(
     margin: float,
     round_to_ticks: Callable[[float, float], tuple[float, float]],
 ) -> tuple[float, float] | None:
-    """The pose nearest ``(pan, tilt)`` (rad) inside by ``margin`` once rounded to ticks: past
-    the nearest boundary point along the way there, or on rings around it.
-
-    Returns
-    -------
-    (pan, tilt) in rad, already rounded to ticks, or None
-    """
+    """The pose (pan, tilt) (rad, rounded to ticks) nearest ``(pan, tilt)`` inside by
+    ``margin``: past the nearest boundary point, or on rings around it; None if none."""
     d = np.asarray(scalar.direction(pan, tilt))
     nearest = limb_direction(gate.envelope.correct(swing_from_direction(d)))
     # the nearest point of the region, pulled into the hard limits with twice the margin

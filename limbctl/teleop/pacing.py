@@ -1,9 +1,5 @@
-"""The control loop's clock: when each cycle starts, which cycles were late, and whether the
-loop keeps the pace a felt leader's wall needs (:class:`PaceWatch`).
-
-Cycle ``k`` is due at ``t0 + k T``; a late loop runs cycles back to back to catch up, up to
-BACKLOG_PERIODS, then starts afresh (docs/decisions/haptic.md).
-"""
+"""The control loop's clock: cycle ``k`` is due at ``t0 + k T``, a late loop catches up to
+BACKLOG_PERIODS; and whether it keeps a felt leader's pace (:class:`PaceWatch`)."""
 
 from __future__ import annotations
 
@@ -24,20 +20,8 @@ PACE_SLACK = 1.25
 
 
 class Pacer:
-    """The schedule of a loop of period ``period_s``.
-
-    Parameters
-    ----------
-    period_s : float
-        T (s).
-    clock : callable
-        Seconds, monotonic (``time.perf_counter``).
-
-    Attributes
-    ----------
-    overruns : int
-        Spells of cycles that started over a period late (one a stall).
-    """
+    """The schedule of a loop of period ``period_s`` (s) on ``clock`` (monotonic seconds);
+    ``overruns`` counts spells of cycles started over a period late."""
 
     def __init__(self, period_s: float, clock: Callable[[], float] = time.perf_counter) -> None:
         self.period_s = float(period_s)
@@ -84,15 +68,8 @@ class Pacer:
 
 
 class PaceWatch:
-    """Whether the loop keeps the rate the wall needs (PACE_WINDOW, PACE_SLACK).
-
-    Parameters
-    ----------
-    rate_hz : float
-        The rate the wall was made passive for (Hz).
-    clock : callable
-        Seconds, monotonic (``time.perf_counter``).
-    """
+    """Whether the loop keeps the rate ``rate_hz`` (Hz) the wall was made passive for, on
+    ``clock`` (monotonic seconds)."""
 
     def __init__(self, rate_hz: float, clock: Callable[[], float] = time.perf_counter) -> None:
         self.limit_s = PACE_SLACK / rate_hz

@@ -1,8 +1,5 @@
-"""Why command lines were refused: counts by reason, the first examples, and the latest ones.
-
-A reason is the parser's message with numbers and details taken out, so ``pan 500.0 deg is
-outside [-180, 180]`` and ``pan 720 deg ...`` count as one.
-"""
+"""Why command lines were refused: counts by reason (the parser's message without its numbers),
+the first examples, and the latest ones."""
 
 from __future__ import annotations
 

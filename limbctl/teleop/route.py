@@ -1,11 +1,8 @@
-"""Routing along the region: where the gate's slew step aims when the straight way leaves it.
+"""Routing along the region: where the gate's slew step aims when a concave wall holds it.
 
-When a concave wall holds the gate's plain step (:meth:`Router.wanted`), :class:`Router` aims it
-at a *sub-goal*: the target itself when the straight path (great circle on two servos, shortest
-rotation on three) is inside, else the farthest point within ``LOOKAHEAD_DEG`` along a Dijkstra
-route over a Fibonacci-lattice roadmap flooded over the region. The gate still limits, corrects
-and checks what it writes. Reach bound: ``REACH_FACTOR * L / max_step + REACH_EXTRA_CYCLES``
-cycles, L the shortest path inside (docs/safety.md).
+The target when the straight path is inside, else the farthest point within ``LOOKAHEAD_DEG``
+of a Dijkstra route over a Fibonacci-lattice roadmap of the region; the gate still limits,
+corrects and checks what it writes (reach bound: docs/safety.md).
 """
 
 from __future__ import annotations
@@ -28,11 +25,9 @@ from limbctl.geometry.twist import compose, decompose, wrap
 LATTICE_STEP_DEG = 1.5
 #: Neighbours within this many spacings are joined: 6-8 per node, so a route turns ~45 deg.
 NEIGHBOUR_SPACINGS = 1.6
-#: The target and present pose join nodes within this many spacings: one reaches the nearest
-#: node, two more reach one past a corner.
+#: The target and present pose join nodes this many spacings away: the nearest, one past a corner.
 ATTACH_SPACINGS = 3.0
-#: Sample spacing (deg) judging a straight path inside: a narrower dent costs only a sliding
-#: step (the gate corrects and checks what it writes).
+#: Sample spacing (deg) judging a straight path inside: a narrower dent costs a sliding step.
 SEGMENT_STEP_DEG = 0.5
 #: A sample this far (deg) outside still counts inside: rounding puts samples along a wall a
 #: hair out; under a fifth of a 120 deg/s, 200 Hz step.
@@ -54,23 +49,22 @@ REUSE_SPACINGS = 0.5
 #: region's batch costs ~12 ms a call on a busy two-core machine, a single ~2 us a row).
 PROBE_ROWS = 64
 #: The plain step is kept while it comes this fraction of a step nearer the target (sliding up
-#: to 75 deg off the way still does; a concave wall gives 0), so sweeps along an edge do not
-#: pay for routing.
+#: to 75 deg off the way still does; a concave wall gives 0).
 STUCK_FRACTION = 0.25
 #: A pose this close (rad) to a path or point is on it: far above rounding, far below a step.
 ON_PATH = 1e-9
 
 
 class Router:
-    """Sub-goals for a gate's slew step, along the region (see the module docstring).
+    """Sub-goals for a gate's slew step, along the region.
 
     Parameters
     ----------
     envelope : RegionModel
         The region: ``contains``/``correct`` on one quaternion (4,) and, when it can, (N, 4).
     twist : bool
-        False for a two-servo rig (poses are limb directions, the path between two a great
-        circle), True for three servos (poses are orientations, the path the shortest rotation).
+        False for two servos (paths are great circles of the limb direction), True for three
+        (paths are shortest rotations).
     """
 
     def __init__(self, envelope, twist: bool) -> None:
@@ -88,7 +82,6 @@ class Router:
         self._aim: tuple | None = None  # (target, start, route point, distance at the start)
         self._engaged: np.ndarray | None = None  # the target routing began for
 
-    # ---- the region --------------------------------------------------------------------------
     @property
     def batched(self) -> bool:
         """Whether the envelope answers ``contains`` for (N, 4) at once."""
@@ -150,10 +143,9 @@ class Router:
             return _arc(limb_direction(a), limb_direction(b))
         return 2.0 * _arc(a, b, signed=True)
 
-    # ---- straight paths ----------------------------------------------------------------------
     def _samples(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """Samples (N, S, 4) SEGMENT_STEP_DEG apart along the paths from rows of ``a`` to ``b``
-        (N, 4), ends left out, short paths padded with their start."""
+        (N, 4), ends left out, short paths padded."""
         va, vb = (a, b) if self.twist else (limb_direction(a), limb_direction(b))
         n = np.ceil(self._distance_rows(a, b) / math.radians(SEGMENT_STEP_DEG))
         n = np.maximum(n, 1.0)[:, None]  # (N, 1)
@@ -168,8 +160,7 @@ class Router:
         return self.inside_many(pts.reshape(-1, 4)).reshape(pts.shape[:2]).all(axis=1)
 
     def clear(self, a: np.ndarray, b: np.ndarray) -> bool:
-        """Whether the path from ``a`` to ``b`` (4,) is inside up to VISIBLE_SLACK_DEG (bisection
-        order: a blocked path is found in a few calls)."""
+        """Whether the path from ``a`` to ``b`` (4,) is inside up to VISIBLE_SLACK_DEG."""
         pts = self._samples(a[None], b[None])[0]
         count = pts.shape[0] + 1
         if count < 2:
@@ -177,11 +168,9 @@ class Router:
         order = _bisection_order(count)
         return all(self.inside(pts[k - 1]) for k in order)
 
-    # ---- the gate's question -----------------------------------------------------------------
     def wanted(self, target_q: np.ndarray, progress: float, moved: float, max_step: float) -> bool:
         """Whether to route this cycle: the plain step came ``progress`` rad nearer, under
-        STUCK_FRACTION of ``max_step``; or its correction ``moved`` it over a step (across a
-        dent); or routing already began for ``target_q``."""
+        STUCK_FRACTION of ``max_step``, or ``moved`` over a step, or routing began for it."""
         if self._engaged is not None and self._near_target(self._engaged, target_q):
             return True
         self._engaged = None
@@ -189,8 +178,7 @@ class Router:
         return progress < STUCK_FRACTION * max_step or jumped
 
     def subgoal(self, current_q: np.ndarray, target_q: np.ndarray) -> np.ndarray:
-        """Where to aim (4,): ``target_q`` when the path from ``current_q`` is inside, else a
-        route point."""
+        """Where to aim (4,): ``target_q`` when the path there is inside, else a route point."""
         key = target_q.tobytes()
         if self._straight is not None and self._straight[0] == key:
             if self._on_path(self._straight[1], current_q, target_q):
@@ -218,8 +206,7 @@ class Router:
         for k in range(route.shape[0] - 1, -1, -1):
             if self.clear(current_q, route[k]):
                 if k + 1 < route.shape[0] and self._distance(current_q, route[k]) < ON_PATH:
-                    # on a route point whose next one the samples judge a hair outside: aim
-                    # at it anyway, the gate corrects the step
+                    # on a route point whose next one is judged a hair outside: the gate corrects
                     return route[k + 1]
                 return route[k]
         return route[0]
@@ -251,8 +238,8 @@ class Router:
         return points
 
     def _waypoints(self, d_cur, tau_cur, dirs: np.ndarray, target_q: np.ndarray) -> np.ndarray:
-        """Poses (K, 4) at directions ``dirs`` (K, 3), the twist linear from ``tau_cur`` to the
-        target's (corrected where outside)."""
+        """Poses (K, 4) at directions ``dirs`` (K, 3), twist linear from ``tau_cur`` to the
+        target's, corrected where outside."""
         if not self.twist:
             return swing_from_direction(dirs)
         d_t, tau_t = _split(target_q, True)
@@ -264,7 +251,6 @@ class Router:
                 q[k] = self.envelope.correct(q[k])
         return q
 
-    # ---- the roadmap -------------------------------------------------------------------------
     def prepare(self, seed_q: np.ndarray) -> None:
         """Build the roadmap once, flooding the region from ``seed_q`` (4,)."""
         if self._nodes is None:

@@ -1,9 +1,5 @@
 """The snap watch: a held wall lets go the moment its leader starts snapping toward the region.
-
-Between cycles the watch *arms* on a still leader held with at least HOLD, *cuts* (Goal Current
-0) when its speed inward passes SNAP having risen as a let go makes it, and *re-arms* a free wall
-only on a leader not moving in; the brake rules (:mod:`limbctl.teleop.brake`) also apply. It only
-ever takes torque away; docs/haptic.md ("The snap watch") gives the rules and figures.
+It only ever takes torque away; docs/haptic.md ("The snap watch") gives the rules and figures.
 """
 
 from __future__ import annotations
@@ -22,13 +18,11 @@ class SnapLaw:
     Attributes
     ----------
     snap_speed_deg_s : float
-        4 deg/s (3 velocity units): over a held leader's noise, under the ~17 deg/s a let go
-        reaches within a millisecond.
+        4 deg/s: over a held leader's noise, under the ~17 deg/s a let go reaches in 1 ms.
     still_speed_deg_s : float
         1.5 deg/s: one velocity unit (1.37 deg/s) reads as still.
     rearm_speed_deg_s : float
-        0.5 deg/s, under one unit: a free wall re-arms only on a leader not moving in, which
-        the loop would brake outward.
+        0.5 deg/s, under one unit: a free wall re-arms only on a leader not moving in.
     rearm_span_s : float
         12 ms: two cycles at 200 Hz, one up to 2 ms late (``rearm_twice``'s earlier read).
     hold_nm : float
@@ -36,8 +30,7 @@ class SnapLaw:
     released : float
         0.5: a let go frees the whole hold, a fading grip about a seventh: between the two.
     rise_s : float
-        1 ms: the rise is judged over at most this, whatever the gap between reads; a snap
-        speeds up for 2-3 ms.
+        1 ms, the longest the rise is judged over: a snap speeds up for 2-3 ms.
     inertia_kg_m2 : float
         1e-3 kg m^2, the simulated leader's (``firmware_sim/leader.py``); measure a real one's.
     """
@@ -75,22 +68,14 @@ class SnapWatch:
         The brake rules (:mod:`limbctl.teleop.brake`); None: the snap rule alone.
     walk_deg_s : float
         How fast the wall's setpoint walks toward the region (deg/s): its Profile Velocity.
-    armed : tuple of float or None
-        The unit step toward the correction (joint space) while armed.
-    walking : tuple of float or None
-        The unit step toward the correction while a wall is on (the brake rules watch it).
-    cuts : int
-        How many times the watch (or a cycle's read) let a held wall go at a snap.
-    brakes : int
-        How many times the brake rules let a wall go.
-    reads : int
-        How many reads the watch was handed between the cycles.
+    armed, walking : tuple of float, (n,), or None
+        The unit joint-space step toward the correction while armed; while a wall is on.
+    cuts, brakes, reads : int
+        Walls let go at a snap, walls let go by the brake rules; reads between the cycles.
     at_read : bool
-        Judge each cycle's read at once (:meth:`judge`), before the gate work; False: when its
-        push is decided (:meth:`allows`).
+        Judge each cycle's read at once (:meth:`judge`); False: when its push is decided.
     rearm_twice : bool
-        Re-arm only on two still reads within ``rearm_span_s`` (or one pushed outward): a hand
-        reversing leaves the leader still for a millisecond. False: one still read.
+        Re-arm only on two still reads within ``rearm_span_s`` (or one pushed outward).
     """
 
     law: SnapLaw

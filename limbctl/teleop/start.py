@@ -1,9 +1,5 @@
-"""Start a session from wherever the limb is, for any chain (two or three joints).
-
-Inside: torque on, start at once. Outside: torque off, a :class:`StartStatus` published at
-``poll_hz`` until the limb is inside by the margin (by hand, or driven with ``approach_deg_s``)
-or ``wait_s`` passes. No path leaves torque on after refusing to start.
-"""
+"""Start a session from wherever the limb is: at once inside; outside, torque off and waiting
+(or approaching) until it is inside by the margin. No refusal leaves torque on."""
 
 from __future__ import annotations
 
@@ -37,10 +33,8 @@ class StartOptions:
         Give up after this many seconds outside (s).
     approach_deg_s : float or None
         Drive the limb inside with the servos at this speed (deg/s); None: wait for the hand.
-    rate_hz : float
-        Goals per second along an approach path (the control loop's rate).
-    poll_hz : float
-        How often a waiting limb is read and its status published (Hz).
+    rate_hz, poll_hz : float
+        Goals per second along an approach path; reads of a waiting limb per second (Hz).
     max_failed_reads : int
         Failed reads in a row before the start gives up.
     """
@@ -92,24 +86,18 @@ def _move_words(joint: int, change: float) -> str:
 class StartStatus:
     """Where a waiting limb is and where it must go before the session may start.
 
-    Angles in degrees, one a joint in chain order (pan, tilt[, roll]).
-
     Attributes
     ----------
-    pose_deg : tuple of float
-        The present pose.
+    pose_deg, move_deg : tuple of float, (n,)
+        The present pose, and the joint changes to the target (0 without one), deg in chain order.
     ready : bool
         Inside the region and the hard limits by the margin.
     inside_region, inside_limits : bool
         Each check without the margin.
-    outside_deg : float
-        How far outside the region (0 inside).
-    distance_deg : float
-        Angle to the target (0 without one).
+    outside_deg, distance_deg : float
+        How far outside the region (0 inside); angle to the target (0 without one), deg.
     target_deg : tuple of float or None
-        The nearest pose inside by the margin; None when ready or none nearby.
-    move_deg : tuple of float
-        Joint changes to the target (0 without one).
+        The nearest pose inside by the margin (deg); None when ready or none nearby.
     waited_s : float
         Seconds spent waiting so far.
     """

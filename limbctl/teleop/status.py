@@ -1,7 +1,4 @@
-"""The status line of a source a person steers (keyboard, page): poses, step and the gate in words.
-
-One line, refreshed in place on a terminal and cut to its width, the words before the poses.
-"""
+"""The status line of a source a person steers (keyboard, page): poses and the gate in words."""
 
 from __future__ import annotations
 
@@ -22,15 +19,8 @@ def _pose(label: str, pose: tuple[float, float] | None) -> str:
 
 
 class ExplainedStatus:
-    """Status line that says where the limb is asked to be, where it was written and why.
-
-    Parameters
-    ----------
-    stream : text stream
-        Where the line goes (refreshed in place on a terminal).
-    source : CommandSource
-        Its ``describe()`` adds what the source knows.
-    """
+    """Status line to ``stream`` saying where the limb is asked to be, where it was written and
+    why; ``source.describe()`` adds what the source knows."""
 
     def __init__(self, stream: IO[str], source: Any) -> None:
         self._stream = stream

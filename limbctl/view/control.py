@@ -1,6 +1,5 @@
 """Who may watch the live view and who may steer from it: the secret (:class:`Access`), the
-Origin and Host (:func:`check_request`), one controller at a time (:class:`ControlDesk`), as
-docs/architecture.md ("Steering from the page") and docs/decisions/view.md tell.
+Origin and Host (:func:`check_request`), one controller at a time (:class:`ControlDesk`).
 
 A page's WebSocket query carries ``tab`` (its id, kept over a reload), ``name`` (e.g. "tab K7,
 opened 19:02:13") and ``want``: ``take`` (a person opened the address; the default), ``reload``
@@ -50,19 +49,9 @@ def is_loopback(host: str) -> bool:
 
 @dataclass(frozen=True)
 class Access:
-    """The session's secrets and whether watching needs one.
-
-    Attributes
-    ----------
-    secret : str
-        The key (``?key=``) that steers, and watches too.
-    watch_secret : str
-        The key (``?watch=``) that watches when ``watch_needs_key``.
-    watch_needs_key : bool
-        True when the server is reachable beyond this machine.
-    loopback : bool
-        The server listens on a loopback address (the Host header is then checked).
-    """
+    """The session's secrets: ``secret`` (``?key=``) steers and watches, ``watch_secret``
+    (``?watch=``) watches when ``watch_needs_key`` (served beyond this machine); ``loopback``:
+    served on a loopback address (the Host header is then checked)."""
 
     secret: str
     watch_secret: str

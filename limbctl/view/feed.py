@@ -1,9 +1,5 @@
-"""Feeding the board while teaching: a pose tap on the limb and a scene feeder thread.
-
-:class:`PoseTap` publishes each pose the recorder reads, on the recorder's thread, never waiting
-on the view. :class:`SceneFeeder` publishes from its own thread the thinned samples, the guide's
-figures and the region a :class:`~limbctl.view.region.FitProcess` fitted last (fits back to
-back, at most every :data:`REFIT_PERIOD_S`, on CPU time nothing else wants)."""
+"""Feeding the board while teaching: a pose tap on the limb (on the recorder's thread, never
+waiting on the view) and a scene feeder thread (samples, guide, the region fitted last)."""
 
 from __future__ import annotations
 
@@ -37,7 +33,6 @@ class PoseTap:
     limb : object
         The rig (``read_pose() -> (pan, tilt[, roll])``, rad); other attributes pass through.
     board : Board
-        Where the live pose and sample count go.
     mode, note : str
         The mode the page shows ("record", "demo: teach"); the line shown to the person.
     """
@@ -48,8 +43,7 @@ class PoseTap:
         self.mode = mode
         self.note = note
         self._poses: list[tuple[float, float]] = []
-        #: The twist taught so far (a three-servo limb), the gauge's range: swapped in by the
-        #: app as the twist guide assesses.
+        #: The twist taught so far (a three-servo limb), the gauge's range.
         self.twist_map: TwistMap | None = None
         self._gauge: TwistGauge | None = None
         self._last: tuple[float, ...] | None = None
@@ -112,11 +106,9 @@ class SceneFeeder:
     Parameters
     ----------
     board : Board
-        Where scenes go.
     samples : callable
         Returns the samples so far, shape (N, 2), radians (pan, tilt).
     limits : HardLimits or None
-        The rig's hard limits.
     fit : bool
         Fit the region in a separate process (False: samples only).
     """
@@ -154,7 +146,7 @@ class SceneFeeder:
         self._thread.start()
         return self
 
-    def __exit__(self, *exc_info) -> None:
+    def __exit__(self, *exc: object) -> None:
         self._stop.set()
         if self._thread is not None:
             self._thread.join(JOIN_TIMEOUT_S)

@@ -19,24 +19,20 @@ class LeaderStatus:
 
     Parameters
     ----------
-    pose : PanTilt or None
-        The leader's pose as last read (deg); None before its first read.
+    pose, toward : PanTilt or None
+        The leader's pose as last read (None before it); its Goal Position (None while free).
     torque_nm : float
         The torque it pushes back with (N m, >= 0; 0 while free or passive).
     cap_nm : float or None
         The most it may push (N m, also its Current Limit); None for a passive leader.
-    toward : PanTilt or None
-        Where the push points (deg): the leader's Goal Position. None while free.
     beyond_deg : float or None
         How far the leader lies beyond the region's edge (deg; 0 inside); None when not measured.
     state : str
         In words: "free", "pushing back", "passive: ..." or why the feel went off.
     twist_deg, toward_twist_deg : float or None
-        A three-servo leader's twist and its Goal Position's twist while pushing (deg); None for
-        two servos (and the latter while free).
+        A three-servo leader's twist and its Goal Position's twist while pushing (deg).
     sensed_nm : float or None
-        The torque its motors apply as last read (N m, >= 0: the norm of their Present Current as
-        torque); None for a passive leader or before the first read (then not in the JSON).
+        The norm of its motors' torque as last read (N m); None for a passive leader.
     """
 
     pose: PanTilt | None
@@ -90,17 +86,8 @@ SWING_SHARE_DRAWN = 0.1
 
 
 def with_twist(status: LeaderStatus, pose: Pose3, goal: Pose3 | None) -> LeaderStatus:
-    """``status`` of a three-servo leader with its twist, and a push's twist part.
-
-    Parameters
-    ----------
-    status : LeaderStatus
-        Its pan and tilt part (:func:`limbctl.live.leader_status`).
-    pose : (float, float, float)
-        The leader's (pan, tilt, roll) as read (rad).
-    goal : (float, float, float) or None
-        Its Goal Position while pushing (rad); None while free or passive.
-    """
+    """``status`` (its pan and tilt part) of a three-servo leader with the twist of its
+    ``pose`` (pan, tilt, roll; rad) and of its ``goal`` (rad; None while free or passive)."""
     _, twist = decompose_one(pose_quat_scalar(*pose))
     if goal is None:
         return replace(status, twist_deg=math.degrees(twist))

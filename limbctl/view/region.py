@@ -1,9 +1,5 @@
-"""The region ``train`` would learn from the samples so far, as edge loops the page draws.
-
-:func:`fit_outline` fits the default model's :class:`~limbctl.region.TaughtRegion` (from the
-samples' directions alone) and outlines it; :class:`FitProcess` runs it in a separate process at
-the lowest CPU priority on one thread: the fit's numba kernels hold the GIL for seconds, which in
-a thread would stall the 100 Hz recorder."""
+"""The region ``train`` would learn from the samples so far, as edge loops the page draws; fitted
+in a separate process (:class:`FitProcess`): numba holding the GIL would stall the recorder."""
 
 from __future__ import annotations
 
@@ -107,17 +103,8 @@ def traced_stretches(loop: np.ndarray, sample_tree: cKDTree, within_rad: float) 
 def region_loops(
     vertices: np.ndarray, edges: np.ndarray, sample_directions: np.ndarray | None
 ) -> tuple[EdgeLoop, ...]:
-    """A region's boundary as pan/tilt edge loops with traced flags.
-
-    Parameters
-    ----------
-    vertices : ndarray, shape (V, 3)
-        Boundary directions.
-    edges : ndarray, shape (E, 2), int
-        Directed boundary arcs.
-    sample_directions : ndarray, shape (N, 3), or None
-        Taught directions; None marks every stretch traced (a loaded model).
-    """
+    """A region's boundary, directions ``vertices`` (V, 3) joined by directed arcs ``edges``
+    (E, 2), as pan/tilt edge loops traced near ``sample_directions`` (N, 3) (None: all traced)."""
     tree = cKDTree(sample_directions) if sample_directions is not None else None
     out = []
     for index in mesh_loops(edges):
@@ -150,8 +137,7 @@ def fit_outline(pan_tilt_rad: np.ndarray) -> RegionFit:
         swing_from_direction(pan_tilt_to_direction(samples[:, 0], samples[:, 1]))
     )
     try:
-        # RigidMap()'s region (the default settings); the page draws its loops, so the gate's
-        # lookup grid is not built
+        # RigidMap()'s region; the page draws its loops, the gate's lookup grid is not needed
         region = TaughtRegion().fit(directions, lookup=False)
     except (LimbctlError, ValueError) as exc:
         return RegionFit((), len(samples), time.perf_counter() - started, problem=str(exc))

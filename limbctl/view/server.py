@@ -1,10 +1,5 @@
-"""The live view's web server: the page, its assets and a WebSocket that pushes the board.
-
-aiohttp serves the page (package data, nothing fetched from the internet) and one WebSocket per
-browser at ``/ws``, whose coroutine sends the newest scene and live state every
-:data:`PUSH_PERIOD_S`; older ones are never queued, so a slow browser only gets fewer frames and
-the producers never wait. Each version is turned into JSON once. :class:`ViewServer` runs it on
-its own event loop in a background thread."""
+"""The live view's web server: the page, its assets and a WebSocket per browser that sends the
+newest board every :data:`PUSH_PERIOD_S` (nothing queued: a slow browser gets fewer frames)."""
 
 from __future__ import annotations
 
@@ -171,23 +166,9 @@ def _control_text(desk: ControlDesk, token: object, keyed: bool) -> str:
 
 
 class ViewServer:
-    """The live view served from a background thread; a context manager.
-
-    Parameters
-    ----------
-    board : Board
-        What to show.
-    host : str
-        Address to bind (127.0.0.1 keeps the view on this machine).
-    port : int
-        Port to bind; 0 lets the system choose.
-    desk : ControlDesk, optional
-        The controller slot (a new one by default).
-    heartbeat_s : float
-        WebSocket ping interval (s): a browser that stops answering is dropped within two.
-
-    :attr:`url` is the address to watch, :attr:`control_url` the one that steers (with the key).
-    """
+    """The live view served from a background thread; a context manager. ``host``, ``port`` (0:
+    the system chooses), ``desk`` and ``heartbeat_s`` (s) as for :func:`build_app`; :attr:`url`
+    is the address to watch, :attr:`control_url` the one that steers (with the key)."""
 
     def __init__(
         self,
@@ -214,7 +195,7 @@ class ViewServer:
         self.start()
         return self
 
-    def __exit__(self, *exc_info) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.stop()
 
     def start(self) -> None:

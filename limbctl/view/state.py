@@ -97,14 +97,12 @@ class TeleopStatus:
     ----------
     commanded, written : PanTilt or None
         The source's command and the goal the gate wrote (None before there is one).
-    outcome : str
-        The gate's outcome by name (e.g. "corrected", "held").
+    outcome, words : str
+        The gate's outcome by name (e.g. "held") and in words (:mod:`limbctl.teleop.explain`).
     rate_hz : float
         The loop's measured rate (Hz).
     cycles : int
         Cycles run so far.
-    words : str
-        The outcome in words, e.g. "at the edge: up is blocked, sliding right along it".
     blocked : tuple of str
         The joint directions blocked ("+pan", "-pan", "+tilt", "-tilt").
     """
@@ -135,16 +133,15 @@ class Live:
 
     Parameters
     ----------
-    mode : str
-        "record", "teleop" or "demo: <phase>".
+    mode, fault, note : str
+        "record", "teleop" or "demo: <phase>"; the present fault ("" for none); one line for
+        the person.
     pose : PanTilt or None
         The limb's pose as last read.
     sample_count : int
         Samples recorded so far.
     teleop : TeleopStatus or None
         The teleop cycle (None outside teleop).
-    fault, note : str
-        The present fault in words ("" for none); one line for the person.
     twist : TwistGauge or None
         A three-servo limb's twist gauge; None (no ``twist`` JSON key) on two servos.
     """
@@ -187,7 +184,6 @@ class Scene:
     region_note, guide_text : str
         How the region was obtained (or why there is none); the guide's advice.
     guide : tuple of GuideFigure
-        The guide's figures (edge closed %, inside covered %, gaps).
     twist : TwistMap or None
         A three-servo limb's twist map; None (no ``twist`` JSON key) on two servos.
     """
@@ -233,7 +229,6 @@ def thin_samples(
     cell_deg : float
         Grid cell size, degrees.
     limit : int
-        Most samples returned (every k-th kept cell beyond it).
 
     Returns
     -------

@@ -1,12 +1,5 @@
-"""The twist of a three-servo limb on the live page: its band over the swing plane and a gauge.
-
-The twist is the swing-twist split about +x, ``q = swing(d) * twist(tau)``
-(:mod:`limbctl.geometry.twist`). :class:`TwistMap` (in the Scene) cuts the swing plane into
-square cells of ``cell_deg``, each with a twist range ``low..high`` (deg) and a state: while
-recording the twist taught there (``turned``: both ways to the stops, ``short``: a stop untaught,
-``few``: too few samples); in teleop the learned band at the cell's centre (``band``, or
-``free``). :class:`TwistGauge` (in the Live) is the present twist against the range at its
-place. A two-servo page carries neither."""
+"""The twist (``q = swing(d) * twist(tau)``) of a three-servo limb on the live page: its range
+over the swing plane cell by cell (:class:`TwistMap`) and a gauge (:class:`TwistGauge`)."""
 
 from __future__ import annotations
 
@@ -18,7 +11,8 @@ import numpy as np
 from limbctl.geometry.gimbal import pan_tilt_to_direction, pose_quat_scalar
 from limbctl.geometry.twist import decompose_one
 
-#: A cell's states (module docstring).
+#: A cell's states: recording, ``turned`` (both ways to the stops), ``short`` (a stop untaught),
+#: ``few`` (too few samples); teleop, the learned ``band`` at its centre or ``free``.
 CELL_STATES = ("turned", "short", "few", "band", "free")
 #: Cell size (deg) of the learned band's picture: a shoulder's band changes by under 3 deg across
 #: 5 deg of swing, and a 230 x 125 deg rig then takes ~1200 cells (a scene of ~30 kB).
@@ -83,15 +77,13 @@ class TwistGauge:
 
     Parameters
     ----------
-    twist_deg : float
-        The present twist (deg, in (-180, 180]).
+    twist_deg, written_deg : float
+        The present twist (deg, in (-180, 180]); the twist last written (teleop; else None).
     low_deg, high_deg : float or None
         The range there (deg; inside when ``low <= twist_deg + 360 k <= high`` for some k); None
         where nothing is known.
     of : str
         What the range is, in words ("taught here", "the learned band here").
-    written_deg : float or None
-        The twist last written (teleop), else None.
     """
 
     twist_deg: float

@@ -1,8 +1,4 @@
-"""Command sources for teleoperation, one module and one :data:`SOURCES` entry per scheme.
-
-:func:`parse_source` checks a spec before anything is opened; :meth:`SourceSpec.open` builds the
-source from a :class:`SourceContext`.
-"""
+"""Command sources for teleoperation, one :data:`SOURCES` entry per scheme."""
 
 from __future__ import annotations
 
@@ -15,10 +11,7 @@ from limbctl.teleop.sources.base import CommandSource, SourceStats
 from limbctl.teleop.sources.keyboard import KeyboardSource, keyboard_source
 from limbctl.teleop.sources.leader import LeaderSource
 from limbctl.teleop.sources.leader_ids import check_leader_fits, leader_ids
-from limbctl.teleop.sources.page import PageSource
-from limbctl.teleop.sources.replay import ReplaySource
-from limbctl.teleop.sources.stdin import StreamSource
-from limbctl.teleop.sources.udp import UdpSource
+from limbctl.teleop.sources.lines import PageSource, ReplaySource, StreamSource, UdpSource
 
 __all__ = ["CommandSource", "SourceStats", "KeyboardSource", "LeaderSource", "ReplaySource"]
 __all__ += ["check_leader_fits"]
@@ -37,7 +30,7 @@ class SourceContext:
     gate : limbctl.teleop.gate.Gate or None
         The session's gate (the keyboard starts from its pose).
     page : callable or None
-        Attaches the page source to the live view (:data:`limbctl.teleop.sources.page.Connect`).
+        Attaches the page source to the live view (:data:`limbctl.teleop.sources.lines.Connect`).
     twist : bool
         Commands keep their twist (set anyway by a rig with a roll joint).
     """
@@ -62,10 +55,8 @@ class SourceKind:
 
     Attributes
     ----------
-    scheme : str
-        The spec's prefix (``udp`` for ``udp://...``).
-    form : str
-        How a spec of this scheme is written, for help and error messages.
+    scheme, form : str
+        The spec's prefix (``udp`` for ``udp://...``); how a spec of it is written.
     build : callable (argument, context) -> CommandSource
         Builds an unstarted source from the text after the scheme.
     extra_ids : callable (argument) -> tuple of int

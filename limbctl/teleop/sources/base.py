@@ -1,8 +1,5 @@
-"""What every command source shares: counts of refused input and a queue drained by ``poll``.
-
-A reader thread queues commands as input arrives; the loop's :meth:`CommandSource.poll` never
-blocks. Malformed input is counted with its reason, never forwarded.
-"""
+"""What every command source shares: a reader thread's queue drained by ``poll`` (never
+blocking), and counts of refused input with their reasons."""
 
 from __future__ import annotations
 
@@ -53,7 +50,6 @@ class CommandSource:
         self._ended = threading.Event()
         self._thread: threading.Thread | None = None
 
-    # -- lifecycle --------------------------------------------------------------------------
     def __enter__(self) -> CommandSource:
         self.start()
         return self
@@ -82,7 +78,6 @@ class CommandSource:
     def _run(self) -> None:  # pragma: no cover - every subclass overrides it
         raise RuntimeError("subclasses implement _run")
 
-    # -- input ------------------------------------------------------------------------------
     def feed(self, line: bytes | str) -> None:
         """Parse one line and queue it, or count the rejection."""
         self._lines_fed += 1
@@ -101,7 +96,6 @@ class CommandSource:
         self.stats.accepted += 1
         self._queue.put(command)
 
-    # -- what a source that pushes back on the operator adds (a felt leader); nothing here ----
     def feel(self, gate: object, result: object, bus_ok: bool) -> tuple[str, ...]:
         """Called by the loop after each cycle's gate and write; notices for the operator."""
         return ()

@@ -1,9 +1,5 @@
-"""Command source ``keyboard``: the keys of a terminal steer pan and tilt, and say how.
-
-Keys are :mod:`limbctl.teleop.keys`' table. Stopped short at an edge (:meth:`KeyboardSource.feel`),
-the next key steps from the written pose, so a held key slides along the edge and the opposite
-key moves at once.
-"""
+"""Command source ``keyboard``: the keys of a terminal steer the limb; stopped short at an edge,
+the next key steps from the written pose, so a held key slides along the edge."""
 
 from __future__ import annotations
 
@@ -31,18 +27,13 @@ from limbctl.teleop.keys import (
 )
 from limbctl.teleop.sources.base import WAKE_INTERVAL_S, CommandSource
 
-#: Degrees one arrow key moves pan or tilt (the keys' default step).
-KEY_STEP_DEG = DEFAULT_STEP_DEG
 #: Most bytes taken per read: a burst of held-down arrow keys (3 bytes each).
 READ_CHUNK_BYTES = 64
 #: How often (s) the command is repeated: five times within the loop's 0.5 s silence.
 KEEPALIVE_S = WAKE_INTERVAL_S
-
-
 #: Farthest (deg, per joint) the command may lead the written pose while the limb moves freely
 #: (a held key's catch-up, a large step); at an edge, one step.
 MAX_LEAD_DEG = 10.0
-
 #: Grid (deg) for the region's centre: a few thousand candidates, a fraction of a second once.
 CENTRE_GRID_DEG = 2.0
 
@@ -82,7 +73,7 @@ class KeyboardSource(CommandSource):
 
     def __init__(
         self,
-        step_deg: float = KEY_STEP_DEG,
+        step_deg: float = DEFAULT_STEP_DEG,
         start_deg: tuple[float, float] = (0.0, 0.0),
         tty_path: str = "/dev/tty",
         gate: Any = None,

@@ -1,9 +1,5 @@
-"""A leader as a command source: a second chain of servos on the follower's bus, moved by hand.
-
-Each cycle's read of it is the newest command (:func:`pose_command`). A current-sensing model
-(:data:`limbctl.servo.leader.FELT_MODELS`) *feels the edge* (:meth:`LeaderSource.feel`); any
-doubt switches the push off at once (:meth:`LeaderSource.release`). Other models stay passive.
-"""
+"""A leader as a command source: a second chain of servos on the follower's bus, moved by hand;
+a current-sensing model feels the edge, any doubt switches its push off at once."""
 
 from __future__ import annotations
 
@@ -31,8 +27,7 @@ __all__ = ["FOLLOWER_GRACE_S", "FOLLOWER_UNREAD", "LeaderSource", "PaceWatch"]
 #: How the loop's gate says it held because the follower's read failed this cycle.
 FOLLOWER_UNREAD = "the bus failed this cycle"
 #: How long (s) the wall stays on while only the follower's reads fail: one silent-servo probe
-#: interval (50 ms) and a cycle; the wall needs only the leader's pose
-#: (docs/decisions/haptic.md).
+#: interval (50 ms) and a cycle (docs/decisions/haptic.md).
 FOLLOWER_GRACE_S = 0.055
 
 

@@ -1,8 +1,5 @@
-"""A leader source's bus side: its set-up, its reads turned into poses and torques, its writes.
-
-Mixed into :class:`~limbctl.teleop.sources.leader.LeaderSource`; every write goes to all its
-servos in one sync write.
-"""
+"""A leader source's bus side (mixed into ``LeaderSource``): set-up, reads turned into poses and
+torques, and one sync write a cycle."""
 
 from __future__ import annotations
 
@@ -43,7 +40,7 @@ FEEL_NOTICES = {
 
 
 class LeaderBus:
-    """Set-up, reads, writes and torque of a leader's servos (see the module docstring)."""
+    """Set-up, reads, writes and torque of a leader's servos."""
 
     def start(self) -> None:
         """Switch the leader's torque off for the hand, or set a current-sensing one up to feel

@@ -1,8 +1,4 @@
-"""A felt leader's silent servos: when each stopped answering, for how long, and when to ask.
-
-MISSES_FOR_DROPOUT failed reads in a row make a *dropout*, timed until the servo answers; while
-silent the leader is read once per PROBE_INTERVAL_S only, so the loop keeps its rate.
-"""
+"""A felt leader's silent servos: when each stopped answering, for how long, and when to ask."""
 
 from __future__ import annotations
 
@@ -21,17 +17,8 @@ PROBE_INTERVAL_S = 0.05
 
 @dataclass
 class LeaderSilence:
-    """The leader's silent servos; times are perf_counter s.
-
-    Attributes
-    ----------
-    dropouts : list of Dropout
-        Each ended dropout: servo id, start, length (s).
-    misses : int
-        Failed reads of the leader (the cycle's and the watch's).
-    longest_failed_read_s : float
-        The longest a failed read took (s): the "one failed read" of the push-off bound.
-    """
+    """The leader's silent servos (times perf_counter s): each ended ``dropouts``, the failed
+    reads (``misses``) and the longest one took (``longest_failed_read_s``, s)."""
 
     dropouts: list[Dropout] = field(default_factory=list)
     misses: int = 0
