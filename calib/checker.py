@@ -10,7 +10,6 @@ from typing import Any
 from calib.yaml_guard import shown
 
 
-# ---- errors ------------------------------------------------------------------------------------
 class ProfileError(ValueError):
     """A rig profile is missing or invalid; the message names the file and the field."""
 
@@ -23,7 +22,6 @@ class ProfileFileError(ProfileError):
         super().__init__(f"{self.path}: {problem}")
 
 
-# ---- validation --------------------------------------------------------------------------------
 #: Longest port or model string (a device path is well under this).
 MAX_TEXT_CHARS = 256
 #: Unknown keys named in one message; the rest are counted (a message stays one short line).

@@ -47,11 +47,9 @@ SIM_RIGS = ("sim", "sim3")
 PROTOCOLS = (2.0,)
 #: Largest id a servo can have (253 and up are reserved / broadcast).
 MAX_SERVO_ID = 252
-#: End stops assumed where a profile states none (deg, either side of zero): a quarter turn,
-#: where a gimbal's tilt points straight up or down; a rig that travels further must say so.
+#: End stops (deg, either side) where a profile states none: a quarter turn, tilt straight up.
 DEFAULT_END_STOP_DEG = 90.0
-#: Least distance (deg) between a hard limit and its end stop: a goal at the limit, rounded to
-#: ticks and held by the servo's position loop, must leave the horn clear of the stop.
+#: Least gap (deg) from a hard limit to its end stop: a goal there, rounded to ticks, stays clear.
 END_STOP_MARGIN_DEG = 1.0
 #: Longest rig name: it is copied into every recording and model and quoted in messages.
 MAX_NAME_CHARS = 64
@@ -112,10 +110,7 @@ class JointCalibration:
 
 @dataclass(frozen=True)
 class Calibration:
-    """The calibration a recording was made and a model trained under (valid only on it).
-
-    :meth:`to_dict` is the form stored in headers; :func:`calibration_from_dict` reads it back.
-    """
+    """The calibration a recording was made and a model trained under (valid only on it)."""
 
     joints: tuple[tuple[str, JointCalibration], ...]
 
@@ -159,11 +154,8 @@ class Calibration:
 
 @dataclass(frozen=True)
 class RigProfile:
-    """A whole rig: bus settings and ``joints``, ``(name, joint)`` in chain order.
-
-    ``source`` (the file read, not saved) and ``listed`` (joints written as a list) are not
-    compared.
-    """
+    """A whole rig: bus settings and ``joints``, ``(name, joint)`` in chain order (``source``,
+    the file read, and ``listed``, joints written as a list, are not compared)."""
 
     name: str
     port: str
@@ -246,7 +238,6 @@ def _joint_dict(joint: JointProfile) -> dict[str, Any]:
     return {key: getattr(joint, key) for key in _JOINT_KEYS + _JOINT_OPTIONAL_KEYS}
 
 
-# ---- validation --------------------------------------------------------------------------------
 class _Checker(Checker):
     """The generic checks plus the joints, which build this module's dataclasses."""
 
@@ -376,7 +367,6 @@ def calibration_from_dict(data: Any, source: str = "<calibration>") -> Calibrati
     )
 
 
-# ---- files -------------------------------------------------------------------------------------
 def load_profile(path: str | os.PathLike[str]) -> RigProfile:
     """Read and validate the rig profile at ``path``.
 

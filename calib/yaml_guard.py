@@ -1,8 +1,6 @@
-"""Reading a small hand-written YAML file so that no file can hurt the reader.
-
-:func:`read_yaml` refuses anchors and aliases, duplicate and merge keys, deep nesting and huge
-files or values (why: docs/decisions/files.md) with a one-line :class:`YamlRefused` naming the
-line; :func:`shown` quotes a value from such a file in bounded form.
+"""Reading a small hand-written YAML file so that no file can hurt the reader: anchors, aliases,
+duplicate and merge keys, deep nesting and huge files or values are refused in one line naming
+the line (docs/decisions/files.md).
 """
 
 from __future__ import annotations

@@ -1,10 +1,6 @@
-"""The numba compile counter the first-run tests run in a fresh process.
-
-:data:`COUNTER` is the head of a ``python -c`` script: it lists, in ``compiled``, every kernel
-numba compiles after ``ev.register("numba:compile", Count())`` as ``"module.qualname"``, and in
-``signatures`` the same with the argument types (``[name, args]``), for the script's tail to
-write out.
-"""
+"""The numba compile counter the first-run tests run in a fresh process: :data:`COUNTER`, the head
+of a ``python -c`` script, lists in ``compiled`` each kernel numba compiles after it registers
+``Count()`` (``"module.qualname"``), and in ``signatures`` the same with argument types."""
 
 COUNTER = r"""
 import json, sys

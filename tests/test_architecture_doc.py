@@ -1,19 +1,5 @@
-"""docs/architecture.md against the code, so the document cannot silently go stale.
-
-What the document writes in backticks is checked:
-
-- every path under ``limbctl/``, ``firmware_sim/``, ``calib/``, ``docs/``, ``tests/`` or
-  ``benchmarks/`` exists (a folder of limbctl named with a trailing slash is a package);
-- every dotted name such as ``limbctl.teleop.sources.SOURCES`` imports and resolves;
-- every class, ``Class.attribute``, ``function()`` and CONSTANT named bare resolves in one of
-  the modules the document names;
-- every subpackage of limbctl and every module directly in ``limbctl/`` is named;
-- the rank table equals ``RANK`` of ``tests/test_layers.py``, the import rule's enforcer;
-- every relative link reaches a file (and its heading, for ``#anchor`` links).
-
-The checks are plain functions over the document's text; the last tests feed them a stale
-document to show that they fail.
-"""
+"""docs/architecture.md against the code: cited paths, dotted and bare names, the rank table
+and links resolve, every limbctl part is named; a stale document shows the checks fail."""
 
 from __future__ import annotations
 
@@ -22,8 +8,6 @@ import re
 from functools import cache
 from pathlib import Path
 from types import ModuleType
-
-import pytest
 
 from tests.test_layers import RANK
 
@@ -55,10 +39,6 @@ _FUNCTION = re.compile(r"^_?[a-z]\w*\(\)$")
 _MODULE_ATTRIBUTE = re.compile(r"^[a-z]\w*(?:\.\w+)+$")
 _LINK = re.compile(r"\]\(([^)\s]+)\)")
 _RANK_ROW = re.compile(r"^\|\s*(\d+)\s*\|\s*`(\w+)`\s*\|", re.M)
-
-
-def doc_text() -> str:
-    return DOC.read_text(encoding="utf-8")
 
 
 def code_spans(text: str) -> list[str]:
@@ -221,42 +201,21 @@ def _anchors(markdown: str) -> set[str]:
 
 
 # ---- the document against the code ------------------------------------------------------------
-def test_cited_paths_exist():
-    assert cited_paths(doc_text()), "the document cites no paths: the checks see nothing"
-    assert missing_paths(doc_text()) == []
-
-
-def test_every_subpackage_and_app_module_is_named():
-    assert unmentioned_parts(doc_text()) == []
-
-
-def test_dotted_names_resolve():
-    assert unresolved_dotted(doc_text()) == []
-
-
-def test_registries_are_cited_and_exist():
-    spans = set(code_spans(doc_text()))
+def test_the_document_matches_the_code():
+    text = DOC.read_text(encoding="utf-8")
+    assert cited_paths(text), "the document cites no paths: the checks see nothing"
+    assert missing_paths(text) == [], "cited paths that do not exist"
+    assert unmentioned_parts(text) == [], "limbctl parts the document never names"
+    assert unresolved_dotted(text) == [], "dotted names that do not resolve"
+    assert unresolved_bare(text) == [], "bare names no named module has"
+    assert rank_table(text) == RANK, "the rank table is not tests/test_layers.py's RANK"
+    assert broken_links(text) == [], "links that reach no file or heading"
+    spans = set(code_spans(text))
     for registry in REGISTRIES:
         assert registry in spans, f"{registry} is not cited in {DOC.name}"
         assert isinstance(resolve(registry), (dict, tuple)), registry
-
-
-def test_bare_names_resolve_in_named_modules():
-    assert unresolved_bare(doc_text()) == []
-
-
-def test_rank_table_is_the_enforced_one():
-    assert rank_table(doc_text()) == RANK
-
-
-def test_links_reach_files_and_headings():
-    assert broken_links(doc_text()) == []
-
-
-def test_no_reference_outside_the_repository():
-    text = doc_text()
     for outside in ("DESIGN" + ".md", "../" + "shared", "](/", "file://"):
-        assert outside not in text, outside
+        assert outside not in text, f"a reference outside the repository: {outside}"
 
 
 # ---- the checks can fail ----------------------------------------------------------------------
@@ -288,10 +247,5 @@ def test_checks_report_a_stale_document():
     ]
     assert rank_table(STALE) != RANK
     assert broken_links(STALE) == ["no_such_doc.md", "region.md#no-such-heading"]
-
-
-@pytest.mark.parametrize(
-    "name", ["limbctl.teleop.sources.SOURCES", "limbctl.envelope.base.Envelope._registry"]
-)
-def test_resolve_finds_real_names(name):
-    assert resolve(name)
+    for name in ("limbctl.teleop.sources.SOURCES", "limbctl.envelope.base.Envelope._registry"):
+        assert resolve(name), f"resolve misses the real {name}"

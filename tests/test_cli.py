@@ -1,8 +1,6 @@
 """The command line: complete --help, clear errors, exit codes."""
 
 import os
-import subprocess
-import sys
 import time
 
 import pytest
@@ -26,15 +24,7 @@ def test_every_command_has_help_with_its_options(command, capsys):
     assert command or all(name in out for name in COMMANDS)  # the top level lists every command
 
 
-def test_console_script_runs():
-    result = subprocess.run(
-        [sys.executable, "-m", "limbctl.cli", "teleop", "--help"], capture_output=True, text=True
-    )
-    assert result.returncode == 0
-    assert "--source" in result.stdout and "leader:ID,ID" in result.stdout
-
-
-def test_errors_are_one_clear_line_and_exit_2(tmp_path, capsys):
+def test_errors_and_bad_option_values_are_one_bounded_line_and_exit_2(tmp_path, capsys):
     missing = tmp_path / "nope.npz"
     assert main(["info", str(missing)]) == 2
     err = capsys.readouterr().err
@@ -47,9 +37,7 @@ def test_errors_are_one_clear_line_and_exit_2(tmp_path, capsys):
     code = main(["teleop", "--rig", str(tmp_path / "bad.yaml"), "--model", str(missing)])
     assert code == 2
     assert "bad.yaml" in capsys.readouterr().err
-
-
-def test_bad_option_values_are_quoted_boundedly(tmp_path, capsys):
+    # bad option values are quoted boundedly
     huge = "9" * 100_000
     out = str(tmp_path / "rig.yaml")
     for option in ("--pan-stops", "--tilt-limits", "--ids"):
@@ -59,37 +47,11 @@ def test_bad_option_values_are_quoted_boundedly(tmp_path, capsys):
     with pytest.raises(SystemExit):
         main(["record", "--out", "x.limb", "--rate", huge + "x"])
     assert len(capsys.readouterr().err) < 1000
-
-
-def test_bad_numbers_are_refused_by_the_parser(capsys):
+    # bad numbers are refused by the parser
     with pytest.raises(SystemExit) as exit_info:
         main(["record", "--out", "x.limb", "--rate", "nan"])
     assert exit_info.value.code == 2
     assert "positive number" in capsys.readouterr().err
-
-
-def test_reboot_reboots_the_servo_in_alarm_and_says_what_it_was(sim, capsys):
-    sim.set_temperature(2, 95.0)  # over the limit: overheating, torque off
-    _wait_for_alarm(sim, 2)
-    sim.set_temperature(2, 30.0)  # the cause is fixed
-    assert main(["reboot", "--port", sim.port]) == 0
-    err = capsys.readouterr().err
-    assert "servo 2 was in alarm (overheating): rebooted, torque off" in err
-    assert "servo 1" not in err
-    assert sim.truth()["servos"][2]["hardware_error_status"] == 0
-    assert main(["reboot", "--port", sim.port]) == 0
-    assert "no servo is in alarm" in capsys.readouterr().err
-
-
-def test_a_command_on_a_port_another_controller_holds_is_refused_naming_it(sim, capsys):
-    from limbctl.servo.bus import ServoBus
-
-    with ServoBus(sim.port, 4_000_000, (1, 2)) as holder:
-        assert main(["reboot", "--port", sim.port]) == 2
-        err = capsys.readouterr().err
-        assert f"in use by this process, pid {os.getpid()}" in err
-        assert "cable" not in err and "thread" not in err
-        assert holder.read_positions().keys() == {1, 2}  # the holder runs on
 
 
 def _wait_for_alarm(sim, servo_id):
@@ -98,7 +60,27 @@ def _wait_for_alarm(sim, servo_id):
         assert time.monotonic() < deadline, "the simulated servo never raised its alarm"
 
 
-def test_reboot_says_when_the_alarm_comes_straight_back(sim, capsys):
+def test_reboot_and_info_on_servos_in_alarm_and_on_a_port_another_controller_holds(sim, capsys):
+    from limbctl.servo.bus import ServoBus
+
+    sim.set_temperature(2, 95.0)  # over the limit: overheating, torque off
+    _wait_for_alarm(sim, 2)
+    # info lists the servo in alarm and the way out
+    assert main(["info", "--port", sim.port]) == 3
+    out, err = capsys.readouterr()
+    assert "servo 1: " in out and "hardware errors: none" in out
+    assert "servo 2: " in out and "hardware errors: overheating" in out and "pose: pan" in out
+    assert "servo 2 in alarm: fix the cause, then `limbctl reboot`" in err
+    # reboot reboots the servo in alarm and says what it was
+    sim.set_temperature(2, 30.0)  # the cause is fixed
+    assert main(["reboot", "--port", sim.port]) == 0
+    err = capsys.readouterr().err
+    assert "servo 2 was in alarm (overheating): rebooted, torque off" in err
+    assert "servo 1" not in err
+    assert sim.truth()["servos"][2]["hardware_error_status"] == 0
+    assert main(["reboot", "--port", sim.port]) == 0
+    assert "no servo is in alarm" in capsys.readouterr().err
+    # reboot says when the alarm comes straight back
     sim.set_voltage(1, 5.0)  # under the input voltage limit, and it stays there
     _wait_for_alarm(sim, 1)
     assert main(["reboot", "--port", sim.port]) == 3
@@ -108,16 +90,13 @@ def test_reboot_says_when_the_alarm_comes_straight_back(sim, capsys):
     sim.set_voltage(1, 12.0)  # the cause is fixed
     assert main(["reboot", "--port", sim.port]) == 0
     assert "in alarm again" not in capsys.readouterr().err
-
-
-def test_info_lists_a_servo_in_alarm_and_the_way_out(sim, capsys):
-    sim.set_temperature(2, 95.0)
-    _wait_for_alarm(sim, 2)
-    assert main(["info", "--port", sim.port]) == 3
-    out, err = capsys.readouterr()
-    assert "servo 1: " in out and "hardware errors: none" in out
-    assert "servo 2: " in out and "hardware errors: overheating" in out and "pose: pan" in out
-    assert "servo 2 in alarm: fix the cause, then `limbctl reboot`" in err
+    # a command on a port another controller holds is refused, naming it
+    with ServoBus(sim.port, 4_000_000, (1, 2)) as holder:
+        assert main(["reboot", "--port", sim.port]) == 2
+        err = capsys.readouterr().err
+        assert f"in use by this process, pid {os.getpid()}" in err
+        assert "cable" not in err and "thread" not in err
+        assert holder.read_positions().keys() == {1, 2}  # the holder runs on
 
 
 def test_motors_scan_finds_the_simulated_rig(capsys):

@@ -1,6 +1,5 @@
-"""The whole flow on the simulator, as the README's main job runs it: teach with the scripted
-hand over an irregular region, train a Rigid Map, teleop a sweep that leaves the region, and
-judge by the simulator's own goal log against the region the hand really taught."""
+"""The README's main job on the simulator: teach an irregular region by hand, train, teleop a
+sweep out of it, judged by the simulator's goal log against the region really taught."""
 
 import json
 import math
@@ -9,11 +8,13 @@ import re
 import numpy as np
 import pytest
 import yaml
+from PIL import Image
 
 from firmware_sim.regions import PolygonRegion as SimPolygon
 from limbctl.demo import TRUE_OUTLINE_POINTS, run_demo, true_outline, write_command_stream
 from limbctl.envelope.synthetic import PolygonRegion
 from limbctl.errors import ConfigError
+from limbctl.plot import plot_leader
 from limbctl.session import demo_region_path
 from limbctl.teach.dataset import load_dataset
 
@@ -52,7 +53,7 @@ def test_teach_train_teleop_keeps_every_goal_in_the_taught_region(tmp_path):
     assert np.degrees(np.abs(commanded[:, 0])).max() > 100  # the commands did leave the region
 
 
-def test_command_stream_has_bad_lines_and_leaves_the_region(tmp_path):
+def test_command_stream_has_bad_lines_and_the_demo_refuses_what_it_cannot_run(tmp_path):
     path = tmp_path / "c.jsonl"
     n = write_command_stream(path, seconds=4.0, rate_hz=50.0)
     lines = path.read_text().splitlines()
@@ -60,16 +61,16 @@ def test_command_stream_has_bad_lines_and_leaves_the_region(tmp_path):
     pans = [json.loads(x)["pan"] for x in lines if x.startswith('{"t"')]
     assert max(pans) > 100 and min(pans) < -100
     assert math.isclose(len(lines) - n, 4)
-
-
-def test_demo_refuses_to_overwrite_an_earlier_run(tmp_path):
+    # the demo refuses to overwrite an earlier run, or an unknown rig
     (tmp_path / "teach.limb").write_text("old data")
     with pytest.raises(ConfigError, match="exists"):
         run_demo(tmp_path, teach_seconds=5.0)
     assert (tmp_path / "teach.limb").read_text() == "old data"
+    with pytest.raises(ConfigError, match="choose one of sim, sim3"):
+        run_demo(tmp_path / "x", rig="sim4")
 
 
-def test_the_teleop_picture_outlines_the_hands_true_region():
+def test_the_teleop_picture_outlines_the_true_region_and_the_leaders_shows_its_twist(tmp_path):
     outline = true_outline(demo_region_path())
     vertices = np.asarray(yaml.safe_load(demo_region_path().read_text())["region"]["polygon"])
     truth = SimPolygon(vertices.tolist())
@@ -78,6 +79,12 @@ def test_the_teleop_picture_outlines_the_hands_true_region():
     assert np.abs(truth.edge_distance_deg(outline[:, 0], outline[:, 1])).max() < 1e-9
     assert np.ptp(outline[:, 0]) == pytest.approx(np.ptp(vertices[:, 0]), abs=1.0)
     assert np.ptp(outline[:, 1]) == pytest.approx(np.ptp(vertices[:, 1]), abs=1.0)
+    # the leader picture draws the twist of a three-servo leader
+    t = np.linspace(0.0, 1.0, 50)
+    poses = np.column_stack([t * 90, t * 0 + 10, t * 60])
+    plot_leader(tmp_path / "l3.png", t, poses, np.minimum(poses, 37.0), 0.3 * t)
+    plot_leader(tmp_path / "l2.png", t, poses[:, :2], np.minimum(poses[:, :2], 79.0), 0.3 * t)
+    assert Image.open(tmp_path / "l3.png").size[1] > Image.open(tmp_path / "l2.png").size[1]
 
 
 def test_the_three_servo_demo_keeps_every_goal_in_the_learned_region(tmp_path, capsys):
@@ -145,20 +152,3 @@ def test_the_three_servo_leader_run_goes_past_the_true_edge_in_swing_then_in_twi
     assert region.contains(*twist[:2]) and twist[2] > band.limits_deg(*twist[:2])[1] + 15.0
     # held at the twist edge before the let go, which leaves time to walk back
     assert script[-1][0] < let_go_s < seconds - 1.0
-
-
-def test_the_leader_picture_draws_the_twist_of_a_three_servo_leader(tmp_path):
-    from limbctl.plot import plot_leader
-
-    t = np.linspace(0.0, 1.0, 50)
-    poses = np.column_stack([t * 90, t * 0 + 10, t * 60])
-    plot_leader(tmp_path / "l3.png", t, poses, np.minimum(poses, 37.0), 0.3 * t)
-    plot_leader(tmp_path / "l2.png", t, poses[:, :2], np.minimum(poses[:, :2], 79.0), 0.3 * t)
-    from PIL import Image
-
-    assert Image.open(tmp_path / "l3.png").size[1] > Image.open(tmp_path / "l2.png").size[1]
-
-
-def test_the_demo_refuses_an_unknown_rig(tmp_path):
-    with pytest.raises(ConfigError, match="choose one of sim, sim3"):
-        run_demo(tmp_path / "x", rig="sim4")

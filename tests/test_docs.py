@@ -1,9 +1,5 @@
-"""The README and docs/ cite files and tests that exist.
-
-Every repository path the prose names (``tests/...``, ``limbctl/...``, ``benchmarks/...``, ...)
-must exist, and every ``tests/....py::test_name`` must name a test defined in that file, so a
-move or a rename cannot leave the docs pointing at nothing.
-"""
+"""The README and docs/ cite paths that exist and ``tests/....py::test_name`` tests that are
+defined there."""
 
 from __future__ import annotations
 

@@ -1,11 +1,7 @@
-"""What a first run compiles: ``train`` and a teleop start, each from an empty kernel cache.
+"""What a first run compiles from an empty kernel cache: ``train``, a teleop start, a twist fit.
 
-Each command runs in a fresh process with its own empty ``NUMBA_CACHE_DIR`` under a probe that
-counts numba's compile events (``numba:compile``): limbctl's kernels and numba's own helpers
-apart. A count above the documented one (docs/bench_first_run.md, "Compiles per command") means
-a change made the first run slower: look at the new compiles, then raise the count only if the
-cost is worth it. Kernels a two-servo train or teleop never calls are not counted, so new
-kernels elsewhere leave these counts alone.
+Counts above the documented ones (docs/bench_first_run.md, "Compiles per command") mean a
+change made the first run slower: look at the new compiles, then raise a count only if worth it.
 """
 
 from __future__ import annotations
@@ -101,16 +97,14 @@ def model(tmp_path_factory) -> tuple[Path, tuple[list[str], list[str]]]:
     return tmp / "model.npz", found
 
 
-def test_train_compiles_at_most_the_documented_count(model):
+def test_train_and_a_teleop_start_compile_at_most_the_documented_count(model, tmp_path):
     _within("train", model[1], TRAIN_COMPILES)
     # the parallel batch kernels are for large batches: train's are served on one thread; and
     # train never gates: its summary asks the region's arcs, not the gate's kernels
     ours = model[1][0]
     gate = {f"limbctl.region.correct_kernels.correct_{k}" for k in ("batch", "serial", "single")}
     assert not gate & set(ours)
-
-
-def test_a_teleop_start_compiles_at_most_the_documented_count(model, tmp_path):
+    # then a teleop start of two commands
     commands = '{"pan": 20, "tilt": 10}\n{"pan": 120, "tilt": 80}\n'
     found = compiled_by(
         ["teleop", "--model", str(model[0]), "--source", "stdin"], tmp_path, stdin=commands
@@ -150,9 +144,7 @@ with open(sys.argv[1], "w") as out:
 
 
 def test_a_first_twist_fit_compiles_no_helper_per_prange_body_and_no_gate_kernel(tmp_path):
-    """A parallel kernel's prange body compiled numba's helpers again (89 of 221 compiles of a
-    cold three-servo train repeated a signature); numba's np.linalg compiled shape checks and
-    message formatting; the fit asked the gate's grid containment it never needs."""
+    """No prange body recompiles numba's helpers, no np.linalg checks, no gate containment."""
     compiled = [tuple(c) for c in probed(TWIST_FIT, tmp_path)[1]]
     ours = [n for n, _ in compiled if n.startswith("limbctl.")]
     helpers = [n for n, _ in compiled if not n.startswith("limbctl.")]

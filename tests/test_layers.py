@@ -1,17 +1,6 @@
-"""The layers import only downward, with no loops, counting imports inside functions.
-
-Order, bottom to top (a module may import its own layer and any layer below)::
-
-    errors, calib                 (calib imports nothing of limbctl)
-    geometry, servo               (servo may use geometry)
-    region                        (the taught region)
-    envelope                      (the papers' networks; RigidMap delegates to region)
-    teach, teleop, view           (never each other)
-    eval                          (used only by the app)
-    app: cli, jobs, file_jobs, upkeep, demo, live, session, plot, __init__, __main__
-
-``firmware_sim`` imports nothing of the project.
-"""
+"""The layers import only downward, with no loops, counting imports inside functions: the
+ranks are :data:`RANK` (docs/architecture.md's table); ``firmware_sim`` imports nothing of the
+project."""
 
 from __future__ import annotations
 
@@ -187,21 +176,11 @@ def _is_real_edge(source: str, target: str) -> bool:
     return not source.startswith(target + ".")
 
 
-def test_no_module_over_500_lines():
-    long = {
-        name: n
-        for name, path in all_modules().items()
-        if (n := len(path.read_text(encoding="utf-8").splitlines())) > 500
-    }
+def test_modules_are_short_few_at_the_top_and_cite_nothing_outside_the_repository():
+    texts = {name: path.read_text(encoding="utf-8") for name, path in all_modules().items()}
+    long = {name: n for name, text in texts.items() if (n := len(text.splitlines())) > 500}
     assert not long, f"modules over 500 lines: {long}"
-
-
-def test_at_most_a_dozen_modules_directly_in_limbctl():
     flat = sorted(p.name for p in (ROOT / "limbctl").glob("*.py"))
-    assert len(flat) <= 12, flat
-
-
-def test_no_reference_outside_the_repository():
-    for name, path in all_modules().items():
-        text = path.read_text(encoding="utf-8")
-        assert "DESIGN.md" not in text and "../shared" not in text, name
+    assert len(flat) <= 12, f"more than a dozen modules directly in limbctl: {flat}"
+    for name, text in texts.items():
+        assert "DESIGN.md" not in text and "../shared" not in text, f"{name} cites outside"

@@ -1,7 +1,5 @@
-"""The jobs feed the live view, watched in Chromium: a record and a teleop; a felt leader's teleop
-(the simulator's leader pushed past the edge by its operator); steering from the page (a drag
-out of the region moves the limb along its edge, per the simulator's goal log; a frozen browser
-holds the limb; a killed one leaves it held and the session ends normally)."""
+"""The jobs feed the live view, watched in Chromium: a record, a teleop, a felt leader, and steering
+from the page (along the edge; a frozen browser holds the limb, a killed one ends well)."""
 
 from __future__ import annotations
 
@@ -11,7 +9,6 @@ import os
 import signal
 import socket
 import threading
-import time
 from dataclasses import replace
 from decimal import ROUND_HALF_UP, Decimal
 from pathlib import Path
@@ -43,6 +40,7 @@ from limbctl.teleop.gate import GateResult, Outcome, written_tolerance_deg
 from limbctl.teleop.loop import LoopConfig, run
 from limbctl.teleop.sources import LeaderSource
 from limbctl.view import Board, ViewServer
+from tests.safety.support import wait_for as poll
 from tests.view.browser import (
     assert_pose_shown,
     browser_pids,
@@ -199,46 +197,33 @@ def cycle(index: int, t: float, written: bool, pan: float = 0.1) -> Cycle:
     )
 
 
-def test_teleop_feed_keeps_the_last_written_pose_and_measures_the_rate():
-    board = Board()
-    feed = TeleopFeed(board)
-    feed(cycle(0, 0.0, written=True, pan=0.1))
-    for index in range(1, 201):
-        feed(cycle(index, index / 200.0, written=False, pan=0.3))
-    status = board.live.teleop
-    assert status.written.pan_deg == pytest.approx(np.degrees(0.1))
-    assert status.commanded.pan_deg == 10.0
-    assert status.rate_hz == pytest.approx(200.0)
-    assert status.cycles == 200 and status.outcome == "passed"
-    assert status.words == "inside: following the command" and status.blocked == ()
-
-
-def test_teleop_feed_names_the_edge_that_holds_as_the_page_draws_it():
-    board = Board()
-    feed = TeleopFeed(board)
-    # the command lies up and to the +pan side of where the gate keeps writing the same pose
-    result = GateResult((0.1, 0.2), Outcome.CORRECTED, corrected=True)
-    for index in range(3):
-        at_edge = replace(cycle(index, index / 200.0, written=True), result=result)
-        feed(replace(at_edge, command_deg=(20.0, 40.0), present=(0.1, 0.2)))
-    status = board.live.teleop
-    assert status.blocked == ("+pan", "+tilt")
-    # the page's plane is seen from behind the limb, as the terminal names it: +pan is left
-    assert status.words == "at the edge: left and up are blocked, holding there"
-
-
-def test_teleop_feed_says_how_hard_a_felt_leader_pushes_back():
+def test_teleop_feed_keeps_the_last_written_pose_names_the_edge_and_the_leaders_push():
     board = Board()
     feed = TeleopFeed(board)
     pushes = iter([0.0, 0.31])
-    feed.push_nm = lambda: next(pushes)
+    feed.push_nm = lambda: next(pushes, 0.0)
     feed(cycle(0, 0.0, written=True, pan=0.1))
-    assert board.live.note == "the leader is free"
-    feed(cycle(1, 0.005, written=True, pan=0.1))
-    assert board.live.note == "the leader pushes back with 0.31 N m"
-
-
-def test_guide_figures_say_what_the_guidance_says():
+    assert board.live.note == "the leader is free", "a free leader not said"
+    feed(cycle(1, 0.005, written=False, pan=0.3))
+    assert board.live.note == "the leader pushes back with 0.31 N m", "the push not said"
+    for index in range(2, 201):
+        feed(cycle(index, index / 200.0, written=False, pan=0.3))
+    status = board.live.teleop
+    assert status.written.pan_deg == pytest.approx(np.degrees(0.1)), "not the last written pose"
+    assert status.commanded.pan_deg == 10.0
+    assert status.rate_hz == pytest.approx(200.0), "the rate over a second of cycles"
+    assert status.cycles == 200 and status.outcome == "passed"
+    assert status.words == "inside: following the command" and status.blocked == ()
+    # the command lies up and to the +pan side of where the gate keeps writing the same pose
+    result = GateResult((0.1, 0.2), Outcome.CORRECTED, corrected=True)
+    for index in range(201, 204):
+        at_edge = replace(cycle(index, index / 200.0, written=True), result=result)
+        feed(replace(at_edge, command_deg=(20.0, 40.0), present=(0.1, 0.2)))
+    status = board.live.teleop
+    assert status.blocked == ("+pan", "+tilt"), "the edge that holds not named"
+    # the page's plane is seen from behind the limb, as the terminal names it: +pan is left
+    assert status.words == "at the edge: left and up are blocked, holding there"
+    # the guide's figures say what the guidance says
     guidance = Guidance(
         samples=500,
         phase="edge",
@@ -257,7 +242,7 @@ def test_guide_figures_say_what_the_guidance_says():
     assert advice == guidance.line()
 
 
-def test_view_options_and_ports():
+def test_view_options_and_ports_and_the_page_source_needs_the_view(hand_model_path):
     assert ViewOptions(enabled=False).wanted() is False
     with open_view(ViewOptions(enabled=False), lambda _: None) as off:
         assert not off.active and off.teleop_observer(None, None) is None
@@ -278,6 +263,10 @@ def test_view_options_and_ports():
             pass  # already taken by someone else: the same case
         with open_view(ViewOptions(enabled=True), lambda _: None) as live:
             assert live.active and not live.url.endswith(f":{DEFAULT_PORT}/")
+    # the page source refuses --no-view before anything opens
+    options = TeleopOptions(model=hand_model_path, source="page", view=ViewOptions(enabled=False))
+    with pytest.raises(ConfigError, match="drop --no-view"):
+        run_teleop(options)
 
 
 # -- a felt leader on the page ------------------------------------------------------------------
@@ -434,14 +423,6 @@ def goals_logged(path: Path) -> int:
     return len(path.read_text().splitlines()) if path.exists() else 0
 
 
-def wait_until(condition, message: str, timeout: float = 60.0) -> None:
-    """Wait for a condition of the files the session writes (the browser may be frozen)."""
-    deadline = time.monotonic() + timeout
-    while not condition():
-        assert time.monotonic() < deadline, message
-        time.sleep(0.05)
-
-
 def held_since(rows: list[dict], start: int) -> int:
     """How many of the last rows after ``start`` held without writing, in a row."""
     count = 0
@@ -493,13 +474,14 @@ def test_a_page_steers_along_the_edge_a_frozen_page_holds_a_killed_one_ends_well
                 )
                 wait_for(page, lambda d: "upper edge" in text_of(d, "holds"), "no holding edge")
                 seen["words"], seen["holds"] = text_of(page, "words"), text_of(page, "holds")
-                wait_until(
+                poll(
                     lambda: (
                         (rows := telemetry_rows(telemetry))
                         and rows[-1]["out"] is not None
                         and abs(rows[-1]["out"][0] - edge_pan) < 1.0
                         and abs(rows[-1]["out"][1] - edge_tilt) < 1.0
                     ),
+                    60.0,
                     "the limb did not reach the edge's nearest point",
                 )
                 seen["at_edge"] = telemetry_rows(telemetry)[-1]["out"]
@@ -511,14 +493,16 @@ def test_a_page_steers_along_the_edge_a_frozen_page_holds_a_killed_one_ends_well
                 frozen_at = len(telemetry_rows(telemetry))
                 for pid in pids:
                     os.kill(pid, signal.SIGSTOP)
-                wait_until(
+                poll(
                     lambda: held_since(telemetry_rows(telemetry), frozen_at) >= HELD_CYCLES,
+                    60.0,
                     "a frozen page did not hold the limb",
                 )
                 goals = goals_logged(goal_log)
                 held_rows = len(telemetry_rows(telemetry))
-                wait_until(
+                poll(
                     lambda: len(telemetry_rows(telemetry)) >= held_rows + HELD_CYCLES,
+                    60.0,
                     "the loop stopped",
                 )
                 seen["goals_while_frozen"] = goals_logged(goal_log) - goals
@@ -528,8 +512,9 @@ def test_a_page_steers_along_the_edge_a_frozen_page_holds_a_killed_one_ends_well
                 for pid in pids:
                     os.kill(pid, signal.SIGKILL)
                 killed_at = len(telemetry_rows(telemetry))
-                wait_until(
+                poll(
                     lambda: held_since(telemetry_rows(telemetry), killed_at) >= HELD_CYCLES,
+                    60.0,
                     "a killed page did not leave the limb held",
                 )
             finally:
@@ -558,9 +543,3 @@ def test_a_page_steers_along_the_edge_a_frozen_page_holds_a_killed_one_ends_well
     corrected = [row for row in rows if row["outcome"] == "corrected" and row["written"]]
     assert len(corrected) > 50  # the limb slid along the edge, written pose by pose
     assert seen["at_edge"] == pytest.approx([edge_pan, edge_tilt], abs=1.0)
-
-
-def test_the_page_source_refuses_no_view_before_anything_opens(hand_model_path):
-    options = TeleopOptions(model=hand_model_path, source="page", view=ViewOptions(enabled=False))
-    with pytest.raises(ConfigError, match="drop --no-view"):
-        run_teleop(options)

@@ -24,7 +24,7 @@ from tests.conftest import trained_for
 EDGE = 30.0
 
 
-def test_the_packaged_operators_load_for_their_leaders():
+def test_the_packaged_operators_and_an_operator_file_load_with_their_grips(tmp_path):
     push, push3 = load_operator("push", 2), load_operator("push3", 3)
     assert (push.joints, push3.joints) == (2, 3)
     assert push.model == push3.model == "xm430-w350"
@@ -32,9 +32,7 @@ def test_the_packaged_operators_load_for_their_leaders():
     assert push.leader_spec((3, 4)) == {"ids": [3, 4], "model": "xm430-w350", "start_deg": [0, 10]}
     assert "(100, 10) deg by 3.5 s and lets go at 6.0 s" in push.describe()
     assert set(OPERATORS) == {"push", "push3"}
-
-
-def test_an_operator_file_is_read_with_its_grip(tmp_path):
+    # an operator file is read with its grip
     path = tmp_path / "hand.yaml"
     path.write_text(
         "model: xl330-m288\nstart_deg: [5, 0]\nscript: [[0, 5, 0], [2, 60, 0]]\n"
@@ -44,6 +42,13 @@ def test_an_operator_file_is_read_with_its_grip(tmp_path):
     assert operator.model == "xl330-m288" and operator.start_deg == (5.0, 0.0)
     assert operator.grip == {"script": [[0, 5, 0], [2, 60, 0]], "max_torque_nm": 0.1}
     assert "never lets go" in operator.describe()
+    # unknown names and missing files are refused with the known names
+    with pytest.raises(ConfigError, match=r"unknown operator 'shove'; known: push, push3"):
+        load_operator("shove", 2)
+    with pytest.raises(ConfigError, match="no such file"):
+        load_operator(str(tmp_path / "gone.yaml"), 2)
+    with pytest.raises(ConfigError, match="'push3': it holds a 3-servo leader; this leader has 2"):
+        load_operator("push3", 2)
 
 
 @pytest.mark.parametrize(
@@ -74,23 +79,14 @@ def test_a_bad_operator_file_is_refused_naming_the_file_and_the_fault(tmp_path, 
     assert says in str(caught.value)
 
 
-def test_unknown_names_and_missing_files_are_refused_with_the_known_names(tmp_path):
-    with pytest.raises(ConfigError, match=r"unknown operator 'shove'; known: push, push3"):
-        load_operator("shove", 2)
-    with pytest.raises(ConfigError, match="no such file"):
-        load_operator(str(tmp_path / "gone.yaml"), 2)
-    with pytest.raises(ConfigError, match="'push3': it holds a 3-servo leader; this leader has 2"):
-        load_operator("push3", 2)
-
-
 @pytest.fixture
 def cone_model(cone_file):
     """A 30 deg cone about the rest direction, for the simulated rig."""
     return cone_file(EDGE)
 
 
-def test_operator_is_refused_before_anything_opens_without_a_leader_or_on_real_servos(
-    cone_model, tmp_path
+def test_an_operator_or_a_leader_that_cannot_run_is_refused_before_anything_opens(
+    cone_model, tmp_path, capsys
 ):
     stdin = TeleopOptions(model=cone_model, source="stdin", operator="push")
     with pytest.raises(ConfigError, match="use it with --source leader:ID,ID"):
@@ -111,11 +107,7 @@ def test_operator_is_refused_before_anything_opens_without_a_leader_or_on_real_s
     on_rig = replace(real, connection=Connection(rig=profile))
     with pytest.raises(ConfigError, match="with --port, move the leader by hand"):
         run_teleop(on_rig)
-
-
-def test_a_leader_naming_the_rigs_servos_is_refused_before_anything_opens(cone_model, capsys):
-    # the embedded simulator used to refuse the repeated ids with a traceback; now it is said
-    # in one line before any port opens, a real one too
+    # a leader naming the rig's servos: one line before any port opens (it was a traceback)
     argv = ["teleop", "--model", str(cone_model), "--no-view", "--quiet"]
     assert main([*argv, "--source", "leader:2,3", "--operator", "push"]) == 2
     err = capsys.readouterr().err
@@ -130,11 +122,8 @@ def test_a_leader_naming_the_rigs_servos_is_refused_before_anything_opens(cone_m
     real = Connection(port="/dev/nonexistent-limbctl-port")
     with pytest.raises(ConfigError, match="names the rig's servos 1, 2"):
         run_teleop(TeleopOptions(model=cone_model, source="leader:1,2", connection=real))
-
-
-def test_the_cli_refuses_an_unknown_operator_in_one_line(cone_model, capsys):
-    argv = ["teleop", "--model", str(cone_model), "--source", "leader:3,4", "--operator", "shove"]
-    assert main([*argv, "--no-view", "--quiet"]) == 2
+    # an unknown operator, in one line
+    assert main([*argv, "--source", "leader:3,4", "--operator", "shove"]) == 2
     err = capsys.readouterr().err
     assert "limbctl teleop: error: unknown operator 'shove'; known: push, push3" in err
 
@@ -165,9 +154,7 @@ def teleop_with_operator(capsys, hand, text: str, **options) -> tuple[str, re.Ma
 def test_a_simulated_operator_presses_a_felt_leader_past_the_edge_on_teleop(
     cone_model, tmp_path, capsys
 ):
-    """The real loop over the simulator's pty, the leader pressed 25 deg past a 30 deg cone for
-    2.5 s, then let go: the run reports the press, and the telemetry has the follower held at
-    the edge."""
+    """A leader pressed 25 deg past a 30 deg cone: the press said, the follower held at the edge."""
     telemetry = tmp_path / "run.jsonl"
     said, pressed = teleop_with_operator(
         capsys,
@@ -190,9 +177,7 @@ def test_a_simulated_operator_presses_a_felt_leader_past_the_edge_on_teleop(
 
 
 def test_a_three_servo_leader_pressed_past_the_twist_band_is_reported_on_teleop(tmp_path, capsys):
-    """The three-servo session opens its source only once the limb is held inside; the leader's
-    notice and its press are still said (they were not before the sources were introduced in
-    one place)."""
+    """A three-servo session, which opens its source late, still says the leader and its press."""
     model = tmp_path / "shoulder.npz"
     taught = ShoulderRegion().teaching(2500, 1200, 1200, np.random.default_rng(0))
     RigidMap(twist=True).fit(taught).save(model, metadata=trained_for("sim3"))

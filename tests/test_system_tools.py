@@ -1,8 +1,5 @@
 """tests/system_tools.py: a test run installs the programs its browser and terminal tests drive,
-or says in one line what to install and those tests skip with it.
-
-The programs are hidden by giving a ``PATH`` without them (never by uninstalling them).
-"""
+or says in one line what to install and those tests skip (programs hidden by a bare ``PATH``)."""
 
 from __future__ import annotations
 
@@ -11,8 +8,6 @@ import shutil
 import subprocess
 import sys
 from pathlib import Path
-
-import pytest
 
 from tests import system_tools
 
@@ -31,15 +26,28 @@ def bare_path(tmp_path: Path, keep: tuple[str, ...] = ()) -> str:
 def test_every_program_is_found_on_this_machine():
     # the suite's own machine has them (installed by the session start when it may)
     assert system_tools.missing() == []
+    assert system_tools.packages(["tmux"]) == ["tmux"], "packages name each once"
+    assert system_tools.packages(["chromium", "chromedriver"]) == ["chromium", "chromium-driver"]
 
 
-def test_without_root_one_line_says_what_to_install(tmp_path):
+def test_without_root_or_after_a_failed_install_one_line_says_what_to_install(tmp_path):
     said = []
     line = system_tools.ensure(path=bare_path(tmp_path), root=False, say=said.append)
     assert said == [line]
     assert "\n" not in line
     assert "chromium, chromedriver, tmux not found" in line
     assert "apt-get install chromium chromium-driver tmux" in line
+    # as root, a failed install ends in the one line with its reason
+
+    def failing(names):
+        return subprocess.CompletedProcess([], 100, "", "E: Unable to locate package chromium")
+
+    said = []
+    line = system_tools.ensure(
+        path=bare_path(tmp_path), root=True, install=failing, say=said.append
+    )
+    assert said[-1] == line and len(said) == 2  # the progress line, then the one line
+    assert "installing them failed (E: Unable to locate package chromium)" in line
 
 
 def test_as_root_it_installs_the_missing_packages_once_with_a_progress_line(tmp_path):
@@ -60,18 +68,6 @@ def test_as_root_it_installs_the_missing_packages_once_with_a_progress_line(tmp_
     # a second run finds them: nothing installed, nothing said
     assert system_tools.ensure(path=path, root=True, install=install, say=said.append) is None
     assert len(asked) == 1 and len(said) == 1
-
-
-def test_a_failed_install_ends_in_the_one_line_with_its_reason(tmp_path):
-    def install(names):
-        return subprocess.CompletedProcess([], 100, "", "E: Unable to locate package chromium")
-
-    said = []
-    line = system_tools.ensure(
-        path=bare_path(tmp_path), root=True, install=install, say=said.append
-    )
-    assert said[-1] == line and len(said) == 2  # the progress line, then the one line
-    assert "installing them failed (E: Unable to locate package chromium)" in line
 
 
 BROWSER_TEST = """
@@ -117,10 +113,3 @@ def test_a_run_without_the_programs_and_root_skips_their_tests_with_the_line(tmp
     said = [text for text in done.stdout.splitlines() if text.startswith(line)]
     assert len(said) == 1, done.stdout  # said once at the start; the skips give it as reason
     assert sum(line in text for text in done.stdout.splitlines() if "SKIPPED" in text) >= 1
-
-
-@pytest.mark.parametrize("names", [["tmux"], ["chromium", "chromedriver"]])
-def test_packages_name_each_once(names):
-    assert system_tools.packages(names) == (
-        ["tmux"] if names == ["tmux"] else ["chromium", "chromium-driver"]
-    )

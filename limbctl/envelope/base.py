@@ -1,9 +1,7 @@
 """The Envelope interface: every constraint model (RigidMap, SOM, Cone) speaks it.
 
-An envelope is a region of valid orientations (unit quaternions, w >= 0). It is learned from
-valid samples (``fit``), answers as the papers' network does (``respond``), and serves the gate
-(``contains`` and ``correct``). Models are saved to one ``.npz`` file holding a JSON header (kind,
-format version, parameters, a SHA-256 over the header and arrays) and the model's arrays.
+Models are saved to one ``.npz`` file: a JSON header (kind, format version, parameters, a
+SHA-256 over the header and arrays) and the model's arrays.
 """
 
 from __future__ import annotations
@@ -29,10 +27,9 @@ _ZIP_MAGIC = b"PK\x03\x04"
 class Envelope(ABC):
     """A region of valid orientations on S^3 behind one interface.
 
-    Subclasses set ``kind`` (the name written to files) and implement ``fit``, ``respond``,
-    ``_inside`` and ``_to_boundary`` (or ``contains`` and ``correct``), ``_params`` / ``_arrays``
-    (what to save) and ``_restore`` (how to rebuild from them). Every method accepts one
-    quaternion (4,) or a batch (N, 4) and returns the same leading shape.
+    Subclasses set ``kind`` and implement ``fit``, ``respond``, ``_inside`` and ``_to_boundary``
+    (or ``contains`` and ``correct``), ``_params``, ``_arrays`` and ``_restore``. Every method
+    takes one quaternion (4,) or a batch (N, 4) and returns the same leading shape.
     """
 
     kind: ClassVar[str] = ""
@@ -42,9 +39,8 @@ class Envelope(ABC):
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
-        # a model answers through the two hooks ``_inside(q)`` ((N, 4) canonical -> (N,) bool)
-        # and ``_to_boundary(q)`` ((N, 4) outside -> (N, 4)), or overrides ``contains`` and
-        # ``correct`` itself: refused when the class is defined, not when first asked
+        # the hooks ``_inside`` ((N, 4) -> (N,) bool) and ``_to_boundary`` ((N, 4) -> (N, 4)), or
+        # ``contains`` and ``correct`` overridden: refused when the class is defined
         hooks = all(hasattr(cls, name) for name in ("_inside", "_to_boundary"))
         own = cls.contains is not Envelope.contains and cls.correct is not Envelope.correct
         if cls.kind and not (hooks or own):
@@ -54,7 +50,6 @@ class Envelope(ABC):
         if cls.kind:
             Envelope._registry[cls.kind] = cls
 
-    # ---- learning and answering ------------------------------------------------------------
     @abstractmethod
     def fit(self, q_train: np.ndarray) -> Envelope:
         """Learn the region from valid orientations ``q_train`` (N, 4). Returns self."""
@@ -84,7 +79,6 @@ class Envelope(ABC):
     def weights(self) -> np.ndarray:
         """Trained node weights (nodes, 4); empty (0, 4) for analytic models."""
 
-    # ---- persistence -----------------------------------------------------------------------
     @abstractmethod
     def _params(self) -> dict[str, Any]:
         """JSON-serialisable constructor parameters and scalar state."""
@@ -126,8 +120,7 @@ class Envelope(ABC):
         Raises
         ------
         FileFormatError
-            Naming the file and the problem (missing, truncated, corrupt, wrong version, or a
-            model of another kind than the class it is loaded through).
+            Naming the file and the problem (missing, corrupt, wrong version or kind).
         """
         header, arrays = _read(Path(path))
         kind = header.get("kind")
@@ -141,7 +134,6 @@ class Envelope(ABC):
         except (KeyError, ValueError, TypeError) as exc:
             raise FileFormatError(path, f"model parameters do not fit a {kind}: {exc}") from exc
 
-    # ---- shared helpers --------------------------------------------------------------------
     @staticmethod
     def _input(q: object) -> tuple[np.ndarray, bool]:
         """Validate input: (N, 4) canonical float64, and whether a single (4,) came in."""

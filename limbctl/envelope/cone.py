@@ -1,11 +1,9 @@
 """Lee's analytic swing cone: the ground truth of the papers' experiments and a hand-written limit.
 
-The swing angle (between the limb and its rest axis +x) is ``theta = 2 acos(sqrt(w^2 + x^2))``;
-a cone of half-angle R allows any twist and ``theta <= R``, i.e. ``w^2 + x^2 >= cos^2(R / 2)``.
-The ideal correction keeps twist and swing axis and sets the swing angle to R: with
-``n = sqrt(w^2 + x^2)``, ``m = sqrt(y^2 + z^2)``, ``c = cos(R / 2)``, ``s = sin(R / 2)``,
-``correct(q) = (c w / n, c x / n, s y / m, s z / m)``, also the nearest boundary point in R^4
-(at n = 0, the limb along -x, the twist is taken as the identity: ``(c, 0, s y / m, s z / m)``).
+Inside: swing ``2 acos(sqrt(w^2 + x^2)) <= R``, any twist. The ideal correction keeps twist and
+swing axis: ``(c w / n, c x / n, s y / m, s z / m)`` with ``n = sqrt(w^2 + x^2)``, ``m = sqrt(y^2 +
+z^2)``, ``c = cos(R / 2)``, ``s = sin(R / 2)`` (at n = 0, identity twist: ``(c, 0, s y / m, s z /
+m)``), also the nearest boundary point in R^4.
 """
 
 from __future__ import annotations
@@ -19,9 +17,8 @@ from limbctl.envelope.base import Envelope
 from limbctl.errors import ConfigError
 from limbctl.geometry.quat import swing_angle
 
-#: ``contains`` accepts w^2 + x^2 >= cos^2(R/2) - CONTAINS_TOLERANCE, so that ``correct``'s
-#: boundary points (exact up to rounding, a few 1e-16) count as inside. In angle this is
-#: 2e-12 / sin(R) rad at most: far below any servo resolution.
+#: Slack of ``contains`` (w^2 + x^2 >= cos^2(R/2) - tol) so ``correct``'s rounded boundary points
+#: count as inside: 2e-12 / sin(R) rad at most, far below a servo step.
 CONTAINS_TOLERANCE = 1e-12
 
 
@@ -61,7 +58,6 @@ class Cone(Envelope):
         """R in degrees."""
         return float(np.degrees(self.half_angle))
 
-    # ---- learning and answering ------------------------------------------------------------
     def fit(self, q_train: np.ndarray) -> Cone:
         """Check valid orientations ``q_train`` (N, 4), N >= 1; without a half angle learn R as
         their largest swing angle. Returns self."""
@@ -83,7 +79,6 @@ class Cone(Envelope):
         """No nodes: an empty (0, 4) array."""
         return np.empty((0, 4), dtype=np.float64)
 
-    # ---- internals -------------------------------------------------------------------------
     def _inside(self, q: np.ndarray) -> np.ndarray:
         """Inside the cone: w^2 + x^2 >= cos^2(R/2) - CONTAINS_TOLERANCE."""
         limit = np.cos(0.5 * self.half_angle) ** 2
@@ -105,7 +100,6 @@ class Cone(Envelope):
         out[:, 3] = s * sz
         return out
 
-    # ---- persistence -----------------------------------------------------------------------
     def _params(self) -> dict[str, Any]:
         return {"half_angle": self._half_angle}
 

@@ -1,28 +1,20 @@
-"""Answering from trained node weights: winner search and interpolation (shared by SOM and
-Rigid Map).
-
-A trained network answers an input ``x`` (unit quaternion) with the weight of its winner ``c``
-(the node whose weight is nearest ``x``), optionally combined with ``k`` runner-ups
-(Jenkins & Angel after Goeppert & Rosenstiel):
+"""Answering from trained node weights (SOM and Rigid Map): the winner ``c`` nearest ``x``,
+optionally combined with ``k`` runner-ups (Jenkins & Angel after Goeppert & Rosenstiel):
 
 ``none``
     ``y = w_c``.
 ``idw``
-    Inverse-distance weighting over the winner and its ``k`` nearest runner-ups by weight:
-    ``y = sum_i w_i / d_i / sum_i 1 / d_i`` with ``d_i`` the distance (an exact hit, d = 0,
-    returns that weight).
+    ``y = sum_i w_i / d_i / sum_i 1 / d_i`` over the winner and runner-ups (d = 0: that weight).
 ``geometric``
     Start at ``y = w_c`` with residual ``r = x - w_c``; for each runner-up k (nearest first):
     ``d = w_k - y``, ``a = clip(<r, d> / |d|^2, 0, 1)``, ``y += a d``, ``r -= a d``.
 ``geometric-winner``
     The same with ``d = w_k - w_c`` (directions taken from the winner, not the running answer).
 ``topological``
-    The geometric rule over the winner's ``k`` nearest nodes in the *output topology* (grid
-    neighbours of a SOM, position neighbours of a Rigid Map) instead of nearest by weight.
+    The geometric rule over the winner's nearest nodes in the output topology.
 
-Every answer is normalised to unit length and flipped to w >= 0. Distances: ``euclidean``
-``|x - w|^2`` (the papers') or ``cosine`` ``acos(x . w / |w|)^2``. :func:`respond_reference` is
-the plain numpy twin of the :func:`respond_batch` kernel.
+Answers are unit, w >= 0. Distances: ``euclidean`` ``|x - w|^2`` or ``cosine`` ``acos(x . w /
+|w|)^2``. :func:`respond_reference` is the numpy twin of the :func:`respond_batch` kernel.
 """
 
 from __future__ import annotations
@@ -72,7 +64,6 @@ def check_k(k: object) -> int:
     return int(k)
 
 
-# ---- numba kernels -----------------------------------------------------------------------------
 @njit
 def _distance(x: np.ndarray, w: np.ndarray, metric: int) -> float:
     """``|x - w|^2`` (EUCLIDEAN) or ``acos(x . w / |w|)^2`` (COSINE)."""
@@ -174,10 +165,9 @@ def respond_batch(
     k : int
         Runner-ups to combine with the winner (ignored for NONE).
     metric, mode : int
-        Codes from :data:`METRICS` and :data:`INTERPOLATIONS`.
+        Codes of :data:`METRICS` and :data:`INTERPOLATIONS`.
     topology : ndarray, shape (M, K) int64
-        For TOPOLOGICAL: each node's neighbours in the output topology, nearest first
-        (at most ``min(k, K)`` are used). Any (M, 0) array for other modes.
+        For TOPOLOGICAL, each node's neighbours, nearest first; else any (M, 0) array.
 
     Returns
     -------
@@ -198,8 +188,7 @@ def _respond_one(weights, x, count, metric, mode, topology, out) -> None:
     idx = np.empty(count, dtype=np.int64)
     dist = np.empty(count)
     if mode == TOPOLOGICAL:
-        # the winner alone; count is >= 1: min(count, 1) is 1, typed as count is (a literal 1
-        # would compile _nearest a second time)
+        # the winner alone: min(count, 1) is 1 typed as count (a literal would compile again)
         _nearest(weights, x, min(count, 1), metric, idx, dist)
         used = min(count, topology.shape[1] + 1)
         for r in range(1, used):
@@ -220,8 +209,7 @@ def respond_serial(
     count = 1 if mode == NONE else min(k + 1, weights.shape[0])
     idx = np.empty(count, dtype=np.int64)
     dist = np.empty(count)
-    # _respond_one's body, written here: one level of calls less to compile (each level
-    # optimises its callees' code again; docs/decisions/first_run.md)
+    # _respond_one's body inlined: one level of calls less to compile (decisions/first_run.md)
     for j in range(n):
         if mode == TOPOLOGICAL:
             _nearest(weights, q[j], min(count, 1), metric, idx, dist)
@@ -235,9 +223,8 @@ def respond_serial(
     return out
 
 
-#: Rows up to which :func:`respond_rows` answers on one thread: the fit's refinement asks a few
-#: thousand support samples (~10 ms), where the thread pool saves little and the parallel
-#: kernel's compile costs seconds on a first run.
+#: Rows up to which :func:`respond_rows` uses one thread: the fit's few thousand (~10 ms) gain
+#: little from the pool, whose kernel costs seconds to compile on a first run.
 PARALLEL_ROWS = 100_000
 
 
@@ -264,7 +251,6 @@ def nearest_distance(weights: np.ndarray, q: np.ndarray) -> np.ndarray:
     return out
 
 
-# ---- numpy references --------------------------------------------------------------------------
 def respond_reference(
     weights: np.ndarray, q: np.ndarray, k: int, metric: int, mode: int, topology: np.ndarray
 ) -> np.ndarray:

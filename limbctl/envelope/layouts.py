@@ -1,11 +1,8 @@
-"""Node positions on S^3 (unit quaternions) for Rigid Map output layers, by name
-(:data:`LAYOUTS`, :func:`make_layout`).
+"""Node positions on S^3 (unit quaternions) for Rigid Map output layers, by name.
 
-The papers place nodes on all of S^3. A quaternion and its antipode are one rotation, so by
-default (``hemisphere=True``) every layout lives on w >= 0: polytopes are *folded* (each antipodal
-pair keeps its member with w > 0, on w = 0 the one whose first non-zero component is positive;
-the counts halve, 24-cell 12, 600-cell 60, 120-cell 300, the 720-node union 360) and the random
-and spiral layouts put all ``n`` points there. ``hemisphere=False`` gives the papers' node sets.
+By default (``hemisphere=True``) every layout lives on w >= 0: polytopes are *folded* (each
+antipodal pair keeps its canonical member, halving the counts) and the random and spiral layouts
+put all ``n`` points there. ``hemisphere=False`` gives the papers' node sets on all of S^3.
 """
 
 from __future__ import annotations
@@ -82,12 +79,8 @@ def cell_24() -> np.ndarray:
 
 
 def cell_600(parity: str = "odd") -> np.ndarray:
-    """The 600-cell's 120 vertices (unit length).
-
-    The 24-cell's vertices plus the 96 ``parity`` permutations of (+-phi, +-1, +-1/phi, 0) / 2.
-    ``parity="odd"`` is the 600-cell dual to :func:`cell_120`'s 120-cell; ``"even"`` is the
-    textbook orientation (which shares the 120-cell's symmetry directions).
-    """
+    """The 600-cell's 120 unit vertices: the 24-cell's plus the 96 ``parity`` permutations of
+    (+-phi, +-1, +-1/phi, 0) / 2 (``"odd"``: dual to :func:`cell_120`; ``"even"``: textbook)."""
     if parity not in ("odd", "even"):
         raise ConfigError(f"600-cell parity must be 'odd' or 'even', got {parity!r}")
     snub = _permuted((PHI / 2.0, 0.5, 0.5 / PHI, 0.0), parity)
@@ -188,25 +181,20 @@ LAYOUTS: dict[str, Callable[[int | None, np.random.Generator, bool], np.ndarray]
 
 
 def make_layout(
-    name: str,
-    n: int | None = None,
-    seed: int | np.random.Generator = 0,
-    hemisphere: bool = True,
+    name: str, n: int | None = None, seed: int | np.random.Generator = 0, hemisphere: bool = True
 ) -> np.ndarray:
     """Node positions on S^3 by layout name.
 
     Parameters
     ----------
     name : str
-        One of :data:`LAYOUTS` (``24-cell``, ``600-cell``, ``120-cell``, ``polytope-720``,
-        ``polytope-720-even``, ``uniform``, ``super-fibonacci``).
+        One of :data:`LAYOUTS`.
     n : int, optional
-        Node count: required for ``uniform`` and ``super-fibonacci``; for a polytope leave it
-        unset or give its exact count.
+        Node count: required for ``uniform`` and ``super-fibonacci``; a polytope's exact count.
     seed : int or numpy.random.Generator
         Randomness for ``uniform`` (ignored by the deterministic layouts).
     hemisphere : bool
-        Nodes on w >= 0, polytopes folded (module docstring); False: the papers' node sets.
+        Nodes on w >= 0, polytopes folded; False: the papers' node sets.
 
     Returns
     -------

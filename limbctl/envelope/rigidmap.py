@@ -1,12 +1,9 @@
 """The interpolated Rigid Map (Jenkins & Angel), and the exact gate built on it.
 
-``respond`` is the papers' network: node positions fixed on S^3 by a layout, weights trained from
-valid orientations (:mod:`limbctl.envelope.rigidmap_kernels`), winner by weight when answering,
-optionally interpolated with the runner-ups. ``contains``/``correct`` ask the taught region
-(:class:`limbctl.region.taught.TaughtRegion`), built from the *positions* of taught samples, not
-from weights (docs/region.md says why). *Support refinement*: a second layer of nodes on the
-region's thinned samples (``support_positions``), started from the map's geometric answer there
-and trained by the same rule on all the data (``support_weights``, which ``limbctl eval`` scores).
+``respond`` is the papers' network (node positions fixed by a layout, weights trained from valid
+orientations); ``contains``/``correct`` ask the taught region built from the samples' positions
+(docs/region.md). ``support_weights``: a second layer of nodes on the region's thinned samples,
+trained by the same rule (``limbctl eval`` scores it).
 """
 
 from __future__ import annotations
@@ -27,8 +24,7 @@ from limbctl.region.twist_region import TwistRegion
 
 #: Version of the gate's saved arrays; models of older versions must be retrained.
 GATE_VERSION = 6
-#: Nearest nodes by position kept per node for ``topological`` answers: twice the papers' 8
-#: runner-ups, so ``k`` can be varied beyond them.
+#: Nearest nodes kept per node for ``topological`` answers: twice the papers' 8 runner-ups.
 TOPOLOGY_NEIGHBOURS = 16
 #: Runner-ups of the geometric answer the support weights start from: the papers' 8.
 SUPPORT_START_K = 8
@@ -67,8 +63,7 @@ class RigidMap(Envelope):
     region : RegionParams, optional
         Settings of the taught region the gate enforces (defaults when None).
     twist : bool
-        Learn swing and twist (:class:`~limbctl.region.twist_region.TwistRegion`, ``correct``
-        nearest on SO(3)) for three servos; False: the swing-only region, twist kept.
+        Learn swing and twist (three servos, ``correct`` nearest on SO(3)); False: swing only.
     """
 
     kind: ClassVar[str] = "rigidmap"
@@ -121,7 +116,6 @@ class RigidMap(Envelope):
         self.epochs = 0
         self._topology = rk.position_topology(self.positions, TOPOLOGY_NEIGHBOURS)
 
-    # ---- learning ----------------------------------------------------------------------------
     def _train(self, positions: np.ndarray, weights: np.ndarray, patterns: np.ndarray) -> int:
         schedule = (getattr(self, name) for name in _SCHEDULE)
         return rk.train_rigid_map(positions, weights, patterns, *schedule)
@@ -136,8 +130,7 @@ class RigidMap(Envelope):
         weights = self.positions.copy()
         self.epochs = self._train(self.positions, weights, patterns)
         self._weights = weights
-        # the gate's region, then the refinement: nodes on its thinned samples, starting
-        # from the map's answer there
+        # the gate's region, then the refinement from the map's answer on its thinned samples
         self.region = type(self.region)(self.region.params).fit(q)
         support = np.ascontiguousarray(q[self.region.support_index])
         self.support_positions = support
@@ -156,7 +149,6 @@ class RigidMap(Envelope):
         """The gate's region as a mesh (None until fitted or loaded)."""
         return self.region.mesh
 
-    # ---- answering ---------------------------------------------------------------------------
     def _trained(self) -> None:
         if self._weights is None or self.region.mesh is None:
             raise ConfigError("this RigidMap is not trained: call fit(q_train) or load a model")
@@ -191,9 +183,7 @@ class RigidMap(Envelope):
         return self.region.contains(q)
 
     def contains_from_arcs(self, q: np.ndarray) -> np.ndarray:
-        """:meth:`contains` of a batch (N, 4), for a process that never gates (train's summary):
-        the same answers, without compiling the gate's kernels where the region can
-        (:meth:`TaughtRegion.contains_from_arcs`)."""
+        """:meth:`contains` of a batch (N, 4) without compiling the gate's kernels where it can."""
         self._trained()
         return getattr(self.region, "contains_from_arcs", self.region.contains)(q)
 
@@ -209,7 +199,6 @@ class RigidMap(Envelope):
         self._trained()
         return self._weights
 
-    # ---- persistence -------------------------------------------------------------------------
     def _params(self) -> dict[str, Any]:
         # a swing-only model's header stays as it was before twist (no "twist" key)
         kind = {"twist": True} if self.twist else {}

@@ -1,22 +1,10 @@
 """Numba kernels of the Rigid Map: training, winner search and answering.
 
-Each kernel has a plain numpy reference (``*_reference``) the tests compare it with; no
-``fastmath``: NaN must never pass a comparison. The training rule (Jenkins & Angel, Table I),
-for epoch ``t = 0, 1, ...``:
-
-- learning rate ``lr(t) = lr0 exp(-k_lr t)``, neighbourhood radius
-  ``sigma(t) = sigma0 exp(-k_sigma t)`` (radians);
-- for each pattern ``x`` (in the order given): the winner ``c`` is the node whose *position*
-  ``p_c`` is nearest to ``x`` (Euclidean ``|x - p|^2`` and direction-cosine ``acos(x.p)^2``
-  choose the same node on unit positions);
-- every node ``i`` whose neighbourhood value ``h = exp(-theta_ci^2 / (2 sigma^2))`` (``theta_ci``
-  the angle between positions ``p_c`` and ``p_i``) is at least ``phi`` moves toward the pattern:
-  ``w_i += lr h (x - w_i)``;
-- training stops after ``max_epochs`` or once no weight component moved more than ``tol`` in
-  an epoch.
-
-Answering picks winners by *weight* (metric ``EUCLIDEAN``: ``|x - w|^2``; ``COSINE``:
-``acos(x.w/|w|)^2``) and interpolates between the winner and ``k`` runner-ups.
+Each kernel has a numpy reference (``*_reference``); no ``fastmath`` (NaN fails comparisons).
+Training (Jenkins & Angel, Table I), epoch ``t``: ``lr(t) = lr0 exp(-k_lr t)``, ``sigma(t) =
+sigma0 exp(-k_sigma t)`` (rad); for each pattern ``x`` in order, the winner ``c`` is the node
+whose *position* is nearest ``x``, and every node with ``h = exp(-theta_ci^2 / (2 sigma^2)) >=
+phi`` moves ``w_i += lr h (x - w_i)``; until ``max_epochs`` or no component moved over ``tol``.
 """
 
 from __future__ import annotations
@@ -25,8 +13,7 @@ import math
 
 import numpy as np
 
-# The answering kernels (winner by weight, interpolation) are the ones the SOM uses too; they are
-# re-exported here so the Rigid Map's code and tests name them in one place.
+# the SOM's answering kernels, re-exported so the Rigid Map's code and tests name them here
 from limbctl.envelope.interpolation import (  # noqa: F401
     COSINE,
     EUCLIDEAN,
@@ -44,7 +31,6 @@ from limbctl.envelope.interpolation import (  # noqa: F401
 from limbctl.geometry.jit import njit
 
 
-# ---- training ----------------------------------------------------------------------------------
 @njit
 def position_winners(positions: np.ndarray, patterns: np.ndarray) -> np.ndarray:
     """Index (N,) int64 of the node position (M, 4) nearest each pattern (N, 4): ``argmax_i
@@ -121,10 +107,8 @@ def _patterns_near(
     buffer: np.ndarray,
     mark: np.ndarray,
 ) -> int:
-    """The patterns whose winner has ``h > 0``, in order, into ``buffer``: their count, or -1
-    when they are over a quarter of all (scanning all in order is then cheaper). Marked in
-    ``mark`` (N,) bool (all False, and left so) and read in order: no sort (numba's int64
-    quicksort compiled for ~1 s; docs/decisions/first_run.md)."""
+    """The patterns whose winner has ``h > 0``, in order, into ``buffer``: their count, or -1 over
+    a quarter of all. Marked in ``mark`` (N,) bool (all False, and left so): no sort to compile."""
     total = 0
     for s in range(h.shape[0]):
         if h[s] > 0.0:
@@ -163,12 +147,10 @@ def train_rigid_map(
 ) -> int:
     """Train ``weights`` (M, 4) in place by the Rigid Map rule (module docstring); epochs run.
 
-    Winners by position never change, so they and the angles between every node and the
-    distinct winners are found once. A node's weight depends only on the patterns whose winner
-    is near it, in order: an epoch runs node by node, each through all patterns in order (the
-    same arithmetic in the same order as pattern by pattern, the same weights to the bit), with
-    neighbourhood values once per distinct winner. An epoch whose radius ``sigma sqrt(2
-    ln(1/phi))`` is below the closest node spacing updates the winner only.
+    Winners by position never change, so they are found once; an epoch runs node by node through
+    the patterns in order (the same arithmetic, the same weights to the bit, as pattern by
+    pattern). An epoch whose radius ``sigma sqrt(2 ln(1/phi))`` is below the closest node spacing
+    updates the winner only.
     """
     winners = position_winners(positions, patterns)
     distinct, pattern_slot = _winner_slots(winners, positions.shape[0])
@@ -240,7 +222,6 @@ def _train_epochs(
                 order = _patterns_near(h, slot_start, slot_patterns, buffer, mark)
                 w0, w1, w2, w3 = weights[i, 0], weights[i, 1], weights[i, 2], weights[i, 3]
                 # the largest step per component, kept apart so the four updates do not wait
-                # on one another (max is exact: the same largest step)
                 m0 = m1 = m2 = m3 = 0.0
                 for jj in range(n if order < 0 else order):
                     j = jj if order < 0 else buffer[jj]
@@ -308,7 +289,6 @@ def train_rigid_map_reference(
     return epochs
 
 
-# ---- answering: shared with the SOM (limbctl.envelope.interpolation) ----------------------
 def position_topology(positions: np.ndarray, k: int) -> np.ndarray:
     """Each node's ``k`` nearest other nodes (largest ``p_i . p_j``; ties in index order), (M, k)
     int64, nearest first."""

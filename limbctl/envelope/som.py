@@ -1,20 +1,10 @@
 """The self-organising map of Jenkins & Dacey (UKSim 2011): the project's baseline envelope.
 
-Network: 4 input nodes (w, x, y, z), ``rows x cols`` output nodes on a grid (default 30 x 30 =
-900, the paper's largest), each with a weight vector in R^4. Training (kernel in
-:mod:`som_kernels`): weights start uniform in [-init_scale, init_scale], seeded (with Table I's
-lr(0) = 1 the first time step overwrites them, so the seed then changes nothing); one time step
-presents the whole training set in order; each pattern's winner (least squared Euclidean
-distance) and the nodes within grid distance ``radius(t)`` move ``w += lr(t) (x - w)``, on Table
-I's stepwise schedule (:func:`table_i_schedule`); training stops when no winner changes in a time
-step, or at the cap of 10,000.
-
-``respond(q, "none")`` is the paper's answer, the winner's weight normalised and canonical; the
-interpolated variants are the Rigid Map paper's (:mod:`limbctl.envelope.interpolation`,
-``topological`` taking the winner's nearest grid neighbours). The gate is a simple rule after
-the paper's discussion: ``contains(q)`` when q's Euclidean distance to the nearest normalised
-node is at most ``threshold``, the largest such distance over the training set; ``correct(q)``
-returns the paper's answer outside (a node, hence inside; not the nearest boundary point).
+``rows x cols`` output nodes with weights in R^4. One time step presents the training set in
+order; each pattern's winner (least squared Euclidean distance) and the nodes within grid distance
+``radius(t)`` move ``w += lr(t) (x - w)`` on Table I's schedule, until no winner changes (at most
+10,000 steps). The gate: ``contains(q)`` when q lies within ``threshold`` (the training set's
+largest distance) of a normalised node; ``correct(q)`` answers the paper's winner outside.
 """
 
 from __future__ import annotations
@@ -59,8 +49,7 @@ def table_i_schedule(
     Returns
     -------
     learning_rates, radii : ndarray, shape (max_steps,)
-        ``max(lr0 lr_factor^p, lr_min)`` and ``max(radius0 radius_factor^p, radius_min)``,
-        ``p = min(t // period, periods - 1)``.
+        ``max(lr0 lr_factor^p, lr_min)`` and likewise, ``p = min(t // period, periods - 1)``.
     """
     t = np.arange(max_steps)
     p = np.minimum(t // period, periods - 1)
@@ -160,12 +149,9 @@ class SOM(Envelope):
         )
         return rng.uniform(-self.init_scale, self.init_scale, size=(self.nodes, 4))
 
-    # ---- learning and answering ------------------------------------------------------------
     def fit(self, q_train: np.ndarray) -> SOM:
-        """Train on valid orientations ``q_train`` (N, 4), N >= 1. Returns self.
-
-        Sets ``weights``, ``steps`` (time steps run), ``converged`` and ``threshold``.
-        """
+        """Train on valid orientations ``q_train`` (N, 4), N >= 1; sets ``weights``, ``steps``,
+        ``converged`` and ``threshold``. Returns self."""
         patterns, _ = self._input(q_train)
         if len(patterns) == 0:
             raise ConfigError("SOM.fit: q_train is empty; record some valid orientations first")
@@ -182,9 +168,7 @@ class SOM(Envelope):
         return self
 
     def respond(self, q: np.ndarray, interpolation: str = "none", k: int = 8) -> np.ndarray:
-        """The SOM's answer to ``q`` (4,) or (N, 4), shaped like it: the winner's weight
-        (normalised, w >= 0), or by ``interpolation`` with ``k`` runner-ups (by weight, or grid
-        neighbours for ``topological``)."""
+        """The SOM's answer to ``q`` (4,) or (N, 4), shaped like it, by ``interpolation``."""
         mode = ip.interpolation_code(interpolation)
         k = ip.check_k(k)
         arr, single = self._input(q)
@@ -200,7 +184,6 @@ class SOM(Envelope):
             raise ConfigError("SOM is not trained yet: call fit(q_train) or SOM.load(path)")
         return self._weights
 
-    # ---- internals -------------------------------------------------------------------------
     def _answer_nodes(self) -> np.ndarray:
         """The answers the nodes give: normalised, canonical weights (nodes, 4)."""
         w = self.weights
@@ -223,7 +206,6 @@ class SOM(Envelope):
             self._topology[k] = ip.neighbours_by_position(self.grid(), k)
         return self._topology[k]
 
-    # ---- persistence -----------------------------------------------------------------------
     def _params(self) -> dict[str, Any]:
         self.weights  # noqa: B018 -- refuse to save an untrained SOM
         return {

@@ -1,9 +1,5 @@
-"""Numba training kernel of the SOM (Jenkins & Dacey 2011); its plain numpy twin is in the tests.
-
-For each time step ``t`` (every pattern presented, in order): each pattern's winner ``c``
-minimises ``D_i = sum_k (x_k - w_ik)^2`` (first index on ties), and every node within grid
-distance ``g_ci <= radius(t)`` moves ``w_i += lr(t) (x - w_i)``; training stops after a time step
-that changed no winner, or after the last scheduled one. No fastmath: comparisons stay NaN-safe.
+"""Numba training kernel of the SOM (Jenkins & Dacey 2011; the rule: :mod:`limbctl.envelope.som`;
+ties to the first index). Its numpy twin is in the tests. No fastmath: comparisons stay NaN-safe.
 """
 
 from __future__ import annotations
@@ -22,7 +18,7 @@ def train_som(
     radii: np.ndarray,
     winners: np.ndarray,
 ) -> tuple[int, bool]:
-    """Train ``weights`` in place by the SOM rule (module docstring).
+    """Train ``weights`` in place by the SOM rule.
 
     Parameters
     ----------

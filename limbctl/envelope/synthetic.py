@@ -1,10 +1,5 @@
-"""Synthetic regions of limb directions with exact ideal corrections, for tests and benchmarks.
-
-:class:`ConeRegion` is Lee's swing cone about +x (samples uniform over the cap);
-:class:`PolygonRegion` a polygon in (pan, tilt) degrees, the shape a person teaches by hand
-(:data:`BEAN`, or :data:`KIDNEY` rounded), sampled densest in the middle, its ideal correction the
-geodesically nearest boundary direction (dense boundary samples refined on the nearest segment).
-Both speak :class:`Region`.
+"""Synthetic regions of limb directions with exact ideal corrections, for tests and benchmarks:
+Lee's swing cone (:class:`ConeRegion`) and polygons in (pan, tilt) degrees (:class:`PolygonRegion`).
 """
 
 from __future__ import annotations
@@ -49,14 +44,12 @@ def egg(length_deg: float = 48.0, width_deg: float = 26.4, n: int = 240) -> np.n
 #: A convex egg 48 x 26 deg: smooth and convex, but not one circle (a tight and a blunt end).
 EGG = egg()
 
-#: KIDNEY at 0.35 scale (39 x 23 deg, reaching 19.7 deg from its axis like a 20 deg cone):
-#: the irregular region at the size the cone targets are set for.
+#: KIDNEY at 0.35 scale (39 x 23 deg): reaching 19.7 deg from its axis, like a 20 deg cone.
 SMALL_KIDNEY = 0.35 * KIDNEY
 
 
-#: A 40 x 30 deg rectangle with a rectangular notch 12 deg wide and 12 deg deep cut into its top
-#: edge, in (pan, tilt) degrees: an obstacle the limb must go round. Its two inner corners,
-#: (-6, 3) and (6, 3), are reflex corners of the region.
+#: A 40 x 30 deg rectangle, (pan, tilt) deg, with a 12 x 12 deg notch cut into its top edge: an
+#: obstacle the limb must go round (reflex corners at (-6, 3) and (6, 3)).
 NOTCH = np.array(
     [[-20.0, -15.0], [20.0, -15.0], [20.0, 15.0], [6.0, 15.0], [6.0, 3.0], [-6.0, 3.0],
      [-6.0, 15.0], [-20.0, 15.0]]
@@ -240,12 +233,9 @@ def trajectory_samples(
     edge_share: float = 0.3,
     edge_inset_deg: float = 0.5,
 ) -> np.ndarray:
-    """``n`` directions (n, 3) recorded the way a hand teaches: continuous strokes, in order.
-
-    Great-circle strokes ``step_deg`` apart (100 Hz at ~30 deg/s) between waypoints of the
-    region's own density, only where wholly inside; with probability ``edge_share`` a stroke
-    instead creeps 10 to 40 deg along the boundary, ``edge_inset_deg`` inside, at a third of it.
-    """
+    """``n`` directions (n, 3) recorded the way a hand teaches: great-circle strokes ``step_deg``
+    apart between inside waypoints, or (``edge_share`` of them) creeping 10-40 deg along the
+    boundary ``edge_inset_deg`` inside, at a third of the step."""
     step = np.radians(step_deg)
     edge = _edge_track(region, np.radians(edge_inset_deg))
     out = [region.sample(1, rng)[0]]
@@ -337,12 +327,8 @@ def _nearest_on_arc(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[np.nda
 
 
 def inset_track(polygon_deg: np.ndarray, inset_deg: float, step_deg: float) -> np.ndarray:
-    """Points (K, 2) ``step_deg`` apart along the curve ``inset_deg`` inside a (pan, tilt) polygon.
-
-    The planar inner parallel curve of a polygon (M, 2) in degrees, either winding, in loop order
-    from its first vertex: edges moved inward, meeting at convex corners and joined by an arc of
-    radius ``inset_deg`` at reflex ones. Each edge must be longer than its corners' insets.
-    """
+    """Points (K, 2) ``step_deg`` apart along the inner parallel curve ``inset_deg`` inside a
+    (pan, tilt) polygon (M, 2) deg, from its first vertex (arcs round reflex corners)."""
     p = np.asarray(polygon_deg, dtype=np.float64)
     x, y = p[:, 0], p[:, 1]
     # shoelace: positive area = counter-clockwise, the region on the left of each edge
@@ -390,11 +376,8 @@ def traced_teaching(
     inset_deg: float = 1.0,
     wander_deg_s: float = 30.0,
 ) -> tuple[np.ndarray, int]:
-    """A teaching that traces the edge first, then wanders inside: directions (n, 3), trace length.
-
-    Once round :func:`inset_track` at ``trace_deg_s``, then :func:`trajectory_samples` strokes
-    (no edge strokes) at ``wander_deg_s``, sampled at ``rate_hz`` (``n = seconds * rate_hz``).
-    """
+    """A teaching that traces the edge once at ``trace_deg_s``, then wanders at ``wander_deg_s``:
+    directions (n, 3), ``n = seconds * rate_hz``, and the trace's length."""
     n = int(round(seconds * rate_hz))
     track = inset_track(np.degrees(region.polygon), inset_deg, trace_deg_s / rate_hz)
     trace = pan_tilt_to_direction(np.radians(track[:, 0]), np.radians(track[:, 1]))[:n]

@@ -1,15 +1,12 @@
 """Synthetic shoulder-like regions of full orientations, for tests and benchmarks of twist.
 
-A :class:`ShoulderRegion` is a swing outline (a :class:`~limbctl.envelope.synthetic.PolygonRegion`
-in (pan, tilt) degrees, concave like a shoulder's) with a twist band over it whose half-width
-narrows as the limb rises and whose centre drifts with pan and tilt, as a shoulder's internal and
-external rotation does::
+A :class:`ShoulderRegion` is a swing outline in (pan, tilt) degrees with a twist band narrowing
+as the limb rises and drifting with pan and tilt::
 
     h(tilt) = clip(h_low + (h_high - h_low) (tilt - tilt_low) / (tilt_high - tilt_low), 5, 175) deg
     c(pan, tilt) = c0 + c_pan pan + c_tilt tilt                                              (deg)
 
-It teaches, answers ``contains`` exactly, samples its own boundary densely (for a brute-force
-true nearest orientation) and gives the engines' swing-then-twist answer (:meth:`clamp`).
+It teaches, answers ``contains`` exactly, samples its boundary and clamps as the engines do.
 """
 
 from __future__ import annotations
@@ -24,14 +21,12 @@ from limbctl.geometry.quat import rotate, swing_from_direction
 from limbctl.geometry.twist import compose, decompose, wrap
 from limbctl.region.twist_kernels import TWIST_TOLERANCE
 
-#: A shoulder's swing outline in (pan, tilt) degrees: wide below, a dent between two raised
-#: lobes on top (concave), well away from pointing backwards (-x).
+#: A shoulder's swing outline in (pan, tilt) degrees: a dent between two raised lobes, away from -x.
 SHOULDER = np.array(
     [[-30.0, -35.0], [20.0, -40.0], [70.0, -35.0], [100.0, -15.0], [105.0, 20.0], [85.0, 50.0],
      [50.0, 70.0], [25.0, 45.0], [0.0, 68.0], [-25.0, 55.0], [-35.0, 20.0]]
 )  # fmt: skip
-#: Twist stops are reached with this scatter (deg, one sigma) short of the true stop: a hand
-#: pressing against a stop stays on the inside of it.
+#: Scatter (deg, one sigma) short of the true stop with which a hand reaches a twist stop.
 STOP_SCATTER_DEG = 0.2
 
 
@@ -104,9 +99,8 @@ class ShoulderRegion:
     def teaching(
         self, n_uniform: int, n_edge: int, n_stops: int, rng: np.random.Generator
     ) -> np.ndarray:
-        """Taught orientations (N, 4): ``n_uniform`` uniform over the region, ``n_edge`` along
-        the swing edge (within 1 deg, twist uniform in the band), ``n_stops`` at the twist
-        stops (half along the edge, half anywhere; each stop reached STOP_SCATTER_DEG short)."""
+        """Taught orientations (N, 4): ``n_uniform`` uniform, ``n_edge`` within 1 deg of the swing
+        edge, ``n_stops`` at the twist stops (half along the edge)."""
         d_u = self._inside_directions(n_uniform, rng)
         d_e = self._edge_directions(n_edge, rng, 1.0)
         d_s = np.vstack(
@@ -126,9 +120,7 @@ class ShoulderRegion:
         return np.vstack(parts)
 
     def boundary(self, step_deg: float) -> np.ndarray:
-        """Orientations (M, 4) on the region's boundary about ``step_deg`` apart: both stops over
-        a (pan, tilt) lattice inside the outline, and twists across the band along the outline.
-        """
+        """Orientations (M, 4) on the region's boundary about ``step_deg`` apart."""
         (p0, p1), (t0, t1) = (
             (np.degrees(self.swing.polygon[:, k].min()), np.degrees(self.swing.polygon[:, k].max()))
             for k in (0, 1)
@@ -162,8 +154,7 @@ class ShoulderRegion:
 
 
 class BandRegion(ShoulderRegion):
-    """A swing outline with any twist band over it (e.g. curved, or crossing +-180 deg), else
-    as :class:`ShoulderRegion`.
+    """A swing outline with any twist band (curved, across +-180 deg), else a ShoulderRegion.
 
     Parameters
     ----------

@@ -1,11 +1,8 @@
 """`limbctl eval`: the seed papers' experiments, side by side with the gate, as CSV, tables, plots.
 
-What runs is :func:`build_tasks`'s grid (docs/results.md explains every choice): the SOM and
-Rigid Map papers' experiments, and beside each paper network the gate (``correct``) of Rigid Maps
-trained on the same data. One *task* is one data set (experiment, x value, seed) and every model
-of that experiment trained on it, each answer scored on all, valid and invalid test inputs
-(:func:`limbctl.eval.metrics.score`). Tasks run in worker processes; each appends its rows to
-``runs.csv`` as it finishes, and a rerun into the same ``--out`` skips tasks already there.
+One *task* (:func:`build_tasks`; docs/results.md) is one data set and every model trained on it,
+each answer scored. Tasks run in worker processes, each appending its rows to ``runs.csv``; a
+rerun into the same ``--out`` skips tasks already there.
 """
 
 from __future__ import annotations
@@ -36,13 +33,9 @@ CSV_FIELDS += ("fit_seconds",)
 _NO_TOPOLOGY = np.empty((0, 0), dtype=np.int64)
 
 
-# ---- data --------------------------------------------------------------------------------------
 def draw_training(data: DataSpec, rng: np.random.Generator) -> np.ndarray:
-    """Valid training orientations (patterns, 4), twist-free, inside the cone of ``range_deg``.
-
-    Uniform over the cap, or with the boundary band (swing in (R/2, R]) ``boundary_ratio``
-    times as dense as the central cap (swing <= R/2).
-    """
+    """Valid training orientations (patterns, 4), twist-free, inside the cone of ``range_deg``,
+    the band (swing in (R/2, R]) ``boundary_ratio`` times as dense as the central cap."""
     radius = np.radians(data.range_deg)
     cone = ConeRegion(radius)
     if data.boundary_ratio == 1.0:
@@ -75,7 +68,6 @@ def draw_test(data: DataSpec, rng: np.random.Generator) -> np.ndarray:
     return to_quaternions(d)
 
 
-# ---- one task ----------------------------------------------------------------------------------
 def build_model(spec: ModelSpec, seed: int, range_deg: float) -> Any:
     """A fresh, untrained model for ``spec`` (the cone is the exact truth of ``range_deg``)."""
     kind = model_class(spec.kind)  # an unknown kind is refused with the list of choices
@@ -89,8 +81,7 @@ def build_model(spec: ModelSpec, seed: int, range_deg: float) -> Any:
 
 def respond_on_data_nodes(model: Any, q: np.ndarray, interpolation: str, k: int) -> np.ndarray:
     """The papers' answers (N, 4) to ``q`` (N, 4) over a fitted Rigid Map's ``support_weights``
-    (S, 4, nodes on the data), by ``interpolation`` (``none`` or by weight) with ``k`` runner-ups.
-    """
+    (S, 4), by ``interpolation`` with ``k`` runner-ups."""
     weights = np.ascontiguousarray(model.support_weights, dtype=np.float64)
     mode = ip.interpolation_code(interpolation)
     return ip.respond_batch(weights, q, max(k, 1), ip.EUCLIDEAN, mode, _NO_TOPOLOGY)
@@ -127,7 +118,6 @@ def run_task(task: Task) -> list[dict[str, Any]]:
     return rows
 
 
-# ---- running many tasks ------------------------------------------------------------------------
 def _worker_init() -> None:
     """One numba thread per worker process: the pool already fills the cores."""
     import numba
@@ -150,24 +140,8 @@ def read_rows(csv_path: Path) -> list[dict[str, Any]]:
 def run_tasks(
     tasks: list[Task], csv_path: Path, jobs: int = 0, progress: bool = True
 ) -> list[dict[str, Any]]:
-    """Run the tasks not yet in ``csv_path``, appending each one's rows as it finishes.
-
-    Parameters
-    ----------
-    tasks : list of Task
-        The grid's tasks.
-    csv_path : Path
-        runs.csv; created with a header when missing, appended to otherwise.
-    jobs : int
-        Worker processes; 0 means one per core, 1 runs everything in this process.
-    progress : bool
-        Show a tqdm progress bar.
-
-    Returns
-    -------
-    list of dict
-        The rows of every task in ``tasks`` (earlier runs' included), in CSV order.
-    """
+    """Run the tasks not yet in ``csv_path`` in ``jobs`` workers (0: one per core, 1: this
+    process), appending each one's rows as it finishes; returns every task's rows in CSV order."""
     from tqdm import tqdm
 
     wanted = {t.key for t in tasks}
@@ -212,26 +186,8 @@ def run_tasks(
 def run_eval(
     out: Path, quick: bool = False, jobs: int = 0, progress: bool = True, smoke: bool = False
 ) -> int:
-    """`limbctl eval`: run the grid, write runs.csv, summary.md and the figures into ``out``.
-
-    Parameters
-    ----------
-    out : Path
-        Output folder (created); a rerun into it resumes.
-    quick : bool
-        The reduced grid instead of the full one.
-    jobs : int
-        Worker processes (0: one per core).
-    progress : bool
-        Show a progress bar.
-    smoke : bool
-        The tiny test grid (overrides ``quick``); for the test suite.
-
-    Returns
-    -------
-    int
-        0 when the run finished and the reproduction check passed (or was not in the grid),
-        1 when the SOM reproduction number fell outside its expected band.
+    """`limbctl eval`: run the full, ``quick`` or ``smoke`` grid into ``out`` (a rerun resumes):
+    runs.csv, summary.md, figures. Returns 0, or 1 when the SOM reproduction fell outside its band.
     """
     from limbctl.eval import plots as eval_plots
     from limbctl.eval.twist import run_twist

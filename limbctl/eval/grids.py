@@ -1,10 +1,7 @@
 """The experiment grids of `limbctl eval`: which data sets, models and answers each point runs.
 
-Three scales share one shape: ``full`` (the papers' grids, 10 seeds per point; docs/results.md),
-``quick`` (fewer points, 2 seeds, under two minutes on two cores) and ``smoke`` (two points per
-experiment, 1 seed, small: an end-to-end test). The SOM paper's experiments run ``SOM RxC`` (its
-answer and its threshold gate) beside ``gate``, a Rigid Map on the same data; the Rigid Map
-paper's run the papers' two layouts and super-Fibonacci (:func:`paper_rigid_maps`).
+Three scales share one shape: ``full`` (the papers' grids, 10 seeds; docs/results.md), ``quick``
+(fewer points, 2 seeds) and ``smoke`` (two points per experiment, 1 seed: an end-to-end test).
 """
 
 from __future__ import annotations
@@ -22,7 +19,6 @@ INTERPOLATIONS = ("idw", "geometric", "geometric-winner", "topological")
 SCALES = ("full", "quick", "smoke")
 
 
-# ---- definitions -------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class DataSpec:
     """How one data set is drawn (twist-free orientations of a limb resting along +x).
@@ -36,8 +32,7 @@ class DataSpec:
     test_patterns : int
         Test patterns, valid and invalid.
     test_spread : str
-        Test directions uniform over the sphere (``"sphere"``) or within ``R + min(R, 45 deg)``
-        of +x (``"around"``).
+        Test directions uniform over the sphere (``"sphere"``) or around the cone (``"around"``).
     boundary_ratio : float
         Training density in the band (swing in (R/2, R]) over the central cap's; 1 is uniform.
     """
@@ -81,10 +76,7 @@ class ModelSpec:
 
 @dataclass(frozen=True)
 class Task:
-    """One data set and the models trained on it.
-
-    When ``x_from_k`` is set, each row's x is its answer's ``k`` (0 for a discrete answer).
-    """
+    """One data set and the models trained on it (``x_from_k``: each row's x is its answer's k)."""
 
     grid: str
     experiment: str
@@ -97,9 +89,8 @@ class Task:
 
     @property
     def key(self) -> str:
-        """A short hash of the whole definition and of the gate's and the region fit's
-        versions: resuming never mixes changed tasks, nor results of an older gate or region
-        construction with a newer one."""
+        """A short hash of the definition and the gate's and fit's versions: a resume never mixes
+        changed tasks or older results."""
         from limbctl.envelope.rigidmap import GATE_VERSION
         from limbctl.region.taught import FIT_VERSION
 
@@ -112,7 +103,6 @@ def respond_all(methods: Iterable[str], k: int) -> tuple[Answer, ...]:
     return (Answer("respond"),) + tuple(Answer("respond", m, k) for m in methods)
 
 
-# ---- scales ------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class Scale:
     """Sizes of one grid scale (see the module docstring)."""
@@ -185,7 +175,6 @@ SCALE_SIZES = {
 }
 
 
-# ---- models ------------------------------------------------------------------------------------
 def som_spec(side: int, label: str | None = None) -> ModelSpec:
     """The SOM paper's network, ``side x side`` nodes: its answer and its threshold gate."""
     answers = (Answer("respond"), Answer("correct"))
@@ -200,11 +189,8 @@ def gate_spec() -> ModelSpec:
 
 
 def paper_rigid_maps(scale: Scale, answers_720, answers_uniform) -> tuple[ModelSpec, ...]:
-    """The Rigid Map paper's two layouts plus super-Fibonacci, each also as a gate.
-
-    Nodes live on w >= 0: the papers' 720 polytope nodes over S^3 fold to 360, and their 2000
-    uniform nodes over S^3 are matched in density by ``uniform_nodes / 2`` on the hemisphere.
-    """
+    """The Rigid Map paper's two layouts (at their S^3 density on w >= 0) plus super-Fibonacci,
+    each also as a gate."""
     n, k = scale.uniform_nodes, scale.k_uniform
     fibonacci = (Answer("respond", "geometric", k), Answer("correct"), Answer("data-nodes"))
     fibonacci += (Answer("data-nodes", "geometric", k),)
@@ -219,7 +205,6 @@ def paper_rigid_maps(scale: Scale, answers_720, answers_uniform) -> tuple[ModelS
     )
 
 
-# ---- grids -------------------------------------------------------------------------------------
 def build_tasks(scale_name: str) -> list[Task]:
     """Every task of one scale (``full``, ``quick`` or ``smoke``), SOM paper first."""
     if scale_name not in SCALE_SIZES:

@@ -1,11 +1,7 @@
 """Error metrics of a constraint model's answers against Lee's ideal corrections.
 
-Every function takes (N, 4) unit quaternions (w, x, y, z) and returns per-row values;
-:func:`score` reduces them to the numbers the evaluation tables report, split by valid and invalid
-inputs. ``mse`` and ``err3d_rms`` are the papers' metrics (:func:`quaternion_sq_error`,
-:func:`endpoint_error`); ours say how far the limb direction moves (``angle_*_deg``), whether valid
-inputs come back unchanged (``unchanged_share``) and whether answers land in the true region
-(``inside_share``, and ``outside_p95_deg``: how far those outside lie).
+Every function takes (N, 4) unit quaternions and returns per-row values; :func:`score` reduces
+them to the tables' numbers by valid and invalid inputs (docs/results.md, "Metrics").
 """
 
 from __future__ import annotations
@@ -18,8 +14,7 @@ import numpy as np
 from limbctl.errors import ConfigError
 from limbctl.geometry.quat import direction_angle, geodesic_distance, limb_direction
 
-#: An answer counts as "unchanged" when it is within this rotation angle of the input
-#: (1e-6 rad = 0.2 arc seconds, far below any servo step, far above float64 rounding).
+#: Rotation (rad) within which an answer is "unchanged": far below a servo step, above rounding.
 UNCHANGED_TOLERANCE = 1e-6
 
 #: Names of the per-subset numbers :func:`score` returns, in table order.

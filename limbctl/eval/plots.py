@@ -88,7 +88,6 @@ def series_of(points: list[Point]) -> dict[str, list[Point]]:
     return {name: sorted(ps, key=lambda p: p.x) for name, ps in out.items()}
 
 
-# ---- figures -----------------------------------------------------------------------------------
 def _style(series: str) -> dict[str, Any]:
     """Paper networks solid, their threshold/gate answers dashed, the gate thick."""
     if "correct" in series:
@@ -222,7 +221,6 @@ def draw_all(points: list[Point], out: Path) -> list[Path]:
     return written
 
 
-# ---- markdown ----------------------------------------------------------------------------------
 @dataclass
 class Summary:
     """The markdown summary, its headline lines, and the reproduction verdict (None: not run)."""

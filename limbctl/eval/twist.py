@@ -1,11 +1,6 @@
-"""`limbctl eval`'s twist experiment: the learned region's exact correction against the engines'
-swing-then-twist clamp on the true region.
-
-A :class:`~limbctl.envelope.synthetic_twist.ShoulderRegion` is taught and learned by
-``RigidMap(twist=True)``. For commands up to 30 deg beyond the outline and 40 deg past the band,
-the learned ``correct()`` and the engines' clamp on the true region are compared with the true
-nearest orientation (brute force over the true boundary). Written to ``twist.csv`` and
-``twist.md`` in the eval folder.
+"""`limbctl eval`'s twist experiment: a ShoulderRegion learned by ``RigidMap(twist=True)``; its
+``correct()`` and the engines' swing-then-twist clamp on the true region against the true
+nearest orientation, written to ``twist.csv`` and ``twist.md``.
 """
 
 from __future__ import annotations

@@ -1,12 +1,4 @@
-"""The three-servo demo's stream, judgement and picture (``limbctl demo --rig sim3``).
-
-- :func:`write_twist_stream`: a replay file sweeping far outside the taught region in swing and
-  in twist (joint angles with roll), with malformed lines mixed in;
-- :func:`twist_excursions`: how far (deg of rotation) each goal the simulator logged lies
-  outside the learned region, at most (the least distance to orientations the region holds);
-- :func:`coverage`: the share of a true region's orientations the learned region holds;
-- :func:`twist_picture`: the taught samples and the goals the gate wrote against the bands.
-"""
+"""The three-servo demo's stream, judgement and picture (``limbctl demo --rig sim3``)."""
 
 from __future__ import annotations
 
@@ -21,10 +13,8 @@ from limbctl.geometry.twist import decompose
 
 
 def write_twist_stream(path: Path, seconds: float = 12.0, rate_hz: float = 50.0) -> int:
-    """A replay file: a Lissajous sweep (pan +-110, tilt -50..70 deg) with the roll swinging
-    +-150 deg, far outside the taught twist band, and a few bad lines. Returns the valid lines.
-    12 s at 50 lines/s lets the gate's slew limit, not the stream, shape the motion.
-    """
+    """Write a replay file sweeping far outside the taught region in swing and twist, with a few
+    bad lines; returns the valid lines."""
     n = int(seconds * rate_hz)
     t = np.arange(n) / rate_hz
     pan = 110.0 * np.sin(2 * math.pi * t / seconds)
@@ -85,9 +75,8 @@ def rotation_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def twist_excursions(
     goal_log: Path, model: object, written: np.ndarray | None = None
 ) -> np.ndarray:
-    """Rotation (deg) by which each logged goal lies outside ``model``'s region, at most; 0
-    inside. ``written`` (M, 4): the orientations the gate wrote (its telemetry); those the
-    region contains bound each goal's distance too (module docstring)."""
+    """Rotation (deg) by which each logged goal lies outside ``model``'s region, at most; 0 inside.
+    ``written`` (M, 4): the orientations the gate wrote, which bound the distance too."""
     q = logged_orientations(goal_log)
     if not len(q):
         return np.zeros(0)
@@ -108,22 +97,16 @@ def twist_excursions(
     return np.where(outside, bound, 0.0)
 
 
-#: Goals whose bound exceeds this (deg) are measured again by sampling around them: well under
-#: the written tolerance (0.108 deg), so that no goal is judged over it on ``correct``'s word
-#: alone, whose local search may stop up to about 0.1 deg short (docs/region.md).
+#: Bound (deg) above which a goal is measured again by sampling: under the 0.108 deg tolerance,
+#: as ``correct``'s local search may stop about 0.1 deg short.
 REFINE_ABOVE_DEG = 0.05
-#: Orientations sampled around such a goal: the nearest held one then lies within a few
-#: thousandths of a degree of the true distance for the sub-degree balls involved.
+#: Orientations sampled around such a goal: the nearest held one within thousandths of a degree.
 REFINE_SAMPLES = 20000
 
 
 def nearest_held_nearby_deg(model: object, q: np.ndarray, radius_deg: float, seed: int) -> float:
-    """Rotation (deg) from ``q`` (4,) to the nearest of ``REFINE_SAMPLES`` orientations drawn
-    uniformly within ``radius_deg`` of it that ``model`` contains; ``radius_deg`` when none is.
-
-    An upper bound on the distance from ``q`` to the region, as every held orientation is; it
-    does not rely on ``correct``'s search.
-    """
+    """Rotation (deg) from ``q`` (4,) to the nearest of REFINE_SAMPLES random orientations within
+    ``radius_deg`` that ``model`` contains (``radius_deg`` when none): an upper bound."""
     from limbctl.geometry.quat import canonical, from_axis_angle, multiply
 
     rng = np.random.default_rng(seed)
@@ -214,8 +197,7 @@ def twist_picture(
     plt.close(fig)
 
 
-#: Grid step (deg) of the learned band's width picture: finer than the band's 1.5 deg nodes
-#: would show no more at the picture's ~3 px per degree.
+#: Grid step (deg) of the learned band's width picture: finer would show no more at ~3 px/deg.
 WIDTH_STEP_DEG = 2.0
 
 

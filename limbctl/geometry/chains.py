@@ -1,8 +1,5 @@
-"""The geometry a joint chain's gate steps in: the points it moves, their distance and step.
-
-A chain of two joints (pan, tilt) places the limb direction; a chain of three (pan, tilt, roll)
-places the full orientation. The gate (:mod:`limbctl.teleop.gate`) runs one algorithm on
-*points* of its chain's geometry (:func:`chain_geometry`):
+"""The geometry a joint chain's gate (:mod:`limbctl.teleop.gate`) steps in, by
+:func:`chain_geometry`:
 
 =============  ====================================  =========================================
                :class:`Directions` (2 joints)        :class:`Rotations` (3 joints)
@@ -14,9 +11,7 @@ point          limb direction, unit 3-tuple          unit quaternion (4,), w >= 
 ``point_at``   direction of (pan, tilt)              ``Rz(pan) Ry(-tilt) Rx(roll)``
 =============  ====================================  =========================================
 
-Both compute with plain floats (:mod:`limbctl.geometry.scalar`, the ``*_scalar`` twins of
-:mod:`limbctl.geometry.gimbal`): one pose per cycle, where numpy's per-call overhead would
-dominate. Angles are radians.
+Both compute one pose per cycle with plain floats. Angles are radians.
 """
 
 from __future__ import annotations
@@ -34,10 +29,8 @@ Pose = tuple[float, ...]
 
 
 def geodesic(a: np.ndarray, b: np.ndarray) -> float:
-    """Rotation angle (rad) between unit quaternions (4,): ``4 atan2(|a - s b|, |a + s b|)``
-    with ``s = sign(a . b)``. The quaternions lie ``phi = acos |a . b|`` apart on S^3, and
-    ``|a - s b| = 2 sin(phi/2)``, ``|a + s b| = 2 cos(phi/2)``, so this is
-    ``2 phi = 2 acos |a . b|``, accurate near 0 where acos is not."""
+    """Rotation angle (rad) between unit quaternions (4,): ``4 atan2(|a - s b|, |a + s b|)``,
+    ``s = sign(a . b)``: ``2 acos |a . b|``, accurate near 0 where acos is not."""
     aw, ax, ay, az = a.tolist()
     bw, bx, by, bz = b.tolist()
     if aw * bw + ax * bx + ay * by + az * bz < 0.0:

@@ -6,17 +6,10 @@ swing from +x to ``d``. Three joints are ``q = Rz(pan) Ry(-tilt) Rx(roll)``; wit
 cosines/sines ``cp, sp, ct, st, cr, sr``, ``A = Rz(pan) Ry(-tilt) = (cp ct, sp st, -cp st, sp ct)``
 and ``q = (A_w cr - A_x sr, A_w sr + A_x cr, A_y cr + A_z sr, A_z cr - A_y sr)``.
 
-Roll is not the twist: the twist of ``q`` about +x is ``roll + chain_twist(pan, tilt)`` with
-``chain_twist = 2 atan(tan(pan/2) tan(tilt/2))`` (8.2 deg at (30, 30) deg, 60 deg at (90, 60)).
-Inverse kinematics takes pan and tilt from ``d`` (the present pan kept where the limb lies along
-+-z, the gimbal lock, where roll takes up the whole turn) and roll from ``r = conj(A) q``,
-``roll = 2 atan2(r_x, r_w)``, so it holds at d = -x too. ``q`` fixes roll modulo 360 deg: the
-inverse returns the representative within the roll joint's limits nearest the present roll
-(:func:`unwrap_roll_scalar`); on profiles whose limits lie inside (-180, 180) deg exactly one does.
-
-All angles are radians. Array functions take (...,) angles and (..., 4) quaternions; the
-``*_scalar`` functions take one pose as plain floats for the gate's hot path; :func:`pose_quat`
-and :func:`pose_from_quat` take one pose of either chain.
+Roll is not the twist: the twist of ``q`` about +x is ``roll + chain_twist(pan, tilt)``.
+Inverse kinematics takes pan and tilt from ``d`` (the present pan kept at the gimbal lock) and
+roll from ``r = conj(A) q``, ``roll = 2 atan2(r_x, r_w)``, unwrapped within the roll joint's
+limits nearest the present roll. Angles are radians; ``*_scalar`` functions take one pose.
 """
 
 from __future__ import annotations
@@ -71,11 +64,8 @@ def quat_to_pan_tilt(
 
 
 def chain_twist(pan: np.ndarray, tilt: np.ndarray) -> np.ndarray:
-    """Twist (rad) of ``Rz(pan) Ry(-tilt)`` about +x: ``2 atan(tan(pan/2) tan(tilt/2))``.
-
-    Computed as ``2 atan2(sin(pan/2) sin(tilt/2), cos(pan/2) cos(tilt/2))``, which is the same
-    angle for |pan|, |tilt| < 180 deg and stays finite at pan = 180 deg.
-    """
+    """Twist (rad) of ``Rz(pan) Ry(-tilt)`` about +x: ``2 atan(tan(pan/2) tan(tilt/2))``, as
+    ``2 atan2(sin(pan/2) sin(tilt/2), cos(pan/2) cos(tilt/2))``, finite at pan = 180 deg."""
     pan = np.asarray(pan, dtype=np.float64)
     tilt = np.asarray(tilt, dtype=np.float64)
     # tau = 2 atan2(sp st, cp ct)
@@ -110,7 +100,6 @@ def pan_tilt_roll_to_quat(pan: np.ndarray, tilt: np.ndarray, roll: np.ndarray) -
     return np.where(q[..., :1] < 0.0, -q, q)
 
 
-# ---- one pose, plain floats ----------------------------------------------------------------------
 def pose_quat_scalar(pan: float, tilt: float, roll: float) -> np.ndarray:
     """:func:`pan_tilt_roll_to_quat` of one pose, shape (4,)."""
     cp, sp = math.cos(pan / 2), math.sin(pan / 2)
@@ -125,11 +114,8 @@ def pose_quat_scalar(pan: float, tilt: float, roll: float) -> np.ndarray:
 
 
 def unwrap_roll_scalar(roll: float, present: float, lo: float, hi: float) -> float:
-    """The representative ``roll + 2 pi k`` (k in -1, 0, 1) within ``[lo, hi]`` nearest ``present``.
-
-    ``roll`` is taken in (-2 pi, 2 pi] (rad). When no representative lies within the limits, the
-    one nearest the limits is returned (the caller's clamp then decides).
-    """
+    """The representative ``roll + 2 pi k`` (k in -1, 0, 1) within ``[lo, hi]`` nearest ``present``
+    (``roll`` in (-2 pi, 2 pi] rad); else the one nearest the limits."""
     best, best_score = roll, math.inf
     for k in (-1.0, 0.0, 1.0):
         candidate = roll + TWO_PI * k
@@ -143,12 +129,8 @@ def unwrap_roll_scalar(roll: float, present: float, lo: float, hi: float) -> flo
 def pan_tilt_roll_scalar(
     q: np.ndarray, current_pan: float, current_roll: float, lo: float, hi: float
 ) -> tuple[float, float, float]:
-    """Joint angles (rad) with ``Rz(pan) Ry(-tilt) Rx(roll) = +-q`` for unit ``q`` (4,).
-
-    Pan and tilt come from the limb direction (``current_pan`` kept at tilt +-90 deg); the roll
-    is what is left, ``2 atan2(r_x, r_w)`` with ``r = conj(A(pan, tilt)) q``, unwrapped against
-    ``current_roll`` within ``[lo, hi]`` (:func:`unwrap_roll_scalar`).
-    """
+    """Joint angles (rad) with ``Rz(pan) Ry(-tilt) Rx(roll) = +-q`` for unit ``q`` (4,), the pan
+    ``current_pan`` at tilt +-90 deg, the roll unwrapped near ``current_roll`` in ``[lo, hi]``."""
     pan, tilt = pan_tilt_scalar(limb_scalar(q), current_pan)
     cp, sp = math.cos(pan / 2), math.sin(pan / 2)
     ct, st = math.cos(tilt / 2), math.sin(tilt / 2)
@@ -160,11 +142,9 @@ def pan_tilt_roll_scalar(
     return pan, tilt, unwrap_roll_scalar(2.0 * math.atan2(r_x, r_w), current_roll, lo, hi)
 
 
-# ---- one pose of either chain ------------------------------------------------------------------
 def pose_quat(*pose: float) -> np.ndarray:
-    """Orientation (4,), w >= 0, of one pose: the twist-free swing of ``(pan, tilt)``
-    (:func:`pan_tilt_to_quat`) or ``Rz(pan) Ry(-tilt) Rx(roll)`` of ``(pan, tilt, roll)``
-    (:func:`pose_quat_scalar`)."""
+    """Orientation (4,), w >= 0, of one pose of either chain: ``(pan, tilt)`` twist-free or
+    ``Rz(pan) Ry(-tilt) Rx(roll)``."""
     if len(pose) == 2:
         return pan_tilt_to_quat(*pose)
     return pose_quat_scalar(*pose)
@@ -173,10 +153,8 @@ def pose_quat(*pose: float) -> np.ndarray:
 def pose_from_quat(
     q: np.ndarray, present: Sequence[float], limits: Sequence[tuple[float, float]]
 ) -> tuple[float, ...]:
-    """The pose (rad) of the chain of ``present``'s length that orients the limb as unit ``q``
-    (4,): the present pan is kept at the singularity and a roll is unwrapped within its
-    ``limits`` entry ``(lo, hi)`` (rad) nearest the present roll (:func:`pan_tilt_roll_scalar`).
-    """
+    """The pose (rad) of the chain of ``present``'s length orienting the limb as unit ``q`` (4,),
+    a roll unwrapped within its ``limits`` entry ``(lo, hi)`` nearest the present roll."""
     if len(present) == 2:
         return pan_tilt_scalar(limb_scalar(q), present[0])
     return pan_tilt_roll_scalar(q, present[0], present[2], *limits[2])

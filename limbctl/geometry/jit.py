@@ -1,19 +1,9 @@
 """The one way limbctl compiles a numba kernel: :func:`njit`, cached soundly or not at all.
 
-``@njit``, ``@njit(parallel=True)`` or ``@njit("f8(f8[:])")`` takes numba's own options
-(``cache=`` is ignored: caching is decided here) and returns numba's dispatcher. It fixes two
-faults of numba's own cache:
-
-- **Stale code.** numba checks only the file defining a kernel, so a kernel that calls one of
-  another file keeps old machine code. Here the cache folder is named after :func:`source_key`, a
-  hash of every source under :data:`KERNEL_PACKAGES` and numba's version.
-- **No writable place.** numba raises "no locator available" at import on a read-only install.
-  Here the kernels then compile in memory and one line on stderr says so.
-
-The cache lives in the first writable of :func:`cache_candidates`:
-``$NUMBA_CACHE_DIR/limbctl-<key>``, ``<package>/__pycache__/numba-<key>``,
-``$XDG_CACHE_HOME/limbctl/numba-<key>`` (default ``~/.cache``), else nowhere. Folders of other
-keys beside the package are removed when a new one is made; the others may serve other installs.
+It fixes two faults of numba's own cache: stale code (numba checks only the kernel's own file;
+here the folder is named after :func:`source_key`, a hash of every kernel source and numba's
+version) and no writable place on a read-only install (here the kernels compile in memory, with
+one line on stderr). The folder is the first writable of :func:`cache_candidates`.
 """
 
 from __future__ import annotations
@@ -32,13 +22,10 @@ from pathlib import Path
 import numba
 from numba.core import caching
 
-#: The limbctl subpackages whose modules may hold kernels or constants kernels freeze in; the cache
-#: key hashes every ``.py`` file in them. Kernels outside them would escape the key, which
-#: tests/geometry/test_jit.py forbids.
+#: The subpackages whose ``.py`` files the cache key hashes: every kernel and constant it freezes.
 KERNEL_PACKAGES = ("geometry", "region", "envelope")
 
-#: How many hex digits of the sha256 name a cache folder: 16 (64 bits) never collide between the few
-#: versions of the sources one machine sees, and keep paths short.
+#: Hex digits of the sha256 naming a cache folder: 64 bits never collide, paths stay short.
 KEY_DIGITS = 16
 
 _PACKAGE = Path(__file__).resolve().parents[1]
@@ -46,8 +33,7 @@ _PACKAGE = Path(__file__).resolve().parents[1]
 
 @functools.cache
 def source_key() -> str:
-    """:data:`KEY_DIGITS` hex digits of the sha256 over (relative path, contents) of each ``.py``
-    file under :data:`KERNEL_PACKAGES`, sorted by path, then ``numba.__version__``."""
+    """The sha256 (KEY_DIGITS hex) of every kernel package's ``.py`` files and numba's version."""
     digest = hashlib.sha256()
     for package in KERNEL_PACKAGES:
         for path in sorted((_PACKAGE / package).rglob("*.py")):
@@ -60,7 +46,7 @@ def source_key() -> str:
 
 
 def cache_candidates() -> list[Path]:
-    """The cache folders tried, in order (see the module's docstring)."""
+    """The cache folders tried, in order: ``$NUMBA_CACHE_DIR``, the package, ``$XDG_CACHE_HOME``."""
     key = source_key()
     found = []
     if os.environ.get("NUMBA_CACHE_DIR"):
@@ -139,20 +125,9 @@ class _KeyedCache(caching.FunctionCache):
 
 
 def njit(function: Callable | str | None = None, /, **options) -> Callable:
-    """Compile ``function`` with numba in nopython mode, cached under :func:`cache_dir`.
-
-    Parameters
-    ----------
-    function : callable or signature, optional
-        The kernel (bare ``@njit``), or an eager signature (``@njit("f8(f8[:])")``), or nothing
-        (``@njit(parallel=True)``).
-    **options
-        numba's ``njit`` options. ``cache`` is ignored.
-
-    Returns
-    -------
-    numba dispatcher, or a decorator making one.
-    """
+    """Compile ``function`` with numba in nopython mode, cached under :func:`cache_dir`; as
+    ``@njit``, ``@njit("f8(f8[:])")`` (eager) or ``@njit(**options)`` (numba's, ``cache`` ignored).
+    Returns numba's dispatcher, or a decorator making one."""
     options.pop("cache", None)
     signatures = None
     if function is not None and not callable(function):
@@ -161,8 +136,7 @@ def njit(function: Callable | str | None = None, /, **options) -> Callable:
     def decorate(py_func: Callable):
         dispatcher = numba.njit(**options)(py_func)
         if cache_dir() is not None:
-            # what numba's enable_caching does, with a locator of our own; a function with no
-            # source file (defined in a string, an interactive session) compiles in memory
+            # numba's enable_caching with our locator; a function with no source file: in memory
             with contextlib.suppress(RuntimeError):
                 dispatcher._cache = _KeyedCache(py_func)
         if signatures is not None:
@@ -174,11 +148,8 @@ def njit(function: Callable | str | None = None, /, **options) -> Callable:
     return decorate(function) if function is not None else decorate
 
 
-# ---- first run: a warm-up compiles ahead, commands wait for it ----------------------------------
-#: What a warm-up compiles ahead and a command marks once its kernels are in the cache: the
-#: training's kernels and the gate's (teleop's start and park check), of a two-servo rig and of
-#: a three-servo rig (``-twist``: the twist band's fit and the gate's kernels on SO(3), which a
-#: two-servo rig never compiles).
+#: What a warm-up compiles ahead and a command marks once in the cache: training and the gate,
+#: of a two-servo rig and (``-twist``) of a three-servo rig.
 STAGES = ("train", "gate", "train-twist", "gate-twist")
 
 
@@ -215,10 +186,8 @@ def mark_prepared(stage: str) -> None:
 
 @contextlib.contextmanager
 def warming(wait: Callable[[], None] | None = None):
-    """Hold the cache's warm-up lock (exclusive) while the body compiles; yields whether it
-    got it (False: no cache, or another warm-up holds it, so there is nothing to do here).
-    With ``wait``, when another warm-up holds it, call ``wait()`` (to say so) and wait for it to
-    let go."""
+    """Hold the cache's warm-up lock while the body compiles; yields whether it got it (False: no
+    cache, or another warm-up holds it and no ``wait`` was given: else ``wait()``, then wait)."""
     folder = cache_dir()
     if folder is None:
         yield False

@@ -116,10 +116,8 @@ def rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 
 def limb_direction(q: np.ndarray) -> np.ndarray:
-    """Unit direction (..., 3) of a limb resting along +x after rotation by ``q`` (..., 4).
-
-    Closed form of ``rotate(q, [1, 0, 0])``: ``(w^2 + x^2 - y^2 - z^2, 2(xy + wz), 2(xz - wy))``.
-    """
+    """Unit direction (..., 3) of a limb resting along +x after rotation by ``q`` (..., 4):
+    ``(w^2 + x^2 - y^2 - z^2, 2(xy + wz), 2(xz - wy))``."""
     q = np.asarray(q, dtype=np.float64)
     w, x, y, z = np.moveaxis(q, -1, 0)
     return np.stack(
@@ -140,10 +138,7 @@ def swing_from_direction(d: np.ndarray) -> np.ndarray:
 
 
 def swing_angle(q: np.ndarray) -> np.ndarray:
-    """Swing angle (rad) of ``q`` about +x: the angle between the limb and its rest direction.
-
-    ``2 acos(sqrt(w^2 + x^2))`` (Lee). Shape (...,).
-    """
+    """Swing angle (...,) rad of ``q``, limb to rest direction: ``2 acos(sqrt(w^2 + x^2))``."""
     q = np.asarray(q, dtype=np.float64)
     c = np.sqrt(np.clip(q[..., 0] ** 2 + q[..., 1] ** 2, 0.0, 1.0))
     return 2.0 * np.arccos(c)
@@ -171,10 +166,8 @@ def direction_angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def tangent_frame(axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Unit vectors u, v (3,) completing unit ``axis`` (3,) to a right-handed frame (u x v = axis).
-
-    ``u = (h x axis) / |h x axis|`` with helper ``h = +z`` (``+y`` when the axis is near z).
-    """
+    """Unit u, v (3,) completing ``axis`` (3,) to a right-handed frame: ``u = (h x axis) / |h x
+    axis|``, ``h = +z`` (``+y`` near z), ``v = axis x u``."""
     helper = np.array([0.0, 0.0, 1.0]) if abs(axis[2]) < 0.9 else np.array([0.0, 1.0, 0.0])
     u = np.cross(helper, axis)
     u /= np.linalg.norm(u)

@@ -1,9 +1,7 @@
 """Scalar kinematics for the gate's hot path: one pose per cycle, plain floats.
 
-Numpy's per-call overhead is ~10x the arithmetic for a single pose, so the gate uses these
-instead of the array functions of :mod:`limbctl.geometry.gimbal` and :mod:`limbctl.geometry.quat`.
-They compute the same formulas (``tests/geometry/test_scalar.py`` checks each against its array
-version). Directions are unit 3-tuples; angles are radians.
+The same formulas as :mod:`limbctl.geometry.gimbal` and :mod:`limbctl.geometry.quat`, without
+numpy's per-call overhead (~10x the arithmetic for one pose). Angles are radians.
 """
 
 from __future__ import annotations
@@ -17,8 +15,7 @@ Vec3 = tuple[float, float, float]
 #: |d_z| above which the pan is undefined and the current pan is kept.
 SINGULAR_COS = 1e-9
 
-#: Below this norm a tangent or a swing's axis is taken as zero: float64 rounding of unit
-#: vectors is ~1e-16, so 1e-12 only catches true (anti)parallel cases.
+#: Norm below which a tangent or swing axis is zero: far above rounding (~1e-16) of unit vectors.
 DEGENERATE_NORM = 1e-12
 
 

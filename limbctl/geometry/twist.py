@@ -24,13 +24,9 @@ from limbctl.geometry.quat import canonical, limb_direction, swing_from_directio
 
 Vec3 = tuple[float, float, float]
 
-#: Below this swing scalar ``s_w = sqrt(w^2 + x^2)`` the direction is taken as exactly -x and the
-#: twist is read from (y, z): float64 quaternions carry ~1e-16 absolute error, so 1e-12 only
-#: catches true half-turns about an axis perpendicular to x.
+#: Swing scalar ``s_w`` below which the direction is -x, twist read from (y, z): above rounding.
 SINGULAR_SW = 1e-12
-#: Closest angle (rad) a region's directions may come to -x: 20 deg keeps s_w = sin(10 deg)
-#: >= 0.17, so twist keeps ~1e-15 rad precision and the search over directions never meets the
-#: jump of the swing at -x.
+#: Closest angle (rad) a region comes to -x: s_w >= sin(10 deg) keeps twist precise to ~1e-15.
 SINGULAR_MARGIN = math.radians(20.0)
 
 
@@ -39,8 +35,7 @@ def wrap(angle: np.ndarray | float) -> np.ndarray:
     a = np.asarray(angle, dtype=np.float64)
     # a - 2 pi ceil((a - pi) / 2 pi) lies in (-pi, pi]
     wrapped = a - 2.0 * np.pi * np.ceil((a - np.pi) / (2.0 * np.pi))
-    # the quotient rounds near the ends: -pi + 4e-16 gave exactly -1 and wrapped to pi + 4e-16.
-    # An angle already in range is kept; one rounded a ulp past an end is folded back
+    # the quotient rounds near the ends (-pi + 4e-16 wrapped to pi + 4e-16): in range is kept
     wrapped = np.where(wrapped > np.pi, wrapped - 2.0 * np.pi, wrapped)
     wrapped = np.where(wrapped <= -np.pi, wrapped + 2.0 * np.pi, wrapped)
     return np.where((a > -np.pi) & (a <= np.pi), a, wrapped)

@@ -1,9 +1,5 @@
-"""Whether a proposed edge agrees with the taught samples: one acceptance for every strategy.
-
-A strategy (:mod:`limbctl.region.edge_choice`) answers with a :class:`Proposal` or a
-:class:`Refusal`; :func:`judge` turns either into a :class:`Verdict` by the checks
-docs/region.md lists (arcs cross, unexplained gaps, samples left out, reach beyond a rival,
-bridged stretches). The supported edge comes with its region and is accepted as it is.
+"""Whether a proposed edge agrees with the taught samples: :func:`judge` turns a strategy's
+:class:`Proposal` or :class:`Refusal` into a :class:`Verdict` by the checks docs/region.md lists.
 """
 
 from __future__ import annotations
@@ -41,8 +37,7 @@ class Proposal:
     edges : list of ndarray, each (K, 3)
         Closed counter-clockwise loops of unit directions, the region on their left.
     region : DirectionMesh or None
-        Given only where the edge holds the taught samples by construction (the supported
-        edge): accepted as it is.
+        Given where the edge holds the samples by construction: accepted as it is.
     note : str
         Why a proposal with a region needs no checks.
     """
@@ -192,11 +187,8 @@ def reach_beyond(edges: list[np.ndarray], region: DirectionMesh) -> float:
 
 
 def arcs_cross(loops: list[np.ndarray]) -> bool:
-    """Whether any two non-adjacent arcs of the closed ``loops`` (each (M, 3)) cross.
-
-    The ends of each lie on both sides of the other's great circle and their midpoints face the
-    same way.
-    """
+    """Whether any two non-adjacent arcs of the closed ``loops`` (each (M, 3)) cross: each one's
+    ends on both sides of the other's great circle, their midpoints facing the same way."""
     a = np.vstack(loops)
     b = np.vstack([np.roll(lp, -1, axis=0) for lp in loops])
     owner = np.concatenate([np.full(lp.shape[0], i) for i, lp in enumerate(loops)])

@@ -1,10 +1,6 @@
-"""Numba kernels that answer the region's queries from its arcs alone, without the lookup grid.
-
-The grid costs a tenth of a second to build; a fit asks a few thousand questions of candidate
-meshes it may throw away (:mod:`limbctl.region.acceptance`). The rule is the grid queries'
-(:func:`limbctl.region.mesh_kernels.query`): in the loops by the parity of crossings of the
-half-meridian to ``-axis``; the nearest widened arc (the first of equal ones); inside when in
-the loops or ``min key <= CONTAIN_TOLERANCE``. Angles in radians. No fastmath.
+"""Numba kernels that answer the region's queries from its arcs alone, without the lookup grid
+(for candidate meshes a fit may throw away), by the rule of
+:func:`limbctl.region.mesh_kernels.query`. Angles in radians. No fastmath.
 """
 
 from __future__ import annotations
@@ -34,8 +30,7 @@ def arc_bounds(vertices, edges):
     for e in range(n_edges):
         a = vertices[edges[e, 0]]
         b = vertices[edges[e, 1]]
-        # component by component: assigning a whole row would bring in numba's shape checks
-        # and their error formatting, seconds of compiling for nothing
+        # component by component: a whole row brings in numba's shape checks, seconds to compile
         mx = a[0] + b[0]
         my = a[1] + b[1]
         mz = a[2] + b[2]
@@ -65,12 +60,8 @@ def nearest_midpoint(p, mids) -> int:
 
 @njit
 def nearest_widened(p, vertices, edges, margins, mids, half, reach, tie, best_point):
-    """The nearest widened arc of ``p`` (3,): its index, ``angle - margin`` and angle (rad).
-
-    Its nearest point goes into ``best_point`` (3,). A later arc wins only when nearer by more
-    than ``tie`` (rad). Arcs whose midpoint lies farther than the best midpoint's bound plus
-    ``reach`` (longest half length plus largest margin) are not measured.
-    """
+    """The nearest widened arc of ``p`` (3,): its index, ``angle - margin`` and angle (rad); its
+    point into ``best_point`` (3,). A later arc wins only when nearer by more than ``tie``."""
     closest = nearest_midpoint(p, mids)
     best_arc = -1
     best_key = np.inf

@@ -1,13 +1,5 @@
-"""Which edge the gate uses: interchangeable edge strategies, chosen by name.
-
-An edge strategy (:data:`EDGE_STRATEGIES`: :class:`SmoothEdge`, :class:`TracedEdge`,
-:class:`SupportedEdge`) proposes an edge from the supported loops and the taught directions;
-:func:`limbctl.region.acceptance.judge` gives every answer its verdict. :func:`choose_edge`
-takes a choice by name (:data:`EDGE_CHOICES`): ``"auto"`` judges :data:`AUTO_ORDER` and takes
-the first accepted, each within ``CONFIRM_DEG`` of the learned edges accepted after it; a
-traced edge refused for bridging a stretch the samples surround is judged again held to the
-evidence. A single name judges that strategy alone, the supported loops its fallback.
-docs/region.md describes the strategies and how to add one.
+"""Which edge the gate uses: interchangeable edge strategies, chosen by name and judged by
+:func:`limbctl.region.acceptance.judge` (docs/region.md, "Edge strategies").
 """
 
 from __future__ import annotations
@@ -25,23 +17,16 @@ from limbctl.region.mesh import DirectionMesh
 
 
 class EdgeStrategy(Protocol):
-    """What every edge strategy provides (see the module docstring)."""
+    """What every edge strategy provides (docs/region.md, "Adding an edge strategy")."""
 
     name: ClassVar[str]
     safe: ClassVar[bool]
 
     def propose(
-        self,
-        loops: list[np.ndarray],
-        data: np.ndarray,
-        supported: DirectionMesh,
-        max_offset: float,
+        self, loops: list[np.ndarray], data: np.ndarray, supported: DirectionMesh, max_offset: float
     ) -> Proposal | Refusal:
-        """An edge for all ``loops`` (each (M, 3), counter-clockwise), or why not.
-
-        ``data`` (N, 3) are the taught directions, ``supported`` the supported region,
-        ``max_offset`` (rad) caps how far the edge moves past a loop in one step.
-        """
+        """An edge for all ``loops`` (each (M, 3)) from taught ``data`` (N, 3), or why not
+        (``max_offset``: most rad it moves past a loop in one step)."""
         ...
 
 
@@ -52,11 +37,7 @@ class SupportedEdge:
     safe: ClassVar[bool] = True
 
     def propose(
-        self,
-        loops: list[np.ndarray],
-        data: np.ndarray,
-        supported: DirectionMesh,
-        max_offset: float,
+        self, loops: list[np.ndarray], data: np.ndarray, supported: DirectionMesh, max_offset: float
     ) -> Proposal:
         """The ``supported`` region itself (see :class:`EdgeStrategy`)."""
         note = "runs through the outermost taught samples, holding them by construction"
@@ -70,11 +51,7 @@ class SmoothEdge:
     safe: ClassVar[bool] = False
 
     def propose(
-        self,
-        loops: list[np.ndarray],
-        data: np.ndarray,
-        supported: DirectionMesh,
-        max_offset: float,
+        self, loops: list[np.ndarray], data: np.ndarray, supported: DirectionMesh, max_offset: float
     ) -> Proposal | Refusal:
         """The smooth edge of every loop, or the first loop's reason to refuse it."""
         edges = []
@@ -103,10 +80,7 @@ class SmoothEdge:
 
 
 class TracedEdge:
-    """A curve walked out to where the samples put the edge, station by station.
-
-    ``hold``: each outer loop's curve is held within ``HOLD_DEG`` of the taught samples.
-    """
+    """A curve walked out station by station (``hold``: within ``HOLD_DEG`` of the samples)."""
 
     name: ClassVar[str] = "traced"
     safe: ClassVar[bool] = False
@@ -115,11 +89,7 @@ class TracedEdge:
         self.hold = hold
 
     def propose(
-        self,
-        loops: list[np.ndarray],
-        data: np.ndarray,
-        supported: DirectionMesh,
-        max_offset: float,
+        self, loops: list[np.ndarray], data: np.ndarray, supported: DirectionMesh, max_offset: float
     ) -> Proposal | Refusal:
         """The traced edge of every loop, or the first loop taught too sparsely."""
         edges = []

@@ -1,9 +1,8 @@
 """The traced edge: a curve walked out to where the taught samples put the edge, station by station.
 
-Unlike :mod:`limbctl.region.edge_smooth` (one window of small circles for the whole loop) it
-follows any shape the data resolve, bays included, if the edge is taught densely enough that a
-short window holds enough samples (:func:`trace_window`). Angles are in radians. From a
-data-supported loop resampled ``TRACE_STEP_DEG`` apart, each of ``TRACE_ITERATIONS`` rounds:
+It follows any shape the data resolve, bays included, where the edge is taught densely enough
+(:func:`trace_window`). Radians. From a supported loop resampled ``TRACE_STEP_DEG`` apart, each of
+``TRACE_ITERATIONS`` rounds:
 
 1. *Read*: each taught direction belongs to its nearest station ``k`` and reads its depth
    ``asin(d . t_k)`` beyond the tangent great circle there (``t_k`` the outward normal).
@@ -15,11 +14,8 @@ data-supported loop resampled ``TRACE_STEP_DEG`` apart, each of ``TRACE_ITERATIO
 4. *Smooth* by local quadratic regression (:func:`local_quadratic`), outward by at most
    ``TRACE_SMOOTH_CAP_DEG`` a round so that it does not bridge a narrow bay.
 
-A final lift moves stations out where a taught direction next to them still lies beyond. Held
-to the evidence (an outer loop's curve, when :class:`limbctl.region.edge_choice.TracedEdge`
-asks), every station is kept within ``HOLD_DEG`` of a taught direction (:func:`held_in`), so
-the curve follows the samples round a bay instead of bridging it. Figures and history:
-docs/decisions/region.md.
+A final lift moves stations out past every taught direction next to them. Held to the evidence,
+every station stays within ``HOLD_DEG`` of a taught direction (:func:`held_in`).
 """
 
 from __future__ import annotations
@@ -84,10 +80,8 @@ TOP_READINGS = 40
 
 
 def station_normals(curve: np.ndarray) -> np.ndarray:
-    """Outward unit normals (K, 3) of a closed counter-clockwise curve (K, 3) at its stations.
-
-    The pole of the chord through the two neighbours projected onto the tangent plane.
-    """
+    """Outward unit normals (K, 3) of a closed counter-clockwise curve (K, 3): the pole of the
+    chord through each station's neighbours, projected onto the tangent plane."""
     pole = -np.cross(np.roll(curve, 1, axis=0), np.roll(curve, -1, axis=0))
     t = pole - np.einsum("ij,ij->i", pole, curve)[:, None] * curve
     return t / np.maximum(np.linalg.norm(t, axis=1, keepdims=True), 1e-15)
@@ -102,12 +96,8 @@ def readings(curve: np.ndarray, data: np.ndarray) -> tuple[np.ndarray, np.ndarra
 
 
 def trace_window(curve: np.ndarray, data: np.ndarray) -> float:
-    """Half window (rad) for the edge estimates (inf when no sample lies near the curve).
-
-    The samples within ``DENSITY_BAND_DEG`` inside the curve give the edge's density ``rho``
-    (per sr); ``h`` puts the outermost samples of a ``2 h`` window ``TRACE_SPACING_DEG`` apart
-    (``1 / (rho 2h)``), at least ``TRACE_MIN_WINDOW_DEG``.
-    """
+    """Half window ``h`` (rad) putting a ``2 h`` window's outermost samples ``TRACE_SPACING_DEG``
+    apart (``1 / (rho 2h)``, ``rho`` the density near the curve); inf with no sample near."""
     _, depth = readings(curve, data)
     band = np.radians(DENSITY_BAND_DEG)
     count = int(np.sum((depth > -band) & (depth <= np.radians(BAND_BEYOND_DEG))))
@@ -147,20 +137,14 @@ def edge_estimate(u: np.ndarray, o: np.ndarray) -> float:
 def station_estimates(
     s: np.ndarray, total: float, owner: np.ndarray, depth: np.ndarray, reach: int
 ) -> np.ndarray:
-    """:func:`edge_estimate` (K,) rad per station (numba: :func:`.trace_kernels.station_moves`).
-
-    ``s`` (K,) station positions along the curve of length ``total`` (rad); ``owner`` (N,),
-    ``depth`` (N,) the readings (:func:`readings`); ``reach`` stations either side form a window.
-    """
+    """:func:`edge_estimate` (K,) rad per station at ``s`` (K,) along a curve ``total`` long, from
+    readings ``owner``, ``depth`` (N,) within ``reach`` stations either side."""
     buckets = StationBuckets(owner, s.shape[0])
     return station_moves(s, total, owner, depth, buckets.order, buckets.bounds, reach, TOP_READINGS)
 
 
 def over_hole(owner: np.ndarray, depth: np.ndarray, stations: int, limit: float) -> np.ndarray:
-    """Which stations (K,) bool own readings but none within ``limit`` rad of the curve.
-
-    Their nearest taught directions are interior samples: a recorder missed the edge there.
-    """
+    """Which stations (K,) bool own readings but none within ``limit`` rad of the curve."""
     outermost = np.full(stations, -np.inf)
     np.maximum.at(outermost, owner, depth)
     return np.isfinite(outermost) & (outermost < -limit)
@@ -169,11 +153,8 @@ def over_hole(owner: np.ndarray, depth: np.ndarray, stations: int, limit: float)
 def bridged_estimates(
     s: np.ndarray, total: float, owner: np.ndarray, depth: np.ndarray, reach: int, h: float
 ) -> np.ndarray:
-    """The :func:`station_estimates` (K,) rad, bridged over a hole (:func:`over_hole`).
-
-    The readings of stations over a hole are left out; a station whose window then holds none takes
-    the estimate interpolated along the curve between the nearest stations either side that do.
-    """
+    """The :func:`station_estimates` (K,) rad without the readings over a hole, interpolated along
+    the curve where a window is left empty."""
     k = s.shape[0]
     hole = over_hole(owner, depth, k, h)
     if not hole.any():
@@ -219,20 +200,15 @@ def local_quadratic(curve: np.ndarray, sigma: float) -> np.ndarray:
 def trace_edge(
     loop: np.ndarray, data: np.ndarray, max_offset: float, hold: bool = False
 ) -> np.ndarray | None:
-    """The traced edge (K, 3) of one counter-clockwise data-supported ``loop`` (M, 3).
-
-    ``data`` (N, 3) are the taught directions; ``max_offset`` (rad) caps one round's move;
-    ``hold``: an outer loop's curve is held to the evidence. None when the edge is taught too
-    sparsely (:func:`trace_window` above ``TRACE_MAX_WINDOW_DEG``).
-    """
+    """The traced edge (K, 3) of a supported ``loop`` (M, 3) from taught ``data`` (N, 3), one
+    round moving at most ``max_offset`` (rad); None when taught too sparsely."""
     step = np.radians(TRACE_STEP_DEG)
     curve, _, _ = resample_loop(loop, step)
     h = trace_window(curve, data)
     if h > np.radians(TRACE_MAX_WINDOW_DEG):
         return None
     cap = np.radians(TRACE_SMOOTH_CAP_DEG)
-    # an outer loop's curve stays within reach of the evidence (a hole's loop bounds what the
-    # region leaves out: it bridges nothing)
+    # an outer loop's curve stays within reach of the evidence (a hole's bridges nothing)
     held = hold and loop_area(loop) > 0.0
     tree, bound = cKDTree(data), np.radians(HOLD_DEG)
     for _ in range(TRACE_ITERATIONS):
@@ -254,13 +230,11 @@ def trace_edge(
         if held:
             curve = held_in(curve, data, tree, bound)
     if held:
-        # finer stations, each held: a chord between two of them cuts far less past a corner
+        # finer stations, each held: a chord cuts less past a corner (a hold may stretch one)
         step = np.radians(HELD_STEP_DEG)
         for _ in range(HOLD_PASSES):
-            # a hold may stretch a chord between stations moved toward different samples
             curve = held_in(resample_loop(curve, step)[0], data, tree, bound)
-    # lift: no taught direction left beyond the chords next to the station it belongs to (a
-    # lifted station moves out only as far as a taught direction beyond its chords)
+    # lift: no taught direction left beyond the chords next to the station it belongs to
     s, total = station_positions(curve)
     for _ in range(2):
         need = chord_need(curve, data) + np.radians(LIFT_MARGIN_DEG)
@@ -269,12 +243,8 @@ def trace_edge(
 
 
 def chord_need(curve: np.ndarray, data: np.ndarray) -> np.ndarray:
-    """How far (K,) rad each station must move out to hold the taught directions (N, 3).
-
-    A direction owned by station ``k`` reads its depth beyond the chords ``(k-1, k)`` and
-    ``(k, k+1)`` (beyond either at a convex station, both at a reflex one); stations ``k-1 .. k+1``
-    need that much. -inf where no direction needs it.
-    """
+    """How far (K,) rad each station must move out so the chords hold the taught directions (N, 3)
+    (beyond either chord at a convex station, both at a reflex one); -inf where none needs it."""
     k = curve.shape[0]
     nxt = np.roll(curve, -1, axis=0)
     pole = -np.cross(curve, nxt)
@@ -302,10 +272,8 @@ def _moved(curve: np.ndarray, normal: np.ndarray, by: np.ndarray) -> np.ndarray:
 def held_in(curve: np.ndarray, data: np.ndarray, tree: cKDTree, bound: float) -> np.ndarray:
     """The stations of ``curve`` (K, 3) held within ``bound`` (rad) of the taught ``data`` (N, 3).
 
-    A station farther than ``bound`` from every taught direction (``tree`` over ``data``) walks in
-    along its normal, ``WALK_STEP_DEG`` at a time, to the first place within ``bound``; one that
-    gets nowhere within ``WALK_DEG`` moves straight to ``bound`` from its nearest taught direction.
-    Folds the moves leave are cut out (:func:`unfolded`).
+    A station too far walks in along its normal to the first place within ``bound`` (at most
+    ``WALK_DEG``), else moves to ``bound`` from its nearest sample; folds are cut out.
     """
     dist, nearest = tree.query(curve)
     far = np.flatnonzero(dist > chord(bound))
@@ -333,11 +301,8 @@ def held_in(curve: np.ndarray, data: np.ndarray, tree: cKDTree, bound: float) ->
 
 
 def unfolded(curve: np.ndarray, window: int = FOLD_WINDOW) -> np.ndarray:
-    """``curve`` (K, 3), closed, with its local folds cut out.
-
-    Where chord ``i -> i+1`` crosses chord ``j -> j+1`` at most ``window`` stations on, stations
-    ``i+1 .. j`` are replaced by the crossing point, until no such pair is left.
-    """
+    """``curve`` (K, 3), closed, with stations ``i+1 .. j`` replaced by the crossing point wherever
+    chord ``i -> i+1`` crosses chord ``j -> j+1`` at most ``window`` stations on."""
     while True:
         k = curve.shape[0]
         if k < 2 * window + 4:

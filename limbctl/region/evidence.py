@@ -1,12 +1,8 @@
-"""Whether a region's edge stays within the taught evidence where the samples enclose it.
+"""Whether a region's edge stays within the taught evidence where the samples surround it.
 
-A taught sample lies inside the true region, so a point of the learned region ``delta`` from its
-nearest taught sample lies at most ``delta`` outside the truth. Where the samples *surround* a
-point of the edge (a bay or notch the edge bridges, a reflex corner it cuts), only they say
-where the truth's edge runs. :func:`unsupported_stretches` walks the widened edge of a
-:class:`~limbctl.region.mesh.DirectionMesh` ``STATION_DEG`` apart and returns the runs of
-stations surrounded and farther than ``EVIDENCE_DEG`` from every taught sample
-(docs/decisions/region.md).
+:func:`unsupported_stretches` returns the runs of edge stations the samples surround (a bridged
+bay, a cut reflex corner) that lie farther than ``EVIDENCE_DEG`` from every taught sample
+(docs/region.md, "Held to the taught evidence").
 """
 
 from __future__ import annotations
@@ -24,8 +20,7 @@ from limbctl.region.shape import bearing_gaps
 #: Farthest (deg) a surrounded edge station may lie from a taught sample: a traced reflex
 #: corner lies 1.1-1.4 deg from its samples, bridged bays 2-4 deg.
 EVIDENCE_DEG = 1.5
-#: Farthest (deg) any edge station may lie from a taught sample before its stretch is reported
-#: (no surround asked): a traced edge stands 1.0-1.1 deg beyond a hand tracing 1 deg inside.
+#: Farthest (deg) any edge station may lie from a sample unreported: a traced edge stands 1.0-1.1.
 REACH_DEG = 1.25
 #: Station spacing (deg): a point between stations lies at most half of it farther.
 STATION_DEG = 0.25
@@ -33,8 +28,8 @@ STATION_DEG = 0.25
 CONCAVE_RADIUS_DEG = 6.0
 #: Widest empty sector (deg) of a surrounded station: a straight edge's is 180 or more.
 CONCAVE_GAP_DEG = 170.0
-#: Least samples in the neighbourhood to judge: sparse teachings' 3-20 cannot tell a bay from
-#: sampling dents (carving them ate 5-14 %); a hand's recording puts 60-200 there.
+#: Least samples in the neighbourhood to judge: sparse teachings' 3-20 cannot tell a bay from a
+#: dent; a hand's recording puts 60-200 there.
 CONCAVE_MIN_SAMPLES = 40
 
 
@@ -56,8 +51,7 @@ class Stretch:
     length_deg : float
         Its length along the edge (deg).
     held : bool
-        Whether the region was held there to ``REACH_DEG`` of the taught samples
-        (:mod:`limbctl.region.edge_hold`); ``distance_deg`` is then where the learned edge stood.
+        Whether the region was held there (``distance_deg``: where the learned edge stood).
     """
 
     pan_deg: float
@@ -140,8 +134,7 @@ def unsupported_stations(
     dist, _ = tree.query(stations)
     # chord -> angle
     delta = 2.0 * np.arcsin(np.clip(0.5 * dist, 0.0, 1.0))
-    # a hole's edge bounds what the region leaves out: a swing outline has no holes, so what
-    # lies inside a hole belongs to the truth and its edge never reaches past it
+    # a hole's edge never reaches past the truth: what a swing outline's hole holds is true
     far = np.flatnonzero((delta > bound) & outer_arcs(mesh)[arc])
     if far.size == 0 or not surrounded:
         return stations, arc, delta, far
@@ -201,8 +194,7 @@ def unsupported_stretches(
     radius, max_gap : float
         The surround test's neighbourhood and widest empty sector (rad).
     surrounded : bool
-        Whether a station counts only where the samples surround it (the carving's test), or
-        wherever it lies farther than ``bound`` (the report's, ``REACH_DEG``).
+        Count a station only where the samples surround it, else wherever beyond ``bound``.
 
     Returns
     -------

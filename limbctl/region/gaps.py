@@ -1,17 +1,12 @@
-"""How far beyond the outermost taught samples the true edge lies: the three gap estimators.
-
-The outermost sample lies short of the edge by about one spacing. With locally even density
-the outermost depths (rad, larger farther out) behave like a Poisson process below the edge,
-and each estimator is unbiased for the gap: :func:`line_gap` (the supported margins),
-:func:`spacing_gap` (the smooth edge) and :func:`majorant_gap` (the traced edge).
+"""How far beyond the outermost taught samples the true edge lies: three gap estimators, each
+unbiased when the outermost depths (rad) behave like a Poisson process below the edge.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-#: Outermost depths an estimate reads: the spacing of 12 averages 11 gaps (relative noise about
-#: 1 / sqrt(11), 30 %), few enough that they come from the band next to the edge.
+#: Outermost depths an estimate reads: 11 gaps average to 30 % noise, all next to the edge.
 ORDER_STATISTICS = 12
 #: The majorant's expected gap in units of ``r_(12) / 12``: 1.85 / 0.85 per (rho 2h),
 #: simulated (3000 draws at 30 and 100 points per unit depth).
@@ -19,11 +14,8 @@ MAJORANT_GAP = 2.19
 
 
 def line_gap(depths: np.ndarray) -> float:
-    """Gap (rad) beyond the outermost of ``depths`` (K,), sorted outermost first: the line fit.
-
-    The least-squares line through ``(i, o_(i))`` at ``i = 0``, less ``o_(1)``, at least 0; 0 for
-    fewer than 3 depths (``tests/region/test_gaps.py`` measures its bias and spread).
-    """
+    """Gap (rad) beyond the outermost of ``depths`` (K,), outermost first: the least-squares line
+    through ``(i, o_(i))`` at ``i = 0``, less ``o_(1)``, at least 0; 0 for fewer than 3."""
     k = depths.size
     if k < 3:
         return 0.0

@@ -1,8 +1,7 @@
 """Numba kernels that build the region's lookup grid (:mod:`limbctl.region.mesh_kernels`).
 
 Cells are handled in ``BLOCK x BLOCK`` blocks: a block finds the few arcs any of its cells can
-need, and each cell tests only those, the same arithmetic on the same arcs in the same order
-as testing all of them. No fastmath: every comparison sees NaN as failing.
+need, and each cell tests only those, in the same order as all. No fastmath.
 """
 
 from __future__ import annotations
@@ -19,8 +18,7 @@ from limbctl.region.mesh_kernels import _angle, _dot, _frame, _polar_point, edge
 @njit
 def _polar_into(theta, phi, axis, u, v, out) -> None:
     """Write into ``out`` (3,) the direction at polar angles ``theta``, ``phi`` (rad) about
-    ``axis`` (frame ``u``, ``v``), as :func:`limbctl.region.mesh_kernels._polar_point` computes it.
-    """
+    ``axis`` (frame ``u``, ``v``), as the queries compute it."""
     st = math.sin(theta)
     ct = math.cos(theta)
     cp = math.cos(phi)
@@ -92,8 +90,7 @@ def _block_arcs(
     centre into ``arc_dist`` (E,); returns their number.
 
     Each cell's angle from the block's centre goes into ``from_block``; ``dist`` (E,) is scratch.
-    A cell's candidates and minimisers lie within the bounds of the block's centre widened by its
-    cells' spread and radius; arcs whose midpoint cannot meet them are not measured.
+    Arcs whose midpoint cannot meet the block's widened bounds are not measured.
     """
     n_theta, n_phi = grid_shape[0], grid_shape[1]
     bi, bj = block // blocks_phi, block % blocks_phi
@@ -246,8 +243,7 @@ def build_grid(vertices, edges, margins, axis, grid_shape, inside):
     ``inside`` (cells,) says whether each cell's centre lies in the loops; ``margins`` (E,) widen
     the arcs (rad). A cell of radius ``r`` is deep when all of it lies in the loops or in one
     arc's widening; otherwise its candidates are the arcs with ``key <= min_key + 2 r`` and those
-    within ``r`` of its centre. One thread: on two shared cores a pool saved nothing and its
-    compile cost seconds on a first run.
+    within ``r`` of its centre. One thread: a pool saved nothing on two cores.
     """
     n_theta, n_phi = grid_shape[0], grid_shape[1]
     n_cells = n_theta * n_phi

@@ -1,8 +1,7 @@
 """``np.linalg.det`` and ``np.linalg.solve`` of small float64 systems, for kernels.
 
-The LAPACK calls numba's own make (``dgetrf``, ``dgesv``) with the same arithmetic around them,
-so the same answers bit for bit, without what cost seconds to compile per calling kernel
-(docs/decisions/first_run.md).
+numba's own LAPACK calls (``dgetrf``, ``dgesv``) with the same arithmetic, bit for bit, without
+seconds of compiling per calling kernel.
 """
 
 from __future__ import annotations

@@ -1,8 +1,5 @@
-"""Closed loops of directions on S^2: lengths, areas, stations along them, and what is near each.
-
-Every edge of the region is a closed loop of unit directions (M, 3), counter-clockwise seen
-from outside when the region lies on its left; these are the helpers those edges share. All
-angles are in radians.
+"""Closed loops of directions (M, 3) on S^2, region on the left: lengths, areas, stations along
+them, and what is near each (radians).
 """
 
 from __future__ import annotations
@@ -56,11 +53,8 @@ def loop_length(loop: np.ndarray) -> float:
 
 
 def resample_loop(loop: np.ndarray, step: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Stations every ~``step`` (rad) along a closed loop (M, 3), at least 8.
-
-    Returns the stations (K, 3), their arc-length positions (K,) and those of the loop's own
-    vertices (M,), both from vertex 0.
-    """
+    """Stations (K, 3) every ~``step`` (rad) along a closed loop (M, 3), at least 8, with their
+    arc-length positions (K,) and the loop vertices' (M,), from vertex 0."""
     nxt = np.roll(loop, -1, axis=0)
     seg = np.arccos(np.clip(np.einsum("ij,ij->i", loop, nxt), -1.0, 1.0))
     at_vertex = np.concatenate([[0.0], np.cumsum(seg)[:-1]])

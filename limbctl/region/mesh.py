@@ -1,12 +1,9 @@
 """A region of limb directions on S^2 as a spherical mesh: build it, test it, project onto it.
 
-The region is bounded by closed loops of great-circle arcs, each arc ``e`` widened by its own
-``margin_e`` (rad): a direction is inside when it lies inside the loops or within ``margin_e``
-of some arc. The nearest region direction of a point outside is exact (the arc minimising
-``angle(p, e) - margin_e``); far outside a concave stretch it switches at the medial axis, as
-any exact nearest-point map does. :class:`DirectionMesh` holds the arrays; the queries run in
-the numba kernels of :mod:`limbctl.region.mesh_kernels` over a grid of cells about the
-region's axis. Plain numpy references (``*_reference``) answer by brute force.
+Closed loops of great-circle arcs, each arc ``e`` widened by ``margin_e`` (rad): a direction is
+inside the loops or within ``margin_e`` of an arc. The nearest region direction of a point outside
+is exact (the arc minimising ``angle(p, e) - margin_e``). Queries run in
+:mod:`limbctl.region.mesh_kernels` over a grid of cells; ``*_reference`` answer by brute force.
 """
 
 from __future__ import annotations
@@ -34,11 +31,8 @@ class DirectionMesh:
         a -> b seen from outside the sphere; they form closed loops.
     margins : (E,) float64, each arc's widening (rad), >= 0.
     axis : (3,) unit axis of the lookup grid; grid_shape : its (n_theta, n_phi) cells.
-    cell_* : the lookup grid (see :mod:`limbctl.region.mesh_kernels`), None until built
-        (:meth:`build_lookup`).
-
-    Before the grid is built, queries are answered from the arcs alone
-    (:mod:`limbctl.region.direct_kernels`): the same answers.
+    cell_* : the lookup grid, None until :meth:`build_lookup` (queries then answer from the
+        arcs alone, :mod:`limbctl.region.direct_kernels`, the same).
     """
 
     vertices: np.ndarray
@@ -287,7 +281,6 @@ def boundary_edges(tri: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(directed[counts[inverse.ravel()] == 1], dtype=np.int64)
 
 
-# ---- brute-force references --------------------------------------------------------------------
 def nearest_on_edges_reference(
     d: np.ndarray, vertices: np.ndarray, edges: np.ndarray, margins: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

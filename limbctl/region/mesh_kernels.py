@@ -1,13 +1,9 @@
 """Numba kernels of the direction-space region: lookup grid, containment and nearest projection.
 
-The grid divides the sphere into ``n_theta x n_phi`` cells in polar coordinates about
-``axis``. Per cell, built once (:func:`limbctl.region.grid_kernels.build_grid`):
-``cell_inside`` (its centre in the loops), ``cell_deep`` (all of it in the region) and its
-candidate arcs (CSR ``cell_start``/``cell_edges``, sorted by ``cell_keys``: the arcs that can
-be nearest to a point of the cell or cross the path from its centre to one). The distance of a
-point outside is ``min_e (angle(p, e) - margin_e)``, exact. A query finds its cell; deep is
-inside; otherwise it takes the nearest widened arc over the candidates and the loops' parity
-along the path centre -> point. No fastmath: every comparison sees NaN as failing.
+The grid's ``n_theta x n_phi`` polar cells about ``axis`` each hold ``cell_inside``, ``cell_deep``
+and candidate arcs (CSR ``cell_start``/``cell_edges``, sorted by ``cell_keys``). A query finds its
+cell; deep is inside; else the nearest widened arc (``min_e angle(p, e) - margin_e``) over the
+candidates and the loops' parity along centre -> point. No fastmath: NaN fails every comparison.
 """
 
 from __future__ import annotations
@@ -105,10 +101,7 @@ def _angle3(ax, ay, az, bx, by, bz) -> float:
 
 @njit
 def edge_foot(p, vertices, edges, e):
-    """:func:`nearest_on_arc` of ``p`` (3,) and arc ``e`` on scalars: (angle (rad), x, y, z).
-
-    Handing a kernel no array rows saves numba's reference counting (docs/decisions/first_run.md).
-    """
+    """:func:`nearest_on_arc` of ``p`` (3,) and arc ``e`` on scalars: (angle (rad), x, y, z)."""
     i = edges[e, 0]
     j = edges[e, 1]
     px, py, pz = p[0], p[1], p[2]
@@ -146,10 +139,8 @@ def edge_foot(p, vertices, edges, e):
 
 @njit
 def slerp_into(p, d, angle, margin, out) -> None:
-    """Write into ``out`` (3,) the direction ``margin`` (rad) from ``p`` toward ``d``.
-
-    ``angle`` is the angle between ``p`` and ``d``; ``p`` itself when ``margin`` or ``angle`` is 0.
-    """
+    """Write into ``out`` (3,) the direction ``margin`` (rad) from ``p`` toward ``d``, ``angle``
+    apart (``p`` itself when either is 0)."""
     c = _dot(d, p)
     ux = d[0] - c * p[0]
     uy = d[1] - c * p[1]
@@ -195,8 +186,7 @@ def _frame(axis):
         h0, h1, h2 = 0.0, 0.0, 1.0
     else:
         h0, h1, h2 = 0.0, 1.0, 0.0
-    # u = h x axis, v = axis x u: the arithmetic of np.cross, written out (np.cross compiles
-    # for seconds)
+    # u = h x axis, v = axis x u, written out (np.cross compiles for seconds)
     u = np.empty(3)
     u[0] = h1 * axis[2] - h2 * axis[1]
     u[1] = h2 * axis[0] - h0 * axis[2]

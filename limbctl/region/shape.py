@@ -1,11 +1,5 @@
-"""From scattered limb directions to the closed boundary loops of the region they fill.
-
-The steps the Rigid Map's gate runs on its support (angles in radians): :func:`thin` (hand
-recordings and i.i.d. samples alike), :func:`learn_alpha` (the scale of the gaps the data
-enclose), :func:`alpha_complex` (holes smaller than ``max_hole`` or closed by a narrow mouth
-filled), :func:`peel` (a chi-shape: bridges over bays the data do not surround removed, so
-the loops of :func:`trace_loops` run through taught directions), and :func:`edge_margins`
-(each arc widened to where the data put the true edge, never past a cap).
+"""From scattered limb directions to the closed boundary loops of the region they fill: thin,
+alpha complex, peel, trace the loops, widen each arc (docs/region.md, steps 1-4). Radians.
 """
 
 from __future__ import annotations
@@ -18,11 +12,7 @@ from scipy.spatial import cKDTree
 from limbctl.region import shape_kernels
 from limbctl.region.gaps import line_gap
 from limbctl.region.loops import StationBuckets, chord, loops_to_edges, vertex_turns
-from limbctl.region.mesh import (
-    circumradius,
-    inside_reference,
-    spherical_delaunay,
-)
+from limbctl.region.mesh import circumradius, inside_reference, spherical_delaunay
 from limbctl.region.union_find import UnionFind
 
 #: Share of points the alpha scale joins into one piece: strays (1 %) must not set it.
@@ -30,11 +20,8 @@ JOINED_FRACTION = 0.99
 
 
 def thin(d: np.ndarray, spacing: float) -> np.ndarray:
-    """Indices of directions ``d`` (N, 3) kept at least ``spacing`` (rad) apart.
-
-    Greedy Poisson-disk thinning, outermost first: every direction lies within ``spacing`` of a
-    kept one, and the points that reach farthest out are kept.
-    """
+    """Indices of directions ``d`` (N, 3) kept at least ``spacing`` (rad) apart: greedy
+    Poisson-disk thinning, outermost first, every direction within ``spacing`` of a kept one."""
     mean = d.mean(axis=0)
     norm = np.linalg.norm(mean)
     axis = mean / norm if norm > 1e-9 else d[0]
@@ -84,10 +71,8 @@ def tri_centroids(d: np.ndarray, tri: np.ndarray) -> np.ndarray:
 
 
 def trace_loops(d: np.ndarray, edges: np.ndarray) -> list[np.ndarray]:
-    """Chain directed boundary edges (E, 2) into closed loops of vertex indices.
-
-    Where pieces touch at a vertex the loop turns most to the left, keeping each piece separate.
-    """
+    """Chain directed boundary edges (E, 2) into closed loops of vertex indices (turning most to
+    the left where pieces touch at a vertex)."""
     outgoing: dict[int, list[int]] = {}
     for e, (a, _) in enumerate(edges):
         outgoing.setdefault(int(a), []).append(e)
@@ -198,11 +183,8 @@ def edge_lengths(d: np.ndarray, pairs: np.ndarray) -> np.ndarray:
 
 
 def surrounded(p: np.ndarray, data: np.ndarray, radius: float, max_gap: float) -> np.ndarray:
-    """(N,) bool: whether the ``data`` (K, 3) within ``radius`` of each ``p`` (N, 3) surround it.
-
-    At least three data within ``radius`` (rad) whose bearings from ``p`` leave no empty sector
-    wider than ``max_gap`` (rad).
-    """
+    """(N,) bool: whether at least three ``data`` (K, 3) within ``radius`` (rad) of each ``p``
+    (N, 3) leave no empty sector of bearings wider than ``max_gap`` (rad)."""
     counts, widest = bearing_gaps(p, data, cKDTree(data).query_ball_point(p, chord(radius)))
     return (counts >= 3) & (widest < max_gap)
 
@@ -220,11 +202,7 @@ def bearing_gaps(p: np.ndarray, data: np.ndarray, near: list) -> tuple[np.ndarra
 
 
 def peel(
-    d: np.ndarray,
-    tri: np.ndarray,
-    kept: np.ndarray,
-    max_length: float,
-    protected: np.ndarray,
+    d: np.ndarray, tri: np.ndarray, kept: np.ndarray, max_length: float, protected: np.ndarray
 ) -> np.ndarray:
     """Chi-shape peel: the kept mask (T,) of triangles ``tri`` (T, 3) after peeling ``kept`` (T,).
 
@@ -378,11 +356,8 @@ def corner_limits(
 
 
 def carve(d: np.ndarray, tri: np.ndarray, kept: np.ndarray, points: np.ndarray) -> np.ndarray:
-    """Remove, for each of ``points`` (P, 3), the kept triangle whose exposed edge lies nearest.
-
-    ``tri`` (T, 3) over ``d`` (V, 3), ``kept`` (T,) bool; as in :func:`peel` no pinching.
-    Returns the new kept mask (a copy).
-    """
+    """A copy of ``kept`` (T,) without, for each of ``points`` (P, 3), the triangle of ``tri``
+    (T, 3) over ``d`` (V, 3) whose exposed edge lies nearest (no pinching)."""
     kept = kept.copy()
     rows = np.flatnonzero(kept)
     directed = np.concatenate([tri[rows][:, [0, 1]], tri[rows][:, [1, 2]], tri[rows][:, [2, 0]]])

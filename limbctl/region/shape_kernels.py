@@ -10,8 +10,7 @@ from limbctl.geometry.jit import njit
 from limbctl.region.direct_kernels import arc_bounds, nearest_widened
 from limbctl.region.sort_kernels import sort_values
 
-#: Arcs nearer than each other by at most this much (rad) are equally near: far above the
-#: rounding of an angle (1e-16 rad), far below anything a margin could notice.
+#: Arcs within this (rad) of each other are equally near: above rounding, below any margin.
 TIE = 1e-12
 
 
@@ -53,11 +52,8 @@ def widest_bearing_gaps(p: np.ndarray, data: np.ndarray, start: np.ndarray, near
 
 @njit
 def nearest_arcs(data: np.ndarray, vertices: np.ndarray, edges: np.ndarray):
-    """The nearest boundary arc (N,) of each direction of ``data`` (N, 3) and its angle (N,) rad.
-
-    ``edges`` (E, 2) index arcs between ``vertices`` (V, 3); of arcs within :data:`TIE` the first
-    wins. Reference: :func:`limbctl.region.mesh.nearest_on_edges_reference`.
-    """
+    """The nearest arc (N,) of ``edges`` (E, 2) over ``vertices`` (V, 3) to each direction of
+    ``data`` (N, 3) and its angle (N,) rad; of arcs within :data:`TIE` the first wins."""
     mids, half, longest = arc_bounds(vertices, edges)
     no_margins = np.zeros(edges.shape[0])
     nearest = np.full(data.shape[0], -1, dtype=np.int64)

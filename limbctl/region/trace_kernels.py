@@ -75,8 +75,7 @@ def station_moves(s, total, owner, depth, order, bounds, reach, top_readings):
     owner, depth : ndarray, shape (N,)
         Each reading's station and its depth (rad) beyond the curve.
     order, bounds : ndarray, shape (N,) and (K + 1,)
-        The readings grouped by station (:class:`limbctl.region.loops.StationBuckets`):
-        station ``j`` holds ``order[bounds[j]:bounds[j + 1]]``.
+        Station ``j`` holds readings ``order[bounds[j]:bounds[j + 1]]``.
     reach : int
         Stations either side in a window (read circularly).
     top_readings : int

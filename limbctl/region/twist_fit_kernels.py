@@ -1,8 +1,5 @@
-"""Numba kernels that learn the twist band (:mod:`limbctl.region.twist_band`) from samples.
-
-Per band node: the upper hull's height (:func:`upper_hull`, :func:`fit_nodes`), a weighted
-plane through the stop samples (:func:`refine_nodes`), and the evidence caps (a cone,
-:func:`evidence_caps`; the local slope, :func:`gradient_caps`). Numpy twins live in
+"""Numba kernels that learn the twist band (:mod:`limbctl.region.twist_band`) from samples: per
+node the upper hull's height, a plane through the stops, the evidence caps. Numpy twins live in
 ``tests/region/test_twist_fit_kernels.py``. No fastmath.
 """
 
@@ -51,10 +48,10 @@ def upper_hull(px, py, t, top) -> float:
 def fit_nodes(nodes, start, members, d, tau, top, free_gap, slope):
     """Band centre and half-width (rad) at each node direction (M, 3) from the samples near it.
 
-    ``members[start[i]:start[i + 1]]`` are the rows of ``d`` (N, 3), ``tau`` (N,) near node ``i``.
-    Twists are unwrapped about the middle of the arc they occupy; a largest gap below
-    ``free_gap`` leaves the twist free (half-width pi). Each limit is the upper hull's height
-    (:func:`upper_hull`), at least ``max_i (t_i - slope |x_i|)``. NaN where fewer than 3 samples.
+    ``members[start[i]:start[i + 1]]`` are the rows of ``d`` (N, 3), ``tau`` (N,) near node ``i``,
+    unwrapped about the middle of their arc (free, half-width pi, when no gap reaches
+    ``free_gap``). Each limit is the upper hull's height, at least ``max_i (t_i - slope |x_i|)``;
+    NaN under 3 samples.
     """
     m = nodes.shape[0]
     centre = np.full(m, np.nan)
@@ -287,8 +284,7 @@ def gradient_caps(
         if least < spread * spread:
             continue
         sol = solve(a, b)
-        # the slope's standard error: the stops' weighted scatter about the plane over the
-        # square root of their effective count and their least spread
+        # the slope's standard error: weighted scatter / sqrt(effective count) / least spread
         rss = 0.0
         w2 = 0.0
         for k in range(start[i], start[i + 1]):
@@ -314,8 +310,7 @@ def gradient_caps(
             t = limit[j] - ref[i] - sol[1] * x - sol[2] * y
             t -= margin * angle + 0.5 * curvature * angle * angle
             if limited[i] and angle > reach:
-                # beyond the reach the slope's extrapolation is trusted only as far as the
-                # steep cone's: the bound holds if either assumption does
+                # beyond the reach the steep cone bounds too: it holds if either assumption does
                 cone = limit[j] - ref[i] - steep * angle
                 if cone < t:
                     t = cone

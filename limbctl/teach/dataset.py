@@ -5,17 +5,11 @@ Format (UTF-8 text, one line each, ``version`` 1)::
     {"format": "limbctl-orientations", "version": 1, "rig": ..., "created": ..., ...}|5e0c81a2
     0.01,12.5,-3.25,0.99,0.0,0.02,0.1|c3a0f1d4
 
-Every line is ``payload|crc``, ``crc`` the *chained* CRC-32 (8 hex digits)
-``crc_i = crc32(payload_i, crc_{i-1})``, ``crc_0 = crc32(header)``, so an edited, deleted or
-reordered record breaks the chain at that line. Records are the :data:`COLUMNS` written with
-``repr`` (exact round trip). The header may hold ``calibration``
-(:meth:`calib.profile.Calibration.to_dict`), which a trained model carries on and teleop checks;
-older files have none.
-
-Each record reaches the OS in one ``write`` when appended and a background thread fsyncs at least
-every :data:`SYNC_INTERVAL_S`. The loader drops a torn last line (:attr:`Dataset.dropped_tail`)
-and refuses anything wrong before it with a :class:`~limbctl.errors.FileFormatError` naming file
-and line.
+Every line is ``payload|crc``, the *chained* CRC-32 ``crc_i = crc32(payload_i, crc_{i-1})``
+(``crc_0 = crc32(header)``): an edited, deleted or reordered record breaks the chain there.
+Records are the :data:`COLUMNS` written with ``repr``; the header may hold ``calibration``
+(:meth:`calib.profile.Calibration.to_dict`). Each record is one ``write``, fsynced within
+:data:`SYNC_INTERVAL_S`; the loader drops a torn last line and refuses anything else wrong.
 """
 
 from __future__ import annotations
@@ -77,7 +71,7 @@ class Dataset:
     quaternions : ndarray, shape (N, 4)
         Unit quaternions (w, x, y, z), w >= 0.
     dropped_tail : str or None
-        Why the last line was dropped (a torn write), or None if the file ended cleanly.
+        Why a torn last line was dropped, or None.
     path : str
         Where it was read from.
     """
@@ -119,8 +113,7 @@ def check_writable(path: str | os.PathLike[str], min_free_bytes: int = MIN_FREE_
     Raises
     ------
     ConfigError
-        If the file exists, its directory is missing or not writable, or the disk has less
-        than ``min_free_bytes`` free.
+        If the file exists, its directory is missing or not writable, or lacks the free space.
     """
     path = Path(path)
     directory = path.parent if str(path.parent) else Path(".")
@@ -144,24 +137,10 @@ def check_writable(path: str | os.PathLike[str], min_free_bytes: int = MIN_FREE_
 
 
 class DatasetWriter:
-    """Append orientation samples to a new dataset file; use as a context manager.
+    """Append orientation samples to a new dataset file at ``path``; a context manager.
 
-    Parameters
-    ----------
-    path : path-like
-        The new file (must not exist).
-    rig : str
-        Name of the rig profile the samples come from.
-    meta : dict, optional
-        Extra JSON-serialisable header fields (e.g. sample rate, region name).
-    calibration : Calibration, optional
-        The rig's calibration (``profile.calibration``), so a model trained on the file can
-        be checked against the rig it drives.
-    sync_interval_s : float
-        Longest time an appended record waits for ``fsync``.
-    min_free_bytes : int
-        Free disk space required up front.
-
+    The header names the ``rig``, extra JSON ``meta`` and the rig's ``calibration``; a record waits
+    at most ``sync_interval_s`` (s) for fsync; ``min_free_bytes`` must be free up front.
     """
 
     def __init__(
@@ -190,7 +169,6 @@ class DatasetWriter:
         self._syncer: threading.Thread | None = None
         self._sync_error: OSError | None = None
 
-    # ---- lifecycle -------------------------------------------------------------------------
     def open(self) -> DatasetWriter:
         """Create the file, write and fsync the header, start the background syncer."""
         if self._fd is not None:
@@ -236,7 +214,6 @@ class DatasetWriter:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
-    # ---- writing ---------------------------------------------------------------------------
     def append(self, t_s: float, pan: float, tilt: float, q: np.ndarray | None = None) -> None:
         """Append one sample.
 
@@ -300,7 +277,6 @@ class DatasetWriter:
                     return
 
 
-# ---- loading -----------------------------------------------------------------------------------
 def _split(path: Path, number: int, raw: bytes, previous_crc: int) -> tuple[str, int]:
     """Payload of line ``number`` after checking its chained CRC."""
     try:
@@ -362,13 +338,12 @@ def is_dataset_file(path: str | os.PathLike[str]) -> bool:
 
 
 def load_dataset(path: str | os.PathLike[str]) -> Dataset:
-    """Read a dataset, verifying every line (``dropped_tail`` set if a torn last line was dropped).
+    """Read a dataset, verifying every line (a torn last line is dropped).
 
     Raises
     ------
     FileFormatError
-        Naming file and line, for a foreign file, a wrong version, or any corrupt,
-        edited or missing line before the last.
+        Naming file and line: a foreign file, a wrong version, or a bad line before the last.
     """
     path = Path(path)
     try:
@@ -376,7 +351,6 @@ def load_dataset(path: str | os.PathLike[str]) -> Dataset:
     except OSError as exc:
         raise FileFormatError(path, f"cannot read ({exc})") from exc
     lines = blob.split(b"\n")
-    # a file that ends cleanly has an empty piece after its last newline
     tail = lines.pop()
     dropped_tail = None
     if tail:

@@ -1,12 +1,8 @@
 """Whether the taught samples support the edge the region will learn: the recorder's check.
 
-The edge learned from the samples (:class:`limbctl.region.TaughtRegion`) may stand past them
-where they never reach (a bay they surround, a sparse stretch); its fit names such stretches
-(:attr:`~limbctl.region.TaughtRegion.unsupported_edge`). Once the guide would say READY TO TRAIN,
-:class:`EdgeSupport` fits the region to the samples so far and the guide withholds READY while a
-stretch is left. The fit (1-2 s of a core) runs in one worker process kept for the recording, at
-most every CHECK_EVERY_S and only once the warm-up has cached the training's kernels;
-:meth:`EdgeSupport.check_now` checks every sample once more at the end.
+Once the guide would say READY, :class:`EdgeSupport` fits the region to the samples so far in a
+worker process and the guide withholds READY while a stretch is unsupported
+(:attr:`~limbctl.region.TaughtRegion.unsupported_edge`).
 """
 
 from __future__ import annotations
@@ -23,9 +19,7 @@ import numpy as np
 
 from limbctl.geometry import jit
 
-#: Seconds between two checks while recording: a teacher fills a stretch in a few seconds, and a
-#: check costs the worker ~1-2 s of a core (docs/decisions/region.md: 2.0-2.2 s for the demo's
-#: 60 s teaching), so the worker idles at least half the time and the recorder keeps its core.
+#: Seconds between checks while recording: a check costs ~1-2 s, so the worker idles half the time.
 CHECK_EVERY_S = 5.0
 #: Fewest samples worth a check: below this the guide is still in its start phase.
 MIN_SAMPLES = 200
@@ -33,9 +27,8 @@ MIN_SAMPLES = 200
 
 @dataclass(frozen=True)
 class EdgeStretch:
-    """A stretch of edge the taught samples do not reach: where (the gimbal's pan and tilt, deg),
-    how far (deg) the learned edge stood from every taught sample, how long (deg), and whether
-    the region is held there to the evidence (short of that edge, ``held``)."""
+    """A stretch of edge the taught samples do not reach: where (pan, tilt deg), how far and how
+    long (deg), and whether the region is ``held`` there to the evidence."""
 
     pan_deg: float
     tilt_deg: float
@@ -74,8 +67,7 @@ class EdgeSupport:
     Parameters
     ----------
     check : callable
-        ``check(d) -> tuple of EdgeStretch`` for directions (N, 3), run in the worker: a
-        module-level function (the worker imports it by name); :func:`unsupported_stretches`.
+        Module-level ``check(d) -> tuple of EdgeStretch`` for directions (N, 3), run in the worker.
     """
 
     def __init__(self, check: Callable[[np.ndarray], tuple[EdgeStretch, ...]] | None = None):
@@ -105,9 +97,7 @@ class EdgeSupport:
         return any(jit.prepared(jit.stage("train", twist)) for twist in (False, True))
 
     def check_later(self, d: np.ndarray) -> None:
-        """Start a check of directions ``d`` (N, 3) in the worker, unless one is under way, the
-        last began under CHECK_EVERY_S ago or the kernels are not cached yet; collect a finished
-        one into :attr:`stretches`."""
+        """Start a check of directions ``d`` (N, 3) when due; collect a finished one."""
         self._collect()
         now = time.monotonic()
         if self._pending is not None or now - self._checked_at < CHECK_EVERY_S:
@@ -128,8 +118,7 @@ class EdgeSupport:
         try:
             self.stretches = self._worker().submit(self._check, np.array(d)).result()
         except BrokenProcessPool:
-            # the worker could not start or died (a program read from stdin cannot be
-            # re-imported by a spawned worker): left unchecked, as without cached kernels
+            # the worker could not start or died (e.g. a program read from stdin): unchecked
             self._pool = None
         return self.stretches
 
@@ -145,7 +134,6 @@ class EdgeSupport:
 
     def _worker(self) -> ProcessPoolExecutor:
         if self._pool is None:
-            # spawn: the recorder has threads (the dataset's fsync), which a fork would copy
-            # mid-lock; the worker imports limbctl once and loads the cached kernels
+            # spawn: a fork would copy the recorder's fsync thread mid-lock
             self._pool = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"))
         return self._pool

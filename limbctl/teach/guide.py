@@ -1,26 +1,7 @@
-"""Guided teaching: from the samples so far, how closed the edge is, how covered the inside is,
-where the gaps are, and when the region is complete enough to train.
+"""Guided teaching: how closed the edge is, how covered the inside is, where the gaps are, and
+when the samples so far are complete enough to train.
 
-The teacher traces the whole edge once, slowly, then wanders through the middle. The guide
-measures both from the samples alone, in a flat picture: each limb direction ``d`` is drawn at
-``rho (cos phi, sin phi)`` (deg), the azimuthal equidistant projection about a centre ``c``
-(``rho`` the angle to ``c``, ``phi`` the azimuth in :func:`~limbctl.geometry.quat.tangent_frame`);
-the region is assumed star-shaped about ``c``.
-
-- *Outline* ``r_out(phi)``: the outermost sample of each of :data:`SECTORS` sectors, interpolated
-  periodically. The centre is refit :data:`CENTRE_ROUNDS` times, from the mean direction, as the
-  centre of Kasa's algebraic circle fit to the outline points (a part-traced circle gives its own
-  centre).
-- *Edge closed*: the share of :data:`EDGE_BINS` bins holding an on-edge sample (``rho >= r_out -
-  EDGE_BAND_DEG``, moving at most EDGE_MAX_SPEED_DEG_S) where the outline reaches NOTCH_RATIO of
-  the way to the samples' convex hull. Runs of open bins are the edge gaps (ends and middle in
-  pan/tilt deg). Bins a hole of the recording hides stay open until re-traced
-  (:mod:`limbctl.teach.holes`).
-- *Inside covered*: the share of :data:`CELL_DEG` grid cells inside ``r_out - EDGE_BAND_DEG``
-  holding a sample; uncovered cells joined by their sides are the inside gaps.
-- *Ready* when ``edge_closed >= READY_EDGE_CLOSED``, ``inside_covered >= READY_INSIDE_COVERED``
-  and no hole's stretch of edge is open. *Phase*: ``start`` (too few samples), ``edge`` (trace
-  it), ``middle`` (wander through the middle), ``ready``.
+The measures and their constants are explained in docs/teaching.md ("The measures").
 """
 
 from __future__ import annotations
@@ -38,34 +19,26 @@ from limbctl.geometry.quat import tangent_frame
 from limbctl.teach.edge_support import EdgeStretch, EdgeSupport
 from limbctl.teach.holes import Hole, find_holes
 
-#: Azimuth sectors for the outline: 5 deg each, fine enough to follow a kidney's lobes, coarse
-#: enough that each holds samples of a traced edge.
+#: Azimuth sectors for the outline: 5 deg each, fine for a kidney's lobes, coarse for a trace.
 SECTORS = 72
-#: Fine azimuth bins for edge closure: 2 deg each; a trace at 100 Hz and a person's pace
-#: (<= 20 deg/s) leaves no bin empty on an outline 10 deg or more from the centre.
+#: Edge closure bins, 2 deg each: a 100 Hz trace at <= 20 deg/s fills every one 10 deg out.
 EDGE_BINS = 180
-#: Depth (deg) of the band below the outline that counts as on the edge: a trace wobbles a few
-#: tenths of a degree and the tremor as much again.
+#: Depth (deg) of the on-edge band below the outline: a trace's wobble plus the tremor.
 EDGE_BAND_DEG = 1.5
-#: The outline counts as the edge only where it reaches at least this share of the way from the
-#: centre to the samples' convex hull: between strokes that poke out to the edge the samples'
-#: outline is a deep notch, not an edge (the dent of examples/regions/irregular.yaml reaches 0.6).
+#: Share of the way to the convex hull the outline must reach to be edge, not a notch between
+#: strokes (the dent of examples/regions/irregular.yaml reaches 0.6).
 NOTCH_RATIO = 0.5
-#: A sample counts toward the edge only where the limb moved at most this fast (deg/s, over
-#: SPEED_WINDOW_S, long enough to average out a 7-12 Hz tremor): the edge is traced slowly (a
-#: person's pace, 10-20 deg/s); strokes through the middle run at 40 deg/s and more.
+#: Fastest (deg/s) an on-edge sample moves: edges are traced at 10-20, strokes run at 40+.
 EDGE_MAX_SPEED_DEG_S = 25.0
+#: Window (s) of that speed: long enough to average out a 7-12 Hz tremor.
 SPEED_WINDOW_S = 0.2
 #: Centre refinements by the circle fit (the second changes the centre by well under a degree).
 CENTRE_ROUNDS = 2
-#: Cell size (deg) of the inside-coverage grid: a stroke of the hand covers a band of about this
-#: width in the learned region (the gaps the Rigid Map closes between strokes).
+#: Cell size (deg) of the inside-coverage grid: about the width one stroke of the hand covers.
 CELL_DEG = 4.0
 #: Ready to train: the edge closed in at least this share of the turn ...
 READY_EDGE_CLOSED = 0.97
-#: ... and at least this share of the inside covered: a few strokes across the middle (the
-#: simulator's hand reaches 0.14-0.17 after 30 s of teaching irregular.yaml, when the models
-#: trained on it hold the whole region; docs/teaching.md).
+#: ... and this share of the inside covered: a few strokes (docs/teaching.md).
 READY_INSIDE_COVERED = 0.1
 #: Fewer samples than this say nothing yet (phase ``start``).
 MIN_SAMPLES = 20
@@ -83,8 +56,7 @@ PHASES = {
 
 @dataclass(frozen=True)
 class EdgeGap:
-    """A stretch of the outline no sample has traced: its share of the turn about the centre
-    (``fraction``) and the (pan_deg, tilt_deg) of its ends and middle, counter-clockwise."""
+    """An untraced stretch of outline: share of the turn, (pan_deg, tilt_deg) of ends and middle."""
 
     fraction: float
     start_deg: tuple[float, float]
@@ -94,8 +66,7 @@ class EdgeGap:
 
 @dataclass(frozen=True)
 class InsideGap:
-    """Uncovered inside cells joined by their sides: their share of the inside cells
-    (``fraction``) and the (pan_deg, tilt_deg) of their mean picture position."""
+    """Joined uncovered inside cells: share of the inside cells, (pan_deg, tilt_deg) of the mean."""
 
     fraction: float
     middle_deg: tuple[float, float]
@@ -118,16 +89,15 @@ class Guidance:
     edge_gaps, inside_gaps : tuple
         :class:`EdgeGap` and :class:`InsideGap`, largest first (at most :data:`MAX_GAPS`).
     ready : bool
-        Complete enough to train (module docstring).
+        Complete enough to train (docs/teaching.md).
     centre_deg : tuple of float
         (pan_deg, tilt_deg) of the centre the picture is drawn about.
     spread_deg : float
         Largest angle between a sample and the samples' mean direction.
     holes : tuple of Hole
-        The recording's holes (:func:`limbctl.teach.holes.find_holes`).
+        The recording's holes.
     unsupported : tuple of EdgeStretch
-        Stretches of edge the learned region would bridge (:mod:`limbctl.teach.edge_support`),
-        farthest first: READY is withheld while any is left.
+        Stretches of edge the learned region would bridge, farthest first (READY withheld).
     checking : bool
         Ready by coverage, but the edge's support is still being checked.
     """
@@ -153,8 +123,7 @@ class Guidance:
 
     @property
     def largest_gap(self) -> EdgeGap | InsideGap | None:
-        """The gap to teach next: the largest edge gap while tracing, else the largest inside
-        gap; None when there is none."""
+        """The gap to teach next: the largest edge gap while tracing, else inside; or None."""
         if self.phase in ("start", "edge") and self.edge_gaps:
             return self.edge_gaps[0]
         return self.inside_gaps[0] if self.inside_gaps else None
@@ -254,8 +223,7 @@ def _fit_centre(outline_phi: np.ndarray, outline_rho: np.ndarray, centre: np.nda
 
 
 def _hull_at(phi: np.ndarray, outline_phi: np.ndarray, outline_rho: np.ndarray) -> np.ndarray:
-    """r_hull(phi): distance (deg) from the centre to the outline points' convex hull along
-    azimuth ``phi`` (M,); the centre must lie inside the hull."""
+    """Distance (M,) deg from the centre (inside the hull) to the outline's hull along ``phi``."""
     points = np.stack([outline_rho * np.cos(outline_phi), outline_rho * np.sin(outline_phi)], 1)
     facets = ConvexHull(points).equations  # n . x + b <= 0 inside, |n| = 1
     ray = np.stack([np.cos(phi), np.sin(phi)], axis=1)
@@ -344,8 +312,7 @@ def _inside(rho, phi, outline_phi, outline_rho, centre) -> tuple[float, tuple[In
 
 
 def assess_directions(t_s: np.ndarray, d: np.ndarray) -> Guidance:
-    """What the guide says about the samples' limb directions ``d`` (N, 3), unit vectors, taken
-    at times ``t_s`` (N,) in s, in time order."""
+    """The guidance for limb directions ``d`` (N, 3) taken at times ``t_s`` (N,) s, in order."""
     d = np.asarray(d, dtype=np.float64).reshape(-1, 3)
     t_s = np.asarray(t_s, dtype=np.float64).reshape(-1)
     if len(t_s) != len(d):
@@ -386,15 +353,13 @@ def assess_directions(t_s: np.ndarray, d: np.ndarray) -> Guidance:
 
 
 def assess(t_s: np.ndarray, pan_rad: np.ndarray, tilt_rad: np.ndarray) -> Guidance:
-    """What the guide says about samples at times ``t_s`` (N,) in s given as joint angles (N,)
-    in radians."""
+    """The guidance for samples at times ``t_s`` (N,) s given as joint angles (N,) rad."""
     d = pan_tilt_to_direction(np.asarray(pan_rad), np.asarray(tilt_rad))
     return assess_directions(t_s, d)
 
 
 class Guide:
-    """Collects samples as they are recorded (O(1) each) and assesses them on demand
-    (milliseconds for ten thousand samples)."""
+    """Collects samples as recorded (O(1) each) and assesses them on demand."""
 
     def __init__(self, capacity: int = 4096, support: EdgeSupport | None = None) -> None:
         self._t = np.empty(max(int(capacity), 1))
@@ -417,11 +382,8 @@ class Guide:
         self.samples += 1
 
     def assess(self, final: bool = False) -> Guidance:
-        """The guide's figures for every sample added so far.
-
-        With a ``support`` check, READY is withheld while a stretch of the learned edge is
-        unsupported or (unless ``final``, which checks and waits) no check has answered yet.
-        """
+        """The guidance for every sample so far; READY withheld while ``support`` finds a stretch
+        unsupported or (unless ``final``, which waits) has not answered."""
         d = self._d[: self.samples]
         guidance = assess_directions(self._t[: self.samples], d)
         if self.support is None or not guidance.ready:

@@ -1,12 +1,5 @@
-"""Holes in a teaching: stretches of time with no sample, and the stretch of edge one may hide.
-
-A busy machine can stall the recorder for a few tenths of a second (docs/decisions/twist.md,
-"The recorder's holes"); a hole while the edge is traced leaves a stretch never seen, where a fit
-digs a notch. A *hole* is two consecutive samples more than :data:`HOLE_MIN_S` apart. It is *at
-the edge* when either sample lies in the guide's outline band; the stretch it may hide is the
-guide's edge bins strictly between the two samples' azimuths, the shorter way round. It stays
-*open* until an on-edge sample after it lies in every bin of that stretch: until then the guide
-counts those bins open and asks to re-trace the edge there.
+"""Holes in a teaching: stretches of time with no sample, and the stretch of edge one may hide
+(the rules: docs/teaching.md, "Holes").
 """
 
 from __future__ import annotations
@@ -17,9 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-#: A gap between two samples longer than this (s) is a hole: at the edge pace of 25 deg/s
-#: (guide.EDGE_MAX_SPEED_DEG_S) 0.2 s pass 5 deg of edge, about the shortest lost stretch that
-#: cost the fit share of the region (docs/decisions/twist.md); an idle recorder's gaps are < 0.1 s.
+#: Gap (s) that makes a hole: 5 deg of edge at 25 deg/s, the shortest loss that costs the fit.
 HOLE_MIN_S = 0.2
 #: Holes listed in a result, longest first.
 MAX_HOLES = 5
@@ -36,7 +27,7 @@ class Hole:
     before_deg, after_deg : tuple of float
         (pan_deg, tilt_deg) of the limb at those samples.
     at_edge : bool
-        The sample before or after it lies in the outline's band (module docstring).
+        The sample before or after it lies in the outline's band.
     edge_deg : tuple of float or None
         (pan_deg, tilt_deg) of the middle of the stretch of edge it may hide; None for none.
     fraction : float
@@ -125,7 +116,7 @@ def find_holes(
     outline_at: Callable[[np.ndarray], np.ndarray],
     pan_tilt_deg: Callable[[np.ndarray, np.ndarray], list[tuple[float, float]]],
 ) -> tuple[tuple[Hole, ...], np.ndarray]:
-    """The recording's holes (module docstring) and the edge bins they leave unseen.
+    """The recording's holes and the edge bins they leave unseen.
 
     Parameters
     ----------

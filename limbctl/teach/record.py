@@ -1,10 +1,5 @@
-"""Teach by hand: torque off, sample every joint at a fixed rate, append every sample to disk.
-
-Each sample goes to :class:`limbctl.teach.dataset.DatasetWriter` as it is read (no buffering).
-Every GUIDE_EVERY_S the teaching guide (:mod:`limbctl.teach.guide`) and, on a three-servo rig,
-the twist guide (:mod:`limbctl.teach.twist_guide`) assess the samples for one updating line and
-for ``on_guidance`` / ``on_twist`` (a live view); the summary lists the recording's holes
-(:mod:`limbctl.teach.holes`).
+"""Teach by hand: torque off, sample every joint at a fixed rate, append every sample to disk,
+and show the guides' assessment on one updating line.
 """
 
 from __future__ import annotations
@@ -28,18 +23,14 @@ from limbctl.teach.twist_guide import TwistGuidance, TwistGuide
 MIN_RATE_HZ = 100.0
 #: Consecutive failed reads after which the recording stops (what was recorded is kept).
 MAX_FAILED_READS = 50
-#: Seconds between the guide's assessments: a teacher reads the line about once a second, and an
-#: assessment of ten thousand samples takes milliseconds (docs/teaching.md).
+#: Seconds between the guide's assessments: a teacher reads the line about once a second.
 GUIDE_EVERY_S = 1.0
 #: Seconds between progress lines when the progress stream is not a terminal (a log file).
 LOG_EVERY_S = 5.0
-#: A run of failed reads this long (s) or longer is reported as a dropout, with the servo and
-#: its length: ten samples at 100 Hz; shorter runs are a dropped reply or two, only counted.
+#: Failed reads this long (s) are a reported dropout: ten samples at 100 Hz; shorter only counted.
 DROPOUT_REPORT_S = 0.1
-#: The latency timer (ms) a recording on the embedded simulator assumes, so a reply is awaited
-#: ~52 ms instead of ~6 ms: a loaded machine runs the simulator in bursts 50-100 ms apart, and a
-#: recorder is no control loop (a late sample costs nothing, a missed one a stretch of edge;
-#: docs/decisions/twist.md, "The recorder's holes"). Real servos keep the 16 ms default.
+#: Latency timer (ms) assumed on the simulator: a reply awaited ~52 ms rides out a loaded machine's
+#: 50-100 ms bursts (a late sample costs nothing, a missed one a stretch of edge).
 SIM_LATENCY_TIMER_MS = 25.0
 
 
@@ -158,9 +149,8 @@ def record(
     progress : text stream, optional
         Where the progress line is drawn: in place on a terminal, every LOG_EVERY_S otherwise.
     on_guidance, on_twist : callable, optional
-        Called in the recording thread (keep them quick) with each
-        :class:`~limbctl.teach.guide.Guidance` and (three servos)
-        :class:`~limbctl.teach.twist_guide.TwistGuidance`, every GUIDE_EVERY_S and at the end.
+        Called in the recording thread (keep them quick) with each Guidance and (three servos)
+        TwistGuidance, every GUIDE_EVERY_S and at the end.
     """
     check_rate(rate_hz)
     with EdgeSupport() as support:
@@ -233,8 +223,7 @@ def record(
             if progress is not None and now - last_draw >= draw_every:
                 last_draw = now
                 _draw(progress, guidance, summary, elapsed, duration_s, on_terminal, twist)
-            # pace: a late sample is followed at once by the next, so the average rate holds;
-            # only after a long stall (a second behind) does the schedule restart from now
+            # a late sample is followed at once, keeping the rate; a second behind restarts it
             next_tick += period
             delay = next_tick - time.perf_counter()
             if delay > 0:

@@ -32,27 +32,23 @@ class TrainSummary:
     boundary_pan_range_deg, boundary_tilt_range_deg : tuple of float
         Extent of the learned region (:func:`_region_extent`).
     contained_fraction : float
-        Share of the training samples the trained model says are inside (should be ~1).
+        Share of the training samples the trained model holds (~1).
     nodes : int
         Number of node weights in the model.
     edge : str
         Which edge a Rigid Map gate uses (:data:`EDGE_MEANING`); empty for other models.
     calibration_recorded : bool
-        Whether the dataset (and so the model) carries the rig calibration teleop requires.
+        Whether the dataset (and so the model) carries the rig calibration.
     edge_refusals : tuple of str
         Why the gate refused the other edges it tried, one line each.
     twist_range_deg : tuple of float or None
-        A three-servo band's lowest and highest limit over the whole region (deg),
-        ``(-180, 180)`` where free; None without twist.
+        The band's lowest and highest limit over the region (deg); None without twist.
     outside_direction, outside_twist : int
-        Samples left out with the direction outside the region, or (three servos) inside but
-        the twist past the band's limits there.
+        Samples left out: direction outside, or inside with the twist past the band.
     twist_excess_deg : tuple of float or None
         Median and largest excess (deg) of the ``outside_twist`` samples; None when none.
     unsupported_edge, unsupported_twist : tuple of str
-        One request each for the stretches of the learned edge
-        (:mod:`limbctl.region.edge_hold`) and of the band's limits
-        (:mod:`limbctl.region.twist_evidence`) the teaching does not support.
+        One request per stretch of edge or band limit the teaching does not support.
     """
 
     samples: int
@@ -158,8 +154,7 @@ def summarize(model: Any, q: np.ndarray) -> TrainSummary:
     mean = directions.mean(axis=0)
     mean /= np.linalg.norm(mean)
     spread = math.degrees(float(direction_angle(directions, mean).max()))
-    # a model that can answers without the gate's kernels: train never gates, and compiling
-    # them was ~2 s of a first train (docs/decisions/first_run.md)
+    # without the gate's kernels where a model can: ~2 s of a first train (decisions/first_run.md)
     contains = getattr(model, "contains_from_arcs", model.contains)
     inside = np.asarray(contains(q), dtype=bool)
     holds = holds_direction(model)
@@ -224,10 +219,8 @@ def twist_band(model: Any) -> Any:
 
 
 def holds_direction(model: Any) -> Callable[[np.ndarray], np.ndarray]:
-    """Which limb directions the model's region holds at some twist: twist-free orientations
-    (N, 4) -> (N,) bool. A three-servo region asks its swing region alone (a band excluding
-    twist 0 would leave a twist-free orientation out); the region's arcs answer where they can.
-    """
+    """Which twist-free orientations' (N, 4) directions the region holds at some twist, (N,) bool
+    (a three-servo region asks its swing region alone)."""
     swing = getattr(getattr(model, "region", None), "swing", None)
     if twist_band(model) is not None and swing is not None:
         return getattr(swing, "contains_from_arcs", swing.contains)
@@ -241,12 +234,8 @@ def _region_extent(
     margin_deg: float = 20.0,
     step_deg: float = 0.5,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Joint angles (rad) of the points of a ``step_deg`` pan/tilt grid over the samples' extent
-    plus ``margin_deg`` whose direction the region ``holds`` (:func:`holds_direction`).
-
-    20 deg of margin is well past any edge a model draws beyond its samples; 0.5 deg steps put
-    the extent within half a degree of the model's.
-    """
+    """Joint angles (rad) of the ``step_deg`` pan/tilt grid points over the samples' extent plus
+    ``margin_deg`` (well past any edge a model draws) whose direction the region ``holds``."""
     from limbctl.geometry.gimbal import pan_tilt_to_quat
 
     margin, step = math.radians(margin_deg), math.radians(step_deg)
@@ -261,8 +250,7 @@ def _region_extent(
     return grid_pan[inside], grid_tilt[inside]
 
 
-#: Fewest samples a model is fitted to: fewer cannot outline a region (and a real recording of
-#: a few seconds at 125 Hz has hundreds).
+#: Fewest samples a model is fitted to: fewer cannot outline a region (seconds of recording).
 MIN_SAMPLES = 10
 
 #: The stages :func:`train` reports to its ``progress`` callback, in order.
@@ -282,24 +270,13 @@ def train(
     options: dict[str, Any] | None = None,
     progress: Callable[[str], None] | None = None,
 ) -> TrainSummary:
-    """Fit a model to a recorded dataset and save it (one file).
+    """Fit a model of ``kind`` (constructor ``options``) to a recorded dataset, save it to
+    ``out_path`` and summarise it; ``progress`` is called with each of :data:`STAGES` as it ends.
 
-    Parameters
-    ----------
-    data_path : path
-        A dataset written by ``limbctl record``.
-    out_path : path
-        The model file to write (replaced atomically).
-    kind : str
-        A model kind of :data:`limbctl.envelope.MODEL_KINDS`.
-    options : dict
-        Keyword options of the model's constructor (nodes, layout, seed, ...).
-    progress : callable, optional
-        Called with the name of each stage of :data:`STAGES` as it finishes.
-
-    Returns
-    -------
-    TrainSummary
+    Raises
+    ------
+    ConfigError
+        When the dataset holds fewer than :data:`MIN_SAMPLES` samples.
     """
     from limbctl.envelope import build_model
     from limbctl.teach.dataset import load_dataset

@@ -1,15 +1,9 @@
-"""Where the twist range is still untaught, on a three-servo rig: in words and figures.
+"""Where the twist range is still untaught, on a three-servo rig (docs/teaching.md).
 
-The teacher turns the limb both ways to its stop, along the edge and in the middle. The swing
-plane is cut into CELL_DEG cells of pan and tilt, each keeping the least and greatest twist taught
-there (each on the turn nearest the cell's first, so a range across +-180 deg stays one range). A
-cell with MIN_CELL_SAMPLES samples is *turned* once its span reaches TURNED_FRACTION of the
-widest spans anywhere (their WIDE_QUANTILE): the band narrows as the limb rises, so the stops are
-judged against what the person showed possible. The line asks for the twist at the cell turned
-least. Once every place is turned, the guide learns the band from the samples (in a thread every
-SUPPORT_EVERY_S, or :meth:`TwistGuide.check_support`) and names the stops its evidence
-(:mod:`limbctl.region.twist_evidence`) could not support; :attr:`TwistGuidance.complete` only
-once none is left.
+The swing plane is cut into CELL_DEG cells, each keeping the least and greatest twist taught there
+(on the turn nearest the cell's first, so a range across +-180 deg stays one). A judged cell is
+*turned* once its span reaches TURNED_FRACTION of the wide span (WIDE_QUANTILE of all spans).
+Once every place is turned, the band learned from the samples names the stops it cannot support.
 """
 
 from __future__ import annotations
@@ -27,20 +21,16 @@ from limbctl.geometry.twist import decompose
 from limbctl.region.twist_band import TwistBand
 from limbctl.region.twist_evidence import UnsupportedPlace, band_unsupported
 
-#: Cell size (deg of pan and of tilt): a hand-sized patch of the swing plane, fine enough that a
-#: shoulder's band (narrowing by ~0.3 deg of half width per degree of tilt) changes by under 10
-#: deg across one, coarse enough that a minute's teaching fills cells with hundreds of samples.
+#: Cell size (deg of pan and tilt): a shoulder's band changes under 10 deg across one, and a
+#: minute's teaching fills each with hundreds of samples.
 CELL_DEG = 15.0
 #: Samples before a cell is judged: a quarter second at 125 Hz passing through.
 MIN_CELL_SAMPLES = 30
 #: The widest spans: this quantile of the judged cells' spans.
 WIDE_QUANTILE = 0.9
-#: A cell whose span reaches this share of the wide span was turned to both stops: the hand
-#: turns to about 1 deg inside each stop, and the band narrows across the plane by up to a half.
+#: Share of the wide span that counts as turned to both stops: the band narrows by up to a half.
 TURNED_FRACTION = 0.5
-#: Seconds between two checks of the band's support while recording: a band fit of a minute's
-#: teaching takes ~0.5 s of a core (bench_twist: 0.35 s of the 2.2 s fit), run in a thread so
-#: the recorder's reads go on; a tenth of the time at most.
+#: Seconds between support checks while recording: a ~0.5 s band fit, a tenth of the time at most.
 SUPPORT_EVERY_S = 5.0
 
 
@@ -57,7 +47,7 @@ class TwistPlace:
     samples : int
         Samples taught in the cell.
     turned : bool
-        Judged (MIN_CELL_SAMPLES or more) and turned to both stops (module docstring).
+        Judged (MIN_CELL_SAMPLES or more) and turned to both stops.
     """
 
     pan_index: int
@@ -209,8 +199,7 @@ class TwistGuide:
         if busy or now - self._checked_at < SUPPORT_EVERY_S:
             return
         self._checked_at = now
-        # a fit here before the warm-up cached the three-servo kernels would compile them in the
-        # recorder's process for seconds, tearing holes in the recording: wait for its end
+        # a fit before the warm-up cached the kernels would compile for seconds in the recorder
         if not jit.prepared(jit.stage("train", True)):
             return
         q = np.array(self._q)

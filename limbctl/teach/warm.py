@@ -1,10 +1,5 @@
-"""Compile the training's and the gate's kernels ahead, in a low-priority background process.
-
-``limbctl record`` starts :func:`warming_in_background` as it begins (a teaching lasts tens of
-seconds): at the lowest priority on one numba thread, :func:`warm_up` trains a Rigid Map on a
-synthetic teaching of the rig's demo region and asks it what the gate asks, so the kernels land
-in the cache of :mod:`limbctl.geometry.jit` before the first train and teleop.
-``limbctl prepare`` (:func:`run_prepare`) runs the same in the foreground for both rigs.
+"""Compile the training's and the gate's kernels ahead: in a low-priority background process
+while ``limbctl record`` teaches, or in the foreground for ``limbctl prepare``.
 """
 
 from __future__ import annotations
@@ -28,19 +23,15 @@ from limbctl.geometry import jit
 
 #: The warm-up's priority: the lowest, so the recorder's sampling (and anything else) goes first.
 NICENESS = 19
-#: Length (s) of the synthetic teaching: like a short real one (30 s at 125 Hz), long enough
-#: for the fit to try each edge strategy and build the gate's grid.
+#: Length (s) of the synthetic teaching: a short real one, enough to try every edge strategy.
 TEACHING_S = 30.0
 #: Commands of the small batch asked of the model: the park check's 13 probes.
 SMALL_BATCH = 13
-#: Commands of the larger batch asked of the model: one more than a batch served command by
-#: command (``correct_kernels.SINGLE_ROWS``), as a start outside the region asks.
+#: Commands of the larger batch: one more than ``correct_kernels.SINGLE_ROWS``, as a start asks.
 LARGE_BATCH = 65
 
 
-#: The three-servo demo region's twist band as its YAML (data/demo_region3.yaml) describes it:
-#: half-widths (deg) with the limb low and high, centred on no twist. The warm-up needs the fit's
-#: code paths (a band bounded everywhere, narrowing), not the region itself.
+#: Twist band half-widths (deg), limb low and high, of data/demo_region3.yaml: a narrowing band.
 TWIST_HALF_DEG = (49.0, 23.0)
 
 
@@ -51,8 +42,7 @@ def _demo_polygon(name: str = "demo_region.yaml") -> np.ndarray:
 
 
 def _write_teaching(path: Path, twist: bool = False) -> None:
-    """A synthetic teaching (TEACHING_S) of the demo region as a dataset: its edge traced, then
-    the middle; with ``twist``, full orientations of the three-servo demo region."""
+    """Write a synthetic teaching of the (``twist``: three-servo) demo region as a dataset."""
     from limbctl.envelope.synthetic import PolygonRegion, traced_teaching
     from limbctl.envelope.synthetic_twist import ShoulderRegion
     from limbctl.geometry.gimbal import direction_to_pan_tilt
@@ -75,36 +65,16 @@ def _write_teaching(path: Path, twist: bool = False) -> None:
             writer.append(i / rate_hz, float(pan[i]), float(tilt[i]), None if q is None else q[i])
 
 
-#: What :func:`warm_up` tells its ``report`` callable of each stage: it begins compiling
-#: (``START``), its kernels are all in the cache now (``DONE``), or they already were (``READY``);
-#: and, of the rig's first stage, that another warm-up holds the lock and it waits (``WAIT``).
+#: What :func:`warm_up` reports of a stage: compiling, compiled, already cached, waiting for lock.
 START, DONE, READY, WAIT = "start", "done", "ready", "wait"
 
 
 def warm_up(
     twist: bool = False, wait: bool = False, report: Callable[[str, str], None] | None = None
 ) -> bool:
-    """Compile (or load) the kernels of the rig's stages not yet prepared, in this process.
-
-    Parameters
-    ----------
-    twist : bool
-        Warm a three-servo rig's stages (``train-twist``, ``gate-twist``), not ``train``, ``gate``.
-    wait : bool
-        When another warm-up holds the lock, wait for it and do what it left (``limbctl
-        prepare``) instead of standing aside.
-    report : callable, optional
-        Called as ``report(stage, event)`` with ``event`` one of :data:`START`, :data:`DONE`,
-        :data:`READY` as each stage begins and ends (:data:`WAIT` when ``wait`` waits).
-
-    Returns
-    -------
-    bool
-        Whether it ran (False: no cache folder, or another warm-up holds the lock and ``wait``
-        is False). The train stage trains as ``limbctl train`` and as a library user
-        (``RigidMap(twist=...).fit``); the gate stage asks ``contains`` and ``correct`` of one
-        orientation and of batches.
-    """
+    """Compile (or load) the kernels of a (``twist``: three-servo) rig's stages not yet prepared,
+    calling ``report(stage, event)``; with ``wait``, wait for another warm-up's lock. Returns
+    whether it ran (False: no cache folder, or the lock held and no ``wait``)."""
     tell = report or (lambda stage, event: None)
     train_stage, gate_stage = jit.stage("train", twist), jit.stage("gate", twist)
     with jit.warming(wait=(lambda: tell(train_stage, WAIT)) if wait else None) as mine:
@@ -142,10 +112,8 @@ def warm_up(
 
 @contextlib.contextmanager
 def warming_in_background(twist: bool = False) -> Iterator[subprocess.Popen | None]:
-    """Start the warm-up of a rig's stages (``twist``: a three-servo rig's) in its own
-    low-priority process, unless nothing needs it; yields it. It is left running on exit, in its
-    own session (a Ctrl-C ending the recording does not end it), its output discarded.
-    """
+    """Start the warm-up of a (``twist``: three-servo) rig's stages in its own low-priority
+    session, unless nothing needs it; yields the process, left running on exit."""
     stages = (jit.stage("train", twist), jit.stage("gate", twist))
     if jit.cache_dir() is None or all(jit.prepared(stage) for stage in stages):
         yield None
@@ -161,14 +129,12 @@ def warming_in_background(twist: bool = False) -> Iterator[subprocess.Popen | No
     yield process
 
 
-#: ``limbctl prepare --rig all``: every kind of rig, by the packaged simulated rig of its kind
-#: (the kernels depend on the joint count only, not on a rig's calibration).
+#: ``limbctl prepare --rig all``: a packaged rig per joint count (all the kernels depend on).
 ALL_RIGS = ("sim", "sim3")
 
 
 class _Progress:
-    """``limbctl prepare``'s line per stage: what compiles, how many of numba's compiles so far
-    (rewritten in place on a terminal), and how long it took."""
+    """``limbctl prepare``'s line per stage: what compiles, numba's compiles so far, how long."""
 
     def __init__(self, out: TextIO, stages: int) -> None:
         self.out, self.stages, self.index = out, stages, 0
@@ -210,11 +176,12 @@ class _Progress:
 
 
 def run_prepare(rigs: Sequence[str], out: TextIO = sys.stdout) -> int:
-    """``limbctl prepare``: compile and cache the kernels of ``rigs`` (rig profiles or packaged
-    simulated rigs) in the foreground, a line per stage, then where the cache is.
+    """``limbctl prepare``: compile and cache the kernels of ``rigs``; returns the exit status.
 
-    Returns the exit status (0). Raises :class:`~limbctl.errors.ConfigError` when no cache
-    folder is writable (nothing could be kept: the message says what to set).
+    Raises
+    ------
+    ConfigError
+        When no cache folder is writable.
     """
     import numba.core.event as numba_event
 
@@ -261,11 +228,9 @@ HELP = (
     "fit after install do not compile"
 )
 DESCRIPTION = (
-    "Compile the kernels of training, of the gate and of a library fit (RigidMap().fit, "
-    "contains, correct) once, in the foreground, and keep them in the kernel cache (printed at "
-    "the end; NUMBA_CACHE_DIR sets it). Run it once after install and after an upgrade: "
-    "minutes, then no command compiles. Without it, `limbctl record` compiles them in the "
-    "background while you teach, and a library fit compiles on first use."
+    "Compile the kernels of training, the gate and a library fit once into the kernel cache "
+    "(NUMBA_CACHE_DIR sets it). Run it after install and after an upgrade; without it, "
+    "`limbctl record` compiles them in the background while you teach."
 )
 RIG_HELP = (
     "all (default: two and three servos), sim (two servos: pan, tilt), sim3 (three: and "
@@ -279,8 +244,7 @@ def prepare_job(args: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """The background process: lowest priority, then :func:`warm_up` (``--twist``: of a
-    three-servo rig's stages)."""
+    """The background process: lowest priority, then :func:`warm_up`."""
     args = sys.argv[1:] if argv is None else argv
     os.nice(NICENESS)
     warm_up(twist="--twist" in args)

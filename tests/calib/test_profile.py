@@ -40,7 +40,7 @@ def write(tmp_path, data, name="x.yaml"):
 
 
 @pytest.mark.parametrize("rig", ["sim", "sim3"])
-def test_a_packaged_profile_matches_its_file_and_round_trips(rig, tmp_path):
+def test_a_packaged_profile_matches_its_file_and_the_simulated_world_and_round_trips(rig, tmp_path):
     data = yaml.safe_load(SIM_YAML.with_name(f"{rig}.yaml").read_text())
     profile = default_sim_profile(rig)
     assert isinstance(profile, RigProfile) and profile.is_sim
@@ -50,35 +50,51 @@ def test_a_packaged_profile_matches_its_file_and_round_trips(rig, tmp_path):
     assert profile.ids == tuple(data[name]["id"] for name in names)
     assert profile.source is not None and profile.source.endswith(f"{rig}.yaml")
     assert load_profile(save_profile(profile, tmp_path / "r.yaml")) == profile
+    world = {joint.name: joint for joint in (*DEFAULT_JOINTS, ROLL_JOINT)}
+    for name, joint in profile.joints:
+        truth = world[name]
+        assert (joint.id, joint.zero_tick, joint.direction) == (
+            truth.servo_id,
+            truth.zero_tick,
+            truth.direction,
+        )
+        assert (joint.stop_min_deg, joint.stop_max_deg) == (truth.stop_min_deg, truth.stop_max_deg)
+        # the hard limits lie inside the physical end stops, by the margin
+        assert joint.stop_min_deg + END_STOP_MARGIN_DEG <= joint.min_deg
+        assert joint.max_deg <= joint.stop_max_deg - END_STOP_MARGIN_DEG
+    # the three-servo rig's pan and tilt are the two-servo rig's
+    assert (profile.pan, profile.tilt) == (default_sim_profile().pan, default_sim_profile().tilt)
+    with pytest.raises(ProfileError, match="the packaged rigs are sim, sim3"):
+        default_sim_profile("sim4")
 
 
-def test_profile_is_frozen():
+def test_a_profile_is_frozen_saved_atomically_anywhere_and_refused_invalid(tmp_path, monkeypatch):
     profile = default_sim_profile()
     with pytest.raises(AttributeError):
         profile.baud = 1  # type: ignore[misc]
     with pytest.raises(AttributeError):
         profile.pan.direction = 1  # type: ignore[misc]
-
-
-def test_save_then_load_round_trips(tmp_path):
-    profile = default_sim_profile()
-    out = save_profile(profile, tmp_path / "rig.yaml")
+    path = tmp_path / "rig.yaml"
+    out = save_profile(profile, path)
     again = load_profile(out)
     assert again == profile
     assert again.source == str(out)
-    # no temp files left behind by the atomic write
+    # no temp files left behind by the atomic write; end stops saved
     assert sorted(p.name for p in tmp_path.iterdir()) == ["rig.yaml"]
-
-
-def test_save_replaces_atomically_and_refuses_invalid(tmp_path):
-    path = tmp_path / "rig.yaml"
-    profile = default_sim_profile()
-    save_profile(profile, path)
+    assert "stop_max_deg: 75.0" in out.read_text()
     before = path.read_text()
     bad = profile.with_joints(pan=JointProfile(1, 2185, 3, -10.0, 10.0))
     with pytest.raises(ProfileError, match="pan.direction"):
         save_profile(bad, path)
     assert path.read_text() == before
+    # profiles built in code meet the end-stop check too
+    too_wide = profile.with_joints(tilt=JointProfile(2, 1890, -1, -55.0, 80.0, -60.0, 75.0))
+    with pytest.raises(ProfileError, match="tilt.max_deg 80 is not 1 deg inside"):
+        save_profile(too_wide, tmp_path / "wide.yaml")
+    assert not (tmp_path / "wide.yaml").exists()
+    monkeypatch.chdir(tmp_path)
+    save_profile(profile, "here.yaml")
+    assert load_profile(os.path.join(tmp_path, "here.yaml")) == profile
 
 
 @pytest.mark.parametrize(
@@ -134,72 +150,26 @@ def test_invalid_fields_name_file_and_field(tmp_path, edit, field, fragment):
     assert fragment in message
 
 
-def test_the_brief_example_message(tmp_path, sim_data):
-    sim_data["pan"]["direction"] = 2
-    path = write(tmp_path, sim_data)
+def test_the_brief_example_message_rest_direction_joint_limits_and_default_end_stops(
+    tmp_path, sim_data
+):
+    data = copy.deepcopy(sim_data)
+    data["pan"]["direction"] = 2
+    path = write(tmp_path, data)
     with pytest.raises(ConfigError, match=r"x\.yaml: pan\.direction must be \+1 or -1, got 2$"):
         load_rig_profile(path)
-
-
-@pytest.mark.parametrize(
-    ("text", "error", "match"),
-    [
-        ("name: [unclosed\n", FileFormatError, "x.yaml: not valid YAML"),
-        (None, ConfigError, "no such rig profile.*limbctl calibrate"),
-        ("- 1\n- 2\n", ConfigError, "x.yaml: top level must be a mapping"),
-    ],
-)
-def test_unreadable_missing_or_non_mapping_files_are_named(tmp_path, text, error, match):
-    path = tmp_path / "x.yaml"
-    if text is not None:
-        path.write_text(text)
-    with pytest.raises(error, match=match):
-        load_rig_profile(path)
-
-
-def test_rest_direction_is_optional_and_normalised(sim_data):
+    # rest_direction is optional and normalised
     data = copy.deepcopy(sim_data)
     del data["rest_direction"]
     assert profile_from_dict(data).rest_direction == (1.0, 0.0, 0.0)
     data["rest_direction"] = [0.0, 3.0, 4.0]
     assert profile_from_dict(data).rest_direction == pytest.approx((0.0, 0.6, 0.8))
-
-
-def test_joint_limits_in_radians_and_ticks():
     joint = JointProfile(id=1, zero_tick=2048, direction=-1, min_deg=-90.0, max_deg=45.0)
     assert joint.min_rad == pytest.approx(-math.pi / 2)
     assert joint.max_rad == pytest.approx(math.pi / 4)
     # direction -1: +45 deg lies 512 ticks below zero, -90 deg 1024 above
     assert joint_tick_limits(joint) == (2048 - 512, 2048 + 1024)
-
-
-def test_save_into_current_directory(tmp_path, monkeypatch):
-    monkeypatch.chdir(tmp_path)
-    save_profile(default_sim_profile(), "here.yaml")
-    assert load_profile(os.path.join(tmp_path, "here.yaml")) == default_sim_profile()
-
-
-# ---- end stops --------------------------------------------------------------------------------
-@pytest.mark.parametrize("rig", ["sim", "sim3"])
-def test_the_packaged_sim_profiles_are_the_simulated_worlds_joints(rig):
-    profile = default_sim_profile(rig)
-    world = {joint.name: joint for joint in (*DEFAULT_JOINTS, ROLL_JOINT)}
-    for name, joint in profile.joints:
-        truth = world[name]
-        assert (joint.id, joint.zero_tick, joint.direction) == (
-            truth.servo_id,
-            truth.zero_tick,
-            truth.direction,
-        )
-        assert (joint.stop_min_deg, joint.stop_max_deg) == (truth.stop_min_deg, truth.stop_max_deg)
-        # the hard limits lie inside the physical end stops, by the margin
-        assert joint.stop_min_deg + END_STOP_MARGIN_DEG <= joint.min_deg
-        assert joint.max_deg <= joint.stop_max_deg - END_STOP_MARGIN_DEG
-    # the three-servo rig's pan and tilt are the two-servo rig's
-    assert (profile.pan, profile.tilt) == (default_sim_profile().pan, default_sim_profile().tilt)
-
-
-def test_unstated_end_stops_default_to_a_quarter_turn(tmp_path, sim_data):
+    # unstated end stops default to a quarter turn
     for name in ("pan", "tilt"):
         del sim_data[name]["stop_min_deg"], sim_data[name]["stop_max_deg"]
     sim_data["pan"].update(min_deg=-80.0, max_deg=80.0)
@@ -219,18 +189,25 @@ def test_unstated_end_stops_default_to_a_quarter_turn(tmp_path, sim_data):
     )
 
 
-def test_end_stops_are_saved_and_in_code_profiles_meet_the_same_check(tmp_path):
-    profile = default_sim_profile()
-    out = save_profile(profile, tmp_path / "rig.yaml")
-    assert "stop_max_deg: 75.0" in out.read_text()
-    too_wide = profile.with_joints(tilt=JointProfile(2, 1890, -1, -55.0, 80.0, -60.0, 75.0))
-    with pytest.raises(ProfileError, match="tilt.max_deg 80 is not 1 deg inside"):
-        save_profile(too_wide, tmp_path / "wide.yaml")
-    assert not (tmp_path / "wide.yaml").exists()
+@pytest.mark.parametrize(
+    ("text", "error", "match"),
+    [
+        ("name: [unclosed\n", FileFormatError, "x.yaml: not valid YAML"),
+        (None, ConfigError, "no such rig profile.*limbctl calibrate"),
+        ("- 1\n- 2\n", ConfigError, "x.yaml: top level must be a mapping"),
+    ],
+)
+def test_unreadable_missing_or_non_mapping_files_are_named(tmp_path, text, error, match):
+    path = tmp_path / "x.yaml"
+    if text is not None:
+        path.write_text(text)
+    with pytest.raises(error, match=match):
+        load_rig_profile(path)
 
 
-# ---- files that cannot hurt -------------------------------------------------------------------
-def test_duplicate_keys_are_refused_naming_the_lines(tmp_path):
+def test_duplicate_keys_an_alias_bomb_and_many_unknown_keys_are_refused_on_one_line(
+    tmp_path, sim_data
+):
     path = tmp_path / "dup.yaml"
     text = SIM_YAML.read_text().replace("  max_deg: 70.0\n", "  max_deg: 70.0\n  max_deg: 170.0\n")
     path.write_text(text)
@@ -241,9 +218,6 @@ def test_duplicate_keys_are_refused_naming_the_lines(tmp_path):
         f"{path}: line {line}: key 'max_deg' appears twice (also on line {line - 1}); keep "
         "one, a later value would silently win"
     )
-
-
-def test_alias_bomb_in_a_field_is_refused_fast_and_not_echoed(tmp_path):
     bomb = ["  - &a0 [x, x, x, x, x, x, x, x, x]"]
     bomb += [f"  - &a{i} [" + ", ".join([f"*a{i - 1}"] * 9) + "]" for i in range(1, 9)]
     path = tmp_path / "bomb.yaml"
@@ -253,6 +227,10 @@ def test_alias_bomb_in_a_field_is_refused_fast_and_not_echoed(tmp_path):
         load_rig_profile(path)
     assert time.perf_counter() - started < 1.0
     assert "x, x" not in str(err.value) and "\n" not in str(err.value)
+    sim_data.update({f"extra{i}": i for i in range(1000)})
+    with pytest.raises(ConfigError, match="and 995 more") as err:
+        load_rig_profile(write(tmp_path, sim_data))
+    assert len(str(err.value)) < 300
 
 
 @pytest.mark.parametrize(
@@ -274,15 +252,9 @@ def test_messages_quote_values_boundedly(tmp_path, sim_data, value):
         assert len(message) < 300 and "\n" not in message, message
 
 
-def test_many_unknown_keys_are_counted_not_listed(tmp_path, sim_data):
-    sim_data.update({f"extra{i}": i for i in range(1000)})
-    with pytest.raises(ConfigError, match="and 995 more") as err:
-        load_rig_profile(write(tmp_path, sim_data))
-    assert len(str(err.value)) < 300
-
-
-# ---- the calibration a model depends on -------------------------------------------------------
-def test_calibration_of_a_profile_round_trips_and_names_differences():
+def test_calibrations_with_and_without_roll_round_trip_name_differences_and_bad_fields(
+    sim_data,
+):
     profile = default_sim_profile()
     calibration = profile.calibration
     assert calibration == Calibration(
@@ -291,7 +263,6 @@ def test_calibration_of_a_profile_round_trips_and_names_differences():
             ("tilt", JointCalibration(1890, -1, -55.0, 70.0)),
         )
     )
-    assert not calibration.twists and default_sim_profile("sim3").calibration.twists
     assert calibration_from_dict(calibration.to_dict()) == calibration
     assert calibration.differences(calibration) == ()
     moved = Calibration(
@@ -305,41 +276,25 @@ def test_calibration_of_a_profile_round_trips_and_names_differences():
         "tilt.direction -1 vs 1",
         "tilt.max_deg 70 vs 60",
     )
-
-
-def test_malformed_calibration_names_the_field():
-    data = default_sim_profile().calibration.to_dict()
+    # two servos carry no roll
+    assert profile.roll is None and not calibration.twists
+    assert "roll" not in profile.to_dict()
+    assert set(calibration.to_dict()) == {"pan", "tilt"}
+    assert profile.to_dict() == profile_from_dict(sim_data).to_dict()
+    three = default_sim_profile("sim3").calibration
+    assert three.twists
+    assert calibration_from_dict(three.to_dict()) == three
+    assert three.differences(calibration) == ("roll present vs absent",)
+    assert calibration.differences(three) == ("roll absent vs present",)
+    changed = three.to_dict()
+    changed["roll"]["zero_tick"] = 2000
+    assert three.differences(calibration_from_dict(changed)) == ("roll.zero_tick 1960 vs 2000",)
+    data = calibration.to_dict()
     data["tilt"]["direction"] = 0
     with pytest.raises(ProfileError, match=r"^model.npz: calibration.tilt.direction must be \+1"):
         calibration_from_dict(data, "model.npz")
     with pytest.raises(ProfileError, match="calibration must be a mapping"):
         calibration_from_dict(["x"] * 10_000, "model.npz")
-
-
-# ---- the optional roll joint (three-servo rigs) -----------------------------------------------
-def test_two_servo_profile_and_calibration_carry_no_roll(sim_data):
-    profile = default_sim_profile()
-    assert profile.roll is None
-    assert "roll" not in profile.to_dict()
-    assert set(profile.calibration.to_dict()) == {"pan", "tilt"}
-    assert profile.to_dict() == profile_from_dict(sim_data).to_dict()
-
-
-def test_calibration_with_roll_round_trips_and_differs_from_two_servos():
-    three = default_sim_profile("sim3").calibration
-    two = default_sim_profile().calibration
-    assert calibration_from_dict(three.to_dict()) == three
-    assert calibration_from_dict(two.to_dict()) == two
-    assert three.differences(two) == ("roll present vs absent",)
-    assert two.differences(three) == ("roll absent vs present",)
-    changed = three.to_dict()
-    changed["roll"]["zero_tick"] = 2000
-    assert three.differences(calibration_from_dict(changed)) == ("roll.zero_tick 1960 vs 2000",)
-
-
-def test_unknown_packaged_rig_is_refused_with_the_list():
-    with pytest.raises(ProfileError, match="the packaged rigs are sim, sim3"):
-        default_sim_profile("sim4")
 
 
 @pytest.mark.parametrize("rig", ["sim", "sim3"])

@@ -7,16 +7,14 @@ from limbctl.envelope.base import Envelope
 from limbctl.envelope.cone import Cone
 
 
-def test_a_model_answering_through_neither_form_is_refused_when_defined():
+def test_a_model_answering_through_neither_form_is_refused_and_the_hooks_answer():
     with pytest.raises(TypeError, match="_inside and _to_boundary, or contains and correct"):
 
         class Silent(Envelope):
             kind = "silent-test"
 
     assert "silent-test" not in Envelope._registry
-
-
-def test_a_model_answering_through_the_hooks_gets_contains_and_correct():
+    # a model answering through the hooks gets contains and correct
     cone = Cone(np.radians(30.0))
     inside, outside = np.array([1.0, 0, 0, 0]), np.array([0.0, 0, 0, 1.0])
     assert cone.contains(inside) is True and cone.contains(outside) is False

@@ -7,12 +7,6 @@ from limbctl.geometry import quat
 from tests.geometry.test_quat import random_unit
 
 
-def nearest_distance_reference(weights: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """Plain numpy version of :func:`nearest_distance`."""
-    d2 = np.sum((q[:, None, :] - weights[None, :, :]) ** 2, axis=2)
-    return np.sqrt(d2.min(axis=1))
-
-
 @pytest.mark.parametrize("mode", list(ip.INTERPOLATIONS))
 @pytest.mark.parametrize("metric", list(ip.METRICS))
 def test_kernel_matches_reference(mode, metric):
@@ -33,15 +27,7 @@ def test_kernel_matches_reference(mode, metric):
         assert (kernel[:, 0] >= 0).all()
 
 
-def test_none_returns_the_normalised_winner():
-    weights = np.array([[0.9, 0.0, 0.0, 0.0], [0.0, 0.0, -0.8, 0.0], [0.0, 0.5, 0.5, 0.0]])
-    q = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 0.0, -1.0, 0.0]])
-    out = ip.respond_batch(weights, q, 8, ip.EUCLIDEAN, ip.NONE, np.empty((3, 0), np.int64))
-    # the second winner (0, 0, -1, 0) has w = 0: kept as is (no flip needed)
-    np.testing.assert_allclose(out, [[1, 0, 0, 0], [0, 0, -1, 0]], atol=1e-15)
-
-
-def test_geometric_projects_the_residual_onto_the_runner_up_direction():
+def test_geometric_projects_the_residual_onto_the_runner_up_direction_within_the_segment():
     w0 = np.array([1.0, 0.0, 0.0, 0.0])
     w1 = quat.normalize(np.array([1.0, 1.0, 0.0, 0.0]))
     empty = np.empty((3, 0), np.int64)
@@ -61,11 +47,7 @@ def test_geometric_projects_the_residual_onto_the_runner_up_direction():
     np.testing.assert_allclose(geo[0], expected, atol=1e-15)
     assert 0 < a < 1
     assert quat.geodesic_distance(geo[0], x) < quat.geodesic_distance(none[0], x)
-
-
-def test_geometric_fraction_is_clipped_to_the_segment():
     # x beyond the runner-up: a = 1 (stop at w1), never overshoot
-    w0 = np.array([1.0, 0.0, 0.0, 0.0])
     w1 = quat.normalize(np.array([1.0, 0.2, 0.0, 0.0]))
     x = quat.normalize(np.array([1.0, 0.5, 0.0, 0.0]))
     weights = np.stack([w0, w1])
@@ -73,16 +55,18 @@ def test_geometric_fraction_is_clipped_to_the_segment():
     np.testing.assert_allclose(out[0], w1, atol=1e-12)
 
 
-def test_idw_exact_hit_and_equal_distances():
+def test_none_returns_the_normalised_winner_and_idw_a_hit_or_the_mean():
+    weights = np.array([[0.9, 0.0, 0.0, 0.0], [0.0, 0.0, -0.8, 0.0], [0.0, 0.5, 0.5, 0.0]])
+    q = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 0.0, -1.0, 0.0]])
+    out = ip.respond_batch(weights, q, 8, ip.EUCLIDEAN, ip.NONE, np.empty((3, 0), np.int64))
+    # the second winner (0, 0, -1, 0) has w = 0: kept as is (no flip needed)
+    np.testing.assert_allclose(out, [[1, 0, 0, 0], [0, 0, -1, 0]], atol=1e-15)
     w = random_unit(4, seed=5)
-    empty = np.empty((4, 0), np.int64)
-    hit = ip.respond_batch(w, w[2:3], 3, ip.EUCLIDEAN, ip.IDW, empty)
+    hit = ip.respond_batch(w, w[2:3], 3, ip.EUCLIDEAN, ip.IDW, np.empty((4, 0), np.int64))
     np.testing.assert_allclose(hit[0], w[2], atol=1e-15)
     # input equidistant from two nodes (and far from the rest): the normalised mean
-    a = np.array([1.0, 0.0, 0.0, 0.0])
-    b = np.array([0.0, 1.0, 0.0, 0.0])
-    weights = np.stack([a, b])
-    x = quat.normalize(a + b)
+    weights = np.eye(4)[:2]
+    x = quat.normalize(weights[0] + weights[1])
     out = ip.respond_batch(weights, x[None], 1, ip.EUCLIDEAN, ip.IDW, np.empty((2, 0), np.int64))
     np.testing.assert_allclose(out[0], x, atol=1e-15)
 
@@ -101,15 +85,12 @@ def test_topological_uses_the_topology_not_the_nearest_weights():
     assert geo[0, 1] > 0 and abs(geo[0, 2]) < 1e-15
 
 
-def test_nearest_distance_matches_reference():
+def test_nearest_distance_neighbours_and_names_are_checked():
     w = random_unit(50, seed=6) * 0.95
     q = random_unit(300, seed=7)
-    np.testing.assert_allclose(
-        ip.nearest_distance(w, q), nearest_distance_reference(w, q), atol=1e-14
-    )
-
-
-def test_neighbours_by_position_on_a_grid():
+    reference = np.sqrt(np.sum((q[:, None, :] - w[None, :, :]) ** 2, axis=2).min(axis=1))
+    np.testing.assert_allclose(ip.nearest_distance(w, q), reference, atol=1e-14)
+    # neighbours by position on a grid
     rows, cols = 4, 5
     grid = np.array([(r, c) for r in range(rows) for c in range(cols)], dtype=np.float64)
     nb = ip.neighbours_by_position(grid, 8)
@@ -117,10 +98,7 @@ def test_neighbours_by_position_on_a_grid():
     assert list(nb[6, :4]) == [1, 5, 7, 11]
     assert sorted(nb[6, 4:]) == [0, 2, 10, 12]
     assert nb.shape == (20, 8) and nb.dtype == np.int64
-
-
-def test_names_are_checked():
-    assert ip.interpolation_code("geometric") == ip.GEOMETRIC
+    assert ip.interpolation_code("geometric") == ip.GEOMETRIC, "names are checked"
     with pytest.raises(ConfigError, match="unknown interpolation 'linear'.*none, idw"):
         ip.interpolation_code("linear")
     with pytest.raises(ConfigError, match="integer >= 1"):

@@ -14,9 +14,7 @@ def nearest_neighbour_angles(points: np.ndarray) -> np.ndarray:
     return np.arccos(np.clip(gram.max(axis=1), -1.0, 1.0))
 
 
-def covering_angle(
-    points: np.ndarray, probes: np.ndarray, sign_aware: bool = False, chunk: int = 4096
-) -> float:
+def covering_angle(points, probes, sign_aware=False, chunk=4096):
     """Covering radius estimate (rad): the largest angle from a probe (m, 4) to its nearest point
     (n, 4), q and -q one point when ``sign_aware``; a lower bound of the true radius."""
     points = np.asarray(points, dtype=np.float64)
@@ -58,39 +56,26 @@ def test_polytopes_on_s3_and_folded_keep_one_of_each_antipodal_pair(name, count,
     np.testing.assert_allclose(np.degrees(nearest_neighbour_angles(half)).min(), nn_deg, atol=1e-9)
 
 
-def test_120_cell_edge_angle_is_about_15_5_degrees():
-    assert POLYTOPES[2][2] == pytest.approx(15.52, abs=0.01)
-
-
-def test_union_720_counts_and_alignment():
+def test_the_720_unions_counts_alignment_and_covering():
+    assert POLYTOPES[2][2] == pytest.approx(15.52, abs=0.01), "the 120-cell's edge angle"
     for name in ("polytope-720", "polytope-720-even"):
         assert make_layout(name, hemisphere=False).shape == (720, 4)
         assert make_layout(name).shape == (360, 4)
     # dual alignment: every 600-cell vertex sits at a 120-cell cell centre, far from its vertices
     c120 = layouts.cell_120()
-    gap_odd = np.degrees(np.arccos(np.max(layouts.cell_600("odd") @ c120.T, axis=1)))
-    gap_even = np.degrees(np.arccos(np.max(layouts.cell_600("even") @ c120.T, axis=1)))
-    assert gap_odd.min() > 20.0
-    assert gap_even.min() < 10.0
-
-
-def test_dual_aligned_union_covers_better():
+    assert np.degrees(np.arccos(np.max(layouts.cell_600("odd") @ c120.T, axis=1))).min() > 20.0
+    assert np.degrees(np.arccos(np.max(layouts.cell_600("even") @ c120.T, axis=1))).min() < 10.0
     probes = make_layout("uniform", n=60000, seed=11, hemisphere=False)
     dual = np.degrees(covering_angle(make_layout("polytope-720", hemisphere=False), probes))
     even = np.degrees(covering_angle(make_layout("polytope-720-even", hemisphere=False), probes))
     alone = np.degrees(covering_angle(make_layout("120-cell", hemisphere=False), probes))
-    assert dual < even - 3.0
-    assert dual < alone - 5.0
-    # the sampled covering radius never exceeds the true one of the 120-cell alone (~22.2 deg
-    # at its cell centres), so the estimate is sane
+    assert dual < even - 3.0 and dual < alone - 5.0, "the dual-aligned union covers better"
+    # the 120-cell alone covers to ~22.2 deg (its cell centres): a sane estimate stays below
     assert alone < 22.3
-
-
-def test_folded_union_covers_the_hemisphere_like_the_full_union():
     probes = make_layout("uniform", n=30000, seed=12)
     full = covering_angle(make_layout("polytope-720", hemisphere=False), probes)
     half = covering_angle(make_layout("polytope-720"), probes, sign_aware=True)
-    assert half == pytest.approx(full, abs=1e-12)
+    assert half == pytest.approx(full, abs=1e-12), "the folded union covers as the full one"
 
 
 def test_uniform_is_seeded_unit_and_on_the_hemisphere():
@@ -109,7 +94,7 @@ def test_uniform_is_seeded_unit_and_on_the_hemisphere():
 
 
 @pytest.mark.parametrize("hemisphere", [True, False])
-def test_super_fibonacci_is_near_uniform(hemisphere):
+def test_super_fibonacci_is_near_uniform_and_starts_on_the_formula(hemisphere):
     n = 2000
     sf = make_layout("super-fibonacci", n=n, hemisphere=hemisphere)
     rnd = make_layout("uniform", n=n, seed=0, hemisphere=hemisphere)
@@ -125,9 +110,7 @@ def test_super_fibonacci_is_near_uniform(hemisphere):
     assert covering_angle(sf, probes) < covering_angle(rnd, probes)
     # deterministic
     np.testing.assert_array_equal(sf, make_layout("super-fibonacci", n=n, hemisphere=hemisphere))
-
-
-def test_super_fibonacci_first_point_matches_the_formula():
+    # the first point of the full spiral by the formula
     n = 10
     s = 0.5
     t = s / n
@@ -140,12 +123,9 @@ def test_super_fibonacci_first_point_matches_the_formula():
     assert layouts.PSI**4 == pytest.approx(layouts.PSI + 4, abs=1e-12)
 
 
-def test_unknown_name_lists_choices():
+def test_unknown_names_and_bad_node_counts_are_refused():
     with pytest.raises(ConfigError, match="unknown layout 'cube'.*600-cell.*super-fibonacci"):
         make_layout("cube")
-
-
-def test_bad_node_counts_are_refused():
     with pytest.raises(ConfigError, match="needs a node count"):
         make_layout("uniform")
     with pytest.raises(ConfigError, match="needs a node count"):

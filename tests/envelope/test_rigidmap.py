@@ -1,26 +1,49 @@
+from pathlib import Path
+
 import numpy as np
 import pytest
+import yaml
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from limbctl.envelope import RigidMap
-from limbctl.envelope.base import load_model
-from limbctl.envelope.synthetic import ConeRegion, PolygonRegion, to_quaternions
+from limbctl.envelope import RigidMap, load_header
+from limbctl.envelope.base import Envelope, load_model
+from limbctl.envelope.synthetic import (
+    ConeRegion,
+    PolygonRegion,
+    covered,
+    rounded,
+    to_quaternions,
+    trajectory_samples,
+)
+from limbctl.envelope.synthetic_twist import SHOULDER, ShoulderRegion
 from limbctl.errors import ConfigError
-from limbctl.geometry.quat import direction_angle, geodesic_distance, limb_direction
-from limbctl.geometry.twist import decompose, wrap
+from limbctl.geometry import quat
+from limbctl.geometry.gimbal import pan_tilt_to_direction
+from limbctl.geometry.twist import compose, decompose, wrap
 from limbctl.region import RegionParams
+from limbctl.region.twist_region import TwistRegion
+from limbctl.teach.dataset import load_dataset
+
+ROOT = Path(__file__).resolve().parents[2]
+HAND_RECORDING = ROOT / "tests" / "data" / "hand_irregular_seed0_20s.limb"
+_POLYGON = yaml.safe_load((ROOT / "examples" / "regions" / "irregular.yaml").read_text())
+IRREGULAR = PolygonRegion(np.array(_POLYGON["region"]["polygon"], dtype=float))
 
 
 @pytest.fixture(scope="module")
 def cone_model():
-    rng = np.random.default_rng(0)
     region = ConeRegion(np.radians(30.0))
-    q = to_quaternions(region.sample(600, rng))
+    q = to_quaternions(region.sample(600, np.random.default_rng(0)))
     return region, RigidMap(nodes=500, seed=0).fit(q)
 
 
-def test_fit_trains_weights_and_respond_answers_on_the_data(cone_model):
+@pytest.fixture(scope="module")
+def hand_model():
+    return RigidMap(nodes=500, seed=0).fit(load_dataset(HAND_RECORDING).quaternions)
+
+
+def test_a_fitted_map_responds_answers_one_command_as_many_and_refuses_bad_input(cone_model):
     region, m = cone_model
     assert m.weights.shape == (500, 4)
     assert 1 <= m.epochs < 1000
@@ -29,13 +52,15 @@ def test_fit_trains_weights_and_respond_answers_on_the_data(cone_model):
         r = m.respond(q, interpolation=mode, k=8)
         assert r.shape == (50, 4)
         np.testing.assert_allclose(np.linalg.norm(r, axis=1), 1.0, atol=1e-12)
-        # the papers' answer lies near the taught region
-        assert np.all(np.degrees(direction_angle(limb_direction(r), [1, 0, 0])) < 45.0)
+        angle = np.degrees(quat.direction_angle(quat.limb_direction(r), [1, 0, 0]))
+        assert np.all(angle < 45.0), f"{mode}: the papers' answer lies near the taught region"
     assert m.respond(q[0]).shape == (4,)
-
-
-def test_bad_input_is_refused_naming_the_row(cone_model):
-    _, m = cone_model
+    q = to_quaternions(region.test_directions(30, np.random.default_rng(2)))
+    batch = m.correct(q)
+    for i in range(30):
+        np.testing.assert_array_equal(m.correct(q[i]), batch[i], "one command as in a batch")
+        assert m.contains(q[i]) == m.contains(q)[i]
+    # bad input and an untrained map are refused, saying why
     bad = np.array([[1.0, 0, 0, 0], [np.nan, 0, 0, 1]])
     for call in (m.contains, m.correct, m.respond):
         with pytest.raises(ValueError, match="row 1"):
@@ -46,31 +71,24 @@ def test_bad_input_is_refused_naming_the_row(cone_model):
         m.correct(np.array([np.nan, 0, 0, 0]))
     with pytest.raises(ConfigError, match="choose one of"):
         m.respond(bad[:1], interpolation="bogus")
-
-
-def test_untrained_map_says_how_to_train():
     with pytest.raises(ConfigError, match="fit"):
         RigidMap(nodes=50).correct(np.array([1.0, 0, 0, 0]))
 
 
-def test_single_and_batch_agree(cone_model):
-    region, m = cone_model
-    q = to_quaternions(region.test_directions(30, np.random.default_rng(2)))
-    batch = m.correct(q)
-    for i in range(30):
-        np.testing.assert_array_equal(m.correct(q[i]), batch[i])
-        assert m.contains(q[i]) == m.contains(q)[i]
-
-
-def test_save_load_round_trip(cone_model, tmp_path):
+def test_save_load_round_trip_and_old_gate_files_are_refused(cone_model, tmp_path):
     region, m = cone_model
     path = m.save(tmp_path / "m.npz")
     m2 = RigidMap.load(path)
-    assert isinstance(load_model(path), RigidMap)
+    assert isinstance(load_model(path), RigidMap) and isinstance(Envelope.load(path), RigidMap)
     q = to_quaternions(region.test_directions(200, np.random.default_rng(3)))
     np.testing.assert_array_equal(m2.correct(q), m.correct(q))
     np.testing.assert_array_equal(m2.respond(q, "geometric"), m.respond(q, "geometric"))
     np.testing.assert_array_equal(m2.weights, m.weights)
+    assert not m.twist and "twist" not in load_header(path)["params"], "swing-only: no twist key"
+    params = m._params()
+    params["gate_version"] = 1
+    with pytest.raises(ValueError, match="retrain"):
+        RigidMap._restore(params, m._arrays())
 
 
 def _direction(theta_deg, phi_deg):
@@ -78,32 +96,10 @@ def _direction(theta_deg, phi_deg):
     return np.array([np.cos(t), np.sin(t) * np.cos(p), np.sin(t) * np.sin(p)])
 
 
-@settings(max_examples=200, deadline=None)
 def _with_twist(d, twist):
     """swing(d) * (rotation by ``twist`` about +x), canonical w >= 0."""
-    from limbctl.geometry.quat import canonical, multiply
-
     tw = np.array([np.cos(twist / 2), np.sin(twist / 2), 0.0, 0.0])
-    return canonical(multiply(to_quaternions(d), tw))
-
-
-@given(theta=st.floats(0.0, 179.0), phi=st.floats(-180.0, 180.0), twist=st.floats(-3.1, 3.1))
-def test_correct_promises(cone_model, theta, phi, twist):
-    region, m = cone_model
-    d = _direction(theta, phi)
-    # a command with twist about the limb: swing(d) * twist
-    q = _with_twist(d, twist)
-    out = m.correct(q)
-    if m.contains(q):
-        # inside: unchanged, exactly
-        np.testing.assert_array_equal(out, q)
-    else:
-        # outside: the output is in the region, no farther than the ideal target
-        assert m.contains(out)
-        moved = direction_angle(limb_direction(out), d)
-        assert moved <= direction_angle(region.ideal(d[None])[0], d) + np.radians(3.0)
-        # the twist about the limb is kept
-        assert abs(wrap(decompose(out)[1] - decompose(q)[1])) < 1e-6
+    return quat.canonical(quat.multiply(to_quaternions(d), tw))
 
 
 @settings(max_examples=60, deadline=None)
@@ -117,10 +113,10 @@ def test_correct_is_continuous(cone_model, theta, phi, step_theta, step_phi):
     _, m = cone_model
     a = to_quaternions(_direction(theta, phi))
     b = to_quaternions(_direction(theta + step_theta, phi + step_phi))
-    da, db = limb_direction(m.correct(a)), limb_direction(m.correct(b))
-    step = direction_angle(limb_direction(a), limb_direction(b))
+    da, db = quat.limb_direction(m.correct(a)), quat.limb_direction(m.correct(b))
+    step = quat.direction_angle(quat.limb_direction(a), quat.limb_direction(b))
     # a small command step moves the output by a comparably small amount (no jumps)
-    assert direction_angle(da, db) <= 3.0 * step + 1e-7
+    assert quat.direction_angle(da, db) <= 3.0 * step + 1e-7
 
 
 def test_irregular_region_valid_commands_pass_and_outputs_stay_near():
@@ -130,37 +126,35 @@ def test_irregular_region_valid_commands_pass_and_outputs_stay_near():
     test = region.test_directions(3000, rng)
     q = to_quaternions(test)
     inside = m.contains(q)
-    deep = region.depth(test) >= np.radians(4.0)
-    assert inside[deep].mean() > 0.98
+    assert inside[region.depth(test) >= np.radians(4.0)].mean() > 0.98
     out = m.correct(q)
     assert np.all(m.contains(out))
     np.testing.assert_array_equal(out[inside], q[inside])
 
 
+def _taught_gate_passes(m, q, d, region, test, cover):
+    """Share of ``test``'s covered valid commands passed unchanged, after checking that taught
+    poses are allowed (99.5 %), over ``cover`` such commands are tested, and no output lies 2 deg
+    (99.5 % of them 1 deg) outside ``region``, concavities included."""
+    assert m.contains(q).mean() >= 0.995
+    qt = to_quaternions(test)
+    out = m.correct(qt)
+    valid = (region.depth(test) >= np.radians(2.0)) & covered(test, d)
+    assert valid.sum() > cover
+    depth_out = region.depth(quat.limb_direction(out))
+    assert depth_out.min() > -np.radians(2.0)
+    assert (depth_out >= -np.radians(1.0)).mean() >= 0.995
+    return np.all(out[valid] == qt[valid], axis=1).mean()
+
+
 @pytest.mark.parametrize("which", ["irregular", "cone"])
 def test_hand_strokes_are_contained_and_gaps_filled(which):
-    from limbctl.envelope.synthetic import covered, trajectory_samples
-
-    irregular = np.array(
-        [[-70, 5], [-66, -18], [-52, -31], [-30, -35], [-5, -32], [22, -34], [48, -30], [68, -18],
-         [80, 2], [77, 26], [64, 46], [44, 58], [24, 57], [10, 44], [-4, 36], [-18, 41],
-         [-36, 52], [-55, 46], [-67, 28]], dtype=float
-    )  # fmt: skip
-    region = PolygonRegion(irregular) if which == "irregular" else ConeRegion(np.radians(30.0))
+    region = IRREGULAR if which == "irregular" else ConeRegion(np.radians(30.0))
     rng = np.random.default_rng(7)
     d = trajectory_samples(region, 4000, rng)
     q = to_quaternions(d)
     m = RigidMap(nodes=500, seed=0).fit(q)
-    # taught poses are allowed (target 99.5%)
-    assert m.contains(q).mean() >= 0.995
-    # the gaps between strokes are filled: covered valid commands (2 deg or more inside) pass
-    # unchanged (docs/decisions/region.md, "The region is held to the taught evidence")
-    test = region.test_directions(20000, rng)
-    qt = to_quaternions(test)
-    out = m.correct(qt)
-    valid = (region.depth(test) >= np.radians(2.0)) & covered(test, d)
-    assert valid.sum() > 500
-    passed = np.all(out[valid] == qt[valid], axis=1).mean()
+    passed = _taught_gate_passes(m, q, d, region, region.test_directions(20000, rng), 500)
     if m.region.unsupported_edge:
         # strokes leaving the edge unreached: the region is held at the evidence and says so
         assert m.region.held_edge and all(s.held for s in m.region.unsupported_edge)
@@ -168,10 +162,14 @@ def test_hand_strokes_are_contained_and_gaps_filled(which):
         assert passed >= 0.85
     else:
         assert passed >= 0.96
-    # nothing learned far outside the true region, concavities included
-    depth_out = region.depth(limb_direction(out))
-    assert depth_out.min() > -np.radians(2.0)
-    assert (depth_out >= -np.radians(1.0)).mean() >= 0.995
+
+
+def test_a_real_hand_recording_is_learned_safely_and_faithfully(hand_model):
+    """``limbctl record --duration 20 --seed 0`` over examples/regions/irregular.yaml."""
+    q = load_dataset(HAND_RECORDING).quaternions
+    test = IRREGULAR.test_directions(20000, np.random.default_rng(0))
+    passed = _taught_gate_passes(hand_model, q, quat.limb_direction(q), IRREGULAR, test, 300)
+    assert passed >= 0.90, "covered valid commands pass: a 20 s recording is no complete teaching"
 
 
 def test_region_settings_are_one_object_saved_with_the_model(tmp_path):
@@ -193,8 +191,7 @@ def test_region_settings_are_one_object_saved_with_the_model(tmp_path):
 
 
 def test_models_saved_with_the_region_settings_among_the_maps_still_load(cone_model, tmp_path):
-    # the header gate v6 models were saved with before RegionParams: flat settings and
-    # smooth_edge (written by the real save, only the params replaced)
+    # gate v6 models' flat settings and smooth_edge, written by the real save
     _, m = cone_model
     params = {k: v for k, v in m._params().items() if k != "region"}
     flat = m.region.params.as_dict()
@@ -212,105 +209,52 @@ def test_models_saved_with_the_region_settings_among_the_maps_still_load(cone_mo
     np.testing.assert_array_equal(back.correct(q), m.correct(q))
 
 
-def test_old_gate_files_are_refused(cone_model, tmp_path):
-    from limbctl.envelope.base import Envelope
-
-    _, m = cone_model
-    params = m._params()
-    params["gate_version"] = 1
-    with pytest.raises(ValueError, match="retrain"):
-        RigidMap._restore(params, m._arrays())
-    assert isinstance(Envelope.load(m.save(tmp_path / "ok.npz")), RigidMap)
-
-
-def test_a_real_hand_recording_is_learned_safely_and_faithfully():
-    """A 20 s recording of the simulator's scripted hand (``limbctl record --duration 20
-    --seed 0``) over examples/regions/irregular.yaml."""
-    from pathlib import Path
-
-    import yaml
-
-    from limbctl.envelope.synthetic import covered
-    from limbctl.teach.dataset import load_dataset
-
-    root = Path(__file__).resolve().parents[2]
-    polygon = yaml.safe_load((root / "examples" / "regions" / "irregular.yaml").read_text())
-    region = PolygonRegion(np.array(polygon["region"]["polygon"], dtype=float))
-    q = load_dataset(root / "tests" / "data" / "hand_irregular_seed0_20s.limb").quaternions
-    d = limb_direction(q)
-    m = RigidMap(nodes=500, seed=0).fit(q)
-    # taught poses are allowed (target 99.5%)
-    assert m.contains(q).mean() >= 0.995
-    test = region.test_directions(20000, np.random.default_rng(0))
-    qt = to_quaternions(test)
-    out = m.correct(qt)
-    # covered valid commands pass unchanged (90 %: a 20 s recording is no complete teaching)
-    valid = (region.depth(test) >= np.radians(2.0)) & covered(test, d)
-    assert valid.sum() > 300
-    assert np.all(out[valid] == qt[valid], axis=1).mean() >= 0.90
-    # no output outside the taught polygon by more than 2 deg; 99.5% within 1 deg
-    depth_out = region.depth(limb_direction(out))
-    assert depth_out.min() > -np.radians(2.0)
-    assert (depth_out >= -np.radians(1.0)).mean() >= 0.995
-
-
-@pytest.fixture(scope="module")
-def hand_model():
-    from pathlib import Path
-
-    from limbctl.teach.dataset import load_dataset
-
-    path = Path(__file__).resolve().parents[1] / "data" / "hand_irregular_seed0_20s.limb"
-    return RigidMap(nodes=300, seed=0).fit(load_dataset(path).quaternions)
-
-
 @settings(max_examples=300, deadline=None)
-@given(pan=st.floats(-120.0, 120.0), tilt=st.floats(-80.0, 80.0), twist=st.floats(-3.1, 3.1))
-def test_hand_taught_gate_promises(hand_model, pan, tilt, twist):
-    # a concave, hand-taught region with holes between strokes: the same promises hold
-    from limbctl.geometry.gimbal import pan_tilt_to_direction
-
-    d = pan_tilt_to_direction(np.radians(pan), np.radians(tilt))
-    q = _with_twist(d, twist)
-    out = hand_model.correct(q)
-    if hand_model.contains(q):
-        np.testing.assert_array_equal(out, q)
-    else:
-        assert hand_model.contains(out)
-        np.testing.assert_array_equal(hand_model.correct(out), out)
-        assert abs(wrap(decompose(out)[1] - decompose(q)[1])) < 1e-6
-
-
-# ---- three-servo limbs: RigidMap(twist=True) ---------------------------------------------------
+@given(
+    theta=st.floats(0.0, 179.0),
+    phi=st.floats(-180.0, 180.0),
+    pan=st.floats(-120.0, 120.0),
+    tilt=st.floats(-80.0, 80.0),
+    twist=st.floats(-3.1, 3.1),
+)
+def test_correct_promises(cone_model, hand_model, theta, phi, pan, tilt, twist):
+    """Inside unchanged; outside moved in, for good, twist kept, on a cone and a hand-taught region
+    (concave, holes between strokes); on the cone no farther than the ideal target."""
+    region, cone = cone_model
+    hand = pan_tilt_to_direction(np.radians(pan), np.radians(tilt))
+    for m, d in ((cone, _direction(theta, phi)), (hand_model, hand)):
+        q = _with_twist(d, twist)
+        out = m.correct(q)
+        if m.contains(q):
+            np.testing.assert_array_equal(out, q, "inside: unchanged, exactly")
+            continue
+        assert m.contains(out), "outside: moved into the region"
+        np.testing.assert_array_equal(m.correct(out), out, "outside: moved for good")
+        assert abs(wrap(decompose(out)[1] - decompose(q)[1])) < 1e-6, "the twist is kept"
+        if m is cone:
+            moved = quat.direction_angle(quat.limb_direction(out), d)
+            assert moved <= quat.direction_angle(region.ideal(d[None])[0], d) + np.radians(3.0)
 
 
 @pytest.fixture(scope="module")
 def twist_model():
-    from limbctl.envelope.synthetic import rounded
-    from limbctl.envelope.synthetic_twist import SHOULDER, ShoulderRegion
-
     truth = ShoulderRegion(rounded(SHOULDER))
     q = truth.teaching(800, 600, 1000, np.random.default_rng(0))
     return truth, RigidMap(nodes=500, seed=0, twist=True).fit(q)
 
 
 def test_twist_model_round_trips_and_records_its_kind(twist_model, tmp_path):
-    from limbctl.envelope import load_header
-    from limbctl.region.twist_region import TwistRegion
-
-    truth, m = twist_model
+    _, m = twist_model
     path = m.save(tmp_path / "twist.npz")
     header = load_header(path)
     assert header["params"]["twist"] is True and len(header["sha256"]) == 64
     m2 = RigidMap.load(path)
     assert m2.twist and isinstance(m2.region, TwistRegion)
-    rng = np.random.default_rng(1)
-    q = rng.normal(size=(300, 4))
+    q = np.random.default_rng(1).normal(size=(300, 4))
     q /= np.linalg.norm(q, axis=1, keepdims=True)
     np.testing.assert_array_equal(m2.correct(q), m.correct(q))
     np.testing.assert_array_equal(m2.contains(q), m.contains(q))
     np.testing.assert_array_equal(m2.weights, m.weights)
-    # a changed byte is caught by the checksum
     raw = bytearray(path.read_bytes())
     raw[len(raw) // 2] ^= 0xFF
     (tmp_path / "bad.npz").write_bytes(bytes(raw))
@@ -319,8 +263,6 @@ def test_twist_model_round_trips_and_records_its_kind(twist_model, tmp_path):
 
 
 def test_twist_model_corrects_on_so3_and_the_swing_model_keeps_twist(twist_model, cone_model):
-    from limbctl.geometry.twist import compose, decompose
-
     truth, m = twist_model
     d = truth._inside_directions(200, np.random.default_rng(2))
     c, h = truth.band(d)
@@ -329,15 +271,6 @@ def test_twist_model_corrects_on_so3_and_the_swing_model_keeps_twist(twist_model
     out = m.correct(q)
     assert m.contains(out).all() and not m.contains(q).any()
     # the nearest orientation moves the twist (and maybe the direction), not only the direction
-    assert np.all(geodesic_distance(q, out) <= np.radians(30.0) + 1e-9)
-    _, region = cone_model
-    kept = region.correct(q)
+    assert np.all(quat.geodesic_distance(q, out) <= np.radians(30.0) + 1e-9)
+    kept = cone_model[1].correct(q)
     np.testing.assert_allclose(decompose(kept)[1], decompose(q)[1], atol=1e-9)
-
-
-def test_swing_only_models_save_no_twist_key(cone_model, tmp_path):
-    from limbctl.envelope import load_header
-
-    _, m = cone_model
-    assert not m.twist
-    assert "twist" not in load_header(m.save(tmp_path / "m.npz"))["params"]

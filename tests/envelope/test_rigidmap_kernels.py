@@ -2,6 +2,7 @@ import numpy as np
 import pytest
 
 from limbctl.envelope import rigidmap_kernels as rk
+from limbctl.envelope.layouts import make_layout
 from limbctl.envelope.synthetic import ConeRegion, to_quaternions
 
 
@@ -13,9 +14,8 @@ def _gaussian_layout(n, seed):
 
 def _patterns(n, seed, half_angle_deg=30.0):
     rng = np.random.default_rng(seed)
-    return np.ascontiguousarray(
-        to_quaternions(ConeRegion(np.radians(half_angle_deg)).sample(n, rng))
-    )
+    cone = ConeRegion(np.radians(half_angle_deg))
+    return np.ascontiguousarray(to_quaternions(cone.sample(n, rng)))
 
 
 def _nodes_at_the_data():
@@ -48,7 +48,7 @@ def test_training_kernel_matches_numpy_reference(case, metric):
     assert case != "layout" or not np.allclose(w_kernel, positions)
 
 
-def test_patterns_near_gathers_few_in_order_and_scans_many():
+def test_patterns_near_gathers_few_in_pattern_order_and_scans_many():
     pattern_slot = np.array([2, 0, 1, 2, 0, 0, 1, 2, 0, 0, 0, 0], dtype=np.int64)
     start, grouped = rk._slot_patterns(pattern_slot, 3)
     np.testing.assert_array_equal(start, [0, 7, 9, 12])
@@ -61,9 +61,7 @@ def test_patterns_near_gathers_few_in_order_and_scans_many():
     count = rk._patterns_near(np.array([0.0, 0.5, 0.0]), start, grouped, buffer, mark)
     np.testing.assert_array_equal(buffer[:count], [2, 6])
     assert not mark.any()
-
-
-def test_patterns_near_merges_the_slots_in_pattern_order():
+    # many slots: merged in pattern order
     rng = np.random.default_rng(5)
     pattern_slot = rng.integers(0, 12, 400)
     start, grouped = rk._slot_patterns(pattern_slot, 12)
@@ -76,40 +74,12 @@ def test_patterns_near_merges_the_slots_in_pattern_order():
     assert not mark.any()
 
 
-def test_position_winners_is_nearest_position():
+def test_position_winners_and_topology_are_the_nearest_positions_ties_in_index_order():
     positions = _gaussian_layout(200, 3)
     patterns = _patterns(50, 4)
     got = rk.position_winners(positions, patterns)
     want = np.argmin(((patterns[:, None, :] - positions[None]) ** 2).sum(-1), axis=1)
     np.testing.assert_array_equal(got, want)
-
-
-@pytest.mark.parametrize("mode", sorted(rk.INTERPOLATIONS.values()))
-@pytest.mark.parametrize("metric", [rk.EUCLIDEAN, rk.COSINE])
-def test_respond_kernel_matches_reference(mode, metric):
-    positions = _gaussian_layout(300, 5)
-    weights = positions.copy()
-    rk.train_rigid_map(
-        positions, weights, _patterns(100, 6), 1.0, 0.15, 2 * np.pi, 1.0, 0.04, 1000, 1e-9
-    )
-    topology = rk.position_topology(positions, 8)
-    q = np.vstack([_patterns(40, 7, 60.0), _gaussian_layout(20, 8)])
-    got = rk.respond_batch(weights, q, 6, metric, mode, topology)
-    want = rk.respond_reference(weights, q, 6, metric, mode, topology)
-    np.testing.assert_allclose(got, want, atol=1e-12)
-    np.testing.assert_allclose(np.linalg.norm(got, axis=1), 1.0, atol=1e-12)
-    assert (got[:, 0] >= 0).all()
-
-
-def test_respond_none_returns_nearest_weight_normalised():
-    weights = _gaussian_layout(50, 9) * 0.9
-    q = _gaussian_layout(10, 10)
-    got = rk.respond_batch(weights, q, 0, rk.EUCLIDEAN, rk.NONE, rk.position_topology(weights, 4))
-    idx = np.argmin(((q[:, None] - weights[None]) ** 2).sum(-1), axis=1)
-    np.testing.assert_allclose(got, weights[idx] / 0.9, atol=1e-12)
-
-
-def test_position_topology_lists_nearest_other_nodes():
     p = _gaussian_layout(40, 11)
     topo = rk.position_topology(p, 3)
     for i in range(40):
@@ -117,16 +87,11 @@ def test_position_topology_lists_nearest_other_nodes():
         dots = p @ p[i]
         dots[i] = -np.inf
         np.testing.assert_array_equal(np.sort(topo[i]), np.sort(np.argsort(-dots)[:3]))
-
-
-@pytest.mark.parametrize("layout", ["600-cell", "24-cell"])
-def test_position_topology_breaks_ties_in_index_order(layout):
     # polytope layouts hold many equal dots: the order is a stable sort's, nearest first
-    from limbctl.envelope.layouts import make_layout
-
-    p = make_layout(layout, None, seed=0)
-    dots = p @ p.T
-    np.fill_diagonal(dots, -np.inf)
-    for k in (1, 5, 12):
-        want = np.argsort(-dots, axis=1, kind="stable")[:, : min(k, len(p) - 1)]
-        np.testing.assert_array_equal(rk.position_topology(p, k), want)
+    for layout in ("600-cell", "24-cell"):
+        p = make_layout(layout, None, seed=0)
+        dots = p @ p.T
+        np.fill_diagonal(dots, -np.inf)
+        for k in (1, 5, 12):
+            want = np.argsort(-dots, axis=1, kind="stable")[:, : min(k, len(p) - 1)]
+            np.testing.assert_array_equal(rk.position_topology(p, k), want, f"{layout}, k={k}")

@@ -30,16 +30,9 @@ def small_som():
 
 def test_table_i_schedule():
     lr, radii = table_i_schedule(60)
-    for t, want_lr, want_radius in [
-        (0, 1.0, 4.0),
-        (9, 1.0, 4.0),
-        (10, 0.5, 2.0),
-        (20, 0.25, 1.0),
-        (30, 0.125, 0.5),
-        (40, 0.0625, 0.25),
-        (59, 0.0625, 0.25),
-    ]:
-        assert lr[t] == want_lr and radii[t] == want_radius
+    steps = [0, 9, 10, 20, 30, 40, 59]
+    np.testing.assert_array_equal(lr[steps], [1.0, 1.0, 0.5, 0.25, 0.125, 0.0625, 0.0625])
+    np.testing.assert_array_equal(radii[steps], [4.0, 4.0, 2.0, 1.0, 0.5, 0.25, 0.25])
     assert len(lr) == len(radii) == 60
     assert SOM().schedule()[0].shape == (10_000,)
     # floors hold when the periods run on
@@ -47,7 +40,19 @@ def test_table_i_schedule():
     assert lr.min() == 0.02 and radii.min() == pytest.approx(4.0 * 0.5**19)
 
 
-def test_fit_converges_and_weights_cover_the_data(small_som):
+def test_fit_is_seeded_and_table_i_first_step_overwrites_the_initial_weights():
+    patterns = cone_patterns(200, np.radians(60), seed=3)
+    a = SOM(rows=6, cols=6, seed=7, lr0=0.8).fit(patterns).weights
+    np.testing.assert_array_equal(a, SOM(rows=6, cols=6, seed=7, lr0=0.8).fit(patterns).weights)
+    assert not np.array_equal(a, SOM(rows=6, cols=6, seed=8, lr0=0.8).fit(patterns).weights)
+    g = SOM(rows=6, cols=6, seed=np.random.default_rng(7), lr0=0.8).fit(patterns).weights
+    np.testing.assert_array_equal(a, g)
+    # lr(0) = 1 copies each pattern onto its neighbourhood: the initial weights no longer matter
+    a = SOM(rows=6, cols=6, seed=7).fit(patterns).weights
+    np.testing.assert_array_equal(a, SOM(rows=6, cols=6, seed=8).fit(patterns).weights)
+
+
+def test_fit_converges_and_the_map_responds_contains_and_corrects(small_som):
     som, patterns = small_som
     assert som.weights.shape == (100, 4)
     assert som.converged and 40 < som.steps < som.max_steps
@@ -56,52 +61,23 @@ def test_fit_converges_and_weights_cover_the_data(small_som):
     assert np.max(np.linalg.norm(nodes - patterns, axis=1)) == pytest.approx(som.threshold)
     assert np.min(np.linalg.norm(som.weights, axis=1)) > 0.5
     assert som.contains(patterns).all()
-
-
-def test_fit_is_seeded():
-    patterns = cone_patterns(200, np.radians(60), seed=3)
-    a = SOM(rows=6, cols=6, seed=7, lr0=0.8).fit(patterns).weights
-    b = SOM(rows=6, cols=6, seed=7, lr0=0.8).fit(patterns).weights
-    c = SOM(rows=6, cols=6, seed=8, lr0=0.8).fit(patterns).weights
-    np.testing.assert_array_equal(a, b)
-    assert not np.array_equal(a, c)
-    g = SOM(rows=6, cols=6, seed=np.random.default_rng(7), lr0=0.8).fit(patterns).weights
-    np.testing.assert_array_equal(a, g)
-
-
-def test_table_i_first_step_overwrites_the_initial_weights():
-    # lr(0) = 1 copies each pattern onto its neighbourhood: once every node has been reached,
-    # the random initial weights no longer matter (documented in som.py)
-    patterns = cone_patterns(200, np.radians(60), seed=3)
-    a = SOM(rows=6, cols=6, seed=7).fit(patterns).weights
-    c = SOM(rows=6, cols=6, seed=8).fit(patterns).weights
-    np.testing.assert_array_equal(a, c)
-
-
-def test_respond_none_is_the_normalised_winner(small_som):
-    som, _ = small_som
     q = quat.swing_from_direction(sphere_directions(300, seed=4))
     out = som.respond(q)
     d2 = np.sum((q[:, None, :] - som.weights[None]) ** 2, axis=2)
     winner = som.weights[np.argmin(d2, axis=1)]
     np.testing.assert_allclose(out, quat.canonical(quat.normalize(winner)), atol=1e-15)
     assert som.respond(q[0]).shape == (4,)
-
-
-def test_900_node_som_matches_the_paper_figure():
-    # the paper: 900 nodes, 5000 patterns, 90 deg cone -> 3D error 5.63e-2 on a unit limb;
-    # here the RMS end-point error against Lee's ideal over directions uniform on the sphere
-    som = SOM(seed=0).fit(cone_patterns(5000, np.pi / 2, seed=5))
-    q = quat.swing_from_direction(sphere_directions(4000, seed=6))
-    ideal = quat.limb_direction(Cone(np.pi / 2).correct(q))
-
-    def rms(answer):
-        return np.sqrt(np.mean(np.sum((quat.limb_direction(answer) - ideal) ** 2, axis=1)))
-
-    err_none = rms(som.respond(q))
-    assert 0.03 < err_none < 0.08
-    # interpolation between the winner and its runner-ups helps (Rigid Map paper's finding)
-    assert rms(som.respond(q, interpolation="geometric", k=8)) < 0.85 * err_none
+    # node (2, 3) = 23: its 4 edge neighbours on the 10 x 10 grid
+    assert sorted(som._grid_topology(4)[23]) == [13, 22, 24, 33]
+    q = quat.swing_from_direction(sphere_directions(2000, seed=8))
+    inside = som.contains(q)
+    # the simple threshold gate agrees with the true cone on most directions
+    assert np.mean(inside == Cone(np.pi / 2).contains(q)) > 0.9
+    out = som.correct(q)
+    assert out[inside].tobytes() == q[inside].tobytes()
+    np.testing.assert_allclose(out[~inside], som.respond(q[~inside]), atol=0)
+    assert som.contains(out).all()
+    assert isinstance(som.contains(q[0]), bool)
 
 
 @pytest.mark.parametrize("mode", ["idw", "geometric", "geometric-winner", "topological"])
@@ -119,28 +95,7 @@ def test_interpolated_answers_are_unit_canonical_and_exact_on_a_node(small_som, 
         np.testing.assert_allclose(som_unit.respond(node, "idw", k=4), node, atol=1e-15)
 
 
-def test_topological_uses_grid_neighbours(small_som):
-    som, _ = small_som
-    topo = som._grid_topology(4)
-    # node (2, 3) = 23: its 4 edge neighbours on the 10 x 10 grid
-    assert sorted(topo[23]) == [13, 22, 24, 33]
-
-
-def test_contains_and_correct(small_som):
-    som, patterns = small_som
-    q = quat.swing_from_direction(sphere_directions(2000, seed=8))
-    inside = som.contains(q)
-    truth = Cone(np.pi / 2).contains(q)
-    # the simple threshold gate agrees with the true cone on most directions
-    assert np.mean(inside == truth) > 0.9
-    out = som.correct(q)
-    assert out[inside].tobytes() == q[inside].tobytes()
-    np.testing.assert_allclose(out[~inside], som.respond(q[~inside]), atol=0)
-    assert som.contains(out).all()
-    assert isinstance(som.contains(q[0]), bool)
-
-
-def test_bad_input_rejected(small_som):
+def test_bad_input_options_and_an_untrained_map_are_refused(small_som):
     som, _ = small_som
     q = quat.swing_from_direction(sphere_directions(4, seed=9))
     q[2, 0] = np.inf
@@ -152,14 +107,9 @@ def test_bad_input_rejected(small_som):
         som.respond(q[:1], interpolation="idw", k=0)
     with pytest.raises(ConfigError, match="empty"):
         SOM().fit(np.empty((0, 4)))
-
-
-def test_untrained_and_bad_options():
-    som = SOM(rows=3, cols=3)
-    with pytest.raises(ConfigError, match="not trained"):
-        som.respond(np.array([1.0, 0, 0, 0]))
-    with pytest.raises(ConfigError, match="not trained"):
-        som.contains(np.array([1.0, 0, 0, 0]))
+    for call in (SOM(rows=3, cols=3).respond, SOM(rows=3, cols=3).contains):
+        with pytest.raises(ConfigError, match="not trained"):
+            call(np.array([1.0, 0, 0, 0]))
     with pytest.raises(ConfigError, match="rows must be an integer"):
         SOM(rows=0)
     with pytest.raises(ConfigError, match="lr0 must be"):
@@ -174,13 +124,8 @@ def test_save_load_round_trip(small_som, tmp_path):
     back = SOM.load(path)
     assert isinstance(Envelope.load(path), SOM)
     np.testing.assert_array_equal(back.weights, som.weights)
-    assert (back.rows, back.cols, back.threshold, back.steps, back.converged) == (
-        som.rows,
-        som.cols,
-        som.threshold,
-        som.steps,
-        som.converged,
-    )
+    for name in ("rows", "cols", "threshold", "steps", "converged"):
+        assert getattr(back, name) == getattr(som, name), name
     q = quat.swing_from_direction(sphere_directions(100, seed=10))
     np.testing.assert_array_equal(back.correct(q), som.correct(q))
     np.testing.assert_array_equal(back.respond(q, "topological"), som.respond(q, "topological"))

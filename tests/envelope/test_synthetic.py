@@ -4,7 +4,7 @@ from limbctl.envelope.synthetic import ConeRegion, PolygonRegion, to_quaternions
 from limbctl.geometry.quat import direction_angle, limb_direction
 
 
-def test_cone_samples_inside_and_ideal_is_lee():
+def test_cone_samples_inside_ideal_is_lee_and_quaternions_point_the_limb():
     rng = np.random.default_rng(0)
     cone = ConeRegion(np.radians(30.0))
     assert cone.contains(cone.sample(500, rng)).all()
@@ -16,9 +16,11 @@ def test_cone_samples_inside_and_ideal_is_lee():
         direction_angle(ideal[outside], cone.axis), np.radians(30), atol=1e-12
     )
     np.testing.assert_array_equal(ideal[~outside], test[~outside])
+    d = ConeRegion(1.0).sample(10, np.random.default_rng(2))
+    np.testing.assert_allclose(limb_direction(to_quaternions(d)), d, atol=1e-12)
 
 
-def test_polygon_ideal_is_nearest_boundary_point():
+def test_polygon_ideal_is_nearest_boundary_point_and_strokes_stay_inside():
     rng = np.random.default_rng(1)
     bean = PolygonRegion()
     s = bean.sample(1000, rng)
@@ -33,14 +35,7 @@ def test_polygon_ideal_is_nearest_boundary_point():
     # the sampling is dense in the middle, sparse at the edge
     depth = bean.depth(s)
     assert (depth < np.radians(3)).mean() < 0.2
-
-
-def test_to_quaternions_points_the_limb():
-    d = ConeRegion(1.0).sample(10, np.random.default_rng(2))
-    np.testing.assert_allclose(limb_direction(to_quaternions(d)), d, atol=1e-12)
-
-
-def test_trajectory_samples_are_continuous_strokes_inside():
+    # trajectory samples are continuous strokes inside
     from limbctl.envelope.synthetic import trajectory_samples
 
     rng = np.random.default_rng(3)
@@ -51,11 +46,10 @@ def test_trajectory_samples_are_continuous_strokes_inside():
     steps = np.degrees(direction_angle(d[1:], d[:-1]))
     # consecutive samples are close (a 100 Hz recording), except where a stroke ends
     assert np.quantile(steps, 0.98) <= 0.31
-    # some strokes creep along the edge
-    assert (bean.depth(d) < np.radians(1.0)).mean() > 0.05
+    assert (bean.depth(d) < np.radians(1.0)).mean() > 0.05, "some strokes creep along the edge"
 
 
-def test_inset_track_runs_the_inset_distance_inside_round_reflex_corners():
+def test_the_inset_track_rounds_reflex_corners_and_the_teaching_traces_it_then_wanders():
     from limbctl.envelope.synthetic import NOTCH, inset_track
     from limbctl.geometry.gimbal import pan_tilt_to_direction
 
@@ -75,9 +69,7 @@ def test_inset_track_runs_the_inset_distance_inside_round_reflex_corners():
         np.sort(track[:, 0])[::50],
         atol=0.2,
     )
-
-
-def test_traced_teaching_traces_the_edge_then_wanders_inside():
+    # the traced teaching traces the edge, then wanders inside
     from limbctl.envelope.synthetic import NOTCH, traced_teaching
 
     notch = PolygonRegion(NOTCH)
@@ -88,5 +80,4 @@ def test_traced_teaching_traces_the_edge_then_wanders_inside():
     assert np.all(np.abs(depth[:traced] - 1.0) < 0.05)
     assert np.median(depth[traced:]) > 3.0
     steps = np.degrees(direction_angle(d[1:traced], d[: traced - 1]))
-    # 15 deg/s at 125 Hz
-    np.testing.assert_allclose(np.median(steps), 0.12, atol=0.005)
+    np.testing.assert_allclose(np.median(steps), 0.12, atol=0.005, err_msg="15 deg/s at 125 Hz")

@@ -16,7 +16,7 @@ def shoulder():
     return ShoulderRegion(rounded(SHOULDER))
 
 
-def test_teaching_lies_inside_with_stops_at_the_band_limits(shoulder):
+def test_teaching_lies_inside_with_stops_at_the_limits_of_a_band_narrowing_upward(shoulder):
     q = shoulder.teaching(300, 200, 400, np.random.default_rng(0))
     assert q.shape == (900, 4) and shoulder.contains(q).all()
     d, tau = decompose(q[-400:])
@@ -26,9 +26,7 @@ def test_teaching_lies_inside_with_stops_at_the_band_limits(shoulder):
     # half the stops along the swing edge (within 1 deg), some deep inside
     depth = np.degrees(shoulder.swing.depth(d))
     assert np.mean(depth <= 1.0 + 1e-9) >= 0.45 and depth.max() > 10.0
-
-
-def test_band_narrows_as_the_limb_rises(shoulder):
+    # the band narrows as the limb rises, linearly in tilt
     d = np.array([[math.cos(t), 0.0, math.sin(t)] for t in np.radians([-30.0, 0.0, 40.0])])
     _, h = shoulder.band(d)
     assert h[0] > h[1] > h[2]
@@ -36,7 +34,7 @@ def test_band_narrows_as_the_limb_rises(shoulder):
     np.testing.assert_allclose(np.degrees(h[1]), h0 + (h1 - h0) * (0.0 - t0) / (t1 - t0))
 
 
-def test_boundary_lies_on_the_boundary(shoulder):
+def test_boundary_lies_on_the_boundary_and_the_engines_clamp_inside(shoulder):
     b = shoulder.boundary(2.0)
     d, tau = decompose(b)
     c, h = shoulder.band(d)
@@ -44,9 +42,7 @@ def test_boundary_lies_on_the_boundary(shoulder):
     on_edge = np.abs(shoulder.swing.depth(d)) < np.radians(0.01)
     assert np.all(on_stop | on_edge)
     assert on_stop.sum() > 500 and on_edge.sum() > 500
-
-
-def test_the_engines_clamp_lands_inside_but_is_not_the_nearest(shoulder):
+    # the engines' clamp lands inside but is not the nearest
     rng = np.random.default_rng(1)
     d = shoulder._inside_directions(300, rng)
     c, h = shoulder.band(d)

@@ -1,6 +1,4 @@
-"""The demo's helpers (limbctl/eval/twist_demo.py): the excursion measure (a sampled held
-orientation bounds a goal's distance to the region where ``correct``'s local search may stop
-short), and the three-servo picture of the learned twist band beside the true one."""
+"""The demo's helpers: the sampled excursion bound, and the learned twist band's picture."""
 
 from __future__ import annotations
 
@@ -10,12 +8,7 @@ import numpy as np
 
 from limbctl.envelope import RigidMap
 from limbctl.envelope.synthetic_twist import ShoulderRegion
-from limbctl.eval.twist_demo import (
-    learned_band_line,
-    nearest_held_nearby_deg,
-    rotation_deg,
-    twist_picture,
-)
+from limbctl.eval import twist_demo
 from limbctl.geometry.gimbal import pan_tilt_to_direction
 from limbctl.geometry.quat import from_axis_angle
 
@@ -27,7 +20,9 @@ class BallRegion:
 
     def contains(self, q: np.ndarray) -> np.ndarray:
         q = np.atleast_2d(q)
-        return rotation_deg(q, np.broadcast_to([1.0, 0.0, 0.0, 0.0], q.shape)) <= RADIUS_DEG
+        return (
+            twist_demo.rotation_deg(q, np.broadcast_to([1.0, 0.0, 0.0, 0.0], q.shape)) <= RADIUS_DEG
+        )
 
 
 def goal_outside_by(deg: float, axis=(0.3, -0.5, 0.8)) -> np.ndarray:
@@ -35,16 +30,16 @@ def goal_outside_by(deg: float, axis=(0.3, -0.5, 0.8)) -> np.ndarray:
     return from_axis_angle(axis, np.radians(RADIUS_DEG + deg))
 
 
-def test_the_sampled_bound_is_near_the_true_distance_and_never_under_it():
+def test_the_sampled_bound_is_near_the_true_distance_never_under_it_nor_over_the_radius():
     for k, outside in enumerate((0.02, 0.07, 0.15)):
         # the bound handed in is what an early-stopping search might say: 0.1 deg too far
-        found = nearest_held_nearby_deg(BallRegion(), goal_outside_by(outside), outside + 0.1, k)
+        found = twist_demo.nearest_held_nearby_deg(
+            BallRegion(), goal_outside_by(outside), outside + 0.1, k
+        )
         assert outside <= found + 1e-9  # an upper bound: the region holds that orientation
         assert found <= outside + 0.01
-
-
-def test_with_nothing_held_within_the_radius_the_radius_is_returned():
-    found = nearest_held_nearby_deg(BallRegion(), goal_outside_by(1.0), 0.5, seed=0)
+    # with nothing held within the radius the radius is returned
+    found = twist_demo.nearest_held_nearby_deg(BallRegion(), goal_outside_by(1.0), 0.5, seed=0)
     assert math.isclose(found, 0.5)
 
 
@@ -53,7 +48,7 @@ def test_the_learned_band_line_is_the_band_where_the_swing_region_reaches(tmp_pa
     taught = region.teaching(2500, 1200, 1200, np.random.default_rng(0))
     model = RigidMap(twist=True).fit(taught)
     tilt = np.linspace(-60.0, 85.0, 30)
-    low, high = learned_band_line(model.region, 30.0, tilt)
+    low, high = twist_demo.learned_band_line(model.region, 30.0, tilt)
     d = pan_tilt_to_direction(np.full(30, math.radians(30.0)), np.radians(tilt))
     inside = np.asarray(model.region.mesh.contains(d), dtype=bool)
     assert inside.any() and not inside.all()
@@ -71,7 +66,7 @@ def test_the_learned_band_line_is_the_band_where_the_swing_region_reaches(tmp_pa
 
     samples = taught[:2000]
     lines = (tilt, (true_centre.mean() - 40.0 + 0 * tilt, true_centre.mean() + 40.0 + 0 * tilt))
-    twist_picture(tmp_path / "three.png", samples, samples[:50], *lines, model=model)
-    twist_picture(tmp_path / "two.png", samples, samples[:50], *lines)
+    twist_demo.twist_picture(tmp_path / "three.png", samples, samples[:50], *lines, model=model)
+    twist_demo.twist_picture(tmp_path / "two.png", samples, samples[:50], *lines)
     assert matplotlib.image.imread(tmp_path / "three.png").shape[:2] == (500, 1800)
     assert matplotlib.image.imread(tmp_path / "two.png").shape[:2] == (500, 1200)

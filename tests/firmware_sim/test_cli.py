@@ -24,8 +24,7 @@ ID, HARDWARE_ERROR, VOLTAGE_BIT = 7, 70, 0x01
 
 @contextlib.contextmanager
 def served(arguments: list[str]):
-    """``firmware-sim ARGUMENTS`` running: its process and its ready line, killed if the test
-    leaves it running."""
+    """``firmware-sim ARGUMENTS`` running: (process, ready line); killed if left running."""
     process = subprocess.Popen([*COMMAND, *arguments], stdout=subprocess.PIPE, text=True)
     try:
         yield process, process.stdout.readline()
@@ -37,8 +36,7 @@ def served(arguments: list[str]):
 
 
 def run_main(arguments: list[str]) -> int:
-    """``firmware-sim ARGUMENTS`` in this process (its exit status): the command's own entry
-    point, without a python start per call (the served tests below run it as a program)."""
+    """The exit status of ``firmware-sim ARGUMENTS`` run in this process."""
     try:
         return main(arguments)
     except SystemExit as done:  # argparse's exit on --help and on a malformed option
@@ -107,9 +105,7 @@ def test_serves_until_signal_then_removes_link(tmp_path, stop_signal):
 
 
 def test_a_leader_gimbal_moved_by_its_operator_is_served_and_logged(tmp_path):
-    """--leader 3,4 --operator: the leader's servos answer on the bus as their model, the
-    operator's hand turns the leader's pan (torque off) toward its target, and --leader-log
-    records the ground truth."""
+    """--leader/--operator: the leader answers as its model, the hand turns it, the log says so."""
     link, log, operator = tmp_path / "ttyDXL", tmp_path / "leader.jsonl", tmp_path / "hand.yaml"
     operator.write_text("model: xl330-m288\nscript: [[0, 0, 0], [0.5, 40, 0]]\n")
     # --model gives the limb's servos theirs; the leader's is the operator file's
@@ -142,8 +138,7 @@ def test_a_leader_gimbal_moved_by_its_operator_is_served_and_logged(tmp_path):
 
 
 def test_an_event_names_a_renumbered_servo_by_its_id(tmp_path, capsys):
-    """--factory 2 --eeprom DIR after set-up made slot 2 ID 9: --event ...:9:... is that servo;
-    slot 2's number is no ID any servo answers as."""
+    """After set-up made slot 2 ID 9, --event ...:9:... is that servo and ...:2:... is no one."""
     eeprom = tmp_path / "eeprom"
     sim = Simulator(factory=2, eeprom_dir=eeprom)
     sim.servo(2).write(ID, bytes([9]))

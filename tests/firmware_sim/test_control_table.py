@@ -38,13 +38,33 @@ def test_items_do_not_overlap_and_defaults_are_in_range(key):
         assert (item.address, item.size) == (address, size)
 
 
-def test_models_differ_where_the_emanual_says():
+def test_models_differ_where_the_emanual_says_every_x_series_model_is_served():
     xl, xm = get_model("XL430-W250"), get_model("xm430-w350")
     assert (xl.model_number, xm.model_number) == (1060, 1020)
     assert xl.has(Register.PRESENT_LOAD) and not xl.has(Register.GOAL_CURRENT)
     assert xm.item(Register.PRESENT_CURRENT).address == 126
     with pytest.raises(ValueError, match="xl430-w250"):
         get_model("ax-12")
+    assert get_model("xl330-m288").indirect_blocks == ((168, 208, 20),)
+    assert X330_BUILDERS["xl330-m288"](52).indirect_blocks == ((168, 208, 20),)
+    later = X330_BUILDERS["xl330-m288"](53)
+    assert later.indirect_blocks == ((168, 224, 20),)
+    slots = [item for item in later.items if item.register is None]
+    assert len(slots) == 40
+    first = min(slots, key=lambda item: item.address)
+    assert (first.address, first.default, first.maximum) == (168, 224, 243)
+    assert len(MODELS) == 22
+    numbers = sorted(model.model_number for model in MODELS.values())
+    assert numbers[:3] == [1000, 1010, 1020] and numbers[-1] == 1240
+    xh430v = get_model("xh430-v350")
+    assert (xh430v.model_number, xh430v.current_unit_ma, xh430v.supply_v) == (1040, 1.34, 24.0)
+    assert xh430v.item(Register.CURRENT_LIMIT).default == 689
+    assert xh430v.item(Register.MAX_VOLTAGE_LIMIT).default == 300
+    xc430 = get_model("xc430-w240")
+    assert xc430.has(Register.PRESENT_LOAD) and xc430.item(Register.TEMPERATURE_LIMIT).default == 80
+    xc330t = get_model("xc330-t288@53")
+    assert xc330t.indirect_blocks == ((168, 224, 20),) and xc330t.supply_v == 11.1
+    assert xc330t.item(Register.CURRENT_LIMIT).default == 910
 
 
 @pytest.mark.parametrize(
@@ -71,29 +91,3 @@ def test_the_xl330s_follow_their_e_manual_tables(key, number, velocity_limit):
     assert not model.has(Register.PRESENT_LOAD)
     assert model.current_unit_ma == 1.0
     assert model.operating_modes == frozenset({0, 1, 3, 4, 5, 16})  # 5: current-based position
-
-
-def test_the_330s_indirect_data_moved_after_firmware_52():
-    assert get_model("xl330-m288").indirect_blocks == ((168, 208, 20),)
-    assert X330_BUILDERS["xl330-m288"](52).indirect_blocks == ((168, 208, 20),)
-    later = X330_BUILDERS["xl330-m288"](53)
-    assert later.indirect_blocks == ((168, 224, 20),)
-    slots = [item for item in later.items if item.register is None]
-    assert len(slots) == 40
-    first = min(slots, key=lambda item: item.address)
-    assert (first.address, first.default, first.maximum) == (168, 224, 243)
-
-
-def test_every_x_series_model_is_served_with_its_familys_values():
-    assert len(MODELS) == 22
-    numbers = sorted(model.model_number for model in MODELS.values())
-    assert numbers[:3] == [1000, 1010, 1020] and numbers[-1] == 1240
-    xh430v = get_model("xh430-v350")
-    assert (xh430v.model_number, xh430v.current_unit_ma, xh430v.supply_v) == (1040, 1.34, 24.0)
-    assert xh430v.item(Register.CURRENT_LIMIT).default == 689
-    assert xh430v.item(Register.MAX_VOLTAGE_LIMIT).default == 300
-    xc430 = get_model("xc430-w240")
-    assert xc430.has(Register.PRESENT_LOAD) and xc430.item(Register.TEMPERATURE_LIMIT).default == 80
-    xc330t = get_model("xc330-t288@53")
-    assert xc330t.indirect_blocks == ((168, 224, 20),) and xc330t.supply_v == 11.1
-    assert xc330t.item(Register.CURRENT_LIMIT).default == 910

@@ -1,7 +1,4 @@
-"""Scheduled faults (``firmware-sim --event``): parsing, timing, and their effect over the pty.
-
-Kinds: vanish, voltage, temperature, restart and push (a steady torque on a joint).
-"""
+"""Scheduled faults (``firmware-sim --event``): parsing, timing, and their effect over the pty."""
 
 from __future__ import annotations
 
@@ -18,13 +15,6 @@ from tests.firmware_sim.test_cli import served
 
 ID, TORQUE_ENABLE, HARDWARE_ERROR, PRESENT_PWM = 7, 64, 70, 124
 VOLTAGE_BIT, OVERHEATING_BIT, OVERLOAD_BIT, ALERT = 0x01, 0x04, 0x20, 0x80
-
-
-def test_parse_event_reads_every_kind():
-    assert parse_event("2.5:vanish:1:0.5") == ScheduledEvent(2.5, "vanish", 1, 0.5)
-    assert parse_event("0:voltage:2:5") == ScheduledEvent(0.0, "voltage", 2, 5.0)
-    assert parse_event(" 1 : temperature : 2 : -5 ") == ScheduledEvent(1.0, "temperature", 2, -5.0)
-    assert parse_event("3:push:1:-300") == ScheduledEvent(3.0, "push", 1, -300.0)
 
 
 @pytest.mark.parametrize(
@@ -47,7 +37,7 @@ def test_parse_event_names_what_is_wrong(text, message):
         parse_event(text)
 
 
-def test_schedule_applies_each_event_once_when_its_time_comes():
+def test_a_schedule_applies_each_event_once_by_the_id_it_names_restart_and_push_included():
     clock = {"now": 0.0}
     sim = Simulator(ids=(1, 2), clock=lambda: clock["now"])
     schedule = EventSchedule(
@@ -64,10 +54,6 @@ def test_schedule_applies_each_event_once_when_its_time_comes():
     assert sim.servo(1).environment.voltage == 5.0
     assert schedule.apply_due(sim) == 0 and schedule.events == []
     sim.close()
-
-
-def test_events_name_servos_by_the_id_they_answer_as_not_their_slot():
-    """Factory servos renumbered (as set-up does): an event names the ID, when it applies."""
     clock = {"now": 0.0}
     sim = Simulator(factory=2, clock=lambda: clock["now"])
     with pytest.raises(ValueError, match=r"servos in slots 1, 2 all answer as ID 1: an event "):
@@ -90,32 +76,6 @@ def test_events_name_servos_by_the_id_they_answer_as_not_their_slot():
     ]
     assert sim.servo(2).environment.voltage == 5.0
     sim.close()
-
-
-def test_command_line_events_reach_the_servos(tmp_path):
-    link, events = tmp_path / "ttyDXL", ("0:vanish:3:60", "0:voltage:1:5", "0:push:2:-250")
-    options = [arg for event in events for arg in ("--event", event)]
-    with served(["--ids", "1,2,3", "--link", str(link), *options]) as (process, ready):
-        assert "ready" in ready
-        port, packet = PortHandler(str(link)), PacketHandler(2.0)
-        assert port.setBaudRate(RIG_BAUD)
-        # servo 1 sees 5 V, below its 6.0 V limit: input voltage error and the alert
-        deadline = time.monotonic() + 5.0
-        while packet.read1ByteTxRx(port, 1, HARDWARE_ERROR)[0] != VOLTAGE_BIT:
-            assert time.monotonic() < deadline, "no input voltage error on servo 1"
-        assert packet.read1ByteTxRx(port, 1, TORQUE_ENABLE) == (0, COMM_SUCCESS, ALERT)
-        # servo 2, pushed toward fewer ticks: its drive saturates positive (two's complement 885)
-        assert packet.write1ByteTxRx(port, 2, TORQUE_ENABLE, 1)[:1] == (COMM_SUCCESS,)
-        while packet.read2ByteTxRx(port, 2, PRESENT_PWM)[0] != 885:
-            assert time.monotonic() < deadline, "servo 2's Present PWM did not saturate"
-        # servo 3 has vanished for the whole test
-        assert packet.ping(port, 3)[1] == COMM_RX_TIMEOUT
-        port.closePort()
-        process.terminate()
-        assert process.wait(timeout=10) == 0
-
-
-def test_restart_event_browns_the_servo_out_then_back_with_ram_defaults():
     clock = {"now": 0.0}
     sim = Simulator(ids=(1, 2), clock=lambda: clock["now"])
     servo = sim.servo(2)
@@ -129,9 +89,6 @@ def test_restart_event_browns_the_servo_out_then_back_with_ram_defaults():
     assert not sim.faults.present(2, 1.2) and sim.faults.present(2, 1.25)
     assert sim.servo(1).torque_on is False and sim.faults.present(1, 1.0)
     sim.close()
-
-
-def test_push_event_leans_on_the_joint_until_the_servo_saturates_and_trips():
     clock = {"now": 0.0}
     sim = Simulator(ids=(1, 2), clock=lambda: clock["now"])
     servo = sim.servo(1)
@@ -156,6 +113,33 @@ def test_push_event_leans_on_the_joint_until_the_servo_saturates_and_trips():
     assert schedule.apply_due(sim) == 1
     assert sim.truth()["servos"][1]["load_percent"] == 0.0  # torque off, let go
     sim.close()
+    assert parse_event("2.5:vanish:1:0.5") == ScheduledEvent(2.5, "vanish", 1, 0.5)
+    assert parse_event("0:voltage:2:5") == ScheduledEvent(0.0, "voltage", 2, 5.0)
+    assert parse_event(" 1 : temperature : 2 : -5 ") == ScheduledEvent(1.0, "temperature", 2, -5.0)
+    assert parse_event("3:push:1:-300") == ScheduledEvent(3.0, "push", 1, -300.0)
+
+
+def test_command_line_events_reach_the_servos(tmp_path):
+    link, events = tmp_path / "ttyDXL", ("0:vanish:3:60", "0:voltage:1:5", "0:push:2:-250")
+    options = [arg for event in events for arg in ("--event", event)]
+    with served(["--ids", "1,2,3", "--link", str(link), *options]) as (process, ready):
+        assert "ready" in ready
+        port, packet = PortHandler(str(link)), PacketHandler(2.0)
+        assert port.setBaudRate(RIG_BAUD)
+        # servo 1 sees 5 V, below its 6.0 V limit: input voltage error and the alert
+        deadline = time.monotonic() + 5.0
+        while packet.read1ByteTxRx(port, 1, HARDWARE_ERROR)[0] != VOLTAGE_BIT:
+            assert time.monotonic() < deadline, "no input voltage error on servo 1"
+        assert packet.read1ByteTxRx(port, 1, TORQUE_ENABLE) == (0, COMM_SUCCESS, ALERT)
+        # servo 2, pushed toward fewer ticks: its drive saturates positive (two's complement 885)
+        assert packet.write1ByteTxRx(port, 2, TORQUE_ENABLE, 1)[:1] == (COMM_SUCCESS,)
+        while packet.read2ByteTxRx(port, 2, PRESENT_PWM)[0] != 885:
+            assert time.monotonic() < deadline, "servo 2's Present PWM did not saturate"
+        # servo 3 has vanished for the whole test
+        assert packet.ping(port, 3)[1] == COMM_RX_TIMEOUT
+        port.closePort()
+        process.terminate()
+        assert process.wait(timeout=10) == 0
 
 
 def test_restart_over_the_pty_reads_torque_off(sim, sdk):

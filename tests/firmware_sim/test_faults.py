@@ -17,14 +17,12 @@ def outcomes(sdk, count=40):
     return [sdk.packet.read4ByteTxRx(sdk.port, 1, PRESENT_POSITION)[1] for _ in range(count)]
 
 
-def test_fault_plan_rejects_bad_options():
+def test_fault_plans_refuse_bad_options_and_the_same_seed_gives_the_same_faults():
     with pytest.raises(ValueError, match="drop"):
         FaultPlan(drop=1.5)
     with pytest.raises(ValueError, match="latency_ms"):
         FaultPlan(latency_ms=-1)
 
-
-def test_same_seed_same_faults():
     def pattern(seed):
         injector = FaultInjector(FaultPlan(drop=0.3, corrupt=0.3, seed=seed))
         return [injector.outgoing(bytes(range(12))) for _ in range(50)]
@@ -33,7 +31,7 @@ def test_same_seed_same_faults():
     assert pattern(4) != pattern(5)
 
 
-def test_drop_loses_replies_seeded(sdk, sim):
+def test_drops_corruption_latency_a_vanished_servo_and_alarms_reach_the_sdk(sdk, sim):
     sim.set_faults(drop=1.0)
     assert set(outcomes(sdk, 3)) == {COMM_RX_TIMEOUT}
     sim.set_faults(drop=0.5, seed=3)
@@ -42,34 +40,23 @@ def test_drop_loses_replies_seeded(sdk, sim):
     assert outcomes(sdk) == first  # same seed, same losses
     assert set(first) == {COMM_SUCCESS, COMM_RX_TIMEOUT}
     assert sim.truth()["faults"]["dropped"] >= first.count(COMM_RX_TIMEOUT)
-
-
-def test_corrupt_flips_reply_bytes(sdk, sim):
     sim.set_faults(corrupt=1.0, seed=1)
     results = outcomes(sdk, 20)
     assert COMM_SUCCESS not in results
     assert COMM_RX_CORRUPT in results
     sim.set_faults()
     assert outcomes(sdk, 3) == [COMM_SUCCESS] * 3
-
-
-def test_latency_spike_delays_replies(sdk, sim):
     sim.set_faults(latency_ms=20.0)
     start = time.perf_counter()
     assert sdk.packet.read4ByteTxRx(sdk.port, 1, PRESENT_POSITION)[1] == COMM_SUCCESS
     assert time.perf_counter() - start >= 0.020
-
-
-def test_servo_disappears_and_comes_back(sdk, sim):
+    sim.set_faults()
     sim.vanish(2, 0.3)
     assert sdk.packet.ping(sdk.port, 2)[1] == COMM_RX_TIMEOUT
     assert sdk.packet.ping(sdk.port, 1)[1] == COMM_SUCCESS
     deadline = time.monotonic() + 5.0
     while sdk.packet.ping(sdk.port, 2)[1] != COMM_SUCCESS:
         assert time.monotonic() < deadline, "servo 2 never came back"
-
-
-def test_voltage_error_alerts_and_temperature_error_shuts_down(sdk, sim):
     p, port = sdk.packet, sdk.port
     assert p.write1ByteTxRx(port, 1, TORQUE_ENABLE, 1) == (COMM_SUCCESS, 0)
     sim.set_voltage(1, 5.0)

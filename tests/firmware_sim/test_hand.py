@@ -1,10 +1,11 @@
 """The scripted hand: its description (a region with or without a twist band, a script with or
-without a roll), its tremor and seed, the twist kept in its band, and the roll joint it drives."""
+without a roll), its tremor and seed, the twist band and the twist kept in it, the roll turned."""
 
 from __future__ import annotations
 
 import importlib.util
 import math
+import re
 import sys
 from pathlib import Path
 
@@ -14,6 +15,8 @@ import pytest
 from firmware_sim.hand import DEFAULT_TREMOR_DEG, TWIST_INSET_DEG, Hand
 from firmware_sim.hand_path import STYLES
 from firmware_sim.orientation import chain_quat, chain_twist, wrap_deg
+from firmware_sim.regions import region_from_mapping
+from firmware_sim.twist_band import MAX_HALF_WIDTH_DEG, MIN_HALF_WIDTH_DEG, TwistBand
 from firmware_sim.world import ROLL_JOINT, World
 from limbctl.session import demo_region_path
 
@@ -66,15 +69,7 @@ def test_a_script_is_followed_linearly_and_its_last_waypoint_held(script, halfwa
     assert hand.pose_deg(5.0) == pytest.approx(held)
 
 
-def test_unknown_styles_are_refused_with_the_choices():
-    with pytest.raises(ValueError, match="unknown style 'spiral'") as caught:
-        Hand.from_mapping({**CONE, "style": "spiral"})
-    assert all(name in str(caught.value) for name in STYLES)
-    with pytest.raises(ValueError, match="not to a script"):
-        Hand.from_mapping({"script": [[0, 0, 0]], "style": "trace"})
-
-
-def test_tremor_is_a_few_tenths_of_a_degree():
+def test_tremor_is_a_few_tenths_of_a_degree_and_unknown_styles_and_visits_are_refused():
     still = {"script": [[0.0, 10.0, 5.0]]}
     hand = Hand.from_mapping(still, seed=13)
     poses = np.array([hand.pose_deg(t) for t in np.arange(0.0, 10.0, 0.001)])
@@ -82,6 +77,13 @@ def test_tremor_is_a_few_tenths_of_a_degree():
     assert np.all(amplitude > 0.1) and np.all(amplitude <= DEFAULT_TREMOR_DEG + 1e-12)
     calm = Hand.from_mapping({**still, "tremor_deg": 0}, seed=13)
     assert calm.pose_deg(3.3) == (10.0, 5.0)
+    with pytest.raises(ValueError, match="unknown style 'spiral'") as caught:
+        Hand.from_mapping({**CONE, "style": "spiral"})
+    assert all(name in str(caught.value) for name in STYLES)
+    with pytest.raises(ValueError, match="not to a script"):
+        Hand.from_mapping({"script": [[0, 0, 0]], "style": "trace"})
+    with pytest.raises(ValueError, match="'visits' applies to a region hand"):
+        Hand.from_mapping({"script": [[0, 0, 0]], "visits": []})
 
 
 @pytest.mark.parametrize("path", [REGIONS / "irregular.yaml", REGION3], ids=["sim", "sim3"])
@@ -94,7 +96,7 @@ def test_same_seed_same_path_whatever_order_it_is_asked_in(path):
     assert [c.pose_deg(t) for t in times] != [a.pose_deg(t) for t in times]
 
 
-def test_calibration_script_moves_the_backdriven_limb():
+def test_the_calibration_script_moves_the_backdriven_limb_and_a_hand_turns_the_roll_joint():
     world = World(hand=Hand.from_yaml(REGIONS / "calibration.yaml"), seed=16)
     seen = {}
     for k in range(1, 16001):
@@ -105,29 +107,6 @@ def test_calibration_script_moves_the_backdriven_limb():
     assert seen[5] == pytest.approx({"pan": 45.0, "tilt": 0.0}, abs=0.3)
     assert seen[12] == pytest.approx({"pan": 0.0, "tilt": 30.0}, abs=0.3)
     assert seen[16] == pytest.approx({"pan": 0.0, "tilt": 0.0}, abs=0.3)
-
-
-def test_twist_stays_in_the_band_and_reaches_both_stops_along_the_edge_then_in_the_middle():
-    hand = Hand.from_yaml(REGION3, seed=2)
-    start, end = hand.trace_span_s
-    times, poses, twist, limits = sample(hand, end + 30.0)
-    low, high = limits[:, 0], limits[:, 1]
-    assert np.all(twist >= low + TWIST_INSET_DEG - TREMOR_SLACK_DEG)
-    assert np.all(twist <= high - TWIST_INSET_DEG + TREMOR_SLACK_DEG)
-    near_high = twist >= high - TWIST_INSET_DEG - 0.5
-    near_low = twist <= low + TWIST_INSET_DEG + 0.5
-    tracing = (times >= start) & (times < end)
-    depth = hand.region.edge_distance_deg(poses[:, 0], poses[:, 1])
-    # along the edge trace: both stops, at several places round the edge (>= 3 each)
-    for near in (near_high, near_low):
-        at_edge = near & tracing & (depth < 3.0)
-        places = hand.region.boundary_fraction(poses[at_edge, 0], poses[at_edge, 1])
-        assert len(np.unique(np.round(places * 8))) >= 3
-    # after the trace, the wander still turns to both stops
-    assert np.any(near_high & (times > end)) and np.any(near_low & (times > end))
-
-
-def test_the_world_gives_the_hand_the_roll_joint():
     hand = Hand.from_yaml(REGION3, seed=1)
     world = World(joints=(*World().joints, ROLL_JOINT), hand=hand, seed=1)
     for _ in range(3000):
@@ -148,10 +127,45 @@ def test_the_world_gives_the_hand_the_roll_joint():
     assert plain.joint_angles_deg()["roll"] == rest
 
 
+def test_the_twist_keeps_to_a_plane_or_curved_band_and_reaches_both_its_stops():
+    hand = Hand.from_yaml(REGION3, seed=2)
+    start, end = hand.trace_span_s
+    times, poses, twist, limits = sample(hand, end + 30.0)
+    low, high = limits[:, 0], limits[:, 1]
+    assert np.all(twist >= low + TWIST_INSET_DEG - TREMOR_SLACK_DEG)
+    assert np.all(twist <= high - TWIST_INSET_DEG + TREMOR_SLACK_DEG)
+    near_high = twist >= high - TWIST_INSET_DEG - 0.5
+    near_low = twist <= low + TWIST_INSET_DEG + 0.5
+    tracing = (times >= start) & (times < end)
+    depth = hand.region.edge_distance_deg(poses[:, 0], poses[:, 1])
+    # along the edge trace: both stops, at several places round the edge (>= 3 each)
+    for near in (near_high, near_low):
+        at_edge = near & tracing & (depth < 3.0)
+        places = hand.region.boundary_fraction(poses[at_edge, 0], poses[at_edge, 1])
+        assert len(np.unique(np.round(places * 8))) >= 3
+    # after the trace, the wander still turns to both stops
+    assert np.any(near_high & (times > end)) and np.any(near_low & (times > end))
+    data = {
+        "region": {"polygon": [[-40, -30], [40, -30], [40, 40], [-40, 40]]},
+        "twist": {
+            "centre_deg": {"linear": [10, 0.2, 0], "quadratic": [0.003, 0, -0.002]},
+            "half_width_deg": {"linear": [35, 0, -0.2], "bumps": [[0, 5, -10, 8]]},
+        },
+    }
+    hand = Hand.from_mapping(data, seed=2)
+    _, poses, twist, limits = sample(hand, 40.0)
+    low, high = limits[:, 0], limits[:, 1]
+    # the band is curved: its width at the bump differs from a plane's by its height
+    assert hand.band.limits_deg(0, 5)[1] - hand.band.limits_deg(0, 5)[0] < 2 * (35 - 1 - 9)
+    slack = TWIST_INSET_DEG - TREMOR_SLACK_DEG
+    assert np.all(twist <= high - slack + 1e-9) and np.all(twist >= low + slack - 1e-9)
+    # and it turns to both stops (within its inset and tremor) along the way
+    assert np.sum(twist >= high - TWIST_INSET_DEG - TREMOR_SLACK_DEG) > 10
+    assert np.sum(twist <= low + TWIST_INSET_DEG + TREMOR_SLACK_DEG) > 10
+
+
 def test_a_minute_of_the_hand_teaches_a_band_within_the_truth_or_names_what_is_missing():
-    """Issue 35: a 60 s teaching at the recorder's 125 Hz, learned, never reaches more than 1 deg
-    past the true band; it holds >= 99 % of the true region or lists the places whose stops are
-    missing (containment wins over coverage; figures in docs/decisions/twist.md)."""
+    """Issue 35: a learned 60 s teaching stays within 1 deg of the true band; holds 99 % or asks."""
     from limbctl.demo import true_twist_probes
     from limbctl.geometry.gimbal import direction_to_pan_tilt
     from limbctl.geometry.twist import decompose, wrap
@@ -172,26 +186,6 @@ def test_a_minute_of_the_hand_teaches_a_band_within_the_truth_or_names_what_is_m
     assert past.max() <= 1.0, f"the band reaches {past.max():.2f} deg past the true stop"
     held = np.mean(region.contains(probes))
     assert held >= 0.99 or region.unsupported, f"{100 * held:.2f} % held, nothing asked for"
-
-
-def test_a_hand_over_a_curved_band_with_bumps_keeps_to_it_and_reaches_its_stops():
-    data = {
-        "region": {"polygon": [[-40, -30], [40, -30], [40, 40], [-40, 40]]},
-        "twist": {
-            "centre_deg": {"linear": [10, 0.2, 0], "quadratic": [0.003, 0, -0.002]},
-            "half_width_deg": {"linear": [35, 0, -0.2], "bumps": [[0, 5, -10, 8]]},
-        },
-    }
-    hand = Hand.from_mapping(data, seed=2)
-    _, poses, twist, limits = sample(hand, 40.0)
-    low, high = limits[:, 0], limits[:, 1]
-    # the band is curved: its width at the bump differs from a plane's by its height
-    assert hand.band.limits_deg(0, 5)[1] - hand.band.limits_deg(0, 5)[0] < 2 * (35 - 1 - 9)
-    slack = TWIST_INSET_DEG - TREMOR_SLACK_DEG
-    assert np.all(twist <= high - slack + 1e-9) and np.all(twist >= low + slack - 1e-9)
-    # and it turns to both stops (within its inset and tremor) along the way
-    assert np.sum(twist >= high - TWIST_INSET_DEG - TREMOR_SLACK_DEG) > 10
-    assert np.sum(twist <= low + TWIST_INSET_DEG + TREMOR_SLACK_DEG) > 10
 
 
 BAD_FILES = {
@@ -290,11 +284,6 @@ def test_a_bad_visit_is_refused_with_its_entry_named(visits, words):
     assert "visits[0]" in str(err.value)
 
 
-def test_visits_apply_to_a_region_hand_only():
-    with pytest.raises(ValueError, match="'visits' applies to a region hand"):
-        Hand.from_mapping({"script": [[0, 0, 0]], "visits": []})
-
-
 def test_a_guided_teaching_of_a_small_region_ends_ready_and_within_a_degree_of_the_truth():
     spec = importlib.util.spec_from_file_location("bench_guided_teaching", GUIDED)
     bench = importlib.util.module_from_spec(spec)
@@ -315,3 +304,67 @@ def test_a_guided_teaching_of_a_small_region_ends_ready_and_within_a_degree_of_t
     assert figures["complete"]
     assert figures["swing_excess"] <= 1.0 and figures["twist_excess"] <= 1.0
     assert figures["coverage"] >= 0.95
+
+
+#: The linear part of a curved band the malformed ones below add to.
+LINEAR = {"linear": [40, 0, 0]}
+SQUARE = region_from_mapping({"polygon": [[-40, -30], [40, -30], [40, 50], [-40, 50]]})
+
+
+def test_a_band_constant_linear_or_curved_with_bumps_compares_on_the_circle():
+    band = TwistBand.from_mapping({"half_width_deg": 30}, SQUARE)
+    assert band.limits_deg(0, 0) == (-30.0, 30.0)
+    assert band.limits_deg(35, 45) == (-30.0, 30.0)
+    band = TwistBand.from_mapping(
+        {"centre_deg": [10, 0.5, 0], "half_width_deg": [40, 0, -0.3]}, SQUARE
+    )
+    assert band.limits_deg(0, 0) == pytest.approx((-30.0, 50.0))
+    # narrower as the limb rises, centre moving with pan
+    low, high = band.limits_deg(20, 50)
+    assert (high - low) / 2 == pytest.approx(25.0)
+    assert (high + low) / 2 == pytest.approx(20.0)
+    band = TwistBand.from_mapping({"centre_deg": 170, "half_width_deg": 20}, SQUARE)
+    assert band.contains(0, 0, -175.0)  # 15 deg past +180 is still inside
+    assert band.contains(0, 0, 160.0)
+    assert not band.contains(0, 0, -165.0)
+    assert not band.contains(0, 0, 140.0)
+    band = TwistBand.from_mapping(
+        {
+            "centre_deg": {"linear": [5, 0.1, 0], "quadratic": [0, 0, 0.01]},
+            "half_width_deg": {"linear": [40, 0, 0], "bumps": [[10, 20, -12, 5]]},
+        },
+        SQUARE,
+    )
+    low, high = band.limits_deg(0, 0)
+    # centre 5 + 0.01 * 0; half 40 - 12 exp(-(100 + 400) / 50) ~= 40
+    assert (high + low) / 2 == pytest.approx(5.0)
+    assert (high - low) / 2 == pytest.approx(40.0 - 12.0 * math.exp(-10.0))
+    low, high = band.limits_deg(10, 20)
+    assert (high + low) / 2 == pytest.approx(5.0 + 1.0 + 4.0)  # 0.1 pan + 0.01 tilt^2
+    assert (high - low) / 2 == pytest.approx(28.0)  # the bump's floor
+    assert TwistBand.from_mapping({"half_width_deg": [40, 0, -0.3]}, SQUARE).limits_deg(
+        0, 10
+    ) == pytest.approx((-37.0, 37.0))
+
+
+@pytest.mark.parametrize(
+    ("spec", "message"),
+    [
+        ({"half_width_deg": [40, 0, -1.0]}, "runs"),  # 40 - 50 < 0 at the top
+        ({"half_width_deg": 175}, f"within {MIN_HALF_WIDTH_DEG:g}..{MAX_HALF_WIDTH_DEG:g}"),
+        ({"centre_deg": 0}, "half_width_deg \\(required\\)"),
+        ({"half_width_deg": 20, "spin": 1}, "twist takes"),
+        ({"half_width_deg": [1, 2]}, "a number or \\[a, b, c\\]"),
+        ({"half_width_deg": "wide"}, "finite numbers"),
+        ([1, 2], "must be a mapping"),
+        ({"half_width_deg": {**LINEAR, "cubic": [1, 2, 3]}}, "takes linear, quadratic, bumps"),
+        ({"half_width_deg": {**LINEAR, "bumps": [[0, 0, 5]]}}, "bumps must be a list"),
+        (
+            {"half_width_deg": {**LINEAR, "quadratic": 0.1}},
+            re.escape("quadratic must be [p, m, t]"),
+        ),
+    ],
+)
+def test_bad_bands_are_refused_with_the_reason(spec, message):
+    with pytest.raises(ValueError, match=message):
+        TwistBand.from_mapping(spec, SQUARE, "r.yaml")

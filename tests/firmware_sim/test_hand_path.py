@@ -54,8 +54,7 @@ def density_by_depth(region, samples: np.ndarray, lo: float, hi: float) -> float
 
 @pytest.fixture(scope="module", params=["irregular.yaml", "cone30.yaml"])
 def minute(request):
-    """A 60 s, 100 Hz recording of the limb backdriven through an example region by a hand that
-    only wanders (``style: wander``)."""
+    """A 60 s, 100 Hz recording backdriven by a hand that only wanders (``style: wander``)."""
     hand = Hand.from_mapping({**yaml.safe_load((REGIONS / request.param).read_text()),
                               "style": "wander"}, seed=11)  # fmt: skip
     return hand, record(hand)
@@ -63,55 +62,44 @@ def minute(request):
 
 @pytest.fixture(scope="module", params=["irregular.yaml", "cone30.yaml"])
 def taught(request):
-    """A 60 s, 100 Hz recording by the default hand (trace the edge, then wander), with the
-    samples' times (s)."""
+    """A 60 s, 100 Hz recording by the default hand (trace, then wander), and its times (s)."""
     hand = Hand.from_yaml(REGIONS / request.param, seed=11)
     samples = record(hand)
     return hand, samples, np.arange(1, len(samples) + 1) / 100.0
 
 
-def test_recording_stays_in_the_region_up_to_tremor(minute):
-    hand, samples = minute
-    depth = hand.region.edge_distance_deg(samples[:, 0], samples[:, 1])
-    # the planned path keeps MIN_PATH_DEPTH_DEG inside; the tremor may eat part of that
-    assert depth.min() > -DEFAULT_TREMOR_DEG
-    assert np.mean(depth < 0.0) < 0.001
-
-
-def test_recording_covers_the_boundary_all_around(minute):
-    hand, samples = minute
-    depth = hand.region.edge_distance_deg(samples[:, 0], samples[:, 1])
-    near = samples[depth < 3.0]
-    arcs = np.floor(hand.region.boundary_fraction(near[:, 0], near[:, 1]) * 8).astype(int)
-    assert set(arcs.tolist()) == set(range(8))  # every eighth of the perimeter is visited
-    # and no stretch longer than 12 % of the perimeter is left out
-    assert largest_boundary_gap(hand.region, samples, 3.0) < 0.12
-
-
-def test_recording_covers_the_interior(minute):
+def test_a_wandering_minute_stays_in_covers_edge_and_interior_dense_in_the_middle(minute):
     hand, samples = minute
     region = hand.region
+    assert hand.style == "wander" and hand.trace_span_s is None
+    depth = region.edge_distance_deg(samples[:, 0], samples[:, 1])
+    # in the region: the planned path keeps MIN_PATH_DEPTH_DEG inside, the tremor may eat part
+    assert depth.min() > -DEFAULT_TREMOR_DEG
+    assert np.mean(depth < 0.0) < 0.001
+    # it reaches the deep middle within seconds instead of tracing the edge first
+    assert depth[:300].max() > 0.8 * region.depth_max_deg
+    # the boundary all around: every eighth visited, no stretch over 12 % left out
+    near = samples[depth < 3.0]
+    arcs = np.floor(region.boundary_fraction(near[:, 0], near[:, 1]) * 8).astype(int)
+    assert set(arcs.tolist()) == set(range(8))
+    assert largest_boundary_gap(region, samples, 3.0) < 0.12
+    # the interior
     p_lo, p_hi, t_lo, t_hi = region.bbox_deg
     cells = np.stack(np.meshgrid(np.arange(p_lo, p_hi, 5.0), np.arange(t_lo, t_hi, 5.0)), -1)
     cells = cells.reshape(-1, 2)
     cells = cells[region.edge_distance_deg(cells[:, 0], cells[:, 1]) >= 5.0]
     gap = np.min(np.hypot(*(cells[:, None, :] - samples[None, ::5, :]).transpose(2, 0, 1)), axis=1)
     assert np.mean(gap < 8.0) > 0.9
-
-
-def test_dense_in_the_middle_sparse_and_slow_near_the_edge(minute):
-    hand, samples = minute
-    region = hand.region
-    middle = density_by_depth(region, samples, 0.5, 1.01)
-    outer = density_by_depth(region, samples, 0.05, 0.35)
-    assert middle > 1.1 * outer
+    # dense in the middle, sparse and slow near the edge
+    assert density_by_depth(region, samples, 0.5, 1.01) > 1.1 * density_by_depth(
+        region, samples, 0.05, 0.35
+    )
     speed = np.hypot(*np.diff(samples, axis=0).T) * 100.0  # deg/s at 100 Hz
-    depth = region.edge_distance_deg(samples[1:, 0], samples[1:, 1])
-    near_edge, middle_speed = speed[depth < 3.0], speed[depth > 0.5 * region.depth_max_deg]
+    near_edge, middle_speed = speed[depth[1:] < 3.0], speed[depth[1:] > 0.5 * region.depth_max_deg]
     assert np.median(near_edge) < 0.75 * np.median(middle_speed)
 
 
-def test_the_default_hand_traces_the_whole_edge_first_then_wanders(taught):
+def test_the_default_hand_traces_the_whole_edge_first_at_a_persons_pace_then_wanders(taught):
     hand, samples, t = taught
     region = hand.region
     start, end = hand.trace_span_s
@@ -130,52 +118,20 @@ def test_the_default_hand_traces_the_whole_edge_first_then_wanders(taught):
     after = t >= end + 1.0
     assert np.max(depth[after]) > 0.6 * region.depth_max_deg
     assert np.mean(depth[after] > 5.0) > 0.8
-
-
-def test_the_trace_is_at_a_persons_pace(taught):
-    hand, samples, t = taught
-    start, end = hand.trace_span_s
-    tracing = samples[(t >= start) & (t < end)]
-    # speed over half-second windows (the tremor's 7-12 Hz averages out)
-    speed = np.hypot(*(tracing[50:] - tracing[:-50]).T) / 0.5
+    # the pace over half-second windows (the tremor's 7-12 Hz averages out)
+    traced = samples[tracing]
+    speed = np.hypot(*(traced[50:] - traced[:-50]).T) / 0.5
     assert 10.0 < np.median(speed) < 20.0
     assert np.median(speed) == pytest.approx(TRACE_SPEED_DEG_S, rel=0.1)
     assert np.percentile(speed, 95) < 22.0 and np.percentile(speed, 5) > 8.0
-
-
-def test_the_trace_runs_about_a_degree_inside_with_a_wobble(taught):
-    hand, samples, t = taught
-    start, end = hand.trace_span_s
-    tracing = samples[(t >= start) & (t < end)]
-    depth = hand.region.edge_distance_deg(tracing[:, 0], tracing[:, 1])
+    # about a degree inside, its depth wandering by a few tenths of a degree
+    depth = depth[tracing]
     assert np.median(depth) == pytest.approx(EDGE_INSET_DEG, abs=0.1)
     assert depth.min() > MIN_PATH_DEPTH_DEG - DEFAULT_TREMOR_DEG
-    # a hand does not keep an exact distance: the depth wanders by a few tenths of a degree
     assert 0.3 < np.percentile(depth, 95) - np.percentile(depth, 5) < 1.0
 
 
-def test_the_trace_rounds_a_reflex_corner_without_cutting_across():
-    # the U's inner corners are reflex: a trace set in from one side would cut the corner
-    hand = Hand.from_mapping({"region": {"polygon": U_SHAPE}, "tremor_deg": 0}, seed=20)
-    start, end = hand.trace_span_s
-    poses = np.array([hand.pose_deg(float(s)) for s in np.arange(start, end, 0.01)])
-    depth = hand.region.edge_distance_deg(poses[:, 0], poses[:, 1])
-    assert depth.min() >= MIN_PATH_DEPTH_DEG - 1e-9
-    assert np.median(depth) == pytest.approx(EDGE_INSET_DEG, abs=0.1)
-    # both arms' tips and the floor between them are traced, not skipped
-    for corner in ([-60, 40], [60, 40], [-40, 40], [40, 40], [0, -10]):
-        assert np.min(np.hypot(*(poses - corner).T)) < 2.0
-
-
-def test_style_wander_keeps_the_wandering_hand(minute):
-    hand, samples = minute
-    assert hand.style == "wander" and hand.trace_span_s is None
-    # it reaches the deep middle within seconds instead of tracing the edge first
-    depth = hand.region.edge_distance_deg(samples[:300, 0], samples[:300, 1])
-    assert depth.max() > 0.8 * hand.region.depth_max_deg
-
-
-def test_hand_takes_hold_where_the_limb_is_without_a_yank():
+def test_a_hand_takes_hold_without_a_yank_and_boxed_in_retraces_its_steps():
     hand = Hand.from_yaml(REGIONS / "irregular.yaml", seed=17)
     world = World(hand=hand, seed=17)
     start = world.joint_angles_deg()
@@ -187,35 +143,6 @@ def test_hand_takes_hold_where_the_limb_is_without_a_yank():
     # a minimum-jerk move peaks at 1.875 x its mean speed; the tremor adds a little
     assert speed.max() < 2.0 * hand.speed_deg_s + 15.0
     assert np.hypot(*(samples[-1] - samples[0])) > 10.0  # it did take the limb somewhere
-
-
-def test_planned_path_keeps_its_margin_without_tremor():
-    hand = Hand.from_mapping(
-        {
-            "region": {"polygon": [[-40, -30], [40, -30], [40, 30], [0, 0], [-40, 30]]},
-            "tremor_deg": 0,
-        },
-        seed=12,
-    )
-    t = np.arange(0.0, 120.0, 0.01)
-    poses = np.array([hand.pose_deg(float(s)) for s in t])
-    depth = hand.region.edge_distance_deg(poses[:, 0], poses[:, 1])
-    assert depth.min() >= MIN_PATH_DEPTH_DEG - 1e-9
-    assert np.mean(depth < EDGE_INSET_DEG + 0.5) > 0.01  # it does go to the edge
-
-
-def test_non_convex_region_is_walked_round_its_corners_continuously():
-    hand = Hand.from_mapping({"region": {"polygon": U_SHAPE}, "tremor_deg": 0}, seed=18)
-    poses = np.array([hand.pose_deg(float(t)) for t in np.arange(0.0, 120.0, 0.001)])
-    depth = hand.region.edge_distance_deg(poses[:, 0], poses[:, 1])
-    assert depth.min() >= MIN_PATH_DEPTH_DEG - 1e-9  # never across the gap between the arms
-    # continuous: a minimum-jerk move peaks at 1.875 x its mean speed
-    assert np.hypot(*np.diff(poses, axis=0).T).max() / 0.001 < 2.0 * hand.speed_deg_s
-    for arm in (poses[:, 0] < -40.0, poses[:, 0] > 40.0):
-        assert np.any(arm & (poses[:, 1] > 30.0))  # both arms' tips are reached
-
-
-def test_a_boxed_in_hand_retraces_its_steps():
     hand = Hand.from_mapping({"region": {"polygon": U_SHAPE}, "tremor_deg": 0}, seed=19)
     hand.pose_deg(20.0)
     path = hand.path
@@ -227,3 +154,31 @@ def test_a_boxed_in_hand_retraces_its_steps():
     # back along the last move: its end to its start, bowed the same way
     assert retrace[2:6] == (*last_move[4:6], *last_move[2:4])
     assert retrace[7:9] == last_move[7:9]
+
+
+def test_a_u_is_traced_round_its_reflex_corners_and_walked_round_them_continuously():
+    # the U's inner corners are reflex: a trace set in from one side would cut the corner
+    hand = Hand.from_mapping({"region": {"polygon": U_SHAPE}, "tremor_deg": 0}, seed=20)
+    start, end = hand.trace_span_s
+    poses = np.array([hand.pose_deg(float(s)) for s in np.arange(start, end, 0.01)])
+    depth = hand.region.edge_distance_deg(poses[:, 0], poses[:, 1])
+    assert depth.min() >= MIN_PATH_DEPTH_DEG - 1e-9
+    assert np.median(depth) == pytest.approx(EDGE_INSET_DEG, abs=0.1)
+    # both arms' tips and the floor between them are traced, not skipped
+    for corner in ([-60, 40], [60, 40], [-40, 40], [40, 40], [0, -10]):
+        assert np.min(np.hypot(*(poses - corner).T)) < 2.0
+    hand = Hand.from_mapping({"region": {"polygon": U_SHAPE}, "tremor_deg": 0}, seed=18)
+    poses = np.array([hand.pose_deg(float(t)) for t in np.arange(0.0, 120.0, 0.001)])
+    depth = hand.region.edge_distance_deg(poses[:, 0], poses[:, 1])
+    assert depth.min() >= MIN_PATH_DEPTH_DEG - 1e-9  # never across the gap between the arms
+    # continuous: a minimum-jerk move peaks at 1.875 x its mean speed
+    assert np.hypot(*np.diff(poses, axis=0).T).max() / 0.001 < 2.0 * hand.speed_deg_s
+    for arm in (poses[:, 0] < -40.0, poses[:, 0] > 40.0):
+        assert np.any(arm & (poses[:, 1] > 30.0))  # both arms' tips are reached
+    # a notched region: the planned path keeps its margin yet goes to the edge
+    notch = [[-40, -30], [40, -30], [40, 30], [0, 0], [-40, 30]]
+    hand = Hand.from_mapping({"region": {"polygon": notch}, "tremor_deg": 0}, seed=12)
+    poses = np.array([hand.pose_deg(float(s)) for s in np.arange(0.0, 120.0, 0.01)])
+    depth = hand.region.edge_distance_deg(poses[:, 0], poses[:, 1])
+    assert depth.min() >= MIN_PATH_DEPTH_DEG - 1e-9
+    assert np.mean(depth < EDGE_INSET_DEG + 0.5) > 0.01

@@ -41,16 +41,13 @@ def raw_exchange(port_name: str, packet: bytes, expect: int, timeout_s: float = 
         return link.read(expect)
 
 
-def test_ping_unicast_and_broadcast_in_ascending_order(sdk):
+def test_ping_read_write_errors_reg_write_stuffing_indirect_reboot_sync_and_bulk(sdk, sim):
     assert sdk.packet.ping(sdk.port, 2) == (XL430_MODEL, COMM_SUCCESS, 0)
     assert sdk.packet.ping(sdk.port, 7)[1] == COMM_RX_TIMEOUT
     found, result = sdk.packet.broadcastPing(sdk.port)
     assert result == COMM_SUCCESS and found == {1: [XL430_MODEL, 46], 2: [XL430_MODEL, 46]}
     replies = raw_exchange(sdk.port.port_name, build_packet(0xFE, Instruction.PING), 28)
     assert [replies[4], replies[14 + 4]] == [1, 2]
-
-
-def test_read_write_and_access_range_length_limit_errors(sdk):
     p, port = sdk.packet, sdk.port
     assert ok(p.write1ByteTxRx(port, 1, LED, 1)) == 0
     assert p.read1ByteTxRx(port, 1, LED) == (1, COMM_SUCCESS, 0)
@@ -65,9 +62,6 @@ def test_read_write_and_access_range_length_limit_errors(sdk):
     assert (comm, error) == (COMM_SUCCESS, 7)
     assert ok(p.write1ByteTxRx(port, 1, TORQUE_ENABLE, 0)) == 0
     assert ok(p.write1ByteTxRx(port, 1, OPERATING_MODE, 2)) == 4  # no mode 2 on the XL430
-
-
-def test_instruction_and_crc_errors(sdk):
     p, port = sdk.packet, sdk.port
     # undefined instruction 0x7F
     _, comm, error = p.txRxPacket(port, [0, 0, 0, 0, 1, 3, 0, 0x7F, 0, 0])
@@ -80,9 +74,6 @@ def test_instruction_and_crc_errors(sdk):
     reply = raw_exchange(port.port_name, bytes(bad), 11)
     assert reply[4] == 1 and reply[7] == 0x55 and reply[8] == 3
     assert crc16(reply[:-2]) == reply[-2] | (reply[-1] << 8)
-
-
-def test_reg_write_then_action(sdk):
     p, port = sdk.packet, sdk.port
     assert ok(p.regWriteTxRx(port, 2, LED, 1, [1])) == 0
     assert p.read1ByteTxRx(port, 2, REGISTERED) == (1, COMM_SUCCESS, 0)
@@ -90,9 +81,6 @@ def test_reg_write_then_action(sdk):
     assert p.action(port, 0xFE) == COMM_SUCCESS
     assert p.read1ByteTxRx(port, 2, LED) == (1, COMM_SUCCESS, 0)
     assert p.read1ByteTxRx(port, 2, REGISTERED)[0] == 0
-
-
-def test_byte_stuffing_both_directions(sdk):
     p, port = sdk.packet, sdk.port
     # Goal Velocity -1 (FF FF FF FF) followed by Profile Acceleration 253 (FD 00 00 00)
     data = [0xFF, 0xFF, 0xFF, 0xFF, 0xFD, 0x00, 0x00, 0x00]
@@ -101,29 +89,17 @@ def test_byte_stuffing_both_directions(sdk):
     request = build_packet(1, Instruction.READ, bytes([GOAL_VELOCITY, 0, 8, 0]))
     reply = raw_exchange(port.port_name, request, 20)
     assert b"\xff\xff\xfd\xfd" in reply[7:] and reply[5] == 13  # LEN counts the stuffing FD
-
-
-def test_status_return_levels_and_return_delay(sdk):
     p, port = sdk.packet, sdk.port
-    # the new level already governs the answer to the write that sets it
-    assert p.write1ByteTxRx(port, 1, STATUS_RETURN_LEVEL, 1)[0] == COMM_RX_TIMEOUT
-    assert p.write1ByteTxRx(port, 1, LED, 1)[0] == COMM_RX_TIMEOUT  # writes now silent
-    assert p.read1ByteTxRx(port, 1, LED) == (1, COMM_SUCCESS, 0)  # reads still answered
-    p.write1ByteTxOnly(port, 1, STATUS_RETURN_LEVEL, 0)
-    assert p.read1ByteTxRx(port, 1, LED)[1] == COMM_RX_TIMEOUT
-    assert p.ping(port, 1)[1] == COMM_SUCCESS  # PING is always answered
-    # level 2 governs the answer to the write that sets it: read that answer here (sent
-    # TxOnly it stayed in the line and was taken for the next write's answer, whose own
-    # answer then came 508 us later and was taken for the read below: a flaky timing)
-    assert ok(p.write1ByteTxRx(port, 1, STATUS_RETURN_LEVEL, 2)) == 0
-    assert ok(p.write1ByteTxRx(port, 1, RETURN_DELAY, 254)) == 0
-    # the answer cannot come before 254 * 2 us, and it is the read's own (LED is 1)
-    start = time.perf_counter()
-    assert p.read1ByteTxRx(port, 1, LED) == (1, COMM_SUCCESS, 0)
-    assert time.perf_counter() - start >= 254 * 2e-6
-
-
-def test_sync_and_bulk_reads_and_writes_plain_and_fast(sdk, sim):
+    for k in range(4):
+        assert ok(p.write2ByteTxRx(port, 1, INDIRECT_ADDRESS_1 + 2 * k, PRESENT_POSITION + k)) == 0
+    direct = p.read4ByteTxRx(port, 1, PRESENT_POSITION)[0]
+    assert p.read4ByteTxRx(port, 1, INDIRECT_DATA_1) == (direct, COMM_SUCCESS, 0)
+    p, port = sdk.packet, sdk.port
+    assert ok(p.write4ByteTxRx(port, 1, HOMING_OFFSET, 42)) == 0
+    assert ok(p.write1ByteTxRx(port, 1, LED, 1)) == 0
+    assert ok(p.reboot(port, 1)) == 0
+    assert p.read1ByteTxRx(port, 1, LED)[0] == 0
+    assert p.read4ByteTxRx(port, 1, HOMING_OFFSET)[0] == 42
     p, port = sdk.packet, sdk.port
     writer = GroupSyncWrite(port, p, HOMING_OFFSET, 4)
     writer.addParam(1, (100).to_bytes(4, "little"))
@@ -150,15 +126,24 @@ def test_sync_and_bulk_reads_and_writes_plain_and_fast(sdk, sim):
         assert bulk_reader.getData(2, PRESENT_POSITION, 4) == expected[2]
 
 
-def test_indirect_address_maps_present_position(sdk):
+def test_status_return_levels_return_delay_and_factory_reset_options(sdk):
     p, port = sdk.packet, sdk.port
-    for k in range(4):
-        assert ok(p.write2ByteTxRx(port, 1, INDIRECT_ADDRESS_1 + 2 * k, PRESENT_POSITION + k)) == 0
-    direct = p.read4ByteTxRx(port, 1, PRESENT_POSITION)[0]
-    assert p.read4ByteTxRx(port, 1, INDIRECT_DATA_1) == (direct, COMM_SUCCESS, 0)
-
-
-def test_factory_reset_options_and_broadcast_rule(sdk):
+    # the new level already governs the answer to the write that sets it
+    assert p.write1ByteTxRx(port, 1, STATUS_RETURN_LEVEL, 1)[0] == COMM_RX_TIMEOUT
+    assert p.write1ByteTxRx(port, 1, LED, 1)[0] == COMM_RX_TIMEOUT  # writes now silent
+    assert p.read1ByteTxRx(port, 1, LED) == (1, COMM_SUCCESS, 0)  # reads still answered
+    p.write1ByteTxOnly(port, 1, STATUS_RETURN_LEVEL, 0)
+    assert p.read1ByteTxRx(port, 1, LED)[1] == COMM_RX_TIMEOUT
+    assert p.ping(port, 1)[1] == COMM_SUCCESS  # PING is always answered
+    # level 2 governs the answer to the write that sets it: read that answer here (sent
+    # TxOnly it stayed in the line and was taken for the next write's answer, whose own
+    # answer then came 508 us later and was taken for the read below: a flaky timing)
+    assert ok(p.write1ByteTxRx(port, 1, STATUS_RETURN_LEVEL, 2)) == 0
+    assert ok(p.write1ByteTxRx(port, 1, RETURN_DELAY, 254)) == 0
+    # the answer cannot come before 254 * 2 us, and it is the read's own (LED is 1)
+    start = time.perf_counter()
+    assert p.read1ByteTxRx(port, 1, LED) == (1, COMM_SUCCESS, 0)
+    assert time.perf_counter() - start >= 254 * 2e-6
     p, port = sdk.packet, sdk.port
     assert ok(p.write1ByteTxRx(port, 2, RETURN_DELAY, 3)) == 0
     assert ok(p.factoryReset(port, 2, 0x02)) == 0  # keep ID and baud
@@ -174,15 +159,6 @@ def test_factory_reset_options_and_broadcast_rule(sdk):
     assert p.ping(port, 5)[1] == COMM_RX_TIMEOUT
     # unknown option: only the reset servo answers as ID 1 at 57600 (the other is at 4 Mbps)
     assert ok(p.factoryReset(port, 1, 0x03)) == 4
-
-
-def test_reboot_restores_ram_and_keeps_eeprom(sdk):
-    p, port = sdk.packet, sdk.port
-    assert ok(p.write4ByteTxRx(port, 1, HOMING_OFFSET, 42)) == 0
-    assert ok(p.write1ByteTxRx(port, 1, LED, 1)) == 0
-    assert ok(p.reboot(port, 1)) == 0
-    assert p.read1ByteTxRx(port, 1, LED)[0] == 0
-    assert p.read4ByteTxRx(port, 1, HOMING_OFFSET)[0] == 42
 
 
 def test_clear_multi_turn_and_result_fail(sdk, sim):

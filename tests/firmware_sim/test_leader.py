@@ -1,5 +1,6 @@
 """The leader gimbal's world, two servos (pan, tilt) or three (pan, tilt, roll): the operator's
-hand on each joint, friction, let go, the joints built like the follower's, the ground-truth log."""
+hand on each joint, friction, let go, the joints built like the follower's, the ground-truth log,
+and the operator files that describe it."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ import pytest
 
 from firmware_sim.control_table import Register
 from firmware_sim.leader import LEADER_COULOMB_NM, LeaderWorld, Operator, leader_joints
+from firmware_sim.operator_file import leader_spec, read_operator_file
 from firmware_sim.simulator import Simulator
 from firmware_sim.world import DEFAULT_JOINTS, ROLL_JOINT
 from tests.firmware_sim.test_torque import Clock
@@ -35,7 +37,7 @@ def row(t, *angles, joints):
 
 
 @JOINTS
-def test_operator_interpolates_its_script_and_is_bounded(joints):
+def test_operator_interpolates_its_script_is_bounded_and_refuses_bad_scripts_and_keys(joints):
     script = [row(0.0, 0.0, 0.0, 0.0, joints=joints), row(2.0, 20.0, -10.0, 40.0, joints=joints)]
     hand = Operator(script, max_torque_nm=0.1, joints=joints)
     assert hand.target_deg(1.0) == pytest.approx((10.0, -5.0, 20.0)[:joints])
@@ -46,10 +48,6 @@ def test_operator_interpolates_its_script_and_is_bounded(joints):
     torques = hand.torques(1.0, [0.0] * joints, [0.0] * joints)
     assert math.hypot(*torques) == pytest.approx(0.1)
     assert torques[0] / torques[1] == pytest.approx(-2.0)
-
-
-@JOINTS
-def test_operator_refuses_bad_scripts_and_keys(joints):
     rest = [0.0] * joints
     with pytest.raises(ValueError, match="must not decrease"):
         Operator([[1.0, *rest], [0.5, *rest]], joints=joints)
@@ -70,7 +68,7 @@ def test_operator_refuses_bad_scripts_and_keys(joints):
 
 
 @JOINTS
-def test_leader_is_built_like_the_follower_at_its_own_ids(joints):
+def test_leader_is_built_like_the_follower_at_its_own_ids_and_stiction_holds_a_touch(joints):
     ids = LEADER_IDS[joints]
     built = leader_joints(ids)
     assert [j.servo_id for j in built] == ids
@@ -93,6 +91,12 @@ def test_leader_is_built_like_the_follower_at_its_own_ids(joints):
         sim.set_operator({"script": [[0.0, *[10.0] * (5 - joints)]]})
     with pytest.raises(ValueError, match=f"cannot hold a {joints}-servo leader"):
         sim.leader.set_operator(Operator([[0.0, *[0.0] * (5 - joints)]], joints=5 - joints))
+    touch = LEADER_COULOMB_NM * 0.9
+    hand = {"script": [[0.0, 90.0, *[0.0] * (joints - 1)]], "max_torque_nm": touch}
+    sim, clock = sim_with(joints, hand)
+    clock.t = 1.0
+    sim.advance()
+    assert sim.truth()["leader"]["pose_deg"] == [0.0] * joints
 
 
 @JOINTS
@@ -126,17 +130,7 @@ def test_the_hand_moves_a_free_leader_and_let_go_leaves_it_to_friction(joints, t
     assert sim.leader.operator is None
 
 
-@JOINTS
-def test_stiction_holds_under_a_touch_below_coulomb_friction(joints):
-    touch = LEADER_COULOMB_NM * 0.9
-    hand = {"script": [[0.0, 90.0, *[0.0] * (joints - 1)]], "max_torque_nm": touch}
-    sim, clock = sim_with(joints, hand)
-    clock.t = 1.0
-    sim.advance()
-    assert sim.truth()["leader"]["pose_deg"] == [0.0] * joints
-
-
-def test_a_slow_let_go_lowers_the_hands_bound_linearly_to_zero():
+def test_a_slow_let_go_lowers_the_bound_and_two_and_three_servo_files_become_the_leader(tmp_path):
     hand = Operator([[0.0, 90.0, 0.0]], let_go_s=1.0, release_s=0.1, max_torque_nm=0.3)
     # far from its target the hand pushes with its whole bound, which falls over 100 ms
     assert hand.torque(0.99, 0, 0.0, 0.0) == pytest.approx(0.3)
@@ -146,3 +140,49 @@ def test_a_slow_let_go_lowers_the_hands_bound_linearly_to_zero():
     assert Operator([[0.0, 90.0, 0.0]], let_go_s=1.0).torque(1.0, 0, 0.0, 0.0) == 0.0
     with pytest.raises(ValueError, match="release_s"):
         Operator([[0.0, 0.0, 0.0]], release_s=-1.0)
+    data = {"model": "xl330-m077", "start_deg": [5, 0], "script": [[0, 5, 0], [1, 30, 0]]}
+    spec = leader_spec({**data, "let_go_s": 2}, (3, 4), log=str(tmp_path / "log.jsonl"))
+    assert spec == {
+        "ids": [3, 4],
+        "model": "xl330-m077",
+        "start_deg": [5.0, 0.0],
+        "operator": {"script": [[0, 5, 0], [1, 30, 0]], "let_go_s": 2},
+        "log": str(tmp_path / "log.jsonl"),
+    }
+    world = LeaderWorld.from_spec(spec)  # the simulator builds it as given
+    assert world.ids == (3, 4) and world.operator.let_go_s == 2
+    world.close()
+    spec = leader_spec({"script": [[0, 0, 0, 0], [1, 0, 0, 50]]}, (4, 5, 6))
+    assert spec["model"] == "xm430-w350" and spec["start_deg"] == [0.0, 0.0, 0.0]
+    assert "log" not in spec
+    world = LeaderWorld.from_spec(spec)
+    assert world.operator.target_deg(1.0) == (0.0, 0.0, 50.0)
+    world.close()
+    with pytest.raises(ValueError, match="cannot read the operator file"):
+        read_operator_file(tmp_path / "missing.yaml")
+    broken = tmp_path / "broken.yaml"
+    broken.write_text("script: [[0, 1, 2]\n")
+    with pytest.raises(ValueError, match=f"{broken}: not valid YAML"):
+        read_operator_file(broken)
+
+
+@pytest.mark.parametrize(
+    ("data", "says"),
+    [
+        ([1, 2], "expected a mapping of model, start_deg, script"),
+        ({"script": [[0, 0, 0]], "grip": 1}, "unknown keys ['grip']"),
+        ({"script": [[0, 0, 0]], "model": "xh540-w270"}, "no simulated leader of model"),
+        ({"script": [[0, 0, 0, 0]]}, "it holds a 3-servo leader; this leader has 2 servos"),
+        ({"script": [[0, 0, 0]], "start_deg": [0, 0, 0]}, "it holds a 3-servo leader"),
+        ({"script": [[0, 0, float("inf")]]}, "rows of finite numbers"),
+        ({"script": []}, "script must be a list"),
+        ({"script": [[0, 0, 0]], "start_deg": [0, "a"]}, "start_deg must be [pan, tilt]"),
+        ({"script": [[1, 0, 0], [0, 0, 0]]}, "times must not decrease"),
+        ({"script": [[0, 0, 0]], "let_go_s": True}, "let_go_s must be a time >= 0"),
+        ({"script": [[0, 0, 0]], "max_torque_nm": float("nan")}, "max_torque_nm must be finite"),
+    ],
+)
+def test_a_bad_file_is_refused_saying_what_is_wrong(data, says):
+    with pytest.raises(ValueError) as refused:
+        leader_spec(data, (3, 4))
+    assert says in str(refused.value)

@@ -1,11 +1,5 @@
-"""LeRobot's own motor set-up and client against factory-fresh simulated servos.
-
-Runs benchmarks/lerobot_setup_check.py: LeRobot's ``DynamixelMotorsBus.setup_motor`` sets up two
-factory-fresh servos one at a time (one ``firmware-sim --factory 2 --connect N`` run each, the
-EEPROM kept in files), then its client drives both; limbctl's SDK verifies ID and baud after
-each run. LeRobot runs in a python of its own: ``$LEROBOT_PYTHON`` (``.ci/run`` installs
-lerobot 0.4.4 into a separate venv and sets it), or this python if it imports lerobot.
-"""
+"""LeRobot's own motor set-up and client against factory-fresh simulated servos, run by
+benchmarks/lerobot_setup_check.py in ``$LEROBOT_PYTHON`` (or this python if it has lerobot)."""
 
 from __future__ import annotations
 

@@ -39,18 +39,23 @@ def bitwise_crc(data: bytes) -> int:
     return crc
 
 
-def test_golden_packets_are_built_byte_for_byte():
+def test_golden_packets_are_built_byte_for_byte_with_their_crcs_fast_status_too():
     assert build_packet(1, Instruction.PING) == PING_ID1
     assert build_status(1, 0, bytes([0x06, 0x04, 0x26])) == PING_REPLY_ID1
     assert build_packet(1, Instruction.READ, bytes([0x84, 0, 4, 0])) == READ_PRESENT_POSITION_ID1
     assert build_packet(1, Instruction.WRITE, bytes([0x74, 0, 0, 2, 0, 0])) == WRITE_GOAL_512_ID1
-
-
-def test_crc_check_value_and_golden_crcs():
-    # catalogue check value of CRC-16/BUYPASS
     assert crc16(b"123456789") == 0xFEE8
     for packet in (PING_ID1, PING_REPLY_ID1, READ_PRESENT_POSITION_ID1, WRITE_GOAL_512_ID1):
         assert crc16(packet[:-2]) == packet[-2] | (packet[-1] << 8)
+    packet = build_fast_status([(1, 0, bytes([1, 2, 3, 4])), (2, 0x80, bytes([5, 6, 7, 8]))])
+    length = packet[5] | (packet[6] << 8)
+    assert packet[4] == 0xFE and packet[7] == 0x55
+    # LEN = instruction + 2 * (error + id + 4 data + crc)
+    assert length == 1 + 2 * 8 == len(packet) - 7
+    first_crc = packet[14] | (packet[15] << 8)
+    assert first_crc == crc16(packet[:14])
+    assert crc16(packet[:-2]) == packet[-2] | (packet[-1] << 8)
+    assert packet[16:18] == bytes([0x80, 2])
 
 
 @given(st.binary(max_size=64))
@@ -61,12 +66,17 @@ def test_table_crc_matches_bitwise_reference(data):
     assert crc16(data[half:], crc16(data[:half])) == crc16(data)
 
 
-def test_stuffing_golden():
+def test_stuffing_golden_and_the_parser_unstuffs_parameters():
     body = bytes([0x55, 0x00, 0xFF, 0xFF, 0xFD, 0x01])
     assert stuff(body) == bytes([0x55, 0x00, 0xFF, 0xFF, 0xFD, 0xFD, 0x01])
     packet = build_status(1, 0, bytes([0xFF, 0xFF, 0xFD, 0x01]))
     # LEN counts the stuffing byte: instr + err + 4 data + 1 stuffing + 2 CRC = 9
     assert packet[5] == 9 and packet[7:-2] == stuff(body)
+    params = bytes([0x68, 0x00, 0xFF, 0xFF, 0xFD, 0x00])
+    packet = build_packet(3, Instruction.WRITE, params)
+    assert b"\xff\xff\xfd\xfd" in packet
+    (parsed,) = PacketParser().feed(packet, 0.0)
+    assert parsed == InstructionPacket(3, Instruction.WRITE, params)
 
 
 @given(st.lists(st.sampled_from([0x00, 0xFF, 0xFD, 0x12]), max_size=40).map(bytes))
@@ -79,15 +89,7 @@ def test_stuffing_round_trip_and_no_header_inside(body):
             assert stuffed[k + 3 : k + 4] == b"\xfd"
 
 
-def test_parser_unstuffs_parameters():
-    params = bytes([0x68, 0x00, 0xFF, 0xFF, 0xFD, 0x00])
-    packet = build_packet(3, Instruction.WRITE, params)
-    assert b"\xff\xff\xfd\xfd" in packet
-    (parsed,) = PacketParser().feed(packet, 0.0)
-    assert parsed == InstructionPacket(3, Instruction.WRITE, params)
-
-
-def test_parser_resynchronises_after_junk_partial_and_corrupt_packets():
+def test_parser_resynchronises_after_junk_partial_corrupt_stale_and_impossible_packets():
     parser = PacketParser()
     good = build_packet(1, Instruction.PING)
     corrupt = bytearray(build_packet(2, Instruction.READ, bytes([0x84, 0, 4, 0])))
@@ -98,9 +100,6 @@ def test_parser_resynchronises_after_junk_partial_and_corrupt_packets():
     events = list(parser.feed(good[5:] + b"\xfe", 0.001))
     assert events == [InstructionPacket(1, Instruction.PING, b"")]
     assert parser.junk_bytes >= len(junk)
-
-
-def test_parser_drops_stale_partial_packet_and_impossible_lengths():
     parser = PacketParser(stale_after_s=0.05)
     good = build_packet(1, Instruction.PING)
     assert list(parser.feed(good[:6], 0.0)) == []
@@ -110,15 +109,3 @@ def test_parser_drops_stale_partial_packet_and_impossible_lengths():
     assert list(parser.feed(b"\xff\xff\xfd\x00\x01\xff\xff" + good, 2.0)) == [
         InstructionPacket(1, Instruction.PING, b"")
     ]
-
-
-def test_fast_status_running_crc_layout():
-    packet = build_fast_status([(1, 0, bytes([1, 2, 3, 4])), (2, 0x80, bytes([5, 6, 7, 8]))])
-    length = packet[5] | (packet[6] << 8)
-    assert packet[4] == 0xFE and packet[7] == 0x55
-    # LEN = instruction + 2 * (error + id + 4 data + crc)
-    assert length == 1 + 2 * 8 == len(packet) - 7
-    first_crc = packet[14] | (packet[15] << 8)
-    assert first_crc == crc16(packet[:14])
-    assert crc16(packet[:-2]) == packet[-2] | (packet[-1] << 8)
-    assert packet[16:18] == bytes([0x80, 2])

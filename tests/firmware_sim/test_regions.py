@@ -35,13 +35,6 @@ def test_square_depth_contains_and_centre(vertices):
     assert square.area_deg2 == pytest.approx(400.0)
 
 
-def test_non_convex_polygon_excludes_its_notch():
-    notched = PolygonRegion([[-10, -10], [10, -10], [10, 10], [0, 0], [-10, 10]])
-    assert notched.contains(0.0, -5.0)
-    assert not notched.contains(0.0, 5.0)  # inside the notch
-    assert notched.contains(8.0, 5.0) and notched.contains(-8.0, 5.0)
-
-
 @pytest.mark.parametrize(
     "region", [PolygonRegion(SQUARE), ConeRegion(30.0), PolygonRegion([[0, 0], [50, 10], [5, 40]])]
 )
@@ -61,29 +54,25 @@ def test_boundary_point_and_fraction_are_inverse(region):
             assert depth <= 1.5 + 1e-9
 
 
-def test_cone_contains_by_angle_from_plus_x():
-    cone = ConeRegion(30.0)
-    rng = np.random.default_rng(0)
-    pan, tilt = rng.uniform(-60, 60, 500), rng.uniform(-60, 60, 500)
-    d = np.stack([np.cos(np.radians(tilt)) * np.cos(np.radians(pan)),
-                  np.cos(np.radians(tilt)) * np.sin(np.radians(pan)),
-                  np.sin(np.radians(tilt))], axis=1)  # fmt: skip
-    angle = np.degrees(np.arccos(np.clip(d[:, 0], -1, 1)))
-    assert cone.contains_many(pan, tilt).tolist() == (angle <= 30.0).tolist()
-    assert cone.edge_distance_deg(pan, tilt) == pytest.approx(30.0 - angle)
-    assert cone.perimeter_deg == pytest.approx(360.0 * math.sin(math.radians(30.0)))
-
-
-def test_region_from_mapping_picks_the_shape():
+def test_shapes_a_cone_by_angle_a_notch_a_grid_and_deepening_round_a_reflex_corner():
     assert region_from_mapping({"cone": {"half_angle_deg": 45}}).half_angle_deg == 45.0
     assert region_from_mapping({"polygon": SQUARE}).kind == "polygon"
     with pytest.raises(ValueError, match="source.yaml: unknown key"):
         region_from_mapping({"circle": 3}, "source.yaml")
     with pytest.raises(ValueError, match="repeats the next vertex"):
         PolygonRegion([[0, 0], [0, 0], [1, 0], [0, 1]])
-
-
-def test_deepen_moves_shallow_points_inward_and_rounds_a_reflex_corner():
+    notched = PolygonRegion([[-10, -10], [10, -10], [10, 10], [0, 0], [-10, 10]])
+    assert notched.contains(0.0, -5.0)
+    assert not notched.contains(0.0, 5.0)  # inside the notch
+    assert notched.contains(8.0, 5.0) and notched.contains(-8.0, 5.0)
+    square = PolygonRegion([[0, 0], [10, 0], [10, 10], [0, 10]])
+    poses = grid_inside(square, step_deg=1.0, min_depth_deg=2.0)
+    assert len(poses) == 7 * 7  # 2..8 on both axes
+    assert poses.min(axis=0) == pytest.approx([2.0, 2.0])
+    assert poses.max(axis=0) == pytest.approx([8.0, 8.0])
+    cone = grid_inside(ConeRegion(30.0), step_deg=2.0, min_depth_deg=5.0)
+    assert np.all(ConeRegion(30.0).edge_distance_deg(cone[:, 0], cone[:, 1]) >= 5.0)
+    assert len(cone) > 100
     ell = PolygonRegion([[0, 0], [20, 0], [20, 10], [10, 10], [10, 20], [0, 20]])
     points = np.array([[5.0, 0.0], [15.0, 9.5], [5.0, 5.0], [9.6, 9.6]])
     deep = deepen(ell, points, np.array([1.0, 1.0, 1.0, 1.0]))
@@ -94,14 +83,13 @@ def test_deepen_moves_shallow_points_inward_and_rounds_a_reflex_corner():
     # by the reflex corner (10, 10): moved away from the corner itself, onto the 1 deg arc
     assert np.hypot(*(deep[3] - [10.0, 10.0])) == pytest.approx(1.0, abs=DEEPEN_TOLERANCE_DEG)
     assert np.all(points[1] == [15.0, 9.5])  # the input is not changed
-
-
-def test_grid_inside_keeps_the_poses_deep_enough():
-    square = PolygonRegion([[0, 0], [10, 0], [10, 10], [0, 10]])
-    poses = grid_inside(square, step_deg=1.0, min_depth_deg=2.0)
-    assert len(poses) == 7 * 7  # 2..8 on both axes
-    assert poses.min(axis=0) == pytest.approx([2.0, 2.0])
-    assert poses.max(axis=0) == pytest.approx([8.0, 8.0])
-    cone = grid_inside(ConeRegion(30.0), step_deg=2.0, min_depth_deg=5.0)
-    assert np.all(ConeRegion(30.0).edge_distance_deg(cone[:, 0], cone[:, 1]) >= 5.0)
-    assert len(cone) > 100
+    cone = ConeRegion(30.0)
+    rng = np.random.default_rng(0)
+    pan, tilt = rng.uniform(-60, 60, 500), rng.uniform(-60, 60, 500)
+    d = np.stack([np.cos(np.radians(tilt)) * np.cos(np.radians(pan)),
+                  np.cos(np.radians(tilt)) * np.sin(np.radians(pan)),
+                  np.sin(np.radians(tilt))], axis=1)  # fmt: skip
+    angle = np.degrees(np.arccos(np.clip(d[:, 0], -1, 1)))
+    assert cone.contains_many(pan, tilt).tolist() == (angle <= 30.0).tolist()
+    assert cone.edge_distance_deg(pan, tilt) == pytest.approx(30.0 - angle)
+    assert cone.perimeter_deg == pytest.approx(360.0 * math.sin(math.radians(30.0)))

@@ -47,7 +47,7 @@ def read(sdk, servo_id, address, size, signed=True):
     return value - (1 << bits) if signed and size > 1 and value >> (bits - 1) else value
 
 
-def test_trajectory_respects_velocity_and_acceleration_caps():
+def test_trajectories_respect_their_caps_and_a_time_based_profile_its_time():
     limits = velocity_based_limits(50, 10, 265)
     trajectory = Trajectory(0.0)
     trajectory.move_to(2000.0, limits)
@@ -62,9 +62,6 @@ def test_trajectory_respects_velocity_and_acceleration_caps():
         peak = max(peak, trajectory.velocity)
     assert trajectory.position == 2000.0 and not trajectory.active
     assert math.isclose(peak, 50 * VELOCITY_UNIT_TICKS_S, rel_tol=1e-6)
-
-
-def test_time_based_profile_finishes_in_the_given_time():
     limits = time_based_limits(1000.0, 800, 200, 265)
     trajectory = Trajectory(0.0)
     trajectory.move_to(1000.0, limits)
@@ -75,7 +72,7 @@ def test_time_based_profile_finishes_in_the_given_time():
     assert abs(steps - 800) <= 20  # 0.8 s (the profile's own duration) within 2.5 %
 
 
-def test_position_control_follows_profile_to_goal(sdk, sim):
+def test_position_control_follows_its_profile_a_blocked_goal_overloads_and_homing_maps(sdk, sim):
     write(sdk, 1, PROFILE_VELOCITY, 4, 60)
     write(sdk, 1, PROFILE_ACCELERATION, 4, 20)
     write(sdk, 1, TORQUE_ENABLE, 1, 1)
@@ -91,9 +88,12 @@ def test_position_control_follows_profile_to_goal(sdk, sim):
         assert time.monotonic() < deadline, "the move never finished"
     assert 0 < peak <= 60  # the profile velocity caps the trajectory
     assert abs(sim.truth()["servos"][1]["raw_tick"] - goal) <= 3
-
-
-def test_homing_offset_and_reverse_mode_map_present_position(sdk, sim):
+    write(sdk, 1, TORQUE_ENABLE, 1, 1)
+    # pan's end stop is at +120 deg = 2185 + 1365 ticks; command far beyond it (within limits)
+    write(sdk, 1, GOAL_POSITION, 4, 4000)
+    wait_for(lambda: read(sdk, 1, HARDWARE_ERROR, 1, signed=False), 10.0, "the stall to trip")
+    assert sim.truth()["servos"][1]["torque_on"] is False
+    assert sim.truth()["joints_deg"]["pan"] <= 120.0 + 1e-6
     raw = sim.truth()["servos"][2]["raw_tick"]
     assert read(sdk, 2, PRESENT_POSITION, 4) == round(raw)
     write(sdk, 2, HOMING_OFFSET, 4, 1000)
@@ -137,15 +137,6 @@ def test_overload_trips_torque_and_alert_until_reboot(sdk, sim):
     assert comm == COMM_SUCCESS
     assert sdk.packet.read1ByteTxRx(sdk.port, 1, HARDWARE_ERROR) == (0, COMM_SUCCESS, 0)
     write(sdk, 1, TORQUE_ENABLE, 1, 1)
-
-
-def test_blocked_goal_beyond_end_stop_overloads(sdk, sim):
-    write(sdk, 1, TORQUE_ENABLE, 1, 1)
-    # pan's end stop is at +120 deg = 2185 + 1365 ticks; command far beyond it (within limits)
-    write(sdk, 1, GOAL_POSITION, 4, 4000)
-    wait_for(lambda: read(sdk, 1, HARDWARE_ERROR, 1, signed=False), 10.0, "the stall to trip")
-    assert sim.truth()["servos"][1]["torque_on"] is False
-    assert sim.truth()["joints_deg"]["pan"] <= 120.0 + 1e-6
 
 
 def test_bus_watchdog_stops_a_velocity_servo_the_bus_went_silent_on(sdk, sim):

@@ -1,18 +1,32 @@
 """The simulated bus is as strict as the wire: baud rates, ID/baud changes, collisions,
-factory-fresh servos, one slot at a time, and time on the wire."""
+factory-fresh servos, one slot at a time, time on the wire, EEPROM kept in files."""
 
 import json
 import math
+import os
 import time
+import tty
 
 import numpy as np
 import pytest
+import serial
 from dynamixel_sdk import COMM_RX_TIMEOUT, COMM_SUCCESS, PacketHandler, PortHandler
 
 from firmware_sim import SimulatedBus
+from firmware_sim.control_table import Register, get_model
+from firmware_sim.eeprom import EepromFile
 from firmware_sim.orientation import chain_quat
+from firmware_sim.protocol import build_status
+from firmware_sim.servo import Servo
 from firmware_sim.simulator import Simulator
-from firmware_sim.wire import FACTORY_BAUD
+from firmware_sim.wire import (
+    BAUD_BY_VALUE,
+    FACTORY_BAUD,
+    collide,
+    host_baud,
+    value_for_baud,
+    wire_s,
+)
 
 ID, BAUD_RATE, TORQUE_ENABLE = 7, 8, 64
 XL430 = 1060
@@ -25,9 +39,7 @@ def sdk_at(port_name: str, baud: int) -> PortHandler:
 
 
 def test_id_and_baud_change_as_on_real_servos_found_as_lerobot_finds_them(tmp_path):
-    """LeRobot's setup_motors flow through the SDK alone: broadcast ping per baud until one
-    servo answers (none at another baud), write its ID, then its baud, and find it again at the
-    new ID and baud; EEPROM writes are refused while torque is on."""
+    """LeRobot's setup_motors flow through the SDK alone: find by baud, write ID, then baud."""
     with SimulatedBus(factory=1, link=tmp_path / "tty") as sim:
         packet, port = PacketHandler(2.0), PortHandler(sim.port)
         found = {}
@@ -66,13 +78,19 @@ def test_factory_fresh_servos_all_answer_as_id_1_and_collide(tmp_path):
         port.closePort()
 
 
-def test_mixed_models_share_a_bus():
+def test_mixed_models_share_a_bus_and_the_roll_id_must_be_a_listed_servo_not_pan_or_tilt():
     sim = Simulator(ids=(1, 2, 3), model="xl430-w250,xl330-m288,xm430-w350")
     assert [s.model.model_number for s in sim.servos] == [1060, 1200, 1020]
     with pytest.raises(ValueError, match="names 2 models for 3 servos; give 1 or 3"):
         Simulator(ids=(1, 2, 3), model="xl430-w250,xl330-m288")
     with pytest.raises(ValueError, match="--connect \\[3\\] names slots beyond \\[1, 2\\]"):
         Simulator(factory=2, connect=(3,))
+    with pytest.raises(ValueError, match="roll joint's servo 4"):
+        Simulator(ids=(1, 2, 3), roll_id=4)
+    with pytest.raises(ValueError, match="roll joint's servo 2"):
+        Simulator(ids=(1, 2, 3), roll_id=2)
+    two = Simulator(ids=(1, 2, 3))
+    assert not two.world.has_roll  # servo 3 is a free shaft unless named the roll
 
 
 def test_a_reply_takes_its_bytes_wire_time(tmp_path):
@@ -109,10 +127,46 @@ def test_simulator_with_a_roll_joint_logs_the_full_orientation(tmp_path):
     assert np.allclose(last["limb_dir"], d)
 
 
-def test_roll_id_must_be_a_listed_servo_other_than_pan_and_tilt():
-    with pytest.raises(ValueError, match="roll joint's servo 4"):
-        Simulator(ids=(1, 2, 3), roll_id=4)
-    with pytest.raises(ValueError, match="roll joint's servo 2"):
-        Simulator(ids=(1, 2, 3), roll_id=2)
-    two = Simulator(ids=(1, 2, 3))
-    assert not two.world.has_roll  # servo 3 is a free shaft unless named the roll
+def test_an_eeprom_survives_a_power_cycle_ram_does_not_and_another_models_is_refused(tmp_path):
+    first = Servo(1, get_model("xl430-w250"), 2048.0)
+    assert not EepromFile(tmp_path, 1).load(first)  # no file yet: factory-fresh
+    store = EepromFile(tmp_path, 1)
+    first.write(7, bytes([2]))  # ID 2
+    first.write(8, bytes([6]))  # 4 Mbps
+    first.write(65, bytes([1]))  # LED (RAM)
+    store.save(first)
+    again = Servo(1, get_model("xl430-w250"), 2048.0)
+    assert EepromFile(tmp_path, 1).load(again)
+    assert (again.servo_id, again.value(Register.BAUD_RATE)) == (2, 6)
+    assert again.value(Register.LED) == 0
+    xl = Servo(1, get_model("xl430-w250"), 2048.0)
+    xl.write(7, bytes([3]))
+    EepromFile(tmp_path, 1).save(xl)
+    with pytest.raises(ValueError, match=r"servo-1.eeprom is not the EEPROM of a XL330-M288"):
+        EepromFile(tmp_path, 1).load(Servo(1, get_model("xl330-m288"), 2048.0))
+
+
+def test_baud_values_wire_time_and_colliding_replies():
+    assert [value_for_baud(b) for b in (9600, 57_600, 4_000_000, 4_500_000)] == [0, 1, 6, 7]
+    assert BAUD_BY_VALUE[3] == 1_000_000
+    with pytest.raises(ValueError, match="no X-series servo runs at 12345 baud; choose one of"):
+        value_for_baud(12345)
+    assert wire_s(132, 57_600) == pytest.approx(132 * 10 / 57_600)  # 22.9 ms
+    assert wire_s(5, None) == 0.0
+    reply = build_status(1, 0, bytes([0x24, 0x04, 46]))
+    assert collide([reply]) == reply
+    garbled = collide([reply, reply])  # even identical replies: the second is a little late
+    assert reply not in garbled
+    assert not garbled.startswith(b"\xff\xff\xfd\x00")  # the header itself is broken
+
+
+@pytest.mark.parametrize("baud", [9600, 57_600, 1_000_000, 4_000_000, 4_500_000])
+def test_the_hosts_speed_is_read_from_the_pty(baud):
+    master, slave = os.openpty()
+    try:
+        tty.setraw(slave)
+        with serial.Serial(os.ttyname(slave), baudrate=baud):
+            assert host_baud(master) == baud  # 4.5 Mbps is a custom rate (termios2)
+    finally:
+        os.close(master)
+        os.close(slave)

@@ -54,16 +54,13 @@ def pushing(target_deg: float, torque_nm: float = 0.3) -> dict:
     return {"script": [[0.0, target_deg, 0.0]], "max_torque_nm": torque_nm, "stiffness_nm_deg": 1.0}
 
 
-def test_mode_5_with_goal_current_0_applies_exactly_no_torque():
+def test_mode_5_goal_current_sets_the_torque_cap_and_present_current_follows_it():
     sim, clock = leader_sim(pushing(30.0))
     hold_at(sim, clock, 3, 5, 0)
     settle(sim, clock, 1.0)
     truth = sim.truth()["leader"]
     assert truth["motor_nm"] == [0.0, 0.0]
     assert truth["pose_deg"][0] > 25.0  # the hand moved it as if the motor were not there
-
-
-def test_goal_current_sets_how_far_a_push_deflects_a_mode_5_joint():
     beyond = {}
     for units in (20, 40, CAP_UNITS):
         sim, clock = leader_sim(pushing(30.0, torque_nm=0.3))
@@ -76,9 +73,6 @@ def test_goal_current_sets_how_far_a_push_deflects_a_mode_5_joint():
     # 20 and 40 units (0.10, 0.19 N m) give way to a 0.3 N m hand; 100 units (0.48 N m) hold it
     assert beyond[20] > beyond[40] > 20.0
     assert beyond[CAP_UNITS] < 0.5
-
-
-def test_present_current_follows_the_motor_torque():
     sim, clock = leader_sim(pushing(30.0, torque_nm=0.2))
     servo = hold_at(sim, clock, 3, 5, CAP_UNITS)
     settle(sim, clock, 2.0)
@@ -90,7 +84,7 @@ def test_present_current_follows_the_motor_torque():
     assert servo.value(Register.PRESENT_CURRENT) == round(expected)
 
 
-def test_mode_3_clips_at_the_current_limit_and_mode_0_is_a_current():
+def test_mode_3_clips_mode_0_is_a_current_torque_off_has_no_cap_and_the_watchdog_trips():
     sim, clock = leader_sim(pushing(30.0, torque_nm=0.3))
     servo = sim.servo(3)
     write(servo, Register.CURRENT_LIMIT, 50)  # 0.24 N m: the hand wins
@@ -108,9 +102,6 @@ def test_mode_3_clips_at_the_current_limit_and_mode_0_is_a_current():
     assert drive_of(servo, +1).current_nm == pytest.approx(20 * XM.current_unit_ma * XM.nm_per_ma)
     settle(sim, clock, 0.5)
     assert sim.truth()["leader"]["pose_deg"][0] > 5.0  # a free current turns the joint
-
-
-def test_torque_off_and_watchdog_trip():
     sim, clock = leader_sim()
     servo = sim.servo(3)
     assert drive_of(servo, +1).cap_nm == 0.0
@@ -119,9 +110,6 @@ def test_torque_off_and_watchdog_trip():
     settle(sim, clock, 0.1)  # 100 ms without a packet: tripped
     assert servo.value(Register.BUS_WATCHDOG) == -1 & 0xFF
     assert not servo.trajectory.active  # stopped where it was
-
-
-def test_loop_gains_reach_stall_at_the_stated_error():
     gains = LoopGains.for_joint(XM, 1e-3)
     assert gains.kp * math.radians(2.0) == pytest.approx(XM.stall_torque_nm)
     assert gains.kd > 0.0

@@ -1,4 +1,4 @@
-"""The simulated gimbal's physics: geometry, tracking, end stops, load, backdriving, stepping."""
+"""The simulated gimbal: its chain's geometry, tracking, end stops, load, backdriving, stepping."""
 
 from __future__ import annotations
 
@@ -9,7 +9,12 @@ import numpy as np
 import pytest
 
 from firmware_sim.hand import Hand
-from firmware_sim.orientation import chain_quat
+from firmware_sim.orientation import (
+    chain_quat,
+    chain_twist,
+    roll_for_twist_deg,
+    wrap_deg,
+)
 from firmware_sim.world import (
     DEFAULT_JOINTS,
     LOAD_LIMIT_PCT,
@@ -18,8 +23,9 @@ from firmware_sim.world import (
     Joint,
     World,
 )
+from tests.geometry.test_gimbal import chain_by_products, twist_about_x
 
-REPO = Path(__file__).resolve().parents[2]
+REGIONS = Path(__file__).resolve().parents[2] / "examples" / "regions"
 PAN, TILT = DEFAULT_JOINTS
 OFF = {1: None, 2: None}
 
@@ -33,7 +39,7 @@ def tick_at(joint: Joint, angle_deg: float) -> float:
     return joint.raw_tick(math.radians(angle_deg))
 
 
-def test_ticks_angles_direction_round_trip():
+def test_ticks_angles_and_directions_round_trip_from_the_true_zeros_to_the_stops():
     world = World()
     rng = np.random.default_rng(3)
     for _ in range(200):
@@ -47,10 +53,6 @@ def test_ticks_angles_direction_round_trip():
         # back from the direction: pan = atan2(dy, dx), tilt = asin(dz)
         assert math.degrees(math.atan2(d[1], d[0])) == pytest.approx(pan_deg, abs=1e-9)
         assert math.degrees(math.asin(d[2])) == pytest.approx(tilt_deg, abs=1e-9)
-
-
-def test_true_zero_and_direction_of_each_joint():
-    world = World()
     assert world.direction_for_ticks({1: 2185.0, 2: 1890.0}) == pytest.approx([1.0, 0.0, 0.0])
     # pan +1: 512 ticks more (45 deg) turns the limb toward +y
     assert world.direction_for_ticks({1: 2185.0 + 512, 2: 1890.0}) == pytest.approx(
@@ -59,16 +61,13 @@ def test_true_zero_and_direction_of_each_joint():
     # tilt -1: fewer ticks raise the limb toward +z
     up = world.direction_for_ticks({1: 2185.0, 2: 1890.0 - 4096 / 12})
     assert up == pytest.approx([math.cos(math.pi / 6), 0.0, 0.5])
-
-
-def test_direction_for_ticks_past_a_stop_is_where_the_limb_ends_up():
-    world = World()
+    # past a stop is where the limb ends up
     beyond = world.direction_for_ticks({1: tick_at(PAN, 170.0), 2: tick_at(TILT, 0.0)})
     at_stop = world.direction_for_ticks({1: tick_at(PAN, 120.0), 2: tick_at(TILT, 0.0)})
     assert beyond == pytest.approx(at_stop)
 
 
-def test_tracks_a_setpoint_with_small_lag_and_small_load():
+def test_tracks_a_setpoint_with_small_lag_and_load_and_reads_a_ramps_velocity():
     world = World(seed=1)
     drive = {1: tick_at(PAN, 30.0), 2: tick_at(TILT, -20.0)}
     peak_load = 0.0
@@ -81,9 +80,6 @@ def test_tracks_a_setpoint_with_small_lag_and_small_load():
     assert world.raw_tick(1) == pytest.approx(drive[1], abs=0.2)
     assert 5.0 < peak_load < 100.0  # accelerating shows load; a free move never overloads
     assert abs(world.load_percent(1)) < 1.0 and abs(world.velocity(1)) < 1.0
-
-
-def test_velocity_reads_the_ramp_rate_in_ticks_per_second():
     world = World()
     start = world.raw_tick(1)
     rate = 300.0  # ticks/s
@@ -109,7 +105,7 @@ def test_end_stop_holds_and_load_rises_past_100(joint, beyond_deg):
     assert np.sign(load) == np.sign(drive[joint.servo_id] - world.raw_tick(joint.servo_id))
 
 
-def test_blocked_load_grows_with_the_blocked_error():
+def test_blocked_load_grows_with_the_blocked_error_a_push_loads_a_held_joint_a_stop_carries_it():
     loads = []
     for past_stop_deg in (0.5, 1.0, 1.5, 3.0, 6.0):
         world = World()
@@ -120,11 +116,7 @@ def test_blocked_load_grows_with_the_blocked_error():
     assert loads[:4] == pytest.approx(expected, rel=0.01)
     assert loads[3] > 100.0  # blocked by a few degrees overloads
     assert loads[4] == pytest.approx(LOAD_LIMIT_PCT)
-
-
-def test_push_builds_load_and_the_hand_cannot_move_a_held_joint():
-    hand = Hand.from_yaml(REPO / "examples" / "regions" / "cone30.yaml", seed=2)
-    world = World(hand=hand)
+    world = World(hand=Hand.from_yaml(REGIONS / "cone30.yaml", seed=2))
     drive = {1: tick_at(PAN, 10.0), 2: tick_at(TILT, 5.0)}
     run(world, 1.0, drive)
     assert world.joint_angles_deg() == pytest.approx({"pan": 10.0, "tilt": 5.0}, abs=0.01)
@@ -138,9 +130,6 @@ def test_push_builds_load_and_the_hand_cannot_move_a_held_joint():
     run(world, 0.5, drive)
     assert world.joint_angles_deg()["pan"] == pytest.approx(10.0, abs=0.01)
     assert abs(world.load_percent(1)) < 1.0
-
-
-def test_push_into_a_stop_is_carried_by_the_stop():
     world = World()
     drive = {1: tick_at(PAN, 120.0), 2: None}
     run(world, 1.0, drive)
@@ -150,26 +139,22 @@ def test_push_into_a_stop_is_carried_by_the_stop():
     assert abs(world.load_percent(1)) < 1.0
 
 
-def test_torque_off_without_hand_stays_put_and_reads_no_load():
+def test_torque_off_stays_put_without_a_hand_and_a_push_backdrives_it_to_the_stop():
     world = World(seed=4)
     before = world.joint_angles_deg()
     run(world, 1.0, OFF)
     assert world.joint_angles_deg() == before
     assert world.load_percent(1) == 0.0 and world.velocity(2) == 0.0
-
-
-def test_torque_off_push_backdrives_until_the_end_stop():
-    world = World()
     world.push(2, -40.0)  # toward fewer ticks: tilt (direction -1) rises at 1 deg/s per %
     run(world, 1.0, OFF)
-    assert world.joint_angles_deg()["tilt"] == pytest.approx(40.0, abs=1.0)
+    assert world.joint_angles_deg()["tilt"] == pytest.approx(before["tilt"] + 40.0, abs=1.0)
     run(world, 2.0, OFF)
     assert world.joint_angles_deg()["tilt"] == pytest.approx(TILT.stop_max_deg, abs=1e-9)
     assert world.load_percent(2) == 0.0
 
 
-def test_hand_moves_only_the_free_joint():
-    hand = Hand.from_yaml(REPO / "examples" / "regions" / "irregular.yaml", seed=5)
+def test_the_hand_moves_only_the_free_joint_once_per_millisecond_substep_and_by_its_seed():
+    hand = Hand.from_yaml(REGIONS / "irregular.yaml", seed=5)
     world = World(hand=hand)
     drive = {1: tick_at(PAN, 20.0), 2: None}
     tilts = []
@@ -179,22 +164,16 @@ def test_hand_moves_only_the_free_joint():
     assert world.joint_angles_deg()["pan"] == pytest.approx(20.0, abs=0.01)
     assert np.ptp(tilts) > 10.0
     assert world.hand_time_s == pytest.approx(5.0)
-
-
-def test_long_steps_split_into_millisecond_substeps():
-    hand_a = Hand.from_yaml(REPO / "examples" / "regions" / "cone30.yaml", seed=6)
-    hand_b = Hand.from_yaml(REPO / "examples" / "regions" / "cone30.yaml", seed=6)
-    fine, coarse = World(hand=hand_a, seed=6), World(hand=hand_b, seed=6)
+    # long steps split into millisecond substeps
+    fine, coarse = (
+        World(hand=Hand.from_yaml(REGIONS / "cone30.yaml", seed=6), seed=6) for _ in "ab"
+    )
     run(fine, 2.0, OFF, dt=0.001)
     run(coarse, 2.0, OFF, dt=0.005)
     assert coarse.joint_angles_deg() == pytest.approx(fine.joint_angles_deg(), abs=1e-9)
     assert coarse.time_s == pytest.approx(2.0)
-
-
-def test_one_simulated_second_of_hand_motion_is_a_thousand_cheap_steps():
-    # correctness of the cost path (plain floats, hand evaluated once per substep); timing lives
-    # in benchmarks/, not here
-    hand = Hand.from_yaml(REPO / "examples" / "regions" / "irregular.yaml", seed=7)
+    # one simulated second is a thousand hand evaluations (timing lives in benchmarks/)
+    hand = Hand.from_yaml(REGIONS / "irregular.yaml", seed=7)
     world = World(hand=hand)
     calls = 0
     pose_deg = hand.pose_deg
@@ -209,10 +188,8 @@ def test_one_simulated_second_of_hand_motion_is_a_thousand_cheap_steps():
     assert calls == 1000
     assert world.time_s == pytest.approx(1.0) and world.hand_time_s == pytest.approx(1.0)
 
-
-def test_same_seed_same_world():
     def trajectory(seed):
-        hand = Hand.from_yaml(REPO / "examples" / "regions" / "irregular.yaml", seed=seed)
+        hand = Hand.from_yaml(REGIONS / "irregular.yaml", seed=seed)
         world = World(hand=hand, seed=seed)
         out = []
         for _ in range(30):
@@ -220,8 +197,8 @@ def test_same_seed_same_world():
             out.append((world.raw_tick(1), world.raw_tick(2)))
         return out
 
-    assert trajectory(8) == trajectory(8)
-    assert trajectory(8) != trajectory(9)
+    assert trajectory(8) == trajectory(8), "the same seed gave another world"
+    assert trajectory(8) != trajectory(9), "another seed gave the same world"
 
 
 @pytest.mark.parametrize(
@@ -243,7 +220,7 @@ def test_bad_calls_raise_clear_errors(call, message):
         call(World())
 
 
-def test_the_roll_joint_tracks_like_the_others():
+def test_the_roll_joint_tracks_like_the_others_and_the_chain_quat_is_the_product():
     three = World(joints=(PAN, TILT, ROLL_JOINT), seed=2)
     two = World(seed=2)
     drive = {1: tick_at(PAN, 20.0), 2: tick_at(TILT, 10.0), 3: tick_at(ROLL_JOINT, 130.0)}
@@ -257,3 +234,25 @@ def test_the_roll_joint_tracks_like_the_others():
     assert angles["tilt"] == two.joint_angles_deg()["tilt"]
     q = three.orientation_for_ticks({})
     assert np.allclose(q, chain_quat(*(math.radians(angles[k]) for k in ("pan", "tilt", "roll"))))
+    rng = np.random.default_rng(3)
+    for pan, tilt, roll in rng.uniform([-3, -1.5, -3], [3, 1.5, 3], size=(200, 3)):
+        assert np.allclose(
+            chain_quat(pan, tilt, roll), chain_by_products(pan, tilt, roll), atol=1e-12
+        )
+        twist = math.degrees(twist_about_x(np.array(chain_quat(pan, tilt, roll))))
+        expected = math.degrees(roll + chain_twist(pan, tilt))
+        assert wrap_deg(twist - expected) == pytest.approx(0.0, abs=1e-9)
+        # the roll that gives a twist undoes the chain's own twist
+        back = roll_for_twist_deg(math.degrees(pan), math.degrees(tilt), twist)
+        assert wrap_deg(back - math.degrees(roll)) == pytest.approx(0.0, abs=1e-9)
+    assert wrap_deg(180.0) == 180.0
+    assert wrap_deg(-180.0) == 180.0
+    assert wrap_deg(190.0) == pytest.approx(-170.0)
+    assert wrap_deg(-540.0) == 180.0
+
+
+@pytest.mark.parametrize(("pan", "tilt", "tau"), [(30, 30, 8.2), (60, 45, 26.9), (90, 60, 60.0)])
+def test_chain_twist_figures(pan, tilt, tau):
+    assert math.degrees(chain_twist(math.radians(pan), math.radians(tilt))) == pytest.approx(
+        tau, abs=0.05
+    )

@@ -1,5 +1,4 @@
-"""The chains' geometries (limbctl/geometry/chains.py): the SO(3) step and distance, and the
-registry by joint count."""
+"""The chains' geometries: the SO(3) step and distance, and the registry by joint count."""
 
 from __future__ import annotations
 
@@ -14,7 +13,7 @@ from limbctl.geometry.chains import Directions, Rotations, chain_geometry, geode
 from limbctl.geometry.gimbal import pose_quat_scalar
 
 
-def test_toward_turns_by_the_step_along_the_shortest_rotation():
+def test_the_steps_turn_along_the_shortest_rotation_and_geodesic_measures_it():
     a = pose_quat_scalar(0.0, 0.0, 0.0)
     b = pose_quat_scalar(0.0, 0.0, math.radians(90))
     half = toward(a, b, math.radians(30))
@@ -24,16 +23,12 @@ def test_toward_turns_by_the_step_along_the_shortest_rotation():
     past = turn_by(a, b, math.radians(120))  # on past b, along the same rotation
     assert geodesic(a, past) == pytest.approx(math.radians(120), abs=1e-12)
     assert geodesic(b, past) == pytest.approx(math.radians(30), abs=1e-12)
-
-
-def test_geodesic_is_the_rotation_angle_either_sign_of_q():
+    # the distance is the rotation angle, accurate near 0, either sign of q
     a = pose_quat_scalar(0.3, -0.2, 0.1)
     b = pose_quat_scalar(0.3, -0.2, 0.1 + 1e-9)
     assert geodesic(a, b) == pytest.approx(1e-9, rel=1e-6)  # accurate near 0
     assert geodesic(a, -b) == geodesic(a, b)
-
-
-def test_the_directions_step_is_the_great_circle_or_the_target_when_nearer():
+    # the directions' step: the great circle, or the target when nearer
     a, b = scalar.direction(0.0, 0.0), scalar.direction(math.radians(50), 0.0)
     assert Directions.toward(a, b, math.radians(60)) is b
     step = Directions.toward(a, b, math.radians(20))

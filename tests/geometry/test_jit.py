@@ -1,9 +1,5 @@
-"""limbctl.geometry.jit: sound caching (never stale across files) and no crash without a cache.
-
-The subprocess tests run a copy of the package in a temporary folder, as a new install would be.
-Where the tests run as root (who ignores file permissions), the read-only case runs the child in a
-user namespace as an ordinary user, so the permissions bite as they do for a service account.
-"""
+"""limbctl.geometry.jit: caching never stale across files, and no crash without a cache; the
+subprocesses run a copy of the package, as a new install would be."""
 
 from __future__ import annotations
 
@@ -24,7 +20,7 @@ from limbctl.region.mesh import DirectionMesh
 from tests.region.support import circle
 
 ROOT = Path(__file__).resolve().parents[2]
-#: A command 10 degrees of pan from rest: inside the 20 degree cap of :func:`_cap_args`.
+#: A command 10 deg of pan from rest: inside the 20 deg cap of :func:`_cap_args`.
 QUATERNION = np.array([np.cos(np.radians(5.0)), 0.0, 0.0, np.sin(np.radians(5.0))])
 
 #: What the child prints: the corrected quaternion of an inside command, and where its kernel came
@@ -62,22 +58,20 @@ def _cap_args(path: Path) -> None:
     np.savez(path, **{f"a{i}": a for i, a in enumerate(args)})
 
 
+def _python(argv, env, cwd, prefix=(), check=False):
+    """``python -c *argv`` (after ``prefix``) in ``cwd``, which ``-c`` puts first on sys.path."""
+    command = [*prefix, sys.executable, "-c", *argv]
+    return subprocess.run(command, env=env, cwd=cwd, capture_output=True, text=True, check=check)
+
+
 def _run(tree: Path, home: Path, args: Path) -> tuple[list[float], int, int, int]:
-    done = subprocess.run(
-        [sys.executable, "-c", CHILD, str(args)],
-        env=_env(home, tree),
-        cwd=tree,  # python -c puts the working folder first on sys.path
-        capture_output=True,
-        text=True,
-        check=True,
-    )
+    done = _python([CHILD, str(args)], _env(home, tree), tree, check=True)
     out, status, hits, misses = done.stdout.strip().rsplit(" ", 3)
     return eval(out), int(status), int(hits), int(misses)  # noqa: S307 - our own child's repr
 
 
 def test_editing_an_inlined_kernel_in_another_file_changes_the_answer(tmp_path):
-    """mesh_kernels.query is inlined into correct_kernels.correct_single: edit it, and the cached
-    correct_single must not be used (numba alone checks only correct_kernels.py and loads it)."""
+    """mesh_kernels.query, inlined into correct_single: edited, the cached kernel is not used."""
     tree = _package_copy(tmp_path / "tree")
     args = tmp_path / "args.npz"
     _cap_args(args)
@@ -106,20 +100,30 @@ def test_editing_an_inlined_kernel_in_another_file_changes_the_answer(tmp_path):
     assert first[0] == here[0].tolist() and first[1] == here[1]
 
 
-def test_the_key_changes_with_any_kernel_source_and_names_the_folder():
+def test_the_key_names_the_folders_and_every_kernel_is_under_it(monkeypatch):
     key = jit.source_key()
     assert re.fullmatch(rf"[0-9a-f]{{{jit.KEY_DIGITS}}}", key)
     assert all(key in folder.name for folder in jit.cache_candidates())
     assert jit.cache_dir() in jit.cache_candidates()
-
-
-def test_numba_cache_dir_comes_first(monkeypatch):
     monkeypatch.setenv("NUMBA_CACHE_DIR", "/somewhere")
     assert jit.cache_candidates()[0] == Path("/somewhere") / f"limbctl-{jit.source_key()}"
+    # numba.njit elsewhere, or a kernel outside KERNEL_PACKAGES, would escape the key
+    offenders = []
+    for path in (ROOT / "limbctl").rglob("*.py"):
+        text = path.read_text(encoding="utf-8")
+        if path == Path(jit.__file__):
+            continue
+        if re.search(r"\b(?:nb|numba)\.(?:njit|jit|vectorize|guvectorize|cfunc)\b", text):
+            offenders.append(f"{path.relative_to(ROOT)}: calls numba's decorator itself")
+        uses = "from limbctl.geometry.jit import njit" in text
+        package = path.relative_to(ROOT / "limbctl").parts[0]
+        if uses and package not in jit.KERNEL_PACKAGES:
+            offenders.append(f"{path.relative_to(ROOT)}: a kernel outside {jit.KERNEL_PACKAGES}")
+    assert not offenders, offenders
 
 
 def _unprivileged() -> list[str]:
-    """A command prefix that runs the child as a user file permissions apply to."""
+    """A command prefix that runs the child as a user file permissions apply to (not root)."""
     if os.geteuid() != 0:
         return []
     prefix = ["unshare", "--user", "--map-user=1000", "--map-group=1000"]
@@ -146,13 +150,7 @@ def test_a_read_only_install_with_an_unwritable_home_compiles_in_memory_and_says
             "print(m._angle(np.array([1.0, 0, 0]), np.array([0.0, 0, 1])))\n"
         )
         try:
-            done = subprocess.run(
-                [*_unprivileged(), sys.executable, "-c", child],
-                env=_env(home, tree),
-                cwd=tree,
-                capture_output=True,
-                text=True,
-            )
+            done = _python([child], _env(home, tree), tree, _unprivileged())
         finally:
             for folder in [Path(tmp), home, tree, *(p for p in tree.rglob("*") if p.is_dir())]:
                 folder.chmod(0o755)
@@ -164,26 +162,8 @@ def test_a_read_only_install_with_an_unwritable_home_compiles_in_memory_and_says
         assert not list(tree.rglob("*.nbi")) and not list(home.rglob("*"))
 
 
-def test_every_kernel_uses_this_decorator_and_lives_where_the_key_looks():
-    """numba.njit elsewhere would cache outside the key (stale) or crash when nothing is
-    writable; a kernel outside KERNEL_PACKAGES would not change the key when edited."""
-    offenders = []
-    for path in (ROOT / "limbctl").rglob("*.py"):
-        text = path.read_text(encoding="utf-8")
-        if path == Path(jit.__file__):
-            continue
-        if re.search(r"\b(?:nb|numba)\.(?:njit|jit|vectorize|guvectorize|cfunc)\b", text):
-            offenders.append(f"{path.relative_to(ROOT)}: calls numba's decorator itself")
-        uses = "from limbctl.geometry.jit import njit" in text
-        package = path.relative_to(ROOT / "limbctl").parts[0]
-        if uses and package not in jit.KERNEL_PACKAGES:
-            offenders.append(f"{path.relative_to(ROOT)}: a kernel outside {jit.KERNEL_PACKAGES}")
-    assert not offenders, offenders
-
-
 def test_a_drop_in_for_numbas_njit_in_every_form(tmp_path):
-    """Bare, with options, with an eager signature (compiled at once, nothing else), and for a
-    function without a source file (no cache possible: compiled in memory, not refused)."""
+    """Bare, with options, eager (that signature only), and without a source file (in memory)."""
     (tmp_path / "kernels_here.py").write_text(
         "from limbctl.geometry.jit import njit\n"
         "@njit('f8(f8)')\n"
@@ -202,9 +182,7 @@ def test_a_drop_in_for_numbas_njit_in_every_form(tmp_path):
     )
     env = {**_env(tmp_path, ROOT), "NUMBA_CACHE_DIR": str(tmp_path / "cache")}
     env["PYTHONPATH"] = f"{ROOT}{os.pathsep}{tmp_path}"
-    done = subprocess.run(
-        [sys.executable, "-c", child], env=env, cwd=tmp_path, capture_output=True, text=True
-    )
+    done = _python([child], env, tmp_path)
     assert done.returncode == 0, done.stderr
     assert done.stdout.split("\n")[:3] == ["4.0 2 2 1", "eager only", "6"]
     assert list((tmp_path / "cache").rglob("kernels_here.bare-*.nbi"))

@@ -18,8 +18,10 @@ unit_quats = st.lists(st.floats(-1, 1, allow_nan=False), min_size=4, max_size=4)
 
 
 @settings(max_examples=200, deadline=None)
-@given(pan=angles, tilt=tilts, current=angles)
-def test_direction_swing_and_pan_tilt_match_gimbal_and_quat(pan, tilt, current):
+@given(pan=angles, tilt=tilts, current=angles, v=unit_quats)
+def test_direction_swing_pan_tilt_and_limb_match_gimbal_and_quat(pan, tilt, current, v):
+    q = np.asarray(v) / np.linalg.norm(v)
+    np.testing.assert_allclose(scalar.limb(q), limb_direction(q), atol=1e-14)
     d = scalar.direction(pan, tilt)
     np.testing.assert_allclose(d, pan_tilt_to_direction(np.array(pan), np.array(tilt)), atol=1e-15)
     np.testing.assert_allclose(scalar.swing(d), swing_from_direction(np.array(d)), atol=1e-12)
@@ -27,32 +29,18 @@ def test_direction_swing_and_pan_tilt_match_gimbal_and_quat(pan, tilt, current):
     np.testing.assert_allclose(scalar.pan_tilt(d, current), np.array(expected), atol=1e-12)
 
 
-def test_swing_of_minus_x_is_the_half_turn_about_z():
+def test_the_swing_of_minus_x_and_pan_tilt_at_the_singularity():
     np.testing.assert_array_equal(scalar.swing((-1.0, 0.0, 0.0)), [0.0, 0.0, 0.0, 1.0])
     np.testing.assert_array_equal(swing_from_direction(np.array([-1.0, 0.0, 0.0])), [0, 0, 0, 1])
-
-
-@settings(max_examples=200, deadline=None)
-@given(v=unit_quats)
-def test_limb_matches_quat(v):
-    q = np.asarray(v) / np.linalg.norm(v)
-    np.testing.assert_allclose(scalar.limb(q), limb_direction(q), atol=1e-14)
-
-
-@settings(max_examples=200, deadline=None)
-@given(p1=angles, t1=tilts, p2=angles, t2=tilts)
-def test_angle_matches_quat(p1, t1, p2, t2):
-    a, b = scalar.direction(p1, t1), scalar.direction(p2, t2)
-    assert math.isclose(
-        scalar.angle(a, b), float(direction_angle(np.array(a), np.array(b))), abs_tol=1e-12
-    )
+    assert scalar.pan_tilt((0.0, 0.0, 1.0), 0.7) == (0.7, math.pi / 2)
 
 
 @settings(max_examples=200, deadline=None)
 @given(p1=angles, t1=tilts, p2=angles, t2=tilts, fraction=st.floats(0.0, 1.0))
-def test_toward_walks_the_great_circle(p1, t1, p2, t2, fraction):
+def test_angle_matches_quat_and_toward_walks_the_great_circle(p1, t1, p2, t2, fraction):
     a, b = scalar.direction(p1, t1), scalar.direction(p2, t2)
     total = scalar.angle(a, b)
+    assert math.isclose(total, float(direction_angle(np.array(a), np.array(b))), abs_tol=1e-12)
     if not 1e-6 < total < math.pi - 1e-6:
         return  # no unique great circle
     step = fraction * total
@@ -63,7 +51,3 @@ def test_toward_walks_the_great_circle(p1, t1, p2, t2, fraction):
     assert abs(float(got @ normal)) < 1e-9
     assert math.isclose(float(direction_angle(np.array(a), got)), step, abs_tol=1e-9)
     assert math.isclose(float(direction_angle(got, np.array(b))), total - step, abs_tol=1e-9)
-
-
-def test_pan_tilt_keeps_the_current_pan_at_the_singularity():
-    assert scalar.pan_tilt((0.0, 0.0, 1.0), 0.7) == (0.7, math.pi / 2)

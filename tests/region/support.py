@@ -5,9 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 
-def circle(
-    radius_deg: float, n: int, wobble_deg: float = 0.0, seed: int = 0, shift_deg: float = 0.0
-) -> np.ndarray:
+def circle(radius_deg, n, wobble_deg=0.0, seed=0, shift_deg=0.0):
     """A counter-clockwise loop (n, 3) of unit directions at ``radius_deg`` about +x (the region
     on its left seen from outside). With ``wobble_deg`` each vertex's radius is off by up to that
     much (uniform, seeded by ``seed``); with ``shift_deg`` the loop is turned that far about +z."""

@@ -17,7 +17,7 @@ def about(axis, angle_deg):
     return np.concatenate([[np.cos(half)], np.sin(half) * np.asarray(axis, dtype=float)])
 
 
-def test_inside_comes_back_canonical_and_outside_moves_to_the_edge_keeping_the_twist():
+def test_inside_comes_back_canonical_outside_moves_to_the_edge_keeping_twist_bad_refused():
     args = cap(20.0).kernel_args()
     twist = about([1, 0, 0], 30.0)
     inside = -multiply(about([0, 0, 1], 10.0), twist)  # w < 0: comes back with w >= 0
@@ -31,10 +31,7 @@ def test_inside_comes_back_canonical_and_outside_moves_to_the_edge_keeping_the_t
     # the twist about the limb is kept: out = swing(d') * twist
     swing = about([0, 0, 1], np.degrees(np.arctan2(moved[1], moved[0])))
     np.testing.assert_allclose(out[1], multiply(swing, twist), atol=1e-12)
-
-
-def test_bad_input_is_refused_one_and_many():
-    args = cap(20.0).kernel_args()
+    # bad input is refused, one command and many
     bad = np.array([[np.nan, 0.0, 0.0, 0.0], [2.0, 0.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0]])
     _, status = ck.correct_batch(bad, *args)
     np.testing.assert_array_equal(status, [-1, -1, 1])

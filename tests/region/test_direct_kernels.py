@@ -52,12 +52,11 @@ def test_queries_from_the_arcs_answer_as_the_grid_does(name, margins):
     assert 0 < inside.sum() < len(d)
     np.testing.assert_array_equal(without.contains(d), inside)
     np.testing.assert_allclose(without.project(d), with_grid.project(d), rtol=0.0, atol=1e-12)
-    # answered from the arcs alone: the grid was never built
-    assert without.cell_inside is None
+    assert without.cell_inside is None, "answered from the arcs alone: the grid was never built"
 
 
 @pytest.mark.parametrize("name", ["bean", "notch"])
-def test_the_parity_count_agrees_with_the_fan_area_off_the_loops(name):
+def test_the_parity_count_agrees_with_the_fan_area_and_the_grid_is_built_when_saved(name):
     _, without, region = _meshes(name, "none")
     d = _probes(without, region, np.random.default_rng(13))
     _, _, to_loops = nearest_on_edges_reference(d, without.vertices, without.edges)
@@ -65,9 +64,7 @@ def test_the_parity_count_agrees_with_the_fan_area_off_the_loops(name):
     assert clear.sum() > 3000
     want = inside_reference(d[clear], without.vertices, without.edges)
     np.testing.assert_array_equal(without.contains(d[clear]), want)
-
-
-def test_a_mesh_without_its_grid_builds_it_when_saved():
+    # a mesh without its grid builds it when saved
     _, without, _ = _meshes("cone", "even")
     assert without.cell_inside is None
     assert without.arrays()["mesh_cell_start"].size == without.grid_shape.prod() + 1

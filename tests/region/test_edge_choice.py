@@ -10,6 +10,8 @@ from limbctl.region.loops import loop_area
 from limbctl.region.mesh import DirectionMesh
 from tests.region.support import circle
 
+WINDOW = np.radians(3.0)
+
 
 @pytest.fixture(scope="module")
 def cone():
@@ -19,7 +21,7 @@ def cone():
     return loops, data, DirectionMesh.from_loops(loops, np.radians(0.5))
 
 
-def test_choices_come_from_the_registry_and_unknown_names_are_refused():
+def test_choices_come_from_the_registry_and_unknown_names_are_refused(cone):
     assert ec.EDGE_CHOICES == ("auto", "smooth", "traced", "supported")
     assert all(name == strategy.name for name, strategy in ec.EDGE_STRATEGIES.items())
     assert [s.safe for s in ec.EDGE_STRATEGIES.values()] == [False, False, True]
@@ -27,16 +29,11 @@ def test_choices_come_from_the_registry_and_unknown_names_are_refused():
     with pytest.raises(ConfigError, match="choose one of: auto, smooth, traced, supported"):
         ec.check_choice("round")
     with pytest.raises(ConfigError, match="unknown edge 'round'"):
-        ec.choose_edge("round", *_args(circle(19.5, 60)))
-
-
-def _args(loop):
-    data = ConeRegion(np.radians(20.0)).sample(300, np.random.default_rng(1))
-    return [loop], data, DirectionMesh.from_loops([loop], 0.0), np.radians(3.0)
+        ec.choose_edge("round", *cone, WINDOW)
 
 
 def test_auto_takes_the_smooth_edge_of_a_cone_after_checking_it_against_the_traced(cone):
-    taken, verdicts = ec.choose_edge("auto", *cone, np.radians(3.0))
+    taken, verdicts = ec.choose_edge("auto", *cone, WINDOW)
     assert [v.strategy for v in verdicts] == ["smooth", "traced", "supported"]
     assert taken is verdicts[0] and all(v.accepted for v in verdicts)
     assert "within 1 deg of the traced edge" in taken.reasons
@@ -47,21 +44,15 @@ def test_auto_takes_the_smooth_edge_of_a_cone_after_checking_it_against_the_trac
 
 def test_one_strategy_by_name_is_judged_alone_and_falls_back_to_the_supported_loops(cone):
     loops, data, supported = cone
-    taken, verdicts = ec.choose_edge("traced", loops, data, supported, np.radians(3.0))
+    taken, verdicts = ec.choose_edge("traced", loops, data, supported, WINDOW)
     assert taken.strategy == "traced" and [v.strategy for v in verdicts] == ["traced", "supported"]
-    # no rival check outside "auto"
-    assert taken.reasons == (taken.reasons[0],)
-    taken, verdicts = ec.choose_edge("supported", loops, data, supported, np.radians(3.0))
+    assert taken.reasons == (taken.reasons[0],), "no rival check outside auto"
+    taken, verdicts = ec.choose_edge("supported", loops, data, supported, WINDOW)
     assert taken.strategy == "supported" and taken.region is supported and len(verdicts) == 1
-    # too few samples for the traced edge: refused, and the supported loops are taken
-    few = data[:100]
-    taken, verdicts = ec.choose_edge("traced", loops, few, supported, np.radians(3.0))
+    # too few samples for the traced edge: refused, saying how sparse, and the supported taken
+    taken, verdicts = ec.choose_edge("traced", loops, data[:100], supported, WINDOW)
     assert taken.strategy == "supported" and not verdicts[0].accepted
-
-
-def test_the_traced_strategy_says_how_sparse_an_edge_is(cone):
-    loops, data, supported = cone
-    answer = ec.TracedEdge().propose(loops, data[:100], supported, np.radians(3.0))
+    answer = ec.TracedEdge().propose(loops, data[:100], supported, WINDOW)
     assert isinstance(answer, Refusal)
     # 100 samples over a 20 deg cap: a window about twice the largest
     assert answer.figures["window_deg"] > 15.0
@@ -69,24 +60,21 @@ def test_the_traced_strategy_says_how_sparse_an_edge_is(cone):
     assert isinstance(ec.TracedEdge().propose(loops, data, supported, 0.05), Proposal)
 
 
-def counter_clockwise(loop: np.ndarray) -> np.ndarray:
-    return loop[::-1] if loop_area(loop) < 0 else loop
-
-
 def test_the_smooth_strategy_refuses_a_bay_and_a_shape_its_window_cannot_follow():
+    def counter_clockwise(loop):
+        return loop[::-1] if loop_area(loop) < 0 else loop
+
     bean = PolygonRegion()
     data = bean.sample(1000, np.random.default_rng(2))
     loop = counter_clockwise(bean.boundary)
-    answer = ec.SmoothEdge().propose([loop], data, None, np.radians(3.0))
+    answer = ec.SmoothEdge().propose([loop], data, None, WINDOW)
     assert isinstance(answer, Refusal) and answer.figures["bay_samples"] > 40.0
     assert "bay worth" in answer.reason
-    # a hole (clockwise loop) is concave throughout
-    answer = ec.SmoothEdge().propose([loop[::-1]], data, None, np.radians(3.0))
+    answer = ec.SmoothEdge().propose([loop[::-1]], data, None, WINDOW)
     assert answer.reason == "loop 0 is a hole (concave throughout)"
     # the egg's tight end: 60 vertices with vertex noise, a window spanning its tip
     rng = np.random.default_rng(0)
     pan_tilt = np.radians(EGG[::4] + rng.uniform(-1.0, 1.0, (60, 2)) / np.sqrt(2.0))
     loop = counter_clockwise(pan_tilt_to_direction(pan_tilt[:, 0], pan_tilt[:, 1]))
-    data = PolygonRegion(EGG).sample(1000, rng)
-    answer = ec.SmoothEdge().propose([loop], data, None, np.radians(3.0))
+    answer = ec.SmoothEdge().propose([loop], PolygonRegion(EGG).sample(1000, rng), None, WINDOW)
     assert isinstance(answer, Refusal) and answer.figures["residual_ratio"] > 1.4

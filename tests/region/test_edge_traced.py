@@ -3,10 +3,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from firmware_sim.hand import Hand
 from firmware_sim.regions import grid_inside
+from limbctl.demo import true_outline, true_twist_probes
 from limbctl.envelope import RigidMap
 from limbctl.envelope.synthetic import SMALL_KIDNEY, ConeRegion, PolygonRegion, to_quaternions
+from limbctl.geometry.gimbal import pan_tilt_roll_to_quat, pan_tilt_to_direction, pan_tilt_to_quat
 from limbctl.geometry.quat import direction_angle, limb_direction
+from limbctl.geometry.twist import decompose
 from limbctl.region import edge_traced as et
 from limbctl.region.loops import resample_loop, station_positions
 from tests.region.support import circle
@@ -16,7 +20,7 @@ REPO = Path(__file__).resolve().parents[2]
 
 
 @pytest.mark.parametrize("per_depth", [30, 100])
-def test_edge_estimate_is_unbiased_below_a_straight_edge(per_depth):
+def test_edge_estimate_is_unbiased_below_a_straight_edge_and_local(per_depth):
     # Poisson points of density rho under a straight edge at depth 0 over u in [-1, 1]:
     # per_depth = rho * 2 points per unit of depth; HULL_GAP makes the estimate centred on 0
     rng = np.random.default_rng(0)
@@ -28,10 +32,7 @@ def test_edge_estimate_is_unbiased_below_a_straight_edge(per_depth):
     # in units of 1 / (rho 2h): mean 0 within 3 standard errors (sd about 1.5)
     assert abs(est.mean()) < 3 * 1.5 / np.sqrt(len(est))
     assert 1.0 < est.std() < 2.0
-
-
-def test_edge_estimate_is_local():
-    # flat readings 1 unit deep across the window, and one reading 1 unit out at its end: the
+    # local: flat readings 1 unit deep across the window, and one reading 1 unit out at its end: the
     # outermost reading would put the station 1 unit out; the majorant's chord from the far
     # left to that reading passes the station at 0 (plus the small gap estimate)
     u = np.concatenate([np.linspace(-1.0, 1.0, 41), [1.0]])
@@ -55,7 +56,7 @@ def test_local_quadratic_keeps_a_circle_and_removes_wiggles():
     assert np.abs(radius - 20.0).max() < 0.04
 
 
-def test_trace_window_follows_the_density_and_refuses_a_sparse_edge():
+def test_trace_window_follows_the_density_refuses_a_sparse_edge_and_chords_are_lifted():
     rng = np.random.default_rng(0)
     loop = circle(19.5, 80)
     dense = ConeRegion(np.radians(20.0)).sample(1000, rng)
@@ -65,15 +66,13 @@ def test_trace_window_follows_the_density_and_refuses_a_sparse_edge():
     assert np.degrees(et.trace_window(loop, dense[:100])) > et.TRACE_MAX_WINDOW_DEG
     assert et.trace_edge(loop, dense[:100], np.radians(3.0)) is None
     assert et.trace_window(loop, -dense) == np.inf
-
-
-def test_chord_need_lifts_a_sample_past_the_chord():
+    # chord_need lifts a sample past the chord
     loop = circle(20.0, 60)
     # a direction at the middle of the chord between stations 0 and 1, 0.01 deg outside the
     # circle: inside the circle but outside the polygon of stations (sagitta 0.06 deg)
     mid = loop[0] + loop[1]
     mid /= np.linalg.norm(mid)
-    outward = mid - X * np.cos(np.radians(20.0)) / 1.0
+    outward = mid - X * np.cos(np.radians(20.0))
     outward -= (outward @ mid) * mid
     outward /= np.linalg.norm(outward)
     sample = np.cos(np.radians(0.01)) * mid + np.sin(np.radians(0.01)) * outward
@@ -95,8 +94,7 @@ def test_a_small_kidney_gets_a_traced_edge_near_its_true_edge(seed):
     out = m.correct(q)
     d_out = limb_direction(out)
     err = np.degrees(direction_angle(d_out, region.ideal(test)))
-    # the supported loops give about 1.0 deg here
-    assert err.mean() < 0.6
+    assert err.mean() < 0.6, "the supported loops give about 1.0 deg here"
     depth = region.depth(d_out)
     assert (depth >= -np.radians(1.0)).mean() >= 0.995
     valid = region.depth(test) >= np.radians(2.0)
@@ -105,20 +103,14 @@ def test_a_small_kidney_gets_a_traced_edge_near_its_true_edge(seed):
     assert m.contains(to_quaternions(train)).mean() >= 0.999
 
 
-def _hole_readings():
-    """Stations of a 20 deg circle; readings on the curve at every station but 30..35 (a hole
-    in the edge trace), and interior readings 15 deg inside over the hole."""
+def test_a_hole_is_bridged_and_without_one_the_estimates_stay_to_the_bit():
+    # a 20 deg circle's stations read on the curve but at 30..35 (a hole in the edge trace), and
+    # interior readings 15 deg inside over the hole
     curve, _, _ = resample_loop(circle(20.0, 400), np.radians(et.TRACE_STEP_DEG))
     s, total = station_positions(curve)
-    k = curve.shape[0]
-    edge = np.setdiff1d(np.arange(k), np.arange(30, 36))
+    edge = np.setdiff1d(np.arange(curve.shape[0]), np.arange(30, 36))
     owner = np.concatenate([np.repeat(edge, 3), np.arange(31, 35)])
     depth = np.concatenate([np.zeros(3 * edge.size), np.full(4, -np.radians(15.0))])
-    return s, total, owner, depth
-
-
-def test_a_hole_is_bridged_and_without_one_the_estimates_stay_to_the_bit():
-    s, total, owner, depth = _hole_readings()
     h = np.radians(3.0)
     edge = depth == 0.0
     plain = et.station_estimates(s, total, owner[edge], depth[edge], 2)
@@ -134,63 +126,37 @@ def test_a_hole_is_bridged_and_without_one_the_estimates_stay_to_the_bit():
     assert np.abs(bridged).max() < 0.5
 
 
-#: The demo's teaching hand (both rigs: the same swing outline) from the rest pose, sampled at
-#: 125 Hz for 60 s as the recorder would without a stall (``bench_envelope.hand_samples``).
-DEMO_RATE_HZ = 125.0
-DEMO_SECONDS = 60.0
-#: Stretches cut out of the edge trace (start s, length s): the recorder's stall of issue 19.
-#: Without the bridge the traced edge held 91.75 % (two servos) and 91.60 % (three) of the
-#: true region 2 deg inside at the first; docs/bench_edge_hole.md has every place.
+#: The recorder's stalls of issue 19 (start s, length s), cut out of the demo's 60 s teaching at
+#: 125 Hz (docs/bench_edge_hole.md).
 CUTS = ((6.0, 0.4), (18.0, 0.4), (9.0, 0.5))
 
 
-def _demo_teaching(name: str):
-    """The hand of ``limbctl/data/NAME`` (seed 0) taking hold at the rest pose, its poses
-    (N, 3) rad (pan, tilt, roll; roll 0 on two servos) at DEMO_RATE_HZ and their times (N,) s."""
-    from firmware_sim.hand import Hand
-
-    hand = Hand.from_yaml(REPO / "limbctl" / "data" / name, seed=0)
-    hand.start_from(0.0, 0.0)
-    t = np.arange(int(DEMO_SECONDS * DEMO_RATE_HZ)) / DEMO_RATE_HZ
-    pose = np.array([(tuple(hand.pose_deg(float(x))) + (0.0,))[:3] for x in t])
-    return hand, np.radians(pose), t
-
-
-def _cut(t: np.ndarray, start: float, length: float) -> np.ndarray:
-    """The rows (bool, (N,)) a recorder stalled from ``start`` for ``length`` s still holds."""
-    return ~((t >= start) & (t < start + length))
-
-
-def test_a_two_servo_edge_trace_with_a_recorder_hole_keeps_the_true_region():
-    from limbctl.demo import true_outline
-    from limbctl.geometry.gimbal import pan_tilt_to_direction, pan_tilt_to_quat
-
-    hand, pose, t = _demo_teaching("demo_region.yaml")
+def _inner_probes(path, hand):
+    """Two-servo orientations (M, 4) on a 1 deg grid at least 2 deg inside the true outline."""
     grid = np.radians(grid_inside(hand.region, 1.0, 0.0))
-    outline = np.radians(true_outline(REPO / "limbctl" / "data" / "demo_region.yaml"))
+    outline = np.radians(true_outline(path))
     edge = pan_tilt_to_direction(outline[:, 0], outline[:, 1])
-    inner = direction_angle(
-        pan_tilt_to_direction(grid[:, 0], grid[:, 1])[:, None, :], edge[None, :, :]
-    ).min(axis=1) >= np.radians(2.0)
-    probes = pan_tilt_to_quat(grid[inner, 0], grid[inner, 1])
-    for start, length in CUTS:
-        keep = _cut(t, start, length)
-        m = RigidMap().fit(pan_tilt_to_quat(pose[keep, 0], pose[keep, 1]))
-        held = np.mean(m.contains(probes))
-        assert held >= 0.99, f"cut at {start} s: {100 * held:.2f} % held"
+    d = pan_tilt_to_direction(grid[:, 0], grid[:, 1])
+    inner = direction_angle(d[:, None, :], edge[None, :, :]).min(axis=1) >= np.radians(2.0)
+    return pan_tilt_to_quat(grid[inner, 0], grid[inner, 1])
 
 
-def test_a_three_servo_edge_trace_with_a_recorder_hole_keeps_the_true_region():
-    from limbctl.demo import true_twist_probes
-    from limbctl.geometry.gimbal import pan_tilt_roll_to_quat
-    from limbctl.geometry.twist import decompose
-
-    _, pose, t = _demo_teaching("demo_region3.yaml")
-    probes = true_twist_probes(REPO / "limbctl" / "data" / "demo_region3.yaml")
-    for start, length in CUTS[:2]:
-        keep = _cut(t, start, length)
-        m = RigidMap(twist=True).fit(pan_tilt_roll_to_quat(*pose[keep].T))
+@pytest.mark.parametrize("twist", [False, True], ids=["two servos", "three servos"])
+def test_an_edge_trace_with_a_recorder_hole_keeps_the_true_region(twist):
+    path = REPO / "limbctl" / "data" / ("demo_region3.yaml" if twist else "demo_region.yaml")
+    hand = Hand.from_yaml(path, seed=0)
+    hand.start_from(0.0, 0.0)
+    t = np.arange(int(60.0 * 125.0)) / 125.0
+    pose = np.radians([(tuple(hand.pose_deg(float(x))) + (0.0,))[:3] for x in t])
+    probes = true_twist_probes(path) if twist else _inner_probes(path, hand)
+    for start, length in CUTS[:2] if twist else CUTS:
+        keep = ~((t >= start) & (t < start + length))
+        q = pan_tilt_roll_to_quat(*pose[keep].T) if twist else pan_tilt_to_quat(*pose[keep, :2].T)
+        m = RigidMap(twist=twist).fit(q)
         held = np.mean(np.asarray(m.contains(probes), dtype=bool))
+        if not twist:
+            assert held >= 0.99, f"cut at {start} s: {100 * held:.2f} % held"
+            continue
         # issue 35: where the twist stops are too sparse the band is held short and the places
         # are listed (the guide withholds READY); the swing edge must hold the probes' directions
         swing = np.mean(m.region.swing.mesh.contains(decompose(probes)[0]))

@@ -4,20 +4,12 @@ import pytest
 from limbctl.region import gaps
 
 
-def outermost_depths(rate: float, rng: np.random.Generator) -> np.ndarray:
-    """Depths (ORDER_STATISTICS,) of the outermost Poisson points below an edge at depth 0,
-    ``rate`` points per unit of depth: the gaps between them are exponential, mean 1 / rate."""
-    return -np.cumsum(rng.exponential(1.0 / rate, gaps.ORDER_STATISTICS))
-
-
-def test_line_gap_extrapolates_an_exact_line_to_rank_zero():
+def test_line_gap_extrapolates_an_exact_line_and_spacing_gap_is_the_mean_spacing():
     assert gaps.line_gap(np.array([1.0, 0.9, 0.8, 0.7, 0.6])) == pytest.approx(0.1, abs=1e-12)
     # equal depths: no spacing, no gap; too few depths: none
     assert gaps.line_gap(np.array([1.0, 1.0, 1.0, 1.0])) == 0.0
     assert gaps.line_gap(np.array([1.0, 0.5])) == 0.0
-
-
-def test_spacing_gap_is_the_mean_spacing():
+    # the spacing gap is the mean spacing
     assert gaps.spacing_gap(np.array([1.0, 0.8, 0.6, 0.4])) == pytest.approx(0.2, abs=1e-12)
     assert gaps.spacing_gap(np.array([1.0, 0.5])) == 0.0
 
@@ -26,7 +18,8 @@ def test_order_statistic_gaps_below_an_edge():
     # the outermost point lies 1 / rate short of the edge on average
     rng = np.random.default_rng(0)
     rate = 50.0
-    draws = [outermost_depths(rate, rng) for _ in range(4000)]
+    # the outermost Poisson points' depths: exponential gaps, mean 1 / rate
+    draws = [-np.cumsum(rng.exponential(1.0 / rate, gaps.ORDER_STATISTICS)) for _ in range(4000)]
     shortfall = np.array([-d[0] for d in draws])
     assert shortfall.mean() * rate == pytest.approx(1.0, abs=0.05)
     # the mean spacing is unbiased: within 3 standard errors of 1 / rate

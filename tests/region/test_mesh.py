@@ -5,17 +5,12 @@ from limbctl.envelope.synthetic import ConeRegion, PolygonRegion
 from limbctl.errors import InvalidInputError
 from limbctl.geometry.quat import direction_angle
 from limbctl.region import grid_kernels, grid_reference
+from limbctl.region import mesh as dm
 from limbctl.region import mesh_kernels as bk
 from limbctl.region.evidence import loop_arcs
-from limbctl.region.mesh import (
-    DirectionMesh,
-    alpha_triangles,
-    boundary_edges,
-    cell_centres_inside,
-    inside_reference,
-    nearest_on_edges_reference,
-)
+from limbctl.region.mesh import DirectionMesh
 from limbctl.region.mesh_kernels import CONTAIN_TOLERANCE
+from tests.region.support import circle
 
 
 def in_triangles_reference(d: np.ndarray, vertices: np.ndarray, tri: np.ndarray) -> np.ndarray:
@@ -31,8 +26,8 @@ def in_triangles_reference(d: np.ndarray, vertices: np.ndarray, tri: np.ndarray)
 
 def project_reference(mesh: DirectionMesh, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Brute-force ``(contains, project)`` for directions ``d`` (N, 3)."""
-    inside_mesh = inside_reference(d, mesh.vertices, mesh.edges)
-    edge, point, angle = nearest_on_edges_reference(d, mesh.vertices, mesh.edges, mesh.margins)
+    inside_mesh = dm.inside_reference(d, mesh.vertices, mesh.edges)
+    edge, point, angle = dm.nearest_on_edges_reference(d, mesh.vertices, mesh.edges, mesh.margins)
     margin = mesh.margins[edge]
     inside = inside_mesh | (angle - margin <= CONTAIN_TOLERANCE)
     # outside: from the nearest boundary point, go that arc's margin along the path toward d
@@ -67,13 +62,26 @@ def test_grid_kernels_match_brute_force_and_project_into_the_region(mesh_and_reg
     moved = direction_angle(out[~inside], test[~inside])
     to_vertex = np.min(np.arccos(np.clip(test[~inside] @ mesh.vertices.T, -1, 1)), axis=1)
     assert (moved > 0).all() and (moved <= to_vertex + 1e-9).all()
+    # the grid's cells inside: the fan-area reference at their centres
+    n_theta, n_phi = mesh.grid_shape
+    u, v = bk._frame(mesh.axis)
+    i, j = np.divmod(np.arange(n_theta * n_phi), n_phi)
+    theta = (i + 0.5) * np.pi / n_theta
+    phi = -np.pi + (j + 0.5) * 2.0 * np.pi / n_phi
+    centres = np.cos(theta)[:, None] * mesh.axis + np.sin(theta)[:, None] * (
+        np.cos(phi)[:, None] * u + np.sin(phi)[:, None] * v
+    )
+    ref = dm.inside_reference(centres, mesh.vertices, mesh.edges)
+    got = dm.cell_centres_inside(mesh.vertices, mesh.edges, mesh.axis, mesh.grid_shape)
+    np.testing.assert_array_equal(got, ref)
+    assert 0 < got.sum() < got.size
 
 
 def test_boundary_edges_keep_the_region_on_their_left():
     rng = np.random.default_rng(3)
     d = ConeRegion(np.radians(20.0)).sample(200, rng)
-    tri = alpha_triangles(d, np.radians(10.0))
-    edges = boundary_edges(tri)
+    tri = dm.alpha_triangles(d, np.radians(10.0))
+    edges = dm.boundary_edges(tri)
     a, b = d[edges[:, 0]], d[edges[:, 1]]
     # a point just left of each edge's midpoint is in the mesh
     mid = a + b
@@ -88,51 +96,16 @@ def test_boundary_edges_keep_the_region_on_their_left():
     assert not in_triangles_reference(probe_out, d, tri).any()
 
 
-def test_degenerate_directions_are_refused():
-    line = np.array([[1.0, 0, 0], [0.99, 0.141, 0], [0.98, 0.199, 0]])
-    line /= np.linalg.norm(line, axis=1, keepdims=True)
-    with pytest.raises(InvalidInputError):
-        DirectionMesh.alpha_shape(line, 0.1, 0.0)
-
-
-def test_slerp_dir_moves_margin_toward_target():
-    p = np.array([1.0, 0, 0])
-    d = np.array([0.0, 1.0, 0])
-    out = bk.slerp_dir(p, d, np.pi / 2, 0.1)
-    assert direction_angle(out, p) == pytest.approx(0.1, abs=1e-12)
-    np.testing.assert_array_equal(bk.slerp_dir(p, d, np.pi / 2, 0.0), p)
-
-
-def test_cell_centres_inside_matches_fan_area_reference(mesh_and_region):
-    mesh, _ = mesh_and_region
-    n_theta, n_phi = mesh.grid_shape
-    u, v = bk._frame(mesh.axis)
-    i, j = np.divmod(np.arange(n_theta * n_phi), n_phi)
-    theta = (i + 0.5) * np.pi / n_theta
-    phi = -np.pi + (j + 0.5) * 2.0 * np.pi / n_phi
-    centres = np.cos(theta)[:, None] * mesh.axis + np.sin(theta)[:, None] * (
-        np.cos(phi)[:, None] * u + np.sin(phi)[:, None] * v
-    )
-    ref = inside_reference(centres, mesh.vertices, mesh.edges)
-    got = cell_centres_inside(mesh.vertices, mesh.edges, mesh.axis, mesh.grid_shape)
-    np.testing.assert_array_equal(got, ref)
-    assert 0 < got.sum() < got.size
-
-
 def test_inside_reference_beyond_a_hemisphere():
     # a cap of 100 deg: points and their antipodes can both be inside
-    t = np.linspace(-np.pi, np.pi, 400, endpoint=False)
     r = np.radians(100.0)
-    loop = np.column_stack(
-        [np.full(t.size, np.cos(r)), np.sin(r) * np.cos(t), np.sin(r) * np.sin(t)]
-    )
-    mesh = DirectionMesh.from_loops([loop], 0.0)
+    mesh = DirectionMesh.from_loops([circle(100.0, 400)], 0.0)
     test = ConeRegion(np.radians(150.0)).test_directions(4000, np.random.default_rng(5))
     truth = direction_angle(test, np.array([1.0, 0, 0])) < r
     far = np.abs(direction_angle(test, np.array([1.0, 0, 0])) - r) > 1e-3
     np.testing.assert_array_equal(mesh.contains(test)[far], truth[far])
     np.testing.assert_array_equal(
-        inside_reference(test, mesh.vertices, mesh.edges)[far], truth[far]
+        dm.inside_reference(test, mesh.vertices, mesh.edges)[far], truth[far]
     )
 
 
@@ -155,11 +128,15 @@ def test_per_arc_margins_match_reference_and_bound_the_region():
     assert mesh.contains(out).all()
     # the region reaches no farther than the largest margin beyond the loops
     plain = DirectionMesh.from_loops(loops, 0.0)
-    _, _, gap = nearest_on_edges_reference(out, plain.vertices, plain.edges)
+    _, _, gap = dm.nearest_on_edges_reference(out, plain.vertices, plain.edges)
     assert (gap[~plain.contains(out)] <= mesh.max_margin + 1e-9).all()
 
 
-def test_bad_margins_are_refused():
+def test_degenerate_directions_and_bad_margins_are_refused():
+    line = np.array([[1.0, 0, 0], [0.99, 0.141, 0], [0.98, 0.199, 0]])
+    line /= np.linalg.norm(line, axis=1, keepdims=True)
+    with pytest.raises(InvalidInputError):
+        DirectionMesh.alpha_shape(line, 0.1, 0.0)
     loop = np.array([[1.0, 0, 0], [0.9, 0.3, 0], [0.9, 0, 0.3]])
     loop /= np.linalg.norm(loop, axis=1, keepdims=True)
     with pytest.raises(InvalidInputError, match="margins"):
@@ -184,3 +161,32 @@ def test_the_pruned_grid_is_the_brute_force_grid(mesh_and_region, widest_deg):
     for got, want in zip(fast, slow, strict=True):
         assert got.dtype == want.dtype and np.array_equal(got, want)
     assert fast[0].any() and (~fast[0]).any() and fast[2].size > 0
+
+
+def test_edge_foot_is_nearest_on_arc_bit_for_bit_and_slerp_dir_moves_by_the_margin():
+    def unit(rows):
+        return rows / np.linalg.norm(rows, axis=-1, keepdims=True)
+
+    rng = np.random.default_rng(7)
+    vertices = unit(rng.normal(size=(60, 3)))
+    # a repeated vertex (no great circle), antipodes, and near neighbours
+    vertices[1] = vertices[0]
+    vertices[3] = -vertices[2]
+    vertices[5] = unit(vertices[4] + 1e-9)
+    edges = np.stack([np.arange(0, 60, 2), np.arange(1, 60, 2)], axis=1).astype(np.int64)
+    points = unit(rng.normal(size=(200, 3)))
+    # the arcs' own vertices and the poles of their great circles (no foot)
+    a, b = vertices[edges[:, 0]], vertices[edges[:, 1]]
+    points = np.concatenate([points, a, b, unit(np.cross(a[2:], b[2:]))])
+    out = np.empty(3)
+    for p in points:
+        for e in range(edges.shape[0]):
+            angle = bk.nearest_on_arc(p, vertices[edges[e, 0]], vertices[edges[e, 1]], out)
+            got = bk.edge_foot(p, vertices, edges, e)
+            assert np.array_equal([angle, *out], list(got), equal_nan=True), (p, e)
+    # slerp_dir moves the margin toward the target
+    p = np.array([1.0, 0, 0])
+    d = np.array([0.0, 1.0, 0])
+    out = bk.slerp_dir(p, d, np.pi / 2, 0.1)
+    assert direction_angle(out, p) == pytest.approx(0.1, abs=1e-12)
+    np.testing.assert_array_equal(bk.slerp_dir(p, d, np.pi / 2, 0.0), p)

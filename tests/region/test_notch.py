@@ -1,12 +1,4 @@
-"""Notches taught by tracing stay notches, and traced edges close what lies behind them
-(issue 12 item 6).
-
-``synthetic.NOTCH`` (a 40 x 30 deg rectangle with a 12 x 12 deg notch in its top edge) taught
-for 60 s as ``benchmarks/bench_fit.py`` teaches it, one fit per teaching seed: the taught
-samples stay inside, at least 99 % of the valid test commands pass unchanged, and the region
-reaches at most 1 deg into the notch. The corner limit and the mouth rule that made it so:
-docs/decisions/region.md.
-"""
+"""Traced notches stay notches within 1 deg, as bench_fit teaches them (issue 12 item 6)."""
 
 from pathlib import Path
 
@@ -15,49 +7,37 @@ import pytest
 import yaml
 
 from firmware_sim.hand import Hand
-from limbctl.envelope.synthetic import (
-    NOTCH,
-    PolygonRegion,
-    reach_into,
-    to_quaternions,
-    traced_teaching,
-)
+from limbctl.envelope import synthetic
+from limbctl.envelope.synthetic import NOTCH, PolygonRegion
 from limbctl.geometry.gimbal import pan_tilt_to_direction
 from limbctl.region import TaughtRegion
 
 REPO = Path(__file__).resolve().parents[2]
-#: The teaching's length (s), as in benchmarks/bench_fit.py.
-TEACHING_S = 60.0
 #: Test commands per seed: about 2,000 of them valid, so one changed command is 0.05 %.
 TEST_COMMANDS = 20000
-#: How far (deg) the region may reach into the notch (issue 12 item 6).
+#: How far (deg) the region may reach into the notch.
 REACH_BOUND_DEG = 1.0
 
 
-@pytest.fixture(scope="module")
-def notch():
-    return PolygonRegion(NOTCH)
-
-
 @pytest.mark.parametrize("seed", range(5))
-def test_a_traced_notch_stays_a_notch(notch, seed):
-    taught, traced = traced_teaching(notch, TEACHING_S, np.random.default_rng(seed))
+def test_a_traced_notch_stays_a_notch(seed):
+    notch = PolygonRegion(NOTCH)
+    taught, traced = synthetic.traced_teaching(notch, 60.0, np.random.default_rng(seed))
     assert traced > 1000  # the whole edge was traced before the wandering
     region = TaughtRegion().fit(taught)
     # the taught samples stay inside (the benchmarks' target for hand-taught rows: 99.5 %)
-    assert region.contains(to_quaternions(taught)).mean() >= 0.995
-    reach = reach_into(region.contains, notch)
+    assert region.contains(synthetic.to_quaternions(taught)).mean() >= 0.995
+    reach = synthetic.reach_into(region.contains, notch)
     assert reach <= REACH_BOUND_DEG, f"seed {seed}: the region reaches {reach:.2f} deg"
     test = notch.test_directions(TEST_COMMANDS, np.random.default_rng(1000 + seed))
-    q = to_quaternions(test)
+    q = synthetic.to_quaternions(test)
     valid = notch.depth(test) >= np.radians(2.0)
     unchanged = np.all(region.correct(q[valid]) == q[valid], axis=1).mean()
     assert unchanged >= 0.99, f"seed {seed}: {100 * unchanged:.2f} % of valid commands unchanged"
 
 
 def test_the_simulator_hands_60_s_teaching_leaves_no_holes():
-    """What ``limbctl demo`` teaches by default: the simulator's hand over
-    examples/regions/irregular.yaml for 60 s, seed 0, at 125 Hz (docs/teaching.md)."""
+    """``limbctl demo``'s default teaching (docs/teaching.md) holds 99 % of the valid directions."""
     path = REPO / "examples" / "regions" / "irregular.yaml"
     hand = Hand.from_yaml(path, seed=0)
     hand.start_from(0.0, 0.0)
@@ -68,5 +48,5 @@ def test_the_simulator_hands_60_s_teaching_leaves_no_holes():
     test = polygon.test_directions(TEST_COMMANDS, np.random.default_rng(0))
     valid = test[polygon.depth(test) >= np.radians(2.0)]
     assert valid.shape[0] > 3000
-    held = region.contains(to_quaternions(valid)).mean()
+    held = region.contains(synthetic.to_quaternions(valid)).mean()
     assert held >= 0.99, f"the region holds {100 * held:.2f} % of the valid directions"

@@ -4,7 +4,7 @@ from limbctl.errors import ConfigError
 from limbctl.region.params import RegionParams
 
 
-def test_defaults_and_a_round_trip_through_plain_values():
+def test_defaults_a_round_trip_through_plain_values_and_unknown_names_refused():
     params = RegionParams()
     assert params.edge == "auto" and params.thin_deg == 1.0 and params.support_nodes == 3000
     changed = RegionParams(thin_deg=2, edge="traced")
@@ -12,6 +12,8 @@ def test_defaults_and_a_round_trip_through_plain_values():
     assert RegionParams.from_dict(changed.as_dict()) == changed
     with pytest.raises(AttributeError):
         changed.edge = "smooth"  # frozen
+    with pytest.raises(ConfigError, match="unknown region settings smooth_edge; choose from: "):
+        RegionParams.from_dict({"smooth_edge": False})
 
 
 @pytest.mark.parametrize(
@@ -27,8 +29,3 @@ def test_defaults_and_a_round_trip_through_plain_values():
 def test_bad_settings_are_refused_saying_what_is_allowed(settings, message):
     with pytest.raises(ConfigError, match=message):
         RegionParams(**settings)
-
-
-def test_unknown_setting_names_are_refused_with_the_list():
-    with pytest.raises(ConfigError, match="unknown region settings smooth_edge; choose from: "):
-        RegionParams.from_dict({"smooth_edge": False})

@@ -17,19 +17,18 @@ def enclosed(p: np.ndarray, loops: list[np.ndarray]) -> np.ndarray:
     return inside_reference(p, vertices, edges)
 
 
+def loops_of(d: np.ndarray, tri: np.ndarray, keep: np.ndarray) -> list[np.ndarray]:
+    """Boundary loops (each (M, 3), region on the left) of the triangles ``tri[keep]`` of ``d``."""
+    return [d[idx] for idx in trace_loops(d, boundary_edges(tri[keep]))]
+
+
 def alpha_loops(d: np.ndarray, alpha: float, max_hole: float) -> list[np.ndarray]:
-    """Boundary loops (each (M, 3) directions, region on the left) of the alpha shape of ``d``.
-
-    Holes with an area below ``max_hole`` (sr) are filled (see :func:`alpha_complex`). Returns
-    an empty list when no triangle has circumradius <= ``alpha``.
-    """
+    """Loops of the alpha shape of directions ``d`` (N, 3), holes below ``max_hole`` sr filled."""
     tri, _, inside = alpha_complex(d, alpha, max_hole)
-    if not inside.any():
-        return []
-    return [d[idx] for idx in trace_loops(d, boundary_edges(tri[inside]))]
+    return loops_of(d, tri, inside) if inside.any() else []
 
 
-def test_thin_keeps_spacing_and_covers_every_point():
+def test_thin_keeps_spacing_covers_every_point_and_alpha_follows_the_data_scale():
     d = ConeRegion(np.radians(30.0)).sample(3000, np.random.default_rng(0))
     spacing = np.radians(2.0)
     keep = rs.thin(d, spacing)
@@ -40,25 +39,7 @@ def test_thin_keeps_spacing_and_covers_every_point():
     cover = np.arccos(np.clip((d @ kept.T).max(axis=1), -1, 1))
     assert cover.max() <= spacing + 1e-12
     assert keep.size < d.shape[0] / 2
-
-
-def _ring(inner_deg, outer_deg, n, rng):
-    d = ConeRegion(np.radians(outer_deg)).sample(n, rng)
-    return d[direction_angle(d, np.array([1.0, 0, 0])) >= np.radians(inner_deg)]
-
-
-def test_holes_below_the_limit_are_filled_larger_ones_kept():
-    d = _ring(8.0, 25.0, 3000, np.random.default_rng(1))
-    alpha = np.radians(3.0)
-    probe = np.array([[1.0, 0.0, 0.0]])
-    filled = alpha_loops(d, alpha, max_hole=0.1)
-    kept = alpha_loops(d, alpha, max_hole=1e-4)
-    assert enclosed(probe, filled)[0]
-    assert not enclosed(probe, kept)[0]
-    assert len(kept) == len(filled) + 1
-
-
-def test_learned_alpha_follows_the_data_scale():
+    # the learned alpha follows the data's scale
     rng = np.random.default_rng(2)
     cone = ConeRegion(np.radians(30.0))
     dense = rs.learn_alpha(cone.sample(2000, rng), 2.0)
@@ -90,7 +71,7 @@ def test_edge_margins_reach_the_circle_and_cover_every_sample():
     assert not inside[depth < -0.76].any()
 
 
-def test_peel_takes_back_a_bridged_concavity_and_keeps_every_vertex():
+def test_peel_takes_back_a_bridged_concavity_keeping_every_vertex_and_what_is_surrounded():
     # samples of a "C": a bay (the notch at +y) that a large alpha bridges
     rng = np.random.default_rng(5)
     d = ConeRegion(np.radians(25.0)).sample(3000, rng)
@@ -98,19 +79,16 @@ def test_peel_takes_back_a_bridged_concavity_and_keeps_every_vertex():
     d = d[~bay]
     tri, _, inside = rs.alpha_complex(d, np.radians(20.0), max_hole=0.0)
     probe = np.array([[np.cos(np.radians(15.0)), np.sin(np.radians(15.0)), 0.0]])
-    bridged = [d[i] for i in rs.trace_loops(d, boundary_edges(tri[inside]))]
-    assert enclosed(probe, bridged)[0]
+    assert enclosed(probe, loops_of(d, tri, inside))[0]
     protected = rs.surrounded(rs.tri_centroids(d, tri), d, np.radians(4.0), np.radians(150.0))
     kept = rs.peel(d, tri, inside, np.radians(4.0), protected)
-    peeled = [d[i] for i in rs.trace_loops(d, boundary_edges(tri[kept]))]
+    peeled = loops_of(d, tri, kept)
     assert not enclosed(probe, peeled)[0]
     # no vertex of the shape is dropped; the middle of the disc stays
     assert np.isin(np.unique(tri[inside]), np.unique(tri[kept])).all()
     below = np.array([[np.cos(np.radians(12.0)), 0.0, -np.sin(np.radians(12.0))]])
     assert enclosed(below, peeled)[0]
-
-
-def test_surrounded_tells_middle_from_edge():
+    # surrounded tells the middle and near the edge from just beyond it and outside
     d = ConeRegion(np.radians(20.0)).sample(3000, np.random.default_rng(6))
     middle = np.array([[1.0, 0.0, 0.0]])
     near_edge = np.array([[np.cos(np.radians(18.0)), np.sin(np.radians(18.0)), 0.0]])
@@ -123,9 +101,8 @@ def test_surrounded_tells_middle_from_edge():
 
 
 def _pond(gap_deg):
-    """Jittered 1 deg grid over +-10 deg (gnomonic: rows are great circles) with an empty pond
-    |x| < 4, 3 < y < 10 whose top is one row of samples ``gap_deg`` apart, and three far
-    samples above it so that the outside lies beyond that row."""
+    """A jittered 1 deg gnomonic grid (N, 3) with an empty pond |x| < 4, 3 < y < 10 whose top is
+    a row of samples ``gap_deg`` apart, and three far samples above it."""
     rng = np.random.default_rng(0)
     x, y = np.meshgrid(np.arange(-10.0, 10.5), np.arange(-10.0, 10.5))
     x, y = x.ravel(), y.ravel()
@@ -143,9 +120,8 @@ def _holds_pond(d, mouth_deg):
     tri, _, inside = rs.alpha_complex(
         d, np.radians(1.0), max_hole=0.05, mouth=np.radians(mouth_deg)
     )
-    loops = [d[i] for i in rs.trace_loops(d, boundary_edges(tri[inside]))]
     probe = np.array([[1.0, 0.0, np.tan(np.radians(6.5))]])
-    return bool(enclosed(probe / np.linalg.norm(probe), loops)[0])
+    return bool(enclosed(probe / np.linalg.norm(probe), loops_of(d, tri, inside))[0])
 
 
 def test_a_hole_open_only_through_a_gap_narrower_than_the_mouth_is_filled():
@@ -155,19 +131,28 @@ def test_a_hole_open_only_through_a_gap_narrower_than_the_mouth_is_filled():
     assert not _holds_pond(_pond(8.0 / 3.0), mouth_deg=2.0)
     # without a mouth (the rule off) every gap lets the outside in
     assert not _holds_pond(_pond(1.6), mouth_deg=0.0)
+    # holes below max_hole are filled, larger ones kept
+    d = ConeRegion(np.radians(25.0)).sample(3000, np.random.default_rng(1))
+    d = d[direction_angle(d, np.array([1.0, 0, 0])) >= np.radians(8.0)]  # a ring
+    alpha = np.radians(3.0)
+    probe = np.array([[1.0, 0.0, 0.0]])
+    filled = alpha_loops(d, alpha, max_hole=0.1)
+    kept = alpha_loops(d, alpha, max_hole=1e-4)
+    assert enclosed(probe, filled)[0]
+    assert not enclosed(probe, kept)[0]
+    assert len(kept) == len(filled) + 1
 
 
 def _plane(uv_deg):
-    """Directions (N, 3) of gnomonic coordinates (N, 2) deg about +x (straight lines are
-    great circles; counter-clockwise in (u, v) is counter-clockwise seen from outside)."""
+    """Directions (N, 3) of gnomonic coordinates (N, 2) deg about +x."""
     uv = np.tan(np.radians(np.asarray(uv_deg, dtype=float)))
     d = np.column_stack([np.ones(len(uv)), uv])
     return d / np.linalg.norm(d, axis=1, keepdims=True)
 
 
 def _traced_notch_loop():
-    """A square loop (+-15) with a notch |u| < 7, v > 2 cut into its top, its floor and left
-    wall traced 1 deg apart, the left corner cut by one bridge (-4, 2) -> (-7, 5)."""
+    """A +-15 deg square with a notch |u| < 7, v > 2 traced 1 deg apart, its left corner cut by
+    one bridge (-4, 2) -> (-7, 5); and the bridge's index."""
     floor = [(u, 2.0) for u in np.arange(7.0, -4.5, -1.0)]
     wall = [(-7.0, v) for v in np.arange(5.0, 15.5, 1.0)]
     uv = [(-15.0, -15.0), (15.0, -15.0), (15.0, 15.0), (7.2, 15.0), *floor, *wall, (-15.0, 15.0)]

@@ -19,7 +19,7 @@ def fitted(cone):
     return TaughtRegion().fit(cone[1])
 
 
-def test_directions_and_quaternions_build_the_same_region(cone, fitted):
+def test_directions_quaternions_and_the_arrays_build_the_same_region(cone, fitted):
     _, train, _ = cone
     from_q = TaughtRegion().fit(to_quaternions(train))
     assert from_q.edge == fitted.edge == "smooth"
@@ -30,6 +30,9 @@ def test_directions_and_quaternions_build_the_same_region(cone, fitted):
     np.testing.assert_allclose(from_q.correct(q), fitted.correct(q), atol=1e-12)
     # the shape was built on thinned samples, all of them among the taught ones
     assert 0 < fitted.support_index.size < train.shape[0]
+    back = TaughtRegion.from_arrays(fitted.arrays(), fitted.params, fitted.edge)
+    np.testing.assert_array_equal(back.correct(q), fitted.correct(q), "rebuilt from the arrays")
+    assert back.edge == "smooth" and back.verdicts == ()
 
 
 def test_contains_and_correct_answer_one_command_and_many_alike(cone, fitted):
@@ -66,22 +69,15 @@ def test_containment_from_the_arcs_is_the_gates(cone, shape):
     assert 0 < fitted.contains_from_arcs(to_quaternions(test)).sum() < len(test)
 
 
-def test_the_arrays_rebuild_the_region_without_fitting(cone, fitted):
-    back = TaughtRegion.from_arrays(fitted.arrays(), fitted.params, fitted.edge)
-    q = to_quaternions(cone[2])
-    np.testing.assert_array_equal(back.correct(q), fitted.correct(q))
-    assert back.edge == "smooth" and back.verdicts == ()
-
-
-def test_the_edge_is_chosen_by_name_and_every_verdict_kept(cone):
+def test_the_edge_is_chosen_by_name_every_verdict_kept_and_the_support_capped(cone):
     train = cone[1]
     plain = TaughtRegion(RegionParams(edge="supported")).fit(train)
     assert plain.edge == "supported" and [v.strategy for v in plain.verdicts] == ["supported"]
     traced = TaughtRegion(RegionParams(edge="traced")).fit(train)
-    assert traced.edge == "traced" and [v.strategy for v in traced.verdicts] == [
-        "traced",
-        "supported",
-    ]
+    assert traced.edge == "traced"
+    assert [v.strategy for v in traced.verdicts] == ["traced", "supported"]
+    region = TaughtRegion(RegionParams(support_nodes=60)).fit(train)
+    assert region.support_index.size <= 60, "the support is capped"
 
 
 def test_auto_refuses_a_smooth_edge_that_reaches_past_the_traced_edge():
@@ -92,11 +88,6 @@ def test_auto_refuses_a_smooth_edge_that_reaches_past_the_traced_edge():
     assert region.edge == "traced" and traced.accepted and supported.accepted
     assert not smooth.accepted and smooth.figures["reach_beyond_deg"] > 1.5
     assert "beyond the traced edge" in smooth.reasons[0]
-
-
-def test_the_support_is_capped(cone):
-    region = TaughtRegion(RegionParams(support_nodes=60)).fit(cone[1])
-    assert region.support_index.size <= 60
 
 
 def test_bad_samples_and_an_unbuilt_region_are_refused():

@@ -1,5 +1,4 @@
-"""The twist band: its bilinear reading against the numpy twin, the plane's projection, the
-unwrapping, and a band learned from a known one."""
+"""The twist band: its reading against a numpy twin, its plane, and bands learned from truths."""
 
 import math
 
@@ -14,17 +13,13 @@ from limbctl.geometry.twist import compose, decompose, wrap
 from limbctl.region import twist_band as tb
 from limbctl.region.twist_band import (
     TwistBand,
-    envelope_heights,
-    plane_to_direction,
-    plane_xy,
-    unwrap_grid,
 )
 from limbctl.region.twist_evidence import band_unsupported
 
 
 def band_reference(band: TwistBand, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Numpy twin of :func:`limbctl.region.twist_kernels.band_at` over directions (N, 3)."""
-    xy = plane_xy(d, band.frame)
+    xy = tb.plane_xy(d, band.frame)
     x0, y0, step = band.grid
     nx, ny = band.centre.shape
     fx = (xy[:, 0] - x0) / step
@@ -60,49 +55,22 @@ def _frame(axis):
     return np.stack([axis, u, v])
 
 
-def test_plane_round_trip():
+def test_plane_round_trip_and_unwrap():
     rng = np.random.default_rng(0)
     axis = np.array([0.6, 0.0, 0.8])
     d = rng.normal(size=(500, 3))
     d /= np.linalg.norm(d, axis=1, keepdims=True)
     d = d[d @ axis > -0.9]  # away from the antipode, where the plane folds
     frame = _frame(axis)
-    np.testing.assert_allclose(plane_to_direction(plane_xy(d, frame), frame), d, atol=1e-12)
+    np.testing.assert_allclose(tb.plane_to_direction(tb.plane_xy(d, frame), frame), d, atol=1e-12)
     # the plane's radius is the angle from the axis
     np.testing.assert_allclose(
-        np.hypot(*plane_xy(d, frame).T), np.arccos(np.clip(d @ axis, -1, 1)), atol=1e-9
+        np.hypot(*tb.plane_xy(d, frame).T), np.arccos(np.clip(d @ axis, -1, 1)), atol=1e-9
     )
-
-
-def test_reading_matches_the_numpy_twin(learned):
-    _, band = learned
-    rng = np.random.default_rng(2)
-    d = rng.normal(size=(2000, 3))
-    d /= np.linalg.norm(d, axis=1, keepdims=True)
-    c, h = band.at(d)
-    c_ref, h_ref = band_reference(band, d)
-    np.testing.assert_allclose(c, c_ref, atol=1e-12)
-    np.testing.assert_allclose(h, h_ref, atol=1e-12)
-
-
-def test_nodes_read_back_exactly():
-    axis = np.array([1.0, 0.0, 0.0])
-    frame = _frame(axis)
-    rng = np.random.default_rng(3)
-    centre = rng.uniform(-1, 1, (6, 5))
-    half = rng.uniform(0, 1, (6, 5))
-    band = TwistBand(frame, np.array([-0.1, -0.2, 0.05]), centre, half)
-    i, j = np.meshgrid(np.arange(6), np.arange(5), indexing="ij")
-    xy = np.stack([-0.1 + 0.05 * i.ravel(), -0.2 + 0.05 * j.ravel()], axis=-1)
-    c, h = band.at(plane_to_direction(xy, frame))
-    np.testing.assert_allclose(c, centre.ravel(), atol=1e-12)
-    np.testing.assert_allclose(h, half.ravel(), atol=1e-12)
-
-
-def test_unwrap_grid_leaves_no_jump_across_half_turn():
+    # an unwrapped grid leaves no jump across the half turn
     x, y = np.meshgrid(np.linspace(0, 1, 20), np.linspace(0, 1, 15), indexing="ij")
     smooth = 2.5 + 1.5 * x + 1.0 * y  # crosses pi
-    out = unwrap_grid(wrap(smooth))
+    out = tb.unwrap_grid(wrap(smooth))
     np.testing.assert_allclose(out, smooth, atol=1e-12)
 
 
@@ -141,6 +109,24 @@ def test_learned_band_is_the_true_band_within_a_degree(learned):
     # and it narrows as the limb rises, as the truth does
     low, high = d[:, 2] < math.sin(math.radians(-20)), d[:, 2] > math.sin(math.radians(50))
     assert hl[low].mean() > hl[high].mean() + math.radians(20)
+    # the reading matches the numpy twin and reads the nodes back
+    d = np.random.default_rng(2).normal(size=(2000, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    c, h = band.at(d)
+    c_ref, h_ref = band_reference(band, d)
+    np.testing.assert_allclose(c, c_ref, atol=1e-12)
+    np.testing.assert_allclose(h, h_ref, atol=1e-12)
+    # the nodes read back exactly
+    frame = _frame(np.array([1.0, 0.0, 0.0]))
+    rng = np.random.default_rng(3)
+    centre = rng.uniform(-1, 1, (6, 5))
+    half = rng.uniform(0, 1, (6, 5))
+    band = TwistBand(frame, np.array([-0.1, -0.2, 0.05]), centre, half)
+    i, j = np.meshgrid(np.arange(6), np.arange(5), indexing="ij")
+    xy = np.stack([-0.1 + 0.05 * i.ravel(), -0.2 + 0.05 * j.ravel()], axis=-1)
+    c, h = band.at(tb.plane_to_direction(xy, frame))
+    np.testing.assert_allclose(c, centre.ravel(), atol=1e-12)
+    np.testing.assert_allclose(h, half.ravel(), atol=1e-12)
 
 
 def test_a_teaching_the_guide_accepts_holds_the_true_band_within_2_deg():
@@ -164,10 +150,8 @@ def test_a_teaching_the_guide_accepts_holds_the_true_band_within_2_deg():
 
 
 def _trajectory(truth, seconds, seed, rate_hz=125.0, speed_deg_s=40.0, stop_period_s=1.0):
-    """Orientations along a hand-like path: straight strokes between random inside directions
-    at ``speed_deg_s``, the twist swinging between the stops (1 deg short of each, a short hold
-    there) once every ``stop_period_s``: stops come in bursts tens of degrees apart, and every
-    other sample passes mid-band."""
+    """Orientations (N, 4) and directions (N, 3) along straight strokes between inside
+    directions, the twist swinging to 1 deg short of each stop every ``stop_period_s``."""
     rng = np.random.default_rng(seed)
     ways = truth._inside_directions(200, rng)
     d, here = [], ways[0]
@@ -192,8 +176,8 @@ def _uncapped(monkeypatch):
 
 
 def _path_figures(truth, q, d):
-    """Share of the samples the band holds within 0.5 deg, of the path's inner directions where
-    it holds the true band 2 deg in, and where it reaches past the truth by more than 1 deg."""
+    """Shares: samples held within 0.5 deg, inner directions holding the true band 2 deg in, and
+    those reaching past the truth by more than 1 deg."""
     _, tau = decompose(q)
     band = TwistBand.fit(d, tau, truth.swing.axis, math.radians(2.0))
     c, h = band.at(d)
@@ -209,15 +193,8 @@ def _path_figures(truth, q, d):
     )
 
 
-def test_band_from_a_trajectory_holds_its_own_samples_and_the_band_between_its_stops(
-    monkeypatch,
-):
-    """On trajectory data (dense along paths, stops in bursts) the envelope (step 3) must not
-    close on the samples passing mid-band: it holds its own samples and, along the path, the true
-    band 2 deg in. Read without the envelope it held 75 % of its own samples within 0.1 deg, 93 %
-    within 0.5 deg, and the true band at 70 % of the path's directions (with it: 96, 99.5, 93 %).
-    The evidence cap (step 4) keeps every sample and reaches past the truth no more often; it
-    holds the band short between stops ~40 deg apart (the guide then asks for them)."""
+def test_a_trajectorys_band_holds_its_samples_and_the_band_between_its_stops(monkeypatch):
+    """The envelope (step 3) does not close on samples passing mid-band; the cap keeps them."""
     truth = ShoulderRegion(rounded(SHOULDER))
     q, d = _trajectory(truth, 30.0, seed=3, stop_period_s=0.5)
     own, _, over = _path_figures(truth, q, d)
@@ -228,14 +205,11 @@ def test_band_from_a_trajectory_holds_its_own_samples_and_the_band_between_its_s
     assert own >= 0.99
     # the true band shrunk by 2 deg, at the path's directions (stops ~40 deg apart along it)
     assert held >= 0.9
-    # and wider than the truth almost nowhere
-    assert over_read < 0.01 and over <= over_read
+    assert over_read < 0.01 and over <= over_read, "and wider than the truth almost nowhere"
 
 
 def test_sparse_stops_are_bridged_by_a_flatter_envelope(monkeypatch):
-    """Stops once a second (~40 deg apart along the path): the curvature bound falling with the
-    stops' spacing holds the true band at 81 % of the path's directions; at a fixed
-    ENVELOPE_CURVATURE 69 %. It reaches beyond the truth no more often."""
+    """Stops ~40 deg apart: the curvature bound falling with their spacing holds more band."""
     truth = ShoulderRegion(rounded(SHOULDER))
     q, d = _trajectory(truth, 30.0, seed=3, stop_period_s=1.0)
     _uncapped(monkeypatch)  # the envelope's own reading (step 3)
@@ -246,21 +220,16 @@ def test_sparse_stops_are_bridged_by_a_flatter_envelope(monkeypatch):
     assert over < 0.01 and over <= over_fixed + 0.001
 
 
-def _triangle(side_deg):
-    """Three stops at twist 0 on an equilateral triangle of side ``side_deg`` about the origin
-    and a sample passing mid-band at its centre (twist -0.5 rad)."""
-    r = math.radians(side_deg) / math.sqrt(3.0)
-    a = np.radians([90.0, 210.0, 330.0])
-    xy = np.vstack([np.column_stack([r * np.cos(a), r * np.sin(a)]), [[0.0, 0.0]]])
-    return xy, np.array([0.0, 0.0, 0.0, -0.5]), r
-
-
-def test_envelope_sag_between_far_stops_is_capped():
+def test_envelope_sag_is_capped_between_far_stops_and_not_raised_over_dense_ones(monkeypatch):
     # at the centre of a facet of circumradius R the sag factor is S = R^2 / 2: k S at the fixed
     # curvature, capped at max(ENVELOPE_SAG_DEG, k_min S)
-    xy, t, r = _triangle(40.0)
+    # three stops at twist 0 on a triangle of side 40 deg, a sample at -0.5 rad at its centre
+    r = math.radians(40.0) / math.sqrt(3.0)
+    a = np.radians([90.0, 210.0, 330.0])
+    xy = np.vstack([np.column_stack([r * np.cos(a), r * np.sin(a)]), [[0.0, 0.0]]])
+    t = np.array([0.0, 0.0, 0.0, -0.5])
     s = 0.5 * r * r
-    centre = envelope_heights(xy, t, np.zeros((1, 2)))[0]
+    centre = tb.envelope_heights(xy, t, np.zeros((1, 2)))[0]
     cap = max(math.radians(tb.ENVELOPE_SAG_DEG), tb.ENVELOPE_CURVATURE_MIN * s)
     assert centre == pytest.approx(-cap, abs=1e-12)
     assert centre > -tb.ENVELOPE_CURVATURE * s + math.radians(1.0)
@@ -268,25 +237,18 @@ def test_envelope_sag_between_far_stops_is_capped():
     near = np.array([[0.0, r - math.radians(1.0)]])
     # 1 deg from the stop at (0, r): the fixed curvature's sag k (R^2 - |x|^2) / 2
     fixed = -tb.ENVELOPE_CURVATURE * 0.5 * (r * r - near[0] @ near[0])
-    assert envelope_heights(xy, t, near)[0] == pytest.approx(fixed, abs=1e-12)
-
-
-def test_envelope_over_dense_stops_on_a_curved_truth_is_not_raised(monkeypatch):
-    """Stops 1 deg apart on a twist limit curving up by 1 rad^-1 (more than ENVELOPE_CURVATURE,
-    as the benchmark's shoulder does) over +-10 deg: the hull's facets bridge over them, wide,
-    but they lie within STOP_BAND_DEG beneath it (0.44 deg at most), the nearest stop is close,
-    and nothing is raised. (A truth curving so much more that the envelope overshoots it by more
-    than STOP_BAND_DEG is raised further: a larger ENVELOPE_CURVATURE is the remedy there.)"""
+    assert tb.envelope_heights(xy, t, near)[0] == pytest.approx(fixed, abs=1e-12)
+    # stops 1 deg apart on a limit curving by 1 rad^-1 (above ENVELOPE_CURVATURE): none raised
     g = np.radians(np.arange(-10.0, 10.5, 1.0))
     xy = np.stack(np.meshgrid(g, g, indexing="ij"), axis=-1).reshape(-1, 2)
     t = 0.5 * np.sum(xy * xy, axis=1)
     nodes = np.stack(np.meshgrid(g[:-1] + 0.004, g[:-1] + 0.006, indexing="ij"), axis=-1)
     nodes = nodes.reshape(-1, 2)
-    capped = envelope_heights(xy, t, nodes)
+    capped = tb.envelope_heights(xy, t, nodes)
     monkeypatch.setattr(tb, "ENVELOPE_CURVATURE_MIN", tb.ENVELOPE_CURVATURE)
-    fixed = envelope_heights(xy, t, nodes)
+    fixed = tb.envelope_heights(xy, t, nodes)
     assert np.array_equal(capped, fixed)
     # without the bound on the sag factor by the nearest stop the same facets would be raised
     monkeypatch.setattr(tb, "ENVELOPE_CURVATURE_MIN", 0.35)
     monkeypatch.setattr(tb, "ENVELOPE_STOP_SPAN", 1e9)
-    assert np.max(envelope_heights(xy, t, nodes) - fixed) > math.radians(0.3)
+    assert np.max(tb.envelope_heights(xy, t, nodes) - fixed) > math.radians(0.3)

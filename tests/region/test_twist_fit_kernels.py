@@ -1,5 +1,6 @@
 """The band's fitting kernels against their numpy twins and on planes they must read exactly."""
 
+import itertools
 import math
 
 import numpy as np
@@ -8,26 +9,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from limbctl.geometry.twist import wrap
-from limbctl.region.twist_fit_kernels import (
-    evidence_caps,
-    fit_nodes,
-    gradient_caps,
-    refine_nodes,
-    upper_hull,
-)
+from limbctl.region import twist_fit_kernels as fk
 
 
 def upper_hull_reference(px: np.ndarray, py: np.ndarray, t: np.ndarray, top: int) -> float:
     """Numpy twin of :func:`limbctl.region.twist_fit_kernels.upper_hull` (all triangles at once)."""
     order = np.argsort(-t, kind="stable")[:top]
-    a, b, c = np.array(
-        [
-            (i, j, k)
-            for i in range(len(order))
-            for j in range(i + 1, len(order))
-            for k in range(j + 1, len(order))
-        ]
-    ).T
+    a, b, c = np.array(list(itertools.combinations(range(len(order)), 3))).T
     ia, ib, ic = order[a], order[b], order[c]
     cab = px[ia] * py[ib] - py[ia] * px[ib]
     cbc = px[ib] * py[ic] - py[ib] * px[ic]
@@ -41,17 +29,7 @@ def upper_hull_reference(px: np.ndarray, py: np.ndarray, t: np.ndarray, top: int
     return float(np.max((la * t[ia] + lb * t[ib] + lc * t[ic])[held]))
 
 
-def evidence_caps_reference(
-    nodes: np.ndarray,
-    start: np.ndarray,
-    members: np.ndarray,
-    d: np.ndarray,
-    limit: np.ndarray,
-    ref: np.ndarray,
-    slope: float,
-    near: float,
-    band: float,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def evidence_caps_reference(nodes, start, members, d, limit, ref, slope, near, band):
     """Numpy twin of :func:`limbctl.region.twist_fit_kernels.evidence_caps`."""
     m = nodes.shape[0]
     up, lo = np.full(m, np.nan), np.full(m, np.nan)
@@ -76,18 +54,9 @@ def test_upper_hull_matches_its_numpy_twin(seed, n, top):
     rng = np.random.default_rng(seed)
     px, py = rng.normal(size=(2, n))
     t = rng.normal(size=n)
-    got = upper_hull(px, py, t, top)
+    got = fk.upper_hull(px, py, t, top)
     expected = upper_hull_reference(px, py, t, top)
     assert (np.isnan(got) and np.isnan(expected)) or math.isclose(got, expected, abs_tol=1e-12)
-
-
-def test_upper_hull_reads_a_sloping_plane_exactly_and_fails_outside_the_points():
-    rng = np.random.default_rng(1)
-    px, py = rng.uniform(-1, 1, (2, 40))
-    t = 0.3 + 0.7 * px - 0.4 * py
-    assert math.isclose(upper_hull(px, py, t, 24), 0.3, abs_tol=1e-12)
-    # points on one side only: no triangle holds the origin
-    assert np.isnan(upper_hull(np.abs(px) + 0.1, py, t, 24))
 
 
 def _disk_samples(rng, n, radius):
@@ -103,7 +72,7 @@ def _one_node(d):
     return np.array([0, d.shape[0]], dtype=np.int64), np.arange(d.shape[0], dtype=np.int64)
 
 
-def test_both_readings_find_planar_limits_at_the_node():
+def test_the_hull_and_both_readings_read_planes_exactly():
     rng = np.random.default_rng(2)
     # few enough that the 24 highest twists are the upper stops all round the node
     d, node = _disk_samples(rng, 60, math.radians(8))
@@ -114,39 +83,42 @@ def test_both_readings_find_planar_limits_at_the_node():
     side = rng.choice([-1, 0, 1], d.shape[0])
     tau = np.where(side > 0, upper, np.where(side < 0, lower, rng.uniform(lower, upper)))
     start, members = _one_node(d)
-    centre, half = fit_nodes(node, start, members, d, tau, 24, math.radians(10), 1.0)
+    centre, half = fk.fit_nodes(node, start, members, d, tau, 24, math.radians(10), 1.0)
     # the centre is the middle of the occupied arc, any turn of the circle
     assert math.isclose(wrap(centre[0] + half[0] - 0.5), 0.0, abs_tol=1e-9)
     assert math.isclose(wrap(centre[0] - half[0] + 0.4), 0.0, abs_tol=1e-9)
     ref = np.array([centre[0]])
     for limit, stop in ((upper, side > 0), (lower, side < 0)):
-        rel = refine_nodes(node, start, members, d, limit, stop, ref, math.radians(5), 1.0)
+        rel = fk.refine_nodes(node, start, members, d, limit, stop, ref, math.radians(5), 1.0)
         expected = 0.5 if limit is upper else -0.4
         assert math.isclose(wrap(ref[0] + rel[0] - expected), 0.0, abs_tol=1e-9)
+    # upper_hull reads a sloping plane exactly and fails outside the points
+    rng = np.random.default_rng(1)
+    px, py = rng.uniform(-1, 1, (2, 40))
+    t = 0.3 + 0.7 * px - 0.4 * py
+    assert math.isclose(fk.upper_hull(px, py, t, 24), 0.3, abs_tol=1e-12)
+    # points on one side only: no triangle holds the origin
+    assert np.isnan(fk.upper_hull(np.abs(px) + 0.1, py, t, 24))
 
 
-def test_free_twist_and_too_few_samples():
+def test_free_twist_too_few_samples_and_too_steep_a_plane():
     rng = np.random.default_rng(3)
     d, node = _disk_samples(rng, 300, math.radians(8))
     tau = rng.uniform(-math.pi, math.pi, d.shape[0])
     start, members = _one_node(d)
-    _, half = fit_nodes(node, start, members, d, tau, 24, math.radians(10), 1.0)
+    _, half = fk.fit_nodes(node, start, members, d, tau, 24, math.radians(10), 1.0)
     assert half[0] == math.pi
     few = np.array([0, 2], dtype=np.int64)
-    centre, _ = fit_nodes(node, few, members, d, tau, 24, math.radians(10), 1.0)
+    centre, _ = fk.fit_nodes(node, few, members, d, tau, 24, math.radians(10), 1.0)
     assert np.isnan(centre[0])
-
-
-def test_refine_refuses_planes_steeper_than_allowed():
-    rng = np.random.default_rng(4)
-    d, node = _disk_samples(rng, 300, math.radians(8))
+    # refine refuses planes steeper than allowed
+    d, node = _disk_samples(np.random.default_rng(4), 300, math.radians(8))
     limit = 3.0 * d[:, 0]  # slope 3 rad/rad
-    start, members = _one_node(d)
     stop = np.ones(d.shape[0], dtype=bool)
     ref = np.zeros(1)
-    assert np.isnan(refine_nodes(node, start, members, d, limit, stop, ref, 0.1, 1.0)[0])
+    assert np.isnan(fk.refine_nodes(node, start, members, d, limit, stop, ref, 0.1, 1.0)[0])
     assert math.isclose(
-        refine_nodes(node, start, members, d, limit, stop, ref, 0.1, 4.0)[0], 0.0, abs_tol=1e-9
+        fk.refine_nodes(node, start, members, d, limit, stop, ref, 0.1, 4.0)[0], 0.0, abs_tol=1e-9
     )
 
 
@@ -161,7 +133,7 @@ def test_evidence_caps_match_their_numpy_twin(seed, slope):
     limit = rng.normal(size=50)
     ref = rng.normal(size=12)
     args = (nodes, start, members, d, limit, ref, slope, math.radians(4), 0.3)
-    got = evidence_caps(*args)
+    got = fk.evidence_caps(*args)
     expected = evidence_caps_reference(*args)
     for a, b in zip(got, expected, strict=True):
         np.testing.assert_allclose(a, b, atol=1e-12)
@@ -171,22 +143,7 @@ def test_evidence_caps_match_their_numpy_twin(seed, slope):
     assert np.all(got[2] <= np.diff(start)) and np.all(got[3] <= np.diff(start))
 
 
-def test_a_stop_held_at_the_node_witnesses_the_cap_and_a_far_one_shrinks_it():
-    node = np.array([[0.0, 0.0, 1.0]])
-    a = math.radians(6.0)
-    # three samples at the node at twists 0.5, 0.49, 0.2; one 6 deg away at 0.6
-    d = np.array([[0, 0, 1], [0, 0, 1], [0, 0, 1], [math.sin(a), 0, math.cos(a)]], float)
-    limit = np.array([0.5, 0.49, 0.2, 0.6])
-    start, members = _one_node(d)
-    up, lo, n_up, n_lo = evidence_caps(
-        node, start, members, d, limit, np.zeros(1), 1.0, math.radians(3), 0.05
-    )
-    # the far sample's 0.6 - 1.0 * 6 deg = 0.495 < 0.5: the cap is the held 0.5
-    assert up[0] == pytest.approx(0.5) and n_up[0] == 2
-    assert lo[0] == pytest.approx(0.2) and n_lo[0] == 1
-
-
-def test_the_cap_along_the_local_slope_follows_a_steep_plane_the_cone_overshoots():
+def test_the_caps_a_held_stop_witnesses_and_along_the_local_slope_on_a_steep_plane():
     rng = np.random.default_rng(7)
     d, node = _disk_samples(rng, 200, math.radians(8))
     d[0] = node[0]  # one stop at the node itself
@@ -197,21 +154,34 @@ def test_the_cap_along_the_local_slope_follows_a_steep_plane_the_cone_overshoots
     ref = np.zeros(1)
     free = (math.radians(4), 1.4, np.zeros(1, dtype=bool), 4.0)  # no reach
     args = (math.radians(3), math.radians(0.75), 0.25, 2.0, 8.6, math.radians(3), 0.02, *free)
-    cap, wit = gradient_caps(node, start, members, d, limit, stop, ref, *args)
+    cap, wit = fk.gradient_caps(node, start, members, d, limit, stop, ref, *args)
     # on a plane the slope is read exactly: no sample lifts the cap above the limit at the node
     assert math.isclose(cap[0], 0.4, abs_tol=1e-9)
     assert wit[0] >= 1
-    cone, *_ = evidence_caps(node, start, members, d, limit, ref, 0.5, math.radians(3), 0.02)
+    cone, *_ = fk.evidence_caps(node, start, members, d, limit, ref, 0.5, math.radians(3), 0.02)
     assert cone[0] > 0.4 + math.radians(3.0)
     # stops all on one line: the slope across it is unknown, no cap
     on_line = stop & (np.abs(d[:, 1]) < math.radians(0.2))
-    cap, wit = gradient_caps(node, start, members, d, limit, on_line, ref, *args)
+    cap, wit = fk.gradient_caps(node, start, members, d, limit, on_line, ref, *args)
     assert np.isnan(cap[0]) and wit[0] == 0
     # among the taught directions: samples beyond the reach vouch only by the steep cone, which
     # on this plane (steeper than 1.4) lies below the slope's reading: the node's own stop sets it
     held = (*args[:7], math.radians(4), 1.4, np.ones(1, dtype=bool), 4.0)
-    cap, _ = gradient_caps(node, start, members, d, limit, stop, ref, *held)
+    cap, _ = fk.gradient_caps(node, start, members, d, limit, stop, ref, *held)
     assert math.isclose(cap[0], 0.4, abs_tol=1e-9)
+    # evidence_caps: a stop held at the node witnesses the cap and a far one shrinks it
+    node = np.array([[0.0, 0.0, 1.0]])
+    a = math.radians(6.0)
+    # three samples at the node at twists 0.5, 0.49, 0.2; one 6 deg away at 0.6
+    d = np.array([[0, 0, 1], [0, 0, 1], [0, 0, 1], [math.sin(a), 0, math.cos(a)]], float)
+    limit = np.array([0.5, 0.49, 0.2, 0.6])
+    start, members = _one_node(d)
+    up, lo, n_up, n_lo = fk.evidence_caps(
+        node, start, members, d, limit, np.zeros(1), 1.0, math.radians(3), 0.05
+    )
+    # the far sample's 0.6 - 1.0 * 6 deg = 0.495 < 0.5: the cap is the held 0.5
+    assert up[0] == pytest.approx(0.5) and n_up[0] == 2
+    assert lo[0] == pytest.approx(0.2) and n_lo[0] == 1
 
 
 def test_a_slope_through_three_stops_is_not_read():
@@ -230,8 +200,12 @@ def test_a_slope_through_three_stops_is_not_read():
     free = (math.radians(4), 1.4, np.zeros(1, dtype=bool))
     three = np.array([True, True, True, False])
     for stop, min_stops, known in ((three, 0.0, True), (three, 4.0, False)):
-        cap, _ = gradient_caps(node, start, members, d, limit, stop, ref, *args, *free, min_stops)
+        cap, _ = fk.gradient_caps(
+            node, start, members, d, limit, stop, ref, *args, *free, min_stops
+        )
         assert np.isfinite(cap[0]) == known
     # a fourth stop, spread as well, lets the slope be read again
-    cap, _ = gradient_caps(node, start, members, d, limit, np.ones(4, bool), ref, *args, *free, 3.5)
+    cap, _ = fk.gradient_caps(
+        node, start, members, d, limit, np.ones(4, bool), ref, *args, *free, 3.5
+    )
     assert math.isclose(cap[0], 0.4, abs_tol=1e-9)

@@ -3,7 +3,7 @@ import numpy as np
 from limbctl.region.union_find import UnionFind
 
 
-def test_pieces_join_and_count_their_size():
+def test_pieces_join_count_their_size_and_a_long_chain_is_one():
     pieces = UnionFind(6)
     pieces.union(0, 1)
     root = pieces.union(2, 1)
@@ -13,9 +13,7 @@ def test_pieces_join_and_count_their_size():
     labels = pieces.labels()
     assert len(set(labels[[0, 1, 2]])) == 1 and labels[3] == 3
     assert labels[4] == labels[5] != labels[0]
-
-
-def test_a_long_chain_is_one_piece():
+    # a long chain is one piece
     n = 5000
     pieces = UnionFind(n)
     for i in range(n - 1):

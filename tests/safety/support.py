@@ -33,11 +33,8 @@ PROFILE = default_sim_profile()
 
 
 def written_tolerance_deg(limits: GateLimits) -> float:
-    """How far (deg) a goal that reached a servo may lie outside the model's region.
-
-    The gate's own stated tolerance (``region_tolerance``) plus the rounding to whole ticks
-    (:func:`limbctl.teleop.gate.written_tolerance_deg` for the default tolerance).
-    """
+    """How far (deg) a written goal may lie outside the region: ``limits.region_tolerance`` plus
+    the rounding to whole ticks (:func:`limbctl.teleop.gate.written_tolerance_deg`)."""
     extra = math.degrees(limits.region_tolerance) - gate.REGION_TOLERANCE_DEG
     return gate.written_tolerance_deg() + extra
 
@@ -50,10 +47,7 @@ def gate_limits(rate_hz: float = 200.0, max_speed_deg_s: float = 120.0) -> GateL
 
 @functools.cache
 def bean_model(seed: int = 0, nodes: int = 300, samples: int = 800) -> RigidMap:
-    """The product model (a Rigid Map) taught the kidney-shaped BEAN region by a synthetic hand.
-
-    The rest pose (pan 0, tilt 0) is inside it. Cached: fitting takes seconds.
-    """
+    """A Rigid Map taught the kidney-shaped BEAN region (rest pose inside); cached: fits take s."""
     region = PolygonRegion(BEAN)
     q = to_quaternions(region.sample(samples, np.random.default_rng(seed)))
     return RigidMap(nodes=nodes, seed=seed).fit(q)
@@ -83,11 +77,8 @@ class RecordingGate(Gate):
 
 
 class PacedSource(CommandSource):
-    """A command source that releases one line per :meth:`poll` (one per loop cycle).
-
-    Lines go through the real parser (:meth:`CommandSource.feed`): malformed ones are refused
-    and counted exactly as from stdin or UDP. It ends when every line was released.
-    """
+    """A command source releasing ``per_poll`` lines per :meth:`poll` (per loop cycle) through the
+    real parser (:meth:`CommandSource.feed`); it ends when every line was released."""
 
     name = "paced"
 
@@ -121,11 +112,8 @@ class LoggedGoal:
 
 
 def goal_log_poses(path: Path, start_offset: int = 0) -> list[LoggedGoal]:
-    """Goal packets from the simulator's goal log (from byte ``start_offset``).
-
-    A sync write logs one line per servo with the same ``t``; the last line of each ``t`` is
-    the pose the packet commands (see :func:`limbctl.demo.goal_log_excursions`).
-    """
+    """Goal packets of the simulator's goal log from byte ``start_offset``: per ``t`` (one line a
+    servo), the pose its last line commands (as :func:`limbctl.demo.goal_log_excursions`)."""
     goals: dict[int, int] = {}
     poses: dict[float, LoggedGoal] = {}
     with open(path, "rb") as fh:

@@ -1,9 +1,6 @@
-"""Promise 2: faults never leave the rig in an unknown state (docs/safety.md, issue 13).
-
-Each fault of the simulator on the real loop: the loop recovers or ends in the configured safe
-state with a message the simulator's truth bears out, and every goal written was gated. Bounds
-are generous; ``benchmarks/bench_faults.py`` measures the real figures.
-"""
+"""Promise 2 (docs/safety.md, issue 13): each simulator fault on the real loop is recovered or
+ends in the configured safe state with a true message, and every goal written was gated
+(generous bounds; ``benchmarks/bench_faults.py`` measures the real figures)."""
 
 from __future__ import annotations
 
@@ -125,30 +122,7 @@ def test_reply_faults_are_ridden_through(tmp_path, faults):
     assert_gated(log, gate, rig)
 
 
-# ---- a servo disappears ----------------------------------------------------------------------
-def test_servo_that_vanishes_briefly_is_ridden_through(tmp_path):
-    log = tmp_path / "goals.jsonl"
-    with live_rig(goal_log=log) as (sim, rig):
-        config = LoopConfig(rate_hz=RATE, duration_s=60.0, max_failed_cycles=50)
-        with sweeping(rig, config) as loop:
-            loop.cycles.wait_cycles(20)
-            sim.vanish(2, 0.3)
-            # wait until the loop has lost a cycle to it and read the pose again since
-            wait_for(
-                lambda: (
-                    any(r["present"] is None for r in loop.cycles.rows)
-                    and loop.cycles.rows[-1]["present"] is not None
-                ),
-                30.0,
-                "a lost cycle followed by a good one",
-            )
-        summary = loop.summary
-        rig.read_pose()
-    assert summary.ended_by == "stopped" and summary.exit_code == 0, summary.fault
-    assert summary.failed_cycles >= 1
-    assert_gated(log, loop.gate, rig)
-
-
+# ---- a servo disappears (a brief dropout: test_a_dropout_keeps_the_loop_cycling_...) ----------
 @pytest.mark.parametrize("safe_state", [SafeState.HOLD, SafeState.TORQUE_OFF])
 def test_servo_that_stays_away_ends_in_the_safe_state(tmp_path, safe_state):
     log = tmp_path / "goals.jsonl"
@@ -255,11 +229,6 @@ def broadcast_torque_off(port_name: str) -> None:
         port.closePort()
 
 
-def fault_time(loop) -> float:
-    """Seconds from the last logged cycle before the fault to the end (the loop's own clock)."""
-    return loop.summary.elapsed_s - loop.cycles.rows[-1]["t"]
-
-
 class ReadLog(Rig):
     """The real rig; it also remembers each cycle read it was asked for (an observer):
     (perf_counter s, ids, attempts)."""
@@ -308,7 +277,8 @@ def test_torque_switched_off_under_teleop_is_noticed(tmp_path, safe_state):
     assert summary.exit_code == 3 and summary.ended_by == "fault", summary.fault
     assert "reports torque off while it is being driven" in summary.fault
     assert "servo 1" in summary.fault or "servo 2" in summary.fault
-    assert fault_time(loop) < NOTICE_BOUND_S
+    # from the last logged cycle before the fault to the end (the loop's own clock)
+    assert loop.summary.elapsed_s - loop.cycles.rows[-1]["t"] < NOTICE_BOUND_S
     assert not any(servo["torque_on"] for servo in truth["servos"].values())
     if safe_state is SafeState.HOLD:
         assert "pan and tilt torque off as the servo reports it" in summary.fault
@@ -355,6 +325,7 @@ def test_a_dropout_keeps_the_loop_cycling_probes_the_servo_and_reports_its_lengt
         summary = loop.summary
         reads = list(rig.reads)
     assert summary.exit_code == 0 and summary.ended_by == "stopped", summary.fault
+    assert summary.failed_cycles >= 1, "the dropout cost no cycle: nothing was ridden through"
     # (on a loaded machine a late reply may name a servo for a moment too: this is the dropout
     # that began after the injection)
     dropout = next(d for d in summary.dropouts if d.servo_id == 2 and d.started_s > injected)

@@ -1,7 +1,5 @@
 """Promise 4: damaged, wrong-version or hand-edited model, dataset and rig files, and models for
-another rig, are refused naming the file and the problem (random damage by hypothesis; the CLI
-before it touches a servo). Line-level dataset cases: tests/teach/test_dataset.py.
-"""
+another rig, are refused naming the file and the problem (the CLI before it touches a servo)."""
 
 from __future__ import annotations
 
@@ -101,7 +99,9 @@ def _rewrite_header(src, dst, edit, reseal: bool) -> None:
         np.savez(fh, __header__=raw, **arrays)
 
 
-def test_wrong_version_and_hand_edits_are_named(tmp_path, model_files):
+def test_wrong_version_hand_edits_foreign_files_and_another_rigs_model_are_named(
+    tmp_path, model_files
+):
     _, path = model_files["cone"]
     newer = tmp_path / "newer.npz"
     _rewrite_header(path, newer, lambda h: h.update(format_version=2), reseal=True)
@@ -125,10 +125,13 @@ def test_wrong_version_and_hand_edits_are_named(tmp_path, model_files):
     empty.write_bytes(b"")
     with pytest.raises(FileFormatError, match="truncated or corrupt"):
         load_model(empty)
-
-
-def test_model_for_another_rig_is_refused(tmp_path, model_files):
-    _, path = model_files["cone"]
+    other = tmp_path / "photos.npz"  # a zip of something else
+    with zipfile.ZipFile(other, "w") as z:
+        z.writestr("cat.jpg", b"\xff\xd8\xff" + b"0" * 100)
+    with pytest.raises(FileFormatError) as err:
+        load_model(other)
+    assert str(other) in str(err.value)
+    # a model for another rig is refused by the gate, naming it
     theirs = Cone(np.radians(35.0)).save(tmp_path / "theirs.npz", metadata={"rig": "bench-2"})
     with pytest.raises(ConfigError, match="trained for rig 'bench-2', not 'sim'") as err:
         gate_for(theirs, PROFILE, 200.0, 120.0)
@@ -203,7 +206,9 @@ def limbctl(*args, cwd):
     )
 
 
-def test_cli_refuses_bad_files_naming_them(tmp_path, model_files, dataset_file):
+def test_cli_refuses_bad_files_and_another_calibrations_model_naming_them(
+    tmp_path, model_files, dataset_file
+):
     _, model = model_files["cone"]
     data, _ = dataset_file
     torn = tmp_path / "torn.npz"
@@ -215,7 +220,28 @@ def test_cli_refuses_bad_files_naming_them(tmp_path, model_files, dataset_file):
     lines = data.read_text().splitlines(keepends=True)
     lines[5] = lines[5].replace("0.0", "0.5", 1) if "0.0" in lines[5] else "9" + lines[5]
     edited.write_text("".join(lines))
+    # a model trained under the sim rig's calibration, and the same rig name with the pan zero
+    # tick off by 200 (17.6 deg); an older model that recorded no calibration
+    recording = tmp_path / "teach.limb"
+    rng = np.random.default_rng(1)
+    with DatasetWriter(
+        recording, rig="sim", calibration=PROFILE.calibration, min_free_bytes=1024
+    ) as out:
+        for i, (pan, tilt) in enumerate(rng.uniform(-0.4, 0.4, (60, 2))):
+            out.append(0.01 * i, pan, tilt)
+    calibrated = tmp_path / "model.npz"
+    trained = limbctl("train", recording, "--out", calibrated, "--kind", "cone", cwd=tmp_path)
+    assert trained.returncode == 0, trained.stderr
+    assert "NOT RECORDED" not in trained.stderr
+    assert gate_for(calibrated, PROFILE, 200.0, 120.0) is not None  # its own rig: accepted
+    shifted = tmp_path / "shifted.yaml"
+    shifted.write_text(SIM_YAML.decode().replace("zero_tick: 2185", "zero_tick: 2385"))
+    older = Cone(np.radians(35.0)).save(tmp_path / "older.npz", metadata={"rig": "sim"})
+    moved = "(trained vs now: pan.zero_tick 2185 vs 2385)"
+    uncalibrated = "does not record the calibration it was trained under"
     cases = [
+        (["teleop", "--rig", shifted, "--model", calibrated], calibrated, moved),
+        (["teleop", "--model", older], older, uncalibrated),
         (["teleop", "--model", torn], torn, "truncated or corrupt"),
         (["teleop", "--model", foreign], foreign, "trained for rig 'bench-2'"),
         (["teleop", "--model", model, "--rig", bad_rig], bad_rig, "direction must be +1 or -1"),
@@ -229,15 +255,6 @@ def test_cli_refuses_bad_files_naming_them(tmp_path, model_files, dataset_file):
         assert "Traceback" not in done.stderr
         assert "simulator" not in done.stderr  # refused before any servo was touched
     assert not (tmp_path / "m.npz").exists()
-
-
-def test_npz_that_is_a_zip_of_something_else(tmp_path):
-    other = tmp_path / "photos.npz"
-    with zipfile.ZipFile(other, "w") as z:
-        z.writestr("cat.jpg", b"\xff\xd8\xff" + b"0" * 100)
-    with pytest.raises(FileFormatError) as err:
-        load_model(other)
-    assert str(other) in str(err.value)
 
 
 # ---- rig profiles that cannot hurt, through the CLI ---------------------------------------------
@@ -290,38 +307,10 @@ def test_cli_refuses_a_harmful_profile_fast_on_one_line(tmp_path, model_files, c
     assert "simulator" not in done.stderr  # refused before a servo (or its EEPROM) was touched
 
 
-# ---- a model is tied to the calibration it was trained under -----------------------------------
-def test_cli_refuses_a_model_trained_under_another_calibration(tmp_path):
-    recording = tmp_path / "teach.limb"
-    rng = np.random.default_rng(1)
-    with DatasetWriter(
-        recording, rig="sim", calibration=PROFILE.calibration, min_free_bytes=1024
-    ) as out:
-        for i, (pan, tilt) in enumerate(rng.uniform(-0.4, 0.4, (60, 2))):
-            out.append(0.01 * i, pan, tilt)
-    model = tmp_path / "model.npz"
-    trained = limbctl("train", recording, "--out", model, "--kind", "cone", cwd=tmp_path)
-    assert trained.returncode == 0, trained.stderr
-    assert "NOT RECORDED" not in trained.stderr
-
-    # the same rig name, the pan zero tick off by 200 (17.6 deg)
-    shifted = tmp_path / "shifted.yaml"
-    shifted.write_text(SIM_YAML.decode().replace("zero_tick: 2185", "zero_tick: 2385"))
-    older = Cone(np.radians(35.0)).save(tmp_path / "older.npz", metadata={"rig": "sim"})
-    cases = [
-        (["--rig", shifted, "--model", model], "(trained vs now: pan.zero_tick 2185 vs 2385)"),
-        (["--model", older], "does not record the calibration it was trained under"),
-    ]
-    for args, problem in cases:
-        done = limbctl("teleop", *args, cwd=tmp_path)
-        assert done.returncode == 2, (args, done.stderr)
-        assert problem in done.stderr and "Traceback" not in done.stderr, done.stderr
-        assert "simulator" not in done.stderr  # refused before any servo was touched
-    assert gate_for(model, PROFILE, 200.0, 120.0) is not None  # its own rig: accepted
-
-
 # ---- info names a damaged file's real problem ---------------------------------------------------
-def test_info_names_a_damaged_datasets_problem(tmp_path, dataset_file):
+def test_info_names_a_damaged_datasets_problem_and_survives_a_closed_pipe(
+    tmp_path, dataset_file, model_files
+):
     path, _ = dataset_file
     lines = path.read_bytes().split(b"\n")
     lines[10] = lines[10].replace(b"0.", b"1.", 1)  # an edited record, line 11
@@ -344,9 +333,7 @@ def test_info_names_a_damaged_datasets_problem(tmp_path, dataset_file):
     assert "neither a limbctl model nor a dataset (as a model: " in done.stderr, done.stderr
     assert "as a dataset: line 1: not a limbctl orientation dataset" in done.stderr
     assert "pickle" not in done.stderr
-
-
-def test_info_into_a_closed_pipe_prints_no_traceback(tmp_path, model_files):
+    # info into a closed pipe prints no traceback
     _, model = model_files["rigidmap"]
     read_end, write_end = os.pipe()
     os.close(read_end)  # the reader is gone before limbctl writes a byte, as after `| head`

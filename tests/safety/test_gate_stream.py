@@ -1,8 +1,5 @@
-"""Promise 1: no goal reaches a servo unless the gate made it, inside the region and the limits.
-
-Property tests over random models, command streams, rates and faults: in process (breadth), and
-end to end judged by the simulator's own goal log.
-"""
+"""Promise 1: no goal reaches a servo unless the gate made it, inside the region and the limits;
+property tests in process and end to end, judged by the simulator's goal log."""
 
 from __future__ import annotations
 

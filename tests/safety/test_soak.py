@@ -22,7 +22,7 @@ def soak():
     return module
 
 
-def test_compressed_soak_keeps_every_promise(soak):
+def test_the_compressed_and_the_live_soak_keep_every_promise(soak):
     result = soak.compressed_soak(30_000, seed=3, model=bean_model())
     assert result.cycles == 30_000
     # every segment kind came up, so each promise was exercised
@@ -34,9 +34,7 @@ def test_compressed_soak_keeps_every_promise(soak):
     assert result.held_drift_ticks == 0
     # no growth in memory once warm (allocator noise is far below a megabyte per 30k cycles)
     assert result.rss_growth_mb < 4.0
-
-
-def test_live_soak_on_the_simulator_with_faults(soak):
+    # the live soak on the simulator, with faults
     result = soak.live_soak(4.0, seed=5, model=bean_model())
     assert result.ended_by == "end of input"
     assert result.goals_logged > 200 and result.faults_injected > 0

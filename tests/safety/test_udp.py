@@ -1,6 +1,5 @@
-"""Promise 6: the UDP source listens on loopback unless told otherwise, drops oversize or
-malformed datagrams (counted), survives any bytes, and cannot be made to skip the gate.
-"""
+"""Promise 6: the UDP source listens on loopback unless told, drops oversize or malformed datagrams
+(counted), survives any bytes, and cannot be made to skip the gate."""
 
 from __future__ import annotations
 

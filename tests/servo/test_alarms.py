@@ -79,10 +79,16 @@ def test_an_alarm_message_says_the_servos_torque_as_it_is(
         assert rig.torque_enabled() == (True, True)
 
 
-def test_the_alarm_alone_says_nothing_about_torque():
+def test_the_alarm_alone_says_nothing_about_torque_and_hold_says_each_joints_once():
     message = alarm_message({2: ("overheating", "overload")})
     assert message.startswith("hardware error reported (servo 2: overheating, overload).")
     assert "torque" not in message and message.endswith("then `limbctl reboot`")
+    assert held_torque({"pan": True, "tilt": True}) == "holding the last safe pose (torque on)"
+    both = held_torque({"pan": False, "tilt": True}, after_alarm=True)
+    assert (
+        both
+        == "pan torque off as the servo reports it; tilt holding the last safe pose (torque on)"
+    )
 
 
 @pytest.mark.parametrize(
@@ -102,15 +108,6 @@ def test_the_alarm_alone_says_nothing_about_torque():
 )
 def test_the_torque_off_safe_state_tells_switched_from_already_off(reported, said):
     assert switched_off(reported) == said
-
-
-def test_hold_says_each_joints_torque_once():
-    assert held_torque({"pan": True, "tilt": True}) == "holding the last safe pose (torque on)"
-    both = held_torque({"pan": False, "tilt": True}, after_alarm=True)
-    assert (
-        both
-        == "pan torque off as the servo reports it; tilt holding the last safe pose (torque on)"
-    )
 
 
 def test_reboot_servos_in_alarm_reboots_only_those_and_says_what_it_was(sim, rig):

@@ -30,7 +30,7 @@ def open_bus(sim, **options):
     return ServoBus.from_profile(PROFILE, port=sim.port, **options)
 
 
-def test_open_identifies_the_servos_and_close_twice(sim):
+def test_open_identifies_the_servos_closes_twice_and_refuses_a_wrong_model_or_port(sim, tmp_path):
     bus = open_bus(sim)
     with bus:
         assert bus.is_open
@@ -42,91 +42,46 @@ def test_open_identifies_the_servos_and_close_twice(sim):
     bus.close()
     with pytest.raises(PortError, match="not open"):
         bus.read_positions()
-
-
-def test_missing_port_says_what_to_check(tmp_path):
-    bus = ServoBus(str(tmp_path / "ttyUSB9"), 57600, (1, 2))
-    with pytest.raises(PortError, match=r"ttyUSB9 does not exist: check the cable / permissions"):
-        bus.open()
-    assert not bus.is_open
-
-
-def test_a_wrong_model_or_an_absent_servo_is_refused_at_open(sim):
-    bus = ServoBus(sim.port, PROFILE.baud, PROFILE.ids, model="xm430-w350")
-    with pytest.raises(ConfigError, match=r"servo 1 is XL430-W250 \(1060\).*XM430-W350 \(1020\)"):
-        bus.open()
-    assert not bus.is_open
-    bus = ServoBus(sim.port, PROFILE.baud, (1, 7), retry_budget_s=0.05, max_attempts=2)
-    with pytest.raises(BusTimeout, match=r"ping servo 7: servo 7 did not answer after 2 attempts"):
-        bus.open()
-    assert not bus.is_open
+    refused = (
+        (
+            ServoBus(str(tmp_path / "ttyUSB9"), 57600, (1, 2)),
+            PortError,
+            r"ttyUSB9 does not exist: check the cable / permissions",
+        ),
+        (
+            ServoBus(sim.port, PROFILE.baud, PROFILE.ids, model="xm430-w350"),
+            ConfigError,
+            r"servo 1 is XL430-W250 \(1060\).*XM430-W350 \(1020\)",
+        ),
+        (
+            ServoBus(sim.port, PROFILE.baud, (1, 7), retry_budget_s=0.05, max_attempts=2),
+            BusTimeout,
+            r"ping servo 7: servo 7 did not answer after 2 attempts",
+        ),
+    )
+    for bus, error, message in refused:
+        with pytest.raises(error, match=message):
+            bus.open()
+        assert not bus.is_open, message
 
 
 @pytest.mark.parametrize("fast", [True, False], ids=["fast-sync-read", "sync-read"])
-def test_read_positions_match_the_world(sim, fast):
+def test_reads_match_the_world_one_packet_each_and_an_alarm_is_raised_until_a_reboot(sim, fast):
     with open_bus(sim, fast_sync_read=fast) as bus:
         positions = bus.read_positions()
         truth = sim.truth()["servos"]
         for servo_id in PROFILE.ids:
             assert abs(positions[servo_id] - truth[servo_id]["raw_tick"]) <= 1.0
         assert bus.stats.transactions > 0 and bus.stats.timeouts == 0
-
-
-def test_configure_writes_eeprom_limits_and_position_mode_and_refuses_bad_limits(sim):
-    with open_bus(sim) as bus:
+        # one instruction packet per pose read and per goal write
+        configure_servos(bus, LIMITS)
         bus.set_torque(True)
-        configure_servos(bus, LIMITS, profile_velocity=120, profile_acceleration=40)
-        assert bus.torque_enabled() == {1: False, 2: False}
-        for servo_id, (lo, hi) in LIMITS.items():
-            assert bus.read(Register.MIN_POSITION_LIMIT, servo_id) == lo
-            assert bus.read(Register.MAX_POSITION_LIMIT, servo_id) == hi
-            assert bus.read(Register.OPERATING_MODE, servo_id) == OperatingMode.POSITION
-            assert bus.read(Register.RETURN_DELAY_TIME, servo_id) == 0
-            assert bus.read(Register.PROFILE_VELOCITY, servo_id) == 120
-            assert bus.read(Register.PROFILE_ACCELERATION, servo_id) == 40
-        with pytest.raises(ConfigError, match="exactly the servos"):
-            configure_servos(bus, {1: (0, 10)})
-        with pytest.raises(ConfigError, match=r"servo 2 must satisfy 0 <= min <= max"):
-            configure_servos(bus, {1: (0, 10), 2: (20, 10)})
-
-
-def test_write_goals_moves_both_servos(sim):
-    goals = {1: PROFILE.pan.zero_tick + 200, 2: PROFILE.tilt.zero_tick - 150}
-    with open_bus(sim) as bus:
-        configure_servos(bus, LIMITS, profile_velocity=0, profile_acceleration=0)
-        bus.set_torque(True)
-        bus.write_goals(goals)
-        truth = sim.truth()["servos"]
-        assert {i: truth[i]["goal_position"] for i in goals} == goals
-
-        def arrived():
-            present = bus.read_positions()
-            return all(abs(present[i] - goals[i]) <= 3 for i in goals)
-
-        wait_for(arrived, 10.0, "both servos to reach their goals")
-
-
-def test_a_goal_outside_one_turn_is_refused_before_the_wire_and_eeprom_by_the_servo(sim):
-    with open_bus(sim) as bus:
-        before = sim.truth()["servos"][1]["goal_position"]
-        with pytest.raises(InvalidInputError, match=r"servo 1 must be an integer tick in 0..4095"):
-            bus.write_goals({1: 5000, 2: 2000})
-        with pytest.raises(InvalidInputError):
-            bus.write_goals({1: 2000.5, 2: 2000})
-        with pytest.raises(ConfigError, match="not on this bus"):
-            bus.write_goals({9: 2000})
-        assert sim.truth()["servos"][1]["goal_position"] == before
-        # an EEPROM write with torque on is refused by the servo
-        bus.set_torque(True)
-        with pytest.raises(BusError, match=r"servo 1 refused it \(error 7: .*torque on"):
-            bus.write(Register.MAX_POSITION_LIMIT, 1, 3000)
-        bus.set_torque(False)
-
-
-@pytest.mark.parametrize("fast", [True, False], ids=["fast-sync-read", "sync-read"])
-def test_hardware_error_surfaces_as_alarm_and_reboot_clears_it(sim, fast):
-    with open_bus(sim, fast_sync_read=fast) as bus:
-        bus.set_torque(True)
+        before = sim.truth()["packets"]
+        bus.read_positions()
+        after_read = sim.truth()["packets"]
+        bus.write_goals({1: PROFILE.pan.zero_tick, 2: PROFILE.tilt.zero_tick})
+        after_write = sim.truth()["packets"]
+        assert (after_read - before, after_write - after_read) == (1, 1)
         sim.set_temperature(2, 95.0)  # above the 72 degC limit: overheating shutdown
         with pytest.raises(ServoAlarm) as info:
             wait_for(lambda: bus.read_positions() and False, 5.0, "the alarm")
@@ -148,35 +103,64 @@ def test_hardware_error_surfaces_as_alarm_and_reboot_clears_it(sim, fast):
         assert len(bus.read_positions()) == 2
 
 
-def test_dropped_replies_are_retried(sim):
+def test_configure_and_goals_reach_the_servos_and_bad_ones_are_refused(sim):
+    goals = {1: PROFILE.pan.zero_tick + 200, 2: PROFILE.tilt.zero_tick - 150}
+    with open_bus(sim) as bus:
+        before = sim.truth()["servos"][1]["goal_position"]
+        with pytest.raises(InvalidInputError, match=r"servo 1 must be an integer tick in 0..4095"):
+            bus.write_goals({1: 5000, 2: 2000})
+        with pytest.raises(InvalidInputError):
+            bus.write_goals({1: 2000.5, 2: 2000})
+        with pytest.raises(ConfigError, match="not on this bus"):
+            bus.write_goals({9: 2000})
+        assert sim.truth()["servos"][1]["goal_position"] == before
+        bus.set_torque(True)
+        # an EEPROM write with torque on is refused by the servo
+        with pytest.raises(BusError, match=r"servo 1 refused it \(error 7: .*torque on"):
+            bus.write(Register.MAX_POSITION_LIMIT, 1, 3000)
+        configure_servos(bus, LIMITS, profile_velocity=120, profile_acceleration=40)
+        assert bus.torque_enabled() == {1: False, 2: False}
+        for servo_id, (lo, hi) in LIMITS.items():
+            assert bus.read(Register.MIN_POSITION_LIMIT, servo_id) == lo
+            assert bus.read(Register.MAX_POSITION_LIMIT, servo_id) == hi
+            assert bus.read(Register.OPERATING_MODE, servo_id) == OperatingMode.POSITION
+            assert bus.read(Register.RETURN_DELAY_TIME, servo_id) == 0
+            assert bus.read(Register.PROFILE_VELOCITY, servo_id) == 120
+            assert bus.read(Register.PROFILE_ACCELERATION, servo_id) == 40
+        with pytest.raises(ConfigError, match="exactly the servos"):
+            configure_servos(bus, {1: (0, 10)})
+        with pytest.raises(ConfigError, match=r"servo 2 must satisfy 0 <= min <= max"):
+            configure_servos(bus, {1: (0, 10), 2: (20, 10)})
+        configure_servos(bus, LIMITS, profile_velocity=0, profile_acceleration=0)
+        bus.set_torque(True)
+        bus.write_goals(goals)
+        truth = sim.truth()["servos"]
+        assert {i: truth[i]["goal_position"] for i in goals} == goals
+
+        def arrived():
+            present = bus.read_positions()
+            return all(abs(present[i] - goals[i]) <= 3 for i in goals)
+
+        wait_for(arrived, 10.0, "both servos to reach their goals")
+
+
+def test_dropped_replies_are_retried_and_silence_corruption_and_a_vanished_servo_named(sim):
     with open_bus(sim, max_attempts=8, retry_budget_s=2.0) as bus:
         sim.set_faults(drop=0.3, seed=3)
         for _ in range(20):
             assert set(bus.read_positions()) == {1, 2}
         assert bus.stats.retries > 0
-
-
-def test_silent_bus_raises_timeout(sim):
     with open_bus(sim, max_attempts=2, retry_budget_s=0.2) as bus:
         sim.set_faults(drop=1.0)
         with pytest.raises(BusTimeout, match="did not answer after 2 attempts"):
             bus.read_positions()
         with pytest.raises(BusTimeout, match="servo 2"):
             bus.read(Register.PRESENT_TEMPERATURE, 2)
-        sim.set_faults()
-        assert set(bus.read_positions()) == {1, 2}
-
-
-def test_corrupt_replies_raise_corrupt_reply(sim):
-    with open_bus(sim, max_attempts=2, retry_budget_s=0.2) as bus:
         sim.set_faults(corrupt=1.0)
         with pytest.raises(CorruptReply, match="kept failing CRC/framing after 2 attempts"):
             bus.read(Register.PRESENT_POSITION, 1)
         sim.set_faults()
-
-
-def test_vanished_servo_comes_back(sim):
-    with open_bus(sim, max_attempts=2, retry_budget_s=0.1) as bus:
+        assert set(bus.read_positions()) == {1, 2}
         sim.vanish(2, 0.3)
         with pytest.raises(BusTimeout, match="servo 2"):
             bus.read(Register.PRESENT_POSITION, 2)
@@ -202,19 +186,6 @@ def test_port_that_vanishes_mid_run_raises_port_error():
     finally:
         sim.close()
     assert sim.exitcode == 0
-
-
-@pytest.mark.parametrize("fast", [True, False], ids=["fast-sync-read", "sync-read"])
-def test_one_instruction_packet_per_pose_read_and_per_goal_write(sim, fast):
-    with open_bus(sim, fast_sync_read=fast) as bus:
-        configure_servos(bus, LIMITS)
-        bus.set_torque(True)
-        before = sim.truth()["packets"]
-        bus.read_positions()
-        after_read = sim.truth()["packets"]
-        bus.write_goals({1: PROFILE.pan.zero_tick, 2: PROFILE.tilt.zero_tick})
-        after_write = sim.truth()["packets"]
-        assert (after_read - before, after_write - after_read) == (1, 1)
 
 
 @pytest.mark.parametrize(

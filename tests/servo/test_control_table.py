@@ -54,15 +54,52 @@ def test_registers_match_the_e_manual(name, spec):
     assert (register.address, register.size, register.signed) == spec
 
 
-def test_registers_do_not_overlap():
+def test_registers_models_modes_bauds_hardware_errors_and_status_errors():
     spans = sorted((r.address, r.address + r.size, r.name) for r in Register)
     for (_, end, name), (start, _, next_name) in zip(spans[:-1], spans[1:], strict=True):
         assert end <= start, f"{name} overlaps {next_name}"
-
-
-def test_eeprom_boundary():
     assert Register.SHUTDOWN.is_eeprom and Register.MIN_POSITION_LIMIT.is_eeprom
     assert not Register.TORQUE_ENABLE.is_eeprom and not Register.GOAL_POSITION.is_eeprom
+    with pytest.raises(ValueError, match="TORQUE_ENABLE holds 0..255, got 256"):
+        Register.TORQUE_ENABLE.encode(256)
+    with pytest.raises(ValueError, match="PROFILE_VELOCITY holds 0"):
+        Register.PROFILE_VELOCITY.encode(-1)
+    with pytest.raises(ValueError, match="integer"):
+        Register.GOAL_POSITION.encode(1.5)
+    with pytest.raises(ValueError, match="4 bytes wide"):
+        Register.GOAL_POSITION.decode(b"\x00\x00")
+    assert ModelNumber.XL430_W250 == 1060
+    assert ModelNumber.XM430_W350 == 1020
+    assert MODEL_BY_NAME["xl430-w250"] is ModelNumber.XL430_W250
+    assert model_name(1020) == "XM430-W350 (1020)"
+    assert model_name(7) == "unknown model (7)"
+    assert MODEL_BY_NAME["xl330-m077"] == 1190 and MODEL_BY_NAME["xl330-m288"] == 1200
+    assert model_name(1200) == "XL330-M288 (1200)"
+    assert (Register.CURRENT_LIMIT.address, Register.CURRENT_LIMIT.size) == (38, 2)
+    assert (Register.GOAL_CURRENT.address, Register.GOAL_CURRENT.signed) == (102, True)
+    # Present Load and Present Current are one register whose meaning depends on the family
+    assert Register.PRESENT_CURRENT is Register.PRESENT_LOAD
+    assert OperatingMode.POSITION == 3
+    assert OperatingMode.EXTENDED_POSITION == 4
+    assert BAUD_RATE_VALUES[57600] == 1
+    assert BAUD_RATE_VALUES[1_000_000] == 3
+    assert int(HardwareError.INPUT_VOLTAGE) == 1 << 0
+    assert int(HardwareError.OVERHEATING) == 1 << 2
+    assert int(HardwareError.MOTOR_ENCODER) == 1 << 3
+    assert int(HardwareError.ELECTRICAL_SHOCK) == 1 << 4
+    assert int(HardwareError.OVERLOAD) == 1 << 5
+    assert decode_hardware_error(0) == ()
+    assert decode_hardware_error(0x24) == ("overheating", "overload")
+    assert decode_hardware_error(0x19) == ("input voltage", "motor encoder", "electrical shock")
+    assert decode_hardware_error(0x02) == ("unknown bit 1",)
+    assert [e.value for e in StatusError] == list(range(1, 8))
+    assert StatusError.ACCESS == 7 and StatusError.CRC == 3
+    assert describe_status_error(0) == ""
+    assert "CRC" in describe_status_error(3)
+    assert "torque on" in describe_status_error(7)
+    both = describe_status_error(ALERT_BIT | 4)
+    assert "out of range" in both and "Hardware Error Status" in both
+    assert "unknown error number 9" in describe_status_error(9)
 
 
 @pytest.mark.parametrize(
@@ -80,62 +117,3 @@ def test_eeprom_boundary():
 def test_encode_decode_little_endian_twos_complement(register, value, raw):
     assert register.encode(value) == raw
     assert register.decode(bytes(raw)) == value
-
-
-def test_encode_refuses_values_that_do_not_fit():
-    with pytest.raises(ValueError, match="TORQUE_ENABLE holds 0..255, got 256"):
-        Register.TORQUE_ENABLE.encode(256)
-    with pytest.raises(ValueError, match="PROFILE_VELOCITY holds 0"):
-        Register.PROFILE_VELOCITY.encode(-1)
-    with pytest.raises(ValueError, match="integer"):
-        Register.GOAL_POSITION.encode(1.5)
-    with pytest.raises(ValueError, match="4 bytes wide"):
-        Register.GOAL_POSITION.decode(b"\x00\x00")
-
-
-def test_model_numbers():
-    assert ModelNumber.XL430_W250 == 1060
-    assert ModelNumber.XM430_W350 == 1020
-    assert MODEL_BY_NAME["xl430-w250"] is ModelNumber.XL430_W250
-    assert model_name(1020) == "XM430-W350 (1020)"
-    assert model_name(7) == "unknown model (7)"
-    assert MODEL_BY_NAME["xl330-m077"] == 1190 and MODEL_BY_NAME["xl330-m288"] == 1200
-    assert model_name(1200) == "XL330-M288 (1200)"
-
-
-def test_current_registers():
-    # 330s and 430s other than XL430/XC430: Current Limit, Goal Current, Present Current
-    assert (Register.CURRENT_LIMIT.address, Register.CURRENT_LIMIT.size) == (38, 2)
-    assert (Register.GOAL_CURRENT.address, Register.GOAL_CURRENT.signed) == (102, True)
-    # Present Load and Present Current are one register whose meaning depends on the family
-    assert Register.PRESENT_CURRENT is Register.PRESENT_LOAD
-
-
-def test_operating_mode_and_baud_values():
-    assert OperatingMode.POSITION == 3
-    assert OperatingMode.EXTENDED_POSITION == 4
-    assert BAUD_RATE_VALUES[57600] == 1
-    assert BAUD_RATE_VALUES[1_000_000] == 3
-
-
-def test_hardware_error_bits():
-    assert int(HardwareError.INPUT_VOLTAGE) == 1 << 0
-    assert int(HardwareError.OVERHEATING) == 1 << 2
-    assert int(HardwareError.MOTOR_ENCODER) == 1 << 3
-    assert int(HardwareError.ELECTRICAL_SHOCK) == 1 << 4
-    assert int(HardwareError.OVERLOAD) == 1 << 5
-    assert decode_hardware_error(0) == ()
-    assert decode_hardware_error(0x24) == ("overheating", "overload")
-    assert decode_hardware_error(0x19) == ("input voltage", "motor encoder", "electrical shock")
-    assert decode_hardware_error(0x02) == ("unknown bit 1",)
-
-
-def test_status_error_numbers():
-    assert [e.value for e in StatusError] == list(range(1, 8))
-    assert StatusError.ACCESS == 7 and StatusError.CRC == 3
-    assert describe_status_error(0) == ""
-    assert "CRC" in describe_status_error(3)
-    assert "torque on" in describe_status_error(7)
-    both = describe_status_error(ALERT_BIT | 4)
-    assert "out of range" in both and "Hardware Error Status" in both
-    assert "unknown error number 9" in describe_status_error(9)

@@ -1,6 +1,5 @@
 """The control cycle's one read through indirect addresses, on the simulator: each fault the loop
-must notice shows in it, and a silent servo is probed alone with one try.
-"""
+must notice shows in it, and a silent servo is probed alone with one try."""
 
 from __future__ import annotations
 
@@ -41,16 +40,27 @@ def read_ok(rig, tries: int = 50):
     raise AssertionError(f"{tries} cycle reads failed, the last: {read.problem}")
 
 
-def test_indirect_map_names_each_mapped_byte():
+def test_the_indirect_map_names_each_mapped_byte_and_the_wire_budget_of_a_cycle():
     addresses = [int.from_bytes(indirect_map()[k : k + 2], "little") for k in range(0, 24, 2)]
     assert addresses == [132, 133, 134, 135, 116, 117, 118, 119, 64, 70, 124, 125]
     assert CYCLE_BYTES == 12
     data = bytes([0x00, 0x08, 0, 0, 0xFF, 0x07, 0, 0, 1, 0x24, 0x8B, 0xFC])  # PWM -885
     report = ServoReport.decode(data, pwm_limit=885)
     assert report == ServoReport(2048, 2047, True, ("overheating", "overload"), -885, 885)
+    from limbctl.servo.cycle import cycle_wire_bytes, wire_budget
+
+    # fast sync read out 14 + 2, back 8 + 2 x 16, sync write of goals 14 + 2 x 5
+    assert cycle_wire_bytes(2) == 80
+    assert cycle_wire_bytes(2, fast=False) == 16 + 2 * 23 + 24
+    assert wire_budget(200.0, 4_000_000, 2) == ""
+    assert wire_budget(200.0, 57_600, 2) == (
+        "at 57600 baud one cycle's 80 bytes take 13.9 ms on the wire, so the loop runs at most "
+        "72 Hz, not 200 Hz: raise the servos' baud to 1000000 (`limbctl motors setup --baud "
+        "1000000 --rig PROFILE`, then `baud: 1000000` in the profile)"
+    )
 
 
-def test_cycle_read_agrees_with_direct_reads(rig):
+def test_cycle_read_agrees_with_direct_reads_a_reboot_and_torque_off_show_in_it(sim, sdk, rig):
     bus = rig.bus
     for servo_id in PROFILE.ids:
         assert bus.read_block(INDIRECT_MAP_BLOCK, servo_id) == indirect_map()
@@ -67,28 +77,16 @@ def test_cycle_read_agrees_with_direct_reads(rig):
         assert abs(report.pwm) < 0.1 * report.pwm_limit and abs(pwm[servo_id]) < 0.1 * 885
         assert report.pwm_limit == bus.read(Register.PWM_LIMIT, servo_id) == 885
     assert rig.pose_of(read) == pytest.approx(rig.read_pose(), abs=2e-3)
-
-
-def test_a_silent_servo_is_named_after_one_try(sim, rig):
-    bus = rig.bus
-    sim.vanish(2, 5.0)
-    retries = bus.stats.retries
-    read = rig.read_cycle()
-    assert not read.ok and read.silent == (2,) and read.reports == {}
-    assert "servo 2 did not answer" in read.problem
-    assert bus.stats.retries == retries, "the cycle read retried"
-    # one reply timeout (~35 ms at the SDK's 16 ms latency timer), generous for a loaded machine
-    assert read.duration_s < 0.5
-
-
-def test_torque_switched_off_by_one_broadcast_write_is_reported(sim, sdk, rig):
-    # what a servo's brown-out reset leaves: Torque Enable 0 (sent by another handle, no reply)
+    rig.bus.reboot(1)
+    read = read_ok(rig)
+    assert read.reports[1] == ServoReport(0, 0, False, ())
+    assert read.reports[2].torque_on
     sdk.packet.write1ByteTxOnly(sdk.port, BROADCAST_ID, Register.TORQUE_ENABLE.address, 0)
     read = read_ok(rig)
     assert [r.torque_on for r in read.reports.values()] == [False, False]
 
 
-def test_an_alarm_is_in_the_report_with_its_torque(sim, rig):
+def test_an_alarm_is_in_the_report_with_its_torque_and_a_pushed_servos_drive_saturates(sim, rig):
     sim.set_voltage(1, 5.0)  # below the voltage limit; the factory Shutdown mask keeps torque on
     sim.set_temperature(2, 90.0)  # over the limit: shuts down, torque off
     read = read_ok(rig)
@@ -96,9 +94,6 @@ def test_an_alarm_is_in_the_report_with_its_torque(sim, rig):
         read = read_ok(rig)
     assert read.reports[1].hardware_error == ("input voltage",) and read.reports[1].torque_on
     assert read.reports[2].hardware_error == ("overheating",) and not read.reports[2].torque_on
-
-
-def test_a_pushed_servo_reports_its_drive_saturated(sim, rig):
     sim.push(1, 300.0)  # beyond stall: the position controller's drive winds up to its limit
     for _ in range(200):  # the simulator applies the push on its next physics step
         read = read_ok(rig)
@@ -108,7 +103,22 @@ def test_a_pushed_servo_reports_its_drive_saturated(sim, rig):
     assert abs(read.reports[1].present - read.reports[1].goal) * 360 / 4096 > 5.0
 
 
-def test_while_a_servo_is_silent_the_others_are_read_and_it_is_probed_once(sim, rig):
+def test_a_silent_servo_is_named_after_one_try_probed_alone_and_found_back(sim, rig):
+    sim.vanish(2, 0.05)
+    for _ in range(100):  # each probe waits one reply timeout: 100 of them outlast 0.05 s
+        read = read_around_silent(rig.read_cycle, rig.ids, silent=(2,), probe=(2,), attempts=1)
+        if read.ok:
+            break
+    assert set(read.reports) == {1, 2} and read.silent == read.unread == () and read.problem == ""
+    bus = rig.bus
+    sim.vanish(2, 5.0)
+    retries = bus.stats.retries
+    read = rig.read_cycle()
+    assert not read.ok and read.silent == (2,) and read.reports == {}
+    assert "servo 2 did not answer" in read.problem
+    assert bus.stats.retries == retries, "the cycle read retried"
+    # one reply timeout (~35 ms at the SDK's 16 ms latency timer), generous for a loaded machine
+    assert read.duration_s < 0.5
     sim.vanish(2, 5.0)
     retries = rig.bus.stats.retries
     read = read_around_silent(rig.read_cycle, rig.ids, silent=(2,), probe=(), attempts=2)
@@ -120,33 +130,3 @@ def test_while_a_servo_is_silent_the_others_are_read_and_it_is_probed_once(sim, 
     assert rig.bus.stats.retries == retries, "the probe retried"
     # the other servo's read is one short transfer; the probe one reply timeout (~35 ms here)
     assert read.duration_s < probed.duration_s < 0.5
-
-
-def test_a_probe_finds_the_servo_back_and_the_read_is_whole(sim, rig):
-    sim.vanish(2, 0.05)
-    for _ in range(100):  # each probe waits one reply timeout: 100 of them outlast 0.05 s
-        read = read_around_silent(rig.read_cycle, rig.ids, silent=(2,), probe=(2,), attempts=1)
-        if read.ok:
-            break
-    assert set(read.reports) == {1, 2} and read.silent == read.unread == () and read.problem == ""
-
-
-def test_a_rebooted_servo_loses_the_map_and_reads_torque_off(rig):
-    rig.bus.reboot(1)
-    read = read_ok(rig)
-    assert read.reports[1] == ServoReport(0, 0, False, ())
-    assert read.reports[2].torque_on
-
-
-def test_the_wire_budget_of_a_cycle():
-    from limbctl.servo.cycle import cycle_wire_bytes, wire_budget
-
-    # fast sync read out 14 + 2, back 8 + 2 x 16, sync write of goals 14 + 2 x 5
-    assert cycle_wire_bytes(2) == 80
-    assert cycle_wire_bytes(2, fast=False) == 16 + 2 * 23 + 24
-    assert wire_budget(200.0, 4_000_000, 2) == ""
-    assert wire_budget(200.0, 57_600, 2) == (
-        "at 57600 baud one cycle's 80 bytes take 13.9 ms on the wire, so the loop runs at most "
-        "72 Hz, not 200 Hz: raise the servos' baud to 1000000 (`limbctl motors setup --baud "
-        "1000000 --rig PROFILE`, then `baud: 1000000` in the profile)"
-    )

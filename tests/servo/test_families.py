@@ -7,9 +7,17 @@ from limbctl.servo.control_table import MODEL_BY_NAME, ModelNumber, OperatingMod
 from limbctl.servo.families import FAMILIES, family_of
 
 
-def test_every_supported_model_is_in_exactly_one_family():
+def test_every_model_is_in_one_family_an_unknown_one_refused_a_5_v_one_on_12_v_named():
     names = [name for family in FAMILIES.values() for name in family.models.values()]
     assert sorted(names) == sorted(MODEL_BY_NAME) and len(names) == len(set(names))
+    with pytest.raises(ConfigError, match=r"unknown servo model 'ax-12': limbctl supports 2xl430"):
+        family_of("ax-12")
+    xl330 = family_of("xl330-m288")
+    assert xl330.voltage_problem(ModelNumber.XL330_M288, 50) == ""
+    assert xl330.voltage_problem(ModelNumber.XL330_M288, 120) == (
+        "XL330-M288 measures 12.0 V, outside its 3.5..7.0 V limits: it expects 3.7..6 V "
+        "(5 V recommended); fix the supply before torque goes on"
+    )
 
 
 @pytest.mark.parametrize(
@@ -34,18 +42,4 @@ def test_families_differ_where_the_e_manual_says(model, family, unit, top_baud):
     # the 330s have 20 slots and Indirect Data 1 at 224 or 208 (probed in that order)
     assert (found.indirect_slots, found.indirect_data) == (
         (20, (224, 208)) if "330" in family else (28, (224,))
-    )
-
-
-def test_an_unknown_model_is_refused_with_the_list():
-    with pytest.raises(ConfigError, match=r"unknown servo model 'ax-12': limbctl supports 2xl430"):
-        family_of("ax-12")
-
-
-def test_a_5_v_servo_on_12_v_is_named():
-    xl330 = family_of("xl330-m288")
-    assert xl330.voltage_problem(ModelNumber.XL330_M288, 50) == ""
-    assert xl330.voltage_problem(ModelNumber.XL330_M288, 120) == (
-        "XL330-M288 measures 12.0 V, outside its 3.5..7.0 V limits: it expects 3.7..6 V "
-        "(5 V recommended); fix the supply before torque goes on"
     )

@@ -21,14 +21,21 @@ def silent(servo_id: int) -> CycleRead:
     return CycleRead({}, (servo_id,), f"servo {servo_id} did not answer the cycle's read")
 
 
-def test_the_first_failed_read_names_the_servo_by_default():
+def unread(servo_id: int) -> CycleRead:
+    """A read while ``servo_id`` is silent and not probed: the other servo answered."""
+    other = 2 if servo_id == 1 else 1
+    return CycleRead({other: HEALTHY}, (), f"servo {servo_id} silent", 0.0, (servo_id,))
+
+
+def saturated(present: int, goal: int = 2048, pwm: int = -885, limit: int = 885) -> ServoReport:
+    return ServoReport(present, goal, True, (), pwm, limit)
+
+
+def test_a_dropout_is_named_after_the_misses_asked_and_reported_with_its_duration():
     monitor = HealthMonitor()
     assert monitor.observe(silent(1), 0.0).notices == (
         "servo 1 stopped answering; holding its last goal",
-    )
-
-
-def test_a_dropout_is_named_after_the_misses_and_reported_with_its_duration():
+    ), "not named at the first failed read by default"
     monitor = HealthMonitor(HealthLimits(named_after_misses=3))
     assert monitor.observe(reads(), 0.0).notices == ()
     assert monitor.observe(silent(2), 0.005).notices == ()
@@ -41,85 +48,38 @@ def test_a_dropout_is_named_after_the_misses_and_reported_with_its_duration():
     assert back.notices == ("servo 2 answered again after 0.300 s silent",)
     assert back.fault is None
     assert [(d.servo_id, d.duration_s) for d in monitor.dropouts] == [(2, pytest.approx(0.3))]
-
-
-def test_misses_below_the_count_are_not_a_dropout():
     monitor = HealthMonitor(HealthLimits(named_after_misses=2))
     for k in range(10):  # every other reply lost: never three in a row
         assert monitor.observe(silent(1) if k % 2 else reads(), k * 0.005).notices == ()
     assert monitor.dropouts == []
+    # cycles that do not ask a silent servo are no misses
+    monitor = HealthMonitor(HealthLimits(named_after_misses=2))
+    assert monitor.observe(silent(2), 0.0).notices == ()
+    for k in range(1, 9):
+        assert monitor.observe(unread(2), 0.005 * k).notices == ()
+    assert monitor.observe(silent(2), 0.05).notices == (
+        "servo 2 stopped answering; holding its last goal",
+    )
+    # a probe that answers ends the dropout with its length; one still going on has its length
+    monitor = HealthMonitor()
+    monitor.observe(silent(2), 1.0)
+    monitor.observe(unread(2), 1.1)
+    back = monitor.observe(reads(), 1.25)
+    assert back.notices == ("servo 2 answered again after 0.250 s silent",)
+    assert monitor.silent() == () and monitor.ongoing(2.0) == []
+    monitor.observe(silent(1), 1.0)
+    (dropout,) = monitor.ongoing(1.3)
+    assert (dropout.servo_id, dropout.duration_s, dropout.ongoing) == (1, pytest.approx(0.3), True)
+    assert dropout.describe() == "servo 1 still silent when the session ended: 0.300 s so far"
 
 
-def test_a_servo_silent_for_lost_after_s_is_lost():
+def test_a_silent_servo_is_probed_once_per_interval_and_lost_only_by_a_failed_probe():
     monitor = HealthMonitor(HealthLimits(lost_after_s=0.1))
     monitor.observe(silent(1), 1.0)
     assert monitor.observe(silent(1), 1.09).fault is None
     fault = monitor.observe(silent(1), 1.1).fault
     assert fault.servo_id == 1 and fault.kind == "lost"
     assert "servo 1 lost: no answer for 0.100 s" in fault.message
-
-
-def test_torque_off_is_a_fault_at_once():
-    fault = HealthMonitor().observe(reads(s2=ServoReport(2048, 2048, False, ())), 0.0).fault
-    assert fault.servo_id == 2 and fault.kind == "torque off"
-    assert "servo 2 reports torque off" in fault.message
-
-
-@pytest.mark.parametrize("torque_on", [True, False])
-def test_an_alarm_is_told_alone_for_the_loop_to_say_the_torque(torque_on):
-    report = ServoReport(2048, 2048, torque_on, ("input voltage",))
-    fault = HealthMonitor().observe(reads(s1=report), 0.0).fault
-    assert fault.kind == "alarm" and fault.bits == ("input voltage",)
-    assert "servo 1: input voltage" in fault.message and "torque" not in fault.message
-    assert "limbctl reboot" in fault.message and "ServoBus" not in fault.message
-
-
-def test_every_servo_in_alarm_is_named():
-    both = reads(
-        s1=ServoReport(2048, 2048, True, ("input voltage",)),
-        s2=ServoReport(2048, 2048, False, ("overheating",)),
-    )
-    fault = HealthMonitor().observe(both, 0.0).fault
-    assert fault.servo_id == 1 and "servo 1: input voltage; servo 2: overheating" in fault.message
-
-
-def test_a_servo_that_does_not_follow_is_a_fault_after_the_grace():
-    limits = HealthLimits(max_tracking_error_deg=15.0, tracking_grace_s=0.25)
-    monitor = HealthMonitor(limits)
-    lagging = ServoReport(2048 + 200, 2048, True, ())  # 17.6 deg behind
-    assert monitor.observe(reads(s1=lagging), 0.0).fault is None
-    assert monitor.observe(reads(), 0.1).fault is None  # caught up: the grace restarts
-    assert monitor.observe(reads(s1=lagging), 0.2).fault is None
-    assert monitor.observe(reads(s1=lagging), 0.4).fault is None
-    fault = monitor.observe(reads(s1=lagging), 0.45).fault
-    assert fault.kind == "not following" and "17.6 deg from its goal" in fault.message
-
-
-def test_a_servo_chasing_a_faster_goal_is_following():
-    monitor = HealthMonitor(HealthLimits(tracking_grace_s=0.25, min_progress_deg=2.0))
-    # 40 deg behind a goal that runs away, but moving toward it at ~100 deg/s
-    for k in range(20):
-        present = 2048 + 23 * k  # 23 ticks = 2.0 deg per 20 ms
-        report = ServoReport(present, present + 455, True, ())
-        assert monitor.observe(reads(s1=report), 0.02 * k).fault is None
-
-
-def test_a_servo_pushed_away_from_its_goal_does_not_follow():
-    monitor = HealthMonitor()
-    faults = [
-        monitor.observe(reads(s1=ServoReport(2048 - 200 - 5 * k, 2048, True, ())), 0.05 * k).fault
-        for k in range(10)
-    ]
-    assert faults[-1] is not None and faults[-1].kind == "not following"
-
-
-def unread(servo_id: int) -> CycleRead:
-    """A read while ``servo_id`` is silent and not probed: the other servo answered."""
-    other = 2 if servo_id == 1 else 1
-    return CycleRead({other: HEALTHY}, (), f"servo {servo_id} silent", 0.0, (servo_id,))
-
-
-def test_a_silent_servo_is_probed_once_per_interval_and_lost_only_by_a_failed_probe():
     monitor = HealthMonitor(HealthLimits(probe_interval_s=0.05, lost_after_s=0.5))
     assert monitor.probes_due(0.0) == ()
     monitor.observe(silent(2), 0.0)  # named at its first failed read
@@ -132,7 +92,6 @@ def test_a_silent_servo_is_probed_once_per_interval_and_lost_only_by_a_failed_pr
         verdict = monitor.observe(silent(2) if probe else unread(2), now)
         if verdict.fault is not None:
             break
-    # one probe per 50 ms, and the loss is declared by the probe at 0.5 s
     # one probe per 50 ms (on 5 ms cycles: 50 or 55 ms apart), and one more when the silence
     # reaches lost_after_s: the loss is declared by that probe failing
     gaps = [b - a for a, b in zip([0.0, *due], due[:-1], strict=False)]
@@ -141,35 +100,44 @@ def test_a_silent_servo_is_probed_once_per_interval_and_lost_only_by_a_failed_pr
     assert verdict.fault.kind == "lost" and now == pytest.approx(0.5)
 
 
-def test_cycles_that_do_not_ask_a_silent_servo_do_not_count_as_misses():
-    monitor = HealthMonitor(HealthLimits(named_after_misses=2))
-    assert monitor.observe(silent(2), 0.0).notices == ()
-    for k in range(1, 9):
-        assert monitor.observe(unread(2), 0.005 * k).notices == ()  # not asked: no miss
-    assert monitor.observe(silent(2), 0.05).notices == (
-        "servo 2 stopped answering; holding its last goal",
-    )
+@pytest.mark.parametrize("torque_on", [True, False])
+def test_an_alarm_is_told_alone_naming_every_servo_in_alarm_and_torque_off_at_once(torque_on):
+    report = ServoReport(2048, 2048, torque_on, ("input voltage",))
+    fault = HealthMonitor().observe(reads(s1=report), 0.0).fault
+    assert fault.kind == "alarm" and fault.bits == ("input voltage",)
+    assert "servo 1: input voltage" in fault.message and "torque" not in fault.message
+    assert "limbctl reboot" in fault.message and "ServoBus" not in fault.message
+    both = reads(s1=report, s2=ServoReport(2048, 2048, False, ("overheating",)))
+    fault = HealthMonitor().observe(both, 0.0).fault
+    assert fault.servo_id == 1 and "servo 1: input voltage; servo 2: overheating" in fault.message
+    fault = HealthMonitor().observe(reads(s2=ServoReport(2048, 2048, False, ())), 0.0).fault
+    assert fault.servo_id == 2 and fault.kind == "torque off"
+    assert "servo 2 reports torque off" in fault.message
 
 
-def test_a_probe_that_answers_ends_the_dropout_with_its_length():
+def test_a_servo_that_does_not_follow_is_a_fault_after_the_grace():
+    limits = HealthLimits(max_tracking_error_deg=15.0, tracking_grace_s=0.25)
+    monitor = HealthMonitor(limits)
+    lagging = ServoReport(2048 + 200, 2048, True, ())  # 17.6 deg behind
+    assert monitor.observe(reads(s1=lagging), 0.0).fault is None
+    assert monitor.observe(reads(), 0.1).fault is None  # caught up: the grace restarts
+    assert monitor.observe(reads(s1=lagging), 0.2).fault is None
+    assert monitor.observe(reads(s1=lagging), 0.4).fault is None
+    fault = monitor.observe(reads(s1=lagging), 0.45).fault
+    assert fault.kind == "not following" and "17.6 deg from its goal" in fault.message
+    # pushed away from its goal: not following
     monitor = HealthMonitor()
-    monitor.observe(silent(2), 1.0)
-    monitor.observe(unread(2), 1.1)
-    back = monitor.observe(reads(), 1.25)
-    assert back.notices == ("servo 2 answered again after 0.250 s silent",)
-    assert monitor.silent() == () and monitor.ongoing(2.0) == []
-
-
-def test_a_dropout_still_going_on_is_reported_with_its_length_so_far():
-    monitor = HealthMonitor()
-    monitor.observe(silent(1), 1.0)
-    (dropout,) = monitor.ongoing(1.3)
-    assert (dropout.servo_id, dropout.duration_s, dropout.ongoing) == (1, pytest.approx(0.3), True)
-    assert dropout.describe() == "servo 1 still silent when the session ended: 0.300 s so far"
-
-
-def saturated(present: int, goal: int = 2048, pwm: int = -885, limit: int = 885) -> ServoReport:
-    return ServoReport(present, goal, True, (), pwm, limit)
+    faults = [
+        monitor.observe(reads(s1=ServoReport(2048 - 200 - 5 * k, 2048, True, ())), 0.05 * k).fault
+        for k in range(10)
+    ]
+    assert faults[-1] is not None and faults[-1].kind == "not following"
+    # 40 deg behind a goal that runs away, but moving toward it at ~100 deg/s: following
+    monitor = HealthMonitor(HealthLimits(tracking_grace_s=0.25, min_progress_deg=2.0))
+    for k in range(20):
+        present = 2048 + 23 * k  # 23 ticks = 2.0 deg per 20 ms
+        report = ServoReport(present, present + 455, True, ())
+        assert monitor.observe(reads(s1=report), 0.02 * k).fault is None
 
 
 def test_a_servo_saturated_off_its_goal_without_closing_in_is_blocked():
@@ -181,19 +149,15 @@ def test_a_servo_saturated_off_its_goal_without_closing_in_is_blocked():
     assert fault.servo_id == 1 and fault.kind == "not following"
     assert "servo 1 does not follow (blocked): 6.2 deg from its goal" in fault.message
     assert "PWM -885 of 885" in fault.message and "blocked or overloaded" in fault.message
-
-
-def test_saturation_is_judged_against_the_servos_own_pwm_limit():
+    # judged against the servo's own PWM Limit: 90 % of a lowered one saturates, 88 % does not
     monitor = HealthMonitor()
-    pushed = saturated(2048 + 80, pwm=450, limit=500)  # 90 % of a lowered PWM Limit
+    pushed = saturated(2048 + 80, pwm=450, limit=500)
     faults = [monitor.observe(reads(s2=pushed), 0.005 * k).fault for k in range(31)]
     assert faults[-1] is not None and faults[-1].servo_id == 2
     monitor = HealthMonitor()
-    faults = [
-        monitor.observe(reads(s2=saturated(2048 + 80, pwm=440, limit=500)), 0.005 * k).fault
-        for k in range(100)
-    ]
-    assert faults == [None] * 100  # 88 %: not saturated
+    pushed = saturated(2048 + 80, pwm=440, limit=500)
+    faults = [monitor.observe(reads(s2=pushed), 0.005 * k).fault for k in range(100)]
+    assert faults == [None] * 100
 
 
 @pytest.mark.parametrize(

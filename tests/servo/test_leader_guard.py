@@ -1,7 +1,5 @@
-"""A felt leader's guard over the real SDK and the simulator's pty: told ``done`` it touches
-nothing; its controller gone it switches the leader's torque off (and nothing else) once the
-port is free, or gives up within its bound; and ``limbctl teleop`` killed with SIGKILL mid-push
-leaves its leader limp within that bound, the follower untouched."""
+"""A felt leader's guard over the real SDK and the simulator's pty, and ``limbctl teleop`` killed
+with SIGKILL mid-push leaving its leader limp within the guard's bound, the follower untouched."""
 
 from __future__ import annotations
 
@@ -49,7 +47,8 @@ def end_pipe(guard: LeaderGuard) -> None:
     os.close(fd)
 
 
-def test_told_done_the_guard_exits_touching_nothing(sim, capfd):
+def test_a_guard_told_done_touches_nothing_its_controller_gone_switches_the_leader_off(sim, capfd):
+    """Told done, nothing; controller gone, only the leader off; the port held, it gives up."""
     with ServoBus(sim.port, RIG_BAUD, (1, 2)) as bus:
         bus.set_torque(True)
         guard = LeaderGuard.start(bus, (2,))
@@ -58,13 +57,7 @@ def test_told_done_the_guard_exits_touching_nothing(sim, capfd):
     assert torque_when_free(sim.port, (1, 2), time.monotonic() + START_S) == {1: True, 2: True}
     assert "leader guard" not in capfd.readouterr().err
     guard.done()  # twice is harmless
-
-
-def test_its_controller_gone_the_guard_switches_only_the_leader_off_once_the_port_is_free(
-    sim, capfd
-):
     with ServoBus(sim.port, RIG_BAUD, (1, 2)) as bus:
-        bus.set_torque(True)
         guard = LeaderGuard.start(bus, (2,))
         end_pipe(guard)  # the controller died, but its port is not yet free
     guard.process.wait(START_S + GIVE_UP_S)
@@ -72,9 +65,6 @@ def test_its_controller_gone_the_guard_switches_only_the_leader_off_once_the_por
     assert torque_when_free(sim.port, (1, 2), time.monotonic() + START_S) == {1: True, 2: False}
     err = capfd.readouterr().err
     assert "leader guard: the controller died; Torque Enable 0 on leader servos 2 " in err, err
-
-
-def test_a_guard_that_cannot_reach_the_port_gives_up_within_its_bound_and_says_so(sim, capfd):
     with ServoBus(sim.port, RIG_BAUD, (1, 2)) as bus:
         bus.set_torque(True)
         guard = LeaderGuard.start(bus, (2,))

@@ -92,7 +92,7 @@ def test_a_bus_set_up_cannot_serve_is_refused_saying_why(tmp_path, servos, messa
     assert not outcome.ok and outcome.message.startswith(message)
 
 
-def test_a_5_v_servo_on_12_v_is_refused_by_setup_and_before_torque(tmp_path):
+def test_a_5_v_servo_on_12_v_and_targets_the_family_cannot_take_are_refused(tmp_path):
     target = JointTarget("pan", 1, "xl330-m288", PROFILE.baud)
     with SimulatedBus(factory=1, model="xl330-m288", link=tmp_path / "tty") as sim:
         sim.set_voltage(1, 12.0)
@@ -107,9 +107,6 @@ def test_a_5_v_servo_on_12_v_is_refused_by_setup_and_before_torque(tmp_path):
             with pytest.raises(ConfigError, match=r"^servo 1: XL330-M288 measures 12.0 V"):
                 configure_servos(bus, {1: (0, 4095)})
             assert bus.read(Register.TORQUE_ENABLE, 1, check_alert=False) == 0
-
-
-def test_targets_the_family_cannot_take_are_refused():
     with pytest.raises(ConfigError, match="XL330-M288 servos do not run at 4500000 baud"):
         check_target(JointTarget("pan", 1, "xl330-m288", 4_500_000))
     with pytest.raises(ConfigError, match="servo IDs are 0..252, got 300 for tilt"):
@@ -142,14 +139,16 @@ def motors_setup(profile, sim, *options):
 
 
 @pytest.mark.parametrize("rig", sorted(RIG_IDS))
-def test_yes_on_a_one_servo_bench_sets_up_pan_only_and_says_so(tmp_path, capsys, rig):
+def test_a_one_servo_bench_sets_up_pan_only_with_yes_and_asked_again_skip_is_said(
+    tmp_path, capsys, monkeypatch, rig
+):
     ids = RIG_IDS[rig]
+    others = [joint for joint in ids if joint != "pan"]
     profile = rig_profile(tmp_path, rig)
     with SimulatedBus(factory=1, link=tmp_path / "tty") as sim:
         status = motors_setup(profile, sim, "--yes")
         answers_as = answering_id(sim)
     lines = capsys.readouterr().err.splitlines()
-    others = [joint for joint in ids if joint != "pan"]
     assert answers_as == ids["pan"], "the pan servo was renumbered as another joint's"
     for joint in others:
         assert (
@@ -160,17 +159,8 @@ def test_yes_on_a_one_servo_bench_sets_up_pan_only_and_says_so(tmp_path, capsys,
         ) in lines
     assert lines[-1] == f"set up: pan; failed: {', '.join(others)}"
     assert status == 1
-
-
-@pytest.mark.parametrize("rig", sorted(RIG_IDS))
-def test_enter_with_the_pan_servo_still_connected_asks_again_and_skip_is_said(
-    tmp_path, capsys, monkeypatch, rig
-):
-    ids = RIG_IDS[rig]
-    others = [joint for joint in ids if joint != "pan"]
-    # Enter for pan; then for each other joint: Enter (pan's servo still alone), then skip
+    # asked: Enter for pan; then for each other joint: Enter (pan's servo still alone), then skip
     monkeypatch.setattr("sys.stdin", io.StringIO("\n" + "\nskip\n" * len(others)))
-    profile = rig_profile(tmp_path, rig)
     with SimulatedBus(factory=1, link=tmp_path / "tty") as sim:
         status = motors_setup(profile, sim)
         answers_as = answering_id(sim)
@@ -186,7 +176,7 @@ def test_enter_with_the_pan_servo_still_connected_asks_again_and_skip_is_said(
     assert status == 1
 
 
-def test_renumber_makes_another_joints_servo_this_one_on_purpose(tmp_path, capsys):
+def test_renumber_makes_another_joints_servo_this_one_on_purpose_named_by_joint(tmp_path, capsys):
     profile = rig_profile(tmp_path, "sim")
     with SimulatedBus(factory=1, link=tmp_path / "tty") as sim:
         assert motors_setup(profile, sim, "--yes", "--joint", "pan") == 0
@@ -202,9 +192,6 @@ def test_renumber_makes_another_joints_servo_this_one_on_purpose(tmp_path, capsy
         "is set up as it; wrote ID 7 -> 9)"
     ) in lines
     assert lines[-1] == "set up: tilt; failed: none"
-
-
-def test_renumber_names_the_one_joint_it_is_for(tmp_path, capsys):
     profile = rig_profile(tmp_path, "sim")
     status = main(["motors", "setup", "--rig", str(profile), "--port", "/dev/null", "--renumber"])
     assert status == 2
@@ -217,8 +204,7 @@ def test_renumber_names_the_one_joint_it_is_for(tmp_path, capsys):
 
 @pytest.mark.parametrize("rig", ["sim", "sim3"])
 def test_at_the_factory_id_and_baud_only_a_factory_fresh_servo_is_nobodys(tmp_path, capsys, rig):
-    """Pan is ID 1 and the profile's baud the factory's 57600: a servo set up as pan in an
-    earlier run answers exactly as a new one does but for its Return Delay Time (0, not 250)."""
+    """At pan's ID 1 and 57600 baud only the Return Delay Time (0, not 250) tells pan apart."""
     eeprom, link = tmp_path / "eeprom", tmp_path / "tty"
     setup = ["motors", "setup", "--rig", rig, "--baud", "57600", "--yes", "--joint"]
     with SimulatedBus(factory=2, connect=(1,), eeprom_dir=eeprom, link=link) as sim:

@@ -1,6 +1,5 @@
 """One controller per port: a second ServoBus on a held port is refused at once naming the holder;
-the first runs on undisturbed; the lock dies with its holder.
-"""
+the first runs on undisturbed; the lock dies with its holder."""
 
 from __future__ import annotations
 
@@ -30,7 +29,7 @@ def open_bus(port: str) -> ServoBus:
     return ServoBus(port, 4_000_000, (1, 2), latency_timer_ms=2.0)
 
 
-def test_second_bus_in_the_same_process_is_refused_and_the_first_goes_on(sim):
+def test_a_second_bus_in_this_or_another_process_is_refused_naming_the_holder(sim):
     with open_bus(sim.port) as first:
         before = first.read_positions()
         start = time.monotonic()
@@ -47,9 +46,6 @@ def test_second_bus_in_the_same_process_is_refused_and_the_first_goes_on(sim):
     # closed: the lock went with it
     with open_bus(sim.port) as again:
         assert again.read_positions().keys() == {1, 2}
-
-
-def test_a_controller_in_another_process_is_named_with_pid_and_command(sim):
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
     holder = subprocess.Popen(
         [sys.executable, "-c", HOLDER_SCRIPT, sim.port],
@@ -75,7 +71,7 @@ def test_a_controller_in_another_process_is_named_with_pid_and_command(sim):
         assert bus.read_positions().keys() == {1, 2}
 
 
-def test_holders_without_a_lock_are_found_by_their_open_file(sim):
+def test_holders_without_a_lock_are_found_by_their_open_file_and_none_for_no_port(sim, tmp_path):
     plain = PortHandler(sim.port)  # the SDK alone opens without locking
     assert plain.openPort()
     try:
@@ -84,7 +80,4 @@ def test_holders_without_a_lock_are_found_by_their_open_file(sim):
         assert os.getpid() in pids
     finally:
         plain.closePort()
-
-
-def test_no_holders_for_a_missing_port(tmp_path):
     assert port_holders(tmp_path / "ttyNONE") == []

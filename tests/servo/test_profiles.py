@@ -16,8 +16,9 @@ def trained(profile=PROFILE, **changes):
     return {"rig": profile.name, "calibration": profile.calibration.to_dict(), **changes}
 
 
-def test_a_profile_built_in_code_meets_the_end_stop_check(tmp_path):
-    # limbctl calibrate builds the profile in code; its limits must not pass unchecked
+def test_a_profile_meets_the_end_stop_and_baud_checks_and_models_of_another_rig_are_refused(
+    tmp_path,
+):
     beyond = replace(PROFILE.with_joints(tilt=replace(PROFILE.tilt, max_deg=80.0)), source=None)
     with pytest.raises(ConfigError, match=r"^<profile>: tilt.max_deg 80 is not 1 deg inside"):
         check_profile(beyond)
@@ -25,26 +26,26 @@ def test_a_profile_built_in_code_meets_the_end_stop_check(tmp_path):
         save_rig_profile(beyond, tmp_path / "rig.yaml")
     assert not (tmp_path / "rig.yaml").exists()
     assert check_profile(PROFILE) is PROFILE
-
-
-def test_another_rig_is_refused():
+    for model in ("xl430-w250", "xl330-m288"):
+        fast = replace(PROFILE, baud=4_500_000, model=model, source=None)
+        with pytest.raises(ConfigError) as err:
+            check_profile(fast)
+        assert str(err.value) == (
+            "<profile>: baud 4500000 is one the servos know, but the serial driver "
+            "(dynamixel-sdk) cannot open it; choose one of 9600, 57600, 115200, 1000000, "
+            "2000000, 3000000, 4000000"
+        )
     with pytest.raises(ConfigError, match="model.npz was trained for rig 'bench-2', not 'sim'"):
         check_trained_for(trained(rig="bench-2"), PROFILE, "model.npz")
     with pytest.raises(ConfigError) as err:
         check_trained_for(trained(rig="b" * 100_000), PROFILE, "model.npz")
     assert len(str(err.value)) < 200
-
-
-def test_a_zero_tick_off_by_200_is_refused_naming_it():
     shifted = PROFILE.with_joints(pan=replace(PROFILE.pan, zero_tick=PROFILE.pan.zero_tick + 200))
     with pytest.raises(ConfigError) as err:
         check_trained_for(trained(), shifted, "model.npz")
     message = str(err.value)
     assert "model.npz was trained under another calibration" in message
     assert "(trained vs now: pan.zero_tick 2185 vs 2385)" in message
-
-
-def test_every_calibration_field_is_compared():
     check_trained_for(trained(), PROFILE, "model.npz")  # the same rig and calibration pass
     changes = {
         "direction": dict(direction=1),
@@ -58,17 +59,11 @@ def test_every_calibration_field_is_compared():
     # the servo id and the end stops are not part of what a model depends on
     moved = PROFILE.with_joints(tilt=replace(PROFILE.tilt, id=7, stop_max_deg=80.0))
     check_trained_for(trained(), moved, "model.npz")
-
-
-def test_no_recorded_calibration_is_refused_with_what_to_do():
     with pytest.raises(ConfigError) as err:
         check_trained_for({"rig": "sim"}, PROFILE, "old.npz")
     message = str(err.value)
     assert message.startswith("old.npz does not record the calibration it was trained under")
     assert "`limbctl record`, then `limbctl train`" in message
-
-
-def test_a_malformed_recorded_calibration_is_refused():
     bad = trained()
     bad["calibration"]["pan"]["zero_tick"] = "2185"
     with pytest.raises(ConfigError, match=r"model.npz: calibration.pan.zero_tick must be an"):
@@ -86,15 +81,3 @@ def test_a_rig_servo_of_another_model_is_refused_when_a_leader_shares_the_bus(tm
             check_models(bus, (1,), "xl430-w250")  # the leader (3) is another model: fine
             with pytest.raises(ConfigError, match=r"^servo 2 is XM430-W350 \(1020\) but the rig"):
                 check_models(bus, (1, 2), "xl430-w250")
-
-
-def test_a_baud_the_serial_driver_cannot_open_is_refused():
-    for model in ("xl430-w250", "xl330-m288"):
-        fast = replace(PROFILE, baud=4_500_000, model=model, source=None)
-        with pytest.raises(ConfigError) as err:
-            check_profile(fast)
-        assert str(err.value) == (
-            "<profile>: baud 4500000 is one the servos know, but the serial driver "
-            "(dynamixel-sdk) cannot open it; choose one of 9600, 57600, 115200, 1000000, "
-            "2000000, 3000000, 4000000"
-        )

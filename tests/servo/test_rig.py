@@ -1,6 +1,4 @@
-"""The rig of either chain: conversion and hard limits per joint, and poses through the real SDK
-on the simulator.
-"""
+"""The rig of either chain: conversion, hard limits, and poses through the SDK on the simulator."""
 
 from __future__ import annotations
 
@@ -32,15 +30,12 @@ def rig(request):
     return Rig(PROFILES[request.param])
 
 
-def test_the_chain_is_the_profiles_joints_in_order():
+def test_the_chain_is_the_profiles_joints_in_order_and_a_rig_converts_clamps_and_limits(rig):
     two, three = Rig(PROFILES["sim"]), Rig(PROFILES["sim3"])
     assert (two.names, three.names) == (("pan", "tilt"), ("pan", "tilt", "roll"))
     assert (len(two), len(three)) == (2, 3)
     assert three.joints == (PROFILES["sim3"].pan, PROFILES["sim3"].tilt, PROFILES["sim3"].roll)
     assert (two.ids, three.ids) == ((1, 2), (1, 2, 3))
-
-
-def test_conversion_follows_the_profile(rig):
     joints = rig.joints
     assert rig.angles_to_ticks(*[0.0] * len(rig)) == tuple(j.zero_tick for j in joints)
     # ticks = zero_tick + direction * angle * 4096 / (2 pi)
@@ -50,9 +45,6 @@ def test_conversion_follows_the_profile(rig):
     assert rig.ticks_to_angles(*(j.zero_tick + 1024 for j in joints)) == pytest.approx(
         tuple(j.direction * math.pi / 2 for j in joints)
     )
-
-
-def test_clamp(rig):
     inside = (0.1, -0.2, 0.3)[: len(rig)]
     assert rig.clamp(*inside) == (inside, False)
     angles, clamped = rig.clamp(*[4.0 if i % 2 == 0 else -4.0 for i in range(len(rig))])
@@ -64,6 +56,18 @@ def test_clamp(rig):
                 rig.clamp(*(bad if k == i else 0.0 for k in range(len(rig))))
     with pytest.raises(SafetyError, match=f"takes {len(rig)} angles"):
         rig.goal_for(*[0.0] * (5 - len(rig)))
+    zeros = [j.zero_tick for j in rig.joints]
+    for i, (name, joint) in enumerate(zip(rig.names, rig.joints, strict=True)):
+        lo, hi = joint_tick_limits(joint)
+        for bad in (hi + 1, lo - 1, lo + 0.5):
+            ticks = [*zeros[:i], bad, *zeros[i + 1 :]]
+            with pytest.raises(SafetyError, match=rf"{name} goal tick .* outside the hard limits"):
+                rig.write_goal_ticks(*ticks)
+    with pytest.raises(SafetyError, match=f"takes {len(rig)} goal ticks"):
+        rig.write_goal_ticks(*zeros[:-1])
+    with pytest.raises(RuntimeError, match="no bus"):
+        rig.read_pose()
+    assert rig.tick_limits() == {j.id: joint_tick_limits(j) for j in rig.joints}
 
 
 @pytest.mark.parametrize("name", RIGS)
@@ -90,29 +94,10 @@ def test_goal_ticks_are_inside_the_hard_limits_and_held_as_written(name, pose):
     assert np.all(np.abs(np.subtract(held, goal.angles)) <= rounding + 1e-12)
 
 
-def test_write_goal_ticks_refuses_ticks_beyond_limits(rig):
-    zeros = [j.zero_tick for j in rig.joints]
-    for i, (name, joint) in enumerate(zip(rig.names, rig.joints, strict=True)):
-        lo, hi = joint_tick_limits(joint)
-        for bad in (hi + 1, lo - 1, lo + 0.5):
-            ticks = [*zeros[:i], bad, *zeros[i + 1 :]]
-            with pytest.raises(SafetyError, match=rf"{name} goal tick .* outside the hard limits"):
-                rig.write_goal_ticks(*ticks)
-    with pytest.raises(SafetyError, match=f"takes {len(rig)} goal ticks"):
-        rig.write_goal_ticks(*zeros[:-1])
-
-
-def test_a_rig_without_bus_only_converts(rig):
-    with pytest.raises(RuntimeError, match="no bus"):
-        rig.read_pose()
-
-
-def test_tick_limits_per_servo(rig):
-    assert rig.tick_limits() == {j.id: joint_tick_limits(j) for j in rig.joints}
-
-
 @pytest.mark.parametrize("name", RIGS)
-def test_present_pose_matches_the_simulated_world(name):
+def test_present_pose_matches_the_world_and_write_pose_reaches_it_clamped_and_logged(
+    name, tmp_path
+):
     with open_rig(rig_path=name) as session:
         rig = session.rig
         pose = rig.read_pose()
@@ -123,10 +108,6 @@ def test_present_pose_matches_the_simulated_world(name):
             assert math.degrees(angle) == pytest.approx(
                 truth[joint_name], abs=math.degrees(TICK_RAD)
             )
-
-
-@pytest.mark.parametrize("name", RIGS)
-def test_write_pose_reaches_the_pose_clamped_and_the_simulator_logs_it(name, tmp_path):
     log = tmp_path / "goals.jsonl"
     with open_rig(rig_path=name, goal_log=log) as session:
         rig, sim = session.rig, session.simulator

@@ -14,7 +14,7 @@ def test_a_servo_is_found_at_each_baud(tmp_path, baud):
     assert result.collisions == [] and not result.empty
 
 
-def test_factory_fresh_servos_are_named_as_a_collision(tmp_path):
+def test_factory_servos_collide_two_bauds_are_both_found_and_nothing_is_said_so(tmp_path):
     with SimulatedBus(factory=2, link=tmp_path / "tty") as sim:
         result = scan(sim.port, [57_600, 4_500_000], latency_timer_ms=2.0)
     assert result.found == []
@@ -24,15 +24,9 @@ def test_factory_fresh_servos_are_named_as_a_collision(tmp_path):
         "one at a time and give each its own ID (`limbctl motors setup`)",
         "4500000 baud not tried: the serial driver (dynamixel-sdk) cannot open it",
     ]
-
-
-def test_servos_at_two_bauds_are_both_found(tmp_path):
     with SimulatedBus(factory=2, connect=(2,), link=tmp_path / "tty") as sim:
         result = scan(sim.port, [4_000_000, 57_600], latency_timer_ms=2.0)
     assert [(f.servo_id, f.baud) for f in result.found] == [(1, 57_600)]
-
-
-def test_nothing_answering_says_what_to_check(tmp_path):
     with SimulatedBus(ids=(1,), baud=4_000_000, link=tmp_path / "tty") as sim:
         result = scan(sim.port, [57_600], latency_timer_ms=2.0)
     assert result.empty and result.report() == NOTHING_ANSWERS

@@ -8,19 +8,18 @@ from hypothesis import strategies as st
 from limbctl.servo.ticks import TICKS_PER_RAD, angle_to_ticks, tick_limits, ticks_to_angle
 
 
-def test_hand_cases():
+def test_hand_cases_shapes_and_integral_limits():
     assert TICKS_PER_RAD == pytest.approx(4096 / (2 * math.pi))
     assert int(angle_to_ticks(math.pi / 2, 2048, 1)) == 3072
     assert int(angle_to_ticks(math.pi / 2, 2048, -1)) == 1024
     assert float(ticks_to_angle(1024, 2048, -1)) == pytest.approx(math.pi / 2)
     assert float(ticks_to_angle(2048, 2048, 1)) == 0.0
-
-
-def test_vectorised_shapes():
     angles = np.linspace(-1.0, 1.0, 12).reshape(3, 4)
     ticks = angle_to_ticks(angles, 2000, -1)
     assert ticks.shape == (3, 4) and ticks.dtype == np.int64
     np.testing.assert_allclose(ticks_to_angle(ticks, 2000, -1), angles, atol=0.5 / TICKS_PER_RAD)
+    assert tick_limits(-90.0, 90.0, 2048, 1) == (1024, 3072)
+    assert tick_limits(-90.0, 90.0, 2048, -1) == (1024, 3072)
 
 
 @given(
@@ -57,9 +56,3 @@ def test_tick_limits_round_inward(low, span, zero, direction):
     assert (angles.min() >= low - 1e-9) and (angles.max() <= high + 1e-9)
     beyond = np.degrees(ticks_to_angle(np.array([lo - 1, hi + 1]), zero, direction))
     assert not (low <= beyond[0] <= high) and not (low <= beyond[1] <= high)
-
-
-def test_integral_limits_are_kept():
-    # 90 deg is exactly 1024 ticks: the limit tick itself belongs to the range
-    assert tick_limits(-90.0, 90.0, 2048, 1) == (1024, 3072)
-    assert tick_limits(-90.0, 90.0, 2048, -1) == (1024, 3072)

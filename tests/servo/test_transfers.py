@@ -15,29 +15,23 @@ from limbctl.servo import transfers
 from limbctl.servo.control_table import ModelNumber, Register
 
 
-def test_ping_read_write(sdk):
+@pytest.mark.parametrize("read", [transfers.sync_read, transfers.fast_sync_read])
+def test_transfers_ping_read_write_keep_error_numbers_and_sync_reads_name_the_absent(sdk, read):
     outcome = transfers.ping(sdk.packet, sdk.port, 1)
     assert outcome.result == COMM_SUCCESS and outcome.value == ModelNumber.XL430_W250
     outcome = transfers.write(sdk.packet, sdk.port, Register.LED, 2, Register.LED.encode(1))
     assert outcome.result == COMM_SUCCESS and outcome.errors == {2: 0}
     outcome = transfers.read(sdk.packet, sdk.port, Register.LED, 2)
     assert (outcome.result, outcome.value) == (COMM_SUCCESS, 1)
-
-
-@pytest.mark.parametrize("read", [transfers.sync_read, transfers.fast_sync_read])
-def test_sync_reads_agree_with_single_reads_and_name_an_absent_servo(sdk, read):
+    transfers.write(sdk.packet, sdk.port, Register.TORQUE_ENABLE, 1, [1])
+    outcome = transfers.write(sdk.packet, sdk.port, Register.OPERATING_MODE, 1, [3])
+    assert outcome.result == COMM_SUCCESS and outcome.errors[1] & 0x7F == 7  # access error
     outcome = read(sdk.packet, sdk.port, Register.MODEL_NUMBER, (1, 2))
     assert outcome.result == COMM_SUCCESS
     assert outcome.value == {1: 1060, 2: 1060}
     assert outcome.errors == {1: 0, 2: 0}
     absent = read(sdk.packet, sdk.port, Register.PRESENT_POSITION, (5, 1))
     assert absent.result != COMM_SUCCESS and absent.culprit == 5
-
-
-def test_refused_write_keeps_the_error_number(sdk):
-    transfers.write(sdk.packet, sdk.port, Register.TORQUE_ENABLE, 1, [1])
-    outcome = transfers.write(sdk.packet, sdk.port, Register.OPERATING_MODE, 1, [3])
-    assert outcome.result == COMM_SUCCESS and outcome.errors[1] & 0x7F == 7  # access error
 
 
 @pytest.mark.parametrize(
@@ -59,10 +53,7 @@ def test_failure_maps_results_to_typed_errors(result, error_type, fragment):
 
 
 def test_a_late_reply_is_never_read_as_the_next_registers_value():
-    """Replies delayed past the host's timeout (the simulator's latency fault, 6 ms against a
-    ~4 ms timeout) arrive while the host waits for its next instruction's reply. The SDK takes
-    any packet from the servo's id; read() and write() refuse one of the wrong size instead, so
-    every value read is the register's own or the read failed."""
+    """A reply delayed past the timeout is refused by its size, never taken for the next one's."""
     from dynamixel_sdk import PacketHandler
 
     from firmware_sim.bus import SimulatedBus

@@ -1,10 +1,6 @@
 """The guide withholds READY TO TRAIN while the learned edge would bridge what the samples
-surround (issue 35, finding 1: "the guide names the place and does not say READY until it is
-taught"), checking in a worker process of its own.
-
-The teaching is the simulator's hand over a notched ellipse for 60 s: by coverage alone the guide
-calls it ready. A region fitted with a coarse alpha shape and no carving bridges the notch, and
-the check names it; the default fit does not, and READY stands.
+surround (issue 35, finding 1), checking in a worker process: the simulator's hand over a notched
+ellipse, ready by coverage alone; a coarse, uncarved fit bridges the notch, the default does not.
 """
 
 import os
@@ -56,12 +52,17 @@ def cached(monkeypatch):
     monkeypatch.setattr(EdgeSupport, "possible", property(lambda self: True))
 
 
-def test_by_coverage_alone_the_teaching_is_ready(taught):
-    assert guide_of(taught, None).assess().ready
-
-
-def test_a_bridged_notch_withholds_ready_and_is_named(taught, cached):
+def test_a_bridged_notch_withholds_ready_named_and_while_recording_until_the_first_answer(
+    taught, cached
+):
     with EdgeSupport(bridging_stretches) as support:
+        guide = guide_of(taught, support)
+        first = guide.assess()  # the check has only been started
+        assert not first.ready and first.checking, "ready before the check answered"
+        assert "checking that the samples support the edge" in first.line()
+        support._pending.result(timeout=120)  # the worker's answer
+        later = guide.assess()
+        assert not later.ready and later.unsupported and not later.checking
         guidance = guide_of(taught, support).assess(final=True)
     assert not guidance.ready and guidance.unsupported
     first = guidance.unsupported[0]
@@ -74,21 +75,13 @@ def test_a_bridged_notch_withholds_ready_and_is_named(taught, cached):
 
 
 def test_the_default_fit_supports_its_edge_and_ready_stands(taught, cached):
+    assert guide_of(taught, None).assess().ready, "not ready by coverage alone"
+    d = np.array([[1.0, 0.0, 0.0]] * (edge_support.MIN_SAMPLES - 1))
+    assert unsupported_stretches(d) == (), "too few samples were judged"
     assert unsupported_stretches(taught) == ()
     with EdgeSupport() as support:
         guidance = guide_of(taught, support).assess(final=True)
     assert guidance.ready and guidance.unsupported == () and support.stretches == ()
-
-
-def test_while_recording_ready_waits_for_the_first_answer(taught, cached):
-    with EdgeSupport(bridging_stretches) as support:
-        guide = guide_of(taught, support)
-        first = guide.assess()  # the check has only been started
-        assert not first.ready and first.checking
-        assert "checking that the samples support the edge" in first.line()
-        support._pending.result(timeout=120)  # the worker's answer
-        later = guide.assess()
-    assert not later.ready and later.unsupported and not later.checking
 
 
 def test_without_cached_kernels_nothing_is_checked_and_the_summary_says_so(taught, monkeypatch):
@@ -99,11 +92,6 @@ def test_without_cached_kernels_nothing_is_checked_and_the_summary_says_so(taugh
     assert guidance.ready and support.stretches is None
     summary = RecordSummary(guidance=guidance, edge_checked=False)
     assert any("not checked" in line for line in summary.lines())
-
-
-def test_too_few_samples_are_not_judged():
-    d = np.array([[1.0, 0.0, 0.0]] * (edge_support.MIN_SAMPLES - 1))
-    assert unsupported_stretches(d) == ()
 
 
 def dies(d: np.ndarray) -> tuple[EdgeStretch, ...]:

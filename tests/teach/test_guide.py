@@ -61,16 +61,14 @@ def times(n: int, start_s: float = 0.0) -> np.ndarray:
     return start_s + np.arange(n) / RATE_HZ
 
 
-def test_a_full_trace_closes_the_edge_and_finds_the_centre():
+def test_a_full_trace_closes_the_edge_and_one_with_a_90_degree_gap_locates_the_gap():
     d = trace(0.0, 360.0)
     g = assess_directions(times(len(d)), d)
     assert g.edge_closed == 1.0 and g.edge_gaps == ()
     assert g.centre_deg == pytest.approx(CENTRE_DEG, abs=0.1)
     assert g.phase == "middle" and not g.ready  # the middle is still to be wandered
     assert g.spread_deg == pytest.approx(RADIUS_DEG, abs=0.5)
-
-
-def test_a_trace_with_a_90_degree_gap_is_three_quarters_closed_and_the_gap_is_located():
+    # a trace with a 90 degree gap is three quarters closed, and the gap is located
     d = trace(45.0, 315.0)  # the stretch from -45 to +45 deg azimuth is never traced
     g = assess_directions(times(len(d)), d)
     # 270 of 360 deg; the two bins the gap's ends fall in hold samples
@@ -104,21 +102,24 @@ def test_inside_coverage_of_a_half_filled_disc_is_a_half_and_the_empty_half_is_t
     assert READY_INSIDE_COVERED < 0.5
 
 
-def test_a_traced_edge_and_a_filled_middle_are_ready_to_train():
+def test_a_traced_edge_and_a_filled_middle_are_ready_and_a_few_samples_say_nothing_yet():
     d = np.vstack([trace(0.0, 360.0), fill(-180.0, 180.0, 20000)])
     g = assess_directions(times(len(d)), d)
     assert g.edge_closed == 1.0 and g.inside_covered == 1.0 and g.inside_gaps == ()
     assert g.ready and g.phase == "ready" and "READY TO TRAIN" in g.line()
+    # a few samples say nothing yet, and bad input is refused
+    few = assess_directions(times(5), trace(0.0, 10.0)[:5])
+    assert few.phase == "start" and few.samples == 5 and not few.ready
+    assert assess_directions(np.empty(0), np.empty((0, 3))).phase == "start"
+    with pytest.raises(ValueError, match="one time each"):
+        assess_directions(times(3), trace(0.0, 90.0))
 
 
-def test_only_a_slow_trace_counts_as_the_edge():
+def test_only_a_slow_trace_counts_as_the_edge_and_strokes_out_to_it_do_not_close_it():
     fast = trace(0.0, 360.0, speed_deg_s=60.0)  # a sweep, not a trace
     assert assess_directions(times(len(fast)), fast).edge_closed == 0.0
     slow = trace(0.0, 360.0, speed_deg_s=20.0)
     assert assess_directions(times(len(slow)), slow).edge_closed == 1.0
-
-
-def test_strokes_that_poke_out_to_the_edge_do_not_close_it():
     # eight slow strokes from the centre to the edge and back: a star, not a traced edge
     strokes = []
     for azimuth in np.arange(0.0, 360.0, 45.0):
@@ -128,15 +129,6 @@ def test_strokes_that_poke_out_to_the_edge_do_not_close_it():
     g = assess_directions(times(len(d)), d)
     assert g.edge_closed < 0.1
     assert g.phase == "edge" and len(g.edge_gaps) > 1
-
-
-def test_a_few_samples_say_nothing_yet_and_bad_input_is_refused():
-    d = trace(0.0, 10.0)[:5]
-    g = assess_directions(times(len(d)), d)
-    assert g.phase == "start" and g.samples == 5 and not g.ready
-    assert assess_directions(np.empty(0), np.empty((0, 3))).phase == "start"
-    with pytest.raises(ValueError, match="one time each"):
-        assess_directions(times(3), trace(0.0, 90.0))
 
 
 def test_the_guide_collects_samples_as_the_recorder_reads_them():

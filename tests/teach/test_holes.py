@@ -77,19 +77,23 @@ def test_a_hole_over_the_edge_trace_is_flagged_and_the_guide_asks_to_retrace_the
     assert any(gap.middle_deg == pytest.approx(hole.edge_deg, abs=2.5) for gap in g.edge_gaps)
 
 
-def test_a_later_trace_over_the_stretch_closes_the_hole(tmp_path):
-    g = written_and_loaded(tmp_path, *teaching(hole=True, retrace=True))
+@pytest.mark.parametrize(
+    ("teaching_of", "at_edge", "ending"),
+    [
+        ({"hole": True, "retrace": True}, True, "re-traced since"),
+        ({"hole": False, "inside_hole": True}, False, "; inside"),
+    ],
+    ids=["re-traced", "inside"],
+)
+def test_a_re_traced_hole_or_one_in_the_middle_is_listed_and_ready_stands(
+    tmp_path, teaching_of, at_edge, ending
+):
+    g = written_and_loaded(tmp_path, *teaching(**teaching_of))
     (hole,) = g.holes
-    assert hole.at_edge and not hole.open and hole.fraction > 0.0
+    assert hole.at_edge == at_edge and not hole.open
+    assert hole.fraction > 0.0 if at_edge else hole.edge_deg is None
     assert g.ready and "READY TO TRAIN" in g.line()
-    assert hole.line().endswith("re-traced since")
-
-
-def test_a_hole_in_the_middle_is_listed_but_asks_for_nothing(tmp_path):
-    g = written_and_loaded(tmp_path, *teaching(hole=False, inside_hole=True))
-    (hole,) = g.holes
-    assert not hole.at_edge and hole.edge_deg is None and not hole.open
-    assert g.ready and hole.line().endswith("; inside")
+    assert hole.line().endswith(ending)
 
 
 def test_gaps_and_stretches_are_counted_as_documented():

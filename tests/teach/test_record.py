@@ -42,18 +42,6 @@ def test_record_job_writes_every_sample_inside_the_taught_region(tmp_path):
     assert np.ptp(data.pan_deg) > 5.0  # the limb was moving
 
 
-def test_record_stops_on_the_event_and_keeps_what_it_wrote(tmp_path):
-    stop = threading.Event()
-    out = tmp_path / "teach.limb"
-    with open_rig(hand=demo_region_path()) as session, DatasetWriter(out, rig="sim") as writer:
-        timer = threading.Timer(1.0, stop.set)
-        timer.start()
-        summary = record(session.rig, writer, rate_hz=100.0, stop=stop)
-        timer.join()
-    assert summary.ended_by == "stopped"
-    assert len(load_dataset(out)) == summary.samples > 50
-
-
 class Terminal(io.StringIO):
     """A text stream that says it is a terminal, so the recorder updates its line in place."""
 
@@ -125,13 +113,10 @@ def test_without_a_terminal_the_progress_is_logged_every_few_seconds(tmp_path):
     assert all("edge closed" in line for line in lines[1:])
 
 
-def test_slow_rates_are_refused(tmp_path):
+def test_a_slow_rate_is_refused_before_a_file_or_a_port_is_opened(tmp_path, sim):
     with DatasetWriter(tmp_path / "x.limb", rig="sim") as writer:
         with pytest.raises(ConfigError, match="100 Hz"):
             record(None, writer, rate_hz=50.0)
-
-
-def test_a_slow_rate_is_refused_before_a_file_or_a_port_is_opened(tmp_path, sim):
     out = tmp_path / "slow.limb"
     with ServoBus(sim.port, 4_000_000, (1, 2)) as bus:
         bus.set_torque(True)  # as a finished teleop leaves it
@@ -148,21 +133,6 @@ def test_a_record_refused_at_the_port_leaves_no_empty_dataset(tmp_path, sim, cap
     assert not out.exists()  # so the same --out works once the port is free
     status = main(["record", "--port", sim.port, "--out", str(out), "--duration", "0.5"])
     assert status == 0 and len(load_dataset(out)) > 20
-
-
-def test_a_bus_failure_ends_the_recording_as_a_fault_and_keeps_the_samples(tmp_path):
-    out = tmp_path / "teach.limb"
-    with open_rig(hand=demo_region_path()) as session, DatasetWriter(out, rig="sim") as writer:
-        # the tilt servo drops off the bus for good half a second in
-        timer = threading.Timer(0.5, session.simulator.vanish, args=(2, 600.0))
-        timer.start()
-        summary = record(session.rig, writer, rate_hz=100.0, duration_s=20.0)
-        timer.join()
-    assert summary.ended_by == "bus failure" and summary.exit_code == 3
-    assert "servo 2" in summary.fault and "50 reads in a row failed" in summary.fault
-    assert summary.lines()[0].startswith("ended by           bus failure: ")
-    assert summary.elapsed_s < 20.0
-    assert len(load_dataset(out)) == summary.samples > 20
 
 
 def test_a_dropout_is_reported_with_the_servo_and_its_length_and_the_recording_goes_on(tmp_path):
@@ -231,9 +201,7 @@ def test_thirty_seconds_of_the_simulators_hand_teach_a_model_that_holds_the_regi
 def test_a_hole_in_the_recording_over_the_edge_trace_is_listed_and_asks_for_a_retrace(
     tmp_path, rig
 ):
-    """The pan servo drops off the bus for half a second while the hand traces the edge (as a
-    busy machine stalls the simulator, docs/decisions/twist.md): the summary lists the hole with
-    where the limb was, and the guide asks to re-trace the edge there instead of saying ready."""
+    """A servo lost while the edge is traced: the hole listed, a re-trace asked, not ready."""
     hand = demo_region_path()
     if rig == "sim3":
         hand = hand.with_name("demo_region3.yaml")

@@ -33,7 +33,7 @@ def write_cone_dataset(path, n=400, half_angle_deg=30.0, seed=0, calibration=Non
     return path
 
 
-def test_train_cone_from_a_dataset_and_read_it_back(tmp_path):
+def test_train_a_cone_read_it_back_with_the_recordings_calibration(tmp_path):
     data = write_cone_dataset(tmp_path / "teach.limb")
     summary = train(data, tmp_path / "cone.npz", kind="cone")
     assert summary.samples == 400
@@ -44,13 +44,11 @@ def test_train_cone_from_a_dataset_and_read_it_back(tmp_path):
     assert 28.0 <= model.half_angle_deg <= 30.0
     assert load_header(tmp_path / "cone.npz")["metadata"]["rig"] == "sim"
     assert any("samples inside" in line for line in summary.lines())
-
-
-def test_the_model_carries_the_recordings_calibration(tmp_path):
+    # the model carries the recording's calibration, and says when there was none
     calibration = default_sim_profile().calibration
-    data = write_cone_dataset(tmp_path / "teach.limb", n=50, calibration=calibration)
-    summary = train(data, tmp_path / "cone.npz", kind="cone")
-    metadata = load_header(tmp_path / "cone.npz")["metadata"]
+    data = write_cone_dataset(tmp_path / "cal.limb", n=50, calibration=calibration)
+    summary = train(data, tmp_path / "cal.npz", kind="cone")
+    metadata = load_header(tmp_path / "cal.npz")["metadata"]
     assert metadata["calibration"] == calibration.to_dict()
     assert summary.calibration_recorded
     assert not any("calibration" in line for line in summary.lines())
@@ -75,7 +73,9 @@ def test_train_rigidmap_contains_its_samples(tmp_path):
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
-def test_too_few_samples_and_unknown_kinds_are_refused(tmp_path):
+def test_too_few_samples_and_unknown_kinds_are_refused_and_kinds_come_from_one_registry(
+    tmp_path,
+):
     data = write_cone_dataset(tmp_path / "few.limb", n=5)
     with pytest.raises(ConfigError, match="only 5 samples"):
         train(data, tmp_path / "m.npz")
@@ -83,9 +83,7 @@ def test_too_few_samples_and_unknown_kinds_are_refused(tmp_path):
         build_model("kmeans")
     with pytest.raises(ConfigError, match="bad options"):
         build_model("cone", nodes=3)
-
-
-def test_model_kinds_come_from_one_registry():
+    # the kinds come from one registry
     from limbctl.cli import build_parser
     from limbctl.envelope import MODEL_KINDS, model_class
     from limbctl.eval.experiments import build_model as eval_build_model

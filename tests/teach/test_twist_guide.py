@@ -18,7 +18,7 @@ def taught(guide, pan_deg, tilt_deg, twists_deg):
         guide.add(compose(d, math.radians(tau)))
 
 
-def test_every_place_turned_both_ways_and_one_left_untaught():
+def test_places_turned_both_ways_one_left_untaught_and_one_across_half_a_turn():
     guide = TwistGuide()
     assert "not yet taught" in guide.assess().line()
     sweep = np.linspace(-40, 40, MIN_CELL_SAMPLES)
@@ -39,15 +39,10 @@ def test_every_place_turned_both_ways_and_one_left_untaught():
     assert span == pytest.approx(6.0)
     assert "least at pan +52, tilt +38: 6 deg -> turn the limb both ways" in found.line()
     assert found.short() == "twist 6/7 turned, least 6 deg at (+52, +38)"
-
-
-def test_cells_with_few_samples_are_not_judged():
     guide = TwistGuide()
     taught(guide, 0, 0, np.zeros(MIN_CELL_SAMPLES - 1))
-    assert guide.assess().cells == 0
-
-
-def test_a_range_across_half_a_turn_stays_one_range():
+    assert guide.assess().cells == 0, "a cell with too few samples was judged"
+    # a range across half a turn stays one range
     guide = TwistGuide()
     taught(guide, 1, 1, np.linspace(170.0, 200.0, MIN_CELL_SAMPLES))  # 170..180, -180..-160
     (place,) = guide.assess().places
@@ -117,9 +112,7 @@ def test_the_recorders_line_withholds_ready_while_the_twist_is_not_complete():
 
 @pytest.mark.parametrize("warmed", [False, True])
 def test_the_support_check_while_recording_waits_for_the_warmed_kernels(monkeypatch, warmed):
-    """Before the warm-up has cached the three-servo training's kernels, a support check in the
-    recorder's process would compile them there (seconds holding the recorder's interpreter):
-    none starts; once they are cached, one starts in a thread."""
+    """No support check (it compiles in the recorder's process) until the kernels are cached."""
     from limbctl.geometry import jit
 
     asked = []

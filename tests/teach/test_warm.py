@@ -21,11 +21,6 @@ from tests.compile_probe import COUNTER
 from tests.test_first_run import ROOT, compiled_by, teaching
 
 
-def test_the_larger_batch_takes_the_batch_kernel():
-    # served row by row up to SINGLE_ROWS; one more takes the kernel a start outside asks
-    assert LARGE_BATCH == SINGLE_ROWS + 1
-
-
 def teaching3(path: Path) -> Path:
     """A synthetic teaching of the three-servo demo region (another seed than the warm-up's),
     written under the simulated three-servo rig's calibration (so train fits the twist band)."""
@@ -115,26 +110,28 @@ def test_after_prepare_train_teleop_and_a_library_fit_compile_no_kernel(rig, tmp
     assert again.stdout.count("already in the cache") == 2, again.stdout
 
 
-def test_prepare_without_a_writable_cache_says_what_to_set(monkeypatch, capsys):
+def test_no_warm_up_when_all_is_prepared_or_nothing_can_be_cached_and_prepare_says_so(
+    monkeypatch, capsys
+):
+    # served row by row up to SINGLE_ROWS; one more takes the kernel a start outside asks
+    assert LARGE_BATCH == SINGLE_ROWS + 1, "the larger batch does not take the batch kernel"
+    monkeypatch.setattr(jit, "prepared", lambda stage: True)
+    with warming_in_background() as process:
+        assert process is None, "a warm-up started with every stage prepared"
+    monkeypatch.setattr(jit, "prepared", lambda stage: False)
     monkeypatch.setattr(jit, "cache_dir", lambda: None)
+    with warming_in_background() as process:
+        assert process is None, "a warm-up started with no cache"
     assert main(["prepare", "--rig", "sim"]) == 2
     err = capsys.readouterr().err
     assert "limbctl prepare: error: no writable folder" in err
     assert "NUMBA_CACHE_DIR" in err
 
 
-def test_no_warm_up_starts_when_everything_is_prepared_or_nothing_can_be_cached(monkeypatch):
-    monkeypatch.setattr(jit, "prepared", lambda stage: True)
-    with warming_in_background() as process:
-        assert process is None
-    monkeypatch.setattr(jit, "prepared", lambda stage: False)
-    monkeypatch.setattr(jit, "cache_dir", lambda: None)
-    with warming_in_background() as process:
-        assert process is None
-
-
-def _holding(lock: Path) -> subprocess.Popen:
-    """Another process holding the warm-up lock until a line on its stdin."""
+def test_a_warm_up_stands_aside_while_another_holds_the_lock_and_prepare_waits_for_it(
+    tmp_path, monkeypatch
+):
+    monkeypatch.setattr(jit, "cache_dir", lambda: Path(tmp_path))
     holder = subprocess.Popen(
         [
             sys.executable,
@@ -142,37 +139,12 @@ def _holding(lock: Path) -> subprocess.Popen:
             "import sys, fcntl\n"
             "lock = open(sys.argv[1], 'a+b'); fcntl.flock(lock, fcntl.LOCK_EX)\n"
             "print('locked', flush=True); sys.stdin.readline()\n",
-            str(lock),
+            str(tmp_path / "warming.lock"),
         ],
         stdin=subprocess.PIPE,
         stdout=subprocess.PIPE,
         text=True,
     )
-    assert holder.stdout.readline().strip() == "locked"
-    return holder
-
-
-def _let_go(holder: subprocess.Popen) -> None:
-    holder.stdin.write("\n")  # the holder lets go and ends
-    holder.stdin.close()
-    holder.wait()
-
-
-def test_a_second_warm_up_stands_aside_while_one_holds_the_lock(tmp_path, monkeypatch):
-    monkeypatch.setattr(jit, "cache_dir", lambda: Path(tmp_path))
-    holder = _holding(tmp_path / "warming.lock")
-    try:
-        with jit.warming() as mine:
-            assert not mine
-    finally:
-        _let_go(holder)
-    with jit.warming() as mine:
-        assert mine
-
-
-def test_prepare_says_it_waits_for_a_warm_up_holding_the_lock_then_takes_it(tmp_path, monkeypatch):
-    monkeypatch.setattr(jit, "cache_dir", lambda: Path(tmp_path))
-    holder = _holding(tmp_path / "warming.lock")
     told, got = threading.Event(), []
 
     def take() -> None:
@@ -181,10 +153,17 @@ def test_prepare_says_it_waits_for_a_warm_up_holding_the_lock_then_takes_it(tmp_
 
     taker = threading.Thread(target=take)
     try:
-        taker.start()
+        assert holder.stdout.readline().strip() == "locked"
+        with jit.warming() as mine:
+            assert not mine, "a second warm-up did not stand aside"
+        taker.start()  # prepare: says it waits, then takes the lock
         assert told.wait(timeout=60)
         assert got == []  # still waiting: the holder has not let go
     finally:
-        _let_go(holder)
+        holder.stdin.write("\n")  # the holder lets go and ends
+        holder.stdin.close()
+        holder.wait()
     taker.join(timeout=60)
-    assert got == [True]
+    assert got == [True], "prepare did not take the lock once it was free"
+    with jit.warming() as mine:
+        assert mine

@@ -1,9 +1,5 @@
-"""Random non-convex regions for testing the gate's reach: swing outlines with a bay and a notch.
-
-:class:`OutlineRegion` is the outline as an exact envelope of limb directions and
-:class:`OutlineBandRegion` the same with a twist band varying linearly with pan and tilt; both
-answer (4,) and (N, 4), so the gate's tests need no fitting.
-"""
+"""Random non-convex regions for the gate's reach: outlines with a bay and a notch, exact for limb
+directions (:class:`OutlineRegion`) or under a linear twist band (:class:`OutlineBandRegion`)."""
 
 from __future__ import annotations
 
@@ -22,19 +18,9 @@ OUTLINE_VERTICES = 72
 
 
 def bay_outline(rng: np.random.Generator, radius_deg: tuple[float, float] = (28.0, 40.0)):
-    """A random outline with one bay and one notch, (V, 2) vertices (pan, tilt) in degrees.
-
-    Parameters
-    ----------
-    rng : numpy.random.Generator
-    radius_deg : (float, float)
-        Range of the outline's mean radius (deg of pan/tilt).
-
-    Returns
-    -------
-    ndarray, shape (OUTLINE_VERTICES, 2)
-        Counter-clockwise vertices; every one within pan +-100 deg and tilt -60..75 deg.
-    """
+    """A random outline with one bay and one notch of mean radius within ``radius_deg`` (deg):
+    (OUTLINE_VERTICES, 2) counter-clockwise (pan, tilt) vertices (deg) within pan +-100, tilt
+    -60..75."""
     radius = rng.uniform(*radius_deg)
     centre = np.array([rng.uniform(-20.0, 20.0), rng.uniform(0.0, 20.0)])
     theta = np.linspace(0.0, 2.0 * np.pi, OUTLINE_VERTICES, endpoint=False)
@@ -55,13 +41,7 @@ def bay_outline(rng: np.random.Generator, radius_deg: tuple[float, float] = (28.
 
 
 class OutlineRegion:
-    """An outline (pan, tilt deg polygon) as an exact envelope of limb directions.
-
-    Parameters
-    ----------
-    polygon_deg : array_like, shape (V, 2)
-        The outline's vertices (pan, tilt) in degrees.
-    """
+    """An outline of (V, 2) (pan, tilt) vertices (deg) as an exact envelope of limb directions."""
 
     def __init__(self, polygon_deg: np.ndarray) -> None:
         self.polygon_deg = np.asarray(polygon_deg, dtype=np.float64)
@@ -110,18 +90,9 @@ class OutlineRegion:
 
 
 class OutlineBandRegion(OutlineRegion):
-    """An outline with a twist band over it: ``|wrap(tau - centre)| <= half_width`` with
+    """An outline under a twist band ``|wrap(tau - centre)| <= half_width`` (rad), with
     ``centre = c0 + c_pan pan + c_tilt tilt`` and ``half_width = w0 + w_pan pan + w_tilt tilt``
-    (rad; pan, tilt in rad), the band of the tester's region.
-
-    Parameters
-    ----------
-    polygon_deg : array_like, shape (V, 2)
-        The outline's vertices (pan, tilt) in degrees.
-    centre, half_width : (float, float, float)
-        ``(c0, c_pan, c_tilt)`` and ``(w0, w_pan, w_tilt)``; the half-width must stay positive
-        over the outline.
-    """
+    (pan, tilt in rad; ``half_width`` positive over the outline)."""
 
     def __init__(self, polygon_deg: np.ndarray, centre, half_width) -> None:
         super().__init__(polygon_deg)
@@ -221,14 +192,8 @@ VISIBLE_STEP_DEG, VISIBLE_SLACK_DEG = 0.1, 0.05
 
 
 class InsidePaths:
-    """Shortest paths of limb directions inside an outline: Dijkstra over the visibility graph
-    of the outline's concave corners (a shortest path among polygonal walls bends only there),
-    an arc judged inside at points ``VISIBLE_STEP_DEG`` apart, up to ``VISIBLE_SLACK_DEG``.
-
-    Parameters
-    ----------
-    region : OutlineRegion
-    """
+    """Shortest paths of limb directions inside ``region``'s outline: Dijkstra over the visibility
+    graph of its concave corners (where a shortest path among polygonal walls bends)."""
 
     def __init__(self, region: OutlineRegion) -> None:
         self.region = region

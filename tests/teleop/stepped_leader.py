@@ -53,10 +53,8 @@ def read_velocity(servos: Sequence, joints: Sequence) -> tuple[float, ...]:
 
 
 class SteppedWatch:
-    """The snap watch between the cycles on the stepped clock, as ``LeaderSource.watch_snap``:
-    reads every 1 ms while a wall is on, a cut landing 1 ms after the read that saw it.
-    ``brake``: the brake rules (None: the snap rule alone, round 7); ``law``: whose Profile
-    Velocity the wall walks at; ``motor``: the controller's motor."""
+    """The snap watch between the cycles, as ``LeaderSource.watch_snap``: a read every 1 ms while
+    a wall is on, a cut 1 ms after; ``brake`` None: the snap rule alone (round 7)."""
 
     def __init__(
         self,
@@ -130,30 +128,10 @@ def rig_of(joints: int):
 
 
 def stepped_leader(follower: dict, ids: Sequence[int], model: str, limit: int, operator: dict):
-    """A simulator in this process on a stepped clock with a felt leader on ``ids`` (Operating
-    Mode 5, Current Limit ``limit`` units, the feel map, torque on) held by ``operator``.
-
-    Parameters
-    ----------
-    follower : dict
-        The simulator's follower arguments (``{"ids": (1, 2)}``, ``CHAINS``).
-    ids : sequence of int, (n,)
-        The leader's servo ids, one per joint.
-    model : str
-        The leader servos' simulator model key (``"xm430-w350"``).
-    limit : int
-        Current Limit (units).
-    operator : dict
-        The simulated operator (``Simulator.set_operator``).
-
-    Returns
-    -------
-    sim : Simulator
-    clock : list of float
-        The stepped clock, one element (s); advance it before ``sim.advance()``.
-    servos : list of SimServo, (n,)
-        The leader's servos.
-    """
+    """A simulator on a stepped clock with a felt leader on ``ids`` (n,) of simulator ``model``
+    (Operating Mode 5, Current Limit ``limit`` units, the feel map, torque on) held by
+    ``operator``, the follower's ``follower`` arguments (``CHAINS``): the simulator, the clock (a
+    one-element list, s: advance it before ``sim.advance()``) and the leader's (n,) servos."""
     clock = [0.0]
     sim = Simulator(**follower, leader={"ids": list(ids), "model": model}, clock=lambda: clock[0])
     servos = [sim.servo(i) for i in ids]
@@ -179,36 +157,14 @@ def run_stepped(
     engage_at_write: bool = False,
     profile_always: bool = False,
 ) -> list[dict]:
-    """The controller's part every 5 ms of the stepped clock: read, ``decide`` the push, write it
-    READ_TO_WRITE_MS later, the snap watch between the cycles; for every chain and caller.
+    """The controller's part every 5 ms for ``seconds`` (s): read, ``decide`` the push, write it
+    READ_TO_WRITE_MS later, the ``watch`` between the cycles; the leader's 1 ms truth rows.
 
-    Parameters
-    ----------
-    sim, clock, servos
-        From :func:`stepped_leader`.
-    rig : Rig
-        The leader's chain (its joints turn ticks into angles, rad, and back).
-    watch : SteppedWatch
-        The snap watch between the cycles (its ``on`` False: none).
-    seconds : float
-        How long to run (s): ``round(seconds * 200)`` cycles of 5 ms.
-    decide : callable
-        ``decide(k, ticks, velocity, torque, engaged, read_s)`` of cycle ``k``, with ticks (n,),
-        speeds (n,, deg/s), torques (n,, N m): returns the pose (n,, rad) and the push.
-    cycles : dict, optional
-        A cycle's index to "late" (nothing written) or "silent" (Goal Current 0 alone).
-    cut_s : float, optional
-        At this time (s) Goal Current 0 is written and nothing after (an oracle's cut).
-    engage_at_write : bool
-        The wall comes on judged at the cycle's write (as ``LeaderSource``); False: at its read.
-    profile_always : bool
-        Profile Velocity written with every push (else only with a current, as the source).
-
-    Returns
-    -------
-    list of dict
-        The leader's 1 ms truth rows (``sim.leader.sample()``).
-    """
+    ``decide(k, ticks, velocity, torque, engaged, read_s)`` of cycle ``k`` (ticks (n,), deg/s
+    (n,), N m (n,)) returns the pose (n,, rad) and the push; ``cycles`` maps a cycle to "late"
+    (nothing written) or "silent" (Goal Current 0 alone); at ``cut_s`` (s) Goal Current 0 is
+    written and nothing after; ``engage_at_write``: the wall comes on judged at the write (as
+    ``LeaderSource``), else at the read; ``profile_always``: Profile Velocity with every push."""
     rows, engaged, cut, goal = [], False, False, None
     for k in range(round(seconds * 200.0)):
         if watch.before_step(5 * k):
@@ -274,14 +230,10 @@ def felt_at_200_hz(
     rules=True,
     pushes=None,
 ):
-    """:func:`run_stepped` with ``push_for`` on the script's chain (rows (t, pan, tilt[, roll])),
-    ``region`` correcting its commands; returns the leader's 1 ms truth.
+    """:func:`run_stepped` with ``push_for`` on the script's chain in ``region``: the 1 ms truth.
 
-    ``cycles``: as :func:`run_stepped`'s, or "held" (the held push); ``model``: the simulator
-    model (``"xl330-m288@53"``: firmware 53); ``max_torque_nm``: the hand's bound; ``motor``: the
-    controller's motor (None: :data:`FELT_MODELS`'s); ``snap_watch`` False: the law alone
-    (round 6); ``release_s``: how long the let go takes; ``rules`` False: no let-go rules
-    (before round 3); ``pushes``: gets each cycle's (pose, push, instead)."""
+    ``cycles`` also "held"; ``motor`` None: the model's; ``snap_watch`` False: the law alone
+    (round 6); ``rules`` False: no let-go rules; ``pushes`` gets each (pose, push, instead)."""
     motor = motor or motor_of(model)
     joints = len(script[0]) - 1
     _, follower, ids = CHAINS[joints]

@@ -70,8 +70,6 @@ def test_park_writes_a_pose_inside_by_the_margin_once_more_and_needs_a_started_g
         gate.start(*rig.read_pose())
         parked = park(rig, m, RATE)
     assert not parked.moved and parked.pose == gate.safe_pose and not parked.note
-
-
-def test_where_names_each_joint_of_the_chain():
+    # where() names each joint of the chain
     assert where((0.0, math.radians(-5.0))) == "pan +0.0, tilt -5.0 deg"
     assert where((0.1, 0.0, math.radians(30.0))).endswith("roll +30.0 deg")

@@ -32,43 +32,33 @@ def walking_watch(brake: BrakeLaw | None = BRAKE) -> SnapWatch:
     return watch
 
 
-def test_a_leader_faster_than_the_walk_with_no_hand_held_outruns_it():
+def test_outrunning_the_walk_or_a_torque_falling_through_zero_soon_brakes_a_moving_leader():
+    """The two brake rules, and neither for a still leader nor on an old read's rate."""
     assert outruns(WALK + 1.37, WALK, 0.01, BRAKE)  # one velocity unit over the setpoint
     assert not outruns(WALK + 0.3, WALK, 0.01, BRAKE)  # the walk's own ripple
     # a hand still pressed against the wall: freeing it would let the hand throw the leader
     assert not outruns(WALK + 5.0, WALK, BRAKE.loose_nm, BRAKE)
-
-
-def test_a_torque_falling_through_zero_within_the_horizon_brakes_soon():
     # 0.02 N m now, 0.03 a millisecond ago: 0 in 2 ms
     assert brakes_soon(14.0, STILL, 0.019, 0.001, (0.03, 0.0), BRAKE)
     assert not brakes_soon(14.0, STILL, 0.021, 0.001, (0.03, 0.0), BRAKE)
     assert brakes_soon(14.0, STILL, -0.001, 0.001, None, BRAKE)  # already outward
     assert not brakes_soon(14.0, STILL, 0.014, 0.001, (0.014, 0.0), BRAKE)  # a steady walk
-
-
-def test_a_still_leader_never_brakes_and_an_old_read_gives_no_rate():
     assert not brakes_soon(STILL, STILL, -0.2, 0.001, (0.3, 0.0), BRAKE)  # a hand holds it
     # the last read 5 ms ago: its rate says nothing of now, only the sign counts
     assert not brakes_soon(14.0, STILL, 0.005, 0.005, (0.3, 0.0), BRAKE)
 
 
 def test_a_walking_wall_is_watched_and_freed_when_its_leader_outruns_it():
+    """Watched only with the brake rules; freed at a watch's read or a cycle's."""
     watch = walking_watch()
     assert watch.watching and watch.armed is None  # not held: the snap rule does not arm
     assert not watch.snaps((-13.7, 0.0), 0.001, (-0.014, 0.0))
     assert watch.snaps((-15.1, 0.0), 0.002, (-0.012, 0.0))  # a hand pulls it in
     assert watch.brakes == 1 and not watch.watching
     assert not watch.snaps((-16.0, 0.0), 0.003, (0.01, 0.0))  # freed: nothing more to cut
-
-
-def test_without_the_brake_rules_only_a_held_wall_is_watched():
-    watch = walking_watch(brake=None)
-    assert not watch.watching
-    assert not watch.snaps((-20.0, 0.0), 0.001, (0.05, 0.0))
-
-
-def test_a_cycles_read_applies_the_brake_rules_too():
+    alone = walking_watch(brake=None)  # without the brake rules only a held wall is watched
+    assert not alone.watching
+    assert not alone.snaps((-20.0, 0.0), 0.001, (0.05, 0.0))
     watch = walking_watch()
     assert watch.allows(POSE, GOAL, (-13.7, 0.0), True, 0.005, (-0.014, 0.0))
     assert not watch.allows(POSE, GOAL, (-13.7, 0.0), True, 0.006, (0.004, 0.0))  # outward

@@ -44,6 +44,11 @@ def test_inside_on_the_way_and_holding():
     held = g.hold("no command yet")
     assert explain(held, None).words == "holding the last safe pose: no command yet"
     assert explain(None, None).words == "not running"
+    g = gate(tilt_max_deg=10.0)  # a hard limit is named as one
+    results = follow(g, 0.0, 25.0, 30)
+    assert results[-1].outcome is Outcome.CLAMPED
+    told = explain(results[-1], (0.0, 25.0), deg(results[-2]))
+    assert told.words == "at a hard limit: up is blocked, holding there"
 
 
 def test_at_the_edge_the_blocked_way_is_named_and_sliding_told_from_standing():
@@ -69,14 +74,6 @@ def test_at_the_edge_the_blocked_way_is_named_and_sliding_told_from_standing():
     assert told.blocked == ("+pan", "+tilt")
 
 
-def test_a_hard_limit_is_named_as_one():
-    g = gate(tilt_max_deg=10.0)
-    results = follow(g, 0.0, 25.0, 30)
-    assert results[-1].outcome is Outcome.CLAMPED
-    told = explain(results[-1], (0.0, 25.0), deg(results[-2]))
-    assert told.words == "at a hard limit: up is blocked, holding there"
-
-
 def test_blocked_needs_more_than_the_gates_rounding_and_no_move_that_way():
     assert blocked_directions((10.0, 5.0), (10.0, 5.0)) == ()
     assert blocked_directions((10.1, 5.0), (10.0, 5.0)) == ()
@@ -85,17 +82,14 @@ def test_blocked_needs_more_than_the_gates_rounding_and_no_move_that_way():
     assert blocked_directions((20.0, 10.0), (10.0, 5.0), (8.0, 4.0)) == ()
     # moving across it: the way it does not go is
     assert blocked_directions((20.0, 10.0), (10.0, 5.0), (8.0, 5.0)) == ("+tilt",)
-
-
-def test_one_key_one_motion_the_terminal_and_the_page_name_directions_alike():
+    # one key, one motion: the terminal and the page name directions alike
     assert PLANE_NAMES == DIRECTION_NAMES
     assert DIRECTION_NAMES["+pan"] == "left" and DIRECTION_NAMES["+tilt"] == "up"
 
 
 def test_a_key_held_up_against_a_slanted_edge_names_up_alone_and_the_way_it_slides():
-    """Up pressed step by step from the written pose (as the keyboard does) up the cone's
-    slanted edge at pan 20: the limb slides toward pan 0 (right, seen from behind it); the
-    status names up as blocked, never left or right, which nobody pressed."""
+    """Up pressed step by step up the cone's slanted edge: the limb slides right (toward pan 0),
+    the status names up alone as blocked, not the way nobody pressed."""
     g = gate()
     written = deg(follow(g, 20.0, 15.0, 20)[-1])
     told_at_edge = []

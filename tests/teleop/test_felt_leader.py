@@ -1,9 +1,5 @@
-"""A leader over the real SDK and the simulator's pty, on two servos and on three: passive and
-mirrored, felt (the wall in swing and twist, the brake rules, faults), passive models.
-
-The follower's edge lies at pan 30 deg (a cone; on three servos tests/teleop/twist_square.py's
-region, near roll 30 too); assertions read the simulated operator's 1 ms ground truth.
-"""
+"""A passive or felt leader over the real SDK and the simulator's pty, on two servos and three:
+the edge at pan 30 deg (on three also roll 30, twist_square.py), judged on the 1 ms ground truth."""
 
 from __future__ import annotations
 
@@ -11,7 +7,6 @@ import functools
 import json
 import math
 import statistics
-import threading
 import time
 from collections.abc import Callable
 from contextlib import contextmanager
@@ -38,14 +33,13 @@ from limbctl.session import open_rig
 from limbctl.teleop.gate import Gate, GateLimits
 from limbctl.teleop.haptic import VELOCITY_UNIT_DEG_S
 from limbctl.teleop.haptic_push import beyond_deg, corrected_pose
-from limbctl.teleop.loop import LoopConfig, run
+from limbctl.teleop.pacing import PaceWatch
 from limbctl.teleop.sources import LeaderSource, SourceContext, parse_source
 from limbctl.teleop.sources.leader_snap import cycle_velocity, read_motion
 from limbctl.view.leader import SWING_SHARE_DRAWN
 from tests.servo.test_leader_guard import START_S, end_pipe, torque_when_free
 from tests.teleop.felt_running import (
     Running,
-    check_a_forced_pace_loss,
     pressing,
     pushed_only_when_fit,
 )
@@ -57,8 +51,7 @@ HAND = {"stiffness_nm_deg": 0.05, "damping_nm_s_rad": 0.02, "max_torque_nm": 0.3
 PRESS = {"script": [[0.0, 0.0, 0.0], [1.5, EDGE + 20.0, 0.0]], **HAND}
 #: Three servos: 20 deg beyond the edge in twist (roll 50).
 TWIST_PRESS = {"script": [[0.0, 0.0, 0.0, 0.0], [1.5, 0.0, 0.0, EDGE + 20.0]], **HAND}
-#: Three servos: in swing (pan 50) from 0 to 3.5 s, back to the middle, then in twist (roll 50)
-#: from 5.5 s on.
+#: Three servos: in swing (pan 50) to 3.5 s, back to the middle, in twist (roll 50) from 5.5 s.
 SWING_THEN_TWIST = {
     "script": [
         [0.0, 0.0, 0.0, 0.0],
@@ -71,15 +64,14 @@ SWING_THEN_TWIST = {
 }
 #: A hand pushing with this much (N m, toward the outside) presses: its spring stretched by 1 deg.
 PRESSING_NM = HAND["stiffness_nm_deg"] * 1.0
-#: A release lets the hand carry the leader 20 deg beyond, walked back at 7-14 deg/s: a hold is
-#: judged strictly only when no cycle released the leader for this long (s) before it.
+#: A hold is judged strictly only when no cycle released the leader for this long (s) before:
+#: a release lets the hand carry it 20 deg beyond, walked back at 7-14 deg/s.
 WALKED_BACK_S = 1.5
 
 
 @dataclass(frozen=True)
 class FeltRig:
-    """A follower rig (calib/rigs/``profile``.yaml), its leader's ``ids``, its ``region`` and the
-    hand's ``press`` 20 deg beyond the edge along joint ``joint``."""
+    """A follower rig, its leader's ``ids``, ``region``, ``press`` 20 deg beyond along ``joint``."""
 
     profile: str
     ids: tuple[int, ...]
@@ -110,10 +102,8 @@ def rig(request) -> FeltRig:
 def felt_session(tmp_path, rig: FeltRig = SIM, model="xm430-w350", rate_hz=25.0):
     """An open ``rig`` with its leader, configured and gated; yields (session, source, log path).
 
-    The source's rate checks run against ``rate_hz``, 25 Hz, so a busy shared machine neither
-    refuses the start nor loses the pace (the loop runs at 200 Hz; the rate itself is tested on
-    a stepped clock in tests/teleop/test_haptic.py); :meth:`Running.paced_out` tells a run that
-    still lost it."""
+    Rate checks against ``rate_hz`` (25 Hz) so a busy machine neither refuses the start nor loses
+    the pace (the 200 Hz wall: test_haptic.py's stepped clock)."""
     log = tmp_path / "leader.jsonl"
     leader = {"ids": list(rig.ids), "model": model, "log": str(log)}
     with open_rig(rig_path=rig.profile, extra_ids=rig.ids, sim_options={"leader": leader}) as s:
@@ -135,8 +125,7 @@ def felt_session(tmp_path, rig: FeltRig = SIM, model="xm430-w350", rate_hz=25.0)
 
 @contextmanager
 def running_felt(tmp_path, rig: FeltRig = SIM, **options):
-    """:func:`felt_session` (``options``) with the follower's torque on and the loop running in
-    :class:`Running`: yields (session, source, log path, running)."""
+    """:func:`felt_session`, torque on, the loop in :class:`Running`: yields those and it."""
     with felt_session(tmp_path, rig, **options) as (session, source, log), source:
         session.rig.set_torque(True)
         with Running(session, source) as running:
@@ -275,40 +264,37 @@ def test_the_three_servo_leader_is_held_at_the_edge_in_swing_and_in_twist(tmp_pa
     assert not outward, (len(dots), outward)
 
 
-def test_a_leader_restart_ends_the_feel_on_every_servo_and_mirroring_goes_on(tmp_path, rig):
+@pytest.mark.parametrize("fault", ["restart", "alarm"])
+def test_a_leader_restart_or_alarm_switches_the_push_off_on_every_servo(tmp_path, rig, fault):
+    """A restart ends the feel and mirroring goes on; an alarm faults the session, as if passive."""
     with running_felt(tmp_path, rig) as (session, source, log, running):
         if running.pressed_or_paced_out(rig.press):
             return
-        session.simulator.restart(rig.pusher)
-        running.until(lambda p: not p[-1][2])
-        lost = len(running.pushes)
-        running.until(lambda p: len(p) > lost + 50)
-        accepted = source.stats.accepted
-        running.until(lambda p: len(p) > lost + 100)
+        if fault == "alarm":
+            session.simulator.set_temperature(rig.pusher, 95.0)  # overheating shuts it down
+            running.thread.join(timeout=20.0)
+        else:
+            session.simulator.restart(rig.pusher)
+            running.until(lambda p: not p[-1][2])
+            lost = len(running.pushes)
+            running.until(lambda p: len(p) > lost + 50)
+            accepted = source.stats.accepted
+            running.until(lambda p: len(p) > lost + 100)
         truth = session.simulator.truth()
     # the cycle that saw it switched the push off; the other servos' torque is off too
     assert all(truth["servos"][i]["torque_on"] is False for i in rig.ids if i != rig.pusher)
     assert truth["leader"]["motor_nm"] == [0.0] * len(rig.ids)
+    summary = running.out["s"]
+    if fault == "alarm":
+        assert summary.exit_code == 3 and f"servo {rig.pusher}" in summary.fault
+        assert not source.felt and any("alarm" in event for event in source.feel_stats.events)
+        return
+    assert summary.exit_code == 0
     assert source.stats.accepted > accepted  # still mirrored, without feel
     notes = [n for c, _, _ in running.pushes for n in c.notices]
     said = f"servo {rig.pusher} restarted"
     assert any(said in n and "mirroring goes on without feel" in n for n in notes), notes
     assert any("without feel" in line for line in source.report_lines())
-    assert running.out["s"].exit_code == 0
-
-
-def test_a_leader_alarm_switches_the_push_off_and_the_session_faults(tmp_path, rig):
-    with running_felt(tmp_path, rig) as (session, source, log, running):
-        if running.pressed_or_paced_out(rig.press):
-            return
-        session.simulator.set_temperature(rig.pusher, 95.0)  # overheating shuts it down
-        running.thread.join(timeout=20.0)
-        truth = session.simulator.truth()
-    summary = running.out["s"]
-    assert summary.exit_code == 3 and f"servo {rig.pusher}" in summary.fault  # as if passive
-    assert not source.felt and any("alarm" in event for event in source.feel_stats.events)
-    assert truth["leader"]["motor_nm"] == [0.0] * len(rig.ids)
-    assert all(truth["servos"][i]["torque_on"] is False for i in rig.ids if i != rig.pusher)
 
 
 def test_a_failed_bus_or_a_held_gate_switches_the_push_off_in_that_cycle(tmp_path, rig):
@@ -335,26 +321,8 @@ def test_a_failed_bus_or_a_held_gate_switches_the_push_off_in_that_cycle(tmp_pat
     pushed_only_when_fit(running.pushes)
 
 
-def test_a_silent_leader_is_bounded_by_its_cap_and_is_re_armed(tmp_path, rig):
-    with running_felt(tmp_path, rig) as (session, source, log, running):
-        cap = cap_of(source)
-        if running.pressed_or_paced_out(rig.press):
-            return
-        session.simulator.vanish(rig.pusher, 0.3)  # past its 100 ms watchdog
-        running.until(lambda p: p[-1][1] is None)
-        running.until(
-            lambda p: (p[-1][1] is not None and p[-1][1].goal_current > 0) or not p[-1][2]
-        )
-        truth = session.simulator.truth()
-        # back, its watchdog cleared and armed again, pushing; or the pace went meanwhile
-        felt = source.felt or running.paced_out()
-    assert truth["servos"][rig.pusher]["present"]
-    rows = truth_rows(log)
-    assert max(abs(m) for row in rows for m in row["motor_nm"]) <= cap + 1e-12
-    assert felt
-
-
 def test_a_leader_unheard_past_its_watchdog_still_pushes_and_the_end_leaves_it_limp(tmp_path, rig):
+    """Unheard past its watchdog at set-up or silent mid-push, it pushes again within the cap."""
     with felt_session(tmp_path, rig) as (session, source, log):
         with source:
             cap = cap_of(source)
@@ -364,10 +332,20 @@ def test_a_leader_unheard_past_its_watchdog_still_pushes_and_the_end_leaves_it_l
             with Running(session, source) as running:
                 if running.pressed_or_paced_out(rig.press):
                     return
+                session.simulator.vanish(rig.pusher, 0.3)  # silent past its 100 ms watchdog
+                running.until(lambda p: p[-1][1] is None)
+                running.until(
+                    lambda p: (p[-1][1] is not None and p[-1][1].goal_current > 0) or not p[-1][2]
+                )
+                back = session.simulator.truth()
+                # back, its watchdog cleared and armed again, pushing; or the pace went meanwhile
+                felt = source.felt or running.paced_out()
             ended = session.simulator.truth()  # the loop's end released it: no current
         closed = session.simulator.truth()  # the source's close: torque off
     rows = truth_rows(log)
     assert max(abs(r["motor_nm"][rig.joint]) for r in rows) > 0.5 * cap
+    assert back["servos"][rig.pusher]["present"] and felt
+    assert max(abs(m) for row in rows for m in row["motor_nm"]) <= cap + 1e-12
     assert running.out["s"].exit_code == 0
     assert ended["leader"]["motor_nm"] == [0.0] * len(rig.ids)
     assert all(closed["servos"][i]["torque_on"] is False for i in rig.ids)
@@ -463,7 +441,17 @@ def test_a_lost_pace_switches_the_feel_off_for_good_in_its_cycle_and_mirroring_g
     tmp_path, rig
 ):
     with felt_session(tmp_path, rig) as (session, source, log), source:
-        check_a_forced_pace_loss(session, source, rig.press)
+        # forced: the source believes its wall needs 1 kHz
+        source.rate_hz, source.pace = 1000.0, PaceWatch(1000.0)
+        session.rig.set_torque(True)
+        with Running(session, source) as running:
+            session.simulator.set_operator(rig.press)
+            running.until(lambda p: running.off.at is not None and len(p) > running.off.at + 20)
+            accepted = source.stats.accepted
+            running.until(lambda p: len(p) > running.off.at + 40)
+            assert running.paced_out()
+        assert source.stats.accepted > accepted  # still mirrored, without feel
+        assert not source.felt
 
 
 #: Faults injected into a running rig (its simulator, the rig).
@@ -739,66 +727,47 @@ def turn_shafts(rig, ids: tuple[int, ...], degrees: tuple[float, ...]) -> None:
         assert time.monotonic() < deadline, "the leader shafts did not reach their goals"
 
 
+def off_axis_deg(pan: float, tilt: float) -> float:
+    """The angle (deg) of a two-servo pose (rad) from the cone's axis, +x."""
+    return math.degrees(math.acos(math.cos(pan) * math.cos(tilt)))
+
+
 def test_follower_mirrors_a_pushed_leader_within_the_region(cone_file):
-    gate = gate_for(cone_file(30.0), default_sim_profile(), 200.0, 120.0)
+    """The follower turns toward a passive leader and stops at the cone's edge; leader ids must be
+    on the bus, not the follower's; three need a three-servo follower."""
     with open_rig(extra_ids=(3, 4)) as session:
         rig = session.rig
-        limits = rig.tick_limits()
-        limits.update({3: (0, 4095), 4: (0, 4095)})
-        configure_servos(rig.bus, limits)
+        with pytest.raises(ConfigError, match="not on the bus"):
+            LeaderSource(rig, (5, 6))
+        with pytest.raises(ConfigError):
+            LeaderSource(rig, (1, 2))
+        refused = "needs a 3-servo follower: rig 'sim' has 2 servos; give leader:ID,ID"
+        with pytest.raises(ConfigError, match=refused):
+            LeaderSource(rig, (3, 4, 5))
+        session.gate = gate_for(cone_file(30.0), default_sim_profile(), 200.0, 120.0)
+        configure_servos(rig.bus, {**rig.tick_limits(), 3: (0, 4095), 4: (0, 4095)})
         turn_shafts(rig, (3, 4), (60, 0))
-        source = LeaderSource(rig, (3, 4))
-        stop = threading.Event()
-        out = {}
-        seen = {"written": 0, "angle": 0.0}
-        changed = threading.Condition()
-
-        def observe(cycle) -> None:  # wait on what the assertions need, however slow the loop
-            with changed:
-                seen["written"] += cycle.written
-                if cycle.present is not None:
-                    pan, tilt = cycle.present
-                    seen["angle"] = math.degrees(math.acos(math.cos(pan) * math.cos(tilt)))
-                changed.notify_all()
-
-        def at_the_edge() -> bool:
-            return seen["written"] > 100 and seen["angle"] > 29.0
-
-        with source:
+        with LeaderSource(rig, (3, 4)) as source:
             assert rig.bus.torque_enabled()[3] is False
             rig.set_torque(True)
-            thread = threading.Thread(
-                target=lambda: out.update(
-                    s=run(rig, gate, source, LoopConfig(on_cycle=observe), stop=stop)
+            with Running(session, source) as running:  # 100 goals written, at the cone's edge
+                running.until(
+                    lambda p: (
+                        sum(c.written for c, _, _ in p) > 100
+                        and off_axis_deg(*next(c.present for c, _, _ in p[::-1] if c.present))
+                        > 29.0
+                    )
                 )
-            )
-            thread.start()
-            with changed:  # 100 goals written and the follower at the cone's edge
-                changed.wait_for(lambda: at_the_edge() or not thread.is_alive(), timeout=60.0)
-            stop.set()
-            thread.join(timeout=10)
         pan, tilt = rig.read_pose()
-    summary = out["s"]
+    summary = running.out["s"]
     assert summary.exit_code == 0 and summary.commands > 100
     assert summary.goals_written > 100
     # the follower turned toward the leader (pan 60) and stopped at the cone's edge
-    angle = math.degrees(math.acos(math.cos(pan) * math.cos(tilt)))
-    assert pan > 0 and 29.0 < angle <= 30.2
+    assert pan > 0 and 29.0 < off_axis_deg(pan, tilt) <= 30.2
 
 
-def test_leader_ids_must_be_on_the_bus_and_distinct():
-    with open_rig() as session:
-        with pytest.raises(ConfigError, match="not on the bus"):
-            LeaderSource(session.rig, (3, 4))
-        with pytest.raises(ConfigError):
-            LeaderSource(session.rig, (1, 2))
-
-
-def test_a_three_servo_leader_gives_full_orientations_and_needs_a_three_servo_follower():
-    with open_rig(extra_ids=(3, 4)) as session:
-        refused = "needs a 3-servo follower: rig 'sim' has 2 servos; give leader:ID,ID"
-        with pytest.raises(ConfigError, match=refused):
-            LeaderSource(session.rig, (3, 4, 5))
+def test_a_three_servo_leader_gives_full_orientations():
+    """A three-servo leader's command is its shafts' full orientation, roll included."""
     with open_rig(rig_path="sim3", extra_ids=(4, 5, 6)) as session:
         rig = session.rig
         configure_servos(rig.bus, {**rig.tick_limits(), 4: (0, 4095), 5: (0, 4095), 6: (0, 4095)})

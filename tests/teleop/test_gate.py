@@ -1,7 +1,5 @@
-"""The gate on both chains: two servos (limb directions, a cone) and three (full orientations, a
-cone with a twist band). Commands anywhere (on three servos: twist near +-180 deg, tilt near
-+-90 deg) never give a pose outside the region or the hard limits, the slew limit holds, an
-inside command is reached exactly, and bad targets are held."""
+"""The gate on two servos (a cone) and three (a cone with a twist band): commands anywhere never
+give a pose outside the region or the hard limits, slew-limited; bad targets are held."""
 
 from __future__ import annotations
 
@@ -119,15 +117,6 @@ def test_an_outside_command_slides_onto_the_edge_in_bounded_steps(rig):
 
 
 @pytest.mark.parametrize("rig", RIGS)
-def test_a_hard_limit_clamps_inside_the_region(rig):
-    gate = make_gate(rig, tilt_max=math.radians(10))
-    for _ in range(30):
-        result = gate.step(quat((0.0, math.radians(30), 0.0)[:rig]))
-    assert result.outcome is Outcome.CLAMPED
-    assert result.pose[1] == pytest.approx(math.radians(10))
-
-
-@pytest.mark.parametrize("rig", RIGS)
 def test_bad_targets_are_held_and_start_outside_is_refused(rig):
     gate = make_gate(rig, start=False)
     gate.start(*(0.1,) * rig)
@@ -226,9 +215,8 @@ def test_every_output_is_safe_and_slew_limited(rig, data, half_angle_deg):
 
 
 def test_a_step_clamped_at_a_joint_limit_stays_within_the_slew_limit():
-    # hypothesis's example: along tilt's -30 deg limit on a 75 deg cone, the corrected step
-    # asked for tilt below it, and clamping it carried the pose 0.0349073 rad from the last
-    # one (max_step 0.0349066) before the gate scaled clamped moves back
+    # hypothesis's example: along tilt's -30 deg limit on a 75 deg cone, clamping the corrected
+    # step carried the pose 0.0349073 rad (max_step 0.0349066) before clamped moves were scaled
     gate = make_gate(2, half_angle=math.radians(75.0))
     clamped = []
     for target in ((1.0, 0.0), (0.0, -1.5), (-2.0, 0.0)):
@@ -256,7 +244,13 @@ def test_valid_commands_within_one_step_pass_exactly(rig, pose):
 
 
 @pytest.mark.parametrize("rig", RIGS)
-def test_joint_step_limit_near_the_singularity(rig):
+def test_a_hard_limit_clamps_inside_the_region_and_the_joint_step_limit_holds_at_the_pole(rig):
+    """Clamped at a hard limit inside the region; near the pole the joint step bounds the pan."""
+    gate = make_gate(rig, tilt_max=math.radians(10))
+    for _ in range(30):
+        result = gate.step(quat((0.0, math.radians(30), 0.0)[:rig]))
+    assert result.outcome is Outcome.CLAMPED
+    assert result.pose[1] == pytest.approx(math.radians(10))
     # limb almost straight up: a short step across the pole swings the pan far
     # (three servos: the roll keeps the twist 0, inside the band)
     gate = make_gate(rig, math.radians(179), math.radians(5), 3.0, math.radians(85), start=False)

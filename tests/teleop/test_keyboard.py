@@ -174,15 +174,12 @@ def typed(source: KeyboardSource, type_, keys: bytes, count: int) -> list:
     return got
 
 
-def test_keyboard_source_on_a_pseudo_terminal():
+def test_keyboard_source_on_a_pseudo_terminal_and_only_on_one(tmp_path):
     with keyboard_on_pty(step_deg=5.0) as (src, type_):
         # up, left, a stray key, up (w), left (a) in one burst: each a press of its own key
         typed(src, type_, b"\x1b[A\x1b[Dx" + b"wa", 4)
     assert src.stats.accepted == 4
     assert (src.pan_deg, src.tilt_deg) == (10.0, 10.0)
-
-
-def test_keyboard_source_needs_a_terminal(tmp_path):
     with pytest.raises(ConfigError, match="needs a terminal"):
         KeyboardSource(tty_path=str(tmp_path / "no-such-tty"))
     plain = tmp_path / "plain-file"

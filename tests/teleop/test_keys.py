@@ -26,9 +26,7 @@ def test_every_action_has_keys_and_no_key_does_two_things():
     assert moves == {(0, 1), (0, -1), (1, 0), (-1, 0)}
     assert SEQUENCES[b"\x1b[A"] is Action.UP and SEQUENCES[b"\x1bOA"] is Action.UP
     assert SEQUENCES[b"w"] is Action.UP and SEQUENCES[b"q"] is Action.QUIT
-
-
-def test_the_guide_names_every_key_and_the_speeds_the_step_sets():
+    # the guide names every key and the speeds the step sets
     lines = key_guide(2.0)
     assert "one press moves 2 deg; a key held moves 20 deg/s" in lines[0]
     for binding in KEYS.values():
@@ -36,16 +34,14 @@ def test_the_guide_names_every_key_and_the_speeds_the_step_sets():
     assert "moves 0.5 deg; a key held moves 5 deg/s" in key_guide(0.5)[0]
 
 
-def test_split_keys_keeps_escape_sequences_whole():
+def test_split_keys_keeps_escape_sequences_whole_and_steps_stop_at_the_tables_ends():
     keys, rest = split_keys(b"\x1b[Aw\x1bOD+\x1b[")
     assert keys == [b"\x1b[A", b"w", b"\x1bOD", b"+"] and rest == b"\x1b["
     keys, rest = split_keys(rest + b"B")
     assert keys == [b"\x1b[B"] and rest == b""
     # a lone escape followed by another key is a key of its own (ignored by the source)
     assert split_keys(b"\x1bq") == ([b"\x1b", b"q"], b"")
-
-
-def test_steps_walk_the_table_and_stop_at_its_ends():
+    # steps walk the table and stop at its ends
     assert next_step(2.0, coarser=True) == 5.0 and next_step(2.0, coarser=False) == 1.0
     assert next_step(STEPS_DEG[-1], coarser=True) == STEPS_DEG[-1]
     assert next_step(STEPS_DEG[0], coarser=False) == STEPS_DEG[0]

@@ -57,11 +57,9 @@ def off_axis(pan_deg, tilt_deg):
     return math.degrees(float(direction_angle(d, np.array([1.0, 0.0, 0.0]))))
 
 
-def test_the_margin_exceeds_the_rounding_to_ticks():
-    assert START_MARGIN_DEG > written_tolerance_deg()
-
-
 def test_inside_by_margin_on_a_cone():
+    """Inside by the margin (more than the rounding to ticks) of the cone and the hard limits."""
+    assert START_MARGIN_DEG > written_tolerance_deg()
     gate = cone_gate()
     edge = 40.0 - START_MARGIN_DEG
     cases = [
@@ -100,7 +98,7 @@ def test_nearest_start_pose_is_inside_by_the_margin_after_rounding(pan_deg, tilt
         assert moved <= outside + 2.5 * START_MARGIN_DEG
 
 
-def test_status_says_how_far_and_which_way():
+def test_status_says_how_far_and_which_way_on_two_servos_and_three():
     gate = cone_gate()
     margins = SphereMargins(gate, RIG.held_pose)
     status = assess(margins, (math.radians(50.0), math.radians(0.0)), waited_s=3.0)
@@ -119,9 +117,25 @@ def test_status_says_how_far_and_which_way():
 
     inside = assess(margins, (math.radians(5.0), math.radians(5.0)))
     assert inside.ready and inside.distance_deg == 0.0 and "starting" in inside.line()
+    # three servos: the rotation's margins
+    margins = RotationMargins(band_gate(), exact)
+    twisted = assess(margins, (0.0, 0.0, math.radians(45)), waited_s=2.0)
+    assert not twisted.ready and twisted.inside_limits
+    assert abs(twisted.outside_deg - 15.0) < 1e-6
+    assert 15.0 < twisted.distance_deg <= 15.0 + 3 * START_MARGIN_DEG
+    # the way in is a roll back toward the band, about -15 deg
+    assert twisted.target_deg is not None and -16.5 < twisted.target_deg[2] - 45.0 < -15.0
+    line = twisted.line()
+    assert "roll +45.0 deg (15.0 deg outside the taught region)" in line, line
+    assert "move the limb 15." in line and "deg about its axis" in line, line
+    inside = assess(margins, (0.1, 0.05, 0.1))
+    assert inside.ready and inside.distance_deg == 0.0
+    assert inside.line().endswith("(ready): inside the taught region: starting")
+    beyond = assess(margins, (0.0, 1.2, 0.0))  # tilt past its 1 rad hard limit
+    assert not beyond.inside_limits and "beyond the rig's hard limits" in beyond.line()
 
 
-def test_nearest_rotation_start_pose_is_inside_by_the_margin_and_near():
+def test_nearest_rotation_start_pose_is_inside_by_the_margin_on_every_joint_and_near():
     gate = band_gate()
     margins = RotationMargins(gate, exact)
     # outside in twist only (roll 45 deg at rest: twist 45 against the band's 30)
@@ -140,28 +154,8 @@ def test_nearest_rotation_start_pose_is_inside_by_the_margin_and_near():
     # already inside by the margin: the pose itself
     inside = (0.1, 0.05, 0.1)
     assert margins.nearest(inside) == inside
-
-
-def test_safe_with_margin_needs_room_on_every_joint():
+    # safe with the margin needs room on every joint
     gate = band_gate(roll_limit=1.7)
     assert safe_with_margin(gate, (0.0, 0.0, 0.0), MARGIN)
     edge = (0.0, 0.0, math.radians(29.9))  # twist 29.9: 0.35 deg more roll leaves the band
     assert gate.is_safe(*edge) and not safe_with_margin(gate, edge, MARGIN)
-
-
-def test_the_status_of_a_waiting_three_servo_limb_says_how_far_and_which_way():
-    margins = RotationMargins(band_gate(), exact)
-    twisted = assess(margins, (0.0, 0.0, math.radians(45)), waited_s=2.0)
-    assert not twisted.ready and twisted.inside_limits
-    assert abs(twisted.outside_deg - 15.0) < 1e-6
-    assert 15.0 < twisted.distance_deg <= 15.0 + 3 * START_MARGIN_DEG
-    # the way in is a roll back toward the band, about -15 deg
-    assert twisted.target_deg is not None and -16.5 < twisted.target_deg[2] - 45.0 < -15.0
-    line = twisted.line()
-    assert "roll +45.0 deg (15.0 deg outside the taught region)" in line, line
-    assert "move the limb 15." in line and "deg about its axis" in line, line
-    inside = assess(margins, (0.1, 0.05, 0.1))
-    assert inside.ready and inside.distance_deg == 0.0
-    assert inside.line().endswith("(ready): inside the taught region: starting")
-    beyond = assess(margins, (0.0, 1.2, 0.0))  # tilt past its 1 rad hard limit
-    assert not beyond.inside_limits and "beyond the rig's hard limits" in beyond.line()

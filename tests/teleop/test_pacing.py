@@ -44,23 +44,17 @@ def run(cycle_s: list[float]) -> tuple[Pacer, list[float]]:
     return pacer, starts
 
 
-def test_an_on_time_loop_starts_each_cycle_on_its_slot():
+def test_cycles_start_on_their_slots_a_short_stall_is_caught_up_a_long_one_starts_afresh():
+    """On time: every cycle on its slot; a few periods late: caught up; longer: a new schedule."""
     pacer, starts = run([0.001] * 100)
     assert all(abs(start - k * PERIOD) < 1e-9 for k, start in enumerate(starts))
     assert pacer.overruns == 0
-
-
-def test_a_stall_of_a_few_periods_is_caught_up_and_no_slot_is_lost():
     work = [0.001] * 200
     work[50] = 3.5 * PERIOD  # one cycle stalls 17.5 ms
     pacer, starts = run(work)
     # after the stall the cycles run back to back until they are on their slots again
     assert abs(starts[-1] - 199 * PERIOD) < 1e-9
     assert pacer.overruns >= 1
-
-
-def test_a_long_stall_gives_up_its_slots_and_starts_afresh():
-    work = [0.001] * 200
     work[50] = (BACKLOG_PERIODS + 2) * PERIOD
     pacer, starts = run(work)
     # the schedule restarted after the stall: the last cycle starts later than slot 199
@@ -90,6 +84,7 @@ def run_with_idle(cycles: int, idle_s: float) -> tuple[Pacer, list[float], list[
 
 
 def test_idle_work_runs_about_every_period_while_waiting_and_the_slot_is_kept():
+    """Idle work runs a millisecond apart between the cycles; slower work never delays one."""
     pacer, starts, calls = run_with_idle(20, 0.0003)  # a read of the leader's speed
     # each cycle's start stays on its slot; in the 3.5 ms left after the work, the watch runs
     # from right after the cycle, a millisecond apart, and ends a millisecond before the slot
@@ -103,6 +98,11 @@ def test_idle_work_runs_about_every_period_while_waiting_and_the_slot_is_kept():
         for slot_end, cycle in zip([(k + 1) * PERIOD for k in range(20)], per_cycle, strict=True)
     )
     assert pacer.overruns == 0
+    # a slow bus: each call takes 2.5 ms. After the 1.5 ms cycle it runs once (3.5 ms left), not
+    # again with 1 ms left: the cycle starts on its slot
+    pacer, starts, calls = run_with_idle(10, 0.0025)
+    assert all(abs(start - k * PERIOD) < 1e-9 for k, start in enumerate(starts))
+    assert len(calls) == 10 and pacer.overruns == 0
 
 
 def test_without_idle_work_the_wait_is_one_wait():
@@ -119,11 +119,3 @@ def test_without_idle_work_the_wait_is_one_wait():
     clock.now += 0.0015
     pacer.wait(stop)
     assert waits == [PERIOD - 0.0015]
-
-
-def test_idle_work_slower_than_the_room_left_does_not_delay_the_cycle():
-    # a slow bus: each call takes 2.5 ms. After the 1.5 ms cycle it runs once (3.5 ms left), not
-    # again with 1 ms left: the cycle starts on its slot
-    pacer, starts, calls = run_with_idle(10, 0.0025)
-    assert all(abs(start - k * PERIOD) < 1e-9 for k, start in enumerate(starts))
-    assert len(calls) == 10 and pacer.overruns == 0

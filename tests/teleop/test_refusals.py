@@ -52,7 +52,7 @@ def refusal_message(line):
     return str(caught.value)
 
 
-def test_recent_reasons_are_taken_once_and_bounded():
+def test_recent_reasons_are_taken_once_and_bounded_and_long_lines_cut_to_an_excerpt():
     refusals = refuse_all(LINES[:2])
     assert refusals.take_recent() == ["pan N deg is outside [N, N]", "malformed JSON"]
     assert refusals.take_recent() == []
@@ -60,9 +60,6 @@ def test_recent_reasons_are_taken_once_and_bounded():
         refusals.add("malformed JSON: x", b"x")
     assert len(refusals.take_recent()) == MAX_RECENT
     assert refusals.counts["malformed JSON"] == MAX_RECENT + 51
-
-
-def test_long_and_binary_lines_are_cut_to_an_excerpt():
     refusals = Refusals()
     refusals.add("line is not UTF-8", b"\xff" * 500, 7)
     example = refusals.examples["line is not UTF-8"][0]

@@ -51,7 +51,8 @@ def logged(command_q: np.ndarray, result) -> dict:
 
 
 @pytest.mark.parametrize("rig", list(RIGS))
-def test_the_telemetry_carries_the_full_commanded_and_written_orientation(rig):
+def test_the_telemetry_and_the_summary_carry_the_full_commanded_and_written_orientation(rig):
+    """Joint angles, quaternion and, where the rig has one, twist: in telemetry and summary."""
     command_q, result = RIGS[rig]
     row = logged(command_q, result)
     joints = len(result.pose)
@@ -72,14 +73,8 @@ def test_the_telemetry_carries_the_full_commanded_and_written_orientation(rig):
         )
     else:
         assert "cmd_twist" not in row and "out_twist" not in row
-
-
-@pytest.mark.parametrize("rig", list(RIGS))
-def test_the_session_summary_gives_the_last_command_and_written_pose_in_full(rig):
-    command_q, result = RIGS[rig]
     summary = TeleopSummary(last_command_q=command_q, last_written=result.pose)
     command, written = summary.lines()[-2:]
-    row = logged(command_q, result)
     assert command.startswith("last command") and written.startswith("last written")
     for text, angles, q in (
         (command, row["cmd"], row["cmd_q"]),

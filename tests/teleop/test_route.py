@@ -59,8 +59,7 @@ def apart(a: np.ndarray, b: np.ndarray, rig: int) -> float:
 
 
 def needed(paths: InsidePaths, a: np.ndarray, b: np.ndarray, rig: int) -> float:
-    """The distance a reach needs (rad): the shortest path of directions inside the region,
-    plus on three servos the twist to turn."""
+    """The distance a reach needs (rad): the shortest path inside, plus any twist to turn."""
     (da, ta), (db, tb) = decompose(a), decompose(b)
     length = paths.length(da, db)
     return length if rig == 2 else length + abs(float(wrap(tb - ta)))
@@ -95,8 +94,29 @@ def bound(length: float) -> float:
 STUCK_BEFORE = {2: (3, 0), 3: (7, 0)}
 
 
+class OneAtATime:
+    """A region (or any model) whose ``contains`` takes one quaternion only."""
+
+    def __init__(self, region) -> None:
+        self.region = region
+
+    def contains(self, q):
+        q = np.asarray(q)
+        if q.shape != (4,):
+            raise ValueError("one quaternion at a time")
+        return self.region.contains(q)
+
+    def correct(self, q):
+        return self.region.correct(np.asarray(q))
+
+
 @pytest.mark.parametrize("rig", RIGS, ids=["two", "three"])
-def test_a_target_past_a_concave_wall_is_reached_within_the_bound(rig):
+def test_a_target_past_a_concave_wall_is_reached_within_the_bound(rig, monkeypatch):
+    """Reached within the bound: by a batched region, one asked a pose at a time, and a target
+    held behind the wall with a tremor, routed once (a Dijkstra a cycle would cost ~1 ms)."""
+    from limbctl.geometry.quat import from_axis_angle, multiply
+    from limbctl.teleop import route
+
     seed, pair = STUCK_BEFORE[rig]
     region, rng = region_for(rig, seed)
     pts = inside_points(region, 20, rng)
@@ -106,6 +126,24 @@ def test_a_target_past_a_concave_wall_is_reached_within_the_bound(rig):
     cycles = drive(gate_at(region, rig, a), region, rig, b, int(3 * length / STEP) + 400)
     assert cycles is not None, "the target was never reached: stuck at a wall"
     assert cycles <= bound(length)
+    # one pose at a time: the router asks it row by row, its roadmap built when first needed
+    gate = gate_at(OneAtATime(region), rig, a)
+    assert not gate.router.batched and gate.router._nodes is None
+    assert drive(gate, region, rig, b, int(bound(length)) + 1) is not None
+    assert isinstance(gate.router, Router) and gate.router._nodes is not None
+    # a tremor of 0.2 deg either side, turning every cycle
+    gate = gate_at(region, rig, a)
+    runs = []
+    real = route.dijkstra
+    monkeypatch.setattr(route, "dijkstra", lambda *args, **kw: runs.append(1) or real(*args, **kw))
+    axis = np.array([0.0, 0.0, 1.0])
+    for n in range(int(bound(length)) + 5):
+        tremor = from_axis_angle(axis, math.radians(0.2) * (-1) ** n)
+        target = multiply(tremor, b)
+        target = -target if target[0] < 0 else target
+        gate.step(target)
+    assert apart(pose_q(gate, rig), target, rig) < 1e-3
+    assert len(runs) == 1
 
 
 @pytest.mark.parametrize("rig", RIGS, ids=["two", "three"])
@@ -154,63 +192,8 @@ def test_the_lattice_spacing_is_as_stated():
 
 
 @pytest.mark.parametrize("rig", RIGS, ids=["two", "three"])
-def test_a_region_answering_one_pose_at_a_time_is_routed_the_same(rig):
-    """A test region (or any model) whose contains takes one quaternion only: the router asks it
-    row by row and builds its roadmap at the first blocked path."""
-    seed, pair = STUCK_BEFORE[rig]
-    region, rng = region_for(rig, seed)
-
-    class OneAtATime:
-        def contains(self, q):
-            q = np.asarray(q)
-            if q.shape != (4,):
-                raise ValueError("one quaternion at a time")
-            return region.contains(q)
-
-        def correct(self, q):
-            return region.correct(np.asarray(q))
-
-    pts = inside_points(region, 20, rng)
-    a, b = pts[2 * pair], pts[2 * pair + 1]
-    gate = gate_at(OneAtATime(), rig, a)
-    assert not gate.router.batched and gate.router._nodes is None  # built when first needed
-    length = needed(InsidePaths(region), a, b, rig)
-    assert drive(gate, region, rig, b, int(bound(length)) + 1) is not None
-    assert isinstance(gate.router, Router) and gate.router._nodes is not None
-
-
-@pytest.mark.parametrize("rig", RIGS, ids=["two", "three"])
-def test_a_target_jittering_behind_a_wall_is_reached_and_routed_once(rig, monkeypatch):
-    """A hand holds the target behind the wall with a tremor (0.2 deg either side, turning every
-    cycle): the gate reaches it within the bound, and the route lengths are computed once (a
-    new Dijkstra every cycle would cost ~1 ms of each)."""
-    from limbctl.geometry.quat import from_axis_angle, multiply
-    from limbctl.teleop import route
-
-    seed, pair = STUCK_BEFORE[rig]
-    region, rng = region_for(rig, seed)
-    pts = inside_points(region, 20, rng)
-    a, b = pts[2 * pair], pts[2 * pair + 1]
-    length = needed(InsidePaths(region), a, b, rig)
-    gate = gate_at(region, rig, a)
-    runs = []
-    real = route.dijkstra
-    monkeypatch.setattr(route, "dijkstra", lambda *args, **kw: runs.append(1) or real(*args, **kw))
-    axis = np.array([0.0, 0.0, 1.0])
-    for n in range(int(bound(length)) + 5):
-        tremor = from_axis_angle(axis, math.radians(0.2) * (-1) ** n)
-        target = multiply(tremor, b)
-        target = -target if target[0] < 0 else target
-        gate.step(target)
-    assert apart(pose_q(gate, rig), target, rig) < 1e-3
-    assert len(runs) == 1
-
-
-@pytest.mark.parametrize("rig", RIGS, ids=["two", "three"])
 def test_a_fitted_region_routes_round_its_bay(rig):
-    """The region a model file holds (TaughtRegion, TwistRegion fitted from a traced teaching of
-    a random outline): a target whose way from the start bends round a wall is reached within
-    the bound, the roadmap built at start (the fitted regions answer batches)."""
+    """A fitted model's region (batched: the roadmap built at start) is routed round a wall."""
     from limbctl.region.taught import TaughtRegion
     from limbctl.region.twist_region import TwistRegion
     from tests.teleop.bays import teaching

@@ -28,17 +28,12 @@ def held_watch() -> SnapWatch:
     return watch
 
 
-def test_the_unit_step_points_from_the_leader_to_the_goal():
+def test_only_a_wall_holding_a_still_leader_against_a_hand_arms_the_watch_while_it_holds():
+    """Armed along the step to the goal by a held still leader, not a moving or light one."""
     assert unit_step(POSE, GOAL) == (-1.0, 0.0)
     assert unit_step(POSE, POSE) is None
     assert along((3.0, 4.0), (0.6, 0.8)) == 5.0
-
-
-def test_a_wall_holding_a_still_leader_against_a_hand_arms_the_watch():
     assert held_watch().armed == (-1.0, 0.0)
-
-
-def test_a_leader_moving_in_or_a_light_push_does_not_arm_it():
     moving = SnapWatch(LAW)  # a wall pushing a deep leader back at 5 deg/s
     for k, engaged in enumerate((False, True, True)):
         moving.arm(POSE, GOAL, (-5.0, 0.0), HELD_NM, engaged, 0.005 * k)
@@ -47,9 +42,7 @@ def test_a_leader_moving_in_or_a_light_push_does_not_arm_it():
     for engaged in (False, True):
         light.arm(POSE, GOAL, STILL, (-0.03, 0.0), engaged, 0.0)  # the loop walking it back
     assert light.armed is None
-
-
-def test_an_armed_watch_stays_armed_while_the_wall_holds_and_goes_with_it():
+    # armed, it stays while the wall holds and goes with it
     creeping = held_watch()
     creeping.arm(POSE, GOAL, (-3.0, 0.0), HELD_NM, True, 0.005)  # a relaxing hand: creeping in
     assert creeping.armed == (-1.0, 0.0)
@@ -60,7 +53,8 @@ def test_an_armed_watch_stays_armed_while_the_wall_holds_and_goes_with_it():
     assert free.armed is None
 
 
-def test_an_armed_watch_cuts_at_a_snap_toward_the_region_once():
+def test_an_armed_watch_cuts_at_a_snap_toward_the_region_once_not_at_a_relaxing_hand():
+    """A snap inward cuts once; a grip fading from the hold as read at the last cycle does not."""
     watch = held_watch()
     assert not watch.snaps((-LAW.snap_speed_deg_s, 0.0), 0.001)  # at the threshold: not yet
     assert not watch.snaps((20.0, 0.0), 0.002)  # pushed outward by the hand: the wall holds
@@ -69,9 +63,6 @@ def test_an_armed_watch_cuts_at_a_snap_toward_the_region_once():
     assert watch.armed is None and watch.cuts == 1
     assert not watch.snaps((-25.0, 0.0), 0.005)  # disarmed: once
     assert watch.reads == 5
-
-
-def test_a_relaxing_hand_is_not_a_snap():
     # a grip fading over 50 ms lets the leader speed up at about 2000 deg/s^2: the watch leaves
     # the wall on (a cut would leave the leader to a hand still pushing outward)
     watch = held_watch()
@@ -80,9 +71,19 @@ def test_a_relaxing_hand_is_not_a_snap():
     assert watch.armed is not None
     # and a let go while it creeps in is still one
     assert watch.snaps((-25.0, 0.0), 0.007)
+    # armed while the hand pressed lightly (0.07 N m), the hold then grew to 0.3 N m: a grip
+    # fading from there (2 deg/s more each millisecond) is no let go
+    watch = SnapWatch(LAW)
+    light = (-0.07, 0.0)
+    watch.arm(POSE, GOAL, STILL, light, False, -0.005)
+    watch.arm(POSE, GOAL, STILL, light, True, 0.0)
+    watch.arm(POSE, GOAL, (-1.4, 0.0), HELD_NM, True, 0.005)
+    assert not any(watch.snaps((-1.4 - 2.0 * k, 0.0), 0.005 + 0.001 * k) for k in range(1, 5))
+    assert watch.armed is not None
 
 
-def test_a_cycles_read_applies_the_same_rules():
+def test_judging_a_cycles_read_applies_the_rules_without_counting_a_watch_read():
+    """A cycle's read (``allows``, ``judge``) applies the snap rule; a free wall needs it still."""
     watch = held_watch()
     assert watch.allows(POSE, GOAL, (-2.0, 0.0), True, 0.001)
     assert not watch.allows(POSE, GOAL, (-17.0, 0.0), True, 0.002)  # the snap at a read
@@ -92,6 +93,10 @@ def test_a_cycles_read_applies_the_same_rules():
     assert not watch.allows(POSE, GOAL, (-1.37, 0.0), False, 0.0035)  # one velocity unit
     assert watch.allows(POSE, GOAL, (0.0, 0.0), False, 0.004)
     assert watch.allows(POSE, GOAL, (10.0, 0.0), False, 0.005)  # moving out: it comes on
+    watch = held_watch()
+    assert not watch.judge((-2.0, 0.0), 0.001)
+    assert watch.judge((-17.0, 0.0), 0.002)  # the snap at the cycle's read
+    assert (watch.cuts, watch.reads, watch.armed) == (1, 0, None)
 
 
 def test_with_rearm_twice_a_free_wall_comes_back_on_two_still_cycle_reads():
@@ -129,13 +134,6 @@ def test_the_read_just_before_a_wall_comes_on_leaves_the_watch_as_it_is():
     assert not watch.allows(POSE, GOAL, STILL, False, 0.000)  # still the first still read
 
 
-def test_judging_a_cycles_read_applies_the_rules_without_counting_a_watch_read():
-    watch = held_watch()
-    assert not watch.judge((-2.0, 0.0), 0.001)
-    assert watch.judge((-17.0, 0.0), 0.002)  # the snap at the cycle's read
-    assert (watch.cuts, watch.reads, watch.armed) == (1, 0, None)
-
-
 speeds = st.floats(-100.0, 100.0, allow_nan=False)
 
 
@@ -154,15 +152,3 @@ def test_property_the_watch_cuts_only_toward_the_region_and_only_when_armed(even
         else:
             assert armed is None or watch.armed == armed
         watch.arm(POSE, GOAL, (pan_speed, tilt_speed), (torque, 0.0), engaged, 0.005 * (k + 1))
-
-
-def test_the_rise_is_judged_against_the_hold_as_read_at_the_last_cycle():
-    # armed while the hand pressed lightly (0.07 N m), the hold then grew to 0.3 N m: a grip
-    # fading from there (2 deg/s more each millisecond) is no let go
-    watch = SnapWatch(LAW)
-    light = (-0.07, 0.0)
-    watch.arm(POSE, GOAL, STILL, light, False, -0.005)
-    watch.arm(POSE, GOAL, STILL, light, True, 0.0)
-    watch.arm(POSE, GOAL, (-1.4, 0.0), HELD_NM, True, 0.005)
-    assert not any(watch.snaps((-1.4 - 2.0 * k, 0.0), 0.005 + 0.001 * k) for k in range(1, 5))
-    assert watch.armed is not None

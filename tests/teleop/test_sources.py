@@ -23,7 +23,7 @@ def drain(source, timeout=5.0):
     return source.poll()
 
 
-def test_stream_source_parses_counts_and_ends():
+def test_stream_source_parses_counts_and_ends_and_replay_keeps_order(tmp_path):
     r, w = os.pipe()
     with os.fdopen(r, "rb", buffering=0) as reader, StreamSource(reader) as src:
         lines = [
@@ -41,9 +41,6 @@ def test_stream_source_parses_counts_and_ends():
         assert src.stats.accepted == 3
         assert src.stats.rejected == 3
         assert src.finished
-
-
-def test_replay_source_keeps_order(tmp_path):
     path = tmp_path / "cmds.jsonl"
     rows = [{"t": 0.01 * i, "pan": float(i), "tilt": 0.0} for i in range(20)]
     path.write_text("\n".join(json.dumps(r) for r in rows) + "\n")
@@ -59,9 +56,7 @@ def test_open_source_rejects_unknown_names():
         open_source("udp://nohostport")
     with pytest.raises(ConfigError, match="does not exist"):
         open_source("replay:/nonexistent/file.jsonl")
-
-
-def test_every_scheme_is_in_the_registry_and_named_in_the_refusal():
+    # every scheme is in the registry and named in the refusal
     assert tuple(SOURCES) == ("stdin", "udp", "replay", "keyboard", "leader", "page")
     with pytest.raises(ConfigError) as refused:
         parse_source("serial:/dev/ttyUSB0")
@@ -71,7 +66,7 @@ def test_every_scheme_is_in_the_registry_and_named_in_the_refusal():
         open_source("stdin:now")
 
 
-def test_leader_spec_names_its_servos_and_needs_the_open_rig():
+def test_leader_spec_names_its_servos_and_needs_the_open_rig_whose_twist_sources_keep():
     spec = parse_source("leader:3,4")
     assert spec.kind.scheme == "leader" and spec.extra_ids == (3, 4)
     assert parse_source("udp://127.0.0.1:9000").extra_ids == ()
@@ -86,9 +81,7 @@ def test_leader_spec_names_its_servos_and_needs_the_open_rig():
             parse_source(bad)
     with pytest.raises(ConfigError, match="needs the open rig"):
         spec.open()
-
-
-def test_a_source_on_a_three_servo_rig_keeps_twist():
+    # a source on a three-servo rig keeps twist
     rig = Rig(default_sim_profile("sim3"))
     assert parse_source("udp://127.0.0.1:0").open(SourceContext(rig=rig)).twist
     assert not parse_source("udp://127.0.0.1:0").open(SourceContext()).twist

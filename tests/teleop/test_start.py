@@ -27,10 +27,21 @@ from tests.teleop.chains import RATE, RIGS, chain_gate, live_chain, pose_of
 
 @pytest.mark.parametrize("rig_name", RIGS)
 def test_outside_waits_with_torque_off_then_starts_once_moved_inside_by_hand(rig_name):
-    statuses = []
-    lines = io.StringIO()
+    """Outside: torque off, waiting with a status; left there, timed out with exit 2; moved
+    inside by hand, started once inside by the margin."""
+    statuses, published = [], []
+    lines, stream = io.StringIO(), io.StringIO()
+    outside = pose_of(rig_name, -50.0, -10.0, 40.0)  # swing out; on sim3 the twist too
     with live_chain(rig_name) as session:
         rig, sim = session.rig, session.simulator
+        left = chain_gate(session.profile)
+        settle(rig, outside)
+        timed_out = start_session(
+            rig, left, StartOptions(wait_s=1.0, poll_hz=20.0), stream=stream,
+            publish=published.append,
+        )  # fmt: skip
+        left_torque = rig.torque_enabled()
+        rig.set_torque(True)
         gate = chain_gate(session.profile)
         settle(rig, pose_of(rig_name, 55.0, 5.0))  # torque on, outside the cone
         outcome = {}
@@ -55,6 +66,20 @@ def test_outside_waits_with_torque_off_then_starts_once_moved_inside_by_hand(rig
         sim.push(pan_id, 0.0)
         torque = rig.torque_enabled()
         present = rig.read_pose()
+    assert not any(left_torque)
+    assert not timed_out.started and timed_out.how == "timed out" and timed_out.exit_code == 2
+    assert "--approach" in timed_out.message and "torque is off" in timed_out.message
+    assert timed_out.status is not None and timed_out.status.move_deg[0] > 9.0  # turn it left
+    assert left.safe_pose is None
+    assert len(published) >= 10 and not any(s.ready for s in published)
+    last = published[-1]
+    assert all(abs(a - math.degrees(b)) < 0.5 for a, b in zip(last.pose_deg, outside))
+    assert last.outside_deg > 8.0 and last.target_deg is not None
+    # to a log (not a terminal) one line every LOG_EVERY_S s: the first status's, here (the
+    # limb, torque off, may drift a tenth of a degree by the last one)
+    text = stream.getvalue()
+    status_lines = [ln for ln in text.splitlines() if ln.startswith("waiting ")]
+    assert len(status_lines) == 1 and published[0].advice().split(":")[0] in text, text
     result = outcome["start"]
     assert result.started and result.how == "moved by hand" and result.exit_code == 0
     assert all(torque)
@@ -66,36 +91,6 @@ def test_outside_waits_with_torque_off_then_starts_once_moved_inside_by_hand(rig
     assert margins.held_inside(gate.safe_pose)
     assert gate.is_safe(*present)
     assert statuses[-1].ready and not any(s.ready for s in statuses[:-1])
-
-
-@pytest.mark.parametrize("rig_name", RIGS)
-def test_a_limb_left_outside_times_out_with_torque_off_and_exit_2(rig_name):
-    published = []
-    stream = io.StringIO()
-    outside = pose_of(rig_name, -50.0, -10.0, 40.0)  # swing out; on sim3 the twist too
-    with live_chain(rig_name) as session:
-        rig = session.rig
-        gate = chain_gate(session.profile)
-        settle(rig, outside)
-        result = start_session(
-            rig, gate, StartOptions(wait_s=1.0, poll_hz=20.0), stream=stream,
-            publish=published.append,
-        )  # fmt: skip
-        torque = rig.torque_enabled()
-    assert not any(torque)
-    assert not result.started and result.how == "timed out" and result.exit_code == 2
-    assert "--approach" in result.message and "torque is off" in result.message
-    assert result.status is not None and result.status.move_deg[0] > 9.0  # turn it left
-    assert gate.safe_pose is None
-    assert len(published) >= 10 and not any(s.ready for s in published)
-    last = published[-1]
-    assert all(abs(a - math.degrees(b)) < 0.5 for a, b in zip(last.pose_deg, outside))
-    assert last.outside_deg > 8.0 and last.target_deg is not None
-    # to a log (not a terminal) one line every LOG_EVERY_S s: the first status's, here (the
-    # limb, torque off, may drift a tenth of a degree by the last one)
-    text = stream.getvalue()
-    status_lines = [ln for ln in text.splitlines() if ln.startswith("waiting ")]
-    assert len(status_lines) == 1 and published[0].advice().split(":")[0] in text, text
 
 
 class WriteRecorder:
@@ -198,18 +193,6 @@ def off_axis_deg(pan, tilt):
     return math.degrees(math.acos(math.cos(tilt) * math.cos(pan)))
 
 
-def test_refusing_to_start_leaves_torque_off_and_says_why(tmp_path, sim, cone_model, capsys):
-    put_limb(sim, 52.0, -8.0)
-    assert torque(sim) == [True, True]
-    code = run_teleop(options(cone_model, sim, replay(tmp_path, [{"pan": 0, "tilt": 0}]), wait=1.0))
-    err = capsys.readouterr().err
-    assert code == 2
-    assert torque(sim) == [False, False]
-    assert "torque switched off so it can be moved by hand" in err
-    assert "not started: the limb stayed outside for 1 s" in err
-    assert "turn it right" in err and "--approach" in err
-
-
 def test_approach_starts_the_session_from_outside(tmp_path, sim, cone_model, capsys):
     put_limb(sim, -50.0, 10.0)
     source = replay(tmp_path, [{"pan": -20.0, "tilt": 5.0}] * 40)
@@ -242,6 +225,8 @@ def test_a_session_ending_on_the_edge_is_parked_and_the_next_starts_at_once(
 
 
 def test_every_line_refused_exits_2_with_the_reasons(tmp_path, sim, cone_model, capsys):
+    """Exit 2 when every line is refused (the reasons counted) and when the limb stays outside
+    (torque off, saying why)."""
     rows = ["garbage", '{"pan": 500, "tilt": 0}', "not json", '{"pan": NaN, "tilt": 0}']
     rows += ['{"pan": -720, "tilt": 0}']
     telemetry = tmp_path / "telemetry.jsonl"
@@ -258,6 +243,15 @@ def test_every_line_refused_exits_2_with_the_reasons(tmp_path, sim, cone_model, 
     assert sorted(reasons) == sorted(
         ["malformed JSON"] * 2 + ["pan N deg is outside [N, N]"] * 2 + ["NaN is not a valid number"]
     )
+    put_limb(sim, 52.0, -8.0)
+    assert torque(sim) == [True, True]
+    code = run_teleop(options(cone_model, sim, replay(tmp_path, [{"pan": 0, "tilt": 0}]), wait=1.0))
+    err = capsys.readouterr().err
+    assert code == 2
+    assert torque(sim) == [False, False]
+    assert "torque switched off so it can be moved by hand" in err
+    assert "not started: the limb stayed outside for 1 s" in err
+    assert "turn it right" in err and "--approach" in err
 
 
 def test_an_approach_faster_than_allowed_is_refused_before_the_port_opens(tmp_path, cone_model):

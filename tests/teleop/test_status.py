@@ -89,9 +89,7 @@ def test_a_terminal_line_is_refreshed_in_place_and_ended_on_close():
     assert "up is blocked" in shown and shown.endswith("\n")
     refreshed = [part.split(ERASE_TO_END)[0] for part in shown.split("\r") if ERASE_TO_END in part]
     assert refreshed and all(len(line) == 99 for line in refreshed)
-
-
-def test_the_status_line_is_chosen_by_the_source():
+    # the status line is chosen by the source
     stream = io.StringIO()
     assert isinstance(status_line_for(stream, Steered()), ExplainedStatus)
     assert isinstance(status_line_for(stream, StreamSource()), StatusLine)

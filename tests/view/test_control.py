@@ -1,7 +1,5 @@
-"""Who may watch and who may steer: the key, the Origin, the Host, one controller, a flood; and,
-in headless Chromium against the real server, no motion without a fresh action: a tab that lost
-control comes back watching, a reload keeps control, the steering tab is named, the arrow keys
-step from the written pose (a frozen tab: the browser stopped with SIGSTOP)."""
+"""Who may watch and who may steer (the key, the Origin, the Host, one controller, a flood), and
+in headless Chromium no motion without a fresh action (a frozen tab: the browser under SIGSTOP)."""
 
 from __future__ import annotations
 
@@ -63,13 +61,9 @@ def ws_url(server: ViewServer, key: str | None) -> str:
     return base if key is None else f"{base}?key={key}"
 
 
-def origin_of(server: ViewServer) -> str:
-    return server.control_url.split("/?")[0]
-
-
 def open_socket(server: ViewServer, key: str | None, origin: str | None = "same", **kw):
     """A WebSocket as a browser opens it (Origin: the page's own unless told otherwise)."""
-    origin = origin_of(server) if origin == "same" else origin
+    origin = server.control_url.split("/?")[0] if origin == "same" else origin
     options = {"origin": origin} if origin is not None else {"suppress_origin": True}
     return websocket.create_connection(ws_url(server, key), timeout=WAIT_S, **options, **kw)
 
@@ -88,9 +82,25 @@ def refused_status(call) -> int:
     return refused.value.status_code
 
 
-def test_the_key_is_needed_to_steer_and_only_the_right_one():
+def test_the_key_the_origin_and_the_host_decide_who_steers_and_one_steers_at_a_time():
     with served() as (_, server, sink, holder):
         secret = server.access.secret
+        # another site's page is refused even with the key
+        for forged in ("http://evil.example", "http://127.0.0.1:1", "null"):
+            assert refused_status(lambda o=forged: open_socket(server, secret, origin=o)) == 403
+            assert refused_status(lambda o=forged: open_socket(server, None, origin=o)) == 403
+        # a program without an Origin may watch 127.0.0.1, but steering needs the page
+        assert refused_status(lambda: open_socket(server, secret, origin=None)) == 403
+        with contextlib.closing(open_socket(server, None, origin=None)) as watcher:
+            assert control_message(watcher)["steer"] is False
+        # DNS rebinding: a name that is not this machine's, pointed at 127.0.0.1
+        port = server.control_url.split(":")[2].split("/")[0]
+        request = urllib.request.Request(server.url, headers={"Host": f"evil.example:{port}"})
+        with pytest.raises(urllib.error.HTTPError) as rebound:
+            urllib.request.urlopen(request, timeout=WAIT_S)
+        assert rebound.value.code == 403
+        assert sink.lines == []
+        # the key is needed to steer, and only the right one
         assert len(secret) >= 22 and f"?key={secret}" in server.control_url
         assert "key" not in server.url  # watching 127.0.0.1 stays open
         # no key: the page watches; what it sends never reaches the source
@@ -114,32 +124,10 @@ def test_the_key_is_needed_to_steer_and_only_the_right_one():
             assert "127.0.0.1" in holder()
             steering.send(json.dumps({"pan": 3.0, "tilt": 4.0}))
             sink.wait_for('{"pan": 3.0, "tilt": 4.0}')
-        assert sink.lines == ['{"pan": 3.0, "tilt": 4.0}']
+        assert sink.lines == ['{"pan": 3.0, "tilt": 4.0}'], "only the keyed page's line"
         assert server.desk.ignored == 1
-
-
-def test_another_sites_page_is_refused_even_with_the_key():
-    with served() as (_, server, sink, holder):
-        secret = server.access.secret
-        for forged in ("http://evil.example", "http://127.0.0.1:1", "null"):
-            assert refused_status(lambda o=forged: open_socket(server, secret, origin=o)) == 403
-            assert refused_status(lambda o=forged: open_socket(server, None, origin=o)) == 403
-        # a program without an Origin may watch 127.0.0.1, but steering needs the page
-        assert refused_status(lambda: open_socket(server, secret, origin=None)) == 403
-        with contextlib.closing(open_socket(server, None, origin=None)) as watcher:
-            assert control_message(watcher)["steer"] is False
-        # DNS rebinding: a name that is not this machine's, pointed at 127.0.0.1
-        port = server.control_url.split(":")[2].split("/")[0]
-        request = urllib.request.Request(server.url, headers={"Host": f"evil.example:{port}"})
-        with pytest.raises(urllib.error.HTTPError) as rebound:
-            urllib.request.urlopen(request, timeout=WAIT_S)
-        assert rebound.value.code == 403
-        assert sink.lines == []
-
-
-def test_one_controller_at_a_time_and_the_second_is_told_who():
-    with served() as (_, server, sink, holder):
-        secret = server.access.secret
+        # one controller at a time, and the second is told who
+        wait_until(lambda: holder().startswith("nobody"), WAIT_S, "the closed page kept control")
         with contextlib.closing(open_socket(server, secret)) as first:
             assert control_message(first)["steer"] is True
             with contextlib.closing(open_socket(server, secret)) as second:
@@ -200,7 +188,7 @@ def test_beyond_this_machine_watching_needs_a_key_and_only_the_steering_key_stee
                 assert control_message(steers)["steer"] is True
 
 
-def test_access_and_the_desk_as_values():
+def test_access_the_desk_and_control_requests_as_values():
     assert is_loopback("127.0.0.1") and is_loopback("localhost") and is_loopback("::1")
     assert not is_loopback("0.0.0.0") and not is_loopback("192.168.1.5")
     local, wide = Access.for_host("127.0.0.1"), Access.for_host("0.0.0.0")
@@ -211,9 +199,7 @@ def test_access_and_the_desk_as_values():
     page = object()
     assert desk.claim(page, "the page at here") and not desk.forward(page, "x")  # no source
     assert desk.told(page, keyed=True)[1].endswith("takes no commands from the page")
-
-
-def test_only_a_reload_of_the_holding_tab_takes_control_over_and_clicks_are_read_apart():
+    # only a reload of the holding tab takes control over, and clicks are read apart
     desk = ControlDesk()
     old, reloaded, other = object(), object(), object()
     assert desk.claim(old, "tab K7, opened 19:02:13", "tab-one")

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import time
-from contextlib import contextmanager
 
 import numpy as np
 
@@ -27,43 +26,29 @@ class GrowingSamples:
         return self._all[: self._count]
 
 
-@contextmanager
-def fit_left_waiting(monkeypatch):
-    """A feeder whose first fit is done and collected, the next left waiting for a refit
-    period that outlasts the first fit (its process start included) by 0.2 s; yields the
-    feeder and the monotonic times just before and after the first fit was started, and the
-    period."""
+def test_a_refit_waits_out_its_period_and_starts_at_once_once_it_is_over(monkeypatch):
+    """The feeder wakes when the refit period is over; a refit already due starts at once (the
+    race that left redraws 0.5 s apart: the period ended between the collect and the wait)."""
     feeder = SceneFeeder(Board(), GrowingSamples())
     try:
         before = time.monotonic()
         feeder.publish_once()  # starts the fit process and the first fit
         after = time.monotonic()
         assert feeder._fits is not None and feeder._fits.wait(120.0), "the first fit never ended"
+        # a period that outlasts the first fit (its process start included) by 0.2 s
         period = time.monotonic() - before + 0.2
         monkeypatch.setattr(feed, "REFIT_PERIOD_S", period)
         feeder.publish_once()  # collects the fit; the next waits for the period
         assert feeder.fits_done == 1 and not feeder._fits.busy
-        yield feeder, before, after, period
-    finally:
-        feeder.__exit__(None, None, None)
-
-
-def test_a_fit_done_before_the_refit_period_is_over_is_followed_when_it_is(monkeypatch):
-    with fit_left_waiting(monkeypatch) as (feeder, before, after, period):
-        # wakes when the period since the fit's start is over, before the next scene
         scene_due = after + period + 1.0
-        assert before + period <= feeder.wake_time(scene_due) <= after + period
-
-
-def test_a_refit_due_already_starts_at_once_not_a_scene_later(monkeypatch):
-    # the race that left redraws 0.5 s apart: the period ended between the collect and the
-    # wait; the wake time is then in the past, so the feeder does not wait
-    with fit_left_waiting(monkeypatch) as (feeder, _, _, _):
+        assert before + period <= feeder.wake_time(scene_due) <= after + period, "not woken then"
         monkeypatch.setattr(feed, "REFIT_PERIOD_S", 0.0)  # the period is over
         now = time.monotonic()
-        assert feeder.wake_time(now + SCENE_PERIOD_S) < now
-        feeder.publish_once()  # and the next fit starts
-        assert feeder._fits.busy
+        assert feeder.wake_time(now + SCENE_PERIOD_S) < now, "a due refit waits for a scene"
+        feeder.publish_once()
+        assert feeder._fits.busy, "the due refit did not start"
+    finally:
+        feeder.__exit__(None, None, None)
 
 
 def test_without_fits_the_feeder_wakes_for_the_next_scene_only():

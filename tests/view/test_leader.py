@@ -1,6 +1,5 @@
-"""The leader on the page, in headless Chromium: its marker beside the follower's, its push as an
-arrow and a bar against the cap; a three-servo leader's twist beside its pose, a push in twist on
-its own twist gauge and no arrow on the pan/tilt plane; a page without a leader is as before."""
+"""The leader on the page, in headless Chromium: its marker, its push against the cap, a
+three-servo leader's twist on its own gauge; a page without a leader is as before."""
 
 from __future__ import annotations
 
@@ -38,7 +37,7 @@ def pushing(pose_deg, goal_deg) -> LeaderStatus:
     return with_twist(status, rad(*pose_deg), rad(*goal_deg))
 
 
-def test_leader_status_json_and_its_checks():
+def test_leader_status_json_its_twists_and_its_checks():
     status = LeaderStatus(PanTilt(32.0, 1.0), 0.29, 0.4, PanTilt(31.7, 1.0), 1.95, "pushing back")
     live = LeaderLive("teleop", PanTilt(29.0, 0.0), leader=status)
     out = live.to_json()
@@ -65,10 +64,7 @@ def test_leader_status_json_and_its_checks():
     assert sensed.to_json()["sensed_nm"] == 0.283
     with pytest.raises(ValueError, match="sensed_nm"):
         LeaderStatus(None, 0.0, 0.4, sensed_nm=-0.01)
-
-
-def test_a_push_in_twist_gives_the_twists_and_no_arrow_on_the_plane():
-    # at pan = tilt = 0 the twist is the roll
+    # a push in twist gives the twists and no arrow on the plane; at pan = tilt = 0 twist is roll
     status = pushing((0.0, 0.0, 31.7), (0.005, 0.0, 31.4))
     out = status.to_json()
     assert (out["twist_deg"], out["toward_twist_deg"]) == (31.7, 31.4)
@@ -93,10 +89,16 @@ def near(rgb, target, tolerance: int = 8) -> bool:
     return all(abs(a - b) <= tolerance for a, b in zip(rgb, target, strict=True))
 
 
-def test_the_page_draws_the_leader_and_its_push_then_forgets_them_without_a_leader(browser, served):
+def test_the_page_draws_a_leader_once_it_sees_one_its_push_and_a_three_servo_leaders_twist(
+    browser, served
+):
     board, server = served
     board.publish_scene(Scene(limits=LIMITS))
+    board.publish_live(Live("teleop", PanTilt(5.0, 5.0), teleop=teleop(7)))
     browser.get(server.url)
+    wait_for(browser, lambda d: text_of(d, "cycles") == "7", "teleop not shown")
+    assert browser.execute_script("return document.getElementById('leader-panel');") is None
+    assert browser.execute_script("return document.getElementById('leader-keys');") is None
     # the leader is pressed 2 deg past an edge at pan 30: the wall pushes it back along -pan
     leader = LeaderStatus(PanTilt(32.0, 0.0), 0.3, 0.4, PanTilt(31.7, 0.0), 2.0, "pushing back")
     board.publish_live(LeaderLive("teleop", PanTilt(29.0, 0.0), teleop=teleop(1), leader=leader))
@@ -140,8 +142,8 @@ def test_the_page_draws_the_leader_and_its_push_then_forgets_them_without_a_lead
     assert not browser.find_element("id", "leader-bar").is_displayed()
 
     # the same page given a plain teleop state (any other source): no leader drawn or told
-    board.publish_live(Live("teleop", PanTilt(9.0, 5.0), teleop=teleop(4)))
-    wait_for(browser, lambda d: text_of(d, "cycles") == "4", "plain state not shown")
+    board.publish_live(Live("teleop", PanTilt(9.0, 5.0), teleop=teleop(9)))
+    wait_for(browser, lambda d: text_of(d, "cycles") == "9", "plain state not shown")
     wait_for(
         browser, lambda d: not d.find_element("id", "leader-panel").is_displayed(), "panel stayed"
     )
@@ -149,23 +151,9 @@ def test_the_page_draws_the_leader_and_its_push_then_forgets_them_without_a_lead
     x, y = browser.execute_script("return window.limbview.toCanvas(10.0, 5.0);")
     assert canvas_rgb(browser, x, y) != LEADER_RGB
 
-
-def test_a_page_that_never_sees_a_leader_has_no_leader_parts(browser, served):
-    board, server = served
-    board.publish_scene(Scene(limits=LIMITS))
-    board.publish_live(Live("teleop", PanTilt(5.0, 5.0), teleop=teleop(7)))
-    browser.get(server.url)
-    wait_for(browser, lambda d: text_of(d, "cycles") == "7", "teleop not shown")
-    assert browser.execute_script("return document.getElementById('leader-panel');") is None
-    assert browser.execute_script("return document.getElementById('leader-keys');") is None
-
-
-def test_the_page_shows_a_three_servo_leaders_twist_and_its_push(browser, served):
-    board, server = served
-    board.publish_scene(Scene(limits=LIMITS))
-    browser.get(server.url)
+    # a three-servo leader: its twist beside its pose, a push in twist on its own gauge
     leader = pushing((0.0, 0.0, 31.7), (0.005, 0.0, 31.4))
-    board.publish_live(LeaderLive("teleop", ZERO, teleop=teleop(1, ZERO, ZERO), leader=leader))
+    board.publish_live(LeaderLive("teleop", ZERO, teleop=teleop(5, ZERO, ZERO), leader=leader))
     wait_for(browser, lambda d: made(d, "leader-twist") and text_of(d, "leader-twist") != "-", "")
     assert text_of(browser, "leader-twist") == "31.7 deg, pushed toward 31.4 deg"
     assert browser.find_element("id", "leader-twist-row").is_displayed()
@@ -184,10 +172,10 @@ def test_the_page_shows_a_three_servo_leaders_twist_and_its_push(browser, served
     # released: the twist alone, the push's mark gone; a two-servo leader: no twist row
     free = with_twist(LeaderStatus(PanTilt(0.0, 0.0), 0.0, 0.4, None, 0.2, "free"),
                       rad(0.0, 0.0, 30.2), None)  # fmt: skip
-    board.publish_live(LeaderLive("teleop", ZERO, teleop=teleop(2, ZERO, ZERO), leader=free))
+    board.publish_live(LeaderLive("teleop", ZERO, teleop=teleop(6, ZERO, ZERO), leader=free))
     wait_for(browser, lambda d: text_of(d, "leader-twist") == "30.2 deg", "release not shown")
     assert not browser.find_element("id", "leader-twist-toward").is_displayed()
     two = LeaderStatus(PanTilt(5.0, 0.0), state="free")
-    board.publish_live(LeaderLive("teleop", ZERO, teleop=teleop(3, ZERO, ZERO), leader=two))
+    board.publish_live(LeaderLive("teleop", ZERO, teleop=teleop(8, ZERO, ZERO), leader=two))
     wait_for(browser, lambda d: text_of(d, "leader-pose") == "5.0, 0.0", "two servos not shown")
     assert not browser.find_element("id", "leader-twist-row").is_displayed()

@@ -21,7 +21,9 @@ def pixel(driver, pan: float, tilt: float) -> tuple[int, int, int]:
     return tuple(driver.execute_script(f"return window.limbview.pixel({pan}, {tilt});")[:3])
 
 
-def test_page_shows_the_published_record_state(browser, served):
+def test_page_shows_the_published_record_state_to_several_browsers_five_times_a_second(
+    browser, served
+):
     board, server = served
     samples = np.column_stack([np.linspace(-15, 15, 300), np.linspace(-8, 8, 300)])
     board.publish_scene(
@@ -52,46 +54,16 @@ def test_page_shows_the_published_record_state(browser, served):
     # the region is drawn: its fill inside the rectangle (away from samples, markers), not outside
     wait_for(browser, lambda d: pixel(d, -15.0, 5.0) == REGION_RGB, "region fill not drawn")
     assert pixel(browser, 50.0, 40.0) != REGION_RGB
-
-
-def test_page_follows_live_updates_and_teleop(browser, served):
-    board, server = served
-    board.publish_scene(Scene(loops=(SQUARE,), limits=LIMITS))
-    board.publish_live(Live(mode="teleop"))
-    browser.get(server.url)
-    wait_for(browser, lambda d: text_of(d, "mode") == "teleop", "mode not shown")
-
-    for cycle in range(1, 6):
-        board.publish_live(
-            Live(
-                mode="teleop",
-                pose=PanTilt(2.0 * cycle, 1.0),
-                teleop=TeleopStatus(
-                    commanded=PanTilt(60.0, 30.0 + cycle),
-                    written=PanTilt(20.0, 10.0),
-                    outcome="corrected",
-                    rate_hz=199.6,
-                    cycles=cycle,
-                ),
-            )
-        )
-        wait_for(browser, lambda d, c=cycle: text_of(d, "cycles") == str(c), f"cycle {cycle}")
-        assert text_of(browser, "commanded") == f"60.0, {30.0 + cycle:.1f}"
-        assert text_of(browser, "pose") == f"{2.0 * cycle:.1f}, 1.0"
-    assert text_of(browser, "written") == "20.0, 10.0"
-    assert text_of(browser, "outcome") == "corrected"
-    assert text_of(browser, "rate") == "199.6 Hz"
-    assert browser.find_element("id", "teleop").is_displayed()
-
-    board.publish_live(Live(mode="teleop", fault="servo 2 vanished: holding the last safe pose"))
-    wait_for(browser, lambda d: d.find_element("id", "fault").is_displayed(), "fault not shown")
-    assert "servo 2 vanished" in text_of(browser, "fault")
-
-
-def test_page_updates_the_pose_at_least_five_times_a_second(browser, served):
-    board, server = served
+    # several browsers watch at once
+    board.publish_live(Live(mode="record", sample_count=7))
+    wait_for(browser, lambda d: text_of(d, "sample-count") == "7", "first browser")
+    with chromium() as second:
+        second.get(server.url)
+        board.publish_live(Live(mode="record", sample_count=8))
+        for driver in (browser, second):
+            wait_for(driver, lambda d: text_of(d, "sample-count") == "8", "both update")
+    # the page updates the pose at least five times a second
     board.publish_live(Live(mode="record", pose=PanTilt(0.0, 0.0)))
-    browser.get(server.url)
     wait_for(browser, lambda d: text_of(d, "pose") == "0.0, 0.0", "first pose not shown")
     # the page counts the live frames it received; publish a new pose every few ms for ~2 s
     start = int(text_of(browser, "live-frames"))
@@ -105,19 +77,7 @@ def test_page_updates_the_pose_at_least_five_times_a_second(browser, served):
     assert frames / elapsed_s >= 5.0, f"{frames} pose updates in {elapsed_s:.2f} s"
 
 
-def test_several_browsers_watch_at_once(browser, served):
-    board, server = served
-    board.publish_live(Live(mode="record", sample_count=7))
-    browser.get(server.url)
-    wait_for(browser, lambda d: text_of(d, "sample-count") == "7", "first browser")
-    with chromium() as second:
-        second.get(server.url)
-        board.publish_live(Live(mode="record", sample_count=8))
-        for driver in (browser, second):
-            wait_for(driver, lambda d: text_of(d, "sample-count") == "8", "both update")
-
-
-def test_the_teleop_page_tells_the_teleop_story(browser, served):
+def test_the_teleop_page_tells_the_teleop_story_and_follows_live_updates(browser, served):
     board, server = served
     board.publish_scene(Scene(loops=(SQUARE,), limits=LIMITS, region_note="the model's region"))
     browser.get(server.url)
@@ -155,3 +115,33 @@ def test_the_teleop_page_tells_the_teleop_story(browser, served):
         return canvas_rgb(driver, x, y - 16) == (208, 16, 16)
 
     wait_for(browser, red_above, "no bar on the blocked side")
+    # it follows live updates and a fault
+    board.publish_scene(Scene(loops=(SQUARE,), limits=LIMITS))
+    board.publish_live(Live(mode="teleop"))
+    wait_for(browser, lambda d: text_of(d, "mode") == "teleop", "mode not shown")
+
+    for cycle in range(1, 6):
+        board.publish_live(
+            Live(
+                mode="teleop",
+                pose=PanTilt(2.0 * cycle, 1.0),
+                teleop=TeleopStatus(
+                    commanded=PanTilt(60.0, 30.0 + cycle),
+                    written=PanTilt(20.0, 10.0),
+                    outcome="corrected",
+                    rate_hz=199.6,
+                    cycles=cycle,
+                ),
+            )
+        )
+        wait_for(browser, lambda d, c=cycle: text_of(d, "cycles") == str(c), f"cycle {cycle}")
+        assert text_of(browser, "commanded") == f"60.0, {30.0 + cycle:.1f}"
+        assert text_of(browser, "pose") == f"{2.0 * cycle:.1f}, 1.0"
+    assert text_of(browser, "written") == "20.0, 10.0"
+    assert text_of(browser, "outcome") == "corrected"
+    assert text_of(browser, "rate") == "199.6 Hz"
+    assert browser.find_element("id", "teleop").is_displayed()
+
+    board.publish_live(Live(mode="teleop", fault="servo 2 vanished: holding the last safe pose"))
+    wait_for(browser, lambda d: d.find_element("id", "fault").is_displayed(), "fault not shown")
+    assert "servo 2 vanished" in text_of(browser, "fault")

@@ -108,7 +108,7 @@ def test_stretches_without_a_sample_nearby_are_untraced():
     assert plain.traced.all()
 
 
-def test_fit_outline_outlines_a_taught_disc():
+def test_fit_outline_outlines_a_taught_disc_and_the_default_rigid_maps_region():
     rng = np.random.default_rng(0)
     radius = np.radians(20.0) * np.sqrt(rng.uniform(0.0, 1.0, 3000))
     angle = rng.uniform(0.0, 2.0 * np.pi, 3000)
@@ -121,10 +121,7 @@ def test_fit_outline_outlines_a_taught_disc():
     assert fit.note.startswith("fitted on 3000 samples")
     too_few = fit_outline(np.zeros((10, 2)))
     assert not too_few.loops and "need 200 samples" in too_few.note
-
-
-def test_fit_outline_draws_the_region_of_the_default_rigid_map():
-    """The view fits the region alone; it is the one a default RigidMap's gate enforces."""
+    # the view fits the region alone: it is the one a default RigidMap's gate enforces
     data = load_dataset(Path(__file__).parents[1] / "data" / "hand_irregular_seed0_20s.limb")
     pan_tilt = np.radians(np.column_stack([data.pan_deg, data.tilt_deg]))
     fit = fit_outline(pan_tilt)

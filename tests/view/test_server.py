@@ -35,8 +35,9 @@ def receive(client: websocket.WebSocket, timeout: float = WAIT_S) -> dict:
     return json.loads(client.recv())
 
 
-def test_serves_the_page_and_its_assets_and_refuses_others():
-    with ViewServer(Board(), port=0) as server:
+def test_serves_the_page_its_assets_and_the_newest_state_and_refuses_others():
+    board = Board()
+    with ViewServer(board, port=0) as server:
         page = urllib.request.urlopen(server.url, timeout=WAIT_S).read().decode()
         assert "<canvas" in page and "view.js" in page
         script = urllib.request.urlopen(server.url + "view.js", timeout=WAIT_S).read().decode()
@@ -45,9 +46,13 @@ def test_serves_the_page_and_its_assets_and_refuses_others():
         with pytest.raises(urllib.error.HTTPError) as refused:
             urllib.request.urlopen(server.url + "secrets.txt", timeout=WAIT_S)
         assert refused.value.code == 404
+        assert json.loads(urllib.request.urlopen(server.url + "state.json").read()) == {}
+        board.publish_live(Live(mode="demo: teach", sample_count=42))
+        state = json.loads(urllib.request.urlopen(server.url + "state.json").read())
+        assert state["live"]["sample_count"] == 42 and "scene" not in state, "not the newest state"
 
 
-def test_pushes_scene_then_live_and_only_newer_versions():
+def test_pushes_scene_then_live_only_newer_versions_and_stop_closes_and_frees_the_port():
     board = Board()
     board.publish_scene(Scene(samples_deg=[[1.0, 2.0]], region_note="n"))
     board.publish_live(Live(mode="record", pose=PanTilt(1.0, 2.0), sample_count=1))
@@ -75,6 +80,29 @@ def test_pushes_scene_then_live_and_only_newer_versions():
             counts.append(receive(client)["sample_count"])
         assert len(counts) < 100, "stale frames were queued instead of dropped"
         assert counts == sorted(counts)
+        # stop closes the connected browsers and frees the port
+        closed = threading.Event()
+
+        def read_until_closed():
+            try:
+                while True:
+                    receive(client)
+            except Exception:
+                closed.set()
+
+        reader = threading.Thread(target=read_until_closed)
+        reader.start()
+        server.stop()
+        assert closed.wait(WAIT_S), "the browser's connection stayed open after stop"
+        reader.join(WAIT_S)
+    assert not server.running
+    port = int(server.url.rstrip("/").rsplit(":", 1)[1])
+    with socket.socket() as probe:
+        # free again: nobody listens (closed connections may linger in TIME_WAIT, as for any
+        # server, hence SO_REUSEADDR, which a listener still there would make bind refuse)
+        probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        probe.bind(("127.0.0.1", port))
+        probe.listen()
 
 
 def test_a_stalled_browser_does_not_slow_the_producer_nor_the_others():
@@ -126,42 +154,3 @@ def test_a_stalled_browser_does_not_slow_the_producer_nor_the_others():
         mean = sum(durations) / len(durations)
         assert mean < 1e-3, f"a publish took {mean * 1e6:.0f} us on average"
         assert scenes_seen >= 10, f"the healthy browser got only {scenes_seen} scenes in 2 s"
-
-
-def test_stop_closes_connected_browsers_and_frees_the_port():
-    board = Board()
-    board.publish_live(Live(mode="teleop"))
-    server = ViewServer(board, port=0)
-    with server, contextlib.closing(connect(server)) as client:
-        receive(client)
-        closed = threading.Event()
-
-        def read_until_closed():
-            try:
-                while True:
-                    receive(client)
-            except Exception:
-                closed.set()
-
-        reader = threading.Thread(target=read_until_closed)
-        reader.start()
-        server.stop()
-        assert closed.wait(WAIT_S), "the browser's connection stayed open after stop"
-        reader.join(WAIT_S)
-    assert not server.running
-    port = int(server.url.rstrip("/").rsplit(":", 1)[1])
-    with socket.socket() as probe:
-        # free again: nobody listens (closed connections may linger in TIME_WAIT, as for any
-        # server, hence SO_REUSEADDR, which a listener still there would make bind refuse)
-        probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        probe.bind(("127.0.0.1", port))
-        probe.listen()
-
-
-def test_state_json_is_the_newest_snapshot():
-    board = Board()
-    with ViewServer(board, port=0) as server:
-        assert json.loads(urllib.request.urlopen(server.url + "state.json").read()) == {}
-        board.publish_live(Live(mode="demo: teach", sample_count=42))
-        state = json.loads(urllib.request.urlopen(server.url + "state.json").read())
-        assert state["live"]["sample_count"] == 42 and "scene" not in state

@@ -25,22 +25,6 @@ def test_thinning_keeps_one_sample_per_cell_in_order_and_caps_the_count():
     assert thin_samples(np.zeros((0, 2))).shape == (0, 2)
 
 
-def test_an_edge_loop_needs_one_traced_flag_per_vertex():
-    with pytest.raises(ValueError, match="3 vertices but 2 traced flags"):
-        EdgeLoop([[0, 0], [1, 0], [0, 1]], [True, False])
-    loop = EdgeLoop([[0, 0], [1, 0], [0, 1]], [1, 0, 1])
-    assert loop.to_json() == {"points": [[0, 0], [1, 0], [0, 1]], "traced": [1, 0, 1]}
-
-
-def test_scene_json_holds_what_the_page_draws():
-    scene = Scene(samples_deg=[[1.234, -5.678]], loops=(EdgeLoop([[0, 0], [1, 1]], [0, 1]),))
-    as_json = scene.to_json()
-    assert as_json["kind"] == "scene"
-    assert as_json["samples"] == [[1.23, -5.68]]
-    assert as_json["loops"][0]["traced"] == [0, 1]
-    assert as_json["limits"] is None and as_json["guide"] == []
-
-
 def test_board_versions_count_publishes_and_snapshot_reads_both_parts_together():
     board = Board()
     assert board.snapshot().live is None and board.live is None and board.scene is None
@@ -62,7 +46,18 @@ def test_board_versions_count_publishes_and_snapshot_reads_both_parts_together()
     assert snap.live.pose.tilt_deg == 999
 
 
-def test_teleop_json_carries_the_gates_words_and_the_blocked_sides():
+def test_edge_loops_scenes_and_teleop_states_as_json():
+    with pytest.raises(ValueError, match="3 vertices but 2 traced flags"):
+        EdgeLoop([[0, 0], [1, 0], [0, 1]], [True, False])
+    loop = EdgeLoop([[0, 0], [1, 0], [0, 1]], [1, 0, 1])
+    assert loop.to_json() == {"points": [[0, 0], [1, 0], [0, 1]], "traced": [1, 0, 1]}
+    scene = Scene(samples_deg=[[1.234, -5.678]], loops=(EdgeLoop([[0, 0], [1, 1]], [0, 1]),))
+    as_json = scene.to_json()
+    assert as_json["kind"] == "scene"
+    assert as_json["samples"] == [[1.23, -5.68]]
+    assert as_json["loops"][0]["traced"] == [0, 1]
+    assert as_json["limits"] is None and as_json["guide"] == []
+    # a teleop state carries the gate's words and the blocked sides
     status = TeleopStatus(
         PanTilt(0.0, 60.0),
         PanTilt(0.0, 30.0),

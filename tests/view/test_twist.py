@@ -1,6 +1,5 @@
-"""The twist values the page draws: cells over the swing plane and the gauge of the present pose;
-and a three-servo record and teleop watched in headless Chromium, the twist band over the swing
-plane and the twist gauge drawing what the feed says."""
+"""The twist the page draws: cells over the swing plane and the present pose's gauge, and a
+three-servo record and teleop watched in headless Chromium."""
 
 from __future__ import annotations
 
@@ -45,7 +44,8 @@ def shoulder_model():
     return region, RigidMap(twist=True).fit(taught)
 
 
-def test_two_servo_json_has_no_twist_keys():
+def test_twist_values_json_maps_and_the_taught_gauge():
+    # two servos: no twist keys
     live = Live("record", PanTilt(1.0, 2.0), 3).to_json()
     scene = Scene().to_json()
     assert "twist" not in live and "twist" not in scene
@@ -58,9 +58,7 @@ def test_two_servo_json_has_no_twist_keys():
         "of": "taught here",
         "written": None,
     }
-
-
-def test_a_twist_map_finds_the_cell_of_a_pose_and_refuses_unknown_states():
+    # a twist map finds the cell of a pose and refuses unknown states
     cells = np.array([[0, 0, -30.0, 40.0], [-1, 2, 5.0, 8.0]])
     shown = TwistMap(15.0, cells, ("turned", "short"), "taught")
     assert shown.at(7.0, 14.9) == (-30.0, 40.0, "turned")
@@ -71,9 +69,7 @@ def test_a_twist_map_finds_the_cell_of_a_pose_and_refuses_unknown_states():
         TwistMap(15.0, cells, ("turned", "maybe"), "taught")
     with pytest.raises(ValueError, match="2 cells but 1 states"):
         TwistMap(15.0, cells, ("turned",), "taught")
-
-
-def test_the_taught_map_says_which_places_lack_a_stop():
+    # the taught map says which places lack a stop
     places = (
         TwistPlace(0, 0, -40.0, 40.0, 100, True),
         TwistPlace(1, 0, -2.0, 3.0, 100, False),
@@ -90,7 +86,17 @@ def test_the_taught_map_says_which_places_lack_a_stop():
     assert taught_gauge(None, pan, tilt, roll).low_deg is None
 
 
-def test_the_band_gauge_and_map_agree_with_the_region(shoulder_model):
+class StillLimb:
+    """A three-servo limb held still by a hand at one pose (rad)."""
+
+    def __init__(self, pose: tuple[float, float, float]) -> None:
+        self.pose = pose
+
+    def read_pose(self) -> tuple[float, float, float]:
+        return self.pose
+
+
+def test_the_band_gauge_map_feed_and_pose_tap_agree_with_the_region(shoulder_model):
     region, model = shoulder_model
     band = model.region.band
     rng = np.random.default_rng(1)
@@ -120,10 +126,7 @@ def test_the_band_gauge_and_map_agree_with_the_region(shoulder_model):
     # the shoulder's band narrows as the limb rises (75 deg half-width low, 25 high)
     assert np.corrcoef(tilt, widths)[0, 1] < -0.8
     assert model_band_map(RigidMap(), (-1.0, 1.0), (-1.0, 1.0)) is None
-
-
-def test_the_teleop_feed_shows_the_twist_of_a_three_servo_rig(shoulder_model):
-    _, model = shoulder_model
+    # the teleop feed and the pose tap show the twist
     board = Board()
     feed = TeleopFeed(board)
     feed.band = model.region.band
@@ -150,19 +153,7 @@ def test_the_teleop_feed_shows_the_twist_of_a_three_servo_rig(shoulder_model):
     two = TeleopFeed(plain)
     two(Cycle(index=0, t=0.0, state=CycleState.RUNNING, present=(0.1, 0.2)))
     assert plain.live.twist is None and "twist" not in plain.live.to_json()
-
-
-class StillLimb:
-    """A three-servo limb held still by a hand at one pose (rad)."""
-
-    def __init__(self, pose: tuple[float, float, float]) -> None:
-        self.pose = pose
-
-    def read_pose(self) -> tuple[float, float, float]:
-        return self.pose
-
-
-def test_the_pose_tap_shows_a_new_taught_range_at_once_with_the_last_pose():
+    # the pose tap shows a new taught range at once, with the last pose
     board = Board()
     pose = (math.radians(20.0), math.radians(5.0), math.radians(10.0))
     tap = PoseTap(StillLimb(pose), board, "record")
@@ -191,15 +182,10 @@ def js(browser, script: str):
     return browser.execute_script(f"return {script};")
 
 
-def deg_of(text: str) -> float:
-    """``"-12.3 deg"`` -> -12.3."""
-    return float(text.split()[0])
-
-
 def shows(text: str, value: float) -> bool:
     """Whether ``text`` (``"-12.3 deg"``, or its first number) is ``value`` (deg) to the page's
     rounding (0.05 deg, of a value the feed rounded to 0.01 deg)."""
-    return abs(deg_of(text) - value) <= 0.05 + 0.005 + 1e-9
+    return abs(float(text.split()[0]) - value) <= 0.05 + 0.005 + 1e-9
 
 
 def range_shows(text: str, low: float, high: float, of: str) -> bool:
