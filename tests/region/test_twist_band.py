@@ -11,9 +11,7 @@ from limbctl.geometry.gimbal import pan_tilt_to_direction
 from limbctl.geometry.quat import tangent_frame
 from limbctl.geometry.twist import compose, decompose, wrap
 from limbctl.region import twist_band as tb
-from limbctl.region.twist_band import (
-    TwistBand,
-)
+from limbctl.region.twist_band import TwistBand
 from limbctl.region.twist_evidence import band_unsupported
 
 
