@@ -7,11 +7,13 @@ band's centre and half-width bilinear in a plane grid about its axis (:func:`ban
 
 Nearest orientation: over a candidate direction ``d`` at angle ``theta`` from ``q``'s, the best
 orientation in the band lies ``delta(d)`` in twist from the transported twist, at geodesic
-angle ``g`` with ``cos(g/2) = cos(theta/2) cos(delta/2)`` (:func:`_score`, maximised). A pattern
+angle ``g`` with ``cos(g/2) = cos(theta/2) cos(delta/2)`` (:func:`_score`, maximised). Where the
+swing projection's transported twist lies in the band, that is the answer. Else a pattern
 search over the swing region's directions (polls outside replaced by their projection) starts
 from the better of the swing projection and the nearest *seed*; further searches (``MAX_STARTS``
-in all) start from the next best candidates, and the best optimum found is the answer
-(docs/decisions/twist.md). No fastmath: NaN must fail every comparison.
+in all) start from the next best candidates, then from the best scoring band grid nodes nearby
+(:func:`_scan_nodes`), and the best optimum found is the answer (docs/decisions/twist.md). No
+fastmath: NaN must fail every comparison.
 """
 
 from __future__ import annotations
