@@ -199,6 +199,18 @@ def _search(qc, dq, cur, best, best_tau, mesh, band, work, step, step_min):
 
 
 @njit(inline="always")
+def _search_from(qc, dq, alt, best, step, mesh, band, work):
+    """A further start at ``alt`` (moved to its optimum): searched from ``step`` (rad) down to
+    ``STEP_COARSE``, and on to ``STEP_MIN`` only while it beats ``best``; its ``(F, tau)``."""
+    frame, grid, centre, half = band
+    f, t = _score(qc, dq, alt, frame, grid, centre, half)
+    f, t = _search(qc, dq, alt, f, t, mesh, band, work, step, STEP_COARSE)
+    if f > best:
+        f, t = _search(qc, dq, alt, f, t, mesh, band, work, STEP_COARSE, STEP_MIN)
+    return f, t
+
+
+@njit(inline="always")
 def _correct_one(q, mesh, band, seeds, seed_dirs, out, work) -> int:
     """Correct one quaternion into ``out``: 1 inside (``out = q``), 0 corrected, -1 bad input.
 
@@ -294,11 +306,7 @@ def _correct_one(q, mesh, band, seeds, seed_dirs, out, work) -> int:
             starts[n_starts, k] = src[k]
             alt[k] = src[k]
         n_starts += 1
-        f, t = _score(qc, dq, alt, frame, grid, centre, half)
-        f, t = _search(qc, dq, alt, f, t, mesh, band, work, STEP_START, STEP_COARSE)
-        if f <= best:
-            continue
-        f, t = _search(qc, dq, alt, f, t, mesh, band, work, STEP_COARSE, STEP_MIN)
+        f, t = _search_from(qc, dq, alt, best, STEP_START, mesh, band, work)
         if f > best:
             best, best_tau = f, t
             for k in range(3):
@@ -370,11 +378,7 @@ def _scan_nodes(qc, dq, cur, best, best_tau, mesh, band, work):
         if not bk.query_mesh(alt, mesh, proj, work):
             for k in range(3):
                 alt[k] = proj[k]
-        f, t = _score(qc, dq, alt, frame, grid, centre, half)
-        f, t = _search(qc, dq, alt, f, t, mesh, band, work, 0.5 * grid[2], STEP_COARSE)
-        if f <= best:
-            continue
-        f, t = _search(qc, dq, alt, f, t, mesh, band, work, STEP_COARSE, STEP_MIN)
+        f, t = _search_from(qc, dq, alt, best, 0.5 * grid[2], mesh, band, work)
         if f > best:
             best, best_tau = f, t
             for k in range(3):
