@@ -328,6 +328,9 @@ def test_a_band_constant_linear_or_curved_with_bumps_compares_on_the_circle():
     assert band.contains(0, 0, 160.0)
     assert not band.contains(0, 0, -165.0)
     assert not band.contains(0, 0, 140.0)
+    # both limits themselves lie in the band (one across +-180), a tenth of a degree past them not
+    assert band.contains(0, 0, 150.0) and band.contains(0, 0, -170.0)
+    assert not band.contains(0, 0, 149.9) and not band.contains(0, 0, -169.9)
     band = TwistBand.from_mapping(
         {
             "centre_deg": {"linear": [5, 0.1, 0], "quadratic": [0, 0, 0.01]},
