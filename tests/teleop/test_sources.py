@@ -16,6 +16,7 @@ from limbctl.teleop.sources import (
     open_source,
     parse_source,
 )
+from tests.safety.support import wait_for
 
 
 def drain(source, timeout=5.0):
@@ -47,6 +48,20 @@ def test_stream_source_parses_counts_and_ends_and_replay_keeps_order(tmp_path):
     with ReplaySource(path, speed=10.0) as src:
         commands = drain(src)
     assert [c.t for c in commands] == [r["t"] for r in rows]
+
+
+def test_an_oversize_line_arriving_in_two_reads_is_one_refusal_and_its_tail_is_not_fed():
+    """The tail of an oversize line, read after the line was already refused, is dropped
+    up to its newline: it is neither a second refusal nor a command."""
+    r, w = os.pipe()
+    with os.fdopen(r, "rb", buffering=0) as reader, StreamSource(reader) as src:
+        os.write(w, b'{"pan": ' + b"1" * (MAX_LINE_BYTES + 10))
+        wait_for(lambda: src.stats.rejected == 1, 5.0, "the oversize head's refusal")
+        os.write(w, b'1, "tilt": 0}\n{"pan": -5, "tilt": 0}\n')
+        os.close(w)
+        commands = drain(src)
+    assert len(commands) == 1 and src.stats.accepted == 1
+    assert src.stats.rejected == 1, "the oversize line's tail was fed on as a line of its own"
 
 
 def test_open_source_rejects_unknown_names():
