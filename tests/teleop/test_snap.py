@@ -152,3 +152,20 @@ def test_property_the_watch_cuts_only_toward_the_region_and_only_when_armed(even
         else:
             assert armed is None or watch.armed == armed
         watch.arm(POSE, GOAL, (pan_speed, tilt_speed), (torque, 0.0), engaged, 0.005 * (k + 1))
+
+
+def test_a_snap_is_judged_against_the_hold_of_the_last_cycle_not_of_the_first_arming():
+    """Armed on a 0.3 N m hold that then eased to 0.07 N m: a let go from the light hold (the
+    leader speeding up 4.5 deg/s within a millisecond, over the 2 deg/s a 0.07 N m hold frees)
+    cuts; judged against the first arming's 0.3 N m (8.6 deg/s) it would not."""
+    watch = held_watch()
+    watch.arm(POSE, GOAL, STILL, (-0.07, 0.0), True, 0.005)
+    assert watch.armed is not None
+    assert watch.snaps((-4.5, 0.0), 0.006)
+    # and the other way: armed light, then held at 0.3 N m, the same rise is no let go
+    watch = SnapWatch(LAW)
+    watch.arm(POSE, GOAL, STILL, (-0.07, 0.0), False, -0.005)
+    watch.arm(POSE, GOAL, STILL, (-0.07, 0.0), True, 0.0)
+    watch.arm(POSE, GOAL, STILL, HELD_NM, True, 0.005)
+    assert not watch.snaps((-4.5, 0.0), 0.006)
+    assert watch.armed is not None
