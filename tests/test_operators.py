@@ -8,18 +8,14 @@ import re
 from dataclasses import replace
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 import calib
 from limbctl.cli import main
-from limbctl.envelope import RigidMap
-from limbctl.envelope.synthetic_twist import ShoulderRegion
 from limbctl.errors import ConfigError
 from limbctl.jobs import Connection, TeleopOptions, run_teleop
 from limbctl.live import ViewOptions
 from limbctl.operators import OPERATORS, load_operator
-from tests.conftest import trained_for
 
 EDGE = 30.0
 
@@ -176,17 +172,16 @@ def test_a_simulated_operator_presses_a_felt_leader_past_the_edge_on_teleop(
         assert held and EDGE < max(held) < EDGE + 6.0, max(held)
 
 
-def test_a_three_servo_leader_pressed_past_the_twist_band_is_reported_on_teleop(tmp_path, capsys):
+def test_a_three_servo_leader_pressed_past_the_twist_band_is_reported_on_teleop(
+    tmp_path, capsys, shoulder_model_path
+):
     """A three-servo session, which opens its source late, still says the leader and its press."""
-    model = tmp_path / "shoulder.npz"
-    taught = ShoulderRegion().teaching(2500, 1200, 1200, np.random.default_rng(0))
-    RigidMap(twist=True).fit(taught).save(model, metadata=trained_for("sim3"))
     said, pressed = teleop_with_operator(  # roll 150 deg at pan 0, tilt 10: far past the band
         capsys,
         tmp_path / "roll.yaml",
         "start_deg: [0, 10, 0]\nscript: [[0, 0, 10, 0], [0.5, 0, 10, 0], [2, 0, 10, 150]]\n"
         "let_go_s: 4\n",
-        model=model,
+        model=shoulder_model_path,
         source="leader:4,5,6",
         connection=Connection(rig=Path("sim3")),
     )
