@@ -6,6 +6,7 @@ import os
 from pathlib import Path
 from types import SimpleNamespace
 
+import numpy as np
 import pytest
 from dynamixel_sdk import PacketHandler, PortHandler
 
@@ -20,8 +21,7 @@ HAND_RECORDING = Path(__file__).parent / "data" / "hand_irregular_seed0_20s.limb
 
 @pytest.fixture
 def sim(tmp_path):
-    """A :class:`SimulatedBus` with servos 1 (pan) and 2 (tilt) at the rig's 4 Mbps, strict; checks
-    it shuts down cleanly."""
+    """A :class:`SimulatedBus` of servos 1 and 2 at 4 Mbps, checked to shut down cleanly."""
     link = tmp_path / "ttyDXL"
     with SimulatedBus(ids=(1, 2), link=link, baud=RIG_BAUD) as bus:
         yield bus
@@ -41,16 +41,14 @@ def sdk(sim):
 
 
 def trained_for(rig: str = "sim") -> dict:
-    """The metadata of a model trained for the simulated ``rig``: its name and calibration, which
-    a gate for that rig checks."""
+    """The metadata (name, calibration) of a model trained for the simulated ``rig``."""
     profile = default_sim_profile(rig)
     return {"rig": profile.name, "calibration": profile.calibration.to_dict()}
 
 
 @pytest.fixture(scope="module")
 def browser():
-    """Debian's headless Chromium through chromedriver (tests/view/browser.py), shared by a
-    module's tests: each loads its own server's page."""
+    """A headless Chromium (tests/view/browser.py) shared by a module's tests."""
     from tests.view.browser import chromium
 
     with chromium() as driver:
@@ -67,10 +65,21 @@ def hand_model_path(tmp_path_factory):
     return RigidMap().fit(load_dataset(HAND_RECORDING).quaternions).save(path, trained_for())
 
 
+@pytest.fixture(scope="session")
+def shoulder_model_path(tmp_path_factory):
+    """A Rigid Map with twist learned from a shoulder-like region (a band narrowing upward),
+    saved for the ``sim3`` rig; fitted once a run."""
+    from limbctl.envelope import RigidMap
+    from limbctl.envelope.synthetic_twist import ShoulderRegion
+
+    taught = ShoulderRegion().teaching(2500, 1200, 1200, np.random.default_rng(0))
+    path = tmp_path_factory.mktemp("shoulder-model") / "model.npz"
+    return RigidMap(twist=True).fit(taught).save(path, trained_for("sim3"))
+
+
 @pytest.fixture
 def cone_file(tmp_path):
-    """Saves a cone about the rest axis as trained for a simulated rig: ``cone_file(40.0)``
-    (half-angle, deg; ``rig="sim3"``) returns its path."""
+    """``cone_file(half_angle_deg, rig="sim")``: the path of a cone saved as trained for ``rig``."""
 
     from limbctl.envelope import Cone
 
@@ -82,7 +91,6 @@ def cone_file(tmp_path):
 
 
 def pytest_sessionstart(session):
-    """Install the programs the browser and terminal tests drive, or say in one line what to
-    install (tests/system_tools.py)."""
+    """Install the programs the browser and terminal tests drive, or say what to install."""
     reporter = session.config.pluginmanager.get_plugin("terminalreporter")
     system_tools.ensure(say=reporter.write_line if reporter else print)

@@ -1,9 +1,6 @@
-"""The machine's programs some tests drive (Chromium, its driver, tmux), set up by the test run.
-
-:func:`ensure`, run once at the session's start (tests/conftest.py): as root with ``apt-get``,
-installs the missing packages (one progress line; once per machine, one run at a time under
-:data:`LOCK`); else says in ONE line what to install, and each test needing a missing program
-skips with that line (:func:`require`)."""
+"""The programs some tests drive (Chromium, its driver, tmux): :func:`ensure`, at the session's
+start, installs them as root with ``apt-get`` or says in one line what to install, and each test
+needing a missing one skips with that line (:func:`require`)."""
 
 from __future__ import annotations
 
@@ -26,11 +23,9 @@ NEEDED_BY = {
     "chromedriver": "the live view's browser tests",
     "tmux": "the keyboard tests in a real terminal",
 }
-#: Held while one test run installs, so two runs started together do not both call apt-get
-#: (the second would fail on apt's own lock).
+#: Held while one test run installs, so two runs started together do not both call apt-get.
 LOCK = Path(tempfile.gettempdir()) / "limbctl-tests-install.lock"
-#: Longest an install may take (s): chromium is ~100 MB to download and unpack; a machine that
-#: cannot do it in 15 minutes reports the failure instead of hanging the test run.
+#: Longest an install may take (s): chromium is ~100 MB to download and unpack.
 INSTALL_TIMEOUT_S = 900.0
 
 #: The line a test needing a missing program skips with (None: nothing is missing).
@@ -85,9 +80,9 @@ def ensure(
     install: Callable[[Sequence[str]], subprocess.CompletedProcess] = apt_get_install,
     say: Callable[[str], None] = print,
 ) -> str | None:
-    """Install the missing programs where this process may (``root``; default: root with
-    ``apt-get`` on ``path``) with ``install``; returns None when all are found, else the one line
-    saying what to install (and why installing failed), kept for :func:`require`."""
+    """Install the missing programs with ``install`` where this process may (``root``; default:
+    root with ``apt-get`` on ``path``); None when all are found, else the one line saying what to
+    install (and why installing failed), kept for :func:`require`."""
     global _missing_line
     absent = missing(path)
     if root is None:

@@ -42,8 +42,7 @@ _RANK_ROW = re.compile(r"^\|\s*(\d+)\s*\|\s*`(\w+)`\s*\|", re.M)
 
 
 def code_spans(text: str) -> list[str]:
-    """Every inline code span outside fenced blocks, in order (a line break inside a span, as
-    Markdown renders it, is one space)."""
+    """Every inline code span outside fenced blocks, in order (a line break read as a space)."""
     return [re.sub(r"\s*\n\s*", " ", span) for span in _CODE.findall(_FENCE.sub("", text))]
 
 
@@ -52,8 +51,7 @@ def cited_paths(text: str) -> list[str]:
 
 
 def missing_paths(text: str, root: Path = ROOT) -> list[str]:
-    """Cited paths that do not exist (a glob must match something; a cited limbctl folder must
-    be a package)."""
+    """Cited paths that do not exist (a glob matching nothing; a limbctl folder not a package)."""
     missing = []
     for span in cited_paths(text):
         if "*" in span:
@@ -70,8 +68,7 @@ def missing_paths(text: str, root: Path = ROOT) -> list[str]:
 
 
 def module_of_path(span: str) -> str | None:
-    """The importable module a cited path stands for (None for data files and folders that are
-    not packages)."""
+    """The importable module a cited path stands for, or None."""
     path = ROOT / span.rstrip("/")
     if path.is_dir() and (path / "__init__.py").is_file():
         return ".".join(path.relative_to(ROOT).parts)
@@ -90,13 +87,8 @@ def _import(name: str) -> ModuleType | None:
 
 
 def resolve(dotted: str) -> object:
-    """The object a dotted name stands for: the longest importable prefix, then attributes.
-
-    Raises
-    ------
-    LookupError
-        When no prefix imports or an attribute is missing.
-    """
+    """The object a dotted name stands for (the longest importable prefix, then attributes);
+    LookupError when no prefix imports or an attribute is missing."""
     parts = dotted.removesuffix("()").split(".")
     for cut in range(len(parts), 0, -1):
         module = _import(".".join(parts[:cut]))
@@ -133,8 +125,8 @@ def unresolved_dotted(text: str) -> list[str]:
 
 
 def unresolved_bare(text: str) -> list[str]:
-    """Classes, ``Class.attribute``, ``function()`` and CONSTANTS that no named module has, and
-    ``module.attribute`` (``scalar.toward``) that the named module of that name lacks."""
+    """Classes, ``Class.attribute``, ``function()``, CONSTANTS no named module has, and
+    ``module.attribute`` the named module lacks."""
     modules = named_modules(text)
     by_last_name: dict[str, list[ModuleType]] = {}
     for module in modules:

@@ -92,9 +92,8 @@ def test_the_three_servo_demo_keeps_every_goal_in_the_learned_region(tmp_path, c
     from limbctl.teleop.gate import written_tolerance_deg
 
     out = tmp_path / "demo3"
-    # 60 s, the teaching: the hand traces the edge turning the twist to its stops, then
-    # wanders; after 30 s the learned band was too narrow for the waiting start to find the
-    # hand's limb inside within a minute
+    # 60 s: the hand traces the edge turning the twist to its stops, then wanders (30 s taught
+    # too narrow a band for the waiting start)
     assert run_demo(out, teach_seconds=60.0, seed=0, rig="sim3") == 0
     for name in ("teach.limb", "model.npz", "twist.png", "telemetry.jsonl", "goals.jsonl"):
         assert (out / name).stat().st_size > 0, name
@@ -113,10 +112,9 @@ def test_the_three_servo_demo_keeps_every_goal_in_the_learned_region(tmp_path, c
         out / "goals.jsonl", model, written_orientations(out / "telemetry.jsonl")
     )
     assert excursion.max() <= written_tolerance_deg(joints=3)
-    # step 5, the felt three-servo leader pushed past the edge in swing, then in twist: its
-    # picture and its report; or, on a machine too busy for the leader's 200 Hz, the start's
-    # refusal (the leader left limp), as `limbctl teleop` would say it
-    said = capsys.readouterr().err  # say() writes to stderr
+    # step 5, the felt leader pushed past the edge in swing, then in twist: its picture and its
+    # report; or, on a machine too busy for its 200 Hz, the start's refusal
+    said = capsys.readouterr().err
     assert "== 5/5 leader" in said
     if "skipped:" in said:
         assert "lower --rate" in said and not (out / "leader.png").exists()
@@ -124,8 +122,7 @@ def test_the_three_servo_demo_keeps_every_goal_in_the_learned_region(tmp_path, c
     assert (out / "leader.png").stat().st_size > 0
     assert "(three servos) feels the edge in swing and twist" in said
     pressed = re.search(r"pressed beyond the edge for ([\d.]+) s", said)
-    # two presses of about 1.5 s each; or, a loop under 160 Hz (a loaded machine), the push
-    # switched off for good, which the run says, mirroring on
+    # two presses of about 1.5 s each; or, under 160 Hz (a loaded machine), the push said off
     paced_out = re.search(r"the loop runs at \d+ Hz, under the 200 Hz .* without feel", said)
     assert (pressed and float(pressed[1]) > 1.0) or paced_out, said[-600:]
 

@@ -1,8 +1,5 @@
-"""What a first run compiles from an empty kernel cache: ``train``, a teleop start, a twist fit.
-
-Counts above the documented ones (docs/bench_first_run.md, "Compiles per command") mean a
-change made the first run slower: look at the new compiles, then raise a count only if worth it.
-"""
+"""What a first run compiles from an empty kernel cache: ``train``, a teleop start, a twist fit
+(counts: docs/bench_first_run.md, "Compiles per command"; raise one only if worth it)."""
 
 from __future__ import annotations
 
@@ -22,13 +19,10 @@ from tests.compile_probe import COUNTER
 ROOT = Path(__file__).resolve().parents[1]
 TEACHING = ROOT / "tests" / "data" / "hand_irregular_seed0_20s.limb"
 
-#: Dispatchers ``limbctl train`` compiles from an empty cache: limbctl's kernels, numba's helpers
-#: (41 and 147 before the first run was made fast, 46 and 32 before its second round).
+#: Dispatchers ``limbctl train`` compiles from an empty cache: limbctl's kernels, numba's helpers.
 TRAIN_COMPILES = (36, 23)
-#: The same for ``limbctl teleop`` of two commands (start, run, park check), with no train before
-#: (11 and 56 before). 10 + 7 measured when the limb starts inside the region; a start outside
-#: also asks the approach's candidate poses as one batch, which compiles ``correct_serial`` (and
-#: a helper or two) as well (seen in a full test run).
+#: The same for ``limbctl teleop`` of two commands with no train before (a start outside the
+#: region also compiles ``correct_serial`` and a helper or two for the approach's candidates).
 TELEOP_COMPILES = (11, 9)
 
 PROBE = (
@@ -78,8 +72,7 @@ def _within(what: str, found: tuple[list[str], list[str]], limits: tuple[int, in
 
 
 def teaching(path: Path) -> Path:
-    """The recorded teaching, written again under the simulated rig's calibration (teleop
-    refuses a model that does not record the calibration it was trained under)."""
+    """The recorded teaching, written again under the simulated rig's calibration."""
     data = load_dataset(TEACHING)
     profile = load_rig_profile(None)
     with DatasetWriter(path, rig=profile.name, calibration=profile.calibration) as writer:
@@ -99,12 +92,10 @@ def model(tmp_path_factory) -> tuple[Path, tuple[list[str], list[str]]]:
 
 def test_train_and_a_teleop_start_compile_at_most_the_documented_count(model, tmp_path):
     _within("train", model[1], TRAIN_COMPILES)
-    # the parallel batch kernels are for large batches: train's are served on one thread; and
-    # train never gates: its summary asks the region's arcs, not the gate's kernels
+    # train serves its small batches on one thread and never gates
     ours = model[1][0]
     gate = {f"limbctl.region.correct_kernels.correct_{k}" for k in ("batch", "serial", "single")}
     assert not gate & set(ours)
-    # then a teleop start of two commands
     commands = '{"pan": 20, "tilt": 10}\n{"pan": 120, "tilt": 80}\n'
     found = compiled_by(
         ["teleop", "--model", str(model[0]), "--source", "stdin"], tmp_path, stdin=commands
@@ -115,16 +106,10 @@ def test_train_and_a_teleop_start_compile_at_most_the_documented_count(model, tm
     assert not {"limbctl.region.correct_kernels.correct_batch"} & set(found[0])
 
 
-#: Dispatchers a first ``RigidMap(twist=True).fit`` from Python compiles from an empty cache:
-#: limbctl's kernels and numba's helpers (47 + 168 before its twist kernels went serial and
-#: solved with linalg_kernels, 8,000 orientations; docs/bench_first_run.md; 45 + 40 before main
-#: added gradient_caps: its own kernel and 14 helpers more, not looked into).
+#: Dispatchers a first ``RigidMap(twist=True).fit`` from Python compiles from an empty cache.
 TWIST_FIT_COMPILES = (46, 54)
-#: Compiles of such a fit that repeat a (dispatcher, signature) already compiled: 5 small ones of
-#: numba's own (``np.empty``, ``max``, ``int`` overloads made once per overload instance), and 14
-#: since gradient_caps (``error_model="numpy"``, unlike the other kernels) came: its 14 helper
-#: compiles all repeat a signature compiled before. 89 of the 221 compiles of a cold three-servo
-#: train repeated one before, most of them prange bodies compiling helpers again.
+#: Compiles of such a fit repeating a (dispatcher, signature): 5 of numba's own overloads, 14 of
+#: gradient_caps' helpers (``error_model="numpy"``, unlike the other kernels).
 TWIST_FIT_REPEATS = 19
 
 TWIST_FIT = (

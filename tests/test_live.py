@@ -1,9 +1,8 @@
 """The jobs feed the live view, watched in Chromium: a record, a teleop, a felt leader, and steering
-from the page (along the edge; a frozen browser holds the limb, a killed one ends well)."""
+from the page."""
 
 from __future__ import annotations
 
-import contextlib
 import json
 import os
 import signal
@@ -51,32 +50,41 @@ from tests.view.browser import (
 )
 
 
-def pose_text(pan_deg: float, tilt_deg: float) -> str:
-    return f"{pan_deg:.1f}, {tilt_deg:.1f}"
+def watched(job, look, started=lambda: True) -> int:
+    """Run ``job()`` (which takes signals in the main thread) while a thread runs ``look()``,
+    then sends Ctrl-C (SIGINT) once ``started()``; a SIGINT outside the job's own handler is
+    dropped. Returns the job's status; raises what ``look`` raised."""
+    raised: list[BaseException] = []
 
-
-class Watcher(threading.Thread):
-    """Runs ``look(browser)`` beside a job (jobs take signals, so they run in the main thread);
-    whatever it raised is raised again by :meth:`result`."""
-
-    def __init__(self, look) -> None:
-        super().__init__(name="page-watcher")
-        self.look = look
-        self.error: BaseException | None = None
-
-    def run(self) -> None:
+    def looking() -> None:
         try:
-            self.look()
-        except BaseException as exc:  # handed to the test's thread
-            self.error = exc
+            look()
+        except BaseException as exc:
+            raised.append(exc)
+        finally:
+            if started():
+                os.kill(os.getpid(), signal.SIGINT)
 
-    def result(self) -> None:
-        self.join()
-        if self.error is not None:
-            raise self.error
+    previous = signal.signal(signal.SIGINT, lambda signum, frame: None)
+    watcher = threading.Thread(target=looking, name="page-watcher")
+    try:
+        watcher.start()
+        status = job()
+        watcher.join()
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    if raised:
+        raise raised[0]
+    return status
+
+
+#: The first region needs the fit process to start and numba's cached kernels to load.
+FIRST_REGION_S = 120.0
 
 
 def test_record_job_shows_its_samples_on_the_page(tmp_path, browser):
+    """The page counts up while the job records, draws the region train would learn, and ends
+    on the file's count and last pose; Ctrl-C (SIGINT) ends the job."""
     out = tmp_path / "teach.limb"
     said: list[str] = []
     with open_view(ViewOptions(enabled=True, port=0), said.append) as live:
@@ -84,15 +92,27 @@ def test_record_job_shows_its_samples_on_the_page(tmp_path, browser):
         browser.get(live.url)
 
         def look() -> None:
-            wait_for(browser, lambda d: int(text_of(d, "sample-count")) > 50, "no samples shown")
+            wait_for(browser, lambda d: int(text_of(d, "sample-count")) > 50, "no samples")
             assert text_of(browser, "mode") == "record"
+            first = int(text_of(browser, "sample-count"))
+            wait_for(
+                browser, lambda d: int(text_of(d, "sample-count")) > first + 100, "count stuck"
+            )
+            wait_for(
+                browser,
+                lambda d: text_of(d, "loop-count") not in ("", "0"),
+                "no region drawn",
+                timeout=FIRST_REGION_S,
+            )
+            assert "fitted on" in text_of(browser, "region-note"), "not the fitted region"
 
-        watcher = Watcher(look)
-        watcher.start()
-        status = run_record(
-            RecordOptions(out=out, duration=6.0, connection=Connection(seed=2)), view=live
+        options = RecordOptions(out=out, duration=600.0, connection=Connection(seed=2))
+        # Ctrl-C once the job records (before, its handler is not installed)
+        status = watched(
+            lambda: run_record(options, view=live),
+            look,
+            lambda: text_of(browser, "sample-count") not in ("-", "", "0"),
         )
-        watcher.result()
         assert status == 0
         data = load_dataset(out)
         wait_for(
@@ -114,18 +134,6 @@ def free_udp_port() -> int:
         return probe.getsockname()[1]
 
 
-@contextlib.contextmanager
-def ctrl_c_for_the_job_only():
-    """Around a job a test ends with Ctrl-C: a SIGINT arriving while the job's own handler is not
-    installed is kept in the yielded list instead of interrupting the test run."""
-    stray: list[int] = []
-    previous = signal.signal(signal.SIGINT, lambda signum, frame: stray.append(signum))
-    try:
-        yield stray
-    finally:
-        signal.signal(signal.SIGINT, previous)
-
-
 def test_teleop_job_shows_commanded_and_written_poses(tmp_path, hand_model_path, browser):
     """Commands go in over UDP as the page shows their effect; Ctrl-C (SIGINT) ends the job."""
     port = free_udp_port()
@@ -135,14 +143,14 @@ def test_teleop_job_shows_commanded_and_written_poses(tmp_path, hand_model_path,
         source=f"udp://127.0.0.1:{port}",
         telemetry=telemetry,
         quiet=True,
-        duration=120.0,  # a backstop only: the watcher ends the job with SIGINT
+        duration=120.0,  # a backstop: the watcher ends the job with SIGINT
     )
     sender = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
 
     def command(pan: float, tilt: float):
         def send_and_look(driver) -> bool:
             sender.sendto(json.dumps({"pan": pan, "tilt": tilt}).encode(), ("127.0.0.1", port))
-            return text_of(driver, "commanded") == pose_text(pan, tilt)
+            return text_of(driver, "commanded") == f"{pan:.1f}, {tilt:.1f}"
 
         return send_and_look
 
@@ -151,35 +159,29 @@ def test_teleop_job_shows_commanded_and_written_poses(tmp_path, hand_model_path,
         page.get(live.url)
 
         def look() -> None:
-            try:
-                # far outside the taught region: the gate corrects it
-                wait_for(page, command(-80.0, -40.0), "the command is not shown")
-                wait_for(page, lambda d: text_of(d, "written") != "-", "no written pose shown")
-                wait_for(page, lambda d: text_of(d, "outcome").startswith("corrected"), "")
-                assert text_of(page, "loop-count") != "0", "the model's region is not drawn"
-                assert "rigidmap model" in text_of(page, "region-note")
-                # the rate is measured over a second of cycles
-                wait_for(page, lambda d: float(text_of(d, "rate").split()[0]) > 20.0, "no rate")
-                # inside it
-                wait_for(page, command(20.0, 20.0), "the second command is not shown")
-            finally:
-                # Ctrl-C: the job's handler stops the loop (only once it runs: before, the signal
-                # would reach the test runner; the duration is the backstop then)
-                if text_of(page, "cycles") not in ("-", ""):
-                    os.kill(os.getpid(), signal.SIGINT)
+            # far outside the taught region: the gate corrects it
+            wait_for(page, command(-80.0, -40.0), "the command is not shown")
+            wait_for(page, lambda d: text_of(d, "written") != "-", "no written pose shown")
+            wait_for(page, lambda d: text_of(d, "outcome").startswith("corrected"), "")
+            assert text_of(page, "loop-count") != "0", "the model's region is not drawn"
+            assert "rigidmap model" in text_of(page, "region-note")
+            wait_for(page, lambda d: float(text_of(d, "rate").split()[0]) > 20.0, "no rate")
+            wait_for(page, command(20.0, 20.0), "the second command is not shown")
 
-        watcher = Watcher(look)
-        watcher.start()
-        with ctrl_c_for_the_job_only():
-            status = run_teleop(options, view=live)
-            watcher.result()
+        status = watched(
+            lambda: run_teleop(options, view=live),
+            look,
+            lambda: text_of(page, "cycles") not in ("-", ""),
+        )
         sender.close()
         assert status == 0
         rows = [json.loads(line) for line in telemetry.read_text().splitlines()]
         last_written = [row for row in rows if row["written"]][-1]
         wait_for(page, lambda d: "ended by stopped" in text_of(d, "note"), "the end is not shown")
         assert_pose_shown(text_of(page, "written"), last_written["out"], logged_digits=4)
-        assert text_of(page, "commanded") == pose_text(20.0, 20.0) == pose_text(*rows[-1]["cmd"])
+        assert (
+            text_of(page, "commanded") == "20.0, 20.0" == "{:.1f}, {:.1f}".format(*rows[-1]["cmd"])
+        )
         last_read = [row for row in rows if row["present"] is not None][-1]
         assert_pose_shown(text_of(page, "pose"), last_read["present"], logged_digits=4)
 
@@ -277,8 +279,7 @@ EDGE = 30.0
 PRESS = {"script": [[0.0, 0.0, 0.0], [1.5, EDGE + 20.0, 0.0]], "max_torque_nm": 0.3}
 #: RGB of the leader's diamond (leader.js COLORS.leader).
 LEADER_RGB = (0, 137, 123)
-#: What the page received last, what it shows of it, and the leader diamond's pixel, read in one
-#: script (the page's thread cannot change them in between).
+#: What the page received last, what it shows, and the leader diamond's pixel, read at once.
 SHOWN = """
 const live = window.limbview.state.live;
 const leader = live && live.leader;
@@ -293,25 +294,11 @@ return {leader: leader, pose: text('leader-pose'), push: text('leader-push'),
 
 
 def js_fixed(values, digits: int) -> str:
-    """``values`` as the page writes them, JavaScript's ``toFixed(digits)``: the sign, then the
-    magnitude's exact binary value rounded with halves up (0.125 -> "0.13", -0.0 -> "0.0")."""
+    """``values`` as JavaScript's ``toFixed(digits)`` writes them (0.125 -> "0.13")."""
     step = Decimal(1).scaleb(-digits)
     return ", ".join(
         ("-" if v < 0 else "") + str(abs(Decimal(v)).quantize(step, ROUND_HALF_UP)) for v in values
     )
-
-
-class Recording(TeleopFeed):
-    """The page's feed, keeping every leader part it published."""
-
-    def __init__(self, board: Board) -> None:
-        super().__init__(board)
-        self.published: list[dict] = []
-
-    def __call__(self, cycle) -> None:
-        super().__call__(cycle)
-        live = self.board.live
-        self.published.append(live.to_json())
 
 
 def test_the_page_shows_the_felt_leader_beside_the_follower_and_how_hard_it_pushes(
@@ -319,10 +306,14 @@ def test_the_page_shows_the_felt_leader_beside_the_follower_and_how_hard_it_push
 ):
     cone, sim = cone_file(EDGE), default_sim_profile()
     board = Board()
-    feed = Recording(board)
+    feed, published = TeleopFeed(board), []
+
+    def on_cycle(cycle) -> None:  # the page's feed, keeping all it published
+        feed(cycle)
+        published.append(board.live.to_json())
+
     leader = {"ids": list(IDS), "model": "xm430-w350"}
-    # the page loads before the simulator starts: loading takes the CPU the simulator needs to
-    # answer the servos' set-up in time
+    # the page loads first: loading takes the CPU the simulator needs to answer the set-up
     with ViewServer(board, port=0) as server:
         browser.get(server.url)
         wait_for(browser, lambda d: text_of(d, "connection") == "live", "the page did not connect")
@@ -332,25 +323,22 @@ def test_the_page_shows_the_felt_leader_beside_the_follower_and_how_hard_it_push
             try:
                 configure_servos(rig.bus, limits)
             except BusError:
-                # on a starved machine the simulator now and then garbles a set-up read-back
-                # (as benchmarks/bench_haptic.py meets); the set-up is not what is tested here
+                # a starved machine now and then garbles a set-up read-back: not tested here
                 configure_servos(rig.bus, limits)
-            # the start's rate check and the pace watch against 25 Hz: a busy test machine (the
-            # loop at 30-40 Hz) must not switch the feel off before the page is looked at
+            # checked against 25 Hz: a busy machine's loop (30-40 Hz) keeps the feel on
             source = LeaderSource(rig, IDS, rate_hz=25.0)
             stop = threading.Event()
             with source:
                 feed.leader = leader_status(source)
                 rig.set_torque(True)
                 gate = gate_for(cone, sim, 200.0, 120.0)
-                config = LoopConfig(on_cycle=feed)
+                config = LoopConfig(on_cycle=on_cycle)
                 thread = threading.Thread(target=lambda: run(rig, gate, source, config, stop=stop))
                 thread.start()
                 try:
                     session.simulator.set_operator(PRESS)
 
                     def pushing(driver):
-                        # pushing, and drawn: the canvas is redrawn on the next animation frame
                         shown = driver.execute_script(SHOWN)
                         drawn = shown and tuple(shown["rgb"]) == LEADER_RGB
                         return shown if drawn and shown["leader"]["torque_nm"] > 0.0 else None
@@ -360,10 +348,8 @@ def test_the_page_shows_the_felt_leader_beside_the_follower_and_how_hard_it_push
                     stop.set()
                     thread.join(timeout=10.0)
     leader_part = shown["leader"]
-    # what the page shows is what the feed published, in one of the loop's cycles
-    published = [live["leader"] for live in feed.published]
-    # ... with the follower's pose of the same cycle
-    together = [live["pose"] for live in feed.published if live["leader"] == leader_part]
+    # what the page shows is what the feed published in one cycle, with that cycle's follower
+    together = [live["pose"] for live in published if live["leader"] == leader_part]
     assert together, f"the page's {leader_part} was never published"
     assert shown["follower"] in together
     # the readouts say those values, as JavaScript rounds them (0.125 -> "0.13")
@@ -379,21 +365,19 @@ def test_the_page_shows_the_felt_leader_beside_the_follower_and_how_hard_it_push
     assert leader_part["pose"][0] > EDGE and leader_part["beyond_deg"] > 0.4
     assert 0.0 < leader_part["torque_nm"] <= leader_part["cap_nm"] <= 0.4
     assert leader_part["toward"][0] < leader_part["pose"][0]  # pushed back toward the region
-    assert all(part["cap_nm"] == leader_part["cap_nm"] for part in published)
+    assert all(live["leader"]["cap_nm"] == leader_part["cap_nm"] for live in published)
 
 
 def test_a_teleop_job_with_a_passive_leader_shows_it_and_says_it_cannot_push(
     tmp_path, hand_model_path, browser
 ):
-    """``limbctl teleop --source leader:3,4`` on the embedded simulator: its leader ids are free
-    shafts of the rig's model (an XL430, no current sensing): drawn, passive, said so."""
+    """``--source leader:3,4`` on the embedded simulator (XL430s, no current sensing): passive."""
     options = TeleopOptions(model=hand_model_path, source="leader:3,4", quiet=True, duration=3.0)
     page = browser
     with open_view(ViewOptions(enabled=True, port=0), lambda _: None) as live:
         page.get(live.url)
         assert run_teleop(options, view=live) == 0
         wait_for(page, lambda d: "ended by duration" in text_of(d, "note"), "the end not shown")
-        # drawn on the next animation frame
         wait_for(page, lambda d: tuple(d.execute_script(SHOWN)["rgb"]) == LEADER_RGB, "no diamond")
         shown = page.execute_script(SHOWN)
     assert shown is not None, "no leader drawn"
@@ -406,11 +390,10 @@ def test_a_teleop_job_with_a_passive_leader_shows_it_and_says_it_cannot_push(
 
 # -- steering from the page ---------------------------------------------------------------------
 
-#: Cycles in a row that must hold, with no goal written, before a frozen page counts as held:
-#: a second at 200 Hz, twice the loop's 0.5 s silence.
+#: Cycles in a row holding, no goal written, for a frozen page to count as held (1 s at 200 Hz).
 HELD_CYCLES = 200
-#: The drag's path (pan, tilt deg): from inside the taught region up through its top edge and on
-#: to the right, far outside (the region spans about pan -68..43, tilt -33..38).
+#: The drag's path (pan, tilt deg): from inside the region (pan -68..43, tilt -33..38) up through
+#: its top edge and on to the right, far outside.
 PATH = [(-18.0, -4.0), (-10.0, 20.0), (0.0, 50.0), (20.0, 60.0), (40.0, 60.0)]
 
 
@@ -424,7 +407,6 @@ def goals_logged(path: Path) -> int:
 
 
 def held_since(rows: list[dict], start: int) -> int:
-    """How many of the last rows after ``start`` held without writing, in a row."""
     count = 0
     for row in reversed(rows[start:]):
         if row["outcome"] != "held" or row["written"]:
@@ -443,7 +425,7 @@ def test_a_page_steers_along_the_edge_a_frozen_page_holds_a_killed_one_ends_well
         goal_log=goal_log,
         telemetry=telemetry,
         quiet=True,
-        duration=300.0,  # a backstop only: the watcher ends the job with SIGINT
+        duration=300.0,  # a backstop: the watcher ends the job with SIGINT
     )
     model = load_model(hand_model_path)
     target = pan_tilt_to_quat(*np.radians(PATH[-1]))
@@ -454,77 +436,63 @@ def test_a_page_steers_along_the_edge_a_frozen_page_holds_a_killed_one_ends_well
     with open_view(ViewOptions(enabled=True, port=0), said.append) as live, chromium() as page:
 
         def look() -> None:
-            try:
-                page.get(live.control_url)
-                wait_for(
-                    page, lambda d: "you steer the limb" in text_of(d, "control"), "no control"
-                )
-                wait_for(page, lambda d: text_of(d, "cycles") not in ("-", ""), "not running")
-                # the teleop page tells the teleop story: its legend, no guide panel
-                assert page.find_element("id", "legend-teleop").is_displayed()
-                assert not page.find_element("id", "legend-record").is_displayed()
-                assert not page.find_element("id", "guide-panel").is_displayed()
+            page.get(live.control_url)
+            wait_for(page, lambda d: "you steer the limb" in text_of(d, "control"), "no control")
+            wait_for(page, lambda d: text_of(d, "cycles") not in ("-", ""), "not running")
+            # drag out through the top edge and along it, and keep the button down there
+            drag_on_plane(page, PATH)
+            wait_for(
+                page,
+                lambda d: "up" in text_of(d, "words") and "blocked" in text_of(d, "words"),
+                "the edge is not named",
+            )
+            wait_for(page, lambda d: "upper edge" in text_of(d, "holds"), "no holding edge")
+            seen["words"], seen["holds"] = text_of(page, "words"), text_of(page, "holds")
+            poll(
+                lambda: (
+                    (rows := telemetry_rows(telemetry))
+                    and rows[-1]["out"] is not None
+                    and abs(rows[-1]["out"][0] - edge_pan) < 1.0
+                    and abs(rows[-1]["out"][1] - edge_tilt) < 1.0
+                ),
+                60.0,
+                "the limb did not reach the edge's nearest point",
+            )
+            seen["at_edge"] = telemetry_rows(telemetry)[-1]["out"]
 
-                # drag out through the top edge and along it, and keep the button down there
-                drag_on_plane(page, PATH)
-                wait_for(
-                    page,
-                    lambda d: "up" in text_of(d, "words") and "blocked" in text_of(d, "words"),
-                    "the edge is not named",
-                )
-                wait_for(page, lambda d: "upper edge" in text_of(d, "holds"), "no holding edge")
-                seen["words"], seen["holds"] = text_of(page, "words"), text_of(page, "holds")
-                poll(
-                    lambda: (
-                        (rows := telemetry_rows(telemetry))
-                        and rows[-1]["out"] is not None
-                        and abs(rows[-1]["out"][0] - edge_pan) < 1.0
-                        and abs(rows[-1]["out"][1] - edge_tilt) < 1.0
-                    ),
-                    60.0,
-                    "the limb did not reach the edge's nearest point",
-                )
-                seen["at_edge"] = telemetry_rows(telemetry)[-1]["out"]
+            # drag back inside, and freeze the whole browser mid-drag
+            ActionChains(page).release().perform()
+            drag_on_plane(page, [PATH[-1], (0.0, 10.0), (-10.0, 0.0)], pause_s=0.05)
+            pids = browser_pids(page)
+            frozen_at = len(telemetry_rows(telemetry))
+            for pid in pids:
+                os.kill(pid, signal.SIGSTOP)
+            poll(
+                lambda: held_since(telemetry_rows(telemetry), frozen_at) >= HELD_CYCLES,
+                60.0,
+                "a frozen page did not hold the limb",
+            )
+            goals = goals_logged(goal_log)
+            held_rows = len(telemetry_rows(telemetry))
+            poll(
+                lambda: len(telemetry_rows(telemetry)) >= held_rows + HELD_CYCLES,
+                60.0,
+                "the loop stopped",
+            )
+            seen["goals_while_frozen"] = goals_logged(goal_log) - goals
+            seen["held_while_frozen"] = held_since(telemetry_rows(telemetry), frozen_at)
 
-                # drag back inside, and freeze the whole browser mid-drag
-                ActionChains(page).release().perform()
-                drag_on_plane(page, [PATH[-1], (0.0, 10.0), (-10.0, 0.0)], pause_s=0.05)
-                pids = browser_pids(page)
-                frozen_at = len(telemetry_rows(telemetry))
-                for pid in pids:
-                    os.kill(pid, signal.SIGSTOP)
-                poll(
-                    lambda: held_since(telemetry_rows(telemetry), frozen_at) >= HELD_CYCLES,
-                    60.0,
-                    "a frozen page did not hold the limb",
-                )
-                goals = goals_logged(goal_log)
-                held_rows = len(telemetry_rows(telemetry))
-                poll(
-                    lambda: len(telemetry_rows(telemetry)) >= held_rows + HELD_CYCLES,
-                    60.0,
-                    "the loop stopped",
-                )
-                seen["goals_while_frozen"] = goals_logged(goal_log) - goals
-                seen["held_while_frozen"] = held_since(telemetry_rows(telemetry), frozen_at)
+            # kill it: the limb holds, and the session ends normally
+            for pid in pids:
+                os.kill(pid, signal.SIGKILL)
+            killed_at = len(telemetry_rows(telemetry))
+            poll(
+                lambda: held_since(telemetry_rows(telemetry), killed_at) >= HELD_CYCLES,
+                60.0,
+                "a killed page did not leave the limb held",
+            )
 
-                # kill it: the limb holds, and the session ends normally
-                for pid in pids:
-                    os.kill(pid, signal.SIGKILL)
-                killed_at = len(telemetry_rows(telemetry))
-                poll(
-                    lambda: held_since(telemetry_rows(telemetry), killed_at) >= HELD_CYCLES,
-                    60.0,
-                    "a killed page did not leave the limb held",
-                )
-            finally:
-                os.kill(os.getpid(), signal.SIGINT)  # Ctrl-C ends the job
-
-        watcher = Watcher(look)
-        watcher.start()
-        with ctrl_c_for_the_job_only():
-            status = run_teleop(options, view=live)
-            watcher.result()
+        status = watched(lambda: run_teleop(options, view=live), look)
 
     assert status == 0
     # the address that steers was printed once, with the session's key

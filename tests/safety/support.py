@@ -1,6 +1,5 @@
-"""Shared pieces of the safety campaign (tests/safety/, benchmarks/soak.py): all real parts,
-plus observers (:class:`RecordingGate`, :class:`PacedSource`, :func:`goal_log_poses`).
-"""
+"""Shared pieces of the safety campaign (tests/safety/, benchmarks/soak.py): real parts plus
+observers."""
 
 from __future__ import annotations
 
@@ -33,8 +32,7 @@ PROFILE = default_sim_profile()
 
 
 def written_tolerance_deg(limits: GateLimits) -> float:
-    """How far (deg) a written goal may lie outside the region: ``limits.region_tolerance`` plus
-    the rounding to whole ticks (:func:`limbctl.teleop.gate.written_tolerance_deg`)."""
+    """How far (deg) a written goal may lie outside the region under ``limits``."""
     extra = math.degrees(limits.region_tolerance) - gate.REGION_TOLERANCE_DEG
     return gate.written_tolerance_deg() + extra
 
@@ -47,14 +45,14 @@ def gate_limits(rate_hz: float = 200.0, max_speed_deg_s: float = 120.0) -> GateL
 
 @functools.cache
 def bean_model(seed: int = 0, nodes: int = 300, samples: int = 800) -> RigidMap:
-    """A Rigid Map taught the kidney-shaped BEAN region (rest pose inside); cached: fits take s."""
+    """A Rigid Map taught the kidney-shaped BEAN region (cached: fits take seconds)."""
     region = PolygonRegion(BEAN)
     q = to_quaternions(region.sample(samples, np.random.default_rng(seed)))
     return RigidMap(nodes=nodes, seed=seed).fit(q)
 
 
 class RecordingGate(Gate):
-    """The real :class:`Gate`; it also keeps every result it returned (``results``)."""
+    """The real :class:`Gate`, keeping every result it returned (``results``)."""
 
     def __init__(self, envelope, limits: GateLimits) -> None:
         super().__init__(envelope, limits)
@@ -77,8 +75,7 @@ class RecordingGate(Gate):
 
 
 class PacedSource(CommandSource):
-    """A command source releasing ``per_poll`` lines per :meth:`poll` (per loop cycle) through the
-    real parser (:meth:`CommandSource.feed`); it ends when every line was released."""
+    """A source feeding ``per_poll`` lines to the real parser per :meth:`poll` (per cycle)."""
 
     name = "paced"
 
@@ -112,8 +109,7 @@ class LoggedGoal:
 
 
 def goal_log_poses(path: Path, start_offset: int = 0) -> list[LoggedGoal]:
-    """Goal packets of the simulator's goal log from byte ``start_offset``: per ``t`` (one line a
-    servo), the pose its last line commands (as :func:`limbctl.demo.goal_log_excursions`)."""
+    """Goal packets of the simulator's goal log from byte ``start_offset``, one per ``t``."""
     goals: dict[int, int] = {}
     poses: dict[float, LoggedGoal] = {}
     with open(path, "rb") as fh:
@@ -140,15 +136,9 @@ def excursion_deg(model, directions: np.ndarray) -> np.ndarray:
 def assert_goals_safe(
     logged: list[LoggedGoal], model, limits: GateLimits, produced: list[tuple[int, int]]
 ) -> float:
-    """Promise 1 on what reached the servos; returns the largest excursion (deg).
-
-    Every logged goal pair was produced by the gate (``produced``, in order), lies inside the
-    rig's hard limits (in ticks) and inside the model's region up to
-    :func:`written_tolerance_deg`. One exception is physics, not software: a servo that drops
-    off the bus in the instant between a good read and the sync write misses that write, so the
-    pair mixes two consecutive gated poses; such a pair must be exactly that mix and lie within
-    one joint step (``max_joint_step``) of the region.
-    """
+    """Promise 1 on what reached the servos (every goal the gate's, inside the hard limits and
+    the region); returns the largest excursion (deg). A servo dropping off between a read and
+    the sync write mixes two consecutive gated poses: such a pair may lie a joint step out."""
     exact = set(produced)
     mixes = {(b[0], a[1]) for a, b in zip(produced, produced[1:])} | {
         (a[0], b[1]) for a, b in zip(produced, produced[1:])
@@ -198,8 +188,7 @@ def wait_for(condition, timeout_s: float, what: str):
 
 
 def settle(rig: Rig, pose: tuple[float, ...], timeout_s: float = 20.0) -> None:
-    """Drive the limb (no gate: test set-up only) to ``pose`` (rad, one angle per joint) and wait
-    until it is there."""
+    """Drive the limb ungated (set-up only) to ``pose`` (rad per joint) and wait for it."""
     rig.write_pose(*pose)
     tol = math.radians(0.5)
     wait_for(
@@ -210,7 +199,7 @@ def settle(rig: Rig, pose: tuple[float, ...], timeout_s: float = 20.0) -> None:
 
 
 class CycleCounter:
-    """A text stream for :class:`limbctl.teleop.loop.Telemetry`: counts cycles, keeps rows."""
+    """A telemetry stream keeping its rows, to wait for cycles."""
 
     def __init__(self) -> None:
         self.rows: list[dict] = []
@@ -226,15 +215,13 @@ class CycleCounter:
         return None
 
     def wait_cycles(self, count: int, timeout_s: float = 20.0) -> None:
-        """Block until at least ``count`` cycles were logged."""
         with self._cond:
             ok = self._cond.wait_for(lambda: len(self.rows) >= count, timeout_s)
         assert ok, f"the loop did not run {count} cycles within {timeout_s} s"
 
 
 class LoopThread:
-    """The real loop in a thread (``gate`` and ``source`` on ``rig``), so a test can inject faults
-    or send commands while it runs; its telemetry rows are counted in ``cycles``."""
+    """The real loop in a thread, so a test can act while it runs; its rows in ``cycles``."""
 
     def __init__(self, rig: Rig, gate: RecordingGate, source, config: LoopConfig) -> None:
         self.gate = gate
@@ -251,7 +238,7 @@ class LoopThread:
             self.summary = run(
                 rig, self.gate, source, config, telemetry=Telemetry(self.cycles), stop=self.stop
             )
-        except BaseException as exc:  # handed to the test thread by join/__exit__
+        except BaseException as exc:  # raised again by join/__exit__
             self.error = exc
             raise
 

@@ -28,19 +28,15 @@ def start_record(out, *extra, preexec_fn=None) -> subprocess.Popen:
     )
 
 
-def samples_on_disk(path) -> int:
-    try:
-        return len(load_dataset(path))
-    except FileFormatError:  # not even a header yet
-        return 0
-
-
 def wait_for_samples(proc, path, count: int):
     """Wait (on the file itself) until ``count`` samples are on disk; return what loads."""
 
     def enough():
         assert proc.poll() is None, f"recorder exited early: {proc.stderr.read()}"
-        return samples_on_disk(path) >= count
+        try:
+            return len(load_dataset(path)) >= count
+        except FileFormatError:  # not even a header yet
+            return False
 
     wait_for(enough, RECORD_TIMEOUT_S, f"{count} samples in {path}")
     return load_dataset(path)

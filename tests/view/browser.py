@@ -1,6 +1,5 @@
-"""Headless Chromium through Selenium, started the way this machine needs (root, no network), with
-the system chromedriver (Selenium Manager never downloads one). Also used by
-``benchmarks/view_figures.py``."""
+"""Headless Chromium through Selenium with the system chromedriver, and what the page tests read
+of it (also used by benchmarks/)."""
 
 from __future__ import annotations
 
@@ -60,10 +59,8 @@ def text_of(driver: webdriver.Chrome, element_id: str) -> str:
     return driver.execute_script(f"return document.getElementById('{element_id}').textContent;")
 
 
-#: Half the last digit of a pose the page shows ("pan, tilt", one decimal). The page rounds a
-#: tie away from zero (JavaScript's toFixed), Python's format to even; poses read from ticks hit
-#: exact ties (a tick is 360/4096 deg: -640 ticks is -56.25 deg), so a shown pose is compared
-#: with the value, not with Python's text of it.
+#: Half the last digit of a pose the page shows ("pan, tilt", one decimal): compared with the
+#: value, as JavaScript's toFixed and Python's format round the ties of tick poses apart.
 SHOWN_HALF_DIGIT_DEG = 0.05
 
 
@@ -77,9 +74,14 @@ def canvas_rgb(driver: webdriver.Chrome, x: float, y: float) -> tuple[int, int, 
     )
 
 
+def near(rgb, target, tol: int = 8) -> bool:
+    """The same colour but for the canvas's antialiasing (each channel within ``tol``)."""
+    return all(abs(a - b) <= tol for a, b in zip(rgb, target, strict=True))
+
+
 def assert_pose_shown(text: str, pose_deg, logged_digits: int | None = None) -> None:
-    """The page's "pan, tilt" ``text`` shows ``pose_deg`` (deg) within its rounding, and half a
-    digit of ``logged_digits`` (the decimals ``pose_deg`` was rounded to) when given."""
+    """The page's "pan, tilt" ``text`` shows ``pose_deg`` (deg) within its rounding and that of
+    ``logged_digits`` (the decimals ``pose_deg`` was rounded to)."""
     shown = [float(part) for part in text.split(",")]
     slack = SHOWN_HALF_DIGIT_DEG + (0.5 * 10.0**-logged_digits if logged_digits else 0.0)
     assert len(shown) == len(pose_deg) == 2, f"not a pose: {text!r}"
@@ -107,8 +109,7 @@ def browser_pids(driver: webdriver.Chrome) -> list[int]:
 
 @contextlib.contextmanager
 def frozen(driver: webdriver.Chrome) -> Iterator[list[int]]:
-    """The whole browser stopped (SIGSTOP to each of :func:`browser_pids`) for the block, continued
-    (SIGCONT) after it whatever the block raised; yields the stopped processes."""
+    """The whole browser stopped (SIGSTOP) for the block, continued (SIGCONT) after it."""
     pids = browser_pids(driver)
     for pid in pids:
         os.kill(pid, signal.SIGSTOP)
@@ -120,8 +121,8 @@ def frozen(driver: webdriver.Chrome) -> Iterator[list[int]]:
 
 
 def drag_on_plane(driver: webdriver.Chrome, points, pause_s: float = 0.15) -> None:
-    """Press on the page's pan/tilt plane at the first (pan, tilt) deg point and move through
-    the others, pausing ``pause_s`` at each; the button stays down."""
+    """Press on the plane at the first (pan, tilt) deg point and move through the others,
+    pausing ``pause_s`` at each; the button stays down."""
     canvas = driver.find_element("id", "plane")
     size = driver.execute_script("const c = arguments[0]; return [c.width, c.height];", canvas)
     actions = ActionChains(driver, duration=50)

@@ -42,8 +42,7 @@ class Sink:
 
 @contextlib.contextmanager
 def served(host: str = "127.0.0.1", **server_options):
-    """A served teleop board (limits pan -90..90, tilt -40..60) with a sink attached as its
-    source: ``(board, server, sink, holder)``; ``server_options`` go to the ViewServer."""
+    """A served teleop board with a sink as its source: ``(board, server, sink, holder)``."""
     board = Board()
     board.publish_scene(Scene(limits=HardLimits((-90.0, 90.0), (-40.0, 60.0))))
     board.publish_live(Live(mode="teleop"))
@@ -56,16 +55,13 @@ def served(host: str = "127.0.0.1", **server_options):
             detach()
 
 
-def ws_url(server: ViewServer, key: str | None) -> str:
-    base = server.control_url.split("?")[0].replace("http://", "ws://") + "ws"
-    return base if key is None else f"{base}?key={key}"
-
-
-def open_socket(server: ViewServer, key: str | None, origin: str | None = "same", **kw):
+def open_socket(server: ViewServer, key: str | None, origin: str | None = "same"):
     """A WebSocket as a browser opens it (Origin: the page's own unless told otherwise)."""
+    url = server.control_url.split("?")[0].replace("http://", "ws://") + "ws"
+    url = url if key is None else f"{url}?key={key}"
     origin = server.control_url.split("/?")[0] if origin == "same" else origin
     options = {"origin": origin} if origin is not None else {"suppress_origin": True}
-    return websocket.create_connection(ws_url(server, key), timeout=WAIT_S, **options, **kw)
+    return websocket.create_connection(url, timeout=WAIT_S, **options)
 
 
 def control_message(client: websocket.WebSocket) -> dict:
@@ -155,7 +151,6 @@ def test_a_flood_reaches_the_source_as_its_newest_message_at_a_bounded_rate():
             flooder.send('{"pan": 7.25, "tilt": 7.25}')
             sink.wait_for('{"pan": 7.25, "tilt": 7.25}')
         desk = server.desk
-        print(f"flood: {desk.forwarded} forwarded, {desk.superseded} superseded")
         assert desk.forwarded == len(sink.lines)
         assert desk.forwarded + desk.superseded == sent + 1
         assert sink.lines[-1] == '{"pan": 7.25, "tilt": 7.25}'  # the newest wins
@@ -216,38 +211,12 @@ def test_access_the_desk_and_control_requests_as_values():
     assert control_request('{"pan": 1, "tilt": 2}') is None
 
 
-def test_the_keyed_page_steers_by_click_and_arrow_keys_and_resends_its_point(browser):
-    page = browser
-    with served() as (board, server, sink, holder):
-        publish(board, (5.0, 5.0))
-        open_steering(page, server)
-        # an arrow key moves the point one degree from the written pose
-        ActionChains(page).send_keys(Keys.ARROW_UP).perform()
-        sink.wait_for('{"pan":5,"tilt":6}')
-        # a click sets the point where it lands (to the canvas's pixel: within half a degree)
-        drag_on_plane(page, [(-30.0, 20.0)])
-        ActionChains(page).release().perform()
-        with sink.changed:
-            assert sink.changed.wait_for(
-                lambda: any(abs(json.loads(t)["pan"] + 30.0) < 0.5 for t in sink.lines), WAIT_S
-            )
-        last = json.loads(sink.lines[-1])
-        assert last["pan"] == pytest.approx(-30.0, abs=0.5)
-        assert last["tilt"] == pytest.approx(20.0, abs=0.5)
-        # the page resends its point while it steers (the loop holds when it stops)
-        count = len(sink.lines)
-        with sink.changed:
-            assert sink.changed.wait_for(lambda: len(sink.lines) >= count + 5, WAIT_S)
-        assert json.loads(sink.lines[-1]) == last
-
-
 # -- no motion without a fresh action, on the page --------------------------------------------
 
 #: The server's heartbeat in these tests (s): a stopped browser is dropped within two.
 HEARTBEAT_S = 0.5
-#: Live frames the page must show, one after another, while it is checked to send nothing: each
-#: takes at least the server's 0.1 s push period, so ten span a second of the page's 20 Hz
-#: resends (twenty chances to send an old point).
+#: Live frames (each >= the 0.1 s push period) the page shows while checked to send nothing:
+#: a second of the page's 20 Hz resends.
 QUIET_FRAMES = 10
 
 
@@ -267,11 +236,16 @@ def publish(
     board.publish_live(Live(mode="teleop", pose=pose, teleop=status))
 
 
+def show(page, board: Board, written, cycle: int, outcome: str = "held", **kw) -> None:
+    """Publish one state (as :func:`publish`) and wait until the page shows its cycle."""
+    publish(board, written, outcome, cycle, **kw)
+    wait_for(page, lambda d: text_of(d, "cycles") == str(cycle), f"cycle {cycle} not shown")
+
+
 def show_frames(page, board: Board, written, first_cycle: int, count: int = QUIET_FRAMES) -> int:
-    """Publish ``count`` states one by one, each waited for on the page; the next cycle."""
+    """Show ``count`` states one by one; returns the next cycle."""
     for cycle in range(first_cycle, first_cycle + count):
-        publish(board, written, cycle=cycle)
-        wait_for(page, lambda d, c=cycle: text_of(d, "cycles") == str(c), f"cycle {cycle}")
+        show(page, board, written, cycle)
     return first_cycle + count
 
 
@@ -280,23 +254,96 @@ def steering(page) -> bool:
 
 
 def open_steering(page, server) -> None:
-    """Open the keyed page and wait until it says it steers."""
     page.get(server.control_url)
     wait_for(page, steering, "the opened page does not steer")
 
 
-def steer_up_once(page, server, sink) -> None:
-    """Open the steering page on a limb at (5, 5) and press Up once: (5, 6) reaches the loop."""
-    open_steering(page, server)
-    ActionChains(page).send_keys(Keys.ARROW_UP).perform()
-    sink.wait_for('{"pan":5,"tilt":6}')
+def press(page, key, sink, sent: str) -> None:
+    """Press an arrow ``key`` and wait until the line ``sent`` reaches the source."""
+    ActionChains(page).send_keys(key).perform()
+    sink.wait_for(sent)
+
+
+def test_the_keyed_page_steers_by_click_and_arrow_keys_and_resends_its_point(browser):
+    """Keys step from the written pose once the gate stopped the point; a click sets it; a tab
+    paused past the loop's silence drops its point; a key pushing up a slanted edge is told as
+    up alone (the server's words as they are on a watching page)."""
+    page = browser
+    with served() as (board, server, sink, holder):
+        publish(board, (5.0, 5.0), "passed")
+        open_steering(page, server)
+        # Left turns the limb to +pan, as in the terminal (seen from behind the limb)
+        press(page, Keys.ARROW_LEFT, sink, '{"pan":6,"tilt":5}')
+        # the gate stops that point and slides the written pose: the opposite key steps from there
+        show(page, board, (5.5, 4.7), 2, "corrected", commanded=(6.0, 5.0))
+        press(page, Keys.ARROW_RIGHT, sink, '{"pan":4.5,"tilt":4.7}')
+        # inside again (the gate passed it): keys step from the point as before
+        show(page, board, (4.5, 4.7), 3, "passed", commanded=(4.5, 4.7))
+        press(page, Keys.ARROW_DOWN, sink, '{"pan":4.5,"tilt":3.7}')
+
+        # a click sets the point where it lands (to the canvas's pixel: within half a degree)
+        drag_on_plane(page, [(-30.0, 20.0)])
+        ActionChains(page).release().perform()
+        with sink.changed:
+            assert sink.changed.wait_for(
+                lambda: any(abs(json.loads(t)["pan"] + 30.0) < 0.5 for t in sink.lines), WAIT_S
+            ), "the click's point never reached the source"
+        last = json.loads(sink.lines[-1])
+        assert last["pan"] == pytest.approx(-30.0, abs=0.5)
+        assert last["tilt"] == pytest.approx(20.0, abs=0.5)
+        # the page resends its point while it steers (the loop holds when it stops)
+        count = len(sink.lines)
+        with sink.changed:
+            assert sink.changed.wait_for(lambda: len(sink.lines) >= count + 5, WAIT_S)
+        assert json.loads(sink.lines[-1]) == last, "the resent point is not the click's"
+
+        # frozen shorter than the heartbeat: it still steers on waking, but its point is gone
+        with frozen(page):
+            # lines sent before the stop landed may be on their way: 0.25 s without one (the
+            # tab resends 20 times a second) means it has landed
+            with sink.changed:
+                while True:
+                    sent = len(sink.lines)
+                    if not sink.changed.wait_for(lambda n=sent: len(sink.lines) > n, 0.25):
+                        break
+            # silent for 1.5 s, three times the loop's 0.5 s silence
+            with sink.changed:
+                assert not sink.changed.wait_for(lambda: len(sink.lines) > sent, 1.5)
+        show_frames(page, board, (5.0, 6.0), 4)
+        assert sink.lines[sent:] == [], "the woken tab resent its old point"
+        told = text_of(page, "control")
+        assert "you steer the limb" in told and "its point was dropped" in told, told
+        press(page, Keys.ARROW_LEFT, sink, '{"pan":6,"tilt":6}')  # from the written pose
+
+        # the server names every way the point lies beyond the written pose; the page names as
+        # blocked only the way its key pushes, as the terminal does, and the slide as told
+        press(page, Keys.ARROW_UP, sink, '{"pan":6,"tilt":7}')
+        words = "at the edge: left and up are blocked, sliding right along it"
+        blocked = ("+pan", "+tilt")
+        show(
+            page,
+            board,
+            (4.4, 5.5),
+            14,
+            "corrected",
+            commanded=(5.0, 6.0),
+            words=words,
+            blocked=blocked,
+        )
+        assert text_of(page, "words") == "at the edge: up is blocked, sliding right along it"
+        assert text_of(page, "holds") == "the upper edge"
+        page.get(server.url)  # a page that watches: the server's words as they are
+        wait_for(page, lambda d: text_of(d, "cycles") == "14", "the watching page shows nothing")
+        assert text_of(page, "words") == words
+        assert text_of(page, "holds") == "the left and upper edge"
 
 
 def test_a_tab_that_lost_control_comes_back_watching_and_steers_again_only_on_a_click(browser):
     page = browser
     with served(heartbeat_s=HEARTBEAT_S) as (board, server, sink, holder):
         publish(board, (5.0, 5.0))
-        steer_up_once(page, server, sink)
+        open_steering(page, server)
+        press(page, Keys.ARROW_UP, sink, '{"pan":5,"tilt":6}')
 
         # the tab freezes; the server drops it; another page steers to (-20, 0) and leaves
         with frozen(page):
@@ -321,19 +368,17 @@ def test_a_tab_that_lost_control_comes_back_watching_and_steers_again_only_on_a_
         assert 'click "take control"' in told, told
         assert page.find_element("id", "take").is_displayed()
 
-        # a click takes control; the point waits for a key (a fresh action), then starts from
-        # where the limb was written, not from the old point
+        # a click takes control; the point waits for a fresh key, from the written pose
         page.find_element("id", "take").click()
         wait_for(page, steering, "the click did not take control")
         show_frames(page, board, (-20.0, 0.0), cycle)
         assert sink.lines[sent:] == [], "taking control alone moved the limb"
-        ActionChains(page).send_keys(Keys.ARROW_UP).perform()
-        sink.wait_for('{"pan":-20,"tilt":1}')
+        press(page, Keys.ARROW_UP, sink, '{"pan":-20,"tilt":1}')
         assert set(sink.lines[sent:]) == {'{"pan":-20,"tilt":1}'}  # that point, resent
 
 
 def test_a_reload_keeps_control_and_another_tab_is_told_which_tab_steers():
-    with served(heartbeat_s=5.0) as (board, server, sink, holder), chromium() as page:
+    with served() as (board, server, sink, holder), chromium() as page:
         publish(board, (5.0, 5.0))
         open_steering(page, server)
         reloads = 10
@@ -342,16 +387,15 @@ def test_a_reload_keeps_control_and_another_tab_is_told_which_tab_steers():
             page.refresh()
             wait_for(page, lambda d: text_of(d, "control") not in ("-", ""), "no control message")
             kept += steering(page)
-        print(f"control kept over {kept} of {reloads} reloads")
-        assert kept == reloads
+        assert kept == reloads, f"control kept over {kept} of {reloads} reloads"
         # the tab names itself, and a reload kept its name
         name = page.execute_script("return window.limbview.tab.name;")
         assert text_of(page, "tab-name") == f"this is {name}"
         assert page.title == f"limbctl: {name} steers"
         assert name in holder()
 
-        # another tab, opened from this one (so it inherits its sessionStorage, as a duplicated
-        # tab does): a name of its own; refused, told the steering tab by the name it shows
+        # another tab opened from this one (inheriting its sessionStorage, as a duplicated tab
+        # does): a name of its own; refused, told the steering tab by its name
         first = page.current_window_handle
         page.execute_script("window.open(arguments[0]);", server.control_url)
         wait_for(page, lambda d: len(d.window_handles) == 2, "no second tab")
@@ -370,72 +414,3 @@ def test_a_reload_keeps_control_and_another_tab_is_told_which_tab_steers():
         page.find_element("id", "take").click()
         wait_for(page, steering, "the second tab's click did not take control")
         assert holder() not in ("", name) and holder().startswith("tab ")
-
-
-def test_arrow_keys_step_from_the_written_pose_once_the_gate_stopped_the_point(browser):
-    page = browser
-    with served(heartbeat_s=5.0) as (board, server, sink, holder):
-        publish(board, (5.0, 5.0), "passed")
-        open_steering(page, server)
-        keys = ActionChains(page)
-        # Left turns the limb to +pan, as in the terminal (seen from behind the limb)
-        keys.send_keys(Keys.ARROW_LEFT).perform()
-        sink.wait_for('{"pan":6,"tilt":5}')
-        # the gate stops that point at an edge and slides the written pose (5.5, 4.7)
-        publish(board, (5.5, 4.7), "corrected", cycle=2, commanded=(6.0, 5.0))
-        wait_for(page, lambda d: text_of(d, "cycles") == "2", "no stopped state")
-        # the first opposite key moves a full step from there, not from the point beyond it
-        ActionChains(page).send_keys(Keys.ARROW_RIGHT).perform()
-        sink.wait_for('{"pan":4.5,"tilt":4.7}')
-        # inside again (the gate passed it): keys step from the point as before
-        publish(board, (4.5, 4.7), "passed", cycle=3, commanded=(4.5, 4.7))
-        wait_for(page, lambda d: text_of(d, "cycles") == "3", "no passed state")
-        ActionChains(page).send_keys(Keys.ARROW_DOWN).perform()
-        sink.wait_for('{"pan":4.5,"tilt":3.7}')
-
-
-def test_a_key_pushing_up_against_a_slanted_edge_is_told_as_up_alone(browser):
-    """The server names every way the point lies beyond the written pose; the page names as
-    blocked only the way its arrow key pushes, as the terminal does, and the slide as told."""
-    page = browser
-    with served(heartbeat_s=5.0) as (board, server, sink, holder):
-        publish(board, (5.0, 5.0), "passed")
-        steer_up_once(page, server, sink)
-        # the gate slid the written pose right and a little up along a slanted edge
-        words = "at the edge: left and up are blocked, sliding right along it"
-        publish(board, (4.4, 5.5), "corrected", 2, (5.0, 6.0), words, ("+pan", "+tilt"))
-        wait_for(page, lambda d: text_of(d, "cycles") == "2", "no stopped state")
-        assert text_of(page, "words") == "at the edge: up is blocked, sliding right along it"
-        assert text_of(page, "holds") == "the upper edge"
-        # a page that watches (no key pushes) tells the server's words as they are
-        page.get(server.url)
-        wait_for(page, lambda d: text_of(d, "cycles") == "2", "the watching page shows nothing")
-        assert text_of(page, "words") == words
-        assert text_of(page, "holds") == "the left and upper edge"
-
-
-def test_a_tab_paused_past_the_loops_silence_drops_its_point_and_keeps_control(browser):
-    """Frozen shorter than the server's heartbeat: the tab still steers when it wakes, but
-    the point it had is gone; it sends nothing until a key, and says why."""
-    page = browser
-    with served(heartbeat_s=5.0) as (board, server, sink, holder):
-        publish(board, (5.0, 5.0))
-        steer_up_once(page, server, sink)
-        with frozen(page):
-            # lines the tab sent before the stop landed may still be on their way: let them in
-            # (the tab resends its point 20 times a second; on loopback one arrives in a
-            # millisecond, so 0.25 s without one means the stop has landed)
-            with sink.changed:
-                while True:
-                    sent = len(sink.lines)
-                    if not sink.changed.wait_for(lambda n=sent: len(sink.lines) > n, 0.25):
-                        break
-            # the frozen tab stays silent for 1.5 s, three times the loop's 0.5 s silence
-            with sink.changed:
-                assert not sink.changed.wait_for(lambda: len(sink.lines) > sent, 1.5)
-        show_frames(page, board, (5.0, 6.0), 2)
-        assert sink.lines[sent:] == [], "the woken tab resent its old point"
-        told = text_of(page, "control")
-        assert "you steer the limb" in told and "its point was dropped" in told, told
-        ActionChains(page).send_keys(Keys.ARROW_LEFT).perform()
-        sink.wait_for('{"pan":6,"tilt":6}')  # from the written pose, a fresh key

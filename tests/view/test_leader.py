@@ -9,7 +9,7 @@ import pytest
 
 from limbctl.view import HardLimits, Live, PanTilt, Scene, TeleopStatus
 from limbctl.view.leader import LeaderLive, LeaderStatus, with_twist
-from tests.view.browser import canvas_rgb, text_of, wait_for
+from tests.view.browser import canvas_rgb, near, text_of, wait_for
 
 LIMITS = HardLimits(pan_deg=(-90.0, 90.0), tilt_deg=(-40.0, 60.0))
 #: RGB of the leader's diamond and of its push (leader.js COLORS).
@@ -82,11 +82,6 @@ def test_leader_status_json_its_twists_and_its_checks():
 def made(driver, element_id: str) -> bool:
     """Whether the page has made the element yet (leader.js builds its panel on first sight)."""
     return driver.execute_script(f"return document.getElementById('{element_id}') !== null;")
-
-
-def near(rgb, target, tolerance: int = 8) -> bool:
-    """The same colour but for the canvas's antialiasing."""
-    return all(abs(a - b) <= tolerance for a, b in zip(rgb, target, strict=True))
 
 
 def test_the_page_draws_a_leader_once_it_sees_one_its_push_and_a_three_servo_leaders_twist(

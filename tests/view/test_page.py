@@ -21,9 +21,10 @@ def pixel(driver, pan: float, tilt: float) -> tuple[int, int, int]:
     return tuple(driver.execute_script(f"return window.limbview.pixel({pan}, {tilt});")[:3])
 
 
-def test_page_shows_the_published_record_state_to_several_browsers_five_times_a_second(
+def test_page_shows_the_record_then_the_teleop_state_to_several_browsers_five_times_a_second(
     browser, served
 ):
+    """What the page shows matches what was published, in record and in teleop mode."""
     board, server = served
     samples = np.column_stack([np.linspace(-15, 15, 300), np.linspace(-8, 8, 300)])
     board.publish_scene(
@@ -53,7 +54,7 @@ def test_page_shows_the_published_record_state_to_several_browsers_five_times_a_
     assert browser.find_element("id", "fault").is_displayed() is False
     # the region is drawn: its fill inside the rectangle (away from samples, markers), not outside
     wait_for(browser, lambda d: pixel(d, -15.0, 5.0) == REGION_RGB, "region fill not drawn")
-    assert pixel(browser, 50.0, 40.0) != REGION_RGB
+    assert pixel(browser, 50.0, 40.0) != REGION_RGB, "region fill outside the region"
     # several browsers watch at once
     board.publish_live(Live(mode="record", sample_count=7))
     wait_for(browser, lambda d: text_of(d, "sample-count") == "7", "first browser")
@@ -76,12 +77,8 @@ def test_page_shows_the_published_record_state_to_several_browsers_five_times_a_
     frames = int(text_of(browser, "live-frames")) - start
     assert frames / elapsed_s >= 5.0, f"{frames} pose updates in {elapsed_s:.2f} s"
 
-
-def test_the_teleop_page_tells_the_teleop_story_and_follows_live_updates(browser, served):
-    board, server = served
+    # the same page in teleop: the limb slides right along the top edge, which blocks it upward
     board.publish_scene(Scene(loops=(SQUARE,), limits=LIMITS, region_note="the model's region"))
-    browser.get(server.url)
-    # the limb slides right along the top edge, which blocks it upward
     for step in range(6):
         board.publish_live(
             Live(

@@ -1,8 +1,8 @@
-"""A record on the simulator watched in headless Chromium: the page shows what the recorder has."""
+"""The region the view draws: traced stretches and the fitted outline (a record watched on the
+page: tests/test_live.py)."""
 
 from __future__ import annotations
 
-import threading
 from pathlib import Path
 
 import numpy as np
@@ -10,73 +10,8 @@ import numpy as np
 from limbctl.envelope import RigidMap
 from limbctl.geometry.gimbal import pan_tilt_to_direction
 from limbctl.geometry.quat import limb_direction, swing_from_direction
-from limbctl.live import rig_limits
-from limbctl.session import demo_region_path, open_rig
-from limbctl.teach.dataset import DatasetWriter, load_dataset
-from limbctl.teach.record import record
-from limbctl.view import Board, ViewServer
-from limbctl.view.feed import PoseTap, SceneFeeder
+from limbctl.teach.dataset import load_dataset
 from limbctl.view.region import TRACED_WITHIN_DEG, fit_outline, model_loops, region_loops
-from tests.view.browser import assert_pose_shown, text_of, wait_for
-
-#: The first region needs the fit process to start and numba's cached kernels to load.
-FIRST_REGION_S = 120.0
-
-
-def test_page_shows_the_recording_as_it_happens(tmp_path, browser):
-    board = Board()
-    out = tmp_path / "teach.limb"
-    with (
-        ViewServer(board, port=0) as server,
-        open_rig(hand=demo_region_path(), seed=1) as session,
-        DatasetWriter(out, rig=session.profile.name) as writer,
-    ):
-        limits = rig_limits(session.profile)
-        tap = PoseTap(session.rig, board, "record", note="torque off: move the limb by hand")
-        browser.get(server.url)
-        stop = threading.Event()
-        summary = {}
-        with SceneFeeder(board, tap.samples, limits) as feeder:
-            recorder = threading.Thread(
-                target=lambda: summary.update(done=record(tap, writer, 100.0, None, stop))
-            )
-            recorder.start()
-            try:
-                # the page counts up while recording
-                wait_for(browser, lambda d: int(text_of(d, "sample-count")) > 0, "no samples")
-                first = int(text_of(browser, "sample-count"))
-                wait_for(
-                    browser, lambda d: int(text_of(d, "sample-count")) > first + 100, "count stuck"
-                )
-                # the region train would learn appears, with traced stretches
-                wait_for(
-                    browser,
-                    lambda d: text_of(d, "loop-count") not in ("", "0"),
-                    "no region drawn",
-                    timeout=FIRST_REGION_S,
-                )
-                assert "fitted on" in text_of(browser, "region-note")
-                assert text_of(browser, "limits") == (
-                    f"pan {limits.pan_deg[0]:g}..{limits.pan_deg[1]:g}, "
-                    f"tilt {limits.tilt_deg[0]:g}..{limits.tilt_deg[1]:g}"
-                )
-            finally:
-                stop.set()
-                recorder.join()
-        assert feeder.fits_done >= 1
-        recorded = summary["done"]
-        assert recorded.samples == tap.count
-        # after the recording the page holds the recorder's final count and last pose
-        wait_for(
-            browser,
-            lambda d: text_of(d, "sample-count") == str(recorded.samples),
-            f"the page never showed the recorder's {recorded.samples} samples",
-        )
-        pan, tilt = np.degrees(tap.samples()[-1])
-        assert_pose_shown(text_of(browser, "pose"), (pan, tilt))
-    data = load_dataset(out)
-    assert len(data) == recorded.samples
-    assert abs(data.pan_deg[-1] - pan) < 1e-9 and abs(data.tilt_deg[-1] - tilt) < 1e-9
 
 
 def ring(radius_deg: float, angles: np.ndarray) -> np.ndarray:

@@ -35,7 +35,7 @@ def receive(client: websocket.WebSocket, timeout: float = WAIT_S) -> dict:
     return json.loads(client.recv())
 
 
-def test_serves_the_page_its_assets_and_the_newest_state_and_refuses_others():
+def test_serves_the_page_and_the_newest_state_pushes_only_newer_versions_and_stop_frees_the_port():
     board = Board()
     with ViewServer(board, port=0) as server:
         page = urllib.request.urlopen(server.url, timeout=WAIT_S).read().decode()
@@ -50,13 +50,10 @@ def test_serves_the_page_its_assets_and_the_newest_state_and_refuses_others():
         board.publish_live(Live(mode="demo: teach", sample_count=42))
         state = json.loads(urllib.request.urlopen(server.url + "state.json").read())
         assert state["live"]["sample_count"] == 42 and "scene" not in state, "not the newest state"
-
-
-def test_pushes_scene_then_live_only_newer_versions_and_stop_closes_and_frees_the_port():
-    board = Board()
-    board.publish_scene(Scene(samples_deg=[[1.0, 2.0]], region_note="n"))
-    board.publish_live(Live(mode="record", pose=PanTilt(1.0, 2.0), sample_count=1))
-    with ViewServer(board, port=0) as server, contextlib.closing(connect(server)) as client:
+        # a browser connecting is sent the scene, then the live state
+        board.publish_scene(Scene(samples_deg=[[1.0, 2.0]], region_note="n"))
+        board.publish_live(Live(mode="record", pose=PanTilt(1.0, 2.0), sample_count=1))
+        client = connect(server)
         first = receive(client)
         second = receive(client)
         assert first["kind"] == "scene" and first["samples"] == [[1.0, 2.0]]
@@ -95,6 +92,7 @@ def test_pushes_scene_then_live_only_newer_versions_and_stop_closes_and_frees_th
         server.stop()
         assert closed.wait(WAIT_S), "the browser's connection stayed open after stop"
         reader.join(WAIT_S)
+        client.close()
     assert not server.running
     port = int(server.url.rstrip("/").rsplit(":", 1)[1])
     with socket.socket() as probe:
