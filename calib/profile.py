@@ -1,23 +1,10 @@
 """The rig profile: which port and servos a rig uses and how its joints are calibrated.
 
-A profile is a small YAML file (``calib/rigs/sim.yaml``; ``sim3.yaml`` adds the optional
-``roll``)::
-
-    name: sim
-    port: sim              # "sim" = the embedded simulator, else a device such as /dev/ttyUSB0
-    baud: 57600
-    model: xl430-w250      # or xm430-w350
-    protocol: 2.0
-    pan:  {id: 1, zero_tick: 2185, direction: 1,  min_deg: -115.0, max_deg: 115.0,
-           stop_min_deg: -120.0, stop_max_deg: 120.0}
-    tilt: {id: 2, zero_tick: 1890, direction: -1, min_deg: -55.0,  max_deg: 70.0}
-    rest_direction: [1.0, 0.0, 0.0]
-
-or with the joints as one ordered list (``joints: [{name: pan, id: 1, ...}, ...]``); either
-way the chain is one of :data:`CHAINS` and a profile is saved in the form it was read in.
-``min_deg``/``max_deg`` are the hard limits, at least END_STOP_MARGIN_DEG inside the end stops
-``stop_min_deg``/``stop_max_deg`` (unstated: +-DEFAULT_END_STOP_DEG). Every error is one line
-naming file and field; what only the servos know is checked when the controller opens a rig.
+A small YAML file, one key per joint (``calib/rigs/sim.yaml`` shows and explains every field;
+``sim3.yaml`` adds ``roll``) or the joints as one ordered list (``joints: [{name: pan, ...}]``);
+the chain is one of :data:`CHAINS` and a profile is saved in the form it was read in. Every
+error is one line naming file and field; what only the servos know is checked when the
+controller opens a rig.
 """
 
 from __future__ import annotations
@@ -207,12 +194,7 @@ class RigProfile:
         """Zero ticks, directions and hard limits: what a model trained on this rig depends on."""
         return Calibration(
             tuple(
-                (
-                    name,
-                    JointCalibration(
-                        joint.zero_tick, joint.direction, joint.min_deg, joint.max_deg
-                    ),
-                )
+                (name, JointCalibration(*(getattr(joint, key) for key in _CALIBRATION_KEYS)))
                 for name, joint in self.joints
             )
         )

@@ -1,8 +1,5 @@
-"""The simulator on a pseudo-terminal, and :class:`SimulatedBus` to run it from Python.
-
-:func:`serve` is the firmware's main loop on a :class:`PtyEndpoint`, answering when the bytes
-would have crossed the wire. :class:`SimulatedBus` runs it in its own process (so a controller's
-busy polling cannot starve it) over a pipe; README.md shows its use.
+"""The simulator on a pseudo-terminal (:func:`serve`), and :class:`SimulatedBus`, which runs it
+in its own process so that a controller's busy polling cannot starve it (README.md shows its use).
 """
 
 from __future__ import annotations
@@ -38,14 +35,8 @@ SPIN_BELOW_S = 0.0015
 
 
 class PtyEndpoint:
-    """A pty whose slave side a controller opens like a U2D2's serial device.
-
-    Parameters
-    ----------
-    link : path or None
-        Symlink to create to the slave device; an existing symlink there is replaced, any
-        other existing file is an error.
-    """
+    """A pty whose slave side a controller opens like a U2D2's serial device; ``link``, if given,
+    becomes a symlink to it (replacing a symlink, refusing any other file)."""
 
     def __init__(self, link: str | os.PathLike | None = None) -> None:
         self.master, self._slave = os.openpty()
@@ -62,10 +53,6 @@ class PtyEndpoint:
                     f"{self.link} exists and is not a symlink; choose another --link path"
                 )
             self.link.symlink_to(self.device)
-
-    def baud(self) -> int | None:
-        """The speed (bit/s) the controller set on the pty (None if the system cannot tell)."""
-        return host_baud(self.master)
 
     @property
     def port(self) -> str:
@@ -127,11 +114,8 @@ def serve(
     on_control: Callable[[Any], bool] | None = None,
     schedule: EventSchedule | None = None,
 ) -> None:
-    """Run the firmware until ``should_stop()`` (or ``on_control`` returns False).
-
-    ``control`` (with ``fileno()``) ready makes the loop call ``on_control(control)``;
-    ``schedule``'s faults are applied on each pass once due.
-    """
+    """Run the firmware until ``should_stop()``, or ``on_control(control)``, called whenever
+    ``control`` is readable, returns False; ``schedule``'s faults are applied once due."""
     sources = [endpoint.master] + ([control] if control is not None else [])
     free_at = 0.0  # when the wire is quiet again (a write without reply still occupies it)
     while not should_stop():
@@ -141,7 +125,7 @@ def serve(
         if endpoint.master in ready:
             data = endpoint.read_available()
             if data:
-                baud = endpoint.baud()
+                baud = host_baud(endpoint.master)
                 # the pty delivers at once; on the wire the last byte lands this much later
                 quiet = max(time.monotonic(), free_at) + wire_s(len(data), baud)
                 replies = sim.receive(data, sim.now(), baud)
@@ -194,7 +178,7 @@ def _make_hand(spec: Any, seed: int) -> Hand | None:
 #: What a :class:`SimulatedBus` request does to the simulator, by the request's name.
 _REQUESTS: dict[str, Callable[..., Any]] = {
     "truth": Simulator.truth,
-    "set_hand": lambda sim, spec: sim.set_hand(_make_hand(spec, sim.seed)),
+    "set_hand": lambda sim, spec: sim.world.set_hand(_make_hand(spec, sim.seed)),
     "set_operator": Simulator.set_operator,
     "push": Simulator.push,
     "vanish": Simulator.vanish,
@@ -262,7 +246,7 @@ class SimulatedBus:
     ids, model, goal_log, seed, baud, factory, connect, eeprom_dir, leader, roll_id
         As :class:`firmware_sim.simulator.Simulator`'s, as plain data.
     hand : mapping, path or None
-        REGION.yaml content or path (firmware_sim.regions); moves the limb while torque is off.
+        REGION.yaml content or path; moves the limb while torque is off.
     drop, corrupt, latency_ms, latency_p : float
         Fault options (:class:`firmware_sim.faults.FaultPlan`).
     link : path or None

@@ -1,7 +1,4 @@
-"""X-series control tables (XL430-W250, XM430-W350, XL330-M077/M288) from the e-Manual.
-
-The 330s' Indirect Data 1 is at 208 up to firmware 52 and at 224 after, so a client has to probe.
-"""
+"""X-series control tables (XL430-W250, XM430-W350, XL330-M077/M288) from the e-Manual."""
 
 from __future__ import annotations
 
@@ -67,10 +64,6 @@ class Item:
     signed: bool = False
     bound: tuple[Register | None, Register | None] | None = None
     name: str = ""
-
-    @property
-    def eeprom(self) -> bool:
-        return self.address < EEPROM_END
 
 
 @dataclass(frozen=True)

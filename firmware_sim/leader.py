@@ -53,7 +53,7 @@ class Operator:
     stiffness_nm_deg, damping_nm_s_rad, max_torque_nm : float
         The grip: K_h (N m per deg), D_h (N m s/rad) and the bound tau_max (N m).
     joints : int
-        How many joints the hand holds (2 or 3): the script's angles per point.
+        How many joints the hand holds (2 or 3).
     """
 
     script: Sequence[Sequence[float]]
@@ -127,8 +127,8 @@ class Operator:
     def torques(
         self, t: float, angles_rad: Sequence[float], velocities_rad_s: Sequence[float]
     ) -> list[float]:
-        """The hand's torque on each joint (N m, shape (joints,)) from angles (rad) and
-        velocities (rad/s), bounded as a vector."""
+        """The hand's torque (N m, shape (joints,)) at angles (rad) and velocities (rad/s), each of
+        shape (joints,), bounded as a vector."""
         bound = self.bound_nm(t)
         if bound <= 0.0:
             return [0.0] * len(angles_rad)
@@ -166,7 +166,7 @@ class LeaderWorld:
     model : str
         The leader servos' model (a key of :data:`firmware_sim.control_table.MODELS`).
     operator : Operator or None
-        Who holds it (as many joints); None: only the motors and friction act.
+        Who holds it; None: only the motors and friction act.
     log : path or None
         JSON-lines ground truth, one line per physics step.
     start_deg : sequence of float, shape (joints,), or None
@@ -197,7 +197,7 @@ class LeaderWorld:
         self.velocity = [0.0] * count
         self.hand_nm = [0.0] * count
         self.motor_nm = [0.0] * count
-        #: Work (J) each motor and the hand did on each joint since the start: sum of tau dtheta.
+        # work (J) each motor and the hand did on each joint since the start: sum of tau dtheta
         self.motor_work_j = [0.0] * count
         self.hand_work_j = [0.0] * count
         self.time_s = 0.0
@@ -318,7 +318,7 @@ class LeaderWorld:
         }
 
     def truth(self) -> dict[str, Any]:
-        """:meth:`sample` (the log is flushed, so a reader sees every line so far)."""
+        """:meth:`sample`, the log flushed."""
         if self._log is not None:
             self._log.flush()
         return self.sample()

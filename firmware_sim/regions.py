@@ -1,12 +1,5 @@
-"""Regions of (pan, tilt) a scripted hand may move the simulated limb through (degrees)::
-
-    region: {polygon: [[pan_deg, tilt_deg], ...]}   # a simple polygon in the (pan, tilt) plane
-    region: {cone: {half_angle_deg: A}}             # directions within A of +x, 0 < A < 180
-
-Both answer :meth:`contains`, :meth:`edge_distance_deg` (positive inside),
-:meth:`boundary_point` (a fraction ``u`` round the edge) and ``center_deg``. Bad input raises
-``ValueError`` naming the source file and what is wrong.
-"""
+"""Regions of (pan, tilt) a scripted hand may move the simulated limb through (degrees): a
+polygon or a cone (docs/simulator.md); bad input raises ValueError naming the source."""
 
 from __future__ import annotations
 

@@ -1,6 +1,5 @@
 """One simulated X-series servo: control-table memory, instruction semantics, errors, motion.
 
-Each substep the bus asks :meth:`Servo.drive_setpoint` and reports with :meth:`Servo.observe`.
 A hardware error in Shutdown latches, turns torque off and alerts until REBOOT; an input voltage
 error latches and alerts even outside Shutdown (torque stays on).
 """

@@ -1,9 +1,5 @@
-"""The wire between the host and the servos: its speed, its time, and what collisions do to it.
-
-A pty carries bytes instantly at any speed: :func:`host_baud` reads the speed the host set,
-:func:`wire_s` the bytes' time, and :func:`collide` what two servos talking at once give (the
-open-drain bus lets a 0 win, the second's bits :data:`COLLISION_SKEW_BITS` late).
-"""
+"""The wire between the host and the servos: its speed, its time, and what collisions do to it
+(a pty carries bytes instantly at any speed)."""
 
 from __future__ import annotations
 

@@ -162,9 +162,9 @@ class World:
 
     def _substep(self, h: float, setpoints: list[float | None]) -> None:
         pose = None
-        if self._hand is not None and None in setpoints:
+        if self.hand is not None and None in setpoints:
             self.hand_time_s += h
-            pose = self._hand.pose_deg(self.hand_time_s)
+            pose = self.hand.pose_deg(self.hand_time_s)
         self.time_s += h
         for i in range(len(setpoints)):
             target = setpoints[i]
@@ -247,16 +247,12 @@ class World:
 
     def set_hand(self, hand: Hand | None) -> None:
         """Give the limb to ``hand`` (it takes hold where the limb is), or take it away."""
-        self._hand = hand
+        self.hand = hand
         #: Seconds the hand has held the limb.
         self.hand_time_s = 0.0
         if hand is not None:
             angles = self.joint_angles_deg()
             hand.start_from(angles["pan"], angles["tilt"], angles.get("roll", 0.0))
-
-    @property
-    def hand(self) -> Hand | None:
-        return self._hand
 
     def joint_angles_deg(self) -> dict[str, float]:
         """The true joint angles, ``{"pan": deg, "tilt": deg}`` (and ``"roll"`` if it has one)."""
