@@ -30,7 +30,6 @@ MAX_TICK = TICKS_PER_TURN - 1
 SIM_PORT = "sim"
 #: The packaged simulated rigs (``calib/rigs/NAME.yaml``): two servos, and three with roll.
 SIM_RIGS = ("sim", "sim3")
-#: Protocol versions limbctl speaks.
 PROTOCOLS = (2.0,)
 #: Largest id a servo can have (253 and up are reserved / broadcast).
 MAX_SERVO_ID = 252
@@ -110,10 +109,6 @@ class Calibration:
     def twists(self) -> bool:
         """True when the chain ends in a roll joint: its regions carry a twist band."""
         return self.joint_names[-1] == "roll"
-
-    def joint(self, name: str) -> JointCalibration | None:
-        """The calibration of the joint called ``name``, or None if the chain has none."""
-        return dict(self.joints).get(name)
 
     def to_dict(self) -> dict[str, dict[str, Any]]:
         """Plain data: ``{"pan": {"zero_tick": ..., ...}, "tilt": {...}[, "roll": {...}]}``."""
@@ -244,11 +239,9 @@ class _Checker(Checker):
                 f"{field}.min_deg/max_deg",
                 f"must satisfy -180 < min_deg < max_deg < 180, got {min_deg} and {max_deg}",
             )
-        stop_min = self.number(
-            raw.get("stop_min_deg", -DEFAULT_END_STOP_DEG), f"{field}.stop_min_deg"
-        )
-        stop_max = self.number(
-            raw.get("stop_max_deg", DEFAULT_END_STOP_DEG), f"{field}.stop_max_deg"
+        stop_min, stop_max = (
+            self.number(raw.get(key, sign * DEFAULT_END_STOP_DEG), f"{field}.{key}")
+            for key, sign in zip(_JOINT_OPTIONAL_KEYS, (-1, 1), strict=True)
         )
         if not -180.0 <= stop_min < stop_max <= 180.0:
             raise self.fail(

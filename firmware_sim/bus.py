@@ -32,6 +32,9 @@ TICK_S = 0.005
 READ_CHUNK = 4096
 # Waits shorter than this are spun rather than slept (a sleep can overshoot by ~1 ms).
 SPIN_BELOW_S = 0.0015
+# How long (s) SimulatedBus waits for its process to come up, and for a reply or an exit.
+START_TIMEOUT_S = 60.0
+REPLY_TIMEOUT_S = 10.0
 
 
 class PtyEndpoint:
@@ -175,7 +178,6 @@ def _make_hand(spec: Any, seed: int) -> Hand | None:
     return Hand.from_yaml(spec, seed=seed)
 
 
-#: What a :class:`SimulatedBus` request does to the simulator, by the request's name.
 _REQUESTS: dict[str, Callable[..., Any]] = {
     "truth": Simulator.truth,
     "set_hand": lambda sim, spec: sim.world.set_hand(_make_hand(spec, sim.seed)),
@@ -241,18 +243,9 @@ _ERRORS = {"ValueError": ValueError, "FileExistsError": FileExistsError, "KeyErr
 class SimulatedBus:
     """Servos on a pty, served by a separate process; a context manager.
 
-    Parameters
-    ----------
-    ids, model, goal_log, seed, baud, factory, connect, eeprom_dir, leader, roll_id
-        As :class:`firmware_sim.simulator.Simulator`'s, as plain data.
-    hand : mapping, path or None
-        REGION.yaml content or path; moves the limb while torque is off.
-    drop, corrupt, latency_ms, latency_p : float
-        Fault options (:class:`firmware_sim.faults.FaultPlan`).
-    link : path or None
-        Also make this path a symlink to the pty.
-    start_timeout_s : float
-        How long to wait (s) for the process to come up.
+    The other options are :class:`firmware_sim.simulator.Simulator`'s as plain data (``hand`` a
+    REGION.yaml mapping or path), the :class:`firmware_sim.faults.FaultPlan`'s and ``link`` (also
+    make this path a symlink to the pty).
     """
 
     def __init__(
@@ -267,7 +260,6 @@ class SimulatedBus:
         latency_ms: float = 0.0,
         latency_p: float = 1.0,
         link: str | os.PathLike | None = None,
-        start_timeout_s: float = 60.0,
         baud: int | None = None,
         factory: int = 0,
         connect=None,
@@ -283,7 +275,6 @@ class SimulatedBus:
         self.config |= {"ids": tuple(ids), "model": model, "hand": _hand_spec(hand)}
         self.config |= {"seed": int(seed), "factory": int(factory), "drop": drop}
         self.config |= {"corrupt": corrupt, "latency_ms": latency_ms, "latency_p": latency_p}
-        self._start_timeout_s = start_timeout_s
         self._process: subprocess.Popen | None = None
         self._conn: Connection | None = None
         self.exitcode: int | None = None
@@ -298,9 +289,9 @@ class SimulatedBus:
         self._process = subprocess.Popen(command, pass_fds=(child.fileno(),))
         child.close()
         self._conn = Connection(parent.detach())
-        if not self._conn.poll(self._start_timeout_s):
+        if not self._conn.poll(START_TIMEOUT_S):
             self.close()
-            raise TimeoutError(f"the simulator did not start within {self._start_timeout_s} s")
+            raise TimeoutError(f"the simulator did not start within {START_TIMEOUT_S} s")
         try:
             message = self._conn.recv()
         except EOFError:
@@ -314,12 +305,12 @@ class SimulatedBus:
         _, self.device, self.port = message
         return self
 
-    def close(self, timeout_s: float = 10.0) -> None:
+    def close(self) -> None:
         """Stop the process, remove the link, close the pipe; safe to call twice."""
         if self._conn is not None:
             try:
                 self._conn.send(("stop", ()))
-                if self._conn.poll(timeout_s):
+                if self._conn.poll(REPLY_TIMEOUT_S):
                     self._conn.recv()
             except (BrokenPipeError, EOFError, OSError):
                 pass
@@ -327,10 +318,10 @@ class SimulatedBus:
             self._conn = None
         if self._process is not None:
             try:
-                self._process.wait(timeout_s)
+                self._process.wait(REPLY_TIMEOUT_S)
             except subprocess.TimeoutExpired:
                 self._process.terminate()
-                self._process.wait(timeout_s)
+                self._process.wait(REPLY_TIMEOUT_S)
             self.exitcode = self._process.returncode
             self._process = None
 
@@ -344,12 +335,12 @@ class SimulatedBus:
     def running(self) -> bool:
         return self._process is not None and self._process.poll() is None
 
-    def _call(self, name: str, *args: Any, timeout_s: float = 10.0) -> Any:
+    def _call(self, name: str, *args: Any) -> Any:
         if self._conn is None:
             raise RuntimeError("the simulator is not running: use `with SimulatedBus(...)`")
         self._conn.send((name, args))
-        if not self._conn.poll(timeout_s):
-            raise TimeoutError(f"the simulator did not answer {name!r} within {timeout_s} s")
+        if not self._conn.poll(REPLY_TIMEOUT_S):
+            raise TimeoutError(f"the simulator did not answer {name!r} within {REPLY_TIMEOUT_S} s")
         reply = self._conn.recv()
         if reply[0] == "error":
             raise _ERRORS.get(reply[1], RuntimeError)(reply[2])

@@ -33,8 +33,6 @@ DRIVE_MODE_TIME_BASED = 0x04
 # Hardware Error Status (70) bits, also the bits of Shutdown (63)
 HW_INPUT_VOLTAGE = 0x01
 HW_OVERHEATING = 0x04
-HW_MOTOR_ENCODER = 0x08
-HW_ELECTRICAL_SHOCK = 0x10
 HW_OVERLOAD = 0x20
 
 EEPROM_END = 64  # addresses below this are EEPROM: locked while Torque Enable is 1

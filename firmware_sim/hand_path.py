@@ -119,31 +119,16 @@ class Track:
 
 
 class SwingPath:
-    """The (pan_deg, tilt_deg) a hand takes the limb along, without tremor.
+    """The (pan_deg, tilt_deg) a hand takes the limb along, without tremor: through a ``region``
+    in one of :data:`STYLES`, drawn from ``seed``, answering ``visits`` in order of ``after_s``;
+    or along a ``script``.
 
     Parameters
     ----------
-    region : Region or None
-        The region to teach (``None`` for a script).
     script : sequence of (t_s, pan_deg, tilt_deg, ...) or None
-        Waypoints, in increasing time, to follow instead; columns after the third are ignored.
+        Waypoints, in increasing time; columns after the third are ignored.
     speed_deg_s : float
-        Mean speed of a move through the middle.
-    seed : int
-        Draws the path through a region.
-    style : str
-        One of :data:`STYLES`.
-    visits : sequence of Visit
-        Requests answered once their time comes, in order of ``after_s`` (region paths only).
-
-    Attributes
-    ----------
-    track : Track
-        The segments ``(t0, t1, pan0, tilt0, pan1, tilt1, minimum_jerk, bulge_pan, bulge_tilt)``.
-    trace_span_s : tuple of float or None
-        (start, end) in s of a ``trace`` path's full trace of the edge, after it took hold.
-    visit_spans : list of (float, float, Visit)
-        (start, end) in s of each visit answered so far, from its arrival at the place.
+        Mean speed of a move through the middle (deg/s).
     """
 
     def __init__(
@@ -157,10 +142,10 @@ class SwingPath:
     ) -> None:
         self.region = region
         self.visits = sorted(visits, key=lambda v: v.after_s)
-        self.visit_spans: list[tuple[float, float, Visit]] = []
+        self.visit_spans: list[tuple[float, float, Visit]] = []  # (start s, end s, visit)
         self.speed_deg_s = speed_deg_s
         self.style = style
-        self.trace_span_s: tuple[float, float] | None = None
+        self.trace_span_s: tuple[float, float] | None = None  # of the full edge trace, s
         self._seed = seed
         self.track = Track()
         if script is not None:

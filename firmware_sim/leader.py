@@ -157,18 +157,12 @@ def leader_joints(ids: Sequence[int]) -> tuple[Joint, ...]:
 
 
 class LeaderWorld:
-    """The leader gimbal's physics (see the module docstring).
+    """The leader gimbal's physics (see the module docstring): servos ``ids`` (pan, tilt[, roll])
+    of ``model``, held by ``operator`` (None: only the motors and friction act), logging its
+    ground truth to ``log`` (JSON lines, one per physics step).
 
     Parameters
     ----------
-    ids : sequence of int, length 2 or 3
-        The leader's servo ids: (pan, tilt) or (pan, tilt, roll).
-    model : str
-        The leader servos' model (a key of :data:`firmware_sim.control_table.MODELS`).
-    operator : Operator or None
-        Who holds it; None: only the motors and friction act.
-    log : path or None
-        JSON-lines ground truth, one line per physics step.
     start_deg : sequence of float, shape (joints,), or None
         Where the leader rests at start (deg); None: every joint at 0.
     """

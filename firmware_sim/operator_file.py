@@ -22,7 +22,6 @@ LEADER_KEYS = ("model", "start_deg")
 #: The operator's parameters (:class:`firmware_sim.leader.Operator`).
 GRIP_KEYS = ("script", "let_go_s", "release_s", "stiffness_nm_deg", "damping_nm_s_rad")
 GRIP_KEYS += ("max_torque_nm",)
-#: A leader's model when the file names none.
 DEFAULT_MODEL = "xm430-w350"
 
 

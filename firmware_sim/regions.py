@@ -63,15 +63,13 @@ class _Shape:
 
 
 class PolygonRegion(_Shape):
-    """A simple polygon in the (pan_deg, tilt_deg) plane.
+    """A simple polygon in the (pan_deg, tilt_deg) plane (``source`` names it in errors).
 
     Parameters
     ----------
     vertices_deg : array_like, shape (N, 3 <= N)
         Corner poses ``[pan_deg, tilt_deg]`` in order around the polygon (either sense; a last
         vertex equal to the first is dropped).
-    source : str
-        Where the vertices came from, for error messages.
     """
 
     kind = "polygon"

@@ -53,33 +53,16 @@ def parse_ids(ids: Sequence[int] | str) -> tuple[int, ...]:
 class Simulator:
     """Servos on one bus with their world; servos beyond the joints drive free shafts.
 
+    The other options are ``firmware-sim``'s (``--eeprom`` is ``eeprom_dir``), with ``hand`` a
+    :class:`Hand`, ``leader`` a :meth:`LeaderWorld.from_spec` spec whose ids join and ``roll_id``
+    the servo in ``ids`` that turns the limb about its own axis (None: two joints).
+
     Parameters
     ----------
-    ids : sequence of int
-        Servo IDs (their slots).
-    model : str
-        A key of :data:`firmware_sim.control_table.MODELS`, or one per servo: ``"a,b"``.
-    hand : Hand or None
-        Scripted hand moving the limb while torque is off.
-    goal_log : path or None
-        JSON-lines file receiving one line per Goal Position write.
-    seed : int
-        Seeds the world's rest pose and the fault injector.
-    faults : FaultPlan or None
-    clock : callable
-        Monotonic seconds.
     baud : int or None
         The servos' baud rate (bit/s); None: any until their Baud Rate is written.
-    factory : int
-        If > 0, this many factory-fresh servos (all ID 1, 57600 baud) in slots 1..N instead.
-    connect : sequence of int or None
-        The slots on the bus (default: all).
-    eeprom_dir : path or None
-        Keep each slot's EEPROM in a file there.
-    leader : mapping or None
-        A leader gimbal (:meth:`firmware_sim.leader.LeaderWorld.from_spec`) whose ids join.
-    roll_id : int or None
-        The servo in ``ids`` that turns the limb about its own axis; None: two joints.
+    clock : callable
+        Monotonic seconds.
     """
 
     def __init__(
@@ -114,7 +97,6 @@ class Simulator:
         followers = [slot for slot in slots if slot not in leader_ids]
         given = dict(zip(followers, self._models(model, len(followers)), strict=True))
         models = [given.get(slot) for slot in slots]
-        self.model = next(iter(given.values()), None)
         baud_value = None if baud is None else value_for_baud(int(baud))
         self.seed = seed
         joints = DEFAULT_JOINTS

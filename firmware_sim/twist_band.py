@@ -26,7 +26,7 @@ _CURVED = ("linear", "quadratic", "bumps")
 
 
 class Curved:
-    """A band value curving with the pose (the module docstring's mapping form).
+    """A band value curving with the pose (the mapping form of docs/simulator.md).
 
     Parameters
     ----------

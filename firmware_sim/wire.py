@@ -76,7 +76,8 @@ def _frames(bits: Sequence[int]) -> bytes:
 
 
 def collide(packets: Sequence[bytes]) -> bytes:
-    """The bytes the host reads when ``packets`` are sent at once (see module docstring)."""
+    """The bytes the host reads when ``packets`` are sent at once: the open-drain line lets a 0
+    win, each next sender's bits COLLISION_SKEW_BITS later."""
     if len(packets) == 1:
         return packets[0]
     lines = [_bits(p, k * COLLISION_SKEW_BITS) for k, p in enumerate(packets)]

@@ -99,17 +99,8 @@ ROLL_JOINT = Joint(3, "roll", 1960.0, +1, -105.0, 105.0)
 
 
 class World:
-    """The gimbal's physics, stepped by the servos.
-
-    Parameters
-    ----------
-    joints : tuple of Joint
-        Exactly one "pan" and one "tilt" joint, and at most one "roll", with distinct servo IDs.
-    hand : Hand or None
-        The scripted hand that moves the joints whose torque is off.
-    seed : int
-        Draws the rest pose, within REST_SCATTER_DEG of zero on each joint.
-    """
+    """The gimbal's physics, stepped by the servos: ``joints`` are one "pan", one "tilt" and at
+    most one "roll", ``hand`` moves those whose torque is off, ``seed`` draws the rest pose."""
 
     def __init__(self, joints=DEFAULT_JOINTS, hand: Hand | None = None, seed: int = 0) -> None:
         joints = tuple(joints)
