@@ -1,12 +1,6 @@
 """A leader gimbal of two or three joints (the follower's geometry at other servo ids), moved by
-an operator's hand and its own motors. Each joint is a rotor with friction (SI units)::
-
-    J a = tau_motor + tau_hand - B v - C sign(v)        (sticks while |tau_motor + tau_hand| <= C)
-    tau_hand = K_h (target - angle) - D_h v,  scaled as a vector to |tau_hand| <= tau_max * r(t)
-
-``tau_motor`` by Operating Mode (:mod:`firmware_sim.torque`); ``r`` 1 until the let go, then
-falling linearly to 0 over ``release_s``. End stops clamp.
-"""
+an operator's hand and its own motors: rotors with friction, SI units (docs/haptic.md, "The
+simulated leader"; each formula above the line that computes it)."""
 
 from __future__ import annotations
 

@@ -1,15 +1,9 @@
 """The simulated gimbal's physical world: true geometry, end stops, tracking, load, the hand.
 
-Pan (servo 1), tilt (2) and optionally roll (3); each :class:`Joint` maps raw shaft ticks to its
-angle by a true zero and direction a calibration has to find. Torque on, a joint tracks its
-servo's setpoint like a stiff, critically damped position loop, and a push deflects it from that
-*free* angle::
-
-    angle = clamp(free + push / STIFFNESS, stop_min, stop_max)
-    load  = STIFFNESS * (free - angle) + INERTIA * accel + VISCOUS * velocity
-
-Torque off, it follows the hand's grip, or drifts under a push, reading no load. Loads and
-pushes are % of stall in the shaft frame; velocities raw ticks per second.
+Torque on, a joint tracks its servo's setpoint like a stiff, critically damped position loop,
+and a push deflects it from that *free* angle; torque off, it follows the hand's grip, or drifts
+under a push, reading no load. Loads and pushes are % of stall in the shaft frame; velocities
+raw ticks per second.
 """
 
 from __future__ import annotations
