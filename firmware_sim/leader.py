@@ -34,7 +34,8 @@ LEADER_CHAIN = (*DEFAULT_JOINTS, ROLL_JOINT)
 
 @dataclass
 class Operator:
-    """A hand holding the leader: a bounded spring-damper toward scripted targets.
+    """A hand holding ``joints`` (2 or 3) joints of the leader: a bounded spring-damper toward
+    scripted targets.
 
     Parameters
     ----------
@@ -46,8 +47,6 @@ class Operator:
         How long (s) its bound takes to fall linearly to 0.
     stiffness_nm_deg, damping_nm_s_rad, max_torque_nm : float
         The grip: K_h (N m per deg), D_h (N m s/rad) and the bound tau_max (N m).
-    joints : int
-        How many joints the hand holds (2 or 3).
     """
 
     script: Sequence[Sequence[float]]
