@@ -1,13 +1,11 @@
 """Rig profiles: the data both the controller and its tools read (see calib.profile)."""
 
 from calib.profile import (
-    SIM_PORT,
     SIM_RIGS,
     Calibration,
     JointCalibration,
     JointProfile,
     ProfileError,
-    ProfileFileError,
     RigProfile,
     calibration_from_dict,
     default_sim_profile,
@@ -17,13 +15,11 @@ from calib.profile import (
 )
 
 __all__ = [
-    "SIM_PORT",
     "SIM_RIGS",
     "Calibration",
     "JointCalibration",
     "JointProfile",
     "ProfileError",
-    "ProfileFileError",
     "RigProfile",
     "calibration_from_dict",
     "default_sim_profile",

@@ -1,23 +1,10 @@
 """The rig profile: which port and servos a rig uses and how its joints are calibrated.
 
-A profile is a small YAML file (``calib/rigs/sim.yaml``; ``sim3.yaml`` adds the optional
-``roll``)::
-
-    name: sim
-    port: sim              # "sim" = the embedded simulator, else a device such as /dev/ttyUSB0
-    baud: 57600
-    model: xl430-w250      # or xm430-w350
-    protocol: 2.0
-    pan:  {id: 1, zero_tick: 2185, direction: 1,  min_deg: -115.0, max_deg: 115.0,
-           stop_min_deg: -120.0, stop_max_deg: 120.0}
-    tilt: {id: 2, zero_tick: 1890, direction: -1, min_deg: -55.0,  max_deg: 70.0}
-    rest_direction: [1.0, 0.0, 0.0]
-
-or with the joints as one ordered list (``joints: [{name: pan, id: 1, ...}, ...]``); either
-way the chain is one of :data:`CHAINS` and a profile is saved in the form it was read in.
-``min_deg``/``max_deg`` are the hard limits, at least END_STOP_MARGIN_DEG inside the end stops
-``stop_min_deg``/``stop_max_deg`` (unstated: +-DEFAULT_END_STOP_DEG). Every error is one line
-naming file and field; what only the servos know is checked when the controller opens a rig.
+A small YAML file, one key per joint (``calib/rigs/sim.yaml`` shows and explains every field;
+``sim3.yaml`` adds ``roll``) or the joints as one ordered list (``joints: [{name: pan, ...}]``);
+the chain is one of :data:`CHAINS` and a profile is saved in the form it was read in. Every
+error is one line naming file and field; what only the servos know is checked when the
+controller opens a rig.
 """
 
 from __future__ import annotations
@@ -43,7 +30,6 @@ MAX_TICK = TICKS_PER_TURN - 1
 SIM_PORT = "sim"
 #: The packaged simulated rigs (``calib/rigs/NAME.yaml``): two servos, and three with roll.
 SIM_RIGS = ("sim", "sim3")
-#: Protocol versions limbctl speaks.
 PROTOCOLS = (2.0,)
 #: Largest id a servo can have (253 and up are reserved / broadcast).
 MAX_SERVO_ID = 252
@@ -124,10 +110,6 @@ class Calibration:
         """True when the chain ends in a roll joint: its regions carry a twist band."""
         return self.joint_names[-1] == "roll"
 
-    def joint(self, name: str) -> JointCalibration | None:
-        """The calibration of the joint called ``name``, or None if the chain has none."""
-        return dict(self.joints).get(name)
-
     def to_dict(self) -> dict[str, dict[str, Any]]:
         """Plain data: ``{"pan": {"zero_tick": ..., ...}, "tilt": {...}[, "roll": {...}]}``."""
         return {
@@ -207,12 +189,7 @@ class RigProfile:
         """Zero ticks, directions and hard limits: what a model trained on this rig depends on."""
         return Calibration(
             tuple(
-                (
-                    name,
-                    JointCalibration(
-                        joint.zero_tick, joint.direction, joint.min_deg, joint.max_deg
-                    ),
-                )
+                (name, JointCalibration(*(getattr(joint, key) for key in _CALIBRATION_KEYS)))
                 for name, joint in self.joints
             )
         )
@@ -262,11 +239,9 @@ class _Checker(Checker):
                 f"{field}.min_deg/max_deg",
                 f"must satisfy -180 < min_deg < max_deg < 180, got {min_deg} and {max_deg}",
             )
-        stop_min = self.number(
-            raw.get("stop_min_deg", -DEFAULT_END_STOP_DEG), f"{field}.stop_min_deg"
-        )
-        stop_max = self.number(
-            raw.get("stop_max_deg", DEFAULT_END_STOP_DEG), f"{field}.stop_max_deg"
+        stop_min, stop_max = (
+            self.number(raw.get(key, sign * DEFAULT_END_STOP_DEG), f"{field}.{key}")
+            for key, sign in zip(_JOINT_OPTIONAL_KEYS, (-1, 1), strict=True)
         )
         if not -180.0 <= stop_min < stop_max <= 180.0:
             raise self.fail(

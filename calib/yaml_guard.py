@@ -1,7 +1,5 @@
-"""Reading a small hand-written YAML file so that no file can hurt the reader: anchors, aliases,
-duplicate and merge keys, deep nesting and huge files or values are refused in one line naming
-the line (docs/decisions/files.md).
-"""
+"""Reading a small hand-written YAML file so that no file can hurt the reader
+(docs/decisions/files.md): every refusal is one line naming the line."""
 
 from __future__ import annotations
 

@@ -21,57 +21,18 @@ ROLL_ID = ROLL_JOINT.servo_id
 
 DESCRIPTION = """\
 Simulated Dynamixel X-series servos (Protocol 2.0) on a pseudo-terminal, byte for byte like real
-servos behind a U2D2 adapter: open PATH with the dynamixel-sdk at the servos' baud rate (--baud,
-or 57600 with --factory; without either any rate until their Baud Rate register is written). A
-servo hears only its own baud rate, bytes take their wire time, and servos sharing an ID garble
-each other's replies. Servos 1 and 2 are the pan and tilt joints of a simulated gimbal
-(calib/rigs/sim.yaml); servo 3, when listed (--ids 1,2,3), its roll joint (calib/rigs/sim3.yaml);
-other IDs drive free shafts. --factory N: N factory-fresh servos (all ID 1) in slots 1..N. Runs
-until SIGINT or SIGTERM, then removes PATH."""
+servos behind a U2D2 adapter: open PATH with the dynamixel-sdk at the servos' baud rate; servos
+sharing an ID garble each other's replies. Servos 1 and 2 are the pan and tilt joints of a
+simulated gimbal (calib/rigs/sim.yaml); servo 3, when listed, its roll joint
+(calib/rigs/sim3.yaml); other IDs drive free shafts. Runs until SIGINT or SIGTERM, then removes
+PATH."""
 
 EPILOG = """\
-REGION.yaml (--hand), degrees; while a servo's torque is off the hand moves the limb:
-  region: {polygon: [[pan, tilt], ...]}     or   region: {cone: {half_angle_deg: A}}
-  style: trace        (optional: trace the edge once slowly, then wander; or wander only)
-  speed_deg_s: 40                                (optional)
-  script: [[t_s, pan, tilt], ...]                (instead of region: waypoints to follow)
-  twist: {centre_deg: C, half_width_deg: H}      (optional, with region; for the roll joint)
-twist: a band of allowed twist (the turn about the limb's own axis, twist = roll + 2
-atan(tan(pan/2) tan(tilt/2)), not the roll joint's angle), C - H .. C + H deg at a pose; C and
-H are each a number or [a, b, c] meaning a + b*pan + c*tilt, H within 3..170 deg everywhere, e.g.
-  twist: {centre_deg: 0, half_width_deg: [40, 0, -0.3]}   (narrows as the limb rises)
-The hand then turns the twist to both stops along the edge and while it wanders.
-
---leader IDS adds a leader gimbal on the same bus (two IDs pan, tilt or three with roll, none of
-the limb's): joints with inertia and backdrive friction, torque by Operating Mode (5 current-
-based position, 3 position, 0 current). --operator OPERATOR.yaml gives it a hand, a bounded
-spring-damper toward scripted targets, degrees and seconds:
-  model: xm430-w350                  (optional: xm430-w350, xl430-w250, xl330-m077, xl330-m288)
-  start_deg: [pan, tilt]             (optional: where the leader rests at start; [.., roll])
-  script: [[t_s, pan, tilt], ...]    (where the hand means to go; [t_s, pan, tilt, roll])
-  let_go_s: T                        (optional: the hand lets go at T s)
-  release_s, stiffness_nm_deg, damping_nm_s_rad, max_torque_nm   (optional: the grip)
-Without --operator nobody holds it. --leader-log FILE.jsonl gets its ground truth every 1 ms:
-{"t", "pose_deg", "velocity_deg_s", "hand_nm", "motor_nm", "hand_work_j", "motor_work_j"}.
-
---goal-log FILE.jsonl: one line per Goal Position write that reaches a servo,
-  {"t": s, "id": n, "goal": ticks, "limb_dir": [x, y, z]}
-where the limb points once every servo reaches its goal; with a roll joint also "limb_q":
-[w, x, y, z] (q = Rz(pan) Ry(-tilt) Rx(roll), w >= 0).
-
-Faults drawn from --seed: --drop P loses a reply, --corrupt P flips one of its bytes,
---latency-ms X delays it (with probability --latency-p, default 1).
-
---event T:KIND:ID:VALUE (repeatable) applies a fault T s after start to the servo answering as
-ID then (its ID register); an ID no single servo answers as is refused at start, and skipped
-with a note on stderr when its time comes:
-  vanish:ID:S        servo ID neither executes nor answers for S seconds
-  voltage:ID:V       supply of V volts from then on (outside its limits: input voltage alert)
-  temperature:ID:C   C deg C from then on (above its limit: overheating error, torque off)
-  restart:ID:S       brown-out: off the bus for S seconds, then back as after power-up
-  push:ID:P          the joint is pushed with P % of stall torque (signed; 0 lets go;
-                     above 100 %: overload after 0.5 s)
-  e.g. --event 5:vanish:2:1.5 --event 10:voltage:1:5
+--hand REGION.yaml: a scripted hand moves the limb while torque is off (a region, polygon or
+cone, optionally with a twist band; or a script). --leader IDS --operator OPERATOR.yaml: a
+leader gimbal and the hand that holds it. --goal-log: one line per Goal Position write (limb_dir,
+limb_q). --event T:KIND:ID:VALUE, KIND one of vanish, voltage, temperature, restart, push.
+Every form in full: docs/simulator.md.
 
 Example: firmware-sim --ids 1,2 --link /tmp/ttyDXL &
 """

@@ -1,8 +1,4 @@
-"""Entry point of the process :class:`firmware_sim.SimulatedBus` starts (not for direct use).
-
-``python -m firmware_sim._child FD CONFIG_JSON``: FD is the control socket inherited from the
-parent, CONFIG_JSON the simulator options.
-"""
+"""``python -m firmware_sim._child FD CONFIG_JSON``: the process :class:`SimulatedBus` starts."""
 
 from __future__ import annotations
 

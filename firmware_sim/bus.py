@@ -1,8 +1,5 @@
-"""The simulator on a pseudo-terminal, and :class:`SimulatedBus` to run it from Python.
-
-:func:`serve` is the firmware's main loop on a :class:`PtyEndpoint`, answering when the bytes
-would have crossed the wire. :class:`SimulatedBus` runs it in its own process (so a controller's
-busy polling cannot starve it) over a pipe; README.md shows its use.
+"""The simulator on a pseudo-terminal (:func:`serve`), and :class:`SimulatedBus`, which runs it
+in its own process so that a controller's busy polling cannot starve it (README.md shows its use).
 """
 
 from __future__ import annotations
@@ -35,17 +32,14 @@ TICK_S = 0.005
 READ_CHUNK = 4096
 # Waits shorter than this are spun rather than slept (a sleep can overshoot by ~1 ms).
 SPIN_BELOW_S = 0.0015
+# How long (s) SimulatedBus waits for its process to come up, and for a reply or an exit.
+START_TIMEOUT_S = 60.0
+REPLY_TIMEOUT_S = 10.0
 
 
 class PtyEndpoint:
-    """A pty whose slave side a controller opens like a U2D2's serial device.
-
-    Parameters
-    ----------
-    link : path or None
-        Symlink to create to the slave device; an existing symlink there is replaced, any
-        other existing file is an error.
-    """
+    """A pty whose slave side a controller opens like a U2D2's serial device; ``link``, if given,
+    becomes a symlink to it (replacing a symlink, refusing any other file)."""
 
     def __init__(self, link: str | os.PathLike | None = None) -> None:
         self.master, self._slave = os.openpty()
@@ -62,10 +56,6 @@ class PtyEndpoint:
                     f"{self.link} exists and is not a symlink; choose another --link path"
                 )
             self.link.symlink_to(self.device)
-
-    def baud(self) -> int | None:
-        """The speed (bit/s) the controller set on the pty (None if the system cannot tell)."""
-        return host_baud(self.master)
 
     @property
     def port(self) -> str:
@@ -127,11 +117,8 @@ def serve(
     on_control: Callable[[Any], bool] | None = None,
     schedule: EventSchedule | None = None,
 ) -> None:
-    """Run the firmware until ``should_stop()`` (or ``on_control`` returns False).
-
-    ``control`` (with ``fileno()``) ready makes the loop call ``on_control(control)``;
-    ``schedule``'s faults are applied on each pass once due.
-    """
+    """Run the firmware until ``should_stop()``, or ``on_control(control)``, called whenever
+    ``control`` is readable, returns False; ``schedule``'s faults are applied once due."""
     sources = [endpoint.master] + ([control] if control is not None else [])
     free_at = 0.0  # when the wire is quiet again (a write without reply still occupies it)
     while not should_stop():
@@ -141,7 +128,7 @@ def serve(
         if endpoint.master in ready:
             data = endpoint.read_available()
             if data:
-                baud = endpoint.baud()
+                baud = host_baud(endpoint.master)
                 # the pty delivers at once; on the wire the last byte lands this much later
                 quiet = max(time.monotonic(), free_at) + wire_s(len(data), baud)
                 replies = sim.receive(data, sim.now(), baud)
@@ -191,10 +178,9 @@ def _make_hand(spec: Any, seed: int) -> Hand | None:
     return Hand.from_yaml(spec, seed=seed)
 
 
-#: What a :class:`SimulatedBus` request does to the simulator, by the request's name.
 _REQUESTS: dict[str, Callable[..., Any]] = {
     "truth": Simulator.truth,
-    "set_hand": lambda sim, spec: sim.set_hand(_make_hand(spec, sim.seed)),
+    "set_hand": lambda sim, spec: sim.world.set_hand(_make_hand(spec, sim.seed)),
     "set_operator": Simulator.set_operator,
     "push": Simulator.push,
     "vanish": Simulator.vanish,
@@ -257,18 +243,9 @@ _ERRORS = {"ValueError": ValueError, "FileExistsError": FileExistsError, "KeyErr
 class SimulatedBus:
     """Servos on a pty, served by a separate process; a context manager.
 
-    Parameters
-    ----------
-    ids, model, goal_log, seed, baud, factory, connect, eeprom_dir, leader, roll_id
-        As :class:`firmware_sim.simulator.Simulator`'s, as plain data.
-    hand : mapping, path or None
-        REGION.yaml content or path (firmware_sim.regions); moves the limb while torque is off.
-    drop, corrupt, latency_ms, latency_p : float
-        Fault options (:class:`firmware_sim.faults.FaultPlan`).
-    link : path or None
-        Also make this path a symlink to the pty.
-    start_timeout_s : float
-        How long to wait (s) for the process to come up.
+    The other options are :class:`firmware_sim.simulator.Simulator`'s as plain data (``hand`` a
+    REGION.yaml mapping or path), the :class:`firmware_sim.faults.FaultPlan`'s and ``link`` (also
+    make this path a symlink to the pty).
     """
 
     def __init__(
@@ -283,7 +260,6 @@ class SimulatedBus:
         latency_ms: float = 0.0,
         latency_p: float = 1.0,
         link: str | os.PathLike | None = None,
-        start_timeout_s: float = 60.0,
         baud: int | None = None,
         factory: int = 0,
         connect=None,
@@ -299,7 +275,6 @@ class SimulatedBus:
         self.config |= {"ids": tuple(ids), "model": model, "hand": _hand_spec(hand)}
         self.config |= {"seed": int(seed), "factory": int(factory), "drop": drop}
         self.config |= {"corrupt": corrupt, "latency_ms": latency_ms, "latency_p": latency_p}
-        self._start_timeout_s = start_timeout_s
         self._process: subprocess.Popen | None = None
         self._conn: Connection | None = None
         self.exitcode: int | None = None
@@ -314,9 +289,9 @@ class SimulatedBus:
         self._process = subprocess.Popen(command, pass_fds=(child.fileno(),))
         child.close()
         self._conn = Connection(parent.detach())
-        if not self._conn.poll(self._start_timeout_s):
+        if not self._conn.poll(START_TIMEOUT_S):
             self.close()
-            raise TimeoutError(f"the simulator did not start within {self._start_timeout_s} s")
+            raise TimeoutError(f"the simulator did not start within {START_TIMEOUT_S} s")
         try:
             message = self._conn.recv()
         except EOFError:
@@ -330,12 +305,12 @@ class SimulatedBus:
         _, self.device, self.port = message
         return self
 
-    def close(self, timeout_s: float = 10.0) -> None:
+    def close(self) -> None:
         """Stop the process, remove the link, close the pipe; safe to call twice."""
         if self._conn is not None:
             try:
                 self._conn.send(("stop", ()))
-                if self._conn.poll(timeout_s):
+                if self._conn.poll(REPLY_TIMEOUT_S):
                     self._conn.recv()
             except (BrokenPipeError, EOFError, OSError):
                 pass
@@ -343,10 +318,10 @@ class SimulatedBus:
             self._conn = None
         if self._process is not None:
             try:
-                self._process.wait(timeout_s)
+                self._process.wait(REPLY_TIMEOUT_S)
             except subprocess.TimeoutExpired:
                 self._process.terminate()
-                self._process.wait(timeout_s)
+                self._process.wait(REPLY_TIMEOUT_S)
             self.exitcode = self._process.returncode
             self._process = None
 
@@ -360,12 +335,12 @@ class SimulatedBus:
     def running(self) -> bool:
         return self._process is not None and self._process.poll() is None
 
-    def _call(self, name: str, *args: Any, timeout_s: float = 10.0) -> Any:
+    def _call(self, name: str, *args: Any) -> Any:
         if self._conn is None:
             raise RuntimeError("the simulator is not running: use `with SimulatedBus(...)`")
         self._conn.send((name, args))
-        if not self._conn.poll(timeout_s):
-            raise TimeoutError(f"the simulator did not answer {name!r} within {timeout_s} s")
+        if not self._conn.poll(REPLY_TIMEOUT_S):
+            raise TimeoutError(f"the simulator did not answer {name!r} within {REPLY_TIMEOUT_S} s")
         reply = self._conn.recv()
         if reply[0] == "error":
             raise _ERRORS.get(reply[1], RuntimeError)(reply[2])

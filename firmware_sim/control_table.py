@@ -1,7 +1,4 @@
-"""X-series control tables (XL430-W250, XM430-W350, XL330-M077/M288) from the e-Manual.
-
-The 330s' Indirect Data 1 is at 208 up to firmware 52 and at 224 after, so a client has to probe.
-"""
+"""X-series control tables (XL430-W250, XM430-W350, XL330-M077/M288) from the e-Manual."""
 
 from __future__ import annotations
 
@@ -36,8 +33,6 @@ DRIVE_MODE_TIME_BASED = 0x04
 # Hardware Error Status (70) bits, also the bits of Shutdown (63)
 HW_INPUT_VOLTAGE = 0x01
 HW_OVERHEATING = 0x04
-HW_MOTOR_ENCODER = 0x08
-HW_ELECTRICAL_SHOCK = 0x10
 HW_OVERLOAD = 0x20
 
 EEPROM_END = 64  # addresses below this are EEPROM: locked while Torque Enable is 1
@@ -67,10 +62,6 @@ class Item:
     signed: bool = False
     bound: tuple[Register | None, Register | None] | None = None
     name: str = ""
-
-    @property
-    def eeprom(self) -> bool:
-        return self.address < EEPROM_END
 
 
 @dataclass(frozen=True)

@@ -1,9 +1,4 @@
-"""What the servos on one bus answer to each instruction packet (e-Manual, Protocol 2.0).
-
-:func:`dispatch` runs a packet on every servo it concerns and returns their status packets in
-wire order, each with its Return Delay Time; a FAST read's combined packet is cut short where a
-silent servo's part would have been.
-"""
+"""What the servos on one bus answer to each instruction packet (e-Manual, Protocol 2.0)."""
 
 from __future__ import annotations
 

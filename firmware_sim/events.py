@@ -1,8 +1,5 @@
-"""Faults scheduled from the command line: ``firmware-sim --event T:KIND:ID:VALUE`` (repeatable).
-
-The kinds are described in ``firmware-sim --help``; ``ID`` is the ID the servo answers as when
-the event applies (its ID register, not its slot).
-"""
+"""Faults scheduled from the command line: ``firmware-sim --event T:KIND:ID:VALUE``
+(docs/simulator.md)."""
 
 from __future__ import annotations
 

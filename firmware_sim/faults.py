@@ -18,7 +18,7 @@ def _probability(name: str, value: float) -> float:
 
 @dataclass
 class FaultPlan:
-    """The fault options (see module docstring); validated on construction."""
+    """The fault options, probabilities and a delay (ms); validated on construction."""
 
     drop: float = 0.0
     corrupt: float = 0.0

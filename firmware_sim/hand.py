@@ -1,19 +1,9 @@
-"""Scripted hands that backdrive the simulated limb while its torque is off.
+"""Scripted hands that backdrive the simulated limb while its torque is off (REGION.yaml's form:
+docs/simulator.md).
 
-:meth:`Hand.pose_deg` is the pose at ``t`` s after it took hold. A REGION.yaml::
-
-    region: {polygon: [[pan_deg, tilt_deg], ...]}    # or {cone: {half_angle_deg: A}}
-    twist: {centre_deg: 0, half_width_deg: 40}       # optional: turn the roll too, in this band
-    style: trace           # optional: trace (default) or wander (firmware_sim/hand_path.py)
-    speed_deg_s: 40        # optional: mean speed of a move through the middle
-    tremor_deg: 0.2        # optional: peak tremor amplitude, 0 switches it off
-    visits: [{after_s: 60, at: [pan_deg, tilt_deg], do: edge, length_deg: 8}]  # or do: twist
-    script: [[t_s, pan_deg, tilt_deg(, roll_deg)], ...]  # instead of region: follow waypoints
-
-A *region* hand moves pan and tilt along a :class:`firmware_sim.hand_path.SwingPath` plus a
-tremor; with a ``twist:`` band the twist is ``centre + u (half_width - TWIST_INSET_DEG)``, ``u``
-in [-1, 1] moving stop to stop, plus a tremor. A *script* hand moves linearly between waypoints.
-The path is a function of ``seed`` and the pose the hand took hold at.
+A region hand moves pan and tilt along a :class:`firmware_sim.hand_path.SwingPath` plus a tremor;
+with a twist band the twist is ``centre + u (half_width - TWIST_INSET_DEG)``, ``u`` in [-1, 1]
+moving stop to stop, plus a tremor. The path is a function of the seed and where it took hold.
 """
 
 from __future__ import annotations
@@ -49,12 +39,10 @@ TREMOR_BAND_HZ = (7.0, 12.0)
 TWIST_TREMOR_FRACTION = 0.5
 #: How far inside each twist stop (deg) the hand turns: it feels the stop and backs off.
 TWIST_INSET_DEG = 1.0
-#: Along the edge trace, one cycle to both stops, (u target, move s, hold s): 0.9 s, each stop
-#: every ~16 deg of edge at 18 deg/s, so a bridged band limit sags under a degree
-#: (docs/decisions/hand.md, docs/decisions/twist.md).
+#: Along the edge trace, one 0.9 s cycle to both stops, (u target, move s, hold s): a stop every
+#: ~16 deg of edge, so a bridged band limit sags under a degree (docs/decisions/twist.md).
 TRACE_TWIST_CYCLE = ((1.0, 0.4, 0.05), (-1.0, 0.4, 0.05))
-#: Wandering, every twist move goes to a stop, alternately upper and lower (a place passed once
-#: sees both), over WANDER_MOVE_S s by its length (a brisk wrist turn), then holds WANDER_HOLD_S.
+#: Wandering, each twist move goes to the other stop over WANDER_MOVE_S s, then holds (s).
 WANDER_MOVE_S = (0.2, 0.4)
 WANDER_HOLD_S = (0.03, 0.08)
 
@@ -127,22 +115,9 @@ def _parse_visits(visits: object, source: str) -> list[Visit]:
 
 
 class Hand:
-    """A scripted hand; build it with :meth:`from_yaml` or :meth:`from_mapping`.
-
-    Attributes
-    ----------
-    region : PolygonRegion | ConeRegion | None
-        The region a region hand stays in; ``None`` for a script hand.
-    script : list of (t_s, pan_deg, tilt_deg[, roll_deg]) or None
-    band : TwistBand or None
-        The twist band a region hand turns the roll in; ``None`` when it leaves the roll alone.
-    turns_roll : bool
-        Whether :meth:`pose_deg` gives a roll (a twist band, or a script with a roll column).
-    style : str
-        How a region hand teaches, one of :data:`firmware_sim.hand_path.STYLES`.
-    path : SwingPath
-        Where the hand takes pan and tilt before the tremor, and the visits it answers.
-    """
+    """A scripted hand holding a ``region`` (with an optional twist ``band``) or following a
+    ``script`` of (t_s, pan_deg, tilt_deg[, roll_deg]); build it with :meth:`from_yaml` or
+    :meth:`from_mapping`. ``turns_roll``: whether :meth:`pose_deg` gives a roll."""
 
     def __init__(
         self,
@@ -177,7 +152,7 @@ class Hand:
         self.speed_deg_s = float(speed_deg_s)
         self.tremor_deg = float(tremor_deg)
         self._seed = seed
-        # tremor: per axis, two sines with frequencies in the tremor band; peak sum = tremor_deg
+        # per axis, two sines with frequencies in the tremor band; peak sum = tremor_deg
         tremor_rng = np.random.default_rng([seed, 0])
         freqs = tremor_rng.uniform(*TREMOR_BAND_HZ, size=4)
         phases = tremor_rng.uniform(0.0, 2.0 * math.pi, size=4)
@@ -193,7 +168,6 @@ class Hand:
             self._times = [row[0] for row in script]
             self._rolls = [row[3] for row in script]
         if band is not None:
-            # the twist's tremor: one sine, TWIST_TREMOR_FRACTION of tremor_deg
             rng = np.random.default_rng([seed, 7])
             self._twist_tremor = (
                 TWIST_TREMOR_FRACTION * self.tremor_deg,
@@ -202,11 +176,6 @@ class Hand:
             )
         if region is not None:
             self.start_from(*region.center_deg)
-
-    @property
-    def trace_span_s(self) -> tuple[float, float] | None:
-        """(start, end) in s of a ``trace`` hand's full trace of the edge, else ``None``."""
-        return self.path.trace_span_s
 
     def start_from(self, pan_deg: float, tilt_deg: float, roll_deg: float = 0.0) -> None:
         """Take hold at (pan_deg, tilt_deg, roll_deg): a region hand (re)starts its path there."""

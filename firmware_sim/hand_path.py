@@ -1,10 +1,5 @@
-"""The swing path of a scripted hand: where it takes the limb's pan and tilt, before its tremor.
-
-A :class:`SwingPath` follows a script (linear between waypoints, holding the last) or teaches a
-region in one of :data:`STYLES` with minimum-jerk moves that stay MIN_PATH_DEPTH_DEG inside,
-planned lazily from the seed; :class:`Visit` requests (a guide's) break off to trace or circle a
-place. :class:`Track` holds a path's segments in time.
-"""
+"""The swing path of a scripted hand: where it takes the limb's pan and tilt, before its tremor
+(minimum-jerk moves that stay MIN_PATH_DEPTH_DEG inside, planned lazily from the seed)."""
 
 from __future__ import annotations
 
@@ -23,14 +18,13 @@ EDGE_INSET_DEG = 1.0
 MIN_PATH_DEPTH_DEG = 0.5
 #: A region must reach at least this deep (deg) for the hand to have room to move.
 MIN_REGION_DEPTH_DEG = 2.0 * EDGE_INSET_DEG
-#: Within SLOW_BAND_DEG of the edge a move eases in/out up to EDGE_EASE_S longer; traces run at
-#: EDGE_SPEED_FRACTION of the speed.
+#: Near the edge (deg) a move eases in/out up to EDGE_EASE_S longer; traces run at a fraction.
 SLOW_BAND_DEG = 15.0
 EDGE_EASE_S = 0.5
 EDGE_SPEED_FRACTION = 0.4
 #: Middle waypoints are drawn with density proportional to depth ** WAYPOINT_DEPTH_POWER.
 WAYPOINT_DEPTH_POWER = 1.5
-#: Edge visits work round the perimeter in laps of this many, one move through the middle between.
+#: Edge visits work round the perimeter in laps of this many, a move through the middle between.
 EDGE_VISITS_PER_LAP = 12
 #: Length (deg) of the stretch of edge traced at each visit.
 EDGE_TRACE_DEG = (4.0, 8.0)
@@ -39,8 +33,7 @@ MIN_MOVE_S = 0.3
 #: Probability of a pause after a move, and its duration range (s).
 PAUSE_PROBABILITY = 0.1
 PAUSE_S = (0.2, 0.6)
-#: Waypoints drawn per move through the middle, the nearest taken; after the full trace one
-#: (long strokes close the middle fastest in the seconds left of a half-minute teaching).
+#: Waypoints drawn per move, the nearest taken; after the trace one (long strokes fill the middle).
 WAYPOINT_CHOICES = 2
 WAYPOINT_CHOICES_AFTER_TRACE = 1
 #: Intermediate poses tried (after the centre) to get round a corner of the region.
@@ -76,8 +69,7 @@ VISIT_KINDS = {
 }
 #: Least edge (deg) an ``edge`` visit traces: 5 deg either side reach past a guide's stretch.
 VISIT_EDGE_DEG = 10.0
-#: A ``twist`` visit circles the place at this radius (deg), teaching a patch (not one station),
-#: for VISIT_TWIST_S: three of hand.py's 0.9 s twist cycles.
+#: A ``twist`` visit circles the place at this radius (deg) for three 0.9 s twist cycles (s).
 VISIT_TWIST_RADIUS_DEG = 3.0
 VISIT_TWIST_S = 3.0
 #: Points on a ``twist`` visit's circle (every 30 deg).
@@ -127,31 +119,16 @@ class Track:
 
 
 class SwingPath:
-    """The (pan_deg, tilt_deg) a hand takes the limb along, without tremor.
+    """The (pan_deg, tilt_deg) a hand takes the limb along, without tremor: through a ``region``
+    in one of :data:`STYLES`, drawn from ``seed``, answering ``visits`` in order of ``after_s``;
+    or along a ``script``.
 
     Parameters
     ----------
-    region : Region or None
-        The region to teach (``None`` for a script).
     script : sequence of (t_s, pan_deg, tilt_deg, ...) or None
-        Waypoints, in increasing time, to follow instead; columns after the third are ignored.
+        Waypoints, in increasing time; columns after the third are ignored.
     speed_deg_s : float
-        Mean speed of a move through the middle.
-    seed : int
-        Draws the path through a region.
-    style : str
-        One of :data:`STYLES`.
-    visits : sequence of Visit
-        Requests answered once their time comes, in order of ``after_s`` (region paths only).
-
-    Attributes
-    ----------
-    track : Track
-        The segments ``(t0, t1, pan0, tilt0, pan1, tilt1, minimum_jerk, bulge_pan, bulge_tilt)``.
-    trace_span_s : tuple of float or None
-        (start, end) in s of a ``trace`` path's full trace of the edge, after it took hold.
-    visit_spans : list of (float, float, Visit)
-        (start, end) in s of each visit answered so far, from its arrival at the place.
+        Mean speed of a move through the middle (deg/s).
     """
 
     def __init__(
@@ -165,10 +142,10 @@ class SwingPath:
     ) -> None:
         self.region = region
         self.visits = sorted(visits, key=lambda v: v.after_s)
-        self.visit_spans: list[tuple[float, float, Visit]] = []
+        self.visit_spans: list[tuple[float, float, Visit]] = []  # (start s, end s, visit)
         self.speed_deg_s = speed_deg_s
         self.style = style
-        self.trace_span_s: tuple[float, float] | None = None
+        self.trace_span_s: tuple[float, float] | None = None  # of the full edge trace, s
         self._seed = seed
         self.track = Track()
         if script is not None:

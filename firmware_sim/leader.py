@@ -1,12 +1,6 @@
 """A leader gimbal of two or three joints (the follower's geometry at other servo ids), moved by
-an operator's hand and its own motors. Each joint is a rotor with friction (SI units)::
-
-    J a = tau_motor + tau_hand - B v - C sign(v)        (sticks while |tau_motor + tau_hand| <= C)
-    tau_hand = K_h (target - angle) - D_h v,  scaled as a vector to |tau_hand| <= tau_max * r(t)
-
-``tau_motor`` by Operating Mode (:mod:`firmware_sim.torque`); ``r`` 1 until the let go, then
-falling linearly to 0 over ``release_s``. End stops clamp.
-"""
+an operator's hand and its own motors: rotors with friction, SI units (docs/haptic.md, "The
+simulated leader"; each formula above the line that computes it)."""
 
 from __future__ import annotations
 
@@ -40,7 +34,8 @@ LEADER_CHAIN = (*DEFAULT_JOINTS, ROLL_JOINT)
 
 @dataclass
 class Operator:
-    """A hand holding the leader: a bounded spring-damper toward scripted targets.
+    """A hand holding ``joints`` (2 or 3) joints of the leader: a bounded spring-damper toward
+    scripted targets.
 
     Parameters
     ----------
@@ -52,8 +47,6 @@ class Operator:
         How long (s) its bound takes to fall linearly to 0.
     stiffness_nm_deg, damping_nm_s_rad, max_torque_nm : float
         The grip: K_h (N m per deg), D_h (N m s/rad) and the bound tau_max (N m).
-    joints : int
-        How many joints the hand holds (2 or 3): the script's angles per point.
     """
 
     script: Sequence[Sequence[float]]
@@ -127,8 +120,8 @@ class Operator:
     def torques(
         self, t: float, angles_rad: Sequence[float], velocities_rad_s: Sequence[float]
     ) -> list[float]:
-        """The hand's torque on each joint (N m, shape (joints,)) from angles (rad) and
-        velocities (rad/s), bounded as a vector."""
+        """The hand's torque (N m, shape (joints,)) at angles (rad) and velocities (rad/s), each of
+        shape (joints,), bounded as a vector."""
         bound = self.bound_nm(t)
         if bound <= 0.0:
             return [0.0] * len(angles_rad)
@@ -157,18 +150,12 @@ def leader_joints(ids: Sequence[int]) -> tuple[Joint, ...]:
 
 
 class LeaderWorld:
-    """The leader gimbal's physics (see the module docstring).
+    """The leader gimbal's physics (see the module docstring): servos ``ids`` (pan, tilt[, roll])
+    of ``model``, held by ``operator`` (None: only the motors and friction act), logging its
+    ground truth to ``log`` (JSON lines, one per physics step).
 
     Parameters
     ----------
-    ids : sequence of int, length 2 or 3
-        The leader's servo ids: (pan, tilt) or (pan, tilt, roll).
-    model : str
-        The leader servos' model (a key of :data:`firmware_sim.control_table.MODELS`).
-    operator : Operator or None
-        Who holds it (as many joints); None: only the motors and friction act.
-    log : path or None
-        JSON-lines ground truth, one line per physics step.
     start_deg : sequence of float, shape (joints,), or None
         Where the leader rests at start (deg); None: every joint at 0.
     """
@@ -197,7 +184,7 @@ class LeaderWorld:
         self.velocity = [0.0] * count
         self.hand_nm = [0.0] * count
         self.motor_nm = [0.0] * count
-        #: Work (J) each motor and the hand did on each joint since the start: sum of tau dtheta.
+        # work (J) each motor and the hand did on each joint since the start: sum of tau dtheta
         self.motor_work_j = [0.0] * count
         self.hand_work_j = [0.0] * count
         self.time_s = 0.0
@@ -318,7 +305,7 @@ class LeaderWorld:
         }
 
     def truth(self) -> dict[str, Any]:
-        """:meth:`sample` (the log is flushed, so a reader sees every line so far)."""
+        """:meth:`sample`, the log flushed."""
         if self._log is not None:
             self._log.flush()
         return self.sample()

@@ -1,18 +1,7 @@
 """An operator file: a leader gimbal and the hand that holds it, as one YAML mapping.
 
-``firmware-sim --leader 3,4 --operator FILE.yaml`` and ``limbctl teleop --operator FILE.yaml``
-read the same form (degrees, seconds, N m)::
-
-    model: xm430-w350          # the leader's servos (one with motor data: MOTORS)
-    start_deg: [0.0, 10.0]     # where the leader rests at start: pan, tilt (and roll)
-    script:                    # where the hand means to go, [t_s, pan, tilt (, roll)]: linear
-      - [0.0, 0.0, 10.0]       # between the points, the last one held
-      - [3.5, 100.0, 10.0]
-    let_go_s: 6.0              # the hand lets go (omit: never)
-    release_s: 0.0             # how long the let go takes (the grip's bound falls to 0)
-    stiffness_nm_deg: 0.05     # the grip, K_h; damping_nm_s_rad D_h; max_torque_nm tau_max
-
-Every key but ``script`` may be left out (:class:`firmware_sim.leader.Operator`'s defaults).
+``firmware-sim --operator`` and ``limbctl teleop --operator`` read the same form
+(docs/simulator.md); every key but ``script`` may be left out (:class:`Operator`'s defaults).
 """
 
 from __future__ import annotations
@@ -33,7 +22,6 @@ LEADER_KEYS = ("model", "start_deg")
 #: The operator's parameters (:class:`firmware_sim.leader.Operator`).
 GRIP_KEYS = ("script", "let_go_s", "release_s", "stiffness_nm_deg", "damping_nm_s_rad")
 GRIP_KEYS += ("max_torque_nm",)
-#: A leader's model when the file names none.
 DEFAULT_MODEL = "xm430-w350"
 
 

@@ -1,12 +1,6 @@
-"""The simulated gimbal's own orientation geometry (the simulator imports nothing of limbctl).
-
-The chain of the three-joint gimbal is pan about +z, tilt raising the limb toward +z (a turn by
--tilt about +y), then roll about the limb's own axis::
-
-    q = Rz(pan) Ry(-tilt) Rx(roll)        (unit quaternion, scalar first, w >= 0)
-
-Twist is the swing-twist split about the rest axis +x, ``q = swing(d) * twist(tau)``; the
-chain's twist is ``roll + chain_twist(pan, tilt)``. Angles in radians unless named ``_deg``.
+"""The simulated gimbal's own orientation geometry (the simulator imports nothing of limbctl):
+the chain ``q = Rz(pan) Ry(-tilt) Rx(roll)`` and its twist about the rest axis +x, from the
+swing-twist split ``q = swing(d) * twist(tau)``. Angles in radians unless named ``_deg``.
 """
 
 from __future__ import annotations

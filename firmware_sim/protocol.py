@@ -82,14 +82,8 @@ def crc16(data: bytes | bytearray | memoryview, crc: int = 0) -> int:
 
 def stuff(body: bytes | bytearray) -> bytes:
     """Insert an ``FD`` after every ``FF FF FD`` in an instruction+parameter field."""
-    if b"\xff\xff\xfd" not in body:
-        return bytes(body)
-    out = bytearray()
-    for index, byte in enumerate(body):
-        out.append(byte)
-        if byte == 0xFD and index >= 2 and body[index - 1] == 0xFF and body[index - 2] == 0xFF:
-            out.append(0xFD)
-    return bytes(out)
+    # occurrences of FF FF FD cannot overlap, so one replace stuffs them all
+    return bytes(body).replace(b"\xff\xff\xfd", b"\xff\xff\xfd\xfd")
 
 
 def unstuff(body: bytes | bytearray) -> bytes:

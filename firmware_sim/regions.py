@@ -1,12 +1,5 @@
-"""Regions of (pan, tilt) a scripted hand may move the simulated limb through (degrees)::
-
-    region: {polygon: [[pan_deg, tilt_deg], ...]}   # a simple polygon in the (pan, tilt) plane
-    region: {cone: {half_angle_deg: A}}             # directions within A of +x, 0 < A < 180
-
-Both answer :meth:`contains`, :meth:`edge_distance_deg` (positive inside),
-:meth:`boundary_point` (a fraction ``u`` round the edge) and ``center_deg``. Bad input raises
-``ValueError`` naming the source file and what is wrong.
-"""
+"""Regions of (pan, tilt) a scripted hand may move the simulated limb through (degrees): a
+polygon or a cone (docs/simulator.md); bad input raises ValueError naming the source."""
 
 from __future__ import annotations
 
@@ -70,15 +63,13 @@ class _Shape:
 
 
 class PolygonRegion(_Shape):
-    """A simple polygon in the (pan_deg, tilt_deg) plane.
+    """A simple polygon in the (pan_deg, tilt_deg) plane (``source`` names it in errors).
 
     Parameters
     ----------
     vertices_deg : array_like, shape (N, 3 <= N)
         Corner poses ``[pan_deg, tilt_deg]`` in order around the polygon (either sense; a last
         vertex equal to the first is dropped).
-    source : str
-        Where the vertices came from, for error messages.
     """
 
     kind = "polygon"

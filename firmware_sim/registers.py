@@ -1,7 +1,4 @@
-"""Typed names of the control-table items of the simulated X-series servos.
-
-Where each item lives, and per model its default and range, is :mod:`firmware_sim.control_table`.
-"""
+"""Typed names of the control-table items (where and what each is: ``control_table``)."""
 
 from __future__ import annotations
 

@@ -1,6 +1,5 @@
 """One simulated X-series servo: control-table memory, instruction semantics, errors, motion.
 
-Each substep the bus asks :meth:`Servo.drive_setpoint` and reports with :meth:`Servo.observe`.
 A hardware error in Shutdown latches, turns torque off and alerts until REBOOT; an input voltage
 error latches and alerts even outside Shutdown (torque stays on).
 """
@@ -66,18 +65,14 @@ class Environment:
 
 
 class Servo:
-    """A servo's memory and firmware logic.
+    """A servo's memory and firmware logic: it starts with ID ``servo_id`` (it answers whatever
+    its ID item holds); ``on_goal(servo, goal)`` is called whenever a Goal Position write takes
+    effect.
 
     Parameters
     ----------
-    servo_id : int
-        Initial ID (written to the ID item; the servo answers whatever ID holds).
-    model : Model
-        Control table to use.
     raw_tick : float
         Where the shaft starts (raw ticks).
-    on_goal : callable(servo, goal_position) or None
-        Called whenever a Goal Position write takes effect (for the goal log).
     """
 
     def __init__(

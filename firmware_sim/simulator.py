@@ -1,8 +1,7 @@
-"""The simulated bus without its transport: servos + world + faults + goal log on one clock.
+"""The simulated bus without its transport: servos, world, faults and goal log on one clock.
 
-:class:`Simulator` takes bytes with their arrival time and returns replies with their delays,
-stepping physics lazily in substeps of at most 1 ms. A servo's joint is fixed by its *slot* (its
-ID at start; ``factory=N``: slots 1..N), so it keeps its joint when set-up changes its ID.
+A servo's joint is fixed by its *slot* (its ID at start; ``factory=N``: slots 1..N), so it keeps
+its joint when set-up changes its ID.
 """
 
 from __future__ import annotations
@@ -54,33 +53,16 @@ def parse_ids(ids: Sequence[int] | str) -> tuple[int, ...]:
 class Simulator:
     """Servos on one bus with their world; servos beyond the joints drive free shafts.
 
+    The other options are ``firmware-sim``'s (``--eeprom`` is ``eeprom_dir``), with ``hand`` a
+    :class:`Hand`, ``leader`` a :meth:`LeaderWorld.from_spec` spec whose ids join and ``roll_id``
+    the servo in ``ids`` that turns the limb about its own axis (None: two joints).
+
     Parameters
     ----------
-    ids : sequence of int
-        Servo IDs (their slots).
-    model : str
-        A key of :data:`firmware_sim.control_table.MODELS`, or one per servo: ``"a,b"``.
-    hand : Hand or None
-        Scripted hand moving the limb while torque is off.
-    goal_log : path or None
-        JSON-lines file receiving one line per Goal Position write.
-    seed : int
-        Seeds the world's rest pose and the fault injector.
-    faults : FaultPlan or None
+    baud : int or None
+        The servos' baud rate (bit/s); None: any until their Baud Rate is written.
     clock : callable
         Monotonic seconds.
-    baud : int or None
-        The servos' baud rate (bit/s); None: any until their Baud Rate is written (:meth:`hears`).
-    factory : int
-        If > 0, this many factory-fresh servos (all ID 1, 57600 baud) in slots 1..N instead.
-    connect : sequence of int or None
-        The slots on the bus (default: all); the others are unplugged.
-    eeprom_dir : path or None
-        Keep each slot's EEPROM in a file there (:class:`firmware_sim.eeprom.EepromFile`).
-    leader : mapping or None
-        A leader gimbal (:meth:`firmware_sim.leader.LeaderWorld.from_spec`) whose ids join.
-    roll_id : int or None
-        The servo in ``ids`` that turns the limb about its own axis; None: two joints.
     """
 
     def __init__(
@@ -108,15 +90,13 @@ class Simulator:
                 "as ID 1): drop --factory or --leader"
             )
         slots = parse_ids(range(1, factory + 1) if factory > 0 else ids)
-        # --connect names the slots plugged in (none: an empty bus)
         self.ids = (parse_ids(connect) if connect else ()) if connect is not None else slots
         if not set(self.ids) <= set(slots):
             raise ValueError(f"--connect {list(self.ids)} names slots beyond {list(slots)}")
-        # --model names the limb's (and free shafts') models; a leader's come from its spec
+        # --model names the limb's and free shafts' models; a leader's come from its spec
         followers = [slot for slot in slots if slot not in leader_ids]
         given = dict(zip(followers, self._models(model, len(followers)), strict=True))
         models = [given.get(slot) for slot in slots]
-        self.model = next(iter(given.values()), None)
         baud_value = None if baud is None else value_for_baud(int(baud))
         self.seed = seed
         joints = DEFAULT_JOINTS
@@ -186,8 +166,7 @@ class Simulator:
         return [get_model(key) for key in keys]
 
     def hears(self, servo: Servo, baud: int | None) -> bool:
-        """Whether ``servo`` decodes a host at ``baud`` (None: always; no ``baud`` option: any
-        rate until its Baud Rate is written)."""
+        """Whether ``servo`` decodes a host at ``baud`` bit/s (None: always)."""
         register = servo.value(Register.BAUD_RATE)
         if self._any_baud.get(id(servo)) == register:
             return True
@@ -235,11 +214,8 @@ class Simulator:
     def receive(
         self, data: bytes, arrived_s: float | None = None, baud: int | None = None
     ) -> list[tuple[bytes, float]]:
-        """Process bytes from the controller; ``(packet, delay_s)`` to send, in order.
-
-        ``arrived_s`` is the simulator time the bytes arrived (default: now); ``baud`` the
-        host's speed (None: every servo hears it). Replies of servos sharing an ID collide.
-        """
+        """``(packet, delay_s)`` to send, in order, for bytes from the controller that arrived at
+        ``arrived_s`` (default: now) at ``baud`` bit/s (None: every servo hears them)."""
         now = self.now() if arrived_s is None else arrived_s
         self.advance(now)
         out: list[tuple[bytes, float]] = []
@@ -314,9 +290,6 @@ class Simulator:
     def answering_ids(self) -> tuple[int, ...]:
         """The IDs the servos answer as now, ascending, each once."""
         return tuple(sorted({servo.servo_id for servo in self.servos}))
-
-    def set_hand(self, hand: Hand | None) -> None:
-        self.world.set_hand(hand)
 
     def set_operator(self, operator: Mapping[str, Any] | None) -> None:
         """Give the leader to an operator (:class:`firmware_sim.leader.Operator` as data)."""

@@ -1,17 +1,6 @@
-"""What a servo's motor does to its shaft, by Operating Mode: the torque model of a leader gimbal.
-
-The firmware's position loop is a stiff PD loop toward the profile's setpoint, clipped by the
-current the mode allows (joint frame, N m; ``kt`` = stall torque / stall current)::
-
-    tau_loop = KP * (setpoint - angle) - KD * velocity
-    mode 5 (current-based position): tau = clip(tau_loop, +-kt * min(|Goal Current|, Current Limit))
-    mode 3 / 4 (position, today's):  tau = clip(tau_loop, +-kt * Current Limit)
-    mode 0 (current):                tau = kt * clip(Goal Current, +-Current Limit)
-    torque off:                      tau = 0
-
-Present Current is ``tau / kt``. A tripped Bus Watchdog holds the profile and, in mode 0,
-zeroes the current.
-"""
+"""What a servo's motor does to its shaft, by Operating Mode: the torque model of a leader gimbal
+(joint frame, N m; docs/haptic.md, "The simulated leader"). A tripped Bus Watchdog holds the
+profile and, in mode 0, zeroes the current."""
 
 from __future__ import annotations
 

@@ -1,20 +1,7 @@
 """A twist band over a swing outline: how far the limb may turn about its own axis, by pose.
 
-A REGION.yaml for a three-joint gimbal adds beside its ``region:``::
-
-    twist:
-      centre_deg: 0                  # or [c0, c_pan, c_tilt]
-      half_width_deg: [40, 0, -0.3]  # or one number, or a mapping (below)
-
-``[a, b, c]`` means ``a + b * pan_deg + c * tilt_deg`` at the swing pose. A mapping curves it
-(every key optional)::
-
-    half_width_deg:
-      linear: [40, 0, -0.3]           # a + b pan + c tilt, as above
-      quadratic: [0.002, 0, -0.004]   # + p pan^2 + m pan tilt + t tilt^2 (deg^-1)
-      bumps: [[20, 10, -8, 12]]       # + sum of h exp(-((pan - p0)^2 + (tilt - t0)^2) / (2 w^2))
-
-The allowed twist (:mod:`firmware_sim.orientation`) is ``centre +- half_width`` (deg).
+The allowed twist (:mod:`firmware_sim.orientation`) is ``centre +- half_width`` (deg), each a
+number, ``a + b pan + c tilt`` or a :class:`Curved` (the ``twist:`` forms: docs/simulator.md).
 """
 
 from __future__ import annotations
@@ -39,7 +26,7 @@ _CURVED = ("linear", "quadratic", "bumps")
 
 
 class Curved:
-    """A band value curving with the pose (the module docstring's mapping form).
+    """A band value curving with the pose (the mapping form of docs/simulator.md).
 
     Parameters
     ----------

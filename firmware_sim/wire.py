@@ -1,9 +1,5 @@
-"""The wire between the host and the servos: its speed, its time, and what collisions do to it.
-
-A pty carries bytes instantly at any speed: :func:`host_baud` reads the speed the host set,
-:func:`wire_s` the bytes' time, and :func:`collide` what two servos talking at once give (the
-open-drain bus lets a 0 win, the second's bits :data:`COLLISION_SKEW_BITS` late).
-"""
+"""The wire between the host and the servos: its speed, its time, and what collisions do to it
+(a pty carries bytes instantly at any speed)."""
 
 from __future__ import annotations
 
@@ -80,7 +76,8 @@ def _frames(bits: Sequence[int]) -> bytes:
 
 
 def collide(packets: Sequence[bytes]) -> bytes:
-    """The bytes the host reads when ``packets`` are sent at once (see module docstring)."""
+    """The bytes the host reads when ``packets`` are sent at once: the open-drain line lets a 0
+    win, each next sender's bits COLLISION_SKEW_BITS later."""
     if len(packets) == 1:
         return packets[0]
     lines = [_bits(p, k * COLLISION_SKEW_BITS) for k, p in enumerate(packets)]

@@ -1,15 +1,9 @@
 """The simulated gimbal's physical world: true geometry, end stops, tracking, load, the hand.
 
-Pan (servo 1), tilt (2) and optionally roll (3); each :class:`Joint` maps raw shaft ticks to its
-angle by a true zero and direction a calibration has to find. Torque on, a joint tracks its
-servo's setpoint like a stiff, critically damped position loop, and a push deflects it from that
-*free* angle::
-
-    angle = clamp(free + push / STIFFNESS, stop_min, stop_max)
-    load  = STIFFNESS * (free - angle) + INERTIA * accel + VISCOUS * velocity
-
-Torque off, it follows the hand's grip, or drifts under a push, reading no load. Loads and
-pushes are % of stall in the shaft frame; velocities raw ticks per second.
+Torque on, a joint tracks its servo's setpoint like a stiff, critically damped position loop,
+and a push deflects it from that *free* angle; torque off, it follows the hand's grip, or drifts
+under a push, reading no load. Loads and pushes are % of stall in the shaft frame; velocities
+raw ticks per second.
 """
 
 from __future__ import annotations
@@ -99,17 +93,8 @@ ROLL_JOINT = Joint(3, "roll", 1960.0, +1, -105.0, 105.0)
 
 
 class World:
-    """The gimbal's physics, stepped by the servos.
-
-    Parameters
-    ----------
-    joints : tuple of Joint
-        Exactly one "pan" and one "tilt" joint, and at most one "roll", with distinct servo IDs.
-    hand : Hand or None
-        The scripted hand that moves the joints whose torque is off.
-    seed : int
-        Draws the rest pose, within REST_SCATTER_DEG of zero on each joint.
-    """
+    """The gimbal's physics, stepped by the servos: ``joints`` are one "pan", one "tilt" and at
+    most one "roll", ``hand`` moves those whose torque is off, ``seed`` draws the rest pose."""
 
     def __init__(self, joints=DEFAULT_JOINTS, hand: Hand | None = None, seed: int = 0) -> None:
         joints = tuple(joints)
@@ -162,9 +147,9 @@ class World:
 
     def _substep(self, h: float, setpoints: list[float | None]) -> None:
         pose = None
-        if self._hand is not None and None in setpoints:
+        if self.hand is not None and None in setpoints:
             self.hand_time_s += h
-            pose = self._hand.pose_deg(self.hand_time_s)
+            pose = self.hand.pose_deg(self.hand_time_s)
         self.time_s += h
         for i in range(len(setpoints)):
             target = setpoints[i]
@@ -247,16 +232,12 @@ class World:
 
     def set_hand(self, hand: Hand | None) -> None:
         """Give the limb to ``hand`` (it takes hold where the limb is), or take it away."""
-        self._hand = hand
+        self.hand = hand
         #: Seconds the hand has held the limb.
         self.hand_time_s = 0.0
         if hand is not None:
             angles = self.joint_angles_deg()
             hand.start_from(angles["pan"], angles["tilt"], angles.get("roll", 0.0))
-
-    @property
-    def hand(self) -> Hand | None:
-        return self._hand
 
     def joint_angles_deg(self) -> dict[str, float]:
         """The true joint angles, ``{"pan": deg, "tilt": deg}`` (and ``"roll"`` if it has one)."""

@@ -47,7 +47,7 @@ def test_help_documents_every_option(capsys):
     assert run_main(["--help"]) == 0
     out = capsys.readouterr().out
     options = "--ids --link --model --hand --goal-log --seed --drop --corrupt --latency-ms --event"
-    words = "vanish:ID:S xm430-w350 limb_dir polygon --leader --operator --leader-log let_go_s"
+    words = "vanish xm430-w350 limb_dir polygon --leader --operator --leader-log docs/simulator.md"
     for option in f"{options} {words}".split():
         assert option in out
 

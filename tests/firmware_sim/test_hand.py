@@ -129,7 +129,7 @@ def test_the_calibration_script_moves_the_backdriven_limb_and_a_hand_turns_the_r
 
 def test_the_twist_keeps_to_a_plane_or_curved_band_and_reaches_both_its_stops():
     hand = Hand.from_yaml(REGION3, seed=2)
-    start, end = hand.trace_span_s
+    start, end = hand.path.trace_span_s
     times, poses, twist, limits = sample(hand, end + 30.0)
     low, high = limits[:, 0], limits[:, 1]
     assert np.all(twist >= low + TWIST_INSET_DEG - TREMOR_SLACK_DEG)

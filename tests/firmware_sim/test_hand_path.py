@@ -71,7 +71,7 @@ def taught(request):
 def test_a_wandering_minute_stays_in_covers_edge_and_interior_dense_in_the_middle(minute):
     hand, samples = minute
     region = hand.region
-    assert hand.style == "wander" and hand.trace_span_s is None
+    assert hand.style == "wander" and hand.path.trace_span_s is None
     depth = region.edge_distance_deg(samples[:, 0], samples[:, 1])
     # in the region: the planned path keeps MIN_PATH_DEPTH_DEG inside, the tremor may eat part
     assert depth.min() > -DEFAULT_TREMOR_DEG
@@ -102,7 +102,7 @@ def test_a_wandering_minute_stays_in_covers_edge_and_interior_dense_in_the_middl
 def test_the_default_hand_traces_the_whole_edge_first_at_a_persons_pace_then_wanders(taught):
     hand, samples, t = taught
     region = hand.region
-    start, end = hand.trace_span_s
+    start, end = hand.path.trace_span_s
     assert hand.style == "trace"
     # it reaches the edge within a couple of seconds of taking hold ...
     assert start < 3.0
@@ -159,7 +159,7 @@ def test_a_hand_takes_hold_without_a_yank_and_boxed_in_retraces_its_steps():
 def test_a_u_is_traced_round_its_reflex_corners_and_walked_round_them_continuously():
     # the U's inner corners are reflex: a trace set in from one side would cut the corner
     hand = Hand.from_mapping({"region": {"polygon": U_SHAPE}, "tremor_deg": 0}, seed=20)
-    start, end = hand.trace_span_s
+    start, end = hand.path.trace_span_s
     poses = np.array([hand.pose_deg(float(s)) for s in np.arange(start, end, 0.01)])
     depth = hand.region.edge_distance_deg(poses[:, 0], poses[:, 1])
     assert depth.min() >= MIN_PATH_DEPTH_DEG - 1e-9
