@@ -193,20 +193,12 @@ def off_axis_deg(pan, tilt):
     return math.degrees(math.acos(math.cos(tilt) * math.cos(pan)))
 
 
-def test_approach_starts_the_session_from_outside(tmp_path, sim, cone_model, capsys):
-    put_limb(sim, -50.0, 10.0)
-    source = replay(tmp_path, [{"pan": -20.0, "tilt": 5.0}] * 40)
-    code = run_teleop(options(cone_model, sim, source, wait=20.0, approach=20.0))
-    err = capsys.readouterr().err
-    assert code == 0, err
-    assert "approach: driving the limb" in err and "(approached)" in err
-    # then it followed the commands
-    wait_for(lambda: abs(math.degrees(present_pose(sim)[0]) + 20.0) < 0.1, 5.0, "pan -20 deg")
-
-
-def test_a_session_ending_on_the_edge_is_parked_and_the_next_starts_at_once(
+def test_teleop_parks_at_the_end_refuses_bad_lines_and_the_outside_and_approaches(
     tmp_path, sim, cone_model, capsys
 ):
+    """On one simulated bus: a session ending on the edge parks and the next starts at once;
+    exit 2 when every line is refused (the reasons counted) and when the limb stays outside
+    (torque off, saying why); --approach starts a session from outside."""
     # commands far outside the cone: the gate slides the limb onto the edge and ends there
     source = replay(tmp_path, [{"pan": 30.0 + 0.5 * i, "tilt": 35.0} for i in range(60)])
     assert run_teleop(options(cone_model, sim, source)) == 0
@@ -216,21 +208,17 @@ def test_a_session_ending_on_the_edge_is_parked_and_the_next_starts_at_once(
     inside = 40.0 - 0.9 * START_MARGIN_DEG
     wait_for(lambda: off_axis_deg(*present_pose(sim)) <= inside, 5.0, "the limb to settle")
     assert off_axis_deg(*present_pose(sim)) >= 40.0 - 3.0 * START_MARGIN_DEG
-
     again = replay(tmp_path, [{"pan": 5.0, "tilt": 5.0}] * 20, "again.jsonl")
     assert run_teleop(options(cone_model, sim, again, wait=1.0)) == 0
     second = capsys.readouterr().err
     assert "not started" not in second and "started after" not in second
     assert "ended by           end of input" in second
 
-
-def test_every_line_refused_exits_2_with_the_reasons(tmp_path, sim, cone_model, capsys):
-    """Exit 2 when every line is refused (the reasons counted) and when the limb stays outside
-    (torque off, saying why)."""
     rows = ["garbage", '{"pan": 500, "tilt": 0}', "not json", '{"pan": NaN, "tilt": 0}']
     rows += ['{"pan": -720, "tilt": 0}']
     telemetry = tmp_path / "telemetry.jsonl"
-    code = run_teleop(options(cone_model, sim, replay(tmp_path, rows), telemetry=telemetry))
+    refused = replay(tmp_path, rows, "refused.jsonl")
+    code = run_teleop(options(cone_model, sim, refused, telemetry=telemetry))
     err = capsys.readouterr().err
     assert code == 2
     assert "0 accepted (0 skipped as stale), 5 refused" in err
@@ -245,13 +233,23 @@ def test_every_line_refused_exits_2_with_the_reasons(tmp_path, sim, cone_model, 
     )
     put_limb(sim, 52.0, -8.0)
     assert torque(sim) == [True, True]
-    code = run_teleop(options(cone_model, sim, replay(tmp_path, [{"pan": 0, "tilt": 0}]), wait=1.0))
+    rest = replay(tmp_path, [{"pan": 0, "tilt": 0}], "rest.jsonl")
+    code = run_teleop(options(cone_model, sim, rest, wait=1.0))
     err = capsys.readouterr().err
     assert code == 2
     assert torque(sim) == [False, False]
     assert "torque switched off so it can be moved by hand" in err
     assert "not started: the limb stayed outside for 1 s" in err
     assert "turn it right" in err and "--approach" in err
+
+    put_limb(sim, -50.0, 10.0)
+    source = replay(tmp_path, [{"pan": -20.0, "tilt": 5.0}] * 40, "approach.jsonl")
+    code = run_teleop(options(cone_model, sim, source, wait=20.0, approach=20.0))
+    err = capsys.readouterr().err
+    assert code == 0, err
+    assert "approach: driving the limb" in err and "(approached)" in err
+    # then it followed the commands
+    wait_for(lambda: abs(math.degrees(present_pose(sim)[0]) + 20.0) < 0.1, 5.0, "pan -20 deg")
 
 
 def test_an_approach_faster_than_allowed_is_refused_before_the_port_opens(tmp_path, cone_model):
