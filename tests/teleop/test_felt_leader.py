@@ -101,7 +101,7 @@ def felt_session(tmp_path, rig: FeltRig = SIM, model="xm430-w350", rate_hz=25.0)
     At 25 Hz a busy machine neither refuses the start nor loses the pace (200 Hz: test_haptic)."""
     log = tmp_path / "leader.jsonl"
     leader = {"ids": list(rig.ids), "model": model, "log": str(log)}
-    with open_rig(limbpath=rig.profile, extra_ids=rig.ids, sim_options={"leader": leader}) as s:
+    with open_rig(rig_path=rig.profile, extra_ids=rig.ids, sim_options={"leader": leader}) as s:
         bus = s.rig.bus
         configure_servos(bus, {**s.rig.tick_limits(), **dict.fromkeys(rig.ids, (0, 4095))})
         spec = "leader:" + ",".join(map(str, rig.ids))
