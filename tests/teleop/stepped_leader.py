@@ -3,6 +3,7 @@ registers every 5 ms of a clock stepped 1 ms at a time, whatever the machine's l
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Sequence
 
 import numpy as np
@@ -25,7 +26,7 @@ from limbctl.servo.leader import (
 from limbctl.servo.rig import Rig
 from limbctl.teleop.brake import BrakeLaw
 from limbctl.teleop.haptic import VELOCITY_UNIT_DEG_S, FeelLaw
-from limbctl.teleop.haptic_push import held, push_for
+from limbctl.teleop.haptic_push import beyond_deg, corrected_pose, held, push_for
 from limbctl.teleop.snap import SnapLaw, SnapWatch
 
 #: The controller writes READ_TO_WRITE_MS after its read (the pty's p50, docs/bench_haptic.md).
@@ -122,6 +123,25 @@ CHAINS = {
 def rig_of(joints: int):
     """The simulated rig of a chain of ``joints`` joints."""
     return Rig(default_sim_profile(CHAINS[joints][0]))
+
+
+@functools.cache
+def limits_of(joints: int) -> tuple[tuple[float, float], ...]:
+    """The joints' hard limits (rad) of :func:`rig_of`, as the law is given them."""
+    return tuple((j.min_rad, j.max_rad) for j in rig_of(joints).joints)
+
+
+def beyond_of(region, row) -> float:
+    """How far (deg of rotation) a truth row of either chain lies beyond ``region``'s edge."""
+    q = q_of(*row["pose_deg"])
+    return beyond_deg(q, region.correct(q), len(row["pose_deg"]))
+
+
+def way_of(region, row) -> np.ndarray:
+    """The joint-space step (n,, rad) from a row's pose (either chain) toward its correction."""
+    present = tuple(np.radians(row["pose_deg"]))
+    corrected = region.correct(q_of(*row["pose_deg"]))
+    return np.subtract(corrected_pose(corrected, present, limits_of(len(present))), present)
 
 
 def stepped_leader(follower: dict, ids: Sequence[int], model: str, limit: int, operator: dict):

@@ -31,7 +31,7 @@ from limbctl.servo.setup import configure_servos
 from limbctl.session import open_rig
 from limbctl.teleop.gate import Gate, GateLimits
 from limbctl.teleop.haptic import VELOCITY_UNIT_DEG_S
-from limbctl.teleop.haptic_push import beyond_deg, corrected_pose
+from limbctl.teleop.haptic_push import corrected_pose
 from limbctl.teleop.pacing import PaceWatch
 from limbctl.teleop.sources import LeaderSource, SourceContext, parse_source
 from limbctl.teleop.sources.leader_snap import cycle_velocity, read_motion
@@ -42,6 +42,7 @@ from tests.teleop.felt_running import (
     pressing,
     pushed_only_when_fit,
 )
+from tests.teleop.stepped_leader import beyond_of, way_of
 from tests.teleop.twist_square import square_region
 
 EDGE = 30.0
@@ -136,12 +137,6 @@ def cap_of(source) -> float:
     return motor.torque_of(motor.units_for(motor.cap_nm(source.law.cap_nm)))
 
 
-def beyond(row) -> float:
-    """How far (deg of rotation) a three-servo ground-truth row lies beyond the region's edge."""
-    q = pose_quat_scalar(*np.radians(row["pose_deg"]))
-    return beyond_deg(q, square_region().correct(q), 3)
-
-
 def test_the_leader_stops_near_the_edge_free_inside_never_above_the_cap(tmp_path):
     with running_felt(tmp_path) as (session, source, log, running):
         cap = cap_of(source)
@@ -207,7 +202,7 @@ def test_the_three_servo_leader_is_held_at_the_edge_in_swing_and_in_twist(tmp_pa
     # roll at 5.1 s); a starved loop lets the hand take it further
     for crossed, window, joint in ((0.9, (2.5, 3.5), 0), (5.1, (7.0, 8.0), 2)):
         held = [r for r in rows if start + window[0] <= r["t"] < start + window[1]]
-        distance = statistics.median(beyond(r) for r in held[::5])
+        distance = statistics.median(beyond_of(region, r) for r in held[::5])
         paced = kept(start + window[0], start + window[1], start + crossed)
         assert 0.4 < distance and (distance < 2.0 or not paced), (joint, distance)
         assert statistics.median(r["pose_deg"][joint] for r in held) > 29.0
@@ -232,11 +227,9 @@ def test_the_three_servo_leader_is_held_at_the_edge_in_swing_and_in_twist(tmp_pa
     # corrected pose while the loop keeps its rate; the presses themselves must be there
     pressed, dots = 0, []
     for r in rows[::5]:
-        present = tuple(np.radians(r["pose_deg"]))
-        q = pose_quat_scalar(*present)
-        if beyond_deg(q, region.correct(q), 3) < 0.5 or not any(r["motor_nm"]):
+        if beyond_of(region, r) < 0.5 or not any(r["motor_nm"]):
             continue
-        way = np.subtract(corrected_pose(region.correct(q), present, LIMITS3), present)
+        way = way_of(region, r)
         if float(np.dot(r["hand_nm"], way / np.linalg.norm(way))) <= -PRESSING_NM:
             pressed += 1
             if kept(r["t"] - 0.2, r["t"]):
@@ -604,7 +597,7 @@ def test_at_the_real_rate_the_wall_holds_or_its_feel_goes_off_for_good(tmp_path)
         assert not any(truth["servos"][i]["torque_on"] for i in SIM3.ids)
     else:
         held = [r for r in truth_rows(log) if start + 3.0 <= r["t"] < start + 4.0]
-        assert 0.4 < statistics.median(beyond(r) for r in held[::5]) < 2.0
+        assert 0.4 < statistics.median(beyond_of(square_region(), r) for r in held[::5]) < 2.0
 
 
 # -- the brake rules over the pty ------------------------------------------------------------

@@ -23,7 +23,16 @@ from limbctl.servo.leader import CAP_STALL_FRACTION, FELT_MODELS
 from limbctl.teleop.haptic import TICK_DEG, FeelLaw, FeelStats
 from limbctl.teleop.haptic_push import Push, beyond_deg, corrected_pose, held, push_for
 from limbctl.teleop.sources.leader import PaceWatch
-from tests.teleop.stepped_leader import CONE, felt_at_200_hz, motor_of, q_of, rig_of
+from tests.teleop.stepped_leader import (
+    CONE,
+    beyond_of,
+    felt_at_200_hz,
+    limits_of,
+    motor_of,
+    q_of,
+    rig_of,
+    way_of,
+)
 from tests.teleop.twist_square import square_region
 
 LAW = FeelLaw()
@@ -36,10 +45,7 @@ TWO_TICKS = FeelLaw(lead_deg=2 * TICK_DEG, walk_lead_ticks=0)  # round 5: no wal
 EDGE = 30.0
 RIG = rig_of(3)
 #: Each rig's joints' hard limits (rad), as the law is given them.
-LIMITS = {
-    rig: tuple((j.min_rad, j.max_rad) for j in rig_of(n).joints)
-    for rig, n in (("sim", 2), ("sim3", 3))
-}
+LIMITS = {"sim": limits_of(2), "sim3": limits_of(3)}
 RIGS = sorted(LIMITS)
 IDS = (4, 5, 6)
 
@@ -449,21 +455,6 @@ def felt3(region, script, seconds, let_go_s=None, **options):
         script, seconds, let_go_s=let_go_s, region=region, pushes=pushes, **options
     )
     return rows, pushes
-
-
-def beyond_of(region, row):
-    """How far (deg of rotation) a truth row of either chain lies beyond ``region``'s edge."""
-    q = q_of(*row["pose_deg"])
-    return beyond_deg(q, region.correct(q), len(row["pose_deg"]))
-
-
-def way_of(region, row) -> np.ndarray:
-    """The joint-space step (n,, rad) from a row's pose (either chain) toward its correction."""
-    present = tuple(np.radians(row["pose_deg"]))
-    limits = LIMITS["sim" if len(present) == 2 else "sim3"]
-    return np.subtract(
-        corrected_pose(region.correct(q_of(*row["pose_deg"])), present, limits), present
-    )
 
 
 def smoothed_peak(rows) -> float:
