@@ -1,6 +1,5 @@
-"""The rigs the start, approach and park tests run on, each with its region and gate: ``sim``
-(pan, tilt: a 40 deg cone about +x) and ``sim3`` (pan, tilt, roll: the same cone with the twist
-within 30 deg of 0), opened on the simulator through the SDK."""
+"""The start, approach and park tests' rigs on the simulator through the SDK: ``sim`` (a 40 deg
+cone about +x) and ``sim3`` (the same cone, the twist within 30 deg of 0)."""
 
 from __future__ import annotations
 
