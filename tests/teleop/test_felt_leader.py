@@ -161,8 +161,7 @@ def test_the_leader_stops_near_the_edge_free_inside_never_above_the_cap(tmp_path
     kept = functools.partial(running.kept_sim, now, wall)
     assert "feels the edge" in lines[0] and "pressed beyond the edge for" in lines[1]
     rows = truth_rows(log)
-    # the hand means 20 deg beyond: held within 10 deg while the loop kept the rate unreleased
-    # (2 deg at exactly 200 Hz: test_haptic.py); a starved loop yields more, never lets it in
+    # held within 10 deg while the loop kept the rate unreleased (a starved loop yields more)
     held = statistics.median(row["pose_deg"][0] for row in rows if now - 1.0 <= row["t"] <= now)
     paced = kept(now - 1.0, now, now - 1.0 - WALKED_BACK_S)
     assert EDGE < held and (held < EDGE + 10.0 or not paced), held
@@ -170,8 +169,7 @@ def test_the_leader_stops_near_the_edge_free_inside_never_above_the_cap(tmp_path
     # every cycle whose command was inside wrote no current at all
     inside = [push for _, push, _ in running.pushes if push is not None and push.distance_deg == 0]
     assert inside and all(push.goal_current == 0 for push in inside)
-    # outside, pressed with PRESSING_NM or more, the motor never pulls pan outward while the
-    # loop keeps its rate (a slower sampled wall rings)
+    # pressed outside, the motor never pulls pan outward while the loop keeps its rate
     pressed = [
         row for row in rows if row["pose_deg"][0] > EDGE + 0.5 and row["hand_nm"][0] >= PRESSING_NM
     ]
@@ -197,9 +195,8 @@ def test_the_three_servo_leader_is_held_at_the_edge_in_swing_and_in_twist(tmp_pa
     assert "three servos" in lines[0] and "pressed beyond the edge for" in lines[1]
     rows = truth_rows(log)
     region = square_region()
-    # each press's last second: held beyond the edge, under 2 deg of rotation when the loop
-    # kept the rate and released it in no cycle since the press crossed the edge (pan at 0.9 s,
-    # roll at 5.1 s); a starved loop lets the hand take it further
+    # each press's last second: held beyond the edge, under 2 deg when the loop kept the rate
+    # unreleased since the press crossed it (pan at 0.9 s, roll at 5.1 s)
     for crossed, window, joint in ((0.9, (2.5, 3.5), 0), (5.1, (7.0, 8.0), 2)):
         held = [r for r in rows if start + window[0] <= r["t"] < start + window[1]]
         distance = statistics.median(beyond_of(region, r) for r in held[::5])
@@ -223,8 +220,7 @@ def test_the_three_servo_leader_is_held_at_the_edge_in_swing_and_in_twist(tmp_pa
             way = np.subtract(corrected_pose(corrected, pose, LIMITS3), pose)
             leads.append(float(np.dot(np.subtract(push.goal, pose), way)))
     assert len(leads) > 100 and min(leads) > 0.0
-    # pressed outward (PRESSING_NM or more) beyond the edge, the joint torques point toward the
-    # corrected pose while the loop keeps its rate; the presses themselves must be there
+    # pressed outward beyond the edge, the torques point toward the correction while paced
     pressed, dots = 0, []
     for r in rows[::5]:
         if beyond_of(region, r) < 0.5 or not any(r["motor_nm"]):
@@ -272,8 +268,7 @@ def test_a_failed_bus_or_a_held_gate_switches_the_push_off_in_that_cycle(tmp_pat
             )
         )
     assert during == [0.0] * len(rig.ids)
-    # each cycle whose reads failed wrote no current, but one within FOLLOWER_GRACE_S whose
-    # leader read did not fail
+    # each cycle whose reads failed wrote no current (but within FOLLOWER_GRACE_S, leader read)
     failed = [push for cycle, push, _ in running.pushes if cycle.complete and cycle.present is None]
     assert failed and sum(1 for push in failed if push is None or push.goal_current == 0) >= 5
     pushed_only_when_fit(running.pushes)
@@ -346,8 +341,7 @@ def test_a_felt_leaders_cycle_read_carries_its_present_velocity(tmp_path):
         assert all(cycle > 0 and abs(cycle - plain) <= 3 for cycle, plain in pairs)
         speed = cycle_velocity(read, IDS, session.rig.joints)[0]
         assert speed * session.rig.joints[0].direction > 0.0
-        # the hand presses outward against a 40 unit motor whose goal is pan 0: it pulls back
-        # at its Goal Current
+        # the hand presses against a 40 unit motor whose goal is pan 0: it pulls at that current
         units, goal = 40, session.rig.angles_to_ticks(0.0, 0.0)[0]
         session.simulator.set_operator(PRESS)
         bus.write_block(source._feel_block, IDS[0], encode_feel(units, goal))
@@ -408,8 +402,7 @@ def off_axis_deg(pan: float, tilt: float) -> float:
     return math.degrees(math.acos(math.cos(pan) * math.cos(tilt)))
 
 
-#: Where the hand turns each passive leader's shafts (deg): pan 60, past the 30 deg cone; and a
-#: three-servo orientation with roll.
+#: Where the hand turns each passive leader's shafts (deg): past the 30 deg cone; roll too.
 SHAFTS = {"sim": (60, 0), "sim3": (20, 10, -30)}
 
 
@@ -604,8 +597,7 @@ def test_at_the_real_rate_the_wall_holds_or_its_feel_goes_off_for_good(tmp_path)
 
 
 def test_a_hand_pulling_a_held_leader_back_inside_is_let_go_before_it_is_braked(tmp_path):
-    # held 20 deg beyond, the hand heads back inside faster than the setpoint walks: the watch
-    # frees the wall; never any torque inside
+    # held 20 deg beyond, the hand pulls it inside faster than the setpoint walks: freed
     with running_felt(tmp_path) as (session, source, log, running):
         pull = [[0.0, EDGE + 20.0, 0.0], [0.2, 0.0, 0.0]]  # from the switch on
         now = running.held_then(PRESS, {"script": pull, **HAND})

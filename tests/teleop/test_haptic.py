@@ -170,8 +170,7 @@ def test_property_never_above_the_cap_zero_inside_toward_the_correction(rig, at,
         assert float(step @ target) >= 0.0
 
 
-#: Beyond each rig's edge along one joint (pan at 30 deg; roll near 30 deg): the joint and the
-#: angles drawn (deg).
+#: Beyond each rig's edge along one joint: the joint and the angles drawn (deg).
 ALONG = {"sim": (0, 31.0, 60.0), "sim3": (2, 35.0, 60.0)}
 
 
@@ -387,8 +386,7 @@ def test_an_xl330_wall_pushes_with_its_cap_where_two_ticks_gave_a_fraction(model
     if "m077" in model:  # two ticks gave 0.02 N m, about its friction: the walk back stalled
         assert two_ticks["rest"] > 5.0 and let_go(0.05, 20.0, model=model)["rest"] < 0.5
         return
-    # why the M288's cap is 0.12 N m: at half its stall torque (0.26 N m) the law alone snaps
-    # it back faster than the return may go (the watch runs only in the loop's idle time)
+    # why the M288's cap is 0.12 N m: at half its stall torque the law alone snaps it back
     half = replace(motor, let_go_cap_nm=None)
     assert half.cap_nm(LAW.cap_nm) == pytest.approx(0.5 * motor.stall_torque_nm)
     assert let_go(0.05, 20.0, watch=False, model=model, motor=half)["peak"] > 40.0
@@ -414,8 +412,7 @@ def pan_between(rows, start_s, end_s):
     return np.array([r["pose_deg"][0] for r in rows if start_s <= r["t"] < end_s])
 
 
-#: The loop stalls for 20 ms at 3.2 s and for 40 ms at 3.8 s: the servos keep their last Goal
-#: Current and Goal Position, so the pressed leader does not move.
+#: The loop stalls 20 ms at 3.2 s and 40 ms at 3.8 s: the servos keep their last goals.
 LATE = {k: "late" for k in (*range(640, 644), *range(760, 768))}
 
 
@@ -513,15 +510,13 @@ def test_at_200_hz_the_leader_stops_within_2_deg_of_the_edge_and_walks_back(regi
     assert smoothed_peak(after) <= 30.0
     assert beyond_of(region, after[-1]) < LAW.deadband_deg + 0.1
     assert all(beyond_of(region, r) > 0.0 for r in after[::5])  # never walked inside
-    # the snap watch lets the held wall go as the snap onto the setpoints starts: no sample
-    # after the let go pulls outward, none turns faster than 30 deg/s (limbctl/teleop/snap.py)
+    # the snap watch frees the wall as the snap starts: nothing outward, nothing over 30 deg/s
     assert pulled_outward(region, after)[0] == []
     assert np.abs([r["velocity_deg_s"] for r in after]).max() <= 30.0
 
 
 def test_at_200_hz_the_law_alone_brakes_a_let_go_three_servo_leader_outward(region):
-    # the peer: round 6's law without the snap watch brakes each press's snap 2-6 ms after the
-    # let go, and the swing press's snap reaches 32.0 deg/s (decisions/haptic.md, round 5)
+    # the peer: round 6's law without the watch brakes each snap; swing's reaches 32.0 deg/s
     runs = {p: felt3(region, PRESSES[p], 6.0, 4.5, snap_watch=False) for p in PRESSES}
     after = {p: [r for r in rows if r["t"] >= 4.5] for p, (rows, _) in runs.items()}
     assert all(len(pulled_outward(region, rows)[0]) >= 2 for rows in after.values())
@@ -548,8 +543,7 @@ def test_at_200_hz_an_xl330_leader_pushes_with_its_cap_and_returns_under_30_deg_
     assert all(beyond_of(region, r) > 0.0 for r in after[::5])  # never walked inside
 
 
-#: Pressed 20 deg beyond the edge, held, then pulled back inside in 0.2 s: in swing and twist.
-#: (The two-servo leader's pull in pan: tests/teleop/test_brake.py, never pulled outward.)
+#: Pressed 20 deg beyond, held, pulled back inside in 0.2 s (two servos: test_brake.py).
 PULLS = {
     "swing": [[0.0, 0.0, 0.0, 0.0], [2.0, 50.0, 0.0, 0.0], [4.0, 50.0, 0.0, 0.0], [4.2, 0, 0, 0]],
     "twist": [[0.0, 0.0, 0.0, 0.0], [2.0, 0.0, 0.0, 50.0], [4.0, 0.0, 0.0, 50.0], [4.2, 0, 0, 0]],
@@ -624,9 +618,7 @@ def test_a_leader_released_by_goal_current_alone_still_walks_back_after_let_go(r
 
 # -- on a diagonal, both chains ----------------------------------------------------------------
 LET_GO_S = 4.5
-#: Pressing on a diagonal, both joints beyond the edge: toward pan = tilt = 30 deg on the 30 deg
-#: cone (11 deg beyond it), toward the corner pan 38, tilt 33 of the square region (its edges at
-#: pan 30 and tilt 25).
+#: Pressing on a diagonal, both joints beyond: 11 deg past the cone; past the square's corner.
 DIAGONALS = {
     "sim": [[0.0, 0.0, 0.0], [2.0, 30.0, 30.0]],
     "sim3": [[0.0, 0.0, 0.0, 0.0], [2.0, 38.0, 33.0, 0.0]],
@@ -646,8 +638,7 @@ def pressed(rig: str, stiffness: float, max_torque_nm: float) -> tuple:
 @pytest.mark.parametrize("rig", sorted(DIAGONALS))
 def test_on_a_diagonal_the_hand_feels_at_most_the_cap_and_a_let_go_returns_under_30_deg_s(rig):
     """At most the cap felt on a diagonal press, not each motor's; a let go under 30 deg/s."""
-    # a relaxed hand (0.3 N m) and one that overpowers the wall (0.6 N m): each motor sat at its
-    # own cap and the hand felt sqrt(2) of it (0.56 N m of a 0.40 cap)
+    # a relaxed hand and one that overpowers the wall: once the hand felt sqrt(2) of the cap
     for max_torque_nm in (0.3, 0.6):
         rows = pressed(rig, 0.2, max_torque_nm)
         felt = [float(np.linalg.norm(r["motor_nm"])) for r in rows if r["t"] < LET_GO_S]
