@@ -29,6 +29,11 @@ def chain_gate(profile) -> Gate:
     return Gate(ConeBand(math.radians(HALF_ANGLE_DEG), 0.0, math.radians(30)), limits)
 
 
+def off_axis_deg(pan: float, tilt: float) -> float:
+    """The angle (deg) of a two-servo pose (rad) from the cone's axis, +x."""
+    return math.degrees(math.acos(math.cos(pan) * math.cos(tilt)))
+
+
 def pose_of(rig_name: str, *degrees: float) -> tuple[float, ...]:
     """A pose (rad) for the rig from its first joints' angles (deg); the rest at 0."""
     joints = 3 if rig_name == "sim3" else 2

@@ -37,6 +37,7 @@ from limbctl.teleop.sources import LeaderSource, SourceContext, parse_source
 from limbctl.teleop.sources.leader_snap import cycle_velocity, read_motion
 from limbctl.view.leader import SWING_SHARE_DRAWN
 from tests.servo.test_leader_guard import START_S, end_pipe, torque_when_free
+from tests.teleop.chains import off_axis_deg
 from tests.teleop.felt_running import (
     Running,
     pressing,
@@ -395,11 +396,6 @@ def turn_shafts(rig, ids: tuple[int, ...], degrees: tuple[float, ...]) -> None:
         abs(rig.bus.sync_read(Register.PRESENT_POSITION, (i,))[i] - goals[i]) > 2 for i in goals
     ):
         assert time.monotonic() < deadline, "the leader shafts did not reach their goals"
-
-
-def off_axis_deg(pan: float, tilt: float) -> float:
-    """The angle (deg) of a two-servo pose (rad) from the cone's axis, +x."""
-    return math.degrees(math.acos(math.cos(pan) * math.cos(tilt)))
 
 
 #: Where the hand turns each passive leader's shafts (deg): past the 30 deg cone; roll too.

@@ -22,7 +22,7 @@ from limbctl.teleop.approach import SETTLE_DEG
 from limbctl.teleop.margin import START_MARGIN_DEG, margins_for
 from limbctl.teleop.start import MAX_APPROACH_SPEED_DEG_S, StartOptions, start_session
 from tests.safety.support import settle, wait_for
-from tests.teleop.chains import RATE, RIGS, chain_gate, live_chain, pose_of
+from tests.teleop.chains import RATE, RIGS, chain_gate, live_chain, off_axis_deg, pose_of
 
 
 @pytest.mark.parametrize("rig_name", RIGS)
@@ -75,8 +75,7 @@ def test_outside_waits_with_torque_off_then_starts_once_moved_inside_by_hand(rig
     last = published[-1]
     assert all(abs(a - math.degrees(b)) < 0.5 for a, b in zip(last.pose_deg, outside))
     assert last.outside_deg > 8.0 and last.target_deg is not None
-    # to a log (not a terminal) one line every LOG_EVERY_S s: the first status's, here (the
-    # limb, torque off, may drift a tenth of a degree by the last one)
+    # to a log one line every LOG_EVERY_S s: the first status's (the limb may drift after it)
     text = stream.getvalue()
     status_lines = [ln for ln in text.splitlines() if ln.startswith("waiting ")]
     assert len(status_lines) == 1 and published[0].advice().split(":")[0] in text, text
@@ -163,8 +162,7 @@ def replay(tmp_path, rows, name="cmds.jsonl"):
 
 
 def options(model, sim, source, **kwargs):
-    # the default reply timeout of a real port (~34 ms): the simulator answers in time on a
-    # loaded machine too
+    # a real port's default reply timeout (~34 ms): a loaded simulator answers in time
     connection = Connection(port=sim.port)
     return TeleopOptions(model=model, source=source, quiet=True, connection=connection, **kwargs)
 
@@ -186,11 +184,6 @@ def present_pose(sim):
 def torque(sim):
     servos = sim.truth()["servos"]
     return [servos[1]["torque_on"], servos[2]["torque_on"]]
-
-
-def off_axis_deg(pan, tilt):
-    # angle from +x: acos(cos(tilt) cos(pan))
-    return math.degrees(math.acos(math.cos(tilt) * math.cos(pan)))
 
 
 def test_teleop_parks_at_the_end_refuses_bad_lines_and_the_outside_and_approaches(
