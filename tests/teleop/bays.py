@@ -18,9 +18,8 @@ OUTLINE_VERTICES = 72
 
 
 def bay_outline(rng: np.random.Generator, radius_deg: tuple[float, float] = (28.0, 40.0)):
-    """A random outline with one bay and one notch of mean radius within ``radius_deg`` (deg):
-    (OUTLINE_VERTICES, 2) counter-clockwise (pan, tilt) vertices (deg) within pan +-100, tilt
-    -60..75."""
+    """A random outline with a bay and a notch, of mean radius within ``radius_deg`` (deg): its
+    (OUTLINE_VERTICES, 2) counter-clockwise (pan, tilt) vertices (deg)."""
     radius = rng.uniform(*radius_deg)
     centre = np.array([rng.uniform(-20.0, 20.0), rng.uniform(0.0, 20.0)])
     theta = np.linspace(0.0, 2.0 * np.pi, OUTLINE_VERTICES, endpoint=False)
@@ -51,8 +50,7 @@ class OutlineRegion:
         self._edges = (poly[None, :, 0], poly[None, :, 1], nxt[None, :, 0], nxt[None, :, 1])
 
     def inside_directions(self, d: np.ndarray) -> np.ndarray:
-        """(N,) bool: each direction (N, 3) inside the outline (even-odd ray casting along +pan,
-        all edges at once)."""
+        """(N,) bool: each direction (N, 3) inside the outline (even-odd ray casting along +pan)."""
         d = np.atleast_2d(np.asarray(d, dtype=np.float64))
         pan = np.arctan2(d[:, 1], d[:, 0])[:, None]
         tilt = np.arctan2(d[:, 2], np.hypot(d[:, 0], d[:, 1]))[:, None]
@@ -101,9 +99,7 @@ class OutlineBandRegion(OutlineRegion):
 
     @classmethod
     def random(cls, rng: np.random.Generator) -> OutlineBandRegion:
-        """A random outline (:func:`bay_outline`) under a random linear band: centre within
-        +-40 deg at the rest pose turning 0.3-0.8 deg per deg of pan and of tilt, half-width
-        25-40 deg changing by up to 0.25 deg per deg (at least 8 deg anywhere on the outline)."""
+        """A random outline under a random linear band (half-width 8 deg or more on it)."""
         polygon = bay_outline(rng)
         centre = (np.radians(rng.uniform(-40, 40)), *rng.uniform(-0.8, 0.8, 2))
         slope = rng.uniform(-0.25, 0.25, 2)
@@ -138,8 +134,7 @@ class OutlineBandRegion(OutlineRegion):
         return bool(inside[0]) if q.ndim == 1 else inside
 
     def correct(self, q: np.ndarray) -> np.ndarray:
-        """``q`` itself inside; outside, the direction onto the outline, then the twist into the
-        band there."""
+        """``q`` inside; outside, the direction onto the outline, then the twist into its band."""
         q = np.asarray(q, dtype=np.float64)
         rows = q.reshape(-1, 4).copy()
         out = ~np.asarray(self.contains(rows), dtype=bool).reshape(-1)
@@ -153,9 +148,8 @@ class OutlineBandRegion(OutlineRegion):
 
 
 def teaching(region: OutlineRegion, seconds: float, rng: np.random.Generator) -> np.ndarray:
-    """A traced teaching of ``region`` (:func:`~limbctl.envelope.synthetic.traced_teaching`):
-    directions (N, 3), or for a banded region orientations (N, 4) whose twists a third of the
-    time sit at either limit of the band (within 2 %), else anywhere in it."""
+    """A traced teaching of ``region``: directions (N, 3), or for a banded region orientations
+    (N, 4), a third of their twists at either limit of the band (within 2 %)."""
     from limbctl.envelope.synthetic import traced_teaching
 
     d, _ = traced_teaching(PolygonRegion(region.polygon_deg), seconds, rng)
@@ -184,10 +178,8 @@ def inside_points(region: OutlineRegion, n: int, rng: np.random.Generator) -> np
     return compose(d, centre + rng.uniform(-1.0, 1.0, n) * half)
 
 
-#: Spacing (deg) of the points that judge a straight arc of the visibility graph inside, and how
-#: far outside (deg) one may lie: a shortest path runs through the outline's concave corners,
-#: touching the wall there, and the outline's edges are straight in (pan, tilt), not great
-#: circles, so a point of an arc from corner to corner may lie a little outside.
+#: Spacing (deg) of the points that judge an arc of the visibility graph inside, and how far
+#: outside (deg) one may lie: the outline's edges are straight in (pan, tilt), not great circles.
 VISIBLE_STEP_DEG, VISIBLE_SLACK_DEG = 0.1, 0.05
 
 
@@ -230,8 +222,8 @@ class InsidePaths:
         return inside.reshape(a.shape[0], m).all(axis=1), h[:, 0]
 
     def _wall_distance(self, d: np.ndarray) -> np.ndarray:
-        """Distance (rad) from each direction (N, 3) to the outline's nearest edge, in the
-        local metric ``(cos(tilt) dpan, dtilt)`` (exact to first order near the wall)."""
+        """Distance (rad) from each direction (N, 3) to the nearest edge, metric (cos(tilt) dpan,
+        dtilt)."""
         pan, tilt = direction_to_pan_tilt(d)
         poly = np.radians(self.region.polygon_deg)
         a, b = poly, np.roll(poly, -1, axis=0)  # (V, 2) edges a -> b
@@ -242,8 +234,7 @@ class InsidePaths:
         return np.hypot(px - u * ex, py - u * ey).min(axis=1)
 
     def length(self, a: np.ndarray, b: np.ndarray) -> float:
-        """Length (rad) of the shortest path inside from direction ``a`` to ``b`` ((3,)
-        each); ``inf`` when there is none."""
+        """Length (rad) of the shortest path inside from direction ``a`` (3,) to ``b`` (3,)."""
         from scipy.sparse.csgraph import dijkstra
 
         n = self.corners.shape[0]

@@ -1,6 +1,5 @@
-"""The rigs the start, approach and park tests run on, each with its region and gate: ``sim``
-(pan, tilt: a 40 deg cone about +x) and ``sim3`` (pan, tilt, roll: the same cone with the twist
-within 30 deg of 0), opened on the simulator through the SDK."""
+"""The start, approach and park tests' rigs on the simulator through the SDK: ``sim`` (a 40 deg
+cone about +x) and ``sim3`` (the same cone, the twist within 30 deg of 0)."""
 
 from __future__ import annotations
 
@@ -28,6 +27,11 @@ def chain_gate(profile) -> Gate:
         return Gate(Cone(math.radians(HALF_ANGLE_DEG)), limits)
     limits = GateLimits.for_profile(profile, step, math.radians(1.8))
     return Gate(ConeBand(math.radians(HALF_ANGLE_DEG), 0.0, math.radians(30)), limits)
+
+
+def off_axis_deg(pan: float, tilt: float) -> float:
+    """The angle (deg) of a two-servo pose (rad) from the cone's axis, +x."""
+    return math.degrees(math.acos(math.cos(pan) * math.cos(tilt)))
 
 
 def pose_of(rig_name: str, *degrees: float) -> tuple[float, ...]:

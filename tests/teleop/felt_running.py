@@ -1,10 +1,5 @@
-"""The felt-leader pty tests' loop runner (:class:`Running`), for two and three servos: waits on
-what the loop did (no sleeps) and judges the wall only where it kept its pace.
-
-A lost pace switches the push off for good in the cycle that saw it, says why, and mirrors on
-(``LeaderSource._check_pace``); a run that lost it asserts that outcome instead of its own
-property (asserted at exactly 200 Hz in tests/teleop/test_haptic.py).
-"""
+"""The felt-leader pty tests' loop runner (:class:`Running`): waits on what the loop did and
+judges the wall only where it kept its pace; a run that lost it asserts that outcome instead."""
 
 from __future__ import annotations
 
@@ -26,9 +21,8 @@ PACE_LOST = re.compile(
 )
 
 
-#: The loop's health limits for these tests: a follower is lost after 5 s of silence, not 0.5 s:
-#: a loaded machine's simulator fell silent for 0.51-0.59 s now and then (the loop's own rule is
-#: tested in tests/servo/test_health.py and tests/safety/).
+#: A follower lost after 5 s of silence, not 0.5: a loaded machine's simulator fell silent for
+#: 0.51-0.59 s now and then (the rule itself: tests/servo/test_health.py, tests/safety/).
 SIM_STARVED_HEALTH = HealthLimits(lost_after_s=5.0)
 
 
@@ -38,8 +32,7 @@ def paced_out(source) -> bool:
 
 
 class FeelOff:
-    """Which cycle switched the feel off, and the ``simulator``'s ground truth at that cycle's end
-    (taken in the loop's thread, before the next cycle's bus traffic)."""
+    """Which cycle switched the feel off, and the ground truth at that cycle's end."""
 
     def __init__(self, simulator) -> None:
         self.simulator = simulator
@@ -53,8 +46,7 @@ class FeelOff:
 
 
 def assert_the_feel_went_off_for_the_pace(pushes, off: FeelOff, source, ids) -> None:
-    """The documented outcome of a lost pace, from the loop's cycles ``pushes`` ((cycle, push,
-    felt) each), the :class:`FeelOff` that watched them, and the source."""
+    """The documented outcome of a lost pace, from the loop's (cycle, push, felt) ``pushes``."""
     assert off.at is not None and off.truth is not None, "the feel never went off"
     [event] = source.feel_stats.events  # the pace, and nothing before it
     match = PACE_LOST.fullmatch(event)
@@ -85,7 +77,6 @@ class Running:
     def __init__(self, session, source) -> None:
         self.source, self.pushes, self.out = source, [], {}
         self.poses: list[tuple[float, ...] | None] = []
-        #: The leader's servo ids, which a lost pace must switch off.
         self.ids: tuple[int, ...] = source.leader_ids
         self.clock: list[float] = []
         self.simulator = session.simulator
@@ -130,8 +121,7 @@ class Running:
     def kept_sim(
         self, sim_at: float, wall_at: float, sim_from: float, sim_to: float, unreleased_from=None
     ) -> bool:
-        """:meth:`kept_pace` and :meth:`unreleased` in simulator time (``sim_at`` is monotonic
-        ``wall_at``)."""
+        """:meth:`kept_pace` and :meth:`unreleased` in simulator time (``sim_at``: ``wall_at``)."""
         since, until = wall_at + sim_from - sim_at, wall_at + sim_to - sim_at
         first = since if unreleased_from is None else wall_at + unreleased_from - sim_at
         return self.kept_pace(since, until) and self.unreleased(first, until)
@@ -167,8 +157,7 @@ class Running:
         return self.paced_out()
 
     def held_then(self, press: dict, then: dict) -> float | None:
-        """Press until the watch is armed, then hand over to ``then`` for 100 cycles: the leader's
-        time at the switch, or None for a lost pace."""
+        """Press until the watch arms, then ``then`` for 100 cycles: the switch's time, or None."""
         if self.pressed_or_paced_out(press):
             return None
         held_at = time.monotonic()

@@ -1,9 +1,9 @@
 """The stepped-clock felt-leader harness: the controller's part done on the simulated leader's
-registers, as ``LeaderSource`` does it over the bus, every 5 ms of a clock stepped 1 ms at a time
-in this process, so the law's own behaviour is measured whatever the machine's load."""
+registers every 5 ms of a clock stepped 1 ms at a time, whatever the machine's load."""
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Sequence
 
 import numpy as np
@@ -26,11 +26,10 @@ from limbctl.servo.leader import (
 from limbctl.servo.rig import Rig
 from limbctl.teleop.brake import BrakeLaw
 from limbctl.teleop.haptic import VELOCITY_UNIT_DEG_S, FeelLaw
-from limbctl.teleop.haptic_push import held, push_for
+from limbctl.teleop.haptic_push import beyond_deg, corrected_pose, held, push_for
 from limbctl.teleop.snap import SnapLaw, SnapWatch
 
-#: The controller writes READ_TO_WRITE_MS after its read: the loop's read, gate and write take
-#: about 1 ms on the simulator's pty (the bus work's p50 in docs/bench_haptic.md).
+#: The controller writes READ_TO_WRITE_MS after its read (the pty's p50, docs/bench_haptic.md).
 READ_TO_WRITE_MS = 1
 #: The follower's region in these runs: a 30 deg cone around +x (along pan, the edge at pan 30).
 CONE = Cone(half_angle_deg=30.0)
@@ -53,7 +52,7 @@ def read_velocity(servos: Sequence, joints: Sequence) -> tuple[float, ...]:
 
 
 class SteppedWatch:
-    """The snap watch between the cycles, as ``LeaderSource.watch_snap``: a read every 1 ms while
+    """The snap watch between the cycles (``LeaderSource.watch_snap``): a read every 1 ms while
     a wall is on, a cut 1 ms after; ``brake`` None: the snap rule alone (round 7)."""
 
     def __init__(
@@ -85,8 +84,7 @@ class SteppedWatch:
         return True
 
     def wrote(self, pose, goal, velocity, torque, was_engaged: bool, read_s: float) -> None:
-        """After a cycle's write (``goal`` None: the wall is off): arm or disarm, as
-        ``LeaderSource.feel`` does."""
+        """After a cycle's write (``goal`` None: the wall is off): arm or disarm."""
         if goal is None:
             self.snap.disarm()
         else:
@@ -123,8 +121,27 @@ CHAINS = {
 
 
 def rig_of(joints: int):
-    """The rig of a chain of ``joints`` joints on the simulated profile (its joint limits too)."""
+    """The simulated rig of a chain of ``joints`` joints."""
     return Rig(default_sim_profile(CHAINS[joints][0]))
+
+
+@functools.cache
+def limits_of(joints: int) -> tuple[tuple[float, float], ...]:
+    """The joints' hard limits (rad) of :func:`rig_of`, as the law is given them."""
+    return tuple((j.min_rad, j.max_rad) for j in rig_of(joints).joints)
+
+
+def beyond_of(region, row) -> float:
+    """How far (deg of rotation) a truth row of either chain lies beyond ``region``'s edge."""
+    q = q_of(*row["pose_deg"])
+    return beyond_deg(q, region.correct(q), len(row["pose_deg"]))
+
+
+def way_of(region, row) -> np.ndarray:
+    """The joint-space step (n,, rad) from a row's pose (either chain) toward its correction."""
+    present = tuple(np.radians(row["pose_deg"]))
+    corrected = region.correct(q_of(*row["pose_deg"]))
+    return np.subtract(corrected_pose(corrected, present, limits_of(len(present))), present)
 
 
 def stepped_leader(follower: dict, ids: Sequence[int], model: str, limit: int, operator: dict):

@@ -10,7 +10,7 @@ import statistics
 import time
 from collections.abc import Callable
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pytest
@@ -22,7 +22,6 @@ from limbctl.envelope import Cone
 from limbctl.errors import ConfigError
 from limbctl.geometry.gimbal import pose_quat, pose_quat_scalar
 from limbctl.geometry.twist import decompose_one
-from limbctl.jobs import gate_for
 from limbctl.live import leader_status
 from limbctl.servo.control_table import Register
 from limbctl.servo.leader import encode_feel, present_current, present_velocity
@@ -32,17 +31,19 @@ from limbctl.servo.setup import configure_servos
 from limbctl.session import open_rig
 from limbctl.teleop.gate import Gate, GateLimits
 from limbctl.teleop.haptic import VELOCITY_UNIT_DEG_S
-from limbctl.teleop.haptic_push import beyond_deg, corrected_pose
+from limbctl.teleop.haptic_push import corrected_pose
 from limbctl.teleop.pacing import PaceWatch
 from limbctl.teleop.sources import LeaderSource, SourceContext, parse_source
 from limbctl.teleop.sources.leader_snap import cycle_velocity, read_motion
 from limbctl.view.leader import SWING_SHARE_DRAWN
 from tests.servo.test_leader_guard import START_S, end_pipe, torque_when_free
+from tests.teleop.chains import off_axis_deg
 from tests.teleop.felt_running import (
     Running,
     pressing,
     pushed_only_when_fit,
 )
+from tests.teleop.stepped_leader import beyond_of, way_of
 from tests.teleop.twist_square import square_region
 
 EDGE = 30.0
@@ -64,8 +65,7 @@ SWING_THEN_TWIST = {
 }
 #: A hand pushing with this much (N m, toward the outside) presses: its spring stretched by 1 deg.
 PRESSING_NM = HAND["stiffness_nm_deg"] * 1.0
-#: A hold is judged strictly only when no cycle released the leader for this long (s) before:
-#: a release lets the hand carry it 20 deg beyond, walked back at 7-14 deg/s.
+#: A hold is judged strictly only with no release for this long (s) before: 20 deg walked back.
 WALKED_BACK_S = 1.5
 
 
@@ -81,7 +81,6 @@ class FeltRig:
 
     @property
     def pusher(self) -> int:
-        """The id of the leader servo that ``press`` presses against."""
         return self.ids[self.joint]
 
 
@@ -101,9 +100,7 @@ def rig(request) -> FeltRig:
 @contextmanager
 def felt_session(tmp_path, rig: FeltRig = SIM, model="xm430-w350", rate_hz=25.0):
     """An open ``rig`` with its leader, configured and gated; yields (session, source, log path).
-
-    Rate checks against ``rate_hz`` (25 Hz) so a busy machine neither refuses the start nor loses
-    the pace (the 200 Hz wall: test_haptic.py's stepped clock)."""
+    At 25 Hz a busy machine neither refuses the start nor loses the pace (200 Hz: test_haptic)."""
     log = tmp_path / "leader.jsonl"
     leader = {"ids": list(rig.ids), "model": model, "log": str(log)}
     with open_rig(rig_path=rig.profile, extra_ids=rig.ids, sim_options={"leader": leader}) as s:
@@ -141,49 +138,31 @@ def cap_of(source) -> float:
     return motor.torque_of(motor.units_for(motor.cap_nm(source.law.cap_nm)))
 
 
-def beyond(row) -> float:
-    """How far (deg of rotation) a three-servo ground-truth row lies beyond the region's edge."""
-    q = pose_quat_scalar(*np.radians(row["pose_deg"]))
-    return beyond_deg(q, square_region().correct(q), 3)
-
-
-def press_against_pan_zero(session, source, units: int = 40) -> int:
-    """The hand presses the two-servo leader outward (PRESS) against its pan motor written
-    straight to ``units`` of Goal Current, goal pan 0; returns ``units``."""
-    session.simulator.set_operator(PRESS)
-    goal = session.rig.angles_to_ticks(0.0, 0.0)[0]
-    session.rig.bus.write_block(source._feel_block, IDS[0], encode_feel(units, goal))
-    return units
-
-
 def test_the_leader_stops_near_the_edge_free_inside_never_above_the_cap(tmp_path):
-    with felt_session(tmp_path) as (session, source, log), source:
+    with running_felt(tmp_path) as (session, source, log, running):
         cap = cap_of(source)
-        session.rig.set_torque(True)
-        with Running(session, source) as running:
-            if running.pressed_or_paced_out(PRESS):  # the feel went off for good, as it must
-                return
-            seen, pressed_at = len(running.pushes), time.monotonic()
+        if running.pressed_or_paced_out(PRESS):  # the feel went off for good, as it must
+            return
+        seen, pressed_at = len(running.pushes), time.monotonic()
 
-            def a_paced_second(p) -> bool:
-                """300 more pressed cycles whose last second kept the rate unreleased, or 15 s."""
-                now = time.monotonic()
-                clean = running.kept_pace(now - 1.0, now) and running.unreleased(
-                    now - 1.0 - WALKED_BACK_S, now
-                )
-                return len(p) > seen + 300 and (clean or now > pressed_at + 15.0 or not p[-1][2])
+        def a_paced_second(p) -> bool:
+            """300 more pressed cycles whose last second kept the rate unreleased, or 15 s."""
+            now = time.monotonic()
+            clean = running.kept_pace(now - 1.0, now) and running.unreleased(
+                now - 1.0 - WALKED_BACK_S, now
+            )
+            return len(p) > seen + 300 and (clean or now > pressed_at + 15.0 or not p[-1][2])
 
-            running.until(a_paced_second)
-            now, wall = session.simulator.truth()["leader"]["t"], time.monotonic()
-            if running.paced_out():
-                return
-        lines = source.report_lines()
+        running.until(a_paced_second)
+        now, wall = session.simulator.truth()["leader"]["t"], time.monotonic()
+        if running.paced_out():
+            return
+    lines = source.report_lines()
 
     kept = functools.partial(running.kept_sim, now, wall)
     assert "feels the edge" in lines[0] and "pressed beyond the edge for" in lines[1]
     rows = truth_rows(log)
-    # the hand means 20 deg beyond: held within 10 deg while the loop kept the rate unreleased
-    # (2 deg at exactly 200 Hz: test_haptic.py); a starved loop yields more, never lets it in
+    # held within 10 deg while the loop kept the rate unreleased (a starved loop yields more)
     held = statistics.median(row["pose_deg"][0] for row in rows if now - 1.0 <= row["t"] <= now)
     paced = kept(now - 1.0, now, now - 1.0 - WALKED_BACK_S)
     assert EDGE < held and (held < EDGE + 10.0 or not paced), held
@@ -191,8 +170,7 @@ def test_the_leader_stops_near_the_edge_free_inside_never_above_the_cap(tmp_path
     # every cycle whose command was inside wrote no current at all
     inside = [push for _, push, _ in running.pushes if push is not None and push.distance_deg == 0]
     assert inside and all(push.goal_current == 0 for push in inside)
-    # outside, pressed with PRESSING_NM or more, the motor never pulls pan outward while the
-    # loop keeps its rate (a slower sampled wall rings)
+    # pressed outside, the motor never pulls pan outward while the loop keeps its rate
     pressed = [
         row for row in rows if row["pose_deg"][0] > EDGE + 0.5 and row["hand_nm"][0] >= PRESSING_NM
     ]
@@ -202,30 +180,27 @@ def test_the_leader_stops_near_the_edge_free_inside_never_above_the_cap(tmp_path
 
 
 def test_the_three_servo_leader_is_held_at_the_edge_in_swing_and_in_twist(tmp_path):
-    with felt_session(tmp_path, SIM3) as (session, source, log), source:
+    with running_felt(tmp_path, SIM3) as (session, source, log, running):
         cap = cap_of(source)
-        session.rig.set_torque(True)
-        with Running(session, source) as running:
-            session.simulator.set_operator(SWING_THEN_TWIST)
-            running.until(lambda p: session.simulator.truth()["leader"]["t"] > 0 and len(p) > 0)
-            start, wall = session.simulator.truth()["leader"]["t"], time.monotonic()
-            running.until(
-                lambda p: session.simulator.truth()["leader"]["t"] > start + 8.0 or not p[-1][2]
-            )
-            if running.paced_out():  # the feel went off for good, as it must
-                return
-        lines = source.report_lines()
+        session.simulator.set_operator(SWING_THEN_TWIST)
+        running.until(lambda p: session.simulator.truth()["leader"]["t"] > 0 and len(p) > 0)
+        start, wall = session.simulator.truth()["leader"]["t"], time.monotonic()
+        running.until(
+            lambda p: session.simulator.truth()["leader"]["t"] > start + 8.0 or not p[-1][2]
+        )
+        if running.paced_out():  # the feel went off for good, as it must
+            return
+    lines = source.report_lines()
 
     kept = functools.partial(running.kept_sim, start, wall)
     assert "three servos" in lines[0] and "pressed beyond the edge for" in lines[1]
     rows = truth_rows(log)
     region = square_region()
-    # each press's last second: held beyond the edge, under 2 deg of rotation when the loop
-    # kept the rate and released it in no cycle since the press crossed the edge (pan at 0.9 s,
-    # roll at 5.1 s); a starved loop lets the hand take it further
+    # each press's last second: held beyond the edge, under 2 deg when the loop kept the rate
+    # unreleased since the press crossed it (pan at 0.9 s, roll at 5.1 s)
     for crossed, window, joint in ((0.9, (2.5, 3.5), 0), (5.1, (7.0, 8.0), 2)):
         held = [r for r in rows if start + window[0] <= r["t"] < start + window[1]]
-        distance = statistics.median(beyond(r) for r in held[::5])
+        distance = statistics.median(beyond_of(region, r) for r in held[::5])
         paced = kept(start + window[0], start + window[1], start + crossed)
         assert 0.4 < distance and (distance < 2.0 or not paced), (joint, distance)
         assert statistics.median(r["pose_deg"][joint] for r in held) > 29.0
@@ -246,15 +221,12 @@ def test_the_three_servo_leader_is_held_at_the_edge_in_swing_and_in_twist(tmp_pa
             way = np.subtract(corrected_pose(corrected, pose, LIMITS3), pose)
             leads.append(float(np.dot(np.subtract(push.goal, pose), way)))
     assert len(leads) > 100 and min(leads) > 0.0
-    # pressed outward (PRESSING_NM or more) beyond the edge, the joint torques point toward the
-    # corrected pose while the loop keeps its rate; the presses themselves must be there
+    # pressed outward beyond the edge, the torques point toward the correction while paced
     pressed, dots = 0, []
     for r in rows[::5]:
-        present = tuple(np.radians(r["pose_deg"]))
-        q = pose_quat_scalar(*present)
-        if beyond_deg(q, region.correct(q), 3) < 0.5 or not any(r["motor_nm"]):
+        if beyond_of(region, r) < 0.5 or not any(r["motor_nm"]):
             continue
-        way = np.subtract(corrected_pose(region.correct(q), present, LIMITS3), present)
+        way = way_of(region, r)
         if float(np.dot(r["hand_nm"], way / np.linalg.norm(way))) <= -PRESSING_NM:
             pressed += 1
             if kept(r["t"] - 0.2, r["t"]):
@@ -264,37 +236,20 @@ def test_the_three_servo_leader_is_held_at_the_edge_in_swing_and_in_twist(tmp_pa
     assert not outward, (len(dots), outward)
 
 
-@pytest.mark.parametrize("fault", ["restart", "alarm"])
-def test_a_leader_restart_or_alarm_switches_the_push_off_on_every_servo(tmp_path, rig, fault):
-    """A restart ends the feel and mirroring goes on; an alarm faults the session, as if passive."""
+def test_a_leader_alarm_faults_the_session_and_switches_the_push_off_on_every_servo(tmp_path, rig):
+    """An alarm (overheating) faults the session: the push off on every servo, as if passive."""
     with running_felt(tmp_path, rig) as (session, source, log, running):
         if running.pressed_or_paced_out(rig.press):
             return
-        if fault == "alarm":
-            session.simulator.set_temperature(rig.pusher, 95.0)  # overheating shuts it down
-            running.thread.join(timeout=20.0)
-        else:
-            session.simulator.restart(rig.pusher)
-            running.until(lambda p: not p[-1][2])
-            lost = len(running.pushes)
-            running.until(lambda p: len(p) > lost + 50)
-            accepted = source.stats.accepted
-            running.until(lambda p: len(p) > lost + 100)
+        session.simulator.set_temperature(rig.pusher, 95.0)  # overheating shuts it down
+        running.thread.join(timeout=20.0)
         truth = session.simulator.truth()
     # the cycle that saw it switched the push off; the other servos' torque is off too
     assert all(truth["servos"][i]["torque_on"] is False for i in rig.ids if i != rig.pusher)
     assert truth["leader"]["motor_nm"] == [0.0] * len(rig.ids)
     summary = running.out["s"]
-    if fault == "alarm":
-        assert summary.exit_code == 3 and f"servo {rig.pusher}" in summary.fault
-        assert not source.felt and any("alarm" in event for event in source.feel_stats.events)
-        return
-    assert summary.exit_code == 0
-    assert source.stats.accepted > accepted  # still mirrored, without feel
-    notes = [n for c, _, _ in running.pushes for n in c.notices]
-    said = f"servo {rig.pusher} restarted"
-    assert any(said in n and "mirroring goes on without feel" in n for n in notes), notes
-    assert any("without feel" in line for line in source.report_lines())
+    assert summary.exit_code == 3 and f"servo {rig.pusher}" in summary.fault
+    assert not source.felt and any("alarm" in event for event in source.feel_stats.events)
 
 
 def test_a_failed_bus_or_a_held_gate_switches_the_push_off_in_that_cycle(tmp_path, rig):
@@ -314,15 +269,15 @@ def test_a_failed_bus_or_a_held_gate_switches_the_push_off_in_that_cycle(tmp_pat
             )
         )
     assert during == [0.0] * len(rig.ids)
-    # each cycle whose reads failed wrote no current, but one within FOLLOWER_GRACE_S whose
-    # leader read did not fail
+    # each cycle whose reads failed wrote no current (but within FOLLOWER_GRACE_S, leader read)
     failed = [push for cycle, push, _ in running.pushes if cycle.complete and cycle.present is None]
     assert failed and sum(1 for push in failed if push is None or push.goal_current == 0) >= 5
     pushed_only_when_fit(running.pushes)
 
 
 def test_a_leader_unheard_past_its_watchdog_still_pushes_and_the_end_leaves_it_limp(tmp_path, rig):
-    """Unheard past its watchdog at set-up or silent mid-push, it pushes again within the cap."""
+    """Unheard past its watchdog at set-up or silent mid-push, it pushes again within the cap;
+    then restarted, the push goes off on every servo and mirroring goes on without feel."""
     with felt_session(tmp_path, rig) as (session, source, log):
         with source:
             cap = cap_of(source)
@@ -340,6 +295,15 @@ def test_a_leader_unheard_past_its_watchdog_still_pushes_and_the_end_leaves_it_l
                 back = session.simulator.truth()
                 # back, its watchdog cleared and armed again, pushing; or the pace went meanwhile
                 felt = source.felt or running.paced_out()
+                restarted = source.felt  # else the feel is off for good (its outcome asserted)
+                if restarted:
+                    session.simulator.restart(rig.pusher)
+                    running.until(lambda p: not p[-1][2])
+                    lost = len(running.pushes)
+                    running.until(lambda p: len(p) > lost + 50)
+                    accepted = source.stats.accepted
+                    running.until(lambda p: len(p) > lost + 100)
+                    truth = session.simulator.truth()
             ended = session.simulator.truth()  # the loop's end released it: no current
         closed = session.simulator.truth()  # the source's close: torque off
     rows = truth_rows(log)
@@ -349,13 +313,39 @@ def test_a_leader_unheard_past_its_watchdog_still_pushes_and_the_end_leaves_it_l
     assert running.out["s"].exit_code == 0
     assert ended["leader"]["motor_nm"] == [0.0] * len(rig.ids)
     assert all(closed["servos"][i]["torque_on"] is False for i in rig.ids)
+    if not restarted:
+        return
+    # the cycle that saw the restart switched the push off; the other servos' torque is off too
+    assert all(truth["servos"][i]["torque_on"] is False for i in rig.ids if i != rig.pusher)
+    assert truth["leader"]["motor_nm"] == [0.0] * len(rig.ids)
+    assert source.stats.accepted > accepted  # still mirrored, without feel
+    notes = [n for c, _, _ in running.pushes for n in c.notices]
+    said = f"servo {rig.pusher} restarted"
+    assert any(said in n and "mirroring goes on without feel" in n for n in notes), notes
+    assert any("without feel" in line for line in source.report_lines())
 
 
-def test_the_cycles_read_and_the_watchs_read_carry_the_leaders_present_current(tmp_path):
-    # the cycle's read (round 5) and the watch's carry Present Current; a hand presses outward
-    # against a 40 unit motor whose goal is pan 0: it pulls back at its Goal Current
+def test_a_felt_leaders_cycle_read_carries_its_present_velocity(tmp_path):
+    """The cycle's read carries Present Velocity (in Goal Position's slot); it and the watch's
+    read carry Present Current (round 5)."""
     with felt_session(tmp_path) as (session, source, log), source:
-        bus, units = session.rig.bus, press_against_pan_zero(session, source)
+        bus = session.rig.bus
+        session.simulator.set_operator(PRESS)  # the hand carries the free leader out
+        deadline, pairs = time.monotonic() + 5.0, []
+        while time.monotonic() < deadline and len(pairs) < 5:
+            read = bus.read_cycle(ids=IDS, attempts=2)
+            plain = bus.read(Register.PRESENT_VELOCITY, IDS[0])
+            if read.ok and plain > 3:  # moving: a few units or more
+                pairs.append((present_velocity(read.reports[IDS[0]]), plain))
+        assert len(pairs) == 5
+        # the two reads are a millisecond apart on an accelerating leader: close, same sign
+        assert all(cycle > 0 and abs(cycle - plain) <= 3 for cycle, plain in pairs)
+        speed = cycle_velocity(read, IDS, session.rig.joints)[0]
+        assert speed * session.rig.joints[0].direction > 0.0
+        # the hand presses against a 40 unit motor whose goal is pan 0: it pulls at that current
+        units, goal = 40, session.rig.angles_to_ticks(0.0, 0.0)[0]
+        session.simulator.set_operator(PRESS)
+        bus.write_block(source._feel_block, IDS[0], encode_feel(units, goal))
         deadline = time.monotonic() + 5.0
         while time.monotonic() < deadline:
             read = bus.read_cycle(ids=IDS, attempts=2)
@@ -380,24 +370,6 @@ def test_the_cycles_read_and_the_watchs_read_carry_the_leaders_present_current(t
         assert abs(speeds[0] * session.rig.joints[0].direction - plain * unit) <= 3 * unit
 
 
-def test_a_felt_leaders_cycle_read_carries_its_present_velocity(tmp_path):
-    # the felt leader's cycle read carries Present Velocity in Goal Position's slot
-    with felt_session(tmp_path) as (session, source, log), source:
-        bus = session.rig.bus
-        session.simulator.set_operator(PRESS)  # the hand carries the free leader out
-        deadline, pairs = time.monotonic() + 5.0, []
-        while time.monotonic() < deadline and len(pairs) < 5:
-            read = bus.read_cycle(ids=IDS, attempts=2)
-            plain = bus.read(Register.PRESENT_VELOCITY, IDS[0])
-            if read.ok and plain > 3:  # moving: a few units or more
-                pairs.append((present_velocity(read.reports[IDS[0]]), plain))
-        assert len(pairs) == 5
-        # the two reads are a millisecond apart on an accelerating leader: close, same sign
-        assert all(cycle > 0 and abs(cycle - plain) <= 3 for cycle, plain in pairs)
-        speed = cycle_velocity(read, IDS, session.rig.joints)[0]
-        assert speed * session.rig.joints[0].direction > 0.0
-
-
 def test_a_held_leader_let_go_is_freed_by_the_snap_watch(tmp_path):
     # pressed and held still, then the hand is gone: the watch cuts the snap at once
     with running_felt(tmp_path) as (session, source, log, running):
@@ -411,7 +383,29 @@ def test_a_held_leader_let_go_is_freed_by_the_snap_watch(tmp_path):
     assert all(r["motor_nm"] == [0.0, 0.0] for r in after if r["pose_deg"][0] < EDGE)
 
 
+def turn_shafts(rig, ids: tuple[int, ...], degrees: tuple[float, ...]) -> None:
+    """Turn the passive leader's shafts ``ids`` to joint angles ``degrees`` (deg), to 2 ticks."""
+    goals = {
+        i: joint.zero_tick + joint.direction * round(deg * 4096 / 360)
+        for i, joint, deg in zip(ids, rig.joints, degrees, strict=True)
+    }
+    rig.bus.set_torque(True, ids)
+    rig.bus.sync_write(Register.GOAL_POSITION, goals)
+    deadline = time.monotonic() + 20
+    while any(
+        abs(rig.bus.sync_read(Register.PRESENT_POSITION, (i,))[i] - goals[i]) > 2 for i in goals
+    ):
+        assert time.monotonic() < deadline, "the leader shafts did not reach their goals"
+
+
+#: Where the hand turns each passive leader's shafts (deg): past the 30 deg cone; roll too.
+SHAFTS = {"sim": (60, 0), "sim3": (20, 10, -30)}
+
+
 def test_an_xl430_leader_stays_passive_mirrors_and_says_so(tmp_path, rig):
+    """Passive, it says so and its command is its shafts' full orientation (roll included); the
+    follower mirrors it and stops at the cone's edge; leader ids must be on the bus, not the
+    follower's, and three need a three-servo follower."""
     with felt_session(tmp_path, rig, model="xl430-w250") as (session, source, log), source:
         assert not source.felt and "stays passive" in source.notice
         assert source._guard is None  # torque off from the start: nothing for a guard to do
@@ -423,11 +417,43 @@ def test_an_xl430_leader_stays_passive_mirrors_and_says_so(tmp_path, rig):
         q = pose_quat_scalar(*pose, *[0.0] * (3 - len(pose)))
         np.testing.assert_allclose(command.q, q, atol=1e-12)
         shown = leader_status(source)()  # what the live page is handed
+        limb = session.rig
+        turn_shafts(limb, rig.ids, SHAFTS[rig.profile])
+        if len(rig.ids) == 3:
+            ticks = limb.bus.sync_read(Register.PRESENT_POSITION, rig.ids)
+            [turned] = source.poll()
+        else:
+            with pytest.raises(ConfigError, match="not on the bus"):
+                LeaderSource(limb, (5, 6))
+            with pytest.raises(ConfigError):
+                LeaderSource(limb, (1, 2))
+            refused = "needs a 3-servo follower: rig 'sim' has 2 servos; give leader:ID,ID"
+            with pytest.raises(ConfigError, match=refused):
+                LeaderSource(limb, (3, 4, 5))
+            limb.set_torque(True)
+            with Running(session, source) as running:  # 100 goals written, at the cone's edge
+                running.until(
+                    lambda p: (
+                        sum(c.written for c, _, _ in p) > 100
+                        and off_axis_deg(*next(c.present for c, _, _ in p[::-1] if c.present))
+                        > 29.0
+                    )
+                )
+            pan, tilt = limb.read_pose()
     assert shown.toward_twist_deg is None and shown.cap_nm is None
-    if len(rig.ids) == 3:
-        assert shown.twist_deg == pytest.approx(math.degrees(decompose_one(command.q)[1]))
-    else:
+    if len(rig.ids) == 2:
         assert shown.twist_deg is None
+        summary = running.out["s"]
+        assert summary.exit_code == 0 and summary.commands > 100
+        assert summary.goals_written > 100
+        # the follower turned toward the leader (pan 60) and stopped at the cone's edge
+        assert pan > 0 and 29.0 < off_axis_deg(pan, tilt) <= 30.2
+        return
+    assert shown.twist_deg == pytest.approx(math.degrees(decompose_one(command.q)[1]))
+    angles = limb.ticks_to_angles(*(ticks[i] for i in rig.ids))
+    np.testing.assert_allclose(turned.q, pose_quat_scalar(*angles), atol=1e-12)
+    # the shafts were waited for within 2 ticks of goals rounded from the angles: 2.33 ticks
+    assert math.degrees(angles[2]) == pytest.approx(-30.0, abs=2.34 * 360 / 4096)
 
 
 def test_a_felt_leader_that_cannot_keep_the_rate_is_refused(tmp_path, rig):
@@ -560,15 +586,14 @@ def test_at_the_real_rate_the_wall_holds_or_its_feel_goes_off_for_good(tmp_path)
         assert not any(truth["servos"][i]["torque_on"] for i in SIM3.ids)
     else:
         held = [r for r in truth_rows(log) if start + 3.0 <= r["t"] < start + 4.0]
-        assert 0.4 < statistics.median(beyond(r) for r in held[::5]) < 2.0
+        assert 0.4 < statistics.median(beyond_of(square_region(), r) for r in held[::5]) < 2.0
 
 
 # -- the brake rules over the pty ------------------------------------------------------------
 
 
 def test_a_hand_pulling_a_held_leader_back_inside_is_let_go_before_it_is_braked(tmp_path):
-    # held 20 deg beyond, the hand heads back inside faster than the setpoint walks: the watch
-    # frees the wall; never any torque inside
+    # held 20 deg beyond, the hand pulls it inside faster than the setpoint walks: freed
     with running_felt(tmp_path) as (session, source, log, running):
         pull = [[0.0, EDGE + 20.0, 0.0], [0.2, 0.0, 0.0]]  # from the switch on
         now = running.held_then(PRESS, {"script": pull, **HAND})
@@ -585,15 +610,14 @@ def test_a_hand_pulling_a_held_leader_back_inside_is_let_go_before_it_is_braked(
 
 
 # -- a leader servo, the bus or the controller failing mid-push -------------------------------
-#: Each rig and the hand's press (along pan first, the edge at pan 30 deg for both regions).
-RIGS = {"two-servo": (SIM, PRESS), "three-servo": (SIM3, SWING_THEN_TWIST)}
+#: Each rig pressed along pan first (the edge at pan 30 deg for both regions).
+SWINGS = pytest.mark.parametrize(
+    "rig", [SIM, replace(SIM3, press=SWING_THEN_TWIST, joint=0)], ids=["sim", "sim3"]
+)
 #: The simulator's leader log has one row a millisecond: a push's end is seen within it.
 LOG_GRAIN_S = 0.001
 PERIOD_S = 1.0 / 200.0
-
-
-#: A dead controller's last goal lies at most LEAD plus the walking lead ahead of the leader:
-#: three and two ticks on an XM430 (limbctl/teleop/haptic.py), 0.44 deg.
+#: A dead controller's last goal: at most LEAD plus the walking lead (5 ticks on an XM430) ahead.
 LAST_GOAL_AHEAD_DEG = 5 * 360.0 / 4096
 
 
@@ -610,17 +634,16 @@ def held_still(running, source, press) -> bool:
     return True
 
 
-@pytest.mark.parametrize("rig", sorted(RIGS))
+@SWINGS
 def test_a_leader_servo_dropping_off_mid_push_switches_every_push_off_and_is_reported(
     tmp_path, rig
 ):
-    spec, press = RIGS[rig]
-    ids = spec.ids
-    gone, pusher = ids[-1], ids.index(ids[0])  # the last servo drops; the pan motor pushes
-    with felt_session(tmp_path, spec) as (session, source, log), source:
+    ids = rig.ids
+    gone, pusher = ids[-1], rig.joint  # the last servo drops; the pan motor pushes
+    with felt_session(tmp_path, rig) as (session, source, log), source:
         session.rig.set_torque(True)
         with Running(session, source) as running:
-            if not held_still(running, source, press):
+            if not held_still(running, source, rig.press):
                 return  # the feel went off for a lost pace (its outcome asserted)
             at = session.simulator.truth()["leader"]["t"]
             session.simulator.vanish(gone, 0.3)
@@ -650,19 +673,18 @@ def test_a_leader_servo_dropping_off_mid_push_switches_every_push_off_and_is_rep
     assert felt or running.paced_out()
 
 
-@pytest.mark.parametrize("rig", sorted(RIGS))
+@SWINGS
 def test_a_leader_cut_off_from_its_controller_holds_within_the_cap_and_pushes_no_further(
     tmp_path, rig
 ):
-    # the bus cut mid-push: each Bus Watchdog holds its servo with at most the last push; the
-    # hand lets go after 0.3 s: pushed no further in than the last goal, then by nothing
-    spec, press = RIGS[rig]
-    ids = spec.ids
-    with running_felt(tmp_path, spec) as (session, source, log, running):
+    """Cut off mid-push, each Bus Watchdog holds at most the last push; let go after 0.3 s, the
+    hand is pushed no further in than the last goal, then by nothing."""
+    press = rig.press
+    with running_felt(tmp_path, rig) as (session, source, log, running):
         if not held_still(running, source, press):
             return
         at = session.simulator.truth()["leader"]["t"]
-        for servo_id in ids:
+        for servo_id in rig.ids:
             session.simulator.vanish(servo_id, 2.0)
         target = [list(press["script"][-1][1:])]
         session.simulator.set_operator({**press, "script": [[0.0, *target[0]]], "let_go_s": 0.3})
@@ -677,15 +699,14 @@ def test_a_leader_cut_off_from_its_controller_holds_within_the_cap_and_pushes_no
     assert still and all(sum(abs(m) for m in row["motor_nm"]) < 0.02 for row in still), still[-1]
 
 
-@pytest.mark.parametrize("rig", sorted(RIGS))
+@SWINGS
 def test_a_dead_controllers_leader_goes_limp_within_its_guards_bound(tmp_path, rig, capfd):
-    # the controller dies mid-push (its guard pipe and port closed as the kernel would): the
-    # guard switches every leader servo's torque off, no follower's (kill -9: test_leader_guard)
-    spec, press = RIGS[rig]
-    ids = spec.ids
-    with running_felt(tmp_path, spec) as (session, source, log, running):
+    """The controller dies mid-push (guard pipe and port closed as by the kernel): the guard
+    switches every leader servo's torque off, no follower's (kill -9: test_leader_guard)."""
+    ids = rig.ids
+    with running_felt(tmp_path, rig) as (session, source, log, running):
         bus, follower = session.rig.bus, session.profile.ids
-        if not held_still(running, source, press):
+        if not held_still(running, source, rig.press):
             return
         with bus.exclusive():  # the loop stops at its next transfer
             assert source.last_push is not None and source.last_push.goal_current > 0
@@ -706,78 +727,4 @@ def test_a_dead_controllers_leader_goes_limp_within_its_guards_bound(tmp_path, r
     err = capfd.readouterr().err
     assert said in err
     line = next(line for line in err.splitlines() if said in line)
-    print(f"{rig}: the controller's end to the guard's exit: {limp_s * 1e3:.1f} ms; {line}")
-
-
-# -- a passive leader mirrored through the gate ---------------------------------------------
-
-
-def turn_shafts(rig, ids: tuple[int, ...], degrees: tuple[float, ...]) -> None:
-    """Turn the passive leader's shafts ``ids`` to joint angles ``degrees`` (deg), to 2 ticks."""
-    goals = {
-        i: joint.zero_tick + joint.direction * round(deg * 4096 / 360)
-        for i, joint, deg in zip(ids, rig.joints, degrees, strict=True)
-    }
-    rig.bus.set_torque(True, ids)
-    rig.bus.sync_write(Register.GOAL_POSITION, goals)
-    deadline = time.monotonic() + 20
-    while any(
-        abs(rig.bus.sync_read(Register.PRESENT_POSITION, (i,))[i] - goals[i]) > 2 for i in goals
-    ):
-        assert time.monotonic() < deadline, "the leader shafts did not reach their goals"
-
-
-def off_axis_deg(pan: float, tilt: float) -> float:
-    """The angle (deg) of a two-servo pose (rad) from the cone's axis, +x."""
-    return math.degrees(math.acos(math.cos(pan) * math.cos(tilt)))
-
-
-def test_follower_mirrors_a_pushed_leader_within_the_region(cone_file):
-    """The follower turns toward a passive leader and stops at the cone's edge; leader ids must be
-    on the bus, not the follower's; three need a three-servo follower."""
-    with open_rig(extra_ids=(3, 4)) as session:
-        rig = session.rig
-        with pytest.raises(ConfigError, match="not on the bus"):
-            LeaderSource(rig, (5, 6))
-        with pytest.raises(ConfigError):
-            LeaderSource(rig, (1, 2))
-        refused = "needs a 3-servo follower: rig 'sim' has 2 servos; give leader:ID,ID"
-        with pytest.raises(ConfigError, match=refused):
-            LeaderSource(rig, (3, 4, 5))
-        session.gate = gate_for(cone_file(30.0), default_sim_profile(), 200.0, 120.0)
-        configure_servos(rig.bus, {**rig.tick_limits(), 3: (0, 4095), 4: (0, 4095)})
-        turn_shafts(rig, (3, 4), (60, 0))
-        with LeaderSource(rig, (3, 4)) as source:
-            assert rig.bus.torque_enabled()[3] is False
-            rig.set_torque(True)
-            with Running(session, source) as running:  # 100 goals written, at the cone's edge
-                running.until(
-                    lambda p: (
-                        sum(c.written for c, _, _ in p) > 100
-                        and off_axis_deg(*next(c.present for c, _, _ in p[::-1] if c.present))
-                        > 29.0
-                    )
-                )
-        pan, tilt = rig.read_pose()
-    summary = running.out["s"]
-    assert summary.exit_code == 0 and summary.commands > 100
-    assert summary.goals_written > 100
-    # the follower turned toward the leader (pan 60) and stopped at the cone's edge
-    assert pan > 0 and 29.0 < off_axis_deg(pan, tilt) <= 30.2
-
-
-def test_a_three_servo_leader_gives_full_orientations():
-    """A three-servo leader's command is its shafts' full orientation, roll included."""
-    with open_rig(rig_path="sim3", extra_ids=(4, 5, 6)) as session:
-        rig = session.rig
-        configure_servos(rig.bus, {**rig.tick_limits(), 4: (0, 4095), 5: (0, 4095), 6: (0, 4095)})
-        turn_shafts(rig, (4, 5, 6), (20, 10, -30))
-        with LeaderSource(rig, (4, 5, 6)) as source:
-            ticks = rig.bus.sync_read(Register.PRESENT_POSITION, (4, 5, 6))
-            [command] = source.poll()
-    expected = pose_quat_scalar(*rig.ticks_to_angles(*(ticks[i] for i in (4, 5, 6))))
-    np.testing.assert_allclose(command.q, expected, atol=1e-12)
-    # the shafts were waited for within 2 ticks of goals rounded from the angles: 2.33 ticks
-    assert math.degrees(rig.ticks_to_angles(*(ticks[i] for i in (4, 5, 6)))[2]) == pytest.approx(
-        -30.0, abs=2.34 * 360 / 4096
-    )
+    print(f"{rig.profile}: the controller's end to the guard's exit: {limp_s * 1e3:.1f} ms; {line}")

@@ -24,7 +24,7 @@ RIGS = (2, 3)
 
 class ConeBand:
     """The limb within ``half_angle`` of +x, its twist within ``half_width`` of ``centre``;
-    ``correct`` clamps the direction, then the twist (inside, not always the nearest)."""
+    ``correct`` clamps the direction, then the twist (not always the nearest)."""
 
     def __init__(self, half_angle: float, centre: float, half_width: float) -> None:
         self.half_angle, self.centre, self.half_width = half_angle, centre, half_width
@@ -61,8 +61,7 @@ def quat(pose) -> np.ndarray:
 
 
 def make_gate(rig, half_angle=R, max_step=STEP, max_joint_step=10.0, tilt_max=None, start=True):
-    """A gate over a cone (two servos) or a cone with a +-30 deg twist band (three), started at
-    the rest pose; ``max_joint_step`` in degrees."""
+    """A gate over a cone (two servos) or a cone with a +-30 deg twist band (three), at rest."""
     tilt_max = math.radians(80 if rig == 2 else 70) if tilt_max is None else tilt_max
     limits = GateLimits(
         joint_min=tuple(map(math.radians, (-100, -30) if rig == 2 else (-115, -55, -100))),
@@ -84,7 +83,9 @@ def moved(gate, before, after) -> float:
 
 
 @pytest.mark.parametrize("rig", RIGS)
-def test_an_inside_command_is_reached_exactly_at_the_slew_rate(rig):
+def test_an_inside_command_is_reached_exactly_and_an_outside_one_slides_onto_the_edge(rig):
+    """Inside: reached exactly at the slew rate. Outside (two servos: pan 90 deg, past the
+    cone; three: roll 90 deg, past the twist band): slid onto the edge in bounded steps."""
     gate = make_gate(rig)
     target = tuple(map(math.radians, (20.0, 15.0, 10.0)))[:rig]
     assert gate.envelope.contains(quat(target))
@@ -99,11 +100,6 @@ def test_an_inside_command_is_reached_exactly_at_the_slew_rate(rig):
     assert result.pose == pytest.approx(target, abs=1e-9)
     # every slewed cycle moves the limb by exactly max_step
     assert len(steps) > 5 and np.allclose(steps[:-1], STEP, atol=1e-9)
-
-
-@pytest.mark.parametrize("rig", RIGS)
-def test_an_outside_command_slides_onto_the_edge_in_bounded_steps(rig):
-    # two servos: pan 90 deg, past the cone; three: roll 90 deg, past the twist band
     gate = make_gate(rig)
     target, edge = {
         2: ((math.radians(90), 0.0), (R, 0.0)),
@@ -168,7 +164,7 @@ directions = st.tuples(st.floats(-math.pi, math.pi), st.floats(-math.pi / 2, mat
 quats = st.lists(st.floats(-1, 1), min_size=4, max_size=4).filter(
     lambda v: 1e-3 < sum(x * x for x in v)
 )
-# families the issue names: twist near +-180 deg; tilt near +-90 deg (pan and roll share an axis)
+# the issue's families: twist near +-180 deg; tilt near +-90 deg (pan and roll share an axis)
 twist_edge = st.tuples(
     st.floats(-math.pi, math.pi),
     st.floats(-1.4, 1.4),

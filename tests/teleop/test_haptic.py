@@ -23,7 +23,16 @@ from limbctl.servo.leader import CAP_STALL_FRACTION, FELT_MODELS
 from limbctl.teleop.haptic import TICK_DEG, FeelLaw, FeelStats
 from limbctl.teleop.haptic_push import Push, beyond_deg, corrected_pose, held, push_for
 from limbctl.teleop.sources.leader import PaceWatch
-from tests.teleop.stepped_leader import CONE, felt_at_200_hz, motor_of, q_of, rig_of
+from tests.teleop.stepped_leader import (
+    CONE,
+    beyond_of,
+    felt_at_200_hz,
+    limits_of,
+    motor_of,
+    q_of,
+    rig_of,
+    way_of,
+)
 from tests.teleop.twist_square import square_region
 
 LAW = FeelLaw()
@@ -36,10 +45,7 @@ TWO_TICKS = FeelLaw(lead_deg=2 * TICK_DEG, walk_lead_ticks=0)  # round 5: no wal
 EDGE = 30.0
 RIG = rig_of(3)
 #: Each rig's joints' hard limits (rad), as the law is given them.
-LIMITS = {
-    rig: tuple((j.min_rad, j.max_rad) for j in rig_of(n).joints)
-    for rig, n in (("sim", 2), ("sim3", 3))
-}
+LIMITS = {"sim": limits_of(2), "sim3": limits_of(3)}
 RIGS = sorted(LIMITS)
 IDS = (4, 5, 6)
 
@@ -164,8 +170,7 @@ def test_property_never_above_the_cap_zero_inside_toward_the_correction(rig, at,
         assert float(step @ target) >= 0.0
 
 
-#: Beyond each rig's edge along one joint (pan at 30 deg; roll near 30 deg): the joint and the
-#: angles drawn (deg).
+#: Beyond each rig's edge along one joint: the joint and the angles drawn (deg).
 ALONG = {"sim": (0, 31.0, 60.0), "sim3": (2, 35.0, 60.0)}
 
 
@@ -361,12 +366,15 @@ def test_at_200_hz_the_law_alone_brakes_a_let_go_leader_outward_and_snaps_over_3
     assert max(out["peak"] for out in alone) > 30.0
 
 
-XL330 = ["xl330-m288@53", "xl330-m077@53"]
-HANDS = [(0.02, 5.0), (0.05, 20.0), (0.2, 5.0)]
-
-
-@pytest.mark.parametrize("model", XL330)
+@pytest.mark.parametrize("model", ["xl330-m288@53", "xl330-m077@53"])
 def test_an_xl330_wall_pushes_with_its_cap_where_two_ticks_gave_a_fraction(model):
+    """All of its cap where two ticks gave a fraction; let go, under 30 deg/s to within 0.5 deg,
+    never inside."""
+    for hand in [(0.02, 5.0), (0.05, 20.0), (0.2, 5.0)]:  # stiffness N m/deg, deg beyond
+        out = let_go(*hand, model=model)
+        assert out["peak"] <= 30.0, hand  # every 1 ms sample
+        assert out["deepest"] <= 0.0 and out["rest"] < 0.5, hand
+        assert out["torque_inside"] == 0, hand
     motor = FELT_MODELS[ModelNumber.XL330_M288 if "m288" in model else ModelNumber.XL330_M077]
     cap_nm = motor.torque_of(motor.units_for(motor.cap_nm(LAW.cap_nm)))
     # a 0.3 N m hand overpowers an XL330's cap: the wall holds it with all of the cap
@@ -378,34 +386,11 @@ def test_an_xl330_wall_pushes_with_its_cap_where_two_ticks_gave_a_fraction(model
     if "m077" in model:  # two ticks gave 0.02 N m, about its friction: the walk back stalled
         assert two_ticks["rest"] > 5.0 and let_go(0.05, 20.0, model=model)["rest"] < 0.5
         return
-    # why the M288's cap is 0.12 N m: at half its stall torque (0.26 N m) the law alone snaps
-    # it back faster than the return may go (the watch runs only in the loop's idle time)
+    # why the M288's cap is 0.12 N m: at half its stall torque the law alone snaps it back
     half = replace(motor, let_go_cap_nm=None)
     assert half.cap_nm(LAW.cap_nm) == pytest.approx(0.5 * motor.stall_torque_nm)
     assert let_go(0.05, 20.0, watch=False, model=model, motor=half)["peak"] > 40.0
     assert let_go(0.05, 20.0, watch=False, model=model)["peak"] <= 30.0
-
-
-@pytest.mark.parametrize("model", XL330)
-@pytest.mark.parametrize(("stiffness", "beyond_deg"), HANDS)
-def test_a_let_go_xl330_leader_returns_under_30_deg_s_to_within_0_5_deg_never_inside(
-    model, stiffness, beyond_deg
-):
-    out = let_go(stiffness, beyond_deg, model=model)
-    assert out["peak"] <= 30.0  # every 1 ms sample
-    assert out["deepest"] <= 0.0 and out["rest"] < 0.5
-    assert out["torque_inside"] == 0
-
-
-@pytest.mark.parametrize("release_s", [0.05, 0.1])
-def test_at_200_hz_a_fading_grip_is_not_cut_like_a_let_go(release_s):
-    # a grip fading over 50-100 ms: the snap watch leaves the wall on (round 7)
-    script = [[0.0, 0.0, 0.0], [2.0, 35.0, 0.0]]
-    rows = felt_at_200_hz(script, 5.4, 0.2, let_go_s=5.002, release_s=release_s)
-    held = max(r["pose_deg"][0] for r in rows if 4.9 <= r["t"] < 5.002)
-    after = [r for r in rows if r["t"] >= 5.002]
-    assert max(r["pose_deg"][0] for r in after) < held + 0.02  # not thrown outward
-    assert max(-r["velocity_deg_s"][0] for r in after) < 20.0
 
 
 @pytest.mark.parametrize("stiffness", [0.02, 0.2])
@@ -427,8 +412,7 @@ def pan_between(rows, start_s, end_s):
     return np.array([r["pose_deg"][0] for r in rows if start_s <= r["t"] < end_s])
 
 
-#: The loop stalls for 20 ms at 3.2 s and for 40 ms at 3.8 s: the servos keep their last Goal
-#: Current and Goal Position, so the pressed leader does not move.
+#: The loop stalls 20 ms at 3.2 s and 40 ms at 3.8 s: the servos keep their last goals.
 LATE = {k: "late" for k in (*range(640, 644), *range(760, 768))}
 
 
@@ -440,17 +424,6 @@ def test_at_200_hz_pressing_into_the_wall_ripples_under_0_2_deg(stiffness, cycle
     """Pressed 5 deg beyond, held with under 0.2 deg of ripple; late cycles do not release it."""
     held = pan_between(felt_at_200_hz(PRESS_5, 4.5, stiffness, cycles=cycles), 3.0, 4.5)
     assert 30.0 < held.min() and np.ptp(held) < 0.2
-
-
-def test_a_held_gate_releases_the_leader_at_once_and_the_hand_pushes_through():
-    # each held cycle releases the leader; the wall takes it back afterwards
-    rows = felt_at_200_hz(PRESS_5, 4.5, 0.05, cycles={k: "held" for k in range(640, 650)})
-    # from the held cycle's write (1 ms in) to the next cycle's, the motor applies nothing
-    released = [r for r in rows if 3.2 + 0.0015 <= r["t"] < 3.25]
-    assert released and all(r["motor_nm"] == [0.0, 0.0] for r in released)
-    before, during = pan_between(rows, 3.0, 3.2), pan_between(rows, 3.2, 3.6)
-    assert np.ptp(before) < 0.2 and during.max() - before.mean() > 1.0
-    assert pan_between(rows, 4.3, 4.5).max() < before.max() + 0.2  # the wall took it back
 
 
 def test_the_pace_watch_switches_the_feel_off_when_the_median_period_is_over_1_25_periods():
@@ -481,45 +454,11 @@ def felt3(region, script, seconds, let_go_s=None, **options):
     return rows, pushes
 
 
-def beyond_of(region, row):
-    """How far (deg of rotation) a truth row of either chain lies beyond ``region``'s edge."""
-    q = q_of(*row["pose_deg"])
-    return beyond_deg(q, region.correct(q), len(row["pose_deg"]))
-
-
-def way_of(region, row) -> np.ndarray:
-    """The joint-space step (n,, rad) from a row's pose (either chain) toward its correction."""
-    present = tuple(np.radians(row["pose_deg"]))
-    limits = LIMITS["sim" if len(present) == 2 else "sim3"]
-    return np.subtract(
-        corrected_pose(region.correct(q_of(*row["pose_deg"])), present, limits), present
-    )
-
-
 def smoothed_peak(rows) -> float:
     """The fastest any joint of ``rows`` turned (deg/s), averaged over 20 ms (20 rows of 1 ms)."""
     speeds = np.abs([r["velocity_deg_s"] for r in rows])
     window = np.ones(20) / 20
     return max(np.convolve(joint, window, mode="valid").max() for joint in speeds.T)
-
-
-def judge(region, rows, pushes, start_s, end_s):
-    """The checks every press must pass; the held rows' distances beyond the edge (deg)."""
-    # every cycle whose command was inside wrote no current, on all three servos
-    inside = [push for _, push, _ in pushes if push.distance_deg == 0.0]
-    assert inside and all(push.goal_current == 0 for push in inside)
-    # in the ground truth: never above the cap on any joint; no torque while inside
-    assert max(abs(m) for r in rows for m in r["motor_nm"]) <= CAP + 1e-12
-    truly_inside = [r for r in rows[::5] if region.contains(q_of(*r["pose_deg"]))]
-    assert truly_inside and all(r["motor_nm"] == [0.0, 0.0, 0.0] for r in truly_inside)
-    # outside, pressed: the joint torques point toward the corrected pose
-    toward = []
-    for r in rows[::5]:
-        way = way_of(region, r) if any(r["motor_nm"]) else None
-        if way is not None and float(np.dot(r["hand_nm"], way)) < 0.0:  # the hand pushes out
-            toward.append(float(np.dot(r["motor_nm"], way)))
-    assert len(toward) > 50 and min(toward) > 0.0
-    return np.array([beyond_of(region, r) for r in rows if start_s <= r["t"] < end_s])
 
 
 #: Pressing 20 deg beyond the edge from the middle in 2 s: in swing (pan) and in twist (roll).
@@ -545,17 +484,24 @@ def pulled_outward(region, rows):
     return outward, inside
 
 
-def outward_after(region, rows, start_s):
-    """Times (s from ``start_s``) of the 1 ms samples from then on outside the region whose joint
-    torques point away from the correction (:func:`pulled_outward`)."""
-    after = [r for r in rows if r["t"] >= start_s]
-    return [r["t"] - start_s for r in pulled_outward(region, after)[0]]
-
-
 @pytest.mark.parametrize("press", sorted(PRESSES))
 def test_at_200_hz_the_leader_stops_within_2_deg_of_the_edge_and_walks_back(region, press):
     rows, pushes = felt3(region, PRESSES[press], 6.0, let_go_s=4.5)
-    held = judge(region, rows, pushes, 3.0, 4.5)
+    # every cycle whose command was inside wrote no current, on all three servos
+    inside = [push for _, push, _ in pushes if push.distance_deg == 0.0]
+    assert inside and all(push.goal_current == 0 for push in inside)
+    # in the ground truth: never above the cap on any joint; no torque while inside
+    assert max(abs(m) for r in rows for m in r["motor_nm"]) <= CAP + 1e-12
+    truly_inside = [r for r in rows[::5] if region.contains(q_of(*r["pose_deg"]))]
+    assert truly_inside and all(r["motor_nm"] == [0.0, 0.0, 0.0] for r in truly_inside)
+    # outside, pressed: the joint torques point toward the corrected pose
+    toward = []
+    for r in rows[::5]:
+        way = way_of(region, r) if any(r["motor_nm"]) else None
+        if way is not None and float(np.dot(r["hand_nm"], way)) < 0.0:  # the hand pushes out
+            toward.append(float(np.dot(r["motor_nm"], way)))
+    assert len(toward) > 50 and min(toward) > 0.0
+    held = np.array([beyond_of(region, r) for r in rows if 3.0 <= r["t"] < 4.5])
     # a 0.3 N m hand of 0.05 N m/deg held beyond the edge, within 2 deg of rotation of it
     assert 0.4 < held.min() and held.max() < 2.0
     assert np.ptp(held) < 0.3  # no ripple
@@ -564,18 +510,17 @@ def test_at_200_hz_the_leader_stops_within_2_deg_of_the_edge_and_walks_back(regi
     assert smoothed_peak(after) <= 30.0
     assert beyond_of(region, after[-1]) < LAW.deadband_deg + 0.1
     assert all(beyond_of(region, r) > 0.0 for r in after[::5])  # never walked inside
-    # the snap watch lets the held wall go as the snap onto the setpoints starts: no sample
-    # after the let go pulls outward, none turns faster than 30 deg/s (limbctl/teleop/snap.py)
-    assert outward_after(region, rows, 4.5) == []
+    # the snap watch frees the wall as the snap starts: nothing outward, nothing over 30 deg/s
+    assert pulled_outward(region, after)[0] == []
     assert np.abs([r["velocity_deg_s"] for r in after]).max() <= 30.0
 
 
 def test_at_200_hz_the_law_alone_brakes_a_let_go_three_servo_leader_outward(region):
-    # the peer: round 6's law without the snap watch brakes each press's snap 2-6 ms after the
-    # let go, and the swing press's snap reaches 32.0 deg/s (decisions/haptic.md, round 5)
+    # the peer: round 6's law without the watch brakes each snap; swing's reaches 32.0 deg/s
     runs = {p: felt3(region, PRESSES[p], 6.0, 4.5, snap_watch=False) for p in PRESSES}
-    assert all(len(outward_after(region, rows, 4.5)) >= 2 for rows, _ in runs.values())
-    swing = [r for r in runs["swing"][0] if r["t"] >= 4.5]
+    after = {p: [r for r in rows if r["t"] >= 4.5] for p, (rows, _) in runs.items()}
+    assert all(len(pulled_outward(region, rows)[0]) >= 2 for rows in after.values())
+    swing = after["swing"]
     assert max(max(map(abs, r["velocity_deg_s"])) for r in swing) > 30.0
 
 
@@ -598,8 +543,7 @@ def test_at_200_hz_an_xl330_leader_pushes_with_its_cap_and_returns_under_30_deg_
     assert all(beyond_of(region, r) > 0.0 for r in after[::5])  # never walked inside
 
 
-#: Pressed 20 deg beyond the edge, held, then pulled back inside in 0.2 s: in swing and twist.
-#: (The two-servo leader's pull in pan: tests/teleop/test_brake.py, never pulled outward.)
+#: Pressed 20 deg beyond, held, pulled back inside in 0.2 s (two servos: test_brake.py).
 PULLS = {
     "swing": [[0.0, 0.0, 0.0, 0.0], [2.0, 50.0, 0.0, 0.0], [4.0, 50.0, 0.0, 0.0], [4.2, 0, 0, 0]],
     "twist": [[0.0, 0.0, 0.0, 0.0], [2.0, 0.0, 0.0, 50.0], [4.0, 0.0, 0.0, 50.0], [4.2, 0, 0, 0]],
@@ -626,10 +570,16 @@ def test_a_hand_carrying_the_leader_back_toward_the_region_is_pulled_outward_les
 
 
 def test_a_held_gate_switches_every_joint_off_within_the_cycle(region):
-    # the gate holds for 10 cycles from 3.2 s (a failed follower read): each writes Goal
-    # Current 0, so from that write (1 ms in) the motors apply nothing until the next cycle's
+    """A gate held 10 cycles from 3.2 s (a failed follower read) writes Goal Current 0: from
+    that write (1 ms in) no motor pushes until the next cycle's; the wall takes it back."""
     held = {k: "held" for k in range(640, 650)}
-    rows, pushes = felt3(region, PRESSES["twist"], 4.0, cycles=held)
+    rows = felt_at_200_hz(PRESS_5, 4.5, 0.05, cycles=held)  # two servos, the hand pushes through
+    released = [r for r in rows if 3.2 + 0.0015 <= r["t"] < 3.25]
+    assert released and all(r["motor_nm"] == [0.0, 0.0] for r in released)
+    before, during = pan_between(rows, 3.0, 3.2), pan_between(rows, 3.2, 3.6)
+    assert np.ptp(before) < 0.2 and during.max() - before.mean() > 1.0
+    assert pan_between(rows, 4.3, 4.5).max() < before.max() + 0.2  # the wall took it back
+    rows, pushes = felt3(region, PRESSES["twist"], 4.0, cycles=held)  # three servos
     released = [r for r in rows if 3.2 + 0.0015 <= r["t"] < 3.25]
     assert released and all(r["motor_nm"] == [0.0, 0.0, 0.0] for r in released)
     assert max(abs(r["motor_nm"][2]) for r in rows if 3.1 <= r["t"] < 3.2) > 0.25  # it pushed
@@ -668,9 +618,7 @@ def test_a_leader_released_by_goal_current_alone_still_walks_back_after_let_go(r
 
 # -- on a diagonal, both chains ----------------------------------------------------------------
 LET_GO_S = 4.5
-#: Pressing on a diagonal, both joints beyond the edge: toward pan = tilt = 30 deg on the 30 deg
-#: cone (11 deg beyond it), toward the corner pan 38, tilt 33 of the square region (its edges at
-#: pan 30 and tilt 25).
+#: Pressing on a diagonal, both joints beyond: 11 deg past the cone; past the square's corner.
 DIAGONALS = {
     "sim": [[0.0, 0.0, 0.0], [2.0, 30.0, 30.0]],
     "sim3": [[0.0, 0.0, 0.0, 0.0], [2.0, 38.0, 33.0, 0.0]],
@@ -690,8 +638,7 @@ def pressed(rig: str, stiffness: float, max_torque_nm: float) -> tuple:
 @pytest.mark.parametrize("rig", sorted(DIAGONALS))
 def test_on_a_diagonal_the_hand_feels_at_most_the_cap_and_a_let_go_returns_under_30_deg_s(rig):
     """At most the cap felt on a diagonal press, not each motor's; a let go under 30 deg/s."""
-    # a relaxed hand (0.3 N m) and one that overpowers the wall (0.6 N m): each motor sat at its
-    # own cap and the hand felt sqrt(2) of it (0.56 N m of a 0.40 cap)
+    # a relaxed hand and one that overpowers the wall: once the hand felt sqrt(2) of the cap
     for max_torque_nm in (0.3, 0.6):
         rows = pressed(rig, 0.2, max_torque_nm)
         felt = [float(np.linalg.norm(r["motor_nm"])) for r in rows if r["t"] < LET_GO_S]

@@ -32,8 +32,7 @@ from limbctl.teleop.sources import KeyboardSource
 from limbctl.teleop.sources.keyboard import MAX_LEAD_DEG, region_centre
 from tests.teleop.tmux import ROOT, tmux_pane
 
-#: A terminal's key repeat: the delay before the first repeat and the rate after it (common
-#: desktop settings).
+#: A terminal's key repeat (common desktop settings): the delay before the first, the rate after.
 REPEAT_DELAY_S = 0.5
 REPEAT_HZ = 30.0
 POSE = re.compile(r"(commanded|written) pan +(-?[\d.]+) tilt +(-?[\d.]+)")
@@ -45,8 +44,8 @@ def poses(status: str) -> dict[str, tuple[float, float]]:
 
 
 def hold_key(pane, key: str, seconds: float, watch=None) -> float:
-    """Hold ``key`` for about ``seconds`` as a terminal repeats it; returns the time from the
-    press to the last repeat sent (s). ``watch()`` is called after each repeat (while held)."""
+    """Hold ``key`` about ``seconds`` as a terminal repeats it, calling ``watch()`` after each
+    repeat; the time from the press to the last repeat sent (s)."""
     pane.keys(key)
     first = time.monotonic()  # each key timed once tmux has passed it on, as the source reads it
     time.sleep(REPEAT_DELAY_S)  # the terminal's repeat delay: the key is down, nothing is sent
@@ -150,8 +149,7 @@ def test_keyboard_session_explains_itself_in_a_terminal(tmp_path, hand_model_pat
 
 @contextlib.contextmanager
 def keyboard_on_pty(**options) -> Iterator[tuple[KeyboardSource, Callable[[bytes], int]]]:
-    """A :class:`KeyboardSource` (``options``) reading a new pseudo-terminal: yields the source and
-    the function that types bytes into the terminal."""
+    """A :class:`KeyboardSource` on a new pseudo-terminal: yields it and a function that types."""
     master, slave = pty.openpty()
     try:
         with KeyboardSource(tty_path=os.ttyname(slave), **options) as source:
@@ -175,6 +173,7 @@ def typed(source: KeyboardSource, type_, keys: bytes, count: int) -> list:
 
 
 def test_keyboard_source_on_a_pseudo_terminal_and_only_on_one(tmp_path):
+    """Each key of a burst a press; roll keys turn a three-servo limb and are refused on two."""
     with keyboard_on_pty(step_deg=5.0) as (src, type_):
         # up, left, a stray key, up (w), left (a) in one burst: each a press of its own key
         typed(src, type_, b"\x1b[A\x1b[Dx" + b"wa", 4)
@@ -186,22 +185,18 @@ def test_keyboard_source_on_a_pseudo_terminal_and_only_on_one(tmp_path):
     plain.write_text("")
     with pytest.raises(ConfigError, match="not a terminal"):
         KeyboardSource(tty_path=str(plain))
-
-
-@pytest.mark.parametrize("twist", [True, False])
-def test_keyboard_roll_keys_turn_the_limb_on_three_servos_and_are_refused_on_two(twist):
-    with keyboard_on_pty(step_deg=5.0) as (src, type_):
-        src.twist = twist
-        # roll +2 steps, one up, roll -1 step
-        got = typed(src, type_, b"]]\x1b[A[", 4 if twist else 1)
-    if twist:
-        assert (src.pan_deg, src.tilt_deg, src.roll_deg) == (0.0, 5.0, 5.0)
-        np.testing.assert_allclose(
-            got[-1].q, pan_tilt_roll_to_quat(0.0, math.radians(5), math.radians(5))
-        )
-    else:
-        assert src.stats.rejected == 3
-        assert "roll keys need a three-servo rig" in src.stats.refusals.lines()[0]
+    for twist in (True, False):
+        with keyboard_on_pty(step_deg=5.0) as (src, type_):
+            src.twist = twist
+            got = typed(src, type_, b"]]\x1b[A[", 4 if twist else 1)  # roll +2, up, roll -1
+        if twist:
+            assert (src.pan_deg, src.tilt_deg, src.roll_deg) == (0.0, 5.0, 5.0)
+            np.testing.assert_allclose(
+                got[-1].q, pan_tilt_roll_to_quat(0.0, math.radians(5), math.radians(5))
+            )
+        else:
+            assert src.stats.rejected == 3
+            assert "roll keys need a three-servo rig" in src.stats.refusals.lines()[0]
 
 
 def test_keys_start_from_the_gates_pose_hold_release_and_show_the_guide():
@@ -248,12 +243,9 @@ def test_the_centre_is_the_point_deepest_inside_the_region(hand_model_path):
 
 RATE = 200.0
 MAX_SPEED = 120.0
-#: The step of the up and down presses (deg): large, so a point run on is plain to see.
-STEP_DEG = 5.0
-#: Longest wait (s) for the loop to take a press and settle: generous for a loaded machine.
-WAIT_S = 30.0
-#: Repeats of Up a held key sends: 60 at 30 Hz carry it far beyond the cone.
-UP_PRESSES = 60
+STEP_DEG = 5.0  # the up and down presses' step (deg): a point run on is plain to see
+WAIT_S = 30.0  # the longest wait (s) for the loop to take a press and settle
+UP_PRESSES = 60  # repeats of a held Up: at 30 Hz they carry it far beyond the cone
 
 
 class Cycles:

@@ -48,8 +48,7 @@ def test_split_keys_keeps_escape_sequences_whole_and_steps_stop_at_the_tables_en
 
 
 def events(delay_s: float, repeat_hz: float, hold_s: float) -> list[float]:
-    """When a terminal sends a key held for ``hold_s``: the press, then repeats after
-    ``delay_s`` at ``repeat_hz``."""
+    """When a terminal sends a key held ``hold_s``: the press, repeats from ``delay_s``."""
     times = [0.0]
     t = delay_s
     while t <= hold_s + 1e-9:

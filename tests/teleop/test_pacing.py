@@ -31,41 +31,10 @@ class SteppedStop(threading.Event):
         return False
 
 
-def run(cycle_s: list[float]) -> tuple[Pacer, list[float]]:
-    """Cycles that take ``cycle_s`` each; the start time of every cycle."""
-    clock = SteppedClock()
-    pacer, stop = Pacer(PERIOD, clock), SteppedStop(clock)
-    pacer.start(clock.now)
-    starts = []
-    for work in cycle_s:
-        starts.append(clock.now)
-        clock.now += work
-        pacer.wait(stop)
-    return pacer, starts
-
-
-def test_cycles_start_on_their_slots_a_short_stall_is_caught_up_a_long_one_starts_afresh():
-    """On time: every cycle on its slot; a few periods late: caught up; longer: a new schedule."""
-    pacer, starts = run([0.001] * 100)
-    assert all(abs(start - k * PERIOD) < 1e-9 for k, start in enumerate(starts))
-    assert pacer.overruns == 0
-    work = [0.001] * 200
-    work[50] = 3.5 * PERIOD  # one cycle stalls 17.5 ms
-    pacer, starts = run(work)
-    # after the stall the cycles run back to back until they are on their slots again
-    assert abs(starts[-1] - 199 * PERIOD) < 1e-9
-    assert pacer.overruns >= 1
-    work[50] = (BACKLOG_PERIODS + 2) * PERIOD
-    pacer, starts = run(work)
-    # the schedule restarted after the stall: the last cycle starts later than slot 199
-    assert starts[-1] > 199 * PERIOD + PERIOD
-    assert pacer.overruns == 1
-
-
-def run_with_idle(cycles: int, idle_s: float) -> tuple[Pacer, list[float], list[float]]:
-    """``cycles`` cycles of 1.5 ms work each on the stepped clock, each waiting for its slot
-    with idle work of ``idle_s`` (s) asked for every millisecond; returns the pacer, the
-    cycles' starts and the idle work's calls (clock s)."""
+def run(cycle_s: list[float], idle_s: float | None = None):
+    """Cycles that take ``cycle_s`` (s) each, waiting for their slot with idle work of ``idle_s``
+    (s) asked for every millisecond (None: no idle work): the pacer, each cycle's start and the
+    idle work's calls (clock s)."""
     clock = SteppedClock()
     pacer, stop = Pacer(PERIOD, clock), SteppedStop(clock)
     pacer.start(clock.now)
@@ -76,16 +45,37 @@ def run_with_idle(cycles: int, idle_s: float) -> tuple[Pacer, list[float], list[
         calls.append(clock.now)
         clock.now += idle_s
 
-    for _ in range(cycles):
+    for work in cycle_s:
         starts.append(clock.now)
-        clock.now += 0.0015  # the cycle's own work
-        pacer.wait(stop, idle, 0.001)
+        clock.now += work
+        if idle_s is None:
+            pacer.wait(stop)
+        else:
+            pacer.wait(stop, idle, 0.001)
     return pacer, starts, calls
+
+
+def test_cycles_start_on_their_slots_a_short_stall_is_caught_up_a_long_one_starts_afresh():
+    """On time: every cycle on its slot; a few periods late: caught up; longer: a new schedule."""
+    pacer, starts, _ = run([0.001] * 100)
+    assert all(abs(start - k * PERIOD) < 1e-9 for k, start in enumerate(starts))
+    assert pacer.overruns == 0
+    work = [0.001] * 200
+    work[50] = 3.5 * PERIOD  # one cycle stalls 17.5 ms
+    pacer, starts, _ = run(work)
+    # after the stall the cycles run back to back until they are on their slots again
+    assert abs(starts[-1] - 199 * PERIOD) < 1e-9
+    assert pacer.overruns >= 1
+    work[50] = (BACKLOG_PERIODS + 2) * PERIOD
+    pacer, starts, _ = run(work)
+    # the schedule restarted after the stall: the last cycle starts later than slot 199
+    assert starts[-1] > 199 * PERIOD + PERIOD
+    assert pacer.overruns == 1
 
 
 def test_idle_work_runs_about_every_period_while_waiting_and_the_slot_is_kept():
     """Idle work runs a millisecond apart between the cycles; slower work never delays one."""
-    pacer, starts, calls = run_with_idle(20, 0.0003)  # a read of the leader's speed
+    pacer, starts, calls = run([0.0015] * 20, 0.0003)  # a read of the leader's speed
     # each cycle's start stays on its slot; in the 3.5 ms left after the work, the watch runs
     # from right after the cycle, a millisecond apart, and ends a millisecond before the slot
     assert all(abs(start - k * PERIOD) < 1e-9 for k, start in enumerate(starts))
@@ -100,14 +90,11 @@ def test_idle_work_runs_about_every_period_while_waiting_and_the_slot_is_kept():
     assert pacer.overruns == 0
     # a slow bus: each call takes 2.5 ms. After the 1.5 ms cycle it runs once (3.5 ms left), not
     # again with 1 ms left: the cycle starts on its slot
-    pacer, starts, calls = run_with_idle(10, 0.0025)
+    pacer, starts, calls = run([0.0015] * 10, 0.0025)
     assert all(abs(start - k * PERIOD) < 1e-9 for k, start in enumerate(starts))
     assert len(calls) == 10 and pacer.overruns == 0
-
-
-def test_without_idle_work_the_wait_is_one_wait():
-    clock = SteppedClock()
-    waits: list[float] = []
+    # without idle work the wait is one wait
+    clock, waits = SteppedClock(), []
 
     class Recording(SteppedStop):
         def wait(self, timeout=None):

@@ -20,12 +20,16 @@ LINES = [
 ]
 
 
+def refusal_message(line):
+    with pytest.raises(InvalidInputError) as caught:
+        parse_command(line)
+    return str(caught.value)
+
+
 def refuse_all(lines):
     refusals = Refusals()
     for number, line in enumerate(lines, start=1):
-        with pytest.raises(InvalidInputError) as caught:
-            parse_command(line)
-        refusals.add(str(caught.value), line, number)
+        refusals.add(refusal_message(line), line, number)
     return refusals
 
 
@@ -44,12 +48,6 @@ def test_reasons_group_what_varies_from_line_to_line():
     kept = refusals.examples["pan N deg is outside [N, N]"]
     assert [e.line_no for e in kept] == [1, 3, 6][:EXAMPLES_PER_REASON]
     assert "line 2: 'garbage'" in lines[1] and "line 5: 'not json at all'" in lines[1]
-
-
-def refusal_message(line):
-    with pytest.raises(InvalidInputError) as caught:
-        parse_command(line)
-    return str(caught.value)
 
 
 def test_recent_reasons_are_taken_once_and_bounded_and_long_lines_cut_to_an_excerpt():

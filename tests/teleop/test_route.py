@@ -66,9 +66,8 @@ def needed(paths: InsidePaths, a: np.ndarray, b: np.ndarray, rig: int) -> float:
 
 
 def drive(gate, region, rig: int, target: np.ndarray, limit: int) -> int | None:
-    """Step ``gate`` toward ``target`` until its pose is within 1e-3 rad of it; the cycles
-    taken (None past ``limit``). Every written pose is checked inside the region (within the
-    gate's tolerance) and within two steps of the one before (one step, then its correction)."""
+    """Step ``gate`` to within 1e-3 rad of ``target``: the cycles taken (None past ``limit``),
+    every written pose checked inside and within two steps (a step, its correction) of the last."""
     before = pose_q(gate, rig)
     for n in range(1, limit + 1):
         gate.step(target)
@@ -89,8 +88,7 @@ def bound(length: float) -> float:
     return REACH_FACTOR * length / STEP + REACH_EXTRA_CYCLES
 
 
-#: (seed, pair) where the gate before routing sat at a concave wall, SLEWED every cycle, and
-#: never reached the target (benchmarks' --no-route finds more): two servos, three servos.
+#: (seed, pair) where the gate before routing sat SLEWED at a concave wall, per chain.
 STUCK_BEFORE = {2: (3, 0), 3: (7, 0)}
 
 

@@ -19,8 +19,7 @@ STILL = (0.0, 0.0)
 
 
 def held_watch() -> SnapWatch:
-    """A watch after two cycles of a wall holding a still leader against a hand, the last read
-    at 0 s."""
+    """A watch after two cycles of a wall holding a still leader against a hand (last read 0 s)."""
     watch = SnapWatch(LAW)
     watch.arm(POSE, GOAL, STILL, HELD_NM, False, -0.005)  # the wall came on: not yet
     assert watch.armed is None

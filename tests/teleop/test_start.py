@@ -22,7 +22,7 @@ from limbctl.teleop.approach import SETTLE_DEG
 from limbctl.teleop.margin import START_MARGIN_DEG, margins_for
 from limbctl.teleop.start import MAX_APPROACH_SPEED_DEG_S, StartOptions, start_session
 from tests.safety.support import settle, wait_for
-from tests.teleop.chains import RATE, RIGS, chain_gate, live_chain, pose_of
+from tests.teleop.chains import RATE, RIGS, chain_gate, live_chain, off_axis_deg, pose_of
 
 
 @pytest.mark.parametrize("rig_name", RIGS)
@@ -75,8 +75,7 @@ def test_outside_waits_with_torque_off_then_starts_once_moved_inside_by_hand(rig
     last = published[-1]
     assert all(abs(a - math.degrees(b)) < 0.5 for a, b in zip(last.pose_deg, outside))
     assert last.outside_deg > 8.0 and last.target_deg is not None
-    # to a log (not a terminal) one line every LOG_EVERY_S s: the first status's, here (the
-    # limb, torque off, may drift a tenth of a degree by the last one)
+    # to a log one line every LOG_EVERY_S s: the first status's (the limb may drift after it)
     text = stream.getvalue()
     status_lines = [ln for ln in text.splitlines() if ln.startswith("waiting ")]
     assert len(status_lines) == 1 and published[0].advice().split(":")[0] in text, text
@@ -163,8 +162,7 @@ def replay(tmp_path, rows, name="cmds.jsonl"):
 
 
 def options(model, sim, source, **kwargs):
-    # the default reply timeout of a real port (~34 ms): the simulator answers in time on a
-    # loaded machine too
+    # a real port's default reply timeout (~34 ms): a loaded simulator answers in time
     connection = Connection(port=sim.port)
     return TeleopOptions(model=model, source=source, quiet=True, connection=connection, **kwargs)
 
@@ -188,25 +186,12 @@ def torque(sim):
     return [servos[1]["torque_on"], servos[2]["torque_on"]]
 
 
-def off_axis_deg(pan, tilt):
-    # angle from +x: acos(cos(tilt) cos(pan))
-    return math.degrees(math.acos(math.cos(tilt) * math.cos(pan)))
-
-
-def test_approach_starts_the_session_from_outside(tmp_path, sim, cone_model, capsys):
-    put_limb(sim, -50.0, 10.0)
-    source = replay(tmp_path, [{"pan": -20.0, "tilt": 5.0}] * 40)
-    code = run_teleop(options(cone_model, sim, source, wait=20.0, approach=20.0))
-    err = capsys.readouterr().err
-    assert code == 0, err
-    assert "approach: driving the limb" in err and "(approached)" in err
-    # then it followed the commands
-    wait_for(lambda: abs(math.degrees(present_pose(sim)[0]) + 20.0) < 0.1, 5.0, "pan -20 deg")
-
-
-def test_a_session_ending_on_the_edge_is_parked_and_the_next_starts_at_once(
+def test_teleop_parks_at_the_end_refuses_bad_lines_and_the_outside_and_approaches(
     tmp_path, sim, cone_model, capsys
 ):
+    """On one simulated bus: a session ending on the edge parks and the next starts at once;
+    exit 2 when every line is refused (the reasons counted) and when the limb stays outside
+    (torque off, saying why); --approach starts a session from outside."""
     # commands far outside the cone: the gate slides the limb onto the edge and ends there
     source = replay(tmp_path, [{"pan": 30.0 + 0.5 * i, "tilt": 35.0} for i in range(60)])
     assert run_teleop(options(cone_model, sim, source)) == 0
@@ -216,21 +201,17 @@ def test_a_session_ending_on_the_edge_is_parked_and_the_next_starts_at_once(
     inside = 40.0 - 0.9 * START_MARGIN_DEG
     wait_for(lambda: off_axis_deg(*present_pose(sim)) <= inside, 5.0, "the limb to settle")
     assert off_axis_deg(*present_pose(sim)) >= 40.0 - 3.0 * START_MARGIN_DEG
-
     again = replay(tmp_path, [{"pan": 5.0, "tilt": 5.0}] * 20, "again.jsonl")
     assert run_teleop(options(cone_model, sim, again, wait=1.0)) == 0
     second = capsys.readouterr().err
     assert "not started" not in second and "started after" not in second
     assert "ended by           end of input" in second
 
-
-def test_every_line_refused_exits_2_with_the_reasons(tmp_path, sim, cone_model, capsys):
-    """Exit 2 when every line is refused (the reasons counted) and when the limb stays outside
-    (torque off, saying why)."""
     rows = ["garbage", '{"pan": 500, "tilt": 0}', "not json", '{"pan": NaN, "tilt": 0}']
     rows += ['{"pan": -720, "tilt": 0}']
     telemetry = tmp_path / "telemetry.jsonl"
-    code = run_teleop(options(cone_model, sim, replay(tmp_path, rows), telemetry=telemetry))
+    refused = replay(tmp_path, rows, "refused.jsonl")
+    code = run_teleop(options(cone_model, sim, refused, telemetry=telemetry))
     err = capsys.readouterr().err
     assert code == 2
     assert "0 accepted (0 skipped as stale), 5 refused" in err
@@ -245,13 +226,23 @@ def test_every_line_refused_exits_2_with_the_reasons(tmp_path, sim, cone_model, 
     )
     put_limb(sim, 52.0, -8.0)
     assert torque(sim) == [True, True]
-    code = run_teleop(options(cone_model, sim, replay(tmp_path, [{"pan": 0, "tilt": 0}]), wait=1.0))
+    rest = replay(tmp_path, [{"pan": 0, "tilt": 0}], "rest.jsonl")
+    code = run_teleop(options(cone_model, sim, rest, wait=1.0))
     err = capsys.readouterr().err
     assert code == 2
     assert torque(sim) == [False, False]
     assert "torque switched off so it can be moved by hand" in err
     assert "not started: the limb stayed outside for 1 s" in err
     assert "turn it right" in err and "--approach" in err
+
+    put_limb(sim, -50.0, 10.0)
+    source = replay(tmp_path, [{"pan": -20.0, "tilt": 5.0}] * 40, "approach.jsonl")
+    code = run_teleop(options(cone_model, sim, source, wait=20.0, approach=20.0))
+    err = capsys.readouterr().err
+    assert code == 0, err
+    assert "approach: driving the limb" in err and "(approached)" in err
+    # then it followed the commands
+    wait_for(lambda: abs(math.degrees(present_pose(sim)[0]) + 20.0) < 0.1, 5.0, "pan -20 deg")
 
 
 def test_an_approach_faster_than_allowed_is_refused_before_the_port_opens(tmp_path, cone_model):

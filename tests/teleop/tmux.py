@@ -1,8 +1,4 @@
-"""A command in a real terminal: a detached tmux pane, its keys sent and its text read.
-
-Used by the keyboard's tests and ``benchmarks/view_figures.py``; the program sees a real
-160 x 40 pseudo-terminal.
-"""
+"""A command in a real 160 x 40 terminal: a detached tmux pane, its keys sent, its text read."""
 
 from __future__ import annotations
 
@@ -17,8 +13,7 @@ from pathlib import Path
 from tests.system_tools import require
 
 ROOT = Path(__file__).resolve().parents[2]
-#: The terminal the issue's user had.
-COLUMNS, ROWS = 160, 40
+COLUMNS, ROWS = 160, 40  # the terminal the issue's user had
 #: Longest wait (s) for the pane to show something: generous on a loaded 2-core machine.
 WAIT_S = 60.0
 #: How often (s) the pane is read while waiting for text.
@@ -65,10 +60,8 @@ class Pane:
 
 @contextlib.contextmanager
 def tmux_pane(command: str, env: dict[str, str] | None = None) -> Iterator[Pane]:
-    """Run ``command`` in a new detached tmux session (COLUMNS x ROWS); killed on exit.
-
-    The pane stays open after the command ends, its last line ``EXIT <status>``.
-    """
+    """Run ``command`` in a new detached tmux session (COLUMNS x ROWS), killed on exit; the pane
+    stays open after the command ends, its last line ``EXIT <status>``."""
     require("tmux")
     name = f"limbctl-{uuid.uuid4().hex[:8]}"
     exports = "".join(f"export {k}={shlex.quote(v)}; " for k, v in (env or {}).items())

@@ -1,9 +1,5 @@
-"""A twist region for the three-servo leader's tests, fitted once per process.
-
-A synthetic teaching (:class:`limbctl.envelope.synthetic_twist.ShoulderRegion`) of a square swing
-outline, pan within +-30 deg and tilt within +-25 deg, with a twist band of +-30 deg about 0
-everywhere: the learned edge lies near pan 30 deg in swing and near roll 30 deg in twist.
-"""
+"""The three-servo leader tests' twist region, fitted once per process from a synthetic square
+(pan +-30, tilt +-25 deg) with a +-30 deg twist band: edges near pan 30 and roll 30 deg."""
 
 from __future__ import annotations
 
