@@ -40,7 +40,9 @@ def write(tmp_path, data, name="x.yaml"):
 
 
 @pytest.mark.parametrize("rig", ["sim", "sim3"])
-def test_a_packaged_profile_matches_its_file_and_the_simulated_world_and_round_trips(rig, tmp_path):
+def test_a_packaged_profile_matches_its_file_and_the_world_round_trips_and_reads_as_a_list(
+    rig, tmp_path
+):
     data = yaml.safe_load(SIM_YAML.with_name(f"{rig}.yaml").read_text())
     profile = default_sim_profile(rig)
     assert isinstance(profile, RigProfile) and profile.is_sim
@@ -66,6 +68,25 @@ def test_a_packaged_profile_matches_its_file_and_the_simulated_world_and_round_t
     assert (profile.pan, profile.tilt) == (default_sim_profile().pan, default_sim_profile().tilt)
     with pytest.raises(ProfileError, match="the packaged rigs are sim, sim3"):
         default_sim_profile("sim4")
+    # a joints list is the same profile, saved as a list; the named form is saved as it was read
+    named = default_sim_profile(rig)
+    data = named.to_dict()
+    joints = [{"name": name} | data.pop(name) for name, _ in named.joints]
+    listed = profile_from_dict(data | {"joints": joints}, "listed.yaml")
+    assert listed == named and listed.listed and not named.listed
+    assert [name for name, _ in listed.joints] == [name for name, _ in named.joints]
+    saved = load_profile(save_profile(listed, tmp_path / "listed.yaml"))
+    assert saved == named and saved.listed
+    assert "joints" in yaml.safe_load((tmp_path / "listed.yaml").read_text())
+    assert "joints" not in yaml.safe_load(save_profile(named, tmp_path / "n.yaml").read_text())
+    for bad in (joints[::-1], joints[:1], "pan", [*joints[:2], {"name": "yaw", **joints[0]}]):
+        with pytest.raises(ProfileError, match="joints must be a list of joints named pan, tilt"):
+            profile_from_dict(data | {"joints": bad}, "listed.yaml")
+    with pytest.raises(ProfileError, match="unknown keys pan"):
+        profile_from_dict(data | {"joints": joints, "pan": joints[0]}, "listed.yaml")
+    twin = [joints[0], joints[1] | {"id": joints[0]["id"]}, *joints[2:]]
+    with pytest.raises(ProfileError, match="tilt.id must differ from pan.id"):
+        profile_from_dict(data | {"joints": twin}, "listed.yaml")
 
 
 def test_a_profile_is_frozen_saved_atomically_anywhere_and_refused_invalid(tmp_path, monkeypatch):
@@ -295,26 +316,3 @@ def test_calibrations_with_and_without_roll_round_trip_name_differences_and_bad_
         calibration_from_dict(data, "model.npz")
     with pytest.raises(ProfileError, match="calibration must be a mapping"):
         calibration_from_dict(["x"] * 10_000, "model.npz")
-
-
-@pytest.mark.parametrize("rig", ["sim", "sim3"])
-def test_a_joints_list_is_the_same_profile_and_is_saved_as_a_list(rig, tmp_path):
-    named = default_sim_profile(rig)
-    data = named.to_dict()
-    joints = [{"name": name} | data.pop(name) for name, _ in named.joints]
-    listed = profile_from_dict(data | {"joints": joints}, "listed.yaml")
-    assert listed == named and listed.listed and not named.listed
-    assert [name for name, _ in listed.joints] == [name for name, _ in named.joints]
-    saved = load_profile(save_profile(listed, tmp_path / "listed.yaml"))
-    assert saved == named and saved.listed
-    assert "joints" in yaml.safe_load((tmp_path / "listed.yaml").read_text())
-    # the named form is saved as it was read: no joints list
-    assert "joints" not in yaml.safe_load(save_profile(named, tmp_path / "n.yaml").read_text())
-    for bad in (joints[::-1], joints[:1], "pan", [*joints[:2], {"name": "yaw", **joints[0]}]):
-        with pytest.raises(ProfileError, match="joints must be a list of joints named pan, tilt"):
-            profile_from_dict(data | {"joints": bad}, "listed.yaml")
-    with pytest.raises(ProfileError, match="unknown keys pan"):
-        profile_from_dict(data | {"joints": joints, "pan": joints[0]}, "listed.yaml")
-    twin = [joints[0], joints[1] | {"id": joints[0]["id"]}, *joints[2:]]
-    with pytest.raises(ProfileError, match="tilt.id must differ from pan.id"):
-        profile_from_dict(data | {"joints": twin}, "listed.yaml")

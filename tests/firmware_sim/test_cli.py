@@ -16,6 +16,7 @@ from dynamixel_sdk import COMM_SUCCESS, PacketHandler, PortHandler
 from firmware_sim.__main__ import main
 from firmware_sim.simulator import Simulator
 from firmware_sim.wire import RIG_BAUD
+from tests.firmware_sim.support import wait_for
 
 COMMAND = [sys.executable, "-m", "firmware_sim"]
 GOAL_POSITION, TORQUE_ENABLE, PRESENT_POSITION = 116, 64, 132
@@ -80,47 +81,32 @@ def test_bad_options_are_named(tmp_path, capsys, arguments, message):
 
 
 @pytest.mark.parametrize("stop_signal", [signal.SIGINT, signal.SIGTERM])
-def test_serves_until_signal_then_removes_link(tmp_path, stop_signal):
-    link = tmp_path / "ttyDXL"
-    log = tmp_path / "goals.jsonl"
-    with served(["--ids", "1,2", "--link", str(link), "--goal-log", str(log)]) as (process, ready):
+def test_serves_a_rig_and_a_leader_logs_goals_and_the_hand_until_a_signal_removes_the_link(
+    tmp_path, stop_signal
+):
+    """--goal-log, and --leader/--operator: the leader answers as its model, the hand turns it."""
+    link, log, operator = tmp_path / "ttyDXL", tmp_path / "leader.jsonl", tmp_path / "hand.yaml"
+    goals = tmp_path / "goals.jsonl"
+    operator.write_text("model: xl330-m288\nscript: [[0, 0, 0], [0.5, 40, 0]]\n")
+    # --model gives the limb's servos theirs; the leader's is the operator file's
+    models = ["--model", "xl430-w250,xm430-w350", "--goal-log", str(goals)]
+    arguments = ["--ids", "1,2", *models, "--link", str(link), "--leader", "3,4", "--operator"]
+    with served([*arguments, str(operator), "--leader-log", str(log)]) as (process, ready):
         assert "ready" in ready and str(link) in ready
+        assert "XL330-M288 ID 3" in ready and "XL330-M288 ID 4" in ready, ready
+        assert "XL430-W250 ID 1" in ready and "XM430-W350 ID 2" in ready, ready
         assert os.path.islink(link)
         port = PortHandler(str(link))
         assert port.setBaudRate(RIG_BAUD)
         packet = PacketHandler(2.0)
+        start, result, error = packet.read4ByteTxRx(port, 3, PRESENT_POSITION)  # the hand starts
+        assert (result, error) == (COMM_SUCCESS, 0)
+        assert packet.ping(port, 3) == (1200, COMM_SUCCESS, 0)
         assert packet.ping(port, 1) == (1060, COMM_SUCCESS, 0)
         assert packet.write1ByteTxRx(port, 1, TORQUE_ENABLE, 1) == (COMM_SUCCESS, 0)
         # pan zero is at 2185 ticks: 2185 + 1024 is pan +90 deg; tilt stays where it rests
         assert packet.write4ByteTxRx(port, 1, GOAL_POSITION, 2185 + 1024) == (COMM_SUCCESS, 0)
-        port.closePort()
-        process.send_signal(stop_signal)
-        assert process.wait(timeout=10) == 0
-    assert not os.path.lexists(link)
-    (line,) = [json.loads(text) for text in log.read_text().splitlines()]
-    assert set(line) == {"t", "id", "goal", "limb_dir"}
-    assert line["id"] == 1 and line["goal"] == 2185 + 1024
-    x, y, z = line["limb_dir"]
-    assert abs(x) < 0.02 and y > 0.99  # pan +90 deg points the limb along +y
-
-
-def test_a_leader_gimbal_moved_by_its_operator_is_served_and_logged(tmp_path):
-    """--leader/--operator: the leader answers as its model, the hand turns it, the log says so."""
-    link, log, operator = tmp_path / "ttyDXL", tmp_path / "leader.jsonl", tmp_path / "hand.yaml"
-    operator.write_text("model: xl330-m288\nscript: [[0, 0, 0], [0.5, 40, 0]]\n")
-    # --model gives the limb's servos theirs; the leader's is the operator file's
-    models = ["--model", "xl430-w250,xm430-w350"]
-    arguments = ["--ids", "1,2", *models, "--link", str(link), "--leader", "3,4", "--operator"]
-    with served([*arguments, str(operator), "--leader-log", str(log)]) as (process, ready):
-        assert "XL330-M288 ID 3" in ready and "XL330-M288 ID 4" in ready, ready
-        assert "XL430-W250 ID 1" in ready and "XM430-W350 ID 2" in ready, ready
-        port = PortHandler(str(link))
-        assert port.setBaudRate(RIG_BAUD)
-        packet = PacketHandler(2.0)
-        assert packet.ping(port, 3) == (1200, COMM_SUCCESS, 0)
-        start, result, error = packet.read4ByteTxRx(port, 3, PRESENT_POSITION)
-        assert (result, error) == (COMM_SUCCESS, 0)
-        # the hand takes the pan 40 deg (455 ticks) within 0.5 s; read until it has
+        # the hand takes the leader's pan 40 deg (455 ticks) within 0.5 s; read until it has
         turned = 0
         deadline = time.monotonic() + 10.0
         while abs(turned) < 440 and time.monotonic() < deadline:
@@ -128,8 +114,14 @@ def test_a_leader_gimbal_moved_by_its_operator_is_served_and_logged(tmp_path):
             if result == COMM_SUCCESS:
                 turned = now - start
         port.closePort()
-        process.send_signal(signal.SIGTERM)
+        process.send_signal(stop_signal)
         assert process.wait(timeout=10) == 0
+    assert not os.path.lexists(link)
+    (line,) = [json.loads(text) for text in goals.read_text().splitlines()]
+    assert set(line) == {"t", "id", "goal", "limb_dir"}
+    assert line["id"] == 1 and line["goal"] == 2185 + 1024
+    x, y, z = line["limb_dir"]
+    assert abs(x) < 0.02 and y > 0.99  # pan +90 deg points the limb along +y
     assert 440 <= abs(turned) <= 470, turned
     rows = [json.loads(line) for line in log.read_text().splitlines()]
     assert set(rows[-1]) >= {"t", "pose_deg", "hand_nm", "motor_nm", "motor_work_j"}
@@ -154,8 +146,10 @@ def test_an_event_names_a_renumbered_servo_by_its_id(tmp_path, capsys):
         assert port.setBaudRate(57_600)
         packet = PacketHandler(2.0)
         # servo 9 sees 5 V, below the XL430's 6.0 V limit: input voltage error and the alert
-        deadline = time.monotonic() + 5.0
-        while packet.read1ByteTxRx(port, 9, HARDWARE_ERROR)[0] != VOLTAGE_BIT:
-            assert time.monotonic() < deadline, "no input voltage error on servo 9"
+        wait_for(
+            lambda: packet.read1ByteTxRx(port, 9, HARDWARE_ERROR)[0] == VOLTAGE_BIT,
+            5,
+            "an input voltage error",
+        )
         assert packet.read1ByteTxRx(port, 1, HARDWARE_ERROR) == (0, COMM_SUCCESS, 0)
         port.closePort()

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import time
-
 import pytest
 from dynamixel_sdk import COMM_RX_TIMEOUT, COMM_SUCCESS, PacketHandler, PortHandler
 
@@ -11,6 +9,7 @@ from firmware_sim.control_table import Register
 from firmware_sim.events import EventSchedule, ScheduledEvent, parse_event
 from firmware_sim.simulator import Simulator
 from firmware_sim.wire import RIG_BAUD
+from tests.firmware_sim.support import wait_for
 from tests.firmware_sim.test_cli import served
 
 ID, TORQUE_ENABLE, HARDWARE_ERROR, PRESENT_PWM = 7, 64, 70, 124
@@ -127,23 +126,17 @@ def test_command_line_events_reach_the_servos(tmp_path):
         port, packet = PortHandler(str(link)), PacketHandler(2.0)
         assert port.setBaudRate(RIG_BAUD)
         # servo 1 sees 5 V, below its 6.0 V limit: input voltage error and the alert
-        deadline = time.monotonic() + 5.0
-        while packet.read1ByteTxRx(port, 1, HARDWARE_ERROR)[0] != VOLTAGE_BIT:
-            assert time.monotonic() < deadline, "no input voltage error on servo 1"
+        wait_for(
+            lambda: packet.read1ByteTxRx(port, 1, HARDWARE_ERROR)[0] == VOLTAGE_BIT,
+            5,
+            "an input voltage error",
+        )
         assert packet.read1ByteTxRx(port, 1, TORQUE_ENABLE) == (0, COMM_SUCCESS, ALERT)
         # servo 2, pushed toward fewer ticks: its drive saturates positive (two's complement 885)
         assert packet.write1ByteTxRx(port, 2, TORQUE_ENABLE, 1)[:1] == (COMM_SUCCESS,)
-        while packet.read2ByteTxRx(port, 2, PRESENT_PWM)[0] != 885:
-            assert time.monotonic() < deadline, "servo 2's Present PWM did not saturate"
+        wait_for(lambda: packet.read2ByteTxRx(port, 2, PRESENT_PWM)[0] == 885, 5, "PWM 885 on 2")
         # servo 3 has vanished for the whole test
         assert packet.ping(port, 3)[1] == COMM_RX_TIMEOUT
         port.closePort()
         process.terminate()
         assert process.wait(timeout=10) == 0
-
-
-def test_restart_over_the_pty_reads_torque_off(sim, sdk):
-    assert sdk.packet.write1ByteTxRx(sdk.port, 1, TORQUE_ENABLE, 1)[0] == COMM_SUCCESS
-    sim.restart(1, 0.0)
-    torque, result, error = sdk.packet.read1ByteTxRx(sdk.port, 1, TORQUE_ENABLE)
-    assert (torque, result, error) == (0, COMM_SUCCESS, 0)

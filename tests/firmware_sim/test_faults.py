@@ -8,6 +8,7 @@ import pytest
 from dynamixel_sdk import COMM_RX_CORRUPT, COMM_RX_TIMEOUT, COMM_SUCCESS
 
 from firmware_sim.faults import FaultInjector, FaultPlan
+from tests.firmware_sim.support import wait_for
 
 PRESENT_POSITION, HARDWARE_ERROR, TORQUE_ENABLE, SHUTDOWN = 132, 70, 64, 63
 VOLTAGE_BIT, OVERHEATING_BIT, ALERT = 0x01, 0x04, 0x80
@@ -31,7 +32,11 @@ def test_fault_plans_refuse_bad_options_and_the_same_seed_gives_the_same_faults(
     assert pattern(4) != pattern(5)
 
 
-def test_drops_corruption_latency_a_vanished_servo_and_alarms_reach_the_sdk(sdk, sim):
+def test_a_restart_drops_corruption_latency_a_vanished_servo_and_alarms_reach_the_sdk(sdk, sim):
+    p, port = sdk.packet, sdk.port
+    assert p.write1ByteTxRx(port, 1, TORQUE_ENABLE, 1) == (COMM_SUCCESS, 0)
+    sim.restart(1, 0.0)  # a brown-out: the servo restarts with torque off
+    assert p.read1ByteTxRx(port, 1, TORQUE_ENABLE) == (0, COMM_SUCCESS, 0)
     sim.set_faults(drop=1.0)
     assert set(outcomes(sdk, 3)) == {COMM_RX_TIMEOUT}
     sim.set_faults(drop=0.5, seed=3)
@@ -54,18 +59,12 @@ def test_drops_corruption_latency_a_vanished_servo_and_alarms_reach_the_sdk(sdk,
     sim.vanish(2, 0.3)
     assert sdk.packet.ping(sdk.port, 2)[1] == COMM_RX_TIMEOUT
     assert sdk.packet.ping(sdk.port, 1)[1] == COMM_SUCCESS
-    deadline = time.monotonic() + 5.0
-    while sdk.packet.ping(sdk.port, 2)[1] != COMM_SUCCESS:
-        assert time.monotonic() < deadline, "servo 2 never came back"
-    p, port = sdk.packet, sdk.port
+    wait_for(lambda: sdk.packet.ping(sdk.port, 2)[1] == COMM_SUCCESS, 5.0, "servo 2 back")
     assert p.write1ByteTxRx(port, 1, TORQUE_ENABLE, 1) == (COMM_SUCCESS, 0)
     sim.set_voltage(1, 5.0)
-    deadline = time.monotonic() + 5.0
-    while p.read1ByteTxRx(port, 1, HARDWARE_ERROR)[0] != VOLTAGE_BIT:
-        assert time.monotonic() < deadline, "no input voltage error"
+    wait_for(lambda: p.read1ByteTxRx(port, 1, HARDWARE_ERROR)[0] == VOLTAGE_BIT, 5, "voltage")
     # voltage is not in the default Shutdown mask (52): alert, but torque stays on
     assert p.read1ByteTxRx(port, 1, TORQUE_ENABLE) == (1, COMM_SUCCESS, ALERT)
     sim.set_temperature(2, 95.0)
-    while not p.read1ByteTxRx(port, 2, HARDWARE_ERROR)[0] & OVERHEATING_BIT:
-        assert time.monotonic() < deadline, "no overheating error"
+    wait_for(lambda: p.read1ByteTxRx(port, 2, HARDWARE_ERROR)[0] & OVERHEATING_BIT, 5, "heat")
     assert p.read1ByteTxRx(port, 2, TORQUE_ENABLE) == (0, COMM_SUCCESS, ALERT)

@@ -1,5 +1,4 @@
-"""The scripted hand: its description (a region with or without a twist band, a script with or
-without a roll), its tremor and seed, the twist band and the twist kept in it, the roll turned."""
+"""The scripted hand: regions, scripts, tremor and seed, visits, the twist band and the roll."""
 
 from __future__ import annotations
 
@@ -114,17 +113,15 @@ def test_the_calibration_script_moves_the_backdriven_limb_and_a_hand_turns_the_r
     angles = world.joint_angles_deg()
     pan, tilt, roll = hand.pose_deg(world.hand_time_s)
     # the grip lags the hand by ~15 ms: the roll lies among the hand's rolls of the last 30 ms
-    # (a brisk twist turns a few degrees in that time), and the roll really moved
     recent = [hand.pose_deg(world.hand_time_s - 0.001 * k)[2] for k in range(31)]
     assert min(recent) - 1.0 <= angles["roll"] <= max(recent) + 1.0
     assert abs(roll) > 1.0
     assert angles["pan"] == pytest.approx(pan, abs=3.0)
-    # a plain hand leaves the roll joint where it rests
     plain = World(joints=(*World().joints, ROLL_JOINT), hand=Hand.from_mapping(CONE), seed=1)
     rest = plain.joint_angles_deg()["roll"]
     for _ in range(500):
         plain.step(0.001, {1: None, 2: None, 3: None})
-    assert plain.joint_angles_deg()["roll"] == rest
+    assert plain.joint_angles_deg()["roll"] == rest, "a plain hand turned the roll joint"
 
 
 def test_the_twist_keeps_to_a_plane_or_curved_band_and_reaches_both_its_stops():
@@ -143,8 +140,7 @@ def test_the_twist_keeps_to_a_plane_or_curved_band_and_reaches_both_its_stops():
         at_edge = near & tracing & (depth < 3.0)
         places = hand.region.boundary_fraction(poses[at_edge, 0], poses[at_edge, 1])
         assert len(np.unique(np.round(places * 8))) >= 3
-    # after the trace, the wander still turns to both stops
-    assert np.any(near_high & (times > end)) and np.any(near_low & (times > end))
+    assert np.any(near_high & (times > end)) and np.any(near_low & (times > end)), "wander"
     data = {
         "region": {"polygon": [[-40, -30], [40, -30], [40, 40], [-40, 40]]},
         "twist": {
@@ -159,7 +155,6 @@ def test_the_twist_keeps_to_a_plane_or_curved_band_and_reaches_both_its_stops():
     assert hand.band.limits_deg(0, 5)[1] - hand.band.limits_deg(0, 5)[0] < 2 * (35 - 1 - 9)
     slack = TWIST_INSET_DEG - TREMOR_SLACK_DEG
     assert np.all(twist <= high - slack + 1e-9) and np.all(twist >= low + slack - 1e-9)
-    # and it turns to both stops (within its inset and tremor) along the way
     assert np.sum(twist >= high - TWIST_INSET_DEG - TREMOR_SLACK_DEG) > 10
     assert np.sum(twist <= low + TWIST_INSET_DEG + TREMOR_SLACK_DEG) > 10
 
@@ -296,7 +291,6 @@ def test_a_guided_teaching_of_a_small_region_ends_ready_and_within_a_degree_of_t
         "region": {"polygon": polygon},
         "twist": {"centre_deg": [10, 0.2, 0.0], "half_width_deg": [30, 0.0, -0.1]},
     }
-    # 12 s of scripted teaching leave requests; the hand's visits answer them
     taught = bench.guided(region, seed=1, teach_s=12.0)
     assert taught["asked"][0] > 0 and taught["rounds"] >= 1
     assert taught["complete"] and taught["asked"][-1] == 0

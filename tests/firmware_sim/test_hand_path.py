@@ -1,5 +1,4 @@
-"""The swing path: a hand stays in its region, covers it like a person (the edge traced first,
-then wandering), rounds corners, retraces when boxed in."""
+"""The swing path: in its region, the edge traced then wandered, corners rounded, retraced."""
 
 from __future__ import annotations
 
@@ -99,11 +98,17 @@ def test_a_wandering_minute_stays_in_covers_edge_and_interior_dense_in_the_middl
     assert np.median(near_edge) < 0.75 * np.median(middle_speed)
 
 
-def test_the_default_hand_traces_the_whole_edge_first_at_a_persons_pace_then_wanders(taught):
+def test_the_default_hand_takes_hold_traces_the_whole_edge_at_a_persons_pace_then_wanders(taught):
     hand, samples, t = taught
     region = hand.region
     start, end = hand.path.trace_span_s
     assert hand.style == "trace"
+    rest = World(hand=hand, seed=11).joint_angles_deg()
+    assert hand.pose_deg(0.0) == pytest.approx((rest["pan"], rest["tilt"]), abs=DEFAULT_TREMOR_DEG)
+    # no yank: a minimum-jerk move peaks at 1.875 x its mean speed; the tremor adds a little
+    speed = np.hypot(*np.diff(samples[:300], axis=0).T) * 100.0
+    assert speed.max() < 2.0 * hand.speed_deg_s + 15.0, "the hand yanked the limb"
+    assert np.hypot(*(samples[299] - samples[0])) > 10.0  # it did take the limb somewhere
     # it reaches the edge within a couple of seconds of taking hold ...
     assert start < 3.0
     tracing = (t >= start) & (t < end)
@@ -131,32 +136,7 @@ def test_the_default_hand_traces_the_whole_edge_first_at_a_persons_pace_then_wan
     assert 0.3 < np.percentile(depth, 95) - np.percentile(depth, 5) < 1.0
 
 
-def test_a_hand_takes_hold_without_a_yank_and_boxed_in_retraces_its_steps():
-    hand = Hand.from_yaml(REGIONS / "irregular.yaml", seed=17)
-    world = World(hand=hand, seed=17)
-    start = world.joint_angles_deg()
-    assert hand.pose_deg(0.0) == pytest.approx(
-        (start["pan"], start["tilt"]), abs=DEFAULT_TREMOR_DEG
-    )
-    samples = record(hand, seconds=3.0, seed=17)
-    speed = np.hypot(*np.diff(samples, axis=0).T) * 100.0
-    # a minimum-jerk move peaks at 1.875 x its mean speed; the tremor adds a little
-    assert speed.max() < 2.0 * hand.speed_deg_s + 15.0
-    assert np.hypot(*(samples[-1] - samples[0])) > 10.0  # it did take the limb somewhere
-    hand = Hand.from_mapping({"region": {"polygon": U_SHAPE}, "tremor_deg": 0}, seed=19)
-    hand.pose_deg(20.0)
-    path = hand.path
-    *_, last_move = (s for s in path.track.segments if s[2:4] != s[4:6])  # moves, not pauses
-    before = len(path.track.segments)
-    path._reach = lambda target: False  # nothing reachable from here: boxed in
-    path._plan_next()
-    (retrace,) = (s for s in path.track.segments[before:] if s[6])
-    # back along the last move: its end to its start, bowed the same way
-    assert retrace[2:6] == (*last_move[4:6], *last_move[2:4])
-    assert retrace[7:9] == last_move[7:9]
-
-
-def test_a_u_is_traced_round_its_reflex_corners_and_walked_round_them_continuously():
+def test_a_u_is_traced_and_walked_round_its_reflex_corners_boxed_in_retraced_a_notch_reached():
     # the U's inner corners are reflex: a trace set in from one side would cut the corner
     hand = Hand.from_mapping({"region": {"polygon": U_SHAPE}, "tremor_deg": 0}, seed=20)
     start, end = hand.path.trace_span_s
@@ -175,6 +155,17 @@ def test_a_u_is_traced_round_its_reflex_corners_and_walked_round_them_continuous
     assert np.hypot(*np.diff(poses, axis=0).T).max() / 0.001 < 2.0 * hand.speed_deg_s
     for arm in (poses[:, 0] < -40.0, poses[:, 0] > 40.0):
         assert np.any(arm & (poses[:, 1] > 30.0))  # both arms' tips are reached
+    # boxed in, it retraces its last move: its end to its start, bowed the same way
+    hand = Hand.from_mapping({"region": {"polygon": U_SHAPE}, "tremor_deg": 0}, seed=19)
+    hand.pose_deg(20.0)
+    path = hand.path
+    *_, last_move = (s for s in path.track.segments if s[2:4] != s[4:6])  # moves, not pauses
+    before = len(path.track.segments)
+    path._reach = lambda target: False  # nothing reachable from here: boxed in
+    path._plan_next()
+    (retrace,) = (s for s in path.track.segments[before:] if s[6])
+    assert retrace[2:6] == (*last_move[4:6], *last_move[2:4])
+    assert retrace[7:9] == last_move[7:9]
     # a notched region: the planned path keeps its margin yet goes to the edge
     notch = [[-40, -30], [40, -30], [40, 30], [0, 0], [-40, 30]]
     hand = Hand.from_mapping({"region": {"polygon": notch}, "tremor_deg": 0}, seed=12)

@@ -16,6 +16,7 @@ from dynamixel_sdk import (
 
 from firmware_sim.protocol import Instruction, build_packet, crc16
 from firmware_sim.wire import RIG_BAUD
+from tests.firmware_sim.support import wait_for
 
 # e-Manual addresses (XL430-W250)
 ID, RETURN_DELAY, DRIVE_MODE, OPERATING_MODE, HOMING_OFFSET = 7, 9, 10, 11, 20
@@ -41,7 +42,8 @@ def raw_exchange(port_name: str, packet: bytes, expect: int, timeout_s: float = 
         return link.read(expect)
 
 
-def test_ping_read_write_errors_reg_write_stuffing_indirect_reboot_sync_and_bulk(sdk, sim):
+def test_every_instruction_and_error_number_through_the_sdk(sdk, sim):
+    """Ping, read/write errors, REG_WRITE, stuffing, indirect, reboot, sync/bulk, CLEAR."""
     assert sdk.packet.ping(sdk.port, 2) == (XL430_MODEL, COMM_SUCCESS, 0)
     assert sdk.packet.ping(sdk.port, 7)[1] == COMM_RX_TIMEOUT
     found, result = sdk.packet.broadcastPing(sdk.port)
@@ -62,7 +64,6 @@ def test_ping_read_write_errors_reg_write_stuffing_indirect_reboot_sync_and_bulk
     assert (comm, error) == (COMM_SUCCESS, 7)
     assert ok(p.write1ByteTxRx(port, 1, TORQUE_ENABLE, 0)) == 0
     assert ok(p.write1ByteTxRx(port, 1, OPERATING_MODE, 2)) == 4  # no mode 2 on the XL430
-    p, port = sdk.packet, sdk.port
     # undefined instruction 0x7F
     _, comm, error = p.txRxPacket(port, [0, 0, 0, 0, 1, 3, 0, 0x7F, 0, 0])
     assert (comm, error) == (COMM_SUCCESS, 2)
@@ -74,14 +75,12 @@ def test_ping_read_write_errors_reg_write_stuffing_indirect_reboot_sync_and_bulk
     reply = raw_exchange(port.port_name, bytes(bad), 11)
     assert reply[4] == 1 and reply[7] == 0x55 and reply[8] == 3
     assert crc16(reply[:-2]) == reply[-2] | (reply[-1] << 8)
-    p, port = sdk.packet, sdk.port
     assert ok(p.regWriteTxRx(port, 2, LED, 1, [1])) == 0
     assert p.read1ByteTxRx(port, 2, REGISTERED) == (1, COMM_SUCCESS, 0)
     assert p.read1ByteTxRx(port, 2, LED)[0] == 0
     assert p.action(port, 0xFE) == COMM_SUCCESS
     assert p.read1ByteTxRx(port, 2, LED) == (1, COMM_SUCCESS, 0)
     assert p.read1ByteTxRx(port, 2, REGISTERED)[0] == 0
-    p, port = sdk.packet, sdk.port
     # Goal Velocity -1 (FF FF FF FF) followed by Profile Acceleration 253 (FD 00 00 00)
     data = [0xFF, 0xFF, 0xFF, 0xFF, 0xFD, 0x00, 0x00, 0x00]
     assert ok(p.writeTxRx(port, 1, GOAL_VELOCITY, 8, data)) == 0  # the SDK stuffs this one
@@ -89,18 +88,15 @@ def test_ping_read_write_errors_reg_write_stuffing_indirect_reboot_sync_and_bulk
     request = build_packet(1, Instruction.READ, bytes([GOAL_VELOCITY, 0, 8, 0]))
     reply = raw_exchange(port.port_name, request, 20)
     assert b"\xff\xff\xfd\xfd" in reply[7:] and reply[5] == 13  # LEN counts the stuffing FD
-    p, port = sdk.packet, sdk.port
     for k in range(4):
         assert ok(p.write2ByteTxRx(port, 1, INDIRECT_ADDRESS_1 + 2 * k, PRESENT_POSITION + k)) == 0
     direct = p.read4ByteTxRx(port, 1, PRESENT_POSITION)[0]
     assert p.read4ByteTxRx(port, 1, INDIRECT_DATA_1) == (direct, COMM_SUCCESS, 0)
-    p, port = sdk.packet, sdk.port
     assert ok(p.write4ByteTxRx(port, 1, HOMING_OFFSET, 42)) == 0
     assert ok(p.write1ByteTxRx(port, 1, LED, 1)) == 0
     assert ok(p.reboot(port, 1)) == 0
     assert p.read1ByteTxRx(port, 1, LED)[0] == 0
     assert p.read4ByteTxRx(port, 1, HOMING_OFFSET)[0] == 42
-    p, port = sdk.packet, sdk.port
     writer = GroupSyncWrite(port, p, HOMING_OFFSET, 4)
     writer.addParam(1, (100).to_bytes(4, "little"))
     writer.addParam(2, (-200).to_bytes(4, "little", signed=True))
@@ -124,45 +120,7 @@ def test_ping_read_write_errors_reg_write_stuffing_indirect_reboot_sync_and_bulk
         assert read() == COMM_SUCCESS
         assert bulk_reader.getData(1, LED, 1) == 1
         assert bulk_reader.getData(2, PRESENT_POSITION, 4) == expected[2]
-
-
-def test_status_return_levels_return_delay_and_factory_reset_options(sdk):
-    p, port = sdk.packet, sdk.port
-    # the new level already governs the answer to the write that sets it
-    assert p.write1ByteTxRx(port, 1, STATUS_RETURN_LEVEL, 1)[0] == COMM_RX_TIMEOUT
-    assert p.write1ByteTxRx(port, 1, LED, 1)[0] == COMM_RX_TIMEOUT  # writes now silent
-    assert p.read1ByteTxRx(port, 1, LED) == (1, COMM_SUCCESS, 0)  # reads still answered
-    p.write1ByteTxOnly(port, 1, STATUS_RETURN_LEVEL, 0)
-    assert p.read1ByteTxRx(port, 1, LED)[1] == COMM_RX_TIMEOUT
-    assert p.ping(port, 1)[1] == COMM_SUCCESS  # PING is always answered
-    # level 2 governs the answer to the write that sets it: read that answer here (sent
-    # TxOnly it stayed in the line and was taken for the next write's answer, whose own
-    # answer then came 508 us later and was taken for the read below: a flaky timing)
-    assert ok(p.write1ByteTxRx(port, 1, STATUS_RETURN_LEVEL, 2)) == 0
-    assert ok(p.write1ByteTxRx(port, 1, RETURN_DELAY, 254)) == 0
-    # the answer cannot come before 254 * 2 us, and it is the read's own (LED is 1)
-    start = time.perf_counter()
-    assert p.read1ByteTxRx(port, 1, LED) == (1, COMM_SUCCESS, 0)
-    assert time.perf_counter() - start >= 254 * 2e-6
-    p, port = sdk.packet, sdk.port
-    assert ok(p.write1ByteTxRx(port, 2, RETURN_DELAY, 3)) == 0
-    assert ok(p.factoryReset(port, 2, 0x02)) == 0  # keep ID and baud
-    assert p.read1ByteTxRx(port, 2, RETURN_DELAY) == (250, COMM_SUCCESS, 0)
-    assert ok(p.write1ByteTxRx(port, 2, ID, 5)) == 0
-    assert ok(p.factoryReset(port, 5, 0x01)) == 0  # keep ID: the baud is back at 57600
-    assert p.ping(port, 5)[1] == COMM_RX_TIMEOUT
-    assert port.setBaudRate(57600)
-    assert p.ping(port, 5)[1] == COMM_SUCCESS
-    p.factoryReset(port, 0xFE, 0xFF)  # refused on broadcast: IDs would collide
-    assert p.ping(port, 5)[1] == COMM_SUCCESS
-    assert ok(p.factoryReset(port, 5, 0xFF)) == 0  # everything, ID back to 1
-    assert p.ping(port, 5)[1] == COMM_RX_TIMEOUT
-    # unknown option: only the reset servo answers as ID 1 at 57600 (the other is at 4 Mbps)
-    assert ok(p.factoryReset(port, 1, 0x03)) == 4
-
-
-def test_clear_multi_turn_and_result_fail(sdk, sim):
-    p, port = sdk.packet, sdk.port
+    # CLEAR of the multi-turn count, and result fail while moving or with an error latched
     assert ok(p.write1ByteTxRx(port, 1, OPERATING_MODE, 4)) == 0  # extended position
     assert ok(p.write4ByteTxRx(port, 1, HOMING_OFFSET, 4096 * 2)) == 0
     before = p.read4ByteTxRx(port, 1, PRESENT_POSITION)[0]
@@ -177,13 +135,41 @@ def test_clear_multi_turn_and_result_fail(sdk, sim):
     assert ok(p.write1ByteTxRx(port, 1, TORQUE_ENABLE, 1)) == 0
     target = after + 2000
     assert ok(p.write4ByteTxRx(port, 1, GOAL_POSITION, target)) == 0
-    deadline = time.monotonic() + 2.0
-    while p.read1ByteTxRx(port, 1, MOVING)[0] == 0:
-        assert time.monotonic() < deadline, "the servo never started moving"
+    wait_for(lambda: p.read1ByteTxRx(port, 1, MOVING)[0], 2.0, "the servo to start moving")
     assert ok(p.clearMultiTurn(port, 1)) == 1
     # torque on cannot be enabled while a hardware error is latched: result fail
     sim.set_temperature(2, 90.0)
-    deadline = time.monotonic() + 2.0
-    while p.read1ByteTxRx(port, 2, HARDWARE_ERROR)[0] == 0:
-        assert time.monotonic() < deadline, "overheating was never reported"
+    wait_for(lambda: p.read1ByteTxRx(port, 2, HARDWARE_ERROR)[0], 2.0, "overheating")
     assert ok(p.write1ByteTxRx(port, 2, TORQUE_ENABLE, 1)) == 0x80 | 1
+
+
+def test_status_return_levels_return_delay_and_factory_reset_options(sdk):
+    p, port = sdk.packet, sdk.port
+    # the new level already governs the answer to the write that sets it
+    assert p.write1ByteTxRx(port, 1, STATUS_RETURN_LEVEL, 1)[0] == COMM_RX_TIMEOUT
+    assert p.write1ByteTxRx(port, 1, LED, 1)[0] == COMM_RX_TIMEOUT  # writes now silent
+    assert p.read1ByteTxRx(port, 1, LED) == (1, COMM_SUCCESS, 0)  # reads still answered
+    p.write1ByteTxOnly(port, 1, STATUS_RETURN_LEVEL, 0)
+    assert p.read1ByteTxRx(port, 1, LED)[1] == COMM_RX_TIMEOUT
+    assert p.ping(port, 1)[1] == COMM_SUCCESS  # PING is always answered
+    # level 2 answers the write that sets it: read that answer (sent TxOnly, it misled the next)
+    assert ok(p.write1ByteTxRx(port, 1, STATUS_RETURN_LEVEL, 2)) == 0
+    assert ok(p.write1ByteTxRx(port, 1, RETURN_DELAY, 254)) == 0
+    # the answer cannot come before 254 * 2 us, and it is the read's own (LED is 1)
+    start = time.perf_counter()
+    assert p.read1ByteTxRx(port, 1, LED) == (1, COMM_SUCCESS, 0)
+    assert time.perf_counter() - start >= 254 * 2e-6
+    assert ok(p.write1ByteTxRx(port, 2, RETURN_DELAY, 3)) == 0
+    assert ok(p.factoryReset(port, 2, 0x02)) == 0  # keep ID and baud
+    assert p.read1ByteTxRx(port, 2, RETURN_DELAY) == (250, COMM_SUCCESS, 0)
+    assert ok(p.write1ByteTxRx(port, 2, ID, 5)) == 0
+    assert ok(p.factoryReset(port, 5, 0x01)) == 0  # keep ID: the baud is back at 57600
+    assert p.ping(port, 5)[1] == COMM_RX_TIMEOUT
+    assert port.setBaudRate(57600)
+    assert p.ping(port, 5)[1] == COMM_SUCCESS
+    p.factoryReset(port, 0xFE, 0xFF)  # refused on broadcast: IDs would collide
+    assert p.ping(port, 5)[1] == COMM_SUCCESS
+    assert ok(p.factoryReset(port, 5, 0xFF)) == 0  # everything, ID back to 1
+    assert p.ping(port, 5)[1] == COMM_RX_TIMEOUT
+    # unknown option: only the reset servo answers as ID 1 at 57600 (the other is at 4 Mbps)
+    assert ok(p.factoryReset(port, 1, 0x03)) == 4

@@ -1,6 +1,5 @@
-"""The leader gimbal's world, two servos (pan, tilt) or three (pan, tilt, roll): the operator's
-hand on each joint, friction, let go, the joints built like the follower's, the ground-truth log,
-and the operator files that describe it."""
+"""The leader gimbal's world of two or three joints: the operator's hand, friction, let go, the
+joints built like the follower's, the ground-truth log and the operator files."""
 
 from __future__ import annotations
 

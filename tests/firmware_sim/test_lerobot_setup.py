@@ -1,5 +1,4 @@
-"""LeRobot's own motor set-up and client against factory-fresh simulated servos, run by
-benchmarks/lerobot_setup_check.py in ``$LEROBOT_PYTHON`` (or this python if it has lerobot)."""
+"""LeRobot's own motor set-up and client on factory-fresh simulated servos (lerobot_setup_check)."""
 
 from __future__ import annotations
 

@@ -45,8 +45,7 @@ def test_boundary_point_and_fraction_are_inverse(region):
         assert float(region.boundary_fraction(pan, tilt)) == pytest.approx(u, abs=1e-9)
         inset = region.boundary_point(u, 1.5)
         depth = float(region.edge_distance_deg(*inset))
-        # moved 1.5 deg inward along its edge's normal; nearer a corner the next edge is closer
-        # (at a sharp corner even outside: the hand drops such points before tracing)
+        # 1.5 deg inward; nearer a corner the next edge is closer (at a sharp one, even outside)
         corners = getattr(region, "vertices_deg", np.empty((0, 2)))
         if np.all(np.hypot(*(corners - [pan, tilt]).T) > 5.0):
             assert depth == pytest.approx(1.5, abs=1e-6)

@@ -1,4 +1,4 @@
-"""Servo motion and protection of firmware_sim, driven through the real SDK over the pty."""
+"""Servo motion and protection of firmware_sim, through the real SDK over the pty."""
 
 from __future__ import annotations
 
@@ -13,21 +13,12 @@ from firmware_sim.motion import (
     time_based_limits,
     velocity_based_limits,
 )
+from tests.firmware_sim.support import wait_for
 
 DRIVE_MODE, HOMING_OFFSET, TORQUE_ENABLE, HARDWARE_ERROR = 10, 20, 64, 70
 PROFILE_ACCELERATION, PROFILE_VELOCITY, GOAL_POSITION = 108, 112, 116
 MOVING, PRESENT_LOAD, PRESENT_POSITION, VELOCITY_TRAJECTORY = 122, 126, 132, 136
 OVERLOAD_BIT, ALERT = 0x20, 0x80
-
-
-def wait_for(condition, timeout_s: float, what: str):
-    """Poll ``condition`` until it returns a truthy value; fail naming ``what`` on timeout."""
-    deadline = time.monotonic() + timeout_s
-    while True:
-        value = condition()
-        if value:
-            return value
-        assert time.monotonic() < deadline, f"timed out waiting for {what}"
 
 
 def write(sdk, servo_id, address, size, value):
@@ -72,37 +63,10 @@ def test_trajectories_respect_their_caps_and_a_time_based_profile_its_time():
     assert abs(steps - 800) <= 20  # 0.8 s (the profile's own duration) within 2.5 %
 
 
-def test_position_control_follows_its_profile_a_blocked_goal_overloads_and_homing_maps(sdk, sim):
-    write(sdk, 1, PROFILE_VELOCITY, 4, 60)
-    write(sdk, 1, PROFILE_ACCELERATION, 4, 20)
-    write(sdk, 1, TORQUE_ENABLE, 1, 1)
-    start = read(sdk, 1, PRESENT_POSITION, 4)
-    goal = start + 600
-    write(sdk, 1, GOAL_POSITION, 4, goal)
-    peak = 0
-    deadline = time.monotonic() + 10.0
-    while (
-        read(sdk, 1, MOVING, 1, signed=False) or abs(read(sdk, 1, PRESENT_POSITION, 4) - goal) > 3
-    ):
-        peak = max(peak, read(sdk, 1, VELOCITY_TRAJECTORY, 4))
-        assert time.monotonic() < deadline, "the move never finished"
-    assert 0 < peak <= 60  # the profile velocity caps the trajectory
-    assert abs(sim.truth()["servos"][1]["raw_tick"] - goal) <= 3
-    write(sdk, 1, TORQUE_ENABLE, 1, 1)
-    # pan's end stop is at +120 deg = 2185 + 1365 ticks; command far beyond it (within limits)
-    write(sdk, 1, GOAL_POSITION, 4, 4000)
-    wait_for(lambda: read(sdk, 1, HARDWARE_ERROR, 1, signed=False), 10.0, "the stall to trip")
-    assert sim.truth()["servos"][1]["torque_on"] is False
-    assert sim.truth()["joints_deg"]["pan"] <= 120.0 + 1e-6
-    raw = sim.truth()["servos"][2]["raw_tick"]
-    assert read(sdk, 2, PRESENT_POSITION, 4) == round(raw)
-    write(sdk, 2, HOMING_OFFSET, 4, 1000)
-    assert read(sdk, 2, PRESENT_POSITION, 4) == round(raw + 1000)
-    write(sdk, 2, DRIVE_MODE, 1, 1)  # reverse
-    assert read(sdk, 2, PRESENT_POSITION, 4) == round(4096 - raw + 1000)
-
-
-def test_torque_off_backdrive_and_torque_on_hold(sdk, sim):
+def test_backdrive_hold_overload_position_control_homing_and_watchdog_over_the_pty(sdk, sim):
+    """One bus: a hand backdrives a free joint, not a held one; a push trips overload until a
+    reboot; moves follow the profile, a blocked goal overloads; homing and drive mode map the
+    position; the bus watchdog stops a velocity servo the bus went silent on."""
     before = read(sdk, 1, PRESENT_POSITION, 4)
     # a hand that carries the pan joint to 30 deg within 0.3 s and holds it there
     sim.set_hand({"script": [[0.0, 0.0, 0.0], [0.3, 30.0, 0.0]]})
@@ -114,12 +78,9 @@ def test_torque_off_backdrive_and_torque_on_hold(sdk, sim):
     held = read(sdk, 1, PRESENT_POSITION, 4)
     sim.set_hand({"script": [[0.0, 30.0, 0.0], [0.3, -30.0, 0.0]]})
     for _ in range(200):
-        assert abs(read(sdk, 1, PRESENT_POSITION, 4) - held) <= 5  # the hand cannot move it
+        assert abs(read(sdk, 1, PRESENT_POSITION, 4) - held) <= 5, "the hand moved a held joint"
     assert abs(sim.truth()["joints_deg"]["pan"] - 30.0) < 1.0
-
-
-def test_overload_trips_torque_and_alert_until_reboot(sdk, sim):
-    write(sdk, 1, TORQUE_ENABLE, 1, 1)
+    sim.set_hand(None)
     sim.push(1, 150.0)
     load = wait_for(
         lambda: abs(read(sdk, 1, PRESENT_LOAD, 2)) > 1000 * 0.99 or None, 5.0, "load to build"
@@ -136,25 +97,47 @@ def test_overload_trips_torque_and_alert_until_reboot(sdk, sim):
     comm, error = sdk.packet.reboot(sdk.port, 1)
     assert comm == COMM_SUCCESS
     assert sdk.packet.read1ByteTxRx(sdk.port, 1, HARDWARE_ERROR) == (0, COMM_SUCCESS, 0)
+    write(sdk, 1, PROFILE_VELOCITY, 4, 60)
+    write(sdk, 1, PROFILE_ACCELERATION, 4, 20)
     write(sdk, 1, TORQUE_ENABLE, 1, 1)
-
-
-def test_bus_watchdog_stops_a_velocity_servo_the_bus_went_silent_on(sdk, sim):
+    start = read(sdk, 1, PRESENT_POSITION, 4)
+    goal = start + 600
+    write(sdk, 1, GOAL_POSITION, 4, goal)
+    peak = 0
+    deadline = time.monotonic() + 10.0
+    while (
+        read(sdk, 1, MOVING, 1, signed=False) or abs(read(sdk, 1, PRESENT_POSITION, 4) - goal) > 3
+    ):
+        peak = max(peak, read(sdk, 1, VELOCITY_TRAJECTORY, 4))
+        assert time.monotonic() < deadline, "the move never finished"
+    assert 0 < peak <= 60, "the profile velocity does not cap the trajectory"
+    assert abs(sim.truth()["servos"][1]["raw_tick"] - goal) <= 3
+    # pan's end stop is at +120 deg = 2185 + 1365 ticks; command far beyond it (within limits)
+    write(sdk, 1, GOAL_POSITION, 4, 4000)
+    wait_for(lambda: read(sdk, 1, HARDWARE_ERROR, 1, signed=False), 10.0, "the stall to trip")
+    assert sim.truth()["servos"][1]["torque_on"] is False
+    assert sim.truth()["joints_deg"]["pan"] <= 120.0 + 1e-6
+    raw = sim.truth()["servos"][2]["raw_tick"]
+    assert read(sdk, 2, PRESENT_POSITION, 4) == round(raw)
+    write(sdk, 2, HOMING_OFFSET, 4, 1000)
+    assert read(sdk, 2, PRESENT_POSITION, 4) == round(raw + 1000)
+    write(sdk, 2, DRIVE_MODE, 1, 1)  # reverse
+    assert read(sdk, 2, PRESENT_POSITION, 4) == round(4096 - raw + 1000)
+    assert sdk.packet.reboot(sdk.port, 1)[0] == COMM_SUCCESS
     operating_mode, bus_watchdog, goal_velocity, present_velocity = 11, 98, 104, 128
     write(sdk, 1, operating_mode, 1, 1)  # velocity control (EEPROM: torque still off)
     write(sdk, 1, bus_watchdog, 1, 5)  # 5 x 20 ms = 100 ms of silence allowed
     write(sdk, 1, TORQUE_ENABLE, 1, 1)
-    write(sdk, 1, goal_velocity, 4, 50)
+    write(sdk, 1, goal_velocity, 4, -50)  # away from the +120 deg end stop the stall left it at
     # polling keeps the watchdog fed: it must not trip while the bus talks
-    wait_for(lambda: read(sdk, 1, present_velocity, 4) >= 45 or None, 5.0, "spin-up")
+    wait_for(lambda: read(sdk, 1, present_velocity, 4) <= -45 or None, 5.0, "spin-up")
     assert read(sdk, 1, bus_watchdog, 1, signed=False) == 5
-    # the behaviour under test is silence itself: 300 ms without a packet to this servo
-    time.sleep(0.3)
+    time.sleep(0.3)  # the behaviour under test is silence itself
     assert read(sdk, 1, bus_watchdog, 1, signed=False) == 0xFF  # tripped: reads -1
     wait_for(lambda: read(sdk, 1, present_velocity, 4) == 0, 5.0, "the stop")
     # velocity goals are refused (Data Range Error) until the watchdog is cleared
     comm, error = sdk.packet.write4ByteTxRx(sdk.port, 1, goal_velocity, 50)
     assert (comm, error & 0x7F) == (COMM_SUCCESS, 4)
     write(sdk, 1, bus_watchdog, 1, 0)
-    write(sdk, 1, goal_velocity, 4, 50)
-    wait_for(lambda: read(sdk, 1, present_velocity, 4) >= 45 or None, 5.0, "restart")
+    write(sdk, 1, goal_velocity, 4, -50)
+    wait_for(lambda: read(sdk, 1, present_velocity, 4) <= -45 or None, 5.0, "restart")

@@ -1,5 +1,4 @@
-"""The simulated bus is as strict as the wire: baud rates, ID/baud changes, collisions,
-factory-fresh servos, one slot at a time, time on the wire, EEPROM kept in files."""
+"""The simulated bus is as strict as the wire: bauds, IDs, collisions, wire time, EEPROM files."""
 
 import json
 import math
@@ -38,9 +37,18 @@ def sdk_at(port_name: str, baud: int) -> PortHandler:
     return port
 
 
-def test_id_and_baud_change_as_on_real_servos_found_as_lerobot_finds_them(tmp_path):
-    """LeRobot's setup_motors flow through the SDK alone: find by baud, write ID, then baud."""
-    with SimulatedBus(factory=1, link=tmp_path / "tty") as sim:
+def test_factory_servos_collide_and_id_and_baud_change_as_lerobot_finds_them(tmp_path):
+    """LeRobot's setup_motors flow through the SDK alone: find by baud, write ID, then baud;
+    factory-fresh servos all answer as ID 1 and collide, one alone (in slot 2) answers."""
+    with SimulatedBus(factory=2, link=tmp_path / "tty") as sim:
+        packet = PacketHandler(2.0)
+        port = sdk_at(sim.port, FACTORY_BAUD)
+        model, result, _ = packet.ping(port, 1)
+        assert result != COMM_SUCCESS  # two clean replies would be a lie: they garble
+        found, _ = packet.broadcastPing(port)
+        assert found == {}
+        port.closePort()
+    with SimulatedBus(factory=2, connect=(2,), link=tmp_path / "tty") as sim:
         packet, port = PacketHandler(2.0), PortHandler(sim.port)
         found = {}
         for baud in (1_000_000, FACTORY_BAUD):
@@ -49,6 +57,7 @@ def test_id_and_baud_change_as_on_real_servos_found_as_lerobot_finds_them(tmp_pa
             if found:
                 break
         assert (baud, found) == (FACTORY_BAUD, {1: [XL430, 46]})
+        assert packet.ping(port, 1) == (XL430, COMM_SUCCESS, 0)
         assert packet.write1ByteTxRx(port, 1, TORQUE_ENABLE, 1) == (COMM_SUCCESS, 0)
         assert packet.write1ByteTxRx(port, 1, ID, 5) == (COMM_SUCCESS, 7)  # EEPROM, torque on
         assert packet.write1ByteTxRx(port, 1, TORQUE_ENABLE, 0) == (COMM_SUCCESS, 0)
@@ -60,21 +69,6 @@ def test_id_and_baud_change_as_on_real_servos_found_as_lerobot_finds_them(tmp_pa
         assert port.setBaudRate(1_000_000)
         assert packet.ping(port, 5) == (XL430, COMM_SUCCESS, 0)
         assert packet.broadcastPing(port)[0] == {5: [XL430, 46]}
-        port.closePort()
-
-
-def test_factory_fresh_servos_all_answer_as_id_1_and_collide(tmp_path):
-    with SimulatedBus(factory=2, link=tmp_path / "tty") as sim:
-        packet = PacketHandler(2.0)
-        port = sdk_at(sim.port, FACTORY_BAUD)
-        model, result, _ = packet.ping(port, 1)
-        assert result != COMM_SUCCESS  # two clean replies would be a lie: they garble
-        found, _ = packet.broadcastPing(port)
-        assert found == {}
-        port.closePort()
-    with SimulatedBus(factory=2, connect=(2,), link=tmp_path / "tty") as sim:
-        port = sdk_at(sim.port, FACTORY_BAUD)
-        assert PacketHandler(2.0).ping(port, 1) == (XL430, COMM_SUCCESS, 0)
         port.closePort()
 
 

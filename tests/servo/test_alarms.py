@@ -64,7 +64,7 @@ def alarm_of(rig) -> ServoAlarm:
     ],
     ids=["voltage-keeps-torque", "overheating-torque-off", "torque-never-on"],
 )
-def test_an_alarm_message_says_the_servos_torque_as_it_is(
+def test_an_alarm_message_says_the_servos_torque_as_it_is_and_a_reboot_clears_it(
     sim, rig, torque, servo, cause, said, unsaid
 ):
     rig.set_torque(torque)
@@ -77,6 +77,14 @@ def test_an_alarm_message_says_the_servos_torque_as_it_is(
     assert not any(words in message for words in unsaid), message
     if cause == "voltage" and torque:
         assert rig.torque_enabled() == (True, True)
+    if cause == "temperature":  # reboot_servos_in_alarm reboots only it and says what it was
+        sim.set_temperature(2, 30.0)  # the cause is fixed
+        rebooted = reboot_servos_in_alarm(rig.bus)
+        assert rebooted == [Rebooted(2, ("overheating",))]
+        assert "servo 2 was in alarm (overheating): rebooted" in rebooted[0].describe()
+        assert rig.bus.read_hardware_errors() == {1: (), 2: ()}
+        assert rig.torque_enabled() == (True, False)  # servo 1 untouched, servo 2 restarted
+        assert reboot_servos_in_alarm(rig.bus) == []
 
 
 def test_the_alarm_alone_says_nothing_about_torque_and_hold_says_each_joints_once():
@@ -108,15 +116,3 @@ def test_the_alarm_alone_says_nothing_about_torque_and_hold_says_each_joints_onc
 )
 def test_the_torque_off_safe_state_tells_switched_from_already_off(reported, said):
     assert switched_off(reported) == said
-
-
-def test_reboot_servos_in_alarm_reboots_only_those_and_says_what_it_was(sim, rig):
-    sim.set_temperature(2, 90.0)
-    alarm_of(rig)
-    sim.set_temperature(2, 30.0)  # the cause is fixed
-    rebooted = reboot_servos_in_alarm(rig.bus)
-    assert rebooted == [Rebooted(2, ("overheating",))]
-    assert "servo 2 was in alarm (overheating): rebooted" in rebooted[0].describe()
-    assert rig.bus.read_hardware_errors() == {1: (), 2: ()}
-    assert rig.torque_enabled() == (True, False)  # servo 1 untouched, servo 2 restarted
-    assert reboot_servos_in_alarm(rig.bus) == []

@@ -17,7 +17,7 @@ from limbctl.servo.bus import ServoBus
 from limbctl.servo.control_table import ModelNumber, OperatingMode, Register
 from limbctl.servo.profiles import joint_tick_limits
 from limbctl.servo.setup import configure_servos
-from tests.firmware_sim.test_servo import wait_for
+from tests.firmware_sim.support import wait_for
 
 PROFILE = default_sim_profile()
 LIMITS = {
@@ -30,7 +30,10 @@ def open_bus(sim, **options):
     return ServoBus.from_profile(PROFILE, port=sim.port, **options)
 
 
-def test_open_identifies_the_servos_closes_twice_and_refuses_a_wrong_model_or_port(sim, tmp_path):
+def test_open_configure_goals_retries_and_refusals_on_one_bus(sim, tmp_path):
+    """Open identifies the servos and closes twice; a wrong model or port is refused; configure
+    and goals reach the servos, bad ones refused; dropped replies are retried, silence,
+    corruption and a vanished servo named."""
     bus = open_bus(sim)
     with bus:
         assert bus.is_open
@@ -63,47 +66,6 @@ def test_open_identifies_the_servos_closes_twice_and_refuses_a_wrong_model_or_po
         with pytest.raises(error, match=message):
             bus.open()
         assert not bus.is_open, message
-
-
-@pytest.mark.parametrize("fast", [True, False], ids=["fast-sync-read", "sync-read"])
-def test_reads_match_the_world_one_packet_each_and_an_alarm_is_raised_until_a_reboot(sim, fast):
-    with open_bus(sim, fast_sync_read=fast) as bus:
-        positions = bus.read_positions()
-        truth = sim.truth()["servos"]
-        for servo_id in PROFILE.ids:
-            assert abs(positions[servo_id] - truth[servo_id]["raw_tick"]) <= 1.0
-        assert bus.stats.transactions > 0 and bus.stats.timeouts == 0
-        # one instruction packet per pose read and per goal write
-        configure_servos(bus, LIMITS)
-        bus.set_torque(True)
-        before = sim.truth()["packets"]
-        bus.read_positions()
-        after_read = sim.truth()["packets"]
-        bus.write_goals({1: PROFILE.pan.zero_tick, 2: PROFILE.tilt.zero_tick})
-        after_write = sim.truth()["packets"]
-        assert (after_read - before, after_write - after_read) == (1, 1)
-        sim.set_temperature(2, 95.0)  # above the 72 degC limit: overheating shutdown
-        with pytest.raises(ServoAlarm) as info:
-            wait_for(lambda: bus.read_positions() and False, 5.0, "the alarm")
-        assert info.value.servo_id == 2
-        assert info.value.bits == ("overheating",)
-        assert "let it cool" in str(info.value) and "reboot" in str(info.value)
-        assert bus.read_hardware_errors() == {1: (), 2: ("overheating",)}
-        # X-series shutdown: the overheated servo dropped its torque; the other kept it
-        torque = bus.sync_read(Register.TORQUE_ENABLE, check_alert=False)
-        assert torque == {1: 1, 2: 0}
-        with pytest.raises(ServoAlarm):
-            bus.torque_enabled()  # the alarm persists until a reboot
-        with pytest.raises(ServoAlarm, match="servo 2: overheating"):
-            bus.check_alarms()
-        sim.set_temperature(2, 30.0)
-        bus.reboot(2)
-        bus.check_alarms()
-        assert bus.read_hardware_errors() == {1: (), 2: ()}
-        assert len(bus.read_positions()) == 2
-
-
-def test_configure_and_goals_reach_the_servos_and_bad_ones_are_refused(sim):
     goals = {1: PROFILE.pan.zero_tick + 200, 2: PROFILE.tilt.zero_tick - 150}
     with open_bus(sim) as bus:
         before = sim.truth()["servos"][1]["goal_position"]
@@ -142,9 +104,6 @@ def test_configure_and_goals_reach_the_servos_and_bad_ones_are_refused(sim):
             return all(abs(present[i] - goals[i]) <= 3 for i in goals)
 
         wait_for(arrived, 10.0, "both servos to reach their goals")
-
-
-def test_dropped_replies_are_retried_and_silence_corruption_and_a_vanished_servo_named(sim):
     with open_bus(sim, max_attempts=8, retry_budget_s=2.0) as bus:
         sim.set_faults(drop=0.3, seed=3)
         for _ in range(20):
@@ -165,6 +124,44 @@ def test_dropped_replies_are_retried_and_silence_corruption_and_a_vanished_servo
         with pytest.raises(BusTimeout, match="servo 2"):
             bus.read(Register.PRESENT_POSITION, 2)
         wait_for(lambda: _answers(bus, 2), 5.0, "servo 2 to come back")
+
+
+def test_reads_match_the_world_one_packet_each_and_an_alarm_is_raised_until_a_reboot(sim):
+    for fast in (True, False):  # Fast Sync Read, then Sync Read, on the same servos
+        with open_bus(sim, fast_sync_read=fast) as bus:
+            positions = bus.read_positions()
+            truth = sim.truth()["servos"]
+            for servo_id in PROFILE.ids:
+                assert abs(positions[servo_id] - truth[servo_id]["raw_tick"]) <= 1.0
+            assert bus.stats.transactions > 0 and bus.stats.timeouts == 0
+            # one instruction packet per pose read and per goal write
+            configure_servos(bus, LIMITS)
+            bus.set_torque(True)
+            before = sim.truth()["packets"]
+            bus.read_positions()
+            after_read = sim.truth()["packets"]
+            bus.write_goals({1: PROFILE.pan.zero_tick, 2: PROFILE.tilt.zero_tick})
+            after_write = sim.truth()["packets"]
+            assert (after_read - before, after_write - after_read) == (1, 1)
+            sim.set_temperature(2, 95.0)  # above the 72 degC limit: overheating shutdown
+            with pytest.raises(ServoAlarm) as info:
+                wait_for(lambda: bus.read_positions() and False, 5.0, "the alarm")
+            assert info.value.servo_id == 2
+            assert info.value.bits == ("overheating",)
+            assert "let it cool" in str(info.value) and "reboot" in str(info.value)
+            assert bus.read_hardware_errors() == {1: (), 2: ("overheating",)}
+            # X-series shutdown: the overheated servo dropped its torque; the other kept it
+            torque = bus.sync_read(Register.TORQUE_ENABLE, check_alert=False)
+            assert torque == {1: 1, 2: 0}
+            with pytest.raises(ServoAlarm):
+                bus.torque_enabled()  # the alarm persists until a reboot
+            with pytest.raises(ServoAlarm, match="servo 2: overheating"):
+                bus.check_alarms()
+            sim.set_temperature(2, 30.0)
+            bus.reboot(2)
+            bus.check_alarms()
+            assert bus.read_hardware_errors() == {1: (), 2: ()}
+            assert len(bus.read_positions()) == 2
 
 
 def _answers(bus, servo_id):
@@ -193,8 +190,7 @@ def test_port_that_vanishes_mid_run_raises_port_error():
     [
         ("xl330-m077", "xl330-m077", (1190, 1190), 52, (208, 208)),
         ("xl330-m288", "xl330-m288", (1200, 1200), 52, (208, 208)),
-        # a follower and a leader of two layouts on one bus: an XL430 (Indirect Data at 224) and
-        # an XL330 with firmware 52 (at 208)
+        # a follower and a leader of two layouts: an XL430 (at 224), an XL330 of firmware 52 (208)
         ("xl430-w250,xl330-m288", None, (1060, 1200), None, (224, 208)),
         # a 330 with later firmware is found at 224
         ("xl330-m288@53", "xl330-m288", (1200, 1200), 53, (224, 224)),

@@ -65,23 +65,6 @@ def test_calibration_on_the_simulator_finds_the_truth(tmp_path, options, limits)
         assert found.name == "bench"
 
 
-def test_limits_past_the_end_stops_are_refused_before_calibrating(tmp_path):
-    out = tmp_path / "rig.yaml"
-    for options, problem in (
-        (["--tilt-limits=-40,80"], "tilt.max_deg 80 is not 1 deg inside the end stop at 75"),
-        (
-            ["--pan-stops=-95,95", "--pan-limits=-100,100"],
-            "pan.min_deg -100 is not 1 deg inside the end stop at -95",
-        ),
-    ):
-        args = build_parser().parse_args(["calibrate", "--out", str(out), *options])
-        with pytest.raises(ConfigError) as err:
-            args.job(args)  # raised before the simulator starts: nothing to clean up
-        assert problem in str(err.value) and "--pan-limits inside --pan-stops" in str(err.value)
-        assert not str(err.value).startswith("limbctl calibrate")  # the CLI adds its own prefix
-    assert not out.exists()
-
-
 def test_limits_must_contain_the_rest_pose_and_reads_may_drop_now_and_then_not_always():
     result = CalibrationResult(2000, 2000, 1, -1)
     with pytest.raises(SafetyError, match="rest pose"):
@@ -135,14 +118,25 @@ def test_on_a_port_the_servos_named_by_ids_are_calibrated_inside_the_assumed_end
 @pytest.mark.parametrize(
     ("options", "problem"),
     [
+        (["--tilt-limits=-40,80"], "tilt.max_deg 80 is not 1 deg inside the end stop at 75"),
+        (
+            ["--pan-stops=-95,95", "--pan-limits=-100,100"],
+            "pan.min_deg -100 is not 1 deg inside the end stop at -95",
+        ),
         (["--ids", "1,2,3,4"], "--ids expects two or three integers like 1,2 (pan, tilt)"),
         (["--rig", "sim3", "--ids", "1,2"], "has a roll joint (servo 3): give three ids"),
         (["--roll-limits=-10,10"], "--roll-limits and --roll-stops need a roll joint"),
     ],
 )
-def test_ids_and_roll_options_that_do_not_fit_the_rig_are_refused(tmp_path, options, problem):
+def test_limits_past_the_end_stops_and_ids_or_roll_options_not_fitting_the_rig_are_refused(
+    tmp_path, options, problem
+):
     out = tmp_path / "rig.yaml"
     args = build_parser().parse_args(["calibrate", "--out", str(out), *options])
-    with pytest.raises(ConfigError, match=problem.replace("(", r"\(").replace(")", r"\)")):
-        args.job(args)
+    with pytest.raises(ConfigError) as err:
+        args.job(args)  # raised before the simulator starts: nothing to clean up
+    assert problem in str(err.value)
+    if "end stop" in problem:
+        assert "--pan-limits inside --pan-stops" in str(err.value)
+        assert not str(err.value).startswith("limbctl calibrate")  # the CLI adds its own prefix
     assert not out.exists()

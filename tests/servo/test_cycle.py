@@ -1,5 +1,5 @@
-"""The control cycle's one read through indirect addresses, on the simulator: each fault the loop
-must notice shows in it, and a silent servo is probed alone with one try."""
+"""The control cycle's one read through indirect addresses: each fault the loop must notice shows
+in it, and a silent servo is probed alone with one try."""
 
 from __future__ import annotations
 
@@ -60,7 +60,9 @@ def test_the_indirect_map_names_each_mapped_byte_and_the_wire_budget_of_a_cycle(
     )
 
 
-def test_cycle_read_agrees_with_direct_reads_a_reboot_and_torque_off_show_in_it(sim, sdk, rig):
+def test_the_cycle_read_shows_reboots_torque_alarms_saturation_and_a_silent_servo(sim, sdk, rig):
+    """One bus, read by the cycle: agreement with direct reads, a reboot and torque off, alarms
+    with their torque, a pushed servo's saturated drive, a silent servo probed alone."""
     bus = rig.bus
     for servo_id in PROFILE.ids:
         assert bus.read_block(INDIRECT_MAP_BLOCK, servo_id) == indirect_map()
@@ -84,9 +86,8 @@ def test_cycle_read_agrees_with_direct_reads_a_reboot_and_torque_off_show_in_it(
     sdk.packet.write1ByteTxOnly(sdk.port, BROADCAST_ID, Register.TORQUE_ENABLE.address, 0)
     read = read_ok(rig)
     assert [r.torque_on for r in read.reports.values()] == [False, False]
-
-
-def test_an_alarm_is_in_the_report_with_its_torque_and_a_pushed_servos_drive_saturates(sim, rig):
+    rig.configure()  # the reboot lost servo 1's indirect map
+    rig.set_torque(True)
     sim.set_voltage(1, 5.0)  # below the voltage limit; the factory Shutdown mask keeps torque on
     sim.set_temperature(2, 90.0)  # over the limit: shuts down, torque off
     read = read_ok(rig)
@@ -101,16 +102,13 @@ def test_an_alarm_is_in_the_report_with_its_torque_and_a_pushed_servos_drive_sat
             break
     assert abs(read.reports[1].pwm) == 885 and abs(read.reports[2].pwm) < 0.1 * 885
     assert abs(read.reports[1].present - read.reports[1].goal) * 360 / 4096 > 5.0
-
-
-def test_a_silent_servo_is_named_after_one_try_probed_alone_and_found_back(sim, rig):
+    sim.push(1, 0.0)
     sim.vanish(2, 0.05)
     for _ in range(100):  # each probe waits one reply timeout: 100 of them outlast 0.05 s
         read = read_around_silent(rig.read_cycle, rig.ids, silent=(2,), probe=(2,), attempts=1)
         if read.ok:
             break
     assert set(read.reports) == {1, 2} and read.silent == read.unread == () and read.problem == ""
-    bus = rig.bus
     sim.vanish(2, 5.0)
     retries = bus.stats.retries
     read = rig.read_cycle()

@@ -92,8 +92,7 @@ def test_a_silent_servo_is_probed_once_per_interval_and_lost_only_by_a_failed_pr
         verdict = monitor.observe(silent(2) if probe else unread(2), now)
         if verdict.fault is not None:
             break
-    # one probe per 50 ms (on 5 ms cycles: 50 or 55 ms apart), and one more when the silence
-    # reaches lost_after_s: the loss is declared by that probe failing
+    # one probe per 50 ms (50 or 55 ms apart), the last at lost_after_s: its failure is the loss
     gaps = [b - a for a, b in zip([0.0, *due], due[:-1], strict=False)]
     assert min(gaps) >= 0.05 - 1e-9 and max(gaps) <= 0.055 + 1e-9
     assert len(due) == monitor.probes <= 11 and due[-1] == pytest.approx(0.5)

@@ -1,5 +1,4 @@
-"""A felt leader's guard over the real SDK and the simulator's pty, and ``limbctl teleop`` killed
-with SIGKILL mid-push leaving its leader limp within the guard's bound, the follower untouched."""
+"""A felt leader's guard on the simulator's pty, and ``limbctl teleop`` killed mid-push."""
 
 from __future__ import annotations
 
@@ -159,8 +158,7 @@ def test_a_controller_killed_mid_push_leaves_its_leader_limp_within_the_bound(tm
         _wait_pushed(teleop, log)
         killed_at = time.monotonic()
         os.kill(teleop.pid, signal.SIGKILL)
-        # the guard shares the controller's stderr: its end is the guard's exit (the port then
-        # free for the reads below, which would otherwise take turns with the guard's)
+        # the guard shares the controller's stderr: its end is the guard's exit, the port free
         err = teleop.communicate(timeout=START_S + GIVE_UP_S)[1]
         limp_s = time.monotonic() - killed_at
         torque = torque_when_free(link, (1, 2, 3, 4), time.monotonic() + START_S)
@@ -173,8 +171,7 @@ def test_a_controller_killed_mid_push_leaves_its_leader_limp_within_the_bound(tm
 
 
 def test_a_clean_end_leaves_the_leader_to_the_controller(tmp_path):
-    # the controller's own end switches the leader off (as before the guard); the guard, told
-    # done, exits touching nothing and says nothing
+    """The controller's own end switches the leader off; its guard, told done, says nothing."""
     with _teleop(tmp_path, "--duration", "60") as (teleop, link, log):
         _wait_pushed(teleop, log)
         teleop.send_signal(signal.SIGINT)  # Ctrl-C: the session ends cleanly

@@ -77,14 +77,9 @@ def run_the_flow_on(sim, tmp_path):
             "two or more servos answer as ID 1 at 57600 baud: connect only the pan servo and run "
             "again",
         ),
-        (
-            {"factory": 1, "model": "xl330-m288"},
-            "the connected servo is XL330-M288 (1200) but the profile's pan is XL430-W250 (1060): "
-            "connect the pan servo, or fix `model:` in the profile",
-        ),
         ({"factory": 2, "connect": ()}, "no servo answers for the pan joint: no servo answered"),
     ],
-    ids=["collision", "another-model", "nothing-connected"],
+    ids=["collision", "nothing-connected"],
 )
 def test_a_bus_set_up_cannot_serve_is_refused_saying_why(tmp_path, servos, message):
     with SimulatedBus(**servos, link=tmp_path / "tty") as sim:
@@ -92,9 +87,15 @@ def test_a_bus_set_up_cannot_serve_is_refused_saying_why(tmp_path, servos, messa
     assert not outcome.ok and outcome.message.startswith(message)
 
 
-def test_a_5_v_servo_on_12_v_and_targets_the_family_cannot_take_are_refused(tmp_path):
+def test_another_model_a_5_v_servo_on_12_v_and_targets_its_family_cannot_take_are_refused(
+    tmp_path,
+):
     target = JointTarget("pan", 1, "xl330-m288", PROFILE.baud)
     with SimulatedBus(factory=1, model="xl330-m288", link=tmp_path / "tty") as sim:
+        assert setup(sim, PAN).message.startswith(
+            "the connected servo is XL330-M288 (1200) but the profile's pan is XL430-W250 (1060): "
+            "connect the pan servo, or fix `model:` in the profile"
+        ), "a servo of another model was set up as pan"
         sim.set_voltage(1, 12.0)
         outcome = setup(sim, target)
         assert outcome.message == (
@@ -139,7 +140,7 @@ def motors_setup(profile, sim, *options):
 
 
 @pytest.mark.parametrize("rig", sorted(RIG_IDS))
-def test_a_one_servo_bench_sets_up_pan_only_with_yes_and_asked_again_skip_is_said(
+def test_a_one_servo_bench_sets_up_pan_only_with_yes_renumbers_on_purpose_and_skip_is_said(
     tmp_path, capsys, monkeypatch, rig
 ):
     ids = RIG_IDS[rig]
@@ -148,7 +149,31 @@ def test_a_one_servo_bench_sets_up_pan_only_with_yes_and_asked_again_skip_is_sai
     with SimulatedBus(factory=1, link=tmp_path / "tty") as sim:
         status = motors_setup(profile, sim, "--yes")
         answers_as = answering_id(sim)
-    lines = capsys.readouterr().err.splitlines()
+        lines = capsys.readouterr().err.splitlines()
+        # --renumber makes another joint's servo this one on purpose, named by --joint
+        assert motors_setup(profile, sim, "--yes", "--joint", "tilt") == 1
+        assert answering_id(sim) == ids["pan"]
+        assert motors_setup(profile, sim, "--yes", "--joint", "tilt", "--renumber") == 0
+        assert answering_id(sim) == ids["tilt"], "--renumber did not make the servo tilt's"
+    renumbered = capsys.readouterr().err.splitlines()
+    assert (
+        f"tilt: XL430-W250 (1060) now ID {ids['tilt']} at 4000000 baud, Return Delay Time 0, "
+        f"Status Return Level 2 (RAM: set again at every start) (found as ID {ids['pan']} at "
+        "4000000 baud, the pan joint's ID: renumbered on purpose (--renumber), so no servo "
+        f"answers as pan until one is set up as it; wrote ID {ids['pan']} -> {ids['tilt']})"
+    ) in renumbered
+    assert renumbered[-1] == "set up: tilt; failed: none"
+    assert (
+        main(["motors", "setup", "--rig", str(profile), "--port", "/dev/null", "--renumber"]) == 2
+    )
+    assert (
+        capsys.readouterr()
+        .err.strip()
+        .endswith(
+            "--renumber makes the connected servo one joint's on purpose: name that joint with "
+            "--joint (e.g. --joint tilt)"
+        )
+    )
     assert answers_as == ids["pan"], "the pan servo was renumbered as another joint's"
     for joint in others:
         assert (
@@ -174,32 +199,6 @@ def test_a_one_servo_bench_sets_up_pan_only_with_yes_and_asked_again_skip_is_sai
         ) in err.out
     assert err.err.splitlines()[-1] == f"set up: pan; skipped: {', '.join(others)}; failed: none"
     assert status == 1
-
-
-def test_renumber_makes_another_joints_servo_this_one_on_purpose_named_by_joint(tmp_path, capsys):
-    profile = rig_profile(tmp_path, "sim")
-    with SimulatedBus(factory=1, link=tmp_path / "tty") as sim:
-        assert motors_setup(profile, sim, "--yes", "--joint", "pan") == 0
-        assert motors_setup(profile, sim, "--yes", "--joint", "tilt") == 1
-        assert answering_id(sim) == 7
-        assert motors_setup(profile, sim, "--yes", "--joint", "tilt", "--renumber") == 0
-        assert answering_id(sim) == 9
-    lines = capsys.readouterr().err.splitlines()
-    assert (
-        "tilt: XL430-W250 (1060) now ID 9 at 4000000 baud, Return Delay Time 0, Status Return "
-        "Level 2 (RAM: set again at every start) (found as ID 7 at 4000000 baud, the pan "
-        "joint's ID: renumbered on purpose (--renumber), so no servo answers as pan until one "
-        "is set up as it; wrote ID 7 -> 9)"
-    ) in lines
-    assert lines[-1] == "set up: tilt; failed: none"
-    profile = rig_profile(tmp_path, "sim")
-    status = main(["motors", "setup", "--rig", str(profile), "--port", "/dev/null", "--renumber"])
-    assert status == 2
-    message = capsys.readouterr().err.strip()
-    assert message.endswith(
-        "--renumber makes the connected servo one joint's on purpose: name that joint with "
-        "--joint (e.g. --joint tilt)"
-    )
 
 
 @pytest.mark.parametrize("rig", ["sim", "sim3"])
@@ -250,8 +249,7 @@ def test_asked_again_the_person_connects_the_right_servo_and_every_joint_is_set_
     with SimulatedBus(factory=len(joints), link=tmp_path / "tty") as sim:
         for slot in range(2, len(joints) + 1):
             sim.vanish(slot, 3600.0)  # only slot 1 (the pan servo) is connected
-        # Enter for pan; at each later joint, Enter with the last servo still connected, then
-        # (asked again) the swap to that joint's servo
+        # Enter for pan; at each later joint Enter (the last servo still on), then the swap
         steps = ["\n"] + [s for k in range(1, len(joints)) for s in ("\n", (k, k + 1))]
         monkeypatch.setattr("sys.stdin", Bench(sim, steps))
         status = main(

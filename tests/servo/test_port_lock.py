@@ -1,5 +1,4 @@
-"""One controller per port: a second ServoBus on a held port is refused at once naming the holder;
-the first runs on undisturbed; the lock dies with its holder."""
+"""One controller per port: a second ServoBus is refused at once, naming the holder."""
 
 from __future__ import annotations
 
@@ -29,7 +28,8 @@ def open_bus(port: str) -> ServoBus:
     return ServoBus(port, 4_000_000, (1, 2), latency_timer_ms=2.0)
 
 
-def test_a_second_bus_in_this_or_another_process_is_refused_naming_the_holder(sim):
+def test_a_second_bus_in_this_or_another_process_is_refused_naming_the_holder(sim, tmp_path):
+    """The lock names its holder; holders without one are found by their open file."""
     with open_bus(sim.port) as first:
         before = first.read_positions()
         start = time.monotonic()
@@ -69,9 +69,6 @@ def test_a_second_bus_in_this_or_another_process_is_refused_naming_the_holder(si
     # the holder ended: the port is free again
     with open_bus(sim.port) as bus:
         assert bus.read_positions().keys() == {1, 2}
-
-
-def test_holders_without_a_lock_are_found_by_their_open_file_and_none_for_no_port(sim, tmp_path):
     plain = PortHandler(sim.port)  # the SDK alone opens without locking
     assert plain.openPort()
     try:

@@ -88,8 +88,7 @@ def test_goal_ticks_are_inside_the_hard_limits_and_held_as_written(name, pose):
     # the held pose is the written goal back in radians
     held = rig.held_pose(*pose)
     assert rig.angles_to_ticks(*held) == goal.ticks
-    # half a tick of rounding per joint after the clamp; a clamped joint is kept on a tick
-    # strictly inside its limit, up to a whole tick from it
+    # half a tick of rounding; a clamped joint is kept on a tick strictly inside, up to a tick
     rounding = TICK_RAD if goal.clamped else TICK_RAD / 2
     assert np.all(np.abs(np.subtract(held, goal.angles)) <= rounding + 1e-12)
 
@@ -98,19 +97,17 @@ def test_goal_ticks_are_inside_the_hard_limits_and_held_as_written(name, pose):
 def test_present_pose_matches_the_world_and_write_pose_reaches_it_clamped_and_logged(
     name, tmp_path
 ):
-    with open_rig(rig_path=name) as session:
-        rig = session.rig
+    log = tmp_path / "goals.jsonl"
+    with open_rig(rig_path=name, goal_log=log) as session:
+        rig, sim = session.rig, session.simulator
         pose = rig.read_pose()
-        truth = session.simulator.truth()["joints_deg"]
+        truth = sim.truth()["joints_deg"]
         # the sim profile is the world's true geometry: within a tick of the truth
         assert len(pose) == len(rig)
         for joint_name, angle in zip(rig.names, pose, strict=True):
             assert math.degrees(angle) == pytest.approx(
                 truth[joint_name], abs=math.degrees(TICK_RAD)
             )
-    log = tmp_path / "goals.jsonl"
-    with open_rig(rig_path=name, goal_log=log) as session:
-        rig, sim = session.rig, session.simulator
         rig.configure(profile_velocity=0, profile_acceleration=0)
         # tilt beyond its limit; the roll inside its own
         target = (math.radians(30.0), math.radians(90.0), math.radians(-40.0))[: len(rig)]

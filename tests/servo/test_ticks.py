@@ -7,6 +7,8 @@ from hypothesis import strategies as st
 
 from limbctl.servo.ticks import TICKS_PER_RAD, angle_to_ticks, tick_limits, ticks_to_angle
 
+ZERO, DIRECTION = st.integers(0, 4095), st.sampled_from([1, -1])
+
 
 def test_hand_cases_shapes_and_integral_limits():
     assert TICKS_PER_RAD == pytest.approx(4096 / (2 * math.pi))
@@ -22,20 +24,12 @@ def test_hand_cases_shapes_and_integral_limits():
     assert tick_limits(-90.0, 90.0, 2048, -1) == (1024, 3072)
 
 
-@given(
-    tick=st.integers(0, 4095),
-    zero=st.integers(0, 4095),
-    direction=st.sampled_from([1, -1]),
-)
+@given(tick=st.integers(0, 4095), zero=ZERO, direction=DIRECTION)
 def test_every_tick_round_trips_exactly(tick, zero, direction):
     assert int(angle_to_ticks(ticks_to_angle(tick, zero, direction), zero, direction)) == tick
 
 
-@given(
-    angle=st.floats(-3.0, 3.0),
-    zero=st.integers(0, 4095),
-    direction=st.sampled_from([1, -1]),
-)
+@given(angle=st.floats(-3.0, 3.0), zero=ZERO, direction=DIRECTION)
 def test_rounding_error_is_at_most_half_a_tick(angle, zero, direction):
     tick = int(angle_to_ticks(angle, zero, direction))
     back = float(ticks_to_angle(tick, zero, direction))
@@ -46,7 +40,7 @@ def test_rounding_error_is_at_most_half_a_tick(angle, zero, direction):
     low=st.floats(-170.0, 0.0),
     span=st.floats(1.0, 160.0),
     zero=st.integers(1500, 2600),
-    direction=st.sampled_from([1, -1]),
+    direction=DIRECTION,
 )
 def test_tick_limits_round_inward(low, span, zero, direction):
     high = low + span

@@ -15,8 +15,7 @@ from limbctl.servo import transfers
 from limbctl.servo.control_table import ModelNumber, Register
 
 
-@pytest.mark.parametrize("read", [transfers.sync_read, transfers.fast_sync_read])
-def test_transfers_ping_read_write_keep_error_numbers_and_sync_reads_name_the_absent(sdk, read):
+def test_transfers_ping_read_write_keep_error_numbers_and_sync_reads_name_the_absent(sdk):
     outcome = transfers.ping(sdk.packet, sdk.port, 1)
     assert outcome.result == COMM_SUCCESS and outcome.value == ModelNumber.XL430_W250
     outcome = transfers.write(sdk.packet, sdk.port, Register.LED, 2, Register.LED.encode(1))
@@ -26,12 +25,13 @@ def test_transfers_ping_read_write_keep_error_numbers_and_sync_reads_name_the_ab
     transfers.write(sdk.packet, sdk.port, Register.TORQUE_ENABLE, 1, [1])
     outcome = transfers.write(sdk.packet, sdk.port, Register.OPERATING_MODE, 1, [3])
     assert outcome.result == COMM_SUCCESS and outcome.errors[1] & 0x7F == 7  # access error
-    outcome = read(sdk.packet, sdk.port, Register.MODEL_NUMBER, (1, 2))
-    assert outcome.result == COMM_SUCCESS
-    assert outcome.value == {1: 1060, 2: 1060}
-    assert outcome.errors == {1: 0, 2: 0}
-    absent = read(sdk.packet, sdk.port, Register.PRESENT_POSITION, (5, 1))
-    assert absent.result != COMM_SUCCESS and absent.culprit == 5
+    for read in (transfers.sync_read, transfers.fast_sync_read):
+        outcome = read(sdk.packet, sdk.port, Register.MODEL_NUMBER, (1, 2))
+        assert outcome.result == COMM_SUCCESS, read.__name__
+        assert outcome.value == {1: 1060, 2: 1060}
+        assert outcome.errors == {1: 0, 2: 0}
+        absent = read(sdk.packet, sdk.port, Register.PRESENT_POSITION, (5, 1))
+        assert absent.result != COMM_SUCCESS and absent.culprit == 5, read.__name__
 
 
 @pytest.mark.parametrize(

@@ -37,9 +37,25 @@ def record(path, n=20, rig="sim", meta=None):
     return pan, tilt
 
 
-def test_round_trip_is_exact_and_records_are_visible_before_close(tmp_path):
+def test_round_trip_is_exact_visible_before_close_a_torn_tail_dropped_a_dataset_recognised(
+    tmp_path,
+):
     path = tmp_path / "a.limb"
     pan, tilt = record(path, meta={"rate_hz": 100})
+    assert is_dataset_file(path)
+    blob = bytearray(path.read_bytes())
+    blob[-30] ^= 0x55  # damage far from the header: still a dataset, with a problem to name
+    (tmp_path / "damaged.limb").write_bytes(bytes(blob))
+    assert is_dataset_file(tmp_path / "damaged.limb")
+    other = tmp_path / "model.npz"
+    other.write_bytes(b"PK\x03\x04" + bytes(100))
+    assert not is_dataset_file(other)
+    assert not is_dataset_file(tmp_path / "missing.limb") and not is_dataset_file(tmp_path)
+    torn = tmp_path / "torn.limb"
+    torn.write_bytes(path.read_bytes() + b"0.1,3.0,4.0,0.99")
+    data = load_dataset(torn)
+    assert len(data) == 20, "a torn last line was not dropped"
+    assert data.dropped_tail is not None and "line 22" in data.dropped_tail
     data = load_dataset(path)
     assert len(data) == 20 and data.dropped_tail is None
     assert data.header.rig == "sim" and data.header.columns == COLUMNS
@@ -73,16 +89,6 @@ def test_explicit_quaternion_is_stored_and_validated(tmp_path):
     assert len(data) == 1
     # stored canonical (w >= 0; here w == 0 so the sign is kept) and exact
     np.testing.assert_array_equal(data.quaternions[0], q)
-
-
-def test_torn_last_line_is_dropped_and_reported(tmp_path):
-    path = tmp_path / "torn.limb"
-    record(path, n=10)
-    with open(path, "ab") as handle:
-        handle.write(b"0.1,3.0,4.0,0.99")
-    data = load_dataset(path)
-    assert len(data) == 10
-    assert data.dropped_tail is not None and "line 12" in data.dropped_tail
 
 
 def edit_pan(lines):
@@ -252,19 +258,3 @@ def test_calibration_round_trips_and_old_files_have_none(tmp_path):
     older = tmp_path / "older.limb"  # written before datasets recorded a calibration
     older.write_bytes(header_line())
     assert load_dataset(older).header.calibration is None
-
-
-def test_is_dataset_file_reads_only_the_beginning(tmp_path):
-    path = tmp_path / "a.limb"
-    record(path)
-    assert is_dataset_file(path)
-    damaged = tmp_path / "damaged.limb"
-    blob = bytearray(path.read_bytes())
-    blob[-30] ^= 0x55  # damage far from the header: still a dataset, with a problem to name
-    damaged.write_bytes(bytes(blob))
-    assert is_dataset_file(damaged)
-    other = tmp_path / "model.npz"
-    other.write_bytes(b"PK\x03\x04" + bytes(100))
-    assert not is_dataset_file(other)
-    assert not is_dataset_file(tmp_path / "missing.limb")
-    assert not is_dataset_file(tmp_path)

@@ -102,11 +102,26 @@ def test_inside_coverage_of_a_half_filled_disc_is_a_half_and_the_empty_half_is_t
     assert READY_INSIDE_COVERED < 0.5
 
 
-def test_a_traced_edge_and_a_filled_middle_are_ready_and_a_few_samples_say_nothing_yet():
+def test_a_traced_edge_and_a_filled_middle_are_ready_collected_too_a_few_samples_say_nothing():
     d = np.vstack([trace(0.0, 360.0), fill(-180.0, 180.0, 20000)])
     g = assess_directions(times(len(d)), d)
     assert g.edge_closed == 1.0 and g.inside_covered == 1.0 and g.inside_gaps == ()
     assert g.ready and g.phase == "ready" and "READY TO TRAIN" in g.line()
+    # the guide collects the samples as the recorder reads them, to the same verdict
+    t = times(len(d))
+    pan, tilt = direction_to_pan_tilt(d)
+    guide = Guide(capacity=16)  # grows as samples come
+    for k in range(len(d)):
+        guide.add(t[k], pan[k], tilt[k])
+    assert guide.samples == len(d)
+    collected = guide.assess()
+    assert collected.samples == g.samples == len(d)
+    assert (collected.edge_closed, collected.inside_covered, collected.phase) == (
+        g.edge_closed,
+        g.inside_covered,
+        g.phase,
+    )
+    assert collected.centre_deg == pytest.approx(g.centre_deg, abs=1e-9)
     # a few samples say nothing yet, and bad input is refused
     few = assess_directions(times(5), trace(0.0, 10.0)[:5])
     assert few.phase == "start" and few.samples == 5 and not few.ready
@@ -129,24 +144,6 @@ def test_only_a_slow_trace_counts_as_the_edge_and_strokes_out_to_it_do_not_close
     g = assess_directions(times(len(d)), d)
     assert g.edge_closed < 0.1
     assert g.phase == "edge" and len(g.edge_gaps) > 1
-
-
-def test_the_guide_collects_samples_as_the_recorder_reads_them():
-    d = np.vstack([trace(0.0, 360.0), fill(-180.0, 180.0, 3000)])
-    t = times(len(d))
-    pan, tilt = direction_to_pan_tilt(d)
-    guide = Guide(capacity=16)  # grows as samples come
-    for k in range(len(d)):
-        guide.add(t[k], pan[k], tilt[k])
-    assert guide.samples == len(d)
-    collected, direct = guide.assess(), assess_directions(t, d)
-    assert collected.samples == direct.samples == len(d)
-    assert (collected.edge_closed, collected.inside_covered, collected.phase) == (
-        direct.edge_closed,
-        direct.inside_covered,
-        direct.phase,
-    )
-    assert collected.centre_deg == pytest.approx(direct.centre_deg, abs=1e-9)
 
 
 def simulated(style: str, seconds: float, seed: int) -> tuple[np.ndarray, np.ndarray]:

@@ -1,5 +1,4 @@
-"""Holes in a teaching: a gap between samples over the edge trace keeps that stretch of edge open
-until it is traced again; teachings written to disk and loaded back, as the guide reads a file."""
+"""Holes in a teaching (written to disk and read back): one over the edge trace keeps it open."""
 
 from __future__ import annotations
 

@@ -33,7 +33,7 @@ def write_cone_dataset(path, n=400, half_angle_deg=30.0, seed=0, calibration=Non
     return path
 
 
-def test_train_a_cone_read_it_back_with_the_recordings_calibration(tmp_path):
+def test_train_a_cone_and_a_rigidmap_read_back_plotted_with_the_recordings_calibration(tmp_path):
     data = write_cone_dataset(tmp_path / "teach.limb")
     summary = train(data, tmp_path / "cone.npz", kind="cone")
     assert summary.samples == 400
@@ -44,6 +44,15 @@ def test_train_a_cone_read_it_back_with_the_recordings_calibration(tmp_path):
     assert 28.0 <= model.half_angle_deg <= 30.0
     assert load_header(tmp_path / "cone.npz")["metadata"]["rig"] == "sim"
     assert any("samples inside" in line for line in summary.lines())
+    summary = train(data, tmp_path / "rm.npz", kind="rigidmap", options={"nodes": 500})
+    assert summary.nodes >= 500
+    assert summary.contained_fraction >= 0.95, "a Rigid Map does not contain its samples"
+    # the summary says which edge the gate took, and what that means
+    assert summary.edge in ("smooth", "traced", "supported")
+    assert any(line.startswith(f"edge               {summary.edge} (") for line in summary.lines())
+    png = plot_files([data, tmp_path / "rm.npz"], tmp_path / "rm.png")
+    assert png.stat().st_size > 20_000
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     # the model carries the recording's calibration, and says when there was none
     calibration = default_sim_profile().calibration
     data = write_cone_dataset(tmp_path / "cal.limb", n=50, calibration=calibration)
@@ -58,19 +67,6 @@ def test_train_a_cone_read_it_back_with_the_recordings_calibration(tmp_path):
     assert "calibration" not in load_header(tmp_path / "older.npz")["metadata"]
     assert not summary.calibration_recorded
     assert summary.lines()[-1].startswith("calibration        NOT RECORDED")
-
-
-def test_train_rigidmap_contains_its_samples(tmp_path):
-    data = write_cone_dataset(tmp_path / "teach.limb", n=300)
-    summary = train(data, tmp_path / "rm.npz", kind="rigidmap", options={"nodes": 500})
-    assert summary.nodes >= 500
-    assert summary.contained_fraction >= 0.95
-    # the summary says which edge the gate took, and what that means
-    assert summary.edge in ("smooth", "traced", "supported")
-    assert any(line.startswith(f"edge               {summary.edge} (") for line in summary.lines())
-    png = plot_files([data, tmp_path / "rm.npz"], tmp_path / "rm.png")
-    assert png.stat().st_size > 20_000
-    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
 def test_too_few_samples_and_unknown_kinds_are_refused_and_kinds_come_from_one_registry(
@@ -136,8 +132,7 @@ def test_the_summary_and_the_plot_show_the_whole_region_of_either_rig(rig_model)
 
     rig, q, model = rig_model
     summary = summarize(model, q)
-    # the learned region reaches the taught edge on every side (it does not stop where a
-    # three-servo band leaves twist 0)
+    # the learned region reaches the taught edge on every side, past where a band leaves twist 0
     for learned, taught in (
         (summary.boundary_pan_range_deg, summary.pan_range_deg),
         (summary.boundary_tilt_range_deg, summary.tilt_range_deg),
@@ -170,8 +165,7 @@ def test_the_summary_and_the_plot_show_the_whole_region_of_either_rig(rig_model)
 def test_train_names_where_the_edge_bridges_what_the_samples_surround(monkeypatch):
     truth = PolygonRegion(NOTCH)  # a 12 x 12 deg notch in the top edge
     q = to_quaternions(truth.sample(8000, np.random.default_rng(0)))
-    # a coarse alpha shape bridges the notch; with no carving round the bridge stays, as where
-    # carving would drop taught samples, and train must say where
+    # a coarse alpha shape bridges the notch; uncarved (as where carving would drop samples)
     monkeypatch.setattr(taught_region, "CARVE_ROUNDS", 0)
     model = RigidMap(nodes=200, seed=0, region=RegionParams(edge="supported", alpha_factor=8.0))
     model.fit(q)

@@ -1,5 +1,4 @@
-"""limbctl.teach.warm: after ``limbctl prepare`` (the warm-up in the foreground), the first
-train, teleop start and library fit compile no kernel."""
+"""After ``limbctl prepare`` the first train, teleop start and library fit compile no kernel."""
 
 from __future__ import annotations
 
