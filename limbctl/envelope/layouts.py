@@ -54,6 +54,7 @@ def _permuted(base: tuple[float, ...], parity: str) -> np.ndarray:
 
 
 def _normalise_rows(p: np.ndarray) -> np.ndarray:
+    """Rows of ``p`` (n, 4) scaled to unit length."""
     return p / np.linalg.norm(p, axis=1, keepdims=True)
 
 
@@ -88,12 +89,7 @@ def cell_600(parity: str = "odd") -> np.ndarray:
 
 
 def cell_120() -> np.ndarray:
-    """The 120-cell's 600 vertices (unit length; Coxeter's coordinates over sqrt 8).
-
-    All permutations of (0, 0, +-2, +-2), (+-1, +-1, +-1, +-sqrt5), (+-phi^-2, +-phi, +-phi,
-    +-phi), (+-phi^-1, +-phi^-1, +-phi^-1, +-phi^2), and even permutations of (0, +-phi^-2,
-    +-1, +-phi^2), (0, +-phi^-1, +-phi, +-sqrt5), (+-phi^-1, +-1, +-phi, +-2).
-    """
+    """The 120-cell's 600 vertices (unit length; Coxeter's coordinates over sqrt 8)."""
     s5 = np.sqrt(5.0)
     groups = [
         _permuted((0.0, 0.0, 2.0, 2.0), "all"),
@@ -123,19 +119,14 @@ def uniform(n: int, rng: np.random.Generator, hemisphere: bool) -> np.ndarray:
 
 
 def super_fibonacci(n: int, hemisphere: bool) -> np.ndarray:
-    """Alexa's super-Fibonacci spiral: ``n`` near-uniform points on S^3 (or on w >= 0).
-
-    For i = 0..n-1: s = i + 1/2, t = s / n, r = sqrt(t), R = sqrt(1 - t),
-    alpha = 2 pi s / sqrt 2, beta = 2 pi s / psi (psi^4 = psi + 4),
-    q_i = (r sin alpha, r cos alpha, R sin beta, R cos beta); on the hemisphere alpha is
-    scaled to [0, pi), so w = r sin alpha >= 0.
-    """
+    """Alexa's super-Fibonacci spiral: ``n`` near-uniform points (n, 4) on S^3 (or on w >= 0)."""
     s = np.arange(n, dtype=np.float64) + 0.5
     t = s / n
     r = np.sqrt(t)
     big_r = np.sqrt(1.0 - t)
-    alpha_span = np.pi if hemisphere else 2.0 * np.pi
-    # alpha = span * frac(s / sqrt 2), beta = 2 pi * frac(s / psi)
+    alpha_span = np.pi if hemisphere else 2.0 * np.pi  # [0, pi): w = r sin alpha >= 0
+    # alpha = span * frac(s / sqrt 2), beta = 2 pi * frac(s / psi);
+    # q = (r sin alpha, r cos alpha, R sin beta, R cos beta), r = sqrt(s / n), R = sqrt(1 - s / n)
     alpha = alpha_span * np.mod(s / np.sqrt(2.0), 1.0)
     beta = 2.0 * np.pi * np.mod(s / PSI, 1.0)
     return np.stack(

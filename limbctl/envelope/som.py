@@ -1,10 +1,8 @@
 """The self-organising map of Jenkins & Dacey (UKSim 2011): the project's baseline envelope.
 
-``rows x cols`` output nodes with weights in R^4. One time step presents the training set in
-order; each pattern's winner (least squared Euclidean distance) and the nodes within grid distance
-``radius(t)`` move ``w += lr(t) (x - w)`` on Table I's schedule, until no winner changes (at most
-10,000 steps). The gate: ``contains(q)`` when q lies within ``threshold`` (the training set's
-largest distance) of a normalised node; ``correct(q)`` answers the paper's winner outside.
+Each pattern's winner (least squared distance) and the nodes within grid distance ``radius(t)``
+move ``w += lr(t) (x - w)``, until no winner changes. ``contains(q)``: q within ``threshold``
+(the training set's largest distance) of a normalised node; ``correct`` answers the winner.
 """
 
 from __future__ import annotations
@@ -36,20 +34,16 @@ def table_i_schedule(
     Parameters
     ----------
     max_steps : int
-        Time steps (the training cap); the arrays have this length.
-    lr0, lr_min, lr_factor : float
-        Initial learning rate, its floor, and the factor applied at each new period.
-    radius0, radius_min, radius_factor : float
-        The same for the neighbourhood radius (grid units).
-    period : int
-        Time steps per period.
-    periods : int
-        Number of periods in the table; the last one lasts until the end.
+        Time steps (the training cap).
+    lr0, lr_min, lr_factor, radius0, radius_min, radius_factor : float
+        Initial value, floor, and factor per period of the learning rate and the radius (grid).
+    period, periods : int
+        Time steps per period; periods in the table, the last lasting until the end.
 
     Returns
     -------
     learning_rates, radii : ndarray, shape (max_steps,)
-        ``max(lr0 lr_factor^p, lr_min)`` and likewise, ``p = min(t // period, periods - 1)``.
+        Per time step.
     """
     t = np.arange(max_steps)
     p = np.minimum(t // period, periods - 1)
@@ -150,8 +144,7 @@ class SOM(Envelope):
         return rng.uniform(-self.init_scale, self.init_scale, size=(self.nodes, 4))
 
     def fit(self, q_train: np.ndarray) -> SOM:
-        """Train on valid orientations ``q_train`` (N, 4), N >= 1; sets ``weights``, ``steps``,
-        ``converged`` and ``threshold``. Returns self."""
+        """Train on valid orientations ``q_train`` (N, 4), N >= 1. Returns self."""
         patterns, _ = self._input(q_train)
         if len(patterns) == 0:
             raise ConfigError("SOM.fit: q_train is empty; record some valid orientations first")
