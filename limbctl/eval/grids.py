@@ -1,7 +1,5 @@
-"""The experiment grids of `limbctl eval`: which data sets, models and answers each point runs.
-
-Three scales share one shape: ``full`` (the papers' grids, 10 seeds; docs/results.md), ``quick``
-(fewer points, 2 seeds) and ``smoke`` (two points per experiment, 1 seed: an end-to-end test).
+"""The experiment grids of `limbctl eval`: which data sets, models and answers each point runs,
+at three scales: ``full`` (the papers' grids, 10 seeds), ``quick`` and ``smoke`` (1 seed).
 """
 
 from __future__ import annotations
@@ -27,10 +25,8 @@ class DataSpec:
     ----------
     range_deg : float
         Half-angle R of the true swing cone (the papers' "range").
-    patterns : int
-        Training patterns, all valid.
-    test_patterns : int
-        Test patterns, valid and invalid.
+    patterns, test_patterns : int
+        Training patterns, all valid; test patterns, valid and invalid.
     test_spread : str
         Test directions uniform over the sphere (``"sphere"``) or around the cone (``"around"``).
     boundary_ratio : float
@@ -89,8 +85,7 @@ class Task:
 
     @property
     def key(self) -> str:
-        """A short hash of the definition and the gate's and fit's versions: a resume never mixes
-        changed tasks or older results."""
+        """A short hash of the definition and the gate's and fit's versions: resumes never mix."""
         from limbctl.envelope.rigidmap import GATE_VERSION
         from limbctl.region.taught import FIT_VERSION
 
@@ -178,9 +173,8 @@ SCALE_SIZES = {
 def som_spec(side: int, label: str | None = None) -> ModelSpec:
     """The SOM paper's network, ``side x side`` nodes: its answer and its threshold gate."""
     answers = (Answer("respond"), Answer("correct"))
-    return ModelSpec(
-        label or f"SOM {side}x{side}", "som", (("rows", side), ("cols", side)), answers
-    )
+    label = label or f"SOM {side}x{side}"
+    return ModelSpec(label, "som", (("rows", side), ("cols", side)), answers)
 
 
 def gate_spec() -> ModelSpec:
@@ -189,8 +183,7 @@ def gate_spec() -> ModelSpec:
 
 
 def paper_rigid_maps(scale: Scale, answers_720, answers_uniform) -> tuple[ModelSpec, ...]:
-    """The Rigid Map paper's two layouts (at their S^3 density on w >= 0) plus super-Fibonacci,
-    each also as a gate."""
+    """The Rigid Map paper's two layouts (S^3 density on w >= 0), super-Fibonacci; gates too."""
     n, k = scale.uniform_nodes, scale.k_uniform
     fibonacci = (Answer("respond", "geometric", k), Answer("correct"), Answer("data-nodes"))
     fibonacci += (Answer("data-nodes", "geometric", k),)
@@ -232,13 +225,8 @@ def build_tasks(scale_name: str) -> list[Task]:
         add("som-nodes", "nodes", side * side, som_data, [som_spec(side, "SOM"), *gate])
     for ratio in s.som_ratios:
         data = DataSpec(90.0, s.som_default_patterns, s.test_patterns, "sphere", ratio)
-        add(
-            "som-ratio",
-            "boundary_ratio",
-            ratio,
-            data,
-            [som_spec(s.som_range_sides[0]), gate_spec()],
-        )
+        models = [som_spec(s.som_range_sides[0]), gate_spec()]
+        add("som-ratio", "boundary_ratio", ratio, data, models)
 
     answers_720 = (*respond_all(INTERPOLATIONS, s.k_polytope), Answer("correct"))
     answers_uniform = (*respond_all(INTERPOLATIONS, s.k_uniform), Answer("correct"))

@@ -34,8 +34,7 @@ def write_twist_stream(path: Path, seconds: float = 12.0, rate_hz: float = 50.0)
 
 
 def write_stream(path: Path, rows: list[dict], bad: list[str]) -> int:
-    """Write ``rows`` as JSON lines with the ``bad`` lines spread evenly among them (one after
-    every ``len(rows) / len(bad)``-th row, the first half such a stretch in); returns the rows."""
+    """Write ``rows`` as JSON lines with the ``bad`` lines spread evenly among them; the rows."""
     n = len(rows)
     with open(path, "w", encoding="utf-8") as fh:
         for i, row in enumerate(rows):
@@ -47,8 +46,7 @@ def write_stream(path: Path, rows: list[dict], bad: list[str]) -> int:
 
 def logged_packets(goal_log: Path, key: str, width: int) -> np.ndarray:
     """What each goal packet of the simulator's goal log commanded, (M, ``width``): the last
-    ``key`` of each ``t`` (a sync write's lines, one per servo, share it; earlier ones mix the
-    new goal of one servo with the old goal of another)."""
+    ``key`` of each ``t`` (a sync write's lines share it; earlier ones mix old and new goals)."""
     by_time: dict[float, list[float]] = {}
     with open(goal_log, encoding="utf-8") as fh:
         for line in fh:
@@ -64,8 +62,8 @@ def logged_orientations(goal_log: Path) -> np.ndarray:
 
 
 def rotation_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Rotation angle (deg) between rows of unit quaternions: ``4 atan2(|a - s b|, |a + s b|)``
-    with ``s = sign(a . b)`` (= ``2 acos |a . b|``, accurate near 0)."""
+    """Rotation angle (deg) ``2 acos |a . b|`` between rows of unit quaternions, exact near 0."""
+    # 4 atan2(|a - s b|, |a + s b|), s = sign(a . b)
     s = np.where(np.sum(a * b, axis=-1) < 0.0, -1.0, 1.0)[..., None]
     near = np.linalg.norm(a - s * b, axis=-1)
     far = np.linalg.norm(a + s * b, axis=-1)
@@ -97,8 +95,7 @@ def twist_excursions(
     return np.where(outside, bound, 0.0)
 
 
-#: Bound (deg) above which a goal is measured again by sampling: under the 0.108 deg tolerance,
-#: as ``correct``'s local search may stop about 0.1 deg short.
+#: Bound (deg) above which a goal is measured again by sampling (``correct`` may stop short).
 REFINE_ABOVE_DEG = 0.05
 #: Orientations sampled around such a goal: the nearest held one within thousandths of a degree.
 REFINE_SAMPLES = 20000
@@ -124,8 +121,7 @@ def nearest_held_nearby_deg(model: object, q: np.ndarray, radius_deg: float, see
 
 
 def written_orientations(telemetry: Path) -> np.ndarray:
-    """The orientations (M, 4) the gate wrote, from a three-servo session's telemetry (each
-    written cycle's ``out``: pan, tilt, roll in deg)."""
+    """The orientations (M, 4) the gate wrote, from a three-servo session's telemetry."""
     from limbctl.geometry.gimbal import pan_tilt_roll_to_quat
 
     rows = []
@@ -157,9 +153,8 @@ def twist_picture(
     band_pan_deg: float = 0.0,
 ) -> None:
     """The taught samples over (pan, tilt) coloured by twist; twist against tilt of the samples
-    (grey) and of the goals written (red) with the true band's ``band_deg`` (low, high) limits
-    at ``band_tilt_deg`` (at pan ``band_pan_deg``). With a ``model`` learned with twist, the
-    learned band too: its limits on the same line and its width over the swing plane."""
+    and of the goals written with the true band's ``band_deg`` (low, high) limits at
+    ``band_tilt_deg`` (at pan ``band_pan_deg``); a twist ``model``'s learned band too."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -218,8 +213,7 @@ def learned_band_line(
 
 
 def _band_width_panel(fig, ax, region: object, pan: np.ndarray, tilt: np.ndarray) -> None:
-    """The learned band's width (twice its half-width, deg) over the swing region, on a
-    WIDTH_STEP_DEG grid over the taught samples' pan/tilt span."""
+    """The learned band's width (deg) over the swing region, on a grid over the samples' span."""
     from limbctl.geometry.gimbal import pan_tilt_to_direction
 
     step = WIDTH_STEP_DEG
