@@ -1,8 +1,5 @@
-"""Whether the taught samples support the edge the region will learn: the recorder's check.
-
-Once the guide would say READY, :class:`EdgeSupport` fits the region to the samples so far in a
-worker process and the guide withholds READY while a stretch is unsupported
-(:attr:`~limbctl.region.TaughtRegion.unsupported_edge`).
+"""Whether the taught samples support the edge the region will learn: the recorder's check, run
+in a worker process once the guide would say READY (which it withholds while a stretch is not).
 """
 
 from __future__ import annotations
@@ -44,7 +41,7 @@ class EdgeStretch:
 
 def unsupported_stretches(d: np.ndarray) -> tuple[EdgeStretch, ...]:
     """The stretches a region learned from directions ``d`` (N, 3) leaves unsupported, farthest
-    first; none for too few samples or samples no region can be learned from."""
+    first; none when no region can be learned."""
     from limbctl.errors import LimbctlError
     from limbctl.region import TaughtRegion
 
@@ -92,8 +89,7 @@ class EdgeSupport:
 
     @property
     def possible(self) -> bool:
-        """Whether a check can run now without compiling: the training's kernels are cached
-        (either rig's: a three-servo training fits the same swing region first)."""
+        """Whether a check can run now without compiling: either rig's training kernels cached."""
         return any(jit.prepared(jit.stage("train", twist)) for twist in (False, True))
 
     def check_later(self, d: np.ndarray) -> None:
@@ -108,8 +104,7 @@ class EdgeSupport:
         self._pending = self._worker().submit(self._check, np.array(d))
 
     def check_now(self, d: np.ndarray) -> tuple[EdgeStretch, ...] | None:
-        """Check every sample ``d`` (N, 3) and wait for the answer; None (and nothing checked)
-        while the kernels are not cached."""
+        """Check every sample ``d`` (N, 3) and wait; none checked until the kernels are cached."""
         if not self.possible:
             return self.stretches
         if self._pending is not None:
