@@ -59,8 +59,7 @@ def _normalise_rows(p: np.ndarray) -> np.ndarray:
 
 
 def fold_to_hemisphere(points: np.ndarray, decimals: int = 9) -> np.ndarray:
-    """Unit quaternions (n, 4) folded to the canonical hemisphere (module docstring), duplicates
-    (rounded to ``decimals``) dropped, input order kept: (m, 4)."""
+    """Unit quaternions (n, 4) folded to w >= 0, duplicates dropped, order kept: (m, 4)."""
     points = np.asarray(points, dtype=np.float64)
     rounded = np.round(points, decimals) + 0.0  # + 0.0 turns -0.0 into 0.0
     nonzero = rounded != 0.0
@@ -174,18 +173,9 @@ LAYOUTS: dict[str, Callable[[int | None, np.random.Generator, bool], np.ndarray]
 def make_layout(
     name: str, n: int | None = None, seed: int | np.random.Generator = 0, hemisphere: bool = True
 ) -> np.ndarray:
-    """Node positions on S^3 by layout name.
-
-    Parameters
-    ----------
-    name : str
-        One of :data:`LAYOUTS`.
-    n : int, optional
-        Node count: required for ``uniform`` and ``super-fibonacci``; a polytope's exact count.
-    seed : int or numpy.random.Generator
-        Randomness for ``uniform`` (ignored by the deterministic layouts).
-    hemisphere : bool
-        Nodes on w >= 0, polytopes folded; False: the papers' node sets.
+    """Node positions on S^3 by layout ``name`` (of :data:`LAYOUTS`): ``n`` nodes (required for
+    ``uniform`` and ``super-fibonacci``, a polytope's count), ``seed`` for ``uniform``, on w >= 0
+    (polytopes folded) or, without ``hemisphere``, the papers' node sets.
 
     Returns
     -------

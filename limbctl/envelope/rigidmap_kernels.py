@@ -1,6 +1,5 @@
 """Numba kernels of the Rigid Map (Jenkins & Angel, Table I): training, winner search, answering.
-
-Each kernel has a numpy reference (``*_reference``); no ``fastmath`` (NaN fails comparisons).
+Training has a numpy reference; no ``fastmath`` (NaN fails comparisons).
 """
 
 from __future__ import annotations

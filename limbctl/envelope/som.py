@@ -15,7 +15,7 @@ from limbctl.envelope import interpolation as ip
 from limbctl.envelope.base import Envelope
 from limbctl.envelope.som_kernels import train_som
 from limbctl.errors import ConfigError
-from limbctl.geometry.quat import canonical
+from limbctl.geometry.quat import as_quaternions, canonical
 
 
 def table_i_schedule(
@@ -33,17 +33,14 @@ def table_i_schedule(
 
     Parameters
     ----------
-    max_steps : int
-        Time steps (the training cap).
     lr0, lr_min, lr_factor, radius0, radius_min, radius_factor : float
         Initial value, floor, and factor per period of the learning rate and the radius (grid).
-    period, periods : int
-        Time steps per period; periods in the table, the last lasting until the end.
+    period, periods, max_steps : int
+        Time steps per period; periods in the table, the last lasting until ``max_steps``.
 
     Returns
     -------
     learning_rates, radii : ndarray, shape (max_steps,)
-        Per time step.
     """
     t = np.arange(max_steps)
     p = np.minimum(t // period, periods - 1)
@@ -55,20 +52,9 @@ def table_i_schedule(
 
 
 class SOM(Envelope):
-    """Kohonen SOM over unit quaternions, trained on valid orientations (Jenkins & Dacey).
-
-    Parameters
-    ----------
-    rows, cols : int
-        Output grid size (nodes = rows * cols).
-    seed : int or numpy.random.Generator
-        Randomness of the initial weights (each ``fit`` with an int seed starts afresh).
-    max_steps : int
-        Cap on time steps (full passes over the training set); Table I: 10,000.
-    lr0, lr_min, lr_factor, radius0, radius_min, radius_factor, period, periods
-        Table I's schedule (see :func:`table_i_schedule`).
-    init_scale : float
-        Initial weights are uniform in [-init_scale, init_scale].
+    """Kohonen SOM over unit quaternions, trained on valid orientations (Jenkins & Dacey): a
+    ``rows x cols`` grid, initial weights uniform in [-init_scale, init_scale] from ``seed`` (an
+    int seed starts each ``fit`` afresh), Table I's schedule (:func:`table_i_schedule`).
     """
 
     kind = "som"
@@ -145,7 +131,7 @@ class SOM(Envelope):
 
     def fit(self, q_train: np.ndarray) -> SOM:
         """Train on valid orientations ``q_train`` (N, 4), N >= 1. Returns self."""
-        patterns, _ = self._input(q_train)
+        patterns, _ = as_quaternions(q_train)
         if len(patterns) == 0:
             raise ConfigError("SOM.fit: q_train is empty; record some valid orientations first")
         weights = self.initial_weights()
@@ -164,7 +150,7 @@ class SOM(Envelope):
         """The SOM's answer to ``q`` (4,) or (N, 4), shaped like it, by ``interpolation``."""
         mode = ip.interpolation_code(interpolation)
         k = ip.check_k(k)
-        arr, single = self._input(q)
+        arr, single = as_quaternions(q)
         weights = self.weights
         topology = self._grid_topology(k) if mode == ip.TOPOLOGICAL else _NO_TOPOLOGY
         out = ip.respond_batch(weights, arr, k, ip.EUCLIDEAN, mode, topology)

@@ -137,10 +137,9 @@ class PolygonRegion(Region):
     ----------
     polygon_deg : array_like, shape (V, 2)
         Vertices (pan, tilt) in degrees, either winding, not self-intersecting.
-    edge_density : float
-        Sample density at the edge relative to the deep middle (0 < edge_density <= 1).
-    ramp_deg : float
-        Depth over which the density rises from ``edge_density`` to 1.
+    edge_density, ramp_deg : float
+        Sample density at the edge relative to the middle (0 < it <= 1), rising to 1 over the
+        depth ``ramp_deg``.
     boundary_step_deg : float
         Spacing of the dense boundary sampling used for depth and the ideal correction.
     """

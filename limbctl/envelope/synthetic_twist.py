@@ -91,8 +91,7 @@ class ShoulderRegion:
     def teaching(
         self, n_uniform: int, n_edge: int, n_stops: int, rng: np.random.Generator
     ) -> np.ndarray:
-        """Taught orientations (N, 4): ``n_uniform`` uniform, ``n_edge`` within 1 deg of the swing
-        edge, ``n_stops`` at the twist stops (half along the edge)."""
+        """Taught orientations (N, 4): uniform, within 1 deg of the swing edge, at twist stops."""
         d_u = self._inside_directions(n_uniform, rng)
         d_e = self._edge_directions(n_edge, rng, 1.0)
         d_s = np.vstack(
@@ -145,16 +144,9 @@ class ShoulderRegion:
 
 
 class BandRegion(ShoulderRegion):
-    """A swing outline with any twist band (curved, across +-180 deg), else a ShoulderRegion.
-
-    Parameters
-    ----------
-    polygon_deg : array_like (V, 2)
-        The swing outline in (pan, tilt) degrees.
-    band_deg : callable
-        ``(pan_deg (N,), tilt_deg (N,)) -> (centre_deg (N,), half_deg (N,))``; half-widths in
-        (0, 180).
-    """
+    """A swing outline ``polygon_deg`` (V, 2) with any twist band (curved, across +-180 deg):
+    ``band_deg(pan_deg (N,), tilt_deg (N,)) -> (centre_deg (N,), half_deg (N,))``, half-widths
+    in (0, 180)."""
 
     def __init__(self, polygon_deg: np.ndarray, band_deg) -> None:
         super().__init__(polygon_deg)
