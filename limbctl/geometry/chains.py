@@ -33,8 +33,7 @@ def geodesic(a: np.ndarray, b: np.ndarray) -> float:
 
 
 def toward(a: np.ndarray, b: np.ndarray, step: float) -> np.ndarray:
-    """Unit quaternion ``step`` rad of rotation from ``a`` along the shortest rotation to ``b``,
-    or ``b`` itself when it is nearer than that; w >= 0."""
+    """Unit quaternion ``step`` rad from ``a`` toward ``b``, or ``b`` when nearer; w >= 0."""
     angle = geodesic(a, b)
     if angle <= step:
         return b
@@ -42,8 +41,7 @@ def toward(a: np.ndarray, b: np.ndarray, step: float) -> np.ndarray:
 
 
 def turn_by(a: np.ndarray, b: np.ndarray, step: float) -> np.ndarray:
-    """Unit quaternion ``step`` rad of rotation from ``a`` along the shortest rotation to ``b``,
-    which may lie past ``b``; ``b`` itself when the two are the same orientation."""
+    """Unit quaternion ``step`` rad from ``a`` toward ``b``, maybe past it; ``b`` when equal."""
     angle = geodesic(a, b)
     if angle == 0.0:
         return b

@@ -132,8 +132,7 @@ def pan_tilt_roll_scalar(
 
 
 def pose_quat(*pose: float) -> np.ndarray:
-    """Orientation (4,), w >= 0, of one pose of either chain: ``(pan, tilt)`` twist-free or
-    ``Rz(pan) Ry(-tilt) Rx(roll)``."""
+    """Orientation (4,), w >= 0, of one pose ``(pan, tilt)`` or ``(pan, tilt, roll)``."""
     if len(pose) == 2:
         return pan_tilt_to_quat(*pose)
     return pose_quat_scalar(*pose)

@@ -15,16 +15,13 @@ UNIT_TOLERANCE = 1e-6
 def as_quaternions(
     q: object, name: str = "q", tol: float = UNIT_TOLERANCE
 ) -> tuple[np.ndarray, bool]:
-    """Validate quaternion input as an (N, 4) float64 array.
+    """Validate quaternion input as an (N, 4) float64 array (``name`` in messages, ``tol`` on the
+    norm).
 
     Parameters
     ----------
     q : array_like, shape (4,) or (N, 4)
         Unit quaternions (w, x, y, z).
-    name : str
-        Name used in error messages.
-    tol : float
-        Allowed deviation of the norm from 1.
 
     Returns
     -------
@@ -123,8 +120,7 @@ def limb_direction(q: np.ndarray) -> np.ndarray:
 
 
 def swing_from_direction(d: np.ndarray) -> np.ndarray:
-    """The twist-free quaternion (..., 4) turning +x onto direction ``d`` (..., 3) by the shortest
-    arc; for d = -x the half-turn about +z."""
+    """The twist-free quaternion (..., 4) turning +x onto ``d`` (..., 3); at -x the turn about z."""
     d = np.asarray(d, dtype=np.float64)
     d = d / np.linalg.norm(d, axis=-1, keepdims=True)
     # q = normalize(1 + d_x, 0, -d_z, d_y)

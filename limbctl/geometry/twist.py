@@ -34,20 +34,8 @@ def wrap(angle: np.ndarray | float) -> np.ndarray:
 
 
 def decompose(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Split unit quaternions into limb direction and twist: ``q = swing(d) * twist(tau)``.
-
-    Parameters
-    ----------
-    q : ndarray, shape (..., 4)
-        Unit quaternions (w, x, y, z), either hemisphere.
-
-    Returns
-    -------
-    d : ndarray, shape (..., 3)
-        Unit limb directions ``limb_direction(q)``.
-    tau : ndarray, shape (...,)
-        Twist (rad) in ``(-pi, pi]``.
-    """
+    """Split unit quaternions (..., 4), either hemisphere, into unit limb directions ``d`` (...,
+    3) and twists ``tau`` (...,) rad in ``(-pi, pi]``: ``q = swing(d) * twist(tau)``."""
     q = canonical(np.asarray(q, dtype=np.float64))
     w, x, y, z = np.moveaxis(q, -1, 0)
     singular = np.hypot(w, x) < SINGULAR_SW
@@ -60,20 +48,8 @@ def decompose(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def compose(d: np.ndarray, tau: np.ndarray | float) -> np.ndarray:
-    """Orientations ``swing(d) * twist(tau)`` (..., 4), w >= 0.
-
-    Parameters
-    ----------
-    d : ndarray, shape (..., 3)
-        Limb directions (normalised here); -x takes the half-turn about +z as its swing.
-    tau : ndarray or float, shape (...,)
-        Twist (rad), any real value (wrapped).
-
-    Returns
-    -------
-    ndarray, shape (..., 4)
-        Unit quaternions.
-    """
+    """Unit orientations ``swing(d) * twist(tau)`` (..., 4), w >= 0, of directions ``d`` (..., 3)
+    (normalised here) and twists ``tau`` (...,) rad (any value)."""
     sw = swing_from_direction(d)
     half = 0.5 * wrap(tau)
     c, s = np.cos(half), np.sin(half)
