@@ -40,8 +40,7 @@ class EdgeStretch:
 
 
 def unsupported_stretches(d: np.ndarray) -> tuple[EdgeStretch, ...]:
-    """The stretches a region learned from directions ``d`` (N, 3) leaves unsupported, farthest
-    first; none when no region can be learned."""
+    """The stretches a region learned from directions ``d`` (N, 3) leaves unsupported, or none."""
     from limbctl.errors import LimbctlError
     from limbctl.region import TaughtRegion
 
@@ -58,14 +57,8 @@ def unsupported_stretches(d: np.ndarray) -> tuple[EdgeStretch, ...]:
 
 
 class EdgeSupport:
-    """Checks, in a worker process, whether the samples so far support the learned edge; a
-    context manager. :attr:`stretches` is None until a check has finished.
-
-    Parameters
-    ----------
-    check : callable
-        Module-level ``check(d) -> tuple of EdgeStretch`` for directions (N, 3), run in the worker.
-    """
+    """Checks, in a worker process, whether the samples so far support the learned edge (module
+    level ``check(d (N, 3)) -> tuple of EdgeStretch``); :attr:`stretches` None until one ends."""
 
     def __init__(self, check: Callable[[np.ndarray], tuple[EdgeStretch, ...]] | None = None):
         self.stretches: tuple[EdgeStretch, ...] | None = None

@@ -14,6 +14,7 @@ from scipy.spatial import ConvexHull, QhullError
 
 from limbctl.geometry.gimbal import direction_to_pan_tilt, pan_tilt_to_direction
 from limbctl.geometry.quat import tangent_frame
+from limbctl.geometry.scalar import direction
 from limbctl.teach.edge_support import EdgeStretch, EdgeSupport
 from limbctl.teach.holes import Hole, find_holes
 
@@ -362,13 +363,8 @@ class Guide:
         if self.samples == len(self._t):
             self._t = np.concatenate([self._t, np.empty_like(self._t)])
             self._d = np.concatenate([self._d, np.empty_like(self._d)])
-        cos_tilt = math.cos(tilt_rad)
         self._t[self.samples] = t_s
-        self._d[self.samples] = (
-            cos_tilt * math.cos(pan_rad),
-            cos_tilt * math.sin(pan_rad),
-            math.sin(tilt_rad),
-        )
+        self._d[self.samples] = direction(pan_rad, tilt_rad)
         self.samples += 1
 
     def assess(self, final: bool = False) -> Guidance:

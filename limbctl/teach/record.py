@@ -129,22 +129,13 @@ def record(
     on_guidance: Callable[[Guidance], None] | None = None,
     on_twist: Callable[[TwistGuidance], None] | None = None,
 ) -> RecordSummary:
-    """Switch torque off and record until ``stop`` is set or ``duration_s`` passes.
+    """Switch torque off and record ``limb`` into the open ``writer`` until ``stop`` is set (Ctrl-C,
+    Enter) or ``duration_s`` passes, drawing a progress line to ``progress``.
 
     Parameters
     ----------
-    limb : Backdrivable
-        The connected rig.
-    writer : DatasetWriter
-        An open dataset writer; every sample is appended as it is read.
     rate_hz : float
         Sampling rate (Hz), at least :data:`MIN_RATE_HZ`.
-    duration_s : float, optional
-        Stop after this many seconds.
-    stop : threading.Event, optional
-        Set by Ctrl-C/SIGTERM handlers or the Enter key to end the recording.
-    progress : text stream, optional
-        Where the progress line is drawn: in place on a terminal, every LOG_EVERY_S otherwise.
     on_guidance, on_twist : callable, optional
         Called in the recording thread (keep them quick) with each Guidance and (three servos)
         TwistGuidance, every GUIDE_EVERY_S and at the end.

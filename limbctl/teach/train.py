@@ -224,8 +224,7 @@ def _region_extent(
     margin_deg: float = 20.0,
     step_deg: float = 0.5,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Joint angles (rad) of the ``step_deg`` grid over the samples' extent plus ``margin_deg``
-    whose direction the region ``holds``."""
+    """Joint angles (rad) of the grid over the samples' extent whose direction the region holds."""
     from limbctl.geometry.gimbal import pan_tilt_to_quat
 
     margin, step = math.radians(margin_deg), math.radians(step_deg)

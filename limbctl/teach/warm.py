@@ -108,8 +108,7 @@ def warm_up(
 
 @contextlib.contextmanager
 def warming_in_background(twist: bool = False) -> Iterator[subprocess.Popen | None]:
-    """Start the warm-up of a rig's stages in a low-priority session unless nothing needs it;
-    yields the process, left running on exit."""
+    """Start the warm-up of a rig's stages in a low-priority session if needed; yields it."""
     stages = (jit.stage("train", twist), jit.stage("gate", twist))
     if jit.cache_dir() is None or all(jit.prepared(stage) for stage in stages):
         yield None
