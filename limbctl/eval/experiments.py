@@ -175,8 +175,7 @@ def run_tasks(
 def run_eval(
     out: Path, quick: bool = False, jobs: int = 0, progress: bool = True, smoke: bool = False
 ) -> int:
-    """`limbctl eval`: run the full, ``quick`` or ``smoke`` grid into ``out`` (a rerun resumes);
-    0, or 1 when the SOM reproduction fell outside its band."""
+    """`limbctl eval` into ``out`` (a rerun resumes); 1 when the SOM reproduction failed, else 0."""
     from limbctl.eval import plots as eval_plots
     from limbctl.eval.twist import run_twist
 

@@ -19,19 +19,10 @@ SCALES = ("full", "quick", "smoke")
 
 @dataclass(frozen=True)
 class DataSpec:
-    """How one data set is drawn (twist-free orientations of a limb resting along +x).
-
-    Attributes
-    ----------
-    range_deg : float
-        Half-angle R of the true swing cone (the papers' "range").
-    patterns, test_patterns : int
-        Training patterns, all valid; test patterns, valid and invalid.
-    test_spread : str
-        Test directions uniform over the sphere (``"sphere"``) or around the cone (``"around"``).
-    boundary_ratio : float
-        Training density in the band (swing in (R/2, R]) over the central cap's; 1 is uniform.
-    """
+    """How one data set of twist-free orientations is drawn: ``range_deg``, the true cone's
+    half-angle R; ``patterns`` valid for training, ``test_patterns`` spread over the ``"sphere"``
+    or ``"around"`` the cone; ``boundary_ratio``, training density in the band (swing in (R/2,
+    R]) over the central cap's (1: uniform)."""
 
     range_deg: float
     patterns: int
@@ -42,9 +33,7 @@ class DataSpec:
 
 @dataclass(frozen=True)
 class Answer:
-    """One way of answering: ``how`` is ``respond`` (the paper's network, with an interpolation),
-    ``correct`` (the gate) or ``data-nodes`` (the paper's rule over a Rigid Map's support layer).
-    """
+    """One way of answering: ``respond`` (the paper's), ``correct`` (the gate) or ``data-nodes``."""
 
     how: str
     interpolation: str = "none"
@@ -61,8 +50,7 @@ class Answer:
 
 @dataclass(frozen=True)
 class ModelSpec:
-    """A model to train on each task's data (``kind``, constructor ``options``, a ``seed`` added
-    per task) and the answers to score; ``label`` names it in tables and plots."""
+    """A model to train on each task's data (a ``seed`` added per task) and its answers."""
 
     label: str
     kind: str

@@ -85,8 +85,7 @@ def score(
     Returns
     -------
     dict
-        ``{subset: {metric: value}}`` for subset in :data:`SUBSETS` and metric in
-        :data:`METRIC_NAMES`. An empty subset has ``n = 0`` and NaN elsewhere.
+        ``{subset: {metric: value}}`` of :data:`SUBSETS` and :data:`METRIC_NAMES` (empty: NaN).
     """
     sq = quaternion_sq_error(answer, ideal)
     end = endpoint_error(answer, ideal)

@@ -13,8 +13,7 @@ from limbctl.geometry.twist import decompose
 
 
 def write_twist_stream(path: Path, seconds: float = 12.0, rate_hz: float = 50.0) -> int:
-    """Write a replay file sweeping far outside the taught region in swing and twist, with a few
-    bad lines; returns the valid lines."""
+    """A replay file sweeping far outside in swing and twist, bad lines mixed in; valid lines."""
     n = int(seconds * rate_hz)
     t = np.arange(n) / rate_hz
     pan = 110.0 * np.sin(2 * math.pi * t / seconds)
