@@ -1,5 +1,5 @@
-"""The whole flow on the embedded simulator, for a newcomer: teach, train, teleop, check, leader.
-One flow (:func:`_run_flow`) runs every rig; what differs is a :class:`DemoRig` in :data:`RIGS`."""
+"""The whole flow on the embedded simulator, for a newcomer: teach, train, teleop, check, leader;
+what differs by rig is a :class:`DemoRig` in :data:`RIGS`."""
 
 from __future__ import annotations
 
@@ -40,16 +40,11 @@ DEMO_APPROACH_DEG_S = 10.0
 
 @dataclass(frozen=True)
 class DemoRig:
-    """What the demo does differently on one simulated rig.
-
-    ``profile``: rig profile (None: two servos); ``joints``: the follower's servo count;
-    ``region_file``: the hand's REGION.yaml in ``limbctl/data``; ``write_stream(path) -> valid
-    lines``; ``judge(goals, model, telemetry) -> (N,)`` deg outside the learned region per logged
-    goal; ``report(out, model, region_yaml, beyond)``: step 4's lines and pictures; ``approach``
-    (deg/s; None waits); ``train_plot`` (None: none); ``leader``: operator, ids, seconds;
-    ``leader_row(cycle, source)``: leader then follower pose (deg) for leader.png (None: skipped).
-    The rest are printed lines (``teach`` formats ``seconds``, ``stream`` ``valid`` and ``path``,
-    ``excursion`` ``worst``, ``bound`` and ``tolerance``)."""
+    """What the demo does differently on one simulated rig: its profile (None: two servos), the
+    hand's REGION.yaml in ``limbctl/data``, the command stream, ``judge(goals, model, telemetry)
+    -> (N,)`` deg outside the learned region per goal, step 4's ``report``, the ``approach``
+    (deg/s; None waits), the ``leader`` (operator, ids, seconds) and its rows (deg) for
+    leader.png, and the printed lines (formatted with the step's figures)."""
 
     profile: Path | None
     joints: int
@@ -218,8 +213,7 @@ def _twist_row(cycle, source) -> tuple[float, ...] | None:
 
 
 def write_command_stream(path: Path, seconds: float = 12.0, rate_hz: float = 50.0) -> int:
-    """A replay file: a Lissajous sweep (pan +-110, tilt -55..75 deg) with bad lines mixed in;
-    returns the number of valid lines."""
+    """A replay file: a sweep (pan +-110, tilt -55..75 deg), bad lines mixed in; the valid lines."""
     n = int(seconds * rate_hz)
     t = np.arange(n) / rate_hz
     # crosses the taught region (about pan -70..80, tilt -35..60 deg) and leaves it on every side
