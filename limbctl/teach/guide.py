@@ -72,27 +72,11 @@ class InsideGap:
 
 @dataclass(frozen=True)
 class Guidance:
-    """What the guide says about a teaching so far (all angles in degrees).
-
-    Attributes
-    ----------
-    samples : int
-        Samples assessed.
-    phase : str
-        One of :data:`PHASES`.
-    edge_closed, inside_covered : float
-        Share of the turn about the centre whose edge is traced; of inside cells with a sample.
-    edge_gaps, inside_gaps : tuple
-        :class:`EdgeGap` and :class:`InsideGap`, largest first (at most :data:`MAX_GAPS`).
-    ready : bool
-        Complete enough to train.
-    centre_deg, spread_deg : tuple of float, float
-        (pan_deg, tilt_deg) of the picture's centre; largest angle of a sample from the mean.
-    holes, unsupported : tuple
-        The recording's :class:`Hole`\\ s; :class:`EdgeStretch`\\ es the region would bridge.
-    checking : bool
-        Ready by coverage, but the edge's support is still being checked.
-    """
+    """What the guide says about the ``samples`` so far (angles in degrees): the ``phase`` (of
+    :data:`PHASES`), the share of the turn whose edge is traced and of inside cells with a
+    sample, the largest gaps of each (at most :data:`MAX_GAPS`), whether ``ready`` to train, the
+    picture's centre (pan, tilt), a sample's largest angle from the mean, the recording's holes,
+    the stretches of edge the region would bridge, and whether their check is still running."""
 
     samples: int
     phase: str

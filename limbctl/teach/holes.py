@@ -17,19 +17,10 @@ MAX_HOLES = 5
 
 @dataclass(frozen=True)
 class Hole:
-    """A stretch of time with no sample.
-
-    Attributes
-    ----------
-    start_s, end_s, before_deg, after_deg : float, float, tuple, tuple
-        Times (s) of the samples before and after it; (pan_deg, tilt_deg) of the limb there.
-    at_edge : bool
-        The sample before or after it lies in the outline's band.
-    edge_deg : tuple of float or None
-        (pan_deg, tilt_deg) of the middle of the stretch of edge it may hide; None for none.
-    fraction, open_fraction : float
-        That stretch's share of the turn about the centre; the share not yet re-traced.
-    """
+    """A stretch of time with no sample: times (s) of the samples before and after it and the
+    limb's (pan, tilt) deg there; whether either lies in the outline's band (``at_edge``); the
+    middle (pan, tilt) deg of the stretch of edge it may hide (``edge_deg``, or None), that
+    stretch's share of the turn (``fraction``) and the share not yet re-traced."""
 
     start_s: float
     end_s: float

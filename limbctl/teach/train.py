@@ -19,30 +19,13 @@ from limbctl.geometry.twist import decompose, wrap
 
 @dataclass(frozen=True)
 class TrainSummary:
-    """What a training run produced, in the units a person reads (degrees).
-
-    Attributes
-    ----------
-    samples, nodes : int
-        Orientations the model was fitted to; node weights in the model.
-    pan_range_deg, tilt_range_deg, boundary_pan_range_deg, boundary_tilt_range_deg : tuple
-        Extent (deg) of the samples' joint angles; of the learned region (:func:`_region_extent`).
-    spread_deg : float
-        Largest angle between a sample's limb direction and the samples' mean direction.
-    contained_fraction : float
-        Share of the training samples the trained model holds (~1).
-    edge, edge_refusals : str, tuple of str
-        A Rigid Map gate's edge (:data:`EDGE_MEANING`; else empty); why it refused the others.
-    calibration_recorded : bool
-        Whether the dataset (and so the model) carries the rig calibration.
-    twist_range_deg, twist_excess_deg : tuple of float or None
-        The band's lowest and highest limit (deg); median and largest excess (deg) of the
-        ``outside_twist`` samples. None without twist, or without such samples.
-    outside_direction, outside_twist : int
-        Samples left out: direction outside, or inside with the twist past the band.
-    unsupported_edge, unsupported_twist : tuple of str
-        One request per stretch of edge or band limit the teaching does not support.
-    """
+    """What a training run produced, in degrees: the ``samples`` and ``nodes``, the samples' and
+    the learned region's (:func:`_region_extent`) pan and tilt extent, the samples' spread from
+    their mean direction, the share of them the model holds, a Rigid Map gate's ``edge``
+    (:data:`EDGE_MEANING`) and why it refused the others, whether the calibration was recorded;
+    with twist, the band's lowest and highest limit, the samples left out (direction outside,
+    or twist past the band, by a median and largest ``twist_excess_deg``), and one request per
+    stretch of edge or band limit the teaching does not support."""
 
     samples: int
     pan_range_deg: tuple[float, float]

@@ -46,20 +46,11 @@ class TwistPlace:
 
 @dataclass(frozen=True)
 class TwistGuidance:
-    """How much of the twist range has been taught.
-
-    Attributes
-    ----------
-    cells, turned : int
-        Cells judged (MIN_CELL_SAMPLES or more); of those, turned to both stops (span at least
-        TURNED_FRACTION of ``wide_span_deg``, the WIDE_QUANTILE of the judged spans, deg).
-    least : tuple of float or None
-        (pan_deg, tilt_deg, span_deg) of the cell turned least, None when none is judged.
-    places : tuple of TwistPlace
-        Every cell visited, judged or not (the live page draws them).
-    unsupported, support_checked : tuple of UnsupportedPlace, bool
-        Where the last support check (run once every place was turned) found a stop missing.
-    """
+    """How much of the twist range has been taught: ``cells`` judged (MIN_CELL_SAMPLES or more),
+    of those ``turned`` to both stops (span at least TURNED_FRACTION of ``wide_span_deg``, the
+    WIDE_QUANTILE of the judged spans), the cell turned ``least`` (pan, tilt, span deg; None when
+    none is judged), every cell visited (``places``), and where the last support check (run
+    once every place was turned) found a stop missing (``unsupported``)."""
 
     cells: int
     turned: int

@@ -219,9 +219,8 @@ HELP = (
     "fit after install do not compile"
 )
 DESCRIPTION = (
-    "Compile the kernels of training, the gate and a library fit once into the kernel cache "
-    "(NUMBA_CACHE_DIR sets it). Run it after install and after an upgrade; without it, "
-    "`limbctl record` compiles them in the background while you teach."
+    "Compile the kernels of training, the gate and a library fit into the cache (NUMBA_CACHE_DIR "
+    "sets it) after install or upgrade; else `limbctl record` compiles them while you teach."
 )
 RIG_HELP = (
     "all (default: two and three servos), sim (two servos: pan, tilt), sim3 (three: and "
