@@ -1,8 +1,5 @@
-"""Node positions on S^3 (unit quaternions) for Rigid Map output layers, by name.
-
-By default (``hemisphere=True``) every layout lives on w >= 0: polytopes are *folded* (each
-antipodal pair keeps its canonical member, halving the counts) and the random and spiral layouts
-put all ``n`` points there. ``hemisphere=False`` gives the papers' node sets on all of S^3.
+"""Node positions on S^3 (unit quaternions) for Rigid Map output layers, by name: on w >= 0
+(polytopes folded, each antipodal pair keeping its canonical member), or the papers' node sets.
 """
 
 from __future__ import annotations

@@ -15,8 +15,7 @@ UNIT_TOLERANCE = 1e-6
 def as_quaternions(
     q: object, name: str = "q", tol: float = UNIT_TOLERANCE
 ) -> tuple[np.ndarray, bool]:
-    """Validate quaternion input as an (N, 4) float64 array (``name`` in messages, ``tol`` on the
-    norm).
+    """Validate unit quaternions ``q`` (``name`` in messages, ``tol`` on the norm).
 
     Parameters
     ----------

@@ -1,8 +1,6 @@
-"""Scalar kinematics for the gate's hot path: one pose per cycle, plain floats.
-
-The same formulas as :mod:`limbctl.geometry.gimbal` and :mod:`limbctl.geometry.quat`, without
-numpy's per-call overhead (~10x the arithmetic for one pose). Angles are radians.
-"""
+"""Scalar kinematics for the gate's hot path: :mod:`~limbctl.geometry.gimbal`'s and
+:mod:`~limbctl.geometry.quat`'s formulas for one pose in plain floats (radians), without numpy's
+per-call overhead."""
 
 from __future__ import annotations
 
