@@ -51,21 +51,10 @@ def open_rig(
     latency_timer_ms: float | None = None,
     profile: RigProfile | None = None,
 ) -> Iterator[Session]:
-    """Connect to the rig's servos (starting the simulator if needed); close on exit.
-
-    Parameters
-    ----------
-    port, baud : optional
-        Serial device and baud rate; override the profile's.
-    rig_path, profile : optional
-        Rig profile YAML (default: the packaged simulated rig), or the profile itself.
-    hand, goal_log, seed, sim_options
-        Passed to the simulator when one is started.
-    extra_ids : tuple of int
-        More servos on the same bus (e.g. a leader gimbal).
-    latency_timer_ms : float, optional
-        The USB adapter's latency timer (ms); default 16 on a real port, 2 on the simulator's pty.
-    """
+    """Connect to the servos of the rig (``profile``, or the YAML at ``rig_path``, default the
+    simulated rig), starting the simulator (given ``hand``, ``goal_log``, ``seed``,
+    ``sim_options``) when no ``port`` is known, with ``extra_ids`` on the same bus and the USB
+    adapter's ``latency_timer_ms`` (default 16, 2 on the simulator's pty); close on exit."""
     profile = profile if profile is not None else load_rig_profile(rig_path)
     device = port if port is not None else (None if profile.is_sim else profile.port)
     with ExitStack() as stack:
