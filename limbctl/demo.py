@@ -258,14 +258,10 @@ def _report_gimbal(out: Path, model: object, region_yaml: Path, beyond: int) -> 
     from limbctl.teach.dataset import load_dataset
 
     say(f"   goals beyond the bound: {beyond}")
-    commanded, written = [], []
     with open(out / "telemetry.jsonl", encoding="utf-8") as fh:
-        for line in fh:
-            row = json.loads(line)
-            if row["cmd"] is not None:
-                commanded.append(row["cmd"])
-            if row["written"]:
-                written.append(row["out"])
+        rows = [json.loads(line) for line in fh]
+    commanded = [row["cmd"] for row in rows if row["cmd"] is not None]
+    written = [row["out"] for row in rows if row["written"]]
 
     def directions(rows: list) -> np.ndarray:
         a = np.radians(np.asarray(rows, dtype=np.float64).reshape(-1, 2))

@@ -127,11 +127,11 @@ def read_rows(csv_path: Path) -> list[dict[str, Any]]:
     if not csv_path.exists():
         return []
     text_fields = {"task", "grid", "experiment", "x_name", "model", "answer", "subset"}
-    rows = []
     with open(csv_path, newline="") as fh:
-        for raw in csv.DictReader(fh):
-            rows.append({k: v if k in text_fields else float(v) for k, v in raw.items()})
-    return rows
+        return [
+            {k: v if k in text_fields else float(v) for k, v in raw.items()}
+            for raw in csv.DictReader(fh)
+        ]
 
 
 def run_tasks(

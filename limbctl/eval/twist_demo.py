@@ -46,12 +46,9 @@ def write_stream(path: Path, rows: list[dict], bad: list[str]) -> int:
 def logged_packets(goal_log: Path, key: str, width: int) -> np.ndarray:
     """What each goal packet of the simulator's goal log commanded, (M, ``width``): the last
     ``key`` of each ``t`` (a sync write's lines share it; earlier ones mix old and new goals)."""
-    by_time: dict[float, list[float]] = {}
     with open(goal_log, encoding="utf-8") as fh:
-        for line in fh:
-            if line.strip():
-                row = json.loads(line)
-                by_time[row["t"]] = row[key]
+        rows = [json.loads(line) for line in fh if line.strip()]
+    by_time = {row["t"]: row[key] for row in rows}  # the last line of each t
     return np.asarray(list(by_time.values()), dtype=np.float64).reshape(-1, width)
 
 
@@ -123,12 +120,11 @@ def written_orientations(telemetry: Path) -> np.ndarray:
     """The orientations (M, 4) the gate wrote, from a three-servo session's telemetry."""
     from limbctl.geometry.gimbal import pan_tilt_roll_to_quat
 
-    rows = []
     with open(telemetry, encoding="utf-8") as fh:
-        for line in fh:
-            row = json.loads(line)
-            if row["written"] and row["out"] is not None and len(row["out"]) == 3:
-                rows.append(row["out"])
+        cycles = [json.loads(line) for line in fh]
+    rows = [
+        c["out"] for c in cycles if c["written"] and c["out"] is not None and len(c["out"]) == 3
+    ]
     if not rows:
         return np.zeros((0, 4))
     a = np.radians(np.asarray(rows, dtype=np.float64))
