@@ -244,13 +244,7 @@ def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
 def _sim_operator(
     name: str | None, spec: SourceSpec, conn: Connection, profile: RigProfile
 ) -> SimOperator | None:
-    """The simulated operator ``--operator`` names for the source ``spec``; None without one.
-
-    Raises
-    ------
-    ConfigError
-        On real servos, or with a source that is not a leader.
-    """
+    """The simulated operator ``--operator`` names (refused on real servos or without a leader)."""
     if name is None:
         return None
     if conn.port is not None or not profile.is_sim:
