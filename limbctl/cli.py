@@ -1,8 +1,5 @@
 """The ``limbctl`` command line: one small parser per subcommand, each calling a typed job.
-
-Every job that touches servos runs on the embedded simulator when no ``--port`` is given, and
-on real servos with ``--port /dev/ttyUSB0``. Errors print one clear message (what went wrong and
-what to do) and exit with status 2; a fault during teleop exits with 3.
+Errors print one message and exit with status 2; a fault during teleop exits with 3.
 """
 
 from __future__ import annotations
@@ -151,8 +148,7 @@ def _options(kind: type[Options], args: argparse.Namespace, **given: object) -> 
 
 
 def _job(run: Callable[[Options], int], kind: type[Options], **derived: Callable) -> Job:
-    """A job running ``run`` on ``kind`` built from the parsed arguments, the fields ``derived``
-    computed from them by the given functions."""
+    """A job running ``run`` on ``kind`` from the parsed arguments (``derived`` fields computed)."""
     return lambda a: run(_options(kind, a, **{name: f(a) for name, f in derived.items()}))
 
 
@@ -284,12 +280,9 @@ def _add_teleop(sub: Subparsers) -> None:
         ),
         help="drive the limb from a command source, every command through the gate",
         description="Read commands from --source at --rate Hz; each is corrected by the model, "
-        "slew-limited to --max-speed along the region, converted to joint angles, clamped to "
-        "the rig's hard limits and a per-cycle joint step, checked once more, and only then "
-        "written. A silent source holds the last safe pose; end of input exits with 0. "
-        "A limb that rests outside the region is not driven from there: see --wait and "
-        "--approach. Lines that are refused are counted by reason; if every line is refused the "
-        "exit status is 2.",
+        "slew-limited (--max-speed), clamped to the hard limits and a joint step, checked again, "
+        "then written. A silent source holds the last safe pose; end of input exits 0, every "
+        "line refused 2. A limb resting outside the region: see --wait and --approach.",
         epilog="Sources: stdin (JSON lines {'pan': deg, 'tilt': deg}, {'dir': [x, y, z]}, {'q': "
         "[w, x, y, z]}; three servos also {'pan', 'tilt', 'roll': deg}, {'dir', 'twist': deg}, "
         "a q keeping its twist, no roll or twist meaning twist 0), udp://127.0.0.1:PORT (the "
@@ -443,9 +436,8 @@ def main(argv: list[str] | None = None) -> int:
         sys.stdout.flush()
         return status
     except BrokenPipeError:
-        # the reader of stdout went away (`limbctl info | head`). As the Python docs' note on
-        # SIGPIPE does it: point stdout at devnull so the interpreter's last flush cannot raise
-        # again, and exit with 1
+        # the reader of stdout went away (`limbctl info | head`): as the Python docs' note on
+        # SIGPIPE does, point stdout at devnull so the last flush cannot raise again
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
         return 1

@@ -1,5 +1,5 @@
-"""The whole flow on the embedded simulator, for a newcomer: teach, train, teleop, check, leader.
-One flow (:func:`_run_flow`) runs every rig; what differs is a :class:`DemoRig` in :data:`RIGS`."""
+"""The whole flow on the embedded simulator, for a newcomer: teach, train, teleop, check, leader;
+what differs by rig is a :class:`DemoRig` in :data:`RIGS`."""
 
 from __future__ import annotations
 
@@ -30,29 +30,21 @@ from limbctl.live import LiveView, ViewOptions, leader_status, open_view
 from limbctl.session import demo_region_path
 from limbctl.teleop.gate import REGION_TOLERANCE_DEG, written_tolerance_deg
 
-#: Loop rate of the demo's teleop (Hz): the controller's default rate.
+#: The CLI's defaults: loop rate (Hz), recording rate (samples/s), slew limit (deg/s).
 DEMO_RATE_HZ = 200.0
-#: Sampling rate of the demo's recording (samples/s): the recorder's default.
 DEMO_RECORD_HZ = 125.0
-#: Nobody is at the demo to move a limb resting outside the region by hand: the servos drive it
-#: in, at a third of the fastest approach allowed.
-DEMO_APPROACH_DEG_S = 10.0
-#: Slew limit of the demo's teleop (deg/s): the CLI's default.
 DEMO_MAX_SPEED_DEG_S = 120.0
+#: Nobody is there to move a limb resting outside by hand: the servos drive it in (deg/s).
+DEMO_APPROACH_DEG_S = 10.0
 
 
 @dataclass(frozen=True)
 class DemoRig:
-    """What the demo does differently on one simulated rig.
-
-    ``profile``: rig profile (None: two servos); ``joints``: the follower's servo count;
-    ``region_file``: the hand's REGION.yaml in ``limbctl/data``; ``write_stream(path) -> valid
-    lines``; ``judge(goals, model, telemetry) -> (N,)`` deg outside the learned region per logged
-    goal; ``report(out, model, region_yaml, beyond)``: step 4's lines and pictures; ``approach``
-    (deg/s; None waits); ``train_plot`` (None: none); ``leader``: operator, ids, seconds;
-    ``leader_row(cycle, source)``: leader then follower pose (deg) for leader.png (None: skipped).
-    The rest are printed lines (``teach`` formats ``seconds``, ``stream`` ``valid`` and ``path``,
-    ``excursion`` ``worst``, ``bound`` and ``tolerance``)."""
+    """What the demo does differently on one simulated rig: its profile (None: two servos), the
+    hand's REGION.yaml in ``limbctl/data``, the command stream, ``judge(goals, model, telemetry)
+    -> (N,)`` deg outside the learned region per goal, step 4's ``report``, the ``approach``
+    (deg/s; None waits), the ``leader`` (operator, ids, seconds) and its rows (deg) for
+    leader.png, and the printed lines (formatted with the step's figures)."""
 
     profile: Path | None
     joints: int
@@ -80,8 +72,7 @@ def run_demo(
     view: ViewOptions | None = None,
     rig: str = "sim",
 ) -> int:
-    """Run the whole flow into folder ``out``; returns the exit status. ``view``: the live view's
-    options (one page throughout); ``rig`` one of :data:`DEMO_RIGS`."""
+    """Run the whole flow into folder ``out`` on ``rig`` (:data:`DEMO_RIGS`); the exit status."""
     if rig not in RIGS:
         raise ConfigError(f"unknown demo rig {rig!r}; choose one of {', '.join(DEMO_RIGS)}")
     with open_view(view or ViewOptions(), say) as live:
@@ -147,8 +138,7 @@ def _run_flow(out: Path, teach_seconds: float, seed: int, live: LiveView, spec: 
 
 
 def _leader_run(out: Path, model: Path, seed: int, live: LiveView | None, spec: DemoRig) -> int:
-    """Step 5: the felt leader of ``spec`` pushed past the learned edge and let go, drawn to
-    leader.png (and on the live page when served)."""
+    """Step 5: the felt leader pushed past the learned edge and let go, drawn to leader.png."""
     from limbctl.jobs import gate_for
     from limbctl.operators import load_operator
     from limbctl.plot import plot_leader
@@ -210,8 +200,7 @@ def _leader_run(out: Path, model: Path, seed: int, live: LiveView | None, spec: 
 
 
 def _twist_row(cycle, source) -> tuple[float, ...] | None:
-    """Three servos: the leader's held pose and the gated pose (pan, tilt deg and the twist) of a
-    cycle; None before the leader holds one."""
+    """Three servos: leader's held and gated pose (pan, tilt, twist deg); None before a hold."""
 
     def deg(pose: tuple[float, ...]) -> tuple[float, ...]:
         return (
@@ -224,8 +213,7 @@ def _twist_row(cycle, source) -> tuple[float, ...] | None:
 
 
 def write_command_stream(path: Path, seconds: float = 12.0, rate_hz: float = 50.0) -> int:
-    """A replay file: a Lissajous sweep (pan +-110, tilt -55..75 deg) with bad lines mixed in;
-    returns the number of valid lines. 12 s at 50 lines/s: the gate's slew limit shapes it."""
+    """A replay file: a sweep (pan +-110, tilt -55..75 deg), bad lines mixed in; the valid lines."""
     n = int(seconds * rate_hz)
     t = np.arange(n) / rate_hz
     # crosses the taught region (about pan -70..80, tilt -35..60 deg) and leaves it on every side
@@ -237,8 +225,7 @@ def write_command_stream(path: Path, seconds: float = 12.0, rate_hz: float = 50.
 
 
 def goal_log_excursions(goal_log: Path, model: object) -> np.ndarray:
-    """Angle (deg) by which each logged goal's limb direction (the simulator's ``limb_dir``, the
-    last line of each packet) lies outside the model's region (0 inside)."""
+    """Angle (deg) by which each logged goal's ``limb_dir`` lies outside the model (0 inside)."""
     from limbctl.geometry.quat import direction_angle, limb_direction, swing_from_direction
 
     d = logged_packets(goal_log, "limb_dir", 3)
@@ -251,8 +238,7 @@ def goal_log_excursions(goal_log: Path, model: object) -> np.ndarray:
     return np.where(outside, np.degrees(direction_angle(d, nearest)), 0.0)
 
 
-#: Points along the hand's true outline in the teleop picture: one per half degree of a
-#: region's perimeter of a few hundred degrees, finer than the picture's pixels.
+#: Points along the hand's true outline: finer than the picture's pixels.
 TRUE_OUTLINE_POINTS = 720
 
 
@@ -266,21 +252,16 @@ def true_outline(region_yaml: Path) -> np.ndarray:
 
 
 def _report_gimbal(out: Path, model: object, region_yaml: Path, beyond: int) -> None:
-    """Two servos: the goals past the bound, and teleop.png (the commanded sweep and the written
-    goals over the model, with the hand's true outline)."""
+    """Two servos: the goals past the bound, and teleop.png (commanded vs. written)."""
     from limbctl.geometry.gimbal import pan_tilt_to_direction
     from limbctl.plot import plot
     from limbctl.teach.dataset import load_dataset
 
     say(f"   goals beyond the bound: {beyond}")
-    commanded, written = [], []
     with open(out / "telemetry.jsonl", encoding="utf-8") as fh:
-        for line in fh:
-            row = json.loads(line)
-            if row["cmd"] is not None:
-                commanded.append(row["cmd"])
-            if row["written"]:
-                written.append(row["out"])
+        rows = [json.loads(line) for line in fh]
+    commanded = [row["cmd"] for row in rows if row["cmd"] is not None]
+    written = [row["out"] for row in rows if row["written"]]
 
     def directions(rows: list) -> np.ndarray:
         a = np.radians(np.asarray(rows, dtype=np.float64).reshape(-1, 2))
@@ -298,8 +279,7 @@ def _report_gimbal(out: Path, model: object, region_yaml: Path, beyond: int) -> 
 
 
 def _report_twist(out: Path, model: object, region_yaml: Path, beyond: int) -> None:
-    """Three servos: how much of the true region (swing and twist) the learned one holds, and
-    twist.png."""
+    """Three servos: how much of the true region the learned one holds, and twist.png."""
     from limbctl.teach.dataset import load_dataset
 
     probes = true_twist_probes(region_yaml)
@@ -315,8 +295,7 @@ def _report_twist(out: Path, model: object, region_yaml: Path, beyond: int) -> N
     say(f"   picture: {out / 'twist.png'}")
 
 
-#: How deep inside the true region (deg, in swing and in twist) the probes of the learned
-#: region's hold lie: the issue's measure, 2 deg, about twice the hand's 1 deg inset at the edge.
+#: Depth (deg) of the probes inside the true region: twice the hand's 1 deg inset at the edge.
 PROBE_DEPTH_DEG = 2.0
 #: Spacing (deg) of the probes over the swing plane and along each band.
 PROBE_STEP_DEG = 2.0
@@ -360,9 +339,7 @@ def true_band_lines(region_yaml: Path) -> tuple[float, np.ndarray, tuple[np.ndar
     return pan, tilt, (limits[:, 0], limits[:, 1])
 
 
-#: The demo's rigs by name. The leader runs (limbctl/operators.py: "push" lets go at 6 s, "push3"
-#: at 9 s; the three-servo leader is ids 4-6, the follower's roll id 3) last 2 s (1.5 s for three)
-#: past the let go, time enough to see the leader walk back to the edge.
+#: The demo's rigs by name; a leader run lasts 1.5-2 s past its operator's let go.
 RIGS = {
     "sim": DemoRig(
         profile=None,

@@ -14,8 +14,7 @@ from limbctl.jobs import Connection, open_connection, prepare, say
 
 @dataclass(frozen=True)
 class TrainOptions:
-    """``limbctl train``: fit a model of ``kind`` to dataset ``data``, write it to ``out``;
-    ``nodes``/``layout`` for kinds that take them (None: the default); ``plot``: also draw to it."""
+    """``limbctl train``: the command line's options."""
 
     data: Path
     out: Path
@@ -27,8 +26,8 @@ class TrainOptions:
 
 
 def model_options(kind: str, seed: int, **chosen: object) -> dict[str, object]:
-    """Constructor keywords for a model of ``kind``: the seed where it takes one, and each
-    ``chosen`` option not None.
+    """Constructor keywords for a model of ``kind``: the seed where it takes one, each ``chosen``
+    option not None.
 
     Raises
     ------
@@ -106,7 +105,7 @@ def plot_files(paths: list[Path], out: Path) -> Path:
 
 @dataclass(frozen=True)
 class PlotOptions:
-    """``limbctl plot``: draw the model and/or dataset files ``inputs`` to PNG ``out``."""
+    """``limbctl plot``: the command line's options."""
 
     inputs: tuple[Path, ...]
     out: Path
@@ -120,15 +119,14 @@ def run_plot(options: PlotOptions) -> int:
 
 @dataclass(frozen=True)
 class InfoOptions:
-    """``limbctl info``: describe ``file`` (a model or dataset), or the bus when None."""
+    """``limbctl info``: the command line's options (no ``file``: the bus)."""
 
     file: Path | None = None
     connection: Connection = field(default_factory=Connection)
 
 
 def run_info(options: InfoOptions) -> int:
-    """Print what a file holds, or every servo on the bus and the limb's pose; a servo in alarm
-    is listed too, then the way out (``limbctl reboot``), and the status is 3."""
+    """Print what a file holds, or the servos on the bus and the pose; 3 when one is in alarm."""
     if options.file is not None:
         return _info_file(options.file)
     from limbctl.servo.control_table import Register, model_name
@@ -208,7 +206,7 @@ def _neither(path: Path) -> None:
 
 @dataclass(frozen=True)
 class EvalOptions:
-    """``limbctl eval``: the papers' grid (``quick``: reduced) into ``out``, ``jobs`` workers."""
+    """``limbctl eval``: the command line's options."""
 
     out: Path = Path("eval-results")
     quick: bool = False

@@ -1,5 +1,5 @@
-"""The jobs that drive servos (record, teleop, calibrate): one options value in, an exit status
-out; what a person reads goes to stderr, failures are raised as LimbctlError."""
+"""The jobs that drive servos (record, teleop, calibrate): options in, an exit status out, words
+to stderr, failures raised as LimbctlError."""
 
 from __future__ import annotations
 
@@ -33,8 +33,7 @@ def say(text: str) -> None:
 
 
 def prepare(stage: str) -> None:
-    """Say why a first run waits: the kernels of ``stage`` (``train``, ``gate``) are not all
-    cached yet."""
+    """Say why a first run waits: the kernels of ``stage`` are not all cached yet."""
     from limbctl.geometry import jit
 
     if jit.cache_dir() is None or jit.prepared(stage):
@@ -64,8 +63,7 @@ class Connection:
 
 @dataclass(frozen=True)
 class RecordOptions:
-    """``limbctl record``: ``out`` dataset, ``rate`` samples/s, ``duration`` s (None: until
-    Enter/Ctrl-C), ``hand`` the simulator's scripted region (None: the packaged one)."""
+    """``limbctl record``: the command line's options (``rate`` samples/s, ``duration`` s)."""
 
     out: Path
     duration: float | None = None
@@ -81,8 +79,7 @@ def _viewing(options: ViewOptions, view: LiveView | None):
 
 
 def run_record(options: RecordOptions, view: LiveView | None = None) -> int:
-    """Torque off, sample the limb moved by hand, write the dataset as it goes (shown live);
-    0 for an end asked for (Enter, Ctrl-C, duration), 3 when a bus failure ended it."""
+    """Torque off, record the limb moved by hand (shown live); 0, or 3 after a bus failure."""
     from limbctl.session import demo_region_path
     from limbctl.teach.dataset import DatasetWriter
     from limbctl.teach.record import SIM_LATENCY_TIMER_MS, check_rate, record, stop_on_enter
@@ -97,7 +94,6 @@ def run_record(options: RecordOptions, view: LiveView | None = None) -> int:
     meta = {"rate_hz": options.rate, "simulated": conn.port is None and profile.is_sim}
     if meta["simulated"] and conn.latency_timer_ms is None:  # late replies kept: see the constant
         conn = replace(conn, latency_timer_ms=SIM_LATENCY_TIMER_MS)
-    # checks the path now, creates the file once the port is ours (a refused start leaves none)
     writer = DatasetWriter(
         options.out, rig=profile.name, meta=meta, calibration=profile.calibration
     )
@@ -129,8 +125,7 @@ def run_record(options: RecordOptions, view: LiveView | None = None) -> int:
 
 
 def gate_for(model_path: Path, profile: RigProfile, rate_hz: float, max_speed_deg_s: float) -> Gate:
-    """The gate around a model file, refusing a model trained for another rig or calibration
-    (:func:`limbctl.servo.profiles.check_trained_for`); step limit ``max_speed_deg_s / rate_hz``."""
+    """The gate around a model file, refusing a model trained for another rig or calibration."""
     from limbctl.envelope import load_header, load_model
     from limbctl.servo.profiles import check_trained_for
     from limbctl.teleop.gate import GateLimits
@@ -144,8 +139,7 @@ def gate_for(model_path: Path, profile: RigProfile, rate_hz: float, max_speed_de
 
 @dataclass(frozen=True)
 class TeleopOptions:
-    """``limbctl teleop``: drive the limb from ``source`` through the gate of ``model`` (the
-    fields are the command line's options)."""
+    """``limbctl teleop``: the command line's options."""
 
     model: Path
     source: str = "stdin"
@@ -164,9 +158,8 @@ class TeleopOptions:
 
 
 def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
-    """Start (waiting or approaching when outside), run the loop, park the limb (shown live); 0
-    for a clean end, 2 when it never started or every line was refused, 3 after a fault, 130 when
-    stopped while waiting."""
+    """Start (waiting or approaching when outside), run the loop, park the limb (shown live); 0, 2
+    when it never started or refused every line, 3 after a fault, 130 when stopped waiting."""
     from limbctl.geometry.jit import stage as jit_stage
     from limbctl.teleop.lifecycle import run_session
     from limbctl.teleop.loop import LoopConfig
@@ -216,7 +209,6 @@ def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
 
         @contextlib.contextmanager
         def introduced(built: CommandSource) -> Iterator[CommandSource]:
-            """Start the source, say what it does, hook it to the page and the operator."""
             with built as source:
                 opened.append(source)
                 if spec.kind.scheme == "page":  # printed once: whoever has it can steer
@@ -252,13 +244,7 @@ def run_teleop(options: TeleopOptions, view: LiveView | None = None) -> int:
 def _sim_operator(
     name: str | None, spec: SourceSpec, conn: Connection, profile: RigProfile
 ) -> SimOperator | None:
-    """The simulated operator ``--operator`` names for the source ``spec``; None without one.
-
-    Raises
-    ------
-    ConfigError
-        On real servos, or with a source that is not a leader.
-    """
+    """The simulated operator ``--operator`` names (refused on real servos or without a leader)."""
     if name is None:
         return None
     if conn.port is not None or not profile.is_sim:
@@ -275,9 +261,7 @@ def _sim_operator(
 
 @dataclass(frozen=True)
 class CalibrateOptions:
-    """``limbctl calibrate``: write rig profile ``out`` named ``name`` for servos ``ids`` (pan,
-    tilt[, roll]); ``*_limits`` and ``*_stops`` (MIN, MAX) deg; None: the base profile's (stops:
-    only when it describes this gimbal, else +-90 deg)."""
+    """``limbctl calibrate``: the command line's options (``*_limits``, ``*_stops`` in deg)."""
 
     out: Path
     name: str = "my-rig"
@@ -324,8 +308,7 @@ def run_calibrate(options: CalibrateOptions) -> int:
 
 
 def _calibration_base(options: CalibrateOptions, base):
-    """The profile a calibration starts from: ``base`` with the chosen ids, hard limits and end
-    stops, checked before any servo moves."""
+    """``base`` with the chosen ids, hard limits and end stops, checked before any servo moves."""
     from calib.profile import (
         DEFAULT_END_STOP_DEG,
         END_STOP_MARGIN_DEG,

@@ -36,8 +36,8 @@ RATE_WINDOW_S = 1.0
 
 @dataclass(frozen=True)
 class ViewOptions:
-    """Whether (``enabled``; None: when standard error is a terminal) and where (``host``,
-    ``port``; None: :data:`DEFAULT_PORT`, or any free port when taken) to serve the live view."""
+    """Whether (None: when stderr is a terminal) and where (``port`` None: :data:`DEFAULT_PORT`,
+    or any free port when taken) to serve the live view."""
 
     enabled: bool | None = None
     host: str = "127.0.0.1"
@@ -59,8 +59,8 @@ def rig_limits(profile: Any) -> HardLimits:
 
 @dataclass(frozen=True)
 class Teaching:
-    """The recorder's side of a live teaching: the ``limb`` to read, hooks for the guide's and the
-    twist guide's assessments (None: not shown) and the scene ``feeder``."""
+    """The recorder's side of a live teaching: the ``limb`` to read, the guides' hooks (None: not
+    shown) and the scene ``feeder``."""
 
     limb: Any
     on_guidance: Callable[[Guidance], None] | None
@@ -89,8 +89,7 @@ def twist_figures(twist: TwistGuidance) -> tuple[GuideFigure, ...]:
 
 
 class TwistTeaching:
-    """Hands the guide's assessments to the view, and a three-servo teaching's twist: the twist
-    guide's cells as the scene's map and the gauge's range, its figures and words beside."""
+    """Hands the guide's assessments to the view, and a three-servo teaching's twist cells."""
 
     def __init__(self, feeder: SceneFeeder, tap: PoseTap) -> None:
         self.feeder = feeder
@@ -118,8 +117,7 @@ class TwistTeaching:
 
 
 class LiveView:
-    """An open live view publishing on ``board`` at ``url`` from ``server``, or none (``board``
-    None, ``url`` "": every method does nothing)."""
+    """An open live view on ``board`` at ``url`` from ``server``; with no board, none."""
 
     def __init__(
         self, board: Board | None = None, url: str = "", server: ViewServer | None = None
@@ -144,8 +142,7 @@ class LiveView:
 
     @contextlib.contextmanager
     def teaching(self, limb: Any, profile: Any, mode: str = "record") -> Iterator[Teaching]:
-        """What the recorder reads and tells while the view shows the teaching: a pose tap and the
-        guide's hooks while a scene feeder refits the region (the limb itself when off)."""
+        """What the recorder reads and tells while the view shows the teaching (a pose tap)."""
         if self.board is None:
             yield Teaching(limb, None)
             return
@@ -156,8 +153,7 @@ class LiveView:
             yield Teaching(tap, shown.on_guidance, feeder, on_twist)
 
     def start_observer(self, mode: str = "teleop: waiting") -> Callable[[Any], None] | None:
-        """Publishes each :class:`~limbctl.teleop.start.StartStatus` while teleop waits for a limb
-        outside the region; None if off."""
+        """Publishes each StartStatus while teleop waits for a limb outside; None if off."""
         board = self.board
         if board is None:
             return None
@@ -189,8 +185,7 @@ class LiveView:
 
 
 class TeleopFeed:
-    """The teleop loop's ``on_cycle``: publishes each cycle's poses (the last read and the last
-    written), outcome and rate, in a few microseconds on the loop's thread."""
+    """The teleop loop's ``on_cycle``: publishes each cycle's poses, outcome and rate, quickly."""
 
     def __init__(self, board: Board, mode: str = "teleop") -> None:
         self.board = board
@@ -241,7 +236,7 @@ class TeleopFeed:
         self.board.publish_live(live)
 
     def _update_rate(self, cycle: Cycle) -> None:
-        # rate = cycles completed / time, over the last RATE_WINDOW_S
+        """rate = cycles completed / time, over the last RATE_WINDOW_S."""
         if self._window_start is None:
             self._window_start = (cycle.index, cycle.t)
             return
@@ -252,8 +247,7 @@ class TeleopFeed:
 
 
 def leader_status(source: Any) -> Callable[[], LeaderStatus]:
-    """What the page shows of a leader source each cycle: its pose as last read, a felt leader's
-    push and sensed torque, a three-servo leader's twist."""
+    """What the page shows of a leader source each cycle: pose, a felt leader's push, twist."""
 
     def status() -> LeaderStatus:
         pose, push = source.last_pose, source.last_push

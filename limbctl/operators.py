@@ -15,27 +15,16 @@ from limbctl.errors import ConfigError
 
 #: Packaged operators by name -> their file in ``limbctl/data/``.
 OPERATORS: dict[str, str] = {
-    # the demo's two-servo run: pan 100 at tilt 10, about 20 deg past the learned edge, held,
-    # let go at 6 s
-    "push": "operator_push.yaml",
-    # the demo's three-servo run: past the swing edge, back, past the twist band, let go at 9 s
-    "push3": "operator_push3.yaml",
+    "push": "operator_push.yaml",  # about 20 deg past the learned edge, let go at 6 s
+    "push3": "operator_push3.yaml",  # past the swing edge, back, past the twist band; 9 s
 }
 
 
 @dataclass(frozen=True)
 class SimOperator:
-    """A simulated operator and the leader it holds.
-
-    Attributes
-    ----------
-    name, model : str
-        The registry name or the file it came from; the leader servos' model.
-    start_deg : tuple of float, shape (J,)
-        Where the leader rests at the start (deg).
-    grip : dict
-        The simulator's operator as data (``script`` rows of J + 1 numbers, ``let_go_s``, ...).
-    """
+    """A simulated operator (``name``: registry name or file) and the leader it holds: the leader
+    servos' ``model``, where they rest at the start (``start_deg`` (J,)), and the simulator's
+    operator as data (``grip``: ``script`` rows of J + 1 numbers, ``let_go_s``, ...)."""
 
     name: str
     model: str
@@ -70,8 +59,7 @@ def load_operator(spec: str, joints: int) -> SimOperator:
     Raises
     ------
     ConfigError
-        An unknown name, a missing or unreadable file, or one the simulator refuses
-        (:func:`firmware_sim.operator_file.leader_spec`); the message names the file.
+        An unknown name, a missing or unreadable file, or one the simulator refuses.
     """
     from firmware_sim.operator_file import leader_spec
 

@@ -14,6 +14,7 @@ from limbctl.geometry.quat import limb_direction, swing_from_direction
 
 
 def _pan_tilt_deg(directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Pan and tilt (deg), (N,) each, of directions (N, 3)."""
     pan, tilt = direction_to_pan_tilt(directions)
     return np.degrees(pan), np.degrees(tilt)
 
@@ -21,8 +22,7 @@ def _pan_tilt_deg(directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def region_grid(
     model: Any, pan_deg: tuple[float, float], tilt_deg: tuple[float, float], n: int = 200
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Which directions of an n x n pan/tilt grid (deg) the model's region holds (at some twist,
-    on three servos) -> (P, T, inside), each (n, n). n = 200: 1.8 deg cells, a line's width."""
+    """(P, T, inside) (n, n) each: the pan/tilt grid (deg) and the directions the region holds."""
     from limbctl.teach.train import holds_direction
 
     pans = np.linspace(*pan_deg, n)
@@ -41,17 +41,14 @@ def plot(
     extra: dict[str, np.ndarray] | None = None,
     outlines: dict[str, np.ndarray] | None = None,
 ) -> Path:
-    """Draw samples and/or a model to a PNG file and return its path.
+    """Draw samples and/or a model to the PNG file ``out`` (under ``title``); returns its path.
 
     Parameters
     ----------
-    out : path
-        PNG file to write.
     samples : ndarray, shape (N, 4), optional
         Recorded orientations.
     model : Envelope, optional
         A fitted model; its region is shaded and its node weights near the data drawn.
-    title : str
     extra : dict of name -> (M, 3) directions, optional
         More point sets to draw (e.g. commanded and corrected poses).
     outlines : dict of name -> (M, 2) pan/tilt in degrees, optional
@@ -141,12 +138,10 @@ def plot(
 
 
 def plot_leader(path: Path, t: np.ndarray, leader: np.ndarray, follower: np.ndarray, torque):
-    """The demo's leader run: leader versus follower pose over time, and the leader's push.
+    """The demo's leader run to PNG ``path``: leader versus follower pose, and the leader's push.
 
     Parameters
     ----------
-    path : Path
-        The PNG to write.
     t, torque : ndarray (N,)
         Cycle times (s); the leader's push (N m; 0 inside the region).
     leader, follower : ndarray (N, 2) or (N, 3)

@@ -51,23 +51,10 @@ def open_rig(
     latency_timer_ms: float | None = None,
     profile: RigProfile | None = None,
 ) -> Iterator[Session]:
-    """Connect to the rig's servos (starting the simulator if needed); close on exit.
-
-    Parameters
-    ----------
-    port, baud : optional
-        Serial device and baud rate; override the profile's.
-    rig_path : path, optional
-        Rig profile YAML (default: the packaged simulated rig).
-    hand, goal_log, seed, sim_options
-        Passed to the simulator when one is started.
-    extra_ids : tuple of int
-        More servos on the same bus (e.g. a leader gimbal).
-    latency_timer_ms : float, optional
-        The USB adapter's latency timer (ms); default 16 on a real port, 2 on the simulator's pty.
-    profile : RigProfile, optional
-        The rig itself, in place of ``rig_path``.
-    """
+    """Connect to the servos of the rig (``profile``, or the YAML at ``rig_path``, default the
+    simulated rig), starting the simulator (given ``hand``, ``goal_log``, ``seed``,
+    ``sim_options``) when no ``port`` is known, with ``extra_ids`` on the same bus and the USB
+    adapter's ``latency_timer_ms`` (default 16, 2 on the simulator's pty); close on exit."""
     profile = profile if profile is not None else load_rig_profile(rig_path)
     device = port if port is not None else (None if profile.is_sim else profile.port)
     with ExitStack() as stack:
@@ -87,8 +74,7 @@ def open_rig(
                 )
             )
             device = simulator.port
-        if latency_timer_ms is None:
-            # the FTDI default on a real port; a pty has no USB latency, 2 ms covers scheduling
+        if latency_timer_ms is None:  # a pty has no USB latency: 2 ms covers scheduling
             latency_timer_ms = 2.0 if simulator is not None else 16.0
         # a leader on the same bus may be another model: only the rig's servos are checked
         bus = ServoBus(
@@ -105,8 +91,7 @@ def open_rig(
 
 
 def configure(rig: Rig, extra_ids: tuple[int, ...] = ()) -> None:
-    """Set up the rig's servos with its hard limits, and those of ``extra_ids`` (a leader on the
-    same bus) with their full range."""
+    """Set up the rig's servos with its hard limits, and ``extra_ids`` (a leader) full range."""
     configure_servos(rig.bus, {**rig.tick_limits(), **dict.fromkeys(extra_ids, (0, MAX_TICK))})
 
 

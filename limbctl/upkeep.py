@@ -1,5 +1,4 @@
-"""Jobs that look after the servos rather than drive them: ``limbctl reboot`` and ``limbctl
-motors scan`` / ``setup``, typed like :mod:`limbctl.jobs`."""
+"""Jobs that look after the servos: ``limbctl reboot`` and ``limbctl motors scan`` / ``setup``."""
 
 from __future__ import annotations
 
@@ -18,21 +17,19 @@ if TYPE_CHECKING:
 
 @dataclass(frozen=True)
 class RebootOptions:
-    """``limbctl reboot``: reboot the rig's servos that are in alarm (say what each alarm was)."""
+    """``limbctl reboot``: the command line's options."""
 
     connection: Connection = field(default_factory=Connection)
 
 
 def run_reboot(options: RebootOptions) -> int:
-    """Reboot every servo in alarm and read their alarms again; 0 when every servo is clear, 3 when
-    one is in alarm again at once (its cause remains)."""
+    """Reboot every servo in alarm and read their alarms again; 0 when clear, 3 when one is not."""
     from limbctl.servo.alarms import reboot_servos_in_alarm
 
     with open_connection(options.connection) as session:
         bus = session.rig.bus
         rebooted = reboot_servos_in_alarm(bus)
         ids = ", ".join(str(i) for i in bus.ids)
-        # a cause that remains (a low supply, a hot motor) raises the alarm again at once
         again = {i: bits for i, bits in bus.read_hardware_errors().items() if bits}
     if not rebooted:
         say(f"no servo is in alarm (servos {ids} report no hardware error): nothing rebooted")
@@ -55,9 +52,8 @@ def run_reboot(options: RebootOptions) -> int:
 MOTORS_HELP = "find the servos at any baud; set up servos out of the box (ID, baud)"
 MOTORS_DESCRIPTION = (
     "Servos leave the factory as ID 1 at 57600 baud. `motors scan` finds every servo at every "
-    "baud rate and names IDs that two servos share; `motors setup` gives each joint's servo, "
-    "connected alone, the profile's ID and baud rate (or --baud), then reads them back; a "
-    "servo that answers as another joint's ID is never renumbered (unless --renumber)."
+    "baud and names shared IDs; `motors setup` gives each joint's servo, connected alone, the "
+    "profile's ID and baud (or --baud), reading them back (--renumber: see its help)."
 )
 SCAN_HELP = "ping every servo at every baud rate (the factory's 57600 first)"
 SCAN_BAUD_HELP = "scan only this baud rate (repeatable; default: every rate the X series has)"
@@ -91,21 +87,21 @@ def motor_setup_job(connection: Callable[[Any], Connection]) -> Callable[[Any], 
 
 @dataclass(frozen=True)
 class MotorScanOptions:
-    """``limbctl motors scan``: every servo on the port at each baud rate (``bauds``: all)."""
+    """``limbctl motors scan``: the command line's options (no ``bauds``: all)."""
 
     connection: Connection = field(default_factory=Connection)
     bauds: tuple[int, ...] = ()
 
 
 def _progress(index: int, count: int, baud: int) -> None:
+    """One line (rewritten in place on a tty) of the scan's progress."""
     bar = "#" * (index + 1) + "-" * (count - index - 1)
     end = "\r" if sys.stderr.isatty() else "\n"
     print(f"scanning [{bar}] {index + 1}/{count}: {baud} baud", end=end, file=sys.stderr)
 
 
 def run_motor_scan(options: MotorScanOptions) -> int:
-    """Scan and print what answered; 0 when servos were found without collisions, 1 when nothing
-    answered, 3 when servos share an ID."""
+    """Scan and print what answered; 0, 1 when nothing answered, 3 when servos share an ID."""
     from limbctl.servo.scan import SCAN_BAUDS, scan
 
     conn = options.connection
@@ -120,9 +116,7 @@ def run_motor_scan(options: MotorScanOptions) -> int:
 
 @dataclass(frozen=True)
 class MotorSetupOptions:
-    """``limbctl motors setup``: give the profile's ``joints``' servos (all: ``()``) their IDs and
-    baud one at a time, asking first unless ``yes``; ``renumber``: take a servo that answers as
-    another joint's ID on purpose."""
+    """``limbctl motors setup``: the command line's options (no ``joints``: all)."""
 
     connection: Connection = field(default_factory=Connection)
     joints: tuple[str, ...] = ()
@@ -131,8 +125,7 @@ class MotorSetupOptions:
 
 
 def run_motor_setup(options: MotorSetupOptions) -> int:
-    """Set up each joint's servo; 0 when every one succeeded, 1 when one failed or was skipped
-    (another joint's servo is not renumbered without ``renumber``)."""
+    """Set up each joint's servo; 0 when every one succeeded, 1 when one failed or was skipped."""
     from limbctl.servo.motors import Claims, JointTarget, check_target, setup_joint
     from limbctl.servo.profiles import load_rig_profile
 
@@ -184,8 +177,7 @@ def run_motor_setup(options: MotorSetupOptions) -> int:
 
 
 def _look_again(joint: str, owner: str, claims: Claims, ids: dict[str, int]) -> bool:
-    """Ask whether to look for ``joint``'s servo again (Enter) or to skip it (skip, or end of
-    input); the connected servo is ``owner``'s."""
+    """Ask whether to look for ``joint``'s servo again (Enter) or to skip it (skip, or EOF)."""
     when = "set up a moment ago" if owner in claims.set_up_now else "set up before"
     try:
         answer = input(
@@ -200,8 +192,7 @@ def _look_again(joint: str, owner: str, claims: Claims, ids: dict[str, int]) -> 
 
 @contextmanager
 def _bus_port(conn: Connection, setup: bool = False) -> Iterator[tuple[str, float]]:
-    """(port, latency timer ms) of the bus: --port, the profile's device, or (scan only) the
-    embedded simulator's."""
+    """(port, latency timer ms) of the bus: --port, the profile's, or (scan) the simulator's."""
     from limbctl.servo.profiles import load_rig_profile
 
     profile = load_rig_profile(conn.rig)

@@ -1,8 +1,5 @@
-"""Constraint models of the valid-orientation region, behind one interface (see base.py).
-
-Every model kind registers itself by name when its class is defined; :func:`build_model`,
-:func:`model_kinds` and :func:`load_model` use that one registry. The kinds are imported here in
-the order :data:`MODEL_KINDS` lists them (the first is the default of ``limbctl train``).
+"""Constraint models of the valid-orientation region, behind one interface (see base.py); each
+kind registers by name when its class is defined, in the order :data:`MODEL_KINDS` lists them.
 """
 
 from limbctl.envelope.base import (
@@ -13,7 +10,6 @@ from limbctl.envelope.base import (
     model_class,
     model_kinds,
 )
-from limbctl.envelope.layouts import LAYOUTS, make_layout
 
 # isort: off
 # the kinds register in this order, which MODEL_KINDS keeps
@@ -27,4 +23,4 @@ from limbctl.envelope.cone import Cone
 MODEL_KINDS = model_kinds()
 
 __all__ = ["Envelope", "build_model", "load_header", "load_model", "model_class", "model_kinds"]
-__all__ += ["MODEL_KINDS", "RigidMap", "SOM", "Cone", "LAYOUTS", "make_layout"]
+__all__ += ["MODEL_KINDS", "RigidMap", "SOM", "Cone"]

@@ -1,7 +1,5 @@
-"""The Envelope interface: every constraint model (RigidMap, SOM, Cone) speaks it.
-
-Models are saved to one ``.npz`` file: a JSON header (kind, format version, parameters, a
-SHA-256 over the header and arrays) and the model's arrays.
+"""The Envelope interface every constraint model (RigidMap, SOM, Cone) speaks, and its ``.npz``
+file: a JSON header (kind, version, parameters, a SHA-256 over all) and the model's arrays.
 """
 
 from __future__ import annotations
@@ -39,8 +37,6 @@ class Envelope(ABC):
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
-        # the hooks ``_inside`` ((N, 4) -> (N,) bool) and ``_to_boundary`` ((N, 4) -> (N, 4)), or
-        # ``contains`` and ``correct`` overridden: refused when the class is defined
         hooks = all(hasattr(cls, name) for name in ("_inside", "_to_boundary"))
         own = cls.contains is not Envelope.contains and cls.correct is not Envelope.correct
         if cls.kind and not (hooks or own):
@@ -60,14 +56,13 @@ class Envelope(ABC):
 
     def contains(self, q: np.ndarray) -> np.ndarray | bool:
         """Whether each orientation is inside the learned region: (N,) bool, or bool for (4,)."""
-        arr, single = self._input(q)
+        arr, single = as_quaternions(q)
         inside = self._inside(arr)
         return bool(inside[0]) if single else inside
 
     def correct(self, q: np.ndarray) -> np.ndarray:
-        """``q`` itself (canonical, bit for bit) inside the region, the model's boundary
-        orientation (unit, w >= 0) outside; shape like ``q``."""
-        arr, single = self._input(q)
+        """``q`` itself (canonical) inside the region, the boundary orientation outside."""
+        arr, single = as_quaternions(q)
         out = arr.copy()
         outside = ~self._inside(arr)
         if outside.any():
@@ -93,8 +88,7 @@ class Envelope(ABC):
         """Rebuild a trained model from what ``_params`` and ``_arrays`` returned."""
 
     def save(self, path: str | Path, metadata: dict[str, Any] | None = None) -> Path:
-        """Write the model to ``path`` (one .npz file) atomically, with JSON ``metadata`` in its
-        header (:func:`load_header`); returns the path."""
+        """Write the model and JSON ``metadata`` to ``path`` (one .npz file) atomically."""
         path = Path(path)
         arrays = {name: np.ascontiguousarray(a) for name, a in self._arrays().items()}
         header = {
@@ -133,11 +127,6 @@ class Envelope(ABC):
             return target._restore(header["params"], arrays)
         except (KeyError, ValueError, TypeError) as exc:
             raise FileFormatError(path, f"model parameters do not fit a {kind}: {exc}") from exc
-
-    @staticmethod
-    def _input(q: object) -> tuple[np.ndarray, bool]:
-        """Validate input: (N, 4) canonical float64, and whether a single (4,) came in."""
-        return as_quaternions(q)
 
 
 def model_kinds() -> tuple[str, ...]:
@@ -186,8 +175,7 @@ def load_header(path: str | Path) -> dict[str, Any]:
 
 
 def is_model_file(path: str | Path) -> bool:
-    """Whether the file at ``path`` begins as a model file does (a zip archive, its first bytes
-    only); False for a missing or unreadable file."""
+    """Whether the file at ``path`` begins as a model file (a zip archive) does."""
     try:
         with open(path, "rb") as handle:
             return handle.read(len(_ZIP_MAGIC)) == _ZIP_MAGIC
@@ -220,8 +208,7 @@ def _read(path: Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
     try:
         with np.load(path, allow_pickle=False) as data:
             raw = {name: data[name] for name in data.files}
-    except Exception as exc:  # damaged zip bytes raise many types (RuntimeError "encrypted",
-        # NotImplementedError "compression method", zlib.error, ...): all mean unreadable
+    except Exception as exc:  # damaged zip bytes raise many types: all mean unreadable
         raise FileFormatError(
             path, f"not a readable model file (truncated or corrupt): {exc}"
         ) from exc

@@ -1,9 +1,6 @@
 """Lee's analytic swing cone: the ground truth of the papers' experiments and a hand-written limit.
-
-Inside: swing ``2 acos(sqrt(w^2 + x^2)) <= R``, any twist. The ideal correction keeps twist and
-swing axis: ``(c w / n, c x / n, s y / m, s z / m)`` with ``n = sqrt(w^2 + x^2)``, ``m = sqrt(y^2 +
-z^2)``, ``c = cos(R / 2)``, ``s = sin(R / 2)`` (at n = 0, identity twist: ``(c, 0, s y / m, s z /
-m)``), also the nearest boundary point in R^4.
+Inside: swing ``2 acos(sqrt(w^2 + x^2)) <= R``, any twist; the ideal correction keeps twist and
+swing axis (also the nearest boundary point in R^4).
 """
 
 from __future__ import annotations
@@ -15,7 +12,7 @@ import numpy as np
 from limbctl.envelope import interpolation as ip
 from limbctl.envelope.base import Envelope
 from limbctl.errors import ConfigError
-from limbctl.geometry.quat import swing_angle
+from limbctl.geometry.quat import as_quaternions, swing_angle
 
 #: Slack of ``contains`` (w^2 + x^2 >= cos^2(R/2) - tol) so ``correct``'s rounded boundary points
 #: count as inside: 2e-12 / sin(R) rad at most, far below a servo step.
@@ -27,12 +24,9 @@ class Cone(Envelope):
 
     Parameters
     ----------
-    half_angle : float, optional
-        R in radians, 0 <= R <= pi.
-    half_angle_deg : float, optional
-        R in degrees (keyword only; give this or ``half_angle``, not both).
-
-    With neither given, :meth:`fit` learns R as the largest swing angle in the training data.
+    half_angle, half_angle_deg : float, optional
+        R in radians (0 <= R <= pi), or in degrees (keyword only); with neither, :meth:`fit`
+        learns R as the largest swing angle in the training data.
     """
 
     kind = "cone"
@@ -59,9 +53,8 @@ class Cone(Envelope):
         return float(np.degrees(self.half_angle))
 
     def fit(self, q_train: np.ndarray) -> Cone:
-        """Check valid orientations ``q_train`` (N, 4), N >= 1; without a half angle learn R as
-        their largest swing angle. Returns self."""
-        q, _ = self._input(q_train)
+        """Check valid orientations ``q_train`` (N, 4), N >= 1 (R learned if unset); self."""
+        q, _ = as_quaternions(q_train)
         if len(q) == 0:
             raise ConfigError("Cone.fit: q_train is empty; give at least one orientation")
         if self._half_angle is None:
@@ -80,7 +73,6 @@ class Cone(Envelope):
         return np.empty((0, 4), dtype=np.float64)
 
     def _inside(self, q: np.ndarray) -> np.ndarray:
-        """Inside the cone: w^2 + x^2 >= cos^2(R/2) - CONTAINS_TOLERANCE."""
         limit = np.cos(0.5 * self.half_angle) ** 2
         # valid iff w^2 + x^2 >= cos^2(R/2)   (tolerance: see CONTAINS_TOLERANCE)
         return q[:, 0] ** 2 + q[:, 1] ** 2 >= limit - CONTAINS_TOLERANCE
@@ -90,11 +82,11 @@ class Cone(Envelope):
         c = np.cos(0.5 * self.half_angle)
         s = np.sin(0.5 * self.half_angle)
         out = np.empty_like(q)
-        # (w, x) -> c (w, x) / n : keep the twist; n = 0 -> twist taken as the identity
+        # (w, x) -> c (w, x) / n, n = sqrt(w^2 + x^2): keep the twist; n = 0 -> the identity twist
         tw, tx, no_twist = _unit_pair(q[:, 0], q[:, 1])
         out[:, 0] = np.where(no_twist, c, c * tw)
         out[:, 1] = np.where(no_twist, 0.0, c * tx)
-        # (y, z) -> s (y, z) / m : keep the swing axis (m > 0 outside the cone)
+        # (y, z) -> s (y, z) / m, m = sqrt(y^2 + z^2): keep the swing axis (m > 0 outside)
         sy, sz, _ = _unit_pair(q[:, 2], q[:, 3])
         out[:, 2] = s * sy
         out[:, 3] = s * sz
@@ -117,8 +109,8 @@ class Cone(Envelope):
 
 
 def _unit_pair(u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(u, v) / hypot(u, v) (N,) each, scaled by max(|u|, |v|) first so subnormal pairs keep
-    full precision; 0 where both are zero, and the (N,) mask of those."""
+    """(u, v) / hypot(u, v) (N,) each, exact for subnormal pairs; 0 where both are zero, and the
+    (N,) mask of those."""
     big = np.maximum(np.abs(u), np.abs(v))
     zero = big == 0.0
     big = np.where(zero, 1.0, big)

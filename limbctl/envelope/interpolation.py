@@ -1,20 +1,8 @@
-"""Answering from trained node weights (SOM and Rigid Map): the winner ``c`` nearest ``x``,
-optionally combined with ``k`` runner-ups (Jenkins & Angel after Goeppert & Rosenstiel):
-
-``none``
-    ``y = w_c``.
-``idw``
-    ``y = sum_i w_i / d_i / sum_i 1 / d_i`` over the winner and runner-ups (d = 0: that weight).
-``geometric``
-    Start at ``y = w_c`` with residual ``r = x - w_c``; for each runner-up k (nearest first):
-    ``d = w_k - y``, ``a = clip(<r, d> / |d|^2, 0, 1)``, ``y += a d``, ``r -= a d``.
-``geometric-winner``
-    The same with ``d = w_k - w_c`` (directions taken from the winner, not the running answer).
-``topological``
-    The geometric rule over the winner's nearest nodes in the output topology.
-
-Answers are unit, w >= 0. Distances: ``euclidean`` ``|x - w|^2`` or ``cosine`` ``acos(x . w /
-|w|)^2``. :func:`respond_reference` is the numpy twin of the :func:`respond_batch` kernel.
+"""Answering from trained node weights (SOM and Rigid Map): the winner nearest ``x``, optionally
+combined with ``k`` runner-ups (Jenkins & Angel after Goeppert & Rosenstiel) by inverse distance
+(``idw``), geometric steps from the running answer (``geometric``) or from the winner
+(``geometric-winner``), or geometric over the winner's output-topology neighbours
+(``topological``); the formulas sit in :func:`_combine`. Answers are unit, w >= 0.
 """
 
 from __future__ import annotations
@@ -31,7 +19,6 @@ from limbctl.geometry.jit import njit
 EUCLIDEAN = 0
 COSINE = 1
 METRICS = {"euclidean": EUCLIDEAN, "cosine": COSINE}
-
 #: Interpolation codes.
 NONE = 0
 IDW = 1
@@ -85,8 +72,7 @@ def _distance(x: np.ndarray, w: np.ndarray, metric: int) -> float:
 
 @njit
 def _nearest(weights, x, count, metric, idx, dist) -> None:
-    """Fill ``idx``, ``dist`` (count,) with the ``count`` nearest weights, nearest first; ties
-    keep the lower index (as a stable argsort does)."""
+    """Fill ``idx``, ``dist`` (count,) with the nearest weights, nearest first, ties by index."""
     for r in range(count):
         idx[r] = -1
         dist[r] = np.inf
@@ -127,6 +113,7 @@ def _combine(weights, x, idx, dist, count, mode, out) -> None:
         step = np.empty(4)
         for c in range(4):
             res[c] = x[c] - y[c]
+        # from y = w_c, r = x - w_c, for each runner-up k, nearest first:
         for r in range(1, count):
             other = idx[r]
             dd = 0.0
@@ -154,25 +141,16 @@ def _combine(weights, x, idx, dist, count, mode, out) -> None:
 def respond_batch(
     weights: np.ndarray, q: np.ndarray, k: int, metric: int, mode: int, topology: np.ndarray
 ) -> np.ndarray:
-    """The network's answer for each row of ``q``.
+    """The network's answer (N, 4), unit, w >= 0, for each row of ``q`` (N, 4).
 
     Parameters
     ----------
     weights : ndarray, shape (M, 4)
         Node weights.
-    q : ndarray, shape (N, 4)
-        Inputs (unit quaternions).
-    k : int
-        Runner-ups to combine with the winner (ignored for NONE).
-    metric, mode : int
-        Codes of :data:`METRICS` and :data:`INTERPOLATIONS`.
+    k, metric, mode : int
+        Runner-ups (ignored for NONE); codes of :data:`METRICS` and :data:`INTERPOLATIONS`.
     topology : ndarray, shape (M, K) int64
         For TOPOLOGICAL, each node's neighbours, nearest first; else any (M, 0) array.
-
-    Returns
-    -------
-    ndarray, shape (N, 4)
-        Unit quaternions with w >= 0.
     """
     n = q.shape[0]
     out = np.empty((n, 4))
@@ -223,8 +201,7 @@ def respond_serial(
     return out
 
 
-#: Rows up to which :func:`respond_rows` uses one thread: the fit's few thousand (~10 ms) gain
-#: little from the pool, whose kernel costs seconds to compile on a first run.
+#: Rows up to which :func:`respond_rows` stays on one thread (a parallel kernel compiles slowly).
 PARALLEL_ROWS = 100_000
 
 
@@ -251,45 +228,9 @@ def nearest_distance(weights: np.ndarray, q: np.ndarray) -> np.ndarray:
     return out
 
 
-def respond_reference(
-    weights: np.ndarray, q: np.ndarray, k: int, metric: int, mode: int, topology: np.ndarray
-) -> np.ndarray:
-    """Plain numpy version of :func:`respond_batch` (same arguments, same answers)."""
-    out = np.empty((q.shape[0], 4))
-    norms = np.linalg.norm(weights, axis=1)
-    count = 1 if mode == NONE else min(k + 1, len(weights))
-    for j, x in enumerate(q):
-        if metric == EUCLIDEAN:
-            dist = np.sum((x - weights) ** 2, axis=1)
-        else:
-            dist = np.arccos(np.clip((weights @ x) / norms, -1.0, 1.0)) ** 2
-        order = np.argsort(dist, kind="stable")
-        if mode == TOPOLOGICAL:
-            idx = np.concatenate([order[:1], topology[order[0], : count - 1]])
-        else:
-            idx = order[:count]
-        y = weights[idx[0]].copy()
-        if mode == IDW and len(idx) > 1 and dist[idx[0]] > 0.0:
-            inv = 1.0 / np.sqrt(dist[idx])
-            y = inv @ weights[idx] / inv.sum()
-        elif mode in (GEOMETRIC, GEOMETRIC_WINNER, TOPOLOGICAL):
-            res = x - y
-            for other in idx[1:]:
-                base = weights[idx[0]] if mode == GEOMETRIC_WINNER else y
-                d = weights[other] - base
-                dd = d @ d
-                if dd > 0.0:
-                    a = np.clip((res @ d) / dd, 0.0, 1.0)
-                    y = y + a * d
-                    res = res - a * d
-        y = y / np.linalg.norm(y)
-        out[j] = -y if y[0] < 0.0 else y
-    return out
-
-
 def neighbours_by_position(positions: np.ndarray, k: int) -> np.ndarray:
-    """Each node's ``k`` nearest other nodes by Euclidean position (M, k) int64, nearest first,
-    ties by index; ``positions`` (M, 4) on S^3 (Rigid Map) or (M, 2) grid coordinates (SOM)."""
+    """Each node's ``k`` nearest other nodes (M, k) int64 by position (M, 4) or grid (M, 2),
+    nearest first, ties by index."""
     positions = np.asarray(positions, dtype=np.float64)
     sq = np.sum(positions**2, axis=1)
     # |a - b|^2 = |a|^2 + |b|^2 - 2 a.b   (exact for integer grid coordinates)

@@ -1,8 +1,5 @@
-"""Node positions on S^3 (unit quaternions) for Rigid Map output layers, by name.
-
-By default (``hemisphere=True``) every layout lives on w >= 0: polytopes are *folded* (each
-antipodal pair keeps its canonical member, halving the counts) and the random and spiral layouts
-put all ``n`` points there. ``hemisphere=False`` gives the papers' node sets on all of S^3.
+"""Node positions on S^3 (unit quaternions) for Rigid Map output layers, by name: on w >= 0
+(polytopes folded, each antipodal pair keeping its canonical member), or the papers' node sets.
 """
 
 from __future__ import annotations
@@ -54,12 +51,12 @@ def _permuted(base: tuple[float, ...], parity: str) -> np.ndarray:
 
 
 def _normalise_rows(p: np.ndarray) -> np.ndarray:
+    """Rows of ``p`` (n, 4) scaled to unit length."""
     return p / np.linalg.norm(p, axis=1, keepdims=True)
 
 
 def fold_to_hemisphere(points: np.ndarray, decimals: int = 9) -> np.ndarray:
-    """Unit quaternions (n, 4) folded to the canonical hemisphere (module docstring), duplicates
-    (rounded to ``decimals``) dropped, input order kept: (m, 4)."""
+    """Unit quaternions (n, 4) folded to w >= 0, duplicates dropped, order kept: (m, 4)."""
     points = np.asarray(points, dtype=np.float64)
     rounded = np.round(points, decimals) + 0.0  # + 0.0 turns -0.0 into 0.0
     nonzero = rounded != 0.0
@@ -88,12 +85,7 @@ def cell_600(parity: str = "odd") -> np.ndarray:
 
 
 def cell_120() -> np.ndarray:
-    """The 120-cell's 600 vertices (unit length; Coxeter's coordinates over sqrt 8).
-
-    All permutations of (0, 0, +-2, +-2), (+-1, +-1, +-1, +-sqrt5), (+-phi^-2, +-phi, +-phi,
-    +-phi), (+-phi^-1, +-phi^-1, +-phi^-1, +-phi^2), and even permutations of (0, +-phi^-2,
-    +-1, +-phi^2), (0, +-phi^-1, +-phi, +-sqrt5), (+-phi^-1, +-1, +-phi, +-2).
-    """
+    """The 120-cell's 600 vertices (unit length; Coxeter's coordinates over sqrt 8)."""
     s5 = np.sqrt(5.0)
     groups = [
         _permuted((0.0, 0.0, 2.0, 2.0), "all"),
@@ -123,19 +115,14 @@ def uniform(n: int, rng: np.random.Generator, hemisphere: bool) -> np.ndarray:
 
 
 def super_fibonacci(n: int, hemisphere: bool) -> np.ndarray:
-    """Alexa's super-Fibonacci spiral: ``n`` near-uniform points on S^3 (or on w >= 0).
-
-    For i = 0..n-1: s = i + 1/2, t = s / n, r = sqrt(t), R = sqrt(1 - t),
-    alpha = 2 pi s / sqrt 2, beta = 2 pi s / psi (psi^4 = psi + 4),
-    q_i = (r sin alpha, r cos alpha, R sin beta, R cos beta); on the hemisphere alpha is
-    scaled to [0, pi), so w = r sin alpha >= 0.
-    """
+    """Alexa's super-Fibonacci spiral: ``n`` near-uniform points (n, 4) on S^3 (or on w >= 0)."""
     s = np.arange(n, dtype=np.float64) + 0.5
     t = s / n
     r = np.sqrt(t)
     big_r = np.sqrt(1.0 - t)
-    alpha_span = np.pi if hemisphere else 2.0 * np.pi
-    # alpha = span * frac(s / sqrt 2), beta = 2 pi * frac(s / psi)
+    alpha_span = np.pi if hemisphere else 2.0 * np.pi  # [0, pi): w = r sin alpha >= 0
+    # alpha = span * frac(s / sqrt 2), beta = 2 pi * frac(s / psi);
+    # q = (r sin alpha, r cos alpha, R sin beta, R cos beta), r = sqrt(s / n), R = sqrt(1 - s / n)
     alpha = alpha_span * np.mod(s / np.sqrt(2.0), 1.0)
     beta = 2.0 * np.pi * np.mod(s / PSI, 1.0)
     return np.stack(
@@ -183,18 +170,9 @@ LAYOUTS: dict[str, Callable[[int | None, np.random.Generator, bool], np.ndarray]
 def make_layout(
     name: str, n: int | None = None, seed: int | np.random.Generator = 0, hemisphere: bool = True
 ) -> np.ndarray:
-    """Node positions on S^3 by layout name.
-
-    Parameters
-    ----------
-    name : str
-        One of :data:`LAYOUTS`.
-    n : int, optional
-        Node count: required for ``uniform`` and ``super-fibonacci``; a polytope's exact count.
-    seed : int or numpy.random.Generator
-        Randomness for ``uniform`` (ignored by the deterministic layouts).
-    hemisphere : bool
-        Nodes on w >= 0, polytopes folded; False: the papers' node sets.
+    """Node positions on S^3 by layout ``name`` (of :data:`LAYOUTS`): ``n`` nodes (required for
+    ``uniform`` and ``super-fibonacci``, a polytope's count), ``seed`` for ``uniform``, on w >= 0
+    (polytopes folded) or, without ``hemisphere``, the papers' node sets.
 
     Returns
     -------

@@ -1,9 +1,6 @@
-"""The interpolated Rigid Map (Jenkins & Angel), and the exact gate built on it.
-
-``respond`` is the papers' network (node positions fixed by a layout, weights trained from valid
-orientations); ``contains``/``correct`` ask the taught region built from the samples' positions
-(docs/region.md). ``support_weights``: a second layer of nodes on the region's thinned samples,
-trained by the same rule (``limbctl eval`` scores it).
+"""The interpolated Rigid Map (Jenkins & Angel), and the exact gate built on it: ``respond`` is
+the papers' network, ``contains``/``correct`` ask the taught region (docs/region.md);
+``support_weights`` are a second layer on the region's thinned samples (``limbctl eval``).
 """
 
 from __future__ import annotations
@@ -40,30 +37,25 @@ _FLAT_REGION_KEYS = tuple(
 
 
 class RigidMap(Envelope):
-    """Interpolated Rigid Map over S^3 with an exact gate (see the module docstring).
+    """Interpolated Rigid Map over S^3 with an exact gate.
 
     Parameters
     ----------
-    nodes : int
-        Output nodes of the papers' map (for polytope layouts: their count or None).
-    layout : str
-        Node layout name (see :func:`limbctl.envelope.layouts.make_layout`).
-    seed : int
-        Seeds the layout (``uniform``) and the order patterns are presented in.
+    nodes, layout, seed : int, str, int
+        The papers' map: output nodes (a polytope's count or None) on a layout of
+        :func:`~limbctl.envelope.layouts.make_layout`; ``seed`` seeds it and the pattern order.
     learning_rate, learning_rate_decay : float
         ``lr(t) = learning_rate exp(-learning_rate_decay t)`` (Table I: 1.0, 0.15).
     radius, radius_decay : float
         ``sigma(t) = radius exp(-radius_decay t)`` in radians (Table I: 2 pi, 1.0).
     neighbourhood : float
         Nodes with ``exp(-theta^2 / (2 sigma^2)) >= neighbourhood`` update (Table I: 0.04).
-    max_epochs : int
-        Table I: 1000. Training stops earlier once no weight moves more than ``tol``.
+    max_epochs, tol : int, float
+        Table I: 1000; training stops earlier once no weight moves more than ``tol``.
     metric : {"euclidean", "cosine"}
         Distance used to pick winners (Table I).
-    region : RegionParams, optional
-        Settings of the taught region the gate enforces (defaults when None).
-    twist : bool
-        Learn swing and twist (three servos, ``correct`` nearest on SO(3)); False: swing only.
+    region, twist : RegionParams or None, bool
+        Settings of the taught region the gate enforces; learn swing and twist (three servos).
     """
 
     kind: ClassVar[str] = "rigidmap"
@@ -154,8 +146,7 @@ class RigidMap(Envelope):
             raise ConfigError("this RigidMap is not trained: call fit(q_train) or load a model")
 
     def respond(self, q: np.ndarray, interpolation: str = "none", k: int = 8) -> np.ndarray:
-        """The papers' answer (unit, shaped like ``q``): winner by weight, interpolated with ``k``
-        runner-ups (:mod:`limbctl.envelope.interpolation`; topological: nearest by position)."""
+        """The papers' answer (unit, shaped like ``q``), interpolated with ``k`` runner-ups."""
         if self._weights is None:
             raise ConfigError("this RigidMap is not trained: call fit(q_train) or load a model")
         if interpolation not in rk.INTERPOLATIONS:
@@ -166,7 +157,7 @@ class RigidMap(Envelope):
         top = self._topology.shape[1] if interpolation == "topological" else self._weights.shape[0]
         if not 0 <= int(k) <= top:
             raise ConfigError(f"k must be in 0..{top} for {interpolation} interpolation")
-        arr, single = self._input(q)
+        arr, single = as_quaternions(q)
         out = rk.respond_rows(
             self._weights,
             arr,
@@ -188,8 +179,7 @@ class RigidMap(Envelope):
         return getattr(self.region, "contains_from_arcs", self.region.contains)(q)
 
     def correct(self, q: np.ndarray) -> np.ndarray:
-        """``q`` itself inside the region; outside, the nearest region orientation (twist kept;
-        with ``twist=True`` the nearest orientation of the region on SO(3))."""
+        """``q`` itself inside the region; outside, the nearest orientation of the region."""
         self._trained()
         return self.region.correct(q)
 

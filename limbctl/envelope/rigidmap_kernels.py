@@ -1,10 +1,5 @@
-"""Numba kernels of the Rigid Map: training, winner search and answering.
-
-Each kernel has a numpy reference (``*_reference``); no ``fastmath`` (NaN fails comparisons).
-Training (Jenkins & Angel, Table I), epoch ``t``: ``lr(t) = lr0 exp(-k_lr t)``, ``sigma(t) =
-sigma0 exp(-k_sigma t)`` (rad); for each pattern ``x`` in order, the winner ``c`` is the node
-whose *position* is nearest ``x``, and every node with ``h = exp(-theta_ci^2 / (2 sigma^2)) >=
-phi`` moves ``w_i += lr h (x - w_i)``; until ``max_epochs`` or no component moved over ``tol``.
+"""Numba kernels of the Rigid Map (Jenkins & Angel, Table I): training, winner search, answering.
+Training has a numpy reference; no ``fastmath`` (NaN fails comparisons).
 """
 
 from __future__ import annotations
@@ -17,15 +12,8 @@ import numpy as np
 from limbctl.envelope.interpolation import (  # noqa: F401
     COSINE,
     EUCLIDEAN,
-    GEOMETRIC,
-    GEOMETRIC_WINNER,
-    IDW,
     INTERPOLATIONS,
     METRICS,
-    NONE,
-    TOPOLOGICAL,
-    respond_batch,
-    respond_reference,
     respond_rows,
 )
 from limbctl.geometry.jit import njit
@@ -33,8 +21,8 @@ from limbctl.geometry.jit import njit
 
 @njit
 def position_winners(positions: np.ndarray, patterns: np.ndarray) -> np.ndarray:
-    """Index (N,) int64 of the node position (M, 4) nearest each pattern (N, 4): ``argmax_i
-    <x, p_i>`` (first on ties), the argmin of ``|x - p|^2`` and ``acos(x.p)^2`` alike."""
+    """Index (N,) int64 of the node position (M, 4) nearest each pattern (N, 4), first on ties."""
+    # argmax_i <x, p_i>: the argmin of |x - p|^2 and of acos(x.p)^2 alike
     n = patterns.shape[0]
     m = positions.shape[0]
     out = np.empty(n, dtype=np.int64)
@@ -145,12 +133,12 @@ def train_rigid_map(
     max_epochs: int,
     tol: float,
 ) -> int:
-    """Train ``weights`` (M, 4) in place by the Rigid Map rule (module docstring); epochs run.
+    """Train ``weights`` (M, 4) in place by the Rigid Map rule; returns the epochs run.
 
-    Winners by position never change, so they are found once; an epoch runs node by node through
-    the patterns in order (the same arithmetic, the same weights to the bit, as pattern by
-    pattern). An epoch whose radius ``sigma sqrt(2 ln(1/phi))`` is below the closest node spacing
-    updates the winner only.
+    Each epoch ``t``, for each pattern ``x`` in order, every node within ``h = exp(-theta_ci^2 /
+    (2 sigma(t)^2)) >= phi`` of the winner ``c`` by position moves ``w_i += lr(t) h (x - w_i)``,
+    until ``max_epochs`` or no component moved over ``tol``. Winners never change, so they are
+    found once; an epoch runs node by node (the same weights to the bit as pattern by pattern).
     """
     winners = position_winners(positions, patterns)
     distinct, pattern_slot = _winner_slots(winners, positions.shape[0])
@@ -290,8 +278,7 @@ def train_rigid_map_reference(
 
 
 def position_topology(positions: np.ndarray, k: int) -> np.ndarray:
-    """Each node's ``k`` nearest other nodes (largest ``p_i . p_j``; ties in index order), (M, k)
-    int64, nearest first."""
+    """Each node's ``k`` nearest other nodes (M, k) int64 by ``p_i . p_j``, nearest first."""
     dots = positions @ positions.T
     np.fill_diagonal(dots, -np.inf)
     return _largest_per_row(dots, min(k, positions.shape[0] - 1))
@@ -299,8 +286,7 @@ def position_topology(positions: np.ndarray, k: int) -> np.ndarray:
 
 @njit
 def _largest_per_row(values: np.ndarray, k: int) -> np.ndarray:
-    """Columns of the ``k`` largest values of each row (M, k), largest first, ties by column:
-    the first ``k`` of a stable argsort of ``-values``, without sorting whole rows."""
+    """Columns (M, k) of each row's ``k`` largest values, largest first, ties by column."""
     m, n = values.shape
     out = np.empty((m, k), dtype=np.int64)
     best = np.empty(k)

@@ -1,10 +1,8 @@
 """The self-organising map of Jenkins & Dacey (UKSim 2011): the project's baseline envelope.
 
-``rows x cols`` output nodes with weights in R^4. One time step presents the training set in
-order; each pattern's winner (least squared Euclidean distance) and the nodes within grid distance
-``radius(t)`` move ``w += lr(t) (x - w)`` on Table I's schedule, until no winner changes (at most
-10,000 steps). The gate: ``contains(q)`` when q lies within ``threshold`` (the training set's
-largest distance) of a normalised node; ``correct(q)`` answers the paper's winner outside.
+Each pattern's winner (least squared distance) and the nodes within grid distance ``radius(t)``
+move ``w += lr(t) (x - w)``, until no winner changes. ``contains(q)``: q within ``threshold``
+(the training set's largest distance) of a normalised node; ``correct`` answers the winner.
 """
 
 from __future__ import annotations
@@ -17,7 +15,7 @@ from limbctl.envelope import interpolation as ip
 from limbctl.envelope.base import Envelope
 from limbctl.envelope.som_kernels import train_som
 from limbctl.errors import ConfigError
-from limbctl.geometry.quat import canonical
+from limbctl.geometry.quat import as_quaternions, canonical
 
 
 def table_i_schedule(
@@ -35,21 +33,14 @@ def table_i_schedule(
 
     Parameters
     ----------
-    max_steps : int
-        Time steps (the training cap); the arrays have this length.
-    lr0, lr_min, lr_factor : float
-        Initial learning rate, its floor, and the factor applied at each new period.
-    radius0, radius_min, radius_factor : float
-        The same for the neighbourhood radius (grid units).
-    period : int
-        Time steps per period.
-    periods : int
-        Number of periods in the table; the last one lasts until the end.
+    lr0, lr_min, lr_factor, radius0, radius_min, radius_factor : float
+        Initial value, floor, and factor per period of the learning rate and the radius (grid).
+    period, periods, max_steps : int
+        Time steps per period; periods in the table, the last lasting until ``max_steps``.
 
     Returns
     -------
     learning_rates, radii : ndarray, shape (max_steps,)
-        ``max(lr0 lr_factor^p, lr_min)`` and likewise, ``p = min(t // period, periods - 1)``.
     """
     t = np.arange(max_steps)
     p = np.minimum(t // period, periods - 1)
@@ -61,20 +52,9 @@ def table_i_schedule(
 
 
 class SOM(Envelope):
-    """Kohonen SOM over unit quaternions, trained on valid orientations (Jenkins & Dacey).
-
-    Parameters
-    ----------
-    rows, cols : int
-        Output grid size (nodes = rows * cols).
-    seed : int or numpy.random.Generator
-        Randomness of the initial weights (each ``fit`` with an int seed starts afresh).
-    max_steps : int
-        Cap on time steps (full passes over the training set); Table I: 10,000.
-    lr0, lr_min, lr_factor, radius0, radius_min, radius_factor, period, periods
-        Table I's schedule (see :func:`table_i_schedule`).
-    init_scale : float
-        Initial weights are uniform in [-init_scale, init_scale].
+    """Kohonen SOM over unit quaternions, trained on valid orientations (Jenkins & Dacey): a
+    ``rows x cols`` grid, initial weights uniform in [-init_scale, init_scale] from ``seed`` (an
+    int seed starts each ``fit`` afresh), Table I's schedule (:func:`table_i_schedule`).
     """
 
     kind = "som"
@@ -150,9 +130,8 @@ class SOM(Envelope):
         return rng.uniform(-self.init_scale, self.init_scale, size=(self.nodes, 4))
 
     def fit(self, q_train: np.ndarray) -> SOM:
-        """Train on valid orientations ``q_train`` (N, 4), N >= 1; sets ``weights``, ``steps``,
-        ``converged`` and ``threshold``. Returns self."""
-        patterns, _ = self._input(q_train)
+        """Train on valid orientations ``q_train`` (N, 4), N >= 1. Returns self."""
+        patterns, _ = as_quaternions(q_train)
         if len(patterns) == 0:
             raise ConfigError("SOM.fit: q_train is empty; record some valid orientations first")
         weights = self.initial_weights()
@@ -171,7 +150,7 @@ class SOM(Envelope):
         """The SOM's answer to ``q`` (4,) or (N, 4), shaped like it, by ``interpolation``."""
         mode = ip.interpolation_code(interpolation)
         k = ip.check_k(k)
-        arr, single = self._input(q)
+        arr, single = as_quaternions(q)
         weights = self.weights
         topology = self._grid_topology(k) if mode == ip.TOPOLOGICAL else _NO_TOPOLOGY
         out = ip.respond_batch(weights, arr, k, ip.EUCLIDEAN, mode, topology)

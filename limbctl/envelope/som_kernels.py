@@ -18,12 +18,11 @@ def train_som(
     radii: np.ndarray,
     winners: np.ndarray,
 ) -> tuple[int, bool]:
-    """Train ``weights`` in place by the SOM rule.
+    """Train ``weights`` (M, 4) in place by the SOM rule; the time steps run, and whether the
+    last changed no winner.
 
     Parameters
     ----------
-    weights : ndarray, shape (M, 4)
-        Initial weights; trained in place.
     patterns : ndarray, shape (N, 4)
         Training patterns, presented in this order every time step.
     grid_distance : ndarray, shape (M, M)
@@ -32,13 +31,6 @@ def train_som(
         ``lr(t)`` and neighbourhood ``radius(t)`` per time step; T caps the training.
     winners : ndarray, shape (N,) int64
         Filled with each pattern's winner in the last time step run (-1: changed at first).
-
-    Returns
-    -------
-    steps : int
-        Time steps run.
-    converged : bool
-        True when the last step changed no winner.
     """
     n = patterns.shape[0]
     m = weights.shape[0]

@@ -20,11 +20,11 @@ BEAN = np.array(
 
 
 def rounded(polygon_deg: np.ndarray, iterations: int = 4) -> np.ndarray:
-    """Chaikin's corner cutting of a closed (pan, tilt) polygon (M, 2), ``iterations`` times:
-    each edge p -> q gives ``3/4 p + 1/4 q`` and ``1/4 p + 3/4 q`` (a quadratic B-spline)."""
+    """Chaikin's corner cutting of a closed (pan, tilt) polygon (M, 2), ``iterations`` times."""
     p = np.asarray(polygon_deg, dtype=np.float64)
     for _ in range(iterations):
         q = np.roll(p, -1, axis=0)
+        # each edge p -> q gives 3/4 p + 1/4 q and 1/4 p + 3/4 q
         p = np.stack([0.75 * p + 0.25 * q, 0.25 * p + 0.75 * q], axis=1).reshape(-1, 2)
     return p
 
@@ -34,10 +34,10 @@ KIDNEY = rounded(BEAN)
 
 
 def egg(length_deg: float = 48.0, width_deg: float = 26.4, n: int = 240) -> np.ndarray:
-    """A convex egg (n, 2) in (pan, tilt) degrees, ``length_deg`` long and about ``width_deg`` wide:
-    ``pan = a cos t + a / 8``, ``tilt = b sin t (1 + cos t / 4)``, blunt towards +pan."""
+    """A convex egg (n, 2) (pan, tilt) deg, ``length_deg`` by about ``width_deg``, blunt at +pan."""
     t = np.linspace(0.0, 2.0 * np.pi, n, endpoint=False)
     a, b = 0.5 * length_deg, 0.5 * width_deg
+    # pan = a cos t + a / 8, tilt = b sin t (1 + cos t / 4)
     return np.column_stack([a * np.cos(t) + a / 8.0, b * np.sin(t) * (1.0 + 0.25 * np.cos(t))])
 
 
@@ -48,8 +48,7 @@ EGG = egg()
 SMALL_KIDNEY = 0.35 * KIDNEY
 
 
-#: A 40 x 30 deg rectangle, (pan, tilt) deg, with a 12 x 12 deg notch cut into its top edge: an
-#: obstacle the limb must go round (reflex corners at (-6, 3) and (6, 3)).
+#: A 40 x 30 deg rectangle, (pan, tilt) deg, with a 12 x 12 deg notch cut into its top edge.
 NOTCH = np.array(
     [[-20.0, -15.0], [20.0, -15.0], [20.0, 15.0], [6.0, 15.0], [6.0, 3.0], [-6.0, 3.0],
      [-6.0, 15.0], [-20.0, 15.0]]
@@ -138,10 +137,9 @@ class PolygonRegion(Region):
     ----------
     polygon_deg : array_like, shape (V, 2)
         Vertices (pan, tilt) in degrees, either winding, not self-intersecting.
-    edge_density : float
-        Sample density at the edge relative to the deep middle (0 < edge_density <= 1).
-    ramp_deg : float
-        Depth over which the density rises from ``edge_density`` to 1.
+    edge_density, ramp_deg : float
+        Sample density at the edge relative to the middle (0 < it <= 1), rising to 1 over the
+        depth ``ramp_deg``.
     boundary_step_deg : float
         Spacing of the dense boundary sampling used for depth and the ideal correction.
     """
@@ -233,9 +231,8 @@ def trajectory_samples(
     edge_share: float = 0.3,
     edge_inset_deg: float = 0.5,
 ) -> np.ndarray:
-    """``n`` directions (n, 3) recorded the way a hand teaches: great-circle strokes ``step_deg``
-    apart between inside waypoints, or (``edge_share`` of them) creeping 10-40 deg along the
-    boundary ``edge_inset_deg`` inside, at a third of the step."""
+    """``n`` directions (n, 3) as a hand teaches: strokes ``step_deg`` apart between inside
+    waypoints, or (``edge_share``) 10-40 deg along the edge ``edge_inset_deg`` inside."""
     step = np.radians(step_deg)
     edge = _edge_track(region, np.radians(edge_inset_deg))
     out = [region.sample(1, rng)[0]]
@@ -391,9 +388,8 @@ def traced_teaching(
 def reach_into(
     contains, region: PolygonRegion, box_deg=NOTCH_HOLE, step_deg: float = 0.05
 ) -> float:
-    """How far (deg) ``contains`` (quaternions (N, 4) -> (N,) bool) reaches into the box
-    ``((pan_min, pan_max), (tilt_min, tilt_max))`` deg outside ``region``: the deepest held point
-    of a ``step_deg`` grid, measured to ``region``'s boundary (0 when it holds none)."""
+    """How far (deg) ``contains`` ((N, 4) -> (N,) bool) reaches into the box ``((pan_min,
+    pan_max), (tilt_min, tilt_max))`` deg outside ``region``: its deepest held grid point."""
     (p0, p1), (t0, t1) = box_deg
     pan, tilt = np.meshgrid(
         np.arange(p0, p1 + 0.5 * step_deg, step_deg), np.arange(t0, t1 + 0.5 * step_deg, step_deg)

@@ -1,12 +1,5 @@
-"""Synthetic shoulder-like regions of full orientations, for tests and benchmarks of twist.
-
-A :class:`ShoulderRegion` is a swing outline in (pan, tilt) degrees with a twist band narrowing
-as the limb rises and drifting with pan and tilt::
-
-    h(tilt) = clip(h_low + (h_high - h_low) (tilt - tilt_low) / (tilt_high - tilt_low), 5, 175) deg
-    c(pan, tilt) = c0 + c_pan pan + c_tilt tilt                                              (deg)
-
-It teaches, answers ``contains`` exactly, samples its boundary and clamps as the engines do.
+"""Synthetic shoulder-like regions of full orientations, for tests and benchmarks of twist: a
+swing outline in (pan, tilt) degrees with a twist band narrowing as the limb rises.
 """
 
 from __future__ import annotations
@@ -31,7 +24,7 @@ STOP_SCATTER_DEG = 0.2
 
 
 class ShoulderRegion:
-    """A swing outline with a twist band narrowing as the limb rises (module docstring).
+    """A swing outline with a twist band narrowing as the limb rises and drifting with the swing.
 
     Parameters
     ----------
@@ -70,8 +63,7 @@ class ShoulderRegion:
         return np.radians(c0 + cp * pan_deg + ct * tilt_deg), np.radians(h)
 
     def contains(self, q: np.ndarray) -> np.ndarray:
-        """(N,) bool: direction inside the outline and twist inside the band there (up to
-        TWIST_TOLERANCE: an orientation composed on a limit reads back within ~1e-15 rad)."""
+        """(N,) bool: direction inside the outline and twist inside the band there (+-1e-15)."""
         d, tau = decompose(np.atleast_2d(q))
         c, h = self.band(d)
         return self.swing.contains(d) & (np.abs(wrap(tau - c)) <= h + TWIST_TOLERANCE)
@@ -99,8 +91,7 @@ class ShoulderRegion:
     def teaching(
         self, n_uniform: int, n_edge: int, n_stops: int, rng: np.random.Generator
     ) -> np.ndarray:
-        """Taught orientations (N, 4): ``n_uniform`` uniform, ``n_edge`` within 1 deg of the swing
-        edge, ``n_stops`` at the twist stops (half along the edge)."""
+        """Taught orientations (N, 4): uniform, within 1 deg of the swing edge, at twist stops."""
         d_u = self._inside_directions(n_uniform, rng)
         d_e = self._edge_directions(n_edge, rng, 1.0)
         d_s = np.vstack(
@@ -144,8 +135,7 @@ class ShoulderRegion:
         return np.vstack(parts)
 
     def clamp(self, q: np.ndarray) -> np.ndarray:
-        """The engines' two-step answer (N, 4): the direction onto the outline (nearest
-        direction), the twist kept, then clamped into the band there."""
+        """The engines' two-step answer (N, 4): nearest outline direction, then twist clamped."""
         d, tau = decompose(np.atleast_2d(q))
         d2 = self.swing.ideal(d)
         c, h = self.band(d2)
@@ -154,16 +144,9 @@ class ShoulderRegion:
 
 
 class BandRegion(ShoulderRegion):
-    """A swing outline with any twist band (curved, across +-180 deg), else a ShoulderRegion.
-
-    Parameters
-    ----------
-    polygon_deg : array_like (V, 2)
-        The swing outline in (pan, tilt) degrees.
-    band_deg : callable
-        ``(pan_deg (N,), tilt_deg (N,)) -> (centre_deg (N,), half_deg (N,))``; half-widths in
-        (0, 180).
-    """
+    """A swing outline ``polygon_deg`` (V, 2) with any twist band (curved, across +-180 deg):
+    ``band_deg(pan_deg (N,), tilt_deg (N,)) -> (centre_deg (N,), half_deg (N,))``, half-widths
+    in (0, 180)."""
 
     def __init__(self, polygon_deg: np.ndarray, band_deg) -> None:
         super().__init__(polygon_deg)

@@ -1,4 +1,1 @@
-"""The papers' experiments: task grids, metrics and figures, run by ``limbctl eval``.
-
-Used only by the app.
-"""
+"""The papers' experiments: task grids, metrics and figures, run by ``limbctl eval`` alone."""

@@ -1,8 +1,7 @@
 """`limbctl eval`: the seed papers' experiments, side by side with the gate, as CSV, tables, plots.
 
-One *task* (:func:`build_tasks`; docs/results.md) is one data set and every model trained on it,
-each answer scored. Tasks run in worker processes, each appending its rows to ``runs.csv``; a
-rerun into the same ``--out`` skips tasks already there.
+A task (one data set, every model trained on it) runs in a worker, appending its rows to
+``runs.csv``; a rerun into the same ``--out`` skips tasks already there.
 """
 
 from __future__ import annotations
@@ -29,13 +28,12 @@ from limbctl.geometry.quat import swing_angle
 CSV_FIELDS = (*"task grid experiment x_name x seed model answer k subset".split(), *METRIC_NAMES)
 CSV_FIELDS += ("fit_seconds",)
 
-
 _NO_TOPOLOGY = np.empty((0, 0), dtype=np.int64)
 
 
 def draw_training(data: DataSpec, rng: np.random.Generator) -> np.ndarray:
-    """Valid training orientations (patterns, 4), twist-free, inside the cone of ``range_deg``,
-    the band (swing in (R/2, R]) ``boundary_ratio`` times as dense as the central cap."""
+    """Valid twist-free training orientations (patterns, 4) in the cone of ``range_deg``, the band
+    (swing in (R/2, R]) ``boundary_ratio`` times as dense as the central cap."""
     radius = np.radians(data.range_deg)
     cone = ConeRegion(radius)
     if data.boundary_ratio == 1.0:
@@ -80,8 +78,7 @@ def build_model(spec: ModelSpec, seed: int, range_deg: float) -> Any:
 
 
 def respond_on_data_nodes(model: Any, q: np.ndarray, interpolation: str, k: int) -> np.ndarray:
-    """The papers' answers (N, 4) to ``q`` (N, 4) over a fitted Rigid Map's ``support_weights``
-    (S, 4), by ``interpolation`` with ``k`` runner-ups."""
+    """The papers' answers (N, 4) to ``q`` (N, 4) over a fitted Rigid Map's ``support_weights``."""
     weights = np.ascontiguousarray(model.support_weights, dtype=np.float64)
     mode = ip.interpolation_code(interpolation)
     return ip.respond_batch(weights, q, max(k, 1), ip.EUCLIDEAN, mode, _NO_TOPOLOGY)
@@ -130,18 +127,18 @@ def read_rows(csv_path: Path) -> list[dict[str, Any]]:
     if not csv_path.exists():
         return []
     text_fields = {"task", "grid", "experiment", "x_name", "model", "answer", "subset"}
-    rows = []
     with open(csv_path, newline="") as fh:
-        for raw in csv.DictReader(fh):
-            rows.append({k: v if k in text_fields else float(v) for k, v in raw.items()})
-    return rows
+        return [
+            {k: v if k in text_fields else float(v) for k, v in raw.items()}
+            for raw in csv.DictReader(fh)
+        ]
 
 
 def run_tasks(
     tasks: list[Task], csv_path: Path, jobs: int = 0, progress: bool = True
 ) -> list[dict[str, Any]]:
-    """Run the tasks not yet in ``csv_path`` in ``jobs`` workers (0: one per core, 1: this
-    process), appending each one's rows as it finishes; returns every task's rows in CSV order."""
+    """Run the tasks not yet in ``csv_path`` in ``jobs`` workers (0: one per core, 1: here),
+    appending each one's rows as it finishes; returns every task's rows in CSV order."""
     from tqdm import tqdm
 
     wanted = {t.key for t in tasks}
@@ -151,16 +148,8 @@ def run_tasks(
     if jobs < 0:
         raise ConfigError(f"--jobs must be >= 0 (0 = one per core), got {jobs}")
     new_file = not csv_path.exists()
-    with (
-        open(csv_path, "a", newline="") as fh,
-        tqdm(
-            total=len(tasks),
-            initial=len(tasks) - len(todo),
-            disable=not progress,
-            unit="task",
-            desc="eval",
-        ) as bar,
-    ):
+    shown = {"initial": len(tasks) - len(todo), "disable": not progress, "unit": "task"}
+    with open(csv_path, "a", newline="") as fh, tqdm(total=len(tasks), desc="eval", **shown) as bar:
         writer = csv.DictWriter(fh, fieldnames=CSV_FIELDS)
         if new_file:
             writer.writeheader()
@@ -186,9 +175,7 @@ def run_tasks(
 def run_eval(
     out: Path, quick: bool = False, jobs: int = 0, progress: bool = True, smoke: bool = False
 ) -> int:
-    """`limbctl eval`: run the full, ``quick`` or ``smoke`` grid into ``out`` (a rerun resumes):
-    runs.csv, summary.md, figures. Returns 0, or 1 when the SOM reproduction fell outside its band.
-    """
+    """`limbctl eval` into ``out`` (a rerun resumes); 1 when the SOM reproduction failed, else 0."""
     from limbctl.eval import plots as eval_plots
     from limbctl.eval.twist import run_twist
 

@@ -1,7 +1,5 @@
-"""The experiment grids of `limbctl eval`: which data sets, models and answers each point runs.
-
-Three scales share one shape: ``full`` (the papers' grids, 10 seeds; docs/results.md), ``quick``
-(fewer points, 2 seeds) and ``smoke`` (two points per experiment, 1 seed: an end-to-end test).
+"""The experiment grids of `limbctl eval`: which data sets, models and answers each point runs,
+at three scales: ``full`` (the papers' grids, 10 seeds), ``quick`` and ``smoke`` (1 seed).
 """
 
 from __future__ import annotations
@@ -21,21 +19,10 @@ SCALES = ("full", "quick", "smoke")
 
 @dataclass(frozen=True)
 class DataSpec:
-    """How one data set is drawn (twist-free orientations of a limb resting along +x).
-
-    Attributes
-    ----------
-    range_deg : float
-        Half-angle R of the true swing cone (the papers' "range").
-    patterns : int
-        Training patterns, all valid.
-    test_patterns : int
-        Test patterns, valid and invalid.
-    test_spread : str
-        Test directions uniform over the sphere (``"sphere"``) or around the cone (``"around"``).
-    boundary_ratio : float
-        Training density in the band (swing in (R/2, R]) over the central cap's; 1 is uniform.
-    """
+    """How one data set of twist-free orientations is drawn: ``range_deg``, the true cone's
+    half-angle R; ``patterns`` valid for training, ``test_patterns`` spread over the ``"sphere"``
+    or ``"around"`` the cone; ``boundary_ratio``, training density in the band (swing in (R/2,
+    R]) over the central cap's (1: uniform)."""
 
     range_deg: float
     patterns: int
@@ -46,9 +33,7 @@ class DataSpec:
 
 @dataclass(frozen=True)
 class Answer:
-    """One way of answering: ``how`` is ``respond`` (the paper's network, with an interpolation),
-    ``correct`` (the gate) or ``data-nodes`` (the paper's rule over a Rigid Map's support layer).
-    """
+    """One way of answering: ``respond`` (the paper's), ``correct`` (the gate) or ``data-nodes``."""
 
     how: str
     interpolation: str = "none"
@@ -65,8 +50,7 @@ class Answer:
 
 @dataclass(frozen=True)
 class ModelSpec:
-    """A model to train on each task's data (``kind``, constructor ``options``, a ``seed`` added
-    per task) and the answers to score; ``label`` names it in tables and plots."""
+    """A model to train on each task's data (a ``seed`` added per task) and its answers."""
 
     label: str
     kind: str
@@ -89,8 +73,7 @@ class Task:
 
     @property
     def key(self) -> str:
-        """A short hash of the definition and the gate's and fit's versions: a resume never mixes
-        changed tasks or older results."""
+        """A short hash of the definition and the gate's and fit's versions: resumes never mix."""
         from limbctl.envelope.rigidmap import GATE_VERSION
         from limbctl.region.taught import FIT_VERSION
 
@@ -178,9 +161,8 @@ SCALE_SIZES = {
 def som_spec(side: int, label: str | None = None) -> ModelSpec:
     """The SOM paper's network, ``side x side`` nodes: its answer and its threshold gate."""
     answers = (Answer("respond"), Answer("correct"))
-    return ModelSpec(
-        label or f"SOM {side}x{side}", "som", (("rows", side), ("cols", side)), answers
-    )
+    label = label or f"SOM {side}x{side}"
+    return ModelSpec(label, "som", (("rows", side), ("cols", side)), answers)
 
 
 def gate_spec() -> ModelSpec:
@@ -189,8 +171,7 @@ def gate_spec() -> ModelSpec:
 
 
 def paper_rigid_maps(scale: Scale, answers_720, answers_uniform) -> tuple[ModelSpec, ...]:
-    """The Rigid Map paper's two layouts (at their S^3 density on w >= 0) plus super-Fibonacci,
-    each also as a gate."""
+    """The Rigid Map paper's two layouts (S^3 density on w >= 0), super-Fibonacci; gates too."""
     n, k = scale.uniform_nodes, scale.k_uniform
     fibonacci = (Answer("respond", "geometric", k), Answer("correct"), Answer("data-nodes"))
     fibonacci += (Answer("data-nodes", "geometric", k),)
@@ -232,13 +213,8 @@ def build_tasks(scale_name: str) -> list[Task]:
         add("som-nodes", "nodes", side * side, som_data, [som_spec(side, "SOM"), *gate])
     for ratio in s.som_ratios:
         data = DataSpec(90.0, s.som_default_patterns, s.test_patterns, "sphere", ratio)
-        add(
-            "som-ratio",
-            "boundary_ratio",
-            ratio,
-            data,
-            [som_spec(s.som_range_sides[0]), gate_spec()],
-        )
+        models = [som_spec(s.som_range_sides[0]), gate_spec()]
+        add("som-ratio", "boundary_ratio", ratio, data, models)
 
     answers_720 = (*respond_all(INTERPOLATIONS, s.k_polytope), Answer("correct"))
     answers_uniform = (*respond_all(INTERPOLATIONS, s.k_uniform), Answer("correct"))

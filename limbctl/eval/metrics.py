@@ -1,8 +1,5 @@
-"""Error metrics of a constraint model's answers against Lee's ideal corrections.
-
-Every function takes (N, 4) unit quaternions and returns per-row values; :func:`score` reduces
-them to the tables' numbers by valid and invalid inputs (docs/results.md, "Metrics").
-"""
+"""Error metrics of a constraint model's answers against Lee's ideal corrections: per row of
+(N, 4) unit quaternions, reduced by :func:`score` (docs/results.md, "Metrics")."""
 
 from __future__ import annotations
 
@@ -47,8 +44,7 @@ def quaternion_sq_error(answer: np.ndarray, ideal: np.ndarray) -> np.ndarray:
 
 
 def endpoint_error(answer: np.ndarray, ideal: np.ndarray) -> np.ndarray:
-    """Distance (N,) between the end points of a unit limb turned by answer and ideal,
-    ``|d(y) - d(y*)|``."""
+    """Distance (N,) ``|d(y) - d(y*)|`` between the end points of a unit limb turned by each."""
     answer, ideal = _pair(answer, ideal)
     return np.linalg.norm(limb_direction(answer) - limb_direction(ideal), axis=1)
 
@@ -79,24 +75,17 @@ def score(
 
     Parameters
     ----------
-    q : ndarray, shape (N, 4)
-        Test inputs.
-    answer : ndarray, shape (N, 4)
-        The model's answers.
-    ideal : ndarray, shape (N, 4)
-        Lee's ideal answers (the input itself when valid).
-    valid : ndarray, shape (N,) bool
-        Whether each input lies in the true region.
-    inside : ndarray, shape (N,) bool
-        Whether each answer lies in the true region.
+    q, answer, ideal : ndarray, shape (N, 4)
+        Test inputs, the model's answers, Lee's ideal answers (the input itself when valid).
+    valid, inside : ndarray, shape (N,) bool
+        Whether each input, each answer lies in the true region.
     outside_deg : ndarray, shape (N,), optional
         How far each answer lies outside the true region (degrees, 0 inside); NaN if omitted.
 
     Returns
     -------
     dict
-        ``{subset: {metric: value}}`` for subset in :data:`SUBSETS` and metric in
-        :data:`METRIC_NAMES`. An empty subset has ``n = 0`` and NaN elsewhere.
+        ``{subset: {metric: value}}`` of :data:`SUBSETS` and :data:`METRIC_NAMES` (empty: NaN).
     """
     sq = quaternion_sq_error(answer, ideal)
     end = endpoint_error(answer, ideal)

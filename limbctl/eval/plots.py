@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import math
 from collections import defaultdict
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -61,12 +61,11 @@ def aggregate(rows: list[dict[str, Any]]) -> list[Point]:
     for row in rows:
         key = (row["experiment"], row["x_name"], float(row["x"]), row["model"], row["answer"])
         groups[key + (row["subset"],)].append(row)
-    points = []
-    for (experiment, x_name, x, model, answer, subset), group in groups.items():
-        values = {m: mean_and_spread([r[m] for r in group]) for m in METRIC_NAMES}
-        points.append(Point(experiment, x_name, x, model, answer, subset, len(group), values))
-    points.sort(key=lambda p: (p.experiment, p.model, p.answer, p.subset, p.x))
-    return points
+    points = [
+        Point(*key, len(group), {m: mean_and_spread([r[m] for r in group]) for m in METRIC_NAMES})
+        for key, group in groups.items()
+    ]
+    return sorted(points, key=lambda p: (p.experiment, p.model, p.answer, p.subset, p.x))
 
 
 def select(points: list[Point], experiment: str, subset: str = "all", **match: str) -> list[Point]:
@@ -170,10 +169,7 @@ def draw_rigidmap_figure(points: list[Point], path: Path) -> Path:
         curves = [p for p in by_k if p not in flat]
         for p in flat:  # discrete and gate answers do not depend on k: draw them at every k
             ks = sorted({c.x for c in curves}) or [0.0]
-            curves += [
-                Point(p.experiment, p.x_name, k, p.model, p.answer, p.subset, p.seeds, p.values)
-                for k in [0.0, *ks]
-            ]
+            curves += [replace(p, x=k) for k in [0.0, *ks]]
         title = f"Fig. 2({letter_k}): interpolating nodes, {model}"
         xlabel = "interpolating nodes k (0 = discrete)"
         _panel(axes[1, col], curves, "mse", title, xlabel, "quaternion MSE")

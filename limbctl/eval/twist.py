@@ -1,6 +1,5 @@
-"""`limbctl eval`'s twist experiment: a ShoulderRegion learned by ``RigidMap(twist=True)``; its
-``correct()`` and the engines' swing-then-twist clamp on the true region against the true
-nearest orientation, written to ``twist.csv`` and ``twist.md``.
+"""`limbctl eval`'s twist experiment: ``RigidMap(twist=True).correct()`` on a learned
+ShoulderRegion and the engines' clamp on the true one, against the true nearest orientation.
 """
 
 from __future__ import annotations
@@ -22,8 +21,7 @@ from limbctl.geometry.twist import compose
 
 @dataclass(frozen=True)
 class TwistScale:
-    """How big the experiment is: teaching (uniform, edge, stops), commands, seeds, the truth's
-    boundary lattice (deg) and the map's nodes."""
+    """Teaching (uniform, edge, stops), commands, seeds, truth lattice (deg) and the map's nodes."""
 
     teaching: tuple[int, int, int]
     commands: int
@@ -48,15 +46,13 @@ def trial(scale: TwistScale, seed: int) -> dict[str, float]:
     """One teaching and its commands: the figures of :data:`FIELDS`."""
     truth = ShoulderRegion(rounded(SHOULDER))
     rng = np.random.default_rng(seed)
-    model = RigidMap(nodes=scale.nodes, seed=seed, twist=True).fit(
-        truth.teaching(*scale.teaching, rng)
-    )
+    taught = truth.teaching(*scale.teaching, rng)
+    model = RigidMap(nodes=scale.nodes, seed=seed, twist=True).fit(taught)
     b = truth.boundary(scale.truth_step_deg)
     both = np.vstack([b, -b])
     tree = cKDTree(both)
-    d = _cap_directions(
-        scale.commands, truth.swing.axis, truth.swing.radius + math.radians(30.0), rng
-    )
+    reach = truth.swing.radius + math.radians(30.0)
+    d = _cap_directions(scale.commands, truth.swing.axis, reach, rng)
     c, h = truth.band(d)
     q = compose(d, c + (h + math.radians(40.0)) * rng.uniform(-1.0, 1.0, scale.commands))
     inside = truth.contains(q)
@@ -85,8 +81,7 @@ def trial(scale: TwistScale, seed: int) -> dict[str, float]:
 
 
 def run_twist(out: Path, scale_name: str) -> list[str]:
-    """Run the experiment at ``scale_name`` (a key of :data:`SCALES`), write ``twist.csv`` and
-    ``twist.md`` into ``out``; returns the headline lines."""
+    """Run the experiment at ``scale_name`` into ``out`` (twist.csv, twist.md); the headline."""
     scale = SCALES[scale_name]
     done = out / "twist.csv"
     if done.exists() and f"Scale `{scale_name}`" in _read(out / "twist.md"):

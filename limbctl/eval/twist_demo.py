@@ -13,8 +13,7 @@ from limbctl.geometry.twist import decompose
 
 
 def write_twist_stream(path: Path, seconds: float = 12.0, rate_hz: float = 50.0) -> int:
-    """Write a replay file sweeping far outside the taught region in swing and twist, with a few
-    bad lines; returns the valid lines."""
+    """A replay file sweeping far outside in swing and twist, bad lines mixed in; valid lines."""
     n = int(seconds * rate_hz)
     t = np.arange(n) / rate_hz
     pan = 110.0 * np.sin(2 * math.pi * t / seconds)
@@ -34,8 +33,7 @@ def write_twist_stream(path: Path, seconds: float = 12.0, rate_hz: float = 50.0)
 
 
 def write_stream(path: Path, rows: list[dict], bad: list[str]) -> int:
-    """Write ``rows`` as JSON lines with the ``bad`` lines spread evenly among them (one after
-    every ``len(rows) / len(bad)``-th row, the first half such a stretch in); returns the rows."""
+    """Write ``rows`` as JSON lines with the ``bad`` lines spread evenly among them; the rows."""
     n = len(rows)
     with open(path, "w", encoding="utf-8") as fh:
         for i, row in enumerate(rows):
@@ -47,14 +45,10 @@ def write_stream(path: Path, rows: list[dict], bad: list[str]) -> int:
 
 def logged_packets(goal_log: Path, key: str, width: int) -> np.ndarray:
     """What each goal packet of the simulator's goal log commanded, (M, ``width``): the last
-    ``key`` of each ``t`` (a sync write's lines, one per servo, share it; earlier ones mix the
-    new goal of one servo with the old goal of another)."""
-    by_time: dict[float, list[float]] = {}
+    ``key`` of each ``t`` (a sync write's lines share it; earlier ones mix old and new goals)."""
     with open(goal_log, encoding="utf-8") as fh:
-        for line in fh:
-            if line.strip():
-                row = json.loads(line)
-                by_time[row["t"]] = row[key]
+        rows = [json.loads(line) for line in fh if line.strip()]
+    by_time = {row["t"]: row[key] for row in rows}  # the last line of each t
     return np.asarray(list(by_time.values()), dtype=np.float64).reshape(-1, width)
 
 
@@ -64,8 +58,8 @@ def logged_orientations(goal_log: Path) -> np.ndarray:
 
 
 def rotation_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Rotation angle (deg) between rows of unit quaternions: ``4 atan2(|a - s b|, |a + s b|)``
-    with ``s = sign(a . b)`` (= ``2 acos |a . b|``, accurate near 0)."""
+    """Rotation angle (deg) ``2 acos |a . b|`` between rows of unit quaternions, exact near 0."""
+    # 4 atan2(|a - s b|, |a + s b|), s = sign(a . b)
     s = np.where(np.sum(a * b, axis=-1) < 0.0, -1.0, 1.0)[..., None]
     near = np.linalg.norm(a - s * b, axis=-1)
     far = np.linalg.norm(a + s * b, axis=-1)
@@ -97,8 +91,7 @@ def twist_excursions(
     return np.where(outside, bound, 0.0)
 
 
-#: Bound (deg) above which a goal is measured again by sampling: under the 0.108 deg tolerance,
-#: as ``correct``'s local search may stop about 0.1 deg short.
+#: Bound (deg) above which a goal is measured again by sampling (``correct`` may stop short).
 REFINE_ABOVE_DEG = 0.05
 #: Orientations sampled around such a goal: the nearest held one within thousandths of a degree.
 REFINE_SAMPLES = 20000
@@ -124,16 +117,14 @@ def nearest_held_nearby_deg(model: object, q: np.ndarray, radius_deg: float, see
 
 
 def written_orientations(telemetry: Path) -> np.ndarray:
-    """The orientations (M, 4) the gate wrote, from a three-servo session's telemetry (each
-    written cycle's ``out``: pan, tilt, roll in deg)."""
+    """The orientations (M, 4) the gate wrote, from a three-servo session's telemetry."""
     from limbctl.geometry.gimbal import pan_tilt_roll_to_quat
 
-    rows = []
     with open(telemetry, encoding="utf-8") as fh:
-        for line in fh:
-            row = json.loads(line)
-            if row["written"] and row["out"] is not None and len(row["out"]) == 3:
-                rows.append(row["out"])
+        cycles = [json.loads(line) for line in fh]
+    rows = [
+        c["out"] for c in cycles if c["written"] and c["out"] is not None and len(c["out"]) == 3
+    ]
     if not rows:
         return np.zeros((0, 4))
     a = np.radians(np.asarray(rows, dtype=np.float64))
@@ -157,9 +148,8 @@ def twist_picture(
     band_pan_deg: float = 0.0,
 ) -> None:
     """The taught samples over (pan, tilt) coloured by twist; twist against tilt of the samples
-    (grey) and of the goals written (red) with the true band's ``band_deg`` (low, high) limits
-    at ``band_tilt_deg`` (at pan ``band_pan_deg``). With a ``model`` learned with twist, the
-    learned band too: its limits on the same line and its width over the swing plane."""
+    and of the goals written with the true band's ``band_deg`` (low, high) limits at
+    ``band_tilt_deg`` (at pan ``band_pan_deg``); a twist ``model``'s learned band too."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -218,8 +208,7 @@ def learned_band_line(
 
 
 def _band_width_panel(fig, ax, region: object, pan: np.ndarray, tilt: np.ndarray) -> None:
-    """The learned band's width (twice its half-width, deg) over the swing region, on a
-    WIDTH_STEP_DEG grid over the taught samples' pan/tilt span."""
+    """The learned band's width (deg) over the swing region, on a grid over the samples' span."""
     from limbctl.geometry.gimbal import pan_tilt_to_direction
 
     step = WIDTH_STEP_DEG

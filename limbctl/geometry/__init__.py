@@ -1,4 +1,2 @@
-"""Geometry: unit quaternions (scalar first, canonical w >= 0) and the gimbal's kinematics.
-
-Angles are radians here; the limb rests along +x. Imports only :mod:`limbctl.errors`.
-"""
+"""Geometry: unit quaternions (scalar first, canonical w >= 0) and the gimbal's kinematics;
+radians, the limb resting along +x. Imports only :mod:`limbctl.errors`."""

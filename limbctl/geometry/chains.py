@@ -1,17 +1,6 @@
-"""The geometry a joint chain's gate (:mod:`limbctl.teleop.gate`) steps in, by
-:func:`chain_geometry`:
-
-=============  ====================================  =========================================
-               :class:`Directions` (2 joints)        :class:`Rotations` (3 joints)
-=============  ====================================  =========================================
-point          limb direction, unit 3-tuple          unit quaternion (4,), w >= 0
-``distance``   angle between directions (rad)        geodesic rotation angle (rad)
-``toward``     great-circle step                     slerp (shortest rotation)
-``joints``     pan, tilt; pan kept at the pole       pan, tilt, roll; roll unwrapped in limits
-``point_at``   direction of (pan, tilt)              ``Rz(pan) Ry(-tilt) Rx(roll)``
-=============  ====================================  =========================================
-
-Both compute one pose per cycle with plain floats. Angles are radians.
+"""The geometry a joint chain's gate (:mod:`limbctl.teleop.gate`) steps in: limb directions and
+great circles for two joints (:class:`Directions`), unit quaternions and slerp for three
+(:class:`Rotations`). One pose per cycle, plain floats; angles are radians.
 """
 
 from __future__ import annotations
@@ -29,8 +18,8 @@ Pose = tuple[float, ...]
 
 
 def geodesic(a: np.ndarray, b: np.ndarray) -> float:
-    """Rotation angle (rad) between unit quaternions (4,): ``4 atan2(|a - s b|, |a + s b|)``,
-    ``s = sign(a . b)``: ``2 acos |a . b|``, accurate near 0 where acos is not."""
+    """Rotation angle (rad) ``2 acos |a . b|`` between unit quaternions (4,), accurate near 0."""
+    # 4 atan2(|a - s b|, |a + s b|), s = sign(a . b)
     aw, ax, ay, az = a.tolist()
     bw, bx, by, bz = b.tolist()
     if aw * bw + ax * bx + ay * by + az * bz < 0.0:
@@ -44,8 +33,7 @@ def geodesic(a: np.ndarray, b: np.ndarray) -> float:
 
 
 def toward(a: np.ndarray, b: np.ndarray, step: float) -> np.ndarray:
-    """Unit quaternion ``step`` rad of rotation from ``a`` along the shortest rotation to ``b``,
-    or ``b`` itself when it is nearer than that; w >= 0."""
+    """Unit quaternion ``step`` rad from ``a`` toward ``b``, or ``b`` when nearer; w >= 0."""
     angle = geodesic(a, b)
     if angle <= step:
         return b
@@ -53,8 +41,7 @@ def toward(a: np.ndarray, b: np.ndarray, step: float) -> np.ndarray:
 
 
 def turn_by(a: np.ndarray, b: np.ndarray, step: float) -> np.ndarray:
-    """Unit quaternion ``step`` rad of rotation from ``a`` along the shortest rotation to ``b``,
-    which may lie past ``b``; ``b`` itself when the two are the same orientation."""
+    """Unit quaternion ``step`` rad from ``a`` toward ``b``, maybe past it; ``b`` when equal."""
     angle = geodesic(a, b)
     if angle == 0.0:
         return b
@@ -62,12 +49,11 @@ def turn_by(a: np.ndarray, b: np.ndarray, step: float) -> np.ndarray:
 
 
 def _slerp(a: np.ndarray, b: np.ndarray, angle: float, step: float) -> np.ndarray:
-    """Slerp ``step`` rad of rotation from ``a`` toward ``b``, ``angle`` (> 0) rad apart:
-    ``q = sin((1 - t) h) / sin h * a + sin(t h) / sin h * s b`` with ``h = angle / 2``,
-    ``t = step / angle`` and ``s = sign(a . b)``; w >= 0."""
+    """Slerp ``step`` rad of rotation from ``a`` toward ``b`` (4,), ``angle`` (> 0) rad apart."""
     sign = 1.0 if float(np.dot(a, b)) >= 0.0 else -1.0
     half, t = angle / 2.0, step / angle
     s = math.sin(half)
+    # q = sin((1 - t) h) / sin h * a + sin(t h) / sin h * s b,  h = angle / 2, s = sign(a . b)
     q = (math.sin((1.0 - t) * half) / s) * a + (sign * math.sin(t * half) / s) * b
     q = q / math.sqrt(float(np.dot(q, q)))
     return -q if q[0] < 0.0 else q
@@ -117,20 +103,15 @@ class Rotations:
 
     names = ("pan", "tilt", "roll")
     twist = True
-    #: Half a tick ``h`` on each joint turns the limb by the rotation vector
-    #: ``e_p z + e_t y' + e_r d`` (pan axis +z, tilt axis y' horizontal and perpendicular to
-    #: the limb d, roll axis d): y' is perpendicular to both others and ``z . d = sin(tilt)``, so
-    #: its length squared is at most ``h^2 (3 + 2 |sin tilt|) <= 5 h^2``.
+    #: Half a tick h on each joint: |e_p z + e_t y' + e_r d|^2 <= h^2 (3 + 2 |sin tilt|) <= 5 h^2
     rounding = math.sqrt(5.0)
 
     @staticmethod
     def point(q: np.ndarray) -> np.ndarray:
-        """``q`` itself."""
         return q
 
     @staticmethod
     def quat(point: np.ndarray) -> np.ndarray:
-        """``point`` itself."""
         return point
 
     distance = staticmethod(geodesic)

@@ -1,21 +1,14 @@
 """Joint angles <-> limb direction <-> quaternion for a chain of 2 or 3 joints, exactly.
 
-The limb rests along +x; pan turns about +z, tilt raises it toward +z:
-``d = (cos(tilt) cos(pan), cos(tilt) sin(pan), sin(tilt))``. Two joints stand for the twist-free
-swing from +x to ``d``. Three joints are ``q = Rz(pan) Ry(-tilt) Rx(roll)``; with half-angle
-cosines/sines ``cp, sp, ct, st, cr, sr``, ``A = Rz(pan) Ry(-tilt) = (cp ct, sp st, -cp st, sp ct)``
-and ``q = (A_w cr - A_x sr, A_w sr + A_x cr, A_y cr + A_z sr, A_z cr - A_y sr)``.
-
-Roll is not the twist: the twist of ``q`` about +x is ``roll + chain_twist(pan, tilt)``.
-Inverse kinematics takes pan and tilt from ``d`` (the present pan kept at the gimbal lock) and
-roll from ``r = conj(A) q``, ``roll = 2 atan2(r_x, r_w)``, unwrapped within the roll joint's
-limits nearest the present roll. Angles are radians; ``*_scalar`` functions take one pose.
+The limb rests along +x; pan turns about +z, tilt raises it toward +z. Two joints stand for the
+twist-free swing from +x to the limb direction, three for ``q = Rz(pan) Ry(-tilt) Rx(roll)``,
+whose twist about +x is ``roll + chain_twist(pan, tilt)``. Angles are radians; ``*_scalar``
+functions take one pose.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 
 import numpy as np
 
@@ -24,13 +17,12 @@ from limbctl.geometry.scalar import SINGULAR_COS
 from limbctl.geometry.scalar import limb as limb_scalar
 from limbctl.geometry.scalar import pan_tilt as pan_tilt_scalar
 
-TWO_PI = 2.0 * math.pi
-
 
 def pan_tilt_to_direction(pan: np.ndarray, tilt: np.ndarray) -> np.ndarray:
     """Limb direction (..., 3) for joint angles ``pan``, ``tilt`` (rad)."""
     pan = np.asarray(pan, dtype=np.float64)
     tilt = np.asarray(tilt, dtype=np.float64)
+    # d = (cos(tilt) cos(pan), cos(tilt) sin(pan), sin(tilt))
     ct = np.cos(tilt)
     return np.stack([ct * np.cos(pan), ct * np.sin(pan), np.sin(tilt)], axis=-1)
 
@@ -38,13 +30,10 @@ def pan_tilt_to_direction(pan: np.ndarray, tilt: np.ndarray) -> np.ndarray:
 def direction_to_pan_tilt(
     d: np.ndarray, current_pan: np.ndarray | float = 0.0
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Inverse kinematics: joint angles (rad) that point the limb along ``d`` (..., 3).
-
-    ``pan = atan2(d_y, d_x)``, ``tilt = asin(d_z)``. Where the horizontal part of ``d``
-    vanishes (limb along +-z), ``current_pan`` is kept.
-    """
+    """Joint angles (rad) pointing the limb along ``d`` (..., 3); ``current_pan`` kept at +-z."""
     d = np.asarray(d, dtype=np.float64)
     d = d / np.linalg.norm(d, axis=-1, keepdims=True)
+    # pan = atan2(d_y, d_x), tilt = atan2(d_z, |d_xy|)
     horizontal = np.hypot(d[..., 0], d[..., 1])
     pan = np.where(horizontal > SINGULAR_COS, np.arctan2(d[..., 1], d[..., 0]), current_pan)
     tilt = np.arctan2(d[..., 2], horizontal)
@@ -64,11 +53,10 @@ def quat_to_pan_tilt(
 
 
 def chain_twist(pan: np.ndarray, tilt: np.ndarray) -> np.ndarray:
-    """Twist (rad) of ``Rz(pan) Ry(-tilt)`` about +x: ``2 atan(tan(pan/2) tan(tilt/2))``, as
-    ``2 atan2(sin(pan/2) sin(tilt/2), cos(pan/2) cos(tilt/2))``, finite at pan = 180 deg."""
+    """Twist (rad) of ``Rz(pan) Ry(-tilt)`` about +x, finite at pan = 180 deg."""
     pan = np.asarray(pan, dtype=np.float64)
     tilt = np.asarray(tilt, dtype=np.float64)
-    # tau = 2 atan2(sp st, cp ct)
+    # tau = 2 atan(tan(pan/2) tan(tilt/2)) = 2 atan2(sp st, cp ct)
     return 2.0 * np.arctan2(np.sin(pan / 2) * np.sin(tilt / 2), np.cos(pan / 2) * np.cos(tilt / 2))
 
 
@@ -118,7 +106,7 @@ def unwrap_roll_scalar(roll: float, present: float, lo: float, hi: float) -> flo
     (``roll`` in (-2 pi, 2 pi] rad); else the one nearest the limits."""
     best, best_score = roll, math.inf
     for k in (-1.0, 0.0, 1.0):
-        candidate = roll + TWO_PI * k
+        candidate = roll + 2.0 * math.pi * k
         outside = max(lo - candidate, 0.0) + max(candidate - hi, 0.0)
         score = 4.0 * math.pi + outside if outside > 0.0 else abs(candidate - present)
         if score < best_score:
@@ -131,6 +119,7 @@ def pan_tilt_roll_scalar(
 ) -> tuple[float, float, float]:
     """Joint angles (rad) with ``Rz(pan) Ry(-tilt) Rx(roll) = +-q`` for unit ``q`` (4,), the pan
     ``current_pan`` at tilt +-90 deg, the roll unwrapped near ``current_roll`` in ``[lo, hi]``."""
+    # roll = 2 atan2(r_x, r_w) of r = conj(A) q, A = Rz(pan) Ry(-tilt)
     pan, tilt = pan_tilt_scalar(limb_scalar(q), current_pan)
     cp, sp = math.cos(pan / 2), math.sin(pan / 2)
     ct, st = math.cos(tilt / 2), math.sin(tilt / 2)
@@ -143,18 +132,7 @@ def pan_tilt_roll_scalar(
 
 
 def pose_quat(*pose: float) -> np.ndarray:
-    """Orientation (4,), w >= 0, of one pose of either chain: ``(pan, tilt)`` twist-free or
-    ``Rz(pan) Ry(-tilt) Rx(roll)``."""
+    """Orientation (4,), w >= 0, of one pose ``(pan, tilt)`` or ``(pan, tilt, roll)``."""
     if len(pose) == 2:
         return pan_tilt_to_quat(*pose)
     return pose_quat_scalar(*pose)
-
-
-def pose_from_quat(
-    q: np.ndarray, present: Sequence[float], limits: Sequence[tuple[float, float]]
-) -> tuple[float, ...]:
-    """The pose (rad) of the chain of ``present``'s length orienting the limb as unit ``q`` (4,),
-    a roll unwrapped within its ``limits`` entry ``(lo, hi)`` nearest the present roll."""
-    if len(present) == 2:
-        return pan_tilt_scalar(limb_scalar(q), present[0])
-    return pan_tilt_roll_scalar(q, present[0], present[2], *limits[2])

@@ -1,9 +1,7 @@
 """The one way limbctl compiles a numba kernel: :func:`njit`, cached soundly or not at all.
 
-It fixes two faults of numba's own cache: stale code (numba checks only the kernel's own file;
-here the folder is named after :func:`source_key`, a hash of every kernel source and numba's
-version) and no writable place on a read-only install (here the kernels compile in memory, with
-one line on stderr). The folder is the first writable of :func:`cache_candidates`.
+The cache folder is named after :func:`source_key` (every kernel source and numba's version, not
+only the kernel's own file); with no writable folder kernels compile in memory, said once.
 """
 
 from __future__ import annotations
@@ -24,7 +22,6 @@ from numba.core import caching
 
 #: The subpackages whose ``.py`` files the cache key hashes: every kernel and constant it freezes.
 KERNEL_PACKAGES = ("geometry", "region", "envelope")
-
 #: Hex digits of the sha256 naming a cache folder: 64 bits never collide, paths stay short.
 KEY_DIGITS = 16
 
@@ -125,9 +122,8 @@ class _KeyedCache(caching.FunctionCache):
 
 
 def njit(function: Callable | str | None = None, /, **options) -> Callable:
-    """Compile ``function`` with numba in nopython mode, cached under :func:`cache_dir`; as
-    ``@njit``, ``@njit("f8(f8[:])")`` (eager) or ``@njit(**options)`` (numba's, ``cache`` ignored).
-    Returns numba's dispatcher, or a decorator making one."""
+    """Compile ``function`` with numba (nopython), cached under :func:`cache_dir`; as ``@njit``,
+    ``@njit("f8(f8[:])")`` (eager) or ``@njit(**options)`` (``cache`` ignored)."""
     options.pop("cache", None)
     signatures = None
     if function is not None and not callable(function):
@@ -187,7 +183,7 @@ def mark_prepared(stage: str) -> None:
 @contextlib.contextmanager
 def warming(wait: Callable[[], None] | None = None):
     """Hold the cache's warm-up lock while the body compiles; yields whether it got it (False: no
-    cache, or another warm-up holds it and no ``wait`` was given: else ``wait()``, then wait)."""
+    cache, or held elsewhere and no ``wait``; with one, ``wait()`` then block)."""
     folder = cache_dir()
     if folder is None:
         yield False

@@ -1,8 +1,5 @@
-"""Quaternion algebra for limb orientations.
-
-Conventions (docs/architecture.md): float64 arrays of shape (4,) or (N, 4), scalar first
-``(w, x, y, z)``, unit length, canonical hemisphere ``w >= 0``. The limb rests along +x;
-``limb_direction(q)`` is where a unit limb points after rotating by ``q``.
+"""Quaternion algebra for limb orientations: float64 (4,) or (N, 4), scalar first ``(w, x, y,
+z)``, unit, canonical ``w >= 0`` (docs/architecture.md); the limb rests along +x.
 """
 
 from __future__ import annotations
@@ -18,16 +15,12 @@ UNIT_TOLERANCE = 1e-6
 def as_quaternions(
     q: object, name: str = "q", tol: float = UNIT_TOLERANCE
 ) -> tuple[np.ndarray, bool]:
-    """Validate quaternion input as an (N, 4) float64 array.
+    """Validate unit quaternions ``q`` (``name`` in messages, ``tol`` on the norm).
 
     Parameters
     ----------
     q : array_like, shape (4,) or (N, 4)
         Unit quaternions (w, x, y, z).
-    name : str
-        Name used in error messages.
-    tol : float
-        Allowed deviation of the norm from 1.
 
     Returns
     -------
@@ -116,20 +109,20 @@ def rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 
 def limb_direction(q: np.ndarray) -> np.ndarray:
-    """Unit direction (..., 3) of a limb resting along +x after rotation by ``q`` (..., 4):
-    ``(w^2 + x^2 - y^2 - z^2, 2(xy + wz), 2(xz - wy))``."""
+    """Unit direction (..., 3) of a limb resting along +x after rotation by ``q`` (..., 4)."""
     q = np.asarray(q, dtype=np.float64)
     w, x, y, z = np.moveaxis(q, -1, 0)
+    # d = (w^2 + x^2 - y^2 - z^2, 2(xy + wz), 2(xz - wy))
     return np.stack(
         [w * w + x * x - y * y - z * z, 2 * (x * y + w * z), 2 * (x * z - w * y)], axis=-1
     )
 
 
 def swing_from_direction(d: np.ndarray) -> np.ndarray:
-    """The twist-free quaternion (..., 4) turning +x onto direction ``d`` (..., 3) by the shortest
-    arc: ``normalize((1 + d_x, 0, -d_z, d_y))``; for d = -x the half-turn about +z."""
+    """The twist-free quaternion (..., 4) turning +x onto ``d`` (..., 3); at -x the turn about z."""
     d = np.asarray(d, dtype=np.float64)
     d = d / np.linalg.norm(d, axis=-1, keepdims=True)
+    # q = normalize(1 + d_x, 0, -d_z, d_y)
     q = np.stack([1.0 + d[..., 0], np.zeros_like(d[..., 0]), -d[..., 2], d[..., 1]], axis=-1)
     n = np.linalg.norm(q, axis=-1, keepdims=True)
     antipodal = n[..., 0] < 1e-12
@@ -166,8 +159,7 @@ def direction_angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def tangent_frame(axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Unit u, v (3,) completing ``axis`` (3,) to a right-handed frame: ``u = (h x axis) / |h x
-    axis|``, ``h = +z`` (``+y`` near z), ``v = axis x u``."""
+    """Unit u, v (3,) completing ``axis`` (3,) to a right-handed frame (u from +z, or +y near z)."""
     helper = np.array([0.0, 0.0, 1.0]) if abs(axis[2]) < 0.9 else np.array([0.0, 1.0, 0.0])
     u = np.cross(helper, axis)
     u /= np.linalg.norm(u)

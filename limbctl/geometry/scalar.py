@@ -1,8 +1,6 @@
-"""Scalar kinematics for the gate's hot path: one pose per cycle, plain floats.
-
-The same formulas as :mod:`limbctl.geometry.gimbal` and :mod:`limbctl.geometry.quat`, without
-numpy's per-call overhead (~10x the arithmetic for one pose). Angles are radians.
-"""
+"""Scalar kinematics for the gate's hot path: :mod:`~limbctl.geometry.gimbal`'s and
+:mod:`~limbctl.geometry.quat`'s formulas for one pose in plain floats (radians), without numpy's
+per-call overhead."""
 
 from __future__ import annotations
 
@@ -67,8 +65,7 @@ def toward(a: Vec3, b: Vec3, step: float) -> Vec3:
 
 
 def pan_tilt(d: Vec3, current_pan: float) -> tuple[float, float]:
-    """Joint angles of direction ``d``; the current pan is kept at the singularity
-    (as ``gimbal.direction_to_pan_tilt``)."""
+    """Joint angles of direction ``d``, the pan kept at the singularity (as ``gimbal``'s)."""
     # pan = atan2(d_y, d_x), tilt = atan2(d_z, |d_xy|)
     horizontal = math.hypot(d[0], d[1])
     pan = math.atan2(d[1], d[0]) if horizontal > SINGULAR_COS else current_pan

@@ -1,17 +1,9 @@
 """Twist: how a full orientation splits into direction and twist, ``q = swing(d) * twist(tau)``.
 
-``swing(d) = normalize(1 + d_x, 0, -d_z, d_y)`` is the shortest rotation from the rest axis +x
-onto the limb direction ``d`` (``quat.swing_from_direction``); ``twist(tau) = (cos(tau/2),
-sin(tau/2), 0, 0)`` turns the limb by ``tau`` (rad) about +x, applied first. With
-``swing(d) = (s_w, 0, s_y, s_z)``::
-
-    q = (s_w c, s_w s, s_y c + s_z s, s_z c - s_y s),  c = cos(tau/2), s = sin(tau/2)
-
-so ``tau = 2 atan2(x, w)``, in ``(-pi, pi]`` (twist is circular: differences go through
-:func:`wrap`). At the singular direction ``d = -x`` the swing is the half-turn about +z, ``q = (0,
-0, sin(tau/2), cos(tau/2))`` and ``tau = 2 atan2(y, z)``; twist jumps as ``d`` crosses -x and loses
+``swing(d)`` is the shortest rotation from the rest axis +x onto the limb direction ``d``;
+``twist(tau) = (cos(tau/2), sin(tau/2), 0, 0)`` turns the limb by ``tau`` (rad, in ``(-pi, pi]``)
+about +x, applied first. At ``d = -x`` the swing is the half-turn about +z and twist loses
 precision like ``1e-16 / s_w`` near it, so regions stay :data:`SINGULAR_MARGIN` away from -x.
-:func:`decompose_one` is the scalar twin for the gate's hot path.
 """
 
 from __future__ import annotations
@@ -42,21 +34,8 @@ def wrap(angle: np.ndarray | float) -> np.ndarray:
 
 
 def decompose(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Split unit quaternions into limb direction and twist: ``q = swing(d) * twist(tau)``.
-
-    Parameters
-    ----------
-    q : ndarray, shape (..., 4)
-        Unit quaternions (w, x, y, z), either hemisphere.
-
-    Returns
-    -------
-    d : ndarray, shape (..., 3)
-        Unit limb directions ``limb_direction(q)``.
-    tau : ndarray, shape (...,)
-        Twist (rad) in ``(-pi, pi]``: ``2 atan2(x, w)`` of the canonical q, or ``2 atan2(y, z)``
-        at d = -x (see the module docstring).
-    """
+    """Split unit quaternions (..., 4), either hemisphere, into unit limb directions ``d`` (...,
+    3) and twists ``tau`` (...,) rad in ``(-pi, pi]``: ``q = swing(d) * twist(tau)``."""
     q = canonical(np.asarray(q, dtype=np.float64))
     w, x, y, z = np.moveaxis(q, -1, 0)
     singular = np.hypot(w, x) < SINGULAR_SW
@@ -69,20 +48,8 @@ def decompose(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def compose(d: np.ndarray, tau: np.ndarray | float) -> np.ndarray:
-    """Orientations ``swing(d) * twist(tau)`` (..., 4), w >= 0.
-
-    Parameters
-    ----------
-    d : ndarray, shape (..., 3)
-        Limb directions (normalised here); -x takes the half-turn about +z as its swing.
-    tau : ndarray or float, shape (...,)
-        Twist (rad), any real value (wrapped).
-
-    Returns
-    -------
-    ndarray, shape (..., 4)
-        ``(s_w c, s_w s, s_y c + s_z s, s_z c - s_y s)`` (module docstring).
-    """
+    """Unit orientations ``swing(d) * twist(tau)`` (..., 4), w >= 0, of directions ``d`` (..., 3)
+    (normalised here) and twists ``tau`` (...,) rad (any value)."""
     sw = swing_from_direction(d)
     half = 0.5 * wrap(tau)
     c, s = np.cos(half), np.sin(half)

@@ -1,15 +1,8 @@
 """Recorded-orientation files: append-only, crash-safe, every line checksummed.
 
-Format (UTF-8 text, one line each, ``version`` 1)::
-
-    {"format": "limbctl-orientations", "version": 1, "rig": ..., "created": ..., ...}|5e0c81a2
-    0.01,12.5,-3.25,0.99,0.0,0.02,0.1|c3a0f1d4
-
-Every line is ``payload|crc``, the *chained* CRC-32 ``crc_i = crc32(payload_i, crc_{i-1})``
-(``crc_0 = crc32(header)``): an edited, deleted or reordered record breaks the chain there.
-Records are the :data:`COLUMNS` written with ``repr``; the header may hold ``calibration``
-(:meth:`calib.profile.Calibration.to_dict`). Each record is one ``write``, fsynced within
-:data:`SYNC_INTERVAL_S`; the loader drops a torn last line and refuses anything else wrong.
+UTF-8 text, a JSON header line then one line per record (the :data:`COLUMNS` written with
+``repr``), each ``payload|crc`` with a *chained* CRC-32: an edited, deleted or reordered line
+breaks the chain there. The loader drops a torn last line and refuses anything else wrong.
 """
 
 from __future__ import annotations
@@ -58,12 +51,10 @@ class DatasetHeader:
 
 @dataclass(frozen=True)
 class Dataset:
-    """A loaded recording.
+    """A loaded recording from ``path``, with its ``header`` (the first line).
 
     Attributes
     ----------
-    header : DatasetHeader
-        The first line.
     t : ndarray, shape (N,)
         Sample times in seconds from the start of the recording.
     pan_deg, tilt_deg : ndarray, shape (N,)
@@ -72,8 +63,6 @@ class Dataset:
         Unit quaternions (w, x, y, z), w >= 0.
     dropped_tail : str or None
         Why a torn last line was dropped, or None.
-    path : str
-        Where it was read from.
     """
 
     header: DatasetHeader
@@ -137,11 +126,9 @@ def check_writable(path: str | os.PathLike[str], min_free_bytes: int = MIN_FREE_
 
 
 class DatasetWriter:
-    """Append orientation samples to a new dataset file at ``path``; a context manager.
-
-    The header names the ``rig``, extra JSON ``meta`` and the rig's ``calibration``; a record waits
-    at most ``sync_interval_s`` (s) for fsync; ``min_free_bytes`` must be free up front.
-    """
+    """Append orientation samples to a new dataset file at ``path``; a context manager. The header
+    names the ``rig``, JSON ``meta`` and ``calibration``; a record waits ``sync_interval_s`` (s)
+    at most for fsync."""
 
     def __init__(
         self,
@@ -215,16 +202,8 @@ class DatasetWriter:
         self.close()
 
     def append(self, t_s: float, pan: float, tilt: float, q: np.ndarray | None = None) -> None:
-        """Append one sample.
-
-        Parameters
-        ----------
-        t_s : float
-            Seconds since the recording started.
-        pan, tilt : float
-            Joint angles in radians (stored in degrees).
-        q : array_like, shape (4,), optional
-            The pose's quaternion; computed from ``pan``/``tilt`` by the gimbal model if omitted.
+        """Append one sample: ``t_s`` seconds since the start, joint angles ``pan``, ``tilt`` (rad,
+        stored in degrees) and the pose's quaternion ``q`` (4,) (default: from pan and tilt).
 
         Raises
         ------

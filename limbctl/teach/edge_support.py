@@ -1,8 +1,5 @@
-"""Whether the taught samples support the edge the region will learn: the recorder's check.
-
-Once the guide would say READY, :class:`EdgeSupport` fits the region to the samples so far in a
-worker process and the guide withholds READY while a stretch is unsupported
-(:attr:`~limbctl.region.TaughtRegion.unsupported_edge`).
+"""Whether the taught samples support the edge the region will learn: the recorder's check, run
+in a worker process once the guide would say READY (which it withholds while a stretch is not).
 """
 
 from __future__ import annotations
@@ -43,8 +40,7 @@ class EdgeStretch:
 
 
 def unsupported_stretches(d: np.ndarray) -> tuple[EdgeStretch, ...]:
-    """The stretches a region learned from directions ``d`` (N, 3) leaves unsupported, farthest
-    first; none for too few samples or samples no region can be learned from."""
+    """The stretches a region learned from directions ``d`` (N, 3) leaves unsupported, or none."""
     from limbctl.errors import LimbctlError
     from limbctl.region import TaughtRegion
 
@@ -61,14 +57,8 @@ def unsupported_stretches(d: np.ndarray) -> tuple[EdgeStretch, ...]:
 
 
 class EdgeSupport:
-    """Checks, in a worker process, whether the samples so far support the learned edge; a
-    context manager. :attr:`stretches` is None until a check has finished.
-
-    Parameters
-    ----------
-    check : callable
-        Module-level ``check(d) -> tuple of EdgeStretch`` for directions (N, 3), run in the worker.
-    """
+    """Checks, in a worker process, whether the samples so far support the learned edge (module
+    level ``check(d (N, 3)) -> tuple of EdgeStretch``); :attr:`stretches` None until one ends."""
 
     def __init__(self, check: Callable[[np.ndarray], tuple[EdgeStretch, ...]] | None = None):
         self.stretches: tuple[EdgeStretch, ...] | None = None
@@ -92,8 +82,7 @@ class EdgeSupport:
 
     @property
     def possible(self) -> bool:
-        """Whether a check can run now without compiling: the training's kernels are cached
-        (either rig's: a three-servo training fits the same swing region first)."""
+        """Whether a check can run now without compiling: either rig's training kernels cached."""
         return any(jit.prepared(jit.stage("train", twist)) for twist in (False, True))
 
     def check_later(self, d: np.ndarray) -> None:
@@ -108,8 +97,7 @@ class EdgeSupport:
         self._pending = self._worker().submit(self._check, np.array(d))
 
     def check_now(self, d: np.ndarray) -> tuple[EdgeStretch, ...] | None:
-        """Check every sample ``d`` (N, 3) and wait for the answer; None (and nothing checked)
-        while the kernels are not cached."""
+        """Check every sample ``d`` (N, 3) and wait; none checked until the kernels are cached."""
         if not self.possible:
             return self.stretches
         if self._pending is not None:

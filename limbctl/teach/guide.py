@@ -1,7 +1,5 @@
 """Guided teaching: how closed the edge is, how covered the inside is, where the gaps are, and
-when the samples so far are complete enough to train.
-
-The measures and their constants are explained in docs/teaching.md ("The measures").
+when the samples are complete enough to train (docs/teaching.md, "The measures").
 """
 
 from __future__ import annotations
@@ -16,6 +14,7 @@ from scipy.spatial import ConvexHull, QhullError
 
 from limbctl.geometry.gimbal import direction_to_pan_tilt, pan_tilt_to_direction
 from limbctl.geometry.quat import tangent_frame
+from limbctl.geometry.scalar import direction
 from limbctl.teach.edge_support import EdgeStretch, EdgeSupport
 from limbctl.teach.holes import Hole, find_holes
 
@@ -25,8 +24,7 @@ SECTORS = 72
 EDGE_BINS = 180
 #: Depth (deg) of the on-edge band below the outline: a trace's wobble plus the tremor.
 EDGE_BAND_DEG = 1.5
-#: Share of the way to the convex hull the outline must reach to be edge, not a notch between
-#: strokes (the dent of examples/regions/irregular.yaml reaches 0.6).
+#: Share of the way to the convex hull an edge reaches, not a notch (irregular.yaml's dent: 0.6).
 NOTCH_RATIO = 0.5
 #: Fastest (deg/s) an on-edge sample moves: edges are traced at 10-20, strokes run at 40+.
 EDGE_MAX_SPEED_DEG_S = 25.0
@@ -74,33 +72,11 @@ class InsideGap:
 
 @dataclass(frozen=True)
 class Guidance:
-    """What the guide says about a teaching so far (all angles in degrees).
-
-    Attributes
-    ----------
-    samples : int
-        Samples assessed.
-    phase : str
-        One of :data:`PHASES`.
-    edge_closed : float
-        Share of the turn about the centre whose edge has been traced, in [0, 1].
-    inside_covered : float
-        Share of the inside cells holding a sample, in [0, 1].
-    edge_gaps, inside_gaps : tuple
-        :class:`EdgeGap` and :class:`InsideGap`, largest first (at most :data:`MAX_GAPS`).
-    ready : bool
-        Complete enough to train (docs/teaching.md).
-    centre_deg : tuple of float
-        (pan_deg, tilt_deg) of the centre the picture is drawn about.
-    spread_deg : float
-        Largest angle between a sample and the samples' mean direction.
-    holes : tuple of Hole
-        The recording's holes.
-    unsupported : tuple of EdgeStretch
-        Stretches of edge the learned region would bridge, farthest first (READY withheld).
-    checking : bool
-        Ready by coverage, but the edge's support is still being checked.
-    """
+    """What the guide says about the ``samples`` so far (angles in degrees): the ``phase`` (of
+    :data:`PHASES`), the share of the turn whose edge is traced and of inside cells with a
+    sample, the largest gaps of each (at most :data:`MAX_GAPS`), whether ``ready`` to train, the
+    picture's centre (pan, tilt), a sample's largest angle from the mean, the recording's holes,
+    the stretches of edge the region would bridge, and whether their check is still running."""
 
     samples: int
     phase: str
@@ -182,10 +158,9 @@ def _unproject(x: np.ndarray, y: np.ndarray, centre: np.ndarray) -> np.ndarray:
     u, v = tangent_frame(centre)
     rho = np.radians(np.hypot(x, y))
     phi = np.arctan2(y, x)
-    d = np.cos(rho)[:, None] * centre + np.sin(rho)[:, None] * (
+    return np.cos(rho)[:, None] * centre + np.sin(rho)[:, None] * (
         np.cos(phi)[:, None] * u + np.sin(phi)[:, None] * v
     )
-    return d
 
 
 def _pan_tilt_deg(x: np.ndarray, y: np.ndarray, centre: np.ndarray) -> list[tuple[float, float]]:
@@ -372,13 +347,8 @@ class Guide:
         if self.samples == len(self._t):
             self._t = np.concatenate([self._t, np.empty_like(self._t)])
             self._d = np.concatenate([self._d, np.empty_like(self._d)])
-        cos_tilt = math.cos(tilt_rad)
         self._t[self.samples] = t_s
-        self._d[self.samples] = (
-            cos_tilt * math.cos(pan_rad),
-            cos_tilt * math.sin(pan_rad),
-            math.sin(tilt_rad),
-        )
+        self._d[self.samples] = direction(pan_rad, tilt_rad)
         self.samples += 1
 
     def assess(self, final: bool = False) -> Guidance:

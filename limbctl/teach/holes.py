@@ -1,6 +1,5 @@
 """Holes in a teaching: stretches of time with no sample, and the stretch of edge one may hide
-(the rules: docs/teaching.md, "Holes").
-"""
+(docs/teaching.md, "Holes")."""
 
 from __future__ import annotations
 
@@ -18,23 +17,10 @@ MAX_HOLES = 5
 
 @dataclass(frozen=True)
 class Hole:
-    """A stretch of time with no sample.
-
-    Attributes
-    ----------
-    start_s, end_s : float
-        Times (s) of the samples before and after it.
-    before_deg, after_deg : tuple of float
-        (pan_deg, tilt_deg) of the limb at those samples.
-    at_edge : bool
-        The sample before or after it lies in the outline's band.
-    edge_deg : tuple of float or None
-        (pan_deg, tilt_deg) of the middle of the stretch of edge it may hide; None for none.
-    fraction : float
-        That stretch's share of the turn about the centre.
-    open_fraction : float
-        The share of the turn of that stretch not yet re-traced; 0 once re-traced.
-    """
+    """A stretch of time with no sample: times (s) of the samples before and after it and the
+    limb's (pan, tilt) deg there; whether either lies in the outline's band (``at_edge``); the
+    middle (pan, tilt) deg of the stretch of edge it may hide (``edge_deg``, or None), that
+    stretch's share of the turn (``fraction``) and the share not yet re-traced."""
 
     start_s: float
     end_s: float
@@ -77,8 +63,7 @@ def sample_gaps(t_s: np.ndarray, min_s: float = HOLE_MIN_S) -> np.ndarray:
 
 
 def hole_bins(phi_before: float, phi_after: float, bins: int) -> np.ndarray:
-    """The edge bins (of ``bins``, bin b covering ``[-pi + b w, -pi + (b + 1) w)``) strictly
-    between the bins of two azimuths (rad), the shorter way round."""
+    """The edge bins strictly between the bins of two azimuths (rad), the shorter way round."""
     width = 2.0 * math.pi / bins
     b0 = int((phi_before + math.pi) // width) % bins
     b1 = int((phi_after + math.pi) // width) % bins
@@ -120,25 +105,21 @@ def find_holes(
 
     Parameters
     ----------
-    t_s : ndarray, shape (N,)
-        The samples' times (s), in order.
-    rho, phi : ndarray, shape (N,)
-        Their places in the guide's picture: distance from the centre (deg), azimuth (rad).
+    t_s, rho, phi : ndarray, shape (N,)
+        The samples' times (s, in order) and places in the guide's picture: distance from the
+        centre (deg), azimuth (rad).
     in_band, on_edge : ndarray of bool, shape (N,)
         In the outline's band; and on the edge (in the band and slow).
     bins : int
         Equal bins of the turn the edge is judged in.
-    outline_at : callable
-        ``r_out(phi)`` (deg) of azimuths (M,) rad.
-    pan_tilt_deg : callable
-        (pan_deg, tilt_deg) of picture points x, y (M,) deg.
+    outline_at, pan_tilt_deg : callable
+        ``r_out(phi)`` (deg) of azimuths (M,) rad; (pan_deg, tilt_deg) of picture points x, y (M,).
 
     Returns
     -------
-    holes : tuple of Hole
-        Those hiding an open stretch of edge first, then the longest (at most MAX_HOLES).
-    unseen : ndarray of int
-        The bins of every open stretch (indices, repeats possible).
+    holes, unseen : tuple of Hole, ndarray of int
+        Those hiding an open stretch of edge first, then the longest (at most MAX_HOLES); the
+        bins of every open stretch (repeats possible).
     """
     unseen: list[np.ndarray] = []
     holes = []
@@ -151,7 +132,6 @@ def find_holes(
         if len(stretch):
             still = open_bins(t_s, phi, on_edge, hole.end_s, stretch, bins)
             unseen.append(still)
-            # the stretch's middle, on the outline
             middle = np.array([-math.pi + (stretch[len(stretch) // 2] + 0.5) * width])
             r = outline_at(middle)
             where = pan_tilt_deg(r * np.cos(middle), r * np.sin(middle))[0]

@@ -1,6 +1,5 @@
 """Teach by hand: torque off, sample every joint at a fixed rate, append every sample to disk,
-and show the guides' assessment on one updating line.
-"""
+and show the guides' assessment on one updating line."""
 
 from __future__ import annotations
 
@@ -29,8 +28,7 @@ GUIDE_EVERY_S = 1.0
 LOG_EVERY_S = 5.0
 #: Failed reads this long (s) are a reported dropout: ten samples at 100 Hz; shorter only counted.
 DROPOUT_REPORT_S = 0.1
-#: Latency timer (ms) assumed on the simulator: a reply awaited ~52 ms rides out a loaded machine's
-#: 50-100 ms bursts (a late sample costs nothing, a missed one a stretch of edge).
+#: Latency timer (ms) on the simulator: a reply awaited ~52 ms rides out a loaded machine's bursts.
 SIM_LATENCY_TIMER_MS = 25.0
 
 
@@ -75,7 +73,6 @@ class RecordSummary:
         ]
         out.extend(f"dropout            {dropout}" for dropout in self.dropouts)
         if self.guidance:
-            # gaps of more than HOLE_MIN_S between samples, and the stretch of edge each hides
             out.extend(f"hole               {hole.line()}" for hole in self.guidance.holes)
             out.append(f"guide              {self.guidance.line()}")
             out.extend(
@@ -132,22 +129,13 @@ def record(
     on_guidance: Callable[[Guidance], None] | None = None,
     on_twist: Callable[[TwistGuidance], None] | None = None,
 ) -> RecordSummary:
-    """Switch torque off and record until ``stop`` is set or ``duration_s`` passes.
+    """Switch torque off and record ``limb`` into the open ``writer`` until ``stop`` is set (Ctrl-C,
+    Enter) or ``duration_s`` passes, drawing a progress line to ``progress``.
 
     Parameters
     ----------
-    limb : Backdrivable
-        The connected rig.
-    writer : DatasetWriter
-        An open dataset writer; every sample is appended as it is read.
     rate_hz : float
         Sampling rate (Hz), at least :data:`MIN_RATE_HZ`.
-    duration_s : float, optional
-        Stop after this many seconds.
-    stop : threading.Event, optional
-        Set by Ctrl-C/SIGTERM handlers or the Enter key to end the recording.
-    progress : text stream, optional
-        Where the progress line is drawn: in place on a terminal, every LOG_EVERY_S otherwise.
     on_guidance, on_twist : callable, optional
         Called in the recording thread (keep them quick) with each Guidance and (three servos)
         TwistGuidance, every GUIDE_EVERY_S and at the end.
@@ -269,8 +257,7 @@ def _draw(
     on_terminal: bool,
     twist: TwistGuidance | None = None,
 ) -> None:
-    """One progress line (time, samples, failed reads, the guides' lines); on a terminal it
-    replaces the previous one."""
+    """One progress line (time, samples, failed reads, the guides' lines), in place on a tty."""
     total = f"/{duration_s:.0f}" if duration_s else ""
     failed = f"  failed reads {summary.failed_reads}" if summary.failed_reads else ""
     words = guidance.line()

@@ -19,37 +19,13 @@ from limbctl.geometry.twist import decompose, wrap
 
 @dataclass(frozen=True)
 class TrainSummary:
-    """What a training run produced, in the units a person reads (degrees).
-
-    Attributes
-    ----------
-    samples : int
-        Orientations the model was fitted to.
-    pan_range_deg, tilt_range_deg : tuple of float
-        Extent of the samples' joint angles.
-    spread_deg : float
-        Largest angle between a sample's limb direction and the samples' mean direction.
-    boundary_pan_range_deg, boundary_tilt_range_deg : tuple of float
-        Extent of the learned region (:func:`_region_extent`).
-    contained_fraction : float
-        Share of the training samples the trained model holds (~1).
-    nodes : int
-        Number of node weights in the model.
-    edge : str
-        Which edge a Rigid Map gate uses (:data:`EDGE_MEANING`); empty for other models.
-    calibration_recorded : bool
-        Whether the dataset (and so the model) carries the rig calibration.
-    edge_refusals : tuple of str
-        Why the gate refused the other edges it tried, one line each.
-    twist_range_deg : tuple of float or None
-        The band's lowest and highest limit over the region (deg); None without twist.
-    outside_direction, outside_twist : int
-        Samples left out: direction outside, or inside with the twist past the band.
-    twist_excess_deg : tuple of float or None
-        Median and largest excess (deg) of the ``outside_twist`` samples; None when none.
-    unsupported_edge, unsupported_twist : tuple of str
-        One request per stretch of edge or band limit the teaching does not support.
-    """
+    """What a training run produced, in degrees: the ``samples`` and ``nodes``, the samples' and
+    the learned region's (:func:`_region_extent`) pan and tilt extent, the samples' spread from
+    their mean direction, the share of them the model holds, a Rigid Map gate's ``edge``
+    (:data:`EDGE_MEANING`) and why it refused the others, whether the calibration was recorded;
+    with twist, the band's lowest and highest limit, the samples left out (direction outside,
+    or twist past the band, by a median and largest ``twist_excess_deg``), and one request per
+    stretch of edge or band limit the teaching does not support."""
 
     samples: int
     pan_range_deg: tuple[float, float]
@@ -206,21 +182,18 @@ def summarize(model: Any, q: np.ndarray) -> TrainSummary:
 
 
 def swing_region(model: Any) -> Any:
-    """The model's swing region (:class:`~limbctl.region.taught.TaughtRegion`: a three-servo
-    region's ``swing``), or None for a model without one."""
+    """The model's swing region (a three-servo region's ``swing``), or None."""
     region = getattr(model, "region", None)
     return getattr(region, "swing", region)
 
 
 def twist_band(model: Any) -> Any:
-    """A three-servo region's twist band (:class:`~limbctl.region.twist_band.TwistBand`), or
-    None for a model without twist."""
+    """A three-servo region's twist band, or None for a model without twist."""
     return getattr(getattr(model, "region", None), "band", None)
 
 
 def holds_direction(model: Any) -> Callable[[np.ndarray], np.ndarray]:
-    """Which twist-free orientations' (N, 4) directions the region holds at some twist, (N,) bool
-    (a three-servo region asks its swing region alone)."""
+    """Which twist-free orientations' (N, 4) directions the region holds at some twist, (N,)."""
     swing = getattr(getattr(model, "region", None), "swing", None)
     if twist_band(model) is not None and swing is not None:
         return getattr(swing, "contains_from_arcs", swing.contains)
@@ -234,8 +207,7 @@ def _region_extent(
     margin_deg: float = 20.0,
     step_deg: float = 0.5,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Joint angles (rad) of the ``step_deg`` pan/tilt grid points over the samples' extent plus
-    ``margin_deg`` (well past any edge a model draws) whose direction the region ``holds``."""
+    """Joint angles (rad) of the grid over the samples' extent whose direction the region holds."""
     from limbctl.geometry.gimbal import pan_tilt_to_quat
 
     margin, step = math.radians(margin_deg), math.radians(step_deg)
@@ -258,8 +230,7 @@ STAGES = ("load dataset", "fit model", "save model", "summarise")
 
 
 def learns_twist(kind: str, calibration: Any) -> bool:
-    """Whether :func:`train` fits a model of ``kind`` over full orientations (swing and twist):
-    a Rigid Map of a recording whose calibration has a roll joint (a three-servo rig)."""
+    """Whether :func:`train` fits swing and twist: a Rigid Map of a three-servo recording."""
     return kind == "rigidmap" and calibration is not None and calibration.twists
 
 
@@ -292,7 +263,6 @@ def train(
         )
     options = dict(options or {})
     if learns_twist(kind, data.header.calibration):
-        # a three-servo recording: the region over full orientations, swing and twist
         options.setdefault("twist", True)
     model = build_model(kind, **options)
     model.fit(q)

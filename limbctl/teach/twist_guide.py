@@ -1,9 +1,6 @@
-"""Where the twist range is still untaught, on a three-servo rig (docs/teaching.md).
-
-The swing plane is cut into CELL_DEG cells, each keeping the least and greatest twist taught there
-(on the turn nearest the cell's first, so a range across +-180 deg stays one). A judged cell is
-*turned* once its span reaches TURNED_FRACTION of the wide span (WIDE_QUANTILE of all spans).
-Once every place is turned, the band learned from the samples names the stops it cannot support.
+"""Where the twist range is still untaught, on a three-servo rig (docs/teaching.md): cells of the
+swing plane each keep the least and greatest twist taught there; once every cell is turned to
+both stops, the band learned from the samples names the stops it cannot support.
 """
 
 from __future__ import annotations
@@ -36,19 +33,8 @@ SUPPORT_EVERY_S = 5.0
 
 @dataclass(frozen=True)
 class TwistPlace:
-    """One cell of the swing plane and the twist taught there.
-
-    Attributes
-    ----------
-    pan_index, tilt_index : int
-        The cell: pan in ``[pan_index, pan_index + 1) * CELL_DEG``, tilt likewise (deg).
-    low_deg, high_deg : float
-        The least and the greatest twist taught in the cell (deg).
-    samples : int
-        Samples taught in the cell.
-    turned : bool
-        Judged (MIN_CELL_SAMPLES or more) and turned to both stops.
-    """
+    """One cell of the swing plane: pan in ``[pan_index, pan_index + 1) * CELL_DEG`` (deg), tilt
+    likewise; the least and greatest twist (deg) of its ``samples``; whether judged and turned."""
 
     pan_index: int
     tilt_index: int
@@ -60,25 +46,11 @@ class TwistPlace:
 
 @dataclass(frozen=True)
 class TwistGuidance:
-    """How much of the twist range has been taught.
-
-    Attributes
-    ----------
-    cells : int
-        Cells of the swing plane judged (with at least MIN_CELL_SAMPLES samples).
-    turned : int
-        Of those, cells turned to both stops (span >= TURNED_FRACTION of the wide span).
-    wide_span_deg : float
-        The wide twist span (deg): WIDE_QUANTILE of the judged cells' spans.
-    least : tuple of float or None
-        (pan_deg, tilt_deg, span_deg) of the cell turned least, None when none is judged.
-    places : tuple of TwistPlace
-        Every cell visited, judged or not (the live page draws them).
-    unsupported : tuple of UnsupportedPlace
-        Where the last support check found a stop missing (largest first).
-    support_checked : bool
-        Whether a support check has run on the samples (once every place was turned).
-    """
+    """How much of the twist range has been taught: ``cells`` judged (MIN_CELL_SAMPLES or more),
+    of those ``turned`` to both stops (span at least TURNED_FRACTION of ``wide_span_deg``, the
+    WIDE_QUANTILE of the judged spans), the cell turned ``least`` (pan, tilt, span deg; None when
+    none is judged), every cell visited (``places``), and where the last support check (run
+    once every place was turned) found a stop missing (``unsupported``)."""
 
     cells: int
     turned: int
@@ -90,8 +62,7 @@ class TwistGuidance:
 
     @property
     def complete(self) -> bool:
-        """Every place turned both ways and the band's support checked with nothing missing:
-        until then the recorder does not say READY TO TRAIN."""
+        """Every place turned both ways and the band's support checked, nothing missing."""
         return (
             self.cells > 0
             and self.turned == self.cells
@@ -121,8 +92,7 @@ class TwistGuidance:
         )
 
     def short(self) -> str:
-        """The line's figures and place in a few words (the recorder's terminal line stays one
-        screen line wide to be rewritten in place)."""
+        """The line's figures and place in a few words (the recorder's terminal line)."""
         if self.cells == 0 or self.least is None:
             return "twist: turn both ways to the stops"
         head = f"twist {self.turned}/{self.cells} turned"
@@ -185,8 +155,7 @@ class TwistGuide:
         )
 
     def check_support(self) -> tuple[UnsupportedPlace, ...]:
-        """Learn the band from every sample so far and return the places it could not support;
-        the next :meth:`assess` reports them. Blocks (a fraction of a second)."""
+        """Learn the band from every sample so far; the places it could not support. Blocks."""
         if self._checking is not None:
             self._checking.join()
         self._support = _unsupported(np.array(self._q))
@@ -221,8 +190,7 @@ class TwistGuide:
 
 
 def _unsupported(q: np.ndarray) -> tuple[UnsupportedPlace, ...]:
-    """The places a band learned from orientations ``q`` (N, 4) could not support; none when
-    too few samples to learn one."""
+    """The places a band learned from orientations ``q`` (N, 4) could not support, or none."""
     if q.shape[0] < 3:
         return ()
     d, tau = decompose(q)

@@ -1,6 +1,5 @@
 """Compile the training's and the gate's kernels ahead: in a low-priority background process
-while ``limbctl record`` teaches, or in the foreground for ``limbctl prepare``.
-"""
+while ``limbctl record`` teaches, or in the foreground for ``limbctl prepare``."""
 
 from __future__ import annotations
 
@@ -29,8 +28,6 @@ TEACHING_S = 30.0
 SMALL_BATCH = 13
 #: Commands of the larger batch: one more than ``correct_kernels.SINGLE_ROWS``, as a start asks.
 LARGE_BATCH = 65
-
-
 #: Twist band half-widths (deg), limb low and high, of data/demo_region3.yaml: a narrowing band.
 TWIST_HALF_DEG = (49.0, 23.0)
 
@@ -72,9 +69,8 @@ START, DONE, READY, WAIT = "start", "done", "ready", "wait"
 def warm_up(
     twist: bool = False, wait: bool = False, report: Callable[[str, str], None] | None = None
 ) -> bool:
-    """Compile (or load) the kernels of a (``twist``: three-servo) rig's stages not yet prepared,
-    calling ``report(stage, event)``; with ``wait``, wait for another warm-up's lock. Returns
-    whether it ran (False: no cache folder, or the lock held and no ``wait``)."""
+    """Compile the kernels of a (``twist``: three-servo) rig's stages not yet prepared, calling
+    ``report(stage, event)``; whether it ran (not without a cache, or locked and no ``wait``)."""
     tell = report or (lambda stage, event: None)
     train_stage, gate_stage = jit.stage("train", twist), jit.stage("gate", twist)
     with jit.warming(wait=(lambda: tell(train_stage, WAIT)) if wait else None) as mine:
@@ -112,8 +108,7 @@ def warm_up(
 
 @contextlib.contextmanager
 def warming_in_background(twist: bool = False) -> Iterator[subprocess.Popen | None]:
-    """Start the warm-up of a (``twist``: three-servo) rig's stages in its own low-priority
-    session, unless nothing needs it; yields the process, left running on exit."""
+    """Start the warm-up of a rig's stages in a low-priority session if needed; yields it."""
     stages = (jit.stage("train", twist), jit.stage("gate", twist))
     if jit.cache_dir() is None or all(jit.prepared(stage) for stage in stages):
         yield None
@@ -146,12 +141,8 @@ class _Progress:
         self.count += 1
         if self.live and self.label:
             seconds = time.perf_counter() - self.start
-            print(
-                f"\r{self.label} {self.count} numba compiles, {seconds:.0f} s",
-                end="",
-                file=self.out,
-            )
-            self.out.flush()
+            line = f"\r{self.label} {self.count} numba compiles, {seconds:.0f} s"
+            print(line, end="", file=self.out, flush=True)
 
     def __call__(self, rig: str, stage: str, event: str) -> None:
         if event == START:
@@ -228,9 +219,8 @@ HELP = (
     "fit after install do not compile"
 )
 DESCRIPTION = (
-    "Compile the kernels of training, the gate and a library fit once into the kernel cache "
-    "(NUMBA_CACHE_DIR sets it). Run it after install and after an upgrade; without it, "
-    "`limbctl record` compiles them in the background while you teach."
+    "Compile the kernels of training, the gate and a library fit into the cache (NUMBA_CACHE_DIR "
+    "sets it) after install or upgrade; else `limbctl record` compiles them while you teach."
 )
 RIG_HELP = (
     "all (default: two and three servos), sim (two servos: pan, tilt), sim3 (three: and "

@@ -10,8 +10,6 @@ from hypothesis import strategies as st
 from limbctl.geometry import gimbal, quat
 from limbctl.geometry.quat import limb_direction
 from limbctl.geometry.quat import multiply as quat_multiply
-from limbctl.geometry.scalar import limb as limb_scalar
-from limbctl.geometry.scalar import pan_tilt as pan_tilt_scalar
 from limbctl.geometry.twist import decompose
 
 
@@ -129,11 +127,3 @@ def test_unwrap_roll_prefers_limits_then_the_present_roll_and_a_pose_uses_its_ch
     assert np.array_equal(
         gimbal.pose_quat(pan, tilt, roll), gimbal.pose_quat_scalar(pan, tilt, roll)
     )
-    limits = [(-1.0, 1.0), (-1.0, 1.0), (-2.0, 2.0)]
-    q2 = gimbal.pose_quat(pan, tilt)
-    assert gimbal.pose_from_quat(q2, (0.2, 0.0), limits) == pan_tilt_scalar(limb_scalar(q2), 0.2)
-    q3 = gimbal.pose_quat(pan, tilt, roll)
-    assert gimbal.pose_from_quat(q3, (0.2, 0.0, 0.5), limits) == gimbal.pan_tilt_roll_scalar(
-        q3, 0.2, 0.5, -2.0, 2.0
-    )
-    assert gimbal.pose_from_quat(q3, (0.2, 0.0, 0.5), limits) == pytest.approx((pan, tilt, roll))
