@@ -22,6 +22,11 @@ from limbctl.region.shape import bearing_gaps
 EVIDENCE_DEG = 1.5
 #: Farthest (deg) any edge station may lie from a sample unreported: a traced edge stands 1.0-1.1.
 REACH_DEG = 1.25
+#: Where the edge stands past ``REACH_DEG`` somewhere, the held edge is held again this close
+#: (deg) to the samples: a point within r of a sample inside the truth lies at most r past it, and
+#: 0.9 plus a held chord's slack (0.0625) keeps the 1 deg promise; held at REACH_DEG alone the
+#: families' teachings reached 1.0-1.21 deg past their truth (docs/decisions/region.md).
+HOLD_REACH_DEG = 0.9
 #: Station spacing (deg): a point between stations lies at most half of it farther.
 STATION_DEG = 0.25
 #: Surround neighbourhood (deg): wider than a bay's mouth is deep; the peel's default.
@@ -67,7 +72,7 @@ class Stretch:
             f"of edge up to {self.distance_deg:.1f} deg from every taught sample"
         )
         if self.held:
-            text += f" (held at the evidence: the region stops {REACH_DEG:g} deg from it there)"
+            text += f" (held at the evidence: the region stops within {REACH_DEG:g} deg of it)"
         return text
 
 

@@ -22,6 +22,7 @@ from limbctl.region.acceptance import Verdict
 from limbctl.region.edge_choice import choose_edge
 from limbctl.region.edge_hold import hold_to_evidence
 from limbctl.region.evidence import (
+    HOLD_REACH_DEG,
     REACH_DEG,
     Stretch,
     unsupported_stations,
@@ -47,7 +48,7 @@ CORNER_TURN_DEG = 60.0
 THIN_GROWTH = 1.05
 #: Version of the construction, raised whenever it changes the region some data give: cached
 #: `limbctl eval` results are keyed on it (saved models carry their mesh).
-FIT_VERSION = 8
+FIT_VERSION = 9
 #: Carving rounds at most: a bridged bay is a few triangles deep; 12 empty the bays of the
 #: families in docs/bench_swing_families.md.
 CARVE_ROUNDS = 12
@@ -150,8 +151,12 @@ class TaughtRegion:
         )
         if not self.unsupported_edge:
             return taken.region
-        # containment over coverage: those stretches are held to REACH_DEG of the evidence
+        # containment over coverage: the edge is held to REACH_DEG of the evidence, then that
+        # held edge to HOLD_REACH_DEG wherever the tighter hold keeps its samples and arcs apart
         region, self.held_edge = hold_to_evidence(taken.region, d_train)
+        tight, held_tight = hold_to_evidence(region, d_train, np.radians(HOLD_REACH_DEG))
+        if held_tight:
+            region, self.held_edge = tight, True
         if self.held_edge:
             self.unsupported_edge = tuple(replace(s, held=True) for s in self.unsupported_edge)
         return region

@@ -34,7 +34,7 @@ def sparse_notch():
     lo, hi = outline.min(axis=0) - 4.0, outline.max(axis=0) + 4.0
     region = TaughtRegion().fit(taught)
     saved = taught_module.hold_to_evidence
-    taught_module.hold_to_evidence = lambda mesh, data: (mesh, False)
+    taught_module.hold_to_evidence = lambda mesh, data, *_: (mesh, False)
     try:
         unheld = TaughtRegion().fit(taught)
     finally:

@@ -39,11 +39,14 @@ def test_window_grows_on_a_noisy_circle():
     assert np.degrees(w) == pytest.approx(max(ef.WINDOWS_DEG))
 
 
-@pytest.mark.parametrize("half_angle", [20.0, 90.0])
-def test_a_cone_gets_a_smooth_edge_on_its_true_circle(half_angle):
+#: The 20 deg cone taught with 2000 samples: 1000 leave 19 stretches of its edge farther than
+#: REACH_DEG from every sample, where the edge is held to HOLD_REACH_DEG of them and zigzags
+#: 0.65 deg inside the circle on average (docs/decisions/region.md, the 0.9 deg hold).
+@pytest.mark.parametrize(("half_angle", "samples"), [(20.0, 2000), (90.0, 1000)])
+def test_a_cone_gets_a_smooth_edge_on_its_true_circle(half_angle, samples):
     rng = np.random.default_rng(0)
     region = ConeRegion(np.radians(half_angle))
-    train = region.sample(1000, rng)
+    train = region.sample(samples, rng)
     m = RigidMap(nodes=1000, seed=0).fit(to_quaternions(train))
     assert m.edge == "smooth"
     radius = np.degrees(direction_angle(m.mesh.vertices, X))
