@@ -1,9 +1,5 @@
-"""The servo bus: the real dynamixel-sdk (Protocol 2.0) with retries, typed errors and alarms.
-
-Every transaction is retried within a bounded budget; what still fails raises a
-:class:`~limbctl.errors.BusError`. A status packet's alert bit does not stop its transaction;
-then the bus reads the alerting servos' Hardware Error Status and raises :class:`ServoAlarm`.
-"""
+"""The servo bus: the real dynamixel-sdk (Protocol 2.0) with bounded retries, typed errors
+(:class:`~limbctl.errors.BusError`) and alarms (an alert bit: :class:`ServoAlarm`)."""
 
 from __future__ import annotations
 
@@ -71,18 +67,14 @@ class ServoBus(CycleReads):
 
     Parameters
     ----------
-    port : str
-        Serial device path, e.g. ``/dev/ttyUSB0`` or the simulator's pty link.
-    baud : int
-        Bit rate the servos are set to (the rig profile's ``baud``).
+    port, baud : str, int
+        Serial device path (``/dev/ttyUSB0``, the simulator's pty link); bit rate (bit/s).
     ids : sequence of int
         Servo ids, e.g. ``(1, 2)`` for (pan, tilt).
     model : str or None
-        Expected model name (``"xl430-w250"`` / ``"xm430-w350"``); None accepts either.
-    retry_budget_s : float
-        Time within which a failing transaction is retried.
-    max_attempts : int
-        Most tries per transaction (at least 1).
+        Expected model name (``"xl430-w250"``); None accepts any supported.
+    retry_budget_s, max_attempts : float, int
+        Time (s) within which a failing transaction is retried; most tries (at least 1).
     fast_sync_read : bool or None
         Force Fast Sync Read on/off; None decides from firmware version and a probe.
     latency_timer_ms : float

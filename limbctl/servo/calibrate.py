@@ -1,7 +1,5 @@
-"""Guided, hand-held calibration: find each joint's zero tick and direction, write a profile.
-
-With torque off a person holds the limb still at rest, turned left, raised and (roll) turned.
-"""
+"""Guided, hand-held calibration (torque off; held still at rest, turned left, raised and (roll)
+turned): find each joint's zero tick and direction, write a profile."""
 
 from __future__ import annotations
 

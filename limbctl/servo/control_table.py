@@ -1,10 +1,5 @@
-"""The X-series (Protocol 2.0) registers, model numbers and error codes limbctl uses.
-
-Every register access goes through :class:`Register`. Addresses are the e-Manual's, shared by
-the 430, 540 and 330 families (:mod:`limbctl.servo.families` holds what differs). A status
-packet's error byte: bit 7 the *alert* bit (a hardware error is set), bits 0-6 a
-:class:`StatusError`.
-"""
+"""The X-series (Protocol 2.0) registers, model numbers and error codes limbctl uses; addresses
+are the e-Manual's, shared by the 430, 540 and 330 families (:mod:`limbctl.servo.families`)."""
 
 from __future__ import annotations
 

@@ -36,8 +36,6 @@ assert CYCLE_BYTES <= INDIRECT_SLOTS
 
 #: PWM Limit (36) as the XL430-W250 and XM430-W350 leave the factory: Present PWM's full scale.
 FACTORY_PWM_LIMIT = 885
-
-
 #: Bits per byte on the wire: start, 8 data, stop.
 BITS_PER_BYTE = 10
 #: The baud :func:`wire_budget` advises: every family runs at it, a 200 Hz loop fits easily.
@@ -79,14 +77,10 @@ class ServoReport:
     ----------
     present, goal : int
         Present and Goal Position (ticks).
-    torque_on : bool
-        Torque Enable.
     hardware_error : tuple of str
         Decoded Hardware Error Status (empty = healthy).
-    pwm : int
-        Present PWM, signed, at most ``pwm_limit`` in magnitude.
-    pwm_limit : int
-        The servo's PWM Limit (read at set-up), where its drive saturates.
+    pwm, pwm_limit : int
+        Present PWM, signed; the servo's PWM Limit (read at set-up), where its drive saturates.
     """
 
     present: int
@@ -116,14 +110,13 @@ class CycleRead:
     ----------
     reports : dict
         Servo id -> :class:`ServoReport` of each servo that answered.
-    silent : tuple of int
-        Servos that did not answer (a failed sync read names the one its reply stops at).
+    silent, unread : tuple of int
+        Servos that did not answer (a failed sync read names the one its reply stops at); silent
+        servos not asked this cycle (waiting for their next probe).
     problem : str
         Why the read is incomplete ('' when every servo answered).
     duration_s : float
         How long the read took (s).
-    unread : tuple of int
-        Silent servos not asked this cycle (waiting for their next probe).
     """
 
     reports: dict[int, ServoReport]

@@ -11,7 +11,6 @@ from limbctl.servo.alarms import alarm_message
 from limbctl.servo.control_table import TICKS_PER_REV
 from limbctl.servo.cycle import CycleRead, ReadCycle, ServoReport, read_around_silent
 
-#: Degrees per encoder tick.
 DEG_PER_TICK = 360.0 / TICKS_PER_REV
 
 

@@ -1,8 +1,5 @@
-"""A felt leader's guard: a second process that makes the leader limp when its controller dies.
-
-It reads EOF on a pipe the moment the controller is gone; without ``done`` first it writes Torque
-Enable 0 to each leader servo (a tripped Bus Watchdog would leave it holding: docs/haptic.md).
-"""
+"""A felt leader's guard: a second process that makes the leader limp when its controller dies
+(EOF on its pipe without ``done`` first: Torque Enable 0 on each leader servo, docs/haptic.md)."""
 
 from __future__ import annotations
 
@@ -81,7 +78,7 @@ class LeaderGuard:
         """A clean end: tell the guard to exit touching nothing and wait; None. Safe twice."""
         fd, self._write_fd = self._write_fd, None
         if fd is None:
-            return None
+            return
         try:
             os.write(fd, DONE)
         except OSError:
@@ -93,7 +90,6 @@ class LeaderGuard:
         except subprocess.TimeoutExpired:
             self.process.kill()  # it never read its pipe: nothing it could still do matters
             self.process.wait()
-        return None
 
 
 def wait_for_controller(fd: int) -> bool:

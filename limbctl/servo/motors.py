@@ -1,8 +1,5 @@
-"""Set up servos out of the box for a rig profile's joints, one servo at a time (README).
-
-The one connected servo, found at any baud, gets its ID, baud, Return Delay Time 0 and Status
-Return Level 2; only differing values are written and all are read back, so a rerun is harmless.
-"""
+"""Set up servos out of the box for a rig profile's joints, one servo at a time (README): ID,
+baud, Return Delay Time 0, Status Return Level 2; only differing values are written."""
 
 from __future__ import annotations
 

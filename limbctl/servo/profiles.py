@@ -137,16 +137,8 @@ def save_rig_profile(profile: RigProfile, path: str | os.PathLike[str]) -> Path:
 
 
 def check_trained_for(metadata: Mapping[str, Any], profile: RigProfile, what: str) -> None:
-    """Refuse something trained on another rig, or under another calibration of this one.
-
-    Parameters
-    ----------
-    metadata : mapping
-        What the trained thing recorded: ``rig`` (profile name) and ``calibration``.
-    profile : RigProfile
-        The rig it is about to drive.
-    what : str
-        What to name in messages (the model file).
+    """Refuse something trained on another rig, or under another calibration of this one
+    (``metadata``: its recorded ``rig`` and ``calibration``; ``what``: its name in messages).
 
     Raises
     ------

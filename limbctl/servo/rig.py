@@ -1,8 +1,5 @@
-"""A calibrated chain of joints on a servo bus: joint angles (rad) <-> ticks, limits, present pose.
-
-A goal leaves only through :meth:`Rig.write_goal_ticks` (:meth:`Rig.write_pose` clamps, converts
-and calls it).
-"""
+"""A calibrated chain of joints on a servo bus: joint angles (rad) <-> ticks, limits, present
+pose. A goal leaves only through :meth:`Rig.write_goal_ticks`."""
 
 from __future__ import annotations
 

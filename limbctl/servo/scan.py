@@ -1,8 +1,5 @@
-"""Find the servos on a port at every baud rate, and name the IDs that two servos share.
-
-At each baud one broadcast PING; a garbled reply's shared ID lies between the clean replies
-around it (servos answer in ID order) and is found by pinging those IDs one at a time.
-"""
+"""Find the servos on a port at every baud rate (one broadcast PING each), and name the IDs two
+servos share (pinged one at a time between the clean replies around a garbled one)."""
 
 from __future__ import annotations
 

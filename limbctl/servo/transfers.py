@@ -1,8 +1,5 @@
-"""One try of each dynamixel-sdk transfer that :class:`ServoBus` uses, as an :class:`Attempt`.
-
-Sync reads are assembled from the SDK's packet-level calls: its group sync read drops the status
-error bytes, and with them the alert bit. :func:`failure` turns a failed attempt into the error.
-"""
+"""One try of each dynamixel-sdk transfer :class:`ServoBus` uses, as an :class:`Attempt`. Sync
+reads use the SDK's packet-level calls: its group sync read drops the error bytes (alert bit)."""
 
 from __future__ import annotations
 
