@@ -22,15 +22,13 @@ from aiohttp import WSMsgType, web
 
 #: Secret length in bytes (URL-safe base64 makes 22 characters): 128 bits, beyond guessing.
 SECRET_BYTES = 16
-#: Least time (s) between messages handed to the source: half the loop's 200 Hz (it follows only
-#: the newest), far above the page's 20 Hz; each costs the loop one parse.
+#: Least time (s) between messages handed to the source: half the loop's 200 Hz (newest only).
 FORWARD_PERIOD_S = 0.01
 #: Largest message a page may send (bytes): a command is under 100; more is refused by closing.
 MAX_MESSAGE_BYTES = 4096
 #: Host names that mean this machine, accepted in the Host header of a loopback server.
 LOOPBACK_NAMES = frozenset({"localhost", "127.0.0.1", "::1", "[::1]"})
-#: Longest tab id and name (characters) taken from a page: its own are 32 and ~25; cut, as the
-#: name is shown to every other page.
+#: Longest tab id and name (characters) taken from a page (its own: 32 and ~25; shown to all).
 MAX_TAB_ID_CHARS = 64
 MAX_TAB_NAME_CHARS = 40
 #: What a keyed page may ask for when it connects (see the module's docstring).

@@ -26,16 +26,8 @@ JOIN_TIMEOUT_S = 10.0
 
 
 class PoseTap:
-    """A limb that also shows every pose it reads on the board.
-
-    Parameters
-    ----------
-    limb : object
-        The rig (``read_pose() -> (pan, tilt[, roll])``, rad); other attributes pass through.
-    board : Board
-    mode, note : str
-        The mode the page shows ("record", "demo: teach"); the line shown to the person.
-    """
+    """A limb (``read_pose() -> (pan, tilt[, roll])``, rad; other attributes pass through) that
+    also shows every pose it reads on the board, with the page's ``mode`` and ``note``."""
 
     def __init__(self, limb: Any, board: Board, mode: str, note: str = "") -> None:
         self._limb = limb
@@ -101,17 +93,9 @@ class PoseTap:
 
 
 class SceneFeeder:
-    """Publishes the scene (samples, the region fitted so far, limits, guide) from its own thread.
-
-    Parameters
-    ----------
-    board : Board
-    samples : callable
-        Returns the samples so far, shape (N, 2), radians (pan, tilt).
-    limits : HardLimits or None
-    fit : bool
-        Fit the region in a separate process (False: samples only).
-    """
+    """Publishes the scene (samples, the region fitted so far, limits, guide) from its own thread;
+    ``samples()`` returns the samples so far, shape (N, 2), radians (pan, tilt); ``fit``: fit the
+    region in a separate process (False: samples only)."""
 
     def __init__(
         self,

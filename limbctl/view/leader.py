@@ -80,8 +80,7 @@ class LeaderStatus:
 
 
 #: A three-servo leader's push is drawn as an arrow on the pan/tilt plane only when its swing
-#: part is at least this share of its largest joint step: a push mostly in twist moves pan and
-#: tilt by hundredths of a degree, whose direction on the plane means nothing.
+#: part is at least this share of its largest joint step (else its direction means nothing).
 SWING_SHARE_DRAWN = 0.1
 
 

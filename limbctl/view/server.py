@@ -23,9 +23,8 @@ from limbctl.view.control import (
 )
 from limbctl.view.state import Board
 
-#: How often each browser's coroutine looks for a newer state (s): 10 Hz is twice the page's
-#: 5 Hz pose promise; every frame costs the browser a redraw, on the same small machine as the
-#: recorder and the loop when it watches 127.0.0.1 (the producers never wake the server).
+#: How often each browser's coroutine looks for a newer state (s): twice the page's 5 Hz pose
+#: promise; every frame costs the browser a redraw (the producers never wake the server).
 PUSH_PERIOD_S = 0.1
 #: WebSocket ping interval (s): a browser that stops answering is dropped within two of these.
 HEARTBEAT_S = 5.0
