@@ -9,21 +9,8 @@ from dataclasses import dataclass
 
 @dataclass(frozen=True)
 class BrakeLaw:
-    """The brake rules' constants.
-
-    Attributes
-    ----------
-    outrun_deg_s : float
-        1.0 deg/s, under one velocity unit over the setpoint's speed: the first such reading.
-    loose_nm : float
-        0.06 N m, the snap watch's HOLD: under it no hand is held against the wall.
-    horizon_s : float
-        2 ms: a cut lands within a millisecond, plus the stepped clock's grain.
-    land_s : float
-        1 ms: a cut's write lands within it of its read.
-    span_s : float
-        4 ms: the torque's rate only from two reads this close.
-    """
+    """The brake rules' constants (units in their names); docs/haptic.md's table gives each
+    value and its reasoning."""
 
     outrun_deg_s: float = 1.0
     loose_nm: float = 0.06

@@ -124,7 +124,6 @@ class Cycle:
         Complete cycles before this one (the first cycle is 0).
     t : float
         Start of the cycle, in seconds after the loop started.
-    state : CycleState
     complete : bool
         The cycle ran to its end (only complete cycles are counted and logged).
     command_deg : tuple of float or None
@@ -135,10 +134,6 @@ class Cycle:
         The gate's answer; None when the cycle ended before the gate ran.
     present : tuple of float or None
         The pose read this cycle (rad, one per joint); None when the read failed.
-    written : bool
-        Whether the gate's pose was written to the servos.
-    timings : CycleTimings or None
-        Set for complete cycles.
     ended_by, fault : str
         Why the loop ended (empty while running); the fault and the safe state it left.
     refused : int

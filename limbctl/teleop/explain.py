@@ -11,8 +11,7 @@ from limbctl.teleop.gate import GateResult, Outcome
 DIRECTION_NAMES = {"+pan": "left", "-pan": "right", "+tilt": "up", "-tilt": "down"}
 #: The names the page uses (the same: its plane is seen from behind the limb).
 PLANE_NAMES = DIRECTION_NAMES
-#: How far (deg) beyond the written pose a joint's command is blocked: above the gate's
-#: 0.01 deg tolerance, below one step.
+#: How far (deg) beyond the written pose a joint's command is blocked: > 0.01 deg tolerance.
 BLOCKED_MIN_DEG = 0.2
 #: Smallest move (deg) between two cycles that counts as sliding: above rounding, below a tick.
 MOVING_MIN_DEG = 1e-3
@@ -80,18 +79,11 @@ def explain(
     names: dict[str, str] = DIRECTION_NAMES,
     pushing: tuple[str, ...] | None = None,
 ) -> Explanation:
-    """Say what the gate did this cycle.
+    """Say what the gate did this cycle (``result`` None: the cycle ended before the gate ran).
 
-    Parameters
-    ----------
-    result : GateResult or None
-        The gate's answer (None: the cycle ended before the gate ran).
-    commanded_deg, previous_deg : (pan, tilt) deg or None
-        The command followed; the pose the gate gave one cycle earlier (sliding or standing).
-    names : dict
-        Words for "+pan", "-pan", "+tilt", "-tilt".
-    pushing : tuple of str or None
-        The directions a person pushes (e.g. ``("+tilt",)``): only those may be blocked.
+    ``commanded_deg``/``previous_deg`` are the command followed and the pose the gate gave a
+    cycle earlier, (pan, tilt) deg; ``names`` words for "+pan" ... "-tilt"; ``pushing`` the
+    directions a person pushes (e.g. ``("+tilt",)``): only those may be blocked.
     """
     if result is None:
         return Explanation("not running")

@@ -1,8 +1,5 @@
-"""The one place every commanded pose passes before it may become a goal position.
-
-One algorithm for every chain; its stages (correct, slew, route, inverse kinematics, clamp,
-joint step, final check) are described in docs/architecture.md.
-"""
+"""The one place every commanded pose passes before it may become a goal position; its stages
+(correct, slew, route, inverse kinematics, clamp, joint step, final check): docs/architecture.md."""
 
 from __future__ import annotations
 

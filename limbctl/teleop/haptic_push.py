@@ -135,16 +135,12 @@ def push_for(
 
     Parameters
     ----------
-    law : FeelLaw
-    motor : LeaderMotor
     present, previous : sequence of float, (n,)
         The leader's pose now and a cycle before (rad); ``previous`` None: no let-go rules.
     q, corrected : ndarray (4,)
         The command and the region's correction of it.
     period_s : float, optional
-        Time since ``previous`` was read (s).
-    engaged : bool, optional
-        Whether the wall pushed the cycle before.
+        Time since ``previous`` was read (s); ``engaged``: the wall pushed the cycle before.
     torque_nm, velocity_deg_s : sequence of float, (n,), optional
         The motors' read torque (N m) and speed (deg/s); None: not read.
     limits : sequence of (float, float), (n,), optional

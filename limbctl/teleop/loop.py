@@ -19,16 +19,13 @@ from limbctl.geometry.gimbal import quat_to_pan_tilt
 from limbctl.servo.alarms import alarm_alone, held_torque, switched_off
 from limbctl.servo.cycle import CycleRead
 from limbctl.servo.health import HealthLimits, HealthMonitor, ServoFault
-from limbctl.teleop.approach import JOINT_NAMES
+from limbctl.teleop.approach import JOINT_NAMES, StartLimb
 from limbctl.teleop.cycle import Cycle, CycleState, CycleTimings, TeleopSummary
 from limbctl.teleop.gate import Gate, GateResult, Outcome
 from limbctl.teleop.pacing import Pacer
-from limbctl.teleop.report import Telemetry, open_telemetry
+from limbctl.teleop.report import Telemetry
 from limbctl.teleop.sources import CommandSource
 from limbctl.teleop.status import status_line_for
-
-__all__ = ["Cycle", "CycleState", "TeleopSummary", "Telemetry", "open_telemetry", "SafeState"]
-__all__ += ["Limb", "LoopConfig", "ControlLoop", "run"]
 
 
 class SafeState(enum.Enum):
@@ -38,23 +35,15 @@ class SafeState(enum.Enum):
     TORQUE_OFF = "torque-off"  # torque is switched off; the limb goes limp
 
 
-class Limb(Protocol):
+class Limb(StartLimb, Protocol):
     """What the loop needs of a rig (see :class:`limbctl.servo.rig.Rig`)."""
 
     @property
-    def ids(self) -> tuple[int, int]: ...  # (pan, tilt)
-
-    def read_pose(self) -> tuple[float, float]: ...
+    def ids(self) -> tuple[int, ...]: ...
 
     def read_cycle(self, attempts: int = 1, ids: Sequence[int] | None = None) -> CycleRead: ...
 
-    def pose_of(self, read: CycleRead) -> tuple[float, float]: ...
-
-    def write_pose(self, pan: float, tilt: float) -> object: ...
-
-    def set_torque(self, enabled: bool) -> None: ...
-
-    def torque_enabled(self) -> tuple[bool, bool]: ...
+    def pose_of(self, read: CycleRead) -> tuple[float, ...]: ...
 
 
 @dataclass(frozen=True)
@@ -112,17 +101,8 @@ def _command_deg(q: np.ndarray) -> tuple[float, float]:
 class ControlLoop:
     """The loop's state between cycles; each :meth:`step` is one cycle and returns its value.
 
-    Parameters
-    ----------
-    limb : Limb
-        The rig (already connected, configured, torque on).
-    gate : Gate
-        Not yet started; :meth:`start` starts it from the limb's present pose.
-    source : CommandSource
-        Started command source.
-    config : LoopConfig
-    stop : threading.Event, optional
-        Set from a signal handler to end the loop cleanly.
+    ``limb`` is connected, configured, torque on; ``gate`` not yet started (:meth:`start` starts
+    it from the present pose); ``source`` started; ``stop`` set (a signal handler) ends the loop.
     """
 
     def __init__(

@@ -10,8 +10,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-#: Most periods a late loop catches up on (20 ms at 200 Hz): a short stall is made up, a longer
-#: one would only send a burst of old goals.
+#: Most periods a late loop catches up on (20 ms at 200 Hz): longer would burst old goals.
 BACKLOG_PERIODS = 4
 #: While felt, a median period over the last PACE_WINDOW cycles (0.2 s) above PACE_SLACK periods
 #: (160 Hz at 200 Hz, passivity margin still 1.4) switches the push off for good.

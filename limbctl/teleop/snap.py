@@ -1,6 +1,5 @@
-"""The snap watch: a held wall lets go the moment its leader starts snapping toward the region.
-It only ever takes torque away; docs/haptic.md ("The snap watch") gives the rules and figures.
-"""
+"""The snap watch: a held wall lets go the moment its leader starts snapping toward the region;
+it only ever takes torque away (docs/haptic.md, "The snap watch")."""
 
 from __future__ import annotations
 
@@ -13,27 +12,9 @@ from limbctl.teleop.brake import BrakeLaw, brakes_soon, outruns
 
 @dataclass(frozen=True)
 class SnapLaw:
-    """The snap watch's constants.
-
-    Attributes
-    ----------
-    snap_speed_deg_s : float
-        4 deg/s: over a held leader's noise, under the ~17 deg/s a let go reaches in 1 ms.
-    still_speed_deg_s : float
-        1.5 deg/s: one velocity unit (1.37 deg/s) reads as still.
-    rearm_speed_deg_s : float
-        0.5 deg/s, under one unit: a free wall re-arms only on a leader not moving in.
-    rearm_span_s : float
-        12 ms: two cycles at 200 Hz, one up to 2 ms late (``rearm_twice``'s earlier read).
-    hold_nm : float
-        0.06 N m: a held hand takes more; walking a released leader back 0.02-0.03 N m.
-    released : float
-        0.5: a let go frees the whole hold, a fading grip about a seventh: between the two.
-    rise_s : float
-        1 ms, the longest the rise is judged over: a snap speeds up for 2-3 ms.
-    inertia_kg_m2 : float
-        1e-3 kg m^2, the simulated leader's (``firmware_sim/leader.py``); measure a real one's.
-    """
+    """The snap watch's constants (units in their names; ``released`` a fraction of the hold,
+    ``inertia_kg_m2`` the simulated leader's: measure a real one's); docs/haptic.md's table gives
+    each value and its reasoning."""
 
     snap_speed_deg_s: float = 4.0
     still_speed_deg_s: float = 1.5

@@ -242,21 +242,9 @@ def start_session(
 ) -> StartOutcome:
     """Start the gate from the limb's present pose, waiting for it (or approaching) if outside.
 
-    Parameters
-    ----------
-    limb : StartLimb
-        The configured rig; torque on or off.
-    gate : Gate
-        Not yet started; on success started from the present pose.
-    options : StartOptions, optional
-    stream : text stream, optional
-        Where messages and the live status line go.
-    publish : callable, optional
-        Called with each :class:`StartStatus` while the limb is outside.
-    stop : threading.Event, optional
-        Set (Ctrl-C) to give up waiting.
-    torque_was_on : bool
-        The caller switched torque off: say so to a limb found outside.
+    ``gate`` (not yet started) is started from the present pose on success; ``stream`` gets the
+    messages and live status line, ``publish`` each :class:`StartStatus` while outside; ``stop``
+    (Ctrl-C) gives up; ``torque_was_on``: the caller switched torque off (said to a limb outside).
 
     Returns
     -------

@@ -22,8 +22,6 @@ from limbctl.teleop.sources.leader_ids import check_leader_fits
 from limbctl.teleop.sources.leader_silence import LeaderSilence
 from limbctl.teleop.sources.leader_snap import SnapWatching, cycle_velocity, snap_watch
 
-__all__ = ["FOLLOWER_GRACE_S", "FOLLOWER_UNREAD", "LeaderSource", "PaceWatch"]
-
 #: How the loop's gate says it held because the follower's read failed this cycle.
 FOLLOWER_UNREAD = "the bus failed this cycle"
 #: How long (s) the wall stays on while only the follower's reads fail: one silent-servo probe
@@ -45,18 +43,8 @@ def pose_command(pose: tuple[float, ...]) -> Command:
 
 
 class LeaderSource(SnapWatching, LeaderBus, CommandSource):
-    """Mirror a hand-moved leader, read in :meth:`poll`; a current-sensing one feels the edge.
-
-    Parameters
-    ----------
-    rig : Rig
-        The follower rig; its bus must also hold the leader's ids.
-    leader_ids : tuple of int
-        The leader's ids, one per joint of the rig.
-    rate_hz : float
-        The loop's rate (Hz), which a felt leader must keep.
-    law : FeelLaw, optional
-    """
+    """Mirror a hand-moved leader (``leader_ids``, one per joint of ``rig``, on its bus), read in
+    :meth:`poll`; a current-sensing one feels the edge and must keep the loop's ``rate_hz`` (Hz)."""
 
     name = "leader"
     latest_only = True
