@@ -10,8 +10,6 @@ from enum import Enum, IntEnum, IntFlag
 TICKS_PER_REV = 4096
 #: Largest Goal/Present Position tick in single-turn Position Control Mode.
 MAX_TICK = TICKS_PER_REV - 1
-#: First RAM address; everything below is EEPROM (written only with torque off).
-EEPROM_END = 64
 #: Firmware version from which X-series servos answer Fast Sync Read (instruction 0x8A).
 FAST_SYNC_READ_MIN_FIRMWARE = 45
 #: The alert bit of a status packet's error byte.
@@ -77,11 +75,6 @@ class Register(Enum):
         self.address = address
         self.size = size
         self.signed = signed
-
-    @property
-    def is_eeprom(self) -> bool:
-        """True when the register lives in EEPROM (writable only with torque off)."""
-        return self.address < EEPROM_END
 
     @property
     def min_value(self) -> int:
