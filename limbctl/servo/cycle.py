@@ -71,17 +71,9 @@ def indirect_map(registers: Sequence[Register] = CYCLE_REGISTERS) -> bytes:
 
 @dataclass(frozen=True)
 class ServoReport:
-    """One servo's part of a cycle read.
-
-    Attributes
-    ----------
-    present, goal : int
-        Present and Goal Position (ticks).
-    hardware_error : tuple of str
-        Decoded Hardware Error Status (empty = healthy).
-    pwm, pwm_limit : int
-        Present PWM, signed; the servo's PWM Limit (read at set-up), where its drive saturates.
-    """
+    """One servo's part of a cycle read: its Present and Goal Position (ticks), Torque Enable,
+    decoded Hardware Error Status (empty: healthy), Present PWM (signed) and its PWM Limit (read
+    at set-up), where its drive saturates."""
 
     present: int
     goal: int
@@ -104,20 +96,10 @@ class ServoReport:
 
 @dataclass(frozen=True)
 class CycleRead:
-    """The outcome of one cycle read, as a value.
-
-    Attributes
-    ----------
-    reports : dict
-        Servo id -> :class:`ServoReport` of each servo that answered.
-    silent, unread : tuple of int
-        Servos that did not answer (a failed sync read names the one its reply stops at); silent
-        servos not asked this cycle (waiting for their next probe).
-    problem : str
-        Why the read is incomplete ('' when every servo answered).
-    duration_s : float
-        How long the read took (s).
-    """
+    """The outcome of one cycle read, as a value: a :class:`ServoReport` per id that answered, the
+    ``silent`` servos (a failed sync read names the one its reply stops at), why the read is
+    incomplete ('' when every servo answered), how long it took (s) and the ``unread`` silent
+    servos not asked this cycle (waiting for their next probe)."""
 
     reports: dict[int, ServoReport]
     silent: tuple[int, ...] = ()

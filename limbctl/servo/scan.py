@@ -218,14 +218,9 @@ def scan(
 ) -> ScanResult:
     """Ping every servo on ``port_name`` at each of ``bauds``.
 
-    Parameters
-    ----------
-    latency_timer_ms : float
-        The USB adapter's latency timer (ms); at least the SDK's 16 ms is allowed.
-    on_baud : callable(index, count, baud) or None
-        Called before each baud rate (a progress bar).
-    budget_per_baud_s : float
-        Most time spent naming collided IDs at one baud rate (s).
+    ``latency_timer_ms`` is the USB adapter's (ms; at least the SDK's 16 ms is allowed);
+    ``on_baud(index, count, baud)`` is called before each baud (a progress bar);
+    ``budget_per_baud_s`` is the most time (s) spent naming collided IDs at one baud.
 
     Raises
     ------

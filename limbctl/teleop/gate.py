@@ -128,12 +128,10 @@ class GateResult:
     ----------
     pose : tuple of float, shape (J,)
         The joint angles to write (rad); the last safe pose when HELD.
-    outcome : Outcome
-        The strongest thing that happened.
+    outcome, reason : Outcome, str
+        The strongest thing that happened; why the command was held (empty otherwise).
     corrected, clamped, slewed : bool
         Each stage that changed the command.
-    reason : str
-        Why the command was held, empty otherwise.
     """
 
     pose: Pose
@@ -145,15 +143,9 @@ class GateResult:
 
 
 class Gate:
-    """Turns commanded orientations into safe joint goals, one cycle at a time.
-
-    Parameters
-    ----------
-    envelope : RegionModel
-        The trained region (``contains``/``correct`` on quaternions (4,)).
-    limits : GateLimits
-        Hard and per-cycle limits.
-    """
+    """Turns commanded orientations into safe joint goals, one cycle at a time, for a trained region
+    ``envelope`` (``contains``/``correct`` on quaternions (4,)) and its hard and per-cycle
+    ``limits``."""
 
     def __init__(self, envelope: RegionModel, limits: GateLimits) -> None:
         self.envelope = envelope

@@ -24,22 +24,11 @@ from limbctl.teleop.haptic import (
 
 @dataclass(frozen=True)
 class Push:
-    """One cycle's command to the leader's servos.
-
-    Attributes
-    ----------
-    goal_current, profile_velocity : int
-        Goal Current units (0: no torque; the largest of ``joint_currents``); Profile Velocity
-        units (0 while free: not written).
-    goal : tuple of float, (n,)
-        Goal pose, one angle per joint of the chain (rad).
-    torque_nm : float
-        The push's magnitude the currents allow (N m; the norm of the joints' torques).
-    distance_deg : float
-        How far the command lies beyond the region (deg).
-    joint_currents : tuple of int, (n,)
-        Goal Current units per joint; empty: ``goal_current`` on every joint.
-    """
+    """One cycle's command to the leader's servos: Goal Current units (0: no torque; the largest of
+    ``joint_currents``, one per joint, empty: this on every joint), Profile Velocity units (0
+    while free: not written), the ``goal`` pose (rad, one per joint), the push's magnitude the
+    currents allow (N m, the norm of the joints' torques) and how far the command lies beyond the
+    region (deg)."""
 
     goal_current: int
     profile_velocity: int
@@ -56,16 +45,9 @@ class Push:
 def shared_currents(
     motor: LeaderMotor, torque_nm: float, step: tuple[float, ...]
 ) -> tuple[tuple[int, ...], float]:
-    """Goal Current per joint, ``I_j = tau |s_j| / |s| / kt`` rounded down, for a push of
-    ``torque_nm`` (N m) along ``step`` (n,) (rad; not all zero).
-
-    Returns
-    -------
-    currents : tuple of int, (n,)
-        Goal Current units per joint.
-    magnitude_nm : float
-        sqrt(sum_j torque_of(I_j)^2) (N m).
-    """
+    """Goal Current units per joint, ``I_j = tau |s_j| / |s| / kt`` rounded down, for a push of
+    ``torque_nm`` (N m) along ``step`` (n,) (rad; not all zero), and their magnitude sqrt(sum_j
+    torque_of(I_j)^2) (N m)."""
     norm = math.sqrt(sum(s * s for s in step))
     currents = tuple(motor.units_for(torque_nm * abs(s) / norm) for s in step)
     magnitude = math.sqrt(sum(motor.torque_of(c) ** 2 for c in currents))

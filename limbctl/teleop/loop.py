@@ -337,16 +337,8 @@ def run(
     status: IO[str] | None = None,
     stop: threading.Event | None = None,
 ) -> TeleopSummary:
-    """Run the loop until the source ends, the duration passes, ``stop`` is set, or a fault.
-
-    Parameters
-    ----------
-    limb, gate, source, config, stop
-        As for :class:`ControlLoop`.
-    telemetry : Telemetry, optional
-        Logs every complete cycle.
-    status : text stream, optional
-        Where a one-line status is refreshed (e.g. stderr).
+    """Run the loop until the source ends, the duration passes, ``stop`` is set, or a fault;
+    ``telemetry`` logs every complete cycle, ``status`` (e.g. stderr) gets a one-line status.
 
     Returns
     -------

@@ -40,24 +40,12 @@ def along(values: Sequence[float], unit: Sequence[float]) -> float:
 
 @dataclass
 class SnapWatch:
-    """One leader's watch state.
-
-    Attributes
-    ----------
-    law : SnapLaw
-    brake : BrakeLaw or None
-        The brake rules (:mod:`limbctl.teleop.brake`); None: the snap rule alone.
-    walk_deg_s : float
-        How fast the wall's setpoint walks toward the region (deg/s): its Profile Velocity.
-    armed, walking : tuple of float, (n,), or None
-        The unit joint-space step toward the correction while armed; while a wall is on.
-    cuts, brakes, reads : int
-        Walls let go at a snap, walls let go by the brake rules; reads between the cycles.
-    at_read : bool
-        Judge each cycle's read at once (:meth:`judge`); False: when its push is decided.
-    rearm_twice : bool
-        Re-arm only on two still reads within ``rearm_span_s`` (or one pushed outward).
-    """
+    """One leader's watch state: its ``law`` and ``brake`` rules (None: the snap rule alone), the
+    wall's setpoint speed ``walk_deg_s`` (deg/s, its Profile Velocity), the unit joint-space step
+    toward the correction while ``armed`` and while ``walking``, the walls let go (``cuts`` at a
+    snap, ``brakes`` by the brake rules) and ``reads`` between cycles; ``at_read``: judge each
+    cycle's read at once (:meth:`judge`); ``rearm_twice``: re-arm only on two still reads within
+    ``rearm_span_s`` (or one pushed outward)."""
 
     law: SnapLaw
     brake: BrakeLaw | None = None

@@ -25,19 +25,10 @@ LOG_EVERY_S = 2.0
 
 @dataclass(frozen=True)
 class StartOptions:
-    """How a session starts from a limb outside the region.
-
-    Attributes
-    ----------
-    wait_s : float
-        Give up after this many seconds outside (s).
-    approach_deg_s : float or None
-        Drive the limb inside with the servos at this speed (deg/s); None: wait for the hand.
-    rate_hz, poll_hz : float
-        Goals per second along an approach path; reads of a waiting limb per second (Hz).
-    max_failed_reads : int
-        Failed reads in a row before the start gives up.
-    """
+    """How a session starts from a limb outside the region: give up after ``wait_s`` (s) outside;
+    ``approach_deg_s`` drives it inside with the servos (deg/s; None: wait for the hand) at
+    ``rate_hz`` goals a second, a waiting limb read ``poll_hz`` times a second; ``max_failed_reads``
+    in a row end the start."""
 
     wait_s: float = DEFAULT_WAIT_S
     approach_deg_s: float | None = None
@@ -90,16 +81,12 @@ class StartStatus:
     ----------
     pose_deg, move_deg : tuple of float, (n,)
         The present pose, and the joint changes to the target (0 without one), deg in chain order.
-    ready : bool
-        Inside the region and the hard limits by the margin.
-    inside_region, inside_limits : bool
-        Each check without the margin.
-    outside_deg, distance_deg : float
-        How far outside the region (0 inside); angle to the target (0 without one), deg.
+    ready, inside_region, inside_limits : bool
+        Inside the region and the hard limits by the margin; each check without the margin.
+    outside_deg, distance_deg, waited_s : float
+        How far outside the region (deg, 0 inside); angle to the target (deg); seconds waited.
     target_deg : tuple of float or None
         The nearest pose inside by the margin (deg); None when ready or none nearby.
-    waited_s : float
-        Seconds spent waiting so far.
     """
 
     pose_deg: tuple[float, ...]

@@ -1,10 +1,6 @@
-"""Who may watch the live view and who may steer from it: the secret (:class:`Access`), the
-Origin and Host (:func:`check_request`), one controller at a time (:class:`ControlDesk`).
-
-A page's WebSocket query carries ``tab`` (its id, kept over a reload), ``name`` (e.g. "tab K7,
-opened 19:02:13") and ``want``: ``take`` (a person opened the address; the default), ``reload``
-or ``watch`` (it reconnected by itself). ``{"control": "take"}`` / ``{"control": "release"}``
-over the socket are a person's clicks."""
+"""Who may watch the live view and who may steer from it: the secret (:class:`Access`), the Origin
+and Host (:func:`check_request`), one controller at a time (:class:`ControlDesk`); a page's query
+(``tab``, ``name``, ``want``) and clicks as docs/architecture.md describes."""
 
 from __future__ import annotations
 

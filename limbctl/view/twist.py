@@ -23,18 +23,14 @@ FREE_HALF = math.pi - 1e-9
 
 @dataclass(frozen=True)
 class TwistMap:
-    """Twist ranges over the swing plane, cell by cell.
+    """Twist ranges over the swing plane, cell by cell (``of``: ``"taught"`` or ``"band"``).
 
     Parameters
     ----------
     cell_deg : float
         Cell size, deg; cell ``(i, j)`` covers pan ``[i, i + 1) * cell_deg``, tilt likewise.
     cells : ndarray, shape (M, 4)
-        ``(i, j, low_deg, high_deg)`` per cell.
-    states : tuple of str
-        One of :data:`CELL_STATES` per cell.
-    of : str
-        ``"taught"`` (recording) or ``"band"`` (the learned band).
+        ``(i, j, low_deg, high_deg)`` per cell; ``states`` one of :data:`CELL_STATES` per cell.
     """
 
     cell_deg: float
@@ -73,18 +69,10 @@ class TwistMap:
 
 @dataclass(frozen=True)
 class TwistGauge:
-    """The present pose's twist against the range allowed or taught at its place.
-
-    Parameters
-    ----------
-    twist_deg, written_deg : float
-        The present twist (deg, in (-180, 180]); the twist last written (teleop; else None).
-    low_deg, high_deg : float or None
-        The range there (deg; inside when ``low <= twist_deg + 360 k <= high`` for some k); None
-        where nothing is known.
-    of : str
-        What the range is, in words ("taught here", "the learned band here").
-    """
+    """The present pose's ``twist_deg`` (deg, in (-180, 180]) against the range ``low_deg`` ..
+    ``high_deg`` (deg; inside when ``low <= twist_deg + 360 k <= high`` for some k; None where
+    nothing is known) allowed or taught at its place, what the range is ``of`` in words, and the
+    twist last written (teleop; else None)."""
 
     twist_deg: float
     low_deg: float | None = None
