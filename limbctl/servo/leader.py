@@ -63,8 +63,7 @@ class LeaderMotor:
 CAP_STALL_FRACTION = 0.5
 
 
-#: Models whose leader can push back, by the e-Manual; the XL330-M288's 0.12 N m cap is the
-#: largest that returned a released leader under 30 deg/s (docs/bench_haptic_models.md).
+#: Models whose leader can push back; XL330-M288's cap: docs/bench_haptic_models.md.
 FELT_MODELS: dict[ModelNumber, LeaderMotor] = {
     ModelNumber.XM430_W350: LeaderMotor(4.1, 2300.0, 2.69, 1193),
     ModelNumber.XL330_M077: LeaderMotor(0.215, 1470.0, 1.0, 1750),

@@ -25,8 +25,7 @@ MAX_ID = 252
 QUIET_PACKETS = 3
 #: Longest Return Delay Time a servo may wait (254 x 2 us), s.
 MAX_RETURN_DELAY_S = 254 * 2e-6
-#: Longest wait for a broadcast PING's replies (s): with collisions' pings, at most 2 s a baud;
-#: a servo answering later (an ID far above 80 at 9600 baud) is missed, so keep IDs low.
+#: Longest wait for a broadcast PING's replies (s): later ones (IDs over ~80 at 9600) are missed.
 BROADCAST_CAP_S = 1.5
 #: The SDK's allowance per ID slot of a broadcast PING (ms): servos answer one after another.
 SLOT_MS = 3.0

@@ -28,8 +28,7 @@ SEGMENT_STEP_DEG = 0.5
 VISIBLE_SLACK_DEG = 0.1
 #: How far along the route (deg) the sub-goal may lie: twenty default steps, ~8 route points.
 LOOKAHEAD_DEG = 12.0
-#: Twist offsets (deg) tried from a neighbour's for a new node on three servos, nearest first:
-#: a band turning 1 deg per deg of swing moves 1.5-2.4 deg between nodes.
+#: Twist offsets (deg) tried from a neighbour's for a new node on three servos, nearest first.
 TWIST_TRIES_DEG = (0.0, 3.0, -3.0, 8.0, -8.0, 20.0, -20.0, 45.0, -45.0)
 #: The reach bound's terms: route bends (a few per cent over L) and a slide into a bay (measured
 #: up to 24 cycles over L / max_step, benchmarks/bench_reach.py; 40 leaves room).

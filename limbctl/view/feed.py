@@ -18,8 +18,7 @@ from limbctl.view.twist import TwistGauge, TwistMap, taught_gauge
 
 #: How often the scene is republished (s) when no fit finishes: twice the page's promised 1 Hz.
 SCENE_PERIOD_S = 0.5
-#: Least time between the starts of two fits (s): a fit of a 30-60 s teaching takes 0.1-0.25 s
-#: (docs/bench_fit.md); more redraws would show much the same region, each a browser repaint.
+#: Least time between the starts of two fits (s): a fit takes 0.1-0.25 s (docs/bench_fit.md).
 REFIT_PERIOD_S = 0.25
 #: Longest wait (s) for the feeder thread to finish when stopped.
 JOIN_TIMEOUT_S = 10.0

@@ -66,8 +66,7 @@ class LeaderStatus:
         return out
 
 
-#: A three-servo leader's push is drawn as an arrow on the pan/tilt plane only when its swing
-#: part is at least this share of its largest joint step (else its direction means nothing).
+#: A three-servo push is drawn on the pan/tilt plane only if its swing is this share of its step.
 SWING_SHARE_DRAWN = 0.1
 
 

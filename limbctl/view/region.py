@@ -22,11 +22,9 @@ from limbctl.view.state import EdgeLoop
 
 #: Longest drawn stretch of edge (deg): fine enough that traced and untraced parts show apart.
 STRETCH_DEG = 1.0
-#: A stretch is traced when a sample lies this close (deg) to its middle: the learned edge may
-#: lie up to RegionParams.max_offset_deg (3 deg) beyond the samples that taught it.
+#: A stretch is traced when a sample lies this close (deg) to its middle (the edge's max offset).
 TRACED_WITHIN_DEG = 3.0
-#: Fewest samples worth a fit (2 s at the recorder's 100 Hz): fits of fewer, a stroke or two of
-#: the hand, were slivers or stray arcs that said nothing of the region being taught.
+#: Fewest samples worth a fit (2 s at 100 Hz): fewer gave slivers or stray arcs.
 MIN_FIT_SAMPLES = 200
 #: Niceness of the fit process (19, the lowest priority): a refit may wait, the recorder not.
 FIT_NICENESS = 19

@@ -23,8 +23,7 @@ from limbctl.view.control import (
 )
 from limbctl.view.state import Board
 
-#: How often each browser's coroutine looks for a newer state (s): twice the page's 5 Hz pose
-#: promise; every frame costs the browser a redraw (the producers never wake the server).
+#: How often each browser's coroutine looks for a newer state (s): twice the page's 5 Hz promise.
 PUSH_PERIOD_S = 0.1
 #: WebSocket ping interval (s): a browser that stops answering is dropped within two of these.
 HEARTBEAT_S = 5.0

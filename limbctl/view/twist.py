@@ -14,8 +14,7 @@ from limbctl.geometry.twist import decompose_one
 #: A cell's states: recording, ``turned`` (both ways to the stops), ``short`` (a stop untaught),
 #: ``few`` (too few samples); teleop, the learned ``band`` at its centre or ``free``.
 CELL_STATES = ("turned", "short", "few", "band", "free")
-#: Cell size (deg) of the learned band's picture: a shoulder's band changes by under 3 deg across
-#: 5 deg of swing, and a 230 x 125 deg rig then takes ~1200 cells (a scene of ~30 kB).
+#: Cell size (deg) of the learned band's picture: ~1200 cells (~30 kB) for a 230 x 125 deg rig.
 BAND_CELL_DEG = 5.0
 #: A half-width this close to 180 deg (rad) is a free twist: the band's fit stores pi there.
 FREE_HALF = math.pi - 1e-9

@@ -86,8 +86,7 @@ class LeaderSource(SnapWatching, LeaderBus, CommandSource):
         self.silence = LeaderSilence()
         #: A wall on when one read missed goes on as engaged if the next read answers.
         self.resume = False
-        #: When the leader last answered (perf_counter s); never yet, so the first good read
-        #: re-arms its Bus Watchdog.
+        #: Last answer (perf_counter s): never, so a first read re-arms the watchdog.
         self._heard_at = -math.inf
         self._follower_read_at = -math.inf  # the follower's last good read (perf_counter s)
         self._polled_at: float | None = None  # this cycle's poll, right after the follower's read

@@ -26,8 +26,7 @@ WATCHDOG_UNITS = 5
 WATCHDOG_UNIT_S = 0.020
 #: Goal Current alone, written as raw bytes (sent even to a servo in alarm).
 GOAL_CURRENT_BLOCK = Block(Register.GOAL_CURRENT, Register.GOAL_CURRENT.size)
-#: Cycles timed at start to check the rate: a quarter second at 200 Hz for a median; three
-#: batches, so a moment of load does not refuse a bus that keeps the rate.
+#: Cycles timed at start to check the rate (a median of a quarter second at 200 Hz), in batches.
 RATE_CHECK_CYCLES = 50
 RATE_CHECK_TRIES = 3
 #: What the operator is told when the leader feels the edge, by its number of joints.

@@ -10,8 +10,7 @@ from limbctl.servo.health import Dropout
 
 #: Two reads in a row: one lost reply is not a dropout.
 MISSES_FOR_DROPOUT = 2
-#: How often (s) a silent leader is probed: as the follower's, one failed read (6.3 ms) in ten
-#: cycles keeps the loop's rate.
+#: How often (s) a silent leader is probed: one failed read (6.3 ms) in ten cycles keeps the rate.
 PROBE_INTERVAL_S = 0.05
 
 
