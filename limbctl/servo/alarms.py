@@ -1,5 +1,4 @@
-"""Servo alarms: what a hardware error means for torque (as each servo REPORTS it, since the
-Shutdown mask decides), and the way out (a reboot)."""
+"""Servo alarms: what a hardware error means for torque as each servo reports it, and reboots."""
 
 from __future__ import annotations
 

@@ -1,5 +1,4 @@
-"""The servo bus: the real dynamixel-sdk (Protocol 2.0) with bounded retries, typed errors
-(:class:`~limbctl.errors.BusError`) and alarms (an alert bit: :class:`ServoAlarm`)."""
+"""The servo bus: the dynamixel-sdk (Protocol 2.0) with bounded retries, typed errors and alarms."""
 
 from __future__ import annotations
 

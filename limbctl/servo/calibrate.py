@@ -1,5 +1,4 @@
-"""Guided, hand-held calibration (torque off; held still at rest, turned left, raised and (roll)
-turned): find each joint's zero tick and direction, write a profile."""
+"""Guided, hand-held calibration: each joint's zero tick and direction, written to a profile."""
 
 from __future__ import annotations
 

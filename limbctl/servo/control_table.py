@@ -1,5 +1,4 @@
-"""The X-series (Protocol 2.0) registers, model numbers and error codes limbctl uses; addresses
-are the e-Manual's, shared by the 430, 540 and 330 families (:mod:`limbctl.servo.families`)."""
+"""The X-series (Protocol 2.0) registers, model numbers and error codes limbctl uses."""
 
 from __future__ import annotations
 

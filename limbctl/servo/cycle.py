@@ -1,5 +1,4 @@
-"""The control cycle's ONE sync read: :data:`CYCLE_REGISTERS` mapped onto Indirect Data by
-set-up (:func:`limbctl.servo.setup.configure_servos`); one read per Indirect Data address."""
+"""The control cycle's ONE sync read of :data:`CYCLE_REGISTERS`, mapped onto Indirect Data."""
 
 from __future__ import annotations
 

@@ -1,5 +1,4 @@
-"""Per-cycle health of the servos, judged from each :class:`limbctl.servo.cycle.CycleRead`:
-silent, lost, torque off, alarm, or not following (docs/safety.md)."""
+"""Per-cycle servo health: silent, lost, torque off, alarm, or not following (docs/safety.md)."""
 
 from __future__ import annotations
 

@@ -1,6 +1,4 @@
-"""A leader's servos in current-based position mode (5): which models can, and their set-up. A
-cycle writes :data:`FEEL_DATA`; its read carries Present Current and Present Velocity in the
-slots a follower uses for Present PWM and Goal Position."""
+"""A leader's servos in current-based position mode (5): which models can, and their set-up."""
 
 from __future__ import annotations
 

@@ -1,5 +1,4 @@
-"""A felt leader's guard: a second process that makes the leader limp when its controller dies
-(EOF on its pipe without ``done`` first: Torque Enable 0 on each leader servo, docs/haptic.md)."""
+"""A second process that makes a felt leader limp when its controller dies (docs/haptic.md)."""
 
 from __future__ import annotations
 

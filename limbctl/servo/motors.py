@@ -1,5 +1,4 @@
-"""Set up servos out of the box for a rig profile's joints, one servo at a time (README): ID,
-baud, Return Delay Time 0, Status Return Level 2; only differing values are written."""
+"""Set up out-of-the-box servos for a rig profile's joints, one servo at a time (README)."""
 
 from __future__ import annotations
 

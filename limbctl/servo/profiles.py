@@ -1,5 +1,4 @@
-"""Rig profiles loaded through calib and checked for what only the servo layer knows (baud,
-model, limits within one turn); calib's errors come out as the controller's own."""
+"""Rig profiles loaded through calib and checked for what only the servo layer knows."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
-"""A calibrated chain of joints on a servo bus: joint angles (rad) <-> ticks, limits, present
-pose. A goal leaves only through :meth:`Rig.write_goal_ticks`."""
+"""A calibrated chain of joints on a servo bus: joint angles (rad) <-> ticks, limits, pose; a goal
+leaves only through :meth:`Rig.write_goal_ticks`."""
 
 from __future__ import annotations
 

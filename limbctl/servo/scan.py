@@ -1,5 +1,4 @@
-"""Find the servos on a port at every baud rate (one broadcast PING each), and name the IDs two
-servos share (pinged one at a time between the clean replies around a garbled one)."""
+"""Find the servos on a port at every baud rate, and name the IDs two servos share."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
-"""One try of each dynamixel-sdk transfer :class:`ServoBus` uses, as an :class:`Attempt`. Sync
-reads use the SDK's packet-level calls: its group sync read drops the error bytes (alert bit)."""
+"""One try of each dynamixel-sdk transfer :class:`ServoBus` uses, as an :class:`Attempt`; sync reads
+use packet-level calls (the SDK's group sync read drops the error bytes, alert bit included)."""
 
 from __future__ import annotations
 

@@ -1,5 +1,4 @@
-"""Drive a limb in from outside the region, and park it after a session, for any chain.
-Angles in radians unless a name ends in ``_deg``."""
+"""Drive a limb in from outside the region, and park it after a session, for any chain."""
 
 from __future__ import annotations
 

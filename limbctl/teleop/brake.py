@@ -1,5 +1,4 @@
-"""The brake rules: a wall lets its leader go before the servo's loop would brake it outward
-(docs/haptic.md, "The brake rules")."""
+"""The brake rules: a wall lets its leader go before the servo's loop brakes it outward."""
 
 from __future__ import annotations
 

@@ -1,5 +1,4 @@
-"""The one place every commanded pose passes before it may become a goal position; its stages
-(correct, slew, route, inverse kinematics, clamp, joint step, final check): docs/architecture.md."""
+"""The one place every commanded pose passes before it may become a goal position."""
 
 from __future__ import annotations
 

@@ -1,5 +1,4 @@
-"""The leader feels the edge: the haptic wall's law, tau = min(K (d - DEADBAND), CAP) toward the
-corrected pose, and when it lets go (docs/haptic.md gives the law and every figure)."""
+"""The haptic wall's law, tau = min(K (d - DEADBAND), CAP), and when it lets go (docs/haptic.md)."""
 
 from __future__ import annotations
 

@@ -1,5 +1,4 @@
-"""A felt leader's push this cycle: the wall law of :mod:`limbctl.teleop.haptic` on its chain
-(docs/haptic.md)."""
+"""A felt leader's push this cycle: the wall law of :mod:`limbctl.teleop.haptic` on its chain."""
 
 from __future__ import annotations
 

@@ -1,5 +1,4 @@
-"""The keyboard's keys as a table (:data:`KEYS`), the guide printed from it, and steady motion
-while one is held (:class:`HeldKey`)."""
+"""The keyboard's keys (:data:`KEYS`), their guide, and steady motion while one is held."""
 
 from __future__ import annotations
 

@@ -1,5 +1,4 @@
-"""The teleoperation control loop: fixed rate, one sync read and one gated sync write per cycle;
-faults end in the configured safe state (docs/safety.md)."""
+"""The teleoperation control loop: one sync read and one gated sync write per cycle."""
 
 from __future__ import annotations
 

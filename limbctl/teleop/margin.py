@@ -1,5 +1,4 @@
-"""Where a limb may start from: "inside by a margin", and the nearest such pose, for any chain.
-Angles in radians; orientations unit quaternions (4,), scalar first."""
+"""Where a limb may start from: "inside by a margin", and the nearest such pose, any chain."""
 
 from __future__ import annotations
 

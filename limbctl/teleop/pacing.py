@@ -1,5 +1,4 @@
-"""The control loop's clock: cycle ``k`` is due at ``t0 + k T``, a late loop catches up to
-BACKLOG_PERIODS; and whether it keeps a felt leader's pace (:class:`PaceWatch`)."""
+"""The control loop's clock, and whether it keeps a felt leader's pace (:class:`PaceWatch`)."""
 
 from __future__ import annotations
 

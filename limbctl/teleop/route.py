@@ -1,5 +1,4 @@
-"""Routing along the region: where the gate's slew step aims when a concave wall holds it: the
-target, else a point of a Dijkstra route over a Fibonacci-lattice roadmap (docs/safety.md)."""
+"""Routing along the region: where the slew step aims when a concave wall holds it."""
 
 from __future__ import annotations
 

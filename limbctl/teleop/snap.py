@@ -1,5 +1,4 @@
-"""The snap watch: a held wall lets go the moment its leader starts snapping toward the region;
-it only ever takes torque away (docs/haptic.md, "The snap watch")."""
+"""The snap watch: a held wall lets go the moment its leader starts snapping toward the region."""
 
 from __future__ import annotations
 

@@ -1,5 +1,4 @@
-"""Start a session from wherever the limb is: at once inside; outside, torque off and waiting
-(or approaching) until it is inside by the margin. No refusal leaves torque on."""
+"""Start a session from wherever the limb is; no refusal leaves torque on."""
 
 from __future__ import annotations
 

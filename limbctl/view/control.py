@@ -1,6 +1,4 @@
-"""Who may watch the live view and who may steer from it: the secret (:class:`Access`), the Origin
-and Host (:func:`check_request`), one controller at a time (:class:`ControlDesk`); a page's query
-(``tab``, ``name``, ``want``) and clicks as docs/architecture.md describes."""
+"""Who may watch the live view and who may steer from it (docs/architecture.md)."""
 
 from __future__ import annotations
 

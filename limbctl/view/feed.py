@@ -1,5 +1,4 @@
-"""Feeding the board while teaching: a pose tap on the limb (on the recorder's thread, never
-waiting on the view) and a scene feeder thread (samples, guide, the region fitted last)."""
+"""Feeding the board while teaching: a pose tap on the limb and a scene feeder thread."""
 
 from __future__ import annotations
 

@@ -1,5 +1,4 @@
-"""The leader gimbal on the live page: its pose beside the follower's, and the force it applies
-(a :class:`LeaderStatus` per cycle inside a :class:`LeaderLive`; ``assets/leader.js`` draws it)."""
+"""The leader gimbal on the live page: its pose and the force it applies."""
 
 from __future__ import annotations
 

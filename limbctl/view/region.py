@@ -1,5 +1,5 @@
-"""The region ``train`` would learn from the samples so far, as edge loops the page draws; fitted
-in a separate process (:class:`FitProcess`): numba holding the GIL would stall the recorder."""
+"""The region ``train`` would learn so far, as edge loops, fitted in a separate process (numba
+holding the GIL would stall the recorder)."""
 
 from __future__ import annotations
 

@@ -1,5 +1,4 @@
-"""The live view's web server: the page, its assets and a WebSocket per browser that sends the
-newest board every :data:`PUSH_PERIOD_S` (nothing queued: a slow browser gets fewer frames)."""
+"""The live view's web server: the page, its assets and a WebSocket per browser."""
 
 from __future__ import annotations
 

@@ -1,5 +1,4 @@
-"""What the live view shows, as plain values (a fast :class:`Live`, a slow :class:`Scene`), and
-the :class:`Board` keeping the latest of each. Angles: degrees on the pan/tilt plane."""
+"""What the live view shows, as plain values, and the :class:`Board` keeping the latest."""
 
 from __future__ import annotations
 

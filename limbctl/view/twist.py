@@ -1,5 +1,4 @@
-"""The twist (``q = swing(d) * twist(tau)``) of a three-servo limb on the live page: its range
-over the swing plane cell by cell (:class:`TwistMap`) and a gauge (:class:`TwistGauge`)."""
+"""A three-servo limb's twist on the live page: a map over the swing plane and a gauge."""
 
 from __future__ import annotations
 

@@ -1,5 +1,4 @@
-"""What every command source shares: a reader thread's queue drained by ``poll`` (never
-blocking), and counts of refused input with their reasons."""
+"""What every command source shares: a reader thread's queue, and counts of refused input."""
 
 from __future__ import annotations
 

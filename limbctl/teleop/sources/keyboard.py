@@ -1,5 +1,4 @@
-"""Command source ``keyboard``: the keys of a terminal steer the limb; stopped short at an edge,
-the next key steps from the written pose, so a held key slides along the edge."""
+"""Command source ``keyboard``: the keys of a terminal steer the limb."""
 
 from __future__ import annotations
 

@@ -1,5 +1,4 @@
-"""A leader as a command source: a second chain of servos on the follower's bus, moved by hand;
-a current-sensing model feels the edge, any doubt switches its push off at once."""
+"""A leader as a command source: a second chain of servos moved by hand, perhaps felt."""
 
 from __future__ import annotations
 

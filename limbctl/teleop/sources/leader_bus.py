@@ -1,5 +1,4 @@
-"""A leader source's bus side (mixed into ``LeaderSource``): set-up, reads turned into poses and
-torques, and one sync write a cycle."""
+"""A leader source's bus side (mixed into ``LeaderSource``): set-up, reads and writes."""
 
 from __future__ import annotations
 

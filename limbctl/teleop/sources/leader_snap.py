@@ -1,5 +1,4 @@
-"""What a felt leader's snap watch reads (:mod:`limbctl.teleop.snap`): the leader's speed and
-its motors' torque, between the cycles."""
+"""What a felt leader's snap watch reads between the cycles: speed and motor torque."""
 
 from __future__ import annotations
 

@@ -1,5 +1,4 @@
-"""The command sources of JSON lines: ``stdin`` (or any binary stream), ``udp://HOST:PORT``,
-``replay:FILE`` (paced by each line's ``"t"``) and ``page`` (the live view's controlling page)."""
+"""The command sources of JSON lines: ``stdin``, ``udp://HOST:PORT``, ``replay:FILE``, ``page``."""
 
 from __future__ import annotations
 
