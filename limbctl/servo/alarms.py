@@ -66,8 +66,7 @@ def _joined(names: list[str]) -> str:
 
 
 def held_torque(torque: Mapping[str, bool], after_alarm: bool = False) -> str:
-    """What the HOLD safe state left, from ``torque`` (joint name -> Torque Enable, read after
-    the fault); ``after_alarm``: the alarm's message already says how to clear it."""
+    """What the HOLD safe state left, from ``torque`` (joint -> Torque Enable, read after)."""
     on = [name for name, enabled in torque.items() if enabled]
     off = [name for name, enabled in torque.items() if not enabled]
     if not off:
@@ -78,8 +77,7 @@ def held_torque(torque: Mapping[str, bool], after_alarm: bool = False) -> str:
 
 
 def switched_off(reported: Mapping[str, bool | None]) -> str:
-    """What the TORQUE_OFF safe state says once every servo's torque is off (``reported``: joint
-    name -> Torque Enable as its last read before the fault reported it, None: unknown)."""
+    """What TORQUE_OFF says, from ``reported`` (joint -> last Torque Enable read; None: unknown)."""
     already = [name for name, enabled in reported.items() if enabled is False]
     switched = [name for name in reported if name not in already]
     if not already:

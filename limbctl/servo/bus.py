@@ -219,8 +219,7 @@ class ServoBus(CycleReads):
         attempts: int | None = None,
         patient: bool = False,
     ) -> Any:
-        """Run ``attempt`` until it succeeds or ``attempts`` (default ``max_attempts``) or the
-        budget (``transfers.PATIENT_BUDGET_S`` if ``patient``) run out."""
+        """Run ``attempt`` until it succeeds, or its tries or budget (``patient``: longer) end."""
         with self._lock:
             port = self._require_port()
             self.stats.transactions += 1
@@ -318,8 +317,7 @@ class ServoBus(CycleReads):
     def write(
         self, register: Register, servo_id: int, value: int, check_alert: bool = True
     ) -> None:
-        """Write ``value`` to ``register`` of one servo and wait for its status (EEPROM needs
-        torque off; ``check_alert=False``: a servo in alarm does not raise)."""
+        """Write ``value`` to ``register`` of one servo and wait for its status."""
         data = register.encode(value)
         self._transact(
             f"write {register.name}={value} to servo {servo_id}",
@@ -399,8 +397,7 @@ class ServoBus(CycleReads):
         self.sync_write(Register.GOAL_POSITION, {i: int(t) for i, t in goals.items()})
 
     def set_torque(self, enabled: bool, ids: Sequence[int] | None = None) -> None:
-        """Torque on or off, servo by servo; off ignores alarms and tries every servo before
-        raising the first failure."""
+        """Torque on or off, servo by servo; off ignores alarms and tries every servo first."""
         if enabled:
             for servo_id in self._known(ids):
                 self.write(Register.TORQUE_ENABLE, servo_id, 1)
@@ -423,8 +420,7 @@ class ServoBus(CycleReads):
         return self._lock
 
     def reboot(self, servo_id: int, timeout_s: float = 3.0) -> None:
-        """Reboot one servo (clears an alarm shutdown; torque off, RAM at defaults) and wait
-        until it answers again."""
+        """Reboot one servo (clears an alarm; torque off, RAM reset) and wait for its answer."""
         self._known([servo_id])
         with self._lock:
             self._transact(

@@ -49,8 +49,7 @@ def wait_still(
     timeout_s: float,
     stop: threading.Event,
 ) -> tuple[int, int]:
-    """Read until the limb is still for ``STILL_S`` at a pose ``accept`` likes; its mean ticks
-    (failed reads are skipped, up to ``MAX_FAILED_READS`` in a row)."""
+    """The mean ticks once the limb is still for ``STILL_S`` at a pose ``accept`` likes."""
     window: deque[tuple[float, tuple[int, int]]] = deque()
     deadline = time.monotonic() + timeout_s
     failed_in_a_row = 0

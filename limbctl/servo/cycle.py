@@ -123,8 +123,7 @@ def read_around_silent(
     probe: Sequence[int],
     attempts: int,
 ) -> CycleRead:
-    """One cycle's read of the servos not ``silent``, and of each in ``probe`` alone, one try
-    (a gone servo costs one timeout, not the others' reply); the rest are ``unread``."""
+    """One cycle's read of the servos not ``silent``, and of each in ``probe`` alone, one try."""
     parts = []
     answering = [i for i in ids if i not in silent]
     if answering:
@@ -201,8 +200,7 @@ class CycleReads:
         )
 
     def read_cycle(self, ids: Sequence[int] | None = None, attempts: int = 1) -> CycleRead:
-        """Each servo's :class:`ServoReport` in ONE (fast) sync read of ``attempts`` tries; a
-        failed read is a value, only a failing port raises (:class:`PortError`)."""
+        """Each servo's :class:`ServoReport` in ONE (fast) sync read; only a failing port raises."""
         groups: dict[int, list[int]] = {}
         for servo_id in self._known(ids):
             groups.setdefault(self.indirect_at.get(servo_id, CYCLE_BLOCK.address), []).append(

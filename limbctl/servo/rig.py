@@ -19,8 +19,7 @@ from limbctl.servo.ticks import angle_to_ticks, ticks_to_angle
 
 @dataclass(frozen=True)
 class GoalTicks:
-    """A pose ready for the bus: ``ticks`` (one per joint, inside the hard limits), the clamped
-    ``angles`` (rad, one per joint), and whether any angle was ``clamped`` onto a limit."""
+    """A pose ready for the bus: ticks inside the hard limits, the clamped angles (rad), clamped."""
 
     ticks: tuple[int, ...]
     angles: tuple[float, ...]
@@ -28,8 +27,7 @@ class GoalTicks:
 
 
 class Rig:
-    """The chain of joints described by ``profile``, driven through ``bus`` (an open bus, or None
-    for a rig that only converts); ``joints`` and their ``names`` in chain order."""
+    """The chain of joints of ``profile`` driven through ``bus`` (None: it only converts)."""
 
     def __init__(self, profile: RigProfile, bus: ServoBus | None = None) -> None:
         self.profile = profile

@@ -73,8 +73,7 @@ class Collision:
 
 @dataclass
 class ScanResult:
-    """What a scan found: servos, collisions, ``unreadable`` bauds (garbled, ID not named),
-    ``skipped`` (baud -> why) and ``seconds`` (baud -> time spent, s)."""
+    """What a scan found (servos, collisions, garbled bauds); ``skipped``/``seconds`` by baud."""
 
     found: list[Found] = field(default_factory=list)
     collisions: list[Collision] = field(default_factory=list)

@@ -19,8 +19,7 @@ class BrakeLaw:
 
 
 def outruns(toward_deg_s: float, walk_deg_s: float, torque_nm: float, law: BrakeLaw) -> bool:
-    """Whether a leader moving in at ``toward_deg_s`` outruns a setpoint at ``walk_deg_s``
-    (deg/s) with no hand held (``torque_nm``: read torque toward the region, N m)."""
+    """Whether a leader moving in (deg/s) outruns its setpoint with no hand held (torque, N m)."""
     return toward_deg_s > walk_deg_s + law.outrun_deg_s and torque_nm < law.loose_nm
 
 

@@ -19,8 +19,7 @@ MOVING_MIN_DEG = 1e-3
 
 @dataclass(frozen=True)
 class Explanation:
-    """The gate's outcome for a reader: ``words``, and the ``blocked`` joint directions
-    ("+pan", "-pan", "+tilt", "-tilt"), pan first."""
+    """The gate's outcome for a reader: ``words``, and the ``blocked`` joint directions."""
 
     words: str
     blocked: tuple[str, ...] = ()
@@ -31,8 +30,7 @@ def blocked_directions(
     written_deg: tuple[float, float],
     previous_deg: tuple[float, float] | None = None,
 ) -> tuple[str, ...]:
-    """Joint directions the command asks for (gap over :data:`BLOCKED_MIN_DEG`) that the last
-    move goes under half as much as the command does (pan first)."""
+    """Joint directions the command asks for that the last move goes under half as much."""
     gap = [wanted - got for wanted, got in zip(commanded_deg, written_deg, strict=True)]
     move = [0.0, 0.0]
     if previous_deg is not None:

@@ -129,8 +129,7 @@ def goal_lead_rad(law: FeelLaw, motor: LeaderMotor, distance_deg: float, walking
 def lets_go(
     law: FeelLaw, distance_deg: float, moved_in_deg: float, period_s: float, engaged: bool
 ) -> bool:
-    """Whether a leader ``distance_deg`` beyond the edge, moved ``moved_in_deg`` inward in
-    ``period_s``, is left free (``engaged``: the wall pushed the cycle before)."""
+    """Whether a leader ``distance_deg`` beyond, moved ``moved_in_deg`` in, is left free."""
     # outran the setpoint (its loop would pull it outward), or inside the deadband next read
     outrun = moved_in_deg > law.return_speed_deg_s * period_s + law.outrun_slack_deg
     if outrun or distance_deg - moved_in_deg <= law.deadband_deg:

@@ -59,8 +59,7 @@ def held(present: Sequence[float], distance_deg: float = 0.0) -> Push:
 
 
 def beyond_deg(q: np.ndarray, corrected: np.ndarray, joints: int) -> float:
-    """How far (deg) a command (4,) lies beyond its correction (4,): the directions' angle on
-    two joints, the rotation on three."""
+    """How far (deg) a command (4,) lies beyond its correction (4,), in direction or rotation."""
     if np.array_equal(q, corrected):
         return 0.0
     if joints == 3:

@@ -18,8 +18,7 @@ PACE_SLACK = 1.25
 
 
 class Pacer:
-    """The schedule of a loop of period ``period_s`` (s) on ``clock`` (monotonic seconds);
-    ``overruns`` counts spells of cycles started over a period late."""
+    """The schedule of a loop of period ``period_s`` (s); ``overruns`` counts late spells."""
 
     def __init__(self, period_s: float, clock: Callable[[], float] = time.perf_counter) -> None:
         self.period_s = float(period_s)
@@ -66,8 +65,7 @@ class Pacer:
 
 
 class PaceWatch:
-    """Whether the loop keeps the rate ``rate_hz`` (Hz) the wall was made passive for, on
-    ``clock`` (monotonic seconds)."""
+    """Whether the loop keeps the rate ``rate_hz`` (Hz) the wall was made passive for."""
 
     def __init__(self, rate_hz: float, clock: Callable[[], float] = time.perf_counter) -> None:
         self.limit_s = PACE_SLACK / rate_hz

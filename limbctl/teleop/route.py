@@ -150,8 +150,7 @@ class Router:
         return all(self.inside(pts[k - 1]) for k in order)
 
     def wanted(self, target_q: np.ndarray, progress: float, moved: float, max_step: float) -> bool:
-        """Whether to route this cycle: the plain step came ``progress`` rad nearer, under
-        STUCK_FRACTION of ``max_step``, or ``moved`` over a step, or routing began for it."""
+        """Whether to route this cycle: the plain step made too little ``progress`` or jumped."""
         if self._engaged is not None and self._near_target(self._engaged, target_q):
             return True
         self._engaged = None
@@ -219,8 +218,7 @@ class Router:
         return points
 
     def _waypoints(self, d_cur, tau_cur, dirs: np.ndarray, target_q: np.ndarray) -> np.ndarray:
-        """Poses (K, 4) at directions ``dirs`` (K, 3), twist linear from ``tau_cur`` to the
-        target's, corrected where outside."""
+        """Poses (K, 4) at directions ``dirs`` (K, 3), twist linear to the target's, corrected."""
         if not self.twist:
             return swing_from_direction(dirs)
         d_t, tau_t = _split(target_q, True)

@@ -116,8 +116,7 @@ class SnapWatch:
         now_s: float,
         torque_nm: Sequence[float] | None = None,
     ) -> bool:
-        """Whether a wall toward ``goal`` (rad) may push at ``now_s`` (s): not re-arming on a
-        leader moving in, nor on a snap, nor when the brake rules free it."""
+        """Whether a wall toward ``goal`` (rad) may push at ``now_s`` (s) by the rules."""
         unit = unit_step(present, goal)
         if unit is None:
             return True
@@ -137,8 +136,7 @@ class SnapWatch:
     def still(
         self, present: Sequence[float], goal: Sequence[float], velocity_deg_s: Sequence[float]
     ) -> bool:
-        """Whether a leader at ``present`` (rad) at ``velocity_deg_s`` (deg/s) is not moving in
-        toward ``goal``; the state is left as it is."""
+        """Whether a leader at ``present`` (rad) at ``velocity_deg_s`` (deg/s) is not moving in."""
         unit = unit_step(present, goal)
         return unit is None or along(velocity_deg_s, unit) <= self.law.rearm_speed_deg_s
 
@@ -151,8 +149,7 @@ class SnapWatch:
         engaged: bool,
         now_s: float,
     ) -> None:
-        """After a cycle's write: arm when the wall (``goal``, None if free) holds a still leader
-        against a hand, else disarm."""
+        """After a cycle's write: arm on a wall holding a still leader, else disarm."""
         unit = None if goal is None else unit_step(present, goal)
         if unit is None:
             self.disarm()
@@ -186,7 +183,6 @@ class SnapWatch:
         now_s: float,
         torque_nm: Sequence[float] | None = None,
     ) -> bool:
-        """Between cycles: whether the wall must go at this read of speed (deg/s) and torque
-        (N m; None: not read) at ``now_s`` (s)."""
+        """Between cycles: whether the wall must go at this read (deg/s; N m)."""
         self.reads += 1
         return self.judge(velocity_deg_s, now_s, torque_nm)

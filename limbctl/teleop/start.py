@@ -147,8 +147,7 @@ def assess(margins: SphereMargins, pose: tuple[float, ...], waited_s: float = 0.
 
 @dataclass(frozen=True)
 class StartOutcome:
-    """How the start went (``how``: "inside", "moved by hand", "approached", "timed out",
-    "stopped" or "bus failure")."""
+    """How the start went (``how``: "inside", "moved by hand", "approached", "timed out", ...)."""
 
     started: bool
     how: str

@@ -99,8 +99,7 @@ def check_request(request: web.Request, access: Access, websocket: bool) -> Verd
 
 
 class ControlDesk:
-    """The one controller slot and the sink its text goes to (thread-safe): the app attaches the
-    page source's ``feed``; the server claims, forwards and releases for each page."""
+    """The one controller slot and the sink its text goes to (thread-safe)."""
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
@@ -134,8 +133,7 @@ class ControlDesk:
             return self._holder_text or "nobody yet: open the address with the key"
 
     def claim(self, token: object, who: str, tab: str = "", reload: bool = False) -> bool:
-        """Give the slot to ``token`` if it is free, or with ``reload`` held by the same ``tab``;
-        whether it holds it now."""
+        """Give the slot to ``token`` if free or ``reload``-ed by its ``tab``; whether it has it."""
         with self._lock:
             taken = self._holder is not None and self._holder is not token
             same_tab = reload and bool(tab) and tab == self._holder_tab
@@ -193,8 +191,7 @@ def describe_peer(request: web.Request, name: str = "") -> str:
 
 
 def tab_of(request: web.Request) -> tuple[str, str, str]:
-    """The page's ``(tab id, tab name, want)`` from its query, cut to size (an unknown ``want`` is
-    ``take``)."""
+    """The page's ``(tab id, tab name, want)`` from its query, cut to size."""
     query = request.query
     tab = query.get("tab", "")[:MAX_TAB_ID_CHARS]
     name = "".join(c for c in query.get("name", "") if c.isprintable())[:MAX_TAB_NAME_CHARS]

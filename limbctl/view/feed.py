@@ -54,8 +54,7 @@ class PoseTap:
         return pose
 
     def set_twist_map(self, twist: TwistMap) -> None:
-        """The twist taught so far: the gauge's range from now on, shown at once (call from the
-        thread that reads the limb)."""
+        """The twist taught so far, the gauge's range (call from the thread reading the limb)."""
         self.twist_map = twist
         if self._last is not None:
             self._publish()
@@ -159,8 +158,7 @@ class SceneFeeder:
                 self._stop.wait(remaining)
 
     def wake_time(self, scene_due: float) -> float:
-        """When the idle feeder wakes next (monotonic s): ``scene_due``, or sooner when a fit waits
-        only for :data:`REFIT_PERIOD_S` since the last start (even if that moment has passed)."""
+        """When the idle feeder wakes next (monotonic s): ``scene_due`` or sooner for a fit."""
         if self._refit_waiting:
             return min(scene_due, self._last_start + REFIT_PERIOD_S)
         return scene_due

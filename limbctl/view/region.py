@@ -144,8 +144,7 @@ def fit_outline(pan_tilt_rad: np.ndarray) -> RegionFit:
 
 
 def serve_fits(connection) -> None:
-    """The fit process: answer each array of samples with its :class:`RegionFit`, on one numba
-    thread (the recorder, the bus and the loop come first)."""
+    """The fit process: answer each array of samples with its :class:`RegionFit`, on one thread."""
     numba.set_num_threads(1)
     while True:
         samples = connection.recv()
@@ -155,8 +154,7 @@ def serve_fits(connection) -> None:
 
 
 class FitProcess:
-    """:func:`fit_outline` in its own process, one fit at a time: ``submit`` returns at once,
-    ``result`` is the fit once done (None before)."""
+    """:func:`fit_outline` in its own process, one fit at a time."""
 
     def __init__(self) -> None:
         context = multiprocessing.get_context("spawn")

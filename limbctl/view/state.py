@@ -227,8 +227,7 @@ class Snapshot:
 
 
 class Board:
-    """The latest :class:`Live` and :class:`Scene`, swapped under a lock (O(1), from any thread,
-    never waiting on a client); the server reads :meth:`snapshot` at its own pace."""
+    """The latest :class:`Live` and :class:`Scene`, swapped under a lock from any thread."""
 
     def __init__(self) -> None:
         self._lock = threading.Lock()

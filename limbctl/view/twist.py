@@ -107,8 +107,7 @@ def taught_gauge(twist: TwistMap | None, pan: float, tilt: float, roll: float) -
 
 
 def band_gauge(band, pose: tuple[float, float, float], written: float | None) -> TwistGauge:
-    """The teleop gauge: the pose's (rad) twist against the learned ``band`` at its direction;
-    ``written`` twist (rad) or None."""
+    """The teleop gauge: the pose's (rad) twist against the learned ``band`` at its direction."""
     d, tau = decompose_one(pose_quat_scalar(*pose))
     c, h = band.at(np.asarray(d, dtype=np.float64))
     centre, half = float(c[0]), float(h[0])
@@ -122,8 +121,7 @@ def band_gauge(band, pose: tuple[float, float, float], written: float | None) ->
 
 
 def taught_map(places, cell_deg: float, min_samples: int) -> TwistMap:
-    """The twist guide's ``TwistPlace`` cells as a :class:`TwistMap` of ``cell_deg`` cells; cells
-    under ``min_samples`` samples are ``few``."""
+    """The twist guide's ``TwistPlace`` cells as a :class:`TwistMap` (few samples: ``few``)."""
     cells = [(p.pan_index, p.tilt_index, p.low_deg, p.high_deg) for p in places]
     states = [
         "few" if p.samples < min_samples else "turned" if p.turned else "short" for p in places

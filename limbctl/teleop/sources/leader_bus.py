@@ -151,8 +151,7 @@ class LeaderBus:
             self._zero_current()
 
     def _write(self, push: Push) -> None:
-        """One sync write of Goal Current and Goal Position; Torque Enable off and on first when
-        the wall comes on, Profile Velocity once with it."""
+        """One sync write of Goal Current and Goal Position (torque cycled as the wall comes on)."""
         ticks = self.rig.angles_to_ticks(*push.goal)  # the goal's ticks, kept to one turn below
         currents = push.currents(len(self.leader_ids))
         data = {

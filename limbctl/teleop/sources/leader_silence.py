@@ -16,8 +16,7 @@ PROBE_INTERVAL_S = 0.05
 
 @dataclass
 class LeaderSilence:
-    """The leader's silent servos (times perf_counter s): each ended ``dropouts``, the failed
-    reads (``misses``) and the longest one took (``longest_failed_read_s``, s)."""
+    """The leader's silent servos: their dropouts, failed reads and the longest one (s)."""
 
     dropouts: list[Dropout] = field(default_factory=list)
     misses: int = 0

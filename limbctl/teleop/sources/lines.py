@@ -149,8 +149,7 @@ def _peek_time(raw: bytes, twist: bool = False) -> float | None:
 
 
 class PageSource(CommandSource):
-    """Commands from the page that holds control of the live view; ``connect(feed)`` attaches
-    ``feed`` to its controller and returns ``(detach, holder)`` (see :data:`Connect`)."""
+    """Commands from the page that holds control of the live view (``connect``: :data:`Connect`)."""
 
     name = "page"
     latest_only = True
