@@ -63,10 +63,9 @@ class GateLimits:
     ----------
     joint_min, joint_max : tuple of float, shape (J,)
         Hard joint limits (rad) in chain order; J = 2 or 3 picks the chain.
-    max_step : float
-        Largest move of the limb per cycle (rad; direction or SO(3) geodesic).
-    max_joint_step : float
-        Largest change of any joint per cycle (rad), for the singularity at tilt +-90 deg.
+    max_step, max_joint_step : float
+        Largest move of the limb per cycle (rad; direction or SO(3) geodesic); largest change of
+        any joint per cycle (rad), for the singularity at tilt +-90 deg.
     region_tolerance : float
         How far (rad) outside the learned region a written pose may be.
     """

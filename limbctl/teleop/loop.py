@@ -51,25 +51,20 @@ class LoopConfig:
 
     Attributes
     ----------
-    rate_hz : float
-        Cycle rate (Hz); 200: 0.6 deg a cycle at 120 deg/s, real servos keep up (README).
-    silence_s : float
-        After this long (s) without a valid command the gate holds; 0.5: a person sees a stall.
-    max_failed_cycles : int
-        Failed reads in a row, no silent servo named, before the safe state; 20: 100 ms.
-    read_attempts : int
-        Tries of the cycle's read before the cycle holds; 2 rides through one lost reply.
-    health : HealthLimits
-        When a silent servo is lost, and how far and how long a servo may lag its goal.
-    safe_state : SafeState
-        Where a fault leaves the rig.
-    duration_s : float or None
-        Stop after this long (None: until the source ends or Ctrl-C).
-    max_backlog : int
-        Most commands of a scripted stream waiting to be gated (older skipped); 20: 100 ms.
+    rate_hz, silence_s : float
+        Cycle rate (Hz; 200: 0.6 deg a cycle at 120 deg/s, real servos keep up, README); after this
+        long (s) without a valid command the gate holds (0.5: a person sees a stall).
+    max_failed_cycles, read_attempts : int
+        Failed reads in a row, no silent servo named, before the safe state (20: 100 ms); tries of
+        the cycle's read before the cycle holds (2 rides through one lost reply).
+    health, safe_state : HealthLimits, SafeState
+        When a silent servo is lost, how far and long a servo may lag; where a fault leaves the rig.
+    duration_s, max_backlog : float or None, int
+        Stop after this long (None: at the source's end or Ctrl-C); most commands of a scripted
+        stream waiting to be gated (older skipped; 20: 100 ms).
     on_cycle : callable (Cycle) -> None, optional
-        Called in the loop's thread with every cycle; must return at once. Its exceptions
-        propagate out of :func:`run`.
+        Called in the loop's thread with every cycle; must return at once (its exceptions
+        propagate out of :func:`run`).
     """
 
     rate_hz: float = 200.0
