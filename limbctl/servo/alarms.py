@@ -40,9 +40,8 @@ def _torque_clause(servo_id: int, torque_on: bool | None) -> str:
 def alarm_message(
     found: Mapping[int, tuple[str, ...]], torque_on: Mapping[int, bool | None] | None = None
 ) -> str:
-    """The message of a :class:`limbctl.errors.ServoAlarm`: ``found`` maps ids with bits set to
-    their decoded bits, ``torque_on`` ids to Torque Enable as reported (missing: unread; None:
-    the alarm alone)."""
+    """The message of a :class:`limbctl.errors.ServoAlarm` for ``found`` (id -> decoded bits) and
+    ``torque_on`` (id -> Torque Enable as reported; missing: unread; None: the alarm alone)."""
     detail = "; ".join(f"servo {i}: {', '.join(bits)}" for i, bits in found.items())
     advice = "; ".join(_advice(bits) for bits in found.values())
     if torque_on is None:

@@ -70,9 +70,9 @@ def indirect_map(registers: Sequence[Register] = CYCLE_REGISTERS) -> bytes:
 
 @dataclass(frozen=True)
 class ServoReport:
-    """One servo's part of a cycle read: its Present and Goal Position (ticks), Torque Enable,
-    decoded Hardware Error Status (empty: healthy), Present PWM (signed) and its PWM Limit (read
-    at set-up), where its drive saturates."""
+    """One servo's part of a cycle read: Present and Goal Position (ticks), Torque Enable, Hardware
+    Error Status (empty: healthy), Present PWM (signed) and the PWM Limit where its drive
+    saturates."""
 
     present: int
     goal: int
@@ -95,10 +95,9 @@ class ServoReport:
 
 @dataclass(frozen=True)
 class CycleRead:
-    """The outcome of one cycle read, as a value: a :class:`ServoReport` per id that answered, the
-    ``silent`` servos (a failed sync read names the one its reply stops at), why the read is
-    incomplete ('' when every servo answered), how long it took (s) and the ``unread`` silent
-    servos not asked this cycle (waiting for their next probe)."""
+    """One cycle read as a value: a :class:`ServoReport` per id that answered, the ``silent`` ids (a
+    sync read names the one its reply stops at), the ``problem`` ('' if none), its duration (s)
+    and the ``unread`` silent ids not asked this cycle (until their next probe)."""
 
     reports: dict[int, ServoReport]
     silent: tuple[int, ...] = ()

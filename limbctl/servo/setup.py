@@ -30,10 +30,9 @@ def configure_servos(
     profile_velocity: int = 200,
     profile_acceleration: int = 50,
 ) -> None:
-    """Prepare every servo for position control and the cycle read; torque ends OFF.
-    ``position_limits`` (id -> (min_tick, max_tick)) go to Min/Max Position Limit, so the servo
-    itself refuses goals beyond them; Profile Velocity in 0.229 rev/min and Profile Acceleration
-    in 214.577 rev/min^2 units (0: no limit)."""
+    """Prepare every servo for position control and the cycle read, torque ending OFF:
+    ``position_limits`` (id -> (min_tick, max_tick)) in EEPROM, Profile Velocity (0.229 rev/min
+    units) and Acceleration (214.577 rev/min^2 units; 0: no limit)."""
     if set(position_limits) != set(bus.ids):
         raise ConfigError(
             f"position_limits must cover exactly the servos {list(bus.ids)}, "

@@ -32,8 +32,8 @@ def brakes_soon(
     law: BrakeLaw,
 ) -> bool:
     """Whether a leader moving in faster than ``still_deg_s`` (deg/s) has its torque toward the
-    region (``torque_nm``, N m at ``now_s``, s), extrapolated from ``seen`` (torque, time) of the
-    last read, under zero within HORIZON or the gap plus LAND."""
+    region (N m at ``now_s``, extrapolated from the last read's ``seen``) under zero within
+    HORIZON."""
     if toward_deg_s <= still_deg_s:
         return False
     if torque_nm < 0.0:

@@ -25,9 +25,8 @@ class Action(enum.Enum):
 
 @dataclass(frozen=True)
 class KeyBinding:
-    """One action's keys: the ``sequences`` a terminal sends, the ``label`` the guide names
-    them by, what the action ``does``, the (pan, tilt) signs of its ``move`` in steps (left is
-    +pan, seen from behind the limb) and the sign of its ``roll`` step (three-servo rigs)."""
+    """One action's keys: the terminal's ``sequences``, the guide's ``label``, what it ``does``, its
+    (pan, tilt) ``move`` signs in steps (left is +pan) and its ``roll`` sign (three-servo rigs)."""
 
     action: Action
     sequences: tuple[bytes, ...]
@@ -106,9 +105,8 @@ def key_guide(step_deg: float) -> list[str]:
 
 
 class HeldKey:
-    """How far each key event moves: a step per press (a gap over :data:`REPEAT_GAP_S`); held,
-    ``step * KEY_RATE_HZ * (t - run start)`` in all over a run of events within ``HOLD_GAP_S``.
-    """
+    """How far each key event moves: a step per press (a gap over :data:`REPEAT_GAP_S`); held, in
+    all ``step * KEY_RATE_HZ * (t - run start)`` over events within ``HOLD_GAP_S``."""
 
     def __init__(self) -> None:
         self._action: Action | None = None

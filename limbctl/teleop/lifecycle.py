@@ -69,9 +69,8 @@ def run_session(
     torque_was_on: bool = False,
     publish: Callable[[StartStatus], None] | None = None,
 ) -> SessionResult:
-    """Start, open the source (``open_source()``: a context manager, once the limb is held
-    inside), run and park one session; arguments as for :func:`limbctl.teleop.start.start_session`
-    and :func:`limbctl.teleop.loop.run`, ``telemetry_path`` the JSON-lines log of each cycle."""
+    """Start, open the source (``open_source()``, once the limb is held inside), run and park one
+    session (arguments as for :func:`~limbctl.teleop.start.start_session` and loop's ``run``)."""
     stop = stop or threading.Event()
     # opened first: a path that cannot be written is refused before torque may come on
     telemetry_file = open_telemetry(telemetry_path)

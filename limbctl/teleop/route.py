@@ -44,9 +44,8 @@ ON_PATH = 1e-9
 
 
 class Router:
-    """Sub-goals for a gate's slew step, along the region (``envelope``: ``contains``/``correct``
-    on (4,) and, when it can, (N, 4); ``twist``: paths are shortest rotations, else great circles
-    of the limb direction)."""
+    """Sub-goals for a gate's slew step along the region ``envelope`` (``contains``/``correct`` on
+    (4,), maybe (N, 4)); paths are shortest rotations with ``twist``, else great circles."""
 
     def __init__(self, envelope, twist: bool) -> None:
         self.envelope = envelope

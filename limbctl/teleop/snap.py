@@ -11,9 +11,8 @@ from limbctl.teleop.brake import BrakeLaw, brakes_soon, outruns
 
 @dataclass(frozen=True)
 class SnapLaw:
-    """The snap watch's constants (units in their names; ``released`` a fraction of the hold,
-    ``inertia_kg_m2`` the simulated leader's: measure a real one's); docs/haptic.md's table gives
-    each value and its reasoning."""
+    """The snap watch's constants (units in their names; ``inertia_kg_m2`` the simulated leader's);
+    docs/haptic.md's table gives each value and its reasoning."""
 
     snap_speed_deg_s: float = 4.0
     still_speed_deg_s: float = 1.5

@@ -42,8 +42,7 @@ def is_loopback(host: str) -> bool:
 @dataclass(frozen=True)
 class Access:
     """The session's secrets: ``secret`` (``?key=``) steers and watches, ``watch_secret``
-    (``?watch=``) watches when ``watch_needs_key`` (served beyond this machine); ``loopback``:
-    served on a loopback address (the Host header is then checked)."""
+    (``?watch=``) watches when ``watch_needs_key``; ``loopback``: the Host header is checked."""
 
     secret: str
     watch_secret: str

@@ -90,9 +90,8 @@ class PoseTap:
 
 
 class SceneFeeder:
-    """Publishes the scene (samples, the region fitted so far, limits, guide) from its own thread;
-    ``samples()`` returns the samples so far, shape (N, 2), radians (pan, tilt); ``fit``: fit the
-    region in a separate process (False: samples only)."""
+    """Publishes the scene from its own thread: ``samples()`` so far (N, 2) (rad, pan and tilt), the
+    region fitted in a separate process (``fit``; False: samples only), limits and guide."""
 
     def __init__(
         self,

@@ -66,9 +66,9 @@ def build_app(
     desk: ControlDesk | None = None,
     heartbeat_s: float = HEARTBEAT_S,
 ) -> web.Application:
-    """The aiohttp application serving ``board``: ``/``, the assets, ``/ws`` and ``/state.json``;
-    ``access`` decides who watches and steers, ``desk`` is the controller slot, ``heartbeat_s`` (s)
-    the WebSocket ping interval."""
+    """The aiohttp application serving ``board`` (``/``, the assets, ``/ws``, ``/state.json``) to
+    whom ``access`` allows, ``desk`` the controller slot, ``heartbeat_s`` (s) the WebSocket ping
+    interval."""
     access = access or Access.for_host(DEFAULT_HOST)
     desk = desk or ControlDesk()
     app = web.Application()
@@ -163,9 +163,9 @@ def _control_text(desk: ControlDesk, token: object, keyed: bool) -> str:
 
 
 class ViewServer:
-    """The live view served from a background thread; a context manager. ``host``, ``port`` (0:
-    the system chooses), ``desk`` and ``heartbeat_s`` (s) as for :func:`build_app`; :attr:`url`
-    is the address to watch, :attr:`control_url` the one that steers (with the key)."""
+    """The live view served from a background thread (a context manager; ``port`` 0: any):
+    :attr:`url` watches, :attr:`control_url` steers (with the key); the rest as for
+    :func:`build_app`."""
 
     def __init__(
         self,

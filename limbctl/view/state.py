@@ -90,9 +90,9 @@ class GuideFigure:
 
 @dataclass(frozen=True)
 class TeleopStatus:
-    """One teleop cycle as the page shows it: the source's ``commanded`` pose and the ``written``
-    goal (None before there is one), the gate's ``outcome`` by name ("held") and in ``words``, the
-    loop's ``rate_hz`` (Hz), ``cycles`` run and the joint directions ``blocked`` ("+pan", ...)."""
+    """One teleop cycle as the page shows it: ``commanded`` and ``written`` poses (None before one),
+    the gate's ``outcome`` and its ``words``, ``rate_hz`` (Hz), ``cycles`` and ``blocked``
+    directions."""
 
     commanded: PanTilt | None
     written: PanTilt | None

@@ -67,10 +67,9 @@ class TwistMap:
 
 @dataclass(frozen=True)
 class TwistGauge:
-    """The present pose's ``twist_deg`` (deg, in (-180, 180]) against the range ``low_deg`` ..
-    ``high_deg`` (deg; inside when ``low <= twist_deg + 360 k <= high`` for some k; None where
-    nothing is known) allowed or taught at its place, what the range is ``of`` in words, and the
-    twist last written (teleop; else None)."""
+    """The present ``twist_deg`` (deg, in (-180, 180]) against the range ``low_deg`` .. ``high_deg``
+    (deg, inside when ``low <= twist_deg + 360 k <= high``; None: unknown) at its place, the
+    range's ``of`` in words and the twist last ``written`` (teleop; else None)."""
 
     twist_deg: float
     low_deg: float | None = None
