@@ -317,7 +317,7 @@ class ServoBus(CycleReads):
     def write(
         self, register: Register, servo_id: int, value: int, check_alert: bool = True
     ) -> None:
-        """Write ``value`` to ``register`` of one servo and wait for its status."""
+        """Write ``value`` to ``register`` of one servo and await its status (``check_alert``)."""
         data = register.encode(value)
         self._transact(
             f"write {register.name}={value} to servo {servo_id}",
