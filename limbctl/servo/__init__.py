@@ -1,5 +1,1 @@
-"""The servo layer: the Dynamixel bus through the real dynamixel-sdk, and the rig on top of it.
-
-Only this layer knows servo ticks; it imports :mod:`limbctl.errors` and :mod:`calib`, nothing
-above.
-"""
+"""The servo layer (the only one that knows ticks): the Dynamixel bus and the rig on top of it."""

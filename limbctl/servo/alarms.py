@@ -1,5 +1,4 @@
-"""Servo alarms: what a hardware error means for torque (as each servo REPORTS it, since the
-Shutdown mask decides), and the way out (a reboot)."""
+"""Servo alarms: what a hardware error means for torque as each servo reports it, and reboots."""
 
 from __future__ import annotations
 
@@ -41,15 +40,8 @@ def _torque_clause(servo_id: int, torque_on: bool | None) -> str:
 def alarm_message(
     found: Mapping[int, tuple[str, ...]], torque_on: Mapping[int, bool | None] | None = None
 ) -> str:
-    """The message of a :class:`limbctl.errors.ServoAlarm`.
-
-    Parameters
-    ----------
-    found : mapping id -> decoded hardware error bits
-        Only servos with bits set.
-    torque_on : mapping id -> bool, optional
-        Torque Enable as each servo reports it (a missing id: unread); None: the alarm alone.
-    """
+    """The message of a :class:`limbctl.errors.ServoAlarm` for ``found`` (id -> decoded bits) and
+    ``torque_on`` (id -> Torque Enable as reported; missing: unread; None: the alarm alone)."""
     detail = "; ".join(f"servo {i}: {', '.join(bits)}" for i, bits in found.items())
     advice = "; ".join(_advice(bits) for bits in found.values())
     if torque_on is None:
@@ -73,15 +65,7 @@ def _joined(names: list[str]) -> str:
 
 
 def held_torque(torque: Mapping[str, bool], after_alarm: bool = False) -> str:
-    """What the HOLD safe state left, from Torque Enable as each servo reports it afterwards.
-
-    Parameters
-    ----------
-    torque : mapping joint name -> bool
-        Torque Enable per joint, read after the fault.
-    after_alarm : bool
-        The fault was an alarm, whose message already says how to clear it.
-    """
+    """What the HOLD safe state left, from ``torque`` (joint -> Torque Enable, read after)."""
     on = [name for name, enabled in torque.items() if enabled]
     off = [name for name, enabled in torque.items() if not enabled]
     if not off:
@@ -92,13 +76,7 @@ def held_torque(torque: Mapping[str, bool], after_alarm: bool = False) -> str:
 
 
 def switched_off(reported: Mapping[str, bool | None]) -> str:
-    """What the TORQUE_OFF safe state says once every servo's torque is off.
-
-    Parameters
-    ----------
-    reported : mapping joint name -> bool or None
-        Torque Enable per joint as its last read before the fault reported it (None: unknown).
-    """
+    """What TORQUE_OFF says, from ``reported`` (joint -> last Torque Enable read; None: unknown)."""
     already = [name for name, enabled in reported.items() if enabled is False]
     switched = [name for name in reported if name not in already]
     if not already:

@@ -1,9 +1,4 @@
-"""The servo bus: the real dynamixel-sdk (Protocol 2.0) with retries, typed errors and alarms.
-
-Every transaction is retried within a bounded budget; what still fails raises a
-:class:`~limbctl.errors.BusError`. A status packet's alert bit does not stop its transaction;
-then the bus reads the alerting servos' Hardware Error Status and raises :class:`ServoAlarm`.
-"""
+"""The servo bus: the dynamixel-sdk (Protocol 2.0) with bounded retries, typed errors and alarms."""
 
 from __future__ import annotations
 
@@ -71,18 +66,14 @@ class ServoBus(CycleReads):
 
     Parameters
     ----------
-    port : str
-        Serial device path, e.g. ``/dev/ttyUSB0`` or the simulator's pty link.
-    baud : int
-        Bit rate the servos are set to (the rig profile's ``baud``).
+    port, baud : str, int
+        Serial device path (``/dev/ttyUSB0``, the simulator's pty link); bit rate (bit/s).
     ids : sequence of int
         Servo ids, e.g. ``(1, 2)`` for (pan, tilt).
     model : str or None
-        Expected model name (``"xl430-w250"`` / ``"xm430-w350"``); None accepts either.
-    retry_budget_s : float
-        Time within which a failing transaction is retried.
-    max_attempts : int
-        Most tries per transaction (at least 1).
+        Expected model name (``"xl430-w250"``); None accepts any supported.
+    retry_budget_s, max_attempts : float, int
+        Time (s) within which a failing transaction is retried; most tries (at least 1).
     fast_sync_read : bool or None
         Force Fast Sync Read on/off; None decides from firmware version and a probe.
     latency_timer_ms : float
@@ -228,8 +219,7 @@ class ServoBus(CycleReads):
         attempts: int | None = None,
         patient: bool = False,
     ) -> Any:
-        """Run ``attempt`` until it succeeds or ``attempts`` (default ``max_attempts``) or the
-        budget (``transfers.PATIENT_BUDGET_S`` if ``patient``) run out."""
+        """Run ``attempt`` until it succeeds, or its tries or budget (``patient``: longer) end."""
         with self._lock:
             port = self._require_port()
             self.stats.transactions += 1
@@ -327,8 +317,7 @@ class ServoBus(CycleReads):
     def write(
         self, register: Register, servo_id: int, value: int, check_alert: bool = True
     ) -> None:
-        """Write ``value`` to ``register`` of one servo and wait for its status (EEPROM needs
-        torque off; ``check_alert=False``: a servo in alarm does not raise)."""
+        """Write ``value`` to ``register`` of one servo and await its status (``check_alert``)."""
         data = register.encode(value)
         self._transact(
             f"write {register.name}={value} to servo {servo_id}",
@@ -408,8 +397,7 @@ class ServoBus(CycleReads):
         self.sync_write(Register.GOAL_POSITION, {i: int(t) for i, t in goals.items()})
 
     def set_torque(self, enabled: bool, ids: Sequence[int] | None = None) -> None:
-        """Torque on or off, servo by servo; off ignores alarms and tries every servo before
-        raising the first failure."""
+        """Torque on or off, servo by servo; off ignores alarms and tries every servo first."""
         if enabled:
             for servo_id in self._known(ids):
                 self.write(Register.TORQUE_ENABLE, servo_id, 1)
@@ -432,8 +420,7 @@ class ServoBus(CycleReads):
         return self._lock
 
     def reboot(self, servo_id: int, timeout_s: float = 3.0) -> None:
-        """Reboot one servo (clears an alarm shutdown; torque off, RAM at defaults) and wait
-        until it answers again."""
+        """Reboot one servo (clears an alarm; torque off, RAM reset) and wait for its answer."""
         self._known([servo_id])
         with self._lock:
             self._transact(

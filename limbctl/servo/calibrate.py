@@ -1,7 +1,4 @@
-"""Guided, hand-held calibration: find each joint's zero tick and direction, write a profile.
-
-With torque off a person holds the limb still at rest, turned left, raised and (roll) turned.
-"""
+"""Guided, hand-held calibration: each joint's zero tick and direction, written to a profile."""
 
 from __future__ import annotations
 
@@ -52,8 +49,7 @@ def wait_still(
     timeout_s: float,
     stop: threading.Event,
 ) -> tuple[int, int]:
-    """Read until the limb is still for ``STILL_S`` at a pose ``accept`` likes; its mean ticks
-    (failed reads are skipped, up to ``MAX_FAILED_READS`` in a row)."""
+    """The mean ticks once the limb is still for ``STILL_S`` at a pose ``accept`` likes."""
     window: deque[tuple[float, tuple[int, int]]] = deque()
     deadline = time.monotonic() + timeout_s
     failed_in_a_row = 0

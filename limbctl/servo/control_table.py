@@ -1,10 +1,4 @@
-"""The X-series (Protocol 2.0) registers, model numbers and error codes limbctl uses.
-
-Every register access goes through :class:`Register`. Addresses are the e-Manual's, shared by
-the 430, 540 and 330 families (:mod:`limbctl.servo.families` holds what differs). A status
-packet's error byte: bit 7 the *alert* bit (a hardware error is set), bits 0-6 a
-:class:`StatusError`.
-"""
+"""The X-series (Protocol 2.0) registers, model numbers and error codes limbctl uses."""
 
 from __future__ import annotations
 
@@ -15,8 +9,6 @@ from enum import Enum, IntEnum, IntFlag
 TICKS_PER_REV = 4096
 #: Largest Goal/Present Position tick in single-turn Position Control Mode.
 MAX_TICK = TICKS_PER_REV - 1
-#: First RAM address; everything below is EEPROM (written only with torque off).
-EEPROM_END = 64
 #: Firmware version from which X-series servos answer Fast Sync Read (instruction 0x8A).
 FAST_SYNC_READ_MIN_FIRMWARE = 45
 #: The alert bit of a status packet's error byte.
@@ -82,11 +74,6 @@ class Register(Enum):
         self.address = address
         self.size = size
         self.signed = signed
-
-    @property
-    def is_eeprom(self) -> bool:
-        """True when the register lives in EEPROM (writable only with torque off)."""
-        return self.address < EEPROM_END
 
     @property
     def min_value(self) -> int:

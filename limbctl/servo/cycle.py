@@ -1,5 +1,4 @@
-"""The control cycle's ONE sync read: :data:`CYCLE_REGISTERS` mapped onto Indirect Data by
-set-up (:func:`limbctl.servo.setup.configure_servos`); one read per Indirect Data address."""
+"""The control cycle's ONE sync read of :data:`CYCLE_REGISTERS`, mapped onto Indirect Data."""
 
 from __future__ import annotations
 
@@ -36,8 +35,6 @@ assert CYCLE_BYTES <= INDIRECT_SLOTS
 
 #: PWM Limit (36) as the XL430-W250 and XM430-W350 leave the factory: Present PWM's full scale.
 FACTORY_PWM_LIMIT = 885
-
-
 #: Bits per byte on the wire: start, 8 data, stop.
 BITS_PER_BYTE = 10
 #: The baud :func:`wire_budget` advises: every family runs at it, a 200 Hz loop fits easily.
@@ -73,21 +70,9 @@ def indirect_map(registers: Sequence[Register] = CYCLE_REGISTERS) -> bytes:
 
 @dataclass(frozen=True)
 class ServoReport:
-    """One servo's part of a cycle read.
-
-    Attributes
-    ----------
-    present, goal : int
-        Present and Goal Position (ticks).
-    torque_on : bool
-        Torque Enable.
-    hardware_error : tuple of str
-        Decoded Hardware Error Status (empty = healthy).
-    pwm : int
-        Present PWM, signed, at most ``pwm_limit`` in magnitude.
-    pwm_limit : int
-        The servo's PWM Limit (read at set-up), where its drive saturates.
-    """
+    """One servo's part of a cycle read: Present and Goal Position (ticks), Torque Enable, Hardware
+    Error Status (empty: healthy), Present PWM (signed) and the PWM Limit where its drive
+    saturates."""
 
     present: int
     goal: int
@@ -110,21 +95,9 @@ class ServoReport:
 
 @dataclass(frozen=True)
 class CycleRead:
-    """The outcome of one cycle read, as a value.
-
-    Attributes
-    ----------
-    reports : dict
-        Servo id -> :class:`ServoReport` of each servo that answered.
-    silent : tuple of int
-        Servos that did not answer (a failed sync read names the one its reply stops at).
-    problem : str
-        Why the read is incomplete ('' when every servo answered).
-    duration_s : float
-        How long the read took (s).
-    unread : tuple of int
-        Silent servos not asked this cycle (waiting for their next probe).
-    """
+    """One cycle read as a value: a :class:`ServoReport` per id that answered, the ``silent`` ids (a
+    sync read names the one its reply stops at), the ``problem`` ('' if none), its duration (s)
+    and the ``unread`` silent ids not asked this cycle (until their next probe)."""
 
     reports: dict[int, ServoReport]
     silent: tuple[int, ...] = ()
@@ -149,8 +122,7 @@ def read_around_silent(
     probe: Sequence[int],
     attempts: int,
 ) -> CycleRead:
-    """One cycle's read of the servos not ``silent``, and of each in ``probe`` alone, one try
-    (a gone servo costs one timeout, not the others' reply); the rest are ``unread``."""
+    """One cycle's read of the servos not ``silent``, and of each in ``probe`` alone, one try."""
     parts = []
     answering = [i for i in ids if i not in silent]
     if answering:
@@ -227,8 +199,7 @@ class CycleReads:
         )
 
     def read_cycle(self, ids: Sequence[int] | None = None, attempts: int = 1) -> CycleRead:
-        """Each servo's :class:`ServoReport` in ONE (fast) sync read of ``attempts`` tries; a
-        failed read is a value, only a failing port raises (:class:`PortError`)."""
+        """Each servo's :class:`ServoReport` in ONE (fast) sync read; only a failing port raises."""
         groups: dict[int, list[int]] = {}
         for servo_id in self._known(ids):
             groups.setdefault(self.indirect_at.get(servo_id, CYCLE_BLOCK.address), []).append(

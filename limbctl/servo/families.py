@@ -10,29 +10,7 @@ from limbctl.servo.control_table import ModelNumber, OperatingMode
 
 @dataclass(frozen=True)
 class Family:
-    """What one X-series family has that others do not.
-
-    Attributes
-    ----------
-    models : dict
-        :class:`ModelNumber` -> profile name (``"xl330-m288"``).
-    rated_v : tuple of float
-        The e-Manual's input voltage range and recommended supply (V): ``(lo, hi, nominal)``.
-    voltage_limits : tuple of int
-        Factory Min/Max Voltage Limit (32, 34), in 0.1 V: outside it the servo alarms.
-    temperature_limit : int
-        Factory Temperature Limit (31), deg C.
-    shutdown : int
-        Factory Shutdown (63) bits.
-    current_unit_ma : float or None
-        Unit of Present Current (126), mA; None where 126 is Present Load (0.1 %).
-    bauds : tuple of int
-        Baud rates (bit/s) it runs at, by Baud Rate register value.
-    indirect_slots : int
-        Indirect Address/Data pairs from 168.
-    indirect_data : tuple of int
-        Where Indirect Data 1 may be (probed in this order).
-    """
+    """What one X-series family has that others do not (the columns of :data:`FAMILIES`)."""
 
     name: str
     models: dict[ModelNumber, str]
@@ -70,9 +48,11 @@ _X330_INDIRECT = (20, (224, 208))
 _X430_INDIRECT = (28, (224,))
 
 # fmt: off
-#: Every family limbctl knows, by name. Columns as :class:`Family`: models; rated input voltage
-#: (lo, hi, recommended, V); factory voltage limits (0.1 V); temperature limit (deg C); Shutdown
-#: bits; Present Current unit (mA, None: Present Load); operating modes; bauds; indirect block.
+#: Every family limbctl knows, by name. Columns as :class:`Family`: models (model number ->
+#: profile name); rated input voltage (lo, hi, recommended, V); factory voltage limits (32, 34;
+#: 0.1 V); temperature limit (31; deg C); Shutdown (63) bits; Present Current (126) unit (mA,
+#: None: Present Load, 0.1 %); operating modes; bauds by register value; indirect slots from
+#: 168 and where Indirect Data 1 may be (probed in order).
 FAMILIES: dict[str, Family] = {f.name: f for f in (
     Family("XL330",   {_M.XL330_M077: "xl330-m077", _M.XL330_M288: "xl330-m288"},
            (3.7, 6.0, 5.0),    (35, 70),   70, 53, 1.0,  _CURRENT, _4M,  *_X330_INDIRECT),

@@ -1,5 +1,4 @@
-"""Per-cycle health of the servos, judged from each :class:`limbctl.servo.cycle.CycleRead`:
-silent, lost, torque off, alarm, or not following (docs/safety.md)."""
+"""Per-cycle servo health: silent, lost, torque off, alarm, or not following (docs/safety.md)."""
 
 from __future__ import annotations
 
@@ -11,7 +10,6 @@ from limbctl.servo.alarms import alarm_message
 from limbctl.servo.control_table import TICKS_PER_REV
 from limbctl.servo.cycle import CycleRead, ReadCycle, ServoReport, read_around_silent
 
-#: Degrees per encoder tick.
 DEG_PER_TICK = 360.0 / TICKS_PER_REV
 
 
@@ -21,26 +19,21 @@ class HealthLimits:
 
     Attributes
     ----------
-    lost_after_s : float
-        A servo silent this long is lost (s): the budget for noticing a fault (issue 13).
+    lost_after_s, probe_interval_s : float
+        A servo silent this long is lost (s): the budget for noticing a fault (issue 13); how often
+        a silent servo is probed (s): one reply timeout (~12 ms) per interval.
     named_after_misses : int
         Missed reads in a row before a servo is named silent (the read already had two tries).
-    probe_interval_s : float
-        How often a silent servo is probed (s): one reply timeout (~12 ms) per interval.
-    max_tracking_error_deg : float
-        Largest |present - goal| of a following servo (deg): a healthy one lags <= 3.6 deg.
-    tracking_grace_s : float
-        How long the error may exceed that (s): a full-speed reversal takes 0.26 s.
-    progress_window_s : float
-        Span over which a lagging servo's progress is measured (s): several ticks of motion.
-    min_progress_deg : float
-        Progress per window (or per ``blocked_window_s``) that counts as following (deg).
-    pwm_saturation : float
-        Fraction of PWM Limit at which the drive is saturated (healthy moves: <= 31 %).
-    blocked_error_deg : float
-        Distance from its goal (deg) at which a saturated servo counts as blocked (> 3.6 deg).
-    blocked_window_s : float
-        How long (s) saturated and off its goal without closing in: 30 reads at 200 Hz.
+    max_tracking_error_deg, tracking_grace_s : float
+        Largest |present - goal| of a following servo (deg; a healthy one lags <= 3.6 deg), and how
+        long (s) the error may exceed it (a full-speed reversal takes 0.26 s).
+    progress_window_s, min_progress_deg : float
+        Span (s) over which a lagging servo's progress is measured (several ticks of motion); the
+        progress per window (or per ``blocked_window_s``) that counts as following (deg).
+    pwm_saturation, blocked_error_deg, blocked_window_s : float
+        Fraction of PWM Limit at which the drive is saturated (healthy moves: <= 31 %); distance
+        from its goal (deg, > 3.6) and time (s, 30 reads at 200 Hz) saturated without closing in
+        that count as blocked.
     """
 
     lost_after_s: float = 0.5

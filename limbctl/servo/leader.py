@@ -1,9 +1,4 @@
-"""A leader's servos in current-based position mode (5): which models can, and their set-up.
-
-Each cycle's command is one sync write of :data:`FEEL_DATA`; the cycle read carries Present
-Current (the torque's sign while braking) and Present Velocity (a let go shows there first) in
-the slots a follower uses for Present PWM and Goal Position.
-"""
+"""A leader's servos in current-based position mode (5): which models can, and their set-up."""
 
 from __future__ import annotations
 
@@ -28,23 +23,12 @@ if TYPE_CHECKING:
 
 @dataclass(frozen=True)
 class LeaderMotor:
-    """What the controller needs of a current-sensing model's motor.
-
-    Attributes
-    ----------
-    stall_torque_nm, stall_current_ma : float
-        The e-Manual's stall torque (N m) at its stall current (mA).
-    current_unit_ma : float
-        One unit of Goal Current / Current Limit / Present Current (mA).
-    max_current_units : int
-        The Current Limit's factory maximum (units).
-    loop_stall_error_deg : float
-        Position error (deg) at which the factory-gain loop asks for stall torque: 2 deg is the
-        simulator's (the e-Manual gives none; measure it on real servos).
-    let_go_cap_nm : float or None
-        A cap (N m) for a loop so soft that a released leader would snap back faster than
-        30 deg/s (docs/haptic.md); None: none.
-    """
+    """What the controller needs of a current-sensing model's motor: the e-Manual's stall torque
+    (N m) at its stall current (mA), one current unit (mA) and the Current Limit's factory
+    maximum (units); ``loop_stall_error_deg``: the position error (deg) at which the factory-gain
+    loop asks for stall torque (2: the simulator's; measure a real one's); ``let_go_cap_nm``: a
+    cap (N m) for a loop so soft that a released leader would snap back over 30 deg/s
+    (docs/haptic.md)."""
 
     stall_torque_nm: float
     stall_current_ma: float
@@ -77,8 +61,7 @@ class LeaderMotor:
 CAP_STALL_FRACTION = 0.5
 
 
-#: Models whose leader can push back, by the e-Manual; the XL330-M288's 0.12 N m cap is the
-#: largest that returned a released leader under 30 deg/s (docs/bench_haptic_models.md).
+#: Models whose leader can push back; XL330-M288's cap: docs/bench_haptic_models.md.
 FELT_MODELS: dict[ModelNumber, LeaderMotor] = {
     ModelNumber.XM430_W350: LeaderMotor(4.1, 2300.0, 2.69, 1193),
     ModelNumber.XL330_M077: LeaderMotor(0.215, 1470.0, 1.0, 1750),

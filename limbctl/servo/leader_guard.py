@@ -1,8 +1,4 @@
-"""A felt leader's guard: a second process that makes the leader limp when its controller dies.
-
-It reads EOF on a pipe the moment the controller is gone; without ``done`` first it writes Torque
-Enable 0 to each leader servo (a tripped Bus Watchdog would leave it holding: docs/haptic.md).
-"""
+"""A second process that makes a felt leader limp when its controller dies (docs/haptic.md)."""
 
 from __future__ import annotations
 
@@ -81,7 +77,7 @@ class LeaderGuard:
         """A clean end: tell the guard to exit touching nothing and wait; None. Safe twice."""
         fd, self._write_fd = self._write_fd, None
         if fd is None:
-            return None
+            return
         try:
             os.write(fd, DONE)
         except OSError:
@@ -93,7 +89,6 @@ class LeaderGuard:
         except subprocess.TimeoutExpired:
             self.process.kill()  # it never read its pipe: nothing it could still do matters
             self.process.wait()
-        return None
 
 
 def wait_for_controller(fd: int) -> bool:
@@ -107,8 +102,7 @@ def wait_for_controller(fd: int) -> bool:
 def switch_off(
     port: str, baud: int, left: list[int], latency_timer_ms: float, failures: dict
 ) -> None:
-    """Torque Enable 0 on each servo of ``left`` (removed once it answered), each on its own
-    bus; ``failures`` keeps each servo's last failure."""
+    """Torque Enable 0 on each servo of ``left`` (removed once done), ``failures`` by servo."""
     while left:
         for servo_id in list(left):
             bus = GuardBus(port, baud, (servo_id,), retry_budget_s=RETRY_BUDGET_S)
@@ -130,8 +124,7 @@ def _give_up(signum: int, frame: FrameType | None) -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m limbctl.servo.leader_guard --fd N --port P --baud B --ids 3,4``; exit 0 on a
-    clean end or with the leader switched off, 1 when it gave up."""
+    """Run the guard (``--fd N --port P --baud B --ids 3,4``); 0: clean end or limp, 1: gave up."""
     parser = argparse.ArgumentParser(prog="limbctl.servo.leader_guard")
     parser.add_argument("--fd", type=int, required=True)
     parser.add_argument("--port", required=True)

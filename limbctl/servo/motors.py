@@ -1,8 +1,4 @@
-"""Set up servos out of the box for a rig profile's joints, one servo at a time (README).
-
-The one connected servo, found at any baud, gets its ID, baud, Return Delay Time 0 and Status
-Return Level 2; only differing values are written and all are read back, so a rerun is harmless.
-"""
+"""Set up out-of-the-box servos for a rig profile's joints, one servo at a time (README)."""
 
 from __future__ import annotations
 
@@ -41,8 +37,7 @@ class JointTarget:
 
 @dataclass(frozen=True)
 class SetupOutcome:
-    """One joint's set-up: ``message`` (done or why refused), the registers ``written``, and
-    ``other_joint`` whose servo the connected one recognisably is (refused)."""
+    """One joint's set-up: done or why refused, the registers written, the joint it belongs to."""
 
     joint: str
     ok: bool
@@ -53,8 +48,7 @@ class SetupOutcome:
 
 @dataclass(frozen=True)
 class Claims:
-    """The profile's joint ``ids``, those ``set_up_now`` in this run, and whether to ``renumber``
-    a servo answering as another joint's ID (on purpose)."""
+    """The profile's joint ``ids``, those ``set_up_now``, and whether to ``renumber`` on purpose."""
 
     ids: Mapping[str, int]
     set_up_now: Collection[str] = ()
@@ -118,8 +112,7 @@ def setup_joint(
     scan_bauds=SCAN_BAUDS,
     claims: Claims | None = None,
 ) -> SetupOutcome:
-    """Find the one connected servo and make it ``target``; replies are awaited at least as the
-    SDK would (16 ms latency timer), lest a busy machine seem silent."""
+    """Find the one connected servo and make it ``target`` (replies awaited as the SDK would)."""
     latency_timer_ms = max(latency_timer_ms, SDK_LATENCY_TIMER_MS)
     claims = claims or Claims({})
     try:

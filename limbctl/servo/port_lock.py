@@ -1,5 +1,4 @@
-"""One controller per serial port: who holds a port that limbctl could not ``flock`` (from
-``/proc/locks``, else from the processes that have the device open)."""
+"""One controller per serial port: who holds a port that limbctl could not ``flock``."""
 
 from __future__ import annotations
 

@@ -1,5 +1,4 @@
-"""Rig profiles loaded through calib and checked for what only the servo layer knows (baud,
-model, limits within one turn); calib's errors come out as the controller's own."""
+"""Rig profiles loaded through calib and checked for what only the servo layer knows."""
 
 from __future__ import annotations
 
@@ -137,16 +136,8 @@ def save_rig_profile(profile: RigProfile, path: str | os.PathLike[str]) -> Path:
 
 
 def check_trained_for(metadata: Mapping[str, Any], profile: RigProfile, what: str) -> None:
-    """Refuse something trained on another rig, or under another calibration of this one.
-
-    Parameters
-    ----------
-    metadata : mapping
-        What the trained thing recorded: ``rig`` (profile name) and ``calibration``.
-    profile : RigProfile
-        The rig it is about to drive.
-    what : str
-        What to name in messages (the model file).
+    """Refuse something trained on another rig, or under another calibration of this one
+    (``metadata``: its recorded ``rig`` and ``calibration``; ``what``: its name in messages).
 
     Raises
     ------

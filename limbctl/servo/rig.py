@@ -1,8 +1,5 @@
-"""A calibrated chain of joints on a servo bus: joint angles (rad) <-> ticks, limits, present pose.
-
-A goal leaves only through :meth:`Rig.write_goal_ticks` (:meth:`Rig.write_pose` clamps, converts
-and calls it).
-"""
+"""A calibrated chain of joints on a servo bus: joint angles (rad) <-> ticks, limits, pose; a goal
+leaves only through :meth:`Rig.write_goal_ticks`."""
 
 from __future__ import annotations
 
@@ -22,8 +19,7 @@ from limbctl.servo.ticks import angle_to_ticks, ticks_to_angle
 
 @dataclass(frozen=True)
 class GoalTicks:
-    """A pose ready for the bus: ``ticks`` (one per joint, inside the hard limits), the clamped
-    ``angles`` (rad, one per joint), and whether any angle was ``clamped`` onto a limit."""
+    """A pose ready for the bus: ticks inside the hard limits, the clamped angles (rad), clamped."""
 
     ticks: tuple[int, ...]
     angles: tuple[float, ...]
@@ -31,8 +27,7 @@ class GoalTicks:
 
 
 class Rig:
-    """The chain of joints described by ``profile``, driven through ``bus`` (an open bus, or None
-    for a rig that only converts); ``joints`` and their ``names`` in chain order."""
+    """The chain of joints of ``profile`` driven through ``bus`` (None: it only converts)."""
 
     def __init__(self, profile: RigProfile, bus: ServoBus | None = None) -> None:
         self.profile = profile

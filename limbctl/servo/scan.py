@@ -1,8 +1,4 @@
-"""Find the servos on a port at every baud rate, and name the IDs that two servos share.
-
-At each baud one broadcast PING; a garbled reply's shared ID lies between the clean replies
-around it (servos answer in ID order) and is found by pinging those IDs one at a time.
-"""
+"""Find the servos on a port at every baud rate, and name the IDs two servos share."""
 
 from __future__ import annotations
 
@@ -28,8 +24,7 @@ MAX_ID = 252
 QUIET_PACKETS = 3
 #: Longest Return Delay Time a servo may wait (254 x 2 us), s.
 MAX_RETURN_DELAY_S = 254 * 2e-6
-#: Longest wait for a broadcast PING's replies (s): with collisions' pings, at most 2 s a baud;
-#: a servo answering later (an ID far above 80 at 9600 baud) is missed, so keep IDs low.
+#: Longest wait for a broadcast PING's replies (s): later ones (IDs over ~80 at 9600) are missed.
 BROADCAST_CAP_S = 1.5
 #: The SDK's allowance per ID slot of a broadcast PING (ms): servos answer one after another.
 SLOT_MS = 3.0
@@ -78,8 +73,7 @@ class Collision:
 
 @dataclass
 class ScanResult:
-    """What a scan found: servos, collisions, ``unreadable`` bauds (garbled, ID not named),
-    ``skipped`` (baud -> why) and ``seconds`` (baud -> time spent, s)."""
+    """What a scan found (servos, collisions, garbled bauds); ``skipped``/``seconds`` by baud."""
 
     found: list[Found] = field(default_factory=list)
     collisions: list[Collision] = field(default_factory=list)
@@ -221,14 +215,9 @@ def scan(
 ) -> ScanResult:
     """Ping every servo on ``port_name`` at each of ``bauds``.
 
-    Parameters
-    ----------
-    latency_timer_ms : float
-        The USB adapter's latency timer (ms); at least the SDK's 16 ms is allowed.
-    on_baud : callable(index, count, baud) or None
-        Called before each baud rate (a progress bar).
-    budget_per_baud_s : float
-        Most time spent naming collided IDs at one baud rate (s).
+    ``latency_timer_ms`` is the USB adapter's (ms; at least the SDK's 16 ms is allowed);
+    ``on_baud(index, count, baud)`` is called before each baud (a progress bar);
+    ``budget_per_baud_s`` is the most time (s) spent naming collided IDs at one baud.
 
     Raises
     ------

@@ -30,17 +30,9 @@ def configure_servos(
     profile_velocity: int = 200,
     profile_acceleration: int = 50,
 ) -> None:
-    """Prepare every servo for position control and the cycle read; torque ends OFF.
-
-    Parameters
-    ----------
-    position_limits : mapping id -> (min_tick, max_tick)
-        Written to Min/Max Position Limit: the servo itself refuses goals beyond them.
-    profile_velocity : int
-        Profile Velocity in units of 0.229 rev/min (0 = no limit).
-    profile_acceleration : int
-        Profile Acceleration in units of 214.577 rev/min^2 (0 = no limit).
-    """
+    """Prepare every servo for position control and the cycle read, torque ending OFF:
+    ``position_limits`` (id -> (min_tick, max_tick)) in EEPROM, Profile Velocity (0.229 rev/min
+    units) and Acceleration (214.577 rev/min^2 units; 0: no limit)."""
     if set(position_limits) != set(bus.ids):
         raise ConfigError(
             f"position_limits must cover exactly the servos {list(bus.ids)}, "

@@ -1,8 +1,5 @@
-"""One try of each dynamixel-sdk transfer that :class:`ServoBus` uses, as an :class:`Attempt`.
-
-Sync reads are assembled from the SDK's packet-level calls: its group sync read drops the status
-error bytes, and with them the alert bit. :func:`failure` turns a failed attempt into the error.
-"""
+"""One try of each dynamixel-sdk transfer :class:`ServoBus` uses, as an :class:`Attempt`; sync reads
+use packet-level calls (the SDK's group sync read drops the error bytes, alert bit included)."""
 
 from __future__ import annotations
 
@@ -77,8 +74,7 @@ class TunedPortHandler(PortHandler):
         return super().writePort(packet)
 
     def readPort(self, length: int) -> bytes:  # noqa: N802 (SDK's name)
-        """Up to ``length`` bytes; with none yet, wait for one (at most ``READ_WAIT_S``) instead
-        of spinning the SDK's polling loop."""
+        """Up to ``length`` bytes, waiting up to ``READ_WAIT_S`` for the first (no spin)."""
         data = self.ser.read(length)
         if data or not self.is_open:
             return data
@@ -100,8 +96,7 @@ class TunedPortHandler(PortHandler):
 
 @dataclass
 class Attempt:
-    """One try of a transaction: ``value`` read, SDK ``result``, ``errors`` (id -> status error
-    byte) and the ``culprit`` servo."""
+    """One try of a transaction: value, SDK result, id -> status error byte, the culprit servo."""
 
     value: Any
     result: int

@@ -1,5 +1,4 @@
-"""Drive a limb in from outside the region, and park it after a session, for any chain.
-Angles in radians unless a name ends in ``_deg``."""
+"""Drive a limb in from outside the region, and park it after a session, for any chain."""
 
 from __future__ import annotations
 
@@ -66,9 +65,9 @@ def drive(
     stream: IO[str] | None = None,
     poll_hz: float = 10.0,
 ) -> str:
-    """Drive the limb from ``start`` to ``target`` (rad) at ``speed_deg_s`` along a checked
-    shortest path, then read it at ``poll_hz`` until within :data:`SETTLE_DEG` of the target;
-    returns "" once settled, else why it stopped (torque still on)."""
+    """Drive the limb from ``start`` to ``target`` (rad) at ``speed_deg_s`` on a checked shortest
+    path and read it at ``poll_hz`` until within :data:`SETTLE_DEG`; "" once settled, else why
+    not."""
     gate, m = margins.gate, margins
     step = math.radians(speed_deg_s) / rate_hz
     here, goal = m.point(start), m.point(target)
@@ -121,9 +120,8 @@ def drive(
 def park(
     limb: StartLimb, margins: SphereMargins, rate_hz: float, stop: threading.Event | None = None
 ) -> ParkOutcome:
-    """After a clean session, drive the limb through the gate inside by the margin if the pose
-    the servos hold is nearer the edge (else write it once more); bus errors end it in ``note``.
-    """
+    """After a clean session, drive the limb through the gate inside by the margin if the pose held
+    is nearer the edge (else write it once more); bus errors end it in ``note``."""
     stop = stop or threading.Event()
     gate, m = margins.gate, margins
     pose = gate.safe_pose

@@ -1,5 +1,4 @@
-"""The brake rules: a wall lets its leader go before the servo's loop would brake it outward
-(docs/haptic.md, "The brake rules")."""
+"""The brake rules: a wall lets its leader go before the servo's loop brakes it outward."""
 
 from __future__ import annotations
 
@@ -9,21 +8,8 @@ from dataclasses import dataclass
 
 @dataclass(frozen=True)
 class BrakeLaw:
-    """The brake rules' constants.
-
-    Attributes
-    ----------
-    outrun_deg_s : float
-        1.0 deg/s, under one velocity unit over the setpoint's speed: the first such reading.
-    loose_nm : float
-        0.06 N m, the snap watch's HOLD: under it no hand is held against the wall.
-    horizon_s : float
-        2 ms: a cut lands within a millisecond, plus the stepped clock's grain.
-    land_s : float
-        1 ms: a cut's write lands within it of its read.
-    span_s : float
-        4 ms: the torque's rate only from two reads this close.
-    """
+    """The brake rules' constants (units in their names); docs/haptic.md's table gives each
+    value and its reasoning."""
 
     outrun_deg_s: float = 1.0
     loose_nm: float = 0.06
@@ -33,8 +19,7 @@ class BrakeLaw:
 
 
 def outruns(toward_deg_s: float, walk_deg_s: float, torque_nm: float, law: BrakeLaw) -> bool:
-    """Whether a leader moving in at ``toward_deg_s`` outruns a setpoint at ``walk_deg_s``
-    (deg/s) with no hand held (``torque_nm``: read torque toward the region, N m)."""
+    """Whether a leader moving in (deg/s) outruns its setpoint with no hand held (torque, N m)."""
     return toward_deg_s > walk_deg_s + law.outrun_deg_s and torque_nm < law.loose_nm
 
 
@@ -47,8 +32,8 @@ def brakes_soon(
     law: BrakeLaw,
 ) -> bool:
     """Whether a leader moving in faster than ``still_deg_s`` (deg/s) has its torque toward the
-    region (``torque_nm``, N m at ``now_s``, s), extrapolated from ``seen`` (torque, time) of the
-    last read, under zero within HORIZON or the gap plus LAND."""
+    region (N m at ``now_s``, extrapolated from the last read's ``seen``) under zero within
+    HORIZON."""
     if toward_deg_s <= still_deg_s:
         return False
     if torque_nm < 0.0:

@@ -30,15 +30,8 @@ _TWIST_KEYS = {"roll", "twist"}
 
 @dataclass(frozen=True)
 class Command:
-    """A parsed, validated target.
-
-    Attributes
-    ----------
-    q, direction : ndarray, shapes (4,) and (3,)
-        Target orientation (w >= 0; twist-free on two servos) and its unit limb direction.
-    t : float or None
-        Timestamp in seconds from the line, if it had one.
-    """
+    """A parsed, validated target: orientation ``q`` (4,) (w >= 0; twist-free on two servos), its
+    unit limb ``direction`` (3,) and the line's timestamp ``t`` (s) if it had one."""
 
     q: np.ndarray
     direction: np.ndarray
@@ -67,14 +60,8 @@ def _vector(value: object, name: str, length: int) -> np.ndarray:
 
 
 def parse_command(line: str | bytes, twist: bool = False) -> Command:
-    """Parse one JSON command into a :class:`Command`.
-
-    Parameters
-    ----------
-    line : str or bytes
-        One JSON object (trailing newline allowed).
-    twist : bool
-        True on a three-servo rig: the target keeps its twist; ``roll``/``twist`` accepted.
+    """Parse one JSON object (a trailing newline allowed) into a :class:`Command`; ``twist`` (a
+    three-servo rig): the target keeps its twist and ``roll``/``twist`` are accepted.
 
     Raises
     ------

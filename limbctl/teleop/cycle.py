@@ -120,31 +120,18 @@ class Cycle:
 
     Attributes
     ----------
-    index : int
-        Complete cycles before this one (the first cycle is 0).
-    t : float
-        Start of the cycle, in seconds after the loop started.
-    state : CycleState
+    index, t : int, float
+        Complete cycles before this one (the first is 0); its start (s after the loop's).
     complete : bool
         The cycle ran to its end (only complete cycles are counted and logged).
-    command_deg : tuple of float or None
-        The command being followed, (pan, tilt) in degrees.
-    command_q : ndarray (4,) or None
-        The latest command's full orientation (w, x, y, z), on complete cycles.
-    result : GateResult or None
-        The gate's answer; None when the cycle ended before the gate ran.
-    present : tuple of float or None
-        The pose read this cycle (rad, one per joint); None when the read failed.
-    written : bool
-        Whether the gate's pose was written to the servos.
-    timings : CycleTimings or None
-        Set for complete cycles.
+    command_deg, command_q : tuple of float, ndarray (4,), or None
+        The command followed, (pan, tilt) deg; its orientation (w, x, y, z), complete cycles.
+    result, present : GateResult, tuple of float, or None
+        The gate's answer (None: ended before it ran); the pose read (rad; None: read failed).
     ended_by, fault : str
         Why the loop ended (empty while running); the fault and the safe state it left.
-    refused : int
-        Input lines the source refused so far.
-    notices, refused_reasons : tuple of str
-        The health monitor's words this cycle; why each line since the last cycle was refused.
+    refused, notices, refused_reasons : int, tuple of str
+        Lines refused so far; the health monitor's words; why each line since the last was.
     """
 
     index: int

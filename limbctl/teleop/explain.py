@@ -11,8 +11,7 @@ from limbctl.teleop.gate import GateResult, Outcome
 DIRECTION_NAMES = {"+pan": "left", "-pan": "right", "+tilt": "up", "-tilt": "down"}
 #: The names the page uses (the same: its plane is seen from behind the limb).
 PLANE_NAMES = DIRECTION_NAMES
-#: How far (deg) beyond the written pose a joint's command is blocked: above the gate's
-#: 0.01 deg tolerance, below one step.
+#: How far (deg) beyond the written pose a joint's command is blocked: > 0.01 deg tolerance.
 BLOCKED_MIN_DEG = 0.2
 #: Smallest move (deg) between two cycles that counts as sliding: above rounding, below a tick.
 MOVING_MIN_DEG = 1e-3
@@ -20,8 +19,7 @@ MOVING_MIN_DEG = 1e-3
 
 @dataclass(frozen=True)
 class Explanation:
-    """The gate's outcome for a reader: ``words``, and the ``blocked`` joint directions
-    ("+pan", "-pan", "+tilt", "-tilt"), pan first."""
+    """The gate's outcome for a reader: ``words``, and the ``blocked`` joint directions."""
 
     words: str
     blocked: tuple[str, ...] = ()
@@ -32,8 +30,7 @@ def blocked_directions(
     written_deg: tuple[float, float],
     previous_deg: tuple[float, float] | None = None,
 ) -> tuple[str, ...]:
-    """Joint directions the command asks for (gap over :data:`BLOCKED_MIN_DEG`) that the last
-    move goes under half as much as the command does (pan first)."""
+    """Joint directions the command asks for that the last move goes under half as much."""
     gap = [wanted - got for wanted, got in zip(commanded_deg, written_deg, strict=True)]
     move = [0.0, 0.0]
     if previous_deg is not None:
@@ -80,18 +77,11 @@ def explain(
     names: dict[str, str] = DIRECTION_NAMES,
     pushing: tuple[str, ...] | None = None,
 ) -> Explanation:
-    """Say what the gate did this cycle.
+    """Say what the gate did this cycle (``result`` None: the cycle ended before the gate ran).
 
-    Parameters
-    ----------
-    result : GateResult or None
-        The gate's answer (None: the cycle ended before the gate ran).
-    commanded_deg, previous_deg : (pan, tilt) deg or None
-        The command followed; the pose the gate gave one cycle earlier (sliding or standing).
-    names : dict
-        Words for "+pan", "-pan", "+tilt", "-tilt".
-    pushing : tuple of str or None
-        The directions a person pushes (e.g. ``("+tilt",)``): only those may be blocked.
+    ``commanded_deg``/``previous_deg`` are the command followed and the pose the gate gave a
+    cycle earlier, (pan, tilt) deg; ``names`` words for "+pan" ... "-tilt"; ``pushing`` the
+    directions a person pushes (e.g. ``("+tilt",)``): only those may be blocked.
     """
     if result is None:
         return Explanation("not running")

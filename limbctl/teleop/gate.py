@@ -1,8 +1,4 @@
-"""The one place every commanded pose passes before it may become a goal position.
-
-One algorithm for every chain; its stages (correct, slew, route, inverse kinematics, clamp,
-joint step, final check) are described in docs/architecture.md.
-"""
+"""The one place every commanded pose passes before it may become a goal position."""
 
 from __future__ import annotations
 
@@ -67,10 +63,9 @@ class GateLimits:
     ----------
     joint_min, joint_max : tuple of float, shape (J,)
         Hard joint limits (rad) in chain order; J = 2 or 3 picks the chain.
-    max_step : float
-        Largest move of the limb per cycle (rad; direction or SO(3) geodesic).
-    max_joint_step : float
-        Largest change of any joint per cycle (rad), for the singularity at tilt +-90 deg.
+    max_step, max_joint_step : float
+        Largest move of the limb per cycle (rad; direction or SO(3) geodesic); largest change of
+        any joint per cycle (rad), for the singularity at tilt +-90 deg.
     region_tolerance : float
         How far (rad) outside the learned region a written pose may be.
     """
@@ -131,12 +126,10 @@ class GateResult:
     ----------
     pose : tuple of float, shape (J,)
         The joint angles to write (rad); the last safe pose when HELD.
-    outcome : Outcome
-        The strongest thing that happened.
+    outcome, reason : Outcome, str
+        The strongest thing that happened; why the command was held (empty otherwise).
     corrected, clamped, slewed : bool
         Each stage that changed the command.
-    reason : str
-        Why the command was held, empty otherwise.
     """
 
     pose: Pose
@@ -148,15 +141,9 @@ class GateResult:
 
 
 class Gate:
-    """Turns commanded orientations into safe joint goals, one cycle at a time.
-
-    Parameters
-    ----------
-    envelope : RegionModel
-        The trained region (``contains``/``correct`` on quaternions (4,)).
-    limits : GateLimits
-        Hard and per-cycle limits.
-    """
+    """Turns commanded orientations into safe joint goals, one cycle at a time, for a trained region
+    ``envelope`` (``contains``/``correct`` on quaternions (4,)) and its hard and per-cycle
+    ``limits``."""
 
     def __init__(self, envelope: RegionModel, limits: GateLimits) -> None:
         self.envelope = envelope

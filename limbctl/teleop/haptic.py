@@ -1,5 +1,4 @@
-"""The leader feels the edge: the haptic wall's law, tau = min(K (d - DEADBAND), CAP) toward the
-corrected pose, and when it lets go (docs/haptic.md gives the law and every figure)."""
+"""The haptic wall's law, tau = min(K (d - DEADBAND), CAP), and when it lets go (docs/haptic.md)."""
 
 from __future__ import annotations
 
@@ -18,37 +17,8 @@ VELOCITY_UNIT_DEG_S = 0.229 * 360.0 / 60.0
 
 @dataclass(frozen=True)
 class FeelLaw:
-    """The haptic wall's constants; docs/haptic.md's table gives each one's full reasoning.
-
-    Attributes
-    ----------
-    deadband_deg : float
-        0.4 deg: past a tick and a hand's tremor, so a hand resting at the edge is not buzzed.
-    gain_nm_per_deg : float
-        K = 0.2 N m/deg: passive with margin 1.75 at 200 Hz on the simulated leader's damping.
-    cap_nm : float
-        0.4 N m: stops a relaxed hand (0.3 N m); a person overpowers it at once.
-    return_speed_deg_s : float
-        14 deg/s (10 Profile Velocity units): the setpoint never stops within a cycle's walk back.
-    lead_fraction : float
-        0.9 of the loop's error at the cap, in whole ticks: the least lead that holds a hand.
-    lead_deg : float or None
-        A fixed lead (deg), half as much again deeper (benchmarks); None: ``lead_fraction``'s.
-    held_within_deg : float
-        2 deg: a hand stops within 2 deg of the edge (issue 21); beyond, the deeper lead.
-    outrun_slack_deg : float
-        0.1 deg, a reading tick rounded up: moving in faster than RETURN_SPEED + this lets go.
-    outward_noise_nm : float
-        0.01 N m, two XM430-W350 current units: a torque pulling outward by more lets go.
-    rearm_band_deg : float
-        0.05 deg beyond DEADBAND before a free wall comes on: a leader coasting in is not braked.
-    walk_lead_ticks : int
-        2: extra lead while walking the leader back (a read tick, write latency, a late cycle).
-    walk_speed_deg_s : float
-        1.5 deg/s, the snap watch's STILL: faster, the leader is walking in.
-    walk_hold_nm : float
-        0.06 N m, the snap watch's HOLD: walking a released leader back takes 0.02-0.03 N m.
-    """
+    """The haptic wall's constants (units in their names; ``lead_deg`` None: the lead from
+    ``lead_fraction``); docs/haptic.md's table gives each value and its reasoning."""
 
     deadband_deg: float = 0.4
     gain_nm_per_deg: float = 0.2
@@ -159,8 +129,7 @@ def goal_lead_rad(law: FeelLaw, motor: LeaderMotor, distance_deg: float, walking
 def lets_go(
     law: FeelLaw, distance_deg: float, moved_in_deg: float, period_s: float, engaged: bool
 ) -> bool:
-    """Whether a leader ``distance_deg`` beyond the edge, moved ``moved_in_deg`` inward in
-    ``period_s``, is left free (``engaged``: the wall pushed the cycle before)."""
+    """Whether a leader ``distance_deg`` beyond, moved ``moved_in_deg`` in, is left free."""
     # outran the setpoint (its loop would pull it outward), or inside the deadband next read
     outrun = moved_in_deg > law.return_speed_deg_s * period_s + law.outrun_slack_deg
     if outrun or distance_deg - moved_in_deg <= law.deadband_deg:

@@ -1,5 +1,4 @@
-"""A felt leader's push this cycle: the wall law of :mod:`limbctl.teleop.haptic` on its chain
-(docs/haptic.md)."""
+"""A felt leader's push this cycle: the wall law of :mod:`limbctl.teleop.haptic` on its chain."""
 
 from __future__ import annotations
 
@@ -24,22 +23,11 @@ from limbctl.teleop.haptic import (
 
 @dataclass(frozen=True)
 class Push:
-    """One cycle's command to the leader's servos.
-
-    Attributes
-    ----------
-    goal_current, profile_velocity : int
-        Goal Current units (0: no torque; the largest of ``joint_currents``); Profile Velocity
-        units (0 while free: not written).
-    goal : tuple of float, (n,)
-        Goal pose, one angle per joint of the chain (rad).
-    torque_nm : float
-        The push's magnitude the currents allow (N m; the norm of the joints' torques).
-    distance_deg : float
-        How far the command lies beyond the region (deg).
-    joint_currents : tuple of int, (n,)
-        Goal Current units per joint; empty: ``goal_current`` on every joint.
-    """
+    """One cycle's command to the leader's servos: Goal Current units (0: no torque; the largest of
+    ``joint_currents``, one per joint, empty: this on every joint), Profile Velocity units (0
+    while free: not written), the ``goal`` pose (rad, one per joint), the push's magnitude the
+    currents allow (N m, the norm of the joints' torques) and how far the command lies beyond the
+    region (deg)."""
 
     goal_current: int
     profile_velocity: int
@@ -56,16 +44,9 @@ class Push:
 def shared_currents(
     motor: LeaderMotor, torque_nm: float, step: tuple[float, ...]
 ) -> tuple[tuple[int, ...], float]:
-    """Goal Current per joint, ``I_j = tau |s_j| / |s| / kt`` rounded down, for a push of
-    ``torque_nm`` (N m) along ``step`` (n,) (rad; not all zero).
-
-    Returns
-    -------
-    currents : tuple of int, (n,)
-        Goal Current units per joint.
-    magnitude_nm : float
-        sqrt(sum_j torque_of(I_j)^2) (N m).
-    """
+    """Goal Current units per joint, ``I_j = tau |s_j| / |s| / kt`` rounded down, for a push of
+    ``torque_nm`` (N m) along ``step`` (n,) (rad; not all zero), and their magnitude sqrt(sum_j
+    torque_of(I_j)^2) (N m)."""
     norm = math.sqrt(sum(s * s for s in step))
     currents = tuple(motor.units_for(torque_nm * abs(s) / norm) for s in step)
     magnitude = math.sqrt(sum(motor.torque_of(c) ** 2 for c in currents))
@@ -78,8 +59,7 @@ def held(present: Sequence[float], distance_deg: float = 0.0) -> Push:
 
 
 def beyond_deg(q: np.ndarray, corrected: np.ndarray, joints: int) -> float:
-    """How far (deg) a command (4,) lies beyond its correction (4,): the directions' angle on
-    two joints, the rotation on three."""
+    """How far (deg) a command (4,) lies beyond its correction (4,), in direction or rotation."""
     if np.array_equal(q, corrected):
         return 0.0
     if joints == 3:
@@ -135,16 +115,12 @@ def push_for(
 
     Parameters
     ----------
-    law : FeelLaw
-    motor : LeaderMotor
     present, previous : sequence of float, (n,)
         The leader's pose now and a cycle before (rad); ``previous`` None: no let-go rules.
     q, corrected : ndarray (4,)
         The command and the region's correction of it.
     period_s : float, optional
-        Time since ``previous`` was read (s).
-    engaged : bool, optional
-        Whether the wall pushed the cycle before.
+        Time since ``previous`` was read (s); ``engaged``: the wall pushed the cycle before.
     torque_nm, velocity_deg_s : sequence of float, (n,), optional
         The motors' read torque (N m) and speed (deg/s); None: not read.
     limits : sequence of (float, float), (n,), optional

@@ -1,5 +1,4 @@
-"""The keyboard's keys as a table (:data:`KEYS`), the guide printed from it, and steady motion
-while one is held (:class:`HeldKey`)."""
+"""The keyboard's keys (:data:`KEYS`), their guide, and steady motion while one is held."""
 
 from __future__ import annotations
 
@@ -26,20 +25,8 @@ class Action(enum.Enum):
 
 @dataclass(frozen=True)
 class KeyBinding:
-    """One action's keys.
-
-    Attributes
-    ----------
-    action : Action
-    sequences : tuple of bytes
-        What a terminal sends for each key of the action.
-    label, does : str
-        The keys as the guide names them; what the action does.
-    move : tuple of int
-        (pan, tilt) signs of a move, in steps (left is +pan, seen from behind the limb).
-    roll : int
-        Sign of a roll step (three-servo rigs); 0 otherwise.
-    """
+    """One action's keys: the terminal's ``sequences``, the guide's ``label``, what it ``does``, its
+    (pan, tilt) ``move`` signs in steps (left is +pan) and its ``roll`` sign (three-servo rigs)."""
 
     action: Action
     sequences: tuple[bytes, ...]
@@ -78,11 +65,9 @@ SEQUENCES: dict[bytes, Action] = {seq: b.action for b in KEYS.values() for seq i
 STEPS_DEG = (0.5, 1.0, 2.0, 5.0, 10.0)
 #: The first step (deg): creeps up to an edge, crosses 90 deg in 45 presses.
 DEFAULT_STEP_DEG = 2.0
-#: Steps per second while a key is held: 20 deg/s at the default step, well under the gate's
-#: 120 deg/s slew limit, so the limb keeps up.
+#: Steps per second while a key is held: 20 deg/s at the default step, under the 120 deg/s slew.
 KEY_RATE_HZ = 10.0
-#: Longest gap (s) between events of a key held down: above the slowest common auto-repeat
-#: interval (83 ms).
+#: Longest gap (s) between events of a key held down: above the slowest common auto-repeat (83 ms).
 REPEAT_GAP_S = 0.15
 #: Longest gap (s) still continuing a hold: above the X server's 660 ms auto-repeat delay.
 HOLD_GAP_S = 0.75
@@ -120,9 +105,8 @@ def key_guide(step_deg: float) -> list[str]:
 
 
 class HeldKey:
-    """How far each key event moves: a step per press (a gap over :data:`REPEAT_GAP_S`); held,
-    ``step * KEY_RATE_HZ * (t - run start)`` in all over a run of events within ``HOLD_GAP_S``.
-    """
+    """How far each key event moves: a step per press (a gap over :data:`REPEAT_GAP_S`); held, in
+    all ``step * KEY_RATE_HZ * (t - run start)`` over events within ``HOLD_GAP_S``."""
 
     def __init__(self) -> None:
         self._action: Action | None = None

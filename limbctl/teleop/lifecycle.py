@@ -69,21 +69,8 @@ def run_session(
     torque_was_on: bool = False,
     publish: Callable[[StartStatus], None] | None = None,
 ) -> SessionResult:
-    """Start, open the source (once the limb is held inside), run and park one session.
-
-    Parameters
-    ----------
-    limb, gate, starting, stream, torque_was_on, publish
-        As for :func:`limbctl.teleop.start.start_session`.
-    open_source : callable
-        Returns the command source as a context manager.
-    config, stop
-        As for :func:`limbctl.teleop.loop.run`.
-    telemetry_path : path, optional
-        Where each cycle is logged (JSON lines).
-    status : text stream, optional
-        The loop's status line (None: quiet).
-    """
+    """Start, open the source (``open_source()``, once the limb is held inside), run and park one
+    session (arguments as for :func:`~limbctl.teleop.start.start_session` and loop's ``run``)."""
     stop = stop or threading.Event()
     # opened first: a path that cannot be written is refused before torque may come on
     telemetry_file = open_telemetry(telemetry_path)

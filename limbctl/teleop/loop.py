@@ -1,5 +1,4 @@
-"""The teleoperation control loop: fixed rate, one sync read and one gated sync write per cycle;
-faults end in the configured safe state (docs/safety.md)."""
+"""The teleoperation control loop: one sync read and one gated sync write per cycle."""
 
 from __future__ import annotations
 
@@ -19,16 +18,13 @@ from limbctl.geometry.gimbal import quat_to_pan_tilt
 from limbctl.servo.alarms import alarm_alone, held_torque, switched_off
 from limbctl.servo.cycle import CycleRead
 from limbctl.servo.health import HealthLimits, HealthMonitor, ServoFault
-from limbctl.teleop.approach import JOINT_NAMES
+from limbctl.teleop.approach import JOINT_NAMES, StartLimb
 from limbctl.teleop.cycle import Cycle, CycleState, CycleTimings, TeleopSummary
 from limbctl.teleop.gate import Gate, GateResult, Outcome
 from limbctl.teleop.pacing import Pacer
-from limbctl.teleop.report import Telemetry, open_telemetry
+from limbctl.teleop.report import Telemetry
 from limbctl.teleop.sources import CommandSource
 from limbctl.teleop.status import status_line_for
-
-__all__ = ["Cycle", "CycleState", "TeleopSummary", "Telemetry", "open_telemetry", "SafeState"]
-__all__ += ["Limb", "LoopConfig", "ControlLoop", "run"]
 
 
 class SafeState(enum.Enum):
@@ -38,23 +34,15 @@ class SafeState(enum.Enum):
     TORQUE_OFF = "torque-off"  # torque is switched off; the limb goes limp
 
 
-class Limb(Protocol):
+class Limb(StartLimb, Protocol):
     """What the loop needs of a rig (see :class:`limbctl.servo.rig.Rig`)."""
 
     @property
-    def ids(self) -> tuple[int, int]: ...  # (pan, tilt)
-
-    def read_pose(self) -> tuple[float, float]: ...
+    def ids(self) -> tuple[int, ...]: ...
 
     def read_cycle(self, attempts: int = 1, ids: Sequence[int] | None = None) -> CycleRead: ...
 
-    def pose_of(self, read: CycleRead) -> tuple[float, float]: ...
-
-    def write_pose(self, pan: float, tilt: float) -> object: ...
-
-    def set_torque(self, enabled: bool) -> None: ...
-
-    def torque_enabled(self) -> tuple[bool, bool]: ...
+    def pose_of(self, read: CycleRead) -> tuple[float, ...]: ...
 
 
 @dataclass(frozen=True)
@@ -63,25 +51,20 @@ class LoopConfig:
 
     Attributes
     ----------
-    rate_hz : float
-        Cycle rate (Hz); 200: 0.6 deg a cycle at 120 deg/s, real servos keep up (README).
-    silence_s : float
-        After this long (s) without a valid command the gate holds; 0.5: a person sees a stall.
-    max_failed_cycles : int
-        Failed reads in a row, no silent servo named, before the safe state; 20: 100 ms.
-    read_attempts : int
-        Tries of the cycle's read before the cycle holds; 2 rides through one lost reply.
-    health : HealthLimits
-        When a silent servo is lost, and how far and how long a servo may lag its goal.
-    safe_state : SafeState
-        Where a fault leaves the rig.
-    duration_s : float or None
-        Stop after this long (None: until the source ends or Ctrl-C).
-    max_backlog : int
-        Most commands of a scripted stream waiting to be gated (older skipped); 20: 100 ms.
+    rate_hz, silence_s : float
+        Cycle rate (Hz; 200: 0.6 deg a cycle at 120 deg/s, real servos keep up, README); after this
+        long (s) without a valid command the gate holds (0.5: a person sees a stall).
+    max_failed_cycles, read_attempts : int
+        Failed reads in a row, no silent servo named, before the safe state (20: 100 ms); tries of
+        the cycle's read before the cycle holds (2 rides through one lost reply).
+    health, safe_state : HealthLimits, SafeState
+        When a silent servo is lost, how far and long a servo may lag; where a fault leaves the rig.
+    duration_s, max_backlog : float or None, int
+        Stop after this long (None: at the source's end or Ctrl-C); most commands of a scripted
+        stream waiting to be gated (older skipped; 20: 100 ms).
     on_cycle : callable (Cycle) -> None, optional
-        Called in the loop's thread with every cycle; must return at once. Its exceptions
-        propagate out of :func:`run`.
+        Called in the loop's thread with every cycle; must return at once (its exceptions
+        propagate out of :func:`run`).
     """
 
     rate_hz: float = 200.0
@@ -112,17 +95,8 @@ def _command_deg(q: np.ndarray) -> tuple[float, float]:
 class ControlLoop:
     """The loop's state between cycles; each :meth:`step` is one cycle and returns its value.
 
-    Parameters
-    ----------
-    limb : Limb
-        The rig (already connected, configured, torque on).
-    gate : Gate
-        Not yet started; :meth:`start` starts it from the limb's present pose.
-    source : CommandSource
-        Started command source.
-    config : LoopConfig
-    stop : threading.Event, optional
-        Set from a signal handler to end the loop cleanly.
+    ``limb`` is connected, configured, torque on; ``gate`` not yet started (:meth:`start` starts
+    it from the present pose); ``source`` started; ``stop`` set (a signal handler) ends the loop.
     """
 
     def __init__(
@@ -357,16 +331,8 @@ def run(
     status: IO[str] | None = None,
     stop: threading.Event | None = None,
 ) -> TeleopSummary:
-    """Run the loop until the source ends, the duration passes, ``stop`` is set, or a fault.
-
-    Parameters
-    ----------
-    limb, gate, source, config, stop
-        As for :class:`ControlLoop`.
-    telemetry : Telemetry, optional
-        Logs every complete cycle.
-    status : text stream, optional
-        Where a one-line status is refreshed (e.g. stderr).
+    """Run the loop until the source ends, the duration passes, ``stop`` is set, or a fault;
+    ``telemetry`` logs every complete cycle, ``status`` (e.g. stderr) gets a one-line status.
 
     Returns
     -------

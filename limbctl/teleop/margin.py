@@ -1,5 +1,4 @@
-"""Where a limb may start from: "inside by a margin", and the nearest such pose, for any chain.
-Angles in radians; orientations unit quaternions (4,), scalar first."""
+"""Where a limb may start from: "inside by a margin", and the nearest such pose, any chain."""
 
 from __future__ import annotations
 
@@ -19,8 +18,7 @@ from limbctl.teleop.gate import Gate
 START_MARGIN_DEG = 0.35
 #: Ring probes around a pose: an edge passing between two is still 97 % of the margin away.
 RING_PROBES = 12
-#: Search ring radii (margins) for the nearest start pose: fine near the edge, up to 8.4 deg
-#: for necks and corners.
+#: Search ring radii (margins) for the nearest start pose: fine near the edge, wide for necks.
 SEARCH_RADII = (1.0, 1.25, 1.5, 2.0, 3.0, 4.0, 6.0, 9.0, 13.0, 18.0, 24.0)
 #: Directions tried on each search ring (22.5 deg apart).
 SEARCH_DIRECTIONS = 16
@@ -105,8 +103,7 @@ def nearest_start_pose(
 
 
 # ---- on SO(3): a three-servo chain (pan, tilt, roll) ------------------------------------------
-#: Axes (world frame) the search rings turn about: a cube's faces and corners, so every axis is
-#: within 35 deg of one; +x, the limb's axis at rest, among them.
+#: Axes the search rings turn about: a cube's faces and corners (every axis within 35 deg of one).
 RING_AXES = np.array(
     [[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]]
     + [[sx, sy, sz] for sx in (1, -1) for sy in (1, -1) for sz in (1, -1)],

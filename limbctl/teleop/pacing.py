@@ -1,5 +1,4 @@
-"""The control loop's clock: cycle ``k`` is due at ``t0 + k T``, a late loop catches up to
-BACKLOG_PERIODS; and whether it keeps a felt leader's pace (:class:`PaceWatch`)."""
+"""The control loop's clock, and whether it keeps a felt leader's pace (:class:`PaceWatch`)."""
 
 from __future__ import annotations
 
@@ -10,8 +9,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-#: Most periods a late loop catches up on (20 ms at 200 Hz): a short stall is made up, a longer
-#: one would only send a burst of old goals.
+#: Most periods a late loop catches up on (20 ms at 200 Hz): longer would burst old goals.
 BACKLOG_PERIODS = 4
 #: While felt, a median period over the last PACE_WINDOW cycles (0.2 s) above PACE_SLACK periods
 #: (160 Hz at 200 Hz, passivity margin still 1.4) switches the push off for good.
@@ -20,8 +18,7 @@ PACE_SLACK = 1.25
 
 
 class Pacer:
-    """The schedule of a loop of period ``period_s`` (s) on ``clock`` (monotonic seconds);
-    ``overruns`` counts spells of cycles started over a period late."""
+    """The schedule of a loop of period ``period_s`` (s); ``overruns`` counts late spells."""
 
     def __init__(self, period_s: float, clock: Callable[[], float] = time.perf_counter) -> None:
         self.period_s = float(period_s)
@@ -68,8 +65,7 @@ class Pacer:
 
 
 class PaceWatch:
-    """Whether the loop keeps the rate ``rate_hz`` (Hz) the wall was made passive for, on
-    ``clock`` (monotonic seconds)."""
+    """Whether the loop keeps the rate ``rate_hz`` (Hz) the wall was made passive for."""
 
     def __init__(self, rate_hz: float, clock: Callable[[], float] = time.perf_counter) -> None:
         self.limit_s = PACE_SLACK / rate_hz

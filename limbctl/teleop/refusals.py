@@ -1,5 +1,4 @@
-"""Why command lines were refused: counts by reason (the parser's message without its numbers),
-the first examples, and the latest ones."""
+"""Why command lines were refused: counts by reason, the first examples, the latest ones."""
 
 from __future__ import annotations
 

@@ -15,8 +15,7 @@ from limbctl.teleop.gate import Outcome
 
 
 class Telemetry:
-    """One JSON line per complete cycle, in :func:`orientation_fields`' form for every rig,
-    with the outcome, present pose (deg) and the lines refused since the previous cycle."""
+    """One JSON line per complete cycle, in :func:`orientation_fields`' form for every rig."""
 
     def __init__(self, stream: IO[str]) -> None:
         self._stream = stream

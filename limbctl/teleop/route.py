@@ -1,9 +1,4 @@
-"""Routing along the region: where the gate's slew step aims when a concave wall holds it.
-
-The target when the straight path is inside, else the farthest point within ``LOOKAHEAD_DEG``
-of a Dijkstra route over a Fibonacci-lattice roadmap of the region; the gate still limits,
-corrects and checks what it writes (reach bound: docs/safety.md).
-"""
+"""Routing along the region: where the slew step aims when a concave wall holds it."""
 
 from __future__ import annotations
 
@@ -20,8 +15,7 @@ from limbctl.geometry import scalar
 from limbctl.geometry.quat import limb_direction, swing_from_direction
 from limbctl.geometry.twist import compose, decompose, wrap
 
-#: Lattice spacing (deg): keeps a 60 x 60 deg region to ~1600 nodes, built in tens of ms; a
-#: passage narrower than about two spacings may have no node (the gate then steps straight).
+#: Lattice spacing (deg): a 60 x 60 deg region in ~1600 nodes; narrower passages may have none.
 LATTICE_STEP_DEG = 1.5
 #: Neighbours within this many spacings are joined: 6-8 per node, so a route turns ~45 deg.
 NEIGHBOUR_SPACINGS = 1.6
@@ -29,43 +23,29 @@ NEIGHBOUR_SPACINGS = 1.6
 ATTACH_SPACINGS = 3.0
 #: Sample spacing (deg) judging a straight path inside: a narrower dent costs a sliding step.
 SEGMENT_STEP_DEG = 0.5
-#: A sample this far (deg) outside still counts inside: rounding puts samples along a wall a
-#: hair out; under a fifth of a 120 deg/s, 200 Hz step.
+#: A sample this far (deg) outside still counts inside (rounding along a wall; < 1/5 step).
 VISIBLE_SLACK_DEG = 0.1
 #: How far along the route (deg) the sub-goal may lie: twenty default steps, ~8 route points.
 LOOKAHEAD_DEG = 12.0
-#: Twist offsets (deg) tried from a neighbour's for a new node on three servos, nearest first:
-#: a band turning 1 deg per deg of swing moves 1.5-2.4 deg between nodes.
+#: Twist offsets (deg) tried from a neighbour's for a new node on three servos, nearest first.
 TWIST_TRIES_DEG = (0.0, 3.0, -3.0, 8.0, -8.0, 20.0, -20.0, 45.0, -45.0)
-#: The reach bound's terms: the route bends at nodes (a few per cent over L) and the plain step
-#: first slides into a bay: measured up to 24 cycles over L / max_step
-#: (benchmarks/bench_reach.py); 40 leaves room for bays not yet measured.
+#: The reach bound's terms: route bends (a few per cent over L) and a slide into a bay (measured
+#: up to 24 cycles over L / max_step, benchmarks/bench_reach.py; 40 leaves room).
 REACH_FACTOR = 1.05
 REACH_EXTRA_CYCLES = 40
-#: A target within this many spacings of the last reuses its route lengths: a streamed target
-#: moves every cycle, and one Dijkstra (~1 ms) per cycle is too dear.
+#: A target within this many spacings of the last reuses its route lengths (Dijkstra ~1 ms).
 REUSE_SPACINGS = 0.5
-#: Rows of the probe timing one batch ``contains`` against single calls (a fitted twist
-#: region's batch costs ~12 ms a call on a busy two-core machine, a single ~2 us a row).
+#: Rows of the probe timing one batch ``contains`` against single calls.
 PROBE_ROWS = 64
-#: The plain step is kept while it comes this fraction of a step nearer the target (sliding up
-#: to 75 deg off the way still does; a concave wall gives 0).
+#: The plain step is kept while it comes this fraction of a step nearer (a concave wall gives 0).
 STUCK_FRACTION = 0.25
 #: A pose this close (rad) to a path or point is on it: far above rounding, far below a step.
 ON_PATH = 1e-9
 
 
 class Router:
-    """Sub-goals for a gate's slew step, along the region.
-
-    Parameters
-    ----------
-    envelope : RegionModel
-        The region: ``contains``/``correct`` on one quaternion (4,) and, when it can, (N, 4).
-    twist : bool
-        False for two servos (paths are great circles of the limb direction), True for three
-        (paths are shortest rotations).
-    """
+    """Sub-goals for a gate's slew step along the region ``envelope`` (``contains``/``correct`` on
+    (4,), maybe (N, 4)); paths are shortest rotations with ``twist``, else great circles."""
 
     def __init__(self, envelope, twist: bool) -> None:
         self.envelope = envelope
@@ -169,8 +149,7 @@ class Router:
         return all(self.inside(pts[k - 1]) for k in order)
 
     def wanted(self, target_q: np.ndarray, progress: float, moved: float, max_step: float) -> bool:
-        """Whether to route this cycle: the plain step came ``progress`` rad nearer, under
-        STUCK_FRACTION of ``max_step``, or ``moved`` over a step, or routing began for it."""
+        """Whether to route this cycle: the plain step made too little ``progress`` or jumped."""
         if self._engaged is not None and self._near_target(self._engaged, target_q):
             return True
         self._engaged = None
@@ -238,8 +217,7 @@ class Router:
         return points
 
     def _waypoints(self, d_cur, tau_cur, dirs: np.ndarray, target_q: np.ndarray) -> np.ndarray:
-        """Poses (K, 4) at directions ``dirs`` (K, 3), twist linear from ``tau_cur`` to the
-        target's, corrected where outside."""
+        """Poses (K, 4) at directions ``dirs`` (K, 3), twist linear to the target's, corrected."""
         if not self.twist:
             return swing_from_direction(dirs)
         d_t, tau_t = _split(target_q, True)

@@ -1,6 +1,4 @@
-"""The snap watch: a held wall lets go the moment its leader starts snapping toward the region.
-It only ever takes torque away; docs/haptic.md ("The snap watch") gives the rules and figures.
-"""
+"""The snap watch: a held wall lets go the moment its leader starts snapping toward the region."""
 
 from __future__ import annotations
 
@@ -13,27 +11,8 @@ from limbctl.teleop.brake import BrakeLaw, brakes_soon, outruns
 
 @dataclass(frozen=True)
 class SnapLaw:
-    """The snap watch's constants.
-
-    Attributes
-    ----------
-    snap_speed_deg_s : float
-        4 deg/s: over a held leader's noise, under the ~17 deg/s a let go reaches in 1 ms.
-    still_speed_deg_s : float
-        1.5 deg/s: one velocity unit (1.37 deg/s) reads as still.
-    rearm_speed_deg_s : float
-        0.5 deg/s, under one unit: a free wall re-arms only on a leader not moving in.
-    rearm_span_s : float
-        12 ms: two cycles at 200 Hz, one up to 2 ms late (``rearm_twice``'s earlier read).
-    hold_nm : float
-        0.06 N m: a held hand takes more; walking a released leader back 0.02-0.03 N m.
-    released : float
-        0.5: a let go frees the whole hold, a fading grip about a seventh: between the two.
-    rise_s : float
-        1 ms, the longest the rise is judged over: a snap speeds up for 2-3 ms.
-    inertia_kg_m2 : float
-        1e-3 kg m^2, the simulated leader's (``firmware_sim/leader.py``); measure a real one's.
-    """
+    """The snap watch's constants (units in their names; ``inertia_kg_m2`` the simulated leader's);
+    docs/haptic.md's table gives each value and its reasoning."""
 
     snap_speed_deg_s: float = 4.0
     still_speed_deg_s: float = 1.5
@@ -59,24 +38,12 @@ def along(values: Sequence[float], unit: Sequence[float]) -> float:
 
 @dataclass
 class SnapWatch:
-    """One leader's watch state.
-
-    Attributes
-    ----------
-    law : SnapLaw
-    brake : BrakeLaw or None
-        The brake rules (:mod:`limbctl.teleop.brake`); None: the snap rule alone.
-    walk_deg_s : float
-        How fast the wall's setpoint walks toward the region (deg/s): its Profile Velocity.
-    armed, walking : tuple of float, (n,), or None
-        The unit joint-space step toward the correction while armed; while a wall is on.
-    cuts, brakes, reads : int
-        Walls let go at a snap, walls let go by the brake rules; reads between the cycles.
-    at_read : bool
-        Judge each cycle's read at once (:meth:`judge`); False: when its push is decided.
-    rearm_twice : bool
-        Re-arm only on two still reads within ``rearm_span_s`` (or one pushed outward).
-    """
+    """One leader's watch state: its ``law`` and ``brake`` rules (None: the snap rule alone), the
+    wall's setpoint speed ``walk_deg_s`` (deg/s, its Profile Velocity), the unit joint-space step
+    toward the correction while ``armed`` and while ``walking``, the walls let go (``cuts`` at a
+    snap, ``brakes`` by the brake rules) and ``reads`` between cycles; ``at_read``: judge each
+    cycle's read at once (:meth:`judge`); ``rearm_twice``: re-arm only on two still reads within
+    ``rearm_span_s`` (or one pushed outward)."""
 
     law: SnapLaw
     brake: BrakeLaw | None = None
@@ -148,8 +115,7 @@ class SnapWatch:
         now_s: float,
         torque_nm: Sequence[float] | None = None,
     ) -> bool:
-        """Whether a wall toward ``goal`` (rad) may push at ``now_s`` (s): not re-arming on a
-        leader moving in, nor on a snap, nor when the brake rules free it."""
+        """Whether a wall toward ``goal`` (rad) may push at ``now_s`` (s) by the rules."""
         unit = unit_step(present, goal)
         if unit is None:
             return True
@@ -169,8 +135,7 @@ class SnapWatch:
     def still(
         self, present: Sequence[float], goal: Sequence[float], velocity_deg_s: Sequence[float]
     ) -> bool:
-        """Whether a leader at ``present`` (rad) at ``velocity_deg_s`` (deg/s) is not moving in
-        toward ``goal``; the state is left as it is."""
+        """Whether a leader at ``present`` (rad) at ``velocity_deg_s`` (deg/s) is not moving in."""
         unit = unit_step(present, goal)
         return unit is None or along(velocity_deg_s, unit) <= self.law.rearm_speed_deg_s
 
@@ -183,8 +148,7 @@ class SnapWatch:
         engaged: bool,
         now_s: float,
     ) -> None:
-        """After a cycle's write: arm when the wall (``goal``, None if free) holds a still leader
-        against a hand, else disarm."""
+        """After a cycle's write: arm on a wall holding a still leader, else disarm."""
         unit = None if goal is None else unit_step(present, goal)
         if unit is None:
             self.disarm()
@@ -218,7 +182,6 @@ class SnapWatch:
         now_s: float,
         torque_nm: Sequence[float] | None = None,
     ) -> bool:
-        """Between cycles: whether the wall must go at this read of speed (deg/s) and torque
-        (N m; None: not read) at ``now_s`` (s)."""
+        """Between cycles: whether the wall must go at this read (deg/s; N m)."""
         self.reads += 1
         return self.judge(velocity_deg_s, now_s, torque_nm)

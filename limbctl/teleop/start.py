@@ -1,5 +1,4 @@
-"""Start a session from wherever the limb is: at once inside; outside, torque off and waiting
-(or approaching) until it is inside by the margin. No refusal leaves torque on."""
+"""Start a session from wherever the limb is; no refusal leaves torque on."""
 
 from __future__ import annotations
 
@@ -25,19 +24,10 @@ LOG_EVERY_S = 2.0
 
 @dataclass(frozen=True)
 class StartOptions:
-    """How a session starts from a limb outside the region.
-
-    Attributes
-    ----------
-    wait_s : float
-        Give up after this many seconds outside (s).
-    approach_deg_s : float or None
-        Drive the limb inside with the servos at this speed (deg/s); None: wait for the hand.
-    rate_hz, poll_hz : float
-        Goals per second along an approach path; reads of a waiting limb per second (Hz).
-    max_failed_reads : int
-        Failed reads in a row before the start gives up.
-    """
+    """How a session starts from a limb outside: it gives up after ``wait_s`` (s);
+    ``approach_deg_s`` (deg/s; None: wait for the hand) drives it in at ``rate_hz`` goals a
+    second; a waiting limb is read ``poll_hz`` times a second, ``max_failed_reads`` in a row end
+    it."""
 
     wait_s: float = DEFAULT_WAIT_S
     approach_deg_s: float | None = None
@@ -90,16 +80,12 @@ class StartStatus:
     ----------
     pose_deg, move_deg : tuple of float, (n,)
         The present pose, and the joint changes to the target (0 without one), deg in chain order.
-    ready : bool
-        Inside the region and the hard limits by the margin.
-    inside_region, inside_limits : bool
-        Each check without the margin.
-    outside_deg, distance_deg : float
-        How far outside the region (0 inside); angle to the target (0 without one), deg.
+    ready, inside_region, inside_limits : bool
+        Inside the region and the hard limits by the margin; each check without the margin.
+    outside_deg, distance_deg, waited_s : float
+        How far outside the region (deg, 0 inside); angle to the target (deg); seconds waited.
     target_deg : tuple of float or None
         The nearest pose inside by the margin (deg); None when ready or none nearby.
-    waited_s : float
-        Seconds spent waiting so far.
     """
 
     pose_deg: tuple[float, ...]
@@ -161,8 +147,7 @@ def assess(margins: SphereMargins, pose: tuple[float, ...], waited_s: float = 0.
 
 @dataclass(frozen=True)
 class StartOutcome:
-    """How the start went (``how``: "inside", "moved by hand", "approached", "timed out",
-    "stopped" or "bus failure")."""
+    """How the start went (``how``: "inside", "moved by hand", "approached", "timed out", ...)."""
 
     started: bool
     how: str
@@ -242,21 +227,9 @@ def start_session(
 ) -> StartOutcome:
     """Start the gate from the limb's present pose, waiting for it (or approaching) if outside.
 
-    Parameters
-    ----------
-    limb : StartLimb
-        The configured rig; torque on or off.
-    gate : Gate
-        Not yet started; on success started from the present pose.
-    options : StartOptions, optional
-    stream : text stream, optional
-        Where messages and the live status line go.
-    publish : callable, optional
-        Called with each :class:`StartStatus` while the limb is outside.
-    stop : threading.Event, optional
-        Set (Ctrl-C) to give up waiting.
-    torque_was_on : bool
-        The caller switched torque off: say so to a limb found outside.
+    ``gate`` (not yet started) is started from the present pose on success; ``stream`` gets the
+    messages and live status line, ``publish`` each :class:`StartStatus` while outside; ``stop``
+    (Ctrl-C) gives up; ``torque_was_on``: the caller switched torque off (said to a limb outside).
 
     Returns
     -------

@@ -19,8 +19,7 @@ def _pose(label: str, pose: tuple[float, float] | None) -> str:
 
 
 class ExplainedStatus:
-    """Status line to ``stream`` saying where the limb is asked to be, where it was written and
-    why; ``source.describe()`` adds what the source knows."""
+    """Status line saying where the limb is asked to be, where it was written and why."""
 
     def __init__(self, stream: IO[str], source: Any) -> None:
         self._stream = stream

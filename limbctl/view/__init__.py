@@ -1,5 +1,4 @@
-"""The live view: a local web page that shows teaching and teleop as they happen
-(docs/architecture.md)."""
+"""The live view: a local web page that shows teaching and teleop as they happen."""
 
 from limbctl.view.server import ViewServer
 from limbctl.view.state import (

@@ -1,10 +1,4 @@
-"""Who may watch the live view and who may steer from it: the secret (:class:`Access`), the
-Origin and Host (:func:`check_request`), one controller at a time (:class:`ControlDesk`).
-
-A page's WebSocket query carries ``tab`` (its id, kept over a reload), ``name`` (e.g. "tab K7,
-opened 19:02:13") and ``want``: ``take`` (a person opened the address; the default), ``reload``
-or ``watch`` (it reconnected by itself). ``{"control": "take"}`` / ``{"control": "release"}``
-over the socket are a person's clicks."""
+"""Who may watch the live view and who may steer from it (docs/architecture.md)."""
 
 from __future__ import annotations
 
@@ -22,15 +16,13 @@ from aiohttp import WSMsgType, web
 
 #: Secret length in bytes (URL-safe base64 makes 22 characters): 128 bits, beyond guessing.
 SECRET_BYTES = 16
-#: Least time (s) between messages handed to the source: half the loop's 200 Hz (it follows only
-#: the newest), far above the page's 20 Hz; each costs the loop one parse.
+#: Least time (s) between messages handed to the source: half the loop's 200 Hz (newest only).
 FORWARD_PERIOD_S = 0.01
 #: Largest message a page may send (bytes): a command is under 100; more is refused by closing.
 MAX_MESSAGE_BYTES = 4096
 #: Host names that mean this machine, accepted in the Host header of a loopback server.
 LOOPBACK_NAMES = frozenset({"localhost", "127.0.0.1", "::1", "[::1]"})
-#: Longest tab id and name (characters) taken from a page: its own are 32 and ~25; cut, as the
-#: name is shown to every other page.
+#: Longest tab id and name (characters) taken from a page (its own: 32 and ~25; shown to all).
 MAX_TAB_ID_CHARS = 64
 MAX_TAB_NAME_CHARS = 40
 #: What a keyed page may ask for when it connects (see the module's docstring).
@@ -50,8 +42,7 @@ def is_loopback(host: str) -> bool:
 @dataclass(frozen=True)
 class Access:
     """The session's secrets: ``secret`` (``?key=``) steers and watches, ``watch_secret``
-    (``?watch=``) watches when ``watch_needs_key`` (served beyond this machine); ``loopback``:
-    served on a loopback address (the Host header is then checked)."""
+    (``?watch=``) watches when ``watch_needs_key``; ``loopback``: the Host header is checked."""
 
     secret: str
     watch_secret: str
@@ -107,8 +98,7 @@ def check_request(request: web.Request, access: Access, websocket: bool) -> Verd
 
 
 class ControlDesk:
-    """The one controller slot and the sink its text goes to (thread-safe): the app attaches the
-    page source's ``feed``; the server claims, forwards and releases for each page."""
+    """The one controller slot and the sink its text goes to (thread-safe)."""
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
@@ -142,8 +132,7 @@ class ControlDesk:
             return self._holder_text or "nobody yet: open the address with the key"
 
     def claim(self, token: object, who: str, tab: str = "", reload: bool = False) -> bool:
-        """Give the slot to ``token`` if it is free, or with ``reload`` held by the same ``tab``;
-        whether it holds it now."""
+        """Give the slot to ``token`` if free or ``reload``-ed by its ``tab``; whether it has it."""
         with self._lock:
             taken = self._holder is not None and self._holder is not token
             same_tab = reload and bool(tab) and tab == self._holder_tab
@@ -201,8 +190,7 @@ def describe_peer(request: web.Request, name: str = "") -> str:
 
 
 def tab_of(request: web.Request) -> tuple[str, str, str]:
-    """The page's ``(tab id, tab name, want)`` from its query, cut to size (an unknown ``want`` is
-    ``take``)."""
+    """The page's ``(tab id, tab name, want)`` from its query, cut to size."""
     query = request.query
     tab = query.get("tab", "")[:MAX_TAB_ID_CHARS]
     name = "".join(c for c in query.get("name", "") if c.isprintable())[:MAX_TAB_NAME_CHARS]

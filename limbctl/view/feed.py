@@ -1,5 +1,4 @@
-"""Feeding the board while teaching: a pose tap on the limb (on the recorder's thread, never
-waiting on the view) and a scene feeder thread (samples, guide, the region fitted last)."""
+"""Feeding the board while teaching: a pose tap on the limb and a scene feeder thread."""
 
 from __future__ import annotations
 
@@ -18,24 +17,15 @@ from limbctl.view.twist import TwistGauge, TwistMap, taught_gauge
 
 #: How often the scene is republished (s) when no fit finishes: twice the page's promised 1 Hz.
 SCENE_PERIOD_S = 0.5
-#: Least time between the starts of two fits (s): a fit of a 30-60 s teaching takes 0.1-0.25 s
-#: (docs/bench_fit.md); more redraws would show much the same region, each a browser repaint.
+#: Least time between the starts of two fits (s): a fit takes 0.1-0.25 s (docs/bench_fit.md).
 REFIT_PERIOD_S = 0.25
 #: Longest wait (s) for the feeder thread to finish when stopped.
 JOIN_TIMEOUT_S = 10.0
 
 
 class PoseTap:
-    """A limb that also shows every pose it reads on the board.
-
-    Parameters
-    ----------
-    limb : object
-        The rig (``read_pose() -> (pan, tilt[, roll])``, rad); other attributes pass through.
-    board : Board
-    mode, note : str
-        The mode the page shows ("record", "demo: teach"); the line shown to the person.
-    """
+    """A limb (``read_pose() -> (pan, tilt[, roll])``, rad; other attributes pass through) that
+    also shows every pose it reads on the board, with the page's ``mode`` and ``note``."""
 
     def __init__(self, limb: Any, board: Board, mode: str, note: str = "") -> None:
         self._limb = limb
@@ -64,8 +54,7 @@ class PoseTap:
         return pose
 
     def set_twist_map(self, twist: TwistMap) -> None:
-        """The twist taught so far: the gauge's range from now on, shown at once (call from the
-        thread that reads the limb)."""
+        """The twist taught so far, the gauge's range (call from the thread reading the limb)."""
         self.twist_map = twist
         if self._last is not None:
             self._publish()
@@ -101,17 +90,8 @@ class PoseTap:
 
 
 class SceneFeeder:
-    """Publishes the scene (samples, the region fitted so far, limits, guide) from its own thread.
-
-    Parameters
-    ----------
-    board : Board
-    samples : callable
-        Returns the samples so far, shape (N, 2), radians (pan, tilt).
-    limits : HardLimits or None
-    fit : bool
-        Fit the region in a separate process (False: samples only).
-    """
+    """Publishes the scene from its own thread: ``samples()`` so far (N, 2) (rad, pan and tilt), the
+    region fitted in a separate process (``fit``; False: samples only), limits and guide."""
 
     def __init__(
         self,
@@ -177,8 +157,7 @@ class SceneFeeder:
                 self._stop.wait(remaining)
 
     def wake_time(self, scene_due: float) -> float:
-        """When the idle feeder wakes next (monotonic s): ``scene_due``, or sooner when a fit waits
-        only for :data:`REFIT_PERIOD_S` since the last start (even if that moment has passed)."""
+        """When the idle feeder wakes next (monotonic s): ``scene_due`` or sooner for a fit."""
         if self._refit_waiting:
             return min(scene_due, self._last_start + REFIT_PERIOD_S)
         return scene_due

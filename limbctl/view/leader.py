@@ -1,5 +1,4 @@
-"""The leader gimbal on the live page: its pose beside the follower's, and the force it applies
-(a :class:`LeaderStatus` per cycle inside a :class:`LeaderLive`; ``assets/leader.js`` draws it)."""
+"""The leader gimbal on the live page: its pose and the force it applies."""
 
 from __future__ import annotations
 
@@ -15,25 +14,12 @@ Pose3 = tuple[float, float, float]
 
 @dataclass(frozen=True)
 class LeaderStatus:
-    """The leader gimbal in one teleop cycle, as the page shows it.
-
-    Parameters
-    ----------
-    pose, toward : PanTilt or None
-        The leader's pose as last read (None before it); its Goal Position (None while free).
-    torque_nm : float
-        The torque it pushes back with (N m, >= 0; 0 while free or passive).
-    cap_nm : float or None
-        The most it may push (N m, also its Current Limit); None for a passive leader.
-    beyond_deg : float or None
-        How far the leader lies beyond the region's edge (deg; 0 inside); None when not measured.
-    state : str
-        In words: "free", "pushing back", "passive: ..." or why the feel went off.
-    twist_deg, toward_twist_deg : float or None
-        A three-servo leader's twist and its Goal Position's twist while pushing (deg).
-    sensed_nm : float or None
-        The norm of its motors' torque as last read (N m); None for a passive leader.
-    """
+    """The leader gimbal in one teleop cycle, as the page shows it: its ``pose`` as last read and
+    ``toward`` its Goal Position (None before a read / while free); the ``torque_nm`` it pushes back
+    with and its ``cap_nm`` (N m, also its Current Limit; None: passive); how far it lies
+    ``beyond_deg`` the edge (deg, 0 inside; None: not measured); its ``state`` in words; a
+    three-servo leader's ``twist_deg`` and ``toward_twist_deg`` (deg) and the ``sensed_nm`` norm of
+    its motors' torque as last read (N m; None: passive)."""
 
     pose: PanTilt | None
     torque_nm: float = 0.0
@@ -79,9 +65,7 @@ class LeaderStatus:
         return out
 
 
-#: A three-servo leader's push is drawn as an arrow on the pan/tilt plane only when its swing
-#: part is at least this share of its largest joint step: a push mostly in twist moves pan and
-#: tilt by hundredths of a degree, whose direction on the plane means nothing.
+#: A three-servo push is drawn on the pan/tilt plane only if its swing is this share of its step.
 SWING_SHARE_DRAWN = 0.1
 
 

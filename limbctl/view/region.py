@@ -1,5 +1,5 @@
-"""The region ``train`` would learn from the samples so far, as edge loops the page draws; fitted
-in a separate process (:class:`FitProcess`): numba holding the GIL would stall the recorder."""
+"""The region ``train`` would learn so far, as edge loops, fitted in a separate process (numba
+holding the GIL would stall the recorder)."""
 
 from __future__ import annotations
 
@@ -22,11 +22,9 @@ from limbctl.view.state import EdgeLoop
 
 #: Longest drawn stretch of edge (deg): fine enough that traced and untraced parts show apart.
 STRETCH_DEG = 1.0
-#: A stretch is traced when a sample lies this close (deg) to its middle: the learned edge may
-#: lie up to RegionParams.max_offset_deg (3 deg) beyond the samples that taught it.
+#: A stretch is traced when a sample lies this close (deg) to its middle (the edge's max offset).
 TRACED_WITHIN_DEG = 3.0
-#: Fewest samples worth a fit (2 s at the recorder's 100 Hz): fits of fewer, a stroke or two of
-#: the hand, were slivers or stray arcs that said nothing of the region being taught.
+#: Fewest samples worth a fit (2 s at 100 Hz): fewer gave slivers or stray arcs.
 MIN_FIT_SAMPLES = 200
 #: Niceness of the fit process (19, the lowest priority): a refit may wait, the recorder not.
 FIT_NICENESS = 19
@@ -146,8 +144,7 @@ def fit_outline(pan_tilt_rad: np.ndarray) -> RegionFit:
 
 
 def serve_fits(connection) -> None:
-    """The fit process: answer each array of samples with its :class:`RegionFit`, on one numba
-    thread (the recorder, the bus and the loop come first)."""
+    """The fit process: answer each array of samples with its :class:`RegionFit`, on one thread."""
     numba.set_num_threads(1)
     while True:
         samples = connection.recv()
@@ -157,8 +154,7 @@ def serve_fits(connection) -> None:
 
 
 class FitProcess:
-    """:func:`fit_outline` in its own process, one fit at a time: ``submit`` returns at once,
-    ``result`` is the fit once done (None before)."""
+    """:func:`fit_outline` in its own process, one fit at a time."""
 
     def __init__(self) -> None:
         context = multiprocessing.get_context("spawn")

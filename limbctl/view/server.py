@@ -1,5 +1,4 @@
-"""The live view's web server: the page, its assets and a WebSocket per browser that sends the
-newest board every :data:`PUSH_PERIOD_S` (nothing queued: a slow browser gets fewer frames)."""
+"""The live view's web server: the page, its assets and a WebSocket per browser."""
 
 from __future__ import annotations
 
@@ -23,9 +22,7 @@ from limbctl.view.control import (
 )
 from limbctl.view.state import Board
 
-#: How often each browser's coroutine looks for a newer state (s): 10 Hz is twice the page's
-#: 5 Hz pose promise; every frame costs the browser a redraw, on the same small machine as the
-#: recorder and the loop when it watches 127.0.0.1 (the producers never wake the server).
+#: How often each browser's coroutine looks for a newer state (s): twice the page's 5 Hz promise.
 PUSH_PERIOD_S = 0.1
 #: WebSocket ping interval (s): a browser that stops answering is dropped within two of these.
 HEARTBEAT_S = 5.0
@@ -69,9 +66,9 @@ def build_app(
     desk: ControlDesk | None = None,
     heartbeat_s: float = HEARTBEAT_S,
 ) -> web.Application:
-    """The aiohttp application serving ``board``: ``/``, the assets, ``/ws`` and ``/state.json``;
-    ``access`` decides who watches and steers, ``desk`` is the controller slot, ``heartbeat_s`` (s)
-    the WebSocket ping interval."""
+    """The aiohttp application serving ``board`` (``/``, the assets, ``/ws``, ``/state.json``) to
+    whom ``access`` allows, ``desk`` the controller slot, ``heartbeat_s`` (s) the WebSocket ping
+    interval."""
     access = access or Access.for_host(DEFAULT_HOST)
     desk = desk or ControlDesk()
     app = web.Application()
@@ -166,9 +163,9 @@ def _control_text(desk: ControlDesk, token: object, keyed: bool) -> str:
 
 
 class ViewServer:
-    """The live view served from a background thread; a context manager. ``host``, ``port`` (0:
-    the system chooses), ``desk`` and ``heartbeat_s`` (s) as for :func:`build_app`; :attr:`url`
-    is the address to watch, :attr:`control_url` the one that steers (with the key)."""
+    """The live view served from a background thread (a context manager; ``port`` 0: any):
+    :attr:`url` watches, :attr:`control_url` steers (with the key); the rest as for
+    :func:`build_app`."""
 
     def __init__(
         self,

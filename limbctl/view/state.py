@@ -1,5 +1,4 @@
-"""What the live view shows, as plain values (a fast :class:`Live`, a slow :class:`Scene`), and
-the :class:`Board` keeping the latest of each. Angles: degrees on the pan/tilt plane."""
+"""What the live view shows, as plain values, and the :class:`Board` keeping the latest."""
 
 from __future__ import annotations
 
@@ -91,21 +90,9 @@ class GuideFigure:
 
 @dataclass(frozen=True)
 class TeleopStatus:
-    """One teleop cycle as the page shows it.
-
-    Parameters
-    ----------
-    commanded, written : PanTilt or None
-        The source's command and the goal the gate wrote (None before there is one).
-    outcome, words : str
-        The gate's outcome by name (e.g. "held") and in words (:mod:`limbctl.teleop.explain`).
-    rate_hz : float
-        The loop's measured rate (Hz).
-    cycles : int
-        Cycles run so far.
-    blocked : tuple of str
-        The joint directions blocked ("+pan", "-pan", "+tilt", "-tilt").
-    """
+    """One teleop cycle as the page shows it: ``commanded`` and ``written`` poses (None before one),
+    the gate's ``outcome`` and its ``words``, ``rate_hz`` (Hz), ``cycles`` and ``blocked``
+    directions."""
 
     commanded: PanTilt | None
     written: PanTilt | None
@@ -129,21 +116,10 @@ class TeleopStatus:
 
 @dataclass(frozen=True)
 class Live:
-    """The fast part of the view, published as often as the producer likes.
-
-    Parameters
-    ----------
-    mode, fault, note : str
-        "record", "teleop" or "demo: <phase>"; the present fault ("" for none); one line for
-        the person.
-    pose : PanTilt or None
-        The limb's pose as last read.
-    sample_count : int
-        Samples recorded so far.
-    teleop : TeleopStatus or None
-        The teleop cycle (None outside teleop).
-    twist : TwistGauge or None
-        A three-servo limb's twist gauge; None (no ``twist`` JSON key) on two servos.
+    """The fast part of the view, published as often as the producer likes: ``mode`` ("record",
+    "teleop" or "demo: <phase>"), the ``pose`` last read, ``sample_count`` recorded, the
+    ``teleop`` cycle (None outside teleop), the present ``fault`` ("" for none), a ``note`` for the
+    person and a three-servo limb's ``twist`` gauge (None, no ``twist`` JSON key, on two servos).
     """
 
     mode: str
@@ -177,13 +153,10 @@ class Scene:
     ----------
     samples_deg : ndarray, shape (M, 2)
         Samples to draw, pan/tilt degrees (thinned by :func:`thin_samples`).
-    loops : tuple of EdgeLoop
-        The edge of the region learned so far (empty until one can be fitted).
-    limits : HardLimits or None
-        The rig's hard joint limits.
+    loops, limits, guide : tuple of EdgeLoop, HardLimits or None, tuple of GuideFigure
+        The region's edge learned so far (empty until one can be fitted); the rig's hard limits.
     region_note, guide_text : str
         How the region was obtained (or why there is none); the guide's advice.
-    guide : tuple of GuideFigure
     twist : TwistMap or None
         A three-servo limb's twist map; None (no ``twist`` JSON key) on two servos.
     """
@@ -220,15 +193,12 @@ class Scene:
 def thin_samples(
     pan_tilt_deg: np.ndarray, cell_deg: float = THIN_CELL_DEG, limit: int = MAX_DRAWN_SAMPLES
 ) -> np.ndarray:
-    """Samples thinned for drawing: one per ``cell_deg`` grid cell, at most ``limit``.
+    """Samples thinned for drawing: one per ``cell_deg`` grid cell (deg), at most ``limit``.
 
     Parameters
     ----------
     pan_tilt_deg : ndarray, shape (N, 2)
         Samples in degrees, in recording order.
-    cell_deg : float
-        Grid cell size, degrees.
-    limit : int
 
     Returns
     -------
@@ -257,8 +227,7 @@ class Snapshot:
 
 
 class Board:
-    """The latest :class:`Live` and :class:`Scene`, swapped under a lock (O(1), from any thread,
-    never waiting on a client); the server reads :meth:`snapshot` at its own pace."""
+    """The latest :class:`Live` and :class:`Scene`, swapped under a lock from any thread."""
 
     def __init__(self) -> None:
         self._lock = threading.Lock()

@@ -1,5 +1,4 @@
-"""The twist (``q = swing(d) * twist(tau)``) of a three-servo limb on the live page: its range
-over the swing plane cell by cell (:class:`TwistMap`) and a gauge (:class:`TwistGauge`)."""
+"""A three-servo limb's twist on the live page: a map over the swing plane and a gauge."""
 
 from __future__ import annotations
 
@@ -14,8 +13,7 @@ from limbctl.geometry.twist import decompose_one
 #: A cell's states: recording, ``turned`` (both ways to the stops), ``short`` (a stop untaught),
 #: ``few`` (too few samples); teleop, the learned ``band`` at its centre or ``free``.
 CELL_STATES = ("turned", "short", "few", "band", "free")
-#: Cell size (deg) of the learned band's picture: a shoulder's band changes by under 3 deg across
-#: 5 deg of swing, and a 230 x 125 deg rig then takes ~1200 cells (a scene of ~30 kB).
+#: Cell size (deg) of the learned band's picture: ~1200 cells (~30 kB) for a 230 x 125 deg rig.
 BAND_CELL_DEG = 5.0
 #: A half-width this close to 180 deg (rad) is a free twist: the band's fit stores pi there.
 FREE_HALF = math.pi - 1e-9
@@ -23,18 +21,14 @@ FREE_HALF = math.pi - 1e-9
 
 @dataclass(frozen=True)
 class TwistMap:
-    """Twist ranges over the swing plane, cell by cell.
+    """Twist ranges over the swing plane, cell by cell (``of``: ``"taught"`` or ``"band"``).
 
     Parameters
     ----------
     cell_deg : float
         Cell size, deg; cell ``(i, j)`` covers pan ``[i, i + 1) * cell_deg``, tilt likewise.
     cells : ndarray, shape (M, 4)
-        ``(i, j, low_deg, high_deg)`` per cell.
-    states : tuple of str
-        One of :data:`CELL_STATES` per cell.
-    of : str
-        ``"taught"`` (recording) or ``"band"`` (the learned band).
+        ``(i, j, low_deg, high_deg)`` per cell; ``states`` one of :data:`CELL_STATES` per cell.
     """
 
     cell_deg: float
@@ -73,18 +67,9 @@ class TwistMap:
 
 @dataclass(frozen=True)
 class TwistGauge:
-    """The present pose's twist against the range allowed or taught at its place.
-
-    Parameters
-    ----------
-    twist_deg, written_deg : float
-        The present twist (deg, in (-180, 180]); the twist last written (teleop; else None).
-    low_deg, high_deg : float or None
-        The range there (deg; inside when ``low <= twist_deg + 360 k <= high`` for some k); None
-        where nothing is known.
-    of : str
-        What the range is, in words ("taught here", "the learned band here").
-    """
+    """The present ``twist_deg`` (deg, in (-180, 180]) against the range ``low_deg`` .. ``high_deg``
+    (deg, inside when ``low <= twist_deg + 360 k <= high``; None: unknown) at its place, the
+    range's ``of`` in words and the twist last ``written`` (teleop; else None)."""
 
     twist_deg: float
     low_deg: float | None = None
@@ -121,8 +106,7 @@ def taught_gauge(twist: TwistMap | None, pan: float, tilt: float, roll: float) -
 
 
 def band_gauge(band, pose: tuple[float, float, float], written: float | None) -> TwistGauge:
-    """The teleop gauge: the pose's (rad) twist against the learned ``band`` at its direction;
-    ``written`` twist (rad) or None."""
+    """The teleop gauge: the pose's (rad) twist against the learned ``band`` at its direction."""
     d, tau = decompose_one(pose_quat_scalar(*pose))
     c, h = band.at(np.asarray(d, dtype=np.float64))
     centre, half = float(c[0]), float(h[0])
@@ -136,8 +120,7 @@ def band_gauge(band, pose: tuple[float, float, float], written: float | None) ->
 
 
 def taught_map(places, cell_deg: float, min_samples: int) -> TwistMap:
-    """The twist guide's ``TwistPlace`` cells as a :class:`TwistMap` of ``cell_deg`` cells; cells
-    under ``min_samples`` samples are ``few``."""
+    """The twist guide's ``TwistPlace`` cells as a :class:`TwistMap` (few samples: ``few``)."""
     cells = [(p.pan_index, p.tilt_index, p.low_deg, p.high_deg) for p in places]
     states = [
         "few" if p.samples < min_samples else "turned" if p.turned else "short" for p in places

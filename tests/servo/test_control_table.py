@@ -58,8 +58,6 @@ def test_registers_models_modes_bauds_hardware_errors_and_status_errors():
     spans = sorted((r.address, r.address + r.size, r.name) for r in Register)
     for (_, end, name), (start, _, next_name) in zip(spans[:-1], spans[1:], strict=True):
         assert end <= start, f"{name} overlaps {next_name}"
-    assert Register.SHUTDOWN.is_eeprom and Register.MIN_POSITION_LIMIT.is_eeprom
-    assert not Register.TORQUE_ENABLE.is_eeprom and not Register.GOAL_POSITION.is_eeprom
     with pytest.raises(ValueError, match="TORQUE_ENABLE holds 0..255, got 256"):
         Register.TORQUE_ENABLE.encode(256)
     with pytest.raises(ValueError, match="PROFILE_VELOCITY holds 0"):

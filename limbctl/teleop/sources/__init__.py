@@ -21,19 +21,9 @@ __all__ += ["SourceKind", "SourceSpec", "parse_source", "open_source", "PageSour
 
 @dataclass(frozen=True)
 class SourceContext:
-    """What a source may need of the job that opens it.
-
-    Attributes
-    ----------
-    rig : limbctl.servo.rig.Rig or None
-        The open rig (its bus also holds the spec's ``extra_ids``).
-    gate : limbctl.teleop.gate.Gate or None
-        The session's gate (the keyboard starts from its pose).
-    page : callable or None
-        Attaches the page source to the live view (:data:`limbctl.teleop.sources.lines.Connect`).
-    twist : bool
-        Commands keep their twist (set anyway by a rig with a roll joint).
-    """
+    """What a source may need of the job that opens it: the open ``rig`` (its bus holds the spec's
+    ``extra_ids``), the ``gate`` (the keyboard starts from its pose), ``page`` (attaches the page
+    source, :data:`~limbctl.teleop.sources.lines.Connect`) and ``twist`` (commands keep it)."""
 
     rig: Any = None
     #: The loop's rate (Hz): a felt leader checks at start that its cycle keeps it.
@@ -51,17 +41,8 @@ class SourceContext:
 
 @dataclass(frozen=True)
 class SourceKind:
-    """One scheme of command source.
-
-    Attributes
-    ----------
-    scheme, form : str
-        The spec's prefix (``udp`` for ``udp://...``); how a spec of it is written.
-    build : callable (argument, context) -> CommandSource
-        Builds an unstarted source from the text after the scheme.
-    extra_ids : callable (argument) -> tuple of int
-        Servo ids the bus must hold besides the rig's.
-    """
+    """One scheme of command source: its prefix (``udp``), its written form, ``build(argument,
+    context)`` making an unstarted source and the ``extra_ids(argument)`` the bus must hold."""
 
     scheme: str
     form: str

@@ -1,5 +1,4 @@
-"""What every command source shares: a reader thread's queue drained by ``poll`` (never
-blocking), and counts of refused input with their reasons."""
+"""What every command source shares: a reader thread's queue, and counts of refused input."""
 
 from __future__ import annotations
 
@@ -32,8 +31,7 @@ class SourceStats:
 
 
 class CommandSource:
-    """Base: a queue filled by a reader thread; ``latest_only``: follow the newest command only
-    (realtime sources), else gate each in order."""
+    """Base: a queue filled by a reader thread; ``latest_only``: follow the newest command only."""
 
     name = "source"
     latest_only = False
@@ -121,8 +119,7 @@ class CommandSource:
         return self._ended.wait(timeout)
 
     def poll(self, timeout: float = 0.0) -> list[Command]:
-        """Every command parsed since the last call, oldest first; waits up to ``timeout`` s for
-        the first (0: never blocks)."""
+        """Every command parsed since the last call, oldest first, waiting up to ``timeout`` s."""
         out: list[Command] = []
         if timeout > 0:
             try:

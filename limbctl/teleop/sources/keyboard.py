@@ -1,5 +1,4 @@
-"""Command source ``keyboard``: the keys of a terminal steer the limb; stopped short at an edge,
-the next key steps from the written pose, so a held key slides along the edge."""
+"""Command source ``keyboard``: the keys of a terminal steer the limb."""
 
 from __future__ import annotations
 
@@ -31,8 +30,7 @@ from limbctl.teleop.sources.base import WAKE_INTERVAL_S, CommandSource
 READ_CHUNK_BYTES = 64
 #: How often (s) the command is repeated: five times within the loop's 0.5 s silence.
 KEEPALIVE_S = WAKE_INTERVAL_S
-#: Farthest (deg, per joint) the command may lead the written pose while the limb moves freely
-#: (a held key's catch-up, a large step); at an edge, one step.
+#: Farthest (deg, per joint) the command may lead the written pose moving freely (edge: a step).
 MAX_LEAD_DEG = 10.0
 #: Grid (deg) for the region's centre: a few thousand candidates, a fraction of a second once.
 CENTRE_GRID_DEG = 2.0

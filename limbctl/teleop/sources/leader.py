@@ -1,5 +1,4 @@
-"""A leader as a command source: a second chain of servos on the follower's bus, moved by hand;
-a current-sensing model feels the edge, any doubt switches its push off at once."""
+"""A leader as a command source: a second chain of servos moved by hand, perhaps felt."""
 
 from __future__ import annotations
 
@@ -22,8 +21,6 @@ from limbctl.teleop.sources.leader_ids import check_leader_fits
 from limbctl.teleop.sources.leader_silence import LeaderSilence
 from limbctl.teleop.sources.leader_snap import SnapWatching, cycle_velocity, snap_watch
 
-__all__ = ["FOLLOWER_GRACE_S", "FOLLOWER_UNREAD", "LeaderSource", "PaceWatch"]
-
 #: How the loop's gate says it held because the follower's read failed this cycle.
 FOLLOWER_UNREAD = "the bus failed this cycle"
 #: How long (s) the wall stays on while only the follower's reads fail: one silent-servo probe
@@ -45,18 +42,8 @@ def pose_command(pose: tuple[float, ...]) -> Command:
 
 
 class LeaderSource(SnapWatching, LeaderBus, CommandSource):
-    """Mirror a hand-moved leader, read in :meth:`poll`; a current-sensing one feels the edge.
-
-    Parameters
-    ----------
-    rig : Rig
-        The follower rig; its bus must also hold the leader's ids.
-    leader_ids : tuple of int
-        The leader's ids, one per joint of the rig.
-    rate_hz : float
-        The loop's rate (Hz), which a felt leader must keep.
-    law : FeelLaw, optional
-    """
+    """Mirror a hand-moved leader (``leader_ids``, one per joint of ``rig``, on its bus), read in
+    :meth:`poll`; a current-sensing one feels the edge and must keep the loop's ``rate_hz`` (Hz)."""
 
     name = "leader"
     latest_only = True
@@ -98,8 +85,7 @@ class LeaderSource(SnapWatching, LeaderBus, CommandSource):
         self.silence = LeaderSilence()
         #: A wall on when one read missed goes on as engaged if the next read answers.
         self.resume = False
-        #: When the leader last answered (perf_counter s); never yet, so the first good read
-        #: re-arms its Bus Watchdog.
+        #: Last answer (perf_counter s): never, so a first read re-arms the watchdog.
         self._heard_at = -math.inf
         self._follower_read_at = -math.inf  # the follower's last good read (perf_counter s)
         self._polled_at: float | None = None  # this cycle's poll, right after the follower's read

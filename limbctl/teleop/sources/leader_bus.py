@@ -1,5 +1,4 @@
-"""A leader source's bus side (mixed into ``LeaderSource``): set-up, reads turned into poses and
-torques, and one sync write a cycle."""
+"""A leader source's bus side (mixed into ``LeaderSource``): set-up, reads and writes."""
 
 from __future__ import annotations
 
@@ -26,8 +25,7 @@ WATCHDOG_UNITS = 5
 WATCHDOG_UNIT_S = 0.020
 #: Goal Current alone, written as raw bytes (sent even to a servo in alarm).
 GOAL_CURRENT_BLOCK = Block(Register.GOAL_CURRENT, Register.GOAL_CURRENT.size)
-#: Cycles timed at start to check the rate: a quarter second at 200 Hz for a median; three
-#: batches, so a moment of load does not refuse a bus that keeps the rate.
+#: Cycles timed at start to check the rate (a median of a quarter second at 200 Hz), in batches.
 RATE_CHECK_CYCLES = 50
 RATE_CHECK_TRIES = 3
 #: What the operator is told when the leader feels the edge, by its number of joints.
@@ -153,8 +151,7 @@ class LeaderBus:
             self._zero_current()
 
     def _write(self, push: Push) -> None:
-        """One sync write of Goal Current and Goal Position; Torque Enable off and on first when
-        the wall comes on, Profile Velocity once with it."""
+        """One sync write of Goal Current and Goal Position (torque cycled as the wall comes on)."""
         ticks = self.rig.angles_to_ticks(*push.goal)  # the goal's ticks, kept to one turn below
         currents = push.currents(len(self.leader_ids))
         data = {

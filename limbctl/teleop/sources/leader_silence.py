@@ -10,15 +10,13 @@ from limbctl.servo.health import Dropout
 
 #: Two reads in a row: one lost reply is not a dropout.
 MISSES_FOR_DROPOUT = 2
-#: How often (s) a silent leader is probed: as the follower's, one failed read (6.3 ms) in ten
-#: cycles keeps the loop's rate.
+#: How often (s) a silent leader is probed: one failed read (6.3 ms) in ten cycles keeps the rate.
 PROBE_INTERVAL_S = 0.05
 
 
 @dataclass
 class LeaderSilence:
-    """The leader's silent servos (times perf_counter s): each ended ``dropouts``, the failed
-    reads (``misses``) and the longest one took (``longest_failed_read_s``, s)."""
+    """The leader's silent servos: their dropouts, failed reads and the longest one (s)."""
 
     dropouts: list[Dropout] = field(default_factory=list)
     misses: int = 0

@@ -1,5 +1,4 @@
-"""What a felt leader's snap watch reads (:mod:`limbctl.teleop.snap`): the leader's speed and
-its motors' torque, between the cycles."""
+"""What a felt leader's snap watch reads between the cycles: speed and motor torque."""
 
 from __future__ import annotations
 
@@ -65,8 +64,7 @@ class SnapWatching:
         return self.snap.still(pose, goal, motion[0])
 
     def judge_read(self, speed: Sequence[float], torque: Sequence[float], now: float) -> bool:
-        """At the cycle's read (``at_read``): let the wall go at once if the rules say so; True
-        if the rules ran on this read."""
+        """At the cycle's read: let the wall go if the rules say so; whether they ran."""
         if not (self.snap.at_read and self.snap.watching):
             return False
         if self.snap.judge(speed, now, torque):
@@ -81,8 +79,7 @@ class SnapWatching:
             self.release()
 
     def read_leader(self) -> CycleRead | None:
-        """The cycle's read of the felt leader, retried once after a miss; None between probes
-        while a servo is silent (:class:`~limbctl.teleop.sources.leader_silence.LeaderSilence`)."""
+        """The cycle's read of the felt leader, retried once; None between probes while silent."""
         if not self.silence.read_now(time.perf_counter()):
             return None
         read = self.rig.bus.read_cycle(ids=self.leader_ids, attempts=1)
@@ -95,16 +92,14 @@ class SnapWatching:
         return read
 
     def missed(self, read: CycleRead) -> None:
-        """A failed read: every leader servo's push off at once, the miss counted; a wall that
-        was on comes back as it was on the next good read (``resume``)."""
+        """A failed read: push off at once, the miss counted, the wall resumed on a good read."""
         self.silence.missed(read, time.perf_counter())
         self.resume = self.last_push is not None and self.last_push.goal_current > 0
         if self.felt:
             self.release()
 
     def read_motion(self) -> tuple[tuple[float, ...], tuple[float, ...]] | None:
-        """:func:`motion_of` one try of the cycle read, no pings (a silent servo costs one reply
-        timeout); a failed read (a failing port too) is ``missed`` and gives None."""
+        """Speeds (deg/s) and torques (N m) in one try of the cycle read; None if ``missed``."""
         try:
             read = self.rig.bus.read_cycle(ids=self.leader_ids, attempts=1)
         except BusError as exc:

@@ -1,5 +1,4 @@
-"""The command sources of JSON lines: ``stdin`` (or any binary stream), ``udp://HOST:PORT``,
-``replay:FILE`` (paced by each line's ``"t"``) and ``page`` (the live view's controlling page)."""
+"""The command sources of JSON lines: ``stdin``, ``udp://HOST:PORT``, ``replay:FILE``, ``page``."""
 
 from __future__ import annotations
 
@@ -19,8 +18,7 @@ from limbctl.teleop.sources.base import WAKE_INTERVAL_S, CommandSource
 
 #: Most bytes taken per read: the size of a Linux pipe's buffer, so one read drains it.
 READ_CHUNK_BYTES = 65536
-#: Rate (lines/s) at which lines without a ``"t"`` follow each other: half the loop's default
-#: 200 Hz, so each line is gated rather than skipped as stale.
+#: Rate (lines/s) of lines without a ``"t"``: half the loop's 200 Hz, so each is gated, not skipped.
 UNSTAMPED_RATE_HZ = 100.0
 #: Attaches a text sink to the page's controller, returns the detach and a "who holds control".
 Connect = Callable[[Callable[[str], None]], tuple[Callable[[], None], Callable[[], str]]]
@@ -151,8 +149,7 @@ def _peek_time(raw: bytes, twist: bool = False) -> float | None:
 
 
 class PageSource(CommandSource):
-    """Commands from the page that holds control of the live view; ``connect(feed)`` attaches
-    ``feed`` to its controller and returns ``(detach, holder)`` (see :data:`Connect`)."""
+    """Commands from the page that holds control of the live view (``connect``: :data:`Connect`)."""
 
     name = "page"
     latest_only = True
