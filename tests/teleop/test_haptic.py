@@ -20,7 +20,7 @@ from limbctl.errors import ConfigError
 from limbctl.geometry.chains import geodesic
 from limbctl.servo.control_table import ModelNumber
 from limbctl.servo.leader import CAP_STALL_FRACTION, FELT_MODELS
-from limbctl.teleop.haptic import TICK_DEG, FeelLaw, FeelStats
+from limbctl.teleop.haptic import TICK_DEG, FeelLaw, FeelStats, lets_go
 from limbctl.teleop.haptic_push import Push, beyond_deg, corrected_pose, held, push_for
 from limbctl.teleop.sources.leader import PaceWatch
 from tests.teleop.stepped_leader import (
@@ -206,6 +206,17 @@ def test_property_a_leader_outrunning_its_setpoints_or_still_moving_in_is_free_e
         lead = math.radians(LAW.lead_for_deg(wall.distance_deg, MOTOR))
         assert 0.0 <= present[joint] - push.goal[joint] <= lead + 1e-12
         assert np.max(np.abs(np.subtract(push.goal, present))) <= lead + 1e-12
+
+
+def test_a_free_still_leader_within_the_rearm_band_stays_free_and_a_held_one_stays_held():
+    """The wall comes back on a still free leader only past ``rearm_band_deg`` beyond the
+    deadband (the random property above rarely draws that 0.05 deg band)."""
+    inside_band = LAW.deadband_deg + 0.5 * LAW.rearm_band_deg
+    past_band = LAW.deadband_deg + 2.0 * LAW.rearm_band_deg
+    assert lets_go(LAW, inside_band, 0.0, 0.005, engaged=False)
+    assert not lets_go(LAW, past_band, 0.0, 0.005, engaged=False)
+    assert not lets_go(LAW, inside_band, 0.0, 0.005, engaged=True)  # a held wall stays on
+    assert lets_go(LAW, past_band, 0.01, 0.005, engaged=False)  # moving in: left free
 
 
 def test_a_wall_walking_its_leader_back_with_no_hand_leads_two_ticks_more():
