@@ -1,44 +1,19 @@
 """The twist band over the swing region: how far the limb may turn about its own axis, by direction.
 
 The band over direction ``d`` is the arc of twists ``|wrap(tau - c(d))| <= h(d)``: a centre ``c``
-and a half-width ``h`` (rad; ``h = pi`` is a free twist). Twist is circular, so a band is stored
-as centre and half-width, never as two limits that could straddle +-pi. Both are kept on a
-square grid in the azimuthal equidistant plane about the band's axis (the swing region's axis):
-``(x, y) = theta (d.u, d.v) / |(d.u, d.v)|`` with ``theta`` the angle from the axis, so the
-grid has no pole inside the region, and read bilinearly
-(:func:`limbctl.region.twist_kernels.band_at`; its numpy twin is in the tests).
+and a half-width ``h`` (rad; ``h = pi`` is a free twist), never two limits that could straddle
++-pi. Both are kept on a square grid in the azimuthal equidistant plane about the band's axis,
+``(x, y) = theta (d.u, d.v) / |(d.u, d.v)|`` with ``theta`` the angle from the axis, and read
+bilinearly (:func:`limbctl.region.twist_kernels.band_at`).
 
-Fitting, per grid node, from the taught samples within ``BAND_RADIUS_DEG`` of it
-(:mod:`limbctl.region.twist_fit_kernels`):
+Fitting, per grid node, from the samples within ``BAND_RADIUS_DEG`` (docs/region.md, "Twist band"):
 
-1. *First reading*: the node's limits are the heights over the node of the upper and lower
-   hulls of (tangent position, twist) (``fit_nodes``). A limit that is linear across the
-   neighbourhood is read without bias whichever way it slopes, but the hull rides on the
-   highest stop. Nodes the samples do not surround take the nearest read node's band, and the
-   centres are unwrapped across the grid so bilinear reading never averages across +-pi.
-2. *Second reading*: the samples within ``STOP_BAND_DEG`` of a first-read limit are that stop's
-   samples; each limit becomes the height at the node of the weighted least-squares plane
-   through them (``refine_nodes``): their mean, unbiased by a slope, extrapolated linearly
-   near the swing edge. A limit stays as first read where fewer than 3 stops lie around a node.
-3. *Envelope*: each limit is then widened, never narrowed, to the smallest function of the
-   plane position lying above (below) every taught sample whose upward curvature is at most
-   ``ENVELOPE_CURVATURE`` (``envelope_heights``): the upper concave hull of
-   ``(x, tau - k |x|^2 / 2)`` plus ``k |x|^2 / 2``. Between stops ``L`` apart it sags at most
-   ``k L^2 / 8`` below the straight line through them, so where a hand passed a place only
-   mid-band (trajectories: stops come in bursts, tens of degrees apart) the band bridges from
-   the stops around instead of closing on the passing samples, and every taught sample lies in
-   the band (up to the grid's interpolation). Where the stops around a place lie far apart the
-   curvature bound falls with their spacing, so that the sag stays under ``ENVELOPE_SAG_DEG``
-   (down to ``ENVELOPE_CURVATURE_MIN``): dense stops are followed at ``ENVELOPE_CURVATURE``,
-   sparse ones bridged by a flatter, wider envelope (``_raised``).
-4. *Evidence cap*: each limit is then narrowed, never widened, to what the taught twists near
-   the node support (:mod:`limbctl.region.twist_evidence`: a cone about every sample, and a
-   cap along the local slope of the stops around, read again once the stops are re-read
-   against the capped band, and a steeper cone and a bound of stated slope and bending where
-   no slope could be read): a reading that
-   bridged past a stop the hand never turned to is held within a degree of the truth, and
-   where that cut is large and no stop was held there the place is listed for the guide
-   (:attr:`TwistBand.cuts`).
+1. *First reading*: heights over the node of the upper and lower hulls of (position, twist).
+2. *Second reading*: the weighted least-squares plane through each first-read limit's stops.
+3. *Envelope*: widened to the smallest function above every sample whose upward curvature is
+   at most ``ENVELOPE_CURVATURE`` (flatter where stops lie far apart, ``_raised``).
+4. *Evidence cap*: narrowed to what the twists near the node support
+   (:mod:`limbctl.region.twist_evidence`; large cuts listed in :attr:`TwistBand.cuts`).
 """
 
 from __future__ import annotations
@@ -58,9 +33,8 @@ from limbctl.region.twist_evidence import cap_limits, curvature_floors, inside_h
 #: Grid spacing (deg) of the band's nodes: a band limit sloping 1 deg per deg errs by at most
 #: its curvature over 1.5 deg between nodes, and 2 sr of region take ~3000 nodes.
 BAND_STEP_DEG = 1.5
-#: Neighbourhood (deg) a node reads its band from: of 6000 samples over ~1.6 sr it holds ~150,
-#: ~25 at each stop, so the first reading's hull surrounds the node; at 4 deg it did not for
-#: ~20 % of the nodes (upper limits 13 deg low at the 10th percentile, shoulder region).
+#: Neighbourhood (deg) a node reads its band from: ~25 samples at each stop, so the first
+#: reading's hull surrounds the node; at 4 deg it did not for ~20 % of the nodes.
 BAND_RADIUS_DEG = 8.0
 #: The highest (lowest) twists a node's hull is taken over: the stops among its neighbours;
 #: 24 keeps the search at 2024 triangles a node; 16 missed stops (error 0.31 -> 0.55 deg).
@@ -74,57 +48,33 @@ STOP_BAND_DEG = 1.5
 #: Weight width (deg, one sigma) of the second reading's plane: ~10 stops of each side within
 #: one sigma when a few thousand samples hold ~1000 stops over 1.6 sr.
 REFINE_SIGMA_DEG = 5.0
-#: Steepest band limit (rad of twist per rad of direction) either reading believes: a
-#: shoulder's rotation range changes by ~0.5 deg per deg of elevation (0.7 with the centre's
-#: drift in the benchmark's regions). The first reading bounds a limit from below by each sample
-#: with it; the second refuses planes steeper. 3 let both go wrong beside sparse stops (mean
-#: error 0.33 -> 0.59 deg on the shoulder region).
+#: Steepest band limit (rad/rad) either reading believes: a shoulder's range changes ~0.5-0.7 deg
+#: per deg; 3 let both go wrong beside sparse stops (mean error 0.33 -> 0.59 deg).
 MAX_SLOPE = 1.0
 #: The first reading's grid is this many times coarser than the band's: it only sorts samples
 #: into stops for the second, and the hull is most of the fit's time (x4 fewer nodes).
 FIRST_COARSENESS = 2
 #: Nodes kept beyond the farthest taught direction (grid steps): the swing region's margins.
 GRID_PAD = 4
-#: Largest upward curvature (rad of twist per rad^2 of direction) the envelope (step 3) allows a
-#: band limit: the benchmark's shoulder limits, linear in pan and tilt, curve up to ~1 in the
-#: band's plane, and an envelope flatter than the truth bridges over it (at 0: limits 2.6 deg
-#: beyond the truth at the median; 0.5: 2.2 deg at most, beyond by 0.5 deg at 7.7 % of the
-#: directions; 0.75: 1.15 and 0.4 %; 1: 0.8 and 0.1 %). Between stops 20 deg apart 0.75 sags
-#: 1.3 deg below their line, 1 sags 1.7: a 60 s teaching by the simulator's hand held 99.1-99.5 %
-#: of the true region 2 deg inside at 0.75 (docs/decisions/twist.md).
+#: Largest upward curvature (rad/rad^2) the envelope allows a band limit: the shoulder's limits
+#: curve up to ~1; 0.75 sags 1.3 deg between stops 20 deg apart (docs/decisions/twist.md).
 ENVELOPE_CURVATURE = 0.75
-#: Largest sag (deg) below the plane through the stops around a place that the envelope keeps
-#: where the stops lie far apart (its curvature bound then falls, down to
-#: ENVELOPE_CURVATURE_MIN): a hand's stops lie 1 deg inside the truth (its inset) and the issue
-#: asks for the region 2 deg inside, so a sag of 0.5 deg leaves 0.5 deg for the grid and the
-#: tremor. At 0.75 rad^-1 alone the sag between stops 30 deg apart is 1.5 deg, and a 60 s
-#: teaching by the simulator's hand held 98.9-99.4 % of that region; with this cap 99.9-100 %
-#: (docs/decisions/twist.md; 0.3 deg gave the same figures).
+#: Largest sag (deg) the envelope keeps where stops lie far apart: stops lie 1 deg inside the
+#: truth and the issue asks for 2 deg inside, leaving 0.5 deg for the grid and the tremor.
 ENVELOPE_SAG_DEG = 0.5
-#: The flattest curvature (rad^-1) the sag cap may bring the envelope to where stops are very
-#: sparse: 0.35 keeps the 0.5 deg sag for stops up to 26 deg apart (0.75: 17 deg), and over
-#: a truth curving more it over-reaches by at most the difference times the sag factor; 0.25
-#: held the same share of the demo's region (docs/decisions/twist.md).
+#: The flattest curvature (rad^-1) the sag cap may bring the envelope to: 0.35 keeps the 0.5 deg
+#: sag for stops up to 26 deg apart; 0.25 held the same share of the demo's region.
 ENVELOPE_CURVATURE_MIN = 0.35
 #: A point's sag factor is taken at most ``ENVELOPE_STOP_SPAN r^2 / 2``, ``r`` its distance to the
-#: nearest stop: the cap acts fully only where the nearest stop is at least a fifth of the
-#: facet's span away (a chord L, a point r from its end: ``r (L - r) / 2 <= 2 r^2`` for L <= 5 r).
-#: Wide facets also arise where the truth curves up by more than ENVELOPE_CURVATURE and the
-#: facet bridges over dense stops: there r is a degree or two and nothing is raised. On the
-#: benchmark's shoulder, at 1, 4: limits beyond the truth by more than 0.5 deg at 0.07 % of the
-#: directions (as without the cap); 16: 0.3 %; 64: 1.2-1.9 %; no bound: 2.4-3.5 %. At 1 the
-#: demo's region held 99.27 % (seed 1) against 99.98 % at 4.
+#: nearest stop (``r (L - r) / 2 <= 2 r^2`` for a chord L <= 5 r): 4 over-reaches as seldom as 1.
 ENVELOPE_STOP_SPAN = 4.0
-#: Times the evidence cap's stops are re-read against the capped band (step 4): on the curved
-#: family's seed 1, dense teaching (docs/bench_region_families.md) the band lay 2.10 deg past
-#: the truth with the stops read against the readings only (a bridged dip's bottom held none),
-#: 0.64 after one re-read. More not tried.
+#: Times the evidence cap's stops are re-read against the capped band: a bridged dip's bottom
+#: holds none at first (curved seed 1: 2.10 deg past the truth, 0.64 after one). More not tried.
 STOP_REREADS = 1
 #: Nodes per block when all the envelope's facets are evaluated (memory: block x facets floats).
 ENVELOPE_BLOCK = 512
 #: Facets (nearest by centre) tried for each node before all: the facet over a node is among
-#: its 16 nearest for all but a few nodes (the hull of a 60 s teaching has ~10000 facets; all of
-#: them for every node took 0.6-1.0 s a limit).
+#: its 16 nearest for all but a few (all ~10000 for every node took 0.6-1.0 s a limit).
 ENVELOPE_CANDIDATES = 16
 
 
