@@ -2,18 +2,10 @@
 
 A point of the learned region within ``r`` of a taught sample lies at most ``r`` outside the
 truth. Wherever the kept edge stands farther than ``REACH_DEG`` (:mod:`limbctl.region.evidence`)
-from every taught sample, :func:`hold_to_evidence` holds it to ``REACH_DEG`` of the evidence
-(docs/decisions/region.md):
-
-1. Every arc of an outer loop with a station (``STATION_DEG`` apart) farther than
-   ``REACH_DEG`` from every taught sample is *held*: rebuilt as the chain of its stations on
-   the widened edge. Its far stations walk in (:func:`_walk`); all else stays bit for bit.
-2. Where neighbouring held stations moved apart the edge between them is sampled again and
-   held (``REFINE_PASSES``); folds are cut (:func:`_unfolded`); chords whose middle still lies
-   far get their middle held (``CHORD_PASSES``).
-3. A taught sample the unheld region held and the held one leaves out is pinned into the
-   chain (``PIN_ROUNDS``); one still lost, or a crossing of held arcs, gives the nearest held
-   arc back its unheld edge and the hold is retried (``UNHOLD_ROUNDS``).
+from every taught sample, :func:`hold_to_evidence` holds it to ``REACH_DEG`` of the evidence:
+far arcs rebuilt from their stations walked in (:func:`_walk`), refined, unfolded
+(:func:`_unfolded`), samples pinned, arcs given back when the hold would lose one (the steps:
+docs/decisions/region.md, "The kept edge is held to the evidence").
 
 The stretches stay reported (:attr:`limbctl.region.TaughtRegion.unsupported_edge`, *held*).
 """

@@ -1,21 +1,10 @@
 """The smooth edge: a boundary of local small circles fitted to the data-supported loops.
 
-The loops of :mod:`limbctl.region.shape` run through taught samples, corners wherever a sample
-fell. Each loop becomes a smooth curve sampled every ``STEP_DEG`` (angles in radians):
-
-1. *Local small circles* (:func:`circle_fits`): at each station, a small circle fitted to the
-   loop's vertices with Gaussian weights of width ``W`` along the loop (a cone's boundary is
-   one circle whatever ``W``; straight edges are great circles).
-2. *Window* (:func:`choose_window`): the largest ``W`` of ``WINDOWS_DEG`` before a step grows
-   the mean fit residual by more than ``GROWTH`` (real shape entered the window).
-3. *Edge offset* (:func:`edge_offsets`): the outermost depths of the nearby taught directions
-   beyond the circle's tangent plus their mean spacing (where the edge lies, not where the
-   outermost sample fell), smoothed along the loop, lifted where a taught direction would
-   lie outside (:func:`limbctl.region.loops.lift`), out by the chords' sagitta, capped at
-   ``max_offset``.
-4. *Refusal* (:class:`limbctl.region.edge_choice.SmoothEdge`) where the data hold a bay
-   (:func:`protected`) or the window cannot follow the loop's shape (:func:`residual_ratio`
-   above ``RESOLVED_RATIO``). docs/bench_envelope.md lists which edge every benchmark row took.
+Each loop of :mod:`limbctl.region.shape` becomes a curve sampled every ``STEP_DEG`` (radians):
+small circles (:func:`circle_fits`) over a window (:func:`choose_window`), moved out by the
+outermost samples (:func:`edge_offsets`); refused where the data hold a bay (:func:`protected`)
+or the window cannot follow the loop (:func:`residual_ratio`). Steps: docs/region.md,
+"Edge strategies".
 """
 
 from __future__ import annotations

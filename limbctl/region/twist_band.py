@@ -107,9 +107,7 @@ class TwistBand:
         """Learn the band from taught directions ``d`` (N, 3) and twists ``tau`` (N,) (rad).
 
         ``axis`` (3,) is the plane's axis (the swing region's); ``reach`` (rad) how far beyond
-        the taught directions the grid must extend (the swing region's largest margin). The
-        first reading runs on a grid FIRST_COARSENESS times coarser (it only sorts the samples
-        into stops), the second on the band's own grid.
+        the taught directions the grid must extend (the swing region's largest margin).
         """
         d = np.ascontiguousarray(d, dtype=np.float64)
         tau = np.ascontiguousarray(tau, dtype=np.float64)
@@ -253,12 +251,8 @@ def envelope_heights(xy: np.ndarray, t: np.ndarray, node_xy: np.ndarray) -> np.n
     raised where its stops lie far apart so that it sags below their plane by at most
     ENVELOPE_SAG_DEG, or as a curvature of ENVELOPE_CURVATURE_MIN would (:func:`_raised`).
 
-    The hull's height at a point is the least of its upper facets' planes, reached at the facet
-    over it: each point takes the least over the ENVELOPE_CANDIDATES facets whose centres lie
-    nearest, which is exact when one of them lies over the point (checked), and the least over
-    all facets otherwise. Points outside the samples' convex hull take the height at the nearest
-    point inside (the hull's rim facets are near vertical). NaN everywhere when the samples span
-    no area (nothing to widen by).
+    Points outside the samples' convex hull take the height at the nearest point inside; NaN
+    everywhere when the samples span no area.
     """
     k = ENVELOPE_CURVATURE
     # lifted: s_i = t_i - k |x_i|^2 / 2
@@ -319,16 +313,9 @@ def _raised(
     ``factor`` (M,) (rad^2); ``(xy, t)`` the samples, ``corners`` the indices of those on the
     hull's upper facets, ``facets`` the hull's upper facets (as :func:`_over_facets` takes them).
 
-    With curvature k the envelope sags ``k S`` below the plane through the corners of the facet
-    over a point; its sag is capped at ``max(s, k_min S)`` (s = ENVELOPE_SAG_DEG, k_min =
-    ENVELOPE_CURVATURE_MIN): a curvature bound growing with the stops' spacing. A facet is wide
-    either because the stops are far apart (a hand passed mid-band) or because the truth curves
-    up by more than k and the facet bridges over stops lying just beneath it; the sag factor is
-    therefore taken at most ``ENVELOPE_STOP_SPAN r^2 / 2``, ``r`` the distance to the nearest
-    stop (a sample the envelope passes within STOP_BAND_DEG of), which stays small in the second
-    case. Continuous: S and r are. The corners are stops; the other samples are judged only
-    within the distance to the nearest corner of the points a corner alone leaves raised (a
-    nearer stop can only lower the raise).
+    The sag ``k S`` is capped at ``max(s, k_min S)`` (s = ENVELOPE_SAG_DEG, k_min =
+    ENVELOPE_CURVATURE_MIN), ``S`` taken at most ``ENVELOPE_STOP_SPAN r^2 / 2``, ``r`` the
+    distance to the nearest stop (docs/region.md, "Twist band").
     """
     k = ENVELOPE_CURVATURE
 
