@@ -49,8 +49,7 @@ THIN_GROWTH = 1.05
 #: Version of the construction, raised whenever it changes the region some data give: cached
 #: `limbctl eval` results are keyed on it (saved models carry their mesh).
 FIT_VERSION = 9
-#: Carving rounds at most: a bridged bay is a few triangles deep; 12 empty the bays of the
-#: families in docs/bench_swing_families.md.
+#: Carving rounds at most: a bridged bay is a few triangles deep; 12 empty the families' bays.
 CARVE_ROUNDS = 12
 #: Most share of taught samples carving may leave out: a bay's bridge holds none.
 CARVE_LOSS = 0.002
@@ -92,7 +91,6 @@ class TaughtRegion:
         self.unsupported_edge: tuple[Stretch, ...] = ()
         self.held_edge = False
 
-    # ---- building ----------------------------------------------------------------------------
     def fit(self, samples: np.ndarray, lookup: bool = True) -> TaughtRegion:
         """Build the region from taught ``samples``: directions (N, 3) or quaternions (N, 4).
 
@@ -135,8 +133,7 @@ class TaughtRegion:
                 break
             trial = self._supported_loops(d, d_train, thinning, tri, carved)
             if float(np.mean(trial[2].contains(d_train))) < held_first - CARVE_LOSS:
-                # carving ate into the taught samples: not a bay; the shape before stays, its
-                # stretches reported
+                # carving ate into the taught samples: not a bay; the shape before stays
                 break
             built, kept = trial, carved
         loops, margins, supported = built
@@ -144,8 +141,7 @@ class TaughtRegion:
             p.edge, loops, d_train, supported, np.radians(p.max_offset_deg)
         )
         self.edge = taken.strategy
-        # judged on the edge the region keeps: wherever it lies farther than REACH_DEG from
-        # every taught sample it may lie that far past the truth
+        # judged on the edge the region keeps: farther than REACH_DEG it may lie that far past
         self.unsupported_edge = tuple(
             unsupported_stretches(taken.region, d_train, np.radians(REACH_DEG), surrounded=False)
         )
@@ -209,7 +205,6 @@ class TaughtRegion:
         # the lookup grid waits until this region is taken (fit) or first asked (gate)
         return loops, margins, DirectionMesh.from_loops(loops, margins, lookup=False)
 
-    # ---- answering ---------------------------------------------------------------------------
     def _mesh(self) -> DirectionMesh:
         if self.mesh is None:
             raise ConfigError("this region is not built: call fit(samples) or load a model")
@@ -253,7 +248,6 @@ class TaughtRegion:
         """``q`` itself inside the region; outside, the nearest region orientation (twist kept)."""
         return self._answer(q)[0]
 
-    # ---- persistence -------------------------------------------------------------------------
     def arrays(self) -> dict[str, np.ndarray]:
         """The mesh's arrays, everything needed to answer without rebuilding (for saving)."""
         return self._mesh().arrays()

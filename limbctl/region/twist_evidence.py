@@ -129,17 +129,13 @@ def cap_limits(
     floors: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Band limits (M,), (M,) relative to the node centres ``ref`` (M,) (rad) clipped to the
-    evidence cap (module docstring), and the cuts (M,), (M,) (rad, >= 0) of each that ask for a
-    stop: 0 where MIN_WITNESSES samples within WITNESS_DEG of the node lie within
-    WITNESS_BAND_DEG of the cap (a stop held there: the cut corrects a reading that bridged
-    past it, and teaching more would not lift it).
+    evidence cap, and the cuts (M,), (M,) (rad, >= 0) that ask for a stop (0 where
+    MIN_WITNESSES samples witness the cap).
 
-    ``bounded`` (M,) marks the nodes whose band is not free (free twist is left as read); nodes,
-    samples and neighbourhoods as :func:`limbctl.region.twist_fit_kernels.evidence_caps` takes
-    them, held (:func:`_held`) where no local slope was read (among the nodes ``within`` (M,)
-    bool, when given). Where the clipped limits cross (or no sample lies near), both go to their
-    middle (or to 0; where the caps themselves cross, to the twist between them nearest the
-    reading's centre): a band of no width.
+    ``bounded`` (M,) marks the nodes whose band is not free; nodes, samples and neighbourhoods
+    as :func:`limbctl.region.twist_fit_kernels.evidence_caps` takes them, held (:func:`_held`)
+    where no local slope was read (among the nodes ``within`` (M,) bool, when given). Where the
+    clipped limits cross, or no sample lies near, the band closes to no width.
     """
     cap_up, cap_lo, n_up, n_lo = fk.evidence_caps(
         nodes,
@@ -154,8 +150,7 @@ def cap_limits(
     )
     # where the local slope was read, the cap promises for any truth within its margin of it
     read_up = read_lo = np.zeros(nodes.shape[0], dtype=bool)
-    # held only among the taught directions (``within``): beyond them, the swing region's margins,
-    # the band closes toward the taught twists by design and the gate's answers run along it
+    # held only among the taught directions: beyond them the band closes toward them by design
     holdable = bounded if within is None else bounded & within
     if stops is not None:
         cap_up, cap_lo, n_up, n_lo, read_up, read_lo = _along_slope(
@@ -185,9 +180,7 @@ def cap_limits(
     # the hold binds) it asks for one
     ask_up = (n_up < MIN_WITNESSES) | np.isfinite(held_up)
     ask_lo = (n_lo < MIN_WITNESSES) | np.isfinite(held_lo)
-    # the bound: where the hold acts, also within BOUND_SLACK_DEG of the least limit of any
-    # truth no steeper than BOUND_SLOPE and bending outward by no more than
-    # BOUND_CURVATURE_PER_DEG; what it takes off a witnessed cap asks for a stop too
+    # the bound, where the hold acts; what it takes off a witnessed cap asks for a stop too
     bound_up, bound_lo = _held(
         new_up,
         new_lo,
@@ -212,9 +205,8 @@ def cap_limits(
     near = np.isfinite(cap_up) & np.isfinite(cap_lo)
     top, bottom = np.fmin(cap_up, held_up), np.fmax(cap_lo, held_lo)
     middle = np.clip(0.5 * (np.where(near, top, 0.0) + np.where(near, bottom, 0.0)), lo, up)
-    # caps that cross each other (only far samples around): any twist between them breaks one
-    # side's promise by as much; the one nearest the reading's centre, which bridged from the
-    # stops of both sides, keeps the side toward the band's middle
+    # caps that cross each other (only far samples around): the twist between them nearest the
+    # reading's centre
     gap = near & (top < bottom)
     middle = np.where(gap, np.clip(0.5 * (up + lo), top, bottom), middle)
     new_up = np.where(crossed, middle, new_up)
@@ -239,11 +231,10 @@ def _held(
     slack_deg=HOLD_SLACK_DEG,
     floors=None,
 ):
-    """The hold: upper and lower limits (M,), (M,) (rad, relative to ``ref``) where it binds on
-    the capped limits ``up``, ``lo`` (M,), +-inf elsewhere. It binds at the nodes ``open_up``,
-    ``open_lo`` (M,) bool where the cone of ``slope`` (rad/rad: HOLD_SLOPE, or BOUND_SLOPE for
-    the bound) about the samples, raised to the ``floors`` (M,), (M,) (rad, relative to
-    ``ref``; NaN: none) when given, plus ``slack_deg`` (deg), lies inside the limit."""
+    """The hold: limits (M,), (M,) (rad, relative to ``ref``) where the cone of ``slope``
+    (rad/rad) about the samples, raised to ``floors`` (M,), (M,) (NaN: none) when given, plus
+    ``slack_deg`` (deg) lies inside ``up``, ``lo`` (M,) at the nodes ``open_up``, ``open_lo``
+    (M,) bool; +-inf elsewhere."""
     cone_up, cone_lo, _, _ = fk.evidence_caps(nodes, start, members, d, limit, ref, slope, 0.0, 0.0)
     if floors is not None:
         # NaN (outside the samples' hull) leaves the cone
@@ -295,8 +286,7 @@ def unsupported_places(
     """The places (largest cut first) where the cap holds a limit more than REPORT_CUT_DEG short.
 
     ``directions`` (M, 3) are the band's nodes inside the swing region, ``cut_up``, ``cut_lo``
-    (M,) (rad) the cuts there; one place per PLACE_DEG cell of (pan, tilt) and side, at the node
-    of its largest cut.
+    (M,) (rad) the cuts there; one place per PLACE_DEG cell of (pan, tilt) and side.
     """
     if directions.shape[0] == 0:
         return ()
@@ -313,11 +303,8 @@ def unsupported_places(
 
 def band_unsupported(band, d: np.ndarray, inside=None) -> tuple[UnsupportedPlace, ...]:
     """The places a freshly fitted band (its :attr:`~limbctl.region.twist_band.TwistBand.cuts`)
-    could not support, judged at nodes with a taught direction of ``d`` (N, 3) within
-    REPORT_NEAR_DEG (beyond the taught directions the band closes toward the taught twists by
-    design, and a place without samples is the swing guide's hole to ask for) and, when given,
-    where ``inside`` (a function of directions (M, 3) -> (M,) bool: the swing region) holds
-    them."""
+    could not support, at nodes within REPORT_NEAR_DEG of a taught direction of ``d`` (N, 3)
+    and, when given, where ``inside`` (directions (M, 3) -> (M,) bool) holds them."""
     if band.cuts is None:
         return ()
     nodes, cut_up, cut_lo = band.cuts
@@ -331,9 +318,8 @@ def band_unsupported(band, d: np.ndarray, inside=None) -> tuple[UnsupportedPlace
 
 
 def inside_hull(xy: np.ndarray, p: np.ndarray) -> np.ndarray:
-    """Whether each plane point ``p`` (M, 2) lies inside the convex hull of ``xy`` (N, 2) (rad):
-    among the taught directions, where the hold may bind; all of them when the samples span no
-    area."""
+    """Whether each plane point ``p`` (M, 2) lies inside the convex hull of ``xy`` (N, 2) (rad);
+    all do when the samples span no area."""
     try:
         rim = ConvexHull(xy).equations
     except (QhullError, ValueError):
@@ -348,8 +334,7 @@ def curvature_floors(
     plane points ``node_xy`` (M, 2) (rad) of any truth holding every sample ``(xy, limit)``
     ((N, 2), (N,) rad) whose limits bend toward the band's outside by at most
     BOUND_CURVATURE_PER_DEG: the upper concave hull of ``(x, t - k |x|^2 / 2)`` plus
-    ``k |x|^2 / 2`` (and the lower mirrored). NaN outside the samples' convex hull, where it
-    bounds nothing."""
+    ``k |x|^2 / 2`` (and the lower mirrored). NaN outside the samples' convex hull."""
     k = math.degrees(BOUND_CURVATURE_PER_DEG)
     out = []
     for sign in (1.0, -1.0):

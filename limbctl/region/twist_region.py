@@ -72,7 +72,6 @@ class TwistRegion:
         """Rows of the fitted samples the swing region was built on."""
         return self.swing.support_index
 
-    # ---- building ----------------------------------------------------------------------------
     def fit(self, q: np.ndarray) -> TwistRegion:
         """Learn the region from taught orientations ``q`` (N, 4).
 
@@ -99,7 +98,6 @@ class TwistRegion:
         self.seeds = boundary_seeds(self)
         return self
 
-    # ---- answering ---------------------------------------------------------------------------
     def _args(self) -> tuple:
         if self.band is None or self.swing.mesh is None:
             raise ConfigError("this region is not built: call fit(samples) or load a model")
@@ -142,7 +140,6 @@ class TwistRegion:
         self._seeds = np.ascontiguousarray(value, dtype=np.float64).reshape(-1, 4)
         self._seed_dirs = np.ascontiguousarray(decompose(self._seeds)[0]).reshape(-1, 3)
 
-    # ---- persistence -------------------------------------------------------------------------
     def arrays(self) -> dict[str, np.ndarray]:
         """The swing mesh's, the band's and the seeds' arrays (for saving)."""
         self._args()
