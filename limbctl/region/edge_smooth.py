@@ -118,7 +118,7 @@ def edge_offsets(
     data: np.ndarray,
     window: float,
 ) -> np.ndarray:
-    """Endpoint estimate (K,) rad of the edge beyond each station's circle (step 3)."""
+    """Endpoint estimate (K,) rad of the edge beyond each station's circle."""
     k = stations.shape[0]
     # each datum belongs to its nearest station; a station reads those within +- window
     buckets = StationBuckets(nearest_station(data, stations), k)
@@ -131,9 +131,7 @@ def edge_offsets(
         rows = buckets.around(i, reach)
         if rows.size == 0:
             continue
-        # o = asin(d . t): signed depth beyond the great circle tangent to the edge at the
-        # station (outward normal t); on a convex stretch, samples far along the window read
-        # shallower than they are, never deeper
+        # o = asin(d . t): signed depth beyond the tangent great circle (outward normal t)
         o = np.arcsin(np.clip(data[rows] @ normal[i], -1.0, 1.0))
         o = -np.sort(-o)[:ORDER_STATISTICS]
         out[i] = o[0] + spacing_gap(o)
@@ -153,9 +151,8 @@ def fit_edge(loop: np.ndarray, data: np.ndarray, max_offset: float) -> tuple[np.
     base = on_circle(stations, pole, rho)
     offset = smooth_along(edge_offsets(base, pole, total, data, window), s, total, window)
     offset += lift(sample_need(base, pole, rho, data) - offset, s, total, 0.5 * window)
-    # stations out by the sagitta of a chord: the chords between them then lie on or outside
-    # the curve, not inside it; sagitta = step^2 / (8 tan rho) for a circle of angular
-    # radius rho (geodesic curvature 1 / tan rho), none where it curves the other way
+    # out by a chord's sagitta, so the chords lie on or outside the curve: step^2 / (8 tan rho)
+    # for a circle of angular radius rho, none where it curves the other way
     step = total / s.shape[0]
     offset += np.maximum(step**2 / (8.0 * np.tan(np.minimum(rho, 0.5 * np.pi - 1e-9))), 0.0)
     return on_circle(base, pole, rho + np.minimum(offset, max_offset)), residual_ratio(resid)
