@@ -183,16 +183,13 @@ class TwistBand:
         bounded = half < math.pi
         up = np.where(bounded, np.fmax(up, envelope_heights(xy, limit, node_xy) - ref), up)
         lo = np.where(bounded, np.fmin(lo, -envelope_heights(xy, -limit, node_xy) - ref), lo)
-        # step 4: never past what the taught twists support (limbctl.region.twist_evidence),
-        # held to a steeper cone where no slope is read among the taught directions (the nodes
-        # inside the samples' convex hull on the plane)
+        # step 4: never past what the taught twists support (limbctl.region.twist_evidence)
         args = (bounded, nodes, start, members, d, limit, ref)
         within = inside_hull(xy, node_xy)
         floors = curvature_floors(xy, limit, node_xy, ref)
         capped = cap_limits(up, lo, *args, tuple(stops), within, floors)
         for _ in range(STOP_REREADS):
-            # the stops re-read against the capped band: where the readings bridged a dip, the
-            # samples at its bottom were below the first reading's limit, not its stops
+            # the stops re-read against the capped band: a bridged dip's bottom holds its stops
             c2, h2 = self._with_limits(ref, half, *capped[:2]).at(d)
             off = wrap(limit - c2)
             stops = [(off >= h2 - near) & (h2 < math.pi), (-off >= h2 - near) & (h2 < math.pi)]
