@@ -29,8 +29,7 @@ from limbctl.region.mesh import DirectionMesh
 WALK_STEP_DEG = 0.05
 #: Farthest (deg) a station walks in along its normal; then toward the nearest sample.
 WALK_DEG = 3.0
-#: Farthest (deg) a far chord's middle walks in: into the deepest bay the families cut
-#: (11 deg, benchmarks/bench_swing_families.py) plus the reach.
+#: Farthest (deg) a far chord's middle walks in: the families' deepest bay (11 deg) plus the reach.
 CHORD_WALK_DEG = 12.5
 #: Held stations this many spacings apart get the edge between them sampled again.
 SPREAD_STATIONS = 2.0

@@ -47,8 +47,7 @@ DENSITY_BAND_DEG = 3.0
 BAND_BEYOND_DEG = 0.05
 #: After the lift taught directions lie this far (deg) inside: far below a tick (0.088).
 LIFT_MARGIN_DEG = 0.01
-#: Farthest (deg) a held station lies from every taught sample: 0.75 leaves a quarter of the
-#: 1 deg bound to the chords between stations.
+#: Farthest (deg) a held station lies from every sample: a quarter of the 1 deg bound for chords.
 HOLD_DEG = 0.75
 #: Held stations' spacing (deg): a chord cuts a quarter of it past a right-angled corner.
 HELD_STEP_DEG = 0.5

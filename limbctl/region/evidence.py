@@ -17,13 +17,11 @@ from limbctl.region.loops import chord, loop_area
 from limbctl.region.mesh import DirectionMesh
 from limbctl.region.shape import bearing_gaps
 
-#: Farthest (deg) a surrounded edge station may lie from a taught sample: a traced reflex
-#: corner lies 1.1-1.4 deg from its samples, bridged bays 2-4 deg.
+#: Farthest (deg) a surrounded station may lie from a sample: reflex corners 1.1-1.4, bays 2-4.
 EVIDENCE_DEG = 1.5
 #: Farthest (deg) any edge station may lie from a sample unreported: a traced edge stands 1.0-1.1.
 REACH_DEG = 1.25
-#: The held edge is held again this close (deg) to the samples: 0.9 plus a held chord's slack
-#: (0.0625) keeps the 1 deg promise; REACH_DEG alone reached 1.0-1.21 deg past the truth.
+#: The held edge held again this close (deg): with a chord's slack (0.0625) within the 1 deg bound.
 HOLD_REACH_DEG = 0.9
 #: Station spacing (deg): a point between stations lies at most half of it farther.
 STATION_DEG = 0.25
@@ -33,8 +31,7 @@ CONCAVE_RADIUS_DEG = 6.0
 CONCAVE_GAP_DEG = 170.0
 #: Least samples in the neighbourhood to judge a bay: sparse teachings put 3-20, a hand 60-200.
 CONCAVE_MIN_SAMPLES = 40
-#: A sample within this angle (deg) of a station's outward direction is evidence beyond it: a
-#: bay's walls lie about 90 deg to either side.
+#: A sample this close (deg) to a station's outward direction is evidence beyond it: bay walls ~90.
 OUTWARD_CONE_DEG = 15.0
 
 

@@ -46,8 +46,7 @@ TRACED_SPACINGS = 1.25
 CORNER_TURN_DEG = 60.0
 #: Least growth of the thinning spacing a step while over the cap: ends in a few steps.
 THIN_GROWTH = 1.05
-#: Version of the construction, raised whenever it changes the region some data give: cached
-#: `limbctl eval` results are keyed on it (saved models carry their mesh).
+#: Version of the construction, raised when it changes a region: `limbctl eval`'s cache key.
 FIT_VERSION = 9
 #: Carving rounds at most: a bridged bay is a few triangles deep; 12 empty the families' bays.
 CARVE_ROUNDS = 12

@@ -30,51 +30,37 @@ from limbctl.region import twist_fit_kernels as fk
 from limbctl.region import twist_kernels as tk
 from limbctl.region.twist_evidence import cap_limits, curvature_floors, inside_hull
 
-#: Grid spacing (deg) of the band's nodes: a band limit sloping 1 deg per deg errs by at most
-#: its curvature over 1.5 deg between nodes, and 2 sr of region take ~3000 nodes.
+#: Grid spacing (deg) of the band's nodes: a 1 deg/deg limit errs by its curvature over 1.5 deg.
 BAND_STEP_DEG = 1.5
-#: Neighbourhood (deg) a node reads its band from: ~25 samples at each stop, so the first
-#: reading's hull surrounds the node; at 4 deg it did not for ~20 % of the nodes.
+#: Neighbourhood (deg) a node reads its band from: ~25 samples a stop; at 4 deg ~20 % unsurrounded.
 BAND_RADIUS_DEG = 8.0
-#: The highest (lowest) twists a node's hull is taken over: the stops among its neighbours;
-#: 24 keeps the search at 2024 triangles a node; 16 missed stops (error 0.31 -> 0.55 deg).
+#: Highest (lowest) twists a node's hull is taken over: 2024 triangles; 16 missed stops.
 HULL_TOP = 24
-#: A largest empty arc of the neighbours' twists below this (deg) leaves the twist free there:
-#: taught twists that go all the way round leave gaps of a few degrees only.
+#: Largest empty arc (deg) of neighbours' twists that leaves the twist free: full turns gap a few.
 FREE_GAP_DEG = 10.0
-#: Samples within this (deg) of a first-read limit count as at that stop for the second
-#: reading: a hand's stop scatters a few tenths of a degree, the first reading errs ~1 deg.
+#: Samples this close (deg) to a first-read limit are its stop's: the first reading errs ~1 deg.
 STOP_BAND_DEG = 1.5
-#: Weight width (deg, one sigma) of the second reading's plane: ~10 stops of each side within
-#: one sigma when a few thousand samples hold ~1000 stops over 1.6 sr.
+#: Weight width (deg, one sigma) of the second reading's plane: ~10 stops of each side within it.
 REFINE_SIGMA_DEG = 5.0
-#: Steepest band limit (rad/rad) either reading believes: a shoulder's range changes ~0.5-0.7 deg
-#: per deg; 3 let both go wrong beside sparse stops (mean error 0.33 -> 0.59 deg).
+#: Steepest limit (rad/rad) either reading believes: shoulders 0.5-0.7; 3 erred beside sparse stops.
 MAX_SLOPE = 1.0
-#: The first reading's grid is this many times coarser than the band's: it only sorts samples
-#: into stops for the second, and the hull is most of the fit's time (x4 fewer nodes).
+#: The first reading's grid is this many times coarser: it only sorts samples into stops (x4 fewer).
 FIRST_COARSENESS = 2
 #: Nodes kept beyond the farthest taught direction (grid steps): the swing region's margins.
 GRID_PAD = 4
-#: Largest upward curvature (rad/rad^2) the envelope allows a band limit: the shoulder's limits
-#: curve up to ~1; 0.75 sags 1.3 deg between stops 20 deg apart (docs/decisions/twist.md).
+#: Largest upward curvature (rad^-1) of the envelope: the shoulder's limits curve up to ~1.
 ENVELOPE_CURVATURE = 0.75
-#: Largest sag (deg) the envelope keeps where stops lie far apart: stops lie 1 deg inside the
-#: truth and the issue asks for 2 deg inside, leaving 0.5 deg for the grid and the tremor.
+#: Largest sag (deg) where stops lie far apart: stops lie 1 deg inside, the issue asks 2 deg inside.
 ENVELOPE_SAG_DEG = 0.5
-#: The flattest curvature (rad^-1) the sag cap may bring the envelope to: 0.35 keeps the 0.5 deg
-#: sag for stops up to 26 deg apart; 0.25 held the same share of the demo's region.
+#: Flattest curvature (rad^-1) of the sag cap: keeps 0.5 deg for stops up to 26 deg apart.
 ENVELOPE_CURVATURE_MIN = 0.35
-#: A point's sag factor is taken at most ``ENVELOPE_STOP_SPAN r^2 / 2``, ``r`` its distance to the
-#: nearest stop (``r (L - r) / 2 <= 2 r^2`` for a chord L <= 5 r): 4 over-reaches as seldom as 1.
+#: Sag factor at most ``ENVELOPE_STOP_SPAN r^2 / 2``, r to the nearest stop: 4 over-reaches as 1.
 ENVELOPE_STOP_SPAN = 4.0
-#: Times the evidence cap's stops are re-read against the capped band: a bridged dip's bottom
-#: holds none at first (curved seed 1: 2.10 deg past the truth, 0.64 after one). More not tried.
+#: Re-reads of the cap's stops against the capped band (curved seed 1: 2.10 -> 0.64 deg past truth).
 STOP_REREADS = 1
 #: Nodes per block when all the envelope's facets are evaluated (memory: block x facets floats).
 ENVELOPE_BLOCK = 512
-#: Facets (nearest by centre) tried for each node before all: the facet over a node is among
-#: its 16 nearest for all but a few (all ~10000 for every node took 0.6-1.0 s a limit).
+#: Nearest facets tried per node before all: the one over it is among 16 for all but a few.
 ENVELOPE_CANDIDATES = 16
 
 

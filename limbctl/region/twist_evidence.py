@@ -27,60 +27,44 @@ from scipy.spatial import ConvexHull, QhullError, cKDTree
 from limbctl.geometry.gimbal import direction_to_pan_tilt
 from limbctl.region import twist_fit_kernels as fk
 
-#: Steepest true band limit the cap assumes (rad/rad): a shoulder's range changes ~0.5-0.7 deg
-#: per deg; a flatter cap keeps more of a sparse teaching (decisions/twist.md, "The evidence cap").
+#: Steepest true band limit the cap assumes (rad/rad): a shoulder's 0.5-0.7; flatter keeps more.
 CAP_SLOPE = 0.5
-#: How far (deg) a capped limit may lie beyond the cone through the samples: the bilinear grid
-#: reads the cone up to CAP_SLOPE x 1.5 / 2 ~ 0.4 deg above its value between nodes.
+#: How far (deg) a capped limit may pass the cone: the grid reads it ~0.4 deg above between nodes.
 CAP_SLACK_DEG = 0.5
-#: Weight width (deg, one sigma) of the local slope's plane through the stops around a node.
-#: Not tuned: 3 and 5 gave the same cap at the curved family's worst node.
+#: Weight width (deg, one sigma) of the local slope's plane. Not tuned: 3 and 5 gave the same cap.
 SLOPE_SIGMA_DEG = 3.0
-#: The stops' least spread (deg, one sigma) for the slope to be read: beside the swing edge they
-#: lie along it (at 1.5 the curved family's seed 2 stayed 3.07 deg past the truth; 0.75: 0.40).
+#: The stops' least spread (deg, one sigma) to read a slope (1.5 left curved seed 2 3.07 deg past).
 SLOPE_SPREAD_DEG = 0.75
-#: The stops' least effective count (``(sum w)^2 / sum w^2``) for the slope to be read: through 3
-#: the plane fits exactly and its error reads 0 (decisions/twist.md, "A slope from too few stops").
+#: The stops' least effective count to read a slope: through 3 the plane's error reads 0.
 MIN_SLOPE_STOPS = 4.0
 #: Standard errors of the plane's slope added to SLOPE_SLACK: two, a ~95 % bound. Not tuned.
 SLOPE_CONFIDENCE = 2.0
-#: How far (rad/rad) the true slope may differ from the plane's beyond its error, and how fast
-#: (deg^-1) it may change: the families' bumps bend up to 0.19 deg^-1, a shoulder's ~0.02.
+#: The true slope's play (rad/rad) beyond the plane's error, and its bending (deg^-1; bumps 0.19).
 SLOPE_SLACK = 0.15
 CURVATURE_PER_DEG = 0.06
-#: A cut (deg) larger than this at a place inside the swing region is reported: a dense teaching
-#: left cuts of 1.0-1.2 deg where readings bridged slightly past their stops.
+#: A cut (deg) above this inside the swing region is reported: dense teachings left 1.0-1.2.
 REPORT_CUT_DEG = 1.5
-#: A cap is witnessed (a stop was held at it) by this many samples within WITNESS_DEG of the node
-#: and WITNESS_BAND_DEG of the cap: a hand's hold leaves 4-10 samples; 3 re-asked a dense dip.
+#: Samples near a cap that witness a held stop (a hand's hold leaves 4-10; 3 re-asked a dense dip).
 MIN_WITNESSES = 2
 WITNESS_DEG = 3.0
 #: Within this of the cap (deg) a sample is at it: a hand's stop scatters a few tenths of a degree.
 WITNESS_BAND_DEG = 1.5
-#: Cuts are judged at nodes with a taught direction within this (deg): beyond, the band closes
-#: toward the taught twists by design.
+#: Cuts are judged at nodes this close (deg) to a taught direction: beyond, the band closes.
 REPORT_NEAR_DEG = 3.0
 #: Places reported are grouped on a grid of this size (deg of pan and of tilt): the guide's cells.
 PLACE_DEG = 15.0
-#: The hold's cone slope (rad/rad): MAX_SLOPE of the band's readings. Not tuned; where a slope is
-#: read (dense stops) it never binds (decisions/twist.md, "The hold").
+#: The hold's cone slope (rad/rad): MAX_SLOPE. Not tuned; where a slope is read it never binds.
 HOLD_SLOPE = 1.0
-#: How far (deg) a held limit may lie beyond the steep cone: the bilinear grid reads it up to
-#: HOLD_SLOPE x 1.5 / 2 ~ 0.75 deg above its value between nodes. Not tuned.
+#: How far (deg) a held limit may pass the steep cone: the grid reads it ~0.75 above. Not tuned.
 HOLD_SLACK_DEG = 0.5
-#: The slope cap's reach (deg): a farther sample vouches along the read slope only as far as the
-#: steep cone lets it; 5 and 6 each failed one test teaching, 5.5 passes both (decisions/twist.md).
+#: The slope cap's reach (deg): farther samples vouch only as the steep cone does; 5, 6 each failed.
 REACH_DEG = 5.5
 
-#: The bound (where the hold acts): the least limit of any truth holding every sample, no steeper
-#: than BOUND_SLOPE (rad/rad) and bending outward by at most BOUND_CURVATURE_PER_DEG. The families'
-#: curved limits slope up to 1.56 deg per deg, the shoulder 0.96 (decisions/twist.md, "The bound").
+#: The bound's slope (rad/rad), where the hold acts: families' curved limits 1.48 (seeds 0-8).
 BOUND_SLOPE = 1.5
-#: The families' curved limits bend outward up to 0.215 deg^-1, the shoulder's 0.04; at 0.25 the
-#: shoulder test held 97.6 % of its lower limit within 2 deg (bound 98 %), at 0.15 98.2 %.
+#: The bound's outward bending (deg^-1): families 0.215, the shoulder 0.04; 0.25 failed its test.
 BOUND_CURVATURE_PER_DEG = 0.15
-#: At 0.75 the trajectory test of tests/region/test_twist_band.py held 98.99 % of its samples
-#: within 0.5 deg (bound 99 %), at 0.85 99.2 %.
+#: The bound's slack (deg): at 0.75 the trajectory test held 98.99 % of its samples (bound 99 %).
 BOUND_SLACK_DEG = 0.85
 #: Points per block of the floor's facet planes (memory: block x facets floats).
 FLOOR_BLOCK = 256

@@ -26,8 +26,7 @@ TWIST_TOLERANCE = 1e-9
 STEP_START = math.radians(3.0)
 #: Last step (rad): 0.03 deg; the score is flat to first order at an optimum.
 STEP_MIN = math.radians(0.03)
-#: Step (rad) where a further start stops unless it beat the best (three halvings, 0.25
-#: deg: a basin's score within ~0.1 deg of its optimum).
+#: Step (rad) where a further start stops unless it beat the best: 0.25 deg, within ~0.1 of optimum.
 STEP_COARSE = STEP_START / 8.0
 #: Cap on polls: 7 halvings poll 42 times without a move, ~350 left for moves.
 MAX_POLLS = 400
@@ -41,8 +40,7 @@ MAX_STARTS = 2
 START_APART = STEP_START
 #: ``cos(START_APART)``: candidates whose direction's cosine to a start exceeds it are skipped.
 COS_APART = math.cos(START_APART)
-#: Band grid nodes within this angle (rad) of the best optimum found are scanned (narrow peaks
-#: sit at nodes): 8 deg holds the farthest better optimum seen on the test shoulder (6.8 deg).
+#: Band nodes this close (rad) to the best optimum are scanned: 8 deg holds the farthest seen (6.8).
 SCAN_RADIUS = math.radians(8.0)
 #: Scanned nodes searched from, best score first (each skipped within a grid step of a start).
 NODE_STARTS = 3
