@@ -146,8 +146,7 @@ class TaughtRegion:
         )
         if not self.unsupported_edge:
             return taken.region
-        # containment over coverage: the edge is held to REACH_DEG of the evidence, then that
-        # held edge to HOLD_REACH_DEG wherever the tighter hold keeps its samples and arcs apart
+        # containment over coverage: held to REACH_DEG, then to HOLD_REACH_DEG where that holds
         region, self.held_edge = hold_to_evidence(taken.region, d_train)
         tight, held_tight = hold_to_evidence(region, d_train, np.radians(HOLD_REACH_DEG))
         if held_tight:

@@ -11,9 +11,8 @@ Where the stops around a node spread enough to read their slope ``g`` the cap is
 
 (``r_i = angle(x, x_i)``, ``se`` the plane's slope error); where none is read the limit is held
 (:func:`_held`) within a steep cone and the bound (:func:`curvature_floors`).
-:func:`cap_limits` clips both limits to the caps; the clip is the *cut*, and
-:func:`unsupported_places` names where it is large (a stop taught there lifts the cap).
-Why each cap, and what was measured: docs/decisions/twist.md, "The evidence cap" and below.
+:func:`cap_limits` clips both limits to the caps (the *cut*; :func:`unsupported_places` names
+where it is large). Why and what was measured: docs/decisions/twist.md, "The evidence cap".
 """
 
 from __future__ import annotations
@@ -160,8 +159,7 @@ def cap_limits(
     )
     new_up = np.fmin(new_up, held_up)
     new_lo = np.fmax(new_lo, held_lo)
-    # a cut where a stop was held near the node corrects the reading; elsewhere (and wherever
-    # the hold binds) it asks for one
+    # a cut asks for a stop unless one was held near the node (and the hold does not bind)
     ask_up = (n_up < MIN_WITNESSES) | np.isfinite(held_up)
     ask_lo = (n_lo < MIN_WITNESSES) | np.isfinite(held_lo)
     # the bound, where the hold acts; what it takes off a witnessed cap asks for a stop too
@@ -189,8 +187,7 @@ def cap_limits(
     near = np.isfinite(cap_up) & np.isfinite(cap_lo)
     top, bottom = np.fmin(cap_up, held_up), np.fmax(cap_lo, held_lo)
     middle = np.clip(0.5 * (np.where(near, top, 0.0) + np.where(near, bottom, 0.0)), lo, up)
-    # caps that cross each other (only far samples around): the twist between them nearest the
-    # reading's centre
+    # caps that cross (only far samples around): the twist between them nearest the centre
     gap = near & (top < bottom)
     middle = np.where(gap, np.clip(0.5 * (up + lo), top, bottom), middle)
     new_up = np.where(crossed, middle, new_up)
