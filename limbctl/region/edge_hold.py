@@ -2,12 +2,8 @@
 
 A point of the learned region within ``r`` of a taught sample lies at most ``r`` outside the
 truth. Wherever the kept edge stands farther than ``REACH_DEG`` (:mod:`limbctl.region.evidence`)
-from every taught sample, :func:`hold_to_evidence` holds it to ``REACH_DEG`` of the evidence:
-far arcs rebuilt from their stations walked in (:func:`_walk`), refined, unfolded
-(:func:`_unfolded`), samples pinned, arcs given back when the hold would lose one (the steps:
-docs/decisions/region.md, "The kept edge is held to the evidence").
-
-The stretches stay reported (:attr:`limbctl.region.TaughtRegion.unsupported_edge`, *held*).
+from every taught sample, :func:`hold_to_evidence` holds it to ``REACH_DEG`` of the evidence
+(the steps: docs/decisions/region.md, "The kept edge is held to the evidence").
 """
 
 from __future__ import annotations

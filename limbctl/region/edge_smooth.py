@@ -1,10 +1,8 @@
 """The smooth edge: a boundary of local small circles fitted to the data-supported loops.
 
-Each loop of :mod:`limbctl.region.shape` becomes a curve sampled every ``STEP_DEG`` (radians):
-small circles (:func:`circle_fits`) over a window (:func:`choose_window`), moved out by the
-outermost samples (:func:`edge_offsets`); refused where the data hold a bay (:func:`protected`)
-or the window cannot follow the loop (:func:`residual_ratio`). Steps: docs/region.md,
-"Edge strategies".
+Each loop of :mod:`limbctl.region.shape` becomes a curve sampled every ``STEP_DEG`` (radians);
+refused where the data hold a bay (:func:`protected`) or the window cannot follow the loop
+(:func:`residual_ratio`). The steps: docs/region.md, "Edge strategies".
 """
 
 from __future__ import annotations

@@ -1,9 +1,7 @@
 """The traced edge: a curve walked out to where the taught samples put the edge, station by station.
 
 It follows any shape the data resolve, bays included, where the edge is taught densely enough
-(:func:`trace_window`). Radians. Each round reads depths, estimates the edge
-(:func:`edge_estimate`, :func:`bridged_estimates` over a hole), moves the stations and smooths
-them (:func:`local_quadratic`); docs/region.md, "Edge strategies", lists the steps. Held to the
+(:func:`trace_window`); the steps: docs/region.md, "Edge strategies". Radians. Held to the
 evidence, every station stays within ``HOLD_DEG`` of a taught direction (:func:`held_in`).
 """
 

@@ -10,10 +10,8 @@ Fitting, per grid node, from the samples within ``BAND_RADIUS_DEG`` (docs/region
 
 1. *First reading*: heights over the node of the upper and lower hulls of (position, twist).
 2. *Second reading*: the weighted least-squares plane through each first-read limit's stops.
-3. *Envelope*: widened to the smallest function above every sample whose upward curvature is
-   at most ``ENVELOPE_CURVATURE`` (flatter where stops lie far apart, ``_raised``).
-4. *Evidence cap*: narrowed to what the twists near the node support
-   (:mod:`limbctl.region.twist_evidence`; large cuts listed in :attr:`TwistBand.cuts`).
+3. *Envelope*: widened to bounded upward curvature ``ENVELOPE_CURVATURE`` (:func:`_raised`).
+4. *Evidence cap*: narrowed to the taught twists' support (:mod:`limbctl.region.twist_evidence`).
 """
 
 from __future__ import annotations
@@ -84,8 +82,7 @@ class TwistBand:
         self.grid = np.ascontiguousarray(grid, dtype=np.float64)
         self.centre = np.ascontiguousarray(centre, dtype=np.float64)
         self.half = np.ascontiguousarray(half, dtype=np.float64)
-        #: (nodes (M, 3), upper cut (M,), lower cut (M,)) rad of the last fit's evidence cap
-        #: (:mod:`limbctl.region.twist_evidence`); None for a loaded band.
+        #: (nodes (M, 3), upper cut (M,), lower cut (M,)) rad of the last fit's cap; None loaded.
         self.cuts: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
 
     @classmethod

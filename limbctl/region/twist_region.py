@@ -39,8 +39,7 @@ class TwistRegion:
         self.swing = TaughtRegion(params)
         self.band: TwistBand | None = None
         self.seeds = np.zeros((0, 4))
-        #: Stretches of the band the last fit's teaching could not support (largest cut first;
-        #: :mod:`limbctl.region.twist_evidence`); empty for a loaded region.
+        #: Places the last fit's teaching could not support (largest cut first); empty loaded.
         self.unsupported: tuple[UnsupportedPlace, ...] = ()
 
     @property
