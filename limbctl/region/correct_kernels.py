@@ -1,9 +1,6 @@
 """Numba kernels that correct quaternions against the region: inside kept, outside moved.
 
-A command's limb direction is looked up in the region's grid
-(:func:`limbctl.region.mesh_kernels.query`); inside, the command comes back as it is (canonical,
-``w >= 0``); outside, its limb direction moves to the nearest region direction and the twist
-about the limb is kept. No ``fastmath``: NaN must fail every comparison.
+The twist about the limb is kept. No ``fastmath``: NaN must fail every comparison.
 """
 
 from __future__ import annotations
@@ -105,11 +102,9 @@ def correct_serial(
     return out, status
 
 
-#: Rows up to which a batch goes row by row through :func:`correct_single`, the gate's
-#: kernel: teleop's small batches compile nothing more (64 rows: ~0.2 ms).
+#: Rows up to which a batch goes row by row (:func:`correct_single`): ~0.2 ms, nothing compiled.
 SINGLE_ROWS = 64
-#: Rows up to which a batch runs on one thread (train's largest, ~50,000 rows, ~0.1 s); only
-#: larger ones pay the thread pool's compile (seconds).
+#: Rows up to which a batch runs on one thread (train's ~50,000: ~0.1 s): no pool compile.
 PARALLEL_ROWS = 100_000
 
 

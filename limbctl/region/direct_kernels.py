@@ -1,6 +1,5 @@
-"""Numba kernels that answer the region's queries from its arcs alone, without the lookup grid
-(for candidate meshes a fit may throw away), by the rule of
-:func:`limbctl.region.mesh_kernels.query`. Angles in radians. No fastmath.
+"""Numba kernels that answer the region's queries from its arcs alone, for meshes a fit may throw
+away (no lookup grid), as :func:`limbctl.region.mesh_kernels.query` does. Radians. No fastmath.
 """
 
 from __future__ import annotations

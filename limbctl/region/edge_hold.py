@@ -3,19 +3,7 @@
 A point of the learned region within ``r`` of a taught sample lies at most ``r`` outside the
 truth. Wherever the kept edge stands farther than ``REACH_DEG`` (:mod:`limbctl.region.evidence`)
 from every taught sample, :func:`hold_to_evidence` holds it to ``REACH_DEG`` of the evidence
-(docs/decisions/region.md):
-
-1. Every arc of an outer loop with a station (``STATION_DEG`` apart) farther than
-   ``REACH_DEG`` from every taught sample is *held*: rebuilt as the chain of its stations on
-   the widened edge. Its far stations walk in (:func:`_walk`); all else stays bit for bit.
-2. Where neighbouring held stations moved apart the edge between them is sampled again and
-   held (``REFINE_PASSES``); folds are cut (:func:`_unfolded`); chords whose middle still lies
-   far get their middle held (``CHORD_PASSES``).
-3. A taught sample the unheld region held and the held one leaves out is pinned into the
-   chain (``PIN_ROUNDS``); one still lost, or a crossing of held arcs, gives the nearest held
-   arc back its unheld edge and the hold is retried (``UNHOLD_ROUNDS``).
-
-The stretches stay reported (:attr:`limbctl.region.TaughtRegion.unsupported_edge`, *held*).
+(the steps: docs/decisions/region.md, "The kept edge is held to the evidence").
 """
 
 from __future__ import annotations
@@ -37,8 +25,7 @@ from limbctl.region.mesh import DirectionMesh
 WALK_STEP_DEG = 0.05
 #: Farthest (deg) a station walks in along its normal; then toward the nearest sample.
 WALK_DEG = 3.0
-#: Farthest (deg) a far chord's middle walks in: into the deepest bay the families cut
-#: (11 deg, benchmarks/bench_swing_families.py) plus the reach.
+#: Farthest (deg) a far chord's middle walks in: the families' deepest bay (11 deg) plus the reach.
 CHORD_WALK_DEG = 12.5
 #: Held stations this many spacings apart get the edge between them sampled again.
 SPREAD_STATIONS = 2.0

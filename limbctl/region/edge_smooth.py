@@ -1,21 +1,8 @@
 """The smooth edge: a boundary of local small circles fitted to the data-supported loops.
 
-The loops of :mod:`limbctl.region.shape` run through taught samples, corners wherever a sample
-fell. Each loop becomes a smooth curve sampled every ``STEP_DEG`` (angles in radians):
-
-1. *Local small circles* (:func:`circle_fits`): at each station, a small circle fitted to the
-   loop's vertices with Gaussian weights of width ``W`` along the loop (a cone's boundary is
-   one circle whatever ``W``; straight edges are great circles).
-2. *Window* (:func:`choose_window`): the largest ``W`` of ``WINDOWS_DEG`` before a step grows
-   the mean fit residual by more than ``GROWTH`` (real shape entered the window).
-3. *Edge offset* (:func:`edge_offsets`): the outermost depths of the nearby taught directions
-   beyond the circle's tangent plus their mean spacing (where the edge lies, not where the
-   outermost sample fell), smoothed along the loop, lifted where a taught direction would
-   lie outside (:func:`limbctl.region.loops.lift`), out by the chords' sagitta, capped at
-   ``max_offset``.
-4. *Refusal* (:class:`limbctl.region.edge_choice.SmoothEdge`) where the data hold a bay
-   (:func:`protected`) or the window cannot follow the loop's shape (:func:`residual_ratio`
-   above ``RESOLVED_RATIO``). docs/bench_envelope.md lists which edge every benchmark row took.
+Each loop of :mod:`limbctl.region.shape` becomes a curve sampled every ``STEP_DEG`` (radians);
+refused where the data hold a bay (:func:`protected`) or the window cannot follow the loop
+(:func:`residual_ratio`). The steps: docs/region.md, "Edge strategies".
 """
 
 from __future__ import annotations
@@ -129,7 +116,7 @@ def edge_offsets(
     data: np.ndarray,
     window: float,
 ) -> np.ndarray:
-    """Endpoint estimate (K,) rad of the edge beyond each station's circle (step 3)."""
+    """Endpoint estimate (K,) rad of the edge beyond each station's circle."""
     k = stations.shape[0]
     # each datum belongs to its nearest station; a station reads those within +- window
     buckets = StationBuckets(nearest_station(data, stations), k)
@@ -142,9 +129,7 @@ def edge_offsets(
         rows = buckets.around(i, reach)
         if rows.size == 0:
             continue
-        # o = asin(d . t): signed depth beyond the great circle tangent to the edge at the
-        # station (outward normal t); on a convex stretch, samples far along the window read
-        # shallower than they are, never deeper
+        # o = asin(d . t): signed depth beyond the tangent great circle (outward normal t)
         o = np.arcsin(np.clip(data[rows] @ normal[i], -1.0, 1.0))
         o = -np.sort(-o)[:ORDER_STATISTICS]
         out[i] = o[0] + spacing_gap(o)
@@ -164,9 +149,8 @@ def fit_edge(loop: np.ndarray, data: np.ndarray, max_offset: float) -> tuple[np.
     base = on_circle(stations, pole, rho)
     offset = smooth_along(edge_offsets(base, pole, total, data, window), s, total, window)
     offset += lift(sample_need(base, pole, rho, data) - offset, s, total, 0.5 * window)
-    # stations out by the sagitta of a chord: the chords between them then lie on or outside
-    # the curve, not inside it; sagitta = step^2 / (8 tan rho) for a circle of angular
-    # radius rho (geodesic curvature 1 / tan rho), none where it curves the other way
+    # out by a chord's sagitta, so the chords lie on or outside the curve: step^2 / (8 tan rho)
+    # for a circle of angular radius rho, none where it curves the other way
     step = total / s.shape[0]
     offset += np.maximum(step**2 / (8.0 * np.tan(np.minimum(rho, 0.5 * np.pi - 1e-9))), 0.0)
     return on_circle(base, pole, rho + np.minimum(offset, max_offset)), residual_ratio(resid)

@@ -1,21 +1,8 @@
 """The traced edge: a curve walked out to where the taught samples put the edge, station by station.
 
 It follows any shape the data resolve, bays included, where the edge is taught densely enough
-(:func:`trace_window`). Radians. From a supported loop resampled ``TRACE_STEP_DEG`` apart, each of
-``TRACE_ITERATIONS`` rounds:
-
-1. *Read*: each taught direction belongs to its nearest station ``k`` and reads its depth
-   ``asin(d . t_k)`` beyond the tangent great circle there (``t_k`` the outward normal).
-2. *Estimate* the edge at every station (:func:`edge_estimate`) from the readings within
-   ``+- h`` along the curve: their upper concave majorant plus the expected gap
-   (:func:`limbctl.region.gaps.majorant_gap`). Stations over a hole in the taught edge
-   (:func:`over_hole`) take estimates bridged between the hole's ends (:func:`bridged_estimates`).
-3. *Move* each station by its estimate, smoothed along the curve (Gaussian, ``h/2``).
-4. *Smooth* by local quadratic regression (:func:`local_quadratic`), outward by at most
-   ``TRACE_SMOOTH_CAP_DEG`` a round so that it does not bridge a narrow bay.
-
-A final lift moves stations out past every taught direction next to them. Held to the evidence,
-every station stays within ``HOLD_DEG`` of a taught direction (:func:`held_in`).
+(:func:`trace_window`); the steps: docs/region.md, "Edge strategies". Radians. Held to the
+evidence, every station stays within ``HOLD_DEG`` of a taught direction (:func:`held_in`).
 """
 
 from __future__ import annotations
@@ -58,8 +45,7 @@ DENSITY_BAND_DEG = 3.0
 BAND_BEYOND_DEG = 0.05
 #: After the lift taught directions lie this far (deg) inside: far below a tick (0.088).
 LIFT_MARGIN_DEG = 0.01
-#: Farthest (deg) a held station lies from every taught sample: 0.75 leaves a quarter of the
-#: 1 deg bound to the chords between stations.
+#: Farthest (deg) a held station lies from every sample: a quarter of the 1 deg bound for chords.
 HOLD_DEG = 0.75
 #: Held stations' spacing (deg): a chord cuts a quarter of it past a right-angled corner.
 HELD_STEP_DEG = 0.5

@@ -17,15 +17,11 @@ from limbctl.region.loops import chord, loop_area
 from limbctl.region.mesh import DirectionMesh
 from limbctl.region.shape import bearing_gaps
 
-#: Farthest (deg) a surrounded edge station may lie from a taught sample: a traced reflex
-#: corner lies 1.1-1.4 deg from its samples, bridged bays 2-4 deg.
+#: Farthest (deg) a surrounded station may lie from a sample: reflex corners 1.1-1.4, bays 2-4.
 EVIDENCE_DEG = 1.5
 #: Farthest (deg) any edge station may lie from a sample unreported: a traced edge stands 1.0-1.1.
 REACH_DEG = 1.25
-#: Where the edge stands past ``REACH_DEG`` somewhere, the held edge is held again this close
-#: (deg) to the samples: a point within r of a sample inside the truth lies at most r past it, and
-#: 0.9 plus a held chord's slack (0.0625) keeps the 1 deg promise; held at REACH_DEG alone the
-#: families' teachings reached 1.0-1.21 deg past their truth (docs/decisions/region.md).
+#: The held edge held again this close (deg): with a chord's slack (0.0625) within the 1 deg bound.
 HOLD_REACH_DEG = 0.9
 #: Station spacing (deg): a point between stations lies at most half of it farther.
 STATION_DEG = 0.25
@@ -33,13 +29,9 @@ STATION_DEG = 0.25
 CONCAVE_RADIUS_DEG = 6.0
 #: Widest empty sector (deg) of a surrounded station: a straight edge's is 180 or more.
 CONCAVE_GAP_DEG = 170.0
-#: Least samples in the neighbourhood to judge: sparse teachings' 3-20 cannot tell a bay from a
-#: dent; a hand's recording puts 60-200 there.
+#: Least samples in the neighbourhood to judge a bay: sparse teachings put 3-20, a hand 60-200.
 CONCAVE_MIN_SAMPLES = 40
-
-
-#: A sample within this angle (deg) of a station's outward direction is evidence beyond it: a
-#: bay's walls lie about 90 deg to either side.
+#: A sample this close (deg) to a station's outward direction is evidence beyond it: bay walls ~90.
 OUTWARD_CONE_DEG = 15.0
 
 

@@ -8,8 +8,7 @@ import numpy as np
 
 #: Outermost depths an estimate reads: 11 gaps average to 30 % noise, all next to the edge.
 ORDER_STATISTICS = 12
-#: The majorant's expected gap in units of ``r_(12) / 12``: 1.85 / 0.85 per (rho 2h),
-#: simulated (3000 draws at 30 and 100 points per unit depth).
+#: The majorant's expected gap in units of ``r_(12) / 12``, simulated (3000 draws, 30 and 100/unit).
 MAJORANT_GAP = 2.19
 
 

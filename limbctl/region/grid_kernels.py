@@ -185,9 +185,7 @@ def _cell(
         top = min(top, arc_dist[s] + from_block - margins[arcs[s]])
     top += 1e-9
     # a minimiser (key or plain) or a candidate (key <= top + 2 r, or within r) lies within
-    # x = max(top + 2 r, r) + max margin of the centre, so its midpoint within x + half + margin:
-    # an arc is measured only if no bound puts it beyond (the block's distance first, then the
-    # longest arc's midpoint bound, then the arc's own; all cheap next to measuring it)
+    # x = max(top + 2 r, r) + max margin of the centre, so its midpoint within x + half + margin
     x = max(top + 2.0 * r, r) + max_margin
     limit = math.cos(min(x + reach + 1e-9, math.pi))
     best_key = np.inf
@@ -269,8 +267,7 @@ def build_grid(vertices, edges, margins, axis, grid_shape, inside):
     from_block = np.empty(n_cells)
     corner = np.empty(3)
     dist = np.empty(n_edges)
-    # first pass, block by block: its cells' geometry, its arcs, and each cell's depth, count
-    # and first FIRST_PASS_ARCS candidates
+    # first pass, block by block: cells' geometry, arcs, depth, count, first candidates
     for block in range(n_blocks):
         cells = _block_cells(block, blocks_phi, n_theta, n_phi)
         for cell in cells:
@@ -323,8 +320,7 @@ def build_grid(vertices, edges, margins, axis, grid_shape, inside):
         start[cell + 1] = start[cell] + counts[cell]
     cell_edges = np.empty(start[n_cells], dtype=np.int64)
     cell_keys = np.empty(start[n_cells])
-    # second pass: each cell's candidates into its slice of cell_edges/cell_keys (found again
-    # when the first pass kept too few), sorted
+    # second pass: each cell's candidates, sorted, into its slice (found again if too few kept)
     for block in range(n_blocks):
         arcs = block_arcs[block, : block_count[block]]
         arc_dist = block_arc_dist[block, : block_count[block]]

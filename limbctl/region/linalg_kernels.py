@@ -1,8 +1,5 @@
-"""``np.linalg.det`` and ``np.linalg.solve`` of small float64 systems, for kernels.
-
-numba's own LAPACK calls (``dgetrf``, ``dgesv``) with the same arithmetic, bit for bit, without
-seconds of compiling per calling kernel.
-"""
+"""``np.linalg.det`` and ``np.linalg.solve`` of small float64 systems, for kernels: numba's
+LAPACK calls (``dgetrf``, ``dgesv``) bit for bit, without seconds of compiling per caller."""
 
 from __future__ import annotations
 

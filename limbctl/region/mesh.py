@@ -1,9 +1,9 @@
 """A region of limb directions on S^2 as a spherical mesh: build it, test it, project onto it.
 
-Closed loops of great-circle arcs, each arc ``e`` widened by ``margin_e`` (rad): a direction is
-inside the loops or within ``margin_e`` of an arc. The nearest region direction of a point outside
-is exact (the arc minimising ``angle(p, e) - margin_e``). Queries run in
-:mod:`limbctl.region.mesh_kernels` over a grid of cells; ``*_reference`` answer by brute force.
+Closed loops of great-circle arcs: a direction is inside them or within ``margin_e`` (rad) of
+an arc ``e``. The nearest region direction of a point outside is exact (the arc minimising
+``angle(p, e) - margin_e``). Queries run in :mod:`limbctl.region.mesh_kernels`; ``*_reference``
+answer by brute force.
 """
 
 from __future__ import annotations

@@ -275,8 +275,7 @@ def query(
             best_point[1] = tmp[1]
             best_point[2] = tmp[2]
         # does arc centre -> p cross arc a -> b? (half-open sign rule; same hemisphere)
-        # Not when the arc lies farther than `travel` from the centre: every point of the
-        # path centre -> p is within `travel` of it.
+        # Not when the arc lies farther than `travel`, as all of the path centre -> p does.
         if keys[k] + margins[e] > travel:
             continue
         sa = _det(centre, p, a) > 0.0

@@ -369,8 +369,7 @@ def carve(d: np.ndarray, tri: np.ndarray, kept: np.ndarray, points: np.ndarray) 
     a, b = d[edges[:, 0]], d[edges[:, 1]]
     on_boundary = np.zeros(d.shape[0], dtype=bool)
     on_boundary[edges.ravel()] = True
-    # distance from each point to each exposed arc: to its great circle where the foot falls
-    # between the ends, else to the nearer end
+    # distance to each exposed arc: to its great circle where the foot falls inside, else an end
     pole = np.cross(a, b)
     pole /= np.maximum(np.linalg.norm(pole, axis=1, keepdims=True), 1e-15)
     for p in np.atleast_2d(points):

@@ -1,8 +1,6 @@
-"""Sorts for the region's kernels, written out: numba's own sorts compile for seconds each.
-
-Both compare with ``<`` only: :func:`largest_stable` gives ``np.argsort(-values,
-kind="stable")[:k]``, :func:`sort_values` the values of ``np.sort`` (without NaN).
-"""
+"""Sorts for the region's kernels, written out (numba's own compile for seconds each), with ``<``
+only: :func:`largest_stable` gives ``np.argsort(-values, kind="stable")[:k]``,
+:func:`sort_values` the values of ``np.sort`` (without NaN)."""
 
 from __future__ import annotations
 

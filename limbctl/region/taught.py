@@ -46,11 +46,9 @@ TRACED_SPACINGS = 1.25
 CORNER_TURN_DEG = 60.0
 #: Least growth of the thinning spacing a step while over the cap: ends in a few steps.
 THIN_GROWTH = 1.05
-#: Version of the construction, raised whenever it changes the region some data give: cached
-#: `limbctl eval` results are keyed on it (saved models carry their mesh).
+#: Version of the construction, raised when it changes a region: `limbctl eval`'s cache key.
 FIT_VERSION = 9
-#: Carving rounds at most: a bridged bay is a few triangles deep; 12 empty the bays of the
-#: families in docs/bench_swing_families.md.
+#: Carving rounds at most: a bridged bay is a few triangles deep; 12 empty the families' bays.
 CARVE_ROUNDS = 12
 #: Most share of taught samples carving may leave out: a bay's bridge holds none.
 CARVE_LOSS = 0.002
@@ -92,7 +90,6 @@ class TaughtRegion:
         self.unsupported_edge: tuple[Stretch, ...] = ()
         self.held_edge = False
 
-    # ---- building ----------------------------------------------------------------------------
     def fit(self, samples: np.ndarray, lookup: bool = True) -> TaughtRegion:
         """Build the region from taught ``samples``: directions (N, 3) or quaternions (N, 4).
 
@@ -135,8 +132,7 @@ class TaughtRegion:
                 break
             trial = self._supported_loops(d, d_train, thinning, tri, carved)
             if float(np.mean(trial[2].contains(d_train))) < held_first - CARVE_LOSS:
-                # carving ate into the taught samples: not a bay; the shape before stays, its
-                # stretches reported
+                # carving ate into the taught samples: not a bay; the shape before stays
                 break
             built, kept = trial, carved
         loops, margins, supported = built
@@ -144,15 +140,13 @@ class TaughtRegion:
             p.edge, loops, d_train, supported, np.radians(p.max_offset_deg)
         )
         self.edge = taken.strategy
-        # judged on the edge the region keeps: wherever it lies farther than REACH_DEG from
-        # every taught sample it may lie that far past the truth
+        # judged on the edge the region keeps: farther than REACH_DEG it may lie that far past
         self.unsupported_edge = tuple(
             unsupported_stretches(taken.region, d_train, np.radians(REACH_DEG), surrounded=False)
         )
         if not self.unsupported_edge:
             return taken.region
-        # containment over coverage: the edge is held to REACH_DEG of the evidence, then that
-        # held edge to HOLD_REACH_DEG wherever the tighter hold keeps its samples and arcs apart
+        # containment over coverage: held to REACH_DEG, then to HOLD_REACH_DEG where that holds
         region, self.held_edge = hold_to_evidence(taken.region, d_train)
         tight, held_tight = hold_to_evidence(region, d_train, np.radians(HOLD_REACH_DEG))
         if held_tight:
@@ -209,7 +203,6 @@ class TaughtRegion:
         # the lookup grid waits until this region is taken (fit) or first asked (gate)
         return loops, margins, DirectionMesh.from_loops(loops, margins, lookup=False)
 
-    # ---- answering ---------------------------------------------------------------------------
     def _mesh(self) -> DirectionMesh:
         if self.mesh is None:
             raise ConfigError("this region is not built: call fit(samples) or load a model")
@@ -253,7 +246,6 @@ class TaughtRegion:
         """``q`` itself inside the region; outside, the nearest region orientation (twist kept)."""
         return self._answer(q)[0]
 
-    # ---- persistence -------------------------------------------------------------------------
     def arrays(self) -> dict[str, np.ndarray]:
         """The mesh's arrays, everything needed to answer without rebuilding (for saving)."""
         return self._mesh().arrays()

@@ -1,44 +1,17 @@
 """The twist band over the swing region: how far the limb may turn about its own axis, by direction.
 
 The band over direction ``d`` is the arc of twists ``|wrap(tau - c(d))| <= h(d)``: a centre ``c``
-and a half-width ``h`` (rad; ``h = pi`` is a free twist). Twist is circular, so a band is stored
-as centre and half-width, never as two limits that could straddle +-pi. Both are kept on a
-square grid in the azimuthal equidistant plane about the band's axis (the swing region's axis):
-``(x, y) = theta (d.u, d.v) / |(d.u, d.v)|`` with ``theta`` the angle from the axis, so the
-grid has no pole inside the region, and read bilinearly
-(:func:`limbctl.region.twist_kernels.band_at`; its numpy twin is in the tests).
+and a half-width ``h`` (rad; ``h = pi`` is a free twist), never two limits that could straddle
++-pi. Both are kept on a square grid in the azimuthal equidistant plane about the band's axis,
+``(x, y) = theta (d.u, d.v) / |(d.u, d.v)|`` with ``theta`` the angle from the axis, and read
+bilinearly (:func:`limbctl.region.twist_kernels.band_at`).
 
-Fitting, per grid node, from the taught samples within ``BAND_RADIUS_DEG`` of it
-(:mod:`limbctl.region.twist_fit_kernels`):
+Fitting, per grid node, from the samples within ``BAND_RADIUS_DEG`` (docs/region.md, "Twist band"):
 
-1. *First reading*: the node's limits are the heights over the node of the upper and lower
-   hulls of (tangent position, twist) (``fit_nodes``). A limit that is linear across the
-   neighbourhood is read without bias whichever way it slopes, but the hull rides on the
-   highest stop. Nodes the samples do not surround take the nearest read node's band, and the
-   centres are unwrapped across the grid so bilinear reading never averages across +-pi.
-2. *Second reading*: the samples within ``STOP_BAND_DEG`` of a first-read limit are that stop's
-   samples; each limit becomes the height at the node of the weighted least-squares plane
-   through them (``refine_nodes``): their mean, unbiased by a slope, extrapolated linearly
-   near the swing edge. A limit stays as first read where fewer than 3 stops lie around a node.
-3. *Envelope*: each limit is then widened, never narrowed, to the smallest function of the
-   plane position lying above (below) every taught sample whose upward curvature is at most
-   ``ENVELOPE_CURVATURE`` (``envelope_heights``): the upper concave hull of
-   ``(x, tau - k |x|^2 / 2)`` plus ``k |x|^2 / 2``. Between stops ``L`` apart it sags at most
-   ``k L^2 / 8`` below the straight line through them, so where a hand passed a place only
-   mid-band (trajectories: stops come in bursts, tens of degrees apart) the band bridges from
-   the stops around instead of closing on the passing samples, and every taught sample lies in
-   the band (up to the grid's interpolation). Where the stops around a place lie far apart the
-   curvature bound falls with their spacing, so that the sag stays under ``ENVELOPE_SAG_DEG``
-   (down to ``ENVELOPE_CURVATURE_MIN``): dense stops are followed at ``ENVELOPE_CURVATURE``,
-   sparse ones bridged by a flatter, wider envelope (``_raised``).
-4. *Evidence cap*: each limit is then narrowed, never widened, to what the taught twists near
-   the node support (:mod:`limbctl.region.twist_evidence`: a cone about every sample, and a
-   cap along the local slope of the stops around, read again once the stops are re-read
-   against the capped band, and a steeper cone and a bound of stated slope and bending where
-   no slope could be read): a reading that
-   bridged past a stop the hand never turned to is held within a degree of the truth, and
-   where that cut is large and no stop was held there the place is listed for the guide
-   (:attr:`TwistBand.cuts`).
+1. *First reading*: heights over the node of the upper and lower hulls of (position, twist).
+2. *Second reading*: the weighted least-squares plane through each first-read limit's stops.
+3. *Envelope*: widened to bounded upward curvature ``ENVELOPE_CURVATURE`` (:func:`_raised`).
+4. *Evidence cap*: narrowed to the taught twists' support (:mod:`limbctl.region.twist_evidence`).
 """
 
 from __future__ import annotations
@@ -55,76 +28,37 @@ from limbctl.region import twist_fit_kernels as fk
 from limbctl.region import twist_kernels as tk
 from limbctl.region.twist_evidence import cap_limits, curvature_floors, inside_hull
 
-#: Grid spacing (deg) of the band's nodes: a band limit sloping 1 deg per deg errs by at most
-#: its curvature over 1.5 deg between nodes, and 2 sr of region take ~3000 nodes.
+#: Grid spacing (deg) of the band's nodes: a 1 deg/deg limit errs by its curvature over 1.5 deg.
 BAND_STEP_DEG = 1.5
-#: Neighbourhood (deg) a node reads its band from: of 6000 samples over ~1.6 sr it holds ~150,
-#: ~25 at each stop, so the first reading's hull surrounds the node; at 4 deg it did not for
-#: ~20 % of the nodes (upper limits 13 deg low at the 10th percentile, shoulder region).
+#: Neighbourhood (deg) a node reads its band from: ~25 samples a stop; at 4 deg ~20 % unsurrounded.
 BAND_RADIUS_DEG = 8.0
-#: The highest (lowest) twists a node's hull is taken over: the stops among its neighbours;
-#: 24 keeps the search at 2024 triangles a node; 16 missed stops (error 0.31 -> 0.55 deg).
+#: Highest (lowest) twists a node's hull is taken over: 2024 triangles; 16 missed stops.
 HULL_TOP = 24
-#: A largest empty arc of the neighbours' twists below this (deg) leaves the twist free there:
-#: taught twists that go all the way round leave gaps of a few degrees only.
+#: Largest empty arc (deg) of neighbours' twists that leaves the twist free: full turns gap a few.
 FREE_GAP_DEG = 10.0
-#: Samples within this (deg) of a first-read limit count as at that stop for the second
-#: reading: a hand's stop scatters a few tenths of a degree, the first reading errs ~1 deg.
+#: Samples this close (deg) to a first-read limit are its stop's: the first reading errs ~1 deg.
 STOP_BAND_DEG = 1.5
-#: Weight width (deg, one sigma) of the second reading's plane: ~10 stops of each side within
-#: one sigma when a few thousand samples hold ~1000 stops over 1.6 sr.
+#: Weight width (deg, one sigma) of the second reading's plane: ~10 stops of each side within it.
 REFINE_SIGMA_DEG = 5.0
-#: Steepest band limit (rad of twist per rad of direction) either reading believes: a
-#: shoulder's rotation range changes by ~0.5 deg per deg of elevation (0.7 with the centre's
-#: drift in the benchmark's regions). The first reading bounds a limit from below by each sample
-#: with it; the second refuses planes steeper. 3 let both go wrong beside sparse stops (mean
-#: error 0.33 -> 0.59 deg on the shoulder region).
+#: Steepest limit (rad/rad) either reading believes: shoulders 0.5-0.7; 3 erred beside sparse stops.
 MAX_SLOPE = 1.0
-#: The first reading's grid is this many times coarser than the band's: it only sorts samples
-#: into stops for the second, and the hull is most of the fit's time (x4 fewer nodes).
+#: The first reading's grid is this many times coarser: it only sorts samples into stops (x4 fewer).
 FIRST_COARSENESS = 2
 #: Nodes kept beyond the farthest taught direction (grid steps): the swing region's margins.
 GRID_PAD = 4
-#: Largest upward curvature (rad of twist per rad^2 of direction) the envelope (step 3) allows a
-#: band limit: the benchmark's shoulder limits, linear in pan and tilt, curve up to ~1 in the
-#: band's plane, and an envelope flatter than the truth bridges over it (at 0: limits 2.6 deg
-#: beyond the truth at the median; 0.5: 2.2 deg at most, beyond by 0.5 deg at 7.7 % of the
-#: directions; 0.75: 1.15 and 0.4 %; 1: 0.8 and 0.1 %). Between stops 20 deg apart 0.75 sags
-#: 1.3 deg below their line, 1 sags 1.7: a 60 s teaching by the simulator's hand held 99.1-99.5 %
-#: of the true region 2 deg inside at 0.75 (docs/decisions/twist.md).
+#: Largest upward curvature (rad^-1) of the envelope: the shoulder's limits curve up to ~1.
 ENVELOPE_CURVATURE = 0.75
-#: Largest sag (deg) below the plane through the stops around a place that the envelope keeps
-#: where the stops lie far apart (its curvature bound then falls, down to
-#: ENVELOPE_CURVATURE_MIN): a hand's stops lie 1 deg inside the truth (its inset) and the issue
-#: asks for the region 2 deg inside, so a sag of 0.5 deg leaves 0.5 deg for the grid and the
-#: tremor. At 0.75 rad^-1 alone the sag between stops 30 deg apart is 1.5 deg, and a 60 s
-#: teaching by the simulator's hand held 98.9-99.4 % of that region; with this cap 99.9-100 %
-#: (docs/decisions/twist.md; 0.3 deg gave the same figures).
+#: Largest sag (deg) where stops lie far apart: stops lie 1 deg inside, the issue asks 2 deg inside.
 ENVELOPE_SAG_DEG = 0.5
-#: The flattest curvature (rad^-1) the sag cap may bring the envelope to where stops are very
-#: sparse: 0.35 keeps the 0.5 deg sag for stops up to 26 deg apart (0.75: 17 deg), and over
-#: a truth curving more it over-reaches by at most the difference times the sag factor; 0.25
-#: held the same share of the demo's region (docs/decisions/twist.md).
+#: Flattest curvature (rad^-1) of the sag cap: keeps 0.5 deg for stops up to 26 deg apart.
 ENVELOPE_CURVATURE_MIN = 0.35
-#: A point's sag factor is taken at most ``ENVELOPE_STOP_SPAN r^2 / 2``, ``r`` its distance to the
-#: nearest stop: the cap acts fully only where the nearest stop is at least a fifth of the
-#: facet's span away (a chord L, a point r from its end: ``r (L - r) / 2 <= 2 r^2`` for L <= 5 r).
-#: Wide facets also arise where the truth curves up by more than ENVELOPE_CURVATURE and the
-#: facet bridges over dense stops: there r is a degree or two and nothing is raised. On the
-#: benchmark's shoulder, at 1, 4: limits beyond the truth by more than 0.5 deg at 0.07 % of the
-#: directions (as without the cap); 16: 0.3 %; 64: 1.2-1.9 %; no bound: 2.4-3.5 %. At 1 the
-#: demo's region held 99.27 % (seed 1) against 99.98 % at 4.
+#: Sag factor at most ``ENVELOPE_STOP_SPAN r^2 / 2``, r to the nearest stop: 4 over-reaches as 1.
 ENVELOPE_STOP_SPAN = 4.0
-#: Times the evidence cap's stops are re-read against the capped band (step 4): on the curved
-#: family's seed 1, dense teaching (docs/bench_region_families.md) the band lay 2.10 deg past
-#: the truth with the stops read against the readings only (a bridged dip's bottom held none),
-#: 0.64 after one re-read. More not tried.
+#: Re-reads of the cap's stops against the capped band (curved seed 1: 2.10 -> 0.64 deg past truth).
 STOP_REREADS = 1
 #: Nodes per block when all the envelope's facets are evaluated (memory: block x facets floats).
 ENVELOPE_BLOCK = 512
-#: Facets (nearest by centre) tried for each node before all: the facet over a node is among
-#: its 16 nearest for all but a few nodes (the hull of a 60 s teaching has ~10000 facets; all of
-#: them for every node took 0.6-1.0 s a limit).
+#: Nearest facets tried per node before all: the one over it is among 16 for all but a few.
 ENVELOPE_CANDIDATES = 16
 
 
@@ -148,8 +82,7 @@ class TwistBand:
         self.grid = np.ascontiguousarray(grid, dtype=np.float64)
         self.centre = np.ascontiguousarray(centre, dtype=np.float64)
         self.half = np.ascontiguousarray(half, dtype=np.float64)
-        #: (nodes (M, 3), upper cut (M,), lower cut (M,)) rad of the last fit's evidence cap
-        #: (:mod:`limbctl.region.twist_evidence`); None for a loaded band.
+        #: (nodes (M, 3), upper cut (M,), lower cut (M,)) rad of the last fit's cap; None loaded.
         self.cuts: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
 
     @classmethod
@@ -157,9 +90,7 @@ class TwistBand:
         """Learn the band from taught directions ``d`` (N, 3) and twists ``tau`` (N,) (rad).
 
         ``axis`` (3,) is the plane's axis (the swing region's); ``reach`` (rad) how far beyond
-        the taught directions the grid must extend (the swing region's largest margin). The
-        first reading runs on a grid FIRST_COARSENESS times coarser (it only sorts the samples
-        into stops), the second on the band's own grid.
+        the taught directions the grid must extend (the swing region's largest margin).
         """
         d = np.ascontiguousarray(d, dtype=np.float64)
         tau = np.ascontiguousarray(tau, dtype=np.float64)
@@ -235,16 +166,13 @@ class TwistBand:
         bounded = half < math.pi
         up = np.where(bounded, np.fmax(up, envelope_heights(xy, limit, node_xy) - ref), up)
         lo = np.where(bounded, np.fmin(lo, -envelope_heights(xy, -limit, node_xy) - ref), lo)
-        # step 4: never past what the taught twists support (limbctl.region.twist_evidence),
-        # held to a steeper cone where no slope is read among the taught directions (the nodes
-        # inside the samples' convex hull on the plane)
+        # step 4: never past what the taught twists support (limbctl.region.twist_evidence)
         args = (bounded, nodes, start, members, d, limit, ref)
         within = inside_hull(xy, node_xy)
         floors = curvature_floors(xy, limit, node_xy, ref)
         capped = cap_limits(up, lo, *args, tuple(stops), within, floors)
         for _ in range(STOP_REREADS):
-            # the stops re-read against the capped band: where the readings bridged a dip, the
-            # samples at its bottom were below the first reading's limit, not its stops
+            # the stops re-read against the capped band: a bridged dip's bottom holds its stops
             c2, h2 = self._with_limits(ref, half, *capped[:2]).at(d)
             off = wrap(limit - c2)
             stops = [(off >= h2 - near) & (h2 < math.pi), (-off >= h2 - near) & (h2 < math.pi)]
@@ -303,12 +231,8 @@ def envelope_heights(xy: np.ndarray, t: np.ndarray, node_xy: np.ndarray) -> np.n
     raised where its stops lie far apart so that it sags below their plane by at most
     ENVELOPE_SAG_DEG, or as a curvature of ENVELOPE_CURVATURE_MIN would (:func:`_raised`).
 
-    The hull's height at a point is the least of its upper facets' planes, reached at the facet
-    over it: each point takes the least over the ENVELOPE_CANDIDATES facets whose centres lie
-    nearest, which is exact when one of them lies over the point (checked), and the least over
-    all facets otherwise. Points outside the samples' convex hull take the height at the nearest
-    point inside (the hull's rim facets are near vertical). NaN everywhere when the samples span
-    no area (nothing to widen by).
+    Points outside the samples' convex hull take the height at the nearest point inside; NaN
+    everywhere when the samples span no area.
     """
     k = ENVELOPE_CURVATURE
     # lifted: s_i = t_i - k |x_i|^2 / 2
@@ -369,16 +293,9 @@ def _raised(
     ``factor`` (M,) (rad^2); ``(xy, t)`` the samples, ``corners`` the indices of those on the
     hull's upper facets, ``facets`` the hull's upper facets (as :func:`_over_facets` takes them).
 
-    With curvature k the envelope sags ``k S`` below the plane through the corners of the facet
-    over a point; its sag is capped at ``max(s, k_min S)`` (s = ENVELOPE_SAG_DEG, k_min =
-    ENVELOPE_CURVATURE_MIN): a curvature bound growing with the stops' spacing. A facet is wide
-    either because the stops are far apart (a hand passed mid-band) or because the truth curves
-    up by more than k and the facet bridges over stops lying just beneath it; the sag factor is
-    therefore taken at most ``ENVELOPE_STOP_SPAN r^2 / 2``, ``r`` the distance to the nearest
-    stop (a sample the envelope passes within STOP_BAND_DEG of), which stays small in the second
-    case. Continuous: S and r are. The corners are stops; the other samples are judged only
-    within the distance to the nearest corner of the points a corner alone leaves raised (a
-    nearer stop can only lower the raise).
+    The sag ``k S`` is capped at ``max(s, k_min S)`` (s = ENVELOPE_SAG_DEG, k_min =
+    ENVELOPE_CURVATURE_MIN), ``S`` taken at most ``ENVELOPE_STOP_SPAN r^2 / 2``, ``r`` the
+    distance to the nearest stop (docs/region.md, "Twist band").
     """
     k = ENVELOPE_CURVATURE
 

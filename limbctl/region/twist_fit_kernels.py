@@ -270,8 +270,7 @@ def gradient_caps(
                     a[r, s] += w * row[r] * row[s]
             count += 1
             weight_sq += w * w
-        # the stops' effective count (sum w)^2 / sum w^2: through 3 the plane fits exactly and
-        # its error reads 0, so fewer than ``min_stops`` leave the slope unknown
+        # the stops' effective count (sum w)^2 / sum w^2 (through 3 the plane's error reads 0)
         if count < 3 or a[0, 0] * a[0, 0] < min_stops * weight_sq:
             continue
         # the stops' weighted spread about their mean, least direction (2 x 2 covariance)

@@ -2,18 +2,12 @@
 orientation on SO(3).
 
 ``q = swing(d) * twist(tau)`` (:mod:`limbctl.geometry.twist`) is in the region when ``d`` is in
-the swing region (:mod:`limbctl.region.mesh_kernels`) and ``|wrap(tau - c(d))| <= h(d)``, the
-band's centre and half-width bilinear in a plane grid about its axis (:func:`band_at`).
-
-Nearest orientation: over a candidate direction ``d`` at angle ``theta`` from ``q``'s, the best
-orientation in the band lies ``delta(d)`` in twist from the transported twist, at geodesic
-angle ``g`` with ``cos(g/2) = cos(theta/2) cos(delta/2)`` (:func:`_score`, maximised). Where the
-swing projection's transported twist lies in the band, that is the answer. Else a pattern
-search over the swing region's directions (polls outside replaced by their projection) starts
-from the better of the swing projection and the nearest *seed*; further searches (``MAX_STARTS``
-in all) start from the next best candidates, then from the best scoring band grid nodes nearby
-(:func:`_scan_nodes`), and the best optimum found is the answer (docs/decisions/twist.md). No
-fastmath: NaN must fail every comparison.
+the swing region (:mod:`limbctl.region.mesh_kernels`) and ``|wrap(tau - c(d))| <= h(d)``
+(:func:`band_at`). Nearest orientation: over a candidate direction ``d`` at angle ``theta``
+from ``q``'s, the best orientation in the band lies ``delta(d)`` in twist from the transported
+twist, at geodesic angle ``g`` with ``cos(g/2) = cos(theta/2) cos(delta/2)`` (:func:`_score`),
+maximised by pattern searches (docs/decisions/twist.md, "The nearest orientation as a search
+over directions"). No fastmath: NaN must fail every comparison.
 """
 
 from __future__ import annotations
@@ -32,8 +26,7 @@ TWIST_TOLERANCE = 1e-9
 STEP_START = math.radians(3.0)
 #: Last step (rad): 0.03 deg; the score is flat to first order at an optimum.
 STEP_MIN = math.radians(0.03)
-#: Step (rad) where a further start stops unless it beat the best (three halvings, 0.25
-#: deg: a basin's score within ~0.1 deg of its optimum).
+#: Step (rad) where a further start stops unless it beat the best: 0.25 deg, within ~0.1 of optimum.
 STEP_COARSE = STEP_START / 8.0
 #: Cap on polls: 7 halvings poll 42 times without a move, ~350 left for moves.
 MAX_POLLS = 400
@@ -47,10 +40,7 @@ MAX_STARTS = 2
 START_APART = STEP_START
 #: ``cos(START_APART)``: candidates whose direction's cosine to a start exceeds it are skipped.
 COS_APART = math.cos(START_APART)
-#: Band grid nodes within this angle (rad) of the best optimum found are scanned: the band's
-#: limits are bilinear between nodes, so its narrow peaks (a node whose cap stands above its
-#: neighbours') sit at nodes; 8 deg holds the farthest better optimum seen on the test
-#: shoulder under the slope rule (6.8 deg away in the band's plane).
+#: Band nodes this close (rad) to the best optimum are scanned: 8 deg holds the farthest seen (6.8).
 SCAN_RADIUS = math.radians(8.0)
 #: Scanned nodes searched from, best score first (each skipped within a grid step of a start).
 NODE_STARTS = 3
@@ -237,9 +227,8 @@ def _correct_one(q, mesh, band, seeds, seed_dirs, out, work) -> int:
                 out[k] = qc[k]
             return 1
     best, best_tau = _score(qc, dq, cur, frame, grid, centre, half)
-    # F = cos(theta/2) at the swing projection (its transported twist in the band there): no
-    # direction scores more (F <= cos(theta/2), theta least at the projection), so it is the
-    # nearest orientation
+    # F = cos(theta/2) at the swing projection: no direction scores more (F <= cos(theta/2),
+    # theta least at the projection), so it is the nearest orientation
     rw = 1.0 + dq[0] * cur[0] + dq[1] * cur[1] + dq[2] * cur[2]
     if best >= math.sqrt(max(0.5 * rw, 0.0)):
         _compose_into(cur, best_tau, out)
@@ -270,8 +259,7 @@ def _correct_one(q, mesh, band, seeds, seed_dirs, out, work) -> int:
             best, best_tau = f, t
             for k in range(3):
                 cur[k] = seed_dirs[pick[0], k]
-    # further starts: the swing projection and the nearest seeds' directions, best score first,
-    # each at least START_APART from every start before it; the best optimum found is kept
+    # further starts, best score first, each at least START_APART from every start before it
     alt = work[base + 7]
     starts = work[base + 8 : base + 8 + MAX_STARTS]
     for k in range(3):
@@ -320,12 +308,9 @@ def _correct_one(q, mesh, band, seeds, seed_dirs, out, work) -> int:
 def _scan_nodes(qc, dq, cur, best, best_tau, mesh, band, work):
     """Search again from the band grid nodes within ``SCAN_RADIUS`` of ``cur`` scoring best.
 
-    The band's limits are bilinear between its grid nodes, so a limit's narrow peak, which a
-    pattern search steps over, stands at a node: the ``NODE_STARTS`` best scoring nodes (each
-    more than a grid step from ``cur`` and from each other) start a search at half a grid step,
-    continued past ``STEP_COARSE`` only while it beats the best; ``cur`` moves to a better
-    optimum found. Returns the best ``(F, tau)``. ``work`` rows from
-    ``WORK_ROWS + 9 + MAX_STARTS`` are its scratch.
+    The ``NODE_STARTS`` best scoring nodes (each more than a grid step from ``cur`` and from
+    each other) start a search at half a grid step; ``cur`` moves to a better optimum found.
+    Returns the best ``(F, tau)``. ``work`` rows from ``WORK_ROWS + 9 + MAX_STARTS`` are scratch.
     """
     frame, grid, centre, half = band
     base = bk.WORK_ROWS + 9 + MAX_STARTS

@@ -1,12 +1,9 @@
 """The taught region in three dimensions: a swing outline and a twist band over it.
 
-:class:`TwistRegion` learns, from taught orientations ``Q`` (N, 4), the allowed ``(d, tau)``
-with ``q = swing(d) * twist(tau)`` (:mod:`limbctl.geometry.twist`): the swing region a
-two-servo rig learns (:class:`~limbctl.region.taught.TaughtRegion`), a
-:class:`~limbctl.region.twist_band.TwistBand` over it, and boundary seeds where the
-nearest-orientation search starts (:mod:`limbctl.region.twist_kernels`). ``correct(q)`` is the
-nearest orientation by geodesic angle on SO(3), not swing first and twist second. Directions
-within :data:`limbctl.geometry.twist.SINGULAR_MARGIN` of -x are refused: the split is singular.
+:class:`TwistRegion` learns, from taught orientations ``Q`` (N, 4), a swing region
+(:class:`~limbctl.region.taught.TaughtRegion`), a :class:`~limbctl.region.twist_band.TwistBand`
+over it and the search's boundary seeds. ``correct(q)`` is the nearest orientation on SO(3).
+Directions within :data:`limbctl.geometry.twist.SINGULAR_MARGIN` of -x are refused.
 """
 
 from __future__ import annotations
@@ -25,8 +22,7 @@ from limbctl.region.taught import TaughtRegion
 from limbctl.region.twist_band import TwistBand, plane_to_direction
 from limbctl.region.twist_evidence import UnsupportedPlace, band_unsupported
 
-#: Seed spacing (deg): about the search's first step (``STEP_START``); the shoulder
-#: benchmark's region takes ~3500 seeds, a scan of a few microseconds.
+#: Seed spacing (deg): about the search's first step (``STEP_START``); ~3500 on the shoulder.
 SEED_STEP_DEG = 4.0
 
 
@@ -43,8 +39,7 @@ class TwistRegion:
         self.swing = TaughtRegion(params)
         self.band: TwistBand | None = None
         self.seeds = np.zeros((0, 4))
-        #: Stretches of the band the last fit's teaching could not support (largest cut first;
-        #: :mod:`limbctl.region.twist_evidence`); empty for a loaded region.
+        #: Places the last fit's teaching could not support (largest cut first); empty loaded.
         self.unsupported: tuple[UnsupportedPlace, ...] = ()
 
     @property
@@ -72,7 +67,6 @@ class TwistRegion:
         """Rows of the fitted samples the swing region was built on."""
         return self.swing.support_index
 
-    # ---- building ----------------------------------------------------------------------------
     def fit(self, q: np.ndarray) -> TwistRegion:
         """Learn the region from taught orientations ``q`` (N, 4).
 
@@ -99,7 +93,6 @@ class TwistRegion:
         self.seeds = boundary_seeds(self)
         return self
 
-    # ---- answering ---------------------------------------------------------------------------
     def _args(self) -> tuple:
         if self.band is None or self.swing.mesh is None:
             raise ConfigError("this region is not built: call fit(samples) or load a model")
@@ -142,7 +135,6 @@ class TwistRegion:
         self._seeds = np.ascontiguousarray(value, dtype=np.float64).reshape(-1, 4)
         self._seed_dirs = np.ascontiguousarray(decompose(self._seeds)[0]).reshape(-1, 3)
 
-    # ---- persistence -------------------------------------------------------------------------
     def arrays(self) -> dict[str, np.ndarray]:
         """The swing mesh's, the band's and the seeds' arrays (for saving)."""
         self._args()
