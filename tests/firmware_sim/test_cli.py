@@ -16,7 +16,7 @@ from dynamixel_sdk import COMM_SUCCESS, PacketHandler, PortHandler
 from firmware_sim.__main__ import main
 from firmware_sim.simulator import Simulator
 from firmware_sim.wire import RIG_BAUD
-from tests.firmware_sim.support import wait_for
+from tests.safety.support import wait_for
 
 COMMAND = [sys.executable, "-m", "firmware_sim"]
 GOAL_POSITION, TORQUE_ENABLE, PRESENT_POSITION = 116, 64, 132

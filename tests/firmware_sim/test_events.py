@@ -9,8 +9,8 @@ from firmware_sim.control_table import Register
 from firmware_sim.events import EventSchedule, ScheduledEvent, parse_event
 from firmware_sim.simulator import Simulator
 from firmware_sim.wire import RIG_BAUD
-from tests.firmware_sim.support import wait_for
 from tests.firmware_sim.test_cli import served
+from tests.safety.support import wait_for
 
 ID, TORQUE_ENABLE, HARDWARE_ERROR, PRESENT_PWM = 7, 64, 70, 124
 VOLTAGE_BIT, OVERHEATING_BIT, OVERLOAD_BIT, ALERT = 0x01, 0x04, 0x20, 0x80

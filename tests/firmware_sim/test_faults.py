@@ -8,7 +8,7 @@ import pytest
 from dynamixel_sdk import COMM_RX_CORRUPT, COMM_RX_TIMEOUT, COMM_SUCCESS
 
 from firmware_sim.faults import FaultInjector, FaultPlan
-from tests.firmware_sim.support import wait_for
+from tests.safety.support import wait_for
 
 PRESENT_POSITION, HARDWARE_ERROR, TORQUE_ENABLE, SHUTDOWN = 132, 70, 64, 63
 VOLTAGE_BIT, OVERHEATING_BIT, ALERT = 0x01, 0x04, 0x80

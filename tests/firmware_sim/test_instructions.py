@@ -16,7 +16,7 @@ from dynamixel_sdk import (
 
 from firmware_sim.protocol import Instruction, build_packet, crc16
 from firmware_sim.wire import RIG_BAUD
-from tests.firmware_sim.support import wait_for
+from tests.safety.support import wait_for
 
 # e-Manual addresses (XL430-W250)
 ID, RETURN_DELAY, DRIVE_MODE, OPERATING_MODE, HOMING_OFFSET = 7, 9, 10, 11, 20

@@ -13,7 +13,7 @@ from firmware_sim.motion import (
     time_based_limits,
     velocity_based_limits,
 )
-from tests.firmware_sim.support import wait_for
+from tests.safety.support import wait_for
 
 DRIVE_MODE, HOMING_OFFSET, TORQUE_ENABLE, HARDWARE_ERROR = 10, 20, 64, 70
 PROFILE_ACCELERATION, PROFILE_VELOCITY, GOAL_POSITION = 108, 112, 116

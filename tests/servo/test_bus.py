@@ -17,7 +17,7 @@ from limbctl.servo.bus import ServoBus
 from limbctl.servo.control_table import ModelNumber, OperatingMode, Register
 from limbctl.servo.profiles import joint_tick_limits
 from limbctl.servo.setup import configure_servos
-from tests.firmware_sim.support import wait_for
+from tests.safety.support import wait_for
 
 PROFILE = default_sim_profile()
 LIMITS = {
