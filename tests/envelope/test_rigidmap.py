@@ -158,8 +158,11 @@ def test_hand_strokes_are_contained_and_gaps_filled(which):
     if m.region.unsupported_edge:
         # strokes leaving the edge unreached: the region is held at the evidence and says so
         assert m.region.held_edge and all(s.held for s in m.region.unsupported_edge)
-        # the hold gives up only what lies beyond the reach of the strokes: most still passes
-        assert passed >= 0.85
+        # the hold gives up only what lies beyond the reach of the strokes: most still passes.
+        # Held again to HOLD_REACH_DEG the cone's edge zigzags between its strokes: 0.911 ->
+        # 0.770 pass here with the reach past the truth 0.23 deg both ways (docs/decisions/
+        # region.md, "The held edge held again to 0.9 deg": containment over coverage)
+        assert passed >= 0.75
     else:
         assert passed >= 0.96
 
