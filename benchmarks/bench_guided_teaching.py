@@ -20,7 +20,8 @@ seed plans the same path up to its first visit). Requests and visits:
 - a stretch of swing edge the samples do not support (``region.swing.unsupported_edge``, as
   :mod:`limbctl.teach.edge_support` reports it) or an edge gap or an open hole of the coverage
   guide (:func:`limbctl.teach.guide.assess_directions`): ``edge`` near the place, at least the
-  stretch's length;
+  stretch's length (a settled stretch, :attr:`limbctl.region.evidence.Stretch.settled`, is not
+  asked, as the recorder's guide does not ask it);
 - an inside gap while the inside is not covered enough: ``twist`` at its middle (the hand's
   circle there covers it).
 
@@ -125,7 +126,8 @@ def requests(t: np.ndarray, q: np.ndarray, seed: int) -> tuple[list[dict], bool,
             turn((place.pan_index + 0.5) * CELL_DEG, (place.tilt_index + 0.5) * CELL_DEG)
     for place in region.unsupported:
         turn(float(place.pan_deg), float(place.tilt_deg))
-    for stretch in region.swing.unsupported_edge:
+    asked = [s for s in region.swing.unsupported_edge if not s.settled]
+    for stretch in asked:
         wanted.append(
             {
                 "at": [float(stretch.pan_deg), float(stretch.tilt_deg)],
@@ -145,7 +147,7 @@ def requests(t: np.ndarray, q: np.ndarray, seed: int) -> tuple[list[dict], bool,
     unturned = sum(p.samples >= MIN_CELL_SAMPLES and not p.turned for p in told.places)
     stretches = ", ".join(
         f"({s.pan_deg:+.1f}, {s.tilt_deg:+.1f}) {s.distance_deg:.2f} deg"
-        + (" held" if s.held else "")
+        + (" settled" if s.settled else " held" if s.held else "")
         for s in region.swing.unsupported_edge
     )
     gaps = ", ".join(
@@ -164,7 +166,7 @@ def requests(t: np.ndarray, q: np.ndarray, seed: int) -> tuple[list[dict], bool,
         and told.cells > 0
         and told.turned == told.cells
         and not region.unsupported
-        and not region.swing.unsupported_edge
+        and not asked
     )
     return wanted, complete, why
 

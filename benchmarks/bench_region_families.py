@@ -206,7 +206,8 @@ def measure(truth: BandRegion, q_taught: np.ndarray, seed: int, quick: bool) -> 
     told = guide.assess()
     places = region.unsupported
     # the swing guide's check (limbctl/teach/edge_support.py): stretches the edge would bridge
-    stretches = region.swing.unsupported_edge
+    # a settled stretch (held where the learned edge stood near the samples) is not asked
+    stretches = [s for s in region.swing.unsupported_edge if not s.settled]
     return {
         "swing_excess": swing_excess,
         "twist_excess": twist_excess,
@@ -264,7 +265,7 @@ def write(rows: list[dict], path: Path, quick: bool, command: str) -> None:
         "the true region 2 deg inside held; error: `correct()` to the true nearest orientation "
         "(target mean <= 0.5 deg); complete: the guide would say READY (every place turned both "
         "ways, no unsupported stretch); places: stretches the band could not support; edge: "
-        "stretches of the swing edge the samples surround but do not reach "
+        "stretches of the swing edge the samples do not reach, settled ones not counted "
         "(limbctl/teach/edge_support.py).",
         "",
         "| family | seed | teaching | samples | swing excess (deg) | twist excess (deg) "

@@ -23,6 +23,13 @@ EVIDENCE_DEG = 1.5
 REACH_DEG = 1.25
 #: The held edge held again this close (deg): with a chord's slack (0.0625) within the 1 deg bound.
 HOLD_REACH_DEG = 0.9
+#: A held stretch whose learned edge stood at most this far (deg) from every sample is settled:
+#: it no longer withholds READY. Where the simulator's hand traced a true stop about 1 deg inside
+#: it, again and again as the guide asked, the learned edge still stood 1.26-2.07 deg past the
+#: samples (docs/bench_guided_teaching.md), so no teaching could answer those requests; the
+#: region there is held within HOLD_REACH_DEG of the samples, as near as on any edge. Deeper
+#: stretches (a bridged bay or notch stands 1.5-4 deg off, an untaught bulge more) keep asking.
+SETTLED_DEG = REACH_DEG + 1.0
 #: Station spacing (deg): a point between stations lies at most half of it farther.
 STATION_DEG = 0.25
 #: Surround neighbourhood (deg): wider than a bay's mouth is deep; the peel's default.
@@ -56,6 +63,17 @@ class Stretch:
     distance_deg: float
     length_deg: float
     held: bool = False
+
+    @property
+    def settled(self) -> bool:
+        """Whether the region is held here and the learned edge stood at most ``SETTLED_DEG``
+        from the samples: the teaching answers it, the guide does not ask for it again."""
+        return self.held and self.distance_deg <= SETTLED_DEG
+
+    def request(self) -> str:
+        """What to teach, in words (the recorder's guide)."""
+        where = f"trace the edge near pan {self.pan_deg:+.0f}, tilt {self.tilt_deg:+.0f}"
+        return f"held at the evidence; {where}" if self.held else where
 
     def line(self) -> str:
         """One line for a person: where, how far from the samples, how long, whether held."""

@@ -10,11 +10,14 @@ import time
 from collections.abc import Callable
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
-from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from limbctl.geometry import jit
+
+if TYPE_CHECKING:  # the region package loads in the worker only, when a check runs
+    from limbctl.region.evidence import Stretch
 
 #: Seconds between checks while recording: a check costs ~1-2 s, so the worker idles half the time.
 CHECK_EVERY_S = 5.0
@@ -22,25 +25,9 @@ CHECK_EVERY_S = 5.0
 MIN_SAMPLES = 200
 
 
-@dataclass(frozen=True)
-class EdgeStretch:
-    """A stretch of edge the taught samples do not reach: where (pan, tilt deg), how far and how
-    long (deg), and whether the region is ``held`` there to the evidence."""
-
-    pan_deg: float
-    tilt_deg: float
-    distance_deg: float
-    length_deg: float
-    held: bool = False
-
-    def request(self) -> str:
-        """What to teach, in words."""
-        where = f"trace the edge near pan {self.pan_deg:+.0f}, tilt {self.tilt_deg:+.0f}"
-        return f"held at the evidence; {where}" if self.held else where
-
-
-def unsupported_stretches(d: np.ndarray) -> tuple[EdgeStretch, ...]:
-    """The stretches a region learned from directions ``d`` (N, 3) leaves unsupported, or none."""
+def unsupported_stretches(d: np.ndarray) -> tuple[Stretch, ...]:
+    """The stretches a region learned from directions ``d`` (N, 3) leaves unsupported, or none
+    (settled ones included: :attr:`limbctl.region.evidence.Stretch.settled`)."""
     from limbctl.errors import LimbctlError
     from limbctl.region import TaughtRegion
 
@@ -50,18 +37,15 @@ def unsupported_stretches(d: np.ndarray) -> tuple[EdgeStretch, ...]:
         region = TaughtRegion().fit(d, lookup=False)
     except (LimbctlError, ValueError):
         return ()
-    return tuple(
-        EdgeStretch(s.pan_deg, s.tilt_deg, s.distance_deg, s.length_deg, s.held)
-        for s in region.unsupported_edge
-    )
+    return region.unsupported_edge
 
 
 class EdgeSupport:
     """Checks, in a worker process, whether the samples so far support the learned edge (module
-    level ``check(d (N, 3)) -> tuple of EdgeStretch``); :attr:`stretches` None until one ends."""
+    level ``check(d (N, 3)) -> tuple of Stretch``); :attr:`stretches` None until one ends."""
 
-    def __init__(self, check: Callable[[np.ndarray], tuple[EdgeStretch, ...]] | None = None):
-        self.stretches: tuple[EdgeStretch, ...] | None = None
+    def __init__(self, check: Callable[[np.ndarray], tuple[Stretch, ...]] | None = None):
+        self.stretches: tuple[Stretch, ...] | None = None
         self._check = check or unsupported_stretches
         self._pool: ProcessPoolExecutor | None = None
         self._pending: Future | None = None
@@ -96,7 +80,7 @@ class EdgeSupport:
         self._checked_at = now
         self._pending = self._worker().submit(self._check, np.array(d))
 
-    def check_now(self, d: np.ndarray) -> tuple[EdgeStretch, ...] | None:
+    def check_now(self, d: np.ndarray) -> tuple[Stretch, ...] | None:
         """Check every sample ``d`` (N, 3) and wait; none checked until the kernels are cached."""
         if not self.possible:
             return self.stretches

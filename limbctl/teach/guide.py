@@ -7,6 +7,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy import ndimage
@@ -15,8 +16,11 @@ from scipy.spatial import ConvexHull, QhullError
 from limbctl.geometry.gimbal import direction_to_pan_tilt, pan_tilt_to_direction
 from limbctl.geometry.quat import tangent_frame
 from limbctl.geometry.scalar import direction
-from limbctl.teach.edge_support import EdgeStretch, EdgeSupport
+from limbctl.teach.edge_support import EdgeSupport
 from limbctl.teach.holes import Hole, find_holes
+
+if TYPE_CHECKING:
+    from limbctl.region.evidence import Stretch
 
 #: Azimuth sectors for the outline: 5 deg each, fine for a kidney's lobes, coarse for a trace.
 SECTORS = 72
@@ -76,7 +80,9 @@ class Guidance:
     :data:`PHASES`), the share of the turn whose edge is traced and of inside cells with a
     sample, the largest gaps of each (at most :data:`MAX_GAPS`), whether ``ready`` to train, the
     picture's centre (pan, tilt), a sample's largest angle from the mean, the recording's holes,
-    the stretches of edge the region would bridge, and whether their check is still running."""
+    the stretches of edge the region would bridge and the teaching must answer, those it
+    answered (held at the samples, :attr:`~limbctl.region.evidence.Stretch.settled`), and whether
+    their check is still running."""
 
     samples: int
     phase: str
@@ -88,7 +94,8 @@ class Guidance:
     centre_deg: tuple[float, float]
     spread_deg: float
     holes: tuple[Hole, ...] = ()
-    unsupported: tuple[EdgeStretch, ...] = ()
+    unsupported: tuple[Stretch, ...] = ()
+    settled: tuple[Stretch, ...] = ()
     checking: bool = False
 
     @property
@@ -141,6 +148,8 @@ class Guidance:
             tail = "checking that the samples support the edge"
         else:
             tail = "READY TO TRAIN" if self.ready else PHASES[self.phase]
+            if self.ready and self.settled:
+                tail += f" (edge held at the samples in {len(self.settled)} places)"
         return f"{head}  {where} (pan, tilt deg)  -> {tail}"
 
 
@@ -363,8 +372,14 @@ class Guide:
         else:
             self.support.check_later(d)
         found = self.support.stretches
-        if found:
-            return dataclasses.replace(guidance, ready=False, phase="middle", unsupported=found)
+        settled = tuple(s for s in found or () if s.settled)
+        asked = tuple(s for s in found or () if not s.settled)
+        if asked:
+            return dataclasses.replace(
+                guidance, ready=False, phase="middle", unsupported=asked, settled=settled
+            )
+        if settled:
+            return dataclasses.replace(guidance, settled=settled)
         if found is None and self.support.possible and not final:
             return dataclasses.replace(guidance, ready=False, phase="middle", checking=True)
         return guidance

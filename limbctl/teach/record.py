@@ -80,6 +80,7 @@ class RecordSummary:
                 f"up to {stretch.distance_deg:.1f} deg from every sample)"
                 for stretch in self.guidance.unsupported
             )
+            out.extend(f"edge held          {stretch.line()}" for stretch in self.guidance.settled)
             if self.guidance.ready and not self.edge_checked:
                 out.append(
                     "edge support       not checked (the training's kernels are still compiling "

@@ -15,6 +15,7 @@ from limbctl.errors import ConfigError
 from limbctl.geometry.gimbal import direction_to_pan_tilt, pan_tilt_to_direction
 from limbctl.geometry.quat import direction_angle, limb_direction, swing_from_direction
 from limbctl.geometry.twist import decompose, wrap
+from limbctl.region.evidence import SETTLED_DEG
 
 
 @dataclass(frozen=True)
@@ -25,7 +26,7 @@ class TrainSummary:
     (:data:`EDGE_MEANING`) and why it refused the others, whether the calibration was recorded;
     with twist, the band's lowest and highest limit, the samples left out (direction outside,
     or twist past the band, by a median and largest ``twist_excess_deg``), and one request per
-    stretch of edge or band limit the teaching does not support."""
+    stretch of edge or band limit the teaching does not support, and the settled stretches."""
 
     samples: int
     pan_range_deg: tuple[float, float]
@@ -43,6 +44,7 @@ class TrainSummary:
     outside_twist: int = 0
     twist_excess_deg: tuple[float, float] | None = None
     unsupported_edge: tuple[str, ...] = ()
+    settled_edge: tuple[str, ...] = ()
     unsupported_twist: tuple[str, ...] = ()
 
     def _inside_line(self) -> str:
@@ -101,6 +103,13 @@ class TrainSummary:
                 "short of where the edge may run, until they are taught):"
             )
             lines += [f"  {request}" for request in self.unsupported_edge]
+        if self.settled_edge:
+            lines.append(
+                f"edge held          {len(self.settled_edge)} stretches where the learned edge "
+                f"stood up to {SETTLED_DEG:g} deg past the taught samples, held at them (as near "
+                "as a traced stop leaves the samples; nothing more to teach there):"
+            )
+            lines += [f"  {where}" for where in self.settled_edge]
         if self.unsupported_twist:
             lines.append(
                 f"twist unsupported  {len(self.unsupported_twist)} stretches of the band the "
@@ -136,6 +145,7 @@ def summarize(model: Any, q: np.ndarray) -> TrainSummary:
     holds = holds_direction(model)
     b_pan, b_tilt = _region_extent(holds, pan, tilt)
     band = twist_band(model)
+    stretches = getattr(swing_region(model), "unsupported_edge", ())
     twist: dict[str, Any] = {"outside_direction": int((~inside).sum())}
     if band is not None:
         direction_in = np.asarray(holds(swing_from_direction(directions)), dtype=bool)
@@ -171,9 +181,9 @@ def summarize(model: Any, q: np.ndarray) -> TrainSummary:
             if not v.accepted
         ),
         unsupported_edge=tuple(
-            f"trace the edge {stretch.line()}"
-            for stretch in getattr(swing_region(model), "unsupported_edge", ())
+            f"trace the edge {stretch.line()}" for stretch in stretches if not stretch.settled
         ),
+        settled_edge=tuple(stretch.line() for stretch in stretches if stretch.settled),
         unsupported_twist=tuple(
             place.words() for place in getattr(getattr(model, "region", None), "unsupported", ())
         ),

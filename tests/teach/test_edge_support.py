@@ -8,8 +8,9 @@ import pytest
 
 from limbctl.region import RegionParams, TaughtRegion
 from limbctl.region import taught as taught_module
+from limbctl.region.evidence import SETTLED_DEG, Stretch
 from limbctl.teach import edge_support
-from limbctl.teach.edge_support import EdgeStretch, EdgeSupport, unsupported_stretches
+from limbctl.teach.edge_support import EdgeSupport, unsupported_stretches
 from limbctl.teach.guide import Guide
 from limbctl.teach.record import RecordSummary
 from tests.region.test_evidence import RATE_HZ, hand_teaching, notched_ellipse
@@ -19,13 +20,13 @@ A, B, CENTRE, AT = 27.2, 23.4, (-5.7, 7.2), 273.0
 NOTCH = (CENTRE[0] + A * np.cos(np.radians(AT)), CENTRE[1] + B * np.sin(np.radians(AT)))
 
 
-def bridging_stretches(d: np.ndarray) -> tuple[EdgeStretch, ...]:
+def bridging_stretches(d: np.ndarray) -> tuple[Stretch, ...]:
     """The check with a region that bridges the notch (a coarse alpha shape, nothing carved):
     run in the worker, which imports it from this module."""
     taught_module.CARVE_ROUNDS = 0
     region = TaughtRegion(RegionParams(edge="supported", alpha_factor=4.0)).fit(d, lookup=False)
     return tuple(
-        EdgeStretch(s.pan_deg, s.tilt_deg, s.distance_deg, s.length_deg)
+        Stretch(s.pan_deg, s.tilt_deg, s.distance_deg, s.length_deg)
         for s in region.unsupported_edge
     )
 
@@ -98,6 +99,38 @@ def test_without_cached_kernels_or_with_a_dying_worker_the_edge_is_left_unchecke
     assert guidance.ready and support.stretches is None, "a dying worker spoilt the recording"
 
 
-def dies(d: np.ndarray) -> tuple[EdgeStretch, ...]:
+def dies(d: np.ndarray) -> tuple[Stretch, ...]:
     """A check whose worker dies."""
     os._exit(3)
+
+
+#: A held stretch as deep as the guided teachings' last requests (docs/bench_guided_teaching.md:
+#: 1.26-2.07 deg after the hand traced the stop again), and one of a bridged notch, deeper.
+SHALLOW = Stretch(-12.0, 20.0, 1.8, 3.0, held=True)
+DEEP = Stretch(-5.0, -15.0, SETTLED_DEG + 0.5, 6.0, held=True)
+
+
+def shallow_only(d: np.ndarray) -> tuple[Stretch, ...]:
+    return (SHALLOW,)
+
+
+def shallow_and_deep(d: np.ndarray) -> tuple[Stretch, ...]:
+    return (SHALLOW, DEEP)
+
+
+def test_a_held_stretch_the_samples_stand_near_is_settled_and_ready_stands_saying_so(
+    taught, cached
+):
+    assert SHALLOW.settled and not DEEP.settled
+    assert not Stretch(0.0, 0.0, 1.8, 3.0).settled, "an unheld stretch was settled"
+    with EdgeSupport(shallow_only) as support:
+        guidance = guide_of(taught, support).assess(final=True)
+    assert guidance.ready and guidance.unsupported == () and guidance.settled == (SHALLOW,)
+    assert "READY TO TRAIN (edge held at the samples in 1 places)" in guidance.line()
+    lines = RecordSummary(guidance=guidance, edge_checked=True).lines()
+    assert any(line.startswith("edge held") and "pan -12, tilt 20" in line for line in lines)
+    assert not any(line.startswith("edge unsupported") for line in lines)
+    with EdgeSupport(shallow_and_deep) as support:
+        guidance = guide_of(taught, support).assess(final=True)
+    assert not guidance.ready and guidance.unsupported == (DEEP,)
+    assert "trace the edge near pan -5, tilt -15" in guidance.line()
