@@ -123,7 +123,7 @@ def requests(t: np.ndarray, q: np.ndarray, seed: int) -> tuple[list[dict], bool,
 
     for place in told.places:
         if place.samples >= MIN_CELL_SAMPLES and not place.turned:  # judged, not turned
-            turn((place.pan_index + 0.5) * CELL_DEG, (place.tilt_index + 0.5) * CELL_DEG)
+            turn(place.pan_deg, place.tilt_deg)  # where its samples lie, inside the region
     for place in region.unsupported:
         turn(float(place.pan_deg), float(place.tilt_deg))
     asked = [s for s in region.swing.unsupported_edge if not s.settled]

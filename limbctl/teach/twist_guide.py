@@ -34,7 +34,9 @@ SUPPORT_EVERY_S = 5.0
 @dataclass(frozen=True)
 class TwistPlace:
     """One cell of the swing plane: pan in ``[pan_index, pan_index + 1) * CELL_DEG`` (deg), tilt
-    likewise; the least and greatest twist (deg) of its ``samples``; whether judged and turned."""
+    likewise; the least and greatest twist (deg) of its ``samples``; whether judged and turned;
+    where its samples lie (their mean pan and tilt, deg: inside the region, where a cell the
+    edge cuts has its centre outside)."""
 
     pan_index: int
     tilt_index: int
@@ -42,15 +44,17 @@ class TwistPlace:
     high_deg: float
     samples: int
     turned: bool
+    pan_deg: float = math.nan
+    tilt_deg: float = math.nan
 
 
 @dataclass(frozen=True)
 class TwistGuidance:
     """How much of the twist range has been taught: ``cells`` judged (MIN_CELL_SAMPLES or more),
     of those ``turned`` to both stops (span at least TURNED_FRACTION of ``wide_span_deg``, the
-    WIDE_QUANTILE of the judged spans), the cell turned ``least`` (pan, tilt, span deg; None when
-    none is judged), every cell visited (``places``), and where the last support check (run
-    once every place was turned) found a stop missing (``unsupported``)."""
+    WIDE_QUANTILE of the judged spans), the cell turned ``least`` (its samples' mean pan and tilt,
+    and its span, deg; None when none is judged), every cell visited (``places``), and where the
+    last support check (run once every place was turned) found a stop missing (``unsupported``)."""
 
     cells: int
     turned: int
@@ -127,13 +131,17 @@ class TwistGuide:
             math.floor(math.degrees(float(tilt)) / CELL_DEG),
         )
         twist = math.degrees(float(tau))
+        pan_deg, tilt_deg = math.degrees(float(pan)), math.degrees(float(tilt))
         cell = self._cells.get(key)
         if cell is None:
-            self._cells[key] = [twist, twist, 1.0, twist]
+            # least, greatest twist, count, first twist, sums of pan and tilt
+            self._cells[key] = [twist, twist, 1.0, twist, pan_deg, tilt_deg]
         else:
             # the turn of the twist nearest the cell's first: first + wrap(twist - first)
             twist = cell[3] + (twist - cell[3] + 180.0) % 360.0 - 180.0
             cell[0], cell[1], cell[2] = min(cell[0], twist), max(cell[1], twist), cell[2] + 1.0
+            cell[4] += pan_deg
+            cell[5] += tilt_deg
 
     def assess(self) -> TwistGuidance:
         """The guidance from the samples so far."""
@@ -144,8 +152,9 @@ class TwistGuide:
         wide = float(np.quantile(spans, WIDE_QUANTILE))
         turned = int(np.sum(spans >= TURNED_FRACTION * wide))
         k = int(np.argmin(spans))
-        (i, j), _ = judged[k]
-        centre = ((i + 0.5) * CELL_DEG, (j + 0.5) * CELL_DEG, float(spans[k]))
+        _, c = judged[k]
+        # where its samples lie: a cell the edge cuts has its centre outside the region
+        centre = (c[4] / c[2], c[5] / c[2], float(spans[k]))
         places = self._places(TURNED_FRACTION * wide)
         if turned == len(judged):
             self._check_later()
@@ -183,7 +192,10 @@ class TwistGuide:
         """Every cell visited; judged cells whose span reaches ``turned_span`` (deg) turned."""
         return tuple(
             TwistPlace(
-                i, j, c[0], c[1], int(c[2]), c[2] >= MIN_CELL_SAMPLES and c[1] - c[0] >= turned_span
+                *(i, j, c[0], c[1], int(c[2])),
+                c[2] >= MIN_CELL_SAMPLES and c[1] - c[0] >= turned_span,
+                c[4] / c[2],
+                c[5] / c[2],
             )
             for (i, j), c in self._cells.items()
         )
