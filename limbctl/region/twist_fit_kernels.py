@@ -254,10 +254,12 @@ def gradient_caps(
     cap = np.full(m, np.nan)
     wit = np.zeros(m, dtype=np.int64)
     # the slope (a tangent vector) and its margin at every node, NaN where not read
-    slope = np.full((m, 3), np.nan)
+    gx = np.full(m, np.nan)
+    gy = np.full(m, np.nan)
+    gz = np.full(m, np.nan)
     margin = np.full(m, np.nan)
     for i in range(m):
-        g, mg = _node_slope(
+        gx[i], gy[i], gz[i], margin[i] = _node_slope(
             nodes[i],
             start[i],
             start[i + 1],
@@ -272,8 +274,6 @@ def gradient_caps(
             confidence,
             min_stops,
         )
-        slope[i] = g
-        margin[i] = mg
     for i in range(m):
         if not math.isfinite(margin[i]):
             continue
@@ -282,12 +282,17 @@ def gradient_caps(
         for k in range(start[i], start[i + 1]):
             j = members[k]
             angle = _angle(node, d[j])
-            # the path's tangent at the node, angle long
-            v = d[j] - (d[j, 0] * node[0] + d[j, 1] * node[1] + d[j, 2] * node[2]) * node
-            rise = np.dot(slope[i], v) + margin[i] * angle
+            # the path's tangent at the node (the sample less its part along the node)
+            along = d[j, 0] * node[0] + d[j, 1] * node[1] + d[j, 2] * node[2]
+            vx = d[j, 0] - along * node[0]
+            vy = d[j, 1] - along * node[1]
+            vz = d[j, 2] - along * node[2]
+            rise = gx[i] * vx + gy[i] * vy + gz[i] * vz + margin[i] * angle
             e = ends[j]
             if e >= 0 and math.isfinite(margin[e]):
-                rise = max(rise, np.dot(slope[e], v) + margin[e] * angle)
+                far = gx[e] * vx + gy[e] * vy + gz[e] * vz + margin[e] * angle
+                if far > rise:
+                    rise = far
             t = limit[j] - ref[i] - rise - 0.5 * curvature * angle * angle
             if limited[i] and angle > reach:
                 # beyond the reach the steep cone bounds too: it holds if either assumption does
@@ -308,10 +313,10 @@ def gradient_caps(
 def _node_slope(
     node, first, last, members, d, limit, stop, ref, sigma, spread, slack, confidence, min_stops
 ):
-    """The weighted plane's slope (3,) through the stops among ``members[first:last]`` at
-    ``node`` (3,) (a tangent vector, rad/rad) and its margin ``slack + confidence se`` (``se``
-    the slope's standard error); NaN where too few stops, or too little spread, read it."""
-    out = np.full(3, np.nan)
+    """The weighted plane's slope through the stops among ``members[first:last]`` at ``node``
+    (3,) (the tangent vector's three components, rad/rad) and its margin ``slack + confidence
+    se`` (``se`` the slope's standard error); NaN where too few stops, or too little spread,
+    read it."""
     e1, e2 = _node_frame(node)
     a = np.zeros((3, 3))
     b = np.zeros(3)
@@ -335,7 +340,7 @@ def _node_slope(
         weight_sq += w * w
     # the stops' effective count (sum w)^2 / sum w^2 (through 3 the plane's error reads 0)
     if count < 3 or a[0, 0] * a[0, 0] < min_stops * weight_sq:
-        return out, np.nan
+        return np.nan, np.nan, np.nan, np.nan
     # the stops' weighted spread about their mean, least direction (2 x 2 covariance)
     mx = a[0, 1] / a[0, 0]
     my = a[0, 2] / a[0, 0]
@@ -344,7 +349,7 @@ def _node_slope(
     cxy = a[1, 2] / a[0, 0] - mx * my
     least = 0.5 * (cxx + cyy) - math.sqrt(0.25 * (cxx - cyy) ** 2 + cxy * cxy)
     if least < spread * spread:
-        return out, np.nan
+        return np.nan, np.nan, np.nan, np.nan
     sol = solve(a, b)
     # the slope's standard error: weighted scatter / sqrt(effective count) / least spread
     rss = 0.0
@@ -362,5 +367,9 @@ def _node_slope(
         w2 += w * w
     n_eff = a[0, 0] * a[0, 0] / w2
     slope_err = math.sqrt(rss / a[0, 0] / max(n_eff - 3.0, 1.0)) / math.sqrt(least)
-    out = sol[1] * e1 + sol[2] * e2
-    return out, slack + confidence * slope_err
+    return (
+        sol[1] * e1[0] + sol[2] * e2[0],
+        sol[1] * e1[1] + sol[2] * e2[1],
+        sol[1] * e1[2] + sol[2] * e2[2],
+        slack + confidence * slope_err,
+    )
