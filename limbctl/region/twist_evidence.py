@@ -7,9 +7,12 @@ Every taught sample lies inside the true region, so a true upper limit ``u`` no 
 
 Where the stops around a node spread enough to read their slope ``g`` the cap is also read along it
 
-    u(x) >= max_i (t_i - g . (x_i - x) - (SLOPE_SLACK + 2 se) r_i - CURVATURE r_i^2 / 2)
+    u(x) >= max_i (t_i - max(rise(x), rise(e_i)) - CURVATURE r_i^2 / 2),
+    rise(y) = g(y) . (x_i - x) + (SLOPE_SLACK + 2 se(y)) r_i
 
-(``r_i = angle(x, x_i)``, ``se`` the plane's slope error); where none is read the limit is held
+(``r_i = angle(x, x_i)``, ``se`` the plane's slope error, ``e_i`` the node nearest the sample:
+the path's slope at either end bounds its rise wherever the truth bends one way between them;
+``rise(e_i)`` left out where no slope is read at ``e_i``); where none is read the limit is held
 (:func:`_held`) within a steep cone and the bound (:func:`curvature_floors`).
 :func:`cap_limits` clips both limits to the caps (the *cut*; :func:`unsupported_places` names
 where it is large). Why and what was measured: docs/decisions/twist.md, "The evidence cap".
@@ -38,7 +41,8 @@ SLOPE_SPREAD_DEG = 0.75
 MIN_SLOPE_STOPS = 4.0
 #: Standard errors of the plane's slope added to SLOPE_SLACK: two, a ~95 % bound. Not tuned.
 SLOPE_CONFIDENCE = 2.0
-#: The true slope's play (rad/rad) beyond the plane's error, and its bending (deg^-1; bumps 0.19).
+#: The true slope's play (rad/rad) beyond the plane's error, and its bending (deg^-1; bumps 0.19)
+#: where it turns between the path's ends (bending one way, the slopes read at both ends bound it).
 SLOPE_SLACK = 0.15
 CURVATURE_PER_DEG = 0.06
 #: A cut (deg) above this inside the swing region is reported: dense teachings left 1.0-1.2.
@@ -245,6 +249,8 @@ def _along_slope(cone, nodes, start, members, d, limit, ref, stops, limited):
         HOLD_SLOPE,
         limited,
         MIN_SLOPE_STOPS,
+        # each sample's nearest node: the far end of its path, whose slope bounds the rise too
+        cKDTree(nodes).query(d)[1].astype(np.int64),
     )
     g_up, w_up = fk.gradient_caps(nodes, start, members, d, limit, stops[0], ref, *args)
     g_lo, w_lo = fk.gradient_caps(nodes, start, members, d, -limit, stops[1], -ref, *args)

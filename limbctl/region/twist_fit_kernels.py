@@ -234,80 +234,66 @@ def gradient_caps(
     steep,
     limited,
     min_stops,
+    ends,
 ):
     """One limit's cap (M,) read along its local slope, relative to ``ref`` (M,) (rad), and its
     witnesses (M,); the upper limit (for the lower pass the twists negated and negate the cap).
 
-    The slope ``g`` is the weighted plane's through the stops (as :func:`refine_nodes`);
-    ``cap(n) = max_j (limit_j - ref_n - g . x_j - slack angle - curvature angle^2 / 2)``. NaN
-    where the stops' effective count ``(sum w)^2 / sum w^2`` is under ``min_stops`` or they
-    spread less than ``spread`` (rad) in some direction. At ``limited`` (M,)
-    nodes a sample beyond ``reach`` (rad) bounds the cap by the ``steep`` (rad/rad) cone too.
+    The slope ``g`` is the weighted plane's through the stops (as :func:`refine_nodes`), read
+    at every node (:func:`_node_slope`). A sample ``j`` at ``v`` from node ``n`` lies above the
+    limit there by at most ``max(g_n . v + m_n r, g_e . v + m_e r)``, ``e = ends[j]`` the node
+    nearest the sample (the slope along the path at its two ends, each with its margin ``m``,
+    bounds the rise wherever the truth bends one way between them); where the end's slope is
+    not read, the node's alone. So
+    ``cap(n) = max_j (limit_j - ref_n - that rise - curvature r^2 / 2)``. NaN where the stops'
+    effective count ``(sum w)^2 / sum w^2`` is under ``min_stops`` or they spread less than
+    ``spread`` (rad) in some direction. At ``limited`` (M,) nodes a sample beyond ``reach``
+    (rad) bounds the cap by the ``steep`` (rad/rad) cone too.
     """
     m = nodes.shape[0]
     cap = np.full(m, np.nan)
     wit = np.zeros(m, dtype=np.int64)
+    # the slope (a tangent vector) and its margin at every node, NaN where not read
+    gx = np.full(m, np.nan)
+    gy = np.full(m, np.nan)
+    gz = np.full(m, np.nan)
+    margin = np.full(m, np.nan)
     for i in range(m):
+        gx[i], gy[i], gz[i], margin[i] = _node_slope(
+            nodes[i],
+            start[i],
+            start[i + 1],
+            members,
+            d,
+            limit,
+            stop,
+            ref[i],
+            sigma,
+            spread,
+            slack,
+            confidence,
+            min_stops,
+        )
+    for i in range(m):
+        if not math.isfinite(margin[i]):
+            continue
         node = nodes[i]
-        e1, e2 = _node_frame(node)
-        a = np.zeros((3, 3))
-        b = np.zeros(3)
-        count = 0
-        weight_sq = 0.0
-        for k in range(start[i], start[i + 1]):
-            j = members[k]
-            if not stop[j]:
-                continue
-            x = d[j, 0] * e1[0] + d[j, 1] * e1[1] + d[j, 2] * e1[2]
-            y = d[j, 0] * e2[0] + d[j, 1] * e2[1] + d[j, 2] * e2[2]
-            angle = _angle(node, d[j])
-            w = math.exp(-angle * angle / (2.0 * sigma * sigma))
-            t = limit[j] - ref[i]
-            row = (1.0, x, y)
-            for r in range(3):
-                b[r] += w * row[r] * t
-                for s in range(3):
-                    a[r, s] += w * row[r] * row[s]
-            count += 1
-            weight_sq += w * w
-        # the stops' effective count (sum w)^2 / sum w^2 (through 3 the plane's error reads 0)
-        if count < 3 or a[0, 0] * a[0, 0] < min_stops * weight_sq:
-            continue
-        # the stops' weighted spread about their mean, least direction (2 x 2 covariance)
-        mx = a[0, 1] / a[0, 0]
-        my = a[0, 2] / a[0, 0]
-        cxx = a[1, 1] / a[0, 0] - mx * mx
-        cyy = a[2, 2] / a[0, 0] - my * my
-        cxy = a[1, 2] / a[0, 0] - mx * my
-        least = 0.5 * (cxx + cyy) - math.sqrt(0.25 * (cxx - cyy) ** 2 + cxy * cxy)
-        if least < spread * spread:
-            continue
-        sol = solve(a, b)
-        # the slope's standard error: weighted scatter / sqrt(effective count) / least spread
-        rss = 0.0
-        w2 = 0.0
-        for k in range(start[i], start[i + 1]):
-            j = members[k]
-            if not stop[j]:
-                continue
-            x = d[j, 0] * e1[0] + d[j, 1] * e1[1] + d[j, 2] * e1[2]
-            y = d[j, 0] * e2[0] + d[j, 1] * e2[1] + d[j, 2] * e2[2]
-            angle = _angle(node, d[j])
-            w = math.exp(-angle * angle / (2.0 * sigma * sigma))
-            e = limit[j] - ref[i] - sol[0] - sol[1] * x - sol[2] * y
-            rss += w * e * e
-            w2 += w * w
-        n_eff = a[0, 0] * a[0, 0] / w2
-        slope_err = math.sqrt(rss / a[0, 0] / max(n_eff - 3.0, 1.0)) / math.sqrt(least)
-        margin = slack + confidence * slope_err
         best = -np.inf
         for k in range(start[i], start[i + 1]):
             j = members[k]
-            x = d[j, 0] * e1[0] + d[j, 1] * e1[1] + d[j, 2] * e1[2]
-            y = d[j, 0] * e2[0] + d[j, 1] * e2[1] + d[j, 2] * e2[2]
             angle = _angle(node, d[j])
-            t = limit[j] - ref[i] - sol[1] * x - sol[2] * y
-            t -= margin * angle + 0.5 * curvature * angle * angle
+            # the path's tangent at the node (the sample less its part along the node)
+            along = d[j, 0] * node[0] + d[j, 1] * node[1] + d[j, 2] * node[2]
+            vx = d[j, 0] - along * node[0]
+            vy = d[j, 1] - along * node[1]
+            vz = d[j, 2] - along * node[2]
+            rise = gx[i] * vx + gy[i] * vy + gz[i] * vz + margin[i] * angle
+            e = ends[j]
+            if e >= 0 and math.isfinite(margin[e]):
+                far = gx[e] * vx + gy[e] * vy + gz[e] * vz + margin[e] * angle
+                if far > rise:
+                    rise = far
+            t = limit[j] - ref[i] - rise - 0.5 * curvature * angle * angle
             if limited[i] and angle > reach:
                 # beyond the reach the steep cone bounds too: it holds if either assumption does
                 cone = limit[j] - ref[i] - steep * angle
@@ -321,3 +307,69 @@ def gradient_caps(
             if _angle(node, d[j]) <= near and limit[j] - ref[i] >= best - band:
                 wit[i] += 1
     return cap, wit
+
+
+@njit(inline="always", error_model="numpy")
+def _node_slope(
+    node, first, last, members, d, limit, stop, ref, sigma, spread, slack, confidence, min_stops
+):
+    """The weighted plane's slope through the stops among ``members[first:last]`` at ``node``
+    (3,) (the tangent vector's three components, rad/rad) and its margin ``slack + confidence
+    se`` (``se`` the slope's standard error); NaN where too few stops, or too little spread,
+    read it."""
+    e1, e2 = _node_frame(node)
+    a = np.zeros((3, 3))
+    b = np.zeros(3)
+    count = 0
+    weight_sq = 0.0
+    for k in range(first, last):
+        j = members[k]
+        if not stop[j]:
+            continue
+        x = d[j, 0] * e1[0] + d[j, 1] * e1[1] + d[j, 2] * e1[2]
+        y = d[j, 0] * e2[0] + d[j, 1] * e2[1] + d[j, 2] * e2[2]
+        angle = _angle(node, d[j])
+        w = math.exp(-angle * angle / (2.0 * sigma * sigma))
+        t = limit[j] - ref
+        row = (1.0, x, y)
+        for r in range(3):
+            b[r] += w * row[r] * t
+            for s in range(3):
+                a[r, s] += w * row[r] * row[s]
+        count += 1
+        weight_sq += w * w
+    # the stops' effective count (sum w)^2 / sum w^2 (through 3 the plane's error reads 0)
+    if count < 3 or a[0, 0] * a[0, 0] < min_stops * weight_sq:
+        return np.nan, np.nan, np.nan, np.nan
+    # the stops' weighted spread about their mean, least direction (2 x 2 covariance)
+    mx = a[0, 1] / a[0, 0]
+    my = a[0, 2] / a[0, 0]
+    cxx = a[1, 1] / a[0, 0] - mx * mx
+    cyy = a[2, 2] / a[0, 0] - my * my
+    cxy = a[1, 2] / a[0, 0] - mx * my
+    least = 0.5 * (cxx + cyy) - math.sqrt(0.25 * (cxx - cyy) ** 2 + cxy * cxy)
+    if least < spread * spread:
+        return np.nan, np.nan, np.nan, np.nan
+    sol = solve(a, b)
+    # the slope's standard error: weighted scatter / sqrt(effective count) / least spread
+    rss = 0.0
+    w2 = 0.0
+    for k in range(first, last):
+        j = members[k]
+        if not stop[j]:
+            continue
+        x = d[j, 0] * e1[0] + d[j, 1] * e1[1] + d[j, 2] * e1[2]
+        y = d[j, 0] * e2[0] + d[j, 1] * e2[1] + d[j, 2] * e2[2]
+        angle = _angle(node, d[j])
+        w = math.exp(-angle * angle / (2.0 * sigma * sigma))
+        e = limit[j] - ref - sol[0] - sol[1] * x - sol[2] * y
+        rss += w * e * e
+        w2 += w * w
+    n_eff = a[0, 0] * a[0, 0] / w2
+    slope_err = math.sqrt(rss / a[0, 0] / max(n_eff - 3.0, 1.0)) / math.sqrt(least)
+    return (
+        sol[1] * e1[0] + sol[2] * e2[0],
+        sol[1] * e1[1] + sol[2] * e2[1],
+        sol[1] * e1[2] + sol[2] * e2[2],
+        slack + confidence * slope_err,
+    )

@@ -186,6 +186,34 @@ def test_a_densely_taught_bending_bump_is_not_exceeded_from_far_samples():
     assert excess.max() <= 1.0, f"band {excess.max():.2f} deg past the true stop"
 
 
+#: A tall narrow bump of the lower limit (the centre rises SHARP_CENTRE_DEG and the half-width
+#: falls SHARP_HALF_DEG at DIP_AT, SHARP_WIDTH_DEG one sigma, on a centre sloping RIDGE_SLOPE deg
+#: per deg of pan): the lower limit rises 17 deg and bends up to 17 / 8^2 = 0.27 deg^-1, as two
+#: of the region families' bumps stacked do, far past the slope cap's CURVATURE_PER_DEG.
+SHARP_CENTRE_DEG = 5.0
+SHARP_HALF_DEG = -12.0
+SHARP_WIDTH_DEG = 8.0
+
+
+def _sharp_bump_deg(pan, tilt):
+    r2 = (pan - DIP_AT[0]) ** 2 + (tilt - DIP_AT[1]) ** 2
+    bump = np.exp(-r2 / (2.0 * SHARP_WIDTH_DEG**2))
+    return 5.0 + 0.3 * pan + SHARP_CENTRE_DEG * bump, 40.0 + SHARP_HALF_DEG * bump
+
+
+def test_a_densely_taught_sharply_bending_bump_is_not_exceeded_along_the_node_slope():
+    # with each sample extrapolated along the slope read at the node alone, the lower limit lay
+    # 1.82 deg past the truth: the slope read at the sample's end of the path bounds the rise
+    truth = BandRegion(SQUARE, _sharp_bump_deg)
+    region = TwistRegion().fit(truth.teaching(3000, 1500, 4000, np.random.default_rng(6)))
+    d = _learned_grid(region)
+    excess = _excess_deg(truth, region, d)
+    assert excess.max() <= 1.0, f"band {excess.max():.2f} deg past the true stop"
+    tc, th = truth.band(d)
+    for sign in (-1.0, 1.0):
+        assert np.mean(region.contains(compose(d, tc + sign * (th - math.radians(2.0))))) >= 0.99
+
+
 def test_unsupported_places_keep_the_largest_cut_of_each_cell_and_side():
     d = pan_tilt_to_direction(np.radians([1.0, 2.0, 40.0]), np.radians([1.0, 2.0, 1.0]))
     up = np.radians([2.0, 3.0, 0.5])

@@ -152,7 +152,8 @@ def test_the_caps_a_held_stop_witnesses_and_along_the_local_slope_on_a_steep_pla
     start, members = _one_node(d)
     stop = np.ones(d.shape[0], dtype=bool)
     ref = np.zeros(1)
-    free = (math.radians(4), 1.4, np.zeros(1, dtype=bool), 4.0)  # no reach
+    # no reach; every sample's nearest node the one node
+    free = (math.radians(4), 1.4, np.zeros(1, dtype=bool), 4.0, np.zeros(len(d), np.int64))
     args = (math.radians(3), math.radians(0.75), 0.25, 2.0, 8.6, math.radians(3), 0.02, *free)
     cap, wit = fk.gradient_caps(node, start, members, d, limit, stop, ref, *args)
     # on a plane the slope is read exactly: no sample lifts the cap above the limit at the node
@@ -166,7 +167,7 @@ def test_the_caps_a_held_stop_witnesses_and_along_the_local_slope_on_a_steep_pla
     assert np.isnan(cap[0]) and wit[0] == 0
     # among the taught directions: samples beyond the reach vouch only by the steep cone, which
     # on this plane (steeper than 1.4) lies below the slope's reading: the node's own stop sets it
-    held = (*args[:7], math.radians(4), 1.4, np.ones(1, dtype=bool), 4.0)
+    held = (*args[:7], math.radians(4), 1.4, np.ones(1, dtype=bool), 4.0, free[-1])
     cap, _ = fk.gradient_caps(node, start, members, d, limit, stop, ref, *held)
     assert math.isclose(cap[0], 0.4, abs_tol=1e-9)
     # evidence_caps: a stop held at the node witnesses the cap and a far one shrinks it
@@ -199,13 +200,14 @@ def test_a_slope_through_three_stops_is_not_read():
     args = (math.radians(3), math.radians(0.5), 0.25, 2.0, 8.6, math.radians(3), 0.02)
     free = (math.radians(4), 1.4, np.zeros(1, dtype=bool))
     three = np.array([True, True, True, False])
+    ends = np.zeros(4, np.int64)
     for stop, min_stops, known in ((three, 0.0, True), (three, 4.0, False)):
         cap, _ = fk.gradient_caps(
-            node, start, members, d, limit, stop, ref, *args, *free, min_stops
+            node, start, members, d, limit, stop, ref, *args, *free, min_stops, ends
         )
         assert np.isfinite(cap[0]) == known
     # a fourth stop, spread as well, lets the slope be read again
     cap, _ = fk.gradient_caps(
-        node, start, members, d, limit, np.ones(4, bool), ref, *args, *free, 3.5
+        node, start, members, d, limit, np.ones(4, bool), ref, *args, *free, 3.5, ends
     )
     assert math.isclose(cap[0], 0.4, abs_tol=1e-9)
