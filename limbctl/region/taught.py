@@ -47,7 +47,7 @@ CORNER_TURN_DEG = 60.0
 #: Least growth of the thinning spacing a step while over the cap: ends in a few steps.
 THIN_GROWTH = 1.05
 #: Version of the construction, raised when it changes a region: `limbctl eval`'s cache key.
-FIT_VERSION = 9
+FIT_VERSION = 10
 #: Carving rounds at most: a bridged bay is a few triangles deep; 12 empty the families' bays.
 CARVE_ROUNDS = 12
 #: Most share of taught samples carving may leave out: a bay's bridge holds none.
@@ -147,8 +147,11 @@ class TaughtRegion:
         if not self.unsupported_edge:
             return taken.region
         # containment over coverage: held to REACH_DEG, then to HOLD_REACH_DEG where that holds
+        # (patient: where the samples are too sparse for it, the arcs there keep REACH_DEG)
         region, self.held_edge = hold_to_evidence(taken.region, d_train)
-        tight, held_tight = hold_to_evidence(region, d_train, np.radians(HOLD_REACH_DEG))
+        tight, held_tight = hold_to_evidence(
+            region, d_train, np.radians(HOLD_REACH_DEG), patient=True
+        )
         if held_tight:
             region, self.held_edge = tight, True
         if self.held_edge:
