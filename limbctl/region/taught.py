@@ -146,11 +146,13 @@ class TaughtRegion:
         )
         if not self.unsupported_edge:
             return taken.region
-        # containment over coverage: held to REACH_DEG, then to HOLD_REACH_DEG where that holds
-        # (patient: where the samples are too sparse for it, the arcs there keep REACH_DEG)
+        # containment over coverage: held to REACH_DEG, then to HOLD_REACH_DEG where that holds;
+        # patient (arcs by samples it cannot keep stay at REACH_DEG) only on a region held to
+        # REACH_DEG: where that gave up, the samples are too sparse for any hold (a 90 deg cone's
+        # 1000 samples: half its edge walked 3 deg in, no containment gained)
         region, self.held_edge = hold_to_evidence(taken.region, d_train)
         tight, held_tight = hold_to_evidence(
-            region, d_train, np.radians(HOLD_REACH_DEG), patient=True
+            region, d_train, np.radians(HOLD_REACH_DEG), patient=self.held_edge
         )
         if held_tight:
             region, self.held_edge = tight, True
