@@ -37,6 +37,9 @@ CHORD_PASSES = 8
 CHORD_SLACK_DEG = 0.25 * STATION_DEG
 #: Rounds of giving held arcs back; after them none is held.
 UNHOLD_ROUNDS = 4
+#: Rounds a patient hold gets after UNHOLD_ROUNDS: the sparse families' 0.9 deg holds (lost
+#: samples pinned, the pins crossing) held within 1-3 of them; 8 leave room past the slowest.
+PATIENT_ROUNDS = 8
 #: Rounds of pinning samples a hold would leave out.
 PIN_ROUNDS = 3
 #: A pinned sample lies this far (deg) outside the chain: far below a tick (0.088).
@@ -50,9 +53,17 @@ FOLD_WINDOW = 60
 
 
 def hold_to_evidence(
-    mesh: DirectionMesh, data: np.ndarray, reach: float = np.radians(REACH_DEG)
+    mesh: DirectionMesh,
+    data: np.ndarray,
+    reach: float = np.radians(REACH_DEG),
+    patient: bool = False,
 ) -> tuple[DirectionMesh, bool]:
     """``mesh`` held to within ``reach`` (rad) of the taught directions ``data`` (N, 3).
+
+    Each round that crosses or loses a taught sample gives the held arcs nearest the trouble
+    their unheld edges back. A ``patient`` hold gets ``PATIENT_ROUNDS`` more rounds, and in
+    those the arcs nearest the samples a round pinned are given back too (their pins crossed):
+    where a hold at ``reach`` cannot keep the samples, it keeps the held edge elsewhere.
 
     Returns
     -------
@@ -70,8 +81,9 @@ def hold_to_evidence(
     if not held.any():
         return mesh, False
     before = mesh.contains(data)
-    for _ in range(UNHOLD_ROUNDS):
+    for number in range(UNHOLD_ROUNDS + (PATIENT_ROUNDS if patient else 0)):
         loops = _held_loops(mesh, held, tree, reach)
+        pinned = [np.empty((0, 3))]
         for _ in range(PIN_ROUNDS):
             trouble = crossings([p for p, _, _ in loops])
             if trouble.shape[0]:
@@ -83,7 +95,11 @@ def hold_to_evidence(
             if not lost.any():
                 return trial, True
             trouble = data[lost]
+            pinned.append(trouble)
             loops = _pinned(loops, trouble)
+        if number >= UNHOLD_ROUNDS:
+            # a patient round: the samples it pinned give their nearest arcs back as well
+            trouble = np.vstack([trouble, *pinned])
         # the held arc nearest each sample still lost, or each crossing, keeps its unheld edge
         rows = np.flatnonzero(held[arc])
         _, k = cKDTree(stations[rows]).query(trouble)

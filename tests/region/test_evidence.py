@@ -55,7 +55,9 @@ def test_a_bridged_notch_is_listed_as_unsupported(monkeypatch):
     taught = truth.sample(8000, np.random.default_rng(0))
     held = TaughtRegion(RegionParams(edge="supported", alpha_factor=4.0)).fit(taught)
     # the edge as kept, before the hold (limbctl.region.edge_hold) takes it in to the evidence
-    monkeypatch.setattr(taught_module, "hold_to_evidence", lambda mesh, data, *_: (mesh, False))
+    monkeypatch.setattr(
+        taught_module, "hold_to_evidence", lambda mesh, data, *_, **__: (mesh, False)
+    )
     bridged = TaughtRegion(RegionParams(edge="supported", alpha_factor=4.0)).fit(taught)
     assert held.held_edge and not unsupported_stretches(held.mesh, taught)
     assert held.unsupported_edge == tuple(replace(s, held=True) for s in bridged.unsupported_edge)
