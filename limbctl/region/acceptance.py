@@ -1,6 +1,5 @@
 """Whether a proposed edge agrees with the taught samples: :func:`judge` turns a strategy's
-:class:`Proposal` or :class:`Refusal` into a :class:`Verdict` by the checks docs/region.md lists.
-"""
+:class:`Proposal` or :class:`Refusal` into a :class:`Verdict` by the checks docs/region.md lists."""
 
 from __future__ import annotations
 
@@ -212,12 +211,9 @@ def arcs_cross(loops: list[np.ndarray]) -> bool:
 
 
 def unexplained_gap(edge: np.ndarray, data: np.ndarray, supported: DirectionMesh) -> float:
-    """The most samples (expected) any stretch the ``edge`` (K, 3) adds would hold.
-
-    Over a run of stations beyond the supported region by ``b_k`` (rad), ``sum_k rho_k b_k ds``:
-    ``rho`` the density of taught directions within ``DENSITY_RADIUS_DEG`` of the nearest supported
-    point (per half cap), ``ds`` the station spacing.
-    """
+    """The most samples (expected) any stretch the ``edge`` (K, 3) adds would hold: over a run of
+    stations beyond the supported region by ``b_k`` (rad), ``sum_k rho_k b_k ds``, ``rho`` the
+    taught density (per half cap of ``DENSITY_RADIUS_DEG``) at the nearest supported point."""
     foot = supported.project(edge)
     beyond = np.arccos(np.clip(np.einsum("ij,ij->i", foot, edge), -1.0, 1.0))
     beyond[supported.contains(edge)] = 0.0

@@ -11,8 +11,7 @@ Fitting, per grid node, from the samples within ``BAND_RADIUS_DEG`` (docs/region
 1. *First reading*: heights over the node of the upper and lower hulls of (position, twist).
 2. *Second reading*: the weighted least-squares plane through each first-read limit's stops.
 3. *Envelope*: widened to bounded upward curvature ``ENVELOPE_CURVATURE`` (:func:`_raised`).
-4. *Evidence cap*: narrowed to the taught twists' support (:mod:`limbctl.region.twist_evidence`).
-"""
+4. *Evidence cap*: narrowed to the taught twists' support (:mod:`limbctl.region.twist_evidence`)."""
 
 from __future__ import annotations
 
@@ -90,8 +89,7 @@ class TwistBand:
         """Learn the band from taught directions ``d`` (N, 3) and twists ``tau`` (N,) (rad).
 
         ``axis`` (3,) is the plane's axis (the swing region's); ``reach`` (rad) how far beyond
-        the taught directions the grid must extend (the swing region's largest margin).
-        """
+        the taught directions the grid must extend (the swing region's largest margin)."""
         d = np.ascontiguousarray(d, dtype=np.float64)
         tau = np.ascontiguousarray(tau, dtype=np.float64)
         u, v = tangent_frame(np.asarray(axis, dtype=np.float64))
@@ -232,8 +230,7 @@ def envelope_heights(xy: np.ndarray, t: np.ndarray, node_xy: np.ndarray) -> np.n
     ENVELOPE_SAG_DEG, or as a curvature of ENVELOPE_CURVATURE_MIN would (:func:`_raised`).
 
     Points outside the samples' convex hull take the height at the nearest point inside; NaN
-    everywhere when the samples span no area.
-    """
+    everywhere when the samples span no area."""
     k = ENVELOPE_CURVATURE
     # lifted: s_i = t_i - k |x_i|^2 / 2
     lifted = t - 0.5 * k * np.sum(xy * xy, axis=1)
@@ -295,8 +292,7 @@ def _raised(
 
     The sag ``k S`` is capped at ``max(s, k_min S)`` (s = ENVELOPE_SAG_DEG, k_min =
     ENVELOPE_CURVATURE_MIN), ``S`` taken at most ``ENVELOPE_STOP_SPAN r^2 / 2``, ``r`` the
-    distance to the nearest stop (docs/region.md, "Twist band").
-    """
+    distance to the nearest stop (docs/region.md, "Twist band")."""
     k = ENVELOPE_CURVATURE
 
     def raised(f: np.ndarray, r: np.ndarray) -> np.ndarray:
