@@ -32,7 +32,6 @@ class Proposal:
     Attributes
     ----------
     strategy : str
-        The strategy's name.
     edges : list of ndarray, each (K, 3)
         Closed counter-clockwise loops of unit directions, the region on their left.
     region : DirectionMesh or None
@@ -54,7 +53,6 @@ class Refusal:
     Attributes
     ----------
     strategy : str
-        The strategy's name.
     reason : str
         What in the data refuses the edge, for a person.
     figures : dict of str to float
@@ -73,7 +71,6 @@ class Verdict:
     Attributes
     ----------
     strategy : str
-        The strategy's name.
     accepted : bool
         Whether the gate may use the edge.
     reasons : tuple of str

@@ -92,12 +92,11 @@ def trace_window(curve: np.ndarray, data: np.ndarray) -> float:
 
 
 def edge_estimate(u: np.ndarray, o: np.ndarray) -> float:
-    """Where the edge lies (rad, relative to the curve) at a station, from nearby readings.
-
-    ``u`` (M,) are the readings' positions along the curve relative to the station, ``o`` (M,)
-    their depths. The upper concave majorant at ``u = 0`` plus
-    :func:`limbctl.region.gaps.majorant_gap`; with readings on one side only (or fewer than
-    ``ORDER_STATISTICS``), the outermost depth plus :func:`limbctl.region.gaps.spacing_gap`."""
+    """Where the edge lies (rad, relative to the curve) at a station, from nearby readings. ``u``
+    (M,) are the readings' positions along the curve relative to the station, ``o`` (M,) their
+    depths. The upper concave majorant at ``u = 0`` plus :func:`limbctl.region.gaps.majorant_gap`;
+    with readings on one side only (or fewer than ``ORDER_STATISTICS``), the outermost depth plus
+    :func:`limbctl.region.gaps.spacing_gap`."""
     top = np.argsort(-o, kind="stable")[:TOP_READINGS]
     u, o = u[top], o[top]
     left = u < 0.0
@@ -157,9 +156,8 @@ def bridged_estimates(
 
 
 def local_quadratic(curve: np.ndarray, sigma: float) -> np.ndarray:
-    """Local quadratic regression (K, 3) of a closed curve's evenly spaced stations (K, 3).
-
-    Each station is replaced by ``a`` of ``a + b u + c u^2`` fitted over arc-length offsets ``u``
+    """Local quadratic regression (K, 3) of a closed curve's evenly spaced stations (K, 3). Each
+    station is replaced by ``a`` of ``a + b u + c u^2`` fitted over arc-length offsets ``u``
     (weights ``exp(-u^2 / (2 sigma^2))``), renormalised: exact on quadratic stretches; a circle of
     radius ``r`` shrinks by about ``sigma^4 / (8 r^3)``."""
     s, total = station_positions(curve)

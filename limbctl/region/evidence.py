@@ -158,11 +158,10 @@ def surrounded_bare(
     radius: float = np.radians(CONCAVE_RADIUS_DEG),
     max_gap: float = np.radians(CONCAVE_GAP_DEG),
 ) -> np.ndarray:
-    """(P,) bool: whether ``data`` (N, 3) surround each edge point (P, 3), its outward side bare.
-
-    At least ``CONCAVE_MIN_SAMPLES`` within ``radius`` (rad), no empty sector of bearings wider
-    than ``max_gap`` (rad) and none within ``OUTWARD_CONE_DEG`` of ``outward`` (P, 3; any vector
-    whose tangent part points away from the region). ``tree`` is a cKDTree over ``data``."""
+    """(P,) bool: whether ``data`` (N, 3) surround each edge point (P, 3), its outward side bare. At
+    least ``CONCAVE_MIN_SAMPLES`` within ``radius`` (rad), no empty sector of bearings wider than
+    ``max_gap`` (rad) and none within ``OUTWARD_CONE_DEG`` of ``outward`` (P, 3; any vector whose
+    tangent part points away from the region). ``tree`` is a cKDTree over ``data``."""
     if points.shape[0] == 0:
         return np.zeros(0, dtype=bool)
     near = tree.query_ball_point(points, chord(radius))

@@ -98,8 +98,7 @@ def smooth_along(values: np.ndarray, s: np.ndarray, total: float, width: float) 
 
 
 def lift(deficit: np.ndarray, s: np.ndarray, total: float, width: float) -> np.ndarray:
-    """Smooth bumps (K,) that make up every positive ``deficit`` (K,) at its station.
-
+    """Smooth bumps (K,) that make up every positive ``deficit`` (K,) at its station:
     ``max_j deficit_j exp(-(s_k - s_j)^2 / (2 width^2))`` over stations with a deficit."""
     short = np.flatnonzero(deficit > 0.0)
     if short.size == 0:

@@ -52,8 +52,7 @@ class DirectionMesh:
         lookup: bool = True,
     ) -> DirectionMesh:
         """Region bounded by closed ``loops`` (each (M, 3) directions, region on the left).
-
-        ``margins``: one widening (rad) for every arc, or per loop (M,), entry ``i`` for the arc
+        ``margins``: one widening (rad) for every arc, or per loop (M,), entry ``i`` for arc
         ``i -> i + 1``. ``lookup``: build the grid now (``cells_per_radian`` of polar angle)."""
         keep = [i for i, lp in enumerate(loops) if len(lp) >= 3]
         if not keep:

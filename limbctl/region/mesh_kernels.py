@@ -1,9 +1,8 @@
-"""Numba kernels of the direction-space region: lookup grid, containment and nearest projection.
-
-The grid's ``n_theta x n_phi`` polar cells about ``axis`` each hold ``cell_inside``, ``cell_deep``
-and candidate arcs (CSR ``cell_start``/``cell_edges``, sorted by ``cell_keys``). A query finds its
-cell; deep is inside; else the nearest widened arc (``min_e angle(p, e) - margin_e``) over the
-candidates and the loops' parity along centre -> point. No fastmath: NaN fails every comparison."""
+"""Numba kernels of the direction-space region: lookup grid, containment and nearest projection. The
+grid's ``n_theta x n_phi`` polar cells about ``axis`` each hold ``cell_inside``, ``cell_deep`` and
+candidate arcs (CSR ``cell_start``/``cell_edges``, sorted by ``cell_keys``). A query finds its cell;
+deep is inside; else the nearest widened arc (``min_e angle(p, e) - margin_e``) over the candidates
+and the loops' parity along centre -> point. No fastmath: NaN fails every comparison."""
 
 from __future__ import annotations
 

@@ -251,15 +251,13 @@ def edge_margins(
     traced_arc: float = 0.0,
     corner_turn: float = np.pi,
 ) -> list[np.ndarray]:
-    """How far (rad) to widen each arc of the loops so the region reaches the true edge.
-
-    Each direction of ``data`` (N, 3) belongs to its nearest arc. An arc's margin is the endpoint
-    estimate (:func:`limbctl.region.gaps.line_gap`) of the ``top`` outermost depths beyond its
-    great circle of the data of the arcs within ``window`` (rad) along the loop, at least the
-    depth of every sample outside it, at most ``max_margin`` (one value, or per loop (M,) caps).
-    An arc longer than ``max_bridge`` only covers the samples beyond it; an arc cutting a traced
-    concave corner is held by :func:`corner_limits`. Returns per loop (M,), entry ``i`` for the
-    arc ``i -> i + 1``."""
+    """How far (rad) to widen each arc of the loops so the region reaches the true edge. Each
+    direction of ``data`` (N, 3) belongs to its nearest arc. An arc's margin is the endpoint
+    estimate (:func:`limbctl.region.gaps.line_gap`) of the ``top`` outermost depths beyond its great
+    circle of the data of the arcs within ``window`` (rad) along the loop, at least the depth of
+    every sample outside it, at most ``max_margin`` (one value, or per loop (M,) caps). An arc
+    longer than ``max_bridge`` only covers the samples beyond it; an arc cutting a traced concave
+    corner is held by :func:`corner_limits`. Returns per loop (M,), ``i`` for arc ``i -> i + 1``."""
     vertices, edges = loops_to_edges(loops)
     nearest, angle = shape_kernels.nearest_arcs(data, vertices, edges)
     outside = ~inside_reference(data, vertices, edges)
@@ -306,12 +304,11 @@ def corner_limits(
     traced_arc: float,
     corner_turn: float,
 ) -> np.ndarray:
-    """Largest margin (M,) rad each arc of a loop (M, 3) may take at a traced concave corner.
-
-    A corner arc turns concavely at both ends by at least ``corner_turn`` (rad) together, a
-    neighbour is traced (at most ``traced_arc`` long) and none of the three is longer than
-    ``max_bridge``; it may widen only to where its neighbours, widened by ``margin`` (M,), meet.
-    Other arcs: ``inf``. ``seg`` (M,) are the arcs' lengths (rad)."""
+    """Largest margin (M,) rad each arc of a loop (M, 3) may take at a traced concave corner. A
+    corner arc turns concavely at both ends by at least ``corner_turn`` (rad) together, a neighbour
+    is traced (at most ``traced_arc`` long) and none of the three is longer than ``max_bridge``; it
+    may widen only to where its neighbours, widened by ``margin`` (M,), meet. Other arcs: ``inf``.
+    ``seg`` (M,) are the arcs' lengths (rad)."""
     m = loop.shape[0]
     limit = np.full(m, np.inf)
     turn = vertex_turns(loop)

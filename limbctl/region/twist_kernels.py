@@ -1,12 +1,11 @@
-"""Numba kernels of the three-dimensional region: twist band, containment, nearest on SO(3).
-
-``q = swing(d) * twist(tau)`` (:mod:`limbctl.geometry.twist`) is in the region when ``d`` is in
-the swing region (:mod:`limbctl.region.mesh_kernels`) and ``|wrap(tau - c(d))| <= h(d)``
-(:func:`band_at`). Nearest orientation: over a candidate direction ``d`` at angle ``theta``
-from ``q``'s, the best orientation in the band lies ``delta(d)`` in twist from the transported
-twist, at geodesic angle ``g`` with ``cos(g/2) = cos(theta/2) cos(delta/2)`` (:func:`_score`),
-maximised by pattern searches (docs/decisions/twist.md, "The nearest orientation as a search
-over directions"). No fastmath: NaN must fail every comparison."""
+"""Numba kernels of the three-dimensional region: twist band, containment, nearest on SO(3). ``q =
+swing(d) * twist(tau)`` (:mod:`limbctl.geometry.twist`) is in the region when ``d`` is in the swing
+region (:mod:`limbctl.region.mesh_kernels`) and ``|wrap(tau - c(d))| <= h(d)`` (:func:`band_at`).
+Nearest orientation: over a candidate direction ``d`` at angle ``theta`` from ``q``'s, the best
+orientation in the band lies ``delta(d)`` in twist from the transported twist, at geodesic angle
+``g`` with ``cos(g/2) = cos(theta/2) cos(delta/2)`` (:func:`_score`), maximised by pattern searches
+(docs/decisions/twist.md, "The nearest orientation as a search over directions"). No fastmath: NaN
+must fail every comparison."""
 
 from __future__ import annotations
 
