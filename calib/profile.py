@@ -1,11 +1,7 @@
-"""The rig profile: which port and servos a rig uses and how its joints are calibrated.
-
-A small YAML file, one key per joint (``calib/rigs/sim.yaml`` shows and explains every field;
-``sim3.yaml`` adds ``roll``) or the joints as one ordered list (``joints: [{name: pan, ...}]``);
-the chain is one of :data:`CHAINS` and a profile is saved in the form it was read in. Every
-error is one line naming file and field; what only the servos know is checked when the
-controller opens a rig.
-"""
+"""The rig profile: which port and servos a rig uses and how its joints are calibrated. A YAML file,
+one key per joint (``calib/rigs/sim.yaml`` explains every field; ``sim3.yaml`` adds ``roll``) or a
+``joints:`` list, saved in the form read; the chain is one of :data:`CHAINS`. Errors are one line
+naming file and field; what only the servos know is checked on opening a rig."""
 
 from __future__ import annotations
 

@@ -1,6 +1,5 @@
-"""The simulator on a pseudo-terminal (:func:`serve`), and :class:`SimulatedBus`, which runs it
-in its own process so that a controller's busy polling cannot starve it (README.md shows its use).
-"""
+"""The simulator on a pseudo-terminal (:func:`serve`), and :class:`SimulatedBus`, which runs it in
+its own process so that a controller's busy polling cannot starve it (README.md shows its use)."""
 
 from __future__ import annotations
 
@@ -241,12 +240,10 @@ _ERRORS = {"ValueError": ValueError, "FileExistsError": FileExistsError, "KeyErr
 
 
 class SimulatedBus:
-    """Servos on a pty, served by a separate process; a context manager.
-
-    The other options are :class:`firmware_sim.simulator.Simulator`'s as plain data (``hand`` a
-    REGION.yaml mapping or path), the :class:`firmware_sim.faults.FaultPlan`'s and ``link`` (also
-    make this path a symlink to the pty).
-    """
+    """Servos on a pty, served by a separate process; a context manager. The other options are
+    :class:`firmware_sim.simulator.Simulator`'s as plain data (``hand`` a REGION.yaml mapping or
+    path), the :class:`firmware_sim.faults.FaultPlan`'s and ``link`` (also make this path a symlink
+    to the pty)."""
 
     def __init__(
         self,

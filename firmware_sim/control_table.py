@@ -277,9 +277,7 @@ register_into(MODELS, X330_BUILDERS)
 
 def get_model(key: str) -> Model:
     """The model called ``key`` (case-insensitive); ValueError listing the choices otherwise.
-
-    A 330 may name its firmware, ``"xl330-m288@53"``: after 52 its Indirect Data moved to 224.
-    """
+    A 330 may name its firmware, ``"xl330-m288@53"``: after 52 its Indirect Data moved to 224."""
     name, _, firmware = key.lower().partition("@")
     try:
         if firmware:

@@ -1,10 +1,8 @@
 """Scripted hands that backdrive the simulated limb while its torque is off (REGION.yaml's form:
-docs/simulator.md).
-
-A region hand moves pan and tilt along a :class:`firmware_sim.hand_path.SwingPath` plus a tremor;
-with a twist band the twist is ``centre + u (half_width - TWIST_INSET_DEG)``, ``u`` in [-1, 1]
-moving stop to stop, plus a tremor. The path is a function of the seed and where it took hold.
-"""
+docs/simulator.md). A region hand moves pan and tilt along a
+:class:`firmware_sim.hand_path.SwingPath` plus a tremor; with a twist band the twist is ``centre + u
+(half_width - TWIST_INSET_DEG)``, ``u`` in [-1, 1] moving stop to stop, plus a tremor. The path is a
+function of the seed and where it took hold."""
 
 from __future__ import annotations
 

@@ -1,8 +1,6 @@
-"""An operator file: a leader gimbal and the hand that holds it, as one YAML mapping.
-
-``firmware-sim --operator`` and ``limbctl teleop --operator`` read the same form
-(docs/simulator.md); every key but ``script`` may be left out (:class:`Operator`'s defaults).
-"""
+"""An operator file: a leader gimbal and the hand that holds it, as one YAML mapping, read by
+``firmware-sim --operator`` and ``limbctl teleop --operator`` (docs/simulator.md); every key but
+``script`` may be left out (:class:`Operator`'s defaults)."""
 
 from __future__ import annotations
 

@@ -1,7 +1,6 @@
 """The simulated gimbal's own orientation geometry (the simulator imports nothing of limbctl):
 the chain ``q = Rz(pan) Ry(-tilt) Rx(roll)`` and its twist about the rest axis +x, from the
-swing-twist split ``q = swing(d) * twist(tau)``. Angles in radians unless named ``_deg``.
-"""
+swing-twist split ``q = swing(d) * twist(tau)``. Angles in radians unless named ``_deg``."""
 
 from __future__ import annotations
 

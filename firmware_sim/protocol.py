@@ -1,8 +1,6 @@
-"""Dynamixel Protocol 2.0 framing, written from the e-Manual (not from the SDK's code).
-
-A packet: ``FF FF FD 00 | ID | LEN_L LEN_H | INST | PARAM ... | CRC_L CRC_H``, byte-stuffed,
-``LEN`` counting everything after itself. :class:`PacketParser` resynchronises after junk.
-"""
+"""Dynamixel Protocol 2.0 framing, written from the e-Manual (not from the SDK's code). A packet:
+``FF FF FD 00 | ID | LEN_L LEN_H | INST | PARAM ... | CRC_L CRC_H``, byte-stuffed, ``LEN`` counting
+everything after itself. :class:`PacketParser` resynchronises after junk."""
 
 from __future__ import annotations
 

@@ -1,8 +1,6 @@
 """One simulated X-series servo: control-table memory, instruction semantics, errors, motion.
-
 A hardware error in Shutdown latches, turns torque off and alerts until REBOOT; an input voltage
-error latches and alerts even outside Shutdown (torque stays on).
-"""
+error latches and alerts even outside Shutdown (torque stays on)."""
 
 from __future__ import annotations
 

@@ -1,8 +1,6 @@
 """The simulated bus without its transport: servos, world, faults and goal log on one clock.
-
 A servo's joint is fixed by its *slot* (its ID at start; ``factory=N``: slots 1..N), so it keeps
-its joint when set-up changes its ID.
-"""
+its joint when set-up changes its ID."""
 
 from __future__ import annotations
 

@@ -1,8 +1,6 @@
 """A twist band over a swing outline: how far the limb may turn about its own axis, by pose.
-
 The allowed twist (:mod:`firmware_sim.orientation`) is ``centre +- half_width`` (deg), each a
-number, ``a + b pan + c tilt`` or a :class:`Curved` (the ``twist:`` forms: docs/simulator.md).
-"""
+number, ``a + b pan + c tilt`` or a :class:`Curved` (the ``twist:`` forms: docs/simulator.md)."""
 
 from __future__ import annotations
 

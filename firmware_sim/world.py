@@ -1,10 +1,8 @@
 """The simulated gimbal's physical world: true geometry, end stops, tracking, load, the hand.
-
 Torque on, a joint tracks its servo's setpoint like a stiff, critically damped position loop,
 and a push deflects it from that *free* angle; torque off, it follows the hand's grip, or drifts
 under a push, reading no load. Loads and pushes are % of stall in the shaft frame; velocities
-raw ticks per second.
-"""
+raw ticks per second."""
 
 from __future__ import annotations
 

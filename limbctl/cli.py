@@ -1,6 +1,5 @@
 """The ``limbctl`` command line: one small parser per subcommand, each calling a typed job.
-Errors print one message and exit with status 2; a fault during teleop exits with 3.
-"""
+Errors print one message and exit with status 2; a fault during teleop exits with 3."""
 
 from __future__ import annotations
 

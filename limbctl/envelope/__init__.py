@@ -1,6 +1,5 @@
 """Constraint models of the valid-orientation region, behind one interface (see base.py); each
-kind registers by name when its class is defined, in the order :data:`MODEL_KINDS` lists them.
-"""
+kind registers by name when its class is defined, in the order :data:`MODEL_KINDS` lists them."""
 
 from limbctl.envelope.base import (
     Envelope,

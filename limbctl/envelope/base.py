@@ -1,6 +1,5 @@
 """The Envelope interface every constraint model (RigidMap, SOM, Cone) speaks, and its ``.npz``
-file: a JSON header (kind, version, parameters, a SHA-256 over all) and the model's arrays.
-"""
+file: a JSON header (kind, version, parameters, a SHA-256 over all) and the model's arrays."""
 
 from __future__ import annotations
 
@@ -23,12 +22,10 @@ _ZIP_MAGIC = b"PK\x03\x04"
 
 
 class Envelope(ABC):
-    """A region of valid orientations on S^3 behind one interface.
-
-    Subclasses set ``kind`` and implement ``fit``, ``respond``, ``_inside`` and ``_to_boundary``
-    (or ``contains`` and ``correct``), ``_params``, ``_arrays`` and ``_restore``. Every method
-    takes one quaternion (4,) or a batch (N, 4) and returns the same leading shape.
-    """
+    """A region of valid orientations on S^3 behind one interface. Subclasses set ``kind`` and
+    implement ``fit``, ``respond``, ``_inside`` and ``_to_boundary`` (or ``contains`` and
+    ``correct``), ``_params``, ``_arrays`` and ``_restore``. Every method takes one quaternion (4,)
+    or a batch (N, 4) and returns the same leading shape."""
 
     kind: ClassVar[str] = ""
     #: Constructor keywords a user may set by name (``limbctl train --nodes``, ...).

@@ -1,7 +1,6 @@
 """Lee's analytic swing cone: the ground truth of the papers' experiments and a hand-written limit.
 Inside: swing ``2 acos(sqrt(w^2 + x^2)) <= R``, any twist; the ideal correction keeps twist and
-swing axis (also the nearest boundary point in R^4).
-"""
+swing axis (also the nearest boundary point in R^4)."""
 
 from __future__ import annotations
 

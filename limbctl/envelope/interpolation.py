@@ -2,8 +2,7 @@
 combined with ``k`` runner-ups (Jenkins & Angel after Goeppert & Rosenstiel) by inverse distance
 (``idw``), geometric steps from the running answer (``geometric``) or from the winner
 (``geometric-winner``), or geometric over the winner's output-topology neighbours
-(``topological``); the formulas sit in :func:`_combine`. Answers are unit, w >= 0.
-"""
+(``topological``); the formulas sit in :func:`_combine`. Answers are unit, w >= 0."""
 
 from __future__ import annotations
 

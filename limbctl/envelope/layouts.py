@@ -1,6 +1,5 @@
 """Node positions on S^3 (unit quaternions) for Rigid Map output layers, by name: on w >= 0
-(polytopes folded, each antipodal pair keeping its canonical member), or the papers' node sets.
-"""
+(polytopes folded, each antipodal pair keeping its canonical member), or the papers' node sets."""
 
 from __future__ import annotations
 

@@ -1,7 +1,6 @@
 """The interpolated Rigid Map (Jenkins & Angel), and the exact gate built on it: ``respond`` is
 the papers' network, ``contains``/``correct`` ask the taught region (docs/region.md);
-``support_weights`` are a second layer on the region's thinned samples (``limbctl eval``).
-"""
+``support_weights`` are a second layer on the region's thinned samples (``limbctl eval``)."""
 
 from __future__ import annotations
 

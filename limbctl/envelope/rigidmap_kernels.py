@@ -1,6 +1,5 @@
 """Numba kernels of the Rigid Map (Jenkins & Angel, Table I): training, winner search, answering.
-Training has a numpy reference; no ``fastmath`` (NaN fails comparisons).
-"""
+Training has a numpy reference; no ``fastmath`` (NaN fails comparisons)."""
 
 from __future__ import annotations
 
@@ -133,13 +132,11 @@ def train_rigid_map(
     max_epochs: int,
     tol: float,
 ) -> int:
-    """Train ``weights`` (M, 4) in place by the Rigid Map rule; returns the epochs run.
-
-    Each epoch ``t``, for each pattern ``x`` in order, every node within ``h = exp(-theta_ci^2 /
-    (2 sigma(t)^2)) >= phi`` of the winner ``c`` by position moves ``w_i += lr(t) h (x - w_i)``,
-    until ``max_epochs`` or no component moved over ``tol``. Winners never change, so they are
-    found once; an epoch runs node by node (the same weights to the bit as pattern by pattern).
-    """
+    """Train ``weights`` (M, 4) in place by the Rigid Map rule; returns the epochs run. Each epoch
+    ``t``, for each pattern ``x`` in order, every node within ``h = exp(-theta_ci^2 / (2
+    sigma(t)^2)) >= phi`` of the winner ``c`` by position moves ``w_i += lr(t) h (x - w_i)``, until
+    ``max_epochs`` or no component moved over ``tol``. Winners never change, so they are found once;
+    an epoch runs node by node (the same weights to the bit as pattern by pattern)."""
     winners = position_winners(positions, patterns)
     distinct, pattern_slot = _winner_slots(winners, positions.shape[0])
     grouped = (winners, distinct, pattern_slot, *_slot_patterns(pattern_slot, distinct.shape[0]))

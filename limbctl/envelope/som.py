@@ -1,9 +1,7 @@
 """The self-organising map of Jenkins & Dacey (UKSim 2011): the project's baseline envelope.
-
 Each pattern's winner (least squared distance) and the nodes within grid distance ``radius(t)``
 move ``w += lr(t) (x - w)``, until no winner changes. ``contains(q)``: q within ``threshold``
-(the training set's largest distance) of a normalised node; ``correct`` answers the winner.
-"""
+(the training set's largest distance) of a normalised node; ``correct`` answers the winner."""
 
 from __future__ import annotations
 
@@ -54,8 +52,7 @@ def table_i_schedule(
 class SOM(Envelope):
     """Kohonen SOM over unit quaternions, trained on valid orientations (Jenkins & Dacey): a
     ``rows x cols`` grid, initial weights uniform in [-init_scale, init_scale] from ``seed`` (an
-    int seed starts each ``fit`` afresh), Table I's schedule (:func:`table_i_schedule`).
-    """
+    int seed starts each ``fit`` afresh), Table I's schedule (:func:`table_i_schedule`)."""
 
     kind = "som"
     settable = ("seed",)

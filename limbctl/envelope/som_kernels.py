@@ -1,6 +1,5 @@
 """Numba training kernel of the SOM (Jenkins & Dacey 2011; the rule: :mod:`limbctl.envelope.som`;
-ties to the first index). Its numpy twin is in the tests. No fastmath: comparisons stay NaN-safe.
-"""
+ties to the first index). Its numpy twin is in the tests. No fastmath: comparisons stay NaN-safe."""
 
 from __future__ import annotations
 

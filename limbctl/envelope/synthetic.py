@@ -1,6 +1,5 @@
 """Synthetic regions of limb directions with exact ideal corrections, for tests and benchmarks:
-Lee's swing cone (:class:`ConeRegion`) and polygons in (pan, tilt) degrees (:class:`PolygonRegion`).
-"""
+Lee's swing cone (:class:`ConeRegion`) and (pan, tilt) degree polygons (:class:`PolygonRegion`)."""
 
 from __future__ import annotations
 

@@ -1,6 +1,5 @@
 """Synthetic shoulder-like regions of full orientations, for tests and benchmarks of twist: a
-swing outline in (pan, tilt) degrees with a twist band narrowing as the limb rises.
-"""
+swing outline in (pan, tilt) degrees with a twist band narrowing as the limb rises."""
 
 from __future__ import annotations
 

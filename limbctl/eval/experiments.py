@@ -1,8 +1,6 @@
 """`limbctl eval`: the seed papers' experiments, side by side with the gate, as CSV, tables, plots.
-
 A task (one data set, every model trained on it) runs in a worker, appending its rows to
-``runs.csv``; a rerun into the same ``--out`` skips tasks already there.
-"""
+``runs.csv``; a rerun into the same ``--out`` skips tasks already there."""
 
 from __future__ import annotations
 

@@ -1,6 +1,5 @@
 """The experiment grids of `limbctl eval`: which data sets, models and answers each point runs,
-at three scales: ``full`` (the papers' grids, 10 seeds), ``quick`` and ``smoke`` (1 seed).
-"""
+at three scales: ``full`` (the papers' grids, 10 seeds), ``quick`` and ``smoke`` (1 seed)."""
 
 from __future__ import annotations
 

@@ -1,6 +1,5 @@
 """Tables and figures of `limbctl eval`: seed-averaged points, the papers' Figure 2 panels beside
-the gate, and a markdown summary with the reproduction check.
-"""
+the gate, and a markdown summary with the reproduction check."""
 
 from __future__ import annotations
 

@@ -1,6 +1,5 @@
 """`limbctl eval`'s twist experiment: ``RigidMap(twist=True).correct()`` on a learned
-ShoulderRegion and the engines' clamp on the true one, against the true nearest orientation.
-"""
+ShoulderRegion and the engines' clamp on the true one, against the true nearest orientation."""
 
 from __future__ import annotations
 

@@ -1,7 +1,6 @@
 """The geometry a joint chain's gate (:mod:`limbctl.teleop.gate`) steps in: limb directions and
 great circles for two joints (:class:`Directions`), unit quaternions and slerp for three
-(:class:`Rotations`). One pose per cycle, plain floats; angles are radians.
-"""
+(:class:`Rotations`). One pose per cycle, plain floats; angles are radians."""
 
 from __future__ import annotations
 

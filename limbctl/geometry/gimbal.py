@@ -1,10 +1,8 @@
 """Joint angles <-> limb direction <-> quaternion for a chain of 2 or 3 joints, exactly.
-
 The limb rests along +x; pan turns about +z, tilt raises it toward +z. Two joints stand for the
 twist-free swing from +x to the limb direction, three for ``q = Rz(pan) Ry(-tilt) Rx(roll)``,
 whose twist about +x is ``roll + chain_twist(pan, tilt)``. Angles are radians; ``*_scalar``
-functions take one pose.
-"""
+functions take one pose."""
 
 from __future__ import annotations
 

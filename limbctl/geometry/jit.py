@@ -1,8 +1,6 @@
 """The one way limbctl compiles a numba kernel: :func:`njit`, cached soundly or not at all.
-
 The cache folder is named after :func:`source_key` (every kernel source and numba's version, not
-only the kernel's own file); with no writable folder kernels compile in memory, said once.
-"""
+only the kernel's own file); with no writable folder kernels compile in memory, said once."""
 
 from __future__ import annotations
 

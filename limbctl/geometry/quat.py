@@ -1,6 +1,5 @@
 """Quaternion algebra for limb orientations: float64 (4,) or (N, 4), scalar first ``(w, x, y,
-z)``, unit, canonical ``w >= 0`` (docs/architecture.md); the limb rests along +x.
-"""
+z)``, unit, canonical ``w >= 0`` (docs/architecture.md); the limb rests along +x."""
 
 from __future__ import annotations
 

@@ -1,10 +1,8 @@
 """Twist: how a full orientation splits into direction and twist, ``q = swing(d) * twist(tau)``.
-
 ``swing(d)`` is the shortest rotation from the rest axis +x onto the limb direction ``d``;
 ``twist(tau) = (cos(tau/2), sin(tau/2), 0, 0)`` turns the limb by ``tau`` (rad, in ``(-pi, pi]``)
 about +x, applied first. At ``d = -x`` the swing is the half-turn about +z and twist loses
-precision like ``1e-16 / s_w`` near it, so regions stay :data:`SINGULAR_MARGIN` away from -x.
-"""
+precision like ``1e-16 / s_w`` near it, so regions stay :data:`SINGULAR_MARGIN` away from -x."""
 
 from __future__ import annotations
 

@@ -1,6 +1,5 @@
 """Whether a proposed edge agrees with the taught samples: :func:`judge` turns a strategy's
-:class:`Proposal` or :class:`Refusal` into a :class:`Verdict` by the checks docs/region.md lists.
-"""
+:class:`Proposal` or :class:`Refusal` into a :class:`Verdict` by the checks docs/region.md lists."""
 
 from __future__ import annotations
 
@@ -33,7 +32,6 @@ class Proposal:
     Attributes
     ----------
     strategy : str
-        The strategy's name.
     edges : list of ndarray, each (K, 3)
         Closed counter-clockwise loops of unit directions, the region on their left.
     region : DirectionMesh or None
@@ -55,7 +53,6 @@ class Refusal:
     Attributes
     ----------
     strategy : str
-        The strategy's name.
     reason : str
         What in the data refuses the edge, for a person.
     figures : dict of str to float
@@ -74,7 +71,6 @@ class Verdict:
     Attributes
     ----------
     strategy : str
-        The strategy's name.
     accepted : bool
         Whether the gate may use the edge.
     reasons : tuple of str
@@ -212,12 +208,9 @@ def arcs_cross(loops: list[np.ndarray]) -> bool:
 
 
 def unexplained_gap(edge: np.ndarray, data: np.ndarray, supported: DirectionMesh) -> float:
-    """The most samples (expected) any stretch the ``edge`` (K, 3) adds would hold.
-
-    Over a run of stations beyond the supported region by ``b_k`` (rad), ``sum_k rho_k b_k ds``:
-    ``rho`` the density of taught directions within ``DENSITY_RADIUS_DEG`` of the nearest supported
-    point (per half cap), ``ds`` the station spacing.
-    """
+    """The most samples (expected) any stretch the ``edge`` (K, 3) adds would hold: over a run of
+    stations beyond the supported region by ``b_k`` (rad), ``sum_k rho_k b_k ds``, ``rho`` the
+    taught density (per half cap of ``DENSITY_RADIUS_DEG``) at the nearest supported point."""
     foot = supported.project(edge)
     beyond = np.arccos(np.clip(np.einsum("ij,ij->i", foot, edge), -1.0, 1.0))
     beyond[supported.contains(edge)] = 0.0

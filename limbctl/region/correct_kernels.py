@@ -1,7 +1,5 @@
-"""Numba kernels that correct quaternions against the region: inside kept, outside moved.
-
-The twist about the limb is kept. No ``fastmath``: NaN must fail every comparison.
-"""
+"""Numba kernels that correct quaternions against the region: inside kept, outside moved, the
+twist about the limb kept. No ``fastmath``: NaN must fail every comparison."""
 
 from __future__ import annotations
 
@@ -17,11 +15,9 @@ from limbctl.region import mesh_kernels as bk
 @njit(inline="always")
 def _correct_one(q, mesh, out, work) -> int:
     """Correct one quaternion into ``out``; returns 1 inside, 0 corrected, -1 bad input.
-
     Inside: ``out = q`` (canonical). Outside: ``out = swing(d') * twist(q)``, ``d'`` the nearest
     region direction. ``mesh`` is the mesh's kernel arguments; ``work`` (WORK_ROWS + 2, 3) scratch
-    with the grid frame in rows 0, 1 (``bk.frame_into``).
-    """
+    with the grid frame in rows 0, 1 (``bk.frame_into``)."""
     norm2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]
     # NaN fails every comparison, so it is refused here
     if not abs(math.sqrt(norm2) - 1.0) <= 1e-6:
@@ -110,8 +106,7 @@ PARALLEL_ROWS = 100_000
 
 def correct_rows(q, *args):
     """Correct each row of ``q`` (N, 4) C-contiguous -> (out (N, 4), status (N,) int8), through
-    the kernel that suits N: the same answers row for row. ``args``: the mesh's kernel arguments.
-    """
+    the kernel that suits N: the same answers row for row. ``args``: the mesh's kernel arguments."""
     n = q.shape[0]
     if n > PARALLEL_ROWS:
         return correct_batch(q, *args)

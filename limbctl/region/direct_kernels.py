@@ -1,6 +1,5 @@
 """Numba kernels that answer the region's queries from its arcs alone, for meshes a fit may throw
-away (no lookup grid), as :func:`limbctl.region.mesh_kernels.query` does. Radians. No fastmath.
-"""
+away (no lookup grid), as :func:`limbctl.region.mesh_kernels.query` does. Radians. No fastmath."""
 
 from __future__ import annotations
 
@@ -90,8 +89,7 @@ SLACK = 1e-6
 @njit
 def within_widening(p, vertices, edges, margins, mids, reach_cos) -> bool:
     """Whether some arc's widening holds ``p`` (3,) (within CONTAIN_TOLERANCE); arcs whose
-    midpoint lies beyond ``reach_cos[e]`` (:data:`SLACK` wider) are not measured.
-    """
+    midpoint lies beyond ``reach_cos[e]`` (:data:`SLACK` wider) are not measured."""
     for e in range(edges.shape[0]):
         if p[0] * mids[e, 0] + p[1] * mids[e, 1] + p[2] * mids[e, 2] < reach_cos[e]:
             continue
@@ -103,8 +101,7 @@ def within_widening(p, vertices, edges, margins, mids, reach_cos) -> bool:
 @njit
 def in_loops(p, vertices, edges, axis, u, v, far_inside) -> bool:
     """Whether ``p`` (3,) lies inside the loops: the parity of crossings of the half-meridian
-    beyond ``p`` to ``-axis``, against whether ``-axis`` is inside (``far_inside``).
-    """
+    beyond ``p`` to ``-axis``, against whether ``-axis`` is inside (``far_inside``)."""
     phi = math.atan2(_dot(p, v), _dot(p, u))
     cp = math.cos(phi)
     sp = math.sin(phi)
@@ -156,8 +153,7 @@ def in_loops(p, vertices, edges, axis, u, v, far_inside) -> bool:
 @njit
 def query_batch(vertices, edges, margins, axis, far_inside, d, project):
     """Whether each direction of ``d`` (N, 3) is in the region (N,) bool, and when ``project``
-    its projection (N, 3) (else (0, 3)). One thread: a pool's compile costs seconds.
-    """
+    its projection (N, 3) (else (0, 3)). One thread: a pool's compile costs seconds."""
     n = d.shape[0]
     inside = np.empty(n, dtype=np.bool_)
     out = np.empty((n if project else 0, 3))

@@ -1,6 +1,5 @@
 """Which edge the gate uses: interchangeable edge strategies, chosen by name and judged by
-:func:`limbctl.region.acceptance.judge` (docs/region.md, "Edge strategies").
-"""
+:func:`limbctl.region.acceptance.judge` (docs/region.md, "Edge strategies")."""
 
 from __future__ import annotations
 

@@ -1,9 +1,6 @@
-"""The smooth edge: a boundary of local small circles fitted to the data-supported loops.
-
-Each loop of :mod:`limbctl.region.shape` becomes a curve sampled every ``STEP_DEG`` (radians);
-refused where the data hold a bay (:func:`protected`) or the window cannot follow the loop
-(:func:`residual_ratio`). The steps: docs/region.md, "Edge strategies".
-"""
+"""The smooth edge: local small circles fitted to the data-supported loops, every ``STEP_DEG``;
+refused at a held bay (:func:`protected`) or a loop the window cannot follow
+(:func:`residual_ratio`). Radians; docs/region.md, "Edge strategies"."""
 
 from __future__ import annotations
 
@@ -61,10 +58,8 @@ def circle_fits(
     window: float,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Weighted small-circle fit at every station: poles (K, 3), radii (K,) rad, residuals (K,) rad.
-
     Weights ``exp(-(s_i - s_k)^2 / (2 window^2))`` over the loop's vertices; the pole on the
-    region's side, the radius within ``[MIN_RADIUS_DEG, 180 - MIN_RADIUS_DEG]``.
-    """
+    region's side, the radius within ``[MIN_RADIUS_DEG, 180 - MIN_RADIUS_DEG]``."""
     gap = loop_gaps(s, at_vertex, total)
     w = np.exp(-0.5 * (gap / window) ** 2)
     # the four nearest vertices always count: a fit needs three points off one great circle
@@ -95,8 +90,7 @@ def choose_window(
     loop: np.ndarray, at_vertex: np.ndarray, s: np.ndarray, total: float, outward: np.ndarray
 ) -> float:
     """The window (rad) by the residual-growth rule, from at least ``START_WINDOW_DEG`` or
-    ``MIN_VERTICES_PER_WINDOW`` mean vertex spacings.
-    """
+    ``MIN_VERTICES_PER_WINDOW`` mean vertex spacings."""
     floor = max(START_WINDOW_DEG, np.degrees(MIN_VERTICES_PER_WINDOW * total / loop.shape[0]))
     ladder = [np.radians(w) for w in WINDOWS_DEG if w >= floor] or [np.radians(WINDOWS_DEG[-1])]
     best = ladder[0]
@@ -137,10 +131,8 @@ def edge_offsets(
 
 
 def fit_edge(loop: np.ndarray, data: np.ndarray, max_offset: float) -> tuple[np.ndarray, float]:
-    """The smooth edge (K, 3) of one data-supported ``loop`` (M, 3), and its :func:`residual_ratio`.
-
-    ``data`` (N, 3) are the taught directions; ``max_offset`` (rad) caps the edge offset.
-    """
+    """The smooth edge (K, 3) of one data-supported ``loop`` (M, 3), and its :func:`residual_ratio`;
+    ``data`` (N, 3) the taught directions, ``max_offset`` (rad) the edge offset's cap."""
     stations, s, at_vertex = resample_loop(loop, np.radians(STEP_DEG))
     total = loop_length(loop)
     outward = outward_at_stations(loop, s, at_vertex)
@@ -157,18 +149,14 @@ def fit_edge(loop: np.ndarray, data: np.ndarray, max_offset: float) -> tuple[np.
 
 
 def residual_ratio(resid: np.ndarray) -> float:
-    """The largest station fit residual over the median one, of ``resid`` (K,) rad.
-
-    Near 1 where one window fits the whole loop; above where it spans a tip or corner it cannot
-    follow, and the offsets that make up for it push the flanks past the true edge.
-    """
+    """The largest station fit residual over the median one, of ``resid`` (K,) rad: near 1 where one
+    window fits the loop, above where it spans a tip or corner it cannot follow."""
     return float(np.max(resid) / max(float(np.median(resid)), 1e-12))
 
 
 def sample_need(base: np.ndarray, pole: np.ndarray, rho: np.ndarray, data: np.ndarray):
     """Offset (K,) rad each station needs to hold the taught directions (N, 3) nearest it or
-    its two neighbours (-inf where there are none).
-    """
+    its two neighbours (-inf where there are none)."""
     k = base.shape[0]
     owner = nearest_station(data, base)
     need = np.full(k, -np.inf)
@@ -180,12 +168,8 @@ def sample_need(base: np.ndarray, pole: np.ndarray, rho: np.ndarray, data: np.nd
 
 
 def pockets(loop: np.ndarray, data: np.ndarray) -> list[tuple[int, int, float]]:
-    """The bays of a loop (M, 3): stretches between consecutive vertices of its convex hull.
-
-    Returns ``(a, b, worth)`` per hull edge whose stretch ``a -> b`` leaves a pocket, ``worth``
-    the samples the data's mean density would put into it. The hull is taken in the gnomonic
-    projection about the data's mean direction.
-    """
+    """The bays of a loop (M, 3), between consecutive vertices of its (gnomonic) convex hull:
+    ``(a, b, worth)`` per pocket ``a -> b``, ``worth`` the samples mean density would put in it."""
     centre = data.mean(axis=0)
     centre /= np.linalg.norm(centre)
     u, v = tangent_frame(centre)
@@ -209,8 +193,7 @@ def protected(
     loop: np.ndarray, data: np.ndarray, s: np.ndarray, at_vertex: np.ndarray
 ) -> np.ndarray:
     """(K,) bool: stations on a bay the data hold (a pocket worth > ``POCKET_SAMPLES``); all of
-    a hole (a clockwise loop).
-    """
+    a hole (a clockwise loop)."""
     if loop_area(loop) < 0.0:
         return np.ones(s.shape[0], dtype=bool)
     total = loop_length(loop)

@@ -1,9 +1,5 @@
-"""The traced edge: a curve walked out to where the taught samples put the edge, station by station.
-
-It follows any shape the data resolve, bays included, where the edge is taught densely enough
-(:func:`trace_window`); the steps: docs/region.md, "Edge strategies". Radians. Held to the
-evidence, every station stays within ``HOLD_DEG`` of a taught direction (:func:`held_in`).
-"""
+"""The traced edge: a curve walked out to where the taught samples put the edge, station by station
+(docs/region.md, "Edge strategies"; rad), held within ``HOLD_DEG`` of a sample (:func:`held_in`)."""
 
 from __future__ import annotations
 
@@ -96,13 +92,11 @@ def trace_window(curve: np.ndarray, data: np.ndarray) -> float:
 
 
 def edge_estimate(u: np.ndarray, o: np.ndarray) -> float:
-    """Where the edge lies (rad, relative to the curve) at a station, from nearby readings.
-
-    ``u`` (M,) are the readings' positions along the curve relative to the station, ``o`` (M,)
-    their depths. The upper concave majorant at ``u = 0`` plus
-    :func:`limbctl.region.gaps.majorant_gap`; with readings on one side only (or fewer than
-    ``ORDER_STATISTICS``), the outermost depth plus :func:`limbctl.region.gaps.spacing_gap`.
-    """
+    """Where the edge lies (rad, relative to the curve) at a station, from nearby readings. ``u``
+    (M,) are the readings' positions along the curve relative to the station, ``o`` (M,) their
+    depths. The upper concave majorant at ``u = 0`` plus :func:`limbctl.region.gaps.majorant_gap`;
+    with readings on one side only (or fewer than ``ORDER_STATISTICS``), the outermost depth plus
+    :func:`limbctl.region.gaps.spacing_gap`."""
     top = np.argsort(-o, kind="stable")[:TOP_READINGS]
     u, o = u[top], o[top]
     left = u < 0.0
@@ -162,12 +156,10 @@ def bridged_estimates(
 
 
 def local_quadratic(curve: np.ndarray, sigma: float) -> np.ndarray:
-    """Local quadratic regression (K, 3) of a closed curve's evenly spaced stations (K, 3).
-
-    Each station is replaced by ``a`` of ``a + b u + c u^2`` fitted over arc-length offsets ``u``
+    """Local quadratic regression (K, 3) of a closed curve's evenly spaced stations (K, 3). Each
+    station is replaced by ``a`` of ``a + b u + c u^2`` fitted over arc-length offsets ``u``
     (weights ``exp(-u^2 / (2 sigma^2))``), renormalised: exact on quadratic stretches; a circle of
-    radius ``r`` shrinks by about ``sigma^4 / (8 r^3)``.
-    """
+    radius ``r`` shrinks by about ``sigma^4 / (8 r^3)``."""
     s, total = station_positions(curve)
     u = signed_offset(s[None, :], s[:, None], total)
     w = np.exp(-0.5 * (u / sigma) ** 2)
@@ -256,11 +248,8 @@ def _moved(curve: np.ndarray, normal: np.ndarray, by: np.ndarray) -> np.ndarray:
 
 
 def held_in(curve: np.ndarray, data: np.ndarray, tree: cKDTree, bound: float) -> np.ndarray:
-    """The stations of ``curve`` (K, 3) held within ``bound`` (rad) of the taught ``data`` (N, 3).
-
-    A station too far walks in along its normal to the first place within ``bound`` (at most
-    ``WALK_DEG``), else moves to ``bound`` from its nearest sample; folds are cut out.
-    """
+    """The stations of ``curve`` (K, 3) held within ``bound`` (rad) of ``data`` (N, 3): walked in
+    along the normal (at most ``WALK_DEG``), else to ``bound`` from the nearest; folds cut out."""
     dist, nearest = tree.query(curve)
     far = np.flatnonzero(dist > chord(bound))
     if far.size == 0:

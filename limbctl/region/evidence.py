@@ -1,9 +1,5 @@
-"""Whether a region's edge stays within the taught evidence where the samples surround it.
-
-:func:`unsupported_stretches` returns the runs of edge stations the samples surround (a bridged
-bay, a cut reflex corner) that lie farther than ``EVIDENCE_DEG`` from every taught sample
-(docs/region.md, "Held to the taught evidence").
-"""
+"""Whether a region's edge stays within the taught evidence where the samples surround it
+(:func:`unsupported_stretches`; docs/region.md, "Held to the taught evidence")."""
 
 from __future__ import annotations
 
@@ -23,12 +19,8 @@ EVIDENCE_DEG = 1.5
 REACH_DEG = 1.25
 #: The held edge held again this close (deg): with a chord's slack (0.0625) within the 1 deg bound.
 HOLD_REACH_DEG = 0.9
-#: A held stretch whose learned edge stood at most this far (deg) from every sample is settled:
-#: it no longer withholds READY. Where the simulator's hand traced a true stop about 1 deg inside
-#: it, again and again as the guide asked, the learned edge still stood 1.26-2.07 deg past the
-#: samples (docs/bench_guided_teaching.md), so no teaching could answer those requests; the
-#: region there is held within HOLD_REACH_DEG of the samples, as near as on any edge. Deeper
-#: stretches (a bridged bay or notch stands 1.5-4 deg off, an untaught bulge more) keep asking.
+#: A held stretch whose learned edge stood at most this far (deg) from every sample is settled (no
+#: longer withholds READY): traced stops still leave 1.26-2.07; bays stand 1.5-4 deg off.
 SETTLED_DEG = REACH_DEG + 1.0
 #: Station spacing (deg): a point between stations lies at most half of it farther.
 STATION_DEG = 0.25
@@ -66,8 +58,7 @@ class Stretch:
 
     @property
     def settled(self) -> bool:
-        """Whether the region is held here and the learned edge stood at most ``SETTLED_DEG``
-        from the samples: the teaching answers it, the guide does not ask for it again."""
+        """Held here, the learned edge within ``SETTLED_DEG`` of the samples: asked no more."""
         return self.held and self.distance_deg <= SETTLED_DEG
 
     def request(self) -> str:
@@ -142,8 +133,7 @@ def unsupported_stations(
     surrounded: bool = True,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Edge stations (S, 3), their arcs (S,), distances (S,) rad to ``data`` (N, 3), and the
-    indices (B,) of the unsupported ones (see :func:`unsupported_stretches`).
-    """
+    indices (B,) of the unsupported ones (see :func:`unsupported_stretches`)."""
     stations, arc = edge_stations(mesh, np.radians(STATION_DEG))
     tree = cKDTree(data)
     dist, _ = tree.query(stations)
@@ -168,12 +158,10 @@ def surrounded_bare(
     radius: float = np.radians(CONCAVE_RADIUS_DEG),
     max_gap: float = np.radians(CONCAVE_GAP_DEG),
 ) -> np.ndarray:
-    """(P,) bool: whether ``data`` (N, 3) surround each edge point (P, 3), its outward side bare.
-
-    At least ``CONCAVE_MIN_SAMPLES`` within ``radius`` (rad), no empty sector of bearings wider
-    than ``max_gap`` (rad) and none within ``OUTWARD_CONE_DEG`` of ``outward`` (P, 3; any vector
-    whose tangent part points away from the region). ``tree`` is a cKDTree over ``data``.
-    """
+    """(P,) bool: whether ``data`` (N, 3) surround each edge point (P, 3), its outward side bare. At
+    least ``CONCAVE_MIN_SAMPLES`` within ``radius`` (rad), no empty sector of bearings wider than
+    ``max_gap`` (rad) and none within ``OUTWARD_CONE_DEG`` of ``outward`` (P, 3; any vector whose
+    tangent part points away from the region). ``tree`` is a cKDTree over ``data``."""
     if points.shape[0] == 0:
         return np.zeros(0, dtype=bool)
     near = tree.query_ball_point(points, chord(radius))

@@ -1,6 +1,5 @@
 """How far beyond the outermost taught samples the true edge lies: three gap estimators, each
-unbiased when the outermost depths (rad) behave like a Poisson process below the edge.
-"""
+unbiased when the outermost depths (rad) behave like a Poisson process below the edge."""
 
 from __future__ import annotations
 
@@ -27,15 +26,12 @@ def line_gap(depths: np.ndarray) -> float:
 
 def spacing_gap(depths: np.ndarray) -> float:
     """Gap (rad) beyond the outermost of ``depths`` (K,), sorted outermost first: their mean
-    spacing ``(o_(1) - o_(K)) / (K - 1)``; 0 for fewer than 3.
-    """
+    spacing ``(o_(1) - o_(K)) / (K - 1)``; 0 for fewer than 3."""
     k = depths.size
     return float((depths[0] - depths[-1]) / (k - 1)) if k >= 3 else 0.0
 
 
 def majorant_gap(residuals: np.ndarray) -> float:
-    """Gap (rad) between the upper concave majorant of readings and the edge:
-    ``MAJORANT_GAP r_(K) / K`` of the ``residuals`` below it (smallest first),
-    ``K = ORDER_STATISTICS``.
-    """
+    """Gap (rad) between the upper concave majorant of readings and the edge: ``MAJORANT_GAP
+    r_(K) / K`` of the ``residuals`` below it (smallest first), ``K = ORDER_STATISTICS``."""
     return float(MAJORANT_GAP * residuals[ORDER_STATISTICS - 1] / ORDER_STATISTICS)

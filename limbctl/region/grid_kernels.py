@@ -1,8 +1,6 @@
 """Numba kernels that build the region's lookup grid (:mod:`limbctl.region.mesh_kernels`).
-
 Cells are handled in ``BLOCK x BLOCK`` blocks: a block finds the few arcs any of its cells can
-need, and each cell tests only those, in the same order as all. No fastmath.
-"""
+need, and each cell tests only those, in the same order as all. No fastmath."""
 
 from __future__ import annotations
 
@@ -87,11 +85,9 @@ def _block_arcs(
     from_block,
 ):
     """The arcs one block's cells can need into ``arcs`` (E,), their angles (rad) from the block's
-    centre into ``arc_dist`` (E,); returns their number.
-
-    Each cell's angle from the block's centre goes into ``from_block``; ``dist`` (E,) is scratch.
-    Arcs whose midpoint cannot meet the block's widened bounds are not measured.
-    """
+    centre into ``arc_dist`` (E,); returns their number. Each cell's angle from the block's centre
+    goes into ``from_block``; ``dist`` (E,) is scratch. Arcs whose midpoint cannot meet the block's
+    widened bounds are not measured."""
     n_theta, n_phi = grid_shape[0], grid_shape[1]
     bi, bj = block // blocks_phi, block % blocks_phi
     i1, j1 = min(n_theta, (bi + 1) * BLOCK), min(n_phi, (bj + 1) * BLOCK)
@@ -163,10 +159,8 @@ def _cell(
     out_keys,
 ):
     """One cell: (deep, candidate count); its candidates and keys into ``out_edges``, ``out_keys``.
-
     ``arcs`` (A,) hold the block's arcs, ``arc_dist`` (A,) their angles (rad) from its centre,
-    ``from_block`` the cell's, ``reach`` the longest half arc plus the largest margin.
-    """
+    ``from_block`` the cell's, ``reach`` the longest half arc plus the largest margin."""
     centre, r = centres[cell], radius[cell]
     if inside[cell]:
         # deep when no arc comes within r: each arc's angle from the cell's centre is at least
@@ -237,12 +231,10 @@ def _sort_by_key(cell_edges, cell_keys) -> None:
 @njit
 def build_grid(vertices, edges, margins, axis, grid_shape, inside):
     """Per cell: deep (bool), and its candidate arcs sorted by key -> deep, start, arcs, keys.
-
     ``inside`` (cells,) says whether each cell's centre lies in the loops; ``margins`` (E,) widen
     the arcs (rad). A cell of radius ``r`` is deep when all of it lies in the loops or in one
     arc's widening; otherwise its candidates are the arcs with ``key <= min_key + 2 r`` and those
-    within ``r`` of its centre. One thread: a pool saved nothing on two cores.
-    """
+    within ``r`` of its centre. One thread: a pool saved nothing on two cores."""
     n_theta, n_phi = grid_shape[0], grid_shape[1]
     n_cells = n_theta * n_phi
     n_edges = edges.shape[0]

@@ -1,6 +1,5 @@
 """Closed loops of directions (M, 3) on S^2, region on the left: lengths, areas, stations along
-them, and what is near each (radians).
-"""
+them, and what is near each (radians)."""
 
 from __future__ import annotations
 
@@ -99,10 +98,8 @@ def smooth_along(values: np.ndarray, s: np.ndarray, total: float, width: float) 
 
 
 def lift(deficit: np.ndarray, s: np.ndarray, total: float, width: float) -> np.ndarray:
-    """Smooth bumps (K,) that make up every positive ``deficit`` (K,) at its station.
-
-    ``max_j deficit_j exp(-(s_k - s_j)^2 / (2 width^2))`` over stations with a deficit.
-    """
+    """Smooth bumps (K,) that make up every positive ``deficit`` (K,) at its station:
+    ``max_j deficit_j exp(-(s_k - s_j)^2 / (2 width^2))`` over stations with a deficit."""
     short = np.flatnonzero(deficit > 0.0)
     if short.size == 0:
         return np.zeros(s.shape[0])

@@ -1,10 +1,6 @@
-"""A region of limb directions on S^2 as a spherical mesh: build it, test it, project onto it.
-
-Closed loops of great-circle arcs: a direction is inside them or within ``margin_e`` (rad) of
-an arc ``e``. The nearest region direction of a point outside is exact (the arc minimising
-``angle(p, e) - margin_e``). Queries run in :mod:`limbctl.region.mesh_kernels`; ``*_reference``
-answer by brute force.
-"""
+"""A region of limb directions on S^2: closed loops of great-circle arcs, each widened by its
+``margin_e`` (rad). Projection is exact (the arc minimising ``angle(p, e) - margin_e``); queries
+run in :mod:`limbctl.region.mesh_kernels`, ``*_reference`` answer by brute force."""
 
 from __future__ import annotations
 
@@ -56,11 +52,8 @@ class DirectionMesh:
         lookup: bool = True,
     ) -> DirectionMesh:
         """Region bounded by closed ``loops`` (each (M, 3) directions, region on the left).
-
-        ``margins``: one widening (rad) for every arc, or per loop an (M,) array whose entry ``i``
-        widens the arc from point ``i`` to ``i + 1``. The lookup grid has ``cells_per_radian`` cells
-        per radian of polar angle, built now when ``lookup``.
-        """
+        ``margins``: one widening (rad) for every arc, or per loop (M,), entry ``i`` for arc
+        ``i -> i + 1``. ``lookup``: build the grid now (``cells_per_radian`` of polar angle)."""
         keep = [i for i, lp in enumerate(loops) if len(lp) >= 3]
         if not keep:
             raise InvalidInputError(
@@ -186,11 +179,8 @@ _ARRAYS = attrgetter(*_NAMES)
 def cell_centres_inside(
     vertices: np.ndarray, edges: np.ndarray, axis: np.ndarray, grid_shape: np.ndarray
 ) -> np.ndarray:
-    """Whether each grid cell's centre lies inside the loops (n_theta * n_phi,) bool.
-
-    Per column, the boundary's crossings of the half-meridian to ``-axis`` beyond each centre,
-    odd or even, against whether ``-axis`` is inside.
-    """
+    """Whether each grid cell's centre lies inside the loops (n_theta * n_phi,) bool: per column,
+    the parity of boundary crossings towards ``-axis``, against whether ``-axis`` is inside."""
     n_theta, n_phi = int(grid_shape[0]), int(grid_shape[1])
     u, v = bk._frame(axis)
     a = vertices[edges[:, 0]]
@@ -216,10 +206,8 @@ def cell_centres_inside(
 
 
 def fan_area(p: np.ndarray, vertices: np.ndarray, edges: np.ndarray) -> np.ndarray:
-    """Sum (N,) over boundary arcs a -> b of the signed area of the spherical triangle (p, a, b).
-
-    For a region of area ``A`` it equals ``A`` when ``-p`` is outside and ``A - 4 pi`` inside.
-    """
+    """Sum (N,) over boundary arcs a -> b of the signed area of the spherical triangle (p, a, b):
+    for a region of area ``A``, ``A`` when ``-p`` is outside and ``A - 4 pi`` inside."""
     a = vertices[edges[:, 0]]
     b = vertices[edges[:, 1]]
     cross = np.cross(a, b)
@@ -238,11 +226,8 @@ def inside_reference(p: np.ndarray, vertices: np.ndarray, edges: np.ndarray) -> 
 
 
 def spherical_delaunay(d: np.ndarray) -> np.ndarray:
-    """Delaunay triangles (T, 3) of unit directions ``d`` (V, 3), counter-clockwise from outside.
-
-    The convex hull with the antipode of the mean added (so one hemisphere still closes a hull),
-    faces touching it dropped.
-    """
+    """Delaunay triangles (T, 3) of unit directions ``d`` (V, 3), counter-clockwise from outside:
+    the hull with the mean's antipode added (one hemisphere closes), faces touching it dropped."""
     mean = d.mean(axis=0)
     pole = -mean / np.linalg.norm(mean) if np.linalg.norm(mean) > 1e-9 else -d[0]
     pts = np.vstack([d, pole])
@@ -285,8 +270,7 @@ def nearest_on_edges_reference(
     d: np.ndarray, vertices: np.ndarray, edges: np.ndarray, margins: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """By brute force, for directions ``d`` (N, 3): the arc minimising ``angle - margin`` (N,)
-    int, the nearest point on it (N, 3) and its angle (N,) rad (``margins`` default zero).
-    """
+    int, the nearest point on it (N, 3) and its angle (N,) rad (``margins`` default zero)."""
     margins = np.zeros(edges.shape[0]) if margins is None else margins
     best = np.empty_like(d)
     best_angle = np.full(d.shape[0], np.inf)

@@ -1,10 +1,8 @@
-"""Numba kernels of the direction-space region: lookup grid, containment and nearest projection.
-
-The grid's ``n_theta x n_phi`` polar cells about ``axis`` each hold ``cell_inside``, ``cell_deep``
-and candidate arcs (CSR ``cell_start``/``cell_edges``, sorted by ``cell_keys``). A query finds its
-cell; deep is inside; else the nearest widened arc (``min_e angle(p, e) - margin_e``) over the
-candidates and the loops' parity along centre -> point. No fastmath: NaN fails every comparison.
-"""
+"""Numba kernels of the direction-space region: lookup grid, containment and nearest projection. The
+grid's ``n_theta x n_phi`` polar cells about ``axis`` each hold ``cell_inside``, ``cell_deep`` and
+candidate arcs (CSR ``cell_start``/``cell_edges``, sorted by ``cell_keys``). A query finds its cell;
+deep is inside; else the nearest widened arc (``min_e angle(p, e) - margin_e``) over the candidates
+and the loops' parity along centre -> point. No fastmath: NaN fails every comparison."""
 
 from __future__ import annotations
 
@@ -229,10 +227,8 @@ def query(
     p, vertices, edges, margins, axis, grid_shape, inside, deep, start, cell_edges, keys, out, work
 ):
     """Whether direction ``p`` is in the region; ``out`` gets its projection (p itself inside).
-
     ``work`` (>= WORK_ROWS, 3) is scratch, the frame in rows 0, 1 (:func:`frame_into`). The
-    candidates are visited by increasing key until the keys bound the rest away.
-    """
+    candidates are visited by increasing key until the keys bound the rest away."""
     n_theta = grid_shape[0]
     n_phi = grid_shape[1]
     u = work[0]

@@ -1,6 +1,5 @@
 """From scattered limb directions to the closed boundary loops of the region they fill: thin,
-alpha complex, peel, trace the loops, widen each arc (docs/region.md, steps 1-4). Radians.
-"""
+alpha complex, peel, trace the loops, widen each arc (docs/region.md, steps 1-4). Radians."""
 
 from __future__ import annotations
 
@@ -38,12 +37,9 @@ def thin(d: np.ndarray, spacing: float) -> np.ndarray:
 
 
 def learn_alpha(d: np.ndarray, factor: float, quantile: float = 0.9) -> float:
-    """The alpha-shape radius (rad) from the scale of the gaps inside the data ``d`` (V, 3).
-
-    ``alpha0`` is the smallest circumradius joining ``JOINED_FRACTION`` of the points into one
-    piece; ``alpha = factor * quantile(circumradius of the triangles that piece encloses)``, at
-    least ``alpha0``: a few sample spacings on i.i.d. samples, the holes between hand strokes.
-    """
+    """The alpha-shape radius (rad) from the gaps inside ``d`` (V, 3): ``factor * quantile`` of the
+    circumradii inside the piece joining ``JOINED_FRACTION`` of the points, at least the radius
+    joining it."""
     tri = spherical_delaunay(d)
     radius = circumradius(d, tri)
     order = np.argsort(radius)
@@ -204,11 +200,8 @@ def bearing_gaps(p: np.ndarray, data: np.ndarray, near: list) -> tuple[np.ndarra
 def peel(
     d: np.ndarray, tri: np.ndarray, kept: np.ndarray, max_length: float, protected: np.ndarray
 ) -> np.ndarray:
-    """Chi-shape peel: the kept mask (T,) of triangles ``tri`` (T, 3) after peeling ``kept`` (T,).
-
-    Longest first, a kept triangle with an exposed edge longer than ``max_length`` (rad) is
-    removed, unless ``protected`` (T,) or its third vertex lies on the boundary (no pinching).
-    """
+    """Chi-shape peel: the kept mask (T,) of ``tri`` (T, 3) after peeling ``kept`` (T,), longest
+    exposed edge (> ``max_length``, rad) first, sparing ``protected`` (T,) and pinches."""
     kept = kept.copy()
     key = np.sort(np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]), axis=1)
     owners: dict[tuple[int, int], list[int]] = {}
@@ -258,16 +251,13 @@ def edge_margins(
     traced_arc: float = 0.0,
     corner_turn: float = np.pi,
 ) -> list[np.ndarray]:
-    """How far (rad) to widen each arc of the loops so the region reaches the true edge.
-
-    Each direction of ``data`` (N, 3) belongs to its nearest arc. An arc's margin is the endpoint
-    estimate (:func:`limbctl.region.gaps.line_gap`) of the ``top`` outermost depths beyond its
-    great circle of the data of the arcs within ``window`` (rad) along the loop, at least the
-    depth of every sample outside it, at most ``max_margin`` (one value, or per loop (M,) caps).
-    An arc longer than ``max_bridge`` only covers the samples beyond it; an arc cutting a traced
-    concave corner is held by :func:`corner_limits`. Returns one (M,) array per loop, entry
-    ``i`` for the arc from point ``i`` to ``i + 1``.
-    """
+    """How far (rad) to widen each arc of the loops so the region reaches the true edge. Each
+    direction of ``data`` (N, 3) belongs to its nearest arc. An arc's margin is the endpoint
+    estimate (:func:`limbctl.region.gaps.line_gap`) of the ``top`` outermost depths beyond its great
+    circle of the data of the arcs within ``window`` (rad) along the loop, at least the depth of
+    every sample outside it, at most ``max_margin`` (one value, or per loop (M,) caps). An arc
+    longer than ``max_bridge`` only covers the samples beyond it; an arc cutting a traced concave
+    corner is held by :func:`corner_limits`. Returns per loop (M,), ``i`` for arc ``i -> i + 1``."""
     vertices, edges = loops_to_edges(loops)
     nearest, angle = shape_kernels.nearest_arcs(data, vertices, edges)
     outside = ~inside_reference(data, vertices, edges)
@@ -314,13 +304,11 @@ def corner_limits(
     traced_arc: float,
     corner_turn: float,
 ) -> np.ndarray:
-    """Largest margin (M,) rad each arc of a loop (M, 3) may take at a traced concave corner.
-
-    A corner arc turns concavely at both ends by at least ``corner_turn`` (rad) together, a
-    neighbour is traced (at most ``traced_arc`` long) and none of the three is longer than
-    ``max_bridge``; it may widen only to where its neighbours, widened by ``margin`` (M,), meet.
-    Other arcs: ``inf``. ``seg`` (M,) are the arcs' lengths (rad).
-    """
+    """Largest margin (M,) rad each arc of a loop (M, 3) may take at a traced concave corner. A
+    corner arc turns concavely at both ends by at least ``corner_turn`` (rad) together, a neighbour
+    is traced (at most ``traced_arc`` long) and none of the three is longer than ``max_bridge``; it
+    may widen only to where its neighbours, widened by ``margin`` (M,), meet. Other arcs: ``inf``.
+    ``seg`` (M,) are the arcs' lengths (rad)."""
     m = loop.shape[0]
     limit = np.full(m, np.inf)
     turn = vertex_turns(loop)

@@ -18,8 +18,7 @@ TIE = 1e-12
 def widest_bearing_gaps(p: np.ndarray, data: np.ndarray, start: np.ndarray, near: np.ndarray):
     """The widest empty sector (rad) about each ``p`` (N, 3) of its neighbours
     ``data[near[start[i]:start[i + 1]]]``, bearings in :func:`limbctl.geometry.quat.tangent_frame`
-    (2 pi for fewer than one neighbour).
-    """
+    (2 pi for fewer than one neighbour)."""
     n = p.shape[0]
     out = np.full(n, 2.0 * np.pi)
     for i in range(n):

@@ -15,8 +15,7 @@ RUN = 16
 @njit
 def largest_stable(values, k):
     """Indices (min(k, N),) int64 of the ``k`` largest of ``values`` (N,), largest first, ties in
-    index order; insertion, O(N) when most values fall below the ``k``-th.
-    """
+    index order; insertion, O(N) when most values fall below the ``k``-th."""
     n = values.shape[0]
     k = min(k, n)
     out = np.empty(k, dtype=np.int64)

@@ -1,6 +1,5 @@
 """Numba kernel of the traced edge's estimates (:mod:`limbctl.region.edge_traced`): the same
-arithmetic in the same order as its numpy loop (tests/region/test_trace_kernels.py). No fastmath.
-"""
+arithmetic in the same order as its numpy loop (tests/region/test_trace_kernels.py). No fastmath."""
 
 from __future__ import annotations
 

@@ -11,8 +11,7 @@ Fitting, per grid node, from the samples within ``BAND_RADIUS_DEG`` (docs/region
 1. *First reading*: heights over the node of the upper and lower hulls of (position, twist).
 2. *Second reading*: the weighted least-squares plane through each first-read limit's stops.
 3. *Envelope*: widened to bounded upward curvature ``ENVELOPE_CURVATURE`` (:func:`_raised`).
-4. *Evidence cap*: narrowed to the taught twists' support (:mod:`limbctl.region.twist_evidence`).
-"""
+4. *Evidence cap*: narrowed to the taught twists' support (:mod:`limbctl.region.twist_evidence`)."""
 
 from __future__ import annotations
 
@@ -88,10 +87,8 @@ class TwistBand:
     @classmethod
     def fit(cls, d: np.ndarray, tau: np.ndarray, axis: np.ndarray, reach: float) -> TwistBand:
         """Learn the band from taught directions ``d`` (N, 3) and twists ``tau`` (N,) (rad).
-
-        ``axis`` (3,) is the plane's axis (the swing region's); ``reach`` (rad) how far beyond
-        the taught directions the grid must extend (the swing region's largest margin).
-        """
+        ``axis`` (3,) is the plane's axis (the swing region's); ``reach`` (rad) how far beyond the
+        taught directions the grid must extend (the swing region's largest margin)."""
         d = np.ascontiguousarray(d, dtype=np.float64)
         tau = np.ascontiguousarray(tau, dtype=np.float64)
         u, v = tangent_frame(np.asarray(axis, dtype=np.float64))
@@ -227,13 +224,11 @@ class TwistBand:
 def envelope_heights(xy: np.ndarray, t: np.ndarray, node_xy: np.ndarray) -> np.ndarray:
     """Heights (M,) at plane points ``node_xy`` (M, 2) (rad) of a function lying on or above every
     sample ``(xy, t)`` ((N, 2), (N,), rad): the smallest one whose upward curvature is at most
-    ENVELOPE_CURVATURE (``k |x|^2 / 2`` plus the upper concave hull of ``t - k |x|^2 / 2``),
-    raised where its stops lie far apart so that it sags below their plane by at most
-    ENVELOPE_SAG_DEG, or as a curvature of ENVELOPE_CURVATURE_MIN would (:func:`_raised`).
-
-    Points outside the samples' convex hull take the height at the nearest point inside; NaN
-    everywhere when the samples span no area.
-    """
+    ENVELOPE_CURVATURE (``k |x|^2 / 2`` plus the upper concave hull of ``t - k |x|^2 / 2``), raised
+    where its stops lie far apart so that it sags below their plane by at most ENVELOPE_SAG_DEG, or
+    as a curvature of ENVELOPE_CURVATURE_MIN would (:func:`_raised`). Points outside the samples'
+    convex hull take the height at the nearest point inside; NaN everywhere when the samples span no
+    area."""
     k = ENVELOPE_CURVATURE
     # lifted: s_i = t_i - k |x_i|^2 / 2
     lifted = t - 0.5 * k * np.sum(xy * xy, axis=1)
@@ -290,13 +285,11 @@ def _raised(
     facets: tuple[np.ndarray, np.ndarray, np.ndarray],
 ) -> np.ndarray:
     """How far (M,) (rad) the envelope is raised at points ``p`` (M, 2) over facets of sag factor
-    ``factor`` (M,) (rad^2); ``(xy, t)`` the samples, ``corners`` the indices of those on the
-    hull's upper facets, ``facets`` the hull's upper facets (as :func:`_over_facets` takes them).
-
-    The sag ``k S`` is capped at ``max(s, k_min S)`` (s = ENVELOPE_SAG_DEG, k_min =
-    ENVELOPE_CURVATURE_MIN), ``S`` taken at most ``ENVELOPE_STOP_SPAN r^2 / 2``, ``r`` the
-    distance to the nearest stop (docs/region.md, "Twist band").
-    """
+    ``factor`` (M,) (rad^2); ``(xy, t)`` the samples, ``corners`` the indices of those on the hull's
+    upper facets, ``facets`` the hull's upper facets (as :func:`_over_facets` takes them). The sag
+    ``k S`` is capped at ``max(s, k_min S)`` (s = ENVELOPE_SAG_DEG, k_min = ENVELOPE_CURVATURE_MIN),
+    ``S`` taken at most ``ENVELOPE_STOP_SPAN r^2 / 2``, ``r`` the distance to the nearest stop
+    (docs/region.md, "Twist band")."""
     k = ENVELOPE_CURVATURE
 
     def raised(f: np.ndarray, r: np.ndarray) -> np.ndarray:

@@ -1,14 +1,11 @@
-"""Numba kernels of the three-dimensional region: the twist band, containment and the nearest
-orientation on SO(3).
-
-``q = swing(d) * twist(tau)`` (:mod:`limbctl.geometry.twist`) is in the region when ``d`` is in
-the swing region (:mod:`limbctl.region.mesh_kernels`) and ``|wrap(tau - c(d))| <= h(d)``
-(:func:`band_at`). Nearest orientation: over a candidate direction ``d`` at angle ``theta``
-from ``q``'s, the best orientation in the band lies ``delta(d)`` in twist from the transported
-twist, at geodesic angle ``g`` with ``cos(g/2) = cos(theta/2) cos(delta/2)`` (:func:`_score`),
-maximised by pattern searches (docs/decisions/twist.md, "The nearest orientation as a search
-over directions"). No fastmath: NaN must fail every comparison.
-"""
+"""Numba kernels of the three-dimensional region: twist band, containment, nearest on SO(3). ``q =
+swing(d) * twist(tau)`` (:mod:`limbctl.geometry.twist`) is in the region when ``d`` is in the swing
+region (:mod:`limbctl.region.mesh_kernels`) and ``|wrap(tau - c(d))| <= h(d)`` (:func:`band_at`).
+Nearest orientation: over a candidate direction ``d`` at angle ``theta`` from ``q``'s, the best
+orientation in the band lies ``delta(d)`` in twist from the transported twist, at geodesic angle
+``g`` with ``cos(g/2) = cos(theta/2) cos(delta/2)`` (:func:`_score`), maximised by pattern searches
+(docs/decisions/twist.md, "The nearest orientation as a search over directions"). No fastmath: NaN
+must fail every comparison."""
 
 from __future__ import annotations
 
@@ -71,8 +68,7 @@ def plane_xy(d, frame):
 @njit(inline="always")
 def band_at(d, frame, grid, centre, half):
     """Band centre and half-width (rad) over direction ``d``: bilinear in the plane grid
-    ``grid = (x0, y0, step)``, clamped at its edge.
-    """
+    ``grid = (x0, y0, step)``, clamped at its edge."""
     x, y = plane_xy(d, frame)
     nx = centre.shape[0]
     ny = centre.shape[1]
@@ -96,8 +92,7 @@ def band_at(d, frame, grid, centre, half):
 @njit(inline="always")
 def _score(q, dq, d, frame, grid, centre, half):
     """``(F, tau)``: ``F = cos(theta/2) cos(delta/2)`` for candidate direction ``d`` and the best
-    twist there; ``q`` canonical (4,), ``dq`` its unit direction.
-    """
+    twist there; ``q`` canonical (4,), ``dq`` its unit direction."""
     rw = 1.0 + dq[0] * d[0] + dq[1] * d[1] + dq[2] * d[2]
     rx = dq[1] * d[2] - dq[2] * d[1]
     ry = dq[2] * d[0] - dq[0] * d[2]
@@ -203,10 +198,8 @@ def _search_from(qc, dq, alt, best, step, mesh, band, work):
 @njit(inline="always")
 def _correct_one(q, mesh, band, seeds, seed_dirs, out, work) -> int:
     """Correct one quaternion into ``out``: 1 inside (``out = q``), 0 corrected, -1 bad input.
-
-    ``mesh`` is the direction mesh's kernel arguments, ``band = (frame, grid, centre, half)``;
-    ``work`` (WORK_ROWS + WORK_EXTRA, 3) holds the mesh frame in rows 0, 1.
-    """
+    ``mesh``: the direction mesh's kernel arguments, ``band = (frame, grid, centre, half)``;
+    ``work`` (WORK_ROWS + WORK_EXTRA, 3) holds the mesh frame in rows 0, 1."""
     frame, grid, centre, half = band
     norm2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]
     if not abs(math.sqrt(norm2) - 1.0) <= 1e-6:
@@ -306,12 +299,10 @@ def _correct_one(q, mesh, band, seeds, seed_dirs, out, work) -> int:
 
 @njit(inline="always")
 def _scan_nodes(qc, dq, cur, best, best_tau, mesh, band, work):
-    """Search again from the band grid nodes within ``SCAN_RADIUS`` of ``cur`` scoring best.
-
-    The ``NODE_STARTS`` best scoring nodes (each more than a grid step from ``cur`` and from
+    """Search again from the band grid nodes within ``SCAN_RADIUS`` of ``cur`` scoring best: the
+    ``NODE_STARTS`` best scoring nodes (each more than a grid step from ``cur`` and from
     each other) start a search at half a grid step; ``cur`` moves to a better optimum found.
-    Returns the best ``(F, tau)``. ``work`` rows from ``WORK_ROWS + 9 + MAX_STARTS`` are scratch.
-    """
+    Returns the best ``(F, tau)``. ``work`` rows from ``WORK_ROWS + 9 + MAX_STARTS`` are scratch."""
     frame, grid, centre, half = band
     base = bk.WORK_ROWS + 9 + MAX_STARTS
     node = work[base - 1]

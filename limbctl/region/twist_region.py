@@ -1,10 +1,6 @@
-"""The taught region in three dimensions: a swing outline and a twist band over it.
-
-:class:`TwistRegion` learns, from taught orientations ``Q`` (N, 4), a swing region
-(:class:`~limbctl.region.taught.TaughtRegion`), a :class:`~limbctl.region.twist_band.TwistBand`
-over it and the search's boundary seeds. ``correct(q)`` is the nearest orientation on SO(3).
-Directions within :data:`limbctl.geometry.twist.SINGULAR_MARGIN` of -x are refused.
-"""
+"""The taught region in three dimensions: a swing outline (:class:`~limbctl.region.taught.
+TaughtRegion`) and a :class:`~limbctl.region.twist_band.TwistBand` over it; ``correct(q)`` is the
+nearest orientation on SO(3). Directions within ``SINGULAR_MARGIN`` of -x are refused."""
 
 from __future__ import annotations
 
@@ -154,8 +150,7 @@ class TwistRegion:
 
 def boundary_seeds(region: TwistRegion) -> np.ndarray:
     """Orientations (M, 4) on the region's boundary about SEED_STEP_DEG apart: both band limits
-    over a lattice of the swing region, and twists across the band along the swing edge.
-    """
+    over a lattice of the swing region, and twists across the band along the swing edge."""
     band, mesh = region.band, region.swing.mesh
     step = math.radians(SEED_STEP_DEG)
     inside = lattice(band, step)
@@ -169,10 +164,7 @@ def boundary_seeds(region: TwistRegion) -> np.ndarray:
 
 def boundary_samples(region: TwistRegion, step_deg: float) -> np.ndarray:
     """A dense sampling (M, 4) of the learned region's boundary, ``step_deg`` apart: the brute
-    force the tests and benchmarks check :meth:`TwistRegion.correct` against.
-
-    As :func:`boundary_seeds`, the edge sampled on the mesh arcs (up to the largest margin inside).
-    """
+    force :meth:`TwistRegion.correct` is checked against (edge sampled on the mesh arcs)."""
     step = math.radians(step_deg)
     inside = lattice(region.band, step)
     inside = inside[region.swing.mesh.contains(inside)]
@@ -205,9 +197,7 @@ def edge_points(mesh, step: float) -> np.ndarray:
 
 
 def across_band(band: TwistBand, d: np.ndarray, step: float) -> np.ndarray:
-    """Orientations over directions ``d`` (K, 3), twists across the band at most ``step`` (rad)
-    apart, both limits included.
-    """
+    """Orientations over ``d`` (K, 3), twists across the band ``step`` (rad) apart, limits too."""
     c, h = band.at(d)
     k = np.ceil(2.0 * h / step).astype(int) + 1
     rows = np.repeat(np.arange(d.shape[0]), k)

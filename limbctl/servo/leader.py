@@ -26,9 +26,8 @@ class LeaderMotor:
     """What the controller needs of a current-sensing model's motor: the e-Manual's stall torque
     (N m) at its stall current (mA), one current unit (mA) and the Current Limit's factory
     maximum (units); ``loop_stall_error_deg``: the position error (deg) at which the factory-gain
-    loop asks for stall torque (2: the simulator's; measure a real one's); ``let_go_cap_nm``: a
-    cap (N m) for a loop so soft that a released leader would snap back over 30 deg/s
-    (docs/haptic.md)."""
+    loop asks for stall torque (2: the simulator's; measure a real one's); ``let_go_cap_nm``: a cap
+    (N m) for a loop so soft a released leader would snap back over 30 deg/s (docs/haptic.md)."""
 
     stall_torque_nm: float
     stall_current_ma: float

@@ -213,11 +213,10 @@ def scan(
     on_baud: Callable[[int, int, int], None] | None = None,
     budget_per_baud_s: float = 2.0,
 ) -> ScanResult:
-    """Ping every servo on ``port_name`` at each of ``bauds``.
-
-    ``latency_timer_ms`` is the USB adapter's (ms; at least the SDK's 16 ms is allowed);
-    ``on_baud(index, count, baud)`` is called before each baud (a progress bar);
-    ``budget_per_baud_s`` is the most time (s) spent naming collided IDs at one baud.
+    """Ping every servo on ``port_name`` at each of ``bauds``. ``latency_timer_ms`` is the USB
+    adapter's (ms; at least the SDK's 16 ms is allowed); ``on_baud(index, count, baud)`` is called
+    before each baud (a progress bar); ``budget_per_baud_s`` is the most time (s) spent naming
+    collided IDs at one baud.
 
     Raises
     ------

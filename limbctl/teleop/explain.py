@@ -78,11 +78,9 @@ def explain(
     pushing: tuple[str, ...] | None = None,
 ) -> Explanation:
     """Say what the gate did this cycle (``result`` None: the cycle ended before the gate ran).
-
-    ``commanded_deg``/``previous_deg`` are the command followed and the pose the gate gave a
-    cycle earlier, (pan, tilt) deg; ``names`` words for "+pan" ... "-tilt"; ``pushing`` the
-    directions a person pushes (e.g. ``("+tilt",)``): only those may be blocked.
-    """
+    ``commanded_deg``/``previous_deg`` are the command followed and the pose the gate gave a cycle
+    earlier, (pan, tilt) deg; ``names`` words for "+pan" ... "-tilt"; ``pushing`` the directions a
+    person pushes (e.g. ``("+tilt",)``): only those may be blocked."""
     if result is None:
         return Explanation("not running")
     if result.outcome is Outcome.HELD:

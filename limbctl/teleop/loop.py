@@ -94,10 +94,8 @@ def _command_deg(q: np.ndarray) -> tuple[float, float]:
 
 class ControlLoop:
     """The loop's state between cycles; each :meth:`step` is one cycle and returns its value.
-
-    ``limb`` is connected, configured, torque on; ``gate`` not yet started (:meth:`start` starts
-    it from the present pose); ``source`` started; ``stop`` set (a signal handler) ends the loop.
-    """
+    ``limb`` is connected, configured, torque on; ``gate`` not yet started (:meth:`start` starts it
+    from the present pose); ``source`` started; ``stop`` set (a signal handler) ends the loop."""
 
     def __init__(
         self,

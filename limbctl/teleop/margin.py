@@ -44,8 +44,7 @@ def _directions(poses: np.ndarray) -> np.ndarray:
 
 
 def inside_by_margin(gate: Gate, poses: np.ndarray, margin: float) -> np.ndarray:
-    """(N,) bool: which poses (N, 2) (pan, tilt, rad) are inside region and limits by
-    ``margin``."""
+    """(N,) bool: which poses (N, 2) (pan, tilt, rad) are inside region and limits by ``margin``."""
     poses = np.asarray(poses, dtype=np.float64).reshape(-1, 2)
     (pan_min, tilt_min), (pan_max, tilt_max) = gate.limits.joint_min, gate.limits.joint_max
     ok = (

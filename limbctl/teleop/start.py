@@ -25,9 +25,8 @@ LOG_EVERY_S = 2.0
 @dataclass(frozen=True)
 class StartOptions:
     """How a session starts from a limb outside: it gives up after ``wait_s`` (s);
-    ``approach_deg_s`` (deg/s; None: wait for the hand) drives it in at ``rate_hz`` goals a
-    second; a waiting limb is read ``poll_hz`` times a second, ``max_failed_reads`` in a row end
-    it."""
+    ``approach_deg_s`` (deg/s; None: wait for the hand) drives it in at ``rate_hz`` goals a second;
+    a waiting limb is read ``poll_hz`` times a second, ``max_failed_reads`` in a row end it."""
 
     wait_s: float = DEFAULT_WAIT_S
     approach_deg_s: float | None = None

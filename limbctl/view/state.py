@@ -91,8 +91,7 @@ class GuideFigure:
 @dataclass(frozen=True)
 class TeleopStatus:
     """One teleop cycle as the page shows it: ``commanded`` and ``written`` poses (None before one),
-    the gate's ``outcome`` and its ``words``, ``rate_hz`` (Hz), ``cycles`` and ``blocked``
-    directions."""
+    the gate's ``outcome`` and ``words``, ``rate_hz`` (Hz), ``cycles``, ``blocked`` directions."""
 
     commanded: PanTilt | None
     written: PanTilt | None
@@ -119,8 +118,7 @@ class Live:
     """The fast part of the view, published as often as the producer likes: ``mode`` ("record",
     "teleop" or "demo: <phase>"), the ``pose`` last read, ``sample_count`` recorded, the
     ``teleop`` cycle (None outside teleop), the present ``fault`` ("" for none), a ``note`` for the
-    person and a three-servo limb's ``twist`` gauge (None, no ``twist`` JSON key, on two servos).
-    """
+    person and a three-servo limb's ``twist`` gauge (None, no ``twist`` JSON key, on two servos)."""
 
     mode: str
     pose: PanTilt | None = None

@@ -60,10 +60,8 @@ def region_centre(envelope: Any) -> tuple[float, float] | None:
 
 class KeyboardSource(CommandSource):
     """Keys in the terminal ``tty_path`` steer pan/tilt by ``step_deg``; ``q`` ends the session.
-
-    ``gate`` (optional) gives the written pose the command starts from and never leads by more
-    than :data:`MAX_LEAD_DEG`, and the region's centre; ``guide``: where the key guide goes.
-    """
+    ``gate`` (optional) gives the written pose the command starts from and never leads by more than
+    :data:`MAX_LEAD_DEG`, and the region's centre; ``guide``: where the key guide goes."""
 
     name = "keyboard"
     latest_only = True
