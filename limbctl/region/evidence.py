@@ -20,7 +20,8 @@ REACH_DEG = 1.25
 #: The held edge held again this close (deg): with a chord's slack (0.0625) within the 1 deg bound.
 HOLD_REACH_DEG = 0.9
 #: A held stretch whose learned edge stood at most this far (deg) from every sample is settled (no
-#: longer withholds READY): traced stops still leave 1.26-2.07; bays stand 1.5-4 deg off.
+#: longer withholds READY): traced stops leave it 1.26-2.07 deg off (docs/bench_guided_teaching.md)
+#: and the hold keeps the region within REACH_DEG of the samples there, so containment is kept.
 SETTLED_DEG = REACH_DEG + 1.0
 #: Station spacing (deg): a point between stations lies at most half of it farther.
 STATION_DEG = 0.25
