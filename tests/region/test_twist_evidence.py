@@ -115,20 +115,6 @@ def _learned_grid(region) -> np.ndarray:
     return d[region.swing.mesh.contains(d)]
 
 
-def test_a_densely_taught_bump_steeper_than_the_cone_is_not_exceeded():
-    # the fixed cone alone let the upper limit 1.86 deg past the truth on the bump's sides
-    # (stops high on the bump 8 deg away vouched for the limit at 0.5 deg per deg)
-    truth = BandRegion(SQUARE, _bumped_band_deg)
-    region = TwistRegion().fit(truth.teaching(3000, 1500, 4000, np.random.default_rng(6)))
-    d = _learned_grid(region)
-    excess = _excess_deg(truth, region, d)
-    assert excess.max() <= 1.0, f"band {excess.max():.2f} deg past the true stop"
-    # and the band still holds the truth 2 deg inside each stop
-    tc, th = truth.band(d)
-    for sign in (-1.0, 1.0):
-        assert np.mean(region.contains(compose(d, tc + sign * (th - math.radians(2.0))))) >= 0.99
-
-
 #: A narrow deep dip (the upper limit falls STEEP_DIP_DEG, STEEP_WIDTH_DEG one sigma): its sides
 #: slope up to 0.91 deg per deg, and a sparse teaching (1500 samples, the region families'
 #: sparse i.i.d. one) leaves no stop within a few degrees of parts of them.
@@ -201,14 +187,24 @@ def _sharp_bump_deg(pan, tilt):
     return 5.0 + 0.3 * pan + SHARP_CENTRE_DEG * bump, 40.0 + SHARP_HALF_DEG * bump
 
 
-def test_a_densely_taught_sharply_bending_bump_is_not_exceeded_along_the_node_slope():
-    # with each sample extrapolated along the slope read at the node alone, the lower limit lay
-    # 1.82 deg past the truth: the slope read at the sample's end of the path bounds the rise
-    truth = BandRegion(SQUARE, _sharp_bump_deg)
+@pytest.mark.parametrize(
+    "band_deg",
+    [
+        # the fixed cone alone let the upper limit 1.86 deg past the truth on the bump's sides
+        # (stops high on the bump 8 deg away vouched for the limit at 0.5 deg per deg)
+        pytest.param(_bumped_band_deg, id="bump steeper than the cone"),
+        # with each sample extrapolated along the slope read at the node alone, the lower limit
+        # lay 1.82 deg past the truth: the slope read at the sample's end bounds the rise
+        pytest.param(_sharp_bump_deg, id="sharply bending bump"),
+    ],
+)
+def test_a_densely_taught_bump_is_not_exceeded_and_the_band_holds_the_truth(band_deg):
+    truth = BandRegion(SQUARE, band_deg)
     region = TwistRegion().fit(truth.teaching(3000, 1500, 4000, np.random.default_rng(6)))
     d = _learned_grid(region)
     excess = _excess_deg(truth, region, d)
     assert excess.max() <= 1.0, f"band {excess.max():.2f} deg past the true stop"
+    # and the band still holds the truth 2 deg inside each stop
     tc, th = truth.band(d)
     for sign in (-1.0, 1.0):
         assert np.mean(region.contains(compose(d, tc + sign * (th - math.radians(2.0))))) >= 0.99
