@@ -3,12 +3,12 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.spatial import cKDTree
 
-from limbctl.geometry.gimbal import direction_to_pan_tilt
+from limbctl.geometry.gimbal import direction_to_pan_tilt, pan_tilt_to_direction
 from limbctl.region.loops import chord, loop_area
 from limbctl.region.mesh import DirectionMesh
 from limbctl.region.shape import bearing_gaps
@@ -25,6 +25,12 @@ HOLD_REACH_DEG = 0.9
 SETTLED_DEG = REACH_DEG + 1.0
 #: Station spacing (deg): a point between stations lies at most half of it farther.
 STATION_DEG = 0.25
+#: A held edge's stations lie within the reach plus this (deg): its chords' slack (a quarter
+#: station, edge_hold.CHORD_SLACK_DEG) twice over, for a station between two chord checks.
+HELD_SLACK_DEG = 0.5 * STATION_DEG
+#: A stretch cut before the hold lies at the same place as one left after it when their farthest
+#: stations are within half their lengths plus this (deg): two stations' spacing, rounded up.
+SAME_PLACE_DEG = 1.0
 #: Surround neighbourhood (deg): wider than a bay's mouth is deep; the peel's default.
 CONCAVE_RADIUS_DEG = 6.0
 #: Widest empty sector (deg) of a surrounded station: a straight edge's is 180 or more.
@@ -232,3 +238,31 @@ def unsupported_stretches(
             )
         )
     return sorted(out, key=lambda s: -s.distance_deg)
+
+
+def held_stretches(
+    cut: tuple[Stretch, ...], region: DirectionMesh, data: np.ndarray
+) -> tuple[Stretch, ...]:
+    """The stretches ``cut`` from the learned edge, marked held, checked on the ``region`` the
+    hold left: where it gave arcs back (their pins crossed), that region's own edge still stands
+    farther than ``REACH_DEG + HELD_SLACK_DEG`` from the taught ``data`` (N, 3); those stretches
+    are listed unheld instead of the cut ones at the same place. Farthest first."""
+    bound = np.radians(REACH_DEG + HELD_SLACK_DEG)
+    left = unsupported_stretches(region, data, bound, surrounded=False)
+    kept = [replace(s, held=True) for s in cut]
+    if left:
+        where = np.array([_direction(s) for s in left])
+        span = np.array([s.length_deg for s in left])
+        kept = [
+            s
+            for s in kept
+            if not np.any(
+                np.degrees(np.arccos(np.clip(where @ _direction(s), -1.0, 1.0)))
+                <= 0.5 * (span + s.length_deg) + SAME_PLACE_DEG
+            )
+        ]
+    return tuple(sorted(kept + left, key=lambda s: -s.distance_deg))
+
+
+def _direction(s: Stretch) -> np.ndarray:
+    return pan_tilt_to_direction(*np.radians([s.pan_deg, s.tilt_deg]))

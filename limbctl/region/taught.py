@@ -9,8 +9,6 @@ and mesh, as docs/region.md describes, with the settings of a
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 from scipy.spatial import cKDTree
 
@@ -25,6 +23,7 @@ from limbctl.region.evidence import (
     HOLD_REACH_DEG,
     REACH_DEG,
     Stretch,
+    held_stretches,
     unsupported_stations,
     unsupported_stretches,
 )
@@ -157,7 +156,7 @@ class TaughtRegion:
         if held_tight:
             region, self.held_edge = tight, True
         if self.held_edge:
-            self.unsupported_edge = tuple(replace(s, held=True) for s in self.unsupported_edge)
+            self.unsupported_edge = held_stretches(self.unsupported_edge, region, d_train)
         return region
 
     def _shape(

@@ -18,7 +18,14 @@ from limbctl.envelope.synthetic import PolygonRegion, reach_into
 from limbctl.region import TaughtRegion
 from limbctl.region import taught as taught_module
 from limbctl.region.edge_hold import hold_to_evidence
-from limbctl.region.evidence import REACH_DEG, STATION_DEG, edge_stations, outer_arcs
+from limbctl.region.evidence import (
+    HELD_SLACK_DEG,
+    REACH_DEG,
+    STATION_DEG,
+    edge_stations,
+    outer_arcs,
+    unsupported_stations,
+)
 from tests.region.test_evidence import notched_ellipse
 
 #: The scan's own step (deg): a direction of the region lies within half a diagonal of it.
@@ -51,9 +58,19 @@ def test_a_sparse_teaching_is_held_to_the_evidence(sparse_notch):
     bound = REACH_DEG + 0.5 * STATION_DEG + np.hypot(SCAN_DEG, SCAN_DEG)
     assert region.held_edge and region.unsupported_edge
     assert reach <= bound, f"the held region reaches {reach:.2f} deg past the truth"
-    # the report still names the stretches, now held
-    assert all(s.held for s in region.unsupported_edge)
-    assert "held at the evidence" in region.unsupported_edge[0].line()
+    # the report still names the stretches, held; where the hold gave arcs back, the region's
+    # edge still stands past the reach, and that place is named unheld (asked, never settled)
+    assert any(s.held for s in region.unsupported_edge)
+    assert any("held at the evidence" in s.line() for s in region.unsupported_edge)
+    _, _, dist, far = unsupported_stations(
+        region.mesh,
+        taught_module.taught_directions(taught),
+        np.radians(REACH_DEG + HELD_SLACK_DEG),
+        surrounded=False,
+    )
+    left = [s for s in region.unsupported_edge if not s.held]
+    assert (far.size > 0) == bool(left), (far.size, left)
+    assert all(s.distance_deg > REACH_DEG + HELD_SLACK_DEG for s in left)
     # unheld (as before the hold), the same teaching's region reached farther than the bound
     # and held every taught sample the held region holds
     assert reach_into(unheld.contains, truth, box, step_deg=SCAN_DEG) > bound
