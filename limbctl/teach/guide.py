@@ -17,7 +17,7 @@ from limbctl.geometry.gimbal import direction_to_pan_tilt, pan_tilt_to_direction
 from limbctl.geometry.quat import tangent_frame
 from limbctl.geometry.scalar import direction
 from limbctl.teach.edge_support import EdgeSupport
-from limbctl.teach.holes import Hole, find_holes
+from limbctl.teach.holes import HOLE_MIN_S, Hole, find_holes
 
 if TYPE_CHECKING:
     from limbctl.region.evidence import Stretch
@@ -30,6 +30,14 @@ EDGE_BINS = 180
 EDGE_BAND_DEG = 1.5
 #: Share of the way to the convex hull an edge reaches, not a notch (irregular.yaml's dent: 0.6).
 NOTCH_RATIO = 0.5
+#: Widest stretch of turn (bins, 20 deg) a slow trace may leave the band for and still close: the
+#: outline joins 5 deg sectors' outermost samples, so it runs across a dent or notch at most two or
+#: three sectors wide (10-15 deg) and the trace along its walls falls below the band there; a
+#: dent any wider holds its own outline points and its trace stays in the band.
+BRIDGE_MAX_BINS = 10
+#: Bins (4 deg) the trace between may stray past either end: a slanted notch's tip lies beyond
+#: its mouth's corner as seen from the centre.
+BRIDGE_SLACK_BINS = 2
 #: Fastest (deg/s) an on-edge sample moves: edges are traced at 10-20, strokes run at 40+.
 EDGE_MAX_SPEED_DEG_S = 25.0
 #: Window (s) of that speed: long enough to average out a 7-12 Hz tremor.
@@ -234,20 +242,69 @@ def _speed_deg_s(t_s: np.ndarray, d: np.ndarray) -> np.ndarray:
         return np.where(t_s[after] > t_s[before], angle / (t_s[after] - t_s[before]), 0.0)
 
 
+def _traced_across(
+    t_s: np.ndarray, bins: np.ndarray, tracing: np.ndarray, on_edge: np.ndarray
+) -> np.ndarray:
+    """Edge bins (M,) a slow trace crossed below the band, between two on-edge samples.
+
+    The trace leaves the band where the outline runs across a dent or notch narrower than its
+    sectors; it is an edge traced all the same when, from an on-edge sample to the next, the limb
+    moved slowly and was recorded without a hole, and the two lie at most BRIDGE_MAX_BINS apart
+    round the turn, every sample between them in the bins from the one to the other, give or
+    take BRIDGE_SLACK_BINS (a path through the middle sweeps round the turn). Every bin from the
+    one to the other counts.
+
+    Parameters
+    ----------
+    t_s : ndarray, shape (N,)
+        The samples' times (s, in order).
+    bins : ndarray of int, shape (N,)
+        Each sample's edge bin (of EDGE_BINS round the turn).
+    tracing, on_edge : ndarray of bool, shape (N,)
+        Tracing (slow enough, and not halfway to the centre); and on the edge (slow and in the
+        outline's band).
+    """
+    edge_at = np.flatnonzero(on_edge)
+    if len(edge_at) < 2:
+        return np.zeros(0, dtype=np.int64)
+    # a break: a fast sample, or a hole in the recording before a sample
+    broken = ~tracing
+    broken[1:] |= np.diff(t_s) >= HOLE_MIN_S
+    breaks = np.cumsum(broken)
+    a, b = edge_at[:-1], edge_at[1:]
+    # unbroken: no break in a + 1 .. b (the on-edge ends trace themselves)
+    bridged = (b > a + 1) & (breaks[b] == breaks[a])
+    # the shorter way round the turn from a's bin to b's, signed
+    step = (bins[b] - bins[a] + EDGE_BINS // 2) % EDGE_BINS - EDGE_BINS // 2
+    bridged &= (np.abs(step) >= 2) & (np.abs(step) <= BRIDGE_MAX_BINS)
+    crossed = []
+    for i, j, s in zip(a[bridged], b[bridged], step[bridged], strict=True):
+        # along the turn from i's bin towards j's: a trace keeps within the two; a path through
+        # the middle (past the centre) sweeps round the turn instead
+        along = (np.sign(s) * (bins[i : j + 1] - bins[i]) + BRIDGE_SLACK_BINS) % EDGE_BINS
+        if along.max() <= abs(s) + 2 * BRIDGE_SLACK_BINS:
+            crossed.append((bins[i] + np.sign(s) * np.arange(abs(s) + 1)) % EDGE_BINS)
+    return np.concatenate(crossed) if crossed else np.zeros(0, dtype=np.int64)
+
+
 def _edge(
-    rho, phi, on_edge, outline_phi, outline_rho, centre, unseen
+    t_s, rho, phi, slow, on_edge, outline_phi, outline_rho, centre, unseen
 ) -> tuple[float, tuple[EdgeGap, ...]]:
-    fine = ((phi[on_edge] + math.pi) / (2.0 * math.pi) * EDGE_BINS).astype(np.int64) % EDGE_BINS
-    filled = np.zeros(EDGE_BINS, dtype=bool)
-    filled[fine] = True
-    filled[unseen] = False  # the stretches of edge holes of the recording hide
     # bin b covers phi in [-pi + b w, -pi + (b + 1) w); a notch at its middle is not an edge
     middles = -math.pi + (np.arange(EDGE_BINS) + 0.5) * (2.0 * math.pi / EDGE_BINS)
     try:
         hull = _hull_at(middles, outline_phi, outline_rho)
     except QhullError:
         return 0.0, ()  # the samples lie on a line: no edge to speak of
-    filled &= _outline_at(middles, outline_phi, outline_rho) >= NOTCH_RATIO * hull
+    edge_bins = _outline_at(middles, outline_phi, outline_rho) >= NOTCH_RATIO * hull
+    every = ((phi + math.pi) / (2.0 * math.pi) * EDGE_BINS).astype(np.int64) % EDGE_BINS
+    filled = np.zeros(EDGE_BINS, dtype=bool)
+    filled[every[on_edge]] = True
+    # a trace across a dent: from an edge bin to an edge bin, never halfway to the centre
+    tracing = slow & (rho >= NOTCH_RATIO * _outline_at(phi, outline_phi, outline_rho))
+    filled[_traced_across(t_s, every, tracing, on_edge & edge_bins[every])] = True
+    filled[unseen] = False  # the stretches of edge holes of the recording hide
+    filled &= edge_bins
     closed = float(filled.mean())
     if closed in (0.0, 1.0):
         return closed, ()
@@ -327,7 +384,9 @@ def assess_directions(t_s: np.ndarray, d: np.ndarray) -> Guidance:
         outline_at=lambda p: _outline_at(p, outline_phi, outline_rho),
         pan_tilt_deg=lambda x, y: _pan_tilt_deg(x, y, centre),
     )
-    edge_closed, edge_gaps = _edge(rho, phi, on_edge, outline_phi, outline_rho, centre, unseen)
+    edge_closed, edge_gaps = _edge(
+        t_s, rho, phi, slow, on_edge, outline_phi, outline_rho, centre, unseen
+    )
     inside_covered, inside_gaps = _inside(rho, phi, outline_phi, outline_rho, centre)
     edge_done = edge_closed >= READY_EDGE_CLOSED and not any(h.open for h in holes)
     ready = edge_done and inside_covered >= READY_INSIDE_COVERED
