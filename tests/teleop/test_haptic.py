@@ -439,16 +439,6 @@ def test_at_200_hz_pressing_into_the_wall_ripples_under_0_2_deg(stiffness, cycle
 # -- the law against the simulated three-servo leader, at exactly 200 Hz -------------------------
 
 
-def felt3(region, script, seconds, let_go_s=None, **options):
-    """:func:`felt_at_200_hz` of a ``script`` (either chain's) in ``region``, and each cycle's
-    (pose, push, instead)."""
-    pushes: list = []
-    rows = felt_at_200_hz(
-        script, seconds, let_go_s=let_go_s, region=region, pushes=pushes, **options
-    )
-    return rows, pushes
-
-
 def smoothed_peak(rows) -> float:
     """The fastest any joint of ``rows`` turned (deg/s), averaged over 20 ms (20 rows of 1 ms)."""
     speeds = np.abs([r["velocity_deg_s"] for r in rows])
@@ -481,7 +471,8 @@ def pulled_outward(region, rows):
 
 @pytest.mark.parametrize("press", sorted(PRESSES))
 def test_at_200_hz_the_leader_stops_within_2_deg_of_the_edge_and_walks_back(region, press):
-    rows, pushes = felt3(region, PRESSES[press], 6.0, let_go_s=4.5)
+    pushes: list = []  # each cycle's (pose, push, instead)
+    rows = felt_at_200_hz(PRESSES[press], 6.0, let_go_s=4.5, pushes=pushes)
     # every cycle whose command was inside wrote no current, on all three servos
     inside = [push for _, push, _ in pushes if push.distance_deg == 0.0]
     assert inside and all(push.goal_current == 0 for push in inside)
@@ -512,8 +503,8 @@ def test_at_200_hz_the_leader_stops_within_2_deg_of_the_edge_and_walks_back(regi
 
 def test_at_200_hz_the_law_alone_brakes_a_let_go_three_servo_leader_outward(region):
     # the peer: round 6's law without the watch brakes each snap; swing's reaches 32.0 deg/s
-    runs = {p: felt3(region, PRESSES[p], 6.0, 4.5, snap_watch=False) for p in PRESSES}
-    after = {p: [r for r in rows if r["t"] >= 4.5] for p, (rows, _) in runs.items()}
+    runs = {p: felt_at_200_hz(PRESSES[p], 6.0, let_go_s=4.5, snap_watch=False) for p in PRESSES}
+    after = {p: [r for r in rows if r["t"] >= 4.5] for p, rows in runs.items()}
     assert all(len(pulled_outward(region, rows)[0]) >= 2 for rows in after.values())
     swing = after["swing"]
     assert max(max(map(abs, r["velocity_deg_s"])) for r in swing) > 30.0
@@ -525,7 +516,7 @@ def test_at_200_hz_an_xl330_leader_pushes_with_its_cap_and_returns_under_30_deg_
     region, model, press
 ):
     # the lead follows the soft loop; the law alone (round 6)
-    rows, _ = felt3(region, PRESSES[press], 6.0, let_go_s=4.5, model=model, snap_watch=False)
+    rows = felt_at_200_hz(PRESSES[press], 6.0, let_go_s=4.5, model=model, snap_watch=False)
     motor = motor_of(model)
     cap = motor.torque_of(motor.units_for(motor.cap_nm(LAW.cap_nm)))
     held = [r for r in rows if 3.0 <= r["t"] < 4.5]
@@ -551,8 +542,8 @@ def test_a_hand_carrying_the_leader_back_toward_the_region_is_pulled_outward_les
     region, pull, stiffness
 ):
     # faster in than the setpoints walk: the let-go rules free the wall, the wall alone stays on
-    rows, _ = felt3(region, PULLS[pull], 5.0, stiffness=stiffness)
-    before, _ = felt3(region, PULLS[pull], 5.0, stiffness=stiffness, rules=False)
+    rows = felt_at_200_hz(PULLS[pull], 5.0, stiffness)
+    before = felt_at_200_hz(PULLS[pull], 5.0, stiffness, rules=False)
     outward, inside = pulled_outward(region, rows)
     assert not inside  # never any torque inside
     assert any(region.contains(q_of(*r["pose_deg"])) for r in rows[::5])  # the hand took it in
@@ -574,7 +565,7 @@ def test_a_held_gate_switches_every_joint_off_within_the_cycle(region):
     before, during = pan_between(rows, 3.0, 3.2), pan_between(rows, 3.2, 3.6)
     assert np.ptp(before) < 0.2 and during.max() - before.mean() > 1.0
     assert pan_between(rows, 4.3, 4.5).max() < before.max() + 0.2  # the wall took it back
-    rows, pushes = felt3(region, PRESSES["twist"], 4.0, cycles=held)  # three servos
+    rows = felt_at_200_hz(PRESSES["twist"], 4.0, cycles=held)  # three servos
     released = [r for r in rows if 3.2 + 0.0015 <= r["t"] < 3.25]
     assert released and all(r["motor_nm"] == [0.0, 0.0, 0.0] for r in released)
     assert max(abs(r["motor_nm"][2]) for r in rows if 3.1 <= r["t"] < 3.2) > 0.25  # it pushed
@@ -583,7 +574,7 @@ def test_a_held_gate_switches_every_joint_off_within_the_cycle(region):
     late = [beyond_of(region, r) for r in rows if 3.9 <= r["t"] < 4.0]
     assert max(out) > 10.0 and max(late) < max(out) - 3.0
     silent = {k: "silent" for k in range(700, 710)}
-    rows, _ = felt3(region, PRESSES["swing"], 4.0, cycles=silent)
+    rows = felt_at_200_hz(PRESSES["swing"], 4.0, cycles=silent)
     released = [r for r in rows if 3.5 + 0.0005 <= r["t"] < 3.55]
     assert released and all(r["motor_nm"] == [0.0, 0.0, 0.0] for r in released)
 
@@ -603,7 +594,7 @@ def test_a_leader_released_by_goal_current_alone_still_walks_back_after_let_go(r
     script, seconds, let_go_s, far_deg = SILENT_LET_GO[rig]
     region, last = region_of(rig), round(let_go_s * 200)
     silent = {k: "silent" for k in range(last - 20, last)}
-    rows, _ = felt3(region, script, seconds, let_go_s=let_go_s, cycles=silent)
+    rows = felt_at_200_hz(script, seconds, let_go_s=let_go_s, cycles=silent)
     before = [beyond_of(region, r) for r in rows if let_go_s - 0.05 <= r["t"] < let_go_s]
     assert max(before) > far_deg  # the hand took it far out meanwhile
     after = [r for r in rows if r["t"] >= let_go_s]
@@ -624,10 +615,9 @@ DIAGONALS = {
 def pressed(rig: str, stiffness: float, max_torque_nm: float) -> tuple:
     """The 1 ms truth rows of a diagonal press by a hand of ``stiffness`` (N m/deg) pushing with
     at most ``max_torque_nm`` (N m), let go at once at LET_GO_S."""
-    rows = felt_at_200_hz(
-        DIAGONALS[rig], 6.0, stiffness, LET_GO_S, max_torque_nm=max_torque_nm, region=region_of(rig)
+    return tuple(
+        felt_at_200_hz(DIAGONALS[rig], 6.0, stiffness, LET_GO_S, max_torque_nm=max_torque_nm)
     )
-    return tuple(rows)
 
 
 @pytest.mark.parametrize("rig", sorted(DIAGONALS))
