@@ -262,7 +262,8 @@ def felt_at_200_hz(
     motor = motor or motor_of(model)
     joints = len(script[0]) - 1
     _, follower, ids = CHAINS[joints]
-    rig, limits, region = rig_of(joints), limits_of(joints), region or region_of(joints)
+    rig, limits = rig_of(joints), limits_of(joints)
+    region = region_of(joints) if region is None else region
     limit = motor.units_for(motor.cap_nm(law.cap_nm))
     hand = {"script": script, "let_go_s": let_go_s, "stiffness_nm_deg": stiffness}
     hand["release_s"] = release_s
