@@ -29,10 +29,10 @@ from tests.teleop.stepped_leader import (
     limits_of,
     motor_of,
     q_of,
+    region_of,
     rig_of,
     way_of,
 )
-from tests.teleop.twist_square import square_region
 
 LAW = FeelLaw()
 MOTOR = FELT_MODELS[ModelNumber.XM430_W350]
@@ -43,21 +43,16 @@ TWO_TICKS = FeelLaw(lead_deg=2 * TICK_DEG, walk_lead_ticks=0)  # round 5: no wal
 #: The two-servo leader's edge along pan (deg): the 30 deg cone's.
 EDGE = 30.0
 RIG = rig_of(3)
-#: Each rig's joints' hard limits (rad), as the law is given them.
-LIMITS = {"sim": limits_of(2), "sim3": limits_of(3)}
-RIGS = sorted(LIMITS)
+#: Each rig's joints; their hard limits (rad), as the law is given them.
+JOINTS = {"sim": 2, "sim3": 3}
+LIMITS = {rig: limits_of(joints) for rig, joints in JOINTS.items()}
+RIGS = sorted(JOINTS)
 IDS = (4, 5, 6)
-
-
-@functools.cache
-def region_of(rig: str):
-    """The region each rig's leader feels (module docstring)."""
-    return CONE if rig == "sim" else square_region()
 
 
 @pytest.fixture(scope="module")
 def region():
-    return region_of("sim3")
+    return region_of(3)
 
 
 def test_the_law_grows_from_zero_to_the_cap_is_passive_at_200_hz_and_says_how_hard():
@@ -98,7 +93,7 @@ INSIDE = {"sim": (5.7, 0.0), "sim3": (5.7, 0.0, 11.5)}
 @pytest.mark.parametrize("rig", RIGS)
 def test_distance_is_to_the_correction_and_the_push_leads_toward_it_by_the_lead(rig):
     q = q_of(*DEEP[rig])
-    corrected = region_of(rig).correct(q)
+    corrected = region_of(JOINTS[rig]).correct(q)
     distance = beyond_deg(q, corrected, len(DEEP[rig]))
     if rig == "sim":  # the angle between the directions: pan 40 to the edge at 30
         assert distance == pytest.approx(10.0, abs=1e-6)
@@ -152,7 +147,7 @@ unit = st.floats(0.0, 1.0)
 def test_property_never_above_the_cap_zero_inside_toward_the_correction(rig, at, lag):
     pose = tuple(lo + u * (hi - lo) for u, (lo, hi) in zip(at, BOUNDS[rig], strict=False))
     q = q_of(*pose)
-    region = region_of(rig)
+    region = region_of(JOINTS[rig])
     corrected = region.correct(q)
     present = tuple(math.radians(a + d) for a, d in zip(pose, lag, strict=False))  # a lagging read
     push = push_for(LAW, MOTOR, present, q, corrected, limits=LIMITS[rig])
@@ -185,7 +180,7 @@ def test_property_a_leader_outrunning_its_setpoints_or_still_moving_in_is_free_e
     pose = [0.0] * len(DEEP[rig])
     pose[joint] = lo + at * (hi - lo)
     q = q_of(*pose)
-    corrected = region_of(rig).correct(q)
+    corrected = region_of(JOINTS[rig]).correct(q)
     present = tuple(np.radians(pose))
     pose[joint] += moved
     previous = tuple(np.radians(pose))
@@ -592,7 +587,7 @@ SILENT_LET_GO = {
 def test_a_leader_released_by_goal_current_alone_still_walks_back_after_let_go(rig):
     # let go, the wall comes back on from the present pose and walks the leader back
     script, seconds, let_go_s, far_deg = SILENT_LET_GO[rig]
-    region, last = region_of(rig), round(let_go_s * 200)
+    region, last = region_of(JOINTS[rig]), round(let_go_s * 200)
     silent = {k: "silent" for k in range(last - 20, last)}
     rows = felt_at_200_hz(script, seconds, let_go_s=let_go_s, cycles=silent)
     before = [beyond_of(region, r) for r in rows if let_go_s - 0.05 <= r["t"] < let_go_s]
