@@ -156,16 +156,22 @@ class Running:
         self.until(pressing)
         return self.paced_out()
 
-    def held_then(self, press: dict, then: dict) -> float | None:
-        """Press until the watch arms, then ``then`` for 100 cycles: the switch's time, or None."""
+    def held_still(self, press: dict) -> bool:
+        """Press past the edge and wait (20 s at most) for the wall to hold the leader still;
+        False when the loop lost its pace first (the feel then goes off for good, as it must)."""
         if self.pressed_or_paced_out(press):
-            return None
-        held_at = time.monotonic()
-        armed = self.source.snap
-        self.until(lambda p: armed.armed is not None or time.monotonic() > held_at + 20)
+            return False
+        held_at, watch = time.monotonic(), self.source.snap
+        self.until(lambda p: watch.armed is not None or time.monotonic() > held_at + 20.0)
         if self.paced_out():
+            return False
+        assert watch.armed is not None, "the wall never held the leader still"
+        return True
+
+    def held_then(self, press: dict, then: dict) -> float | None:
+        """:meth:`held_still`, then ``then`` for 100 cycles: the switch's time, or None."""
+        if not self.held_still(press):
             return None
-        assert armed.armed is not None, "the wall never held the leader still"
         switched_at = self.simulator.truth()["leader"]["t"]
         self.simulator.set_operator(then)
         seen = len(self.pushes)

@@ -28,6 +28,7 @@ from limbctl.teleop.brake import BrakeLaw
 from limbctl.teleop.haptic import VELOCITY_UNIT_DEG_S, FeelLaw
 from limbctl.teleop.haptic_push import beyond_deg, corrected_pose, held, push_for
 from limbctl.teleop.snap import SnapLaw, SnapWatch
+from tests.teleop.twist_square import square_region
 
 #: The controller writes READ_TO_WRITE_MS after its read (the pty's p50, docs/bench_haptic.md).
 READ_TO_WRITE_MS = 1
@@ -129,6 +130,12 @@ def rig_of(joints: int):
 def limits_of(joints: int) -> tuple[tuple[float, float], ...]:
     """The joints' hard limits (rad) of :func:`rig_of`, as the law is given them."""
     return tuple((j.min_rad, j.max_rad) for j in rig_of(joints).joints)
+
+
+@functools.cache
+def region_of(joints: int):
+    """The region a chain's leader feels: CONE on two servos, twist_square.py's on three."""
+    return CONE if joints == 2 else square_region()
 
 
 def beyond_of(region, row) -> float:
@@ -243,19 +250,20 @@ def felt_at_200_hz(
     snap_watch=True,
     release_s=0.0,
     brake=BrakeLaw(),
-    region=CONE,
+    region=None,
     rules=True,
     pushes=None,
 ):
-    """:func:`run_stepped` with ``push_for`` on the script's chain in ``region``: the 1 ms truth.
+    """:func:`run_stepped` with ``push_for`` on the script's chain in ``region`` (None: the
+    chain's :func:`region_of`): the 1 ms truth.
 
     ``cycles`` also "held"; ``motor`` None: the model's; ``snap_watch`` False: the law alone
     (round 6); ``rules`` False: no let-go rules; ``pushes`` gets each (pose, push, instead)."""
     motor = motor or motor_of(model)
     joints = len(script[0]) - 1
     _, follower, ids = CHAINS[joints]
-    rig = rig_of(joints)
-    limits = tuple((j.min_rad, j.max_rad) for j in rig.joints)
+    rig, limits = rig_of(joints), limits_of(joints)
+    region = region_of(joints) if region is None else region
     limit = motor.units_for(motor.cap_nm(law.cap_nm))
     hand = {"script": script, "let_go_s": let_go_s, "stiffness_nm_deg": stiffness}
     hand["release_s"] = release_s

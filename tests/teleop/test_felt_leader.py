@@ -17,7 +17,6 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from calib.profile import default_sim_profile
 from limbctl.envelope import Cone
 from limbctl.errors import ConfigError
 from limbctl.geometry.gimbal import pose_quat, pose_quat_scalar
@@ -26,7 +25,6 @@ from limbctl.live import leader_status
 from limbctl.servo.control_table import Register
 from limbctl.servo.leader import encode_feel, present_current, present_velocity
 from limbctl.servo.leader_guard import GIVE_UP_S
-from limbctl.servo.rig import Rig
 from limbctl.servo.setup import configure_servos
 from limbctl.session import open_rig
 from limbctl.teleop.gate import Gate, GateLimits
@@ -43,7 +41,7 @@ from tests.teleop.felt_running import (
     pressing,
     pushed_only_when_fit,
 )
-from tests.teleop.stepped_leader import beyond_of, way_of
+from tests.teleop.stepped_leader import beyond_of, limits_of, way_of
 from tests.teleop.twist_square import square_region
 
 EDGE = 30.0
@@ -88,8 +86,6 @@ SIM = FeltRig("sim", (3, 4), lambda: Cone(half_angle_deg=EDGE), PRESS, 0)
 SIM3 = FeltRig("sim3", (4, 5, 6), square_region, TWIST_PRESS, 2)
 #: The two-servo leader's ids (benchmarks).
 IDS = SIM.ids
-#: The joints' hard limits in calib/rigs/sim3.yaml (rad): the roll joint's within +-100 deg.
-LIMITS3 = tuple((j.min_rad, j.max_rad) for j in Rig(default_sim_profile("sim3")).joints)
 
 
 @pytest.fixture(params=[SIM, SIM3], ids=["sim", "sim3"])
@@ -218,7 +214,7 @@ def test_the_three_servo_leader_is_held_at_the_edge_in_swing_and_in_twist(tmp_pa
     for (_, push, _), pose in zip(running.pushes, running.poses, strict=True):
         if push is not None and push.goal_current:
             corrected = region.correct(pose_quat_scalar(*pose))
-            way = np.subtract(corrected_pose(corrected, pose, LIMITS3), pose)
+            way = np.subtract(corrected_pose(corrected, pose, limits_of(3)), pose)
             leads.append(float(np.dot(np.subtract(push.goal, pose), way)))
     assert len(leads) > 100 and min(leads) > 0.0
     # pressed outward beyond the edge, the torques point toward the correction while paced
@@ -236,23 +232,11 @@ def test_the_three_servo_leader_is_held_at_the_edge_in_swing_and_in_twist(tmp_pa
     assert not outward, (len(dots), outward)
 
 
-def test_a_leader_alarm_faults_the_session_and_switches_the_push_off_on_every_servo(tmp_path, rig):
-    """An alarm (overheating) faults the session: the push off on every servo, as if passive."""
-    with running_felt(tmp_path, rig) as (session, source, log, running):
-        if running.pressed_or_paced_out(rig.press):
-            return
-        session.simulator.set_temperature(rig.pusher, 95.0)  # overheating shuts it down
-        running.thread.join(timeout=20.0)
-        truth = session.simulator.truth()
-    # the cycle that saw it switched the push off; the other servos' torque is off too
-    assert all(truth["servos"][i]["torque_on"] is False for i in rig.ids if i != rig.pusher)
-    assert truth["leader"]["motor_nm"] == [0.0] * len(rig.ids)
-    summary = running.out["s"]
-    assert summary.exit_code == 3 and f"servo {rig.pusher}" in summary.fault
-    assert not source.felt and any("alarm" in event for event in source.feel_stats.events)
-
-
-def test_a_failed_bus_or_a_held_gate_switches_the_push_off_in_that_cycle(tmp_path, rig):
+def test_a_failed_bus_or_a_held_gate_switches_the_push_off_in_that_cycle_an_alarm_on_every_servo(
+    tmp_path, rig
+):
+    """Every reply lost: no current in that cycle. Pushing again once the bus answers, an alarm
+    (overheating) faults the session: the push off on every servo, as if passive."""
     with running_felt(tmp_path, rig) as (session, source, log, running):
         if running.pressed_or_paced_out(rig.press):
             return
@@ -268,11 +252,25 @@ def test_a_failed_bus_or_a_held_gate_switches_the_push_off_in_that_cycle(tmp_pat
                 or not p[-1][2]
             )
         )
+        alarmed = not running.ended and source.felt  # else no push is left for an alarm to end
+        if alarmed:
+            session.simulator.set_temperature(rig.pusher, 95.0)  # overheating shuts it down
+            running.thread.join(timeout=20.0)
+            truth = session.simulator.truth()
     assert during == [0.0] * len(rig.ids)
     # each cycle whose reads failed wrote no current (but within FOLLOWER_GRACE_S, leader read)
     failed = [push for cycle, push, _ in running.pushes if cycle.complete and cycle.present is None]
     assert failed and sum(1 for push in failed if push is None or push.goal_current == 0) >= 5
     pushed_only_when_fit(running.pushes)
+    if not alarmed:  # the loop ended, or the feel went off for a lost pace (its outcome asserted)
+        assert running.ended or running.paced_out()
+        return
+    # the cycle that saw the alarm switched the push off; the other servos' torque is off too
+    assert all(truth["servos"][i]["torque_on"] is False for i in rig.ids if i != rig.pusher)
+    assert truth["leader"]["motor_nm"] == [0.0] * len(rig.ids)
+    summary = running.out["s"]
+    assert summary.exit_code == 3 and f"servo {rig.pusher}" in summary.fault
+    assert not source.felt and any("alarm" in event for event in source.feel_stats.events)
 
 
 def test_a_leader_unheard_past_its_watchdog_still_pushes_and_the_end_leaves_it_limp(tmp_path, rig):
@@ -621,19 +619,6 @@ PERIOD_S = 1.0 / 200.0
 LAST_GOAL_AHEAD_DEG = 5 * 360.0 / 4096
 
 
-def held_still(running, source, press) -> bool:
-    """Press past the edge and wait (20 s at most) for the wall to hold the leader still; False
-    when the loop lost its pace first (the feel then goes off for good, as it must)."""
-    if running.pressed_or_paced_out(press):
-        return False
-    held_at = time.monotonic()
-    running.until(lambda p: source.snap.armed is not None or time.monotonic() > held_at + 20.0)
-    if running.paced_out():
-        return False
-    assert source.snap.armed is not None, "the wall never held the leader still"
-    return True
-
-
 @SWINGS
 def test_a_leader_servo_dropping_off_mid_push_switches_every_push_off_and_is_reported(
     tmp_path, rig
@@ -643,7 +628,7 @@ def test_a_leader_servo_dropping_off_mid_push_switches_every_push_off_and_is_rep
     with felt_session(tmp_path, rig) as (session, source, log), source:
         session.rig.set_torque(True)
         with Running(session, source) as running:
-            if not held_still(running, source, rig.press):
+            if not running.held_still(rig.press):
                 return  # the feel went off for a lost pace (its outcome asserted)
             at = session.simulator.truth()["leader"]["t"]
             session.simulator.vanish(gone, 0.3)
@@ -681,7 +666,7 @@ def test_a_leader_cut_off_from_its_controller_holds_within_the_cap_and_pushes_no
     hand is pushed no further in than the last goal, then by nothing."""
     press = rig.press
     with running_felt(tmp_path, rig) as (session, source, log, running):
-        if not held_still(running, source, press):
+        if not running.held_still(press):
             return
         at = session.simulator.truth()["leader"]["t"]
         for servo_id in rig.ids:
@@ -706,7 +691,7 @@ def test_a_dead_controllers_leader_goes_limp_within_its_guards_bound(tmp_path, r
     ids = rig.ids
     with running_felt(tmp_path, rig) as (session, source, log, running):
         bus, follower = session.rig.bus, session.profile.ids
-        if not held_still(running, source, rig.press):
+        if not running.held_still(rig.press):
             return
         with bus.exclusive():  # the loop stops at its next transfer
             assert source.last_push is not None and source.last_push.goal_current > 0

@@ -22,7 +22,6 @@ from limbctl.servo.control_table import ModelNumber
 from limbctl.servo.leader import CAP_STALL_FRACTION, FELT_MODELS
 from limbctl.teleop.haptic import TICK_DEG, FeelLaw, FeelStats, lets_go
 from limbctl.teleop.haptic_push import Push, beyond_deg, corrected_pose, held, push_for
-from limbctl.teleop.sources.leader import PaceWatch
 from tests.teleop.stepped_leader import (
     CONE,
     beyond_of,
@@ -30,10 +29,10 @@ from tests.teleop.stepped_leader import (
     limits_of,
     motor_of,
     q_of,
+    region_of,
     rig_of,
     way_of,
 )
-from tests.teleop.twist_square import square_region
 
 LAW = FeelLaw()
 MOTOR = FELT_MODELS[ModelNumber.XM430_W350]
@@ -44,21 +43,16 @@ TWO_TICKS = FeelLaw(lead_deg=2 * TICK_DEG, walk_lead_ticks=0)  # round 5: no wal
 #: The two-servo leader's edge along pan (deg): the 30 deg cone's.
 EDGE = 30.0
 RIG = rig_of(3)
-#: Each rig's joints' hard limits (rad), as the law is given them.
-LIMITS = {"sim": limits_of(2), "sim3": limits_of(3)}
-RIGS = sorted(LIMITS)
+#: Each rig's joints; their hard limits (rad), as the law is given them.
+JOINTS = {"sim": 2, "sim3": 3}
+LIMITS = {rig: limits_of(joints) for rig, joints in JOINTS.items()}
+RIGS = sorted(JOINTS)
 IDS = (4, 5, 6)
-
-
-@functools.cache
-def region_of(rig: str):
-    """The region each rig's leader feels (module docstring)."""
-    return CONE if rig == "sim" else square_region()
 
 
 @pytest.fixture(scope="module")
 def region():
-    return region_of("sim3")
+    return region_of(3)
 
 
 def test_the_law_grows_from_zero_to_the_cap_is_passive_at_200_hz_and_says_how_hard():
@@ -99,7 +93,7 @@ INSIDE = {"sim": (5.7, 0.0), "sim3": (5.7, 0.0, 11.5)}
 @pytest.mark.parametrize("rig", RIGS)
 def test_distance_is_to_the_correction_and_the_push_leads_toward_it_by_the_lead(rig):
     q = q_of(*DEEP[rig])
-    corrected = region_of(rig).correct(q)
+    corrected = region_of(JOINTS[rig]).correct(q)
     distance = beyond_deg(q, corrected, len(DEEP[rig]))
     if rig == "sim":  # the angle between the directions: pan 40 to the edge at 30
         assert distance == pytest.approx(10.0, abs=1e-6)
@@ -153,7 +147,7 @@ unit = st.floats(0.0, 1.0)
 def test_property_never_above_the_cap_zero_inside_toward_the_correction(rig, at, lag):
     pose = tuple(lo + u * (hi - lo) for u, (lo, hi) in zip(at, BOUNDS[rig], strict=False))
     q = q_of(*pose)
-    region = region_of(rig)
+    region = region_of(JOINTS[rig])
     corrected = region.correct(q)
     present = tuple(math.radians(a + d) for a, d in zip(pose, lag, strict=False))  # a lagging read
     push = push_for(LAW, MOTOR, present, q, corrected, limits=LIMITS[rig])
@@ -186,7 +180,7 @@ def test_property_a_leader_outrunning_its_setpoints_or_still_moving_in_is_free_e
     pose = [0.0] * len(DEEP[rig])
     pose[joint] = lo + at * (hi - lo)
     q = q_of(*pose)
-    corrected = region_of(rig).correct(q)
+    corrected = region_of(JOINTS[rig]).correct(q)
     present = tuple(np.radians(pose))
     pose[joint] += moved
     previous = tuple(np.radians(pose))
@@ -437,32 +431,7 @@ def test_at_200_hz_pressing_into_the_wall_ripples_under_0_2_deg(stiffness, cycle
     assert 30.0 < held.min() and np.ptp(held) < 0.2
 
 
-def test_the_pace_watch_switches_the_feel_off_when_the_median_period_is_over_1_25_periods():
-    ticks = iter([0.005 * k for k in range(41)] + [0.2 + 0.0066 * k for k in range(1, 100)])
-    watch = PaceWatch(200.0, clock=lambda: next(ticks))
-    # 200 Hz for 40 periods: kept; then 151 Hz (6.6 ms > 6.25 ms): lost once the median passes
-    assert [watch.lost() for _ in range(41)] == [None] * 41
-    verdicts = [watch.lost() for _ in range(99)]
-    first = next(k for k, v in enumerate(verdicts) if v is not None)
-    assert 15 <= first <= 25 and verdicts[first] == pytest.approx(0.0066)
-    assert all(v is None for v in verdicts[:first])
-    # a late cycle or a few do not: the median ignores them
-    ticks = iter([0.005 * k + (0.03 if k >= 20 else 0.0) for k in range(60)])
-    watch = PaceWatch(200.0, clock=lambda: next(ticks))
-    assert all(watch.lost() is None for _ in range(60))
-
-
 # -- the law against the simulated three-servo leader, at exactly 200 Hz -------------------------
-
-
-def felt3(region, script, seconds, let_go_s=None, **options):
-    """:func:`felt_at_200_hz` of a ``script`` (either chain's) in ``region``, and each cycle's
-    (pose, push, instead)."""
-    pushes: list = []
-    rows = felt_at_200_hz(
-        script, seconds, let_go_s=let_go_s, region=region, pushes=pushes, **options
-    )
-    return rows, pushes
 
 
 def smoothed_peak(rows) -> float:
@@ -497,7 +466,8 @@ def pulled_outward(region, rows):
 
 @pytest.mark.parametrize("press", sorted(PRESSES))
 def test_at_200_hz_the_leader_stops_within_2_deg_of_the_edge_and_walks_back(region, press):
-    rows, pushes = felt3(region, PRESSES[press], 6.0, let_go_s=4.5)
+    pushes: list = []  # each cycle's (pose, push, instead)
+    rows = felt_at_200_hz(PRESSES[press], 6.0, let_go_s=4.5, pushes=pushes)
     # every cycle whose command was inside wrote no current, on all three servos
     inside = [push for _, push, _ in pushes if push.distance_deg == 0.0]
     assert inside and all(push.goal_current == 0 for push in inside)
@@ -528,8 +498,8 @@ def test_at_200_hz_the_leader_stops_within_2_deg_of_the_edge_and_walks_back(regi
 
 def test_at_200_hz_the_law_alone_brakes_a_let_go_three_servo_leader_outward(region):
     # the peer: round 6's law without the watch brakes each snap; swing's reaches 32.0 deg/s
-    runs = {p: felt3(region, PRESSES[p], 6.0, 4.5, snap_watch=False) for p in PRESSES}
-    after = {p: [r for r in rows if r["t"] >= 4.5] for p, (rows, _) in runs.items()}
+    runs = {p: felt_at_200_hz(PRESSES[p], 6.0, let_go_s=4.5, snap_watch=False) for p in PRESSES}
+    after = {p: [r for r in rows if r["t"] >= 4.5] for p, rows in runs.items()}
     assert all(len(pulled_outward(region, rows)[0]) >= 2 for rows in after.values())
     swing = after["swing"]
     assert max(max(map(abs, r["velocity_deg_s"])) for r in swing) > 30.0
@@ -541,7 +511,7 @@ def test_at_200_hz_an_xl330_leader_pushes_with_its_cap_and_returns_under_30_deg_
     region, model, press
 ):
     # the lead follows the soft loop; the law alone (round 6)
-    rows, _ = felt3(region, PRESSES[press], 6.0, let_go_s=4.5, model=model, snap_watch=False)
+    rows = felt_at_200_hz(PRESSES[press], 6.0, let_go_s=4.5, model=model, snap_watch=False)
     motor = motor_of(model)
     cap = motor.torque_of(motor.units_for(motor.cap_nm(LAW.cap_nm)))
     held = [r for r in rows if 3.0 <= r["t"] < 4.5]
@@ -567,8 +537,8 @@ def test_a_hand_carrying_the_leader_back_toward_the_region_is_pulled_outward_les
     region, pull, stiffness
 ):
     # faster in than the setpoints walk: the let-go rules free the wall, the wall alone stays on
-    rows, _ = felt3(region, PULLS[pull], 5.0, stiffness=stiffness)
-    before, _ = felt3(region, PULLS[pull], 5.0, stiffness=stiffness, rules=False)
+    rows = felt_at_200_hz(PULLS[pull], 5.0, stiffness)
+    before = felt_at_200_hz(PULLS[pull], 5.0, stiffness, rules=False)
     outward, inside = pulled_outward(region, rows)
     assert not inside  # never any torque inside
     assert any(region.contains(q_of(*r["pose_deg"])) for r in rows[::5])  # the hand took it in
@@ -590,7 +560,7 @@ def test_a_held_gate_switches_every_joint_off_within_the_cycle(region):
     before, during = pan_between(rows, 3.0, 3.2), pan_between(rows, 3.2, 3.6)
     assert np.ptp(before) < 0.2 and during.max() - before.mean() > 1.0
     assert pan_between(rows, 4.3, 4.5).max() < before.max() + 0.2  # the wall took it back
-    rows, pushes = felt3(region, PRESSES["twist"], 4.0, cycles=held)  # three servos
+    rows = felt_at_200_hz(PRESSES["twist"], 4.0, cycles=held)  # three servos
     released = [r for r in rows if 3.2 + 0.0015 <= r["t"] < 3.25]
     assert released and all(r["motor_nm"] == [0.0, 0.0, 0.0] for r in released)
     assert max(abs(r["motor_nm"][2]) for r in rows if 3.1 <= r["t"] < 3.2) > 0.25  # it pushed
@@ -599,7 +569,7 @@ def test_a_held_gate_switches_every_joint_off_within_the_cycle(region):
     late = [beyond_of(region, r) for r in rows if 3.9 <= r["t"] < 4.0]
     assert max(out) > 10.0 and max(late) < max(out) - 3.0
     silent = {k: "silent" for k in range(700, 710)}
-    rows, _ = felt3(region, PRESSES["swing"], 4.0, cycles=silent)
+    rows = felt_at_200_hz(PRESSES["swing"], 4.0, cycles=silent)
     released = [r for r in rows if 3.5 + 0.0005 <= r["t"] < 3.55]
     assert released and all(r["motor_nm"] == [0.0, 0.0, 0.0] for r in released)
 
@@ -617,9 +587,9 @@ SILENT_LET_GO = {
 def test_a_leader_released_by_goal_current_alone_still_walks_back_after_let_go(rig):
     # let go, the wall comes back on from the present pose and walks the leader back
     script, seconds, let_go_s, far_deg = SILENT_LET_GO[rig]
-    region, last = region_of(rig), round(let_go_s * 200)
+    region, last = region_of(JOINTS[rig]), round(let_go_s * 200)
     silent = {k: "silent" for k in range(last - 20, last)}
-    rows, _ = felt3(region, script, seconds, let_go_s=let_go_s, cycles=silent)
+    rows = felt_at_200_hz(script, seconds, let_go_s=let_go_s, cycles=silent)
     before = [beyond_of(region, r) for r in rows if let_go_s - 0.05 <= r["t"] < let_go_s]
     assert max(before) > far_deg  # the hand took it far out meanwhile
     after = [r for r in rows if r["t"] >= let_go_s]
@@ -640,10 +610,9 @@ DIAGONALS = {
 def pressed(rig: str, stiffness: float, max_torque_nm: float) -> tuple:
     """The 1 ms truth rows of a diagonal press by a hand of ``stiffness`` (N m/deg) pushing with
     at most ``max_torque_nm`` (N m), let go at once at LET_GO_S."""
-    rows = felt_at_200_hz(
-        DIAGONALS[rig], 6.0, stiffness, LET_GO_S, max_torque_nm=max_torque_nm, region=region_of(rig)
+    return tuple(
+        felt_at_200_hz(DIAGONALS[rig], 6.0, stiffness, LET_GO_S, max_torque_nm=max_torque_nm)
     )
-    return tuple(rows)
 
 
 @pytest.mark.parametrize("rig", sorted(DIAGONALS))

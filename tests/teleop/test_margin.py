@@ -23,6 +23,7 @@ from limbctl.teleop.margin import (
     safe_with_margin,
 )
 from limbctl.teleop.start import assess
+from tests.teleop.chains import off_axis_deg
 from tests.teleop.test_gate import ConeBand
 
 HALF_ANGLE = math.radians(40)
@@ -49,12 +50,6 @@ def cone_gate():
         max_joint_step=math.radians(1.8),
     )
     return Gate(Cone(HALF_ANGLE), limits)
-
-
-def off_axis(pan_deg, tilt_deg):
-    """Angle (deg) of a pose from the cone's axis (+x)."""
-    d = pan_tilt_to_direction(math.radians(pan_deg), math.radians(tilt_deg))
-    return math.degrees(float(direction_angle(d, np.array([1.0, 0.0, 0.0]))))
 
 
 def test_inside_by_margin_on_a_cone():
@@ -85,12 +80,12 @@ def test_nearest_start_pose_is_inside_by_the_margin_after_rounding(pan_deg, tilt
     assert target is not None
     assert RIG.held_pose(*target) == target  # already a whole-tick pose
     assert inside_by_margin(gate, np.array([target]), MARGIN)[0]
-    axis_angle = off_axis(*np.degrees(target))
+    axis_angle = off_axis_deg(*target)
     # the ring's probes are 360/RING_PROBES deg apart: an edge between two of them is at
     # least cos(180/RING_PROBES deg) of the margin away
     assert axis_angle <= 40.0 - START_MARGIN_DEG * math.cos(math.pi / RING_PROBES) + 1e-9
     # and near: for a pose outside, about the margin beyond the edge along the way in
-    outside = max(0.0, off_axis(pan_deg, tilt_deg) - 40.0)
+    outside = max(0.0, off_axis_deg(pan, tilt) - 40.0)
     moved = math.degrees(
         float(direction_angle(pan_tilt_to_direction(pan, tilt), pan_tilt_to_direction(*target)))
     )

@@ -1,10 +1,13 @@
-"""The loop's clock (limbctl/teleop/pacing.py) on a stepped clock: a late loop catches up."""
+"""The loop's clock (limbctl/teleop/pacing.py) on a stepped clock: a late loop catches up; the
+felt leader's pace watch switches its feel off once the median period is too long."""
 
 from __future__ import annotations
 
 import threading
 
-from limbctl.teleop.pacing import BACKLOG_PERIODS, Pacer
+import pytest
+
+from limbctl.teleop.pacing import BACKLOG_PERIODS, Pacer, PaceWatch
 
 PERIOD = 0.005
 
@@ -106,3 +109,18 @@ def test_idle_work_runs_about_every_period_while_waiting_and_the_slot_is_kept():
     clock.now += 0.0015
     pacer.wait(stop)
     assert waits == [PERIOD - 0.0015]
+
+
+def test_the_pace_watch_switches_the_feel_off_when_the_median_period_is_over_1_25_periods():
+    ticks = iter([0.005 * k for k in range(41)] + [0.2 + 0.0066 * k for k in range(1, 100)])
+    watch = PaceWatch(200.0, clock=lambda: next(ticks))
+    # 200 Hz for 40 periods: kept; then 151 Hz (6.6 ms > 6.25 ms): lost once the median passes
+    assert [watch.lost() for _ in range(41)] == [None] * 41
+    verdicts = [watch.lost() for _ in range(99)]
+    first = next(k for k, v in enumerate(verdicts) if v is not None)
+    assert 15 <= first <= 25 and verdicts[first] == pytest.approx(0.0066)
+    assert all(v is None for v in verdicts[:first])
+    # a late cycle or a few do not: the median ignores them
+    ticks = iter([0.005 * k + (0.03 if k >= 20 else 0.0) for k in range(60)])
+    watch = PaceWatch(200.0, clock=lambda: next(ticks))
+    assert all(watch.lost() is None for _ in range(60))
