@@ -163,17 +163,13 @@ def _answers(bus, servo_id):
     return True
 
 
-def test_port_that_vanishes_mid_run_raises_port_error():
-    sim = SimulatedBus(ids=(1, 2)).start()
-    try:
-        with ServoBus(sim.port, PROFILE.baud, PROFILE.ids) as bus:
-            assert set(bus.read_positions()) == {1, 2}
-            sim.close()  # the adapter is unplugged: the pty goes away
-            with pytest.raises(PortError, match="was the adapter unplugged"):
-                bus.read_positions()
-    finally:
-        sim.close()
-    assert sim.exitcode == 0
+def test_port_that_vanishes_mid_run_raises_port_error(sim):
+    """The ``sim`` fixture checks that the closed simulator exited cleanly and left no link."""
+    with ServoBus(sim.port, PROFILE.baud, PROFILE.ids) as bus:
+        assert set(bus.read_positions()) == {1, 2}
+        sim.close()  # the adapter is unplugged: the pty goes away
+        with pytest.raises(PortError, match="was the adapter unplugged"):
+            bus.read_positions()
 
 
 @pytest.mark.parametrize(
