@@ -55,12 +55,9 @@ def test_a_packaged_profile_matches_its_file_and_the_world_round_trips_and_reads
     world = {joint.name: joint for joint in (*DEFAULT_JOINTS, ROLL_JOINT)}
     for name, joint in profile.joints:
         truth = world[name]
-        assert (joint.id, joint.zero_tick, joint.direction) == (
-            truth.servo_id,
-            truth.zero_tick,
-            truth.direction,
-        )
-        assert (joint.stop_min_deg, joint.stop_max_deg) == (truth.stop_min_deg, truth.stop_max_deg)
+        assert joint.id == truth.servo_id
+        for field in ("zero_tick", "direction", "stop_min_deg", "stop_max_deg"):
+            assert getattr(joint, field) == getattr(truth, field), (name, field)
         # the hard limits lie inside the physical end stops, by the margin
         assert joint.stop_min_deg + END_STOP_MARGIN_DEG <= joint.min_deg
         assert joint.max_deg <= joint.stop_max_deg - END_STOP_MARGIN_DEG
@@ -195,10 +192,8 @@ def test_the_brief_example_message_rest_direction_joint_limits_and_default_end_s
         del sim_data[name]["stop_min_deg"], sim_data[name]["stop_max_deg"]
     sim_data["pan"].update(min_deg=-80.0, max_deg=80.0)
     profile = load_rig_profile(write(tmp_path, sim_data))
-    assert (profile.pan.stop_min_deg, profile.pan.stop_max_deg) == (
-        -DEFAULT_END_STOP_DEG,
-        DEFAULT_END_STOP_DEG,
-    )
+    stops = (profile.pan.stop_min_deg, profile.pan.stop_max_deg)
+    assert stops == (-DEFAULT_END_STOP_DEG, DEFAULT_END_STOP_DEG)
     sim_data["pan"].update(min_deg=-115.0, max_deg=115.0)
     path = write(tmp_path, sim_data, "wide.yaml")
     with pytest.raises(ConfigError) as err:

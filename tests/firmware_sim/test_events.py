@@ -7,7 +7,6 @@ from dynamixel_sdk import COMM_RX_TIMEOUT, COMM_SUCCESS, PacketHandler, PortHand
 
 from firmware_sim.control_table import Register
 from firmware_sim.events import EventSchedule, ScheduledEvent, parse_event
-from firmware_sim.simulator import Simulator
 from firmware_sim.wire import RIG_BAUD
 from tests.firmware_sim.test_cli import served
 from tests.safety.support import wait_for
@@ -36,25 +35,24 @@ def test_parse_event_names_what_is_wrong(text, message):
         parse_event(text)
 
 
-def test_a_schedule_applies_each_event_once_by_the_id_it_names_restart_and_push_included():
-    clock = {"now": 0.0}
-    sim = Simulator(ids=(1, 2), clock=lambda: clock["now"])
+def test_a_schedule_applies_each_event_once_by_the_id_it_names_restart_and_push_included(
+    stepped,
+):
+    sim, clock = stepped(ids=(1, 2))
     schedule = EventSchedule(
         [ScheduledEvent(2.0, "voltage", 1, 5.0), ScheduledEvent(1.0, "vanish", 2, 0.5)]
     )
     schedule.check(sim)
     assert schedule.apply_due(sim) == 0
-    clock["now"] = 1.0
+    clock.t = 1.0
     assert schedule.apply_due(sim) == 1
     assert not sim.faults.present(2, 1.2) and sim.faults.present(2, 1.5)
     assert sim.servo(1).environment.voltage != 5.0
-    clock["now"] = 3.0
+    clock.t = 3.0
     assert schedule.apply_due(sim) == 1
     assert sim.servo(1).environment.voltage == 5.0
     assert schedule.apply_due(sim) == 0 and schedule.events == []
-    sim.close()
-    clock = {"now": 0.0}
-    sim = Simulator(factory=2, clock=lambda: clock["now"])
+    sim, clock = stepped(factory=2)
     with pytest.raises(ValueError, match=r"servos in slots 1, 2 all answer as ID 1: an event "):
         EventSchedule([parse_event("0:voltage:1:5")]).check(sim)
     sim.servo(2).write(ID, bytes([9]))  # slot 2 set up as ID 9
@@ -62,41 +60,37 @@ def test_a_schedule_applies_each_event_once_by_the_id_it_names_restart_and_push_
         EventSchedule([parse_event("0:voltage:2:5")]).check(sim)
     schedule = EventSchedule([parse_event("1:voltage:9:5"), parse_event("2:voltage:9:7")])
     schedule.check(sim)
-    clock["now"] = 1.0
+    clock.t = 1.0
     assert schedule.apply_due(sim) == 1
     assert sim.servo(2).environment.voltage == 5.0
     assert sim.servo(1).environment.voltage != 5.0
     sim.servo(2).write(ID, bytes([4]))  # renumbered again before the second event
-    clock["now"] = 2.0
+    clock.t = 2.0
     assert schedule.apply_due(sim) == 0
     assert schedule.skipped == [
         "event at 2 s (voltage:9:7): no servo answers as ID 9 now (the servos answer as 1, 4): "
         "not applied"
     ]
     assert sim.servo(2).environment.voltage == 5.0
-    sim.close()
-    clock = {"now": 0.0}
-    sim = Simulator(ids=(1, 2), clock=lambda: clock["now"])
+    sim, clock = stepped(ids=(1, 2))
     servo = sim.servo(2)
     servo.write(64, bytes([1]))  # torque on
     servo.write(168, (132).to_bytes(2, "little"))  # Indirect Address 1 -> Present Position
     schedule = EventSchedule([parse_event("1:restart:2:0.25")])
-    clock["now"] = 1.0
+    clock.t = 1.0
     assert schedule.apply_due(sim) == 1
     assert not servo.torque_on
     assert servo.read(168, 2) == (224).to_bytes(2, "little"), "the indirect map is unmapped"
     assert not sim.faults.present(2, 1.2) and sim.faults.present(2, 1.25)
     assert sim.servo(1).torque_on is False and sim.faults.present(1, 1.0)
-    sim.close()
-    clock = {"now": 0.0}
-    sim = Simulator(ids=(1, 2), clock=lambda: clock["now"])
+    sim, clock = stepped(ids=(1, 2))
     servo = sim.servo(1)
     servo.write(64, bytes([1]))  # torque on: the servo holds its pose
     schedule = EventSchedule([parse_event("0.5:push:1:300"), parse_event("2:push:1:0")])
-    clock["now"] = 0.5
+    clock.t = 0.5
     sim.advance()
     assert schedule.apply_due(sim) == 1
-    clock["now"] = 0.6
+    clock.t = 0.6
     sim.advance()
     servo.refresh(sim.now())  # what a READ would return now
     # 300 % of stall is beyond what the motor holds: deflected 6 deg, drive at the PWM Limit
@@ -104,14 +98,13 @@ def test_a_schedule_applies_each_event_once_by_the_id_it_names_restart_and_push_
     goal, present = servo.value(Register.GOAL_POSITION), servo.value(Register.PRESENT_POSITION)
     assert abs(present - goal) == pytest.approx(6.0 / 360 * 4096, abs=2)
     assert servo.value(Register.HARDWARE_ERROR_STATUS) == 0
-    clock["now"] = 1.2  # over 0.5 s of overload: the firmware's shutdown
+    clock.t = 1.2  # over 0.5 s of overload: the firmware's shutdown
     sim.advance()
     servo.refresh(sim.now())
     assert servo.value(Register.HARDWARE_ERROR_STATUS) == OVERLOAD_BIT and not servo.torque_on
-    clock["now"] = 2.0
+    clock.t = 2.0
     assert schedule.apply_due(sim) == 1
     assert sim.truth()["servos"][1]["load_percent"] == 0.0  # torque off, let go
-    sim.close()
     assert parse_event("2.5:vanish:1:0.5") == ScheduledEvent(2.5, "vanish", 1, 0.5)
     assert parse_event("0:voltage:2:5") == ScheduledEvent(0.0, "voltage", 2, 5.0)
     assert parse_event(" 1 : temperature : 2 : -5 ") == ScheduledEvent(1.0, "temperature", 2, -5.0)

@@ -14,7 +14,6 @@ from firmware_sim.leader import LEADER_COULOMB_NM, LeaderWorld, Operator, leader
 from firmware_sim.operator_file import leader_spec, read_operator_file
 from firmware_sim.simulator import Simulator
 from firmware_sim.world import DEFAULT_JOINTS, ROLL_JOINT
-from tests.firmware_sim.test_torque import Clock
 
 #: The leader's ids by joint count, and the follower's (the three-servo one with its roll joint).
 LEADER_IDS = {2: [3, 4], 3: [4, 5, 6]}
@@ -24,10 +23,9 @@ JOINTS = pytest.mark.parametrize("joints", [2, 3])
 POINTS = {2: "[[t_s, pan_deg, tilt_deg], ...]", 3: "[[t_s, pan_deg, tilt_deg, roll_deg], ...]"}
 
 
-def sim_with(joints, operator=None, log=None):
-    clock = Clock()
+def sim_with(stepped, joints, operator=None, log=None):
     spec = {"ids": LEADER_IDS[joints], "model": "xm430-w350", "operator": operator, "log": log}
-    return Simulator(**FOLLOWER[joints], leader=spec, clock=clock), clock
+    return stepped(**FOLLOWER[joints], leader=spec)
 
 
 def row(t, *angles, joints):
@@ -67,7 +65,9 @@ def test_operator_interpolates_its_script_is_bounded_and_refuses_bad_scripts_and
 
 
 @JOINTS
-def test_leader_is_built_like_the_follower_at_its_own_ids_and_stiction_holds_a_touch(joints):
+def test_leader_is_built_like_the_follower_at_its_own_ids_and_stiction_holds_a_touch(
+    joints, stepped
+):
     ids = LEADER_IDS[joints]
     built = leader_joints(ids)
     assert [j.servo_id for j in built] == ids
@@ -82,7 +82,7 @@ def test_leader_is_built_like_the_follower_at_its_own_ids_and_stiction_holds_a_t
             leader_joints(wrong)
     with pytest.raises(ValueError, match="must not be the follower's"):
         Simulator(**FOLLOWER[joints], leader={"ids": [2, *ids[1:]]})
-    sim, _ = sim_with(joints)
+    sim, _ = sim_with(stepped, joints)
     assert sim.leader.ids == tuple(ids)
     for joint in built:  # each rests at its zero
         assert sim.servo(joint.servo_id).raw_tick == pytest.approx(joint.zero_tick)
@@ -92,18 +92,18 @@ def test_leader_is_built_like_the_follower_at_its_own_ids_and_stiction_holds_a_t
         sim.leader.set_operator(Operator([[0.0, *[0.0] * (5 - joints)]], joints=5 - joints))
     touch = LEADER_COULOMB_NM * 0.9
     hand = {"script": [[0.0, 90.0, *[0.0] * (joints - 1)]], "max_torque_nm": touch}
-    sim, clock = sim_with(joints, hand)
+    sim, clock = sim_with(stepped, joints, hand)
     clock.t = 1.0
     sim.advance()
     assert sim.truth()["leader"]["pose_deg"] == [0.0] * joints
 
 
 @JOINTS
-def test_the_hand_moves_a_free_leader_and_let_go_leaves_it_to_friction(joints, tmp_path):
+def test_the_hand_moves_a_free_leader_and_let_go_leaves_it_to_friction(joints, tmp_path, stepped):
     log = tmp_path / "leader.jsonl"
     target = [20.0, 10.0, 40.0][:joints]
     script = [row(0.0, 0.0, 0.0, 0.0, joints=joints), [1.0, *target]]
-    sim, clock = sim_with(joints, {"script": script, "let_go_s": 1.5}, str(log))
+    sim, clock = sim_with(stepped, joints, {"script": script, "let_go_s": 1.5}, str(log))
     clock.t = 1.4
     sim.advance()
     held = sim.truth()["leader"]

@@ -102,13 +102,9 @@ def test_simulator_with_a_roll_joint_logs_the_full_orientation(tmp_path):
     with SimulatedBus(ids=(1, 2, 3), roll_id=3, goal_log=log, link=tmp_path / "tty") as sim:
         port, packet = PortHandler(sim.port), PacketHandler(2.0)
         assert port.openPort()
-        try:
-            goals = {1: 2185 + 200, 2: 1890 - 150, 3: 1960 + 300}
-            for servo_id, tick in goals.items():
-                result, error = packet.write4ByteTxRx(port, servo_id, 116, tick)
-                assert (result, error) == (0, 0)
-        finally:
-            port.closePort()
+        for servo_id, tick in {1: 2185 + 200, 2: 1890 - 150, 3: 1960 + 300}.items():
+            assert packet.write4ByteTxRx(port, servo_id, 116, tick) == (0, 0)
+        port.closePort()
     rows = [json.loads(line) for line in log.read_text().splitlines()]
     assert [r["id"] for r in rows] == [1, 2, 3]
     last = rows[-1]

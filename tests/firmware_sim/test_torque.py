@@ -14,20 +14,8 @@ XM = MOTORS["xm430-w350"]
 CAP_UNITS = 100  # 269 mA
 
 
-class Clock:
-    """A clock the test sets: ``t`` seconds (test_leader's too)."""
-
-    def __init__(self) -> None:
-        self.t = 0.0
-
-    def __call__(self) -> float:
-        return self.t
-
-
-def leader_sim(operator=None, model="xm430-w350"):
-    clock = Clock()
-    spec = {"ids": [3, 4], "model": model, "operator": operator}
-    return Simulator(ids=(1, 2), leader=spec, clock=clock), clock
+def leader_sim(stepped, operator=None, model="xm430-w350"):
+    return stepped(ids=(1, 2), leader={"ids": [3, 4], "model": model, "operator": operator})
 
 
 def write(servo, register: Register, value: int) -> None:
@@ -35,7 +23,7 @@ def write(servo, register: Register, value: int) -> None:
     servo.write(item.address, (value % (1 << (8 * item.size))).to_bytes(item.size, "little"))
 
 
-def settle(sim: Simulator, clock: Clock, seconds: float) -> None:
+def settle(sim: Simulator, clock, seconds: float) -> None:
     clock.t += seconds
     sim.advance()
 
@@ -54,8 +42,8 @@ def pushing(target_deg: float, torque_nm: float = 0.3) -> dict:
     return {"script": [[0.0, target_deg, 0.0]], "max_torque_nm": torque_nm, "stiffness_nm_deg": 1.0}
 
 
-def test_mode_5_goal_current_sets_the_torque_cap_and_present_current_follows_it():
-    sim, clock = leader_sim(pushing(30.0))
+def test_mode_5_goal_current_sets_the_torque_cap_and_present_current_follows_it(stepped):
+    sim, clock = leader_sim(stepped, pushing(30.0))
     hold_at(sim, clock, 3, 5, 0)
     settle(sim, clock, 1.0)
     truth = sim.truth()["leader"]
@@ -63,7 +51,7 @@ def test_mode_5_goal_current_sets_the_torque_cap_and_present_current_follows_it(
     assert truth["pose_deg"][0] > 25.0  # the hand moved it as if the motor were not there
     beyond = {}
     for units in (20, 40, CAP_UNITS):
-        sim, clock = leader_sim(pushing(30.0, torque_nm=0.3))
+        sim, clock = leader_sim(stepped, pushing(30.0, torque_nm=0.3))
         hold_at(sim, clock, 3, 5, units)
         settle(sim, clock, 2.0)
         truth = sim.truth()["leader"]
@@ -73,7 +61,7 @@ def test_mode_5_goal_current_sets_the_torque_cap_and_present_current_follows_it(
     # 20 and 40 units (0.10, 0.19 N m) give way to a 0.3 N m hand; 100 units (0.48 N m) hold it
     assert beyond[20] > beyond[40] > 20.0
     assert beyond[CAP_UNITS] < 0.5
-    sim, clock = leader_sim(pushing(30.0, torque_nm=0.2))
+    sim, clock = leader_sim(stepped, pushing(30.0, torque_nm=0.2))
     servo = hold_at(sim, clock, 3, 5, CAP_UNITS)
     settle(sim, clock, 2.0)
     truth = sim.truth()
@@ -84,8 +72,8 @@ def test_mode_5_goal_current_sets_the_torque_cap_and_present_current_follows_it(
     assert servo.value(Register.PRESENT_CURRENT) == round(expected)
 
 
-def test_mode_3_clips_mode_0_is_a_current_torque_off_has_no_cap_and_the_watchdog_trips():
-    sim, clock = leader_sim(pushing(30.0, torque_nm=0.3))
+def test_mode_3_clips_mode_0_is_a_current_torque_off_has_no_cap_and_the_watchdog_trips(stepped):
+    sim, clock = leader_sim(stepped, pushing(30.0, torque_nm=0.3))
     servo = sim.servo(3)
     write(servo, Register.CURRENT_LIMIT, 50)  # 0.24 N m: the hand wins
     hold_at(sim, clock, 3, 3, 0)
@@ -94,7 +82,7 @@ def test_mode_3_clips_mode_0_is_a_current_torque_off_has_no_cap_and_the_watchdog
     assert abs(sim.truth()["leader"]["motor_nm"][0]) == pytest.approx(
         50 * XM.current_unit_ma * XM.nm_per_ma
     )
-    sim, clock = leader_sim()
+    sim, clock = leader_sim(stepped)
     servo = sim.servo(3)
     write(servo, Register.OPERATING_MODE, 0)
     write(servo, Register.TORQUE_ENABLE, 1)
@@ -102,7 +90,7 @@ def test_mode_3_clips_mode_0_is_a_current_torque_off_has_no_cap_and_the_watchdog
     assert drive_of(servo, +1).current_nm == pytest.approx(20 * XM.current_unit_ma * XM.nm_per_ma)
     settle(sim, clock, 0.5)
     assert sim.truth()["leader"]["pose_deg"][0] > 5.0  # a free current turns the joint
-    sim, clock = leader_sim()
+    sim, clock = leader_sim(stepped)
     servo = sim.servo(3)
     assert drive_of(servo, +1).cap_nm == 0.0
     hold_at(sim, clock, 3, 5, CAP_UNITS)

@@ -45,22 +45,13 @@ def test_open_configure_goals_retries_and_refusals_on_one_bus(sim, tmp_path):
     bus.close()
     with pytest.raises(PortError, match="not open"):
         bus.read_positions()
+    absent = ServoBus(str(tmp_path / "ttyUSB9"), 57600, (1, 2))
+    other_model = ServoBus(sim.port, PROFILE.baud, PROFILE.ids, model="xm430-w350")
+    missing = ServoBus(sim.port, PROFILE.baud, (1, 7), retry_budget_s=0.05, max_attempts=2)
     refused = (
-        (
-            ServoBus(str(tmp_path / "ttyUSB9"), 57600, (1, 2)),
-            PortError,
-            r"ttyUSB9 does not exist: check the cable / permissions",
-        ),
-        (
-            ServoBus(sim.port, PROFILE.baud, PROFILE.ids, model="xm430-w350"),
-            ConfigError,
-            r"servo 1 is XL430-W250 \(1060\).*XM430-W350 \(1020\)",
-        ),
-        (
-            ServoBus(sim.port, PROFILE.baud, (1, 7), retry_budget_s=0.05, max_attempts=2),
-            BusTimeout,
-            r"ping servo 7: servo 7 did not answer after 2 attempts",
-        ),
+        (absent, PortError, r"ttyUSB9 does not exist: check the cable / permissions"),
+        (other_model, ConfigError, r"servo 1 is XL430-W250 \(1060\).*XM430-W350 \(1020\)"),
+        (missing, BusTimeout, r"ping servo 7: servo 7 did not answer after 2 attempts"),
     )
     for bus, error, message in refused:
         with pytest.raises(error, match=message):
@@ -172,17 +163,13 @@ def _answers(bus, servo_id):
     return True
 
 
-def test_port_that_vanishes_mid_run_raises_port_error():
-    sim = SimulatedBus(ids=(1, 2)).start()
-    try:
-        with ServoBus(sim.port, PROFILE.baud, PROFILE.ids) as bus:
-            assert set(bus.read_positions()) == {1, 2}
-            sim.close()  # the adapter is unplugged: the pty goes away
-            with pytest.raises(PortError, match="was the adapter unplugged"):
-                bus.read_positions()
-    finally:
-        sim.close()
-    assert sim.exitcode == 0
+def test_port_that_vanishes_mid_run_raises_port_error(sim):
+    """The ``sim`` fixture checks that the closed simulator exited cleanly and left no link."""
+    with ServoBus(sim.port, PROFILE.baud, PROFILE.ids) as bus:
+        assert set(bus.read_positions()) == {1, 2}
+        sim.close()  # the adapter is unplugged: the pty goes away
+        with pytest.raises(PortError, match="was the adapter unplugged"):
+            bus.read_positions()
 
 
 @pytest.mark.parametrize(

@@ -82,25 +82,19 @@ def test_limits_must_contain_the_rest_pose_and_reads_may_drop_now_and_then_not_a
 
 
 def test_on_a_port_the_servos_named_by_ids_are_calibrated_inside_the_assumed_end_stops(
-    tmp_path, capsys
+    tmp_path, capsys, sim, sdk
 ):
     """--ids are the servos read; on a port without a profile the stops are taken as +-90 deg."""
-    from dynamixel_sdk import PacketHandler, PortHandler
-
-    from firmware_sim import SimulatedBus
     from limbctl.servo.control_table import Register
 
     hand = Path(str(resources.files("limbctl").joinpath("data", "calibration_hand.yaml")))
     out = tmp_path / "rig.yaml"
     truth = default_sim_profile()
-    with SimulatedBus(ids=(1, 2), baud=truth.baud) as sim:
-        port, packets = PortHandler(sim.port), PacketHandler(2.0)
-        assert port.setBaudRate(truth.baud)
-        for old_id, new_id in ((1, 5), (2, 6)):  # torque is off: ID is EEPROM, written at once
-            assert packets.write1ByteTxRx(port, old_id, Register.ID.address, new_id)[0] == 0
-        port.closePort()
-        sim.set_hand(hand)
-        assert main(["calibrate", "--port", sim.port, "--ids", "5,6", "--out", str(out)]) == 0
+    for old_id, new_id in ((1, 5), (2, 6)):  # torque is off: ID is EEPROM, written at once
+        assert sdk.packet.write1ByteTxRx(sdk.port, old_id, Register.ID.address, new_id)[0] == 0
+    sdk.port.closePort()
+    sim.set_hand(hand)
+    assert main(["calibrate", "--port", sim.port, "--ids", "5,6", "--out", str(out)]) == 0
     found = load_profile(out)
     assert (found.pan.id, found.tilt.id) == (5, 6)
     assert abs(found.pan.zero_tick - truth.pan.zero_tick) <= 3

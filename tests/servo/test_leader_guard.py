@@ -11,12 +11,11 @@ import sys
 import time
 from contextlib import contextmanager
 
-from calib.profile import default_sim_profile
 from firmware_sim.wire import RIG_BAUD
-from limbctl.envelope import Cone
 from limbctl.errors import PortInUse
 from limbctl.servo.bus import ServoBus
 from limbctl.servo.leader_guard import GIVE_UP_S, LeaderGuard
+from tests.firmware_sim.test_cli import served
 
 #: How long a guard's own start may take on a loaded machine (Python and the bus's imports):
 #: only a limit for a wait, never the bound under test.
@@ -106,24 +105,17 @@ def _pushed(log) -> bool:
 
 
 @contextmanager
-def _teleop(tmp_path, *options: str):
+def _teleop(tmp_path, model, *options: str):
     """``firmware-sim`` serving a rig and a felt leader (ids 3, 4) pressed by OPERATOR on a pty,
-    and ``limbctl teleop --source leader:3,4`` on it; yields (teleop process, link, leader log).
+    and ``limbctl teleop --source leader:3,4`` on it with ``model``; yields (teleop process,
+    link, leader log).
     """
     link, log, hand = tmp_path / "tty", tmp_path / "leader.jsonl", tmp_path / "hand.yaml"
     hand.write_text(json.dumps(OPERATOR))
-    sim, model = default_sim_profile(), tmp_path / "cone.npz"
-    metadata = {"rig": sim.name, "calibration": sim.calibration.to_dict()}
-    Cone(half_angle_deg=30.0).save(model, metadata=metadata)
-    simulator = subprocess.Popen(
-        [sys.executable, "-m", "firmware_sim", "--ids", "1,2", "--leader", "3,4"]
-        + ["--operator", str(hand), "--leader-log", str(log)]
-        + ["--baud", str(RIG_BAUD), "--link", str(link)],
-        stdout=subprocess.PIPE,
-        text=True,
-    )
-    try:
-        assert "ready" in simulator.stdout.readline()
+    leader = ["--leader", "3,4", "--operator", str(hand), "--leader-log", str(log)]
+    rig = ["--ids", "1,2", "--baud", str(RIG_BAUD), "--link", str(link)]
+    with served([*rig, *leader]) as (simulator, ready):
+        assert "ready" in ready
         teleop = subprocess.Popen(
             [sys.executable, "-m", "limbctl", "teleop", "--port", str(link), "--model", str(model)]
             + ["--source", "leader:3,4", "--latency-timer", "1", "--no-view", "--quiet"]
@@ -138,10 +130,8 @@ def _teleop(tmp_path, *options: str):
             if teleop.poll() is None:
                 teleop.kill()
             teleop.communicate(timeout=START_S + GIVE_UP_S)
-    finally:
-        simulator.send_signal(signal.SIGTERM)
-        simulator.wait(START_S)
-        simulator.stdout.close()
+            simulator.send_signal(signal.SIGTERM)
+            simulator.wait(START_S)
 
 
 def _wait_pushed(teleop, log) -> None:
@@ -153,8 +143,8 @@ def _wait_pushed(teleop, log) -> None:
         time.sleep(0.02)  # the log grows a row a millisecond: read it now and then
 
 
-def test_a_controller_killed_mid_push_leaves_its_leader_limp_within_the_bound(tmp_path):
-    with _teleop(tmp_path) as (teleop, link, log):
+def test_a_controller_killed_mid_push_leaves_its_leader_limp_within_the_bound(tmp_path, cone_file):
+    with _teleop(tmp_path, cone_file(30.0)) as (teleop, link, log):
         _wait_pushed(teleop, log)
         killed_at = time.monotonic()
         os.kill(teleop.pid, signal.SIGKILL)
@@ -170,9 +160,9 @@ def test_a_controller_killed_mid_push_leaves_its_leader_limp_within_the_bound(tm
     print(f"kill -9 to the guard's exit, both leader servos limp: {limp_s * 1e3:.1f} ms; {said}")
 
 
-def test_a_clean_end_leaves_the_leader_to_the_controller(tmp_path):
+def test_a_clean_end_leaves_the_leader_to_the_controller(tmp_path, cone_file):
     """The controller's own end switches the leader off; its guard, told done, says nothing."""
-    with _teleop(tmp_path, "--duration", "60") as (teleop, link, log):
+    with _teleop(tmp_path, cone_file(30.0), "--duration", "60") as (teleop, link, log):
         _wait_pushed(teleop, log)
         teleop.send_signal(signal.SIGINT)  # Ctrl-C: the session ends cleanly
         err = teleop.communicate(timeout=60.0)[1]

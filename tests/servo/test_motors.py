@@ -135,8 +135,8 @@ def answering_id(sim):
     return sim.truth()["servos"][1]["id"]
 
 
-def motors_setup(profile, sim, *options):
-    return main(["motors", "setup", "--rig", str(profile), "--port", sim.port, *options])
+def motors_setup(profile, port, *options):
+    return main(["motors", "setup", "--rig", str(profile), "--port", port, *options])
 
 
 @pytest.mark.parametrize("rig", sorted(RIG_IDS))
@@ -147,13 +147,13 @@ def test_a_one_servo_bench_sets_up_pan_only_with_yes_renumbers_on_purpose_and_sk
     others = [joint for joint in ids if joint != "pan"]
     profile = rig_profile(tmp_path, rig)
     with SimulatedBus(factory=1, link=tmp_path / "tty") as sim:
-        status = motors_setup(profile, sim, "--yes")
+        status = motors_setup(profile, sim.port, "--yes")
         answers_as = answering_id(sim)
         lines = capsys.readouterr().err.splitlines()
         # --renumber makes another joint's servo this one on purpose, named by --joint
-        assert motors_setup(profile, sim, "--yes", "--joint", "tilt") == 1
+        assert motors_setup(profile, sim.port, "--yes", "--joint", "tilt") == 1
         assert answering_id(sim) == ids["pan"]
-        assert motors_setup(profile, sim, "--yes", "--joint", "tilt", "--renumber") == 0
+        assert motors_setup(profile, sim.port, "--yes", "--joint", "tilt", "--renumber") == 0
         assert answering_id(sim) == ids["tilt"], "--renumber did not make the servo tilt's"
     renumbered = capsys.readouterr().err.splitlines()
     assert (
@@ -163,16 +163,11 @@ def test_a_one_servo_bench_sets_up_pan_only_with_yes_renumbers_on_purpose_and_sk
         f"answers as pan until one is set up as it; wrote ID {ids['pan']} -> {ids['tilt']})"
     ) in renumbered
     assert renumbered[-1] == "set up: tilt; failed: none"
-    assert (
-        main(["motors", "setup", "--rig", str(profile), "--port", "/dev/null", "--renumber"]) == 2
-    )
-    assert (
-        capsys.readouterr()
-        .err.strip()
-        .endswith(
-            "--renumber makes the connected servo one joint's on purpose: name that joint with "
-            "--joint (e.g. --joint tilt)"
-        )
+    assert motors_setup(profile, "/dev/null", "--renumber") == 2
+    refused = capsys.readouterr().err.strip()
+    assert refused.endswith(
+        "--renumber makes the connected servo one joint's on purpose: name that joint with "
+        "--joint (e.g. --joint tilt)"
     )
     assert answers_as == ids["pan"], "the pan servo was renumbered as another joint's"
     for joint in others:
@@ -187,7 +182,7 @@ def test_a_one_servo_bench_sets_up_pan_only_with_yes_renumbers_on_purpose_and_sk
     # asked: Enter for pan; then for each other joint: Enter (pan's servo still alone), then skip
     monkeypatch.setattr("sys.stdin", io.StringIO("\n" + "\nskip\n" * len(others)))
     with SimulatedBus(factory=1, link=tmp_path / "tty") as sim:
-        status = motors_setup(profile, sim)
+        status = motors_setup(profile, sim.port)
         answers_as = answering_id(sim)
     err = capsys.readouterr()
     assert answers_as == ids["pan"]
@@ -252,9 +247,7 @@ def test_asked_again_the_person_connects_the_right_servo_and_every_joint_is_set_
         # Enter for pan; at each later joint Enter (the last servo still on), then the swap
         steps = ["\n"] + [s for k in range(1, len(joints)) for s in ("\n", (k, k + 1))]
         monkeypatch.setattr("sys.stdin", Bench(sim, steps))
-        status = main(
-            ["motors", "setup", "--rig", str(rig_profile(tmp_path, rig)), "--port", sim.port]
-        )
+        status = motors_setup(rig_profile(tmp_path, rig), sim.port)
         servos = sim.truth()["servos"]
     out, err = capsys.readouterr()
     for previous, joint in zip(joints, joints[1:]):

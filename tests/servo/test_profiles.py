@@ -47,13 +47,8 @@ def test_a_profile_meets_the_end_stop_and_baud_checks_and_models_of_another_rig_
     assert "model.npz was trained under another calibration" in message
     assert "(trained vs now: pan.zero_tick 2185 vs 2385)" in message
     check_trained_for(trained(), PROFILE, "model.npz")  # the same rig and calibration pass
-    changes = {
-        "direction": dict(direction=1),
-        "min_deg": dict(min_deg=-50.0),
-        "max_deg": dict(max_deg=60.0),
-    }
-    for field, change in changes.items():
-        other = PROFILE.with_joints(tilt=replace(PROFILE.tilt, **change))
+    for field, value in (("direction", 1), ("min_deg", -50.0), ("max_deg", 60.0)):
+        other = PROFILE.with_joints(tilt=replace(PROFILE.tilt, **{field: value}))
         with pytest.raises(ConfigError, match=f"tilt.{field} "):
             check_trained_for(trained(), other, "model.npz")
     # the servo id and the end stops are not part of what a model depends on
