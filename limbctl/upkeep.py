@@ -71,6 +71,7 @@ def add_setup_options(parser: Any) -> None:
     )
     parser.add_argument("--yes", action="store_true", help="do not ask before each servo")
     parser.add_argument("--renumber", action="store_true", help=RENUMBER_HELP)
+    parser.add_argument("--scan-baud", type=int, action="append", help=SCAN_BAUD_HELP)
 
 
 def motor_scan_job(connection: Callable[[Any], Connection]) -> Callable[[Any], int]:
@@ -81,7 +82,13 @@ def motor_scan_job(connection: Callable[[Any], Connection]) -> Callable[[Any], i
 def motor_setup_job(connection: Callable[[Any], Connection]) -> Callable[[Any], int]:
     """The ``motors setup`` job for parsed arguments."""
     return lambda a: run_motor_setup(
-        MotorSetupOptions(connection(a), tuple(a.joint or ()), bool(a.yes), bool(a.renumber))
+        MotorSetupOptions(
+            connection(a),
+            tuple(a.joint or ()),
+            bool(a.yes),
+            bool(a.renumber),
+            tuple(a.scan_baud or ()),
+        )
     )
 
 
@@ -116,18 +123,21 @@ def run_motor_scan(options: MotorScanOptions) -> int:
 
 @dataclass(frozen=True)
 class MotorSetupOptions:
-    """``limbctl motors setup``: the command line's options (no ``joints``: all)."""
+    """``limbctl motors setup``: the command line's options (no ``joints``: all; no ``bauds``:
+    every rate the X series has is scanned for the connected servo)."""
 
     connection: Connection = field(default_factory=Connection)
     joints: tuple[str, ...] = ()
     yes: bool = False
     renumber: bool = False
+    bauds: tuple[int, ...] = ()
 
 
 def run_motor_setup(options: MotorSetupOptions) -> int:
     """Set up each joint's servo; 0 when every one succeeded, 1 when one failed or was skipped."""
     from limbctl.servo.motors import Claims, JointTarget, check_target, setup_joint
     from limbctl.servo.profiles import load_rig_profile
+    from limbctl.servo.scan import SCAN_BAUDS
 
     conn = options.connection
     profile = load_rig_profile(conn.rig)
@@ -146,6 +156,7 @@ def run_motor_setup(options: MotorSetupOptions) -> int:
     for target in targets:
         check_target(target)  # a bad baud or model is refused before anything is asked
     ids = {name: joint.id for name, joint in joints.items()}
+    bauds = options.bauds or SCAN_BAUDS
     done: list[str] = []
     failed: list[str] = []
     skipped: list[str] = []
@@ -157,11 +168,11 @@ def run_motor_setup(options: MotorSetupOptions) -> int:
                     f"power it, then press Enter (Ctrl-C stops): "
                 )
             claims = Claims(ids, tuple(done), options.renumber)
-            outcome = setup_joint(port, target, latency_ms, claims=claims)
+            outcome = setup_joint(port, target, latency_ms, bauds, claims)
             while outcome.other_joint is not None and not options.yes:
                 if not _look_again(target.joint, outcome.other_joint, claims, ids):
                     break
-                outcome = setup_joint(port, target, latency_ms, claims=claims)
+                outcome = setup_joint(port, target, latency_ms, bauds, claims)
             if outcome.ok:
                 done.append(target.joint)
                 say(outcome.message)

@@ -69,6 +69,13 @@ def _the_one_servo(result: ScanResult, target: JointTarget) -> tuple[int, int, i
             f"garbled replies at {result.unreadable[0]} baud (servos sharing an ID): connect "
             f"only the {joint} servo and run again"
         )
+    asked = set(result.seconds) | set(result.skipped)  # scanned, or not open to the driver
+    if not result.found and asked and not asked >= set(SCAN_BAUDS):
+        rates = ", ".join(str(baud) for baud in sorted(result.seconds))
+        raise ConfigError(
+            f"no servo answers for the {joint} joint at {rates} baud, the only rates scanned "
+            f"(--scan-baud): connect its servo, or scan every rate (leave --scan-baud out)"
+        )
     if not result.found:
         raise ConfigError(f"no servo answers for the {joint} joint: {NOTHING_ANSWERS}")
     if len(result.found) > 1:

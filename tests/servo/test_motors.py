@@ -13,6 +13,7 @@ from limbctl.errors import ConfigError
 from limbctl.servo.bus import ServoBus
 from limbctl.servo.control_table import Register
 from limbctl.servo.motors import JointTarget, check_target, setup_joint
+from limbctl.servo.scan import SCAN_BAUDS
 from limbctl.servo.setup import configure_servos
 from limbctl.session import demo_region_path
 
@@ -77,13 +78,23 @@ def run_the_flow_on(sim, tmp_path):
             "two or more servos answer as ID 1 at 57600 baud: connect only the pan servo and run "
             "again",
         ),
-        ({"factory": 2, "connect": ()}, "no servo answers for the pan joint: no servo answered"),
+        (
+            {"factory": 2, "connect": ()},
+            f"no servo answers for the pan joint at 57600, {PROFILE.baud} baud, the only rates "
+            "scanned (--scan-baud)",
+        ),
+        (
+            {"factory": 2, "connect": (), "bauds": SCAN_BAUDS},
+            "no servo answers for the pan joint: no servo answered at any baud rate",
+        ),
     ],
-    ids=["collision", "nothing-connected"],
+    ids=["collision", "nothing-connected", "nothing-at-any-rate"],
 )
 def test_a_bus_set_up_cannot_serve_is_refused_saying_why(tmp_path, servos, message):
+    servos = dict(servos)
+    bauds = servos.pop("bauds", BAUDS)
     with SimulatedBus(**servos, link=tmp_path / "tty") as sim:
-        outcome = setup(sim, PAN)
+        outcome = setup_joint(sim.port, PAN, latency_timer_ms=2.0, scan_bauds=bauds)
     assert not outcome.ok and outcome.message.startswith(message)
 
 
@@ -135,8 +146,10 @@ def answering_id(sim):
     return sim.truth()["servos"][1]["id"]
 
 
-def motors_setup(profile, port, *options):
-    return main(["motors", "setup", "--rig", str(profile), "--port", port, *options])
+def motors_setup(profile, port, *options, bauds=BAUDS):
+    """``limbctl motors setup`` scanning only ``bauds`` (None: every rate, as by default)."""
+    scan = [f"--scan-baud={baud}" for baud in bauds or ()]
+    return main(["motors", "setup", "--rig", str(profile), "--port", port, *scan, *options])
 
 
 @pytest.mark.parametrize("rig", sorted(RIG_IDS))
@@ -147,7 +160,7 @@ def test_a_one_servo_bench_sets_up_pan_only_with_yes_renumbers_on_purpose_and_sk
     others = [joint for joint in ids if joint != "pan"]
     profile = rig_profile(tmp_path, rig)
     with SimulatedBus(factory=1, link=tmp_path / "tty") as sim:
-        status = motors_setup(profile, sim.port, "--yes")
+        status = motors_setup(profile, sim.port, "--yes", bauds=None)  # every rate scanned
         answers_as = answering_id(sim)
         lines = capsys.readouterr().err.splitlines()
         # --renumber makes another joint's servo this one on purpose, named by --joint
@@ -200,8 +213,15 @@ def test_a_one_servo_bench_sets_up_pan_only_with_yes_renumbers_on_purpose_and_sk
 def test_at_the_factory_id_and_baud_only_a_factory_fresh_servo_is_nobodys(tmp_path, capsys, rig):
     """At pan's ID 1 and 57600 baud only the Return Delay Time (0, not 250) tells pan apart."""
     eeprom, link = tmp_path / "eeprom", tmp_path / "tty"
-    setup = ["motors", "setup", "--rig", rig, "--baud", "57600", "--yes", "--joint"]
+    setup = ["motors", "setup", "--rig", rig, "--baud", "57600", "--scan-baud", "57600", "--yes"]
+    setup.append("--joint")
     with SimulatedBus(factory=2, connect=(1,), eeprom_dir=eeprom, link=link) as sim:
+        # a factory servo (57600 baud) is not found where --scan-baud looks elsewhere, and so said
+        assert motors_setup(rig, sim.port, "--yes", "--joint", "pan", bauds=(1_000_000,)) == 1
+        assert (
+            "pan: FAILED: no servo answers for the pan joint at 1000000 baud, the only rates "
+            "scanned (--scan-baud): connect its servo, or scan every rate (leave --scan-baud out)"
+        ) in capsys.readouterr().err.splitlines()
         assert main([*setup, "pan", "--port", sim.port]) == 0
     with SimulatedBus(factory=2, connect=(1,), eeprom_dir=eeprom, link=link) as sim:
         assert main([*setup, "tilt", "--port", sim.port]) == 1
