@@ -216,6 +216,8 @@ def test_teleop_feed_keeps_the_last_written_pose_names_the_edge_and_the_leaders_
     assert status.rate_hz == pytest.approx(200.0), "the rate over a second of cycles"
     assert status.cycles == 200 and status.outcome == "passed"
     assert status.words == "inside: following the command" and status.blocked == ()
+    # a two-servo feed has no band and shows no twist
+    assert board.live.twist is None and "twist" not in board.live.to_json()
     # the command lies up and to the +pan side of where the gate keeps writing the same pose
     result = GateResult((0.1, 0.2), Outcome.CORRECTED, corrected=True)
     for index in range(201, 204):

@@ -130,11 +130,6 @@ def test_the_band_gauge_map_feed_and_pose_tap_agree_with_the_region(shoulder_mod
     assert live.pose.pan_deg == pytest.approx(20.0)
     expected = band_gauge(model.region.band, present, pose_twist(*written.pose))
     assert live.twist == expected and live.twist.written_deg is not None
-    # a two-servo feed has no band and shows no twist
-    plain = Board()
-    two = TeleopFeed(plain)
-    two(Cycle(index=0, t=0.0, state=CycleState.RUNNING, present=(0.1, 0.2)))
-    assert plain.live.twist is None and "twist" not in plain.live.to_json()
     # the pose tap shows a new taught range at once, with the last pose
     board = Board()
     pose = (math.radians(20.0), math.radians(5.0), math.radians(10.0))
