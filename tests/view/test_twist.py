@@ -43,13 +43,8 @@ def test_twist_values_json_maps_and_the_taught_gauge():
     assert "twist" not in live and "twist" not in scene
     assert list(live) == ["kind", "mode", "pose", "sample_count", "teleop", "fault", "note"]
     gauge = TwistGauge(12.345, -40.0, 35.0, "taught here")
-    assert Live("record", twist=gauge).to_json()["twist"] == {
-        "twist": 12.35,
-        "low": -40.0,
-        "high": 35.0,
-        "of": "taught here",
-        "written": None,
-    }
+    out = Live("record", twist=gauge).to_json()["twist"]
+    assert out == {"twist": 12.35, "low": -40.0, "high": 35.0, "of": "taught here", "written": None}
     # a twist map finds the cell of a pose and refuses unknown states
     cells = np.array([[0, 0, -30.0, 40.0], [-1, 2, 5.0, 8.0]])
     shown = TwistMap(15.0, cells, ("turned", "short"), "taught")
@@ -237,16 +232,10 @@ def test_a_three_servo_teleop_shows_the_learned_band_and_the_gauge(
     page = browser
     # a replayed sweep turning the limb far past its band (roll +-120 deg) as it swings
     commands = tmp_path / "commands.jsonl"
-    with open(commands, "w", encoding="utf-8") as fh:
-        for k in range(300):
-            t = k / 100.0
-            row = {
-                "t": t,
-                "pan": 30.0 * math.sin(t),
-                "tilt": 20.0 * math.sin(2 * t),
-                "roll": 120.0 * math.sin(3 * t),
-            }
-            fh.write(json.dumps(row) + "\n")
+    t = np.arange(300) / 100.0
+    sweep = np.column_stack([t, 30.0 * np.sin(t), 20.0 * np.sin(2 * t), 120.0 * np.sin(3 * t)])
+    replayed = [dict(zip(("t", "pan", "tilt", "roll"), map(float, row))) for row in sweep]
+    commands.write_text("".join(json.dumps(row) + "\n" for row in replayed))
     telemetry = tmp_path / "telemetry.jsonl"
     options = TeleopOptions(
         model=shoulder_model_path,
