@@ -128,15 +128,11 @@ def test_record_job_shows_its_samples_on_the_page(tmp_path, browser):
         assert "edge closed" in text_of(browser, "guide-text")
 
 
-def free_udp_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
-        probe.bind(("127.0.0.1", 0))
-        return probe.getsockname()[1]
-
-
 def test_teleop_job_shows_commanded_and_written_poses(tmp_path, hand_model_path, browser):
     """Commands go in over UDP as the page shows their effect; Ctrl-C (SIGINT) ends the job."""
-    port = free_udp_port()
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:  # a free port
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
     telemetry = tmp_path / "telemetry.jsonl"
     options = TeleopOptions(
         model=hand_model_path,
