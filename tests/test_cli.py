@@ -1,11 +1,11 @@
 """The command line: complete --help, clear errors, exit codes."""
 
 import os
-import time
 
 import pytest
 
 from limbctl.cli import build_parser, main
+from tests.safety.support import wait_for
 
 COMMANDS = "demo calibrate record train teleop reboot motors plot eval info prepare".split()
 
@@ -55,9 +55,8 @@ def test_errors_and_bad_option_values_are_one_bounded_line_and_exit_2(tmp_path, 
 
 
 def _wait_for_alarm(sim, servo_id):
-    deadline = time.monotonic() + 10.0
-    while not sim.truth()["servos"][servo_id]["hardware_error_status"]:
-        assert time.monotonic() < deadline, "the simulated servo never raised its alarm"
+    alarm = lambda: sim.truth()["servos"][servo_id]["hardware_error_status"]  # noqa: E731
+    wait_for(alarm, 10.0, "the simulated servo to raise its alarm")
 
 
 def test_reboot_and_info_on_servos_in_alarm_and_on_a_port_another_controller_holds(sim, capsys):

@@ -2,7 +2,6 @@
 sweep out of it, judged by the simulator's goal log against the region really taught."""
 
 import json
-import math
 import re
 
 import numpy as np
@@ -60,7 +59,6 @@ def test_command_stream_has_bad_lines_and_the_demo_refuses_what_it_cannot_run(tm
     assert n == 200 and len(lines) == 204
     pans = [json.loads(x)["pan"] for x in lines if x.startswith('{"t"')]
     assert max(pans) > 100 and min(pans) < -100
-    assert math.isclose(len(lines) - n, 4)
     # the demo refuses to overwrite an earlier run, or an unknown rig
     (tmp_path / "teach.limb").write_text("old data")
     with pytest.raises(ConfigError, match="exists"):

@@ -13,37 +13,15 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("limbctl", "calib", "firmware_sim")
 
-#: Rank of each layer; a module may import modules of equal or lower rank (siblings excepted
-#: where SIBLINGS_APART says so).
-RANK = {
-    "errors": 0,
-    "calib": 0,
-    "geometry": 1,
-    "servo": 2,
-    "region": 3,
-    "envelope": 4,
-    "teach": 5,
-    "teleop": 5,
-    "view": 5,
-    "eval": 6,
-    "app": 7,
-}
+#: The layers from rank 0 up, those of one rank together; a module may import modules of equal or
+#: lower rank (siblings excepted where SIBLINGS_APART says so).
+RANKED = "errors calib, geometry, servo, region, envelope, teach teleop view, eval, app"
+#: Rank of each layer.
+RANK = {layer: rank for rank, layers in enumerate(RANKED.split(", ")) for layer in layers.split()}
 #: Layers of one rank that must not import each other.
 SIBLINGS_APART = {"teach", "teleop", "view"}
 #: Modules directly in limbctl/ that are the app.
-APP = {
-    "cli",
-    "jobs",
-    "file_jobs",
-    "upkeep",
-    "demo",
-    "live",
-    "session",
-    "plot",
-    "operators",
-    "__init__",
-    "__main__",
-}
+APP = set("cli jobs file_jobs upkeep demo live session plot operators __init__ __main__".split())
 
 
 def module_name(path: Path) -> str:
@@ -86,10 +64,8 @@ def imported(path: Path, name: str, modules: dict[str, Path]) -> set[str]:
 def layer(name: str) -> str | None:
     """The layer of a project module, None for anything outside the project."""
     parts = name.split(".")
-    if parts[0] == "calib":
-        return "calib"
-    if parts[0] == "firmware_sim":
-        return "firmware_sim"
+    if parts[0] in ("calib", "firmware_sim"):
+        return parts[0]
     if parts[0] != "limbctl":
         return None
     if len(parts) == 1:

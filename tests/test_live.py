@@ -128,15 +128,11 @@ def test_record_job_shows_its_samples_on_the_page(tmp_path, browser):
         assert "edge closed" in text_of(browser, "guide-text")
 
 
-def free_udp_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
-        probe.bind(("127.0.0.1", 0))
-        return probe.getsockname()[1]
-
-
 def test_teleop_job_shows_commanded_and_written_poses(tmp_path, hand_model_path, browser):
     """Commands go in over UDP as the page shows their effect; Ctrl-C (SIGINT) ends the job."""
-    port = free_udp_port()
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:  # a free port
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
     telemetry = tmp_path / "telemetry.jsonl"
     options = TeleopOptions(
         model=hand_model_path,
@@ -216,6 +212,8 @@ def test_teleop_feed_keeps_the_last_written_pose_names_the_edge_and_the_leaders_
     assert status.rate_hz == pytest.approx(200.0), "the rate over a second of cycles"
     assert status.cycles == 200 and status.outcome == "passed"
     assert status.words == "inside: following the command" and status.blocked == ()
+    # a two-servo feed has no band and shows no twist
+    assert board.live.twist is None and "twist" not in board.live.to_json()
     # the command lies up and to the +pan side of where the gate keeps writing the same pose
     result = GateResult((0.1, 0.2), Outcome.CORRECTED, corrected=True)
     for index in range(201, 204):

@@ -139,10 +139,8 @@ def assert_goals_safe(
     """Promise 1 on what reached the servos (every goal the gate's, inside the hard limits and
     the region); returns the largest excursion (deg). A servo dropping off between a read and
     the sync write mixes two consecutive gated poses: such a pair may lie a joint step out."""
-    exact = set(produced)
-    mixes = {(b[0], a[1]) for a, b in zip(produced, produced[1:])} | {
-        (a[0], b[1]) for a, b in zip(produced, produced[1:])
-    }
+    exact, pairs = set(produced), list(zip(produced, produced[1:]))
+    mixes = {(b[0], a[1]) for a, b in pairs} | {(a[0], b[1]) for a, b in pairs}
     lo_pan, hi_pan = joint_tick_limits(PROFILE.pan)
     lo_tilt, hi_tilt = joint_tick_limits(PROFILE.tilt)
     mixed = []

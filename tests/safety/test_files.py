@@ -196,10 +196,12 @@ def test_damaged_rig_profile_is_refused_naming_the_file_or_still_valid(tmp_path,
 
 
 # ---- the CLI refuses bad files before touching a servo -------------------------------------------
-def limbctl(*args, cwd):
+def limbctl(*args, cwd, stdout=subprocess.PIPE):
+    """``limbctl ARGS`` in a new process: its stderr, and its stdout unless sent to ``stdout``."""
     return subprocess.run(
         [sys.executable, "-m", "limbctl.cli", *map(str, args)],
-        capture_output=True,
+        stdout=stdout,
+        stderr=subprocess.PIPE,
         text=True,
         timeout=120,
         cwd=cwd,
@@ -338,14 +340,7 @@ def test_info_names_a_damaged_datasets_problem_and_survives_a_closed_pipe(
     read_end, write_end = os.pipe()
     os.close(read_end)  # the reader is gone before limbctl writes a byte, as after `| head`
     try:
-        done = subprocess.run(
-            [sys.executable, "-m", "limbctl.cli", "info", str(model)],
-            stdout=write_end,
-            stderr=subprocess.PIPE,
-            text=True,
-            timeout=120,
-            cwd=tmp_path,
-        )
+        done = limbctl("info", model, cwd=tmp_path, stdout=write_end)
     finally:
         os.close(write_end)
     assert done.returncode == 1, done.stderr

@@ -35,21 +35,9 @@ from tests.safety.support import (
 
 # ---- command streams ---------------------------------------------------------------------------
 ODD_NUMBERS = [
-    "NaN",
-    "Infinity",
-    "-Infinity",
-    "1e400",
-    "-1e400",
-    "5e-324",
-    "2.2250738585072014e-308",
+    *"NaN Infinity -Infinity 1e400 -1e400 5e-324 2.2250738585072014e-308".split(),
     "1" + "0" * 400,  # an integer too large for a float
-    "1e6",
-    "-0.0",
-    "true",
-    "null",
-    '"10"',
-    "[1]",
-    "{}",
+    *'1e6 -0.0 true null "10" [1] {}'.split(),
 ]
 any_float = st.floats(allow_nan=True, allow_infinity=True, width=64)
 finite = st.floats(-1e3, 1e3, allow_nan=False)

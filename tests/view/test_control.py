@@ -220,19 +220,11 @@ HEARTBEAT_S = 0.5
 QUIET_FRAMES = 10
 
 
-def publish(
-    board: Board,
-    written,
-    outcome: str = "held",
-    cycle: int = 1,
-    commanded=None,
-    words: str = "",
-    blocked: tuple[str, ...] = (),
-) -> None:
-    """A teleop state whose gate wrote ``written`` (pan, tilt deg) with ``outcome``."""
-    pose = PanTilt(*written)
-    commanded = PanTilt(*commanded) if commanded is not None else None
-    status = TeleopStatus(commanded, pose, outcome, 200.0, cycle, words, blocked)
+def publish(board: Board, written, outcome: str = "held", cycle: int = 1, **status) -> None:
+    """A teleop state whose gate wrote ``written`` (pan, tilt deg) with ``outcome``; ``status``:
+    its ``commanded`` (pan, tilt deg), ``words`` and ``blocked`` (as :class:`TeleopStatus`)."""
+    pose, commanded = PanTilt(*written), status.pop("commanded", None)
+    status = TeleopStatus(commanded and PanTilt(*commanded), pose, outcome, 200.0, cycle, **status)
     board.publish_live(Live(mode="teleop", pose=pose, teleop=status))
 
 
@@ -319,17 +311,8 @@ def test_the_keyed_page_steers_by_click_and_arrow_keys_and_resends_its_point(bro
         # blocked only the way its key pushes, as the terminal does, and the slide as told
         press(page, Keys.ARROW_UP, sink, '{"pan":6,"tilt":7}')
         words = "at the edge: left and up are blocked, sliding right along it"
-        blocked = ("+pan", "+tilt")
-        show(
-            page,
-            board,
-            (4.4, 5.5),
-            14,
-            "corrected",
-            commanded=(5.0, 6.0),
-            words=words,
-            blocked=blocked,
-        )
+        edge = {"commanded": (5.0, 6.0), "words": words, "blocked": ("+pan", "+tilt")}
+        show(page, board, (4.4, 5.5), 14, "corrected", **edge)
         assert text_of(page, "words") == "at the edge: up is blocked, sliding right along it"
         assert text_of(page, "holds") == "the upper edge"
         page.get(server.url)  # a page that watches: the server's words as they are

@@ -79,24 +79,14 @@ def test_page_shows_the_record_then_the_teleop_state_to_several_browsers_five_ti
 
     # the same page in teleop: the limb slides right along the top edge, which blocks it upward
     board.publish_scene(Scene(loops=(SQUARE,), limits=LIMITS, region_note="the model's region"))
+    words = "at the edge: up is blocked, sliding along it"
     for step in range(6):
-        board.publish_live(
-            Live(
-                mode="teleop",
-                pose=PanTilt(2.0 * step, 10.0),
-                teleop=TeleopStatus(
-                    commanded=PanTilt(2.0 * step + 5.0, 30.0),
-                    written=PanTilt(2.0 * step, 10.0),
-                    outcome="corrected",
-                    rate_hz=200.0,
-                    cycles=step + 1,
-                    words="at the edge: up is blocked, sliding along it",
-                    blocked=("+tilt",),
-                ),
-            )
-        )
+        # (commanded, written, outcome, rate_hz, cycles, words, blocked)
+        written, commanded = PanTilt(2.0 * step, 10.0), PanTilt(2.0 * step + 5.0, 30.0)
+        status = TeleopStatus(commanded, written, "corrected", 200.0, step + 1, words, ("+tilt",))
+        board.publish_live(Live(mode="teleop", pose=written, teleop=status))
         wait_for(browser, lambda d, s=step: text_of(d, "cycles") == str(s + 1), f"step {step}")
-    assert text_of(browser, "words") == "at the edge: up is blocked, sliding along it"
+    assert text_of(browser, "words") == words
     assert text_of(browser, "holds") == "the upper edge"
     assert browser.find_element("id", "legend-teleop").is_displayed()
     assert not browser.find_element("id", "legend-record").is_displayed()
@@ -118,19 +108,9 @@ def test_page_shows_the_record_then_the_teleop_state_to_several_browsers_five_ti
     wait_for(browser, lambda d: text_of(d, "mode") == "teleop", "mode not shown")
 
     for cycle in range(1, 6):
-        board.publish_live(
-            Live(
-                mode="teleop",
-                pose=PanTilt(2.0 * cycle, 1.0),
-                teleop=TeleopStatus(
-                    commanded=PanTilt(60.0, 30.0 + cycle),
-                    written=PanTilt(20.0, 10.0),
-                    outcome="corrected",
-                    rate_hz=199.6,
-                    cycles=cycle,
-                ),
-            )
-        )
+        commanded = PanTilt(60.0, 30.0 + cycle)
+        status = TeleopStatus(commanded, PanTilt(20.0, 10.0), "corrected", 199.6, cycle)
+        board.publish_live(Live(mode="teleop", pose=PanTilt(2.0 * cycle, 1.0), teleop=status))
         wait_for(browser, lambda d, c=cycle: text_of(d, "cycles") == str(c), f"cycle {cycle}")
         assert text_of(browser, "commanded") == f"60.0, {30.0 + cycle:.1f}"
         assert text_of(browser, "pose") == f"{2.0 * cycle:.1f}, 1.0"

@@ -54,8 +54,7 @@ def test_serves_the_page_and_the_newest_state_pushes_only_newer_versions_and_sto
         board.publish_scene(Scene(samples_deg=[[1.0, 2.0]], region_note="n"))
         board.publish_live(Live(mode="record", pose=PanTilt(1.0, 2.0), sample_count=1))
         client = connect(server)
-        first = receive(client)
-        second = receive(client)
+        first, second = receive(client), receive(client)
         assert first["kind"] == "scene" and first["samples"] == [[1.0, 2.0]]
         assert second == {
             "kind": "live",

@@ -28,14 +28,12 @@ def test_thinning_keeps_one_sample_per_cell_in_order_and_caps_the_count():
 def test_board_versions_count_publishes_and_snapshot_reads_both_parts_together():
     board = Board()
     assert board.snapshot().live is None and board.live is None and board.scene is None
-    threads = [
-        threading.Thread(
-            target=lambda k=k: [
-                board.publish_live(Live(mode="record", pose=PanTilt(k, i))) for i in range(1000)
-            ]
-        )
-        for k in range(4)
-    ]
+
+    def publish(k: int) -> None:
+        for i in range(1000):
+            board.publish_live(Live(mode="record", pose=PanTilt(k, i)))
+
+    threads = [threading.Thread(target=publish, args=(k,)) for k in range(4)]
     for thread in threads:
         thread.start()
     for thread in threads:
