@@ -120,7 +120,8 @@ def test_record_job_shows_its_samples_on_the_page(tmp_path, browser):
             lambda d: text_of(d, "sample-count") == str(len(data)),
             f"the page never showed the file's {len(data)} samples",
         )
-        assert_pose_shown(text_of(browser, "pose"), (data.pan_deg[-1], data.tilt_deg[-1]))
+        last = (data.pan_deg[-1], data.tilt_deg[-1])
+        assert_pose_shown(text_of(browser, "pose"), last, reads_apart=True)
         assert text_of(browser, "limits") == "pan -115..115, tilt -55..70"
         # the guide's last assessment, as the recorder's summary has it
         wait_for(browser, lambda d: "edge closed" in text_of(d, "guide"), "no guide figures")
@@ -179,7 +180,7 @@ def test_teleop_job_shows_commanded_and_written_poses(tmp_path, hand_model_path,
             text_of(page, "commanded") == "20.0, 20.0" == "{:.1f}, {:.1f}".format(*rows[-1]["cmd"])
         )
         last_read = [row for row in rows if row["present"] is not None][-1]
-        assert_pose_shown(text_of(page, "pose"), last_read["present"], logged_digits=4)
+        assert_pose_shown(text_of(page, "pose"), last_read["present"], 4, reads_apart=True)
 
 
 def cycle(index: int, t: float, written: bool, pan: float = 0.1) -> Cycle:

@@ -79,11 +79,21 @@ def near(rgb, target, tol: int = 8) -> bool:
     return all(abs(a - b) <= tol for a, b in zip(rgb, target, strict=True))
 
 
-def assert_pose_shown(text: str, pose_deg, logged_digits: int | None = None) -> None:
+#: One tick of an X-series servo (360 / 4096 deg): a read just before or after the logged one.
+TICK_DEG = 360.0 / 4096.0
+
+
+def assert_pose_shown(
+    text: str, pose_deg, logged_digits: int | None = None, reads_apart: bool = False
+) -> None:
     """The page's "pan, tilt" ``text`` shows ``pose_deg`` (deg) within its rounding and that of
-    ``logged_digits`` (the decimals ``pose_deg`` was rounded to)."""
+    ``logged_digits`` (the decimals ``pose_deg`` was rounded to); with ``reads_apart``, give or
+    take one tick: on a loaded machine the page's last frame was seen to carry a pose one tick
+    from the file's last (0.0504 deg past the rounding, once in record and once in teleop), the
+    frames being pushed at their own rate beside the reads."""
     shown = [float(part) for part in text.split(",")]
     slack = SHOWN_HALF_DIGIT_DEG + (0.5 * 10.0**-logged_digits if logged_digits else 0.0)
+    slack += TICK_DEG if reads_apart else 0.0
     assert len(shown) == len(pose_deg) == 2, f"not a pose: {text!r}"
     assert all(abs(a - b) <= slack + 1e-9 for a, b in zip(shown, pose_deg)), (
         f"the page shows {text}, the pose is {tuple(pose_deg)}"
