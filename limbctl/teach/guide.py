@@ -30,10 +30,9 @@ EDGE_BINS = 180
 EDGE_BAND_DEG = 1.5
 #: Share of the way to the convex hull an edge reaches, not a notch (irregular.yaml's dent: 0.6).
 NOTCH_RATIO = 0.5
-#: Widest stretch of turn (bins, 20 deg) a slow trace may leave the band for and still close: the
-#: outline joins 5 deg sectors' outermost samples, so it runs across a dent or notch at most two or
-#: three sectors wide (10-15 deg) and the trace along its walls falls below the band there; a
-#: dent any wider holds its own outline points and its trace stays in the band.
+#: Widest stretch (bins, 20 deg) a slow trace may leave the band for and still close: the outline
+#: runs across a dent 2-3 of its 5 deg sectors wide (10-15 deg), the trace along the dent's walls
+#: below the band; a dent any wider holds outline points of its own, its trace in the band.
 BRIDGE_MAX_BINS = 10
 #: Bins (4 deg) the trace between may stray past either end: a slanted notch's tip lies beyond
 #: its mouth's corner as seen from the centre.
@@ -245,14 +244,9 @@ def _speed_deg_s(t_s: np.ndarray, d: np.ndarray) -> np.ndarray:
 def _traced_across(
     t_s: np.ndarray, bins: np.ndarray, tracing: np.ndarray, on_edge: np.ndarray
 ) -> np.ndarray:
-    """Edge bins (M,) a slow trace crossed below the band, between two on-edge samples.
-
-    The trace leaves the band where the outline runs across a dent or notch narrower than its
-    sectors; it is an edge traced all the same when, from an on-edge sample to the next, the limb
-    moved slowly and was recorded without a hole, and the two lie at most BRIDGE_MAX_BINS apart
-    round the turn, every sample between them in the bins from the one to the other, give or
-    take BRIDGE_SLACK_BINS (a path through the middle sweeps round the turn). Every bin from the
-    one to the other counts.
+    """Edge bins (M,) a trace crossed below the band (across a dent the outline runs over): from
+    an on-edge sample to the next, tracing without a hole, at most BRIDGE_MAX_BINS apart, every
+    sample between in their bins give or take BRIDGE_SLACK_BINS (docs/teaching.md).
 
     Parameters
     ----------
@@ -265,8 +259,6 @@ def _traced_across(
         outline's band).
     """
     edge_at = np.flatnonzero(on_edge)
-    if len(edge_at) < 2:
-        return np.zeros(0, dtype=np.int64)
     # a break: a fast sample, or a hole in the recording before a sample
     broken = ~tracing
     broken[1:] |= np.diff(t_s) >= HOLE_MIN_S
