@@ -15,10 +15,7 @@ from limbctl.errors import ConfigError, InvalidInputError
 from limbctl.geometry.quat import geodesic_distance
 from limbctl.geometry.twist import compose, decompose, wrap
 from limbctl.region.twist_region import TwistRegion, boundary_samples
-
-unit_quats = st.lists(st.floats(-1, 1, allow_nan=False), min_size=4, max_size=4).filter(
-    lambda v: np.linalg.norm(v) > 0.1
-)
+from tests.geometry.test_quat import unit_quats
 
 #: 2 acos|<p, q>| resolves ~1e-8 rad near 0 (acos at 1): comparisons of distances allow this.
 ACOS_NOISE = 1e-7
