@@ -1,8 +1,14 @@
 import numpy as np
 import pytest
+from hypothesis import strategies as st
 
 from limbctl.errors import InvalidInputError
 from limbctl.geometry import quat
+
+#: Quaternions drawn as four coordinates in [-1, 1], not yet normalised (norm above 0.1).
+unit_quats = st.lists(st.floats(-1, 1, allow_nan=False), min_size=4, max_size=4).filter(
+    lambda v: np.linalg.norm(v) > 0.1
+)
 
 
 def random_unit(n, seed=0):

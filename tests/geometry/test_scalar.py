@@ -9,12 +9,10 @@ from hypothesis import strategies as st
 from limbctl.geometry import scalar
 from limbctl.geometry.gimbal import direction_to_pan_tilt, pan_tilt_to_direction
 from limbctl.geometry.quat import direction_angle, limb_direction, swing_from_direction
+from tests.geometry.test_quat import unit_quats
 
 angles = st.floats(-math.pi, math.pi, allow_nan=False)
 tilts = st.floats(-math.pi / 2, math.pi / 2, allow_nan=False)
-unit_quats = st.lists(st.floats(-1, 1, allow_nan=False), min_size=4, max_size=4).filter(
-    lambda v: np.linalg.norm(v) > 0.1
-)
 
 
 @settings(max_examples=200, deadline=None)

@@ -9,6 +9,7 @@ from hypothesis import strategies as st
 
 from limbctl.geometry import quat
 from limbctl.geometry import twist as tw
+from tests.geometry.test_quat import unit_quats
 
 
 def twist_quat(tau: np.ndarray | float) -> np.ndarray:
@@ -18,9 +19,6 @@ def twist_quat(tau: np.ndarray | float) -> np.ndarray:
     return np.stack([np.cos(half), np.sin(half), zero, zero], axis=-1)
 
 
-unit_quats = st.lists(st.floats(-1, 1, allow_nan=False), min_size=4, max_size=4).filter(
-    lambda v: np.linalg.norm(v) > 0.1
-)
 twists = st.floats(-3 * math.pi, 3 * math.pi, allow_nan=False)
 
 

@@ -51,15 +51,14 @@ def test_contains_and_correct_answer_one_command_and_many_alike(cone, fitted):
 
 
 @pytest.mark.parametrize("shape", ["cone", "egg"])
-def test_containment_from_the_arcs_is_the_gates(cone, shape):
+def test_containment_from_the_arcs_is_the_gates(cone, fitted, shape):
     # train's summary asks the arcs (the fit's kernel); the gate asks its grid: the same answers
     rng = np.random.default_rng(4)
-    if shape == "cone":
-        region, train, test = cone
-    else:
+    _, train, test = cone
+    if shape == "egg":
         region = PolygonRegion(EGG)
         train, test = region.sample(800, rng), region.test_directions(4000, rng)
-    fitted = TaughtRegion().fit(train)
+        fitted = TaughtRegion().fit(train)
     near = fitted.mesh.vertices[fitted.mesh.edges[:, 0]]
     far = rng.normal(size=(2000, 3))
     for d in (train, test, near, far / np.linalg.norm(far, axis=1, keepdims=True)):

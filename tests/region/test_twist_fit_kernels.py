@@ -194,8 +194,7 @@ def test_a_slope_through_three_stops_is_not_read():
     d = np.vstack([d, [-math.sin(a), -math.sin(a), 1.0]])
     d /= np.linalg.norm(d, axis=1, keepdims=True)
     limit = 0.4 + 1.5 * d[:, 0]
-    start = np.array([0, 4], dtype=np.int64)
-    members = np.arange(4, dtype=np.int64)
+    start, members = _one_node(d)
     ref = np.zeros(1)
     args = (math.radians(3), math.radians(0.5), 0.25, 2.0, 8.6, math.radians(3), 0.02)
     free = (math.radians(4), 1.4, np.zeros(1, dtype=bool))

@@ -10,11 +10,9 @@ from limbctl.geometry.quat import geodesic_distance, limb_direction, tangent_fra
 from limbctl.geometry.twist import compose, wrap
 from limbctl.region import twist_kernels as tk
 from limbctl.region.twist_band import TwistBand
+from tests.geometry.test_quat import unit_quats
 
 X = np.array([1.0, 0.0, 0.0])
-unit_quats = st.lists(st.floats(-1, 1, allow_nan=False), min_size=4, max_size=4).filter(
-    lambda v: np.linalg.norm(v) > 0.1
-)
 directions = st.lists(st.floats(-1, 1, allow_nan=False), min_size=3, max_size=3).filter(
     lambda v: np.linalg.norm(v) > 0.1
 )

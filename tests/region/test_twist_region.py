@@ -15,10 +15,7 @@ from limbctl.errors import ConfigError, InvalidInputError
 from limbctl.geometry.quat import geodesic_distance
 from limbctl.geometry.twist import compose, decompose, wrap
 from limbctl.region.twist_region import TwistRegion, boundary_samples
-
-unit_quats = st.lists(st.floats(-1, 1, allow_nan=False), min_size=4, max_size=4).filter(
-    lambda v: np.linalg.norm(v) > 0.1
-)
+from tests.geometry.test_quat import unit_quats
 
 #: 2 acos|<p, q>| resolves ~1e-8 rad near 0 (acos at 1): comparisons of distances allow this.
 ACOS_NOISE = 1e-7
@@ -187,10 +184,13 @@ def test_commands_near_the_edge_and_near_the_stops(shoulder, k, inward, twist, b
     assert geodesic_distance(q, out) <= geodesic_distance(q, clamp) + ACOS_NOISE
 
 
-def test_single_and_batch_agree(shoulder):
+def test_one_command_is_answered_as_in_a_batch_and_the_arrays_round_trip(shoulder):
     truth, region, _ = shoulder
-    q = _commands(truth, 200, np.random.default_rng(10))
+    q = _commands(truth, 500, np.random.default_rng(12))
     batch = region.correct(q)
+    copy = TwistRegion.from_arrays(region.arrays(), region.params, region.edge)
+    np.testing.assert_array_equal(copy.correct(q), batch)
+    np.testing.assert_array_equal(copy.contains(q), region.contains(q))
     for row, expected in zip(q, batch, strict=True):
         np.testing.assert_array_equal(region.correct(row), expected)
         assert region.contains(row) == region.contains(row[None])[0]
@@ -218,11 +218,3 @@ def test_regions_reaching_backwards_are_refused():
 def test_unbuilt_region_says_how_to_build():
     with pytest.raises(ConfigError, match="fit"):
         TwistRegion().correct(np.array([1.0, 0, 0, 0]))
-
-
-def test_arrays_round_trip(shoulder):
-    truth, region, _ = shoulder
-    copy = TwistRegion.from_arrays(region.arrays(), region.params, region.edge)
-    q = _commands(truth, 500, np.random.default_rng(12))
-    np.testing.assert_array_equal(copy.correct(q), region.correct(q))
-    np.testing.assert_array_equal(copy.contains(q), region.contains(q))
