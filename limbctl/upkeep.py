@@ -157,6 +157,10 @@ def run_motor_setup(options: MotorSetupOptions) -> int:
         check_target(target)  # a bad baud or model is refused before anything is asked
     ids = {name: joint.id for name, joint in joints.items()}
     bauds = options.bauds or SCAN_BAUDS
+    unknown_rates = sorted(set(bauds) - set(SCAN_BAUDS))
+    if unknown_rates:
+        rates = ", ".join(str(baud) for baud in sorted(SCAN_BAUDS))
+        raise ConfigError(f"--scan-baud {unknown_rates[0]}: no X-series servo runs at it ({rates})")
     done: list[str] = []
     failed: list[str] = []
     skipped: list[str] = []

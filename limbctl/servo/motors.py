@@ -71,10 +71,11 @@ def _the_one_servo(result: ScanResult, target: JointTarget) -> tuple[int, int, i
         )
     asked = set(result.seconds) | set(result.skipped)  # scanned, or not open to the driver
     if not result.found and asked and not asked >= set(SCAN_BAUDS):
-        rates = ", ".join(str(baud) for baud in sorted(result.seconds))
+        rates = ", ".join(str(baud) for baud in sorted(result.seconds)) or "none"
+        skipped = "".join(f"; {baud} baud not tried: {why}" for baud, why in result.skipped.items())
         raise ConfigError(
-            f"no servo answers for the {joint} joint at {rates} baud, the only rates scanned "
-            f"(--scan-baud): connect its servo, or scan every rate (leave --scan-baud out)"
+            f"no servo answers for the {joint} joint; baud rates scanned (--scan-baud): {rates}"
+            f"{skipped}: connect its servo, or scan every rate (leave --scan-baud out)"
         )
     if not result.found:
         raise ConfigError(f"no servo answers for the {joint} joint: {NOTHING_ANSWERS}")

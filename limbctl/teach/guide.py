@@ -250,13 +250,10 @@ def _traced_across(
 
     Parameters
     ----------
-    t_s : ndarray, shape (N,)
-        The samples' times (s, in order).
-    bins : ndarray of int, shape (N,)
-        Each sample's edge bin (of EDGE_BINS round the turn).
+    t_s, bins : ndarray, shape (N,)
+        The samples' times (s, in order); their edge bins (int, of EDGE_BINS round the turn).
     tracing, on_edge : ndarray of bool, shape (N,)
-        Tracing (slow enough, and not halfway to the centre); and on the edge (slow and in the
-        outline's band).
+        Slow and not halfway to the centre; on the edge (slow and in the outline's band).
     """
     edge_at = np.flatnonzero(on_edge)
     # a break: a fast sample, or a hole in the recording before a sample

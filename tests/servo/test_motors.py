@@ -80,8 +80,8 @@ def run_the_flow_on(sim, tmp_path):
         ),
         (
             {"factory": 2, "connect": ()},
-            f"no servo answers for the pan joint at 57600, {PROFILE.baud} baud, the only rates "
-            "scanned (--scan-baud)",
+            f"no servo answers for the pan joint; baud rates scanned (--scan-baud): 57600, "
+            f"{PROFILE.baud}:",
         ),
         (
             {"factory": 2, "connect": (), "bauds": SCAN_BAUDS},
@@ -217,10 +217,12 @@ def test_at_the_factory_id_and_baud_only_a_factory_fresh_servo_is_nobodys(tmp_pa
     setup.append("--joint")
     with SimulatedBus(factory=2, connect=(1,), eeprom_dir=eeprom, link=link) as sim:
         # a factory servo (57600 baud) is not found where --scan-baud looks elsewhere, and so said
+        assert motors_setup(rig, sim.port, "--yes", "--joint", "pan", bauds=(12_345,)) == 2
+        assert "--scan-baud 12345: no X-series servo runs at it" in capsys.readouterr().err
         assert motors_setup(rig, sim.port, "--yes", "--joint", "pan", bauds=(1_000_000,)) == 1
         assert (
-            "pan: FAILED: no servo answers for the pan joint at 1000000 baud, the only rates "
-            "scanned (--scan-baud): connect its servo, or scan every rate (leave --scan-baud out)"
+            "pan: FAILED: no servo answers for the pan joint; baud rates scanned (--scan-baud): "
+            "1000000: connect its servo, or scan every rate (leave --scan-baud out)"
         ) in capsys.readouterr().err.splitlines()
         assert main([*setup, "pan", "--port", sim.port]) == 0
     with SimulatedBus(factory=2, connect=(1,), eeprom_dir=eeprom, link=link) as sim:
