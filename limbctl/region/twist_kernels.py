@@ -41,7 +41,8 @@ COS_APART = math.cos(START_APART)
 SCAN_RADIUS = math.radians(8.0)
 #: Scanned nodes searched from, best score first (each skipped within a grid step of a start).
 NODE_STARTS = 3
-#: Rows of scratch the search needs beyond the direction mesh's (see ``_correct_one``).
+#: Rows of scratch the search needs beyond the direction mesh's (see ``_correct_one``; its search
+#: is called, not inlined: inlined, it took 213 s to compile, docs/decisions/first_run.md).
 WORK_EXTRA = 9 + MAX_STARTS
 
 
@@ -126,7 +127,7 @@ def _compose_into(d, tau, out) -> None:
     out[3] = sign * (sz * c - sy * s)
 
 
-@njit(inline="always")
+@njit
 def _search(qc, dq, cur, best, best_tau, mesh, band, work, step, step_min):
     """Pattern search over swing-region directions from ``cur`` (its score ``best``, twist
     ``best_tau``) for the largest ``F`` (:func:`_score`), its step halving from ``step`` until
@@ -183,7 +184,7 @@ def _search(qc, dq, cur, best, best_tau, mesh, band, work, step, step_min):
     return best, best_tau
 
 
-@njit(inline="always")
+@njit
 def _search_from(qc, dq, alt, best, step, mesh, band, work):
     """A further start at ``alt`` (moved to its optimum): searched from ``step`` (rad) down to
     ``STEP_COARSE``, and on to ``STEP_MIN`` only while it beats ``best``; its ``(F, tau)``."""
@@ -195,7 +196,7 @@ def _search_from(qc, dq, alt, best, step, mesh, band, work):
     return f, t
 
 
-@njit(inline="always")
+@njit
 def _correct_one(q, mesh, band, seeds, seed_dirs, out, work) -> int:
     """Correct one quaternion into ``out``: 1 inside (``out = q``), 0 corrected, -1 bad input.
     ``mesh``: the direction mesh's kernel arguments, ``band = (frame, grid, centre, half)``;
@@ -297,7 +298,7 @@ def _correct_one(q, mesh, band, seeds, seed_dirs, out, work) -> int:
     return 0
 
 
-@njit(inline="always")
+@njit
 def _scan_nodes(qc, dq, cur, best, best_tau, mesh, band, work):
     """Search again from the band grid nodes within ``SCAN_RADIUS`` of ``cur`` scoring best: the
     ``NODE_STARTS`` best scoring nodes (each more than a grid step from ``cur`` and from
