@@ -21,8 +21,9 @@ def station_estimates_reference(s, total, owner, depth, reach):
 def _circle(radius_deg: float, points: int) -> np.ndarray:
     t = np.linspace(0.0, 2.0 * np.pi, points, endpoint=False)
     r = np.radians(radius_deg)
+    # about +x, the axis of ConeRegion
     return np.column_stack(
-        [np.sin(r) * np.cos(t), np.sin(r) * np.sin(t), np.full(points, np.cos(r))]
+        [np.full(points, np.cos(r)), np.sin(r) * np.cos(t), np.sin(r) * np.sin(t)]
     )
 
 
@@ -37,7 +38,7 @@ def test_the_kernel_gives_the_numpy_loops_estimates_to_the_bit(seed, radius_deg,
     # the stations only, empty windows give 0 and one-sided ones the spacing estimate
     data = ConeRegion(np.radians(20.0)).sample(3000, np.random.default_rng(seed))
     if quarter:
-        data = data[data[:, 0] > 0.25]
+        data = data[(data[:, 1] > 0.0) & (data[:, 2] > 0.0)]
     curve, _, _ = resample_loop(_circle(radius_deg, 90), np.radians(1.5))
     s, total = station_positions(curve)
     owner, depth = readings(curve, data)
