@@ -74,7 +74,7 @@ class RecordSummary:
         out.extend(f"dropout            {dropout}" for dropout in self.dropouts)
         if self.guidance:
             out.extend(f"hole               {hole.line()}" for hole in self.guidance.holes)
-            out.append(f"guide              {self.guidance.line()}")
+            out.append(f"guide              {guide_words(self.guidance, self.twist)}")
             out.extend(
                 f"edge unsupported   {stretch.request()} ({stretch.length_deg:.1f} deg of edge "
                 f"up to {stretch.distance_deg:.1f} deg from every sample)"
@@ -234,19 +234,19 @@ def record(
         if on_twist is not None and twist is not None:
             on_twist(twist)
         if progress is not None:
-            _draw(
-                progress,
-                summary.guidance,
-                summary,
-                summary.elapsed_s,
-                duration_s,
-                on_terminal,
-                twist,
-            )
+            elapsed = summary.elapsed_s
+            _draw(progress, summary.guidance, summary, elapsed, duration_s, on_terminal, twist)
             if on_terminal:
                 progress.write("\n")
                 progress.flush()
         return summary
+
+
+def guide_words(guidance: Guidance, twist: TwistGuidance | None) -> str:
+    """The swing guide's line; on a three-servo rig READY waits for the twist guide too."""
+    if twist is None or twist.complete:
+        return guidance.line()
+    return guidance.line().replace("READY TO TRAIN", "twist still to teach")
 
 
 def _draw(
@@ -261,9 +261,7 @@ def _draw(
     """One progress line (time, samples, failed reads, the guides' lines), in place on a tty."""
     total = f"/{duration_s:.0f}" if duration_s else ""
     failed = f"  failed reads {summary.failed_reads}" if summary.failed_reads else ""
-    words = guidance.line()
-    if twist is not None and not twist.complete:  # READY waits for the twist too
-        words = words.replace("READY TO TRAIN", "twist still to teach")
+    words = guide_words(guidance, twist)
     line = f"{elapsed:5.1f}{total} s  {summary.samples} samples{failed}  {words}"
     if twist is not None:  # a terminal's line is rewritten in place: the short form there
         line += f"  {twist.short() if on_terminal else twist.line()}"

@@ -18,7 +18,7 @@ from limbctl.servo.bus import ServoBus
 from limbctl.session import demo_region_path, open_rig
 from limbctl.teach.dataset import DatasetWriter, load_dataset
 from limbctl.teach.guide import Guidance
-from limbctl.teach.record import record
+from limbctl.teach.record import RecordSummary, record
 from limbctl.teach.train import train
 from limbctl.teach.twist_guide import MIN_CELL_SAMPLES, TwistGuidance
 
@@ -220,3 +220,21 @@ def test_a_hole_in_the_recording_over_the_edge_trace_is_listed_and_asks_for_a_re
     assert summary.twist is not None and f"guide              {summary.twist.line()}" in (
         summary.lines()
     )
+
+
+def test_the_summary_says_ready_only_when_the_twist_guide_is_satisfied_too():
+    """Issue 35: the three-servo demo's summary said READY TO TRAIN while its twist guide still
+    asked for six places and train listed 132 stretches of the band it could not support."""
+    ready = Guidance(1000, "ready", 1.0, 1.0, (), (), True, (0.0, 0.0), 30.0)
+    asking = TwistGuidance(3, 2, 80.0, (10.0, 5.0, 20.0))
+    done = TwistGuidance(3, 3, 80.0, (10.0, 5.0, 70.0), support_checked=True)
+
+    def guide_line(twist):
+        return next(
+            line for line in RecordSummary(guidance=ready, twist=twist).lines() if "edge" in line
+        )
+
+    assert "READY TO TRAIN" not in guide_line(asking) and "twist still to teach" in guide_line(
+        asking
+    )
+    assert "READY TO TRAIN" in guide_line(done) and "READY TO TRAIN" in guide_line(None)
