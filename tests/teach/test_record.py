@@ -1,6 +1,7 @@
 """Teach by hand on the simulator: the recorder samples the scripted hand at >= 100 Hz."""
 
 import io
+import re
 import threading
 from pathlib import Path
 
@@ -49,6 +50,10 @@ class Terminal(io.StringIO):
         return True
 
 
+#: The recorder's report of a dropout, written on lines of its own between the guide's.
+DROPOUT_LINE = re.compile(r"\n+[^\r\n]* silent [^\r\n]*; recording on\n")
+
+
 def test_the_recorder_shows_the_guide_on_one_updating_line_or_logs_it_every_few_seconds(tmp_path):
     progress, seen, logged = Terminal(), [], io.StringIO()
     with open_rig(hand=demo_region_path(), seed=2) as session:
@@ -60,7 +65,8 @@ def test_the_recorder_shows_the_guide_on_one_updating_line_or_logs_it_every_few_
             record(session.rig, writer, 100.0, 6.0, progress=logged)
     assert len(seen) >= 3 and all(isinstance(g, Guidance) for g in seen)
     assert seen[-1] is summary.guidance and summary.guidance.samples == summary.samples
-    head, updates = progress.getvalue().split("\n", 1)
+    # a dropout (the simulator starved of CPU) is reported on lines of its own: not the guide's
+    head, updates = DROPOUT_LINE.sub("", progress.getvalue()).split("\n", 1)
     assert "Enter or Ctrl-C stops" in head
     # one line, rewritten in place: carriage returns, no new line until the end
     lines = updates.rstrip("\n").split("\r")[1:]
@@ -72,7 +78,7 @@ def test_the_recorder_shows_the_guide_on_one_updating_line_or_logs_it_every_few_
     assert summary.guidance.phase == "edge" and "edge gap" in last
     assert any(line.startswith("guide ") for line in summary.lines())
     # without a terminal: the head, one line at 5 s, the last
-    lines = logged.getvalue().splitlines()
+    lines = DROPOUT_LINE.sub("\n", logged.getvalue()).splitlines()
     assert "\r" not in logged.getvalue() and len(lines) == 3, "not logged every few seconds"
     assert all("edge closed" in line for line in lines[1:])
 
