@@ -9,6 +9,7 @@ import numpy as np
 
 from limbctl.geometry.gimbal import pan_tilt_to_direction
 from limbctl.geometry.quat import direction_angle
+from limbctl.region.edge_hold import crossings
 from limbctl.region.evidence import EVIDENCE_DEG, unsupported_stretches
 from limbctl.region.loops import loop_length
 from limbctl.region.mesh import DirectionMesh
@@ -184,27 +185,9 @@ def reach_beyond(edges: list[np.ndarray], region: DirectionMesh) -> float:
 
 def arcs_cross(loops: list[np.ndarray]) -> bool:
     """Whether any two non-adjacent arcs of the closed ``loops`` (each (M, 3)) cross: each one's
-    ends on both sides of the other's great circle, their midpoints facing the same way."""
-    a = np.vstack(loops)
-    b = np.vstack([np.roll(lp, -1, axis=0) for lp in loops])
-    owner = np.concatenate([np.full(lp.shape[0], i) for i, lp in enumerate(loops)])
-    index = np.concatenate([np.arange(lp.shape[0]) for lp in loops])
-    size = np.array([lp.shape[0] for lp in loops])[owner]
-    pole = np.cross(a, b)
-    mid = a + b
-    for start in range(0, a.shape[0], 256):
-        sl = slice(start, start + 256)
-        # (J, I): arc j's ends on both sides of arc i's great circle, and the converse
-        j_split = np.sign(a @ pole[sl].T) * np.sign(b @ pole[sl].T) < 0
-        i_split = (np.sign(a[sl] @ pole.T) * np.sign(b[sl] @ pole.T)).T < 0
-        hit = j_split & i_split & (mid @ mid[sl].T > 0.0)
-        rows = np.arange(a.shape[0])[:, None]
-        cols = np.arange(a.shape[0])[sl][None, :]
-        apart = np.abs(index[rows] - index[cols])
-        adjacent = (owner[rows] == owner[cols]) & ((apart <= 1) | (apart == size[rows] - 1))
-        if np.any(hit & ~adjacent):
-            return True
-    return False
+    ends on both sides of the other's great circle, their midpoints facing the same way
+    (:func:`limbctl.region.edge_hold.crossings`)."""
+    return crossings(loops).shape[0] > 0
 
 
 def unexplained_gap(edge: np.ndarray, data: np.ndarray, supported: DirectionMesh) -> float:

@@ -57,13 +57,15 @@ def hold_to_evidence(
     data: np.ndarray,
     reach: float = np.radians(REACH_DEG),
     patient: bool = False,
+    straight: bool = False,
 ) -> tuple[DirectionMesh, bool]:
     """``mesh`` held to within ``reach`` (rad) of the taught directions ``data`` (N, 3).
 
     Each round that crosses or loses a taught sample gives the held arcs nearest the trouble
     their unheld edges back. A ``patient`` hold gets ``PATIENT_ROUNDS`` more rounds, and in
     those the arcs nearest the samples a round pinned are given back too (their pins crossed):
-    where a hold at ``reach`` cannot keep the samples, it keeps the held edge elsewhere.
+    where a hold at ``reach`` cannot keep the samples, it keeps the held edge elsewhere. A
+    ``straight`` hold moves far points straight toward their nearest sample, never along a normal.
 
     Returns
     -------
@@ -81,8 +83,9 @@ def hold_to_evidence(
     if not held.any():
         return mesh, False
     before = mesh.contains(data)
+    walk = 0.0 if straight else WALK_DEG
     for number in range(UNHOLD_ROUNDS + (PATIENT_ROUNDS if patient else 0)):
-        loops = _held_loops(mesh, held, tree, reach)
+        loops = _held_loops(mesh, held, tree, reach, walk)
         pinned = [np.empty((0, 3))]
         for _ in range(PIN_ROUNDS):
             trouble = crossings([p for p, _, _ in loops])
@@ -111,8 +114,8 @@ def hold_to_evidence(
 
 def crossings(loops: list[np.ndarray]) -> np.ndarray:
     """Middles (C, 3) of the arcs of the closed ``loops`` (each (M, 3)) that cross a non-adjacent
-    arc (:func:`limbctl.region.acceptance.arcs_cross`'s test, ends within ``ON_CIRCLE_RAD`` of a
-    great circle not across it).
+    arc: each one's ends on both sides of the other's great circle (ends within ``ON_CIRCLE_RAD``
+    of it not across), their midpoints facing the same way.
     """
     a = np.vstack(loops)
     b = np.vstack([np.roll(lp, -1, axis=0) for lp in loops])
@@ -197,9 +200,10 @@ def _offset(p: np.ndarray, pole: np.ndarray, margin: float) -> np.ndarray:
 
 
 def _held_loops(
-    mesh: DirectionMesh, held: np.ndarray, tree: cKDTree, reach: float
+    mesh: DirectionMesh, held: np.ndarray, tree: cKDTree, reach: float, walk: float
 ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    """Per loop its points (K, 3), margins (K,) and chain flags (K,), ``held`` (E,) arcs held."""
+    """Per loop its points (K, 3), margins (K,) and chain flags (K,), ``held`` (E,) arcs held,
+    far points walked in at most ``walk`` (deg; 0: straight toward the nearest sample)."""
     a_all = mesh.vertices[mesh.edges[:, 0]]
     b_all = mesh.vertices[mesh.edges[:, 1]]
     poles = np.cross(a_all, b_all)
@@ -227,7 +231,7 @@ def _held_loops(
             if m > 0.0:
                 rows.append((_offset(b_all[e], poles[e], m), 0.0, poles[e], True))
         p, widen, normals, chain = (np.array(c) for c in zip(*rows, strict=True))
-        loops.append(_hold_chain(p, widen, _tangent(normals, p), chain, tree, reach))
+        loops.append(_hold_chain(p, widen, _tangent(normals, p), chain, tree, reach, walk))
     return loops
 
 
@@ -244,7 +248,13 @@ def _slerp(a: np.ndarray, b: np.ndarray, t: float) -> np.ndarray:
 
 
 def _hold_chain(
-    p: np.ndarray, w: np.ndarray, n: np.ndarray, chain: np.ndarray, tree: cKDTree, reach: float
+    p: np.ndarray,
+    w: np.ndarray,
+    n: np.ndarray,
+    chain: np.ndarray,
+    tree: cKDTree,
+    reach: float,
+    walk: float,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """One loop's points (K, 3), margins (K,), inward normals (K, 3), chain flags (K,): held,
     refined, unfolded.
@@ -252,7 +262,7 @@ def _hold_chain(
     original = p.copy()
     far = chain & (tree.query(p)[0] > chord(reach))
     p = p.copy()
-    p[far] = _walk(p[far], n[far], tree, reach)
+    p[far] = _walk(p[far], n[far], tree, reach, walk)
     spread = np.radians(SPREAD_STATIONS * STATION_DEG)
     for _ in range(REFINE_PASSES):
         nxt = np.roll(np.arange(p.shape[0]), -1)
@@ -265,7 +275,7 @@ def _hold_chain(
         mid_n = _tangent(n[gap] + n[nxt[gap]], mid)
         mid_far = tree.query(mid)[0] > chord(reach)
         held = mid.copy()
-        held[mid_far] = _walk(mid[mid_far], mid_n[mid_far], tree, reach)
+        held[mid_far] = _walk(mid[mid_far], mid_n[mid_far], tree, reach, walk)
         at = np.flatnonzero(gap) + 1
         p = np.insert(p, at, held, axis=0)
         original = np.insert(original, at, mid, axis=0)
@@ -274,17 +284,18 @@ def _hold_chain(
         chain = np.insert(chain, at, True)
         far = np.insert(far, at, mid_far)
     p, w, chain = _unfolded(p, w, chain)
-    return _held_chords(p, w, chain, tree, reach)
+    return _held_chords(p, w, chain, tree, reach, walk)
 
 
 def _held_chords(
-    p: np.ndarray, w: np.ndarray, chain: np.ndarray, tree: cKDTree, reach: float
+    p: np.ndarray, w: np.ndarray, chain: np.ndarray, tree: cKDTree, reach: float, walk: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Points (K, 3), margins (K,), chain flags (K,) with chain points and chords held within
     ``reach`` (rad): a chord whose middle or quarters lie ``CHORD_SLACK_DEG`` farther gets its
     middle held.
     """
     bound, slack = chord(reach), chord(reach + np.radians(CHORD_SLACK_DEG))
+    chord_walk = CHORD_WALK_DEG if walk > 0.0 else 0.0
     for _ in range(CHORD_PASSES):
         k = p.shape[0]
         nxt, prev = np.roll(np.arange(k), -1), np.roll(np.arange(k), 1)
@@ -293,7 +304,8 @@ def _held_chords(
         lone = chain & (tree.query(p)[0] > bound)
         if lone.any():
             p = p.copy()
-            p[lone] = _walk(p[lone], _tangent(pole[lone] + pole[prev[lone]], p[lone]), tree, reach)
+            n_lone = _tangent(pole[lone] + pole[prev[lone]], p[lone])
+            p[lone] = _walk(p[lone], n_lone, tree, reach, walk)
         mid = p + p[nxt]
         mid /= np.linalg.norm(mid, axis=1, keepdims=True)
         worst = np.zeros(k)
@@ -308,7 +320,7 @@ def _held_chords(
         at = np.flatnonzero(gap)
         # straight toward the nearest sample: the least move, no jump across a bay to fold back
         held = _walk(
-            mid[at], _tangent(np.cross(p[at], p[nxt[at]]), mid[at]), tree, reach, CHORD_WALK_DEG
+            mid[at], _tangent(np.cross(p[at], p[nxt[at]]), mid[at]), tree, reach, chord_walk
         )
         p = np.insert(p, at + 1, held, axis=0)
         w = np.insert(w, at + 1, 0.0)

@@ -46,7 +46,7 @@ CORNER_TURN_DEG = 60.0
 #: Least growth of the thinning spacing a step while over the cap: ends in a few steps.
 THIN_GROWTH = 1.05
 #: Version of the construction, raised when it changes a region: `limbctl eval`'s cache key.
-FIT_VERSION = 11
+FIT_VERSION = 12
 #: Carving rounds at most: a bridged bay is a few triangles deep; 12 empty the families' bays.
 CARVE_ROUNDS = 12
 #: Most share of taught samples carving may leave out: a bay's bridge holds none.
@@ -150,9 +150,13 @@ class TaughtRegion:
         # REACH_DEG: where that gave up, the samples are too sparse for any hold (a 90 deg cone's
         # 1000 samples: half its edge walked 3 deg in, no containment gained)
         region, self.held_edge = hold_to_evidence(taken.region, d_train)
-        tight, held_tight = hold_to_evidence(
-            region, d_train, np.radians(HOLD_REACH_DEG), patient=self.held_edge
-        )
+        tight_reach = np.radians(HOLD_REACH_DEG)
+        tight, held_tight = hold_to_evidence(region, d_train, tight_reach, patient=self.held_edge)
+        if self.held_edge and not held_tight:
+            # walked in, its chain crosses itself or leaves samples out: pulled straight instead
+            tight, held_tight = hold_to_evidence(
+                region, d_train, tight_reach, patient=True, straight=True
+            )
         if held_tight:
             region, self.held_edge = tight, True
         if self.held_edge:
