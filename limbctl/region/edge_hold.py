@@ -11,13 +11,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from limbctl.region.evidence import (
-    REACH_DEG,
-    STATION_DEG,
-    edge_stations,
-    loop_arcs,
-    outer_arcs,
-)
+from limbctl.region.evidence import REACH_DEG, STATION_DEG, edge_stations, loop_arcs, outer_arcs
 from limbctl.region.loops import chord
 from limbctl.region.mesh import DirectionMesh
 
@@ -50,6 +44,9 @@ INSIDE_RAD = 1e-9
 ON_CIRCLE_RAD = 1e-12
 #: Stations a fold may span: a bay's width, up to 14 deg (56 spacings).
 FOLD_WINDOW = 60
+#: Ends this close (deg) pair a far chord with one running back beside it, a sliver: a pinned
+#: sample's spike held straight leaves its sides 0.01-0.02 apart; half a tick (0.088).
+SLIVER_DEG = 0.05
 
 
 def hold_to_evidence(
@@ -164,13 +161,7 @@ def _pinned(
                 continue
             pole = np.cross(p[on], p[nxt[on]])
             pole /= np.maximum(np.linalg.norm(pole, axis=1, keepdims=True), 1e-15)
-            # the chord's nearest point to x: its foot on the great circle, or an end
-            foot = x - (pole @ x)[:, None] * pole
-            foot /= np.maximum(np.linalg.norm(foot, axis=1, keepdims=True), 1e-15)
-            between = (np.einsum("ij,ij->i", np.cross(p[on], foot), pole) >= 0.0) & (
-                np.einsum("ij,ij->i", np.cross(foot, p[nxt[on]]), pole) >= 0.0
-            )
-            near = np.where(between, foot @ x, np.maximum(p[on] @ x, p[nxt[on]] @ x))
+            near = _nearest_cos(x, p[on], p[nxt[on]], pole)
             j = int(np.argmax(near))
             if best is None or near[j] > best[0]:
                 best = (near[j], number, int(on[j]), pole[j])
@@ -185,6 +176,17 @@ def _pinned(
             np.insert(chain, i + 1, True),
         )
     return loops
+
+
+def _nearest_cos(x: np.ndarray, a: np.ndarray, b: np.ndarray, pole: np.ndarray) -> np.ndarray:
+    """Cosines (M,) from ``x`` (3,) to the arcs ``a -> b`` (M, 3 each, unit poles ``pole``): to
+    each one's foot on its great circle when between its ends, else to its nearer end."""
+    foot = x - (pole @ x)[:, None] * pole
+    foot /= np.maximum(np.linalg.norm(foot, axis=1, keepdims=True), 1e-15)
+    between = (np.einsum("ij,ij->i", np.cross(a, foot), pole) >= 0.0) & (
+        np.einsum("ij,ij->i", np.cross(foot, b), pole) >= 0.0
+    )
+    return np.where(between, foot @ x, np.maximum(a @ x, b @ x))
 
 
 def _tangent(normal: np.ndarray, at: np.ndarray) -> np.ndarray:
@@ -231,7 +233,8 @@ def _held_loops(
             if m > 0.0:
                 rows.append((_offset(b_all[e], poles[e], m), 0.0, poles[e], True))
         p, widen, normals, chain = (np.array(c) for c in zip(*rows, strict=True))
-        loops.append(_hold_chain(p, widen, _tangent(normals, p), chain, tree, reach, walk))
+        held_loop = _hold_chain(p, widen, _tangent(normals, p), chain, tree, reach, walk)
+        loops.extend(_cut_slivers(*held_loop, tree, reach))
     return loops
 
 
@@ -308,13 +311,8 @@ def _held_chords(
             p[lone] = _walk(p[lone], n_lone, tree, reach, walk)
         mid = p + p[nxt]
         mid /= np.linalg.norm(mid, axis=1, keepdims=True)
-        worst = np.zeros(k)
-        for t in (0.25, 0.5, 0.75):
-            q = (1.0 - t) * p + t * p[nxt]
-            q /= np.linalg.norm(q, axis=1, keepdims=True)
-            worst = np.maximum(worst, tree.query(q)[0])
         # a chain chord, or the first or last chord of a chain (from the vertex a kept arc ends at)
-        gap = (chain | chain[nxt]) & (w == 0.0) & (worst > slack)
+        gap = (chain | chain[nxt]) & (w == 0.0) & (_worst(p, tree) > slack)
         if not gap.any() and not lone.any():
             break
         at = np.flatnonzero(gap)
@@ -330,6 +328,44 @@ def _held_chords(
     nxt = np.roll(np.arange(p.shape[0]), -1)
     keep = ~(chain & (np.einsum("ij,ij->i", p, p[nxt]) >= 1.0 - 1e-15))
     return p[keep], w[keep], chain[keep]
+
+
+def _worst(p: np.ndarray, tree: cKDTree) -> np.ndarray:
+    """Per chord ``i -> i+1`` of the closed loop ``p`` (K, 3): the farthest (chord length) its
+    quarters and middle lie from the taught directions in ``tree``."""
+    q = np.stack([(1.0 - t) * p + t * np.roll(p, -1, axis=0) for t in (0.25, 0.5, 0.75)])
+    q /= np.linalg.norm(q, axis=2, keepdims=True)
+    return tree.query(q)[0].max(axis=0)
+
+
+def _cut_slivers(
+    p: np.ndarray, w: np.ndarray, chain: np.ndarray, tree: cKDTree, reach: float
+) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """The closed loop ``p`` (K, 3), margins ``w`` (K,), chain flags (K,) cut at its slivers.
+
+    A sliver: a chain chord ``i -> i+1`` lying past the reach as ``_held_chords`` judges it, and
+    a chain chord ``j -> j+1`` running back beside it, ``p[j]`` and ``p[j+1]`` within
+    ``SLIVER_DEG`` of ``p[i+1]`` and ``p[i]``, no taught sample that near the first. Cut, the
+    loop closes ``i -> j+1`` and ``i+1 .. j`` closes on its own (dropped under 3 points), each
+    then unfolded (the hairpins a cut leaves at its ends cross): the region loses the sliver
+    alone. Returns the loops (points, margins, chain flags).
+    """
+    k, width = p.shape[0], np.radians(SLIVER_DEG)
+    nxt = np.roll(np.arange(k), -1)
+    bare = chain & chain[nxt] & (w == 0.0)
+    far = bare & (_worst(p, tree) > chord(reach + np.radians(CHORD_SLACK_DEG)))
+    for i in np.flatnonzero(far):
+        a, b = p[i], p[nxt[i]]
+        # j -> j+1 back beside i -> i+1, j not i, leaving the rest of the loop 3 points
+        back = bare & (np.linalg.norm(p - b, axis=1) <= chord(width))
+        back &= (np.linalg.norm(p[nxt] - a, axis=1) <= chord(width)) & ((nxt - i - 2) % k < k - 3)
+        arc = (a[None], b[None], np.cross(a, b)[None] / np.linalg.norm(np.cross(a, b)))
+        near = tree.data[tree.query_ball_point(a, np.linalg.norm(a - b) + chord(width))]
+        if back.any() and all(_nearest_cos(x, *arc)[0] < np.cos(width) for x in near):
+            parts = np.split(np.roll(np.arange(k), -(i + 1)), [(np.flatnonzero(back)[0] - i) % k])
+            cut = [_unfolded(p[t], w[t], chain[t]) for t in parts if t.size >= 3]
+            return [c for part in cut for c in _cut_slivers(*part, tree, reach)]
+    return [(p, w, chain)]
 
 
 def _walk(

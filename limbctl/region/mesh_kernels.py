@@ -44,47 +44,8 @@ def _angle(a, b) -> float:
 @njit
 def nearest_on_arc(p, a, b, out) -> float:
     """Nearest point ``out`` (3,) on the short great-circle arc a-b to ``p``; returns its angle."""
-    nx = a[1] * b[2] - a[2] * b[1]
-    ny = a[2] * b[0] - a[0] * b[2]
-    nz = a[0] * b[1] - a[1] * b[0]
-    nn = math.sqrt(nx * nx + ny * ny + nz * nz)
-    if nn > 0.0:
-        nx /= nn
-        ny /= nn
-        nz /= nn
-        # foot of p on the arc's great circle: p - (p.n) n, normalised
-        pn = p[0] * nx + p[1] * ny + p[2] * nz
-        fx = p[0] - pn * nx
-        fy = p[1] - pn * ny
-        fz = p[2] - pn * nz
-        fn = math.sqrt(fx * fx + fy * fy + fz * fz)
-        if fn > 0.0:
-            fx /= fn
-            fy /= fn
-            fz /= fn
-            # within the arc: (n x a) . f >= 0 and (b x n) . f >= 0
-            s1 = (
-                (ny * a[2] - nz * a[1]) * fx
-                + (nz * a[0] - nx * a[2]) * fy
-                + (nx * a[1] - ny * a[0]) * fz
-            )
-            s2 = (
-                (b[1] * nz - b[2] * ny) * fx
-                + (b[2] * nx - b[0] * nz) * fy
-                + (b[0] * ny - b[1] * nx) * fz
-            )
-            if s1 >= 0.0 and s2 >= 0.0:
-                out[0] = fx
-                out[1] = fy
-                out[2] = fz
-                return _angle(p, out)
-    da = _angle(p, a)
-    db = _angle(p, b)
-    end = a if da <= db else b
-    out[0] = end[0]
-    out[1] = end[1]
-    out[2] = end[2]
-    return da if da <= db else db
+    angle, out[0], out[1], out[2] = _foot(p[0], p[1], p[2], a[0], a[1], a[2], b[0], b[1], b[2])
+    return angle
 
 
 @njit
@@ -100,11 +61,14 @@ def _angle3(ax, ay, az, bx, by, bz) -> float:
 @njit
 def edge_foot(p, vertices, edges, e):
     """:func:`nearest_on_arc` of ``p`` (3,) and arc ``e`` on scalars: (angle (rad), x, y, z)."""
-    i = edges[e, 0]
-    j = edges[e, 1]
-    px, py, pz = p[0], p[1], p[2]
-    ax, ay, az = vertices[i, 0], vertices[i, 1], vertices[i, 2]
-    bx, by, bz = vertices[j, 0], vertices[j, 1], vertices[j, 2]
+    i, j = edges[e, 0], edges[e, 1]
+    a0, a1, a2 = vertices[i, 0], vertices[i, 1], vertices[i, 2]
+    return _foot(p[0], p[1], p[2], a0, a1, a2, vertices[j, 0], vertices[j, 1], vertices[j, 2])
+
+
+@njit
+def _foot(px, py, pz, ax, ay, az, bx, by, bz):
+    """Nearest point of the short great-circle arc a-b to p, on scalars: (angle, x, y, z)."""
     nx = ay * bz - az * by
     ny = az * bx - ax * bz
     nz = ax * by - ay * bx

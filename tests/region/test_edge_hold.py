@@ -15,17 +15,20 @@ import pytest
 from scipy.spatial import cKDTree
 
 from limbctl.envelope.synthetic import PolygonRegion, reach_into
+from limbctl.geometry.gimbal import pan_tilt_to_direction
 from limbctl.region import TaughtRegion
 from limbctl.region import taught as taught_module
-from limbctl.region.edge_hold import hold_to_evidence
+from limbctl.region.edge_hold import _cut_slivers, hold_to_evidence
 from limbctl.region.evidence import (
     HELD_SLACK_DEG,
+    HOLD_REACH_DEG,
     REACH_DEG,
     STATION_DEG,
     edge_stations,
     outer_arcs,
     unsupported_stations,
 )
+from limbctl.region.mesh import DirectionMesh
 from tests.region.test_evidence import notched_ellipse
 
 #: The scan's own step (deg): a direction of the region lies within half a diagonal of it.
@@ -166,3 +169,58 @@ def test_a_dense_teaching_whose_edge_stands_a_degree_from_its_samples_stays_with
     assert region.held_edge and all(s.held for s in region.unsupported_edge)
     assert reach <= 1.0, f"the held region reaches {reach:.2f} deg past the truth"
     assert np.mean(region.mesh.contains(taught)) >= 0.995
+
+
+def test_a_sliver_the_straight_hold_leaves_is_cut_and_its_island_kept():
+    """Issue 35 finding 1: a sparse i.i.d. teaching (600 samples) of the swing families' outline
+    17: the straight tight hold left a sliver, a chord 3.86 deg long out to a pinned sample's
+    reach circle and one back 0.01-0.02 deg beside it, and the region reached 2.15 deg past the
+    truth there. Cut, the region stays within the 1 deg promise, keeps the taught samples, and
+    the report names unheld exactly the places where its edge still stands past the reach."""
+    families = _swing_families()
+    outline, _ = families.random_outline(np.random.default_rng(17))
+    taught = families.teach(outline, "iid sparse", 17)
+    region = TaughtRegion().fit(taught)
+    lo, hi = outline.min(axis=0) - 4.0, outline.max(axis=0) + 4.0
+    box = ((lo[0], hi[0]), (lo[1], hi[1]))
+    reach = reach_into(region.contains, PolygonRegion(outline), box, step_deg=SCAN_DEG)
+    assert region.held_edge
+    assert reach <= 1.0, f"the held region reaches {reach:.2f} deg past the truth"
+    assert np.mean(region.mesh.contains(taught)) >= 0.995
+    bound = REACH_DEG + HELD_SLACK_DEG
+    far = unsupported_stations(region.mesh, taught, np.radians(bound), surrounded=False)[3]
+    left = [s for s in region.unsupported_edge if not s.held]
+    assert (far.size > 0) == bool(left) and all(s.distance_deg > bound for s in left)
+
+
+def _tongue(sample_in_it: bool):
+    """A square loop (pan, tilt within 5 deg) with a tongue 4 deg long and 0.02 deg wide out to
+    an island about a sample at (9.5, 0), held edge throughout; samples 1 deg apart in the
+    square, the island's, and one in the tongue when asked. Returns (points, margins, chain
+    flags), the cKDTree of the samples, and the samples (N, 3)."""
+    corners = [(-5, -5), (5, -5), (5, -0.01), (9, -0.01), (9, -0.5), (10, -0.5), (10, 0.5)]
+    corners += [(9, 0.5), (9, 0.01), (5, 0.01), (5, 5), (-5, 5)]
+    p = pan_tilt_to_direction(*np.radians(np.array(corners, dtype=float).T))
+    grid = np.stack(np.meshgrid(np.arange(-4.5, 5.0), np.arange(-4.5, 5.0)), -1).reshape(-1, 2)
+    samples = np.vstack([grid, [(9.5, 0.0)]] + ([[(7.0, 0.0)]] if sample_in_it else []))
+    d = pan_tilt_to_direction(*np.radians(samples.T))
+    k = p.shape[0]
+    return (p, np.zeros(k), np.ones(k, dtype=bool)), cKDTree(d), d
+
+
+def test_a_sliver_holding_no_sample_is_cut_from_the_loop():
+    """The tongue's chords lie past the reach of every sample, running back 0.02 deg apart: the
+    loop is cut into the square and the island, the region loses the tongue alone, and every
+    sample stays in; with a sample in the tongue the loop comes back whole."""
+    loop, tree, d = _tongue(sample_in_it=False)
+    reach = np.radians(HOLD_REACH_DEG)
+    cut = _cut_slivers(*loop, tree, reach)
+    assert sorted(p.shape[0] for p, _, _ in cut) == [6, 6]
+    whole = DirectionMesh.from_loops([loop[0]], 0.0, lookup=False)
+    parts = DirectionMesh.from_loops([p for p, _, _ in cut], 0.0, lookup=False)
+    assert parts.contains(d).all()
+    tongue = pan_tilt_to_direction(*np.radians(np.array([[6.0, 7.0, 8.0], [0.0, 0.0, 0.0]])))
+    assert whole.contains(tongue).all() and not parts.contains(tongue).any()
+    loop, tree, _ = _tongue(sample_in_it=True)
+    kept = _cut_slivers(*loop, tree, reach)
+    assert len(kept) == 1 and kept[0][0] is loop[0]
