@@ -16,6 +16,8 @@ from limbctl.region.union_find import UnionFind
 
 #: Share of points the alpha scale joins into one piece: strays (1 %) must not set it.
 JOINED_FRACTION = 0.99
+#: Arcs either side whose readings a dense arc's own estimate pools: triples its readings.
+OWN_ARCS = 1
 
 
 def thin(d: np.ndarray, spacing: float) -> np.ndarray:
@@ -254,13 +256,15 @@ def edge_margins(
     """How far (rad) to widen each arc of the loops so the region reaches the true edge. Each
     direction of ``data`` (N, 3) belongs to its nearest arc. An arc's margin is the endpoint
     estimate (:func:`limbctl.region.gaps.line_gap`) of the ``top`` outermost depths beyond its great
-    circle of the data of the arcs within ``window`` (rad) along the loop, at least the depth of
-    every sample outside it, at most ``max_margin`` (one value, or per loop (M,) caps). An arc
-    longer than ``max_bridge`` only covers the samples beyond it; an arc cutting a traced concave
-    corner is held by :func:`corner_limits`. Returns per loop (M,), ``i`` for arc ``i -> i + 1``."""
+    circle of the data of the arcs within ``window`` (rad) along the loop, or, if less and they lie
+    within the cap, of the own depths past the loop of its and ``OWN_ARCS`` arcs' data either side;
+    at least the depth of every sample outside it, at most ``max_margin`` (or per loop (M,) caps).
+    An arc longer than ``max_bridge`` only covers the samples beyond it; an arc cutting a traced
+    concave corner is held by :func:`corner_limits`. Per loop (M,), ``i`` for arc ``i -> i + 1``."""
     vertices, edges = loops_to_edges(loops)
     nearest, angle = shape_kernels.nearest_arcs(data, vertices, edges)
     outside = ~inside_reference(data, vertices, edges)
+    signed = np.where(outside, angle, -angle)
     need = np.zeros(edges.shape[0])
     np.maximum.at(need, nearest[outside], angle[outside])
     out = []
@@ -268,8 +272,7 @@ def edge_margins(
     for number, lp in enumerate(loops):
         m = lp.shape[0]
         cap = max_margin if np.isscalar(max_margin) else max_margin[number]
-        nxt = np.roll(lp, -1, axis=0)
-        pole = -np.cross(lp, nxt)
+        pole = -np.cross(lp, np.roll(lp, -1, axis=0))
         pole /= np.linalg.norm(pole, axis=1, keepdims=True)
         seg = edge_lengths(lp, np.column_stack([np.arange(m), (np.arange(m) + 1) % m]))
         # arc-length position of each arc's middle along the loop
@@ -286,9 +289,12 @@ def edge_margins(
             if rows.size == 0:
                 continue
             # o = asin(x . n): signed angle beyond the arc's great circle
-            vals = np.arcsin(np.clip(data[rows] @ pole[e], -1.0, 1.0))
-            vals = -np.sort(-vals)[:top]
+            vals = -np.sort(-np.arcsin(np.clip(data[rows] @ pole[e], -1.0, 1.0)))[:top]
             est[e] = vals[0] + line_gap(vals)
+            # dense (within the cap): own depths, free of this arc's tilt and the loop's turns
+            own = -np.sort(-signed[buckets.rows(np.arange(e - OWN_ARCS, e + OWN_ARCS + 1) % m)])
+            if own.size >= top and own[0] - own[top - 1] <= cap:
+                est[e] = min(est[e], own[0] + line_gap(own[:top]))
         margin = np.clip(np.maximum(est, need[start : start + m]), 0.0, cap)
         limit = corner_limits(lp, margin, seg, max_bridge, traced_arc, corner_turn)
         out.append(np.maximum(np.minimum(margin, limit), need[start : start + m]))
