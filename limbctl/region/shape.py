@@ -16,8 +16,6 @@ from limbctl.region.union_find import UnionFind
 
 #: Share of points the alpha scale joins into one piece: strays (1 %) must not set it.
 JOINED_FRACTION = 0.99
-#: Arcs either side whose readings a dense arc's own estimate pools: triples its readings.
-OWN_ARCS = 1
 
 
 def thin(d: np.ndarray, spacing: float) -> np.ndarray:
@@ -257,9 +255,9 @@ def edge_margins(
     direction of ``data`` (N, 3) belongs to its nearest arc. An arc's margin is the endpoint
     estimate (:func:`limbctl.region.gaps.line_gap`) of the ``top`` outermost depths beyond its great
     circle of the data of the arcs within ``window`` (rad) along the loop, or, if less and they lie
-    within the cap, of the own depths past the loop of its and ``OWN_ARCS`` arcs' data either side;
-    at least the depth of every sample outside it, at most ``max_margin`` (or per loop (M,) caps).
-    An arc longer than ``max_bridge`` only covers the samples beyond it; an arc cutting a traced
+    within a third of the cap, of the own depths past the loop of its and its neighbours' data; at
+    least the depth of every sample outside it, at most ``max_margin`` (or per loop (M,) caps). An
+    arc longer than ``max_bridge`` only covers the samples beyond it; an arc cutting a traced
     concave corner is held by :func:`corner_limits`. Per loop (M,), ``i`` for arc ``i -> i + 1``."""
     vertices, edges = loops_to_edges(loops)
     nearest, angle = shape_kernels.nearest_arcs(data, vertices, edges)
@@ -291,9 +289,10 @@ def edge_margins(
             # o = asin(x . n): signed angle beyond the arc's great circle
             vals = -np.sort(-np.arcsin(np.clip(data[rows] @ pole[e], -1.0, 1.0)))[:top]
             est[e] = vals[0] + line_gap(vals)
-            # dense (within the cap): own depths, free of this arc's tilt and the loop's turns
-            own = -np.sort(-signed[buckets.rows(np.arange(e - OWN_ARCS, e + OWN_ARCS + 1) % m)])
-            if own.size >= top and own[0] - own[top - 1] <= cap:
+            # dense (its and its neighbours' top within a third of the cap: 7500 family samples,
+            # not 1500-2000): own depths, free of this arc's tilt and the loop's turns
+            own = -np.sort(-signed[buckets.rows(np.arange(e - 1, e + 2) % m)])
+            if own.size >= top and own[0] - own[top - 1] <= cap / 3.0:
                 est[e] = min(est[e], own[0] + line_gap(own[:top]))
         margin = np.clip(np.maximum(est, need[start : start + m]), 0.0, cap)
         limit = corner_limits(lp, margin, seg, max_bridge, traced_arc, corner_turn)
