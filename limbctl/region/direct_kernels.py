@@ -45,7 +45,8 @@ def arc_bounds(vertices, edges):
 def nearest_midpoint(p, mids) -> int:
     """Index of the arc whose midpoint (``mids`` (E, 3)) is nearest ``p`` (3,), the first of
     equal ones; -1 when there are no arcs."""
-    nearest, best_dot = -1, -np.inf
+    nearest = -1
+    best_dot = -np.inf
     for e in range(mids.shape[0]):
         # p . mids[e], without handing a row to a kernel (edge_foot says why)
         dot = p[0] * mids[e, 0] + p[1] * mids[e, 1] + p[2] * mids[e, 2]

@@ -42,7 +42,8 @@ HULL_REACH_DEG = 89.0
 
 def outward_at_stations(loop: np.ndarray, s: np.ndarray, at_vertex: np.ndarray) -> np.ndarray:
     """Outward pole (K, 3) of the loop arc each station lies on: ``-(a x b) / |a x b|``."""
-    pole = -np.cross(loop, np.roll(loop, -1, axis=0))
+    nxt = np.roll(loop, -1, axis=0)
+    pole = -np.cross(loop, nxt)
     pole /= np.maximum(np.linalg.norm(pole, axis=1, keepdims=True), 1e-15)
     e = np.clip(np.searchsorted(at_vertex, s, side="right") - 1, 0, loop.shape[0] - 1)
     return pole[e]

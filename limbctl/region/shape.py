@@ -254,15 +254,13 @@ def edge_margins(
     """How far (rad) to widen each arc of the loops so the region reaches the true edge. Each
     direction of ``data`` (N, 3) belongs to its nearest arc. An arc's margin is the endpoint
     estimate (:func:`limbctl.region.gaps.line_gap`) of the ``top`` outermost depths beyond its great
-    circle of the data of the arcs within ``window`` (rad) along the loop, or, if less and they lie
-    within a third of the cap, of the own depths past the loop of its and its neighbours' data; at
-    least the depth of every sample outside it, at most ``max_margin`` (or per loop (M,) caps). An
-    arc longer than ``max_bridge`` only covers the samples beyond it; an arc cutting a traced
-    concave corner is held by :func:`corner_limits`. Per loop (M,), ``i`` for arc ``i -> i + 1``."""
+    circle of the data of the arcs within ``window`` (rad) along the loop, at least the depth of
+    every sample outside it, at most ``max_margin`` (one value, or per loop (M,) caps). An arc
+    longer than ``max_bridge`` only covers the samples beyond it; an arc cutting a traced concave
+    corner is held by :func:`corner_limits`. Returns per loop (M,), ``i`` for arc ``i -> i + 1``."""
     vertices, edges = loops_to_edges(loops)
     nearest, angle = shape_kernels.nearest_arcs(data, vertices, edges)
     outside = ~inside_reference(data, vertices, edges)
-    signed = np.where(outside, angle, -angle)
     need = np.zeros(edges.shape[0])
     np.maximum.at(need, nearest[outside], angle[outside])
     out = []
@@ -270,7 +268,8 @@ def edge_margins(
     for number, lp in enumerate(loops):
         m = lp.shape[0]
         cap = max_margin if np.isscalar(max_margin) else max_margin[number]
-        pole = -np.cross(lp, np.roll(lp, -1, axis=0))
+        nxt = np.roll(lp, -1, axis=0)
+        pole = -np.cross(lp, nxt)
         pole /= np.linalg.norm(pole, axis=1, keepdims=True)
         seg = edge_lengths(lp, np.column_stack([np.arange(m), (np.arange(m) + 1) % m]))
         # arc-length position of each arc's middle along the loop
@@ -287,13 +286,9 @@ def edge_margins(
             if rows.size == 0:
                 continue
             # o = asin(x . n): signed angle beyond the arc's great circle
-            vals = -np.sort(-np.arcsin(np.clip(data[rows] @ pole[e], -1.0, 1.0)))[:top]
+            vals = np.arcsin(np.clip(data[rows] @ pole[e], -1.0, 1.0))
+            vals = -np.sort(-vals)[:top]
             est[e] = vals[0] + line_gap(vals)
-            # dense (its and its neighbours' top within a third of the cap: 7500 family samples,
-            # not 1500-2000): own depths, free of this arc's tilt and the loop's turns
-            own = -np.sort(-signed[buckets.rows(np.arange(e - 1, e + 2) % m)])
-            if own.size >= top and own[0] - own[top - 1] <= cap / 3.0:
-                est[e] = min(est[e], own[0] + line_gap(own[:top]))
         margin = np.clip(np.maximum(est, need[start : start + m]), 0.0, cap)
         limit = corner_limits(lp, margin, seg, max_bridge, traced_arc, corner_turn)
         out.append(np.maximum(np.minimum(margin, limit), need[start : start + m]))
