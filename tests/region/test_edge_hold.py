@@ -135,19 +135,29 @@ def _swing_families():
     return families
 
 
+def _fit_swing_family(seed: int, kind: str):
+    """The swing families' outline ``seed`` taught ``kind``: the samples (N, 3), the region fitted
+    from them, and how far (deg) it reaches past the outline (scanned SCAN_DEG apart)."""
+    families = _swing_families()
+    outline, _ = families.random_outline(np.random.default_rng(seed))
+    taught = families.teach(outline, kind, seed)
+    region = TaughtRegion().fit(taught)
+    lo, hi = outline.min(axis=0) - 4.0, outline.max(axis=0) + 4.0
+    box = ((lo[0], hi[0]), (lo[1], hi[1]))
+    return (
+        taught,
+        region,
+        reach_into(region.contains, PolygonRegion(outline), box, step_deg=SCAN_DEG),
+    )
+
+
 def test_a_sparse_teaching_whose_tight_hold_walks_into_trouble_stays_within_1_deg():
     """Issue 35 finding 1: a sparse i.i.d. teaching (600 samples) of the swing families' outline 1
     (a notch): the tight hold, walking far points in along their normals, lost samples its pins
     could not put back without crossing and gave up, and the region stood at ``REACH_DEG``, 1.16
     deg past the truth by the notch. Held straight toward the samples instead, it stays within
     the 1 deg promise, keeps the taught samples, and still asks for the stretches it holds."""
-    families = _swing_families()
-    outline, _ = families.random_outline(np.random.default_rng(1))
-    taught = families.teach(outline, "iid sparse", 1)
-    region = TaughtRegion().fit(taught)
-    lo, hi = outline.min(axis=0) - 4.0, outline.max(axis=0) + 4.0
-    box = ((lo[0], hi[0]), (lo[1], hi[1]))
-    reach = reach_into(region.contains, PolygonRegion(outline), box, step_deg=SCAN_DEG)
+    taught, region, reach = _fit_swing_family(1, "iid sparse")
     assert region.held_edge
     assert reach <= 1.0, f"the held region reaches {reach:.2f} deg past the truth"
     assert np.mean(region.mesh.contains(taught)) >= 0.995
@@ -159,13 +169,7 @@ def test_a_dense_teaching_whose_edge_stands_a_degree_from_its_samples_stays_with
     the swing families' outline 2 (two bays) reached 1.03 deg past the truth, where its edge
     stood 1.0-1.25 deg from every sample; held again to ``HOLD_REACH_DEG`` it stays within the
     1 deg promise and keeps every taught sample the region held."""
-    families = _swing_families()
-    outline, _ = families.random_outline(np.random.default_rng(2))
-    taught = families.teach(outline, "iid dense", 2)
-    region = TaughtRegion().fit(taught)
-    lo, hi = outline.min(axis=0) - 4.0, outline.max(axis=0) + 4.0
-    box = ((lo[0], hi[0]), (lo[1], hi[1]))
-    reach = reach_into(region.contains, PolygonRegion(outline), box, step_deg=SCAN_DEG)
+    taught, region, reach = _fit_swing_family(2, "iid dense")
     assert region.held_edge and all(s.held for s in region.unsupported_edge)
     assert reach <= 1.0, f"the held region reaches {reach:.2f} deg past the truth"
     assert np.mean(region.mesh.contains(taught)) >= 0.995
@@ -177,13 +181,7 @@ def test_a_sliver_the_straight_hold_leaves_is_cut_and_its_island_kept():
     reach circle and one back 0.01-0.02 deg beside it, and the region reached 2.15 deg past the
     truth there. Cut, the region stays within the 1 deg promise, keeps the taught samples, and
     the report names unheld exactly the places where its edge still stands past the reach."""
-    families = _swing_families()
-    outline, _ = families.random_outline(np.random.default_rng(17))
-    taught = families.teach(outline, "iid sparse", 17)
-    region = TaughtRegion().fit(taught)
-    lo, hi = outline.min(axis=0) - 4.0, outline.max(axis=0) + 4.0
-    box = ((lo[0], hi[0]), (lo[1], hi[1]))
-    reach = reach_into(region.contains, PolygonRegion(outline), box, step_deg=SCAN_DEG)
+    taught, region, reach = _fit_swing_family(17, "iid sparse")
     assert region.held_edge
     assert reach <= 1.0, f"the held region reaches {reach:.2f} deg past the truth"
     assert np.mean(region.mesh.contains(taught)) >= 0.995
