@@ -164,13 +164,21 @@ def assert_goals_safe(
 
 
 @contextmanager
+def configured_rig(port: str, **bus_options) -> Iterator[Rig]:
+    """The sim rig on ``port`` through the real SDK (``ServoBus`` ``bus_options``): configured,
+    torque on."""
+    with ServoBus.from_profile(PROFILE, port=port, **bus_options) as bus:
+        rig = Rig(PROFILE, bus)
+        rig.configure()
+        rig.set_torque(True)
+        yield rig
+
+
+@contextmanager
 def live_rig(goal_log: Path | None = None, **sim_options) -> Iterator[tuple[SimulatedBus, Rig]]:
     """The simulated rig through the real SDK: configured, torque on, at rest."""
     with SimulatedBus(ids=PROFILE.ids, goal_log=goal_log, **sim_options) as sim:
-        with ServoBus.from_profile(PROFILE, port=sim.port) as bus:
-            rig = Rig(PROFILE, bus)
-            rig.configure()
-            rig.set_torque(True)
+        with configured_rig(sim.port) as rig:
             yield sim, rig
 
 

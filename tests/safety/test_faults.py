@@ -27,6 +27,7 @@ from tests.safety.support import (
     RecordingGate,
     assert_goals_safe,
     bean_model,
+    configured_rig,
     gate_limits,
     goal_log_poses,
     live_rig,
@@ -246,12 +247,11 @@ def sim_rig(goal_log=None):
     """The simulated rig driven as ``open_rig`` drives it (latency timer 2 ms), logging its reads
     (set up at the SDK's patient 16 ms: a loaded machine's late reply fails no set-up)."""
     with SimulatedBus(ids=PROFILE.ids, goal_log=goal_log) as sim:
-        with ServoBus.from_profile(PROFILE, port=sim.port) as setup:
-            Rig(PROFILE, setup).configure()
-            Rig(PROFILE, setup).set_torque(True)
+        with configured_rig(sim.port) as setup:
+            pwm_limits = setup.bus.pwm_limits  # what set-up read, for the loop bus's reports
         bus = ServoBus.from_profile(PROFILE, port=sim.port, latency_timer_ms=SIM_LATENCY_TIMER_MS)
         with bus:
-            bus.note_pwm_limits(setup.pwm_limits)  # what set-up read, for this bus's reports
+            bus.note_pwm_limits(pwm_limits)
             yield sim, ReadLog(PROFILE, bus)
 
 

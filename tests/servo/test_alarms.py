@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import pytest
 
-from calib import default_sim_profile
 from limbctl.errors import ServoAlarm
 from limbctl.servo.alarms import (
     Rebooted,
@@ -13,18 +12,12 @@ from limbctl.servo.alarms import (
     reboot_servos_in_alarm,
     switched_off,
 )
-from limbctl.servo.bus import ServoBus
-from limbctl.servo.rig import Rig
-
-PROFILE = default_sim_profile()
+from tests.safety.support import configured_rig
 
 
 @pytest.fixture
 def rig(sim):
-    with ServoBus.from_profile(PROFILE, port=sim.port) as bus:
-        rig = Rig(PROFILE, bus)
-        rig.configure()
-        rig.set_torque(True)
+    with configured_rig(sim.port) as rig:
         yield rig
 
 

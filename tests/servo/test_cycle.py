@@ -7,7 +7,6 @@ import pytest
 from dynamixel_sdk import BROADCAST_ID
 
 from calib import default_sim_profile
-from limbctl.servo.bus import ServoBus
 from limbctl.servo.control_table import Register
 from limbctl.servo.cycle import (
     CYCLE_BYTES,
@@ -16,18 +15,14 @@ from limbctl.servo.cycle import (
     indirect_map,
     read_around_silent,
 )
-from limbctl.servo.rig import Rig
+from tests.safety.support import configured_rig
 
 PROFILE = default_sim_profile()
 
 
 @pytest.fixture(params=[True, False], ids=["fast-sync-read", "sync-read"])
 def rig(sim, request):
-    bus = ServoBus.from_profile(PROFILE, port=sim.port, fast_sync_read=request.param)
-    with bus:
-        rig = Rig(PROFILE, bus)
-        rig.configure()
-        rig.set_torque(True)
+    with configured_rig(sim.port, fast_sync_read=request.param) as rig:
         yield rig
 
 

@@ -21,7 +21,7 @@ from limbctl.servo.rig import Rig
 from limbctl.teleop.approach import SETTLE_DEG
 from limbctl.teleop.margin import START_MARGIN_DEG, margins_for
 from limbctl.teleop.start import MAX_APPROACH_SPEED_DEG_S, StartOptions, start_session
-from tests.safety.support import settle, wait_for
+from tests.safety.support import configured_rig, settle, wait_for
 from tests.teleop.chains import RATE, RIGS, chain_gate, live_chain, off_axis_deg, pose_of
 
 
@@ -169,10 +169,7 @@ def options(model, sim, source, **kwargs):
 
 def put_limb(sim, pan_deg, tilt_deg):
     """Test set-up outside any gate: drive the limb there and leave torque on, holding it."""
-    with ServoBus.from_profile(PROFILE, port=sim.port) as bus:
-        rig = Rig(PROFILE, bus)
-        rig.configure()
-        rig.set_torque(True)
+    with configured_rig(sim.port) as rig:
         settle(rig, (math.radians(pan_deg), math.radians(tilt_deg)))
 
 
