@@ -16,15 +16,7 @@ from limbctl.errors import ConfigError
 from limbctl.plot import plot_leader
 from limbctl.session import demo_region_path
 from limbctl.teach.dataset import load_dataset
-
-
-def packet_directions(goal_log):
-    by_time = {}
-    for line in goal_log.read_text().splitlines():
-        row = json.loads(line)
-        by_time[row["t"]] = row["limb_dir"]
-    d = np.asarray(list(by_time.values()))
-    return d / np.linalg.norm(d, axis=1, keepdims=True)
+from tests.safety.support import packet_directions
 
 
 def test_teach_train_teleop_keeps_every_goal_in_the_taught_region(tmp_path):

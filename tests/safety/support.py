@@ -123,6 +123,22 @@ def goal_log_poses(path: Path, start_offset: int = 0) -> list[LoggedGoal]:
     return list(poses.values())
 
 
+def packet_values(goal_log: Path, key: str) -> np.ndarray:
+    """Each goal packet's ``key`` in the simulator's goal log, one row per packet: the last line
+    of each ``t`` (a sync write's lines share it; earlier ones mix old and new goals)."""
+    by_time = {}
+    for line in goal_log.read_text().splitlines():
+        row = json.loads(line)
+        by_time[row["t"]] = row[key]
+    return np.asarray(list(by_time.values()))
+
+
+def packet_directions(goal_log: Path) -> np.ndarray:
+    """The limb direction (M, 3) each goal packet commanded, of unit length."""
+    d = packet_values(goal_log, "limb_dir")
+    return d / np.linalg.norm(d, axis=1, keepdims=True)
+
+
 def excursion_deg(model, directions: np.ndarray) -> np.ndarray:
     """Angle (deg) each limb direction (N, 3) lies outside ``model``'s region (0 inside)."""
     d = np.atleast_2d(np.asarray(directions, dtype=np.float64))

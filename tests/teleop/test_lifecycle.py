@@ -16,6 +16,7 @@ from limbctl.teleop.lifecycle import run_session
 from limbctl.teleop.loop import LoopConfig
 from limbctl.teleop.sources import SourceContext, parse_source
 from limbctl.teleop.start import StartOptions
+from tests.safety.support import packet_values
 from tests.teleop.chains import chain_gate, live_chain
 
 
@@ -56,16 +57,12 @@ def test_session_on_three_servos_keeps_every_goal_in_the_region(tmp_path):
     assert result.start.started and result.start.how == "inside"
     assert result.summary.exit_code == 0, result.lines()
     assert result.summary.goals_written > 300
-    by_time = {}
-    for line in log.read_text().splitlines():
-        row = json.loads(line)
-        by_time[row["t"]] = row["limb_q"]
+    packets = packet_values(log, "limb_q")
     tolerance = math.radians(written_tolerance_deg(joints=3))
-    for q in by_time.values():
-        q = np.asarray(q)
+    for q in packets:
         if not region.contains(q):
             assert geodesic(q, region.correct(q)) <= tolerance
-    twists = [math.degrees(float(np.arctan2(q[1], q[0]) * 2)) for q in by_time.values()]
+    twists = [math.degrees(float(np.arctan2(q[1], q[0]) * 2)) for q in packets]
     # the stream asked for roll +-150: the gate turned the twist out toward the band's +-30 deg
     assert max(twists) > 20 and min(twists) < -20
     assert max(abs(v) for v in twists) <= 30.0 + written_tolerance_deg(joints=3)

@@ -21,6 +21,7 @@ from limbctl.teleop.cycle import CycleState
 from limbctl.teleop.gate import Outcome
 from limbctl.teleop.loop import ControlLoop, LoopConfig, Telemetry, run
 from limbctl.teleop.sources import ReplaySource, StreamSource
+from tests.safety.support import packet_directions
 
 RATE = 200.0
 MAX_SPEED = 120.0
@@ -36,16 +37,6 @@ def cone_model(cone_file):
 def write_lines(path, rows):
     path.write_text("".join((r if isinstance(r, str) else json.dumps(r)) + "\n" for r in rows))
     return path
-
-
-def packet_poses(goal_log):
-    """(pan tilt goals per sync write) -> limb directions, one per packet (last line per t)."""
-    by_time = {}
-    for line in goal_log.read_text().splitlines():
-        row = json.loads(line)
-        by_time[row["t"]] = row["limb_dir"]
-    d = np.asarray(list(by_time.values()))
-    return d / np.linalg.norm(d, axis=1, keepdims=True)
 
 
 def run_session(model_path, source, goal_log, telemetry=None, config=None):
@@ -88,7 +79,7 @@ def test_stream_leaving_the_region_is_gated_and_bad_lines_refused(tmp_path, cone
     excursion = goal_log_excursions(goal_log, model)
     assert len(excursion) > 100
     assert excursion.max() <= 2 * HALF_TICK_DEG
-    poses = packet_poses(goal_log)
+    poses = packet_directions(goal_log)
     angles = np.degrees(direction_angle(poses, np.array([1.0, 0.0, 0.0])))
     assert angles.max() <= 40.0 + 2 * HALF_TICK_DEG
     assert angles.max() >= 39.0  # it did slide along the edge, not stop short
