@@ -19,6 +19,16 @@ from tests import system_tools
 HAND_RECORDING = Path(__file__).parent / "data" / "hand_irregular_seed0_20s.limb"
 
 
+class SteppedClock:
+    """A clock the test sets and steps: ``t`` seconds (the firmware_sim simulators' in
+    tests/firmware_sim/conftest.py, the pacer's in tests/teleop/test_pacing.py)."""
+
+    t = 0.0
+
+    def __call__(self) -> float:
+        return self.t
+
+
 @pytest.fixture
 def sim(tmp_path):
     """A :class:`SimulatedBus` of servos 1 and 2 at 4 Mbps, checked to shut down cleanly."""

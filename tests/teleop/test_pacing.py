@@ -8,18 +8,9 @@ import threading
 import pytest
 
 from limbctl.teleop.pacing import BACKLOG_PERIODS, Pacer, PaceWatch
+from tests.conftest import SteppedClock
 
 PERIOD = 0.005
-
-
-class SteppedClock:
-    """A clock that a cycle's work and the pacer's waits move forward."""
-
-    def __init__(self) -> None:
-        self.now = 0.0
-
-    def __call__(self) -> float:
-        return self.now
 
 
 class SteppedStop(threading.Event):
@@ -30,7 +21,7 @@ class SteppedStop(threading.Event):
         self.clock = clock
 
     def wait(self, timeout: float | None = None) -> bool:
-        self.clock.now += timeout or 0.0
+        self.clock.t += timeout or 0.0
         return False
 
 
@@ -40,17 +31,17 @@ def run(cycle_s: list[float], idle_s: float | None = None):
     idle work's calls (clock s)."""
     clock = SteppedClock()
     pacer, stop = Pacer(PERIOD, clock), SteppedStop(clock)
-    pacer.start(clock.now)
+    pacer.start(clock.t)
     starts: list[float] = []
     calls: list[float] = []
 
     def idle() -> None:
-        calls.append(clock.now)
-        clock.now += idle_s
+        calls.append(clock.t)
+        clock.t += idle_s
 
     for work in cycle_s:
-        starts.append(clock.now)
-        clock.now += work
+        starts.append(clock.t)
+        clock.t += work
         if idle_s is None:
             pacer.wait(stop)
         else:
@@ -105,8 +96,8 @@ def test_idle_work_runs_about_every_period_while_waiting_and_the_slot_is_kept():
             return super().wait(timeout)
 
     pacer, stop = Pacer(PERIOD, clock), Recording(clock)
-    pacer.start(clock.now)
-    clock.now += 0.0015
+    pacer.start(clock.t)
+    clock.t += 0.0015
     pacer.wait(stop)
     assert waits == [PERIOD - 0.0015]
 
