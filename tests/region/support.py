@@ -22,3 +22,33 @@ def circle(radius_deg, n, wobble_deg=0.0, seed=0, shift_deg=0.0):
     a = np.radians(shift_deg)
     turn = np.array([[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0], [0.0, 0.0, 1.0]])
     return loop @ turn.T
+
+
+def nearest_on_edges_reference(
+    d: np.ndarray, vertices: np.ndarray, edges: np.ndarray, margins: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """By brute force, for directions ``d`` (N, 3): the arc minimising ``angle - margin`` (N,)
+    int, the nearest point on it (N, 3) and its angle (N,) rad (``margins`` default zero)."""
+    margins = np.zeros(edges.shape[0]) if margins is None else margins
+    best = np.empty_like(d)
+    best_angle = np.full(d.shape[0], np.inf)
+    best_key = np.full(d.shape[0], np.inf)
+    best_edge = np.full(d.shape[0], -1, dtype=np.int64)
+    for k, (e0, e1) in enumerate(edges):
+        a, b = vertices[e0], vertices[e1]
+        n = np.cross(a, b)
+        n /= np.linalg.norm(n)
+        foot = d - np.outer(d @ n, n)
+        foot /= np.linalg.norm(foot, axis=1, keepdims=True)
+        within = (foot @ np.cross(n, a) >= 0) & (foot @ np.cross(b, n) >= 0)
+        pa = np.arccos(np.clip(d @ a, -1, 1))
+        pb = np.arccos(np.clip(d @ b, -1, 1))
+        end = np.where((pa <= pb)[:, None], a, b)
+        point = np.where(within[:, None], foot, end)
+        ang = np.arctan2(np.linalg.norm(np.cross(d, point), axis=1), np.sum(d * point, axis=1))
+        better = ang - margins[k] < best_key
+        best[better] = point[better]
+        best_angle[better] = ang[better]
+        best_key[better] = ang[better] - margins[k]
+        best_edge[better] = k
+    return best_edge, best, best_angle

@@ -2,7 +2,8 @@ import numpy as np
 import pytest
 
 from limbctl.envelope.synthetic import NOTCH, ConeRegion, PolygonRegion
-from limbctl.region.mesh import DirectionMesh, inside_reference, nearest_on_edges_reference
+from limbctl.region.mesh import DirectionMesh, inside_reference
+from tests.region.support import nearest_on_edges_reference
 
 REGIONS = {
     "cone": ConeRegion(np.radians(35.0)),

@@ -4,13 +4,14 @@ import pytest
 from limbctl.envelope.synthetic import ConeRegion, PolygonRegion
 from limbctl.errors import InvalidInputError
 from limbctl.geometry.quat import direction_angle
-from limbctl.region import grid_kernels, grid_reference
+from limbctl.region import grid_kernels
 from limbctl.region import mesh as dm
 from limbctl.region import mesh_kernels as bk
 from limbctl.region.evidence import loop_arcs
 from limbctl.region.mesh import DirectionMesh
 from limbctl.region.mesh_kernels import CONTAIN_TOLERANCE
-from tests.region.support import circle
+from tests.region.grid_reference import build_grid_reference
+from tests.region.support import circle, nearest_on_edges_reference
 
 
 def in_triangles_reference(d: np.ndarray, vertices: np.ndarray, tri: np.ndarray) -> np.ndarray:
@@ -27,7 +28,7 @@ def in_triangles_reference(d: np.ndarray, vertices: np.ndarray, tri: np.ndarray)
 def project_reference(mesh: DirectionMesh, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Brute-force ``(contains, project)`` for directions ``d`` (N, 3)."""
     inside_mesh = dm.inside_reference(d, mesh.vertices, mesh.edges)
-    edge, point, angle = dm.nearest_on_edges_reference(d, mesh.vertices, mesh.edges, mesh.margins)
+    edge, point, angle = nearest_on_edges_reference(d, mesh.vertices, mesh.edges, mesh.margins)
     margin = mesh.margins[edge]
     inside = inside_mesh | (angle - margin <= CONTAIN_TOLERANCE)
     # outside: from the nearest boundary point, go that arc's margin along the path toward d
@@ -128,7 +129,7 @@ def test_per_arc_margins_match_reference_and_bound_the_region():
     assert mesh.contains(out).all()
     # the region reaches no farther than the largest margin beyond the loops
     plain = DirectionMesh.from_loops(loops, 0.0)
-    _, _, gap = dm.nearest_on_edges_reference(out, plain.vertices, plain.edges)
+    _, _, gap = nearest_on_edges_reference(out, plain.vertices, plain.edges)
     assert (gap[~plain.contains(out)] <= mesh.max_margin + 1e-9).all()
 
 
@@ -157,7 +158,7 @@ def test_the_pruned_grid_is_the_brute_force_grid(mesh_and_region, widest_deg):
         margins = rng.uniform(0.0, np.radians(widest_deg), mesh.edges.shape[0])
     args = (mesh.vertices, mesh.edges, margins, mesh.axis, mesh.grid_shape, mesh.cell_inside)
     fast = grid_kernels.build_grid(*args)
-    slow = grid_reference.build_grid_reference(*args)
+    slow = build_grid_reference(*args)
     for got, want in zip(fast, slow, strict=True):
         assert got.dtype == want.dtype and np.array_equal(got, want)
     assert fast[0].any() and (~fast[0]).any() and fast[2].size > 0

@@ -5,7 +5,7 @@ from limbctl.envelope.synthetic import ConeRegion
 from limbctl.geometry.quat import tangent_frame
 from limbctl.region import shape_kernels
 from limbctl.region.loops import loops_to_edges
-from limbctl.region.mesh import nearest_on_edges_reference
+from tests.region.support import nearest_on_edges_reference
 
 
 def test_widest_bearing_gaps_match_numpy_in_the_tangent_frame():
