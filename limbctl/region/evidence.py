@@ -6,9 +6,10 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.spatial import cKDTree
+from scipy.spatial import ConvexHull, QhullError, cKDTree
 
 from limbctl.geometry.gimbal import direction_to_pan_tilt, pan_tilt_to_direction
+from limbctl.geometry.quat import tangent_frame
 from limbctl.region.loops import chord, loop_area
 from limbctl.region.mesh import DirectionMesh
 from limbctl.region.shape import bearing_gaps
@@ -55,6 +56,8 @@ class Stretch:
         Its length along the edge (deg).
     held : bool
         Whether the region was held there (``distance_deg``: where the learned edge stood).
+    outline_deg : float or None
+        That station's distance past the samples' outline (:func:`past_outline`; None: unread).
     """
 
     pan_deg: float
@@ -62,11 +65,14 @@ class Stretch:
     distance_deg: float
     length_deg: float
     held: bool = False
+    outline_deg: float | None = None
 
     @property
     def settled(self) -> bool:
-        """Held here, the learned edge within ``SETTLED_DEG`` of the samples: asked no more."""
-        return self.held and self.distance_deg <= SETTLED_DEG
+        """Held here, the learned edge within ``SETTLED_DEG`` of the samples or of their outline
+        (a traced notch the edge bridges: a trace cannot bring a sample nearer): asked no more."""
+        outline = self.distance_deg if self.outline_deg is None else self.outline_deg
+        return self.held and min(self.distance_deg, outline) <= SETTLED_DEG
 
     def request(self) -> str:
         """What to teach, in words (the recorder's guide)."""
@@ -215,17 +221,11 @@ def unsupported_stretches(
     if bad.size == 0:
         return []
     # runs: consecutive station indices on arcs that follow each other in the mesh
-    runs: list[list[int]] = [[int(bad[0])]]
-    for i in bad[1:]:
-        prev = runs[-1][-1]
-        same_run = i == prev + 1 and (
-            arc[i] == arc[prev] or mesh.edges[arc[prev], 1] == mesh.edges[arc[i], 0]
-        )
-        if same_run:
-            runs[-1].append(int(i))
-        else:
-            runs.append([int(i)])
+    prev, i = arc[bad[:-1]], arc[bad[1:]]
+    same_run = (np.diff(bad) == 1) & ((i == prev) | (mesh.edges[prev, 1] == mesh.edges[i, 0]))
+    runs = np.split(bad, np.flatnonzero(~same_run) + 1)
     out = []
+    tree = cKDTree(data)
     for run in runs:
         k = run[int(np.argmax(delta[run]))]
         pan, tilt = direction_to_pan_tilt(stations[k : k + 1])
@@ -235,9 +235,31 @@ def unsupported_stretches(
                 float(np.degrees(tilt[0])),
                 float(np.degrees(delta[k])),
                 STATION_DEG * len(run),
+                outline_deg=past_outline(stations[k], data, tree),
             )
         )
     return sorted(out, key=lambda s: -s.distance_deg)
+
+
+def past_outline(point: np.ndarray, data: np.ndarray, tree: cKDTree) -> float | None:
+    """How far (deg) ``point`` (3,) lies past the convex hull (negative: inside) of the taught
+    ``data`` (N, 3) within CONCAVE_RADIUS_DEG, on its gnomonic plane (great circles straight);
+    None under CONCAVE_MIN_SAMPLES there. ``tree``: a cKDTree over ``data``. Past a convex edge
+    about the distance to the nearest sample; over a notch whose walls the samples trace, how far
+    an edge bridging it stands past the walls' outline."""
+    near = data[tree.query_ball_point(point, chord(np.radians(CONCAVE_RADIUS_DEG)))]
+    if near.shape[0] < CONCAVE_MIN_SAMPLES:
+        return None
+    xy = np.degrees(near @ np.stack(tangent_frame(point), axis=1) / (near @ point)[:, None])
+    try:
+        hull = ConvexHull(xy)
+    except QhullError:  # the samples on a line
+        return None
+    a, b = xy[hull.simplices[:, 0]], xy[hull.simplices[:, 1]]
+    t = np.clip(np.einsum("ij,ij->i", -a, b - a) / np.einsum("ij,ij->i", b - a, b - a), 0.0, 1.0)
+    gap = float(np.min(np.linalg.norm(a + t[:, None] * (b - a), axis=1)))
+    # the point (the origin) is inside where it is inside every facet, n . x + b <= 0
+    return gap if np.max(hull.equations[:, 2]) > 0.0 else -gap
 
 
 def held_stretches(
