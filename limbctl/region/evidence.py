@@ -20,9 +20,10 @@ EVIDENCE_DEG = 1.5
 REACH_DEG = 1.25
 #: The held edge held again this close (deg): with a chord's slack (0.0625) within the 1 deg bound.
 HOLD_REACH_DEG = 0.9
-#: A held stretch whose learned edge stood at most this far (deg) from every sample is settled (no
-#: longer withholds READY): traced stops leave it 1.26-2.07 deg off (docs/bench_guided_teaching.md)
-#: and the hold keeps the region within REACH_DEG of the samples there, so containment is kept.
+#: A held stretch whose learned edge stood at most this far (deg) from every sample, or past their
+#: outline (a traced notch it bridges), is settled (no longer withholds READY): traced stops leave
+#: it 1.26-2.07 deg off (docs/bench_guided_teaching.md) and the hold keeps the region within
+#: REACH_DEG of the samples there, so containment is kept.
 SETTLED_DEG = REACH_DEG + 1.0
 #: Station spacing (deg): a point between stations lies at most half of it farther.
 STATION_DEG = 0.25
@@ -243,10 +244,9 @@ def unsupported_stretches(
 
 def past_outline(point: np.ndarray, data: np.ndarray, tree: cKDTree) -> float | None:
     """How far (deg) ``point`` (3,) lies past the convex hull (negative: inside) of the taught
-    ``data`` (N, 3) within CONCAVE_RADIUS_DEG, on its gnomonic plane (great circles straight);
-    None under CONCAVE_MIN_SAMPLES there. ``tree``: a cKDTree over ``data``. Past a convex edge
-    about the distance to the nearest sample; over a notch whose walls the samples trace, how far
-    an edge bridging it stands past the walls' outline."""
+    ``data`` (N, 3) within CONCAVE_RADIUS_DEG, on its gnomonic plane; None under
+    CONCAVE_MIN_SAMPLES there (``tree``: over ``data``). Over a notch whose walls the samples
+    trace: how far an edge bridging it stands past the walls' outline."""
     near = data[tree.query_ball_point(point, chord(np.radians(CONCAVE_RADIUS_DEG)))]
     if near.shape[0] < CONCAVE_MIN_SAMPLES:
         return None
