@@ -41,6 +41,10 @@ CONCAVE_GAP_DEG = 170.0
 CONCAVE_MIN_SAMPLES = 40
 #: A sample this close (deg) to a station's outward direction is evidence beyond it: bay walls ~90.
 OUTWARD_CONE_DEG = 15.0
+#: A notch's floor under a bridging edge lies at most this much farther (deg) than the nearest
+#: sample, toward the inside: a trace's inset (about 1 deg, EVIDENCE_DEG's); the untaught inside
+#: under an unfinished trace lies farther (1.4-1.8 deg past, a hand's 30 s teaching).
+FLOOR_DEG = 1.0
 
 
 @dataclass(frozen=True)
@@ -236,21 +240,32 @@ def unsupported_stretches(
                 float(np.degrees(tilt[0])),
                 float(np.degrees(delta[k])),
                 STATION_DEG * len(run),
-                outline_deg=past_outline(stations[k], data, tree),
+                outline_deg=past_outline(
+                    stations[k], np.cross(*mesh.vertices[mesh.edges[arc[k]]]), data, tree
+                ),
             )
         )
     return sorted(out, key=lambda s: -s.distance_deg)
 
 
-def past_outline(point: np.ndarray, data: np.ndarray, tree: cKDTree) -> float | None:
+def past_outline(
+    point: np.ndarray, inward: np.ndarray, data: np.ndarray, tree: cKDTree
+) -> float | None:
     """How far (deg) ``point`` (3,) lies past the convex hull (negative: inside) of the taught
     ``data`` (N, 3) within CONCAVE_RADIUS_DEG, on its gnomonic plane; None under
-    CONCAVE_MIN_SAMPLES there (``tree``: over ``data``). Over a notch whose walls the samples
-    trace: how far an edge bridging it stands past the walls' outline."""
+    CONCAVE_MIN_SAMPLES there, or with no sample toward ``inward`` (3,; its tangent part points
+    into the region) within FLOOR_DEG of the nearest (``tree``: over ``data``). Over a notch whose
+    walls and floor the samples trace: how far an edge bridging it stands past their outline."""
     near = data[tree.query_ball_point(point, chord(np.radians(CONCAVE_RADIUS_DEG)))]
     if near.shape[0] < CONCAVE_MIN_SAMPLES:
         return None
-    xy = np.degrees(near @ np.stack(tangent_frame(point), axis=1) / (near @ point)[:, None])
+    frame = np.stack(tangent_frame(point), axis=1)
+    xy = np.degrees(near @ frame / (near @ point)[:, None])
+    r, w = np.linalg.norm(xy, axis=1), inward @ frame
+    # the floor under the bridge, traced: a sample toward the inside, about as near as the nearest
+    under = xy @ w > r * np.linalg.norm(w) * np.cos(np.radians(OUTWARD_CONE_DEG))
+    if not np.any(under & (r <= r.min() + FLOOR_DEG)):
+        return None
     try:
         hull = ConvexHull(xy)
     except QhullError:  # the samples on a line
