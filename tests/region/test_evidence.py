@@ -1,6 +1,9 @@
 """Hand-taught notches and bays are not bridged by more than 1 deg (issue 35, finding 1)."""
 
+import importlib.util
+import sys
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -8,6 +11,7 @@ import pytest
 from firmware_sim.hand import Hand
 from limbctl.envelope.synthetic import PolygonRegion, reach_into
 from limbctl.geometry.gimbal import pan_tilt_to_direction
+from limbctl.geometry.twist import decompose
 from limbctl.region import RegionParams, TaughtRegion
 from limbctl.region import taught as taught_module
 from limbctl.region.evidence import SETTLED_DEG, Stretch, unsupported_stretches
@@ -135,6 +139,29 @@ def test_a_traced_v_notch_the_edge_bridges_is_settled_and_held_within_the_bound(
     box = ((-12.0, 1.0), (26.0, 34.0))
     reach = reach_into(region.contains, PolygonRegion(outline), box, step_deg=0.1)
     assert reach <= BOUND_DEG, f"the held region reaches {reach:.2f} deg outside at the notch"
+
+
+def test_the_open_end_of_an_unfinished_trace_stays_asked(monkeypatch):
+    """The region families' curved band, seed 0, taught 30 s by the hand: its trace has not
+    closed, and the learned edge runs across the untaught inside near the trace's outline, with
+    no floor traced under it (19 deg inside the truth). Held there, it is still asked for."""
+    path = Path(__file__).resolve().parents[2] / "benchmarks" / "bench_region_families.py"
+    monkeypatch.syspath_prepend(str(path.parent))
+    spec = importlib.util.spec_from_file_location("bench_region_families", path)
+    bench = importlib.util.module_from_spec(spec)
+    monkeypatch.setitem(sys.modules, spec.name, bench)
+    spec.loader.exec_module(bench)
+    truth, mapping = bench.make_truth("curved band with bumps", 0)
+    d, _ = decompose(bench.teach(truth, mapping, ("hand", 30.0), 0))
+    region = TaughtRegion().fit(d)
+    # the held stretches farther than SETTLED_DEG from the samples, 5 deg or more inside the truth
+    deep = []
+    for s in region.unsupported_edge:
+        x = pan_tilt_to_direction(*np.radians([s.pan_deg, s.tilt_deg]))[None]
+        if s.held and s.distance_deg > SETTLED_DEG and np.degrees(truth.swing.depth(x)[0]) > 5.0:
+            deep.append(s)
+    assert deep, region.unsupported_edge
+    assert not any(s.settled for s in deep), f"an untaught inside was settled: {deep}"
 
 
 def test_a_stretch_past_the_samples_outline_or_unheld_is_not_settled():
