@@ -6,9 +6,10 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.spatial import cKDTree
+from scipy.spatial import ConvexHull, QhullError, cKDTree
 
 from limbctl.geometry.gimbal import direction_to_pan_tilt, pan_tilt_to_direction
+from limbctl.geometry.quat import tangent_frame
 from limbctl.region.loops import chord, loop_area
 from limbctl.region.mesh import DirectionMesh
 from limbctl.region.shape import bearing_gaps
@@ -19,9 +20,10 @@ EVIDENCE_DEG = 1.5
 REACH_DEG = 1.25
 #: The held edge held again this close (deg): with a chord's slack (0.0625) within the 1 deg bound.
 HOLD_REACH_DEG = 0.9
-#: A held stretch whose learned edge stood at most this far (deg) from every sample is settled (no
-#: longer withholds READY): traced stops leave it 1.26-2.07 deg off (docs/bench_guided_teaching.md)
-#: and the hold keeps the region within REACH_DEG of the samples there, so containment is kept.
+#: A held stretch whose learned edge stood at most this far (deg) from every sample, or past their
+#: outline (a traced notch it bridges), is settled (no longer withholds READY): traced stops leave
+#: it 1.26-2.07 deg off (docs/bench_guided_teaching.md) and the hold keeps the region within
+#: REACH_DEG of the samples there, so containment is kept.
 SETTLED_DEG = REACH_DEG + 1.0
 #: Station spacing (deg): a point between stations lies at most half of it farther.
 STATION_DEG = 0.25
@@ -39,6 +41,10 @@ CONCAVE_GAP_DEG = 170.0
 CONCAVE_MIN_SAMPLES = 40
 #: A sample this close (deg) to a station's outward direction is evidence beyond it: bay walls ~90.
 OUTWARD_CONE_DEG = 15.0
+#: A notch's floor under a bridging edge lies at most this much farther (deg) than the nearest
+#: sample, toward the inside: a trace's inset (about 1 deg, EVIDENCE_DEG's); the untaught inside
+#: under an unfinished trace lies farther (1.4-1.8 deg past, a hand's 30 s teaching).
+FLOOR_DEG = 1.0
 
 
 @dataclass(frozen=True)
@@ -55,6 +61,8 @@ class Stretch:
         Its length along the edge (deg).
     held : bool
         Whether the region was held there (``distance_deg``: where the learned edge stood).
+    outline_deg : float or None
+        That station's distance past the samples' outline (:func:`past_outline`; None: unread).
     """
 
     pan_deg: float
@@ -62,11 +70,14 @@ class Stretch:
     distance_deg: float
     length_deg: float
     held: bool = False
+    outline_deg: float | None = None
 
     @property
     def settled(self) -> bool:
-        """Held here, the learned edge within ``SETTLED_DEG`` of the samples: asked no more."""
-        return self.held and self.distance_deg <= SETTLED_DEG
+        """Held here, the learned edge within ``SETTLED_DEG`` of the samples or of their outline
+        (a traced notch the edge bridges: a trace cannot bring a sample nearer): asked no more."""
+        outline = self.distance_deg if self.outline_deg is None else self.outline_deg
+        return self.held and min(self.distance_deg, outline) <= SETTLED_DEG
 
     def request(self) -> str:
         """What to teach, in words (the recorder's guide)."""
@@ -215,17 +226,11 @@ def unsupported_stretches(
     if bad.size == 0:
         return []
     # runs: consecutive station indices on arcs that follow each other in the mesh
-    runs: list[list[int]] = [[int(bad[0])]]
-    for i in bad[1:]:
-        prev = runs[-1][-1]
-        same_run = i == prev + 1 and (
-            arc[i] == arc[prev] or mesh.edges[arc[prev], 1] == mesh.edges[arc[i], 0]
-        )
-        if same_run:
-            runs[-1].append(int(i))
-        else:
-            runs.append([int(i)])
+    prev, i = arc[bad[:-1]], arc[bad[1:]]
+    same_run = (np.diff(bad) == 1) & ((i == prev) | (mesh.edges[prev, 1] == mesh.edges[i, 0]))
+    runs = np.split(bad, np.flatnonzero(~same_run) + 1)
     out = []
+    tree = cKDTree(data)
     for run in runs:
         k = run[int(np.argmax(delta[run]))]
         pan, tilt = direction_to_pan_tilt(stations[k : k + 1])
@@ -235,9 +240,41 @@ def unsupported_stretches(
                 float(np.degrees(tilt[0])),
                 float(np.degrees(delta[k])),
                 STATION_DEG * len(run),
+                outline_deg=past_outline(
+                    stations[k], np.cross(*mesh.vertices[mesh.edges[arc[k]]]), data, tree
+                ),
             )
         )
     return sorted(out, key=lambda s: -s.distance_deg)
+
+
+def past_outline(
+    point: np.ndarray, inward: np.ndarray, data: np.ndarray, tree: cKDTree
+) -> float | None:
+    """How far (deg) ``point`` (3,) lies past the convex hull (negative: inside) of the taught
+    ``data`` (N, 3) within CONCAVE_RADIUS_DEG, on its gnomonic plane; None under
+    CONCAVE_MIN_SAMPLES there, or with no sample toward ``inward`` (3,; its tangent part points
+    into the region) within FLOOR_DEG of the nearest (``tree``: over ``data``). Over a notch whose
+    walls and floor the samples trace: how far an edge bridging it stands past their outline."""
+    near = data[tree.query_ball_point(point, chord(np.radians(CONCAVE_RADIUS_DEG)))]
+    if near.shape[0] < CONCAVE_MIN_SAMPLES:
+        return None
+    frame = np.stack(tangent_frame(point), axis=1)
+    xy = np.degrees(near @ frame / (near @ point)[:, None])
+    r, w = np.linalg.norm(xy, axis=1), inward @ frame
+    # the floor under the bridge, traced: a sample toward the inside, about as near as the nearest
+    under = xy @ w > r * np.linalg.norm(w) * np.cos(np.radians(OUTWARD_CONE_DEG))
+    if not np.any(under & (r <= r.min() + FLOOR_DEG)):
+        return None
+    try:
+        hull = ConvexHull(xy)
+    except QhullError:  # the samples on a line
+        return None
+    a, b = xy[hull.simplices[:, 0]], xy[hull.simplices[:, 1]]
+    t = np.clip(np.einsum("ij,ij->i", -a, b - a) / np.einsum("ij,ij->i", b - a, b - a), 0.0, 1.0)
+    gap = float(np.min(np.linalg.norm(a + t[:, None] * (b - a), axis=1)))
+    # the point (the origin) is inside where it is inside every facet, n . x + b <= 0
+    return gap if np.max(hull.equations[:, 2]) > 0.0 else -gap
 
 
 def held_stretches(

@@ -106,8 +106,9 @@ class TrainSummary:
         if self.settled_edge:
             lines.append(
                 f"edge held          {len(self.settled_edge)} stretches where the learned edge "
-                f"stood up to {SETTLED_DEG:g} deg past the taught samples, held at them (as near "
-                "as a traced stop leaves the samples; nothing more to teach there):"
+                f"stood up to {SETTLED_DEG:g} deg past the taught samples or their outline (a "
+                "traced notch it bridged), held at them (as near as a traced stop leaves the "
+                "samples; nothing more to teach there):"
             )
             lines += [f"  {where}" for where in self.settled_edge]
         if self.unsupported_twist:

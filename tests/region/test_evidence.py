@@ -1,6 +1,9 @@
 """Hand-taught notches and bays are not bridged by more than 1 deg (issue 35, finding 1)."""
 
+import importlib.util
+import sys
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -8,9 +11,10 @@ import pytest
 from firmware_sim.hand import Hand
 from limbctl.envelope.synthetic import PolygonRegion, reach_into
 from limbctl.geometry.gimbal import pan_tilt_to_direction
+from limbctl.geometry.twist import decompose
 from limbctl.region import RegionParams, TaughtRegion
 from limbctl.region import taught as taught_module
-from limbctl.region.evidence import unsupported_stretches
+from limbctl.region.evidence import SETTLED_DEG, Stretch, unsupported_stretches
 
 #: The region's bound outside the truth (deg), docs/region.md.
 BOUND_DEG = 1.0
@@ -104,3 +108,68 @@ def test_a_hand_taught_notch_or_bay_is_not_bridged(shape, seed, seconds):
     region = TaughtRegion().fit(hand_teaching(outline, seed, seconds))
     reach = reach_into(region.contains, PolygonRegion(outline), box, step_deg=0.1)
     assert reach <= BOUND_DEG, f"the region reaches {reach:.2f} deg outside ({region.edge} edge)"
+
+
+def v_notched_ellipse(a, b, centre, at_deg, mouth_deg, depth):
+    """An ellipse with a V notch ``mouth_deg`` wide at its mouth and ``depth`` deg deep at
+    ``at_deg``: vertices (V, 2) deg."""
+    c = np.asarray(centre, dtype=float)
+    rim = c + np.stack([a * np.cos(np.radians(at_deg)), b * np.sin(np.radians(at_deg))])
+    r_here = float(np.linalg.norm(rim - c))
+    half = np.degrees(0.5 * mouth_deg / r_here)
+    theta = [t for t in np.arange(0.0, 360.0, 2.0) if abs((t - at_deg + 180) % 360 - 180) > half]
+    points = [(t, c + [a * np.cos(np.radians(t)), b * np.sin(np.radians(t))])
+              for t in theta + [at_deg - half, at_deg + half]]  # fmt: skip
+    points.append((at_deg, rim + depth * (c - rim) / r_here))
+    return np.array([xy for _, xy in sorted(points, key=lambda p: p[0])])
+
+
+def test_a_traced_v_notch_the_edge_bridges_is_settled_and_held_within_the_bound():
+    """The hand traces a V notch (6 deg mouth, 3 deg deep) about 1 deg inside; the learned edge
+    bridges it farther from every sample than a trace can come, so tracing again cannot answer
+    it (the guided benchmark's linear band, seed 19). Held there, it is settled by the samples'
+    outline, and the held region stays within the bound of the truth."""
+    outline = v_notched_ellipse(27.2, 23.4, (-5.7, 7.2), 90.0, 6.0, 3.0)
+    region = TaughtRegion().fit(hand_teaching(outline, seed=0))
+    over = [s for s in region.unsupported_edge if np.hypot(s.pan_deg + 5.7, s.tilt_deg - 30.6) < 6]
+    assert over and all(s.held for s in over), region.unsupported_edge
+    assert max(s.distance_deg for s in over) > SETTLED_DEG, "the edge did not bridge the notch"
+    assert all(s.settled for s in over), f"a traced notch is still asked for: {over}"
+    assert all(s.outline_deg <= SETTLED_DEG for s in over), over
+    box = ((-12.0, 1.0), (26.0, 34.0))
+    reach = reach_into(region.contains, PolygonRegion(outline), box, step_deg=0.1)
+    assert reach <= BOUND_DEG, f"the held region reaches {reach:.2f} deg outside at the notch"
+
+
+def test_the_open_end_of_an_unfinished_trace_stays_asked(monkeypatch):
+    """The region families' curved band, seed 0, taught 30 s by the hand: its trace has not
+    closed, and the learned edge runs across the untaught inside near the trace's outline, with
+    no floor traced under it (19 deg inside the truth). Held there, it is still asked for."""
+    path = Path(__file__).resolve().parents[2] / "benchmarks" / "bench_region_families.py"
+    monkeypatch.syspath_prepend(str(path.parent))
+    spec = importlib.util.spec_from_file_location("bench_region_families", path)
+    bench = importlib.util.module_from_spec(spec)
+    monkeypatch.setitem(sys.modules, spec.name, bench)
+    spec.loader.exec_module(bench)
+    truth, mapping = bench.make_truth("curved band with bumps", 0)
+    d, _ = decompose(bench.teach(truth, mapping, ("hand", 30.0), 0))
+    region = TaughtRegion().fit(d)
+    # the held stretches farther than SETTLED_DEG from the samples, 5 deg or more inside the truth
+    deep = []
+    for s in region.unsupported_edge:
+        x = pan_tilt_to_direction(*np.radians([s.pan_deg, s.tilt_deg]))[None]
+        if s.held and s.distance_deg > SETTLED_DEG and np.degrees(truth.swing.depth(x)[0]) > 5.0:
+            deep.append(s)
+    assert deep, region.unsupported_edge
+    assert not any(s.settled for s in deep), f"an untaught inside was settled: {deep}"
+
+
+def test_a_stretch_past_the_samples_outline_or_unheld_is_not_settled():
+    """The outline settles only a held stretch the learned edge stands near it; without one
+    (too few samples around) the distance to the samples alone decides, as before."""
+    deep = SETTLED_DEG + 0.5
+    assert Stretch(0.0, 0.0, deep, 3.0, held=True, outline_deg=0.2).settled
+    assert not Stretch(0.0, 0.0, deep, 3.0, held=True, outline_deg=SETTLED_DEG + 0.1).settled
+    assert not Stretch(0.0, 0.0, deep, 3.0, held=False, outline_deg=0.2).settled
+    assert not Stretch(0.0, 0.0, deep, 3.0, held=True).settled
+    assert Stretch(0.0, 0.0, SETTLED_DEG - 0.1, 3.0, held=True).settled
