@@ -46,7 +46,7 @@ CORNER_TURN_DEG = 60.0
 #: Least growth of the thinning spacing a step while over the cap: ends in a few steps.
 THIN_GROWTH = 1.05
 #: Version of the construction, raised when it changes a region: `limbctl eval`'s cache key.
-FIT_VERSION = 13
+FIT_VERSION = 14
 #: Carving rounds at most: a bridged bay is a few triangles deep; 12 empty the families' bays.
 CARVE_ROUNDS = 12
 #: Most share of taught samples carving may leave out: a bay's bridge holds none.
@@ -158,6 +158,8 @@ class TaughtRegion:
                 region, d_train, tight_reach, patient=True, straight=True
             )
         if held_tight:
+            # arcs the patient hold gave back stand at REACH_DEG: pulled straight to the tight reach
+            tight = hold_to_evidence(tight, d_train, tight_reach, patient=True, straight=True)[0]
             region, self.held_edge = tight, True
         if self.held_edge:
             self.unsupported_edge = held_stretches(self.unsupported_edge, region, d_train)
