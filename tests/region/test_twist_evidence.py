@@ -252,8 +252,11 @@ def test_whether_a_slope_is_read_does_not_turn_on_stops_at_the_neighbourhoods_ri
     """Stops along one line near a node (no spread across it) and a few at the rim of its
     neighbourhood: a move of the node by 0.2 deg takes those out of it, and must not turn the
     slope from read to unread (the band's grid moves so when samples are added far away)."""
-    from limbctl.region.twist_band import _neighbours, plane_to_direction
-    from limbctl.region.twist_evidence import _along_slope
+    from limbctl.region.twist_band import BAND_RADIUS_DEG, _neighbours, plane_to_direction
+    from limbctl.region.twist_evidence import SLOPE_TAPER_DEG, _along_slope
+
+    # past the neighbourhood's rim a stop would still weigh where it leaves
+    assert SLOPE_TAPER_DEG <= BAND_RADIUS_DEG
 
     frame = np.eye(3)[[2, 0, 1]]  # axis +z, u +x, v +y
     line = np.column_stack([np.linspace(-3.0, 3.0, 31), np.zeros(31)])
