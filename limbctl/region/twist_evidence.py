@@ -37,9 +37,6 @@ CAP_SLACK_DEG = 0.5
 SLOPE_SIGMA_DEG = 3.0
 #: The stops' least spread (deg, one sigma) to read a slope (1.5 left curved seed 2 3.07 deg past).
 SLOPE_SPREAD_DEG = 0.75
-#: Where the weights judging the spread reach 0 (deg): the node's neighbourhood (twist_band's
-#: BAND_RADIUS_DEG), so that a stop crossing its rim as a node moves changes the spread by little.
-SLOPE_TAPER_DEG = 8.0
 #: The stops' least effective count to read a slope: through 3 the plane's error reads 0.
 MIN_SLOPE_STOPS = 4.0
 #: Standard errors of the plane's slope added to SLOPE_SLACK: two, a ~95 % bound. Not tuned.
@@ -254,7 +251,6 @@ def _along_slope(cone, nodes, start, members, d, limit, ref, stops, limited):
         MIN_SLOPE_STOPS,
         # each sample's nearest node: the far end of its path, whose slope bounds the rise too
         cKDTree(nodes).query(d)[1].astype(np.int64),
-        math.exp(-0.5 * (SLOPE_TAPER_DEG / SLOPE_SIGMA_DEG) ** 2),
     )
     g_up, w_up = fk.gradient_caps(nodes, start, members, d, limit, stops[0], ref, *args)
     g_lo, w_lo = fk.gradient_caps(nodes, start, members, d, -limit, stops[1], -ref, *args)

@@ -235,7 +235,6 @@ def gradient_caps(
     limited,
     min_stops,
     ends,
-    taper=0.0,
 ):
     """One limit's cap (M,) read along its local slope, relative to ``ref`` (M,) (rad), and its
     witnesses (M,); the upper limit (for the lower pass the twists negated and negate the cap).
@@ -248,9 +247,8 @@ def gradient_caps(
     not read, the node's alone. So
     ``cap(n) = max_j (limit_j - ref_n - that rise - curvature r^2 / 2)``. NaN where the stops'
     effective count ``(sum w)^2 / sum w^2`` is under ``min_stops`` or they spread less than
-    ``spread`` (rad) in some direction, both judged on the weights less ``taper`` (so that a
-    stop leaving the node's neighbourhood weighs nothing there). At ``limited`` (M,) nodes a
-    sample beyond ``reach`` (rad) bounds the cap by the ``steep`` (rad/rad) cone too.
+    ``spread`` (rad) in some direction. At ``limited`` (M,) nodes a sample beyond ``reach``
+    (rad) bounds the cap by the ``steep`` (rad/rad) cone too.
     """
     m = nodes.shape[0]
     cap = np.full(m, np.nan)
@@ -275,7 +273,6 @@ def gradient_caps(
             slack,
             confidence,
             min_stops,
-            taper,
         )
     for i in range(m):
         if not math.isfinite(margin[i]):
@@ -314,32 +311,17 @@ def gradient_caps(
 
 @njit(inline="always", error_model="numpy")
 def _node_slope(
-    node,
-    first,
-    last,
-    members,
-    d,
-    limit,
-    stop,
-    ref,
-    sigma,
-    spread,
-    slack,
-    confidence,
-    min_stops,
-    taper,
+    node, first, last, members, d, limit, stop, ref, sigma, spread, slack, confidence, min_stops
 ):
     """The weighted plane's slope through the stops among ``members[first:last]`` at ``node``
     (3,) (the tangent vector's three components, rad/rad) and its margin ``slack + confidence
     se`` (``se`` the slope's standard error); NaN where too few stops, or too little spread,
-    read it (judged on the weights less ``taper``, at least 0)."""
+    read it."""
     e1, e2 = _node_frame(node)
     a = np.zeros((3, 3))
     b = np.zeros(3)
-    # as ``a`` with the tapered weights, and their squares' sum
-    at = np.zeros((3, 3))
-    t_sq = 0.0
     count = 0
+    weight_sq = 0.0
     for k in range(first, last):
         j = members[k]
         if not stop[j]:
@@ -355,16 +337,18 @@ def _node_slope(
             for s in range(3):
                 a[r, s] += w * row[r] * row[s]
         count += 1
-        tw = max(w - taper, 0.0)
-        for r in range(3):
-            for s in range(3):
-                at[r, s] += tw * row[r] * row[s]
-        t_sq += tw * tw
+        weight_sq += w * w
     # the stops' effective count (sum w)^2 / sum w^2 (through 3 the plane's error reads 0)
-    if count < 3 or at[0, 0] <= 0.0 or at[0, 0] * at[0, 0] < min_stops * t_sq:
+    if count < 3 or a[0, 0] * a[0, 0] < min_stops * weight_sq:
         return np.nan, np.nan, np.nan, np.nan
-    least = _least_spread(a)
-    if _least_spread(at) < spread * spread:
+    # the stops' weighted spread about their mean, least direction (2 x 2 covariance)
+    mx = a[0, 1] / a[0, 0]
+    my = a[0, 2] / a[0, 0]
+    cxx = a[1, 1] / a[0, 0] - mx * mx
+    cyy = a[2, 2] / a[0, 0] - my * my
+    cxy = a[1, 2] / a[0, 0] - mx * my
+    least = 0.5 * (cxx + cyy) - math.sqrt(0.25 * (cxx - cyy) ** 2 + cxy * cxy)
+    if least < spread * spread:
         return np.nan, np.nan, np.nan, np.nan
     sol = solve(a, b)
     # the slope's standard error: weighted scatter / sqrt(effective count) / least spread
@@ -389,15 +373,3 @@ def _node_slope(
         sol[1] * e1[2] + sol[2] * e2[2],
         slack + confidence * slope_err,
     )
-
-
-@njit(inline="always")
-def _least_spread(a) -> float:
-    """The weighted stops' least variance (rad^2) about their mean, in any direction, from their
-    moments ``a`` (3, 3) (sums of ``w (1, x, y)^T (1, x, y)``)."""
-    mx = a[0, 1] / a[0, 0]
-    my = a[0, 2] / a[0, 0]
-    cxx = a[1, 1] / a[0, 0] - mx * mx
-    cyy = a[2, 2] / a[0, 0] - my * my
-    cxy = a[1, 2] / a[0, 0] - mx * my
-    return 0.5 * (cxx + cyy) - math.sqrt(0.25 * (cxx - cyy) ** 2 + cxy * cxy)
