@@ -33,20 +33,20 @@ PROBES /= np.linalg.norm(PROBES, axis=1, keepdims=True)
 
 # ---- damage -----------------------------------------------------------------------------------
 @st.composite
-def damage(draw, size: int):
-    """A function that damages a bytes object of about ``size`` bytes."""
+def damaged(draw, b: bytes) -> bytes:
+    """``b`` truncated, a byte flipped, bytes inserted or bytes deleted."""
     kind = draw(st.sampled_from(["truncate", "flip", "insert", "delete"]))
-    at = draw(st.integers(0, max(0, size - 1)))
+    at = draw(st.integers(0, max(0, len(b) - 1)))
     if kind == "truncate":
-        return kind, lambda b: b[:at]
+        return b[:at]
     if kind == "flip":
         mask = draw(st.integers(1, 255))
-        return kind, lambda b: b[:at] + bytes([b[at] ^ mask]) + b[at + 1 :]
+        return b[:at] + bytes([b[at] ^ mask]) + b[at + 1 :]
     if kind == "insert":
         extra = draw(st.binary(min_size=1, max_size=8))
-        return kind, lambda b: b[:at] + extra + b[at:]
+        return b[:at] + extra + b[at:]
     count = draw(st.integers(1, 16))
-    return kind, lambda b: b[:at] + b[at + count :]
+    return b[:at] + b[at + count :]
 
 
 SETTINGS = settings(
@@ -72,10 +72,8 @@ def model_files(tmp_path_factory):
 @given(data=st.data())
 def test_damaged_model_is_refused_or_unchanged(tmp_path, model_files, kind, data):
     model, path = model_files[kind]
-    original = path.read_bytes()
-    how, hurt = data.draw(damage(len(original)))
     bad = tmp_path / f"damaged-{kind}.npz"
-    bad.write_bytes(hurt(original))
+    bad.write_bytes(data.draw(damaged(path.read_bytes())))
     try:
         loaded = load_model(bad)
     except FileFormatError as exc:
@@ -155,10 +153,8 @@ def dataset_file(tmp_path_factory):
 def test_damaged_dataset_is_refused_or_a_clean_prefix(tmp_path, dataset_file, data):
     path, original = dataset_file
     blob = path.read_bytes()
-    how, hurt = data.draw(damage(len(blob)))
     bad = tmp_path / "damaged.limb"
-    damaged = hurt(blob)
-    bad.write_bytes(damaged)
+    bad.write_bytes(hurt := data.draw(damaged(blob)))
     try:
         loaded = load_dataset(bad)
     except FileFormatError as exc:
@@ -171,7 +167,7 @@ def test_damaged_dataset_is_refused_or_a_clean_prefix(tmp_path, dataset_file, da
     if n < len(original) and not loaded.dropped_tail:
         # the one silent case: cut exactly after a record, which is what a crash between two
         # records leaves too (an append-only file has no footer to tell the two apart)
-        assert damaged == blob[: len(damaged)] and damaged.endswith(b"\n"), "samples went missing"
+        assert hurt == blob[: len(hurt)] and hurt.endswith(b"\n"), "samples went missing"
 
 
 # ---- rig profiles -------------------------------------------------------------------------------
@@ -181,9 +177,8 @@ SIM_YAML = yaml.safe_dump(PROFILE.to_dict(), sort_keys=False).encode()
 @SETTINGS
 @given(data=st.data())
 def test_damaged_rig_profile_is_refused_naming_the_file_or_still_valid(tmp_path, data):
-    how, hurt = data.draw(damage(len(SIM_YAML)))
     bad = tmp_path / "rig.yaml"
-    bad.write_bytes(hurt(SIM_YAML))
+    bad.write_bytes(data.draw(damaged(SIM_YAML)))
     try:
         profile = load_rig_profile(bad)
     except (ConfigError, FileFormatError) as exc:
