@@ -220,25 +220,37 @@ def settle(rig: Rig, pose: tuple[float, ...], timeout_s: float = 20.0) -> None:
     )
 
 
-class CycleCounter:
-    """A telemetry stream keeping its rows, to wait for cycles."""
+class Gathered:
+    """What another thread hands over (``items``, in order), and waits on it: the cycles a
+    loop's ``on_cycle`` gets, the lines a source is fed."""
 
     def __init__(self) -> None:
-        self.rows: list[dict] = []
-        self._cond = threading.Condition()
+        self.items: list = []
+        self.changed = threading.Condition()
+
+    def __call__(self, item) -> None:
+        with self.changed:
+            self.items.append(item)
+            self.changed.notify_all()
+
+    def waits(self, found, timeout_s: float):
+        """``found()`` once it is true (judged with the lock held), or False after ``timeout_s``."""
+        with self.changed:
+            return self.changed.wait_for(found, timeout_s)
+
+
+class CycleCounter(Gathered):
+    """A telemetry stream keeping its rows (``items``), to wait for cycles."""
 
     def write(self, text: str) -> int:
-        with self._cond:
-            self.rows.append(json.loads(text))
-            self._cond.notify_all()
+        self(json.loads(text))
         return len(text)
 
     def flush(self) -> None:
         return None
 
     def wait_cycles(self, count: int, timeout_s: float = 20.0) -> None:
-        with self._cond:
-            ok = self._cond.wait_for(lambda: len(self.rows) >= count, timeout_s)
+        ok = self.waits(lambda: len(self.items) >= count, timeout_s)
         assert ok, f"the loop did not run {count} cycles within {timeout_s} s"
 
 

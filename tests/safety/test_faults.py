@@ -270,7 +270,7 @@ def test_torque_switched_off_under_teleop_is_noticed(tmp_path, safe_state):
     assert "reports torque off while it is being driven" in summary.fault
     assert "servo 1" in summary.fault or "servo 2" in summary.fault
     # from the last logged cycle before the fault to the end (the loop's own clock)
-    assert loop.summary.elapsed_s - loop.cycles.rows[-1]["t"] < NOTICE_BOUND_S
+    assert loop.summary.elapsed_s - loop.cycles.items[-1]["t"] < NOTICE_BOUND_S
     assert not any(servo["torque_on"] for servo in truth["servos"].values())
     if safe_state is SafeState.HOLD:
         assert "pan and tilt torque off as the servo reports it" in summary.fault
@@ -306,14 +306,14 @@ def test_a_dropout_keeps_the_loop_cycling_probes_the_servo_and_reports_its_lengt
         config = LoopConfig(rate_hz=RATE, duration_s=60.0, on_cycle=observe)
         with sweeping(rig, config) as loop:
             loop.cycles.wait_cycles(200)
-            injected = loop.cycles.rows[-1]["t"]
+            injected = loop.cycles.items[-1]["t"]
             sim.vanish(2, vanish_s)
             wait_for(
                 lambda: any(t > injected and n.startswith("servo 2 answered") for t, n in seen),
                 30.0,
                 "servo 2 to be reported back",
             )
-            loop.cycles.wait_cycles(len(loop.cycles.rows) + 20)
+            loop.cycles.wait_cycles(len(loop.cycles.items) + 20)
         summary = loop.summary
         reads = list(rig.reads)
     assert summary.exit_code == 0 and summary.ended_by == "stopped", summary.fault
@@ -331,7 +331,7 @@ def test_a_dropout_keeps_the_loop_cycling_probes_the_servo_and_reports_its_lengt
     assert f"servo 2 {dropout.duration_s:.3f} s" in dropouts_line(summary)
     assert "still silent" not in dropouts_line(summary)
     # the loop kept cycling during the dropout (waiting for the silent servo gave about a fifth)
-    times = [row["t"] for row in loop.cycles.rows]
+    times = [row["t"] for row in loop.cycles.items]
     before = [t for t in times if t < start][-100:]
     healthy_hz = (len(before) - 1) / (before[-1] - before[0])
     during = sum(start <= t < end for t in times)
@@ -363,7 +363,7 @@ def test_a_dropout_still_going_on_at_a_clean_end_is_reported_with_its_length_so_
             loop.cycles.wait_cycles(20)
             sim.vanish(2, 60.0)
             wait_for(lambda: "servo 2 stopped answering; holding its last goal" in seen, 30.0, "")
-            loop.cycles.wait_cycles(len(loop.cycles.rows) + 40)
+            loop.cycles.wait_cycles(len(loop.cycles.items) + 40)
         summary = loop.summary
     assert summary.exit_code == 0 and summary.ended_by == "stopped", summary.fault
     (dropout,) = [d for d in summary.dropouts if d.ongoing and d.servo_id == 2]

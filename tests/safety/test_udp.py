@@ -132,7 +132,7 @@ def test_hostile_udp_stream_cannot_skip_the_gate(tmp_path):
                         tx.sendto(data, src.address)
                         wait_for(lambda s=seen: processed(src) > s, 10.0, "the datagram")
                         # let the loop chase it for a while (40 cycles = 0.2 s at 200 Hz)
-                        loop.cycles.wait_cycles(len(loop.cycles.rows) + 40)
+                        loop.cycles.wait_cycles(len(loop.cycles.items) + 40)
         rig.read_pose()
     summary, cycles = loop.summary, loop.cycles
     assert summary.exit_code == 0, summary.fault
@@ -140,8 +140,8 @@ def test_hostile_udp_stream_cannot_skip_the_gate(tmp_path):
     logged = goal_log_poses(log)
     assert len(logged) > 100
     assert_goals_safe(logged, gate.envelope, limits, gate.produced_ticks(rig))
-    outcomes = {r["outcome"] for r in cycles.rows}
+    outcomes = {r["outcome"] for r in cycles.items}
     assert "corrected" in outcomes or "clamped" in outcomes
     # nothing that arrived by UDP was written without the gate: every written pose is a result
-    written = [r for r in cycles.rows if r["written"]]
+    written = [r for r in cycles.items if r["written"]]
     assert len(written) == summary.goals_written

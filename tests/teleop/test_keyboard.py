@@ -30,6 +30,7 @@ from limbctl.teleop.keys import KEY_RATE_HZ
 from limbctl.teleop.loop import LoopConfig, run
 from limbctl.teleop.sources import KeyboardSource
 from limbctl.teleop.sources.keyboard import MAX_LEAD_DEG, region_centre
+from tests.safety.support import Gathered
 from tests.teleop.tmux import ROOT, tmux_pane
 
 #: A terminal's key repeat (common desktop settings): the delay before the first, the rate after.
@@ -248,23 +249,14 @@ WAIT_S = 30.0  # the longest wait (s) for the loop to take a press and settle
 UP_PRESSES = 60  # repeats of a held Up: at 30 Hz they carry it far beyond the cone
 
 
-class Cycles:
-    """The loop's cycles as they come (its ``on_cycle``), and waits on them."""
-
-    def __init__(self) -> None:
-        self.all: list[Cycle] = []
-        self.changed = threading.Condition()
-
-    def __call__(self, cycle: Cycle) -> None:
-        with self.changed:
-            self.all.append(cycle)
-            self.changed.notify_all()
+class Cycles(Gathered):
+    """The loop's cycles as they come (its ``on_cycle``, ``items``), and waits on them."""
 
     def settled_after(self, start: int) -> Cycle:
         """The first cycle from ``start`` on written and not slewed."""
 
         def found() -> Cycle | None:
-            for cycle in self.all[start:]:
+            for cycle in self.items[start:]:
                 result = cycle.result
                 if result is not None and result.outcome is not Outcome.HELD:
                     if not result.slewed and cycle.written:
@@ -273,9 +265,9 @@ class Cycles:
 
         with self.changed:
             settled = self.changed.wait_for(found, WAIT_S)
-            last = self.all[-1] if self.all else None
+            last = self.items[-1] if self.items else None
             assert settled, (
-                f"the press was never gated and settled: {len(self.all)} cycles, from {start}; "
+                f"the press was never gated and settled: {len(self.items)} cycles, from {start}; "
                 f"the last {last}"
             )
             return found()
@@ -291,7 +283,7 @@ def press(type_, cycles: Cycles, source: KeyboardSource, key: bytes) -> Cycle:
     type_(key)
     with cycles.changed:
         assert cycles.changed.wait_for(lambda: source.stats.accepted > accepted, WAIT_S)
-        start = len(cycles.all) + 1  # the next cycle polls what was queued before it began
+        start = len(cycles.items) + 1  # the next cycle polls what was queued before it began
     return cycles.settled_after(start)
 
 
@@ -314,17 +306,16 @@ def test_up_against_a_slanted_edge_slides_without_running_on_and_down_answers_at
             )
             loop.start()
             try:
-                with cycles.changed:
-                    assert cycles.changed.wait_for(lambda: cycles.all, WAIT_S), "no cycle"
+                assert cycles.waits(lambda: cycles.items, WAIT_S), "no cycle"
                 # left one 10 deg step: +pan, where the cone's edge slants; then 5 deg steps
                 start = press(type_, cycles, source, b"a")
                 type_(b"-")
-                first = len(cycles.all)
+                first = len(cycles.items)
                 at_edge = []
                 for _ in range(UP_PRESSES):  # Up held: the terminal repeats it
                     at_edge.append(press(type_, cycles, source, b"w"))
                     time.sleep(1.0 / REPEAT_HZ)  # the terminal's repeat rate, the input
-                pressed = cycles.all[first:]
+                pressed = cycles.items[first:]
                 down = press(type_, cycles, source, b"s")
             finally:
                 stop.set()

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import contextlib
 import json
-import threading
 import urllib.error
 import urllib.request
 
@@ -16,6 +15,7 @@ from selenium.webdriver.common.keys import Keys
 
 from limbctl.view import Board, HardLimits, Live, PanTilt, Scene, TeleopStatus, ViewServer
 from limbctl.view.control import FORWARD_PERIOD_S, Access, ControlDesk, control_request, is_loopback
+from tests.safety.support import Gathered
 from tests.safety.support import wait_for as wait_until
 from tests.view.browser import chromium, drag_on_plane, frozen, text_of, wait_for
 
@@ -23,21 +23,11 @@ from tests.view.browser import chromium, drag_on_plane, frozen, text_of, wait_fo
 WAIT_S = 10.0
 
 
-class Sink:
+class Sink(Gathered):
     """Where the controller's text goes (the page source's ``feed`` in a session)."""
 
-    def __init__(self) -> None:
-        self.lines: list[str] = []
-        self.changed = threading.Condition()
-
-    def __call__(self, text: str) -> None:
-        with self.changed:
-            self.lines.append(text)
-            self.changed.notify_all()
-
     def wait_for(self, text: str) -> None:
-        with self.changed:
-            assert self.changed.wait_for(lambda: text in self.lines, WAIT_S), self.lines[-5:]
+        assert self.waits(lambda: text in self.items, WAIT_S), self.items[-5:]
 
 
 @contextlib.contextmanager
@@ -95,7 +85,7 @@ def test_the_key_the_origin_and_the_host_decide_who_steers_and_one_steers_at_a_t
         with pytest.raises(urllib.error.HTTPError) as rebound:
             urllib.request.urlopen(request, timeout=WAIT_S)
         assert rebound.value.code == 403
-        assert sink.lines == []
+        assert sink.items == []
         # the key is needed to steer, and only the right one
         assert len(secret) >= 22 and f"?key={secret}" in server.control_url
         assert "key" not in server.url  # watching 127.0.0.1 stays open
@@ -120,7 +110,7 @@ def test_the_key_the_origin_and_the_host_decide_who_steers_and_one_steers_at_a_t
             assert "127.0.0.1" in holder()
             steering.send(json.dumps({"pan": 3.0, "tilt": 4.0}))
             sink.wait_for('{"pan": 3.0, "tilt": 4.0}')
-        assert sink.lines == ['{"pan": 3.0, "tilt": 4.0}'], "only the keyed page's line"
+        assert sink.items == ['{"pan": 3.0, "tilt": 4.0}'], "only the keyed page's line"
         assert server.desk.ignored == 1
         # one controller at a time, and the second is told who
         wait_until(lambda: holder().startswith("nobody"), WAIT_S, "the closed page kept control")
@@ -134,7 +124,7 @@ def test_the_key_the_origin_and_the_host_decide_who_steers_and_one_steers_at_a_t
                 second.send(json.dumps({"pan": 9.0, "tilt": 9.0}))
                 first.send(json.dumps({"pan": 1.0, "tilt": 1.0}))
                 sink.wait_for('{"pan": 1.0, "tilt": 1.0}')
-                assert '{"pan": 9.0, "tilt": 9.0}' not in sink.lines
+                assert '{"pan": 9.0, "tilt": 9.0}' not in sink.items
                 first.close()
                 # the first page went: the second is told the slot is free, and how to take it
                 told = control_message(second)
@@ -151,9 +141,9 @@ def test_a_flood_reaches_the_source_as_its_newest_message_at_a_bounded_rate():
             flooder.send('{"pan": 7.25, "tilt": 7.25}')
             sink.wait_for('{"pan": 7.25, "tilt": 7.25}')
         desk = server.desk
-        assert desk.forwarded == len(sink.lines)
+        assert desk.forwarded == len(sink.items)
         assert desk.forwarded + desk.superseded == sent + 1
-        assert sink.lines[-1] == '{"pan": 7.25, "tilt": 7.25}'  # the newest wins
+        assert sink.items[-1] == '{"pan": 7.25, "tilt": 7.25}'  # the newest wins
         # at most one message per forward period reached the source
         assert desk.forwarded < sent / 10, (desk.forwarded, FORWARD_PERIOD_S)
 
@@ -276,18 +266,16 @@ def test_the_keyed_page_steers_by_click_and_arrow_keys_and_resends_its_point(bro
         # a click sets the point where it lands (to the canvas's pixel: within half a degree)
         drag_on_plane(page, [(-30.0, 20.0)])
         ActionChains(page).release().perform()
-        with sink.changed:
-            assert sink.changed.wait_for(
-                lambda: any(abs(json.loads(t)["pan"] + 30.0) < 0.5 for t in sink.lines), WAIT_S
-            ), "the click's point never reached the source"
-        last = json.loads(sink.lines[-1])
+        assert sink.waits(
+            lambda: any(abs(json.loads(t)["pan"] + 30.0) < 0.5 for t in sink.items), WAIT_S
+        ), "the click's point never reached the source"
+        last = json.loads(sink.items[-1])
         assert last["pan"] == pytest.approx(-30.0, abs=0.5)
         assert last["tilt"] == pytest.approx(20.0, abs=0.5)
         # the page resends its point while it steers (the loop holds when it stops)
-        count = len(sink.lines)
-        with sink.changed:
-            assert sink.changed.wait_for(lambda: len(sink.lines) >= count + 5, WAIT_S)
-        assert json.loads(sink.lines[-1]) == last, "the resent point is not the click's"
+        count = len(sink.items)
+        assert sink.waits(lambda: len(sink.items) >= count + 5, WAIT_S)
+        assert json.loads(sink.items[-1]) == last, "the resent point is not the click's"
 
         # frozen shorter than the heartbeat: it still steers on waking, but its point is gone
         with frozen(page):
@@ -295,14 +283,13 @@ def test_the_keyed_page_steers_by_click_and_arrow_keys_and_resends_its_point(bro
             # tab resends 20 times a second) means it has landed
             with sink.changed:
                 while True:
-                    sent = len(sink.lines)
-                    if not sink.changed.wait_for(lambda n=sent: len(sink.lines) > n, 0.25):
+                    sent = len(sink.items)
+                    if not sink.changed.wait_for(lambda n=sent: len(sink.items) > n, 0.25):
                         break
             # silent for 1.5 s, three times the loop's 0.5 s silence
-            with sink.changed:
-                assert not sink.changed.wait_for(lambda: len(sink.lines) > sent, 1.5)
+            assert not sink.waits(lambda: len(sink.items) > sent, 1.5)
         show_frames(page, board, (5.0, 6.0), 4)
-        assert sink.lines[sent:] == [], "the woken tab resent its old point"
+        assert sink.items[sent:] == [], "the woken tab resent its old point"
         told = text_of(page, "control")
         assert "you steer the limb" in told and "its point was dropped" in told, told
         press(page, Keys.ARROW_LEFT, sink, '{"pan":6,"tilt":6}')  # from the written pose
@@ -339,12 +326,12 @@ def test_a_tab_that_lost_control_comes_back_watching_and_steers_again_only_on_a_
                 sink.wait_for('{"pan": -20.0, "tilt": 0.0}')
             wait_until(lambda: holder().startswith("nobody"), WAIT_S, "the other page kept control")
             publish(board, (-20.0, 0.0), cycle=2)
-            sent = len(sink.lines)
+            sent = len(sink.items)
 
         # it wakes, reconnects by itself, and sends nothing: nobody touched anything
         wait_for(page, lambda d: text_of(d, "cycles") == "2", "the woken tab never reconnected")
         cycle = show_frames(page, board, (-20.0, 0.0), 3)
-        assert sink.lines[sent:] == [], "the woken tab moved the limb by itself"
+        assert sink.items[sent:] == [], "the woken tab moved the limb by itself"
         assert holder().startswith("nobody")
         told = text_of(page, "control")
         assert "lost control when its connection dropped" in told, told
@@ -355,9 +342,9 @@ def test_a_tab_that_lost_control_comes_back_watching_and_steers_again_only_on_a_
         page.find_element("id", "take").click()
         wait_for(page, steering, "the click did not take control")
         show_frames(page, board, (-20.0, 0.0), cycle)
-        assert sink.lines[sent:] == [], "taking control alone moved the limb"
+        assert sink.items[sent:] == [], "taking control alone moved the limb"
         press(page, Keys.ARROW_UP, sink, '{"pan":-20,"tilt":1}')
-        assert set(sink.lines[sent:]) == {'{"pan":-20,"tilt":1}'}  # that point, resent
+        assert set(sink.items[sent:]) == {'{"pan":-20,"tilt":1}'}  # that point, resent
 
 
 def test_a_reload_keeps_control_and_another_tab_is_told_which_tab_steers():
