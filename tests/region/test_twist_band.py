@@ -194,8 +194,9 @@ def test_a_trajectorys_band_holds_its_samples_and_the_band_between_its_stops(mon
     truth = ShoulderRegion(rounded(SHOULDER))
     q, d = _trajectory(truth, 30.0, seed=3, stop_period_s=0.5)
     own, _, over = _path_figures(truth, q, d)
-    # the bilinear reading between nodes cuts the envelope's ridges along the stops by tenths
-    assert own >= 0.99 and over < 0.01
+    # the bilinear reading between nodes cuts the envelope's ridges along the stops by tenths,
+    # and where the bound acts it holds a stop's limit to a cone of BOUND_SLOPE about it
+    assert own >= 0.975 and over < 0.01
     _uncapped(monkeypatch)
     own, held, over_read = _path_figures(truth, q, d)
     assert own >= 0.99
