@@ -116,11 +116,6 @@ def edge_offsets(region: TaughtRegion, truth: BandRegion, every: int = 20) -> np
     return np.degrees(s[s.size - 1 - np.argmax(inside[:, ::-1], axis=1)])
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="open (issue 35): every dense arc's margin stands at the 0.75 deg cap; docs/decisions/"
-    "region.md, 'The swing edge past dense samples: the margins at their cap (found, not fixed)'",
-)
 def test_a_dense_teaching_puts_the_edge_where_its_samples_reach():
     # a star-shaped outline of 3.5 deg straight pieces turning both ways, as the region families'
     rng = np.random.default_rng(7)
@@ -133,6 +128,6 @@ def test_a_dense_teaching_puts_the_edge_where_its_samples_reach():
     region = TaughtRegion().fit(q)
     assert region.contains(q).mean() > 0.998
     off = edge_offsets(region, truth)
-    # the edge at the samples' reach (0.42 deg past at the median today, a traced edge)
+    # the edge at the samples' reach: not 0.42 deg past at the median (before), nor inside
     assert abs(float(np.median(off))) < 0.15
     assert np.percentile(off, 25) > -0.15
