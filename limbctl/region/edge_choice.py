@@ -141,6 +141,7 @@ def choose_edge(
     data: np.ndarray,
     supported: DirectionMesh,
     max_offset: float,
+    clip: bool = False,
 ) -> tuple[Verdict, tuple[Verdict, ...]]:
     """The edge the gate takes and the verdicts on every strategy judged, in order.
 
@@ -156,6 +157,9 @@ def choose_edge(
         The supported region: ``loops`` widened by their learned margins.
     max_offset : float
         The most (rad) a learned edge moves past its loop in one step.
+    clip : bool
+        Whether a traced edge refused for unexplained samples is proposed again clipped to
+        ``supported`` (where the samples' own depths set its margins).
 
     Returns
     -------
@@ -178,7 +182,7 @@ def choose_edge(
             # the free curve bridges a bay or notch: the curve held to the evidence instead
             answer = TracedEdge(hold=True).propose(loops, data, supported, max_offset)
             verdict = judge(answer, data, supported, against)
-        if name == "traced" and "unexplained_samples" in verdict.figures:
+        if clip and name == "traced" and "unexplained_samples" in verdict.figures:
             # the curve stands past the supported edge where samples were due: held to it there
             answer = TracedEdge(hold=hold, clip=True).propose(loops, data, supported, max_offset)
             verdict = judge(answer, data, supported, against)

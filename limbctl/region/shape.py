@@ -262,7 +262,7 @@ def edge_margins(
     max_bridge: float = np.inf,
     traced_arc: float = 0.0,
     corner_turn: float = np.pi,
-) -> list[np.ndarray]:
+) -> tuple[list[np.ndarray], bool]:
     """How far (rad) to widen each arc of the loops so the region reaches the true edge. Each
     direction of ``data`` (N, 3) belongs to its nearest arc. An arc's margin is the endpoint
     estimate (:func:`limbctl.region.gaps.line_gap`) of the ``top`` outermost depths beyond its great
@@ -271,15 +271,15 @@ def edge_margins(
     loop of its and ``OWN_ARCS`` arcs' data either side where they lie within the cap; at least
     the depth of every sample outside it, at most ``max_margin`` (or per loop (M,) caps).
     An arc longer than ``max_bridge`` only covers the samples beyond it; an arc cutting a traced
-    concave corner is held by :func:`corner_limits`. Per loop (M,), ``i`` for arc ``i -> i + 1``."""
+    concave corner is held by :func:`corner_limits`. Per loop (M,), ``i`` for arc ``i -> i + 1``;
+    and whether any loop's own depths were read."""
     vertices, edges = loops_to_edges(loops)
     nearest, angle = shape_kernels.nearest_arcs(data, vertices, edges)
     outside = ~inside_reference(data, vertices, edges)
     signed = np.where(outside, angle, -angle)
     need = np.zeros(edges.shape[0])
     np.maximum.at(need, nearest[outside], angle[outside])
-    out = []
-    start = 0
+    out, read, start = [], False, 0
     for number, lp in enumerate(loops):
         m = lp.shape[0]
         cap = max_margin if np.isscalar(max_margin) else max_margin[number]
@@ -295,6 +295,7 @@ def edge_margins(
         around = np.arange(-OWN_ARCS, OWN_ARCS + 1)
         owns = [-np.sort(-signed[buckets.rows((e + around) % m)]) for e in range(m)]
         dense = area_resolved(owns, top, cap)
+        read |= dense
         for e in np.flatnonzero(seg <= max_bridge):
             # circular distance along the loop between arc middles
             apart = np.abs(middle - middle[e])
@@ -313,7 +314,7 @@ def edge_margins(
         limit = corner_limits(lp, margin, seg, max_bridge, traced_arc, corner_turn)
         out.append(np.maximum(np.minimum(margin, limit), need[start : start + m]))
         start += m
-    return out
+    return out, read
 
 
 def area_resolved(owns: list[np.ndarray], top: int, cap: float) -> bool:

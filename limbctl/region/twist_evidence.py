@@ -63,8 +63,7 @@ HOLD_SLACK_DEG = 0.5
 #: The slope cap's reach (deg): farther samples vouch only as the steep cone does; 5, 6 each failed.
 REACH_DEG = 5.5
 
-#: The bound's slope (rad/rad), where the hold acts: the families' curved limits reach 1.81
-#: (seeds 0-39; 1.5 let seed 27 1.97 deg past), a shoulder's 0.5-0.7.
+#: The bound's slope (rad/rad), where the hold acts: families' curved limits 1.81 (seeds 0-39).
 BOUND_SLOPE = 2.0
 #: The bound's outward bending (deg^-1): families up to 0.216 (seeds 0-39), the shoulder 0.04.
 BOUND_CURVATURE_PER_DEG = 0.25
