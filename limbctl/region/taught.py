@@ -46,7 +46,7 @@ CORNER_TURN_DEG = 60.0
 #: Least growth of the thinning spacing a step while over the cap: ends in a few steps.
 THIN_GROWTH = 1.05
 #: Version of the construction, raised when it changes a region: `limbctl eval`'s cache key.
-FIT_VERSION = 16
+FIT_VERSION = 17
 #: Carving rounds at most: a bridged bay is a few triangles deep; 12 empty the families' bays.
 CARVE_ROUNDS = 12
 #: Most share of taught samples carving may leave out: a bay's bridge holds none.
@@ -143,8 +143,9 @@ class TaughtRegion:
         self.unsupported_edge = tuple(
             unsupported_stretches(taken.region, d_train, np.radians(REACH_DEG), surrounded=False)
         )
-        if not self.unsupported_edge:
+        if not self.unsupported_edge and not own_read:
             return taken.region
+        # own depths put the edge up to REACH_DEG from them (as far past the truth): held too
         # containment over coverage: held to REACH_DEG, then to HOLD_REACH_DEG where that holds;
         # patient (arcs by samples it cannot keep stay at REACH_DEG) only on a region held to
         # REACH_DEG: where that gave up, the samples are too sparse for any hold (a 90 deg cone's
