@@ -79,13 +79,14 @@ class SmoothEdge:
 
 
 class TracedEdge:
-    """A curve walked out station by station (``hold``: within ``HOLD_DEG`` of the samples)."""
+    """A curve walked out station by station (``hold``: within ``HOLD_DEG`` of the samples;
+    ``clip``: its stations past the supported region projected onto that region's edge)."""
 
     name: ClassVar[str] = "traced"
     safe: ClassVar[bool] = False
 
-    def __init__(self, hold: bool = False) -> None:
-        self.hold = hold
+    def __init__(self, hold: bool = False, clip: bool = False) -> None:
+        self.hold, self.clip = hold, clip
 
     def propose(
         self, loops: list[np.ndarray], data: np.ndarray, supported: DirectionMesh, max_offset: float
@@ -111,7 +112,7 @@ class TracedEdge:
                     f"taught sample (at most {et.HELD_REACH_DEG:g})",
                     {"held_reach_deg": float(reach)},
                 )
-            edges.append(edge)
+            edges.append(supported.project(edge) if self.clip else edge)
         return Proposal(self.name, edges)
 
 
@@ -140,6 +141,7 @@ def choose_edge(
     data: np.ndarray,
     supported: DirectionMesh,
     max_offset: float,
+    clip: bool = False,
 ) -> tuple[Verdict, tuple[Verdict, ...]]:
     """The edge the gate takes and the verdicts on every strategy judged, in order.
 
@@ -155,6 +157,9 @@ def choose_edge(
         The supported region: ``loops`` widened by their learned margins.
     max_offset : float
         The most (rad) a learned edge moves past its loop in one step.
+    clip : bool
+        Whether a traced edge refused for unexplained samples is proposed again clipped to
+        ``supported`` (where the samples' own depths set its margins).
 
     Returns
     -------
@@ -172,9 +177,14 @@ def choose_edge(
         answer = strategy.propose(loops, data, supported, max_offset)
         against = tuple(rivals) if choice == "auto" else ()
         verdict = judge(answer, data, supported, against)
-        if name == "traced" and "evidence_deg" in verdict.figures:
+        hold = name == "traced" and "evidence_deg" in verdict.figures
+        if hold:
             # the free curve bridges a bay or notch: the curve held to the evidence instead
             answer = TracedEdge(hold=True).propose(loops, data, supported, max_offset)
+            verdict = judge(answer, data, supported, against)
+        if clip and name == "traced" and "unexplained_samples" in verdict.figures:
+            # the curve stands past the supported edge where samples were due: held to it there
+            answer = TracedEdge(hold=hold, clip=True).propose(loops, data, supported, max_offset)
             verdict = judge(answer, data, supported, against)
         judged[name] = verdict
         if verdict.accepted and not strategy.safe:

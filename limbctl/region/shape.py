@@ -16,6 +16,18 @@ from limbctl.region.union_find import UnionFind
 
 #: Share of points the alpha scale joins into one piece: strays (1 %) must not set it.
 JOINED_FRACTION = 0.99
+#: Arcs either side whose readings a dense arc's own estimate pools: triples its readings.
+OWN_ARCS = 1
+#: A loop's own depths are read where its median arc's outermost readings lie within this share
+#: of the cap: the region families' dense teachings 0.15-0.21 deg at 0.75, their sparse ones and
+#: `limbctl eval`'s 2000-sample shoulder 0.53-0.63 (docs/decisions/region.md, "dense edge").
+OWN_SPREAD = 1.0 / 3.0
+#: Depth (deg) of the bands at and below a pool's outermost reading the area test counts: half
+#: the i.i.d. teachings' 1 deg edge band, so both bands lie within it.
+BAND_DEG = 0.5
+#: Least share the band below holds of the band at the outermost in an area's samples: the dense
+#: teachings' median arc 0.72, a hand's traced strokes (samples on a line) 0-0.17.
+BELOW_SHARE = 0.4
 
 
 def thin(d: np.ndarray, spacing: float) -> np.ndarray:
@@ -250,26 +262,28 @@ def edge_margins(
     max_bridge: float = np.inf,
     traced_arc: float = 0.0,
     corner_turn: float = np.pi,
-) -> list[np.ndarray]:
+) -> tuple[list[np.ndarray], bool]:
     """How far (rad) to widen each arc of the loops so the region reaches the true edge. Each
     direction of ``data`` (N, 3) belongs to its nearest arc. An arc's margin is the endpoint
     estimate (:func:`limbctl.region.gaps.line_gap`) of the ``top`` outermost depths beyond its great
-    circle of the data of the arcs within ``window`` (rad) along the loop, at least the depth of
-    every sample outside it, at most ``max_margin`` (one value, or per loop (M,) caps). An arc
-    longer than ``max_bridge`` only covers the samples beyond it; an arc cutting a traced concave
-    corner is held by :func:`corner_limits`. Returns per loop (M,), ``i`` for arc ``i -> i + 1``."""
+    circle of the data of the arcs within ``window`` (rad) along the loop, or, if less, on a loop
+    whose samples resolve its edge as an area's (:func:`area_resolved`), of the own depths past the
+    loop of its and ``OWN_ARCS`` arcs' data either side where they lie within the cap; at least
+    the depth of every sample outside it, at most ``max_margin`` (or per loop (M,) caps).
+    An arc longer than ``max_bridge`` only covers the samples beyond it; an arc cutting a traced
+    concave corner is held by :func:`corner_limits`. Per loop (M,), ``i`` for arc ``i -> i + 1``;
+    and whether any loop's own depths were read."""
     vertices, edges = loops_to_edges(loops)
     nearest, angle = shape_kernels.nearest_arcs(data, vertices, edges)
     outside = ~inside_reference(data, vertices, edges)
+    signed = np.where(outside, angle, -angle)
     need = np.zeros(edges.shape[0])
     np.maximum.at(need, nearest[outside], angle[outside])
-    out = []
-    start = 0
+    out, read, start = [], False, 0
     for number, lp in enumerate(loops):
         m = lp.shape[0]
         cap = max_margin if np.isscalar(max_margin) else max_margin[number]
-        nxt = np.roll(lp, -1, axis=0)
-        pole = -np.cross(lp, nxt)
+        pole = -np.cross(lp, np.roll(lp, -1, axis=0))
         pole /= np.linalg.norm(pole, axis=1, keepdims=True)
         seg = edge_lengths(lp, np.column_stack([np.arange(m), (np.arange(m) + 1) % m]))
         # arc-length position of each arc's middle along the loop
@@ -278,6 +292,10 @@ def edge_margins(
         # the data of each arc of this loop
         buckets = StationBuckets(nearest - start, m)
         est = np.zeros(m)
+        around = np.arange(-OWN_ARCS, OWN_ARCS + 1)
+        owns = [-np.sort(-signed[buckets.rows((e + around) % m)]) for e in range(m)]
+        dense = area_resolved(owns, top, cap)
+        read |= dense
         for e in np.flatnonzero(seg <= max_bridge):
             # circular distance along the loop between arc middles
             apart = np.abs(middle - middle[e])
@@ -286,14 +304,34 @@ def edge_margins(
             if rows.size == 0:
                 continue
             # o = asin(x . n): signed angle beyond the arc's great circle
-            vals = np.arcsin(np.clip(data[rows] @ pole[e], -1.0, 1.0))
-            vals = -np.sort(-vals)[:top]
+            vals = -np.sort(-np.arcsin(np.clip(data[rows] @ pole[e], -1.0, 1.0)))[:top]
             est[e] = vals[0] + line_gap(vals)
+            # dense (within the cap): own depths, free of this arc's tilt and the loop's turns
+            own = owns[e]
+            if dense and own.size >= top and own[0] - own[top - 1] <= cap:
+                est[e] = min(est[e], own[0] + line_gap(own[:top]))
         margin = np.clip(np.maximum(est, need[start : start + m]), 0.0, cap)
         limit = corner_limits(lp, margin, seg, max_bridge, traced_arc, corner_turn)
         out.append(np.maximum(np.minimum(margin, limit), need[start : start + m]))
         start += m
-    return out
+    return out, read
+
+
+def area_resolved(owns: list[np.ndarray], top: int, cap: float) -> bool:
+    """Whether a loop's samples resolve its edge as an area's do, judged at its median arc of
+    those with ``top`` own depths (``owns``, per arc, outermost first, rad): the ``top`` outermost
+    within ``OWN_SPREAD`` of ``cap`` (rad) of each other (dense), and the ``BAND_DEG`` band below
+    the outermost's band holding at least ``BELOW_SHARE`` as many (an area, not a traced stroke:
+    :func:`limbctl.region.gaps.line_gap` reads order statistics of an area's density)."""
+    full = [o for o in owns if o.size >= top]
+    if not full:
+        return False
+    band = np.radians(BAND_DEG)
+    spread = np.median([o[0] - o[top - 1] for o in full])
+    below = [
+        np.sum((o < o[0] - band) & (o >= o[0] - 2 * band)) / np.sum(o >= o[0] - band) for o in full
+    ]
+    return bool(spread <= OWN_SPREAD * cap and np.median(below) >= BELOW_SHARE)
 
 
 def corner_limits(

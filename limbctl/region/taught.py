@@ -46,7 +46,7 @@ CORNER_TURN_DEG = 60.0
 #: Least growth of the thinning spacing a step while over the cap: ends in a few steps.
 THIN_GROWTH = 1.05
 #: Version of the construction, raised when it changes a region: `limbctl eval`'s cache key.
-FIT_VERSION = 18
+FIT_VERSION = 19
 #: Carving rounds at most: a bridged bay is a few triangles deep; 12 empty the families' bays.
 CARVE_ROUNDS = 12
 #: Most share of taught samples carving may leave out: a bay's bridge holds none.
@@ -121,30 +121,31 @@ class TaughtRegion:
         if tri is None:
             return DirectionMesh.from_loops([], 0.0)
         built = self._supported_loops(d, d_train, thinning, tri, kept)
-        held_first = float(np.mean(built[2].contains(d_train)))
+        held_first = float(np.mean(built[1].contains(d_train)))
         for _ in range(CARVE_ROUNDS):
-            stations, _, _, bad = unsupported_stations(built[2], d_train)
+            stations, _, _, bad = unsupported_stations(built[1], d_train)
             if bad.size == 0:
                 break
             carved = rs.carve(d, tri, kept, stations[bad])
             if np.array_equal(carved, kept):
                 break
             trial = self._supported_loops(d, d_train, thinning, tri, carved)
-            if float(np.mean(trial[2].contains(d_train))) < held_first - CARVE_LOSS:
+            if float(np.mean(trial[1].contains(d_train))) < held_first - CARVE_LOSS:
                 # carving ate into the taught samples: not a bay; the shape before stays
                 break
             built, kept = trial, carved
-        loops, margins, supported = built
+        loops, supported, own_read = built
         taken, self.verdicts = choose_edge(
-            p.edge, loops, d_train, supported, np.radians(p.max_offset_deg)
+            p.edge, loops, d_train, supported, np.radians(p.max_offset_deg), clip=own_read
         )
         self.edge = taken.strategy
         # judged on the edge the region keeps: farther than REACH_DEG it may lie that far past
         self.unsupported_edge = tuple(
             unsupported_stretches(taken.region, d_train, np.radians(REACH_DEG), surrounded=False)
         )
-        if not self.unsupported_edge:
+        if not self.unsupported_edge and not own_read:
             return taken.region
+        # own depths put the edge up to REACH_DEG from them (as far past the truth): held too
         # containment over coverage: held to REACH_DEG, then to HOLD_REACH_DEG where that holds;
         # patient (arcs by samples it cannot keep stay at REACH_DEG) only on a region held to
         # REACH_DEG: where that gave up, the samples are too sparse for any hold (a 90 deg cone's
@@ -195,12 +196,12 @@ class TaughtRegion:
 
     def _supported_loops(
         self, d: np.ndarray, d_train: np.ndarray, thinning: float, tri: np.ndarray, kept
-    ) -> tuple[list[np.ndarray], list[np.ndarray], DirectionMesh]:
-        """The supported loops, their margins and region (lookup grid not built)."""
+    ) -> tuple[list[np.ndarray], DirectionMesh, bool]:
+        """The supported loops, their region (no lookup grid) and whether own depths set it."""
         p = self.params
         length = self._peel_length(d)
         loops = [d[idx] for idx in rs.trace_loops(d, boundary_edges(tri[kept]))]
-        margins = rs.edge_margins(
+        margins, own_read = rs.edge_margins(
             loops,
             d_train,
             EDGE_WINDOW * length,
@@ -211,7 +212,7 @@ class TaughtRegion:
             corner_turn=np.radians(CORNER_TURN_DEG),
         )
         # the lookup grid waits until this region is taken (fit) or first asked (gate)
-        return loops, margins, DirectionMesh.from_loops(loops, margins, lookup=False)
+        return loops, DirectionMesh.from_loops(loops, margins, lookup=False), own_read
 
     def _mesh(self) -> DirectionMesh:
         if self.mesh is None:

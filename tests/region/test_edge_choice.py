@@ -1,11 +1,15 @@
 import numpy as np
 import pytest
 
-from limbctl.envelope.synthetic import EGG, ConeRegion, PolygonRegion
+from limbctl.envelope.synthetic import EGG, ConeRegion, PolygonRegion, rounded
+from limbctl.envelope.synthetic_twist import SHOULDER, ShoulderRegion
 from limbctl.errors import ConfigError
 from limbctl.geometry.gimbal import pan_tilt_to_direction
+from limbctl.geometry.quat import limb_direction
+from limbctl.region import TaughtRegion
 from limbctl.region import edge_choice as ec
 from limbctl.region.acceptance import Proposal, Refusal
+from limbctl.region.evidence import edge_stations
 from limbctl.region.loops import loop_area
 from limbctl.region.mesh import DirectionMesh
 from tests.region.support import circle
@@ -78,3 +82,17 @@ def test_the_smooth_strategy_refuses_a_bay_and_a_shape_its_window_cannot_follow(
     loop = counter_clockwise(pan_tilt_to_direction(pan_tilt[:, 0], pan_tilt[:, 1]))
     answer = ec.SmoothEdge().propose([loop], PolygonRegion(EGG).sample(1000, rng), None, WINDOW)
     assert isinstance(answer, Refusal) and answer.figures["residual_ratio"] > 1.4
+
+
+def test_a_traced_edge_refused_for_unexplained_samples_is_taken_clipped_to_the_supported_region():
+    # limbctl eval's dense shoulder (its quick scale, seed 0): own-depth margins narrow the
+    # supported region and the free traced edge then adds a stretch the density explains not
+    truth = ShoulderRegion(rounded(SHOULDER))
+    d = limb_direction(truth.teaching(2500, 1900, 3100, np.random.default_rng(0)))
+    region = TaughtRegion().fit(d)
+    traced = next(v for v in region.verdicts if v.strategy == "traced")
+    assert region.edge == "traced" and traced.accepted, traced.reasons
+    stations, _ = edge_stations(region.mesh, np.radians(0.25))
+    depth = np.degrees(truth.swing.depth(stations))
+    # clipped, the edge stays at the samples' reach (the free trace stood 0.36 deg past at p5)
+    assert np.percentile(depth, 5) > -0.1

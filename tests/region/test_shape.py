@@ -58,7 +58,7 @@ def test_edge_margins_reach_the_circle_and_cover_every_sample():
     loops = alpha_loops(data, np.radians(4.0), max_hole=0.1)
     assert len(loops) == 1
     cap = np.radians(0.75)
-    margins = rs.edge_margins(loops, data, np.radians(6.0), 12, cap)[0]
+    margins = rs.edge_margins(loops, data, np.radians(6.0), 12, cap)[0][0]
     assert margins.shape == (loops[0].shape[0],)
     assert (margins >= 0.0).all() and (margins <= cap).all()
     mesh = DirectionMesh.from_loops(loops, [margins])

@@ -4,7 +4,9 @@ import pytest
 from limbctl.envelope.synthetic import EGG, ConeRegion, PolygonRegion, to_quaternions
 from limbctl.envelope.synthetic_twist import BandRegion
 from limbctl.errors import ConfigError, InvalidInputError
+from limbctl.geometry.gimbal import pan_tilt_to_direction
 from limbctl.geometry.quat import limb_direction
+from limbctl.geometry.twist import wrap
 from limbctl.region import RegionParams, TaughtRegion
 
 
@@ -116,11 +118,6 @@ def edge_offsets(region: TaughtRegion, truth: BandRegion, every: int = 20) -> np
     return np.degrees(s[s.size - 1 - np.argmax(inside[:, ::-1], axis=1)])
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="open (issue 35): every dense arc's margin stands at the 0.75 deg cap; docs/decisions/"
-    "region.md, 'The swing edge past dense samples: the margins at their cap (found, not fixed)'",
-)
 def test_a_dense_teaching_puts_the_edge_where_its_samples_reach():
     # a star-shaped outline of 3.5 deg straight pieces turning both ways, as the region families'
     rng = np.random.default_rng(7)
@@ -133,6 +130,36 @@ def test_a_dense_teaching_puts_the_edge_where_its_samples_reach():
     region = TaughtRegion().fit(q)
     assert region.contains(q).mean() > 0.998
     off = edge_offsets(region, truth)
-    # the edge at the samples' reach (0.42 deg past at the median today, a traced edge)
+    # the edge at the samples' reach: not 0.42 deg past at the median (before), nor inside
     assert abs(float(np.median(off))) < 0.15
     assert np.percentile(off, 25) > -0.15
+
+
+def _star_outline(rng: np.random.Generator) -> np.ndarray:
+    """A star-shaped outline (72, 2) (pan, tilt deg) with two Gaussian bays and a triangular
+    notch, drawn as the region families draw theirs (benchmarks/bench_region_families.py)."""
+    centre = np.array([rng.uniform(-20, 20), rng.uniform(-10, 15)])
+    phi = np.radians(np.arange(0.0, 360.0, 5.0))
+    r = rng.uniform(38.0, 50.0) * (1.0 + 0.06 * rng.uniform(-1, 1, phi.size))
+    for _ in range(2):
+        at, depth, width = rng.uniform(0, 2 * np.pi), rng.uniform(0.25, 0.45), rng.uniform(20, 35)
+        r *= 1.0 - depth * np.exp(-0.5 * (np.degrees(np.abs(wrap(phi - at))) / width) ** 2)
+    at, depth = rng.uniform(0, 2 * np.pi), rng.uniform(0.35, 0.5)
+    r *= 1.0 - depth * np.clip(1.0 - np.degrees(np.abs(wrap(phi - at))) / 6.0, 0.0, 1.0)
+    pts = centre + r[:, None] * np.stack([np.cos(phi), np.sin(phi)], axis=1)
+    pts[:, 1] = np.clip(pts[:, 1], -70.0, 70.0)
+    return pts
+
+
+def test_an_edge_from_the_samples_own_depths_is_held_to_the_tight_reach():
+    # the families' outline of seed 26, taught densely: the own-depth margins left no stretch
+    # past REACH_DEG, so nothing was held, and a chord across the notch stood 1.04 deg past it
+    poly = _star_outline(np.random.default_rng([26, 0]))
+    truth = BandRegion(poly, lambda pan, tilt: (np.zeros_like(pan), np.full_like(pan, 40.0)))
+    d = limb_direction(truth.teaching(2500, 1900, 3100, np.random.default_rng([26, 99])))
+    region = TaughtRegion().fit(d)
+    lo, hi = poly.min(axis=0) - 5.0, poly.max(axis=0) + 5.0
+    pan, tilt = np.meshgrid(np.arange(lo[0], hi[0], 0.5), np.arange(lo[1], hi[1], 0.5))
+    lattice = pan_tilt_to_direction(np.radians(pan.ravel()), np.radians(tilt.ravel()))
+    past = -np.degrees(truth.swing.depth(lattice[region.mesh.contains(lattice)]).min())
+    assert past <= 1.0, f"the learned edge stands {past:.2f} deg past the truth"
