@@ -46,11 +46,18 @@ def shared_currents(
 ) -> tuple[tuple[int, ...], float]:
     """Goal Current units per joint, ``I_j = tau |s_j| / |s| / kt`` rounded down, for a push of
     ``torque_nm`` (N m) along ``step`` (n,) (rad; not all zero), and their magnitude sqrt(sum_j
-    torque_of(I_j)^2) (N m)."""
+    torque_of(I_j)^2) (N m), never over the push one joint alone gives, torque_of(units_for(tau)).
+    """
     norm = math.sqrt(sum(s * s for s in step))
-    currents = tuple(motor.units_for(torque_nm * abs(s) / norm) for s in step)
+    currents = [motor.units_for(torque_nm * abs(s) / norm) for s in step]
+    # each joint rounded down keeps the size under tau, but not under one joint's whole units:
+    # a diagonal could feel up to a unit more than a straight push; the largest gives a unit back
+    most = motor.torque_of(motor.units_for(torque_nm))
     magnitude = math.sqrt(sum(motor.torque_of(c) ** 2 for c in currents))
-    return currents, magnitude
+    while magnitude > most:
+        currents[currents.index(max(currents))] -= 1
+        magnitude = math.sqrt(sum(motor.torque_of(c) ** 2 for c in currents))
+    return tuple(currents), magnitude
 
 
 def held(present: Sequence[float], distance_deg: float = 0.0) -> Push:
