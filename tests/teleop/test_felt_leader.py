@@ -443,8 +443,12 @@ def test_an_xl430_leader_stays_passive_mirrors_and_says_so(tmp_path, rig):
         limb = session.rig
         turn_shafts(limb, rig.ids, SHAFTS[rig.profile])
         if len(rig.ids) == 3:
+            # read before and after the poll: a shaft still settling within its 2 ticks lies
+            # between the two reads
             ticks = limb.bus.sync_read(Register.PRESENT_POSITION, rig.ids)
             [turned] = source.poll()
+            polled = source.last_pose
+            later = limb.bus.sync_read(Register.PRESENT_POSITION, rig.ids)
         else:
             with pytest.raises(ConfigError, match="not on the bus"):
                 LeaderSource(limb, (5, 6))
@@ -474,7 +478,10 @@ def test_an_xl430_leader_stays_passive_mirrors_and_says_so(tmp_path, rig):
         return
     assert shown.twist_deg == pytest.approx(math.degrees(decompose_one(command.q)[1]))
     angles = limb.ticks_to_angles(*(ticks[i] for i in rig.ids))
-    np.testing.assert_allclose(turned.q, pose_quat_scalar(*angles), atol=1e-12)
+    after = limb.ticks_to_angles(*(later[i] for i in rig.ids))
+    np.testing.assert_allclose(turned.q, pose_quat_scalar(*polled), atol=1e-12)
+    for joint, (at, polled_at, then) in enumerate(zip(angles, polled, after, strict=True)):
+        assert min(at, then) - 1e-12 <= polled_at <= max(at, then) + 1e-12, joint
     # the shafts were waited for within 2 ticks of goals rounded from the angles: 2.33 ticks
     assert math.degrees(angles[2]) == pytest.approx(-30.0, abs=2.34 * 360 / 4096)
 
