@@ -10,6 +10,7 @@ import numpy as np
 
 from limbctl.geometry.chains import geodesic
 from limbctl.geometry.gimbal import pan_tilt_roll_scalar, quat_to_pan_tilt
+from limbctl.geometry.quat import direction_angle, limb_direction
 from limbctl.servo.leader import LeaderMotor
 from limbctl.teleop.haptic import (
     FeelLaw,
@@ -72,16 +73,8 @@ def beyond_deg(q: np.ndarray, corrected: np.ndarray, joints: int) -> float:
     if joints == 3:
         # d = 2 acos |<q, c>|, computed as chains.geodesic does (accurate near 0)
         return math.degrees(geodesic(np.asarray(q, dtype=float), np.asarray(corrected, float)))
-    a = np.asarray(quat_to_pan_tilt(q), dtype=float)
-    b = np.asarray(quat_to_pan_tilt(corrected), dtype=float)
-    # d = (cos t cos p, cos t sin p, sin t); angle = atan2(|a x b|, a . b)
-    da = np.array(
-        [math.cos(a[1]) * math.cos(a[0]), math.cos(a[1]) * math.sin(a[0]), math.sin(a[1])]
-    )
-    db = np.array(
-        [math.cos(b[1]) * math.cos(b[0]), math.cos(b[1]) * math.sin(b[0]), math.sin(b[1])]
-    )
-    return math.degrees(math.atan2(float(np.linalg.norm(np.cross(da, db))), float(da @ db)))
+    # the angle between the limb's directions, atan2(|a x b|, a . b) (any length of either)
+    return math.degrees(float(direction_angle(limb_direction(q), limb_direction(corrected))))
 
 
 def corrected_pose(
