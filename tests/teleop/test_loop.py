@@ -8,7 +8,6 @@ import os
 import threading
 
 import numpy as np
-import pytest
 
 from calib.profile import default_sim_profile
 from limbctl.demo import goal_log_excursions
@@ -27,11 +26,6 @@ RATE = 200.0
 MAX_SPEED = 120.0
 STEP_DEG = MAX_SPEED / RATE
 HALF_TICK_DEG = 360.0 / 4096 / 2
-
-
-@pytest.fixture
-def cone_model(cone_file):
-    return cone_file(40.0)
 
 
 def write_lines(path, rows):

@@ -150,11 +150,6 @@ def test_approach_drives_the_limb_inside_along_a_slow_checked_path(rig_name, out
 PROFILE = default_sim_profile()
 
 
-@pytest.fixture
-def cone_model(cone_file):
-    return cone_file(40.0)
-
-
 def replay(tmp_path, rows, name="cmds.jsonl"):
     path = tmp_path / name
     path.write_text("".join((r if isinstance(r, str) else json.dumps(r)) + "\n" for r in rows))
