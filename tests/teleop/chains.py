@@ -1,5 +1,6 @@
-"""The start, approach and park tests' rigs on the simulator through the SDK: ``sim`` (a 40 deg
-cone about +x) and ``sim3`` (the same cone, the twist within 30 deg of 0)."""
+"""The teleop tests' rigs on the simulator through the SDK (:func:`live_chain`) and the start,
+approach and park tests' gates: ``sim`` (a 40 deg cone about +x) and ``sim3`` (the same cone,
+the twist within 30 deg of 0)."""
 
 from __future__ import annotations
 

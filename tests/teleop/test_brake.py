@@ -5,8 +5,6 @@ inside is never pulled outward, where the snap rule alone (round 7) was."""
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -15,13 +13,11 @@ from hypothesis import strategies as st
 from limbctl.teleop.brake import BrakeLaw, brakes_soon, outruns
 from limbctl.teleop.snap import SnapLaw, SnapWatch
 from tests.teleop.stepped_leader import felt_at_200_hz
+from tests.teleop.test_snap import GOAL, POSE  # 2 deg beyond a pan edge at 30 deg
 
 BRAKE = BrakeLaw()
 WALK = 13.74  # the wall's setpoint speed (deg/s): Profile Velocity 10 units
 STILL = SnapLaw().still_speed_deg_s
-#: The leader 2 deg beyond a pan edge at 30 deg, the wall's goal two ticks in (rad).
-POSE = (math.radians(32.0), 0.0)
-GOAL = (math.radians(31.824), 0.0)
 
 
 def walking_watch(brake: BrakeLaw | None = BRAKE) -> SnapWatch:

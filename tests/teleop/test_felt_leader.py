@@ -401,17 +401,33 @@ def test_a_felt_leaders_cycle_read_carries_its_present_velocity(tmp_path):
         assert min(before, after) - 3 <= units_read <= max(before, after) + 3
 
 
-def test_a_held_leader_let_go_is_freed_by_the_snap_watch(tmp_path):
-    # pressed and held still, then the hand is gone: the watch cuts the snap at once
+def test_a_held_leader_let_go_or_pulled_back_inside_is_freed_before_it_is_braked(tmp_path):
+    """Pressed and held still, then the hand is gone: the watch cuts the snap at once. Pressed
+    and held again, the hand pulls it inside faster than the setpoint walks: freed."""
     with running_felt(tmp_path) as (session, source, log, running):
         gone = {"script": [[0.0, EDGE + 20.0, 0.0]], "let_go_s": 0.0}
         let_go_at = running.held_then(PRESS, gone)
-    if let_go_at is None:
-        return  # the feel went off for a lost pace (its outcome asserted)
-    assert source.snap.cuts >= 1
-    after = [r for r in truth_rows(log) if r["t"] >= let_go_at]
-    assert after and min(r["pose_deg"][0] for r in after) > EDGE  # never walked inside
+        if let_go_at is None:
+            return  # the feel went off for a lost pace (its outcome asserted)
+        cuts, freed = source.snap.cuts, source.snap.brakes + source.snap.cuts
+        pressed_again_at = session.simulator.truth()["leader"]["t"]
+        pull = [[0.0, EDGE + 20.0, 0.0], [0.2, 0.0, 0.0]]  # from the switch on
+        now = running.held_then(PRESS, {"script": pull, **HAND})
+    rows = truth_rows(log)
+    assert cuts >= 1, "let go: the watch never cut"
+    after = [r for r in rows if let_go_at <= r["t"] < pressed_again_at]
+    assert after and min(r["pose_deg"][0] for r in after) > EDGE, "let go: walked inside"
     assert all(r["motor_nm"] == [0.0, 0.0] for r in after if r["pose_deg"][0] < EDGE)
+    if now is None:
+        return  # the feel went off for a lost pace (its outcome asserted)
+    after = [r for r in rows if r["t"] >= now]
+    assert after and min(r["pose_deg"][0] for r in after) < EDGE  # the hand took it inside
+    assert all(r["motor_nm"] == [0.0, 0.0] for r in after if r["pose_deg"][0] < EDGE)
+    assert source.snap.brakes + source.snap.cuts > freed  # the watch let the wall go
+    # outside, pulling outward: two cycles at most, small beside a dragged leader's 0.28 N m
+    outward = [r for r in after if r["pose_deg"][0] > EDGE and r["motor_nm"][0] > 0.0]
+    assert not outward or outward[-1]["t"] - outward[0]["t"] <= 0.012  # two cycles at most
+    assert max((r["motor_nm"][0] for r in outward), default=0.0) < 0.25 * source.law.cap_nm
 
 
 def turn_shafts(rig, ids: tuple[int, ...], degrees: tuple[float, ...]) -> None:
@@ -494,28 +510,27 @@ def test_an_xl430_leader_stays_passive_mirrors_and_says_so(tmp_path, rig):
     assert math.degrees(angles[2]) == pytest.approx(-30.0, abs=2.34 * 360 / 4096)
 
 
-def test_a_felt_leader_that_cannot_keep_the_rate_is_refused(tmp_path, rig):
+def test_a_rate_it_cannot_keep_is_refused_and_a_lost_pace_switches_the_feel_off_for_good(
+    tmp_path, rig
+):
+    """Refused at 2 kHz, left limp; started, a lost pace switches the feel off for good in its
+    cycle and mirroring goes on."""
     with felt_session(tmp_path, rig, rate_hz=2000.0) as (session, source, log):
         with pytest.raises(ConfigError, match="lower --rate"), source:
             pass
-        assert not any(session.rig.bus.torque_enabled()[i] for i in rig.ids)  # left limp
-
-
-def test_a_lost_pace_switches_the_feel_off_for_good_in_its_cycle_and_mirroring_goes_on(
-    tmp_path, rig
-):
-    with felt_session(tmp_path, rig) as (session, source, log), source:
+        assert not any(session.rig.bus.torque_enabled()[i] for i in rig.ids), "not left limp"
         # forced: the source believes its wall needs 1 kHz
         source.rate_hz, source.pace = 1000.0, PaceWatch(1000.0)
-        session.rig.set_torque(True)
-        with Running(session, source) as running:
-            session.simulator.set_operator(rig.press)
-            running.until(lambda p: running.off.at is not None and len(p) > running.off.at + 20)
-            accepted = source.stats.accepted
-            running.until(lambda p: len(p) > running.off.at + 40)
-            assert running.paced_out()
-        assert source.stats.accepted > accepted  # still mirrored, without feel
-        assert not source.felt
+        with source:
+            session.rig.set_torque(True)
+            with Running(session, source) as running:
+                session.simulator.set_operator(rig.press)
+                running.until(lambda p: running.off.at is not None and len(p) > running.off.at + 20)
+                accepted = source.stats.accepted
+                running.until(lambda p: len(p) > running.off.at + 40)
+                assert running.paced_out()
+            assert source.stats.accepted > accepted  # still mirrored, without feel
+            assert not source.felt
 
 
 #: Faults injected into a running rig (its simulator, the rig).
@@ -625,26 +640,6 @@ def test_at_the_real_rate_the_wall_holds_or_its_feel_goes_off_for_good(tmp_path)
     else:
         held = [r for r in truth_rows(log) if start + 3.0 <= r["t"] < start + 4.0]
         assert 0.4 < statistics.median(beyond_of(square_region(), r) for r in held[::5]) < 2.0
-
-
-# -- the brake rules over the pty ------------------------------------------------------------
-
-
-def test_a_hand_pulling_a_held_leader_back_inside_is_let_go_before_it_is_braked(tmp_path):
-    # held 20 deg beyond, the hand pulls it inside faster than the setpoint walks: freed
-    with running_felt(tmp_path) as (session, source, log, running):
-        pull = [[0.0, EDGE + 20.0, 0.0], [0.2, 0.0, 0.0]]  # from the switch on
-        now = running.held_then(PRESS, {"script": pull, **HAND})
-    if now is None:
-        return  # the feel went off for a lost pace (its outcome asserted)
-    after = [r for r in truth_rows(log) if r["t"] >= now]
-    assert after and min(r["pose_deg"][0] for r in after) < EDGE  # the hand took it inside
-    assert all(r["motor_nm"] == [0.0, 0.0] for r in after if r["pose_deg"][0] < EDGE)
-    assert source.snap.brakes + source.snap.cuts >= 1  # the watch let the wall go
-    # outside, pulling outward: two cycles at most, small beside a dragged leader's 0.28 N m
-    outward = [r for r in after if r["pose_deg"][0] > EDGE and r["motor_nm"][0] > 0.0]
-    assert not outward or outward[-1]["t"] - outward[0]["t"] <= 0.012  # two cycles at most
-    assert max((r["motor_nm"][0] for r in outward), default=0.0) < 0.25 * source.law.cap_nm
 
 
 # -- a leader servo, the bus or the controller failing mid-push -------------------------------

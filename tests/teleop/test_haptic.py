@@ -399,8 +399,7 @@ def test_at_200_hz_the_law_alone_brakes_a_let_go_leader_outward_and_snaps_over_3
 
 @pytest.mark.parametrize("model", ["xl330-m288@53", "xl330-m077@53"])
 def test_an_xl330_wall_pushes_with_its_cap_where_two_ticks_gave_a_fraction(model):
-    """All of its cap where two ticks gave a fraction; let go, under 30 deg/s to within 0.5 deg,
-    never inside."""
+    """Let go, under 30 deg/s to within 0.5 deg, never inside."""
     for hand in [(0.02, 5.0), (0.05, 20.0), (0.2, 5.0)]:  # stiffness N m/deg, deg beyond
         out = let_go(*hand, model=model)
         assert out["peak"] <= 30.0, hand  # every 1 ms sample
@@ -648,8 +647,8 @@ def pressed(rig: str, stiffness: float, max_torque_nm: float) -> tuple:
 
 @pytest.mark.parametrize("rig", sorted(DIAGONALS))
 def test_on_a_diagonal_the_hand_feels_at_most_the_cap_and_a_let_go_returns_under_30_deg_s(rig):
-    """At most the cap felt on a diagonal press, not each motor's; a let go under 30 deg/s."""
-    # a relaxed hand and one that overpowers the wall: once the hand felt sqrt(2) of the cap
+    # a relaxed hand and one that overpowers the wall: once the hand felt sqrt(2) of the cap, not
+    # the cap of one motor
     for max_torque_nm in (0.3, 0.6):
         rows = pressed(rig, 0.2, max_torque_nm)
         felt = [float(np.linalg.norm(r["motor_nm"])) for r in rows if r["t"] < LET_GO_S]

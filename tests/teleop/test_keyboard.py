@@ -23,7 +23,6 @@ from limbctl.envelope import Cone, load_model
 from limbctl.errors import ConfigError
 from limbctl.geometry.gimbal import pan_tilt_roll_to_quat, pan_tilt_to_direction, pan_tilt_to_quat
 from limbctl.jobs import gate_for
-from limbctl.session import open_rig
 from limbctl.teleop.cycle import Cycle
 from limbctl.teleop.gate import Gate, GateLimits, Outcome, written_tolerance_deg
 from limbctl.teleop.keys import KEY_RATE_HZ
@@ -31,6 +30,7 @@ from limbctl.teleop.loop import LoopConfig, run
 from limbctl.teleop.sources import KeyboardSource
 from limbctl.teleop.sources.keyboard import MAX_LEAD_DEG, region_centre
 from tests.safety.support import Gathered
+from tests.teleop.chains import live_chain
 from tests.teleop.tmux import ROOT, tmux_pane
 
 #: A terminal's key repeat (common desktop settings): the delay before the first, the rate after.
@@ -293,11 +293,9 @@ def test_up_against_a_slanted_edge_slides_without_running_on_and_down_answers_at
 ):
     cycles = Cycles()
     stop = threading.Event()
-    with open_rig(rig_path=rig, goal_log=tmp_path / "goals.jsonl") as session:
+    with live_chain(rig, tmp_path / "goals.jsonl") as session:
         profile = session.profile
         gate = gate_for(cone_file(40.0, rig), profile, RATE, MAX_SPEED)
-        session.rig.configure()
-        session.rig.set_torque(True)
         with keyboard_on_pty(step_deg=10.0, gate=gate) as (source, type_):
             source.twist = profile.twists  # as the session sets it: roll kept
             config = LoopConfig(rate_hz=RATE, on_cycle=cycles)

@@ -8,7 +8,6 @@ import os
 import threading
 
 import numpy as np
-import pytest
 
 from calib.profile import default_sim_profile
 from limbctl.demo import goal_log_excursions
@@ -16,22 +15,17 @@ from limbctl.envelope import load_model
 from limbctl.geometry.gimbal import pan_tilt_to_direction
 from limbctl.geometry.quat import direction_angle
 from limbctl.jobs import gate_for
-from limbctl.session import open_rig
 from limbctl.teleop.cycle import CycleState
 from limbctl.teleop.gate import Outcome
 from limbctl.teleop.loop import ControlLoop, LoopConfig, Telemetry, run
 from limbctl.teleop.sources import ReplaySource, StreamSource
 from tests.safety.support import packet_directions
+from tests.teleop.chains import live_chain
 
 RATE = 200.0
 MAX_SPEED = 120.0
 STEP_DEG = MAX_SPEED / RATE
 HALF_TICK_DEG = 360.0 / 4096 / 2
-
-
-@pytest.fixture
-def cone_model(cone_file):
-    return cone_file(40.0)
 
 
 def write_lines(path, rows):
@@ -43,9 +37,7 @@ def run_session(model_path, source, goal_log, telemetry=None, config=None):
     profile = default_sim_profile()
     gate = gate_for(model_path, profile, RATE, MAX_SPEED)
     config = config or LoopConfig(rate_hz=RATE)
-    with open_rig(goal_log=goal_log) as session:
-        session.rig.configure()
-        session.rig.set_torque(True)
+    with live_chain("sim", goal_log) as session:
         with source:
             summary = run(session.rig, gate, source, config, telemetry=telemetry)
         truth = session.simulator.truth()
@@ -114,12 +106,10 @@ def test_a_set_stop_ends_the_next_cycle_before_any_bus_transfer(cone_model):
     stop = threading.Event()
     read_end, write_end = os.pipe()  # a source that stays open and silent
     with (
-        open_rig() as session,
+        live_chain("sim") as session,  # a held limb: torque off would be a fault
         os.fdopen(read_end, "rb", buffering=0) as reader,
         StreamSource(reader) as source,
     ):
-        session.rig.configure()
-        session.rig.set_torque(True)  # the loop drives a held limb (torque off is a fault)
         loop = ControlLoop(session.rig, gate, source, LoopConfig(), stop=stop)
         assert loop.start().state is CycleState.RUNNING
         running = loop.step()

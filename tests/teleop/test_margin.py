@@ -7,7 +7,6 @@ import numpy as np
 import pytest
 
 from calib import default_sim_profile
-from limbctl.envelope import Cone
 from limbctl.geometry.chains import geodesic
 from limbctl.geometry.gimbal import pan_tilt_to_direction, pose_quat_scalar
 from limbctl.geometry.quat import direction_angle
@@ -24,7 +23,7 @@ from limbctl.teleop.margin import (
 )
 from limbctl.teleop.start import assess
 from tests.teleop.chains import off_axis_deg
-from tests.teleop.test_gate import ConeBand
+from tests.teleop.test_gate import ConeBand, make_gate
 
 HALF_ANGLE = math.radians(40)
 MARGIN = math.radians(START_MARGIN_DEG)
@@ -43,13 +42,8 @@ def band_gate(roll_limit=2.5):
 
 
 def cone_gate():
-    limits = GateLimits(
-        joint_min=(math.radians(-100), math.radians(-30)),
-        joint_max=(math.radians(100), math.radians(70)),
-        max_step=math.radians(0.6),
-        max_joint_step=math.radians(1.8),
-    )
-    return Gate(Cone(HALF_ANGLE), limits)
+    """test_gate.py's 40 deg cone, tilt up to 70 deg, at teleop's 0.6 deg a cycle; not started."""
+    return make_gate(2, HALF_ANGLE, math.radians(0.6), 1.8, math.radians(70), start=False)
 
 
 def test_inside_by_margin_on_a_cone():

@@ -23,6 +23,7 @@ from limbctl.teleop.margin import START_MARGIN_DEG, margins_for
 from limbctl.teleop.start import MAX_APPROACH_SPEED_DEG_S, StartOptions, start_session
 from tests.safety.support import configured_rig, settle, wait_for
 from tests.teleop.chains import RATE, RIGS, chain_gate, live_chain, off_axis_deg, pose_of
+from tests.teleop.test_loop import write_lines
 
 
 @pytest.mark.parametrize("rig_name", RIGS)
@@ -150,15 +151,8 @@ def test_approach_drives_the_limb_inside_along_a_slow_checked_path(rig_name, out
 PROFILE = default_sim_profile()
 
 
-@pytest.fixture
-def cone_model(cone_file):
-    return cone_file(40.0)
-
-
 def replay(tmp_path, rows, name="cmds.jsonl"):
-    path = tmp_path / name
-    path.write_text("".join((r if isinstance(r, str) else json.dumps(r)) + "\n" for r in rows))
-    return f"replay:{path}"
+    return f"replay:{write_lines(tmp_path / name, rows)}"
 
 
 def options(model, sim, source, **kwargs):

@@ -4,20 +4,17 @@ from __future__ import annotations
 
 import fcntl
 import io
-import math
 import os
 import pty
 import select
 import struct
 import termios
 
-from limbctl.envelope import Cone
-from limbctl.geometry.gimbal import pan_tilt_to_quat
 from limbctl.teleop.cycle import Cycle, CycleState, TeleopSummary
-from limbctl.teleop.gate import Gate, GateLimits
 from limbctl.teleop.report import StatusLine
 from limbctl.teleop.sources import StreamSource
 from limbctl.teleop.status import ERASE_TO_END, ExplainedStatus, status_line_for
+from tests.teleop.test_explain import follow, gate
 
 
 class Steered(StreamSource):
@@ -30,14 +27,9 @@ class Steered(StreamSource):
 
 
 def cycles_up_against_the_edge(count: int = 60, rate_hz: float = 200.0):
-    """Real gate cycles of a command straight up beyond a 30 deg cone."""
-    limits = GateLimits((-1.7, -0.5), (1.7, 1.4), math.radians(2), math.radians(10))
-    gate = Gate(Cone(math.radians(30)), limits)
-    gate.start(0.0, 0.0)
-    target = pan_tilt_to_quat(0.0, math.radians(60))
+    """Real gate cycles (test_explain.py's gate) of a command straight up beyond a 30 deg cone."""
     summary = TeleopSummary()
-    for index in range(count):
-        result = gate.step(target)
+    for index, result in enumerate(follow(gate(), 0.0, 60.0, count)):
         summary.cycles += 1
         summary.outcomes[result.outcome] += 1
         yield (
