@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from limbctl.envelope import RigidMap
-from limbctl.envelope.synthetic import ConeRegion, to_quaternions
+from limbctl.envelope.synthetic import BEAN, EGG, ConeRegion, PolygonRegion, to_quaternions
 from limbctl.geometry.gimbal import pan_tilt_to_direction
 from limbctl.geometry.quat import direction_angle, limb_direction
 from limbctl.region import acceptance
@@ -85,8 +85,6 @@ def test_pockets_weigh_a_bay_against_the_sampling():
     loop = circle(29.5, 80, wobble_deg=0.5)
     assert max(w for _, _, w in ef.pockets(loop, data)) < ef.POCKET_SAMPLES
     # the BEAN's dent (about 600 deg^2 at 0.19 samples per deg^2): a taught bay
-    from limbctl.envelope.synthetic import BEAN, PolygonRegion
-
     bean = PolygonRegion()
     data = bean.sample(1000, rng)
     loop = pan_tilt_to_direction(np.radians(BEAN[:, 0]), np.radians(BEAN[:, 1]))
@@ -99,8 +97,6 @@ def test_pockets_weigh_a_bay_against_the_sampling():
 
 
 def test_a_polygon_with_corners_keeps_the_supported_edge():
-    from limbctl.envelope.synthetic import PolygonRegion
-
     square = PolygonRegion(np.array([[-40, -30], [40, -30], [40, 30], [-40, 30]], dtype=float))
     rng = np.random.default_rng(0)
     m = RigidMap(nodes=1000, seed=0).fit(to_quaternions(square.sample(1000, rng)))
@@ -112,8 +108,6 @@ def test_a_polygon_with_corners_keeps_the_supported_edge():
 
 
 def test_residual_ratio_is_near_one_on_a_circle_and_high_past_a_tight_tip():
-    from limbctl.envelope.synthetic import EGG
-
     def ratio(loop):
         _, s, at_vertex = resample_loop(loop, np.radians(ef.STEP_DEG))
         total = loop_length(loop)
@@ -134,8 +128,6 @@ def test_residual_ratio_is_near_one_on_a_circle_and_high_past_a_tight_tip():
 # seed 4: the smooth edge passes its own checks there, and only the traced edge refuses it
 @pytest.mark.parametrize("seed", [0, 1, 2, 4])
 def test_an_egg_with_a_tight_end_keeps_every_output_near_the_true_region(seed):
-    from limbctl.envelope.synthetic import EGG, PolygonRegion
-
     region = PolygonRegion(EGG)
     rng = np.random.default_rng(seed)
     m = RigidMap(nodes=2000, layout="uniform", seed=seed).fit(
