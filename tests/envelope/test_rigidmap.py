@@ -242,8 +242,10 @@ def twist_model():
     return truth, RigidMap(nodes=500, seed=0, twist=True).fit(q)
 
 
-def test_twist_model_round_trips_and_records_its_kind(twist_model, tmp_path):
-    _, m = twist_model
+def test_twist_model_round_trips_records_its_kind_and_corrects_on_so3(
+    twist_model, cone_model, tmp_path
+):
+    truth, m = twist_model
     path = m.save(tmp_path / "twist.npz")
     header = load_header(path)
     assert header["params"]["twist"] is True and len(header["sha256"]) == 64
@@ -258,10 +260,7 @@ def test_twist_model_round_trips_and_records_its_kind(twist_model, tmp_path):
     (tmp_path / "bad.npz").write_bytes(bytes(raw))
     with pytest.raises(Exception, match="checksum|corrupt|readable"):
         RigidMap.load(tmp_path / "bad.npz")
-
-
-def test_twist_model_corrects_on_so3_and_the_swing_model_keeps_twist(twist_model, cone_model):
-    truth, m = twist_model
+    # it corrects on SO(3), where the swing model keeps the twist
     d = truth._inside_directions(200, np.random.default_rng(2))
     c, h = truth.band(d)
     # twist far outside the band at directions well inside the outline
