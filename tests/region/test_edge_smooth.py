@@ -16,14 +16,17 @@ from tests.region.support import circle
 X = np.array([1.0, 0.0, 0.0])
 
 
+def _stations(loop, step_deg):
+    """The arguments (loop, at_vertex, s, total, outward) the fits take, stations step_deg apart."""
+    _, s, at_vertex = resample_loop(loop, np.radians(step_deg))
+    return loop, at_vertex, s, loop_length(loop), ef.outward_at_stations(loop, s, at_vertex)
+
+
 @pytest.mark.parametrize("window_deg", [4.5, 13.0, 60.0])
 def test_circle_fits_recover_an_exact_small_circle(window_deg):
-    loop = circle(35.0, 40)
-    stations, s, at_vertex = resample_loop(loop, np.radians(0.5))
-    outward = ef.outward_at_stations(loop, s, at_vertex)
-    pole, rho, resid = ef.circle_fits(
-        loop, at_vertex, s, loop_length(loop), outward, np.radians(window_deg)
-    )
+    args = _stations(circle(35.0, 40), 0.5)
+    pole, rho, resid = ef.circle_fits(*args, np.radians(window_deg))
+    s = args[2]
     # the pole is on the region's side (+x), the radius is the circle's
     np.testing.assert_allclose(pole, np.tile(X, (s.size, 1)), atol=1e-9)
     np.testing.assert_allclose(np.degrees(rho), 35.0, atol=1e-7)
@@ -32,10 +35,7 @@ def test_circle_fits_recover_an_exact_small_circle(window_deg):
 
 def test_window_grows_on_a_noisy_circle():
     # noise only: the residual levels off, the window goes to the top of the ladder
-    loop = circle(25.0, 60, wobble_deg=1.0)
-    stations, s, at_vertex = resample_loop(loop, np.radians(0.5))
-    outward = ef.outward_at_stations(loop, s, at_vertex)
-    w = ef.choose_window(loop, at_vertex, s, loop_length(loop), outward)
+    w = ef.choose_window(*_stations(circle(25.0, 60, wobble_deg=1.0), 0.5))
     assert np.degrees(w) == pytest.approx(max(ef.WINDOWS_DEG))
 
 
@@ -109,11 +109,8 @@ def test_a_polygon_with_corners_keeps_the_supported_edge():
 
 def test_residual_ratio_is_near_one_on_a_circle_and_high_past_a_tight_tip():
     def ratio(loop):
-        _, s, at_vertex = resample_loop(loop, np.radians(ef.STEP_DEG))
-        total = loop_length(loop)
-        outward = ef.outward_at_stations(loop, s, at_vertex)
-        window = np.radians(13.0)
-        return ef.residual_ratio(ef.circle_fits(loop, at_vertex, s, total, outward, window)[2])
+        fits = ef.circle_fits(*_stations(loop, ef.STEP_DEG), np.radians(13.0))
+        return ef.residual_ratio(fits[2])
 
     # a noisy circle: every station's residual is the same noise
     assert ratio(circle(20.0, 60, wobble_deg=1.0)) < 1.3

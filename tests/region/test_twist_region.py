@@ -55,6 +55,14 @@ def _commands(truth, n, rng, outside_deg=30.0):
     return compose(d, c + (h + math.radians(40.0)) * rng.uniform(-1.0, 1.0, n))
 
 
+def _clamp(region, q):
+    """The engines' two steps on ``region``: the direction projected, then the twist clamped."""
+    d, tau = decompose(q)
+    d2 = region.mesh.project(d)
+    c, h = region.band.at(d2)
+    return compose(d2, c + np.clip(wrap(tau - c), -h, h))
+
+
 @pytest.fixture(scope="module")
 def corrected(shoulder):
     """6000 commands, their corrections and whether each lies in the region."""
@@ -89,10 +97,7 @@ def test_answers_lie_inside_beat_the_clamp_and_stay_near_the_true_region(shoulde
     np.testing.assert_array_equal(out[inside], q[inside] * np.sign(q[inside, :1] + 0.0))
     assert np.allclose(np.linalg.norm(out, axis=1), 1.0, atol=1e-12)
     # correct() beats the swing-then-twist clamp on the same region
-    d, tau = decompose(q)
-    d2 = region.mesh.project(d)
-    c, h = region.band.at(d2)
-    clamp = compose(d2, c + np.clip(wrap(tau - c), -h, h))
+    clamp = _clamp(region, q)
     assert region.contains(clamp).all()
     found = geodesic_distance(q, out)
     two_step = geodesic_distance(q, clamp)
@@ -171,9 +176,7 @@ def test_commands_near_the_edge_and_near_the_stops(shoulder, k, inward, twist, b
     out = region.correct(q)
     assert region.contains(out)
     # never farther than the engines' two steps on the same region
-    d2 = mesh.project(p[None])
-    c2, h2 = region.band.at(d2)
-    clamp = compose(d2[0], c2[0] + np.clip(wrap(tau - c2[0]), -h2[0], h2[0]))
+    clamp = _clamp(region, q[None])[0]
     assert geodesic_distance(q, out) <= geodesic_distance(q, clamp) + ACOS_NOISE
 
 
