@@ -75,7 +75,7 @@ def test_a_fitted_map_responds_answers_one_command_as_many_and_refuses_bad_input
         RigidMap(nodes=50).correct(np.array([1.0, 0, 0, 0]))
 
 
-def test_save_load_round_trip_and_old_gate_files_are_refused(cone_model, tmp_path):
+def test_save_load_round_trip_and_old_files_load_or_are_refused(cone_model, tmp_path):
     region, m = cone_model
     path = m.save(tmp_path / "m.npz")
     m2 = RigidMap.load(path)
@@ -85,10 +85,25 @@ def test_save_load_round_trip_and_old_gate_files_are_refused(cone_model, tmp_pat
     np.testing.assert_array_equal(m2.respond(q, "geometric"), m.respond(q, "geometric"))
     np.testing.assert_array_equal(m2.weights, m.weights)
     assert not m.twist and "twist" not in load_header(path)["params"], "swing-only: no twist key"
-    params = m._params()
-    params["gate_version"] = 1
+    old = m._params()
+    old["gate_version"] = 1
     with pytest.raises(ValueError, match="retrain"):
-        RigidMap._restore(params, m._arrays())
+        RigidMap._restore(old, m._arrays())
+    # gate v6 models' flat settings and smooth_edge, written by the real save, still load
+    params = {k: v for k, v in m._params().items() if k != "region"}
+    flat = m.region.params.as_dict()
+    flat.pop("edge")
+    params.update(flat, smooth_edge=False, max_offset_deg=2.5)
+    m._params = lambda: params
+    try:
+        path = m.save(tmp_path / "v6.npz")
+    finally:
+        del m._params
+    back = RigidMap.load(path)
+    assert back.region.params == RegionParams(edge="supported", max_offset_deg=2.5)
+    assert back.edge == m.edge
+    q = to_quaternions(region.test_directions(500, np.random.default_rng(4)))
+    np.testing.assert_array_equal(back.correct(q), m.correct(q), "the v6 model answers alike")
 
 
 def _direction(theta_deg, phi_deg):
@@ -193,25 +208,6 @@ def test_region_settings_are_one_object_saved_with_the_model(tmp_path):
         RigidMap(region={"edge": "supported"})
 
 
-def test_models_saved_with_the_region_settings_among_the_maps_still_load(cone_model, tmp_path):
-    # gate v6 models' flat settings and smooth_edge, written by the real save
-    _, m = cone_model
-    params = {k: v for k, v in m._params().items() if k != "region"}
-    flat = m.region.params.as_dict()
-    flat.pop("edge")
-    params.update(flat, smooth_edge=False, max_offset_deg=2.5)
-    m._params = lambda: params
-    try:
-        path = m.save(tmp_path / "v6.npz")
-    finally:
-        del m._params
-    back = RigidMap.load(path)
-    assert back.region.params == RegionParams(edge="supported", max_offset_deg=2.5)
-    assert back.edge == m.edge
-    q = to_quaternions(ConeRegion(np.radians(30.0)).test_directions(500, np.random.default_rng(4)))
-    np.testing.assert_array_equal(back.correct(q), m.correct(q))
-
-
 @settings(max_examples=300, deadline=None)
 @given(
     theta=st.floats(0.0, 179.0),
@@ -246,15 +242,16 @@ def twist_model():
     return truth, RigidMap(nodes=500, seed=0, twist=True).fit(q)
 
 
-def test_twist_model_round_trips_and_records_its_kind(twist_model, tmp_path):
-    _, m = twist_model
+def test_twist_model_round_trips_records_its_kind_and_corrects_on_so3(
+    twist_model, cone_model, tmp_path
+):
+    truth, m = twist_model
     path = m.save(tmp_path / "twist.npz")
     header = load_header(path)
     assert header["params"]["twist"] is True and len(header["sha256"]) == 64
     m2 = RigidMap.load(path)
     assert m2.twist and isinstance(m2.region, TwistRegion)
-    q = np.random.default_rng(1).normal(size=(300, 4))
-    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    q = quat.normalize(np.random.default_rng(1).normal(size=(300, 4)))
     np.testing.assert_array_equal(m2.correct(q), m.correct(q))
     np.testing.assert_array_equal(m2.contains(q), m.contains(q))
     np.testing.assert_array_equal(m2.weights, m.weights)
@@ -263,10 +260,7 @@ def test_twist_model_round_trips_and_records_its_kind(twist_model, tmp_path):
     (tmp_path / "bad.npz").write_bytes(bytes(raw))
     with pytest.raises(Exception, match="checksum|corrupt|readable"):
         RigidMap.load(tmp_path / "bad.npz")
-
-
-def test_twist_model_corrects_on_so3_and_the_swing_model_keeps_twist(twist_model, cone_model):
-    truth, m = twist_model
+    # it corrects on SO(3), where the swing model keeps the twist
     d = truth._inside_directions(200, np.random.default_rng(2))
     c, h = truth.band(d)
     # twist far outside the band at directions well inside the outline

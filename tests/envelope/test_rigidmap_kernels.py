@@ -4,12 +4,11 @@ import pytest
 from limbctl.envelope import rigidmap_kernels as rk
 from limbctl.envelope.layouts import make_layout
 from limbctl.envelope.synthetic import ConeRegion, to_quaternions
+from limbctl.geometry.quat import canonical, normalize
 
 
 def _gaussian_layout(n, seed):
-    p = np.random.default_rng(seed).normal(size=(n, 4))
-    p /= np.linalg.norm(p, axis=1, keepdims=True)
-    return p * np.where(p[:, :1] < 0, -1.0, 1.0)
+    return canonical(normalize(np.random.default_rng(seed).normal(size=(n, 4))))
 
 
 def _patterns(n, seed, half_angle_deg=30.0):

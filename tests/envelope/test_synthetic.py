@@ -1,6 +1,15 @@
 import numpy as np
 
-from limbctl.envelope.synthetic import ConeRegion, PolygonRegion, to_quaternions
+from limbctl.envelope.synthetic import (
+    NOTCH,
+    ConeRegion,
+    PolygonRegion,
+    inset_track,
+    to_quaternions,
+    traced_teaching,
+    trajectory_samples,
+)
+from limbctl.geometry.gimbal import pan_tilt_to_direction
 from limbctl.geometry.quat import direction_angle, limb_direction
 
 
@@ -36,11 +45,7 @@ def test_polygon_ideal_is_nearest_boundary_point_and_strokes_stay_inside():
     depth = bean.depth(s)
     assert (depth < np.radians(3)).mean() < 0.2
     # trajectory samples are continuous strokes inside
-    from limbctl.envelope.synthetic import trajectory_samples
-
-    rng = np.random.default_rng(3)
-    bean = PolygonRegion()
-    d = trajectory_samples(bean, 3000, rng)
+    d = trajectory_samples(bean, 3000, np.random.default_rng(3))
     assert d.shape == (3000, 3)
     assert bean.contains(d).all()
     steps = np.degrees(direction_angle(d[1:], d[:-1]))
@@ -50,9 +55,6 @@ def test_polygon_ideal_is_nearest_boundary_point_and_strokes_stay_inside():
 
 
 def test_the_inset_track_rounds_reflex_corners_and_the_teaching_traces_it_then_wanders():
-    from limbctl.envelope.synthetic import NOTCH, inset_track
-    from limbctl.geometry.gimbal import pan_tilt_to_direction
-
     track = inset_track(NOTCH, 1.0, 0.12)
     notch = PolygonRegion(NOTCH)
     depth = np.degrees(notch.depth(pan_tilt_to_direction(*np.radians(track).T)))
@@ -70,9 +72,6 @@ def test_the_inset_track_rounds_reflex_corners_and_the_teaching_traces_it_then_w
         atol=0.2,
     )
     # the traced teaching traces the edge, then wanders inside
-    from limbctl.envelope.synthetic import NOTCH, traced_teaching
-
-    notch = PolygonRegion(NOTCH)
     d, traced = traced_teaching(notch, 20.0, np.random.default_rng(4))
     assert d.shape == (2500, 3) and 1000 < traced < 2500
     assert notch.contains(d).all()

@@ -1,8 +1,20 @@
-"""Shapes the region tests build their loops from."""
+"""Shapes the region tests build their loops from, and the benchmarks' teachings."""
 
 from __future__ import annotations
 
+import importlib.util
+from pathlib import Path
+
 import numpy as np
+
+
+def benchmark(name: str):
+    """benchmarks/NAME.py as a module (its outlines, truths and teachings)."""
+    path = Path(__file__).resolve().parents[2] / "benchmarks" / f"{name}.py"
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
 def circle(radius_deg, n, wobble_deg=0.0, seed=0, shift_deg=0.0):

@@ -1,6 +1,6 @@
 import numpy as np
 
-from limbctl.geometry.quat import limb_direction, multiply
+from limbctl.geometry.quat import limb_direction, multiply, normalize
 from limbctl.region import correct_kernels as ck
 from limbctl.region.mesh import DirectionMesh
 from tests.region.support import circle
@@ -45,8 +45,7 @@ def test_every_batch_path_answers_as_the_parallel_kernel_row_for_row():
     """correct_rows: one by one (small), one thread (medium) and the pool give the same arrays."""
     args = cap(20.0).kernel_args()
     rng = np.random.default_rng(7)
-    q = rng.normal(size=(300, 4))
-    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    q = normalize(rng.normal(size=(300, 4)))
     q[5] = np.nan  # refused alike: status -1
     q = np.ascontiguousarray(q)
     out, status = ck.correct_batch(q, *args)

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from limbctl.envelope import RigidMap
-from limbctl.envelope.synthetic import ConeRegion, to_quaternions
+from limbctl.envelope.synthetic import BEAN, EGG, ConeRegion, PolygonRegion, to_quaternions
 from limbctl.geometry.gimbal import pan_tilt_to_direction
 from limbctl.geometry.quat import direction_angle, limb_direction
 from limbctl.region import acceptance
@@ -16,14 +16,17 @@ from tests.region.support import circle
 X = np.array([1.0, 0.0, 0.0])
 
 
+def _stations(loop, step_deg):
+    """The arguments (loop, at_vertex, s, total, outward) the fits take, stations step_deg apart."""
+    _, s, at_vertex = resample_loop(loop, np.radians(step_deg))
+    return loop, at_vertex, s, loop_length(loop), ef.outward_at_stations(loop, s, at_vertex)
+
+
 @pytest.mark.parametrize("window_deg", [4.5, 13.0, 60.0])
 def test_circle_fits_recover_an_exact_small_circle(window_deg):
-    loop = circle(35.0, 40)
-    stations, s, at_vertex = resample_loop(loop, np.radians(0.5))
-    outward = ef.outward_at_stations(loop, s, at_vertex)
-    pole, rho, resid = ef.circle_fits(
-        loop, at_vertex, s, loop_length(loop), outward, np.radians(window_deg)
-    )
+    args = _stations(circle(35.0, 40), 0.5)
+    pole, rho, resid = ef.circle_fits(*args, np.radians(window_deg))
+    s = args[2]
     # the pole is on the region's side (+x), the radius is the circle's
     np.testing.assert_allclose(pole, np.tile(X, (s.size, 1)), atol=1e-9)
     np.testing.assert_allclose(np.degrees(rho), 35.0, atol=1e-7)
@@ -32,10 +35,7 @@ def test_circle_fits_recover_an_exact_small_circle(window_deg):
 
 def test_window_grows_on_a_noisy_circle():
     # noise only: the residual levels off, the window goes to the top of the ladder
-    loop = circle(25.0, 60, wobble_deg=1.0)
-    stations, s, at_vertex = resample_loop(loop, np.radians(0.5))
-    outward = ef.outward_at_stations(loop, s, at_vertex)
-    w = ef.choose_window(loop, at_vertex, s, loop_length(loop), outward)
+    w = ef.choose_window(*_stations(circle(25.0, 60, wobble_deg=1.0), 0.5))
     assert np.degrees(w) == pytest.approx(max(ef.WINDOWS_DEG))
 
 
@@ -85,8 +85,6 @@ def test_pockets_weigh_a_bay_against_the_sampling():
     loop = circle(29.5, 80, wobble_deg=0.5)
     assert max(w for _, _, w in ef.pockets(loop, data)) < ef.POCKET_SAMPLES
     # the BEAN's dent (about 600 deg^2 at 0.19 samples per deg^2): a taught bay
-    from limbctl.envelope.synthetic import BEAN, PolygonRegion
-
     bean = PolygonRegion()
     data = bean.sample(1000, rng)
     loop = pan_tilt_to_direction(np.radians(BEAN[:, 0]), np.radians(BEAN[:, 1]))
@@ -99,8 +97,6 @@ def test_pockets_weigh_a_bay_against_the_sampling():
 
 
 def test_a_polygon_with_corners_keeps_the_supported_edge():
-    from limbctl.envelope.synthetic import PolygonRegion
-
     square = PolygonRegion(np.array([[-40, -30], [40, -30], [40, 30], [-40, 30]], dtype=float))
     rng = np.random.default_rng(0)
     m = RigidMap(nodes=1000, seed=0).fit(to_quaternions(square.sample(1000, rng)))
@@ -112,14 +108,9 @@ def test_a_polygon_with_corners_keeps_the_supported_edge():
 
 
 def test_residual_ratio_is_near_one_on_a_circle_and_high_past_a_tight_tip():
-    from limbctl.envelope.synthetic import EGG
-
     def ratio(loop):
-        _, s, at_vertex = resample_loop(loop, np.radians(ef.STEP_DEG))
-        total = loop_length(loop)
-        outward = ef.outward_at_stations(loop, s, at_vertex)
-        window = np.radians(13.0)
-        return ef.residual_ratio(ef.circle_fits(loop, at_vertex, s, total, outward, window)[2])
+        fits = ef.circle_fits(*_stations(loop, ef.STEP_DEG), np.radians(13.0))
+        return ef.residual_ratio(fits[2])
 
     # a noisy circle: every station's residual is the same noise
     assert ratio(circle(20.0, 60, wobble_deg=1.0)) < 1.3
@@ -134,8 +125,6 @@ def test_residual_ratio_is_near_one_on_a_circle_and_high_past_a_tight_tip():
 # seed 4: the smooth edge passes its own checks there, and only the traced edge refuses it
 @pytest.mark.parametrize("seed", [0, 1, 2, 4])
 def test_an_egg_with_a_tight_end_keeps_every_output_near_the_true_region(seed):
-    from limbctl.envelope.synthetic import EGG, PolygonRegion
-
     region = PolygonRegion(EGG)
     rng = np.random.default_rng(seed)
     m = RigidMap(nodes=2000, layout="uniform", seed=seed).fit(

@@ -1,9 +1,6 @@
 """Hand-taught notches and bays are not bridged by more than 1 deg (issue 35, finding 1)."""
 
-import importlib.util
-import sys
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -15,6 +12,7 @@ from limbctl.geometry.twist import decompose
 from limbctl.region import RegionParams, TaughtRegion
 from limbctl.region import taught as taught_module
 from limbctl.region.evidence import SETTLED_DEG, Stretch, unsupported_stretches
+from tests.region.support import benchmark
 
 #: The region's bound outside the truth (deg), docs/region.md.
 BOUND_DEG = 1.0
@@ -141,16 +139,11 @@ def test_a_traced_v_notch_the_edge_bridges_is_settled_and_held_within_the_bound(
     assert reach <= BOUND_DEG, f"the held region reaches {reach:.2f} deg outside at the notch"
 
 
-def test_the_open_end_of_an_unfinished_trace_stays_asked(monkeypatch):
+def test_the_open_end_of_an_unfinished_trace_stays_asked():
     """The region families' curved band, seed 0, taught 30 s by the hand: its trace has not
     closed, and the learned edge runs across the untaught inside near the trace's outline, with
     no floor traced under it (19 deg inside the truth). Held there, it is still asked for."""
-    path = Path(__file__).resolve().parents[2] / "benchmarks" / "bench_region_families.py"
-    monkeypatch.syspath_prepend(str(path.parent))
-    spec = importlib.util.spec_from_file_location("bench_region_families", path)
-    bench = importlib.util.module_from_spec(spec)
-    monkeypatch.setitem(sys.modules, spec.name, bench)
-    spec.loader.exec_module(bench)
+    bench = benchmark("bench_region_families")
     truth, mapping = bench.make_truth("curved band with bumps", 0)
     d, _ = decompose(bench.teach(truth, mapping, ("hand", 30.0), 0))
     region = TaughtRegion().fit(d)

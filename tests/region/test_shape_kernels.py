@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from limbctl.envelope.synthetic import ConeRegion
-from limbctl.geometry.quat import tangent_frame
+from limbctl.geometry.quat import normalize, tangent_frame
 from limbctl.region import shape_kernels
 from limbctl.region.loops import loops_to_edges
 from tests.region.support import nearest_on_edges_reference
@@ -12,8 +12,7 @@ def test_widest_bearing_gaps_match_numpy_in_the_tangent_frame():
     rng = np.random.default_rng(3)
     data = ConeRegion(np.radians(30.0)).sample(400, rng)
     # points near z take the other helper axis
-    p = np.vstack([ConeRegion(np.radians(40.0)).sample(50, rng), [[0.1, 0.0, 0.995]]])
-    p /= np.linalg.norm(p, axis=1, keepdims=True)
+    p = normalize(np.vstack([ConeRegion(np.radians(40.0)).sample(50, rng), [[0.1, 0.0, 0.995]]]))
     near = [np.flatnonzero(data @ x > np.cos(np.radians(8.0))) for x in p]
     start = np.concatenate([[0], np.cumsum([len(rows) for rows in near])])
     flat = np.concatenate(near).astype(np.int64)
@@ -33,15 +32,20 @@ def test_widest_bearing_gaps_match_numpy_in_the_tangent_frame():
     assert (got[outside] > np.radians(150.0)).all()
 
 
+def _three_lobed(points: int) -> np.ndarray:
+    """A loop (points, 3) about +z, its radius 20 +- 4 deg in three lobes."""
+    t = np.linspace(0.0, 2.0 * np.pi, points, endpoint=False)
+    r = np.radians(20.0 + 4.0 * np.sin(3.0 * t))
+    return np.column_stack([np.sin(r) * np.cos(t), np.sin(r) * np.sin(t), np.cos(r)])
+
+
 @pytest.mark.parametrize("loop_points", [12, 90])
 def test_nearest_arcs_agree_with_the_brute_force_reference(loop_points):
     # loops of a few long arcs and of many short ones; taught directions on both sides of
     # them, and some exactly on their vertices (equally near two arcs: either may be named)
     rng = np.random.default_rng(loop_points)
     data = ConeRegion(np.radians(30.0)).sample(4000, rng)
-    t = np.linspace(0.0, 2.0 * np.pi, loop_points, endpoint=False)
-    r = np.radians(20.0 + 4.0 * np.sin(3.0 * t))
-    loop = np.column_stack([np.sin(r) * np.cos(t), np.sin(r) * np.sin(t), np.cos(r)])
+    loop = _three_lobed(loop_points)
     data = np.vstack([data, loop])
     vertices, edges = loops_to_edges([loop])
     want_arc, _, want_angle = nearest_on_edges_reference(data, vertices, edges)
@@ -59,9 +63,7 @@ def test_nearest_arcs_agree_with_the_brute_force_reference(loop_points):
 
 def test_a_direction_on_a_vertex_goes_to_the_first_of_its_two_arcs():
     # ~1e-16 rad from both arcs either way the rounding falls: the first in order, every time
-    t = np.linspace(0.0, 2.0 * np.pi, 40, endpoint=False)
-    r = np.radians(20.0 + 4.0 * np.sin(3.0 * t))
-    loop = np.column_stack([np.sin(r) * np.cos(t), np.sin(r) * np.sin(t), np.cos(r)])
+    loop = _three_lobed(40)
     vertices, edges = loops_to_edges([loop])
     nearest, angle = shape_kernels.nearest_arcs(loop, vertices, edges)
     np.testing.assert_array_equal(nearest, np.concatenate([[0], np.arange(39)]))

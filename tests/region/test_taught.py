@@ -22,25 +22,21 @@ def fitted(cone):
     return TaughtRegion().fit(cone[1])
 
 
-def test_directions_quaternions_and_the_arrays_build_the_same_region(cone, fitted):
-    _, train, _ = cone
+def test_directions_quaternions_and_the_arrays_build_the_same_region_answering_alike(cone, fitted):
+    region, train, test = cone
     from_q = TaughtRegion().fit(to_quaternions(train))
     assert from_q.edge == fitted.edge == "smooth"
     # the quaternions' limb directions differ from the directions by rounding only
     np.testing.assert_allclose(from_q.mesh.vertices, fitted.mesh.vertices, atol=1e-12)
     np.testing.assert_allclose(from_q.mesh.margins, fitted.mesh.margins, atol=1e-12)
-    q = to_quaternions(cone[2])
+    q = to_quaternions(test)
     np.testing.assert_allclose(from_q.correct(q), fitted.correct(q), atol=1e-12)
     # the shape was built on thinned samples, all of them among the taught ones
     assert 0 < fitted.support_index.size < train.shape[0]
     back = TaughtRegion.from_arrays(fitted.arrays(), fitted.params, fitted.edge)
     np.testing.assert_array_equal(back.correct(q), fitted.correct(q), "rebuilt from the arrays")
     assert back.edge == "smooth" and back.verdicts == ()
-
-
-def test_contains_and_correct_answer_one_command_and_many_alike(cone, fitted):
-    region, train, test = cone
-    q = to_quaternions(test)
+    # contains and correct answer one command and many alike
     assert fitted.contains(to_quaternions(train)).mean() > 0.999
     inside = fitted.contains(q)
     out = fitted.correct(q)

@@ -4,6 +4,7 @@ import pytest
 from limbctl.envelope.synthetic import ConeRegion
 from limbctl.region.edge_traced import edge_estimate, readings, station_estimates
 from limbctl.region.loops import StationBuckets, resample_loop, signed_offset, station_positions
+from tests.region.support import circle
 
 
 def station_estimates_reference(s, total, owner, depth, reach):
@@ -18,15 +19,6 @@ def station_estimates_reference(s, total, owner, depth, reach):
     return move
 
 
-def _circle(radius_deg: float, points: int) -> np.ndarray:
-    t = np.linspace(0.0, 2.0 * np.pi, points, endpoint=False)
-    r = np.radians(radius_deg)
-    # about +x, the axis of ConeRegion
-    return np.column_stack(
-        [np.full(points, np.cos(r)), np.sin(r) * np.cos(t), np.sin(r) * np.sin(t)]
-    )
-
-
 @pytest.mark.parametrize(
     ("seed", "radius_deg", "reach", "quarter"),
     [(4, 18.5, 1, False), (4, 18.5, 3, False), (4, 18.5, 8, False), (4, 18.5, 40, False)]
@@ -39,7 +31,7 @@ def test_the_kernel_gives_the_numpy_loops_estimates_to_the_bit(seed, radius_deg,
     data = ConeRegion(np.radians(20.0)).sample(3000, np.random.default_rng(seed))
     if quarter:
         data = data[(data[:, 1] > 0.0) & (data[:, 2] > 0.0)]
-    curve, _, _ = resample_loop(_circle(radius_deg, 90), np.radians(1.5))
+    curve, _, _ = resample_loop(circle(radius_deg, 90), np.radians(1.5))
     s, total = station_positions(curve)
     owner, depth = readings(curve, data)
     fast = station_estimates(s, total, owner, depth, reach)

@@ -8,7 +8,7 @@ import pytest
 from limbctl.envelope.synthetic import rounded
 from limbctl.envelope.synthetic_twist import SHOULDER, ShoulderRegion
 from limbctl.geometry.gimbal import pan_tilt_to_direction
-from limbctl.geometry.quat import tangent_frame
+from limbctl.geometry.quat import normalize, tangent_frame
 from limbctl.geometry.twist import compose, decompose, wrap
 from limbctl.region import twist_band as tb
 from limbctl.region.twist_band import TwistBand
@@ -55,8 +55,7 @@ def _frame(axis):
 def test_plane_round_trip_and_unwrap():
     rng = np.random.default_rng(0)
     axis = np.array([0.6, 0.0, 0.8])
-    d = rng.normal(size=(500, 3))
-    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    d = normalize(rng.normal(size=(500, 3)))
     d = d[d @ axis > -0.9]  # away from the antipode, where the plane folds
     frame = _frame(axis)
     np.testing.assert_allclose(tb.plane_to_direction(tb.plane_xy(d, frame), frame), d, atol=1e-12)
@@ -88,8 +87,7 @@ def _answered(truth, d, tau, places, rng):
     more_d, more_tau = [d], [tau]
     for place in places:
         at = pan_tilt_to_direction(np.radians([place.pan_deg]), np.radians([place.tilt_deg]))
-        near = at + rng.normal(scale=math.radians(1.0), size=(10, 3))
-        near /= np.linalg.norm(near, axis=1, keepdims=True)
+        near = normalize(at + rng.normal(scale=math.radians(1.0), size=(10, 3)))
         c, h = truth.band(near)
         side = 1.0 if place.side == "upper" else -1.0
         more_d.append(near)
@@ -107,8 +105,7 @@ def test_learned_band_is_the_true_band_within_a_degree(learned):
     low, high = d[:, 2] < math.sin(math.radians(-20)), d[:, 2] > math.sin(math.radians(50))
     assert hl[low].mean() > hl[high].mean() + math.radians(20)
     # the reading matches the numpy twin and reads the nodes back
-    d = np.random.default_rng(2).normal(size=(2000, 3))
-    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    d = normalize(np.random.default_rng(2).normal(size=(2000, 3)))
     c, h = band.at(d)
     c_ref, h_ref = band_reference(band, d)
     np.testing.assert_allclose(c, c_ref, atol=1e-12)

@@ -50,12 +50,6 @@ def dipped_teaching():
     return truth, q
 
 
-@pytest.fixture(scope="module")
-def dipped():
-    truth, q = dipped_teaching()
-    return truth, TwistRegion().fit(q)
-
-
 def _learned_grid(region) -> np.ndarray:
     """Directions (K, 3) of a 1 deg pan and tilt grid over the square and the dip, inside the
     region's learned swing outline."""
@@ -74,14 +68,12 @@ def _excess_deg(truth, region) -> float:
     return float(np.degrees(np.fmax(off + lh - th, -off + lh - th)).max())
 
 
-def test_a_dip_taught_only_mid_band_is_not_bridged_past_the_truth(dipped):
-    excess = _excess_deg(*dipped)
+def test_a_dip_taught_only_mid_band_is_not_bridged_and_its_stop_is_named():
+    truth, q = dipped_teaching()
+    region = TwistRegion().fit(q)
+    excess = _excess_deg(truth, region)
     # the promise: within 1 deg of the truth wherever the samples lie inside it
     assert excess <= 1.0, f"band {excess:.2f} deg past the true stop"
-
-
-def test_the_place_the_cap_held_short_is_named_with_its_stop(dipped):
-    _, region = dipped
     assert region.unsupported, "the dip's stop was never taught, yet nothing is listed"
     # both stops near the dip were passed only mid-band: the upper one is asked for there
     first = next(p for p in region.unsupported if p.side == "upper")

@@ -8,6 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from limbctl.geometry.quat import normalize
 from limbctl.geometry.twist import wrap
 from limbctl.region import twist_fit_kernels as fk
 
@@ -191,8 +192,7 @@ def test_a_slope_through_three_stops_is_not_read():
     node = np.array([[0.0, 0.0, 1.0]])
     a = math.radians(2.0)
     d = np.array([[math.sin(a), 0, math.cos(a)], [0, math.sin(a), math.cos(a)], [0, 0, 1.0]])
-    d = np.vstack([d, [-math.sin(a), -math.sin(a), 1.0]])
-    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    d = normalize(np.vstack([d, [-math.sin(a), -math.sin(a), 1.0]]))
     limit = 0.4 + 1.5 * d[:, 0]
     start, members = _one_node(d)
     ref = np.zeros(1)

@@ -9,9 +9,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial import cKDTree
 
-from limbctl.envelope.synthetic import rounded
+from limbctl.envelope.synthetic import _cap_directions, rounded
 from limbctl.envelope.synthetic_twist import SHOULDER, ShoulderRegion
 from limbctl.errors import ConfigError, InvalidInputError
+from limbctl.geometry import quat
 from limbctl.geometry.quat import geodesic_distance
 from limbctl.geometry.twist import compose, decompose, wrap
 from limbctl.region.twist_region import TwistRegion, boundary_samples
@@ -49,11 +50,17 @@ def brute(shoulder):
 def _commands(truth, n, rng, outside_deg=30.0):
     """Directions up to outside_deg beyond the outline's reach, twists up to 40 deg past the
     band: inside and outside commands, some far."""
-    from limbctl.envelope.synthetic import _cap_directions
-
     d = _cap_directions(n, truth.swing.axis, truth.swing.radius + math.radians(outside_deg), rng)
     c, h = truth.band(d)
     return compose(d, c + (h + math.radians(40.0)) * rng.uniform(-1.0, 1.0, n))
+
+
+def _clamp(region, q):
+    """The engines' two steps on ``region``: the direction projected, then the twist clamped."""
+    d, tau = decompose(q)
+    d2 = region.mesh.project(d)
+    c, h = region.band.at(d2)
+    return compose(d2, c + np.clip(wrap(tau - c), -h, h))
 
 
 @pytest.fixture(scope="module")
@@ -82,41 +89,32 @@ def test_correct_is_the_brute_force_nearest_orientation(shoulder, brute, correct
     assert excess.max() < 0.3, np.sort(excess)[-5:]
 
 
-def test_answers_lie_in_the_region_and_inside_commands_pass_unchanged(shoulder, corrected):
-    _, region, _ = shoulder
+def test_answers_lie_inside_beat_the_clamp_and_stay_near_the_true_region(shoulder, corrected):
+    truth, region, _ = shoulder
     q, out, inside = corrected
-    assert region.contains(out).all()
+    assert region.contains(out).all(), "an answer lies outside the region"
     assert inside.sum() > 300
     np.testing.assert_array_equal(out[inside], q[inside] * np.sign(q[inside, :1] + 0.0))
     assert np.allclose(np.linalg.norm(out, axis=1), 1.0, atol=1e-12)
-
-
-def test_correct_beats_the_swing_then_twist_clamp_on_the_same_region(shoulder, corrected):
-    _, region, _ = shoulder
-    q, out, _ = corrected
-    d, tau = decompose(q)
-    d2 = region.mesh.project(d)
-    c, h = region.band.at(d2)
-    clamp = compose(d2, c + np.clip(wrap(tau - c), -h, h))
+    # correct() beats the swing-then-twist clamp on the same region
+    clamp = _clamp(region, q)
     assert region.contains(clamp).all()
     found = geodesic_distance(q, out)
     two_step = geodesic_distance(q, clamp)
-    assert np.all(found <= two_step + ACOS_NOISE)
+    assert np.all(found <= two_step + ACOS_NOISE), "farther than the clamp"
     # and it is not the same answer: the clamp is several degrees farther on average
-    assert np.degrees(np.mean(two_step - found)) > 2.0
-
-
-def test_the_learned_region_is_the_true_one_within_a_degree(shoulder, corrected):
-    truth, _, _ = shoulder
-    q, out, _ = corrected
-    # answers: inside the true region, or within 1 deg of its boundary
+    assert np.degrees(np.mean(two_step - found)) > 2.0, "no nearer than the clamp on average"
+    # the learned region is the true one within a degree: answers inside the true region, or
+    # within 1 deg of its boundary
     outside_truth = ~truth.contains(out)
     # the lattice's points lie on the true boundary: a gap measured to them is never short
     b = truth.boundary(0.4)
     gap = np.degrees(cKDTree(np.vstack([b, -b])).query(out[outside_truth])[0])
     # chord in R^4 of a geodesic angle g is 2 sin(g/4)
     gap = 4.0 * np.degrees(np.arcsin(np.radians(gap) / 2.0))
-    assert np.mean(gap <= 1.0) * outside_truth.sum() >= outside_truth.sum() - 0.005 * len(q)
+    assert np.mean(gap <= 1.0) * outside_truth.sum() >= outside_truth.sum() - 0.005 * len(q), (
+        "answers farther than 1 deg outside the true region"
+    )
 
 
 def test_band_crossing_half_turn_is_held_and_corrected(wrapped):
@@ -178,9 +176,7 @@ def test_commands_near_the_edge_and_near_the_stops(shoulder, k, inward, twist, b
     out = region.correct(q)
     assert region.contains(out)
     # never farther than the engines' two steps on the same region
-    d2 = mesh.project(p[None])
-    c2, h2 = region.band.at(d2)
-    clamp = compose(d2[0], c2[0] + np.clip(wrap(tau - c2[0]), -h2[0], h2[0]))
+    clamp = _clamp(region, q[None])[0]
     assert geodesic_distance(q, out) <= geodesic_distance(q, clamp) + ACOS_NOISE
 
 
@@ -196,7 +192,7 @@ def test_one_command_is_answered_as_in_a_batch_and_the_arrays_round_trip(shoulde
         assert region.contains(row) == region.contains(row[None])[0]
 
 
-def test_bad_input_is_refused_naming_the_row(shoulder):
+def test_bad_input_regions_reaching_backwards_and_an_unbuilt_region_are_refused(shoulder):
     _, region, _ = shoulder
     with pytest.raises(InvalidInputError, match="row 1"):
         region.correct(np.array([[1.0, 0, 0, 0], [np.nan, 0, 0, 0]]))
@@ -204,17 +200,9 @@ def test_bad_input_is_refused_naming_the_row(shoulder):
         region.correct(np.array([2.0, 0, 0, 0]))
     with pytest.raises(InvalidInputError):
         region.contains(np.array([0.5, 0, 0, 0]))
-
-
-def test_regions_reaching_backwards_are_refused():
     rng = np.random.default_rng(11)
-    d = rng.normal(size=(300, 3))
-    d /= np.linalg.norm(d, axis=1, keepdims=True)
-    q = compose(d, rng.uniform(-1, 1, 300))
+    d = quat.normalize(rng.normal(size=(300, 3)))
     with pytest.raises(InvalidInputError, match="-x"):
-        TwistRegion().fit(q)
-
-
-def test_unbuilt_region_says_how_to_build():
+        TwistRegion().fit(compose(d, rng.uniform(-1, 1, 300)))
     with pytest.raises(ConfigError, match="fit"):
         TwistRegion().correct(np.array([1.0, 0, 0, 0]))
