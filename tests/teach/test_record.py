@@ -19,7 +19,7 @@ from limbctl.servo.bus import ServoBus
 from limbctl.session import demo_region_path, open_rig
 from limbctl.teach.dataset import DatasetWriter, load_dataset
 from limbctl.teach.guide import Guidance
-from limbctl.teach.record import RecordSummary, record
+from limbctl.teach.record import RecordSummary, _draw, record
 from limbctl.teach.train import train
 from limbctl.teach.twist_guide import MIN_CELL_SAMPLES, TwistGuidance
 
@@ -228,19 +228,26 @@ def test_a_hole_in_the_recording_over_the_edge_trace_is_listed_and_asks_for_a_re
     )
 
 
-def test_the_summary_says_ready_only_when_the_twist_guide_is_satisfied_too():
+@pytest.mark.parametrize("shown", ["summary", "live line"])
+def test_the_summary_and_the_live_line_say_ready_only_when_the_twist_guide_is_satisfied_too(shown):
     """Issue 35: the three-servo demo's summary said READY TO TRAIN while its twist guide still
-    asked for six places and train listed 132 stretches of the band it could not support."""
+    asked for six places and train listed 132 stretches of the band it could not support; the
+    recorder's line withholds it too while the twist is not complete."""
     ready = Guidance(1000, "ready", 1.0, 1.0, (), (), True, (0.0, 0.0), 30.0)
     asking = TwistGuidance(3, 2, 80.0, (10.0, 5.0, 20.0))
+    unchecked = TwistGuidance(4, 4, 80.0, (7.5, 7.5, 80.0))  # every place turned, not checked
     done = TwistGuidance(3, 3, 80.0, (10.0, 5.0, 70.0), support_checked=True)
 
-    def guide_line(twist):
-        return next(
-            line for line in RecordSummary(guidance=ready, twist=twist).lines() if "edge" in line
-        )
+    def said(twist) -> str:
+        if shown == "live line":
+            out = io.StringIO()
+            _draw(out, ready, RecordSummary(), 1.0, None, False, twist)
+            return out.getvalue()
+        lines = RecordSummary(guidance=ready, twist=twist).lines()
+        return next(line for line in lines if "edge" in line)
 
-    assert "READY TO TRAIN" not in guide_line(asking) and "twist still to teach" in guide_line(
-        asking
-    )
-    assert "READY TO TRAIN" in guide_line(done) and "READY TO TRAIN" in guide_line(None)
+    for twist in (asking, unchecked):
+        assert "READY TO TRAIN" not in said(twist), twist
+        assert "twist still to teach" in said(twist), twist
+    assert done.complete and "READY TO TRAIN" in said(done)
+    assert "READY TO TRAIN" in said(None)  # two servos: the swing guide alone
