@@ -10,12 +10,16 @@ from tests.safety.support import wait_for
 COMMANDS = "demo calibrate record train teleop reboot motors plot eval info prepare".split()
 
 
+def _help(argv: list[str], capsys) -> str:
+    with pytest.raises(SystemExit) as exit_info:
+        main([*argv, "--help"])
+    assert exit_info.value.code == 0
+    return " ".join(capsys.readouterr().out.split())  # argparse wraps lines anywhere
+
+
 @pytest.mark.parametrize("command", ["", *COMMANDS])
 def test_every_command_has_help_with_its_options(command, capsys):
-    with pytest.raises(SystemExit) as exit_info:
-        main([command, "--help"] if command else ["--help"])
-    assert exit_info.value.code == 0
-    out = capsys.readouterr().out
+    out = _help([command] if command else [], capsys)
     parser = build_parser()
     sub = next(a for a in parser._actions if a.dest == "command").choices.get(command, parser)
     for action in sub._actions:
@@ -131,12 +135,6 @@ def test_teleop_at_57600_baud_says_the_wire_cannot_carry_200_hz(tmp_path, capsys
     teleop = ["teleop", "--model", str(model), "--source", f"replay:{commands}", "--quiet"]
     assert main([*teleop, "--baud", "57600", "--latency-timer", "16"]) == 0
     assert "warning: at 57600 baud one cycle's 80 bytes take 13.9 ms" in capsys.readouterr().err
-
-
-def _help(argv: list[str], capsys) -> str:
-    with pytest.raises(SystemExit):
-        main([*argv, "--help"])
-    return " ".join(capsys.readouterr().out.split())  # argparse wraps lines anywhere
 
 
 def test_help_speaks_of_both_rigs_and_names_every_command_form(capsys):

@@ -41,6 +41,7 @@ from limbctl.teleop.sources import LeaderSource
 from limbctl.view import Board, ViewServer
 from tests.safety.support import wait_for as poll
 from tests.view.browser import (
+    LEADER_RGB,
     assert_pose_shown,
     browser_pids,
     chromium,
@@ -276,8 +277,6 @@ IDS = (3, 4)
 EDGE = 30.0
 #: The operator means to go 20 deg past the edge and stays there (a relaxed 0.3 N m hand).
 PRESS = {"script": [[0.0, 0.0, 0.0], [1.5, EDGE + 20.0, 0.0]], "max_torque_nm": 0.3}
-#: RGB of the leader's diamond (leader.js COLORS.leader).
-LEADER_RGB = (0, 137, 123)
 #: What the page received last, what it shows, and the leader diamond's pixel, read at once.
 SHOWN = """
 const live = window.limbview.state.live;

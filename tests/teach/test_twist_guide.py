@@ -18,13 +18,16 @@ def taught(guide, pan_deg, tilt_deg, twists_deg):
         guide.add(compose(d, math.radians(tau)))
 
 
+def six_places_turned(guide) -> None:
+    """Six places, each turned 80 deg both ways."""
+    for pan, tilt in [(p, t) for p in (-30, 0, 30) for t in (-20, 10)]:
+        taught(guide, pan + 1, tilt + 1, np.linspace(-40, 40, MIN_CELL_SAMPLES))
+
+
 def test_places_turned_both_ways_one_left_untaught_and_one_across_half_a_turn():
     guide = TwistGuide()
     assert "not yet taught" in guide.assess().line()
-    sweep = np.linspace(-40, 40, MIN_CELL_SAMPLES)
-    places = [(p, t) for p in (-30, 0, 30) for t in (-20, 10)]
-    for pan, tilt in places:
-        taught(guide, pan + 1, tilt + 1, sweep)
+    six_places_turned(guide)
     full = guide.assess()
     assert (full.cells, full.turned) == (6, 6)
     assert full.wide_span_deg == pytest.approx(80.0)
@@ -87,31 +90,6 @@ def test_every_place_turned_is_not_complete_until_the_missing_stop_is_taught():
     assert "every place visited was turned both ways" in done.line()
 
 
-def test_the_recorders_line_withholds_ready_while_the_twist_is_not_complete():
-    import io
-
-    from limbctl.teach.guide import assess_directions
-    from limbctl.teach.record import RecordSummary, _draw
-    from limbctl.teach.twist_guide import TwistGuidance
-    from tests.teach.test_guide import fill, times, trace
-
-    d = np.vstack([trace(0.0, 360.0), fill(-180.0, 180.0, 20000)])
-    ready = assess_directions(times(len(d)), d)
-    assert ready.ready
-
-    def drawn(twist):
-        out = io.StringIO()
-        _draw(out, ready, RecordSummary(), 1.0, None, False, twist)
-        return out.getvalue()
-
-    unchecked = TwistGuidance(4, 4, 80.0, (7.5, 7.5, 80.0))
-    assert "READY TO TRAIN" not in drawn(unchecked)
-    assert "twist still to teach" in drawn(unchecked)
-    checked = TwistGuidance(4, 4, 80.0, (7.5, 7.5, 80.0), support_checked=True)
-    assert checked.complete and "READY TO TRAIN" in drawn(checked)
-    assert "READY TO TRAIN" in drawn(None)  # two servos: the swing guide alone
-
-
 @pytest.mark.parametrize("warmed", [False, True])
 def test_the_support_check_while_recording_waits_for_the_warmed_kernels(monkeypatch, warmed):
     """No support check (it compiles in the recorder's process) until the kernels are cached."""
@@ -125,9 +103,7 @@ def test_the_support_check_while_recording_waits_for_the_warmed_kernels(monkeypa
 
     monkeypatch.setattr(jit, "prepared", prepared)
     guide = TwistGuide()
-    sweep = np.linspace(-40, 40, MIN_CELL_SAMPLES)
-    for pan, tilt in [(p, t) for p in (-30, 0, 30) for t in (-20, 10)]:
-        taught(guide, pan + 1, tilt + 1, sweep)
+    six_places_turned(guide)
     found = guide.assess()
     assert found.turned == found.cells == 6
     assert asked == ["train-twist"]

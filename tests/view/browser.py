@@ -15,6 +15,7 @@ from selenium.webdriver.chrome.service import Service
 from selenium.webdriver.common.action_chains import ActionChains
 from selenium.webdriver.support.ui import WebDriverWait
 
+from limbctl.view import HardLimits
 from tests.system_tools import find
 
 #: Flags without which Chromium stalls here (root, closed network, no GPU).
@@ -31,6 +32,10 @@ FLAGS = (
 )
 #: Longest wait (s) for what a page should show: generous for a 2-core machine under load.
 WAIT_S = 30.0
+#: The hard limits the page tests' scenes carry.
+LIMITS = HardLimits(pan_deg=(-90.0, 90.0), tilt_deg=(-40.0, 60.0))
+#: RGB of the leader's diamond (leader.js COLORS.leader).
+LEADER_RGB = (0, 137, 123)
 
 
 @contextlib.contextmanager

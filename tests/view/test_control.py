@@ -13,11 +13,11 @@ import websocket
 from selenium.webdriver.common.action_chains import ActionChains
 from selenium.webdriver.common.keys import Keys
 
-from limbctl.view import Board, HardLimits, Live, PanTilt, Scene, TeleopStatus, ViewServer
+from limbctl.view import Board, Live, PanTilt, Scene, TeleopStatus, ViewServer
 from limbctl.view.control import FORWARD_PERIOD_S, Access, ControlDesk, control_request, is_loopback
 from tests.safety.support import Gathered
 from tests.safety.support import wait_for as wait_until
-from tests.view.browser import chromium, drag_on_plane, frozen, text_of, wait_for
+from tests.view.browser import LIMITS, chromium, drag_on_plane, frozen, text_of, wait_for
 
 #: Longest wait (s) for a message in these tests.
 WAIT_S = 10.0
@@ -34,7 +34,7 @@ class Sink(Gathered):
 def served(host: str = "127.0.0.1", **server_options):
     """A served teleop board with a sink as its source: ``(board, server, sink, holder)``."""
     board = Board()
-    board.publish_scene(Scene(limits=HardLimits((-90.0, 90.0), (-40.0, 60.0))))
+    board.publish_scene(Scene(limits=LIMITS))
     board.publish_live(Live(mode="teleop"))
     sink = Sink()
     with ViewServer(board, host=host, port=0, **server_options) as server:

@@ -7,13 +7,11 @@ import math
 
 import pytest
 
-from limbctl.view import HardLimits, Live, PanTilt, Scene, TeleopStatus
+from limbctl.view import Live, PanTilt, Scene, TeleopStatus
 from limbctl.view.leader import LeaderLive, LeaderStatus, with_twist
-from tests.view.browser import canvas_rgb, near, text_of, wait_for
+from tests.view.browser import LEADER_RGB, LIMITS, canvas_rgb, near, text_of, wait_for
 
-LIMITS = HardLimits(pan_deg=(-90.0, 90.0), tilt_deg=(-40.0, 60.0))
-#: RGB of the leader's diamond and of its push (leader.js COLORS).
-LEADER_RGB = (0, 137, 123)
+#: RGB of the leader's push (leader.js COLORS).
 PUSH_RGB = (216, 27, 96)
 
 

@@ -4,15 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from limbctl.view import EdgeLoop, GuideFigure, HardLimits, Live, PanTilt, Scene, TeleopStatus
-from tests.view.browser import canvas_rgb, chromium, text_of, wait_for
+from limbctl.view import EdgeLoop, GuideFigure, Live, PanTilt, Scene, TeleopStatus
+from tests.view.browser import LIMITS, canvas_rgb, chromium, text_of, wait_for
 
 #: A 40 x 20 deg rectangle, its top edge traced, the rest not yet.
 SQUARE = EdgeLoop(
     pan_tilt_deg=[[-20.0, -10.0], [20.0, -10.0], [20.0, 10.0], [-20.0, 10.0]],
     traced=[False, False, True, False],
 )
-LIMITS = HardLimits(pan_deg=(-90.0, 90.0), tilt_deg=(-40.0, 60.0))
 #: RGB of the region's fill in view.js (COLORS.region).
 REGION_RGB = (150, 220, 150)
 
@@ -24,7 +23,6 @@ def pixel(driver, pan: float, tilt: float) -> tuple[int, int, int]:
 def test_page_shows_the_record_then_the_teleop_state_to_several_browsers_five_times_a_second(
     browser, served
 ):
-    """What the page shows matches what was published, in record and in teleop mode."""
     board, server = served
     samples = np.column_stack([np.linspace(-15, 15, 300), np.linspace(-8, 8, 300)])
     board.publish_scene(

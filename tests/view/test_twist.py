@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import math
 from collections import Counter
+from dataclasses import replace
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -20,7 +21,6 @@ from limbctl.jobs import Connection, RecordOptions, TeleopOptions, run_record, r
 from limbctl.live import TeleopFeed, ViewOptions, open_view
 from limbctl.teach.dataset import load_dataset
 from limbctl.teach.twist_guide import TwistPlace
-from limbctl.teleop.cycle import Cycle, CycleState
 from limbctl.teleop.gate import GateResult, Outcome
 from limbctl.view import Board, Live, PanTilt, Scene
 from limbctl.view.feed import PoseTap
@@ -33,6 +33,7 @@ from limbctl.view.twist import (
     taught_gauge,
     taught_map,
 )
+from tests.test_live import cycle
 from tests.view.browser import near, text_of, wait_for
 
 
@@ -109,18 +110,7 @@ def test_the_band_gauge_map_feed_and_pose_tap_agree_with_the_region(shoulder_mod
     feed.band = model.region.band
     present = (math.radians(20.0), math.radians(10.0), math.radians(15.0))
     written = GateResult((present[0], present[1], math.radians(12.0)), Outcome.PASSED)
-    feed(
-        Cycle(
-            index=0,
-            t=0.0,
-            state=CycleState.RUNNING,
-            complete=True,
-            command_deg=(20.0, 10.0),
-            result=written,
-            present=present,
-            written=True,
-        )
-    )
+    feed(replace(cycle(0, 0.0, True), command_deg=(20.0, 10.0), result=written, present=present))
     live = board.live
     assert live.pose.pan_deg == pytest.approx(20.0)
     expected = band_gauge(model.region.band, present, pose_twist(*written.pose))
