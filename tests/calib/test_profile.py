@@ -1,7 +1,6 @@
 import copy
 import math
 import os
-import time
 from pathlib import Path
 
 import pytest
@@ -221,9 +220,7 @@ def test_unreadable_missing_or_non_mapping_files_are_named(tmp_path, text, error
         load_rig_profile(path)
 
 
-def test_duplicate_keys_an_alias_bomb_and_many_unknown_keys_are_refused_on_one_line(
-    tmp_path, sim_data
-):
+def test_duplicate_keys_and_many_unknown_keys_are_refused_on_one_line(tmp_path, sim_data):
     path = tmp_path / "dup.yaml"
     text = SIM_YAML.read_text().replace("  max_deg: 70.0\n", "  max_deg: 70.0\n  max_deg: 170.0\n")
     path.write_text(text)
@@ -234,15 +231,7 @@ def test_duplicate_keys_an_alias_bomb_and_many_unknown_keys_are_refused_on_one_l
         f"{path}: line {line}: key 'max_deg' appears twice (also on line {line - 1}); keep "
         "one, a later value would silently win"
     )
-    bomb = ["  - &a0 [x, x, x, x, x, x, x, x, x]"]
-    bomb += [f"  - &a{i} [" + ", ".join([f"*a{i - 1}"] * 9) + "]" for i in range(1, 9)]
-    path = tmp_path / "bomb.yaml"
-    path.write_text(SIM_YAML.read_text().replace("name: sim\n", "name:\n" + "\n".join(bomb) + "\n"))
-    started = time.perf_counter()
-    with pytest.raises(FileFormatError, match=r"bomb.yaml: line \d+: anchors and aliases") as err:
-        load_rig_profile(path)
-    assert time.perf_counter() - started < 1.0
-    assert "x, x" not in str(err.value) and "\n" not in str(err.value)
+    # an alias bomb: tests/safety/test_files.py (the CLI) and tests/calib/test_yaml_guard.py
     sim_data.update({f"extra{i}": i for i in range(1000)})
     with pytest.raises(ConfigError, match="and 995 more") as err:
         load_rig_profile(write(tmp_path, sim_data))

@@ -1,12 +1,9 @@
 """The simulated bus is as strict as the wire: bauds, IDs, collisions, wire time, EEPROM files."""
 
-import json
-import math
 import os
 import time
 import tty
 
-import numpy as np
 import pytest
 import serial
 from dynamixel_sdk import COMM_RX_TIMEOUT, COMM_SUCCESS, PacketHandler, PortHandler
@@ -14,7 +11,6 @@ from dynamixel_sdk import COMM_RX_TIMEOUT, COMM_SUCCESS, PacketHandler, PortHand
 from firmware_sim import SimulatedBus
 from firmware_sim.control_table import Register, get_model
 from firmware_sim.eeprom import EepromFile
-from firmware_sim.orientation import chain_quat
 from firmware_sim.protocol import build_status
 from firmware_sim.servo import Servo
 from firmware_sim.simulator import Simulator
@@ -37,26 +33,11 @@ def sdk_at(port_name: str, baud: int) -> PortHandler:
     return port
 
 
-def test_factory_servos_collide_and_id_and_baud_change_as_lerobot_finds_them(tmp_path):
-    """LeRobot's setup_motors flow through the SDK alone: find by baud, write ID, then baud;
-    factory-fresh servos all answer as ID 1 and collide, one alone (in slot 2) answers."""
-    with SimulatedBus(factory=2, link=tmp_path / "tty") as sim:
-        packet = PacketHandler(2.0)
-        port = sdk_at(sim.port, FACTORY_BAUD)
-        model, result, _ = packet.ping(port, 1)
-        assert result != COMM_SUCCESS  # two clean replies would be a lie: they garble
-        found, _ = packet.broadcastPing(port)
-        assert found == {}
-        port.closePort()
+def test_a_factory_servos_id_and_baud_change_as_lerobot_sets_them(tmp_path):
+    """LeRobot's setup_motors flow through the SDK alone on the one factory-fresh servo connected
+    (slot 2): write ID, then baud (collisions, finding by baud: tests/servo/test_scan.py)."""
     with SimulatedBus(factory=2, connect=(2,), link=tmp_path / "tty") as sim:
-        packet, port = PacketHandler(2.0), PortHandler(sim.port)
-        found = {}
-        for baud in (1_000_000, FACTORY_BAUD):
-            assert port.setBaudRate(baud)
-            found, _ = packet.broadcastPing(port)
-            if found:
-                break
-        assert (baud, found) == (FACTORY_BAUD, {1: [XL430, 46]})
+        packet, port = PacketHandler(2.0), sdk_at(sim.port, FACTORY_BAUD)
         assert packet.ping(port, 1) == (XL430, COMM_SUCCESS, 0)
         assert packet.write1ByteTxRx(port, 1, TORQUE_ENABLE, 1) == (COMM_SUCCESS, 0)
         assert packet.write1ByteTxRx(port, 1, ID, 5) == (COMM_SUCCESS, 7)  # EEPROM, torque on
@@ -95,26 +76,6 @@ def test_a_reply_takes_its_bytes_wire_time(tmp_path):
         assert PacketHandler(2.0).ping(port, 1)[1] == COMM_SUCCESS
         assert time.monotonic() - start >= (10 + 14) * 10 / 9600 + 500e-6
         port.closePort()
-
-
-def test_simulator_with_a_roll_joint_logs_the_full_orientation(tmp_path):
-    log = tmp_path / "goals.jsonl"
-    with SimulatedBus(ids=(1, 2, 3), roll_id=3, goal_log=log, link=tmp_path / "tty") as sim:
-        port, packet = PortHandler(sim.port), PacketHandler(2.0)
-        assert port.openPort()
-        for servo_id, tick in {1: 2185 + 200, 2: 1890 - 150, 3: 1960 + 300}.items():
-            assert packet.write4ByteTxRx(port, servo_id, 116, tick) == (0, 0)
-        port.closePort()
-    rows = [json.loads(line) for line in log.read_text().splitlines()]
-    assert [r["id"] for r in rows] == [1, 2, 3]
-    last = rows[-1]
-    rad = 2 * math.pi / 4096
-    expected = chain_quat(200 * rad, 150 * rad, 300 * rad)
-    assert np.allclose(last["limb_q"], expected, atol=1e-12)
-    assert last["limb_q"][0] >= 0
-    pan, tilt = 200 * rad, 150 * rad
-    d = [math.cos(tilt) * math.cos(pan), math.cos(tilt) * math.sin(pan), math.sin(tilt)]
-    assert np.allclose(last["limb_dir"], d)
 
 
 def test_an_eeprom_survives_a_power_cycle_ram_does_not_and_another_models_is_refused(tmp_path):

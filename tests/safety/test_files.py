@@ -97,9 +97,7 @@ def _rewrite_header(src, dst, edit, reseal: bool) -> None:
         np.savez(fh, __header__=raw, **arrays)
 
 
-def test_wrong_version_hand_edits_foreign_files_and_another_rigs_model_are_named(
-    tmp_path, model_files
-):
+def test_wrong_version_hand_edits_and_foreign_files_are_named(tmp_path, model_files):
     _, path = model_files["cone"]
     newer = tmp_path / "newer.npz"
     _rewrite_header(path, newer, lambda h: h.update(format_version=2), reseal=True)
@@ -129,12 +127,6 @@ def test_wrong_version_hand_edits_foreign_files_and_another_rigs_model_are_named
     with pytest.raises(FileFormatError) as err:
         load_model(other)
     assert str(other) in str(err.value)
-    # a model for another rig is refused by the gate, naming it
-    theirs = Cone(np.radians(35.0)).save(tmp_path / "theirs.npz", metadata={"rig": "bench-2"})
-    with pytest.raises(ConfigError, match="trained for rig 'bench-2', not 'sim'") as err:
-        gate_for(theirs, PROFILE, 200.0, 120.0)
-    assert str(theirs) in str(err.value)
-    assert gate_for(path, PROFILE, 200.0, 120.0) is not None
 
 
 # ---- dataset files ------------------------------------------------------------------------------

@@ -92,19 +92,12 @@ def test_the_alarm_alone_says_nothing_about_torque_and_hold_says_each_joints_onc
     )
 
 
+# one servo already off, both already off: tests/safety/test_faults.py (ALARM_STATES, torque off)
 @pytest.mark.parametrize(
     "reported, said",
     [
         ({"pan": True, "tilt": True}, "torque switched off"),
         ({"pan": None, "tilt": True}, "torque switched off"),
-        (
-            {"pan": True, "tilt": False},
-            "torque switched off on pan; tilt torque was already off (as the servo reported it)",
-        ),
-        (
-            {"pan": False, "tilt": False},
-            "pan and tilt torque was already off (as the servos reported it); it stays off",
-        ),
     ],
 )
 def test_the_torque_off_safe_state_tells_switched_from_already_off(reported, said):
