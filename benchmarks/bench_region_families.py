@@ -14,8 +14,10 @@ teaching`), sparse (1500) and dense (7500), and the simulator hand's own paths
 (:class:`firmware_sim.hand.Hand`, its poses at 125 Hz, no bus) for 30 s and 60 s;
 learned by ``RigidMap(twist=True)`` as ``limbctl train`` builds it. Per teaching:
 
-- swing excess: the farthest (deg) a direction of the learned swing region (a LATTICE_DEG
-  lattice of it) lies outside the true outline;
+- swing excess: the farthest (deg) a direction of the learned swing region lies outside the true
+  outline, read on the region's own edge (:func:`edge_excess`: its widened arcs EDGE_STEP_DEG
+  apart and the round caps about their ends), where the farthest point lies; a lattice of
+  directions misses a thin sliver and reads short by up to half its spacing;
 - twist excess: over those directions inside the true outline, the farthest (deg) a learned
   band limit lies past the true one;
 - coverage: the share of the true region's orientations 2 deg or more inside (swing and twist;
@@ -47,6 +49,7 @@ from limbctl.geometry.gimbal import pan_tilt_to_direction, pose_quat_scalar
 from limbctl.geometry.quat import geodesic_distance
 from limbctl.geometry.twist import compose, wrap
 from limbctl.region import twist_band, twist_evidence
+from limbctl.region.evidence import edge_stations
 from limbctl.teach.twist_guide import TwistGuide
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -66,6 +69,10 @@ SEEDS = (0, 1, 2)
 RATE_HZ = 125.0
 #: Lattice (deg) of directions the excess and coverage are read on.
 LATTICE_DEG = 1.0
+#: Spacing (deg) of the edge stations the swing excess is read on: errs under 0.001 deg.
+EDGE_STEP_DEG = 0.02
+#: Points on each round cap about a widened arc's end: a 1 deg cap's chord errs 0.01 deg.
+CAP_POINTS = 24
 #: Twists per direction of the coverage probes.
 PROBE_TWISTS = 9
 #: The truth's boundary lattice (deg) (--quick: 0.5): the brute force errs up to ~0.15 deg at 0.25.
@@ -162,6 +169,34 @@ def lattice_inside(region: BandRegion, extra_deg: float) -> np.ndarray:
     return np.vstack(rows)
 
 
+def edge_excess(mesh, depth) -> float:
+    """The farthest (deg) the region of ``mesh`` (a :class:`~limbctl.region.mesh.DirectionMesh`)
+    lies outside a truth whose signed ``depth`` ((N, 3) -> (N,) rad, negative outside) is given:
+    read on its boundary, where the farthest point of a region lies (inside, a step outward is
+    still in the region and farther): stations along every widened arc EDGE_STEP_DEG apart, and
+    CAP_POINTS points on the round cap of radius ``m`` about each arc end (a widened arc holds
+    every direction within its margin ``m`` of the arc, its ends included)."""
+    stations, _ = edge_stations(mesh, math.radians(EDGE_STEP_DEG))
+    worst = float(np.max(-depth(stations)))
+    # each vertex's cap: the widest margin of the arcs that meet there
+    m = np.zeros(mesh.vertices.shape[0])
+    np.maximum.at(m, mesh.edges[:, 0], mesh.margins)
+    np.maximum.at(m, mesh.edges[:, 1], mesh.margins)
+    capped = np.flatnonzero(m > 0.0)
+    if capped.size:
+        x, r = mesh.vertices[capped], m[capped][:, None]
+        # a tangent frame at each vertex: u from +z (or +y near the z axis), v = x cross u
+        helper = np.where(np.abs(x[:, 2:3]) < 0.9, [[0.0, 0.0, 1.0]], [[0.0, 1.0, 0.0]])
+        u = np.cross(helper, x)
+        u /= np.linalg.norm(u, axis=1, keepdims=True)
+        v = np.cross(x, u)
+        for phi in np.linspace(0.0, 2.0 * math.pi, CAP_POINTS, endpoint=False):
+            # the point r along the great circle from x toward the tangent cos(phi) u + sin(phi) v
+            p = np.cos(r) * x + np.sin(r) * (math.cos(phi) * u + math.sin(phi) * v)
+            worst = max(worst, float(np.max(-depth(p))))
+    return math.degrees(max(0.0, worst))
+
+
 def measure(truth: BandRegion, q_taught: np.ndarray, seed: int, quick: bool) -> dict:
     """The figures of one teaching (module docstring)."""
     model = RigidMap(twist=True, seed=seed).fit(q_taught)
@@ -169,7 +204,7 @@ def measure(truth: BandRegion, q_taught: np.ndarray, seed: int, quick: bool) -> 
     d = lattice_inside(truth, 15.0)
     mine = region.swing.mesh.contains(d)
     depth = truth.swing.depth(d)
-    swing_excess = float(np.degrees(max(0.0, -depth[mine].min()))) if mine.any() else 0.0
+    swing_excess = edge_excess(region.swing.mesh, truth.swing.depth)
     both = mine & (depth >= 0.0)
     lc, lh = region.band.at(d[both])
     tc, th = truth.band(d[both])

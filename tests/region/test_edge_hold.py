@@ -117,18 +117,17 @@ def test_every_point_of_the_held_edge_lies_within_reach_of_a_sample(sparse_notch
 
 def _fit_swing_family(seed: int, kind: str):
     """The swing families' outline ``seed`` taught ``kind``: the samples (N, 3), the region fitted
-    from them, and how far (deg) it reaches past the outline (scanned SCAN_DEG apart)."""
+    from them, and how far (deg) it reaches past the outline, read on its own edge (a 0.1 deg
+    lattice misses a sliver 0.02 deg wide: outline 17's read 0.69 deg with its sliver uncut,
+    2.18 on the edge)."""
     families = benchmark("bench_swing_families")
     outline, _ = families.random_outline(np.random.default_rng(seed))
     taught = families.teach(outline, kind, seed)
     region = TaughtRegion().fit(taught)
-    lo, hi = outline.min(axis=0) - 4.0, outline.max(axis=0) + 4.0
-    box = ((lo[0], hi[0]), (lo[1], hi[1]))
-    return (
-        taught,
-        region,
-        reach_into(region.contains, PolygonRegion(outline), box, step_deg=SCAN_DEG),
+    reach = benchmark("bench_region_families").edge_excess(
+        region.mesh, PolygonRegion(outline).depth
     )
+    return taught, region, reach
 
 
 @pytest.mark.parametrize(
@@ -213,8 +212,7 @@ def test_arcs_the_patient_hold_gave_back_are_held_straight_to_the_tight_reach():
     taught = families.teach(truth, mapping, families.TEACHINGS["i.i.d. sparse (1500)"], 25)
     directions, _ = decompose(taught)
     region = TaughtRegion().fit(directions)
-    lattice = families.lattice_inside(truth, 15.0)
-    past = -np.degrees(truth.swing.depth(lattice[region.mesh.contains(lattice)]).min())
+    past = families.edge_excess(region.mesh, truth.swing.depth)
     assert region.held_edge
     assert past <= 1.0, f"the held region reaches {past:.2f} deg past the truth"
     assert np.mean(region.mesh.contains(directions)) >= 0.995
