@@ -67,9 +67,9 @@ TEACHINGS = {
 SEEDS = (0, 1, 2)
 #: The recorder's rate (Hz) the hand's poses are read at.
 RATE_HZ = 125.0
-#: Lattice (deg) of directions the excess and coverage are read on.
+#: Lattice (deg) of directions the twist excess and coverage are read on.
 LATTICE_DEG = 1.0
-#: Spacing (deg) of the edge stations the swing excess is read on: errs under 0.001 deg.
+#: Spacing (deg) of the edge stations the swing excess is read on: reads short by at most half.
 EDGE_STEP_DEG = 0.02
 #: Points on each round cap about a widened arc's end: a 1 deg cap's chord errs 0.01 deg.
 CAP_POINTS = 24
