@@ -27,6 +27,7 @@ from limbctl.region.evidence import (
     unsupported_stations,
     unsupported_stretches,
 )
+from limbctl.region.evidence_clip import Clip, clip_to_evidence, clipped_stretches
 from limbctl.region.gaps import ORDER_STATISTICS
 from limbctl.region.mesh import DirectionMesh, boundary_edges
 from limbctl.region.params import RegionParams
@@ -76,8 +77,10 @@ class TaughtRegion:
         (:mod:`limbctl.region.evidence`), farthest first, each marked ``held`` when the region
         was held there; empty after loading.
     held_edge : bool
-        Whether the region was held to the evidence (:mod:`limbctl.region.edge_hold`); False
-        after loading.
+        Whether the region was held to the evidence (:mod:`limbctl.region.edge_hold`, or cut
+        back to it, :mod:`limbctl.region.evidence_clip`); False after loading.
+    clip : Clip or None
+        What the last cut back to the evidence did (None after loading).
     """
 
     def __init__(self, params: RegionParams | None = None) -> None:
@@ -88,6 +91,7 @@ class TaughtRegion:
         self.support_index: np.ndarray | None = None
         self.unsupported_edge: tuple[Stretch, ...] = ()
         self.held_edge = False
+        self.clip: Clip | None = None
 
     def fit(self, samples: np.ndarray, lookup: bool = True) -> TaughtRegion:
         """Build the region from taught ``samples``: directions (N, 3) or quaternions (N, 4).
@@ -96,7 +100,7 @@ class TaughtRegion:
         """
         d = taught_directions(samples)
         self.support_index, spacing = self._thinned(d)
-        self.mesh = self._build(d[self.support_index], d, spacing)
+        self.mesh = self._clipped(self._build(d[self.support_index], d, spacing), d)
         if lookup:
             self.mesh.build_lookup()
         return self
@@ -165,6 +169,19 @@ class TaughtRegion:
         if self.held_edge:
             self.unsupported_edge = held_stretches(self.unsupported_edge, region, d_train)
         return region
+
+    def _clipped(self, region: DirectionMesh, d_train: np.ndarray) -> DirectionMesh:
+        """``region`` with every edge point held within ``CLIP_REACH_DEG`` of the taught
+        ``d_train`` (N, 3) (:mod:`limbctl.region.evidence_clip`); each place cut listed as a
+        held stretch."""
+        if region.edges.shape[0] == 0:
+            return region
+        clip = self.clip = clip_to_evidence(region, d_train)
+        if not clip.cut:
+            return region
+        self.held_edge = True
+        self.unsupported_edge = clipped_stretches(self.unsupported_edge, clip)
+        return clip.region
 
     def _shape(
         self, d: np.ndarray, thinning: float, alpha: float

@@ -26,6 +26,7 @@ from limbctl.region.evidence import (
     outer_arcs,
     unsupported_stations,
 )
+from limbctl.region.evidence_clip import CLIP_REACH_DEG, Clip
 from limbctl.region.mesh import DirectionMesh
 from tests.region.support import benchmark
 from tests.region.test_evidence import notched_ellipse
@@ -45,12 +46,13 @@ def sparse_notch():
     taught = truth.sample(1500, np.random.default_rng(1))
     lo, hi = outline.min(axis=0) - 4.0, outline.max(axis=0) + 4.0
     region = TaughtRegion().fit(taught)
-    saved = taught_module.hold_to_evidence
+    saved = taught_module.hold_to_evidence, taught_module.clip_to_evidence
     taught_module.hold_to_evidence = lambda mesh, data, *_, **__: (mesh, False)
+    taught_module.clip_to_evidence = lambda mesh, data, *_, **__: Clip.nothing(mesh)
     try:
         unheld = TaughtRegion().fit(taught)
     finally:
-        taught_module.hold_to_evidence = saved
+        taught_module.hold_to_evidence, taught_module.clip_to_evidence = saved
     return truth, taught, ((lo[0], hi[0]), (lo[1], hi[1])), region, unheld
 
 
@@ -95,23 +97,19 @@ def test_a_region_with_no_far_station_is_returned_as_it_is(sparse_notch):
     assert hold_to_evidence(unheld.mesh, d)[1]
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="open (issue 35 finding 1): the hold bounds the held edge's stations, not every point "
-    "of its chords; docs/decisions/region.md, 'The held edge's chords and give-ups'",
-)
 def test_every_point_of_the_held_edge_lies_within_reach_of_a_sample(sparse_notch):
-    """The goal: every point of the held region's outer edge (checked ``CHECK_DEG`` apart) lies
-    within ``REACH_DEG`` plus a quarter station spacing plus half the check step of a taught
-    sample (docs/decisions/region.md)."""
+    """Every point of the region's outer edge (checked ``CHECK_DEG`` apart) lies within
+    ``CLIP_REACH_DEG`` plus half the check step of a taught sample: the holds bound their
+    stations, not every point of their chords, and the cut back to the evidence
+    (:mod:`limbctl.region.evidence_clip`) takes the rest (before it: 1.47 deg)."""
     _, taught, _, region, _ = sparse_notch
     d = taught_module.taught_directions(taught)
     stations, arc = edge_stations(region.mesh, np.radians(CHECK_DEG))
     stations = stations[outer_arcs(region.mesh)[arc]]
     far = np.degrees(2.0 * np.arcsin(0.5 * cKDTree(d).query(stations)[0].max()))
-    assert region.held_edge
-    assert far <= REACH_DEG + 0.25 * STATION_DEG + 0.5 * CHECK_DEG, (
-        f"a point of the held edge lies {far - REACH_DEG:.2f} deg past the reach"
+    assert region.held_edge and region.clip.cut
+    assert far <= CLIP_REACH_DEG + 0.5 * CHECK_DEG, (
+        f"a point of the held edge lies {far - CLIP_REACH_DEG:.2f} deg past the reach"
     )
 
 
