@@ -54,13 +54,15 @@ PLANE_REACH_DEG = 80.0
 #: Plane distance under which a cut piece touches a far station: far below a tick (0.088 deg
 #: is 1.5e-3 rad) and far above GEOS's rounding of coordinates of order 1 (1e-15).
 TOUCH_PLANE = 1e-9
-#: Deepest (deg) a cut reaches into the region. A point this deep lies at least this much
-#: nearer the truth than the region's farthest point (a disc of this radius about it lies in the
-#: region): with the holds' region at most 2.48 deg past (1.24 measured over 108 fresh family
-#: teachings, 2.18 with a sliver left uncut, docs/decisions/region.md) it lies within the reach
-#: of the truth, so the cut's inner edge keeps the bound. Deeper cuts cost coverage for no
-#: containment: 1000 samples of an irregular region, commands 2 deg inside contained 98.6 %
-#: uncut, 96.6 % at 1.0, 95.0 % at 1.5, 89.7 % at 3 (a sparse teaching's gaps join up).
+#: Deepest (deg) a cut reaches into the region. Held, the region's edge stands within the
+#: holds' reach of the samples almost everywhere (1.25 deg at most, 0.9 where the tight hold
+#: held), so what the cut must take lies by the edge: 1.5 deg brought every one of 108 fresh
+#: family teachings within 1 deg (docs/decisions/region.md). An empirical depth, not a proof:
+#: across a notch bridged where the holds gave up, a point deep inside can stand far past
+#: (swing outline 78, sparse: 4.96 -> 4.60 deg). Deeper cuts cost coverage where nothing stands
+#: past: 1000 samples of an irregular region, commands 2 deg inside contained 98.6 % uncut,
+#: 96.6 % at 1.0, 95.0 % at 1.5, 89.7 % at 3 (3 along the edge too), 41.9 % with no bound
+#: (a sparse teaching's gaps join up).
 DEEP_DEG = 1.5
 #: Spacing (deg) of the edge stations the cut's depth is measured from.
 DEEP_STEP_DEG = 0.5
