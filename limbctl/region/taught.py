@@ -155,6 +155,8 @@ class TaughtRegion:
         # REACH_DEG: where that gave up, the samples are too sparse for any hold (a 90 deg cone's
         # 1000 samples: half its edge walked 3 deg in, no containment gained)
         region, self.held_edge = hold_to_evidence(taken.region, d_train)
+        if not self.held_edge:
+            region, self.held_edge = hold_to_evidence(taken.region, d_train, straight=True)
         tight_reach = np.radians(HOLD_REACH_DEG)
         tight, held_tight = hold_to_evidence(region, d_train, tight_reach, patient=self.held_edge)
         if self.held_edge and not held_tight:
