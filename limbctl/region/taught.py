@@ -152,13 +152,10 @@ class TaughtRegion:
         # own depths put the edge up to REACH_DEG from them (as far past the truth): held too
         # containment over coverage: held to REACH_DEG, then to HOLD_REACH_DEG where that holds;
         # patient (arcs by samples it cannot keep stay at REACH_DEG) only on a region held to
-        # REACH_DEG; where that hold gives up it is retried straight, toward the nearest samples
-        # (a notch bridged 5 deg past, swing outline 78 sparse, held to 0.68), and where that
-        # gives up too the samples are too sparse for any hold (a 90 deg cone's 1000 samples:
-        # half its edge walked 3 deg in, no containment gained); the cut (_clipped) comes last
+        # REACH_DEG: where that gave up, the samples are too sparse for any hold (a 90 deg cone's
+        # 1000 samples: half its edge walked 3 deg in, no containment gained; retried straight
+        # it walked 3.85 deg in, docs/decisions/region.md); the cut (_clipped) comes last
         region, self.held_edge = hold_to_evidence(taken.region, d_train)
-        if not self.held_edge:
-            region, self.held_edge = hold_to_evidence(taken.region, d_train, straight=True)
         tight_reach = np.radians(HOLD_REACH_DEG)
         tight, held_tight = hold_to_evidence(region, d_train, tight_reach, patient=self.held_edge)
         if self.held_edge and not held_tight:
