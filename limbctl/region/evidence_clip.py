@@ -1,15 +1,17 @@
-"""The last step of containment: no point of the region's edge farther than ``CLIP_REACH_DEG``
-from a taught sample.
+"""The last step of containment: the region's edge cut back to ``CLIP_REACH_DEG`` of the taught
+samples.
 
 A region's farthest point from a truth lies on its edge (inside, a step outward is still in the
-region and farther). A point within ``r`` of a taught sample that lies inside the truth is at
-most ``r`` outside it. So a region whose every edge point lies within ``r`` of a taught sample
-stands at most ``r`` past any truth that holds the samples. The holds of
-:mod:`limbctl.region.edge_hold` bring most of the edge there; where they cannot (a gap between
-the samples wider than twice the reach, which a straight hold cannot bridge, or a hold given
-back because it crossed), :func:`clip_to_evidence` cuts the region back: every part of the
-region farther than the reach from every sample that touches the edge there is removed, so the
-new edge runs along the samples' reach (docs/decisions/region.md, "Clipped to the evidence").
+region and farther), unless the region closes over an untaught pocket of the outside. A point
+within ``r`` of a taught sample that lies inside the truth is at most ``r`` outside it. So a
+region whose every edge point lies within ``r`` of a taught sample stands at most ``r`` past any
+truth that holds the samples. The holds of :mod:`limbctl.region.edge_hold` bring most of the
+edge there; where they cannot (a gap between the samples wider than twice the reach, which a
+straight hold cannot bridge, or a hold given back because it crossed), :func:`clip_to_evidence`
+cuts the region back: every part of the region farther than the reach from every sample, within
+``DEEP_DEG`` of the edge and touching an edge point past the reach, is removed, so the new edge
+runs along the samples' reach or ``DEEP_DEG`` inside (docs/decisions/region.md, "Cut back to
+the evidence").
 
 The cut is computed in the gnomonic plane about the region's centre, where great-circle arcs
 are straight lines: the region and the reach discs are exact polygons there (the discs and the
