@@ -173,9 +173,11 @@ def edge_excess(mesh, depth) -> float:
     """The farthest (deg) the region of ``mesh`` (a :class:`~limbctl.region.mesh.DirectionMesh`)
     lies outside a truth whose signed ``depth`` ((N, 3) -> (N,) rad, negative outside) is given:
     read on its boundary, where the farthest point of a region lies (inside, a step outward is
-    still in the region and farther): stations along every widened arc EDGE_STEP_DEG apart, and
-    CAP_POINTS points on the round cap of radius ``m`` about each arc end (a widened arc holds
-    every direction within its margin ``m`` of the arc, its ends included)."""
+    still in the region and farther), unless the region closes over a pocket of the outside (a
+    bay's middle may then stand farther than its bridged mouth): stations along every widened
+    arc EDGE_STEP_DEG apart, and CAP_POINTS points on the round cap of radius ``m`` about each
+    arc end (a widened arc holds every direction within its margin ``m`` of the arc, its ends
+    included)."""
     stations, _ = edge_stations(mesh, math.radians(EDGE_STEP_DEG))
     worst = float(np.max(-depth(stations)))
     # each vertex's cap: the widest margin of the arcs that meet there
