@@ -519,9 +519,11 @@ def test_a_rate_it_cannot_keep_is_refused_and_a_lost_pace_switches_the_feel_off_
         with pytest.raises(ConfigError, match="lower --rate"), source:
             pass
         assert not any(session.rig.bus.torque_enabled()[i] for i in rig.ids), "not left limp"
-        # forced: the source believes its wall needs 1 kHz
-        source.rate_hz, source.pace = 1000.0, PaceWatch(1000.0)
+        # started at a rate the start's check passes on a loaded machine, then forced: the
+        # source believes its wall needs 1 kHz, which the loop cannot keep
+        source.rate_hz = 200.0
         with source:
+            source.rate_hz, source.pace = 1000.0, PaceWatch(1000.0)
             session.rig.set_torque(True)
             with Running(session, source) as running:
                 session.simulator.set_operator(rig.press)
