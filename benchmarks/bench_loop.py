@@ -112,10 +112,14 @@ def main(argv: list[str] | None = None) -> int:
         region = PolygonRegion()
         rng = np.random.default_rng(0)
         q_train = to_quaternions(region.sample(1000, rng))
+        # 3000 samples put the learned edge past the reach of the evidence, so it is held to it:
+        # an edge of thousands of short arcs, the router's slowest case
+        q_held = to_quaternions(region.sample(3000, np.random.default_rng(2)))
         models = {
             "pass-through (peer)": Cone(half_angle_deg=180.0),
             "cone 60 deg (analytic)": Cone(half_angle_deg=60.0),
             "Rigid Map (bean, 1000 samples)": RigidMap(seed=0).fit(q_train),
+            "Rigid Map (bean, 3000 samples, held edge)": RigidMap(seed=0).fit(q_held),
         }
         paths = {}
         for name, model in models.items():

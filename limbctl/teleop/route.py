@@ -95,6 +95,20 @@ class Router:
         fixed = np.asarray(self.envelope.correct(q), dtype=np.float64)
         return self._distance(q, fixed) <= math.radians(VISIBLE_SLACK_DEG)
 
+    def inside_rows(self, q: np.ndarray) -> np.ndarray:
+        """(N,) bool: :meth:`inside` of each orientation (N, 4), in one batch where that pays."""
+        q = np.ascontiguousarray(q, dtype=np.float64).reshape(-1, 4)
+        ok = self.inside_many(q)
+        out = np.flatnonzero(~ok)
+        if out.size == 0:
+            return ok
+        if self.batched and out.size >= self._batch_rows:
+            fixed = np.asarray(self.envelope.correct(q[out]), dtype=np.float64).reshape(-1, 4)
+        else:
+            fixed = np.array([self.envelope.correct(row) for row in q[out]], dtype=np.float64)
+        ok[out] = self._distance_rows(q[out], fixed) <= math.radians(VISIBLE_SLACK_DEG)
+        return ok
+
     def _distance(self, a: np.ndarray, b: np.ndarray) -> float:
         """Distance (rad) of two poses (4,): limb directions' angle, or geodesic on SO(3)."""
         if not self.twist:
@@ -123,25 +137,39 @@ class Router:
             return _arc(limb_direction(a), limb_direction(b))
         return 2.0 * _arc(a, b, signed=True)
 
-    def _samples(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    def _samples(self, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Samples (N, S, 4) SEGMENT_STEP_DEG apart along the paths from rows of ``a`` to ``b``
-        (N, 4), ends left out, short paths padded."""
+        (N, 4), ends left out, and which are samples (N, S) bool (short paths are padded with
+        their start)."""
         va, vb = (a, b) if self.twist else (limb_direction(a), limb_direction(b))
         n = np.ceil(self._distance_rows(a, b) / math.radians(SEGMENT_STEP_DEG))
         n = np.maximum(n, 1.0)[:, None]  # (N, 1)
         k = np.arange(1, max(int(n.max(initial=1.0)), 2))[None, :]  # (1, S)
-        f = np.where(k < n, k / n, 0.0)  # (N, S)
+        on = k < n  # (N, S)
+        f = np.where(on, k / n, 0.0)
         pts = _slerp_rows(va, vb, f, signed=self.twist)
-        return pts if self.twist else swing_from_direction(pts)
+        return (pts if self.twist else swing_from_direction(pts)), on
 
     def paths_inside(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """(N,) bool: the path from each row of ``a`` to ``b`` (N, 4) strictly inside."""
-        pts = self._samples(a, b)
+        pts, _ = self._samples(a, b)
         return self.inside_many(pts.reshape(-1, 4)).reshape(pts.shape[:2]).all(axis=1)
+
+    def clear_rows(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """(N,) bool: :meth:`clear` of the paths from ``a`` (4,) to each row of ``b`` (N, 4),
+        every sample of every path judged in one batch (the roadmap's and the route's checks)."""
+        b = np.asarray(b, dtype=np.float64).reshape(-1, 4)
+        if b.shape[0] == 0:
+            return np.zeros(0, dtype=bool)
+        pts, on = self._samples(np.broadcast_to(a, b.shape), b)
+        on[:, 0] = True  # a path within one sample step is judged at its start, as in clear
+        ok = np.ones(on.shape, dtype=bool)
+        ok[on] = self.inside_rows(pts[on])
+        return ok.all(axis=1)
 
     def clear(self, a: np.ndarray, b: np.ndarray) -> bool:
         """Whether the path from ``a`` to ``b`` (4,) is inside up to VISIBLE_SLACK_DEG."""
-        pts = self._samples(a[None], b[None])[0]
+        pts = self._samples(a[None], b[None])[0][0]
         count = pts.shape[0] + 1
         if count < 2:
             return True
@@ -182,8 +210,9 @@ class Router:
         route = self._route(current_q, target_q)
         if route is None:
             return target_q  # no way round known: the plain step
+        visible = self.clear_rows(current_q, route)
         for k in range(route.shape[0] - 1, -1, -1):
-            if self.clear(current_q, route[k]):
+            if visible[k]:
                 if k + 1 < route.shape[0] and self._distance(current_q, route[k]) < ON_PATH:
                     # on a route point whose next one is judged a hair outside: the gate corrects
                     return route[k + 1]
@@ -201,9 +230,11 @@ class Router:
             return None
         cost = _arc(d_cur[None, :], self._nodes[near]) + dist[near]
         poses = self._node_poses(near)
-        entry = next((i for i in np.argsort(cost) if self.clear(current_q, poses[i])), None)
-        if entry is None:
+        order = np.argsort(cost)
+        visible = order[self.clear_rows(current_q, poses[order])]
+        if visible.size == 0:
             return None
+        entry = int(visible[0])
         path, walked, m = [int(near[entry])], 0.0, self._nodes.shape[0]
         while walked < math.radians(LOOKAHEAD_DEG) and pred[path[-1]] != m:
             nxt = int(pred[path[-1]])
@@ -291,7 +322,7 @@ class Router:
         d_t, _ = _split(target_q, self.twist)
         near = self._near(d_t)
         poses = self._node_poses(near)
-        near = near[[self.clear(target_q, p) for p in poses]] if near.size else near
+        near = near[self.clear_rows(target_q, poses)] if near.size else near
         w = _arc(d_t[None, :], self._nodes[near])
         extra = coo_matrix((w, (near, np.full(near.size, m))), shape=(m + 1, m + 1))
         graph = self._graph.tocoo()

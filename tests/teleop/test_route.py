@@ -212,3 +212,23 @@ def test_a_fitted_region_routes_round_its_bay(rig):
     gate = gate_at(region, rig, a)
     assert gate.router._nodes is not None  # built at start
     assert drive(gate, region, rig, b, int(bound(length)) + 1) is not None
+
+
+@pytest.mark.parametrize("rig", RIGS, ids=["two", "three"])
+def test_paths_judged_in_one_batch_are_judged_as_one_by_one(rig):
+    """clear_rows answers as clear does path by path: from inside and outside, short paths too."""
+    region, rng = region_for(rig, 41)
+    router = gate_at(region, rig, inside_points(region, 1, rng)[0]).router
+    inside = inside_points(region, 30, rng)
+    starts = np.vstack([inside[:3], inside[3:6] * [1.0, 1.0, 0.0, 0.0] + [0.0, 0.0, 0.5, 0.5]])
+    starts /= np.linalg.norm(starts, axis=1, keepdims=True)
+    judged = 0
+    for a in starts:
+        # ends anywhere, and a few within one sample step of the start (judged at the start)
+        near = a + rng.normal(scale=0.002, size=(4, 4))
+        ends = np.vstack([inside[6:], near / np.linalg.norm(near, axis=1, keepdims=True)])
+        one_by_one = [router.clear(a, b) for b in ends]
+        assert router.clear_rows(a, ends).tolist() == one_by_one
+        judged += sum(one_by_one)
+    assert 0 < judged < len(starts) * 28  # both answers were met
+    assert router.clear_rows(starts[0], np.empty((0, 4))).shape == (0,)
