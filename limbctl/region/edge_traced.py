@@ -157,21 +157,32 @@ def bridged_estimates(
 
 def local_quadratic(curve: np.ndarray, sigma: float) -> np.ndarray:
     """Local quadratic regression (K, 3) of a closed curve's evenly spaced stations (K, 3). Each
-    station is replaced by ``a`` of ``a + b u + c u^2`` fitted over arc-length offsets ``u``
-    (weights ``exp(-u^2 / (2 sigma^2))``), renormalised: exact on quadratic stretches; a circle of
-    radius ``r`` shrinks by about ``sigma^4 / (8 r^3)``."""
+    station is replaced by ``a`` of ``a + b v + c v^2`` fitted over arc-length offsets ``v`` in
+    units of ``sigma`` (weights ``exp(-v^2 / 2)``), renormalised: exact on quadratic stretches; a
+    circle of radius ``r`` shrinks by about ``sigma^4 / (8 r^3)``.
+
+    Element by element, no BLAS or LAPACK call: a traced edge is the same on every CPU (a matrix
+    product's rounding follows the CPU's BLAS kernel, and the trace's rounds amplified it into a
+    different edge, docs/decisions/region.md); offsets in units of ``sigma`` keep the 3 x 3
+    system well conditioned (in radians its entries spanned sigma^4, 1e-5 for 3 deg).
+    """
     s, total = station_positions(curve)
-    u = signed_offset(s[None, :], s[:, None], total)
-    w = np.exp(-0.5 * (u / sigma) ** 2)
-    # weighted powers w u^p (p = 0 .. 4): the normal equations (X^T W X) beta = X^T W c of
-    # the basis (1, u, u^2) hold sums of w u^(a + b) on the left and w u^a c on the right
+    v = signed_offset(s[None, :], s[:, None], total) / sigma
+    w = np.exp(-0.5 * v * v)
+    # weighted powers w v^p (p = 0 .. 4): the normal equations (X^T W X) beta = X^T W c of
+    # the basis (1, v, v^2) hold sums m_p of w v^p on the left and r_a of w v^a c on the right
     powers = [w]
     for _ in range(4):
-        powers.append(powers[-1] * u)
-    moment = np.stack([p.sum(axis=1) for p in powers], axis=-1)
-    lhs = np.stack([moment[:, a : a + 3] for a in range(3)], axis=1)
-    rhs = np.stack([powers[a] @ curve for a in range(3)], axis=1)
-    out = np.linalg.solve(lhs, rhs)[:, 0, :]
+        powers.append(powers[-1] * v)
+    m0, m1, m2, m3, m4 = (p.sum(axis=1)[:, None] for p in powers)
+    r0, r1, r2 = (
+        np.stack([(powers[a] * curve[:, k]).sum(axis=1) for k in range(3)], axis=1)
+        for a in range(3)
+    )
+    # a by Cramer's rule: det [r m1 m2; r1 m2 m3; r2 m3 m4] / det [m0 m1 m2; m1 m2 m3; m2 m3 m4]
+    minor = m2 * m4 - m3 * m3
+    det = m0 * minor - m1 * (m1 * m4 - m3 * m2) + m2 * (m1 * m3 - m2 * m2)
+    out = (r0 * minor - m1 * (r1 * m4 - m3 * r2) + m2 * (r1 * m3 - m2 * r2)) / det
     return out / np.linalg.norm(out, axis=1, keepdims=True)
 
 

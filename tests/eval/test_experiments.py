@@ -139,9 +139,11 @@ def test_run_eval_smoke_grid_end_to_end(tmp_path, capsys):
     # a 2000-sample teaching: coarser than the benchmark's 7500, still far nearer than the clamp
     assert row["learned_mean_deg"] < 1.5 and row["clamp_mean_deg"] > 4 * row["learned_mean_deg"]
     # an incomplete teaching: the evidence cap holds the band in and a deep command may move
-    # (docs/bench_region_families.md); the bound's 2 deg per deg cone about the stops held
-    # 0.961 of them (0.974 at 1.5 deg per deg: docs/decisions/twist.md)
-    assert row["deep_unchanged"] >= 0.95 and row["within_1deg"] >= 0.97
+    # (docs/bench_region_families.md). Of the smoke scale's 77 deep commands 69 stay (0.896),
+    # on every CPU since the trace is computed without BLAS; before, 74 with OpenBLAS's Haswell
+    # kernels and 70 with its SkylakeX ones (docs/decisions/region.md, "The same trace on every
+    # CPU"): a smoke figure moves by a few commands, the benchmark reads the real one
+    assert row["deep_unchanged"] >= 0.85 and row["within_1deg"] >= 0.97
     size = (out / "runs.csv").stat().st_size
     assert ex.run_eval(out, jobs=1, progress=False, smoke=True) == 0  # resumed: nothing reruns
     assert (out / "runs.csv").stat().st_size == size
