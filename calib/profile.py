@@ -268,13 +268,8 @@ class _Checker(Checker):
 
 
 def profile_from_dict(data: Any, source: str = "<profile>") -> RigProfile:
-    """Validate plain data (as parsed from YAML) into a :class:`RigProfile`.
-
-    Raises
-    ------
-    ProfileError
-        Naming ``source`` and the offending field.
-    """
+    """Validate plain data (as parsed from YAML) into a :class:`RigProfile` (ProfileError naming
+    ``source`` and the offending field)."""
     check = _Checker(source)
     listed = isinstance(data, dict) and "joints" in data
     required = (*_BUS_KEYS, *(("joints",) if listed else CHAINS[0]))
@@ -323,13 +318,8 @@ def profile_from_dict(data: Any, source: str = "<profile>") -> RigProfile:
 
 
 def calibration_from_dict(data: Any, source: str = "<calibration>") -> Calibration:
-    """Validate plain data (as :meth:`Calibration.to_dict` wrote it) into a :class:`Calibration`.
-
-    Raises
-    ------
-    ProfileError
-        Naming ``source`` and the offending field.
-    """
+    """Validate plain data (as :meth:`Calibration.to_dict` wrote it) into a :class:`Calibration`
+    (ProfileError naming ``source`` and the offending field)."""
     check = _Checker(source)
     raw = check.mapping(data, "calibration", ("pan", "tilt"), ("roll",))
     names = next(chain for chain in reversed(CHAINS) if set(chain) <= set(raw))
@@ -339,15 +329,9 @@ def calibration_from_dict(data: Any, source: str = "<calibration>") -> Calibrati
 
 
 def load_profile(path: str | os.PathLike[str]) -> RigProfile:
-    """Read and validate the rig profile at ``path``.
-
-    Raises
-    ------
-    ProfileError
-        If the file is missing or a field is invalid (the message names file and field).
-    ProfileFileError
-        If the file is not readable YAML.
-    """
+    """Read and validate the rig profile at ``path``: ProfileError if the file is missing or a
+    field is invalid (the message names file and field), ProfileFileError if it is not readable
+    YAML."""
     path = Path(path)
     try:
         data = read_yaml(path)

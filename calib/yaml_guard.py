@@ -114,13 +114,8 @@ def _one_line(exc: yaml.YAMLError) -> str:
 
 
 def parse_yaml(text: str) -> Any:
-    """Parse one YAML document with the guards above.
-
-    Raises
-    ------
-    YamlRefused
-        One line naming the line of the text and the problem.
-    """
+    """Parse one YAML document with the guards above (YamlRefused: one line naming the line of
+    the text and the problem)."""
     try:
         return yaml.load(text, Loader=_GuardedLoader)
     except YamlRefused:
@@ -133,16 +128,8 @@ def parse_yaml(text: str) -> Any:
 
 def read_yaml(path: str | os.PathLike[str]) -> Any:
     """Read and parse the YAML file at ``path``, reading at most :data:`MAX_FILE_BYTES`.
-
-    Raises
-    ------
-    FileNotFoundError
-        The file does not exist.
-    YamlRefused
-        Not a regular file, too large, not UTF-8, or refused by :func:`parse_yaml`.
-    OSError
-        The file cannot be read.
-    """
+    FileNotFoundError if it does not exist; YamlRefused if not a regular file, too large, not
+    UTF-8, or refused by :func:`parse_yaml`; OSError if it cannot be read."""
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(path)

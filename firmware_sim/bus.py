@@ -147,17 +147,7 @@ def serve(
 
 #: Plain options passed to :class:`FaultPlan` and, as they are, to :class:`Simulator`.
 _FAULT_KEYS = ("drop", "corrupt", "latency_ms", "latency_p")
-_SIM_KEYS = (
-    "ids",
-    "model",
-    "goal_log",
-    "baud",
-    "factory",
-    "connect",
-    "eeprom_dir",
-    "leader",
-    "roll_id",
-)
+_SIM_KEYS = "ids model goal_log baud factory connect eeprom_dir leader roll_id".split()
 
 
 def build_simulator(config: Mapping[str, Any]) -> Simulator:

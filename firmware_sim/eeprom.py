@@ -17,13 +17,8 @@ class EepromFile:
         self._saved = b""
 
     def load(self, servo: Servo) -> bool:
-        """Put the file's EEPROM into ``servo`` (True), or leave it factory-fresh (False).
-
-        Raises
-        ------
-        ValueError
-            If the file is not an EEPROM of this servo's model.
-        """
+        """Put the file's EEPROM into ``servo`` (True), or leave it factory-fresh (False);
+        ValueError if the file is not an EEPROM of this servo's model."""
         if not self.path.exists():
             return False
         data = self.path.read_bytes()

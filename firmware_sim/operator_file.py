@@ -36,13 +36,8 @@ def read_operator_file(path: str | Path) -> Any:
 
 def leader_spec(data: Any, ids: Sequence[int], log: str | None = None) -> dict[str, Any]:
     """The simulator's ``leader`` option for a leader at ``ids`` held as an operator file's
-    ``data`` says; ``log``: its ground-truth log.
-
-    Raises
-    ------
-    ValueError
-        Naming the key that is unknown or malformed, or what the operator refuses.
-    """
+    ``data`` says; ``log``: its ground-truth log. ValueError names the key that is unknown or
+    malformed, or what the operator refuses."""
     joints = len(ids)
     if not isinstance(data, Mapping):
         raise ValueError(f"expected a mapping of {', '.join(LEADER_KEYS + GRIP_KEYS)}")

@@ -275,13 +275,8 @@ def grid_inside(region: Region, step_deg: float, min_depth_deg: float) -> np.nda
 
 
 def region_from_mapping(spec: object, source: str = "<region>") -> Region:
-    """Build a region from the mapping under a REGION.yaml's ``region:`` key.
-
-    Raises
-    ------
-    ValueError
-        Naming ``source`` and what is wrong with the shape or its numbers.
-    """
+    """Build a region from the mapping under a REGION.yaml's ``region:`` key (ValueError naming
+    ``source`` and what is wrong with the shape or its numbers)."""
     if not isinstance(spec, dict):
         raise ValueError(
             f"{source}: 'region' must be a mapping such as {{polygon: [[pan, tilt], ...]}} or "

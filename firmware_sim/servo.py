@@ -187,13 +187,8 @@ class Servo:
         return bytes(self.memory[t] if self._by_address[t] is not None else 0 for t in targets)
 
     def check_write(self, address: int, data: bytes) -> dict[Item, int]:
-        """Validate a WRITE of ``data`` at ``address``; the items and values it would set.
-
-        Raises
-        ------
-        ServoError
-            Access, Data Length, Data Range or Data Limit, as the e-Manual's firmware.
-        """
+        """Validate a WRITE of ``data`` at ``address``; the items and values it would set
+        (ServoError: Access, Data Length, Data Range or Data Limit, as the e-Manual's firmware)."""
         if not data:
             raise ServoError(ErrorNumber.DATA_LENGTH, "WRITE without data")
         if address + len(data) > len(self.memory):

@@ -106,13 +106,8 @@ class Envelope(ABC):
 
     @classmethod
     def load(cls, path: str | Path) -> Envelope:
-        """Read a model saved by :meth:`save`, checking magic, version, kind and checksum.
-
-        Raises
-        ------
-        FileFormatError
-            Naming the file and the problem (missing, corrupt, wrong version or kind).
-        """
+        """Read a model saved by :meth:`save`, checking magic, version, kind and checksum
+        (FileFormatError naming the file and the problem: missing, corrupt, version or kind)."""
         header, arrays = _read(Path(path))
         kind = header.get("kind")
         target = Envelope._registry.get(kind)
@@ -132,13 +127,7 @@ def model_kinds() -> tuple[str, ...]:
 
 
 def model_class(kind: str) -> type[Envelope]:
-    """The class of a model kind.
-
-    Raises
-    ------
-    ConfigError
-        For an unknown kind, listing the choices.
-    """
+    """The class of a model kind (ConfigError for an unknown kind, listing the choices)."""
     target = Envelope._registry.get(kind)
     if target is None:
         raise ConfigError(f"unknown model kind {kind!r}; choose one of {', '.join(model_kinds())}")
@@ -146,13 +135,8 @@ def model_class(kind: str) -> type[Envelope]:
 
 
 def build_model(kind: str, **options: Any) -> Envelope:
-    """An unfitted model of ``kind`` built with constructor keywords ``options``.
-
-    Raises
-    ------
-    ConfigError
-        For an unknown kind (listing the choices) or options its constructor does not take.
-    """
+    """An unfitted model of ``kind`` built with constructor keywords ``options`` (ConfigError for
+    an unknown kind, listing the choices, or options its constructor does not take)."""
     target = model_class(kind)
     try:
         return target(**options)

@@ -171,17 +171,13 @@ def make_layout(
 ) -> np.ndarray:
     """Node positions on S^3 by layout ``name`` (of :data:`LAYOUTS`): ``n`` nodes (required for
     ``uniform`` and ``super-fibonacci``, a polytope's count), ``seed`` for ``uniform``, on w >= 0
-    (polytopes folded) or, without ``hemisphere``, the papers' node sets.
+    (polytopes folded) or, without ``hemisphere``, the papers' node sets. ConfigError for an
+    unknown name (listing the choices) or an ``n`` the layout cannot give.
 
     Returns
     -------
     ndarray, shape (n, 4)
         Unit quaternions, float64.
-
-    Raises
-    ------
-    ConfigError
-        For an unknown name (listing the choices) or an ``n`` the layout cannot give.
     """
     try:
         build = LAYOUTS[name]

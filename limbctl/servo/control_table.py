@@ -86,13 +86,8 @@ class Register(Enum):
         return (1 << (8 * self.size - (1 if self.signed else 0))) - 1
 
     def encode(self, value: int) -> list[int]:
-        """Little-endian bytes of ``value`` for this register (two's complement if signed).
-
-        Raises
-        ------
-        ValueError
-            If ``value`` is not an integer or does not fit the register.
-        """
+        """Little-endian bytes of ``value`` for this register (two's complement if signed);
+        ValueError if ``value`` is not an integer or does not fit the register."""
         if isinstance(value, bool) or int(value) != value:
             raise ValueError(f"{self.name} takes an integer, got {value!r}")
         value = int(value)

@@ -85,13 +85,8 @@ FAMILY_OF_NAME: dict[str, Family] = {
 
 
 def family_of(model: int | str) -> Family:
-    """The family of a model number or profile model name.
-
-    Raises
-    ------
-    ConfigError
-        Naming the model and the supported ones.
-    """
+    """The family of a model number or profile model name (ConfigError naming the model and the
+    supported ones)."""
     for family in FAMILIES.values():
         if model in family.models or model in family.models.values():
             return family

@@ -131,13 +131,8 @@ def encode_feel(goal_current: int, goal_position: int) -> bytes:
 
 
 def felt_motor(bus: ServoBus, ids: Sequence[int]) -> LeaderMotor | None:
-    """The motor of a leader whose servos can push back; None when their model cannot.
-
-    Raises
-    ------
-    ConfigError
-        If the leader's servos are of different models.
-    """
+    """The motor of a leader whose servos can push back; None when their model cannot
+    (ConfigError if the leader's servos are of different models)."""
     models = {bus.models[i] for i in ids}
     if len(models) != 1:
         names = ", ".join(f"servo {i}: {model_name(bus.models[i])}" for i in ids)
@@ -149,15 +144,8 @@ def configure_felt_leader(
     bus: ServoBus, ids: Sequence[int], cap_units: int, watchdog_units: int
 ) -> None:
     """Set the leader's servos up for feel (mode 5, Current Limit ``cap_units``, Bus Watchdog
-    ``watchdog_units`` x 20 ms, the maps); torque ends ON with Goal Current 0.
-
-    Raises
-    ------
-    ConfigError
-        If a servo refuses mode 5 (its model has no current-based position mode).
-    BusError
-        If a servo does not keep what was written.
-    """
+    ``watchdog_units`` x 20 ms, the maps); torque ends ON with Goal Current 0. ConfigError if a
+    servo refuses mode 5 (its model has none), BusError if one does not keep what was written."""
     with bus.exclusive():
         bus.set_torque(False, ids)
         for servo_id in ids:

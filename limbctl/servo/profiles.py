@@ -38,13 +38,8 @@ def joint_tick_limits(joint: JointProfile) -> tuple[int, int]:
 
 
 def check_profile(profile: RigProfile) -> RigProfile:
-    """Check what the servo layer knows of a profile; returns it unchanged.
-
-    Raises
-    ------
-    ConfigError
-        Naming the profile's file and the field.
-    """
+    """Check what the servo layer knows of a profile; returns it unchanged (ConfigError naming
+    the profile's file and the field)."""
     source = profile.source or "<profile>"
     try:
         profile_from_dict(profile.to_dict(), source)
@@ -81,13 +76,8 @@ def check_profile(profile: RigProfile) -> RigProfile:
 
 
 def check_models(bus: Any, ids: Sequence[int], model: str) -> None:
-    """Refuse a rig servo (``ids``) on an open bus that is not the profile's ``model``.
-
-    Raises
-    ------
-    ConfigError
-        Naming the servo, its model and the profile's.
-    """
+    """Refuse a rig servo (``ids``) on an open bus that is not the profile's ``model``
+    (ConfigError naming the servo, its model and the profile's)."""
     expected = MODEL_BY_NAME[model]
     for servo_id in ids:
         found = bus.models[servo_id]
@@ -106,15 +96,8 @@ def _controller_error(exc: ProfileError) -> ConfigError | FileFormatError:
 
 def load_rig_profile(path: str | os.PathLike[str] | None = None) -> RigProfile:
     """The checked rig profile at ``path``, or a packaged one (None: ``sim``; a non-file name in
-    :data:`calib.SIM_RIGS`: that one).
-
-    Raises
-    ------
-    ConfigError
-        The file is missing or a field is invalid (the message names file and field).
-    FileFormatError
-        The file cannot be read or is not YAML.
-    """
+    :data:`calib.SIM_RIGS`: that one). ConfigError if the file is missing or a field is invalid
+    (the message names file and field), FileFormatError if it cannot be read or is not YAML."""
     packaged = path is not None and str(path) in SIM_RIGS and not Path(path).exists()
     try:
         if packaged:
@@ -137,13 +120,9 @@ def save_rig_profile(profile: RigProfile, path: str | os.PathLike[str]) -> Path:
 
 def check_trained_for(metadata: Mapping[str, Any], profile: RigProfile, what: str) -> None:
     """Refuse something trained on another rig, or under another calibration of this one
-    (``metadata``: its recorded ``rig`` and ``calibration``; ``what``: its name in messages).
-
-    Raises
-    ------
-    ConfigError
-        Another rig's name; no, a malformed or a differing calibration (naming each field).
-    """
+    (``metadata``: its recorded ``rig`` and ``calibration``; ``what``: its name in messages):
+    ConfigError for another rig's name; no, a malformed or a differing calibration (naming each
+    field)."""
     source = profile.source or "the rig profile"
     if not isinstance(metadata, Mapping):  # a hand-made header: it records nothing
         metadata = {}

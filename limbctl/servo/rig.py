@@ -70,7 +70,8 @@ class Rig:
         return {joint.id: joint_tick_limits(joint) for joint in self.joints}
 
     def clamp(self, *angles: float) -> tuple[tuple[float, ...], bool]:
-        """Joint angles (rad) moved onto the hard limits where beyond them.
+        """Joint angles (rad) moved onto the hard limits where beyond them; InvalidInputError if an
+        angle is NaN or infinite, SafetyError if not one angle per joint is given.
 
         Returns
         -------
@@ -78,13 +79,6 @@ class Rig:
             Clamped angles (rad).
         clamped : bool
             True if any angle changed.
-
-        Raises
-        ------
-        InvalidInputError
-            If an angle is NaN or infinite.
-        SafetyError
-            If not one angle per joint is given.
         """
         self._counted(angles, "angles")
         out = []
@@ -139,13 +133,8 @@ class Rig:
         return self.ticks_to_angles(*self.read_ticks())
 
     def write_goal_ticks(self, *ticks: int) -> None:
-        """Send goal ticks, one per joint, to the servos in one sync write.
-
-        Raises
-        ------
-        SafetyError
-            If not one tick per joint is given, or one lies outside its hard limits.
-        """
+        """Send goal ticks, one per joint, to the servos in one sync write (SafetyError if not one
+        tick per joint is given, or one lies outside its hard limits)."""
         self._counted(ticks, "goal ticks")
         for name, tick, joint in zip(self.names, ticks, self.joints, strict=True):
             lo, hi = joint_tick_limits(joint)

@@ -216,13 +216,7 @@ def scan(
     """Ping every servo on ``port_name`` at each of ``bauds``. ``latency_timer_ms`` is the USB
     adapter's (ms; at least the SDK's 16 ms is allowed); ``on_baud(index, count, baud)`` is called
     before each baud (a progress bar); ``budget_per_baud_s`` is the most time (s) spent naming
-    collided IDs at one baud.
-
-    Raises
-    ------
-    PortError
-        If the port cannot be opened.
-    """
+    collided IDs at one baud. PortError if the port cannot be opened."""
     bauds = list(bauds)
     latency_timer_ms = max(latency_timer_ms, SDK_LATENCY_TIMER_MS)
     total = ScanResult()

@@ -93,13 +93,8 @@ def configure_servos(
 
 
 def check_supply(bus: ServoBus) -> None:
-    """Refuse, before torque goes on, a servo whose supply is outside its family's limits.
-
-    Raises
-    ------
-    ConfigError
-        Naming the servo, the voltage it measures and what its model expects.
-    """
+    """Refuse, before torque goes on, a servo whose supply is outside its family's limits
+    (ConfigError naming the servo, the voltage it measures and what its model expects)."""
     for servo_id in bus.ids:
         model = bus.models[servo_id]
         volts = bus.read(Register.PRESENT_INPUT_VOLTAGE, servo_id, patient=True, check_alert=False)
@@ -110,13 +105,8 @@ def check_supply(bus: ServoBus) -> None:
 
 def probe_indirect_data(bus: ServoBus, servo_id: int) -> int:
     """Where ``servo_id`` keeps Indirect Data 1: the candidate whose cycle block mirrors its
-    registers (the indirect map written). The firmware version is not trusted for it.
-
-    Raises
-    ------
-    BusError
-        If no candidate mirrors the registers (the servo does not keep the map).
-    """
+    registers (the indirect map written). The firmware version is not trusted for it. BusError
+    if no candidate mirrors the registers (the servo does not keep the map)."""
     goal = bus.read(Register.GOAL_POSITION, servo_id, patient=True)
     torque = bool(bus.read(Register.TORQUE_ENABLE, servo_id, patient=True))
     status = bus.read(Register.HARDWARE_ERROR_STATUS, servo_id, patient=True, check_alert=False)
