@@ -3,6 +3,7 @@ its own process so that a controller's busy polling cannot starve it (README.md 
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import json
 import os
@@ -212,10 +213,8 @@ def child_main(conn: Any, config: dict) -> None:
     finally:
         endpoint.close()
         sim.close()
-        try:
+        with contextlib.suppress(BrokenPipeError, OSError):
             conn.send(("stopped",))
-        except (BrokenPipeError, OSError):
-            pass
         conn.close()
 
 
@@ -295,12 +294,10 @@ class SimulatedBus:
     def close(self) -> None:
         """Stop the process, remove the link, close the pipe; safe to call twice."""
         if self._conn is not None:
-            try:
+            with contextlib.suppress(BrokenPipeError, EOFError, OSError):
                 self._conn.send(("stop", ()))
                 if self._conn.poll(REPLY_TIMEOUT_S):
                     self._conn.recv()
-            except (BrokenPipeError, EOFError, OSError):
-                pass
             self._conn.close()
             self._conn = None
         if self._process is not None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -137,7 +138,8 @@ def _broadcast(packet: InstructionPacket, servos: Sequence[Servo]) -> list[Reply
             _reply(s, ErrorNumber.NONE, _execute(instruction, params, s, unicast=False))
             for s in sorted(servos, key=lambda s: s.servo_id)
         ]
-    try:
+    # a malformed broadcast is ignored: nobody can tell which servo should complain
+    with contextlib.suppress(_Malformed):
         if instruction in (Instruction.SYNC_READ, Instruction.FAST_SYNC_READ):
             return _sync_read(params, servos, fast=instruction == Instruction.FAST_SYNC_READ)
         if instruction in (Instruction.BULK_READ, Instruction.FAST_BULK_READ):
@@ -148,12 +150,8 @@ def _broadcast(packet: InstructionPacket, servos: Sequence[Servo]) -> list[Reply
             _bulk_write(params, servos)
         else:
             for servo in servos:
-                try:
+                with contextlib.suppress(ServoError):  # broadcast errors are not reported
                     _execute(instruction, params, servo, unicast=False)
-                except ServoError:
-                    pass  # broadcast errors are not reported
-    except _Malformed:
-        pass  # nobody can tell which servo should complain: a malformed broadcast is ignored
     return []
 
 
@@ -240,9 +238,8 @@ def _bulk_write(params: bytes, servos: Sequence[Servo]) -> None:
 
 
 def _write_quietly(servos: Sequence[Servo], servo_id: int, address: int, data: bytes) -> None:
+    """Write to the servos answering as ``servo_id``; no status packet carries an error."""
     for servo in servos:
         if servo.servo_id == servo_id:
-            try:
+            with contextlib.suppress(ServoError):
                 servo.write(address, data)
-            except ServoError:
-                pass  # sync/bulk writes have no status packet to carry the error

@@ -120,16 +120,9 @@ class Track:
 
 class SwingPath:
     """The (pan_deg, tilt_deg) a hand takes the limb along, without tremor: through a ``region``
-    in one of :data:`STYLES`, drawn from ``seed``, answering ``visits`` in order of ``after_s``;
-    or along a ``script``.
-
-    Parameters
-    ----------
-    script : sequence of (t_s, pan_deg, tilt_deg, ...) or None
-        Waypoints, in increasing time; columns after the third are ignored.
-    speed_deg_s : float
-        Mean speed of a move through the middle (deg/s).
-    """
+    in one of :data:`STYLES`, drawn from ``seed``, answering ``visits`` in order of ``after_s``,
+    moving through the middle at a mean ``speed_deg_s`` (deg/s); or along a ``script`` of
+    (t_s, pan_deg, tilt_deg, ...) waypoints in increasing time (later columns ignored)."""
 
     def __init__(
         self,

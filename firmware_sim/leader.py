@@ -152,13 +152,8 @@ def leader_joints(ids: Sequence[int]) -> tuple[Joint, ...]:
 class LeaderWorld:
     """The leader gimbal's physics (see the module docstring): servos ``ids`` (pan, tilt[, roll])
     of ``model``, held by ``operator`` (None: only the motors and friction act), logging its
-    ground truth to ``log`` (JSON lines, one per physics step).
-
-    Parameters
-    ----------
-    start_deg : sequence of float, shape (joints,), or None
-        Where the leader rests at start (deg); None: every joint at 0.
-    """
+    ground truth to ``log`` (JSON lines, one per physics step), resting at start at ``start_deg``
+    (deg, shape (joints,); None: every joint at 0)."""
 
     def __init__(
         self,

@@ -64,14 +64,8 @@ class Environment:
 
 class Servo:
     """A servo's memory and firmware logic: it starts with ID ``servo_id`` (it answers whatever
-    its ID item holds); ``on_goal(servo, goal)`` is called whenever a Goal Position write takes
-    effect.
-
-    Parameters
-    ----------
-    raw_tick : float
-        Where the shaft starts (raw ticks).
-    """
+    its ID item holds) and its shaft at ``raw_tick`` (raw ticks); ``on_goal(servo, goal)`` is
+    called whenever a Goal Position write takes effect."""
 
     def __init__(
         self,

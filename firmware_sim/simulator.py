@@ -53,14 +53,8 @@ class Simulator:
 
     The other options are ``firmware-sim``'s (``--eeprom`` is ``eeprom_dir``), with ``hand`` a
     :class:`Hand`, ``leader`` a :meth:`LeaderWorld.from_spec` spec whose ids join and ``roll_id``
-    the servo in ``ids`` that turns the limb about its own axis (None: two joints).
-
-    Parameters
-    ----------
-    baud : int or None
-        The servos' baud rate (bit/s); None: any until their Baud Rate is written.
-    clock : callable
-        Monotonic seconds.
+    the servo in ``ids`` that turns the limb about its own axis (None: two joints); ``baud`` the
+    servos' baud rate (bit/s; None: any until their Baud Rate is written); ``clock`` monotonic s.
     """
 
     def __init__(

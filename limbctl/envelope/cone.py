@@ -19,14 +19,9 @@ CONTAINS_TOLERANCE = 1e-12
 
 
 class Cone(Envelope):
-    """Swing cone of half-angle R about +x, any twist (Lee). Exact and analytic.
-
-    Parameters
-    ----------
-    half_angle, half_angle_deg : float, optional
-        R in radians (0 <= R <= pi), or in degrees (keyword only); with neither, :meth:`fit`
-        learns R as the largest swing angle in the training data.
-    """
+    """Swing cone of half-angle R about +x, any twist (Lee). Exact and analytic. R is
+    ``half_angle`` (rad, 0 <= R <= pi) or ``half_angle_deg`` (deg, keyword only); with neither,
+    :meth:`fit` learns R as the largest swing angle in the training data."""
 
     kind = "cone"
 

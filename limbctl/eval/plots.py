@@ -67,8 +67,8 @@ def aggregate(rows: list[dict[str, Any]]) -> list[Point]:
     return sorted(points, key=lambda p: (p.experiment, p.model, p.answer, p.subset, p.x))
 
 
-def select(points: list[Point], experiment: str, subset: str = "all", **match: str) -> list[Point]:
-    """The points of one experiment and subset (optionally also matching model/answer)."""
+def select(points: list[Point], experiment: str, subset: str = "all", **match: Any) -> list[Point]:
+    """The points of one experiment and subset (optionally also matching model/answer/x)."""
     return [
         p
         for p in points
@@ -264,10 +264,8 @@ def table(
 
 
 def _mse(points: list[Point], experiment: str, x: float, model: str, answer: str) -> float:
-    for p in select(points, experiment, model=model, answer=answer):
-        if p.x == x:
-            return p.values["mse"][0]
-    return math.nan
+    found = select(points, experiment, model=model, answer=answer, x=x)
+    return found[0].values["mse"][0] if found else math.nan
 
 
 def rigidmap_checks(points: list[Point], x: float = 20.0) -> list[str]:
@@ -310,11 +308,7 @@ def summary_markdown(points: list[Point], scale: str) -> Summary:
     text = [f"# limbctl eval — {scale} grid", ""]
     headline = []
     ok: bool | None = None
-    repro = [
-        p
-        for p in select(points, "som-patterns", model="SOM 30x30", answer="respond none")
-        if p.x == 5000
-    ]
+    repro = select(points, "som-patterns", model="SOM 30x30", answer="respond none", x=5000)
     text += ["## Reproduction check (SOM paper)", ""]
     if repro:
         mean, sd = repro[0].values["err3d_rms"]

@@ -110,6 +110,7 @@ def probe_indirect_data(bus: ServoBus, servo_id: int) -> int:
     goal = bus.read(Register.GOAL_POSITION, servo_id, patient=True)
     torque = bool(bus.read(Register.TORQUE_ENABLE, servo_id, patient=True))
     status = bus.read(Register.HARDWARE_ERROR_STATUS, servo_id, patient=True, check_alert=False)
+    expected = (goal, torque, bool(status))
     for address in INDIRECT_DATA_1_CANDIDATES:
         block = Block(Register.INDIRECT_DATA_1, CYCLE_BYTES, at=address)
         try:
@@ -118,11 +119,7 @@ def probe_indirect_data(bus: ServoBus, servo_id: int) -> int:
             if type(exc) is not BusError:
                 raise  # silent, garbled, in alarm, port gone: not an answer about the address
             continue  # the servo refused the address (its status packet said so): not there
-        if (report.goal, report.torque_on, bool(report.hardware_error)) == (
-            goal,
-            torque,
-            bool(status),
-        ):
+        if (report.goal, report.torque_on, bool(report.hardware_error)) == expected:
             return address
     raise BusError(
         f"servo {servo_id} mirrors its registers at none of the Indirect Data addresses "
