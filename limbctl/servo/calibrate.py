@@ -132,10 +132,7 @@ def find_zero_and_directions(
             stop,
         )
         say(f"   turned about its axis: roll {turned_roll[2]} ticks")
-        roll = {
-            "roll_zero": rest[2],
-            "roll_direction": 1 if turned_roll[2] > rest[2] else -1,
-        }
+        roll = {"roll_zero": rest[2], "roll_direction": 1 if turned_roll[2] > rest[2] else -1}
     return CalibrationResult(
         pan_zero=rest[0],
         tilt_zero=rest[1],

@@ -93,17 +93,13 @@ class Register(Enum):
         value = int(value)
         if not self.min_value <= value <= self.max_value:
             raise ValueError(f"{self.name} holds {self.min_value}..{self.max_value}, got {value}")
-        raw = value & ((1 << (8 * self.size)) - 1)
-        return [(raw >> (8 * i)) & 0xFF for i in range(self.size)]
+        return list(value.to_bytes(self.size, "little", signed=self.signed))
 
     def decode(self, data: bytes | bytearray | list[int]) -> int:
         """The integer held by ``size`` little-endian bytes ``data``."""
         if len(data) != self.size:
             raise ValueError(f"{self.name} is {self.size} bytes wide, got {len(data)} bytes")
-        raw = int.from_bytes(bytes(data), "little", signed=False)
-        if self.signed and raw >= 1 << (8 * self.size - 1):
-            raw -= 1 << (8 * self.size)
-        return raw
+        return int.from_bytes(bytes(data), "little", signed=self.signed)
 
 
 #: Indirect Address / Data pairs every family has (the 330s 20, the others 28).

@@ -3,18 +3,14 @@
 from __future__ import annotations
 
 import time
+from collections import defaultdict
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from types import MappingProxyType
 
 from limbctl.errors import BusTimeout, ConfigError, CorruptReply
 from limbctl.servo import transfers
-from limbctl.servo.control_table import (
-    INDIRECT_SLOTS,
-    Block,
-    Register,
-    decode_hardware_error,
-)
+from limbctl.servo.control_table import INDIRECT_SLOTS, Block, Register, decode_hardware_error
 
 #: The registers in the cycle's read, in Indirect Data order.
 CYCLE_REGISTERS = (
@@ -116,11 +112,7 @@ ReadCycle = Callable[[int, Sequence[int]], CycleRead]
 
 
 def read_around_silent(
-    read: ReadCycle,
-    ids: Sequence[int],
-    silent: Sequence[int],
-    probe: Sequence[int],
-    attempts: int,
+    read: ReadCycle, ids: Sequence[int], silent: Sequence[int], probe: Sequence[int], attempts: int
 ) -> CycleRead:
     """One cycle's read of the servos not ``silent``, and of each in ``probe`` alone, one try."""
     parts = []
@@ -141,11 +133,7 @@ def read_around_silent(
     if unread:
         problems.append(f"servo {', '.join(map(str, unread))} silent, not read until its probe")
     return CycleRead(
-        reports,
-        tuple(still),
-        "; ".join(problems),
-        sum(part.duration_s for part in parts),
-        unread,
+        reports, tuple(still), "; ".join(problems), sum(part.duration_s for part in parts), unread
     )
 
 
@@ -200,11 +188,9 @@ class CycleReads:
 
     def read_cycle(self, ids: Sequence[int] | None = None, attempts: int = 1) -> CycleRead:
         """Each servo's :class:`ServoReport` in ONE (fast) sync read; only a failing port raises."""
-        groups: dict[int, list[int]] = {}
+        groups: dict[int, list[int]] = defaultdict(list)
         for servo_id in self._known(ids):
-            groups.setdefault(self.indirect_at.get(servo_id, CYCLE_BLOCK.address), []).append(
-                servo_id
-            )
+            groups[self.indirect_at.get(servo_id, CYCLE_BLOCK.address)].append(servo_id)
         parts = [self._read_cycle_at(at, group, attempts) for at, group in groups.items()]
         if len(parts) == 1:
             return parts[0]
