@@ -223,21 +223,9 @@ Region = PolygonRegion | ConeRegion
 
 
 def deepen(region: Region, points_deg: np.ndarray, depth_deg: np.ndarray) -> np.ndarray:
-    """Points moved inward along the edge distance's gradient until each is as deep as asked.
-
-    Parameters
-    ----------
-    region : PolygonRegion | ConeRegion
-    points_deg : ndarray, shape (M, 2)
-        (pan_deg, tilt_deg) points.
-    depth_deg : ndarray, shape (M,)
-        The depth inside the region (deg) each point should reach.
-
-    Returns
-    -------
-    ndarray, shape (M, 2)
-        A new array; points already deep enough are unchanged.
-    """
+    """(pan_deg, tilt_deg) points (M, 2) moved inward along the edge distance's gradient until
+    each is ``depth_deg`` (M,) deg inside ``region``: a new (M, 2) array, points already deep
+    enough unchanged."""
     points = np.array(points_deg, dtype=np.float64)
     h = DEEPEN_STEP_DEG
     for _ in range(DEEPEN_ROUNDS):

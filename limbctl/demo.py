@@ -23,12 +23,11 @@ from limbctl.eval.twist_demo import (
     written_orientations,
 )
 from limbctl.file_jobs import TrainOptions, run_train
-from limbctl.geometry.gimbal import pose_quat_scalar
-from limbctl.geometry.twist import decompose_one
 from limbctl.jobs import Connection, RecordOptions, TeleopOptions, run_record, run_teleop, say
 from limbctl.live import LiveView, ViewOptions, leader_status, open_view
 from limbctl.session import demo_region_path
 from limbctl.teleop.gate import REGION_TOLERANCE_DEG, written_tolerance_deg
+from limbctl.view.twist import pose_twist
 
 #: The CLI's defaults: loop rate (Hz), recording rate (samples/s), slew limit (deg/s).
 DEMO_RATE_HZ = 200.0
@@ -203,10 +202,7 @@ def _twist_row(cycle, source) -> tuple[float, ...] | None:
     """Three servos: leader's held and gated pose (pan, tilt, twist deg); None before a hold."""
 
     def deg(pose: tuple[float, ...]) -> tuple[float, ...]:
-        return (
-            *map(math.degrees, pose[:2]),
-            math.degrees(decompose_one(pose_quat_scalar(*pose))[1]),
-        )
+        return (*map(math.degrees, pose[:2]), math.degrees(pose_twist(*pose)))
 
     held = source.last_pose
     return None if held is None else (*deg(held), *deg(cycle.result.pose))

@@ -51,13 +51,8 @@ class RegionFit:
 
 
 def mesh_loops(edges: np.ndarray) -> list[np.ndarray]:
-    """The closed loops of a region's boundary arcs, as index arrays in walking order.
-
-    Parameters
-    ----------
-    edges : ndarray, shape (E, 2), int
-        Directed arcs ``a -> b``; each vertex starts at most one arc.
-    """
+    """The closed loops of a region's boundary arcs ``edges`` (E, 2) int, directed ``a -> b``
+    (each vertex starts at most one arc), as index arrays in walking order."""
     following = {int(a): int(b) for a, b in np.asarray(edges)}
     loops, seen = [], set()
     for start in following:

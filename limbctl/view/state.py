@@ -45,15 +45,9 @@ class HardLimits:
 
 @dataclass(frozen=True)
 class EdgeLoop:
-    """One closed loop of the region's edge on the pan/tilt plane.
-
-    Parameters
-    ----------
-    pan_tilt_deg : ndarray, shape (N, 2)
-        The loop's vertices in order, degrees.
-    traced : ndarray, shape (N,), bool
-        Whether the stretch from vertex ``i`` to ``i + 1`` (mod N) was traced by the teacher.
-    """
+    """One closed loop of the region's edge on the pan/tilt plane: its vertices ``pan_tilt_deg``
+    (N, 2) in order, degrees, and ``traced`` (N,) bool, whether the stretch from vertex ``i`` to
+    ``i + 1`` (mod N) was traced by the teacher."""
 
     pan_tilt_deg: np.ndarray
     traced: np.ndarray
@@ -191,18 +185,8 @@ class Scene:
 def thin_samples(
     pan_tilt_deg: np.ndarray, cell_deg: float = THIN_CELL_DEG, limit: int = MAX_DRAWN_SAMPLES
 ) -> np.ndarray:
-    """Samples thinned for drawing: one per ``cell_deg`` grid cell (deg), at most ``limit``.
-
-    Parameters
-    ----------
-    pan_tilt_deg : ndarray, shape (N, 2)
-        Samples in degrees, in recording order.
-
-    Returns
-    -------
-    ndarray, shape (M, 2), M <= limit
-        The first sample of each occupied cell, in recording order.
-    """
+    """Samples ``pan_tilt_deg`` (N, 2) (deg, in recording order) thinned for drawing: the first
+    of each occupied ``cell_deg`` grid cell (deg), in recording order, (M, 2), M <= ``limit``."""
     points = np.asarray(pan_tilt_deg, dtype=np.float64).reshape(-1, 2)
     if len(points) == 0:
         return points
