@@ -17,6 +17,10 @@ from firmware_sim.orientation import chain_quat, chain_twist, wrap_deg
 from firmware_sim.regions import region_from_mapping
 from firmware_sim.twist_band import MAX_HALF_WIDTH_DEG, MIN_HALF_WIDTH_DEG, TwistBand
 from firmware_sim.world import ROLL_JOINT, World
+from limbctl.demo import true_twist_probes
+from limbctl.geometry.gimbal import direction_to_pan_tilt
+from limbctl.geometry.twist import decompose, wrap
+from limbctl.region.twist_region import TwistRegion
 from limbctl.session import demo_region_path
 
 REGIONS = Path(__file__).resolve().parents[2] / "examples" / "regions"
@@ -152,11 +156,6 @@ def test_the_twist_keeps_to_a_plane_or_curved_band_and_reaches_both_its_stops():
 
 def test_a_minute_of_the_hand_teaches_a_band_within_the_truth_or_names_what_is_missing():
     """Issue 35: a learned 60 s teaching stays within 1 deg of the true band; holds 99 % or asks."""
-    from limbctl.demo import true_twist_probes
-    from limbctl.geometry.gimbal import direction_to_pan_tilt
-    from limbctl.geometry.twist import decompose, wrap
-    from limbctl.region.twist_region import TwistRegion
-
     hand = Hand.from_yaml(REGION3, seed=1)
     hand.start_from(0.0, 0.0, 0.0)
     poses = np.radians([hand.pose_deg(float(t)) for t in np.arange(0.0, 60.0, 1.0 / 125.0)])

@@ -15,6 +15,7 @@ from limbctl.servo.calibrate import (
     profile_from_calibration,
     wait_still,
 )
+from limbctl.servo.control_table import Register
 
 
 class FlakyStillLimb:
@@ -85,8 +86,6 @@ def test_on_a_port_the_servos_named_by_ids_are_calibrated_inside_the_assumed_end
     tmp_path, capsys, sim, sdk
 ):
     """--ids are the servos read; on a port without a profile the stops are taken as +-90 deg."""
-    from limbctl.servo.control_table import Register
-
     hand = Path(str(resources.files("limbctl").joinpath("data", "calibration_hand.yaml")))
     out = tmp_path / "rig.yaml"
     truth = default_sim_profile()
