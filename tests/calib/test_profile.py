@@ -1,4 +1,5 @@
 import copy
+import itertools
 import math
 import os
 from pathlib import Path
@@ -220,7 +221,9 @@ def test_unreadable_missing_or_non_mapping_files_are_named(tmp_path, text, error
         load_rig_profile(path)
 
 
-def test_duplicate_keys_and_many_unknown_keys_are_refused_on_one_line(tmp_path, sim_data):
+def test_duplicate_keys_many_unknown_keys_and_huge_values_are_refused_on_one_bounded_line(
+    tmp_path, sim_data
+):
     path = tmp_path / "dup.yaml"
     text = SIM_YAML.read_text().replace("  max_deg: 70.0\n", "  max_deg: 70.0\n  max_deg: 170.0\n")
     path.write_text(text)
@@ -232,29 +235,17 @@ def test_duplicate_keys_and_many_unknown_keys_are_refused_on_one_line(tmp_path, 
         "one, a later value would silently win"
     )
     # an alias bomb: tests/safety/test_files.py (the CLI) and tests/calib/test_yaml_guard.py
-    sim_data.update({f"extra{i}": i for i in range(1000)})
     with pytest.raises(ConfigError, match="and 995 more") as err:
-        load_rig_profile(write(tmp_path, sim_data))
+        load_rig_profile(write(tmp_path, sim_data | {f"extra{i}": i for i in range(1000)}))
     assert len(str(err.value)) < 300
-
-
-@pytest.mark.parametrize(
-    "value",
-    [
-        ["x" * 1000] * 10,
-        {"k" * 1000: "v"},
-        "y" * 1000,
-        [[[[["deep"]]]] for _ in range(40)],
-    ],
-)
-def test_messages_quote_values_boundedly(tmp_path, sim_data, value):
-    for field in ("name", "baud", "protocol"):
-        data = copy.deepcopy(sim_data)
-        data[field] = value
+    # values too long, wide or deep for the message are quoted boundedly
+    deep = [[[[["deep"]]]] for _ in range(40)]
+    for value, field in itertools.product(
+        (["x" * 1000] * 10, {"k" * 1000: "v"}, "y" * 1000, deep), ("name", "baud", "protocol")
+    ):
         with pytest.raises(ConfigError) as err:
-            load_rig_profile(write(tmp_path, data))
-        message = str(err.value)
-        assert len(message) < 300 and "\n" not in message, message
+            load_rig_profile(write(tmp_path, sim_data | {field: value}))
+        assert len(str(err.value)) < 300 and "\n" not in str(err.value), str(err.value)
 
 
 def test_calibrations_with_and_without_roll_round_trip_name_differences_and_bad_fields(

@@ -17,6 +17,10 @@ from firmware_sim.orientation import chain_quat, chain_twist, wrap_deg
 from firmware_sim.regions import region_from_mapping
 from firmware_sim.twist_band import MAX_HALF_WIDTH_DEG, MIN_HALF_WIDTH_DEG, TwistBand
 from firmware_sim.world import ROLL_JOINT, World
+from limbctl.demo import true_twist_probes
+from limbctl.geometry.gimbal import direction_to_pan_tilt
+from limbctl.geometry.twist import decompose, wrap
+from limbctl.region.twist_region import TwistRegion
 from limbctl.session import demo_region_path
 
 REGIONS = Path(__file__).resolve().parents[2] / "examples" / "regions"
@@ -43,29 +47,20 @@ def sample(hand: Hand, t_end: float, dt: float = 0.02):
     [
         (CONE, False),
         ({**CONE, "twist": {"half_width_deg": 20}}, True),
-        ({"script": [[0, 0, 0]]}, False),
-        ({"script": [[0, 0, 0, 0]]}, True),
+        ({"script": [[0, 0, 0], [2, 10, 0]], "tremor_deg": 0}, False),
+        ({"script": [[0, 0, 0, 0], [2, 10, 0, 40]], "tremor_deg": 0}, True),
     ],
     ids=["region", "region+twist", "script", "script+roll"],
 )
-def test_a_twist_band_or_a_roll_column_makes_the_hand_turn_the_roll(data, turns):
+def test_a_twist_band_or_a_roll_column_turns_the_roll_and_a_script_is_followed_then_held(
+    data, turns
+):
     hand = Hand.from_mapping(data)
     assert hand.turns_roll == turns
     assert len(hand.pose_deg(1.0)) == 2 + turns
-
-
-@pytest.mark.parametrize(
-    "script, halfway, held",
-    [
-        ([[0, 0, 0], [2, 10, 0]], (5, 0), (10, 0)),
-        ([[0, 0, 0, 0], [2, 10, 0, 40]], (5, 0, 20), (10, 0, 40)),
-    ],
-    ids=["sim", "sim3"],
-)
-def test_a_script_is_followed_linearly_and_its_last_waypoint_held(script, halfway, held):
-    hand = Hand.from_mapping({"script": script, "tremor_deg": 0})
-    assert hand.pose_deg(1.0) == pytest.approx(halfway)
-    assert hand.pose_deg(5.0) == pytest.approx(held)
+    if "script" in data:  # linear between waypoints, the last one held
+        assert hand.pose_deg(1.0) == pytest.approx((5, 0, 20)[: 2 + turns])
+        assert hand.pose_deg(5.0) == pytest.approx((10, 0, 40)[: 2 + turns])
 
 
 def test_tremor_is_a_few_tenths_of_a_degree_and_unknown_styles_and_visits_are_refused():
@@ -161,11 +156,6 @@ def test_the_twist_keeps_to_a_plane_or_curved_band_and_reaches_both_its_stops():
 
 def test_a_minute_of_the_hand_teaches_a_band_within_the_truth_or_names_what_is_missing():
     """Issue 35: a learned 60 s teaching stays within 1 deg of the true band; holds 99 % or asks."""
-    from limbctl.demo import true_twist_probes
-    from limbctl.geometry.gimbal import direction_to_pan_tilt
-    from limbctl.geometry.twist import decompose, wrap
-    from limbctl.region.twist_region import TwistRegion
-
     hand = Hand.from_yaml(REGION3, seed=1)
     hand.start_from(0.0, 0.0, 0.0)
     poses = np.radians([hand.pose_deg(float(t)) for t in np.arange(0.0, 60.0, 1.0 / 125.0)])
@@ -185,6 +175,13 @@ def test_a_minute_of_the_hand_teaches_a_band_within_the_truth_or_names_what_is_m
 
 #: A region the bad files below add to or break.
 CONE20 = "region: {cone: {half_angle_deg: 20}}\n"
+VISIT = CONE20 + "visits: [{%s}]\n"
+SQUARE20 = "region: {polygon: [[-40, -30], [40, -30], [40, 50], [-40, 50]]}\n"  # tilt -30..50
+BAND, CURVED = (
+    SQUARE20 + "twist: {%s}\n",
+    SQUARE20 + "twist: {half_width_deg: {linear: [40, 0, 0], %s}}\n",
+)
+WIDTHS = f"within {MIN_HALF_WIDTH_DEG:g}..{MAX_HALF_WIDTH_DEG:g}"
 BAD_FILES = {
     "missing": (None, "cannot read the region file"),
     "missing-region": ("speed_deg_s: 30\n", "exactly one of 'region' or 'script'"),
@@ -213,6 +210,21 @@ BAD_FILES = {
     "script-roll-nan": ("script: [[0, 0, 0, 0], [2, 10, 0, .nan]]\n", "non-finite"),
     "script-twist": ("script: [[0, 0, 0]]\ntwist: {half_width_deg: 20}\n", "not to a script"),
     "twist-narrow": (CONE20 + "twist: {half_width_deg: 1}\n", "within 3"),
+    "visit-do": (VISIT % "after_s: 1, at: [0, 0], do: dance", r"visits\[0\]: unknown do"),
+    "visit-at": (VISIT % "after_s: 1, at: [0], do: edge", r"visits\[0\]: at must be"),
+    "visit-keys": (VISIT % "at: [0, 0], do: edge", r"visits\[0\] .*after_s, at and do"),
+    "visit-after": (VISIT % "after_s: -1, at: [0, 0], do: edge", r"\[0\]: after_s .*>= 0"),
+    "visit-key": (VISIT % "after_s: 1, at: [0, 0], do: edge, x: 2", r"\[0\]: unknown key"),
+    "band-runs": (BAND % "half_width_deg: [40, 0, -1.0]", "runs"),  # 40 - 50 < 0 at the top
+    "band-wide": (BAND % "half_width_deg: 175", WIDTHS),
+    "band-no-width": (BAND % "centre_deg: 0", r"half_width_deg \(required\)"),
+    "band-key": (BAND % "half_width_deg: 20, spin: 1", "twist takes"),
+    "band-pair": (BAND % "half_width_deg: [1, 2]", r"a number or \[a, b, c\]"),
+    "band-text": (BAND % "half_width_deg: wide", "finite numbers"),
+    "band-list": (SQUARE20 + "twist: [1, 2]\n", "must be a mapping"),
+    "band-cubic": (CURVED % "cubic: [1, 2, 3]", "takes linear, quadratic, bumps"),
+    "band-bumps": (CURVED % "bumps: [[0, 0, 5]]", "bumps must be a list"),
+    "band-quadratic": (CURVED % "quadratic: 0.1", re.escape("quadratic must be [p, m, t]")),
 }
 
 
@@ -262,22 +274,6 @@ def test_visits_answer_the_requests_in_order_and_leave_the_path_before_them_alon
     assert np.all(twist[at] <= limits[at, 1] - TWIST_INSET_DEG + TREMOR_SLACK_DEG)
 
 
-@pytest.mark.parametrize(
-    "visits, words",
-    [
-        ([{"after_s": 1, "at": [0, 0], "do": "dance"}], "unknown do"),
-        ([{"after_s": 1, "at": [0], "do": "edge"}], "at must be"),
-        ([{"at": [0, 0], "do": "edge"}], "after_s, at and do"),
-        ([{"after_s": -1, "at": [0, 0], "do": "edge"}], "after_s must be >= 0"),
-        ([{"after_s": 1, "at": [0, 0], "do": "edge", "when": 2}], "unknown key"),
-    ],
-)
-def test_a_bad_visit_is_refused_with_its_entry_named(visits, words):
-    with pytest.raises(ValueError, match=words) as err:
-        Hand.from_mapping({**CONE, "visits": visits}, source="r.yaml")
-    assert "visits[0]" in str(err.value)
-
-
 def test_a_guided_teaching_of_a_small_region_ends_ready_and_within_a_degree_of_the_truth():
     spec = importlib.util.spec_from_file_location("bench_guided_teaching", GUIDED)
     bench = importlib.util.module_from_spec(spec)
@@ -299,8 +295,6 @@ def test_a_guided_teaching_of_a_small_region_ends_ready_and_within_a_degree_of_t
     assert figures["coverage"] >= 0.95
 
 
-#: The linear part of a curved band the malformed ones below add to.
-LINEAR = {"linear": [40, 0, 0]}
 SQUARE = region_from_mapping({"polygon": [[-40, -30], [40, -30], [40, 50], [-40, 50]]})
 
 
@@ -341,26 +335,3 @@ def test_a_band_constant_linear_or_curved_with_bumps_compares_on_the_circle():
     assert TwistBand.from_mapping({"half_width_deg": [40, 0, -0.3]}, SQUARE).limits_deg(
         0, 10
     ) == pytest.approx((-37.0, 37.0))
-
-
-@pytest.mark.parametrize(
-    ("spec", "message"),
-    [
-        ({"half_width_deg": [40, 0, -1.0]}, "runs"),  # 40 - 50 < 0 at the top
-        ({"half_width_deg": 175}, f"within {MIN_HALF_WIDTH_DEG:g}..{MAX_HALF_WIDTH_DEG:g}"),
-        ({"centre_deg": 0}, "half_width_deg \\(required\\)"),
-        ({"half_width_deg": 20, "spin": 1}, "twist takes"),
-        ({"half_width_deg": [1, 2]}, "a number or \\[a, b, c\\]"),
-        ({"half_width_deg": "wide"}, "finite numbers"),
-        ([1, 2], "must be a mapping"),
-        ({"half_width_deg": {**LINEAR, "cubic": [1, 2, 3]}}, "takes linear, quadratic, bumps"),
-        ({"half_width_deg": {**LINEAR, "bumps": [[0, 0, 5]]}}, "bumps must be a list"),
-        (
-            {"half_width_deg": {**LINEAR, "quadratic": 0.1}},
-            re.escape("quadratic must be [p, m, t]"),
-        ),
-    ],
-)
-def test_bad_bands_are_refused_with_the_reason(spec, message):
-    with pytest.raises(ValueError, match=message):
-        TwistBand.from_mapping(spec, SQUARE, "r.yaml")

@@ -68,16 +68,6 @@ def test_mixed_models_share_a_bus_and_the_roll_id_must_be_a_listed_servo_not_pan
     assert not two.world.has_roll  # servo 3 is a free shaft unless named the roll
 
 
-def test_a_reply_takes_its_bytes_wire_time(tmp_path):
-    # PING: 10 bytes out, 14 back at 9600 baud = 25 ms at least, plus 500 us Return Delay Time
-    with SimulatedBus(ids=(1,), baud=9600, link=tmp_path / "tty") as sim:
-        port = sdk_at(sim.port, 9600)
-        start = time.monotonic()
-        assert PacketHandler(2.0).ping(port, 1)[1] == COMM_SUCCESS
-        assert time.monotonic() - start >= (10 + 14) * 10 / 9600 + 500e-6
-        port.closePort()
-
-
 def test_an_eeprom_survives_a_power_cycle_ram_does_not_and_another_models_is_refused(tmp_path):
     first = Servo(1, get_model("xl430-w250"), 2048.0)
     assert not EepromFile(tmp_path, 1).load(first)  # no file yet: factory-fresh
@@ -97,13 +87,20 @@ def test_an_eeprom_survives_a_power_cycle_ram_does_not_and_another_models_is_ref
         EepromFile(tmp_path, 1).load(Servo(1, get_model("xl330-m288"), 2048.0))
 
 
-def test_baud_values_wire_time_and_colliding_replies():
+def test_baud_values_wire_time_a_reply_takes_and_colliding_replies(tmp_path):
     assert [value_for_baud(b) for b in (9600, 57_600, 4_000_000, 4_500_000)] == [0, 1, 6, 7]
     assert BAUD_BY_VALUE[3] == 1_000_000
     with pytest.raises(ValueError, match="no X-series servo runs at 12345 baud; choose one of"):
         value_for_baud(12345)
     assert wire_s(132, 57_600) == pytest.approx(132 * 10 / 57_600)  # 22.9 ms
     assert wire_s(5, None) == 0.0
+    # PING: 10 bytes out, 14 back at 9600 baud = 25 ms at least, plus 500 us Return Delay Time
+    with SimulatedBus(ids=(1,), baud=9600, link=tmp_path / "tty") as sim:
+        port = sdk_at(sim.port, 9600)
+        start = time.monotonic()
+        assert PacketHandler(2.0).ping(port, 1)[1] == COMM_SUCCESS
+        assert time.monotonic() - start >= (10 + 14) * 10 / 9600 + 500e-6
+        port.closePort()
     reply = build_status(1, 0, bytes([0x24, 0x04, 46]))
     assert collide([reply]) == reply
     garbled = collide([reply, reply])  # even identical replies: the second is a little late

@@ -80,7 +80,7 @@ def test_an_alarm_message_says_the_servos_torque_as_it_is_and_a_reboot_clears_it
         assert reboot_servos_in_alarm(rig.bus) == []
 
 
-def test_the_alarm_alone_says_nothing_about_torque_and_hold_says_each_joints_once():
+def test_the_alarm_alone_says_nothing_about_torque_hold_says_each_joints_and_off_says_switched():
     message = alarm_message({2: ("overheating", "overload")})
     assert message.startswith("hardware error reported (servo 2: overheating, overload).")
     assert "torque" not in message and message.endswith("then `limbctl reboot`")
@@ -90,15 +90,6 @@ def test_the_alarm_alone_says_nothing_about_torque_and_hold_says_each_joints_onc
         both
         == "pan torque off as the servo reports it; tilt holding the last safe pose (torque on)"
     )
-
-
-# one servo already off, both already off: tests/safety/test_faults.py (ALARM_STATES, torque off)
-@pytest.mark.parametrize(
-    "reported, said",
-    [
-        ({"pan": True, "tilt": True}, "torque switched off"),
-        ({"pan": None, "tilt": True}, "torque switched off"),
-    ],
-)
-def test_the_torque_off_safe_state_tells_switched_from_already_off(reported, said):
-    assert switched_off(reported) == said
+    # both on, or one unread; one or both already off: tests/safety/test_faults.py (ALARM_STATES)
+    assert switched_off({"pan": True, "tilt": True}) == "torque switched off"
+    assert switched_off({"pan": None, "tilt": True}) == "torque switched off"

@@ -33,7 +33,7 @@ def open_bus(sim, **options):
 def test_open_configure_goals_retries_and_refusals_on_one_bus(sim, tmp_path):
     """Open identifies the servos and closes twice; a wrong model or port is refused; configure
     and goals reach the servos, bad ones refused; dropped replies are retried, silence,
-    corruption and a vanished servo named."""
+    corruption, a vanished servo and an unplugged adapter named."""
     bus = open_bus(sim)
     with bus:
         assert bus.is_open
@@ -115,6 +115,9 @@ def test_open_configure_goals_retries_and_refusals_on_one_bus(sim, tmp_path):
         with pytest.raises(BusTimeout, match="servo 2"):
             bus.read(Register.PRESENT_POSITION, 2)
         wait_for(lambda: _answers(bus, 2), 5.0, "servo 2 to come back")
+        sim.close()  # the adapter is unplugged: the pty goes away (the fixture checks the exit)
+        with pytest.raises(PortError, match="was the adapter unplugged"):
+            bus.read_positions()
 
 
 def test_reads_match_the_world_one_packet_each_and_an_alarm_is_raised_until_a_reboot(sim):
@@ -161,15 +164,6 @@ def _answers(bus, servo_id):
     except BusTimeout:
         return False
     return True
-
-
-def test_port_that_vanishes_mid_run_raises_port_error(sim):
-    """The ``sim`` fixture checks that the closed simulator exited cleanly and left no link."""
-    with ServoBus(sim.port, PROFILE.baud, PROFILE.ids) as bus:
-        assert set(bus.read_positions()) == {1, 2}
-        sim.close()  # the adapter is unplugged: the pty goes away
-        with pytest.raises(PortError, match="was the adapter unplugged"):
-            bus.read_positions()
 
 
 @pytest.mark.parametrize(

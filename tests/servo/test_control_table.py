@@ -73,8 +73,6 @@ def test_registers_models_modes_bauds_hardware_errors_and_status_errors():
     assert model_name(7) == "unknown model (7)"
     assert MODEL_BY_NAME["xl330-m077"] == 1190 and MODEL_BY_NAME["xl330-m288"] == 1200
     assert model_name(1200) == "XL330-M288 (1200)"
-    assert (Register.CURRENT_LIMIT.address, Register.CURRENT_LIMIT.size) == (38, 2)
-    assert (Register.GOAL_CURRENT.address, Register.GOAL_CURRENT.signed) == (102, True)
     # Present Load and Present Current are one register whose meaning depends on the family
     assert Register.PRESENT_CURRENT is Register.PRESENT_LOAD
     assert OperatingMode.POSITION == 3

@@ -12,8 +12,10 @@ from limbctl.servo.cycle import (
     CYCLE_BYTES,
     INDIRECT_MAP_BLOCK,
     ServoReport,
+    cycle_wire_bytes,
     indirect_map,
     read_around_silent,
+    wire_budget,
 )
 from tests.safety.support import configured_rig
 
@@ -42,8 +44,6 @@ def test_the_indirect_map_names_each_mapped_byte_and_the_wire_budget_of_a_cycle(
     data = bytes([0x00, 0x08, 0, 0, 0xFF, 0x07, 0, 0, 1, 0x24, 0x8B, 0xFC])  # PWM -885
     report = ServoReport.decode(data, pwm_limit=885)
     assert report == ServoReport(2048, 2047, True, ("overheating", "overload"), -885, 885)
-    from limbctl.servo.cycle import cycle_wire_bytes, wire_budget
-
     # fast sync read out 14 + 2, back 8 + 2 x 16, sync write of goals 14 + 2 x 5
     assert cycle_wire_bytes(2) == 80
     assert cycle_wire_bytes(2, fast=False) == 16 + 2 * 23 + 24

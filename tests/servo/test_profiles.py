@@ -5,8 +5,10 @@ from dataclasses import replace
 import pytest
 
 from calib.profile import default_sim_profile
+from firmware_sim import SimulatedBus
 from limbctl.errors import ConfigError
-from limbctl.servo.profiles import check_profile, check_trained_for, save_rig_profile
+from limbctl.servo.bus import ServoBus
+from limbctl.servo.profiles import check_models, check_profile, check_trained_for, save_rig_profile
 
 PROFILE = default_sim_profile()
 
@@ -66,10 +68,6 @@ def test_a_profile_meets_the_end_stop_and_baud_checks_and_models_of_another_rig_
 
 
 def test_a_rig_servo_of_another_model_is_refused_when_a_leader_shares_the_bus(tmp_path):
-    from firmware_sim import SimulatedBus
-    from limbctl.servo.bus import ServoBus
-    from limbctl.servo.profiles import check_models
-
     models = "xl430-w250,xm430-w350,xl330-m288"
     with SimulatedBus(ids=(1, 2, 3), model=models, link=tmp_path / "t") as sim:
         with ServoBus(sim.port, 4_000_000, (1, 2, 3)) as bus:

@@ -3,7 +3,10 @@
 import pytest
 
 from firmware_sim import SimulatedBus
+from limbctl.servo.bus import ServoBus
+from limbctl.servo.control_table import MODEL_BY_NAME
 from limbctl.servo.scan import NOTHING_ANSWERS, SCAN_BAUDS, scan
+from limbctl.servo.setup import configure_servos
 
 
 @pytest.mark.parametrize("baud", [b for b in SCAN_BAUDS if b != 4_500_000])
@@ -34,10 +37,6 @@ def test_factory_servos_collide_two_bauds_are_both_found_and_nothing_is_said_so(
 
 
 def test_every_model_on_one_bus_is_found_and_set_up_for_the_cycle(tmp_path):
-    from limbctl.servo.bus import ServoBus
-    from limbctl.servo.control_table import MODEL_BY_NAME
-    from limbctl.servo.setup import configure_servos
-
     names = sorted(MODEL_BY_NAME)
     ids = tuple(range(1, len(names) + 1))
     with SimulatedBus(ids=ids, model=",".join(names), link=tmp_path / "tty") as sim:

@@ -8,8 +8,11 @@ from dynamixel_sdk import (
     COMM_RX_TIMEOUT,
     COMM_SUCCESS,
     COMM_TX_FAIL,
+    PacketHandler,
 )
 
+from firmware_sim.bus import SimulatedBus
+from firmware_sim.wire import RIG_BAUD
 from limbctl.errors import BusError, BusTimeout, CorruptReply, PortError
 from limbctl.servo import transfers
 from limbctl.servo.control_table import ModelNumber, Register
@@ -54,11 +57,6 @@ def test_failure_maps_results_to_typed_errors(result, error_type, fragment):
 
 def test_a_late_reply_is_never_read_as_the_next_registers_value():
     """A reply delayed past the timeout is refused by its size, never taken for the next one's."""
-    from dynamixel_sdk import PacketHandler
-
-    from firmware_sim.bus import SimulatedBus
-    from firmware_sim.wire import RIG_BAUD
-
     wrong, late = [], 0
     with SimulatedBus(ids=(1,), baud=RIG_BAUD, latency_ms=6.0, latency_p=0.3, seed=3) as sim:
         port = transfers.TunedPortHandler(sim.port, latency_timer_ms=1.0)
