@@ -53,6 +53,7 @@ def test_judge_accepts_the_true_edge_and_refuses_one_that_cuts_or_overreaches(co
 
 def test_a_rival_edge_bounds_an_edge_and_refusals_and_safe_proposals_pass_through(cone20):
     cone = cone20[1:]
+
     def rival(radius_deg):
         region = DirectionMesh.from_loops([circle(radius_deg, 240)], 0.0)
         return Verdict("traced", True, ("accepted",), {}, region)

@@ -1,18 +1,16 @@
 import numpy as np
 import pytest
 
-from limbctl.envelope.synthetic import EGG, ConeRegion, PolygonRegion, rounded
+from limbctl.envelope.synthetic import EGG, PolygonRegion, rounded
 from limbctl.envelope.synthetic_twist import SHOULDER, ShoulderRegion
 from limbctl.errors import ConfigError
-from limbctl.geometry.gimbal import pan_tilt_to_direction
 from limbctl.geometry.quat import limb_direction
 from limbctl.region import TaughtRegion
 from limbctl.region import edge_choice as ec
 from limbctl.region.acceptance import Proposal, Refusal
 from limbctl.region.evidence import edge_stations
 from limbctl.region.loops import loop_area
-from limbctl.region.mesh import DirectionMesh
-from tests.region.support import circle
+from tests.region.support import noisy_egg
 
 WINDOW = np.radians(3.0)
 

@@ -96,8 +96,7 @@ def bayed_ellipse(a, b, centre, bays):
 )
 def test_a_hand_taught_notch_or_bay_is_not_bridged(shape, seed, seconds):
     if shape == "bays":  # the families' outline 2
-        bays = [(242.2, 17.9, 6.8), (11.0, 11.8, 6.2)]
-        outline = bayed_ellipse(22.7, 15.6, (5.0, -6.5), bays)
+        outline = bayed_ellipse(22.7, 15.6, (5.0, -6.5), [(242.2, 17.9, 6.8), (11.0, 11.8, 6.2)])
         box = ((-22.0, 32.0), (-27.0, 14.0))
     elif shape == "notch 1":
         outline, box = _notch_and_box(27.2, 23.4, (-5.7, 7.2), 273.0)
