@@ -148,9 +148,8 @@ def test_irregular_region_valid_commands_pass_and_outputs_stay_near():
 
 
 def _taught_gate_passes(m, q, d, region, test, cover):
-    """Share of ``test``'s covered valid commands passed unchanged, after checking that taught
-    poses are allowed (99.5 %), over ``cover`` such commands are tested, and no output lies 2 deg
-    (99.5 % of them 1 deg) outside ``region``, concavities included."""
+    """Share of ``test``'s covered valid commands (over ``cover``) passed unchanged, checking that
+    taught poses pass (99.5 %) and no output lies 2 deg (99.5 %: 1 deg) outside ``region``."""
     assert m.contains(q).mean() >= 0.995
     qt = to_quaternions(test)
     out = m.correct(qt)
@@ -171,12 +170,10 @@ def test_hand_strokes_are_contained_and_gaps_filled(which):
     m = RigidMap(nodes=500, seed=0).fit(q)
     passed = _taught_gate_passes(m, q, d, region, region.test_directions(20000, rng), 500)
     if m.region.unsupported_edge:
-        # strokes leaving the edge unreached: the region is held at the evidence and says so
+        # strokes leaving the edge unreached: the region is held at the evidence and says so, and
+        # the edge zigzags between the strokes (docs/decisions/region.md, "The held edge held
+        # again to 0.9 deg": containment over coverage)
         assert m.region.held_edge and any(s.held for s in m.region.unsupported_edge)
-        # the hold gives up only what lies beyond the reach of the strokes: most still passes.
-        # Held again to HOLD_REACH_DEG the cone's edge zigzags between its strokes: 0.911 ->
-        # 0.770 pass here with the reach past the truth 0.23 deg both ways (docs/decisions/
-        # region.md, "The held edge held again to 0.9 deg": containment over coverage)
         assert passed >= 0.75
     else:
         assert passed >= 0.96
@@ -217,8 +214,8 @@ def test_region_settings_are_one_object_saved_with_the_model(tmp_path):
     twist=st.floats(-3.1, 3.1),
 )
 def test_correct_promises(cone_model, hand_model, theta, phi, pan, tilt, twist):
-    """Inside unchanged; outside moved in, for good, twist kept, on a cone and a hand-taught region
-    (concave, holes between strokes); on the cone no farther than the ideal target."""
+    """Inside unchanged; outside moved in for good, twist kept, on a cone and a hand-taught
+    region; on the cone no farther than the ideal target."""
     region, cone = cone_model
     hand = pan_tilt_to_direction(np.radians(pan), np.radians(tilt))
     for m, d in ((cone, _direction(theta, phi)), (hand_model, hand)):

@@ -4,11 +4,7 @@ import pytest
 from limbctl.envelope import rigidmap_kernels as rk
 from limbctl.envelope.layouts import make_layout
 from limbctl.envelope.synthetic import ConeRegion, to_quaternions
-from limbctl.geometry.quat import canonical, normalize
-
-
-def _gaussian_layout(n, seed):
-    return canonical(normalize(np.random.default_rng(seed).normal(size=(n, 4))))
+from tests.geometry.test_quat import random_unit
 
 
 def _patterns(n, seed, half_angle_deg=30.0):
@@ -33,7 +29,7 @@ def _nodes_at_the_data():
 )
 def test_training_kernel_matches_numpy_reference(case, metric):
     if case == "layout":
-        positions, patterns = _gaussian_layout(150, 1), _patterns(60, 2)
+        positions, patterns = random_unit(150, 1), _patterns(60, 2)
     else:
         positions, patterns = _nodes_at_the_data()
     w_kernel = positions.copy()
@@ -74,12 +70,12 @@ def test_patterns_near_gathers_few_in_pattern_order_and_scans_many():
 
 
 def test_position_winners_and_topology_are_the_nearest_positions_ties_in_index_order():
-    positions = _gaussian_layout(200, 3)
+    positions = random_unit(200, 3)
     patterns = _patterns(50, 4)
     got = rk.position_winners(positions, patterns)
     want = np.argmin(((patterns[:, None, :] - positions[None]) ** 2).sum(-1), axis=1)
     np.testing.assert_array_equal(got, want)
-    p = _gaussian_layout(40, 11)
+    p = random_unit(40, 11)
     topo = rk.position_topology(p, 3)
     for i in range(40):
         assert i not in topo[i]

@@ -38,16 +38,10 @@ angle = st.floats(-math.pi + 1e-6, math.pi - 1e-6)
 tilt_open = st.floats(-math.pi / 2 + 1e-3, math.pi / 2 - 1e-3)
 
 
-def axis_quat(axis, theta):
-    q = np.zeros(4)
-    q[0] = math.cos(theta / 2)
-    q[1 + axis] = math.sin(theta / 2)
-    return q
-
-
 def chain_by_products(pan, tilt, roll):
     """Rz(pan) Ry(-tilt) Rx(roll) by quaternion products, the reference."""
-    q = quat_multiply(quat_multiply(axis_quat(2, pan), axis_quat(1, -tilt)), axis_quat(0, roll))
+    z, y, x = (quat.from_axis_angle(np.eye(3)[i], a) for i, a in ((2, pan), (1, -tilt), (0, roll)))
+    q = quat_multiply(quat_multiply(z, y), x)
     return q if q[0] >= 0 else -q
 
 

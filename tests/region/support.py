@@ -7,6 +7,9 @@ from pathlib import Path
 
 import numpy as np
 
+from limbctl.envelope.synthetic import EGG
+from limbctl.geometry.gimbal import pan_tilt_to_direction
+
 
 def benchmark(name: str):
     """benchmarks/NAME.py as a module (its outlines, truths and teachings)."""
@@ -34,6 +37,12 @@ def circle(radius_deg, n, wobble_deg=0.0, seed=0, shift_deg=0.0):
     a = np.radians(shift_deg)
     turn = np.array([[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0], [0.0, 0.0, 1.0]])
     return loop @ turn.T
+
+
+def noisy_egg(rng):
+    """The egg's loop (60, 3): every 4th vertex (about 2.5 deg apart), each moved up to 1 deg."""
+    pan_tilt = np.radians(EGG[::4] + rng.uniform(-1.0, 1.0, (60, 2)) / np.sqrt(2.0))
+    return pan_tilt_to_direction(pan_tilt[:, 0], pan_tilt[:, 1])
 
 
 def nearest_on_edges_reference(

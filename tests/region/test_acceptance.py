@@ -1,5 +1,4 @@
 import numpy as np
-import pytest
 
 from limbctl.envelope.synthetic import ConeRegion
 from limbctl.region import acceptance
@@ -8,14 +7,8 @@ from limbctl.region.mesh import DirectionMesh
 from tests.region.support import circle
 
 
-@pytest.fixture(scope="module")
-def cone():
-    """1000 samples of a 20 deg cone and the region of a supported loop 0.5 deg inside it."""
-    data = ConeRegion(np.radians(20.0)).sample(1000, np.random.default_rng(0))
-    return data, DirectionMesh.from_loops([circle(19.5, 120)], np.radians(0.5))
-
-
-def test_crossing_arcs_are_found_and_refused(cone):
+def test_crossing_arcs_are_found_and_refused(cone20):
+    cone = cone20[1:]
     assert not acceptance.arcs_cross([circle(20.0, 30)])
     bad = circle(20.0, 30)
     bad[[3, 4]] = bad[[4, 3]]  # two vertices swapped: the loop crosses itself
@@ -38,8 +31,8 @@ def test_gap_worth_and_reach_beyond_measure_an_edge_against_data_and_a_region():
     assert 1.0 <= np.degrees(acceptance.reach_beyond([circle(21.0, 60)], region)) < 1.02
 
 
-def test_judge_accepts_the_true_edge_and_refuses_one_that_cuts_or_overreaches(cone):
-    data, supported = cone
+def test_judge_accepts_the_true_edge_and_refuses_one_that_cuts_or_overreaches(cone20):
+    _, data, supported = cone20
     verdict = judge(Proposal("smooth", [circle(20.0, 240)]), data, supported)
     assert verdict.accepted and verdict.region is not None, "the true circle is accepted"
     assert verdict.region.contains(data).mean() > 0.999
@@ -58,7 +51,9 @@ def test_judge_accepts_the_true_edge_and_refuses_one_that_cuts_or_overreaches(co
     assert verdict.reasons[0].startswith("loop 0 adds a stretch")
 
 
-def test_a_rival_edge_bounds_an_edge_and_refusals_and_safe_proposals_pass_through(cone):
+def test_a_rival_edge_bounds_an_edge_and_refusals_and_safe_proposals_pass_through(cone20):
+    cone = cone20[1:]
+
     def rival(radius_deg):
         region = DirectionMesh.from_loops([circle(radius_deg, 240)], 0.0)
         return Verdict("traced", True, ("accepted",), {}, region)

@@ -1,24 +1,23 @@
 import numpy as np
 
-from limbctl.geometry.quat import limb_direction, multiply, normalize
+from limbctl.geometry.quat import from_axis_angle, limb_direction, multiply, normalize
 from limbctl.region import correct_kernels as ck
 from limbctl.region.mesh import DirectionMesh
 from tests.region.support import circle
 
 
-def cap(radius_deg: float, n: int = 120) -> DirectionMesh:
-    """The region within ``radius_deg`` of +x, as a mesh."""
-    return DirectionMesh.from_loops([circle(radius_deg, n)], 0.0)
+def cap_args():
+    """The kernels' arguments of the region within 20 deg of +x."""
+    return DirectionMesh.from_loops([circle(20.0, 120)], 0.0).kernel_args()
 
 
 def about(axis, angle_deg):
     """The rotation by ``angle_deg`` about unit ``axis`` as a quaternion (w, x, y, z)."""
-    half = np.radians(angle_deg) / 2.0
-    return np.concatenate([[np.cos(half)], np.sin(half) * np.asarray(axis, dtype=float)])
+    return from_axis_angle(axis, np.radians(angle_deg))
 
 
 def test_inside_comes_back_canonical_outside_moves_to_the_edge_keeping_twist_bad_refused():
-    args = cap(20.0).kernel_args()
+    args = cap_args()
     twist = about([1, 0, 0], 30.0)
     inside = -multiply(about([0, 0, 1], 10.0), twist)  # w < 0: comes back with w >= 0
     outside = multiply(about([0, 0, 1], 40.0), twist)
@@ -43,7 +42,7 @@ def test_inside_comes_back_canonical_outside_moves_to_the_edge_keeping_twist_bad
 
 def test_every_batch_path_answers_as_the_parallel_kernel_row_for_row():
     """correct_rows: one by one (small), one thread (medium) and the pool give the same arrays."""
-    args = cap(20.0).kernel_args()
+    args = cap_args()
     rng = np.random.default_rng(7)
     q = normalize(rng.normal(size=(300, 4)))
     q[5] = np.nan  # refused alike: status -1

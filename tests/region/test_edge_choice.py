@@ -1,31 +1,21 @@
 import numpy as np
 import pytest
 
-from limbctl.envelope.synthetic import EGG, ConeRegion, PolygonRegion, rounded
+from limbctl.envelope.synthetic import EGG, PolygonRegion, rounded
 from limbctl.envelope.synthetic_twist import SHOULDER, ShoulderRegion
 from limbctl.errors import ConfigError
-from limbctl.geometry.gimbal import pan_tilt_to_direction
 from limbctl.geometry.quat import limb_direction
 from limbctl.region import TaughtRegion
 from limbctl.region import edge_choice as ec
 from limbctl.region.acceptance import Proposal, Refusal
 from limbctl.region.evidence import edge_stations
 from limbctl.region.loops import loop_area
-from limbctl.region.mesh import DirectionMesh
-from tests.region.support import circle
+from tests.region.support import noisy_egg
 
 WINDOW = np.radians(3.0)
 
 
-@pytest.fixture(scope="module")
-def cone():
-    """1000 samples of a 20 deg cone, a supported loop 0.5 deg inside and its region."""
-    data = ConeRegion(np.radians(20.0)).sample(1000, np.random.default_rng(0))
-    loops = [circle(19.5, 120)]
-    return loops, data, DirectionMesh.from_loops(loops, np.radians(0.5))
-
-
-def test_choices_come_from_the_registry_and_unknown_names_are_refused(cone):
+def test_choices_come_from_the_registry_and_unknown_names_are_refused(cone20):
     assert ec.EDGE_CHOICES == ("auto", "smooth", "traced", "supported")
     assert all(name == strategy.name for name, strategy in ec.EDGE_STRATEGIES.items())
     assert [s.safe for s in ec.EDGE_STRATEGIES.values()] == [False, False, True]
@@ -33,11 +23,11 @@ def test_choices_come_from_the_registry_and_unknown_names_are_refused(cone):
     with pytest.raises(ConfigError, match="choose one of: auto, smooth, traced, supported"):
         ec.check_choice("round")
     with pytest.raises(ConfigError, match="unknown edge 'round'"):
-        ec.choose_edge("round", *cone, WINDOW)
+        ec.choose_edge("round", *cone20, WINDOW)
 
 
-def test_auto_takes_the_smooth_edge_of_a_cone_after_checking_it_against_the_traced(cone):
-    taken, verdicts = ec.choose_edge("auto", *cone, WINDOW)
+def test_auto_takes_the_smooth_edge_of_a_cone_after_checking_it_against_the_traced(cone20):
+    taken, verdicts = ec.choose_edge("auto", *cone20, WINDOW)
     assert [v.strategy for v in verdicts] == ["smooth", "traced", "supported"]
     assert taken is verdicts[0] and all(v.accepted for v in verdicts)
     assert "within 1 deg of the traced edge" in taken.reasons
@@ -46,8 +36,8 @@ def test_auto_takes_the_smooth_edge_of_a_cone_after_checking_it_against_the_trac
     assert abs(radius.mean() - 20.0) < 0.5
 
 
-def test_one_strategy_by_name_is_judged_alone_and_falls_back_to_the_supported_loops(cone):
-    loops, data, supported = cone
+def test_one_strategy_by_name_is_judged_alone_and_falls_back_to_the_supported_loops(cone20):
+    loops, data, supported = cone20
     taken, verdicts = ec.choose_edge("traced", loops, data, supported, WINDOW)
     assert taken.strategy == "traced" and [v.strategy for v in verdicts] == ["traced", "supported"]
     assert taken.reasons == (taken.reasons[0],), "no rival check outside auto"
@@ -78,8 +68,7 @@ def test_the_smooth_strategy_refuses_a_bay_and_a_shape_its_window_cannot_follow(
     assert answer.reason == "loop 0 is a hole (concave throughout)"
     # the egg's tight end: 60 vertices with vertex noise, a window spanning its tip
     rng = np.random.default_rng(0)
-    pan_tilt = np.radians(EGG[::4] + rng.uniform(-1.0, 1.0, (60, 2)) / np.sqrt(2.0))
-    loop = counter_clockwise(pan_tilt_to_direction(pan_tilt[:, 0], pan_tilt[:, 1]))
+    loop = counter_clockwise(noisy_egg(rng))
     answer = ec.SmoothEdge().propose([loop], PolygonRegion(EGG).sample(1000, rng), None, WINDOW)
     assert isinstance(answer, Refusal) and answer.figures["residual_ratio"] > 1.4
 

@@ -1,11 +1,4 @@
-"""The kept edge is held to the taught evidence where it stands past it (issue 35, finding 1).
-
-A sparse i.i.d. teaching (1500 samples) of an ellipse with a notch: the edge the fit keeps stands
-up to 3 deg from every taught sample, and before the hold the region reached 2.42 deg past the
-true outline (teaching seed 1). Held, it stays within ``REACH_DEG`` (plus half a station spacing
-between stations) of the truth, keeps every taught sample the unheld region held, and still
-names the stretches, now as held.
-"""
+"""The kept edge is held to the taught evidence where it stands past it (issue 35, finding 1)."""
 
 import numpy as np
 import pytest
@@ -31,14 +24,12 @@ from tests.region.test_evidence import notched_ellipse
 
 #: The scan's own step (deg): a direction of the region lies within half a diagonal of it.
 SCAN_DEG = 0.1
-#: Step (deg) at which the held edge is checked against the reach: a point between two checked
-#: ones lies at most half of it farther from the samples.
-CHECK_DEG = 0.02
 
 
 @pytest.fixture(scope="module")
 def sparse_notch():
-    """Truth, teaching, the scan's box, and the region fitted with and without the hold."""
+    """A notched ellipse taught sparsely (1500 i.i.d. samples, where the kept edge stands up to
+    3 deg from every sample): truth, teaching, the scan's box, the region held and unheld."""
     outline, _ = notched_ellipse(27.2, 23.4, (-5.7, 7.2), 273.0, 9.0, 8.0)
     truth = PolygonRegion(outline)
     taught = truth.sample(1500, np.random.default_rng(1))
@@ -70,21 +61,17 @@ def test_a_sparse_teaching_is_held_to_the_evidence(sparse_notch):
     left = [s for s in region.unsupported_edge if not s.held]
     assert (far.size > 0) == bool(left), (far.size, left)
     assert all(s.distance_deg > REACH_DEG + HELD_SLACK_DEG for s in left)
-    # unheld (as before the hold), the same teaching's region reached farther than the bound
-    # and held every taught sample the held region holds
+    # unheld, the region reaches past the bound; held, it keeps every sample the unheld one held
     assert reach_into(unheld.contains, truth, box, step_deg=SCAN_DEG) > bound
     assert not np.any(unheld.mesh.contains(d) & ~region.mesh.contains(d)), "a taught sample lost"
-    # Issue 35 finding 1: on this teaching the hold to ``HOLD_REACH_DEG`` loses taught samples
-    # its pins cannot put back without crossing, and gave up after ``UNHOLD_ROUNDS``: the region
-    # stood at ``REACH_DEG`` and reached 1.15 deg past the truth. Patient, it also gives back the
-    # arcs nearest the samples it pinned, keeps the tight hold elsewhere, stays within the 1 deg
-    # promise (and keeps every taught sample the unheld region held, above)
+    # the hold to HOLD_REACH_DEG loses samples its pins cannot put back without crossing: patient,
+    # it gives back the arcs nearest them, keeps the tight hold elsewhere and the 1 deg promise
     assert reach <= 1.0, f"the patient tight hold reaches {reach:.2f} deg past the truth"
 
 
 def test_a_region_with_no_far_station_is_returned_as_it_is(sparse_notch):
-    """Every station within reach of a sample (the edge's own stations added to the teaching):
-    the very same mesh comes back, so a teaching with no unsupported stretch fits as before."""
+    """Every station within reach of a sample (its stations added to the teaching): the very
+    same mesh comes back."""
     _, taught, _, region, unheld = sparse_notch
     d = taught_module.taught_directions(taught)
     stations, _ = edge_stations(region.mesh, np.radians(STATION_DEG))
@@ -94,46 +81,30 @@ def test_a_region_with_no_far_station_is_returned_as_it_is(sparse_notch):
     assert hold_to_evidence(unheld.mesh, d)[1]
 
 
-def _fit_swing_family(seed: int, kind: str):
-    """The swing families' outline ``seed`` taught ``kind``: the samples (N, 3), the region fitted
-    from them, and how far (deg) it reaches past the outline, read on its own edge (a 0.1 deg
-    lattice misses a sliver 0.02 deg wide: outline 17's read 0.69 deg with its sliver uncut,
-    2.18 on the edge)."""
-    families = benchmark("bench_swing_families")
-    outline, _ = families.random_outline(np.random.default_rng(seed))
-    taught = families.teach(outline, kind, seed)
-    region = TaughtRegion().fit(taught)
-    reach = benchmark("bench_region_families").edge_excess(
-        region.mesh, PolygonRegion(outline).depth
-    )
-    return taught, region, reach
-
-
 @pytest.mark.parametrize(
     ("seed", "kind"),
     [
-        # Issue 35 finding 1: a sparse i.i.d. teaching (600 samples) of outline 1 (a notch): the
-        # tight hold, walking far points in along their normals, lost samples its pins could not
-        # put back without crossing and gave up, and the region stood at ``REACH_DEG``, 1.16 deg
-        # past the truth by the notch. Held straight toward the samples instead, it stays within
-        # the promise and still asks for the stretches it holds.
+        # 600 samples of a notch: walked in along their normals, far points lose samples the
+        # pins cannot put back; held straight toward the samples, and still asked for
         pytest.param(1, "iid sparse", id="the tight hold walks into trouble"),
-        # Held to ``REACH_DEG`` alone, a dense i.i.d. teaching (6000 samples) of outline 2 (two
-        # bays) reached 1.03 deg past the truth, where its edge stood 1.0-1.25 deg from every
-        # sample; held again to ``HOLD_REACH_DEG`` it stays within the promise, all of it held.
+        # 6000 samples of two bays, the edge 1.0-1.25 deg from every sample: held to
+        # HOLD_REACH_DEG as well as REACH_DEG, all of it
         pytest.param(2, "iid dense", id="dense, the edge a degree from its samples"),
-        # A sparse i.i.d. teaching (600 samples) of outline 17: the straight tight hold left a
-        # sliver, a chord 3.86 deg long out to a pinned sample's reach circle and one back
-        # 0.01-0.02 deg beside it, and the region reached 2.15 deg past the truth there. Cut, it
-        # stays within the promise.
+        # 600 samples: the straight hold leaves a chord 3.86 deg out to a pinned sample's reach
+        # circle and one back 0.01-0.02 deg beside it, a sliver that must be cut
         pytest.param(17, "iid sparse", id="a sliver the straight hold leaves"),
     ],
 )
 def test_a_swing_family_teaching_is_held_within_1_deg_keeping_its_samples(seed, kind):
-    """The swing families' outline ``seed`` taught ``kind``: the held region stays within the
-    1 deg promise, keeps the taught samples, and names unheld exactly the places where its edge
-    still stands past the reach."""
-    taught, region, reach = _fit_swing_family(seed, kind)
+    """The swing families' outline ``seed`` taught ``kind`` is held within the 1 deg promise (read
+    on its edge: a lattice misses a sliver 0.02 deg wide), keeps the samples, and names unheld
+    exactly the places where the edge still stands past the reach."""
+    families = benchmark("bench_swing_families")
+    outline, _ = families.random_outline(np.random.default_rng(seed))
+    taught = families.teach(outline, kind, seed)
+    region = TaughtRegion().fit(taught)
+    excess = benchmark("bench_region_families").edge_excess
+    reach = excess(region.mesh, PolygonRegion(outline).depth)
     assert region.held_edge
     assert reach <= 1.0, f"the held region reaches {reach:.2f} deg past the truth"
     assert np.mean(region.mesh.contains(taught)) >= 0.995
@@ -148,10 +119,9 @@ def test_a_swing_family_teaching_is_held_within_1_deg_keeping_its_samples(seed, 
 
 
 def _tongue(sample_in_it: bool):
-    """A square loop (pan, tilt within 5 deg) with a tongue 4 deg long and 0.02 deg wide out to
-    an island about a sample at (9.5, 0), held edge throughout; samples 1 deg apart in the
-    square, the island's, and one in the tongue when asked. Returns (points, margins, chain
-    flags), the cKDTree of the samples, and the samples (N, 3)."""
+    """A 10 deg square loop with a tongue 4 deg long, 0.02 deg wide out to an island about a
+    sample at (9.5, 0), all held edge, as (points, margins, chain flags); the cKDTree of the
+    samples (1 deg apart in the square, the island's, one in the tongue if asked) and them."""
     corners = [(-5, -5), (5, -5), (5, -0.01), (9, -0.01), (9, -0.5), (10, -0.5), (10, 0.5)]
     corners += [(9, 0.5), (9, 0.01), (5, 0.01), (5, 5), (-5, 5)]
     p = pan_tilt_to_direction(*np.radians(np.array(corners, dtype=float).T))
@@ -163,9 +133,8 @@ def _tongue(sample_in_it: bool):
 
 
 def test_a_sliver_holding_no_sample_is_cut_from_the_loop():
-    """The tongue's chords lie past the reach of every sample, running back 0.02 deg apart: the
-    loop is cut into the square and the island, the region loses the tongue alone, and every
-    sample stays in; with a sample in the tongue the loop comes back whole."""
+    """The tongue is cut off, leaving the square and the island with every sample in; with a
+    sample in the tongue the loop comes back whole."""
     loop, tree, d = _tongue(sample_in_it=False)
     reach = np.radians(HOLD_REACH_DEG)
     cut = _cut_slivers(*loop, tree, reach)
@@ -181,11 +150,8 @@ def test_a_sliver_holding_no_sample_is_cut_from_the_loop():
 
 
 def test_arcs_the_patient_hold_gave_back_are_held_straight_to_the_tight_reach():
-    """Issue 35 finding 1, on a region seed never tuned on: the region families' curved band seed
-    25 taught sparse (1500 i.i.d. samples). The patient tight hold held, but the arcs it gave back
-    kept the first hold's ``REACH_DEG``: 1.09 deg past the truth at pan -58.7, tilt -16.2, 1.19
-    deg from the nearest sample. Pulled straight to ``HOLD_REACH_DEG`` there too, the region stays
-    within the 1 deg promise and keeps the taught samples."""
+    """The region families' curved band seed 25 taught sparsely: the arcs the patient hold gave
+    back are pulled to ``HOLD_REACH_DEG`` too (at ``REACH_DEG`` they stood 1.09 deg past)."""
     families = benchmark("bench_region_families")
     truth, mapping = families.make_truth("curved band with bumps", 25)
     taught = families.teach(truth, mapping, families.TEACHINGS["i.i.d. sparse (1500)"], 25)

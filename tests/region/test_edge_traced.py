@@ -7,7 +7,7 @@ from firmware_sim.hand import Hand
 from firmware_sim.regions import grid_inside
 from limbctl.demo import true_outline, true_twist_probes
 from limbctl.envelope import RigidMap
-from limbctl.envelope.synthetic import SMALL_KIDNEY, ConeRegion, PolygonRegion, to_quaternions
+from limbctl.envelope.synthetic import SMALL_KIDNEY, PolygonRegion, to_quaternions
 from limbctl.geometry.gimbal import pan_tilt_roll_to_quat, pan_tilt_to_direction, pan_tilt_to_quat
 from limbctl.geometry.quat import direction_angle, limb_direction
 from limbctl.geometry.twist import decompose
@@ -21,8 +21,7 @@ REPO = Path(__file__).resolve().parents[2]
 
 @pytest.mark.parametrize("per_depth", [30, 100])
 def test_edge_estimate_is_unbiased_below_a_straight_edge_and_local(per_depth):
-    # Poisson points of density rho under a straight edge at depth 0 over u in [-1, 1]:
-    # per_depth = rho * 2 points per unit of depth; HULL_GAP makes the estimate centred on 0
+    # Poisson points under a straight edge at depth 0 over u in [-1, 1], per_depth per unit depth
     rng = np.random.default_rng(0)
     est = []
     for _ in range(1500):
@@ -32,9 +31,8 @@ def test_edge_estimate_is_unbiased_below_a_straight_edge_and_local(per_depth):
     # in units of 1 / (rho 2h): mean 0 within 3 standard errors (sd about 1.5)
     assert abs(est.mean()) < 3 * 1.5 / np.sqrt(len(est))
     assert 1.0 < est.std() < 2.0
-    # local: flat readings 1 unit deep across the window, and one reading 1 unit out at its end: the
-    # outermost reading would put the station 1 unit out; the majorant's chord from the far
-    # left to that reading passes the station at 0 (plus the small gap estimate)
+    # local: readings 1 unit deep and one 1 unit out at the window's end: the majorant's chord
+    # from the far left to it passes the station at 0 (plus the small gap estimate)
     u = np.concatenate([np.linspace(-1.0, 1.0, 41), [1.0]])
     o = np.concatenate([np.full(41, -1.0), [1.0]])
     assert et.edge_estimate(u, o) < 0.5
@@ -56,20 +54,17 @@ def test_local_quadratic_keeps_a_circle_and_removes_wiggles():
     assert np.abs(radius - 20.0).max() < 0.04
 
 
-def test_trace_window_follows_the_density_refuses_a_sparse_edge_and_chords_are_lifted():
-    rng = np.random.default_rng(0)
-    loop = circle(19.5, 80)
-    dense = ConeRegion(np.radians(20.0)).sample(1000, rng)
+def test_trace_window_follows_the_density_refuses_a_sparse_edge_and_chords_are_lifted(cone20):
+    loop, dense = circle(19.5, 80), cone20[1]
     h = et.trace_window(loop, dense)
     assert et.TRACE_MIN_WINDOW_DEG <= np.degrees(h) <= et.TRACE_MAX_WINDOW_DEG
     # 100 samples over a 20 deg cap: about 0.08 per deg^2 at the edge, a 30 deg window
     assert np.degrees(et.trace_window(loop, dense[:100])) > et.TRACE_MAX_WINDOW_DEG
     assert et.trace_edge(loop, dense[:100], np.radians(3.0)) is None
     assert et.trace_window(loop, -dense) == np.inf
-    # chord_need lifts a sample past the chord
+    # chord_need lifts a sample 0.01 deg outside the middle of the chord between stations 0 and
+    # 1: inside the circle, outside the polygon of stations (sagitta 0.06 deg)
     loop = circle(20.0, 60)
-    # a direction at the middle of the chord between stations 0 and 1, 0.01 deg outside the
-    # circle: inside the circle but outside the polygon of stations (sagitta 0.06 deg)
     mid = loop[0] + loop[1]
     mid /= np.linalg.norm(mid)
     outward = mid - X * np.cos(np.radians(20.0))
@@ -81,9 +76,8 @@ def test_trace_window_follows_the_density_refuses_a_sparse_edge_and_chords_are_l
     assert np.sum(np.isfinite(need)) == 3
 
 
-# seeds whose trace is taken (0, 2 and 4: the held trace lies 1.3-2.7 deg from every sample and
-# is refused, containment first) and covers 99 % (3: 98.0 %); docs/decisions/region.md, "The
-# same trace on every CPU"
+# the seeds whose trace is taken and covers 99 % (docs/decisions/region.md, "The same trace on
+# every CPU")
 @pytest.mark.parametrize("seed", [1, 5])
 def test_a_small_kidney_gets_a_traced_edge_near_its_true_edge(seed):
     region = PolygonRegion(SMALL_KIDNEY)
@@ -107,8 +101,7 @@ def test_a_small_kidney_gets_a_traced_edge_near_its_true_edge(seed):
 
 
 def test_a_hole_is_bridged_and_without_one_the_estimates_stay_to_the_bit():
-    # a 20 deg circle's stations read on the curve but at 30..35 (a hole in the edge trace), and
-    # interior readings 15 deg inside over the hole
+    # a 20 deg circle's stations read on the curve but at 30..35 (a hole), and 15 deg inside there
     curve, _, _ = resample_loop(circle(20.0, 400), np.radians(et.TRACE_STEP_DEG))
     s, total = station_positions(curve)
     edge = np.setdiff1d(np.arange(curve.shape[0]), np.arange(30, 36))
@@ -130,8 +123,8 @@ def test_a_hole_is_bridged_and_without_one_the_estimates_stay_to_the_bit():
 
 
 #: The recorder's stalls of issue 19 (start s, length s), cut out of the demo's 60 s teaching at
-#: 125 Hz (docs/bench_edge_hole.md).
-CUTS = ((6.0, 0.4), (18.0, 0.4), (9.0, 0.5))
+#: 125 Hz (docs/bench_edge_hole.md); the first cuts nothing (``limbctl demo``'s own teaching).
+CUTS = ((0.0, 0.0), (6.0, 0.4), (18.0, 0.4), (9.0, 0.5))
 
 
 def _inner_probes(path, hand):
@@ -152,7 +145,7 @@ def test_an_edge_trace_with_a_recorder_hole_keeps_the_true_region(twist):
     t = np.arange(int(60.0 * 125.0)) / 125.0
     pose = np.radians([(tuple(hand.pose_deg(float(x))) + (0.0,))[:3] for x in t])
     probes = true_twist_probes(path) if twist else _inner_probes(path, hand)
-    for start, length in CUTS[:2] if twist else CUTS:
+    for start, length in CUTS[1:3] if twist else CUTS:
         keep = ~((t >= start) & (t < start + length))
         q = pan_tilt_roll_to_quat(*pose[keep].T) if twist else pan_tilt_to_quat(*pose[keep, :2].T)
         m = RigidMap(twist=twist).fit(q)
@@ -160,8 +153,8 @@ def test_an_edge_trace_with_a_recorder_hole_keeps_the_true_region(twist):
         if not twist:
             assert held >= 0.99, f"cut at {start} s: {100 * held:.2f} % held"
             continue
-        # issue 35: where the twist stops are too sparse the band is held short and the places
-        # are listed (the guide withholds READY); the swing edge must hold the probes' directions
+        # where the twist stops are too sparse the band is held short and the places listed; the
+        # swing edge still holds the probes' directions
         swing = np.mean(m.region.swing.mesh.contains(decompose(probes)[0]))
         assert swing >= 0.99, f"cut at {start} s: {100 * swing:.2f} % of the directions held"
         assert held >= 0.99 or m.region.unsupported, f"cut at {start} s: {100 * held:.2f} % held"

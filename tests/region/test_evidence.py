@@ -36,6 +36,7 @@ def notched_ellipse(a, b, centre, at_deg, width, depth):
 
 
 def hand_teaching(outline, seed, seconds=60.0):
+    """Directions (N, 3) the simulator's hand teaches over ``outline`` at RATE_HZ."""
     hand = Hand.from_mapping({"region": {"polygon": outline.tolist()}}, seed=seed)
     hand.start_from(*hand.region.center_deg)
     pose = np.radians([hand.pose_deg(t) for t in np.arange(int(seconds * RATE_HZ)) / RATE_HZ])
@@ -94,10 +95,8 @@ def bayed_ellipse(a, b, centre, bays):
     ("shape", "seed", "seconds"), [("notch 1", 1, 60.0), ("notch 2", 0, 60.0), ("bays", 2, 30.0)]
 )
 def test_a_hand_taught_notch_or_bay_is_not_bridged(shape, seed, seconds):
-    """Taught by the simulator's hand the region reaches at most 1 deg outside (docs/region.md)."""
     if shape == "bays":  # the families' outline 2
-        bays = [(242.2, 17.9, 6.8), (11.0, 11.8, 6.2)]
-        outline = bayed_ellipse(22.7, 15.6, (5.0, -6.5), bays)
+        outline = bayed_ellipse(22.7, 15.6, (5.0, -6.5), [(242.2, 17.9, 6.8), (11.0, 11.8, 6.2)])
         box = ((-22.0, 32.0), (-27.0, 14.0))
     elif shape == "notch 1":
         outline, box = _notch_and_box(27.2, 23.4, (-5.7, 7.2), 273.0)
@@ -123,10 +122,9 @@ def v_notched_ellipse(a, b, centre, at_deg, mouth_deg, depth):
 
 
 def test_a_traced_v_notch_the_edge_bridges_is_settled_and_held_within_the_bound():
-    """The hand traces a V notch (6 deg mouth, 3 deg deep) about 1 deg inside; the learned edge
-    bridges it farther from every sample than a trace can come, so tracing again cannot answer
-    it (the guided benchmark's linear band, seed 19). Held there, it is settled by the samples'
-    outline, and the held region stays within the bound of the truth."""
+    """The hand traces a V notch (6 deg mouth, 3 deg deep) 1 deg inside; the edge bridges it
+    farther from every sample than tracing again could come: held, it is settled by the samples'
+    outline, within the bound of the truth."""
     outline = v_notched_ellipse(27.2, 23.4, (-5.7, 7.2), 90.0, 6.0, 3.0)
     region = TaughtRegion().fit(hand_teaching(outline, seed=0))
     over = [s for s in region.unsupported_edge if np.hypot(s.pan_deg + 5.7, s.tilt_deg - 30.6) < 6]
@@ -140,9 +138,8 @@ def test_a_traced_v_notch_the_edge_bridges_is_settled_and_held_within_the_bound(
 
 
 def test_the_open_end_of_an_unfinished_trace_stays_asked():
-    """The region families' curved band, seed 0, taught 30 s by the hand: its trace has not
-    closed, and the learned edge runs across the untaught inside near the trace's outline, with
-    no floor traced under it (19 deg inside the truth). Held there, it is still asked for."""
+    """The region families' curved band, seed 0, taught 30 s by the hand: the unclosed trace's
+    edge runs across the untaught inside (19 deg inside the truth); held there, still asked for."""
     bench = benchmark("bench_region_families")
     truth, mapping = bench.make_truth("curved band with bumps", 0)
     d, _ = decompose(bench.teach(truth, mapping, ("hand", 30.0), 0))
@@ -158,8 +155,7 @@ def test_the_open_end_of_an_unfinished_trace_stays_asked():
 
 
 def test_a_stretch_past_the_samples_outline_or_unheld_is_not_settled():
-    """The outline settles only a held stretch the learned edge stands near it; without one
-    (too few samples around) the distance to the samples alone decides, as before."""
+    """The outline settles only a held stretch near it; without one the distance decides."""
     deep = SETTLED_DEG + 0.5
     assert Stretch(0.0, 0.0, deep, 3.0, held=True, outline_deg=0.2).settled
     assert not Stretch(0.0, 0.0, deep, 3.0, held=True, outline_deg=SETTLED_DEG + 0.1).settled

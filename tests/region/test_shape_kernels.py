@@ -42,7 +42,7 @@ def _three_lobed(points: int) -> np.ndarray:
 @pytest.mark.parametrize("loop_points", [12, 90])
 def test_nearest_arcs_agree_with_the_brute_force_reference(loop_points):
     # loops of a few long arcs and of many short ones; taught directions on both sides of
-    # them, and some exactly on their vertices (equally near two arcs: either may be named)
+    # them, and some exactly on their vertices
     rng = np.random.default_rng(loop_points)
     data = ConeRegion(np.radians(30.0)).sample(4000, rng)
     loop = _three_lobed(loop_points)
@@ -52,19 +52,14 @@ def test_nearest_arcs_agree_with_the_brute_force_reference(loop_points):
     got_arc, got_angle = shape_kernels.nearest_arcs(data, vertices, edges)
     # equally near within TIE (1e-12 rad): the first arc, whose angle may be TIE larger
     np.testing.assert_allclose(got_angle, want_angle, rtol=0.0, atol=2e-12)
-    # where the arcs named differ, both are nearest: the reference's arc is as near
+    # a direction on a vertex, ~1e-16 rad from both its arcs, goes to the first in order
+    on_vertex = np.concatenate([[0], np.arange(loop_points - 1)])
+    np.testing.assert_array_equal(got_arc[-loop_points:], on_vertex)
+    assert np.all(got_angle[-loop_points:] <= 1e-12)
+    # elsewhere where the arcs named differ, both are nearest: the reference's arc is as near
     other = got_arc != want_arc
     assert other.sum() <= loop_points
     for i in np.flatnonzero(other):
         arc = edges[got_arc[i]][None, :]
         _, _, angle_to_got = nearest_on_edges_reference(data[i : i + 1], vertices, arc)
         assert abs(angle_to_got[0] - want_angle[i]) <= 2e-12
-
-
-def test_a_direction_on_a_vertex_goes_to_the_first_of_its_two_arcs():
-    # ~1e-16 rad from both arcs either way the rounding falls: the first in order, every time
-    loop = _three_lobed(40)
-    vertices, edges = loops_to_edges([loop])
-    nearest, angle = shape_kernels.nearest_arcs(loop, vertices, edges)
-    np.testing.assert_array_equal(nearest, np.concatenate([[0], np.arange(39)]))
-    assert np.all(angle <= 1e-12)

@@ -6,8 +6,8 @@ from limbctl.envelope.synthetic_twist import BandRegion
 from limbctl.errors import ConfigError, InvalidInputError
 from limbctl.geometry.gimbal import pan_tilt_to_direction
 from limbctl.geometry.quat import limb_direction
-from limbctl.geometry.twist import wrap
 from limbctl.region import RegionParams, TaughtRegion
+from tests.region.support import benchmark
 
 
 @pytest.fixture(scope="module")
@@ -68,24 +68,11 @@ def test_containment_from_the_arcs_is_the_gates(cone, fitted, shape):
 
 
 def test_the_edge_is_chosen_by_name_every_verdict_kept_and_the_support_capped(cone):
-    train = cone[1]
-    plain = TaughtRegion(RegionParams(edge="supported")).fit(train)
-    assert plain.edge == "supported" and [v.strategy for v in plain.verdicts] == ["supported"]
-    traced = TaughtRegion(RegionParams(edge="traced")).fit(train)
+    # each strategy by name: tests/region/test_edge_choice.py; here the settings reach it
+    traced = TaughtRegion(RegionParams(edge="traced", support_nodes=60)).fit(cone[1])
     assert traced.edge == "traced"
     assert [v.strategy for v in traced.verdicts] == ["traced", "supported"]
-    region = TaughtRegion(RegionParams(support_nodes=60)).fit(train)
-    assert region.support_index.size <= 60, "the support is capped"
-
-
-def test_auto_refuses_a_smooth_edge_that_reaches_past_the_traced_edge():
-    # egg, seed 4: the smooth edge passes every data check but reaches 2 deg beyond the traced
-    rng = np.random.default_rng(4)
-    region = TaughtRegion().fit(PolygonRegion(EGG).sample(1000, rng))
-    smooth, traced, supported = region.verdicts
-    assert region.edge == "traced" and traced.accepted and supported.accepted
-    assert not smooth.accepted and smooth.figures["reach_beyond_deg"] > 1.5
-    assert "beyond the traced edge" in smooth.reasons[0]
+    assert traced.support_index.size <= 60, "the support is capped"
 
 
 def test_bad_samples_and_an_unbuilt_region_are_refused():
@@ -100,8 +87,8 @@ def test_bad_samples_and_an_unbuilt_region_are_refused():
 
 
 def edge_offsets(region: TaughtRegion, truth: BandRegion, every: int = 20) -> np.ndarray:
-    """How far (deg) the region's edge stands past the truth's (negative: inside), along the
-    truth's outward normal at its boundary points ``every`` apart (0.05 deg each)."""
+    """How far (deg) the region's edge stands past the truth's (negative: inside) along its
+    outward normal at its boundary points ``every`` apart (0.05 deg each)."""
     b = truth.swing.boundary
     at = np.arange(0, b.shape[0], every)
     normal = np.cross(b[(at + 1) % b.shape[0]] - b[at - 1], b[at])
@@ -126,31 +113,15 @@ def test_a_dense_teaching_puts_the_edge_where_its_samples_reach():
     region = TaughtRegion().fit(q)
     assert region.contains(q).mean() > 0.998
     off = edge_offsets(region, truth)
-    # the edge at the samples' reach: not 0.42 deg past at the median (before), nor inside
+    # the edge at the samples' reach, neither past nor inside
     assert abs(float(np.median(off))) < 0.15
     assert np.percentile(off, 25) > -0.15
 
 
-def _star_outline(rng: np.random.Generator) -> np.ndarray:
-    """A star-shaped outline (72, 2) (pan, tilt deg) with two Gaussian bays and a triangular
-    notch, drawn as the region families draw theirs (benchmarks/bench_region_families.py)."""
-    centre = np.array([rng.uniform(-20, 20), rng.uniform(-10, 15)])
-    phi = np.radians(np.arange(0.0, 360.0, 5.0))
-    r = rng.uniform(38.0, 50.0) * (1.0 + 0.06 * rng.uniform(-1, 1, phi.size))
-    for _ in range(2):
-        at, depth, width = rng.uniform(0, 2 * np.pi), rng.uniform(0.25, 0.45), rng.uniform(20, 35)
-        r *= 1.0 - depth * np.exp(-0.5 * (np.degrees(np.abs(wrap(phi - at))) / width) ** 2)
-    at, depth = rng.uniform(0, 2 * np.pi), rng.uniform(0.35, 0.5)
-    r *= 1.0 - depth * np.clip(1.0 - np.degrees(np.abs(wrap(phi - at))) / 6.0, 0.0, 1.0)
-    pts = centre + r[:, None] * np.stack([np.cos(phi), np.sin(phi)], axis=1)
-    pts[:, 1] = np.clip(pts[:, 1], -70.0, 70.0)
-    return pts
-
-
 def test_an_edge_from_the_samples_own_depths_is_held_to_the_tight_reach():
-    # the families' outline of seed 26, taught densely: the own-depth margins left no stretch
-    # past REACH_DEG, so nothing was held, and a chord across the notch stood 1.04 deg past it
-    poly = _star_outline(np.random.default_rng([26, 0]))
+    # the families' outline of seed 26, taught densely: own-depth margins leave no stretch past
+    # REACH_DEG, yet a chord across the notch must not stand past it
+    poly = benchmark("bench_region_families").outline(np.random.default_rng([26, 0]))
     truth = BandRegion(poly, lambda pan, tilt: (np.zeros_like(pan), np.full_like(pan, 40.0)))
     d = limb_direction(truth.teaching(2500, 1900, 3100, np.random.default_rng([26, 99])))
     region = TaughtRegion().fit(d)

@@ -28,7 +28,6 @@ def band_reference(band: TwistBand, d: np.ndarray) -> tuple[np.ndarray, np.ndarr
     ty = np.clip(fy - j, 0.0, 1.0)
 
     def lerp(f: np.ndarray) -> np.ndarray:
-        # (1-tx)(1-ty) f00 + tx(1-ty) f10 + (1-tx) ty f01 + tx ty f11
         return (
             (1 - tx) * (1 - ty) * f[i, j]
             + tx * (1 - ty) * f[i + 1, j]
@@ -47,17 +46,12 @@ def learned():
     return truth, TwistBand.fit(d, tau, truth.swing.axis, math.radians(2.0)), d, tau
 
 
-def _frame(axis):
-    u, v = tangent_frame(axis)
-    return np.stack([axis, u, v])
-
-
 def test_plane_round_trip_and_unwrap():
     rng = np.random.default_rng(0)
     axis = np.array([0.6, 0.0, 0.8])
     d = normalize(rng.normal(size=(500, 3)))
     d = d[d @ axis > -0.9]  # away from the antipode, where the plane folds
-    frame = _frame(axis)
+    frame = np.stack([axis, *tangent_frame(axis)])
     np.testing.assert_allclose(tb.plane_to_direction(tb.plane_xy(d, frame), frame), d, atol=1e-12)
     # the plane's radius is the angle from the axis
     np.testing.assert_allclose(
@@ -104,14 +98,14 @@ def test_learned_band_is_the_true_band_within_a_degree(learned):
     # and it narrows as the limb rises, as the truth does
     low, high = d[:, 2] < math.sin(math.radians(-20)), d[:, 2] > math.sin(math.radians(50))
     assert hl[low].mean() > hl[high].mean() + math.radians(20)
-    # the reading matches the numpy twin and reads the nodes back
+    # the reading matches the numpy twin
     d = normalize(np.random.default_rng(2).normal(size=(2000, 3)))
     c, h = band.at(d)
     c_ref, h_ref = band_reference(band, d)
     np.testing.assert_allclose(c, c_ref, atol=1e-12)
     np.testing.assert_allclose(h, h_ref, atol=1e-12)
     # the nodes read back exactly
-    frame = _frame(np.array([1.0, 0.0, 0.0]))
+    frame = np.stack([np.array([1.0, 0.0, 0.0]), *tangent_frame(np.array([1.0, 0.0, 0.0]))])
     rng = np.random.default_rng(3)
     centre = rng.uniform(-1, 1, (6, 5))
     half = rng.uniform(0, 1, (6, 5))
@@ -124,10 +118,8 @@ def test_learned_band_is_the_true_band_within_a_degree(learned):
 
 
 def test_a_teaching_the_guide_accepts_holds_the_true_band_within_2_deg(learned):
-    """Coverage is promised on a teaching the guide calls complete: the shoulder teaching's
-    stops lie a few degrees apart, where the evidence cap keeps some limits short and lists the
-    places; a teacher answering them (at most four rounds) leaves none, and then each limit is
-    held within 2 deg of the truth's at 98 % of the inner directions, still never much wider."""
+    """The places the evidence cap lists, answered (four rounds at most), leave none, and then each
+    limit is within 2 deg of the truth's at 98 % of the inner directions, never much wider."""
     truth, band, d, tau = learned
     rng = np.random.default_rng(7)
     for _ in range(4):  # the places of four fits at most, the first the fixture's
@@ -187,17 +179,14 @@ def _path_figures(truth, q, d):
 
 
 def test_a_trajectorys_band_holds_its_samples_and_the_band_between_its_stops(monkeypatch):
-    """The envelope (step 3) does not close on samples passing mid-band; the cap keeps them."""
     truth = ShoulderRegion(rounded(SHOULDER))
     q, d = _trajectory(truth, 30.0, seed=3, stop_period_s=0.5)
     own, _, over = _path_figures(truth, q, d)
-    # the bilinear reading between nodes cuts the envelope's ridges along the stops by tenths,
-    # and where the bound acts it holds a stop's limit to a cone of BOUND_SLOPE about it
+    # the bilinear reading cuts the envelope's ridges along the stops by tenths of a degree
     assert own >= 0.975 and over < 0.01
-    _uncapped(monkeypatch)
+    _uncapped(monkeypatch)  # the envelope (step 3) does not close on samples passing mid-band
     own, held, over_read = _path_figures(truth, q, d)
     assert own >= 0.99
-    # the true band shrunk by 2 deg, at the path's directions (stops ~40 deg apart along it)
     assert held >= 0.9
     assert over_read < 0.01 and over <= over_read, "and wider than the truth almost nowhere"
 
@@ -215,9 +204,8 @@ def test_sparse_stops_are_bridged_by_a_flatter_envelope(monkeypatch):
 
 
 def test_envelope_sag_is_capped_between_far_stops_and_not_raised_over_dense_ones(monkeypatch):
-    # at the centre of a facet of circumradius R the sag factor is S = R^2 / 2: k S at the fixed
-    # curvature, capped at max(ENVELOPE_SAG_DEG, k_min S)
-    # three stops at twist 0 on a triangle of side 40 deg, a sample at -0.5 rad at its centre
+    # three stops at twist 0 on a triangle of side 40 deg, a sample at -0.5 rad at its centre:
+    # the sag factor there is S = R^2 / 2, the sag k S capped at max(ENVELOPE_SAG_DEG, k_min S)
     r = math.radians(40.0) / math.sqrt(3.0)
     a = np.radians([90.0, 210.0, 330.0])
     xy = np.vstack([np.column_stack([r * np.cos(a), r * np.sin(a)]), [[0.0, 0.0]]])
@@ -227,9 +215,9 @@ def test_envelope_sag_is_capped_between_far_stops_and_not_raised_over_dense_ones
     cap = max(math.radians(tb.ENVELOPE_SAG_DEG), tb.ENVELOPE_CURVATURE_MIN * s)
     assert centre == pytest.approx(-cap, abs=1e-12)
     assert centre > -tb.ENVELOPE_CURVATURE * s + math.radians(1.0)
-    # near a stop the sag factor is bounded by ENVELOPE_STOP_SPAN r^2 / 2: nothing raised there
+    # 1 deg from the stop at (0, r) the sag factor is bounded by ENVELOPE_STOP_SPAN r^2 / 2:
+    # nothing raised, the fixed curvature's sag k (R^2 - |x|^2) / 2
     near = np.array([[0.0, r - math.radians(1.0)]])
-    # 1 deg from the stop at (0, r): the fixed curvature's sag k (R^2 - |x|^2) / 2
     fixed = -tb.ENVELOPE_CURVATURE * 0.5 * (r * r - near[0] @ near[0])
     assert tb.envelope_heights(xy, t, near)[0] == pytest.approx(fixed, abs=1e-12)
     # stops 1 deg apart on a limit curving by 1 rad^-1 (above ENVELOPE_CURVATURE): none raised

@@ -144,35 +144,40 @@ def test_evidence_caps_match_their_numpy_twin(seed, slope):
     assert np.all(got[2] <= np.diff(start)) and np.all(got[3] <= np.diff(start))
 
 
+def _gradient_caps(node, d, limit, stop, spread_deg=0.75, limited=False, min_stops=4.0):
+    """``fk.gradient_caps`` at one node holding every row of ``d`` (each sample's nearest), ref 0:
+    sigma 3 deg, slack 0.25, confidence 2, curvature 8.6, near 3 deg, band 0.02, reach 4 deg,
+    steep 1.4."""
+    start, members = _one_node(d)
+    args = (math.radians(3), math.radians(spread_deg), 0.25, 2.0, 8.6, math.radians(3), 0.02)
+    free = (math.radians(4), 1.4, np.full(1, limited), min_stops, np.zeros(len(d), np.int64))
+    return fk.gradient_caps(node, start, members, d, limit, stop, np.zeros(1), *args, *free)
+
+
 def test_the_caps_a_held_stop_witnesses_and_along_the_local_slope_on_a_steep_plane():
     rng = np.random.default_rng(7)
     d, node = _disk_samples(rng, 200, math.radians(8))
     d[0] = node[0]  # one stop at the node itself
     # an upper limit sloping 1.5 rad/rad, steeper than any fixed cone the cap assumes
     limit = 0.4 + 1.5 * d[:, 0]
-    start, members = _one_node(d)
     stop = np.ones(d.shape[0], dtype=bool)
-    ref = np.zeros(1)
-    # no reach; every sample's nearest node the one node
-    free = (math.radians(4), 1.4, np.zeros(1, dtype=bool), 4.0, np.zeros(len(d), np.int64))
-    args = (math.radians(3), math.radians(0.75), 0.25, 2.0, 8.6, math.radians(3), 0.02, *free)
-    cap, wit = fk.gradient_caps(node, start, members, d, limit, stop, ref, *args)
     # on a plane the slope is read exactly: no sample lifts the cap above the limit at the node
+    cap, wit = _gradient_caps(node, d, limit, stop)
     assert math.isclose(cap[0], 0.4, abs_tol=1e-9)
     assert wit[0] >= 1
-    cone, *_ = fk.evidence_caps(node, start, members, d, limit, ref, 0.5, math.radians(3), 0.02)
+    start, members = _one_node(d)
+    near = math.radians(3)
+    cone, *_ = fk.evidence_caps(node, start, members, d, limit, np.zeros(1), 0.5, near, 0.02)
     assert cone[0] > 0.4 + math.radians(3.0)
     # stops all on one line: the slope across it is unknown, no cap
     on_line = stop & (np.abs(d[:, 1]) < math.radians(0.2))
-    cap, wit = fk.gradient_caps(node, start, members, d, limit, on_line, ref, *args)
+    cap, wit = _gradient_caps(node, d, limit, on_line)
     assert np.isnan(cap[0]) and wit[0] == 0
     # among the taught directions: samples beyond the reach vouch only by the steep cone, which
     # on this plane (steeper than 1.4) lies below the slope's reading: the node's own stop sets it
-    held = (*args[:7], math.radians(4), 1.4, np.ones(1, dtype=bool), 4.0, free[-1])
-    cap, _ = fk.gradient_caps(node, start, members, d, limit, stop, ref, *held)
+    cap, _ = _gradient_caps(node, d, limit, stop, limited=True)
     assert math.isclose(cap[0], 0.4, abs_tol=1e-9)
     # evidence_caps: a stop held at the node witnesses the cap and a far one shrinks it
-    node = np.array([[0.0, 0.0, 1.0]])
     a = math.radians(6.0)
     # three samples at the node at twists 0.5, 0.49, 0.2; one 6 deg away at 0.6
     d = np.array([[0, 0, 1], [0, 0, 1], [0, 0, 1], [math.sin(a), 0, math.cos(a)]], float)
@@ -194,19 +199,10 @@ def test_a_slope_through_three_stops_is_not_read():
     d = np.array([[math.sin(a), 0, math.cos(a)], [0, math.sin(a), math.cos(a)], [0, 0, 1.0]])
     d = normalize(np.vstack([d, [-math.sin(a), -math.sin(a), 1.0]]))
     limit = 0.4 + 1.5 * d[:, 0]
-    start, members = _one_node(d)
-    ref = np.zeros(1)
-    args = (math.radians(3), math.radians(0.5), 0.25, 2.0, 8.6, math.radians(3), 0.02)
-    free = (math.radians(4), 1.4, np.zeros(1, dtype=bool))
     three = np.array([True, True, True, False])
-    ends = np.zeros(4, np.int64)
-    for stop, min_stops, known in ((three, 0.0, True), (three, 4.0, False)):
-        cap, _ = fk.gradient_caps(
-            node, start, members, d, limit, stop, ref, *args, *free, min_stops, ends
-        )
+    for min_stops, known in ((0.0, True), (4.0, False)):
+        cap, _ = _gradient_caps(node, d, limit, three, spread_deg=0.5, min_stops=min_stops)
         assert np.isfinite(cap[0]) == known
     # a fourth stop, spread as well, lets the slope be read again
-    cap, _ = fk.gradient_caps(
-        node, start, members, d, limit, np.ones(4, bool), ref, *args, *free, 3.5, ends
-    )
+    cap, _ = _gradient_caps(node, d, limit, np.ones(4, bool), spread_deg=0.5, min_stops=3.5)
     assert math.isclose(cap[0], 0.4, abs_tol=1e-9)

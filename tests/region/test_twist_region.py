@@ -33,20 +33,6 @@ def shoulder():
     return _fitted(10.0, 1)
 
 
-@pytest.fixture(scope="module")
-def wrapped():
-    """A band centred near 170 deg: it crosses +-180 over much of the outline."""
-    return _fitted(170.0, 2)
-
-
-@pytest.fixture(scope="module")
-def brute(shoulder):
-    _, region, _ = shoulder
-    b = boundary_samples(region, 0.3)
-    both = np.vstack([b, -b])
-    return cKDTree(both), both
-
-
 def _commands(truth, n, rng, outside_deg=30.0):
     """Directions up to outside_deg beyond the outline's reach, twists up to 40 deg past the
     band: inside and outside commands, some far."""
@@ -63,21 +49,16 @@ def _clamp(region, q):
     return compose(d2, c + np.clip(wrap(tau - c), -h, h))
 
 
-@pytest.fixture(scope="module")
-def corrected(shoulder):
-    """6000 commands, their corrections and whether each lies in the region."""
+def test_correct_is_the_brute_force_nearest_orientation(shoulder):
+    """Nearest as a brute force over the region's boundary, inside, nearer than the clamp, and
+    near the true region. Where uneven band limits give ``F`` several local optima, the further
+    starts find the better optimum (one search from the nearest seed settled up to 0.8 deg off)."""
     truth, region, _ = shoulder
     q = _commands(truth, 6000, np.random.default_rng(7))
-    return q, region.correct(q), region.contains(q)
-
-
-def test_correct_is_the_brute_force_nearest_orientation(shoulder, brute, corrected):
-    """Where uneven band limits give ``F`` several local optima, one pattern search from the
-    nearest seed settled up to 0.8 deg farther than the brute force (6000 commands, 5 of them
-    over 0.3 deg); the further starts find the better optimum."""
-    tree, points = brute
-    q, out, inside = corrected
-    _, i = tree.query(q[~inside])
+    out, inside = region.correct(q), region.contains(q)
+    b = boundary_samples(region, 0.3)
+    points = np.vstack([b, -b])
+    _, i = cKDTree(points).query(q[~inside])
     reference = geodesic_distance(q[~inside], points[i])
     excess = np.degrees(geodesic_distance(q[~inside], out[~inside]) - reference)
     # the brute force's points are in the region, so an exact answer is never farther; its
@@ -87,11 +68,6 @@ def test_correct_is_the_brute_force_nearest_orientation(shoulder, brute, correct
     assert excess.mean() < 0.0
     assert np.percentile(excess, 99) < 0.1
     assert excess.max() < 0.3, np.sort(excess)[-5:]
-
-
-def test_answers_lie_inside_beat_the_clamp_and_stay_near_the_true_region(shoulder, corrected):
-    truth, region, _ = shoulder
-    q, out, inside = corrected
     assert region.contains(out).all(), "an answer lies outside the region"
     assert inside.sum() > 300
     np.testing.assert_array_equal(out[inside], q[inside] * np.sign(q[inside, :1] + 0.0))
@@ -104,10 +80,9 @@ def test_answers_lie_inside_beat_the_clamp_and_stay_near_the_true_region(shoulde
     assert np.all(found <= two_step + ACOS_NOISE), "farther than the clamp"
     # and it is not the same answer: the clamp is several degrees farther on average
     assert np.degrees(np.mean(two_step - found)) > 2.0, "no nearer than the clamp on average"
-    # the learned region is the true one within a degree: answers inside the true region, or
-    # within 1 deg of its boundary
+    # answers inside the true region, or within 1 deg of its boundary (its lattice's points lie
+    # on it: a gap measured to them is never short)
     outside_truth = ~truth.contains(out)
-    # the lattice's points lie on the true boundary: a gap measured to them is never short
     b = truth.boundary(0.4)
     gap = np.degrees(cKDTree(np.vstack([b, -b])).query(out[outside_truth])[0])
     # chord in R^4 of a geodesic angle g is 2 sin(g/4)
@@ -117,8 +92,8 @@ def test_answers_lie_inside_beat_the_clamp_and_stay_near_the_true_region(shoulde
     )
 
 
-def test_band_crossing_half_turn_is_held_and_corrected(wrapped):
-    truth, region, taught = wrapped
+def test_band_crossing_half_turn_is_held_and_corrected():
+    truth, region, taught = _fitted(170.0, 2)  # a band crossing +-180 over much of the outline
     d, tau = decompose(taught)
     assert np.mean(np.abs(tau) > math.radians(170.0)) > 0.1
     rng = np.random.default_rng(9)
