@@ -75,17 +75,10 @@ FLOOR_BLOCK = 256
 
 @dataclass(frozen=True)
 class UnsupportedPlace:
-    """A stretch of a band limit the teaching could not support.
-
-    Attributes
-    ----------
-    pan_deg, tilt_deg : float
-        Where (the direction of the largest cut in its cell).
-    side : str
-        ``"upper"`` or ``"lower"``: which twist stop.
-    cut_deg : float
-        How far (deg) the cap keeps the limit short of the teaching's reading there.
-    """
+    """A stretch of a band limit the teaching could not support: ``pan_deg``, ``tilt_deg`` where
+    (the direction of the largest cut in its cell), ``side`` ``"upper"`` or ``"lower"`` (which
+    twist stop), ``cut_deg`` how far (deg) the cap keeps the limit short of the teaching's reading
+    there."""
 
     pan_deg: float
     tilt_deg: float
