@@ -133,13 +133,7 @@ CHAINS: dict[int, Any] = {2: Directions, 3: Rotations}
 
 
 def chain_geometry(joints: int) -> Any:
-    """:class:`Directions` for 2 joints, :class:`Rotations` for 3.
-
-    Raises
-    ------
-    ConfigError
-        For any other number of joints.
-    """
+    """:class:`Directions` for 2 joints, :class:`Rotations` for 3 (ConfigError for any other)."""
     try:
         return CHAINS[joints]
     except KeyError:

@@ -14,25 +14,10 @@ UNIT_TOLERANCE = 1e-6
 def as_quaternions(
     q: object, name: str = "q", tol: float = UNIT_TOLERANCE
 ) -> tuple[np.ndarray, bool]:
-    """Validate unit quaternions ``q`` (``name`` in messages, ``tol`` on the norm).
-
-    Parameters
-    ----------
-    q : array_like, shape (4,) or (N, 4)
-        Unit quaternions (w, x, y, z).
-
-    Returns
-    -------
-    q2 : ndarray, shape (N, 4)
-        A float64 copy, canonicalised to w >= 0.
-    single : bool
-        True when the input was a single (4,) quaternion.
-
-    Raises
-    ------
-    InvalidInputError
-        Naming the first row that is non-finite or not unit length, or the wrong shape.
-    """
+    """Validate unit quaternions ``q`` (4,) or (N, 4) (w, x, y, z) (``name`` in messages, ``tol``
+    on the norm): a float64 copy (N, 4) canonicalised to w >= 0, and True when the input was a
+    single (4,) quaternion. InvalidInputError names the first row that is non-finite or not unit
+    length, or the wrong shape."""
     try:
         arr = np.array(q, dtype=np.float64)
     except (TypeError, ValueError) as exc:

@@ -28,18 +28,9 @@ CONFIRM_DEG = 1.0
 
 @dataclass(frozen=True, eq=False)
 class Proposal:
-    """A strategy's candidate edge.
-
-    Attributes
-    ----------
-    strategy : str
-    edges : list of ndarray, each (K, 3)
-        Closed counter-clockwise loops of unit directions, the region on their left.
-    region : DirectionMesh or None
-        Given where the edge holds the samples by construction: accepted as it is.
-    note : str
-        Why a proposal with a region needs no checks.
-    """
+    """A strategy's candidate edge: ``edges`` (each (K, 3)), closed counter-clockwise loops of
+    unit directions, the region on their left; ``region``, given where the edge holds the samples
+    by construction: accepted as it is; ``note``, why a proposal with a region needs no checks."""
 
     strategy: str
     edges: list[np.ndarray]
@@ -49,16 +40,8 @@ class Proposal:
 
 @dataclass(frozen=True, eq=False)
 class Refusal:
-    """A strategy's answer when the data refuse it an edge.
-
-    Attributes
-    ----------
-    strategy : str
-    reason : str
-        What in the data refuses the edge, for a person.
-    figures : dict of str to float
-        The numbers behind the reason (units in their names).
-    """
+    """A strategy's answer when the data refuse it an edge: the ``reason``, what in the data
+    refuses the edge, for a person, and the ``figures`` behind it (units in their names)."""
 
     strategy: str
     reason: str
@@ -67,20 +50,9 @@ class Refusal:
 
 @dataclass(frozen=True, eq=False)
 class Verdict:
-    """Whether an edge is accepted, and why.
-
-    Attributes
-    ----------
-    strategy : str
-    accepted : bool
-        Whether the gate may use the edge.
-    reasons : tuple of str
-        Why, for a person (the first failed check when refused).
-    figures : dict of str to float
-        The numbers behind the reasons (units in their names).
-    region : DirectionMesh or None
-        The region inside the edge when accepted.
-    """
+    """Whether an edge is ``accepted`` (the gate may use it), and why: ``reasons``, for a person
+    (the first failed check when refused), and the ``figures`` behind them (units in their names);
+    ``region``, the region inside the edge when accepted."""
 
     strategy: str
     accepted: bool
@@ -104,19 +76,9 @@ def judge(
     supported: DirectionMesh,
     rivals: tuple[Verdict, ...] = (),
 ) -> Verdict:
-    """The verdict on a strategy's answer.
-
-    Parameters
-    ----------
-    candidate : Proposal or Refusal
-        What the strategy answered.
-    data : ndarray, shape (N, 3)
-        The taught directions.
-    supported : DirectionMesh
-        The supported region.
-    rivals : tuple of Verdict
-        Accepted verdicts of other edges the candidate must stay within ``CONFIRM_DEG`` of.
-    """
+    """The verdict on a strategy's answer ``candidate``, given the taught directions ``data``
+    (N, 3), the ``supported`` region and ``rivals``, accepted verdicts of other edges the
+    candidate must stay within ``CONFIRM_DEG`` of."""
     name = candidate.strategy
     if isinstance(candidate, Refusal):
         return Verdict(name, False, (candidate.reason,), dict(candidate.figures))

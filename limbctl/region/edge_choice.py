@@ -143,30 +143,15 @@ def choose_edge(
     max_offset: float,
     clip: bool = False,
 ) -> tuple[Verdict, tuple[Verdict, ...]]:
-    """The edge the gate takes and the verdicts on every strategy judged, in order.
+    """The edge the gate takes (the first accepted verdict: its ``region`` is the gate's region)
+    and the verdicts on every strategy judged, in the order of ``choice`` (one of
+    :data:`EDGE_CHOICES`).
 
-    Parameters
-    ----------
-    choice : str
-        One of :data:`EDGE_CHOICES`.
-    loops : list of ndarray, each (M, 3)
-        The supported loops (counter-clockwise, region on the left).
-    data : ndarray, shape (N, 3)
-        The taught directions.
-    supported : DirectionMesh
-        The supported region: ``loops`` widened by their learned margins.
-    max_offset : float
-        The most (rad) a learned edge moves past its loop in one step.
-    clip : bool
-        Whether a traced edge refused for unexplained samples is proposed again clipped to
-        ``supported`` (where the samples' own depths set its margins).
-
-    Returns
-    -------
-    taken : Verdict
-        The first accepted verdict (its ``region`` is the gate's region).
-    verdicts : tuple of Verdict
-        Every strategy judged, in the choice's order.
+    ``loops`` (each (M, 3)): the supported loops (counter-clockwise, region on the left); ``data``
+    (N, 3): the taught directions; ``supported``: ``loops`` widened by their learned margins;
+    ``max_offset`` (rad): the most a learned edge moves past its loop in one step; ``clip``:
+    whether a traced edge refused for unexplained samples is proposed again clipped to
+    ``supported`` (where the samples' own depths set its margins).
     """
     order = AUTO_ORDER if check_choice(choice) == "auto" else tuple({choice: 0, FALLBACK: 0})
     judged: dict[str, Verdict] = {}

@@ -64,13 +64,8 @@ def hold_to_evidence(
     where a hold at ``reach`` cannot keep the samples, it keeps the held edge elsewhere. A
     ``straight`` hold moves far points straight toward their nearest sample, never along a normal.
 
-    Returns
-    -------
-    region : DirectionMesh
-        The held region (lookup grid not built), or ``mesh`` itself when nothing is far or no
-        hold keeps the taught samples it held and its arcs apart.
-    held : bool
-        Whether the region was held (``region`` is not ``mesh``).
+    Returns the held region (lookup grid not built), or ``mesh`` itself when nothing is far or no
+    hold keeps the taught samples it held and its arcs apart, and whether the region was held.
     """
     tree = cKDTree(data)
     stations, arc = edge_stations(mesh, np.radians(STATION_DEG))

@@ -104,11 +104,7 @@ def choose_window(
 
 
 def edge_offsets(
-    stations: np.ndarray,
-    pole: np.ndarray,
-    total: float,
-    data: np.ndarray,
-    window: float,
+    stations: np.ndarray, pole: np.ndarray, total: float, data: np.ndarray, window: float
 ) -> np.ndarray:
     """Endpoint estimate (K,) rad of the edge beyond each station's circle."""
     k = stations.shape[0]

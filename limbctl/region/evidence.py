@@ -49,21 +49,12 @@ FLOOR_DEG = 1.0
 
 @dataclass(frozen=True)
 class Stretch:
-    """A run of edge stations the taught samples surround but do not reach.
-
-    Attributes
-    ----------
-    pan_deg, tilt_deg : float
-        Where its farthest station lies (the gimbal's pan and tilt, deg).
-    distance_deg : float
-        That station's distance to its nearest taught sample (deg).
-    length_deg : float
-        Its length along the edge (deg).
-    held : bool
-        Whether the region was held there (``distance_deg``: where the learned edge stood).
-    outline_deg : float or None
-        That station's distance past the samples' outline (:func:`past_outline`; None: unread).
-    """
+    """A run of edge stations the taught samples surround but do not reach: ``pan_deg``,
+    ``tilt_deg``, where its farthest station lies (the gimbal's pan and tilt, deg);
+    ``distance_deg``, that station's distance to its nearest taught sample (deg); ``length_deg``,
+    its length along the edge (deg); ``held``, whether the region was held there
+    (``distance_deg``: where the learned edge stood); ``outline_deg``, that station's distance past
+    the samples' outline (:func:`past_outline`; None: unread)."""
 
     pan_deg: float
     tilt_deg: float
@@ -202,26 +193,11 @@ def unsupported_stretches(
     max_gap: float = np.radians(CONCAVE_GAP_DEG),
     surrounded: bool = True,
 ) -> list[Stretch]:
-    """The stretches of ``mesh``'s edge the taught ``data`` (N, 3) surround but do not reach.
-
-    Parameters
-    ----------
-    mesh : DirectionMesh
-        The region.
-    data : ndarray, shape (N, 3)
-        The taught directions.
-    bound : float
-        How far (rad) a station may lie from its nearest sample.
-    radius, max_gap : float
-        The surround test's neighbourhood and widest empty sector (rad).
-    surrounded : bool
-        Count a station only where the samples surround it, else wherever beyond ``bound``.
-
-    Returns
-    -------
-    list of Stretch
-        Runs of consecutive stations farther than ``bound``, farthest first.
-    """
+    """The stretches of ``mesh``'s edge the taught directions ``data`` (N, 3) surround but do not
+    reach: runs of consecutive stations farther than ``bound`` (rad) from their nearest sample,
+    farthest first. ``radius``, ``max_gap``: the surround test's neighbourhood and widest empty
+    sector (rad); ``surrounded``: count a station only where the samples surround it, else
+    wherever beyond ``bound``."""
     stations, arc, delta, bad = unsupported_stations(mesh, data, bound, radius, max_gap, surrounded)
     if bad.size == 0:
         return []

@@ -113,15 +113,9 @@ def nearest_station(data: np.ndarray, stations: np.ndarray) -> np.ndarray:
 
 
 class StationBuckets:
-    """Items grouped by the station (or arc) they belong to, for reading windows of stations.
-
-    Parameters
-    ----------
-    owner : ndarray, shape (N,) int
-        The station of each item (none outside ``0 .. stations - 1``).
-    stations : int
-        Number of stations K.
-    """
+    """Items grouped by the station (or arc) they belong to, for reading windows of stations:
+    ``owner`` (N,) int, the station of each item (none outside ``0 .. stations - 1``) of K
+    ``stations``."""
 
     def __init__(self, owner: np.ndarray, stations: int) -> None:
         self.stations = int(stations)

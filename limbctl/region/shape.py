@@ -134,25 +134,10 @@ def alpha_complex(
     hole: a piece of the other triangles (joined across edges longer than ``mouth``) that does not
     reach the outside across a hull edge longer than ``mouth`` and has an area below ``max_hole``.
 
-    Parameters
-    ----------
-    d : ndarray (V, 3)
-        Unit directions.
-    alpha : float
-        Circumradius (rad) up to which a triangle is in the region.
-    max_hole : float
-        Holes with a total area below this (sr) are filled.
-    mouth : float, optional
-        Gaps (rad) up to this wide close a piece; 0 (default): every gap lets it through.
-
-    Returns
-    -------
-    tri : ndarray (T, 3) int
-        The Delaunay triangles.
-    radius : ndarray (T,)
-        Their circumradii (rad).
-    inside : ndarray (T,) bool
-        Which are in the region.
+    ``d`` (V, 3): unit directions; ``alpha`` (rad): circumradius up to which a triangle is in the
+    region; ``max_hole`` (sr): holes with a total area below this are filled; ``mouth`` (rad):
+    gaps up to this wide close a piece; 0 (default): every gap lets it through. Returns the
+    triangles (T, 3) int, their circumradii (T,) rad and which are in the region (T,) bool.
     """
     tri = spherical_delaunay(d)
     radius = circumradius(d, tri)

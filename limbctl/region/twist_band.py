@@ -62,16 +62,9 @@ ENVELOPE_CANDIDATES = 16
 
 
 class TwistBand:
-    """Twist band over directions (see the module docstring).
-
-    Parameters
-    ----------
-    frame : ndarray, shape (3, 3)
-        Rows: the plane's axis, u, v (right-handed).
-    grid : ndarray, shape (3,)
-        ``(x0, y0, step)`` of the node grid (rad).
-    centre, half : ndarray, shape (nx, ny)
-        Band centre (unwrapped, rad) and half-width (rad, in [0, pi]) at each node.
+    """Twist band over directions (see the module docstring): ``frame`` (3, 3), rows the plane's
+    axis, u, v (right-handed); ``grid`` (3,), ``(x0, y0, step)`` of the node grid (rad); ``centre``,
+    ``half`` (nx, ny), band centre (unwrapped, rad) and half-width (rad, in [0, pi]) at each node.
     """
 
     def __init__(

@@ -75,17 +75,10 @@ FLOOR_BLOCK = 256
 
 @dataclass(frozen=True)
 class UnsupportedPlace:
-    """A stretch of a band limit the teaching could not support.
-
-    Attributes
-    ----------
-    pan_deg, tilt_deg : float
-        Where (the direction of the largest cut in its cell).
-    side : str
-        ``"upper"`` or ``"lower"``: which twist stop.
-    cut_deg : float
-        How far (deg) the cap keeps the limit short of the teaching's reading there.
-    """
+    """A stretch of a band limit the teaching could not support: ``pan_deg``, ``tilt_deg`` where
+    (the direction of the largest cut in its cell), ``side`` ``"upper"`` or ``"lower"`` (which
+    twist stop), ``cut_deg`` how far (deg) the cap keeps the limit short of the teaching's reading
+    there."""
 
     pan_deg: float
     tilt_deg: float
@@ -124,16 +117,9 @@ def cap_limits(
     where no local slope was read (among the nodes ``within`` (M,) bool, when given). Where the
     clipped limits cross, or no sample lies near, the band closes to no width.
     """
+    at = (nodes, start, members, d, limit, ref)
     cap_up, cap_lo, n_up, n_lo = fk.evidence_caps(
-        nodes,
-        start,
-        members,
-        d,
-        limit,
-        ref,
-        CAP_SLOPE,
-        math.radians(WITNESS_DEG),
-        math.radians(WITNESS_BAND_DEG),
+        *at, CAP_SLOPE, math.radians(WITNESS_DEG), math.radians(WITNESS_BAND_DEG)
     )
     # where the local slope was read, the cap promises for any truth within its margin of it
     read_up = read_lo = np.zeros(nodes.shape[0], dtype=bool)
@@ -149,18 +135,8 @@ def cap_limits(
     cap_lo = np.where(np.isfinite(cap_lo), cap_lo - slack, np.inf)
     new_up = np.where(bounded, np.fmin(up, cap_up), up)
     new_lo = np.where(bounded, np.fmax(lo, cap_lo), lo)
-    held_up, held_lo = _held(
-        new_up,
-        new_lo,
-        holdable & ~read_up,
-        holdable & ~read_lo,
-        nodes,
-        start,
-        members,
-        d,
-        limit,
-        ref,
-    )
+    open_up, open_lo = holdable & ~read_up, holdable & ~read_lo
+    held_up, held_lo = _held(new_up, new_lo, open_up, open_lo, at)
     new_up = np.fmin(new_up, held_up)
     new_lo = np.fmax(new_lo, held_lo)
     # a cut asks for a stop unless one was held near the node (and the hold does not bind)
@@ -168,19 +144,7 @@ def cap_limits(
     ask_lo = (n_lo < MIN_WITNESSES) | np.isfinite(held_lo)
     # the bound, where the hold acts; what it takes off a witnessed cap asks for a stop too
     bound_up, bound_lo = _held(
-        new_up,
-        new_lo,
-        holdable & ~read_up,
-        holdable & ~read_lo,
-        nodes,
-        start,
-        members,
-        d,
-        limit,
-        ref,
-        BOUND_SLOPE,
-        BOUND_SLACK_DEG,
-        floors,
+        new_up, new_lo, open_up, open_lo, at, BOUND_SLOPE, BOUND_SLACK_DEG, floors
     )
     from_up = np.where(ask_up, up, np.where(np.isfinite(bound_up), new_up, -np.inf))
     from_lo = np.where(ask_lo, lo, np.where(np.isfinite(bound_lo), new_lo, np.inf))
@@ -201,26 +165,13 @@ def cap_limits(
     return new_up, new_lo, cut_up, cut_lo
 
 
-def _held(
-    up,
-    lo,
-    open_up,
-    open_lo,
-    nodes,
-    start,
-    members,
-    d,
-    limit,
-    ref,
-    slope=HOLD_SLOPE,
-    slack_deg=HOLD_SLACK_DEG,
-    floors=None,
-):
-    """The hold: limits (M,), (M,) (rad, relative to ``ref``) where the cone of ``slope``
-    (rad/rad) about the samples, raised to ``floors`` (M,), (M,) (NaN: none) when given, plus
-    ``slack_deg`` (deg) lies inside ``up``, ``lo`` (M,) at the nodes ``open_up``, ``open_lo``
-    (M,) bool; +-inf elsewhere."""
-    cone_up, cone_lo, _, _ = fk.evidence_caps(nodes, start, members, d, limit, ref, slope, 0.0, 0.0)
+def _held(up, lo, open_up, open_lo, at, slope=HOLD_SLOPE, slack_deg=HOLD_SLACK_DEG, floors=None):
+    """The hold: limits (M,), (M,) (rad, relative to the node centres, the last of ``at``) where
+    the cone of ``slope`` (rad/rad) about the samples, raised to ``floors`` (M,), (M,) (NaN: none)
+    when given, plus ``slack_deg`` (deg) lies inside ``up``, ``lo`` (M,) at the nodes ``open_up``,
+    ``open_lo`` (M,) bool; +-inf elsewhere. ``at``: (nodes, start, members, d, limit, ref) as
+    :func:`limbctl.region.twist_fit_kernels.evidence_caps` takes them."""
+    cone_up, cone_lo, _, _ = fk.evidence_caps(*at, slope, 0.0, 0.0)
     if floors is not None:
         # NaN (outside the samples' hull) leaves the cone
         cone_up, cone_lo = np.fmax(cone_up, floors[0]), np.fmin(cone_lo, floors[1])

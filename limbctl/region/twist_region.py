@@ -23,13 +23,8 @@ SEED_STEP_DEG = 4.0
 
 
 class TwistRegion:
-    """Swing outline and twist band (see the module docstring).
-
-    Parameters
-    ----------
-    params : RegionParams, optional
-        Settings of the swing region (the defaults when None).
-    """
+    """Swing outline and twist band (see the module docstring); ``params``: settings of the swing
+    region (the defaults when None)."""
 
     def __init__(self, params: RegionParams | None = None) -> None:
         self.swing = TaughtRegion(params)
@@ -64,13 +59,8 @@ class TwistRegion:
         return self.swing.support_index
 
     def fit(self, q: np.ndarray) -> TwistRegion:
-        """Learn the region from taught orientations ``q`` (N, 4).
-
-        Raises
-        ------
-        InvalidInputError
-            For bad quaternions, fewer than 3, or directions within SINGULAR_MARGIN of -x.
-        """
+        """Learn the region from taught orientations ``q`` (N, 4); InvalidInputError for bad
+        quaternions, fewer than 3, or directions within SINGULAR_MARGIN of -x."""
         q, _ = as_quaternions(q, name="samples")
         if q.shape[0] < 3:
             raise InvalidInputError(f"samples: need at least 3, got {q.shape[0]}")

@@ -6,13 +6,7 @@ import numpy as np
 
 
 class UnionFind:
-    """Pieces of ``n`` items joined pair by pair.
-
-    Parameters
-    ----------
-    n : int
-        Number of items; each starts as its own piece.
-    """
+    """Pieces of ``n`` items joined pair by pair; each item starts as its own piece."""
 
     def __init__(self, n: int) -> None:
         self.parent = np.arange(n)

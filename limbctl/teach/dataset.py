@@ -51,19 +51,10 @@ class DatasetHeader:
 
 @dataclass(frozen=True)
 class Dataset:
-    """A loaded recording from ``path``, with its ``header`` (the first line).
-
-    Attributes
-    ----------
-    t : ndarray, shape (N,)
-        Sample times in seconds from the start of the recording.
-    pan_deg, tilt_deg : ndarray, shape (N,)
-        Joint angles in degrees.
-    quaternions : ndarray, shape (N, 4)
-        Unit quaternions (w, x, y, z), w >= 0.
-    dropped_tail : str or None
-        Why a torn last line was dropped, or None.
-    """
+    """A loaded recording from ``path``, with its ``header`` (the first line): sample times ``t``
+    (N,) in seconds from the start of the recording, joint angles ``pan_deg``, ``tilt_deg`` (N,)
+    in degrees, unit ``quaternions`` (N, 4) (w, x, y, z), w >= 0, and ``dropped_tail``, why a torn
+    last line was dropped, or None."""
 
     header: DatasetHeader
     t: np.ndarray
@@ -97,13 +88,9 @@ def _seal(payload: str, previous_crc: int) -> tuple[bytes, int]:
 
 
 def check_writable(path: str | os.PathLike[str], min_free_bytes: int = MIN_FREE_BYTES) -> Path:
-    """Refuse, before recording starts, an output path that cannot be written or lacks room.
-
-    Raises
-    ------
-    ConfigError
-        If the file exists, its directory is missing or not writable, or lacks the free space.
-    """
+    """Refuse, before recording starts, an output path that cannot be written or lacks room
+    (ConfigError if the file exists, its directory is missing or not writable, or lacks the free
+    space)."""
     path = Path(path)
     directory = path.parent if str(path.parent) else Path(".")
     if path.exists():
@@ -204,12 +191,7 @@ class DatasetWriter:
     def append(self, t_s: float, pan: float, tilt: float, q: np.ndarray | None = None) -> None:
         """Append one sample: ``t_s`` seconds since the start, joint angles ``pan``, ``tilt`` (rad,
         stored in degrees) and the pose's quaternion ``q`` (4,) (default: from pan and tilt).
-
-        Raises
-        ------
-        InvalidInputError
-            For non-finite values or a non-unit ``q``.
-        """
+        InvalidInputError for non-finite values or a non-unit ``q``."""
         if self._fd is None:
             raise RuntimeError("DatasetWriter is not open; use it as a context manager")
         if self._sync_error is not None:
@@ -317,13 +299,8 @@ def is_dataset_file(path: str | os.PathLike[str]) -> bool:
 
 
 def load_dataset(path: str | os.PathLike[str]) -> Dataset:
-    """Read a dataset, verifying every line (a torn last line is dropped).
-
-    Raises
-    ------
-    FileFormatError
-        Naming file and line: a foreign file, a wrong version, or a bad line before the last.
-    """
+    """Read a dataset, verifying every line (a torn last line is dropped); FileFormatError,
+    naming file and line, for a foreign file, a wrong version, or a bad line before the last."""
     path = Path(path)
     try:
         blob = path.read_bytes()

@@ -246,15 +246,10 @@ def _traced_across(
 ) -> np.ndarray:
     """Edge bins (M,) a trace crossed below the band (across a dent the outline runs over): from
     an on-edge sample to the next, tracing without a hole, at most BRIDGE_MAX_BINS apart, every
-    sample between in their bins give or take BRIDGE_SLACK_BINS (docs/teaching.md).
-
-    Parameters
-    ----------
-    t_s, bins : ndarray, shape (N,)
-        The samples' times (s, in order); their edge bins (int, of EDGE_BINS round the turn).
-    tracing, on_edge : ndarray of bool, shape (N,)
-        Slow and not halfway to the centre; on the edge (slow and in the outline's band).
-    """
+    sample between in their bins give or take BRIDGE_SLACK_BINS (docs/teaching.md). ``t_s``,
+    ``bins`` (N,): the samples' times (s, in order); their edge bins (int, of EDGE_BINS round the
+    turn); ``tracing``, ``on_edge`` (N,) bool: slow and not halfway to the centre; on the edge
+    (slow and in the outline's band)."""
     edge_at = np.flatnonzero(on_edge)
     # a break: a fast sample, or a hole in the recording before a sample
     broken = ~tracing

@@ -101,25 +101,14 @@ def find_holes(
     outline_at: Callable[[np.ndarray], np.ndarray],
     pan_tilt_deg: Callable[[np.ndarray, np.ndarray], list[tuple[float, float]]],
 ) -> tuple[tuple[Hole, ...], np.ndarray]:
-    """The recording's holes and the edge bins they leave unseen.
+    """The recording's holes (those hiding an open stretch of edge first, then the longest, at
+    most MAX_HOLES) and the edge bins of every open stretch (int, repeats possible).
 
-    Parameters
-    ----------
-    t_s, rho, phi : ndarray, shape (N,)
-        The samples' times (s, in order) and places in the guide's picture: distance from the
-        centre (deg), azimuth (rad).
-    in_band, on_edge : ndarray of bool, shape (N,)
-        In the outline's band; and on the edge (in the band and slow).
-    bins : int
-        Equal bins of the turn the edge is judged in.
-    outline_at, pan_tilt_deg : callable
-        ``r_out(phi)`` (deg) of azimuths (M,) rad; (pan_deg, tilt_deg) of picture points x, y (M,).
-
-    Returns
-    -------
-    holes, unseen : tuple of Hole, ndarray of int
-        Those hiding an open stretch of edge first, then the longest (at most MAX_HOLES); the
-        bins of every open stretch (repeats possible).
+    ``t_s``, ``rho``, ``phi`` (N,): the samples' times (s, in order) and places in the guide's
+    picture: distance from the centre (deg), azimuth (rad); ``in_band``, ``on_edge`` (N,) bool: in
+    the outline's band; and on the edge (in the band and slow); ``bins``: equal bins of the turn
+    the edge is judged in; ``outline_at``: ``r_out(phi)`` (deg) of azimuths (M,) rad;
+    ``pan_tilt_deg``: (pan_deg, tilt_deg) of picture points x, y (M,).
     """
     unseen: list[np.ndarray] = []
     holes = []

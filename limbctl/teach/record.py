@@ -109,13 +109,8 @@ def stop_on_enter(stop: threading.Event, stream: IO[str] | None = None) -> threa
 
 
 def check_rate(rate_hz: float) -> None:
-    """Refuse a sampling rate (Hz) below :data:`MIN_RATE_HZ` (or not a number).
-
-    Raises
-    ------
-    ConfigError
-        Naming the least rate; callers check before any file or port is opened.
-    """
+    """Refuse a sampling rate (Hz) below :data:`MIN_RATE_HZ` (or not a number) with a ConfigError
+    naming the least rate; callers check before any file or port is opened."""
     if not (math.isfinite(rate_hz) and rate_hz >= MIN_RATE_HZ):
         raise ConfigError(f"--rate: record at {MIN_RATE_HZ:.0f} Hz or faster, got {rate_hz:g}")
 
@@ -131,16 +126,10 @@ def record(
     on_twist: Callable[[TwistGuidance], None] | None = None,
 ) -> RecordSummary:
     """Switch torque off and record ``limb`` into the open ``writer`` until ``stop`` is set (Ctrl-C,
-    Enter) or ``duration_s`` passes, drawing a progress line to ``progress``.
-
-    Parameters
-    ----------
-    rate_hz : float
-        Sampling rate (Hz), at least :data:`MIN_RATE_HZ`.
-    on_guidance, on_twist : callable, optional
-        Called in the recording thread (keep them quick) with each Guidance and (three servos)
-        TwistGuidance, every GUIDE_EVERY_S and at the end.
-    """
+    Enter) or ``duration_s`` passes, drawing a progress line to ``progress``, sampling at
+    ``rate_hz`` (Hz, at least :data:`MIN_RATE_HZ`). ``on_guidance``, ``on_twist`` are called in the
+    recording thread (keep them quick) with each Guidance and (three servos) TwistGuidance, every
+    GUIDE_EVERY_S and at the end."""
     check_rate(rate_hz)
     with EdgeSupport() as support:
         stop = stop or threading.Event()

@@ -254,12 +254,7 @@ def train(
 ) -> TrainSummary:
     """Fit a model of ``kind`` (constructor ``options``) to a recorded dataset, save it to
     ``out_path`` and summarise it; ``progress`` is called with each of :data:`STAGES` as it ends.
-
-    Raises
-    ------
-    ConfigError
-        When the dataset holds fewer than :data:`MIN_SAMPLES` samples.
-    """
+    ConfigError when the dataset holds fewer than :data:`MIN_SAMPLES` samples."""
     from limbctl.envelope import build_model
     from limbctl.teach.dataset import load_dataset
 

@@ -167,13 +167,8 @@ class _Progress:
 
 
 def run_prepare(rigs: Sequence[str], out: TextIO = sys.stdout) -> int:
-    """``limbctl prepare``: compile and cache the kernels of ``rigs``; returns the exit status.
-
-    Raises
-    ------
-    ConfigError
-        When no cache folder is writable.
-    """
+    """``limbctl prepare``: compile and cache the kernels of ``rigs``; returns the exit status
+    (ConfigError when no cache folder is writable)."""
     import numba.core.event as numba_event
 
     from limbctl.errors import ConfigError

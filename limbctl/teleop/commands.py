@@ -62,12 +62,7 @@ def _vector(value: object, name: str, length: int) -> np.ndarray:
 def parse_command(line: str | bytes, twist: bool = False) -> Command:
     """Parse one JSON object (a trailing newline allowed) into a :class:`Command`; ``twist`` (a
     three-servo rig): the target keeps its twist and ``roll``/``twist`` are accepted.
-
-    Raises
-    ------
-    InvalidInputError
-        With the reason, for anything that is not exactly one valid command.
-    """
+    InvalidInputError, with the reason, for anything that is not exactly one valid command."""
     if isinstance(line, bytes):
         if len(line) > MAX_LINE_BYTES:
             raise InvalidInputError(f"line longer than {MAX_LINE_BYTES} bytes")
@@ -137,13 +132,8 @@ def _angle_deg(value: object, name: str, bound: float) -> float:
 def command_from_pose(
     pan_deg: object, tilt_deg: object, roll_deg: object, t: float | None = None
 ) -> Command:
-    """A three-servo :class:`Command` from joint angles (deg), checked as a JSON line is.
-
-    Raises
-    ------
-    InvalidInputError
-        For a value that is not a finite number or lies outside its range.
-    """
+    """A three-servo :class:`Command` from joint angles (deg), checked as a JSON line is
+    (InvalidInputError for a value that is not a finite number or lies outside its range)."""
     swing = command_from_pan_tilt(pan_deg, tilt_deg, t)
     roll = _angle_deg(roll_deg, "roll", 180.0)
     pan, tilt = float(pan_deg), float(tilt_deg)  # checked just above
@@ -152,13 +142,8 @@ def command_from_pose(
 
 
 def command_from_pan_tilt(pan_deg: object, tilt_deg: object, t: float | None = None) -> Command:
-    """A :class:`Command` from pan in [-180, 180] and tilt in [-90, 90] deg, ``t`` (s) kept.
-
-    Raises
-    ------
-    InvalidInputError
-        For a value that is not a finite number or lies outside its range.
-    """
+    """A :class:`Command` from pan in [-180, 180] and tilt in [-90, 90] deg, ``t`` (s) kept
+    (InvalidInputError for a value that is not a finite number or lies outside its range)."""
     pan, tilt = _finite_number(pan_deg, "pan"), _finite_number(tilt_deg, "tilt")
     pan, tilt = _angle_deg(pan, "pan", 180.0), _angle_deg(tilt, "tilt", 90.0)
     direction = pan_tilt_to_direction(math.radians(pan), math.radians(tilt))

@@ -50,21 +50,10 @@ def _twist_deg(q: np.ndarray) -> float:
 def orientation_fields(
     command_q: np.ndarray | None, pose: tuple[float, ...] | None
 ) -> dict[str, object]:
-    """The commanded and written orientation in one form for every rig.
-
-    Parameters
-    ----------
-    command_q : ndarray (4,) or None
-        The command's orientation (w, x, y, z).
-    pose : tuple of float, (2,) or (3,), or None
-        The gate's joint angles (rad).
-
-    Returns
-    -------
-    dict
-        ``cmd``/``out``: joint angles (deg); ``cmd_q``/``out_q``: orientations (w, x, y, z);
-        on three servos ``cmd_twist``/``out_twist`` (deg). None where missing.
-    """
+    """The commanded and written orientation in one form for every rig, from the command's
+    orientation ``command_q`` (4,) (w, x, y, z) and the gate's joint angles ``pose`` (2,) or (3,)
+    (rad), either None: ``cmd``/``out``: joint angles (deg); ``cmd_q``/``out_q``: orientations
+    (w, x, y, z); on three servos ``cmd_twist``/``out_twist`` (deg). None where missing."""
     joints = 3 if pose is not None and len(pose) == 3 else 2
     cmd = None
     if command_q is not None:

@@ -48,9 +48,7 @@ def blocked_directions(
 
 
 def pushed_short(
-    commanded_deg: tuple[float, float],
-    written_deg: tuple[float, float],
-    pushing: tuple[str, ...],
+    commanded_deg: tuple[float, float], written_deg: tuple[float, float], pushing: tuple[str, ...]
 ) -> tuple[str, ...]:
     """The ``pushing`` directions the command lies beyond by over :data:`BLOCKED_MIN_DEG`."""
     out = []

@@ -120,16 +120,9 @@ def written_tolerance_deg(ticks_per_turn: int = 4096, joints: int = 2) -> float:
 
 @dataclass(frozen=True)
 class GateResult:
-    """One cycle's answer.
-
-    Attributes
-    ----------
-    pose : tuple of float, shape (J,)
-        The joint angles to write (rad); the last safe pose when HELD.
-    outcome, reason : Outcome, str
-        The strongest thing that happened; why the command was held (empty otherwise).
-    corrected, clamped, slewed : bool
-        Each stage that changed the command.
+    """One cycle's answer: ``pose`` (J,), the joint angles to write (rad; the last safe pose when
+    HELD); ``outcome``, the strongest thing that happened; ``reason``, why the command was held
+    (empty otherwise); ``corrected``, ``clamped``, ``slewed``: each stage that changed the command.
     """
 
     pose: Pose
@@ -172,13 +165,8 @@ class Gate:
         return chain.distance(point, nearest) <= self.limits.region_tolerance
 
     def start(self, *pose: float) -> None:
-        """Begin from the limb's present pose (rad, chain order), which must already be safe.
-
-        Raises
-        ------
-        SafetyError
-            When the pose is outside the region or the hard limits.
-        """
+        """Begin from the limb's present pose (rad, chain order), which must already be safe
+        (SafetyError when it is outside the region or the hard limits)."""
         if not self.is_safe(*pose):
             at = ", ".join(
                 f"{name} {math.degrees(v):.1f} deg"

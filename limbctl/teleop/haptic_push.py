@@ -113,18 +113,12 @@ def push_for(
 ) -> Push:
     """The leader's command this cycle (:mod:`limbctl.teleop.haptic`'s law on its chain).
 
-    Parameters
-    ----------
-    present, previous : sequence of float, (n,)
-        The leader's pose now and a cycle before (rad); ``previous`` None: no let-go rules.
-    q, corrected : ndarray (4,)
-        The command and the region's correction of it.
-    period_s : float, optional
-        Time since ``previous`` was read (s); ``engaged``: the wall pushed the cycle before.
-    torque_nm, velocity_deg_s : sequence of float, (n,), optional
-        The motors' read torque (N m) and speed (deg/s); None: not read.
-    limits : sequence of (float, float), (n,), optional
-        Each joint's hard limits (rad), for :func:`corrected_pose` on three joints.
+    ``present``, ``previous`` (n,): the leader's pose now and a cycle before (rad; ``previous``
+    None: no let-go rules); ``q``, ``corrected`` (4,): the command and the region's correction of
+    it; ``period_s``: time since ``previous`` was read (s); ``engaged``: the wall pushed the cycle
+    before; ``torque_nm``, ``velocity_deg_s`` (n,): the motors' read torque (N m) and speed
+    (deg/s), None: not read; ``limits`` (n,): each joint's hard limits (rad), for
+    :func:`corrected_pose` on three joints.
     """
     distance = beyond_deg(q, corrected, len(present))
     tau = min(law.torque_nm(distance), motor.cap_nm(law.cap_nm))

@@ -330,13 +330,8 @@ def run(
     stop: threading.Event | None = None,
 ) -> TeleopSummary:
     """Run the loop until the source ends, the duration passes, ``stop`` is set, or a fault;
-    ``telemetry`` logs every complete cycle, ``status`` (e.g. stderr) gets a one-line status.
-
-    Returns
-    -------
-    TeleopSummary
-        ``exit_code`` 0 for a clean end, 3 for a fault.
-    """
+    ``telemetry`` logs every complete cycle, ``status`` (e.g. stderr) gets a one-line status; the
+    summary's ``exit_code`` is 0 for a clean end, 3 for a fault."""
     loop = ControlLoop(limb, gate, source, config, stop)
     cycle = loop.start()
     if config.on_cycle is not None:

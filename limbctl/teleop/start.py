@@ -229,13 +229,8 @@ def start_session(
     ``gate`` (not yet started) is started from the present pose on success; ``stream`` gets the
     messages and live status line, ``publish`` each :class:`StartStatus` while outside; ``stop``
     (Ctrl-C) gives up; ``torque_was_on``: the caller switched torque off (said to a limb outside).
-
-    Returns
-    -------
-    StartOutcome
-        Started with torque on, or torque off and ``exit_code`` 2 (timed out), 130 (stopped)
-        or 3 (bus failure).
-    """
+    Returns the outcome: started with torque on, or torque off and ``exit_code`` 2 (timed out),
+    130 (stopped) or 3 (bus failure)."""
     options = options or StartOptions()
     stop = stop or threading.Event()
     waiter = _Waiter(limb, gate, options, stream, publish, stop)

@@ -117,13 +117,8 @@ class SourceSpec:
 
 
 def parse_source(spec: str) -> SourceSpec:
-    """Check a source spec such as ``stdin``, ``udp://127.0.0.1:9000`` or ``leader:3,4``.
-
-    Raises
-    ------
-    ConfigError
-        For an unknown scheme, listing the accepted forms, or a malformed argument.
-    """
+    """Check a source spec such as ``stdin``, ``udp://127.0.0.1:9000`` or ``leader:3,4``
+    (ConfigError for an unknown scheme, listing the accepted forms, or a malformed argument)."""
     scheme, _, argument = spec.partition(":")
     kind = SOURCES.get(scheme)
     if kind is None:

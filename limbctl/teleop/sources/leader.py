@@ -29,13 +29,8 @@ FOLLOWER_GRACE_S = 0.055
 
 
 def pose_command(pose: tuple[float, ...]) -> Command:
-    """The command of a leader's pose (rad, one angle per joint).
-
-    Raises
-    ------
-    InvalidInputError
-        Outside the range every source's commands are checked against.
-    """
+    """The command of a leader's pose (rad, one angle per joint); InvalidInputError outside the
+    range every source's commands are checked against."""
     if len(pose) == 3:
         return command_from_pose(*(math.degrees(a) for a in pose))
     return command_from_pan_tilt(math.degrees(pose[0]), math.degrees(pose[1]))

@@ -42,13 +42,8 @@ class LeaderBus:
 
     def start(self) -> None:
         """Switch the leader's torque off for the hand, or set a current-sensing one up to feel
-        the edge (torque on, no current yet).
-
-        Raises
-        ------
-        ConfigError
-            If a felt leader's servo refuses mode 5, or its cycle cannot keep the rate.
-        """
+        the edge (torque on, no current yet). ConfigError if a felt leader's servo refuses mode 5,
+        or its cycle cannot keep the rate."""
         bus = self.rig.bus
         model = model_name(bus.models[self.leader_ids[0]])
         motor = felt_motor(bus, self.leader_ids)

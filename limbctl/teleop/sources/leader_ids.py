@@ -8,13 +8,8 @@ from limbctl.servo.scan import MAX_ID
 
 
 def leader_ids(argument: str) -> tuple[int, ...]:
-    """The servo ids a leader source's argument names: ``ID,ID`` (pan, tilt), ``ID,ID,ID``.
-
-    Raises
-    ------
-    ConfigError
-        Unless the argument is two or three distinct servo ids (0..252).
-    """
+    """The servo ids a leader source's argument names: ``ID,ID`` (pan, tilt), ``ID,ID,ID``
+    (ConfigError unless the argument is two or three distinct servo ids, 0..252)."""
     try:
         ids = tuple(int(i) for i in argument.split(","))
     except ValueError:
@@ -30,13 +25,8 @@ def leader_ids(argument: str) -> tuple[int, ...]:
 
 
 def check_leader_fits(ids: tuple[int, ...], profile: RigProfile) -> None:
-    """Refuse a leader ``ids`` with another number of joints than ``profile`` or a rig's servo.
-
-    Raises
-    ------
-    ConfigError
-        Naming the rig, its ids and the form to give.
-    """
+    """Refuse a leader ``ids`` with another number of joints than ``profile`` or a rig's servo
+    (ConfigError naming the rig, its ids and the form to give)."""
     joints = len(profile.ids)
     if len(ids) != joints:
         form = "leader:ID,ID,ID (pan, tilt, roll)" if joints == 3 else "leader:ID,ID (pan, tilt)"
