@@ -250,20 +250,17 @@ def felt_at_200_hz(
     snap_watch=True,
     release_s=0.0,
     brake=BrakeLaw(),
-    region=None,
     rules=True,
     pushes=None,
 ):
-    """:func:`run_stepped` with ``push_for`` on the script's chain in ``region`` (None: the
-    chain's :func:`region_of`): the 1 ms truth.
-
-    ``cycles`` also "held"; ``motor`` None: the model's; ``snap_watch`` False: the law alone
+    """:func:`run_stepped` with ``push_for`` in the script's chain's :func:`region_of`: the 1 ms
+    truth. ``cycles`` also "held"; ``motor`` None: the model's; ``snap_watch`` False: the law alone
     (round 6); ``rules`` False: no let-go rules; ``pushes`` gets each (pose, push, instead)."""
     motor = motor or motor_of(model)
     joints = len(script[0]) - 1
     _, follower, ids = CHAINS[joints]
     rig, limits = rig_of(joints), limits_of(joints)
-    region = region_of(joints) if region is None else region
+    region = region_of(joints)
     limit = motor.units_for(motor.cap_nm(law.cap_nm))
     hand = {"script": script, "let_go_s": let_go_s, "stiffness_nm_deg": stiffness}
     hand["release_s"] = release_s
