@@ -76,19 +76,25 @@ def test_round_trip_is_exact_visible_before_close_a_torn_tail_dropped_a_dataset_
         live.append(0.0, 0.0, 0.0)
 
 
-def test_explicit_quaternion_is_stored_and_validated(tmp_path):
+def test_a_quaternion_and_the_calibration_are_stored_exactly_and_old_files_have_none(tmp_path):
     path = tmp_path / "q.limb"
     q = np.array([0.0, 0.6, 0.0, -0.8])
-    with DatasetWriter(path, rig="sim", min_free_bytes=SMALL) as out:
+    calibration = default_sim_profile().calibration
+    with DatasetWriter(path, rig="sim", calibration=calibration, min_free_bytes=SMALL) as out:
         out.append(0.0, 0.1, 0.2, q)
         with pytest.raises(InvalidInputError, match="sample 1 quaternion"):
             out.append(0.01, 0.1, 0.2, [1.0, 1.0, 0.0, 0.0])
         with pytest.raises(InvalidInputError, match="non-finite"):
             out.append(float("nan"), 0.1, 0.2)
     data = load_dataset(path)
-    assert len(data) == 1
+    assert len(data) == 1 and data.header.calibration == calibration
     # stored canonical (w >= 0; here w == 0 so the sign is kept) and exact
     np.testing.assert_array_equal(data.quaternions[0], q)
+    first = path.read_bytes().split(b"\n")[0]
+    assert b'"calibration": {"pan": {"zero_tick": 2185, "direction": 1' in first
+    older = tmp_path / "older.limb"  # written before datasets recorded a calibration
+    older.write_bytes(header_line())
+    assert load_dataset(older).header.calibration is None
 
 
 def edit_pan(lines):
@@ -243,18 +249,3 @@ def test_kill_9_loses_at_most_half_a_second(tmp_path):
     # every sample the child reported as appended is in the file, in order
     np.testing.assert_array_equal(data.t[: len(reported)], reported)
     assert len(data) >= len(reported) >= 100
-
-
-# ---- the calibration the samples were read under -----------------------------------------------
-def test_calibration_round_trips_and_old_files_have_none(tmp_path):
-    calibration = default_sim_profile().calibration
-    path = tmp_path / "calibrated.limb"
-    with DatasetWriter(path, rig="sim", calibration=calibration, min_free_bytes=SMALL) as out:
-        out.append(0.0, 0.1, 0.2)
-    assert load_dataset(path).header.calibration == calibration
-    first = path.read_bytes().split(b"\n")[0]
-    assert b'"calibration": {"pan": {"zero_tick": 2185, "direction": 1' in first
-
-    older = tmp_path / "older.limb"  # written before datasets recorded a calibration
-    older.write_bytes(header_line())
-    assert load_dataset(older).header.calibration is None
