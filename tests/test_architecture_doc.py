@@ -95,12 +95,11 @@ def resolve(dotted: str) -> object:
         module = _import(".".join(parts[:cut]))
         if module is None:
             continue
-        target: object = module
-        for attribute in parts[cut:]:
-            if not hasattr(target, attribute):
-                raise LookupError(f"{dotted}: {'.'.join(parts[:cut])} has no {attribute!r} path")
-            target = getattr(target, attribute)
-        return target
+        try:
+            return functools.reduce(getattr, parts[cut:], module)
+        except AttributeError as exc:
+            missing = f"{'.'.join(parts[:cut])} has no {exc.name!r} path"
+            raise LookupError(f"{dotted}: {missing}") from None
     raise LookupError(f"{dotted}: no importable module")
 
 

@@ -395,12 +395,9 @@ def goals_logged(path: Path) -> int:
 
 
 def held_since(rows: list[dict], start: int) -> int:
-    count = 0
-    for row in reversed(rows[start:]):
-        if row["outcome"] != "held" or row["written"]:
-            break
-        count += 1
-    return count
+    """Cycles in a row from ``start`` up to the last holding the limb, no goal written."""
+    held = [row["outcome"] == "held" and not row["written"] for row in rows[start:]]
+    return ([False, *held][::-1]).index(False)
 
 
 def test_a_page_steers_along_the_edge_a_frozen_page_holds_a_killed_one_ends_well(
