@@ -110,26 +110,6 @@ def corrupt_byte(lines):
     lines[3] = lines[3][:3] + b"\xff" + lines[3][4:]
 
 
-@pytest.mark.parametrize(
-    ("damage", "problem"),
-    [
-        (edit_pan, "line 5: checksum mismatch"),
-        (lambda lines: lines.pop(6), "line 7: checksum mismatch"),  # the chain is broken
-        (corrupt_byte, "line 4: not UTF-8"),
-        (lambda lines: lines.__setitem__(2, lines[2].split(b"|")[0]), "line 3: no checksum field"),
-    ],
-    ids=["edited", "deleted", "binary", "no-checksum"],
-)
-def test_a_damaged_record_is_refused_with_its_line_number(tmp_path, damage, problem):
-    path = tmp_path / "damaged.limb"
-    record(path)
-    lines = path.read_bytes().split(b"\n")[:-1]
-    damage(lines)
-    path.write_bytes(b"\n".join(lines) + b"\n")
-    with pytest.raises(FileFormatError, match=rf"damaged\.limb: {problem}"):
-        load_dataset(path)
-
-
 def header_line(**changes):
     header = {
         "format": FORMAT_NAME,
@@ -153,6 +133,10 @@ def non_unit_quaternion_file() -> bytes:
 @pytest.mark.parametrize(
     ("content", "problem"),
     [
+        (edit_pan, "line 5: checksum mismatch"),
+        (lambda lines: lines.pop(6), "line 7: checksum mismatch"),  # the chain is broken
+        (corrupt_byte, "line 4: not UTF-8"),
+        (lambda lines: lines.__setitem__(2, lines[2].split(b"|")[0]), "line 3: no checksum field"),
         (header_line(version=2), "line 1: dataset format version 2.*reads version 1"),
         (header_line(columns=["t", "q"]), "line 1: columns"),
         (b"t,pan,tilt\n0,1,2\n", "not a limbctl orientation dataset"),
@@ -173,15 +157,22 @@ def non_unit_quaternion_file() -> bytes:
         ),
         (header_line(calibration="x" * 100_000), "line 1: calibration must be a mapping"),
     ],
-    ids="version columns csv other png empty torn non-unit no-tilt zero-tick not-a-map".split(),
+    ids="edited deleted binary no-checksum version columns csv other png empty torn non-unit "
+    "no-tilt zero-tick not-a-map".split(),
 )
-def test_another_version_a_foreign_torn_or_non_unit_file_or_a_bad_calibration_is_refused(
+def test_a_damaged_record_another_version_a_foreign_or_torn_file_or_a_bad_header_is_refused(
     tmp_path, content, problem
 ):
     path = tmp_path / "refused.limb"
+    if callable(content):  # a damage to the lines of a recording of 20 samples
+        record(path)
+        lines = path.read_bytes().split(b"\n")[:-1]
+        content(lines)
+        content = b"\n".join(lines) + b"\n"
     path.write_bytes(content)
     with pytest.raises(FileFormatError, match=problem) as err:
         load_dataset(path)
+    assert err.value.path == str(path)
     assert len(str(err.value)) < 400, "a long value is echoed"  # a 100,000-character one
 
 
