@@ -88,7 +88,7 @@ def teaching(path: Path, rig: str = "sim") -> Path:
             for t, pan, tilt in zip(data.t, data.pan_deg, data.tilt_deg, strict=True):
                 writer.append(float(t), math.radians(pan), math.radians(tilt))
             return path
-        region = ShoulderRegion(_demo_polygon("demo_region3.yaml"), *TWIST_HALF_DEG, 0, 0, 0)
+        region = ShoulderRegion(_demo_polygon("demo_region3.yaml"), *TWIST_HALF_DEG, 0.0, 0.0, 0.0)
         q = region.teaching(1500, 700, 700, np.random.default_rng(1))
         pan, tilt = direction_to_pan_tilt(limb_direction(q))
         for i in range(len(q)):

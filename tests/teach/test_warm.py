@@ -24,6 +24,7 @@ from tests.test_first_run import ROOT, compiled_by, teaching
 LIBRARY = (
     COUNTER
     + r"""
+import numpy as np
 from limbctl.envelope import RigidMap
 from limbctl.envelope.synthetic_twist import ShoulderRegion
 from limbctl.geometry.quat import limb_direction, swing_from_direction
