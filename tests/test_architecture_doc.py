@@ -3,6 +3,7 @@ and links resolve, every limbctl part is named; a stale document shows the check
 
 from __future__ import annotations
 
+import functools
 import importlib
 import re
 from functools import cache
@@ -94,33 +95,30 @@ def resolve(dotted: str) -> object:
         module = _import(".".join(parts[:cut]))
         if module is None:
             continue
-        target: object = module
-        for attribute in parts[cut:]:
-            if not hasattr(target, attribute):
-                raise LookupError(f"{dotted}: {'.'.join(parts[:cut])} has no {attribute!r} path")
-            target = getattr(target, attribute)
-        return target
+        try:
+            return functools.reduce(getattr, parts[cut:], module)
+        except AttributeError as exc:
+            missing = f"{'.'.join(parts[:cut])} has no {exc.name!r} path"
+            raise LookupError(f"{dotted}: {missing}") from None
     raise LookupError(f"{dotted}: no importable module")
 
 
 def named_modules(text: str) -> list[ModuleType]:
     """The modules the document names, by path or by dotted name."""
     names = {module_of_path(span) for span in cited_paths(text)}
-    for span in code_spans(text):
-        if _DOTTED.match(span):
-            parts = span.removesuffix("()").split(".")
-            names.update(".".join(parts[:cut]) for cut in range(1, len(parts) + 1))
+    for span in filter(_DOTTED.match, code_spans(text)):
+        parts = span.removesuffix("()").split(".")
+        names.update(".".join(parts[:cut]) for cut in range(1, len(parts) + 1))
     return [m for name in sorted(n for n in names if n) if (m := _import(name)) is not None]
 
 
 def unresolved_dotted(text: str) -> list[str]:
     bad = []
-    for span in code_spans(text):
-        if _DOTTED.match(span):
-            try:
-                resolve(span)
-            except LookupError as exc:
-                bad.append(str(exc))
+    for span in filter(_DOTTED.match, code_spans(text)):
+        try:
+            resolve(span)
+        except LookupError as exc:
+            bad.append(str(exc))
     return bad
 
 
@@ -145,10 +143,10 @@ def unresolved_bare(text: str) -> list[str]:
 
 
 def _has_path(target: object, parts: list[str]) -> bool:
-    for attribute in parts:
-        if not hasattr(target, attribute):
-            return False
-        target = getattr(target, attribute)
+    try:
+        functools.reduce(getattr, parts, target)
+    except AttributeError:
+        return False
     return True
 
 
@@ -172,14 +170,13 @@ def broken_links(text: str, doc: Path = DOC) -> list[str]:
     """Relative links whose file (or ``#anchor`` heading) does not exist."""
     bad = []
     for target in _LINK.findall(_FENCE.sub("", text)):
-        if re.match(r"^[a-z]+://", target):
-            bad.append(f"{target}: links outside the repository")
-            continue
         file_part, _, anchor = target.partition("#")
         path = (doc.parent / file_part) if file_part else doc
-        if not path.is_file():
-            bad.append(target)
-        elif anchor and anchor not in _anchors(path.read_text(encoding="utf-8")):
+        if re.match(r"^[a-z]+://", target):
+            bad.append(f"{target}: links outside the repository")
+        elif not path.is_file() or (
+            anchor and anchor not in _anchors(path.read_text(encoding="utf-8"))
+        ):
             bad.append(target)
     return bad
 

@@ -5,6 +5,7 @@ import os
 import pytest
 
 from limbctl.cli import build_parser, main
+from limbctl.teleop.commands import _ALLOWED_KEYS, _TWIST_KEYS
 from tests.safety.support import wait_for
 
 COMMANDS = "demo calibrate record train teleop reboot motors plot eval info prepare".split()
@@ -17,8 +18,20 @@ def _help(argv: list[str], capsys) -> str:
     return " ".join(capsys.readouterr().out.split())  # argparse wraps lines anywhere
 
 
+#: What a help says beyond its options: both rigs, and every key a teleop command line may hold.
+SAYS = {
+    "": ["two servos (pan, tilt) or three (and roll)"],
+    "record": ["pan, tilt; and roll on three servos"],
+    "teleop": [
+        *(f"'{key}'" for key in sorted((_ALLOWED_KEYS | _TWIST_KEYS) - {"t"})),
+        "leader:ID,ID,ID",
+        "[ ] roll",
+    ],
+}
+
+
 @pytest.mark.parametrize("command", ["", *COMMANDS])
-def test_every_command_has_help_with_its_options(command, capsys):
+def test_every_command_has_help_with_its_options_and_speaks_of_both_rigs(command, capsys):
     out = _help([command] if command else [], capsys)
     parser = build_parser()
     sub = next(a for a in parser._actions if a.dest == "command").choices.get(command, parser)
@@ -26,6 +39,8 @@ def test_every_command_has_help_with_its_options(command, capsys):
         for flag in action.option_strings:
             assert flag in out
     assert command or all(name in out for name in COMMANDS)  # the top level lists every command
+    assert all(words in out for words in SAYS.get(command, [])), command
+    assert "both joints" not in out
 
 
 def test_errors_and_bad_option_values_are_one_bounded_line_and_exit_2(tmp_path, capsys):
@@ -135,17 +150,3 @@ def test_teleop_at_57600_baud_says_the_wire_cannot_carry_200_hz(tmp_path, capsys
     teleop = ["teleop", "--model", str(model), "--source", f"replay:{commands}", "--quiet"]
     assert main([*teleop, "--baud", "57600", "--latency-timer", "16"]) == 0
     assert "warning: at 57600 baud one cycle's 80 bytes take 13.9 ms" in capsys.readouterr().err
-
-
-def test_help_speaks_of_both_rigs_and_names_every_command_form(capsys):
-    from limbctl.teleop.commands import _ALLOWED_KEYS, _TWIST_KEYS
-
-    top = _help([], capsys)
-    assert "two servos (pan, tilt) or three (and roll)" in top
-    assert "both joints" not in _help(["record"], capsys)
-    assert "pan, tilt; and roll on three servos" in _help(["record"], capsys)
-    teleop = _help(["teleop"], capsys)
-    # every key a command line may hold on either rig, and the three-servo leader and keys
-    for key in sorted((_ALLOWED_KEYS | _TWIST_KEYS) - {"t"}):
-        assert f"'{key}'" in teleop, key
-    assert "leader:ID,ID,ID" in teleop and "[ ] roll" in teleop

@@ -10,10 +10,15 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
+from limbctl.envelope.synthetic_twist import ShoulderRegion
+from limbctl.geometry.gimbal import direction_to_pan_tilt
+from limbctl.geometry.quat import limb_direction
 from limbctl.servo.profiles import load_rig_profile
 from limbctl.teach.dataset import DatasetWriter, load_dataset
+from limbctl.teach.warm import TWIST_HALF_DEG, _demo_polygon
 from tests.compile_probe import COUNTER
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -73,13 +78,21 @@ def _within(what: str, found: tuple[list[str], list[str]], limits: tuple[int, in
     assert len(helpers) <= limits[1], f"{what} compiles {len(helpers)} helpers: {sorted(helpers)}"
 
 
-def teaching(path: Path) -> Path:
-    """The recorded teaching, written again under the simulated rig's calibration."""
-    data = load_dataset(TEACHING)
-    profile = load_rig_profile(None)
+def teaching(path: Path, rig: str = "sim") -> Path:
+    """A teaching written under the simulated ``rig``'s calibration: on two servos the recorded
+    one; on three a synthetic one of the demo region (another seed than the warm-up's)."""
+    profile = load_rig_profile(None if rig == "sim" else rig)
     with DatasetWriter(path, rig=profile.name, calibration=profile.calibration) as writer:
-        for t, pan, tilt in zip(data.t, data.pan_deg, data.tilt_deg, strict=True):
-            writer.append(float(t), math.radians(pan), math.radians(tilt))
+        if rig == "sim":
+            data = load_dataset(TEACHING)
+            for t, pan, tilt in zip(data.t, data.pan_deg, data.tilt_deg, strict=True):
+                writer.append(float(t), math.radians(pan), math.radians(tilt))
+            return path
+        region = ShoulderRegion(_demo_polygon("demo_region3.yaml"), *TWIST_HALF_DEG, 0.0, 0.0, 0.0)
+        q = region.teaching(1500, 700, 700, np.random.default_rng(1))
+        pan, tilt = direction_to_pan_tilt(limb_direction(q))
+        for i in range(len(q)):
+            writer.append(i / 125.0, float(pan[i]), float(tilt[i]), q[i])
     return path
 
 

@@ -38,11 +38,8 @@ def all_modules() -> dict[str, Path]:
 
 
 def imported(path: Path, name: str, modules: dict[str, Path]) -> set[str]:
-    """Every module ``path`` imports, at top level or inside functions, as dotted names.
-
-    ``from package import module`` counts as importing ``package.module`` only (the package's
-    ``__init__`` runs too, but it re-exports from below, which its own edges show).
-    """
+    """Every module ``path`` imports, at top level or inside functions, as dotted names
+    (``from package import module`` as ``package.module``: ``__init__`` re-exports from below)."""
     package = name if path.name == "__init__.py" else name.rpartition(".")[0]
     found: set[str] = set()
     for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):

@@ -52,9 +52,8 @@ from tests.view.browser import (
 
 
 def watched(job, look, started=lambda: True) -> int:
-    """Run ``job()`` (which takes signals in the main thread) while a thread runs ``look()``,
-    then sends Ctrl-C (SIGINT) once ``started()``; a SIGINT outside the job's own handler is
-    dropped. Returns the job's status; raises what ``look`` raised."""
+    """``job()``'s status, run while a thread runs ``look()`` (raising what it raised), then
+    sends SIGINT once ``started()``; a SIGINT outside the job's own handler is dropped."""
     raised: list[BaseException] = []
 
     def looking() -> None:
@@ -226,17 +225,8 @@ def test_teleop_feed_keeps_the_last_written_pose_names_the_edge_and_the_leaders_
     # the page's plane is seen from behind the limb, as the terminal names it: +pan is left
     assert status.words == "at the edge: left and up are blocked, holding there"
     # the guide's figures say what the guidance says
-    guidance = Guidance(
-        samples=500,
-        phase="edge",
-        edge_closed=0.625,
-        inside_covered=0.25,
-        edge_gaps=(),
-        inside_gaps=(),
-        ready=False,
-        centre_deg=(10.0, 5.0),
-        spread_deg=20.0,
-    )
+    # 500 samples tracing the edge: 62.5 % of it closed, a quarter of the inside covered
+    guidance = Guidance(500, "edge", 0.625, 0.25, (), (), False, (10.0, 5.0), 20.0)
     figures, advice = guide_figures(guidance)
     shown = {figure.label: (figure.value, figure.unit) for figure in figures}
     assert shown["edge closed"] == (62.5, "%") and shown["inside covered"] == (25.0, "%")
@@ -405,12 +395,9 @@ def goals_logged(path: Path) -> int:
 
 
 def held_since(rows: list[dict], start: int) -> int:
-    count = 0
-    for row in reversed(rows[start:]):
-        if row["outcome"] != "held" or row["written"]:
-            break
-        count += 1
-    return count
+    """Cycles in a row from ``start`` up to the last holding the limb, no goal written."""
+    held = [row["outcome"] == "held" and not row["written"] for row in rows[start:]]
+    return ([False, *held][::-1]).index(False)
 
 
 def test_a_page_steers_along_the_edge_a_frozen_page_holds_a_killed_one_ends_well(

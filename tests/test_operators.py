@@ -75,15 +75,10 @@ def test_a_bad_operator_file_is_refused_naming_the_file_and_the_fault(tmp_path, 
     assert says in str(caught.value)
 
 
-@pytest.fixture
-def cone_model(cone_file):
-    """A 30 deg cone about the rest direction, for the simulated rig."""
-    return cone_file(EDGE)
-
-
 def test_an_operator_or_a_leader_that_cannot_run_is_refused_before_anything_opens(
-    cone_model, tmp_path, capsys
+    cone_file, tmp_path, capsys
 ):
+    cone_model = cone_file(EDGE)
     stdin = TeleopOptions(model=cone_model, source="stdin", operator="push")
     with pytest.raises(ConfigError, match="use it with --source leader:ID,ID"):
         run_teleop(stdin)
@@ -127,39 +122,54 @@ def test_an_operator_or_a_leader_that_cannot_run_is_refused_before_anything_open
 #: What a felt run says at its end, and when the feel went off for good (a loaded machine).
 PRESSED = r"pressed beyond the edge for ([\d.]+) s, .* ([\d.]+) N m at most"
 FEEL_OFF = r"the push is off, mirroring goes on without feel"
+#: Per rig: the operator file, its leader, and what the run says the leader feels.
+PRESSES = {
+    # pressed 25 deg past a 30 deg cone
+    "sim": (
+        "start_deg: [0, 0]\nscript: [[0, 0, 0], [0.5, 0, 0], [1.5, 55, 0]]\nlet_go_s: 4.0\n",
+        "leader:3,4",
+        "feels the edge",
+    ),
+    # roll 150 deg at pan 0, tilt 10, far past the band, in a session opening its source late
+    "sim3": (
+        "start_deg: [0, 10, 0]\nscript: [[0, 0, 10, 0], [0.5, 0, 10, 0], [2, 0, 10, 150]]\n"
+        "let_go_s: 4\n",
+        "leader:4,5,6",
+        "(three servos) feels the edge in swing and twist",
+    ),
+}
 
 
-def teleop_with_operator(capsys, hand, text: str, **options) -> tuple[str, re.Match | None]:
-    """Run ``limbctl teleop``'s job for 5 s with the operator file ``hand`` (``text``): what it
-    said, and its press report (None when a loaded machine switched the feel off)."""
+@pytest.mark.parametrize("rig", list(PRESSES))
+def test_a_simulated_operator_presses_a_felt_leader_past_the_edge_on_teleop(
+    rig, cone_file, shoulder_model_path, tmp_path, capsys
+):
+    """``limbctl teleop``'s job for 5 s with an operator file: the operator and its press are
+    said (unless a loaded machine switched the feel off); on two servos the follower is held."""
+    text, source, feels = PRESSES[rig]
+    hand, telemetry = tmp_path / "hand.yaml", tmp_path / "run.jsonl"
     hand.write_text(text)
-    view = ViewOptions(enabled=False)
-    run = TeleopOptions(operator=str(hand), duration=5.0, quiet=True, view=view, **options)
+    run = TeleopOptions(
+        model=cone_file(EDGE) if rig == "sim" else shoulder_model_path,
+        source=source,
+        operator=str(hand),
+        duration=5.0,
+        quiet=True,
+        telemetry=telemetry,
+        view=ViewOptions(enabled=False),
+        connection=Connection(rig=Path(rig)),
+    )
     assert run_teleop(run) == 0
     said = capsys.readouterr().err
     assert f"a simulated operator ({hand}) moves the xm430-w350 leader" in said, said[-800:]
-    pressed = re.search(PRESSED, said)
-    if re.search(FEEL_OFF, said):
-        return said, None
-    assert pressed, said
-    return said, pressed
-
-
-def test_a_simulated_operator_presses_a_felt_leader_past_the_edge_on_teleop(
-    cone_model, tmp_path, capsys
-):
-    """A leader pressed 25 deg past a 30 deg cone: the press said, the follower held at the edge."""
-    telemetry = tmp_path / "run.jsonl"
-    said, pressed = teleop_with_operator(
-        capsys,
-        tmp_path / "hand.yaml",
-        "start_deg: [0, 0]\nscript: [[0, 0, 0], [0.5, 0, 0], [1.5, 55, 0]]\nlet_go_s: 4.0\n",
-        model=cone_model,
-        source="leader:3,4",
-        telemetry=telemetry,
-    )
-    assert "feels the edge" in said, said[-800:]
-    assert pressed is None or (float(pressed[1]) > 1.0 and float(pressed[2]) > 0.1), said
+    assert feels in said, said[-800:]
+    feel_off = re.search(FEEL_OFF, said)
+    pressed = None if feel_off else re.search(PRESSED, said)
+    assert pressed or feel_off, said
+    assert pressed is None or float(pressed[1]) > 1.0, said
+    if rig == "sim3":
+        return
+    assert pressed is None or float(pressed[2]) > 0.1, said
     rows = [json.loads(line) for line in telemetry.read_text().splitlines()]
     # nothing past the edge was written, however far the operator pressed
     assert max(row["out"][0] for row in rows if row["written"]) <= EDGE + 1e-6
@@ -167,20 +177,3 @@ def test_a_simulated_operator_presses_a_felt_leader_past_the_edge_on_teleop(
         # where a loaded machine let a cycle release it
         held = [row["cmd"][0] for row in rows if 2.0 <= row["t"] <= 4.0]
         assert held and EDGE < max(held) < EDGE + 6.0, max(held)
-
-
-def test_a_three_servo_leader_pressed_past_the_twist_band_is_reported_on_teleop(
-    tmp_path, capsys, shoulder_model_path
-):
-    """A three-servo session, which opens its source late, still says the leader and its press."""
-    said, pressed = teleop_with_operator(  # roll 150 deg at pan 0, tilt 10: far past the band
-        capsys,
-        tmp_path / "roll.yaml",
-        "start_deg: [0, 10, 0]\nscript: [[0, 0, 10, 0], [0.5, 0, 10, 0], [2, 0, 10, 150]]\n"
-        "let_go_s: 4\n",
-        model=shoulder_model_path,
-        source="leader:4,5,6",
-        connection=Connection(rig=Path("sim3")),
-    )
-    assert "(three servos) feels the edge in swing and twist" in said, said[-800:]
-    assert pressed is None or float(pressed[1]) > 1.0, said

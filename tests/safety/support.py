@@ -282,10 +282,7 @@ class LoopThread:
 
     def __exit__(self, *exc) -> None:
         self.stop.set()
-        self._thread.join(timeout=60)
-        assert not self._thread.is_alive(), "the control loop did not stop"
-        if self.error is not None:
-            raise self.error
+        self.join()
 
     def join(self, timeout_s: float = 60.0) -> None:
         self._thread.join(timeout=timeout_s)

@@ -74,14 +74,6 @@ def faulted(sim, rig, inject, lines=None, after: int = 20, **options) -> LoopThr
     return loop
 
 
-def assert_told_unreachable(fault: str, safe_state: SafeState) -> None:
-    """A fault that left a servo unreachable says what the safe state could not make sure of."""
-    if safe_state is SafeState.TORQUE_OFF:
-        assert "could not switch torque off" in fault and "cut the servo power" in fault, fault
-    else:
-        assert "torque state unknown" in fault, fault
-
-
 def last_goals(log) -> dict[int, int]:
     poses = goal_log_poses(log)
     assert poses, "no goal reached the servos"
@@ -124,16 +116,36 @@ def test_reply_faults_are_ridden_through(tmp_path, faults):
     assert_gated(log, gate, rig)
 
 
-# ---- a servo disappears (a brief dropout: test_a_dropout_keeps_the_loop_cycling_...) ----------
+# ---- a servo or the port goes for good (a brief dropout: test_a_dropout_keeps_the_loop_...) ----
+GONE = {
+    "servo": lambda sim: sim.vanish(2, 3600.0),
+    "port": lambda sim: sim.close(),  # the adapter is unplugged: the pty and the simulator go
+}
+
+
 @pytest.mark.parametrize("safe_state", [SafeState.HOLD, SafeState.TORQUE_OFF])
-def test_servo_that_stays_away_ends_in_the_safe_state(tmp_path, safe_state):
+@pytest.mark.parametrize("gone", list(GONE))
+def test_a_servo_or_the_port_gone_for_good_ends_in_the_safe_state_naming_it(
+    tmp_path, gone, safe_state
+):
     log = tmp_path / "goals.jsonl"
     with live_rig(goal_log=log) as (sim, rig):
-        vanish = lambda sim: sim.vanish(2, 3600.0)  # noqa: E731
-        summary = faulted(sim, rig, vanish, max_failed_cycles=5, safe_state=safe_state).summary
-        truth = sim.truth()
-        goals = last_goals(log)
+        loop = faulted(sim, rig, GONE[gone], max_failed_cycles=5, safe_state=safe_state)
+        summary = loop.summary
+        if gone == "servo":
+            truth, goals = sim.truth(), last_goals(log)
     assert summary.exit_code == 3 and summary.ended_by == "fault"
+    # it says what the safe state could not make sure of on the unreachable servo
+    if safe_state is SafeState.TORQUE_OFF:
+        assert "could not switch torque off" in summary.fault, summary.fault
+        assert "cut the servo power" in summary.fault
+    else:
+        assert "torque state unknown" in summary.fault, summary.fault
+    if gone == "port":
+        assert "unplugged" in summary.fault and sim.port in summary.fault, summary.fault
+        # whatever reached the servos before the port went was gated
+        assert_gated(log, loop.gate, rig)
+        return
     # named while missing, then lost after lost_after_s (judged by time, not failed cycles)
     assert "servo 2 stopped answering" in " ".join(summary.notices)
     assert "servo 2 lost: no answer for" in summary.fault, summary.fault
@@ -141,7 +153,6 @@ def test_servo_that_stays_away_ends_in_the_safe_state(tmp_path, safe_state):
     servos = truth["servos"]
     # the servo that answers does what the message says; the lost one keeps its last goal
     assert servos[2]["goal_position"] == goals[2]
-    assert_told_unreachable(summary.fault, safe_state)
     if safe_state is SafeState.TORQUE_OFF:
         assert not servos[1]["torque_on"]
     else:
@@ -200,23 +211,6 @@ def test_alarm_ends_in_the_configured_and_reported_state(tmp_path, alarm, safe_s
         assert f"{names[servo_id]} torque off" in summary.fault, summary.fault
     else:
         assert "holding the last safe pose (torque on)" in summary.fault
-
-
-# ---- the port vanishes --------------------------------------------------------------------------
-@pytest.mark.parametrize("safe_state", [SafeState.HOLD, SafeState.TORQUE_OFF])
-def test_port_that_vanishes_ends_with_a_message_naming_it(tmp_path, safe_state):
-    log = tmp_path / "goals.jsonl"
-    with live_rig(goal_log=log) as (sim, rig):
-        # the adapter is unplugged: the pty and the simulator go away
-        loop = faulted(
-            sim, rig, lambda sim: sim.close(), max_failed_cycles=5, safe_state=safe_state
-        )
-        summary = loop.summary
-    assert summary.exit_code == 3 and summary.ended_by == "fault"
-    assert "unplugged" in summary.fault and sim.port in summary.fault, summary.fault
-    assert_told_unreachable(summary.fault, safe_state)
-    # whatever reached the servos before the port went was gated
-    assert_gated(log, loop.gate, rig)
 
 
 # ---- faults the servos themselves show -----------------------------------------------------

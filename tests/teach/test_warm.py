@@ -9,7 +9,6 @@ import sys
 import threading
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from limbctl.cli import main
@@ -18,27 +17,6 @@ from limbctl.region.correct_kernels import SINGLE_ROWS
 from limbctl.teach.warm import LARGE_BATCH, warming_in_background
 from tests.compile_probe import COUNTER
 from tests.test_first_run import ROOT, compiled_by, teaching
-
-
-def teaching3(path: Path) -> Path:
-    """A synthetic teaching of the three-servo demo region (another seed than the warm-up's),
-    written under the simulated three-servo rig's calibration (so train fits the twist band)."""
-    from limbctl.envelope.synthetic_twist import ShoulderRegion
-    from limbctl.geometry.gimbal import direction_to_pan_tilt
-    from limbctl.geometry.quat import limb_direction
-    from limbctl.servo.profiles import load_rig_profile
-    from limbctl.teach.dataset import DatasetWriter
-    from limbctl.teach.warm import TWIST_HALF_DEG, _demo_polygon
-
-    region = ShoulderRegion(_demo_polygon("demo_region3.yaml"), *TWIST_HALF_DEG, 0.0, 0.0, 0.0)
-    q = region.teaching(1500, 700, 700, np.random.default_rng(1))
-    pan, tilt = direction_to_pan_tilt(limb_direction(q))
-    profile = load_rig_profile("sim3")
-    with DatasetWriter(path, rig=profile.name, calibration=profile.calibration) as writer:
-        for i in range(len(q)):
-            writer.append(i / 125.0, float(pan[i]), float(tilt[i]), q[i])
-    return path
-
 
 #: A library user's first use in a fresh process: a fit of bare orientations (another seed and
 #: size than the warm-up's teaching), then ``contains`` and ``correct`` of one orientation and of
@@ -91,7 +69,7 @@ def test_after_prepare_train_teleop_and_a_library_fit_compile_no_kernel(rig, tmp
     assert done.returncode == 0, done.stderr
     assert json.loads(log.read_text()) == []
     # a teaching recorded with no warm-up since (prepare only): train, then a teleop start
-    data = (teaching3 if twist else teaching)(tmp_path / "teach.limb")
+    data = teaching(tmp_path / "teach.limb", rig)
     model = tmp_path / "model.npz"
     ours, _ = compiled_by(["train", str(data), "--out", str(model)], tmp_path, prepared=True)
     assert ours == []

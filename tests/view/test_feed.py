@@ -26,7 +26,9 @@ class GrowingSamples:
         return self._all[: self._count]
 
 
-def test_a_refit_waits_out_its_period_and_starts_at_once_once_it_is_over(monkeypatch):
+def test_a_refit_waits_out_its_period_and_starts_at_once_and_without_fits_only_scenes_wake(
+    monkeypatch,
+):
     """The feeder wakes when the refit period is over; a refit already due starts at once (the
     race that left redraws 0.5 s apart: the period ended between the collect and the wait)."""
     feeder = SceneFeeder(Board(), GrowingSamples())
@@ -49,9 +51,7 @@ def test_a_refit_waits_out_its_period_and_starts_at_once_once_it_is_over(monkeyp
         assert feeder._fits.busy, "the due refit did not start"
     finally:
         feeder.__exit__(None, None, None)
-
-
-def test_without_fits_the_feeder_wakes_for_the_next_scene_only():
+    # without fits the feeder wakes for the next scene only
     feeder = SceneFeeder(Board(), GrowingSamples(), fit=False)
     feeder.publish_once()
     due = time.monotonic() + SCENE_PERIOD_S
