@@ -27,6 +27,7 @@ from limbctl.region.evidence import (
     unsupported_stations,
     unsupported_stretches,
 )
+from limbctl.region.evidence_clip import Clip, clip_to_evidence, clipped_stretches
 from limbctl.region.gaps import ORDER_STATISTICS
 from limbctl.region.mesh import DirectionMesh, boundary_edges
 from limbctl.region.params import RegionParams
@@ -46,7 +47,7 @@ CORNER_TURN_DEG = 60.0
 #: Least growth of the thinning spacing a step while over the cap: ends in a few steps.
 THIN_GROWTH = 1.05
 #: Version of the construction, raised when it changes a region: `limbctl eval`'s cache key.
-FIT_VERSION = 20
+FIT_VERSION = 21
 #: Carving rounds at most: a bridged bay is a few triangles deep; 12 empty the families' bays.
 CARVE_ROUNDS = 12
 #: Most share of taught samples carving may leave out: a bay's bridge holds none.
@@ -76,8 +77,10 @@ class TaughtRegion:
         (:mod:`limbctl.region.evidence`), farthest first, each marked ``held`` when the region
         was held there; empty after loading.
     held_edge : bool
-        Whether the region was held to the evidence (:mod:`limbctl.region.edge_hold`); False
-        after loading.
+        Whether the region was held to the evidence (:mod:`limbctl.region.edge_hold`, or cut
+        back to it, :mod:`limbctl.region.evidence_clip`); False after loading.
+    clip : Clip or None
+        What the last cut back to the evidence did (None after loading).
     """
 
     def __init__(self, params: RegionParams | None = None) -> None:
@@ -88,6 +91,7 @@ class TaughtRegion:
         self.support_index: np.ndarray | None = None
         self.unsupported_edge: tuple[Stretch, ...] = ()
         self.held_edge = False
+        self.clip: Clip | None = None
 
     def fit(self, samples: np.ndarray, lookup: bool = True) -> TaughtRegion:
         """Build the region from taught ``samples``: directions (N, 3) or quaternions (N, 4).
@@ -96,7 +100,7 @@ class TaughtRegion:
         """
         d = taught_directions(samples)
         self.support_index, spacing = self._thinned(d)
-        self.mesh = self._build(d[self.support_index], d, spacing)
+        self.mesh = self._clipped(self._build(d[self.support_index], d, spacing), d)
         if lookup:
             self.mesh.build_lookup()
         return self
@@ -149,7 +153,8 @@ class TaughtRegion:
         # containment over coverage: held to REACH_DEG, then to HOLD_REACH_DEG where that holds;
         # patient (arcs by samples it cannot keep stay at REACH_DEG) only on a region held to
         # REACH_DEG: where that gave up, the samples are too sparse for any hold (a 90 deg cone's
-        # 1000 samples: half its edge walked 3 deg in, no containment gained)
+        # 1000 samples: half its edge walked 3 deg in, no containment gained; retried straight
+        # it walked 3.85 deg in, docs/decisions/region.md); the cut (_clipped) comes last
         region, self.held_edge = hold_to_evidence(taken.region, d_train)
         tight_reach = np.radians(HOLD_REACH_DEG)
         tight, held_tight = hold_to_evidence(region, d_train, tight_reach, patient=self.held_edge)
@@ -165,6 +170,19 @@ class TaughtRegion:
         if self.held_edge:
             self.unsupported_edge = held_stretches(self.unsupported_edge, region, d_train)
         return region
+
+    def _clipped(self, region: DirectionMesh, d_train: np.ndarray) -> DirectionMesh:
+        """``region`` with every edge point held within ``CLIP_REACH_DEG`` of the taught
+        ``d_train`` (N, 3) (:mod:`limbctl.region.evidence_clip`); each place cut listed as a
+        held stretch."""
+        if region.edges.shape[0] == 0:
+            return region
+        clip = self.clip = clip_to_evidence(region, d_train)
+        if not clip.cut:
+            return region
+        self.held_edge = True
+        self.unsupported_edge = clipped_stretches(self.unsupported_edge, clip)
+        return clip.region
 
     def _shape(
         self, d: np.ndarray, thinning: float, alpha: float

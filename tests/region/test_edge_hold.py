@@ -16,14 +16,19 @@ from limbctl.region.evidence import (
     REACH_DEG,
     STATION_DEG,
     edge_stations,
+    outer_arcs,
     unsupported_stations,
 )
+from limbctl.region.evidence_clip import CLIP_REACH_DEG, DEEP_DEG, Clip
 from limbctl.region.mesh import DirectionMesh
 from tests.region.support import benchmark
 from tests.region.test_evidence import notched_ellipse
 
 #: The scan's own step (deg): a direction of the region lies within half a diagonal of it.
 SCAN_DEG = 0.1
+#: Step (deg) at which the held edge is checked against the reach: a point between two checked
+#: ones lies at most half of it farther from the samples.
+CHECK_DEG = 0.02
 
 
 @pytest.fixture(scope="module")
@@ -35,28 +40,42 @@ def sparse_notch():
     taught = truth.sample(1500, np.random.default_rng(1))
     lo, hi = outline.min(axis=0) - 4.0, outline.max(axis=0) + 4.0
     region = TaughtRegion().fit(taught)
-    saved = taught_module.hold_to_evidence
+    saved = taught_module.hold_to_evidence, taught_module.clip_to_evidence
     taught_module.hold_to_evidence = lambda mesh, data, *_, **__: (mesh, False)
+    taught_module.clip_to_evidence = lambda mesh, data, *_, **__: Clip.nothing(mesh)
     try:
         unheld = TaughtRegion().fit(taught)
     finally:
-        taught_module.hold_to_evidence = saved
+        taught_module.hold_to_evidence, taught_module.clip_to_evidence = saved
     return truth, taught, ((lo[0], hi[0]), (lo[1], hi[1])), region, unheld
 
 
-def test_a_sparse_teaching_is_held_to_the_evidence(sparse_notch):
+@pytest.fixture(scope="module")
+def held_uncut(sparse_notch):
+    """The same teaching's region held, not cut back to the evidence (its edge as the holds
+    leave it)."""
+    saved = taught_module.clip_to_evidence
+    taught_module.clip_to_evidence = lambda mesh, data, *_, **__: Clip.nothing(mesh)
+    try:
+        return TaughtRegion().fit(sparse_notch[1])
+    finally:
+        taught_module.clip_to_evidence = saved
+
+
+def test_a_sparse_teaching_is_held_to_the_evidence(sparse_notch, held_uncut):
     truth, taught, box, region, unheld = sparse_notch
     reach = reach_into(region.contains, truth, box, step_deg=SCAN_DEG)
     bound = REACH_DEG + 0.5 * STATION_DEG + np.hypot(SCAN_DEG, SCAN_DEG)
     assert region.held_edge and region.unsupported_edge
     assert reach <= bound, f"the held region reaches {reach:.2f} deg past the truth"
-    # the report still names the stretches, held; where the hold gave arcs back, the region's
-    # edge still stands past the reach, and that place is named unheld (asked, never settled)
+    # the report still names the stretches, held; where the hold gave arcs back, the held
+    # region's edge still stands past the reach, and that place is named unheld (asked, never
+    # settled); the cut back to the evidence names its places held
     assert any(s.held for s in region.unsupported_edge)
     assert any("held at the evidence" in s.line() for s in region.unsupported_edge)
     d = taught_module.taught_directions(taught)
     far = unsupported_stations(
-        region.mesh, d, np.radians(REACH_DEG + HELD_SLACK_DEG), surrounded=False
+        held_uncut.mesh, d, np.radians(REACH_DEG + HELD_SLACK_DEG), surrounded=False
     )[3]
     left = [s for s in region.unsupported_edge if not s.held]
     assert (far.size > 0) == bool(left), (far.size, left)
@@ -79,6 +98,25 @@ def test_a_region_with_no_far_station_is_returned_as_it_is(sparse_notch):
     assert same is region.mesh and not held
     # while the teaching alone leaves stations to hold
     assert hold_to_evidence(unheld.mesh, d)[1]
+
+
+def test_every_point_of_the_held_edge_lies_within_reach_of_a_sample(sparse_notch, held_uncut):
+    """Every point of the region's outer edge (checked ``CHECK_DEG`` apart) lies within
+    ``CLIP_REACH_DEG`` plus half the check step of a taught sample, or where the cut back to the
+    evidence stopped, ``DEEP_DEG`` inside the held region: the holds bound their stations, not
+    every point of their chords, and the cut (:mod:`limbctl.region.evidence_clip`) takes the
+    rest (before it: 1.47 deg from every sample)."""
+    _, taught, _, region, _ = sparse_notch
+    d = taught_module.taught_directions(taught)
+    stations, arc = edge_stations(region.mesh, np.radians(CHECK_DEG))
+    stations = stations[outer_arcs(region.mesh)[arc]]
+    far = np.degrees(2.0 * np.arcsin(0.5 * cKDTree(d).query(stations)[0]))
+    assert region.held_edge and region.clip.cut
+    before, _ = edge_stations(held_uncut.mesh, np.radians(CHECK_DEG))
+    deep = stations[far > CLIP_REACH_DEG + 0.5 * CHECK_DEG]
+    depth = np.degrees(2.0 * np.arcsin(0.5 * cKDTree(before).query(deep)[0]))
+    assert held_uncut.mesh.contains(deep).all()
+    assert np.all(depth >= DEEP_DEG - CHECK_DEG), depth.min()
 
 
 @pytest.mark.parametrize(

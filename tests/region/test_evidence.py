@@ -12,6 +12,7 @@ from limbctl.geometry.twist import decompose
 from limbctl.region import RegionParams, TaughtRegion
 from limbctl.region import taught as taught_module
 from limbctl.region.evidence import SETTLED_DEG, Stretch, unsupported_stretches
+from limbctl.region.evidence_clip import Clip
 from tests.region.support import benchmark
 
 #: The region's bound outside the truth (deg), docs/region.md.
@@ -61,9 +62,13 @@ def test_a_bridged_notch_is_listed_as_unsupported(monkeypatch):
     monkeypatch.setattr(
         taught_module, "hold_to_evidence", lambda mesh, data, *_, **__: (mesh, False)
     )
+    monkeypatch.setattr(
+        taught_module, "clip_to_evidence", lambda mesh, data, *_, **__: Clip.nothing(mesh)
+    )
     bridged = TaughtRegion(RegionParams(edge="supported", alpha_factor=4.0)).fit(taught)
     assert held.held_edge and not unsupported_stretches(held.mesh, taught)
-    assert held.unsupported_edge == tuple(replace(s, held=True) for s in bridged.unsupported_edge)
+    # every stretch the hold took in is named held (the cut back to the evidence may add more)
+    assert {replace(s, held=True) for s in bridged.unsupported_edge} <= set(held.unsupported_edge)
     found = unsupported_stretches(bridged.mesh, taught)
     assert found, "an edge across the notch must be found unsupported"
     # the region's report (every stretch past REACH_DEG, surrounded or not) names it first

@@ -44,7 +44,7 @@ def gate_limits(rate_hz: float = 200.0, max_speed_deg_s: float = 120.0) -> GateL
 
 
 @functools.cache
-def bean_model(seed: int = 0, nodes: int = 300, samples: int = 800) -> RigidMap:
+def bean_model(seed: int = 0, nodes: int = 300, samples: int = 2400) -> RigidMap:
     """A Rigid Map taught the kidney-shaped BEAN region (cached: fits take seconds)."""
     region = PolygonRegion(BEAN)
     q = to_quaternions(region.sample(samples, np.random.default_rng(seed)))

@@ -1,0 +1,132 @@
+"""The region cut back to the taught evidence: every edge point within the reach of a sample,
+or the cut's own depth inside (issue 35, finding 1)."""
+
+import numpy as np
+import pytest
+from scipy.spatial import cKDTree
+
+from limbctl.region.evidence import Stretch, edge_stations, outer_arcs
+from limbctl.region.evidence_clip import (
+    CLIP_REACH_DEG,
+    CLIP_STEP_DEG,
+    DEEP_DEG,
+    DEEP_STEP_DEG,
+    INSCRIBED,
+    clip_to_evidence,
+    clipped_stretches,
+)
+from limbctl.region.loops import loop_area
+from limbctl.region.mesh import DirectionMesh
+
+#: The cone's radius (deg) about +x.
+RADIUS_DEG = 20.0
+
+
+def _cap(radius_deg: float, angle_deg: np.ndarray, around_deg: np.ndarray) -> np.ndarray:
+    """Directions (N, 3) ``angle_deg`` from +x at bearings ``around_deg`` (counter-clockwise
+    seen from outside)."""
+    a, b = np.radians(angle_deg), np.radians(around_deg)
+    return np.column_stack([np.cos(a), np.sin(a) * np.cos(b), np.sin(a) * np.sin(b)])
+
+
+def _cone(radius_deg: float = RADIUS_DEG) -> DirectionMesh:
+    around = np.arange(0.0, 360.0, 1.0)
+    loop = _cap(radius_deg, np.full(around.shape, radius_deg), around)
+    assert loop_area(loop) > 0.0
+    return DirectionMesh.from_loops([loop], 0.0)
+
+
+def _taught(n: int, seed: int, radius_deg: float = RADIUS_DEG) -> np.ndarray:
+    """``n`` directions uniform over the cone (area-uniform)."""
+    rng = np.random.default_rng(seed)
+    cos_angle = rng.uniform(np.cos(np.radians(radius_deg)), 1.0, n)
+    return _cap(0.0, np.degrees(np.arccos(cos_angle)), rng.uniform(0.0, 360.0, n))
+
+
+def _angle_deg(d: np.ndarray, x: np.ndarray) -> np.ndarray:
+    return np.degrees(np.arccos(np.clip(d @ x, -1.0, 1.0)))
+
+
+#: Where the cone's edge is left untaught.
+GAP = _cap(RADIUS_DEG, np.array([RADIUS_DEG]), np.array([0.0]))[0]
+
+
+def _with_gap(gap_deg: float, n: int = 4000, seed: int = 3) -> np.ndarray:
+    """The cone taught uniformly and along its edge (every 0.5 deg, 0.05 deg in), none within
+    ``gap_deg`` of ``GAP``."""
+    around = np.arange(0.0, 360.0, 0.5)
+    edge = _cap(RADIUS_DEG, np.full(around.shape, RADIUS_DEG - 0.05), around)
+    d = np.vstack([_taught(n, seed), edge])
+    return d[_angle_deg(d, GAP) > gap_deg]
+
+
+def _edge_check(mesh: DirectionMesh, taught: np.ndarray):
+    """Outer edge stations (S, 3), 0.02 deg apart, and their distances (deg) to the samples."""
+    stations, arc = edge_stations(mesh, np.radians(0.02))
+    stations = stations[outer_arcs(mesh)[arc]]
+    chord = cKDTree(taught).query(stations)[0]
+    return stations, np.degrees(2.0 * np.arcsin(0.5 * chord))
+
+
+def test_a_region_whose_edge_stands_by_the_samples_comes_back_as_it_is():
+    cone = _cone()
+    stations, _ = edge_stations(cone, np.radians(CLIP_STEP_DEG))
+    clip = clip_to_evidence(cone, np.vstack([_taught(2000, 1), stations]))
+    assert clip.region is cone and not clip.cut and clip.cut_sr == 0.0
+
+
+def test_an_untaught_stretch_of_edge_is_cut_back_to_the_samples_reach_and_named():
+    taught = _with_gap(4.0)
+    cone = _cone()
+    clip = clip_to_evidence(cone, taught)
+    assert clip.cut and clip.fits
+    # named once, at the gap, as far as its farthest station stood (the gap's 4 deg less)
+    assert clip.places.shape[0] == 1
+    assert _angle_deg(clip.places, GAP)[0] < 4.0
+    assert 3.0 < clip.far_deg[0] <= 4.0 + CLIP_STEP_DEG
+    # every edge point within the reach of a sample (the check's step between stations), or
+    # the cut's depth inside the cone
+    stations, far = _edge_check(clip.region, taught)
+    depth = RADIUS_DEG - _angle_deg(stations, np.array([1.0, 0.0, 0.0]))
+    assert np.all((far <= CLIP_REACH_DEG + 0.01) | (depth >= DEEP_DEG - 0.05)), far.max()
+    # every taught sample kept; away from the gap nothing changed
+    assert cone.contains(taught).all() and clip.region.contains(taught).all()
+    probe = _taught(20000, 9, RADIUS_DEG + 2.0)
+    away = _angle_deg(probe, GAP) > 4.0 + CLIP_REACH_DEG + 0.1
+    assert np.array_equal(clip.region.contains(probe[away]), cone.contains(probe[away]))
+    # and the cut is a bite of the gap, no more: under a 4 deg disc's area
+    assert 0.0 < clip.cut_sr < np.pi * np.radians(4.0) ** 2
+
+
+def test_a_cut_stops_at_its_depth_inside_the_region():
+    """With no sample within 10 deg of the gap, the cut reaches ``DEEP_DEG`` in and stops (at
+    most half a station step farther, its discs' circumscribed slack): the region deeper is kept
+    (deeper, any truth that region stands past by less holds it)."""
+    taught = _with_gap(10.0)
+    cone = _cone()
+    clip = clip_to_evidence(cone, taught)
+    probe = _taught(40000, 5)
+    depth = RADIUS_DEG - _angle_deg(probe, np.array([1.0, 0.0, 0.0]))
+    deep = depth >= (DEEP_DEG + 0.5 * DEEP_STEP_DEG) / INSCRIBED
+    assert clip.region.contains(probe[deep]).all()
+    shallow_gap = (depth < DEEP_DEG - 0.3) & (_angle_deg(probe, GAP) < 8.0)
+    assert not clip.region.contains(probe[shallow_gap]).any()
+
+
+def test_a_region_wider_than_one_plane_is_left_uncut_and_says_so():
+    wide = _cone(85.0)
+    clip = clip_to_evidence(wide, _taught(500, 2, 85.0))
+    assert clip.region is wide and not clip.cut and not clip.fits
+
+
+def test_each_place_cut_is_listed_held_unless_a_stretch_names_it_already():
+    clip = clip_to_evidence(_cone(), _with_gap(4.0))
+    listed = clipped_stretches((), clip)
+    assert (
+        len(listed) == 1
+        and listed[0].held
+        and listed[0].distance_deg == pytest.approx(clip.far_deg[0])
+    )
+    assert "held at the evidence" in listed[0].line()
+    there = Stretch(listed[0].pan_deg, listed[0].tilt_deg, 2.0, 1.0)
+    assert clipped_stretches((there,), clip) == (there,)
