@@ -27,7 +27,7 @@ from limbctl.region.evidence import (
     unsupported_stations,
     unsupported_stretches,
 )
-from limbctl.region.evidence_clip import Clip, clip_to_evidence, clipped_stretches
+from limbctl.region.evidence_clip import Clip, clipped_stretches, cut_to_evidence
 from limbctl.region.gaps import ORDER_STATISTICS
 from limbctl.region.mesh import DirectionMesh, boundary_edges
 from limbctl.region.params import RegionParams
@@ -177,7 +177,7 @@ class TaughtRegion:
         held stretch."""
         if region.edges.shape[0] == 0:
             return region
-        clip = self.clip = clip_to_evidence(region, d_train)
+        clip = self.clip = cut_to_evidence(region, d_train)
         if not clip.cut:
             return region
         self.held_edge = True

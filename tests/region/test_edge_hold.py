@@ -40,13 +40,13 @@ def sparse_notch():
     taught = truth.sample(1500, np.random.default_rng(1))
     lo, hi = outline.min(axis=0) - 4.0, outline.max(axis=0) + 4.0
     region = TaughtRegion().fit(taught)
-    saved = taught_module.hold_to_evidence, taught_module.clip_to_evidence
+    saved = taught_module.hold_to_evidence, taught_module.cut_to_evidence
     taught_module.hold_to_evidence = lambda mesh, data, *_, **__: (mesh, False)
-    taught_module.clip_to_evidence = lambda mesh, data, *_, **__: Clip.nothing(mesh)
+    taught_module.cut_to_evidence = lambda mesh, data, *_, **__: Clip.nothing(mesh)
     try:
         unheld = TaughtRegion().fit(taught)
     finally:
-        taught_module.hold_to_evidence, taught_module.clip_to_evidence = saved
+        taught_module.hold_to_evidence, taught_module.cut_to_evidence = saved
     return truth, taught, ((lo[0], hi[0]), (lo[1], hi[1])), region, unheld
 
 
@@ -54,12 +54,12 @@ def sparse_notch():
 def held_uncut(sparse_notch):
     """The same teaching's region held, not cut back to the evidence (its edge as the holds
     leave it)."""
-    saved = taught_module.clip_to_evidence
-    taught_module.clip_to_evidence = lambda mesh, data, *_, **__: Clip.nothing(mesh)
+    saved = taught_module.cut_to_evidence
+    taught_module.cut_to_evidence = lambda mesh, data, *_, **__: Clip.nothing(mesh)
     try:
         return TaughtRegion().fit(sparse_notch[1])
     finally:
-        taught_module.clip_to_evidence = saved
+        taught_module.cut_to_evidence = saved
 
 
 def test_a_sparse_teaching_is_held_to_the_evidence(sparse_notch, held_uncut):

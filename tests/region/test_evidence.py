@@ -63,7 +63,7 @@ def test_a_bridged_notch_is_listed_as_unsupported(monkeypatch):
         taught_module, "hold_to_evidence", lambda mesh, data, *_, **__: (mesh, False)
     )
     monkeypatch.setattr(
-        taught_module, "clip_to_evidence", lambda mesh, data, *_, **__: Clip.nothing(mesh)
+        taught_module, "cut_to_evidence", lambda mesh, data, *_, **__: Clip.nothing(mesh)
     )
     bridged = TaughtRegion(RegionParams(edge="supported", alpha_factor=4.0)).fit(taught)
     assert held.held_edge and not unsupported_stretches(held.mesh, taught)
