@@ -28,7 +28,11 @@ def lerobot_python() -> str | None:
 def test_lerobot_sets_up_factory_fresh_servos_and_drives_them(tmp_path):
     python = lerobot_python()
     if python is None:
-        pytest.skip("no LeRobot (it needs torch) nor LEROBOT_PYTHON: .ci/run gives it its own venv")
+        pytest.skip(
+            "LeRobot is not installed here and LEROBOT_PYTHON is not set: it needs torch, too "
+            "heavy for limbctl's own venv; .ci/run installs it into a venv of its own "
+            "(see benchmarks/lerobot_setup_check.py)"
+        )
     out = tmp_path / "lerobot_check.md"
     done = subprocess.run(
         [sys.executable, str(CHECK), "--lerobot-python", python, "--out", str(out)],
