@@ -9,8 +9,6 @@ import sys
 import threading
 from pathlib import Path
 
-import pytest
-
 from limbctl.cli import main
 from limbctl.geometry import jit
 from limbctl.region.correct_kernels import SINGLE_ROWS
@@ -44,47 +42,49 @@ with open(sys.argv[1], "w") as out:
 )
 
 
-@pytest.mark.parametrize("rig", ["sim", "sim3"])
-def test_after_prepare_train_teleop_and_a_library_fit_compile_no_kernel(rig, tmp_path):
-    twist = rig == "sim3"
+def test_after_prepare_train_teleop_and_a_library_fit_compile_no_kernel(tmp_path):
+    # both rigs prepared into one cache, as on a machine that teaches both: the three-servo
+    # prepare after the two-servo one compiles only what twist adds
     cache = tmp_path / "numba-cache"
     env = {**os.environ, "NUMBA_CACHE_DIR": str(cache), "PYTHONPATH": str(ROOT)}
-    prepare = [sys.executable, "-m", "limbctl.cli", "prepare", "--rig", rig]
-    done = subprocess.run(prepare, env=env, cwd=tmp_path, capture_output=True, text=True)
-    assert done.returncode == 0, done.stderr
-    markers = sorted(p.name for p in cache.rglob("prepared-*"))
-    stages = [jit.stage(s, twist) for s in ("train", "gate")]
-    assert markers == sorted(f"prepared-{stage}" for stage in stages)
-    folder = next(cache.rglob("prepared-*")).parent
-    lines = done.stdout.splitlines()
-    # away from a terminal, a line as each stage begins and one as it ends, with its compiles
-    ended = [line.split(" ...")[0] for line in lines[1:-1] if line.endswith(" s")]
-    assert ended == [f"[{i}/2] {rig}: {stage}" for i, stage in enumerate(stages, 1)], done.stdout
-    assert len(lines) == 2 + 2 * len(stages), done.stdout
-    assert str(folder) in lines[0] and str(folder) in lines[-1], done.stdout
-    # the library's first use in a fresh process
-    log = tmp_path / "library.json"
-    library = [sys.executable, "-c", LIBRARY, str(log), rig]
-    done = subprocess.run(library, env=env, cwd=tmp_path, capture_output=True, text=True)
-    assert done.returncode == 0, done.stderr
-    assert json.loads(log.read_text()) == []
-    # a teaching recorded with no warm-up since (prepare only): train, then a teleop start
-    data = teaching(tmp_path / "teach.limb", rig)
-    model = tmp_path / "model.npz"
-    ours, _ = compiled_by(["train", str(data), "--out", str(model)], tmp_path, prepared=True)
-    assert ours == []
-    commands = '{"pan": 20, "tilt": 10}\n{"pan": 120, "tilt": 80}\n'
-    ours, _ = compiled_by(
-        ["teleop", "--model", str(model), "--source", "stdin", "--rig", rig],
-        tmp_path,
-        stdin=commands,
-        prepared=True,
-    )
-    assert ours == []
-    # run again, it finds every stage in the cache
-    again = subprocess.run(prepare, env=env, cwd=tmp_path, capture_output=True, text=True)
-    assert again.returncode == 0, again.stderr
-    assert again.stdout.count("already in the cache") == 2, again.stdout
+    done_stages: list[str] = []
+    for rig in ("sim", "sim3"):
+        twist = rig == "sim3"
+        prepare = [sys.executable, "-m", "limbctl.cli", "prepare", "--rig", rig]
+        done = subprocess.run(prepare, env=env, cwd=tmp_path, capture_output=True, text=True)
+        assert done.returncode == 0, done.stderr
+        stages = [jit.stage(s, twist) for s in ("train", "gate")]
+        done_stages += stages
+        markers = sorted(p.name for p in cache.rglob("prepared-*"))
+        assert markers == sorted(f"prepared-{stage}" for stage in done_stages)
+        folder = next(cache.rglob("prepared-*")).parent
+        lines = done.stdout.splitlines()
+        # away from a terminal, a line as each stage begins and one as it ends, with its compiles
+        ended = [line.split(" ...")[0] for line in lines[1:-1] if line.endswith(" s")]
+        expected = [f"[{i}/2] {rig}: {stage}" for i, stage in enumerate(stages, 1)]
+        assert ended == expected, done.stdout
+        assert len(lines) == 2 + 2 * len(stages), done.stdout
+        assert str(folder) in lines[0] and str(folder) in lines[-1], done.stdout
+        # the library's first use in a fresh process
+        log = tmp_path / f"library-{rig}.json"
+        library = [sys.executable, "-c", LIBRARY, str(log), rig]
+        done = subprocess.run(library, env=env, cwd=tmp_path, capture_output=True, text=True)
+        assert done.returncode == 0, done.stderr
+        assert json.loads(log.read_text()) == [], rig
+        # a teaching recorded with no warm-up since (prepare only): train, then a teleop start
+        data = teaching(tmp_path / f"teach-{rig}.limb", rig)
+        model = tmp_path / f"model-{rig}.npz"
+        train = ["train", str(data), "--out", str(model)]
+        ours, _ = compiled_by(train, tmp_path, prepared=True)
+        assert ours == [], rig
+        commands = '{"pan": 20, "tilt": 10}\n{"pan": 120, "tilt": 80}\n'
+        teleop = ["teleop", "--model", str(model), "--source", "stdin", "--rig", rig]
+        ours, _ = compiled_by(teleop, tmp_path, stdin=commands, prepared=True)
+        assert ours == [], rig
+        # run again, it finds every stage in the cache
+        again = subprocess.run(prepare, env=env, cwd=tmp_path, capture_output=True, text=True)
+        assert again.returncode == 0, again.stderr
+        assert again.stdout.count("already in the cache") == 2, again.stdout
 
 
 def test_no_warm_up_when_all_is_prepared_or_nothing_can_be_cached_and_prepare_says_so(
