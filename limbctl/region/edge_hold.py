@@ -205,10 +205,11 @@ def _held_loops(
             both = poles[e] + poles[prev] if held[prev] else poles[e]
             rows.append((a_all[e], 0.0, both, bool(held[prev])))
             # its stations on the widened edge (the first, at the vertex, only when widened)
-            count = max(1, int(np.ceil(_angle(a_all[e], b_all[e]) / step)))
+            om = _angle(a_all[e], b_all[e])
+            count = max(1, int(np.ceil(om / step)))
             for t in np.arange(0 if m > 0.0 else 1, count) / count:
                 rows.append(
-                    (_offset(_slerp(a_all[e], b_all[e], t), poles[e], m), 0.0, poles[e], True)
+                    (_offset(_slerp(a_all[e], b_all[e], om, t), poles[e], m), 0.0, poles[e], True)
                 )
             if m > 0.0:
                 rows.append((_offset(b_all[e], poles[e], m), 0.0, poles[e], True))
@@ -227,8 +228,8 @@ def _angle(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.arctan2(np.linalg.norm(cross), a @ b))
 
 
-def _slerp(a: np.ndarray, b: np.ndarray, t: float) -> np.ndarray:
-    om = _angle(a, b)
+def _slerp(a: np.ndarray, b: np.ndarray, om: float, t: float) -> np.ndarray:
+    """The unit direction ``t`` of the way along the arc ``a -> b`` (3,) of angle ``om`` (rad)."""
     if np.sin(om) < 1e-12:
         return a.copy()
     x = (np.sin((1.0 - t) * om) * a + np.sin(t * om) * b) / np.sin(om)
