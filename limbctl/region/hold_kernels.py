@@ -1,9 +1,9 @@
 """Numba kernels of the hold's crossing searches (:mod:`limbctl.region.edge_hold`): which arcs of
 a set of closed loops cross, and a held loop's first fold: one pass over the pairs, stopping at
-the first answer, with no (N, N) or (K, window) temporaries. The dot products and the two-sides
-test are written out in each kernel, not called: a helper kernel is one more compile on a
-first run (tests/test_first_run.py counts them). No fastmath: every answer is a sign
-compared against a bound.
+the first answer, with no (N, N) or (K, window) temporaries. Their one test, two points on two
+sides of a great circle, is inlined into each (numba's ``inline="always"``): a helper compiled
+on its own is one more compile on a first run (tests/test_first_run.py counts them). No
+fastmath: every answer is a sign compared against a bound.
 """
 
 from __future__ import annotations
@@ -14,6 +14,16 @@ from limbctl.geometry.jit import njit
 
 #: Ends this close (rad) to a great circle lie on it: held arcs' rounding is 1e-16.
 ON_CIRCLE_RAD = 1e-12
+
+
+@njit(inline="always")
+def _across(pole, k, x, i, y, j) -> bool:
+    """Whether points ``x[i]`` and ``y[j]`` (rows of (N, 3) arrays) lie clearly on two sides of
+    the great circle of unit pole ``pole[k]``: their sine distances to it of opposite signs,
+    neither within ``ON_CIRCLE_RAD``."""
+    u = pole[k, 0] * x[i, 0] + pole[k, 1] * x[i, 1] + pole[k, 2] * x[i, 2]
+    v = pole[k, 0] * y[j, 0] + pole[k, 1] * y[j, 1] + pole[k, 2] * y[j, 2]
+    return u * v < 0.0 and abs(u) > ON_CIRCLE_RAD and abs(v) > ON_CIRCLE_RAD
 
 
 @njit
@@ -33,14 +43,8 @@ def crossing_arcs(a, b, pole, mid, owner, index, size):
                 apart = abs(index[r] - index[s])
                 if apart <= 1 or apart == size[r] - 1:
                     continue
-            # r's ends on two sides of s's great circle (sine distances u, v), and s's of r's
-            u = a[r, 0] * pole[s, 0] + a[r, 1] * pole[s, 1] + a[r, 2] * pole[s, 2]
-            v = b[r, 0] * pole[s, 0] + b[r, 1] * pole[s, 1] + b[r, 2] * pole[s, 2]
-            if not (u * v < 0.0 and abs(u) > ON_CIRCLE_RAD and abs(v) > ON_CIRCLE_RAD):
-                continue
-            u = a[s, 0] * pole[r, 0] + a[s, 1] * pole[r, 1] + a[s, 2] * pole[r, 2]
-            v = b[s, 0] * pole[r, 0] + b[s, 1] * pole[r, 1] + b[s, 2] * pole[r, 2]
-            if not (u * v < 0.0 and abs(u) > ON_CIRCLE_RAD and abs(v) > ON_CIRCLE_RAD):
+            # r's ends on two sides of s's great circle, s's of r's, and facing the same way
+            if not (_across(pole, s, a, r, b, r) and _across(pole, r, a, s, b, s)):
                 continue
             if mid[r, 0] * mid[s, 0] + mid[r, 1] * mid[s, 1] + mid[r, 2] * mid[s, 2] > 0.0:
                 hit[r] = True
@@ -61,13 +65,7 @@ def first_fold(a, unit, window):
             c = (i + j) % k
             d = (c + 1) % k
             # chord c -> d's ends on two sides of chord i's great circle, and i's of c's
-            u = unit[i, 0] * a[c, 0] + unit[i, 1] * a[c, 1] + unit[i, 2] * a[c, 2]
-            v = unit[i, 0] * a[d, 0] + unit[i, 1] * a[d, 1] + unit[i, 2] * a[d, 2]
-            if not (u * v < 0.0 and abs(u) > ON_CIRCLE_RAD and abs(v) > ON_CIRCLE_RAD):
-                continue
-            u = unit[c, 0] * a[i, 0] + unit[c, 1] * a[i, 1] + unit[c, 2] * a[i, 2]
-            v = unit[c, 0] * a[i1, 0] + unit[c, 1] * a[i1, 1] + unit[c, 2] * a[i1, 2]
-            if not (u * v < 0.0 and abs(u) > ON_CIRCLE_RAD and abs(v) > ON_CIRCLE_RAD):
+            if not (_across(unit, i, a, c, a, d) and _across(unit, c, a, i, a, i1)):
                 continue
             # the chords' midpoints face the same way: (a_i + a_i1) . (a_c + a_d) > 0
             facing = 0.0
