@@ -18,8 +18,8 @@ from limbctl.region.mesh import DirectionMesh
 
 #: Step (deg) of a walk inward: it ends at most this much deeper than asked.
 WALK_STEP_DEG = 0.05
-#: Steps of a walk tried at once: a third of the longest station walk (60 steps), so points
-#: that stop early cost few queries and the loop runs at most 3 times.
+#: Steps of a walk tried at once: a third of a station's walk (60 steps; a chord's middle walks
+#: up to 250), so points that stop early cost few queries and a walk takes a few batches.
 WALK_BATCH = 20
 #: Farthest (deg) a station walks in along its normal; then toward the nearest sample.
 WALK_DEG = 3.0
