@@ -95,6 +95,7 @@ class Running:
                     self.changed.notify_all()
 
         self.ended = False
+        self.switched_wall: float | None = None  # when :meth:`held_then` last switched (s)
         self.thread = threading.Thread(target=body)
 
     def _observe(self, cycle) -> None:
@@ -130,6 +131,12 @@ class Running:
         """Whether the median period between two monotonic times was within 1.25 at 200 Hz."""
         times = [t for t in self.clock if since <= t <= until]
         return len(times) > 2 and float(np.median(np.diff(times))) <= 1.25 / 200.0
+
+    def unstalled(self, since: float, until: float) -> bool:
+        """Whether no cycle between two monotonic times came later than two periods at 200 Hz
+        after the one before it: what a watch needs to see a snap that lasts a few cycles."""
+        times = [t for t in self.clock if since <= t <= until]
+        return len(times) > 2 and float(np.max(np.diff(times))) <= 2.0 / 200.0
 
     def unreleased(self, since: float, until: float) -> bool:
         """Whether every cycle between two monotonic times read, gated and wrote the law's push."""
@@ -173,6 +180,7 @@ class Running:
         if not self.held_still(press):
             return None
         switched_at = self.simulator.truth()["leader"]["t"]
+        self.switched_wall = time.monotonic()
         self.simulator.set_operator(then)
         seen = len(self.pushes)
         self.until(lambda p: len(p) > seen + 100 or self.ended)
