@@ -54,7 +54,8 @@ class Router:
         self._batch_rows = math.inf  # rows from which a batch call is the cheaper
         self._nodes: np.ndarray | None = None  # (M, 3) directions of the roadmap's nodes
         self._node_twist: np.ndarray | None = None  # (M,) a twist inside at each node (rad)
-        self._graph = None  # (M, M) csr of edge lengths (rad)
+        # the roadmap's edges: (row, col, length in rad), each pair once
+        self._edges: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self._tree: cKDTree | None = None
         self._field_key: np.ndarray | None = None  # the target the field was computed for
         self._field: tuple[np.ndarray, np.ndarray] | None = None
@@ -173,8 +174,7 @@ class Router:
         count = pts.shape[0] + 1
         if count < 2:
             return True
-        order = _bisection_order(count)
-        return all(self.inside(pts[k - 1]) for k in order)
+        return all(self.inside(pts[k - 1]) for k in _bisection_order(count))
 
     def wanted(self, target_q: np.ndarray, progress: float, moved: float, max_step: float) -> bool:
         """Whether to route this cycle: the plain step made too little ``progress`` or jumped."""
@@ -298,7 +298,8 @@ class Router:
         i, j = pairs[ok, 0], pairs[ok, 1]
         m = self._nodes.shape[0]
         w = _arc(self._nodes[i], self._nodes[j])
-        self._graph = coo_matrix((w, (i, j)), shape=(m, m)).tocsr()
+        graph = coo_matrix((w, (i, j)), shape=(m, m)).tocsr().tocoo()  # duplicates summed
+        self._edges = (graph.row, graph.col, graph.data)
 
     def _node_twists(self, d: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """A twist (N,) (rad) inside at each direction (N, 3) near ``tau``, else NaN."""
@@ -324,15 +325,22 @@ class Router:
         poses = self._node_poses(near)
         near = near[self.clear_rows(target_q, poses)] if near.size else near
         w = _arc(d_t[None, :], self._nodes[near])
-        extra = coo_matrix((w, (near, np.full(near.size, m))), shape=(m + 1, m + 1))
-        graph = self._graph.tocoo()
-        full = coo_matrix((graph.data, (graph.row, graph.col)), shape=(m + 1, m + 1)) + extra
+        # the roadmap's edges and the target's, as node M: one graph of M + 1 nodes
+        rows, cols, lengths = self._edges
+        full = coo_matrix(
+            (
+                np.concatenate([lengths, w]),
+                (np.concatenate([rows, near]), np.concatenate([cols, np.full(near.size, m)])),
+            ),
+            shape=(m + 1, m + 1),
+        ).tocsr()
         dist, pred = dijkstra(full, directed=False, indices=m, return_predecessors=True)
         self._field_key, self._field = target_q.copy(), (dist[:m], pred[:m])
         return self._field
 
 
-def _bisection_order(count: int) -> list[int]:
+@functools.cache
+def _bisection_order(count: int) -> tuple[int, ...]:
     """1 .. count - 1, each once, middle first, then the middles of the halves left, and so on."""
     order, spans = [], [(1, count - 1)]
     while spans:
@@ -341,7 +349,7 @@ def _bisection_order(count: int) -> list[int]:
             mid = (lo + hi) // 2
             order.append(mid)
             spans += [(lo, mid - 1), (mid + 1, hi)]
-    return order
+    return tuple(order)
 
 
 @functools.cache
