@@ -36,6 +36,13 @@ def served(arguments: list[str]):
         process.stdout.close()
 
 
+def sdk_at(port_name, baud: int) -> PortHandler:
+    """The real SDK's port opened on ``port_name`` (a simulator's pty) at ``baud``."""
+    port = PortHandler(str(port_name))
+    assert port.setBaudRate(baud)
+    return port
+
+
 def run_main(arguments: list[str]) -> int:
     """The exit status of ``firmware-sim ARGUMENTS`` run in this process."""
     try:
@@ -96,9 +103,7 @@ def test_serves_a_rig_and_a_leader_logs_goals_and_the_hand_until_a_signal_remove
         assert "XL330-M288 ID 3" in ready and "XL330-M288 ID 4" in ready, ready
         assert "XL430-W250 ID 1" in ready and "XM430-W350 ID 2" in ready, ready
         assert os.path.islink(link)
-        port = PortHandler(str(link))
-        assert port.setBaudRate(RIG_BAUD)
-        packet = PacketHandler(2.0)
+        port, packet = sdk_at(link, RIG_BAUD), PacketHandler(2.0)
         start, result, error = packet.read4ByteTxRx(port, 3, PRESENT_POSITION)  # the hand starts
         assert (result, error) == (COMM_SUCCESS, 0)
         assert packet.ping(port, 3) == (1200, COMM_SUCCESS, 0)
@@ -142,9 +147,7 @@ def test_an_event_names_a_renumbered_servo_by_its_id(tmp_path, capsys):
     assert "no servo answers as ID 2; the servos answer as 1, 9" in capsys.readouterr().err
     with served([*base, "--event", "0:voltage:9:5"]) as (process, ready):
         assert "ID 9 at 57600" in ready
-        port = PortHandler(str(link))
-        assert port.setBaudRate(57_600)
-        packet = PacketHandler(2.0)
+        port, packet = sdk_at(link, 57_600), PacketHandler(2.0)
         # servo 9 sees 5 V, below the XL430's 6.0 V limit: input voltage error and the alert
         wait_for(
             lambda: packet.read1ByteTxRx(port, 9, HARDWARE_ERROR)[0] == VOLTAGE_BIT,

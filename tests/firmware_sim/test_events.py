@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 import pytest
-from dynamixel_sdk import COMM_RX_TIMEOUT, COMM_SUCCESS, PacketHandler, PortHandler
+from dynamixel_sdk import COMM_RX_TIMEOUT, COMM_SUCCESS, PacketHandler
 
 from firmware_sim.control_table import Register
 from firmware_sim.events import EventSchedule, ScheduledEvent, parse_event
 from firmware_sim.wire import RIG_BAUD
-from tests.firmware_sim.test_cli import served
+from tests.firmware_sim.test_cli import sdk_at, served
 from tests.safety.support import wait_for
 
 ID, TORQUE_ENABLE, HARDWARE_ERROR, PRESENT_PWM = 7, 64, 70, 124
@@ -116,8 +116,7 @@ def test_command_line_events_reach_the_servos(tmp_path):
     options = [arg for event in events for arg in ("--event", event)]
     with served(["--ids", "1,2,3", "--link", str(link), *options]) as (process, ready):
         assert "ready" in ready
-        port, packet = PortHandler(str(link)), PacketHandler(2.0)
-        assert port.setBaudRate(RIG_BAUD)
+        port, packet = sdk_at(link, RIG_BAUD), PacketHandler(2.0)
         # servo 1 sees 5 V, below its 6.0 V limit: input voltage error and the alert
         wait_for(
             lambda: packet.read1ByteTxRx(port, 1, HARDWARE_ERROR)[0] == VOLTAGE_BIT,

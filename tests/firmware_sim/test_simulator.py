@@ -6,7 +6,7 @@ import tty
 
 import pytest
 import serial
-from dynamixel_sdk import COMM_RX_TIMEOUT, COMM_SUCCESS, PacketHandler, PortHandler
+from dynamixel_sdk import COMM_RX_TIMEOUT, COMM_SUCCESS, PacketHandler
 
 from firmware_sim import SimulatedBus
 from firmware_sim.control_table import Register, get_model
@@ -22,15 +22,10 @@ from firmware_sim.wire import (
     value_for_baud,
     wire_s,
 )
+from tests.firmware_sim.test_cli import sdk_at
 
 ID, BAUD_RATE, TORQUE_ENABLE = 7, 8, 64
 XL430 = 1060
-
-
-def sdk_at(port_name: str, baud: int) -> PortHandler:
-    port = PortHandler(port_name)
-    assert port.setBaudRate(baud)
-    return port
 
 
 def test_a_factory_servos_id_and_baud_change_as_lerobot_sets_them(tmp_path):

@@ -9,13 +9,10 @@ import pytest
 from firmware_sim.control_table import Register
 from firmware_sim.simulator import Simulator
 from firmware_sim.torque import MOTORS, LoopGains, drive_of
+from tests.firmware_sim.test_leader import sim_with
 
 XM = MOTORS["xm430-w350"]
 CAP_UNITS = 100  # 269 mA
-
-
-def leader_sim(stepped, operator=None, model="xm430-w350"):
-    return stepped(ids=(1, 2), leader={"ids": [3, 4], "model": model, "operator": operator})
 
 
 def write(servo, register: Register, value: int) -> None:
@@ -43,7 +40,7 @@ def pushing(target_deg: float, torque_nm: float = 0.3) -> dict:
 
 
 def test_mode_5_goal_current_sets_the_torque_cap_and_present_current_follows_it(stepped):
-    sim, clock = leader_sim(stepped, pushing(30.0))
+    sim, clock = sim_with(stepped, 2, pushing(30.0))
     hold_at(sim, clock, 3, 5, 0)
     settle(sim, clock, 1.0)
     truth = sim.truth()["leader"]
@@ -51,7 +48,7 @@ def test_mode_5_goal_current_sets_the_torque_cap_and_present_current_follows_it(
     assert truth["pose_deg"][0] > 25.0  # the hand moved it as if the motor were not there
     beyond = {}
     for units in (20, 40, CAP_UNITS):
-        sim, clock = leader_sim(stepped, pushing(30.0, torque_nm=0.3))
+        sim, clock = sim_with(stepped, 2, pushing(30.0, torque_nm=0.3))
         hold_at(sim, clock, 3, 5, units)
         settle(sim, clock, 2.0)
         truth = sim.truth()["leader"]
@@ -61,7 +58,7 @@ def test_mode_5_goal_current_sets_the_torque_cap_and_present_current_follows_it(
     # 20 and 40 units (0.10, 0.19 N m) give way to a 0.3 N m hand; 100 units (0.48 N m) hold it
     assert beyond[20] > beyond[40] > 20.0
     assert beyond[CAP_UNITS] < 0.5
-    sim, clock = leader_sim(stepped, pushing(30.0, torque_nm=0.2))
+    sim, clock = sim_with(stepped, 2, pushing(30.0, torque_nm=0.2))
     servo = hold_at(sim, clock, 3, 5, CAP_UNITS)
     settle(sim, clock, 2.0)
     truth = sim.truth()
@@ -73,7 +70,7 @@ def test_mode_5_goal_current_sets_the_torque_cap_and_present_current_follows_it(
 
 
 def test_mode_3_clips_mode_0_is_a_current_torque_off_has_no_cap_and_the_watchdog_trips(stepped):
-    sim, clock = leader_sim(stepped, pushing(30.0, torque_nm=0.3))
+    sim, clock = sim_with(stepped, 2, pushing(30.0, torque_nm=0.3))
     servo = sim.servo(3)
     write(servo, Register.CURRENT_LIMIT, 50)  # 0.24 N m: the hand wins
     hold_at(sim, clock, 3, 3, 0)
@@ -82,7 +79,7 @@ def test_mode_3_clips_mode_0_is_a_current_torque_off_has_no_cap_and_the_watchdog
     assert abs(sim.truth()["leader"]["motor_nm"][0]) == pytest.approx(
         50 * XM.current_unit_ma * XM.nm_per_ma
     )
-    sim, clock = leader_sim(stepped)
+    sim, clock = sim_with(stepped, 2)
     servo = sim.servo(3)
     write(servo, Register.OPERATING_MODE, 0)
     write(servo, Register.TORQUE_ENABLE, 1)
@@ -90,7 +87,7 @@ def test_mode_3_clips_mode_0_is_a_current_torque_off_has_no_cap_and_the_watchdog
     assert drive_of(servo, +1).current_nm == pytest.approx(20 * XM.current_unit_ma * XM.nm_per_ma)
     settle(sim, clock, 0.5)
     assert sim.truth()["leader"]["pose_deg"][0] > 5.0  # a free current turns the joint
-    sim, clock = leader_sim(stepped)
+    sim, clock = sim_with(stepped, 2)
     servo = sim.servo(3)
     assert drive_of(servo, +1).cap_nm == 0.0
     hold_at(sim, clock, 3, 5, CAP_UNITS)

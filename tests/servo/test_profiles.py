@@ -9,13 +9,9 @@ from firmware_sim import SimulatedBus
 from limbctl.errors import ConfigError
 from limbctl.servo.bus import ServoBus
 from limbctl.servo.profiles import check_models, check_profile, check_trained_for, save_rig_profile
+from tests.conftest import trained_for
 
 PROFILE = default_sim_profile()
-
-
-def trained(profile=PROFILE, **changes):
-    """The metadata a model trained on ``profile`` records, with ``changes``."""
-    return {"rig": profile.name, "calibration": profile.calibration.to_dict(), **changes}
 
 
 def test_a_profile_meets_the_end_stop_and_baud_checks_and_models_of_another_rig_are_refused(
@@ -38,30 +34,30 @@ def test_a_profile_meets_the_end_stop_and_baud_checks_and_models_of_another_rig_
             "2000000, 3000000, 4000000"
         )
     with pytest.raises(ConfigError, match="model.npz was trained for rig 'bench-2', not 'sim'"):
-        check_trained_for(trained(rig="bench-2"), PROFILE, "model.npz")
+        check_trained_for({**trained_for(), "rig": "bench-2"}, PROFILE, "model.npz")
     with pytest.raises(ConfigError) as err:
-        check_trained_for(trained(rig="b" * 100_000), PROFILE, "model.npz")
+        check_trained_for({**trained_for(), "rig": "b" * 100_000}, PROFILE, "model.npz")
     assert len(str(err.value)) < 200
     shifted = PROFILE.with_joints(pan=replace(PROFILE.pan, zero_tick=PROFILE.pan.zero_tick + 200))
     with pytest.raises(ConfigError) as err:
-        check_trained_for(trained(), shifted, "model.npz")
+        check_trained_for(trained_for(), shifted, "model.npz")
     message = str(err.value)
     assert "model.npz was trained under another calibration" in message
     assert "(trained vs now: pan.zero_tick 2185 vs 2385)" in message
-    check_trained_for(trained(), PROFILE, "model.npz")  # the same rig and calibration pass
+    check_trained_for(trained_for(), PROFILE, "model.npz")  # the same rig and calibration pass
     for field, value in (("direction", 1), ("min_deg", -50.0), ("max_deg", 60.0)):
         other = PROFILE.with_joints(tilt=replace(PROFILE.tilt, **{field: value}))
         with pytest.raises(ConfigError, match=f"tilt.{field} "):
-            check_trained_for(trained(), other, "model.npz")
+            check_trained_for(trained_for(), other, "model.npz")
     # the servo id and the end stops are not part of what a model depends on
     moved = PROFILE.with_joints(tilt=replace(PROFILE.tilt, id=7, stop_max_deg=80.0))
-    check_trained_for(trained(), moved, "model.npz")
+    check_trained_for(trained_for(), moved, "model.npz")
     with pytest.raises(ConfigError) as err:
         check_trained_for({"rig": "sim"}, PROFILE, "old.npz")
     message = str(err.value)
     assert message.startswith("old.npz does not record the calibration it was trained under")
     assert "`limbctl record`, then `limbctl train`" in message
-    bad = trained()
+    bad = trained_for()
     bad["calibration"]["pan"]["zero_tick"] = "2185"
     with pytest.raises(ConfigError, match=r"model.npz: calibration.pan.zero_tick must be an"):
         check_trained_for(bad, PROFILE, "model.npz")
