@@ -378,39 +378,6 @@ def test_at_200_hz_a_let_go_leader_walks_back_under_30_deg_s_never_pulled_outwar
     assert out["outward_s"] == []
 
 
-def test_at_200_hz_the_law_alone_brakes_a_let_go_leader_outward_and_snaps_over_30_deg_s():
-    # the peer: round 6's law without the snap watch (decisions/haptic.md, rounds 4-5)
-    alone = [let_go(k, beyond, t, watch=False) for k, beyond, t in LET_GO_CASES]
-    assert sum(len(out["outward_s"]) for out in alone) >= 20
-    assert max(out["peak"] for out in alone) > 30.0
-
-
-@pytest.mark.parametrize("model", ["xl330-m288@53", "xl330-m077@53"])
-def test_an_xl330_wall_pushes_with_its_cap_where_two_ticks_gave_a_fraction(model):
-    """Let go, under 30 deg/s to within 0.5 deg, never inside."""
-    for hand in [(0.02, 5.0), (0.05, 20.0), (0.2, 5.0)]:  # stiffness N m/deg, deg beyond
-        out = let_go(*hand, model=model)
-        assert out["peak"] <= 30.0, hand  # every 1 ms sample
-        assert out["deepest"] <= 0.0 and out["rest"] < 0.5, hand
-        assert out["torque_inside"] == 0, hand
-    motor = FELT_MODELS[ModelNumber.XL330_M288 if "m288" in model else ModelNumber.XL330_M077]
-    cap_nm = motor.torque_of(motor.units_for(motor.cap_nm(LAW.cap_nm)))
-    # a 0.3 N m hand overpowers an XL330's cap: the wall holds it with all of the cap
-    held = let_go(0.05, 20.0, model=model)["held_nm"]
-    assert held == pytest.approx(cap_nm, rel=0.02)
-    # two ticks (three deeper) gave its soft loop 0.03 (M077) and 0.08 (M288) N m
-    two_ticks = let_go(0.05, 20.0, model=model, law=TWO_TICKS)
-    assert two_ticks["held_nm"] < held / 1.4
-    if "m077" in model:  # two ticks gave 0.02 N m, about its friction: the walk back stalled
-        assert two_ticks["rest"] > 5.0 and let_go(0.05, 20.0, model=model)["rest"] < 0.5
-        return
-    # why the M288's cap is 0.12 N m: at half its stall torque the law alone snaps it back
-    half = replace(motor, let_go_cap_nm=None)
-    assert half.cap_nm(LAW.cap_nm) == pytest.approx(0.5 * motor.stall_torque_nm)
-    assert let_go(0.05, 20.0, watch=False, model=model, motor=half)["peak"] > 40.0
-    assert let_go(0.05, 20.0, watch=False, model=model)["peak"] <= 30.0
-
-
 @pytest.mark.parametrize("stiffness", [0.02, 0.2])
 def test_at_200_hz_a_closed_excursion_gives_the_hand_back_less_than_it_put_in(stiffness):
     script = [[0.0, 20.0, 0.0], [1.0, 20.0, 0.0], [2.0, 40.0, 0.0], [2.5, 40.0, 0.0]]
@@ -515,10 +482,19 @@ def test_at_200_hz_the_leader_stops_within_2_deg_of_the_edge_and_walks_back(pres
     assert np.abs([r["velocity_deg_s"] for r in after]).max() <= 30.0
 
 
-def test_at_200_hz_the_law_alone_brakes_a_let_go_three_servo_leader_outward(region):
-    # the peer: round 6's law without the watch brakes each snap. A hand that overpowers the cap
-    # (0.6 N m) holds the leader past HELD_WITHIN, where the wall stores its deeper lead: let go,
-    # that lead snaps the leader over 30 deg/s in swing and in twist, whatever the edge's place
+@pytest.mark.parametrize("rig", RIGS)
+def test_at_200_hz_the_law_alone_brakes_a_let_go_leader_outward_and_snaps_over_30_deg_s(rig):
+    """The peer: round 6's law without the snap watch (decisions/haptic.md, rounds 4-5) brakes
+    each snap. Two servos: the hands and depths of LET_GO_CASES along pan. Three: a hand that
+    overpowers the cap (0.6 N m) holds the leader past HELD_WITHIN, where the wall stores its
+    deeper lead: let go, that lead snaps the leader over 30 deg/s in swing and in twist, whatever
+    the edge's place."""
+    if rig == "sim":
+        alone = [let_go(k, beyond, t, watch=False) for k, beyond, t in LET_GO_CASES]
+        assert sum(len(out["outward_s"]) for out in alone) >= 20
+        assert max(out["peak"] for out in alone) > 30.0
+        return
+    region = region_of(3)
     runs = {
         p: felt_at_200_hz(PRESSES[p], 6.0, let_go_s=4.5, snap_watch=False, max_torque_nm=0.6)
         for p in PRESSES
@@ -530,14 +506,37 @@ def test_at_200_hz_the_law_alone_brakes_a_let_go_three_servo_leader_outward(regi
 
 
 @pytest.mark.parametrize("model", ["xl330-m288@53", "xl330-m077@53"])
-@pytest.mark.parametrize("press", sorted(PRESSES))
-def test_at_200_hz_an_xl330_leader_pushes_with_its_cap_and_returns_under_30_deg_s(
-    region, model, press
-):
-    # the lead follows the soft loop; the law alone (round 6)
-    rows = felt_at_200_hz(PRESSES[press], 6.0, let_go_s=4.5, model=model, snap_watch=False)
+@pytest.mark.parametrize("press", ["pan-sim", *sorted(PRESSES)])
+def test_at_200_hz_an_xl330_leader_pushes_with_its_cap_and_returns_under_30_deg_s(model, press):
+    """The lead follows the soft loop: a hand that overpowers an XL330's cap is held with all of
+    it; let go, under 30 deg/s to within 0.5 deg, never inside. On two servos along pan (with the
+    snap watch; two ticks, three deeper, gave a fraction of the cap), on three in swing, twist and
+    both (the law alone, round 6)."""
     motor = motor_of(model)
     cap = motor.torque_of(motor.units_for(motor.cap_nm(LAW.cap_nm)))
+    if press == "pan-sim":
+        for hand in [(0.02, 5.0), (0.05, 20.0), (0.2, 5.0)]:  # stiffness N m/deg, deg beyond
+            out = let_go(*hand, model=model)
+            assert out["peak"] <= 30.0, hand  # every 1 ms sample
+            assert out["deepest"] <= 0.0 and out["rest"] < 0.5, hand
+            assert out["torque_inside"] == 0, hand
+        # a 0.3 N m hand overpowers an XL330's cap: the wall holds it with all of the cap
+        held = let_go(0.05, 20.0, model=model)["held_nm"]
+        assert held == pytest.approx(cap, rel=0.02)
+        # two ticks (three deeper) gave its soft loop 0.03 (M077) and 0.08 (M288) N m
+        two_ticks = let_go(0.05, 20.0, model=model, law=TWO_TICKS)
+        assert two_ticks["held_nm"] < held / 1.4
+        if "m077" in model:  # two ticks gave 0.02 N m, about its friction: the walk back stalled
+            assert two_ticks["rest"] > 5.0 and let_go(0.05, 20.0, model=model)["rest"] < 0.5
+            return
+        # why the M288's cap is 0.12 N m: at half its stall torque the law alone snaps it back
+        half = replace(motor, let_go_cap_nm=None)
+        assert half.cap_nm(LAW.cap_nm) == pytest.approx(0.5 * motor.stall_torque_nm)
+        assert let_go(0.05, 20.0, watch=False, model=model, motor=half)["peak"] > 40.0
+        assert let_go(0.05, 20.0, watch=False, model=model)["peak"] <= 30.0
+        return
+    region = region_of(3)
+    rows = felt_at_200_hz(PRESSES[press], 6.0, let_go_s=4.5, model=model, snap_watch=False)
     held = [r for r in rows if 3.0 <= r["t"] < 4.5]
     # the 0.3 N m hand overpowers an XL330's cap: the norm of the torques about all of it
     felt = max(float(np.linalg.norm(r["motor_nm"])) for r in held)
