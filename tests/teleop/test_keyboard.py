@@ -11,7 +11,6 @@ import os
 import pty
 import re
 import sys
-import threading
 import time
 from collections.abc import Callable, Iterator
 
@@ -26,10 +25,10 @@ from limbctl.jobs import gate_for
 from limbctl.teleop.cycle import Cycle
 from limbctl.teleop.gate import Gate, GateLimits, Outcome, written_tolerance_deg
 from limbctl.teleop.keys import KEY_RATE_HZ
-from limbctl.teleop.loop import LoopConfig, run
+from limbctl.teleop.loop import LoopConfig
 from limbctl.teleop.sources import KeyboardSource
 from limbctl.teleop.sources.keyboard import MAX_LEAD_DEG, region_centre
-from tests.safety.support import Gathered
+from tests.safety.support import Gathered, LoopThread
 from tests.teleop.chains import live_chain
 from tests.teleop.tmux import ROOT, tmux_pane
 
@@ -292,18 +291,13 @@ def test_up_against_a_slanted_edge_slides_without_running_on_and_down_answers_at
     tmp_path, rig, cone_file
 ):
     cycles = Cycles()
-    stop = threading.Event()
     with live_chain(rig, tmp_path / "goals.jsonl") as session:
         profile = session.profile
         gate = gate_for(cone_file(40.0, rig), profile, RATE, MAX_SPEED)
         with keyboard_on_pty(step_deg=10.0, gate=gate) as (source, type_):
             source.twist = profile.twists  # as the session sets it: roll kept
             config = LoopConfig(rate_hz=RATE, on_cycle=cycles)
-            loop = threading.Thread(
-                target=run, args=(session.rig, gate, source, config), kwargs={"stop": stop}
-            )
-            loop.start()
-            try:
+            with LoopThread(session.rig, gate, source, config):
                 assert cycles.waits(lambda: cycles.items, WAIT_S), "no cycle"
                 # left one 10 deg step: +pan, where the cone's edge slants; then 5 deg steps
                 start = press(type_, cycles, source, b"a")
@@ -315,9 +309,6 @@ def test_up_against_a_slanted_edge_slides_without_running_on_and_down_answers_at
                     time.sleep(1.0 / REPEAT_HZ)  # the terminal's repeat rate, the input
                 pressed = cycles.items[first:]
                 down = press(type_, cycles, source, b"s")
-            finally:
-                stop.set()
-                loop.join(WAIT_S)
 
     assert written_deg(start) == pytest.approx((10.0, 0.0), abs=0.5)  # the start was read
     stopped = [c for c in at_edge if c.result.corrected]
