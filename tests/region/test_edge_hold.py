@@ -34,36 +34,26 @@ CHECK_DEG = 0.02
 @pytest.fixture(scope="module")
 def sparse_notch():
     """A notched ellipse taught sparsely (1500 i.i.d. samples, where the kept edge stands up to
-    3 deg from every sample): truth, teaching, the scan's box, the region held and unheld."""
+    3 deg from every sample): truth, teaching, the scan's box, the region held, unheld, and held
+    but not cut back to the evidence (its edge as the holds leave it)."""
     outline, _ = notched_ellipse(27.2, 23.4, (-5.7, 7.2), 273.0, 9.0, 8.0)
     truth = PolygonRegion(outline)
     taught = truth.sample(1500, np.random.default_rng(1))
     lo, hi = outline.min(axis=0) - 4.0, outline.max(axis=0) + 4.0
     region = TaughtRegion().fit(taught)
     saved = taught_module.hold_to_evidence, taught_module.cut_to_evidence
-    taught_module.hold_to_evidence = lambda mesh, data, *_, **__: (mesh, False)
     taught_module.cut_to_evidence = lambda mesh, data, *_, **__: Clip.nothing(mesh)
     try:
+        held_uncut = TaughtRegion().fit(taught)
+        taught_module.hold_to_evidence = lambda mesh, data, *_, **__: (mesh, False)
         unheld = TaughtRegion().fit(taught)
     finally:
         taught_module.hold_to_evidence, taught_module.cut_to_evidence = saved
-    return truth, taught, ((lo[0], hi[0]), (lo[1], hi[1])), region, unheld
+    return truth, taught, ((lo[0], hi[0]), (lo[1], hi[1])), region, unheld, held_uncut
 
 
-@pytest.fixture(scope="module")
-def held_uncut(sparse_notch):
-    """The same teaching's region held, not cut back to the evidence (its edge as the holds
-    leave it)."""
-    saved = taught_module.cut_to_evidence
-    taught_module.cut_to_evidence = lambda mesh, data, *_, **__: Clip.nothing(mesh)
-    try:
-        return TaughtRegion().fit(sparse_notch[1])
-    finally:
-        taught_module.cut_to_evidence = saved
-
-
-def test_a_sparse_teaching_is_held_to_the_evidence(sparse_notch, held_uncut):
-    truth, taught, box, region, unheld = sparse_notch
+def test_a_sparse_teaching_is_held_to_the_evidence(sparse_notch):
+    truth, taught, box, region, unheld, held_uncut = sparse_notch
     reach = reach_into(region.contains, truth, box, step_deg=SCAN_DEG)
     bound = REACH_DEG + 0.5 * STATION_DEG + np.hypot(SCAN_DEG, SCAN_DEG)
     assert region.held_edge and region.unsupported_edge
@@ -91,7 +81,7 @@ def test_a_sparse_teaching_is_held_to_the_evidence(sparse_notch, held_uncut):
 def test_a_region_with_no_far_station_is_returned_as_it_is(sparse_notch):
     """Every station within reach of a sample (its stations added to the teaching): the very
     same mesh comes back."""
-    _, taught, _, region, unheld = sparse_notch
+    _, taught, _, region, unheld, _ = sparse_notch
     d = taught_module.taught_directions(taught)
     stations, _ = edge_stations(region.mesh, np.radians(STATION_DEG))
     same, held = hold_to_evidence(region.mesh, np.vstack([d, stations]))
@@ -100,13 +90,13 @@ def test_a_region_with_no_far_station_is_returned_as_it_is(sparse_notch):
     assert hold_to_evidence(unheld.mesh, d)[1]
 
 
-def test_every_point_of_the_held_edge_lies_within_reach_of_a_sample(sparse_notch, held_uncut):
+def test_every_point_of_the_held_edge_lies_within_reach_of_a_sample(sparse_notch):
     """Every point of the region's outer edge (checked ``CHECK_DEG`` apart) lies within
     ``CLIP_REACH_DEG`` plus half the check step of a taught sample, or where the cut back to the
     evidence stopped, ``DEEP_DEG`` inside the held region: the holds bound their stations, not
     every point of their chords, and the cut (:mod:`limbctl.region.evidence_clip`) takes the
     rest (before it: 1.47 deg from every sample)."""
-    _, taught, _, region, _ = sparse_notch
+    _, taught, _, region, _, held_uncut = sparse_notch
     d = taught_module.taught_directions(taught)
     stations, arc = edge_stations(region.mesh, np.radians(CHECK_DEG))
     stations = stations[outer_arcs(region.mesh)[arc]]
