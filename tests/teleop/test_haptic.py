@@ -320,14 +320,19 @@ def let_go_run(
     model: str = "xm430-w350",
     law: FeelLaw = LAW,
     motor=None,
+    release_s: float = 0.0,
+    seconds: float = 7.0,
 ) -> tuple[list, list]:
     """The 1 ms truth and each cycle's (pose, push, instead) of a 0.3 N m hand of ``stiffness``
     (N m/deg) pressing the two-servo leader ``beyond_deg`` past pan 30 deg, let go at
-    ``let_go_s`` (7 s stepped; ``watch``: the snap watch on; ``motor`` None: the table's)."""
+    ``let_go_s`` over ``release_s`` (``seconds`` stepped; ``watch``: the snap watch on;
+    ``motor`` None: the table's)."""
     script = [[0.0, 0.0, 0.0], [2.0, EDGE + beyond_deg, 0.0]]
     options = {"model": model, "law": law, "motor": motor, "snap_watch": watch}
     pushes: list = []
-    rows = felt_at_200_hz(script, 7.0, stiffness, let_go_s, pushes=pushes, **options)
+    rows = felt_at_200_hz(
+        script, seconds, stiffness, let_go_s, pushes=pushes, release_s=release_s, **options
+    )
     return rows, pushes
 
 
@@ -365,17 +370,40 @@ LET_GO_CASES = [
 ]
 
 
-@pytest.mark.parametrize(("stiffness", "beyond_deg", "let_go_s"), LET_GO_CASES)
+#: The 0.2 N m/deg hand 5 deg beyond (pan 35) letting go over 10-100 ms, a fading grip, at 5 s
+#: plus the same phases.
+FADING_CASES = [
+    (0.2, 5.0, 5.0 + phase / 1000.0, release_s)
+    for release_s in (0.01, 0.05, 0.1)
+    for phase in (0, 2, 4)
+]
+
+
+@pytest.mark.parametrize(
+    ("stiffness", "beyond_deg", "let_go_s", "release_s"),
+    [(*case, 0.0) for case in LET_GO_CASES] + FADING_CASES,
+)
 def test_at_200_hz_a_let_go_leader_walks_back_under_30_deg_s_never_pulled_outward(
-    stiffness, beyond_deg, let_go_s
+    stiffness, beyond_deg, let_go_s, release_s
 ):
-    out = let_go(stiffness, beyond_deg, let_go_s)
+    """Let go at once or by a fading grip: walked back under 30 deg/s, never pulled outward; a
+    grip fading over 50-100 ms is not cut like a let go (round 7)."""
+    # a fading grip is run to 0.3 s after it is gone (5.4 s at least); the let go at once, 7 s
+    seconds = max(let_go_s + release_s + 0.3, 5.4)
+    fading = {"release_s": release_s, "seconds": seconds} if release_s else {}
+    out = let_go(stiffness, beyond_deg, let_go_s, **fading)
     assert out["mean_20ms"] <= 30.0
     # every 1 ms sample: the snap watch frees the wall before the snap passes 30 deg/s
     assert out["peak"] <= 30.0
     assert 30.0 <= out["pan"].min() and out["pan"][-1] < 30.5  # within 0.5 deg, never inside
     # the watch frees the wall as the snap onto the setpoint starts, before the loop brakes it
     assert out["outward_s"] == []
+    if release_s >= 0.05 and round((let_go_s - 5.0) * 1000.0) == 2:  # the watch leaves it on
+        rows, _ = let_go_run(stiffness, beyond_deg, let_go_s, **fading)
+        held = max(r["pose_deg"][0] for r in rows if 4.9 <= r["t"] < let_go_s)
+        after = [r for r in rows if r["t"] >= let_go_s]
+        assert max(r["pose_deg"][0] for r in after) < held + 0.02, "thrown outward"
+        assert max(-r["velocity_deg_s"][0] for r in after) < 20.0, "cut like a let go"
 
 
 @pytest.mark.parametrize("stiffness", [0.02, 0.2])
