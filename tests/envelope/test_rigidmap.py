@@ -24,6 +24,7 @@ from limbctl.geometry.twist import compose, decompose, wrap
 from limbctl.region import RegionParams
 from limbctl.region.twist_region import TwistRegion
 from limbctl.teach.dataset import load_dataset
+from tests.region.support import off_x
 
 ROOT = Path(__file__).resolve().parents[2]
 HAND_RECORDING = ROOT / "tests" / "data" / "hand_irregular_seed0_20s.limb"
@@ -106,11 +107,6 @@ def test_save_load_round_trip_and_old_files_load_or_are_refused(cone_model, tmp_
     np.testing.assert_array_equal(back.correct(q), m.correct(q), "the v6 model answers alike")
 
 
-def _direction(theta_deg, phi_deg):
-    t, p = np.radians(theta_deg), np.radians(phi_deg)
-    return np.array([np.cos(t), np.sin(t) * np.cos(p), np.sin(t) * np.sin(p)])
-
-
 def _with_twist(d, twist):
     """swing(d) * (rotation by ``twist`` about +x), canonical w >= 0."""
     tw = np.array([np.cos(twist / 2), np.sin(twist / 2), 0.0, 0.0])
@@ -126,8 +122,8 @@ def _with_twist(d, twist):
 )
 def test_correct_is_continuous(cone_model, theta, phi, step_theta, step_phi):
     _, m = cone_model
-    a = to_quaternions(_direction(theta, phi))
-    b = to_quaternions(_direction(theta + step_theta, phi + step_phi))
+    a = to_quaternions(off_x(theta, phi))
+    b = to_quaternions(off_x(theta + step_theta, phi + step_phi))
     da, db = quat.limb_direction(m.correct(a)), quat.limb_direction(m.correct(b))
     step = quat.direction_angle(quat.limb_direction(a), quat.limb_direction(b))
     # a small command step moves the output by a comparably small amount (no jumps)
@@ -218,7 +214,7 @@ def test_correct_promises(cone_model, hand_model, theta, phi, pan, tilt, twist):
     region; on the cone no farther than the ideal target."""
     region, cone = cone_model
     hand = pan_tilt_to_direction(np.radians(pan), np.radians(tilt))
-    for m, d in ((cone, _direction(theta, phi)), (hand_model, hand)):
+    for m, d in ((cone, off_x(theta, phi)), (hand_model, hand)):
         q = _with_twist(d, twist)
         out = m.correct(q)
         if m.contains(q):

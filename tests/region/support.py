@@ -39,6 +39,13 @@ def circle(radius_deg, n, wobble_deg=0.0, seed=0, shift_deg=0.0):
     return loop @ turn.T
 
 
+def off_x(angle_deg, around_deg):
+    """Directions ``angle_deg`` from +x at bearings ``around_deg`` about it (counter-clockwise
+    seen from outside, bearing 0 towards +y): (3,) of numbers, (N, 3) of arrays (N,)."""
+    a, b = np.radians(angle_deg), np.radians(around_deg)
+    return np.stack([np.cos(a), np.sin(a) * np.cos(b), np.sin(a) * np.sin(b)], axis=-1)
+
+
 def noisy_egg(rng):
     """The egg's loop (60, 3): every 4th vertex (about 2.5 deg apart), each moved up to 1 deg."""
     pan_tilt = np.radians(EGG[::4] + rng.uniform(-1.0, 1.0, (60, 2)) / np.sqrt(2.0))

@@ -17,21 +17,15 @@ from limbctl.region.evidence_clip import (
 )
 from limbctl.region.loops import loop_area
 from limbctl.region.mesh import DirectionMesh
+from tests.region.support import off_x
 
 #: The cone's radius (deg) about +x.
 RADIUS_DEG = 20.0
 
 
-def _cap(radius_deg: float, angle_deg: np.ndarray, around_deg: np.ndarray) -> np.ndarray:
-    """Directions (N, 3) ``angle_deg`` from +x at bearings ``around_deg`` (counter-clockwise
-    seen from outside)."""
-    a, b = np.radians(angle_deg), np.radians(around_deg)
-    return np.column_stack([np.cos(a), np.sin(a) * np.cos(b), np.sin(a) * np.sin(b)])
-
-
 def _cone(radius_deg: float = RADIUS_DEG) -> DirectionMesh:
     around = np.arange(0.0, 360.0, 1.0)
-    loop = _cap(radius_deg, np.full(around.shape, radius_deg), around)
+    loop = off_x(np.full(around.shape, radius_deg), around)
     assert loop_area(loop) > 0.0
     return DirectionMesh.from_loops([loop], 0.0)
 
@@ -40,7 +34,7 @@ def _taught(n: int, seed: int, radius_deg: float = RADIUS_DEG) -> np.ndarray:
     """``n`` directions uniform over the cone (area-uniform)."""
     rng = np.random.default_rng(seed)
     cos_angle = rng.uniform(np.cos(np.radians(radius_deg)), 1.0, n)
-    return _cap(0.0, np.degrees(np.arccos(cos_angle)), rng.uniform(0.0, 360.0, n))
+    return off_x(np.degrees(np.arccos(cos_angle)), rng.uniform(0.0, 360.0, n))
 
 
 def _angle_deg(d: np.ndarray, x: np.ndarray) -> np.ndarray:
@@ -48,14 +42,14 @@ def _angle_deg(d: np.ndarray, x: np.ndarray) -> np.ndarray:
 
 
 #: Where the cone's edge is left untaught.
-GAP = _cap(RADIUS_DEG, np.array([RADIUS_DEG]), np.array([0.0]))[0]
+GAP = off_x(RADIUS_DEG, 0.0)
 
 
 def _with_gap(gap_deg: float, n: int = 4000, seed: int = 3) -> np.ndarray:
     """The cone taught uniformly and along its edge (every 0.5 deg, 0.05 deg in), none within
     ``gap_deg`` of ``GAP``."""
     around = np.arange(0.0, 360.0, 0.5)
-    edge = _cap(RADIUS_DEG, np.full(around.shape, RADIUS_DEG - 0.05), around)
+    edge = off_x(np.full(around.shape, RADIUS_DEG - 0.05), around)
     d = np.vstack([_taught(n, seed), edge])
     return d[_angle_deg(d, GAP) > gap_deg]
 
