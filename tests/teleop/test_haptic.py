@@ -313,25 +313,16 @@ def test_the_lead_follows_the_loops_error_and_gives_the_cap_within_a_tick(
 
 @functools.cache
 def let_go_run(
-    stiffness: float,
-    beyond_deg: float,
-    let_go_s: float = 5.0,
-    watch: bool = True,
-    model: str = "xm430-w350",
-    law: FeelLaw = LAW,
-    motor=None,
-    release_s: float = 0.0,
-    seconds: float = 7.0,
+    stiffness: float, beyond_deg: float, let_go_s: float = 5.0, seconds=7.0, watch=True, **options
 ) -> tuple[list, list]:
     """The 1 ms truth and each cycle's (pose, push, instead) of a 0.3 N m hand of ``stiffness``
     (N m/deg) pressing the two-servo leader ``beyond_deg`` past pan 30 deg, let go at
-    ``let_go_s`` over ``release_s`` (``seconds`` stepped; ``watch``: the snap watch on;
-    ``motor`` None: the table's)."""
+    ``let_go_s`` (``seconds`` stepped; ``watch``: the snap watch on; ``options``: model, law,
+    motor (None: the table's), release_s, as :func:`felt_at_200_hz` takes them)."""
     script = [[0.0, 0.0, 0.0], [2.0, EDGE + beyond_deg, 0.0]]
-    options = {"model": model, "law": law, "motor": motor, "snap_watch": watch}
     pushes: list = []
     rows = felt_at_200_hz(
-        script, seconds, stiffness, let_go_s, pushes=pushes, release_s=release_s, **options
+        script, seconds, stiffness, let_go_s, pushes=pushes, snap_watch=watch, **options
     )
     return rows, pushes
 
@@ -370,18 +361,11 @@ LET_GO_CASES = [
 ]
 
 
-#: The 0.2 N m/deg hand 5 deg beyond (pan 35) letting go over 10-100 ms, a fading grip, at 5 s
-#: plus the same phases.
-FADING_CASES = [
-    (0.2, 5.0, 5.0 + phase / 1000.0, release_s)
-    for release_s in (0.01, 0.05, 0.1)
-    for phase in (0, 2, 4)
-]
-
-
 @pytest.mark.parametrize(
     ("stiffness", "beyond_deg", "let_go_s", "release_s"),
-    [(*case, 0.0) for case in LET_GO_CASES] + FADING_CASES,
+    # and the 0.2 N m/deg hand 5 deg beyond letting go over 10-100 ms (a fading grip)
+    [(*case, 0.0) for case in LET_GO_CASES]
+    + [(0.2, 5.0, 5.0 + phase / 1000.0, r) for r in (0.01, 0.05, 0.1) for phase in (0, 2, 4)],
 )
 def test_at_200_hz_a_let_go_leader_walks_back_under_30_deg_s_never_pulled_outward(
     stiffness, beyond_deg, let_go_s, release_s
