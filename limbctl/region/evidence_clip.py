@@ -30,7 +30,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import shapely
 from scipy.spatial import cKDTree
-from shapely.geometry import MultiPoint, Polygon
+from shapely.geometry import Polygon
 
 from limbctl.geometry.gimbal import direction_to_pan_tilt, pan_tilt_to_direction
 from limbctl.geometry.quat import tangent_frame
@@ -181,17 +181,20 @@ def clip_to_evidence(
         outside = outside.intersection(
             _disc_union(plane, ring_stations, (deep + slack) / INSCRIBED)
         )
-    pieces = _polygons(outside)
-    far_points = MultiPoint(plane.to(stations[far]))
     most = largest * region.area
     far_xy = shapely.points(plane.to(stations[far]))
+
+    def mouth(piece) -> int:
+        """How many stations past the reach ``piece`` touches (one per CLIP_STEP_DEG of edge)."""
+        return int(np.count_nonzero(shapely.distance(piece, far_xy) < TOUCH_PLANE))
+
     cut = [
         p
-        for p in pieces
+        for p in _polygons(outside)
         if not p.is_empty
-        and p.distance(far_points) < TOUCH_PLANE
         and p.area <= most
-        and np.count_nonzero(shapely.distance(p, far_xy) < TOUCH_PLANE) * CLIP_STEP_DEG >= mouth_deg
+        and (touched := mouth(p)) >= 1
+        and touched * CLIP_STEP_DEG >= mouth_deg
     ]
     if not cut:
         return none
