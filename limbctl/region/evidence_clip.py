@@ -10,9 +10,10 @@ edge there; where they cannot (a gap between the samples wider than twice the re
 straight hold cannot bridge, or a hold given back because it crossed), :func:`cut_to_evidence`
 cuts the region back in two passes. First a bridged notch: every channel farther than
 ``NOTCH_REACH_DEG`` from every sample that opens on an edge point that far out is removed to its
-end where it opens on ``NOTCH_MOUTH_DEG`` of edge or more (a teaching's gaps are narrower than
-that; a notch left untaught is wider), unless the channel is a large share of the region (then
-the teaching's gaps have joined up and cannot be told from a notch). Then the rest:
+end, unless the channel is a large share of the region (then the teaching's gaps have joined up
+and cannot be told from a notch). A sparse teaching's gap that opens on the edge is cut too: the
+evidence cannot tell it from a narrow notch, and containment wins (the guide asks there). Then
+the rest:
 every part of the region farther than ``CLIP_REACH_DEG`` from every sample, within ``DEEP_DEG``
 of the edge and touching an edge point past that reach, is removed, so the new edge runs along
 the samples' reach or ``DEEP_DEG`` inside (docs/decisions/region.md, "Cut back to the
@@ -87,11 +88,6 @@ NOTCH_REACH_DEG = CLIP_REACH_DEG + DEEP_DEG
 #: of it), where the evidence cannot tell a notch from a gap: that piece is left to the second
 #: cut, and its stretch, past the settled distance, keeps the guide asking there.
 NOTCH_SHARE = 0.04
-#: Shortest run (deg) of edge points past ``NOTCH_REACH_DEG`` a piece of the first cut must
-#: touch: a notch's mouth. On swing outlines 78, 84, 87 and 88, sparse, the bridged notches'
-#: pieces touched 7.05-9.65 deg of such edge and every other piece at most 4.6; 1000 samples
-#: of the irregular region leave at most 3.85, strokes over a 30 deg cone 2.3.
-NOTCH_MOUTH_DEG = 6.0
 #: Spacing (deg) of the edge stations the cut's depth is measured from.
 DEEP_STEP_DEG = 0.5
 #: Plane distance of the opening that drops zero-width spikes: 1e-7 rad is 6e-6 deg, far
@@ -145,12 +141,10 @@ def clip_to_evidence(
     reach: float = np.radians(CLIP_REACH_DEG),
     deep: float | None = np.radians(DEEP_DEG),
     largest: float = 1.0,
-    mouth_deg: float = 0.0,
 ) -> Clip:
     """``mesh`` with every piece of it farther than ``reach`` (rad) from the taught directions
     ``data`` (N, 3) that touches its outer edge cut away, up to ``deep`` (rad) inside the edge
-    (None: no bound) (module docstring); a piece over ``largest`` of the region's area, or
-    touching less than ``mouth_deg`` of edge past the reach, is kept.
+    (None: no bound) (module docstring); a piece over ``largest`` of the region's area is kept.
 
     A region that does not fit one plane (an edge point past ``PLANE_REACH_DEG`` of its centre)
     comes back uncut, ``Clip.fits`` False (docs/decisions/region.md says why that is left).
@@ -183,18 +177,12 @@ def clip_to_evidence(
         )
     most = largest * region.area
     far_xy = shapely.points(plane.to(stations[far]))
-
-    def mouth(piece) -> int:
-        """How many stations past the reach ``piece`` touches (one per CLIP_STEP_DEG of edge)."""
-        return int(np.count_nonzero(shapely.distance(piece, far_xy) < TOUCH_PLANE))
-
     cut = [
         p
         for p in _polygons(outside)
         if not p.is_empty
         and p.area <= most
-        and (touched := mouth(p)) >= 1
-        and touched * CLIP_STEP_DEG >= mouth_deg
+        and bool(np.any(shapely.distance(p, far_xy) < TOUCH_PLANE))
     ]
     if not cut:
         return none
@@ -215,12 +203,10 @@ def clip_to_evidence(
 def cut_to_evidence(mesh: DirectionMesh, data: np.ndarray) -> Clip:
     """``mesh`` cut back to the taught directions ``data`` (N, 3) in two passes: first every
     channel farther than ``NOTCH_REACH_DEG`` from every sample that opens on the edge, to its end
-    (a bridged notch) whose mouth is ``NOTCH_MOUTH_DEG`` or wider, unless it takes over
-    ``NOTCH_SHARE`` of the region; then every edge point
-    farther than ``CLIP_REACH_DEG``, ``DEEP_DEG`` in. The :class:`Clip` lists both's places."""
-    notch = clip_to_evidence(
-        mesh, data, np.radians(NOTCH_REACH_DEG), None, NOTCH_SHARE, NOTCH_MOUTH_DEG
-    )
+    (a bridged notch), unless it takes over ``NOTCH_SHARE`` of the region; then every edge
+    point farther than ``CLIP_REACH_DEG``, ``DEEP_DEG`` in. The :class:`Clip` lists both's
+    places."""
+    notch = clip_to_evidence(mesh, data, np.radians(NOTCH_REACH_DEG), None, NOTCH_SHARE)
     if not notch.cut:
         return clip_to_evidence(mesh, data)
     edge = clip_to_evidence(notch.region, data)

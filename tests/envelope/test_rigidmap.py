@@ -137,7 +137,10 @@ def test_irregular_region_valid_commands_pass_and_outputs_stay_near():
     test = region.test_directions(3000, rng)
     q = to_quaternions(test)
     inside = m.contains(q)
-    assert inside[region.depth(test) >= np.radians(4.0)].mean() > 0.98
+    # the first cut takes the gaps of 1000 samples that open on the edge to their ends (the
+    # evidence cannot tell them from a narrow notch): 96.0 % held (docs/decisions/region.md,
+    # "A narrow notch cut too")
+    assert inside[region.depth(test) >= np.radians(4.0)].mean() > 0.95
     out = m.correct(q)
     assert np.all(m.contains(out))
     np.testing.assert_array_equal(out[inside], q[inside])
@@ -167,10 +170,11 @@ def test_hand_strokes_are_contained_and_gaps_filled(which):
     passed = _taught_gate_passes(m, q, d, region, region.test_directions(20000, rng), 500)
     if m.region.unsupported_edge:
         # strokes leaving the edge unreached: the region is held at the evidence and says so, and
-        # the edge zigzags between the strokes (docs/decisions/region.md, "The held edge held
-        # again to 0.9 deg": containment over coverage)
+        # the edge zigzags between the strokes, and a gap between strokes that opens on the edge
+        # is cut to its end (docs/decisions/region.md, "The held edge held again to 0.9 deg" and
+        # "A narrow notch cut too": containment over coverage; the 30 deg cone keeps 72.9 %)
         assert m.region.held_edge and any(s.held for s in m.region.unsupported_edge)
-        assert passed >= 0.75
+        assert passed >= 0.7
     else:
         assert passed >= 0.96
 

@@ -125,7 +125,9 @@ def test_run_eval_smoke_grid_end_to_end(tmp_path, capsys):
     assert {r["experiment"] for r in rows} == EXPERIMENTS
     assert all(np.isfinite(r["mse"]) for r in rows if r["subset"] == "all")
     gates = [r for r in rows if r["answer"] == "correct (gate)" and r["subset"] == "valid"]
-    assert min(r["unchanged_share"] for r in gates if r["model"].startswith("RigidMap")) > 0.9
+    # 300 samples over 45 deg leave gaps on the edge the first cut takes to their ends: 84.9 %
+    # (docs/decisions/region.md, "A narrow notch cut too")
+    assert min(r["unchanged_share"] for r in gates if r["model"].startswith("RigidMap")) > 0.8
     summary = (out / "summary.md").read_text()
     assert "Rigid Map paper defaults" in summary and "| SOM 5x5 |" in summary
     printed = capsys.readouterr().out

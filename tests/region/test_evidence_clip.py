@@ -12,8 +12,10 @@ from limbctl.region.evidence_clip import (
     DEEP_DEG,
     DEEP_STEP_DEG,
     INSCRIBED,
+    NOTCH_REACH_DEG,
     clip_to_evidence,
     clipped_stretches,
+    cut_to_evidence,
 )
 from limbctl.region.loops import loop_area
 from limbctl.region.mesh import DirectionMesh
@@ -124,3 +126,27 @@ def test_each_place_cut_is_listed_held_unless_a_stretch_names_it_already():
     assert "held at the evidence" in listed[0].line()
     there = Stretch(listed[0].pan_deg, listed[0].tilt_deg, 2.0, 1.0)
     assert clipped_stretches((there,), clip) == (there,)
+
+
+def _with_channel(half_width_deg: float, depth_deg: float) -> np.ndarray:
+    """The cone taught as in ``_with_gap``, none within ``half_width_deg`` of the channel that
+    runs ``depth_deg`` in from ``GAP`` toward the cone's centre (a notch left untaught)."""
+    d = _with_gap(0.0)
+    floor = off_x(RADIUS_DEG - np.arange(0.0, depth_deg + 0.01, 0.05), np.zeros(1))
+    near_floor = cKDTree(floor).query(d)[0]
+    return d[np.degrees(near_floor) > half_width_deg]
+
+
+def test_a_narrow_bridged_notch_is_cut_to_its_end():
+    """A channel 6.4 deg wide and 8 deg deep that no sample reached: its mouth on the edge
+    (edge past ``NOTCH_REACH_DEG`` of the samples) is about 4 deg, narrower than the notches a
+    mouth gate let through, and the first pass takes it to its end, not ``DEEP_DEG`` in."""
+    taught = _with_channel(3.2, 8.0)
+    clip = cut_to_evidence(_cone(), taught)
+    assert clip.cut and clip.region.contains(taught).all()
+    floor = off_x(RADIUS_DEG - np.arange(DEEP_DEG + 0.5, 8.0, 0.25), np.zeros(1))
+    far = np.degrees(cKDTree(taught).query(floor)[0]) > NOTCH_REACH_DEG + 0.1
+    assert far.sum() >= 10
+    assert not clip.region.contains(floor[far]).any()
+    # the place is named, as far from the samples as the channel's half width
+    assert _angle_deg(clip.places, GAP).min() < 3.2 and clip.far_deg.max() <= 3.2 + CLIP_STEP_DEG
