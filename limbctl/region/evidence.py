@@ -277,5 +277,24 @@ def held_stretches(
     return tuple(sorted(kept + left, key=lambda s: -s.distance_deg))
 
 
+def cut_within_reach(
+    listed: tuple[Stretch, ...], region: DirectionMesh, data: np.ndarray
+) -> tuple[Stretch, ...]:
+    """``listed`` read again on the cut ``region``: an unheld stretch where that region's edge
+    no longer stands farther than ``REACH_DEG + HELD_SLACK_DEG`` from the taught ``data``
+    (N, 3) is marked held (the cut brought it within reach); every other stretch as it was."""
+    left = unsupported_stretches(
+        region, data, np.radians(REACH_DEG + HELD_SLACK_DEG), surrounded=False
+    )
+    where = np.array([_direction(s) for s in left]).reshape(-1, 3)
+    span = np.array([s.length_deg for s in left])
+
+    def still_far(s: Stretch) -> bool:
+        angle = np.degrees(np.arccos(np.clip(where @ _direction(s), -1.0, 1.0)))
+        return bool(np.any(angle <= 0.5 * (span + s.length_deg) + SAME_PLACE_DEG))
+
+    return tuple(s if s.held or still_far(s) else replace(s, held=True) for s in listed)
+
+
 def _direction(s: Stretch) -> np.ndarray:
     return pan_tilt_to_direction(*np.radians([s.pan_deg, s.tilt_deg]))

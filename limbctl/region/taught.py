@@ -23,6 +23,7 @@ from limbctl.region.evidence import (
     HOLD_REACH_DEG,
     REACH_DEG,
     Stretch,
+    cut_within_reach,
     held_stretches,
     unsupported_stations,
     unsupported_stretches,
@@ -181,7 +182,9 @@ class TaughtRegion:
         if not clip.cut:
             return region
         self.held_edge = True
-        self.unsupported_edge = clipped_stretches(self.unsupported_edge, clip)
+        # an unheld place the cut brought within reach is named held
+        listed = clipped_stretches(self.unsupported_edge, clip)
+        self.unsupported_edge = cut_within_reach(listed, clip.region, d_train)
         return clip.region
 
     def _shape(

@@ -124,6 +124,9 @@ def test_every_point_of_the_held_edge_lies_within_reach_of_a_sample(sparse_notch
         # 600 samples: a notch 8 x 7 deg bridged by the smooth edge (3.65 deg past uncut): cut
         # to its end, and asked for
         pytest.param(84, "iid sparse", id="a bridged notch cut to its end"),
+        # 600 samples: a notch 11 x 9 deg bridged where both holds gave up (4.91 deg past uncut):
+        # cut to its end, and the report read again on the cut region
+        pytest.param(78, "iid sparse", id="a report read on the cut region"),
     ],
 )
 def test_a_swing_family_teaching_is_held_within_1_deg_keeping_its_samples(seed, kind):
@@ -143,7 +146,7 @@ def test_a_swing_family_teaching_is_held_within_1_deg_keeping_its_samples(seed, 
     far = unsupported_stations(region.mesh, taught, np.radians(bound), surrounded=False)[3]
     left = [s for s in region.unsupported_edge if not s.held]
     assert (far.size > 0) == bool(left) and all(s.distance_deg > bound for s in left)
-    if seed in (1, 84):
+    if seed in (1, 78, 84):
         assert any(not s.settled for s in region.unsupported_edge), "nothing is asked for"
     if kind == "iid dense":
         assert all(s.held for s in region.unsupported_edge)
