@@ -260,20 +260,9 @@ def held_stretches(
     hold left: where it gave arcs back (their pins crossed), that region's own edge still stands
     farther than ``REACH_DEG + HELD_SLACK_DEG`` from the taught ``data`` (N, 3); those stretches
     are listed unheld instead of the cut ones at the same place. Farthest first."""
-    bound = np.radians(REACH_DEG + HELD_SLACK_DEG)
-    left = unsupported_stretches(region, data, bound, surrounded=False)
+    left = _past_held_reach(region, data)
     kept = [replace(s, held=True) for s in cut]
-    if left:
-        where = np.array([_direction(s) for s in left])
-        span = np.array([s.length_deg for s in left])
-        kept = [
-            s
-            for s in kept
-            if not np.any(
-                np.degrees(np.arccos(np.clip(where @ _direction(s), -1.0, 1.0)))
-                <= 0.5 * (span + s.length_deg) + SAME_PLACE_DEG
-            )
-        ]
+    kept = [s for s in kept if not at_same_place(s, left)]
     return tuple(sorted(kept + left, key=lambda s: -s.distance_deg))
 
 
@@ -283,17 +272,26 @@ def cut_within_reach(
     """``listed`` read again on the cut ``region``: an unheld stretch where that region's edge
     no longer stands farther than ``REACH_DEG + HELD_SLACK_DEG`` from the taught ``data``
     (N, 3) is marked held (the cut brought it within reach); every other stretch as it was."""
-    left = unsupported_stretches(
-        region, data, np.radians(REACH_DEG + HELD_SLACK_DEG), surrounded=False
-    )
-    where = np.array([_direction(s) for s in left]).reshape(-1, 3)
-    span = np.array([s.length_deg for s in left])
+    left = _past_held_reach(region, data)
+    return tuple(s if s.held or at_same_place(s, left) else replace(s, held=True) for s in listed)
 
-    def still_far(s: Stretch) -> bool:
-        angle = np.degrees(np.arccos(np.clip(where @ _direction(s), -1.0, 1.0)))
-        return bool(np.any(angle <= 0.5 * (span + s.length_deg) + SAME_PLACE_DEG))
 
-    return tuple(s if s.held or still_far(s) else replace(s, held=True) for s in listed)
+def at_same_place(s: Stretch, others: list[Stretch] | tuple[Stretch, ...]) -> bool:
+    """Whether ``s`` lies at one of ``others``: their farthest stations within half their
+    lengths plus ``SAME_PLACE_DEG`` (deg)."""
+    if not others:
+        return False
+    where = np.array([_direction(o) for o in others])
+    span = np.array([o.length_deg for o in others])
+    angle = np.degrees(np.arccos(np.clip(where @ _direction(s), -1.0, 1.0)))
+    return bool(np.any(angle <= 0.5 * (span + s.length_deg) + SAME_PLACE_DEG))
+
+
+def _past_held_reach(region: DirectionMesh, data: np.ndarray) -> list[Stretch]:
+    """The stretches of ``region``'s edge farther than ``REACH_DEG + HELD_SLACK_DEG`` from the
+    taught ``data`` (N, 3)."""
+    bound = np.radians(REACH_DEG + HELD_SLACK_DEG)
+    return unsupported_stretches(region, data, bound, surrounded=False)
 
 
 def _direction(s: Stretch) -> np.ndarray:

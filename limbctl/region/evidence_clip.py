@@ -33,11 +33,11 @@ import shapely
 from scipy.spatial import cKDTree
 from shapely.geometry import Polygon
 
-from limbctl.geometry.gimbal import direction_to_pan_tilt, pan_tilt_to_direction
+from limbctl.geometry.gimbal import direction_to_pan_tilt
 from limbctl.geometry.quat import tangent_frame
 from limbctl.region.evidence import (
-    SAME_PLACE_DEG,
     Stretch,
+    at_same_place,
     edge_stations,
     loop_arcs,
     outer_arcs,
@@ -361,18 +361,9 @@ def clipped_stretches(stretches: tuple[Stretch, ...], clip: Clip) -> tuple[Stret
             float(clip.length_deg[i]),
             held=True,
         )
-        where = pan_tilt_to_direction(np.radians(new.pan_deg), np.radians(new.tilt_deg))
-        if not any(
-            np.degrees(np.arccos(np.clip(where @ _at(s), -1.0, 1.0)))
-            <= 0.5 * (s.length_deg + new.length_deg) + SAME_PLACE_DEG
-            for s in out
-        ):
+        if not at_same_place(new, out):
             out.append(new)
     return tuple(sorted(out, key=lambda s: -s.distance_deg))
-
-
-def _at(s: Stretch) -> np.ndarray:
-    return pan_tilt_to_direction(np.radians(s.pan_deg), np.radians(s.tilt_deg))
 
 
 def _sphere_area(poly, plane: _Plane) -> float:
