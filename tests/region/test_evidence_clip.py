@@ -139,8 +139,8 @@ def _with_channel(half_width_deg: float, depth_deg: float) -> np.ndarray:
 
 def test_a_narrow_bridged_notch_is_cut_to_its_end():
     """A channel 6.4 deg wide and 8 deg deep that no sample reached: its mouth on the edge
-    (edge past ``NOTCH_REACH_DEG`` of the samples) is about 4 deg, narrower than the notches a
-    mouth gate let through, and the first pass takes it to its end, not ``DEEP_DEG`` in."""
+    (edge past ``NOTCH_REACH_DEG`` of the samples) is about 4 deg, under the 6 deg a mouth gate
+    once asked of a notch, and the first pass takes it to its end, not ``DEEP_DEG`` in."""
     taught = _with_channel(3.2, 8.0)
     clip = cut_to_evidence(_cone(), taught)
     assert clip.cut and clip.region.contains(taught).all()
