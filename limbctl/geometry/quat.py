@@ -95,11 +95,13 @@ def rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
 def limb_direction(q: np.ndarray) -> np.ndarray:
     """Unit direction (..., 3) of a limb resting along +x after rotation by ``q`` (..., 4)."""
     q = np.asarray(q, dtype=np.float64)
-    w, x, y, z = np.moveaxis(q, -1, 0)
+    w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    d = np.empty(q.shape[:-1] + (3,))
     # d = (w^2 + x^2 - y^2 - z^2, 2(xy + wz), 2(xz - wy))
-    return np.stack(
-        [w * w + x * x - y * y - z * z, 2 * (x * y + w * z), 2 * (x * z - w * y)], axis=-1
-    )
+    d[..., 0] = w * w + x * x - y * y - z * z
+    d[..., 1] = 2 * (x * y + w * z)
+    d[..., 2] = 2 * (x * z - w * y)
+    return d
 
 
 def swing_from_direction(d: np.ndarray) -> np.ndarray:
@@ -107,7 +109,10 @@ def swing_from_direction(d: np.ndarray) -> np.ndarray:
     d = np.asarray(d, dtype=np.float64)
     d = d / np.linalg.norm(d, axis=-1, keepdims=True)
     # q = normalize(1 + d_x, 0, -d_z, d_y)
-    q = np.stack([1.0 + d[..., 0], np.zeros_like(d[..., 0]), -d[..., 2], d[..., 1]], axis=-1)
+    q = np.zeros(d.shape[:-1] + (4,))
+    q[..., 0] = 1.0 + d[..., 0]
+    q[..., 2] = -d[..., 2]
+    q[..., 3] = d[..., 1]
     n = np.linalg.norm(q, axis=-1, keepdims=True)
     antipodal = n[..., 0] < 1e-12
     q = np.where(antipodal[..., None], np.array([0.0, 0.0, 0.0, 1.0]), q / np.where(n > 0, n, 1.0))

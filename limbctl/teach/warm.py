@@ -26,7 +26,7 @@ NICENESS = 19
 TEACHING_S = 30.0
 #: Commands of the small batch asked of the model: the park check's 13 probes.
 SMALL_BATCH = 13
-#: Commands of the larger batch: one more than ``correct_kernels.SINGLE_ROWS``, as a start asks.
+#: Commands of the larger batch: past ``correct_kernels.SINGLE_ROWS``, as a start and a route ask.
 LARGE_BATCH = 65
 #: Twist band half-widths (deg), limb low and high, of data/demo_region3.yaml: a narrowing band.
 TWIST_HALF_DEG = (49.0, 23.0)

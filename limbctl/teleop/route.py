@@ -54,8 +54,8 @@ class Router:
         self._batch_rows = math.inf  # rows from which a batch call is the cheaper
         self._nodes: np.ndarray | None = None  # (M, 3) directions of the roadmap's nodes
         self._node_twist: np.ndarray | None = None  # (M,) a twist inside at each node (rad)
-        # the roadmap's edges: (row, col, length in rad), each pair once
-        self._edges: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        # the roadmap's edges both ways, as CSR arrays (indptr, indices, length in rad)
+        self._edges: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # CSR, both ways
         self._tree: cKDTree | None = None
         self._field_key: np.ndarray | None = None  # the target the field was computed for
         self._field: tuple[np.ndarray, np.ndarray] | None = None
@@ -69,6 +69,8 @@ class Router:
         if self._batch is None:
             probe = np.tile([1.0, 0.0, 0.0, 0.0], (PROBE_ROWS, 1))
             try:
+                self.envelope.contains(probe)  # untimed: a kernel's first call may load or compile
+                self.envelope.contains(probe[0])
                 t0 = time.perf_counter()
                 shape = np.asarray(self.envelope.contains(probe)).shape
                 t1 = time.perf_counter()
@@ -95,20 +97,6 @@ class Router:
             return True
         fixed = np.asarray(self.envelope.correct(q), dtype=np.float64)
         return self._distance(q, fixed) <= math.radians(VISIBLE_SLACK_DEG)
-
-    def inside_rows(self, q: np.ndarray) -> np.ndarray:
-        """(N,) bool: :meth:`inside` of each orientation (N, 4), in one batch where that pays."""
-        q = np.ascontiguousarray(q, dtype=np.float64).reshape(-1, 4)
-        ok = self.inside_many(q)
-        out = np.flatnonzero(~ok)
-        if out.size == 0:
-            return ok
-        if self.batched and out.size >= self._batch_rows:
-            fixed = np.asarray(self.envelope.correct(q[out]), dtype=np.float64).reshape(-1, 4)
-        else:
-            fixed = np.array([self.envelope.correct(row) for row in q[out]], dtype=np.float64)
-        ok[out] = self._distance_rows(q[out], fixed) <= math.radians(VISIBLE_SLACK_DEG)
-        return ok
 
     def _distance(self, a: np.ndarray, b: np.ndarray) -> float:
         """Distance (rad) of two poses (4,): limb directions' angle, or geodesic on SO(3)."""
@@ -143,7 +131,9 @@ class Router:
         (N, 4), ends left out, and which are samples (N, S) bool (short paths are padded with
         their start)."""
         va, vb = (a, b) if self.twist else (limb_direction(a), limb_direction(b))
-        n = np.ceil(self._distance_rows(a, b) / math.radians(SEGMENT_STEP_DEG))
+        # the path's length: the limb directions' angle, or the geodesic (_distance_rows)
+        length = 2.0 * _arc(a, b, signed=True) if self.twist else _arc(va, vb)
+        n = np.ceil(length / math.radians(SEGMENT_STEP_DEG))
         n = np.maximum(n, 1.0)[:, None]  # (N, 1)
         k = np.arange(1, max(int(n.max(initial=1.0)), 2))[None, :]  # (1, S)
         on = k < n  # (N, S)
@@ -165,8 +155,24 @@ class Router:
         pts, on = self._samples(np.broadcast_to(a, b.shape), b)
         on[:, 0] = True  # a path within one sample step is judged at its start, as in clear
         ok = np.ones(on.shape, dtype=bool)
-        ok[on] = self.inside_rows(pts[on])
-        return ok.all(axis=1)
+        ok[on] = self.inside_many(pts[on])
+        # a sample contains() refused may lie within the slack: correct() (on three servos ~100
+        # times dearer) judges one such sample per path a round, until each path has one
+        # beyond the slack or none left
+        clear = np.ones(b.shape[0], dtype=bool)
+        while True:
+            paths = np.flatnonzero(clear & ~ok.all(axis=1))
+            if paths.size == 0:
+                return clear
+            first = np.argmin(ok[paths], axis=1)  # each path's first sample not yet judged in
+            q = pts[paths, first]
+            if self.batched and paths.size >= self._batch_rows:
+                fixed = np.asarray(self.envelope.correct(q), dtype=np.float64).reshape(-1, 4)
+            else:
+                fixed = np.array([self.envelope.correct(row) for row in q], dtype=np.float64)
+            within = self._distance_rows(q, fixed) <= math.radians(VISIBLE_SLACK_DEG)
+            ok[paths[within], first[within]] = True
+            clear[paths[~within]] = False
 
     def clear(self, a: np.ndarray, b: np.ndarray) -> bool:
         """Whether the path from ``a`` to ``b`` (4,) is inside up to VISIBLE_SLACK_DEG."""
@@ -255,9 +261,8 @@ class Router:
         done = np.cumsum(_arc(np.vstack([d_cur, dirs[:-1]]), dirs))
         left = done[-1] + float(_arc(dirs[-1], d_t)) + 1e-12
         q = compose(dirs, tau_cur + wrap(tau_t - tau_cur) * done / left)
-        for k in range(q.shape[0]):
-            if not bool(self.envelope.contains(q[k])):
-                q[k] = self.envelope.correct(q[k])
+        for k in np.flatnonzero(~self.inside_many(q)):
+            q[k] = self.envelope.correct(q[k])
         return q
 
     def prepare(self, seed_q: np.ndarray) -> None:
@@ -298,8 +303,10 @@ class Router:
         i, j = pairs[ok, 0], pairs[ok, 1]
         m = self._nodes.shape[0]
         w = _arc(self._nodes[i], self._nodes[j])
-        graph = coo_matrix((w, (i, j)), shape=(m, m)).tocsr().tocoo()  # duplicates summed
-        self._edges = (graph.row, graph.col, graph.data)
+        # both ways of each edge, rows sorted: the field's graph appends the target's row to it
+        both = coo_matrix((np.r_[w, w], (np.r_[i, j], np.r_[j, i])), shape=(m, m)).tocsr()
+        both.sum_duplicates()
+        self._edges = (both.indptr, both.indices, both.data)
 
     def _node_twists(self, d: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """A twist (N,) (rad) inside at each direction (N, 3) near ``tau``, else NaN."""
@@ -324,17 +331,23 @@ class Router:
         near = self._near(d_t)
         poses = self._node_poses(near)
         near = near[self.clear_rows(target_q, poses)] if near.size else near
+        if near.size == 0:  # no node seen from the target: no way there is known
+            none = (np.full(m, np.inf), np.full(m, -9999, dtype=np.int32))
+            self._field_key, self._field = target_q.copy(), none
+            return self._field
         w = _arc(d_t[None, :], self._nodes[near])
-        # the roadmap's edges and the target's, as node M: one graph of M + 1 nodes
-        rows, cols, lengths = self._edges
-        full = coo_matrix(
+        # the roadmap's edges both ways and the target's out of it, as node M: M + 1 nodes
+        indptr, cols, lengths = self._edges
+        order = np.argsort(near, kind="stable")
+        full = csr_matrix(
             (
-                np.concatenate([lengths, w]),
-                (np.concatenate([rows, near]), np.concatenate([cols, np.full(near.size, m)])),
+                np.concatenate([lengths, w[order]]),
+                np.concatenate([cols, near[order]]),
+                np.r_[indptr, indptr[-1] + near.size],
             ),
             shape=(m + 1, m + 1),
-        ).tocsr()
-        dist, pred = dijkstra(full, directed=False, indices=m, return_predecessors=True)
+        )
+        dist, pred = dijkstra(full, directed=True, indices=m, return_predecessors=True)
         self._field_key, self._field = target_q.copy(), (dist[:m], pred[:m])
         return self._field
 

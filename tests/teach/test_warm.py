@@ -90,8 +90,8 @@ def test_after_prepare_train_teleop_and_a_library_fit_compile_no_kernel(tmp_path
 def test_no_warm_up_when_all_is_prepared_or_nothing_can_be_cached_and_prepare_says_so(
     monkeypatch, capsys
 ):
-    # served row by row up to SINGLE_ROWS; one more takes the kernel a start outside asks
-    assert LARGE_BATCH == SINGLE_ROWS + 1, "the larger batch does not take the batch kernel"
+    # served row by row up to SINGLE_ROWS; more take the kernel a start outside asks
+    assert LARGE_BATCH > SINGLE_ROWS, "the larger batch does not take the batch kernel"
     monkeypatch.setattr(jit, "prepared", lambda stage: True)
     with warming_in_background() as process:
         assert process is None, "a warm-up started with every stage prepared"
