@@ -4,13 +4,15 @@ Runs the real control loop (limbctl.teleop.loop.run) through the real dynamixel-
 embedded simulator for ``--seconds`` per case, with a replayed command stream that sweeps in and
 out of the region, and reports the achieved rate, cycle-time percentiles, overruns and the gate's
 share of the cycle. The peer in the same run is the same loop with a pass-through gate (a model
-that contains everything), so the ratio isolates what the Rigid Map gate costs.
+that contains everything), so the ratio isolates what the Rigid Map gate costs. Two rigs: two
+servos (the bean's models) and three (``sim3``: a fitted bay-and-band region, the sweep turning
+roll too), each against its own peer.
 
 One loop run's gate p50 moves by up to 2x between runs of the same tree on a shared machine, so
 the cases run ``--repeats`` rounds, interleaved, and each figure is the median over rounds with
 its spread (min-max). The gate is also timed alone (no bus, no simulator): the same commands
-stepped through each case's gate, median per call, and its ratio to the pass-through gate's in
-the same round.
+stepped through each case's gate, median and p99 per call, and their ratios to the pass-through
+gate's in the same round.
 
     python benchmarks/bench_loop.py [--seconds 10] [--repeats 3] [--out docs/bench_loop.md]
 """
@@ -38,25 +40,46 @@ from limbctl.session import open_rig
 from limbctl.teleop.loop import LoopConfig, run
 from limbctl.teleop.sources import ReplaySource
 
+#: Each rig's peer: the same loop with a model that contains everything.
+PEERS = {"sim": "pass-through (peer)", "sim3": "three servos: pass-through (peer)"}
 
-def write_stream(path: Path, seconds: float, rate_hz: float = 100.0) -> None:
-    """A Lissajous sweep (pan +-100, tilt -50..70 deg) at ``rate_hz``, stamped with "t"."""
+
+def write_stream(path: Path, seconds: float, rate_hz: float = 100.0, roll: bool = False) -> None:
+    """A Lissajous sweep (pan +-100, tilt -50..70 deg; ``roll``: roll +-60 deg too) at
+    ``rate_hz``, stamped with "t"."""
     n = int(seconds * rate_hz)
     with open(path, "w", encoding="utf-8") as fh:
         for i in range(n):
             t = i / rate_hz
-            pan = 100.0 * math.sin(2 * math.pi * t / 8.0)
-            tilt = 10.0 + 60.0 * math.sin(2 * math.pi * t / 5.0)
-            fh.write(json.dumps({"t": t, "pan": pan, "tilt": tilt}) + "\n")
+            line = {
+                "t": t,
+                "pan": 100.0 * math.sin(2 * math.pi * t / 8.0),
+                "tilt": 10.0 + 60.0 * math.sin(2 * math.pi * t / 5.0),
+            }
+            if roll:
+                line["roll"] = 60.0 * math.sin(2 * math.pi * t / 3.0)
+            fh.write(json.dumps(line) + "\n")
 
 
-def run_case(model_path: Path, stream: Path, seconds: float) -> dict:
-    profile = default_sim_profile()
+def three_servo_region() -> np.ndarray:
+    """A 60 s traced teaching (N, 4) of a random outline with a bay and a notch under a twist band
+    varying with pan and tilt (``tests.teleop.bays``, the seed bench_reach's timing uses)."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    from tests.teleop.bays import OutlineBandRegion, teaching
+
+    rng = np.random.default_rng(1500)
+    return teaching(OutlineBandRegion.random(rng), 60.0, rng)
+
+
+def run_case(model_path: Path, stream: Path, seconds: float, rig: str) -> dict:
+    profile = default_sim_profile(rig)
     gate = gate_for(model_path, profile, 200.0, 120.0)
-    with open_rig() as session:
+    source = ReplaySource(stream)
+    source.twist = profile.roll is not None  # a three-servo rig's commands keep their roll
+    with open_rig(profile=profile) as session:
         session.rig.configure()
         session.rig.set_torque(True)
-        with ReplaySource(stream) as source:
+        with source:
             summary = run(session.rig, gate, source, LoopConfig(rate_hz=200.0, duration_s=seconds))
     cycles = np.asarray(summary.cycle_times_s)
     gates = np.asarray(summary.gate_times_s)
@@ -74,12 +97,13 @@ def run_case(model_path: Path, stream: Path, seconds: float) -> dict:
     }
 
 
-def gate_alone(model_path: Path, stream: Path) -> tuple[float, float]:
+def gate_alone(model_path: Path, stream: Path, rig: str) -> tuple[float, float]:
     """Median and p99 seconds of one ``Gate.step`` over the stream's commands, no bus involved
     (the p99: the routing cycles, a few per cent of them on a held edge)."""
-    gate = gate_for(model_path, default_sim_profile(), 200.0, 120.0)
+    gate = gate_for(model_path, default_sim_profile(rig), 200.0, 120.0)
     with open(stream, encoding="utf-8") as fh:
-        poses = [(math.radians(c["pan"]), math.radians(c["tilt"])) for c in map(json.loads, fh)]
+        keys = ("pan", "tilt", "roll") if rig == "sim3" else ("pan", "tilt")
+        poses = [tuple(math.radians(c[k]) for k in keys) for c in map(json.loads, fh)]
     # the loop starts from the limb's pose, which is safe: here, the stream's first safe pose
     gate.start(*next(p for p in poses if gate.is_safe(*p)))
     targets = [pose_quat(*p) for p in poses]
@@ -108,24 +132,31 @@ def main(argv: list[str] | None = None) -> int:
 
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
-        stream = tmp / "stream.jsonl"
-        write_stream(stream, args.seconds + 5)
+        streams = {"sim": tmp / "stream.jsonl", "sim3": tmp / "stream3.jsonl"}
+        write_stream(streams["sim"], args.seconds + 5)
+        write_stream(streams["sim3"], args.seconds + 5, roll=True)
         region = PolygonRegion()
         rng = np.random.default_rng(0)
         q_train = to_quaternions(region.sample(1000, rng))
         # 3000 samples put the learned edge past the reach of the evidence, so it is held to it:
         # an edge of thousands of short arcs, the router's slowest case
         q_held = to_quaternions(region.sample(3000, np.random.default_rng(2)))
+        # each case: its model and rig (two servos, or three: sweeps roll too)
         models = {
-            "pass-through (peer)": Cone(half_angle_deg=180.0),
-            "cone 60 deg (analytic)": Cone(half_angle_deg=60.0),
-            "Rigid Map (bean, 1000 samples)": RigidMap(seed=0).fit(q_train),
-            "Rigid Map (bean, 3000 samples, held edge)": RigidMap(seed=0).fit(q_held),
+            PEERS["sim"]: (Cone(half_angle_deg=180.0), "sim"),
+            "cone 60 deg (analytic)": (Cone(half_angle_deg=60.0), "sim"),
+            "Rigid Map (bean, 1000 samples)": (RigidMap(seed=0).fit(q_train), "sim"),
+            "Rigid Map (bean, 3000 samples, held edge)": (RigidMap(seed=0).fit(q_held), "sim"),
+            PEERS["sim3"]: (Cone(half_angle_deg=180.0), "sim3"),
+            "three servos: Rigid Map (bay and band, 60 s traced)": (
+                RigidMap(twist=True, seed=0).fit(three_servo_region()),
+                "sim3",
+            ),
         }
-        paths = {}
-        for name, model in models.items():
-            paths[name] = tmp / f"{len(paths)}.npz"
-            sim = default_sim_profile()
+        paths, rigs = {}, {}
+        for name, (model, rig) in models.items():
+            paths[name], rigs[name] = tmp / f"{len(paths)}.npz", rig
+            sim = default_sim_profile(rig)
             meta = {"rig": sim.name, "calibration": sim.calibration.to_dict()}
             model.save(paths[name], metadata=meta)
         rounds: dict[str, list[dict]] = {name: [] for name in models}
@@ -134,12 +165,12 @@ def main(argv: list[str] | None = None) -> int:
         for k in range(args.repeats):
             for name, path in paths.items():
                 print(f"round {k + 1}/{args.repeats}: {name} ...", file=sys.stderr)
-                rounds[name].append(run_case(path, stream, args.seconds))
-                median, p99 = gate_alone(path, stream)
+                rig = rigs[name]
+                rounds[name].append(run_case(path, streams[rig], args.seconds, rig))
+                median, p99 = gate_alone(path, streams[rig], rig)
                 alone[name].append(median)
                 alone_p99[name].append(p99)
 
-    peer = "pass-through (peer)"
     load = os.getloadavg()
     lines = [
         "# Teleop loop on the simulator",
@@ -160,6 +191,7 @@ def main(argv: list[str] | None = None) -> int:
         "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for name, rs in rounds.items():
+        peer = PEERS[rigs[name]]
         ratio = [r["p99_ms"] / p["p99_ms"] for r, p in zip(rs, rounds[peer])]
         lines.append(
             f"| {name} | {spread([r['rate_hz'] for r in rs], digits=1)} | "
@@ -184,6 +216,7 @@ def main(argv: list[str] | None = None) -> int:
         "|---|---|---|---|---|",
     ]
     for name, ts in alone.items():
+        peer = PEERS[rigs[name]]
         ratio = [t / p for t, p in zip(ts, alone[peer])]
         tail = alone_p99[name]
         tail_ratio = [t / p for t, p in zip(tail, alone_p99[peer])]
