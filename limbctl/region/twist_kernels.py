@@ -429,6 +429,32 @@ def _contains_one(q, mesh, frame, grid, centre, half, work) -> int:
 
 
 @njit
+def contains_serial(q, mesh, band):
+    """:func:`contains_batch` on one thread: the same answers, row for row."""
+    n = q.shape[0]
+    res = np.empty(n, dtype=np.int8)
+    frame, grid, centre, half = band
+    work = np.empty((bk.WORK_ROWS + 1, 3))
+    bk.frame_into(mesh[3], work)
+    for j in range(n):
+        res[j] = _contains_one(q[j], mesh, frame, grid, centre, half, work)
+    return res
+
+
+@njit
+def correct_serial(q, mesh, band, seeds, seed_dirs):
+    """:func:`correct_batch` on one thread: the same answers, row for row."""
+    n = q.shape[0]
+    out = np.empty((n, 4))
+    status = np.empty(n, dtype=np.int8)
+    work = np.empty((bk.WORK_ROWS + WORK_EXTRA, 3))
+    bk.frame_into(mesh[3], work)
+    for j in range(n):
+        status[j] = _correct_one(q[j], mesh, band, seeds, seed_dirs, out[j], work)
+    return out, status
+
+
+@njit
 def contains_single(q, mesh, band) -> int:
     """:func:`contains_batch` for one (4,) quaternion: 1, 0 or -1."""
     work = np.empty((bk.WORK_ROWS + 1, 3))

@@ -12,12 +12,18 @@ from limbctl.errors import ConfigError, InvalidInputError
 from limbctl.geometry.quat import as_quaternions
 from limbctl.geometry.twist import SINGULAR_MARGIN, compose, decompose
 from limbctl.region import twist_kernels as tk
+from limbctl.region.correct_kernels import PARALLEL_ROWS
 from limbctl.region.params import RegionParams
 from limbctl.region.shape import thin
 from limbctl.region.taught import TaughtRegion
 from limbctl.region.twist_band import TwistBand, plane_to_direction
 from limbctl.region.twist_evidence import UnsupportedPlace, band_unsupported
 
+#: Rows from which ``correct`` runs on the thread pool: a row costs 30-50 us (a search on SO(3)),
+#: so 2000 rows take ~0.1 s on one thread; a control cycle asks tens, and on the pool they would
+#: contend with the simulator or the bus for the two cores. (``contains`` costs about what the
+#: two-servo correction does and takes the pool from ``correct_kernels.PARALLEL_ROWS``.)
+PARALLEL_CORRECT_ROWS = 2000
 #: Seed spacing (deg): about the search's first step (``STEP_START``); ~3500 on the shoulder.
 SEED_STEP_DEG = 4.0
 
@@ -94,7 +100,8 @@ class TwistRegion:
                 as_quaternions(q)
             return bool(one == 1)
         arr, single = as_quaternions(q)
-        inside = tk.contains_batch(arr, mesh, band) == 1
+        kernel = tk.contains_batch if arr.shape[0] > PARALLEL_ROWS else tk.contains_serial
+        inside = kernel(arr, mesh, band) == 1
         return bool(inside[0]) if single else inside
 
     def correct(self, q: np.ndarray) -> np.ndarray:
@@ -108,7 +115,8 @@ class TwistRegion:
                 as_quaternions(q)
             return out
         arr, single = as_quaternions(q)
-        out, _ = tk.correct_batch(arr, mesh, band, seeds, seed_dirs)
+        kernel = tk.correct_batch if arr.shape[0] > PARALLEL_CORRECT_ROWS else tk.correct_serial
+        out, _ = kernel(arr, mesh, band, seeds, seed_dirs)
         return out[0] if single else out
 
     @property

@@ -15,6 +15,7 @@ from limbctl.errors import ConfigError, InvalidInputError
 from limbctl.geometry import quat
 from limbctl.geometry.quat import geodesic_distance
 from limbctl.geometry.twist import compose, decompose, wrap
+from limbctl.region import twist_kernels as tk
 from limbctl.region.twist_region import TwistRegion, boundary_samples
 from tests.geometry.test_quat import unit_quats
 
@@ -165,6 +166,13 @@ def test_one_command_is_answered_as_in_a_batch_and_the_arrays_round_trip(shoulde
     for row, expected in zip(q, batch, strict=True):
         np.testing.assert_array_equal(region.correct(row), expected)
         assert region.contains(row) == region.contains(row[None])[0]
+    # the thread pool's kernels (large batches) answer as the one-thread ones, row for row
+    mesh, band = region._args()
+    seeds = (region.seeds, region._seed_dirs)
+    pool, pool_status = tk.correct_batch(q, mesh, band, *seeds)
+    np.testing.assert_array_equal(pool, batch)
+    np.testing.assert_array_equal(tk.correct_serial(q, mesh, band, *seeds)[1], pool_status)
+    np.testing.assert_array_equal(tk.contains_batch(q, mesh, band) == 1, region.contains(q))
 
 
 def test_bad_input_regions_reaching_backwards_and_an_unbuilt_region_are_refused(shoulder):
