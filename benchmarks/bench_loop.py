@@ -64,7 +64,7 @@ def write_stream(path: Path, seconds: float, rate_hz: float = 100.0, roll: bool 
 def three_servo_region() -> np.ndarray:
     """A 60 s traced teaching (N, 4) of a random outline with a bay and a notch under a twist band
     varying with pan and tilt (``tests.teleop.bays``, the seed bench_reach's timing uses)."""
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    sys.path.append(str(Path(__file__).resolve().parents[1]))  # after a PYTHONPATH tree
     from tests.teleop.bays import OutlineBandRegion, teaching
 
     rng = np.random.default_rng(1500)

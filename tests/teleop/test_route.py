@@ -3,7 +3,12 @@ a command inside is reached within the stated bound; a straight way inside is fo
 
 from __future__ import annotations
 
+import json
 import math
+import os
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -19,6 +24,7 @@ from limbctl.teleop.route import (
     Router,
     fibonacci_sphere,
 )
+from tests.compile_probe import COUNTER
 from tests.teleop.bays import (
     InsidePaths,
     OutlineBandRegion,
@@ -232,3 +238,48 @@ def test_paths_judged_in_one_batch_are_judged_as_one_by_one(rig):
         judged += sum(one_by_one)
     assert 0 < judged < len(starts) * 28  # both answers were met
     assert router.clear_rows(starts[0], np.empty((0, 4))).shape == (0,)
+
+
+GATE_FIRST_CALLS = (
+    COUNTER
+    + r"""
+import math
+import numpy as np
+from limbctl.envelope import load_model
+from limbctl.teleop.gate import Gate, GateLimits
+model = load_model(sys.argv[2])
+q = np.asarray(json.loads(sys.argv[3]))
+lim = GateLimits((-3.0, -1.5, -3.1), (3.0, 1.5, 3.1), 0.0105, 0.0314)
+gate = Gate(model, lim)
+gate.start(*json.loads(sys.argv[4]))
+ev.register("numba:compile", Count())
+for rows in (q, q[0]):  # what a routing cycle asks: batches and single rows
+    model.contains(rows)
+    model.correct(rows)
+with open(sys.argv[1], "w") as out:
+    json.dump(compiled, out)
+"""
+)
+
+
+def test_a_three_servo_gate_has_its_kernels_ready_before_the_first_cycle(tmp_path):
+    """From an empty kernel cache, the gate's start leaves nothing for a routing cycle to compile
+    (a first batch correct() compiled in the loop stalled it 0.6 s, 12.6 s on the thread pool)."""
+    from limbctl.envelope import RigidMap
+    from tests.teleop.bays import teaching
+
+    truth, rng = region_for(3, 31)
+    model_path = tmp_path / "model.npz"
+    RigidMap(twist=True, seed=0).fit(teaching(truth, 30.0, rng)).save(model_path)
+    start = inside_points(truth, 1, rng)[0]
+    pose = pan_tilt_roll_scalar(start, 0.0, 0.0, -ROLL, ROLL)
+    commands = np.vstack([start, inside_points(truth, 4, rng)]).tolist()
+    log = tmp_path / "compiled.json"
+    root = Path(__file__).resolve().parents[2]
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache"), "PYTHONPATH": str(root)}
+    args = [str(log), str(model_path), json.dumps(commands), json.dumps(list(pose))]
+    done = subprocess.run(
+        [sys.executable, "-c", GATE_FIRST_CALLS, *args], env=env, capture_output=True, text=True
+    )
+    assert done.returncode == 0, done.stderr
+    assert json.loads(log.read_text()) == []
