@@ -55,7 +55,7 @@ class Router:
         self._nodes: np.ndarray | None = None  # (M, 3) directions of the roadmap's nodes
         self._node_twist: np.ndarray | None = None  # (M,) a twist inside at each node (rad)
         # the roadmap's edges both ways, as CSR arrays (indptr, indices, length in rad)
-        self._edges: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # CSR, both ways
+        self._edges: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self._tree: cKDTree | None = None
         self._field_key: np.ndarray | None = None  # the target the field was computed for
         self._field: tuple[np.ndarray, np.ndarray] | None = None
@@ -151,7 +151,8 @@ class Router:
 
     def clear_rows(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """(N,) bool: :meth:`clear` of the paths from ``a`` (4,) to each row of ``b`` (N, 4),
-        every sample of every path judged in one batch (the roadmap's and the route's checks)."""
+        every sample of every path judged by ``contains`` in one batch, the refused ones by
+        ``correct`` a round at a time (the roadmap's and the route's checks)."""
         b = np.asarray(b, dtype=np.float64).reshape(-1, 4)
         if b.shape[0] == 0:
             return np.zeros(0, dtype=bool)
@@ -334,7 +335,7 @@ class Router:
         near = self._near(d_t)
         poses = self._node_poses(near)
         near = near[self.clear_rows(target_q, poses)] if near.size else near
-        if near.size == 0:  # no node seen from the target: no way there is known
+        if near.size == 0:  # no node seen from the target: no way known (Dijkstra's -9999)
             none = (np.full(m, np.inf), np.full(m, -9999, dtype=np.int32))
             self._field_key, self._field = target_q.copy(), none
             return self._field
