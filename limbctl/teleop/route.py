@@ -239,7 +239,7 @@ class Router:
         if near.size == 0:
             return None
         cost = _arc(d_cur[None, :], self._nodes[near]) + dist[near]
-        poses = self._node_poses(near)
+        poses = self._poses_seen_from(near, tau_cur)
         order = np.argsort(cost)
         visible = order[self.clear_rows(current_q, poses[order])]
         if visible.size == 0:
@@ -276,6 +276,20 @@ class Router:
 
     def _node_poses(self, idx: np.ndarray) -> np.ndarray:
         return compose(self._nodes[idx], self._node_twist[idx] if self.twist else 0.0)
+
+    def _poses_seen_from(self, idx: np.ndarray, tau: float) -> np.ndarray:
+        """Poses (K, 4) of nodes ``idx`` (K,) as judged from a pose of twist ``tau`` (rad).
+
+        On three servos a node is taken at ``tau`` itself where that is inside, else at its
+        flood's twist: a path to a node then turns the limb only as far as the band makes it, so
+        it has a few samples, not one per 0.5 deg of a twist difference (up to 60).
+        """
+        own = self._node_poses(idx)
+        if not self.twist or idx.size == 0:
+            return own
+        seen = compose(self._nodes[idx], np.full(idx.size, tau))
+        inside = self.inside_many(seen)
+        return np.where(inside[:, None], seen, own)
 
     def _near(self, d: np.ndarray) -> np.ndarray:
         r = 2.0 * math.sin(0.5 * math.radians(ATTACH_SPACINGS * LATTICE_STEP_DEG))
@@ -331,9 +345,9 @@ class Router:
         if self._field is not None and self._near_target(self._field_key, target_q):
             return self._field  # a target streamed a little further: the same way there
         m = self._nodes.shape[0]
-        d_t, _ = _split(target_q, self.twist)
+        d_t, tau_t = _split(target_q, self.twist)
         near = self._near(d_t)
-        poses = self._node_poses(near)
+        poses = self._poses_seen_from(near, tau_t)
         near = near[self.clear_rows(target_q, poses)] if near.size else near
         if near.size == 0:  # no node seen from the target: no way known (Dijkstra's -9999)
             none = (np.full(m, np.inf), np.full(m, -9999, dtype=np.int32))

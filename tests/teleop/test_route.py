@@ -16,7 +16,7 @@ import pytest
 from limbctl.geometry import scalar
 from limbctl.geometry.chains import chain_geometry
 from limbctl.geometry.gimbal import pan_tilt_roll_scalar
-from limbctl.geometry.twist import decompose, wrap
+from limbctl.geometry.twist import compose, decompose, wrap
 from limbctl.teleop.gate import Gate, GateLimits
 from limbctl.teleop.route import (
     REACH_EXTRA_CYCLES,
@@ -238,6 +238,29 @@ def test_paths_judged_in_one_batch_are_judged_as_one_by_one(rig):
         judged += sum(one_by_one)
     assert 0 < judged < len(starts) * 28  # both answers were met
     assert router.clear_rows(starts[0], np.empty((0, 4))).shape == (0,)
+
+
+def test_a_three_servo_node_is_judged_at_the_twist_it_is_seen_from():
+    """Nodes near a pose are judged at its twist where that is inside: a path to one then turns
+    the limb only by its swing, a few samples, whatever twist the roadmap's flood found there."""
+    region, rng = region_for(3, 43)
+    router = gate_at(region, 3, inside_points(region, 1, rng)[0]).router
+    from_twist = from_flood = 0
+    for q in inside_points(region, 20, rng):
+        d, tau = decompose(q)
+        near = router._near(d)
+        seen = router._poses_seen_from(near, float(tau))
+        assert np.asarray(region.contains(seen), dtype=bool).all()
+        at_tau = np.abs(wrap(decompose(seen)[1] - tau)) < 1e-9
+        # each node at the pose's twist where it fits there, else at the flood's twist
+        fits = np.asarray(region.contains(compose(router._nodes[near], tau)), dtype=bool)
+        assert (at_tau == fits).all()
+        assert np.allclose(seen[~fits], router._node_poses(near)[~fits])
+        from_twist, from_flood = from_twist + int(at_tau.sum()), from_flood + int((~at_tau).sum())
+        # paths to the nodes seen at the pose's twist are swing alone: 4.5 deg, 9 samples at most
+        _, on = router._samples(np.broadcast_to(q, seen.shape), seen)
+        assert (on[at_tau].sum(axis=1) <= 9).all()
+    assert from_twist > 0 and from_flood > 0  # both cases were met
 
 
 GATE_FIRST_CALLS = (
