@@ -29,6 +29,9 @@ VISIBLE_SLACK_DEG = 0.1
 LOOKAHEAD_DEG = 12.0
 #: Twist offsets (deg) tried from a neighbour's for a new node on three servos, nearest first.
 TWIST_TRIES_DEG = (0.0, 3.0, -3.0, 8.0, -8.0, 20.0, -20.0, 45.0, -45.0)
+#: Halvings finding a node's twist nearest a pose's (three servos): 180 deg / 2^6 < 3 deg, near
+#: a twist-limit step, for six small ``contains`` batches.
+TWIST_HALVINGS = 6
 #: The reach bound's terms: route bends (a few per cent over L) and a slide into a bay (measured
 #: up to 24 cycles over L / max_step, benchmarks/bench_reach.py; 40 leaves room).
 REACH_FACTOR = 1.05
@@ -217,9 +220,10 @@ class Router:
 
     def _aim_along(self, current_q: np.ndarray, target_q: np.ndarray) -> np.ndarray:
         """The farthest route point reachable straight from ``current_q`` (else ``target_q``)."""
-        route = self._route(current_q, target_q)
-        if route is None:
+        found = self._route(current_q, target_q)
+        if found is None:
             return target_q  # no way round known: the plain step
+        route, entry = found
         visible = self.clear_rows(current_q, route)
         for k in range(route.shape[0] - 1, -1, -1):
             if visible[k]:
@@ -227,10 +231,15 @@ class Router:
                     # on a route point whose next one is judged a hair outside: the gate corrects
                     return route[k + 1]
                 return route[k]
-        return route[0]
+        # none seen: the route's first point has the twist turned toward the target's, which
+        # may put it past a wall; the entry node as it was judged seen is reachable straight
+        return entry
 
-    def _route(self, current_q: np.ndarray, target_q: np.ndarray) -> np.ndarray | None:
-        """Route points (K, 4) toward ``target_q``, LOOKAHEAD_DEG at most, or None."""
+    def _route(
+        self, current_q: np.ndarray, target_q: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray] | None:
+        """Route points (K, 4) toward ``target_q``, LOOKAHEAD_DEG at most, and the pose (4,) of
+        its entry node as judged seen from ``current_q``; None where no way is known."""
         self.prepare(current_q)
         dist, pred = self._field_for(target_q)
         d_cur, tau_cur = _split(current_q, self.twist)
@@ -252,22 +261,21 @@ class Router:
                 return None
             walked += float(_arc(self._nodes[path[-1]], self._nodes[nxt]))
             path.append(nxt)
-        points = self._waypoints(d_cur, tau_cur, self._nodes[np.array(path)], target_q)
+        points = self._waypoints(d_cur, tau_cur, np.array(path), target_q)
         if pred[path[-1]] == m:  # the target is within the look-ahead: the route ends there
-            return np.vstack([points, target_q])
-        return points
+            points = np.vstack([points, target_q])
+        return points, poses[entry]
 
-    def _waypoints(self, d_cur, tau_cur, dirs: np.ndarray, target_q: np.ndarray) -> np.ndarray:
-        """Poses (K, 4) at directions ``dirs`` (K, 3), twist linear to the target's, corrected."""
+    def _waypoints(self, d_cur, tau_cur, path: np.ndarray, target_q: np.ndarray) -> np.ndarray:
+        """Poses (K, 4) at the nodes ``path`` (K,), twist turning linearly to the target's, or
+        where that is outside, the twist inside nearest it (:meth:`_poses_at`)."""
+        dirs = self._nodes[path]
         if not self.twist:
             return swing_from_direction(dirs)
         d_t, tau_t = _split(target_q, True)
         done = np.cumsum(_arc(np.vstack([d_cur, dirs[:-1]]), dirs))
         left = done[-1] + float(_arc(dirs[-1], d_t)) + 1e-12
-        q = compose(dirs, tau_cur + wrap(tau_t - tau_cur) * done / left)
-        for k in np.flatnonzero(~self.inside_many(q)):
-            q[k] = self.envelope.correct(q[k])
-        return q
+        return self._poses_at(path, tau_cur + wrap(tau_t - tau_cur) * done / left)
 
     def prepare(self, seed_q: np.ndarray) -> None:
         """Build the roadmap once, flooding the region from ``seed_q`` (4,)."""
@@ -278,18 +286,30 @@ class Router:
         return compose(self._nodes[idx], self._node_twist[idx] if self.twist else 0.0)
 
     def _poses_seen_from(self, idx: np.ndarray, tau: float) -> np.ndarray:
-        """Poses (K, 4) of nodes ``idx`` (K,) as judged from a pose of twist ``tau`` (rad).
-
-        On three servos a node is taken at ``tau`` itself where that is inside, else at its
-        flood's twist: a path to a node then turns the limb only as far as the band makes it, so
-        it has a few samples, not one per 0.5 deg of a twist difference (up to 60).
-        """
-        own = self._node_poses(idx)
+        """Poses (K, 4) of nodes ``idx`` (K,) as judged from a pose of twist ``tau`` (rad): the
+        roadmap's own on two servos, else :meth:`_poses_at` ``tau``. A path to a node then turns
+        the limb only as far as the band makes it, so it has a few samples, not one per 0.5 deg
+        of a twist difference."""
         if not self.twist or idx.size == 0:
-            return own
-        seen = compose(self._nodes[idx], np.full(idx.size, tau))
-        inside = self.inside_many(seen)
-        return np.where(inside[:, None], seen, own)
+            return self._node_poses(idx)
+        return self._poses_at(idx, np.full(idx.size, tau))
+
+    def _poses_at(self, idx: np.ndarray, tau: np.ndarray) -> np.ndarray:
+        """Poses (K, 4) of nodes ``idx`` (K,) at twists ``tau`` (K,) (rad) where inside, else at
+        the twist inside nearest it on the way to the node's flood twist (TWIST_HALVINGS
+        halvings; the band at a direction is one interval of twist)."""
+        dirs = self._nodes[idx]
+        poses = compose(dirs, tau)
+        left = np.flatnonzero(~self.inside_many(poses))
+        if left.size:
+            lo = tau[left]  # outside
+            hi = lo + wrap(self._node_twist[idx[left]] - lo)  # inside
+            for _ in range(TWIST_HALVINGS):
+                mid = 0.5 * (lo + hi)
+                ok = self.inside_many(compose(dirs[left], mid))
+                hi, lo = np.where(ok, mid, hi), np.where(ok, lo, mid)
+            poses[left] = compose(dirs[left], hi)
+        return poses
 
     def _near(self, d: np.ndarray) -> np.ndarray:
         r = 2.0 * math.sin(0.5 * math.radians(ATTACH_SPACINGS * LATTICE_STEP_DEG))

@@ -21,6 +21,7 @@ from limbctl.teleop.gate import Gate, GateLimits
 from limbctl.teleop.route import (
     REACH_EXTRA_CYCLES,
     REACH_FACTOR,
+    TWIST_HALVINGS,
     Router,
     fibonacci_sphere,
 )
@@ -240,27 +241,49 @@ def test_paths_judged_in_one_batch_are_judged_as_one_by_one(rig):
     assert router.clear_rows(starts[0], np.empty((0, 4))).shape == (0,)
 
 
-def test_a_three_servo_node_is_judged_at_the_twist_it_is_seen_from():
-    """Nodes near a pose are judged at its twist where that is inside: a path to one then turns
-    the limb only by its swing, a few samples, whatever twist the roadmap's flood found there."""
+def test_a_three_servo_node_is_judged_at_the_twist_inside_nearest_the_pose():
+    """Nodes near a pose are judged at its twist where that is inside, else at the twist inside
+    nearest it: a path to one turns the limb only as far as the band makes it, whatever twist
+    the roadmap's flood found there."""
     region, rng = region_for(3, 43)
     router = gate_at(region, 3, inside_points(region, 1, rng)[0]).router
-    from_twist = from_flood = 0
+    from_twist = moved = 0
     for q in inside_points(region, 20, rng):
         d, tau = decompose(q)
         near = router._near(d)
         seen = router._poses_seen_from(near, float(tau))
         assert np.asarray(region.contains(seen), dtype=bool).all()
-        at_tau = np.abs(wrap(decompose(seen)[1] - tau)) < 1e-9
-        # each node at the pose's twist where it fits there, else at the flood's twist
+        turned = np.abs(wrap(decompose(seen)[1] - tau))
+        flood = np.abs(wrap(router._node_twist[near] - tau))
         fits = np.asarray(region.contains(compose(router._nodes[near], tau)), dtype=bool)
-        assert (at_tau == fits).all()
-        assert np.allclose(seen[~fits], router._node_poses(near)[~fits])
-        from_twist, from_flood = from_twist + int(at_tau.sum()), from_flood + int((~at_tau).sum())
-        # paths to the nodes seen at the pose's twist are swing alone: 4.5 deg, 9 samples at most
-        _, on = router._samples(np.broadcast_to(q, seen.shape), seen)
-        assert (on[at_tau].sum(axis=1) <= 9).all()
-    assert from_twist > 0 and from_flood > 0  # both cases were met
+        assert (turned[fits] < 1e-9).all()
+        # elsewhere no farther than the flood's twist, and nearest within the halvings' step:
+        # that step further toward the pose's twist is outside
+        assert (turned[~fits] <= flood[~fits] + 1e-9).all()
+        seen_tau = decompose(seen[~fits])[1]
+        toward = np.sign(wrap(tau - seen_tau)) * (flood[~fits] / 2**TWIST_HALVINGS + 1e-6)
+        nearer = compose(router._nodes[near[~fits]], seen_tau + toward)
+        assert not np.asarray(region.contains(nearer), dtype=bool).any()
+        from_twist += int(fits.sum())
+        moved += int((~fits).sum())
+    assert from_twist > 0 and moved > 0  # both cases were met
+
+
+def test_a_fitted_three_servo_route_is_entered_where_it_was_judged_seen():
+    """A route's first point is its entry node at the twist judged seen from the pose. It had
+    been the node at the twist turned toward the target's, corrected onto the region: at a wall
+    that put it back on the present pose, whose next route point lay past the wall, and the gate
+    sat there (fitted region of seed 2002, a benchmark seed: never reached before)."""
+    from limbctl.region.twist_region import TwistRegion
+    from tests.teleop.bays import teaching
+
+    truth, rng = region_for(3, 2002)
+    region = TwistRegion().fit(teaching(truth, 60.0, rng))
+    pts = inside_points(truth, 200, rng)
+    a, b = pts[np.asarray(region.contains(pts), dtype=bool)][6:8]
+    gate = gate_at(region, 3, a)
+    length = needed(InsidePaths(truth), a, b, 3)
+    assert drive(gate, region, 3, b, int(bound(length)) + 1) is not None
 
 
 GATE_FIRST_CALLS = (
