@@ -48,7 +48,13 @@ def decompose(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def compose(d: np.ndarray, tau: np.ndarray | float) -> np.ndarray:
     """Unit orientations ``swing(d) * twist(tau)`` (..., 4), w >= 0, of directions ``d`` (..., 3)
     (normalised here) and twists ``tau`` (...,) rad (any value)."""
-    sw = swing_from_direction(d)
+    return twisted(swing_from_direction(d), tau)
+
+
+def twisted(sw: np.ndarray, tau: np.ndarray | float) -> np.ndarray:
+    """Unit orientations ``sw * twist(tau)`` (..., 4), w >= 0, of swings ``sw`` (..., 4) (as
+    :func:`~limbctl.geometry.quat.swing_from_direction` gives, x = 0) and twists ``tau`` (...,)
+    rad, broadcast together: :func:`compose` with the swing computed once for many twists."""
     half = 0.5 * wrap(tau)
     c, s = np.cos(half), np.sin(half)
     s_w, s_y, s_z = sw[..., 0], sw[..., 2], sw[..., 3]

@@ -13,7 +13,7 @@ from scipy.spatial import cKDTree
 
 from limbctl.geometry import scalar
 from limbctl.geometry.quat import limb_direction, swing_from_direction
-from limbctl.geometry.twist import compose, decompose, wrap
+from limbctl.geometry.twist import compose, decompose, twisted, wrap
 
 #: Lattice spacing (deg): a 60 x 60 deg region in ~1600 nodes; narrower passages may have none.
 LATTICE_STEP_DEG = 1.5
@@ -29,9 +29,9 @@ VISIBLE_SLACK_DEG = 0.1
 LOOKAHEAD_DEG = 12.0
 #: Twist offsets (deg) tried from a neighbour's for a new node on three servos, nearest first.
 TWIST_TRIES_DEG = (0.0, 3.0, -3.0, 8.0, -8.0, 20.0, -20.0, 45.0, -45.0)
-#: Halvings finding a node's twist nearest a pose's (three servos): 180 deg / 2^6 < 3 deg, near
-#: a twist-limit step, for six small ``contains`` batches.
-TWIST_HALVINGS = 6
+#: Splits of a twist interval finding a node's twist nearest a pose's (three servos), twice:
+#: 180 deg / 8^2 < 3 deg, near a twist-limit step, for two ``contains`` batches of 8 rows a node.
+TWIST_SPLITS = 8
 #: The reach bound's terms: route bends (a few per cent over L) and a slide into a bay (measured
 #: up to 24 cycles over L / max_step, benchmarks/bench_reach.py; 40 leaves room).
 REACH_FACTOR = 1.05
@@ -296,19 +296,24 @@ class Router:
 
     def _poses_at(self, idx: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """Poses (K, 4) of nodes ``idx`` (K,) at twists ``tau`` (K,) (rad) where inside, else at
-        the twist inside nearest it on the way to the node's flood twist (TWIST_HALVINGS
-        halvings; the band at a direction is one interval of twist)."""
+        the twist inside nearest it on the way to the node's flood twist, to 1/TWIST_SPLITS^2
+        of that way (the band at a direction is one interval of twist)."""
         dirs = self._nodes[idx]
         poses = compose(dirs, tau)
         left = np.flatnonzero(~self.inside_many(poses))
         if left.size:
+            sw = swing_from_direction(dirs[left])[:, None, :]  # (L, 1, 4)
             lo = tau[left]  # outside
             hi = lo + wrap(self._node_twist[idx[left]] - lo)  # inside
-            for _ in range(TWIST_HALVINGS):
-                mid = 0.5 * (lo + hi)
-                ok = self.inside_many(compose(dirs[left], mid))
-                hi, lo = np.where(ok, mid, hi), np.where(ok, lo, mid)
-            poses[left] = compose(dirs[left], hi)
+            rows, steps = np.arange(left.size), np.arange(1, TWIST_SPLITS + 1) / TWIST_SPLITS
+            for _ in range(2):  # the way split in TWIST_SPLITS, then the first inside split again
+                cand = lo[:, None] + (hi - lo)[:, None] * steps  # (L, S), the last one hi
+                ok = self.inside_many(twisted(sw, cand).reshape(-1, 4)).reshape(cand.shape)
+                ok[:, -1] = True
+                first = np.argmax(ok, axis=1)
+                lo = np.where(first > 0, cand[rows, first - 1], lo)
+                hi = cand[rows, first]
+            poses[left] = twisted(sw[:, 0, :], hi)
         return poses
 
     def _near(self, d: np.ndarray) -> np.ndarray:

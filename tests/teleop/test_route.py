@@ -21,7 +21,7 @@ from limbctl.teleop.gate import Gate, GateLimits
 from limbctl.teleop.route import (
     REACH_EXTRA_CYCLES,
     REACH_FACTOR,
-    TWIST_HALVINGS,
+    TWIST_SPLITS,
     Router,
     fibonacci_sphere,
 )
@@ -261,7 +261,7 @@ def test_a_three_servo_node_is_judged_at_the_twist_inside_nearest_the_pose():
         # that step further toward the pose's twist is outside
         assert (turned[~fits] <= flood[~fits] + 1e-9).all()
         seen_tau = decompose(seen[~fits])[1]
-        toward = np.sign(wrap(tau - seen_tau)) * (flood[~fits] / 2**TWIST_HALVINGS + 1e-6)
+        toward = np.sign(wrap(tau - seen_tau)) * (flood[~fits] / TWIST_SPLITS**2 + 1e-6)
         nearer = compose(router._nodes[near[~fits]], seen_tau + toward)
         assert not np.asarray(region.contains(nearer), dtype=bool).any()
         from_twist += int(fits.sum())
