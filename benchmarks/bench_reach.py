@@ -9,15 +9,19 @@ reached*). The distance is the shortest path inside the region: of limb directio
 servos (the outline's visibility graph), on three that plus the twist to turn (``L + |dtau|``,
 the route that turns while it swings).
 
-Part two times the gate's ``start`` (where the roadmap is built) and ``step`` (the whole
-cycle's gate work, routing included) on regions *fitted* from a traced teaching of such an
-outline (TaughtRegion, TwistRegion: what a model file holds), commands jumping between random
+Part two leads one gate through random targets in turn, each from where the last was reached,
+on regions *fitted* to a 60 s traced teaching of such an outline (TaughtRegion, TwistRegion:
+what a model file holds, with the bays the fit drew), seeds from 2000 (``--fitted-seeds``).
+
+Part three times the gate's ``start`` (where the roadmap is built) and ``step`` (the whole
+cycle's gate work, routing included) on such fitted regions, commands jumping between random
 poses inside, after one warm-up jump (the kernels compile at their first call).
 
-    python benchmarks/bench_reach.py [--seeds 12] [--pairs 10] [--no-route] [--out FILE]
+    python benchmarks/bench_reach.py [--seeds 12] [--pairs 10] [--fitted-seeds 6] [--no-route]
+        [--out FILE]
 
-``--seeds 0`` runs part two alone. Step times are wall clock (what a cycle waits) and the
-thread's CPU time (what the gate costs, whatever else shares the cores).
+``--seeds 0 --fitted-seeds 0`` runs part three alone. Step times are wall clock (what a cycle
+waits) and the thread's CPU time (what the gate costs, whatever else shares the cores).
 
 ``--no-route`` measures the gate as it was before routing (its sub-goal is always the target).
 """
@@ -54,6 +58,8 @@ from tests.teleop.bays import (  # noqa: E402
 STEP = math.radians(120.0 / 200.0)
 #: Seeds of the regions measured start here: the tests use 0-99.
 SEED0 = 1000
+#: Seeds of the fitted regions led through targets in turn (``--fitted-seeds``).
+FITTED_SEED0 = 2000
 ROLL = math.radians(179.0)
 
 
@@ -127,6 +133,30 @@ def fitted(rig: int, seed: int):
     return truth, (TaughtRegion() if rig == 2 else TwistRegion()).fit(samples)
 
 
+def fitted_reach_table(rig: int, seeds: int, pairs: int, route: bool) -> list[dict]:
+    """Rows as :func:`reach_table`'s on regions *fitted* to a traced teaching (what a model file
+    holds), one gate led through ``pairs`` targets in turn, each from where the last was reached
+    (as an operator leads it): targets inside the truth that the fitted region contains, the
+    distance measured in the truth."""
+    rows = []
+    for seed in range(FITTED_SEED0, FITTED_SEED0 + seeds):
+        truth, region = fitted(rig, seed)
+        paths = InsidePaths(truth)
+        pts = inside_points(truth, 20 * (pairs + 1), np.random.default_rng(seed + 1))
+        pts = pts[np.asarray(region.contains(pts), dtype=bool)][: pairs + 1]
+        gate = make_gate(region, rig)
+        if not route:
+            gate.router.subgoal = lambda current, target: target
+        start_at(gate, pts[0], rig)
+        at = pts[0]
+        for b in pts[1:]:
+            length, bent = distance(paths, at, b, rig)
+            n = reach(gate, b, rig, int(3 * length / STEP) + 400)
+            rows.append({"seed": seed, "L": length, "bent": bent, "cycles": n})
+            at = gate.chain.quat(gate.chain.point_at(gate.safe_pose))
+    return rows
+
+
 def timing(rig: int, seed: int, route: bool, pairs: int) -> dict:
     """Gate ``step`` times (us) on a fitted region, commands jumping between random poses
     inside (the first cycle of each jump included)."""
@@ -188,6 +218,9 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=12)
     ap.add_argument("--pairs", type=int, default=10)
     ap.add_argument("--no-route", action="store_true", help="the gate as before routing")
+    ap.add_argument(
+        "--fitted-seeds", type=int, default=6, help="fitted regions, targets led in turn"
+    )
     ap.add_argument("--timing-pairs", type=int, default=6)
     ap.add_argument("--out", default=None, help="write the tables to this markdown file")
     args = ap.parse_args()
@@ -203,6 +236,23 @@ def main() -> None:
     ]
     for rig in (2, 3):
         s = summary(reach_table(rig, args.seeds, args.pairs, route))
+        lines.append(
+            f"| {rig} servos | {s['pairs']} | {s['reached']} | {s['bent']} | "
+            f"{s['bent_reached']} | {s['excess_p50']:.1f} | {s['excess_max']:.1f} | "
+            f"{s['ratio_max']:.3f} |"
+        )
+        print(lines[-1], flush=True)
+    lines += [
+        "",
+        f"Fitted regions (seeds {FITTED_SEED0}-{FITTED_SEED0 + args.fitted_seeds - 1}), one "
+        f"gate led through {args.pairs} targets in turn on each",
+        "",
+        "| rig | pairs | reached | bent paths | bent reached | excess cycles p50 | "
+        "excess cycles max | worst time / (distance / step) |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for rig in (2, 3) if args.fitted_seeds else ():
+        s = summary(fitted_reach_table(rig, args.fitted_seeds, args.pairs, route))
         lines.append(
             f"| {rig} servos | {s['pairs']} | {s['reached']} | {s['bent']} | "
             f"{s['bent_reached']} | {s['excess_p50']:.1f} | {s['excess_max']:.1f} | "
