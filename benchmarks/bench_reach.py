@@ -213,6 +213,23 @@ def summary(rows: list[dict]) -> dict:
     }
 
 
+def reach_rows(lines: list[str], table) -> None:
+    """Append the reach table's header and one row per rig, ``table(rig)`` giving its rows."""
+    lines += [
+        "| rig | pairs | reached | bent paths | bent reached | excess cycles p50 | "
+        "excess cycles max | worst time / (distance / step) |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for rig in (2, 3):
+        s = summary(table(rig))
+        lines.append(
+            f"| {rig} servos | {s['pairs']} | {s['reached']} | {s['bent']} | "
+            f"{s['bent_reached']} | {s['excess_p50']:.1f} | {s['excess_max']:.1f} | "
+            f"{s['ratio_max']:.3f} |"
+        )
+        print(lines[-1], flush=True)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=12)
@@ -230,35 +247,16 @@ def main() -> None:
         f"{math.degrees(STEP):.2f} deg; seeds {SEED0}-{SEED0 + args.seeds - 1}, "
         f"{args.pairs} pairs each",
         "",
-        "| rig | pairs | reached | bent paths | bent reached | excess cycles p50 | "
-        "excess cycles max | worst time / (distance / step) |",
-        "|---|---|---|---|---|---|---|---|",
     ]
-    for rig in (2, 3):
-        s = summary(reach_table(rig, args.seeds, args.pairs, route))
-        lines.append(
-            f"| {rig} servos | {s['pairs']} | {s['reached']} | {s['bent']} | "
-            f"{s['bent_reached']} | {s['excess_p50']:.1f} | {s['excess_max']:.1f} | "
-            f"{s['ratio_max']:.3f} |"
-        )
-        print(lines[-1], flush=True)
+    reach_rows(lines, lambda rig: reach_table(rig, args.seeds, args.pairs, route))
     lines += [
         "",
         f"Fitted regions (seeds {FITTED_SEED0}-{FITTED_SEED0 + args.fitted_seeds - 1}), one "
         f"gate led through {args.pairs} targets in turn on each",
         "",
-        "| rig | pairs | reached | bent paths | bent reached | excess cycles p50 | "
-        "excess cycles max | worst time / (distance / step) |",
-        "|---|---|---|---|---|---|---|---|",
     ]
-    for rig in (2, 3) if args.fitted_seeds else ():
-        s = summary(fitted_reach_table(rig, args.fitted_seeds, args.pairs, route))
-        lines.append(
-            f"| {rig} servos | {s['pairs']} | {s['reached']} | {s['bent']} | "
-            f"{s['bent_reached']} | {s['excess_p50']:.1f} | {s['excess_max']:.1f} | "
-            f"{s['ratio_max']:.3f} |"
-        )
-        print(lines[-1], flush=True)
+    if args.fitted_seeds:
+        reach_rows(lines, lambda rig: fitted_reach_table(rig, args.fitted_seeds, args.pairs, route))
     lines += [
         "",
         "| rig (fitted region) | start ms (p50) | step p50 us | p99 us | max us | first step "
