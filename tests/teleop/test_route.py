@@ -269,11 +269,11 @@ def test_a_three_servo_node_is_judged_at_the_twist_inside_nearest_the_pose():
     assert from_twist > 0 and moved > 0  # both cases were met
 
 
-def test_a_fitted_three_servo_route_is_entered_where_it_was_judged_seen():
-    """A route's first point is its entry node at the twist judged seen from the pose. It had
-    been the node at the twist turned toward the target's, corrected onto the region: at a wall
-    that put it back on the present pose, whose next route point lay past the wall, and the gate
-    sat there (fitted region of seed 2002, a benchmark seed: never reached before)."""
+def test_a_fitted_three_servo_route_point_outside_takes_the_nearest_twist_inside():
+    """A route point outside at its twist (turned toward the target's) is taken at the twist
+    inside nearest it. It had been corrected onto the region: at a wall that put the first one
+    back on the present pose, whose next route point lay past the wall, and the gate sat there
+    (fitted region of seed 2002, a benchmark seed: never reached before)."""
     from limbctl.region.twist_region import TwistRegion
     from tests.teleop.bays import teaching
 
