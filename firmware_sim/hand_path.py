@@ -1,5 +1,5 @@
 """The swing path of a scripted hand: where it takes the limb's pan and tilt, before its tremor
-(minimum-jerk moves that stay MIN_PATH_DEPTH_DEG inside, planned lazily from the seed)."""
+(minimum-jerk moves that stay PATH_DEPTH_FLOOR_DEG inside, planned lazily from the seed)."""
 
 from __future__ import annotations
 
@@ -44,6 +44,9 @@ WAYPOINT_TRIES = 40
 ARC_BOW_FRACTION = 0.2
 #: Spacing (deg) of checks along a move and of points along a traced edge.
 PATH_CHECK_STEP_DEG = 0.5
+#: Depth (deg) a planned move keeps everywhere: its checks keep MIN_PATH_DEPTH_DEG, and a pose
+#: between two lies within half a step of one (the edge distance changes no faster than the pose).
+PATH_DEPTH_FLOOR_DEG = MIN_PATH_DEPTH_DEG - 0.5 * PATH_CHECK_STEP_DEG
 TRACE_STEP_DEG = 1.0
 #: Speed (deg/s) of the full edge trace: a careful 10-20 deg/s; 400 deg of edge in under 30 s.
 TRACE_SPEED_DEG_S = 18.0
@@ -191,7 +194,8 @@ class SwingPath:
         return segment[1], segment[4], segment[5]
 
     def _path_ok(self, a, b, bulge=(0.0, 0.0)) -> bool:
-        """Whether the move a -> b, bowed by ``bulge``, keeps MIN_PATH_DEPTH_DEG inside."""
+        """Whether the move a -> b, bowed by ``bulge``, keeps MIN_PATH_DEPTH_DEG inside at checks
+        at most PATH_CHECK_STEP_DEG apart (its length, bow included, overestimated)."""
         length = math.hypot(b[0] - a[0], b[1] - a[1]) + 2.0 * math.hypot(*bulge)
         n = int(length / PATH_CHECK_STEP_DEG) + 2
         s = np.linspace(0.0, 1.0, n)

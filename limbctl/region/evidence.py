@@ -271,9 +271,16 @@ def cut_within_reach(
 ) -> tuple[Stretch, ...]:
     """``listed`` read again on the cut ``region``: an unheld stretch where that region's edge
     no longer stands farther than ``REACH_DEG + HELD_SLACK_DEG`` from the taught ``data``
-    (N, 3) is marked held (the cut brought it within reach); every other stretch as it was."""
+    (N, 3), or itself no farther than that (a neighbour of one that does), is marked held (the
+    cut brought it within reach); every other stretch as it was."""
     left = _past_held_reach(region, data)
-    return tuple(s if s.held or at_same_place(s, left) else replace(s, held=True) for s in listed)
+    bound = REACH_DEG + HELD_SLACK_DEG
+    return tuple(
+        s
+        if s.held or (s.distance_deg > bound and at_same_place(s, left))
+        else replace(s, held=True)
+        for s in listed
+    )
 
 
 def at_same_place(s: Stretch, others: list[Stretch] | tuple[Stretch, ...]) -> bool:

@@ -9,7 +9,7 @@ import pytest
 import yaml
 
 from firmware_sim.hand import DEFAULT_TREMOR_DEG, Hand
-from firmware_sim.hand_path import EDGE_INSET_DEG, MIN_PATH_DEPTH_DEG, TRACE_SPEED_DEG_S
+from firmware_sim.hand_path import EDGE_INSET_DEG, PATH_DEPTH_FLOOR_DEG, TRACE_SPEED_DEG_S
 from firmware_sim.world import World
 
 REGIONS = Path(__file__).resolve().parents[2] / "examples" / "regions"
@@ -72,7 +72,7 @@ def test_a_wandering_minute_stays_in_covers_edge_and_interior_dense_in_the_middl
     region = hand.region
     assert hand.style == "wander" and hand.path.trace_span_s is None
     depth = region.edge_distance_deg(samples[:, 0], samples[:, 1])
-    # in the region: the planned path keeps MIN_PATH_DEPTH_DEG inside, the tremor may eat part
+    # in the region: the planned path keeps PATH_DEPTH_FLOOR_DEG inside, the tremor may eat part
     assert depth.min() > -DEFAULT_TREMOR_DEG
     assert np.mean(depth < 0.0) < 0.001
     # it reaches the deep middle within seconds instead of tracing the edge first
@@ -132,7 +132,7 @@ def test_the_default_hand_takes_hold_traces_the_whole_edge_at_a_persons_pace_the
     # about a degree inside, its depth wandering by a few tenths of a degree
     depth = depth[tracing]
     assert np.median(depth) == pytest.approx(EDGE_INSET_DEG, abs=0.1)
-    assert depth.min() > MIN_PATH_DEPTH_DEG - DEFAULT_TREMOR_DEG
+    assert depth.min() > PATH_DEPTH_FLOOR_DEG - DEFAULT_TREMOR_DEG
     assert 0.3 < np.percentile(depth, 95) - np.percentile(depth, 5) < 1.0
 
 
@@ -142,7 +142,7 @@ def test_a_u_is_traced_and_walked_round_its_reflex_corners_boxed_in_retraced_a_n
     start, end = hand.path.trace_span_s
     poses = np.array([hand.pose_deg(float(s)) for s in np.arange(start, end, 0.01)])
     depth = hand.region.edge_distance_deg(poses[:, 0], poses[:, 1])
-    assert depth.min() >= MIN_PATH_DEPTH_DEG - 1e-9
+    assert depth.min() >= PATH_DEPTH_FLOOR_DEG - 1e-9
     assert np.median(depth) == pytest.approx(EDGE_INSET_DEG, abs=0.1)
     # both arms' tips and the floor between them are traced, not skipped
     for corner in ([-60, 40], [60, 40], [-40, 40], [40, 40], [0, -10]):
@@ -150,7 +150,7 @@ def test_a_u_is_traced_and_walked_round_its_reflex_corners_boxed_in_retraced_a_n
     hand = Hand.from_mapping({"region": {"polygon": U_SHAPE}, "tremor_deg": 0}, seed=18)
     poses = np.array([hand.pose_deg(float(t)) for t in np.arange(0.0, 120.0, 0.001)])
     depth = hand.region.edge_distance_deg(poses[:, 0], poses[:, 1])
-    assert depth.min() >= MIN_PATH_DEPTH_DEG - 1e-9  # never across the gap between the arms
+    assert depth.min() >= PATH_DEPTH_FLOOR_DEG - 1e-9  # never across the gap between the arms
     # continuous: a minimum-jerk move peaks at 1.875 x its mean speed
     assert np.hypot(*np.diff(poses, axis=0).T).max() / 0.001 < 2.0 * hand.speed_deg_s
     for arm in (poses[:, 0] < -40.0, poses[:, 0] > 40.0):
@@ -171,5 +171,5 @@ def test_a_u_is_traced_and_walked_round_its_reflex_corners_boxed_in_retraced_a_n
     hand = Hand.from_mapping({"region": {"polygon": notch}, "tremor_deg": 0}, seed=12)
     poses = np.array([hand.pose_deg(float(s)) for s in np.arange(0.0, 120.0, 0.01)])
     depth = hand.region.edge_distance_deg(poses[:, 0], poses[:, 1])
-    assert depth.min() >= MIN_PATH_DEPTH_DEG - 1e-9
+    assert depth.min() >= PATH_DEPTH_FLOOR_DEG - 1e-9
     assert np.mean(depth < EDGE_INSET_DEG + 0.5) > 0.01
