@@ -248,7 +248,7 @@ class Router:
         if near.size == 0:
             return None
         cost = _arc(d_cur[None, :], self._nodes[near]) + dist[near]
-        poses = self._poses_seen_from(near, tau_cur)
+        poses = self._poses_at(near, tau_cur)
         order = np.argsort(cost)
         visible = order[self.clear_rows(current_q, poses[order])]
         if visible.size == 0:
@@ -285,19 +285,15 @@ class Router:
     def _node_poses(self, idx: np.ndarray) -> np.ndarray:
         return compose(self._nodes[idx], self._node_twist[idx] if self.twist else 0.0)
 
-    def _poses_seen_from(self, idx: np.ndarray, tau: float) -> np.ndarray:
-        """Poses (K, 4) of nodes ``idx`` (K,) as judged from a pose of twist ``tau`` (rad): the
-        roadmap's own on two servos, else :meth:`_poses_at` ``tau``. A path to a node then turns
-        the limb only as far as the band makes it, so it has a few samples, not one per 0.5 deg
-        of a twist difference."""
+    def _poses_at(self, idx: np.ndarray, tau) -> np.ndarray:
+        """Poses (K, 4) of nodes ``idx`` (K,): the roadmap's own on two servos; else at twists
+        ``tau`` (rad, scalar or (K,)) where inside, else at the twist inside nearest it on the
+        way to the node's flood twist, to 1/TWIST_SPLITS^2 of that way (the band at a direction
+        is one interval of twist). A path to a node then turns the limb only as far as the band
+        makes it, so it has a few samples, not one per 0.5 deg of a twist difference."""
         if not self.twist or idx.size == 0:
             return self._node_poses(idx)
-        return self._poses_at(idx, np.full(idx.size, tau))
-
-    def _poses_at(self, idx: np.ndarray, tau: np.ndarray) -> np.ndarray:
-        """Poses (K, 4) of nodes ``idx`` (K,) at twists ``tau`` (K,) (rad) where inside, else at
-        the twist inside nearest it on the way to the node's flood twist, to 1/TWIST_SPLITS^2
-        of that way (the band at a direction is one interval of twist)."""
+        tau = np.broadcast_to(np.asarray(tau, dtype=np.float64), idx.shape)
         dirs = self._nodes[idx]
         poses = compose(dirs, tau)
         left = np.flatnonzero(~self.inside_many(poses))
@@ -372,7 +368,7 @@ class Router:
         m = self._nodes.shape[0]
         d_t, tau_t = _split(target_q, self.twist)
         near = self._near(d_t)
-        poses = self._poses_seen_from(near, tau_t)
+        poses = self._poses_at(near, tau_t)
         near = near[self.clear_rows(target_q, poses)] if near.size else near
         if near.size == 0:  # no node seen from the target: no way known (Dijkstra's -9999)
             none = (np.full(m, np.inf), np.full(m, -9999, dtype=np.int32))

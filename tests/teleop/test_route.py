@@ -251,7 +251,7 @@ def test_a_three_servo_node_is_judged_at_the_twist_inside_nearest_the_pose():
     for q in inside_points(region, 20, rng):
         d, tau = decompose(q)
         near = router._near(d)
-        seen = router._poses_seen_from(near, float(tau))
+        seen = router._poses_at(near, float(tau))
         assert np.asarray(region.contains(seen), dtype=bool).all()
         turned = np.abs(wrap(decompose(seen)[1] - tau))
         flood = np.abs(wrap(router._node_twist[near] - tau))
