@@ -19,7 +19,7 @@ class SnapLaw:
     rearm_speed_deg_s: float = 0.5
     rearm_span_s: float = 0.012
     hold_nm: float = 0.06
-    released: float = 0.5
+    released: float = 0.35
     rise_s: float = 0.001
     inertia_kg_m2: float = 1.0e-3
 
