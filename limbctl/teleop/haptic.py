@@ -30,6 +30,7 @@ class FeelLaw:
     outrun_slack_deg: float = 0.1
     outward_noise_nm: float = 0.01
     rearm_band_deg: float = 0.05
+    pushed_out_deg_s: float = 1.5
     walk_lead_ticks: int = 2
     walk_speed_deg_s: float = 1.5
     walk_hold_nm: float = 0.06
@@ -124,6 +125,16 @@ def goal_lead_rad(law: FeelLaw, motor: LeaderMotor, distance_deg: float, walking
     """Goal Position's lead (rad), ``walk_lead_ticks`` more while ``walking``."""
     extra = law.walk_lead_ticks * TICK_DEG if walking else 0.0
     return math.radians(law.lead_for_deg(distance_deg, motor) + extra)
+
+
+def pushed_out(
+    law: FeelLaw, step: tuple[float, ...], velocity_deg_s: tuple[float, ...] | None
+) -> bool:
+    """Whether a leader read at ``velocity_deg_s`` (deg/s per joint) moves away from the region
+    along ``step`` faster than ``pushed_out_deg_s``: a hand pushes it (None: not read)."""
+    if velocity_deg_s is None:
+        return False
+    return along_step(velocity_deg_s, step) < -law.pushed_out_deg_s
 
 
 def lets_go(

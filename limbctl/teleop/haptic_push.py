@@ -18,6 +18,7 @@ from limbctl.teleop.haptic import (
     lets_go,
     moved_in_deg,
     pulls_outward,
+    pushed_out,
     walks_back,
 )
 
@@ -130,7 +131,10 @@ def push_for(
     # the goal on the joint-space line toward the corrected pose, at most LEAD ahead
     step = tuple(t - p for t, p in zip(target, present, strict=True))
     longest = max(abs(s) for s in step)
-    if previous is not None and longest > 0.0:
+    # a free leader read moving outward is pushed by a hand: the wall comes back whatever it
+    # moved in since the last read (a cut taken for a let go while the hand still pushed)
+    comes_back = longest > 0.0 and not engaged and pushed_out(law, step, velocity_deg_s)
+    if previous is not None and longest > 0.0 and not comes_back:
         moved_in = moved_in_deg(present, previous, step)
         if lets_go(law, distance, moved_in, period_s, engaged):
             return free

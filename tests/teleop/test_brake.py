@@ -110,7 +110,7 @@ def test_at_200_hz_a_hand_pulling_the_leader_back_inside_is_never_pulled_outward
     # pressed 20 deg beyond, the hand heads back inside (pan 50 -> 0 in 0.2 s) faster than
     # the setpoint walks: the watch frees the wall before the loop brakes the leader. The snap
     # rule alone leaves the 0.05 N m/deg hand's to the cycle's read of the motor's torque
-    # (round 5): 5 samples (and the 0.2 hand's 2 while RELEASED was 0.5; at 0.35 it cuts that one)
+    # (round 5): 5 samples; the 0.2 hand's faster pull back the watch sees and cuts by itself
     script = [[0.0, 0.0, 0.0], [2.0, 50.0, 0.0], [4.0, 50.0, 0.0], [4.2, 0.0, 0.0]]
     rows = felt_at_200_hz(script, 4.6, stiffness)
     assert outward(rows, 4.0) == []

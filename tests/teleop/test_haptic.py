@@ -239,6 +239,36 @@ def test_a_free_still_leader_within_the_rearm_band_stays_free_and_a_held_one_sta
     assert lets_go(LAW, past_band, 0.01, 0.005, engaged=False)  # moving in: left free
 
 
+@pytest.mark.parametrize("rig", RIGS)
+def test_a_free_leader_read_moving_outward_gets_its_wall_back_though_it_moved_in(rig):
+    """A cut taken for a let go while the hand still pushed: the leader moved in since the last
+    read, and now the hand carries it outward. The wall comes back at this cycle; a leader read
+    still, or moving out slower than ``pushed_out_deg_s``, is left free as before."""
+    joint, lo, _ = ALONG[rig]
+    pose = [0.0] * JOINTS[rig]
+    pose[joint] = lo + 4.0
+    q = q_of(*pose)
+    corrected = region_of(JOINTS[rig]).correct(q)
+    present = tuple(np.radians(pose))
+    pose[joint] += 0.1  # 0.1 deg further out a cycle ago: it moved in since
+    previous = tuple(np.radians(pose))
+    limits = LIMITS[rig]
+
+    def push(speed_out_deg_s):
+        speed = [0.0] * JOINTS[rig]
+        speed[joint] = speed_out_deg_s  # + is away from the edge along this joint
+        return push_for(
+            LAW, MOTOR, present, q, corrected, previous, 0.005, False, None, tuple(speed), limits
+        )  # fmt: skip
+
+    wall = push_for(LAW, MOTOR, present, q, corrected, limits=limits)
+    assert wall.goal_current > 0
+    carried_out = push(2.0 * LAW.pushed_out_deg_s)
+    assert (carried_out.goal_current, carried_out.goal) == (wall.goal_current, wall.goal)
+    for speed in (0.0, 0.5 * LAW.pushed_out_deg_s, -5.0):  # still, creeping out, moving in
+        assert push(speed).goal_current == 0, speed
+
+
 def test_a_wall_walking_its_leader_back_with_no_hand_leads_two_ticks_more():
     pose, q = (math.radians(31.5), 0.0), q_of(31.5, 0.0)
     corrected = CONE.correct(q)
@@ -664,3 +694,21 @@ def test_on_a_diagonal_the_hand_feels_at_most_the_cap_and_a_let_go_returns_under
         speeds = [float(np.linalg.norm(r["velocity_deg_s"])) for r in rows if r["t"] >= LET_GO_S]
         assert max(speeds) <= 30.0, (stiffness, max(speeds))
         assert max(speeds) > 1.0, stiffness  # it returned
+
+
+def test_at_200_hz_a_fading_grip_cut_as_a_let_go_gets_its_wall_back_at_the_next_cycle():
+    # random operator 6433 (benchmarks/bench_random_presses.py, none tuned on): a hand of 0.072 N
+    # m/deg bounded at 0.227 N m presses the three-servo leader 12 deg beyond the edge and
+    # lets go over 85 ms. The watch takes the fade for a let go and cuts the wall while the hand
+    # still pushes 0.1 N m outward; the wall must be back at the next cycle, not the one after
+    # (which let the hand throw the leader out at 34.3 deg/s)
+    script = [[0.0, 0.0, 0.0, 0.0], [2.0, 18.511, -7.008, -40.971]]
+    let_go_s = 4.297
+    rows = felt_at_200_hz(
+        script, let_go_s + 0.5, 0.072, let_go_s, max_torque_nm=0.2268, release_s=0.0854
+    )
+    after = [r for r in rows if r["t"] >= let_go_s]
+    # the case this test is about: the wall off while the hand still pushes
+    assert any(not any(r["motor_nm"]) and any(r["hand_nm"]) for r in after)
+    speeds = [float(np.linalg.norm(r["velocity_deg_s"])) for r in after]
+    assert max(speeds) <= 30.0, max(speeds)
