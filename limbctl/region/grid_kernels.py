@@ -64,30 +64,15 @@ def _block_cells(block, blocks_phi, n_theta, n_phi):
 
 
 @njit
-def _block_arcs(
-    block,
-    blocks_phi,
-    grid_shape,
-    axis,
-    u,
-    v,
-    vertices,
-    edges,
-    margins,
-    mids,
-    longest_half,
-    max_margin,
-    centres,
-    radius,
-    dist,
-    arcs,
-    arc_dist,
-    from_block,
-):
-    """The arcs one block's cells can need into ``arcs`` (E,), their angles (rad) from the block's
-    centre into ``arc_dist`` (E,); returns their number. Each cell's angle from the block's centre
-    goes into ``from_block``; ``dist`` (E,) is scratch. Arcs whose midpoint cannot meet the block's
-    widened bounds are not measured."""
+def _block_arcs(block, blocks_phi, frame, geometry, dist, block_arcs, block_arc_dist, from_block):
+    """The arcs one block's cells can need into its row of ``block_arcs`` (blocks, E), their
+    angles (rad) from the block's centre into its row of ``block_arc_dist``; returns their number.
+    Each cell's angle from the block's centre goes into ``from_block``; ``dist`` (E,) is scratch.
+    Arcs whose midpoint cannot meet the block's widened bounds are not measured. ``frame`` and
+    ``geometry`` are :func:`build_grid`'s."""
+    grid_shape, axis, u, v = frame
+    centres, radius, vertices, edges, margins, mids, _, _, max_margin, longest_half = geometry
+    arcs, arc_dist = block_arcs[block], block_arc_dist[block]
     n_theta, n_phi = grid_shape[0], grid_shape[1]
     bi, bj = block // blocks_phi, block % blocks_phi
     i1, j1 = min(n_theta, (bi + 1) * BLOCK), min(n_phi, (bj + 1) * BLOCK)
@@ -139,28 +124,13 @@ FIRST_PASS_ARCS = 32
 
 
 @njit
-def _cell(
-    cell,
-    inside,
-    arcs,
-    arc_dist,
-    from_block,
-    centres,
-    radius,
-    vertices,
-    edges,
-    margins,
-    mids,
-    half,
-    reach,
-    max_margin,
-    dist,
-    out_edges,
-    out_keys,
-):
+def _cell(cell, inside, arcs, arc_dist, from_block, geometry, dist, out_edges, out_keys):
     """One cell: (deep, candidate count); its candidates and keys into ``out_edges``, ``out_keys``.
     ``arcs`` (A,) hold the block's arcs, ``arc_dist`` (A,) their angles (rad) from its centre,
-    ``from_block`` the cell's, ``reach`` the longest half arc plus the largest margin."""
+    ``from_block`` the cell's; ``geometry`` holds what :func:`build_grid` shares with every
+    cell: centres, radii, vertices, edges, margins, arc midpoints and half lengths, ``reach``
+    (the longest half arc plus the largest margin), the largest margin and the longest half."""
+    centres, radius, vertices, edges, margins, mids, half, reach, max_margin, _ = geometry
     centre, r = centres[cell], radius[cell]
     if inside[cell]:
         # deep when no arc comes within r: each arc's angle from the cell's centre is at least
@@ -239,11 +209,11 @@ def build_grid(vertices, edges, margins, axis, grid_shape, inside):
     n_cells = n_theta * n_phi
     n_edges = edges.shape[0]
     u, v = _frame(axis)
-    mids, half, longest_half = arc_bounds(vertices, edges)
+    mids, half, longest = arc_bounds(vertices, edges)
     max_margin = 0.0
     for e in range(n_edges):
         max_margin = max(max_margin, margins[e])
-    reach = longest_half + max_margin
+    reach = longest + max_margin
     deep = np.zeros(n_cells, dtype=np.bool_)
     counts = np.zeros(n_cells, dtype=np.int64)
     radius = np.empty(n_cells)
@@ -259,30 +229,15 @@ def build_grid(vertices, edges, margins, axis, grid_shape, inside):
     from_block = np.empty(n_cells)
     corner = np.empty(3)
     dist = np.empty(n_edges)
+    frame = (grid_shape, axis, u, v)
+    geometry = (centres, radius, vertices, edges, margins, mids, half, reach, max_margin, longest)
     # first pass, block by block: cells' geometry, arcs, depth, count, first candidates
     for block in range(n_blocks):
         cells = _block_cells(block, blocks_phi, n_theta, n_phi)
         for cell in cells:
             radius[cell] = _cell_geometry(cell, n_theta, n_phi, axis, u, v, centres[cell], corner)
         count = _block_arcs(
-            block,
-            blocks_phi,
-            grid_shape,
-            axis,
-            u,
-            v,
-            vertices,
-            edges,
-            margins,
-            mids,
-            longest_half,
-            max_margin,
-            centres,
-            radius,
-            dist,
-            block_arcs[block],
-            block_arc_dist[block],
-            from_block,
+            block, blocks_phi, frame, geometry, dist, block_arcs, block_arc_dist, from_block
         )
         block_count[block] = count
         arcs = block_arcs[block, :count]
@@ -294,15 +249,7 @@ def build_grid(vertices, edges, margins, axis, grid_shape, inside):
                 arcs,
                 arc_dist,
                 from_block[cell],
-                centres,
-                radius,
-                vertices,
-                edges,
-                margins,
-                mids,
-                half,
-                reach,
-                max_margin,
+                geometry,
                 dist,
                 first_edges[cell],
                 first_keys[cell],
@@ -330,15 +277,7 @@ def build_grid(vertices, edges, margins, axis, grid_shape, inside):
                     arcs,
                     arc_dist,
                     from_block[cell],
-                    centres,
-                    radius,
-                    vertices,
-                    edges,
-                    margins,
-                    mids,
-                    half,
-                    reach,
-                    max_margin,
+                    geometry,
                     dist,
                     cell_edges[k0:k],
                     cell_keys[k0:k],
