@@ -124,15 +124,21 @@ def browser_pids(driver: webdriver.Chrome) -> list[int]:
 
 @contextlib.contextmanager
 def frozen(driver: webdriver.Chrome) -> Iterator[list[int]]:
-    """The whole browser stopped (SIGSTOP) for the block, continued (SIGCONT) after it."""
-    pids = browser_pids(driver)
-    for pid in pids:
-        os.kill(pid, signal.SIGSTOP)
+    """The whole browser stopped (SIGSTOP) for the block, continued (SIGCONT) after it. A process
+    that ends between the listing and its signal is passed over; every process stopped is
+    continued even when the freezing fails half way (a stopped browser left behind hangs the next
+    test's chromedriver)."""
+    stopped: list[int] = []
     try:
-        yield pids
+        for pid in browser_pids(driver):
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(pid, signal.SIGSTOP)
+                stopped.append(pid)
+        yield stopped
     finally:
-        for pid in pids:
-            os.kill(pid, signal.SIGCONT)
+        for pid in stopped:
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(pid, signal.SIGCONT)
 
 
 def drag_on_plane(driver: webdriver.Chrome, points, pause_s: float = 0.15) -> None:
