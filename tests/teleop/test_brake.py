@@ -61,17 +61,12 @@ def test_a_walking_wall_is_watched_and_freed_when_its_leader_outruns_it():
     assert watch.brakes == 1
 
 
+#: Reads of the leader's speed along pan (deg/s) and its motor's torque along pan (N m).
+READS = st.lists(st.tuples(st.floats(-40.0, 40.0), st.floats(-0.4, 0.4)), min_size=1, max_size=12)
+
+
 @settings(max_examples=300, deadline=None)
-@given(
-    st.lists(
-        st.tuples(
-            st.floats(-40.0, 40.0),  # speed along pan (deg/s)
-            st.floats(-0.4, 0.4),  # motor torque along pan (N m)
-        ),
-        min_size=1,
-        max_size=12,
-    )
-)
+@given(READS)
 def test_property_the_brake_rules_cut_only_a_leader_moving_toward_the_region(reads):
     watch = walking_watch()
     for k, (speed, torque) in enumerate(reads):
@@ -107,10 +102,9 @@ def test_at_200_hz_the_snap_rule_alone_pulls_a_fading_grip_outward():
 def test_at_200_hz_a_hand_pulling_the_leader_back_inside_is_never_pulled_outward(
     stiffness, snap_alone
 ):
-    # pressed 20 deg beyond, the hand heads back inside (pan 50 -> 0 in 0.2 s) faster than
-    # the setpoint walks: the watch frees the wall before the loop brakes the leader. The snap
-    # rule alone leaves the 0.05 N m/deg hand's to the cycle's read of the motor's torque
-    # (round 5): 5 samples; the 0.2 hand's faster pull back the watch sees and cuts by itself
+    # pressed 20 deg beyond, the hand pulls it inside (pan 50 -> 0 in 0.2 s) faster than the
+    # setpoint walks: the watch frees the wall before the loop brakes it. The snap rule alone
+    # leaves the 0.05 N m/deg hand 5 samples pulled outward; the 0.2 hand's it cuts by itself
     script = [[0.0, 0.0, 0.0], [2.0, 50.0, 0.0], [4.0, 50.0, 0.0], [4.2, 0.0, 0.0]]
     rows = felt_at_200_hz(script, 4.6, stiffness)
     assert outward(rows, 4.0) == []

@@ -36,11 +36,7 @@ from limbctl.teleop.sources.leader_snap import cycle_velocity, read_motion
 from limbctl.view.leader import SWING_SHARE_DRAWN
 from tests.servo.test_leader_guard import START_S, end_pipe, torque_when_free
 from tests.teleop.chains import off_axis_deg
-from tests.teleop.felt_running import (
-    Running,
-    pressing,
-    pushed_only_when_fit,
-)
+from tests.teleop.felt_running import Running, pressing, pushed_only_when_fit
 from tests.teleop.stepped_leader import beyond_of, limits_of, way_of
 from tests.teleop.twist_square import square_region
 
@@ -52,13 +48,7 @@ PRESS = {"script": [[0.0, 0.0, 0.0], [1.5, EDGE + 20.0, 0.0]], **HAND}
 TWIST_PRESS = {"script": [[0.0, 0.0, 0.0, 0.0], [1.5, 0.0, 0.0, EDGE + 20.0]], **HAND}
 #: Three servos: in swing (pan 50) to 3.5 s, back to the middle, in twist (roll 50) from 5.5 s.
 SWING_THEN_TWIST = {
-    "script": [
-        [0.0, 0.0, 0.0, 0.0],
-        [1.5, 50.0, 0.0, 0.0],
-        [3.5, 50.0, 0.0, 0.0],
-        [4.5, 0.0, 0.0, 0.0],
-        [5.5, 0.0, 0.0, 50.0],
-    ],
+    "script": [[0.0, 0, 0, 0], [1.5, 50, 0, 0], [3.5, 50, 0, 0], [4.5, 0, 0, 0], [5.5, 0, 0, 50]],
     **HAND,
 }
 #: A hand pushing with this much (N m, toward the outside) presses: its spring stretched by 1 deg.
@@ -396,10 +386,9 @@ def test_a_felt_leaders_cycle_read_carries_its_present_velocity(tmp_path):
 
 
 def test_a_held_leader_let_go_or_pulled_back_inside_is_freed_before_it_is_braked(tmp_path):
-    """Pressed and held still, then the hand is gone: the watch cuts the snap at once. Pressed
-    and held again, the hand pulls it inside faster than the setpoint walks: freed. How fast the
-    watch let go is judged only where no cycle stalled (a starved loop can miss a snap of a few
-    cycles); that the wall never pushed inside is judged always."""
+    """Held still, then the hand is gone: the watch cuts the snap at once; held again, then pulled
+    inside faster than the setpoint walks: freed (judged where no cycle stalled). Never a push
+    inside."""
     with running_felt(tmp_path) as (session, source, log, running):
         gone = {"script": [[0.0, EDGE + 20.0, 0.0]], "let_go_s": 0.0}
         let_go_at = running.held_then(PRESS, gone)
@@ -655,8 +644,6 @@ LOG_GRAIN_S = 0.001
 PERIOD_S = 1.0 / 200.0
 #: A dead controller's last goal: at most LEAD plus the walking lead (5 ticks on an XM430) ahead.
 LAST_GOAL_AHEAD_DEG = 5 * 360.0 / 4096
-
-
 #: Cycles before the dropout whose pacing bounds how long the cycle in progress then takes.
 PACING_CYCLES = 20
 

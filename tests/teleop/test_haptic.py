@@ -1,8 +1,6 @@
-"""The haptic law on each chain: zero inside, toward the correction, never above the cap, its
-lead by leader model; and against the simulated leader at exactly 200 Hz (stepped_leader.py).
-
-Edges: ``sim``'s 30 deg cone at pan 30; ``sim3``'s twist_square.py region near pan and roll 30.
-"""
+"""The haptic law on each chain (zero inside, toward the correction, never above the cap, its
+lead by model), alone and against the simulated leader at exactly 200 Hz (stepped_leader.py).
+Edges: ``sim``'s 30 deg cone at pan 30; ``sim3``'s twist_square.py region near pan and roll 30."""
 
 from __future__ import annotations
 
@@ -49,12 +47,10 @@ CAP = MOTOR.torque_of(MOTOR.units_for(LAW.cap_nm))
 TWO_TICKS = FeelLaw(lead_deg=2 * TICK_DEG, walk_lead_ticks=0)  # round 5: no walking lead
 #: The two-servo leader's edge along pan (deg): the 30 deg cone's.
 EDGE = 30.0
-RIG = rig_of(3)
 #: Each rig's joints; their hard limits (rad), as the law is given them.
 JOINTS = {"sim": 2, "sim3": 3}
 LIMITS = {rig: limits_of(joints) for rig, joints in JOINTS.items()}
 RIGS = sorted(JOINTS)
-IDS = (4, 5, 6)
 
 
 @pytest.fixture(scope="module")
@@ -86,8 +82,8 @@ def test_the_law_grows_from_zero_to_the_cap_is_passive_at_200_hz_and_says_how_ha
 
 def test_the_simulated_three_servo_leader_turns_its_roll_as_the_followers_profile_and_hand():
     # its ids, the script's interpolation and refusals: tests/firmware_sim/test_leader.py
-    roll = leader_joints(IDS)[2]
-    assert (roll.zero_tick, roll.direction) == (RIG.joints[2].zero_tick, RIG.joints[2].direction)
+    roll, follower = leader_joints((4, 5, 6))[2], rig_of(3).joints[2]
+    assert (roll.zero_tick, roll.direction) == (follower.zero_tick, follower.direction)
     hand = Operator([[0.0, 0.0, 0.0, 0.0], [2.0, 20.0, -10.0, 40.0]], joints=3)
     assert hand.torque(1.0, 2, 0.0, 0.0) == pytest.approx(0.3)  # 20 deg x 0.05, bounded at 0.3
 
@@ -130,12 +126,9 @@ def test_the_corrected_roll_is_unwrapped_against_the_present_roll_within_the_lim
     # roll 190 deg is roll -170: within limits of (-200, 200) deg the one nearer the leader's
     q = q_of(0.0, 0.0, 190.0)
     limits = (*LIMITS["sim3"][:2], (math.radians(-200.0), math.radians(200.0)))
-    assert math.degrees(corrected_pose(q, (0.0, 0.0, math.radians(170.0)), limits)[2]) == (
-        pytest.approx(190.0)
-    )
-    assert math.degrees(corrected_pose(q, (0.0, 0.0, math.radians(-150.0)), limits)[2]) == (
-        pytest.approx(-170.0)
-    )
+    for present_deg, corrected_deg in ((170.0, 190.0), (-150.0, -170.0)):
+        present = (0.0, 0.0, math.radians(present_deg))
+        assert math.degrees(corrected_pose(q, present, limits)[2]) == pytest.approx(corrected_deg)
     with pytest.raises(ValueError, match="joint limits"):
         corrected_pose(q, (0.0, 0.0, 0.0))
 
@@ -220,8 +213,7 @@ def test_property_a_leader_outrunning_its_setpoints_or_still_moving_in_is_free_e
     low = wall.distance_deg - LAW.deadband_deg <= LAW.rearm_band_deg  # comes on only past it
     if outrun or near or (not engaged and (moved_in > 0.0 or low)):
         assert (push.goal_current, push.goal) == (0, present)
-    else:  # the wall's current and goal, at most LEAD ahead (it no longer grows with the
-        # leader's step: decisions/haptic.md, round 4)
+    else:  # the wall's current and goal, at most the lead ahead (not growing with the step)
         assert push.goal_current == wall.goal_current and push.goal == wall.goal
         lead = math.radians(LAW.lead_for_deg(wall.distance_deg, MOTOR))
         assert 0.0 <= present[joint] - push.goal[joint] <= lead + 1e-12
@@ -229,8 +221,7 @@ def test_property_a_leader_outrunning_its_setpoints_or_still_moving_in_is_free_e
 
 
 def test_a_free_still_leader_within_the_rearm_band_stays_free_and_a_held_one_stays_held():
-    """The wall comes back on a still free leader only past ``rearm_band_deg`` beyond the
-    deadband (the random property above rarely draws that 0.05 deg band)."""
+    """A still free leader gets its wall back only past ``rearm_band_deg`` beyond the deadband."""
     inside_band = LAW.deadband_deg + 0.5 * LAW.rearm_band_deg
     past_band = LAW.deadband_deg + 2.0 * LAW.rearm_band_deg
     assert lets_go(LAW, inside_band, 0.0, 0.005, engaged=False)
@@ -241,9 +232,8 @@ def test_a_free_still_leader_within_the_rearm_band_stays_free_and_a_held_one_sta
 
 @pytest.mark.parametrize("rig", RIGS)
 def test_a_free_leader_read_moving_outward_gets_its_wall_back_though_it_moved_in(rig):
-    """A cut taken for a let go while the hand still pushed: the leader moved in since the last
-    read, and now the hand carries it outward. The wall comes back at this cycle; a leader read
-    still, or moving out slower than ``pushed_out_deg_s``, is left free as before."""
+    """Cut for a let go while the hand still pushed, moved in since, now carried outward: the wall
+    is back at this cycle; read still or moving out under ``pushed_out_deg_s``: left free."""
     joint, lo, _ = ALONG[rig]
     pose = [0.0] * JOINTS[rig]
     pose[joint] = lo + 4.0
@@ -287,10 +277,8 @@ def test_a_wall_walking_its_leader_back_with_no_hand_leads_two_ticks_more():
     assert lead_ticks(True, (-0.02, 0.0), None) == 2  # speed not read: LEAD alone
     assert lead_ticks(True, None, (-13.7, 0.0)) == 2
     # the lead never passes the corrected pose: 0.6 deg beyond, four ticks would reach 0.25
-    edge = q_of(30.6, 0.0)
-    near = push_for(
-        LAW, MOTOR, (math.radians(30.6), 0.0), edge, CONE.correct(edge), None, 0.0, True, *walking
-    )
+    edge, at_edge = q_of(30.6, 0.0), (math.radians(30.6), 0.0)
+    near = push_for(LAW, MOTOR, at_edge, edge, CONE.correct(edge), None, 0.0, True, *walking)
     assert math.degrees(near.goal[0]) >= 30.0 - 1e-9
     without = FeelLaw(walk_lead_ticks=0)
     push = push_for(without, MOTOR, pose, q, corrected, pose, 0.005, True, *walking)
@@ -346,9 +334,8 @@ def let_go_run(
     stiffness: float, beyond_deg: float, let_go_s: float = 5.0, seconds=7.0, watch=True, **options
 ) -> tuple[list, list]:
     """The 1 ms truth and each cycle's (pose, push, instead) of a 0.3 N m hand of ``stiffness``
-    (N m/deg) pressing the two-servo leader ``beyond_deg`` past pan 30 deg, let go at
-    ``let_go_s`` (``seconds`` stepped; ``watch``: the snap watch on; ``options``: model, law,
-    motor (None: the table's), release_s, as :func:`felt_at_200_hz` takes them)."""
+    (N m/deg) pressing the two-servo leader ``beyond_deg`` past pan 30, let go at ``let_go_s``;
+    ``watch``: the snap watch on; ``options`` as :func:`felt_at_200_hz` takes them."""
     script = [[0.0, 0.0, 0.0], [2.0, EDGE + beyond_deg, 0.0]]
     pushes: list = []
     rows = felt_at_200_hz(
@@ -367,11 +354,7 @@ def let_go(stiffness: float, beyond_deg: float, let_go_s: float = 5.0, **options
     speed = -np.array([r["velocity_deg_s"][0] for r in rows])[after]
     inside = pan < EDGE
     return {
-        "outward_s": [
-            r["t"] - let_go_s
-            for r in rows
-            if r["t"] >= let_go_s and r["pose_deg"][0] > EDGE and r["motor_nm"][0] > 0.0
-        ],
+        "outward_s": list(t[after & (pan > EDGE) & (torque[:, 0] > 0.0)] - let_go_s),
         "peak": float(speed.max()),
         "mean_20ms": float(np.convolve(speed, np.ones(20) / 20.0, mode="valid").max()),
         "pan": pan[after],
@@ -472,9 +455,8 @@ PRESSES = {
 
 
 def pulled_outward(region, rows):
-    """The 1 ms truth rows outside the region whose joint torques point away from the
-    correction (their dot product with ``corrected pose - pose`` < 0), and the rows inside
-    with any torque."""
+    """The 1 ms truth rows outside the region whose joint torques point away from the correction
+    (a negative dot product with ``corrected pose - pose``), and the rows inside with any torque."""
     outward, inside = [], []
     for r in rows:
         if not any(r["motor_nm"]):
@@ -526,11 +508,9 @@ def test_at_200_hz_the_leader_stops_within_2_deg_of_the_edge_and_walks_back(pres
 
 @pytest.mark.parametrize("rig", RIGS)
 def test_at_200_hz_the_law_alone_brakes_a_let_go_leader_outward_and_snaps_over_30_deg_s(rig):
-    """The peer: round 6's law without the snap watch (decisions/haptic.md, rounds 4-5) brakes
-    each snap. Two servos: the hands and depths of LET_GO_CASES along pan. Three: a hand that
-    overpowers the cap (0.6 N m) holds the leader past HELD_WITHIN, where the wall stores its
-    deeper lead: let go, that lead snaps the leader over 30 deg/s in swing and in twist, whatever
-    the edge's place."""
+    """The peer: round 6's law without the snap watch brakes each snap. Two servos: LET_GO_CASES
+    along pan. Three: a 0.6 N m hand holds the leader past HELD_WITHIN, where the wall stores its
+    deeper lead: let go, that lead snaps it over 30 deg/s in swing and in twist."""
     if rig == "sim":
         alone = [let_go(k, beyond, t, watch=False) for k, beyond, t in LET_GO_CASES]
         assert sum(len(out["outward_s"]) for out in alone) >= 20
@@ -550,10 +530,9 @@ def test_at_200_hz_the_law_alone_brakes_a_let_go_leader_outward_and_snaps_over_3
 @pytest.mark.parametrize("model", ["xl330-m288@53", "xl330-m077@53"])
 @pytest.mark.parametrize("press", ["pan-sim", *sorted(PRESSES)])
 def test_at_200_hz_an_xl330_leader_pushes_with_its_cap_and_returns_under_30_deg_s(model, press):
-    """The lead follows the soft loop: a hand that overpowers an XL330's cap is held with all of
-    it; let go, under 30 deg/s to within 0.5 deg, never inside. On two servos along pan (with the
-    snap watch; two ticks, three deeper, gave a fraction of the cap), on three in swing, twist and
-    both (the law alone, round 6)."""
+    """A hand that overpowers an XL330's cap is held with all of it; let go, under 30 deg/s to
+    within 0.5 deg, never inside: two servos along pan (the snap watch on), three in swing, twist
+    and both (the law alone)."""
     motor = motor_of(model)
     cap = motor.torque_of(motor.units_for(motor.cap_nm(LAW.cap_nm)))
     if press == "pan-sim":
@@ -639,9 +618,8 @@ def test_a_held_gate_switches_every_joint_off_within_the_cycle(region):
     assert released and all(r["motor_nm"] == [0.0, 0.0, 0.0] for r in released)
 
 
-#: Each rig's hand pressing 20 deg beyond the edge (in pan; in twist) and letting go, the leader's
-#: read failing for the 100 ms before: (script, seconds run, let go at (s), how far beyond (deg)
-#: the released leader is taken meanwhile, at the least: ~19 deg in pan, over 5 in twist).
+#: Each rig pressed 20 deg beyond (in pan; in twist), let go, its read failing 100 ms before:
+#: (script, seconds run, let go at (s), the least (deg) the released leader is taken beyond).
 SILENT_LET_GO = {
     "sim": ([[0.0, 0.0, 0.0], [2.0, 50.0, 0.0]], 7.0, 5.0, 15.0),
     "sim3": (PRESSES["twist"], 6.5, 4.5, 5.0),
@@ -697,11 +675,9 @@ def test_on_a_diagonal_the_hand_feels_at_most_the_cap_and_a_let_go_returns_under
 
 
 def test_at_200_hz_a_fading_grip_cut_as_a_let_go_gets_its_wall_back_at_the_next_cycle():
-    # random operator 6433 (benchmarks/bench_random_presses.py, none tuned on): a hand of 0.072 N
-    # m/deg bounded at 0.227 N m presses the three-servo leader 12 deg beyond the edge and
-    # lets go over 85 ms. The watch takes the fade for a let go and cuts the wall while the hand
-    # still pushes 0.1 N m outward; the wall must be back at the next cycle, not the one after
-    # (which let the hand throw the leader out at 34.3 deg/s)
+    # random operator 6433 (bench_random_presses.py): 0.072 N m/deg bounded at 0.227 N m, 12 deg
+    # beyond on three servos, let go over 85 ms; the watch cuts while the hand still pushes
+    # outward, and the wall must be back at the next cycle (the one after let it reach 34 deg/s)
     script = [[0.0, 0.0, 0.0, 0.0], [2.0, 18.511, -7.008, -40.971]]
     let_go_s = 4.297
     rows = felt_at_200_hz(

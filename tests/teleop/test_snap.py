@@ -18,12 +18,13 @@ HELD_NM = (-0.3, 0.0)  # the motor pushes a hand with 0.3 N m toward the region 
 STILL = (0.0, 0.0)
 
 
-def held_watch() -> SnapWatch:
-    """A watch after two cycles of a wall holding a still leader against a hand (last read 0 s)."""
+def held_watch(hold: tuple[float, float] = HELD_NM) -> SnapWatch:
+    """A watch after two cycles of a wall holding a still leader against a hand with ``hold``
+    (the motor's torque, N m; last read 0 s)."""
     watch = SnapWatch(LAW)
-    watch.arm(POSE, GOAL, STILL, HELD_NM, False, -0.005)  # the wall came on: not yet
+    watch.arm(POSE, GOAL, STILL, hold, False, -0.005)  # the wall came on: not yet
     assert watch.armed is None
-    watch.arm(POSE, GOAL, STILL, HELD_NM, True, 0.0)
+    watch.arm(POSE, GOAL, STILL, hold, True, 0.0)
     return watch
 
 
@@ -37,10 +38,7 @@ def test_only_a_wall_holding_a_still_leader_against_a_hand_arms_the_watch_while_
     for k, engaged in enumerate((False, True, True)):
         moving.arm(POSE, GOAL, (-5.0, 0.0), HELD_NM, engaged, 0.005 * k)
     assert moving.armed is None
-    light = SnapWatch(LAW)
-    for engaged in (False, True):
-        light.arm(POSE, GOAL, STILL, (-0.03, 0.0), engaged, 0.0)  # the loop walking it back
-    assert light.armed is None
+    assert held_watch((-0.03, 0.0)).armed is None  # a light hold: the loop walking it back
     # armed, it stays while the wall holds and goes with it
     creeping = held_watch()
     creeping.arm(POSE, GOAL, (-3.0, 0.0), HELD_NM, True, 0.005)  # a relaxing hand: creeping in
@@ -72,10 +70,7 @@ def test_an_armed_watch_cuts_at_a_snap_toward_the_region_once_not_at_a_relaxing_
     assert watch.snaps((-25.0, 0.0), 0.007)
     # armed while the hand pressed lightly (0.07 N m), the hold then grew to 0.3 N m: a grip
     # fading from there (2 deg/s more each millisecond) is no let go
-    watch = SnapWatch(LAW)
-    light = (-0.07, 0.0)
-    watch.arm(POSE, GOAL, STILL, light, False, -0.005)
-    watch.arm(POSE, GOAL, STILL, light, True, 0.0)
+    watch = held_watch((-0.07, 0.0))
     watch.arm(POSE, GOAL, (-1.4, 0.0), HELD_NM, True, 0.005)
     assert not any(watch.snaps((-1.4 - 2.0 * k, 0.0), 0.005 + 0.001 * k) for k in range(1, 5))
     assert watch.armed is not None
@@ -162,9 +157,7 @@ def test_a_snap_is_judged_against_the_hold_of_the_last_cycle_not_of_the_first_ar
     assert watch.armed is not None
     assert watch.snaps((-4.5, 0.0), 0.006)
     # and the other way: armed light, then held at 0.3 N m, the same rise is no let go
-    watch = SnapWatch(LAW)
-    watch.arm(POSE, GOAL, STILL, (-0.07, 0.0), False, -0.005)
-    watch.arm(POSE, GOAL, STILL, (-0.07, 0.0), True, 0.0)
+    watch = held_watch((-0.07, 0.0))
     watch.arm(POSE, GOAL, STILL, HELD_NM, True, 0.005)
     assert not watch.snaps((-4.5, 0.0), 0.006)
     assert watch.armed is not None
