@@ -12,8 +12,7 @@ from limbctl.geometry.gimbal import direction_to_pan_tilt, pan_tilt_to_direction
 from limbctl.geometry.quat import limb_direction
 from limbctl.geometry.twist import compose, decompose, decompose_one, wrap
 
-#: Vertices of a random outline: 72 puts one every 5 deg of the outline's angle, fine enough
-#: that a 14 deg notch has three vertices across it.
+#: Vertices of a random outline: one every 5 deg of its angle, three across a 14 deg notch.
 OUTLINE_VERTICES = 72
 
 
@@ -130,8 +129,7 @@ class OutlineBandRegion(OutlineRegion):
             return abs(off) <= w0 + wp * pan + wt * tilt
         d, tau = decompose(q.reshape(-1, 4))
         centre, half = self.band(d)
-        inside = self.inside_directions(d) & (np.abs(wrap(tau - centre)) <= half)
-        return bool(inside[0]) if q.ndim == 1 else inside
+        return self.inside_directions(d) & (np.abs(wrap(tau - centre)) <= half)
 
     def correct(self, q: np.ndarray) -> np.ndarray:
         """``q`` inside; outside, the direction onto the outline, then the twist into its band."""
@@ -222,8 +220,7 @@ class InsidePaths:
         return inside.reshape(a.shape[0], m).all(axis=1), h[:, 0]
 
     def _wall_distance(self, d: np.ndarray) -> np.ndarray:
-        """Distance (rad) from each direction (N, 3) to the nearest edge, metric (cos(tilt) dpan,
-        dtilt)."""
+        """Distance (rad) of directions (N, 3) to the nearest edge, by (cos(tilt) dpan, dtilt)."""
         pan, tilt = direction_to_pan_tilt(d)
         poly = np.radians(self.region.polygon_deg)
         a, b = poly, np.roll(poly, -1, axis=0)  # (V, 2) edges a -> b

@@ -1,5 +1,4 @@
-"""Parking at the end of a session, on both rigs on the simulator through the SDK: a session
-that ends on the region's edge leaves the limb where the next start accepts it."""
+"""Parking at the end of a session (both rigs, SDK): the next start accepts where it leaves it."""
 
 from __future__ import annotations
 
@@ -20,9 +19,8 @@ from tests.teleop.chains import RATE, RIGS, chain_gate, live_chain
 
 
 def edge_line(rig_name, gate, margins):
-    """A command line that ends a session on the region's edge: on ``sim`` a command outside
-    the cone whose edge pose, rounded to ticks, lies outside; on ``sim3`` a twist far past the
-    band's stop."""
+    """A command line ending a session on the edge: on ``sim`` one whose edge pose rounds to
+    ticks outside the cone; on ``sim3`` a twist far past the band's stop."""
     if rig_name == "sim3":
         return json.dumps({"pan": 10.0, "tilt": 5.0, "roll": 80.0})
     for pan_deg in np.arange(50.0, 70.0, 0.173):
@@ -36,7 +34,7 @@ def edge_line(rig_name, gate, margins):
 
 @pytest.mark.parametrize("rig_name", RIGS)
 def test_a_session_ending_on_the_edge_parks_where_the_next_start_accepts(rig_name):
-    """Parked inside by the margin where the next start accepts it; park needs a started gate
+    """Parked inside by the margin, where the next start accepts it; park needs a started gate
     and writes nothing for a limb already inside by the margin."""
     with live_chain(rig_name) as session:
         rig = session.rig

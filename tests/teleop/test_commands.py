@@ -7,8 +7,9 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from limbctl.errors import InvalidInputError
-from limbctl.geometry.gimbal import pan_tilt_to_direction
+from limbctl.geometry.gimbal import pan_tilt_roll_to_quat, pan_tilt_to_direction
 from limbctl.geometry.quat import limb_direction
+from limbctl.geometry.twist import decompose
 from limbctl.teleop.commands import MAX_LINE_BYTES, command_from_pan_tilt, parse_command
 
 
@@ -91,11 +92,7 @@ def test_commands_built_from_numbers_are_checked_like_lines(pan, tilt, reason):
         command_from_pan_tilt(pan, tilt)
 
 
-# ---- three-servo rigs: lines that carry twist ------------------------------------------------
 def test_three_servo_forms_keep_their_twist():
-    from limbctl.geometry.gimbal import pan_tilt_roll_to_quat
-    from limbctl.geometry.twist import decompose
-
     c = parse_command('{"pan": 30, "tilt": 30, "roll": 20}', twist=True)
     np.testing.assert_allclose(
         c.q, pan_tilt_roll_to_quat(math.radians(30), math.radians(30), math.radians(20)), atol=1e-15

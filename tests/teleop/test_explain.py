@@ -4,27 +4,15 @@ from __future__ import annotations
 
 import math
 
-from limbctl.envelope import Cone
 from limbctl.geometry.gimbal import pan_tilt_to_quat
-from limbctl.teleop.explain import (
-    DIRECTION_NAMES,
-    PLANE_NAMES,
-    blocked_directions,
-    explain,
-)
-from limbctl.teleop.gate import Gate, GateLimits, GateResult, Outcome
+from limbctl.teleop.explain import DIRECTION_NAMES, PLANE_NAMES, blocked_directions, explain
+from limbctl.teleop.gate import Gate, GateResult, Outcome
+from tests.teleop.test_gate import make_gate
 
 
 def gate(tilt_max_deg: float = 80.0) -> Gate:
-    limits = GateLimits(
-        joint_min=(math.radians(-100), math.radians(-30)),
-        joint_max=(math.radians(100), math.radians(tilt_max_deg)),
-        max_step=math.radians(2),
-        max_joint_step=math.radians(10),
-    )
-    g = Gate(Cone(math.radians(30)), limits)
-    g.start(0.0, 0.0)
-    return g
+    """test_gate.py's two-servo gate (2 deg a cycle) on a 30 deg cone, at rest."""
+    return make_gate(2, math.radians(30), tilt_max=math.radians(tilt_max_deg))
 
 
 def follow(g: Gate, pan_deg: float, tilt_deg: float, cycles: int) -> list[GateResult]:

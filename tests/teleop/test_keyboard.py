@@ -1,6 +1,4 @@
-"""The keyboard source: keys typed into a pseudo-terminal; `limbctl teleop --source keyboard` in a
-tmux pane, asserted from the pane's text; keys against an edge on both rigs.
-"""
+"""The keyboard source: on a pseudo-terminal, in a tmux pane, against an edge on both rigs."""
 
 from __future__ import annotations
 
@@ -43,9 +41,16 @@ def poses(status: str) -> dict[str, tuple[float, float]]:
     return {m[1]: (float(m[2]), float(m[3])) for m in POSE.finditer(status)}
 
 
+def lead(shown: dict[str, tuple[float, float]]) -> float:
+    """The largest joint gap (deg) between commanded and written pose; inf if one is missing."""
+    if len(shown) != 2:
+        return math.inf
+    return max(abs(a - b) for a, b in zip(shown["commanded"], shown["written"]))
+
+
 def hold_key(pane, key: str, seconds: float, watch=None) -> float:
-    """Hold ``key`` about ``seconds`` as a terminal repeats it, calling ``watch()`` after each
-    repeat; the time from the press to the last repeat sent (s)."""
+    """Hold ``key`` ``seconds`` as a terminal repeats it, ``watch()`` after each repeat: the
+    time (s) from the press to the last repeat."""
     pane.keys(key)
     first = time.monotonic()  # each key timed once tmux has passed it on, as the source reads it
     time.sleep(REPEAT_DELAY_S)  # the terminal's repeat delay: the key is down, nothing is sent
@@ -65,12 +70,7 @@ def settled(pane) -> dict[str, tuple[float, float]]:
 
     def still(_text: str) -> bool:
         status = pane.status()
-        shown = poses(status)
-        if not (
-            "inside: following the command" in status
-            and len(shown) == 2
-            and max(abs(a - b) for a, b in zip(shown["commanded"], shown["written"])) < 0.15
-        ):
+        if "inside: following the command" not in status or not lead(poses(status)) < 0.15:
             seen.clear()
             return False
         if not seen or seen[-1].split(" s ")[0] != status.split(" s ")[0]:  # a new refresh
@@ -122,13 +122,10 @@ def test_keyboard_session_explains_itself_in_a_terminal(tmp_path, hand_model_pat
             shown = poses(line)
             assert shown["commanded"][1] - shown["written"][1] <= 5.0 + 0.15, line
 
-        def at_the_limb(_text: str) -> bool:
-            shown = poses(pane.status())
-            return len(shown) == 2 and all(
-                abs(a - b) <= 0.15 for a, b in zip(shown["commanded"], shown["written"])
-            )
-
-        pane.wait_for(at_the_limb, "the point stayed past the limb after the key was let go")
+        pane.wait_for(
+            lambda t: lead(poses(pane.status())) <= 0.15,
+            "the point stayed past the limb after the key was let go",
+        )
         assert "blocked" not in pane.status()
 
         # the guide again on ?, then q quits and parks
@@ -265,10 +262,7 @@ class Cycles(Gathered):
         with self.changed:
             settled = self.changed.wait_for(found, WAIT_S)
             last = self.items[-1] if self.items else None
-            assert settled, (
-                f"the press was never gated and settled: {len(self.items)} cycles, from {start}; "
-                f"the last {last}"
-            )
+            assert settled, f"never gated and settled: cycles {start}-{len(self.items)}: {last}"
             return found()
 
 
@@ -323,8 +317,7 @@ def test_up_against_a_slanted_edge_slides_without_running_on_and_down_answers_at
     lowered = top[1] - written_deg(down)[1]
     print(
         f"at the edge: written {top}, slid {written_deg(start)[0] - top[0]:.2f} deg in pan; the "
-        "command led the "
-        f"settled limb by at most {max(leads):.2f} deg; one Down press lowered it {lowered:.2f} deg"
+        f"command led by at most {max(leads):.2f} deg; one Down lowered it {lowered:.2f} deg"
     )
     assert top[0] < written_deg(start)[0] - 1.0  # it slid along the slanted edge (toward pan 0)
     assert max(leads) <= STEP_DEG + 0.2  # never more than the step just pressed

@@ -64,7 +64,6 @@ def test_a_held_key_moves_at_the_speed_the_step_sets_whatever_the_terminal(delay
     held, step = HeldKey(), 2.0
     times = events(delay_s, repeat_hz, 2.0)
     moved = sum(held.distance(Action.UP, t, step) for t in times)
-    # speed * time from the press to the last repeat
     assert moved == pytest.approx(step * KEY_RATE_HZ * times[-1], rel=1e-9)
     assert moved == pytest.approx(40.0, rel=0.05)
 

@@ -1,6 +1,5 @@
-"""A whole session on the simulator: start (waiting), the source opened once the limb is held,
-the loop at 200 Hz on a stream that sweeps far outside, park; judged by the simulator's own goal
-log. On ``sim3`` (pan, tilt, roll) the sweep leaves in swing and twist."""
+"""A whole session on ``sim3``: start, the source opened once the limb is held, 200 Hz on a stream
+leaving in swing and twist, park; judged by the simulator's own goal log."""
 
 from __future__ import annotations
 

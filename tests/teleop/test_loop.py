@@ -33,35 +33,25 @@ def write_lines(path, rows):
     return path
 
 
-def run_session(model_path, source, goal_log, telemetry=None, config=None):
-    profile = default_sim_profile()
-    gate = gate_for(model_path, profile, RATE, MAX_SPEED)
-    config = config or LoopConfig(rate_hz=RATE)
-    with live_chain("sim", goal_log) as session:
-        with source:
-            summary = run(session.rig, gate, source, config, telemetry=telemetry)
-        truth = session.simulator.truth()
-    return summary, truth
-
-
 def test_stream_leaving_the_region_is_gated_and_bad_lines_refused(tmp_path, cone_model):
-    """Every packet inside the cone, slew-limited; bad lines refused; each cycle a value that
-    the observer and the telemetry see alike."""
+    """Every packet inside the cone, slew-limited; bad lines refused; the observer and the
+    telemetry see each cycle alike."""
     rows = [{"pan": 5.0, "tilt": 3.0}] * 60  # well inside: must pass unchanged
     rows += ['{"pan": NaN, "tilt": 0}', "garbage", '{"pan": 10}', '{"dir": [0, 0, 0]}']
     # a sweep far outside the 40-degree cone, on both sides
     rows += [{"pan": p, "tilt": 0.5 * p} for p in np.linspace(0, 110, 80)]
     rows += [{"pan": p, "tilt": -0.3 * p} for p in np.linspace(110, -110, 120)]
     rows += [{"pan": 12.0, "tilt": -4.0}] * 150  # back inside
-    commands = write_lines(tmp_path / "cmds.jsonl", rows)
-    goal_log = tmp_path / "goals.jsonl"
-    telemetry_path = tmp_path / "telemetry.jsonl"
+    goal_log, telemetry_path = tmp_path / "goals.jsonl", tmp_path / "telemetry.jsonl"
     seen = []
     config = LoopConfig(rate_hz=RATE, on_cycle=seen.append)
-    with open(telemetry_path, "w") as fh:
-        summary, _ = run_session(
-            cone_model, ReplaySource(commands), goal_log, Telemetry(fh), config=config
-        )
+    gate = gate_for(cone_model, default_sim_profile(), RATE, MAX_SPEED)
+    with (
+        live_chain("sim", goal_log) as session,
+        open(telemetry_path, "w") as fh,
+        ReplaySource(write_lines(tmp_path / "cmds.jsonl", rows)) as source,
+    ):
+        summary = run(session.rig, gate, source, config, telemetry=Telemetry(fh))
 
     assert summary.exit_code == 0 and summary.ended_by == "end of input"
     assert summary.rejected == 4

@@ -1,5 +1,4 @@
-"""Inside by a margin, the nearest start pose and the waiting limb's status: on a Lee cone for
-the two-servo chain, on a cone with a twist band for the three-servo one."""
+"""Inside by a margin, the nearest start pose and the waiting status, on two servos and three."""
 
 import math
 
@@ -33,8 +32,7 @@ BAND = ConeBand(HALF_ANGLE, 0.0, math.radians(30))
 
 
 def exact(*pose):
-    """No tick rounding: the search's own geometry."""
-    return pose
+    return pose  # no tick rounding: the search's own geometry
 
 
 def band_gate(roll_limit=2.5):
@@ -75,8 +73,7 @@ def test_nearest_start_pose_is_inside_by_the_margin_after_rounding(pan_deg, tilt
     assert RIG.held_pose(*target) == target  # already a whole-tick pose
     assert inside_by_margin(gate, np.array([target]), MARGIN)[0]
     axis_angle = off_axis_deg(*target)
-    # the ring's probes are 360/RING_PROBES deg apart: an edge between two of them is at
-    # least cos(180/RING_PROBES deg) of the margin away
+    # probes 360/RING_PROBES deg apart: an edge between two is cos(180/RING_PROBES) margins away
     assert axis_angle <= 40.0 - START_MARGIN_DEG * math.cos(math.pi / RING_PROBES) + 1e-9
     # and near: for a pose outside, about the margin beyond the edge along the way in
     outside = max(0.0, off_axis_deg(pan, tilt) - 40.0)

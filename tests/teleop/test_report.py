@@ -1,5 +1,4 @@
-"""limbctl.teleop.report: every rig's telemetry carries its full commanded and written
-orientation in one form (joint angles, quaternion, and twist where the rig has one)."""
+"""limbctl.teleop.report: telemetry and summary carry the full commanded and written orientation."""
 
 from __future__ import annotations
 
@@ -16,37 +15,31 @@ from limbctl.teleop.cycle import Cycle, CycleState, TeleopSummary
 from limbctl.teleop.gate import GateResult, Outcome
 from limbctl.teleop.report import Telemetry
 
-#: A commanded pose (deg) and the pose the gate wrote (rad) per rig: the three-servo command
-#: carries a twist the gate turned down (corrected).
+
+def corrected(*pose_deg: float) -> GateResult:
+    return GateResult(tuple(map(math.radians, pose_deg)), Outcome.CORRECTED, corrected=True)
+
+
+#: Per rig, a commanded orientation and the gate's corrected answer; the three-servo command
+#: carries a twist (0.9 rad) the gate turned down.
+PAN_20 = math.radians(20.0)
 RIGS = {
-    "two servos": (
-        pan_tilt_to_quat(np.radians(30.0), np.radians(-10.0)),
-        GateResult((math.radians(25.0), math.radians(-8.0)), Outcome.CORRECTED, corrected=True),
-    ),
+    "two servos": (pan_tilt_to_quat(np.radians(30.0), np.radians(-10.0)), corrected(25.0, -8.0)),
     "three servos": (
-        compose(np.array([math.cos(math.radians(20.0)), math.sin(math.radians(20.0)), 0.0]), 0.9),
-        GateResult(
-            (math.radians(18.0), math.radians(4.0), math.radians(30.0)),
-            Outcome.CORRECTED,
-            corrected=True,
-        ),
+        compose(np.array([math.cos(PAN_20), math.sin(PAN_20), 0.0]), 0.9),
+        corrected(18.0, 4.0, 30.0),
     ),
 }
 
 
+def written_cycle(index, t, command_deg, result, command_q=None) -> Cycle:
+    """A complete running cycle that wrote the gate's ``result``."""
+    return Cycle(index, t, CycleState.RUNNING, True, command_deg, command_q, result, written=True)
+
+
 def logged(command_q: np.ndarray, result) -> dict:
     stream = io.StringIO()
-    cycle = Cycle(
-        index=0,
-        t=0.01,
-        state=CycleState.RUNNING,
-        complete=True,
-        command_deg=(0.0, 0.0),  # the loop's (pan, tilt) of the command, as it has always been
-        command_q=command_q,
-        result=result,
-        written=True,
-    )
-    Telemetry(stream).write(cycle)
+    Telemetry(stream).write(written_cycle(0, 0.01, (0.0, 0.0), result, command_q))
     return json.loads(stream.getvalue())
 
 
@@ -56,23 +49,14 @@ def test_the_telemetry_and_the_summary_carry_the_full_commanded_and_written_orie
     command_q, result = RIGS[rig]
     row = logged(command_q, result)
     joints = len(result.pose)
+    quat = pose_quat_scalar if joints == 3 else pan_tilt_to_quat
     assert len(row["cmd"]) == len(row["out"]) == joints
     assert np.allclose(row["cmd_q"], command_q, atol=1e-6)
     # the commanded joint angles give back the commanded orientation, roll included
-    angles = np.radians(row["cmd"])
-    back = pose_quat_scalar(*angles) if joints == 3 else pan_tilt_to_quat(*angles)
-    assert abs(abs(float(np.dot(back, command_q))) - 1.0) < 1e-8
-    # the written orientation is the written pose's
-    written = pose_quat_scalar(*result.pose) if joints == 3 else pan_tilt_to_quat(*result.pose)
-    assert np.allclose(row["out_q"], written, atol=1e-6)
+    assert abs(abs(float(np.dot(quat(*np.radians(row["cmd"])), command_q))) - 1.0) < 1e-8
+    out_q = quat(*result.pose)  # the written orientation is the written pose's
+    assert np.allclose(row["out_q"], out_q, atol=1e-6)
     assert row["out"] == pytest.approx(np.degrees(result.pose), abs=1e-4)
-    if joints == 3:
-        assert row["cmd_twist"] == pytest.approx(math.degrees(0.9), abs=1e-4)
-        assert row["out_twist"] == pytest.approx(
-            math.degrees(float(decompose(written[None])[1][0])), abs=1e-4
-        )
-    else:
-        assert "cmd_twist" not in row and "out_twist" not in row
     summary = TeleopSummary(last_command_q=command_q, last_written=result.pose)
     command, written = summary.lines()[-2:]
     assert command.startswith("last command") and written.startswith("last written")
@@ -84,8 +68,12 @@ def test_the_telemetry_and_the_summary_carry_the_full_commanded_and_written_orie
             word for word in text.replace(",", " ").split() if word[0] in "+-"
         ][: len(angles)]
         assert f"{q[0]:.4f}" in text
-    if rig == "three servos":
+    if joints == 3:
+        assert row["cmd_twist"] == pytest.approx(math.degrees(0.9), abs=1e-4)
+        out_twist = math.degrees(float(decompose(out_q[None])[1][0]))
+        assert row["out_twist"] == pytest.approx(out_twist, abs=1e-4)
         assert "roll" in command and f"twist {row['cmd_twist']:+.1f} deg" in command
         assert f"twist {row['out_twist']:+.1f} deg" in written
     else:
+        assert "cmd_twist" not in row and "out_twist" not in row
         assert "roll" not in command + written and "twist" not in command + written

@@ -32,6 +32,7 @@ from tests.teleop.bays import (
     OutlineRegion,
     bay_outline,
     inside_points,
+    teaching,
 )
 
 STEP = math.radians(0.6)  # limbctl teleop's default: 120 deg/s at 200 Hz
@@ -81,9 +82,8 @@ def drive(gate, region, rig: int, target: np.ndarray, limit: int) -> int | None:
         now = pose_q(gate, rig)
         # a step of max_step, then corrected onto the region: never a jump across it
         assert apart(before, now, rig) <= 2.0 * STEP, f"cycle {n} jumped: not one step"
-        assert bool(region.contains(now)) or apart(now, region.correct(now), rig) <= math.radians(
-            0.01
-        ), f"cycle {n} wrote a pose outside the region"
+        off = 0.0 if region.contains(now) else apart(now, region.correct(now), rig)
+        assert off <= math.radians(0.01), f"cycle {n} wrote a pose outside the region"
         before = now
         if apart(now, target, rig) < 1e-3:
             return n
@@ -118,7 +118,7 @@ class OneAtATime:
 @pytest.mark.parametrize("rig", RIGS, ids=["two", "three"])
 def test_a_target_past_a_concave_wall_is_reached_within_the_bound(rig, monkeypatch):
     """Reached within the bound: by a batched region, one asked a pose at a time, and a target
-    held behind the wall with a tremor, routed once (a Dijkstra a cycle would cost ~1 ms)."""
+    held behind the wall with a tremor, routed once."""
     from limbctl.geometry.quat import from_axis_angle, multiply
     from limbctl.teleop import route
 
@@ -201,7 +201,6 @@ def test_a_fitted_region_routes_round_its_bay(rig):
     """A fitted model's region (batched: the roadmap built at start) is routed round a wall."""
     from limbctl.region.taught import TaughtRegion
     from limbctl.region.twist_region import TwistRegion
-    from tests.teleop.bays import teaching
 
     truth, rng = region_for(rig, 31)
     region = (TaughtRegion() if rig == 2 else TwistRegion()).fit(teaching(truth, 60.0, rng))
@@ -242,9 +241,8 @@ def test_paths_judged_in_one_batch_are_judged_as_one_by_one(rig):
 
 
 def test_a_three_servo_node_is_judged_at_the_twist_inside_nearest_the_pose():
-    """Nodes near a pose are judged at its twist where that is inside, else at the twist inside
-    nearest it: a path to one turns the limb only as far as the band makes it, whatever twist
-    the roadmap's flood found there."""
+    """Nodes near a pose are judged at its twist where inside, else at the twist inside nearest
+    it (not the flood's): a path to one turns the limb only as far as the band makes it."""
     region, rng = region_for(3, 43)
     router = gate_at(region, 3, inside_points(region, 1, rng)[0]).router
     from_twist = moved = 0
@@ -270,12 +268,9 @@ def test_a_three_servo_node_is_judged_at_the_twist_inside_nearest_the_pose():
 
 
 def test_a_fitted_three_servo_route_point_outside_takes_the_nearest_twist_inside():
-    """A route point outside at its twist (turned toward the target's) is taken at the twist
-    inside nearest it. It had been corrected onto the region: at a wall that put the first one
-    back on the present pose, whose next route point lay past the wall, and the gate sat there
-    (fitted region of seed 2002, a benchmark seed: never reached before)."""
+    """A route point outside at its twist is taken at the twist inside nearest it, not corrected
+    back onto the present pose at a wall (benchmark seed 2002's fitted region)."""
     from limbctl.region.twist_region import TwistRegion
-    from tests.teleop.bays import teaching
 
     truth, rng = region_for(3, 2002)
     region = TwistRegion().fit(teaching(truth, 60.0, rng))
@@ -309,10 +304,8 @@ with open(sys.argv[1], "w") as out:
 
 
 def test_a_three_servo_gate_has_its_kernels_ready_before_the_first_cycle(tmp_path):
-    """From an empty kernel cache, the gate's start leaves nothing for a routing cycle to compile
-    (a first batch correct() compiled in the loop stalled it 0.6 s, 12.6 s on the thread pool)."""
+    """Empty kernel cache: the gate's start leaves no kernel for a routing cycle to compile."""
     from limbctl.envelope import RigidMap
-    from tests.teleop.bays import teaching
 
     truth, rng = region_for(3, 31)
     model_path = tmp_path / "model.npz"

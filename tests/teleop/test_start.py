@@ -1,6 +1,5 @@
-"""Starting a session from wherever the limb is, on both rigs through the SDK: waiting for the
-hand, timing out, driving in, the waiting status; then ``limbctl teleop`` itself from outside,
-parking at the end, and refused lines."""
+"""Starting a session from wherever the limb is, on both rigs through the SDK (waiting for the
+hand, timing out, driving in); then ``limbctl teleop``: from outside, parking, refused lines."""
 
 from __future__ import annotations
 
@@ -28,8 +27,8 @@ from tests.teleop.test_loop import write_lines
 
 @pytest.mark.parametrize("rig_name", RIGS)
 def test_outside_waits_with_torque_off_then_starts_once_moved_inside_by_hand(rig_name):
-    """Outside: torque off, waiting with a status; left there, timed out with exit 2; moved
-    inside by hand, started once inside by the margin."""
+    """Outside: torque off, a waiting status; left there, exit 2; moved inside by hand, started
+    once inside by the margin."""
     statuses, published = [], []
     lines, stream = io.StringIO(), io.StringIO()
     outside = pose_of(rig_name, -50.0, -10.0, 40.0)  # swing out; on sim3 the twist too
@@ -94,11 +93,10 @@ def test_outside_waits_with_torque_off_then_starts_once_moved_inside_by_hand(rig
 
 
 class WriteRecorder:
-    """The real rig; it also remembers every pose written and when (an observer)."""
+    """The real rig, remembering each pose written and when: ``writes`` of (monotonic s, pose)."""
 
     def __init__(self, rig):
-        self.rig = rig
-        self.writes: list[tuple[float, tuple[float, ...]]] = []  # (monotonic s, pose)
+        self.rig, self.writes = rig, []
 
     def __getattr__(self, name):
         return getattr(self.rig, name)
@@ -156,7 +154,7 @@ def replay(tmp_path, rows, name="cmds.jsonl"):
 
 
 def options(model, sim, source, **kwargs):
-    # a real port's default reply timeout (~34 ms): a loaded simulator answers in time
+    """A real port's default reply timeout (~34 ms): a loaded simulator answers in time."""
     connection = Connection(port=sim.port)
     return TeleopOptions(model=model, source=source, quiet=True, connection=connection, **kwargs)
 
@@ -180,9 +178,9 @@ def torque(sim):
 def test_teleop_parks_at_the_end_refuses_bad_lines_and_the_outside_and_approaches(
     tmp_path, sim, cone_model, capsys
 ):
-    """On one simulated bus: a session ending on the edge parks and the next starts at once;
-    exit 2 when every line is refused (the reasons counted) and when the limb stays outside
-    (torque off, saying why); --approach starts a session from outside."""
+    """One bus: a session ending on the edge parks, the next starts at once; exit 2 when every
+    line is refused (reasons counted) or the limb stays outside (torque off, saying why);
+    --approach starts from outside."""
     # commands far outside the cone: the gate slides the limb onto the edge and ends there
     source = replay(tmp_path, [{"pan": 30.0 + 0.5 * i, "tilt": 35.0} for i in range(60)])
     assert run_teleop(options(cone_model, sim, source)) == 0
@@ -202,9 +200,8 @@ def test_teleop_parks_at_the_end_refuses_bad_lines_and_the_outside_and_approache
     rows += ['{"pan": -720, "tilt": 0}']
     telemetry = tmp_path / "telemetry.jsonl"
     refused = replay(tmp_path, rows, "refused.jsonl")
-    code = run_teleop(options(cone_model, sim, refused, telemetry=telemetry))
+    assert run_teleop(options(cone_model, sim, refused, telemetry=telemetry)) == 2
     err = capsys.readouterr().err
-    assert code == 2
     assert "0 accepted (0 skipped as stale), 5 refused" in err
     assert "refused      2 x malformed JSON (e.g. line 1: 'garbage', line 3: 'not json')" in err
     assert "refused      2 x pan N deg is outside [N, N] (e.g. line 2: " in err
@@ -218,9 +215,8 @@ def test_teleop_parks_at_the_end_refuses_bad_lines_and_the_outside_and_approache
     put_limb(sim, 52.0, -8.0)
     assert torque(sim) == [True, True]
     rest = replay(tmp_path, [{"pan": 0, "tilt": 0}], "rest.jsonl")
-    code = run_teleop(options(cone_model, sim, rest, wait=1.0))
+    assert run_teleop(options(cone_model, sim, rest, wait=1.0)) == 2
     err = capsys.readouterr().err
-    assert code == 2
     assert torque(sim) == [False, False]
     assert "torque switched off so it can be moved by hand" in err
     assert "not started: the limb stayed outside for 1 s" in err
@@ -237,8 +233,7 @@ def test_teleop_parks_at_the_end_refuses_bad_lines_and_the_outside_and_approache
 
 
 def test_an_approach_faster_than_allowed_is_refused_before_the_port_opens(tmp_path, cone_model):
-    # a port that does not exist: the refusal must come first
-    connection = Connection(port=str(tmp_path / "no-such-port"))
+    connection = Connection(port=str(tmp_path / "no-such-port"))  # the refusal must come first
     source = replay(tmp_path, [{"pan": 0, "tilt": 0}])
     with pytest.raises(ConfigError, match="--approach must be above 0 and at most 30 deg/s"):
         run_teleop(TeleopOptions(cone_model, source, approach=45.0, connection=connection))

@@ -10,11 +10,12 @@ import select
 import struct
 import termios
 
-from limbctl.teleop.cycle import Cycle, CycleState, TeleopSummary
+from limbctl.teleop.cycle import TeleopSummary
 from limbctl.teleop.report import StatusLine
 from limbctl.teleop.sources import StreamSource
 from limbctl.teleop.status import ERASE_TO_END, ExplainedStatus, status_line_for
 from tests.teleop.test_explain import follow, gate
+from tests.teleop.test_report import written_cycle
 
 
 class Steered(StreamSource):
@@ -26,24 +27,13 @@ class Steered(StreamSource):
         return "step 2 deg"
 
 
-def cycles_up_against_the_edge(count: int = 60, rate_hz: float = 200.0):
+def cycles_up_against_the_edge(count: int, rate_hz: float = 200.0):
     """Real gate cycles (test_explain.py's gate) of a command straight up beyond a 30 deg cone."""
     summary = TeleopSummary()
     for index, result in enumerate(follow(gate(), 0.0, 60.0, count)):
         summary.cycles += 1
         summary.outcomes[result.outcome] += 1
-        yield (
-            Cycle(
-                index=index,
-                t=index / rate_hz,
-                state=CycleState.RUNNING,
-                complete=True,
-                command_deg=(0.0, 60.0),
-                result=result,
-                written=True,
-            ),
-            summary,
-        )
+        yield written_cycle(index, index / rate_hz, (0.0, 60.0), result), summary
 
 
 def test_a_log_gets_the_step_poses_words_and_rate():

@@ -32,14 +32,9 @@ class Pane:
 
     def text(self, history: bool = False) -> str:
         """The pane's text (with ``history``: everything scrolled off too)."""
-        start = ["-S", "-"] if history else []
-        out = subprocess.run(
-            ["tmux", "capture-pane", "-p", "-J", "-t", self.name, *start],
-            check=True,
-            capture_output=True,
-            text=True,
-        )
-        return out.stdout
+        command = ["tmux", "capture-pane", "-p", "-J", "-t", self.name]
+        command += ["-S", "-"] if history else []
+        return subprocess.run(command, check=True, capture_output=True, text=True).stdout
 
     def status(self) -> str:
         """The last non-empty line: the status line refreshed in place."""
