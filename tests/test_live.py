@@ -83,8 +83,7 @@ FIRST_REGION_S = 120.0
 
 
 def test_record_job_shows_its_samples_on_the_page(tmp_path, browser):
-    """The page counts up while the job records, draws the region train would learn, and ends
-    on the file's count and last pose; Ctrl-C (SIGINT) ends the job."""
+    """The page counts up, draws the region, ends on the file's count and last pose; SIGINT ends."""
     out = tmp_path / "teach.limb"
     said: list[str] = []
     with open_view(ViewOptions(enabled=True, port=0), said.append) as live:
@@ -310,8 +309,7 @@ def test_the_page_shows_the_felt_leader_beside_the_follower_and_how_hard_it_push
             limits = {**rig.tick_limits(), **dict.fromkeys(IDS, (0, 4095))}
             try:
                 configure_servos(rig.bus, limits)
-            except BusError:
-                # a starved machine now and then garbles a set-up read-back: not tested here
+            except BusError:  # a starved machine may garble a set-up read-back: not tested here
                 configure_servos(rig.bus, limits)
             # checked against 25 Hz: a busy machine's loop (30-40 Hz) keeps the feel on
             source = LeaderSource(rig, IDS, rate_hz=25.0)
@@ -400,6 +398,11 @@ def held_since(rows: list[dict], start: int) -> int:
     return ([False, *held][::-1]).index(False)
 
 
+def wait_held(telemetry: Path, start: int, what: str) -> None:
+    """Wait until the limb was held :data:`HELD_CYCLES` cycles in a row since row ``start``."""
+    poll(lambda: held_since(telemetry_rows(telemetry), start) >= HELD_CYCLES, 60.0, what)
+
+
 def test_a_page_steers_along_the_edge_a_frozen_page_holds_a_killed_one_ends_well(
     tmp_path, capsys, hand_model_path
 ):
@@ -452,18 +455,11 @@ def test_a_page_steers_along_the_edge_a_frozen_page_holds_a_killed_one_ends_well
             frozen_at = len(telemetry_rows(telemetry))
             for pid in pids:
                 os.kill(pid, signal.SIGSTOP)
-            poll(
-                lambda: held_since(telemetry_rows(telemetry), frozen_at) >= HELD_CYCLES,
-                60.0,
-                "a frozen page did not hold the limb",
-            )
+            wait_held(telemetry, frozen_at, "a frozen page did not hold the limb")
             goals = goals_logged(goal_log)
             held_rows = len(telemetry_rows(telemetry))
-            poll(
-                lambda: len(telemetry_rows(telemetry)) >= held_rows + HELD_CYCLES,
-                60.0,
-                "the loop stopped",
-            )
+            more = held_rows + HELD_CYCLES
+            poll(lambda: len(telemetry_rows(telemetry)) >= more, 60.0, "the loop stopped")
             seen["goals_while_frozen"] = goals_logged(goal_log) - goals
             seen["held_while_frozen"] = held_since(telemetry_rows(telemetry), frozen_at)
 
@@ -471,11 +467,7 @@ def test_a_page_steers_along_the_edge_a_frozen_page_holds_a_killed_one_ends_well
             for pid in pids:
                 os.kill(pid, signal.SIGKILL)
             killed_at = len(telemetry_rows(telemetry))
-            poll(
-                lambda: held_since(telemetry_rows(telemetry), killed_at) >= HELD_CYCLES,
-                60.0,
-                "a killed page did not leave the limb held",
-            )
+            wait_held(telemetry, killed_at, "a killed page did not leave the limb held")
 
         status = watched(lambda: run_teleop(options, view=live), look)
 

@@ -38,14 +38,10 @@ def test_without_root_or_after_a_failed_install_one_line_says_what_to_install(tm
     assert "chromium, chromedriver, tmux not found" in line
     assert "apt-get install chromium chromium-driver tmux" in line
     # as root, a failed install ends in the one line with its reason
-
-    def failing(names):
-        return subprocess.CompletedProcess([], 100, "", "E: Unable to locate package chromium")
-
+    failed = subprocess.CompletedProcess([], 100, "", "E: Unable to locate package chromium")
     said = []
-    line = system_tools.ensure(
-        path=bare_path(tmp_path), root=True, install=failing, say=said.append
-    )
+    path = bare_path(tmp_path)
+    line = system_tools.ensure(path=path, root=True, install=lambda _: failed, say=said.append)
     assert said[-1] == line and len(said) == 2  # the progress line, then the one line
     assert "installing them failed (E: Unable to locate package chromium)" in line
 
@@ -91,15 +87,12 @@ def run_hidden(tree: Path, tmp_path: Path) -> subprocess.CompletedProcess:
     """``python -m pytest -q`` of BROWSER_TEST with tests/conftest.py of ``tree``, as a user who
     may not install: a PATH without the programs (and without apt-get)."""
     (tmp_path / "test_tools_needed.py").write_text(BROWSER_TEST)
+    path = bare_path(tmp_path, keep=("env", "sh"))
     return subprocess.run(
         [sys.executable, *"-m pytest -q -p tests.conftest -p no:cacheprovider -ra".split()]
         + ["--rootdir", str(tmp_path), str(tmp_path / "test_tools_needed.py")],
         cwd=tree,
-        env={
-            **os.environ,
-            "PATH": bare_path(tmp_path, keep=("env", "sh")),
-            "PYTHONPATH": str(tree),
-        },
+        env={**os.environ, "PATH": path, "PYTHONPATH": str(tree)},
         capture_output=True,
         text=True,
     )

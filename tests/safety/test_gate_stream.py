@@ -81,10 +81,7 @@ command_lines = st.one_of(
     pan_tilt_lines, pan_tilt_lines, dir_lines, q_lines, odd_lines, wild_json, garbage
 )
 streams = st.lists(command_lines, min_size=1, max_size=60)
-models = st.one_of(
-    st.floats(8.0, 80.0).map(lambda a: Cone(math.radians(a))),
-    st.just("bean"),
-)
+models = st.one_of(st.floats(8.0, 80.0).map(lambda a: Cone(math.radians(a))), st.just("bean"))
 
 
 def _model(choice):

@@ -20,16 +20,9 @@ from tests.system_tools import find
 
 #: Flags without which Chromium stalls here (root, closed network, no GPU).
 FLAGS = (
-    "--headless",
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-quic",
-    "--no-first-run",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-    "--window-size=1300,820",
-)
+    "--headless --no-sandbox --disable-gpu --disable-quic --no-first-run --disable-sync"
+    " --disable-background-networking --disable-component-update --window-size=1300,820"
+).split()
 #: Longest wait (s) for what a page should show: generous for a 2-core machine under load.
 WAIT_S = 30.0
 #: The hard limits the page tests' scenes carry.
@@ -91,11 +84,9 @@ TICK_DEG = 360.0 / 4096.0
 def assert_pose_shown(
     text: str, pose_deg, logged_digits: int | None = None, reads_apart: bool = False
 ) -> None:
-    """The page's "pan, tilt" ``text`` shows ``pose_deg`` (deg) within its rounding and that of
+    """The page's "pan, tilt" ``text`` shows ``pose_deg`` within its rounding and that of
     ``logged_digits`` (the decimals ``pose_deg`` was rounded to); with ``reads_apart``, give or
-    take one tick: on a loaded machine the page's last frame was seen to carry a pose one tick
-    from the file's last (0.0504 deg past the rounding, once in record and once in teleop), the
-    frames being pushed at their own rate beside the reads."""
+    take one tick (frames are pushed at their own rate beside the reads)."""
     shown = [float(part) for part in text.split(",")]
     slack = SHOWN_HALF_DIGIT_DEG + (0.5 * 10.0**-logged_digits if logged_digits else 0.0)
     slack += TICK_DEG if reads_apart else 0.0
@@ -124,10 +115,8 @@ def browser_pids(driver: webdriver.Chrome) -> list[int]:
 
 @contextlib.contextmanager
 def frozen(driver: webdriver.Chrome) -> Iterator[list[int]]:
-    """The whole browser stopped (SIGSTOP) for the block, continued (SIGCONT) after it. A process
-    that ends between the listing and its signal is passed over; every process stopped is
-    continued even when the freezing fails half way (a stopped browser left behind hangs the next
-    test's chromedriver)."""
+    """The whole browser stopped (SIGSTOP) for the block, then continued (SIGCONT); a process
+    gone before its signal is passed over, and every one stopped is continued even on failure."""
     stopped: list[int] = []
     try:
         for pid in browser_pids(driver):

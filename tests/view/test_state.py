@@ -56,22 +56,15 @@ def test_edge_loops_scenes_and_teleop_states_as_json():
     assert as_json["loops"][0]["traced"] == [0, 1]
     assert as_json["limits"] is None and as_json["guide"] == []
     # a teleop state carries the gate's words and the blocked sides
-    status = TeleopStatus(
-        PanTilt(0.0, 60.0),
-        PanTilt(0.0, 30.0),
-        "corrected",
-        199.96,
-        12,
-        words="at the edge: up is blocked, holding there",
-        blocked=("+tilt",),
-    )
-    shown = Live("teleop", teleop=status).to_json()["teleop"]
-    assert shown == {
+    words = "at the edge: up is blocked, holding there"
+    command, written = PanTilt(0.0, 60.0), PanTilt(0.0, 30.0)
+    status = TeleopStatus(command, written, "corrected", 199.96, 12, words, ("+tilt",))
+    assert Live("teleop", teleop=status).to_json()["teleop"] == {
         "commanded": [0.0, 60.0],
         "written": [0.0, 30.0],
         "outcome": "corrected",
         "rate_hz": 200.0,
         "cycles": 12,
-        "words": "at the edge: up is blocked, holding there",
+        "words": words,
         "blocked": ["+tilt"],
     }

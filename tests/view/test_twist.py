@@ -198,9 +198,8 @@ def test_a_three_servo_record_shows_the_twist_taught_by_place_and_the_gauge(tmp_
         assert not js(page, "document.getElementById('twist-panel').hidden")
         assert not js(page, "document.getElementById('twist-figure').hidden")
         # drawn as the plane above it, and it says so
-        assert text_of(page, "twist-legend").startswith(
-            "seen from behind the limb (+pan to the left)"
-        )
+        legend = text_of(page, "twist-legend")
+        assert legend.startswith("seen from behind the limb (+pan to the left)"), legend
         assert needle_near(page, gauge.twist_deg), "the needle is not where the twist lies"
         # every cell is painted; a cell still short of a stop in the warning colour
         states = dict(zip(map(tuple, scene.cells[:, :2].astype(int).tolist()), scene.states))
@@ -259,9 +258,8 @@ def test_a_three_servo_teleop_shows_the_learned_band_and_the_gauge(
         # the band's picture: every cell painted, wide and narrow cells in different colours
         wait_for(page, lambda d: js(d, "window.limbtwist.drawnCells()") == len(scene.cells), "")
         widths = scene.cells[:, 3] - scene.cells[:, 2]
-        colours = []
-        for k in (int(np.argmin(widths)), int(np.argmax(widths))):
-            colours.append(cell_colour(page, *(int(v) for v in scene.cells[k, :2])))
+        ends = (int(np.argmin(widths)), int(np.argmax(widths)))
+        colours = [cell_colour(page, *(int(v) for v in scene.cells[k, :2])) for k in ends]
         assert widths.max() - widths.min() > 30.0
         assert not near(colours[0], colours[1], tol=40), colours
         assert needle_near(page, gauge.twist_deg), "the needle is not where the twist lies"
