@@ -20,11 +20,10 @@ from limbctl.region.mesh import DirectionMesh
 from tests.region.support import circle
 
 ROOT = Path(__file__).resolve().parents[2]
-#: A command 10 deg of pan from rest: inside the 20 deg cap of :func:`_cap_args`.
+#: A command 10 deg of pan from rest: inside the test's 20 deg cap.
 QUATERNION = np.array([np.cos(np.radians(5.0)), 0.0, 0.0, np.sin(np.radians(5.0))])
 
-#: What the child prints: the corrected quaternion of an inside command, and where its kernel came
-#: from (numba's cache hits and misses of correct_single).
+#: The child prints the corrected inside command and numba's cache hits and misses.
 CHILD = """
 import sys
 import numpy as np
@@ -52,12 +51,6 @@ def _env(home: Path, path: Path) -> dict[str, str]:
     return env
 
 
-def _cap_args(path: Path) -> None:
-    """The kernel arrays of a 20 degree cap about +x, saved to ``path`` (npz)."""
-    args = DirectionMesh.from_loops([circle(20.0, 120)], 0.0).kernel_args()
-    np.savez(path, **{f"a{i}": a for i, a in enumerate(args)})
-
-
 def _python(argv, env, cwd, prefix=(), check=False):
     """``python -c *argv`` (after ``prefix``) in ``cwd``, which ``-c`` puts first on sys.path."""
     command = [*prefix, sys.executable, "-c", *argv]
@@ -65,6 +58,7 @@ def _python(argv, env, cwd, prefix=(), check=False):
 
 
 def _run(tree: Path, home: Path, args: Path) -> tuple[list[float], int, int, int]:
+    """The child's answer, status, cache hits and misses."""
     done = _python([CHILD, str(args)], _env(home, tree), tree, check=True)
     out, status, hits, misses = done.stdout.strip().rsplit(" ", 3)
     return eval(out), int(status), int(hits), int(misses)  # noqa: S307 - our own child's repr
@@ -73,8 +67,9 @@ def _run(tree: Path, home: Path, args: Path) -> tuple[list[float], int, int, int
 def test_editing_an_inlined_kernel_in_another_file_changes_the_answer(tmp_path):
     """mesh_kernels.query, inlined into correct_single: edited, the cached kernel is not used."""
     tree = _package_copy(tmp_path / "tree")
-    args = tmp_path / "args.npz"
-    _cap_args(args)
+    args = tmp_path / "args.npz"  # the kernel arrays of a 20 deg cap about +x
+    cap = DirectionMesh.from_loops([circle(20.0, 120)], 0.0).kernel_args()
+    np.savez(args, **{f"a{i}": a for i, a in enumerate(cap)})
     first = _run(tree, tmp_path, args)
     again = _run(tree, tmp_path, args)
     assert first[1] == 1 and first[3] == 1, first  # inside; compiled

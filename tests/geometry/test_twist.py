@@ -72,11 +72,7 @@ def test_decompose_then_compose_is_the_same_rotation_and_the_scalar_twin_agrees(
 
 
 @settings(max_examples=300, deadline=None)
-@given(
-    pan=st.floats(-math.pi, math.pi),
-    tilt=st.floats(-1.5, 1.5),
-    tau=twists,
-)
+@given(pan=st.floats(-math.pi, math.pi), tilt=st.floats(-1.5, 1.5), tau=twists)
 def test_compose_then_decompose_gives_back_direction_and_wrapped_twist(pan, tilt, tau):
     d = np.array([math.cos(tilt) * math.cos(pan), math.cos(tilt) * math.sin(pan), math.sin(tilt)])
     if quat.direction_angle(d, np.array([-1.0, 0, 0])) < 1e-3:

@@ -13,8 +13,8 @@ REGIONS = {
 
 
 def _meshes(name: str, margins: str) -> tuple[DirectionMesh, DirectionMesh, object]:
-    """One region twice, with its lookup grid built and without, and the true region; the
-    arcs widened by 0.3 deg, by random widths up to 3 deg, or not at all."""
+    """One region with its lookup grid built and without, and the true region; the arcs widened
+    ``margins``: "even" (0.3 deg), "random" (up to 3 deg) or "none"."""
     rng = np.random.default_rng(11)
     region = REGIONS[name]
     mesh = DirectionMesh.alpha_shape(region.sample(800, rng), np.radians(8.0), np.radians(0.3))
@@ -32,15 +32,9 @@ def _probes(mesh: DirectionMesh, region, rng) -> np.ndarray:
     a = mesh.vertices[mesh.edges[:, 0]]
     b = mesh.vertices[mesh.edges[:, 1]]
     on_arcs = a + rng.uniform(0.0, 1.0, (len(a), 1)) * (b - a)
-    d = np.vstack(
-        [
-            region.test_directions(3000, rng),
-            mesh.vertices,
-            on_arcs,
-            rng.normal(size=(500, 3)),
-            -mesh.axis[None, :],
-        ]
-    )
+    near = region.test_directions(3000, rng)
+    far = rng.normal(size=(500, 3))
+    d = np.vstack([near, mesh.vertices, on_arcs, far, -mesh.axis[None, :]])
     return d / np.linalg.norm(d, axis=1, keepdims=True)
 
 

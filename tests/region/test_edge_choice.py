@@ -74,8 +74,7 @@ def test_the_smooth_strategy_refuses_a_bay_and_a_shape_its_window_cannot_follow(
 
 
 def test_a_traced_edge_refused_for_unexplained_samples_is_taken_clipped_to_the_supported_region():
-    # limbctl eval's dense shoulder (its quick scale, seed 0): own-depth margins narrow the
-    # supported region and the free traced edge then adds a stretch the density explains not
+    # limbctl eval's dense shoulder (quick scale, seed 0): the free traced edge adds a stretch
     truth = ShoulderRegion(rounded(SHOULDER))
     d = limb_direction(truth.teaching(2500, 1900, 3100, np.random.default_rng(0)))
     region = TaughtRegion().fit(d)
@@ -83,5 +82,5 @@ def test_a_traced_edge_refused_for_unexplained_samples_is_taken_clipped_to_the_s
     assert region.edge == "traced" and traced.accepted, traced.reasons
     stations, _ = edge_stations(region.mesh, np.radians(0.25))
     depth = np.degrees(truth.swing.depth(stations))
-    # clipped, the edge stays at the samples' reach (the free trace stood 0.36 deg past at p5)
+    # clipped, the edge stays at the samples' reach
     assert np.percentile(depth, 5) > -0.1

@@ -76,8 +76,7 @@ def test_trace_window_follows_the_density_refuses_a_sparse_edge_and_chords_are_l
     assert np.sum(np.isfinite(need)) == 3
 
 
-# the small kidney's seeds whose trace is taken and covers 99 % (docs/decisions/region.md, "The
-# same trace on every CPU"); the egg's tight end, which no smooth edge follows
+# the small kidney's seeds whose trace is taken; the egg's tight end, which no smooth edge follows
 @pytest.mark.parametrize(
     ("shape", "seed"),
     [("small kidney", 1), ("small kidney", 5)] + [("egg", s) for s in (0, 1, 2, 4)],

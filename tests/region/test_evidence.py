@@ -55,17 +55,17 @@ def test_a_bridged_notch_is_listed_as_unsupported(monkeypatch):
     """An uncarved edge across a notch the samples surround is found over it; carved, gone."""
     monkeypatch.setattr(taught_module, "CARVE_ROUNDS", 0)
     outline, (at, half, floor) = notched_ellipse(27.2, 23.4, (-5.7, 7.2), 273.0, 9.0, 8.0)
-    truth = PolygonRegion(outline)
-    taught = truth.sample(8000, np.random.default_rng(0))
-    held = TaughtRegion(RegionParams(edge="supported", alpha_factor=4.0)).fit(taught)
-    # the edge as kept, before the hold (limbctl.region.edge_hold) takes it in to the evidence
+    taught = PolygonRegion(outline).sample(8000, np.random.default_rng(0))
+    params = RegionParams(edge="supported", alpha_factor=4.0)
+    held = TaughtRegion(params).fit(taught)
+    # the edge as kept, before the hold and the cut take it in to the evidence
     monkeypatch.setattr(
         taught_module, "hold_to_evidence", lambda mesh, data, *_, **__: (mesh, False)
     )
     monkeypatch.setattr(
         taught_module, "cut_to_evidence", lambda mesh, data, *_, **__: Clip.nothing(mesh)
     )
-    bridged = TaughtRegion(RegionParams(edge="supported", alpha_factor=4.0)).fit(taught)
+    bridged = TaughtRegion(params).fit(taught)
     assert held.held_edge and not unsupported_stretches(held.mesh, taught)
     # every stretch the hold took in is named held (the cut back to the evidence may add more)
     assert {replace(s, held=True) for s in bridged.unsupported_edge} <= set(held.unsupported_edge)
@@ -78,7 +78,7 @@ def test_a_bridged_notch_is_listed_as_unsupported(monkeypatch):
     y = 7.2 + 23.4 * np.sin(np.radians(at))
     assert abs(found[0].pan_deg - x) < 8.0 and abs(found[0].tilt_deg - y) < 10.0
     monkeypatch.setattr(taught_module, "CARVE_ROUNDS", 12)
-    carved = TaughtRegion(RegionParams(edge="supported", alpha_factor=4.0)).fit(taught)
+    carved = TaughtRegion(params).fit(taught)
     assert not unsupported_stretches(carved.mesh, taught)
 
 
@@ -127,9 +127,8 @@ def v_notched_ellipse(a, b, centre, at_deg, mouth_deg, depth):
 
 
 def test_a_traced_v_notch_the_edge_bridges_is_settled_and_held_within_the_bound():
-    """The hand traces a V notch (6 deg mouth, 3 deg deep) 1 deg inside; the edge bridges it
-    farther from every sample than tracing again could come: held, it is settled by the samples'
-    outline, within the bound of the truth."""
+    """A hand-traced V notch (6 deg mouth, 3 deg deep) the edge bridges is held, settled by the
+    samples' outline, within the bound of the truth."""
     outline = v_notched_ellipse(27.2, 23.4, (-5.7, 7.2), 90.0, 6.0, 3.0)
     region = TaughtRegion().fit(hand_teaching(outline, seed=0))
     over = [s for s in region.unsupported_edge if np.hypot(s.pan_deg + 5.7, s.tilt_deg - 30.6) < 6]
@@ -143,8 +142,8 @@ def test_a_traced_v_notch_the_edge_bridges_is_settled_and_held_within_the_bound(
 
 
 def test_the_open_end_of_an_unfinished_trace_stays_asked():
-    """The region families' curved band, seed 0, taught 30 s by the hand: the unclosed trace's
-    edge runs across the untaught inside (19 deg inside the truth); held there, still asked for."""
+    """The curved band (seed 0) taught 30 s by hand: the unclosed trace's edge across the untaught
+    inside is held, and still asked for."""
     bench = benchmark("bench_region_families")
     truth, mapping = bench.make_truth("curved band with bumps", 0)
     d, _ = decompose(bench.teach(truth, mapping, ("hand", 30.0), 0))

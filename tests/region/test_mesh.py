@@ -18,11 +18,8 @@ def in_triangles_reference(d: np.ndarray, vertices: np.ndarray, tri: np.ndarray)
     """(N,) bool: each direction in at least one spherical triangle (edges included)."""
     a, b, c = vertices[tri[:, 0]], vertices[tri[:, 1]], vertices[tri[:, 2]]
     # inside iff on the left of (or on) all three edge planes: det(a, b, p) >= 0, ...
-    s1 = d @ np.cross(a, b).T >= 0
-    s2 = d @ np.cross(b, c).T >= 0
-    s3 = d @ np.cross(c, a).T >= 0
-    front = d @ (a + b + c).T > 0
-    return (s1 & s2 & s3 & front).any(axis=1)
+    left = [d @ np.cross(p, q).T >= 0 for p, q in ((a, b), (b, c), (c, a))]
+    return (left[0] & left[1] & left[2] & (d @ (a + b + c).T > 0)).any(axis=1)
 
 
 def answers_as_reference(mesh: DirectionMesh, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -33,12 +30,9 @@ def answers_as_reference(mesh: DirectionMesh, d: np.ndarray) -> tuple[np.ndarray
     margin = mesh.margins[edge]
     inside_ref = inside_mesh | (angle - margin <= CONTAIN_TOLERANCE)
     # outside: from the nearest boundary point, go that arc's margin along the path toward d
-    out_ref = np.empty_like(d)
-    for i in range(d.shape[0]):
-        if inside_ref[i]:
-            out_ref[i] = d[i]
-        else:
-            out_ref[i] = bk.slerp_dir(point[i], d[i], angle[i], margin[i])
+    out_ref = d.copy()
+    for i in np.flatnonzero(~inside_ref):
+        out_ref[i] = bk.slerp_dir(point[i], d[i], angle[i], margin[i])
     inside, out = mesh.contains(d), mesh.project(d)
     np.testing.assert_array_equal(inside, inside_ref)
     np.testing.assert_allclose(out, out_ref, atol=1e-12)
@@ -152,20 +146,17 @@ def test_the_pruned_grid_is_the_brute_force_grid(mesh_and_region, widest_deg):
 
 
 def test_edge_foot_is_nearest_on_arc_bit_for_bit_and_slerp_dir_moves_by_the_margin():
-    def unit(rows):
-        return rows / np.linalg.norm(rows, axis=-1, keepdims=True)
-
     rng = np.random.default_rng(7)
-    vertices = unit(rng.normal(size=(60, 3)))
+    vertices = normalize(rng.normal(size=(60, 3)))
     # a repeated vertex (no great circle), antipodes, and near neighbours
     vertices[1] = vertices[0]
     vertices[3] = -vertices[2]
-    vertices[5] = unit(vertices[4] + 1e-9)
+    vertices[5] = normalize(vertices[4] + 1e-9)
     edges = np.stack([np.arange(0, 60, 2), np.arange(1, 60, 2)], axis=1).astype(np.int64)
-    points = unit(rng.normal(size=(200, 3)))
+    points = normalize(rng.normal(size=(200, 3)))
     # the arcs' own vertices and the poles of their great circles (no foot)
     a, b = vertices[edges[:, 0]], vertices[edges[:, 1]]
-    points = np.concatenate([points, a, b, unit(np.cross(a[2:], b[2:]))])
+    points = np.concatenate([points, a, b, normalize(np.cross(a[2:], b[2:]))])
     out = np.empty(3)
     for p in points:
         for e in range(edges.shape[0]):

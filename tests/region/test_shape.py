@@ -2,11 +2,12 @@ import numpy as np
 import pytest
 
 from limbctl.envelope.synthetic import ConeRegion, trajectory_samples
-from limbctl.geometry.quat import direction_angle
+from limbctl.geometry.quat import direction_angle, normalize
 from limbctl.region import shape as rs
 from limbctl.region.loops import loops_to_edges
 from limbctl.region.mesh import DirectionMesh, boundary_edges, inside_reference
 from limbctl.region.shape import alpha_complex, trace_loops
+from tests.region.support import off_x
 
 
 def enclosed(p: np.ndarray, loops: list[np.ndarray]) -> np.ndarray:
@@ -78,7 +79,7 @@ def test_peel_takes_back_a_bridged_concavity_keeping_every_vertex_and_what_is_su
     bay = (d[:, 1] > 0.0) & (np.abs(d[:, 2]) < np.sin(np.radians(6.0)))
     d = d[~bay]
     tri, _, inside = rs.alpha_complex(d, np.radians(20.0), max_hole=0.0)
-    probe = np.array([[np.cos(np.radians(15.0)), np.sin(np.radians(15.0)), 0.0]])
+    probe = off_x(15.0, 0.0)[None]
     assert enclosed(probe, loops_of(d, tri, inside))[0]
     protected = rs.surrounded(rs.tri_centroids(d, tri), d, np.radians(4.0), np.radians(150.0))
     kept = rs.peel(d, tri, inside, np.radians(4.0), protected)
@@ -88,14 +89,10 @@ def test_peel_takes_back_a_bridged_concavity_keeping_every_vertex_and_what_is_su
     assert np.isin(np.unique(tri[inside]), np.unique(tri[kept])).all()
     below = np.array([[np.cos(np.radians(12.0)), 0.0, -np.sin(np.radians(12.0))]])
     assert enclosed(below, peeled)[0]
-    # surrounded tells the middle and near the edge from just beyond it and outside
+    # surrounded tells the middle and near the edge from just beyond it (all samples on one
+    # side) and outside
     d = ConeRegion(np.radians(20.0)).sample(3000, np.random.default_rng(6))
-    middle = np.array([[1.0, 0.0, 0.0]])
-    near_edge = np.array([[np.cos(np.radians(18.0)), np.sin(np.radians(18.0)), 0.0]])
-    # just beyond the data's edge: all samples on one side
-    beyond = np.array([[np.cos(np.radians(20.5)), np.sin(np.radians(20.5)), 0.0]])
-    out = np.array([[np.cos(np.radians(30.0)), np.sin(np.radians(30.0)), 0.0]])
-    probe = np.vstack([middle, near_edge, beyond, out])
+    probe = off_x(np.array([0.0, 18.0, 20.5, 30.0]), np.zeros(4))
     got = rs.surrounded(probe, d, np.radians(4.0), np.radians(150.0))
     np.testing.assert_array_equal(got, [True, True, False, False])
 
@@ -143,24 +140,14 @@ def test_a_hole_open_only_through_a_gap_narrower_than_the_mouth_is_filled():
     assert len(kept) == len(filled) + 1
 
 
-def _plane(uv_deg):
-    """Directions (N, 3) of gnomonic coordinates (N, 2) deg about +x."""
-    uv = np.tan(np.radians(np.asarray(uv_deg, dtype=float)))
-    d = np.column_stack([np.ones(len(uv)), uv])
-    return d / np.linalg.norm(d, axis=1, keepdims=True)
-
-
-def _traced_notch_loop():
-    """A +-15 deg square with a notch |u| < 7, v > 2 traced 1 deg apart, its left corner cut by
-    one bridge (-4, 2) -> (-7, 5); and the bridge's index."""
+def test_a_traced_concave_corner_arc_widens_no_further_than_its_neighbours_meet():
+    # a +-15 deg square (gnomonic about +x) with a notch |u| < 7, v > 2 traced 1 deg apart, its
+    # left corner cut by one bridge (-4, 2) -> (-7, 5), the arc from the floor's last point
     floor = [(u, 2.0) for u in np.arange(7.0, -4.5, -1.0)]
     wall = [(-7.0, v) for v in np.arange(5.0, 15.5, 1.0)]
     uv = [(-15.0, -15.0), (15.0, -15.0), (15.0, 15.0), (7.2, 15.0), *floor, *wall, (-15.0, 15.0)]
-    return _plane(uv), len(floor) + 3  # the bridge's arc starts at the floor's last point
-
-
-def test_a_traced_concave_corner_arc_widens_no_further_than_its_neighbours_meet():
-    loop, bridge = _traced_notch_loop()
+    loop = normalize(np.column_stack([np.ones(len(uv)), np.tan(np.radians(uv))]))
+    bridge = len(floor) + 3
     m = loop.shape[0]
     seg = rs.edge_lengths(loop, np.column_stack([np.arange(m), (np.arange(m) + 1) % m]))
     traced, turn = np.radians(1.25), np.radians(60.0)

@@ -41,8 +41,7 @@ def _three_lobed(points: int) -> np.ndarray:
 
 @pytest.mark.parametrize("loop_points", [12, 90])
 def test_nearest_arcs_agree_with_the_brute_force_reference(loop_points):
-    # loops of a few long arcs and of many short ones; taught directions on both sides of
-    # them, and some exactly on their vertices
+    # loops of a few long arcs or many short ones; directions on both sides and on vertices
     rng = np.random.default_rng(loop_points)
     data = ConeRegion(np.radians(30.0)).sample(4000, rng)
     loop = _three_lobed(loop_points)

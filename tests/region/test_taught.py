@@ -26,8 +26,7 @@ def test_directions_quaternions_and_the_arrays_build_the_same_region_answering_a
     region, train, test = cone
     from_q = TaughtRegion().fit(to_quaternions(train))
     assert from_q.edge == fitted.edge == "smooth"
-    # the quaternions' limb directions differ from the directions by rounding only: the same
-    # region (the cut back to the evidence may start a loop at another of its vertices)
+    # the quaternions' limb directions differ from the directions by rounding only: the same region
     assert from_q.mesh.vertices.shape == fitted.mesh.vertices.shape
     q = to_quaternions(test)
     np.testing.assert_allclose(from_q.correct(q), fitted.correct(q), atol=1e-9)
@@ -119,8 +118,7 @@ def test_a_dense_teaching_puts_the_edge_where_its_samples_reach():
 
 
 def test_an_edge_from_the_samples_own_depths_is_held_to_the_tight_reach():
-    # the families' outline of seed 26, taught densely: own-depth margins leave no stretch past
-    # REACH_DEG, yet a chord across the notch must not stand past it
+    # the families' outline of seed 26, taught densely: no chord across the notch stands past it
     poly = benchmark("bench_region_families").outline(np.random.default_rng([26, 0]))
     truth = BandRegion(poly, lambda pan, tilt: (np.zeros_like(pan), np.full_like(pan, 40.0)))
     d = limb_direction(truth.teaching(2500, 1900, 3100, np.random.default_rng([26, 99])))

@@ -25,9 +25,8 @@ def station_estimates_reference(s, total, owner, depth, reach):
     + [(5, 19.0, 2, True)],
 )
 def test_the_kernel_gives_the_numpy_loops_estimates_to_the_bit(seed, radius_deg, reach, quarter):
-    # a circle inside a 20 deg cone taught i.i.d.: every station's window, from a few readings
-    # to (reach 40, wider than half the loop) stations read twice; with readings on a quarter of
-    # the stations only, empty windows give 0 and one-sided ones the spacing estimate
+    # windows from a few readings to wider than half the loop (reach 40); with readings on a
+    # quarter of the stations, empty windows give 0 and one-sided ones the spacing estimate
     data = ConeRegion(np.radians(20.0)).sample(3000, np.random.default_rng(seed))
     if quarter:
         data = data[(data[:, 1] > 0.0) & (data[:, 2] > 0.0)]

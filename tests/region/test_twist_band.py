@@ -60,13 +60,12 @@ def test_plane_round_trip_and_unwrap():
     # an unwrapped grid leaves no jump across the half turn
     x, y = np.meshgrid(np.linspace(0, 1, 20), np.linspace(0, 1, 15), indexing="ij")
     smooth = 2.5 + 1.5 * x + 1.0 * y  # crosses pi
-    out = tb.unwrap_grid(wrap(smooth))
-    np.testing.assert_allclose(out, smooth, atol=1e-12)
+    np.testing.assert_allclose(tb.unwrap_grid(wrap(smooth)), smooth, atol=1e-12)
 
 
 def _held_figures(truth, band):
-    """How far (deg) the learned band's upper and lower limits lie past the truth's, at 5000
-    inner directions (positive: wider than the truth, unsafe), and the centre's half-widths."""
+    """Inner directions, how far (deg) the band's upper and lower limits lie past the truth's
+    there (positive: unsafe), and the band's half-widths."""
     d = truth._inside_directions(5000, np.random.default_rng(4))
     c, h = truth.band(d)
     cl, hl = band.at(d)
@@ -100,15 +99,11 @@ def test_learned_band_is_the_true_band_within_a_degree(learned):
     assert hl[low].mean() > hl[high].mean() + math.radians(20)
     # the reading matches the numpy twin
     d = normalize(np.random.default_rng(2).normal(size=(2000, 3)))
-    c, h = band.at(d)
-    c_ref, h_ref = band_reference(band, d)
-    np.testing.assert_allclose(c, c_ref, atol=1e-12)
-    np.testing.assert_allclose(h, h_ref, atol=1e-12)
+    np.testing.assert_allclose(band.at(d), band_reference(band, d), atol=1e-12)
     # the nodes read back exactly
     frame = np.stack([np.array([1.0, 0.0, 0.0]), *tangent_frame(np.array([1.0, 0.0, 0.0]))])
     rng = np.random.default_rng(3)
-    centre = rng.uniform(-1, 1, (6, 5))
-    half = rng.uniform(0, 1, (6, 5))
+    centre, half = rng.uniform(-1, 1, (6, 5)), rng.uniform(0, 1, (6, 5))
     band = TwistBand(frame, np.array([-0.1, -0.2, 0.05]), centre, half)
     i, j = np.meshgrid(np.arange(6), np.arange(5), indexing="ij")
     xy = np.stack([-0.1 + 0.05 * i.ravel(), -0.2 + 0.05 * j.ravel()], axis=-1)
@@ -118,8 +113,8 @@ def test_learned_band_is_the_true_band_within_a_degree(learned):
 
 
 def test_a_teaching_the_guide_accepts_holds_the_true_band_within_2_deg(learned):
-    """The places the evidence cap lists, answered (four rounds at most), leave none, and then each
-    limit is within 2 deg of the truth's at 98 % of the inner directions, never much wider."""
+    """Answering the places the evidence cap lists leaves none within four rounds, and each limit
+    then within 2 deg of the truth's at 98 % of inner directions."""
     truth, band, d, tau = learned
     rng = np.random.default_rng(7)
     for _ in range(4):  # the places of four fits at most, the first the fixture's
@@ -155,11 +150,6 @@ def _trajectory(truth, seconds, seed, rate_hz=125.0, speed_deg_s=40.0, stop_peri
     return compose(d, c + u * (h - math.radians(1.0))), d
 
 
-def _uncapped(monkeypatch):
-    """The band as read by steps 1-3, without the evidence cap (step 4)."""
-    monkeypatch.setattr(tb, "cap_limits", lambda up, lo, *_: (up, lo, 0.0 * up, 0.0 * lo))
-
-
 def _path_figures(truth, q, d):
     """Shares: samples held within 0.5 deg, inner directions holding the true band 2 deg in, and
     those reaching past the truth by more than 1 deg."""
@@ -184,7 +174,8 @@ def test_a_trajectorys_band_holds_its_samples_and_the_band_between_its_stops(mon
     own, _, over = _path_figures(truth, q, d)
     # the bilinear reading cuts the envelope's ridges along the stops by tenths of a degree
     assert own >= 0.975 and over < 0.01
-    _uncapped(monkeypatch)  # the envelope (step 3) does not close on samples passing mid-band
+    # without the evidence cap (step 4) the envelope (step 3) does not close on samples mid-band
+    monkeypatch.setattr(tb, "cap_limits", lambda up, lo, *_: (up, lo, 0.0 * up, 0.0 * lo))
     own, held, over_read = _path_figures(truth, q, d)
     assert own >= 0.99
     assert held >= 0.9
@@ -195,7 +186,8 @@ def test_sparse_stops_are_bridged_by_a_flatter_envelope(monkeypatch):
     """Stops ~40 deg apart: the curvature bound falling with their spacing holds more band."""
     truth = ShoulderRegion(rounded(SHOULDER))
     q, d = _trajectory(truth, 30.0, seed=3, stop_period_s=1.0)
-    _uncapped(monkeypatch)  # the envelope's own reading (step 3)
+    # the envelope's own reading (step 3), without the evidence cap (step 4)
+    monkeypatch.setattr(tb, "cap_limits", lambda up, lo, *_: (up, lo, 0.0 * up, 0.0 * lo))
     _, held, over = _path_figures(truth, q, d)
     monkeypatch.setattr(tb, "ENVELOPE_CURVATURE_MIN", tb.ENVELOPE_CURVATURE)
     _, held_fixed, over_fixed = _path_figures(truth, q, d)

@@ -1,6 +1,5 @@
-"""The twist band never reaches past the taught evidence: a dip in the true band that the
-teaching passed only mid-band is held inside the truth and named as a place to teach, and a
-bump steeper than the fixed cone is followed along its local slope."""
+"""The twist band never reaches past the taught evidence: an untaught dip is held inside the truth
+and named as a place to teach, and a steep bump is followed along its local slope."""
 
 import math
 
@@ -22,9 +21,8 @@ SPARSE_DEG = 16.0
 
 
 def _bump(centre_deg, half_deg, width_deg, slope=0.0):
-    """A band, centre 5 deg (+ ``slope`` per deg of pan) and half-width 40 deg, whose centre and
-    half-width change by ``centre_deg`` and ``half_deg`` in a Gaussian at DIP_AT, ``width_deg``
-    one sigma."""
+    """A band, centre 5 deg (+ ``slope`` per deg of pan), half-width 40 deg, changed by
+    ``centre_deg`` and ``half_deg`` in a Gaussian at DIP_AT of sigma ``width_deg``."""
 
     def band_deg(pan, tilt):
         g = np.exp(-((pan - DIP_AT[0]) ** 2 + (tilt - DIP_AT[1]) ** 2) / (2.0 * width_deg**2))
@@ -33,8 +31,7 @@ def _bump(centre_deg, half_deg, width_deg, slope=0.0):
     return band_deg
 
 
-#: The upper limit dips 8 deg, 10 deg one sigma: it slopes at most 0.49 deg per deg, within
-#: the cap's CAP_SLOPE.
+#: The upper limit dips 8 deg, 10 deg one sigma: at most 0.49 deg per deg, within CAP_SLOPE.
 DIP = _bump(-4.0, -4.0, 10.0)
 
 
@@ -60,8 +57,7 @@ def _learned_grid(region) -> np.ndarray:
 
 
 def _within_a_degree(truth, q):
-    """The region fitted to ``q``, checked to lie within 1 deg of the truth's band over
-    :func:`_learned_grid`."""
+    """The region fitted to ``q``, checked within 1 deg of the truth's band over the grid."""
     region = TwistRegion().fit(q)
     d = _learned_grid(region)
     lc, lh = region.band.at(d)
@@ -70,6 +66,10 @@ def _within_a_degree(truth, q):
     excess = float(np.degrees(np.fmax(off + lh - th, -off + lh - th)).max())
     assert excess <= 1.0, f"band {excess:.2f} deg past the true stop"
     return region
+
+
+def _from_dip(place) -> float:
+    return math.hypot(place.pan_deg - DIP_AT[0], place.tilt_deg - DIP_AT[1])
 
 
 def _holds_the_truth(region, d, truth):
@@ -84,40 +84,31 @@ def test_a_dip_taught_only_mid_band_is_not_bridged_and_its_stop_is_named():
     assert region.unsupported, "the dip's stop was never taught, yet nothing is listed"
     # both stops near the dip were passed only mid-band: the upper one is asked for there
     first = next(p for p in region.unsupported if p.side == "upper")
-    assert math.hypot(first.pan_deg - DIP_AT[0], first.tilt_deg - DIP_AT[1]) < SPARSE_DEG
+    assert _from_dip(first) < SPARSE_DEG
     assert first.cut_deg > REPORT_CUT_DEG
     assert f"pan {first.pan_deg:+.0f}, tilt {first.tilt_deg:+.0f}" in first.words()
     assert "upper (positive) twist stop" in first.words()
 
 
 def test_a_sparsely_taught_steep_dip_is_held_to_the_samples_near_it():
-    # a narrow deep dip (12 deg, 8 deg one sigma) sloping up to 0.91 deg per deg, taught sparsely
-    # (the region families' 1500 i.i.d. samples): the cone a stop 7-8 deg up its side sets would
-    # let the upper limit 2.92 deg past the truth
+    """A dip of 12 deg (8 deg one sigma, up to 0.91 deg per deg) taught with 500 i.i.d. samples is
+    held within 1 deg, its upper stop asked for within two sigma of it."""
     truth = BandRegion(SQUARE, _bump(-6.0, -6.0, 8.0))
     region = _within_a_degree(truth, truth.teaching(500, 400, 600, np.random.default_rng(3)))
-    # the held stretch is asked for: an upper stop within the dip
-    near = [
-        p
-        for p in region.unsupported
-        if p.side == "upper" and math.hypot(p.pan_deg - DIP_AT[0], p.tilt_deg - DIP_AT[1]) < 16.0
-    ]  # two sigma
+    near = [p for p in region.unsupported if p.side == "upper" and _from_dip(p) < 16.0]
     assert near, "the dip's upper stop was held short, yet not listed"
 
 
 @pytest.mark.parametrize(
     "band_deg",
     [
-        # the dip above, taught densely: nothing is listed, and the band is held over the square
+        # taught densely: nothing is listed, and the band is held over the square
         pytest.param(DIP, id="the dip"),
-        # both limits rise 5 deg (8 deg one sigma): 0.76 deg per deg at the upper limit, steeper
-        # than the fixed cone's CAP_SLOPE (0.5), which alone let it 1.86 deg past the truth
+        # 0.76 deg per deg at the upper limit, steeper than the fixed cone's CAP_SLOPE (0.5)
         pytest.param(_bump(5.0, 5.0, 8.0), id="bump steeper than the cone"),
-        # the lower limit rises 17 deg and bends up to 0.27 deg^-1 (two of the families' bumps
-        # stacked): the slope read at the sample's end, not the node's, bounds the rise
+        # the lower limit rises 17 deg bending up to 0.27 deg^-1: read at the sample's end
         pytest.param(_bump(5.0, -12.0, 8.0, slope=0.3), id="sharply bending bump"),
-        # the upper limit bends ~0.2 deg^-1 on a sloping centre, past the slope cap's
-        # CURVATURE_PER_DEG: samples 7-8 deg away must not vouch along the bump's side
+        # bending ~0.2 deg^-1, past CURVATURE_PER_DEG: far samples must not vouch along its side
         pytest.param(_bump(6.0, -10.0, 9.0, slope=0.2), id="bending bump on a sloping band"),
     ],
 )
@@ -137,10 +128,8 @@ def test_unsupported_places_keep_the_largest_cut_of_each_cell_and_side():
     up = np.radians([2.0, 3.0, 0.5])
     lo = np.radians([0.0, 1.5, 0.0])
     places = unsupported_places(d, up, lo)
-    assert [(round(p.pan_deg), p.side, round(p.cut_deg, 6)) for p in places] == [
-        (2, "upper", 3.0),
-        (2, "lower", 1.5),
-    ]
+    got = [(round(p.pan_deg), p.side, round(p.cut_deg, 6)) for p in places]
+    assert got == [(2, "upper", 3.0), (2, "lower", 1.5)]
     assert unsupported_places(np.zeros((0, 3)), np.zeros(0), np.zeros(0)) == ()
     assert isinstance(places[0], UnsupportedPlace)
 
@@ -160,7 +149,7 @@ def _hand_truth(twist: dict, seed: int) -> tuple[Hand, BandRegion]:
 
 def test_a_sparse_teaching_of_a_band_steeper_than_most_stays_within_a_degree():
     # the region families' curved band of seed 27 (a limit sloping up to 1.8 deg per deg,
-    # bending 0.22 deg^-1): a bound of slope 1.5 and bending 0.15 let it 1.6-2.5 deg past
+    # bending 0.22 deg^-1)
     twist = {
         "centre_deg": {
             "linear": [-8.64, 0.296, 0.333],
@@ -175,8 +164,7 @@ def test_a_sparse_teaching_of_a_band_steeper_than_most_stays_within_a_degree():
 
 
 def test_a_hand_taught_steep_curved_band_stays_within_a_degree_of_the_truth():
-    # a curved band as the families' (centre and half-width each with a bump) whose limits fall
-    # faster than the hold's cone (1 deg per deg), which let the lower limit 4.59 deg past
+    # a curved band whose limits fall faster than the hold's cone (1 deg per deg)
     twist = {
         "centre_deg": {
             "linear": [-14.0, 0.2, 0.2],

@@ -145,9 +145,8 @@ def test_evidence_caps_match_their_numpy_twin(seed, slope):
 
 
 def _gradient_caps(node, d, limit, stop, spread_deg=0.75, limited=False, min_stops=4.0):
-    """``fk.gradient_caps`` at one node holding every row of ``d`` (each sample's nearest), ref 0:
-    sigma 3 deg, slack 0.25, confidence 2, curvature 8.6, near 3 deg, band 0.02, reach 4 deg,
-    steep 1.4."""
+    """``fk.gradient_caps`` at one node holding every row of ``d``, ref 0: sigma 3 deg, slack 0.25,
+    confidence 2, curvature 8.6, near 3 deg, band 0.02, reach 4 deg, steep 1.4."""
     start, members = _one_node(d)
     args = (math.radians(3), math.radians(spread_deg), 0.25, 2.0, 8.6, math.radians(3), 0.02)
     free = (math.radians(4), 1.4, np.full(1, limited), min_stops, np.zeros(len(d), np.int64))
@@ -192,8 +191,7 @@ def test_the_caps_a_held_stop_witnesses_and_along_the_local_slope_on_a_steep_pla
 
 
 def test_a_slope_through_three_stops_is_not_read():
-    """Three stops fit a plane exactly (its error reads 0): under an effective count of
-    ``min_stops`` the slope stays unknown (NaN), however well the three spread."""
+    """Three stops fit a plane exactly: under ``min_stops`` the slope stays unknown (NaN)."""
     node = np.array([[0.0, 0.0, 1.0]])
     a = math.radians(2.0)
     d = np.array([[math.sin(a), 0, math.cos(a)], [0, math.sin(a), math.cos(a)], [0, 0, 1.0]])

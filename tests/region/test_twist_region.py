@@ -1,5 +1,4 @@
-"""The three-dimensional region: containment, and correct() as the nearest orientation on SO(3)
-checked against a brute-force nearest point over a dense sampling of the region's boundary."""
+"""The three-dimensional region: containment, and correct() as the nearest orientation on SO(3)."""
 
 import math
 
@@ -35,8 +34,8 @@ def shoulder():
 
 
 def _commands(truth, n, rng, outside_deg=30.0):
-    """Directions up to outside_deg beyond the outline's reach, twists up to 40 deg past the
-    band: inside and outside commands, some far."""
+    """Commands inside and out: directions up to ``outside_deg`` beyond the outline, twists up to
+    40 deg past the band."""
     d = _cap_directions(n, truth.swing.axis, truth.swing.radius + math.radians(outside_deg), rng)
     c, h = truth.band(d)
     return compose(d, c + (h + math.radians(40.0)) * rng.uniform(-1.0, 1.0, n))
@@ -52,8 +51,7 @@ def _clamp(region, q):
 
 def test_correct_is_the_brute_force_nearest_orientation(shoulder):
     """Nearest as a brute force over the region's boundary, inside, nearer than the clamp, and
-    near the true region. Where uneven band limits give ``F`` several local optima, the further
-    starts find the better optimum (one search from the nearest seed settled up to 0.8 deg off)."""
+    near the true region (the further starts find the better of several local optima)."""
     truth, region, _ = shoulder
     q = _commands(truth, 6000, np.random.default_rng(7))
     out, inside = region.correct(q), region.contains(q)
@@ -62,9 +60,8 @@ def test_correct_is_the_brute_force_nearest_orientation(shoulder):
     _, i = cKDTree(points).query(q[~inside])
     reference = geodesic_distance(q[~inside], points[i])
     excess = np.degrees(geodesic_distance(q[~inside], out[~inside]) - reference)
-    # the brute force's points are in the region, so an exact answer is never farther; its
-    # 0.3 deg lattice leaves it up to ~0.2 deg short of the nearest boundary point, so an
-    # answer more than 0.3 deg farther than it is a local optimum, not the nearest
+    # the brute force's points are in the region (never nearer than exact), its 0.3 deg lattice
+    # up to ~0.2 deg short: an answer 0.3 deg farther is a local optimum, not the nearest
     assert (~inside).sum() > 4000
     assert excess.mean() < 0.0
     assert np.percentile(excess, 99) < 0.1
@@ -81,8 +78,7 @@ def test_correct_is_the_brute_force_nearest_orientation(shoulder):
     assert np.all(found <= two_step + ACOS_NOISE), "farther than the clamp"
     # and it is not the same answer: the clamp is several degrees farther on average
     assert np.degrees(np.mean(two_step - found)) > 2.0, "no nearer than the clamp on average"
-    # answers inside the true region, or within 1 deg of its boundary (its lattice's points lie
-    # on it: a gap measured to them is never short)
+    # answers inside the true region, or within 1 deg of its boundary (measured to its lattice)
     outside_truth = ~truth.contains(out)
     b = truth.boundary(0.4)
     gap = np.degrees(cKDTree(np.vstack([b, -b])).query(out[outside_truth])[0])
@@ -107,8 +103,8 @@ def test_band_crossing_half_turn_is_held_and_corrected():
     far = compose(dd, c + math.pi)  # the opposite twist: as far out as twist goes
     out = region.correct(far)
     assert region.contains(out).all()
-    _, t_out = decompose(out)
-    c_out, h_out = region.band.at(decompose(out)[0])
+    d_out, t_out = decompose(out)
+    c_out, h_out = region.band.at(d_out)
     assert np.all(np.abs(wrap(t_out - c_out)) <= h_out + 1e-9)
 
 
@@ -143,9 +139,8 @@ def test_commands_near_the_edge_and_near_the_stops(shoulder, k, inward, twist, b
     a, b = mesh.vertices[e[0]], mesh.vertices[e[1]]
     p = (a + b) / np.linalg.norm(a + b)
     towards = mesh.axis - np.dot(mesh.axis, p) * p
-    p = p * math.cos(math.radians(inward)) + towards / np.linalg.norm(towards) * math.sin(
-        math.radians(inward)
-    )
+    towards /= np.linalg.norm(towards)
+    p = p * math.cos(math.radians(inward)) + towards * math.sin(math.radians(inward))
     c, h = region.band.at(p[None])
     tau = c[0] + math.copysign(1.0, twist) * (h[0] + math.radians(beyond))
     q = compose(p, tau)
