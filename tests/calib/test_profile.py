@@ -95,8 +95,7 @@ def test_a_profile_is_frozen_saved_atomically_anywhere_and_refused_invalid(tmp_p
     path = tmp_path / "rig.yaml"
     out = save_profile(profile, path)
     again = load_profile(out)
-    assert again == profile
-    assert again.source == str(out)
+    assert again == profile and again.source == str(out)
     # no temp files left behind by the atomic write; end stops saved
     assert sorted(p.name for p in tmp_path.iterdir()) == ["rig.yaml"]
     assert "stop_max_deg: 75.0" in out.read_text()
@@ -183,8 +182,7 @@ def test_the_brief_example_message_rest_direction_joint_limits_and_default_end_s
     data["rest_direction"] = [0.0, 3.0, 4.0]
     assert profile_from_dict(data).rest_direction == pytest.approx((0.0, 0.6, 0.8))
     joint = JointProfile(id=1, zero_tick=2048, direction=-1, min_deg=-90.0, max_deg=45.0)
-    assert joint.min_rad == pytest.approx(-math.pi / 2)
-    assert joint.max_rad == pytest.approx(math.pi / 4)
+    assert (joint.min_rad, joint.max_rad) == pytest.approx((-math.pi / 2, math.pi / 4))
     # direction -1: +45 deg lies 512 ticks below zero, -90 deg 1024 above
     assert joint_tick_limits(joint) == (2048 - 512, 2048 + 1024)
     # unstated end stops default to a quarter turn
@@ -248,25 +246,20 @@ def test_duplicate_keys_many_unknown_keys_and_huge_values_are_refused_on_one_bou
         assert len(str(err.value)) < 300 and "\n" not in str(err.value), str(err.value)
 
 
+def pan_tilt(pan, tilt) -> Calibration:
+    """The calibration of pan and tilt, each given as JointCalibration's arguments."""
+    return Calibration((("pan", JointCalibration(*pan)), ("tilt", JointCalibration(*tilt))))
+
+
 def test_calibrations_with_and_without_roll_round_trip_name_differences_and_bad_fields(
     sim_data,
 ):
     profile = default_sim_profile()
     calibration = profile.calibration
-    assert calibration == Calibration(
-        (
-            ("pan", JointCalibration(2185, 1, -115.0, 115.0)),
-            ("tilt", JointCalibration(1890, -1, -55.0, 70.0)),
-        )
-    )
+    assert calibration == pan_tilt((2185, 1, -115.0, 115.0), (1890, -1, -55.0, 70.0))
     assert calibration_from_dict(calibration.to_dict()) == calibration
     assert calibration.differences(calibration) == ()
-    moved = Calibration(
-        (
-            ("pan", JointCalibration(2385, 1, -115.0, 115.0)),
-            ("tilt", JointCalibration(1890, 1, -55.0, 60.0)),
-        )
-    )
+    moved = pan_tilt((2385, 1, -115.0, 115.0), (1890, 1, -55.0, 60.0))
     assert calibration.differences(moved) == (
         "pan.zero_tick 2185 vs 2385",
         "tilt.direction -1 vs 1",

@@ -127,8 +127,7 @@ def test_nearest_distance_neighbours_and_names_are_checked():
     reference = np.sqrt(np.sum((q[:, None, :] - w[None, :, :]) ** 2, axis=2).min(axis=1))
     np.testing.assert_allclose(ip.nearest_distance(w, q), reference, atol=1e-14)
     # neighbours by position on a grid
-    rows, cols = 4, 5
-    grid = np.array([(r, c) for r in range(rows) for c in range(cols)], dtype=np.float64)
+    grid = np.array([(r, c) for r in range(4) for c in range(5)], dtype=np.float64)
     nb = ip.neighbours_by_position(grid, 8)
     # interior node (1, 1) = index 6: 4 edge neighbours first (lower index on ties), then diagonals
     assert list(nb[6, :4]) == [1, 5, 7, 11]

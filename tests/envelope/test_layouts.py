@@ -80,10 +80,8 @@ def test_the_720_unions_counts_alignment_and_covering():
 
 def test_uniform_is_seeded_unit_and_on_the_hemisphere():
     a = make_layout("uniform", n=2000, seed=3)
-    b = make_layout("uniform", n=2000, seed=np.random.default_rng(3))
-    c = make_layout("uniform", n=2000, seed=4)
-    np.testing.assert_array_equal(a, b)
-    assert not np.array_equal(a, c)
+    np.testing.assert_array_equal(a, make_layout("uniform", n=2000, seed=np.random.default_rng(3)))
+    assert not np.array_equal(a, make_layout("uniform", n=2000, seed=4))
     assert a.shape == (2000, 4)
     np.testing.assert_allclose(np.linalg.norm(a, axis=1), 1.0, atol=1e-14)
     assert (a[:, 0] >= 0).all()
@@ -102,21 +100,16 @@ def test_super_fibonacci_is_near_uniform_and_starts_on_the_formula(hemisphere):
     np.testing.assert_allclose(np.linalg.norm(sf, axis=1), 1.0, atol=1e-14)
     if hemisphere:
         assert (sf[:, 0] >= 0).all()
-    nn_sf = nearest_neighbour_angles(sf)
-    nn_rnd = nearest_neighbour_angles(rnd)
     # spirals keep points apart: the closest pair is several times wider than random's
-    assert nn_sf.min() > 3.0 * nn_rnd.min()
+    assert nearest_neighbour_angles(sf).min() > 3.0 * nearest_neighbour_angles(rnd).min()
     probes = make_layout("uniform", n=40000, seed=21, hemisphere=hemisphere)
     assert covering_angle(sf, probes) < covering_angle(rnd, probes)
     # deterministic
     np.testing.assert_array_equal(sf, make_layout("super-fibonacci", n=n, hemisphere=hemisphere))
     # the first point of the full spiral by the formula
-    n = 10
-    s = 0.5
-    t = s / n
-    alpha = 2 * np.pi * s / np.sqrt(2)
-    beta = 2 * np.pi * s / layouts.PSI
-    r, big_r = np.sqrt(t), np.sqrt(1 - t)
+    n, s = 10, 0.5
+    alpha, beta = 2 * np.pi * s / np.sqrt(2), 2 * np.pi * s / layouts.PSI
+    r, big_r = np.sqrt(s / n), np.sqrt(1 - s / n)
     expected = [r * np.sin(alpha), r * np.cos(alpha), big_r * np.sin(beta), big_r * np.cos(beta)]
     first = make_layout("super-fibonacci", n=n, hemisphere=False)[0]
     np.testing.assert_allclose(first, expected, atol=1e-15)

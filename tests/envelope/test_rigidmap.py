@@ -137,9 +137,7 @@ def test_irregular_region_valid_commands_pass_and_outputs_stay_near():
     test = region.test_directions(3000, rng)
     q = to_quaternions(test)
     inside = m.contains(q)
-    # the first cut takes the gaps of 1000 samples that open on the edge to their ends (the
-    # evidence cannot tell them from a narrow notch): 96.0 % held (docs/decisions/region.md,
-    # "A narrow notch cut too")
+    # 96.0 %: edge gaps cut to their ends (docs/decisions/region.md, "A narrow notch cut too")
     assert inside[region.depth(test) >= np.radians(4.0)].mean() > 0.95
     out = m.correct(q)
     assert np.all(m.contains(out))
@@ -169,10 +167,8 @@ def test_hand_strokes_are_contained_and_gaps_filled(which):
     m = RigidMap(nodes=500, seed=0).fit(q)
     passed = _taught_gate_passes(m, q, d, region, region.test_directions(20000, rng), 500)
     if m.region.unsupported_edge:
-        # strokes leaving the edge unreached: the region is held at the evidence and says so, and
-        # the edge zigzags between the strokes, and a gap between strokes that opens on the edge
-        # is cut to its end (docs/decisions/region.md, "The held edge held again to 0.9 deg" and
-        # "A narrow notch cut too": containment over coverage; the 30 deg cone keeps 72.9 %)
+        # strokes leaving the edge unreached: held at the evidence, and says so; edge gaps cut
+        # (docs/decisions/region.md, "A narrow notch cut too": the 30 deg cone keeps 72.9 %)
         assert m.region.held_edge and any(s.held for s in m.region.unsupported_edge)
         assert passed >= 0.7
     else:
@@ -214,8 +210,7 @@ def test_region_settings_are_one_object_saved_with_the_model(tmp_path):
     twist=st.floats(-3.1, 3.1),
 )
 def test_correct_promises(cone_model, hand_model, theta, phi, pan, tilt, twist):
-    """Inside unchanged; outside moved in for good, twist kept, on a cone and a hand-taught
-    region; on the cone no farther than the ideal target."""
+    """Inside unchanged; outside moved in for good, twist kept; on the cone near the ideal."""
     region, cone = cone_model
     hand = pan_tilt_to_direction(np.radians(pan), np.radians(tilt))
     for m, d in ((cone, off_x(theta, phi)), (hand_model, hand)):

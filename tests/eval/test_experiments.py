@@ -125,26 +125,21 @@ def test_run_eval_smoke_grid_end_to_end(tmp_path, capsys):
     assert {r["experiment"] for r in rows} == EXPERIMENTS
     assert all(np.isfinite(r["mse"]) for r in rows if r["subset"] == "all")
     gates = [r for r in rows if r["answer"] == "correct (gate)" and r["subset"] == "valid"]
-    # 300 samples over 45 deg leave gaps on the edge the first cut takes to their ends: 84.9 %
-    # (docs/decisions/region.md, "A narrow notch cut too")
+    # 84.9 %: edge gaps cut to their ends (docs/decisions/region.md, "A narrow notch cut too")
     assert min(r["unchanged_share"] for r in gates if r["model"].startswith("RigidMap")) > 0.8
     summary = (out / "summary.md").read_text()
     assert "Rigid Map paper defaults" in summary and "| SOM 5x5 |" in summary
     printed = capsys.readouterr().out
     assert "limbctl eval (smoke)" in printed
-    # the twist experiment (limbctl.eval.twist): the learned exact correction beats the engines'
-    # clamp on the true region
+    # the twist experiment: the learned exact correction beats the engines' clamp
     assert "learned correct()" in (out / "twist.md").read_text()
     with open(out / "twist.csv", newline="") as fh:
         (row,) = [{k: float(v) for k, v in r.items()} for r in csv.DictReader(fh)]
     assert tuple(row) == FIELDS and row["seed"] == 0 and row["outside"] > 100
     # a 2000-sample teaching: coarser than the benchmark's 7500, still far nearer than the clamp
     assert row["learned_mean_deg"] < 1.5 and row["clamp_mean_deg"] > 4 * row["learned_mean_deg"]
-    # an incomplete teaching: the evidence cap holds the band in and a deep command may move
-    # (docs/bench_region_families.md). Of the smoke scale's 77 deep commands 69 stay (0.896),
-    # on every CPU since the trace is computed without BLAS; before, 74 with OpenBLAS's Haswell
-    # kernels and 70 with its SkylakeX ones (docs/decisions/region.md, "The same trace on every
-    # CPU"): a smoke figure moves by a few commands, the benchmark reads the real one
+    # an incomplete teaching: a deep command may move; 69 of the smoke scale's 77 stay (0.896,
+    # docs/decisions/region.md, "The same trace on every CPU")
     assert row["deep_unchanged"] >= 0.85 and row["within_1deg"] >= 0.97
     size = (out / "runs.csv").stat().st_size
     assert ex.run_eval(out, jobs=1, progress=False, smoke=True) == 0  # resumed: nothing reruns

@@ -55,16 +55,9 @@ def test_score_splits_valid_and_invalid_by_hand():
     assert s["all"]["unchanged_share"] == pytest.approx(0.75)
     assert s["all"]["inside_share"] == pytest.approx(0.75)
     assert s["all"]["outside_p95_deg"] == pytest.approx(0.85 * 2.0)
-    assert s["valid"] == {
-        "n": 2.0,
-        "mse": 0.0,
-        "err3d_rms": 0.0,
-        "angle_mean_deg": 0.0,
-        "angle_p95_deg": 0.0,
-        "unchanged_share": 1.0,
-        "inside_share": 1.0,
-        "outside_p95_deg": 0.0,
-    }
+    errors = ("mse", "err3d_rms", "angle_mean_deg", "angle_p95_deg", "outside_p95_deg")
+    shares = {"n": 2.0, "unchanged_share": 1.0, "inside_share": 1.0}
+    assert s["valid"] == shares | dict.fromkeys(errors, 0.0)
     assert s["invalid"]["mse"] == pytest.approx(quarter_sq / 2)
     assert s["invalid"]["angle_p95_deg"] == pytest.approx(85.5)
     assert s["invalid"]["unchanged_share"] == pytest.approx(0.5)

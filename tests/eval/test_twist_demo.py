@@ -20,9 +20,8 @@ class BallRegion:
 
     def contains(self, q: np.ndarray) -> np.ndarray:
         q = np.atleast_2d(q)
-        return (
-            twist_demo.rotation_deg(q, np.broadcast_to([1.0, 0.0, 0.0, 0.0], q.shape)) <= RADIUS_DEG
-        )
+        identity = np.broadcast_to([1.0, 0.0, 0.0, 0.0], q.shape)
+        return twist_demo.rotation_deg(q, identity) <= RADIUS_DEG
 
 
 def goal_outside_by(deg: float, axis=(0.3, -0.5, 0.8)) -> np.ndarray:

@@ -85,10 +85,8 @@ def test_the_alarm_alone_says_nothing_about_torque_hold_says_each_joints_and_off
     assert message.startswith("hardware error reported (servo 2: overheating, overload).")
     assert "torque" not in message and message.endswith("then `limbctl reboot`")
     assert held_torque({"pan": True, "tilt": True}) == "holding the last safe pose (torque on)"
-    both = held_torque({"pan": False, "tilt": True}, after_alarm=True)
-    assert (
-        both
-        == "pan torque off as the servo reports it; tilt holding the last safe pose (torque on)"
+    assert held_torque({"pan": False, "tilt": True}, after_alarm=True) == (
+        "pan torque off as the servo reports it; tilt holding the last safe pose (torque on)"
     )
     # both on, or one unread; one or both already off: tests/safety/test_faults.py (ALARM_STATES)
     assert switched_off({"pan": True, "tilt": True}) == "torque switched off"

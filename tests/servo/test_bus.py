@@ -31,9 +31,7 @@ def open_bus(sim, **options):
 
 
 def test_open_configure_goals_retries_and_refusals_on_one_bus(sim, tmp_path):
-    """Open identifies the servos and closes twice; a wrong model or port is refused; configure
-    and goals reach the servos, bad ones refused; dropped replies are retried, silence,
-    corruption, a vanished servo and an unplugged adapter named."""
+    """Also: dropped replies retried; silence, corruption, a vanished servo, unplugging named."""
     bus = open_bus(sim)
     with bus:
         assert bus.is_open
@@ -189,7 +187,6 @@ def test_a_bus_finds_each_servos_indirect_data_and_reads_the_cycle(
             assert bus.indirect_at == dict(zip((1, 2), indirect_at))
             read = bus.read_cycle(attempts=5)
             assert read.ok, read.problem
-            assert {i: r.goal for i, r in read.reports.items()} == bus.sync_read(
-                Register.GOAL_POSITION
-            )
+            goals = bus.sync_read(Register.GOAL_POSITION)
+            assert {i: r.goal for i, r in read.reports.items()} == goals
             assert not any(r.torque_on for r in read.reports.values())

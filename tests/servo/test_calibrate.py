@@ -102,10 +102,8 @@ def test_on_a_port_the_servos_named_by_ids_are_calibrated_inside_the_assumed_end
     assert (found.pan.min_deg, found.pan.max_deg) == (-89.0, 89.0)  # base -115..115 narrowed
     assert (found.pan.stop_min_deg, found.pan.stop_max_deg) == (-90.0, 90.0)
     assert (found.tilt.min_deg, found.tilt.max_deg) == (truth.tilt.min_deg, truth.tilt.max_deg)
-    assert (
-        "pan hard limits -89..89 deg (1 deg inside the end stops -90..90)"
-        in capsys.readouterr().err
-    )
+    said = capsys.readouterr().err
+    assert "pan hard limits -89..89 deg (1 deg inside the end stops -90..90)" in said
 
 
 @pytest.mark.parametrize(

@@ -66,8 +66,7 @@ def test_registers_models_modes_bauds_hardware_errors_and_status_errors():
         Register.GOAL_POSITION.encode(1.5)
     with pytest.raises(ValueError, match="4 bytes wide"):
         Register.GOAL_POSITION.decode(b"\x00\x00")
-    assert ModelNumber.XL430_W250 == 1060
-    assert ModelNumber.XM430_W350 == 1020
+    assert (ModelNumber.XL430_W250, ModelNumber.XM430_W350) == (1060, 1020)
     assert MODEL_BY_NAME["xl430-w250"] is ModelNumber.XL430_W250
     assert model_name(1020) == "XM430-W350 (1020)"
     assert model_name(7) == "unknown model (7)"
@@ -75,10 +74,8 @@ def test_registers_models_modes_bauds_hardware_errors_and_status_errors():
     assert model_name(1200) == "XL330-M288 (1200)"
     # Present Load and Present Current are one register whose meaning depends on the family
     assert Register.PRESENT_CURRENT is Register.PRESENT_LOAD
-    assert OperatingMode.POSITION == 3
-    assert OperatingMode.EXTENDED_POSITION == 4
-    assert BAUD_RATE_VALUES[57600] == 1
-    assert BAUD_RATE_VALUES[1_000_000] == 3
+    assert (OperatingMode.POSITION, OperatingMode.EXTENDED_POSITION) == (3, 4)
+    assert (BAUD_RATE_VALUES[57600], BAUD_RATE_VALUES[1_000_000]) == (1, 3)
     assert int(HardwareError.INPUT_VOLTAGE) == 1 << 0
     assert int(HardwareError.OVERHEATING) == 1 << 2
     assert int(HardwareError.MOTOR_ENCODER) == 1 << 3

@@ -1,5 +1,4 @@
-"""The control cycle's one read through indirect addresses: each fault the loop must notice shows
-in it, and a silent servo is probed alone with one try."""
+"""The cycle's one read through indirect addresses shows each fault; a silent servo is probed."""
 
 from __future__ import annotations
 
@@ -56,8 +55,7 @@ def test_the_indirect_map_names_each_mapped_byte_and_the_wire_budget_of_a_cycle(
 
 
 def test_the_cycle_read_shows_reboots_torque_alarms_saturation_and_a_silent_servo(sim, sdk, rig):
-    """One bus, read by the cycle: agreement with direct reads, a reboot and torque off, alarms
-    with their torque, a pushed servo's saturated drive, a silent servo probed alone."""
+    """Also: agreement with direct reads, a pushed servo's saturated drive."""
     bus = rig.bus
     for servo_id in PROFILE.ids:
         assert bus.read_block(INDIRECT_MAP_BLOCK, servo_id) == indirect_map()

@@ -31,6 +31,14 @@ def saturated(present: int, goal: int = 2048, pwm: int = -885, limit: int = 885)
     return ServoReport(present, goal, True, (), pwm, limit)
 
 
+def faults_of(reports, servo: int = 1, step_s: float = 0.005) -> list:
+    """A fresh monitor's verdicts on ``reports`` of one servo, one read every ``step_s``."""
+    monitor = HealthMonitor()
+    return [
+        monitor.observe(reads(**{f"s{servo}": r}), step_s * k).fault for k, r in enumerate(reports)
+    ]
+
+
 def test_a_dropout_is_named_after_the_misses_asked_and_reported_with_its_duration():
     monitor = HealthMonitor()
     assert monitor.observe(silent(1), 0.0).notices == (
@@ -125,12 +133,9 @@ def test_a_servo_that_does_not_follow_is_a_fault_after_the_grace():
     fault = monitor.observe(reads(s1=lagging), 0.45).fault
     assert fault.kind == "not following" and "17.6 deg from its goal" in fault.message
     # pushed away from its goal: not following
-    monitor = HealthMonitor()
-    faults = [
-        monitor.observe(reads(s1=ServoReport(2048 - 200 - 5 * k, 2048, True, ())), 0.05 * k).fault
-        for k in range(10)
-    ]
-    assert faults[-1] is not None and faults[-1].kind == "not following"
+    pushed = [ServoReport(2048 - 200 - 5 * k, 2048, True, ()) for k in range(10)]
+    fault = faults_of(pushed, step_s=0.05)[-1]
+    assert fault is not None and fault.kind == "not following"
     # 40 deg behind a goal that runs away, but moving toward it at ~100 deg/s: following
     monitor = HealthMonitor(HealthLimits(tracking_grace_s=0.25, min_progress_deg=2.0))
     for k in range(20):
@@ -140,23 +145,17 @@ def test_a_servo_that_does_not_follow_is_a_fault_after_the_grace():
 
 
 def test_a_servo_saturated_off_its_goal_without_closing_in_is_blocked():
-    monitor = HealthMonitor()  # 90 % of PWM Limit, 5 deg, 0.15 s
-    pushed = saturated(2048 - 70)  # 6.2 deg from its goal, drive at its limit
-    faults = [monitor.observe(reads(s1=pushed), 0.005 * k).fault for k in range(31)]
+    # defaults: 90 % of PWM Limit, 5 deg, 0.15 s; 6.2 deg from its goal, drive at its limit
+    faults = faults_of([saturated(2048 - 70)] * 31)
     assert all(f is None for f in faults[:30])  # 0.145 s
     fault = faults[30]
     assert fault.servo_id == 1 and fault.kind == "not following"
     assert "servo 1 does not follow (blocked): 6.2 deg from its goal" in fault.message
     assert "PWM -885 of 885" in fault.message and "blocked or overloaded" in fault.message
     # judged against the servo's own PWM Limit: 90 % of a lowered one saturates, 88 % does not
-    monitor = HealthMonitor()
-    pushed = saturated(2048 + 80, pwm=450, limit=500)
-    faults = [monitor.observe(reads(s2=pushed), 0.005 * k).fault for k in range(31)]
-    assert faults[-1] is not None and faults[-1].servo_id == 2
-    monitor = HealthMonitor()
-    pushed = saturated(2048 + 80, pwm=440, limit=500)
-    faults = [monitor.observe(reads(s2=pushed), 0.005 * k).fault for k in range(100)]
-    assert faults == [None] * 100
+    fault = faults_of([saturated(2048 + 80, pwm=450, limit=500)] * 31, servo=2)[-1]
+    assert fault is not None and fault.servo_id == 2
+    assert faults_of([saturated(2048 + 80, pwm=440, limit=500)] * 100, servo=2) == [None] * 100
 
 
 @pytest.mark.parametrize(
@@ -173,9 +172,7 @@ def test_a_servo_saturated_off_its_goal_without_closing_in_is_blocked():
     ],
 )
 def test_a_servo_that_is_not_blocked_is_not_called_blocked(case, reports):
-    monitor = HealthMonitor()
-    faults = [monitor.observe(reads(s1=r), 0.005 * k).fault for k, r in enumerate(reports)]
-    assert faults == [None] * len(reports), case
+    assert faults_of(reports) == [None] * len(reports), case
 
 
 @pytest.mark.parametrize(

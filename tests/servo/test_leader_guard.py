@@ -106,10 +106,8 @@ def _pushed(log) -> bool:
 
 @contextmanager
 def _teleop(tmp_path, model, *options: str):
-    """``firmware-sim`` serving a rig and a felt leader (ids 3, 4) pressed by OPERATOR on a pty,
-    and ``limbctl teleop --source leader:3,4`` on it with ``model``; yields (teleop process,
-    link, leader log).
-    """
+    """A simulated rig and felt leader (ids 3, 4) pressed by OPERATOR, and ``limbctl teleop
+    --source leader:3,4`` with ``model`` on it; yields (teleop process, link, leader log)."""
     link, log, hand = tmp_path / "tty", tmp_path / "leader.jsonl", tmp_path / "hand.yaml"
     hand.write_text(json.dumps(OPERATOR))
     leader = ["--leader", "3,4", "--operator", str(hand), "--leader-log", str(log)]

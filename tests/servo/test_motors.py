@@ -146,6 +146,15 @@ def answering_id(sim):
     return sim.truth()["servos"][1]["id"]
 
 
+def asked(answers_as, previous, joint):
+    """What set-up asks when the servo of ``previous``, set up a moment ago, is still on."""
+    return (
+        f"The connected servo answers as ID {answers_as}, the {previous} joint's (set up a moment "
+        f"ago): connect only the {joint} servo and press Enter to look again, or type skip to "
+        f"leave {joint} for now: "
+    )
+
+
 def motors_setup(profile, port, *options, bauds=BAUDS):
     """``limbctl motors setup`` scanning only ``bauds`` (None: every rate, as by default)."""
     scan = [f"--scan-baud={baud}" for baud in bauds or ()]
@@ -201,11 +210,7 @@ def test_a_one_servo_bench_sets_up_pan_only_with_yes_renumbers_on_purpose_and_sk
     err = capsys.readouterr()
     assert answers_as == ids["pan"]
     for joint in others:
-        assert (
-            f"The connected servo answers as ID {ids['pan']}, the pan joint's (set up a moment "
-            f"ago): connect only the {joint} servo and press Enter to look again, or type skip "
-            f"to leave {joint} for now: "
-        ) in err.out
+        assert asked(ids["pan"], "pan", joint) in err.out
     assert err.err.splitlines()[-1] == f"set up: pan; skipped: {', '.join(others)}; failed: none"
     assert status == 1
 
@@ -273,11 +278,7 @@ def test_asked_again_the_person_connects_the_right_servo_and_every_joint_is_set_
         servos = sim.truth()["servos"]
     out, err = capsys.readouterr()
     for previous, joint in zip(joints, joints[1:]):
-        assert (
-            f"The connected servo answers as ID {ids[previous]}, the {previous} joint's (set up "
-            f"a moment ago): connect only the {joint} servo and press Enter to look again, or "
-            f"type skip to leave {joint} for now: "
-        ) in out
+        assert asked(ids[previous], previous, joint) in out
     assert {joint: servos[k + 1]["id"] for k, joint in enumerate(joints)} == ids
     assert err.splitlines()[-1] == f"set up: {', '.join(joints)}; failed: none"
     assert status == 0

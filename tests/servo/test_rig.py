@@ -104,10 +104,8 @@ def test_present_pose_matches_the_world_and_write_pose_reaches_it_clamped_and_lo
         truth = sim.truth()["joints_deg"]
         # the sim profile is the world's true geometry: within a tick of the truth
         assert len(pose) == len(rig)
-        for joint_name, angle in zip(rig.names, pose, strict=True):
-            assert math.degrees(angle) == pytest.approx(
-                truth[joint_name], abs=math.degrees(TICK_RAD)
-            )
+        want = [truth[joint_name] for joint_name in rig.names]
+        assert np.degrees(pose) == pytest.approx(want, abs=math.degrees(TICK_RAD))
         rig.configure(profile_velocity=0, profile_acceleration=0)
         # tilt beyond its limit; the roll inside its own
         target = (math.radians(30.0), math.radians(90.0), math.radians(-40.0))[: len(rig)]

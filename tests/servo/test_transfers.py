@@ -58,6 +58,7 @@ def test_failure_maps_results_to_typed_errors(result, error_type, fragment):
 def test_a_late_reply_is_never_read_as_the_next_registers_value():
     """A reply delayed past the timeout is refused by its size, never taken for the next one's."""
     wrong, late = [], 0
+    reads = ((Register.MODEL_NUMBER, ModelNumber.XL430_W250), (Register.ID, 1))
     with SimulatedBus(ids=(1,), baud=RIG_BAUD, latency_ms=6.0, latency_p=0.3, seed=3) as sim:
         port = transfers.TunedPortHandler(sim.port, latency_timer_ms=1.0)
         assert port.setBaudRate(RIG_BAUD)
@@ -65,10 +66,7 @@ def test_a_late_reply_is_never_read_as_the_next_registers_value():
         try:
             for k in range(150):
                 # a 2-byte register (model number 1060) between 1-byte ones (ID 1, LED k % 2)
-                for register, expected in (
-                    (Register.MODEL_NUMBER, ModelNumber.XL430_W250),
-                    (Register.ID, 1),
-                ):
+                for register, expected in reads:
                     outcome = transfers.read(packets, port, register, 1)
                     late += outcome.result != COMM_SUCCESS
                     if outcome.result == COMM_SUCCESS and outcome.value != expected:
