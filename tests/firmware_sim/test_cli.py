@@ -43,6 +43,15 @@ def sdk_at(port_name, baud: int) -> PortHandler:
     return port
 
 
+def await_voltage_error(packet, port, servo_id: int) -> None:
+    """Wait up to 5 s for ``servo_id``'s Hardware Error Status to be the input voltage bit alone."""
+
+    def voltage_error() -> bool:
+        return packet.read1ByteTxRx(port, servo_id, HARDWARE_ERROR)[0] == VOLTAGE_BIT
+
+    wait_for(voltage_error, 5, "an input voltage error")
+
+
 def run_main(arguments: list[str]) -> int:
     """The exit status of ``firmware-sim ARGUMENTS`` run in this process."""
     try:
@@ -149,10 +158,6 @@ def test_an_event_names_a_renumbered_servo_by_its_id(tmp_path, capsys):
         assert "ID 9 at 57600" in ready
         port, packet = sdk_at(link, 57_600), PacketHandler(2.0)
         # servo 9 sees 5 V, below the XL430's 6.0 V limit: input voltage error and the alert
-        wait_for(
-            lambda: packet.read1ByteTxRx(port, 9, HARDWARE_ERROR)[0] == VOLTAGE_BIT,
-            5,
-            "an input voltage error",
-        )
+        await_voltage_error(packet, port, 9)
         assert packet.read1ByteTxRx(port, 1, HARDWARE_ERROR) == (0, COMM_SUCCESS, 0)
         port.closePort()

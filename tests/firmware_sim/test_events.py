@@ -8,7 +8,7 @@ from dynamixel_sdk import COMM_RX_TIMEOUT, COMM_SUCCESS, PacketHandler
 from firmware_sim.control_table import Register
 from firmware_sim.events import EventSchedule, ScheduledEvent, parse_event
 from firmware_sim.wire import RIG_BAUD
-from tests.firmware_sim.test_cli import sdk_at, served
+from tests.firmware_sim.test_cli import await_voltage_error, sdk_at, served
 from tests.safety.support import wait_for
 
 ID, TORQUE_ENABLE, HARDWARE_ERROR, PRESENT_PWM = 7, 64, 70, 124
@@ -39,9 +39,7 @@ def test_a_schedule_applies_each_event_once_by_the_id_it_names_restart_and_push_
     stepped,
 ):
     sim, clock = stepped(ids=(1, 2))
-    schedule = EventSchedule(
-        [ScheduledEvent(2.0, "voltage", 1, 5.0), ScheduledEvent(1.0, "vanish", 2, 0.5)]
-    )
+    schedule = EventSchedule([parse_event("2:voltage:1:5"), parse_event("1:vanish:2:0.5")])
     schedule.check(sim)
     assert schedule.apply_due(sim) == 0
     clock.t = 1.0
@@ -118,11 +116,7 @@ def test_command_line_events_reach_the_servos(tmp_path):
         assert "ready" in ready
         port, packet = sdk_at(link, RIG_BAUD), PacketHandler(2.0)
         # servo 1 sees 5 V, below its 6.0 V limit: input voltage error and the alert
-        wait_for(
-            lambda: packet.read1ByteTxRx(port, 1, HARDWARE_ERROR)[0] == VOLTAGE_BIT,
-            5,
-            "an input voltage error",
-        )
+        await_voltage_error(packet, port, 1)
         assert packet.read1ByteTxRx(port, 1, TORQUE_ENABLE) == (0, COMM_SUCCESS, ALERT)
         # servo 2, pushed toward fewer ticks: its drive saturates positive (two's complement 885)
         assert packet.write1ByteTxRx(port, 2, TORQUE_ENABLE, 1)[:1] == (COMM_SUCCESS,)

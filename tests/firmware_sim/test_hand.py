@@ -177,10 +177,8 @@ def test_a_minute_of_the_hand_teaches_a_band_within_the_truth_or_names_what_is_m
 CONE20 = "region: {cone: {half_angle_deg: 20}}\n"
 VISIT = CONE20 + "visits: [{%s}]\n"
 SQUARE20 = "region: {polygon: [[-40, -30], [40, -30], [40, 50], [-40, 50]]}\n"  # tilt -30..50
-BAND, CURVED = (
-    SQUARE20 + "twist: {%s}\n",
-    SQUARE20 + "twist: {half_width_deg: {linear: [40, 0, 0], %s}}\n",
-)
+BAND = SQUARE20 + "twist: {%s}\n"
+CURVED = SQUARE20 + "twist: {half_width_deg: {linear: [40, 0, 0], %s}}\n"
 WIDTHS = f"within {MIN_HALF_WIDTH_DEG:g}..{MAX_HALF_WIDTH_DEG:g}"
 BAD_FILES = {
     "missing": (None, "cannot read the region file"),

@@ -30,12 +30,9 @@ def record(hand: Hand, seconds: float = 60.0, rate_hz: int = 100, seed: int = 0)
     return np.array(samples)
 
 
-def largest_boundary_gap(region, samples: np.ndarray, band_deg: float) -> float:
-    """Largest fraction of the perimeter with no sample within ``band_deg`` of the edge."""
-    depth = region.edge_distance_deg(samples[:, 0], samples[:, 1])
-    u = np.sort(
-        region.boundary_fraction(samples[depth < band_deg, 0], samples[depth < band_deg, 1])
-    )
+def perimeter_gap(region, poses: np.ndarray) -> float:
+    """Largest fraction of the perimeter that no pose of ``poses`` (M, 2) deg lies along."""
+    u = np.sort(region.boundary_fraction(poses[:, 0], poses[:, 1]))
     return float(np.max(np.diff(np.concatenate([u, u[:1] + 1.0]))))
 
 
@@ -81,7 +78,7 @@ def test_a_wandering_minute_stays_in_covers_edge_and_interior_dense_in_the_middl
     near = samples[depth < 3.0]
     arcs = np.floor(region.boundary_fraction(near[:, 0], near[:, 1]) * 8).astype(int)
     assert set(arcs.tolist()) == set(range(8))
-    assert largest_boundary_gap(region, samples, 3.0) < 0.12
+    assert perimeter_gap(region, near) < 0.12
     # the interior
     p_lo, p_hi, t_lo, t_hi = region.bbox_deg
     cells = np.stack(np.meshgrid(np.arange(p_lo, p_hi, 5.0), np.arange(t_lo, t_hi, 5.0)), -1)
@@ -115,8 +112,7 @@ def test_the_default_hand_takes_hold_traces_the_whole_edge_at_a_persons_pace_the
     depth = region.edge_distance_deg(samples[:, 0], samples[:, 1])
     assert np.all(depth[tracing] < 2.5)
     # ... goes all the way round (no stretch of more than 2 % of the perimeter left out) ...
-    u = np.sort(region.boundary_fraction(samples[tracing, 0], samples[tracing, 1]))
-    assert np.max(np.diff(np.concatenate([u, u[:1] + 1.0]))) < 0.02
+    assert perimeter_gap(region, samples[tracing]) < 0.02
     # ... in one lap: its duration is the perimeter at a person's pace
     assert region.perimeter_deg / 20.0 < end - start < region.perimeter_deg / 10.0
     # then wanders through the middle: deep poses, none of them on the edge band any more

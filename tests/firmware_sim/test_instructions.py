@@ -60,16 +60,12 @@ def test_every_instruction_and_error_number_through_the_sdk(sdk, sim):
     assert ok(p.write4ByteTxRx(port, 1, GOAL_POSITION, 3500)) == 6  # data limit
     assert ok(p.write1ByteTxRx(port, 1, OPERATING_MODE, 1)) == 7  # EEPROM locked by torque
     assert ok(p.write2ByteTxRx(port, 1, 0, 5)) == 7  # model number is read-only
-    data, comm, error = p.readTxRx(port, 1, 150, 4)  # nothing defined at 150..153
-    assert (comm, error) == (COMM_SUCCESS, 7)
+    assert ok(p.readTxRx(port, 1, 150, 4)) == 7  # nothing defined at 150..153
     assert ok(p.write1ByteTxRx(port, 1, TORQUE_ENABLE, 0)) == 0
     assert ok(p.write1ByteTxRx(port, 1, OPERATING_MODE, 2)) == 4  # no mode 2 on the XL430
-    # undefined instruction 0x7F
-    _, comm, error = p.txRxPacket(port, [0, 0, 0, 0, 1, 3, 0, 0x7F, 0, 0])
-    assert (comm, error) == (COMM_SUCCESS, 2)
+    assert ok(p.txRxPacket(port, [0, 0, 0, 0, 1, 3, 0, 0x7F, 0, 0])) == 2  # no instruction 0x7F
     # ACTION without REG_WRITE, read back with pyserial: error 2
-    reply = raw_exchange(port.port_name, build_packet(1, Instruction.ACTION), 11)
-    assert reply[8] == 2
+    assert raw_exchange(port.port_name, build_packet(1, Instruction.ACTION), 11)[8] == 2
     bad = bytearray(build_packet(1, Instruction.READ, bytes([PRESENT_POSITION, 0, 4, 0])))
     bad[-1] ^= 0xFF
     reply = raw_exchange(port.port_name, bytes(bad), 11)

@@ -98,7 +98,6 @@ def test_parser_resynchronises_after_junk_partial_corrupt_stale_and_impossible_p
     assert events == [InstructionPacket(1, Instruction.PING, b"")]
     assert parser.junk_bytes >= len(junk)
     parser = PacketParser(stale_after_s=0.05)
-    good = build_packet(1, Instruction.PING)
     assert list(parser.feed(good[:6], 0.0)) == []
     # the rest arrives far too late: the firmware had already given up on the fragment
     assert list(parser.feed(good[6:], 1.0)) == []

@@ -165,9 +165,8 @@ def test_the_hand_moves_only_the_free_joint_once_per_millisecond_substep_and_by_
     assert np.ptp(tilts) > 10.0
     assert world.hand_time_s == pytest.approx(5.0)
     # long steps split into millisecond substeps
-    fine, coarse = (
-        World(hand=Hand.from_yaml(REGIONS / "cone30.yaml", seed=6), seed=6) for _ in "ab"
-    )
+    fine = World(hand=Hand.from_yaml(REGIONS / "cone30.yaml", seed=6), seed=6)
+    coarse = World(hand=Hand.from_yaml(REGIONS / "cone30.yaml", seed=6), seed=6)
     run(fine, 2.0, OFF, dt=0.001)
     run(coarse, 2.0, OFF, dt=0.005)
     assert coarse.joint_angles_deg() == pytest.approx(fine.joint_angles_deg(), abs=1e-9)
@@ -236,19 +235,17 @@ def test_the_roll_joint_tracks_like_the_others_and_the_chain_quat_is_the_product
     assert np.allclose(q, chain_quat(*(math.radians(angles[k]) for k in ("pan", "tilt", "roll"))))
     rng = np.random.default_rng(3)
     for pan, tilt, roll in rng.uniform([-3, -1.5, -3], [3, 1.5, 3], size=(200, 3)):
-        assert np.allclose(
-            chain_quat(pan, tilt, roll), chain_by_products(pan, tilt, roll), atol=1e-12
-        )
-        twist = math.degrees(twist_about_x(np.array(chain_quat(pan, tilt, roll))))
+        q = np.array(chain_quat(pan, tilt, roll))
+        assert np.allclose(q, chain_by_products(pan, tilt, roll), atol=1e-12)
+        twist = math.degrees(twist_about_x(q))
         expected = math.degrees(roll + chain_twist(pan, tilt))
         assert wrap_deg(twist - expected) == pytest.approx(0.0, abs=1e-9)
         # the roll that gives a twist undoes the chain's own twist
         back = roll_for_twist_deg(math.degrees(pan), math.degrees(tilt), twist)
         assert wrap_deg(back - math.degrees(roll)) == pytest.approx(0.0, abs=1e-9)
     for pan, tilt, tau in ((30, 30, 8.2), (60, 45, 26.9), (90, 60, 60.0)):  # the figures
-        assert math.degrees(chain_twist(math.radians(pan), math.radians(tilt))) == pytest.approx(
-            tau, abs=0.05
-        )
+        figure = math.degrees(chain_twist(math.radians(pan), math.radians(tilt)))
+        assert figure == pytest.approx(tau, abs=0.05)
     # +-180 wraps to +180
     assert [wrap_deg(a) for a in (180.0, -180.0, -540.0)] == [180.0, 180.0, 180.0]
     assert wrap_deg(190.0) == pytest.approx(-170.0)

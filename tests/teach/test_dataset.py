@@ -111,16 +111,13 @@ def corrupt_byte(lines):
 
 
 def header_line(**changes):
-    header = {
-        "format": FORMAT_NAME,
-        "version": 1,
-        "rig": "sim",
-        "created": "now",
-        "columns": list(COLUMNS),
-        "meta": {},
-    }
-    header.update(changes)
+    header = {"format": FORMAT_NAME, "version": 1, "rig": "sim", "created": "now"}
+    header |= {"columns": list(COLUMNS), "meta": {}, **changes}
     return _seal(json.dumps(header), 0)[0]
+
+
+#: A header's calibration of one axis (zero tick 1 of 0..4095).
+AXIS = {"zero_tick": 1, "direction": 1, "min_deg": -1, "max_deg": 1}
 
 
 def non_unit_quaternion_file() -> bytes:
@@ -147,12 +144,7 @@ def non_unit_quaternion_file() -> bytes:
         (non_unit_quaternion_file(), "line 2: quaternion is not unit length"),
         (header_line(calibration={"pan": {}}), "line 1: calibration is missing tilt"),
         (
-            header_line(
-                calibration={
-                    "pan": {"zero_tick": 9999, "direction": 1, "min_deg": -1, "max_deg": 1},
-                    "tilt": {"zero_tick": 1, "direction": 1, "min_deg": -1, "max_deg": 1},
-                }
-            ),
+            header_line(calibration={"pan": {**AXIS, "zero_tick": 9999}, "tilt": AXIS}),
             re.escape("line 1: calibration.pan.zero_tick must be in 0..4095, got 9999"),
         ),
         (header_line(calibration="x" * 100_000), "line 1: calibration must be a mapping"),

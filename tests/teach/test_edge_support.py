@@ -2,6 +2,7 @@
 finding 1), checked in a worker process on a hand's teaching of a notched ellipse."""
 
 import os
+from functools import partial
 
 import numpy as np
 import pytest
@@ -110,12 +111,9 @@ SHALLOW = Stretch(-12.0, 20.0, 1.8, 3.0, held=True)
 DEEP = Stretch(-5.0, -15.0, SETTLED_DEG + 0.5, 6.0, held=True)
 
 
-def shallow_only(d: np.ndarray) -> tuple[Stretch, ...]:
-    return (SHALLOW,)
-
-
-def shallow_and_deep(d: np.ndarray) -> tuple[Stretch, ...]:
-    return (SHALLOW, DEEP)
+def found(stretches: tuple[Stretch, ...], d: np.ndarray) -> tuple[Stretch, ...]:
+    """A check that finds ``stretches`` whatever the samples (bound with functools.partial)."""
+    return stretches
 
 
 def test_a_held_stretch_the_samples_stand_near_is_settled_and_ready_stands_saying_so(
@@ -123,14 +121,14 @@ def test_a_held_stretch_the_samples_stand_near_is_settled_and_ready_stands_sayin
 ):
     assert SHALLOW.settled and not DEEP.settled
     assert not Stretch(0.0, 0.0, 1.8, 3.0).settled, "an unheld stretch was settled"
-    with EdgeSupport(shallow_only) as support:
+    with EdgeSupport(partial(found, (SHALLOW,))) as support:
         guidance = guide_of(taught, support).assess(final=True)
     assert guidance.ready and guidance.unsupported == () and guidance.settled == (SHALLOW,)
     assert "READY TO TRAIN (edge held at the samples in 1 places)" in guidance.line()
     lines = RecordSummary(guidance=guidance, edge_checked=True).lines()
     assert any(line.startswith("edge held") and "pan -12, tilt 20" in line for line in lines)
     assert not any(line.startswith("edge unsupported") for line in lines)
-    with EdgeSupport(shallow_and_deep) as support:
+    with EdgeSupport(partial(found, (SHALLOW, DEEP))) as support:
         guidance = guide_of(taught, support).assess(final=True)
     assert not guidance.ready and guidance.unsupported == (DEEP,)
     assert "trace the edge near pan -5, tilt -15" in guidance.line()

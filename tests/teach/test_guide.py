@@ -116,11 +116,8 @@ def test_a_traced_edge_and_a_filled_middle_are_ready_collected_too_a_few_samples
     assert guide.samples == len(d)
     collected = guide.assess()
     assert collected.samples == g.samples == len(d)
-    assert (collected.edge_closed, collected.inside_covered, collected.phase) == (
-        g.edge_closed,
-        g.inside_covered,
-        g.phase,
-    )
+    for name in ("edge_closed", "inside_covered", "phase"):
+        assert getattr(collected, name) == getattr(g, name), name
     assert collected.centre_deg == pytest.approx(g.centre_deg, abs=1e-9)
     # a few samples say nothing yet, and bad input is refused
     few = assess_directions(times(5), trace(0.0, 10.0)[:5])

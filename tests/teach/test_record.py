@@ -215,9 +215,7 @@ def test_a_hole_in_the_recording_over_the_edge_trace_is_listed_and_asks_for_a_re
 
 @pytest.mark.parametrize("shown", ["summary", "live line"])
 def test_the_summary_and_the_live_line_say_ready_only_when_the_twist_guide_is_satisfied_too(shown):
-    """Issue 35: the three-servo demo's summary said READY TO TRAIN while its twist guide still
-    asked for six places and train listed 132 stretches of the band it could not support; the
-    recorder's line withholds it too while the twist is not complete."""
+    """Issue 35: no READY TO TRAIN while the twist guide still asks or has not checked support."""
     ready = Guidance(1000, "ready", 1.0, 1.0, (), (), True, (0.0, 0.0), 30.0)
     asking = TwistGuidance(3, 2, 80.0, (10.0, 5.0, 20.0))
     unchecked = TwistGuidance(4, 4, 80.0, (7.5, 7.5, 80.0))  # every place turned, not checked

@@ -8,11 +8,11 @@ import pytest
 
 from calib.profile import default_sim_profile
 from limbctl.envelope import Cone, RigidMap, build_model, load_header, load_model
-from limbctl.envelope.synthetic import NOTCH, PolygonRegion, to_quaternions
+from limbctl.envelope.synthetic import NOTCH, PolygonRegion, rounded, to_quaternions
 from limbctl.errors import ConfigError
-from limbctl.file_jobs import plot_files
+from limbctl.file_jobs import model_options, plot_files
 from limbctl.geometry.gimbal import direction_to_pan_tilt
-from limbctl.geometry.quat import limb_direction
+from limbctl.geometry.quat import limb_direction, swing_from_direction
 from limbctl.geometry.twist import decompose
 from limbctl.region import RegionParams
 from limbctl.region import taught as taught_region
@@ -62,7 +62,6 @@ def test_train_a_cone_and_a_rigidmap_read_back_plotted_with_the_recordings_calib
     assert metadata["calibration"] == calibration.to_dict()
     assert summary.calibration_recorded
     assert not any("calibration" in line for line in summary.lines())
-
     older = write_cone_dataset(tmp_path / "older.limb", n=50)  # no calibration recorded
     summary = train(older, tmp_path / "older.npz", kind="cone")
     assert "calibration" not in load_header(tmp_path / "older.npz")["metadata"]
@@ -85,7 +84,6 @@ def test_too_few_samples_and_unknown_kinds_are_refused_and_kinds_come_from_one_r
     from limbctl.envelope import MODEL_KINDS, model_class
     from limbctl.eval.experiments import build_model as eval_build_model
     from limbctl.eval.grids import ModelSpec
-    from limbctl.file_jobs import model_options
 
     assert MODEL_KINDS == ("rigidmap", "som", "cone")
     assert model_class("rigidmap") is RigidMap
@@ -98,13 +96,10 @@ def test_too_few_samples_and_unknown_kinds_are_refused_and_kinds_come_from_one_r
     assert model_options("cone", 7, nodes=None, layout=None) == {}
     with pytest.raises(ConfigError, match="--nodes and --layout apply to --kind rigidmap only"):
         model_options("cone", 0, nodes=50, layout=None)
+    kmeans, cone = (ModelSpec(label=k, kind=k, options=(), answers=()) for k in ("kmeans", "cone"))
     with pytest.raises(ConfigError, match="rigidmap, som, cone"):
-        eval_build_model(
-            ModelSpec(label="k", kind="kmeans", options=(), answers=()), seed=0, range_deg=30.0
-        )
-    assert isinstance(
-        eval_build_model(ModelSpec(label="c", kind="cone", options=(), answers=()), 0, 30.0), Cone
-    )
+        eval_build_model(kmeans, seed=0, range_deg=30.0)
+    assert isinstance(eval_build_model(cone, 0, 30.0), Cone)
 
 
 #: A shoulder whose twist band's centre turns with pan (1 deg a deg) and is 20 deg wide either
@@ -116,9 +111,7 @@ TURNING_BAND = {"half_low_deg": 20.0, "half_high_deg": 20.0, "centre_pan": 1.0, 
 def rig_model(request):
     """(rig, samples (N, 4), fitted Rigid Map) of the shoulder outline: on two servos its
     twist-free directions, on three the shoulder with TURNING_BAND."""
-    from limbctl.envelope.synthetic import rounded
     from limbctl.envelope.synthetic_twist import SHOULDER, ShoulderRegion
-    from limbctl.geometry.quat import swing_from_direction
 
     truth = ShoulderRegion(rounded(SHOULDER), centre_deg=0.0, **TURNING_BAND)
     q = truth.teaching(1500, 800, 1200, np.random.default_rng(0))

@@ -105,23 +105,19 @@ def test_no_warm_up_when_all_is_prepared_or_nothing_can_be_cached_and_prepare_sa
     assert "NUMBA_CACHE_DIR" in err
 
 
+#: Takes the lock file argv[1], says "locked", and holds it until a line comes on stdin.
+HOLD_LOCK = """import sys, fcntl
+lock = open(sys.argv[1], 'a+b'); fcntl.flock(lock, fcntl.LOCK_EX)
+print('locked', flush=True); sys.stdin.readline()
+"""
+
+
 def test_a_warm_up_stands_aside_while_another_holds_the_lock_and_prepare_waits_for_it(
     tmp_path, monkeypatch
 ):
     monkeypatch.setattr(jit, "cache_dir", lambda: Path(tmp_path))
-    holder = subprocess.Popen(
-        [
-            sys.executable,
-            "-c",
-            "import sys, fcntl\n"
-            "lock = open(sys.argv[1], 'a+b'); fcntl.flock(lock, fcntl.LOCK_EX)\n"
-            "print('locked', flush=True); sys.stdin.readline()\n",
-            str(tmp_path / "warming.lock"),
-        ],
-        stdin=subprocess.PIPE,
-        stdout=subprocess.PIPE,
-        text=True,
-    )
+    hold = [sys.executable, "-c", HOLD_LOCK, str(tmp_path / "warming.lock")]
+    holder = subprocess.Popen(hold, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
     told, got = threading.Event(), []
 
     def take() -> None:
