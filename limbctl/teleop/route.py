@@ -44,6 +44,9 @@ PROBE_ROWS = 64
 STUCK_FRACTION = 0.25
 #: A pose this close (rad) to a path or point is on it: far above rounding, far below a step.
 ON_PATH = 1e-9
+#: The same on the way to a route point (rad): the gate may correct a step up to
+#: VISIBLE_SLACK_DEG off a path judged inside, which lengthens the way by at most twice that.
+AIM_SLACK = 2.0 * math.radians(VISIBLE_SLACK_DEG)
 
 
 class Router:
@@ -122,9 +125,10 @@ class Router:
         """Whether ``target_q`` is within REUSE_SPACINGS lattice spacings of ``before``."""
         return self._distance(before, target_q) <= math.radians(REUSE_SPACINGS * LATTICE_STEP_DEG)
 
-    def _on_path(self, a: np.ndarray, p: np.ndarray, b: np.ndarray) -> bool:
-        """Whether pose ``p`` lies on the straight path from ``a`` to ``b`` (all (4,))."""
-        return self._distance(a, p) + self._distance(p, b) - self._distance(a, b) <= ON_PATH
+    def _on_path(self, a: np.ndarray, p: np.ndarray, b: np.ndarray, slack=ON_PATH) -> bool:
+        """Whether pose ``p`` lies on the straight path from ``a`` to ``b`` (all (4,)): the way
+        through it at most ``slack`` (rad) longer."""
+        return self._distance(a, p) + self._distance(p, b) - self._distance(a, b) <= slack
 
     def _distance_rows(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """Distances (rad) row by row of (N, 4) poses."""
@@ -206,7 +210,8 @@ class Router:
         if self._aim is not None and self._near_target(self._aim[0], target_q):
             _, start, aim, first = self._aim
             # still on the way to the last route point, and not yet half way: keep aiming there
-            if self._on_path(start, current_q, aim) and self._distance(current_q, aim) > first / 2:
+            on_way = self._on_path(start, current_q, aim, AIM_SLACK)
+            if on_way and self._distance(current_q, aim) > first / 2:
                 return aim
         self._straight = self._aim = None
         if self.clear(current_q, target_q):

@@ -281,6 +281,21 @@ def test_a_fitted_three_servo_route_point_outside_takes_the_nearest_twist_inside
     assert drive(gate, region, 3, b, int(bound(length)) + 1) is not None
 
 
+def test_a_fitted_three_servo_route_point_is_kept_when_a_step_is_corrected_off_the_way():
+    """A step toward a route point that the gate corrects a hair off the straight way keeps that
+    aim: recomputed there, the route turned back and the gate swung between two poses 15 deg
+    from the target (benchmark seed 2077's fitted region, its first pair)."""
+    from limbctl.region.twist_region import TwistRegion
+
+    truth, rng = region_for(3, 2077)
+    region = TwistRegion().fit(teaching(truth, 60.0, rng))
+    pts = inside_points(truth, 100, np.random.default_rng(2078))
+    a, b = pts[np.asarray(region.contains(pts), dtype=bool)][:2]
+    gate = gate_at(region, 3, a)
+    length = needed(InsidePaths(truth), a, b, 3)
+    assert drive(gate, region, 3, b, int(bound(length)) + 1) is not None
+
+
 GATE_FIRST_CALLS = (
     COUNTER
     + r"""
