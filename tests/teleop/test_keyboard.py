@@ -307,11 +307,12 @@ def test_up_against_a_slanted_edge_slides_without_running_on_and_down_answers_at
     assert written_deg(start) == pytest.approx((10.0, 0.0), abs=0.5)  # the start was read
     stopped = [c for c in at_edge if c.result.corrected]
     assert len(stopped) >= 4, "the presses never reached the edge"
-    # how far the command ran ahead of the written pose once the limb had settled
+    # how far the command ran ahead of the written pose once the limb had settled (a cycle whose
+    # read failed holds and writes nothing: its pose says nothing of the command's lead)
     leads = [
         max(abs(a - b) for a, b in zip(c.command_deg, written_deg(c), strict=True))
         for c in pressed
-        if c.result is not None and not c.result.slewed and c.command_deg is not None
+        if c.written and not c.result.slewed and c.command_deg is not None
     ]
     top = written_deg(at_edge[-1])
     lowered = top[1] - written_deg(down)[1]
