@@ -125,7 +125,7 @@ class Router:
         """Whether ``target_q`` is within REUSE_SPACINGS lattice spacings of ``before``."""
         return self._distance(before, target_q) <= math.radians(REUSE_SPACINGS * LATTICE_STEP_DEG)
 
-    def _on_path(self, a: np.ndarray, p: np.ndarray, b: np.ndarray, slack=ON_PATH) -> bool:
+    def _on_path(self, a: np.ndarray, p: np.ndarray, b: np.ndarray, slack: float = ON_PATH) -> bool:
         """Whether pose ``p`` lies on the straight path from ``a`` to ``b`` (all (4,)): the way
         through it at most ``slack`` (rad) longer."""
         return self._distance(a, p) + self._distance(p, b) - self._distance(a, b) <= slack
