@@ -24,7 +24,9 @@ learned by ``RigidMap(twist=True)`` as ``limbctl train`` builds it. Per teaching
   a lattice of directions, PROBE_TWISTS twists each) the learned region contains;
 - correction: ``correct()``'s mean and p95 geodesic error (deg) to the true nearest orientation
   (brute force over the true boundary sampled TRUTH_STEP_DEG apart) for commands outside, up to
-  30 deg;
+  30 deg; and how much farther from the command the answer lies than that nearest orientation
+  (mean, deg): where two places of the true boundary lie almost equally near a command, a small
+  difference of shape moves the answer far from the true nearest at almost no extra distance;
 - guide: whether the teaching would be called complete: the twist guide turned every place
   both ways (:class:`limbctl.teach.twist_guide.TwistGuide`) and the learned band lists no place
   the evidence could not support (:func:`limbctl.region.twist_evidence.unsupported_places`).
@@ -238,7 +240,9 @@ def measure(
     chord, idx = tree.query(q)
     dist = 4.0 * np.arcsin(np.clip(chord / 2.0, 0.0, 1.0))
     outside = ~truth.contains(q) & (dist <= math.radians(30.0))
-    err = np.degrees(geodesic_distance(model.correct(q[outside]), tree.data[idx[outside]]))
+    answer = model.correct(q[outside])
+    err = np.degrees(geodesic_distance(answer, tree.data[idx[outside]]))
+    farther = np.degrees(geodesic_distance(answer, q[outside]) - dist[outside])
     # the guide: every place turned both ways, no unsupported stretch
     guide = TwistGuide()
     for row in q_taught:
@@ -254,6 +258,7 @@ def measure(
         "coverage": coverage,
         "err_mean": float(err.mean()),
         "err_p95": float(np.percentile(err, 95)),
+        "farther_mean": float(farther.mean()),
         "complete": (told.cells > 0 and told.turned == told.cells and not places and not stretches),
         "places": len(places),
         "stretches": len(stretches),
@@ -289,7 +294,8 @@ def _line(r: dict) -> str:
     return (
         f"{r['family']} seed {r['seed']} {r['teaching']}: swing +{r['swing_excess']:.2f}, twist "
         f"+{r['twist_excess']:.2f} deg, coverage {100 * r['coverage']:.2f} %, error "
-        f"{r['err_mean']:.3f} (p95 {r['err_p95']:.2f}), complete {r['complete']} "
+        f"{r['err_mean']:.3f} (p95 {r['err_p95']:.2f}, {r['farther_mean']:+.3f} farther), "
+        f"complete {r['complete']} "
         f"({r['places']} places, {r['stretches']} edge stretches), taught inside "
         f"{100 * r['inside']:.1f} %, {r['seconds']:.0f} s"
     )
@@ -310,20 +316,24 @@ def write(rows: list[dict], path: Path, quick: bool, command: str) -> None:
         "i.i.d. samples and by the simulator hand's paths, learned by `RigidMap(twist=True)`. "
         "Excess: how far the learned region reaches past the truth (target <= 1 deg); coverage: "
         "the true region 2 deg inside held; error: `correct()` to the true nearest orientation "
-        "(target mean <= 0.5 deg); complete: the guide would say READY (every place turned both "
+        "(target mean <= 0.5 deg); farther: how much farther from the command the answer lies "
+        "than the true nearest (near ties of the true boundary move the answer far at almost no "
+        "cost); complete: the guide would say READY (every place turned both "
         "ways, no unsupported stretch); places: stretches the band could not support; edge: "
         "stretches of the swing edge the samples do not reach, settled ones not counted "
         "(limbctl/teach/edge_support.py).",
         "",
         "| family | seed | teaching | samples | swing excess (deg) | twist excess (deg) "
-        "| coverage 2 deg inside | error mean (deg) | p95 | complete | places | edge |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "| coverage 2 deg inside | error mean (deg) | p95 | farther than the nearest, mean (deg) "
+        "| complete | places | edge |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         lines.append(
             f"| {r['family']} | {r['seed']} | {r['teaching']} | {r['samples']} | "
             f"{r['swing_excess']:.2f} | **{r['twist_excess']:.2f}** | {100 * r['coverage']:.2f} % "
-            f"| {r['err_mean']:.3f} | {r['err_p95']:.2f} | {'yes' if r['complete'] else 'no'} "
+            f"| {r['err_mean']:.3f} | {r['err_p95']:.2f} | {r['farther_mean']:+.3f} "
+            f"| {'yes' if r['complete'] else 'no'} "
             f"| {r['places']} | {r['stretches']} |"
         )
     lines += ["", "## Per family", ""]
